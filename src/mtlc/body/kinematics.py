@@ -1,0 +1,323 @@
+"""Batched forward kinematics, Jacobians and centre of mass.
+
+Everything takes joint angles ``q`` of shape ``(..., n_dofs)`` and works on any number of
+leading batch dimensions (frames, restarts, manikins of the same topology) at once, because
+per-call overhead dominates small numpy work: one call over 1,000 configurations costs about
+what ten single calls cost.
+
+The rule is the IR's (``shared/design/IR.md``): ``W_j = W_parent · T(offset_j) · R(a_1, q_1) ·
+R(a_2, q_2) · …``; the root starts from the root position and unit quaternion (w, x, y, z).
+Jacobian columns for angle ``q_k`` are ``a_k × (p − o_k)`` (position) and ``a_k`` (orientation),
+with ``a_k`` the dof's world axis and ``o_k`` its joint's world position. Root columns, when
+asked for, are the world translation (x, y, z) then a small world-frame rotation (x, y, z)
+about the root position.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .skeleton import Skeleton
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Pose:
+    """World frames of every joint for a batch of configurations.
+
+    ``R`` (..., J, 3, 3) rotations, ``p`` (..., J, 3) positions, ``axes`` (..., D, 3) the world
+    axis of each degree of freedom, ``root`` (..., 3) the root position.
+    """
+
+    R: FloatArray
+    p: FloatArray
+    axes: FloatArray
+    root: FloatArray
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        """Leading batch dimensions."""
+        return self.p.shape[:-2]
+
+
+def quat_to_matrix(quat: ArrayLike) -> FloatArray:
+    """Rotation matrices from quaternions (..., 4), w first; normalised on the way."""
+    qa = np.asarray(quat, dtype=float)
+    qa = qa / np.linalg.norm(qa, axis=-1, keepdims=True)
+    w, x, y, z = qa[..., 0], qa[..., 1], qa[..., 2], qa[..., 3]
+    out = np.empty((*qa.shape[:-1], 3, 3))
+    out[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    out[..., 0, 1] = 2 * (x * y - w * z)
+    out[..., 0, 2] = 2 * (x * z + w * y)
+    out[..., 1, 0] = 2 * (x * y + w * z)
+    out[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    out[..., 1, 2] = 2 * (y * z - w * x)
+    out[..., 2, 0] = 2 * (x * z - w * y)
+    out[..., 2, 1] = 2 * (y * z + w * x)
+    out[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
+
+
+def matrix_to_quat(R: ArrayLike) -> FloatArray:
+    """Unit quaternions (..., 4), w first and w >= 0, from rotation matrices (..., 3, 3)."""
+    m = np.asarray(R, dtype=float)
+    t = np.trace(m, axis1=-2, axis2=-1)
+    cands = np.stack(
+        [
+            np.stack(
+                [
+                    1 + t,
+                    m[..., 2, 1] - m[..., 1, 2],
+                    m[..., 0, 2] - m[..., 2, 0],
+                    m[..., 1, 0] - m[..., 0, 1],
+                ],
+                -1,
+            ),
+            np.stack(
+                [
+                    m[..., 2, 1] - m[..., 1, 2],
+                    1 + 2 * m[..., 0, 0] - t,
+                    m[..., 0, 1] + m[..., 1, 0],
+                    m[..., 0, 2] + m[..., 2, 0],
+                ],
+                -1,
+            ),
+            np.stack(
+                [
+                    m[..., 0, 2] - m[..., 2, 0],
+                    m[..., 0, 1] + m[..., 1, 0],
+                    1 + 2 * m[..., 1, 1] - t,
+                    m[..., 1, 2] + m[..., 2, 1],
+                ],
+                -1,
+            ),
+            np.stack(
+                [
+                    m[..., 1, 0] - m[..., 0, 1],
+                    m[..., 0, 2] + m[..., 2, 0],
+                    m[..., 1, 2] + m[..., 2, 1],
+                    1 + 2 * m[..., 2, 2] - t,
+                ],
+                -1,
+            ),
+        ],
+        -2,
+    )
+    diag = np.stack([t, m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]], -1)
+    k = np.argmax(diag, axis=-1)
+    q = np.take_along_axis(cands, k[..., None, None], axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def axis_angle(axes: ArrayLike, angles: ArrayLike) -> FloatArray:
+    """Rotation matrices R(a, θ) (..., 3, 3) by Rodrigues' formula; axes must be unit."""
+    a = np.asarray(axes, dtype=float)
+    th = np.asarray(angles, dtype=float)
+    s, c = np.sin(th)[..., None, None], np.cos(th)[..., None, None]
+    K = skew(a)
+    return np.eye(3) + s * K + (1 - c) * (K @ K)
+
+
+def skew(v: ArrayLike) -> FloatArray:
+    """Cross-product matrices [v]× of shape (..., 3, 3)."""
+    va = np.asarray(v, dtype=float)
+    z = np.zeros(va.shape[:-1])
+    x, y, w = va[..., 0], va[..., 1], va[..., 2]
+    return np.stack(
+        [np.stack([z, -w, y], -1), np.stack([w, z, -x], -1), np.stack([-y, x, z], -1)], -2
+    )
+
+
+def rotation_error(R_target: ArrayLike, R: ArrayLike) -> FloatArray:
+    """Axis·angle (..., 3) of the world rotation taking ``R`` to ``R_target``."""
+    D = np.asarray(R_target) @ np.swapaxes(np.asarray(R), -1, -2)
+    v = 0.5 * np.stack(
+        [D[..., 2, 1] - D[..., 1, 2], D[..., 0, 2] - D[..., 2, 0], D[..., 1, 0] - D[..., 0, 1]], -1
+    )
+    s = np.linalg.norm(v, axis=-1)
+    c = 0.5 * (np.trace(D, axis1=-2, axis2=-1) - 1)
+    ang = np.arctan2(s, c)
+    scale = np.where(s > 1e-12, ang / np.maximum(s, 1e-300), 1.0)
+    out = v * scale[..., None]
+    # Near pi the antisymmetric part vanishes: take the axis from the symmetric part.
+    near_pi = (s < 1e-6) & (c < 0)
+    if np.any(near_pi):
+        out = np.array(out, copy=True)
+        for idx in np.ndindex(near_pi.shape):
+            if not near_pi[idx]:
+                continue
+            Bm = 0.5 * (D[idx] + D[idx].T)  # = -I + 2 a a^T at an angle of pi
+            i = int(np.argmax(np.diagonal(Bm)))
+            col = Bm[:, i] + np.eye(3)[i]
+            out[idx] = np.pi * col / np.linalg.norm(col)
+    return out
+
+
+def _root_inputs(
+    skel: Skeleton,
+    batch: tuple[int, ...],
+    root_position: ArrayLike | None,
+    root_rotation: ArrayLike | None,
+) -> tuple[FloatArray, FloatArray]:
+    rp = skel.root_position if root_position is None else np.asarray(root_position, dtype=float)
+    rp = np.broadcast_to(rp, (*batch, 3))
+    if root_rotation is None:
+        RR = np.broadcast_to(np.eye(3), (*batch, 3, 3))
+    else:
+        rr = np.asarray(root_rotation, dtype=float)
+        RR = quat_to_matrix(rr) if rr.shape[-1] == 4 else rr
+        RR = np.broadcast_to(RR, (*batch, 3, 3))
+    return rp, RR
+
+
+def forward(
+    skel: Skeleton,
+    q: ArrayLike,
+    root_position: ArrayLike | None = None,
+    root_rotation: ArrayLike | None = None,
+) -> Pose:
+    """Forward kinematics of every joint for a batch of configurations.
+
+    ``q`` is (..., n_dofs); ``root_position`` (..., 3) defaults to standing on the ground;
+    ``root_rotation`` is a quaternion (..., 4) w first, or a matrix (..., 3, 3).
+    """
+    qa = np.asarray(q, dtype=float)
+    if qa.shape[-1] != skel.n_dofs:
+        raise ValueError(f"q has {qa.shape[-1]} angles, the skeleton has {skel.n_dofs}")
+    batch = qa.shape[:-1]
+    rp, RR = _root_inputs(skel, batch, root_position, root_rotation)
+    Rd = axis_angle(skel.dof_axis, qa)  # (..., D, 3, 3)
+    nj = skel.n_joints
+    R = np.empty((*batch, nj, 3, 3))
+    p = np.empty((*batch, nj, 3))
+    axes = np.empty((*batch, skel.n_dofs, 3))
+    for j in range(nj):
+        pj = int(skel.parent[j])
+        if pj < 0:
+            Rw, pw = RR, rp + RR @ skel.offsets[j]
+        else:
+            Rw = R[..., pj, :, :]
+            pw = p[..., pj, :] + Rw @ skel.offsets[j]
+        s = int(skel.joint_dof_start[j])
+        for k in range(s, s + int(skel.joint_dof_count[j])):
+            axes[..., k, :] = Rw @ skel.dof_axis[k]
+            Rw = Rw @ Rd[..., k, :, :]
+        R[..., j, :, :] = Rw
+        p[..., j, :] = pw
+    return Pose(R=R, p=p, axes=axes, root=np.array(rp))
+
+
+def site_positions(skel: Skeleton, pose: Pose, names: Sequence[str] | str) -> FloatArray:
+    """World positions (..., S, 3) of named sites (or (..., 3) for one name)."""
+    single = isinstance(names, str)
+    nl = [names] if isinstance(names, str) else list(names)
+    js = [skel.joint_index(skel.site(n).joint) for n in nl]
+    offs = np.array([skel.site(n).offset for n in nl], dtype=float)
+    out = pose.p[..., js, :] + np.einsum("...sij,sj->...si", pose.R[..., js, :, :], offs)
+    return out[..., 0, :] if single else out
+
+
+def site_rotation(skel: Skeleton, pose: Pose, name: str) -> FloatArray:
+    """World orientation (..., 3, 3) of the frame a site is fixed in."""
+    return pose.R[..., skel.joint_index(skel.site(name).joint), :, :]
+
+
+def site_direction(skel: Skeleton, pose: Pose, name: str) -> FloatArray:
+    """World direction (..., 3) of an aiming site (e.g. the gaze)."""
+    st = skel.site(name)
+    if st.direction is None:
+        raise ValueError(f"site {name} has no direction")
+    return site_rotation(skel, pose, name) @ np.asarray(st.direction, dtype=float)
+
+
+def point_jacobian(
+    skel: Skeleton,
+    pose: Pose,
+    joint: int,
+    point: FloatArray,
+    *,
+    orientation: bool = False,
+    root: bool = False,
+) -> FloatArray:
+    """Jacobian (..., 3|6, D[+6]) of a world point rigidly attached to ``joint``.
+
+    Columns of dofs that do not move the joint are zero.
+    """
+    mask = skel.ancestor[joint][skel.dof_joint]  # (D,)
+    origins = pose.p[..., skel.dof_joint, :]
+    Jp = np.cross(pose.axes, point[..., None, :] - origins) * mask[:, None]
+    Jp = np.swapaxes(Jp, -1, -2)
+    blocks = [Jp]
+    if orientation:
+        blocks = [np.concatenate([Jp, np.swapaxes(pose.axes * mask[:, None], -1, -2)], axis=-2)]
+    J = blocks[0]
+    if root:
+        batch = pose.batch_shape
+        rows = J.shape[-2]
+        Jr = np.zeros((*batch, rows, 6))
+        Jr[..., :3, :3] = np.eye(3)
+        Jr[..., :3, 3:] = -_skew_batch(point - pose.root)
+        if orientation:
+            Jr[..., 3:, 3:] = np.eye(3)
+        J = np.concatenate([J, Jr], axis=-1)
+    return J
+
+
+def _skew_batch(v: FloatArray) -> FloatArray:
+    return skew(v)
+
+
+def jacobian(
+    skel: Skeleton,
+    pose: Pose,
+    site: str,
+    *,
+    orientation: bool = False,
+    root: bool = False,
+) -> FloatArray:
+    """Jacobian (..., 3 or 6, n_dofs [+6]) of a site: position rows, then orientation rows."""
+    j = skel.joint_index(skel.site(site).joint)
+    pt = site_positions(skel, pose, site)
+    return point_jacobian(skel, pose, j, pt, orientation=orientation, root=root)
+
+
+def segment_coms(skel: Skeleton, pose: Pose) -> FloatArray:
+    """World centre of mass (..., J, 3) of every segment."""
+    return pose.p + np.einsum("...jab,jb->...ja", pose.R, skel.coms)
+
+
+def center_of_mass(skel: Skeleton, pose: Pose) -> FloatArray:
+    """Whole-body centre of mass (..., 3): the mass-weighted mean of the segment centres."""
+    c = segment_coms(skel, pose)
+    return np.einsum("j,...ja->...a", skel.masses, c) / skel.total_mass
+
+
+def com_jacobian(skel: Skeleton, pose: Pose, *, root: bool = False) -> FloatArray:
+    """Jacobian (..., 3, n_dofs [+6]) of the whole-body centre of mass.
+
+    Column k is ``a_k × (Σ_{j below k} m_j c_j − M_k o_k) / M``, with M_k the mass carried by
+    the dof's joint and everything below it.
+    """
+    c = segment_coms(skel, pose)
+    M = skel.total_mass
+    # below[k, j]: segment j moves with dof k (the dof's joint is j or an ancestor of j).
+    below = skel.ancestor[:, skel.dof_joint].T  # (D, J)
+    mc = np.einsum("kj,j,...ja->...ka", below, skel.masses, c)
+    mk = below.astype(float) @ skel.masses  # (D,)
+    origins = pose.p[..., skel.dof_joint, :]
+    cols = np.cross(pose.axes, mc - mk[:, None] * origins) / M
+    J = np.swapaxes(cols, -1, -2)
+    if root:
+        com = center_of_mass(skel, pose)
+        batch = pose.batch_shape
+        Jr = np.zeros((*batch, 3, 6))
+        Jr[..., :3, :3] = np.eye(3)
+        Jr[..., :3, 3:] = -skew(com - pose.root)
+        J = np.concatenate([J, Jr], axis=-1)
+    return J

@@ -1,0 +1,204 @@
+"""Kinematics against independent computation: hand-computed poses, finite differences."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mtlc.body import (
+    build_manikin,
+    center_of_mass,
+    com_jacobian,
+    forward,
+    jacobian,
+    matrix_to_quat,
+    quat_to_matrix,
+    rotation_error,
+    site_positions,
+    site_rotation,
+)
+from mtlc.body.kinematics import axis_angle
+
+SK = build_manikin("gb10000_1988", "male", 50)
+
+
+def _q(**angles: float) -> np.ndarray:
+    q = np.zeros(SK.n_dofs)
+    for k, v in angles.items():
+        q[SK.dof_index(k)] = v
+    return q
+
+
+def _p(pose, joint: str) -> np.ndarray:  # type: ignore[no-untyped-def]
+    return pose.p[..., SK.joint_index(joint), :]
+
+
+def test_elbow_flexion_brings_the_wrist_forward() -> None:
+    pose = forward(SK, _q(r_elbow_flex=math.pi / 2))
+    fore = SK.dims.elbow_height - SK.dims.wrist_height
+    np.testing.assert_allclose(_p(pose, "r_wrist") - _p(pose, "r_elbow"), [0, 0, fore], atol=1e-12)
+    # The left arm is untouched.
+    np.testing.assert_allclose(_p(pose, "l_wrist")[1], SK.dims.wrist_height, atol=1e-12)
+
+
+def test_shoulder_flexion_and_abduction_raise_the_arm() -> None:
+    up = forward(SK, _q(r_shoulder_flex=math.pi))
+    d = _p(up, "r_elbow") - _p(up, "r_shoulder")
+    np.testing.assert_allclose(d / np.linalg.norm(d), [0, 1, 0], atol=1e-12)
+    side = forward(SK, _q(r_shoulder_abd=math.pi / 2, l_shoulder_abd=math.pi / 2))
+    dr = _p(side, "r_elbow") - _p(side, "r_shoulder")
+    dl = _p(side, "l_elbow") - _p(side, "l_shoulder")
+    np.testing.assert_allclose(dr / np.linalg.norm(dr), [-1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(dl / np.linalg.norm(dl), [1, 0, 0], atol=1e-12)
+
+
+def test_hip_flexion_knee_flexion_and_dorsiflexion_signs() -> None:
+    pose = forward(SK, _q(r_hip_flex=math.pi / 2, r_knee_flex=math.pi / 2))
+    thigh = SK.dims.hip_height - SK.dims.knee_height
+    np.testing.assert_allclose(_p(pose, "r_knee") - _p(pose, "r_hip"), [0, 0, thigh], atol=1e-12)
+    shank = _p(pose, "r_ankle") - _p(pose, "r_knee")
+    np.testing.assert_allclose(shank / np.linalg.norm(shank), [0, -1, 0], atol=1e-12)
+    toe = forward(SK, _q(r_ankle_dorsi=0.3))
+    assert site_positions(SK, toe, "r_toe")[1] > 0.05  # toes lift
+
+
+def test_pronation_turns_the_right_palm_backwards() -> None:
+    pose = forward(SK, _q(r_elbow_pro=math.pi / 2))
+    palm = site_rotation(SK, pose, "r_hand") @ np.array([1.0, 0, 0])  # palm normal: medial
+    np.testing.assert_allclose(palm, [0, 0, -1], atol=1e-12)
+
+
+def test_spine_signs_and_root_transform() -> None:
+    bent = forward(SK, _q(lumbar_flex=0.5))
+    assert site_positions(SK, bent, "vertex")[2] > 0.2  # bends forward (+Z)
+    turned = forward(SK, _q(neck_rot=math.pi / 2))
+    g = site_positions(SK, turned, "gaze") - _p(turned, "head")
+    assert g[0] > 0.05  # looks to the left (+X)
+    # Root: 90 degrees about Y maps +Z (forward) to +X.
+    quat = [math.cos(math.pi / 4), 0, math.sin(math.pi / 4), 0]
+    rp = np.array([1.0, 0.9, 2.0])
+    a = forward(SK, np.zeros(SK.n_dofs))
+    b = forward(SK, np.zeros(SK.n_dofs), rp, quat)
+    Ry = quat_to_matrix(quat)
+    want = rp + (a.p - a.root) @ Ry.T
+    np.testing.assert_allclose(b.p, want, atol=1e-12)
+
+
+def test_batch_matches_single_calls_in_any_shape() -> None:
+    rng = np.random.default_rng(0)
+    q = SK.random_q(rng, 6).reshape(2, 3, SK.n_dofs)
+    rp = rng.normal(size=(2, 3, 3))
+    batched = forward(SK, q, rp)
+    for i in range(2):
+        for j in range(3):
+            one = forward(SK, q[i, j], rp[i, j])
+            np.testing.assert_allclose(batched.p[i, j], one.p, atol=1e-13)
+            np.testing.assert_allclose(batched.R[i, j], one.R, atol=1e-13)
+
+
+def _fd_jacobian(
+    site: str, q: np.ndarray, rp: np.ndarray, quat: np.ndarray, h: float = 1e-6
+) -> np.ndarray:
+    """Central differences of position and orientation, incl. root translation/rotation."""
+    n = SK.n_dofs
+    cols = []
+    for k in range(n + 6):
+        dq = np.zeros(n)
+        dp = np.zeros(3)
+        dR = np.eye(3)
+        out = []
+        for sgn in (1.0, -1.0):
+            qq, pp, RR = q.copy(), rp.copy(), quat_to_matrix(quat)
+            if k < n:
+                qq[k] += sgn * h
+            elif k < n + 3:
+                pp[k - n] += sgn * h
+            else:
+                ax = np.eye(3)[k - n - 3]
+                RR = axis_angle(ax, sgn * h) @ RR
+            pose = forward(SK, qq, pp, RR)
+            out.append((site_positions(SK, pose, site), site_rotation(SK, pose, site)))
+        del dq, dp, dR
+        dpos = (out[0][0] - out[1][0]) / (2 * h)
+        drot = rotation_error(out[0][1], out[1][1]) / (2 * h)
+        cols.append(np.concatenate([dpos, drot]))
+    return np.stack(cols, axis=-1)
+
+
+@pytest.mark.parametrize("site", ["r_hand", "l_hand", "r_foot", "l_toe", "gaze", "r_ball_lat"])
+def test_every_jacobian_column_matches_finite_differences(site: str) -> None:
+    rng = np.random.default_rng(11)
+    q = SK.random_q(rng, 1)[0]
+    rp = np.array([0.1, 0.95, -0.3])
+    quat = np.array([0.8, 0.2, 0.4, -0.1])
+    quat /= np.linalg.norm(quat)
+    pose = forward(SK, q, rp, quat)
+    J = jacobian(SK, pose, site, orientation=True, root=True)
+    assert J.shape == (6, SK.n_dofs + 6)
+    np.testing.assert_allclose(J, _fd_jacobian(site, q, rp, quat), atol=1e-7)
+    # Position-only Jacobian is the top block.
+    np.testing.assert_allclose(jacobian(SK, pose, site), J[:3, : SK.n_dofs], atol=0)
+
+
+def test_batched_jacobian_equals_per_item() -> None:
+    rng = np.random.default_rng(5)
+    q = SK.random_q(rng, 4)
+    Jb = jacobian(SK, forward(SK, q), "l_hand", orientation=True)
+    for i in range(4):
+        np.testing.assert_allclose(
+            Jb[i], jacobian(SK, forward(SK, q[i]), "l_hand", orientation=True), atol=1e-14
+        )
+
+
+def test_center_of_mass_is_the_weighted_sum_of_segment_centres() -> None:
+    rng = np.random.default_rng(9)
+    q = SK.random_q(rng, 3)
+    pose = forward(SK, q)
+    got = center_of_mass(SK, pose)
+    for b in range(3):
+        acc = np.zeros(3)
+        for j, joint in enumerate(SK.joints):
+            acc += joint.mass * (pose.p[b, j] + pose.R[b, j] @ np.array(joint.com))
+        np.testing.assert_allclose(got[b], acc / sum(jt.mass for jt in SK.joints), atol=1e-13)
+
+
+def test_com_jacobian_matches_finite_differences() -> None:
+    rng = np.random.default_rng(2)
+    q = SK.random_q(rng, 1)[0]
+    rp = np.array([0.0, 0.9, 0.1])
+    quat = np.array([0.9, -0.1, 0.3, 0.2])
+    quat /= np.linalg.norm(quat)
+    J = com_jacobian(SK, forward(SK, q, rp, quat), root=True)
+    h = 1e-6
+    fd = np.zeros_like(J)
+    for k in range(SK.n_dofs + 6):
+        vals = []
+        for sgn in (1.0, -1.0):
+            qq, pp, RR = q.copy(), rp.copy(), quat_to_matrix(quat)
+            if k < SK.n_dofs:
+                qq[k] += sgn * h
+            elif k < SK.n_dofs + 3:
+                pp[k - SK.n_dofs] += sgn * h
+            else:
+                RR = axis_angle(np.eye(3)[k - SK.n_dofs - 3], sgn * h) @ RR
+            vals.append(center_of_mass(SK, forward(SK, qq, pp, RR)))
+        fd[:, k] = (vals[0] - vals[1]) / (2 * h)
+    np.testing.assert_allclose(J, fd, atol=1e-8)
+
+
+def test_quaternion_round_trip_and_rotation_error() -> None:
+    rng = np.random.default_rng(4)
+    quats = rng.normal(size=(50, 4))
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    quats *= np.sign(quats[:, :1])
+    np.testing.assert_allclose(matrix_to_quat(quat_to_matrix(quats)), quats, atol=1e-12)
+    axes = rng.normal(size=(50, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    ang = rng.uniform(0, math.pi - 1e-3, 50)
+    R0 = quat_to_matrix(quats)
+    R1 = axis_angle(axes, ang) @ R0
+    np.testing.assert_allclose(rotation_error(R1, R0), axes * ang[:, None], atol=1e-9)
+    flip = rotation_error(axis_angle(np.array([0, 0, 1.0]), math.pi), np.eye(3))
+    np.testing.assert_allclose(np.abs(flip), [0, 0, math.pi], atol=1e-9)

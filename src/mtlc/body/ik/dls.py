@@ -1,0 +1,247 @@
+"""Target approaching (TA): damped least squares with limits, clamping and restarts.
+
+Seed 001 steps the joints by ``Δq = J⁺Δx`` with the Moore-Penrose inverse
+``J⁺ = Jᵀ(JJᵀ)⁻¹``. Near singular postures (a straight arm) that step explodes, so this solver
+uses the damped form ``Δq = Jᵀ(JJᵀ + λ²I)⁻¹ e`` (Wampler 1986; Buss 2004) and adds what a
+manikin needs:
+
+* error clamping: each position error is shortened to ``max_error`` before the step, so far
+  targets are approached along a straight line instead of a wild first jump;
+* a per-step angle cap ``max_step`` (rad, largest component);
+* hard joint limits by clamping: dofs a step would push past a limit are pinned there and the
+  remaining error is re-solved with the free dofs only, so nothing ever leaves its range;
+* a null-space pull ``(I − J⁺J)·k(q_comfort − q)`` toward a relaxed posture, which settles
+  the redundant dofs (7 for a 3-D hand position) without disturbing the task;
+* restarts: a row whose error has not improved by 10 % for ``patience`` iterations restarts
+  from a random in-limit configuration (seeded), and the best attempt is kept.
+
+Everything is batched over targets: rows that converge leave the working set.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..skeleton import Skeleton
+from .goals import Goal, default_dofs, normalise
+from .model import ChainModel
+from .result import IKResult, residual
+
+FloatArray = NDArray[np.float64]
+
+
+def prepare(
+    skel: Skeleton,
+    goals: Sequence[Goal] | Sequence[str],
+    q_base: ArrayLike | None = None,
+    *,
+    dofs: Sequence[int] | Sequence[str] | None = None,
+    reach: str = "arm",
+    root_position: ArrayLike | None = None,
+    root_rotation: ArrayLike | None = None,
+) -> ChainModel:
+    """Compile the kinematic problem once for many solves (same sites, dofs and body)."""
+    sites = [g if isinstance(g, str) else g.effector for g in goals]
+    if dofs is None:
+        idx = default_dofs(skel, sites, reach)
+    else:
+        idx = [d if isinstance(d, int) else skel.dof_index(d) for d in dofs]
+    qb = skel.q_comfort if q_base is None else np.asarray(q_base, dtype=float)
+    return ChainModel(skel, sites, idx, np.atleast_2d(qb), root_position, root_rotation)
+
+
+def _initial(
+    skel: Skeleton, model: ChainModel, q0: ArrayLike | None, B: int
+) -> tuple[FloatArray, FloatArray]:
+    """Full (B, D) start configurations and their active part, clipped into the limits."""
+    if q0 is None:
+        qf = np.broadcast_to(model.q_base if model.B == B else model.q_base[:1], (B, skel.n_dofs))
+    else:
+        qf = np.broadcast_to(np.atleast_2d(np.asarray(q0, dtype=float)), (B, skel.n_dofs))
+    qf = np.array(qf, dtype=float)
+    qa = np.clip(qf[:, model.active], model.lower, model.upper)
+    return qf, qa
+
+
+def solve_ta(
+    skel: Skeleton,
+    goals: Sequence[Goal],
+    q0: ArrayLike | None = None,
+    *,
+    model: ChainModel | None = None,
+    dofs: Sequence[int] | Sequence[str] | None = None,
+    reach: str = "arm",
+    root_position: ArrayLike | None = None,
+    root_rotation: ArrayLike | None = None,
+    tol: float = 1e-3,
+    orientation_tol: float = math.radians(1.0),
+    max_iter: int = 60,
+    restarts: int = 8,
+    patience: int = 8,
+    damping: float = 0.02,
+    max_error: float = 0.25,
+    max_step: float = 0.5,
+    null_gain: float = 0.05,
+    seed: int = 0,
+) -> IKResult:
+    """Solve goals for a batch of targets by damped least squares (TA phase).
+
+    ``q0`` (D,) or (B, D) start (default: the comfortable posture); ``model`` a prepared
+    :func:`prepare` problem to skip setup; ``dofs`` the dofs to move (default: each effector's
+    chain by ``reach``). Iterations are bounded by ``max_iter · (restarts + 1)`` per row.
+    """
+    ga = normalise(skel, goals)
+    B = ga.batch
+    if model is None:
+        model = prepare(
+            skel,
+            goals,
+            q0 if q0 is not None and np.ndim(q0) == 2 else (skel.q_comfort if q0 is None else q0),
+            dofs=dofs,
+            reach=reach,
+            root_position=root_position,
+            root_rotation=root_rotation,
+        )
+    qf, qa = _initial(skel, model, q0, B)
+    lo, hi = model.lower, model.upper
+    comfort = skel.q_comfort[model.active]
+    lam2 = damping * damping
+    rng = np.random.default_rng(seed)
+
+    best_q = qa.copy()
+    best_score = np.full(B, np.inf)
+    best_pos = np.full(B, np.inf)
+    best_ori = np.full(B, np.inf)
+    iters = np.zeros(B, dtype=np.intp)
+    n_restart = np.zeros(B, dtype=np.intp)
+    attempt_it = np.zeros(B, dtype=np.intp)
+    attempt_best = np.full(B, np.inf)
+    since = np.zeros(B, dtype=np.intp)
+    rows = np.arange(B)
+    full_batch = True  # rows is arange(B): pass None to the model (no fancy indexing)
+    cur = qa
+    eye_cache: dict[int, FloatArray] = {}
+
+    while rows.size:
+        r = residual(model, ga, cur, None if full_batch else rows)
+        score = r.pos_err / tol + r.ori_err / orientation_tol
+        better = score < best_score[rows]
+        if np.any(better):
+            br = rows[better]
+            best_score[br] = score[better]
+            best_q[br] = cur[better]
+            best_pos[br] = r.pos_err[better]
+            best_ori[br] = r.ori_err[better]
+        done = (r.pos_err <= tol) & (r.ori_err <= orientation_tol)
+        # Stall bookkeeping per attempt.
+        improved = score < 0.9 * attempt_best[rows]
+        attempt_best[rows] = np.where(improved, score, attempt_best[rows])
+        since[rows] = np.where(improved, 0, since[rows] + 1)
+        stuck = ~done & ((since[rows] >= patience) | (attempt_it[rows] >= max_iter))
+        can_restart = stuck & (n_restart[rows] < restarts)
+        give_up = stuck & ~can_restart
+        keep = ~(done | give_up)
+        if not np.all(keep):
+            rows, cur, r = rows[keep], cur[keep], _sub(r, keep)
+            can_restart = can_restart[keep]
+            full_batch = False
+            if rows.size == 0:
+                break
+        if np.any(can_restart):
+            rr = rows[can_restart]
+            n_restart[rr] += 1
+            attempt_it[rr] = 0
+            attempt_best[rr] = np.inf
+            since[rr] = 0
+            cur = cur.copy()
+            cur[can_restart] = lo + (hi - lo) * rng.random((rr.size, model.n))
+            # Re-evaluate the restarted rows next round; step the others now.
+            step_rows = ~can_restart
+        else:
+            step_rows = None
+        m = r.e.shape[1]
+        eye = eye_cache.get(m)
+        if eye is None:
+            eye = eye_cache[m] = lam2 * np.eye(m)
+        e, J = r.e, r.J
+        if step_rows is not None:
+            e, J, base = e[step_rows], J[step_rows], cur[step_rows]
+        else:
+            base = cur
+        dq = _dls_step(
+            e, J, base, lo, hi, comfort, eye, max_error, max_step, null_gain, len(ga.sites)
+        )
+        if step_rows is not None:
+            cur[step_rows] = base + dq
+            iters[rows[step_rows]] += 1
+            attempt_it[rows[step_rows]] += 1
+        else:
+            cur = base + dq
+            iters[rows] += 1
+            attempt_it[rows] += 1
+    q_out = qf.copy()
+    q_out[:, model.active] = best_q
+    inside = skel.within_limits(q_out)
+    success = (best_pos <= tol) & (best_ori <= orientation_tol) & inside
+    return IKResult(
+        q=q_out,
+        position_error=best_pos,
+        orientation_error=best_ori,
+        success=success,
+        iterations=iters,
+        restarts=n_restart,
+        method="dls",
+    )
+
+
+def _sub(r, keep):  # type: ignore[no-untyped-def]
+    from .result import Residual
+
+    return Residual(r.e[keep], r.J[keep], r.pos_err[keep], r.ori_err[keep], r.cost[keep])
+
+
+def _dls_step(
+    e: FloatArray,
+    J: FloatArray,
+    q: FloatArray,
+    lo: FloatArray,
+    hi: FloatArray,
+    comfort: FloatArray,
+    lam2I: FloatArray,
+    max_error: float,
+    max_step: float,
+    null_gain: float,
+    n_goals: int,
+) -> FloatArray:
+    """One damped least-squares step with error clamping, limit clamping and a step cap."""
+    # Error clamping (per 3-vector block).
+    b, m = e.shape
+    blocks = e.reshape(b, m // 3, 3)
+    nrm = np.sqrt(np.einsum("bki,bki->bk", blocks, blocks))
+    scale = np.minimum(1.0, max_error / np.maximum(nrm, 1e-300))
+    e = (blocks * scale[..., None]).reshape(b, m)
+    Jt = np.swapaxes(J, -1, -2)
+    A = J @ Jt + lam2I
+    z = null_gain * (comfort - q)
+    rhs = np.stack([e, np.einsum("bmn,bn->bm", J, z)], axis=-1)
+    y = np.linalg.solve(A, rhs)
+    dq = np.einsum("bnm,bm->bn", Jt, y[..., 0] - y[..., 1]) + z
+    qn = q + dq
+    over = (qn > hi) | (qn < lo)
+    if np.any(over):
+        # Pin the offending dofs at their limits; re-solve the rest of the error with the
+        # free dofs only (rows without violations get the same step again).
+        dq_pin = np.where(over, np.clip(qn, lo, hi) - q, 0.0)
+        e2 = e - np.einsum("bmn,bn->bm", J, dq_pin)
+        Jf = J * (~over)[:, None, :]
+        Jft = np.swapaxes(Jf, -1, -2)
+        y2 = np.linalg.solve(Jf @ Jft + lam2I, e2[..., None])[..., 0]
+        dq_free = np.einsum("bnm,bm->bn", Jft, y2)
+        dq = np.where(over, dq_pin, dq_free)
+    big = np.max(np.abs(dq), axis=-1)
+    dq = dq * np.minimum(1.0, max_step / np.maximum(big, 1e-300))[:, None]
+    return np.clip(q + dq, lo, hi) - q

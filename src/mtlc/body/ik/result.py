@@ -1,0 +1,95 @@
+"""What every solver returns, and the residual all of them minimise."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..kinematics import rotation_error
+from .goals import GoalArrays
+from .model import ChainModel, _take
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """Best configurations found, one row per target.
+
+    ``q`` (B, n_dofs) full joint angles (dofs the solver did not move keep their input value);
+    ``position_error`` (B,) the largest remaining position distance over the goals (m);
+    ``orientation_error`` (B,) the largest remaining angle (rad; orientation and aim goals);
+    ``success`` (B,) within tolerance with every joint inside its limits;
+    ``iterations`` (B,) iterations spent (all attempts); ``restarts`` (B,) restarts used;
+    ``path`` (T, B, n_dofs) every accepted configuration (gradient-path solvers only).
+    """
+
+    q: FloatArray
+    position_error: FloatArray
+    orientation_error: FloatArray
+    success: NDArray[np.bool_]
+    iterations: NDArray[np.intp]
+    restarts: NDArray[np.intp]
+    method: str
+    path: FloatArray | None = None
+
+    @property
+    def success_rate(self) -> float:
+        """Fraction of targets solved."""
+        return float(np.mean(self.success))
+
+
+@dataclass
+class Residual:
+    """Stacked task error ``e`` (b, m), its Jacobian ``J`` (b, m, nA), and error measures."""
+
+    e: FloatArray
+    J: FloatArray
+    pos_err: FloatArray
+    ori_err: FloatArray
+    cost: FloatArray  # 0.5 |e|^2, what the gradient methods descend
+
+
+def residual(
+    model: ChainModel, ga: GoalArrays, qa: FloatArray, rows: NDArray[np.intp] | None = None
+) -> Residual:
+    """Evaluate every goal at active angles ``qa`` (b, nA) for batch ``rows``."""
+    b = qa.shape[0]
+    site_p, site_R, Jp, Jw = model.evaluate(qa, rows)
+    es: list[FloatArray] = []
+    Js: list[FloatArray] = []
+    pos_err = np.zeros(b)
+    ori_err = np.zeros(b)
+    skel = model.skel
+    for i in range(len(ga.sites)):
+        if ga.position[i] is not None:
+            e = _take(ga.position[i], rows, b) - site_p[:, i]
+            es.append(e)
+            Js.append(Jp[:, i])
+            pos_err = np.maximum(pos_err, np.sqrt(np.einsum("bi,bi->b", e, e)))
+        if ga.orientation[i] is not None:
+            r = rotation_error(_take(ga.orientation[i], rows, b), site_R[:, i])
+            w = ga.weight[i]
+            es.append(w * r)
+            Js.append(w * Jw[:, i])
+            ori_err = np.maximum(ori_err, np.linalg.norm(r, axis=-1))
+        if ga.aim[i] is not None:
+            direction = np.asarray(skel.site(ga.sites[i]).direction, dtype=float)
+            d = site_R[:, i] @ direction
+            u = _take(ga.aim[i], rows, b) - site_p[:, i]
+            u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
+            cr = np.cross(d, u)
+            sn = np.linalg.norm(cr, axis=-1)
+            ang = np.arctan2(sn, np.einsum("bi,bi->b", d, u))
+            axis = np.where(sn[:, None] > 1e-12, cr / np.maximum(sn, 1e-300)[:, None], 0.0)
+            r = axis * ang[:, None]
+            w = ga.weight[i]
+            es.append(w * r)
+            Js.append(w * Jw[:, i])
+            ori_err = np.maximum(ori_err, ang)
+    e = es[0] if len(es) == 1 else np.concatenate(es, axis=1)
+    J = Js[0] if len(Js) == 1 else np.concatenate(Js, axis=1)
+    cost = 0.5 * np.einsum("bi,bi->b", e, e)
+    return Residual(e=e, J=J, pos_err=pos_err, ori_err=ori_err, cost=cost)

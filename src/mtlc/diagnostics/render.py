@@ -1,0 +1,130 @@
+"""Render diagnostics like rustc: header, location arrow, source line, caret under the span."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable, Mapping
+from typing import IO
+
+from mtlc.diagnostics.codes import Severity
+from mtlc.diagnostics.diagnostic import Diagnostic, Span
+
+JSON_FORMAT_VERSION = 1
+
+_COLORS = {
+    Severity.ERROR: "\x1b[1;31m",
+    Severity.WARNING: "\x1b[1;33m",
+    Severity.NOTE: "\x1b[1;36m",
+}
+_BLUE = "\x1b[1;34m"
+_BOLD = "\x1b[1m"
+_RESET = "\x1b[0m"
+
+
+def use_color(stream: IO[str]) -> bool:
+    """Colour only on a terminal, and never when NO_COLOR is set (https://no-color.org)."""
+    if os.environ.get("NO_COLOR"):
+        return False
+    if os.environ.get("FORCE_COLOR"):
+        return True
+    return hasattr(stream, "isatty") and stream.isatty()
+
+
+def _source_line(sources: Mapping[str, str], span: Span) -> str | None:
+    text = sources.get(span.file)
+    if text is None:
+        return None
+    lines = text.splitlines()
+    if not 1 <= span.line <= len(lines):
+        return "" if span.line == len(lines) + 1 else None
+    return lines[span.line - 1]
+
+
+def _printable(line: str) -> tuple[str, list[int]]:
+    """Expand tabs and hide control characters; map each original column to its display column."""
+    out: list[str] = []
+    cols: list[int] = []
+    for ch in line:
+        cols.append(len(out))
+        if ch == "\t":
+            out.extend(" " * (4 - len(out) % 4))
+        elif ord(ch) < 32 or ord(ch) == 127:
+            out.append("\N{REPLACEMENT CHARACTER}")
+        else:
+            out.append(ch)
+    cols.append(len(out))
+    return "".join(out), cols
+
+
+def render_text(
+    diagnostics: Iterable[Diagnostic], sources: Mapping[str, str], *, color: bool = False
+) -> str:
+    """All diagnostics and a summary line, as one string."""
+    diagnostics = list(diagnostics)
+    parts = [render_one(d, sources, color=color) for d in diagnostics]
+    errors = sum(d.severity is Severity.ERROR for d in diagnostics)
+    warnings = sum(d.severity is Severity.WARNING for d in diagnostics)
+    if errors or warnings:
+        summary = []
+        if errors:
+            summary.append(f"{errors} error{'s' if errors != 1 else ''}")
+        if warnings:
+            summary.append(f"{warnings} warning{'s' if warnings != 1 else ''}")
+        parts.append(", ".join(summary) + " found\n")
+    return "\n".join(parts)
+
+
+def render_one(d: Diagnostic, sources: Mapping[str, str], *, color: bool = False) -> str:
+    sev = d.severity
+    c = (lambda s, code: f"{code}{s}{_RESET}") if color else (lambda s, code: s)
+    width = len(str(max([d.span.end_line] + [lb.span.line for lb in d.labels])))
+    pad = " " * width
+    out = [c(f"{sev.value}[{d.code}]", _COLORS[sev]) + c(f": {d.message}", _BOLD)]
+    out.append(f"{pad}{c('-->', _BLUE)} {d.span.file}:{d.span.line}:{d.span.column}")
+    out.extend(_snippet(d.span, sources, width, "", c, _COLORS[sev]))
+    for label in d.labels:
+        out.append(f"{pad}{c('-->', _BLUE)} {label.span.file}:{label.span.line}:{label.span.column}")
+        out.extend(_snippet(label.span, sources, width, label.message, c, _BLUE, mark="-"))
+    if d.help or d.notes:
+        out.append(f"{pad} {c('|', _BLUE)}")
+    for note in d.notes:
+        out.append(f"{pad} {c('=', _BLUE)} {c('note', _BOLD)}: {note}")
+    if d.help:
+        out.append(f"{pad} {c('=', _BLUE)} {c('help', _BOLD)}: {d.help}")
+    return "\n".join(out) + "\n"
+
+
+def _snippet(span, sources, width, message, c, caret_color, mark="^") -> list[str]:
+    line = _source_line(sources, span)
+    if line is None:
+        return []
+    shown, cols = _printable(line)
+    start = cols[min(span.column - 1, len(cols) - 1)]
+    if span.end_line == span.line:
+        end = cols[min(max(span.end_column - 1, span.column), len(cols) - 1)]
+    else:
+        end = len(shown)
+    carets = mark * max(1, end - start)
+    bar = c("|", _BLUE)
+    tail = f" {message}" if message else ""
+    return [
+        f"{' ' * width} {bar}",
+        f"{c(str(span.line).rjust(width), _BLUE)} {bar} {shown}",
+        f"{' ' * width} {bar} {' ' * start}{c(carets + tail, caret_color)}",
+    ]
+
+
+def render_json(diagnostics: Iterable[Diagnostic]) -> str:
+    """Versioned machine-readable diagnostics (documented in docs/diagnostics.md)."""
+    items = [d.as_dict() for d in diagnostics]
+    doc = {
+        "format": "mtlc-diagnostics",
+        "version": JSON_FORMAT_VERSION,
+        "diagnostics": items,
+        "summary": {
+            "errors": sum(1 for d in items if d["severity"] == "error"),
+            "warnings": sum(1 for d in items if d["severity"] == "warning"),
+        },
+    }
+    return json.dumps(doc, indent=2, ensure_ascii=False, sort_keys=False) + "\n"

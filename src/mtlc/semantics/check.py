@@ -1,0 +1,858 @@
+"""Check every definition: names, types, units, calls, where statements may stand, recursion.
+
+Definitions are checked once, with their parameters' declared types, whether or not a task uses
+them, so a mistake in a library is found where it is written. An expression already reported as
+wrong has type UNKNOWN, which is accepted everywhere so that one mistake gives one diagnostic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from mtlc.diagnostics import DiagnosticSink, Label, Span
+from mtlc.semantics import builtins as B
+from mtlc.semantics import types as T
+from mtlc.semantics.scopes import Scope, Symbol
+from mtlc.semantics.suggest import did_you_mean
+from mtlc.syntax import ast
+
+# which level may call which
+CALLABLE_FROM = {
+    "task": ("action", "element"),
+    "action": ("action", "element"),
+    "element": ("element",),
+}
+PRIMITIVES = (ast.Goal, ast.Posture, ast.Walk, ast.Grip, ast.Gaze, ast.Still, ast.TimeSetting)
+TASK_SETTINGS = (ast.ManikinSetting, ast.SceneSetting, ast.ToolSetting, ast.BudgetSetting)
+POSITION = T.VectorType(T.LENGTH_DIM)
+DIRECTION = T.VectorType(T.NONE_DIM)
+ORIENTATION = T.VectorType(T.ANGLE_DIM)
+
+
+@dataclass
+class CallEdge:
+    caller: ast.Definition
+    callee: Symbol
+    span: Span
+
+
+@dataclass
+class Env:
+    scope: Scope
+    level: str  # task, action, element
+    locals: dict[str, T.Type] = field(default_factory=dict)
+    scene: Symbol | None = None
+
+
+@dataclass
+class CheckResult:
+    edges: list[CallEdge] = field(default_factory=list)
+
+
+class Checker:
+    def __init__(self, sink: DiagnosticSink) -> None:
+        self.sink = sink
+        self.edges: list[CallEdge] = []
+        self._current: ast.Definition | None = None
+
+    # ------------------------------------------------------------ declarations
+    def check_module(self, scope: Scope) -> None:
+        for decl in scope.module.tree.decls:
+            if scope.own.get(decl.name) is None or scope.own[decl.name].decl is not decl:
+                continue  # a duplicate, already reported
+            if isinstance(decl, ast.Scene):
+                self.check_scene(decl, scope)
+            elif isinstance(decl, ast.ToolDecl):
+                self.check_tool(decl, scope)
+            elif isinstance(decl, ast.Definition):
+                self.check_definition(decl, scope)
+            elif isinstance(decl, ast.Task):
+                self.check_task(decl, scope)
+
+    def check_scene(self, scene: ast.Scene, scope: Scope) -> None:
+        env = Env(scope, "scene")
+        if scene.ground is not None:
+            self.expect(scene.ground, T.LENGTH, env)
+        seen: dict[str, ast.SiteDecl] = {}
+        for site in scene.sites:
+            if site.name in seen:
+                self.sink.report(
+                    "MT0202",
+                    f"site `{site.name}` is defined twice in scene `{scene.name}`",
+                    site.name_span,
+                    labels=(Label(seen[site.name].name_span, "first defined here"),),
+                )
+            seen.setdefault(site.name, site)
+            self.expect_vector(site.position, POSITION, env, "a site's position")
+            if site.normal is not None:
+                self.expect_vector(site.normal, DIRECTION, env, "a normal")
+                if isinstance(site.normal, ast.Vector) and all(
+                    isinstance(i, ast.Number) and i.value == 0 for i in site.normal.items
+                ):
+                    self.sink.report("MT0309", "a normal cannot be the zero vector", site.normal.span)
+            if site.frame is not None:
+                self.expect_vector(site.frame, ORIENTATION, env, "a frame (X, Y, Z rotations)")
+
+    def check_tool(self, tool: ast.ToolDecl, scope: Scope) -> None:
+        env = Env(scope, "tool")
+        seen: set[str] = set()
+        for prop in tool.properties:
+            expected = B.TOOL_PROPERTIES.get(prop.name)
+            if expected is None:
+                self.sink.report(
+                    "MT0306",
+                    f"tools have no property `{prop.name}`",
+                    prop.span,
+                    help=did_you_mean(prop.name, B.TOOL_PROPERTIES)
+                    or f"properties: {', '.join(B.TOOL_PROPERTIES)}",
+                )
+                continue
+            if prop.name in seen:
+                self.sink.report("MT0210", f"`{prop.name}` is given twice", prop.span)
+            seen.add(prop.name)
+            if isinstance(expected, T.VectorType):
+                self.expect_vector(prop.value, expected, env, f"a tool's {prop.name} point")
+            else:
+                self.expect(prop.value, expected, env)
+
+    def _params(self, params: tuple[ast.Param, ...], scope: Scope) -> dict[str, T.Type]:
+        out: dict[str, T.Type] = {}
+        spans: dict[str, Span] = {}
+        for p in params:
+            ptype = T.TYPE_NAMES.get(p.type_name)
+            if ptype is None:
+                self.sink.report(
+                    "MT0304",
+                    f"unknown type `{p.type_name}`",
+                    p.type_span,
+                    help=did_you_mean(p.type_name, T.TYPE_NAMES)
+                    or f"types: {', '.join(T.TYPE_NAMES)}",
+                )
+                ptype = T.UNKNOWN
+            if p.name in out:
+                self.sink.report(
+                    "MT0310",
+                    f"parameter `{p.name}` is declared twice",
+                    p.span,
+                    labels=(Label(spans[p.name], "first declared here"),),
+                )
+                continue
+            if p.default is not None:
+                self.expect(p.default, ptype, Env(scope, "default"))
+            out[p.name] = ptype
+            spans[p.name] = p.span
+        return out
+
+    def check_definition(self, d: ast.Definition, scope: Scope) -> None:
+        env = Env(scope, d.kind, self._params(d.params, scope))
+        self._current = d
+        self.check_block(d.body, env, top=True)
+        self._current = None
+
+    def check_task(self, task: ast.Task, scope: Scope) -> None:
+        env = Env(scope, "task")
+        settings: dict[type, ast.Stmt] = {}
+        for stmt in task.body.stmts:
+            if isinstance(stmt, TASK_SETTINGS):
+                if type(stmt) in settings:
+                    what = type(stmt).__name__.removesuffix("Setting").lower()
+                    self.sink.report(
+                        "MT0210",
+                        f"the task's {what} is set twice",
+                        stmt.span,
+                        labels=(Label(settings[type(stmt)].span, "first set here"),),
+                    )
+                    continue
+                settings[type(stmt)] = stmt
+                if isinstance(stmt, ast.SceneSetting):
+                    env.scene = self.resolve_scene(stmt, scope)
+        self.check_block(task.body, env, top=True)
+
+    def resolve_scene(self, stmt: ast.SceneSetting, scope: Scope) -> Symbol | None:
+        sym = self.lookup_symbol(stmt.name, stmt.name_span, scope)
+        if sym is None:
+            return None
+        if sym.kind != "scene":
+            self.sink.report(
+                "MT0301", f"`{stmt.name}` is {_article(sym.kind)}, not a scene", stmt.name_span
+            )
+            return None
+        return sym
+
+    # ------------------------------------------------------------ statements
+    def check_block(self, block: ast.Block, env: Env, *, top: bool = False) -> None:
+        for stmt in block.stmts:
+            self.check_stmt(stmt, env, top)
+
+    def check_stmt(self, stmt: ast.Stmt, env: Env, top: bool) -> None:
+        level = env.level
+        if isinstance(stmt, TASK_SETTINGS):
+            if level != "task" or not top:
+                self._misplaced(stmt, "a task setting", "at the top of a task's body")
+                return
+            self.check_setting(stmt, env)
+            return
+        if isinstance(stmt, PRIMITIVES) and level != "element":
+            what = "`time`" if isinstance(stmt, ast.TimeSetting) else "a primitive"
+            self._misplaced(
+                stmt, what, "inside an element", "define an element that does this and call it"
+            )
+            return
+        match stmt:
+            case ast.Block(stmts=_):
+                self.check_block(stmt, env)
+            case ast.Parallel(body=body):
+                self.check_block(body, env)
+            case ast.Repeat(count=count, body=body):
+                self.expect(count, T.INT, env)
+                self.check_block(body, env)
+            case ast.ForEach():
+                self.check_for(stmt, env)
+            case ast.Call():
+                self.check_call(stmt, env)
+            case ast.TimeSetting(duration=duration):
+                self.expect_timing(duration, env)
+            case ast.Goal():
+                self.expect_effector(stmt.effector, env)
+                self.expect(stmt.target, T.SITE, env)
+                if stmt.approach is not None:
+                    self.expect(stmt.approach, T.LENGTH, env)
+                if stmt.offset is not None:
+                    self.expect_vector(stmt.offset, POSITION, env, "an offset")
+                self.check_over(stmt.over, env)
+            case ast.Posture():
+                sig = B.POSTURES.get(stmt.kind)
+                if sig is None:
+                    self.sink.report(
+                        "MT0201",
+                        f"unknown posture `{stmt.kind}`",
+                        stmt.kind_span,
+                        help=did_you_mean(stmt.kind, B.POSTURES)
+                        or f"postures: {', '.join(B.POSTURES)}",
+                    )
+                else:
+                    self.check_args(sig.name, _builtin_params(sig), stmt.args, stmt.span, env)
+                self.check_over(stmt.over, env)
+            case ast.Walk():
+                if stmt.mode == "to":
+                    self.expect(stmt.target, T.SITE, env)
+                else:
+                    self.expect_vector(stmt.target, POSITION, env, "a displacement")
+                if stmt.facing is not None:
+                    self.expect(stmt.facing, T.SITE, env)
+                self.check_over(stmt.over, env)
+            case ast.Grip():
+                self.expect(stmt.hand, T.HAND, env)
+                if stmt.state not in B.GRIP_STATES:
+                    self.sink.report(
+                        "MT0309",
+                        f"a grip is `open` or `closed`, not `{stmt.state}`",
+                        stmt.state_span,
+                        help=did_you_mean(stmt.state, B.GRIP_STATES),
+                    )
+                self.check_over(stmt.over, env)
+            case ast.Gaze():
+                self.expect(stmt.target, T.SITE, env)
+                self.check_over(stmt.over, env)
+            case ast.Still(over=over):
+                self.check_over(over, env)
+
+    def _misplaced(self, stmt: ast.Stmt, what: str, where: str, help: str | None = None) -> None:
+        self.sink.report("MT0209", f"{what} can only stand {where}", stmt.span, help=help)
+
+    def check_setting(self, stmt: ast.Stmt, env: Env) -> None:
+        match stmt:
+            case ast.ManikinSetting():
+                check_manikin(stmt, self.sink)
+            case ast.ToolSetting(tool=tool):
+                self.expect(tool, T.TOOL, env)
+            case ast.BudgetSetting(limit=limit):
+                self.expect(limit, T.DURATION, env)
+
+    def check_over(self, over: ast.Expr | None, env: Env) -> None:
+        if over is not None:
+            self.expect_timing(over, env)
+
+    def check_for(self, stmt: ast.ForEach, env: Env) -> None:
+        items_type = self.infer(stmt.items, env)
+        if isinstance(items_type, T.ListType):
+            elem = items_type.element
+        else:
+            if items_type != T.UNKNOWN:
+                self.sink.report(
+                    "MT0301",
+                    f"`for` needs a list, found {items_type}",
+                    stmt.items.span,
+                    help="write the items in brackets: [a, b, c]",
+                )
+            elem = T.UNKNOWN
+        inner = Env(env.scope, env.level, {**env.locals, stmt.var: elem}, env.scene)
+        self.check_block(stmt.body, inner)
+
+    def check_call(self, call: ast.Call, env: Env) -> None:
+        sym = self.resolve_callee(call.callee, call.callee_span, env)
+        if sym is None:
+            return
+        if sym.kind not in ("element", "action"):
+            self.sink.report(
+                "MT0208",
+                f"`{sym.name}` is {_article(sym.kind)} and cannot be called",
+                call.callee_span,
+            )
+            return
+        if sym.kind not in CALLABLE_FROM.get(env.level, ()):
+            self.sink.report(
+                "MT0208",
+                f"{_article(env.level)} cannot call {_article(sym.kind)} (`{sym.name}`)",
+                call.callee_span,
+                help="elements are built from primitives and other elements; "
+                "actions from elements and actions",
+            )
+        decl = sym.decl
+        assert isinstance(decl, ast.Definition)
+        params = [
+            (p.name, T.TYPE_NAMES.get(p.type_name, T.UNKNOWN), p.default is None) for p in decl.params
+        ]
+        if sym.name not in sym_scope_broken(sym):
+            self.check_args(sym.name, params, call.args, call.span, env)
+        else:
+            for arg in call.args:
+                self.infer(arg.value, env)
+        if self._current is not None:
+            self.edges.append(CallEdge(self._current, sym, call.callee_span))
+
+    def resolve_callee(self, callee: tuple[str, ...], span: Span, env: Env) -> Symbol | None:
+        scope = env.scope
+        for part in callee[:-1]:
+            child = scope.aliases.get(part)
+            if child is None:
+                self.sink.report(
+                    "MT0201",
+                    f"no module `{part}` is used here",
+                    span,
+                    help=did_you_mean(part, scope.aliases),
+                )
+                return None
+            scope = child
+        if len(callee) > 1:
+            sym = scope.own.get(callee[-1])
+            if sym is None:
+                self.sink.report(
+                    "MT0201",
+                    f"module `{callee[-2]}` has no `{callee[-1]}`",
+                    span,
+                    help=did_you_mean(callee[-1], scope.own),
+                )
+            return sym
+        return self.lookup_symbol(callee[0], span, scope, callable_only=True)
+
+    def lookup_symbol(
+        self, name: str, span: Span, scope: Scope, *, callable_only: bool = False
+    ) -> Symbol | None:
+        if name in scope.ambiguous:
+            options = scope.ambiguous[name]
+            self.sink.report(
+                "MT0206",
+                f"`{name}` is defined in {len(options)} used modules",
+                span,
+                labels=tuple(Label(s.decl.name_span, "defined here") for s in options),
+                help=f"qualify it with its module, for example `{options[0].module.display.rsplit('/', 1)[-1].removesuffix('.mtask')}.{name}`",
+            )
+            return None
+        sym = scope.lookup(name)
+        if sym is None:
+            if name in scope.broken or "*" in scope.broken:
+                return None
+            pool = [
+                n
+                for n, s in scope.names.items()
+                if not callable_only or s.kind in ("element", "action")
+            ]
+            self.sink.report(
+                "MT0201",
+                f"unknown name `{name}`",
+                span,
+                help=_module_hint(name) or did_you_mean(name, pool),
+            )
+        return sym
+
+    # ------------------------------------------------------------ arguments
+    def check_args(
+        self,
+        fname: str,
+        params: list[tuple[str, T.Type, bool]],
+        args: tuple[ast.Arg, ...],
+        call_span: Span,
+        env: Env,
+    ) -> None:
+        given: dict[str, ast.Arg] = {}
+        names = [p[0] for p in params]
+        types = {p[0]: p[1] for p in params}
+        seen_named = False
+        for i, arg in enumerate(args):
+            if arg.name is None:
+                if seen_named:
+                    self.sink.report(
+                        "MT0311",
+                        "a positional argument cannot follow a named one",
+                        arg.span,
+                        help="name this argument too, or move it before the named ones",
+                    )
+                    self.infer(arg.value, env)
+                    continue
+                if i >= len(params):
+                    self.sink.report(
+                        "MT0305",
+                        f"`{fname}` takes {len(params)} argument{'s' if len(params) != 1 else ''}, "
+                        f"but {sum(a.name is None for a in args)} were given",
+                        arg.span,
+                        help=f"parameters: {', '.join(names) or '(none)'}",
+                    )
+                    self.infer(arg.value, env)
+                    continue
+                pname = names[i]
+            else:
+                seen_named = True
+                pname = arg.name
+                if pname not in types:
+                    self.sink.report(
+                        "MT0306",
+                        f"`{fname}` has no parameter `{pname}`",
+                        arg.name_span or arg.span,
+                        help=did_you_mean(pname, names) or f"parameters: {', '.join(names)}",
+                    )
+                    self.infer(arg.value, env)
+                    continue
+            if pname in given:
+                self.sink.report(
+                    "MT0308",
+                    f"parameter `{pname}` of `{fname}` is given twice",
+                    arg.span,
+                    labels=(Label(given[pname].span, "first given here"),),
+                )
+                continue
+            given[pname] = arg
+            self.expect(arg.value, types[pname], env)
+        missing = [n for n, _, required in params if required and n not in given]
+        if missing:
+            listed = ", ".join(f"`{m}`" for m in missing)
+            self.sink.report(
+                "MT0307",
+                f"`{fname}` is missing {'an argument' if len(missing) == 1 else 'arguments'} "
+                f"for {listed}",
+                call_span,
+            )
+
+    # ------------------------------------------------------------ expressions
+    def expect(self, expr: ast.Expr, expected: T.Type, env: Env) -> T.Type:
+        actual = self.infer(expr, env, expected)
+        if not T.is_assignable(actual, expected):
+            self.mismatch(expr, actual, expected)
+        return actual
+
+    def mismatch(self, expr: ast.Expr, actual: T.Type, expected: T.Type) -> None:
+        if isinstance(actual, T.Quantity) and isinstance(expected, T.Quantity):
+            if actual.dim == expected.dim:  # a Number where an Int is wanted
+                self.sink.report(
+                    "MT0301", f"expected a whole number, found {actual}", expr.span
+                )
+                return
+            help = None
+            if expected.dim != T.NONE_DIM and actual.dim == T.NONE_DIM:
+                unit = {T.LENGTH: "cm", T.ANGLE: "deg", T.DURATION: "s", T.MASS: "kg"}.get(
+                    expected, None
+                )
+                if unit:
+                    help = f"give the number a unit, for example `{_src_number(expr)} {unit}`"
+            self.sink.report(
+                "MT0302", f"expected {expected}, found {actual}", expr.span, help=help
+            )
+            return
+        self.sink.report("MT0301", f"expected {expected}, found {actual}", expr.span)
+
+    def expect_timing(self, expr: ast.Expr, env: Env) -> None:
+        actual = self.infer(expr, env, T.DURATION)
+        if actual not in (T.TIMING, T.UNKNOWN) and not T.is_assignable(actual, T.DURATION):
+            self.mismatch(expr, actual, T.DURATION)
+
+    def expect_effector(self, expr: ast.Expr, env: Env) -> None:
+        self.expect(expr, T.HAND, env)
+
+    def expect_vector(self, expr: ast.Expr, expected: T.VectorType, env: Env, what: str) -> None:
+        actual = self.infer(expr, env)
+        if actual == T.UNKNOWN:
+            return
+        if not isinstance(actual, T.VectorType):
+            self.sink.report(
+                "MT0301", f"{what} is a vector (x, y, z), found {actual}", expr.span
+            )
+        elif actual.dim != expected.dim:
+            self.sink.report(
+                "MT0302",
+                f"{what} is a {expected}, found {actual}",
+                expr.span,
+                help={
+                    T.LENGTH_DIM: "give it a length unit: (x, y, z) cm",
+                    T.NONE_DIM: "a direction has no unit: (x, y, z)",
+                    T.ANGLE_DIM: "give it an angle unit: (rx, ry, rz) deg",
+                }.get(expected.dim),
+            )
+        elif isinstance(expr, ast.Vector) and len(expr.items) != 3:
+            self.sink.report(
+                "MT0309", f"{what} has 3 components, not {len(expr.items)}", expr.span
+            )
+
+    def infer(self, expr: ast.Expr, env: Env, expected: T.Type | None = None) -> T.Type:
+        match expr:
+            case ast.Number(unit=None, is_int=is_int):
+                return T.INT if is_int else T.NUMBER
+            case ast.Number(unit=unit):
+                return self.unit_type(unit, expr.unit_span or expr.span)[0]
+            case ast.String():
+                return T.STRING
+            case ast.Name(name=name):
+                return self.infer_name(name, expr.span, env, expected)
+            case ast.Attr():
+                return self.infer_attr(expr, env)
+            case ast.CallExpr():
+                return self.infer_call(expr, env)
+            case ast.Unary(operand=operand):
+                t = self.infer(operand, env, expected)
+                if isinstance(t, T.Quantity | T.VectorType) or t == T.UNKNOWN:
+                    return t
+                self.sink.report("MT0301", f"cannot negate {_article_type(t)}", expr.span)
+                return T.UNKNOWN
+            case ast.Binary():
+                return self.infer_binary(expr, env, expected)
+            case ast.Vector():
+                return self.infer_vector(expr, env)
+            case ast.ListExpr(items=items):
+                if not items:
+                    return T.ListType(T.UNKNOWN)
+                elem_expected = expected.element if isinstance(expected, T.ListType) else None
+                first = self.infer(items[0], env, elem_expected)
+                for item in items[1:]:
+                    t = self.infer(item, env, first if isinstance(first, T.EnumType) else None)
+                    if not (T.is_assignable(t, first) or T.is_assignable(first, t)):
+                        self.sink.report(
+                            "MT0301",
+                            f"list items must have one type: found {first} and {t}",
+                            item.span,
+                        )
+                return T.ListType(first)
+            case _:
+                return T.UNKNOWN
+
+    def unit_type(self, unit: str, span: Span) -> tuple[T.Type, float]:
+        found = T.UNITS.get(unit)
+        if found is None:
+            self.sink.report(
+                "MT0303",
+                f"unknown unit `{unit}`",
+                span,
+                help=did_you_mean(unit, T.UNITS) or f"units: {', '.join(T.UNITS)}",
+            )
+            return T.UNKNOWN, 1.0
+        return T.Quantity(found[0]), found[1]
+
+    def infer_name(self, name: str, span: Span, env: Env, expected: T.Type | None) -> T.Type:
+        if name in env.locals:
+            return env.locals[name]
+        if env.scene is not None:
+            scene = env.scene.decl
+            assert isinstance(scene, ast.Scene)
+            if any(s.name == name for s in scene.sites):
+                return T.SITE
+        if isinstance(expected, T.EnumType) and name in expected.members:
+            return expected
+        sym = env.scope.lookup(name)
+        if sym is not None:
+            if sym.kind == "tool":
+                return T.TOOL
+            if sym.kind == "scene":
+                return T.SCENE
+            self.sink.report(
+                "MT0301",
+                f"`{name}` is {_article(sym.kind)}; it can be called, not used as a value",
+                span,
+            )
+            return T.UNKNOWN
+        owners = [e for e in T.ENUMS if name in e.members]
+        if len(owners) == 1 and expected is None:
+            return owners[0]
+        if name in env.scope.ambiguous:
+            self.lookup_symbol(name, span, env.scope)
+            return T.UNKNOWN
+        if name in env.scope.broken or "*" in env.scope.broken:
+            return T.UNKNOWN
+        pool = list(env.locals) + list(env.scope.names)
+        if env.scene is not None:
+            pool += [s.name for s in env.scene.decl.sites]  # type: ignore[attr-defined]
+        if isinstance(expected, T.EnumType):
+            pool += list(expected.members)
+        help = did_you_mean(name, pool)
+        if help is None and isinstance(expected, T.EnumType):
+            help = f"{expected} is one of: {', '.join(expected.members)}"
+        if help is None and expected == T.SITE and env.level == "task" and env.scene is None:
+            help = "sites come from the task's scene: add `scene <name>` to the task"
+        self.sink.report("MT0201", f"unknown name `{name}`", span, help=help)
+        return T.UNKNOWN
+
+    def infer_attr(self, expr: ast.Attr, env: Env) -> T.Type:
+        if isinstance(expr.obj, ast.Name) and expr.obj.name == "mtm":
+            self.sink.report(
+                "MT0301",
+                f"`mtm.{expr.name}` is a function: call it, as in `mtm.{expr.name}()`",
+                expr.span,
+            )
+            return T.UNKNOWN
+        owner = self.infer(expr.obj, env)
+        if owner == T.UNKNOWN:
+            return T.UNKNOWN
+        if owner == T.SCENE and isinstance(expr.obj, ast.Name):
+            sym = env.scope.lookup(expr.obj.name)
+            scene = sym.decl if sym else None
+            if isinstance(scene, ast.Scene):
+                if any(s.name == expr.name for s in scene.sites):
+                    return T.SITE
+                self.sink.report(
+                    "MT0201",
+                    f"scene `{scene.name}` has no site `{expr.name}`",
+                    expr.name_span,
+                    help=did_you_mean(expr.name, [s.name for s in scene.sites]),
+                )
+                return T.UNKNOWN
+        if owner == T.TOOL and expr.name in B.TOOL_PROPERTIES:
+            return B.TOOL_PROPERTIES[expr.name]
+        self.sink.report("MT0301", f"{_article_type(owner)} has no `{expr.name}`", expr.name_span)
+        return T.UNKNOWN
+
+    def infer_call(self, expr: ast.CallExpr, env: Env) -> T.Type:
+        func = expr.func
+        if not (isinstance(func, ast.Attr) and isinstance(func.obj, ast.Name) and func.obj.name == "mtm"):
+            self.sink.report(
+                "MT0301",
+                "only the timing functions `mtm.<name>(...)` can be called inside an expression",
+                func.span,
+                help="call elements and actions as statements, on a line of their own",
+            )
+            for a in expr.args:
+                self.infer(a.value, env)
+            return T.UNKNOWN
+        sig = B.MTM_FUNCTIONS.get(func.name)
+        if sig is None:
+            self.sink.report(
+                "MT0201",
+                f"unknown timing function `mtm.{func.name}`",
+                func.name_span,
+                help=did_you_mean(func.name, B.MTM_FUNCTIONS)
+                or f"functions: {', '.join(B.MTM_FUNCTIONS)}",
+            )
+            return T.UNKNOWN
+        self.check_args(f"mtm.{sig.name}", _builtin_params(sig), expr.args, expr.span, env)
+        if sig.name == "code":
+            from mtlc.semantics.mtm import other_codes
+
+            for a in expr.args:
+                if isinstance(a.value, ast.String) and a.value.value not in other_codes():
+                    self.sink.report(
+                        "MT0309",
+                        f"no MTM-1 element `{a.value.value}` in the tables",
+                        a.value.span,
+                        help=did_you_mean(a.value.value, other_codes()),
+                    )
+        return T.TIMING
+
+    def infer_binary(self, expr: ast.Binary, env: Env, expected: T.Type | None) -> T.Type:
+        hint = expected if isinstance(expected, T.Quantity | T.VectorType) else None
+        left = self.infer(expr.left, env, hint)
+        right = self.infer(expr.right, env, hint)
+        if T.UNKNOWN in (left, right):
+            return T.UNKNOWN
+        op = expr.op
+        numeric = (T.Quantity, T.VectorType)
+        if not isinstance(left, numeric) or not isinstance(right, numeric):
+            bad = left if not isinstance(left, numeric) else right
+            self.sink.report(
+                "MT0301", f"`{op}` works on numbers and quantities, not on {bad}", expr.span
+            )
+            return T.UNKNOWN
+        if op in "+-":
+            if type(left) is not type(right) or left.dim != right.dim:
+                verb = "add" if op == "+" else "subtract"
+                self.sink.report(
+                    "MT0302",
+                    f"cannot {verb} {left} and {right}",
+                    expr.span,
+                    help="both sides of + and - need the same unit kind",
+                )
+                return T.UNKNOWN
+            if isinstance(left, T.Quantity):
+                return T.Quantity(left.dim, left.integer and right.integer)  # type: ignore[union-attr]
+            return left
+        if isinstance(left, T.VectorType) and isinstance(right, T.VectorType):
+            self.sink.report("MT0301", f"cannot use `{op}` between two vectors", expr.span)
+            return T.UNKNOWN
+        sign = 1 if op == "*" else -1
+        dim = tuple(a + sign * b for a, b in zip(left.dim, right.dim, strict=True))
+        if isinstance(left, T.VectorType) or isinstance(right, T.VectorType):
+            if op == "/" and isinstance(right, T.VectorType):
+                self.sink.report("MT0301", "cannot divide by a vector", expr.span)
+                return T.UNKNOWN
+            return T.VectorType(dim)  # type: ignore[arg-type]
+        integer = op == "*" and left.integer and right.integer  # type: ignore[union-attr]
+        return T.Quantity(dim, integer)  # type: ignore[arg-type]
+
+    def infer_vector(self, expr: ast.Vector, env: Env) -> T.Type:
+        dims = []
+        for item in expr.items:
+            t = self.infer(item, env)
+            if t == T.UNKNOWN:
+                return T.UNKNOWN
+            if not isinstance(t, T.Quantity):
+                self.sink.report("MT0301", f"vector components are numbers, found {t}", item.span)
+                return T.UNKNOWN
+            dims.append(t.dim)
+        if expr.unit is not None:
+            utype, _ = self.unit_type(expr.unit, expr.unit_span or expr.span)
+            if utype == T.UNKNOWN:
+                return T.UNKNOWN
+            for item, dim in zip(expr.items, dims, strict=True):
+                if dim != T.NONE_DIM:
+                    self.sink.report(
+                        "MT0302",
+                        f"component has its own unit and the vector has `{expr.unit}`",
+                        item.span,
+                        help="write the unit once, after the parenthesis: (1, 2, 3) cm",
+                    )
+                    return T.UNKNOWN
+            return T.VectorType(utype.dim)  # type: ignore[attr-defined]
+        if len(set(dims)) > 1:
+            self.sink.report(
+                "MT0302",
+                "vector components have different units: "
+                + ", ".join(T.dim_name(d) for d in dims),
+                expr.span,
+            )
+            return T.UNKNOWN
+        return T.VectorType(dims[0])
+
+
+def _module_hint(name: str) -> str | None:
+    """If a stdlib module defines ``name``, say which `use` brings it in (only on the error path)."""
+    import re
+
+    from mtlc.resources import stdlib_dir
+
+    pattern = re.compile(rf"^\s*(element|action|tool|scene)\s+{re.escape(name)}\b", re.M)
+    for path in sorted(stdlib_dir().glob("*.mtask")):
+        if pattern.search(path.read_text(encoding="utf-8")):
+            return f"`{name}` is defined in the standard library: add `use stdlib.{path.stem}`"
+    return None
+
+
+def sym_scope_broken(sym: Symbol) -> frozenset[str]:
+    """Names in the symbol's own file whose definitions parsed only after error recovery."""
+    return sym.module.tree.broken_names
+
+
+def _builtin_params(sig: B.Signature) -> list[tuple[str, T.Type, bool]]:
+    return [(p.name, p.type, p.required) for p in sig.params]
+
+
+def _article(kind: str) -> str:
+    return ("an " if kind[0] in "aeiou" else "a ") + kind
+
+
+def _article_type(t: T.Type) -> str:
+    return _article(t.name) if t.name[0].isalpha() else t.name
+
+
+def _src_number(expr: ast.Expr) -> str:
+    if isinstance(expr, ast.Number):
+        v = expr.value
+        return str(int(v)) if v.is_integer() else str(v)
+    return "8"
+
+
+def check_manikin(stmt: ast.ManikinSetting, sink: DiagnosticSink) -> tuple[str, str, int] | None:
+    """Validate `manikin <population> <sex> p<N>`; the value, or None after a diagnostic."""
+    ok = True
+    if stmt.population not in B.POPULATIONS:
+        sink.report(
+            "MT0309",
+            f"unknown population `{stmt.population}`",
+            stmt.population_span,
+            help=did_you_mean(stmt.population, B.POPULATIONS)
+            or f"populations: {', '.join(B.POPULATIONS)}",
+        )
+        ok = False
+    if stmt.sex not in B.SEXES:
+        sink.report(
+            "MT0309",
+            f"sex is `male` or `female`, not `{stmt.sex}`",
+            stmt.sex_span,
+            help=did_you_mean(stmt.sex, B.SEXES),
+        )
+        ok = False
+    pct_text = stmt.percentile
+    allowed = B.POPULATIONS.get(stmt.population, (1, 5, 10, 50, 90, 95, 99))
+    pct = int(pct_text[1:]) if pct_text[:1] == "p" and pct_text[1:].isdigit() else None
+    if pct is None or pct not in allowed:
+        sink.report(
+            "MT0309",
+            f"percentile `{pct_text}` is not in the table",
+            stmt.percentile_span,
+            help="percentiles: " + ", ".join(f"p{p}" for p in allowed),
+        )
+        ok = False
+    return (stmt.population, stmt.sex, pct) if ok and pct is not None else None
+
+
+def check_recursion(edges: list[CallEdge], sink: DiagnosticSink) -> set[int]:
+    """Report each cycle of calls once, at the call that closes it; the ids of definitions in cycles.
+
+    An iterative depth-first search, so that a long chain of definitions cannot exhaust the stack.
+    """
+    graph: dict[int, list[CallEdge]] = {}
+    names: dict[int, str] = {}
+    for e in edges:
+        graph.setdefault(id(e.caller), []).append(e)
+        names[id(e.caller)] = e.caller.name
+        names[id(e.callee.decl)] = e.callee.name
+    in_cycle: set[int] = set()
+    reported: set[frozenset[int]] = set()
+    state: dict[int, int] = {}  # 1 on the current path, 2 finished
+    for e in edges:
+        root = id(e.caller)
+        if root in state:
+            continue
+        path: list[int] = [root]
+        iters = [iter(graph.get(root, []))]
+        state[root] = 1
+        while iters:
+            edge = next(iters[-1], None)
+            if edge is None:
+                state[path.pop()] = 2
+                iters.pop()
+                continue
+            target = id(edge.callee.decl)
+            if state.get(target) == 1:
+                members = path[path.index(target) :]
+                in_cycle.update(members)
+                key = frozenset(members)
+                if key not in reported:
+                    reported.add(key)
+                    chain = " → ".join(f"`{names[m]}`" for m in [*members, target])
+                    sink.report(
+                        "MT0207",
+                        f"`{names[target]}` calls itself: {chain}",
+                        edge.span,
+                        help="a motion must expand into a finite list of primitives; "
+                        "use `repeat` for repetition",
+                    )
+            elif target not in state:
+                state[target] = 1
+                path.append(target)
+                iters.append(iter(graph.get(target, [])))
+    return in_cycle

@@ -1,0 +1,464 @@
+"""Expand a checked task into its timeline of primitives.
+
+Calls are inlined with their arguments bound, `repeat` and `for` unrolled, sequence and parallel
+composition turned into start and end times. Durations are stated (`over`), set for an element
+(`time`), or predicted from MTM-1 (mtlc.semantics.mtm). A budget on the number of primitives
+turns an exploding expansion into a diagnostic before it costs the memory.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from mtlc.diagnostics import DiagnosticSink, Span
+from mtlc.semantics import builtins as B
+from mtlc.semantics import mtm
+from mtlc.semantics import types as T
+from mtlc.semantics.check import check_manikin
+from mtlc.semantics.scopes import Scope
+from mtlc.semantics.timeline import ManikinSpec, Primitive, Site, Timeline, Tool
+from mtlc.syntax import ast
+
+DEFAULT_BUDGET = 100_000
+DEFAULT_APPROACH_M = 0.08
+TO_SHARE = (0.2, 0.5)  # the contact (TO) phase's share of a goal's time: at least, at most
+HAND_REST = {"left_hand": (0.2, 0.75, 0.0), "right_hand": (-0.2, 0.75, 0.0)}  # from the root
+HANDS = {"left": ("left_hand",), "right": ("right_hand",), "both": ("left_hand", "right_hand")}
+
+
+@dataclass(frozen=True)
+class Timing:
+    """An MTM-1 rule from `mtm.<name>(...)`, evaluated for each primitive it times."""
+
+    rule: str
+    args: dict[str, Any]
+
+
+class _BudgetExceeded(Exception):
+    def __init__(self, span: Span, needed: int | None) -> None:
+        self.span = span
+        self.needed = needed
+
+
+class _Abort(Exception):
+    """A value error already reported; the task is not expanded further."""
+
+
+@dataclass
+class _Env:
+    scope: Scope
+    locals: dict[str, Any]
+    trace: tuple[tuple[str, Span], ...]  # (name, span of the call) from the task down
+    timing: Any = None  # the element's `time`, if any
+
+
+class Expander:
+    def __init__(
+        self,
+        sink: DiagnosticSink,
+        scopes: dict[int, Scope],
+        budget: int = DEFAULT_BUDGET,
+        manikin_override: ManikinSpec | None = None,
+    ) -> None:
+        self.sink = sink
+        self.scopes = scopes
+        self.budget = budget
+        self.manikin_override = manikin_override
+
+    # ------------------------------------------------------------ entry
+    def expand_task(self, task: ast.Task, scope: Scope) -> Timeline | None:
+        self.count = 0
+        self.sites: dict[str, Site] = {}
+        self.hand_pos: dict[str, tuple[float, float, float] | None] = {}
+        self.root = (0.0, 0.0, 0.0)
+        self.posture = "stand"
+        self.tool: Tool | None = None
+        spec = ManikinSpec(*B.DEFAULT_MANIKIN)
+        scene_name: str | None = None
+        ground = 0.0
+        budget: float | None = None
+        env = _Env(scope, {}, ((task.name, task.name_span),))
+        try:
+            for stmt in task.body.stmts:
+                if isinstance(stmt, ast.ManikinSetting):
+                    value = check_manikin(stmt, DiagnosticSink())
+                    if value is not None:
+                        spec = ManikinSpec(*value)
+                elif isinstance(stmt, ast.SceneSetting):
+                    sym = scope.lookup(stmt.name)
+                    if sym is not None and isinstance(sym.decl, ast.Scene):
+                        scene_name, ground = stmt.name, self._load_scene(sym.decl, scope)
+                elif isinstance(stmt, ast.ToolSetting):
+                    self.tool = self.eval(stmt.tool, env)
+                elif isinstance(stmt, ast.BudgetSetting):
+                    budget = self.eval(stmt.limit, env)
+            self.root = (0.0, ground, 0.0)
+            timeline = Timeline(
+                task=task.name,
+                title=task.title,
+                file=task.span.file,
+                span=task.name_span,
+                manikin=self.manikin_override or spec,
+                scene=scene_name,
+                ground=ground,
+                sites=list(self.sites.values()),
+                tool=self.tool,
+                budget=budget,
+            )
+            self.out = timeline.primitives
+            self.block(task.body, env, 0.0)
+        except _BudgetExceeded as exc:
+            needed = f" (it would need about {exc.needed:,})" if exc.needed else ""
+            self.sink.report(
+                "MT0401",
+                f"task `{task.name}` expands into more than {self.budget:,} primitives{needed}",
+                exc.span,
+                help="lower the repeat count, or raise the limit with --expansion-budget",
+            )
+            return None
+        except _Abort:
+            return None
+        if not timeline.primitives:
+            self.sink.report("MT0402", f"task `{task.name}` produces no motion", task.name_span)
+        return timeline
+
+    def _load_scene(self, scene: ast.Scene, scope: Scope) -> float:
+        env = _Env(scope, {}, ())
+        for site in scene.sites:
+            if site.name in self.sites:
+                continue
+            normal = self.eval(site.normal, env) if site.normal is not None else None
+            if normal is not None:
+                norm = math.sqrt(sum(c * c for c in normal))
+                normal = tuple(c / norm for c in normal) if norm > 0 else None
+            self.sites[site.name] = Site(
+                name=site.name,
+                position=self.eval(site.position, env),
+                normal=normal,
+                frame=self.eval(site.frame, env) if site.frame is not None else None,
+                span=site.name_span,
+            )
+        return float(self.eval(scene.ground, env)) if scene.ground is not None else 0.0
+
+    # ------------------------------------------------------------ statements
+    def block(self, block: ast.Block, env: _Env, t: float) -> float:
+        for stmt in block.stmts:
+            t = self.stmt(stmt, env, t)
+        return t
+
+    def stmt(self, stmt: ast.Stmt, env: _Env, t: float) -> float:
+        match stmt:
+            case ast.Block():
+                return self.block(stmt, env, t)
+            case ast.Parallel(body=body):
+                return max((self.stmt(s, env, t) for s in body.stmts), default=t)
+            case ast.Repeat():
+                return self.repeat(stmt, env, t)
+            case ast.ForEach():
+                for value in self.eval(stmt.items, env):
+                    inner = _Env(env.scope, {**env.locals, stmt.var: value}, env.trace, env.timing)
+                    t = self.block(stmt.body, inner, t)
+                return t
+            case ast.Call():
+                return self.call(stmt, env, t)
+            case ast.Goal() | ast.Posture() | ast.Walk() | ast.Grip() | ast.Gaze() | ast.Still():
+                return self.primitive(stmt, env, t)
+            case _:  # settings and `time`: no motion of their own
+                return t
+
+    def repeat(self, stmt: ast.Repeat, env: _Env, t: float) -> float:
+        n = self.eval(stmt.count, env)
+        if n < 0:
+            self.sink.report("MT0309", f"cannot repeat a negative number of times ({n})", stmt.count.span)
+            raise _Abort
+        for i in range(n):
+            before = self.count
+            t = self.block(stmt.body, env, t)
+            if i == 0:
+                per_round = self.count - before
+                if per_round == 0:
+                    break  # nothing inside moves: the other rounds would add nothing
+                if self.count + per_round * (n - 1) > self.budget:
+                    raise _BudgetExceeded(_user_line(env, stmt), before + per_round * n)
+        return t
+
+    def call(self, call: ast.Call, env: _Env, t: float) -> float:
+        scope = env.scope
+        for part in call.callee[:-1]:
+            scope = scope.aliases[part]
+        sym = scope.names.get(call.callee[-1]) if len(call.callee) == 1 else scope.own[call.callee[-1]]
+        assert sym is not None and isinstance(sym.decl, ast.Definition)
+        decl = sym.decl
+        callee_scope = self.scopes[id(sym.module)]
+        bound: dict[str, Any] = {}
+        params = list(decl.params)
+        for i, arg in enumerate(call.args):
+            name = arg.name if arg.name is not None else params[i].name
+            bound[name] = self.eval(arg.value, env)
+        for p in params:
+            if p.name not in bound and p.default is not None:
+                bound[p.name] = self.eval(p.default, _Env(callee_scope, {}, env.trace))
+        trace = (*env.trace, (decl.name, call.span))
+        inner = _Env(callee_scope, bound, trace)
+        if decl.kind == "element":
+            for stmt in decl.body.stmts:
+                if isinstance(stmt, ast.TimeSetting):
+                    inner.timing = self.eval(stmt.duration, inner)
+        return self.block(decl.body, inner, t)
+
+    # ------------------------------------------------------------ primitives
+    def primitive(self, stmt: ast.Stmt, env: _Env, t: float) -> float:
+        over = self.eval(stmt.over, env) if getattr(stmt, "over", None) is not None else None
+        if isinstance(over, float) and over < 0:
+            self.sink.report("MT0309", f"a duration cannot be negative ({over:g} s)", stmt.over.span)  # type: ignore[attr-defined]
+            raise _Abort
+        timing = over if over is not None else env.timing
+        match stmt:
+            case ast.Goal():
+                return self.goal(stmt, env, t, timing)
+            case ast.Posture():
+                return self.posture_goal(stmt, env, t, timing)
+            case ast.Walk():
+                return self.walk(stmt, env, t, timing)
+            case ast.Grip():
+                hands = HANDS[self.eval(stmt.hand, env)]
+                default = Timing("grasp", {"case": "G1A"}) if stmt.state == "closed" else Timing("release", {})
+                d = self.duration(timing, default, stmt.span)
+                for h in hands:
+                    self.emit("grip", h, t, t + d, {"state": stmt.state}, stmt, env)
+                return t + d
+            case ast.Gaze():
+                site: Site = self.eval(stmt.target, env)
+                d = self.duration(timing, Timing("code", {"code": "EF"}), stmt.span)
+                self.emit("gaze", "head", t, t + d, {"site": site.name, "position": site.position}, stmt, env)
+                return t + d
+            case ast.Still():
+                d = self.duration(timing, None, stmt.span)
+                self.emit("hold", "body", t, t + d, {}, stmt, env)
+                return t + d
+        raise AssertionError(stmt)
+
+    def goal(self, stmt: ast.Goal, env: _Env, t: float, timing: Any) -> float:
+        hands = HANDS[self.eval(stmt.effector, env)]
+        site: Site = self.eval(stmt.target, env)
+        offset = self.eval(stmt.offset, env) if stmt.offset is not None else (0.0, 0.0, 0.0)
+        target = tuple(p + o for p, o in zip(site.position, offset, strict=True))
+        approach = self.eval(stmt.approach, env) if stmt.approach is not None else DEFAULT_APPROACH_M
+        distance = max(_dist(self._hand(h), target) for h in hands)
+        d = self.duration(timing, Timing("reach", {"case": "B"}), stmt.span, distance)
+        share = min(max(approach / distance, TO_SHARE[0]), TO_SHARE[1]) if distance > 0 else 1.0
+        t_contact = t + d * (1.0 - share)
+        for h in hands:
+            params = {
+                "site": site.name,
+                "position": target,
+                "normal": site.normal,
+                "frame": site.frame,
+                "orient": stmt.orient,
+                "approach": approach,
+                "two_handed": len(hands) == 2,
+                "phases": {"TA": [t, t_contact], "TO": [t_contact, t + d]},
+                "travel": distance,
+            }
+            self.emit("goal", h, t, t + d, params, stmt, env)
+            self.hand_pos[h] = target
+        return t + d
+
+    def posture_goal(self, stmt: ast.Posture, env: _Env, t: float, timing: Any) -> float:
+        sig = B.POSTURES[stmt.kind]
+        values: dict[str, Any] = {p.name: p.default for p in sig.params}
+        for i, arg in enumerate(stmt.args):
+            values[arg.name or sig.params[i].name] = self.eval(arg.value, env)
+        kind = stmt.kind
+        if kind == "twist":
+            hands = HANDS[values["hand"]]
+            load = float(self.tool.properties.get("mass", 0.0)) if self.tool else 0.0
+            d = self.duration(timing, Timing("turn", {"angle": values["angle"], "load": load}), stmt.span)
+            for h in hands:
+                self.emit("posture", h, t, t + d, {"posture": "twist", "angle": values["angle"]}, stmt, env)
+            return t + d
+        if kind == "stand" and self.posture == "stand" and timing is None:
+            return t  # already standing: nothing to do
+        default_code = {
+            ("stand", "kneel"): "AKBK",
+            ("stand", "sit"): "STD",
+            ("sit", "stand"): "SIT",
+        }.get((kind, self.posture))
+        if default_code is None:
+            if kind == "stand":
+                default_code = "AB"
+            elif kind == "kneel" and values.get("knees") == 2:
+                default_code = "KBK"
+            elif kind == "sit":
+                default_code = "SIT"
+            else:
+                default_code = "B"
+        d = self.duration(timing, Timing("code", {"code": default_code}), stmt.span)
+        params = {"posture": kind, **{k: v for k, v in values.items() if k != "hand"}}
+        self.emit("posture", "body", t, t + d, params, stmt, env)
+        self.posture = kind
+        return t + d
+
+    def walk(self, stmt: ast.Walk, env: _Env, t: float, timing: Any) -> float:
+        x, y, z = self.root
+        if stmt.mode == "to":
+            site: Site = self.eval(stmt.target, env)
+            goal = (site.position[0], y, site.position[2])
+            name = site.name
+        else:
+            dx, _, dz = self.eval(stmt.target, env)
+            goal, name = (x + dx, y, z + dz), None
+        facing = self.eval(stmt.facing, env) if stmt.facing is not None else None
+        distance = _dist(self.root, goal)
+        d = self.duration(timing, Timing("walk", {}), stmt.span, distance)
+        params = {
+            "site": name,
+            "from": self.root,
+            "to": goal,
+            "facing": facing.name if facing is not None else None,
+            "facing_position": facing.position if facing is not None else None,
+            "distance": distance,
+        }
+        self.emit("locomotion", "root", t, t + d, params, stmt, env)
+        self.root = goal
+        for h in HAND_REST:
+            self.hand_pos[h] = None  # the hands come back to the sides while walking
+        return t + d
+
+    def _hand(self, hand: str) -> tuple[float, float, float]:
+        pos = self.hand_pos.get(hand)
+        if pos is None:
+            rest = HAND_REST[hand]
+            pos = (self.root[0] + rest[0], self.root[1] + rest[1], self.root[2] + rest[2])
+        return pos
+
+    def duration(self, timing: Any, default: Timing | None, span: Span, distance: float = 0.0) -> float:
+        rule = timing if timing is not None else default
+        if isinstance(rule, int | float):
+            return float(rule)
+        assert isinstance(rule, Timing), rule
+        a = rule.args
+        match rule.rule:
+            case "reach":
+                tmu = mtm.reach_tmu(a["case"], distance)
+            case "move":
+                tmu = mtm.move_tmu(a["case"], distance)
+            case "turn":
+                tmu = mtm.turn_tmu(a["angle"], a["load"])
+            case "grasp":
+                tmu = mtm.grasp_tmu(a["case"])
+            case "release":
+                tmu = mtm.code_tmu("RL1")
+            case "walk":
+                tmu = mtm.walk_tmu(distance)
+            case "code":
+                tmu = mtm.code_tmu(a["code"])
+            case "fixed":
+                tmu = float(a["tmu"])
+                if tmu < 0:
+                    self.sink.report("MT0309", "a duration cannot be negative", span)
+                    raise _Abort
+            case _:
+                raise AssertionError(rule)
+        return tmu * T.TMU_SECONDS
+
+    def emit(
+        self, kind: str, effector: str, start: float, end: float, params: dict[str, Any],
+        stmt: ast.Stmt, env: _Env,
+    ) -> None:  # fmt: skip
+        self.count += 1
+        if self.count > self.budget:
+            raise _BudgetExceeded(_user_line(env, stmt), None)
+        origin = env.trace[1][1] if len(env.trace) > 1 else stmt.span
+        self.out.append(
+            Primitive(
+                kind=kind,
+                effector=effector,
+                start=start,
+                end=end,
+                params=params,
+                path=tuple(name for name, _ in env.trace),
+                span=stmt.span,
+                origin=origin,
+            )
+        )
+
+    # ------------------------------------------------------------ values
+    def eval(self, expr: ast.Expr | None, env: _Env) -> Any:
+        match expr:
+            case None:
+                return None
+            case ast.Number(unit=None, is_int=True, value=v):
+                return int(v)
+            case ast.Number(unit=None, value=v):
+                return v
+            case ast.Number(unit=unit, value=v):
+                return v * T.UNITS[unit][1]
+            case ast.String(value=v):
+                return v
+            case ast.Name(name=name):
+                if name in env.locals:
+                    return env.locals[name]
+                if name in self.sites:
+                    return self.sites[name]
+                sym = env.scope.lookup(name)
+                if sym is not None and isinstance(sym.decl, ast.ToolDecl):
+                    return self._tool(sym.decl, env)
+                return name  # an enum member: its name is its value
+            case ast.Attr(obj=ast.Name(name=owner), name=attr):
+                sym = env.scope.lookup(owner)
+                if sym is not None and isinstance(sym.decl, ast.Scene):
+                    self._load_scene(sym.decl, env.scope)
+                    return self.sites[attr]
+                tool = self.eval(expr.obj, env)
+                return tool.properties.get(attr)
+            case ast.CallExpr(func=ast.Attr(name=fname), args=args):
+                sig = B.MTM_FUNCTIONS[fname]
+                values = {p.name: p.default for p in sig.params}
+                for i, arg in enumerate(args):
+                    values[arg.name or sig.params[i].name] = self.eval(arg.value, env)
+                return Timing(fname, values)
+            case ast.Unary(operand=operand):
+                v = self.eval(operand, env)
+                return tuple(-c for c in v) if isinstance(v, tuple) else -v
+            case ast.Binary(op=op, left=left, right=right):
+                return self._arith(op, self.eval(left, env), self.eval(right, env), expr)
+            case ast.Vector(items=items, unit=unit):
+                factor = T.UNITS[unit][1] if unit is not None else 1.0
+                return tuple(float(self.eval(i, env)) * factor for i in items)
+            case ast.ListExpr(items=items):
+                return [self.eval(i, env) for i in items]
+        raise AssertionError(f"cannot evaluate {expr!r}")
+
+    def _tool(self, decl: ast.ToolDecl, env: _Env) -> Tool:
+        return Tool(decl.name, {p.name: self.eval(p.value, env) for p in decl.properties})
+
+    def _arith(self, op: str, a: Any, b: Any, expr: ast.Binary) -> Any:
+        if op in "+-":
+            sign = 1 if op == "+" else -1
+            if isinstance(a, tuple):
+                return tuple(x + sign * y for x, y in zip(a, b, strict=True))
+            return a + sign * b
+        if op == "*":
+            if isinstance(a, tuple):
+                return tuple(x * b for x in a)
+            if isinstance(b, tuple):
+                return tuple(a * y for y in b)
+            return a * b
+        if b == 0:
+            self.sink.report("MT0403", "division by zero", expr.span)
+            raise _Abort
+        if isinstance(a, tuple):
+            return tuple(x / b for x in a)
+        return a / b
+
+
+def _user_line(env: _Env, stmt: ast.Stmt) -> Span:
+    """The statement in the task's own body that led to ``stmt``: where the user can act."""
+    return env.trace[1][1] if len(env.trace) > 1 else stmt.span
+
+
+def _dist(a: tuple[float, ...], b: tuple[float, ...]) -> float:
+    return math.sqrt(sum((x - y) ** 2 for x, y in zip(a, b, strict=True)))

@@ -1,0 +1,384 @@
+"""Build AST nodes from lark's parse tree, with spans, and limit expression depth.
+
+The limit keeps every later pass (which recurses over expressions) far from Python's recursion
+limit, whatever the input: a 100,000-term sum is reported, not crashed on.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from lark import Token, Tree
+from lark.visitors import Transformer_NonRecursive
+
+from mtlc.diagnostics import DiagnosticSink, Span
+from mtlc.syntax import ast
+from mtlc.syntax.lexer import decode_string
+
+MAX_EXPR_DEPTH = 100
+
+
+class AstBuilder(Transformer_NonRecursive):
+    def __init__(self, file: str, sink: DiagnosticSink) -> None:
+        super().__init__()
+        self.file = file
+        self.sink = sink
+        self._depth: dict[int, int] = {}
+
+    def build(self, tree: Tree) -> Any:
+        self._depth.clear()
+        return self.transform(tree)
+
+    # ------------------------------------------------------------ helpers
+    def _sp(self, x: Any) -> Span:
+        if isinstance(x, Token):
+            return Span(self.file, x.line, x.column, x.end_line, x.end_column, x.start_pos, x.end_pos)
+        if isinstance(x, ast.Node):
+            return x.span
+        if isinstance(x, tuple) and x and isinstance(x[-1], Span):
+            return x[-1]
+        raise TypeError(f"no span for {x!r}")
+
+    def _join(self, first: Any, last: Any) -> Span:
+        return self._sp(first).to(self._sp(last))
+
+    def _expr(self, node: ast.Expr, *children: ast.Expr) -> ast.Expr:
+        depth = 1 + max((self._depth.get(id(c), 1) for c in children), default=0)
+        if depth > MAX_EXPR_DEPTH:
+            if not any(isinstance(c, ast.Error) for c in children):
+                self.sink.report(
+                    "MT0104",
+                    f"expression nests more than {MAX_EXPR_DEPTH} deep",
+                    node.span,
+                    help="break it into parameters or smaller definitions",
+                )
+            node = ast.Error(span=node.span)
+        self._depth[id(node)] = depth
+        return node
+
+    @staticmethod
+    def _present(items: Any) -> list[Any]:
+        return [x for x in items if x is not None]
+
+    def _args(self, args: Any) -> tuple[ast.Arg, ...]:
+        if args is None:
+            return ()
+        return tuple(args)
+
+    # ------------------------------------------------------------ modules
+    def qualname(self, c: list[Token]) -> tuple[tuple[str, ...], Span]:
+        return tuple(t.value for t in c), self._join(c[0], c[-1])
+
+    def use_decl(self, c: list[Any]) -> ast.Use:
+        names, span = c[1]
+        return ast.Use(span=self._join(c[0], c[1]), module=names, module_span=span)
+
+    # ------------------------------------------------------------ scenes and tools
+    def ground_decl(self, c: list[Any]) -> tuple[str, ast.Expr, Span]:
+        return ("ground", c[1], self._join(c[0], c[1]))
+
+    def site_normal(self, c: list[Any]) -> tuple[str, ast.Expr, Span]:
+        return ("normal", c[1], self._join(c[0], c[1]))
+
+    def site_frame(self, c: list[Any]) -> tuple[str, ast.Expr, Span]:
+        return ("frame", c[1], self._join(c[0], c[1]))
+
+    def site_decl(self, c: list[Any]) -> ast.SiteDecl:
+        clauses: dict[str, ast.Expr] = {}
+        for kind, expr, span in c[3:]:
+            if kind in clauses:
+                self.sink.report("MT0210", f"`{kind}` is given twice for this site", span)
+            elif clauses:
+                self.sink.report(
+                    "MT0210",
+                    "a site takes a normal or a frame, not both",
+                    span,
+                    help="a frame already fixes the site's orientation; keep one of them",
+                )
+            else:
+                clauses[kind] = expr
+        return ast.SiteDecl(
+            span=self._join(c[0], c[-1]),
+            name=c[1].value,
+            name_span=self._sp(c[1]),
+            position=c[2],
+            normal=clauses.get("normal"),
+            frame=clauses.get("frame"),
+        )
+
+    def scene_decl(self, c: list[Any]) -> ast.Scene:
+        ground: ast.Expr | None = None
+        sites = []
+        for member in self._present(c[2:-1]):
+            if isinstance(member, ast.SiteDecl):
+                sites.append(member)
+            elif ground is not None:
+                self.sink.report("MT0210", "the scene's ground is given twice", member[2])
+            else:
+                ground = member[1]
+        return ast.Scene(
+            span=self._join(c[0], c[-1]),
+            name=c[1].value,
+            name_span=self._sp(c[1]),
+            ground=ground,
+            sites=tuple(sites),
+        )
+
+    def tool_prop(self, c: list[Any]) -> ast.ToolProperty:
+        return ast.ToolProperty(span=self._join(c[0], c[1]), name=c[0].value, value=c[1])
+
+    def tool_decl(self, c: list[Any]) -> ast.ToolDecl:
+        return ast.ToolDecl(
+            span=self._join(c[0], c[-1]),
+            name=c[1].value,
+            name_span=self._sp(c[1]),
+            properties=tuple(self._present(c[2:-1])),
+        )
+
+    # ------------------------------------------------------------ definitions
+    def param(self, c: list[Any]) -> ast.Param:
+        name, type_tok, default = c
+        return ast.Param(
+            span=self._join(name, default if default is not None else type_tok),
+            name=name.value,
+            type_name=type_tok.value,
+            type_span=self._sp(type_tok),
+            default=default,
+        )
+
+    def definition(self, c: list[Any]) -> ast.Definition:
+        kind, name, *params, body = c
+        return ast.Definition(
+            span=self._join(kind, body),
+            name=name.value,
+            name_span=self._sp(name),
+            kind=kind.value,
+            params=tuple(self._present(params)),
+            body=body,
+        )
+
+    def task_decl(self, c: list[Any]) -> ast.Task:
+        kw, name, title, body = c
+        return ast.Task(
+            span=self._join(kw, body),
+            name=name.value,
+            name_span=self._sp(name),
+            title=decode_string(title, self.file, self.sink) if title is not None else None,
+            body=body,
+        )
+
+    def block(self, c: list[Any]) -> ast.Block:
+        return ast.Block(span=self._join(c[0], c[-1]), stmts=tuple(self._present(c[1:-1])))
+
+    # ------------------------------------------------------------ statements
+    def args(self, c: list[Any]) -> tuple[ast.Arg, ...]:
+        return tuple(
+            a if isinstance(a, ast.Arg) else ast.Arg(span=a.span, name=None, value=a) for a in c
+        )
+
+    def named_arg(self, c: list[Any]) -> ast.Arg:
+        return ast.Arg(
+            span=self._join(c[0], c[1]), name=c[0].value, value=c[1], name_span=self._sp(c[0])
+        )
+
+    def call_stmt(self, c: list[Any]) -> ast.Call:
+        (names, name_span), args, rpar = c
+        return ast.Call(
+            span=name_span.to(self._sp(rpar)),
+            callee=names,
+            callee_span=name_span,
+            args=self._args(args),
+        )
+
+    def repeat_stmt(self, c: list[Any]) -> ast.Repeat:
+        return ast.Repeat(span=self._join(c[0], c[2]), count=c[1], body=c[2])
+
+    def for_stmt(self, c: list[Any]) -> ast.ForEach:
+        kw, var, items, body = c
+        return ast.ForEach(
+            span=self._join(kw, body),
+            var=var.value,
+            var_span=self._sp(var),
+            items=items,
+            body=body,
+        )
+
+    def parallel_stmt(self, c: list[Any]) -> ast.Parallel:
+        return ast.Parallel(span=self._join(c[0], c[1]), body=c[1])
+
+    def manikin_stmt(self, c: list[Token]) -> ast.ManikinSetting:
+        kw, pop, sex, pct = c
+        return ast.ManikinSetting(
+            span=self._join(kw, pct),
+            population=pop.value,
+            population_span=self._sp(pop),
+            sex=sex.value,
+            sex_span=self._sp(sex),
+            percentile=pct.value,
+            percentile_span=self._sp(pct),
+        )
+
+    def scene_stmt(self, c: list[Token]) -> ast.SceneSetting:
+        return ast.SceneSetting(
+            span=self._join(c[0], c[1]), name=c[1].value, name_span=self._sp(c[1])
+        )
+
+    def tool_stmt(self, c: list[Any]) -> ast.ToolSetting:
+        return ast.ToolSetting(span=self._join(c[0], c[1]), tool=c[1])
+
+    def budget_stmt(self, c: list[Any]) -> ast.BudgetSetting:
+        return ast.BudgetSetting(span=self._join(c[0], c[1]), limit=c[1])
+
+    def time_stmt(self, c: list[Any]) -> ast.TimeSetting:
+        return ast.TimeSetting(span=self._join(c[0], c[1]), duration=c[1])
+
+    def approach_clause(self, c: list[Any]) -> tuple[str, Any, Span]:
+        return ("approach", c[0], self._sp(c[0]))
+
+    def offset_clause(self, c: list[Any]) -> tuple[str, Any, Span]:
+        return ("offset", c[0], self._sp(c[0]))
+
+    def orient_clause(self, c: list[Any]) -> tuple[str, Any, Span]:
+        return ("orient", True, self._sp(c[0]))
+
+    def over_clause(self, c: list[Any]) -> tuple[str, Any, Span]:
+        return ("over", c[0], self._sp(c[0]))
+
+    def goal_stmt(self, c: list[Any]) -> ast.Goal:
+        kw, effector, target, *clauses = c
+        found: dict[str, Any] = {}
+        for kind, value, span in clauses:
+            if kind in found:
+                self.sink.report("MT0210", f"`{kind}` is given twice in this goal", span)
+            else:
+                found[kind] = value
+        last = clauses[-1] if clauses else target
+        return ast.Goal(
+            span=self._join(kw, last),
+            effector=effector,
+            target=target,
+            approach=found.get("approach"),
+            offset=found.get("offset"),
+            orient=bool(found.get("orient", False)),
+            over=found.get("over"),
+        )
+
+    def posture_args(self, c: list[Any]) -> tuple[tuple[ast.Arg, ...], Span]:
+        return self._args(c[0]), self._sp(c[1])
+
+    def posture_stmt(self, c: list[Any]) -> ast.Posture:
+        kw, kind, args, over = c
+        last = over if over is not None else args if args is not None else kind
+        return ast.Posture(
+            span=self._join(kw, last),
+            kind=kind.value,
+            kind_span=self._sp(kind),
+            args=args[0] if args is not None else (),
+            over=over[1] if over is not None else None,
+        )
+
+    def walk_stmt(self, c: list[Any]) -> ast.Walk:
+        kw, mode, target, facing, over = c
+        last = over if over is not None else facing if facing is not None else target
+        return ast.Walk(
+            span=self._join(kw, last),
+            mode=mode.value,
+            target=target,
+            facing=facing,
+            over=over[1] if over is not None else None,
+        )
+
+    def grip_stmt(self, c: list[Any]) -> ast.Grip:
+        kw, hand, state, over = c
+        return ast.Grip(
+            span=self._join(kw, over if over is not None else state),
+            hand=hand,
+            state=state.value,
+            state_span=self._sp(state),
+            over=over[1] if over is not None else None,
+        )
+
+    def gaze_stmt(self, c: list[Any]) -> ast.Gaze:
+        kw, target, over = c
+        return ast.Gaze(
+            span=self._join(kw, over if over is not None else target),
+            target=target,
+            over=over[1] if over is not None else None,
+        )
+
+    def still_stmt(self, c: list[Any]) -> ast.Still:
+        return ast.Still(span=self._join(c[0], c[1]), over=c[1][1])
+
+    # ------------------------------------------------------------ expressions
+    def _binary(self, op: str, c: list[Any]) -> ast.Expr:
+        left, right = c
+        node = ast.Binary(span=self._join(left, right), op=op, left=left, right=right)
+        return self._expr(node, left, right)
+
+    def add(self, c: list[Any]) -> ast.Expr:
+        return self._binary("+", c)
+
+    def sub(self, c: list[Any]) -> ast.Expr:
+        return self._binary("-", c)
+
+    def mul(self, c: list[Any]) -> ast.Expr:
+        return self._binary("*", c)
+
+    def div(self, c: list[Any]) -> ast.Expr:
+        return self._binary("/", c)
+
+    def neg(self, c: list[Any]) -> ast.Expr:
+        return self._expr(ast.Unary(span=self._join(c[0], c[1]), op="-", operand=c[1]), c[1])
+
+    def attr(self, c: list[Any]) -> ast.Expr:
+        obj, name = c
+        node = ast.Attr(
+            span=self._join(obj, name), obj=obj, name=name.value, name_span=self._sp(name)
+        )
+        return self._expr(node, obj)
+
+    def call_expr(self, c: list[Any]) -> ast.Expr:
+        func, args, rpar = c
+        args_t = self._args(args)
+        node = ast.CallExpr(span=self._join(func, rpar), func=func, args=args_t)
+        return self._expr(node, func, *(a.value for a in args_t))
+
+    def number(self, c: list[Any]) -> ast.Expr:
+        num, unit = c
+        text = num.value
+        is_int = text.isdigit()
+        try:
+            value = float(text)
+        except ValueError:  # the pattern only admits valid floats; keep the tree whole anyway
+            value = 0.0
+        if value == float("inf"):
+            self.sink.report("MT0309", "number is too large", self._sp(num))
+            return ast.Error(span=self._sp(num))
+        return ast.Number(
+            span=self._join(num, unit if unit is not None else num),
+            value=value,
+            is_int=is_int,
+            unit=unit.value if unit is not None else None,
+            unit_span=self._sp(unit) if unit is not None else None,
+        )
+
+    def string(self, c: list[Token]) -> ast.Expr:
+        return ast.String(span=self._sp(c[0]), value=decode_string(c[0], self.file, self.sink))
+
+    def name(self, c: list[Token]) -> ast.Expr:
+        return ast.Name(span=self._sp(c[0]), name=c[0].value)
+
+    def vector(self, c: list[Any]) -> ast.Expr:
+        lpar, *items, rpar, unit = c
+        node = ast.Vector(
+            span=self._join(lpar, unit if unit is not None else rpar),
+            items=tuple(items),
+            unit=unit.value if unit is not None else None,
+            unit_span=self._sp(unit) if unit is not None else None,
+        )
+        return self._expr(node, *items)
+
+    def list(self, c: list[Any]) -> ast.Expr:
+        lsqb, *items, rsqb = c
+        items = self._present(items)
+        return self._expr(ast.ListExpr(span=self._join(lsqb, rsqb), items=tuple(items)), *items)

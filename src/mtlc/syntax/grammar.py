@@ -1,0 +1,57 @@
+"""Load the grammar once and expose what the tokenizer needs from it."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from functools import cache
+
+from lark import Lark
+from lark.lexer import Lexer, PatternStr
+
+from mtlc.resources import grammar_path
+
+
+class _TokenListLexer(Lexer):
+    """mtlc tokenizes on its own (for recovery and limits); lark only parses the token list."""
+
+    def __init__(self, lexer_conf: object) -> None:
+        pass
+
+    def lex(self, data):  # type: ignore[override]
+        return iter(data)
+
+
+@dataclass(frozen=True)
+class Lexicon:
+    keywords: dict[str, str]  # "goal" -> "GOAL"
+    punctuation: dict[str, str]  # "{" -> "LBRACE"
+    patterns: dict[str, str]  # "NAME" -> regex
+
+
+@cache
+def parser() -> Lark:
+    return Lark(
+        grammar_path().read_text(encoding="utf-8"),
+        parser="lalr",
+        lexer=_TokenListLexer,
+        start="item",
+        maybe_placeholders=True,
+    )
+
+
+@cache
+def lexicon() -> Lexicon:
+    keywords: dict[str, str] = {}
+    punctuation: dict[str, str] = {}
+    patterns: dict[str, str] = {}
+    for term in parser().terminals:
+        pattern = term.pattern
+        if isinstance(pattern, PatternStr):
+            if re.fullmatch(r"[A-Za-z_]\w*", pattern.value):
+                keywords[pattern.value] = term.name
+            else:
+                punctuation[pattern.value] = term.name
+        else:
+            patterns[term.name] = pattern.value
+    return Lexicon(keywords, punctuation, patterns)

@@ -1,0 +1,236 @@
+"""Parse a file into a Module, reporting every syntax error that recovery can reach.
+
+Recovery works at two levels. The token stream is split into top-level items (a `use`, a scene,
+a definition...), each parsed on its own, so an error in one item leaves the others intact; an
+item left open (a missing `}`) is closed where the next top-level keyword starts a line. Inside an
+item, the statement holding an error is deleted and the item parsed again, a bounded number of
+times, so that later statements are still checked.
+"""
+
+from __future__ import annotations
+
+from lark import Token
+from lark.exceptions import UnexpectedInput, UnexpectedToken
+
+from mtlc.diagnostics import DiagnosticSink, Span
+from mtlc.syntax import ast
+from mtlc.syntax.builder import AstBuilder
+from mtlc.syntax.grammar import lexicon, parser
+from mtlc.syntax.lexer import NEWLINE, tokenize
+
+MAX_NESTING = 64
+MAX_RECOVERIES_PER_ITEM = 20
+MAX_SYNTAX_ERRORS = 50
+
+_TOP_LEVEL = {"USE", "SCENE", "TOOL", "ELEMENT", "ACTION", "TASK"}
+_OPENERS = {"LBRACE": "RBRACE", "LPAR": "RPAR", "LSQB": "RSQB"}
+_CLOSERS = {v: k for k, v in _OPENERS.items()}
+_STATEMENT_ENDS = {NEWLINE, "SEMICOLON"}
+_PUNCTUATION = {*_OPENERS, *_CLOSERS, NEWLINE, "SEMICOLON", "COMMA", "COLON", "DOT", "EQUAL"}
+
+
+def token_span(file: str, tok: Token) -> Span:
+    return Span(file, tok.line, tok.column, tok.end_line, tok.end_column, tok.start_pos, tok.end_pos)
+
+
+def parse_module(text: str, file: str, sink: DiagnosticSink) -> ast.Module:
+    tokens = tokenize(text, file, sink)
+    builder = AstBuilder(file, sink)
+    uses: list[ast.Use] = []
+    decls: list[ast.Decl] = []
+    broken: set[str] = set()
+    errors_before = len(sink.items)
+    for item_tokens in _split_items(tokens, file, sink):
+        if len(sink.items) - errors_before > MAX_SYNTAX_ERRORS:
+            sink.report(
+                "MT0106",
+                f"more than {MAX_SYNTAX_ERRORS} syntax errors; the rest of the file is not checked",
+                token_span(file, item_tokens[0]),
+            )
+            broken.add("*")
+            break
+        count = len(sink.items)
+        node = _parse_item(item_tokens, file, sink, builder)
+        if node is None or len(sink.items) > count:
+            # an item that failed, or parsed only after recovery: its signature is not trusted
+            name = _declared_name(item_tokens)
+            if name:
+                broken.add(name)
+        if node is None:
+            continue
+        if isinstance(node, ast.Use):
+            uses.append(node)
+        else:
+            decls.append(node)
+    end = len(text)
+    last_line = text.count("\n") + 1
+    span = Span(file, 1, 1, last_line, 1, 0, end)
+    return ast.Module(
+        span=span, path=file, uses=tuple(uses), decls=tuple(decls), broken_names=frozenset(broken)
+    )
+
+
+def _declared_name(tokens: list[Token]) -> str | None:
+    if len(tokens) >= 2 and tokens[0].type in _TOP_LEVEL and tokens[1].type not in _PUNCTUATION:
+        return tokens[1].value
+    return None
+
+
+def _synthetic(kind: str, after: Token) -> Token:
+    value = {"RBRACE": "}", "RPAR": ")", "RSQB": "]"}[kind]
+    return Token(
+        kind, value, after.end_pos, after.end_line, after.end_column, after.end_line,
+        after.end_column, after.end_pos,
+    )  # fmt: skip
+
+
+def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink):
+    """Yield the token lists of top-level items; close items left open; refuse deep nesting."""
+    item: list[Token] = []
+    stack: list[Token] = []
+    too_deep = False
+
+    def close_down_to(depth: int) -> None:
+        """Close the brackets left open above ``depth``, reporting the innermost."""
+        opener = stack[-1]
+        closer = _OPENERS[opener.type]
+        sink.report(
+            "MT0105",
+            f"`{opener.value}` is never closed",
+            token_span(file, opener),
+            help=f"add `{_synthetic(closer, opener).value}` where it should end",
+        )
+        while len(stack) > depth:
+            item.append(_synthetic(_OPENERS[stack.pop().type], item[-1]))
+
+    def finish():
+        nonlocal item, stack, too_deep
+        if item and not too_deep:
+            if stack:
+                close_down_to(0)
+            yield item
+        item, stack, too_deep = [], [], False
+
+    for tok in tokens:
+        ttype = tok.type
+        if ttype == NEWLINE and not stack:
+            yield from finish()
+            continue
+        if stack and ttype in _TOP_LEVEL and tok.column == 1:
+            yield from finish()
+        if ttype in _OPENERS:
+            stack.append(tok)
+            if len(stack) > MAX_NESTING and not too_deep:
+                too_deep = True
+                sink.report(
+                    "MT0104",
+                    f"blocks and brackets nest more than {MAX_NESTING} deep",
+                    token_span(file, tok),
+                    help="split the definition into smaller actions or elements",
+                )
+        elif ttype in _CLOSERS and stack:
+            match = [i for i, t in enumerate(stack) if t.type == _CLOSERS[ttype]]
+            if match and match[-1] < len(stack) - 1 and not too_deep:
+                close_down_to(match[-1] + 1)
+            if match:
+                del stack[match[-1] :]
+        item.append(tok)
+    yield from finish()
+
+
+def _describe(term: str) -> str:
+    lx = lexicon()
+    for text, name in (*lx.keywords.items(), *lx.punctuation.items()):
+        if name == term:
+            return f"`{text}`"
+    return {
+        "NAME": "a name",
+        "NUMBER": "a number",
+        "STRING": "a string",
+        NEWLINE: "a new line",
+        "$END": "the end of the definition",
+    }.get(term, term)
+
+
+def _describe_token(tok: Token) -> str:
+    if tok.type == "$END":
+        return "end of the definition"
+    if tok.type == NEWLINE:
+        return "new line"
+    if tok.type in ("NAME", "NUMBER", "STRING"):
+        return f"{_describe(tok.type)[2:]} `{tok.value}`"
+    return f"`{tok.value}`"
+
+
+def _parse_item(tokens: list[Token], file: str, sink: DiagnosticSink, builder: AstBuilder):
+    lark = parser()
+    for _attempt in range(MAX_RECOVERIES_PER_ITEM):
+        try:
+            return builder.build(lark.parse(tokens))
+        except UnexpectedToken as err:
+            bad = err.token
+            at_end = bad.type == "$END"
+            known = any(t is bad for t in tokens)
+            where = bad if known and not at_end else tokens[-1]
+            expected = sorted(
+                _describe(t) for t in err.expected if not t.startswith("__") and t != "$END"
+            )
+            if at_end:
+                sink.report("MT0105", "the definition ends too early", token_span(file, where),
+                            help=f"expected {_one_of(expected)}" if expected else None)
+                return None
+            sink.report(
+                "MT0101",
+                f"unexpected {_describe_token(bad)}",
+                token_span(file, where),
+                notes=(f"expected {_one_of(expected)}",) if 0 < len(expected) <= 8 else (),
+            )
+            index = next(i for i, t in enumerate(tokens) if t is bad)
+            tokens = _drop_statement(tokens, index)
+            if not tokens:
+                return None
+        except UnexpectedInput:
+            return None
+    return None
+
+
+def _one_of(items: list[str]) -> str:
+    if len(items) == 1:
+        return items[0]
+    return "one of " + ", ".join(items)
+
+
+def _drop_statement(tokens: list[Token], index: int) -> list[Token]:
+    """Remove the statement around ``tokens[index]`` (at least that token), keeping brackets balanced."""
+    if index == 0:
+        return []  # the item's own header is broken: nothing to recover
+    start = index
+    depth = 0
+    while start > 0:
+        t = tokens[start - 1].type
+        if t in _CLOSERS:
+            depth += 1
+        elif t in _OPENERS:
+            if depth == 0:
+                break
+            depth -= 1
+        elif depth == 0 and t in _STATEMENT_ENDS:
+            break
+        start -= 1
+    end = index
+    depth = 0
+    while end < len(tokens):
+        t = tokens[end].type
+        if t in _OPENERS:
+            depth += 1
+        elif t in _CLOSERS:
+            if depth == 0:
+                break
+            depth -= 1
+        elif depth == 0 and t in _STATEMENT_ENDS:
+            break
+        end += 1
+    if end <= start or start == 0:
+        # nothing sensible to cut around: drop the offending token alone
+        return tokens[:index] + tokens[index + 1 :]
+    return tokens[:start] + tokens[end:]

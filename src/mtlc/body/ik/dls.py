@@ -27,7 +27,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..skeleton import Skeleton
-from .goals import Goal, default_dofs, normalise
+from .fast import SerialChain, solve_one
+from .goals import Goal, GoalArrays, default_dofs, normalise
 from .model import ChainModel
 from .result import IKResult, residual
 
@@ -111,6 +112,26 @@ def solve_ta(
     comfort = skel.q_comfort[model.active]
     lam2 = damping * damping
     rng = np.random.default_rng(seed)
+    chain = _fast_chain(model) if B == 1 and _position_only(ga) else None
+    if chain is not None:
+        target = ga.position[0]
+        assert target is not None
+        qb, err, it, nr = solve_one(
+            chain, target[0], qa[0], lo, hi, comfort, tol=tol, max_iter=max_iter,
+            restarts=restarts, patience=patience, damping=damping, max_error=max_error,
+            max_step=max_step, null_gain=null_gain, rng=rng,
+        )  # fmt: skip
+        q_out = qf.copy()
+        q_out[0, model.active] = qb
+        return IKResult(
+            q=q_out,
+            position_error=np.array([err]),
+            orientation_error=np.zeros(1),
+            success=np.array([err <= tol]) & skel.within_limits(q_out),
+            iterations=np.array([it]),
+            restarts=np.array([nr]),
+            method="dls",
+        )
 
     best_q = qa.copy()
     best_score = np.full(B, np.inf)
@@ -196,6 +217,22 @@ def solve_ta(
         restarts=n_restart,
         method="dls",
     )
+
+
+def _position_only(ga: GoalArrays) -> bool:
+    return len(ga.sites) == 1 and ga.position[0] is not None and ga.orientation[0] is None
+
+
+def _fast_chain(model: ChainModel) -> SerialChain | None:
+    """The model's scalar serial chain, built once; None when the model is not one."""
+    cached = getattr(model, "_fast", False)
+    if cached is False:
+        try:
+            cached = SerialChain(model) if model.B == 1 else None
+        except ValueError:
+            cached = None
+        model._fast = cached  # type: ignore[attr-defined]
+    return cached  # type: ignore[return-value]
 
 
 def _sub(r, keep):  # type: ignore[no-untyped-def]

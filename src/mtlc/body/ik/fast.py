@@ -1,0 +1,226 @@
+"""A scalar fast path for the commonest TA call: one target, one position goal, one chain.
+
+For a 7-dof arm, a numpy call costs about a microsecond whatever its size, and one DLS
+iteration needs ~60 of them. Plain Python floats do the same work in fewer operations:
+rotations about the manikin's coordinate axes touch two columns of the frame (12 multiplies),
+the Jacobian has 7 columns, and the damped normal equations are a symmetric 3×3 system solved
+by its adjugate. Same algorithm as :func:`mtlc.body.ik.dls.solve_ta` (error clamp, step cap,
+limit clamping with a re-solve, null-space pull, restarts); the tests check both agree.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .model import ChainModel
+
+FloatArray = NDArray[np.float64]
+
+
+class SerialChain:
+    """Scalar kinematics of a ChainModel with one site on one serial chain (base row 0)."""
+
+    def __init__(self, model: ChainModel) -> None:
+        if len(model.sites) != 1:
+            raise ValueError("one site only")
+        skel = model.skel
+        live = model.live
+        for a, b in itertools.pairwise(live):
+            if int(skel.parent[b]) != a:
+                raise ValueError("not a serial chain")
+        first_parent = int(skel.parent[live[0]])
+        R0 = model._base_R[first_parent][0]
+        p0 = model._base_p[first_parent][0]
+        self.R0 = [[float(R0[i, j]) for i in range(3)] for j in range(3)]  # columns
+        self.p0 = [float(x) for x in p0]
+        col = {int(d): i for i, d in enumerate(model.active)}
+        self.plan: list[tuple[tuple[float, float, float], list[tuple[int, float, int, float]]]] = []
+        for j in live:
+            off = tuple(float(x) for x in skel.offsets[j])
+            dofs = []
+            s = int(skel.joint_dof_start[j])
+            for d in range(s, s + int(skel.joint_dof_count[j])):
+                ax = skel.dof_axis[d]
+                k = int(np.argmax(np.abs(ax)))
+                if abs(abs(ax[k]) - 1.0) > 1e-12:
+                    raise ValueError("fast path needs coordinate-axis dofs")
+                fixed = float(model.q_base[0, d])
+                dofs.append((k, float(np.sign(ax[k])), col.get(d, -1), fixed))
+            self.plan.append((off, dofs))  # type: ignore[arg-type]
+        if live[-1] != model._site_joint[0]:
+            raise ValueError("site must be on the chain's last joint")
+        self.site_off = [float(x) for x in model._site_off[0]]
+        self.n = model.n
+
+    def eval(self, q: list[float]) -> tuple[list[float], list[list[float]]]:
+        """Site position and the 3×n Jacobian (as columns) at active angles ``q``."""
+        c0, c1, c2 = (list(c) for c in self.R0)
+        px, py, pz = self.p0
+        axes: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)] * self.n
+        origins: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)] * self.n
+        for off, dofs in self.plan:
+            ox, oy, oz = off
+            px, py, pz = (
+                px + c0[0] * ox + c1[0] * oy + c2[0] * oz,
+                py + c0[1] * ox + c1[1] * oy + c2[1] * oz,
+                pz + c0[2] * ox + c1[2] * oy + c2[2] * oz,
+            )
+            for k, sg, ci, fixed in dofs:
+                th = sg * (q[ci] if ci >= 0 else fixed)
+                if ci >= 0:
+                    a = c0 if k == 0 else c1 if k == 1 else c2
+                    axes[ci] = (sg * a[0], sg * a[1], sg * a[2])
+                    origins[ci] = (px, py, pz)
+                c, s = math.cos(th), math.sin(th)
+                if k == 0:
+                    c1, c2 = (
+                        [c * c1[0] + s * c2[0], c * c1[1] + s * c2[1], c * c1[2] + s * c2[2]],
+                        [c * c2[0] - s * c1[0], c * c2[1] - s * c1[1], c * c2[2] - s * c1[2]],
+                    )
+                elif k == 1:
+                    c0, c2 = (
+                        [c * c0[0] - s * c2[0], c * c0[1] - s * c2[1], c * c0[2] - s * c2[2]],
+                        [s * c0[0] + c * c2[0], s * c0[1] + c * c2[1], s * c0[2] + c * c2[2]],
+                    )
+                else:
+                    c0, c1 = (
+                        [c * c0[0] + s * c1[0], c * c0[1] + s * c1[1], c * c0[2] + s * c1[2]],
+                        [c * c1[0] - s * c0[0], c * c1[1] - s * c0[1], c * c1[2] - s * c0[2]],
+                    )
+        sx, sy, sz = self.site_off
+        ex = px + c0[0] * sx + c1[0] * sy + c2[0] * sz
+        ey = py + c0[1] * sx + c1[1] * sy + c2[1] * sz
+        ez = pz + c0[2] * sx + c1[2] * sy + c2[2] * sz
+        J = []
+        for (ax, ay, az), (qx, qy, qz) in zip(axes, origins, strict=True):
+            dx, dy, dz = ex - qx, ey - qy, ez - qz
+            J.append([ay * dz - az * dy, az * dx - ax * dz, ax * dy - ay * dx])
+        return [ex, ey, ez], J
+
+
+def _solve3(
+    J: list[list[float]], free: list[bool], lam2: float, rhs: list[list[float]]
+) -> list[list[float]]:
+    """Solve (J Jᵀ + λ²I) y = r for each r, using only the free columns of J."""
+    a00 = a01 = a02 = a11 = a12 = a22 = 0.0
+    for col, f in zip(J, free, strict=True):
+        if f:
+            x, y, z = col
+            a00 += x * x
+            a01 += x * y
+            a02 += x * z
+            a11 += y * y
+            a12 += y * z
+            a22 += z * z
+    a00 += lam2
+    a11 += lam2
+    a22 += lam2
+    i00 = a11 * a22 - a12 * a12
+    i01 = a02 * a12 - a01 * a22
+    i02 = a01 * a12 - a02 * a11
+    i11 = a00 * a22 - a02 * a02
+    i12 = a01 * a02 - a00 * a12
+    i22 = a00 * a11 - a01 * a01
+    det = a00 * i00 + a01 * i01 + a02 * i02
+    inv = 1.0 / det
+    out = []
+    for r0, r1, r2 in rhs:
+        out.append(
+            [
+                (i00 * r0 + i01 * r1 + i02 * r2) * inv,
+                (i01 * r0 + i11 * r1 + i12 * r2) * inv,
+                (i02 * r0 + i12 * r1 + i22 * r2) * inv,
+            ]
+        )
+    return out
+
+
+def solve_one(
+    chain: SerialChain,
+    target: FloatArray,
+    q0: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    comfort: FloatArray,
+    *,
+    tol: float,
+    max_iter: int,
+    restarts: int,
+    patience: int,
+    damping: float,
+    max_error: float,
+    max_step: float,
+    null_gain: float,
+    rng: np.random.Generator,
+) -> tuple[list[float], float, int, int]:
+    """DLS for one position target. Returns (best q, best error, iterations, restarts)."""
+    tx, ty, tz = (float(v) for v in target)
+    lo = [float(v) for v in lower]
+    hi = [float(v) for v in upper]
+    cf = [float(v) for v in comfort]
+    n = chain.n
+    q = [min(max(float(v), lo[i]), hi[i]) for i, v in enumerate(q0)]
+    lam2 = damping * damping
+    best_q, best_err = list(q), math.inf
+    iters = n_restart = attempt_it = since = 0
+    attempt_best = math.inf
+    all_free = [True] * n
+    while True:
+        p, J = chain.eval(q)
+        ex, ey, ez = tx - p[0], ty - p[1], tz - p[2]
+        err = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if err < best_err:
+            best_err, best_q = err, list(q)
+        if err <= tol:
+            break
+        if err < 0.9 * attempt_best:
+            attempt_best, since = err, 0
+        else:
+            since += 1
+        if since >= patience or attempt_it >= max_iter:
+            if n_restart >= restarts:
+                break
+            n_restart += 1
+            attempt_it = since = 0
+            attempt_best = math.inf
+            q = [lo[i] + (hi[i] - lo[i]) * float(u) for i, u in enumerate(rng.random(n))]
+            continue
+        if err > max_error:
+            s = max_error / err
+            ex, ey, ez = ex * s, ey * s, ez * s
+        z = [null_gain * (cf[i] - q[i]) for i in range(n)]
+        jz = [0.0, 0.0, 0.0]
+        for col, zi in zip(J, z, strict=True):
+            jz[0] += col[0] * zi
+            jz[1] += col[1] * zi
+            jz[2] += col[2] * zi
+        y1, y2 = _solve3(J, all_free, lam2, [[ex, ey, ez], jz])
+        w0, w1, w2 = y1[0] - y2[0], y1[1] - y2[1], y1[2] - y2[2]
+        dq = [col[0] * w0 + col[1] * w1 + col[2] * w2 + z[i] for i, col in enumerate(J)]
+        over = [not (lo[i] <= q[i] + dq[i] <= hi[i]) for i in range(n)]
+        if any(over):
+            pin = [
+                min(max(q[i] + dq[i], lo[i]), hi[i]) - q[i] if over[i] else 0.0 for i in range(n)
+            ]
+            r = [ex, ey, ez]
+            for col, d in zip(J, pin, strict=True):
+                if d:
+                    r[0] -= col[0] * d
+                    r[1] -= col[1] * d
+                    r[2] -= col[2] * d
+            free = [not o for o in over]
+            (y,) = _solve3(J, free, lam2, [r])
+            dq = [
+                pin[i] if over[i] else col[0] * y[0] + col[1] * y[1] + col[2] * y[2]
+                for i, col in enumerate(J)
+            ]
+        big = max(abs(d) for d in dq)
+        sc = max_step / big if big > max_step else 1.0
+        q = [min(max(q[i] + sc * dq[i], lo[i]), hi[i]) for i in range(n)]
+        iters += 1
+        attempt_it += 1
+    return best_q, best_err, iters, n_restart

@@ -1,0 +1,161 @@
+"""IK solvers: reachable targets are solved inside the limits; TO paths are monotone."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mtlc.body import (
+    build_manikin,
+    forward,
+    rotation_error,
+    site_direction,
+    site_positions,
+    site_rotation,
+)
+from mtlc.body.ik import Goal, default_dofs, prepare, solve, solve_ta, solve_to, solve_transpose
+
+SK = build_manikin("gb10000_1988", "female", 50)
+ARM = prepare(SK, ["r_hand"])
+SETTINGS = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+def _random_targets(site: str, dofs: list[int], seed: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    q = np.tile(SK.q_comfort, (n, 1))
+    q[:, dofs] = SK.random_q(rng, n)[:, dofs]
+    return q, site_positions(SK, forward(SK, q), site)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**31 - 1))
+def test_ta_solves_random_reachable_arm_targets_within_limits(seed: int) -> None:
+    _q_true, T = _random_targets("r_hand", list(ARM.active), seed, 1)
+    res = solve_ta(SK, [Goal("r_hand", position=T[0])], model=ARM, seed=seed)
+    assert res.success[0], res
+    assert SK.within_limits(res.q)[0]
+    got = site_positions(SK, forward(SK, res.q), "r_hand")[0]
+    assert np.linalg.norm(got - T[0]) <= 1e-3
+    # Dofs outside the chain keep their starting values.
+    others = np.setdiff1d(np.arange(SK.n_dofs), ARM.active)
+    np.testing.assert_array_equal(res.q[0, others], SK.q_comfort[others])
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**31 - 1), noise=st.floats(0.0, 0.4))
+def test_to_path_is_monotone_continuous_and_in_limits(seed: int, noise: float) -> None:
+    q_true, T = _random_targets("r_hand", list(ARM.active), seed, 1)
+    rng = np.random.default_rng(seed)
+    q0 = q_true[0].copy()
+    q0[ARM.active] += rng.normal(0, noise, ARM.n)
+    q0 = SK.clip(q0)
+    res = solve_to(SK, [Goal("r_hand", position=T[0])], q0, model=ARM, max_iter=400)
+    assert res.path is not None
+    path = res.path[:, 0]
+    d = np.linalg.norm(site_positions(SK, forward(SK, path), "r_hand") - T[0], axis=-1)
+    assert np.all(np.diff(d) <= 1e-12)  # monotone non-increasing distance
+    if len(path) > 1:  # continuous: every step capped at max_step
+        assert np.max(np.abs(np.diff(path, axis=0))) <= 0.05 + 1e-12
+    assert np.all(SK.within_limits(path))
+    np.testing.assert_allclose(path[-1], res.q[0])
+    assert res.iterations[0] <= 400
+    assert d[-1] <= d[0]
+
+
+def test_batched_ta_matches_the_single_solves_and_is_deterministic() -> None:
+    _q_true, T = _random_targets("r_hand", list(ARM.active), 123, 40)
+    mid = SK.q_comfort.copy()
+    mid[ARM.active] = SK.q_middle[ARM.active]
+    batch = solve_ta(SK, [Goal("r_hand", position=T)], mid, model=ARM)
+    assert batch.success.all()
+    again = solve_ta(SK, [Goal("r_hand", position=T)], mid, model=ARM)
+    np.testing.assert_array_equal(batch.q, again.q)
+    # The scalar single-target fast path and the numpy batch path run the same algorithm.
+    slow = prepare(SK, ["r_hand"])
+    slow._fast = None  # type: ignore[attr-defined]  # force the numpy path for one row
+    for t in T[:10]:
+        fast_res = solve_ta(SK, [Goal("r_hand", position=t)], mid, model=ARM)
+        slow_res = solve_ta(SK, [Goal("r_hand", position=t)], mid, model=slow)
+        assert fast_res.success[0] and slow_res.success[0]
+        assert fast_res.iterations[0] == slow_res.iterations[0]
+        np.testing.assert_allclose(fast_res.q, slow_res.q, atol=1e-9)
+
+
+def test_unreachable_target_returns_best_pose_and_remaining_distance() -> None:
+    shoulder = forward(SK, SK.q_comfort).p[SK.joint_index("r_shoulder")]
+    far = shoulder + np.array([-2.0, 0.0, 0.0])
+    for method in ("dls", "gradient", "transpose"):
+        res = solve(SK, [Goal("r_hand", position=far)], method=method, model=ARM)
+        assert not res.success[0]
+        arm = SK.dims.shoulder_height - SK.dims.wrist_height + 0.4 * SK.dims.hand_length
+        assert res.position_error[0] == pytest.approx(2.0 - arm, abs=0.02)
+        assert SK.within_limits(res.q)[0]
+        assert res.iterations[0] <= 1000 * 9  # bounded
+
+
+def test_position_and_orientation_goal() -> None:
+    rng = np.random.default_rng(8)
+    q = SK.q_comfort.copy()
+    q[ARM.active] = SK.random_q(rng, 1)[0, ARM.active] * 0.6 + 0.4 * SK.q_middle[ARM.active]
+    pose = forward(SK, q)
+    goal = Goal(
+        "r_hand",
+        position=site_positions(SK, pose, "r_hand"),
+        orientation=site_rotation(SK, pose, "r_hand"),
+    )
+    res = solve_ta(SK, [goal], model=prepare(SK, [goal]))
+    assert res.success[0]
+    got = forward(SK, res.q[0])
+    want = site_rotation(SK, pose, "r_hand")
+    ang = np.linalg.norm(rotation_error(want, site_rotation(SK, got, "r_hand")))
+    assert ang <= math.radians(1.0)
+
+
+def test_gaze_goal_looks_at_the_point() -> None:
+    point = np.array([0.4, 1.2, 1.0])
+    res = solve_ta(SK, [Goal("gaze", aim=point)])
+    assert res.success[0]
+    pose = forward(SK, res.q[0])
+    d = site_direction(SK, pose, "gaze")
+    u = point - site_positions(SK, pose, "gaze")
+    assert math.degrees(math.acos(d @ u / np.linalg.norm(u))) <= 1.0
+    moved = np.flatnonzero(res.q[0] != SK.q_comfort)
+    assert set(moved) <= set(SK.dofs_of_joints(["neck", "head"]))
+
+
+def test_full_body_two_hands_two_feet_batched() -> None:
+    effs = ["r_hand", "l_hand", "r_foot", "l_foot"]
+    dofs = default_dofs(SK, effs, reach="torso")
+    rng = np.random.default_rng(21)
+    q = np.tile(SK.q_comfort, (30, 1))
+    q[:, dofs] = SK.random_q(rng, 30)[:, dofs]
+    P = site_positions(SK, forward(SK, q), effs)
+    goals = [Goal(e, position=P[:, i]) for i, e in enumerate(effs)]
+    res = solve_ta(SK, goals, dofs=dofs)
+    assert res.success_rate >= 0.95
+    ok = res.success
+    got = site_positions(SK, forward(SK, res.q[ok]), effs)
+    assert np.max(np.linalg.norm(got - P[ok], axis=-1)) <= 1e-3
+    assert np.all(SK.within_limits(res.q))
+
+
+def test_transpose_and_gradient_reach_near_targets() -> None:
+    q_true, T = _random_targets("r_foot", SK.chain_dofs("r_foot", "r_hip"), 4, 20)
+    q0 = SK.clip(q_true + 0.1)  # a near start, as TO gets after TA
+    for fn in (solve_transpose, solve_to):
+        res = fn(SK, [Goal("r_foot", position=T)], q0, max_iter=2000)
+        assert res.success_rate >= 0.9, fn.__name__
+        assert np.all(res.position_error[res.success] <= 1e-3)
+
+
+def test_unknown_method_and_bad_goals_are_refused() -> None:
+    with pytest.raises(ValueError, match="method"):
+        solve(SK, [Goal("r_hand", position=[0, 1, 0])], method="ccd")
+    with pytest.raises(ValueError, match="nothing"):
+        Goal("r_hand")
+    with pytest.raises(ValueError, match="direction"):
+        solve_ta(SK, [Goal("r_hand", aim=[0, 1, 1])])

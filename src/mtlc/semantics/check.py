@@ -292,6 +292,8 @@ class Checker:
     def check_call(self, call: ast.Call, env: Env) -> None:
         sym = self.resolve_callee(call.callee, call.callee_span, env)
         if sym is None:
+            for arg in call.args:  # still check what the arguments say
+                self.infer(arg.value, env)
             return
         if sym.kind not in ("element", "action"):
             self.sink.report(

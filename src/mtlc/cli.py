@@ -1,0 +1,191 @@
+"""The command line: the only module that reads argv or prints.
+
+Exit codes, for every command: 0 clean, 1 errors in the input, 2 a usage or internal error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import traceback
+from collections.abc import Sequence
+from pathlib import Path
+
+from mtlc import __version__
+from mtlc.diagnostics import CODES, DiagnosticSink, Span
+from mtlc.diagnostics.render import render_json, render_text, use_color
+from mtlc.frontend import FrontendOptions, Program, run_frontend
+from mtlc.output import write_all_or_nothing
+from mtlc.resources import resource_dir
+from mtlc.semantics import builtins as B
+from mtlc.semantics.expand import DEFAULT_BUDGET
+from mtlc.semantics.timeline import ManikinSpec
+from mtlc.syntax.dump import dump_module
+
+EXIT_OK, EXIT_ERRORS, EXIT_USAGE = 0, 1, 2
+
+
+class UsageError(Exception):
+    pass
+
+
+def _manikin(text: str) -> ManikinSpec:
+    """`--manikin gb10000_1988:female:5`"""
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError("expected POPULATION:SEX:PERCENTILE, e.g. gb10000_1988:female:5")
+    pop, sex, pct = parts
+    if pop not in B.POPULATIONS:
+        raise argparse.ArgumentTypeError(f"unknown population {pop!r}; one of {', '.join(B.POPULATIONS)}")
+    if sex not in B.SEXES:
+        raise argparse.ArgumentTypeError("sex is male or female")
+    pct = pct.removeprefix("p")
+    if not pct.isdigit() or int(pct) not in B.POPULATIONS[pop]:
+        allowed = ", ".join(str(p) for p in B.POPULATIONS[pop])
+        raise argparse.ArgumentTypeError(f"percentile must be one of {allowed}")
+    return ManikinSpec(pop, sex, int(pct))
+
+
+def _budget(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError("expected a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mtlc",
+        description="Maintenance Task Language Compiler: maintenance procedures to virtual-human motion.",
+    )
+    parser.add_argument("--version", action="version", version=f"mtlc {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    def frontend_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument("files", nargs="+", type=Path, metavar="FILE", help=".mtask files")
+        p.add_argument(
+            "-I", dest="include", action="append", type=Path, default=[], metavar="DIR",
+            help="also look for used modules in DIR (after the file's own folder)",
+        )  # fmt: skip
+        p.add_argument(
+            "--expansion-budget", type=_budget, default=DEFAULT_BUDGET, metavar="N",
+            help=f"most primitives a task may expand into (default {DEFAULT_BUDGET:,})",
+        )  # fmt: skip
+        p.add_argument(
+            "--manikin", type=_manikin, metavar="POP:SEX:PCT",
+            help="override every task's manikin, e.g. gb10000_1988:female:5",
+        )  # fmt: skip
+        p.add_argument(
+            "--format", choices=("text", "json"), default="text",
+            help="how diagnostics are printed (json: versioned, for tools)",
+        )  # fmt: skip
+
+    check = sub.add_parser("check", help="parse, resolve, type-check and expand task files")
+    frontend_options(check)
+    check.add_argument(
+        "--dump", choices=("ast", "timeline"), help="print the AST or the expanded timeline as JSON"
+    )
+
+    compile_ = sub.add_parser("compile", help="compile task files into motion outputs")
+    frontend_options(compile_)
+    compile_.add_argument("-o", "--output", type=Path, default=Path("out"), metavar="DIR",
+                          help="output folder (default: out)")  # fmt: skip
+    compile_.add_argument("--target", choices=("timeline",), default="timeline",
+                          help="what to write; the IR, JackScript and BVH targets come with the motion passes")  # fmt: skip
+
+    explain = sub.add_parser("explain", help="show the documentation page of a diagnostic code")
+    explain.add_argument("code", metavar="CODE", help="e.g. MT0201")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return EXIT_USAGE
+    try:
+        if args.command == "explain":
+            return cmd_explain(args.code)
+        return cmd_frontend(args)
+    except KeyboardInterrupt:
+        return 130
+    except Exception as exc:  # a bug: report it as a diagnostic, never as a bare traceback
+        if os.environ.get("MTLC_DEBUG"):
+            traceback.print_exc()
+        sink = DiagnosticSink()
+        sink.report(
+            "MT0900",
+            f"internal error: {type(exc).__name__}: {exc}",
+            Span.whole_file(str(getattr(args, "files", ["<command line>"])[0])),
+            help="this is a bug in mtlc; rerun with MTLC_DEBUG=1 for the trace and report it",
+        )
+        sys.stderr.write(render_text(sink.items, {}, color=use_color(sys.stderr)))
+        return EXIT_USAGE
+
+
+def _options(args: argparse.Namespace) -> FrontendOptions:
+    return FrontendOptions(
+        include_dirs=tuple(args.include),
+        expansion_budget=args.expansion_budget,
+        manikin=args.manikin,
+    )
+
+
+def _report(program: Program, fmt: str) -> None:
+    diags = program.diagnostics
+    if fmt == "json":
+        sys.stdout.write(render_json(diags))
+    elif diags:
+        sys.stderr.write(render_text(diags, program.sources, color=use_color(sys.stderr)))
+
+
+def cmd_frontend(args: argparse.Namespace) -> int:
+    program = run_frontend(list(args.files), _options(args))
+    _report(program, args.format)
+    failed = program.sink.has_errors
+    if args.format == "text" and not failed and not getattr(args, "dump", None):
+        tasks = len(program.timelines)
+        prims = sum(len(t.primitives) for t in program.timelines)
+        sys.stderr.write(
+            f"ok: {len(program.roots)} file{'s' if len(program.roots) != 1 else ''}, "
+            f"{tasks} task{'s' if tasks != 1 else ''}, {prims:,} primitives\n"
+        )
+    if args.command == "check":
+        if args.dump == "ast":
+            for module in program.roots:
+                sys.stdout.write(dump_module(module.tree))
+        elif args.dump == "timeline" and not failed:
+            docs = [t.as_dict() for t in program.timelines]
+            sys.stdout.write(json.dumps(docs, indent=1, ensure_ascii=False) + "\n")
+        return EXIT_ERRORS if failed else EXIT_OK
+    if failed:
+        return EXIT_ERRORS  # nothing is written: existing outputs stay as they were
+    files = {}
+    for timeline in program.timelines:
+        stem = Path(timeline.file).stem
+        files[args.output / f"{stem}.{timeline.task}.timeline.json"] = timeline.to_json()
+    write_all_or_nothing(files)
+    if args.format == "text":
+        for path in files:
+            print(f"wrote {path}")
+    return EXIT_OK
+
+
+def cmd_explain(code: str) -> int:
+    code = code.upper()
+    if code not in CODES:
+        sys.stderr.write(f"mtlc: no diagnostic code {code}; codes run from MT0001 to MT0900\n")
+        return EXIT_USAGE
+    page = resource_dir("diagnostics") / f"{code}.md"
+    if page.is_file():
+        sys.stdout.write(page.read_text(encoding="utf-8"))
+    else:
+        c = CODES[code]
+        sys.stdout.write(f"# {c.code}: {c.name}\n\n{c.summary}\n")
+    return EXIT_OK

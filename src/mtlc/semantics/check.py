@@ -391,6 +391,7 @@ class Checker:
         names = [p[0] for p in params]
         types = {p[0]: p[1] for p in params}
         seen_named = False
+        misplaced = False
         for i, arg in enumerate(args):
             if arg.name is None:
                 if seen_named:
@@ -400,6 +401,7 @@ class Checker:
                         arg.span,
                         help="name this argument too, or move it before the named ones",
                     )
+                    misplaced = True
                     self.infer(arg.value, env)
                     continue
                 if i >= len(params):
@@ -436,7 +438,7 @@ class Checker:
             given[pname] = arg
             self.expect(arg.value, types[pname], env)
         missing = [n for n, _, required in params if required and n not in given]
-        if missing:
+        if missing and not misplaced:
             listed = ", ".join(f"`{m}`" for m in missing)
             self.sink.report(
                 "MT0307",

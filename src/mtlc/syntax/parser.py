@@ -201,36 +201,36 @@ def _one_of(items: list[str]) -> str:
 
 
 def _drop_statement(tokens: list[Token], index: int) -> list[Token]:
-    """Remove the statement around ``tokens[index]`` (at least that token), keeping brackets balanced."""
+    """Remove the statement around ``tokens[index]``: from the end of the previous statement in
+    the same block to the end of this one, skipping over nested blocks, so the item stays balanced.
+    Parentheses and brackets never hold statement ends (newlines inside them are dropped)."""
     if index == 0:
         return []  # the item's own header is broken: nothing to recover
-    start = index
-    depth = 0
+    start, depth = index, 0
     while start > 0:
         t = tokens[start - 1].type
-        if t in _CLOSERS:
+        if t == "RBRACE":
             depth += 1
-        elif t in _OPENERS:
+        elif t == "LBRACE":
             if depth == 0:
                 break
             depth -= 1
         elif depth == 0 and t in _STATEMENT_ENDS:
             break
         start -= 1
-    end = index
-    depth = 0
+    end, depth = index, 0
     while end < len(tokens):
         t = tokens[end].type
-        if t in _OPENERS:
+        if t == "LBRACE":
             depth += 1
-        elif t in _CLOSERS:
+        elif t == "RBRACE":
             if depth == 0:
                 break
             depth -= 1
         elif depth == 0 and t in _STATEMENT_ENDS:
             break
         end += 1
-    if end <= start or start == 0:
-        # nothing sensible to cut around: drop the offending token alone
+    if start == 0 or end <= start:
+        # the error is in the item's header: drop the offending token alone
         return tokens[:index] + tokens[index + 1 :]
     return tokens[:start] + tokens[end:]

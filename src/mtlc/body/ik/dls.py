@@ -112,7 +112,8 @@ def solve_ta(
     comfort = skel.q_comfort[model.active]
     lam2 = damping * damping
     rng = np.random.default_rng(seed)
-    chain = _fast_chain(model) if B == 1 and _position_only(ga) else None
+    tail_chain = _fast_chain(model) if _position_only(ga) else None
+    chain = tail_chain if B == 1 else None
     if chain is not None:
         target = ga.position[0]
         assert target is not None
@@ -172,6 +173,24 @@ def solve_ta(
             full_batch = False
             if rows.size == 0:
                 break
+        if rows.size <= 16 and tail_chain is not None:
+            # A few slow rows left: finish them on the scalar path, where an iteration
+            # costs a few microseconds instead of a hundred of batch overhead.
+            target = ga.position[0]
+            assert target is not None
+            for k, row in enumerate(rows):
+                qb, err, it, nr = solve_one(
+                    tail_chain, target[row], cur[k], lo, hi, comfort, tol=tol,
+                    max_iter=max_iter, restarts=int(restarts - n_restart[row]), patience=patience,
+                    damping=damping, max_error=max_error, max_step=max_step,
+                    null_gain=null_gain, rng=rng,
+                )  # fmt: skip
+                iters[row] += it
+                n_restart[row] += nr
+                if err / tol < best_score[row]:
+                    best_score[row], best_pos[row], best_ori[row] = err / tol, err, 0.0
+                    best_q[row] = qb
+            break
         if np.any(can_restart):
             rr = rows[can_restart]
             n_restart[rr] += 1

@@ -1,0 +1,178 @@
+"""One test per diagnostic code: the code, the line and the column it points at."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+from mtlc.diagnostics import CODES
+from mtlc.frontend import FrontendOptions, run_frontend
+
+HEADER = "use stdlib.actions\nuse stdlib.elements\n"
+SCENE = "scene s {\n    site a at (0, 100, 50) cm\n    site b at (10, 100, 50) cm\n}\n"
+
+
+def diagnose(tmp_path: Path, files: dict[str, str | bytes], **options) -> list[tuple[str, str, int, int]]:
+    for name, text in files.items():
+        path = tmp_path / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(text, bytes):
+            path.write_bytes(text)
+        else:
+            path.write_text(text, encoding="utf-8")
+    program = run_frontend([tmp_path / "main.mtask"], FrontendOptions(**options))
+    return [(d.code, Path(d.span.file).name, d.span.line, d.span.column) for d in program.diagnostics]
+
+
+def task(body: str, extra: str = "") -> str:
+    return f"{HEADER}{SCENE}{extra}task t {{\n    scene s\n{body}}}\n"
+
+
+# code -> (files, (file, line, column)); `main.mtask` is the file checked
+CASES: dict[str, tuple[dict[str, str | bytes], tuple[str, int, int]]] = {
+    "MT0002": ({"main.mtask": b"task t {\n  x\xff\n}\n"}, ("main.mtask", 2, 4)),
+    "MT0101": ({"main.mtask": "task t {\n    walk_to(a) b\n}\n"}, ("main.mtask", 2, 16)),
+    "MT0102": ({"main.mtask": "task t {\n    @@\n}\n"}, ("main.mtask", 2, 5)),
+    "MT0103": ({"main.mtask": 'task t "open title {\n}\n'}, ("main.mtask", 1, 8)),
+    "MT0104": ({"main.mtask": "task t {\n" + "{" * 70 + "}" * 70 + "\n}\n"}, ("main.mtask", 2, 64)),
+    "MT0105": ({"main.mtask": "task t {\n    walk_to(a)\n"}, ("main.mtask", 1, 8)),
+    "MT0107": ({"main.mtask": 'task t "bad \\q escape" {\n}\n'}, ("main.mtask", 1, 13)),
+    "MT0201": ({"main.mtask": task("    walk_too(a)\n")}, ("main.mtask", 9, 5)),
+    "MT0202": (
+        {"main.mtask": "element e() {\n    still over 1 s\n}\nelement e() {\n    still over 1 s\n}\n"},
+        ("main.mtask", 4, 9),
+    ),
+    "MT0203": ({"main.mtask": "use bay.missing\n"}, ("main.mtask", 1, 5)),
+    "MT0204": (
+        {"main.mtask": "use other\n", "other.mtask": "use main\n"},
+        ("other.mtask", 1, 5),
+    ),
+    "MT0206": (
+        {
+            "main.mtask": "use one\nuse two\ntask t {\n    e()\n}\n",
+            "one.mtask": "element e() {\n    still over 1 s\n}\n",
+            "two.mtask": "element e() {\n    still over 2 s\n}\n",
+        },
+        ("main.mtask", 4, 5),
+    ),
+    "MT0207": (
+        {"main.mtask": "action a() {\n    b()\n}\naction b() {\n    a()\n}\n"},
+        ("main.mtask", 5, 5),
+    ),
+    "MT0208": (
+        {"main.mtask": HEADER + "element e() {\n    walk_to(x)\n}\n"},
+        ("main.mtask", 4, 5),
+    ),
+    "MT0209": ({"main.mtask": task("    still over 1 s\n")}, ("main.mtask", 9, 5)),
+    "MT0210": ({"main.mtask": task("    scene s\n")}, ("main.mtask", 9, 5)),
+    "MT0301": ({"main.mtask": task("    walk_to(10 cm)\n")}, ("main.mtask", 9, 13)),
+    "MT0302": ({"main.mtask": task("    unscrew(right, a, load: 2 s)\n")}, ("main.mtask", 9, 29)),
+    "MT0303": ({"main.mtask": task("    inspect(a, 2 sec)\n")}, ("main.mtask", 9, 18)),
+    "MT0304": ({"main.mtask": "element e(x: Lenght) {\n    still over 1 s\n}\n"}, ("main.mtask", 1, 14)),
+    "MT0305": ({"main.mtask": task("    walk_to(a, b)\n")}, ("main.mtask", 9, 16)),
+    "MT0306": ({"main.mtask": task("    unscrew(right, a, turn: 2)\n")}, ("main.mtask", 9, 23)),
+    "MT0307": ({"main.mtask": task("    pick(right)\n")}, ("main.mtask", 9, 5)),
+    "MT0308": ({"main.mtask": task("    walk_to(a, target: b)\n")}, ("main.mtask", 9, 16)),
+    "MT0309": ({"main.mtask": task("    scene s\n", "").replace("scene s\n    scene s", "manikin gb10000_1988 female p3\n    scene s")}, ("main.mtask", 8, 33)),
+    "MT0310": (
+        {"main.mtask": "element e(x: Length, x: Angle) {\n    still over 1 s\n}\n"},
+        ("main.mtask", 1, 22),
+    ),
+    "MT0311": ({"main.mtask": task("    unscrew(hand: right, a)\n")}, ("main.mtask", 9, 26)),
+    "MT0401": (
+        {"main.mtask": task("    repeat 1000 {\n        unscrew(right, a, turns: 100)\n    }\n")},
+        ("main.mtask", 9, 5),
+    ),
+    "MT0402": ({"main.mtask": "task t {\n}\n"}, ("main.mtask", 1, 6)),
+    "MT0403": (
+        {"main.mtask": task("    inspect(a, 2 s / 0)\n")},
+        ("main.mtask", 9, 16),
+    ),
+}
+
+
+@pytest.mark.parametrize("code", sorted(CASES))
+def test_code_line_column(code: str, tmp_path: Path) -> None:
+    files, where = CASES[code]
+    found = diagnose(tmp_path, files)
+    assert (code, *where) in found, found
+
+
+def test_missing_file_is_mt0001(tmp_path: Path) -> None:
+    program = run_frontend([tmp_path / "nope.mtask"])
+    assert [d.code for d in program.diagnostics] == ["MT0001"]
+
+
+def test_large_file_is_mt0003(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from mtlc.semantics import modules
+
+    monkeypatch.setattr(modules, "MAX_FILE_BYTES", 100)
+    found = diagnose(tmp_path, {"main.mtask": "# padding\n" * 20})
+    assert found == [("MT0003", "main.mtask", 1, 1)]
+
+
+@pytest.mark.skipif(sys.platform == "win32" or os.geteuid() == 0 and False, reason="symlinks")
+def test_use_outside_roots_is_mt0205(tmp_path: Path) -> None:
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "secret.mtask").write_text("element e() {\n    still over 1 s\n}\n")
+    root = tmp_path / "proj"
+    root.mkdir()
+    (root / "secret.mtask").symlink_to(outside / "secret.mtask")
+    (root / "main.mtask").write_text("use secret\n")
+    program = run_frontend([root / "main.mtask"])
+    assert [(d.code, d.span.line, d.span.column) for d in program.diagnostics] == [
+        ("MT0205", 1, 5)
+    ]
+
+
+def test_too_many_errors_stops_at_mt0106(tmp_path: Path) -> None:
+    text = "".join(f"element e{i}( {{\n}}\n" for i in range(80))
+    codes = [c for c, *_ in diagnose(tmp_path, {"main.mtask": text})]
+    assert codes.count("MT0106") == 1
+    assert len(codes) < 60
+
+
+def test_every_code_is_tested() -> None:
+    tested = set(CASES) | {"MT0001", "MT0003", "MT0106", "MT0205"}
+    assert set(CODES) - tested == {"MT0900"}  # internal errors have no input that makes them
+
+
+def test_all_errors_are_reported_not_only_the_first(tmp_path: Path) -> None:
+    body = "    walk_too(a)\n    inspect(a, 2 sec)\n    walk_to(a b)\n    pick(right)\n"
+    codes = sorted(c for c, *_ in diagnose(tmp_path, {"main.mtask": task(body)}))
+    assert codes == ["MT0101", "MT0201", "MT0303", "MT0307"]
+
+
+def test_did_you_mean(tmp_path: Path) -> None:
+    program_files = {"main.mtask": task("    walk_too(a)\n")}
+    diagnose(tmp_path, program_files)
+    program = run_frontend([tmp_path / "main.mtask"])
+    (diag,) = program.diagnostics
+    assert diag.help == "did you mean `walk_to`?"
+
+
+def test_expansion_budget_is_configurable(tmp_path: Path) -> None:
+    text = task("    repeat 30 {\n        inspect(a)\n    }\n")
+    assert diagnose(tmp_path, {"main.mtask": text}) == []
+    found = diagnose(tmp_path, {"main.mtask": text}, expansion_budget=50)
+    assert [c for c, *_ in found] == ["MT0401"]
+
+
+def test_unit_mismatch_in_arithmetic(tmp_path: Path) -> None:
+    text = task("    inspect(a, 2 s + 3 cm)\n")
+    found = diagnose(tmp_path, {"main.mtask": text})
+    assert found == [("MT0302", "main.mtask", 9, 16)]
+
+
+def test_duration_where_angle_wanted(tmp_path: Path) -> None:
+    text = HEADER + "element e(hand: Hand) {\n    turn(hand, 2 s)\n}\n"
+    assert diagnose(tmp_path, {"main.mtask": text}) == [("MT0302", "main.mtask", 4, 16)]
+
+
+def test_type_error_length_for_site(tmp_path: Path) -> None:
+    text = HEADER + "element e(hand: Hand, d: Length) {\n    reach(hand, d)\n}\n"
+    assert diagnose(tmp_path, {"main.mtask": text}) == [("MT0301", "main.mtask", 4, 17)]

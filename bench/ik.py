@@ -80,8 +80,9 @@ def to_urdf(skel: Skeleton, joints: Sequence[str], sites: Sequence[str], q_base:
         if not jt.dofs:
             out.append(f'<link name="{j}_l"/>')
             out.append(
-                f'<joint name="{j}_fix" type="fixed"><parent link="{parent}"/><child link="{j}_l"/>'
-                f'<origin xyz="{xyz[0]} {xyz[1]} {xyz[2]}" rpy="{rpy[0]} {rpy[1]} {rpy[2]}"/></joint>'
+                f'<joint name="{j}_fix" type="fixed"><parent link="{parent}"/>'
+                f'<child link="{j}_l"/><origin xyz="{xyz[0]} {xyz[1]} {xyz[2]}" '
+                f'rpy="{rpy[0]} {rpy[1]} {rpy[2]}"/></joint>'
             )
             last_link[j] = f"{j}_l"
             continue
@@ -92,7 +93,8 @@ def to_urdf(skel: Skeleton, joints: Sequence[str], sites: Sequence[str], q_base:
             r = rpy if k == 0 else (0.0, 0.0, 0.0)
             out.append(
                 f'<joint name="{d.name}" type="revolute"><parent link="{parent}"/>'
-                f'<child link="{link}"/><origin xyz="{o[0]} {o[1]} {o[2]}" rpy="{r[0]} {r[1]} {r[2]}"/>'
+                f'<child link="{link}"/><origin xyz="{o[0]} {o[1]} {o[2]}" '
+                f'rpy="{r[0]} {r[1]} {r[2]}"/>'
                 f'<axis xyz="{d.axis[0]} {d.axis[1]} {d.axis[2]}"/>'
                 f'<limit lower="{d.min}" upper="{d.max}" effort="100" velocity="10"/></joint>'
             )
@@ -222,7 +224,7 @@ def ikpy_rows(p: Problem, urdf: Path) -> list[Row]:
     rows = []
     for seed in ("middle", "near"):
 
-        def one(i: int, q0: np.ndarray) -> np.ndarray:
+        def one(i: int, q0: np.ndarray, seed: str = seed) -> np.ndarray:
             init = np.zeros(len(names))
             init[idx] = q0[p.dofs]
             with warnings.catch_warnings():
@@ -258,7 +260,7 @@ def pink_rows(p: Problem, urdf: Path) -> list[Row]:
     rows = []
     for seed in ("middle", "near"):
 
-        def one(i: int, q0: np.ndarray) -> np.ndarray:
+        def one(i: int, q0: np.ndarray, seed: str = seed) -> np.ndarray:
             qp = np.zeros(model.nq)
             qp[qidx] = q0[p.dofs]
             conf = pink.Configuration(model, data, qp)
@@ -326,7 +328,7 @@ def rtb_rows(p: Problem) -> list[Row]:
     rows = []
     for seed in ("middle", "near"):
 
-        def one(i: int, q0: np.ndarray) -> np.ndarray:
+        def one(i: int, q0: np.ndarray, seed: str = seed) -> np.ndarray:
             Tep = np.eye(4)
             Tep[:3, 3] = p.targets[i, 0]
             sol = ets.ik_LM(Tep, q0=q0[p.dofs], ilimit=30, slimit=100, tol=1e-7,
@@ -342,7 +344,10 @@ def rtb_rows(p: Problem) -> list[Row]:
 
 # --------------------------------------------------------------------------------------
 def fmt(rows: list[Row]) -> str:
-    head = "| problem | solver | seed | success (1 mm, in limits) | median ms | mean ms | batched µs/target | note |"
+    head = (
+        "| problem | solver | seed | success (1 mm, in limits) | median ms | mean ms "
+        "| batched µs/target | note |"
+    )
     lines = [head, "|---|---|---|---|---|---|---|---|"]
     for r in rows:
 
@@ -350,8 +355,9 @@ def fmt(rows: list[Row]) -> str:
             return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else pat.format(v)
 
         lines.append(
-            f"| {r.problem} | {r.solver} | {r.seed} | {f(r.success, '{:.1%}')} | {f(r.median_ms, '{:.3f}')} "
-            f"| {f(r.mean_ms, '{:.3f}')} | {f(r.batched_us, '{:.1f}')} | {r.note} |"
+            f"| {r.problem} | {r.solver} | {r.seed} | {f(r.success, '{:.1%}')} "
+            f"| {f(r.median_ms, '{:.3f}')} | {f(r.mean_ms, '{:.3f}')} "
+            f"| {f(r.batched_us, '{:.1f}')} | {r.note} |"
         )
     return "\n".join(lines)
 

@@ -15,7 +15,9 @@ HEADER = "use stdlib.actions\nuse stdlib.elements\n"
 SCENE = "scene s {\n    site a at (0, 100, 50) cm\n    site b at (10, 100, 50) cm\n}\n"
 
 
-def diagnose(tmp_path: Path, files: dict[str, str | bytes], **options) -> list[tuple[str, str, int, int]]:
+def diagnose(
+    tmp_path: Path, files: dict[str, str | bytes], **options
+) -> list[tuple[str, str, int, int]]:
     for name, text in files.items():
         path = tmp_path / name
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -24,7 +26,9 @@ def diagnose(tmp_path: Path, files: dict[str, str | bytes], **options) -> list[t
         else:
             path.write_text(text, encoding="utf-8")
     program = run_frontend([tmp_path / "main.mtask"], FrontendOptions(**options))
-    return [(d.code, Path(d.span.file).name, d.span.line, d.span.column) for d in program.diagnostics]
+    return [
+        (d.code, Path(d.span.file).name, d.span.line, d.span.column) for d in program.diagnostics
+    ]
 
 
 def task(body: str, extra: str = "") -> str:
@@ -42,7 +46,9 @@ CASES: dict[str, tuple[dict[str, str | bytes], tuple[str, int, int]]] = {
     "MT0107": ({"main.mtask": 'task t "bad \\q escape" {\n}\n'}, ("main.mtask", 1, 13)),
     "MT0201": ({"main.mtask": task("    walk_too(a)\n")}, ("main.mtask", 9, 5)),
     "MT0202": (
-        {"main.mtask": "element e() {\n    still over 1 s\n}\nelement e() {\n    still over 1 s\n}\n"},
+        {
+            "main.mtask": "element e() {\n    still over 1 s\n}\nelement e() {\n    still over 1 s\n}\n"
+        },
         ("main.mtask", 4, 9),
     ),
     "MT0203": ({"main.mtask": "use bay.missing\n"}, ("main.mtask", 1, 5)),
@@ -71,12 +77,22 @@ CASES: dict[str, tuple[dict[str, str | bytes], tuple[str, int, int]]] = {
     "MT0301": ({"main.mtask": task("    walk_to(10 cm)\n")}, ("main.mtask", 9, 13)),
     "MT0302": ({"main.mtask": task("    unscrew(right, a, load: 2 s)\n")}, ("main.mtask", 9, 29)),
     "MT0303": ({"main.mtask": task("    inspect(a, 2 sec)\n")}, ("main.mtask", 9, 18)),
-    "MT0304": ({"main.mtask": "element e(x: Lenght) {\n    still over 1 s\n}\n"}, ("main.mtask", 1, 14)),
+    "MT0304": (
+        {"main.mtask": "element e(x: Lenght) {\n    still over 1 s\n}\n"},
+        ("main.mtask", 1, 14),
+    ),
     "MT0305": ({"main.mtask": task("    walk_to(a, b)\n")}, ("main.mtask", 9, 16)),
     "MT0306": ({"main.mtask": task("    unscrew(right, a, turn: 2)\n")}, ("main.mtask", 9, 23)),
     "MT0307": ({"main.mtask": task("    pick(right)\n")}, ("main.mtask", 9, 5)),
     "MT0308": ({"main.mtask": task("    walk_to(a, target: b)\n")}, ("main.mtask", 9, 16)),
-    "MT0309": ({"main.mtask": task("    scene s\n", "").replace("scene s\n    scene s", "manikin gb10000_1988 female p3\n    scene s")}, ("main.mtask", 8, 33)),
+    "MT0309": (
+        {
+            "main.mtask": task("    scene s\n", "").replace(
+                "scene s\n    scene s", "manikin gb10000_1988 female p3\n    scene s"
+            )
+        },
+        ("main.mtask", 8, 33),
+    ),
     "MT0310": (
         {"main.mtask": "element e(x: Length, x: Angle) {\n    still over 1 s\n}\n"},
         ("main.mtask", 1, 22),
@@ -114,7 +130,7 @@ def test_large_file_is_mt0003(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
     assert found == [("MT0003", "main.mtask", 1, 1)]
 
 
-@pytest.mark.skipif(sys.platform == "win32" or os.geteuid() == 0 and False, reason="symlinks")
+@pytest.mark.skipif(sys.platform == "win32" or (os.geteuid() == 0 and False), reason="symlinks")
 def test_use_outside_roots_is_mt0205(tmp_path: Path) -> None:
     outside = tmp_path / "outside"
     outside.mkdir()
@@ -124,9 +140,7 @@ def test_use_outside_roots_is_mt0205(tmp_path: Path) -> None:
     (root / "secret.mtask").symlink_to(outside / "secret.mtask")
     (root / "main.mtask").write_text("use secret\n")
     program = run_frontend([root / "main.mtask"])
-    assert [(d.code, d.span.line, d.span.column) for d in program.diagnostics] == [
-        ("MT0205", 1, 5)
-    ]
+    assert [(d.code, d.span.line, d.span.column) for d in program.diagnostics] == [("MT0205", 1, 5)]
 
 
 def test_too_many_errors_stops_at_mt0106(tmp_path: Path) -> None:

@@ -47,7 +47,28 @@ def mutated_example(draw: st.DrawFn) -> bytes:
         elif op == "truncate":
             tokens = tokens[:i]
         elif op == "insert":
-            tokens.insert(i, draw(st.sampled_from(["{", "}", "(", ")", "[", ",", ":", "\n", '"', "repeat 99999999", "-", "deg", "use x"])))
+            tokens.insert(
+                i,
+                draw(
+                    st.sampled_from(
+                        [
+                            "{",
+                            "}",
+                            "(",
+                            ")",
+                            "[",
+                            ",",
+                            ":",
+                            "\n",
+                            '"',
+                            "repeat 99999999",
+                            "-",
+                            "deg",
+                            "use x",
+                        ]
+                    )
+                ),
+            )
         else:
             tokens.insert(i, draw(st.binary(min_size=1, max_size=8)).decode("latin-1"))
     return " ".join(tokens).encode("utf-8", errors="surrogateescape")
@@ -75,7 +96,16 @@ def test_random_bytes(data: bytes) -> None:
 @given(
     st.lists(
         st.sampled_from(
-            [*"{}()[],:;.=+-*/#\"\\\n\t abc019_", "task", "use", "element", "repeat", "goal", "at", "cm"]
+            [
+                *'{}()[],:;.=+-*/#"\\\n\t abc019_',
+                "task",
+                "use",
+                "element",
+                "repeat",
+                "goal",
+                "at",
+                "cm",
+            ]
         ),
         max_size=80,
     )
@@ -106,7 +136,9 @@ def test_deep_nesting_is_refused_without_recursion_error() -> None:
 
 
 def test_long_expression_is_refused_without_recursion_error() -> None:
-    codes = _check_text(("task t {\n    inspect(a, " + " + ".join(["1 s"] * 20_000) + ")\n}\n").encode())
+    codes = _check_text(
+        ("task t {\n    inspect(a, " + " + ".join(["1 s"] * 20_000) + ")\n}\n").encode()
+    )
     assert "MT0104" in codes
 
 

@@ -35,10 +35,14 @@ def _manikin(text: str) -> ManikinSpec:
     """`--manikin gb10000_1988:female:5`"""
     parts = text.split(":")
     if len(parts) != 3:
-        raise argparse.ArgumentTypeError("expected POPULATION:SEX:PERCENTILE, e.g. gb10000_1988:female:5")
+        raise argparse.ArgumentTypeError(
+            "expected POPULATION:SEX:PERCENTILE, e.g. gb10000_1988:female:5"
+        )
     pop, sex, pct = parts
     if pop not in B.POPULATIONS:
-        raise argparse.ArgumentTypeError(f"unknown population {pop!r}; one of {', '.join(B.POPULATIONS)}")
+        raise argparse.ArgumentTypeError(
+            f"unknown population {pop!r}; one of {', '.join(B.POPULATIONS)}"
+        )
     if sex not in B.SEXES:
         raise argparse.ArgumentTypeError("sex is male or female")
     pct = pct.removeprefix("p")

@@ -8,10 +8,10 @@ suppressions depend on them. Each code has a page in docs/diagnostics/ that ``mt
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 
 
-class Severity(str, Enum):
+class Severity(StrEnum):
     ERROR = "error"
     WARNING = "warning"
     NOTE = "note"
@@ -36,7 +36,9 @@ _ALL = [
     Code("MT0103", "unterminated-string", Severity.ERROR, "a string has no closing quote"),
     Code("MT0104", "nesting-too-deep", Severity.ERROR, "blocks or expressions nest too deeply"),
     Code("MT0105", "unexpected-end", Severity.ERROR, "the file ends inside a definition"),
-    Code("MT0106", "too-many-errors", Severity.ERROR, "so many syntax errors that checking stopped"),
+    Code(
+        "MT0106", "too-many-errors", Severity.ERROR, "so many syntax errors that checking stopped"
+    ),
     Code("MT0107", "invalid-escape", Severity.ERROR, "an unknown escape sequence in a string"),
     # modules and names
     Code("MT0201", "unknown-name", Severity.ERROR, "a name that is not defined"),
@@ -45,22 +47,44 @@ _ALL = [
     Code("MT0204", "import-cycle", Severity.ERROR, "modules that use each other in a cycle"),
     Code("MT0205", "module-outside-roots", Severity.ERROR, "a `use` leads outside the search path"),
     Code("MT0206", "ambiguous-name", Severity.ERROR, "a name imported from two modules"),
-    Code("MT0207", "recursive-definition", Severity.ERROR, "actions or elements that call each other in a cycle"),
-    Code("MT0208", "wrong-level-call", Severity.ERROR, "a call that breaks the task > action > element hierarchy"),
-    Code("MT0209", "misplaced-statement", Severity.ERROR, "a statement that is not allowed where it stands"),
+    Code(
+        "MT0207",
+        "recursive-definition",
+        Severity.ERROR,
+        "actions or elements that call each other in a cycle",
+    ),
+    Code(
+        "MT0208",
+        "wrong-level-call",
+        Severity.ERROR,
+        "a call that breaks the task > action > element hierarchy",
+    ),
+    Code(
+        "MT0209",
+        "misplaced-statement",
+        Severity.ERROR,
+        "a statement that is not allowed where it stands",
+    ),
     Code("MT0210", "duplicate-setting", Severity.ERROR, "a setting given twice in one place"),
     # types, units, calls
     Code("MT0301", "type-mismatch", Severity.ERROR, "a value of the wrong type"),
     Code("MT0302", "unit-mismatch", Severity.ERROR, "quantities of different dimensions mixed"),
     Code("MT0303", "unknown-unit", Severity.ERROR, "a unit that mtlc does not know"),
     Code("MT0304", "unknown-type", Severity.ERROR, "a parameter type that does not exist"),
-    Code("MT0305", "too-many-arguments", Severity.ERROR, "more positional arguments than parameters"),
+    Code(
+        "MT0305", "too-many-arguments", Severity.ERROR, "more positional arguments than parameters"
+    ),
     Code("MT0306", "unknown-argument", Severity.ERROR, "a named argument that is not a parameter"),
     Code("MT0307", "missing-argument", Severity.ERROR, "a parameter without a value"),
     Code("MT0308", "argument-repeated", Severity.ERROR, "a parameter given a value twice"),
     Code("MT0309", "invalid-value", Severity.ERROR, "a value out of its allowed range"),
     Code("MT0310", "duplicate-parameter", Severity.ERROR, "two parameters with the same name"),
-    Code("MT0311", "positional-after-named", Severity.ERROR, "a positional argument after a named one"),
+    Code(
+        "MT0311",
+        "positional-after-named",
+        Severity.ERROR,
+        "a positional argument after a named one",
+    ),
     # expansion
     Code("MT0401", "expansion-budget", Severity.ERROR, "a task expands into too many primitives"),
     Code("MT0402", "empty-task", Severity.WARNING, "a task that produces no motion"),

@@ -81,7 +81,9 @@ class Diagnostic:
         if self.help:
             out["help"] = self.help
         if self.labels:
-            out["labels"] = [{"message": lb.message, "span": lb.span.as_dict()} for lb in self.labels]
+            out["labels"] = [
+                {"message": lb.message, "span": lb.span.as_dict()} for lb in self.labels
+            ]
         if self.notes:
             out["notes"] = list(self.notes)
         return out

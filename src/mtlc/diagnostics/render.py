@@ -84,7 +84,9 @@ def render_one(d: Diagnostic, sources: Mapping[str, str], *, color: bool = False
     out.append(f"{pad}{c('-->', _BLUE)} {d.span.file}:{d.span.line}:{d.span.column}")
     out.extend(_snippet(d.span, sources, width, "", c, _COLORS[sev]))
     for label in d.labels:
-        out.append(f"{pad}{c('-->', _BLUE)} {label.span.file}:{label.span.line}:{label.span.column}")
+        out.append(
+            f"{pad}{c('-->', _BLUE)} {label.span.file}:{label.span.line}:{label.span.column}"
+        )
         out.extend(_snippet(label.span, sources, width, label.message, c, _BLUE, mark="-"))
     if d.help or d.notes:
         out.append(f"{pad} {c('|', _BLUE)}")

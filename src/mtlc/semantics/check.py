@@ -89,7 +89,9 @@ class Checker:
                 if isinstance(site.normal, ast.Vector) and all(
                     isinstance(i, ast.Number) and i.value == 0 for i in site.normal.items
                 ):
-                    self.sink.report("MT0309", "a normal cannot be the zero vector", site.normal.span)
+                    self.sink.report(
+                        "MT0309", "a normal cannot be the zero vector", site.normal.span
+                    )
             if site.frame is not None:
                 self.expect_vector(site.frame, ORIENTATION, env, "a frame (X, Y, Z rotations)")
 
@@ -313,7 +315,8 @@ class Checker:
         decl = sym.decl
         assert isinstance(decl, ast.Definition)
         params = [
-            (p.name, T.TYPE_NAMES.get(p.type_name, T.UNKNOWN), p.default is None) for p in decl.params
+            (p.name, T.TYPE_NAMES.get(p.type_name, T.UNKNOWN), p.default is None)
+            for p in decl.params
         ]
         if sym.name not in sym_scope_broken(sym):
             self.check_args(sym.name, params, call.args, call.span, env)
@@ -457,20 +460,14 @@ class Checker:
     def mismatch(self, expr: ast.Expr, actual: T.Type, expected: T.Type) -> None:
         if isinstance(actual, T.Quantity) and isinstance(expected, T.Quantity):
             if actual.dim == expected.dim:  # a Number where an Int is wanted
-                self.sink.report(
-                    "MT0301", f"expected a whole number, found {actual}", expr.span
-                )
+                self.sink.report("MT0301", f"expected a whole number, found {actual}", expr.span)
                 return
             help = None
             if expected.dim != T.NONE_DIM and actual.dim == T.NONE_DIM:
-                unit = {T.LENGTH: "cm", T.ANGLE: "deg", T.DURATION: "s", T.MASS: "kg"}.get(
-                    expected, None
-                )
+                unit = {T.LENGTH: "cm", T.ANGLE: "deg", T.DURATION: "s", T.MASS: "kg"}.get(expected)
                 if unit:
                     help = f"give the number a unit, for example `{_src_number(expr)} {unit}`"
-            self.sink.report(
-                "MT0302", f"expected {expected}, found {actual}", expr.span, help=help
-            )
+            self.sink.report("MT0302", f"expected {expected}, found {actual}", expr.span, help=help)
             return
         self.sink.report("MT0301", f"expected {expected}, found {actual}", expr.span)
 
@@ -487,9 +484,7 @@ class Checker:
         if actual == T.UNKNOWN:
             return
         if not isinstance(actual, T.VectorType):
-            self.sink.report(
-                "MT0301", f"{what} is a vector (x, y, z), found {actual}", expr.span
-            )
+            self.sink.report("MT0301", f"{what} is a vector (x, y, z), found {actual}", expr.span)
         elif actual.dim != expected.dim:
             self.sink.report(
                 "MT0302",
@@ -502,9 +497,7 @@ class Checker:
                 }.get(expected.dim),
             )
         elif isinstance(expr, ast.Vector) and len(expr.items) != 3:
-            self.sink.report(
-                "MT0309", f"{what} has 3 components, not {len(expr.items)}", expr.span
-            )
+            self.sink.report("MT0309", f"{what} has 3 components, not {len(expr.items)}", expr.span)
 
     def infer(self, expr: ast.Expr, env: Env, expected: T.Type | None = None) -> T.Type:
         match expr:
@@ -633,7 +626,9 @@ class Checker:
 
     def infer_call(self, expr: ast.CallExpr, env: Env) -> T.Type:
         func = expr.func
-        if not (isinstance(func, ast.Attr) and isinstance(func.obj, ast.Name) and func.obj.name == "mtm"):
+        if not (
+            isinstance(func, ast.Attr) and isinstance(func.obj, ast.Name) and func.obj.name == "mtm"
+        ):
             self.sink.report(
                 "MT0301",
                 "only the timing functions `mtm.<name>(...)` can be called inside an expression",
@@ -734,8 +729,7 @@ class Checker:
         if len(set(dims)) > 1:
             self.sink.report(
                 "MT0302",
-                "vector components have different units: "
-                + ", ".join(T.dim_name(d) for d in dims),
+                "vector components have different units: " + ", ".join(T.dim_name(d) for d in dims),
                 expr.span,
             )
             return T.UNKNOWN

@@ -171,7 +171,9 @@ class Expander:
     def repeat(self, stmt: ast.Repeat, env: _Env, t: float) -> float:
         n = self.eval(stmt.count, env)
         if n < 0:
-            self.sink.report("MT0309", f"cannot repeat a negative number of times ({n})", stmt.count.span)
+            self.sink.report(
+                "MT0309", f"cannot repeat a negative number of times ({n})", stmt.count.span
+            )
             raise _Abort
         for i in range(n):
             before = self.count
@@ -188,7 +190,11 @@ class Expander:
         scope = env.scope
         for part in call.callee[:-1]:
             scope = scope.aliases[part]
-        sym = scope.names.get(call.callee[-1]) if len(call.callee) == 1 else scope.own[call.callee[-1]]
+        sym = (
+            scope.names.get(call.callee[-1])
+            if len(call.callee) == 1
+            else scope.own[call.callee[-1]]
+        )
         assert sym is not None and isinstance(sym.decl, ast.Definition)
         decl = sym.decl
         callee_scope = self.scopes[id(sym.module)]
@@ -212,7 +218,9 @@ class Expander:
     def primitive(self, stmt: ast.Stmt, env: _Env, t: float) -> float:
         over = self.eval(stmt.over, env) if getattr(stmt, "over", None) is not None else None
         if isinstance(over, float) and over < 0:
-            self.sink.report("MT0309", f"a duration cannot be negative ({over:g} s)", stmt.over.span)  # type: ignore[attr-defined]
+            self.sink.report(
+                "MT0309", f"a duration cannot be negative ({over:g} s)", stmt.over.span
+            )  # type: ignore[attr-defined]
             raise _Abort
         timing = over if over is not None else env.timing
         match stmt:
@@ -224,7 +232,11 @@ class Expander:
                 return self.walk(stmt, env, t, timing)
             case ast.Grip():
                 hands = HANDS[self.eval(stmt.hand, env)]
-                default = Timing("grasp", {"case": "G1A"}) if stmt.state == "closed" else Timing("release", {})
+                default = (
+                    Timing("grasp", {"case": "G1A"})
+                    if stmt.state == "closed"
+                    else Timing("release", {})
+                )
                 d = self.duration(timing, default, stmt.span)
                 for h in hands:
                     self.emit("grip", h, t, t + d, {"state": stmt.state}, stmt, env)
@@ -232,7 +244,15 @@ class Expander:
             case ast.Gaze():
                 site: Site = self.eval(stmt.target, env)
                 d = self.duration(timing, Timing("code", {"code": "EF"}), stmt.span)
-                self.emit("gaze", "head", t, t + d, {"site": site.name, "position": site.position}, stmt, env)
+                self.emit(
+                    "gaze",
+                    "head",
+                    t,
+                    t + d,
+                    {"site": site.name, "position": site.position},
+                    stmt,
+                    env,
+                )
                 return t + d
             case ast.Still():
                 d = self.duration(timing, None, stmt.span)
@@ -245,7 +265,9 @@ class Expander:
         site: Site = self.eval(stmt.target, env)
         offset = self.eval(stmt.offset, env) if stmt.offset is not None else (0.0, 0.0, 0.0)
         target = tuple(p + o for p, o in zip(site.position, offset, strict=True))
-        approach = self.eval(stmt.approach, env) if stmt.approach is not None else DEFAULT_APPROACH_M
+        approach = (
+            self.eval(stmt.approach, env) if stmt.approach is not None else DEFAULT_APPROACH_M
+        )
         distance = max(_dist(self._hand(h), target) for h in hands)
         d = self.duration(timing, Timing("reach", {"case": "B"}), stmt.span, distance)
         share = min(max(approach / distance, TO_SHARE[0]), TO_SHARE[1]) if distance > 0 else 1.0
@@ -275,9 +297,19 @@ class Expander:
         if kind == "twist":
             hands = HANDS[values["hand"]]
             load = float(self.tool.properties.get("mass", 0.0)) if self.tool else 0.0
-            d = self.duration(timing, Timing("turn", {"angle": values["angle"], "load": load}), stmt.span)
+            d = self.duration(
+                timing, Timing("turn", {"angle": values["angle"], "load": load}), stmt.span
+            )
             for h in hands:
-                self.emit("posture", h, t, t + d, {"posture": "twist", "angle": values["angle"]}, stmt, env)
+                self.emit(
+                    "posture",
+                    h,
+                    t,
+                    t + d,
+                    {"posture": "twist", "angle": values["angle"]},
+                    stmt,
+                    env,
+                )
             return t + d
         if kind == "stand" and self.posture == "stand" and timing is None:
             return t  # already standing: nothing to do
@@ -334,7 +366,9 @@ class Expander:
             pos = (self.root[0] + rest[0], self.root[1] + rest[1], self.root[2] + rest[2])
         return pos
 
-    def duration(self, timing: Any, default: Timing | None, span: Span, distance: float = 0.0) -> float:
+    def duration(
+        self, timing: Any, default: Timing | None, span: Span, distance: float = 0.0
+    ) -> float:
         rule = timing if timing is not None else default
         if isinstance(rule, int | float):
             return float(rule)

@@ -8,6 +8,7 @@ modules are diagnostics.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -168,10 +169,8 @@ class ModuleLoader:
                 return candidate
         known = []
         for root in roots:
-            try:
+            with contextlib.suppress(OSError):
                 known += [p.stem for p in root.glob("*.mtask")]
-            except OSError:
-                pass
         if parts[0] == STDLIB_PREFIX:
             known = [f"{STDLIB_PREFIX}.{k}" for k in known]
         where = ", ".join(display_name(r) for r in roots)
@@ -182,4 +181,3 @@ class ModuleLoader:
             help=did_you_mean(dotted, known) or f"searched in: {where}",
         )
         return None
-

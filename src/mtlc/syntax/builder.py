@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from lark import Token, Tree
-from lark.visitors import Transformer_NonRecursive
+from lark import Token
+from lark.visitors import Transformer
 
 from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.syntax import ast
@@ -18,21 +18,29 @@ from mtlc.syntax.lexer import decode_string
 MAX_EXPR_DEPTH = 100
 
 
-class AstBuilder(Transformer_NonRecursive):
-    def __init__(self, file: str, sink: DiagnosticSink) -> None:
+class AstBuilder(Transformer):
+    """Runs inside lark's LALR parser (one callback per reduced rule), so no parse tree is built.
+
+    One instance is bound to the cached parser; ``begin`` points it at the file being parsed.
+    """
+
+    def __init__(self) -> None:
         super().__init__()
-        self.file = file
-        self.sink = sink
+        self.file = ""
+        self.sink = DiagnosticSink()
         self._depth: dict[int, int] = {}
 
-    def build(self, tree: Tree) -> Any:
+    def begin(self, file: str, sink: DiagnosticSink) -> None:
+        self.file = file
+        self.sink = sink
         self._depth.clear()
-        return self.transform(tree)
 
     # ------------------------------------------------------------ helpers
     def _sp(self, x: Any) -> Span:
         if isinstance(x, Token):
-            return Span(self.file, x.line, x.column, x.end_line, x.end_column, x.start_pos, x.end_pos)
+            return Span(
+                self.file, x.line, x.column, x.end_line, x.end_column, x.start_pos, x.end_pos
+            )
         if isinstance(x, ast.Node):
             return x.span
         if isinstance(x, tuple) and x and isinstance(x[-1], Span):

@@ -88,8 +88,11 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
                     )
                 else:
                     shown = value if len(value) <= 20 else value[:20] + "…"
-                    sink.report("MT0102", f"unexpected character{'s' if len(value) > 1 else ''} "
-                                f"{shown!r}", span)
+                    sink.report(
+                        "MT0102",
+                        f"unexpected character{'s' if len(value) > 1 else ''} {shown!r}",
+                        span,
+                    )
             # a bad string still stands for a value, so the statement around it parses
             if kind == "BADSTRING":
                 tokens.append(Token("STRING", '""', start, line, col, line, col + len(value), end))
@@ -119,7 +122,15 @@ def decode_string(token: Token, file: str, sink: DiagnosticSink) -> str:
         sink.report(
             "MT0107",
             f"unknown escape sequence `{m.group()}`",
-            Span(file, token.line, col, token.line, col + len(m.group()), start, start + len(m.group())),
+            Span(
+                file,
+                token.line,
+                col,
+                token.line,
+                col + len(m.group()),
+                start,
+                start + len(m.group()),
+            ),
             help='known escapes: \\n \\t \\" \\\\ \\u{XXXX}',
         )
         return m.group()

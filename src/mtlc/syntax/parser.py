@@ -14,8 +14,7 @@ from lark.exceptions import UnexpectedInput, UnexpectedToken
 
 from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.syntax import ast
-from mtlc.syntax.builder import AstBuilder
-from mtlc.syntax.grammar import lexicon, parser
+from mtlc.syntax.grammar import builder, lexicon, parser
 from mtlc.syntax.lexer import NEWLINE, tokenize
 
 MAX_NESTING = 64
@@ -30,12 +29,13 @@ _PUNCTUATION = {*_OPENERS, *_CLOSERS, NEWLINE, "SEMICOLON", "COMMA", "COLON", "D
 
 
 def token_span(file: str, tok: Token) -> Span:
-    return Span(file, tok.line, tok.column, tok.end_line, tok.end_column, tok.start_pos, tok.end_pos)
+    return Span(
+        file, tok.line, tok.column, tok.end_line, tok.end_column, tok.start_pos, tok.end_pos
+    )
 
 
 def parse_module(text: str, file: str, sink: DiagnosticSink) -> ast.Module:
     tokens = tokenize(text, file, sink)
-    builder = AstBuilder(file, sink)
     uses: list[ast.Use] = []
     decls: list[ast.Decl] = []
     broken: set[str] = set()
@@ -50,7 +50,7 @@ def parse_module(text: str, file: str, sink: DiagnosticSink) -> ast.Module:
             broken.add("*")
             break
         count = len(sink.items)
-        node = _parse_item(item_tokens, file, sink, builder)
+        node = _parse_item(item_tokens, file, sink)
         if node is None or len(sink.items) > count:
             # an item that failed, or parsed only after recovery: its signature is not trusted
             name = _declared_name(item_tokens)
@@ -162,11 +162,12 @@ def _describe_token(tok: Token) -> str:
     return f"`{tok.value}`"
 
 
-def _parse_item(tokens: list[Token], file: str, sink: DiagnosticSink, builder: AstBuilder):
+def _parse_item(tokens: list[Token], file: str, sink: DiagnosticSink) -> ast.Node | None:
     lark = parser()
     for _attempt in range(MAX_RECOVERIES_PER_ITEM):
+        builder().begin(file, sink)
         try:
-            return builder.build(lark.parse(tokens))
+            return lark.parse(tokens)
         except UnexpectedToken as err:
             bad = err.token
             at_end = bad.type == "$END"
@@ -176,8 +177,12 @@ def _parse_item(tokens: list[Token], file: str, sink: DiagnosticSink, builder: A
                 _describe(t) for t in err.expected if not t.startswith("__") and t != "$END"
             )
             if at_end:
-                sink.report("MT0105", "the definition ends too early", token_span(file, where),
-                            help=f"expected {_one_of(expected)}" if expected else None)
+                sink.report(
+                    "MT0105",
+                    "the definition ends too early",
+                    token_span(file, where),
+                    help=f"expected {_one_of(expected)}" if expected else None,
+                )
                 return None
             sink.report(
                 "MT0101",

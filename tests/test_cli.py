@@ -1,0 +1,138 @@
+"""The command line: exit codes, formats, explain, atomic outputs, colour."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import ROOT
+
+from mtlc.cli import main
+from mtlc.diagnostics import CODES
+
+FLAGSHIP = "examples/remove_access_panel.mtask"
+
+
+def run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "mtlc", *args],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env=env,
+        timeout=120,
+    )
+
+
+def test_check_clean_exits_0(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", FLAGSHIP]) == 0
+    assert "ok: 1 file, 1 task" in capsys.readouterr().err
+
+
+def test_check_errors_exit_1_with_rustc_style_text(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.mtask"
+    bad.write_text("use stdlib.actions\ntask t {\n    walk_too(x)\n}\n")
+    assert main(["check", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert "error[MT0201]: unknown name `walk_too`" in err
+    assert f"--> {bad.as_posix()}:3:5" in err
+    assert "  |     ^^^^^^^^" in err
+    assert "= help: did you mean `walk_to`?" in err
+    assert "\x1b[" not in err  # NO_COLOR is set by conftest
+
+
+def test_usage_errors_exit_2() -> None:
+    assert run("check").returncode == 2
+    assert run("nonsense").returncode == 2
+    assert run("check", FLAGSHIP, "--manikin", "gb10000_1988:female:3").returncode == 2
+    assert run("check", FLAGSHIP, "--expansion-budget", "0").returncode == 2
+    assert run().returncode == 2
+
+
+def test_python_dash_m_and_version() -> None:
+    out = run("--version")
+    assert out.returncode == 0 and out.stdout.startswith("mtlc ")
+
+
+def test_json_format_is_versioned(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.mtask"
+    bad.write_text("task t {\n    walk_too()\n}\n")
+    assert main(["check", "--format", "json", str(bad)]) == 1
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["format"] == "mtlc-diagnostics" and doc["version"] == 1
+    (d,) = doc["diagnostics"]
+    assert d["code"] == "MT0201" and d["severity"] == "error"
+    assert (d["span"]["line"], d["span"]["column"], d["span"]["end_column"]) == (2, 5, 13)
+    assert doc["summary"] == {"errors": 1, "warnings": 0}
+
+
+def test_color_only_when_forced_and_no_color_unset() -> None:
+    env = {"PATH": "/usr/bin:/bin", "FORCE_COLOR": "1"}
+    out = run("check", str(ROOT / "tests" / "data" / "unknown_name.mtask"), env=env)
+    assert "\x1b[" in out.stderr
+    env["NO_COLOR"] = "1"
+    out = run("check", str(ROOT / "tests" / "data" / "unknown_name.mtask"), env=env)
+    assert "\x1b[" not in out.stderr and "error[MT0201]" in out.stderr
+
+
+@pytest.mark.parametrize("code", sorted(CODES))
+def test_explain_every_code(code: str, capsys) -> None:
+    assert main(["explain", code]) == 0
+    page = capsys.readouterr().out
+    assert page.startswith(f"# {code}")
+
+
+def test_explain_unknown_code_is_usage_error(capsys) -> None:
+    assert main(["explain", "MT9999"]) == 2
+
+
+def test_dump_timeline_and_ast(capsys) -> None:
+    assert main(["check", "--dump", "timeline", FLAGSHIP]) == 0
+    (timeline,) = json.loads(capsys.readouterr().out)
+    assert timeline["task"] == "remove_access_panel"
+    assert main(["check", "--dump", "ast", FLAGSHIP]) == 0
+    assert json.loads(capsys.readouterr().out)["node"] == "Module"
+
+
+def test_manikin_override(capsys) -> None:
+    assert main(["check", "--dump", "timeline", "--manikin", "gb10000_1988:male:95", FLAGSHIP]) == 0
+    (timeline,) = json.loads(capsys.readouterr().out)
+    assert timeline["manikin"] == {"population": "gb10000_1988", "sex": "male", "percentile": 95}
+
+
+def test_compile_writes_and_is_byte_identical(tmp_path: Path) -> None:
+    assert main(["compile", FLAGSHIP, "-o", str(tmp_path / "a")]) == 0
+    assert main(["compile", FLAGSHIP, "-o", str(tmp_path / "b")]) == 0
+    (a,) = (tmp_path / "a").iterdir()
+    b = tmp_path / "b" / a.name
+    assert a.read_bytes() == b.read_bytes()
+    assert json.loads(a.read_text())["task"] == "remove_access_panel"
+
+
+def test_failed_compile_leaves_existing_output_untouched(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    src = tmp_path / "job.mtask"
+    src.write_text((ROOT / FLAGSHIP).read_text().replace("    walk_to(bench_front)\n", ""))
+    assert main(["compile", str(src), "-o", str(out)]) == 0
+    (target,) = out.iterdir()
+    before = target.read_bytes()
+    src.write_text(src.read_text().replace("walk_to(panel_front)", "walk_to(panel_frnt)"))
+    assert main(["compile", str(src), "-o", str(out)]) == 1
+    assert target.read_bytes() == before
+    assert [p.name for p in out.iterdir()] == [target.name]  # no temporary files left behind
+
+
+def test_include_dir(tmp_path: Path) -> None:
+    lib = tmp_path / "lib" / "bay"
+    lib.mkdir(parents=True)
+    (lib / "scenes.mtask").write_text("scene bay {\n    site a at (0, 100, 40) cm\n}\n")
+    main_file = tmp_path / "work" / "main.mtask"
+    main_file.parent.mkdir()
+    main_file.write_text(
+        "use stdlib.actions\nuse bay.scenes\ntask t {\n    scene bay\n    walk_to(a)\n}\n"
+    )
+    assert main(["check", str(main_file)]) == 1  # not found without -I
+    assert main(["check", "-I", str(tmp_path / "lib"), str(main_file)]) == 0

@@ -40,6 +40,7 @@ def test_wheel_installs_and_checks_an_example_outside_the_checkout(tmp_path: Pat
     assert "mtlc/_resources/stdlib/actions.mtask" in names
     assert "mtlc/_resources/diagnostics/MT0201.md" in names
     assert "mtlc/data/time_standards/mtm1_reach_move.csv" in names
+    assert "mtlc/body/data/gb10000_1988.csv" in names
 
     # the dependencies come from this interpreter's site-packages; mtlc itself from the wheel only
     env_dir = tmp_path / "venv"

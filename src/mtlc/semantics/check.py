@@ -7,6 +7,7 @@ wrong has type UNKNOWN, which is accepted everywhere so that one mistake gives o
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from mtlc.diagnostics import DiagnosticSink, Label, Span
@@ -105,8 +106,7 @@ class Checker:
                     "MT0306",
                     f"tools have no property `{prop.name}`",
                     prop.span,
-                    help=did_you_mean(prop.name, B.TOOL_PROPERTIES)
-                    or f"properties: {', '.join(B.TOOL_PROPERTIES)}",
+                    help=suggest(prop.name, B.TOOL_PROPERTIES, "properties"),
                 )
                 continue
             if prop.name in seen:
@@ -127,8 +127,7 @@ class Checker:
                     "MT0304",
                     f"unknown type `{p.type_name}`",
                     p.type_span,
-                    help=did_you_mean(p.type_name, T.TYPE_NAMES)
-                    or f"types: {', '.join(T.TYPE_NAMES)}",
+                    help=suggest(p.type_name, T.TYPE_NAMES, "types"),
                 )
                 ptype = T.UNKNOWN
             if p.name in out:
@@ -229,8 +228,7 @@ class Checker:
                         "MT0201",
                         f"unknown posture `{stmt.kind}`",
                         stmt.kind_span,
-                        help=did_you_mean(stmt.kind, B.POSTURES)
-                        or f"postures: {', '.join(B.POSTURES)}",
+                        help=suggest(stmt.kind, B.POSTURES, "postures"),
                     )
                 else:
                     self.check_args(sig.name, _builtin_params(sig), stmt.args, stmt.span, env)
@@ -426,7 +424,7 @@ class Checker:
                         "MT0306",
                         f"`{fname}` has no parameter `{pname}`",
                         arg.name_span or arg.span,
-                        help=did_you_mean(pname, names) or f"parameters: {', '.join(names)}",
+                        help=suggest(pname, names, "parameters"),
                     )
                     self.infer(arg.value, env)
                     continue
@@ -547,7 +545,7 @@ class Checker:
                 "MT0303",
                 f"unknown unit `{unit}`",
                 span,
-                help=did_you_mean(unit, T.UNITS) or f"units: {', '.join(T.UNITS)}",
+                help=suggest(unit, T.UNITS, "units"),
             )
             return T.UNKNOWN, 1.0
         return T.Quantity(found[0]), found[1]
@@ -644,8 +642,7 @@ class Checker:
                 "MT0201",
                 f"unknown timing function `mtm.{func.name}`",
                 func.name_span,
-                help=did_you_mean(func.name, B.MTM_FUNCTIONS)
-                or f"functions: {', '.join(B.MTM_FUNCTIONS)}",
+                help=suggest(func.name, B.MTM_FUNCTIONS, "functions"),
             )
             return T.UNKNOWN
         self.check_args(f"mtm.{sig.name}", _builtin_params(sig), expr.args, expr.span, env)
@@ -736,6 +733,12 @@ class Checker:
         return T.VectorType(dims[0])
 
 
+def suggest(name: str, candidates: Iterable[str], label: str) -> str:
+    """'did you mean' when something is close, else the list of what exists."""
+    candidates = list(candidates)
+    return did_you_mean(name, candidates) or f"{label}: {', '.join(candidates)}"
+
+
 def _module_hint(name: str) -> str | None:
     """If a stdlib module defines ``name``, say which `use` brings it in (only on the error path)."""
     import re
@@ -781,8 +784,7 @@ def check_manikin(stmt: ast.ManikinSetting, sink: DiagnosticSink) -> tuple[str, 
             "MT0309",
             f"unknown population `{stmt.population}`",
             stmt.population_span,
-            help=did_you_mean(stmt.population, B.POPULATIONS)
-            or f"populations: {', '.join(B.POPULATIONS)}",
+            help=suggest(stmt.population, B.POPULATIONS, "populations"),
         )
         ok = False
     if stmt.sex not in B.SEXES:

@@ -1,0 +1,59 @@
+"""The docs say what the code does: their examples check as claimed, every code has a page."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from conftest import ROOT
+
+from mtlc.diagnostics import CODES
+from mtlc.frontend import run_frontend
+
+DOCS = ROOT / "docs"
+BLOCK = re.compile(r"^```mtask\n(.*?)^```", re.M | re.S)
+
+
+def _blocks(page: Path) -> list[str]:
+    return BLOCK.findall(page.read_text(encoding="utf-8"))
+
+
+def _codes(tmp_path: Path, text: str) -> list[str]:
+    path = tmp_path / "example.mtask"
+    path.write_text(text, encoding="utf-8")
+    return [d.code for d in run_frontend([path]).diagnostics]
+
+
+def test_every_code_has_a_page_and_every_page_a_code() -> None:
+    pages = {p.stem for p in (DOCS / "diagnostics").glob("MT*.md")}
+    assert pages == set(CODES)
+
+
+def test_index_lists_every_code() -> None:
+    index = (DOCS / "diagnostics.md").read_text(encoding="utf-8")
+    missing = [c for c in CODES if c not in index]
+    assert missing == []
+
+
+@pytest.mark.parametrize("code", sorted(CODES))
+def test_diagnostic_page_example_triggers_its_code(code: str, tmp_path: Path) -> None:
+    page = DOCS / "diagnostics" / f"{code}.md"
+    text = page.read_text(encoding="utf-8")
+    assert text.startswith(f"# {code}")
+    for block in _blocks(page):
+        assert code in _codes(tmp_path, block), block
+
+
+@pytest.mark.parametrize("name", ["language.md", "tutorial.md", "stdlib.md"])
+def test_guide_examples_check_clean_unless_marked(name: str, tmp_path: Path) -> None:
+    page = DOCS / name
+    blocks = _blocks(page)
+    assert blocks or name == "stdlib.md"
+    for block in blocks:
+        codes = _codes(tmp_path, block)
+        if "# error" in block:
+            assert codes, f"an example marked `# error` in {name} checks clean:\n{block}"
+        else:
+            errors = [c for c in codes if CODES[c].severity == "error"]
+            assert errors == [], f"example in {name} fails with {errors}:\n{block}"

@@ -85,6 +85,39 @@ def test_batched_ta_matches_the_single_solves_and_is_deterministic() -> None:
         np.testing.assert_allclose(fast_res.q, slow_res.q, atol=1e-9)
 
 
+def test_component_major_batch_path_matches_the_general_batch_path() -> None:
+    # A position goal on the arm takes the component-major path (ik/batch.py); forcing the
+    # general ChainModel path must give the same iterates wherever no restart drew randoms.
+    _q_true, T = _random_targets("r_hand", list(ARM.active), 7, 300)
+    mid = SK.q_comfort.copy()
+    mid[ARM.active] = SK.q_middle[ARM.active]
+    general = prepare(SK, ["r_hand"])
+    general._fast = None  # type: ignore[attr-defined]
+    fast = solve_ta(SK, [Goal("r_hand", position=T)], mid, model=ARM)
+    slow = solve_ta(SK, [Goal("r_hand", position=T)], mid, model=general)
+    assert fast.success.mean() >= 0.995 and slow.success.mean() >= 0.995
+    same = (fast.restarts == 0) & (slow.restarts == 0)
+    assert same.mean() >= 0.9
+    np.testing.assert_array_equal(fast.iterations[same], slow.iterations[same])
+    np.testing.assert_allclose(fast.q[same], slow.q[same], atol=1e-9)
+    np.testing.assert_allclose(fast.position_error[same], slow.position_error[same], atol=1e-12)
+    assert np.all(SK.within_limits(fast.q))
+    got = site_positions(SK, forward(SK, fast.q[fast.success]), "r_hand")
+    assert np.max(np.linalg.norm(got - T[fast.success], axis=-1)) <= 1e-3
+
+
+def test_unreachable_targets_batched_return_best_pose_and_distance() -> None:
+    shoulder = forward(SK, SK.q_comfort).p[SK.joint_index("r_shoulder")]
+    far = shoulder + np.array([[-2.0, 0.0, 0.0], [0.0, -2.5, 0.0], [0.0, 0.0, 2.2]])
+    arm = SK.dims.shoulder_height - SK.dims.wrist_height + 0.4 * SK.dims.hand_length
+    for method in ("dls", "gradient", "transpose"):
+        res = solve(SK, [Goal("r_hand", position=far)], method=method, model=ARM)
+        assert not res.success.any()
+        np.testing.assert_allclose(res.position_error, [2.0 - arm, 2.5 - arm, 2.2 - arm], atol=0.02)
+        assert np.all(SK.within_limits(res.q))
+        assert np.all(res.iterations <= 1000 * 9)
+
+
 def test_unreachable_target_returns_best_pose_and_remaining_distance() -> None:
     shoulder = forward(SK, SK.q_comfort).p[SK.joint_index("r_shoulder")]
     far = shoulder + np.array([-2.0, 0.0, 0.0])

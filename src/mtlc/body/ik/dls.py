@@ -27,7 +27,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..skeleton import Skeleton
-from .fast import SerialChain, solve_one
+from .batch import SerialBatch, solve_serial_batch
+from .fast import NULL_FADE, SerialChain, solve_one
 from .goals import Goal, GoalArrays, default_dofs, normalise
 from .model import ChainModel
 from .result import IKResult, residual
@@ -131,6 +132,28 @@ def solve_ta(
             success=np.array([err <= tol]) & skel.within_limits(q_out),
             iterations=np.array([it]),
             restarts=np.array([nr]),
+            method="dls",
+        )
+
+    if tail_chain is not None:
+        # One position goal on a serial chain: the component-major batch path.
+        target = ga.position[0]
+        assert target is not None
+        qb_all, err_all, it_all, nr_all = solve_serial_batch(
+            _serial_batch(model, tail_chain), np.broadcast_to(target, (B, 3)), qa, lo, hi,
+            comfort, tol=tol, max_iter=max_iter, restarts=restarts, patience=patience,
+            damping=damping, max_error=max_error, max_step=max_step, null_gain=null_gain,
+            rng=rng,
+        )  # fmt: skip
+        q_out = qf.copy()
+        q_out[:, model.active] = qb_all
+        return IKResult(
+            q=q_out,
+            position_error=err_all,
+            orientation_error=np.zeros(B),
+            success=(err_all <= tol) & skel.within_limits(q_out),
+            iterations=it_all,
+            restarts=nr_all,
             method="dls",
         )
 
@@ -254,6 +277,15 @@ def _fast_chain(model: ChainModel) -> SerialChain | None:
     return cached  # type: ignore[return-value]
 
 
+def _serial_batch(model: ChainModel, chain: SerialChain) -> SerialBatch:
+    """The model's component-major batch kinematics, built once."""
+    cached = getattr(model, "_batch", None)
+    if cached is None or cached.chain is not chain:
+        cached = SerialBatch(chain)
+        model._batch = cached  # type: ignore[attr-defined]
+    return cached
+
+
 def _sub(r, keep):  # type: ignore[no-untyped-def]
     from .result import Residual
 
@@ -282,7 +314,8 @@ def _dls_step(
     e = (blocks * scale[..., None]).reshape(b, m)
     Jt = np.swapaxes(J, -1, -2)
     A = J @ Jt + lam2I
-    z = null_gain * (comfort - q)
+    fade = np.minimum(1.0, np.sqrt(np.einsum("bk,bk->b", nrm, nrm)) / NULL_FADE)
+    z = (null_gain * fade)[:, None] * (comfort - q)
     rhs = np.stack([e, np.einsum("bmn,bn->bm", J, z)], axis=-1)
     y = np.linalg.solve(A, rhs)
     dq = np.einsum("bnm,bm->bn", Jt, y[..., 0] - y[..., 1]) + z
@@ -290,14 +323,15 @@ def _dls_step(
     over = (qn > hi) | (qn < lo)
     if np.any(over):
         # Pin the offending dofs at their limits; re-solve the rest of the error with the
-        # free dofs only (rows without violations get the same step again).
+        # free dofs only.
         dq_pin = np.where(over, np.clip(qn, lo, hi) - q, 0.0)
         e2 = e - np.einsum("bmn,bn->bm", J, dq_pin)
         Jf = J * (~over)[:, None, :]
         Jft = np.swapaxes(Jf, -1, -2)
         y2 = np.linalg.solve(Jf @ Jft + lam2I, e2[..., None])[..., 0]
         dq_free = np.einsum("bnm,bm->bn", Jft, y2)
-        dq = np.where(over, dq_pin, dq_free)
+        hit = over.any(axis=-1, keepdims=True)  # rows without a violation keep their step
+        dq = np.where(over, dq_pin, np.where(hit, dq_free, dq))
     big = np.max(np.abs(dq), axis=-1)
     dq = dq * np.minimum(1.0, max_step / np.maximum(big, 1e-300))[:, None]
     return np.clip(q + dq, lo, hi) - q

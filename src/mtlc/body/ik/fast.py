@@ -20,6 +20,12 @@ from .model import ChainModel
 
 FloatArray = NDArray[np.float64]
 
+# The null-space pull fades out linearly below this task error (m). The damped projector
+# ``I − J⁺J`` is not exact: near a stretched (singular) arm it leaks ``λ²(JJᵀ + λ²I)⁻¹Jz``
+# into the task, which with a constant gain holds some rows at a fixed point just above a
+# 1 mm tolerance. Scaling the pull with the error makes zero error the only fixed point.
+NULL_FADE = 0.01
+
 
 class SerialChain:
     """Scalar kinematics of a ChainModel with one site on one serial chain (base row 0)."""
@@ -192,7 +198,8 @@ def solve_one(
         if err > max_error:
             s = max_error / err
             ex, ey, ez = ex * s, ey * s, ez * s
-        z = [null_gain * (cf[i] - q[i]) for i in range(n)]
+        gain = null_gain * min(1.0, err / NULL_FADE)
+        z = [gain * (cf[i] - q[i]) for i in range(n)]
         jz = [0.0, 0.0, 0.0]
         for col, zi in zip(J, z, strict=True):
             jz[0] += col[0] * zi

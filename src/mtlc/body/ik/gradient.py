@@ -67,32 +67,37 @@ def solve_to(
             root_position=root_position,
             root_rotation=root_rotation,
         )
-    qf, q = _initial(skel, model, q0, B)
+    qf, q_all = _initial(skel, model, q0, B)
     lo, hi = model.lower, model.upper
-    r = residual(model, ga, q)
-    f = r.cost
-    g = -np.einsum("bmn,bm->bn", r.J, r.e)
-    Jg = np.einsum("bmn,bn->bm", r.J, g)
-    alpha = np.einsum("bn,bn->b", g, g) / np.maximum(np.einsum("bm,bm->b", Jg, Jg), 1e-300)
+    r = residual(model, ga, q_all)
     pos, ori = r.pos_err.copy(), r.ori_err.copy()
-    active = ~((pos <= tol) & (ori <= orientation_tol))
     iters = np.zeros(B, dtype=np.intp)
-    path = [q.copy()] if record_path else []
+    path = [q_all.copy()] if record_path else []
+    # Working set: rows still iterating; finished rows are written back to q_all and leave.
+    rows = np.flatnonzero(~((pos <= tol) & (ori <= orientation_tol)))
+    sel = None if rows.size == B else rows  # None: every row, no fancy indexing
+    q = q_all[rows]
+    f = r.cost[rows]
+    J, e = r.J[rows], r.e[rows]
+    g = -np.einsum("bmn,bm->bn", J, e)
+    Jg = np.einsum("bmn,bn->bm", J, g)
+    alpha = np.einsum("bn,bn->b", g, g) / np.maximum(np.einsum("bm,bm->b", Jg, Jg), 1e-300)
     for _ in range(max_iter):
-        if not np.any(active):
+        if rows.size == 0:
             break
         step = -alpha[:, None] * g
         big = np.max(np.abs(step), axis=-1)
         step *= np.minimum(1.0, max_step / np.maximum(big, 1e-300))[:, None]
         trial = np.clip(q + step, lo, hi)
-        rt = residual(model, ga, trial)
-        iters += active
-        ok = active & (rt.cost < f)
+        rt = residual(model, ga, trial, sel)
+        iters[rows] += 1
+        ok = rt.cost < f
         # Rejected rows: halve the step; rows whose step vanished have converged as far as
         # the limits allow and stop.
-        alpha = np.where(active & ~ok, 0.5 * alpha, alpha)
+        alpha = np.where(ok, alpha, 0.5 * alpha)
         moved = trial - q
-        if np.any(ok):
+        any_ok = bool(np.any(ok))
+        if any_ok:
             gn = -np.einsum("bmn,bm->bn", rt.J, rt.e)
             s, y = moved, gn - g
             sy = np.einsum("bn,bn->b", s, y)
@@ -102,13 +107,22 @@ def solve_to(
             q = np.where(okc, trial, q)
             g = np.where(okc, gn, g)
             f = np.where(ok, rt.cost, f)
-            pos = np.where(ok, rt.pos_err, pos)
-            ori = np.where(ok, rt.ori_err, ori)
+            moved_rows = rows[ok]
+            pos[moved_rows] = rt.pos_err[ok]
+            ori[moved_rows] = rt.ori_err[ok]
             alpha = np.where(ok, bb, alpha)
-        stalled = active & ~ok & (np.max(np.abs(moved), axis=-1) < 1e-12)
-        active = active & ~((pos <= tol) & (ori <= orientation_tol)) & ~stalled
-        if record_path and np.any(ok):
-            path.append(q.copy())
+            if record_path:
+                q_all[moved_rows] = q[ok]
+                path.append(q_all.copy())
+        stalled = ~ok & (np.max(np.abs(moved), axis=-1) < 1e-12)
+        finished = ((pos[rows] <= tol) & (ori[rows] <= orientation_tol)) | stalled
+        if np.any(finished):
+            q_all[rows[finished]] = q[finished]
+            keep = ~finished
+            rows, q, g, f, alpha = rows[keep], q[keep], g[keep], f[keep], alpha[keep]
+            sel = rows
+    q_all[rows] = q
+    q = q_all
     q_out = qf.copy()
     q_out[:, model.active] = q
     success = (pos <= tol) & (ori <= orientation_tol) & skel.within_limits(q_out)

@@ -53,14 +53,20 @@ def solve_transpose(
             root_position=root_position,
             root_rotation=root_rotation,
         )
-    qf, q = _initial(skel, model, q0, B)
+    qf, q_all = _initial(skel, model, q0, B)
     lo, hi = model.lower, model.upper
-    r = residual(model, ga, q)
-    shrink = np.ones(B)
+    r = residual(model, ga, q_all)
+    pos, ori = r.pos_err.copy(), r.ori_err.copy()
     iters = np.zeros(B, dtype=np.intp)
-    active = ~((r.pos_err <= tol) & (r.ori_err <= orientation_tol))
+    # Working set: rows still iterating; finished rows are written back and leave.
+    rows = np.flatnonzero(~((pos <= tol) & (ori <= orientation_tol)))
+    sel = None if rows.size == B else rows  # None: every row, no fancy indexing
+    q = q_all[rows]
+    if sel is not None:
+        r = _merge(np.zeros(0, dtype=bool), r, r, rows)
+    shrink = np.ones(rows.size)
     for _ in range(max_iter):
-        if not np.any(active):
+        if rows.size == 0:
             break
         g = np.einsum("bmn,bm->bn", r.J, r.e)  # J^T e
         Jg = np.einsum("bmn,bn->bm", r.J, g)
@@ -69,21 +75,35 @@ def solve_transpose(
         big = np.max(np.abs(step), axis=-1)
         step *= np.minimum(1.0, max_step / np.maximum(big, 1e-300))[:, None]
         trial = np.clip(q + step, lo, hi)
-        rt = residual(model, ga, trial)
-        iters += active
-        ok = active & (rt.cost < r.cost)
-        shrink = np.where(ok, np.minimum(1.0, 2.0 * shrink), np.where(active, 0.5 * shrink, shrink))
+        rt = residual(model, ga, trial, sel)
+        iters[rows] += 1
+        ok = rt.cost < r.cost
+        shrink = np.where(ok, np.minimum(1.0, 2.0 * shrink), 0.5 * shrink)
         q = np.where(ok[:, None], trial, q)
         r = _merge(ok, rt, r)
-        stalled = active & ~ok & (shrink < 1e-6)
-        active = active & ~((r.pos_err <= tol) & (r.ori_err <= orientation_tol)) & ~stalled
+        stalled = ~ok & (shrink < 1e-6)
+        converged = (r.pos_err <= tol) & (r.ori_err <= orientation_tol)
+        finished = converged | stalled
+        if np.any(finished):
+            done = rows[finished]
+            q_all[done] = q[finished]
+            pos[done] = r.pos_err[finished]
+            ori[done] = r.ori_err[finished]
+            keep = ~finished
+            rows, q, shrink = rows[keep], q[keep], shrink[keep]
+            r = _merge(np.zeros(0, dtype=bool), r, r, keep)
+            sel = rows
+    q_all[rows] = q
+    pos[rows] = r.pos_err
+    ori[rows] = r.ori_err
+    q = q_all
     q_out = qf.copy()
     q_out[:, model.active] = q
-    success = (r.pos_err <= tol) & (r.ori_err <= orientation_tol) & skel.within_limits(q_out)
+    success = (pos <= tol) & (ori <= orientation_tol) & skel.within_limits(q_out)
     return IKResult(
         q=q_out,
-        position_error=r.pos_err,
-        orientation_error=r.ori_err,
+        position_error=pos,
+        orientation_error=ori,
         success=success,
         iterations=iters,
         restarts=np.zeros(B, dtype=np.intp),
@@ -91,10 +111,14 @@ def solve_transpose(
     )
 
 
-def _merge(ok: NDArray[np.bool_], new, old):  # type: ignore[no-untyped-def]
-    """Row-wise choice between two residuals."""
+def _merge(ok: NDArray[np.bool_], new, old, take=None):  # type: ignore[no-untyped-def]
+    """Row-wise choice between two residuals; with ``take``, only those rows of ``old``."""
     from .result import Residual
 
+    if take is not None:
+        return Residual(
+            old.e[take], old.J[take], old.pos_err[take], old.ori_err[take], old.cost[take]
+        )
     o1, o2, o3 = ok[:, None], ok[:, None, None], ok
     return Residual(
         e=np.where(o1, new.e, old.e),

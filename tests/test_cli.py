@@ -136,3 +136,10 @@ def test_include_dir(tmp_path: Path) -> None:
     )
     assert main(["check", str(main_file)]) == 1  # not found without -I
     assert main(["check", "-I", str(tmp_path / "lib"), str(main_file)]) == 0
+
+
+def test_json_with_dump_keeps_stdout_one_document(capsys) -> None:
+    assert main(["check", "--format", "json", "--dump", "timeline", FLAGSHIP]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)[0]["task"] == "remove_access_panel"
+    assert json.loads(err)["format"] == "mtlc-diagnostics"

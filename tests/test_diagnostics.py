@@ -103,6 +103,7 @@ CASES: dict[str, tuple[dict[str, str | bytes], tuple[str, int, int]]] = {
         ("main.mtask", 9, 5),
     ),
     "MT0402": ({"main.mtask": "task t {\n}\n"}, ("main.mtask", 1, 6)),
+    "MT0404": ({"main.mtask": task("    budget 1 s\n    inspect(a, 2 s)\n")}, ("main.mtask", 9, 5)),
     "MT0403": (
         {"main.mtask": task("    inspect(a, 2 s / 0)\n")},
         ("main.mtask", 9, 16),
@@ -190,3 +191,55 @@ def test_duration_where_angle_wanted(tmp_path: Path) -> None:
 def test_type_error_length_for_site(tmp_path: Path) -> None:
     text = HEADER + "element e(hand: Hand, d: Length) {\n    reach(hand, d)\n}\n"
     assert diagnose(tmp_path, {"main.mtask": text}) == [("MT0301", "main.mtask", 4, 17)]
+
+
+def test_site_named_like_a_hand_does_not_hijack_the_hand(tmp_path: Path) -> None:
+    files = {
+        "main.mtask": HEADER
+        + "scene s {\n    site right at (0, 1, 0.5) m\n    site B at (0, 1, 0.4) m\n}\n"
+        "task t {\n    scene s\n    pick(right, right)\n    reach(left, B)\n}\n"
+    }
+    assert diagnose(tmp_path, files) == []
+
+
+def test_enum_member_where_a_site_is_wanted_is_a_type_error(tmp_path: Path) -> None:
+    assert diagnose(tmp_path, {"main.mtask": task("    walk_to(right)\n")}) == [
+        ("MT0301", "main.mtask", 9, 13)
+    ]
+
+
+def test_ambiguous_enum_member_and_qualified_form(tmp_path: Path) -> None:
+    loop = "    for c in [{}, {}] {{\n        reach(right, a, c)\n    }}\n"
+    found = diagnose(tmp_path, {"main.mtask": task(loop.format("A", "C"))})
+    assert [c for c, *_ in found] == ["MT0206", "MT0206"]
+    assert diagnose(tmp_path, {"main.mtask": task(loop.format("ReachCase.A", "ReachCase.C"))}) == []
+    found = diagnose(tmp_path, {"main.mtask": task("    reach(right, a, ReachCase.Q)\n")})
+    assert found == [("MT0201", "main.mtask", 9, 31)]
+
+
+def test_mtm_code_through_a_parameter_is_checked_when_expanding(tmp_path: Path) -> None:
+    extra = (
+        "element look_with(x: Site, code: String) {\n    gaze at x\n    time mtm.code(code)\n}\n"
+    )
+    text = HEADER + SCENE + extra + 'task t {\n    scene s\n    look_with(a, "EF2")\n}\n'
+    assert [c for c, *_ in diagnose(tmp_path, {"main.mtask": text})] == ["MT0309"]
+
+
+def test_missing_tool_property_is_a_diagnostic(tmp_path: Path) -> None:
+    extra = "tool probe {\n    mass 0.2 kg\n}\n"
+    found = diagnose(
+        tmp_path, {"main.mtask": task("    reach(right, a, approach: probe.length)\n", extra)}
+    )
+    assert [c for c, *_ in found] == ["MT0309"]
+
+
+def test_time_must_be_at_the_top_of_an_element_and_only_once(tmp_path: Path) -> None:
+    nested = "element e(x: Site) {\n    {\n        gaze at x\n        time 1 s\n    }\n}\n"
+    assert diagnose(tmp_path, {"main.mtask": nested}) == [("MT0209", "main.mtask", 4, 9)]
+    twice = "element e(x: Site) {\n    gaze at x\n    time 1 s\n    time 2 s\n}\n"
+    assert diagnose(tmp_path, {"main.mtask": twice}) == [("MT0210", "main.mtask", 4, 5)]
+
+
+def test_a_failed_use_does_not_cascade_into_unknown_names(tmp_path: Path) -> None:
+    text = "use stdlib.actionz\ntask t {\n    walk_to(x)\n    pick(right, y)\n}\n"
+    assert [c for c, *_ in diagnose(tmp_path, {"main.mtask": text})] == ["MT0203"]

@@ -84,7 +84,10 @@ def test_repeat_and_for(tmp_path: Path) -> None:
     t = expand(tmp_path, body)
     assert [p.params["site"] for p in t.primitives] == ["ahead"] * 3 + ["far"] * 3
     assert t.duration == pytest.approx(6 * 7.3 * TMU)
-    assert all(a.end == pytest.approx(b.start) for a, b in zip(t.primitives, t.primitives[1:], strict=False))
+    assert all(
+        a.end == pytest.approx(b.start)
+        for a, b in zip(t.primitives, t.primitives[1:], strict=False)
+    )
 
 
 def test_explicit_over_and_element_time(tmp_path: Path) -> None:
@@ -147,3 +150,10 @@ def test_enum_members_resolve_by_expected_type(tmp_path: Path) -> None:
     reach, move = t.primitives
     assert reach.duration == pytest.approx(8.7 * TMU)  # R-A at 10 in
     assert move.effector == "left_hand"
+
+
+def test_rising_from_one_knee_is_ab(tmp_path: Path) -> None:
+    t = expand(tmp_path, "    kneel(1)\n    stand()\n")
+    kneel, stand = t.primitives
+    assert kneel.duration == pytest.approx(29.0 * TMU)  # B
+    assert stand.duration == pytest.approx(31.9 * TMU)  # AB, not AKBK

@@ -129,7 +129,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             Span.whole_file(str(getattr(args, "files", ["<command line>"])[0])),
             help="this is a bug in mtlc; rerun with MTLC_DEBUG=1 for the trace and report it",
         )
-        sys.stderr.write(render_text(sink.items, {}, color=use_color(sys.stderr)))
+        if getattr(args, "format", "text") == "json":
+            sys.stdout.write(render_json(sink.items))
+        else:
+            sys.stderr.write(render_text(sink.items, {}, color=use_color(sys.stderr)))
         return EXIT_USAGE
 
 
@@ -141,17 +144,18 @@ def _options(args: argparse.Namespace) -> FrontendOptions:
     )
 
 
-def _report(program: Program, fmt: str) -> None:
+def _report(program: Program, fmt: str, stdout_taken: bool) -> None:
     diags = program.diagnostics
     if fmt == "json":
-        sys.stdout.write(render_json(diags))
+        # with --dump the document owns stdout; the diagnostics then go to stderr
+        (sys.stderr if stdout_taken else sys.stdout).write(render_json(diags))
     elif diags:
         sys.stderr.write(render_text(diags, program.sources, color=use_color(sys.stderr)))
 
 
 def cmd_frontend(args: argparse.Namespace) -> int:
     program = run_frontend(list(args.files), _options(args))
-    _report(program, args.format)
+    _report(program, args.format, stdout_taken=bool(getattr(args, "dump", None)))
     failed = program.sink.has_errors
     if args.format == "text" and not failed and not getattr(args, "dump", None):
         tasks = len(program.timelines)

@@ -81,8 +81,13 @@ def check_call_cycles(program: Program) -> Program:
 def expand_tasks(program: Program) -> Program:
     if not program.options.expand or program.sink.has_errors:
         return program  # expansion evaluates checked code only
+    assert program.checker is not None
     expander = Expander(
-        program.sink, program.scopes, program.options.expansion_budget, program.options.manikin
+        program.sink,
+        program.scopes,
+        program.checker.resolved,
+        program.options.expansion_budget,
+        program.options.manikin,
     )
     for module in program.roots:
         scope = program.scopes[id(module)]

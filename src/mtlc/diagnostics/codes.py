@@ -89,6 +89,7 @@ _ALL = [
     Code("MT0401", "expansion-budget", Severity.ERROR, "a task expands into too many primitives"),
     Code("MT0402", "empty-task", Severity.WARNING, "a task that produces no motion"),
     Code("MT0403", "division-by-zero", Severity.ERROR, "a division by zero while expanding"),
+    Code("MT0404", "over-budget", Severity.WARNING, "a task takes longer than its declared budget"),
     # internal
     Code("MT0900", "internal-error", Severity.ERROR, "a bug in mtlc: please report it"),
 ]

@@ -54,6 +54,9 @@ class Checker:
     def __init__(self, sink: DiagnosticSink) -> None:
         self.sink = sink
         self.edges: list[CallEdge] = []
+        # how each name was resolved ("local", "site", "enum", "tool", "scene"), by its span:
+        # expansion evaluates names exactly as they were checked
+        self.resolved: dict[Span, str] = {}
         self._current: ast.Definition | None = None
 
     # ------------------------------------------------------------ declarations
@@ -146,6 +149,14 @@ class Checker:
 
     def check_definition(self, d: ast.Definition, scope: Scope) -> None:
         env = Env(scope, d.kind, self._params(d.params, scope))
+        times = [s for s in d.body.stmts if isinstance(s, ast.TimeSetting)]
+        for extra in times[1:]:
+            self.sink.report(
+                "MT0210",
+                "the element's `time` is set twice",
+                extra.span,
+                labels=(Label(times[0].span, "first set here"),),
+            )
         self._current = d
         self.check_block(d.body, env, top=True)
         self._current = None
@@ -192,6 +203,9 @@ class Checker:
                 self._misplaced(stmt, "a task setting", "at the top of a task's body")
                 return
             self.check_setting(stmt, env)
+            return
+        if isinstance(stmt, ast.TimeSetting) and level == "element" and not top:
+            self._misplaced(stmt, "`time`", "at the top of an element's body")
             return
         if isinstance(stmt, PRIMITIVES) and level != "element":
             what = "`time`" if isinstance(stmt, ast.TimeSetting) else "a primitive"
@@ -359,7 +373,9 @@ class Checker:
                 f"`{name}` is defined in {len(options)} used modules",
                 span,
                 labels=tuple(Label(s.decl.name_span, "defined here") for s in options),
-                help=f"qualify it with its module, for example `{options[0].module.display.rsplit('/', 1)[-1].removesuffix('.mtask')}.{name}`",
+                help=f"qualify it with its module, for example `{_module_stem(options[0])}.{name}`"
+                if callable_only
+                else "rename one of the definitions; one name has one definition",
             )
             return None
         sym = scope.lookup(name)
@@ -551,35 +567,53 @@ class Checker:
         return T.Quantity(found[0]), found[1]
 
     def infer_name(self, name: str, span: Span, env: Env, expected: T.Type | None) -> T.Type:
+        """Resolve a bare name; the order here is the language's, and expansion replays it."""
+        found = self._resolve_name(name, span, env, expected)
+        if found is not None:
+            kind, type_ = found
+            self.resolved[span] = kind
+            return type_
+        return T.UNKNOWN
+
+    def _resolve_name(
+        self, name: str, span: Span, env: Env, expected: T.Type | None
+    ) -> tuple[str, T.Type] | None:
         if name in env.locals:
-            return env.locals[name]
+            return "local", env.locals[name]
+        if isinstance(expected, T.EnumType) and name in expected.members:
+            return "enum", expected  # `right` is the Hand even if a site is called `right`
         if env.scene is not None:
             scene = env.scene.decl
             assert isinstance(scene, ast.Scene)
             if any(s.name == name for s in scene.sites):
-                return T.SITE
-        if isinstance(expected, T.EnumType) and name in expected.members:
-            return expected
-        sym = env.scope.lookup(name)
+                return "site", T.SITE
+        sym = env.scope.lookup(name) if name not in env.scope.ambiguous else None
         if sym is not None:
-            if sym.kind == "tool":
-                return T.TOOL
-            if sym.kind == "scene":
-                return T.SCENE
+            if sym.kind in ("tool", "scene"):
+                return sym.kind, T.TOOL if sym.kind == "tool" else T.SCENE
             self.sink.report(
                 "MT0301",
                 f"`{name}` is {_article(sym.kind)}; it can be called, not used as a value",
                 span,
             )
-            return T.UNKNOWN
+            return None
         owners = [e for e in T.ENUMS if name in e.members]
-        if len(owners) == 1 and expected is None:
-            return owners[0]
+        if len(owners) == 1 or (owners and expected is not None):
+            return "enum", owners[0]  # the caller reports it if another type was wanted
+        if owners:
+            listed = " and ".join(e.name for e in owners)
+            self.sink.report(
+                "MT0206",
+                f"`{name}` is a member of {listed}",
+                span,
+                help=f"say which: `{owners[0].name}.{name}`",
+            )
+            return None
         if name in env.scope.ambiguous:
             self.lookup_symbol(name, span, env.scope)
-            return T.UNKNOWN
+            return None
         if name in env.scope.broken or "*" in env.scope.broken:
-            return T.UNKNOWN
+            return None
         pool = list(env.locals) + list(env.scope.names)
         if env.scene is not None:
             pool += [s.name for s in env.scene.decl.sites]  # type: ignore[attr-defined]
@@ -591,7 +625,7 @@ class Checker:
         if help is None and expected == T.SITE and env.level == "task" and env.scene is None:
             help = "sites come from the task's scene: add `scene <name>` to the task"
         self.sink.report("MT0201", f"unknown name `{name}`", span, help=help)
-        return T.UNKNOWN
+        return None
 
     def infer_attr(self, expr: ast.Attr, env: Env) -> T.Type:
         if isinstance(expr.obj, ast.Name) and expr.obj.name == "mtm":
@@ -599,6 +633,18 @@ class Checker:
                 "MT0301",
                 f"`mtm.{expr.name}` is a function: call it, as in `mtm.{expr.name}()`",
                 expr.span,
+            )
+            return T.UNKNOWN
+        enum = T.TYPE_NAMES.get(expr.obj.name) if isinstance(expr.obj, ast.Name) else None
+        if isinstance(enum, T.EnumType) and expr.obj.name not in env.locals:
+            if expr.name in enum.members:
+                self.resolved[expr.span] = "enum"
+                return enum
+            self.sink.report(
+                "MT0201",
+                f"{enum.name} has no member `{expr.name}`",
+                expr.name_span,
+                help=suggest(expr.name, enum.members, "members"),
             )
             return T.UNKNOWN
         owner = self.infer(expr.obj, env)
@@ -731,6 +777,10 @@ class Checker:
             )
             return T.UNKNOWN
         return T.VectorType(dims[0])
+
+
+def _module_stem(sym: Symbol) -> str:
+    return sym.module.display.rsplit("/", 1)[-1].removesuffix(".mtask")
 
 
 def suggest(name: str, candidates: Iterable[str], label: str) -> str:

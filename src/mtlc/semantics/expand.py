@@ -59,11 +59,13 @@ class Expander:
         self,
         sink: DiagnosticSink,
         scopes: dict[int, Scope],
+        resolved: dict[Span, str],
         budget: int = DEFAULT_BUDGET,
         manikin_override: ManikinSpec | None = None,
     ) -> None:
         self.sink = sink
         self.scopes = scopes
+        self.resolved = resolved  # the checker's decision for each name: local, site, enum...
         self.budget = budget
         self.manikin_override = manikin_override
 
@@ -79,6 +81,7 @@ class Expander:
         scene_name: str | None = None
         ground = 0.0
         budget: float | None = None
+        budget_span = task.name_span
         env = _Env(scope, {}, ((task.name, task.name_span),))
         try:
             for stmt in task.body.stmts:
@@ -93,7 +96,7 @@ class Expander:
                 elif isinstance(stmt, ast.ToolSetting):
                     self.tool = self.eval(stmt.tool, env)
                 elif isinstance(stmt, ast.BudgetSetting):
-                    budget = self.eval(stmt.limit, env)
+                    budget, budget_span = self.eval(stmt.limit, env), stmt.span
             self.root = (0.0, ground, 0.0)
             timeline = Timeline(
                 task=task.name,
@@ -122,6 +125,14 @@ class Expander:
             return None
         if not timeline.primitives:
             self.sink.report("MT0402", f"task `{task.name}` produces no motion", task.name_span)
+        if budget is not None and timeline.duration > budget:
+            self.sink.report(
+                "MT0404",
+                f"task `{task.name}` takes {timeline.duration:.1f} s, over its budget of "
+                f"{budget:.1f} s",
+                budget_span,
+                notes=("the time is predicted from MTM-1 and the stated durations",),
+            )
         return timeline
 
     def _load_scene(self, scene: ast.Scene, scope: Scope) -> float:
@@ -330,7 +341,8 @@ class Expander:
         d = self.duration(timing, Timing("code", {"code": default_code}), stmt.span)
         params = {"posture": kind, **{k: v for k, v in values.items() if k != "hand"}}
         self.emit("posture", "body", t, t + d, params, stmt, env)
-        self.posture = kind
+        # rising from one knee is MTM-1 AB, from both knees AKBK: remember which
+        self.posture = "kneel_one" if kind == "kneel" and values.get("knees") == 1 else kind
         return t + d
 
     def walk(self, stmt: ast.Walk, env: _Env, t: float, timing: Any) -> float:
@@ -388,6 +400,11 @@ class Expander:
             case "walk":
                 tmu = mtm.walk_tmu(distance)
             case "code":
+                if a["code"] not in mtm.other_codes():
+                    self.sink.report(
+                        "MT0309", f"no MTM-1 element `{a['code']}` in the tables", span
+                    )
+                    raise _Abort
                 tmu = mtm.code_tmu(a["code"])
             case "fixed":
                 tmu = float(a["tmu"])
@@ -433,21 +450,36 @@ class Expander:
             case ast.String(value=v):
                 return v
             case ast.Name(name=name):
-                if name in env.locals:
+                kind = self.resolved.get(expr.span)
+                if kind == "local":
                     return env.locals[name]
-                if name in self.sites:
+                if kind == "site":
                     return self.sites[name]
-                sym = env.scope.lookup(name)
-                if sym is not None and isinstance(sym.decl, ast.ToolDecl):
+                if kind == "tool":
+                    sym = env.scope.lookup(name)
+                    assert sym is not None and isinstance(sym.decl, ast.ToolDecl)
                     return self._tool(sym.decl, env)
                 return name  # an enum member: its name is its value
-            case ast.Attr(obj=ast.Name(name=owner), name=attr):
+            case ast.Attr(name=attr) if self.resolved.get(expr.span) == "enum":
+                return attr  # ReachCase.A
+            case ast.Attr(obj=ast.Name(name=owner), name=attr) if (
+                self.resolved.get(expr.obj.span) == "scene"
+            ):
                 sym = env.scope.lookup(owner)
-                if sym is not None and isinstance(sym.decl, ast.Scene):
-                    self._load_scene(sym.decl, env.scope)
-                    return self.sites[attr]
-                tool = self.eval(expr.obj, env)
-                return tool.properties.get(attr)
+                assert sym is not None and isinstance(sym.decl, ast.Scene)
+                self._load_scene(sym.decl, env.scope)
+                return self.sites[attr]
+            case ast.Attr(obj=obj, name=attr):
+                tool = self.eval(obj, env)
+                if attr not in tool.properties:
+                    self.sink.report(
+                        "MT0309",
+                        f"tool `{tool.name}` does not declare its `{attr}`",
+                        expr.span,
+                        help=f"add `{attr} ...` to `tool {tool.name}`",
+                    )
+                    raise _Abort
+                return tool.properties[attr]
             case ast.CallExpr(func=ast.Attr(name=fname), args=args):
                 sig = B.MTM_FUNCTIONS[fname]
                 values = {p.name: p.default for p in sig.params}

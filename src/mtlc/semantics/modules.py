@@ -29,6 +29,7 @@ class LoadedModule:
     tree: ast.Module
     imports: list[tuple[ast.Use, LoadedModule]] = field(default_factory=list)
     is_stdlib: bool = False
+    failed_use: bool = False  # a `use` here was not loaded: unknown names may come from it
 
 
 def display_name(path: Path) -> str:
@@ -106,6 +107,7 @@ class ModuleLoader:
         for use in tree.uses:
             target = self._resolve_use(use, real.parent, is_stdlib)
             if target is None:
+                module.failed_use = True
                 continue
             if target.resolve() in self._loading:
                 cycle = [*self._loading[self._loading.index(target.resolve()) :], target.resolve()]
@@ -116,6 +118,7 @@ class ModuleLoader:
                     use.module_span,
                     help="move what both need into a third module that both use",
                 )
+                module.failed_use = True
                 continue
             child = self._load(
                 target, is_stdlib=is_stdlib or self._is_stdlib_use(use), search_root=target.parent
@@ -161,7 +164,7 @@ class ModuleLoader:
                     self.sink.report(
                         "MT0205",
                         f"module `{dotted}` resolves to {real.as_posix()}, outside its search "
-                        f"folder {display_name(root)}",
+                        f"folder {root.as_posix()}",
                         use.module_span,
                         help="copy the module into a search folder, or add its folder with -I",
                     )

@@ -45,6 +45,8 @@ class Scope:
     def broken(self) -> frozenset[str]:
         """Names of items that failed to parse here or in an import: no 'unknown name' for them."""
         out = set(self.module.tree.broken_names)
+        if self.module.failed_use:
+            out.add("*")
         for _, child in self.module.imports:
             out |= child.tree.broken_names
         return frozenset(out)

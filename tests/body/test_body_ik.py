@@ -106,6 +106,21 @@ def test_component_major_batch_path_matches_the_general_batch_path() -> None:
     assert np.max(np.linalg.norm(got - T[fast.success], axis=-1)) <= 1e-3
 
 
+def test_batch_rows_with_their_own_seeds_match_single_solves() -> None:
+    q_true, T = _random_targets("r_hand", list(ARM.active), 11, 24)
+    rng = np.random.default_rng(11)
+    q0 = SK.clip(q_true + rng.normal(0, 0.25, q_true.shape))
+    others = np.setdiff1d(np.arange(SK.n_dofs), ARM.active)
+    q0[:, others] = SK.q_comfort[others]
+    batch = solve_ta(SK, [Goal("r_hand", position=T)], q0, model=ARM)
+    assert batch.success.all()
+    for i in range(len(T)):
+        one = solve_ta(SK, [Goal("r_hand", position=T[i])], q0[i], model=ARM)
+        if batch.restarts[i] == 0 and one.restarts[0] == 0:
+            assert one.iterations[0] == batch.iterations[i]
+            np.testing.assert_allclose(one.q[0], batch.q[i], atol=1e-9)
+
+
 def test_unreachable_targets_batched_return_best_pose_and_distance() -> None:
     shoulder = forward(SK, SK.q_comfort).p[SK.joint_index("r_shoulder")]
     far = shoulder + np.array([[-2.0, 0.0, 0.0], [0.0, -2.5, 0.0], [0.0, 0.0, 2.2]])

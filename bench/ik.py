@@ -288,7 +288,7 @@ def pink_rows(p: Problem, urdf: Path) -> list[Row]:
             q[p.dofs] = conf.q[qidx]
             return q
 
-        ok, med, mean = time_single(p, seed, one, 200)
+        ok, med, mean = time_single(p, seed, one)
         rows.append(
             Row(
                 p.name,
@@ -297,7 +297,7 @@ def pink_rows(p: Problem, urdf: Path) -> list[Row]:
                 ok,
                 med,
                 mean,
-                note=f"first 200 targets; QP {solvers[0]}; dt=1, ≤100 steps",
+                note=f"QP {solvers[0]}; dt=1, ≤100 steps",
             )
         )
     return rows

@@ -143,3 +143,31 @@ def test_json_with_dump_keeps_stdout_one_document(capsys) -> None:
     out, err = capsys.readouterr()
     assert json.loads(out)[0]["task"] == "remove_access_panel"
     assert json.loads(err)["format"] == "mtlc-diagnostics"
+
+
+def test_compile_refuses_two_tasks_onto_one_file(tmp_path: Path) -> None:
+    for d in ("c1", "c2"):
+        (tmp_path / d).mkdir()
+        (tmp_path / d / "p.mtask").write_text("use stdlib.elements\ntask t {\n    hold(1 s)\n}\n")
+    out = tmp_path / "out"
+    args = ["compile", "-o", str(out), str(tmp_path / "c1/p.mtask"), str(tmp_path / "c2/p.mtask")]
+    assert main(args) == 2
+    assert not out.exists()
+
+
+def test_form_feed_in_a_comment_keeps_the_snippet_on_its_line(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "ff.mtask"
+    bad.write_text("# page\f break\ntask t {\n    walk_too()\n}\n")
+    assert main(["check", str(bad)]) == 1
+    assert "3 |     walk_too()" in capsys.readouterr().err
+
+
+def test_carets_under_wide_characters(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "cjk.mtask"
+    bad.write_text('task t "拆卸面板" {\n    walk_too()\n}\ntask u "拆卸" oops {\n}\n')
+    assert main(["check", str(bad)]) == 1
+    err = capsys.readouterr().err
+    line = next(ln for ln in err.splitlines() if "oops" in ln and "|" in ln)
+    caret = err.splitlines()[err.splitlines().index(line) + 1]
+    # 拆卸 takes 4 columns: the caret stands under `oops`
+    assert caret.index("^") == line.index("oops") + 2

@@ -103,6 +103,32 @@ CASES: dict[str, tuple[dict[str, str | bytes], tuple[str, int, int]]] = {
         ("main.mtask", 9, 5),
     ),
     "MT0402": ({"main.mtask": "task t {\n}\n"}, ("main.mtask", 1, 6)),
+    "MT0312": (
+        {"main.mtask": task("    for c in [A, C] {\n        reach(right, a, c)\n    }\n")},
+        ("main.mtask", 9, 15),
+    ),
+    "MT0313": (
+        {"main.mtask": "element e(n: Int = 1, where: Site) {\n    gaze at where\n}\n"},
+        ("main.mtask", 1, 23),
+    ),
+    "MT0405": (
+        {
+            "main.mtask": HEADER
+            + SCENE
+            + "".join(f"action a{i}(x: Site) {{\n    a{i + 1}(x)\n}}\n" for i in range(200))
+            + "action a200(x: Site) {\n    look(x)\n}\n"
+            + "task t {\n    scene s\n    a0(a)\n}\n"
+        },
+        ("main.mtask", 612, 5),
+    ),
+    "MT0406": (
+        {
+            "main.mtask": task(
+                "    parallel {\n        pick(right, a)\n        reach(right, b)\n    }\n"
+            )
+        },
+        ("main.mtask", 11, 9),
+    ),
     "MT0404": ({"main.mtask": task("    budget 1 s\n    inspect(a, 2 s)\n")}, ("main.mtask", 9, 5)),
     "MT0403": (
         {"main.mtask": task("    inspect(a, 2 s / 0)\n")},
@@ -211,7 +237,7 @@ def test_enum_member_where_a_site_is_wanted_is_a_type_error(tmp_path: Path) -> N
 def test_ambiguous_enum_member_and_qualified_form(tmp_path: Path) -> None:
     loop = "    for c in [{}, {}] {{\n        reach(right, a, c)\n    }}\n"
     found = diagnose(tmp_path, {"main.mtask": task(loop.format("A", "C"))})
-    assert [c for c, *_ in found] == ["MT0206", "MT0206"]
+    assert [c for c, *_ in found] == ["MT0312", "MT0312"]
     assert diagnose(tmp_path, {"main.mtask": task(loop.format("ReachCase.A", "ReachCase.C"))}) == []
     found = diagnose(tmp_path, {"main.mtask": task("    reach(right, a, ReachCase.Q)\n")})
     assert found == [("MT0201", "main.mtask", 9, 31)]
@@ -243,3 +269,107 @@ def test_time_must_be_at_the_top_of_an_element_and_only_once(tmp_path: Path) -> 
 def test_a_failed_use_does_not_cascade_into_unknown_names(tmp_path: Path) -> None:
     text = "use stdlib.actionz\ntask t {\n    walk_to(x)\n    pick(right, y)\n}\n"
     assert [c for c, *_ in diagnose(tmp_path, {"main.mtask": text})] == ["MT0203"]
+
+
+# ---------------------------------------------------------------- from the front-end review
+
+
+def codes_of(tmp_path: Path, text: str) -> list[str]:
+    return [c for c, *_ in diagnose(tmp_path, {"main.mtask": text})]
+
+
+def test_vector_sizes_are_checked_through_arithmetic(tmp_path: Path) -> None:
+    scene = HEADER + "scene s {\n    site x at (0, 100) cm + (0, 0) cm\n}\n"
+    assert codes_of(tmp_path, scene) == ["MT0309"]
+    assert codes_of(tmp_path, "element e() {\n    walk by (1, 2) m * 2\n}\n") == ["MT0309"]
+    assert codes_of(tmp_path, "element e() {\n    walk by (1, 2, 3) m + (1, 2) m\n}\n") == [
+        "MT0302"
+    ]
+
+
+def test_sites_of_two_scenes_with_one_name_stay_apart(tmp_path: Path) -> None:
+    text = (
+        HEADER
+        + "scene a {\n    site p at (0, 100, 50) cm\n}\nscene b {\n    site p at (0, 100, 90) cm\n}\n"
+        + "task t {\n    scene a\n    reach(right, b.p)\n    reach(left, p)\n}\n"
+    )
+    path = tmp_path / "main.mtask"
+    path.write_text(text)
+    (timeline,) = run_frontend([path]).timelines
+    right, left = timeline.primitives
+    assert right.params["position"] == pytest.approx((0, 1.0, 0.9))
+    assert left.params["position"] == pytest.approx((0, 1.0, 0.5))
+    assert [s.name for s in timeline.sites] == ["p", "b.p"]
+
+
+def test_scene_in_another_module_evaluates_in_its_own_scope(tmp_path: Path) -> None:
+    scene = "use stdlib.tools\nscene bay {\n    site p at wrench_10mm.tip + (0, 100, 50) cm\n}\n"
+    main = HEADER + "use bay\ntask t {\n    scene bay\n    reach(right, p)\n}\n"
+    assert diagnose(tmp_path, {"bay.mtask": scene, "main.mtask": main}) == []
+
+
+def test_huge_coordinates_and_durations_give_diagnostics(tmp_path: Path) -> None:
+    far = (
+        HEADER
+        + "scene s {\n    site far at (1e300, 0, 0) m\n}\ntask t {\n    scene s\n    walk_to(far)\n}\n"
+    )
+    assert "MT0900" not in codes_of(tmp_path, far)
+    inf = "element e() {\n    still over 1e308 s * 10\n}\ntask t {\n    e()\n}\n"
+    assert codes_of(tmp_path, inf) == ["MT0309"]
+    neg = "element e() {\n    posture bend\n    time -5 s\n}\ntask t {\n    e()\n}\n"
+    assert codes_of(tmp_path, neg) == ["MT0309"]
+
+
+def test_top_level_keywords_at_column_one_inside_a_block_are_statements(tmp_path: Path) -> None:
+    text = HEADER + SCENE + "use stdlib.tools\ntask t {\nscene s\ntool wrench_10mm\nlook(a)\n}\n"
+    assert diagnose(tmp_path, {"main.mtask": text}) == []
+
+
+def test_value_errors_point_at_the_users_line(tmp_path: Path) -> None:
+    found = diagnose(tmp_path, {"main.mtask": task("    unscrew(right, a, turns: -1)\n")})
+    assert found == [("MT0309", "main.mtask", 9, 5)]
+    found = diagnose(tmp_path, {"main.mtask": task("    kneel(7)\n")})
+    assert found == [("MT0309", "main.mtask", 9, 5)]
+    found = diagnose(tmp_path, {"main.mtask": task("    reach(right, a, approach: -2 cm)\n")})
+    assert found == [("MT0309", "main.mtask", 9, 5)]
+
+
+def test_qualified_names_by_whole_path_and_alias_clash(tmp_path: Path) -> None:
+    assert (
+        diagnose(
+            tmp_path, {"main.mtask": task("    stdlib.elements.kneel()\n    elements.stand()\n")}
+        )
+        == []
+    )
+    files = {
+        "main.mtask": "use a.x\nuse b.x\ntask t {\n    x.ping()\n}\n",
+        "a/x.mtask": "element ping() {\n    still over 1 s\n}\n",
+        "b/x.mtask": "element pong() {\n    still over 1 s\n}\n",
+    }
+    assert [c for c, *_ in diagnose(tmp_path, files)] == ["MT0206"]
+    files["main.mtask"] = "use a.x\nuse b.x\ntask t {\n    a.x.ping()\n    b.x.pong()\n}\n"
+    assert diagnose(tmp_path, files) == []
+
+
+def test_retried_items_do_not_count_builder_errors_twice(tmp_path: Path) -> None:
+    body = "".join(f'element e{i}() {{\n    gaze at "\\q" oops\n}}\n' for i in range(20))
+    found = codes_of(tmp_path, body)
+    assert "MT0106" not in found
+
+
+def test_misspelt_keyword_gets_a_hint(tmp_path: Path) -> None:
+    path = tmp_path / "main.mtask"
+    path.write_text(task("    repet 3 {\n        look(a)\n    }\n"))
+    (diag,) = run_frontend([path]).diagnostics
+    assert diag.code == "MT0101" and "did you mean `repeat`?" in (diag.help or "")
+
+
+def test_unicode_digits_are_not_numbers(tmp_path: Path) -> None:
+    assert "MT0102" in codes_of(tmp_path, task("    inspect(a, \u0663 s)\n"))
+
+
+def test_unknown_callee_does_not_cascade(tmp_path: Path) -> None:
+    text = (
+        "use stdlib.actions\n" + SCENE + "task t {\n    scene s\n    reach(right, a, case: A)\n}\n"
+    )
+    assert codes_of(tmp_path, text) == ["MT0201"]

@@ -6,6 +6,7 @@ Exit codes, for every command: 0 clean, 1 errors in the input, 2 a usage or inte
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -119,6 +120,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cmd_frontend(args)
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:  # `mtlc check ... | head`: the reader left; not an error of ours
+        with contextlib.suppress(OSError):
+            sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
+        return EXIT_OK
     except Exception as exc:  # a bug: report it as a diagnostic, never as a bare traceback
         if os.environ.get("MTLC_DEBUG"):
             traceback.print_exc()
@@ -174,10 +179,16 @@ def cmd_frontend(args: argparse.Namespace) -> int:
         return EXIT_ERRORS if failed else EXIT_OK
     if failed:
         return EXIT_ERRORS  # nothing is written: existing outputs stay as they were
-    files = {}
+    files: dict[Path, str] = {}
     for timeline in program.timelines:
-        stem = Path(timeline.file).stem
-        files[args.output / f"{stem}.{timeline.task}.timeline.json"] = timeline.to_json()
+        target = args.output / f"{Path(timeline.file).stem}.{timeline.task}.timeline.json"
+        if target in files:
+            sys.stderr.write(
+                f"mtlc: two tasks would both be written to {target}; give the files or the "
+                "tasks different names, or compile them into different folders\n"
+            )
+            return EXIT_USAGE
+        files[target] = timeline.to_json()
     write_all_or_nothing(files)
     if args.format == "text":
         for path in files:

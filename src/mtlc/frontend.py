@@ -86,6 +86,7 @@ def expand_tasks(program: Program) -> Program:
         program.sink,
         program.scopes,
         program.checker.resolved,
+        program.checker.callees,
         program.options.expansion_budget,
         program.options.manikin,
     )

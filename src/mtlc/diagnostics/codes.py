@@ -85,11 +85,32 @@ _ALL = [
         Severity.ERROR,
         "a positional argument after a named one",
     ),
+    Code(
+        "MT0312", "ambiguous-member", Severity.ERROR, "a bare member name that belongs to two enums"
+    ),
+    Code(
+        "MT0313",
+        "required-after-default",
+        Severity.ERROR,
+        "a parameter without a default after one with a default",
+    ),
     # expansion
     Code("MT0401", "expansion-budget", Severity.ERROR, "a task expands into too many primitives"),
     Code("MT0402", "empty-task", Severity.WARNING, "a task that produces no motion"),
     Code("MT0403", "division-by-zero", Severity.ERROR, "a division by zero while expanding"),
     Code("MT0404", "over-budget", Severity.WARNING, "a task takes longer than its declared budget"),
+    Code(
+        "MT0405",
+        "expansion-too-deep",
+        Severity.ERROR,
+        "calls and blocks nest too deeply while expanding",
+    ),
+    Code(
+        "MT0406",
+        "parallel-conflict",
+        Severity.ERROR,
+        "two parallel branches move the same body part",
+    ),
     # internal
     Code("MT0900", "internal-error", Severity.ERROR, "a bug in mtlc: please report it"),
 ]

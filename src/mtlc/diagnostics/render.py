@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterable, Mapping
+import re
+import unicodedata
+from collections.abc import Callable, Iterable, Mapping
 from typing import IO
 
 from mtlc.diagnostics.codes import Severity
@@ -20,6 +22,7 @@ _COLORS = {
 _BLUE = "\x1b[1;34m"
 _BOLD = "\x1b[1m"
 _RESET = "\x1b[0m"
+_LINE_BREAK = re.compile(r"\r\n|\n|\r")
 
 
 def use_color(stream: IO[str]) -> bool:
@@ -35,25 +38,31 @@ def _source_line(sources: Mapping[str, str], span: Span) -> str | None:
     text = sources.get(span.file)
     if text is None:
         return None
-    lines = text.splitlines()
+    lines = _LINE_BREAK.split(text)  # the tokenizer's line breaks, not str.splitlines()
     if not 1 <= span.line <= len(lines):
-        return "" if span.line == len(lines) + 1 else None
+        return None
     return lines[span.line - 1]
 
 
 def _printable(line: str) -> tuple[str, list[int]]:
-    """Expand tabs and hide control characters; map each original column to its display column."""
+    """Expand tabs and hide control characters; map each character to its display column
+    (wide East Asian characters take two), so carets stand under the right text."""
     out: list[str] = []
     cols: list[int] = []
+    width = 0
     for ch in line:
-        cols.append(len(out))
+        cols.append(width)
         if ch == "\t":
-            out.extend(" " * (4 - len(out) % 4))
+            pad = 4 - width % 4
+            out.append(" " * pad)
+            width += pad
         elif ord(ch) < 32 or ord(ch) == 127:
             out.append("\N{REPLACEMENT CHARACTER}")
+            width += 1
         else:
             out.append(ch)
-    cols.append(len(out))
+            width += 2 if unicodedata.east_asian_width(ch) in "WF" else 1
+    cols.append(width)
     return "".join(out), cols
 
 
@@ -97,7 +106,15 @@ def render_one(d: Diagnostic, sources: Mapping[str, str], *, color: bool = False
     return "\n".join(out) + "\n"
 
 
-def _snippet(span, sources, width, message, c, caret_color, mark="^") -> list[str]:
+def _snippet(
+    span: Span,
+    sources: Mapping[str, str],
+    width: int,
+    message: str,
+    c: Callable[[str, str], str],
+    caret_color: str,
+    mark: str = "^",
+) -> list[str]:
     line = _source_line(sources, span)
     if line is None:
         return []
@@ -106,7 +123,7 @@ def _snippet(span, sources, width, message, c, caret_color, mark="^") -> list[st
     if span.end_line == span.line:
         end = cols[min(max(span.end_column - 1, span.column), len(cols) - 1)]
     else:
-        end = len(shown)
+        end = cols[-1]
     carets = mark * max(1, end - start)
     bar = c("|", _BLUE)
     tail = f" {message}" if message else ""

@@ -7,14 +7,13 @@ wrong has type UNKNOWN, which is accepted everywhere so that one mistake gives o
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from mtlc.diagnostics import DiagnosticSink, Label, Span
+from mtlc.diagnostics.suggest import did_you_mean, suggest
 from mtlc.semantics import builtins as B
 from mtlc.semantics import types as T
 from mtlc.semantics.scopes import Scope, Symbol
-from mtlc.semantics.suggest import did_you_mean
 from mtlc.syntax import ast
 
 # which level may call which
@@ -45,11 +44,6 @@ class Env:
     scene: Symbol | None = None
 
 
-@dataclass
-class CheckResult:
-    edges: list[CallEdge] = field(default_factory=list)
-
-
 class Checker:
     def __init__(self, sink: DiagnosticSink) -> None:
         self.sink = sink
@@ -57,6 +51,7 @@ class Checker:
         # how each name was resolved ("local", "site", "enum", "tool", "scene"), by its span:
         # expansion evaluates names exactly as they were checked
         self.resolved: dict[Span, str] = {}
+        self.callees: dict[Span, Symbol] = {}  # each call statement's definition, by callee span
         self._current: ast.Definition | None = None
 
     # ------------------------------------------------------------ declarations
@@ -143,6 +138,13 @@ class Checker:
                 continue
             if p.default is not None:
                 self.expect(p.default, ptype, Env(scope, "default"))
+            elif any(q.default is not None for q in params[: params.index(p)]):
+                self.sink.report(
+                    "MT0313",
+                    f"parameter `{p.name}` has no default but follows one that has",
+                    p.span,
+                    help="move the parameters with defaults to the end",
+                )
             out[p.name] = ptype
             spans[p.name] = p.span
         return out
@@ -228,7 +230,7 @@ class Checker:
             case ast.TimeSetting(duration=duration):
                 self.expect_timing(duration, env)
             case ast.Goal():
-                self.expect_effector(stmt.effector, env)
+                self.expect(stmt.effector, T.HAND, env)
                 self.expect(stmt.target, T.SITE, env)
                 if stmt.approach is not None:
                     self.expect(stmt.approach, T.LENGTH, env)
@@ -306,8 +308,9 @@ class Checker:
     def check_call(self, call: ast.Call, env: Env) -> None:
         sym = self.resolve_callee(call.callee, call.callee_span, env)
         if sym is None:
-            for arg in call.args:  # still check what the arguments say
-                self.infer(arg.value, env)
+            for arg in call.args:  # still check what the arguments compute; bare names could be
+                if not isinstance(arg.value, ast.Name):  # members of the missing callee's enums
+                    self.infer(arg.value, env)
             return
         if sym.kind not in ("element", "action"):
             self.sink.report(
@@ -330,38 +333,46 @@ class Checker:
             (p.name, T.TYPE_NAMES.get(p.type_name, T.UNKNOWN), p.default is None)
             for p in decl.params
         ]
-        if sym.name not in sym_scope_broken(sym):
+        if sym.name not in sym.module.tree.broken_names:  # its signature may be cut short
             self.check_args(sym.name, params, call.args, call.span, env)
         else:
             for arg in call.args:
                 self.infer(arg.value, env)
+        self.callees[call.callee_span] = sym
         if self._current is not None:
             self.edges.append(CallEdge(self._current, sym, call.callee_span))
 
     def resolve_callee(self, callee: tuple[str, ...], span: Span, env: Env) -> Symbol | None:
         scope = env.scope
-        for part in callee[:-1]:
-            child = scope.aliases.get(part)
-            if child is None:
-                self.sink.report(
-                    "MT0201",
-                    f"no module `{part}` is used here",
-                    span,
-                    help=did_you_mean(part, scope.aliases),
-                )
-                return None
-            scope = child
-        if len(callee) > 1:
-            sym = scope.own.get(callee[-1])
-            if sym is None:
-                self.sink.report(
-                    "MT0201",
-                    f"module `{callee[-2]}` has no `{callee[-1]}`",
-                    span,
-                    help=did_you_mean(callee[-1], scope.own),
-                )
-            return sym
-        return self.lookup_symbol(callee[0], span, scope, callable_only=True)
+        if len(callee) == 1:
+            return self.lookup_symbol(callee[0], span, scope, callable_only=True)
+        prefix = ".".join(callee[:-1])
+        if prefix not in scope.aliases:
+            self.sink.report(
+                "MT0201",
+                f"no module `{prefix}` is used here",
+                span,
+                help=did_you_mean(prefix, [a for a, s in scope.aliases.items() if s is not None]),
+            )
+            return None
+        module = scope.aliases[prefix]
+        if module is None:
+            self.sink.report(
+                "MT0206",
+                f"two used modules are called `{prefix}`",
+                span,
+                help="write the module's whole path, as in its `use`",
+            )
+            return None
+        sym = module.own.get(callee[-1])
+        if sym is None:
+            self.sink.report(
+                "MT0201",
+                f"module `{prefix}` has no `{callee[-1]}`",
+                span,
+                help=did_you_mean(callee[-1], module.own),
+            )
+        return sym
 
     def lookup_symbol(
         self, name: str, span: Span, scope: Scope, *, callable_only: bool = False
@@ -422,10 +433,11 @@ class Checker:
                     self.infer(arg.value, env)
                     continue
                 if i >= len(params):
+                    n_pos = sum(a.name is None for a in args)
                     self.sink.report(
                         "MT0305",
                         f"`{fname}` takes {len(params)} argument{'s' if len(params) != 1 else ''}, "
-                        f"but {sum(a.name is None for a in args)} were given",
+                        f"but {n_pos} {'was' if n_pos == 1 else 'were'} given",
                         arg.span,
                         help=f"parameters: {', '.join(names) or '(none)'}",
                     )
@@ -479,8 +491,10 @@ class Checker:
             help = None
             if expected.dim != T.NONE_DIM and actual.dim == T.NONE_DIM:
                 unit = {T.LENGTH: "cm", T.ANGLE: "deg", T.DURATION: "s", T.MASS: "kg"}.get(expected)
-                if unit:
+                if unit and isinstance(expr, ast.Number):
                     help = f"give the number a unit, for example `{_src_number(expr)} {unit}`"
+                elif unit:
+                    help = f"give it a unit, for example multiply by `1 {unit}`"
             self.sink.report("MT0302", f"expected {expected}, found {actual}", expr.span, help=help)
             return
         self.sink.report("MT0301", f"expected {expected}, found {actual}", expr.span)
@@ -489,9 +503,6 @@ class Checker:
         actual = self.infer(expr, env, T.DURATION)
         if actual not in (T.TIMING, T.UNKNOWN) and not T.is_assignable(actual, T.DURATION):
             self.mismatch(expr, actual, T.DURATION)
-
-    def expect_effector(self, expr: ast.Expr, env: Env) -> None:
-        self.expect(expr, T.HAND, env)
 
     def expect_vector(self, expr: ast.Expr, expected: T.VectorType, env: Env, what: str) -> None:
         actual = self.infer(expr, env)
@@ -510,8 +521,10 @@ class Checker:
                     T.ANGLE_DIM: "give it an angle unit: (rx, ry, rz) deg",
                 }.get(expected.dim),
             )
-        elif isinstance(expr, ast.Vector) and len(expr.items) != 3:
-            self.sink.report("MT0309", f"{what} has 3 components, not {len(expr.items)}", expr.span)
+        elif actual.size != expected.size:
+            self.sink.report(
+                "MT0309", f"{what} has {expected.size} components, not {actual.size}", expr.span
+            )
 
     def infer(self, expr: ast.Expr, env: Env, expected: T.Type | None = None) -> T.Type:
         match expr:
@@ -603,7 +616,7 @@ class Checker:
         if owners:
             listed = " and ".join(e.name for e in owners)
             self.sink.report(
-                "MT0206",
+                "MT0312",
                 f"`{name}` is a member of {listed}",
                 span,
                 help=f"say which: `{owners[0].name}.{name}`",
@@ -720,7 +733,11 @@ class Checker:
             )
             return T.UNKNOWN
         if op in "+-":
-            if type(left) is not type(right) or left.dim != right.dim:
+            if left != right and not (
+                isinstance(left, T.Quantity)
+                and isinstance(right, T.Quantity)
+                and left.dim == right.dim
+            ):
                 verb = "add" if op == "+" else "subtract"
                 self.sink.report(
                     "MT0302",
@@ -741,7 +758,8 @@ class Checker:
             if op == "/" and isinstance(right, T.VectorType):
                 self.sink.report("MT0301", "cannot divide by a vector", expr.span)
                 return T.UNKNOWN
-            return T.VectorType(dim)  # type: ignore[arg-type]
+            size = left.size if isinstance(left, T.VectorType) else right.size  # type: ignore[union-attr]
+            return T.VectorType(dim, size)  # type: ignore[arg-type]
         integer = op == "*" and left.integer and right.integer  # type: ignore[union-attr]
         return T.Quantity(dim, integer)  # type: ignore[arg-type]
 
@@ -768,7 +786,7 @@ class Checker:
                         help="write the unit once, after the parenthesis: (1, 2, 3) cm",
                     )
                     return T.UNKNOWN
-            return T.VectorType(utype.dim)  # type: ignore[attr-defined]
+            return T.VectorType(utype.dim, len(expr.items))  # type: ignore[attr-defined]
         if len(set(dims)) > 1:
             self.sink.report(
                 "MT0302",
@@ -776,17 +794,11 @@ class Checker:
                 expr.span,
             )
             return T.UNKNOWN
-        return T.VectorType(dims[0])
+        return T.VectorType(dims[0], len(expr.items))
 
 
 def _module_stem(sym: Symbol) -> str:
     return sym.module.display.rsplit("/", 1)[-1].removesuffix(".mtask")
-
-
-def suggest(name: str, candidates: Iterable[str], label: str) -> str:
-    """'did you mean' when something is close, else the list of what exists."""
-    candidates = list(candidates)
-    return did_you_mean(name, candidates) or f"{label}: {', '.join(candidates)}"
 
 
 def _module_hint(name: str) -> str | None:
@@ -802,11 +814,6 @@ def _module_hint(name: str) -> str | None:
     return None
 
 
-def sym_scope_broken(sym: Symbol) -> frozenset[str]:
-    """Names in the symbol's own file whose definitions parsed only after error recovery."""
-    return sym.module.tree.broken_names
-
-
 def _builtin_params(sig: B.Signature) -> list[tuple[str, T.Type, bool]]:
     return [(p.name, p.type, p.required) for p in sig.params]
 
@@ -819,11 +826,9 @@ def _article_type(t: T.Type) -> str:
     return _article(t.name) if t.name[0].isalpha() else t.name
 
 
-def _src_number(expr: ast.Expr) -> str:
-    if isinstance(expr, ast.Number):
-        v = expr.value
-        return str(int(v)) if v.is_integer() else str(v)
-    return "8"
+def _src_number(expr: ast.Number) -> str:
+    v = expr.value
+    return str(int(v)) if v.is_integer() else str(v)
 
 
 def check_manikin(stmt: ast.ManikinSetting, sink: DiagnosticSink) -> tuple[str, str, int] | None:

@@ -8,20 +8,22 @@ turns an exploding expansion into a diagnostic before it costs the memory.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
 
-from mtlc.diagnostics import DiagnosticSink, Span
+from mtlc.diagnostics import DiagnosticSink, Label, Span
 from mtlc.semantics import builtins as B
 from mtlc.semantics import mtm
 from mtlc.semantics import types as T
 from mtlc.semantics.check import check_manikin
-from mtlc.semantics.scopes import Scope
+from mtlc.semantics.scopes import Scope, Symbol
 from mtlc.semantics.timeline import ManikinSpec, Primitive, Site, Timeline, Tool
 from mtlc.syntax import ast
 
 DEFAULT_BUDGET = 100_000
+MAX_NESTING = 150  # blocks and calls inside each other while expanding
 DEFAULT_APPROACH_M = 0.08
 TO_SHARE = (0.2, 0.5)  # the contact (TO) phase's share of a goal's time: at least, at most
 HAND_REST = {"left_hand": (0.2, 0.75, 0.0), "right_hand": (-0.2, 0.75, 0.0)}  # from the root
@@ -60,19 +62,24 @@ class Expander:
         sink: DiagnosticSink,
         scopes: dict[int, Scope],
         resolved: dict[Span, str],
+        callees: dict[Span, Symbol],
         budget: int = DEFAULT_BUDGET,
         manikin_override: ManikinSpec | None = None,
     ) -> None:
         self.sink = sink
         self.scopes = scopes
         self.resolved = resolved  # the checker's decision for each name: local, site, enum...
+        self.callees = callees  # and for each call statement, the definition it calls
         self.budget = budget
         self.manikin_override = manikin_override
 
     # ------------------------------------------------------------ entry
     def expand_task(self, task: ast.Task, scope: Scope) -> Timeline | None:
         self.count = 0
-        self.sites: dict[str, Site] = {}
+        self.depth = 0
+        self.scenes: dict[int, dict[str, Site]] = {}  # by scene declaration
+        self.task_sites: dict[str, Site] = {}
+        self.other_sites: dict[str, Site] = {}  # sites of other scenes, named scene.site
         self.hand_pos: dict[str, tuple[float, float, float] | None] = {}
         self.root = (0.0, 0.0, 0.0)
         self.posture = "stand"
@@ -86,13 +93,15 @@ class Expander:
         try:
             for stmt in task.body.stmts:
                 if isinstance(stmt, ast.ManikinSetting):
-                    value = check_manikin(stmt, DiagnosticSink())
+                    value = check_manikin(stmt, DiagnosticSink())  # already reported when checked
                     if value is not None:
                         spec = ManikinSpec(*value)
                 elif isinstance(stmt, ast.SceneSetting):
                     sym = scope.lookup(stmt.name)
                     if sym is not None and isinstance(sym.decl, ast.Scene):
-                        scene_name, ground = stmt.name, self._load_scene(sym.decl, scope)
+                        scene_name = stmt.name
+                        self.task_sites = self._scene_sites(sym)
+                        ground = self._ground(sym)
                 elif isinstance(stmt, ast.ToolSetting):
                     self.tool = self.eval(stmt.tool, env)
                 elif isinstance(stmt, ast.BudgetSetting):
@@ -106,12 +115,13 @@ class Expander:
                 manikin=self.manikin_override or spec,
                 scene=scene_name,
                 ground=ground,
-                sites=list(self.sites.values()),
+                sites=[],
                 tool=self.tool,
                 budget=budget,
             )
             self.out = timeline.primitives
             self.block(task.body, env, 0.0)
+            timeline.sites = [*self.task_sites.values(), *self.other_sites.values()]
         except _BudgetExceeded as exc:
             needed = f" (it would need about {exc.needed:,})" if exc.needed else ""
             self.sink.report(
@@ -135,36 +145,95 @@ class Expander:
             )
         return timeline
 
-    def _load_scene(self, scene: ast.Scene, scope: Scope) -> float:
-        env = _Env(scope, {}, ())
+    def fail(self, code: str, message: str, env: _Env, at: ast.Node, help: str | None = None):  # type: ignore[no-untyped-def]
+        """Report a value error found while expanding, at the task's line that led to it."""
+        where = _user_line(env, at)
+        labels = () if where == at.span else (Label(at.span, "from here"),)
+        self.sink.report(code, message, where, help=help, labels=labels)
+        raise _Abort
+
+    def _scene_scope(self, sym: Symbol) -> Scope:
+        return self.scopes[id(sym.module)]
+
+    def _ground(self, sym: Symbol) -> float:
+        scene = sym.decl
+        assert isinstance(scene, ast.Scene)
+        if scene.ground is None:
+            return 0.0
+        return float(self.eval(scene.ground, _Env(self._scene_scope(sym), {}, ())))
+
+    def _scene_sites(self, sym: Symbol) -> dict[str, Site]:
+        """A scene's sites, evaluated once, in the scope of the module that declares the scene."""
+        scene = sym.decl
+        assert isinstance(scene, ast.Scene)
+        if id(scene) in self.scenes:
+            return self.scenes[id(scene)]
+        env = _Env(self._scene_scope(sym), {}, ())
+        sites: dict[str, Site] = {}
         for site in scene.sites:
-            if site.name in self.sites:
+            if site.name in sites:
                 continue
+            position = self.eval(site.position, env)
             normal = self.eval(site.normal, env) if site.normal is not None else None
+            frame = self.eval(site.frame, env) if site.frame is not None else None
+            if not all(math.isfinite(c) for c in (*position, *(normal or ()), *(frame or ()))):
+                self.sink.report(
+                    "MT0309", f"site `{site.name}` is not at a finite place", site.span
+                )
+                raise _Abort
             if normal is not None:
-                norm = math.sqrt(sum(c * c for c in normal))
+                norm = math.hypot(*normal)
                 normal = tuple(c / norm for c in normal) if norm > 0 else None
-            self.sites[site.name] = Site(
-                name=site.name,
-                position=self.eval(site.position, env),
-                normal=normal,
-                frame=self.eval(site.frame, env) if site.frame is not None else None,
-                span=site.name_span,
-            )
-        return float(self.eval(scene.ground, env)) if scene.ground is not None else 0.0
+            sites[site.name] = Site(site.name, position, normal, frame, site.name_span)
+        self.scenes[id(scene)] = sites
+        return sites
 
     # ------------------------------------------------------------ statements
     def block(self, block: ast.Block, env: _Env, t: float) -> float:
+        self.depth += 1
+        if self.depth > MAX_NESTING:
+            self.fail(
+                "MT0405",
+                f"calls and blocks nest more than {MAX_NESTING} deep while expanding",
+                env,
+                block,
+                help="flatten the chain of actions calling actions",
+            )
         for stmt in block.stmts:
             t = self.stmt(stmt, env, t)
+        self.depth -= 1
         return t
+
+    def parallel(self, body: ast.Block, env: _Env, t: float) -> float:
+        """Branches start together; the block ends with the last. No hand, no whole-body motion in
+        two branches at once (the head may be asked to look by both)."""
+        end = t
+        owner: dict[str, ast.Stmt] = {}
+        for branch in body.stmts:
+            first = len(self.out)
+            end = max(end, self.stmt(branch, env, t))
+            for prim in self.out[first:]:
+                if prim.effector == "head":
+                    continue  # both hands' actions may look; the gaze pass picks one target
+                other = owner.setdefault(prim.effector, branch)
+                if other is not branch:
+                    where = _user_line(env, branch)
+                    self.sink.report(
+                        "MT0406",
+                        f"two branches of a parallel block move the {_part(prim.effector)}",
+                        where,
+                        labels=(Label(_user_line(env, other), "it also moves here"),),
+                        help="a body part does one thing at a time: put these in sequence",
+                    )
+                    raise _Abort
+        return end
 
     def stmt(self, stmt: ast.Stmt, env: _Env, t: float) -> float:
         match stmt:
             case ast.Block():
                 return self.block(stmt, env, t)
             case ast.Parallel(body=body):
-                return max((self.stmt(s, env, t) for s in body.stmts), default=t)
+                return self.parallel(body, env, t)
             case ast.Repeat():
                 return self.repeat(stmt, env, t)
             case ast.ForEach():
@@ -182,10 +251,7 @@ class Expander:
     def repeat(self, stmt: ast.Repeat, env: _Env, t: float) -> float:
         n = self.eval(stmt.count, env)
         if n < 0:
-            self.sink.report(
-                "MT0309", f"cannot repeat a negative number of times ({n})", stmt.count.span
-            )
-            raise _Abort
+            self.fail("MT0309", f"cannot repeat a negative number of times ({n})", env, stmt.count)
         for i in range(n):
             before = self.count
             t = self.block(stmt.body, env, t)
@@ -198,16 +264,9 @@ class Expander:
         return t
 
     def call(self, call: ast.Call, env: _Env, t: float) -> float:
-        scope = env.scope
-        for part in call.callee[:-1]:
-            scope = scope.aliases[part]
-        sym = (
-            scope.names.get(call.callee[-1])
-            if len(call.callee) == 1
-            else scope.own[call.callee[-1]]
-        )
-        assert sym is not None and isinstance(sym.decl, ast.Definition)
+        sym = self.callees[call.callee_span]  # as the checker resolved it
         decl = sym.decl
+        assert isinstance(decl, ast.Definition)
         callee_scope = self.scopes[id(sym.module)]
         bound: dict[str, Any] = {}
         params = list(decl.params)
@@ -228,11 +287,6 @@ class Expander:
     # ------------------------------------------------------------ primitives
     def primitive(self, stmt: ast.Stmt, env: _Env, t: float) -> float:
         over = self.eval(stmt.over, env) if getattr(stmt, "over", None) is not None else None
-        if isinstance(over, float) and over < 0:
-            self.sink.report(
-                "MT0309", f"a duration cannot be negative ({over:g} s)", stmt.over.span
-            )  # type: ignore[attr-defined]
-            raise _Abort
         timing = over if over is not None else env.timing
         match stmt:
             case ast.Goal():
@@ -248,13 +302,13 @@ class Expander:
                     if stmt.state == "closed"
                     else Timing("release", {})
                 )
-                d = self.duration(timing, default, stmt.span)
+                d = self.duration(timing, default, stmt, env)
                 for h in hands:
                     self.emit("grip", h, t, t + d, {"state": stmt.state}, stmt, env)
                 return t + d
             case ast.Gaze():
                 site: Site = self.eval(stmt.target, env)
-                d = self.duration(timing, Timing("code", {"code": "EF"}), stmt.span)
+                d = self.duration(timing, Timing("code", {"code": "EF"}), stmt, env)
                 self.emit(
                     "gaze",
                     "head",
@@ -266,7 +320,7 @@ class Expander:
                 )
                 return t + d
             case ast.Still():
-                d = self.duration(timing, None, stmt.span)
+                d = self.duration(timing, None, stmt, env)
                 self.emit("hold", "body", t, t + d, {}, stmt, env)
                 return t + d
         raise AssertionError(stmt)
@@ -279,9 +333,18 @@ class Expander:
         approach = (
             self.eval(stmt.approach, env) if stmt.approach is not None else DEFAULT_APPROACH_M
         )
+        if not (math.isfinite(approach) and approach >= 0):
+            self.fail(
+                "MT0309", f"an approach distance cannot be negative ({approach:g} m)", env, stmt
+            )
         distance = max(_dist(self._hand(h), target) for h in hands)
-        d = self.duration(timing, Timing("reach", {"case": "B"}), stmt.span, distance)
-        share = min(max(approach / distance, TO_SHARE[0]), TO_SHARE[1]) if distance > 0 else 1.0
+        d = self.duration(timing, Timing("reach", {"case": "B"}), stmt, env, distance)
+        if approach == 0:
+            share = 0.0  # no approach point: the whole goal is target approaching
+        elif distance > 0:
+            share = min(max(approach / distance, TO_SHARE[0]), TO_SHARE[1])
+        else:
+            share = 1.0
         t_contact = t + d * (1.0 - share)
         for h in hands:
             params = {
@@ -305,11 +368,14 @@ class Expander:
         for i, arg in enumerate(stmt.args):
             values[arg.name or sig.params[i].name] = self.eval(arg.value, env)
         kind = stmt.kind
+        problem = _posture_problem(kind, values)
+        if problem:
+            self.fail("MT0309", problem, env, stmt)
         if kind == "twist":
             hands = HANDS[values["hand"]]
             load = float(self.tool.properties.get("mass", 0.0)) if self.tool else 0.0
             d = self.duration(
-                timing, Timing("turn", {"angle": values["angle"], "load": load}), stmt.span
+                timing, Timing("turn", {"angle": values["angle"], "load": load}), stmt, env
             )
             for h in hands:
                 self.emit(
@@ -338,7 +404,7 @@ class Expander:
                 default_code = "SIT"
             else:
                 default_code = "B"
-        d = self.duration(timing, Timing("code", {"code": default_code}), stmt.span)
+        d = self.duration(timing, Timing("code", {"code": default_code}), stmt, env)
         params = {"posture": kind, **{k: v for k, v in values.items() if k != "hand"}}
         self.emit("posture", "body", t, t + d, params, stmt, env)
         # rising from one knee is MTM-1 AB, from both knees AKBK: remember which
@@ -356,7 +422,7 @@ class Expander:
             goal, name = (x + dx, y, z + dz), None
         facing = self.eval(stmt.facing, env) if stmt.facing is not None else None
         distance = _dist(self.root, goal)
-        d = self.duration(timing, Timing("walk", {}), stmt.span, distance)
+        d = self.duration(timing, Timing("walk", {}), stmt, env, distance)
         params = {
             "site": name,
             "from": self.root,
@@ -379,41 +445,43 @@ class Expander:
         return pos
 
     def duration(
-        self, timing: Any, default: Timing | None, span: Span, distance: float = 0.0
+        self, timing: Any, default: Timing | None, stmt: ast.Stmt, env: _Env, distance: float = 0.0
     ) -> float:
+        """Seconds for one primitive: a stated duration, or an MTM-1 rule evaluated for it."""
         rule = timing if timing is not None else default
         if isinstance(rule, int | float):
-            return float(rule)
-        assert isinstance(rule, Timing), rule
+            seconds = float(rule)
+        else:
+            assert isinstance(rule, Timing), rule
+            seconds = self._mtm_tmu(rule, stmt, env, distance) * T.TMU_SECONDS
+        if not (math.isfinite(seconds) and seconds >= 0):
+            self.fail(
+                "MT0309", f"a duration must be finite and not negative ({seconds:g} s)", env, stmt
+            )
+        return seconds
+
+    def _mtm_tmu(self, rule: Timing, stmt: ast.Stmt, env: _Env, distance: float) -> float:
         a = rule.args
         match rule.rule:
             case "reach":
-                tmu = mtm.reach_tmu(a["case"], distance)
+                return mtm.reach_tmu(a["case"], distance)
             case "move":
-                tmu = mtm.move_tmu(a["case"], distance)
+                return mtm.move_tmu(a["case"], distance)
             case "turn":
-                tmu = mtm.turn_tmu(a["angle"], a["load"])
+                return mtm.turn_tmu(a["angle"], a["load"])
             case "grasp":
-                tmu = mtm.grasp_tmu(a["case"])
+                return mtm.grasp_tmu(a["case"])
             case "release":
-                tmu = mtm.code_tmu("RL1")
+                return mtm.code_tmu("RL1")
             case "walk":
-                tmu = mtm.walk_tmu(distance)
+                return mtm.walk_tmu(distance)
             case "code":
                 if a["code"] not in mtm.other_codes():
-                    self.sink.report(
-                        "MT0309", f"no MTM-1 element `{a['code']}` in the tables", span
-                    )
-                    raise _Abort
-                tmu = mtm.code_tmu(a["code"])
+                    self.fail("MT0309", f"no MTM-1 element `{a['code']}` in the tables", env, stmt)
+                return mtm.code_tmu(a["code"])
             case "fixed":
-                tmu = float(a["tmu"])
-                if tmu < 0:
-                    self.sink.report("MT0309", "a duration cannot be negative", span)
-                    raise _Abort
-            case _:
-                raise AssertionError(rule)
-        return tmu * T.TMU_SECONDS
+                return float(a["tmu"])
+        raise AssertionError(rule)
 
     def emit(
         self, kind: str, effector: str, start: float, end: float, params: dict[str, Any],
@@ -454,7 +522,7 @@ class Expander:
                 if kind == "local":
                     return env.locals[name]
                 if kind == "site":
-                    return self.sites[name]
+                    return self.task_sites[name]
                 if kind == "tool":
                     sym = env.scope.lookup(name)
                     assert sym is not None and isinstance(sym.decl, ast.ToolDecl)
@@ -467,8 +535,11 @@ class Expander:
             ):
                 sym = env.scope.lookup(owner)
                 assert sym is not None and isinstance(sym.decl, ast.Scene)
-                self._load_scene(sym.decl, env.scope)
-                return self.sites[attr]
+                site = self._scene_sites(sym)[attr]
+                if site is not self.task_sites.get(attr):
+                    site = dataclasses.replace(site, name=f"{owner}.{attr}")
+                    self.other_sites[site.name] = site
+                return site
             case ast.Attr(obj=obj, name=attr):
                 tool = self.eval(obj, env)
                 if attr not in tool.properties:
@@ -521,10 +592,27 @@ class Expander:
         return a / b
 
 
-def _user_line(env: _Env, stmt: ast.Stmt) -> Span:
+def _posture_problem(kind: str, values: dict[str, Any]) -> str | None:
+    """What is wrong with a posture's arguments, if anything (ranges a body can take)."""
+    if kind == "kneel" and values["knees"] not in (1, 2):
+        return f"kneel on 1 or 2 knees, not {values['knees']}"
+    if kind == "squat" and not 0 <= values["depth"] <= 1.0:
+        return f"a squat's depth is between 0 and 1 m, not {values['depth']:g} m"
+    if kind == "bend" and not 0 <= values["angle"] <= math.radians(120):
+        return f"a bend is between 0 and 120 deg, not {math.degrees(values['angle']):g} deg"
+    return None
+
+
+def _part(effector: str) -> str:
+    return {"root": "whole body (walking)", "body": "whole body", "head": "head"}.get(
+        effector, effector.replace("_", " ")
+    )
+
+
+def _user_line(env: _Env, stmt: ast.Node) -> Span:
     """The statement in the task's own body that led to ``stmt``: where the user can act."""
     return env.trace[1][1] if len(env.trace) > 1 else stmt.span
 
 
 def _dist(a: tuple[float, ...], b: tuple[float, ...]) -> float:
-    return math.sqrt(sum((x - y) ** 2 for x, y in zip(a, b, strict=True)))
+    return math.dist(a, b)

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mtlc.diagnostics import DiagnosticSink, Span
+from mtlc.diagnostics.suggest import did_you_mean
 from mtlc.resources import stdlib_dir
-from mtlc.semantics.suggest import did_you_mean
 from mtlc.syntax import ast, parse_module
 
 MAX_FILE_BYTES = 8 * 1024 * 1024
@@ -85,9 +85,9 @@ class ModuleLoader:
         self._loading: list[Path] = []
 
     def load_root(self, path: Path) -> LoadedModule | None:
-        return self._load(path, is_stdlib=False, search_root=path.resolve().parent)
+        return self._load(path, is_stdlib=False)
 
-    def _load(self, path: Path, *, is_stdlib: bool, search_root: Path) -> LoadedModule | None:
+    def _load(self, path: Path, *, is_stdlib: bool) -> LoadedModule | None:
         real = path.resolve()
         if real in self.modules:
             return self.modules[real]
@@ -105,7 +105,7 @@ class ModuleLoader:
         self.modules[real] = module
         self._loading.append(real)
         for use in tree.uses:
-            target = self._resolve_use(use, real.parent, is_stdlib)
+            target = self._resolve_use(use, real.parent)
             if target is None:
                 module.failed_use = True
                 continue
@@ -120,9 +120,7 @@ class ModuleLoader:
                 )
                 module.failed_use = True
                 continue
-            child = self._load(
-                target, is_stdlib=is_stdlib or self._is_stdlib_use(use), search_root=target.parent
-            )
+            child = self._load(target, is_stdlib=is_stdlib or self._is_stdlib_use(use))
             if child is not None:
                 module.imports.append((use, child))
         self._loading.pop()
@@ -140,7 +138,7 @@ class ModuleLoader:
                 seen.append(r.resolve())
         return seen
 
-    def _resolve_use(self, use: ast.Use, own_dir: Path, from_stdlib: bool) -> Path | None:
+    def _resolve_use(self, use: ast.Use, own_dir: Path) -> Path | None:
         parts = use.module
         if parts[0] == STDLIB_PREFIX:
             roots, rel = [stdlib_dir().resolve()], parts[1:]

@@ -39,7 +39,8 @@ class Scope:
     own: dict[str, Symbol] = field(default_factory=dict)
     names: dict[str, Symbol] = field(default_factory=dict)
     ambiguous: dict[str, list[Symbol]] = field(default_factory=dict)
-    aliases: dict[str, Scope] = field(default_factory=dict)  # `use a.b` makes `b.x` work
+    # `use a.b` makes `a.b.x` and `b.x` work; None marks a short name two modules share
+    aliases: dict[str, Scope | None] = field(default_factory=dict)
 
     @property
     def broken(self) -> frozenset[str]:
@@ -78,7 +79,12 @@ def build_scopes(modules: list[LoadedModule], sink: DiagnosticSink) -> dict[int,
         scope.names.update(scope.own)
         for use, child in module.imports:
             child_scope = scopes[id(child)]
-            scope.aliases[use.module[-1]] = child_scope
+            scope.aliases[".".join(use.module)] = child_scope
+            short = use.module[-1]
+            if short in scope.aliases and scope.aliases[short] is not child_scope:
+                scope.aliases[short] = None  # two used modules end in the same name: say the path
+            else:
+                scope.aliases[short] = child_scope
             for name, sym in child_scope.own.items():
                 if sym.kind == "task":
                     continue  # tasks are entry points, not building blocks

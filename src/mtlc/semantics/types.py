@@ -79,10 +79,12 @@ class Quantity(Type):
 @dataclass(frozen=True)
 class VectorType(Type):
     dim: Dim
+    size: int = 3  # components; positions, directions and frames have 3
 
     @property
     def name(self) -> str:
-        return f"Vector of {dim_name(self.dim)}"
+        sized = "" if self.size == 3 else f" ({self.size} components)"
+        return f"Vector of {dim_name(self.dim)}{sized}"
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ class AstBuilder(Transformer):
         super().__init__()
         self.file = ""
         self.sink = DiagnosticSink()
-        self._depth: dict[int, int] = {}
+        self._depth: dict[Span, int] = {}
 
     def begin(self, file: str, sink: DiagnosticSink) -> None:
         self.file = file
@@ -51,7 +51,7 @@ class AstBuilder(Transformer):
         return self._sp(first).to(self._sp(last))
 
     def _expr(self, node: ast.Expr, *children: ast.Expr) -> ast.Expr:
-        depth = 1 + max((self._depth.get(id(c), 1) for c in children), default=0)
+        depth = 1 + max((self._depth.get(c.span, 1) for c in children), default=0)
         if depth > MAX_EXPR_DEPTH:
             if not any(isinstance(c, ast.Error) for c in children):
                 self.sink.report(
@@ -61,7 +61,7 @@ class AstBuilder(Transformer):
                     help="break it into parameters or smaller definitions",
                 )
             node = ast.Error(span=node.span)
-        self._depth[id(node)] = depth
+        self._depth[node.span] = depth
         return node
 
     @staticmethod
@@ -354,7 +354,7 @@ class AstBuilder(Transformer):
     def number(self, c: list[Any]) -> ast.Expr:
         num, unit = c
         text = num.value
-        is_int = text.isdigit()
+        is_int = text.isascii() and text.isdigit()
         try:
             value = float(text)
         except ValueError:  # the pattern only admits valid floats; keep the tree whole anyway

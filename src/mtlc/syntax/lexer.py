@@ -77,6 +77,12 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
             ttype = kind
         else:
             errors += 1
+            if errors == MAX_ERRORS_PER_FILE + 1:
+                sink.report(
+                    "MT0106",
+                    f"more than {MAX_ERRORS_PER_FILE} bad characters; the rest are not reported",
+                    Span(file, line, col, line, col + 1, start, start + 1),
+                )
             if errors <= MAX_ERRORS_PER_FILE:
                 span = Span(file, line, col, line, col + len(value), start, end)
                 if kind == "BADSTRING":

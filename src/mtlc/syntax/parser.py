@@ -9,10 +9,13 @@ times, so that later statements are still checked.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 from lark import Token
 from lark.exceptions import UnexpectedInput, UnexpectedToken
 
 from mtlc.diagnostics import DiagnosticSink, Span
+from mtlc.diagnostics.suggest import did_you_mean
 from mtlc.syntax import ast
 from mtlc.syntax.grammar import builder, lexicon, parser
 from mtlc.syntax.lexer import NEWLINE, tokenize
@@ -22,6 +25,8 @@ MAX_RECOVERIES_PER_ITEM = 20
 MAX_SYNTAX_ERRORS = 50
 
 _TOP_LEVEL = {"USE", "SCENE", "TOOL", "ELEMENT", "ACTION", "TASK"}
+# keywords that start an item and never a statement: a safe place to close an item left open
+_RESYNC = {"USE", "ELEMENT", "ACTION", "TASK"}
 _OPENERS = {"LBRACE": "RBRACE", "LPAR": "RPAR", "LSQB": "RSQB"}
 _CLOSERS = {v: k for k, v in _OPENERS.items()}
 _STATEMENT_ENDS = {NEWLINE, "SEMICOLON"}
@@ -84,7 +89,7 @@ def _synthetic(kind: str, after: Token) -> Token:
     )  # fmt: skip
 
 
-def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink):
+def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterator[list[Token]]:
     """Yield the token lists of top-level items; close items left open; refuse deep nesting."""
     item: list[Token] = []
     stack: list[Token] = []
@@ -103,7 +108,7 @@ def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink):
         while len(stack) > depth:
             item.append(_synthetic(_OPENERS[stack.pop().type], item[-1]))
 
-    def finish():
+    def finish() -> Iterator[list[Token]]:
         nonlocal item, stack, too_deep
         if item and not too_deep:
             if stack:
@@ -116,7 +121,7 @@ def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink):
         if ttype == NEWLINE and not stack:
             yield from finish()
             continue
-        if stack and ttype in _TOP_LEVEL and tok.column == 1:
+        if stack and ttype in _RESYNC and tok.column == 1:
             yield from finish()
         if ttype in _OPENERS:
             stack.append(tok)
@@ -165,9 +170,12 @@ def _describe_token(tok: Token) -> str:
 def _parse_item(tokens: list[Token], file: str, sink: DiagnosticSink) -> ast.Node | None:
     lark = parser()
     for _attempt in range(MAX_RECOVERIES_PER_ITEM):
-        builder().begin(file, sink)
+        attempt = DiagnosticSink()  # what the builder finds counts only for the parse that succeeds
+        builder().begin(file, attempt)
         try:
-            return lark.parse(tokens)
+            node = lark.parse(tokens)
+            sink.items.extend(attempt.items)
+            return node
         except UnexpectedToken as err:
             bad = err.token
             at_end = bad.type == "$END"
@@ -184,19 +192,28 @@ def _parse_item(tokens: list[Token], file: str, sink: DiagnosticSink) -> ast.Nod
                     help=f"expected {_one_of(expected)}" if expected else None,
                 )
                 return None
+            index = next(i for i, t in enumerate(tokens) if t is bad)
             sink.report(
                 "MT0101",
                 f"unexpected {_describe_token(bad)}",
                 token_span(file, where),
                 notes=(f"expected {_one_of(expected)}",) if 0 < len(expected) <= 8 else (),
+                help=_keyword_hint(tokens[index - 1]) if index > 0 else None,
             )
-            index = next(i for i, t in enumerate(tokens) if t is bad)
             tokens = _drop_statement(tokens, index)
             if not tokens:
                 return None
         except UnexpectedInput:
             return None
     return None
+
+
+def _keyword_hint(previous: Token) -> str | None:
+    """`repet 3 {`: the word before the error is probably a misspelt keyword."""
+    if previous.type != "NAME":
+        return None
+    hint = did_you_mean(previous.value, lexicon().keywords)
+    return hint and f"`{previous.value}` is not a keyword; {hint}"
 
 
 def _one_of(items: list[str]) -> str:

@@ -7,7 +7,7 @@ tree stays well-formed after a reported error.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from mtlc.diagnostics import Span
 
@@ -24,7 +24,8 @@ class Node:
 
 @_node
 class Expr(Node):
-    pass
+    # how deeply the expression nests; set by the builder, which refuses very deep ones
+    depth: int = field(default=1, compare=False, repr=False)
 
 
 @_node

@@ -28,12 +28,10 @@ class AstBuilder(Transformer):
         super().__init__()
         self.file = ""
         self.sink = DiagnosticSink()
-        self._depth: dict[Span, int] = {}
 
     def begin(self, file: str, sink: DiagnosticSink) -> None:
         self.file = file
         self.sink = sink
-        self._depth.clear()
 
     # ------------------------------------------------------------ helpers
     def _sp(self, x: Any) -> Span:
@@ -51,7 +49,7 @@ class AstBuilder(Transformer):
         return self._sp(first).to(self._sp(last))
 
     def _expr(self, node: ast.Expr, *children: ast.Expr) -> ast.Expr:
-        depth = 1 + max((self._depth.get(c.span, 1) for c in children), default=0)
+        depth = 1 + max((c.depth for c in children), default=0)
         if depth > MAX_EXPR_DEPTH:
             if not any(isinstance(c, ast.Error) for c in children):
                 self.sink.report(
@@ -61,7 +59,7 @@ class AstBuilder(Transformer):
                     help="break it into parameters or smaller definitions",
                 )
             node = ast.Error(span=node.span)
-        self._depth[node.span] = depth
+        object.__setattr__(node, "depth", depth)  # frozen: set once, here, before anyone sees it
         return node
 
     @staticmethod

@@ -17,7 +17,7 @@ def to_data(node: Any) -> Any:
         out: dict[str, Any] = {"node": type(node).__name__}
         for f in dataclasses.fields(node):
             value = getattr(node, f.name)
-            if f.name == "path":
+            if f.name in ("path", "depth"):
                 continue
             if value is None or value == () or value == frozenset():
                 continue

@@ -123,6 +123,30 @@ def test_batch_rows_with_their_own_seeds_match_single_solves() -> None:
             np.testing.assert_allclose(one.q[0], batch.q[i], atol=1e-9)
 
 
+@pytest.mark.parametrize("base_rows", [1, 40])
+@pytest.mark.parametrize(
+    ("sites", "reach"),
+    [
+        (("r_hand", "l_hand", "r_foot", "l_foot"), "torso"),
+        (("r_hand",), "arm"),
+        (("l_hand", "r_hand"), "girdle"),
+        (("gaze",), "arm"),
+    ],
+)
+def test_component_major_kernel_matches_the_matrix_kernel(
+    sites: tuple[str, ...], reach: str, base_rows: int
+) -> None:
+    rng = np.random.default_rng(base_rows)
+    model = prepare(SK, list(sites), SK.random_q(rng, base_rows), reach=reach)
+    qa = SK.random_q(rng, 40)[:, model.active]
+    for rows in (None if base_rows == 1 else np.arange(40), np.arange(40)[::-1]):
+        fast = model.evaluate(qa, rows)  # 40 rows: the component-major kernel
+        ref = model.evaluate_matrices(qa, rows)
+        for got, want in zip(fast, ref, strict=True):
+            assert got.shape == want.shape
+            np.testing.assert_allclose(got, want, atol=1e-12)
+
+
 def test_unreachable_targets_batched_return_best_pose_and_distance() -> None:
     shoulder = forward(SK, SK.q_comfort).p[SK.joint_index("r_shoulder")]
     far = shoulder + np.array([[-2.0, 0.0, 0.0], [0.0, -2.5, 0.0], [0.0, 0.0, 2.2]])

@@ -316,22 +316,23 @@ def _dls_step(
     A = J @ Jt + lam2I
     fade = np.minimum(1.0, np.sqrt(np.einsum("bk,bk->b", nrm, nrm)) / NULL_FADE)
     z = (null_gain * fade)[:, None] * (comfort - q)
-    rhs = np.stack([e, np.einsum("bmn,bn->bm", J, z)], axis=-1)
-    y = np.linalg.solve(A, rhs)
-    dq = np.einsum("bnm,bm->bn", Jt, y[..., 0] - y[..., 1]) + z
+    # J⁺e + (I − J⁺J)z = J⁺(e − Jz) + z: one right-hand side for task and null space.
+    rhs = e - np.einsum("bmn,bn->bm", J, z)
+    y = np.linalg.solve(A, rhs[..., None])[..., 0]
+    dq = np.einsum("bnm,bm->bn", Jt, y) + z
     qn = q + dq
     over = (qn > hi) | (qn < lo)
-    if np.any(over):
+    hit = np.flatnonzero(over.any(axis=-1))
+    if hit.size:
         # Pin the offending dofs at their limits; re-solve the rest of the error with the
-        # free dofs only.
-        dq_pin = np.where(over, np.clip(qn, lo, hi) - q, 0.0)
-        e2 = e - np.einsum("bmn,bn->bm", J, dq_pin)
-        Jf = J * (~over)[:, None, :]
+        # free dofs only, on the rows that hit a limit.
+        ov, qh, Jh = over[hit], q[hit], J[hit]
+        dq_pin = np.where(ov, np.clip(qn[hit], lo, hi) - qh, 0.0)
+        e2 = e[hit] - np.einsum("bmn,bn->bm", Jh, dq_pin)
+        Jf = Jh * (~ov)[:, None, :]
         Jft = np.swapaxes(Jf, -1, -2)
         y2 = np.linalg.solve(Jf @ Jft + lam2I, e2[..., None])[..., 0]
-        dq_free = np.einsum("bnm,bm->bn", Jft, y2)
-        hit = over.any(axis=-1, keepdims=True)  # rows without a violation keep their step
-        dq = np.where(over, dq_pin, np.where(hit, dq_free, dq))
+        dq[hit] = np.where(ov, dq_pin, np.einsum("bnm,bm->bn", Jft, y2))
     big = np.max(np.abs(dq), axis=-1)
     dq = dq * np.minimum(1.0, max_step / np.maximum(big, 1e-300))[:, None]
     return np.clip(q + dq, lo, hi) - q

@@ -4,7 +4,7 @@ Run:  python bench/ik.py [--n 500] [--batch 1000] [--batch-repeat 5] [--seed 0] 
 
 Problems (GB 10000-88 male P50 manikin, root fixed, other dofs at the comfortable posture):
   arm   7 dofs (right shoulder 3, elbow + forearm 2, wrist 2), goal: r_hand position;
-  body  31 dofs (spine 6, both girdles, arms, legs), goals: both hands and both feet.
+  body  36 dofs (spine 6, both girdles 4, arms 14, legs 12), goals: both hands and both feet.
 Targets: forward kinematics of ``--n`` uniformly random in-limit configurations. Seeds: the
 middle of every joint range ("middle"), and the true solution plus N(0, 0.25 rad) noise,
 clipped into the limits ("near"). Success: every goal within 1 mm and every joint within its

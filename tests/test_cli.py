@@ -109,7 +109,7 @@ def test_compile_writes_and_is_byte_identical(tmp_path: Path) -> None:
     (a,) = (tmp_path / "a").iterdir()
     b = tmp_path / "b" / a.name
     assert a.read_bytes() == b.read_bytes()
-    assert json.loads(a.read_text())["task"] == "remove_access_panel"
+    assert json.loads(a.read_text())["source"]["task"] == "remove_access_panel"
 
 
 def test_failed_compile_leaves_existing_output_untouched(tmp_path: Path) -> None:

@@ -18,7 +18,10 @@ from mtlc import __version__
 from mtlc.diagnostics import CODES, DiagnosticSink, Span
 from mtlc.diagnostics.render import render_json, render_text, use_color
 from mtlc.frontend import FrontendOptions, Program, run_frontend
+from mtlc.ir.serialize import to_json as ir_json
 from mtlc.output import write_all_or_nothing
+from mtlc.passes import MotionOptions, run_motion
+from mtlc.passes.context import DEFAULT_FPS
 from mtlc.resources import resource_dir
 from mtlc.semantics import builtins as B
 from mtlc.semantics.expand import DEFAULT_BUDGET
@@ -51,6 +54,16 @@ def _manikin(text: str) -> ManikinSpec:
         allowed = ", ".join(str(p) for p in B.POPULATIONS[pop])
         raise argparse.ArgumentTypeError(f"percentile must be one of {allowed}")
     return ManikinSpec(pop, sex, int(pct))
+
+
+def _fps(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError("expected a number of frames per second") from None
+    if not 1 <= value <= 1000:
+        raise argparse.ArgumentTypeError("must be between 1 and 1000")
+    return value
 
 
 def _budget(text: str) -> int:
@@ -100,8 +113,10 @@ def build_parser() -> argparse.ArgumentParser:
     frontend_options(compile_)
     compile_.add_argument("-o", "--output", type=Path, default=Path("out"), metavar="DIR",
                           help="output folder (default: out)")  # fmt: skip
-    compile_.add_argument("--target", choices=("timeline",), default="timeline",
-                          help="what to write; the IR, JackScript and BVH targets come with the motion passes")  # fmt: skip
+    compile_.add_argument("--target", choices=("ir", "timeline"), default="ir",
+                          help="what to write: the keyframe IR as JSON (default), or the expanded timeline")  # fmt: skip
+    compile_.add_argument("--fps", type=_fps, default=DEFAULT_FPS, metavar="N",
+                          help=f"frames per second of the sampled motion (default {DEFAULT_FPS:g})")  # fmt: skip
 
     explain = sub.add_parser("explain", help="show the documentation page of a diagnostic code")
     explain.add_argument("code", metavar="CODE", help="e.g. MT0201")
@@ -158,39 +173,60 @@ def _report(program: Program, fmt: str, stdout_taken: bool) -> None:
         sys.stderr.write(render_text(diags, program.sources, color=use_color(sys.stderr)))
 
 
+def _summary(program: Program) -> None:
+    tasks = len(program.timelines)
+    prims = sum(len(t.primitives) for t in program.timelines)
+    sys.stderr.write(
+        f"ok: {len(program.roots)} file{'s' if len(program.roots) != 1 else ''}, "
+        f"{tasks} task{'s' if tasks != 1 else ''}, {prims:,} primitives\n"
+    )
+
+
 def cmd_frontend(args: argparse.Namespace) -> int:
     program = run_frontend(list(args.files), _options(args))
-    _report(program, args.format, stdout_taken=bool(getattr(args, "dump", None)))
-    failed = program.sink.has_errors
-    if args.format == "text" and not failed and not getattr(args, "dump", None):
-        tasks = len(program.timelines)
-        prims = sum(len(t.primitives) for t in program.timelines)
-        sys.stderr.write(
-            f"ok: {len(program.roots)} file{'s' if len(program.roots) != 1 else ''}, "
-            f"{tasks} task{'s' if tasks != 1 else ''}, {prims:,} primitives\n"
-        )
     if args.command == "check":
-        if args.dump == "ast":
-            for module in program.roots:
-                sys.stdout.write(dump_module(module.tree))
-        elif args.dump == "timeline" and not failed:
-            docs = [t.as_dict() for t in program.timelines]
-            sys.stdout.write(json.dumps(docs, indent=1, ensure_ascii=False) + "\n")
-        return EXIT_ERRORS if failed else EXIT_OK
-    if failed:
-        return EXIT_ERRORS  # nothing is written: existing outputs stay as they were
+        return cmd_check(args, program)
+    return cmd_compile(args, program)
+
+
+def cmd_check(args: argparse.Namespace, program: Program) -> int:
+    _report(program, args.format, stdout_taken=bool(args.dump))
+    failed = program.sink.has_errors
+    if args.format == "text" and not failed and not args.dump:
+        _summary(program)
+    if args.dump == "ast":
+        for module in program.roots:
+            sys.stdout.write(dump_module(module.tree))
+    elif args.dump == "timeline" and not failed:
+        docs = [t.as_dict() for t in program.timelines]
+        sys.stdout.write(json.dumps(docs, indent=1, ensure_ascii=False) + "\n")
+    return EXIT_ERRORS if failed else EXIT_OK
+
+
+def cmd_compile(args: argparse.Namespace, program: Program) -> int:
+    """Front end, then the motion passes; every output is written, or (on any error) none."""
     files: dict[Path, str] = {}
-    for timeline in program.timelines:
-        target = args.output / f"{Path(timeline.file).stem}.{timeline.task}.timeline.json"
-        if target in files:
-            sys.stderr.write(
-                f"mtlc: two tasks would both be written to {target}; give the files or the "
-                "tasks different names, or compile them into different folders\n"
-            )
-            return EXIT_USAGE
-        files[target] = timeline.to_json()
+    if not program.sink.has_errors:
+        for timeline in program.timelines:
+            suffix = "timeline.json" if args.target == "timeline" else "ir.json"
+            target = args.output / f"{Path(timeline.file).stem}.{timeline.task}.{suffix}"
+            if target in files:
+                sys.stderr.write(
+                    f"mtlc: two tasks would both be written to {target}; give the files or the "
+                    "tasks different names, or compile them into different folders\n"
+                )
+                return EXIT_USAGE
+            if args.target == "timeline":
+                files[target] = timeline.to_json()
+            else:
+                ir = run_motion(timeline, program.sink, MotionOptions(fps=args.fps))
+                files[target] = ir_json(ir)
+    _report(program, args.format, stdout_taken=False)
+    if program.sink.has_errors:
+        return EXIT_ERRORS  # nothing is written: existing outputs stay as they were
     write_all_or_nothing(files)
     if args.format == "text":
+        _summary(program)
         for path in files:
             print(f"wrote {path}")
     return EXIT_OK

@@ -20,6 +20,7 @@ def write_all_or_nothing(files: dict[Path, str | bytes]) -> None:
             raw = data.encode("utf-8") if isinstance(data, str) else data
             fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
             staged.append((tmp, path))
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs are ordinary files
             with os.fdopen(fd, "wb") as f:
                 f.write(raw)
                 f.flush()
@@ -29,3 +30,9 @@ def write_all_or_nothing(files: dict[Path, str | bytes]) -> None:
     finally:
         for tmp, _ in staged:
             Path(tmp).unlink(missing_ok=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

@@ -1,0 +1,120 @@
+"""The IR's versioned JSON form (docs/ir.md): complete enough to recompute every frame.
+
+It carries the skeleton (joint tree, offsets, dof axes in order, limits, masses, centres of
+mass), the scene, the goals, every segment with its keyframes and provenance, and the sampled
+frames. Numbers are rounded to 6 decimals (1 µm, 1 µrad) so the same input gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+
+from mtlc.ir.model import IR_FORMAT_VERSION, Keyframes, MotionIR, Segment, SourceRef
+
+DECIMALS = 6
+
+
+def _num(v: Any) -> Any:
+    if isinstance(v, np.ndarray):
+        return _num(v.tolist())
+    if isinstance(v, float | np.floating):
+        r = round(float(v), DECIMALS)
+        return 0.0 if r == 0 else r
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.bool_):
+        return bool(v)
+    if isinstance(v, list | tuple):
+        return [_num(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _num(x) for k, x in v.items()}
+    return v
+
+
+def _ref(r: SourceRef) -> dict[str, Any]:
+    return {"file": r.file, "line": r.line, "column": r.column}
+
+
+def _keyframes(kf: Keyframes | None) -> dict[str, Any] | None:
+    if kf is None:
+        return None
+    out: dict[str, Any] = {"time": kf.time, "dofs": list(kf.dofs), "q": kf.q}
+    if kf.root_position is not None:
+        out["root_position"] = kf.root_position
+    if kf.root_rotation is not None:
+        out["root_rotation"] = kf.root_rotation
+    return out
+
+
+def _segment(s: Segment) -> dict[str, Any]:
+    g = s.goal
+    return {
+        "track": s.track,
+        "kind": s.kind,
+        "t_start": s.start,
+        "t_end": s.end,
+        "goal": {
+            "effector": g.effector,
+            "site": g.site,
+            "position": g.position,
+            "orientation": g.orientation,
+            "approach": g.approach,
+            **({"params": g.params} if g.params else {}),
+        },
+        "path": " > ".join(s.provenance.path),
+        "source": _ref(s.provenance.span),
+        "origin": _ref(s.provenance.origin),
+        "keyframes": _keyframes(s.keyframes),
+        "result": s.result,
+    }
+
+
+def to_dict(ir: MotionIR) -> dict[str, Any]:
+    skel = ir.skeleton
+    manikin = {**ir.manikin, **(skel.to_dict() if skel is not None else {})}
+    goals = [
+        {
+            "effector": s.goal.effector,
+            "site": s.goal.site,
+            "phase": s.kind,
+            "t_start": s.start,
+            "t_end": s.end,
+            "position": s.goal.position,
+            "orientation": s.goal.orientation,
+            "source": {**_ref(s.provenance.origin), "path": " > ".join(s.provenance.path)},
+        }
+        for s in ir.segments
+        if s.kind in ("TA", "TO")
+    ]
+    frames = None
+    if ir.frames is not None:
+        f = ir.frames
+        frames = {
+            "fps": f.fps,
+            "time": f.time,
+            "root_position": f.root_position,
+            "root_rotation": f.root_rotation,
+            "dof_names": [d.name for d in skel.dofs] if skel is not None else [],
+            "q": f.q,
+        }
+    doc = {
+        "format": "mtlc-ir",
+        "version": IR_FORMAT_VERSION,
+        "units": {"length": "m", "angle": "rad", "time": "s", "mass": "kg"},
+        "source": {"file": ir.file, "task": ir.task, "title": ir.title},
+        "manikin": manikin,
+        "scene": {"ground": ir.ground, "sites": ir.sites},
+        "goals": goals,
+        "segments": [_segment(s) for s in ir.segments],
+        "frames": frames,
+    }
+    return _num(doc)
+
+
+def to_json(ir: MotionIR) -> str:
+    return (
+        json.dumps(to_dict(ir), ensure_ascii=False, separators=(",", ":"), allow_nan=False) + "\n"
+    )

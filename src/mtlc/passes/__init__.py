@@ -1,0 +1,61 @@
+"""The motion passes, in order: timeline → keyframe IR → solved, corrected, sampled frames.
+
+Each pass is a function ``(MotionIR, PassContext) -> MotionIR`` in its own module; MOTION_PASSES
+below is the one place that orders them. A pass that cannot meet a goal reports a diagnostic at
+the source of the element that asked for it and leaves the IR usable for the passes after it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from mtlc.diagnostics import DiagnosticSink
+from mtlc.ir.model import MotionIR
+from mtlc.passes import (
+    approach,
+    balance,
+    contact,
+    interpolate,
+    locomotion,
+    manikin,
+    posture,
+    sample,
+    smooth,
+)
+from mtlc.passes.context import MotionOptions, PassContext
+from mtlc.passes.lower import lower
+from mtlc.semantics.timeline import Timeline
+
+MotionPass = Callable[[MotionIR, PassContext], MotionIR]
+
+MOTION_PASSES: list[tuple[str, MotionPass]] = [
+    ("manikin", manikin.build),  # 1. skeleton from population, sex, percentile
+    ("posture", posture.solve),  # whole-body postures (squat, kneel, bend...) and wrist turns
+    ("approach", approach.solve),  # 2. TA: damped least squares to the approach point
+    ("contact", contact.solve),  # 3. TO: gradient path onto the site, kept as keyframes
+    ("locomotion", locomotion.generate),  # 4. footsteps, stance, step segmentation
+    ("interpolate", interpolate.run),  # 5. interpolation with base-coordinate correction
+    ("balance", balance.run),  # 6. centre of mass over the support polygon
+    ("smooth", smooth.run),  # 7. blend offsets at segment boundaries
+    ("sample", sample.run),  # 8. frames at the output rate
+]
+
+
+def run_motion(
+    timeline: Timeline,
+    sink: DiagnosticSink,
+    options: MotionOptions | None = None,
+    *,
+    until: str | None = None,
+) -> MotionIR:
+    """Lower a timeline and run the passes in order (``until`` stops after the named pass)."""
+    ctx = PassContext(sink, options or MotionOptions())
+    ir = lower(timeline)
+    for name, motion_pass in MOTION_PASSES:
+        ir = motion_pass(ir, ctx)
+        if name == until:
+            break
+    return ir
+
+
+__all__ = ["MOTION_PASSES", "MotionOptions", "PassContext", "lower", "run_motion"]

@@ -1,0 +1,142 @@
+"""Pass 5: merge every segment's keyframes into dense whole-body frames, then correct the base.
+
+Joint angles: each degree of freedom follows a shape-preserving cubic (PCHIP: no overshoot past
+a keyframe, so no joint limit is crossed between two keyframes within limits) through all the
+keyframes that set it, holding its value before the first (from the rest pose) and after the
+last. The root follows the root plan (ground position and heading), lowered or raised by the
+postures' root keyframes, and replaced by the gait's own root keyframes while walking.
+
+Base-coordinate correction (seed 001): interpolating angles and root height separately does not
+keep the feet on the ground (the legs' height is not linear in the angles: a half-way squat
+pose stands taller than half-way between the poses, so the feet sink). After interpolation the
+root is moved by h = L − x, L the ground height and x the lowest foot point: onto the ground
+while both feet stand, only upward (never below the ground) while walking.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from mtlc.body import forward, site_positions
+from mtlc.ir.model import Frames, MotionIR, yaw_quaternion
+from mtlc.passes.context import INTERNAL_FPS, PassContext
+
+FOOT_POINTS = (
+    "r_heel",
+    "r_toe",
+    "r_ball_med",
+    "r_ball_lat",
+    "l_heel",
+    "l_toe",
+    "l_ball_med",
+    "l_ball_lat",
+)
+
+
+def time_grid(duration: float, fps: float) -> np.ndarray:
+    n = int(np.floor(duration * fps + 1e-9))
+    grid = np.arange(n + 1) / fps
+    return grid if grid[-1] >= duration - 1e-9 else np.append(grid, duration)
+
+
+def _track(times: list[float], values: list[np.ndarray], grid: np.ndarray) -> np.ndarray:
+    """Values on ``grid`` through keyframes, holding before the first and after the last."""
+    t = np.asarray(times)
+    v = np.asarray(values)
+    order = np.argsort(t, kind="stable")
+    t, v = t[order], v[order]
+    keep = np.append(np.diff(t) > 1e-9, True)  # at equal times the later keyframe wins
+    t, v = t[keep], v[keep]
+    if len(t) == 1:
+        return np.broadcast_to(v[0], (len(grid), *v.shape[1:])).copy()
+    inside = PchipInterpolator(t, v, axis=0, extrapolate=False)(np.clip(grid, t[0], t[-1]))
+    return inside
+
+
+def interpolate_joints(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
+    skel = ir.skeleton
+    rest = np.asarray(skel.q_comfort, dtype=float)
+    keys: dict[int, tuple[list[float], list[float]]] = {}
+    for seg in ir.segments:
+        kf = seg.keyframes
+        if kf is None or not kf.dofs:
+            continue
+        idx = [skel.dof_index(d) for d in kf.dofs]
+        for k, t in enumerate(kf.time):
+            for j, d in enumerate(idx):
+                ts, vs = keys.setdefault(d, ([0.0], [rest[d]]))
+                ts.append(float(t))
+                vs.append(float(kf.q[k, j]))
+    q = np.tile(rest, (len(grid), 1))
+    for d, (ts, vs) in keys.items():
+        q[:, d] = _track(ts, vs, grid)
+    return q
+
+
+def interpolate_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    skel = ir.skeleton
+    stand = float(np.asarray(skel.root_position)[1])
+    plan = ir.root_plan
+    assert plan is not None
+    position, heading = plan.at(grid)
+    position = position.copy()
+    position[:, 1] = ir.ground + stand
+    # postures move the root up and down: their keyframes give heights, held until the next
+    ts, ys = [0.0], [0.0]
+    for seg in ir.segments:
+        kf = seg.keyframes
+        if seg.kind == "posture" and kf is not None and kf.root_position is not None:
+            ts += [float(t) for t in kf.time]
+            ys += [float(y) - (ir.ground + stand) for y in kf.root_position[:, 1]]
+    position[:, 1] += _track(ts, [np.array(y) for y in ys], grid)
+    rotation = yaw_quaternion(heading)
+    # the gait sets the whole root while walking
+    for seg in ir.segments:
+        kf = seg.keyframes
+        if seg.kind != "locomotion" or kf is None or kf.root_position is None:
+            continue
+        inside = (grid >= seg.start) & (grid <= seg.end)
+        if not inside.any():
+            continue
+        position[inside] = _track(list(kf.time), list(kf.root_position), grid[inside])
+        if kf.root_rotation is not None:
+            quats = _track(list(kf.time), list(kf.root_rotation), grid[inside])
+            rotation[inside] = quats / np.linalg.norm(quats, axis=1, keepdims=True)
+    return position, rotation
+
+
+def walking_mask(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
+    mask = np.zeros(len(grid), dtype=bool)
+    for seg in ir.segments:
+        if seg.kind == "locomotion":
+            mask |= (grid >= seg.start) & (grid <= seg.end)
+    return mask
+
+
+def lowest_foot_point(ir: MotionIR, frames: Frames) -> np.ndarray:
+    pose = forward(ir.skeleton, frames.q, frames.root_position, frames.root_rotation)
+    return site_positions(ir.skeleton, pose, list(FOOT_POINTS))[..., 1].min(axis=-1)
+
+
+def correct_base(ir: MotionIR, frames: Frames) -> np.ndarray:
+    """Seed 001's h = L − x on every frame; returns the correction applied (metres, per frame)."""
+    h = ir.ground - lowest_foot_point(ir, frames)
+    walking = walking_mask(ir, frames.time)
+    h[walking] = np.maximum(h[walking], 0.0)  # a swing foot may lift; nothing may sink
+    frames.root_position[:, 1] += h
+    return h
+
+
+def interpolate_naive(ir: MotionIR, fps: float = INTERNAL_FPS) -> Frames:
+    grid = time_grid(ir.duration, fps)
+    q = interpolate_joints(ir, grid)
+    position, rotation = interpolate_root(ir, grid)
+    return Frames(fps=fps, time=grid, root_position=position, root_rotation=rotation, q=q)
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    frames = interpolate_naive(ir)
+    correct_base(ir, frames)
+    ir.frames = frames
+    return ir

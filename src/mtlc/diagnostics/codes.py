@@ -1,8 +1,8 @@
 """Every diagnostic code mtlc can emit.
 
 Codes are grouped by the stage that finds them (MT00xx input, MT01xx syntax, MT02xx modules and
-names, MT03xx types, units and calls, MT04xx expansion) and are never renumbered: CI scripts and
-suppressions depend on them. Each code has a page in docs/diagnostics/ that ``mtlc explain`` shows.
+names, MT03xx types, units and calls, MT04xx expansion, MT05xx motion passes) and are never
+renumbered: CI scripts and suppressions depend on them. Each code has a page in docs/diagnostics/ that ``mtlc explain`` shows.
 """
 
 from __future__ import annotations
@@ -111,6 +111,15 @@ _ALL = [
         Severity.ERROR,
         "two parallel branches move the same body part",
     ),
+    # motion passes
+    Code("MT0501", "unreachable-site", Severity.WARNING, "a manikin cannot reach a site"),
+    Code(
+        "MT0502",
+        "balance-lost",
+        Severity.WARNING,
+        "the centre of mass leaves the support and cannot be brought back",
+    ),
+    Code("MT0503", "walking-clip", Severity.ERROR, "a walking clip that cannot be read or used"),
     # internal
     Code("MT0900", "internal-error", Severity.ERROR, "a bug in mtlc: please report it"),
 ]

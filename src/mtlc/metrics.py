@@ -1,0 +1,430 @@
+"""Motion metrics on any sampled motion: what the issue's acceptance numbers are measured with.
+
+Everything here reads plain data (frames, a skeleton, the ground height, which feet stand, the
+goals), so the same functions check mtlc's own output, a hand-made synthetic motion in a test,
+or frames read back from the IR JSON. Units are SI inside (m, m/s, rad); the table shows mm,
+cm/s and degrees.
+
+Smoothness is the log dimensionless jerk (LDLJ) of a hand's path, velocity-based:
+``LDLJ = −ln( T³ / v_peak² · ∫ |d³x/dt³|² dt )`` (Balasubramanian, Melendez-Calderon, Roby-Brami
+& Burdet 2015, "On the analysis of movement smoothness", J NeuroEng Rehabil 12:112; the
+dimensionless jerk of Hogan & Sternad 2009, "Sensitivity of smoothness measures to movement
+duration, amplitude, and arrests", J Motor Behavior 41:529). Higher is smoother: a
+minimum-jerk point-to-point movement scores −ln(720/1.875²) ≈ −5.32.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from io import StringIO
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mtlc.body import center_of_mass, forward, site_positions
+from mtlc.ir.model import Frames, MotionIR
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+FEET = ("r", "l")
+FOOT_POINT_NAMES = ("heel", "toe", "ball_med", "ball_lat")
+CONTACT_TOL = 0.01  # a foot point within 1 cm of the ground touches it
+HAND_SITES = ("r_hand", "l_hand", "r_fingertip", "l_fingertip")
+
+# Acceptance thresholds from the issue ("Motion metrics").
+MAX_PENETRATION = 1e-3  # m
+MAX_SKATING = 0.02  # m/s, feet in stance
+MIN_SUPPORT_MARGIN = 0.0  # m, static postures
+MAX_CONTACT_ERROR = 1e-3  # m, where the site is reachable
+
+
+# -- geometry --------------------------------------------------------------------------------
+
+
+def support_margin(points: FloatArray, valid: BoolArray, com: FloatArray) -> FloatArray:
+    """Signed distance (N,) of ground points ``com`` (N, 2) to the convex hull of ``points``.
+
+    ``points`` (N, P, 2) are the ground-plane (x, z) coordinates of the contact points, ``valid``
+    (N, P) which of them touch. Positive inside (distance to the nearest edge), negative outside
+    (distance to the polygon); a hull of one point or a segment has no inside. NaN where no point
+    touches. Vectorised over frames: with P ≤ 8 points every pair is tried as a hull edge (an
+    edge has all the other points on one side).
+    """
+    pts = np.asarray(points, dtype=float)
+    ok = np.asarray(valid, dtype=bool)
+    c = np.asarray(com, dtype=float)
+    p = ok.shape[1]
+    ii, jj = np.triu_indices(p, 1)
+    a, b = pts[:, ii], pts[:, jj]  # (N, E, 2)
+    pair_ok = ok[:, ii] & ok[:, jj]
+    d = b - a
+    length = np.hypot(d[..., 0], d[..., 1])
+    pair_ok &= length > 1e-9
+    safe = np.where(length > 1e-9, length, 1.0)
+    # side of every point k to every pair's line (N, E, P), in metres
+    rel = pts[:, None, :, :] - a[:, :, None, :]
+    side = (d[..., None, 0] * rel[..., 1] - d[..., None, 1] * rel[..., 0]) / safe[..., None]
+    eps = 1e-9
+    others = ok[:, None, :]
+    pos = np.where(others, side > eps, False).any(axis=-1)
+    neg = np.where(others, side < -eps, False).any(axis=-1)
+    edge = pair_ok & ~(pos & neg)
+    orient = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))  # 0: every point on the line
+    # signed distance of the CoM to each edge line, positive toward the hull's inside
+    rc = c[:, None, :] - a
+    line = (d[..., 0] * rc[..., 1] - d[..., 1] * rc[..., 0]) / safe
+    inward = orient * line
+    # distance to each edge segment, and to lone points
+    t = np.clip(np.einsum("nek,nek->ne", rc, d) / (safe**2), 0.0, 1.0)
+    seg = np.hypot(*np.moveaxis(rc - t[..., None] * d, -1, 0))
+    seg_d = np.where(edge, seg, np.inf).min(axis=1)
+    pt_d = np.where(ok, np.hypot(*np.moveaxis(pts - c[:, None, :], -1, 0)), np.inf).min(axis=1)
+    outside_d = np.minimum(seg_d, pt_d)
+    solid = (edge & (orient != 0)).any(axis=1)
+    inside = solid & np.where(edge & (orient != 0), inward >= 0.0, True).all(axis=1)
+    inside_d = np.where(edge & (orient != 0), inward, np.inf).min(axis=1)
+    out = np.where(inside, inside_d, -outside_d)
+    return np.where(ok.any(axis=1), out, np.nan)
+
+
+def support_push(
+    points: FloatArray, valid: BoolArray, com: FloatArray, margin: float
+) -> FloatArray:
+    """Ground-plane move (N, 2) that brings ``com`` to ``margin`` inside the support, about.
+
+    Inside, along the nearest edge's inward normal by what is missing; outside, toward the
+    nearest point of the hull plus ``margin``. Exact for one edge; callers iterate.
+    """
+    pts = np.asarray(points, dtype=float)
+    ok = np.asarray(valid, dtype=bool)
+    c = np.asarray(com, dtype=float)
+    m = support_margin(pts, ok, c)
+    # centroid of the touching points: a direction that always points inward
+    w = ok.astype(float)
+    cnt = np.maximum(w.sum(axis=1), 1.0)
+    centroid = np.einsum("np,npk->nk", w, np.nan_to_num(pts)) / cnt[:, None]
+    to_c = centroid - c
+    dist = np.hypot(to_c[:, 0], to_c[:, 1])
+    u = to_c / np.maximum(dist, 1e-12)[:, None]
+    need = np.where(np.isnan(m), 0.0, np.maximum(margin - m, 0.0))
+    need = np.minimum(need, dist)  # never past the centre of the support
+    return u * need[:, None]
+
+
+# -- contact information ---------------------------------------------------------------------
+
+
+def foot_stance(ir: MotionIR, time: FloatArray) -> BoolArray:
+    """(N, 2) which feet (r, l) stand at each time: both, except a foot in the air in a step.
+
+    Locomotion segments record their footsteps in ``result["steps"]`` (foot, t_lift, t_land);
+    between walks both feet stand.
+    """
+    t = np.asarray(time, dtype=float)
+    stance = np.ones((len(t), 2), dtype=bool)
+    for seg in ir.segments:
+        if seg.kind != "locomotion":
+            continue
+        for step in seg.result.get("steps", ()) or ():
+            k = FEET.index(str(step["foot"])[0])
+            swing = (t > float(step["t_lift"]) + 1e-9) & (t < float(step["t_land"]) - 1e-9)
+            stance[swing, k] = False
+    return stance
+
+
+def walking(ir: MotionIR, time: FloatArray) -> BoolArray:
+    """(N,) frames inside a locomotion segment."""
+    t = np.asarray(time, dtype=float)
+    mask = np.zeros(len(t), dtype=bool)
+    for seg in ir.segments:
+        if seg.kind == "locomotion":
+            mask |= (t >= seg.start - 1e-9) & (t <= seg.end + 1e-9)
+    return mask
+
+
+def foot_points(skel: Any, pose: Any) -> FloatArray:
+    """(N, 8, 3) world positions of the four sole points of the right, then the left foot."""
+    names = [f"{s}_{p}" for s in FEET for p in FOOT_POINT_NAMES]
+    return site_positions(skel, pose, names)
+
+
+def contact_mask(feet: FloatArray, stance: BoolArray, ground: float) -> BoolArray:
+    """(N, 8) sole points that touch: their foot stands and they are within 1 cm of the ground."""
+    near = feet[..., 1] - ground <= CONTACT_TOL
+    return near & np.repeat(stance, len(FOOT_POINT_NAMES), axis=1)
+
+
+# -- the metrics -----------------------------------------------------------------------------
+
+
+def penetration(skel: Any, pose: Any, ground: float) -> FloatArray:
+    """(N,) depth of the lowest body point below the ground (m, 0 when nothing is below).
+
+    Body points: every joint centre, the sole points, hands, feet and fingertips.
+    """
+    names = [f"{s}_{p}" for s in FEET for p in FOOT_POINT_NAMES]
+    names += ["r_hand", "l_hand", "r_foot", "l_foot", "r_fingertip", "l_fingertip"]
+    low = np.minimum(pose.p[..., 1].min(axis=-1), site_positions(skel, pose, names)[..., 1].min(-1))
+    return np.maximum(ground - low, 0.0)
+
+
+def foot_skating(feet: FloatArray, contact: BoolArray, time: FloatArray) -> FloatArray:
+    """(N-1, 8) horizontal speed (m/s) of each sole point touching at both ends of a frame step.
+
+    NaN where the point does not touch at both frames. A heel rising off the ground stops
+    counting; the toe it pivots on does not slide, so rolling is not skating.
+    """
+    dt = np.diff(np.asarray(time, dtype=float))
+    dxz = np.diff(feet[..., [0, 2]], axis=0)
+    speed = np.hypot(dxz[..., 0], dxz[..., 1]) / np.maximum(dt, 1e-12)[:, None]
+    both = contact[1:] & contact[:-1]
+    return np.where(both, speed, np.nan)
+
+
+def ldlj(path: FloatArray, time: FloatArray) -> float:
+    """Log dimensionless jerk (velocity-based) of a path (T, 3); NaN if it barely moves."""
+    x = np.asarray(path, dtype=float)
+    t = np.asarray(time, dtype=float)
+    if len(t) < 6:
+        return math.nan
+    v = np.gradient(x, t, axis=0)
+    a = np.gradient(v, t, axis=0)
+    j = np.gradient(a, t, axis=0)
+    vpeak = float(np.linalg.norm(v, axis=1).max())
+    if vpeak < 1e-6:
+        return math.nan
+    duration = float(t[-1] - t[0])
+    j2 = np.einsum("ti,ti->t", j, j)
+    integral = float(np.sum(0.5 * (j2[1:] + j2[:-1]) * np.diff(t)))
+    if integral <= 0.0:
+        return math.nan
+    return -math.log(duration**3 / vpeak**2 * integral)
+
+
+def limit_violations(skel: Any, q: FloatArray, tol: float = 1e-6) -> tuple[int, float, str]:
+    """(count of frame × dof values outside their limits, worst excess in degrees, its dof)."""
+    over = np.maximum(q - skel.upper, 0.0) + np.maximum(skel.lower - q, 0.0)
+    count = int(np.count_nonzero(over > tol))
+    if count == 0:
+        return 0, 0.0, ""
+    k = int(np.argmax(over.max(axis=0)))
+    return count, math.degrees(float(over[:, k].max())), skel.dof_names[k]
+
+
+def frames_at(frames: Frames, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Linear interpolation of a frame at time ``t`` (q, root position, root rotation)."""
+    ts = frames.time
+    i = int(np.clip(np.searchsorted(ts, t) - 1, 0, max(len(ts) - 2, 0)))
+    if len(ts) == 1:
+        return frames.q[0], frames.root_position[0], frames.root_rotation[0]
+    w = float(np.clip((t - ts[i]) / max(ts[i + 1] - ts[i], 1e-12), 0.0, 1.0))
+
+    def lerp(v: FloatArray) -> FloatArray:
+        return (1 - w) * v[i] + w * v[i + 1]
+
+    rot = lerp(frames.root_rotation)
+    return lerp(frames.q), lerp(frames.root_position), rot / np.linalg.norm(rot)
+
+
+@dataclass
+class ContactError:
+    """Hand-to-site distance at the end of one TO segment."""
+
+    effector: str
+    site: str
+    time: float
+    error: float  # m
+    reachable: bool
+
+
+@dataclass
+class Metrics:
+    """What ``compute_metrics`` measures; SI units (m, m/s, degrees only for limits)."""
+
+    frames: int
+    duration: float
+    penetration: float  # m, deepest body point below the ground over all frames
+    penetration_time: float
+    foot_skating: float  # m/s, fastest sliding sole point in contact (NaN: never in contact)
+    support_margin: FloatArray  # (N,) m, signed, NaN where no foot touches
+    static: BoolArray  # (N,) frames outside walking
+    support_margin_static: float  # m, minimum over static frames (NaN: none)
+    contact_errors: list[ContactError] = field(default_factory=list)
+    limit_count: int = 0
+    limit_worst_deg: float = 0.0
+    limit_worst_dof: str = ""
+    ldlj: dict[str, list[tuple[str, float]]] = field(default_factory=dict)  # hand -> (label, v)
+
+    @property
+    def contact_error(self) -> float:
+        """Largest hand-to-site distance over reachable contacts (m; 0 when there are none)."""
+        errs = [c.error for c in self.contact_errors if c.reachable]
+        return max(errs, default=0.0)
+
+    @property
+    def ldlj_worst(self) -> float:
+        vals = [v for per in self.ldlj.values() for _, v in per if not math.isnan(v)]
+        return min(vals, default=math.nan)
+
+    def passes(self) -> dict[str, bool]:
+        """The issue's acceptance checks, by metric."""
+        return {
+            "penetration": self.penetration <= MAX_PENETRATION,
+            "foot_skating": not self.foot_skating > MAX_SKATING,
+            "support_margin": not self.support_margin_static < MIN_SUPPORT_MARGIN,
+            "contact_error": self.contact_error <= MAX_CONTACT_ERROR,
+            "joint_limits": self.limit_count == 0,
+        }
+
+
+def _reachable(result: dict[str, Any]) -> bool:
+    for key in ("reachable", "success", "reached"):
+        if key in result:
+            return bool(result[key])
+    return True
+
+
+def _reaches(ir: MotionIR) -> list[tuple[str, str, float, float]]:
+    """(hand, label, start, end) of each reach: TA and TO of one site, merged when contiguous."""
+    out: list[tuple[str, str, float, float]] = []
+    for track in ("r_arm", "l_arm"):
+        segs = [s for s in ir.on_track(track) if s.kind in ("TA", "TO")]
+        segs.sort(key=lambda s: s.start)
+        for s in segs:
+            label = f"{s.kind} {s.goal.site or ''}".strip()
+            hand = s.goal.effector
+            last = out[-1] if out else None
+            if (
+                last is not None
+                and last[0] == hand
+                and last[1].split(" ", 1)[-1] == (s.goal.site or "")
+                and abs(last[3] - s.start) < 1e-6
+            ):
+                out[-1] = (hand, f"reach {s.goal.site}", last[2], s.end)
+            else:
+                out.append((hand, label, s.start, s.end))
+    return out
+
+
+def compute_metrics(ir: MotionIR) -> Metrics:
+    """Every metric on the IR's frames (after sampling or on the dense frames)."""
+    frames = ir.frames
+    skel = ir.skeleton
+    if frames is None or skel is None or len(frames.time) == 0:
+        raise ValueError("the IR has no frames: run the motion passes first")
+    t = frames.time
+    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
+    pen = penetration(skel, pose, ir.ground)
+    k = int(np.argmax(pen))
+    stance = foot_stance(ir, t)
+    feet = foot_points(skel, pose)
+    contact = contact_mask(feet, stance, ir.ground)
+    skate = foot_skating(feet, contact, t) if len(t) > 1 else np.full((0, 8), np.nan)
+    skating = float(np.nanmax(skate)) if np.isfinite(skate).any() else math.nan
+    com = center_of_mass(skel, pose)
+    margin = support_margin(feet[..., [0, 2]], contact, com[:, [0, 2]])
+    static = ~walking(ir, t)
+    sel = margin[static & ~np.isnan(margin)]
+    contacts: list[ContactError] = []
+    for seg in ir.segments:
+        if seg.kind != "TO" or seg.goal.position is None:
+            continue
+        qt, rp, rr = frames_at(frames, seg.end)
+        p = forward(skel, qt[None], rp[None], rr[None])
+        hand = site_positions(skel, p, seg.goal.effector)[0]
+        err = float(np.linalg.norm(hand - np.asarray(seg.goal.position, dtype=float)))
+        contacts.append(
+            ContactError(
+                seg.goal.effector, seg.goal.site or "", seg.end, err, _reachable(seg.result)
+            )
+        )
+    count, worst, dof = limit_violations(skel, frames.q)
+    smooth: dict[str, list[tuple[str, float]]] = {}
+    hands = site_positions(skel, pose, ["r_hand", "l_hand"])
+    for hand, label, t0, t1 in _reaches(ir):
+        inside = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
+        path = hands[inside, 0 if hand == "r_hand" else 1]
+        smooth.setdefault(hand, []).append((label, ldlj(path, t[inside])))
+    return Metrics(
+        frames=len(t),
+        duration=float(t[-1] - t[0]),
+        penetration=float(pen[k]),
+        penetration_time=float(t[k]),
+        foot_skating=skating,
+        support_margin=margin,
+        static=static,
+        support_margin_static=float(sel.min()) if sel.size else math.nan,
+        contact_errors=contacts,
+        limit_count=count,
+        limit_worst_deg=worst,
+        limit_worst_dof=dof,
+        ldlj=smooth,
+    )
+
+
+# -- the table -------------------------------------------------------------------------------
+
+
+def _fmt(v: float, scale: float, digits: int) -> str:
+    return "–" if v is None or math.isnan(v) else f"{v * scale:.{digits}f}"
+
+
+def metric_rows(m: Metrics) -> list[tuple[str, str, str, str]]:
+    """(metric, value, threshold, verdict) rows for one motion."""
+    ok = m.passes()
+
+    def verdict(key: str) -> str:
+        return "ok" if ok[key] else "FAIL"
+
+    unreachable = sum(1 for c in m.contact_errors if not c.reachable)
+    reach_note = f" ({unreachable} unreachable)" if unreachable else ""
+    limits = (
+        f"{m.limit_count} ({m.limit_worst_deg:.2f}° {m.limit_worst_dof})" if m.limit_count else "0"
+    )
+    smooth = {h: [v for _, v in per if not math.isnan(v)] for h, per in m.ldlj.items()}
+    ldj = ", ".join(f"{h} {min(v):.2f}" for h, v in sorted(smooth.items()) if v) or "–"
+    return [
+        ("frames", f"{m.frames} ({m.duration:.2f} s)", "", ""),
+        ("penetration (mm)", _fmt(m.penetration, 1e3, 2), "≤ 1", verdict("penetration")),
+        ("foot skating (cm/s)", _fmt(m.foot_skating, 1e2, 2), "< 2", verdict("foot_skating")),
+        (
+            "support margin, static (mm)",
+            _fmt(m.support_margin_static, 1e3, 1),
+            "≥ 0",
+            verdict("support_margin"),
+        ),
+        (
+            "contact error (mm)",
+            _fmt(m.contact_error, 1e3, 2) + reach_note,
+            "≤ 1",
+            verdict("contact_error"),
+        ),
+        ("joint-limit violations", limits, "0", verdict("joint_limits")),
+        ("hand smoothness, worst LDLJ", ldj, "higher is smoother", ""),
+    ]
+
+
+def render_metrics(runs: list[tuple[str, Metrics]]) -> str:
+    """A plain-text table (rich, no colour, no terminal needed): one column per motion."""
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="motion metrics", box=None, pad_edge=False)
+    table.add_column("metric")
+    table.add_column("threshold")
+    for name, _ in runs:
+        table.add_column(name, justify="right")
+    per_run = [metric_rows(m) for _, m in runs]
+    for i, (label, _, threshold, _) in enumerate(per_run[0] if per_run else []):
+        cells = []
+        for rows in per_run:
+            _, value, _, verdict = rows[i]
+            cells.append(f"{value} {verdict}".rstrip() if verdict == "FAIL" else value)
+        table.add_row(label, threshold, *cells)
+    buf = StringIO()
+    console = Console(file=buf, width=200, color_system=None, force_terminal=False)
+    console.print(table)
+    return "\n".join(line.rstrip() for line in buf.getvalue().splitlines()) + "\n"

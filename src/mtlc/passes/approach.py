@@ -1,13 +1,210 @@
-"""Placeholder while this pass is being written: it must be replaced before the issue closes."""
+"""Pass 2, TA (target approaching, seeds 000 and 001): bring each hand to its approach point.
+
+For every TA segment, in time order, the body is taken as it is at the segment's start (the
+joints from the keyframes so far, ``state.PoseState``) and the root where the plan puts it at
+the segment's end (the hand arrives where the body then stands). The approach point is the site
+moved out along its normal by the goal's ``approach`` distance, or, for a site without a normal,
+that far short of the site on the line from the shoulder, so the TO phase comes in straight.
+
+Seed 001's Jacobian IK (``solve_ta``: damped least squares with limits and restarts) moves the
+arm chain (shoulder, elbow, wrist) first; if that leaves the hand more than the tolerance short,
+it retries with the torso (lumbar, thorax, clavicle) and keeps the better pose. TA segments that
+share a time window on both arms form one group: if the torso is needed they are solved together
+so both hands agree on one trunk. A two-handed goal grips its site with the hands
+``TWO_HAND_SPREAD`` apart across the body (the segment's goal position says where each hand
+goes). When the best pose is still short the pass reports MT0501 at the task line that asked
+for the goal and keeps the best pose.
+
+Keyframes: the pose at the segment's start (held until then) and the solution at its end.
+"""
 
 from __future__ import annotations
 
-from mtlc.ir.model import MotionIR
+from typing import Any
+
+import numpy as np
+
+from mtlc.body.ik import ChainModel, Goal, default_dofs, prepare, solve_ta
+from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
+from mtlc.passes.state import PoseState, cached, mark, reanchor
+
+TOLERANCE = 1e-3  # m, the solvers' position tolerance; further than this is "short"
+TWO_HAND_SPREAD = 0.20  # m between the hands on a two-handed site, across the body
+ARM_TRACKS = ("l_arm", "r_arm")
 
 
-def _unfinished(ir: MotionIR, ctx: PassContext) -> MotionIR:
+def model_for(
+    ctx: PassContext,
+    skel: Any,
+    effectors: tuple[str, ...],
+    reach: str,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+) -> ChainModel:
+    """A prepared chain model, reused while the frozen body and root are the same."""
+    active = default_dofs(skel, list(effectors), reach)
+    frozen = q.copy()
+    frozen[active] = 0.0
+    key = (effectors, reach, root[0].tobytes(), root[1].tobytes(), frozen.round(12).tobytes())
+    return cached(
+        ctx.cache,
+        key,
+        lambda: prepare(
+            skel, list(effectors), q, reach=reach, root_position=root[0], root_rotation=root[1]
+        ),
+    )
+
+
+def site_position(ir: MotionIR, name: str | None) -> FloatArray | None:
+    for s in ir.sites:
+        if s["name"] == name:
+            return np.asarray(s["position"], dtype=float)
+    return None
+
+
+def hand_target(ir: MotionIR, seg: Segment, heading_rot: FloatArray) -> FloatArray:
+    """Where this hand grips: the site, or beside it for a two-handed goal."""
+    goal = seg.goal
+    base = site_position(ir, goal.site)
+    if base is None:
+        base = np.asarray(goal.position, dtype=float)
+    if not goal.params.get("two_handed"):
+        return base
+    w, _, y, _ = heading_rot
+    left = np.array([1.0 - 2.0 * y * y, 0.0, -2.0 * w * y])  # the body's +X, turned by heading
+    n = goal.params.get("normal")
+    if n is not None:
+        nv = np.asarray(n, dtype=float) / np.linalg.norm(n)
+        left = left - nv * float(left @ nv)
+        if np.linalg.norm(left) < 1e-6:  # normal along the body's side: spread along +Z
+            left = np.cross(nv, [0.0, 1.0, 0.0])
+        left = left / np.linalg.norm(left)
+    side = 1.0 if goal.effector.startswith("l") else -1.0
+    return base + side * 0.5 * TWO_HAND_SPREAD * left
+
+
+def approach_point(
+    state: PoseState, seg: Segment, target: FloatArray, q: FloatArray, root: Any
+) -> FloatArray:
+    goal = seg.goal
+    dist = float(goal.approach or 0.0)
+    if dist <= 0.0:
+        return target
+    normal = goal.params.get("approach_normal") or goal.params.get("normal")
+    if normal is not None:
+        n = np.asarray(normal, dtype=float)
+        return target + dist * n / np.linalg.norm(n)
+    side = "r" if goal.effector.startswith("r") else "l"
+    shoulder = state.site(f"joint:{side}_shoulder", q, root)
+    d = target - shoulder
+    norm = float(np.linalg.norm(d))
+    return target if norm < 1e-9 else target - dist * d / norm
+
+
+def report_short(ctx: PassContext, seg: Segment, short: float) -> None:
+    """MT0501 once per goal (TA and TO of one goal share their origin)."""
+    done: set[Any] = ctx.cache.setdefault("passes.unreachable", set())
+    key = (seg.provenance.origin, seg.goal.site, seg.track)
+    if key in done:
+        return
+    done.add(key)
+    ctx.report(
+        "MT0501",
+        f"{seg.goal.effector.replace('_', ' ')} cannot reach site `{seg.goal.site}`: "
+        f"{short * 1000:.0f} mm short",
+        seg.provenance.origin,
+    )
+
+
+def hand_distance(state: PoseState, effector: str, q: FloatArray, root: Any, p: Any) -> float:
+    return float(np.linalg.norm(state.site(effector, q, root) - p))
+
+
+def solve_group(
+    ctx: PassContext,
+    state: PoseState,
+    segs: list[Segment],
+    targets: list[FloatArray],
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+) -> tuple[FloatArray, str, list[float]]:
+    """Best pose for one or two hands: arm chains first, then (together) with the torso."""
+    skel = state.skel
+    q = q0.copy()
+    for seg, p in zip(segs, targets, strict=True):
+        goal = Goal(seg.goal.effector, position=p, orientation=seg.goal.orientation)
+        m = model_for(ctx, skel, (seg.goal.effector,), "arm", q, root)
+        q = solve_ta(skel, [goal], q, model=m).q[0]
+    dist = [
+        hand_distance(state, s.goal.effector, q, root, p)
+        for s, p in zip(segs, targets, strict=True)
+    ]
+    if max(dist) <= TOLERANCE:
+        return q, "arm", dist
+    goals = [
+        Goal(s.goal.effector, position=p, orientation=s.goal.orientation)
+        for s, p in zip(segs, targets, strict=True)
+    ]
+    effs = tuple(s.goal.effector for s in segs)
+    m = model_for(ctx, skel, effs, "torso", q0, root)
+    qt = solve_ta(skel, goals, q0, model=m).q[0]
+    dt = [
+        hand_distance(state, s.goal.effector, qt, root, p)
+        for s, p in zip(segs, targets, strict=True)
+    ]
+    if max(dt) < max(dist):
+        return qt, "torso", dt
+    return q, "arm", dist
+
+
+def chain_names(skel: Any, effectors: list[str], reach: str) -> tuple[str, ...]:
+    return tuple(skel.dof_names[d] for d in default_dofs(skel, effectors, reach))
+
+
+def groups(ir: MotionIR, kind: str) -> list[list[Segment]]:
+    """Segments of ``kind`` on the arms, grouped by shared time window, in time order."""
+    by: dict[tuple[float, float], list[Segment]] = {}
+    for s in ir.segments:
+        if s.kind == kind and s.track in ARM_TRACKS:
+            by.setdefault((round(s.start, 9), round(s.end, 9)), []).append(s)
+    return [sorted(v, key=lambda s: s.track) for _, v in sorted(by.items())]
+
+
+def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    state = PoseState(ir)
+    skel = ir.skeleton
+    for segs in groups(ir, "TA"):
+        t0, t1 = segs[0].start, segs[0].end
+        q0 = state.q_at(t0)
+        root = state.root_at(t1)
+        targets = []
+        for seg in segs:
+            seg.goal.position = hand_target(ir, seg, root[1])
+            targets.append(approach_point(state, seg, seg.goal.position, q0, root))
+        q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root)
+        for seg, p, d in zip(segs, targets, dist, strict=True):
+            names = chain_names(skel, [seg.goal.effector], reach)
+            idx = [skel.dof_index(n) for n in names]
+            seg.keyframes = Keyframes(
+                time=np.array([t0, t1]), dofs=names, q=np.stack([q0[idx], q1[idx]])
+            )
+            ok = d <= TOLERANCE
+            seg.result = {
+                "distance": d,
+                "success": bool(ok and skel.within_limits(q1)),
+                "reach": reach,
+                "approach_point": [float(v) for v in p],
+            }
+            if not ok:
+                report_short(ctx, seg, d)
+            state.add(seg)
+            mark(ctx.cache, seg)
+    reanchor(ir, ctx.cache, _restaters())
     return ir
 
 
-solve = generate = run = _unfinished
+def _restaters() -> dict[str, Any]:
+    from mtlc.passes.posture import RESTATERS
+
+    return RESTATERS

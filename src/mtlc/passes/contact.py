@@ -1,13 +1,195 @@
-"""Placeholder while this pass is being written: it must be replaced before the issue closes."""
+"""Pass 3, TO (target overlapping, seed 000): the hand's last stretch onto the site, as a path.
+
+From the pose the TA phase left (the keyframes so far at the segment's start), seed 000's
+gradient path (``solve_to``: steps down the gradient of the end-effector distance, adaptive step
+after seed 004 claim 5, every accepted step lowers the distance) moves the same chain TA used
+(the arm, or the arm with the torso when TA needed it) onto the site. The path itself becomes
+the keyframes, so the final approach is continuous and the hand never backs away:
+
+* at most ``MAX_KEYFRAMES`` configurations are kept, chosen at even steps of progress
+  (distance covered / distance to cover), first and last always;
+* each keyframe's time is the segment's start plus its share of the progress, so the distance
+  to the target falls monotonically over time and the hand moves at a steady pace.
+
+Hands that share a time window and needed the torso are solved together (one trunk for both).
+A hand still more than 1 mm from its site reports MT0501 at the task line (once per goal: a
+goal TA already found short is not reported again) and keeps its best pose.
+"""
 
 from __future__ import annotations
 
-from mtlc.ir.model import MotionIR
+import numpy as np
+
+from mtlc.body import forward, site_positions
+from mtlc.body.ik import Goal, solve_ta, solve_to
+from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
+from mtlc.passes.approach import (
+    TOLERANCE,
+    _restaters,
+    chain_names,
+    groups,
+    hand_target,
+    model_for,
+    report_short,
+)
 from mtlc.passes.context import PassContext
+from mtlc.passes.state import PoseState, reanchor
+
+MAX_KEYFRAMES = 12
+MAX_ITER = 400
 
 
-def _unfinished(ir: MotionIR, ctx: PassContext) -> MotionIR:
+def _ta_reach(ir: MotionIR, seg: Segment) -> str:
+    """The reach the same goal's TA used (a TO continues on the same chain)."""
+    best = "arm"
+    for s in ir.segments:
+        same = s.provenance.origin == seg.provenance.origin and s.goal.site == seg.goal.site
+        if same and s.kind == "TA" and s.track == seg.track and s.end <= seg.start + 1e-9:
+            best = s.result.get("reach", "arm")
+    return best
+
+
+def _ta_short(ir: MotionIR, seg: Segment) -> bool:
+    """Did this goal's TA already fall short (then TO cannot reach either: spend less)?"""
+    for s in ir.segments:
+        same = s.provenance.origin == seg.provenance.origin and s.goal.site == seg.goal.site
+        if same and s.kind == "TA" and s.track == seg.track and s.result.get("distance", 0) > 0.01:
+            return True
+    return False
+
+
+def _distances(
+    skel: object, configs: FloatArray, effectors: list[str], targets: list[FloatArray], root: tuple
+) -> FloatArray:
+    """(K, H) distance of each hand to its target for K configurations."""
+    k = configs.shape[0]
+    pose = forward(
+        skel, configs, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4))
+    )
+    pts = np.asarray(site_positions(skel, pose, effectors)).reshape(k, len(effectors), 3)
+    return np.linalg.norm(pts - np.stack(targets)[None], axis=-1)
+
+
+def select_keys(dist: FloatArray, n_max: int = MAX_KEYFRAMES) -> tuple[list[int], FloatArray]:
+    """Path indices to keep and their progress in [0, 1], non-decreasing distance drop.
+
+    ``dist`` (T, H): per path sample, each hand's distance. A sample is kept only if no hand is
+    further than at the last kept sample, so the kept distances never rise."""
+    total = dist.sum(axis=1)
+    span = total[0] - total[-1]
+    if span <= 1e-12 or len(total) < 2:
+        return [0, len(total) - 1], np.array([0.0, 1.0])
+    progress = np.clip((total[0] - total) / span, 0.0, 1.0)
+    keep = [0]
+    for level in np.linspace(0.0, 1.0, n_max)[1:]:
+        i = int(np.argmax(progress >= level - 1e-12))
+        if i > keep[-1] and np.all(dist[i] <= dist[keep[-1]] + 1e-12):
+            keep.append(i)
+    last = len(total) - 1
+    if keep[-1] != last:
+        if np.all(dist[last] <= dist[keep[-1]] + 1e-12):
+            keep.append(last)
+        else:  # a hand rose at the end: keep the best sample seen
+            keep.append(last if keep[-1] == 0 else keep[-1])
+    prog = np.maximum.accumulate(progress[keep])
+    prog[0], prog[-1] = 0.0, 1.0
+    return keep, prog
+
+
+def _gradient(
+    ctx: PassContext,
+    state: PoseState,
+    goals: list[Goal],
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    reach: str,
+    max_iter: int,
+) -> FloatArray:
+    """Seed 000's gradient path (T, n_dofs) for these goals, on one prepared model."""
+    effs = tuple(g.effector for g in goals)
+    model = model_for(ctx, state.skel, effs, reach, q0, root)
+    res = solve_to(state.skel, goals, q0, model=model, tol=0.5 * TOLERANCE, max_iter=max_iter)
+    assert res.path is not None
+    return np.asarray(res.path[:, 0])
+
+
+def best_path(
+    ctx: PassContext,
+    state: PoseState,
+    segs: list[Segment],
+    targets: list[FloatArray],
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    reach: str,
+    hopeless: bool,
+) -> tuple[FloatArray, str, FloatArray]:
+    """The path onto the sites: the gradient path on TA's chain; if it stalls short of a
+    reachable site (a local minimum at a limit), the gradient path with the torso, then the
+    straight joint-space line to a DLS solution (kept samples still never move away).
+    Returns the path, the reach used and the (T, H) distances along it."""
+    skel = state.skel
+    goals = [
+        Goal(s.goal.effector, position=p, orientation=s.goal.orientation)
+        for s, p in zip(segs, targets, strict=True)
+    ]
+    effs = [g.effector for g in goals]
+    path = _gradient(ctx, state, goals, q0, root, reach, MAX_ITER // 4 if hopeless else MAX_ITER)
+    dist = _distances(skel, path, effs, targets, root)
+    if hopeless or dist[-1].max() <= TOLERANCE:
+        return path, reach, dist
+    tries = []
+    if reach != "torso":
+        tries.append(("torso", _gradient(ctx, state, goals, q0, root, "torso", MAX_ITER)))
+    model = model_for(ctx, skel, tuple(effs), "torso", q0, root)
+    q_star = solve_ta(skel, goals, q0, model=model).q[0]
+    line = q0[None] + np.linspace(0.0, 1.0, 2 * MAX_KEYFRAMES)[:, None] * (q_star - q0)[None]
+    tries.append(("torso", line))
+    for r, p in tries:
+        d = _distances(skel, p, effs, targets, root)
+        if d[-1].max() < dist[-1].max():
+            path, reach, dist = p, r, d
+        if dist[-1].max() <= TOLERANCE:
+            break
+    return path, reach, dist
+
+
+def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    state = PoseState(ir)
+    skel = ir.skeleton
+    for segs in groups(ir, "TO"):
+        t0, t1 = segs[0].start, segs[0].end
+        q0 = state.q_at(t0)
+        root = state.root_at(t1)
+        targets = []
+        for seg in segs:
+            seg.goal.position = hand_target(ir, seg, root[1])
+            targets.append(seg.goal.position)
+        reaches = [_ta_reach(ir, s) for s in segs]
+        if "torso" in reaches and len(segs) > 1:
+            parts = [(segs, targets, "torso")]
+        else:
+            parts = [([s], [p], r) for s, p, r in zip(segs, targets, reaches, strict=True)]
+        for psegs, ptargets, reach in parts:
+            hopeless = any(_ta_short(ir, s) for s in psegs)
+            path, reach, dist = best_path(ctx, state, psegs, ptargets, q0, root, reach, hopeless)
+            keep, prog = select_keys(dist)
+            times = t0 + (t1 - t0) * prog
+            q0 = path[keep[-1]].copy()  # the next hand of the window starts from this pose
+            for h, seg in enumerate(psegs):
+                names = chain_names(skel, [seg.goal.effector], reach)
+                idx = [skel.dof_index(n) for n in names]
+                seg.keyframes = Keyframes(time=times.copy(), dofs=names, q=path[keep][:, idx])
+                d = float(dist[keep[-1], h])
+                ok = d <= TOLERANCE
+                seg.result = {
+                    "distance": d,
+                    "success": bool(ok and skel.within_limits(path[keep[-1]])),
+                    "reach": reach,
+                    "path_samples": len(path),
+                    "keyframes": len(keep),
+                }
+                if not ok:
+                    report_short(ctx, seg, d)
+                state.add(seg)
+    reanchor(ir, ctx.cache, _restaters())
     return ir
-
-
-solve = generate = run = _unfinished

@@ -1,0 +1,160 @@
+"""The body's pose at a time, from the keyframes written so far: what the solving passes start from.
+
+Passes fill segments in time order and each segment starts from the pose the body is in, so they
+need "the value of every dof just before this segment". ``PoseState`` indexes every keyframe by
+dof and time and answers that with a bisection. It keeps *references* to the keyframe arrays, not
+copies, so a pass that rewrites a keyframe in place (``reanchor``) is seen by every later query.
+
+The rule matches interpolation (``interpolate.py``) at keyframe times: a dof holds its rest value
+(``q_comfort``) until its first keyframe and its latest keyframe's value after; at equal times
+the keyframe added later wins. Between two keyframes of one dof interpolation blends, but every
+segment here starts with a keyframe that holds the current pose, so between segments dofs hold.
+The root is the plan's ground position and heading, raised or lowered by the latest posture
+root keyframe (as interpolation does).
+"""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from mtlc.body import forward, site_positions
+from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
+
+# (time, segment id, keyframes, row, column); column −1 for a posture root height
+_Ref = tuple[float, int, Keyframes, int, int]
+
+
+class PoseState:
+    """Index of the keyframes so far: ``q_at(t)`` and ``root_at(t)``, optionally ignoring one
+    segment (its own start keyframe is what is being computed)."""
+
+    def __init__(self, ir: MotionIR) -> None:
+        skel = ir.skeleton
+        self.ir = ir
+        self.skel = skel
+        self.rest = np.asarray(skel.q_comfort, dtype=float)
+        self.stand_y = ir.ground + float(np.asarray(skel.root_position)[1])
+        self._t: list[list[float]] = [[] for _ in range(skel.n_dofs)]
+        self._r: list[list[_Ref]] = [[] for _ in range(skel.n_dofs)]
+        self._rt: list[float] = []
+        self._rr: list[_Ref] = []
+        for seg in ir.segments:
+            if seg.keyframes is not None:
+                self.add(seg)
+
+    def add(self, seg: Segment) -> None:
+        """Index a segment's keyframes (call after setting ``seg.keyframes``)."""
+        kf = seg.keyframes
+        if kf is None:
+            return
+        sid = id(seg)
+        for c, name in enumerate(kf.dofs):
+            d = self.skel.dof_index(name)
+            for row, t in enumerate(kf.time):
+                i = bisect_right(self._t[d], float(t))
+                self._t[d].insert(i, float(t))
+                self._r[d].insert(i, (float(t), sid, kf, row, c))
+        if seg.kind == "posture" and kf.root_position is not None:
+            for row, t in enumerate(kf.time):
+                i = bisect_right(self._rt, float(t))
+                self._rt.insert(i, float(t))
+                self._rr.insert(i, (float(t), sid, kf, row, -1))
+
+    @staticmethod
+    def _latest(times: list[float], refs: list[_Ref], t: float, skip: int | None) -> _Ref | None:
+        i = bisect_right(times, t + 1e-9) - 1
+        while i >= 0 and refs[i][1] == skip:
+            i -= 1
+        return refs[i] if i >= 0 else None
+
+    def q_at(self, t: float, skip: Segment | None = None) -> FloatArray:
+        """Every dof at time ``t`` (after the keyframes at ``t``), ignoring segment ``skip``."""
+        sid = None if skip is None else id(skip)
+        q = self.rest.copy()
+        for d in range(len(q)):
+            ref = self._latest(self._t[d], self._r[d], t, sid)
+            if ref is not None:
+                q[d] = ref[2].q[ref[3], ref[4]]
+        return q
+
+    def height_at(self, t: float, skip: Segment | None = None) -> float:
+        """Root height at ``t`` (the standing height until a posture changes it)."""
+        ref = self._latest(self._rt, self._rr, t, None if skip is None else id(skip))
+        if ref is None:
+            return self.stand_y
+        rp = ref[2].root_position
+        assert rp is not None
+        return float(rp[ref[3], 1])
+
+    def root_at(self, t: float, skip: Segment | None = None) -> tuple[FloatArray, FloatArray]:
+        """Root position and rotation (w first) at ``t``: the plan plus the posture height."""
+        plan = self.ir.root_plan
+        assert plan is not None
+        pos, heading = plan.at(t)
+        pos = np.array(pos, dtype=float)
+        pos[1] = self.height_at(t, skip)
+        return pos, yaw_quaternion(np.asarray(heading))
+
+    def site(self, name: str, q: FloatArray, root: tuple[FloatArray, FloatArray]) -> FloatArray:
+        """World position of one body site (or joint centre, with ``joint:`` prefix)."""
+        pose = forward(self.skel, q[None], root[0][None], root[1][None])
+        if name.startswith("joint:"):
+            return np.asarray(pose.p[0, self.skel.joint_index(name[6:])])
+        return np.asarray(site_positions(self.skel, pose, name)[0])
+
+
+def hold_keyframes(
+    seg: Segment, dofs: tuple[str, ...], q_start: FloatArray, q_end: FloatArray
+) -> Keyframes:
+    """Two keyframes: the pose at the segment's start (held until then) and its goal."""
+    return Keyframes(
+        time=np.array([seg.start, seg.end]), dofs=dofs, q=np.stack([q_start, q_end]).astype(float)
+    )
+
+
+# A segment that starts from the current pose may recompute its keyframes once the pose before
+# it is known better (a later pass solved what comes before it); passes register how, by kind.
+Restate = Callable[[Segment, PoseState], None]
+
+
+def mark(cache: dict[str, Any], seg: Segment, how: str = "hold") -> None:
+    """Register a segment whose first keyframe is "the current pose" (``how``: a restater name)."""
+    cache.setdefault("passes.state.restate", {})[id(seg)] = how
+
+
+def reanchor(
+    ir: MotionIR, cache: dict[str, Any], restaters: dict[str, Restate] | None = None
+) -> None:
+    """Rewrite every "starts from the current pose" keyframe from the pose before it, in time
+    order, so a segment solved before the segments preceding it starts where they left off."""
+    restaters = restaters or {}
+    marks: dict[int, str] = cache.get("passes.state.restate", {})
+    state = PoseState(ir)
+    for seg in sorted(ir.segments, key=lambda s: s.start):
+        kf = seg.keyframes
+        how = marks.get(id(seg))
+        if kf is None or how is None:
+            continue
+        if how in restaters:
+            restaters[how](seg, state)
+            continue
+        # default: the first keyframe holds the pose just before the segment
+        q = state.q_at(seg.start, skip=seg)
+        idx = [state.skel.dof_index(n) for n in kf.dofs]
+        kf.q[0] = q[idx]
+        if seg.kind == "posture" and kf.root_position is not None:
+            kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)
+
+
+def cached(ctx_cache: dict[str, Any], key: Any, make: Callable[[], Any]) -> Any:
+    """Memoise a solver model per compile (ChainModel setup costs more than a small solve)."""
+    store: dict[Any, Any] = ctx_cache.setdefault("passes.state.models", {})
+    if key not in store:
+        if len(store) > 256:
+            store.clear()
+        store[key] = make()
+    return store[key]

@@ -15,6 +15,7 @@ from mtlc.passes import (
     approach,
     balance,
     contact,
+    gaze,
     interpolate,
     locomotion,
     manikin,
@@ -33,6 +34,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("posture", posture.solve),  # whole-body postures (squat, kneel, bend...) and wrist turns
     ("approach", approach.solve),  # 2. TA: damped least squares to the approach point
     ("contact", contact.solve),  # 3. TO: gradient path onto the site, kept as keyframes
+    ("gaze", gaze.solve),  # neck and head aim the eyes at the looked-at site
     ("locomotion", locomotion.generate),  # 4. footsteps, stance, step segmentation
     ("interpolate", interpolate.run),  # 5. interpolation with base-coordinate correction
     ("balance", balance.run),  # 6. centre of mass over the support polygon

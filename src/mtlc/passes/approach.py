@@ -43,10 +43,10 @@ def model_for(
     root: tuple[FloatArray, FloatArray],
 ) -> ChainModel:
     """A prepared chain model, reused while the frozen body and root are the same."""
-    active = default_dofs(skel, list(effectors), reach)
-    frozen = q.copy()
-    frozen[active] = 0.0
-    key = (effectors, reach, root[0].tobytes(), root[1].tobytes(), frozen.round(12).tobytes())
+    active = set(default_dofs(skel, list(effectors), reach))
+    # only the dofs between the root and the effectors shape the frozen base
+    base = sorted({d for e in effectors for d in skel.chain_dofs(e)} - active)
+    key = (effectors, reach, root[0].tobytes(), root[1].tobytes(), q[base].round(12).tobytes())
     return cached(
         ctx.cache,
         key,

@@ -39,23 +39,22 @@ MAX_KEYFRAMES = 12
 MAX_ITER = 400
 
 
-def _ta_reach(ir: MotionIR, seg: Segment) -> str:
-    """The reach the same goal's TA used (a TO continues on the same chain)."""
-    best = "arm"
+def _ta_of(ir: MotionIR) -> dict[tuple[object, ...], list[Segment]]:
+    """TA segments by (track, origin, site): the TA phase of each TO's goal."""
+    out: dict[tuple[object, ...], list[Segment]] = {}
     for s in ir.segments:
-        same = s.provenance.origin == seg.provenance.origin and s.goal.site == seg.goal.site
-        if same and s.kind == "TA" and s.track == seg.track and s.end <= seg.start + 1e-9:
-            best = s.result.get("reach", "arm")
+        if s.kind == "TA":
+            out.setdefault((s.track, s.provenance.origin, s.goal.site), []).append(s)
+    return out
+
+
+def _ta_for(tas: dict[tuple[object, ...], list[Segment]], seg: Segment) -> Segment | None:
+    """The latest TA of the same goal that ends by the time this TO starts."""
+    best = None
+    for s in tas.get((seg.track, seg.provenance.origin, seg.goal.site), []):
+        if s.end <= seg.start + 1e-9 and (best is None or s.end >= best.end):
+            best = s
     return best
-
-
-def _ta_short(ir: MotionIR, seg: Segment) -> bool:
-    """Did this goal's TA already fall short (then TO cannot reach either: spend less)?"""
-    for s in ir.segments:
-        same = s.provenance.origin == seg.provenance.origin and s.goal.site == seg.goal.site
-        if same and s.kind == "TA" and s.track == seg.track and s.result.get("distance", 0) > 0.01:
-            return True
-    return False
 
 
 def _distances(
@@ -89,8 +88,8 @@ def select_keys(dist: FloatArray, n_max: int = MAX_KEYFRAMES) -> tuple[list[int]
     if keep[-1] != last:
         if np.all(dist[last] <= dist[keep[-1]] + 1e-12):
             keep.append(last)
-        else:  # a hand rose at the end: keep the best sample seen
-            keep.append(last if keep[-1] == 0 else keep[-1])
+        else:  # a hand would move away at the end: hold the last sample kept
+            keep.append(keep[-1])
     prog = np.maximum.accumulate(progress[keep])
     prog[0], prog[-1] = 0.0, 1.0
     return keep, prog
@@ -153,9 +152,31 @@ def best_path(
     return path, reach, dist
 
 
+_Part = tuple[list[Segment], list[FloatArray], str, bool]
+
+
+def _solve_parts(
+    ctx: PassContext,
+    state: PoseState,
+    parts: list[_Part],
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+) -> list[tuple[FloatArray, list[Segment], str, FloatArray, list[int], FloatArray]]:
+    """Paths for each part of a time window, each hand starting where the one before left;
+    with the kept samples and their progress (``select_keys``)."""
+    out = []
+    for psegs, ptargets, reach, hopeless in parts:
+        path, used, dist = best_path(ctx, state, psegs, ptargets, q0, root, reach, hopeless)
+        keep, prog = select_keys(dist)
+        q0 = path[keep[-1]].copy()
+        out.append((path, psegs, used, dist, keep, prog))
+    return out
+
+
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     state = PoseState(ir)
     skel = ir.skeleton
+    ta_of = _ta_of(ir)
     for segs in groups(ir, "TO"):
         t0, t1 = segs[0].start, segs[0].end
         q0 = state.q_at(t0)
@@ -164,17 +185,25 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
         for seg in segs:
             seg.goal.position = hand_target(ir, seg, root[1])
             targets.append(seg.goal.position)
-        reaches = [_ta_reach(ir, s) for s in segs]
+        tas = [_ta_for(ta_of, s) for s in segs]
+        reaches = [("arm" if ta is None else ta.result.get("reach", "arm")) for ta in tas]
+        # TA already well short: TO cannot reach either, so it spends less on trying
+        hopeless_all = [ta is not None and ta.result.get("distance", 0.0) > 0.01 for ta in tas]
         if "torso" in reaches and len(segs) > 1:
-            parts = [(segs, targets, "torso")]
+            parts = [(segs, targets, "torso", any(hopeless_all))]
         else:
-            parts = [([s], [p], r) for s, p, r in zip(segs, targets, reaches, strict=True)]
-        for psegs, ptargets, reach in parts:
-            hopeless = any(_ta_short(ir, s) for s in psegs)
-            path, reach, dist = best_path(ctx, state, psegs, ptargets, q0, root, reach, hopeless)
-            keep, prog = select_keys(dist)
+            parts = [
+                ([s], [p], r, h)
+                for s, p, r, h in zip(segs, targets, reaches, hopeless_all, strict=True)
+            ]
+        solved = _solve_parts(ctx, state, parts, q0, root)
+        if len(parts) > 1 and any(x[2] == "torso" for x in solved):
+            # one hand needed the trunk: that would move the other hand, so solve them together
+            solved = _solve_parts(
+                ctx, state, [(segs, targets, "torso", any(hopeless_all))], q0, root
+            )
+        for path, psegs, reach, dist, keep, prog in solved:
             times = t0 + (t1 - t0) * prog
-            q0 = path[keep[-1]].copy()  # the next hand of the window starts from this pose
             for h, seg in enumerate(psegs):
                 names = chain_names(skel, [seg.goal.effector], reach)
                 idx = [skel.dof_index(n) for n in names]

@@ -41,9 +41,8 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
         target = np.mean([np.asarray(s.goal.position, dtype=float) for s in segs], axis=0)
         q0 = state.q_at(t0)
         root = state.root_at(t1)
-        frozen = q0.copy()
-        frozen[dofs] = 0.0
-        key = ("gaze", root[0].tobytes(), root[1].tobytes(), frozen.round(12).tobytes())
+        base = sorted(set(skel.chain_dofs("gaze")) - set(dofs))
+        key = ("gaze", root[0].tobytes(), root[1].tobytes(), q0[base].round(12).tobytes())
         model = cached(
             ctx.cache,
             key,

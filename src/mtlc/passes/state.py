@@ -9,8 +9,8 @@ The rule matches interpolation (``interpolate.py``) at keyframe times: a dof hol
 (``q_comfort``) until its first keyframe and its latest keyframe's value after; at equal times
 the keyframe added later wins. Between two keyframes of one dof interpolation blends, but every
 segment here starts with a keyframe that holds the current pose, so between segments dofs hold.
-The root is the plan's ground position and heading, raised or lowered by the latest posture
-root keyframe (as interpolation does).
+The root is the plan's ground position and heading at the height that puts the lowest foot
+point on the ground, as the base correction does for a body standing still.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import numpy as np
 
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
+from mtlc.passes.interpolate import FOOT_POINTS
 
 # (time, segment id, keyframes, row, column); column −1 for a posture root height
 _Ref = tuple[float, int, Keyframes, int, int]
@@ -91,13 +92,20 @@ class PoseState:
         return float(rp[ref[3], 1])
 
     def root_at(self, t: float, skip: Segment | None = None) -> tuple[FloatArray, FloatArray]:
-        """Root position and rotation (w first) at ``t``: the plan plus the posture height."""
+        """Root position and rotation (w first) at ``t``: the plan's ground position and heading,
+        at the height that stands the legs' pose at ``t`` on the ground. That is where the base
+        correction (seed 001, h = L − x) puts a body standing still, so a hand solved here is
+        where the frames will show it."""
         plan = self.ir.root_plan
         assert plan is not None
         pos, heading = plan.at(t)
         pos = np.array(pos, dtype=float)
-        pos[1] = self.height_at(t, skip)
-        return pos, yaw_quaternion(np.asarray(heading))
+        rot = yaw_quaternion(np.asarray(heading))
+        q = self.q_at(t, skip)
+        pose = forward(self.skel, q[None], np.zeros((1, 3)), rot[None])
+        feet = site_positions(self.skel, pose, list(FOOT_POINTS))[0]
+        pos[1] = self.ir.ground - float(np.min(feet[:, 1]))
+        return pos, rot
 
     def site(self, name: str, q: FloatArray, root: tuple[FloatArray, FloatArray]) -> FloatArray:
         """World position of one body site (or joint centre, with ``joint:`` prefix)."""

@@ -184,6 +184,17 @@ def test_squat_keeps_the_heels_on_the_ground() -> None:
         heels = site_positions(skel, pose, ["r_heel", "l_heel", "r_toe", "l_toe"])[0]
         np.testing.assert_allclose(heels[:, 1], ir.ground, atol=MM)
         stand = root_height(skel, np.zeros(skel.n_dofs), 0.0)  # legs straight
+        depth = seg.goal.params["depth"]
+        assert stand - (kf.root_position[-1][1] - ir.ground) == pytest.approx(depth, abs=MM)
+
+
+@pytest.mark.parametrize("knees", [1, 2])
+def test_kneel_puts_the_knees_on_the_ground(knees: int) -> None:
+    ir, _ = compile_file(ROOT / "examples" / "replace_fuel_filter.mtask")
+    skel = ir.skeleton
+    q = target_posture(skel, skel.q_comfort.copy(), {"posture": "kneel", "knees": knees})
+    assert skel.within_limits(q)
+    h = root_height(skel, q, 0.0)
     pose = forward(skel, q[None], np.array([[0.0, h, 0.0]]), np.array([[1.0, 0, 0, 0]]))
     knee_r = pose.p[0, skel.joint_index("r_knee"), 1]
     assert knee_r == pytest.approx(KNEE_HEIGHT, abs=MM)

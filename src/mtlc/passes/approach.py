@@ -32,6 +32,7 @@ from mtlc.passes.state import PoseState, cached, mark, reanchor
 TOLERANCE = 1e-3  # m, the solvers' position tolerance; further than this is "short"
 TWO_HAND_SPREAD = 0.20  # m between the hands on a two-handed site, across the body
 ARM_TRACKS = ("l_arm", "r_arm")
+HAND_NAMES = {"r_hand": "right hand", "l_hand": "left hand"}
 
 
 def model_for(
@@ -111,7 +112,7 @@ def report_short(ctx: PassContext, seg: Segment, short: float) -> None:
     done.add(key)
     ctx.report(
         "MT0501",
-        f"{seg.goal.effector.replace('_', ' ')} cannot reach site `{seg.goal.site}`: "
+        f"the {HAND_NAMES.get(seg.goal.effector, seg.goal.effector)} cannot reach site `{seg.goal.site}`: "
         f"{short * 1000:.0f} mm short",
         seg.provenance.origin,
     )

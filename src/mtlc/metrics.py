@@ -32,6 +32,9 @@ BoolArray = NDArray[np.bool_]
 FEET = ("r", "l")
 FOOT_POINT_NAMES = ("heel", "toe", "ball_med", "ball_lat")
 CONTACT_TOL = 0.01  # a foot point within 1 cm of the ground touches it
+# a kneeling knee bears weight on its front, about half a knee's depth (5 cm, as the posture
+# pass places it) below the joint centre: a knee centre this close to the ground supports
+KNEE_CONTACT = 0.05 + CONTACT_TOL
 HAND_SITES = ("r_hand", "l_hand", "r_fingertip", "l_fingertip")
 
 # Acceptance thresholds from the issue ("Motion metrics").
@@ -48,7 +51,7 @@ def support_margin(points: FloatArray, valid: BoolArray, com: FloatArray) -> Flo
     """Signed distance (N,) of ground points ``com`` (N, 2) to the convex hull of ``points``.
 
     ``points`` (N, P, 2) are the ground-plane (x, z) coordinates of the contact points, ``valid``
-    (N, P) which of them touch. Positive inside (distance to the nearest edge), negative outside
+    (N, P) which of them touch (see ``support``). Positive inside (distance to the nearest edge), negative outside
     (distance to the polygon); a hull of one point or a segment has no inside. NaN where no point
     touches. Vectorised over frames: with P ≤ 8 points every pair is tried as a hull edge (an
     edge has all the other points on one side).
@@ -157,18 +160,40 @@ def contact_mask(feet: FloatArray, stance: BoolArray, ground: float) -> BoolArra
     return near & np.repeat(stance, len(FOOT_POINT_NAMES), axis=1)
 
 
+def support(skel: Any, pose: Any, stance: BoolArray, ground: float) -> tuple[FloatArray, BoolArray]:
+    """Ground-plane support points (N, 10, 2) and which bear weight (N, 10).
+
+    The eight sole points (touching, on a standing foot), then the right and left knee (a knee
+    centre within ``KNEE_CONTACT`` of the ground: kneeling).
+    """
+    feet = foot_points(skel, pose)
+    knees = pose.p[..., [skel.joint_index("r_knee"), skel.joint_index("l_knee")], :]
+    pts = np.concatenate([feet, knees], axis=-2)
+    ok = np.concatenate(
+        [contact_mask(feet, stance, ground), knees[..., 1] - ground <= KNEE_CONTACT], axis=-1
+    )
+    return pts[..., [0, 2]], ok
+
+
 # -- the metrics -----------------------------------------------------------------------------
 
 
-def penetration(skel: Any, pose: Any, ground: float) -> FloatArray:
-    """(N,) depth of the lowest body point below the ground (m, 0 when nothing is below).
+BODY_SITES = (
+    *(f"{s}_{p}" for s in FEET for p in FOOT_POINT_NAMES),
+    *("r_hand", "l_hand", "r_foot", "l_foot", "r_fingertip", "l_fingertip"),
+)
 
-    Body points: every joint centre, the sole points, hands, feet and fingertips.
-    """
-    names = [f"{s}_{p}" for s in FEET for p in FOOT_POINT_NAMES]
-    names += ["r_hand", "l_hand", "r_foot", "l_foot", "r_fingertip", "l_fingertip"]
-    low = np.minimum(pose.p[..., 1].min(axis=-1), site_positions(skel, pose, names)[..., 1].min(-1))
-    return np.maximum(ground - low, 0.0)
+
+def lowest_point(skel: Any, pose: Any) -> FloatArray:
+    """(N,) height of the lowest body point: every joint centre, sole point, hand, foot and
+    fingertip."""
+    sites = site_positions(skel, pose, list(BODY_SITES))[..., 1].min(axis=-1)
+    return np.minimum(pose.p[..., 1].min(axis=-1), sites)
+
+
+def penetration(skel: Any, pose: Any, ground: float) -> FloatArray:
+    """(N,) depth of the lowest body point below the ground (m, 0 when nothing is below)."""
+    return np.maximum(ground - lowest_point(skel, pose), 0.0)
 
 
 def foot_skating(feet: FloatArray, contact: BoolArray, time: FloatArray) -> FloatArray:
@@ -325,7 +350,8 @@ def compute_metrics(ir: MotionIR) -> Metrics:
     skate = foot_skating(feet, contact, t) if len(t) > 1 else np.full((0, 8), np.nan)
     skating = float(np.nanmax(skate)) if np.isfinite(skate).any() else math.nan
     com = center_of_mass(skel, pose)
-    margin = support_margin(feet[..., [0, 2]], contact, com[:, [0, 2]])
+    pts, ok = support(skel, pose, stance, ir.ground)
+    margin = support_margin(pts, ok, com[:, [0, 2]])
     static = ~walking(ir, t)
     sel = margin[static & ~np.isnan(margin)]
     contacts: list[ContactError] = []

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from mtlc.body import build_manikin, center_of_mass, forward, site_positions
+from mtlc.diagnostics import DiagnosticSink
 from mtlc.ir.model import Frames, GoalSpec, MotionIR, Provenance, Segment, SourceRef
 from mtlc.metrics import (
     compute_metrics,
@@ -15,6 +16,8 @@ from mtlc.metrics import (
     render_metrics,
     support_margin,
 )
+from mtlc.passes import balance, smooth
+from mtlc.passes.context import PassContext
 
 SKEL = build_manikin("gb10000_1988", "male", 50)
 REF = SourceRef("synthetic.mtask", 3, 5, 3, 20)
@@ -159,3 +162,121 @@ def test_render_metrics_is_plain_text() -> None:
     )
     assert "\x1b" not in text
     assert "penetration (mm)" in text and "2.00 FAIL" in text
+
+
+# -- balance ----------------------------------------------------------------------------------
+
+SOLES = [f"{s}_{p}" for s in "rl" for p in ("heel", "toe", "ball_med", "ball_lat")]
+
+
+def run_pass(fn, ir: MotionIR) -> list[tuple[str, int, int]]:  # type: ignore[no-untyped-def]
+    sink = DiagnosticSink()
+    fn(ir, PassContext(sink))
+    return [(d.code, d.span.line, d.span.column) for d in sink.sorted()]
+
+
+def test_balance_pulls_a_one_legged_lean_back_over_the_foot() -> None:
+    f = one_legged(20)
+    f.q[:, SKEL.dof_index("l_hip_abd")] = np.radians(np.linspace(15, 25, 20))
+    ir = make_ir(f)
+    before = compute_metrics(ir).support_margin
+    pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
+    right0 = site_positions(SKEL, pose, SOLES[:4])
+    assert before.max() < -0.05
+    assert run_pass(balance.run, ir) == []
+    after = compute_metrics(ir)
+    assert np.all(after.support_margin >= balance.MARGIN - 5e-4)
+    pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
+    right1 = site_positions(SKEL, pose, SOLES[:4])
+    assert np.abs(right1 - right0).max() < 1e-3  # the standing foot stays put
+    assert after.penetration < 1e-3
+    assert after.limit_count == 0
+    assert np.all(f.root_position[:, 0] < -0.05)  # the pelvis moved over the right foot
+
+
+def test_balance_keeps_the_hand_on_its_site_and_leaves_balanced_frames() -> None:
+    f = standing(12)
+    f.q[:, SKEL.dof_index("r_shoulder_flex")] = math.radians(60)
+    f.q[:, SKEL.dof_index("r_elbow_flex")] = math.radians(40)
+    f.q[6:, SKEL.dof_index("l_hip_abd")] = math.radians(20)  # from frame 6 on one foot
+    pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
+    hand = site_positions(SKEL, pose, "r_hand")
+    seg = Segment("r_arm", "TO", 0.0, 0.1, GoalSpec("r_hand", "bolt", hand[0]), PROV)
+    ir = make_ir(f, [seg])
+    q_first = f.q[:6].copy()
+    assert run_pass(balance.run, ir) == []
+    np.testing.assert_array_equal(f.q[:6], q_first)  # balanced frames are not touched
+    pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
+    assert np.abs(site_positions(SKEL, pose, "r_hand") - hand).max() < 1e-3
+    assert compute_metrics(ir).support_margin[6:].min() > 0.0
+
+
+def test_balance_lost_reports_mt0502_once_per_segment() -> None:
+    # on one foot, the right arm straight up with the hand held on a site: the pelvis cannot
+    # move over the foot without pulling the hand off the site
+    f = one_legged(10)
+    f.q[:, SKEL.dof_index("r_shoulder_flex")] = SKEL.upper[SKEL.dof_index("r_shoulder_flex")]
+    f.q[:, SKEL.dof_index("r_elbow_flex")] = 0.0
+    pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
+    hand = site_positions(SKEL, pose, "r_hand")
+    soles = site_positions(SKEL, pose, SOLES[:4])
+    seg = Segment("r_arm", "TO", 0.0, 0.3, GoalSpec("r_hand", "bolt", hand[0]), PROV)
+    ir = make_ir(f, [seg])
+    before = compute_metrics(ir).support_margin
+    assert run_pass(balance.run, ir) == [("MT0502", 3, 5)]  # ten frames, one segment, once
+    after = compute_metrics(ir).support_margin
+    assert np.all(after < 0) and np.all(after >= before - 1e-9)  # better, not enough
+    pose = forward(SKEL, f.q, f.root_position, f.root_rotation)  # the contacts win
+    assert np.abs(site_positions(SKEL, pose, "r_hand") - hand).max() < 1e-3
+    assert np.abs(site_positions(SKEL, pose, SOLES[:4]) - soles).max() < 1e-3
+
+
+# -- smoothing ------------------------------------------------------------------------------
+
+
+def test_smoothing_blends_a_step_offset_with_the_claims_schedule() -> None:
+    f = standing(100, fps=60.0)
+    k = SKEL.dof_index("r_elbow_flex")
+    f.q[:, k] = 0.5
+    f.q[40:, k] += 0.2  # a jump of 0.2 rad between frames 39 and 40
+    boundary = (f.time[39] + f.time[40]) / 2
+    segs = [
+        Segment("r_arm", "TA", 0.0, boundary, GoalSpec("r_hand"), PROV),
+        Segment("r_arm", "TA", boundary, 100 / 60, GoalSpec("r_hand"), PROV),
+    ]
+    ir = make_ir(f, segs)
+    assert run_pass(smooth.run, ir) == []
+    want = 0.5 + 0.2 * np.r_[np.zeros(40), 0.02 * np.arange(50), np.ones(10)]
+    np.testing.assert_allclose(f.q[:, k], want, atol=1e-12)
+    assert f.q[39, k] == f.q[40, k]  # no jump left
+    assert np.diff(f.q[:, k]).max() == pytest.approx(0.2 * 0.02)
+
+
+def test_smoothing_respects_limits_and_keeps_contacts() -> None:
+    f = standing(90, fps=60.0)
+    k = SKEL.dof_index("r_knee_flex")
+    e = SKEL.dof_index("l_elbow_flex")
+    f.q[:30, e] = SKEL.lower[e] + 0.3
+    f.q[30:, e] = SKEL.lower[e] + 0.05  # a jump down of 0.25: blending it would cross 0
+    f.root_position[30:, 2] += 0.01  # and the pelvis jumps 1 cm forward
+    f.q[:, SKEL.dof_index("r_shoulder_flex")] = math.radians(50)
+    f.q[:, SKEL.dof_index("r_elbow_flex")] = math.radians(40)
+    pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
+    hand = site_positions(SKEL, pose, "r_hand")
+    soles = site_positions(SKEL, pose, SOLES)
+    segs = [
+        Segment("root", "hold", 0.0, 0.5, GoalSpec("body"), PROV),
+        Segment("root", "hold", 0.5, 1.5, GoalSpec("body"), PROV),
+        Segment("r_arm", "TO", 0.0, 1.5, GoalSpec("r_hand", "bolt", hand[0]), PROV),
+    ]
+    ir = make_ir(f, segs)
+    run_pass(smooth.run, ir)
+    assert SKEL.within_limits(f.q).all()
+    assert f.q[30, e] == pytest.approx(SKEL.lower[e] + 0.3, abs=1e-3)  # offset subtracted...
+    assert f.q[:, e].min() >= SKEL.lower[e]  # ...but never past the limit
+    assert f.root_position[30, 2] == pytest.approx(f.root_position[29, 2], abs=1e-3)
+    pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
+    assert np.abs(site_positions(SKEL, pose, "r_hand") - hand).max() < 1e-3
+    # stance feet (heel/toe points that touched) stay where they were
+    assert np.abs(site_positions(SKEL, pose, SOLES) - soles).max() < 1e-3
+    assert f.q[:, k].min() >= 0.0

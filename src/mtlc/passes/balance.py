@@ -1,13 +1,353 @@
-"""Placeholder while this pass is being written: it must be replaced before the issue closes."""
+"""Pass 6: keep the centre of mass over the support polygon (seed 004, claim 4).
+
+Claim 4 (3.4): if the projection of the body's centre of mass on the ground leaves the support
+surface, adjust the root again while keeping the other joints' goals. On the dense frames:
+
+* the support polygon is the convex hull of the sole points that touch the ground (within 1 cm)
+  on the feet that stand: both feet outside walks, the stance foot during a step
+  (``mtlc.metrics.foot_stance`` reads the locomotion pass's ``result["steps"]``);
+* in *static* frames (outside walks) whose margin is below ``MARGIN`` the pelvis moves
+  horizontally until the CoM is ``MARGIN`` inside. Pushing every frame below the target margin
+  (not only those outside) makes the correction grow from zero, so it is continuous in time;
+* the other goals are then restored by IK, batched over the corrected frames: both legs toward
+  their original foot positions and orientations (so every sole point stays put), and the arms
+  of hands in contact (TO windows, and after them until the arm's next segment) toward their
+  original hand positions. Where straight legs cannot follow a sideways pelvis, the pelvis
+  drops by what the feet lack (the base correction's h = L − x again);
+* a few such rounds converge (the legs and arms move the CoM a little too).
+
+Walking frames are measured but not moved: in single support a walking body's CoM is outside
+the stance foot by design (Winter 1995, "Human balance and posture control during standing and
+walking", Gait & Posture 3:193: balance in gait is dynamic), and pulling it over the stance foot
+would make the gait waddle. Frames that cannot be balanced with the feet and hands kept in place
+keep their original pose (the contacts win) and report MT0502 once per segment, at the line of
+the task that led to the segment active then.
+"""
 
 from __future__ import annotations
 
-from mtlc.ir.model import MotionIR
+import math
+
+import numpy as np
+
+from mtlc.body import center_of_mass, com_jacobian, forward, site_positions, site_rotation
+from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.ir.model import Frames, MotionIR, Segment
+from mtlc.metrics import (
+    FOOT_POINT_NAMES,
+    contact_mask,
+    foot_points,
+    foot_stance,
+    support,
+    support_margin,
+    support_push,
+    walking,
+)
 from mtlc.passes.context import PassContext
 
+MARGIN = 0.01  # m: how far inside the support a corrected CoM ends
+ROUNDS = 8
+MAX_STEP = 0.02  # m of pelvis motion per round: a joint that runs out of range stops it early
+MAX_SHIFT = 0.30  # m: farther than this the posture is not a balance problem the pelvis can fix
+LEG_REACH = 0.995  # of the straight leg's length: a leg is never stretched to its singularity
+SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight is singular)
+POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
+ACCEPT_MARGIN = -1e-4  # m: what still counts as inside after correction
+FEET_SITES = ("r_foot", "l_foot")
+HANDS = {"r_hand": "r_arm", "l_hand": "l_arm"}
+# which segment an MT0502 is reported at when several are active: the posture that bends the
+# body, then the reach that leans it, then anything else
+REPORT_ORDER = {"posture": 0, "TO": 1, "TA": 2, "hold": 3, "grip": 4, "gaze": 5, "locomotion": 6}
 
-def _unfinished(ir: MotionIR, ctx: PassContext) -> MotionIR:
+
+def hand_pins(ir: MotionIR, time: np.ndarray) -> dict[str, np.ndarray]:
+    """(N,) per hand: frames where the hand is on its site and must stay there.
+
+    From the start of a TO segment until the next segment on the same arm track starts (the
+    unscrewing, holding or twisting after contact), or the end of the motion.
+    """
+    t = np.asarray(time, dtype=float)
+    pins: dict[str, np.ndarray] = {}
+    for hand, track in HANDS.items():
+        mask = np.zeros(len(t), dtype=bool)
+        segs = sorted(ir.on_track(track), key=lambda s: s.start)
+        for i, seg in enumerate(segs):
+            if seg.kind != "TO":
+                continue
+            later = [s.start for s in segs[i + 1 :] if s.start >= seg.end - 1e-9]
+            end = min(later, default=math.inf)
+            mask |= (t >= seg.start - 1e-9) & (t < end - 1e-9)
+        pins[hand] = mask
+    return pins
+
+
+def lower_for_reach(
+    ir: MotionIR,
+    q: np.ndarray,
+    root_position: np.ndarray,
+    root_rotation: np.ndarray,
+    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+) -> np.ndarray:
+    """Root positions lowered where a hip is farther from its ankle's place than a leg reaches.
+
+    A pelvis moved sideways over straight legs must drop a little (the base correction's
+    h = L − x again): by what makes each hip–ankle distance at most what the leg spans now or
+    ``LEG_REACH`` of its straight length, whichever is more (a straight leg that need not move
+    stays as it is).
+    """
+    skel = ir.skeleton
+    root = root_position.copy()
+    pose = forward(skel, q, root_position, root_rotation)
+    drop = np.zeros(len(root))
+    for name, (ankle, _, touch) in feet.items():
+        side = name[0]
+        hip = skel.joint_index(f"{side}_hip")
+        straight = sum(
+            float(np.linalg.norm(skel.offsets[skel.joint_index(f"{side}_{j}")]))
+            for j in ("knee", "ankle")
+        )
+        now = np.linalg.norm(pose.p[:, hip] - site_positions(skel, pose, name), axis=-1)
+        length = np.maximum(LEG_REACH * straight, np.minimum(now, straight))
+        d = pose.p[:, hip] - ankle
+        flat = np.hypot(d[:, 0], d[:, 2])
+        need = d[:, 1] - np.sqrt(np.maximum(length**2 - flat**2, 0.0))
+        drop = np.maximum(drop, np.where(touch, need, 0.0))
+    root[:, 1] -= drop
+    return root
+
+
+def restore_contacts(
+    ir: MotionIR,
+    q: np.ndarray,
+    root_position: np.ndarray,
+    root_rotation: np.ndarray,
+    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
+
+    ``feet`` maps r_foot/l_foot to target positions (B, 3), rotations (B, 3, 3) and whether the
+    foot touches the ground (B,): a foot in the air keeps its joint angles instead;
+    ``hands`` maps r_hand/l_hand to a row mask (B,) and target positions (B, 3). The pelvis drops
+    by what straight legs cannot reach. Returns the new q (B, D), root positions, and each row's
+    worst remaining distance (m).
+    """
+    skel = ir.skeleton
+    q = q.copy()
+    # a foot off the ground keeps its angles: its target is where the moved pelvis takes it
+    pose = forward(skel, q, root_position, root_rotation)
+    feet = {
+        name: (
+            np.where(touch[:, None], pos, site_positions(skel, pose, name)),
+            np.where(touch[:, None, None], rot, site_rotation(skel, pose, name)),
+            touch,
+        )
+        for name, (pos, rot, touch) in feet.items()
+    }
+    root = lower_for_reach(ir, q, root_position, root_rotation, feet)
+    moved = np.abs(root[:, 1] - root_position[:, 1]) > 1e-9
+    for side in ("r", "l"):  # a straight knee is singular: start a lowered leg slightly bent
+        k = skel.dof_index(f"{side}_knee_flex")
+        q[moved, k] = np.maximum(q[moved, k], SEED_FLEX)
+    goals = [Goal(name, position=pos, orientation=rot) for name, (pos, rot, _) in feet.items()]
+    model = prepare(skel, goals, q, root_position=root, root_rotation=root_rotation)
+    res = solve_ta(
+        skel, goals, q, model=model, restarts=0, null_gain=0.0, tol=1e-4,
+        orientation_tol=math.radians(0.05), max_iter=40,
+    )  # fmt: skip
+    q = res.q
+    pose = forward(skel, q, root, root_rotation)
+    worst = np.zeros(len(q))
+    for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
+        soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
+        offsets = np.array([skel.site(n).offset for n in soles], dtype=float)
+        want = pos[:, None, :] + np.einsum("bij,sj->bsi", rot, offsets)
+        err = np.linalg.norm(site_positions(skel, pose, soles) - want, axis=-1).max(axis=1)
+        worst = np.maximum(worst, np.where(touch, err, 0.0))
+    for hand, (rows, target) in hands.items():
+        idx = np.flatnonzero(rows)
+        if idx.size == 0:
+            continue
+        goal = [Goal(hand, position=target[idx])]
+        elbow = skel.dof_index(f"{hand[0]}_elbow_flex")
+        q[idx, elbow] = np.maximum(q[idx, elbow], SEED_FLEX)
+        model = prepare(
+            skel, goal, q[idx], root_position=root[idx], root_rotation=root_rotation[idx]
+        )
+        res = solve_ta(
+            skel, goal, q[idx], model=model, restarts=0, null_gain=0.0, tol=2e-4, max_iter=40
+        )
+        q[idx] = res.q
+        worst[idx] = np.maximum(worst[idx], res.position_error)
+    return q, root, worst
+
+
+def lean_trunk(
+    ir: MotionIR,
+    q: np.ndarray,
+    root: np.ndarray,
+    rot: np.ndarray,
+    pts: np.ndarray,
+    ok: np.ndarray,
+    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Move the CoM with the trunk (lumbar and thorax) when the pelvis cannot move far enough.
+
+    A deep squat's ankles are near their dorsiflexion limit: the pelvis cannot go forward with
+    the feet flat, but the trunk can lean (flexion and lateral flexion, no twist). Damped least squares on the CoM Jacobian's horizontal
+    rows over the spine dofs, then the pinned hands re-solved. Returns q, root, the worst contact
+    distance and the margin.
+    """
+    skel = ir.skeleton
+    names = [f"{j}_{m}" for j in ("lumbar", "thorax") for m in ("flex", "lat")]
+    spine = np.asarray([skel.dof_index(n) for n in names], dtype=np.intp)
+    lo, hi = skel.lower[spine], skel.upper[spine]
+    q = q.copy()
+    worst = np.zeros(len(q))
+    for _ in range(ROUNDS):
+        p = forward(skel, q, root, rot)
+        c = center_of_mass(skel, p)[:, [0, 2]]
+        push = support_push(pts, ok, c, MARGIN)
+        if not np.any(push):
+            break
+        J = com_jacobian(skel, p)[:, [0, 2]][:, :, spine]  # (B, 2, S)
+        A = J @ np.swapaxes(J, -1, -2) + (0.02**2) * np.eye(2)
+        dq = np.einsum(
+            "bsk,bk->bs", np.swapaxes(J, -1, -2), np.linalg.solve(A, push[..., None])[..., 0]
+        )
+        big = np.abs(dq).max(axis=1, keepdims=True)
+        dq *= np.minimum(1.0, 0.2 / np.maximum(big, 1e-12))  # at most ~11° a round
+        q[:, spine] = np.clip(q[:, spine] + dq, lo, hi)
+        q, root, worst = restore_contacts(ir, q, root, rot, feet, hands)
+    p = forward(skel, q, root, rot)
+    margin = support_margin(pts, ok, center_of_mass(skel, p)[:, [0, 2]])
+    return q, root, worst, margin
+
+
+def _active_segment(ir: MotionIR, t: float) -> Segment | None:
+    live = [s for s in ir.segments if s.start - 1e-9 <= t <= s.end + 1e-9]
+    if not live:
+        return None
+    return min(live, key=lambda s: (REPORT_ORDER.get(s.kind, 9), s.start))
+
+
+def balance_frames(ir: MotionIR, frames: Frames) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Correct ``frames`` in place; returns (margin before, margin after, failed frame mask)."""
+    skel = ir.skeleton
+    t = frames.time
+    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
+    stance = foot_stance(ir, t)
+    contact = contact_mask(foot_points(skel, pose), stance, ir.ground)
+    all_pts, all_ok = support(skel, pose, stance, ir.ground)
+    com = center_of_mass(skel, pose)
+    before = support_margin(all_pts, all_ok, com[:, [0, 2]])
+    after = before.copy()
+    failed = np.zeros(len(t), dtype=bool)
+    low = ~np.isnan(before) & (before < MARGIN)
+    kneeling = all_ok[:, -2:].any(axis=1)  # the pelvis cannot move without dragging a knee
+    failed[low & kneeling & (before < 0)] = True
+    rows = np.flatnonzero(low & ~walking(ir, t) & ~kneeling)
+    if rows.size == 0:
+        return before, after, failed
+    pts, ok = all_pts[rows], all_ok[rows]  # the support stays where it was
+    touching = contact[rows].reshape(rows.size, 2, -1).any(axis=2)  # (B, 2): r, l
+    feet = {
+        name: (
+            site_positions(skel, pose, name)[rows],
+            site_rotation(skel, pose, name)[rows],
+            touching[:, k],
+        )
+        for k, name in enumerate(FEET_SITES)
+    }
+    pins = hand_pins(ir, t)
+    hand_pos = {h: site_positions(skel, pose, h)[rows] for h in HANDS}
+    hands = {h: (pins[h][rows], hand_pos[h]) for h in HANDS}
+    q0 = frames.q[rows].copy()
+    root0 = frames.root_position[rows].copy()
+    rot = frames.root_rotation[rows]
+    q, root = q0.copy(), root0.copy()
+    worst = np.zeros(rows.size)
+    margin = before[rows]
+    stuck = np.zeros(rows.size, dtype=bool)  # rows whose contacts gave out: keep the last good
+    for _ in range(ROUNDS):
+        p = forward(skel, q, root, rot)
+        c = center_of_mass(skel, p)[:, [0, 2]]
+        push = support_push(pts, ok, c, MARGIN)
+        push[stuck] = 0.0
+        if not np.any(push):
+            break
+        prev_q, prev_root, prev_worst = q, root, worst
+        root = root.copy()
+        step = push / 0.85  # the legs stay behind: the CoM moves ~85 % of the pelvis
+        size = np.hypot(step[:, 0], step[:, 1])
+        step *= np.minimum(1.0, MAX_STEP / np.maximum(size, 1e-12))[:, None]
+        root[:, [0, 2]] += step
+        shift = root[:, [0, 2]] - root0[:, [0, 2]]
+        far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
+        root[far], stuck[far] = prev_root[far], True
+        q, root, worst = restore_contacts(ir, q, root, rot, feet, hands)
+        lost = (worst > POSITION_TOL) & (prev_worst <= POSITION_TOL)
+        q[lost], root[lost], worst[lost] = prev_q[lost], prev_root[lost], prev_worst[lost]
+        stuck |= lost
+    p = forward(skel, q, root, rot)
+    margin = support_margin(pts, ok, center_of_mass(skel, p)[:, [0, 2]])
+    good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
+    keep = good & (margin >= ACCEPT_MARGIN)
+    retry = np.flatnonzero(~keep)
+    if retry.size:
+        # second strategy: lean the trunk, from the pelvis result where it kept the contacts
+        qs = np.where(good[retry, None], q[retry], q0[retry])
+        rs = np.where(good[retry, None], root[retry], root0[retry])
+        sub_feet = {n: (a[retry], b[retry], c[retry]) for n, (a, b, c) in feet.items()}
+        sub_hands = {h: (m[retry], x[retry]) for h, (m, x) in hands.items()}
+        q2, r2, w2, m2 = lean_trunk(
+            ir, qs, rs, rot[retry], pts[retry], ok[retry], sub_feet, sub_hands
+        )
+        ok2 = (w2 <= POSITION_TOL) & skel.within_limits(q2, tol=1e-6) & (m2 > margin[retry])
+        take = retry[ok2]
+        q[take], root[take], margin[take] = q2[ok2], r2[ok2], m2[ok2]
+        good[take] = True
+        keep = good & (margin >= ACCEPT_MARGIN)
+    # a frame keeps the best correction that kept its contacts (none: it stays as it was);
+    # one still outside has lost its balance
+    frames.q[rows[good]] = q[good]
+    frames.root_position[rows[good]] = root[good]
+    after[rows[good]] = margin[good]
+    failed[rows[~keep & (before[rows] < 0)]] = True
+    return before, after, failed
+
+
+def failure_runs(failed: np.ndarray, gap: int = 6) -> list[tuple[int, int]]:
+    """(first, last) frame of each run of failed frames; runs closer than ``gap`` merge."""
+    idx = np.flatnonzero(failed)
+    if idx.size == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(idx) > gap)
+    firsts = np.r_[idx[0], idx[cuts + 1]]
+    lasts = np.r_[idx[cuts], idx[-1]]
+    return list(zip(firsts.tolist(), lasts.tolist(), strict=True))
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    frames = ir.frames
+    if frames is None or ir.skeleton is None or len(frames.time) == 0:
+        return ir
+    _, after, failed = balance_frames(ir, frames)
+    t = frames.time
+    reported: set[int] = set()
+    for first, last in failure_runs(failed):
+        seg = _active_segment(ir, float(t[first]))
+        if seg is None or id(seg) in reported:
+            continue
+        reported.add(id(seg))
+        worst = float(np.nanmin(after[first : last + 1]))
+        ctx.report(
+            "MT0502",
+            f"the manikin loses its balance in `{' > '.join(seg.provenance.path)}`: from "
+            f"{t[first]:.2f} s to {t[last]:.2f} s the centre of mass is up to "
+            f"{-worst * 1000:.0f} mm outside the support, and moving the pelvis cannot bring "
+            "it back with the feet and hands in place",
+            seg.provenance.origin,
+        )
     return ir
-
-
-solve = generate = run = _unfinished

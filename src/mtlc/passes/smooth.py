@@ -1,13 +1,122 @@
-"""Placeholder while this pass is being written: it must be replaced before the issue closes."""
+"""Pass 7: blend out jumps at segment boundaries (seed 004, claim 6).
+
+Claim 6: take the offset between the last frame of one step and the first frame of the next,
+and subtract it from the frames of the next step, scaled by a factor that starts at 1 and falls
+by 0.02 per frame until it reaches 0 (50 frames) or the motion ends. Here the boundaries are
+every segment start on every track and every footstep lift-off (``result["steps"]``), in time
+order; the offset is taken on all joint angles and the root position.
+
+On dense frames a boundary in smooth motion also shows the motion's own velocity between its
+two frames, so the offset is the jump *beyond* that: ``x[i+1] − x[i] − v·dt``, with ``v`` the
+mean velocity of the frames on either side. Only a jump above ``JUMP_Q`` (rad) or ``JUMP_ROOT``
+(m) is blended. The root rotation is left alone (a quaternion has no offset to subtract and
+the gait and the root plan keep it continuous).
+
+After subtracting, angles are clipped into their limits, so smoothing never pushes a joint
+past one. Subtracting offsets moves the limbs, so contacts are then restored on the frames it
+changed: feet that touched the ground and hands on their sites (TO and after, see
+``balance.hand_pins``) are re-solved by IK back to where they were before smoothing, with the
+same routine balance uses. Re-pinning (rather than skipping the pinned frames) keeps the
+pelvis and trunk smooth through a contact window while the hand and feet stay put.
+"""
 
 from __future__ import annotations
 
-from mtlc.ir.model import MotionIR
+import numpy as np
+
+from mtlc.body import forward, site_positions, site_rotation
+from mtlc.ir.model import Frames, MotionIR
+from mtlc.metrics import contact_mask, foot_points, foot_stance, lowest_point
+from mtlc.passes.balance import FEET_SITES, HANDS, hand_pins, restore_contacts
 from mtlc.passes.context import PassContext
 
+STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
+JUMP_Q = 1e-3  # rad: smaller offsets are the interpolation's own
+JUMP_ROOT = 5e-4  # m
 
-def _unfinished(ir: MotionIR, ctx: PassContext) -> MotionIR:
+
+def blend_weights(n: int) -> np.ndarray:
+    """The claim's factors for the frames after a boundary: 1, 0.98, … (at most n)."""
+    steps = round(1.0 / STEP)
+    return (1.0 - STEP * np.arange(steps))[:n]
+
+
+def boundaries(ir: MotionIR) -> list[float]:
+    """Segment starts on every track and footstep lift-offs, sorted, without duplicates."""
+    times: set[float] = set()
+    for seg in ir.segments:
+        if seg.start > 1e-9:
+            times.add(round(seg.start, 9))
+        if seg.kind == "locomotion":
+            for step in seg.result.get("steps", ()) or ():
+                times.add(round(float(step["t_lift"]), 9))
+    return sorted(times)
+
+
+def jump(x: np.ndarray, i: int) -> np.ndarray:
+    """The offset between frames i and i+1 beyond the motion's velocity around them."""
+    before = x[i] - x[i - 1] if i >= 1 else np.zeros_like(x[i])
+    after = x[i + 2] - x[i + 1] if i + 2 < len(x) else before
+    return x[i + 1] - x[i] - 0.5 * (before + after)
+
+
+def smooth_frames(
+    frames: Frames, times: list[float], lower: np.ndarray, upper: np.ndarray
+) -> np.ndarray:
+    """Blend the jumps at ``times`` in place; returns the mask of frames changed."""
+    t = frames.time
+    n = len(t)
+    changed = np.zeros(n, dtype=bool)
+    for tb in times:
+        i = int(np.searchsorted(t, tb - 1e-9)) - 1  # t[i] < tb <= t[i+1]: a frame at tb is new
+        if i < 0 or i + 1 >= n:
+            continue
+        dq = jump(frames.q, i)
+        dr = jump(frames.root_position, i)
+        dq[np.abs(dq) <= JUMP_Q] = 0.0
+        dr[np.abs(dr) <= JUMP_ROOT] = 0.0
+        if not (dq.any() or dr.any()):
+            continue
+        w = blend_weights(n - i - 1)
+        span = slice(i + 1, i + 1 + len(w))
+        frames.q[span] = np.clip(frames.q[span] - w[:, None] * dq, lower, upper)
+        frames.root_position[span] -= w[:, None] * dr
+        changed[span] = True
+    return changed
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    frames = ir.frames
+    skel = ir.skeleton
+    if frames is None or skel is None or len(frames.time) < 3:
+        return ir
+    t = frames.time
+    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
+    contact = contact_mask(foot_points(skel, pose), foot_stance(ir, t), ir.ground)
+    pins = hand_pins(ir, t)
+    feet_before = {
+        n: (site_positions(skel, pose, n), site_rotation(skel, pose, n)) for n in FEET_SITES
+    }
+    hands_before = {h: site_positions(skel, pose, h) for h in HANDS}
+    changed = smooth_frames(frames, boundaries(ir), skel.lower, skel.upper)
+    rows = np.flatnonzero(changed)
+    if rows.size == 0:
+        return ir
+    touching = contact[rows].reshape(rows.size, 2, -1).any(axis=2)
+    feet = {
+        name: (feet_before[name][0][rows], feet_before[name][1][rows], touching[:, k])
+        for k, name in enumerate(FEET_SITES)
+    }
+    hands = {h: (pins[h][rows], hands_before[h][rows]) for h in HANDS}
+    q, root, _ = restore_contacts(
+        ir, frames.q[rows], frames.root_position[rows], frames.root_rotation[rows], feet, hands
+    )
+    # smoothing must not sink anything deeper (a swing toe near the ground when the pelvis
+    # came down): raise the root by what it added below the ground, h = L − x
+    low_before = lowest_point(skel, pose)[rows]
+    pose = forward(skel, q, root, frames.root_rotation[rows])
+    sink = np.minimum(low_before, ir.ground) - lowest_point(skel, pose)
+    root[:, 1] += np.maximum(sink, 0.0)
+    frames.q[rows] = q
+    frames.root_position[rows] = root
     return ir
-
-
-solve = generate = run = _unfinished

@@ -3,20 +3,23 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mtlc.body import build_manikin, center_of_mass, forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
+from mtlc.frontend import run_frontend
 from mtlc.ir.model import Frames, GoalSpec, MotionIR, Provenance, Segment, SourceRef
 from mtlc.metrics import (
+    Metrics,
     compute_metrics,
     ldlj,
     render_metrics,
     support_margin,
 )
-from mtlc.passes import balance, smooth
+from mtlc.passes import balance, run_motion, smooth
 from mtlc.passes.context import PassContext
 
 SKEL = build_manikin("gb10000_1988", "male", 50)
@@ -280,3 +283,58 @@ def test_smoothing_respects_limits_and_keeps_contacts() -> None:
     # stance feet (heel/toe points that touched) stay where they were
     assert np.abs(site_positions(SKEL, pose, SOLES) - soles).max() < 1e-3
     assert f.q[:, k].min() >= 0.0
+
+
+# -- every example, after the whole pipeline ----------------------------------------------------
+
+EXAMPLES = sorted((Path(__file__).parents[2] / "examples").glob("*.mtask"))
+_compiled: dict[Path, list[tuple[str, Metrics]]] = {}
+
+
+def compiled(path: Path) -> list[tuple[str, Metrics]]:
+    if path not in _compiled:
+        program = run_frontend([path])
+        assert not program.sink.has_errors
+        _compiled[path] = [
+            (t.task, compute_metrics(run_motion(t, program.sink))) for t in program.timelines
+        ]
+    return _compiled[path]
+
+
+# Properties other passes do not deliver yet (they are being written alongside): the example
+# stem and property, with the reason measured on the current pipeline.
+PENDING = {
+    ("replace_fuel_filter", "penetration"): "the fingertips go ~65 mm below the floor when the "
+    "hand reaches drain_tray, 5 cm above it, fingers down (TA/TO hand orientation, not balance)",
+    ("replace_fuel_filter", "support"): "kneeling and reaching forward puts the CoM ~0.1 m "
+    "in front of the knees, and rising from the kneel has only the toes down (~0.7 m outside): "
+    "balance does not move a kneeling pelvis (it would drag the knees); the kneel posture must",
+    ("drain_hydraulic_reservoir", "support"): "the squat leaves the CoM 149 mm behind the heels "
+    "with the ankles near their 20° dorsiflexion limit; pelvis shift and trunk lean (kept only "
+    "while no point sinks below the floor) bring it to ~60 mm outside (MT0502); the squat "
+    "posture must lean the trunk itself",
+}
+
+
+def _case(path: Path, prop: str) -> object:
+    reason = PENDING.get((path.stem, prop))
+    marks = [pytest.mark.xfail(strict=False, reason=reason)] if reason else []
+    return pytest.param(path, id=f"{path.stem}-{prop}", marks=marks)
+
+
+@pytest.mark.parametrize("path", [_case(p, "penetration") for p in EXAMPLES])
+def test_examples_do_not_go_below_the_ground(path: Path) -> None:
+    for task, m in compiled(path):
+        assert m.penetration <= 1e-3, f"{task}: {m.penetration * 1e3:.2f} mm"
+
+
+@pytest.mark.parametrize("path", [_case(p, "limits") for p in EXAMPLES])
+def test_examples_keep_every_joint_within_its_limits(path: Path) -> None:
+    for task, m in compiled(path):
+        assert m.limit_count == 0, f"{task}: {m.limit_worst_deg:.2f}° {m.limit_worst_dof}"
+
+
+@pytest.mark.parametrize("path", [_case(p, "support") for p in EXAMPLES])
+def test_examples_balance_in_static_postures(path: Path) -> None:
+    for task, m in compiled(path):
+        assert m.support_margin_static >= 0.0, f"{task}: {m.support_margin_static * 1e3:.1f} mm"

@@ -38,6 +38,7 @@ from mtlc.metrics import (
     contact_mask,
     foot_points,
     foot_stance,
+    lowest_point,
     support,
     support_margin,
     support_push,
@@ -52,6 +53,7 @@ MAX_SHIFT = 0.30  # m: farther than this the posture is not a balance problem th
 LEG_REACH = 0.995  # of the straight leg's length: a leg is never stretched to its singularity
 SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight is singular)
 POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
+GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = -1e-4  # m: what still counts as inside after correction
 FEET_SITES = ("r_foot", "l_foot")
 HANDS = {"r_hand": "r_arm", "l_hand": "l_arm"}
@@ -292,7 +294,12 @@ def balance_frames(ir: MotionIR, frames: Frames) -> tuple[np.ndarray, np.ndarray
         stuck |= lost
     p = forward(skel, q, root, rot)
     margin = support_margin(pts, ok, center_of_mass(skel, p)[:, [0, 2]])
+    # nothing may go deeper below the ground than it was or than GROUND_SLACK
+    floor = np.minimum(
+        lowest_point(skel, forward(skel, q0, root0, rot)) - 1e-4, ir.ground - GROUND_SLACK
+    )
     good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
+    good &= lowest_point(skel, p) >= floor
     keep = good & (margin >= ACCEPT_MARGIN)
     retry = np.flatnonzero(~keep)
     if retry.size:
@@ -305,6 +312,7 @@ def balance_frames(ir: MotionIR, frames: Frames) -> tuple[np.ndarray, np.ndarray
             ir, qs, rs, rot[retry], pts[retry], ok[retry], sub_feet, sub_hands
         )
         ok2 = (w2 <= POSITION_TOL) & skel.within_limits(q2, tol=1e-6) & (m2 > margin[retry])
+        ok2 &= lowest_point(skel, forward(skel, q2, r2, rot[retry])) >= floor[retry]
         take = retry[ok2]
         q[take], root[take], margin[take] = q2[ok2], r2[ok2], m2[ok2]
         good[take] = True

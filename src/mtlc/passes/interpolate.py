@@ -15,6 +15,8 @@ while both feet stand, only upward (never below the ground) while walking.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
@@ -119,13 +121,64 @@ def lowest_foot_point(ir: MotionIR, frames: Frames) -> np.ndarray:
     return site_positions(ir.skeleton, pose, list(FOOT_POINTS))[..., 1].min(axis=-1)
 
 
+def _feet_in_root_frame(skel: Any, q: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """Foot points (N, P, 3) relative to the root position, for joint angles and root rotation."""
+    pose = forward(skel, q, np.zeros((len(q), 3)), rotation)
+    return site_positions(skel, pose, list(FOOT_POINTS))
+
+
+def _rest_feet_centre(skel: Any) -> np.ndarray:
+    """Where the feet's centre lies from the root when standing at rest, heading 0 (body frame)."""
+    rest = np.asarray(skel.q_comfort, dtype=float)[None]
+    return _feet_in_root_frame(skel, rest, np.array([[1.0, 0.0, 0.0, 0.0]]))[0].mean(axis=0)
+
+
+def anchored_root(
+    skel: Any, q: np.ndarray, plan_position: np.ndarray, rotation: np.ndarray, ground: float
+) -> np.ndarray:
+    """Root positions (N, 3) that stand the legs' pose on the ground where the plan stands them.
+
+    Vertically this is seed 001's correction h = L − x (L the ground, x the lowest foot point);
+    horizontally the feet's centre is kept where it is at rest under the planned root, so a squat
+    moves the pelvis back instead of sliding the feet forward. Used by the solving passes (where
+    is the body when the hand must reach) and by interpolation alike, so they agree.
+    """
+    feet = _feet_in_root_frame(skel, q, rotation)  # (N, P, 3) relative to the root
+    centre = feet.mean(axis=1)
+    w, x, y, z = rotation.T
+    yaw = np.arctan2(2 * (w * y + x * z), 1 - 2 * (y * y + x * x))  # heading about +Y
+    rest = _rest_feet_centre(skel)
+    rest_world = np.stack(
+        [np.cos(yaw) * rest[0] + np.sin(yaw) * rest[2], np.zeros_like(yaw),
+         -np.sin(yaw) * rest[0] + np.cos(yaw) * rest[2]], axis=1,
+    )  # fmt: skip
+    out = np.array(plan_position, dtype=float, copy=True)
+    out[:, 0] += rest_world[:, 0] - centre[:, 0]
+    out[:, 2] += rest_world[:, 2] - centre[:, 2]
+    out[:, 1] = ground - feet[..., 1].min(axis=1)
+    return out
+
+
 def correct_base(ir: MotionIR, frames: Frames) -> np.ndarray:
-    """Seed 001's h = L − x on every frame; returns the correction applied (metres, per frame)."""
-    h = ir.ground - lowest_foot_point(ir, frames)
+    """Seed 001's h = L − x on every frame; returns the vertical correction applied (per frame).
+
+    While both feet stand, the root is re-anchored (``anchored_root``): feet on the ground, where
+    the plan stands them. While walking the gait places the feet; a swing foot may lift, and the
+    correction only raises the root so that nothing sinks.
+    """
     walking = walking_mask(ir, frames.time)
-    h[walking] = np.maximum(h[walking], 0.0)  # a swing foot may lift; nothing may sink
-    frames.root_position[:, 1] += h
-    return h
+    before = frames.root_position[:, 1].copy()
+    standing = ~walking
+    if standing.any():
+        plan_position, _ = ir.root_plan.at(frames.time[standing])  # type: ignore[union-attr]
+        frames.root_position[standing] = anchored_root(
+            ir.skeleton, frames.q[standing], plan_position, frames.root_rotation[standing],
+            ir.ground,
+        )  # fmt: skip
+    if walking.any():
+        h = ir.ground - lowest_foot_point(ir, frames)
+        frames.root_position[walking, 1] += np.maximum(h[walking], 0.0)
+    return frames.root_position[:, 1] - before
 
 
 def interpolate_naive(ir: MotionIR, fps: float = INTERNAL_FPS) -> Frames:

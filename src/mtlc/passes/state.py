@@ -23,7 +23,7 @@ import numpy as np
 
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
-from mtlc.passes.interpolate import FOOT_POINTS
+from mtlc.passes.interpolate import anchored_root
 
 # (time, segment id, keyframes, row, column); column −1 for a posture root height
 _Ref = tuple[float, int, Keyframes, int, int]
@@ -102,9 +102,7 @@ class PoseState:
         pos = np.array(pos, dtype=float)
         rot = yaw_quaternion(np.asarray(heading))
         q = self.q_at(t, skip)
-        pose = forward(self.skel, q[None], np.zeros((1, 3)), rot[None])
-        feet = site_positions(self.skel, pose, list(FOOT_POINTS))[0]
-        pos[1] = self.ir.ground - float(np.min(feet[:, 1]))
+        pos = anchored_root(self.skel, q[None], pos[None], rot[None], self.ir.ground)[0]
         return pos, rot
 
     def site(self, name: str, q: FloatArray, root: tuple[FloatArray, FloatArray]) -> FloatArray:

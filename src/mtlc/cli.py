@@ -19,6 +19,7 @@ from mtlc.diagnostics import CODES, DiagnosticSink, Span
 from mtlc.diagnostics.render import render_json, render_text, use_color
 from mtlc.frontend import FrontendOptions, Program, run_frontend
 from mtlc.ir.serialize import to_json as ir_json
+from mtlc.metrics import Metrics, compute_metrics, render_metrics
 from mtlc.output import write_all_or_nothing
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.context import DEFAULT_FPS
@@ -115,6 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
                           help="output folder (default: out)")  # fmt: skip
     compile_.add_argument("--target", choices=("ir", "timeline"), default="ir",
                           help="what to write: the keyframe IR as JSON (default), or the expanded timeline")  # fmt: skip
+    compile_.add_argument("--metrics", action="store_true",
+                          help="print motion metrics per task (penetration, skating, balance, contact error, limits, smoothness)")  # fmt: skip
     compile_.add_argument("--fps", type=_fps, default=DEFAULT_FPS, metavar="N",
                           help=f"frames per second of the sampled motion (default {DEFAULT_FPS:g})")  # fmt: skip
 
@@ -206,6 +209,7 @@ def cmd_check(args: argparse.Namespace, program: Program) -> int:
 def cmd_compile(args: argparse.Namespace, program: Program) -> int:
     """Front end, then the motion passes; every output is written, or (on any error) none."""
     files: dict[Path, str] = {}
+    measured: list[tuple[str, Metrics]] = []
     if not program.sink.has_errors:
         for timeline in program.timelines:
             suffix = "timeline.json" if args.target == "timeline" else "ir.json"
@@ -219,8 +223,10 @@ def cmd_compile(args: argparse.Namespace, program: Program) -> int:
             if args.target == "timeline":
                 files[target] = timeline.to_json()
             else:
-                ir = run_motion(timeline, program.sink, MotionOptions(fps=args.fps))
+                ir = run_motion(timeline, program.sink, _motion_options(args))
                 files[target] = ir_json(ir)
+                if args.metrics:
+                    measured.append((timeline.task, compute_metrics(ir)))
     _report(program, args.format, stdout_taken=False)
     if program.sink.has_errors:
         return EXIT_ERRORS  # nothing is written: existing outputs stay as they were
@@ -229,7 +235,13 @@ def cmd_compile(args: argparse.Namespace, program: Program) -> int:
         _summary(program)
         for path in files:
             print(f"wrote {path}")
+    if measured:
+        sys.stdout.write(render_metrics(measured))
     return EXIT_OK
+
+
+def _motion_options(args: argparse.Namespace) -> MotionOptions:
+    return MotionOptions(fps=args.fps, walk_clip=getattr(args, "walk_clip", None))
 
 
 def cmd_explain(code: str) -> int:

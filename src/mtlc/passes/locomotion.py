@@ -1,13 +1,843 @@
-"""Placeholder while this pass is being written: it must be replaced before the issue closes."""
+"""Pass 4: walking. Footsteps along the root plan, legs by IK, step segmentation (seed 004).
+
+Each locomotion segment becomes a footstep plan: feet alternate; a heading change of more than
+``TURN_IN_PLACE`` at the start is stepped in place (pivot steps of at most ``MAX_TURN_STEP``);
+the walk covers the distance in ``ceil(distance / step length)`` equal steps and a closing step
+brings the feet together, already turned (up to ``MAX_TWIST``) toward the work that the root plan
+turns to after arriving. The step length comes from stature, the pedometer rule 0.413 × stature
+for women and 0.415 × stature for men, inside the 0.41–0.45 H range quoted for normal walking
+(see docs/passes.md); a supplied BVH clip replaces it with the clip's adapted gait.
+
+The pelvis passes through the mid-point of the feet at each double support, sways a little
+toward the stance foot in single support and bobs down as far as the legs need to reach both
+footprints. Leg angles come from an exact analytic leg IK (hip 3 dofs, knee, ankle 2 dofs for
+an ankle position and a level foot heading), so the stance foot stays on its footprint at every
+keyframe; keyframes are added between them until the interpolated stance foot drifts less
+than ``DRIFT_TOL``. Each segment's ``result`` gets the footsteps (which foot, lift-off and
+touch-down times, footprint) for the balance pass and the metrics, and the steps that
+:func:`segment_steps` recovers from the generated foot heights (seed 004 claim 2).
+"""
 
 from __future__ import annotations
 
-from mtlc.ir.model import MotionIR
-from mtlc.passes.context import PassContext
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.interpolate import PchipInterpolator
+
+from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
+from mtlc.passes.context import INTERNAL_FPS, PassContext
+from mtlc.passes.lower import TURN_TIME
+
+FloatArray = NDArray[np.float64]
+
+# Step length / stature for normal walking: the pedometer rule (women 0.413, men 0.415).
+STEP_LENGTH_RATIO = {"female": 0.413, "male": 0.415}
+STEP_HEIGHT_RATIO = 0.045  # mid-swing ankle rise / stature: ~7 cm for a 1.6 m manikin
+DOUBLE_SUPPORT = 0.2  # share of each step with both feet down (10 % at each end)
+SWAY = 0.3  # lateral pelvis shift toward the stance foot in single support, × half stance width
+TURN_IN_PLACE = math.radians(30)  # larger heading changes are stepped in place first
+MAX_TURN_STEP = math.radians(40)  # heading change per pivot step
+MAX_TWIST = 0.0  # rad the final stance may turn toward the work (see docs: 35° once interpolation holds feet through the turn)
+TOE_OFF_PITCH = math.radians(40)  # heel rise at toe-off of a full stride (less for short ones)
+HEEL_OFF = 0.45  # the heel rises this many steps before toe-off (mid-swing of the other foot)
+LEAD = 0.2  # at double support the pelvis is ahead of the feet's mid-point by this × the move
+LIMIT_MARGIN = math.radians(1.0)  # the pelvis height keeps the legs this far inside the limits
+STANCE_REACH = 0.995  # hip–ankle distance while walking, × thigh + shank length
+DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interpolation's frames
+SWING_TOL = 5e-3  # m: a swinging foot's
+CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
+MIN_DISTANCE = 0.02  # m: shorter walks only turn
+LEGS = ("r", "l")
+LEG_DOFS = ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")
 
 
-def _unfinished(ir: MotionIR, ctx: PassContext) -> MotionIR:
+# --------------------------------------------------------------------------- leg geometry & IK
+
+
+@dataclass(frozen=True)
+class LegModel:
+    """What the analytic leg IK needs from a skeleton (both legs are mirror images)."""
+
+    hip: dict[str, FloatArray]  # hip centre in the pelvis frame
+    thigh: float
+    shank: float
+    ankle_height: float  # ankle centre above the sole plane
+    toe: FloatArray  # toe tip in the foot frame (the heel-off pivot)
+    heel: FloatArray  # heel point in the foot frame
+    dofs: dict[str, list[int]]  # skeleton dof indices, LEG_DOFS order
+    sign: dict[str, tuple[float, float, float]]  # (abduction, rotation, inversion) axis signs
+    lower: dict[str, FloatArray]
+    upper: dict[str, FloatArray]
+
+    @property
+    def length(self) -> float:
+        return self.thigh + self.shank
+
+
+def leg_model(skel: Any) -> LegModel:
+    hip, dofs, sign, lower, upper = {}, {}, {}, {}, {}
+    for s in LEGS:
+        hip[s] = np.asarray(skel.joints[skel.joint_index(f"{s}_hip")].offset, dtype=float)
+        idx = [skel.dof_index(f"{s}_{d}") for d in LEG_DOFS]
+        dofs[s] = idx
+        ax = np.asarray(skel.dof_axis)[idx]
+        sign[s] = (float(ax[1, 2]), float(ax[2, 1]), float(ax[5, 2]))
+        lower[s] = np.asarray(skel.lower)[idx]
+        upper[s] = np.asarray(skel.upper)[idx]
+    knee = skel.joints[skel.joint_index("r_knee")].offset
+    ankle = skel.joints[skel.joint_index("r_ankle")].offset
+    heel = np.asarray(skel.site("r_heel").offset, dtype=float)
+    toe = np.asarray(skel.site("r_toe").offset, dtype=float)
+    return LegModel(
+        hip, -float(knee[1]), -float(ankle[1]), -float(heel[1]), toe, heel, dofs, sign, lower,
+        upper,
+    )  # fmt: skip
+
+
+def _rx(a: FloatArray) -> FloatArray:
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(a), np.zeros_like(a)
+    return np.stack(
+        [np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2
+    )
+
+
+def _ry(a: FloatArray) -> FloatArray:
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(a), np.zeros_like(a)
+    return np.stack(
+        [np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2
+    )
+
+
+def _rz(a: FloatArray) -> FloatArray:
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(a), np.zeros_like(a)
+    return np.stack(
+        [np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2
+    )
+
+
+def leg_ik(
+    legs: LegModel,
+    side: str,
+    root_position: FloatArray,
+    root_heading: FloatArray,
+    ankle: FloatArray,
+    foot_heading: FloatArray,
+    foot_pitch: FloatArray | float = 0.0,
+    *,
+    clip: bool = True,
+) -> FloatArray:
+    """Exact leg angles (B, 6) putting the ankle centre at ``ankle``, the foot turned to
+    ``foot_heading`` and pitched nose down by ``foot_pitch``.
+
+    Closed form: the knee from the hip–ankle distance, the ankle's inversion and dorsiflexion
+    from the hip seen in the foot frame, the hip's three angles from the remaining rotation
+    (X–Z–Y Euler, the skeleton's dof order). Angles are clipped into the joint limits.
+    """
+    sa, sr, si = legs.sign[side]
+    Rroot = _ry(root_heading)
+    pitch = np.broadcast_to(np.asarray(foot_pitch, dtype=float), np.shape(foot_heading))
+    F = np.swapaxes(Rroot, -1, -2) @ _ry(foot_heading) @ _rx(pitch)  # foot in the pelvis frame
+    T = np.einsum("...ji,...j->...i", Rroot, ankle - root_position) - legs.hip[side]
+    L1, L2 = legs.thigh, legs.shank
+    dist2 = np.einsum("...i,...i->...", T, T)
+    k = np.arccos(np.clip((dist2 - L1 * L1 - L2 * L2) / (2 * L1 * L2), -1.0, 1.0))
+    u = np.einsum("...ji,...j->...i", F, T)  # the hip–ankle vector in the foot frame
+    eps = np.arctan2(-u[..., 0], -u[..., 1])
+    y1 = u[..., 0] * np.sin(eps) + u[..., 1] * np.cos(eps)
+    wy, wz = -L1 * np.cos(k) - L2, L1 * np.sin(k)
+    delta = np.arctan2(wz, wy) - np.arctan2(u[..., 2], y1)
+    delta = (delta + np.pi) % (2 * np.pi) - np.pi
+    M = F @ _rz(-eps) @ _rx(-delta - k)  # hip rotation Rx(α) Rz(β) Ry(γ)
+    beta = np.arcsin(np.clip(-M[..., 0, 1], -1.0, 1.0))
+    gamma = np.arctan2(M[..., 0, 2], M[..., 0, 0])
+    alpha = np.arctan2(M[..., 2, 1], M[..., 1, 1])
+    q = np.stack([-alpha, sa * beta, sr * gamma, k, -delta, si * eps], axis=-1)
+    return np.clip(q, legs.lower[side], legs.upper[side]) if clip else q
+
+
+# --------------------------------------------------------------------------- gait and footsteps
+
+
+@dataclass(frozen=True)
+class Gait:
+    """The walk's parameters: from stature, or adapted from a supplied clip."""
+
+    step_length: float  # m, one foot's touch-down to the other's
+    step_height: float  # m, ankle rise at mid-swing
+    cadence: float | None = None  # steps per second, or None to fill the segment's time
+    source: str = "stature"
+
+
+def default_gait(skel: Any) -> Gait:
+    ratio = STEP_LENGTH_RATIO.get(getattr(skel, "sex", ""), 0.414)
+    h = float(skel.dims.stature)
+    return Gait(ratio * h, STEP_HEIGHT_RATIO * h)
+
+
+@dataclass
+class Footprint:
+    position: FloatArray  # ankle centre projected on the ground
+    heading: float
+
+
+@dataclass
+class Step:
+    foot: str
+    start: Footprint
+    end: Footprint
+    pelvis_heading: float  # the pelvis's heading once this step has landed
+    t_heel_off: float = 0.0  # the heel rises, the foot rolls about its toe
+    t_lift: float = 0.0  # toe-off
+    t_land: float = 0.0  # flat on the next footprint
+    toe_off_pitch: float = 0.0  # rad, nose down at toe-off
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def _side(heading: float, foot: str, offset: Any) -> FloatArray:
+    """A foot's ankle from the stance centre: ``offset`` is (half width, forward) in the body
+    frame (the manikin's left is +X at heading 0), or a bare half width."""
+    x, z = (float(offset), 0.0) if np.ndim(offset) == 0 else (float(offset[0]), float(offset[1]))
+    x = x if foot == "l" else -x
+    c, s = math.cos(heading), math.sin(heading)
+    return np.array([c * x + s * z, 0.0, -s * x + c * z])
+
+
+def stance_at(centre: FloatArray, heading: float, half_width: Any) -> dict[str, Footprint]:
+    return {f: Footprint(centre + _side(heading, f, half_width), heading) for f in LEGS}
+
+
+def plan_footsteps(
+    stance: dict[str, Footprint],
+    goal: FloatArray,
+    walk_heading: float,
+    final_heading: float,
+    gait: Gait,
+    half_width: Any,
+    first: str = "r",
+) -> list[Step]:
+    """Pivot steps to the walking heading, equal steps to the goal, a closing step."""
+    feet = dict(stance)
+    steps: list[Step] = []
+    foot = first
+    centre = (feet["r"].position + feet["l"].position) / 2
+    h0 = math.atan2(
+        math.sin(feet["r"].heading) + math.sin(feet["l"].heading),
+        math.cos(feet["r"].heading) + math.cos(feet["l"].heading),
+    )
+    d = goal - centre
+    d[1] = 0.0
+    distance = float(np.hypot(d[0], d[2]))
+    if distance < MIN_DISTANCE:
+        walk_heading = h0
+    turn = _wrap(walk_heading - h0)
+
+    def put(f: str, fp: Footprint, pelvis: float) -> None:
+        steps.append(Step(f, feet[f], fp, pelvis))
+        feet[f] = fp
+
+    if abs(turn) > TURN_IN_PLACE:
+        m = math.ceil(abs(turn) / MAX_TURN_STEP)
+        foot = "l" if turn > 0 else "r"  # open toward the turn
+        for j in range(1, m + 1):
+            h = h0 + turn * j / m
+            put(foot, Footprint(centre + _side(h, foot, half_width), h), h0 + turn * (j - 0.5) / m)
+            foot = "r" if foot == "l" else "l"
+        put(foot, Footprint(centre + _side(walk_heading, foot, half_width), walk_heading),
+            walk_heading)  # fmt: skip
+        foot = "r" if foot == "l" else "l"
+    twist = float(np.clip(_wrap(final_heading - walk_heading), -MAX_TWIST, MAX_TWIST))
+    end_heading = walk_heading + twist
+    if distance >= MIN_DISTANCE:
+        n = max(1, math.ceil(distance / gait.step_length - 1e-9))
+        ahead = d / distance
+        for k in range(1, n + 1):
+            if k == n:
+                fp = Footprint(goal + _side(end_heading, foot, half_width), end_heading)
+            else:
+                fp = Footprint(centre + ahead * distance * k / n
+                               + _side(walk_heading, foot, half_width), walk_heading)  # fmt: skip
+            put(foot, fp, walk_heading)
+            foot = "r" if foot == "l" else "l"
+        put(foot, Footprint(goal + _side(end_heading, foot, half_width), end_heading),
+            walk_heading)  # fmt: skip
+    elif abs(twist) > math.radians(5):
+        for _ in range(2):
+            put(foot, Footprint(centre + _side(end_heading, foot, half_width), end_heading),
+                h0)  # fmt: skip
+            foot = "r" if foot == "l" else "l"
+    return steps
+
+
+def time_steps(steps: list[Step], t0: float, t1: float, gait: Gait) -> None:
+    """Spread the steps over the segment (or at the clip's cadence, if it fits)."""
+    if not steps:
+        return
+    span = t1 - t0
+    dt = span / len(steps)
+    if gait.cadence:
+        dt = min(dt, 1.0 / gait.cadence)
+    lead = (span - dt * len(steps)) / 2  # stand still before and after if there is time left
+    for i, st in enumerate(steps):
+        b0 = t0 + lead + i * dt
+        st.t_heel_off = max(t0, b0 - HEEL_OFF * dt)
+        st.t_lift = b0 + DOUBLE_SUPPORT * dt / 2
+        st.t_land = b0 + dt - DOUBLE_SUPPORT * dt / 2
+        travel = float(np.hypot(*(st.end.position - st.start.position)[[0, 2]]))
+        st.toe_off_pitch = TOE_OFF_PITCH * min(1.0, travel / gait.step_length)
+
+
+# --------------------------------------------------------------------------- trajectories
+
+
+@dataclass
+class FootTrack:
+    """One foot over sampled times."""
+
+    ankle: FloatArray  # (N, 3)
+    heading: FloatArray  # (N,)
+    pitch: FloatArray  # (N,) nose down
+    planted: NDArray[np.bool_]  # (N,): the toe is on its footprint (flat or rolling)
+    anchor: FloatArray  # (N, 3): that footprint's toe tip, the roll's pivot
+
+
+def _rolled(R0: FloatArray, toe_w: FloatArray, phi: FloatArray, toe: FloatArray) -> FloatArray:
+    """Ankle centres of a foot pitched nose down by ``phi`` about its toe tip ``toe_w``."""
+    Rp = np.broadcast_to(R0, (len(phi), 3, 3)) @ _rx(phi)
+    return toe_w - Rp @ toe
+
+
+@dataclass
+class WalkMotion:
+    """Continuous root and feet over a segment, sampled wherever keyframes are wanted."""
+
+    steps: list[Step]
+    stance: dict[str, Footprint]
+    t0: float
+    t1: float
+    root_start: FloatArray
+    root_end: FloatArray
+    heading_start: float
+    heading_end: float
+    stand_height: float  # pelvis height above the ground, standing
+    ground: float
+    gait: Gait
+    legs: LegModel
+    half_width: Any  # see _side
+    # after arriving the root plan may turn the pelvis toward the work: the feet stay put
+    hold_end: float = -math.inf
+    hold_root: Callable[[FloatArray], tuple[FloatArray, FloatArray]] | None = None
+    cap: bool = False  # a last keyframe repeats the final pose, so the legs come to rest
+
+    @property
+    def t_end(self) -> float:
+        return max(self.t1, self.hold_end)
+
+    def __post_init__(self) -> None:
+        ts, xz, hs = [self.t0], [self.root_start[[0, 2]]], [self.heading_start]
+        feet = dict(self.stance)
+        for st in self.steps:
+            stance_foot = "l" if st.foot == "r" else "r"
+            mid_t = (st.t_lift + st.t_land) / 2
+            b = st.t_land + (st.t_land - st.t_lift) * DOUBLE_SUPPORT / (1 - DOUBLE_SUPPORT) / 2
+            centre_before = (feet["r"].position + feet["l"].position) / 2
+            feet[st.foot] = st.end
+            centre_after = (feet["r"].position + feet["l"].position) / 2
+            lateral = feet[stance_foot].position - (centre_before + centre_after) / 2
+            heading_dir = np.array([math.sin(st.pelvis_heading), 0.0, math.cos(st.pelvis_heading)])
+            lateral = lateral - heading_dir * (lateral @ heading_dir)
+            mid = (centre_before + centre_after) / 2 + SWAY * lateral
+            closing = st is self.steps[-1] or st is self.steps[-2]
+            lead = 0.0 if closing else LEAD
+            ahead = centre_after + lead * (centre_after - centre_before)
+            ts += [mid_t, b]
+            xz += [mid[[0, 2]], ahead[[0, 2]]]
+            h = hs[-1] + _wrap(st.pelvis_heading - hs[-1])
+            hs += [(hs[-1] + h) / 2, h]
+        ts.append(self.t1)
+        xz.append(self.root_end[[0, 2]])
+        hs.append(hs[-1] + _wrap(self.heading_end - hs[-1]))
+        t = np.asarray(ts)
+        keep = np.append(np.diff(t) > 1e-6, True)  # at equal times the later knot wins
+        self._t = t[keep]
+        self._xz = PchipInterpolator(self._t, np.asarray(xz)[keep], axis=0)
+        self._h = PchipInterpolator(self._t, np.asarray(hs)[keep])
+        grid = np.linspace(self.t0, self.t1, max(3, int((self.t1 - self.t0) * 240) + 1))
+        self._grid = grid
+        self._y = self._pelvis_height(grid)
+        # the swing starts from the foot as it actually leaves: rolled as far as it had to
+        lifts = np.array([st.t_lift for st in self.steps])
+        for _ in range(2):
+            if not len(lifts):
+                break
+            *_, feet = self.pose(lifts)
+            for i, st in enumerate(self.steps):
+                st.toe_off_pitch = max(st.toe_off_pitch, float(feet[st.foot].pitch[i]))
+
+    def feet(self, t: FloatArray) -> dict[str, FootTrack]:
+        """Both feet at times ``t``, as scheduled (before :meth:`pose` adds the roll it needs).
+
+        Flat on a footprint in stance; from heel-off to toe-off the foot rolls nose down
+        about its toe tip (the toe stays put); in swing the ankle follows a minimum-jerk path
+        with a sin² rise of ``step_height`` and lands flat.
+        """
+        out = {}
+        lift = self.ground + self.legs.ankle_height
+        toe = self.legs.toe
+        for f in LEGS:
+            pos = np.tile(self.stance[f].position, (len(t), 1))
+            head = np.full(len(t), self.stance[f].heading)
+            pitch = np.zeros(len(t))
+            pos[:, 1] += lift
+            anchor = pos + _ry(head) @ toe
+            planted = np.ones(len(t), dtype=bool)
+            for st in self.steps:
+                if st.foot != f:
+                    continue
+                a0 = st.start.position + np.array([0.0, lift, 0.0])
+                a1 = st.end.position + np.array([0.0, lift, 0.0])
+                h0 = st.start.heading
+                R0 = _ry(np.array(h0))
+                toe_w = a0 + R0 @ toe
+                after = t >= st.t_land
+                pos[after] = a1
+                head[after] = st.end.heading
+                pitch[after] = 0.0
+                anchor[after] = a1 + _ry(np.array(st.end.heading)) @ toe
+                ho = (t >= st.t_heel_off) & (t <= st.t_lift)
+                if ho.any() and st.t_lift > st.t_heel_off:
+                    tau = (t[ho] - st.t_heel_off) / (st.t_lift - st.t_heel_off)
+                    phi = st.toe_off_pitch * tau * tau * (3 - 2 * tau)
+                    pos[ho], head[ho], pitch[ho] = _rolled(R0, toe_w, phi, toe), h0, phi
+                sw = (t > st.t_lift) & (t < st.t_land)
+                if sw.any():
+                    start = _rolled(R0, toe_w, np.array([st.toe_off_pitch]), toe)[0]
+                    tau = (t[sw] - st.t_lift) / (st.t_land - st.t_lift)
+                    # the foot rises before it travels and lands straight down: the horizontal
+                    # minimum-jerk move takes the middle 75 % of the swing
+                    u = np.clip((tau - 0.1) / 0.75, 0.0, 1.0)
+                    s = u * u * u * (10 - 15 * u + 6 * u * u)
+                    pos[sw] = start + s[:, None] * (a1 - start)
+                    pos[sw, 1] += self.gait.step_height * np.sin(np.pi * tau) ** 2
+                    head[sw] = h0 + s * _wrap(st.end.heading - h0)
+                    pitch[sw] = st.toe_off_pitch * (1 - s)
+                    planted[sw] = False
+            out[f] = FootTrack(pos, head, pitch, planted, anchor)
+        return out
+
+    def _reach_height(self, t: FloatArray, xz: FloatArray, heading: FloatArray) -> FloatArray:
+        """The highest pelvis from which both legs reach their ankles within their limits.
+
+        Candidate heights from standing down to 30 % of the leg length lower are tried with
+        the exact leg IK; the highest one where both legs reach (``STANCE_REACH``) and stay
+        ``LIMIT_MARGIN`` inside every joint limit wins (else the least violating one).
+        """
+        top = self.ground + self.stand_height
+        cand = top - np.linspace(0.0, 0.3 * self.legs.length, 61)
+        n, m = len(t), len(cand)
+        y = np.repeat(cand[None, :], n, axis=0).ravel()
+        root = np.stack([np.repeat(xz[:, 0], m), y, np.repeat(xz[:, 1], m)], axis=-1)
+        hh = np.repeat(heading, m)
+        bad = np.zeros(n * m)
+        r = STANCE_REACH * self.legs.length
+        for f, ft in self.feet(t).items():
+            a = np.repeat(ft.ankle, m, axis=0)
+            q = leg_ik(self.legs, f, root, hh, a, np.repeat(ft.heading, m),
+                       np.repeat(ft.pitch, m), clip=False)  # fmt: skip
+            lo, hi = self.legs.lower[f] + LIMIT_MARGIN, self.legs.upper[f] - LIMIT_MARGIN
+            over = np.maximum(q - hi, 0.0)
+            over[np.repeat(ft.planted, m), 4] = 0.0  # a planted foot rolls instead (see pose)
+            bad += np.maximum(lo - q, 0.0).sum(axis=1) + over.sum(axis=1)
+            hip = root + np.einsum("nij,j->ni", _ry(hh), self.legs.hip[f])
+            bad += 10 * np.maximum(np.linalg.norm(hip - a, axis=1) - r, 0.0)
+        bad = bad.reshape(n, m)
+        ok = bad <= 1e-12
+        first_ok = np.where(ok.any(axis=1), ok.argmax(axis=1), bad.argmin(axis=1))
+        return cand[first_ok]
+
+    def _pelvis_height(self, grid: FloatArray) -> FloatArray:
+        y = self._reach_height(grid, self._xz(grid), self._h(grid))
+        y[0] = y[-1] = self.ground + self.stand_height  # meet the standing root at the ends
+        # erosion then a box average of the same width (narrowing at the ends, which must
+        # stay at the standing height): smooth, and below the reach bound
+        n = len(y)
+        w = np.minimum(int(0.06 * 240), np.minimum(np.arange(n), np.arange(n)[::-1]))
+        eroded = np.array([y[i - w[i] : i + w[i] + 1].min() for i in range(n)])
+        smooth = np.array([eroded[i - w[i] : i + w[i] + 1].mean() for i in range(n)])
+        return np.minimum(smooth, y)
+
+    def root(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        tt = np.clip(t, self.t0, self.t1)
+        xz = self._xz(tt)
+        y = np.interp(tt, self._grid, self._y)
+        pos, head = np.stack([xz[:, 0], y, xz[:, 1]], axis=-1), self._h(tt)
+        later = t > self.t1
+        if self.hold_root is not None and later.any():
+            pos[later], head[later] = self.hold_root(t[later])
+        return pos, head
+
+    def pose(
+        self, t: FloatArray
+    ) -> tuple[FloatArray, FloatArray, dict[str, FloatArray], dict[str, FootTrack]]:
+        """Root position, heading, each leg's six angles and the feet at times ``t``.
+
+        A planted foot whose ankle would pass its dorsiflexion limit rolls about its toe
+        just enough (the heel rises when the ankle can bend no further, as in real gait).
+        """
+        pos, head = self.root(t)
+        legs, feet = {}, self.feet(t)
+        for f, ft in feet.items():
+            hi = self.legs.upper[f][4] - LIMIT_MARGIN
+            prev_p = prev_e = None
+            for it in range(13):
+                q = leg_ik(self.legs, f, pos, head, ft.ankle, ft.heading, ft.pitch, clip=False)
+                need = q[:, 4] > hi + 1e-7
+                if not need.any() or it == 12:
+                    break
+                e = q[:, 4] - hi
+                step = e.copy()  # first a plain step, then secant steps (the ankle rises too)
+                if prev_p is not None and prev_e is not None:
+                    de, dp = prev_e - e, ft.pitch - prev_p
+                    ok = (de > 1e-9) & (dp > 1e-9)
+                    step[ok] = np.minimum(e[ok] * dp[ok] / de[ok], 4 * e[ok])
+                prev_p, prev_e = ft.pitch.copy(), e
+                ft.pitch[need] += np.maximum(step[need], 0.0)  # in swing: just point the toes
+                roll = need & ft.planted
+                ft.ankle[roll] = _rolled(_ry(ft.heading[roll]), ft.anchor[roll], ft.pitch[roll],
+                                         self.legs.toe)  # fmt: skip
+            legs[f] = np.clip(q, self.legs.lower[f], self.legs.upper[f])
+        return pos, head, legs, feet
+
+
+def leg_fk(
+    legs: LegModel, side: str, root_position: FloatArray, heading: FloatArray, q: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Ankle centre and toe tip of one leg (N, 3 each): the drift measure of the keyframes."""
+    sa, sr, si = legs.sign[side]
+    R = _ry(heading) @ _rx(-q[:, 0]) @ _rz(sa * q[:, 1]) @ _ry(sr * q[:, 2])
+    hip = root_position + np.einsum("...ij,j->...i", _ry(heading), legs.hip[side])
+    knee = hip + R @ np.array([0.0, -legs.thigh, 0.0])
+    Rs = R @ _rx(q[:, 3])
+    ankle = knee + Rs @ np.array([0.0, -legs.shank, 0.0])
+    Rf = Rs @ _rx(-q[:, 4]) @ _rz(si * q[:, 5])
+    return ankle, ankle + Rf @ legs.toe
+
+
+def _heading_of(quat: FloatArray) -> FloatArray:
+    return 2 * np.arctan2(quat[:, 2], quat[:, 0])
+
+
+def _key_times(motion: WalkMotion) -> FloatArray:
+    """A few keyframes per step, refined until the interpolated feet stay on their paths.
+
+    The check interpolates the keyframes as the interpolate pass will (PCHIP of the angles
+    and of the root, the root's quaternion normalised; the root plan's own root after the
+    walk) and halves every key interval where a foot's ankle or toe strays by more than
+    ``DRIFT_TOL`` from where it should be.
+    """
+    t_end = max(motion.t1, motion.hold_end)
+    ts = [motion.t0, motion.t1]
+    for st in motion.steps:
+        sw = st.t_land - st.t_lift
+        ts += [st.t_lift, st.t_land] + [st.t_lift + sw * f for f in (0.25, 0.5, 0.75)]
+    if motion.hold_end > motion.t1:
+        ts += list(motion.t1 + (motion.hold_end - motion.t1) * np.array([0.25, 0.5, 0.75, 1.0]))
+    keys = np.unique(np.round(np.asarray(ts), 9))
+    # the interpolate pass's frames inside the window
+    k0, k1 = math.ceil(motion.t0 * INTERNAL_FPS - 1e-9), math.floor(t_end * INTERNAL_FPS + 1e-9)
+    dense = np.unique(np.r_[motion.t0, np.arange(k0, k1 + 1) / INTERNAL_FPS, t_end])
+    want_pos, _, _, want = motion.pose(dense)
+    want_toe = {}
+    for f in LEGS:
+        w = want[f]
+        want_toe[f] = w.ankle + (_ry(w.heading) @ _rx(w.pitch)) @ motion.legs.toe
+    walking = dense <= motion.t1
+    for _ in range(8):
+        pos, head, legq, _ = motion.pose(keys)
+        if motion.cap:
+            keys_c = np.append(keys, t_end + CAP)
+            pos = np.vstack([pos, pos[-1]])
+            head = np.append(head, head[-1])
+            legq = {f: np.vstack([v, v[-1]]) for f, v in legq.items()}
+        else:
+            keys_c = keys
+        rp = want_pos.copy()
+        rh = motion.root(dense)[1]
+        rp[walking] = PchipInterpolator(keys_c, pos, axis=0)(dense[walking])
+        quat = PchipInterpolator(keys_c, yaw_quaternion(head), axis=0)(dense[walking])
+        rh[walking] = _heading_of(quat / np.linalg.norm(quat, axis=1, keepdims=True))
+        bad = np.zeros(len(dense), dtype=bool)
+        for f in LEGS:
+            q = PchipInterpolator(keys_c, legq[f], axis=0)(dense)
+            ankle, toe = leg_fk(motion.legs, f, rp, rh, q)
+            da, dt = ankle - want[f].ankle, toe - want_toe[f]
+            # after the walk the base correction settles the height: only horizontal counts
+            da[~walking, 1] = dt[~walking, 1] = 0.0
+            err = np.maximum(np.linalg.norm(da, axis=1), np.linalg.norm(dt, axis=1))
+            bad |= err > np.where(want[f].planted, DRIFT_TOL, SWING_TOL)
+        if not bad.any():
+            break
+        # key the frames that stray: interpolation is then exact there, and PCHIP is local
+        keys = np.unique(np.concatenate([keys, dense[bad]]))
+    return keys
+
+
+# --------------------------------------------------------------------------- step segmentation
+
+
+@dataclass(frozen=True)
+class DetectedStep:
+    foot: str
+    t_lift: float
+    t_land: float
+    position: tuple[float, float, float]  # where the foot came down
+    height: float  # highest rise above its stance height during the swing
+
+
+def segment_steps(
+    time: FloatArray,
+    heights: dict[str, FloatArray],
+    positions: dict[str, FloatArray] | None = None,
+    *,
+    threshold: float | None = None,
+    speed_threshold: float | None = None,
+    min_swing: float = 0.08,
+) -> list[DetectedStep]:
+    """Steps from foot heights over frames (seed 004 claim 2).
+
+    (1.1) the heights are filtered (a 3-frame median against spikes); (1.2)–(1.3) a foot is
+    in the air where its height is above its stance level (the 5th percentile of its height)
+    by more than ``threshold`` (default: 1 cm, or 15 % of its range if that is smaller) and,
+    when positions are given and ``speed_threshold`` set, where it moves faster than that;
+    (1.4) each flight longer than ``min_swing`` is one step: lift-off and touch-down at the
+    threshold crossings (linearly interpolated between frames), the touch-down point and the
+    swing's peak height.
+    """
+    t = np.asarray(time, dtype=float)
+    out: list[DetectedStep] = []
+    for foot, h in heights.items():
+        h = np.asarray(h, dtype=float)
+        if len(h) >= 3:
+            hf = np.median(np.stack([np.r_[h[:1], h[:-1]], h, np.r_[h[1:], h[-1:]]]), axis=0)
+        else:
+            hf = h
+        base = float(np.percentile(hf, 5))
+        span = float(hf.max() - base)
+        thr = threshold if threshold is not None else min(0.01, 0.15 * span) if span > 0 else 0.01
+        air = hf > base + thr
+        if positions is not None and speed_threshold is not None and len(t) > 1:
+            p = np.asarray(positions[foot], dtype=float)
+            v = np.gradient(p[:, [0, 2]], t, axis=0)
+            air |= (np.hypot(v[:, 0], v[:, 1]) > speed_threshold) & (hf > base + thr / 4)
+        edges = np.diff(air.astype(int))
+        lifts = list(np.flatnonzero(edges == 1) + 1)
+        lands = list(np.flatnonzero(edges == -1) + 1)
+        if air[0]:
+            lifts.insert(0, 0)
+        if air[-1]:
+            lands.append(len(t) - 1)
+        level = base + thr
+        for i0, i1 in zip(lifts, lands, strict=False):
+
+            def cross(i: int, hf: FloatArray = hf, level: float = level) -> float:
+                if i == 0 or i >= len(t):
+                    return float(t[min(i, len(t) - 1)])
+                a, b = hf[i - 1], hf[i]
+                f = 0.0 if b == a else (level - a) / (b - a)
+                return float(t[i - 1] + np.clip(f, 0.0, 1.0) * (t[i] - t[i - 1]))
+
+            t_lift, t_land = cross(i0), cross(i1)
+            if t_land - t_lift < min_swing:
+                continue
+            where = (
+                tuple(float(x) for x in np.asarray(positions[foot])[min(i1, len(t) - 1)])
+                if positions is not None
+                else (math.nan, math.nan, math.nan)
+            )
+            peak = float(hf[i0:i1].max() - base)
+            out.append(DetectedStep(foot, t_lift, t_land, where, peak))  # type: ignore[arg-type]
+    out.sort(key=lambda s: s.t_lift)
+    return out
+
+
+def gait_of(steps: Sequence[DetectedStep]) -> dict[str, float]:
+    """Step length, height and cadence of detected steps (seed 004 claim 2, step 1.4)."""
+    if len(steps) < 2:
+        return {"steps": float(len(steps))}
+    lands = np.array([s.position for s in steps])
+    lengths = [
+        float(np.hypot(*(lands[i] - lands[i - 1])[[0, 2]]))
+        for i in range(1, len(steps))
+        if steps[i].foot != steps[i - 1].foot
+    ]
+    t = [s.t_land for s in steps]
+    return {
+        "steps": float(len(steps)),
+        "step_length": float(np.median(lengths)) if lengths else math.nan,
+        "step_height": float(np.median([s.height for s in steps])),
+        "cadence": (len(steps) - 1) / (t[-1] - t[0]) if t[-1] > t[0] else math.nan,
+    }
+
+
+# --------------------------------------------------------------------------- the pass
+
+
+def _postures_between(ir: MotionIR, t0: float, t1: float) -> bool:
+    return any(
+        s.track == "root" and s.kind == "posture" and s.end > t0 and s.start < t1
+        for s in ir.segments
+    )
+
+
+def _step_dicts(steps: list[Step]) -> list[dict[str, Any]]:
+    return [
+        {
+            "foot": s.foot,
+            "t_heel_off": round(s.t_heel_off, 6),
+            "t_lift": round(s.t_lift, 6),
+            "t_land": round(s.t_land, 6),
+            "from": [round(float(x), 6) for x in s.start.position],
+            "position": [round(float(x), 6) for x in s.end.position],
+            "heading": round(s.end.heading, 6),
+        }
+        for s in steps
+    ]
+
+
+def walk_gait(ir: MotionIR, ctx: PassContext, seg: Segment) -> Gait:
+    """The stature gait, or the supplied clip's gait adapted to this walk (claims 3–4)."""
+    base = default_gait(ir.skeleton)
+    if ctx.options.walk_clip is None:
+        return base
+    from mtlc.passes import bvh_clip  # the clip machinery is only loaded when asked for
+
+    return bvh_clip.gait_for_walk(ir, ctx, seg, base)
+
+
+def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    skel, plan = ir.skeleton, ir.root_plan
+    if skel is None or plan is None:
+        return ir
+    legs = ctx.cache.get("legs")
+    if legs is None:
+        legs = ctx.cache["legs"] = leg_model(skel)
+    # stand the feet where the comfortable pose puts them, as interpolation anchors them
+    rest = np.asarray(skel.q_comfort, dtype=float)
+    ankle_rest, _ = leg_fk(legs, "l", np.zeros((1, 3)), np.zeros(1), rest[None, legs.dofs["l"]])
+    half_width = np.array([ankle_rest[0, 0], ankle_rest[0, 2]])
+    stand = legs.ankle_height - float(ankle_rest[0, 1])
+    walks = sorted((s for s in ir.segments if s.kind == "locomotion"), key=lambda s: s.start)
+    next_foot = "r"
+    for i, seg in enumerate(walks):
+        t0, t1 = seg.start, seg.end
+        p0, h0 = plan.at(t0)
+        p1, h1 = plan.at(t1)
+        h0, h1 = float(h0), float(h1)
+        # interpolation anchors the standing feet under the planned root: start from there
+        stance = stance_at(np.array([p0[0], ir.ground, p0[2]]), h0, half_width)
+        next_start = walks[i + 1].start if i + 1 < len(walks) else math.inf
+        t_turn = min(t1 + TURN_TIME, next_start)
+        hf = float(plan.at(t_turn)[1])
+        gait = walk_gait(ir, ctx, seg)
+        goal = np.array([p1[0], ir.ground, p1[2]])
+        steps = plan_footsteps(stance, goal, h1, hf, gait, half_width, next_foot)
+        time_steps(steps, t0, t1, gait)
+        turns_after = (
+            abs(_wrap(hf - h1)) > 1e-3
+            and t_turn > t1 + 1e-6
+            and not _postures_between(ir, t1, t_turn)
+        )
+
+        def hold_root(t: FloatArray, plan: Any = plan, top: float = ir.ground + stand) -> Any:
+            p, h = plan.at(t)
+            p = np.array(p, dtype=float)
+            p[:, 1] = top
+            return p, np.asarray(h, dtype=float)
+
+        motion = WalkMotion(
+            steps, stance, t0, t1, np.array([p0[0], 0.0, p0[2]]), np.array([p1[0], 0.0, p1[2]]),
+            h0, h1, stand, ir.ground, gait, legs, half_width,
+            t_turn if turns_after else -math.inf, hold_root if turns_after else None,
+        )  # fmt: skip
+        motion.cap = not _postures_between(ir, t1, motion.t_end + CAP + 1e-9) and (
+            motion.t_end + CAP < next_start
+        )
+        keys = _key_times(motion)
+        pos, head, legq, kfeet = motion.pose(keys)
+        clipped = 0
+        for f in LEGS:
+            ft = kfeet[f]
+            raw = leg_ik(legs, f, pos, head, ft.ankle, ft.heading, ft.pitch, clip=False)
+            clipped += int(np.any(np.abs(raw - legq[f]) > 1e-6, axis=1).sum())
+        times = keys
+        if motion.cap:
+            times = np.append(keys, motion.t_end + CAP)
+            pos = np.vstack([pos, pos[-1]])
+            head = np.append(head, head[-1])
+            legq = {f: np.vstack([v, v[-1]]) for f, v in legq.items()}
+        dof_names = tuple(f"{f}_{d}" for f in LEGS for d in LEG_DOFS)
+        seg.keyframes = Keyframes(
+            time=times,
+            dofs=dof_names,
+            q=np.hstack([legq[f] for f in LEGS]),
+            root_position=pos,
+            root_rotation=yaw_quaternion(head),
+        )
+        detected = _segment_generated(motion)
+        seg.result.update(
+            {
+                "steps": _step_dicts(steps),
+                "stance": {f: [round(float(x), 6) for x in stance[f].position] for f in LEGS},
+                "gait": {
+                    "step_length": round(gait.step_length, 6),
+                    "step_height": round(gait.step_height, 6),
+                    "cadence": None if gait.cadence is None else round(gait.cadence, 6),
+                    "source": gait.source,
+                },
+                "feet_held_until": round(float(times[-1]), 6),
+                "keyframes_at_limits": clipped,
+                "segmentation": [
+                    {"foot": d.foot, "t_lift": round(d.t_lift, 6), "t_land": round(d.t_land, 6)}
+                    for d in detected
+                ],
+            }
+        )
+        if steps:
+            next_foot = "l" if steps[-1].foot == "r" else "r"
     return ir
 
 
-solve = generate = run = _unfinished
+def sole_points(legs: LegModel, feet: dict[str, FootTrack]) -> dict[str, FloatArray]:
+    """The lowest of heel and toe tip of each foot (N, 3): what touches the ground."""
+    out = {}
+    for f, ft in feet.items():
+        R = _ry(ft.heading) @ _rx(ft.pitch)
+        pts = np.stack([ft.ankle + R @ legs.heel, ft.ankle + R @ legs.toe], axis=1)
+        out[f] = np.take_along_axis(pts, pts[:, :, 1].argmin(axis=1)[:, None, None], 1)[:, 0]
+    return out
+
+
+def _segment_generated(motion: WalkMotion) -> list[DetectedStep]:
+    """Claim 2 on our own gait: the plan's steps must come back from the foot heights.
+
+    Also sets each step's ``t_heel_off`` to when its foot actually stopped being flat (the
+    roll that the ankle's dorsiflexion limit asks for may start before the scheduled one).
+    """
+    t = np.arange(motion.t0, motion.t1 + 1e-9, 1 / 240)
+    *_, feet = motion.pose(t)
+    for st in motion.steps:
+        flat = (t <= st.t_lift) & (feet[st.foot].pitch <= 1e-6)
+        if flat.any():
+            st.t_heel_off = min(st.t_heel_off, float(t[np.flatnonzero(flat)[-1]]))
+    low = sole_points(motion.legs, feet)
+    return segment_steps(t, {f: low[f][:, 1] for f in LEGS}, low, threshold=0.005, min_swing=0.02)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from io import StringIO
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -47,54 +47,81 @@ MAX_CONTACT_ERROR = 1e-3  # m, where the site is reachable
 # -- geometry --------------------------------------------------------------------------------
 
 
-def support_margin(points: FloatArray, valid: BoolArray, com: FloatArray) -> FloatArray:
-    """Signed distance (N,) of ground points ``com`` (N, 2) to the convex hull of ``points``.
+class Hull(NamedTuple):
+    """Candidate edges of support polygons (every pair of touching points), per frame."""
 
-    ``points`` (N, P, 2) are the ground-plane (x, z) coordinates of the contact points, ``valid``
-    (N, P) which of them touch (see ``support``). Positive inside (distance to the nearest edge), negative outside
-    (distance to the polygon); a hull of one point or a segment has no inside. NaN where no point
-    touches. Vectorised over frames: with P ≤ 8 points every pair is tried as a hull edge (an
-    edge has all the other points on one side).
+    a: FloatArray  # (N, E, 2) edge start
+    d: FloatArray  # (N, E, 2) edge vector
+    safe: FloatArray  # (N, E) edge length (1 where degenerate)
+    edge: BoolArray  # (N, E) the pair is a hull edge
+    orient: FloatArray  # (N, E) +1/−1: the side the hull is on; 0: all points on the line
+    pts: FloatArray  # (N, P, 2)
+    ok: BoolArray  # (N, P)
+
+    def take(self, rows: NDArray[np.intp]) -> Hull:
+        return Hull(*(x[rows] for x in self))
+
+
+def hull(points: FloatArray, valid: BoolArray) -> Hull:
+    """The convex hulls of ``points`` (N, P, 2) where ``valid`` (N, P), vectorised over frames.
+
+    With P ≤ 10 points every pair is tried as an edge: an edge has all the other points on one
+    side. Computed once when the same support serves many centres of mass.
     """
     pts = np.asarray(points, dtype=float)
     ok = np.asarray(valid, dtype=bool)
-    c = np.asarray(com, dtype=float)
-    p = ok.shape[1]
-    ii, jj = np.triu_indices(p, 1)
+    ii, jj = np.triu_indices(ok.shape[1], 1)
     a, b = pts[:, ii], pts[:, jj]  # (N, E, 2)
-    pair_ok = ok[:, ii] & ok[:, jj]
     d = b - a
     length = np.hypot(d[..., 0], d[..., 1])
-    pair_ok &= length > 1e-9
+    pair_ok = ok[:, ii] & ok[:, jj] & (length > 1e-9)
     safe = np.where(length > 1e-9, length, 1.0)
     # side of every point k to every pair's line (N, E, P), in metres
     rel = pts[:, None, :, :] - a[:, :, None, :]
     side = (d[..., None, 0] * rel[..., 1] - d[..., None, 1] * rel[..., 0]) / safe[..., None]
     eps = 1e-9
     others = ok[:, None, :]
-    pos = np.where(others, side > eps, False).any(axis=-1)
-    neg = np.where(others, side < -eps, False).any(axis=-1)
+    pos = (others & (side > eps)).any(axis=-1)
+    neg = (others & (side < -eps)).any(axis=-1)
     edge = pair_ok & ~(pos & neg)
-    orient = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))  # 0: every point on the line
-    # signed distance of the CoM to each edge line, positive toward the hull's inside
-    rc = c[:, None, :] - a
-    line = (d[..., 0] * rc[..., 1] - d[..., 1] * rc[..., 0]) / safe
-    inward = orient * line
-    # distance to each edge segment, and to lone points
-    t = np.clip(np.einsum("nek,nek->ne", rc, d) / (safe**2), 0.0, 1.0)
-    seg = np.hypot(*np.moveaxis(rc - t[..., None] * d, -1, 0))
-    seg_d = np.where(edge, seg, np.inf).min(axis=1)
-    pt_d = np.where(ok, np.hypot(*np.moveaxis(pts - c[:, None, :], -1, 0)), np.inf).min(axis=1)
+    orient = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
+    return Hull(a, d, safe, edge, orient, pts, ok)
+
+
+def hull_margin(h: Hull, com: FloatArray) -> FloatArray:
+    """Signed distance (N,) of ``com`` (N, 2) to each frame's hull (see ``support_margin``)."""
+    c = np.asarray(com, dtype=float)
+    rc = c[:, None, :] - h.a
+    line = (h.d[..., 0] * rc[..., 1] - h.d[..., 1] * rc[..., 0]) / h.safe
+    inward = h.orient * line  # positive toward the hull's inside
+    t = np.clip(np.einsum("nek,nek->ne", rc, h.d) / (h.safe**2), 0.0, 1.0)
+    seg = np.hypot(*np.moveaxis(rc - t[..., None] * h.d, -1, 0))
+    seg_d = np.where(h.edge, seg, np.inf).min(axis=1)
+    lone = np.hypot(*np.moveaxis(h.pts - c[:, None, :], -1, 0))
+    pt_d = np.where(h.ok, lone, np.inf).min(axis=1)
     outside_d = np.minimum(seg_d, pt_d)
-    solid = (edge & (orient != 0)).any(axis=1)
-    inside = solid & np.where(edge & (orient != 0), inward >= 0.0, True).all(axis=1)
-    inside_d = np.where(edge & (orient != 0), inward, np.inf).min(axis=1)
+    sides = h.edge & (h.orient != 0)
+    inside = sides.any(axis=1) & np.where(sides, inward >= 0.0, True).all(axis=1)
+    inside_d = np.where(sides, inward, np.inf).min(axis=1)
     out = np.where(inside, inside_d, -outside_d)
-    return np.where(ok.any(axis=1), out, np.nan)
+    return np.where(h.ok.any(axis=1), out, np.nan)
+
+
+def support_margin(
+    points: FloatArray, valid: BoolArray, com: FloatArray, h: Hull | None = None
+) -> FloatArray:
+    """Signed distance (N,) of ground points ``com`` (N, 2) to the convex hull of ``points``.
+
+    ``points`` (N, P, 2) are the ground-plane (x, z) coordinates of the contact points, ``valid``
+    (N, P) which of them touch (see ``support``). Positive inside (distance to the nearest
+    edge), negative outside (distance to the polygon); a hull of one point or a segment has no
+    inside. NaN where no point touches. ``h``: the hull, when already computed.
+    """
+    return hull_margin(hull(points, valid) if h is None else h, com)
 
 
 def support_push(
-    points: FloatArray, valid: BoolArray, com: FloatArray, margin: float
+    points: FloatArray, valid: BoolArray, com: FloatArray, margin: float, h: Hull | None = None
 ) -> FloatArray:
     """Ground-plane move (N, 2) that brings ``com`` to ``margin`` inside the support, about.
 
@@ -104,7 +131,7 @@ def support_push(
     pts = np.asarray(points, dtype=float)
     ok = np.asarray(valid, dtype=bool)
     c = np.asarray(com, dtype=float)
-    m = support_margin(pts, ok, c)
+    m = support_margin(pts, ok, c, h)
     # centroid of the touching points: a direction that always points inward
     w = ok.astype(float)
     cnt = np.maximum(w.sum(axis=1), 1.0)

@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from mtlc.body import center_of_mass, com_jacobian, forward, site_positions, site_rotation
+from mtlc.body import Pose, center_of_mass, com_jacobian, forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.metrics import (
@@ -38,6 +38,7 @@ from mtlc.metrics import (
     contact_mask,
     foot_points,
     foot_stance,
+    hull,
     lowest_point,
     support,
     support_margin,
@@ -48,7 +49,8 @@ from mtlc.passes.context import PassContext
 
 MARGIN = 0.01  # m: how far inside the support a corrected CoM ends
 ROUNDS = 8
-MAX_STEP = 0.02  # m of pelvis motion per round: a joint that runs out of range stops it early
+MAX_STEP = 0.05  # m of pelvis motion per round, halved when a joint runs out of range...
+MIN_STEP = 0.006  # m ...until it is this small: the pelvis then stays at its last good place
 MAX_SHIFT = 0.30  # m: farther than this the posture is not a balance problem the pelvis can fix
 LEG_REACH = 0.995  # of the straight leg's length: a leg is never stretched to its singularity
 SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight is singular)
@@ -89,6 +91,7 @@ def lower_for_reach(
     root_position: np.ndarray,
     root_rotation: np.ndarray,
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    pose: Pose | None = None,
 ) -> np.ndarray:
     """Root positions lowered where a hip is farther from its ankle's place than a leg reaches.
 
@@ -99,7 +102,8 @@ def lower_for_reach(
     """
     skel = ir.skeleton
     root = root_position.copy()
-    pose = forward(skel, q, root_position, root_rotation)
+    if pose is None:
+        pose = forward(skel, q, root_position, root_rotation)
     drop = np.zeros(len(root))
     for name, (ankle, _, touch) in feet.items():
         side = name[0]
@@ -125,6 +129,7 @@ def restore_contacts(
     root_rotation: np.ndarray,
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
+    pose: Pose | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
 
@@ -137,7 +142,8 @@ def restore_contacts(
     skel = ir.skeleton
     q = q.copy()
     # a foot off the ground keeps its angles: its target is where the moved pelvis takes it
-    pose = forward(skel, q, root_position, root_rotation)
+    if pose is None:  # the pose of (q, root_position, root_rotation), when the caller has it
+        pose = forward(skel, q, root_position, root_rotation)
     feet = {
         name: (
             np.where(touch[:, None], pos, site_positions(skel, pose, name)),
@@ -146,7 +152,7 @@ def restore_contacts(
         )
         for name, (pos, rot, touch) in feet.items()
     }
-    root = lower_for_reach(ir, q, root_position, root_rotation, feet)
+    root = lower_for_reach(ir, q, root_position, root_rotation, feet, pose)
     moved = np.abs(root[:, 1] - root_position[:, 1]) > 1e-9
     for side in ("r", "l"):  # a straight knee is singular: start a lowered leg slightly bent
         k = skel.dof_index(f"{side}_knee_flex")
@@ -202,16 +208,22 @@ def lean_trunk(
     distance and the margin.
     """
     skel = ir.skeleton
+    hulls = hull(pts, ok)
     names = [f"{j}_{m}" for j in ("lumbar", "thorax") for m in ("flex", "lat")]
     spine = np.asarray([skel.dof_index(n) for n in names], dtype=np.intp)
     lo, hi = skel.lower[spine], skel.upper[spine]
-    q = q.copy()
+    q, root = q.copy(), root.copy()
     worst = np.zeros(len(q))
+    active = np.arange(len(q))
     for _ in range(ROUNDS):
-        p = forward(skel, q, root, rot)
+        p = forward(skel, q[active], root[active], rot[active])
         c = center_of_mass(skel, p)[:, [0, 2]]
-        push = support_push(pts, ok, c, MARGIN)
-        if not np.any(push):
+        push = support_push(pts[active], ok[active], c, MARGIN, hulls.take(active))
+        moving = np.hypot(push[:, 0], push[:, 1]) > 1e-5
+        if not moving.all():
+            active, push = active[moving], push[moving]
+            p = take_pose(p, np.flatnonzero(moving))
+        if active.size == 0:
             break
         J = com_jacobian(skel, p)[:, [0, 2]][:, :, spine]  # (B, 2, S)
         A = J @ np.swapaxes(J, -1, -2) + (0.02**2) * np.eye(2)
@@ -220,11 +232,32 @@ def lean_trunk(
         )
         big = np.abs(dq).max(axis=1, keepdims=True)
         dq *= np.minimum(1.0, 0.2 / np.maximum(big, 1e-12))  # at most ~11° a round
-        q[:, spine] = np.clip(q[:, spine] + dq, lo, hi)
-        q, root, worst = restore_contacts(ir, q, root, rot, feet, hands)
+        qa = q[active]
+        qa[:, spine] = np.clip(qa[:, spine] + dq, lo, hi)
+        qa, ra, wa = restore_contacts(
+            ir, qa, root[active], rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
+        )
+        q[active], root[active], worst[active] = qa, ra, wa
     p = forward(skel, q, root, rot)
-    margin = support_margin(pts, ok, center_of_mass(skel, p)[:, [0, 2]])
+    margin = support_margin(pts, ok, center_of_mass(skel, p)[:, [0, 2]], hulls)
     return q, root, worst, margin
+
+
+def take_pose(pose: Pose, rows: np.ndarray) -> Pose:
+    """The rows of a batched pose."""
+    return Pose(R=pose.R[rows], p=pose.p[rows], axes=pose.axes[rows], root=pose.root[rows])
+
+
+def _sub_feet(
+    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]], rows: np.ndarray
+) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    return {n: (a[rows], b[rows], c[rows]) for n, (a, b, c) in feet.items()}
+
+
+def _sub_hands(
+    hands: dict[str, tuple[np.ndarray, np.ndarray]], rows: np.ndarray
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    return {h: (m[rows], x[rows]) for h, (m, x) in hands.items()}
 
 
 def _active_segment(ir: MotionIR, t: float) -> Segment | None:
@@ -249,10 +282,16 @@ def balance_frames(ir: MotionIR, frames: Frames) -> tuple[np.ndarray, np.ndarray
     low = ~np.isnan(before) & (before < MARGIN)
     kneeling = all_ok[:, -2:].any(axis=1)  # the pelvis cannot move without dragging a knee
     failed[low & kneeling & (before < 0)] = True
-    rows = np.flatnonzero(low & ~walking(ir, t) & ~kneeling)
+    # a support with no inside (toes only, one edge) or a CoM farther than the pelvis may move
+    # cannot be fixed here: report it without trying
+    centroid = np.einsum("np,npk->nk", all_ok, all_pts) / np.maximum(all_ok.sum(1), 1)[:, None]
+    hopeless = ~(support_margin(all_pts, all_ok, centroid) > 0.0) | (before < -MAX_SHIFT)
+    failed[low & hopeless & (before < 0)] = True
+    rows = np.flatnonzero(low & ~walking(ir, t) & ~kneeling & ~hopeless)
     if rows.size == 0:
         return before, after, failed
     pts, ok = all_pts[rows], all_ok[rows]  # the support stays where it was
+    hulls = hull(pts, ok)
     touching = contact[rows].reshape(rows.size, 2, -1).any(axis=2)  # (B, 2): r, l
     feet = {
         name: (
@@ -271,29 +310,34 @@ def balance_frames(ir: MotionIR, frames: Frames) -> tuple[np.ndarray, np.ndarray
     q, root = q0.copy(), root0.copy()
     worst = np.zeros(rows.size)
     margin = before[rows]
-    stuck = np.zeros(rows.size, dtype=bool)  # rows whose contacts gave out: keep the last good
+    # rows whose contacts gave out keep their last good pose and stop; converged rows stop
+    active = np.arange(rows.size)
+    cap = np.full(rows.size, MAX_STEP)
     for _ in range(ROUNDS):
-        p = forward(skel, q, root, rot)
+        p = forward(skel, q[active], root[active], rot[active])
         c = center_of_mass(skel, p)[:, [0, 2]]
-        push = support_push(pts, ok, c, MARGIN)
-        push[stuck] = 0.0
-        if not np.any(push):
+        push = support_push(pts[active], ok[active], c, MARGIN, hulls.take(active))
+        moving = np.hypot(push[:, 0], push[:, 1]) > 1e-5
+        active, push = active[moving], push[moving]
+        if active.size == 0:
             break
-        prev_q, prev_root, prev_worst = q, root, worst
-        root = root.copy()
         step = push / 0.85  # the legs stay behind: the CoM moves ~85 % of the pelvis
         size = np.hypot(step[:, 0], step[:, 1])
-        step *= np.minimum(1.0, MAX_STEP / np.maximum(size, 1e-12))[:, None]
-        root[:, [0, 2]] += step
-        shift = root[:, [0, 2]] - root0[:, [0, 2]]
+        step *= np.minimum(1.0, cap[active] / np.maximum(size, 1e-12))[:, None]
+        new_root = root[active].copy()
+        new_root[:, [0, 2]] += step
+        shift = new_root[:, [0, 2]] - root0[active][:, [0, 2]]
         far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
-        root[far], stuck[far] = prev_root[far], True
-        q, root, worst = restore_contacts(ir, q, root, rot, feet, hands)
-        lost = (worst > POSITION_TOL) & (prev_worst <= POSITION_TOL)
-        q[lost], root[lost], worst[lost] = prev_q[lost], prev_root[lost], prev_worst[lost]
-        stuck |= lost
+        q_a, root_a, worst_a = restore_contacts(
+            ir, q[active], new_root, rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
+        )
+        lost = far | ((worst_a > POSITION_TOL) & (worst[active] <= POSITION_TOL))
+        ok_rows = active[~lost]
+        q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
+        cap[active[lost]] /= 2  # a joint ran out of range: retry with half the step
+        active = active[(cap[active] >= MIN_STEP) & ~far]
     p = forward(skel, q, root, rot)
-    margin = support_margin(pts, ok, center_of_mass(skel, p)[:, [0, 2]])
+    margin = support_margin(pts, ok, center_of_mass(skel, p)[:, [0, 2]], hulls)
     # nothing may go deeper below the ground than it was or than GROUND_SLACK
     floor = np.minimum(
         lowest_point(skel, forward(skel, q0, root0, rot)) - 1e-4, ir.ground - GROUND_SLACK
@@ -306,8 +350,7 @@ def balance_frames(ir: MotionIR, frames: Frames) -> tuple[np.ndarray, np.ndarray
         # second strategy: lean the trunk, from the pelvis result where it kept the contacts
         qs = np.where(good[retry, None], q[retry], q0[retry])
         rs = np.where(good[retry, None], root[retry], root0[retry])
-        sub_feet = {n: (a[retry], b[retry], c[retry]) for n, (a, b, c) in feet.items()}
-        sub_hands = {h: (m[retry], x[retry]) for h, (m, x) in hands.items()}
+        sub_feet, sub_hands = _sub_feet(feet, retry), _sub_hands(hands, retry)
         q2, r2, w2, m2 = lean_trunk(
             ir, qs, rs, rot[retry], pts[retry], ok[retry], sub_feet, sub_hands
         )

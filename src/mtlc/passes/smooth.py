@@ -27,12 +27,13 @@ import numpy as np
 from mtlc.body import forward, site_positions, site_rotation
 from mtlc.ir.model import Frames, MotionIR
 from mtlc.metrics import contact_mask, foot_points, foot_stance, lowest_point
-from mtlc.passes.balance import FEET_SITES, HANDS, hand_pins, restore_contacts
+from mtlc.passes.balance import FEET_SITES, HANDS, hand_pins, restore_contacts, take_pose
 from mtlc.passes.context import PassContext
 
 STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
 JUMP_Q = 1e-3  # rad: smaller offsets are the interpolation's own
 JUMP_ROOT = 5e-4  # m
+PIN_TOL = 1e-4  # m: a contact that moved less than this is left alone
 
 
 def blend_weights(n: int) -> np.ndarray:
@@ -91,32 +92,47 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if frames is None or skel is None or len(frames.time) < 3:
         return ir
     t = frames.time
-    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
-    contact = contact_mask(foot_points(skel, pose), foot_stance(ir, t), ir.ground)
-    pins = hand_pins(ir, t)
-    feet_before = {
-        n: (site_positions(skel, pose, n), site_rotation(skel, pose, n)) for n in FEET_SITES
-    }
-    hands_before = {h: site_positions(skel, pose, h) for h in HANDS}
+    q0, root0 = frames.q.copy(), frames.root_position.copy()
     changed = smooth_frames(frames, boundaries(ir), skel.lower, skel.upper)
     rows = np.flatnonzero(changed)
     if rows.size == 0:
         return ir
-    touching = contact[rows].reshape(rows.size, 2, -1).any(axis=2)
+    # contacts before and after, on the changed frames only (forward kinematics is the cost)
+    rot = frames.root_rotation[rows]
+    pose = forward(skel, q0[rows], root0[rows], rot)
+    after = forward(skel, frames.q[rows], frames.root_position[rows], rot)
+    contact = contact_mask(foot_points(skel, pose), foot_stance(ir, t[rows]), ir.ground)
+    pins = {h: m[rows] for h, m in hand_pins(ir, t).items()}
+    hands_before = {h: site_positions(skel, pose, h) for h in HANDS}
+    # re-pin only the frames where a touching foot or a pinned hand actually moved
+    soles = np.linalg.norm(foot_points(skel, after) - foot_points(skel, pose), axis=-1)
+    moved = (np.where(contact, soles, 0.0) > PIN_TOL).any(axis=1)
+    for h in HANDS:
+        off = np.linalg.norm(site_positions(skel, after, h) - hands_before[h], axis=-1)
+        moved |= pins[h] & (off > PIN_TOL)
+    sub = np.flatnonzero(moved)
+    if sub.size == 0:
+        return ir
+    touching = contact[sub].reshape(sub.size, 2, -1).any(axis=2)
     feet = {
-        name: (feet_before[name][0][rows], feet_before[name][1][rows], touching[:, k])
+        name: (
+            site_positions(skel, pose, name)[sub],
+            site_rotation(skel, pose, name)[sub],
+            touching[:, k],
+        )
         for k, name in enumerate(FEET_SITES)
     }
-    hands = {h: (pins[h][rows], hands_before[h][rows]) for h in HANDS}
+    hands = {h: (pins[h][sub], hands_before[h][sub]) for h in HANDS}
+    fix = rows[sub]
     q, root, _ = restore_contacts(
-        ir, frames.q[rows], frames.root_position[rows], frames.root_rotation[rows], feet, hands
-    )
+        ir, frames.q[fix], frames.root_position[fix], frames.root_rotation[fix], feet, hands,
+        take_pose(after, sub),
+    )  # fmt: skip
     # smoothing must not sink anything deeper (a swing toe near the ground when the pelvis
     # came down): raise the root by what it added below the ground, h = L − x
-    low_before = lowest_point(skel, pose)[rows]
-    pose = forward(skel, q, root, frames.root_rotation[rows])
-    sink = np.minimum(low_before, ir.ground) - lowest_point(skel, pose)
-    root[:, 1] += np.maximum(sink, 0.0)
-    frames.q[rows] = q
-    frames.root_position[rows] = root
+    low_before = lowest_point(skel, pose)[sub]
+    low_after = lowest_point(skel, forward(skel, q, root, frames.root_rotation[fix]))
+    root[:, 1] += np.maximum(np.minimum(low_before, ir.ground) - low_after, 0.0)
+    frames.q[fix] = q
+    frames.root_position[fix] = root
     return ir

@@ -120,6 +120,8 @@ def build_parser() -> argparse.ArgumentParser:
                           help="print motion metrics per task (penetration, skating, balance, contact error, limits, smoothness)")  # fmt: skip
     compile_.add_argument("--fps", type=_fps, default=DEFAULT_FPS, metavar="N",
                           help=f"frames per second of the sampled motion (default {DEFAULT_FPS:g})")  # fmt: skip
+    compile_.add_argument("--walk-clip", type=Path, default=None, metavar="FILE",
+                          help="a BVH walking clip: the walks take its gait, adapted to each task (seed 004)")  # fmt: skip
 
     explain = sub.add_parser("explain", help="show the documentation page of a diagnostic code")
     explain.add_argument("code", metavar="CODE", help="e.g. MT0201")

@@ -233,3 +233,201 @@ def test_segmentation_on_a_synthetic_height_signal() -> None:
     assert found[0].t_lift == pytest.approx(0.5, abs=0.03)
     assert found[0].t_land == pytest.approx(0.9, abs=0.03)
     assert found[1].height == pytest.approx(0.06, abs=0.002)
+
+
+# --------------------------------------------------------------------------- a BVH walking clip
+
+S_CM, T_STEP, N_STEPS, FPS, HIP_CM, LIFT_CM = 60.0, 0.5, 6, 60, 85.0, 10.0
+THIGH_CM, SHANK_CM, ANKLE_CM = 45.0, 45.0, 8.0
+
+
+def _leg_angles(dz: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Planar two-link IK (degrees): hip X rotation (negative = flexion) and knee flexion."""
+    d = np.hypot(dz, dy)
+    knee = np.pi - np.arccos(
+        np.clip((THIGH_CM**2 + SHANK_CM**2 - d**2) / (2 * THIGH_CM * SHANK_CM), -1, 1)
+    )
+    alpha = np.arccos(np.clip((THIGH_CM**2 + d**2 - SHANK_CM**2) / (2 * THIGH_CM * d), -1, 1))
+    thigh = np.arctan2(dz, -dy) + alpha
+    return -np.degrees(thigh), np.degrees(knee)
+
+
+def synthetic_walk() -> tuple[str, list[tuple[str, float, float]]]:
+    """A BVH walk (cm, Y up, +Z forward) from a known gait, and its steps (foot, lift, land)."""
+    t = np.arange(int((N_STEPS + 0.5) * T_STEP * FPS)) / FPS
+    v = S_CM / T_STEP
+    root_z = -S_CM / 2 + v * t
+    feet_z = {"Left": np.zeros_like(t), "Right": np.full_like(t, -S_CM)}
+    feet_y = {k: np.full_like(t, ANKLE_CM) for k in feet_z}
+    steps = []
+    for k in range(1, N_STEPS + 1):
+        side = "Right" if k % 2 else "Left"
+        lift, land = (k - 1) * T_STEP + 0.1 * T_STEP, k * T_STEP - 0.1 * T_STEP
+        start, end = (k - 2) * S_CM, k * S_CM
+        tau = np.clip((t - lift) / (land - lift), 0, 1)
+        s = tau * tau * (3 - 2 * tau)
+        moving = t > lift
+        feet_z[side][moving] = (start + (end - start) * s)[moving]
+        swing = (t > lift) & (t < land)
+        feet_y[side][swing] = ANKLE_CM + LIFT_CM * np.sin(np.pi * tau[swing])
+        steps.append((side[0].lower(), lift, land))
+    cols: dict[str, np.ndarray] = {}
+    for side in ("Left", "Right"):
+        hip, knee = _leg_angles(feet_z[side] - root_z, feet_y[side] - HIP_CM)
+        cols[f"{side}UpLeg"], cols[f"{side}Leg"] = hip, knee
+        cols[f"{side}Foot"] = -(hip + knee)  # the foot stays level
+    phase = 2 * np.pi * t / (2 * T_STEP)
+    cols["LeftArm"] = 4 * np.sin(phase)
+    cols["RightArm"] = -4 * np.sin(phase)
+    rng = np.random.default_rng(1)
+    hierarchy = [
+        ("Spine", "Hips", (0, 10, 0)), ("Chest", "Spine", (0, 20, 0)),
+        ("Neck", "Chest", (0, 20, 0)), ("Head", "Neck", (0, 10, 0)),
+        ("LeftShoulder", "Chest", (8, 15, 0)), ("LeftArm", "LeftShoulder", (10, 0, 0)),
+        ("LeftForeArm", "LeftArm", (0, -28, 0)), ("LeftHand", "LeftForeArm", (0, -25, 0)),
+        ("RightShoulder", "Chest", (-8, 15, 0)), ("RightArm", "RightShoulder", (-10, 0, 0)),
+        ("RightForeArm", "RightArm", (0, -28, 0)), ("RightHand", "RightForeArm", (0, -25, 0)),
+        ("LeftUpLeg", "Hips", (10, 0, 0)), ("LeftLeg", "LeftUpLeg", (0, -THIGH_CM, 0)),
+        ("LeftFoot", "LeftLeg", (0, -SHANK_CM, 0)), ("LeftToeBase", "LeftFoot", (0, -ANKLE_CM, 14)),
+        ("RightUpLeg", "Hips", (-10, 0, 0)), ("RightLeg", "RightUpLeg", (0, -THIGH_CM, 0)),
+        ("RightFoot", "RightLeg", (0, -SHANK_CM, 0)),
+        ("RightToeBase", "RightFoot", (0, -ANKLE_CM, 14)),
+    ]  # fmt: skip
+    children: dict[str, list] = {}
+    for name, parent, off in hierarchy:
+        children.setdefault(parent, []).append((name, off))
+    lines = ["HIERARCHY", "ROOT Hips", "{", "  OFFSET 0 0 0",
+             "  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation"]  # fmt: skip
+    order = ["Hips"]
+
+    def emit(name: str, depth: int) -> None:
+        for child, off in children.get(name, []):
+            pad = "  " * depth
+            lines.extend([f"{pad}JOINT {child}", f"{pad}{{", f"{pad}  OFFSET {off[0]} {off[1]} {off[2]}",
+                          f"{pad}  CHANNELS 3 Zrotation Xrotation Yrotation"])  # fmt: skip
+            order.append(child)
+            if child not in children:
+                lines.extend(
+                    [f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET 0 0 4", f"{pad}  }}"]
+                )
+            emit(child, depth + 1)
+            lines.append(f"{pad}}}")
+
+    emit("Hips", 1)
+    lines.append("}")
+    lines += ["MOTION", f"Frames: {len(t)}", f"Frame Time: {1 / FPS:.8f}"]
+    for i in range(len(t)):
+        row = [0.0, HIP_CM, root_z[i], 0.0, 0.0, 0.0]
+        for name in order[1:]:
+            x = cols.get(name, rng.normal(0, 0.05, len(t)))[i]
+            row += [0.0, float(x), 0.0]
+        lines.append(" ".join(f"{x:.5f}" for x in row))
+    return "\n".join(lines) + "\n", steps
+
+
+@pytest.fixture(scope="module")
+def clip_file(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list]:
+    text, steps = synthetic_walk()
+    path = tmp_path_factory.mktemp("clip") / "walk.bvh"
+    path.write_text(text, encoding="utf-8")
+    return path, steps
+
+
+def test_bvh_clip_is_read_and_segmented(clip_file: tuple[Path, list]) -> None:
+    from mtlc.passes.bvh_clip import clip_steps, forward_clip, read_bvh
+
+    path, planned = clip_file
+    clip = read_bvh(path)
+    assert len(clip.joints) == 21 and clip.frame_time == pytest.approx(1 / FPS)
+    assert clip.motion.shape[1] == 6 + 3 * 20
+    clip.scale = 0.01
+    pos, _ = forward_clip(clip, clip.motion[:1])
+    assert pos[0, clip.index("LeftFoot"), 1] == pytest.approx(ANKLE_CM / 100, abs=1e-3)
+    found = clip_steps(clip)
+    assert [d.foot for d in found] == [p[0] for p in planned]
+    for d, (_, lift, land) in zip(found, planned, strict=True):
+        assert abs(d.t_lift - lift) < 0.04 and abs(d.t_land - land) < 0.04
+
+
+def test_bvh_key_joints_are_the_legs(clip_file: tuple[Path, list]) -> None:
+    from mtlc.passes.bvh_clip import analyse
+
+    an = analyse(clip_file[0])
+    assert an.gait["step_length"] == pytest.approx(S_CM / 100, abs=0.01)
+    assert an.gait["cadence"] == pytest.approx(1 / T_STEP, rel=0.05)
+    assert {"LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg"} <= set(an.key_joints)
+    assert not any("Arm" in j or "Hand" in j or "Spine" in j for j in an.key_joints)
+
+
+def test_bvh_adaptation_changes_the_step_by_ik(clip_file: tuple[Path, list]) -> None:
+    from mtlc.passes.bvh_clip import adapt, analyse, clip_steps
+    from mtlc.passes.locomotion import gait_of
+
+    an = analyse(clip_file[0])
+    motion, err = adapt(an, 0.8, 1.0)
+    assert err < 5e-3
+    legs = [an.clip.joints[j].first for j in range(len(an.clip.joints))
+            if an.clip.joints[j].name in ("LeftUpLeg", "LeftLeg")]  # fmt: skip
+    assert (
+        np.abs(motion[:, legs[0] : legs[0] + 3] - an.clip.motion[:, legs[0] : legs[0] + 3]).max()
+        > 1
+    )
+    arm = an.clip.joints[an.clip.index("LeftArm")].first
+    np.testing.assert_array_equal(motion[:, arm : arm + 3], an.clip.motion[:, arm : arm + 3])
+    g = gait_of(clip_steps(an.clip, motion))
+    assert g["step_length"] == pytest.approx(0.8 * S_CM / 100, abs=0.015)
+
+
+def test_compile_with_a_walk_clip_uses_its_gait(clip_file: tuple[Path, list]) -> None:
+    ir = _compile("remove_avionics_unit", MotionOptions(walk_clip=clip_file[0]))
+    walks = _walks(ir)
+    for seg in walks:
+        assert seg.result["gait"]["source"] == "clip"
+        info = seg.result["clip"]
+        assert info["steps"] == N_STEPS
+        assert "LeftUpLeg" in info["key_joints"]
+        assert info["ik_error"] < 5e-3
+        assert seg.result["gait"]["cadence"] == pytest.approx(1 / T_STEP, rel=0.1)
+        feet = [s["foot"] for s in seg.result["steps"]]
+        assert all(a != b for a, b in itertools.pairwise(feet))
+    fr = ir.frames
+    a, b = fr.time[:-1], fr.time[1:]
+    for foot in ("r", "l"):
+        pts = _foot_points(ir, foot)
+        speed = np.linalg.norm(np.diff(pts[..., [0, 2]], axis=0), axis=-1).max(axis=1) / (b - a)
+        for seg in walks:
+            stance = (a >= seg.start) & (b <= seg.end)
+            for s in seg.result["steps"]:
+                if s["foot"] == foot:
+                    stance &= ~((b > s["t_heel_off"]) & (a < s["t_land"]))
+            assert speed[stance].max(initial=0.0) < SKATE_LIMIT
+
+
+@pytest.mark.parametrize(
+    ("text", "fragment"),
+    [
+        (None, "cannot read"),
+        ("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n", "no MOTION"),
+        (
+            "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Xposition Yposition Zposition\n}\n"
+            "MOTION\nFrames: 2\nFrame Time: 0.1\n0 0 0\n0 0\n",
+            "frame 2 has 2 values",
+        ),
+        ("not a bvh\n", "not a BVH"),
+    ],
+)
+def test_an_unreadable_clip_is_mt0503(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str | None, fragment: str
+) -> None:
+    from mtlc.cli import main
+
+    clip = tmp_path / "bad.bvh"
+    if text is not None:
+        clip.write_text(text, encoding="utf-8")
+    code = main(["compile", "examples/remove_access_panel.mtask", "-o", str(tmp_path / "o"),
+                 "--walk-clip", str(clip)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "error[MT0503]" in err and fragment in err
+    assert err.count("MT0503") == 1  # once, though the task walks twice
+    assert not (tmp_path / "o").exists()

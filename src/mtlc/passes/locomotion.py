@@ -659,11 +659,12 @@ def segment_steps(
             t_lift, t_land = cross(i0), cross(i1)
             if t_land - t_lift < min_swing:
                 continue
-            where = (
-                tuple(float(x) for x in np.asarray(positions[foot])[min(i1, len(t) - 1)])
-                if positions is not None
-                else (math.nan, math.nan, math.nan)
-            )
+            where: tuple[float, ...] = (math.nan, math.nan, math.nan)
+            if positions is not None:  # the footprint: the median of the first half of stance
+                nxt = [i for i in lifts if i > i1]
+                stop = nxt[0] if nxt else len(t)
+                stance = np.asarray(positions[foot])[i1 : max(i1 + 1, (i1 + stop) // 2)]
+                where = tuple(float(x) for x in np.median(stance, axis=0))
             peak = float(hf[i0:i1].max() - base)
             out.append(DetectedStep(foot, t_lift, t_land, where, peak))  # type: ignore[arg-type]
     out.sort(key=lambda s: s.t_lift)
@@ -674,9 +675,18 @@ def gait_of(steps: Sequence[DetectedStep]) -> dict[str, float]:
     """Step length, height and cadence of detected steps (seed 004 claim 2, step 1.4)."""
     if len(steps) < 2:
         return {"steps": float(len(steps))}
-    lands = np.array([s.position for s in steps])
+    lands = np.array([s.position for s in steps])[:, [0, 2]]
+    # step length is measured along the walk (one foot to its next footprint), not across it
+    way = np.zeros(2)
+    for f in {st.foot for st in steps}:
+        own = lands[[i for i, st in enumerate(steps) if st.foot == f]]
+        if len(own) > 1:
+            way += own[-1] - own[0]
+    if not way.any():
+        way = lands[-1] - lands[0]
+    way = way / np.linalg.norm(way) if np.linalg.norm(way) > 1e-9 else np.zeros(2)
     lengths = [
-        float(np.hypot(*(lands[i] - lands[i - 1])[[0, 2]]))
+        abs(float((lands[i] - lands[i - 1]) @ way))
         for i in range(1, len(steps))
         if steps[i].foot != steps[i - 1].foot
     ]

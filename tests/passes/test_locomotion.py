@@ -406,7 +406,7 @@ def test_compile_with_a_walk_clip_uses_its_gait(clip_file: tuple[Path, list]) ->
 @pytest.mark.parametrize(
     ("text", "fragment"),
     [
-        (None, "cannot read"),
+        (None, "cannot read it"),
         ("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n", "no MOTION"),
         (
             "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Xposition Yposition Zposition\n}\n"

@@ -95,7 +95,7 @@ def read_bvh(path: str | Path) -> BvhClip:
     try:
         text = Path(path).read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
-        raise ClipError(f"cannot read the walking clip: {exc.strerror or exc}") from None
+        raise ClipError(f"cannot read it: {exc.strerror or exc}") from None
     return parse_bvh(text, str(path))
 
 

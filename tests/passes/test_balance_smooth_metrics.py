@@ -198,20 +198,24 @@ def test_balance_pulls_a_one_legged_lean_back_over_the_foot() -> None:
 
 
 def test_balance_keeps_the_hand_on_its_site_and_leaves_balanced_frames() -> None:
-    f = standing(12)
+    f = standing(30)
     f.q[:, SKEL.dof_index("r_shoulder_flex")] = math.radians(60)
     f.q[:, SKEL.dof_index("r_elbow_flex")] = math.radians(40)
-    f.q[6:, SKEL.dof_index("l_hip_abd")] = math.radians(20)  # from frame 6 on one foot
+    f.q[15:, SKEL.dof_index("l_hip_abd")] = math.radians(20)  # from frame 15 on one foot
     pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
     hand = site_positions(SKEL, pose, "r_hand")
     seg = Segment("r_arm", "TO", 0.0, 0.1, GoalSpec("r_hand", "bolt", hand[0]), PROV)
     ir = make_ir(f, [seg])
-    q_first = f.q[:6].copy()
+    q0, root0 = f.q.copy(), f.root_position.copy()
     assert run_pass(balance.run, ir) == []
-    np.testing.assert_array_equal(f.q[:6], q_first)  # balanced frames are not touched
+    # the correction starts ahead of the lift (at most 2 x BLEND_FRAMES), not before
+    early = 15 - 2 * balance.BLEND_FRAMES
+    np.testing.assert_array_equal(f.q[:early], q0[:early])
+    np.testing.assert_array_equal(f.root_position[:early], root0[:early])
+    assert np.abs(np.diff(f.root_position[:, 0])).max() < 0.03  # no jump: ramps in
     pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
     assert np.abs(site_positions(SKEL, pose, "r_hand") - hand).max() < 1e-3
-    assert compute_metrics(ir).support_margin[6:].min() > 0.0
+    assert compute_metrics(ir).support_margin[15:].min() > 0.0
 
 
 def test_balance_lost_reports_mt0502_once_per_segment() -> None:

@@ -48,13 +48,14 @@ from mtlc.metrics import (
 from mtlc.passes.context import PassContext
 
 MARGIN = 0.01  # m: how far inside the support a corrected CoM ends
-ROUNDS = 8
+ROUNDS = 6
 MAX_STEP = 0.05  # m of pelvis motion per round, halved when a joint runs out of range...
 MIN_STEP = 0.006  # m ...until it is this small: the pelvis then stays at its last good place
 MAX_SHIFT = 0.30  # m: farther than this the posture is not a balance problem the pelvis can fix
 LEG_REACH = 0.995  # of the straight leg's length: a leg is never stretched to its singularity
 SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight is singular)
 POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
+BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections blend
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = -1e-4  # m: what still counts as inside after correction
 FEET_SITES = ("r_foot", "l_foot")
@@ -267,9 +268,20 @@ def _active_segment(ir: MotionIR, t: float) -> Segment | None:
     return min(live, key=lambda s: (REPORT_ORDER.get(s.kind, 9), s.start))
 
 
-def balance_frames(ir: MotionIR, frames: Frames) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Correct ``frames`` in place; returns (margin before, margin after, failed frame mask)."""
+def balance_frames(
+    ir: MotionIR, frames: Frames, only: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Correct ``frames`` in place; returns (margin before, margin after, failed frame mask).
+
+    ``only``: indices of the frames to look at (default all); the returned arrays cover them.
+    """
     skel = ir.skeleton
+    if only is not None:
+        sub = Frames(frames.fps, frames.time[only], frames.root_position[only],
+                     frames.root_rotation[only], frames.q[only])  # fmt: skip
+        out = balance_frames(ir, sub)
+        frames.q[only], frames.root_position[only] = sub.q, sub.root_position
+        return out
     t = frames.time
     pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
     stance = foot_stance(ir, t)
@@ -362,11 +374,68 @@ def balance_frames(ir: MotionIR, frames: Frames) -> tuple[np.ndarray, np.ndarray
         keep = good & (margin >= ACCEPT_MARGIN)
     # a frame keeps the best correction that kept its contacts (none: it stays as it was);
     # one still outside has lost its balance
-    frames.q[rows[good]] = q[good]
-    frames.root_position[rows[good]] = root[good]
-    after[rows[good]] = margin[good]
+    dq = np.zeros_like(frames.q)
+    dr = np.zeros_like(frames.root_position)
+    dq[rows[good]] = q[good] - q0[good]
+    dr[rows[good]] = root[good] - root0[good]
     failed[rows[~keep & (before[rows] < 0)]] = True
+    if not good.any():
+        return before, after, failed
+    # neighbouring frames corrected differently (one by the pelvis, one by the trunk, one not
+    # at all) would jump: blend the corrections over a short window, then put the contacts
+    # back, so that the smoothing pass finds no balance jump to undo
+    size = np.abs(dq).max(axis=1) + 10.0 * np.hypot(*dr.T[[0, 2]]) + 10.0 * np.abs(dr[:, 1])
+    dq, dr = blend(dq, size, BLEND_FRAMES), blend(dr, size, BLEND_FRAMES)
+    span = np.flatnonzero(np.abs(dq).max(axis=1) + np.abs(dr).max(axis=1) > 0)
+    qb = np.clip(frames.q[span] + dq[span], skel.lower, skel.upper)
+    rb = frames.root_position[span] + dr[span]
+    pins = hand_pins(ir, t)
+    feet_b = {
+        name: (site_positions(skel, pose, name)[span], site_rotation(skel, pose, name)[span],
+               contact[span].reshape(span.size, 2, -1).any(axis=2)[:, k])
+        for k, name in enumerate(FEET_SITES)
+    }  # fmt: skip
+    hands_b = {h: (pins[h][span], site_positions(skel, pose, h)[span]) for h in HANDS}
+    rot_b = frames.root_rotation[span]
+    qb, rb, wb = restore_contacts(ir, qb, rb, rot_b, feet_b, hands_b)
+    pb = forward(skel, qb, rb, rot_b)
+    floor_b = np.minimum(lowest_point(skel, pose)[span] - 1e-4, ir.ground - GROUND_SLACK)
+    fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
+    fine &= lowest_point(skel, pb) >= floor_b
+    pts_b, ok_b = all_pts[span], all_ok[span]
+    mb = support_margin(pts_b, ok_b, center_of_mass(skel, pb)[:, [0, 2]])
+    # a blended frame must keep its contacts and be at least as balanced as its own correction
+    own = np.full(len(t), -np.inf)
+    own[rows[good]] = margin[good]
+    fine &= (mb >= np.minimum(own[span], MARGIN) - 1e-3) | (mb >= MARGIN)
+    apply = span[fine]
+    frames.q[apply], frames.root_position[apply] = qb[fine], rb[fine]
+    after[apply] = mb[fine]
+    # elsewhere a frame keeps its own correction, if it had one
+    raw = np.setdiff1d(rows[good], apply)
+    at = np.searchsorted(rows, raw)
+    frames.q[raw], frames.root_position[raw] = q[at], root[at]
+    after[raw] = margin[at]
     return before, after, failed
+
+
+def blend(delta: np.ndarray, norm: np.ndarray, half: int) -> np.ndarray:
+    """Per-frame corrections made continuous: dilated, then averaged over 2·half + 1 frames.
+
+    Each frame first takes the largest correction (by ``norm``) within ``half`` frames, then a
+    centred moving average smooths the steps. A frame that needed a correction keeps it in
+    full when its neighbours needed about as much, and the correction starts ``half`` to
+    2·half frames before it is needed (an anticipatory adjustment) instead of jumping in.
+    """
+    n = len(delta)
+    pad = np.concatenate([np.full(half, -1.0), norm, np.full(half, -1.0)])
+    windows = np.lib.stride_tricks.sliding_window_view(pad, 2 * half + 1)
+    src = np.clip(np.arange(n) + windows.argmax(axis=1) - half, 0, n - 1)
+    dilated = delta[src]
+    c = np.cumsum(np.concatenate([np.zeros((1, *delta.shape[1:])), dilated]), axis=0)
+    idx = np.arange(n)
+    hi, lo = np.minimum(idx + half + 1, n), np.maximum(idx - half, 0)
+    return (c[hi] - c[lo]) / (hi - lo).reshape(-1, *([1] * (delta.ndim - 1)))
 
 
 def failure_runs(failed: np.ndarray, gap: int = 6) -> list[tuple[int, int]]:
@@ -393,12 +462,14 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             continue
         reported.add(id(seg))
         worst = float(np.nanmin(after[first : last + 1]))
+        when = (
+            f"at {t[first]:.2f} s" if last == first else f"from {t[first]:.2f} s to {t[last]:.2f} s"
+        )
         ctx.report(
             "MT0502",
-            f"the manikin loses its balance in `{' > '.join(seg.provenance.path)}`: from "
-            f"{t[first]:.2f} s to {t[last]:.2f} s the centre of mass is up to "
-            f"{-worst * 1000:.0f} mm outside the support, and moving the pelvis cannot bring "
-            "it back with the feet and hands in place",
+            f"the manikin loses its balance in `{' > '.join(seg.provenance.path)}`: {when} the "
+            f"centre of mass is up to {-worst * 1000:.0f} mm outside the support, and moving "
+            "the pelvis cannot bring it back with the feet and hands in place",
             seg.provenance.origin,
         )
     return ir

@@ -22,12 +22,29 @@ pelvis and trunk smooth through a contact window while the hand and feet stay pu
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-from mtlc.body import forward, site_positions, site_rotation
+from mtlc.body import Pose, center_of_mass, forward, site_positions, site_rotation
 from mtlc.ir.model import Frames, MotionIR
-from mtlc.metrics import contact_mask, foot_points, foot_stance, lowest_point
-from mtlc.passes.balance import FEET_SITES, HANDS, hand_pins, restore_contacts, take_pose
+from mtlc.metrics import (
+    contact_mask,
+    foot_points,
+    foot_stance,
+    lowest_point,
+    support,
+    support_margin,
+)
+from mtlc.passes.balance import (
+    FEET_SITES,
+    HANDS,
+    MARGIN,
+    balance_frames,
+    hand_pins,
+    restore_contacts,
+    take_pose,
+)
 from mtlc.passes.context import PassContext
 
 STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
@@ -111,7 +128,10 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         off = np.linalg.norm(site_positions(skel, after, h) - hands_before[h], axis=-1)
         moved |= pins[h] & (off > PIN_TOL)
     sub = np.flatnonzero(moved)
+    stance = foot_stance(ir, t[rows])
+    margin_before = _margin(skel, pose, stance, ir.ground)
     if sub.size == 0:
+        _rebalance(ir, frames, rows, margin_before, _margin(skel, after, stance, ir.ground))
         return ir
     touching = contact[sub].reshape(sub.size, 2, -1).any(axis=2)
     feet = {
@@ -135,4 +155,24 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     root[:, 1] += np.maximum(np.minimum(low_before, ir.ground) - low_after, 0.0)
     frames.q[fix] = q
     frames.root_position[fix] = root
+    final = forward(skel, frames.q[rows], frames.root_position[rows], rot)
+    _rebalance(ir, frames, rows, margin_before, _margin(skel, final, stance, ir.ground))
     return ir
+
+
+def _margin(skel: Any, pose: Pose, stance: np.ndarray, ground: float) -> np.ndarray:
+    pts, ok = support(skel, pose, stance, ground)
+    return support_margin(pts, ok, center_of_mass(skel, pose)[:, [0, 2]])
+
+
+def _rebalance(
+    ir: MotionIR, frames: Frames, rows: np.ndarray, before: np.ndarray, after: np.ndarray
+) -> None:
+    """Blending toward the frames before a boundary can undo the balance pass's correction of
+    the frames after it: balance again the frames smoothing made less balanced (the balance
+    pass has reported what it could not fix)."""
+    worse = rows[
+        np.nan_to_num(after, nan=1.0) < np.minimum(np.nan_to_num(before, nan=1.0), MARGIN) - 1e-4
+    ]
+    if worse.size:
+        balance_frames(ir, frames, worse)

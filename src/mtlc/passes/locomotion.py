@@ -51,6 +51,7 @@ STANCE_REACH = 0.995  # hip–ankle distance while walking, × thigh + shank len
 DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interpolation's frames
 SWING_TOL = 5e-3  # m: a swinging foot's
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
+HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
 MIN_DISTANCE = 0.02  # m: shorter walks only turn
 LEGS = ("r", "l")
 LEG_DOFS = ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")
@@ -99,28 +100,30 @@ def leg_model(skel: Any) -> LegModel:
     )  # fmt: skip
 
 
-def _rx(a: FloatArray) -> FloatArray:
+def _axis_matrix(a: Any, i: int, j: int, k: int, sign: float) -> FloatArray:
+    """Rotations about coordinate axis ``k`` (the others ``i``, ``j``), filled in place:
+    much cheaper than stacking for the many small batches the gait makes."""
+    a = np.asarray(a, dtype=float)
     c, s = np.cos(a), np.sin(a)
-    o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack(
-        [np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2
-    )
+    out = np.zeros((*a.shape, 3, 3))
+    out[..., k, k] = 1.0
+    out[..., i, i] = c
+    out[..., j, j] = c
+    out[..., i, j] = -sign * s
+    out[..., j, i] = sign * s
+    return out
 
 
-def _ry(a: FloatArray) -> FloatArray:
-    c, s = np.cos(a), np.sin(a)
-    o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack(
-        [np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2
-    )
+def _rx(a: Any) -> FloatArray:
+    return _axis_matrix(a, 1, 2, 0, 1.0)
 
 
-def _rz(a: FloatArray) -> FloatArray:
-    c, s = np.cos(a), np.sin(a)
-    o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack(
-        [np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2
-    )
+def _ry(a: Any) -> FloatArray:
+    return _axis_matrix(a, 0, 2, 1, -1.0)
+
+
+def _rz(a: Any) -> FloatArray:
+    return _axis_matrix(a, 0, 1, 2, 1.0)
 
 
 def leg_ik(
@@ -344,6 +347,7 @@ class WalkMotion:
         return max(self.t1, self.hold_end)
 
     def __post_init__(self) -> None:
+        self._geo: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
         ts, xz, hs = [self.t0], [self.root_start[[0, 2]]], [self.heading_start]
         feet = dict(self.stance)
         for st in self.steps:
@@ -372,7 +376,7 @@ class WalkMotion:
         self._t = t[keep]
         self._xz = PchipInterpolator(self._t, np.asarray(xz)[keep], axis=0)
         self._h = PchipInterpolator(self._t, np.asarray(hs)[keep])
-        grid = np.linspace(self.t0, self.t1, max(3, int((self.t1 - self.t0) * 240) + 1))
+        grid = np.linspace(self.t0, self.t1, max(3, int((self.t1 - self.t0) * HEIGHT_RATE) + 1))
         self._grid = grid
         self._y = self._pelvis_height(grid)
         # the swing starts from the foot as it actually leaves: rolled as far as it had to
@@ -383,6 +387,17 @@ class WalkMotion:
             *_, feet = self.pose(lifts)
             for i, st in enumerate(self.steps):
                 st.toe_off_pitch = max(st.toe_off_pitch, float(feet[st.foot].pitch[i]))
+
+    def _geometry(self, st: Step) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """A step's landing ankle, its start's rotation and toe tip, its landing toe tip."""
+        key = id(st)
+        if key not in self._geo:
+            lift = np.array([0.0, self.ground + self.legs.ankle_height, 0.0])
+            R0 = _ry(st.start.heading)
+            a1 = st.end.position + lift
+            self._geo[key] = (a1, R0, st.start.position + lift + R0 @ self.legs.toe,
+                              a1 + _ry(st.end.heading) @ self.legs.toe)  # fmt: skip
+        return self._geo[key]
 
     def feet(self, t: FloatArray) -> dict[str, FootTrack]:
         """Both feet at times ``t``, as scheduled (before :meth:`pose` adds the roll it needs).
@@ -404,16 +419,13 @@ class WalkMotion:
             for st in self.steps:
                 if st.foot != f:
                     continue
-                a0 = st.start.position + np.array([0.0, lift, 0.0])
-                a1 = st.end.position + np.array([0.0, lift, 0.0])
+                a1, R0, toe_w, toe_end = self._geometry(st)
                 h0 = st.start.heading
-                R0 = _ry(np.array(h0))
-                toe_w = a0 + R0 @ toe
                 after = t >= st.t_land
                 pos[after] = a1
                 head[after] = st.end.heading
                 pitch[after] = 0.0
-                anchor[after] = a1 + _ry(np.array(st.end.heading)) @ toe
+                anchor[after] = toe_end
                 ho = (t >= st.t_heel_off) & (t <= st.t_lift)
                 if ho.any() and st.t_lift > st.t_heel_off:
                     tau = (t[ho] - st.t_heel_off) / (st.t_lift - st.t_heel_off)
@@ -443,7 +455,7 @@ class WalkMotion:
         ``LIMIT_MARGIN`` inside every joint limit wins (else the least violating one).
         """
         top = self.ground + self.stand_height
-        cand = top - np.linspace(0.0, 0.3 * self.legs.length, 61)
+        cand = top - np.linspace(0.0, 0.3 * self.legs.length, 41)
         n, m = len(t), len(cand)
         y = np.repeat(cand[None, :], n, axis=0).ravel()
         root = np.stack([np.repeat(xz[:, 0], m), y, np.repeat(xz[:, 1], m)], axis=-1)
@@ -471,7 +483,7 @@ class WalkMotion:
         # erosion then a box average of the same width (narrowing at the ends, which must
         # stay at the standing height): smooth, and below the reach bound
         n = len(y)
-        w = np.minimum(int(0.06 * 240), np.minimum(np.arange(n), np.arange(n)[::-1]))
+        w = np.minimum(int(0.06 * HEIGHT_RATE), np.minimum(np.arange(n), np.arange(n)[::-1]))
         eroded = np.array([y[i - w[i] : i + w[i] + 1].min() for i in range(n)])
         smooth = np.array([eroded[i - w[i] : i + w[i] + 1].mean() for i in range(n)])
         return np.minimum(smooth, y)
@@ -498,23 +510,29 @@ class WalkMotion:
         legs, feet = {}, self.feet(t)
         for f, ft in feet.items():
             hi = self.legs.upper[f][4] - LIMIT_MARGIN
+            q = leg_ik(self.legs, f, pos, head, ft.ankle, ft.heading, ft.pitch, clip=False)
+            sub = np.flatnonzero(q[:, 4] > hi + 1e-7)  # only these rows roll (the root is set)
             prev_p = prev_e = None
-            for it in range(13):
-                q = leg_ik(self.legs, f, pos, head, ft.ankle, ft.heading, ft.pitch, clip=False)
-                need = q[:, 4] > hi + 1e-7
-                if not need.any() or it == 12:
+            for _ in range(12):
+                if not sub.size:
                     break
-                e = q[:, 4] - hi
+                e = q[sub, 4] - hi
+                need = e > 1e-7
+                if not need.any():
+                    break
                 step = e.copy()  # first a plain step, then secant steps (the ankle rises too)
                 if prev_p is not None and prev_e is not None:
-                    de, dp = prev_e - e, ft.pitch - prev_p
+                    de, dp = prev_e - e, ft.pitch[sub] - prev_p
                     ok = (de > 1e-9) & (dp > 1e-9)
                     step[ok] = np.minimum(e[ok] * dp[ok] / de[ok], 4 * e[ok])
-                prev_p, prev_e = ft.pitch.copy(), e
-                ft.pitch[need] += np.maximum(step[need], 0.0)  # in swing: just point the toes
-                roll = need & ft.planted
+                prev_p, prev_e = ft.pitch[sub].copy(), e
+                rows = sub[need]
+                ft.pitch[rows] += np.maximum(step[need], 0.0)  # in swing: just point the toes
+                roll = rows[ft.planted[rows]]
                 ft.ankle[roll] = _rolled(_ry(ft.heading[roll]), ft.anchor[roll], ft.pitch[roll],
                                          self.legs.toe)  # fmt: skip
+                q[sub] = leg_ik(self.legs, f, pos[sub], head[sub], ft.ankle[sub], ft.heading[sub],
+                                ft.pitch[sub], clip=False)  # fmt: skip
             legs[f] = np.clip(q, self.legs.lower[f], self.legs.upper[f])
         return pos, head, legs, feet
 
@@ -843,7 +861,7 @@ def _segment_generated(motion: WalkMotion) -> list[DetectedStep]:
     Also sets each step's ``t_heel_off`` to when its foot actually stopped being flat (the
     roll that the ankle's dorsiflexion limit asks for may start before the scheduled one).
     """
-    t = np.arange(motion.t0, motion.t1 + 1e-9, 1 / 240)
+    t = np.arange(motion.t0, motion.t1 + 1e-9, 1 / 120)
     *_, feet = motion.pose(t)
     for st in motion.steps:
         flat = (t <= st.t_lift) & (feet[st.foot].pitch <= 1e-6)

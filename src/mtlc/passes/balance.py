@@ -416,6 +416,7 @@ def balance_frames(
     at = np.searchsorted(rows, raw)
     frames.q[raw], frames.root_position[raw] = q[at], root[at]
     after[raw] = margin[at]
+    failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed
 
 
@@ -461,7 +462,8 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         if seg is None or id(seg) in reported:
             continue
         reported.add(id(seg))
-        worst = float(np.nanmin(after[first : last + 1]))
+        run_failed = failed[first : last + 1]
+        worst = float(np.nanmin(after[first : last + 1][run_failed]))
         when = (
             f"at {t[first]:.2f} s" if last == first else f"from {t[first]:.2f} s to {t[last]:.2f} s"
         )

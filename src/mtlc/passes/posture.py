@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import forward, site_positions
+from mtlc.body import center_of_mass, forward, site_positions
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.interpolate import FOOT_POINTS
@@ -93,6 +93,35 @@ def _squat_q(skel: Any, base: FloatArray, s: float) -> FloatArray:
     return _deg(skel, vals, base)
 
 
+def balanced_lean(skel: Any, q: FloatArray, margin: float = 0.01) -> FloatArray:
+    """Lean the trunk forward until the centre of mass is over the middle of the feet.
+
+    With the heels down, a squat puts the pelvis behind the feet (the base correction keeps the
+    feet where they stood); people lean forward to stay balanced, and so does the manikin: the
+    lean (split 2:1 over lumbar and thorax, as in `bend`) is found by bisection on the CoM's
+    forward distance from the feet's centre, in the body's own frame.
+    """
+    lum_max = float(skel.upper[skel.dof_index("lumbar_flex")])
+    tho_max = float(skel.upper[skel.dof_index("thorax_flex")])
+
+    def leaned(lean: float) -> FloatArray:
+        return _deg(skel, {"lumbar_flex": min(lean * 2 / 3, lum_max),
+                           "thorax_flex": min(lean / 3, tho_max)}, q)  # fmt: skip
+
+    def ahead(lean: float) -> float:
+        pose = forward(skel, leaned(lean)[None])
+        com = center_of_mass(skel, pose)[0]
+        feet = site_positions(skel, pose, list(FOOT_POINTS))[0]
+        return float(com[2] - feet[:, 2].mean()) - margin  # the body faces +Z
+
+    top = lum_max * 1.5
+    if ahead(0.0) >= 0.0:
+        return q
+    if ahead(top) <= 0.0:
+        return leaned(top)
+    return leaned(_bisect(ahead, 0.0, top))
+
+
 def _legs_zero(skel: Any, q: FloatArray) -> FloatArray:
     out = q.copy()
     for name in LEG_DOFS:
@@ -118,9 +147,9 @@ def target_posture(skel: Any, current: FloatArray, params: dict[str, Any]) -> Fl
         depth = float(params.get("depth", 0.0))
         stand = root_height(skel, _legs_zero(skel, skel.q_comfort), 0.0)
         if depth <= 0.0:
-            return _squat_q(skel, q, 1.0)
+            return balanced_lean(skel, _squat_q(skel, q, 1.0))
         s = _bisect(lambda s: stand - root_height(skel, _squat_q(skel, q, s), 0.0) - depth, 0, 1)
-        return _squat_q(skel, q, s)
+        return balanced_lean(skel, _squat_q(skel, q, s))
     if kind == "sit":
         vals = {f"{s}_{d}": math.pi / 2 for s in ("r", "l") for d in ("hip_flex", "knee_flex")}
         return _deg(skel, vals, q)
@@ -156,7 +185,9 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     target = target_posture(skel, cur, seg.goal.params)
     kind = seg.goal.params.get("posture", "stand")
     dofs = (
-        TRUNK_DOFS if kind == "bend" else (TRUNK_DOFS + LEG_DOFS if kind == "stand" else LEG_DOFS)
+        TRUNK_DOFS
+        if kind == "bend"
+        else (TRUNK_DOFS + LEG_DOFS if kind in ("stand", "squat") else LEG_DOFS)
     )
     idx = [skel.dof_index(n) for n in dofs]
     kf = Keyframes(

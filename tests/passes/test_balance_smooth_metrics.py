@@ -314,10 +314,10 @@ PENDING = {
     ("replace_fuel_filter", "support"): "kneeling and reaching forward puts the CoM ~0.1 m in "
     "front of the knees, and rising from the kneel has only the toes down (~0.6 m outside): "
     "balance does not move a kneeling pelvis (it would drag the knees); the kneel posture must",
-    ("drain_hydraulic_reservoir", "support"): "the squat leaves the CoM 149 mm behind the heels "
-    "with the ankles near their 20° dorsiflexion limit; pelvis shift and trunk lean (kept only "
-    "while no point sinks below the floor) bring it to ~40 mm outside (MT0502); the squat "
-    "posture must lean the trunk itself",
+    ("drain_hydraulic_reservoir", "support"): "going down into the squat the CoM passes "
+    "~27 mm behind the heels with the ankles near their 20° dorsiflexion limit (MT0502 at "
+    "squat, 1.42-1.92 s); pelvis shift and trunk lean, kept only while no point sinks below "
+    "the floor, do not bring it back: the squat posture's transition must lean the trunk",
 }
 
 

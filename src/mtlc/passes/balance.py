@@ -298,8 +298,10 @@ def balance_frames(
     # cannot be fixed here: report it without trying
     centroid = np.einsum("np,npk->nk", all_ok, all_pts) / np.maximum(all_ok.sum(1), 1)[:, None]
     hopeless = ~(support_margin(all_pts, all_ok, centroid) > 0.0) | (before < -MAX_SHIFT)
+    static = ~walking(ir, t)  # walking frames are measured, never moved nor reported
     failed[low & hopeless & (before < 0)] = True
-    rows = np.flatnonzero(low & ~walking(ir, t) & ~kneeling & ~hopeless)
+    failed &= static
+    rows = np.flatnonzero(low & static & ~kneeling & ~hopeless)
     if rows.size == 0:
         return before, after, failed
     pts, ok = all_pts[rows], all_ok[rows]  # the support stays where it was
@@ -439,6 +441,11 @@ def blend(delta: np.ndarray, norm: np.ndarray, half: int) -> np.ndarray:
     return (c[hi] - c[lo]) / (hi - lo).reshape(-1, *([1] * (delta.ndim - 1)))
 
 
+def _mm(metres: float) -> str:
+    mm = metres * 1000
+    return f"{mm:.0f}" if mm >= 9.5 else f"{mm:.1f}"
+
+
 def failure_runs(failed: np.ndarray, gap: int = 6) -> list[tuple[int, int]]:
     """(first, last) frame of each run of failed frames; runs closer than ``gap`` merge."""
     idx = np.flatnonzero(failed)
@@ -470,7 +477,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         ctx.report(
             "MT0502",
             f"the manikin loses its balance in `{' > '.join(seg.provenance.path)}`: {when} the "
-            f"centre of mass is up to {-worst * 1000:.0f} mm outside the support, and moving "
+            f"centre of mass is up to {_mm(-worst)} mm outside the support, and moving "
             "the pelvis cannot bring it back with the feet and hands in place",
             seg.provenance.origin,
         )

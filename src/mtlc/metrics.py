@@ -385,8 +385,11 @@ def compute_metrics(ir: MotionIR) -> Metrics:
     for seg in ir.segments:
         if seg.kind != "TO" or seg.goal.position is None:
             continue
-        qt, rp, rr = frames_at(frames, seg.end)
-        p = forward(skel, qt[None], rp[None], rr[None])
+        # contact is the hand resting on the site: the first sampled frame at or after the TO
+        # ends (interpolating with the frame before, where the hand still moves, would blur it)
+        i = min(int(np.searchsorted(t, seg.end - 1e-9)), len(t) - 1)
+        p = forward(skel, frames.q[i : i + 1], frames.root_position[i : i + 1],
+                    frames.root_rotation[i : i + 1])  # fmt: skip
         hand = site_positions(skel, p, seg.goal.effector)[0]
         err = float(np.linalg.norm(hand - np.asarray(seg.goal.position, dtype=float)))
         contacts.append(

@@ -247,9 +247,9 @@ def test_smoothing_blends_a_step_offset_with_the_claims_schedule() -> None:
     f.q[:, k] = 0.5
     f.q[40:, k] += 0.2  # a jump of 0.2 rad between frames 39 and 40
     boundary = (f.time[39] + f.time[40]) / 2
-    segs = [
-        Segment("r_arm", "TA", 0.0, boundary, GoalSpec("r_hand"), PROV),
-        Segment("r_arm", "TA", boundary, 100 / 60, GoalSpec("r_hand"), PROV),
+    segs = [  # a whole-body posture starting where another left an offset
+        Segment("root", "posture", 0.0, boundary, GoalSpec("body"), PROV),
+        Segment("root", "posture", boundary, 100 / 60, GoalSpec("body"), PROV),
     ]
     ir = make_ir(f, segs)
     assert run_pass(smooth.run, ir) == []

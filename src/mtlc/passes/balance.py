@@ -389,6 +389,8 @@ def balance_frames(
     size = np.abs(dq).max(axis=1) + 10.0 * np.hypot(*dr.T[[0, 2]]) + 10.0 * np.abs(dr[:, 1])
     dq, dr = blend(dq, size, BLEND_FRAMES), blend(dr, size, BLEND_FRAMES)
     span = np.flatnonzero(np.abs(dq).max(axis=1) + np.abs(dr).max(axis=1) > 0)
+    if span.size == 0:  # the blended corrections cancelled out: nothing to apply
+        return before, after, failed
     qb = np.clip(frames.q[span] + dq[span], skel.lower, skel.upper)
     rb = frames.root_position[span] + dr[span]
     pins = hand_pins(ir, t)

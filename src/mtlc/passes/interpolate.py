@@ -56,22 +56,40 @@ def _track(times: list[float], values: list[np.ndarray], grid: np.ndarray) -> np
     return inside
 
 
+HOLD_EPS = 1e-3  # seconds: a held value turns into the next segment's first keyframe this fast
+
+
 def interpolate_joints(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
+    """Each dof through its keyframes; between two segments' keyframes it holds its value.
+
+    Within a segment the curve is PCHIP. Between segments a dof keeps the last segment's final
+    value until the next segment's first keyframe, exactly what the solving passes assume
+    ("a segment starts from the pose the body is in", mtlc.passes.state); a jump that a pass
+    leaves there is blended out by the smoothing pass (seed 004 claim 6), not spread over the gap.
+    """
     skel = ir.skeleton
     rest = np.asarray(skel.q_comfort, dtype=float)
-    keys: dict[int, tuple[list[float], list[float]]] = {}
-    for seg in ir.segments:
+    keys: dict[int, list[tuple[float, int, float]]] = {}
+    for order, seg in enumerate(ir.segments):
         kf = seg.keyframes
         if kf is None or not kf.dofs:
             continue
         idx = [skel.dof_index(d) for d in kf.dofs]
         for k, t in enumerate(kf.time):
             for j, d in enumerate(idx):
-                ts, vs = keys.setdefault(d, ([0.0], [rest[d]]))
-                ts.append(float(t))
-                vs.append(float(kf.q[k, j]))
+                keys.setdefault(d, []).append((float(t), order, float(kf.q[k, j])))
     q = np.tile(rest, (len(grid), 1))
-    for d, (ts, vs) in keys.items():
+    for d, entries in keys.items():
+        entries.sort(key=lambda e: (e[0], e[1]))
+        ts, vs = [0.0], [rest[d]]
+        last_segment = -1
+        for t, segment, v in entries:
+            if segment != last_segment and t - ts[-1] > 2 * HOLD_EPS:
+                ts.append(t - HOLD_EPS)  # hold until the next segment takes over
+                vs.append(vs[-1])
+            ts.append(t)
+            vs.append(v)
+            last_segment = segment
         q[:, d] = _track(ts, vs, grid)
     return q
 

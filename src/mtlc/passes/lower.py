@@ -3,8 +3,8 @@
 Each goal primitive becomes two segments, target approaching (TA) to the approach point short of
 the site and target overlapping (TO) onto it, in the time windows the front end gave them. The
 root plan says where the body stands and which way it faces at every moment: walking moves it
-along a straight line facing the way it goes; once there, it turns to face what it works on
-next (the `facing` site, else the next goal or gaze target), turning in place.
+along a straight line facing the way it goes, and keeps that heading once there unless the walk
+names a `facing` site (a standing turn without stepping would twist the planted feet).
 """
 
 from __future__ import annotations
@@ -136,7 +136,7 @@ def plan_root(timeline: Timeline) -> RootPlan:
             positions.append(p.copy())
             headings.append(h)
 
-    for i, p in enumerate(prims):
+    for p in prims:
         if p.kind != "locomotion":
             continue
         goal = np.asarray(p.params["to"], dtype=float)
@@ -147,17 +147,10 @@ def plan_root(timeline: Timeline) -> RootPlan:
         knot(p.end, goal, walk_heading)
         pos, heading = goal, walk_heading
         face = p.params.get("facing_position")
-        work = _vec(face) if face is not None else _next_work_target(prims[i + 1 :])
+        # only an explicit `facing` turns the standing body after a walk: turning in place
+        # without stepping would twist the planted feet (the gait steps only its start turn)
+        work = _vec(face) if face is not None else None
         if work is not None:
             heading = _heading_to(pos, work, heading)
             knot(p.end + TURN_TIME, pos, heading)
     return RootPlan(time=np.array(times), position=np.array(positions), heading=np.array(headings))
-
-
-def _next_work_target(rest: list[Primitive]) -> np.ndarray | None:
-    for p in rest:
-        if p.kind == "locomotion":
-            return None
-        if p.kind in ("goal", "gaze"):
-            return np.asarray(p.params["position"], dtype=float)
-    return None

@@ -3,8 +3,9 @@
 Claim 6: take the offset between the last frame of one step and the first frame of the next,
 and subtract it from the frames of the next step, scaled by a factor that starts at 1 and falls
 by 0.02 per frame until it reaches 0 (50 frames) or the motion ends. Here the boundaries are
-every segment start on every track and every footstep lift-off (``result["steps"]``), in time
-order; the offset is taken on all joint angles and the root position.
+the starts of walks, whole-body postures and holds and every footstep lift-off
+(``result["steps"]``), in time order (not TA, TO, gaze or grip starts, which begin from the
+current pose); the offset is taken on all joint angles and the root position.
 
 On dense frames a boundary in smooth motion also shows the motion's own velocity between its
 two frames, so the offset is the jump *beyond* that: ``x[i+1] − x[i] − v·dt``, with ``v`` the
@@ -59,11 +60,17 @@ def blend_weights(n: int) -> np.ndarray:
     return (1.0 - STEP * np.arange(steps))[:n]
 
 
+# TA, TO, gaze and grip segments start from the pose the body is in (their first keyframe is
+# that pose), so they have no offset to blend; blending there would only move a hand off its way
+# to the site. Walks, footsteps and whole-body postures are where offsets arise.
+BLENDED_KINDS = ("locomotion", "posture", "hold")
+
+
 def boundaries(ir: MotionIR) -> list[float]:
-    """Segment starts on every track and footstep lift-offs, sorted, without duplicates."""
+    """Starts of walks, postures and holds, and footstep lift-offs, sorted, without duplicates."""
     times: set[float] = set()
     for seg in ir.segments:
-        if seg.start > 1e-9:
+        if seg.start > 1e-9 and seg.kind in BLENDED_KINDS and seg.track == "root":
             times.add(round(seg.start, 9))
         if seg.kind == "locomotion":
             for step in seg.result.get("steps", ()) or ():

@@ -165,6 +165,29 @@ def foot_stance(ir: MotionIR, time: FloatArray) -> BoolArray:
     return stance
 
 
+def rolling_points(ir: MotionIR, time: FloatArray) -> BoolArray:
+    """(N, 8) sole points lifting off as the foot rolls over its toe before a step.
+
+    Between a step's ``t_heel_off`` and ``t_lift`` the foot pivots about its toe: heel and balls
+    rise and swing, the toe stays put. Only the toe is then planted, so only it can skate.
+    """
+    t = np.asarray(time, dtype=float)
+    out = np.zeros((len(t), len(FEET) * len(FOOT_POINT_NAMES)), dtype=bool)
+    toe = FOOT_POINT_NAMES.index("toe")
+    for seg in ir.segments:
+        if seg.kind != "locomotion":
+            continue
+        for step in seg.result.get("steps", ()) or ():
+            if "t_heel_off" not in step:
+                continue
+            k = FEET.index(str(step["foot"])[0])
+            roll = (t >= float(step["t_heel_off"])) & (t <= float(step["t_lift"]))
+            for j in range(len(FOOT_POINT_NAMES)):
+                if j != toe:
+                    out[roll, k * len(FOOT_POINT_NAMES) + j] = True
+    return out
+
+
 def walking(ir: MotionIR, time: FloatArray) -> BoolArray:
     """(N,) frames inside a locomotion segment."""
     t = np.asarray(time, dtype=float)
@@ -374,7 +397,8 @@ def compute_metrics(ir: MotionIR) -> Metrics:
     stance = foot_stance(ir, t)
     feet = foot_points(skel, pose)
     contact = contact_mask(feet, stance, ir.ground)
-    skate = foot_skating(feet, contact, t) if len(t) > 1 else np.full((0, 8), np.nan)
+    planted = contact & ~rolling_points(ir, t)
+    skate = foot_skating(feet, planted, t) if len(t) > 1 else np.full((0, 8), np.nan)
     skating = float(np.nanmax(skate)) if np.isfinite(skate).any() else math.nan
     com = center_of_mass(skel, pose)
     pts, ok = support(skel, pose, stance, ir.ground)

@@ -343,3 +343,18 @@ def test_examples_keep_every_joint_within_its_limits(path: Path) -> None:
 def test_examples_balance_in_static_postures(path: Path) -> None:
     for task, m in compiled(path):
         assert m.support_margin_static >= 0.0, f"{task}: {m.support_margin_static * 1e3:.1f} mm"
+
+
+def test_a_foot_rolling_over_its_toe_is_not_skating() -> None:
+    from mtlc.metrics import FOOT_POINT_NAMES, rolling_points
+
+    ref = SourceRef("x.mtask", 1, 1, 1, 1)
+    walk = Segment("root", "locomotion", 0.0, 1.0, GoalSpec("root"), Provenance(("t",), ref, ref))
+    walk.result = {"steps": [{"foot": "r", "t_heel_off": 0.2, "t_lift": 0.4, "t_land": 0.7}]}
+    ir = make_ir(standing(10, fps=10.0), [walk])
+    rolling = rolling_points(ir, np.array([0.1, 0.3, 0.5]))
+    toe = FOOT_POINT_NAMES.index("toe")
+    assert not rolling[0].any()  # before heel-off every sole point is planted
+    assert rolling[1, [j for j in range(4) if j != toe]].all() and not rolling[1, toe]
+    assert not rolling[1, 4:].any()  # the other foot stands
+    assert not rolling[2].any()  # in the air it is the stance mask's business, not the roll's

@@ -111,12 +111,13 @@ def interpolate_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.nda
             ys += [float(y) - (ir.ground + stand) for y in kf.root_position[:, 1]]
     position[:, 1] += _track(ts, [np.array(y) for y in ys], grid)
     rotation = yaw_quaternion(heading)
-    # the gait sets the whole root while walking
+    # the gait sets the whole root while walking, including its closing step
     for seg in ir.segments:
         kf = seg.keyframes
         if seg.kind != "locomotion" or kf is None or kf.root_position is None:
             continue
-        inside = (grid >= seg.start) & (grid <= seg.end)
+        start, end = gait_window(seg)
+        inside = (grid >= start) & (grid <= end)
         if not inside.any():
             continue
         position[inside] = _track(list(kf.time), list(kf.root_position), grid[inside])
@@ -126,11 +127,20 @@ def interpolate_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.nda
     return position, rotation
 
 
+def gait_window(seg: Any) -> tuple[float, float]:
+    """When a walk's gait drives the body: its segment, and its closing step if that runs on
+    (the gait holds the feet until its last keyframe, ``result["feet_held_until"]``)."""
+    kf = seg.keyframes
+    last = float(kf.time[-1]) if kf is not None and len(kf.time) else seg.end
+    return seg.start, max(seg.end, last)
+
+
 def walking_mask(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
     mask = np.zeros(len(grid), dtype=bool)
     for seg in ir.segments:
         if seg.kind == "locomotion":
-            mask |= (grid >= seg.start) & (grid <= seg.end)
+            start, end = gait_window(seg)
+            mask |= (grid >= start) & (grid <= end)
     return mask
 
 

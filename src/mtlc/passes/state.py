@@ -23,7 +23,7 @@ import numpy as np
 
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
-from mtlc.passes.interpolate import anchored_root
+from mtlc.passes.interpolate import _track, anchored_root, gait_window
 
 # (time, segment id, keyframes, row, column); column −1 for a posture root height
 _Ref = tuple[float, int, Keyframes, int, int]
@@ -101,6 +101,17 @@ class PoseState:
         pos, heading = plan.at(t)
         pos = np.array(pos, dtype=float)
         rot = yaw_quaternion(np.asarray(heading))
+        for seg in self.ir.segments:  # the gait drives the root while it walks, as in frames
+            kf = seg.keyframes
+            if seg.kind == "locomotion" and kf is not None and kf.root_position is not None:
+                start, end = gait_window(seg)
+                if start <= t <= end:
+                    grid = np.array([t])
+                    gp = _track(list(kf.time), list(kf.root_position), grid)[0]
+                    if kf.root_rotation is not None:
+                        gr = _track(list(kf.time), list(kf.root_rotation), grid)[0]
+                        rot = gr / np.linalg.norm(gr)
+                    return gp, rot
         q = self.q_at(t, skip)
         pos = anchored_root(self.skel, q[None], pos[None], rot[None], self.ir.ground)[0]
         return pos, rot

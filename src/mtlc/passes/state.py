@@ -46,6 +46,12 @@ class PoseState:
         for seg in ir.segments:
             if seg.keyframes is not None:
                 self.add(seg)
+        # walks whose gait sets the root (the locomotion pass runs before every solving pass)
+        self._walks = [
+            (seg, gait_window(seg))
+            for seg in ir.segments
+            if seg.kind == "locomotion" and seg.keyframes is not None
+        ]
 
     def add(self, seg: Segment) -> None:
         """Index a segment's keyframes (call after setting ``seg.keyframes``)."""
@@ -101,17 +107,15 @@ class PoseState:
         pos, heading = plan.at(t)
         pos = np.array(pos, dtype=float)
         rot = yaw_quaternion(np.asarray(heading))
-        for seg in self.ir.segments:  # the gait drives the root while it walks, as in frames
+        for seg, (start, end) in self._walks:  # the gait drives the root while it walks
             kf = seg.keyframes
-            if seg.kind == "locomotion" and kf is not None and kf.root_position is not None:
-                start, end = gait_window(seg)
-                if start <= t <= end:
-                    grid = np.array([t])
-                    gp = _track(list(kf.time), list(kf.root_position), grid)[0]
-                    if kf.root_rotation is not None:
-                        gr = _track(list(kf.time), list(kf.root_rotation), grid)[0]
-                        rot = gr / np.linalg.norm(gr)
-                    return gp, rot
+            if kf is not None and kf.root_position is not None and start <= t <= end:
+                grid = np.array([t])
+                gp = _track(list(kf.time), list(kf.root_position), grid)[0]
+                if kf.root_rotation is not None:
+                    gr = _track(list(kf.time), list(kf.root_rotation), grid)[0]
+                    rot = gr / np.linalg.norm(gr)
+                return gp, rot
         q = self.q_at(t, skip)
         pos = anchored_root(self.skel, q[None], pos[None], rot[None], self.ir.ground)[0]
         return pos, rot

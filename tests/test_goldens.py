@@ -10,6 +10,7 @@ from conftest import EXAMPLES, ROOT, STDLIB
 
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
+from mtlc.semantics.timeline import PRIMITIVE_KINDS
 from mtlc.syntax import parse_module
 from mtlc.syntax.dump import dump_module
 
@@ -44,7 +45,7 @@ def test_timeline_is_well_formed() -> None:
         doc = json.loads(run_frontend([path.relative_to(ROOT)]).timelines[0].to_json())
         assert doc["format"] == "mtlc-timeline" and doc["version"] == 1
         for prim in doc["primitives"]:
-            assert prim["kind"] in ("goal", "posture", "locomotion", "grip", "gaze", "hold")
+            assert prim["kind"] in PRIMITIVE_KINDS
             assert 0 <= prim["start"] <= prim["end"] <= doc["duration"]
             assert prim["path"].startswith(doc["task"])
             assert prim["origin"]["file"] == path.relative_to(ROOT).as_posix()

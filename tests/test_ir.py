@@ -97,11 +97,11 @@ def test_ir_json_is_byte_identical(path: Path) -> None:
 def test_fps_sets_the_frame_rate() -> None:
     ir, _ = compile_ir(EXAMPLES[0], fps=24)
     assert ir.frames.fps == 24
-    assert (
-        len(ir.frames.time) == int(np.floor(ir.duration * 24 + 1e-9)) + 1
-        or len(ir.frames.time) == int(np.floor(ir.duration * 24 + 1e-9)) + 2
-    )
+    # every 1/24 s from 0, plus the end time when the duration is not a whole number of frames
+    whole = int(np.floor(ir.duration * 24 + 1e-9))
+    assert len(ir.frames.time) == whole + 1 + (ir.duration * 24 - whole > 1e-6)
     assert np.allclose(np.diff(ir.frames.time)[:-1], 1 / 24)
+    assert ir.frames.time[-1] == pytest.approx(ir.duration)
 
 
 def _squat_ir():

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mtlc.body import center_of_mass, forward, site_positions
-from mtlc.ir.model import Frames, MotionIR
+from mtlc.ir.model import MotionIR
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -287,21 +287,6 @@ def limit_violations(skel: Any, q: FloatArray, tol: float = 1e-6) -> tuple[int, 
         return 0, 0.0, ""
     k = int(np.argmax(over.max(axis=0)))
     return count, math.degrees(float(over[:, k].max())), skel.dof_names[k]
-
-
-def frames_at(frames: Frames, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Linear interpolation of a frame at time ``t`` (q, root position, root rotation)."""
-    ts = frames.time
-    i = int(np.clip(np.searchsorted(ts, t) - 1, 0, max(len(ts) - 2, 0)))
-    if len(ts) == 1:
-        return frames.q[0], frames.root_position[0], frames.root_rotation[0]
-    w = float(np.clip((t - ts[i]) / max(ts[i + 1] - ts[i], 1e-12), 0.0, 1.0))
-
-    def lerp(v: FloatArray) -> FloatArray:
-        return (1 - w) * v[i] + w * v[i + 1]
-
-    rot = lerp(frames.root_rotation)
-    return lerp(frames.q), lerp(frames.root_position), rot / np.linalg.norm(rot)
 
 
 @dataclass

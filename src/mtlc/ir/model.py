@@ -121,7 +121,6 @@ class MotionIR:
     skeleton: Any = None  # mtlc.body.Skeleton, set by the manikin pass
     root_plan: RootPlan | None = None
     frames: Frames | None = None  # dense frames, set by interpolation, refined by later passes
-    contacts: dict[str, FloatArray] = field(default_factory=dict)  # site -> (N,) bool per frame
 
     def on_track(self, track: str) -> list[Segment]:
         return [s for s in self.segments if s.track == track]

@@ -16,7 +16,6 @@ INTERNAL_FPS = 60.0  # dense frames between interpolation and sampling
 @dataclass(frozen=True)
 class MotionOptions:
     fps: float = DEFAULT_FPS
-    ta_mode: str = "keyframes"  # or "jack": TA left to Jack's own reach IK by the generator
     walk_clip: Path | None = None  # a BVH walking clip to take the gait from
 
 

@@ -42,7 +42,7 @@ def time_grid(duration: float, fps: float) -> np.ndarray:
     return grid if grid[-1] >= duration - 1e-9 else np.append(grid, duration)
 
 
-def _track(times: list[float], values: list[np.ndarray], grid: np.ndarray) -> np.ndarray:
+def track(times: list[float], values: list[np.ndarray], grid: np.ndarray) -> np.ndarray:
     """Values on ``grid`` through keyframes, holding before the first and after the last."""
     t = np.asarray(times)
     v = np.asarray(values)
@@ -90,7 +90,7 @@ def interpolate_joints(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
             ts.append(t)
             vs.append(v)
             last_segment = segment
-        q[:, d] = _track(ts, vs, grid)
+        q[:, d] = track(ts, vs, grid)
     return q
 
 
@@ -109,7 +109,7 @@ def interpolate_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.nda
         if seg.kind == "posture" and kf is not None and kf.root_position is not None:
             ts += [float(t) for t in kf.time]
             ys += [float(y) - (ir.ground + stand) for y in kf.root_position[:, 1]]
-    position[:, 1] += _track(ts, [np.array(y) for y in ys], grid)
+    position[:, 1] += track(ts, [np.array(y) for y in ys], grid)
     rotation = yaw_quaternion(heading)
     # the gait sets the whole root while walking, including its closing step
     for seg in ir.segments:
@@ -120,9 +120,9 @@ def interpolate_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.nda
         inside = (grid >= start) & (grid <= end)
         if not inside.any():
             continue
-        position[inside] = _track(list(kf.time), list(kf.root_position), grid[inside])
+        position[inside] = track(list(kf.time), list(kf.root_position), grid[inside])
         if kf.root_rotation is not None:
-            quats = _track(list(kf.time), list(kf.root_rotation), grid[inside])
+            quats = track(list(kf.time), list(kf.root_rotation), grid[inside])
             rotation[inside] = quats / np.linalg.norm(quats, axis=1, keepdims=True)
     return position, rotation
 

@@ -143,7 +143,7 @@ def plan_root(timeline: Timeline) -> RootPlan:
         walk_heading = _heading_to(pos, goal, heading)
         # turn toward the way to go at the start, arrive, then face the work
         knot(p.start, pos, headings[-1])
-        knot(min(p.start + TURN_TIME / 2, p.end), pos + (goal - pos) * 0.0, walk_heading)
+        knot(min(p.start + TURN_TIME / 2, p.end), pos, walk_heading)
         knot(p.end, goal, walk_heading)
         pos, heading = goal, walk_heading
         face = p.params.get("facing_position")

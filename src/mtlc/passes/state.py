@@ -23,7 +23,7 @@ import numpy as np
 
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
-from mtlc.passes.interpolate import _track, anchored_root, gait_window
+from mtlc.passes.interpolate import anchored_root, gait_window, track
 
 # (time, segment id, keyframes, row, column); column −1 for a posture root height
 _Ref = tuple[float, int, Keyframes, int, int]
@@ -111,9 +111,9 @@ class PoseState:
             kf = seg.keyframes
             if kf is not None and kf.root_position is not None and start <= t <= end:
                 grid = np.array([t])
-                gp = _track(list(kf.time), list(kf.root_position), grid)[0]
+                gp = track(list(kf.time), list(kf.root_position), grid)[0]
                 if kf.root_rotation is not None:
-                    gr = _track(list(kf.time), list(kf.root_rotation), grid)[0]
+                    gr = track(list(kf.time), list(kf.root_rotation), grid)[0]
                     rot = gr / np.linalg.norm(gr)
                 return gp, rot
         q = self.q_at(t, skip)

@@ -13,6 +13,7 @@ from mtlc.diagnostics import DiagnosticSink, Label, Span
 from mtlc.diagnostics.suggest import did_you_mean, suggest
 from mtlc.semantics import builtins as B
 from mtlc.semantics import types as T
+from mtlc.semantics.mtm import other_codes
 from mtlc.semantics.scopes import Scope, Symbol
 from mtlc.syntax import ast
 
@@ -706,8 +707,6 @@ class Checker:
             return T.UNKNOWN
         self.check_args(f"mtm.{sig.name}", _builtin_params(sig), expr.args, expr.span, env)
         if sig.name == "code":
-            from mtlc.semantics.mtm import other_codes
-
             for a in expr.args:
                 if isinstance(a.value, ast.String) and a.value.value not in other_codes():
                     self.sink.report(

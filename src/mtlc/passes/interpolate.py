@@ -66,10 +66,12 @@ def interpolate_joints(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
     value until the next segment's first keyframe, exactly what the solving passes assume
     ("a segment starts from the pose the body is in", mtlc.passes.state); a jump that a pass
     leaves there is blended out by the smoothing pass (seed 004 claim 6), not spread over the gap.
+    Only a segment's *first* keyframe holds: another segment's keyframe at the same instant (a
+    walk's last keyframe at a posture's start) must not freeze the rest of the posture.
     """
     skel = ir.skeleton
     rest = np.asarray(skel.q_comfort, dtype=float)
-    keys: dict[int, list[tuple[float, int, float]]] = {}
+    keys: dict[int, list[tuple[float, int, float, bool]]] = {}
     for order, seg in enumerate(ir.segments):
         kf = seg.keyframes
         if kf is None or not kf.dofs:
@@ -77,19 +79,17 @@ def interpolate_joints(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
         idx = [skel.dof_index(d) for d in kf.dofs]
         for k, t in enumerate(kf.time):
             for j, d in enumerate(idx):
-                keys.setdefault(d, []).append((float(t), order, float(kf.q[k, j])))
+                keys.setdefault(d, []).append((float(t), order, float(kf.q[k, j]), k == 0))
     q = np.tile(rest, (len(grid), 1))
     for d, entries in keys.items():
         entries.sort(key=lambda e: (e[0], e[1]))
         ts, vs = [0.0], [rest[d]]
-        last_segment = -1
-        for t, segment, v in entries:
-            if segment != last_segment and t - ts[-1] > 2 * HOLD_EPS:
+        for t, _, v, first in entries:
+            if first and t - ts[-1] > 2 * HOLD_EPS:
                 ts.append(t - HOLD_EPS)  # hold until the next segment takes over
                 vs.append(vs[-1])
             ts.append(t)
             vs.append(v)
-            last_segment = segment
         q[:, d] = track(ts, vs, grid)
     return q
 

@@ -752,6 +752,40 @@ def walk_gait(ir: MotionIR, ctx: PassContext, seg: Segment) -> Gait:
     return bvh_clip.gait_for_walk(ir, ctx, seg, base)
 
 
+@dataclass
+class Arrival:
+    """Where a walk left the body: the next walk steps off from these footprints and this root."""
+
+    feet: dict[str, Footprint]
+    root: FloatArray  # (3,) the root at the gait's last keyframe
+
+
+def final_feet(stance: dict[str, Footprint], steps: list[Step]) -> dict[str, Footprint]:
+    feet = dict(stance)
+    for st in steps:
+        feet[st.foot] = st.end
+    return feet
+
+
+def settle_plan(ir: MotionIR, legs: LegModel, kf: Keyframes, t_from: float, t_to: float) -> None:
+    """Shift the root plan's knots in ``[t_from, t_to]`` so that the standing body, anchored by
+    ``interpolate.anchored_root`` under the plan, is exactly where the gait's last keyframe left
+    it: no settle from the gait's level-footed stance to the rest pose's feet (whose centre lies
+    ~2 mm elsewhere from the root), hence no skating at the walk's end."""
+    from mtlc.passes.interpolate import anchored_root  # interpolate imports nothing of ours
+
+    plan, skel = ir.root_plan, ir.skeleton
+    assert plan is not None and kf.root_position is not None and kf.root_rotation is not None
+    q = np.asarray(skel.q_comfort, dtype=float).copy()
+    q[legs.dofs["r"] + legs.dofs["l"]] = kf.q[-1]
+    planned = plan.at(float(kf.time[-1]))[0]
+    anchored = anchored_root(skel, q[None], planned[None], kf.root_rotation[-1:], ir.ground)[0]
+    delta = kf.root_position[-1] - anchored
+    delta[1] = 0.0
+    inside = (plan.time >= t_from - 1e-9) & (plan.time <= t_to + 1e-9)
+    plan.position[inside] += delta
+
+
 def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
     skel, plan = ir.skeleton, ir.root_plan
     if skel is None or plan is None:
@@ -766,13 +800,17 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
     stand = legs.ankle_height - float(ankle_rest[0, 1])
     walks = sorted((s for s in ir.segments if s.kind == "locomotion"), key=lambda s: s.start)
     next_foot = "r"
+    arrival: Arrival | None = None
     for i, seg in enumerate(walks):
         t0, t1 = seg.start, seg.end
         p0, h0 = plan.at(t0)
         p1, h1 = plan.at(t1)
         h0, h1 = float(h0), float(h1)
-        # interpolation anchors the standing feet under the planned root: start from there
-        stance = stance_at(np.array([p0[0], ir.ground, p0[2]]), h0, half_width)
+        if arrival is None:  # from the rest pose, which interpolation anchors under the plan
+            stance = stance_at(np.array([p0[0], ir.ground, p0[2]]), h0, half_width)
+            root_start = np.array([p0[0], 0.0, p0[2]])
+        else:  # from where the last walk left the feet and the root
+            stance, root_start = arrival.feet, np.array([arrival.root[0], 0.0, arrival.root[2]])
         next_start = walks[i + 1].start if i + 1 < len(walks) else math.inf
         t_turn = min(t1 + TURN_TIME, next_start)
         hf = float(plan.at(t_turn)[1])
@@ -793,7 +831,7 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
             return p, np.asarray(h, dtype=float)
 
         motion = WalkMotion(
-            steps, stance, t0, t1, np.array([p0[0], 0.0, p0[2]]), np.array([p1[0], 0.0, p1[2]]),
+            steps, stance, t0, t1, root_start, np.array([p1[0], 0.0, p1[2]]),
             h0, h1, stand, ir.ground, gait, legs, half_width,
             t_turn if turns_after else -math.inf, hold_root if turns_after else None,
         )  # fmt: skip
@@ -842,6 +880,9 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
         )
         if steps:
             next_foot = "l" if steps[-1].foot == "r" else "r"
+        # the standing body after the walk stays where the gait left it, until the next walk
+        settle_plan(ir, legs, seg.keyframes, t1, next_start)
+        arrival = Arrival(final_feet(stance, steps), seg.keyframes.root_position[-1].copy())
     return ir
 
 

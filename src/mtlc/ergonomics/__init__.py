@@ -1,0 +1,1 @@
+"""Ergonomic assessment of the synthesised motion (RULA per frame)."""

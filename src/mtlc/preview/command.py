@@ -1,0 +1,161 @@
+"""The `preview` and `serve` commands (wired into `mtlc` by the CLI, and `python -m mtlc.preview`).
+
+Exit codes as everywhere in mtlc: 0 clean, 1 errors in the input, 2 a usage or internal error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from mtlc.diagnostics.render import render_json, render_text, use_color
+from mtlc.frontend import FrontendOptions
+from mtlc.output import write_all_or_nothing
+from mtlc.passes import MotionOptions
+from mtlc.passes.context import DEFAULT_FPS
+from mtlc.preview.compile import Compiled, compile_motions
+from mtlc.preview.html import render_page
+
+EXIT_OK, EXIT_ERRORS, EXIT_USAGE = 0, 1, 2
+DEFAULT_PORT = 8765
+
+
+def add_preview_parsers(
+    subparsers: Any, frontend_options: Callable[[argparse.ArgumentParser], None]
+) -> None:
+    """Add `preview` and `serve` to the CLI's subparsers (``frontend_options`` adds FILE, -I...)."""
+    preview = subparsers.add_parser(
+        "preview", help="see the motion: a self-contained HTML page and/or a PNG contact sheet"
+    )
+    frontend_options(preview)
+    preview.add_argument("-o", "--output", type=Path, metavar="HTML",
+                         help="the HTML page to write (default: <file>.<task>.html beside nothing else given)")  # fmt: skip
+    preview.add_argument("--png", type=Path, metavar="PNG",
+                         help="also write a contact sheet: key poses front and side, joint angles over time (needs matplotlib)")  # fmt: skip
+    _task_and_fps(preview)
+    serve = subparsers.add_parser(
+        "serve", help="stream the motion to a browser; recompile on save and when a site is dragged"
+    )
+    frontend_options(serve)
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="address to listen on (default 127.0.0.1: this machine only)")  # fmt: skip
+    serve.add_argument("--port", type=int, default=DEFAULT_PORT,
+                       help=f"port (default {DEFAULT_PORT}; 0 picks a free one)")  # fmt: skip
+    serve.add_argument("--poll", type=float, default=0.5, metavar="S",
+                       help="how often to look for a saved file, in seconds (default 0.5)")  # fmt: skip
+    _task_and_fps(serve)
+
+
+def _task_and_fps(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--task", metavar="NAME", help="only this task (default: every task; serve: the first)"
+    )
+    p.add_argument("--fps", type=float, default=DEFAULT_FPS, metavar="N",
+                   help=f"frames per second of the sampled motion (default {DEFAULT_FPS:g})")  # fmt: skip
+
+
+def _options(args: argparse.Namespace) -> FrontendOptions:
+    return FrontendOptions(
+        include_dirs=tuple(args.include),
+        expansion_budget=args.expansion_budget,
+        manikin=args.manikin,
+    )
+
+
+def _report(compiled: Compiled, fmt: str) -> None:
+    items = compiled.program.diagnostics
+    if fmt == "json":
+        sys.stdout.write(render_json(items))
+    elif items:
+        sources = compiled.program.sources
+        sys.stderr.write(render_text(items, sources, color=use_color(sys.stderr)))
+
+
+def run_preview_command(args: argparse.Namespace) -> int:
+    """Run `preview` or `serve` from parsed arguments; returns the exit code."""
+    if not 1 <= args.fps <= 1000:
+        sys.stderr.write("mtlc: --fps must be between 1 and 1000\n")
+        return EXIT_USAGE
+    if args.command == "serve":
+        return _serve(args)
+    return _preview(args)
+
+
+def _targets(
+    args: argparse.Namespace, compiled: Compiled
+) -> dict[str, tuple[Path | None, Path | None]]:
+    """Where each task's page and sheet go: -o/--png as given for one task, suffixed for many."""
+    out: dict[str, tuple[Path | None, Path | None]] = {}
+    many = len(compiled.motions) > 1
+    html, png = args.output, args.png
+    if html is None and png is None:
+        html = Path(f"{Path(compiled.motions[0].file).stem}.html")
+        many = True
+
+    def name(p: Path | None, task: str, stem: str) -> Path | None:
+        if p is None:
+            return None
+        return p.with_name(f"{p.stem}.{task}{p.suffix}") if many else p
+
+    for ir in compiled.motions:
+        out[ir.task] = (name(html, ir.task, ir.file), name(png, ir.task, ir.file))
+    return out
+
+
+def _preview(args: argparse.Namespace) -> int:
+    motion = MotionOptions(fps=args.fps)
+    compiled = compile_motions(list(args.files), _options(args), motion, task=args.task)
+    _report(compiled, args.format)
+    if not compiled.ok:
+        return EXIT_ERRORS
+    if not compiled.motions:
+        sys.stderr.write(f"mtlc: no task named {args.task!r}\n" if args.task else "mtlc: no task\n")
+        return EXIT_USAGE
+    files: dict[Path, str | bytes] = {}
+    targets = _targets(args, compiled)
+    for ir, doc in zip(compiled.motions, compiled.documents(), strict=True):
+        html, png = targets[ir.task]
+        if html is not None:
+            files[html] = render_page(doc)
+        if png is not None:
+            from mtlc.preview.sheet import MissingMatplotlib, render_sheet
+
+            try:
+                files[png] = render_sheet(ir)
+            except MissingMatplotlib as exc:
+                sys.stderr.write(f"mtlc: {exc}\n")
+                return EXIT_USAGE
+    write_all_or_nothing(files)
+    if args.format == "text":
+        for path in files:
+            print(f"wrote {path}")
+    return EXIT_OK
+
+
+def _serve(args: argparse.Namespace) -> int:
+    from mtlc.preview.server import MotionHub, PreviewServer
+
+    if not 0 <= args.port <= 65535 or args.poll <= 0:
+        sys.stderr.write("mtlc: --port must be 0..65535 and --poll positive\n")
+        return EXIT_USAGE
+    hub = MotionHub(list(args.files), _options(args), MotionOptions(fps=args.fps), task=args.task)
+    server = PreviewServer(hub, host=args.host, port=args.port, poll=args.poll)
+    try:
+        server.start()
+    except OSError as exc:
+        sys.stderr.write(f"mtlc: cannot listen on {args.host}:{args.port}: {exc.strerror}\n")
+        return EXIT_USAGE
+    if hub.last_diagnostics is not None:
+        sys.stderr.write("mtlc: the first compile failed; fix the file and save it\n")
+    print(f"serving {', '.join(map(str, args.files))} at {server.url} (Ctrl-C stops)", flush=True)
+    try:
+        threading.Event().wait()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.stop()
+    return EXIT_OK

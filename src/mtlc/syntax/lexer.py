@@ -107,6 +107,29 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
     return tokens
 
 
+def comments(text: str) -> list[Token]:
+    """Every comment in ``text`` as a COMMENT token with its position (for `mtlc fmt`).
+
+    ``tokenize`` drops comments, so the parser never sees them; this scans with the same
+    regex, so a `#` inside a string is never taken for a comment.
+    """
+    found: list[Token] = []
+    line, line_start = 1, 0
+    for m in _master_regex().finditer(text):
+        kind = m.lastgroup
+        if kind == "NL":
+            line += 1
+            line_start = m.end()
+        elif kind == "COMMENT":
+            col = m.start() - line_start + 1
+            found.append(
+                Token(
+                    "COMMENT", m.group(), m.start(), line, col, line, col + len(m.group()), m.end()
+                )
+            )
+    return found
+
+
 _ESCAPES = {"n": "\n", "t": "\t", '"': '"', "\\": "\\"}
 _ESCAPE_RE = re.compile(r"\\(u\{[0-9A-Fa-f]{1,6}\}|.)")
 

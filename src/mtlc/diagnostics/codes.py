@@ -1,7 +1,7 @@
 """Every diagnostic code mtlc can emit.
 
 Codes are grouped by the stage that finds them (MT00xx input, MT01xx syntax, MT02xx modules and
-names, MT03xx types, units and calls, MT04xx expansion, MT05xx motion passes) and are never
+names, MT03xx types, units and calls, MT04xx expansion, MT05xx motion passes, MT06xx `mtlc lint` rules) and are never
 renumbered: CI scripts and suppressions depend on them. Each code has a page in docs/diagnostics/ that ``mtlc explain`` shows.
 """
 
@@ -120,6 +120,15 @@ _ALL = [
         "the centre of mass leaves the support and cannot be brought back",
     ),
     Code("MT0503", "walking-clip", Severity.ERROR, "a walking clip that cannot be read or used"),
+    # lint rules (mtlc lint)
+    Code("MT0601", "unused-definition", Severity.WARNING, "a definition nothing uses"),
+    Code("MT0602", "unused-parameter", Severity.WARNING, "a parameter its body never reads"),
+    Code("MT0603", "joint-limit", Severity.WARNING, "a joint moves past its limit"),
+    Code("MT0604", "ground-penetration", Severity.WARNING, "the body sinks below the ground"),
+    Code("MT0605", "rula-score", Severity.WARNING, "a posture at or above the RULA threshold"),
+    Code(
+        "MT0606", "unused-suppression", Severity.WARNING, "an ignore comment that hides nothing"
+    ),
     # internal
     Code("MT0900", "internal-error", Severity.ERROR, "a bug in mtlc: please report it"),
 ]

@@ -1,0 +1,104 @@
+"""MT0501 for the manikins between the selection's extremes, without a full compile each.
+
+The extremes are compiled in full (every motion pass). For each other manikin every contact
+goal (TO segment) is re-solved in one batched IK call per hand: the body starts in the joint
+angles the nearest extreme (by stature) had when its hand arrived, its root where that extreme's
+root was, lowered or raised so the feet (or knees) stay on the ground, and the arm with the
+trunk (the TA pass's second strategy) reaches for the site. A hand left more than the passes'
+1 mm short is reported as the passes report it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mtlc.body import build_manikin, forward
+from mtlc.body.anthropometry import measure
+from mtlc.body.ik import Goal, solve_ta
+from mtlc.diagnostics import Span
+from mtlc.ir.model import FloatArray, MotionIR, Segment
+from mtlc.lint.findings import Finding
+from mtlc.lint.manikins import label
+from mtlc.metrics import lowest_point
+from mtlc.passes.approach import HAND_NAMES, TOLERANCE
+from mtlc.semantics.timeline import ManikinSpec
+
+
+def stature(spec: ManikinSpec) -> float:
+    return measure(spec.population, spec.sex, spec.percentile, "stature")
+
+
+@dataclass
+class Reach:
+    segment: Segment
+    frame: int  # the extreme's frame where the hand arrives
+
+
+def contact_goals(ir: MotionIR) -> list[Reach]:
+    """Each TO segment of the arms with a world target, once per (task line, site, arm)."""
+    assert ir.frames is not None
+    t = ir.frames.time
+    seen: set[tuple[object, ...]] = set()
+    out = []
+    for seg in ir.segments:
+        if seg.kind != "TO" or seg.goal.position is None or seg.goal.effector not in HAND_NAMES:
+            continue
+        key = (seg.provenance.origin, seg.goal.site, seg.track)
+        if key in seen:
+            continue
+        seen.add(key)
+        out.append(Reach(seg, min(int(np.searchsorted(t, seg.end - 1e-9)), len(t) - 1)))
+    return out
+
+
+def _grounded_roots(ir: MotionIR, skel: object, frames: list[int]) -> tuple[FloatArray, ...]:
+    """Start angles and roots for another skeleton: the extreme's, with the root height moved
+    so the lowest body point is where the extreme's was."""
+    f = ir.frames
+    assert f is not None
+    q = f.q[frames]
+    rot = f.root_rotation[frames]
+    pos = f.root_position[frames].copy()
+    theirs = lowest_point(ir.skeleton, forward(ir.skeleton, q, pos, rot))
+    at_zero = pos.copy()
+    at_zero[:, 1] = 0.0
+    ours = lowest_point(skel, forward(skel, q, at_zero, rot))
+    pos[:, 1] = theirs - ours
+    return q, pos, rot
+
+
+def screen(ir: MotionIR, spec: ManikinSpec) -> list[Finding]:
+    """MT0501 findings for ``spec``, from the compiled motion ``ir`` of a nearby manikin."""
+    goals = contact_goals(ir)
+    if not goals:
+        return []
+    skel = build_manikin(spec.population, spec.sex, spec.percentile)
+    out = []
+    for hand in sorted({g.segment.goal.effector for g in goals}):
+        mine = [g for g in goals if g.segment.goal.effector == hand]
+        q, pos, rot = _grounded_roots(ir, skel, [g.frame for g in mine])
+        targets = np.array([np.asarray(g.segment.goal.position, dtype=float) for g in mine])
+        result = solve_ta(
+            skel,
+            [Goal(hand, position=targets)],
+            q,
+            reach="torso",
+            root_position=pos,
+            root_rotation=rot,
+        )
+        for g, short in zip(mine, result.position_error, strict=True):
+            if short > TOLERANCE:
+                out.append(_finding(g.segment, float(short), label(spec)))
+    return out
+
+
+def _finding(seg: Segment, short: float, manikin: str) -> Finding:
+    o = seg.provenance.origin
+    msg = (
+        f"the {HAND_NAMES[seg.goal.effector]} cannot reach site `{seg.goal.site}`: "
+        f"{short * 1000:.0f} mm short"
+    )
+    span = Span(o.file, o.line, o.column, o.end_line, o.end_column)
+    return Finding("MT0501", msg, span, manikins=(manikin,), details=(msg,))

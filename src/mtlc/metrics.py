@@ -70,6 +70,9 @@ def hull(points: FloatArray, valid: BoolArray) -> Hull:
     """
     pts = np.asarray(points, dtype=float)
     ok = np.asarray(valid, dtype=bool)
+    used = ok.any(axis=0)
+    if used.any() and not used.all():  # points that never touch (knees, mostly) cost pairs
+        pts, ok = pts[:, used], ok[:, used]
     ii, jj = np.triu_indices(ok.shape[1], 1)
     a, b = pts[:, ii], pts[:, jj]  # (N, E, 2)
     d = b - a

@@ -39,6 +39,7 @@ from mtlc.metrics import (
     foot_points,
     foot_stance,
     hull,
+    hull_margin,
     lowest_point,
     support,
     support_margin,
@@ -58,6 +59,12 @@ POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
 BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections blend
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = -1e-4  # m: what still counts as inside after correction
+# the pelvis aims the CoM half a PUSH_TOL deeper than MARGIN and stops within PUSH_TOL of that
+# aim: a CoM 9.5-11.5 mm inside is as balanced as one at 10 mm, and chasing the last tenth of a
+# millimetre costs a round of IK on thousands of frames
+PUSH_TOL = 1e-3  # m
+AIM = MARGIN + PUSH_TOL / 2
+COM_GAIN = 0.8  # the legs stay behind: the CoM moves ~80 % of the pelvis (measured 0.75-0.9)
 FEET_SITES = ("r_foot", "l_foot")
 HANDS = {"r_hand": "r_arm", "l_hand": "l_arm"}
 # which segment an MT0502 is reported at when several are active: the posture that bends the
@@ -134,11 +141,31 @@ def restore_contacts(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
 
+    See ``restore_contacts_posed``; this drops the solved pose.
+    """
+    q, root, worst, _ = restore_contacts_posed(
+        ir, q, root_position, root_rotation, feet, hands, pose
+    )
+    return q, root, worst
+
+
+def restore_contacts_posed(
+    ir: MotionIR,
+    q: np.ndarray,
+    root_position: np.ndarray,
+    root_rotation: np.ndarray,
+    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+    pose: Pose | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
+    """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
+
     ``feet`` maps r_foot/l_foot to target positions (B, 3), rotations (B, 3, 3) and whether the
     foot touches the ground (B,): a foot in the air keeps its joint angles instead;
     ``hands`` maps r_hand/l_hand to a row mask (B,) and target positions (B, 3). The pelvis drops
-    by what straight legs cannot reach. Returns the new q (B, D), root positions, and each row's
-    worst remaining distance (m).
+    by what straight legs cannot reach. Returns the new q (B, D), root positions, each row's
+    worst remaining distance (m) and the pose of the result (forward kinematics is the costly
+    part of balancing thousands of frames: callers reuse it instead of recomputing it).
     """
     skel = ir.skeleton
     q = q.copy()
@@ -173,10 +200,12 @@ def restore_contacts(
         want = pos[:, None, :] + np.einsum("bij,sj->bsi", rot, offsets)
         err = np.linalg.norm(site_positions(skel, pose, soles) - want, axis=-1).max(axis=1)
         worst = np.maximum(worst, np.where(touch, err, 0.0))
+    solved = np.zeros(len(q), dtype=bool)
     for hand, (rows, target) in hands.items():
         idx = np.flatnonzero(rows)
         if idx.size == 0:
             continue
+        solved[idx] = True
         goal = [Goal(hand, position=target[idx])]
         elbow = skel.dof_index(f"{hand[0]}_elbow_flex")
         q[idx, elbow] = np.maximum(q[idx, elbow], SEED_FLEX)
@@ -188,7 +217,10 @@ def restore_contacts(
         )
         q[idx] = res.q
         worst[idx] = np.maximum(worst[idx], res.position_error)
-    return q, root, worst
+    idx = np.flatnonzero(solved)
+    if idx.size:  # the arms moved: their rows' pose is recomputed
+        put_pose(pose, idx, forward(skel, q[idx], root[idx], root_rotation[idx]))
+    return q, root, worst, pose
 
 
 def lean_trunk(
@@ -220,7 +252,7 @@ def lean_trunk(
         p = forward(skel, q[active], root[active], rot[active])
         c = center_of_mass(skel, p)[:, [0, 2]]
         push = support_push(pts[active], ok[active], c, MARGIN, hulls.take(active))
-        moving = np.hypot(push[:, 0], push[:, 1]) > 1e-5
+        moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
         if not moving.all():
             active, push = active[moving], push[moving]
             p = take_pose(p, np.flatnonzero(moving))
@@ -247,6 +279,13 @@ def lean_trunk(
 def take_pose(pose: Pose, rows: np.ndarray) -> Pose:
     """The rows of a batched pose."""
     return Pose(R=pose.R[rows], p=pose.p[rows], axes=pose.axes[rows], root=pose.root[rows])
+
+
+def put_pose(pose: Pose, rows: np.ndarray, part: Pose) -> None:
+    """Write the batched pose ``part`` into the given rows of ``pose``, in place."""
+    pose.R[rows], pose.p[rows], pose.axes[rows], pose.root[rows] = (
+        part.R, part.p, part.axes, part.root
+    )
 
 
 def _sub_feet(
@@ -288,7 +327,8 @@ def balance_frames(
     contact = contact_mask(foot_points(skel, pose), stance, ir.ground)
     all_pts, all_ok = support(skel, pose, stance, ir.ground)
     com = center_of_mass(skel, pose)
-    before = support_margin(all_pts, all_ok, com[:, [0, 2]])
+    all_hull = hull(all_pts, all_ok)  # the support stays where it was: one hull serves all
+    before = hull_margin(all_hull, com[:, [0, 2]])
     after = before.copy()
     failed = np.zeros(len(t), dtype=bool)
     low = ~np.isnan(before) & (before < MARGIN)
@@ -297,7 +337,7 @@ def balance_frames(
     # a support with no inside (toes only, one edge) or a CoM farther than the pelvis may move
     # cannot be fixed here: report it without trying
     centroid = np.einsum("np,npk->nk", all_ok, all_pts) / np.maximum(all_ok.sum(1), 1)[:, None]
-    hopeless = ~(support_margin(all_pts, all_ok, centroid) > 0.0) | (before < -MAX_SHIFT)
+    hopeless = ~(hull_margin(all_hull, centroid) > 0.0) | (before < -MAX_SHIFT)
     static = ~walking(ir, t)  # walking frames are measured, never moved nor reported
     failed[low & hopeless & (before < 0)] = True
     failed &= static
@@ -305,7 +345,7 @@ def balance_frames(
     if rows.size == 0:
         return before, after, failed
     pts, ok = all_pts[rows], all_ok[rows]  # the support stays where it was
-    hulls = hull(pts, ok)
+    hulls = all_hull.take(rows)
     touching = contact[rows].reshape(rows.size, 2, -1).any(axis=2)  # (B, 2): r, l
     feet = {
         name: (
@@ -327,35 +367,34 @@ def balance_frames(
     # rows whose contacts gave out keep their last good pose and stop; converged rows stop
     active = np.arange(rows.size)
     cap = np.full(rows.size, MAX_STEP)
+    p_rows = take_pose(pose, rows)  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
-        p = forward(skel, q[active], root[active], rot[active])
-        c = center_of_mass(skel, p)[:, [0, 2]]
-        push = support_push(pts[active], ok[active], c, MARGIN, hulls.take(active))
-        moving = np.hypot(push[:, 0], push[:, 1]) > 1e-5
+        c = center_of_mass(skel, take_pose(p_rows, active))[:, [0, 2]]
+        push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
+        moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
         active, push = active[moving], push[moving]
         if active.size == 0:
             break
-        step = push / 0.85  # the legs stay behind: the CoM moves ~85 % of the pelvis
+        step = push / COM_GAIN
         size = np.hypot(step[:, 0], step[:, 1])
         step *= np.minimum(1.0, cap[active] / np.maximum(size, 1e-12))[:, None]
         new_root = root[active].copy()
         new_root[:, [0, 2]] += step
         shift = new_root[:, [0, 2]] - root0[active][:, [0, 2]]
         far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
-        q_a, root_a, worst_a = restore_contacts(
+        q_a, root_a, worst_a, p_a = restore_contacts_posed(
             ir, q[active], new_root, rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
         )
         lost = far | ((worst_a > POSITION_TOL) & (worst[active] <= POSITION_TOL))
         ok_rows = active[~lost]
         q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
+        put_pose(p_rows, ok_rows, take_pose(p_a, np.flatnonzero(~lost)))
         cap[active[lost]] /= 2  # a joint ran out of range: retry with half the step
         active = active[(cap[active] >= MIN_STEP) & ~far]
-    p = forward(skel, q, root, rot)
-    margin = support_margin(pts, ok, center_of_mass(skel, p)[:, [0, 2]], hulls)
+    p = p_rows
+    margin = hull_margin(hulls, center_of_mass(skel, p)[:, [0, 2]])
     # nothing may go deeper below the ground than it was or than GROUND_SLACK
-    floor = np.minimum(
-        lowest_point(skel, forward(skel, q0, root0, rot)) - 1e-4, ir.ground - GROUND_SLACK
-    )
+    floor = np.minimum(lowest_point(skel, pose)[rows] - 1e-4, ir.ground - GROUND_SLACK)
     good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
     good &= lowest_point(skel, p) >= floor
     keep = good & (margin >= ACCEPT_MARGIN)
@@ -401,13 +440,11 @@ def balance_frames(
     }  # fmt: skip
     hands_b = {h: (pins[h][span], site_positions(skel, pose, h)[span]) for h in HANDS}
     rot_b = frames.root_rotation[span]
-    qb, rb, wb = restore_contacts(ir, qb, rb, rot_b, feet_b, hands_b)
-    pb = forward(skel, qb, rb, rot_b)
+    qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b)
     floor_b = np.minimum(lowest_point(skel, pose)[span] - 1e-4, ir.ground - GROUND_SLACK)
     fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
     fine &= lowest_point(skel, pb) >= floor_b
-    pts_b, ok_b = all_pts[span], all_ok[span]
-    mb = support_margin(pts_b, ok_b, center_of_mass(skel, pb)[:, [0, 2]])
+    mb = hull_margin(all_hull.take(span), center_of_mass(skel, pb)[:, [0, 2]])
     # a blended frame must keep its contacts and be at least as balanced as its own correction
     own = np.full(len(t), -np.inf)
     own[rows[good]] = margin[good]

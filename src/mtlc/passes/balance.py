@@ -283,9 +283,8 @@ def take_pose(pose: Pose, rows: np.ndarray) -> Pose:
 
 def put_pose(pose: Pose, rows: np.ndarray, part: Pose) -> None:
     """Write the batched pose ``part`` into the given rows of ``pose``, in place."""
-    pose.R[rows], pose.p[rows], pose.axes[rows], pose.root[rows] = (
-        part.R, part.p, part.axes, part.root
-    )
+    pose.R[rows], pose.p[rows] = part.R, part.p
+    pose.axes[rows], pose.root[rows] = part.axes, part.root
 
 
 def _sub_feet(

@@ -1,0 +1,87 @@
+"""Fixtures for the preview tests: compiled examples and a real headless Chromium.
+
+Chromium comes from Debian (`scripts/install_chromium.sh` installs it when missing); the tests
+skip, with the reason, only when it cannot be installed (no root, no apt, no network).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from preview_support import CHROMEDRIVER, CHROMIUM, CHROMIUM_FLAGS, EXAMPLES, ROOT, Example
+
+from mtlc.frontend import FrontendOptions
+from mtlc.passes import MotionOptions
+from mtlc.preview.compile import compile_motions
+from mtlc.preview.html import render_page
+from mtlc.preview.server import MotionHub, PreviewServer
+
+
+@pytest.fixture(scope="session")
+def examples(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Example]:
+    """Every example compiled once per session, with its preview page written."""
+    out = tmp_path_factory.mktemp("previews")
+    result: dict[str, Example] = {}
+    for path in EXAMPLES:
+        compiled = compile_motions([path.relative_to(ROOT)], FrontendOptions())
+        assert compiled.ok, compiled.program.diagnostics
+        ir, doc = compiled.motions[0], compiled.documents()[0]
+        page = out / f"{path.stem}.html"
+        page.write_text(render_page(doc), encoding="utf-8")
+        result[path.stem] = Example(path, ir, doc, page)
+    return result
+
+
+def _ensure_chromium() -> str | None:
+    """None when Chromium and its driver are there (installing them if needed), else why not."""
+    if not CHROMIUM.exists() or not CHROMEDRIVER.exists():
+        script = ROOT / "scripts" / "install_chromium.sh"
+        run = subprocess.run(["sh", str(script)], capture_output=True, text=True, timeout=900)
+        if run.returncode != 0:
+            return f"Chromium could not be installed: {(run.stderr or run.stdout).strip()[-300:]}"
+    if not CHROMIUM.exists() or not CHROMEDRIVER.exists():
+        return "Chromium or chromedriver is still missing after scripts/install_chromium.sh"
+    return None
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[Any]:
+    """A headless Chromium driven by selenium through Debian's chromedriver."""
+    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium (the test extra)")
+    from selenium.webdriver.chrome.service import Service
+
+    reason = _ensure_chromium()
+    if reason is not None:
+        pytest.skip(reason)
+    profile = tempfile.mkdtemp(prefix="mtlc-chromium-")
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for flag in (*CHROMIUM_FLAGS, f"--user-data-dir={profile}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+    driver.set_script_timeout(30)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+        shutil.rmtree(profile, ignore_errors=True)
+
+
+@pytest.fixture
+def served(tmp_path: Path) -> Iterator[tuple[PreviewServer, Path]]:
+    """A server on a free loopback port over a copy of an example (so saves can be tested)."""
+    task = tmp_path / "remove_access_panel.mtask"
+    shutil.copy(ROOT / "examples" / "remove_access_panel.mtask", task)
+    hub = MotionHub([task], FrontendOptions(), MotionOptions())
+    server = PreviewServer(hub, port=0, poll=0.1)
+    server.start()
+    try:
+        yield server, task
+    finally:
+        server.stop()

@@ -1,0 +1,38 @@
+"""Shared by the preview tests: where things are, and a compiled example."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mtlc.ir.model import MotionIR
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMEDRIVER = Path("/usr/bin/chromedriver")
+CHROMIUM_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--use-gl=angle",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--window-size=1200,800",
+]
+
+
+@dataclass
+class Example:
+    """One example compiled: its motion, its preview document and the page's path."""
+
+    path: Path
+    ir: MotionIR
+    document: dict[str, Any]
+    page: Path

@@ -111,7 +111,9 @@ def number(value: float, decimals: int) -> str:
         raise ValueError(f"cannot write a non-finite number ({value}) into a script")
     text = f"{value:.{decimals}f}"
     if float(text) == 0.0:
-        text = "0."
+        text = f"{0.0:.{decimals}f}"
+    if "." not in text:
+        return f"{text}.0"
     text = text.rstrip("0")
     return f"{text}0" if text.endswith(".") else text
 

@@ -1,0 +1,156 @@
+"""The preview's data and outputs without a browser: figures, blocks, moved sites, the command."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from preview_support import ROOT, Example
+
+from mtlc.frontend import FrontendOptions, run_frontend
+from mtlc.metrics import compute_metrics
+from mtlc.preview.__main__ import main
+from mtlc.preview.html import render_page, script_json
+from mtlc.preview.sites import run_frontend_with_sites
+
+ACCESS = Path("examples/remove_access_panel.mtask")
+
+
+def test_figures_have_one_value_per_frame(examples: dict[str, Example]) -> None:
+    for example in examples.values():
+        n = len(example.ir.frames.time)
+        figs = example.document["figures"]
+        assert set(figs) == {
+            "contact_error",
+            "com_margin",
+            "penetration",
+            "rula",
+            "rula_worst_so_far",
+        }
+        assert all(len(v) == n for v in figs.values())
+        worst = np.array(figs["rula_worst_so_far"], dtype=float)
+        assert np.all(np.diff(worst) >= 0) and worst.min() >= 1 and worst.max() <= 7
+
+
+def test_contact_error_per_frame_agrees_with_the_metrics(examples: dict[str, Example]) -> None:
+    """At each reached TO's end, the per-frame figure is the metrics' contact error."""
+    example = examples["remove_access_panel"]
+    figs = example.document["figures"]["contact_error"]
+    t = example.ir.frames.time
+    checked = 0
+    for c in compute_metrics(example.ir).contact_errors:
+        if not c.reachable:
+            continue
+        i = int(np.searchsorted(t, c.time - 1e-9))
+        assert figs[i] is not None and figs[i] >= c.error - 1e-6
+        checked += 1
+    assert checked >= 4
+
+
+def test_blocks_nest_task_action_element_with_source_lines(examples: dict[str, Example]) -> None:
+    blocks = examples["remove_access_panel"].document["blocks"]
+    levels = [b["level"] for b in blocks]
+    assert levels.count(0) == 1
+    actions = [b["label"] for b in blocks if b["level"] == 1]
+    assert actions == [
+        "walk_to",
+        "unscrew",
+        "unscrew",
+        "unscrew",
+        "unscrew",
+        "pick",
+        "walk_to",
+        "place",
+    ]
+    task = blocks[0]
+    for b in blocks[1:]:
+        assert task["start"] - 1e-9 <= b["start"] <= b["end"] <= task["end"] + 1e-9
+        assert b["origin"]["file"].endswith("remove_access_panel.mtask") and b["origin"]["text"]
+    unscrew = next(b for b in blocks if b["label"] == "unscrew")
+    assert unscrew["origin"]["text"].startswith("unscrew(right, bolt")
+    # overlapping elements never share a lane
+    elems = [b for b in blocks if b["level"] == 2]
+    for a in elems:
+        for b in elems:
+            if a is not b and a["lane"] == b["lane"]:
+                assert a["end"] <= b["start"] + 1e-9 or b["end"] <= a["start"] + 1e-9
+
+
+def test_page_is_self_contained_and_deterministic(examples: dict[str, Example]) -> None:
+    doc = examples["remove_access_panel"].document
+    page = render_page(doc)
+    assert page == render_page(json.loads(json.dumps(doc)))
+    for needle in ("http://", "https://", "<script src", "<link "):
+        assert needle not in page.replace("http://www.w3.org", "")
+    assert "Copyright 2010-2026 Three.js Authors" in page and "window.mtlcPreview" in page
+    assert "__DATA__" not in page and "__THREE__" not in page.split("<style>")[0]
+
+
+@given(st.recursive(st.none() | st.text() | st.integers(),
+                    lambda kids: st.lists(kids, max_size=4) | st.dictionaries(st.text(), kids, max_size=4),
+                    max_leaves=20))  # fmt: skip
+def test_script_json_cannot_close_the_script_element(value: Any) -> None:
+    text = script_json(value)
+    assert "<" not in text and ">" not in text and "&" not in text
+    assert json.loads(text) == value
+
+
+def test_moved_site_reaches_expansion_and_the_rest_is_unchanged() -> None:
+    plain = run_frontend([ACCESS], FrontendOptions())
+    moved = run_frontend_with_sites(
+        [ACCESS], FrontendOptions(), {"bolt_lower_left": (-0.25, 1.0, 1.1)}
+    )
+    a, b = plain.timelines[0], moved.timelines[0]
+    sites_a = {s.name: s for s in a.sites}
+    sites_b = {s.name: s for s in b.sites}
+    assert sites_b["bolt_lower_left"].position == (-0.25, 1.0, 1.1)
+    assert sites_b["bolt_lower_left"].span == sites_a["bolt_lower_left"].span
+    for name in sites_a.keys() - {"bolt_lower_left"}:
+        assert sites_a[name] == sites_b[name]
+    goals = [p for p in b.primitives if p.kind == "goal" and p.params["site"] == "bolt_lower_left"]
+    assert goals and all(tuple(g.params["position"]) == (-0.25, 1.0, 1.1) for g in goals)
+    # a site that no scene declares changes nothing
+    same = run_frontend_with_sites([ACCESS], FrontendOptions(), {"no_such_site": (0.0, 0.0, 0.0)})
+    assert same.timelines[0].as_dict() == a.as_dict()
+
+
+def test_command_writes_page_and_sheet(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    html, png = tmp_path / "access.html", tmp_path / "access.png"
+    assert main(["preview", str(ACCESS), "-o", str(html), "--png", str(png)]) == 0
+    assert html.read_text(encoding="utf-8").startswith("<!DOCTYPE html>")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    first = png.read_bytes(), html.read_bytes()
+    assert main(["preview", str(ACCESS), "-o", str(html), "--png", str(png)]) == 0
+    assert (png.read_bytes(), html.read_bytes()) == first  # same input, same bytes
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_command_reports_bad_input_as_a_diagnostic(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "bad.mtask"
+    bad.write_text("task t {\n    walk_to((\n}\n", encoding="utf-8")
+    out = tmp_path / "bad.html"
+    assert main(["preview", str(bad), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "bad.mtask:2:" in err and "MT0" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_command_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["preview", str(ACCESS), "--task", "nope", "-o", str(tmp_path / "x.html")]) == 2
+    assert main(["preview", str(ACCESS), "--fps", "0"]) == 2
+    assert main([]) == 2
+
+
+def test_sites_of_the_example_have_their_declaration_lines(examples: dict[str, Example]) -> None:
+    sources = examples["remove_access_panel"].document["site_sources"]
+    text = (ROOT / ACCESS).read_text(encoding="utf-8").splitlines()
+    for name, ref in sources.items():
+        assert name in text[ref["line"] - 1]
+    assert "bolt_upper_left" in sources

@@ -13,6 +13,8 @@ import dataclasses
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
+from lark import Token
+
 from mtlc.diagnostics import Span
 from mtlc.fmt.doc import (
     HARDLINE,
@@ -194,9 +196,9 @@ class _Printer:
         """
         opener_tok, closer_tok = self.src.at(open_index), self.src.at(close_index)
         open_text, close_text = opener_tok.value, closer_tok.value
-        if not items and not self.pool.take(opener_tok.end_pos, closer_tok.start_pos):
-            return Text(open_text + close_text)
-        force = bool(items) and self.src.comma_before(close_index)
+        if not items:
+            return self._empty_brackets(opener_tok, closer_tok)
+        force = self.src.comma_before(close_index)
         head: list[Doc] = [Text(open_text)]
         inner: list[Doc] = []
         prev_end, prev_line = opener_tok.end_pos, opener_tok.line
@@ -218,11 +220,24 @@ class _Printer:
             prev_end, prev_line = item.end, self.src.line_of(item.end)
         for c in self.pool.take(prev_end, closer_tok.start_pos):
             force = True
-            if c.line == prev_line and items:
+            if c.line == prev_line:
                 inner.append(LineSuffix(TRAILING_COMMENT_GAP + c.text))
             else:
                 inner.extend([HARDLINE, Text(c.text)])
         return Group([*head, Nest(inner), SOFTLINE, Text(close_text)], force_break=force)
+
+    def _empty_brackets(self, opener: Token, closer: Token) -> Doc:
+        """`()`, or the comments inside the brackets, one per line."""
+        found = self.pool.take(opener.end_pos, closer.start_pos)
+        if not found:
+            return Text(opener.value + closer.value)
+        inner: list[Doc] = []
+        for c in found:
+            if c.line == opener.line:
+                inner.extend([LineSuffix(TRAILING_COMMENT_GAP + c.text), BreakParent()])
+            else:
+                inner.extend([HARDLINE, Text(c.text)])
+        return [Text(opener.value), Nest(inner), HARDLINE, Text(closer.value)]
 
     # ------------------------------------------------------------ top level
     def _top_item(self, node: ast.Node) -> Callable[[], Doc]:

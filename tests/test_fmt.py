@@ -1,0 +1,443 @@
+"""`mtlc fmt`: canonical, idempotent, meaning-preserving, comment-keeping; and its command line."""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from conftest import EXAMPLES, GOLDENS, ROOT, STDLIB
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+import mtlc.fmt as fmt
+from mtlc.diagnostics import DiagnosticSink
+from mtlc.fmt import ast_fingerprint, format_source
+from mtlc.fmt.__main__ import main as fmt_main
+from mtlc.syntax import parse_module
+from mtlc.syntax.lexer import comments
+
+MESSY = GOLDENS / "fmt" / "messy.input.mtask"
+
+
+def _tree(text: str) -> str:
+    sink = DiagnosticSink()
+    module = parse_module(text, "x.mtask", sink)
+    assert sink.items == []
+    return ast_fingerprint(module)
+
+
+def _comment_texts(text: str) -> Counter[str]:
+    return Counter(t.value.rstrip() for t in comments(text))
+
+
+def _formatted(text: str) -> str:
+    result = format_source(text, "x.mtask")
+    assert result.diagnostics == []
+    assert result.text is not None
+    return result.text
+
+
+def _assert_safe_and_idempotent(text: str) -> str:
+    once = _formatted(text)
+    assert _formatted(once) == once
+    assert _tree(once) == _tree(text)
+    assert _comment_texts(once) == _comment_texts(text)
+    return once
+
+
+# ---------------------------------------------------------------- the shipped files
+
+
+@pytest.mark.parametrize("path", EXAMPLES + STDLIB, ids=lambda p: f"{p.parent.name}/{p.name}")
+def test_shipped_files_are_canonical(path: Path) -> None:
+    text = path.read_text(encoding="utf-8")
+    assert _assert_safe_and_idempotent(text) == text
+
+
+def test_messy_file_golden(golden) -> None:
+    text = MESSY.read_text(encoding="utf-8")
+    once = _assert_safe_and_idempotent(text)
+    golden.check("fmt/messy.mtask", once)
+
+
+# ---------------------------------------------------------------- style rules
+
+
+@pytest.mark.parametrize(
+    ("source", "expected"),
+    [
+        # units after a space, spaces around operators and after commas
+        (
+            "task t {\n budget 1min+30s\n tool f(a,b:2)\n}\n",
+            "budget 1 min + 30 s\n    tool f(a, b: 2)",
+        ),
+        # parentheses the precedence needs are added back; the writer's are kept
+        (
+            "task t {\n time 1 s-(2 s-3 s)\n time (1 s)\n}\n",
+            "time 1 s - (2 s - 3 s)\n    time (1 s)",
+        ),
+        # a number before `.` stays bracketed (`1.x` would read as `1.` with the unit x)
+        ("task t {\n tool (1).x\n}\n", "tool (1).x"),
+        # `;` becomes a new line; runs of blank lines become one
+        ("task t {\n a(); b()\n\n\n\n c()\n}\n", "    a()\n    b()\n\n    c()\n}"),
+        # a trailing comma keeps a list one item per line
+        ("task t {\n f(a,)\n}\n", "    f(\n        a,\n    )\n"),
+        # trailing comments stay on their line, two spaces from the code
+        ("task t {   # t\n a()# c\n}\n", "task t {  # t\n    a()  # c\n}\n"),
+        # no blank line after `{` or before `}`; one between top-level items
+        (
+            "use a\nuse b\ntask t {\n\n a()\n\n}\ntask u {}\n",
+            "use a\nuse b\n\ntask t {\n    a()\n}\n\ntask u {}\n",
+        ),
+        # empty posture arguments go
+        ("task t {\n posture stand()\n}\n", "    posture stand\n"),
+    ],
+)
+def test_style(source: str, expected: str) -> None:
+    assert expected in _assert_safe_and_idempotent(source)
+
+
+def test_long_argument_list_wraps_one_per_line() -> None:
+    names = ", ".join(f"argument_number_{i}" for i in range(8))
+    out = _assert_safe_and_idempotent(f"task t {{\n    f({names})\n}}\n")
+    lines = out.splitlines()
+    assert lines[1] == "    f("
+    assert lines[2] == "        argument_number_0,"
+    assert lines[-3] == "        argument_number_7,"
+    assert max(len(line) for line in lines) <= 100
+
+
+def test_only_the_outer_list_wraps_when_the_inner_fits() -> None:
+    inner = ", ".join(f"s{i}" for i in range(5))
+    long = "x" * 80
+    out = _assert_safe_and_idempotent(f"task t {{\n    f({long}, [{inner}])\n}}\n")
+    assert f"        [{inner}],\n" in out
+
+
+def test_comment_inside_an_expression_moves_above_its_statement() -> None:
+    out = _assert_safe_and_idempotent("task t {\n    inspect(b, (1 min # why\n + 30 s))\n}\n")
+    assert "    # why\n    inspect(b, (1 min + 30 s))\n" in out
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        "",
+        "# only a comment\n",
+        "task t {\r\n    walk to a  # crlf\r\n}\r\n",
+        "element walk(to: Site, over: Duration = 2 s) {\n    walk to to over over\n}\n",
+        "task t {\n    f(\n        # only a comment\n    )\n    h(  # x\n    )\n}\n",
+        "element e(x: Site  # c\n) {\n}\n",
+        "task t {\n    grip (1) closed\n    tool -(a).b\n    tool a - -b\n}\n",
+    ],
+    ids=["empty", "comment-only", "crlf", "soft-keywords", "empty-args", "param-comment", "parens"],
+)
+def test_edge_cases_are_safe(source: str) -> None:
+    _assert_safe_and_idempotent(source)
+
+
+def test_syntax_error_is_reported_not_formatted() -> None:
+    result = format_source("task t {\n    walk to (\n}\n", "bad.mtask")
+    assert result.text is None
+    assert {d.code for d in result.diagnostics} >= {"MT0105"}
+
+
+def test_output_that_would_change_meaning_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    def careless(text: str, module: object, file: str) -> tuple[str, list[object]]:
+        return text.replace("a()", "b()"), []
+
+    monkeypatch.setattr(fmt, "format_module", careless)
+    result = format_source("task t {\n    a()\n}\n", "x.mtask")
+    assert result.text is None
+    assert [d.code for d in result.diagnostics] == ["MT0900"]
+    assert "syntax tree" in result.diagnostics[0].message
+
+
+def test_lost_comment_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(fmt, "format_module", lambda text, module, file: ("task t {}\n", []))
+    result = format_source("task t {}  # keep me\n", "x.mtask")
+    assert result.text is None
+    assert "comments" in result.diagnostics[0].message
+
+
+# ---------------------------------------------------------------- random programs
+
+_NAMES = st.sampled_from(["a", "b", "right", "hand", "bolt_1", "x", "_t", "mtm"])
+_UNITS = st.sampled_from([None, "cm", "s", "deg", "kg", "m"])
+_NUMBERS = st.sampled_from(["0", "12", "1.5", ".5", "2.", "1e-3", "90"])
+_COMMENTS = st.sampled_from(["# c", "#tight", "# two  spaces  ", "# a # in a comment", '# "q"'])
+
+
+@st.composite
+def _space(draw: st.DrawFn) -> str:
+    return draw(st.sampled_from(["", " ", " ", "  ", "\t"]))
+
+
+@st.composite
+def _bracket_gap(draw: st.DrawFn) -> str:
+    """Whitespace inside ( ) or [ ]: may hold new lines and comments."""
+    kind = draw(st.integers(0, 5))
+    if kind == 0:
+        return "\n    "
+    if kind == 1:
+        return f"  {draw(_COMMENTS)}\n        "
+    return draw(_space())
+
+
+@st.composite
+def _comma_list(draw: st.DrawFn, items: st.SearchStrategy[str], lo: int, hi: int) -> str:
+    parts = draw(st.lists(items, min_size=lo, max_size=hi))
+    out = draw(_bracket_gap())
+    for i, part in enumerate(parts):
+        out += part
+        if i < len(parts) - 1 or draw(st.booleans()):  # a trailing comma, sometimes
+            out += "," + draw(_bracket_gap())
+    return out + draw(_bracket_gap())
+
+
+def _exprs() -> st.SearchStrategy[str]:
+    @st.composite
+    def number(draw: st.DrawFn) -> str:
+        unit = draw(_UNITS)
+        return draw(_NUMBERS) + ("" if unit is None else draw(st.sampled_from([" ", ""])) + unit)
+
+    leaves = st.one_of(number(), _NAMES, st.sampled_from(['"s"', '"a \\"q\\""', '"#x"']))
+
+    def extend(inner: st.SearchStrategy[str]) -> st.SearchStrategy[str]:
+        @st.composite
+        def compound(draw: st.DrawFn) -> str:
+            kind = draw(st.integers(0, 6))
+            sp = draw(_space())
+            if kind == 0:
+                op = draw(st.sampled_from(["+", "-", "*", "/"]))
+                return f"{draw(inner)}{sp}{op}{sp}{draw(inner)}"
+            if kind == 1:
+                return f"-{sp}{draw(inner)}"
+            if kind == 2:
+                return f"({draw(inner)})"
+            if kind == 3:
+                return f"{draw(_NAMES)}.{draw(_NAMES)}({draw(_comma_list(inner, 0, 3))})"
+            if kind == 4:
+                unit = draw(st.sampled_from(["", " cm", " deg"]))
+                items = ",".join(draw(st.lists(inner, min_size=3, max_size=3)))
+                return f"({items}){unit}"
+            if kind == 5:
+                return f"[{draw(_comma_list(inner, 0, 3))}]"
+            return f"{draw(_NAMES)}{sp}.{sp}{draw(_NAMES)}"
+
+        return compound()
+
+    return st.recursive(leaves, extend, max_leaves=6)
+
+
+_EXPR = _exprs()
+
+
+@st.composite
+def _args(draw: st.DrawFn) -> str:
+    @st.composite
+    def arg(draw: st.DrawFn) -> str:
+        value = draw(_EXPR)
+        return f"{draw(_NAMES)}:{draw(_space())}{value}" if draw(st.booleans()) else value
+
+    return draw(_comma_list(arg(), 0, 4))
+
+
+@st.composite
+def _simple_stmt(draw: st.DrawFn) -> str:
+    e = _EXPR
+    over = f" over {draw(e)}" if draw(st.booleans()) else ""
+    kind = draw(st.integers(0, 11))
+    return [
+        lambda: f"{draw(_NAMES)}({draw(_args())})",
+        lambda: f"manikin {draw(_NAMES)} {draw(_NAMES)} p5",
+        lambda: f"scene {draw(_NAMES)}",
+        lambda: f"tool {draw(e)}",
+        lambda: f"budget {draw(e)}",
+        lambda: f"time {draw(e)}",
+        lambda: f"goal {draw(e)} at {draw(e)} approach {draw(e)} orient{over}",
+        lambda: f"posture {draw(_NAMES)}({draw(_args())}){over}",
+        lambda: f"walk {draw(st.sampled_from(['to', 'by']))} {draw(e)} facing {draw(e)}{over}",
+        lambda: f"grip {draw(_NAMES)} closed{over}",
+        lambda: f"gaze at {draw(e)}{over}",
+        lambda: f"still over {draw(e)}",
+    ][kind]()
+
+
+@st.composite
+def _block(draw: st.DrawFn, depth: int) -> str:
+    stmts = draw(st.lists(_stmt(depth), max_size=4))
+    out = "{" + draw(st.sampled_from(["\n", " ", f"  {draw(_COMMENTS)}\n"]))
+    for stmt in stmts:
+        out += draw(_space()) + stmt
+        out += draw(st.sampled_from(["\n", ";", "\n\n\n", f"  {draw(_COMMENTS)}\n"]))
+        if draw(st.integers(0, 4)) == 0:
+            out += f"{draw(_space())}{draw(_COMMENTS)}\n"
+    return out + draw(_space()) + "}"
+
+
+def _stmt(depth: int) -> st.SearchStrategy[str]:
+    if depth >= 2:
+        return _simple_stmt()
+
+    @st.composite
+    def compound(draw: st.DrawFn) -> str:
+        body = draw(_block(depth + 1))
+        return draw(
+            st.sampled_from(
+                [
+                    f"repeat {draw(_EXPR)} {body}",
+                    f"for {draw(_NAMES)} in {draw(_EXPR)} {body}",
+                    f"parallel {body}",
+                    body,
+                ]
+            )
+        )
+
+    return st.one_of(_simple_stmt(), _simple_stmt(), compound())
+
+
+@st.composite
+def _top_item(draw: st.DrawFn) -> str:
+    kind = draw(st.integers(0, 4))
+    if kind == 0:
+        return f"use {draw(_NAMES)}.{draw(_NAMES)}"
+    if kind == 1:
+        site = f"site {draw(_NAMES)} at {draw(_EXPR)} normal {draw(_EXPR)}"
+        members = draw(st.permutations([f"ground {draw(_EXPR)}", site, f"site s at {draw(_EXPR)}"]))
+        sep = draw(st.sampled_from(["\n", ";", f"  {draw(_COMMENTS)}\n"]))
+        return "scene bay {\n" + sep.join(members) + "\n}"
+    if kind == 2:
+        return f"tool w {{\n length {draw(_EXPR)}\n mass {draw(_EXPR)}\n}}"
+    if kind == 3:
+
+        @st.composite
+        def param(draw: st.DrawFn) -> str:
+            default = f" = {draw(_EXPR)}" if draw(st.booleans()) else ""
+            return f"{draw(_NAMES)}: {draw(_NAMES)}{default}"
+
+        keyword = draw(st.sampled_from(["element", "action"]))
+        params = draw(_comma_list(param(), 0, 3))
+        return f"{keyword} e({params}) {draw(_block(0))}"
+    title = draw(st.sampled_from(["", ' "Title"', ' "with \\"quotes\\""']))
+    return f"task t{title} {draw(_block(0))}"
+
+
+@st.composite
+def _program(draw: st.DrawFn) -> str:
+    out = ""
+    for item in draw(st.lists(_top_item(), min_size=1, max_size=3)):
+        if draw(st.booleans()):
+            out += f"{draw(_COMMENTS)}\n"
+        out += item + draw(st.sampled_from(["\n", "\n\n", "\n\n\n", f"  {draw(_COMMENTS)}\n"]))
+    return out
+
+
+@settings(
+    max_examples=150,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
+@given(_program())
+def test_random_programs_format_safely(text: str) -> None:
+    sink = DiagnosticSink()
+    parse_module(text, "x.mtask", sink)
+    assume(sink.items == [])
+    _assert_safe_and_idempotent(text)
+
+
+# ---------------------------------------------------------------- command line
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+UGLY = "task t {\n  a( 1 ,2)\n}\n"
+PRETTY = "task t {\n    a(1, 2)\n}\n"
+
+
+def test_cli_formats_in_place(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _write(tmp_path / "a.mtask", UGLY)
+    assert fmt_main([str(path)]) == 0
+    assert path.read_text(encoding="utf-8") == PRETTY
+    assert "reformatted" in capsys.readouterr().err
+    assert fmt_main([str(path)]) == 0  # already canonical: nothing to do
+
+
+def test_cli_check_lists_files_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ugly = _write(tmp_path / "b.mtask", UGLY)
+    _write(tmp_path / "a.mtask", PRETTY)
+    (tmp_path / "sub").mkdir()
+    _write(tmp_path / "sub" / "c.mtask", UGLY)
+    assert fmt_main(["--check", str(tmp_path)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert out == [(tmp_path / "b.mtask").as_posix(), (tmp_path / "sub" / "c.mtask").as_posix()]
+    assert ugly.read_text(encoding="utf-8") == UGLY
+    assert fmt_main(["--check", str(tmp_path / "a.mtask")]) == 0
+
+
+def test_cli_diff_prints_a_unified_diff(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _write(tmp_path / "a.mtask", UGLY)
+    assert fmt_main(["--diff", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "-  a( 1 ,2)\n+    a(1, 2)\n" in out
+    assert out.startswith(f"--- a/{path.as_posix()}\n+++ b/{path.as_posix()}\n")
+    assert path.read_text(encoding="utf-8") == UGLY
+
+
+def test_cli_stdin_to_stdout(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(sys, "stdin", io.StringIO(UGLY))
+    assert fmt_main(["-"]) == 0
+    assert capsys.readouterr().out == PRETTY
+    monkeypatch.setattr(sys, "stdin", io.StringIO(UGLY))
+    assert fmt_main(["--check", "-"]) == 1
+    assert capsys.readouterr().out == "<stdin>\n"
+
+
+def test_cli_syntax_error_leaves_the_file_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = _write(tmp_path / "bad.mtask", "task t {\n  walk to (\n}\n")
+    good = _write(tmp_path / "good.mtask", UGLY)
+    assert fmt_main([str(bad), str(good)]) == 1
+    err = capsys.readouterr().err
+    assert "error[MT0105]" in err and "bad.mtask:2:" in err
+    assert bad.read_text(encoding="utf-8") == "task t {\n  walk to (\n}\n"
+    assert good.read_text(encoding="utf-8") == PRETTY  # the other files are still formatted
+
+
+def test_cli_internal_error_exits_2_and_writes_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(fmt, "format_module", lambda text, module, file: ("task u {}\n", []))
+    path = _write(tmp_path / "a.mtask", UGLY)
+    assert fmt_main([str(path)]) == 2
+    assert "MT0900" in capsys.readouterr().err
+    assert path.read_text(encoding="utf-8") == UGLY
+
+
+def test_cli_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert fmt_main([str(tmp_path / "none.mtask")]) == 1
+    assert "MT0001" in capsys.readouterr().err
+
+
+def test_python_m_mtlc_fmt_checks_the_shipped_files() -> None:
+    run = subprocess.run(
+        [sys.executable, "-m", "mtlc.fmt", "--check", "examples", "stdlib"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert run.stdout == ""

@@ -71,7 +71,7 @@ def hull(points: FloatArray, valid: BoolArray) -> Hull:
     pts = np.asarray(points, dtype=float)
     ok = np.asarray(valid, dtype=bool)
     used = ok.any(axis=0)
-    if used.any() and not used.all():  # points that never touch (knees, mostly) cost pairs
+    if used.sum() >= 3 and not used.all():  # points that never touch (knees) only cost pairs
         pts, ok = pts[:, used], ok[:, used]
     ii, jj = np.triu_indices(ok.shape[1], 1)
     a, b = pts[:, ii], pts[:, jj]  # (N, E, 2)

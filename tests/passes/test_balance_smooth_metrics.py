@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mtlc.body import build_manikin, center_of_mass, forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
@@ -314,10 +316,6 @@ PENDING = {
     ("replace_fuel_filter", "support"): "kneeling and reaching forward puts the CoM ~0.1 m in "
     "front of the knees, and rising from the kneel has only the toes down (~0.6 m outside): "
     "balance does not move a kneeling pelvis (it would drag the knees); the kneel posture must",
-    ("drain_hydraulic_reservoir", "support"): "going down into the squat the CoM passes "
-    "~27 mm behind the heels with the ankles near their 20° dorsiflexion limit (MT0502 at "
-    "squat, 1.42-1.92 s); pelvis shift and trunk lean, kept only while no point sinks below "
-    "the floor, do not bring it back: the squat posture's transition must lean the trunk",
 }
 
 
@@ -358,3 +356,44 @@ def test_a_foot_rolling_over_its_toe_is_not_skating() -> None:
     assert rolling[1, [j for j in range(4) if j != toe]].all() and not rolling[1, toe]
     assert not rolling[1, 4:].any()  # the other foot stands
     assert not rolling[2].any()  # in the air it is the stance mask's business, not the roll's
+
+
+# -- postures ---------------------------------------------------------------------------------
+
+
+@settings(max_examples=12, deadline=None)
+@given(depth=st.floats(0.05, 0.45), arms=st.booleans())
+def test_every_pose_of_a_squat_transition_is_balanced(depth: float, arms: bool) -> None:
+    from mtlc.passes.posture import HEEL_MARGIN, target_posture, transition
+
+    stand = np.asarray(SKEL.q_comfort, dtype=float)
+    free = ("r_shoulder_flex", "l_shoulder_flex") if arms else ()
+    squat = target_posture(SKEL, stand, {"posture": "squat", "depth": depth}, free)
+    for poses in (transition(SKEL, stand, squat, 6), transition(SKEL, squat, stand, 6)):
+        pose = forward(SKEL, poses)  # the body's own frame: facing +Z
+        ahead = center_of_mass(SKEL, pose)[:, 2] - site_positions(SKEL, pose, "r_heel")[:, 2]
+        # in front of the heels by the margin, unless the trunk has no lean left to give
+        lum, tho = SKEL.dof_index("lumbar_flex"), SKEL.dof_index("thorax_flex")
+        spent = (poses[:, lum] >= SKEL.upper[lum] - 1e-6) & (
+            poses[:, tho] >= SKEL.upper[tho] - 1e-6
+        )
+        assert np.all((ahead >= HEEL_MARGIN - 1e-3) | spent)
+        assert np.all(ahead > 0.0) or depth > 0.3  # a squat this deep still leans far enough
+        assert SKEL.within_limits(poses).all()
+
+
+def test_a_posture_after_a_walk_moves_from_its_start() -> None:
+    # the walk's last keyframe shares the kneel's start instant: it must not hold the legs
+    # still until the kneel's end (they would then jump)
+    program = run_frontend([EXAMPLES[[p.stem for p in EXAMPLES].index("replace_fuel_filter")]])
+    ir = run_motion(program.timelines[0], program.sink, until="interpolate")
+    kneel = next(s for s in ir.segments if s.goal.params.get("posture") == "kneel")
+    f = ir.frames
+    assert f is not None
+    k = SKEL.dof_index("r_knee_flex")
+    inside = (f.time > kneel.start) & (f.time < kneel.end)
+    knee = f.q[inside, k]
+    assert np.all(np.diff(knee) >= -1e-9)  # bending, monotone
+    assert np.abs(np.diff(knee)).max() < math.radians(5)  # no jump at 60 fps
+    mid = knee[len(knee) // 2]
+    assert knee[0] + math.radians(20) < mid < knee[-1] - math.radians(20)

@@ -44,6 +44,13 @@ LEG_DOFS = tuple(
 KNEE_HEIGHT = 0.05  # m, knee joint centre above the ground when kneeling (half a knee's depth)
 SQUAT_HIP_MAX = math.radians(110.0)  # deepest squat: hips 110°, ankles 20° dorsiflexed
 SQUAT_ANKLE_MAX = math.radians(20.0)
+# the ankles reach their dorsiflexion limit by this share of the squat: the knees go forward
+# first, so the hips need not go as far back behind the heels
+SQUAT_ANKLE_LEAD = 0.5
+SQUAT_ARMS = math.radians(90.0)  # free arms held forward at the deepest squat (counterweight)
+HEEL_MARGIN = 0.03  # m: a flat-footed posture keeps its CoM this far in front of the heels
+TRANSITION_KEYS = 6  # keyframes of a flat-footed posture change, each one balanced
+ARM_FLEX = ("r_shoulder_flex", "l_shoulder_flex")
 TWIST_MIN_FRACTION = 0.25  # less than this share of a turn left before the stop: turn back
 
 
@@ -86,33 +93,34 @@ def _bisect(f: Any, lo: float, hi: float, n: int = 40) -> float:
 
 
 def _squat_q(skel: Any, base: FloatArray, s: float) -> FloatArray:
-    h, a = s * SQUAT_HIP_MAX, s * SQUAT_ANKLE_MAX
+    h, a = s * SQUAT_HIP_MAX, min(1.0, s / SQUAT_ANKLE_LEAD) * SQUAT_ANKLE_MAX
     vals = {}
     for side in ("r", "l"):
         vals |= {f"{side}_hip_flex": h, f"{side}_knee_flex": h + a, f"{side}_ankle_dorsi": a}
     return _deg(skel, vals, base)
 
 
-def balanced_lean(skel: Any, q: FloatArray, margin: float = 0.01) -> FloatArray:
-    """Lean the trunk forward until the centre of mass is over the middle of the feet.
+def balanced_lean(skel: Any, q: FloatArray, margin: float = HEEL_MARGIN) -> FloatArray:
+    """Lean the trunk forward until the centre of mass is ``margin`` in front of the heels.
 
     With the heels down, a squat puts the pelvis behind the feet (the base correction keeps the
     feet where they stood); people lean forward to stay balanced, and so does the manikin: the
-    lean (split 2:1 over lumbar and thorax, as in `bend`) is found by bisection on the CoM's
-    forward distance from the feet's centre, in the body's own frame.
+    lean (added to the trunk's flexion, split 2:1 over lumbar and thorax as in `bend`) is found
+    by bisection on the CoM's forward distance from the heels, in the body's own frame.
     """
-    lum_max = float(skel.upper[skel.dof_index("lumbar_flex")])
-    tho_max = float(skel.upper[skel.dof_index("thorax_flex")])
+    lum, tho = skel.dof_index("lumbar_flex"), skel.dof_index("thorax_flex")
+    lum0, tho0 = float(q[lum]), float(q[tho])
+    lum_max, tho_max = float(skel.upper[lum]), float(skel.upper[tho])
 
     def leaned(lean: float) -> FloatArray:
-        return _deg(skel, {"lumbar_flex": min(lean * 2 / 3, lum_max),
-                           "thorax_flex": min(lean / 3, tho_max)}, q)  # fmt: skip
+        return _deg(skel, {"lumbar_flex": min(lum0 + lean * 2 / 3, max(lum_max, lum0)),
+                           "thorax_flex": min(tho0 + lean / 3, max(tho_max, tho0))}, q)  # fmt: skip
 
     def ahead(lean: float) -> float:
         pose = forward(skel, leaned(lean)[None])
         com = center_of_mass(skel, pose)[0]
-        feet = site_positions(skel, pose, list(FOOT_POINTS))[0]
-        return float(com[2] - feet[:, 2].mean()) - margin  # the body faces +Z
+        heels = site_positions(skel, pose, ["r_heel", "l_heel"])[0]
+        return float(com[2] - heels[:, 2].max()) - margin  # the body faces +Z
 
     top = lum_max * 1.5
     if ahead(0.0) >= 0.0:
@@ -129,12 +137,18 @@ def _legs_zero(skel: Any, q: FloatArray) -> FloatArray:
     return out
 
 
-def target_posture(skel: Any, current: FloatArray, params: dict[str, Any]) -> FloatArray:
-    """The joint angles of a whole-body posture (legs and trunk; arms and head as they are)."""
+def target_posture(
+    skel: Any, current: FloatArray, params: dict[str, Any], free_arms: tuple[str, ...] = ()
+) -> FloatArray:
+    """The joint angles of a whole-body posture (legs and trunk; head as it is).
+
+    ``free_arms`` (shoulder flexion dofs of arms no segment uses): a squat holds them forward
+    as a counterweight, standing lets them down; other arms stay as they are.
+    """
     kind = params.get("posture", "stand")
     q = current.copy()
     if kind == "stand":
-        for name in (*TRUNK_DOFS, *LEG_DOFS):
+        for name in (*TRUNK_DOFS, *LEG_DOFS, *free_arms):
             q[skel.dof_index(name)] = skel.q_comfort[skel.dof_index(name)]
         return q
     if kind == "bend":
@@ -146,10 +160,13 @@ def target_posture(skel: Any, current: FloatArray, params: dict[str, Any]) -> Fl
     if kind == "squat":
         depth = float(params.get("depth", 0.0))
         stand = root_height(skel, _legs_zero(skel, skel.q_comfort), 0.0)
-        if depth <= 0.0:
-            return balanced_lean(skel, _squat_q(skel, q, 1.0))
-        s = _bisect(lambda s: stand - root_height(skel, _squat_q(skel, q, s), 0.0) - depth, 0, 1)
-        return balanced_lean(skel, _squat_q(skel, q, s))
+        s = 1.0
+        if depth > 0.0:
+            s = _bisect(
+                lambda s: stand - root_height(skel, _squat_q(skel, q, s), 0.0) - depth, 0, 1
+            )
+        arms = {a: max(float(q[skel.dof_index(a)]), s * SQUAT_ARMS) for a in free_arms}
+        return balanced_lean(skel, _deg(skel, arms, _squat_q(skel, q, s)))
     if kind == "sit":
         vals = {f"{s}_{d}": math.pi / 2 for s in ("r", "l") for d in ("hip_flex", "knee_flex")}
         return _deg(skel, vals, q)
@@ -179,26 +196,53 @@ def target_posture(skel: Any, current: FloatArray, params: dict[str, Any]) -> Fl
     raise ValueError(f"unknown posture {kind!r}")
 
 
+def free_arms(ir: MotionIR, seg: Segment) -> tuple[str, ...]:
+    """Shoulder flexion dofs of the arms free during ``seg``: no segment on the arm's track
+    overlaps it, and the arm's last segment before it is not a contact (a hand that reached a
+    site stays on it until its arm's next segment, see ``balance.hand_pins``)."""
+    out = []
+    for side in ("r", "l"):
+        segs = ir.on_track(f"{side}_arm")
+        busy = any(s.start < seg.end - 1e-9 and s.end > seg.start + 1e-9 for s in segs)
+        before = [s for s in segs if s.end <= seg.start + 1e-9]
+        last = max(before, key=lambda s: s.end, default=None)
+        if not busy and (last is None or last.kind != "TO"):
+            out.append(f"{side}_shoulder_flex")
+    return tuple(out)
+
+
+def transition(skel: Any, cur: FloatArray, target: FloatArray, n: int) -> FloatArray:
+    """``n`` poses from ``cur`` to ``target`` (n, D), each leaned until it is balanced.
+
+    Interpolating the angles of two balanced flat-footed postures is not balanced on the way:
+    half-way down a squat the hips are already back but the trunk only half leaned, so the CoM
+    passes behind the heels. Each intermediate pose gets the lean it needs (``balanced_lean``).
+    """
+    f = np.linspace(0.0, 1.0, n)[:, None]
+    poses = cur[None] + f * (target - cur)[None]
+    return np.stack([poses[0], *(balanced_lean(skel, p) for p in poses[1:-1]), poses[-1]])
+
+
 def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     skel, ir = state.skel, state.ir
     cur = state.q_at(seg.start, skip=seg)
-    target = target_posture(skel, cur, seg.goal.params)
     kind = seg.goal.params.get("posture", "stand")
-    dofs = (
-        TRUNK_DOFS
-        if kind == "bend"
-        else (TRUNK_DOFS + LEG_DOFS if kind in ("stand", "squat") else LEG_DOFS)
-    )
+    flat = kind in ("stand", "squat")
+    arms = free_arms(ir, seg) if flat else ()
+    target = target_posture(skel, cur, seg.goal.params, arms)
+    dofs = TRUNK_DOFS if kind == "bend" else (TRUNK_DOFS + LEG_DOFS + arms if flat else LEG_DOFS)
     idx = [skel.dof_index(n) for n in dofs]
-    kf = Keyframes(
-        time=np.array([seg.start, seg.end]), dofs=dofs, q=np.stack([cur[idx], target[idx]])
-    )
+    times = np.linspace(seg.start, seg.end, TRANSITION_KEYS if flat else 2)
+    poses = transition(skel, cur, target, len(times)) if flat else np.stack([cur, target])
+    kf = Keyframes(time=times, dofs=dofs, q=poses[:, idx])
     if kind != "bend":
         p0, _ = state.root_at(seg.start, skip=seg)
         p1, _ = state.root_at(seg.end, skip=seg)
-        p1[1] = root_height(skel, target, ir.ground)
-        kf.root_position = np.stack([p0, p1])
-        seg.result = {"root_height": float(p1[1] - ir.ground)}
+        rows = [p0 + f * (p1 - p0) for f in np.linspace(0.0, 1.0, len(times))]
+        for row, pose in zip(rows[1:], poses[1:], strict=True):
+            row[1] = root_height(skel, pose, ir.ground)
+        kf.root_position = np.stack(rows)
+        seg.result = {"root_height": float(rows[-1][1] - ir.ground)}
     seg.keyframes = kf
     state.add(seg)
     mark(ctx.cache, seg)

@@ -147,3 +147,23 @@ def test_served_page_receives_frames_and_a_dragged_site_comes_back_recompiled(
         site,
     )
     assert np.linalg.norm(np.array(hand) - target) < 1e-3
+    # and the same through the mouse: press on the drawn site, drag it, release
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    before = browser.execute_script(
+        "return window.mtlcPreview.document.ir.scene.sites.find((s) => s.name === 'panel_front')"
+        ".position"
+    )
+    x, y = browser.execute_script("return window.mtlcPreview.siteScreenPosition('panel_front')")
+    actions = ActionChains(browser)
+    pointer = actions.w3c_actions.pointer_action
+    pointer.move_to_location(round(x), round(y)).pointer_down()
+    pointer.move_to_location(round(x) + 30, round(y)).move_to_location(round(x) + 60, round(y))
+    pointer.pointer_up()
+    actions.perform()
+    assert browser.execute_async_script(WAIT_FOR_GENERATION_JS, 3) >= 3
+    after = browser.execute_script(
+        "return window.mtlcPreview.document.ir.scene.sites.find((s) => s.name === 'panel_front')"
+        ".position"
+    )
+    assert np.linalg.norm(np.array(after) - before) > 0.05

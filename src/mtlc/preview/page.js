@@ -440,6 +440,15 @@
     });
   }
 
+  // Where a site is drawn, in the page's CSS pixels (for tests that drag it like a user).
+  function siteScreenPosition(name) {
+    const mesh = view.sites.get(name);
+    if (!mesh) return null;
+    const r = view.renderer.domElement.getBoundingClientRect();
+    const v = mesh.position.clone().project(view.camera);
+    return [r.left + ((v.x + 1) / 2) * r.width, r.top + ((1 - v.y) / 2) * r.height];
+  }
+
   // ---- start --------------------------------------------------------------------------------
   document.getElementById("play").addEventListener("click", () => (state.playing ? pause() : play()));
   document.getElementById("speed").addEventListener("change", (ev) => setSpeed(ev.target.value));
@@ -459,7 +468,7 @@
     get diagnostics() { return state.diagnostics; },
     get webgl() { return state.webgl; },
     get document() { return state.doc; },
-    setTime, setFrame, play, pause, setSpeed, moveSite,
+    setTime, setFrame, play, pause, setSpeed, moveSite, siteScreenPosition,
   };
   const embedded = JSON.parse(document.getElementById("mtlc-data").textContent);
   if (embedded) load(embedded);

@@ -123,7 +123,11 @@ def _sweep(
     compiled = {}
     for spec in full:
         sink = DiagnosticSink()
-        ir = run_motion(dataclasses.replace(timeline, manikin=spec), sink, options)
+        try:
+            ir = run_motion(dataclasses.replace(timeline, manikin=spec), sink, options)
+        except Exception as exc:  # a bug in a pass: one finding, and the other tasks go on
+            out.append(_internal_error(timeline, spec, exc))
+            continue
         compiled[spec] = ir
         out.extend(from_diagnostic(d, label(spec)) for d in sink.sorted())
         view = make_view(ir, label(spec), config)
@@ -134,6 +138,18 @@ def _sweep(
                 out.extend(rule.check(view))  # type: ignore[arg-type]
     if config.enabled("MT0501"):
         for spec in selection:
-            if spec not in compiled:
-                out.extend(screen(compiled[nearest(spec, full)], spec))
+            if spec not in full and compiled:
+                out.extend(screen(compiled[nearest(spec, tuple(compiled))], spec))
     return out
+
+
+def _internal_error(timeline: Timeline, spec: ManikinSpec, exc: Exception) -> Finding:
+    message = f"internal error compiling task `{timeline.task}`: {type(exc).__name__}: {exc}"
+    return Finding(
+        "MT0900",
+        message,
+        timeline.span,
+        help="this is a bug in mtlc; `mtlc compile` with MTLC_DEBUG=1 shows the trace",
+        manikins=(label(spec),),
+        details=(message,),
+    )

@@ -15,10 +15,19 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from mtlc import __version__
+from mtlc.codegen import (
+    DEFAULT_TARGET,
+    TA_MODES,
+    TARGET_CHOICES,
+    GenerateOptions,
+    expand_target,
+    generate_file,
+    stem_of,
+)
 from mtlc.diagnostics import CODES, DiagnosticSink, Span
 from mtlc.diagnostics.render import render_json, render_text, use_color
 from mtlc.frontend import FrontendOptions, Program, run_frontend
-from mtlc.ir.serialize import to_json as ir_json
+from mtlc.ir.model import MotionIR
 from mtlc.metrics import Metrics, compute_metrics, render_metrics
 from mtlc.output import write_all_or_nothing
 from mtlc.passes import MotionOptions, run_motion
@@ -114,8 +123,14 @@ def build_parser() -> argparse.ArgumentParser:
     frontend_options(compile_)
     compile_.add_argument("-o", "--output", type=Path, default=Path("out"), metavar="DIR",
                           help="output folder (default: out)")  # fmt: skip
-    compile_.add_argument("--target", choices=("ir", "timeline"), default="ir",
-                          help="what to write: the keyframe IR as JSON (default), or the expanded timeline")  # fmt: skip
+    compile_.add_argument("--target", choices=TARGET_CHOICES, default=DEFAULT_TARGET,
+                          help="what to write: jackscript (default: one Python module per file, a function per task), "
+                          "bvh, ir (the keyframe IR as JSON), all three, or timeline (the expanded timeline, front end only)")  # fmt: skip
+    compile_.add_argument("--ta", choices=TA_MODES, default="keyframes",
+                          help="JackScript: approach (TA) segments as explicit keyframes (default, replays exactly) "
+                          "or as Jack reach commands solved by Jack's own IK")  # fmt: skip
+    compile_.add_argument("--source-map", action="store_true",
+                          help="JackScript: also write MODULE.py.map.json, script lines to .mtask source spans")  # fmt: skip
     compile_.add_argument("--metrics", action="store_true",
                           help="print motion metrics per task (penetration, skating, balance, contact error, limits, smoothness)")  # fmt: skip
     compile_.add_argument("--fps", type=_fps, default=DEFAULT_FPS, metavar="N",
@@ -138,6 +153,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "explain":
             return cmd_explain(args.code)
         return cmd_frontend(args)
+    except UsageError as exc:
+        sys.stderr.write(f"mtlc: {exc}\n")
+        return EXIT_USAGE
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:  # `mtlc check ... | head`: the reader left; not an error of ours
@@ -209,26 +227,25 @@ def cmd_check(args: argparse.Namespace, program: Program) -> int:
 
 
 def cmd_compile(args: argparse.Namespace, program: Program) -> int:
-    """Front end, then the motion passes; every output is written, or (on any error) none."""
-    files: dict[Path, str] = {}
+    """Front end, then the motion passes and generators; every output is written, or none."""
+    files: dict[Path, str | bytes] = {}
     measured: list[tuple[str, Metrics]] = []
     if not program.sink.has_errors:
-        for timeline in program.timelines:
-            suffix = "timeline.json" if args.target == "timeline" else "ir.json"
-            target = args.output / f"{Path(timeline.file).stem}.{timeline.task}.{suffix}"
-            if target in files:
-                sys.stderr.write(
-                    f"mtlc: two tasks would both be written to {target}; give the files or the "
-                    "tasks different names, or compile them into different folders\n"
-                )
-                return EXIT_USAGE
-            if args.target == "timeline":
-                files[target] = timeline.to_json()
-            else:
+        if args.target == "timeline":
+            named = {
+                f"{stem_of(t.file)}.{t.task}.timeline.json": t.to_json() for t in program.timelines
+            }
+            _claim(files, args.output, named, "timeline")
+        else:
+            options = GenerateOptions(expand_target(args.target), args.ta, args.source_map)
+            by_file: dict[str, list[MotionIR]] = {}
+            for timeline in program.timelines:
                 ir = run_motion(timeline, program.sink, _motion_options(args))
-                files[target] = ir_json(ir)
+                by_file.setdefault(timeline.file, []).append(ir)
                 if args.metrics:
                     measured.append((timeline.task, compute_metrics(ir)))
+            for file, irs in by_file.items():
+                _claim(files, args.output, generate_file(stem_of(file), irs, options), file)
     _report(program, args.format, stdout_taken=False)
     if program.sink.has_errors:
         return EXIT_ERRORS  # nothing is written: existing outputs stay as they were
@@ -240,6 +257,20 @@ def cmd_compile(args: argparse.Namespace, program: Program) -> int:
     if measured:
         sys.stdout.write(render_metrics(measured))
     return EXIT_OK
+
+
+def _claim(
+    files: dict[Path, str | bytes], folder: Path, named: dict[str, str | bytes], source: str
+) -> None:
+    """Add outputs, refusing two sources that would write the same file (one would be lost)."""
+    for name, data in named.items():
+        target = folder / name
+        if target in files:
+            raise UsageError(
+                f"two outputs would both be written to {target} (the second from {source}); "
+                "give the files or the tasks different names, or compile them into different folders"
+            )
+        files[target] = data
 
 
 def _motion_options(args: argparse.Namespace) -> MotionOptions:

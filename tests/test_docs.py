@@ -57,3 +57,18 @@ def test_guide_examples_check_clean_unless_marked(name: str, tmp_path: Path) -> 
         else:
             errors = [c for c in codes if CODES[c].severity == "error"]
             assert errors == [], f"example in {name} fails with {errors}:\n{block}"
+
+
+def test_tutorial_compile_writes_what_it_says(tmp_path: Path) -> None:
+    """Section 7: the final lamp task compiles to out/replace_lamp.py, blocks naming their line."""
+    from mtlc.cli import main
+
+    final = [b for b in _blocks(DOCS / "tutorial.md") if "task replace_lamp" in b][-1]
+    src = tmp_path / "replace_lamp.mtask"
+    src.write_text(final, encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["compile", str(src), "-o", str(out), "--source-map"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["replace_lamp.py", "replace_lamp.py.map.json"]
+    script = (out / "replace_lamp.py").read_text(encoding="utf-8")
+    assert "def replace_lamp():" in script and "human.Walk(" in script
+    assert re.search(r"# \S*replace_lamp\.mtask:\d+:\d+ replace_lamp > walk_to > travel", script)

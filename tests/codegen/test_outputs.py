@@ -91,16 +91,16 @@ def _spans(doc: object) -> list[dict]:
     ("stem", "module"),
     [
         ("remove_access_panel", "remove_access_panel"),
-        ("remove-panel v2", "remove_panel_v2"),
-        ("2nd_task", "_2nd_task"),
+        ("remove-panel v2", "remove_u002dpanel_u0020v2"),
+        ("2nd_task", "task_2nd_task"),
         ("class", "class_"),
         ("js", "js_"),
-        ("拆卸面板", "拆卸面板"),
+        ("拆卸", "_u62c6_u5378"),
     ],
 )
 def test_script_module_names_are_importable(stem: str, module: str) -> None:
     assert python_module_name(stem) == module
-    assert module.isidentifier()
+    assert module.isidentifier() and module.isascii()
 
 
 def test_two_files_with_one_stem_are_refused(tmp_path: Path, capsys) -> None:

@@ -9,15 +9,12 @@ imports it); BVH and the IR's JSON are one file per task.
 from __future__ import annotations
 
 import json
-import keyword
-import re
-import unicodedata
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from mtlc.codegen.bvh import emit_bvh
-from mtlc.codegen.jackscript import emit_jackscript
+from mtlc.codegen.jackscript import emit_jackscript, function_name
 from mtlc.ir.model import MotionIR
 from mtlc.ir.serialize import to_json
 
@@ -39,14 +36,11 @@ def expand_target(target: str) -> tuple[str, ...]:
 
 
 def python_module_name(stem: str) -> str:
-    """A name `import NAME` accepts, from a file's stem: Jack's host imports the script by name."""
-    name = unicodedata.normalize("NFKC", stem)
-    name = re.sub(r"\W", "_", name)
-    if not name or not name.isidentifier():
-        name = f"_{name}"
-    if keyword.iskeyword(name) or keyword.issoftkeyword(name) or name == "js":
-        name = f"{name}_"
-    return name
+    """A name `import NAME` accepts, from a file's stem: Jack's host imports the script by name.
+
+    ASCII and never a keyword or `js`, by the same rule as the task functions inside it.
+    """
+    return function_name(stem, set())
 
 
 def generate_file(

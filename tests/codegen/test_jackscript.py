@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import EXAMPLES, ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -42,6 +41,10 @@ from mtlc.codegen.jackscript import (
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import run_motion
+
+# not imported from conftest: another tests/ folder has a conftest module of its own
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
 
 # Characters that end a line for Python's tokenizer or for str.splitlines, and other troubles.
 NASTY = "'\"\\\n\r\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029#{}\x00\t'''\"\"\"é名😀"

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import EXAMPLES
 
 from mtlc.codegen.jack_api import DOF_MAP, EFFECTORS, JACK_API
 from mtlc.codegen.jackscript import (
@@ -27,6 +27,10 @@ from mtlc.codegen.replay import ReplayedMotion, ReplayError, replay
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import run_motion
+
+# not imported from conftest: another tests/ folder has a conftest module of its own
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
 
 ANGLE_LIMIT = math.radians(0.1)
 AT_KEY_LIMIT = math.radians(1e-3)

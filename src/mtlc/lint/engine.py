@@ -90,7 +90,8 @@ def lint_paths(
             continue
         for timeline in program.timelines:
             findings.extend(_sweep(timeline, selection, full, config, motion or MotionOptions()))
-    findings = [f for f in findings if config.enabled(f.code)]
+    # errors cannot be deselected: code that does not compile is never 'clean'
+    findings = [f for f in findings if config.enabled(f.code) or f.severity is Severity.ERROR]
     marks = [s for file in dict.fromkeys(roots) for s in suppress.scan(file, sources.get(file, ""))]
     findings = suppress.apply(findings, marks, report_unused=config.enabled("MT0606"))
     order = [label(m) for m in selection]

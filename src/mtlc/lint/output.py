@@ -7,6 +7,7 @@ forward slashes, so outputs are the same on every machine and SARIF locations ar
 from __future__ import annotations
 
 import json
+import re
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -166,13 +167,15 @@ def _page(code: str) -> str:
 def _first_paragraph(page: str) -> str:
     paragraphs = [p.strip() for p in page.split("\n\n") if p.strip()]
     body = [p for p in paragraphs if not p.startswith("#")]
-    return " ".join(body[0].split()) if body else ""
+    text = " ".join(body[0].split()) if body else ""
+    return re.sub(r"^Severity: \w+\. ", "", text)
 
 
-def sarif_rules() -> list[dict[str, Any]]:
-    """Every code mtlc can report, with its page as the help (CODES order: stable indices)."""
+def sarif_rules(codes: list[str]) -> list[dict[str, Any]]:
+    """The rules the results refer to (in CODES order), each with its page as the help."""
     rules = []
-    for c in CODES.values():
+    for code in codes:
+        c = CODES[code]
         page = _page(c.code)
         rules.append(
             {
@@ -180,7 +183,7 @@ def sarif_rules() -> list[dict[str, Any]]:
                 "name": c.name,
                 "shortDescription": {"text": c.summary},
                 "fullDescription": {"text": _first_paragraph(page) or c.summary},
-                "help": {"text": f"mtlc explain {c.code}", "markdown": page},
+                "help": {"text": f"{c.summary}. Run `mtlc explain {c.code}`.", "markdown": page},
                 "defaultConfiguration": {"level": _SARIF_LEVEL[c.severity]},
                 "properties": {"tags": ["maintainability"]},
             }
@@ -189,7 +192,9 @@ def sarif_rules() -> list[dict[str, Any]]:
 
 
 def render_sarif(result: LintResult, root: Path) -> str:
-    index = {code: i for i, code in enumerate(CODES)}
+    used = {f.code for f in result.findings}
+    codes = [c for c in CODES if c in used]
+    index = {code: i for i, code in enumerate(codes)}
     results = []
     for f in result.findings:
         s = _relocated(f.span, root)
@@ -225,7 +230,7 @@ def render_sarif(result: LintResult, root: Path) -> str:
                     "driver": {
                         "name": "mtlc",
                         "version": __version__,
-                        "rules": sarif_rules(),
+                        "rules": sarif_rules(codes),
                     }
                 },
                 "columnKind": "unicodeCodePoints",

@@ -1,0 +1,77 @@
+"""`mtlc lint` as a command: exit codes, --exit-zero, --fail-on, configuration, -o, -m."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from mtlc.lint.command import main
+
+BAY = "tests/lint/data/bay.mtask"
+
+
+@pytest.fixture
+def program_only(tmp_path: Path) -> Path:
+    """A configuration with the rules that need no motion (keeps these tests fast)."""
+    cfg = tmp_path / "mtlc.toml"
+    cfg.write_text('[lint]\nselect = ["MT06", "MT04", "MT02", "MT03"]\n', encoding="utf-8")
+    return cfg
+
+
+def test_findings_exit_1_and_exit_zero_exits_0(program_only: Path, capsys) -> None:
+    assert main([BAY, "--config", str(program_only)]) == 1
+    assert "warning[MT0601]" in capsys.readouterr().out
+    assert main([BAY, "--config", str(program_only), "--exit-zero"]) == 0
+    assert main([BAY, "--config", str(program_only), "--fail-on", "error"]) == 0
+
+
+def test_clean_file_exits_0(program_only: Path, tmp_path: Path, capsys) -> None:
+    clean = tmp_path / "clean.mtask"
+    clean.write_text("use stdlib.actions\nscene s {\n    site a at (0, 100, 50) cm\n}\n"
+                     "task t {\n    scene s\n    inspect(a)\n}\n", encoding="utf-8")  # fmt: skip
+    assert main([str(clean), "--config", str(program_only)]) == 0
+    assert "no findings" in capsys.readouterr().out
+
+
+def test_syntax_errors_are_findings_not_tracebacks(
+    program_only: Path, tmp_path: Path, capsys
+) -> None:
+    bad = tmp_path / "bad.mtask"
+    bad.write_text("task t {\n    @@\n}\n", encoding="utf-8")
+    assert main([str(bad), "--config", str(program_only), "--format", "json"]) == 1
+    assert '"code": "MT0102"' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["--manikins", "gb10000_1988:male:3"], ["--manikins", "everyone"]],
+)
+def test_usage_errors_exit_2(argv: list[str], capsys) -> None:
+    assert main([BAY, *argv]) == 2
+    assert "mtlc lint:" in capsys.readouterr().err
+
+
+def test_missing_path_and_bad_config_exit_2(tmp_path: Path, capsys) -> None:
+    assert main([str(tmp_path / "nope.mtask")]) == 2
+    cfg = tmp_path / "mtlc.toml"
+    cfg.write_text("[lint]\nrula_threshold = 4\n", encoding="utf-8")
+    assert main([BAY, "--config", str(cfg)]) == 2
+    assert "unknown key" in capsys.readouterr().err
+
+
+def test_folders_are_walked_and_output_goes_to_a_file(program_only: Path, tmp_path: Path) -> None:
+    out = tmp_path / "lint.sarif"
+    code = main(
+        ["tests/lint/data", "--config", str(program_only), "--format", "sarif", "-o", str(out)]
+    )
+    assert code == 1
+    assert '"uri": "tests/lint/data/bay.mtask"' in out.read_text(encoding="utf-8")
+
+
+def test_python_dash_m_runs_the_command() -> None:
+    done = subprocess.run([sys.executable, "-m", "mtlc.lint", "--help"], capture_output=True,
+                          text=True, check=False)  # fmt: skip
+    assert done.returncode == 0 and "--manikins" in done.stdout

@@ -1,4 +1,4 @@
-"""Fixtures for the preview tests: compiled examples and a real headless Chromium.
+"""Fixtures for the preview tests: compiled examples, a real headless Chromium, a live server.
 
 Chromium comes from Debian (`scripts/install_chromium.sh` installs it when missing); the tests
 skip, with the reason, only when it cannot be installed (no root, no apt, no network).
@@ -14,13 +14,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from preview_support import CHROMEDRIVER, CHROMIUM, CHROMIUM_FLAGS, EXAMPLES, ROOT, Example
 
 from mtlc.frontend import FrontendOptions
 from mtlc.passes import MotionOptions
 from mtlc.preview.compile import compile_motions
 from mtlc.preview.html import render_page
 from mtlc.preview.server import MotionHub, PreviewServer
+
+from .preview_support import CHROMEDRIVER, CHROMIUM, CHROMIUM_FLAGS, EXAMPLES, ROOT, Example
 
 
 @pytest.fixture(scope="session")

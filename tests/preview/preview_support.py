@@ -1,4 +1,8 @@
-"""Shared by the preview tests: where things are, and a compiled example."""
+"""Shared by the preview tests: where things are, and a compiled example.
+
+tests/preview is a package (it has an ``__init__.py``) so that its conftest is
+``preview.conftest`` and never shadows the suite's top-level ``conftest`` module.
+"""
 
 from __future__ import annotations
 

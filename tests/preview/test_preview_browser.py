@@ -7,9 +7,10 @@ from typing import Any
 
 import numpy as np
 import pytest
-from preview_support import EXAMPLES, ROOT, Example
 
 from mtlc.body import forward, site_positions
+
+from .preview_support import EXAMPLES, ROOT, Example
 
 SCREENSHOT = ROOT / "docs" / "img" / "preview.png"
 BACKGROUND = (0xF4, 0xF5, 0xF7)

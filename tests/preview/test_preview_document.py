@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from preview_support import ROOT, Example
 
 from mtlc.frontend import FrontendOptions, run_frontend
 from mtlc.metrics import compute_metrics
@@ -18,6 +17,8 @@ from mtlc.preview.__main__ import main
 from mtlc.preview.html import render_page, script_json
 from mtlc.preview.sheet import render_sheet
 from mtlc.preview.sites import run_frontend_with_sites
+
+from .preview_support import ROOT, Example
 
 ACCESS = Path("examples/remove_access_panel.mtask")
 

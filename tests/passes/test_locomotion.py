@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mtlc.body import build_manikin, forward, site_positions, site_rotation
 from mtlc.frontend import run_frontend
@@ -18,6 +20,9 @@ from mtlc.passes.interpolate import anchored_root
 from mtlc.passes.locomotion import (
     LEG_DOFS,
     LEGS,
+    MAX_TURN_STEP,
+    MAX_TWIST,
+    MIN_DISTANCE,
     STEP_LENGTH_RATIO,
     Gait,
     _ry,
@@ -28,6 +33,7 @@ from mtlc.passes.locomotion import (
     segment_steps,
     stance_at,
 )
+from mtlc.passes.lower import plan_root
 from mtlc.passes.state import PoseState
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -140,6 +146,57 @@ def test_a_large_heading_change_is_stepped_in_place() -> None:
     assert all(a != b for a, b in itertools.pairwise(feet))
 
 
+def _arrived(steps: list, stance: dict) -> dict:
+    feet = dict(stance)
+    for s in steps:
+        feet[s.foot] = s.end
+    return feet
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    distance=st.floats(0.0, 4.0),
+    direction=st.floats(-math.pi, math.pi),
+    final_turn=st.floats(-math.pi + 0.01, math.pi - 0.01),
+)
+def test_a_walk_arrives_facing_its_work_by_steps(
+    distance: float, direction: float, final_turn: float
+) -> None:
+    """Whatever the way and the final heading, the feet end side by side at the goal facing
+    it, alternating, no foot turned by more than two pivot steps at once."""
+    gait = Gait(step_length=0.62, step_height=0.07)
+    stance = stance_at(np.zeros(3), 0.0, 0.08)
+    goal = distance * np.array([math.sin(direction), 0.0, math.cos(direction)])
+    walks = float(np.hypot(goal[0], goal[2])) >= MIN_DISTANCE  # else it only turns
+    walk = direction if walks else 0.0
+    final = walk + final_turn
+    steps = plan_footsteps(stance, goal, walk, final, gait, 0.08)
+    assert all(a.foot != b.foot for a, b in itertools.pairwise(steps))
+    last = _arrived(steps, stance)
+    centre = (last["r"].position + last["l"].position) / 2
+    np.testing.assert_allclose(centre, goal if walks else np.zeros(3), atol=1e-9)
+    for f in LEGS:
+        assert abs(math.remainder(last[f].heading - final, math.tau)) < math.radians(3) + 1e-9
+    for s in steps:
+        turn = abs(math.remainder(s.end.heading - s.start.heading, math.tau))
+        # the feet alternate, so a foot catches up at most two pivot steps at once
+        assert turn <= 2 * MAX_TURN_STEP + 1e-9
+
+
+def test_a_big_turn_after_arriving_is_pivot_steps_at_the_goal() -> None:
+    gait = Gait(step_length=0.62, step_height=0.07)
+    stance = stance_at(np.zeros(3), 0.0, 0.08)
+    goal = np.array([0.0, 0.0, 1.2])
+    steps = plan_footsteps(stance, goal, 0.0, math.radians(120), gait, 0.08)
+    at_goal = [s for s in steps if np.linalg.norm(s.end.position - goal) < 0.1]
+    # closing step turned by MAX_TWIST, then ceil(85 / 40) = 3 pivots and a closing step
+    pivots = [s for s in at_goal if s.end.heading > MAX_TWIST + 1e-9]
+    assert len(pivots) == 4
+    headings = [s.end.heading for s in pivots]
+    assert headings == sorted(headings) and headings[-1] == pytest.approx(math.radians(120))
+    assert all(b - a <= MAX_TURN_STEP + 1e-9 for a, b in itertools.pairwise(headings))
+
+
 # --------------------------------------------------------------------------- the compiled walks
 
 
@@ -233,6 +290,45 @@ def test_standing_after_a_walk_is_where_the_gait_left_the_body(
             left = {s["foot"]: s["position"] for s in seg.result["steps"]}
             for f, where in after.result["stance"].items():
                 np.testing.assert_allclose(where, left[f], atol=1e-6)
+
+
+@pytest.mark.parametrize("name", WALKING_EXAMPLES)
+def test_walks_end_facing_the_work_with_the_feet(compiled: dict[str, MotionIR], name: str) -> None:
+    """The plan arrives facing the work and the gait's last footprints face the same way, so
+    the standing body after a walk never turns on planted feet."""
+    ir = compiled[name]
+    for seg in _walks(ir):
+        plan_heading = float(ir.root_plan.at(seg.end)[1])
+        last = {s["foot"]: s["heading"] for s in seg.result["steps"]}
+        for f in LEGS:
+            assert abs(math.remainder(last[f] - plan_heading, math.tau)) < math.radians(3)
+        later = float(ir.root_plan.at(seg.result["feet_held_until"] + 0.5)[1])
+        assert later == pytest.approx(plan_heading, abs=1e-9)  # no standing turn after
+
+
+def test_the_plan_faces_the_facing_site_else_the_mean_reach(tmp_path: Path) -> None:
+    path = ROOT / "examples" / "remove_access_panel.mtask"
+    tl = run_frontend([path]).timelines[0]
+    plan = plan_root(tl)
+    walks = [p for p in tl.primitives if p.kind == "locomotion"]
+    # to bench_front (140, 0, 20) cm; the reaches after it are at bench_top (160, 90, 20) cm
+    assert math.degrees(float(plan.at(walks[1].end)[1])) == pytest.approx(90.0, abs=1e-6)
+    # the bolts and the handle after the first walk are centred on x = 0: face straight on
+    assert float(plan.at(walks[0].end)[1]) == pytest.approx(0.0, abs=1e-9)
+    # `facing` wins over the work: from bench_front, panel_front (0, 0, 60) cm is at -74.1 deg
+    src = path.read_text(encoding="utf-8")
+    faced = src.replace("walk_to(bench_front)", "travel_facing(bench_front, panel_front)")
+    faced = faced.replace("use stdlib.tools\n", "use stdlib.tools\nuse stdlib.elements\n")
+    assert faced != src
+    other = tmp_path / "faced.mtask"
+    other.write_text(faced, encoding="utf-8")
+    program = run_frontend([other])
+    assert not program.sink.has_errors
+    plan = plan_root(program.timelines[0])
+    walk = [p for p in program.timelines[0].primitives if p.kind == "locomotion"][1]
+    want = math.degrees(math.atan2(0 - 1.4, 0.6 - 0.2))
+    got = math.degrees(math.remainder(float(plan.at(walk.end)[1]), math.tau))
+    assert got == pytest.approx(want, abs=1e-6)
 
 
 def _sole_heights(ir: MotionIR) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:

@@ -3,8 +3,8 @@
 Each locomotion segment becomes a footstep plan: feet alternate; a heading change of more than
 ``TURN_IN_PLACE`` at the start is stepped in place (pivot steps of at most ``MAX_TURN_STEP``);
 the walk covers the distance in ``ceil(distance / step length)`` equal steps and a closing step
-brings the feet together, already turned (up to ``MAX_TWIST``) toward the work that the root plan
-turns to after arriving. The step length comes from stature, the pedometer rule 0.413 × stature
+brings the feet together, already turned (up to ``MAX_TWIST``) toward the work the root plan
+arrives facing; a larger turn is finished by pivot steps in place at the goal. The step length comes from stature, the pedometer rule 0.413 × stature
 for women and 0.415 × stature for men, inside the 0.41–0.45 H range quoted for normal walking
 (see docs/passes.md); a supplied BVH clip replaces it with the clip's adapted gait.
 
@@ -21,7 +21,7 @@ touch-down times, footprint) for the balance pass and the metrics, and the steps
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,7 +31,6 @@ from scipy.interpolate import PchipInterpolator
 
 from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.passes.context import INTERNAL_FPS, PassContext
-from mtlc.passes.lower import TURN_TIME
 
 FloatArray = NDArray[np.float64]
 
@@ -42,7 +41,8 @@ DOUBLE_SUPPORT = 0.2  # share of each step with both feet down (10 % at each end
 SWAY = 0.3  # lateral pelvis shift toward the stance foot in single support, × half stance width
 TURN_IN_PLACE = math.radians(30)  # larger heading changes are stepped in place first
 MAX_TURN_STEP = math.radians(40)  # heading change per pivot step
-MAX_TWIST = 0.0  # rad the final stance may turn toward the work (see docs: 35° once interpolation holds feet through the turn)
+MAX_TWIST = math.radians(35)  # the last two steps land this much turned toward the work
+FINAL_TURN = math.radians(3)  # a smaller turn left after arriving is not stepped
 TOE_OFF_PITCH = math.radians(40)  # heel rise at toe-off of a full stride (less for short ones)
 HEEL_OFF = 0.45  # the heel rises this many steps before toe-off (mid-swing of the other foot)
 LEAD = 0.2  # at double support the pelvis is ahead of the feet's mid-point by this × the move
@@ -229,7 +229,8 @@ def plan_footsteps(
     half_width: Any,
     first: str = "r",
 ) -> list[Step]:
-    """Pivot steps to the walking heading, equal steps to the goal, a closing step."""
+    """Pivot steps to the walking heading, equal steps to the goal, a closing step turned
+    toward ``final_heading`` (at most ``MAX_TWIST``), pivot steps for the rest of that turn."""
     feet = dict(stance)
     steps: list[Step] = []
     foot = first
@@ -249,16 +250,19 @@ def plan_footsteps(
         steps.append(Step(f, feet[f], fp, pelvis))
         feet[f] = fp
 
-    if abs(turn) > TURN_IN_PLACE:
+    def pivot(at: FloatArray, h_from: float, turn: float, foot: str) -> str:
+        """Turn in place about ``at``: steps of at most MAX_TURN_STEP, then a closing step."""
         m = math.ceil(abs(turn) / MAX_TURN_STEP)
-        foot = "l" if turn > 0 else "r"  # open toward the turn
         for j in range(1, m + 1):
-            h = h0 + turn * j / m
-            put(foot, Footprint(centre + _side(h, foot, half_width), h), h0 + turn * (j - 0.5) / m)
-            foot = "r" if foot == "l" else "l"
-        put(foot, Footprint(centre + _side(walk_heading, foot, half_width), walk_heading),
-            walk_heading)  # fmt: skip
-        foot = "r" if foot == "l" else "l"
+            h = h_from + turn * j / m
+            put(foot, Footprint(at + _side(h, foot, half_width), h), h_from + turn * (j - 0.5) / m)
+            foot = _other(foot)
+        h = h_from + turn
+        put(foot, Footprint(at + _side(h, foot, half_width), h), h)
+        return _other(foot)
+
+    if abs(turn) > TURN_IN_PLACE:
+        foot = pivot(centre, h0, turn, "l" if turn > 0 else "r")  # open toward the turn
     twist = float(np.clip(_wrap(final_heading - walk_heading), -MAX_TWIST, MAX_TWIST))
     end_heading = walk_heading + twist
     if distance >= MIN_DISTANCE:
@@ -271,15 +275,20 @@ def plan_footsteps(
                 fp = Footprint(centre + ahead * distance * k / n
                                + _side(walk_heading, foot, half_width), walk_heading)  # fmt: skip
             put(foot, fp, walk_heading)
-            foot = "r" if foot == "l" else "l"
+            foot = _other(foot)
         put(foot, Footprint(goal + _side(end_heading, foot, half_width), end_heading),
-            walk_heading)  # fmt: skip
-    elif abs(twist) > math.radians(5):
-        for _ in range(2):
-            put(foot, Footprint(centre + _side(end_heading, foot, half_width), end_heading),
-                h0)  # fmt: skip
-            foot = "r" if foot == "l" else "l"
+            end_heading)  # fmt: skip
+        foot = _other(foot)
+        centre, h0 = goal, end_heading
+    # the rest of the turn toward the work, stepped in place (the next foot in turn opens)
+    rest = _wrap(final_heading - h0)
+    if abs(rest) > FINAL_TURN:
+        pivot(centre, h0, rest, foot)
     return steps
+
+
+def _other(foot: str) -> str:
+    return "r" if foot == "l" else "l"
 
 
 def time_steps(steps: list[Step], t0: float, t1: float, gait: Gait) -> None:
@@ -337,19 +346,15 @@ class WalkMotion:
     gait: Gait
     legs: LegModel
     half_width: Any  # see _side
-    # after arriving the root plan may turn the pelvis toward the work: the feet stay put
-    hold_end: float = -math.inf
-    hold_root: Callable[[FloatArray], tuple[FloatArray, FloatArray]] | None = None
     cap: bool = False  # a last keyframe repeats the final pose, so the legs come to rest
-
-    @property
-    def t_end(self) -> float:
-        return max(self.t1, self.hold_end)
 
     def __post_init__(self) -> None:
         self._geo: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
         ts, xz, hs = [self.t0], [self.root_start[[0, 2]]], [self.heading_start]
         feet = dict(self.stance)
+        last = final_feet(self.stance, self.steps)
+        arrive = (last["r"].position + last["l"].position) / 2
+        near = 1.5 * float(np.linalg.norm(np.atleast_1d(self.half_width)))
         for st in self.steps:
             stance_foot = "l" if st.foot == "r" else "r"
             mid_t = (st.t_lift + st.t_land) / 2
@@ -361,8 +366,8 @@ class WalkMotion:
             heading_dir = np.array([math.sin(st.pelvis_heading), 0.0, math.cos(st.pelvis_heading)])
             lateral = lateral - heading_dir * (lateral @ heading_dir)
             mid = (centre_before + centre_after) / 2 + SWAY * lateral
-            closing = st is self.steps[-1] or st is self.steps[-2]
-            lead = 0.0 if closing else LEAD
+            arriving = np.linalg.norm((st.end.position - arrive)[[0, 2]]) <= near
+            lead = 0.0 if arriving else LEAD  # no overshoot at the goal
             ahead = centre_after + lead * (centre_after - centre_before)
             ts += [mid_t, b]
             xz += [mid[[0, 2]], ahead[[0, 2]]]
@@ -492,11 +497,7 @@ class WalkMotion:
         tt = np.clip(t, self.t0, self.t1)
         xz = self._xz(tt)
         y = np.interp(tt, self._grid, self._y)
-        pos, head = np.stack([xz[:, 0], y, xz[:, 1]], axis=-1), self._h(tt)
-        later = t > self.t1
-        if self.hold_root is not None and later.any():
-            pos[later], head[later] = self.hold_root(t[later])
-        return pos, head
+        return np.stack([xz[:, 0], y, xz[:, 1]], axis=-1), self._h(tt)
 
     def pose(
         self, t: FloatArray
@@ -559,27 +560,23 @@ def _key_times(motion: WalkMotion) -> FloatArray:
     """A few keyframes per step, refined until the interpolated feet stay on their paths.
 
     The check interpolates the keyframes as the interpolate pass will (PCHIP of the angles
-    and of the root, the root's quaternion normalised; the root plan's own root after the
-    walk) and halves every key interval where a foot's ankle or toe strays by more than
-    ``DRIFT_TOL`` from where it should be.
+    and of the root, the root's quaternion normalised) and keys every interpolation frame
+    where a foot's ankle or toe strays by more than ``DRIFT_TOL`` from where it should be.
     """
-    t_end = max(motion.t1, motion.hold_end)
+    t_end = motion.t1
     ts = [motion.t0, motion.t1]
     for st in motion.steps:
         sw = st.t_land - st.t_lift
         ts += [st.t_lift, st.t_land] + [st.t_lift + sw * f for f in (0.25, 0.5, 0.75)]
-    if motion.hold_end > motion.t1:
-        ts += list(motion.t1 + (motion.hold_end - motion.t1) * np.array([0.25, 0.5, 0.75, 1.0]))
     keys = np.unique(np.round(np.asarray(ts), 9))
     # the interpolate pass's frames inside the window
     k0, k1 = math.ceil(motion.t0 * INTERNAL_FPS - 1e-9), math.floor(t_end * INTERNAL_FPS + 1e-9)
     dense = np.unique(np.r_[motion.t0, np.arange(k0, k1 + 1) / INTERNAL_FPS, t_end])
-    want_pos, _, _, want = motion.pose(dense)
+    _, _, _, want = motion.pose(dense)
     want_toe = {}
     for f in LEGS:
         w = want[f]
         want_toe[f] = w.ankle + (_ry(w.heading) @ _rx(w.pitch)) @ motion.legs.toe
-    walking = dense <= motion.t1
     for _ in range(8):
         pos, head, legq, _ = motion.pose(keys)
         if motion.cap:
@@ -589,18 +586,14 @@ def _key_times(motion: WalkMotion) -> FloatArray:
             legq = {f: np.vstack([v, v[-1]]) for f, v in legq.items()}
         else:
             keys_c = keys
-        rp = want_pos.copy()
-        rh = motion.root(dense)[1]
-        rp[walking] = PchipInterpolator(keys_c, pos, axis=0)(dense[walking])
-        quat = PchipInterpolator(keys_c, yaw_quaternion(head), axis=0)(dense[walking])
-        rh[walking] = _heading_of(quat / np.linalg.norm(quat, axis=1, keepdims=True))
+        rp = PchipInterpolator(keys_c, pos, axis=0)(dense)
+        quat = PchipInterpolator(keys_c, yaw_quaternion(head), axis=0)(dense)
+        rh = _heading_of(quat / np.linalg.norm(quat, axis=1, keepdims=True))
         bad = np.zeros(len(dense), dtype=bool)
         for f in LEGS:
             q = PchipInterpolator(keys_c, legq[f], axis=0)(dense)
             ankle, toe = leg_fk(motion.legs, f, rp, rh, q)
             da, dt = ankle - want[f].ankle, toe - want_toe[f]
-            # after the walk the base correction settles the height: only horizontal counts
-            da[~walking, 1] = dt[~walking, 1] = 0.0
             err = np.maximum(np.linalg.norm(da, axis=1), np.linalg.norm(dt, axis=1))
             bad |= err > np.where(want[f].planted, DRIFT_TOL, SWING_TOL)
         if not bad.any():
@@ -812,32 +805,18 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
         else:  # from where the last walk left the feet and the root
             stance, root_start = arrival.feet, np.array([arrival.root[0], 0.0, arrival.root[2]])
         next_start = walks[i + 1].start if i + 1 < len(walks) else math.inf
-        t_turn = min(t1 + TURN_TIME, next_start)
-        hf = float(plan.at(t_turn)[1])
         gait = walk_gait(ir, ctx, seg)
         goal = np.array([p1[0], ir.ground, p1[2]])
-        steps = plan_footsteps(stance, goal, h1, hf, gait, half_width, next_foot)
+        # the plan arrives facing the work (h1); the feet walk facing the way they go
+        way = goal - (stance["r"].position + stance["l"].position) / 2
+        walk_heading = math.atan2(way[0], way[2]) if math.hypot(way[0], way[2]) > 1e-9 else h0
+        steps = plan_footsteps(stance, goal, walk_heading, h1, gait, half_width, next_foot)
         time_steps(steps, t0, t1, gait)
-        turns_after = (
-            abs(_wrap(hf - h1)) > 1e-3
-            and t_turn > t1 + 1e-6
-            and not _postures_between(ir, t1, t_turn)
-        )
-
-        def hold_root(t: FloatArray, plan: Any = plan, top: float = ir.ground + stand) -> Any:
-            p, h = plan.at(t)
-            p = np.array(p, dtype=float)
-            p[:, 1] = top
-            return p, np.asarray(h, dtype=float)
-
         motion = WalkMotion(
             steps, stance, t0, t1, root_start, np.array([p1[0], 0.0, p1[2]]),
             h0, h1, stand, ir.ground, gait, legs, half_width,
-            t_turn if turns_after else -math.inf, hold_root if turns_after else None,
         )  # fmt: skip
-        motion.cap = not _postures_between(ir, t1, motion.t_end + CAP + 1e-9) and (
-            motion.t_end + CAP < next_start
-        )
+        motion.cap = not _postures_between(ir, t1, t1 + CAP + 1e-9) and t1 + CAP < next_start
         keys = _key_times(motion)
         pos, head, legq, kfeet = motion.pose(keys)
         clipped = 0
@@ -847,7 +826,7 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
             clipped += int(np.any(np.abs(raw - legq[f]) > 1e-6, axis=1).sum())
         times = keys
         if motion.cap:
-            times = np.append(keys, motion.t_end + CAP)
+            times = np.append(keys, t1 + CAP)
             pos = np.vstack([pos, pos[-1]])
             head = np.append(head, head[-1])
             legq = {f: np.vstack([v, v[-1]]) for f, v in legq.items()}

@@ -3,8 +3,9 @@
 Each goal primitive becomes two segments, target approaching (TA) to the approach point short of
 the site and target overlapping (TO) onto it, in the time windows the front end gave them. The
 root plan says where the body stands and which way it faces at every moment: walking moves it
-along a straight line facing the way it goes, and keeps that heading once there unless the walk
-names a `facing` site (a standing turn without stepping would twist the planted feet).
+along a straight line facing the way it goes, and arrives facing its work: the walk's `facing`
+site, else the site of the next reach (the gait steps that turn; the standing body never turns
+without stepping, which would twist the planted feet).
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ from mtlc.semantics.timeline import Primitive, Timeline
 HAND_TRACK = {"left_hand": "l_arm", "right_hand": "r_arm"}
 HAND_SITE = {"left_hand": "l_hand", "right_hand": "r_hand"}
 GRIP_TRACK = {"left_hand": "l_hand", "right_hand": "r_hand"}
-TURN_TIME = 0.5  # seconds to turn in place toward the work, taken from the start of the next goal
+TURN_TIME = 0.5  # seconds the plan takes to turn toward the way a walk goes (the gait steps it)
+WORK_MIN_DISTANCE = 0.1  # m: work closer than this to where a walk ends gives no direction
 
 
 def _ref(span: Span) -> SourceRef:
@@ -121,12 +123,43 @@ def _heading_to(src: np.ndarray, dst: np.ndarray, default: float) -> float:
     return math.atan2(d[0], d[2])  # yaw about +Y; 0 faces +Z
 
 
+def work_after(prims: list[Primitive], walk: Primitive) -> np.ndarray | None:
+    """Where the work is after ``walk``: the mean site of the reaches before the next walk
+    (a site reached often weighs more), which the body faces when the walk names no ``facing``."""
+    sites = []
+    for p in prims:
+        if p is walk or p.start < walk.end - 1e-9:
+            continue
+        if p.kind == "locomotion":
+            break
+        if p.kind == "goal":
+            sites.append(np.asarray(p.params["position"], dtype=float))
+    return np.mean(sites, axis=0) if sites else None
+
+
+def arrival_heading(
+    prims: list[Primitive], walk: Primitive, goal: np.ndarray, walking: float
+) -> float:
+    """Which way the body faces once a walk has arrived: its ``facing`` site, else the next
+    reach's site, else the way it walked. The gait steps this turn (closing and pivot steps),
+    so the planted feet never twist."""
+    face = walk.params.get("facing_position")
+    work = _vec(face) if face is not None else work_after(prims, walk)
+    if work is None or math.hypot(*(work - goal)[[0, 2]]) < WORK_MIN_DISTANCE:
+        return walking
+    return _heading_to(goal, work, walking)
+
+
 def plan_root(timeline: Timeline) -> RootPlan:
-    """Knots of the root's ground position and heading (the height is added by the manikin)."""
+    """Knots of the root's ground position and heading (the height is added by the manikin).
+
+    A walk turns toward its way at the start, goes straight, and arrives already facing its
+    work (``arrival_heading``): the plan's heading at a walk's end is the heading it stands in.
+    """
     pos = np.array([0.0, timeline.ground, 0.0])
     heading = 0.0
     times, positions, headings = [0.0], [pos.copy()], [heading]
-    prims = timeline.primitives
+    prims = sorted(timeline.primitives, key=lambda p: p.start)
 
     def knot(t: float, p: np.ndarray, h: float) -> None:
         if t <= times[-1] + 1e-9:  # same instant: the later knot wins
@@ -141,16 +174,14 @@ def plan_root(timeline: Timeline) -> RootPlan:
             continue
         goal = np.asarray(p.params["to"], dtype=float)
         walk_heading = _heading_to(pos, goal, heading)
-        # turn toward the way to go at the start, arrive, then face the work
+        heading = arrival_heading(prims, p, goal, walk_heading)
+        # turn toward the way to go at the start, arrive facing the work
         knot(p.start, pos, headings[-1])
         knot(min(p.start + TURN_TIME / 2, p.end), pos, walk_heading)
-        knot(p.end, goal, walk_heading)
-        pos, heading = goal, walk_heading
-        face = p.params.get("facing_position")
-        # only an explicit `facing` turns the standing body after a walk: turning in place
-        # without stepping would twist the planted feet (the gait steps only its start turn)
-        work = _vec(face) if face is not None else None
-        if work is not None:
-            heading = _heading_to(pos, work, heading)
-            knot(p.end + TURN_TIME, pos, heading)
+        knot(p.end, goal, headings[-1] + _wrap(heading - headings[-1]))
+        pos = goal
     return RootPlan(time=np.array(times), position=np.array(positions), heading=np.array(headings))
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi

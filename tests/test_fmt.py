@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import io
+import re
 import subprocess
 import sys
 from collections import Counter
 from pathlib import Path
 
 import pytest
-from conftest import EXAMPLES, GOLDENS, ROOT, STDLIB
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -20,7 +20,11 @@ from mtlc.fmt.__main__ import main as fmt_main
 from mtlc.syntax import parse_module
 from mtlc.syntax.lexer import comments
 
-MESSY = GOLDENS / "fmt" / "messy.input.mtask"
+# not imported from conftest: another folder's conftest.py may take that module name first
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
+STDLIB = sorted((ROOT / "stdlib").glob("*.mtask"))
+MESSY = ROOT / "tests" / "goldens" / "fmt" / "messy.input.mtask"
 
 
 def _tree(text: str) -> str:
@@ -441,3 +445,22 @@ def test_python_m_mtlc_fmt_checks_the_shipped_files() -> None:
     )
     assert run.returncode == 0, run.stdout + run.stderr
     assert run.stdout == ""
+
+
+def _doc_examples() -> list[str]:
+    block = re.compile(r"^```mtask\n(.*?)^```", re.M | re.S)
+    found = []
+    for page in sorted((ROOT / "docs").rglob("*.md")):
+        for text in block.findall(page.read_text(encoding="utf-8")):
+            sink = DiagnosticSink()
+            parse_module(text, "x.mtask", sink)
+            if not sink.items:
+                found.append(text)
+    return found
+
+
+def test_every_docs_example_formats_safely() -> None:
+    examples = _doc_examples()
+    assert len(examples) >= 10
+    for text in examples:
+        _assert_safe_and_idempotent(text)

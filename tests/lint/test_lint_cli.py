@@ -75,3 +75,34 @@ def test_python_dash_m_runs_the_command() -> None:
     done = subprocess.run([sys.executable, "-m", "mtlc.lint", "--help"], capture_output=True,
                           text=True, check=False)  # fmt: skip
     assert done.returncode == 0 and "--manikins" in done.stdout
+
+
+def test_select_and_ignore_on_the_command_line(capsys) -> None:
+    assert main([BAY, "--select", "MT0601,unused-parameter", "--format", "json"]) == 1
+    out = capsys.readouterr().out
+    assert '"MT0601"' in out and '"MT0602"' in out and '"MT0404"' not in out
+    assert main([BAY, "--select", "MT06", "--ignore", "MT0601,MT0602,MT0606"]) == 0
+    assert main([BAY, "--select", "MT0999"]) == 2
+
+
+def test_ci_workflow_and_hooks_run_real_options() -> None:
+    """The workflow in docs/ci.md and the pre-commit hooks use options the command has."""
+    import argparse
+    import re
+    import shlex
+
+    yaml = pytest.importorskip("yaml")
+    from mtlc.lint.command import configure_parser
+
+    parser = argparse.ArgumentParser(exit_on_error=False)
+    configure_parser(parser)
+    text = Path("docs/ci.md").read_text(encoding="utf-8")
+    workflow = yaml.safe_load(re.findall(r"```yaml\n(.*?)```", text, re.S)[0])
+    runs = [s["run"] for s in workflow["jobs"]["lint"]["steps"] if "mtlc.lint" in s.get("run", "")]
+    hooks = yaml.safe_load(Path(".pre-commit-hooks.yaml").read_text(encoding="utf-8"))
+    runs += [h["entry"] + " x.mtask" for h in hooks]
+    assert len(runs) == 4
+    for run in runs:
+        argv = shlex.split(run)
+        assert argv[:3] == ["python", "-m", "mtlc.lint"]
+        parser.parse_args(argv[3:])  # raises on an unknown option

@@ -6,6 +6,7 @@ Exit codes: 0 clean, 1 findings at or above the failing severity, 2 usage or int
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import traceback
@@ -13,7 +14,7 @@ from pathlib import Path
 
 from mtlc.diagnostics import Severity
 from mtlc.diagnostics.render import use_color
-from mtlc.lint.config import ConfigError, LintConfig, load_config
+from mtlc.lint.config import ConfigError, LintConfig, codes_of, load_config
 from mtlc.lint.engine import lint_paths
 from mtlc.lint.manikins import ManikinError, parse_selection
 from mtlc.lint.output import FORMATS, RENDERERS, render_text
@@ -49,6 +50,18 @@ def configure_parser(p: argparse.ArgumentParser) -> None:
         help="'extremes' (default: gb10000_1988:female:5 and :male:95), 'all' (the 14 "
         "GB 10000-88 manikins) or POP:SEX:PCT[,POP:SEX:PCT...]",
     )
+    p.add_argument(
+        "--select",
+        metavar="CODES",
+        default=None,
+        help="only these codes, rule names or prefixes, comma-separated (e.g. MT06,MT0501)",
+    )
+    p.add_argument(
+        "--ignore",
+        metavar="CODES",
+        default=None,
+        help="leave out these codes, rule names or prefixes, comma-separated",
+    )
     p.add_argument("--format", choices=FORMATS, default="text", help="output format")
     p.add_argument(
         "--fail-on",
@@ -80,7 +93,7 @@ def configure_parser(p: argparse.ArgumentParser) -> None:
 
 def run_lint_command(args: argparse.Namespace) -> int:
     try:
-        config = load_config(Path.cwd(), args.config)
+        config = with_selection(load_config(Path.cwd(), args.config), args.select, args.ignore)
         manikins = parse_selection(args.manikins or config.manikins)
     except (ConfigError, ManikinError) as exc:
         sys.stderr.write(f"mtlc lint: {exc}\n")
@@ -99,6 +112,16 @@ def run_lint_command(args: argparse.Namespace) -> int:
             "rerun with MTLC_DEBUG=1 for the trace and report it)\n"
         )
         return EXIT_USAGE
+
+
+def with_selection(config: LintConfig, select: str | None, ignore: str | None) -> LintConfig:
+    """The command line's --select / --ignore over the configuration's."""
+    chosen = set(config.select)
+    if select:
+        chosen = codes_of([w for w in select.split(",") if w.strip()], "--select", None)
+    if ignore:
+        chosen -= codes_of([w for w in ignore.split(",") if w.strip()], "--ignore", None)
+    return dataclasses.replace(config, select=frozenset(chosen))
 
 
 def _lint(args: argparse.Namespace, config: LintConfig, manikins: tuple) -> int:  # type: ignore[type-arg]

@@ -88,17 +88,18 @@ def load_config(start: Path, explicit: Path | None = None) -> LintConfig:
     return parse_config(found[1], found[0])
 
 
-def _codes(value: Any, key: str, where: Path | None) -> set[str]:
+def codes_of(value: Any, key: str, where: Path | None) -> set[str]:
     """Codes or rule names (`MT0603` or `joint-limit`), or prefixes such as `MT06`."""
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
         raise ConfigError(f"{where}: `{key}` must be a list of codes or rule names")
     by_name = {c.name: c.code for c in CODES.values()}
     out: set[str] = set()
     for item in value:
+        item = item.strip()
         word = by_name.get(item, item.upper())
         matched = {c for c in CODES if c.startswith(word)} if word.startswith("MT") else set()
         if not matched:
-            raise ConfigError(f"{where}: `{key}`: no rule or code {item!r}")
+            raise ConfigError(f"{where or 'command line'}: `{key}`: no rule or code {item!r}")
         out |= matched
     return out
 
@@ -109,9 +110,9 @@ def parse_config(table: dict[str, Any], where: Path | None = None) -> LintConfig
         raise ConfigError(
             f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(_KEYS)}"
         )
-    select = _codes(table["select"], "select", where) if "select" in table else set(CODES)
+    select = codes_of(table["select"], "select", where) if "select" in table else set(CODES)
     if "ignore" in table:
-        select -= _codes(table["ignore"], "ignore", where)
+        select -= codes_of(table["ignore"], "ignore", where)
     manikins = table.get("manikins", "extremes")
     if not isinstance(manikins, str | list):
         raise ConfigError(f"{where}: `manikins` is 'extremes', 'all' or a list of POP:SEX:PCT")

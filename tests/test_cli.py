@@ -171,3 +171,12 @@ def test_carets_under_wide_characters(tmp_path: Path, capsys) -> None:
     caret = err.splitlines()[err.splitlines().index(line) + 1]
     # 拆卸 takes 4 columns: the caret stands under `oops`
     assert caret.index("^") == line.index("oops") + 2
+
+
+def test_fmt_is_a_command(tmp_path: Path, capsys) -> None:
+    messy = tmp_path / "messy.mtask"
+    messy.write_text("use   stdlib.actions\ntask t {\n    walk_to( a )\n}\n", encoding="utf-8")
+    assert main(["fmt", "--check", str(messy)]) == 1
+    assert main(["fmt", str(messy)]) == 0
+    assert "use stdlib.actions\n" in messy.read_text(encoding="utf-8")
+    assert main(["fmt", "--check", str(messy)]) == 0

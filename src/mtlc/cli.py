@@ -26,6 +26,7 @@ from mtlc.codegen import (
 )
 from mtlc.diagnostics import CODES, DiagnosticSink, Span
 from mtlc.diagnostics.render import render_json, render_text, use_color
+from mtlc.fmt.command import add_fmt_parser, run_fmt_command
 from mtlc.frontend import FrontendOptions, Program, run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.metrics import Metrics, compute_metrics, render_metrics
@@ -140,6 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     explain = sub.add_parser("explain", help="show the documentation page of a diagnostic code")
     explain.add_argument("code", metavar="CODE", help="e.g. MT0201")
+    add_fmt_parser(sub)
     return parser
 
 
@@ -152,6 +154,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "explain":
             return cmd_explain(args.code)
+        if args.command == "fmt":
+            return run_fmt_command(args)
         return cmd_frontend(args)
     except UsageError as exc:
         sys.stderr.write(f"mtlc: {exc}\n")

@@ -214,3 +214,26 @@ def test_saving_recompiles_and_a_broken_save_keeps_the_last_good_motion(
         assert site["position"] == pytest.approx([0.22, 1.35, 1.12])
     finally:
         events.close()
+
+
+def test_serve_command_listens_on_loopback_and_serves_the_page() -> None:
+    """`python -m mtlc.preview serve FILE --port 0` prints its URL and answers on 127.0.0.1."""
+    import subprocess
+    import sys
+    import urllib.request
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mtlc.preview", "serve", "examples/remove_access_panel.mtask",
+         "--port", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        line = proc.stdout.readline() if proc.stdout else ""
+        match = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)
+        assert match, (line, proc.stderr.read() if proc.poll() is not None and proc.stderr else "")
+        with urllib.request.urlopen(match.group(1) + "motion", timeout=30) as reply:
+            doc = json.loads(reply.read())
+        assert doc["ir"]["source"]["task"] == "remove_access_panel"
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)

@@ -22,7 +22,8 @@ if ! command -v blender >/dev/null 2>&1; then
 fi
 
 # The CLI writes OUT/<stem>.<task>.bvh once it has the bvh target; until then the helper emits.
-if "$PY" -m mtlc compile --help 2>/dev/null | grep -q "bvh"; then
+COMPILE_HELP="$("$PY" -m mtlc compile --help 2>/dev/null || true)"
+if grep -Eq -- "--target \{[^}]*bvh" <<<"$COMPILE_HELP"; then
     EMIT=""
 else
     EMIT="--emit"
@@ -30,7 +31,12 @@ fi
 
 for mtask in examples/*.mtask; do
     if [ -z "$EMIT" ]; then
-        "$PY" -m mtlc compile "$mtask" --target bvh -o "$OUT" >/dev/null
+        compile_log="$OUT/$(basename "$mtask" .mtask).compile.log"
+        if ! "$PY" -m mtlc compile "$mtask" --target bvh -o "$OUT" >"$compile_log" 2>&1; then
+            cat "$compile_log" >&2
+            echo "FAIL $mtask does not compile" >&2
+            exit 1
+        fi
     fi
     "$PY" scripts/blender_check_bvh.py expect "$mtask" "$OUT" $EMIT
 done

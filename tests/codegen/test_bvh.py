@@ -17,7 +17,6 @@ from pathlib import Path
 import bvhio
 import numpy as np
 import pytest
-from conftest import EXAMPLES
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from pyglm import glm
@@ -34,6 +33,10 @@ from mtlc.codegen.bvh import (
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import Frames, MotionIR
 from mtlc.passes import run_motion
+
+# Local, not from conftest: another conftest module under tests/ can shadow the root one.
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
 
 TOLERANCE = 1e-3  # m: the read-back bound
 NUMBER = re.compile(r"^-?\d+\.\d{6}$")

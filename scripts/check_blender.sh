@@ -18,7 +18,7 @@ if ! command -v blender >/dev/null 2>&1; then
     SUDO=""
     [ "$(id -u)" -eq 0 ] || SUDO="sudo"
     $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq blender >/dev/null
+    $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq blender >/dev/null
 fi
 
 # The CLI writes OUT/<stem>.<task>.bvh once it has the bvh target; until then the helper emits.

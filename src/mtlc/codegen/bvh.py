@@ -135,7 +135,7 @@ def end_site_offset(skel: Skeleton, joint: int) -> FloatArray:
 # -- channels ------------------------------------------------------------------------------
 def joint_channels(skel: Skeleton, joint: int) -> JointChannels:
     """The channel order of a joint and whether its angles map straight onto it."""
-    if joint == 0 and int(skel.joint_dof_count[0]) == 0:
+    if joint == 0:  # the quaternion (times any dofs of the root's own): always decomposed
         return JointChannels(ROOT_ORDER, None)
     start = int(skel.joint_dof_start[joint])
     dofs = range(start, start + int(skel.joint_dof_count[joint]))
@@ -147,8 +147,6 @@ def joint_channels(skel: Skeleton, joint: int) -> JointChannels:
             return JointChannels(ROOT_ORDER, None)
         axes.append(hit[0])
         signs.append(hit[1])
-    if joint == 0:  # the root's own dofs would follow its quaternion: decompose the product
-        return JointChannels(ROOT_ORDER, None)
     order = (*axes, *(a for a in range(3) if a not in axes))
     direct = tuple((dofs[i], signs[i]) if i < len(axes) else None for i in range(3))
     return JointChannels((order[0], order[1], order[2]), direct)

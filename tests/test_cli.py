@@ -180,3 +180,11 @@ def test_fmt_is_a_command(tmp_path: Path, capsys) -> None:
     assert main(["fmt", str(messy)]) == 0
     assert "use stdlib.actions\n" in messy.read_text(encoding="utf-8")
     assert main(["fmt", "--check", str(messy)]) == 0
+
+
+def test_preview_is_a_command(tmp_path: Path) -> None:
+    page = tmp_path / "motion.html"
+    assert main(["preview", FLAGSHIP, "-o", str(page)]) == 0
+    html = page.read_text(encoding="utf-8")
+    assert html.startswith("<!DOCTYPE html>") or html.lower().startswith("<!doctype html>")
+    assert "mtlcPreview" in html and "remove_access_panel" in html

@@ -126,9 +126,7 @@ _ALL = [
     Code("MT0603", "joint-limit", Severity.WARNING, "a joint moves past its limit"),
     Code("MT0604", "ground-penetration", Severity.WARNING, "the body sinks below the ground"),
     Code("MT0605", "rula-score", Severity.WARNING, "a posture at or above the RULA threshold"),
-    Code(
-        "MT0606", "unused-suppression", Severity.WARNING, "an ignore comment that hides nothing"
-    ),
+    Code("MT0606", "unused-suppression", Severity.WARNING, "an ignore comment that hides nothing"),
     # internal
     Code("MT0900", "internal-error", Severity.ERROR, "a bug in mtlc: please report it"),
 ]

@@ -106,3 +106,12 @@ def test_ci_workflow_and_hooks_run_real_options() -> None:
         argv = shlex.split(run)
         assert argv[:3] == ["python", "-m", "mtlc.lint"]
         parser.parse_args(argv[3:])  # raises on an unknown option
+
+
+def test_a_suppression_of_an_unchecked_code_is_not_unused(capsys) -> None:
+    assert (
+        main([BAY, "--select", "MT06", "--ignore", "MT0603,MT0604,MT0605", "--format", "json"]) == 1
+    )
+    out = capsys.readouterr().out
+    assert "MT0502; the suppression" not in out  # balance was not checked
+    assert '"line": 11' in out and '"line": 15' in out

@@ -93,7 +93,9 @@ def lint_paths(
     # errors cannot be deselected: code that does not compile is never 'clean'
     findings = [f for f in findings if config.enabled(f.code) or f.severity is Severity.ERROR]
     marks = [s for file in dict.fromkeys(roots) for s in suppress.scan(file, sources.get(file, ""))]
-    findings = suppress.apply(findings, marks, report_unused=config.enabled("MT0606"))
+    findings = suppress.apply(
+        findings, marks, report_unused=config.enabled("MT0606"), checked=config.enabled
+    )
     order = [label(m) for m in selection]
     return LintResult(
         merge(findings, order),

@@ -9,6 +9,7 @@ in files that do not parse too.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from mtlc.diagnostics import CODES, Span
@@ -99,9 +100,14 @@ def scan(file: str, text: str) -> list[Suppression]:
 
 
 def apply(
-    findings: list[Finding], suppressions: list[Suppression], *, report_unused: bool
+    findings: list[Finding],
+    suppressions: list[Suppression],
+    *,
+    report_unused: bool,
+    checked: Callable[[str], bool] = lambda code: True,
 ) -> list[Finding]:
-    """Drop suppressed findings; an unknown or unused suppression is itself a finding."""
+    """Drop suppressed findings; an unknown or unused suppression is itself a finding, unless
+    its code was not checked in this run (``checked``), so it could not have been used."""
     kept = []
     for f in findings:
         hits = [s for s in suppressions if s.covers(f)]
@@ -110,7 +116,9 @@ def apply(
         if not hits:
             kept.append(f)
     if report_unused:
-        kept.extend(_unused(suppressions))
+        # an unknown code is always reported; a known one only if its check ran
+        relevant = [s for s in suppressions if _resolve(s.code) in (None, *filter(checked, CODES))]
+        kept.extend(_unused(relevant))
     return kept
 
 

@@ -188,3 +188,16 @@ def test_preview_is_a_command(tmp_path: Path) -> None:
     html = page.read_text(encoding="utf-8")
     assert html.startswith("<!DOCTYPE html>") or html.lower().startswith("<!doctype html>")
     assert "mtlcPreview" in html and "remove_access_panel" in html
+
+
+def test_lint_is_a_command(tmp_path: Path, capsys) -> None:
+    src = tmp_path / "job.mtask"
+    src.write_text(
+        "use stdlib.actions\n\nscene s {\n    site a at (0, 0, 100) cm\n}\n\n"
+        "element unused_one() {\n    still over 1 s\n}\n\ntask t {\n    scene s\n    walk_to(a)\n}\n",
+        encoding="utf-8",
+    )
+    assert main(["lint", str(src), "--format", "json"]) == 1
+    findings = json.loads(capsys.readouterr().out)["findings"]
+    assert [(f["code"], f["span"]["line"]) for f in findings] == [("MT0601", 7)]
+    assert main(["lint", str(src), "--exit-zero"]) == 0

@@ -29,6 +29,7 @@ from mtlc.diagnostics.render import render_json, render_text, use_color
 from mtlc.fmt.command import add_fmt_parser, run_fmt_command
 from mtlc.frontend import FrontendOptions, Program, run_frontend
 from mtlc.ir.model import MotionIR
+from mtlc.lint.command import add_lint_parser, run_lint_command
 from mtlc.metrics import Metrics, compute_metrics, render_metrics
 from mtlc.output import write_all_or_nothing
 from mtlc.passes import MotionOptions, run_motion
@@ -142,6 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     explain = sub.add_parser("explain", help="show the documentation page of a diagnostic code")
     explain.add_argument("code", metavar="CODE", help="e.g. MT0201")
+    add_lint_parser(sub)
     add_fmt_parser(sub)
     add_preview_parsers(sub, frontend_options)
     return parser
@@ -158,6 +160,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return cmd_explain(args.code)
         if args.command == "fmt":
             return run_fmt_command(args)
+        if args.command == "lint":
+            return run_lint_command(args)
         if args.command in ("preview", "serve"):
             return run_preview_command(args)
         return cmd_frontend(args)

@@ -16,7 +16,7 @@ point on the ground, as the base correction does for a body standing still.
 from __future__ import annotations
 
 from bisect import bisect_right
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from typing import Any
 
 import numpy as np
@@ -27,6 +27,16 @@ from mtlc.passes.interpolate import anchored_root, gait_window, track
 
 # (time, segment id, keyframes, row, column); column −1 for a posture root height
 _Ref = tuple[float, int, Keyframes, int, int]
+# the segment(s) whose keyframes a query ignores
+Skip = Segment | Collection[Segment] | None
+
+
+def _skip_ids(skip: Skip) -> frozenset[int]:
+    if skip is None:
+        return frozenset()
+    if isinstance(skip, Segment):
+        return frozenset({id(skip)})
+    return frozenset(id(s) for s in skip)
 
 
 class PoseState:
@@ -72,15 +82,17 @@ class PoseState:
                 self._rr.insert(i, (float(t), sid, kf, row, -1))
 
     @staticmethod
-    def _latest(times: list[float], refs: list[_Ref], t: float, skip: int | None) -> _Ref | None:
+    def _latest(
+        times: list[float], refs: list[_Ref], t: float, skip: frozenset[int]
+    ) -> _Ref | None:
         i = bisect_right(times, t + 1e-9) - 1
-        while i >= 0 and refs[i][1] == skip:
+        while i >= 0 and refs[i][1] in skip:
             i -= 1
         return refs[i] if i >= 0 else None
 
-    def q_at(self, t: float, skip: Segment | None = None) -> FloatArray:
-        """Every dof at time ``t`` (after the keyframes at ``t``), ignoring segment ``skip``."""
-        sid = None if skip is None else id(skip)
+    def q_at(self, t: float, skip: Skip = None) -> FloatArray:
+        """Every dof at time ``t`` (after the keyframes at ``t``), ignoring the ``skip`` segment(s)."""
+        sid = _skip_ids(skip)
         q = self.rest.copy()
         for d in range(len(q)):
             ref = self._latest(self._t[d], self._r[d], t, sid)
@@ -88,16 +100,16 @@ class PoseState:
                 q[d] = ref[2].q[ref[3], ref[4]]
         return q
 
-    def height_at(self, t: float, skip: Segment | None = None) -> float:
+    def height_at(self, t: float, skip: Skip = None) -> float:
         """Root height at ``t`` (the standing height until a posture changes it)."""
-        ref = self._latest(self._rt, self._rr, t, None if skip is None else id(skip))
+        ref = self._latest(self._rt, self._rr, t, _skip_ids(skip))
         if ref is None:
             return self.stand_y
         rp = ref[2].root_position
         assert rp is not None
         return float(rp[ref[3], 1])
 
-    def root_at(self, t: float, skip: Segment | None = None) -> tuple[FloatArray, FloatArray]:
+    def root_at(self, t: float, skip: Skip = None) -> tuple[FloatArray, FloatArray]:
         """Root position and rotation (w first) at ``t``: the plan's ground position and heading,
         at the height that stands the legs' pose at ``t`` on the ground. That is where the base
         correction (seed 001, h = L − x) puts a body standing still, so a hand solved here is
@@ -151,11 +163,17 @@ def reanchor(
     ir: MotionIR, cache: dict[str, Any], restaters: dict[str, Restate] | None = None
 ) -> None:
     """Rewrite every "starts from the current pose" keyframe from the pose before it, in time
-    order, so a segment solved before the segments preceding it starts where they left off."""
+    order, so a segment solved before the segments preceding it starts where they left off.
+
+    Segments that start together (both arms of a two-handed reach, which share the trunk) are
+    restated from the pose before all of them: each one's own first keyframe is no evidence
+    of that pose, and reading a sibling's stale one would keep a trunk from before a later pass
+    moved it (the gaze at the access panel's handle ended 7.8° off that way)."""
     restaters = restaters or {}
     marks: dict[int, str] = cache.get("passes.state.restate", {})
     state = PoseState(ir)
-    for seg in sorted(ir.segments, key=lambda s: s.start):
+    ordered = sorted(ir.segments, key=lambda s: s.start)
+    for seg in ordered:
         kf = seg.keyframes
         how = marks.get(id(seg))
         if kf is None or how is None:
@@ -163,12 +181,13 @@ def reanchor(
         if how in restaters:
             restaters[how](seg, state)
             continue
-        # default: the first keyframe holds the pose just before the segment
-        q = state.q_at(seg.start, skip=seg)
+        # default: the first keyframe holds the pose just before the segment (and its siblings)
+        together = [s for s in ordered if id(s) in marks and abs(s.start - seg.start) <= 1e-9]
+        q = state.q_at(seg.start, skip=together)
         idx = [state.skel.dof_index(n) for n in kf.dofs]
         kf.q[0] = q[idx]
         if seg.kind == "posture" and kf.root_position is not None:
-            kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)
+            kf.root_position[0, 1] = state.height_at(seg.start, skip=together)
 
 
 def cached(ctx_cache: dict[str, Any], key: Any, make: Callable[[], Any]) -> Any:

@@ -441,46 +441,47 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:30:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:30:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
     human.KeyJoints(14.7, {
-        'spine_lumbar': (4.5472, -19.8988, 14.9426), 'spine_thoracic': (-15.0, -9.985, 11.4897),
-        'neck': (24.5869, 6.9198, -47.7783), 'head': (7.5738, -2.6768),
-        'right_clavicle': (26.6898, 1.0004), 'right_shoulder': (53.9528, -2.6763, 9.2682),
-        'right_elbow': (39.3348, 17.9123), 'right_wrist': (-1.5558, -3.0013),
-        'left_clavicle': (-0.0412, 0.0128), 'left_shoulder': (8.8576, 5.6575, 11.428),
-        'left_elbow': (34.4554, 17.1868), 'left_wrist': (-0.012, 0.0107),
+        'spine_lumbar': (12.0472, -19.0475, 14.9426),
+        'spine_thoracic': (-14.9554, -9.9156, 14.5166), 'neck': (24.5869, 6.9198, -47.7783),
+        'head': (7.5738, -2.6768), 'right_clavicle': (26.6898, 1.0004),
+        'right_shoulder': (53.9528, -2.6763, 9.2682), 'right_elbow': (39.3348, 17.9123),
+        'right_wrist': (-1.5558, -3.0013), 'left_clavicle': (-0.0412, 0.0128),
+        'left_shoulder': (8.8576, 5.6575, 11.428), 'left_elbow': (34.4554, 17.1868),
+        'left_wrist': (-0.012, 0.0107),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (2.5406, -18.2612, 14.0138), 'spine_thoracic': (-15.0, -9.7384, 7.4771),
+        'spine_lumbar': (10.944, -17.4838, 14.0138), 'spine_thoracic': (-14.9592, -9.6748, 13.3357),
         'right_clavicle': (26.6973, 0.552), 'right_shoulder': (53.7467, -3.2487, 9.487),
         'right_elbow': (39.7252, 17.8549), 'left_clavicle': (-0.7111, 0.227),
         'left_shoulder': (13.116, 4.4915, 10.9177), 'left_elbow': (35.7163, 17.1546),
         'left_wrist': (-0.2056, 0.184),
     })
     human.KeyJoints(14.9, {
-        'spine_lumbar': (1.1302, -15.1449, 12.2464), 'spine_thoracic': (-15.0, -9.2556, 4.6344),
+        'spine_lumbar': (8.8449, -14.5082, 12.2464), 'spine_thoracic': (-14.9666, -9.203, 11.0885),
         'right_clavicle': (26.7115, -0.3014), 'right_shoulder': (53.3546, -4.3378, 9.9034),
         'right_elbow': (40.468, 17.7453), 'right_wrist': (-1.4364, -2.71),
         'left_clavicle': (-1.9953, 0.6579), 'left_shoulder': (21.2195, 2.2727, 9.9242),
         'left_elbow': (38.1157, 17.0925),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (0.211, -11.2302, 10.0262), 'spine_thoracic': (-15.0, -8.6232, 2.7602),
-        'left_shoulder': (31.399, -0.5146, 8.6334), 'left_wrist': (-1.0367, 0.928),
+        'spine_lumbar': (6.2079, -10.7703, 10.0262), 'left_shoulder': (31.399, -0.5146, 8.6334),
+        'left_wrist': (-1.0367, 0.928),
     })
     human.KeyJoints(15.1, {
-        'spine_lumbar': (-0.3221, -7.1976, 7.7391), 'spine_thoracic': (-15.0, -7.9277, 1.653),
+        'spine_lumbar': (3.4915, -6.9197, 7.7391), 'spine_thoracic': (-14.9854, -7.9035, 5.3577),
         'right_clavicle': (26.7477, -2.4776), 'right_shoulder': (52.3545, -7.1153, 10.9654),
         'right_elbow': (42.3625, 17.4632), 'left_clavicle': (-5.3378, 1.9243),
         'left_shoulder': (41.8853, -3.3858, 7.2307), 'left_elbow': (44.2348, 16.9274),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (-0.5743, -3.7273, 5.7709), 'spine_thoracic': (-15.0, -7.2556, 1.1112),
+        'spine_lumbar': (1.1538, -3.606, 5.7709), 'spine_thoracic': (-14.9936, -7.2443, 2.8553),
         'right_clavicle': (26.7635, -3.4279), 'right_shoulder': (51.9178, -8.3282, 11.4291),
         'right_elbow': (43.1898, 17.3377), 'right_wrist': (-1.1173, -2.0104),
         'left_clavicle': (-6.8619, 2.6368), 'left_shoulder': (50.9093, -5.8567, 5.9021),
         'left_elbow': (46.9067, 16.8487), 'left_wrist': (-1.9237, 1.7219),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (-0.6508, -1.4996, 4.5075), 'spine_thoracic': (-15.0, -6.6934, 0.9335),
+        'spine_lumbar': (-0.3467, -1.4789, 4.5075), 'spine_thoracic': (-14.9989, -6.691, 1.249),
         'right_clavicle': (26.7736, -4.0379), 'right_shoulder': (51.6375, -9.1067, 11.7268),
         'right_elbow': (43.7208, 17.2538), 'right_wrist': (-1.0327, -1.8739),
         'left_clavicle': (-7.9315, 3.3205), 'left_shoulder': (56.7019, -7.4427, 4.833),

@@ -223,14 +223,14 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     human.KeyJoints(3.0, {
-        'spine_lumbar': (14.0166, -1.9587, -11.0556), 'spine_thoracic': (13.81, -0.5378, -18.8591),
+        'spine_lumbar': (25.611, 0.9258, -11.0556), 'spine_thoracic': (3.9045, -1.6506, -18.8591),
         'neck': (-56.6702, -0.0986, 0.5586), 'right_shoulder': (64.4507, 122.5096, -27.9589),
         'right_elbow': (1.389, 5.1671), 'right_wrist': (0.3644, -0.6509),
         'left_clavicle': (30.0, 5.7292), 'left_shoulder': (114.3014, 56.9981, 25.608),
         'left_elbow': (2.5826, -23.8382), 'left_wrist': (-2.5567, -1.0604),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (20.1461, 1.7961, -4.6217), 'spine_thoracic': (13.8472, -3.244, -0.6335),
+        'spine_lumbar': (22.9448, 2.3393, -4.6217), 'spine_thoracic': (11.6361, -3.4468, -0.6335),
         'right_clavicle': (30.0, -15.0), 'right_shoulder': (158.9402, 42.1597, -5.5476),
         'right_elbow': (3.1764, -0.4093), 'right_wrist': (0.5193, -0.3138),
         'left_clavicle': (30.0, -9.393), 'left_shoulder': (21.5182, 136.3886, 61.9092),
@@ -239,7 +239,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(3.2, {
-        'spine_lumbar': (23.2205, 3.0065, -3.2068), 'spine_thoracic': (14.4683, -3.6898, 3.5481),
+        'spine_lumbar': (23.2097, 3.0062, -3.2068), 'spine_thoracic': (14.4746, -3.6898, 3.5481),
         'right_clavicle': (30.0, -14.7926), 'right_shoulder': (179.7221, 24.3614, -0.5558),
         'right_elbow': (3.4057, -1.6517), 'right_wrist': (0.5372, -0.2799),
         'left_clavicle': (30.0, -12.7289), 'left_shoulder': (0.7411, 154.0714, 69.9993),

@@ -266,6 +266,24 @@ def test_examples_skate_below_2_cm_per_s(compiled: dict[str, MotionIR], name: st
     assert math.isfinite(skating) and skating < SKATE_LIMIT, (name, skating)
 
 
+def test_a_walk_after_standing_at_rest_does_not_skate(tmp_path: Path) -> None:
+    """A first walk that starts after the task does (here a look first) steps off from the rest
+    pose's feet: levelling its pitched soles about the toes slides nothing (5.5 cm/s before)."""
+    src = (ROOT / "examples" / "remove_access_panel.mtask").read_text(encoding="utf-8")
+    late = src.replace(
+        "    walk_to(panel_front)", "    look(panel_handle)\n    walk_to(panel_front)"
+    )
+    late = late.replace("use stdlib.tools\n", "use stdlib.tools\nuse stdlib.elements\n")
+    path = tmp_path / "late_walk.mtask"
+    path.write_text(late, encoding="utf-8")
+    program = run_frontend([path])
+    assert not program.sink.has_errors
+    ir = run_motion(program.timelines[0], program.sink)
+    assert min(s.start for s in _walks(ir)) > 0.1
+    skating = compute_metrics(ir).foot_skating
+    assert math.isfinite(skating) and skating < SKATE_LIMIT
+
+
 @pytest.mark.parametrize("name", WALKING_EXAMPLES)
 def test_standing_after_a_walk_is_where_the_gait_left_the_body(
     compiled: dict[str, MotionIR], name: str

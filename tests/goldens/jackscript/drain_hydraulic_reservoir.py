@@ -10,7 +10,7 @@ def drain_reservoir():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=50, stature=167.8, mass=59.0)
     # examples/drain_hydraulic_reservoir.mtask:22:5 drain_reservoir > walk_to > travel: locomotion on root at skid_side
-    human.Walk((-0.325, 0.0, 42.523), start=0.0, duration=0.54)
+    human.Walk((-0.324, 0.0, 42.515), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 84.188, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -18,95 +18,95 @@ def drain_reservoir():
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
-        'left_ankle': (1.7189, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.749, 0.0, 0.0), 'right_knee': (4.6565,),
+        'right_ankle': (1.9075, 0.0), 'left_hip': (2.749, 0.0, 0.0), 'left_knee': (4.6565,),
+        'left_ankle': (1.9075, 0.0),
     })
-    human.KeyRoot(0.1, (2.421, 82.071, 8.555), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.421, 82.071, 8.421), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (42.1617, 3.2339, -1.0808), 'right_knee': (80.6254,),
-        'right_ankle': (18.4084, 2.0423), 'left_hip': (6.081, -1.8255, -0.1946),
-        'left_knee': (24.4285,), 'left_ankle': (18.3572, -1.8358),
+        'right_hip': (42.1817, 3.2333, -1.076), 'right_knee': (80.6934,),
+        'right_ankle': (18.3598, 2.0447), 'left_hip': (6.0036, -1.8258, -0.1921),
+        'left_knee': (24.3782,), 'left_ankle': (18.3841, -1.8358),
     })
-    human.KeyRoot(0.2, (1.644, 80.077, 16.533), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.643, 80.077, 16.391), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (36.5886, 4.9822, -18.2012), 'right_knee': (35.0296,),
-        'right_ankle': (-1.7246, -5.481), 'left_hip': (18.5176, -1.0767, -0.9301),
-        'left_knee': (58.6607,), 'left_ankle': (17.8481, -1.4227),
+        'right_hip': (36.5239, 4.9317, -18.2255), 'right_knee': (34.6883,),
+        'right_ankle': (-1.9897, -5.5163), 'left_hip': (18.4846, -1.0762, -0.9305),
+        'left_knee': (58.6824,), 'left_ankle': (17.8428, -1.4226),
     })
-    human.KeyRoot(0.3, (-0.391, 80.269, 24.492), (-0.7888, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.39, 80.191, 24.402), (-0.7888, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (25.1988, 2.8903, -17.6161), 'right_knee': (23.5034,),
-        'right_ankle': (-1.3993, -4.897), 'left_hip': (13.9503, 0.4223, -0.5597),
-        'left_knee': (61.1895,), 'left_ankle': (19.4222, 0.3357),
+        'right_hip': (25.4551, 2.9468, -17.6141), 'right_knee': (23.8822,),
+        'right_ankle': (-1.2817, -4.923), 'left_hip': (13.9606, 0.4218, -0.5592),
+        'left_knee': (61.3998,), 'left_ankle': (19.4726, 0.3353),
     })
-    human.KeyRoot(0.4, (-1.533, 81.871, 33.02), (-8.6399, 0.0, 0.0))
+    human.KeyRoot(0.4, (-1.529, 81.832, 32.968), (-8.6399, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (19.2066, -0.5731, -10.0618), 'right_knee': (22.6042,),
-        'right_ankle': (3.7635, -3.8288), 'left_hip': (28.6882, -0.0807, 0.5131),
-        'left_knee': (71.9419,), 'left_ankle': (20.0, 0.1735),
+        'right_hip': (19.3594, -0.5564, -10.0668), 'right_knee': (22.834,),
+        'right_ankle': (3.8398, -3.8396), 'left_hip': (28.7012, -0.0871, 0.5063),
+        'left_knee': (72.0405,), 'left_ankle': (20.0, 0.1645),
     })
-    human.KeyRoot(0.5, (-0.782, 83.259, 41.564), (-15.307, 0.0, 0.0))
+    human.KeyRoot(0.5, (-0.779, 83.259, 41.549), (-15.307, 0.0, 0.0))
     human.KeyJoints(0.5, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'left_shoulder': (8.5944, 5.7296, 11.4592),
-        'right_hip': (11.1509, -0.801, -2.8705), 'right_knee': (17.4498,),
-        'right_ankle': (6.3534, -1.3399), 'left_hip': (13.7395, 0.7589, 2.8897),
-        'left_knee': (21.5253,), 'left_ankle': (7.4811, 1.3567),
+        'right_hip': (11.1583, -0.8023, -2.871), 'right_knee': (17.4428,),
+        'right_ankle': (6.3391, -1.3416), 'left_hip': (13.7351, 0.7602, 2.8902),
+        'left_knee': (21.4921,), 'left_ankle': (7.4283, 1.3584),
     })
     # examples/drain_hydraulic_reservoir.mtask:23:5 drain_reservoir > squat: posture on root
     human.KeyRoot(0.6, (0.36, 83.649, 43.962), (-17.9691, 0.0, 0.0))
     human.KeyJoints(0.6, {
         'spine_lumbar': (1.7358, 0.0, 0.0), 'spine_thoracic': (0.8213, 0.0, 0.0),
         'right_shoulder': (10.2863, 5.7296, 11.4592), 'left_shoulder': (10.2863, 5.7296, 11.4592),
-        'right_hip': (8.3156, 0.0161, 0.0024), 'right_knee': (14.0905,),
-        'right_ankle': (5.7797, 0.0163), 'left_hip': (8.303, -0.0161, -0.0024),
-        'left_knee': (14.0647,), 'left_ankle': (5.7643, -0.0163),
+        'right_hip': (8.3151, 0.0162, 0.0024), 'right_knee': (14.0904,),
+        'right_ankle': (5.7801, 0.0164), 'left_hip': (8.3026, -0.0162, -0.0024),
+        'left_knee': (14.0646,), 'left_ankle': (5.7646, -0.0164),
     })
     human.KeyRoot(0.7, (1.82, 82.611, 39.451), (-17.9691, 0.0, 0.0))
     human.KeyJoints(0.7, {
         'spine_lumbar': (8.6475, 0.0, 0.0), 'spine_thoracic': (4.2831, 0.0, 0.0),
         'right_shoulder': (16.8743, 5.7296, 11.4592), 'left_shoulder': (16.8743, 5.7296, 11.4592),
-        'right_hip': (15.4592, 0.0139, 0.0038), 'right_knee': (21.4139,),
-        'right_ankle': (5.9577, 0.0144), 'left_hip': (15.4575, -0.0139, -0.0038),
-        'left_knee': (21.4105,), 'left_ankle': (5.9552, -0.0144),
+        'right_hip': (15.459, 0.014, 0.0039), 'right_knee': (21.4142,),
+        'right_ankle': (5.9582, 0.0145), 'left_hip': (15.4573, -0.014, -0.0039),
+        'left_knee': (21.4108,), 'left_ankle': (5.9557, -0.0145),
     })
-    human.KeyRoot(0.8, (3.065, 80.848, 35.602), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(0.8, (3.065, 80.848, 35.603), (-17.9691, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'right_shoulder': (22.758, 5.7296, 11.4592), 'left_shoulder': (22.758, 5.7296, 11.4592),
-        'right_hip': (22.816, 0.0116, 0.0049), 'right_knee': (29.9697,),
-        'right_ankle': (7.167, 0.0126), 'left_hip': (22.8147, -0.0116, -0.005),
-        'left_knee': (29.9671,), 'left_ankle': (7.1647, -0.0126),
+        'right_hip': (22.8158, 0.0117, 0.0049), 'right_knee': (29.9699,),
+        'right_ankle': (7.1674, 0.0127), 'left_hip': (22.8145, -0.0117, -0.005),
+        'left_knee': (29.9673,), 'left_ankle': (7.165, -0.0127),
     })
     human.KeyRoot(0.9, (4.133, 78.551, 32.3), (-17.9691, 0.0, 0.0))
     human.KeyJoints(0.9, {
         'spine_lumbar': (21.8811, 0.0, 0.0), 'spine_thoracic': (10.9118, 0.0, 0.0),
-        'right_hip': (29.8464, 0.0093, 0.0054), 'right_knee': (38.3893,),
-        'right_ankle': (8.5503, 0.0108), 'left_hip': (29.847, -0.0093, -0.0054),
-        'left_knee': (38.3908,), 'left_ankle': (8.5518, -0.0108),
+        'right_hip': (29.8462, 0.0094, 0.0054), 'right_knee': (38.3896,),
+        'right_ankle': (8.5507, 0.0108), 'left_hip': (29.8469, -0.0094, -0.0055),
+        'left_knee': (38.391,), 'left_ankle': (8.5521, -0.0109),
     })
-    human.KeyRoot(1.0, (5.103, 75.629, 29.299), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(1.0, (5.103, 75.629, 29.3), (-17.9691, 0.0, 0.0))
     human.KeyJoints(1.0, {
         'spine_lumbar': (29.4635, 0.0, 0.0), 'spine_thoracic': (14.709, 0.0, 0.0),
-        'right_knee': (47.1384,), 'left_knee': (47.1388,),
+        'right_knee': (47.1386,), 'left_knee': (47.139,),
     })
-    human.KeyRoot(1.1, (5.954, 72.145, 26.666), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(1.1, (5.954, 72.145, 26.667), (-17.9691, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'spine_lumbar': (38.3848, 0.0, 0.0), 'right_ankle': (11.7267, 0.0069),
-        'left_ankle': (11.7268, -0.0069),
+        'spine_lumbar': (38.3848, 0.0, 0.0), 'right_ankle': (11.7269, 0.007),
+        'left_ankle': (11.7271, -0.007),
     })
     human.KeyRoot(1.2, (6.667, 68.156, 24.461), (-17.9691, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'spine_lumbar': (47.1331, 0.0, 0.0), 'spine_thoracic': (23.5557, 0.0, 0.0),
-        'right_hip': (51.5492, 0.0029, 0.0038), 'right_knee': (64.9317,),
-        'left_hip': (51.5492, -0.0029, -0.0038), 'left_knee': (64.9317,),
+        'right_hip': (51.5492, 0.003, 0.0038), 'right_knee': (64.9318,),
+        'left_hip': (51.5492, -0.003, -0.0038), 'left_knee': (64.9318,),
     })
     human.KeyRoot(1.3, (7.223, 63.723, 22.736), (-17.9691, 0.0, 0.0))
     human.KeyJoints(1.3, {
         'spine_lumbar': (56.7103, 0.0, 0.0), 'spine_thoracic': (28.3502, 0.0, 0.0),
         'right_shoulder': (49.8075, 5.7296, 11.4592), 'left_shoulder': (49.8075, 5.7296, 11.4592),
         'right_hip': (58.8419, 0.001, 0.0023), 'right_knee': (73.9143,),
-        'left_hip': (58.842, -0.001, -0.0023), 'left_knee': (73.9143,),
+        'left_hip': (58.8419, -0.001, -0.0023), 'left_knee': (73.9144,),
     })
     human.KeyRoot(1.4, (7.617, 58.777, 21.514), (-17.9691, 0.0, 0.0))
     human.KeyJoints(1.4, {

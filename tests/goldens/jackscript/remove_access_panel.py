@@ -10,7 +10,7 @@ def remove_access_panel():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
     # examples/remove_access_panel.mtask:26:5 remove_access_panel > walk_to > travel: locomotion on root at panel_front
-    human.Walk((-0.738, 0.0, 57.527), start=0.0, duration=0.54)
+    human.Walk((-0.738, 0.0, 57.519), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -18,82 +18,83 @@ def remove_access_panel():
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
-        'left_ankle': (1.7189, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.7493, 0.0, 0.0), 'right_knee': (4.6657,),
+        'right_ankle': (1.9163, 0.0), 'left_hip': (2.7493, 0.0, 0.0), 'left_knee': (4.6657,),
+        'left_ankle': (1.9163, 0.0),
     })
-    human.KeyRoot(0.1, (2.272, 68.003, 11.79), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.272, 67.882, 11.671), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (52.6287, 0.8668, 2.9312), 'right_knee': (99.0403,),
-        'right_ankle': (14.2566, 3.1136), 'left_hip': (26.5479, -1.4412, -2.1163),
-        'left_knee': (69.7381,), 'left_ankle': (14.0059, -2.5602),
+        'right_hip': (52.8523, 0.86, 2.9413), 'right_knee': (99.531,),
+        'right_ankle': (14.4265, 3.1214), 'left_hip': (26.6977, -1.4353, -2.1304),
+        'left_knee': (70.169,), 'left_ankle': (14.1519, -2.5686),
     })
-    human.KeyRoot(0.2, (1.578, 62.912, 23.083), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.578, 62.836, 22.958), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (48.1215, 1.3736, 0.8243), 'right_knee': (30.6598,),
-        'right_ankle': (-17.8327, 1.451), 'left_hip': (24.9539, -0.7206, -1.9994),
-        'left_knee': (86.9126,), 'left_ankle': (16.7475, -2.1254),
+        'right_hip': (47.9676, 1.3798, 0.8184), 'right_knee': (30.1643,),
+        'right_ankle': (-18.1754, 1.4509), 'left_hip': (24.9437, -0.7198, -2.0029),
+        'left_knee': (87.0561,), 'left_ankle': (16.8283, -2.1282),
     })
-    human.KeyRoot(0.3, (-0.635, 64.281, 34.159), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.635, 64.164, 34.078), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (40.7401, -0.4712, -0.4059), 'right_knee': (34.2967,),
-        'right_ankle': (-6.4377, -0.622), 'left_hip': (9.1998, 0.4134, 0.5901),
-        'left_knee': (75.865,), 'left_ankle': (19.7372, 0.7205),
+        'right_hip': (41.0463, -0.4699, -0.4093), 'right_knee': (34.7155,),
+        'right_ankle': (-6.3254, -0.6232), 'left_hip': (9.4975, 0.413, 0.591),
+        'left_knee': (76.6892,), 'left_ankle': (20.0, 0.7211),
     })
-    human.KeyRoot(0.4, (-2.429, 68.689, 45.268), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.429, 68.569, 45.221), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (28.5304, -1.9434, -1.0564), 'right_knee': (30.9075,),
-        'right_ankle': (2.3985, -2.2119), 'left_hip': (27.1148, 1.4664, 2.4983),
-        'left_knee': (80.3152,), 'left_ankle': (19.7684, 2.8966),
+        'right_hip': (28.9122, -1.9401, -1.0713), 'right_knee': (31.5757,),
+        'right_ankle': (2.6849, -2.2161), 'left_hip': (27.4428, 1.4613, 2.5082),
+        'left_knee': (81.0979,), 'left_ankle': (19.9712, 2.9026),
     })
-    human.KeyRoot(0.5, (-1.23, 71.813, 55.879), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.23, 71.771, 55.866), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (13.8804, -1.0358, -0.256),
-        'right_knee': (20.2629,), 'right_ankle': (6.3904, -1.067),
-        'left_hip': (15.5134, 1.0348, 0.2754), 'left_knee': (23.8211,),
-        'left_ankle': (8.1158, 1.0708),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (14.0776, -1.0356, -0.2598),
+        'right_knee': (20.649,), 'right_ankle': (6.5788, -1.0677),
+        'left_hip': (15.7409, 1.0348, 0.2756), 'left_knee': (24.2703,),
+        'left_ankle': (8.2441, 1.0708),
     })
     # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 112.0), start=0.54, duration=0.2628)
-    human.KeyRoot(0.6, (0.0, 72.796, 60.0), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.0, 72.802, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'neck': (0.1419, -0.0007, -2.7675), 'head': (0.1428, 0.0), 'right_hip': (5.4317, 0.0, 0.0),
-        'right_knee': (9.9909,), 'right_ankle': (4.5592, 0.0), 'left_hip': (5.3879, 0.0, 0.0),
-        'left_knee': (9.8984,), 'left_ankle': (4.5077, 0.0),
+        'neck': (0.1419, -0.0007, -2.7675), 'head': (0.1428, 0.0), 'right_hip': (5.4298, 0.0, 0.0),
+        'right_knee': (9.9869,), 'right_ankle': (4.5571, 0.0), 'left_hip': (5.3366, 0.0, 0.0),
+        'left_knee': (9.7903,), 'left_ankle': (4.4478, 0.0),
     })
     human.KeyJoints(0.7, {
-        'neck': (0.7073, -0.0036, -13.7911), 'head': (0.7118, 0.0001), 'left_knee': (7.8471,),
+        'neck': (0.7073, -0.0036, -13.7911), 'head': (0.7118, 0.0001),
+        'left_hip': (4.4022, 0.0, 0.0), 'left_knee': (7.8222,), 'left_ankle': (3.4174, 0.0),
     })
-    human.KeyRoot(0.8, (0.0, 72.968, 60.0), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.8, (0.0, 72.969, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (1.0702, -0.0054, -20.8676), 'head': (1.0771, 0.0001), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
-        'right_wrist': (0.0, 0.0), 'right_hip': (3.5276, 0.0001, -0.0012), 'right_knee': (5.9802,),
-        'right_ankle': (2.4547, -0.0008), 'left_hip': (3.3733, 0.0, 0.0), 'left_knee': (5.6547,),
-        'left_ankle': (2.2669, 0.0),
+        'right_wrist': (0.0, 0.0), 'right_hip': (3.5038, 0.0001, -0.0012), 'right_knee': (5.9301,),
+        'right_ankle': (2.4287, -0.0008), 'left_hip': (3.3634, 0.0, 0.0), 'left_knee': (5.6338,),
+        'left_ankle': (2.2552, 0.0),
     })
     # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     human.KeyJoints(0.9, {
         'spine_lumbar': (0.2067, -0.2708, 0.1879), 'spine_thoracic': (-0.6188, -0.4126, 0.0841),
         'right_clavicle': (0.8201, -0.187), 'right_shoulder': (10.614, 6.4984, 10.8126),
         'right_elbow': (34.9053, 17.1715), 'right_wrist': (-0.2131, 0.0443),
-        'right_hip': (3.1227, 0.0, 0.0), 'right_knee': (5.1271,), 'right_ankle': (2.0064, 0.0),
-        'left_hip': (3.1288, 0.0, 0.0), 'left_knee': (5.14,), 'left_ankle': (2.0133, 0.0),
+        'right_hip': (3.1096, 0.0, 0.0), 'right_knee': (5.0996,), 'right_ankle': (1.992, 0.0),
+        'left_hip': (3.1132, 0.0, 0.0), 'left_knee': (5.1071,), 'left_ankle': (1.9961, 0.0),
     })
     human.KeyJoints(1.0, {
         'spine_lumbar': (0.8099, -1.0168, 0.7247), 'spine_thoracic': (-2.3144, -1.5429, 0.3325),
         'right_clavicle': (3.0672, -0.6993), 'right_shoulder': (16.1476, 8.6049, 9.0411),
         'right_elbow': (36.3514, 17.1242), 'right_wrist': (-0.7968, 0.1657),
-        'right_hip': (3.1001, 0.0, 0.0), 'right_knee': (5.0796,), 'right_ankle': (1.9818, 0.0),
-        'left_hip': (3.1035, 0.0, 0.0), 'left_knee': (5.0869,), 'left_ankle': (1.9857, 0.0),
+        'right_hip': (3.0928, 0.0, 0.0), 'right_knee': (5.0642,), 'right_ankle': (1.9737, 0.0),
+        'left_hip': (3.0948, 0.0, 0.0), 'left_knee': (5.0684,), 'left_ankle': (1.976, 0.0),
     })
     human.KeyJoints(1.1, {
         'spine_lumbar': (1.7465, -2.0874, 1.5351), 'spine_thoracic': (-4.7281, -3.1521, 0.7244),
         'right_clavicle': (6.266, -1.4286), 'right_shoulder': (24.0249, 11.6037, 6.5193),
         'right_elbow': (38.4101, 17.0565), 'right_wrist': (-1.6278, 0.3385),
-        'right_hip': (2.8693, 0.0, 0.0), 'right_knee': (4.5919,), 'right_ankle': (1.7225, 0.0),
-        'left_hip': (2.877, 0.0, 0.0), 'left_knee': (4.6171,), 'left_ankle': (1.7299, 0.0),
+        'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
+        'left_hip': (2.874, 0.0, 0.0), 'left_knee': (4.6105,), 'left_ankle': (1.7213, 0.0),
     })
     human.KeyJoints(1.2, {
         'spine_lumbar': (2.9534, -3.3316, 2.5439), 'spine_thoracic': (-7.5008, -5.0006, 1.2388),

@@ -10,7 +10,7 @@ def remove_avionics_unit():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
     # examples/remove_avionics_unit.mtask:29:5 remove_avionics_unit > walk_to > travel: locomotion on root at rack_front
-    human.Walk((-0.738, 0.0, 47.972), start=0.0, duration=0.54)
+    human.Walk((-0.738, 0.0, 47.964), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -18,53 +18,53 @@ def remove_avionics_unit():
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
-        'left_ankle': (1.7189, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.7493, 0.0, 0.0), 'right_knee': (4.6657,),
+        'right_ankle': (1.9163, 0.0), 'left_hip': (2.7493, 0.0, 0.0), 'left_knee': (4.6657,),
+        'left_ankle': (1.9163, 0.0),
     })
-    human.KeyRoot(0.1, (2.272, 69.839, 9.938), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.272, 69.839, 9.82), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (47.1476, 1.2164, 2.4401), 'right_knee': (90.4326,),
-        'right_ankle': (16.4982, 2.7642), 'left_hip': (22.8308, -1.6307, -1.6836),
-        'left_knee': (59.9024,), 'left_ankle': (14.0032, -2.3437),
+        'right_hip': (47.159, 1.2131, 2.445), 'right_knee': (90.4838,),
+        'right_ankle': (16.4408, 2.7675), 'left_hip': (22.8345, -1.6283, -1.689),
+        'left_knee': (59.9909,), 'left_ankle': (13.9583, -2.3459),
     })
-    human.KeyRoot(0.2, (1.578, 66.418, 19.379), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.578, 66.025, 19.254), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (42.5604, 1.3346, 0.7275), 'right_knee': (31.5444,),
-        'right_ankle': (-11.3253, 1.4276), 'left_hip': (22.2193, -0.9729, -1.558),
-        'left_knee': (75.0018,), 'left_ankle': (16.9904, -1.8368),
+        'right_hip': (44.0855, 1.3176, 0.7658), 'right_knee': (34.2365,),
+        'right_ankle': (-10.1592, 1.4377), 'left_hip': (22.9213, -0.9481, -1.6074),
+        'left_knee': (76.5057,), 'left_ankle': (17.0452, -1.8661),
     })
-    human.KeyRoot(0.3, (-0.635, 67.006, 28.603), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.635, 66.756, 28.523), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (33.6893, -0.4944, -0.3297), 'right_knee': (29.0185,),
-        'right_ankle': (-4.6651, -0.5942), 'left_hip': (10.9736, 0.4535, 0.4986),
-        'left_knee': (69.3796,), 'left_ankle': (19.9815, 0.674),
+        'right_hip': (34.4847, -0.4918, -0.3379), 'right_knee': (30.4006,),
+        'right_ankle': (-4.0787, -0.5967), 'left_hip': (11.4304, 0.4477, 0.5129),
+        'left_knee': (70.4901,), 'left_ankle': (20.0, 0.6808),
     })
-    human.KeyRoot(0.4, (-2.429, 69.878, 37.861), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.429, 69.844, 37.814), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (24.1585, -1.9808, -0.8884), 'right_knee': (26.8563,),
-        'right_ankle': (2.7168, -2.1709), 'left_hip': (26.9119, 1.5819, 2.2635),
-        'left_knee': (76.3302,), 'left_ankle': (19.86, 2.7612),
+        'right_hip': (24.2864, -1.9799, -0.8933), 'right_knee': (27.0291,),
+        'right_ankle': (2.7617, -2.172), 'left_hip': (27.0629, 1.5753, 2.2774),
+        'left_knee': (76.5767,), 'left_ankle': (19.93, 2.7689),
     })
-    human.KeyRoot(0.5, (-1.23, 72.022, 46.62), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.23, 72.022, 46.606), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.4729, -1.0385, -0.2298),
-        'right_knee': (18.6664,), 'right_ankle': (6.2006, -1.0636),
-        'left_hip': (14.208, 1.0378, 0.2473), 'left_knee': (22.4577,),
-        'left_ankle': (7.8808, 1.0668),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.4801, -1.0385, -0.2299),
+        'right_knee': (18.6571,), 'right_ankle': (6.1841, -1.0636),
+        'left_hip': (14.2068, 1.0377, 0.2474), 'left_knee': (22.4253,),
+        'left_ankle': (7.9261, 1.0668),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
     human.LookAt((-22.0, 178.0, 100.0), start=0.54, duration=0.2628)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > look: gaze on head at latch_right
     human.LookAt((22.0, 178.0, 100.0), start=0.54, duration=0.2628)
-    human.KeyRoot(0.6, (0.0, 72.824, 50.0), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.0, 72.826, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'neck': (-2.6125, 0.0, 0.0), 'head': (-2.2385, 0.0), 'right_hip': (5.1614, 0.0, 0.0),
-        'right_knee': (9.4216,), 'right_ankle': (4.2602, 0.0), 'left_hip': (5.1158, 0.0, 0.0),
-        'left_knee': (9.3255,), 'left_ankle': (4.207, 0.0),
+        'neck': (-2.6125, 0.0, 0.0), 'head': (-2.2385, 0.0), 'right_hip': (5.1434, 0.0, 0.0),
+        'right_knee': (9.3837,), 'right_ankle': (4.2403, 0.0), 'left_hip': (5.0976, 0.0, 0.0),
+        'left_knee': (9.287,), 'left_ankle': (4.1868, 0.0),
     })
     human.KeyJoints(0.7, {
-        'neck': (-13.0189, 0.0, 0.0), 'head': (-11.1553, 0.0), 'left_knee': (7.3716,),
+        'neck': (-13.0189, 0.0, 0.0), 'head': (-11.1553, 0.0), 'left_knee': (7.3445,),
     })
     human.KeyRoot(0.8, (0.0, 72.97, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
@@ -73,9 +73,9 @@ def remove_avionics_unit():
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
         'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
         'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0),
-        'right_hip': (3.4516, 0.0, -0.0009), 'right_knee': (5.82,),
-        'right_ankle': (2.3699, -0.0005), 'left_hip': (3.3429, 0.0, 0.0), 'left_knee': (5.5905,),
-        'left_ankle': (2.232, 0.0),
+        'right_hip': (3.4375, 0.0, -0.0009), 'right_knee': (5.7904,),
+        'right_ankle': (2.354, -0.0005), 'left_hip': (3.3429, 0.0, 0.0), 'left_knee': (5.5906,),
+        'left_ankle': (2.2334, 0.0),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
@@ -85,26 +85,26 @@ def remove_avionics_unit():
         'right_elbow': (33.9093, 17.0012), 'right_wrist': (0.0072, -0.0191),
         'left_clavicle': (0.6526, 0.2398), 'left_shoulder': (11.442, 5.8946, 11.2736),
         'left_elbow': (34.3349, 15.1753), 'left_wrist': (-0.1521, -0.0457),
-        'right_hip': (3.116, 0.0, 0.0), 'right_knee': (5.113,), 'right_ankle': (1.999, 0.0),
-        'left_hip': (3.1164, 0.0, 0.0), 'left_knee': (5.1139,), 'left_ankle': (1.9995, 0.0),
+        'right_hip': (3.1133, 0.0, 0.0), 'right_knee': (5.1074,), 'right_ankle': (1.996, 0.0),
+        'left_hip': (3.1178, 0.0, 0.0), 'left_knee': (5.1168,), 'left_ankle': (2.0011, 0.0),
     })
     human.KeyJoints(1.0, {
         'spine_lumbar': (0.3466, -0.3502, -1.2601), 'spine_thoracic': (1.1465, 0.0942, -2.5202),
         'right_clavicle': (2.3009, -1.2601), 'right_shoulder': (8.267, 20.1218, 6.9827),
         'right_elbow': (32.5564, 16.4661), 'left_clavicle': (2.5143, 0.9286),
         'left_shoulder': (19.5967, 6.3688, 10.743), 'left_elbow': (34.2055, 9.4318),
-        'left_wrist': (-0.5872, -0.1759), 'right_hip': (3.0964, 0.0, 0.0), 'right_knee': (5.0717,),
-        'right_ankle': (1.9777, 0.0), 'left_hip': (3.0966, 0.0, 0.0), 'left_knee': (5.0721,),
-        'left_ankle': (1.9779, 0.0),
+        'left_wrist': (-0.5872, -0.1759), 'right_hip': (3.0948, 0.0, 0.0), 'right_knee': (5.0685,),
+        'right_ankle': (1.976, 0.0), 'left_hip': (3.0974, 0.0, 0.0), 'left_knee': (5.0738,),
+        'left_ankle': (1.9788, 0.0),
     })
     human.KeyJoints(1.1, {
         'spine_lumbar': (0.7852, -0.7411, -2.6664), 'spine_thoracic': (2.4261, 0.1993, -5.3328),
         'right_clavicle': (4.8876, -2.6664), 'right_shoulder': (7.9016, 36.1834, 1.987),
         'right_elbow': (30.482, 15.6596), 'left_clavicle': (5.3208, 1.9763),
         'left_shoulder': (31.9524, 7.0909, 9.9403), 'left_elbow': (33.9944, 0.775),
-        'left_wrist': (-1.2451, -0.3722), 'right_hip': (2.8675, 0.0, 0.0), 'right_knee': (4.5888,),
-        'right_ankle': (1.7213, 0.0), 'left_hip': (2.875, 0.0, 0.0), 'left_knee': (4.6134,),
-        'left_ankle': (1.7189, 0.0),
+        'left_wrist': (-1.2451, -0.3722), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5865,),
+        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8749, 0.0, 0.0), 'left_knee': (4.6129,),
+        'left_ankle': (1.7225, 0.0),
     })
     human.KeyJoints(1.2, {
         'spine_lumbar': (1.3989, -1.2265, -4.413), 'spine_thoracic': (4.0152, 0.3299, -8.826),
@@ -178,63 +178,61 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(2.2, {
-        'spine_lumbar': (27.0122, -0.0507, -15.0), 'spine_thoracic': (-0.6828, -0.5467, -30.0),
-        'right_shoulder': (6.2002, 171.8684, -41.6984), 'right_elbow': (0.8903, 8.5842),
-        'right_wrist': (0.5938, -1.5594), 'left_clavicle': (30.0, 15.0),
-        'left_shoulder': (168.2062, 8.7304, 3.3465), 'left_elbow': (7.883, -75.1842),
-        'left_wrist': (-6.5152, -2.1074),
+        'spine_lumbar': (27.0121, -0.0511, -15.0), 'spine_thoracic': (-0.6836, -0.5472, -30.0),
+        'right_shoulder': (6.2003, 171.8684, -41.6984), 'right_elbow': (0.8901, 8.5842),
+        'right_wrist': (0.5937, -1.5593), 'left_clavicle': (30.0, 15.0),
+        'left_shoulder': (168.2071, 8.7303, 3.3465), 'left_elbow': (7.8817, -75.1842),
+        'left_wrist': (-6.5149, -2.1073),
     })
     human.KeyJoints(2.3, {
-        'left_shoulder': (168.7606, 8.6473, 3.3487), 'left_elbow': (6.9235, -75.1828),
-        'left_wrist': (-6.2228, -2.0015),
+        'left_shoulder': (168.7512, 8.6473, 3.3487), 'left_elbow': (6.9284, -75.1829),
+        'left_wrist': (-6.222, -2.0014),
     })
     human.KeyJoints(2.4, {
-        'spine_thoracic': (-0.7575, -0.6369, -30.0), 'right_wrist': (0.4743, -1.3124),
-        'left_shoulder': (169.4987, 8.5388, 3.3509), 'left_elbow': (5.6313, -75.1811),
-        'left_wrist': (-5.711, -1.8217),
+        'spine_thoracic': (-0.7639, -0.6441, -30.0), 'right_wrist': (0.4778, -1.3174),
+        'left_shoulder': (169.4701, 8.5405, 3.3509), 'left_elbow': (5.6614, -75.1812),
+        'left_wrist': (-5.7372, -1.8306),
     })
     human.KeyJoints(2.5, {
-        'right_shoulder': (6.3626, 171.7906, -41.6984), 'left_elbow': (4.1269, -75.1792),
-        'left_wrist': (-4.9391, -1.5573),
+        'spine_lumbar': (27.2247, 0.1333, -15.0), 'right_elbow': (0.452, 8.5853),
+        'right_wrist': (0.3766, -1.0992), 'left_shoulder': (170.3659, 8.4187, 3.3526),
+        'left_elbow': (4.118, -75.1792), 'left_wrist': (-4.9341, -1.5556),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=2.567146, duration=0.072)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=2.567146, duration=0.072)
     human.KeyJoints(2.6, {
-        'spine_lumbar': (27.2455, 0.1409, -15.0), 'spine_thoracic': (-0.566, -0.5494, -30.0),
         'neck': (-19.7057, 0.0, 0.0), 'head': (-16.8849, 0.0),
-        'right_shoulder': (6.5227, 171.7691, -41.6985), 'right_elbow': (0.2932, 8.5858),
-        'right_wrist': (0.2695, -0.8576), 'left_shoulder': (171.1585, 8.3267, 3.3531),
-        'left_elbow': (2.7984, -75.1777), 'left_wrist': (-3.96, -1.2312),
+        'right_shoulder': (6.3631, 171.7904, -41.6984),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
     human.LookAt((0.0, 172.0, 98.0), start=2.639146, duration=0.2628)
-    human.KeyJoints(2.7, {'neck': (-21.6935, -0.0053, 0.03), 'head': (-17.0173, 0.0)})
-    human.KeyJoints(2.8, {'neck': (-33.5744, -0.037, 0.2096), 'head': (-17.8085, -0.0002)})
+    human.KeyJoints(2.7, {'neck': (-21.6801, -0.0055, 0.0306), 'head': (-17.0183, 0.0)})
+    human.KeyJoints(2.8, {'neck': (-33.4808, -0.0383, 0.2134), 'head': (-17.8153, -0.0001)})
     human.KeyJoints(2.9, {
-        'spine_lumbar': (27.2455, 0.1409, -15.0), 'spine_thoracic': (-0.566, -0.5494, -30.0),
-        'neck': (-56.1258, -0.0971, 0.5504), 'head': (-19.3102, -0.0004),
-        'right_shoulder': (6.5227, 171.7691, -41.6985), 'right_elbow': (0.2932, 8.5858),
-        'right_wrist': (0.2695, -0.8576), 'left_clavicle': (30.0, 15.0),
-        'left_shoulder': (171.1585, 8.3267, 3.3531), 'left_elbow': (2.7984, -75.1777),
-        'left_wrist': (-3.96, -1.2312),
+        'spine_lumbar': (27.2247, 0.1333, -15.0), 'spine_thoracic': (-0.7019, -0.6329, -30.0),
+        'neck': (-55.8799, -0.1005, 0.5604), 'head': (-19.3282, -0.0004),
+        'right_shoulder': (6.3631, 171.7904, -41.6984), 'right_elbow': (0.452, 8.5853),
+        'right_wrist': (0.3766, -1.0992), 'left_clavicle': (30.0, 15.0),
+        'left_shoulder': (170.3659, 8.4187, 3.3526), 'left_elbow': (4.118, -75.1792),
+        'left_wrist': (-4.9341, -1.5556),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     human.KeyJoints(3.0, {
-        'spine_lumbar': (25.611, 0.9258, -11.0556), 'spine_thoracic': (3.9045, -1.6506, -18.8591),
-        'neck': (-56.6702, -0.0986, 0.5586), 'right_shoulder': (64.4507, 122.5096, -27.9589),
-        'right_elbow': (1.389, 5.1671), 'right_wrist': (0.3644, -0.6509),
-        'left_clavicle': (30.0, 5.7292), 'left_shoulder': (114.3014, 56.9981, 25.608),
-        'left_elbow': (2.5826, -23.8382), 'left_wrist': (-2.5567, -1.0604),
+        'spine_lumbar': (25.5971, 0.9206, -11.0556), 'spine_thoracic': (3.8136, -1.7062, -18.8591),
+        'neck': (-56.4207, -0.1021, 0.5687), 'right_shoulder': (64.3444, 122.5238, -27.9589),
+        'right_elbow': (1.4948, 5.1668), 'right_wrist': (0.4358, -0.8118),
+        'left_clavicle': (30.0, 5.7292), 'left_shoulder': (113.7735, 57.0594, 25.6077),
+        'left_elbow': (3.4616, -23.8392), 'left_wrist': (-3.2055, -1.2765),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (22.9448, 2.3393, -4.6217), 'spine_thoracic': (11.6361, -3.4468, -0.6335),
-        'right_clavicle': (30.0, -15.0), 'right_shoulder': (158.9402, 42.1597, -5.5476),
-        'right_elbow': (3.1764, -0.4093), 'right_wrist': (0.5193, -0.3138),
-        'left_clavicle': (30.0, -9.393), 'left_shoulder': (21.5182, 136.3886, 61.9092),
-        'left_elbow': (2.2306, 59.9045), 'left_wrist': (-0.2675, -0.7817),
+        'spine_lumbar': (22.9423, 2.3383, -4.6217), 'spine_thoracic': (11.619, -3.4569, -0.6335),
+        'right_clavicle': (30.0, -15.0), 'right_shoulder': (158.9208, 42.1623, -5.5476),
+        'right_elbow': (3.1957, -0.4094), 'right_wrist': (0.5323, -0.3431),
+        'left_clavicle': (30.0, -9.393), 'left_shoulder': (21.422, 136.3998, 61.9091),
+        'left_elbow': (2.3908, 59.9043), 'left_wrist': (-0.3858, -0.8211),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
@@ -265,82 +263,81 @@ def remove_avionics_unit():
     })
     human.KeyJoints(3.5, {
         'right_shoulder': (175.2085, 27.12, -0.9118), 'right_elbow': (20.8227, -1.1923),
-        'right_wrist': (0.9973, 3.9283), 'left_shoulder': (15.9991, 159.0112, 63.3499),
+        'right_wrist': (0.9973, 3.9283), 'left_shoulder': (15.999, 159.0112, 63.3499),
         'left_elbow': (19.4195, 76.8891), 'left_wrist': (-6.1266, -5.3178),
     })
     human.KeyJoints(3.6, {
-        'right_shoulder': (169.0632, 28.4853, -1.3925), 'right_elbow': (43.3589, -0.6054),
-        'right_wrist': (1.9331, 9.3318), 'left_shoulder': (33.7375, 166.2111, 54.8207),
+        'right_shoulder': (169.0632, 28.4853, -1.3924), 'right_elbow': (43.3589, -0.6054),
+        'right_wrist': (1.9331, 9.3318), 'left_shoulder': (33.7373, 166.2111, 54.8207),
         'left_elbow': (42.1361, 74.7044), 'left_wrist': (-14.4688, -11.5713),
     })
     human.KeyJoints(3.7, {
         'spine_lumbar': (25.2115, 1.6706, -3.1542), 'spine_thoracic': (12.8766, -2.6383, 3.7721),
-        'right_shoulder': (164.7735, 29.8594, -1.9408), 'right_elbow': (59.09, -0.1957),
+        'right_shoulder': (164.7735, 29.8594, -1.9407), 'right_elbow': (59.09, -0.1957),
         'right_wrist': (2.5863, 13.1036), 'left_clavicle': (30.0, -14.4368),
-        'left_shoulder': (46.9905, 171.3636, 48.867), 'left_elbow': (57.9931, 73.1017),
+        'left_shoulder': (46.9904, 171.3636, 48.867), 'left_elbow': (57.9931, 73.1017),
         'left_wrist': (-20.292, -15.9364),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(3.8, {
-        'spine_lumbar': (19.87, 0.5642, -5.1013), 'spine_thoracic': (14.627, -1.3503, 2.14),
-        'right_shoulder': (166.2277, 30.3691, -2.2127), 'right_elbow': (48.5719, -0.0452),
-        'right_wrist': (2.4028, 9.5734), 'left_clavicle': (30.0, -13.3237),
-        'left_shoulder': (41.026, 169.3388, 46.4129), 'left_elbow': (48.3381, 71.8041),
-        'left_wrist': (-16.6699, -16.1846),
+        'spine_lumbar': (19.8692, 0.5639, -5.1018), 'spine_thoracic': (14.6276, -1.3499, 2.1396),
+        'right_shoulder': (166.2283, 30.3687, -2.2125), 'right_elbow': (48.569, -0.0451),
+        'right_wrist': (2.4028, 9.5725), 'left_clavicle': (30.0, -13.3234),
+        'left_shoulder': (41.0238, 169.3377, 46.4125), 'left_elbow': (48.3349, 71.8038),
+        'left_wrist': (-16.6686, -16.1845),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(3.9, {
-        'spine_lumbar': (17.7161, -0.1687, -6.3061), 'spine_thoracic': (15.7783, 0.0824, 1.3001),
-        'right_shoulder': (169.7617, 28.5781, -1.3026), 'right_elbow': (39.4817, 0.228),
-        'right_wrist': (2.4325, 6.4084), 'left_clavicle': (30.0, -12.7985),
-        'left_shoulder': (34.0554, 164.7398, 45.2912), 'left_elbow': (37.2615, 70.2799),
-        'left_wrist': (-12.3899, -15.2441),
+        'spine_lumbar': (17.7325, -0.1726, -6.3034), 'spine_thoracic': (15.7784, 0.0756, 1.3009),
+        'right_shoulder': (169.7524, 28.5747, -1.3028), 'right_elbow': (39.4833, 0.2263),
+        'right_wrist': (2.4325, 6.4099), 'left_clavicle': (30.0, -12.8005),
+        'left_shoulder': (34.0576, 164.74, 45.3014), 'left_elbow': (37.2706, 70.2874),
+        'left_wrist': (-12.393, -15.2411),
     })
     human.KeyJoints(4.0, {
-        'right_shoulder': (171.4208, 28.4138, -1.0949),
-        'left_shoulder': (34.2347, 164.0384, 44.6275),
+        'right_shoulder': (171.3988, 28.4113, -1.0954),
+        'left_shoulder': (34.2368, 164.0396, 44.6471),
     })
     human.KeyJoints(4.1, {
-        'right_shoulder': (172.8882, 28.2718, -0.914), 'right_elbow': (38.5132, 0.6364),
-        'right_wrist': (2.3809, 5.5529), 'left_shoulder': (34.5436, 163.4303, 44.0148),
-        'left_elbow': (36.7007, 68.7144),
+        'right_shoulder': (172.8574, 28.2699, -0.9147), 'right_elbow': (38.5154, 0.6314),
+        'right_wrist': (2.381, 5.5557), 'left_shoulder': (34.5456, 163.4323, 44.0408),
+        'left_elbow': (36.7071, 68.7332),
     })
-    human.KeyJoints(4.2, {'right_shoulder': (174.175, 28.1505, -0.7581)})
+    human.KeyJoints(4.2, {'right_shoulder': (174.1389, 28.1492, -0.7589)})
     human.KeyJoints(4.3, {
-        'right_shoulder': (175.2924, 28.0482, -0.6255), 'right_elbow': (37.8079, 0.9898),
-        'right_wrist': (2.284, 4.9237), 'left_shoulder': (35.4609, 162.4676, 42.9402),
-        'left_elbow': (36.2934, 67.4697),
+        'right_shoulder': (175.254, 28.0473, -0.6263), 'right_elbow': (37.8101, 0.9836),
+        'right_wrist': (2.284, 4.9268), 'left_shoulder': (35.4626, 162.4703, 42.9714),
+        'left_elbow': (36.2977, 67.4922),
     })
-    human.KeyJoints(4.4, {'right_shoulder': (176.2516, 27.9634, -0.5141)})
+    human.KeyJoints(4.4, {'right_shoulder': (176.2135, 27.9628, -0.5149)})
     human.KeyJoints(4.5, {
-        'right_shoulder': (177.0638, 27.8943, -0.4223),
-        'left_shoulder': (36.6295, 161.7984, 42.0638), 'left_elbow': (36.0152, 66.5155),
-        'left_wrist': (-12.0614, -15.4095),
+        'right_shoulder': (177.0281, 27.894, -0.423), 'left_shoulder': (36.6308, 161.8011, 42.0925),
+        'left_elbow': (36.0178, 66.5362), 'left_wrist': (-12.0622, -15.4077),
     })
     human.KeyJoints(4.6, {
-        'right_shoulder': (177.7403, 27.8394, -0.348), 'right_elbow': (37.1519, 1.412),
-        'right_wrist': (2.0947, 4.3286),
+        'right_shoulder': (177.7084, 27.8393, -0.3487), 'right_elbow': (37.1536, 1.4069),
+        'right_wrist': (2.0948, 4.331),
     })
     human.KeyJoints(4.7, {
-        'right_shoulder': (178.2922, 27.7971, -0.2896),
-        'left_shoulder': (37.8717, 161.3697, 41.382), 'left_elbow': (35.8414, 65.8214),
+        'right_shoulder': (178.2652, 27.797, -0.2902),
+        'left_shoulder': (37.8725, 161.3718, 41.4034), 'left_elbow': (35.8428, 65.8369),
     })
-    human.KeyJoints(4.8, {'right_shoulder': (178.7307, 27.7656, -0.2451)})
+    human.KeyJoints(4.8, {'right_shoulder': (178.7094, 27.7657, -0.2455)})
     human.KeyJoints(4.9, {
-        'right_elbow': (36.8536, 1.6979), 'right_wrist': (1.9091, 4.0477),
-        'left_shoulder': (39.0095, 161.1283, 40.8911), 'left_elbow': (35.7474, 65.3569),
+        'right_elbow': (36.8543, 1.6954), 'right_wrist': (1.9091, 4.0488),
+        'left_shoulder': (39.01, 161.1295, 40.9034), 'left_elbow': (35.748, 65.3658),
     })
-    human.KeyJoints(5.0, {'right_shoulder': (179.3123, 27.7291, -0.1905)})
-    human.KeyJoints(5.1, {'left_shoulder': (39.8653, 161.0209, 40.5875)})
+    human.KeyJoints(5.0, {'right_shoulder': (179.3022, 27.7291, -0.1907)})
+    human.KeyJoints(5.1, {'left_shoulder': (39.8654, 161.0213, 40.5917)})
     human.KeyJoints(5.2, {
-        'right_shoulder': (179.5747, 27.7167, -0.1694),
-        'left_shoulder': (40.1318, 161.0008, 40.5047), 'left_elbow': (35.7026, 65.0242),
+        'right_shoulder': (179.5728, 27.7167, -0.1695),
+        'left_shoulder': (40.1318, 161.001, 40.5062), 'left_elbow': (35.7026, 65.0253),
     })
     human.KeyRoot(5.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(5.3, {
-        'left_shoulder': (40.2611, 160.9943, 40.4675), 'left_wrist': (-11.9791, -15.6428),
+        'left_shoulder': (40.2611, 160.9943, 40.4676), 'left_wrist': (-11.9791, -15.6428),
         'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
         'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
     })
@@ -420,65 +417,65 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(6.5, (-80.127, 72.865, 40.09), (-90.0, 0.0, 0.0))
     human.KeyJoints(6.5, {
-        'right_shoulder': (173.1946, 26.6681, 1.8317), 'right_elbow': (39.4884, 0.5012),
-        'right_wrist': (4.9018, 3.6318), 'left_shoulder': (41.0836, 153.5524, 41.3429),
-        'left_elbow': (38.7135, 59.0427), 'left_wrist': (-9.1725, -16.0838),
+        'right_shoulder': (173.1942, 26.6677, 1.8322), 'right_elbow': (39.4884, 0.5012),
+        'right_wrist': (4.9018, 3.6317), 'left_shoulder': (41.0836, 153.5524, 41.3434),
+        'left_elbow': (38.7135, 59.0427), 'left_wrist': (-9.1725, -16.084),
         'right_hip': (4.5963, 0.0769, 0.0062), 'right_knee': (8.4605,),
         'right_ankle': (3.8601, 0.0772), 'left_hip': (4.6637, -0.0769, -0.0063),
         'left_knee': (8.6025,), 'left_ankle': (3.9378, -0.0771),
     })
     human.KeyJoints(6.6, {
-        'right_shoulder': (153.296, 23.3805, 8.1203), 'right_elbow': (47.8476, -3.6598),
-        'right_wrist': (14.5091, 2.5356), 'left_shoulder': (43.5846, 130.6801, 44.1763),
-        'left_elbow': (47.9731, 40.7529), 'left_wrist': (-0.5462, -17.497),
+        'right_shoulder': (153.2944, 23.3787, 8.122), 'right_elbow': (47.8476, -3.6598),
+        'right_wrist': (14.5091, 2.5351), 'left_shoulder': (43.5846, 130.6801, 44.1778),
+        'left_elbow': (47.9731, 40.7529), 'left_wrist': (-0.5462, -17.4977),
         'right_hip': (4.0024, 0.0577, 0.0044), 'right_knee': (7.1695,),
         'right_ankle': (3.162, 0.0578), 'left_hip': (4.0706, -0.0577, -0.0045),
         'left_knee': (7.3131,), 'left_ankle': (3.238, -0.0577),
     })
     human.KeyJoints(6.7, {
-        'right_shoulder': (125.3044, 18.6584, 17.1874), 'right_elbow': (59.4503, -9.4354),
-        'right_wrist': (27.8442, 0.8083), 'left_shoulder': (47.0561, 98.9331, 48.4222),
-        'left_elbow': (60.8255, 15.3663), 'left_wrist': (11.4271, -19.5967),
-        'right_knee': (6.3343,), 'left_hip': (3.656, -0.0386, -0.0027), 'left_knee': (6.3942,),
+        'right_shoulder': (125.3016, 18.6552, 17.1905), 'right_elbow': (59.4503, -9.4354),
+        'right_wrist': (27.8442, 0.8073), 'left_shoulder': (47.0561, 98.9331, 48.425),
+        'left_elbow': (60.8255, 15.3663), 'left_wrist': (11.4271, -19.598), 'right_knee': (6.3343,),
+        'left_hip': (3.656, -0.0386, -0.0027), 'left_knee': (6.3942,),
         'left_ankle': (2.7348, -0.0386),
     })
     human.KeyJoints(6.8, {
-        'right_shoulder': (94.7542, 13.3322, 27.4753), 'right_elbow': (71.8364, -15.6009),
-        'right_wrist': (42.0797, -1.4055), 'left_shoulder': (50.762, 65.0424, 53.5176),
-        'left_elbow': (74.5457, -11.7344), 'left_wrist': (24.2089, -22.0863),
+        'right_shoulder': (94.7505, 13.328, 27.4794), 'right_elbow': (71.8364, -15.6009),
+        'right_wrist': (42.0797, -1.4068), 'left_shoulder': (50.762, 65.0424, 53.5213),
+        'left_elbow': (74.5457, -11.7344), 'left_wrist': (24.2089, -22.088),
         'right_hip': (3.3316, 0.0193, 0.0045), 'right_knee': (5.6582,),
         'right_ankle': (2.3048, 0.0191), 'left_hip': (3.3892, -0.0193, -0.0029),
         'left_knee': (5.7781,), 'left_ankle': (2.3511, -0.0184),
     })
     human.KeyRoot(6.9, (-80.035, 72.977, 40.009), (-90.0, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'right_shoulder': (67.1796, 8.232, 37.4262), 'right_elbow': (82.5459, -20.9318),
-        'right_wrist': (54.3882, -3.9614), 'left_shoulder': (53.9662, 35.7393, 58.8997),
-        'left_elbow': (86.4087, -35.1667), 'left_wrist': (35.2605, -24.6694),
+        'right_shoulder': (67.1761, 8.2281, 37.43), 'right_elbow': (82.5459, -20.9318),
+        'right_wrist': (54.3882, -3.9626), 'left_shoulder': (53.9662, 35.7393, 58.9032),
+        'left_elbow': (86.4087, -35.1667), 'left_wrist': (35.2605, -24.671),
         'right_knee': (5.4253,), 'left_hip': (3.2317, -0.0077, -0.0011), 'left_knee': (5.4187,),
         'left_ankle': (2.1665, -0.0074),
     })
     human.KeyJoints(7.0, {
-        'right_shoulder': (48.115, 4.1881, 45.4821), 'right_elbow': (89.1188, -24.2036),
-        'right_wrist': (61.9424, -6.7145), 'left_shoulder': (55.9328, 17.7548, 64.0055),
-        'left_elbow': (93.6895, -49.548), 'left_wrist': (42.0433, -27.0495),
+        'right_shoulder': (48.1133, 4.1862, 45.484), 'right_elbow': (89.1188, -24.2036),
+        'right_wrist': (61.9424, -6.7152), 'left_shoulder': (55.9328, 17.7548, 64.0072),
+        'left_elbow': (93.6895, -49.548), 'left_wrist': (42.0433, -27.0503),
         'right_hip': (3.1865, 0.0, 0.0011), 'right_knee': (5.295,), 'right_ankle': (2.0935, 0.0),
         'left_hip': (3.1856, 0.0, -0.0001), 'left_knee': (5.2934,), 'left_ankle': (2.0958, 0.0),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
     human.KeyJoints(7.1, {
-        'right_shoulder': (42.7393, 0.6624, 49.8094), 'right_elbow': (83.3769, -22.9344),
-        'right_wrist': (61.2537, -9.9738), 'left_shoulder': (53.4914, 15.899, 68.5352),
-        'left_elbow': (91.353, -50.8643), 'left_wrist': (42.6342, -29.0256),
+        'right_shoulder': (42.7387, 0.6665, 49.808), 'right_elbow': (83.3839, -22.9362),
+        'right_wrist': (61.2561, -9.972), 'left_shoulder': (53.4968, 15.8989, 68.5309),
+        'left_elbow': (91.3605, -50.866), 'left_wrist': (42.6354, -29.0237),
         'right_hip': (2.8923, -0.0017, 0.0037), 'right_knee': (4.6363,),
         'right_ankle': (1.7189, 0.0), 'left_hip': (2.8704, 0.0023, 0.0), 'left_knee': (4.6003,),
         'left_ankle': (1.7297, 0.0),
     })
     human.KeyJoints(7.2, {
-        'right_shoulder': (47.1283, -7.9565, 49.7628), 'right_elbow': (68.2025, -19.3087),
-        'right_wrist': (54.9787, -13.4342), 'left_shoulder': (53.4763, 8.7848, 69.4589),
-        'left_elbow': (78.8321, -48.299), 'left_wrist': (38.5713, -29.9589),
+        'right_shoulder': (47.1039, -7.9079, 49.7631), 'right_elbow': (68.2623, -19.3227),
+        'right_wrist': (55.0084, -13.4221), 'left_shoulder': (53.4756, 8.8193, 69.4551),
+        'left_elbow': (78.8722, -48.3071), 'left_wrist': (38.5857, -29.9593),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.210581, duration=0.072)
@@ -486,12 +483,12 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'open', start=7.210581, duration=0.072)
     human.KeyRoot(7.282581, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(7.282581, {
-        'spine_lumbar': (17.7161, -0.1687, -6.3061), 'spine_thoracic': (15.7783, 0.0824, 1.3001),
-        'neck': (-56.6702, -0.0986, 0.5586), 'head': (-19.3465, -0.0004),
-        'right_clavicle': (30.0, -15.0), 'right_shoulder': (47.2746, -8.23, 49.7539),
-        'right_elbow': (66.9789, -19.0275), 'right_wrist': (54.5278, -13.7023),
-        'left_clavicle': (30.0, -12.7985), 'left_shoulder': (53.5693, 7.9847, 69.4853),
-        'left_elbow': (77.3268, -48.0035), 'left_wrist': (38.0594, -30.0),
+        'spine_lumbar': (17.7325, -0.1726, -6.3034), 'spine_thoracic': (15.7784, 0.0756, 1.3009),
+        'neck': (-56.4207, -0.1021, 0.5687), 'head': (-19.3648, -0.0004),
+        'right_clavicle': (30.0, -15.0), 'right_shoulder': (47.2686, -8.2156, 49.7532),
+        'right_elbow': (67.0072, -19.0342), 'right_wrist': (54.5398, -13.6962),
+        'left_clavicle': (30.0, -12.8005), 'left_shoulder': (53.5772, 7.9902, 69.4788),
+        'left_elbow': (77.394, -48.017), 'left_wrist': (38.0779, -29.9965),
         'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
         'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
     })

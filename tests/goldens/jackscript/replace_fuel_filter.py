@@ -10,7 +10,7 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-1.821, 0.0, 59.06), start=0.0, duration=0.54)
+    human.Walk((-1.82, 0.0, 59.051), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -18,141 +18,141 @@ def replace_fuel_filter():
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
-        'left_ankle': (1.7189, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.7515, 0.0, 0.0), 'right_knee': (4.654,),
+        'right_ankle': (1.9025, 0.0), 'left_hip': (2.7515, 0.0, 0.0), 'left_knee': (4.654,),
+        'left_ankle': (1.9025, 0.0),
     })
-    human.KeyRoot(0.1, (2.615, 88.219, 10.638), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.615, 88.183, 10.496), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (44.983, 2.3848, 0.3654), 'right_knee': (84.6664,),
-        'right_ankle': (15.8814, 2.2269), 'left_hip': (12.8911, -1.7758, -0.645),
-        'left_knee': (39.2925,), 'left_ankle': (19.342, -1.8893),
+        'right_hip': (45.0432, 2.3832, 0.3728), 'right_knee': (84.8103,),
+        'right_ankle': (15.8685, 2.2307), 'left_hip': (13.1062, -1.7731, -0.6613),
+        'left_knee': (39.798,), 'left_ankle': (19.3575, -1.8924),
     })
-    human.KeyRoot(0.2, (1.766, 84.818, 20.684), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.766, 84.776, 20.534), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (40.4576, 3.4857, -10.536), 'right_knee': (35.1992,),
-        'right_ankle': (-5.5537, -3.3442), 'left_hip': (20.8406, -0.9853, -1.1278),
-        'left_knee': (66.4358,), 'left_ankle': (17.584, -1.4975),
+        'right_hip': (40.4897, 3.4743, -10.5476), 'right_knee': (35.0569,),
+        'right_ankle': (-5.7264, -3.3671), 'left_hip': (20.8836, -0.9832, -1.1322),
+        'left_knee': (66.6029,), 'left_ankle': (17.5806, -1.4994),
     })
-    human.KeyRoot(0.3, (-0.595, 85.361, 30.599), (-0.4582, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.594, 85.319, 30.502), (-0.4582, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (29.694, 1.8594, -10.4225), 'right_knee': (26.8432,),
-        'right_ankle': (-2.7075, -3.5484), 'left_hip': (12.1187, 0.444, -0.1325),
-        'left_knee': (63.3801,), 'left_ankle': (20.0, 0.4789),
+        'right_hip': (29.8018, 1.8668, -10.426), 'right_knee': (26.916,),
+        'right_ankle': (-2.7418, -3.5626), 'left_hip': (12.1392, 0.4432, -0.1322),
+        'left_knee': (63.5803,), 'left_ankle': (20.0, 0.4788),
     })
-    human.KeyRoot(0.4, (-2.536, 87.724, 43.187), (-5.0186, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.533, 87.699, 43.131), (-5.0186, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (21.8551, -1.0126, -6.2364), 'right_knee': (28.1875,),
-        'right_ankle': (6.5406, -3.2529), 'left_hip': (26.0559, 0.5172, 0.9958),
-        'left_knee': (72.5674,), 'left_ankle': (20.0, 0.9963),
+        'right_hip': (21.9415, -1.0089, -6.2402), 'right_knee': (28.2807,),
+        'right_ankle': (6.5476, -3.259), 'left_hip': (26.1082, 0.5132, 0.9931),
+        'left_knee': (72.7324,), 'left_ankle': (20.0, 0.9917),
     })
-    human.KeyRoot(0.5, (-1.065, 89.955, 50.974), (-8.8912, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.064, 89.955, 50.959), (-8.8912, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (12.0147, -0.8754, -1.7669), 'right_knee': (18.2737,),
-        'right_ankle': (6.292, -1.2236), 'left_hip': (13.9295, 0.8511, 1.7839),
-        'left_knee': (21.6525,), 'left_ankle': (7.4865, 1.2312),
+        'right_hip': (12.0222, -0.8761, -1.7672), 'right_knee': (18.2667,),
+        'right_ankle': (6.2776, -1.2246), 'left_hip': (13.9765, 0.8518, 1.7842),
+        'left_knee': (21.7176,), 'left_ankle': (7.4656, 1.2322),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
     human.KeyRoot(0.6, (-2.955, 90.696, 71.189), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (-4.1318, 0.0181, 0.0), 'right_knee': (12.7147,),
-        'right_ankle': (12.9015, 0.018), 'left_hip': (-4.2048, -0.0181, -0.0001),
-        'left_knee': (12.5653,), 'left_ankle': (12.8135, -0.0181),
+        'right_hip': (-4.1304, 0.0182, 0.0), 'right_knee': (12.7183,),
+        'right_ankle': (12.9042, 0.0181), 'left_hip': (-4.2047, -0.0182, -0.0001),
+        'left_knee': (12.5664,), 'left_ankle': (12.8146, -0.0182),
     })
-    human.KeyRoot(0.7, (-2.653, 93.409, 69.53), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.7, (-2.653, 93.408, 69.53), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (-2.0662, 0.0156, 0.0024), 'right_ankle': (4.4684, 0.0157),
-        'left_hip': (-2.1062, -0.0155, -0.0025), 'left_ankle': (4.4209, -0.0157),
+        'right_hip': (-2.0653, 0.0156, 0.0024), 'right_ankle': (4.4705, 0.0158),
+        'left_hip': (-2.1061, -0.0156, -0.0025), 'left_ankle': (4.4219, -0.0158),
     })
     human.KeyRoot(0.8, (-1.857, 96.253, 65.189), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (2.0342, 0.013, 0.0047), 'right_knee': (13.7338,),
-        'right_ankle': (-6.1581, 0.0138), 'left_hip': (2.0221, -0.013, -0.0048),
-        'left_knee': (13.7091,), 'left_ankle': (-6.1711, -0.0138),
+        'right_hip': (2.0348, 0.013, 0.0048), 'right_knee': (13.7356,),
+        'right_ankle': (-6.1566, 0.0138), 'left_hip': (2.0223, -0.013, -0.0048),
+        'left_knee': (13.71,), 'left_ankle': (-6.1701, -0.0139),
     })
-    human.KeyRoot(0.9, (-1.637, 98.631, 63.976), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.9, (-1.637, 98.63, 63.977), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (3.2494, 0.0102, 0.0075), 'right_knee': (12.6581,),
-        'right_ankle': (-15.7426, 0.0122), 'left_hip': (3.2614, -0.0103, -0.0076),
-        'left_knee': (12.6828,), 'left_ankle': (-15.7268, -0.0123),
+        'right_hip': (3.253, 0.0103, 0.0075), 'right_knee': (12.6661,),
+        'right_ankle': (-15.7375, 0.0123), 'left_hip': (3.2639, -0.0103, -0.0076),
+        'left_knee': (12.6883,), 'left_ankle': (-15.7237, -0.0123),
     })
     human.KeyRoot(1.0, (-2.333, 100.22, 67.737), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (2.5232, 0.008, 0.0072), 'right_knee': (14.5435,),
-        'right_ankle': (-20.576, 0.0103), 'left_hip': (2.5295, -0.008, -0.0073),
-        'left_knee': (14.5565,), 'left_ankle': (-20.5658, -0.0103),
+        'right_hip': (2.5248, 0.0081, 0.0073), 'right_knee': (14.5473,),
+        'right_ankle': (-20.5735, 0.0104), 'left_hip': (2.5306, -0.0081, -0.0073),
+        'left_knee': (14.5591,), 'left_ankle': (-20.5642, -0.0104),
     })
     human.KeyRoot(1.1, (-3.106, 101.34, 71.914), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (1.9221, 0.0057, 0.0064), 'right_knee': (17.1713,),
-        'right_ankle': (-24.9113, 0.0082), 'left_hip': (1.924, -0.0057, -0.0064),
-        'left_knee': (17.1752,), 'left_ankle': (-24.9053, -0.0082),
+        'right_hip': (1.9222, 0.0058, 0.0064), 'right_knee': (17.1719,),
+        'right_ankle': (-24.9106, 0.0082), 'left_hip': (1.9241, -0.0058, -0.0065),
+        'left_knee': (17.1756,), 'left_ankle': (-24.9048, -0.0082),
     })
     human.KeyRoot(1.2, (-3.937, 101.883, 76.406), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'right_hip': (1.4452, 0.0035, 0.0049), 'right_knee': (20.4728,),
-        'right_ankle': (-28.7683, 0.0057), 'left_hip': (1.4457, -0.0035, -0.0049),
-        'left_knee': (20.4738,), 'left_ankle': (-28.7637, -0.0058),
+        'right_hip': (1.4451, 0.0035, 0.0049), 'right_knee': (20.4727,),
+        'right_ankle': (-28.7682, 0.0058), 'left_hip': (1.4455, -0.0035, -0.0049),
+        'left_knee': (20.4737,), 'left_ankle': (-28.7636, -0.0058),
     })
     human.KeyRoot(1.3, (-4.805, 101.769, 81.099), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'right_hip': (1.0754, 0.0015, 0.0026), 'right_knee': (24.3467,),
-        'right_ankle': (-32.1834, 0.0029), 'left_hip': (1.0756, -0.0015, -0.0026),
-        'left_knee': (24.347,), 'left_ankle': (-32.1792, -0.0029),
+        'right_hip': (1.0753, 0.0015, 0.0026), 'right_knee': (24.3466,),
+        'right_ankle': (-32.1833, 0.0029), 'left_hip': (1.0755, -0.0015, -0.0026),
+        'left_knee': (24.3469,), 'left_ankle': (-32.1791, -0.0029),
     })
     human.KeyRoot(1.4, (-5.688, 100.935, 85.876), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'right_hip': (0.8091, 0.0, 0.0), 'right_knee': (28.7261,), 'right_ankle': (-35.1703, 0.0),
-        'left_hip': (0.8091, 0.0, 0.0), 'left_knee': (28.7261,), 'left_ankle': (-35.1663, 0.0),
+        'right_hip': (0.8091, 0.0, 0.0), 'right_knee': (28.7261,), 'right_ankle': (-35.1702, 0.0),
+        'left_hip': (0.8091, 0.0, 0.0), 'left_knee': (28.7261,), 'left_ankle': (-35.1662, 0.0),
     })
     human.KeyRoot(1.5, (-6.563, 99.33, 90.628), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'right_knee': (33.6253,), 'right_ankle': (-37.6852, 0.0), 'left_knee': (33.6253,),
-        'left_ankle': (-37.6813, 0.0),
+        'right_knee': (33.6253,), 'right_ankle': (-37.685, 0.0), 'left_knee': (33.6253,),
+        'left_ankle': (-37.6811, 0.0),
     })
     human.KeyRoot(1.6, (-7.409, 97.007, 95.218), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'right_knee': (38.7205,), 'right_ankle': (-39.8984, 0.0), 'left_knee': (38.7205,),
-        'left_ankle': (-39.8946, 0.0),
+        'right_knee': (38.7205,), 'right_ankle': (-39.8983, 0.0), 'left_knee': (38.7205,),
+        'left_ankle': (-39.8945, 0.0),
     })
     human.KeyRoot(1.7, (-8.205, 94.013, 99.539), (-10.4375, 0.0, 0.0))
-    human.KeyJoints(1.7, {'right_ankle': (-41.8292, 0.0), 'left_ankle': (-41.8257, 0.0)})
+    human.KeyJoints(1.7, {'right_ankle': (-41.8291, 0.0), 'left_ankle': (-41.8256, 0.0)})
     human.KeyRoot(1.8, (-8.934, 90.427, 103.497), (-10.4375, 0.0, 0.0))
-    human.KeyJoints(1.8, {'right_ankle': (-43.497, 0.0), 'left_ankle': (-43.4937, 0.0)})
+    human.KeyJoints(1.8, {'right_ankle': (-43.4969, 0.0), 'left_ankle': (-43.4936, 0.0)})
     human.KeyRoot(1.9, (-9.582, 86.355, 107.017), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'right_hip': (0.2719, 0.0, 0.0), 'right_ankle': (-44.9209, 0.0),
-        'left_hip': (0.2719, 0.0, 0.0), 'left_ankle': (-44.9179, 0.0),
+        'right_hip': (0.2719, 0.0, 0.0), 'right_ankle': (-44.9208, 0.0),
+        'left_hip': (0.2719, 0.0, 0.0), 'left_ankle': (-44.9178, 0.0),
     })
     human.KeyRoot(2.0, (-10.141, 81.926, 110.05), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'right_knee': (59.7067,), 'right_ankle': (-46.1202, 0.0), 'left_knee': (59.7067,),
-        'left_ankle': (-46.1175, 0.0),
+        'right_knee': (59.7067,), 'right_ankle': (-46.1201, 0.0), 'left_knee': (59.7067,),
+        'left_ankle': (-46.1174, 0.0),
     })
-    human.KeyRoot(2.1, (-10.606, 77.28, 112.573), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.1, (-10.605, 77.28, 112.573), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.1, {
         'right_knee': (64.7654,), 'right_ankle': (-47.1142, 0.0), 'left_knee': (64.7654,),
-        'left_ankle': (-47.1119, 0.0),
+        'left_ankle': (-47.1118, 0.0),
     })
     human.KeyRoot(2.2, (-10.976, 72.566, 114.586), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'right_knee': (69.6132,), 'right_ankle': (-47.9222, 0.0), 'left_knee': (69.6132,),
-        'left_ankle': (-47.9202, 0.0),
+        'right_knee': (69.6132,), 'right_ankle': (-47.9221, 0.0), 'left_knee': (69.6132,),
+        'left_ankle': (-47.9201, 0.0),
     })
     human.KeyRoot(2.3, (-11.258, 67.932, 116.117), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.3, {
         'right_knee': (74.1825,), 'right_ankle': (-48.5633, 0.0), 'left_knee': (74.1825,),
-        'left_ankle': (-48.5617, 0.0),
+        'left_ankle': (-48.5616, 0.0),
     })
     human.KeyRoot(2.4, (-11.46, 63.519, 117.214), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'right_knee': (78.4052,), 'right_ankle': (-49.057, 0.0), 'left_knee': (78.4052,),
-        'left_ankle': (-49.0557, 0.0),
+        'right_knee': (78.4052,), 'right_ankle': (-49.0569, 0.0), 'left_knee': (78.4052,),
+        'left_ankle': (-49.0556, 0.0),
     })
     human.KeyRoot(2.5, (-11.594, 59.459, 117.94), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.5, {
         'right_hip': (0.029, 0.0, 0.0), 'right_knee': (82.2137,), 'right_ankle': (-49.4223, 0.0),
-        'left_hip': (0.0289, 0.0, 0.0), 'left_knee': (82.2137,), 'left_ankle': (-49.4214, 0.0),
+        'left_hip': (0.0289, 0.0, 0.0), 'left_knee': (82.2137,), 'left_ankle': (-49.4213, 0.0),
     })
     human.KeyRoot(2.6, (-11.674, 55.869, 118.371), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.6, {'right_knee': (85.5401,), 'left_knee': (85.5401,)})

@@ -33,6 +33,9 @@ TOLERANCE = 1e-3  # m, the solvers' position tolerance; further than this is "sh
 TWO_HAND_SPREAD = 0.20  # m between the hands on a two-handed site, across the body
 ARM_TRACKS = ("l_arm", "r_arm")
 HAND_NAMES = {"r_hand": "right hand", "l_hand": "left hand"}
+FINGERTIPS = {"r_hand": "r_fingertip", "l_hand": "l_fingertip"}
+GROUND_SLACK = 5e-4  # m a hand point may dip below the ground (half the 1 mm budget)
+LIFTS = 3  # re-solves that raise an approach point whose pose puts the fingers in the floor
 
 
 def model_for(
@@ -122,6 +125,58 @@ def hand_distance(state: PoseState, effector: str, q: FloatArray, root: Any, p: 
     return float(np.linalg.norm(state.site(effector, q, root) - p))
 
 
+def pinned_hands(
+    state: PoseState, segs: list[Segment], q0: FloatArray, root: tuple[FloatArray, FloatArray]
+) -> list[Goal]:
+    """Goals that keep the other hand where it is, when it rests on a site at the segments'
+    start (``balance.hand_pins``): a reach that bends the trunk must not pull it off."""
+    from mtlc.passes.balance import hand_pins
+
+    t0 = segs[0].start
+    mine = {s.goal.effector for s in segs}
+    pins = hand_pins(state.ir, np.array([t0]))
+    return [
+        Goal(hand, position=state.site(hand, q0, root))
+        for hand, pinned in pins.items()
+        if hand not in mine and bool(pinned[0])
+    ]
+
+
+def with_pinned(
+    skel: Any, names: tuple[str, ...], pinned: list[Goal], reach: str
+) -> tuple[str, ...]:
+    """A torso reach's keyframe dofs plus the arms of the hands it keeps on their sites."""
+    if reach != "torso" or not pinned:
+        return names
+    extra = chain_names(skel, [g.effector for g in pinned], "arm")
+    return names + tuple(n for n in extra if n not in names)
+
+
+def repin(
+    ctx: PassContext,
+    skel: Any,
+    q: FloatArray,
+    pinned: list[Goal],
+    root: tuple[FloatArray, FloatArray],
+) -> FloatArray:
+    """Poses ``q`` (B, D) with each pinned hand's arm re-solved onto where the hand rests.
+
+    A reach that bends the trunk carries the other arm along; that arm alone (shoulder, elbow,
+    wrist: dofs the reaching hand and the trunk do not use) then puts its hand back, so the
+    reaching hand's pose is not traded against it.
+    """
+    out = np.array(q, dtype=float, copy=True)
+    for goal in pinned:
+        batch = Goal(goal.effector, position=np.tile(goal.position, (len(out), 1)))
+        m = prepare(
+            skel, [goal.effector], out, reach="arm",
+            root_position=np.tile(root[0], (len(out), 1)),
+            root_rotation=np.tile(root[1], (len(out), 1)),
+        )  # fmt: skip
+        out = solve_ta(skel, [batch], out, model=m, restarts=0, null_gain=0.0, tol=2e-4).q
+    return out
+
+
 def solve_group(
     ctx: PassContext,
     state: PoseState,
@@ -129,8 +184,10 @@ def solve_group(
     targets: list[FloatArray],
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
+    pinned: list[Goal] | None = None,
 ) -> tuple[FloatArray, str, list[float]]:
-    """Best pose for one or two hands: arm chains first, then (together) with the torso."""
+    """Best pose for one or two hands: arm chains first, then (together) with the torso; a
+    torso pose puts the ``pinned`` hands back on their sites (``repin``)."""
     skel = state.skel
     q = q0.copy()
     for seg, p in zip(segs, targets, strict=True):
@@ -147,9 +204,11 @@ def solve_group(
         Goal(s.goal.effector, position=p, orientation=s.goal.orientation)
         for s, p in zip(segs, targets, strict=True)
     ]
-    effs = tuple(s.goal.effector for s in segs)
+    effs = tuple(g.effector for g in goals)
     m = model_for(ctx, skel, effs, "torso", q0, root)
     qt = solve_ta(skel, goals, q0, model=m).q[0]
+    if pinned:
+        qt = repin(ctx, skel, qt[None], pinned, root)[0]
     dt = [
         hand_distance(state, s.goal.effector, qt, root, p)
         for s, p in zip(segs, targets, strict=True)
@@ -157,6 +216,14 @@ def solve_group(
     if max(dt) < max(dist):
         return qt, "torso", dt
     return q, "arm", dist
+
+
+def lowest_hand_point(
+    state: PoseState, segs: list[Segment], q: FloatArray, root: tuple[FloatArray, FloatArray]
+) -> float:
+    """Height of the lowest hand or fingertip of the segments' effectors in pose ``q``."""
+    names = [n for s in segs for n in (s.goal.effector, FINGERTIPS.get(s.goal.effector, ""))]
+    return min(float(state.site(n, q, root)[1]) for n in names if n)
 
 
 def chain_names(skel: Any, effectors: list[str], reach: str) -> tuple[str, ...]:
@@ -183,9 +250,19 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
         for seg in segs:
             seg.goal.position = hand_target(ir, seg, root[1])
             targets.append(approach_point(state, seg, seg.goal.position, q0, root))
-        q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root)
-        for seg, p, d in zip(segs, targets, dist, strict=True):
+        pinned = pinned_hands(state, segs, q0, root)
+        q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned)
+        for _ in range(LIFTS):
+            sink = ir.ground - GROUND_SLACK - lowest_hand_point(state, segs, q1, root)
+            if sink <= 0.0:
+                break
+            # the hand arrives fingers first: raise its approach point by what they sink
+            targets = [p + np.array([0.0, sink + GROUND_SLACK, 0.0]) for p in targets]
+            q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned)
+        for k, (seg, p, d) in enumerate(zip(segs, targets, dist, strict=True)):
             names = chain_names(skel, [seg.goal.effector], reach)
+            if k == 0:  # one segment of the group carries the pinned arms
+                names = with_pinned(skel, names, pinned, reach)
             idx = [skel.dof_index(n) for n in names]
             seg.keyframes = Keyframes(
                 time=np.array([t0, t1]), dofs=names, q=np.stack([q0[idx], q1[idx]])

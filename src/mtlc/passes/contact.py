@@ -30,13 +30,18 @@ from mtlc.passes.approach import (
     groups,
     hand_target,
     model_for,
+    pinned_hands,
+    repin,
     report_short,
+    with_pinned,
 )
 from mtlc.passes.context import PassContext
 from mtlc.passes.state import PoseState, reanchor
 
 MAX_KEYFRAMES = 12
 MAX_ITER = 400
+GROUND_SLACK = 5e-4  # m a hand point may dip below the ground (half the 1 mm budget)
+FINGERTIPS = {"r_hand": "r_fingertip", "l_hand": "l_fingertip"}
 
 
 def _ta_of(ir: MotionIR) -> dict[tuple[object, ...], list[Segment]]:
@@ -152,6 +157,31 @@ def best_path(
     return path, reach, dist
 
 
+def above_ground(
+    state: PoseState,
+    path: FloatArray,
+    dist: FloatArray,
+    effectors: list[str],
+    root: tuple[FloatArray, FloatArray],
+) -> tuple[FloatArray, FloatArray]:
+    """The path up to the sample before a hand or fingertip goes through the ground.
+
+    The gradient path knows only the distance to the site: toward a site near the floor (a
+    tray 5 cm up, reached fingers first) it pushes the fingertips through it. A hand stops
+    where it touches the floor instead, short of the site (reported like any short reach).
+    """
+    names = [n for e in effectors for n in (e, FINGERTIPS.get(e, e))]
+    k = len(path)
+    pose = forward(
+        state.skel, path, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4))
+    )
+    low = np.asarray(site_positions(state.skel, pose, names))[..., 1].min(axis=-1)
+    below = np.flatnonzero(low < state.ir.ground - GROUND_SLACK)
+    if below.size == 0 or below[0] == 0:  # nothing below, or already below where TA left it
+        return path, dist
+    return path[: below[0]], dist[: below[0]]
+
+
 _Part = tuple[list[Segment], list[FloatArray], str, bool]
 
 
@@ -161,12 +191,16 @@ def _solve_parts(
     parts: list[_Part],
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
+    pinned: list[Goal] | None = None,
 ) -> list[tuple[FloatArray, list[Segment], str, FloatArray, list[int], FloatArray]]:
     """Paths for each part of a time window, each hand starting where the one before left;
     with the kept samples and their progress (``select_keys``)."""
     out = []
     for psegs, ptargets, reach, hopeless in parts:
         path, used, dist = best_path(ctx, state, psegs, ptargets, q0, root, reach, hopeless)
+        if used == "torso" and pinned:  # the trunk carried the other arm: put its hand back
+            path = repin(ctx, state.skel, path, pinned, root)
+        path, dist = above_ground(state, path, dist, [s.goal.effector for s in psegs], root)
         keep, prog = select_keys(dist)
         q0 = path[keep[-1]].copy()
         out.append((path, psegs, used, dist, keep, prog))
@@ -196,16 +230,19 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
                 ([s], [p], r, h)
                 for s, p, r, h in zip(segs, targets, reaches, hopeless_all, strict=True)
             ]
-        solved = _solve_parts(ctx, state, parts, q0, root)
+        pinned = pinned_hands(state, segs, q0, root)
+        solved = _solve_parts(ctx, state, parts, q0, root, pinned)
         if len(parts) > 1 and any(x[2] == "torso" for x in solved):
             # one hand needed the trunk: that would move the other hand, so solve them together
             solved = _solve_parts(
-                ctx, state, [(segs, targets, "torso", any(hopeless_all))], q0, root
+                ctx, state, [(segs, targets, "torso", any(hopeless_all))], q0, root, pinned
             )
         for path, psegs, reach, dist, keep, prog in solved:
             times = t0 + (t1 - t0) * prog
             for h, seg in enumerate(psegs):
                 names = chain_names(skel, [seg.goal.effector], reach)
+                if h == 0:  # one segment of the part carries the pinned arms
+                    names = with_pinned(skel, names, pinned, reach)
                 idx = [skel.dof_index(n) for n in names]
                 seg.keyframes = Keyframes(time=times.copy(), dofs=names, q=path[keep][:, idx])
                 d = float(dist[keep[-1], h])

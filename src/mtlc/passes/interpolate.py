@@ -155,10 +155,24 @@ def _feet_in_root_frame(skel: Any, q: np.ndarray, rotation: np.ndarray) -> np.nd
     return site_positions(skel, pose, list(FOOT_POINTS))
 
 
+_REST_CENTRES: dict[int, tuple[Any, np.ndarray]] = {}
+
+
 def _rest_feet_centre(skel: Any) -> np.ndarray:
-    """Where the feet's centre lies from the root when standing at rest, heading 0 (body frame)."""
+    """Where the feet's centre lies from the root when standing at rest, heading 0 (body frame).
+
+    Cached per skeleton (the solving passes ask for every root they place); the entry keeps
+    the skeleton alive so its id cannot be reused by another one.
+    """
+    hit = _REST_CENTRES.get(id(skel))
+    if hit is not None and hit[0] is skel:
+        return hit[1]
     rest = np.asarray(skel.q_comfort, dtype=float)[None]
-    return _feet_in_root_frame(skel, rest, np.array([[1.0, 0.0, 0.0, 0.0]]))[0].mean(axis=0)
+    centre = _feet_in_root_frame(skel, rest, np.array([[1.0, 0.0, 0.0, 0.0]]))[0].mean(axis=0)
+    if len(_REST_CENTRES) > 16:
+        _REST_CENTRES.clear()
+    _REST_CENTRES[id(skel)] = (skel, centre)
+    return centre
 
 
 def anchored_root(
@@ -171,7 +185,13 @@ def anchored_root(
     moves the pelvis back instead of sliding the feet forward. Used by the solving passes (where
     is the body when the hand must reach) and by interpolation alike, so they agree.
     """
-    feet = _feet_in_root_frame(skel, q, rotation)  # (N, P, 3) relative to the root
+    return _anchor(skel, _feet_in_root_frame(skel, q, rotation), plan_position, rotation, ground)
+
+
+def _anchor(
+    skel: Any, feet: np.ndarray, plan_position: np.ndarray, rotation: np.ndarray, ground: float
+) -> np.ndarray:
+    """``anchored_root`` from the foot points relative to the root (N, P, 3), already known."""
     centre = feet.mean(axis=1)
     w, x, y, z = rotation.T
     yaw = np.arctan2(2 * (w * y + x * z), 1 - 2 * (y * y + x * x))  # heading about +Y
@@ -197,15 +217,16 @@ def correct_base(ir: MotionIR, frames: Frames) -> np.ndarray:
     walking = walking_mask(ir, frames.time)
     before = frames.root_position[:, 1].copy()
     standing = ~walking
+    # one forward kinematics for every frame: the foot points relative to the root
+    feet = _feet_in_root_frame(ir.skeleton, frames.q, frames.root_rotation)
     if standing.any():
         plan_position, _ = ir.root_plan.at(frames.time[standing])  # type: ignore[union-attr]
-        frames.root_position[standing] = anchored_root(
-            ir.skeleton, frames.q[standing], plan_position, frames.root_rotation[standing],
-            ir.ground,
-        )  # fmt: skip
+        frames.root_position[standing] = _anchor(
+            ir.skeleton, feet[standing], plan_position, frames.root_rotation[standing], ir.ground
+        )
     if walking.any():
-        h = ir.ground - lowest_foot_point(ir, frames)
-        frames.root_position[walking, 1] += np.maximum(h[walking], 0.0)
+        lowest = frames.root_position[walking, 1] + feet[walking, :, 1].min(axis=1)
+        frames.root_position[walking, 1] += np.maximum(ir.ground - lowest, 0.0)
     return frames.root_position[:, 1] - before
 
 

@@ -83,7 +83,17 @@ def _pairs(goals: list[Reach]) -> list[tuple[Reach, ...]]:
 
 
 def screen(ir: MotionIR, spec: ManikinSpec) -> list[Finding]:
-    """MT0501 findings for ``spec``, from the compiled motion ``ir`` of a nearby manikin.
+    """MT0501 findings for ``spec``, from the compiled motion ``ir`` of a nearby manikin."""
+    return [
+        _finding(seg, short, label(spec))
+        for seg, short in screen_distances(ir, spec)
+        if short > TOLERANCE
+    ]
+
+
+def screen_distances(ir: MotionIR, spec: ManikinSpec) -> list[tuple[Segment, float]]:
+    """Each contact goal of ``ir`` (its TO segment) with how far ``spec``'s hand stays from
+    the site (m), reached or not: the screen's measurement, which mtlc report tabulates.
 
     One batched solve per hand combination (right alone, left alone, both together)."""
     goals = contact_goals(ir)
@@ -114,9 +124,7 @@ def screen(ir: MotionIR, spec: ManikinSpec) -> list[Finding]:
         reached = forward(skel, result.q, pos, rot)
         for k, hand in enumerate(hands):
             short = np.linalg.norm(site_positions(skel, reached, hand) - targets[k], axis=-1)
-            for grp, d in zip(groups, short, strict=True):
-                if d > TOLERANCE:
-                    out.append(_finding(grp[k].segment, float(d), label(spec)))
+            out.extend((grp[k].segment, float(d)) for grp, d in zip(groups, short, strict=True))
     return out
 
 

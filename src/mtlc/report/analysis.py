@@ -1,0 +1,206 @@
+"""What `mtlc report` measures for a task and a set of manikins.
+
+The sweep is lint's (docs/lint.md): the selection's extremes by stature are compiled in full
+(every motion pass), the others screened for reach with one batched IK call per hand from the
+nearest compiled extreme; ``full=True`` compiles every manikin. For each manikin: how far the
+hand stays from each contact goal's site, and, for the manikins compiled in full, the worst
+RULA grand score with its time and task line. The predicted time does not depend on the
+manikin (MTM-1 distances come from the scene), so it is computed once per task.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mtlc.body import forward, site_positions
+from mtlc.diagnostics import DiagnosticSink
+from mtlc.ergonomics import rula as R
+from mtlc.ir.model import MotionIR, Segment
+from mtlc.lint.config import LintConfig
+from mtlc.lint.engine import envelope, nearest
+from mtlc.lint.manikins import label
+from mtlc.lint.rules.reach import contact_goals, screen_distances, stature
+from mtlc.lint.rules.view import make_view
+from mtlc.metrics import foot_stance
+from mtlc.passes import MotionOptions, run_motion
+from mtlc.passes.approach import HAND_NAMES, TOLERANCE
+from mtlc.report.maintenance import TimeSplit, split_time
+from mtlc.semantics.timeline import ManikinSpec, Timeline
+
+FULL, SCREENED, FAILED = "full", "screened", "failed"
+
+
+@dataclass(frozen=True)
+class GoalRef:
+    """One contact goal: a hand on a site, asked for by one task line."""
+
+    site: str
+    hand: str  # "right hand" / "left hand"
+    file: str
+    line: int
+    column: int
+
+
+@dataclass(frozen=True)
+class RulaWorst:
+    """The worst RULA grand score over a manikin's frames, and where it first happens."""
+
+    score: int
+    action_level: int
+    time: float  # s
+    side: str  # "right" / "left"
+    line: int
+    column: int
+    where: str  # task > action > element
+
+
+@dataclass
+class ManikinResult:
+    spec: ManikinSpec
+    stature: float  # m
+    method: str  # FULL, SCREENED or FAILED
+    distance: dict[GoalRef, float] = field(default_factory=dict)  # m, hand to site
+    rula: RulaWorst | None = None
+    error: str | None = None
+
+    @property
+    def label(self) -> str:
+        return label(self.spec)
+
+    def reached(self, goal: GoalRef) -> bool | None:
+        """Within the passes' 1 mm tolerance; None when not measured."""
+        d = self.distance.get(goal)
+        return None if d is None else d <= TOLERANCE
+
+
+@dataclass
+class TaskResult:
+    task: str
+    title: str | None
+    file: str
+    line: int
+    time: TimeSplit
+    goals: list[GoalRef]
+    manikins: list[ManikinResult]
+
+
+def goal_ref(seg: Segment) -> GoalRef:
+    o = seg.provenance.origin
+    hand = HAND_NAMES.get(seg.goal.effector, seg.goal.effector)
+    return GoalRef(seg.goal.site or "", hand, o.file, o.line, o.column)
+
+
+def analyse_task(
+    timeline: Timeline,
+    selection: tuple[ManikinSpec, ...],
+    *,
+    full: bool = False,
+    options: MotionOptions | None = None,
+) -> TaskResult:
+    """Compile and screen ``timeline`` for each manikin of ``selection`` (in its order)."""
+    compiled_specs = selection if full else envelope(selection)
+    results: dict[ManikinSpec, ManikinResult] = {}
+    irs: dict[ManikinSpec, MotionIR] = {}
+    for spec in compiled_specs:
+        results[spec], ir = _compile(timeline, spec, options or MotionOptions())
+        if ir is not None:
+            irs[spec] = ir
+    for spec in selection:
+        if spec not in results:
+            results[spec] = _screen(spec, irs)
+    ordered = [results[s] for s in selection]
+    # in the order of the motion (a full compile's segments), then any only a screen found
+    by_method = sorted(ordered, key=lambda r: r.method != FULL)
+    goals = list(dict.fromkeys(g for r in by_method for g in r.distance))
+    return TaskResult(
+        timeline.task,
+        timeline.title,
+        timeline.file,
+        timeline.span.line,
+        split_time(timeline),
+        goals,
+        ordered,
+    )
+
+
+def _compile(
+    timeline: Timeline, spec: ManikinSpec, options: MotionOptions
+) -> tuple[ManikinResult, MotionIR | None]:
+    result = ManikinResult(spec, stature(spec) / 1000.0, FULL)
+    try:
+        ir = run_motion(dataclasses.replace(timeline, manikin=spec), DiagnosticSink(), options)
+    except Exception as exc:  # a bug in a pass: this manikin has no numbers, the others go on
+        result.method, result.error = FAILED, f"{type(exc).__name__}: {exc}"
+        return result, None
+    result.distance = contact_distances(ir)
+    result.rula = worst_rula(ir)
+    return result, ir
+
+
+def _screen(spec: ManikinSpec, irs: dict[ManikinSpec, MotionIR]) -> ManikinResult:
+    result = ManikinResult(spec, stature(spec) / 1000.0, SCREENED)
+    if not irs:
+        result.method, result.error = FAILED, "no manikin compiled to screen from"
+        return result
+    source = irs[nearest(spec, tuple(irs))]
+    for seg, d in screen_distances(source, spec):
+        result.distance.setdefault(goal_ref(seg), d)
+    return result
+
+
+def contact_distances(ir: MotionIR) -> dict[GoalRef, float]:
+    """Hand-to-site distance (m) at each contact goal of a full compile: the contact pass's
+    own measurement where it left one, else measured on the frame where the contact ends."""
+    out: dict[GoalRef, float] = {}
+    for reach in contact_goals(ir):
+        seg = reach.segment
+        d = (seg.result or {}).get("distance")
+        out.setdefault(
+            goal_ref(seg), float(d) if d is not None else _measured(ir, reach.frame, seg)
+        )
+    return out
+
+
+def _measured(ir: MotionIR, frame: int, seg: Segment) -> float:
+    f = ir.frames
+    assert f is not None and ir.skeleton is not None
+    sl = slice(frame, frame + 1)
+    pose = forward(ir.skeleton, f.q[sl], f.root_position[sl], f.root_rotation[sl])
+    hand = site_positions(ir.skeleton, pose, seg.goal.effector)[0]
+    return float(np.linalg.norm(hand - np.asarray(seg.goal.position, dtype=float)))
+
+
+def worst_rula(ir: MotionIR) -> RulaWorst | None:
+    """The highest RULA grand score of any frame (the first such frame), as lint's MT0605
+    scores it: both sides, legs supported when both feet stand."""
+    view = make_view(ir, "", LintConfig())
+    if view is None:
+        return None
+    both_feet = foot_stance(ir, view.time).all(axis=1)
+    scores = R.score_frames(ir.skeleton, view.pose, view.q, both_feet)
+    grand = R.worst_grand(scores)
+    i = int(np.argmax(grand))
+    side = "right" if scores["r"].grand[i] >= scores["l"].grand[i] else "left"
+    span = view.span(i)
+    return RulaWorst(
+        int(grand[i]),
+        int(R.action_level(grand[i : i + 1])[0]),
+        float(view.time[i]),
+        side,
+        span.line,
+        span.column,
+        view.where(i),
+    )
+
+
+@dataclass
+class Report:
+    """Everything one `mtlc report` run shows, in every format."""
+
+    tasks: list[TaskResult]
+    selection: tuple[ManikinSpec, ...]
+    ratio: dict[str, float]  # sex -> weight in the combined share
+    full: bool  # every manikin compiled in full (else the extremes, the rest screened)

@@ -1,0 +1,118 @@
+"""The report as one flat CSV table (columns in docs/report.md): a row per measured number."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+from mtlc.report.access import access_rows, groups, populations
+from mtlc.report.analysis import Report, TaskResult
+from mtlc.report.maintenance import CATEGORIES
+from mtlc.report.population import Share
+from mtlc.report.tables import ratio_text
+
+COLUMNS = ("task", "section", "manikin", "method", "sex", "site", "hand", "line", "column",
+           "metric", "value", "unit", "note")  # fmt: skip
+
+
+def render_csv(report: Report) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for task in report.tasks:
+        for row in _task_rows(task, report):
+            writer.writerow([row.get(c, "") for c in COLUMNS])
+    return out.getvalue()
+
+
+def _task_rows(task: TaskResult, report: Report) -> list[dict[str, str]]:
+    return [
+        *_time_rows(task),
+        *_manikin_rows(task),
+        *_reach_rows(task),
+        *_share_rows(task, report.ratio),
+    ]
+
+
+def _time_rows(task: TaskResult) -> list[dict[str, str]]:
+    rows = [{"metric": name, "value": f"{task.time.seconds[name]:.3f}"} for name in CATEGORIES]
+    rows.append({"metric": "total", "value": f"{task.time.total:.3f}"})
+    return [{"task": task.task, "section": "time", "unit": "s", **r} for r in rows]
+
+
+def _manikin_rows(task: TaskResult) -> list[dict[str, str]]:
+    out = []
+    for m in task.manikins:
+        base = {"task": task.task, "section": "manikin", "manikin": m.label,
+                "method": m.method, "sex": m.spec.sex}  # fmt: skip
+        out.append({**base, "metric": "stature", "value": f"{m.stature:.3f}", "unit": "m"})
+        reached = sum(1 for g in task.goals if m.reached(g))
+        out.append({**base, "metric": "sites_reached", "value": str(reached), "unit": "1",
+                    "note": m.error or f"of {len(task.goals)}"})  # fmt: skip
+        if m.rula is not None:
+            r = m.rula
+            where = {
+                "line": str(r.line),
+                "column": str(r.column),
+                "note": f"{r.side} side, {r.where}",
+            }
+            out.append(
+                {**base, **where, "metric": "rula_score", "value": str(r.score), "unit": "1"}
+            )
+            out.append(
+                {**base, **where, "metric": "rula_time", "value": f"{r.time:.3f}", "unit": "s"}
+            )
+    return out
+
+
+def _reach_rows(task: TaskResult) -> list[dict[str, str]]:
+    out = []
+    for g in task.goals:
+        for m in task.manikins:
+            ok = m.reached(g)
+            d = m.distance.get(g)
+            out.append(
+                {
+                    "task": task.task,
+                    "section": "reach",
+                    "manikin": m.label,
+                    "method": m.method,
+                    "sex": m.spec.sex,
+                    "site": g.site,
+                    "hand": g.hand,
+                    "line": str(g.line),
+                    "column": str(g.column),
+                    "metric": "distance",
+                    "value": "" if d is None else f"{d * 1000:.1f}",
+                    "unit": "mm",
+                    "note": "not measured" if ok is None else "reached" if ok else "short",
+                }
+            )
+    return out
+
+
+def _share_rows(task: TaskResult, ratio: dict[str, float]) -> list[dict[str, str]]:
+    out = []
+    for row in access_rows(task, ratio):
+        g = row.goal
+        where = (
+            {"site": "*"} if g is None
+            else {"site": g.site, "hand": g.hand, "line": str(g.line), "column": str(g.column)}
+        )  # fmt: skip
+        for pop, sex in groups(task):
+            out += _share(task.task, pop, sex, where, row.shares[pop, sex], row.bands[pop, sex])
+        for pop in populations(task):
+            note = f"male:female {ratio_text(ratio)}"
+            out += _share(task.task, pop, "both", where, row.combined[pop], note)
+    return out
+
+
+def _share(
+    task: str, population: str, sex: str, where: dict[str, str], share: Share, note: str
+) -> list[dict[str, str]]:
+    base = {"task": task, "section": "share", "manikin": population, "sex": sex, **where,
+            "unit": "1", "note": note}  # fmt: skip
+    return [
+        {**base, "metric": "share_low", "value": f"{share.low:.4f}"},
+        {**base, "metric": "share_high", "value": f"{share.high:.4f}"},
+    ]

@@ -81,7 +81,7 @@ def test_select_and_ignore_on_the_command_line(capsys) -> None:
     assert main([BAY, "--select", "MT0601,unused-parameter", "--format", "json"]) == 1
     out = capsys.readouterr().out
     assert '"MT0601"' in out and '"MT0602"' in out and '"MT0404"' not in out
-    assert main([BAY, "--select", "MT06", "--ignore", "MT0601,MT0602,MT0606"]) == 0
+    assert main([BAY, "--select", "MT06", "--ignore", "MT0601,MT0602,MT0606,MT0607"]) == 0
     assert main([BAY, "--select", "MT0999"]) == 2
 
 

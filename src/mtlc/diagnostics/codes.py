@@ -127,6 +127,19 @@ _ALL = [
     Code("MT0604", "ground-penetration", Severity.WARNING, "the body sinks below the ground"),
     Code("MT0605", "rula-score", Severity.WARNING, "a posture at or above the RULA threshold"),
     Code("MT0606", "unused-suppression", Severity.WARNING, "an ignore comment that hides nothing"),
+    Code(
+        "MT0607",
+        "site-out-of-view",
+        Severity.WARNING,
+        "a site worked on lies outside the view cone",
+    ),
+    Code("MT0608", "lifting-index", Severity.WARNING, "a lift above the NIOSH recommended limit"),
+    Code(
+        "MT0609",
+        "sustained-posture",
+        Severity.WARNING,
+        "a posture at or above a RULA score held too long",
+    ),
     # internal
     Code("MT0900", "internal-error", Severity.ERROR, "a bug in mtlc: please report it"),
 ]

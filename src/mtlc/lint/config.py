@@ -13,10 +13,14 @@ from pathlib import Path
 from typing import Any
 
 from mtlc.diagnostics import CODES, Severity
+from mtlc.ergonomics import niosh, view
 
 DEFAULT_RULA_THRESHOLD = 5
 DEFAULT_PENETRATION_MM = 1.0
 DEFAULT_LIMIT_DEG = 0.5
+DEFAULT_VIEW_CONE_DEG = view.DEFAULT_HALF_ANGLE_DEG  # docs/visibility.md
+DEFAULT_SUSTAINED_RULA = 5  # RULA action level 3 and above (docs/sustained.md)
+DEFAULT_SUSTAINED_SECONDS = 60.0  # RULA's "static, held > 1 min" (docs/sustained.md)
 
 
 class ConfigError(ValueError):
@@ -30,6 +34,12 @@ class LintConfig:
     rula_threshold: int = DEFAULT_RULA_THRESHOLD
     penetration_mm: float = DEFAULT_PENETRATION_MM
     limit_deg: float = DEFAULT_LIMIT_DEG
+    view_cone_half_angle: float = DEFAULT_VIEW_CONE_DEG  # degrees
+    sustained_rula: int = DEFAULT_SUSTAINED_RULA
+    sustained_seconds: float = DEFAULT_SUSTAINED_SECONDS
+    lift_frequency: float = niosh.DEFAULT_FREQUENCY  # lifts per minute
+    lift_duration: str = niosh.DEFAULT_DURATION  # NIOSH work duration: up to 1 h, 2 h or 8 h
+    lift_coupling: str = niosh.DEFAULT_COUPLING  # NIOSH hand-to-object coupling
     fail_on: Severity = Severity.WARNING
     source: Path | None = None  # the file it came from, None for the defaults
 
@@ -44,6 +54,12 @@ _KEYS = (
     "rula-threshold",
     "penetration-mm",
     "limit-deg",
+    "view-cone-half-angle",
+    "sustained-rula",
+    "sustained-seconds",
+    "lift-frequency",
+    "lift-duration",
+    "lift-coupling",
     "fail-on",
 )
 
@@ -122,6 +138,20 @@ def parse_config(table: dict[str, Any], where: Path | None = None) -> LintConfig
         rula_threshold=int(_number(table, "rula-threshold", DEFAULT_RULA_THRESHOLD, 1, 7, where)),
         penetration_mm=_number(table, "penetration-mm", DEFAULT_PENETRATION_MM, 0, 1000, where),
         limit_deg=_number(table, "limit-deg", DEFAULT_LIMIT_DEG, 0, 180, where),
+        view_cone_half_angle=_number(
+            table, "view-cone-half-angle", DEFAULT_VIEW_CONE_DEG, 0, 180, where
+        ),
+        sustained_rula=int(_number(table, "sustained-rula", DEFAULT_SUSTAINED_RULA, 1, 7, where)),
+        sustained_seconds=_number(
+            table, "sustained-seconds", DEFAULT_SUSTAINED_SECONDS, 0, 86400, where
+        ),
+        lift_frequency=_number(table, "lift-frequency", niosh.DEFAULT_FREQUENCY, 0, 15, where),
+        lift_duration=_choice(
+            table, "lift-duration", niosh.DEFAULT_DURATION, niosh.DURATIONS, where
+        ),
+        lift_coupling=_choice(
+            table, "lift-coupling", niosh.DEFAULT_COUPLING, niosh.COUPLINGS, where
+        ),
         fail_on=_severity(table.get("fail-on", "warning"), where),
         source=where,
     )
@@ -134,6 +164,15 @@ def _number(
     if isinstance(value, bool) or not isinstance(value, int | float) or not lo <= value <= hi:
         raise ConfigError(f"{where}: `{key}` must be a number from {lo:g} to {hi:g}")
     return float(value)
+
+
+def _choice(
+    table: dict[str, Any], key: str, default: str, allowed: tuple[str, ...], where: Path | None
+) -> str:
+    value = table.get(key, default)
+    if value not in allowed:
+        raise ConfigError(f"{where}: `{key}` is one of {', '.join(allowed)}")
+    return str(value)
 
 
 def _severity(value: Any, where: Path | None) -> Severity:

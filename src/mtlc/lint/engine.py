@@ -26,7 +26,17 @@ from mtlc.semantics.timeline import ManikinSpec, Timeline
 
 SEVERITY_RANK = {Severity.NOTE: 1, Severity.WARNING: 2, Severity.ERROR: 3}
 # what only the motion passes find: without one of these enabled no motion is compiled
-MOTION_CODES = ("MT0501", "MT0502", "MT0503", "MT0603", "MT0604", "MT0605")
+MOTION_CODES = (
+    "MT0501",
+    "MT0502",
+    "MT0503",
+    "MT0603",
+    "MT0604",
+    "MT0605",
+    "MT0607",
+    "MT0608",
+    "MT0609",
+)
 
 
 @dataclass
@@ -133,7 +143,7 @@ def _sweep(
             continue
         compiled[spec] = ir
         out.extend(from_diagnostic(d, label(spec)) for d in sink.sorted())
-        view = make_view(ir, label(spec), config)
+        view = make_view(ir, label(spec), config, timeline)
         if view is None:
             continue
         for rule in RULES:

@@ -36,7 +36,7 @@ MTM_FUNCTIONS: dict[str, Signature] = {
     s.name: s
     for s in (
         _sig("reach", P("case", T.REACH_CASE, "B")),
-        _sig("move", P("case", T.MOVE_CASE, "B")),
+        _sig("move", P("case", T.MOVE_CASE, "B"), P("load", T.MASS, 0.0)),
         _sig("turn", P("angle", T.ANGLE), P("load", T.MASS, 0.0)),
         _sig("grasp", P("case", T.GRASP_CASE, "G1A")),
         _sig("release"),

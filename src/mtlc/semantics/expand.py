@@ -357,6 +357,7 @@ class Expander:
                 "two_handed": len(hands) == 2,
                 "phases": {"TA": [t, t_contact], "TO": [t_contact, t + d]},
                 "travel": distance,
+                **_load(timing),
             }
             self.emit("goal", h, t, t + d, params, stmt, env)
             self.hand_pos[h] = target
@@ -590,6 +591,13 @@ class Expander:
         if isinstance(a, tuple):
             return tuple(x / b for x in a)
         return a / b
+
+
+def _load(timing: Any) -> dict[str, float]:
+    """The mass (kg) a goal carries: the `load` of its `mtm.move` timing, when there is one; read
+    by the lifting analysis (mtlc.ergonomics.niosh), not by the MTM-1 time."""
+    load = float(timing.args.get("load", 0.0)) if isinstance(timing, Timing) else 0.0
+    return {"load": load} if load > 0 else {}
 
 
 def _posture_problem(kind: str, values: dict[str, Any]) -> str | None:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from mtlc.diagnostics import CODES, Code
 from mtlc.frontend import Program
 from mtlc.lint.findings import Finding
-from mtlc.lint.rules import motion, unused
+from mtlc.lint.rules import lifting, motion, sustained, unused, visibility
 from mtlc.lint.rules.view import MotionView
 
 ProgramRule = Callable[[Program], list[Finding]]
@@ -43,6 +43,9 @@ RULES: tuple[Rule, ...] = (
     Rule("MT0603", motion.joint_limits, "motion"),
     Rule("MT0604", motion.ground_penetration, "motion"),
     Rule("MT0605", motion.rula, "motion"),
+    Rule("MT0607", visibility.site_out_of_view, "motion"),
+    Rule("MT0608", lifting.lifting_index, "motion"),
+    Rule("MT0609", sustained.sustained_posture, "motion"),
 )
 # MT0606 (unused suppression) is reported by mtlc.lint.suppress after every rule has run.
 

@@ -13,6 +13,7 @@ from mtlc.body.kinematics import Pose
 from mtlc.diagnostics import Span
 from mtlc.ir.model import FloatArray, MotionIR, Segment
 from mtlc.lint.config import LintConfig
+from mtlc.semantics.timeline import Timeline
 
 
 @dataclass
@@ -24,6 +25,7 @@ class MotionView:
     q: FloatArray  # (N, D)
     pose: Pose
     frame_segment: NDArray[np.intp]  # (N,) index into ir.segments
+    timeline: Timeline | None = None  # the primitives' arguments (a lift's load) the IR drops
 
     def segment(self, frame: int) -> Segment:
         return self.ir.segments[int(self.frame_segment[frame])]
@@ -59,11 +61,13 @@ def frame_segments(ir: MotionIR, t: FloatArray) -> NDArray[np.intp]:
     return np.where(covers.any(axis=1), inside, fallback).astype(np.intp)
 
 
-def make_view(ir: MotionIR, manikin: str, config: LintConfig) -> MotionView | None:
+def make_view(
+    ir: MotionIR, manikin: str, config: LintConfig, timeline: Timeline | None = None
+) -> MotionView | None:
     frames = ir.frames
     if frames is None or ir.skeleton is None or len(frames.time) == 0 or not ir.segments:
         return None
     pose = forward(ir.skeleton, frames.q, frames.root_position, frames.root_rotation)
     return MotionView(
-        ir, manikin, config, frames.time, frames.q, pose, frame_segments(ir, frames.time)
+        ir, manikin, config, frames.time, frames.q, pose, frame_segments(ir, frames.time), timeline
     )

@@ -254,151 +254,180 @@ def replace_fuel_filter():
     human.Grasp('right_hand', 'open', start=5.448642, duration=0.072)
     human.KeyJoints(5.5, {
         'spine_lumbar': (-19.6267, -14.7561, -13.194),
-        'spine_thoracic': (-4.1245, 8.4532, -28.1705), 'right_elbow': (3.2988, 80.0),
-        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
-        'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0),
+        'spine_thoracic': (-4.1245, 8.4532, -28.1705),
+        'right_shoulder': (-33.4214, 11.5923, 36.5317), 'right_elbow': (3.2988, 80.0),
+        'right_wrist': (15.0246, -14.679), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
+        'left_wrist': (0.0, 0.0),
     })
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=5.520642, duration=0.072)
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TA on l_arm at filter_bowl
     human.KeyJoints(5.6, {
         'spine_lumbar': (-20.0522, -14.9712, -12.0374),
-        'spine_thoracic': (-4.2866, 7.6962, -27.3046), 'left_clavicle': (0.3972, -0.2747),
+        'spine_thoracic': (-4.2866, 7.6962, -27.3046),
+        'right_shoulder': (-33.9359, 10.4153, 35.5621), 'right_elbow': (3.3022, 79.848),
+        'right_wrist': (15.0596, -13.9043), 'left_clavicle': (0.3972, -0.2747),
         'left_shoulder': (6.492, 6.1075, 11.6632), 'left_elbow': (33.5739, 17.2395),
         'left_wrist': (0.0716, -0.1421),
     })
     human.KeyJoints(5.7, {
         'spine_lumbar': (-21.5578, -15.7323, -7.9453), 'spine_thoracic': (-4.8603, 5.0178, -24.215),
-        'left_clavicle': (1.8027, -1.2724), 'left_shoulder': (-1.0139, 7.4445, 12.4058),
-        'left_elbow': (30.7305, 17.4192), 'left_wrist': (0.3401, -0.6447),
+        'right_shoulder': (-35.7564, 6.1673, 32.1296), 'right_elbow': (3.3145, 79.3104),
+        'right_wrist': (15.1833, -11.163), 'left_clavicle': (1.8027, -1.2724),
+        'left_shoulder': (-1.0139, 7.4445, 12.4058), 'left_elbow': (30.7305, 17.4192),
+        'left_wrist': (0.3401, -0.6447),
     })
     human.KeyJoints(5.8, {
         'spine_lumbar': (-23.7232, -16.827, -2.0598), 'spine_thoracic': (-5.6853, 1.1658, -19.7095),
+        'right_shoulder': (-38.3746, -0.1443, 27.1891), 'right_wrist': (15.3611, -7.2205),
         'left_clavicle': (3.8241, -2.7695), 'left_shoulder': (-11.9714, 9.3675, 13.5242),
         'left_elbow': (26.6411, 17.6776), 'left_wrist': (0.7628, -1.3676),
     })
     human.KeyJoints(5.9, {
         'spine_lumbar': (-26.0961, -18.0265, 4.3896),
-        'spine_thoracic': (-6.5894, -3.0554, -14.6606), 'left_clavicle': (6.0392, -4.5218),
-        'left_shoulder': (-24.2712, 11.4747, 14.8402), 'left_elbow': (22.1598, 17.9607),
+        'spine_thoracic': (-6.5894, -3.0554, -14.6606),
+        'right_shoulder': (-41.2437, -7.4244, 21.7682), 'right_wrist': (15.556, -2.9002),
+        'left_clavicle': (6.0392, -4.5218), 'left_shoulder': (-24.2712, 11.4747, 14.8402),
+        'left_elbow': (22.1598, 17.9607),
     })
     human.KeyJoints(6.0, {
         'spine_lumbar': (-28.2242, -19.1023, 10.1736),
-        'spine_thoracic': (-7.4002, -6.8411, -9.9408), 'left_clavicle': (8.0257, -6.2854),
+        'spine_thoracic': (-7.4002, -6.8411, -9.9408),
+        'right_shoulder': (-43.8169, -14.578, 16.8946), 'right_elbow': (3.3689, 76.9298),
+        'right_wrist': (15.7309, 0.9744), 'left_clavicle': (8.0257, -6.2854),
         'left_shoulder': (-35.8042, 13.3646, 16.1759), 'left_elbow': (18.1409, 18.2146),
         'left_wrist': (1.8796, -2.8702),
     })
     human.KeyJoints(6.1, {
         'spine_lumbar': (-29.6552, -19.8257, 14.0629),
-        'spine_thoracic': (-7.9455, -9.3867, -6.4225), 'left_clavicle': (9.3615, -7.8163),
+        'spine_thoracic': (-7.9455, -9.3867, -6.4225),
+        'right_shoulder': (-45.5471, -20.5102, 13.5958), 'right_elbow': (3.3806, 76.4188),
+        'right_wrist': (15.8484, 3.5797), 'left_clavicle': (9.3615, -7.8163),
         'left_shoulder': (-44.4611, 14.6353, 17.3531), 'left_elbow': (15.4385, 18.3854),
         'left_wrist': (2.4781, -3.348),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(6.2, {
         'spine_lumbar': (-27.6951, -18.7391, 14.9927),
-        'spine_thoracic': (-7.1199, -9.2238, -4.9509), 'left_clavicle': (9.653, -8.8507),
+        'spine_thoracic': (-7.1199, -9.2238, -4.9509),
+        'right_shoulder': (-43.602, -24.0665, 12.7623), 'right_elbow': (0.0, 76.5032),
+        'right_wrist': (1.9255, -0.4414), 'left_clavicle': (9.653, -8.8507),
         'left_shoulder': (-48.1954, 13.5227, 18.1844), 'left_elbow': (15.1063, 18.4105),
         'left_wrist': (3.0614, -3.3618),
     })
     human.KeyJoints(6.3, {
         'spine_lumbar': (-22.1868, -14.6336, 12.9933),
         'spine_thoracic': (-7.3773, -7.2038, -7.2398), 'right_clavicle': (-9.7724, -13.0224),
-        'right_shoulder': (-33.4214, 11.5923, 36.5317), 'right_elbow': (3.2988, 80.0),
-        'left_clavicle': (9.6112, -7.5444), 'left_shoulder': (-45.6393, 9.2034, 18.6417),
-        'left_elbow': (18.5163, 18.3545), 'left_wrist': (3.3054, -2.5709),
+        'right_shoulder': (-39.9989, -19.3135, 12.733), 'right_elbow': (1.5324, 75.6046),
+        'right_wrist': (15.6477, 0.5241), 'left_clavicle': (9.6112, -7.5444),
+        'left_shoulder': (-45.6393, 9.2034, 18.6417), 'left_elbow': (18.5163, 18.3545),
+        'left_wrist': (3.3054, -2.5709),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.4, {
-        'spine_lumbar': (-21.7177, -10.4543, 12.1551),
-        'spine_thoracic': (-7.5701, -5.6651, -8.3314), 'right_clavicle': (-9.676, -13.091),
-        'right_shoulder': (-34.1197, 12.4557, 36.5317), 'right_elbow': (3.1657, 79.9945),
-        'right_wrist': (15.0074, -14.6641), 'left_clavicle': (9.3888, -7.6449),
-        'left_shoulder': (-45.5304, 8.2311, 18.7825), 'left_elbow': (18.9113, 18.3436),
-        'left_wrist': (3.3952, -2.4571),
+        'spine_lumbar': (-21.6875, -10.5354, 12.2234),
+        'spine_thoracic': (-7.5178, -6.0537, -8.9869), 'right_clavicle': (-9.7233, -13.0975),
+        'right_shoulder': (-39.8259, -16.2332, 12.7714), 'right_elbow': (2.207, 75.3746),
+        'right_wrist': (15.4824, -2.1821), 'left_clavicle': (9.3888, -7.6449),
+        'left_shoulder': (-45.7036, 4.6606, 18.5285), 'left_elbow': (18.21, 17.9476),
+        'left_wrist': (3.543, -1.8804),
     })
     human.KeyJoints(6.5, {
-        'spine_lumbar': (-23.3734, -2.7145, 10.9703),
-        'spine_thoracic': (-9.0553, -3.3142, -10.1364), 'right_clavicle': (-9.249, -13.3993),
-        'right_shoulder': (-37.2121, 16.6259, 36.5321), 'right_elbow': (2.5765, 79.9684),
-        'right_wrist': (14.8914, -14.5627),
+        'spine_lumbar': (-23.2092, -3.0712, 10.9622), 'spine_thoracic': (-8.772, -4.4999, -13.2624),
+        'right_clavicle': (-9.5058, -13.4302), 'right_shoulder': (-40.4167, -3.149, 13.0171),
+        'right_wrist': (13.7362, -3.5697), 'left_shoulder': (-46.4706, -2.0615, 17.4037),
+        'left_elbow': (15.1047, 16.357),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (-25.7184, 5.9886, 9.6512), 'spine_thoracic': (-11.159, -0.8209, -12.207),
-        'right_shoulder': (-41.592, 23.4738, 36.5333), 'right_wrist': (14.6196, -14.3238),
+        'spine_lumbar': (-25.3644, 5.263, 9.7466), 'spine_thoracic': (-10.5482, -3.0912, -18.401),
+        'right_shoulder': (-41.2534, 15.2837, 13.3651), 'right_wrist': (11.2631, -4.4104),
+        'left_shoulder': (-47.5569, -9.2123, 15.8107), 'left_wrist': (3.9301, 0.3141),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (-28.05, 13.8257, 7.9195), 'spine_thoracic': (-13.2507, 1.7034, -14.654),
-        'right_clavicle': (-8.0429, -14.3163), 'right_shoulder': (-45.947, 32.1303, 36.5357),
-        'right_elbow': (0.9122, 79.876), 'right_wrist': (14.1384, -13.8993),
+        'spine_lumbar': (-27.5075, 12.7412, 8.7441), 'spine_thoracic': (-12.3144, -1.9768, -23.179),
+        'right_clavicle': (-8.8915, -14.3698), 'right_shoulder': (-42.0855, 33.5763, 13.7111),
+        'right_wrist': (8.804, -4.8397), 'left_shoulder': (-48.637, -15.4659, 14.2267),
+        'left_elbow': (6.3333, 11.9641), 'left_wrist': (4.0659, 1.2937),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (-29.6658, 18.9676, 5.497), 'spine_thoracic': (-14.7002, 4.1475, -17.588),
-        'right_clavicle': (-7.6262, -14.6854), 'right_shoulder': (-48.965, 41.7264, 36.5396),
-        'right_elbow': (0.3372, 79.8228), 'right_wrist': (13.3944, -13.2409),
+        'spine_lumbar': (-28.9926, 17.6372, 8.1224),
+        'spine_thoracic': (-13.5383, -1.3058, -26.3729), 'right_clavicle': (-8.6792, -14.6945),
+        'right_shoulder': (-42.662, 46.24, 13.9509), 'right_elbow': (1.1944, 75.4742),
+        'right_wrist': (7.0999, -4.9933), 'left_shoulder': (-49.3856, -19.4964, 13.1291),
+        'left_elbow': (3.3027, 10.457), 'left_wrist': (4.1451, 1.9231),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(6.9, {
-        'spine_lumbar': (-30.0, 20.0, -7.8089), 'spine_thoracic': (-15.0, 9.0012, -27.6742),
-        'right_clavicle': (-9.4435, -14.954), 'right_shoulder': (-17.9746, 67.3897, 62.1774),
-        'right_elbow': (3.0498, 79.7041), 'right_wrist': (2.2944, -3.0793),
+        'spine_lumbar': (-29.2997, 18.619, 8.0017), 'spine_thoracic': (-13.7914, -1.1779, -27.0208),
+        'right_shoulder': (-42.7813, 48.8577, 14.0005), 'right_wrist': (6.7475, -5.0096),
+        'left_shoulder': (-49.5404, -20.2974, 12.9021), 'left_elbow': (2.676, 10.146),
+        'left_wrist': (4.1599, 2.0479),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=6.994689, duration=0.072)
-    human.KeyJoints(7.0, {
-        'spine_lumbar': (-30.0, 20.0, -11.1173), 'spine_thoracic': (-15.0, 10.0, -30.0),
-        'neck': (35.0, -33.75, 68.2374), 'head': (15.0, 11.25), 'right_clavicle': (-10.0, -14.9954),
-        'right_shoulder': (-8.7329, 73.1121, 69.671), 'right_elbow': (3.8776, 79.6786),
-        'right_wrist': (-0.7686, -0.27),
-    })
+    human.KeyJoints(7.0, {'neck': (35.0, -33.75, 68.2374)})
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.066689, duration=0.2628)
-    human.KeyJoints(7.1, {'neck': (35.0, -31.2364, 61.6962), 'head': (14.8801, 11.25)})
-    human.KeyJoints(7.2, {'neck': (35.0, -4.647, -7.4979)})
+    human.KeyJoints(7.1, {'neck': (35.0, -30.7715, 61.6962), 'right_clavicle': (-8.6353, -14.7617)})
+    human.KeyJoints(7.2, {'neck': (35.0, 0.7361, -7.4979)})
     human.KeyJoints(7.3, {
-        'spine_lumbar': (-30.0, 20.0, -11.1173), 'spine_thoracic': (-15.0, 10.0, -30.0),
-        'neck': (35.0, 21.2229, -74.8193), 'head': (12.378, 11.25),
-        'left_clavicle': (9.3888, -7.6449), 'left_shoulder': (-45.5304, 8.2311, 18.7825),
-        'left_elbow': (18.9113, 18.3436), 'left_wrist': (3.3952, -2.4571),
+        'spine_lumbar': (-29.2997, 18.619, 8.0017), 'spine_thoracic': (-13.7914, -1.1779, -27.0208),
+        'neck': (35.0, 31.391, -74.8193), 'right_shoulder': (-42.7813, 48.8577, 14.0005),
+        'right_elbow': (1.1518, 75.4784), 'right_wrist': (6.7475, -5.0096),
+        'left_clavicle': (9.3888, -7.6449), 'left_shoulder': (-49.5404, -20.2974, 12.9021),
+        'left_elbow': (2.676, 10.146), 'left_wrist': (4.1599, 2.0479),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(7.4, {
-        'spine_lumbar': (-30.0, 19.9996, -10.2216), 'spine_thoracic': (-15.0, 10.0, -27.9421),
-        'neck': (35.0, 23.2137, -80.0), 'left_clavicle': (8.7238, -7.8905),
-        'left_shoulder': (-40.8953, 13.6156, 16.5458), 'left_elbow': (18.2627, 19.5948),
-        'left_wrist': (3.911, -1.6868),
+        'spine_lumbar': (-29.3237, 18.6637, 8.2417), 'spine_thoracic': (-13.8328, -0.7945, -25.065),
+        'neck': (35.0, 33.75, -80.0), 'right_shoulder': (-43.3541, 46.972, 13.8092),
+        'right_elbow': (1.1514, 75.2791), 'right_wrist': (7.3656, -5.0574),
+        'left_clavicle': (8.7238, -7.8905), 'left_shoulder': (-44.7682, -13.9344, 10.8671),
+        'left_elbow': (2.5842, 11.6782), 'left_wrist': (4.6495, 2.6636),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (-30.0, 19.9982, -6.4734), 'spine_thoracic': (-15.0, 10.0, -19.3313),
-        'head': (12.2831, 11.25), 'left_clavicle': (5.9412, -8.9206),
-        'left_shoulder': (-21.4026, 36.1459, 7.1868), 'left_elbow': (15.5486, 24.8353),
-        'left_wrist': (6.0693, 1.5361),
+        'spine_lumbar': (-29.4242, 18.8515, 9.2461), 'spine_thoracic': (-14.0063, 0.8097, -16.8818),
+        'right_shoulder': (-45.751, 39.0817, 13.009), 'right_elbow': (1.15, 74.4453),
+        'right_wrist': (9.952, -5.2576), 'left_clavicle': (5.9412, -8.9206),
+        'left_shoulder': (-24.7016, 12.6902, 2.352), 'left_elbow': (2.2002, 18.0951),
+        'left_wrist': (6.6981, 5.24),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (-30.0, 19.996, -0.9249), 'spine_thoracic': (-15.0, 10.0, -6.5847),
-        'left_clavicle': (1.8222, -10.4509), 'left_shoulder': (7.7041, 69.4974, -6.6672),
-        'left_elbow': (11.5311, 32.6068), 'left_wrist': (9.2643, 6.3069),
+        'spine_lumbar': (-29.573, 19.1317, 10.7328), 'spine_thoracic': (-14.2631, 3.1843, -4.7681),
+        'right_shoulder': (-49.2991, 27.4018, 11.8244), 'right_elbow': (1.1478, 73.2109),
+        'right_wrist': (13.7807, -5.5539), 'left_clavicle': (1.8222, -10.4509),
+        'left_shoulder': (5.2549, 52.1024, -10.2528), 'left_elbow': (1.6317, 27.6079),
+        'left_wrist': (9.7306, 9.0538),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (-30.0, 19.9935, 5.1972), 'spine_thoracic': (-15.0, 10.0, 7.4797),
-        'left_clavicle': (-2.7226, -12.1494), 'left_shoulder': (40.2809, 106.297, -21.9535),
-        'left_elbow': (7.0981, 41.2073), 'left_wrist': (12.7896, 11.571),
+        'spine_lumbar': (-29.7371, 19.4449, 12.3733), 'spine_thoracic': (-14.5464, 5.8045, 8.5979),
+        'right_shoulder': (-53.2141, 14.5143, 10.5172), 'right_elbow': (1.1454, 71.8489),
+        'right_wrist': (18.0051, -5.8809), 'left_clavicle': (-2.7226, -12.1494),
+        'left_shoulder': (38.7702, 95.5892, -24.1607), 'left_elbow': (1.0044, 38.1299),
+        'left_wrist': (13.0766, 13.2619),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (-30.0, 19.9914, 10.6662), 'spine_thoracic': (-15.0, 10.0, 20.0439),
-        'left_clavicle': (-6.7827, -13.6843), 'left_shoulder': (70.1843, 139.1714, -35.6094),
-        'left_elbow': (3.138, 48.9349), 'left_wrist': (15.9389, 16.2736),
+        'spine_lumbar': (-29.8838, 19.7319, 13.8387), 'spine_thoracic': (-14.7995, 8.1452, 20.5383),
+        'right_shoulder': (-56.7114, 3.0015, 9.3496), 'right_elbow': (1.1433, 70.6322),
+        'right_wrist': (21.779, -6.1729), 'left_clavicle': (-6.7827, -13.6843),
+        'left_shoulder': (69.5133, 134.4375, -36.5851), 'left_elbow': (0.444, 47.5741),
+        'left_wrist': (16.0658, 17.0211),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (-30.0, 19.99, 14.2557), 'spine_thoracic': (-15.0, 10.0, 28.29),
-        'left_clavicle': (-9.4474, -14.7236), 'left_shoulder': (91.2706, 160.7474, -44.5719),
-        'left_elbow': (0.539, 54.0876), 'left_wrist': (18.0058, 19.36),
+        'spine_lumbar': (-29.98, 19.9332, 14.8006), 'spine_thoracic': (-14.9656, 9.6814, 28.3749),
+        'right_shoulder': (-59.0068, -4.5546, 8.5832), 'right_elbow': (1.1419, 69.8336),
+        'right_wrist': (24.2558, -6.3646), 'left_clavicle': (-9.4474, -14.7236),
+        'left_shoulder': (91.1531, 159.9343, -44.7395), 'left_elbow': (0.0763, 53.8537),
+        'left_wrist': (18.0276, 19.4884),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.0, {
-        'spine_lumbar': (-30.0, 19.9989, 15.0), 'spine_thoracic': (-15.0, 10.0, 30.0),
-        'left_clavicle': (-10.0, -14.9986), 'left_shoulder': (98.2256, 165.0467, -46.3846),
-        'left_elbow': (0.0, 55.2971), 'left_wrist': (18.3846, 19.8013),
+        'spine_lumbar': (-30.0, 19.9994, 15.0), 'spine_thoracic': (-15.0, 10.0, 30.0),
+        'right_shoulder': (-59.4828, -6.1214, 8.4243), 'right_elbow': (1.1416, 69.668),
+        'right_wrist': (24.7694, -6.4044), 'left_clavicle': (-10.0, -14.9986),
+        'left_shoulder': (98.2257, 165.0467, -46.3846), 'left_elbow': (0.0, 55.2971),
+        'left_wrist': (18.3846, 19.8013),
     })
     human.KeyJoints(8.1, {
         'left_shoulder': (100.6688, 163.5758, -46.2205), 'left_elbow': (0.311, 55.4686),
@@ -456,90 +485,104 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.398681, duration=0.2628)
     human.KeyJoints(9.4, {
-        'neck': (35.0, 23.2094, -79.9879), 'head': (12.2833, 11.25),
+        'neck': (35.0, 33.7449, -79.9879), 'left_shoulder': (155.651, 154.5316, -32.4475),
+        'left_elbow': (2.5356, 59.0312), 'left_wrist': (76.0624, 17.5511),
+    })
+    human.KeyJoints(9.5, {'neck': (35.0, 11.3869, -26.9911)})
+    human.KeyJoints(9.6, {
+        'spine_lumbar': (-30.0, 20.0, 15.0), 'spine_thoracic': (-15.0, 10.0, 30.0),
+        'neck': (35.0, -24.3956, 57.8267), 'right_shoulder': (-59.4828, -6.1214, 8.4243),
+        'right_elbow': (1.1416, 69.668), 'right_wrist': (24.7694, -6.4044),
         'left_shoulder': (155.651, 154.5316, -32.4475), 'left_elbow': (2.5356, 59.0312),
         'left_wrist': (76.0624, 17.5511),
     })
-    human.KeyJoints(9.5, {'neck': (35.0, 4.3413, -26.9911), 'head': (13.1832, 11.25)})
-    human.KeyJoints(9.6, {
-        'spine_lumbar': (-30.0, 20.0, 15.0), 'spine_thoracic': (-15.0, 10.0, 30.0),
-        'neck': (35.0, -25.8558, 57.8267), 'head': (14.6235, 11.25),
-        'right_shoulder': (-8.7329, 73.1121, 69.671), 'right_wrist': (-0.7686, -0.27),
-    })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     human.KeyJoints(9.7, {
-        'spine_lumbar': (-30.0, 19.5618, 14.6164), 'spine_thoracic': (-14.9869, 10.0, 29.4411),
-        'neck': (35.0, -33.75, 80.0), 'head': (15.0, 11.25),
-        'right_shoulder': (-9.1805, 72.397, 69.3053), 'right_elbow': (3.8278, 79.6698),
-        'right_wrist': (-0.6081, -0.3578),
+        'spine_lumbar': (-30.0, 19.9187, 14.6147), 'spine_thoracic': (-15.0, 10.0, 29.3747),
+        'neck': (35.0, -33.75, 80.0), 'right_clavicle': (-8.6528, -14.7647),
+        'right_shoulder': (-59.269, -5.7342, 8.4141), 'right_elbow': (1.1966, 69.6866),
+        'right_wrist': (24.5998, -6.4094), 'left_shoulder': (155.4232, 154.8587, -33.1867),
+        'left_elbow': (2.5694, 59.1626), 'left_wrist': (74.8669, 17.5363),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (-30.0, 15.0206, 10.6393), 'spine_thoracic': (-14.829, 10.0, 23.6256),
-        'right_shoulder': (-13.8537, 64.8944, 65.5132), 'right_elbow': (3.3117, 79.5764),
-        'right_wrist': (1.0589, -1.2677),
+        'spine_lumbar': (-30.0, 19.0762, 10.6217), 'spine_thoracic': (-15.0, 10.0, 22.845),
+        'right_clavicle': (-8.8345, -14.7964), 'right_shoulder': (-57.0537, -1.7213, 8.3092),
+        'right_elbow': (1.7667, 69.8789), 'right_wrist': (22.8422, -6.4616),
+        'left_shoulder': (153.062, 158.2486, -40.847), 'left_elbow': (3.0221, 60.5243),
+        'left_wrist': (62.4767, 17.3003),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (-30.0, 7.2736, 3.8505), 'spine_thoracic': (-14.4885, 10.0, 13.6282),
-        'right_shoulder': (-21.9348, 51.7977, 59.0359), 'right_elbow': (2.4312, 79.4107),
-        'right_wrist': (3.9149, -2.82),
+        'spine_lumbar': (-30.0, 17.6389, 3.8097), 'spine_thoracic': (-15.0, 10.0, 11.5473),
+        'right_shoulder': (-53.2745, 5.1245, 8.1302), 'right_elbow': (2.7391, 70.2069),
+        'right_wrist': (19.8436, -6.5506), 'left_shoulder': (149.0339, 164.0315, -53.9151),
+        'left_elbow': (4.122, 62.8473), 'left_wrist': (41.3396, 16.6324),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (-30.0, -1.5306, -3.873), 'spine_thoracic': (-13.9609, 10.0, 2.1156),
-        'right_shoulder': (-31.3339, 36.3247, 51.6584), 'right_elbow': (1.4306, 79.2096),
-        'right_wrist': (7.1847, -4.5841),
+        'spine_lumbar': (-30.0, 16.0054, -3.9317), 'spine_thoracic': (-15.0, 10.0, -1.6057),
+        'right_shoulder': (-48.9796, 12.9045, 7.9268), 'right_elbow': (3.8443, 70.5798),
+        'right_wrist': (16.4359, -6.6517), 'left_shoulder': (144.4562, 170.6036, -68.7664),
+        'left_elbow': (6.0209, 65.4873), 'left_wrist': (17.3183, 15.348),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (-30.0, -9.2431, -10.6539), 'spine_thoracic': (-13.2415, 10.0, -8.2458),
-        'right_clavicle': (-9.9456, -14.9993), 'right_shoulder': (-39.9614, 21.6933, 45.1659),
-        'right_elbow': (0.5541, 79.0102), 'right_wrist': (10.0934, -6.1295),
+        'spine_lumbar': (-30.0, 14.5745, -10.7133), 'spine_thoracic': (-15.0, 10.0, -13.7012),
+        'right_clavicle': (-9.805, -14.9659), 'right_shoulder': (-45.2172, 19.7198, 7.7485),
+        'right_elbow': (4.8124, 70.9064), 'right_wrist': (13.4508, -6.7403),
+        'left_shoulder': (140.4462, 176.3608, -81.7763), 'left_elbow': (8.8707, 67.8),
+        'left_wrist': (-3.7244, 13.2626),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (-30.0, -13.7151, -14.6151), 'spine_thoracic': (-12.3257, 10.0, -14.7893),
-        'right_clavicle': (-9.9372, -14.9999), 'right_shoulder': (-45.7275, 11.1213, 41.3436),
-        'right_elbow': (0.0458, 78.8496), 'right_wrist': (11.8656, -7.0256),
+        'spine_lumbar': (-30.0, 13.7448, -14.6455), 'spine_thoracic': (-15.0, 10.0, -21.8265),
+        'right_clavicle': (-9.9839, -14.9972), 'right_shoulder': (-43.0356, 23.6717, 7.6452),
+        'right_elbow': (5.3738, 71.0957), 'right_wrist': (11.7199, -6.7917),
+        'left_shoulder': (138.1209, 179.6991, -89.32), 'left_elbow': (12.8231, 69.141),
+        'left_wrist': (-15.926, 10.1916),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.3, {
-        'spine_lumbar': (-26.0904, -12.4205, -13.9783),
-        'spine_thoracic': (-11.5824, 9.1898, -14.674), 'right_clavicle': (-9.1758, -13.7154),
-        'right_shoulder': (-45.3758, 6.5514, 40.9582), 'right_wrist': (12.053, -7.1028),
+        'spine_lumbar': (-27.3302, 14.6249, -14.5965),
+        'spine_thoracic': (-14.5337, 9.6534, -23.4048), 'right_clavicle': (-9.8773, -14.5048),
+        'right_shoulder': (-42.3427, 21.4717, 7.697), 'right_elbow': (5.9859, 71.0506),
+        'right_wrist': (11.6893, -6.5597), 'left_shoulder': (139.1515, 180.0, -89.9998),
+        'left_elbow': (18.4759, 69.0872), 'left_wrist': (-0.001, -0.0023),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=10.380769, duration=0.072)
     human.KeyJoints(10.4, {
-        'spine_lumbar': (-23.632, -11.2098, -13.7398),
-        'spine_thoracic': (-11.441, 9.0336, -14.4257), 'right_clavicle': (-9.3053, -13.4713),
-        'right_shoulder': (-44.3916, 4.4381, 40.9659), 'right_elbow': (2.2941, 78.8037),
+        'spine_lumbar': (-23.1955, 15.5714, -13.5275),
+        'spine_thoracic': (-14.0341, 8.6667, -22.1503), 'right_clavicle': (-9.822, -13.2632),
+        'right_shoulder': (-40.7809, 18.5416, 7.7941), 'right_elbow': (7.3112, 70.9894),
+        'right_wrist': (11.7875, -6.3122), 'left_shoulder': (141.0224, 180.0, -90.0),
+        'left_elbow': (16.1652, 68.9722), 'left_wrist': (4.2063, -2.9162),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(10.5, {'right_elbow': (2.2941, 65.4473)})
-    human.KeyJoints(10.6, {'right_elbow': (2.2941, 2.1281), 'right_wrist': (11.9834, -7.0342)})
+    human.KeyJoints(10.5, {'right_elbow': (7.3112, 57.633)})
+    human.KeyJoints(10.6, {'right_elbow': (7.3112, -5.6862)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(10.7, {'right_elbow': (2.2941, 5.1322)})
-    human.KeyJoints(10.8, {'right_elbow': (2.2941, 68.2183)})
+    human.KeyJoints(10.7, {'right_elbow': (7.3112, -2.6821)})
+    human.KeyJoints(10.8, {'right_elbow': (7.3112, 60.404)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(10.9, {'right_elbow': (2.2941, 59.2987)})
-    human.KeyJoints(11.0, {'right_elbow': (2.2941, -3.0933)})
+    human.KeyJoints(10.9, {'right_elbow': (7.3112, 51.4844)})
+    human.KeyJoints(11.0, {'right_elbow': (7.3112, -10.9076)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.1, {'right_elbow': (2.2941, 11.664)})
-    human.KeyJoints(11.2, {'right_elbow': (2.2941, 72.9009)})
+    human.KeyJoints(11.1, {'right_elbow': (7.3112, 3.8498)})
+    human.KeyJoints(11.2, {'right_elbow': (7.3112, 65.0866)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.3, {'right_elbow': (2.2941, 52.4352)})
-    human.KeyJoints(11.4, {'right_elbow': (2.2941, -7.1856)})
+    human.KeyJoints(11.3, {'right_elbow': (7.3112, 44.6209)})
+    human.KeyJoints(11.4, {'right_elbow': (7.3112, -14.9998)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.5, {'right_elbow': (2.2941, 18.8075)})
-    human.KeyJoints(11.6, {'right_elbow': (2.2941, 76.3511)})
+    human.KeyJoints(11.5, {'right_elbow': (7.3112, 10.9932)})
+    human.KeyJoints(11.6, {'right_elbow': (7.3112, 68.5369)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.7, {'right_elbow': (2.2941, 45.0633)})
-    human.KeyJoints(11.8, {'right_elbow': (2.2941, -9.9421)})
+    human.KeyJoints(11.7, {'right_elbow': (7.3112, 37.249)})
+    human.KeyJoints(11.8, {'right_elbow': (7.3112, -17.7564)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.9, {'right_elbow': (2.2941, 6.5944)})
-    human.KeyJoints(12.0, {'neck': (35.0, -33.75, 80.0), 'right_elbow': (2.2941, 71.5766)})
+    human.KeyJoints(11.9, {'right_elbow': (7.3112, -1.2199)})
+    human.KeyJoints(12.0, {'neck': (35.0, -33.75, 80.0), 'right_elbow': (7.3112, 63.7623)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.007969, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.079969, duration=0.2628)
-    human.KeyJoints(12.1, {'neck': (35.0, -33.3565, 79.0672), 'right_elbow': (2.2941, 78.8037)})
+    human.KeyJoints(12.1, {'neck': (35.0, -33.3565, 79.0672), 'right_elbow': (7.3112, 70.9894)})
     human.KeyJoints(12.2, {'neck': (35.0, -19.6397, 46.5533)})
     human.KeyJoints(12.3, {'neck': (35.0, 13.5968, -32.2294)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > hold: hold on root
@@ -547,37 +590,37 @@ def replace_fuel_filter():
     human.KeyJoints(13.2, {'neck': (35.0, 33.75, -80.0)})
     human.KeyRoot(15.3, (-11.727, 48.059, 118.658), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.3, {
-        'spine_lumbar': (-23.632, -11.2098, -13.7398),
-        'spine_thoracic': (-11.441, 9.0336, -14.4257), 'right_knee': (92.7298,),
+        'spine_lumbar': (-23.1955, 15.5714, -13.5275),
+        'spine_thoracic': (-14.0341, 8.6667, -22.1503), 'right_knee': (92.7298,),
         'right_ankle': (-50.0, 0.0), 'left_knee': (92.7298,), 'left_ankle': (-50.0, 0.0),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > stand: posture on root
     human.KeyRoot(15.4, (-11.726, 48.531, 118.653), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.4, {
-        'spine_lumbar': (-22.9232, -10.8736, -13.3277),
-        'spine_thoracic': (-11.0978, 8.7627, -13.993), 'right_hip': (0.0117, 0.0, 0.0),
+        'spine_lumbar': (-22.4998, 15.1044, -13.1218),
+        'spine_thoracic': (-13.6132, 8.4067, -21.4859), 'right_hip': (0.0117, 0.0, 0.0),
         'right_knee': (92.3708,), 'right_ankle': (-49.7963, 0.0), 'left_hip': (0.0117, 0.0, 0.0),
         'left_knee': (92.3708,), 'left_ankle': (-49.7963, 0.0),
     })
     human.KeyRoot(15.5, (-11.71, 51.268, 118.568), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.5, {
-        'spine_lumbar': (-18.9758, -9.0012, -11.0327),
-        'spine_thoracic': (-9.1868, 7.2537, -11.5834), 'right_knee': (90.2785,),
+        'spine_lumbar': (-18.6253, 12.5034, -10.8622),
+        'spine_thoracic': (-11.269, 6.9591, -17.7861), 'right_knee': (90.2785,),
         'right_ankle': (-48.6095, 0.0), 'left_knee': (90.2785,), 'left_ankle': (-48.6095, 0.0),
     })
     human.KeyRoot(15.6, (-11.645, 55.675, 118.215), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.6, {
-        'spine_lumbar': (-13.0266, -6.1791, -7.5737), 'spine_thoracic': (-6.3065, 4.9796, -7.9518),
+        'spine_lumbar': (-12.786, 8.5834, -7.4567), 'spine_thoracic': (-7.736, 4.7773, -12.2098),
         'right_knee': (86.8616,), 'right_ankle': (-46.6713, 0.0), 'left_knee': (86.8616,),
         'left_ankle': (-46.6713, 0.0),
     })
     human.KeyRoot(15.7, (-11.503, 60.841, 117.444), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (-6.7593, -3.2062, -3.9299), 'spine_thoracic': (-3.2724, 2.5838, -4.126),
+        'spine_lumbar': (-6.6344, 4.4538, -3.8692), 'spine_thoracic': (-4.0141, 2.4789, -6.3355),
     })
     human.KeyRoot(15.8, (-11.288, 65.897, 116.279), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (-1.8577, -0.8812, -1.0801), 'spine_thoracic': (-0.8994, 0.7101, -1.134),
+        'spine_lumbar': (-1.8234, 1.2241, -1.0634), 'spine_thoracic': (-1.1032, 0.6813, -1.7413),
         'right_knee': (78.5656,), 'right_ankle': (-41.9655, 0.0), 'left_knee': (78.5656,),
         'left_ankle': (-41.9655, 0.0),
     })
@@ -611,11 +654,11 @@ def replace_fuel_filter():
     human.KeyRoot(18.103969, (-0.038, 91.701, 55.209), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.103969, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (35.0, 33.75, -80.0), 'head': (15.0, 11.25), 'right_clavicle': (-9.3053, -13.4713),
-        'right_shoulder': (-44.3916, 4.4381, 40.9659), 'right_elbow': (2.2941, 78.8037),
-        'right_wrist': (11.9834, -7.0342), 'left_clavicle': (-10.0, -15.0),
-        'left_shoulder': (155.651, 154.5316, -32.4475), 'left_elbow': (2.5356, 59.0312),
-        'left_wrist': (76.0624, 17.5511), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
+        'neck': (35.0, 33.75, -80.0), 'head': (15.0, 11.25), 'right_clavicle': (-9.822, -13.2632),
+        'right_shoulder': (-40.7809, 18.5416, 7.7941), 'right_elbow': (7.3112, 70.9894),
+        'right_wrist': (11.7875, -6.3122), 'left_clavicle': (-10.0, -15.0),
+        'left_shoulder': (141.0224, 180.0, -90.0), 'left_elbow': (16.1652, 68.9722),
+        'left_wrist': (4.2063, -2.9162), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
         'right_ankle': (0.0, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
         'left_ankle': (0.0, 0.0),
     })

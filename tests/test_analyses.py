@@ -379,3 +379,65 @@ def test_analysis_configuration_keys() -> None:
     for bad in ({"lift-coupling": "great"}, {"lift-duration": 1}, {"sustained-rula": 9}):
         with pytest.raises(ConfigError):
             parse_config(bad)
+
+
+# -- the preview's view cone -------------------------------------------------------------------
+
+
+def test_preview_document_carries_the_half_angle(lift_view: MotionView) -> None:
+    from mtlc.preview.document import preview_document
+
+    assert preview_document(lift_view.ir, {})["view_cone"] == {"half_angle_deg": 30.0}
+    doc = preview_document(lift_view.ir, {}, view_cone_half_angle=20)
+    assert doc["view_cone"] == {"half_angle_deg": 20.0}
+
+
+@pytest.fixture(scope="module")
+def chromium():  # type: ignore[no-untyped-def]
+    """A headless Chromium (as tests/preview uses), or skip when it is not installed."""
+    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium (the test extra)")
+    from preview.preview_support import CHROMEDRIVER, CHROMIUM, CHROMIUM_FLAGS
+    from selenium.webdriver.chrome.service import Service
+
+    if not CHROMIUM.exists() or not CHROMEDRIVER.exists():
+        pytest.skip("Chromium is not installed (tests/preview installs it)")
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for flag in CHROMIUM_FLAGS:
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+def test_preview_draws_the_view_cone_from_the_eye(
+    lift_view: MotionView, chromium, tmp_path: Path
+) -> None:  # type: ignore[no-untyped-def]
+    """The page's cone starts at the eye and points along the head's axis, as Python computes
+    them for the same frame; it has the document's half-angle and toggles off and on."""
+    from mtlc.preview.document import preview_document
+    from mtlc.preview.html import render_page
+
+    page = tmp_path / "heave.html"
+    doc = preview_document(lift_view.ir, {}, view_cone_half_angle=25)
+    page.write_text(render_page(doc), encoding="utf-8")
+    chromium.get(page.as_uri())
+    frame = len(lift_view.time) // 2
+    chromium.execute_script("window.mtlcPreview.setFrame(arguments[0])", frame)
+    cone = chromium.execute_script("return window.mtlcPreview.viewCone")
+    assert cone["halfAngle"] == 25 and cone["visible"] is True
+    pose = forward(lift_view.ir.skeleton, lift_view.q[frame], *_root(lift_view, frame))
+    eye, axis = eye_and_axis(lift_view.ir.skeleton, pose)
+    assert np.allclose(cone["apex"], eye, atol=1e-5)
+    assert np.allclose(cone["axis"], axis, atol=1e-5)
+    chromium.find_element("id", "view-cone").click()
+    assert chromium.execute_script("return window.mtlcPreview.viewCone.visible") is False
+    chromium.execute_script("window.mtlcPreview.setViewCone(true)")
+    assert chromium.execute_script("return document.getElementById('view-cone').checked")
+
+
+def _root(view: MotionView, frame: int) -> tuple[np.ndarray, np.ndarray]:
+    assert view.ir.frames is not None
+    return view.ir.frames.root_position[frame], view.ir.frames.root_rotation[frame]

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from mtlc.body import center_of_mass, forward, site_positions
 from mtlc.body.kinematics import Pose
 from mtlc.ergonomics.rula import score_frames, worst_grand
+from mtlc.ergonomics.view import DEFAULT_HALF_ANGLE_DEG
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.ir.serialize import to_dict
 from mtlc.metrics import foot_stance, penetration, support, support_margin
@@ -186,9 +187,13 @@ def _plain(values: FloatArray, decimals: int = 6) -> list[float | None]:
 
 
 def preview_document(
-    ir: MotionIR, sources: Mapping[str, str], site_spans: Mapping[str, dict[str, Any]] | None = None
+    ir: MotionIR,
+    sources: Mapping[str, str],
+    site_spans: Mapping[str, dict[str, Any]] | None = None,
+    view_cone_half_angle: float = DEFAULT_HALF_ANGLE_DEG,
 ) -> dict[str, Any]:
-    """The page's data: the IR's JSON, per-frame figures and timeline blocks; deterministic."""
+    """The page's data: the IR's JSON, per-frame figures, timeline blocks and the view cone's
+    half-angle (degrees, docs/visibility.md); deterministic."""
     figs = figures(ir)
     return {
         "format": "mtlc-preview",
@@ -210,4 +215,5 @@ def preview_document(
             for b in blocks(ir, sources)
         ],
         "site_sources": dict(site_spans or {}),
+        "view_cone": {"half_angle_deg": float(view_cone_half_angle)},
     }

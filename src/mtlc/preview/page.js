@@ -7,6 +7,8 @@
   const state = {
     doc: null, time: 0, frame: 0, playing: false, speed: 1, generation: 0,
     joints: {}, points: {}, diagnostics: [], webgl: false, lastTick: null,
+    // the view cone (docs/visibility.md): from the eye along the head's forward axis
+    cone: { halfAngle: 30, visible: true, apex: null, axis: null },
   };
 
   // ---- forward kinematics (the rule of docs/ir.md) -------------------------------------------
@@ -89,6 +91,15 @@
     return out;
   }
 
+  // The eye point and the head's forward axis: the `gaze` effector and its direction.
+  function eyeAndAxis(ir, world) {
+    const gaze = ir.manikin.effectors.find((e) => e.name === "gaze" && e.direction);
+    const w = gaze && world[gaze.joint];
+    if (!w) return null;
+    const axis = apply(w.R, gaze.direction), n = Math.hypot(...axis) || 1;
+    return { apex: add(w.p, apply(w.R, gaze.offset)), axis: axis.map((v) => v / n) };
+  }
+
   // ---- the 3D view (three.js) -----------------------------------------------------------------
   const view = { renderer: null, scene: null, camera: null, controls: null, body: null,
                  bones: [], sites: new Map(), goals: [], world: null };
@@ -157,8 +168,23 @@
     const head = new THREE.Mesh(new THREE.SphereGeometry(0.1, 20, 14), skin);
     group.add(head);
     view.head = head;
+    view.cone = buildCone(state.cone.halfAngle);
+    group.add(view.cone);
     view.scene.add(group);
     view.body = group;
+  }
+
+  // A translucent cone, apex at the origin, opening along -Y, 1.2 m long.
+  const CONE_LENGTH = 1.2;
+  function buildCone(halfAngleDeg) {
+    const radius = CONE_LENGTH * Math.tan((Math.min(halfAngleDeg, 80) * Math.PI) / 180);
+    const geometry = new THREE.ConeGeometry(radius, CONE_LENGTH, 32, 1, true);
+    geometry.translate(0, -CONE_LENGTH / 2, 0);
+    const cone = new THREE.Mesh(geometry, new THREE.MeshBasicMaterial({
+      color: 0xf2c230, transparent: true, opacity: 0.18, side: THREE.DoubleSide, depthWrite: false,
+    }));
+    cone.renderOrder = 1;
+    return cone;
   }
 
   function buildWorld(ir) {
@@ -206,7 +232,7 @@
     view.controls.update();
   }
 
-  const Y = new THREE.Vector3(0, 1, 0);
+  const Y = new THREE.Vector3(0, 1, 0), DOWN = new THREE.Vector3(0, -1, 0);
   function drawPose(world, points) {
     if (!state.webgl) return;
     const a = new THREE.Vector3(), b = new THREE.Vector3(), d = new THREE.Vector3();
@@ -223,6 +249,13 @@
     }
     const head = world.head;
     if (head) view.head.position.set(...add(head.p, apply(head.R, [0, 0.09, 0.01])));
+    if (view.cone) {
+      view.cone.visible = state.cone.visible && state.cone.apex !== null;
+      if (view.cone.visible) {
+        view.cone.position.set(...state.cone.apex);
+        view.cone.quaternion.setFromUnitVectors(DOWN, new THREE.Vector3(...state.cone.axis));
+      }
+    }
     for (const { goal, mesh } of view.goals) mesh.visible = state.time >= goal.t_start - 1e-6;
     render();
   }
@@ -324,6 +357,9 @@
     state.points = namedPoints(doc.ir, world);
     state.joints = {};
     for (const [name, w] of Object.entries(world)) state.joints[name] = w.p.slice();
+    const sight = eyeAndAxis(doc.ir, world);
+    state.cone.apex = sight ? sight.apex : null;
+    state.cone.axis = sight ? sight.axis : null;
     drawPose(world, state.points);
     document.getElementById("cursor").style.left = `${(100 * state.time) / d}%`;
     document.getElementById("scrub").value = String(Math.round((1000 * state.time) / d));
@@ -358,6 +394,7 @@
     state.doc = doc;
     state.generation += 1;
     const ir = doc.ir;
+    if (doc.view_cone) state.cone.halfAngle = doc.view_cone.half_angle_deg;
     const title = ir.source.title || ir.source.task;
     document.getElementById("title").textContent = title;
     document.title = `${title} – mtlc preview`;
@@ -449,6 +486,28 @@
     return [r.left + ((v.x + 1) / 2) * r.width, r.top + ((1 - v.y) / 2) * r.height];
   }
 
+  function setViewCone(visible) {
+    state.cone.visible = Boolean(visible);
+    const box = document.getElementById("view-cone");
+    if (box) box.checked = state.cone.visible;
+    if (state.doc) setTime(state.time);
+  }
+
+  // The cone's toggle: a checkbox next to the speed, and the `v` key.
+  function initConeToggle() {
+    const label = document.createElement("label");
+    label.title = "The view cone: sites outside it are out of sight (docs/visibility.md, MT0607)";
+    const box = document.createElement("input");
+    box.type = "checkbox"; box.id = "view-cone"; box.checked = state.cone.visible;
+    box.addEventListener("change", () => setViewCone(box.checked));
+    label.append(box, " view cone");
+    document.getElementById("clock").before(label);
+    document.addEventListener("keydown", (ev) => {
+      if (ev.key === "v" && !(ev.target instanceof HTMLInputElement && ev.target.type !== "checkbox")
+          && !(ev.target instanceof HTMLSelectElement)) setViewCone(!state.cone.visible);
+    });
+  }
+
   // ---- start --------------------------------------------------------------------------------
   document.getElementById("play").addEventListener("click", () => (state.playing ? pause() : play()));
   document.getElementById("speed").addEventListener("change", (ev) => setSpeed(ev.target.value));
@@ -456,6 +515,7 @@
     if (state.doc) setTime((Number(ev.target.value) / 1000) * duration_(state.doc));
   });
   initView();
+  initConeToggle();
   window.mtlcPreview = {
     get ready() { return state.doc !== null; },
     get time() { return state.time; },
@@ -468,7 +528,11 @@
     get diagnostics() { return state.diagnostics; },
     get webgl() { return state.webgl; },
     get document() { return state.doc; },
-    setTime, setFrame, play, pause, setSpeed, moveSite, siteScreenPosition,
+    get viewCone() {
+      const c = state.cone;
+      return { halfAngle: c.halfAngle, visible: c.visible, apex: c.apex, axis: c.axis };
+    },
+    setTime, setViewCone, setFrame, play, pause, setSpeed, moveSite, siteScreenPosition,
   };
   const embedded = JSON.parse(document.getElementById("mtlc-data").textContent);
   if (embedded) load(embedded);

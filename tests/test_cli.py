@@ -201,3 +201,12 @@ def test_lint_is_a_command(tmp_path: Path, capsys) -> None:
     findings = json.loads(capsys.readouterr().out)["findings"]
     assert [(f["code"], f["span"]["line"]) for f in findings] == [("MT0601", 7)]
     assert main(["lint", str(src), "--exit-zero"]) == 0
+
+
+def test_report_is_a_command(tmp_path: Path, capsys) -> None:
+    csv_path = tmp_path / "report.csv"
+    shelf = "tests/report/data/shelf.mtask"
+    assert main(["report", shelf, "--manikins", "extremes", "--csv", str(csv_path)]) == 0
+    header = csv_path.read_text(encoding="utf-8").splitlines()[0]
+    assert header.startswith("task,section,manikin")
+    assert "MIL-HDBK-472" in capsys.readouterr().out

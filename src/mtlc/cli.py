@@ -35,6 +35,7 @@ from mtlc.output import write_all_or_nothing
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.context import DEFAULT_FPS
 from mtlc.preview.command import add_preview_parsers, run_preview_command
+from mtlc.report.command import add_report_parser, run_report_command
 from mtlc.resources import resource_dir
 from mtlc.semantics import builtins as B
 from mtlc.semantics.expand import DEFAULT_BUDGET
@@ -144,6 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     explain = sub.add_parser("explain", help="show the documentation page of a diagnostic code")
     explain.add_argument("code", metavar="CODE", help="e.g. MT0201")
     add_lint_parser(sub)
+    add_report_parser(sub)
     add_fmt_parser(sub)
     add_preview_parsers(sub, frontend_options)
     return parser
@@ -162,6 +164,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run_fmt_command(args)
         if args.command == "lint":
             return run_lint_command(args)
+        if args.command == "report":
+            return run_report_command(args)
         if args.command in ("preview", "serve"):
             return run_preview_command(args)
         return cmd_frontend(args)

@@ -58,8 +58,8 @@ def _finding(view: MotionView, run: Run) -> Finding:
     end = view.time[run.stop - 1]
     msg = (
         f"a posture scoring RULA {cfg.sustained_rula} or more is held longer than "
-        f"{cfg.sustained_seconds:g} s from `{view.where(run.start)}`: {run.seconds:.1f} s, "
-        f"from {view.time[run.start]:.2f} to {end:.2f} s, RULA up to {run.worst}"
+        f"{cfg.sustained_seconds:g} s: {run.seconds:.1f} s, from {view.time[run.start]:.2f} to "
+        f"{end:.2f} s from `{view.where(run.start)}` on, RULA up to {run.worst}"
     )
     return Finding(
         "MT0609",

@@ -328,3 +328,22 @@ def test_docs_hold_the_mapping_table() -> None:
     assert embedded.strip() == markdown_tables().strip(), (
         "docs/jackscript.md's table differs from mtlc.codegen.jack_api.markdown_tables()"
     )
+
+
+@pytest.mark.parametrize(
+    "stem", ["coding=utf-7 ", "coding:latin-1", "vim: set fileencoding=utf-16 :"]
+)
+def test_a_file_name_cannot_declare_the_scripts_encoding(tmp_path: Path, stem: str) -> None:
+    """Python reads a coding cookie on line 1 or 2 of a file: only fixed text may sit there."""
+    title = "+ACc-;import os;os.system(+ACI-echo PWNED+ACI-);x=+ACc-"  # a quote, in UTF-7
+    path = tmp_path / f"{stem}.mtask"
+    path.write_text(nasty_source(title, "t", "u", "a"), encoding="utf-8")
+    script = emit_jackscript(compile_file(path))
+    assert script.text.splitlines()[0] == "# -*- coding: ascii -*-"
+    assert "coding" not in script.text.splitlines()[1]
+    on_disk = tmp_path / "script.py"
+    on_disk.write_bytes(script.text.encode("ascii"))
+    tree = ast.parse(on_disk.read_bytes())  # bytes: the way `import` decodes a module
+    assert ast.dump(tree) == ast.dump(assert_api_only(script.text))
+    (first,) = [n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "t"]
+    assert ast.get_docstring(first, clean=False) == title

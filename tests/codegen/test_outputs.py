@@ -95,6 +95,8 @@ def _spans(doc: object) -> list[dict]:
         ("2nd_task", "task_2nd_task"),
         ("class", "class_"),
         ("js", "js_"),
+        ("os", "os_"),
+        ("string", "string_"),
         ("拆卸", "_u62c6_u5378"),
     ],
 )

@@ -9,6 +9,7 @@ imports it); BVH and the IR's JSON are one file per task.
 from __future__ import annotations
 
 import json
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,9 +39,11 @@ def expand_target(target: str) -> tuple[str, ...]:
 def python_module_name(stem: str) -> str:
     """A name `import NAME` accepts, from a file's stem: Jack's host imports the script by name.
 
-    ASCII and never a keyword or `js`, by the same rule as the task functions inside it.
+    ASCII and never a keyword or `js`, by the same rule as the task functions inside it; never
+    a standard-library module either, which `import` would find first (`os.mtask` is `os_.py`).
     """
-    return function_name(stem, set())
+    name = function_name(stem, set())
+    return f"{name}_" if name in sys.stdlib_module_names else name
 
 
 def generate_file(

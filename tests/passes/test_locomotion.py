@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import itertools
 import math
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from mtlc.body import build_manikin, forward, site_positions, site_rotation
@@ -598,3 +599,102 @@ def test_an_unreadable_clip_is_mt0503(
     assert "error[MT0503]" in err and fragment in err
     assert err.count("MT0503") == 1  # once, though the task walks twice
     assert not (tmp_path / "o").exists()
+
+
+# --------------------------------------------------------------------------- walks too short to step
+
+SHORT_WALK_SCENE = """use stdlib.actions
+
+element turn_slowly(target: Site, facing: Site) {{
+    walk to target facing facing
+    time 1.5 s
+}}
+
+scene s {{
+    ground 0 cm
+    site ahead at (0, 100, 60) cm normal (0, 0, -1)
+    site aside at (100, 100, 0) cm normal (-1, 0, 0)
+    site here at (0, 0, 0) cm
+    site spot at (0, 0, 40) cm
+    site near at ({dx}, 0, {dz}) cm
+}}
+
+task t "short walks" {{
+    manikin gb10000_1988 female p50
+    scene s
+{body}
+}}
+"""
+
+
+def _compile_short(tmp_path: Path, body: str, dx: float = 0.0, dz: float = 40.0) -> MotionIR:
+    path = tmp_path / "short.mtask"
+    path.write_text(SHORT_WALK_SCENE.format(dx=dx, dz=dz, body=body), encoding="utf-8")
+    program = run_frontend([path])
+    assert not program.sink.has_errors
+    return run_motion(program.timelines[0], program.sink)
+
+
+def _assert_stands_without_skating(ir: MotionIR) -> None:
+    skating = compute_metrics(ir).foot_skating
+    assert math.isfinite(skating) and skating < SKATE_LIMIT, skating
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        "    walk_to(spot)\n    walk_to(spot)\n    press(right, ahead)",  # the review's zw.mtask
+        "    walk_to(here)\n    press(right, ahead)",  # to where the body stands
+        "    press(right, ahead)\n    walk_to(here)\n    press(right, ahead)",
+    ],
+    ids=["twice", "in_place_first", "in_place_later"],
+)
+def test_a_walk_of_no_length_takes_no_steps(tmp_path: Path, body: str) -> None:
+    """A zero-length walk has no MTM paces, so no time: it crashed the pass (a one-knot PCHIP,
+    MT0900). The body now stands: no steps, no gait keyframes."""
+    ir = _compile_short(tmp_path, body)
+    instant = [s for s in _walks(ir) if s.end - s.start < 1e-9]
+    assert instant
+    for seg in instant:
+        assert seg.keyframes is None
+        assert seg.result["steps"] == [] and seg.result["segmentation"] == []
+    _assert_stands_without_skating(ir)
+
+
+def test_a_walk_of_no_length_with_time_and_a_turn_pivots_in_place(tmp_path: Path) -> None:
+    body = "    walk_to(spot)\n    press(right, ahead)\n    turn_slowly(spot, aside)\n" + (
+        "    press(right, aside)"
+    )
+    ir = _compile_short(tmp_path, body)
+    turn = _walks(ir)[-1]
+    steps = turn.result["steps"]
+    assert len(steps) >= 4  # 112° in pivot steps of at most 40°, then a closing step
+    before = np.array(turn.result["stance"]["r"]) + np.array(turn.result["stance"]["l"])
+    after = {s["foot"]: np.array(s["position"]) for s in steps}
+    # turning in place: the feet's centre moves by less than the ankle's forward offset (9 mm)
+    assert np.linalg.norm((after["r"] + after["l"] - before)[[0, 2]] / 2) < 0.015
+    for f in LEGS:
+        last = [s["heading"] for s in steps if s["foot"] == f][-1]
+        facing = math.atan2(1.0, -0.4)  # from the spot to the site aside
+        assert abs(math.remainder(last - facing, math.tau)) < 1e-6
+    _assert_stands_without_skating(ir)
+
+
+@settings(max_examples=8, deadline=None)
+@given(
+    dx=st.sampled_from([0.0, 0.1, 1.0, 1.5, 2.5]),  # cm: 0, 1 mm, 1 cm, under and over 2 cm
+    dz=st.sampled_from([40.0, 40.1, 41.0]),
+    turn=st.booleans(),
+)
+@example(dx=1.0, dz=40.0, turn=False)  # 1 cm aside: skated 2.2 cm/s
+@example(dx=0.1, dz=40.0, turn=True)  # 1 mm, then a turn toward the work
+def test_walks_of_millimetres_do_not_crash_or_skate(dx: float, dz: float, turn: bool) -> None:
+    """Walks shorter than a step end where the feet are (the root went to the goal, and the
+    feet slid under the standing body after it: 1 cm skated 2.2 cm/s) and, when the turn left
+    is too small to step, facing the feet's way (1.7 cm/s)."""
+    work = "aside" if turn else "ahead"
+    body = f"    walk_to(spot)\n    walk_to(near)\n    press(right, {work})"
+    with tempfile.TemporaryDirectory() as tmp:  # hypothesis runs many examples per tmp_path
+        ir = _compile_short(Path(tmp), body, dx, dz)
+    assert len(_walks(ir)) == 2
+    _assert_stands_without_skating(ir)

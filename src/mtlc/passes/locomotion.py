@@ -53,6 +53,7 @@ SWING_TOL = 5e-3  # m: a swinging foot's
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
 MIN_DISTANCE = 0.02  # m: shorter walks only turn
+MIN_DURATION = 1e-6  # s: a walk with less time (a zero-length MTM walk) takes no steps
 LEGS = ("r", "l")
 LEG_DOFS = ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")
 
@@ -769,6 +770,7 @@ class Arrival:
 
     feet: dict[str, Footprint]
     root: FloatArray  # (3,) the root at the gait's last keyframe
+    time: float  # when the walk ended
 
 
 def final_feet(stance: dict[str, Footprint], steps: list[Step]) -> dict[str, Footprint]:
@@ -795,6 +797,10 @@ def settle_plan(ir: MotionIR, legs: LegModel, kf: Keyframes, t_from: float, t_to
     delta[1] = 0.0
     inside = (plan.time >= t_from - 1e-9) & (plan.time <= t_to + 1e-9)
     plan.position[inside] += delta
+    # a walk that only turned its pelvis under the feet ends facing the feet's way (see generate)
+    turn = _wrap(float(_heading_of(kf.root_rotation[-1:])[0]) - float(plan.at(t_from)[1]))
+    if abs(turn) > 1e-7:
+        plan.heading[inside] += turn
 
 
 def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
@@ -810,6 +816,8 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
     half_width = np.array([ankle_rest[0, 0], ankle_rest[0, 2]])
     stand = legs.ankle_height - float(ankle_rest[0, 1])
     walks = sorted((s for s in ir.segments if s.kind == "locomotion"), key=lambda s: s.start)
+    instant = [s for s in walks if s.end - s.start < MIN_DURATION]
+    walks = [s for s in walks if s.end - s.start >= MIN_DURATION]
     next_foot = "r"
     arrival: Arrival | None = None
     for i, seg in enumerate(walks):
@@ -817,6 +825,8 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
         p0, h0 = plan.at(t0)
         p1, h1 = plan.at(t1)
         h0, h1 = float(h0), float(h1)
+        if arrival is not None and _plan_moved(plan, arrival.time, t0):
+            arrival = None  # the plan moved the standing body since: start from where it is
         if arrival is None:  # from the rest pose, which interpolation anchors under the plan
             stance = rest_stance(legs, rest, np.array([p0[0], ir.ground, p0[2]]), h0)
             root_start = np.array([p0[0], 0.0, p0[2]])
@@ -830,9 +840,14 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
         walk_heading = math.atan2(way[0], way[2]) if math.hypot(way[0], way[2]) > 1e-9 else h0
         steps = plan_footsteps(stance, goal, walk_heading, h1, gait, half_width, next_foot)
         time_steps(steps, t0, t1, gait)
+        root_end, h_end = np.array([p1[0], 0.0, p1[2]]), h1
+        if not _travels(stance, goal):  # the root moves and turns only as the feet in place do
+            last = final_feet(stance, steps)
+            root_end = root_start + _root_over(last, half_width) - _root_over(stance, half_width)
+            h_end = _unstepped_heading(last, h1)
         motion = WalkMotion(
-            steps, stance, t0, t1, root_start, np.array([p1[0], 0.0, p1[2]]),
-            h0, h1, stand, ir.ground, gait, legs, half_width,
+            steps, stance, t0, t1, root_start, root_end,
+            h0, h_end, stand, ir.ground, gait, legs, half_width,
         )  # fmt: skip
         motion.cap = not _postures_between(ir, t1, t1 + CAP + 1e-9) and t1 + CAP < next_start
         keys = _key_times(motion)
@@ -879,8 +894,60 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
             next_foot = "l" if steps[-1].foot == "r" else "r"
         # the standing body after the walk stays where the gait left it, until the next walk
         settle_plan(ir, legs, seg.keyframes, t1, next_start)
-        arrival = Arrival(final_feet(stance, steps), seg.keyframes.root_position[-1].copy())
+        arrival = Arrival(final_feet(stance, steps), seg.keyframes.root_position[-1].copy(), t1)
+    for seg in instant:
+        _record_instant_walk(seg)
     return ir
+
+
+def _travels(stance: dict[str, Footprint], goal: FloatArray) -> bool:
+    """Whether :func:`plan_footsteps` walks to ``goal`` (shorter walks only turn in place)."""
+    d = goal - (stance["r"].position + stance["l"].position) / 2
+    return float(np.hypot(d[0], d[2])) >= MIN_DISTANCE
+
+
+def _root_over(feet: dict[str, Footprint], half_width: Any) -> FloatArray:
+    """The ground root that stands over ``feet`` as :func:`stance_at` puts feet under a root.
+    A walk too short to step moves the root only by as much as this moves, not to its goal, or
+    the feet would slide under the standing body after it (1 cm walks skated 2.2 cm/s)."""
+    heading = _feet_heading(feet)
+    centre = (feet["r"].position + feet["l"].position) / 2
+    forward = _side(heading, "l", half_width) + _side(heading, "r", half_width)
+    root = centre - forward / 2
+    return np.array([root[0], 0.0, root[2]])
+
+
+def _feet_heading(feet: dict[str, Footprint]) -> float:
+    return math.atan2(
+        math.sin(feet["r"].heading) + math.sin(feet["l"].heading),
+        math.cos(feet["r"].heading) + math.cos(feet["l"].heading),
+    )
+
+
+def _unstepped_heading(feet: dict[str, Footprint], planned: float) -> float:
+    """The heading a walk that does not travel ends in: the feet's, when the plan's turn was too
+    small to step (under ``FINAL_TURN``); the pelvis turned alone and the standing body after it
+    turned its feet on the spot (1 cm walks skated 1.7 cm/s)."""
+    feet_heading = _feet_heading(feet)
+    off = _wrap(planned - feet_heading)
+    return planned if abs(off) < 1e-9 else planned - off
+
+
+def _plan_moved(plan: Any, t_from: float, t_to: float) -> bool:
+    """Whether the root plan moves or turns the standing body between two walks (it does when
+    a walk without time, absorbed by the plan, falls between them)."""
+    (a, ha), (b, hb) = plan.at(t_from), plan.at(t_to)
+    return bool(np.hypot(*(b - a)[[0, 2]]) > 1e-6 or abs(_wrap(float(hb) - float(ha))) > 1e-6)
+
+
+def _record_instant_walk(seg: Segment) -> None:
+    """A walk without time (zero length, so zero MTM paces) takes no steps and has no gait: the
+    body stands, and the root plan holds wherever the walk put it."""
+    seg.keyframes = None
+    seg.result.update(
+        {"steps": [], "feet_held_until": round(seg.end, 6), "keyframes_at_limits": 0,
+         "segmentation": []}
+    )  # fmt: skip
 
 
 def sole_points(legs: LegModel, feet: dict[str, FootTrack]) -> dict[str, FloatArray]:

@@ -22,6 +22,7 @@ from mtlc.passes import (
     posture,
     sample,
     smooth,
+    tool,
 )
 from mtlc.passes.context import MotionOptions, PassContext
 from mtlc.passes.lower import lower
@@ -31,12 +32,14 @@ MotionPass = Callable[[MotionIR, PassContext], MotionIR]
 
 MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("manikin", manikin.build),  # 1. skeleton from population, sex, percentile
+    ("equip", tool.equip),  # tools' tips become hand sites, their mass the hand's
     # 4. the gait comes before anything that starts "from the pose the body is in": the legs
     # and root a walk leaves behind are where the following postures and reaches begin
     ("locomotion", locomotion.generate),  # footsteps, stance, step segmentation
     ("posture", posture.solve),  # whole-body postures (squat, kneel, bend...) and wrist turns
     ("approach", approach.solve),  # 2. TA: damped least squares to the approach point
     ("contact", contact.solve),  # 3. TO: gradient path onto the site, kept as keyframes
+    ("tool", tool.solve),  # a wrench's strokes: arcs about the fastener, the tip held on it
     ("gaze", gaze.solve),  # neck and head aim the eyes at the looked-at site
     ("interpolate", interpolate.run),  # 5. interpolation with base-coordinate correction
     ("balance", balance.run),  # 6. centre of mass over the support polygon

@@ -133,7 +133,7 @@ def pinned_hands(
     from mtlc.passes.balance import hand_pins
 
     t0 = segs[0].start
-    mine = {s.goal.effector for s in segs}
+    mine = {f"{s.goal.effector[0]}_hand" for s in segs}  # a tool's tip moves its hand too
     pins = hand_pins(state.ir, np.array([t0]))
     return [
         Goal(hand, position=state.site(hand, q0, root))
@@ -231,10 +231,11 @@ def chain_names(skel: Any, effectors: list[str], reach: str) -> tuple[str, ...]:
 
 
 def groups(ir: MotionIR, kind: str) -> list[list[Segment]]:
-    """Segments of ``kind`` on the arms, grouped by shared time window, in time order."""
+    """Segments of ``kind`` on the arms, grouped by shared time window, in time order (a
+    wrench's strokes are the tool pass's)."""
     by: dict[tuple[float, float], list[Segment]] = {}
     for s in ir.segments:
-        if s.kind == kind and s.track in ARM_TRACKS:
+        if s.kind == kind and s.track in ARM_TRACKS and "stroke" not in s.goal.params:
             by.setdefault((round(s.start, 9), round(s.end, 9)), []).append(s)
     return [sorted(v, key=lambda s: s.track) for _, v in sorted(by.items())]
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from mtlc.diagnostics import Span
 from mtlc.ir.model import GoalSpec, MotionIR, Provenance, RootPlan, Segment, SourceRef
+from mtlc.passes.tool import tool_site
 from mtlc.semantics.timeline import Primitive, Timeline
 
 HAND_TRACK = {"left_hand": "l_arm", "right_hand": "r_arm"}
@@ -85,6 +86,9 @@ def _segments(p: Primitive) -> list[Segment]:
         site = HAND_SITE[p.effector]
         track = HAND_TRACK[p.effector]
         common = {"two_handed": params["two_handed"], "normal": params.get("normal")}
+        if params.get("tool") is not None:  # the goal is the tool's working point's
+            site = tool_site(site, params["tool"])
+            common["tool"] = params["tool"]
         out = []
         if ta1 > ta0:
             out.append(Segment(track, "TA", ta0, ta1, GoalSpec(
@@ -96,6 +100,8 @@ def _segments(p: Primitive) -> list[Segment]:
                 site, params["site"], target, orientation, 0.0, common), prov))  # fmt: skip
         return out
     if p.kind == "posture":
+        if params["posture"] == "stroke":
+            return [_stroke(p, prov)]
         if params["posture"] == "twist":
             return [Segment(GRIP_TRACK[p.effector], "posture", p.start, p.end,
                             GoalSpec(HAND_SITE[p.effector], params=dict(params)), prov)]  # fmt: skip
@@ -114,6 +120,17 @@ def _segments(p: Primitive) -> list[Segment]:
     if p.kind == "hold":
         return [Segment("root", "hold", p.start, p.end, GoalSpec("body"), prov)]
     raise AssertionError(f"unknown primitive kind {p.kind}")
+
+
+def _stroke(p: Primitive, prov: Provenance) -> Segment:
+    """A wrench's stroke: a TO of the tool's tip on the fastener, on the arm's track, solved by
+    the tool pass (the hand swings on an arc about the fastener while the tip stays on it)."""
+    params = p.params
+    site = tool_site(HAND_SITE[p.effector], params["tool"])
+    spec = {k: params[k] for k in ("angle", "stroke", "strokes", "tool", "normal")}
+    goal = GoalSpec(site, params["site"], _vec(params["position"]), None, 0.0,
+                    {**spec, "two_handed": False})  # fmt: skip
+    return Segment(HAND_TRACK[p.effector], "TO", p.start, p.end, goal, prov)
 
 
 def _heading_to(src: np.ndarray, dst: np.ndarray, default: float) -> float:

@@ -55,7 +55,16 @@ POSTURES: dict[str, Signature] = {
         _sig("squat", P("depth", T.LENGTH, 0.0)),
         _sig("kneel", P("knees", T.INT, 2)),
         _sig("sit"),
-        _sig("twist", P("hand", T.HAND), P("angle", T.ANGLE)),
+        # a turn of the hand on what it holds; with a tool, that tool's strokes (mtlc.passes.tool):
+        # "none" is the bare hand, `swing` the largest stroke a wrench may take (clearance)
+        _sig(
+            "twist",
+            P("hand", T.HAND),
+            P("angle", T.ANGLE),
+            P("tool", T.TOOL, "none"),
+            P("swing", T.ANGLE, 1.0471975511965976),
+            P("load", T.MASS, 0.0),
+        ),
     )
 }
 
@@ -75,4 +84,11 @@ TOOL_PROPERTIES: dict[str, T.Type] = {
     "grip": T.VectorType(T.LENGTH_DIM),
     "tip": T.VectorType(T.LENGTH_DIM),
     "kind": T.STRING,
+    "axis": T.VectorType(T.NONE_DIM),
 }
+
+# what a tool's `kind` does to a fastener (docs/tools.md): wrenches swing on an arc about it,
+# a ratchet swings back without letting go, a screwdriver and pliers turn with the forearm
+ARC_TOOL_KINDS = ("wrench", "ratchet")
+TOOL_KINDS = (*ARC_TOOL_KINDS, "screwdriver", "pliers")
+TASK_TOOL_KIND = "task"  # stdlib.tools.task_tool: whatever tool the task's `tool` setting names

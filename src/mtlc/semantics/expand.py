@@ -373,22 +373,7 @@ class Expander:
         if problem:
             self.fail("MT0309", problem, env, stmt)
         if kind == "twist":
-            hands = HANDS[values["hand"]]
-            load = float(self.tool.properties.get("mass", 0.0)) if self.tool else 0.0
-            d = self.duration(
-                timing, Timing("turn", {"angle": values["angle"], "load": load}), stmt, env
-            )
-            for h in hands:
-                self.emit(
-                    "posture",
-                    h,
-                    t,
-                    t + d,
-                    {"posture": "twist", "angle": values["angle"]},
-                    stmt,
-                    env,
-                )
-            return t + d
+            return self.twist(stmt, env, t, timing, values)
         if kind == "stand" and self.posture == "stand" and timing is None:
             return t  # already standing: nothing to do
         default_code = {
@@ -411,6 +396,67 @@ class Expander:
         # rising from one knee is MTM-1 AB, from both knees AKBK: remember which
         self.posture = "kneel_one" if kind == "kneel" and values.get("knees") == 1 else kind
         return t + d
+
+    def twist(
+        self, stmt: ast.Posture, env: _Env, t: float, timing: Any, values: dict[str, Any]
+    ) -> float:
+        """A hand turning what it holds: with a tool, the goal before (the reach onto the
+        fastener) addresses the tool's tip, and the turn becomes the tool's strokes (docs/tools.md):
+        a wrench's arcs of at most ``swing``, else quarter turns of the forearm."""
+        tool = values["tool"] if isinstance(values["tool"], Tool) else None
+        if tool is None and values["tool"] == "none" and self.tool is not None:
+            # an untimed bare `posture twist` has always carried the task's tool as its load
+            load = float(values["load"]) + float(self.tool.properties.get("mass", 0.0))
+        else:
+            load = float(values["load"]) + _tool_mass(tool)
+        arc = tool is not None and tool.properties.get("kind") in B.ARC_TOOL_KINDS
+        strokes = _strokes(values["angle"], values["swing"] if arc else math.pi / 2)
+        if tool is None and values["tool"] == "none" and abs(values["angle"]) <= math.pi:
+            strokes = [values["angle"]]  # a plain twist, as written
+        stated = None if timing is None else self.duration(timing, None, stmt, env)
+        for h in HANDS[values["hand"]]:
+            fastener = self._hold_tool(h, tool, arc, stmt, env)
+            t_h = t
+            for i, angle in enumerate(strokes):
+                params = _stroke_params(angle, i, len(strokes), tool, fastener, arc)
+                default = Timing("fixed", {"tmu": _stroke_tmu(angle, load, tool, arc)})
+                d = (
+                    stated / len(strokes)
+                    if stated is not None
+                    else self.duration(None, default, stmt, env)
+                )
+                self.emit("posture", h, t_h, t_h + d, params, stmt, env)
+                t_h += d
+        return t_h
+
+    def _hold_tool(
+        self, hand: str, tool: Tool | None, arc: bool, stmt: ast.Stmt, env: _Env
+    ) -> dict[str, Any] | None:
+        """The goal this hand last reached (its fastener), now made with the tool's tip."""
+        if tool is None:
+            return None
+        goal = next(
+            (p for p in reversed(self.out) if p.kind == "goal" and p.effector == hand), None
+        )
+        if goal is None:
+            self.fail(
+                "MT0309",
+                f"the {_part(hand)} turns `{tool.name}` on nothing: reach a fastener first",
+                env,
+                stmt,
+            )
+        assert goal is not None
+        if arc and goal.params.get("normal") is None:
+            self.fail(
+                "MT0309",
+                f"`{tool.name}` swings about the fastener's axis, but site "
+                f"`{goal.params['site']}` has no normal",
+                env,
+                stmt,
+                help="give the site its axis: `normal (x, y, z)`",
+            )
+        goal.params["tool"] = _tool_dict(tool)
+        return goal.params
 
     def walk(self, stmt: ast.Walk, env: _Env, t: float, timing: Any) -> float:
         x, y, z = self.root
@@ -527,7 +573,10 @@ class Expander:
                 if kind == "tool":
                     sym = env.scope.lookup(name)
                     assert sym is not None and isinstance(sym.decl, ast.ToolDecl)
-                    return self._tool(sym.decl, env)
+                    tool = self._tool(sym.decl, env)
+                    if tool.properties.get("kind") == B.TASK_TOOL_KIND:
+                        return self.tool  # stdlib.tools.task_tool: the task's tool, or none
+                    return tool
                 return name  # an enum member: its name is its value
             case ast.Attr(name=attr) if self.resolved.get(expr.span) == "enum":
                 return attr  # ReachCase.A
@@ -600,8 +649,78 @@ def _load(timing: Any) -> dict[str, float]:
     return {"load": load} if load > 0 else {}
 
 
+def _tool_mass(tool: Tool | None) -> float:
+    return float(tool.properties.get("mass", 0.0)) if tool is not None else 0.0
+
+
+def _tool_dict(tool: Tool) -> dict[str, Any]:
+    """The tool as plain data for the timeline and the IR (SI units, as declared)."""
+    return {"name": tool.name, **tool.properties}
+
+
+def _strokes(angle: float, stroke: float) -> list[float]:
+    """``angle`` in strokes of at most ``stroke``, the last taking the rest: 1080 deg at 60 deg
+    is 18 strokes."""
+    n = max(1, math.ceil(abs(angle) / stroke - 1e-9))
+    sign = 1.0 if angle >= 0 else -1.0
+    out = [sign * stroke] * (n - 1)
+    return [*out, angle - sign * stroke * (n - 1)]
+
+
+def _stroke_params(
+    angle: float,
+    index: int,
+    count: int,
+    tool: Tool | None,
+    fastener: dict[str, Any] | None,
+    arc: bool,
+) -> dict[str, Any]:
+    """A twist primitive's params; a wrench's stroke also names its fastener and its place in
+    the series (``stroke`` of ``strokes``)."""
+    if not arc:
+        return {"posture": "twist", "angle": angle, **({"tool": _tool_dict(tool)} if tool else {})}
+    assert tool is not None and fastener is not None
+    return {
+        "posture": "stroke",
+        "angle": angle,
+        "stroke": index + 1,
+        "strokes": count,
+        "tool": _tool_dict(tool),
+        "site": fastener["site"],
+        "position": fastener["position"],
+        "normal": fastener["normal"],
+    }
+
+
+def _stroke_tmu(angle: float, load: float, tool: Tool | None, arc: bool) -> float:
+    """MTM-1 for one stroke: the turn; a wrench is then let go (RL1), moved back over the arc's
+    chord (R-B) and re-grasped (G1A); a ratchet swings back engaged (a second turn)."""
+    turn = mtm.turn_tmu(angle, load)
+    if not arc or tool is None:
+        return turn
+    if tool.properties.get("kind") == "ratchet":
+        return 2.0 * turn
+    chord = 2.0 * _tool_radius(tool) * math.sin(abs(angle) / 2.0)
+    return turn + mtm.code_tmu("RL1") + mtm.reach_tmu("B", chord) + mtm.grasp_tmu("G1A")
+
+
+def _tool_radius(tool: Tool) -> float:
+    """Distance from the fastener's axis (through the tip, along ``axis``) to the grip (m)."""
+    grip = tool.properties.get("grip", (0.0, 0.0, 0.0))
+    tip = tool.properties.get("tip", grip)
+    axis = tool.properties.get("axis", (0.0, -1.0, 0.0))
+    d = [g - p for g, p in zip(grip, tip, strict=True)]
+    norm = math.hypot(*axis) or 1.0
+    along = sum(c * a / norm for c, a in zip(d, axis, strict=True))
+    return math.sqrt(max(0.0, sum(c * c for c in d) - along * along))
+
+
 def _posture_problem(kind: str, values: dict[str, Any]) -> str | None:
     """What is wrong with a posture's arguments, if anything (ranges a body can take)."""
+    if kind == "twist" and not 0 < values["swing"] <= math.pi:
+        return (
+            f"a wrench's swing is between 0 and 180 deg, not {math.degrees(values['swing']):g} deg"
+        )
     if kind == "kneel" and values["knees"] not in (1, 2):
         return f"kneel on 1 or 2 knees, not {values['knees']}"
     if kind == "squat" and not 0 <= values["depth"] <= 1.0:

@@ -1,0 +1,274 @@
+"""Tool operation (seed 000's tool-operation actions, ``jsaToolMotion``): tools in the hand.
+
+Two passes (docs/tools.md):
+
+* ``equip``, after the manikin: every tool a goal is made with becomes a site on that hand, its
+  working point (``r_tool_wrench_10mm``), so TA and TO solve for the tip on the site and metrics
+  measure the tip; the heaviest tool a hand holds adds its mass to the hand's segment (at the
+  middle of grip and tip), so the centre of mass and balance carry it.
+* ``solve``, after contact: a wrench's strokes (TO segments with a ``stroke`` number). The hand
+  holds the handle at the arc's radius ``r`` (the grip's distance from the fastener's axis) and
+  swings about the fastener's axis (its site's normal) through the stroke's angle, the tip on the
+  fastener, then is lifted off along the axis, swings back and re-engages; a ratchet swings back
+  engaged. Every keyframe is solved by damped least squares for two goals: the grip on the arc
+  and the tip on the fastener (lifted by ``LIFT`` while off).
+
+A screwdriver or pliers keep the forearm twists of the posture pass; only their tip is the goal.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.body.skeleton import Site, Skeleton
+from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
+from mtlc.passes.approach import TOLERANCE, _restaters, chain_names, report_short
+from mtlc.passes.context import PassContext
+from mtlc.passes.state import PoseState, reanchor
+
+LIFT = 0.03  # m the tool is lifted off the fastener to swing back
+SEAT_SHARE = 0.1  # share of a stroke's time the wrench rests on the fastener before swinging
+SWING_SHARE = 0.6  # share of a stroke's time spent turning; the rest re-positions
+KEY_STEP = math.radians(5.0)  # at most this much arc between keyframes
+HAND_FRAME_AXIS = (0.0, -1.0, 0.0)  # a tool's default `axis`: back along the hand
+
+
+def tool_site(hand_site: str, tool: dict[str, Any]) -> str:
+    """The name of a tool's working point on a hand (``r_hand`` + wrench_10mm -> r_tool_...)."""
+    return f"{hand_site[0]}_tool_{tool['name']}"
+
+
+def hand_to_joint(v: Any, side: str) -> FloatArray:
+    """A point of the hand's frame (x thumb, y toward the fingers, z palm normal) in the wrist
+    joint's frame. At the neutral pose the right palm faces +X (the thigh), the thumb +Z and the
+    fingers -Y (docs/body.md); the left hand is its mirror image."""
+    x, y, z = (float(c) for c in v)
+    return np.array([z if side == "r" else -z, -y, x])
+
+
+def radius(tool: dict[str, Any]) -> float:
+    """Distance from the fastener's axis (through the tip, along ``axis``) to the grip (m)."""
+    d = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float) - np.asarray(tool["tip"], float)
+    a = np.asarray(tool.get("axis", HAND_FRAME_AXIS), float)
+    a = a / np.linalg.norm(a)
+    return float(np.linalg.norm(d - (d @ a) * a))
+
+
+def axial_offset(tool: dict[str, Any]) -> float:
+    """How far the grip sits out along the fastener's axis from the tip (m; a cranked ring)."""
+    d = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float) - np.asarray(tool["tip"], float)
+    a = np.asarray(tool.get("axis", HAND_FRAME_AXIS), float)
+    return float(d @ (a / np.linalg.norm(a)))
+
+
+# ------------------------------------------------------------------ equip
+def held_tools(ir: MotionIR) -> dict[str, dict[str, Any]]:
+    """Tool sites the segments address, with their tool, by site name."""
+    out: dict[str, dict[str, Any]] = {}
+    for seg in ir.segments:
+        tool = seg.goal.params.get("tool")
+        if tool is not None and "tip" in tool and seg.goal.effector.startswith(("r_", "l_")):
+            out.setdefault(seg.goal.effector, tool)
+    return dict(sorted(out.items()))
+
+
+def with_tools(skel: Skeleton, tools: dict[str, dict[str, Any]]) -> Skeleton:
+    """The skeleton with a site at each tool's tip and each hand carrying its heaviest tool."""
+    sites = list(skel.sites)
+    heaviest: dict[str, dict[str, Any]] = {}
+    for name, tool in tools.items():
+        side = name[0]
+        hand = skel.site(f"{side}_hand")
+        grip = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float)
+        tip = np.asarray(hand.offset) + hand_to_joint(np.asarray(tool["tip"], float) - grip, side)
+        sites.append(Site(name, hand.joint, tuple(float(c) for c in tip), "effector"))
+        best = heaviest.get(side)
+        if best is None or float(tool.get("mass", 0.0)) > float(best.get("mass", 0.0)):
+            heaviest[side] = tool
+    joints = [_carrying(skel, j, heaviest.get(j.name[0])) for j in skel.joints]
+    return dataclasses.replace(skel, joints=tuple(joints), sites=tuple(sites))
+
+
+def _carrying(skel: Skeleton, joint: Any, tool: dict[str, Any] | None) -> Any:
+    """A wrist joint's segment with the tool's mass added at the middle of grip and tip."""
+    if tool is None or not joint.name.endswith("_wrist") or float(tool.get("mass", 0.0)) <= 0:
+        return joint
+    side = joint.name[0]
+    hand = np.asarray(skel.site(f"{side}_hand").offset)
+    grip = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float)
+    middle = hand + hand_to_joint(0.5 * (np.asarray(tool["tip"], float) - grip), side)
+    m_hand, m_tool = float(joint.mass), float(tool["mass"])
+    com = (m_hand * np.asarray(joint.com) + m_tool * middle) / (m_hand + m_tool)
+    return dataclasses.replace(joint, mass=m_hand + m_tool, com=tuple(float(c) for c in com))
+
+
+def equip(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    tools = held_tools(ir)
+    if tools and ir.skeleton is not None:
+        ir.skeleton = with_tools(ir.skeleton, tools)
+    return ir
+
+
+# ------------------------------------------------------------------ strokes
+def plane_basis(normal: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(n, u, v): the unit axis and two unit vectors across it, right-handed (u × v = n)."""
+    n = np.asarray(normal, float)
+    n = n / np.linalg.norm(n)
+    helper = np.array([0.0, 1.0, 0.0]) if abs(n[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    u = np.cross(helper, n)
+    u /= np.linalg.norm(u)
+    return n, u, np.cross(n, u)
+
+
+def arc_points(
+    centre: FloatArray, normal: Any, r: float, theta: FloatArray, out: float = 0.0
+) -> FloatArray:
+    """(K, 3) points at radius ``r`` about the axis through ``centre``, ``out`` along it."""
+    n, u, v = plane_basis(normal)
+    th = np.asarray(theta, float)[:, None]
+    return centre + out * n + r * (np.cos(th) * u + np.sin(th) * v)
+
+
+def arc_angle(centre: FloatArray, normal: Any, point: FloatArray) -> float:
+    """The angle about the axis at which ``point`` lies (0 along ``u``)."""
+    _, u, v = plane_basis(normal)
+    d = np.asarray(point, float) - centre
+    return math.atan2(float(d @ v), float(d @ u))
+
+
+def stroke_plan(
+    theta_mid: float, turn: float, ratchet: bool
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Keyframe fractions of the stroke's time, arc angles and lift (0/1) for one stroke.
+
+    The swing runs from ``theta_mid - turn/2`` to ``theta_mid + turn/2`` (``turn`` signed, about
+    the fastener's normal) in steps of at most ``KEY_STEP``; a wrench is then lifted, swung back
+    over the middle and re-engaged at the start, a ratchet swings back engaged."""
+    steps = max(2, math.ceil(abs(turn) / KEY_STEP))
+    a0, a1 = theta_mid - turn / 2.0, theta_mid + turn / 2.0
+    swing = np.linspace(a0, a1, steps + 1)
+    if ratchet:
+        back = swing[::-1][1:]
+        frac = np.concatenate([np.linspace(0, 0.5, steps + 1), np.linspace(0.5, 1, steps + 1)[1:]])
+        return frac, np.concatenate([swing, back]), np.zeros(len(frac))
+    # the wrench is seated for a moment before it swings (SEAT_SHARE), then swung, lifted off,
+    # swung back above the fastener and put back on
+    frac = np.concatenate(
+        [[0.0], np.linspace(SEAT_SHARE, SWING_SHARE, steps + 1), [0.7, 0.85, 1.0]]
+    )
+    theta = np.concatenate([[a0], swing, [a1, theta_mid, a0]])
+    lift = np.concatenate([np.zeros(steps + 2), [1.0, 1.0, 0.0]])
+    return frac, theta, lift
+
+
+def _solve_keys(
+    state: PoseState,
+    seg: Segment,
+    hands: FloatArray,
+    tips: FloatArray,
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+) -> tuple[FloatArray, str, FloatArray]:
+    """(K, D) poses putting the grip on ``hands`` and the tip on ``tips``, each solved from
+    ``q0``; the arm first, the torso for the keyframes the arm leaves short. Also the reach
+    and the tip's distance per keyframe."""
+    skel = state.skel
+    hand = f"{seg.goal.effector[0]}_hand"
+    k = len(hands)
+    qs = np.tile(q0, (k, 1))
+    rp, rr = np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1))
+    goals = [Goal(hand, position=hands), Goal(seg.goal.effector, position=tips)]
+    best, reach = None, "arm"
+    for r in ("arm", "torso"):
+        model = prepare(skel, [hand, seg.goal.effector], qs, reach=r, root_position=rp,
+                        root_rotation=rr)  # fmt: skip
+        q = solve_ta(skel, goals, qs, model=model, restarts=2, tol=2e-4).q
+        err = _errors(state, q, root, [hand, seg.goal.effector], [hands, tips])
+        if best is None or err.max() < best[1].max() - 1e-6:
+            best, reach = (q, err), r
+        if best[1].max() <= TOLERANCE:
+            break
+    assert best is not None
+    tip_err = _errors(state, best[0], root, [seg.goal.effector], [tips])
+    return best[0], reach, tip_err
+
+
+def _errors(
+    state: PoseState, q: FloatArray, root: Any, sites: list[str], targets: list[FloatArray]
+) -> FloatArray:
+    """(K,) largest distance of the sites to their targets for each pose."""
+    from mtlc.body import forward, site_positions
+
+    k = len(q)
+    pose = forward(state.skel, q, np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1)))
+    pts = np.asarray(site_positions(state.skel, pose, sites)).reshape(k, len(sites), 3)
+    return np.linalg.norm(pts - np.stack(targets, axis=1), axis=-1).max(axis=1)
+
+
+def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, centres: dict) -> None:
+    """Keyframes of one stroke (see the module); ``centres`` keeps each series' middle angle and
+    the pose its first stroke started from."""
+    g = seg.goal
+    tool = g.params["tool"]
+    site = np.asarray(g.position, float)
+    normal = g.params["normal"]
+    q0 = state.q_at(seg.start)
+    root = state.root_at(seg.start)
+    r, out = radius(tool), axial_offset(tool)
+    key = (seg.track, g.site, seg.provenance.origin)
+    if g.params["stroke"] == 1 or key not in centres:
+        hand_now = state.site(f"{g.effector[0]}_hand", q0, root)
+        centres[key] = (arc_angle(site, normal, hand_now), q0)
+    turn = -float(g.params["angle"])  # twist angles loosen when negative: positive about n
+    theta_mid, q_reached = centres[key]
+    frac, theta, lift = stroke_plan(theta_mid, turn, tool.get("kind") == "ratchet")
+    n = plane_basis(normal)[0]
+    hands = arc_points(site, normal, r, theta, out) + LIFT * lift[:, None] * n
+    tips = site + LIFT * lift[:, None] * n
+    q, reach, tip_err = _solve_keys(state, seg, hands, tips, q0, root)
+    if g.params["stroke"] == g.params["strokes"]:
+        # the last stroke re-engages where the reach put the tool: the motion after it was
+        # solved from that pose (a trunk the strokes bent would otherwise stay bent)
+        q[-1] = q_reached
+        tip_err[-1] = _errors(state, q[-1:], root, [g.effector], [tips[-1:]])[0]
+    # every stroke keys the trunk too, so no trunk angle holds across strokes solved differently
+    names = chain_names(state.skel, [g.effector], "torso")
+    idx = [state.skel.dof_index(nm) for nm in names]
+    seg.keyframes = Keyframes(
+        time=seg.start + (seg.end - seg.start) * frac, dofs=names, q=q[:, idx]
+    )
+    engaged = lift == 0
+    worst = float(tip_err[engaged].max())
+    seg.result = {
+        "distance": float(tip_err[-1]),
+        "success": bool(worst <= TOLERANCE and state.skel.within_limits(q[-1])),
+        "reach": reach,
+        "radius": r,
+        "swing": abs(turn),
+        "keyframes": len(frac),
+        "tip_error_max": worst,
+    }
+    if worst > TOLERANCE:
+        report_short(ctx, seg, worst)
+    state.add(seg)
+
+
+def is_stroke(seg: Segment) -> bool:
+    return seg.kind == "TO" and "stroke" in seg.goal.params
+
+
+def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    strokes = sorted((s for s in ir.segments if is_stroke(s)), key=lambda s: s.start)
+    if not strokes:
+        return ir
+    state = PoseState(ir)
+    centres: dict[Any, tuple[float, FloatArray]] = {}
+    for seg in strokes:
+        solve_stroke(ctx, state, seg, centres)
+    reanchor(ir, ctx.cache, _restaters())
+    return ir

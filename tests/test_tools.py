@@ -1,0 +1,236 @@
+"""Tool operation: stdlib tools, the tool's tip as the goal, a wrench's strokes, the tool's mass.
+
+Expected values are computed by hand from stdlib/tools.mtask (docs/tools.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mtlc.body import build_manikin, center_of_mass, forward, site_positions
+from mtlc.diagnostics import DiagnosticSink
+from mtlc.frontend import run_frontend
+from mtlc.ir.model import MotionIR
+from mtlc.passes import run_motion
+from mtlc.passes.tool import arc_points, radius, stroke_plan, with_tools
+from mtlc.semantics.expand import _strokes
+from mtlc.semantics.timeline import ManikinSpec, Timeline
+
+MAN = ManikinSpec("gb10000_1988", "male", 50)
+WRENCH_10 = {
+    "name": "wrench_10mm",
+    "kind": "wrench",
+    "mass": 0.06,
+    "grip": (0.0, 0.0, 0.0),
+    "tip": (0.115, 0.0, 0.0),
+    "axis": (0.0, -1.0, 0.0),
+}
+
+TASK = """use stdlib.actions
+use stdlib.tools
+
+scene bay {{
+    site front at (0, 0, 60) cm
+    site bolt at (20, 135, 112) cm normal (0, 0, -1)
+}}
+
+task turn_bolt {{
+    scene bay
+    {setting}
+    walk_to(front)
+    unscrew(right, bolt, turns: {turns}{args})
+}}
+"""
+
+
+def _timeline(
+    tmp: Path, setting: str = "tool wrench_10mm", turns: int = 3, args: str = ""
+) -> Timeline:
+    path = tmp / "t.mtask"
+    path.write_text(TASK.format(setting=setting, turns=turns, args=args), encoding="utf-8")
+    program = run_frontend([path])
+    assert not program.sink.has_errors, program.diagnostics
+    (timeline,) = program.timelines
+    return dataclasses.replace(timeline, manikin=MAN)
+
+
+def _diagnostics(tmp: Path, setting: str, args: str) -> list[str]:
+    path = tmp / "t.mtask"
+    path.write_text(TASK.format(setting=setting, turns=1, args=args), encoding="utf-8")
+    return [d.code for d in run_frontend([path]).diagnostics]
+
+
+@pytest.fixture(scope="module")
+def wrench_ir(tmp_path_factory: pytest.TempPathFactory) -> MotionIR:
+    timeline = _timeline(tmp_path_factory.mktemp("wrench"))
+    return run_motion(timeline, DiagnosticSink(), until="tool")
+
+
+def _strokes_of(ir: MotionIR) -> list:
+    return sorted((s for s in ir.segments if "stroke" in s.goal.params), key=lambda s: s.start)
+
+
+# ------------------------------------------------------------------ geometry by hand
+def test_wrench_10mm_radius_is_grip_to_tip_across_the_axis() -> None:
+    # tip (11.5, 0, 0) cm, grip at the origin, axis along y: r = 11.5 cm
+    assert radius(WRENCH_10) == pytest.approx(0.115, abs=1e-12)
+
+
+def test_ring_wrench_radius_ignores_the_crank_along_the_axis() -> None:
+    # tip (11.5, 1.5, 0) cm: the 1.5 cm lies along the axis, the radius stays 11.5 cm
+    ring = {**WRENCH_10, "tip": (0.115, 0.015, 0.0)}
+    assert radius(ring) == pytest.approx(0.115, abs=1e-12)
+
+
+def test_three_turns_at_60_degrees_are_18_strokes() -> None:
+    strokes = _strokes(-3 * 2 * math.pi, math.radians(60))
+    assert len(strokes) == 18
+    assert sum(strokes) == pytest.approx(-6 * math.pi)
+
+
+@given(
+    turns=st.floats(0.1, 10.0),
+    swing=st.floats(math.radians(5), math.pi),
+)
+@settings(max_examples=60, deadline=None)
+def test_strokes_never_exceed_the_swing_and_sum_to_the_turn(turns: float, swing: float) -> None:
+    angle = -turns * 2 * math.pi
+    strokes = _strokes(angle, swing)
+    assert all(abs(a) <= swing + 1e-9 for a in strokes)
+    assert sum(strokes) == pytest.approx(angle, rel=1e-9)
+    assert len(strokes) == math.ceil(abs(angle) / swing - 1e-9)
+
+
+def test_arc_points_lie_at_the_radius_about_the_axis() -> None:
+    centre = np.array([0.2, 1.35, 1.12])
+    pts = arc_points(centre, (0.0, 0.0, -1.0), 0.115, np.linspace(0, 1, 7))
+    d = pts - centre
+    assert np.allclose(d[:, 2], 0.0, atol=1e-12)  # in the plane across the axis
+    assert np.allclose(np.linalg.norm(d, axis=1), 0.115, atol=1e-12)
+
+
+def test_stroke_plan_swings_through_the_stroke_and_returns() -> None:
+    frac, theta, lift = stroke_plan(0.3, math.radians(60), ratchet=False)
+    assert frac[0] == 0.0 and frac[-1] == 1.0 and np.all(np.diff(frac) > 0)
+    engaged = theta[lift == 0]
+    assert engaged.max() - engaged.min() == pytest.approx(math.radians(60))
+    assert theta[-1] == pytest.approx(theta[0])  # re-engaged where it started
+    assert lift.max() == 1.0  # lifted off to swing back
+
+
+# ------------------------------------------------------------------ compiled strokes
+def test_compiled_strokes_count_and_swing_limit(wrench_ir: MotionIR) -> None:
+    strokes = _strokes_of(wrench_ir)
+    assert len(strokes) == 18
+    assert all(s.goal.effector == "r_tool_wrench_10mm" for s in strokes)
+    assert all(abs(s.goal.params["angle"]) <= math.radians(60) + 1e-9 for s in strokes)
+
+
+def test_user_swing_limits_the_strokes(tmp_path: Path) -> None:
+    timeline = _timeline(tmp_path, turns=1, args=", swing: 45 deg")
+    twists = [p for p in timeline.primitives if p.params.get("posture") == "stroke"]
+    assert len(twists) == 8  # 360 / 45
+    assert all(abs(p.params["angle"]) == pytest.approx(math.radians(45)) for p in twists)
+
+
+def _keyframe_points(ir: MotionIR, seg, names: list[str]) -> np.ndarray:
+    """(K, len(names), 3) site positions at each keyframe of a segment, from the state."""
+    from mtlc.passes.state import PoseState
+
+    state = PoseState(ir)
+    kf = seg.keyframes
+    out = []
+    for t in kf.time:
+        q = state.q_at(float(t))
+        root = state.root_at(float(t))
+        out.append([state.site(n, q, root) for n in names])
+    return np.array(out)
+
+
+def test_tip_stays_on_the_fastener_and_hand_on_the_arc(wrench_ir: MotionIR) -> None:
+    bolt = np.array([0.2, 1.35, 1.12])
+    for seg in _strokes_of(wrench_ir)[:3]:
+        _, _, lift = stroke_plan(0.0, -seg.goal.params["angle"], ratchet=False)
+        pts = _keyframe_points(wrench_ir, seg, ["r_tool_wrench_10mm", "r_hand"])
+        engaged = lift == 0
+        tip_err = np.linalg.norm(pts[engaged, 0] - bolt, axis=1)
+        assert tip_err.max() <= 1e-3
+        # the hand's distance to the bolt's axis (along z) is the radius, 11.5 cm
+        axis_dist = np.hypot(*(pts[engaged, 1] - bolt)[:, :2].T)
+        assert np.allclose(axis_dist, 0.115, atol=1e-3)
+
+
+def test_reach_addresses_the_tool_tip(wrench_ir: MotionIR) -> None:
+    reach = [
+        s for s in wrench_ir.segments if s.kind in ("TA", "TO") and "stroke" not in s.goal.params
+    ]
+    assert reach and all(s.goal.effector == "r_tool_wrench_10mm" for s in reach)
+    to = [s for s in reach if s.kind == "TO"][0]
+    assert to.result["distance"] <= 1e-3
+
+
+def test_no_tool_keeps_the_quarter_turns(tmp_path: Path) -> None:
+    timeline = _timeline(tmp_path, setting="", turns=3)
+    twists = [p for p in timeline.primitives if p.params.get("posture") == "twist"]
+    assert len(twists) == 12
+    assert all(p.params["angle"] == pytest.approx(-math.pi / 2) for p in twists)
+    goals = [p for p in timeline.primitives if p.kind == "goal"]
+    assert all("tool" not in p.params for p in goals)
+
+
+def test_screwdriver_turns_the_forearm_with_the_tip_as_goal(tmp_path: Path) -> None:
+    timeline = _timeline(tmp_path, setting="tool screwdriver_flat", turns=1)
+    twists = [p for p in timeline.primitives if p.params.get("posture") == "twist"]
+    assert len(twists) == 4 and all(p.params["tool"]["name"] == "screwdriver_flat" for p in twists)
+    goal = [p for p in timeline.primitives if p.kind == "goal"][0]
+    assert goal.params["tool"]["kind"] == "screwdriver"
+
+
+def test_screwdriver_tip_lies_on_the_forearm_axis() -> None:
+    # tip 15 cm along the hand, in line with the forearm: a pronation turns it in place
+    skel = with_tools(
+        build_manikin(), {"r_tool_s": {"name": "s", "tip": (0, 0.15, 0), "mass": 0.0}}
+    )
+    q = skel.q_comfort.copy()
+    q[skel.dof_index("r_wrist_flex")] = q[skel.dof_index("r_wrist_dev")] = 0.0
+    tips = []
+    for pro in (-0.6, 0.0, 0.6):
+        q[skel.dof_index("r_elbow_pro")] = pro
+        tips.append(site_positions(skel, forward(skel, q[None]), "r_tool_s")[0])
+    assert np.ptp(np.array(tips), axis=0).max() <= 1e-9
+
+
+def test_explicit_tool_argument_overrides_the_task(tmp_path: Path) -> None:
+    timeline = _timeline(tmp_path, setting="", turns=1, args=", tool: wrench_13mm")
+    strokes = [p for p in timeline.primitives if p.params.get("posture") == "stroke"]
+    assert len(strokes) == 6 and strokes[0].params["tool"]["name"] == "wrench_13mm"
+
+
+def test_unknown_tool_and_bad_swing_are_diagnosed(tmp_path: Path) -> None:
+    assert _diagnostics(tmp_path, "", ", tool: wrench_11mm") == ["MT0201"]  # unknown name
+    assert "MT0309" in _diagnostics(tmp_path, "tool wrench_10mm", ", swing: 200 deg")
+    assert _diagnostics(tmp_path, "tool wrench_10mm", ", swing: 3 cm") == ["MT0302"]  # not an angle
+
+
+# ------------------------------------------------------------------ mass
+def test_tool_mass_moves_the_centre_of_mass_by_the_hand_computed_amount() -> None:
+    skel = build_manikin()
+    tooled = with_tools(skel, {"r_tool_wrench_10mm": WRENCH_10})
+    q = skel.q_comfort[None]
+    before = center_of_mass(skel, forward(skel, q))[0]
+    after = center_of_mass(tooled, forward(tooled, q))[0]
+    # the tool's centre: the middle of grip and tip, 5.75 cm from the grip toward the thumb
+    hand = site_positions(skel, forward(skel, q), "r_hand")[0]
+    tip = site_positions(tooled, forward(tooled, q), "r_tool_wrench_10mm")[0]
+    middle = 0.5 * (hand + tip)
+    m, big_m = 0.06, skel.total_mass
+    expected = (big_m * before + m * middle) / (big_m + m)
+    assert np.allclose(after, expected, atol=1e-9)
+    assert np.linalg.norm(tip - hand) == pytest.approx(0.115, abs=1e-9)

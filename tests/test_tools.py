@@ -172,7 +172,7 @@ def test_reach_addresses_the_tool_tip(wrench_ir: MotionIR) -> None:
         s for s in wrench_ir.segments if s.kind in ("TA", "TO") and "stroke" not in s.goal.params
     ]
     assert reach and all(s.goal.effector == "r_tool_wrench_10mm" for s in reach)
-    to = [s for s in reach if s.kind == "TO"][0]
+    to = next(s for s in reach if s.kind == "TO")
     assert to.result["distance"] <= 1e-3
 
 
@@ -189,7 +189,7 @@ def test_screwdriver_turns_the_forearm_with_the_tip_as_goal(tmp_path: Path) -> N
     timeline = _timeline(tmp_path, setting="tool screwdriver_flat", turns=1)
     twists = [p for p in timeline.primitives if p.params.get("posture") == "twist"]
     assert len(twists) == 4 and all(p.params["tool"]["name"] == "screwdriver_flat" for p in twists)
-    goal = [p for p in timeline.primitives if p.kind == "goal"][0]
+    goal = next(p for p in timeline.primitives if p.kind == "goal")
     assert goal.params["tool"]["kind"] == "screwdriver"
 
 

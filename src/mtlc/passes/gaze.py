@@ -1,34 +1,66 @@
-"""Gaze: turn the neck and head so the eyes look at a site, within the neck's limits.
+"""Gaze: the neck and head keep the eyes on the work, within the neck's limits.
 
-Runs after TA and TO, so the trunk is where the reaches left it. For each gaze segment (track
-``head``), in time order, the body is taken at the segment's end (joints from the keyframes so
-far, root from the plan) and the damped least squares solver aims the ``gaze`` site's direction
-at the target (an ``aim`` goal) with the neck and head only (5 dofs). Gazes that share a time
-window (``look`` at two latches at once) aim at the middle of their targets. A target outside the
-neck's range gets the closest direction the limits allow (``result["angle_error"]`` says by how
-much); no diagnostic, looking is not a goal a task fails on.
+Runs after TA and TO, so the trunk is where the reaches left it. The damped least squares
+solver aims the ``gaze`` site's direction (the head's forward axis) at a target (an ``aim``
+goal) with the neck and head only (5 dofs); a target outside the neck's range gets the closest
+direction the limits allow (``result["angle_error"]`` says by how much). No diagnostic: looking
+is not a goal a task fails on; a site the head cannot bring into view is lint's MT0607.
 
-Keyframes: the head as it is at the start and the aimed head at the end.
+Two kinds of head segments (track ``head``, kind ``gaze``):
+
+* ``look`` segments, in time order, with the body at the segment's end (joints from the
+  keyframes so far, root from the plan). Looks that share a time window aim at the middle of
+  their targets. Keyframes: the head as it is at the start and the aimed head at the end.
+* the work (``goal.params["implicit"]``), added here: wherever a hand reaches or works on a site
+  (a TA or TO segment) and no ``look`` runs, the head follows the site, solved at every keyframe
+  time of the reaches and at least every ``SAMPLE_STEP``, with the body as interpolation shows
+  it then (the trunk moves during a reach). Two hands on different sites: the one making
+  contact (TO) wins, otherwise their midpoint. A new target is reached after a turn of
+  ``turn_time`` (0.2–0.4 s by angle); when the head is free before the reach the turn starts
+  early and ends as the hand sets off (the eyes lead the hand). After the work the head holds
+  until the next look or reach.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from mtlc.body import forward, site_direction, site_positions
 from mtlc.body.ik import Goal, default_dofs, prepare, solve_ta
-from mtlc.ir.model import Keyframes, MotionIR, Segment
+from mtlc.ir.model import FloatArray, Frames, GoalSpec, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
+from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
 from mtlc.passes.posture import RESTATERS
 from mtlc.passes.state import PoseState, cached, mark, reanchor
 
 GAZE_TOLERANCE = math.radians(1.0)
+TRACK_TOLERANCE = math.radians(0.25)  # the solver's stop while following: well inside 1°
+REACH_KINDS = ("TA", "TO")
+SAMPLE_STEP = 0.05  # s: the longest gap between two solved head poses while following the work
+TURN_MIN = 0.2  # s: a head turn to a target close by (docs/passes.md, gaze: sources)
+TURN_MAX = 0.4  # s: a head turn of TURN_FULL or more
+TURN_FULL = math.radians(60.0)
+SAME_TARGET = 1e-3  # m: targets closer than this are one target
+EPS = 1e-9
 
 
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     state = PoseState(ir)
+    looks = solve_looks(ir, ctx, state)
+    follow_the_work(ir, ctx, state, looks)
+    reanchor(ir, ctx.cache, RESTATERS)
+    return ir
+
+
+# -- explicit looks ----------------------------------------------------------------------------
+
+
+def solve_looks(ir: MotionIR, ctx: PassContext, state: PoseState) -> list[tuple[float, float]]:
+    """Aim the head at every ``look`` target at the look's end; returns the looks' windows."""
     skel = ir.skeleton
     dofs = default_dofs(skel, ["gaze"], "arm")
     names = tuple(skel.dof_names[d] for d in dofs)
@@ -52,11 +84,7 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
         )
         res = solve_ta(skel, [Goal("gaze", aim=target)], q0, model=model, restarts=2)
         q1 = res.q[0]
-        pose = forward(skel, q1[None], root[0][None], root[1][None])
-        eye = np.asarray(site_positions(skel, pose, "gaze")[0])
-        look = np.asarray(site_direction(skel, pose, "gaze")[0])
-        want = (target - eye) / max(float(np.linalg.norm(target - eye)), 1e-9)
-        err = float(np.arccos(np.clip(look @ want, -1.0, 1.0)))
+        err = float(aim_errors(skel, q1[None], root[0][None], root[1][None], target[None])[0])
         for seg in segs:
             seg.keyframes = Keyframes(
                 time=np.array([t0, t1]), dofs=names, q=np.stack([q0[dofs], q1[dofs]])
@@ -64,5 +92,278 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
             seg.result = {"angle_error": err, "success": err <= GAZE_TOLERANCE}
             state.add(seg)
             mark(ctx.cache, seg)
-    reanchor(ir, ctx.cache, RESTATERS)
-    return ir
+    return [(s[0].start, s[0].end) for _, s in sorted(windows.items())]
+
+
+def aim_errors(
+    skel: object,
+    q: FloatArray,
+    root_position: FloatArray,
+    root_rotation: FloatArray,
+    targets: FloatArray,
+) -> FloatArray:
+    """Per row, the angle (rad) between the head's forward axis and the line to its target."""
+    pose = forward(skel, q, root_position, root_rotation)  # type: ignore[arg-type]
+    eye = np.asarray(site_positions(skel, pose, "gaze"))  # type: ignore[arg-type]
+    look = np.asarray(site_direction(skel, pose, "gaze"))  # type: ignore[arg-type]
+    want = targets - eye
+    want = want / np.maximum(np.linalg.norm(want, axis=-1, keepdims=True), 1e-9)
+    return np.arccos(np.clip(np.einsum("ij,ij->i", look, want), -1.0, 1.0))
+
+
+# -- following the work ------------------------------------------------------------------------
+
+
+@dataclass
+class Stretch:
+    """A time window in which some hand reaches or works on a site, and the reaches in it."""
+
+    start: float
+    end: float
+    reaches: list[Segment]
+
+
+def turn_time(angle: float) -> float:
+    """How long the head takes to turn through ``angle`` (rad): 0.2 s, up to 0.4 s at 60°."""
+    return TURN_MIN + (TURN_MAX - TURN_MIN) * min(angle / TURN_FULL, 1.0)
+
+
+def reach_stretches(ir: MotionIR) -> list[Stretch]:
+    """The TA and TO segments (with a site), merged where they overlap or touch, in time order."""
+    reaches = sorted(
+        (s for s in ir.segments if s.kind in REACH_KINDS and s.goal.position is not None),
+        key=lambda s: (s.start, s.end),
+    )
+    out: list[Stretch] = []
+    for seg in reaches:
+        if out and seg.start <= out[-1].end + EPS:
+            out[-1].end = max(out[-1].end, seg.end)
+            out[-1].reaches.append(seg)
+        else:
+            out.append(Stretch(seg.start, seg.end, [seg]))
+    return out
+
+
+def outside_looks(stretch: Stretch, looks: list[tuple[float, float]]) -> list[Stretch]:
+    """The parts of a stretch no ``look`` covers (an explicit look takes precedence)."""
+    parts = [(stretch.start, stretch.end)]
+    for ls, le in looks:
+        cut: list[tuple[float, float]] = []
+        for a, b in parts:
+            if le <= a + EPS or ls >= b - EPS:
+                cut.append((a, b))
+                continue
+            if ls > a + EPS:
+                cut.append((a, ls))
+            if le < b - EPS:
+                cut.append((le, b))
+        parts = cut
+    return [
+        Stretch(a, b, [s for s in stretch.reaches if s.end > a + EPS and s.start < b - EPS])
+        for a, b in parts
+        if b - a > EPS
+    ]
+
+
+def target_at(reaches: list[Segment], t: float) -> tuple[FloatArray, Segment] | None:
+    """Where the eyes should be at ``t``: the site of a hand in contact (TO) if any, else of the
+    reaching hands; the midpoint when two hands work on different sites. With one of the
+    segments that asked for it (for provenance)."""
+    active = [s for s in reaches if s.start - EPS <= t <= s.end + EPS]
+    if not active:
+        return None
+    contact = [s for s in active if s.kind == "TO"]
+    chosen = contact or active
+    points = np.array([np.asarray(s.goal.position, dtype=float) for s in chosen])
+    distinct = [p for i, p in enumerate(points) if not _seen(p, points[:i])]
+    return np.mean(distinct, axis=0), chosen[-1]
+
+
+def _seen(p: FloatArray, earlier: FloatArray) -> bool:
+    return bool(len(earlier)) and bool((np.linalg.norm(earlier - p, axis=1) <= SAME_TARGET).any())
+
+
+def sample_times(part: Stretch) -> FloatArray:
+    """The reaches' keyframe times inside the part, its ends, and fill-ins at most SAMPLE_STEP
+    apart (a TA has keyframes only at its ends while its trunk moves in between)."""
+    times = [part.start, part.end]
+    for seg in part.reaches:
+        kf = seg.keyframes
+        if kf is not None:
+            times += [float(t) for t in kf.time if part.start - EPS <= t <= part.end + EPS]
+    ts = np.unique(np.round(np.clip(times, part.start, part.end), 9))
+    filled = [ts[0]]
+    for a, b in itertools.pairwise(ts):
+        n = math.ceil((b - a) / SAMPLE_STEP - 1e-9)
+        filled += [a + (b - a) * k / n for k in range(1, n + 1)]
+    return np.asarray(filled, dtype=float)
+
+
+def body_at(ir: MotionIR, times: FloatArray) -> Frames:
+    """The whole body at ``times`` as interpolation and the base correction will show it."""
+    position, rotation = interpolate_root(ir, times)
+    frames = Frames(0.0, times, position, rotation, interpolate_joints(ir, times))
+    correct_base(ir, frames)
+    return frames
+
+
+@dataclass
+class Aim:
+    """One solved head pose: the row of the body samples, and the point the head looks at."""
+
+    row: int
+    target: FloatArray
+
+
+def follow_the_work(
+    ir: MotionIR, ctx: PassContext, state: PoseState, looks: list[tuple[float, float]]
+) -> None:
+    """Add a head segment for every part of the work no look covers (module docstring)."""
+    parts = [p for s in reach_stretches(ir) for p in outside_looks(s, looks)]
+    if not parts:
+        return
+    samples = [sample_times(p) for p in parts]
+    body = body_at(ir, np.concatenate(samples))  # the head's own dofs are set per part below
+    head_free = [end for _, end in looks]
+    offset = 0
+    for part, times in zip(parts, samples, strict=True):
+        rows = slice(offset, offset + len(times))
+        offset += len(times)
+        seg = follow_part(ir, state, part, times, _rows(body, rows), head_free)
+        if seg is None:
+            continue
+        insert_in_time_order(ir.segments, seg)
+        state.add(seg)
+        mark(ctx.cache, seg)
+        head_free.append(seg.end)
+
+
+def insert_in_time_order(segments: list[Segment], seg: Segment) -> None:
+    """Put ``seg`` after every segment that starts no later (the IR lists segments by start)."""
+    at = len(segments)
+    while at > 0 and segments[at - 1].start > seg.start + EPS:
+        at -= 1
+    segments.insert(at, seg)
+
+
+def _rows(frames: Frames, rows: slice) -> Frames:
+    return Frames(
+        frames.fps,
+        frames.time[rows],
+        frames.root_position[rows],
+        frames.root_rotation[rows],
+        frames.q[rows].copy(),
+    )
+
+
+def follow_part(
+    ir: MotionIR,
+    state: PoseState,
+    part: Stretch,
+    times: FloatArray,
+    body: Frames,
+    head_free: list[float],
+) -> Segment | None:
+    """The head segment that follows one part of the work: hold, turn, track."""
+    skel = ir.skeleton
+    dofs = default_dofs(skel, ["gaze"], "arm")
+    head0 = state.q_at(part.start)[dofs]
+    body.q[:, dofs] = head0
+    targets = [target_at(part.reaches, float(t)) for t in times]
+    if any(t is None for t in targets):  # cannot happen: a part lies inside merged reaches
+        return None
+    points = np.array([t[0] for t in targets if t is not None])
+    pose = forward(skel, body.q, body.root_position, body.root_rotation)
+    eyes = np.asarray(site_positions(skel, pose, "gaze"))
+    first = aim_errors(skel, body.q[:1], body.root_position[:1], body.root_rotation[:1],
+                       points[:1])  # fmt: skip
+    angle = float(first[0])
+    turn = turn_time(angle) if angle > GAZE_TOLERANCE else 0.0
+    free = max((e for e in head_free if e <= part.start + EPS), default=0.0)
+    turn_start = max(free, part.start - turn) if turn else part.start
+    plan = schedule(times, points, eyes, turn_start, turn_start + turn, bool(turn))
+    if not plan:
+        return None
+    idx = [a.row for a in plan]
+    aims = np.array([a.target for a in plan])
+    q_rows = body.q[idx]
+    roots = (body.root_position[idx], body.root_rotation[idx])
+    model = prepare(skel, ["gaze"], q_rows, root_position=roots[0], root_rotation=roots[1])
+    res = solve_ta(skel, [Goal("gaze", aim=aims)], q_rows, model=model, restarts=0,
+                   orientation_tol=TRACK_TOLERANCE)  # fmt: skip
+    errors = aim_errors(skel, res.q, roots[0], roots[1], aims)
+    kf_time = np.concatenate([[turn_start], times[idx]])
+    kf_q = np.vstack([head0[None], res.q[:, dofs]])
+    last = targets[idx[-1]]
+    assert last is not None
+    return implicit_segment(ir, part, last, kf_time, kf_q, errors, turn_start)
+
+
+def schedule(
+    times: FloatArray,
+    points: FloatArray,
+    eyes: FloatArray,
+    turn_start: float,
+    arrival: float,
+    turning: bool,
+) -> list[Aim]:
+    """Which samples get a solved head pose, aimed where.
+
+    The head holds from ``turn_start`` and is on its first target from the first sample at or
+    after ``arrival`` (without a turn, from the first sample after the start). When the target
+    changes later, the sample where it changes still looks at the old one and the head arrives
+    at the new one ``turn_time`` later; samples in between are left to interpolation.
+    """
+    start = arrival - EPS if turning else turn_start + EPS
+    first = int(np.searchsorted(times, start, side="left" if turning else "right"))
+    if first >= len(times):
+        first = len(times) - 1
+        if times[first] <= turn_start + EPS:
+            return []
+    plan = [Aim(first, points[first])]
+    busy_until = times[first]
+    for i in range(first + 1, len(times)):
+        if times[i] < busy_until - EPS:
+            continue
+        current = plan[-1].target
+        if np.linalg.norm(points[i] - current) <= SAME_TARGET:
+            plan.append(Aim(i, points[i]))
+            continue
+        plan.append(Aim(i, current))  # the change starts here, the head still on the old site
+        busy_until = times[i] + turn_time(_angle_between(eyes[i], current, points[i]))
+        j = int(np.searchsorted(times, busy_until - EPS, side="left"))
+        j = min(j, len(times) - 1)
+        if j > i:
+            plan.append(Aim(j, points[j]))
+            busy_until = times[j] + EPS
+    return plan
+
+
+def _angle_between(eye: FloatArray, a: FloatArray, b: FloatArray) -> float:
+    """The angle (rad) between the lines of sight from ``eye`` to ``a`` and to ``b``."""
+    u, v = a - eye, b - eye
+    cos = float(u @ v) / max(float(np.linalg.norm(u) * np.linalg.norm(v)), 1e-12)
+    return math.acos(max(-1.0, min(1.0, cos)))
+
+
+def implicit_segment(
+    ir: MotionIR,
+    part: Stretch,
+    last: tuple[FloatArray, Segment],
+    kf_time: FloatArray,
+    kf_q: FloatArray,
+    errors: FloatArray,
+    turn_start: float,
+) -> Segment:
+    """The head segment of one part of the work; its goal is the site the head ends on."""
+    skel = ir.skeleton
+    names = tuple(skel.dof_names[d] for d in default_dofs(skel, ["gaze"], "arm"))
+    point, source = last
+    worst = float(errors.max())
+    goal = GoalSpec("gaze", source.goal.site, np.asarray(point, dtype=float),
+                    params={"implicit": True})  # fmt: skip
+    seg = Segment("head", "gaze", turn_start, max(part.end, float(kf_time[-1])), goal,
+                  source.provenance)  # fmt: skip
+    seg.keyframes = Keyframes(time=kf_time, dofs=names, q=kf_q)
+    seg.result = {"angle_error": worst, "success": worst <= GAZE_TOLERANCE}
+    return seg

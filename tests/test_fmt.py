@@ -123,8 +123,13 @@ def test_only_the_outer_list_wraps_when_the_inner_fits() -> None:
 
 
 def test_comment_inside_an_expression_moves_above_its_statement() -> None:
+    out = _assert_safe_and_idempotent("task t {\n    f(b, (1 min +\n 30 s # why\n + 5 s))\n}\n")
+    assert "    # why\n    f(b, (1 min + 30 s + 5 s))\n" in out
+
+
+def test_comment_on_a_statements_first_line_stays_on_its_first_line() -> None:
     out = _assert_safe_and_idempotent("task t {\n    inspect(b, (1 min # why\n + 30 s))\n}\n")
-    assert "    # why\n    inspect(b, (1 min + 30 s))\n" in out
+    assert "    inspect(b, (1 min + 30 s))  # why\n" in out
 
 
 @pytest.mark.parametrize(

@@ -9,12 +9,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from mtlc.diagnostics import Diagnostic, DiagnosticSink, Severity, Span
-from mtlc.fmt.printer import format_module
+from mtlc.fmt.printer import ANCHORS, format_module, nodes
+from mtlc.lint import suppress
 from mtlc.syntax import ast, parse_module
 from mtlc.syntax.dump import to_data
 from mtlc.syntax.lexer import comments
 
 __all__ = ["FormatResult", "ast_fingerprint", "format_source"]
+
+SUPPRESSION_MOVED = "the `# mtlc: ignore`"
 
 
 @dataclass(frozen=True, slots=True)
@@ -39,15 +42,27 @@ def format_source(source: str, file: str) -> FormatResult:
     else:
         problem = _why_unsafe(source, module, text, file) if not unplaced else "a comment was lost"
     if problem:
-        bug = DiagnosticSink()
-        bug.report(
-            "MT0900",
-            f"internal error: the formatted file would differ from the original: {problem}",
-            Span.whole_file(file),
-            help="this is a bug in mtlc fmt; the file is left as it was; please report it",
-        )
-        return FormatResult(None, bug.items)
+        return FormatResult(None, _refusal(problem, file))
     return FormatResult(text, sink.items)
+
+
+def _refusal(problem: str, file: str) -> list[Diagnostic]:
+    sink = DiagnosticSink()
+    if problem.startswith(SUPPRESSION_MOVED):  # a layout the style cannot keep, not a bug
+        help_ = (
+            "the file is left as it was; put the comment on the first line of the statement "
+            "it is for, with nothing else starting on that line, then format again"
+        )
+    else:
+        help_ = "this is a bug in mtlc fmt; the file is left as it was; please report it"
+    what = "the layout cannot keep" if problem.startswith(SUPPRESSION_MOVED) else "internal error:"
+    sink.report(
+        "MT0900",
+        f"{what} the formatted file would differ from the original: {problem}",
+        Span.whole_file(file),
+        help=help_,
+    )
+    return sink.items
 
 
 def _why_unsafe(source: str, before: ast.Module, formatted: str, file: str) -> str | None:
@@ -59,7 +74,36 @@ def _why_unsafe(source: str, before: ast.Module, formatted: str, file: str) -> s
         return "its syntax tree is not the same"
     if Counter(_comment_texts(formatted)) != Counter(_comment_texts(source)):
         return "its comments are not the same"
+    moved = _moved_suppression(source, before, formatted, after, file)
+    if moved:
+        return moved
     return None
+
+
+def _moved_suppression(
+    source: str, before: ast.Module, formatted: str, after: ast.Module, file: str
+) -> str | None:
+    """Why a `# mtlc: ignore[...]` would cover other statements than it did, if it would."""
+    was = _coverage(source, before, file)
+    now = Counter((code, covered) for code, covered, _ in _coverage(formatted, after, file))
+    for code, covered, line in was:
+        if now[code, covered] == 0:
+            return f"{SUPPRESSION_MOVED} on line {line} (`{code}`) would cover other statements"
+        now[code, covered] -= 1
+    return None
+
+
+def _coverage(text: str, module: ast.Module, file: str) -> list[tuple[str, frozenset[int], int]]:
+    """Each suppression's code, the statements and declarations it covers (by their place in
+    the tree, which formatting keeps; lint reports findings on their first lines), its line."""
+    starts = [n.span.line for n in nodes(module) if isinstance(n, ANCHORS)]
+    out = []
+    for mark in suppress.scan(file, text):
+        covered = frozenset(
+            i for i, line in enumerate(starts) if mark.first_line <= line <= mark.last_line
+        )
+        out.append((mark.code, covered, mark.span.line))
+    return out
 
 
 def _comment_texts(text: str) -> list[str]:

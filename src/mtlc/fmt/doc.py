@@ -128,14 +128,23 @@ def render(doc: Doc, width: int) -> str:
     _must_break(doc, broken)
     out: list[str] = []
     suffixes: list[str] = []
-    column = 0
+    column = line_indent = 0
     pending_indent: int | None = 0  # indentation is written with a line's first text, so
     stack: list[_Command] = [(0, _BREAK, doc)]  # blank lines carry no trailing spaces
 
-    def newline(indent: int) -> None:
-        nonlocal column, pending_indent
-        out.extend(suffixes)
+    def flush_suffixes(indent: int) -> None:
+        """The line's trailing comment; any other one gets a line of its own after it (two
+        comments cannot share a line: the second would become part of the first)."""
+        if len(suffixes) > 1 and out and out[-1].endswith(("{", "(", "[")):
+            indent = line_indent + INDENT  # the line opened brackets: the comment is inside
+        for k, text in enumerate(suffixes):
+            out.append(text if k == 0 else "\n" + " " * indent + text.lstrip())
         suffixes.clear()
+
+    def newline(indent: int) -> None:
+        nonlocal column, pending_indent, line_indent
+        flush_suffixes(indent)
+        line_indent = indent
         out.append("\n")
         column, pending_indent = indent, indent
 
@@ -175,5 +184,5 @@ def render(doc: Doc, width: int) -> str:
             column += len(text)
         elif isinstance(doc, LineSuffix):
             suffixes.append(doc.text)
-    out.extend(suffixes)
+    flush_suffixes(0)
     return "".join(out)

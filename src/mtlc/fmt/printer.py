@@ -10,6 +10,7 @@ statement; it is never dropped.
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -33,6 +34,11 @@ from mtlc.fmt.source import Comment, CommentPool, SourceTokens
 from mtlc.syntax import ast
 
 LINE_LENGTH = 100
+# what lint reports findings on (at the first line); a Block is not one, its statements are
+ANCHORS = (ast.Call, ast.Repeat, ast.ForEach, ast.Parallel, ast.ManikinSetting, ast.SceneSetting,
+           ast.ToolSetting, ast.BudgetSetting, ast.TimeSetting, ast.Goal, ast.Posture, ast.Walk,
+           ast.Grip, ast.Gaze, ast.Still, ast.Decl, ast.Use, ast.ToolProperty, ast.Param)  # fmt: skip
+_IGNORE = re.compile(r"mtlc:\s*ignore\[")
 TRAILING_COMMENT_GAP = "  "
 
 # binding strength: a child that binds less tightly than its place needs parentheses
@@ -67,15 +73,15 @@ def format_module(text: str, module: ast.Module, file: str) -> tuple[str, list[C
     return render(doc, LINE_LENGTH), printer.pool.left()
 
 
-def _nodes(node: object) -> Iterator[ast.Node]:
+def nodes(node: object) -> Iterator[ast.Node]:
     """Every AST node under ``node``, itself included."""
     if isinstance(node, ast.Node):
         yield node
         for f in dataclasses.fields(node):
-            yield from _nodes(getattr(node, f.name))
+            yield from nodes(getattr(node, f.name))
     elif isinstance(node, tuple):
         for x in node:
-            yield from _nodes(x)
+            yield from nodes(x)
 
 
 class _Printer:
@@ -85,11 +91,23 @@ class _Printer:
         self.src = SourceTokens(text, file)
         self.pool = CommentPool(text)
         self.call_parens = self._call_parens()
+        self.anchor_starts = self._anchor_starts()
+        self.blocks_by_end = {n.span.end: n for n in nodes(module) if isinstance(n, ast.Block)}
+
+    def _anchor_starts(self) -> list[int]:
+        """Where line-level things start (statements, declarations, scene members, parameters):
+        what a comment on their line is about, and where lint reports findings."""
+        found = [n.span.start for n in nodes(self.tree) if isinstance(n, ANCHORS)]
+        for node in nodes(self.tree):
+            if isinstance(node, ast.Scene) and node.ground is not None:
+                keyword = self.src.starting_at(node.ground.span.start) - 1
+                found.append(int(self.src.at(keyword).start_pos))
+        return sorted(found)
 
     def _call_parens(self) -> set[int]:
         """The `(` of calls and postures: not parentheses the writer put around an argument."""
         found: set[int] = set()
-        for node in _nodes(self.tree):
+        for node in nodes(self.tree):
             if isinstance(node, ast.Call | ast.CallExpr):
                 found.add(self.src.match[self.src.ending_at(node.span.end)])
             elif isinstance(node, ast.Posture):
@@ -123,6 +141,7 @@ class _Printer:
         start_line: int,
         end: int,
         forced_blank: Callable[[_Entry, _Entry], bool],
+        join: bool = False,
     ) -> tuple[list[Comment], list[tuple[bool, Doc]]]:
         """Entries and the comments around them, each with whether a blank line comes before.
 
@@ -134,6 +153,7 @@ class _Printer:
         out: list[tuple[bool, Doc]] = []
         prev_line = start_line
         prev: _Entry | None = None
+        hosted_last = False  # the last entry may be one line, which already ends with a comment
 
         def blank_before(line: int, following: _Entry | None) -> bool:
             if not out:
@@ -146,29 +166,83 @@ class _Printer:
             for c in found:
                 if c.line == prev_line and not out:
                     opener_comments.append(c)
-                elif c.line == prev_line:
+                elif c.line == prev_line and not hosted_last:
                     blank, doc = out[-1]
                     out[-1] = (blank, [doc, LineSuffix(TRAILING_COMMENT_GAP + c.text)])
-                else:
+                else:  # (after a hosted comment, one that ended a later line gets its own)
                     out.append((blank_before(c.line, following), Text(c.text)))
                     prev_line, prev = c.line, None  # a blank line is forced only once
 
         prev_end = start
-        for entry in entries:
-            place(self.pool.take(prev_end, entry.start), entry)
-            doc = entry.build()
-            stray = self.pool.take(entry.start, entry.end)  # inside, but reached by no item
-            lead: list[Doc] = [[Text(c.text), HARDLINE] for c in stray]
-            out.append((blank_before(entry.line, entry), [*lead, doc]))
-            prev_end, prev_line, prev = entry.end, entry.end_line, entry
+        for group in self._line_groups(entries, join):
+            first, last = group[0], group[-1]
+            place(self.pool.take(prev_end, first.start), first)
+            hosted = self._hosted(first, last)
+            hosted_last = bool(hosted) and not self._ends_with_block(last)
+            docs = [self._built(e) for e in group]
+            joined: list[Doc] = [docs[0]]
+            for doc in docs[1:]:
+                joined += [Text("; "), doc]
+            suffix = [LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in hosted]
+            out.append((blank_before(first.line, first), [*suffix, joined]))
+            prev_end, prev_line, prev = last.end, last.end_line, last
         place(self.pool.take(prev_end, end), None)
         return opener_comments, out
+
+    def _built(self, entry: _Entry) -> Doc:
+        """The entry, after any comment inside it that no item reached (moved above it)."""
+        doc = entry.build()
+        stray = self.pool.take(entry.start, entry.end)
+        lead: list[Doc] = [[Text(c.text), HARDLINE] for c in stray]
+        return [*lead, doc]
+
+    def _hosted(self, first: _Entry, last: _Entry) -> list[Comment]:
+        """The comment ending the line on which ``first`` starts, when it is this group's.
+
+        It is printed at the end of the group's first line, so that the lines a
+        `# mtlc: ignore[...]` covers (its own line, or the block a `{` before it opens) hold the
+        same statements after formatting as before. It is not this group's when another entry
+        starts on that line before it: a later one beside the group, or (when the comment is
+        inside the group) a nested one, which then hosts it.
+        """
+        c = self.pool.next_after(first.start)
+        if c is None or c.line != first.line or self._follows_opener(c):
+            return []  # one after `{`, `(` or `[` stays there: the bracket prints it
+        after = last.end if c.start >= last.end else last.start + 1
+        if any(after <= s < c.start for s in self.anchor_starts):
+            return []
+        self.pool.claim(c)
+        return [c]
+
+    def _follows_opener(self, comment: Comment) -> bool:
+        before = self.text[: comment.start].rstrip(" \t")
+        return before.endswith(("{", "(", "["))
+
+    def _ends_with_block(self, entry: _Entry) -> bool:
+        """Whether the entry ends with a `}` printed on its own line (a block not empty)."""
+        block = self.blocks_by_end.get(entry.end)
+        return block is not None and bool(block.stmts)
+
+    def _line_groups(self, entries: list[_Entry], join: bool) -> list[list[_Entry]]:
+        """Entries one by one; with ``join``, statements sharing a line that a
+        `# mtlc: ignore[...]` ends stay together on it (`a(); b()  # mtlc: ignore[...]`), as
+        that comment covers them all."""
+        groups: list[list[_Entry]] = []
+        for entry in entries:
+            group = groups[-1] if groups else []
+            if join and group and group[-1].end_line == entry.line == group[0].line:
+                c = self.pool.next_after(entry.end)
+                if c is not None and c.line == entry.line and _IGNORE.search(c.text):
+                    group.append(entry)
+                    continue
+            groups.append([entry])
+        return groups
 
     def _braced(self, open_index: int, close_index: int, entries: list[_Entry]) -> Doc:
         """`{`, one entry per line, `}`."""
         lbrace, rbrace = self.src.at(open_index), self.src.at(close_index)
         opener, elements = self._sequence(
-            entries, lbrace.end_pos, lbrace.line, rbrace.start_pos, _never
+            entries, lbrace.end_pos, lbrace.line, rbrace.start_pos, _never, join=True
         )
         head: list[Doc] = [Text("{"), *(LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in opener)]
         if not elements:

@@ -99,6 +99,16 @@ class CommentPool:
                 found.append(self._items[i])
         return found
 
+    def next_after(self, offset: int) -> Comment | None:
+        """The first comment at or after ``offset``, if it is not taken yet."""
+        i = bisect.bisect_left(self._starts, offset)
+        if i < len(self._items) and not self._taken[i]:
+            return self._items[i]
+        return None
+
+    def claim(self, comment: Comment) -> None:
+        self._taken[self._starts.index(comment.start)] = True
+
     def left(self) -> list[Comment]:
         return [c for c, taken in zip(self._items, self._taken, strict=True) if not taken]
 

@@ -24,14 +24,18 @@ from mtlc.preview.server import (
 
 SITE = "bolt_upper_left"
 MOVE = (-0.17, 1.33, 1.10)  # 3 cm right, 2 cm down, 2 cm nearer: still within reach
+JSON = {"Content-Type": "application/json"}
 
 
 class Events:
     """A minimal Server-Sent Events reader over a raw socket (no client library needed)."""
 
-    def __init__(self, host: str, port: int) -> None:
-        self.sock = socket.create_connection((host, port), timeout=60)
-        self.sock.sendall(b"GET /events HTTP/1.1\r\nHost: x\r\nAccept: text/event-stream\r\n\r\n")
+    def __init__(self, host: str, port: int, timeout: float = 60) -> None:
+        self.sock = socket.create_connection((host, port), timeout=timeout)
+        request = (
+            f"GET /events HTTP/1.1\r\nHost: {host}:{port}\r\nAccept: text/event-stream\r\n\r\n"
+        )
+        self.sock.sendall(request.encode())
         self.buf = b""
         head = self._until(b"\r\n\r\n")
         assert head.startswith(b"HTTP/1.1 200"), head
@@ -173,11 +177,10 @@ def test_garbage_is_refused_and_the_server_still_answers(
         _request(server, "POST", "/site", b"{not json", {"Content-Type": "application/json"})[0]
         == 400
     )
-    assert (
-        _request(server, "POST", "/site", b'{"site": "nowhere", "position": [0, 0, 0]}')[0] == 400
-    )
-    assert _request(server, "POST", "/site", b"x" * (MAX_BODY + 1))[0] == 413
-    assert _request(server, "POST", "/nothing-here", b"{}")[0] == 404
+    nowhere = b'{"site": "nowhere", "position": [0, 0, 0]}'
+    assert _request(server, "POST", "/site", nowhere, JSON)[0] == 400
+    assert _request(server, "POST", "/site", b"x" * (MAX_BODY + 1), JSON)[0] == 413
+    assert _request(server, "POST", "/nothing-here", b"{}", JSON)[0] == 404
     host, port = server.httpd.server_address[:2]
     with socket.create_connection((host, port), timeout=10) as raw:  # not even HTTP
         raw.sendall(b"\x00\x01garbage\r\n\r\n")

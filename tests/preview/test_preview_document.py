@@ -158,3 +158,75 @@ def test_sites_of_the_example_have_their_declaration_lines(examples: dict[str, E
     for name, ref in sources.items():
         assert name in text[ref["line"] - 1]
     assert "bolt_upper_left" in sources
+
+
+TWO_TASKS = """use stdlib.actions
+
+scene s {{
+    ground 0 cm
+    site button at (0, 100, 60) cm normal (0, 0, -1)
+}}
+
+task t "{title}" {{
+    manikin gb10000_1988 female p50
+    scene s
+    press(right, button)
+}}
+"""
+
+
+def _two_files(tmp_path: Path) -> tuple[Path, Path]:
+    a, b = tmp_path / "a.mtask", tmp_path / "b.mtask"
+    a.write_text(TWO_TASKS.format(title="first file"), encoding="utf-8")
+    b.write_text(TWO_TASKS.format(title="second file"), encoding="utf-8")
+    return a, b
+
+
+def test_two_files_with_the_same_task_name_get_a_page_each(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Pages were keyed by task name and named after the first file: one was lost."""
+    a, b = _two_files(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert main(["preview", str(a), str(b)]) == 0
+    pages = {p.name: p.read_text(encoding="utf-8") for p in tmp_path.glob("*.html")}
+    assert set(pages) == {"a.t.html", "b.t.html"}
+    assert "first file" in pages["a.t.html"] and "second file" in pages["b.t.html"]
+
+
+def test_an_output_name_for_several_tasks_is_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a, b = _two_files(tmp_path)
+    out = tmp_path / "x.html"
+    assert main(["preview", str(a), str(b), "-o", str(out)]) == 2
+    assert "--task" in capsys.readouterr().err
+    assert not list(tmp_path.glob("*.html"))
+    assert main(["preview", str(a), str(b), "--png", str(tmp_path / "x.png")]) == 2
+
+
+def test_pages_that_would_collide_are_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "one").mkdir()
+    (tmp_path / "two").mkdir()
+    first, second = tmp_path / "one" / "a.mtask", tmp_path / "two" / "a.mtask"
+    first.write_text(TWO_TASKS.format(title="one"), encoding="utf-8")
+    second.write_text(TWO_TASKS.format(title="two"), encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    assert main(["preview", str(first), str(second)]) == 2
+    assert "a.t.html" in capsys.readouterr().err
+    assert not list(tmp_path.glob("*.html"))
+
+
+def test_hover_text_is_the_line_the_diagnostics_count() -> None:
+    """A form feed (or \\x85, \\u2028...) inside a line made ``splitlines`` count one more line,
+    so the hover showed the wrong source line."""
+    from types import SimpleNamespace
+
+    from mtlc.preview.document import _ref
+
+    text = "task t {\n    # a comment\x0cwith a form feed\u2028and more\n    press(right, b)\r\n}\n"
+    ref = _ref(SimpleNamespace(file="f.mtask", line=3, column=5), {"f.mtask": text})
+    assert ref["text"] == "press(right, b)"
+    assert _ref(SimpleNamespace(file="f.mtask", line=9, column=1), {"f.mtask": text})["text"] == ""

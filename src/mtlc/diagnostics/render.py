@@ -34,11 +34,18 @@ def use_color(stream: IO[str]) -> bool:
     return hasattr(stream, "isatty") and stream.isatty()
 
 
+def source_lines(text: str) -> list[str]:
+    """A source's lines as the tokenizer counts them: ``str.splitlines()`` also breaks at
+    \\v, \\f, \\x1c-\\x1e, \\x85, \\u2028 and \\u2029, and its line numbers would then disagree
+    with the diagnostics' (line N of a span is ``source_lines(text)[N - 1]``)."""
+    return _LINE_BREAK.split(text)
+
+
 def _source_line(sources: Mapping[str, str], span: Span) -> str | None:
     text = sources.get(span.file)
     if text is None:
         return None
-    lines = _LINE_BREAK.split(text)  # the tokenizer's line breaks, not str.splitlines()
+    lines = source_lines(text)
     if not 1 <= span.line <= len(lines):
         return None
     return lines[span.line - 1]

@@ -33,7 +33,7 @@ def add_preview_parsers(
     )
     frontend_options(preview)
     preview.add_argument("-o", "--output", type=Path, metavar="HTML",
-                         help="the HTML page to write (default: <file>.<task>.html beside nothing else given)")  # fmt: skip
+                         help="the HTML page to write, for one task (default: <file stem>.<task>.html per task)")  # fmt: skip
     preview.add_argument("--png", type=Path, metavar="PNG",
                          help="also write a contact sheet: key poses front and side, joint angles over time (needs matplotlib)")  # fmt: skip
     _task_and_fps(preview)
@@ -85,25 +85,47 @@ def run_preview_command(args: argparse.Namespace) -> int:
     return _preview(args)
 
 
-def _targets(
-    args: argparse.Namespace, compiled: Compiled
-) -> dict[str, tuple[Path | None, Path | None]]:
-    """Where each task's page and sheet go: -o/--png as given for one task, suffixed for many."""
-    out: dict[str, tuple[Path | None, Path | None]] = {}
+Target = tuple[Path | None, Path | None]  # a task's page and sheet
+
+
+class TargetError(ValueError):
+    """Outputs that cannot be named as asked (a usage error, exit 2)."""
+
+
+def _targets(args: argparse.Namespace, compiled: Compiled) -> dict[tuple[str, str], Target]:
+    """Where each task's page and sheet go, by (file, task): ``-o``/``--png`` name one task's
+    outputs; without them each task's page is ``<file stem>.<task>.html``. Keyed by the task
+    name alone, two files' pages silently overwrote each other."""
     many = len(compiled.motions) > 1
-    html, png = args.output, args.png
-    if html is None and png is None:
-        html = Path(f"{Path(compiled.motions[0].file).stem}.html")
-        many = True
-
-    def name(p: Path | None, task: str, stem: str) -> Path | None:
-        if p is None:
-            return None
-        return p.with_name(f"{p.stem}.{task}{p.suffix}") if many else p
-
+    if many and (args.output is not None or args.png is not None):
+        tasks = ", ".join(f"{Path(ir.file).name}:{ir.task}" for ir in compiled.motions)
+        raise TargetError(
+            f"-o/--png name one task's outputs, but there are {len(compiled.motions)} ({tasks});"
+            " pick one with --task NAME, or leave out -o and --png to get <file>.<task>.html"
+        )
+    out: dict[tuple[str, str], Target] = {}
     for ir in compiled.motions:
-        out[ir.task] = (name(html, ir.task, ir.file), name(png, ir.task, ir.file))
+        html = args.output
+        if args.output is None and args.png is None:
+            html = Path(f"{Path(ir.file).stem}.{ir.task}.html")
+        out[(ir.file, ir.task)] = (html, args.png)
+    _refuse_collisions(out)
     return out
+
+
+def _refuse_collisions(targets: dict[tuple[str, str], Target]) -> None:
+    """Two tasks writing the same path (same task name in two files of the same stem)."""
+    seen: dict[Path, tuple[str, str]] = {}
+    for key, paths in targets.items():
+        for path in paths:
+            if path is None:
+                continue
+            other = seen.setdefault(path.resolve(), key)
+            if other != key:
+                raise TargetError(
+                    f"{other[0]}:{other[1]} and {key[0]}:{key[1]} would both write {path};"
+                    " run them separately with -o"
+                )
 
 
 def _preview(args: argparse.Namespace) -> int:
@@ -116,9 +138,13 @@ def _preview(args: argparse.Namespace) -> int:
         sys.stderr.write(f"mtlc: no task named {args.task!r}\n" if args.task else "mtlc: no task\n")
         return EXIT_USAGE
     files: dict[Path, str | bytes] = {}
-    targets = _targets(args, compiled)
+    try:
+        targets = _targets(args, compiled)
+    except TargetError as exc:
+        sys.stderr.write(f"mtlc: {exc}\n")
+        return EXIT_USAGE
     for ir, doc in zip(compiled.motions, compiled.documents(), strict=True):
-        html, png = targets[ir.task]
+        html, png = targets[(ir.file, ir.task)]
         if html is not None:
             files[html] = render_page(doc)
         if png is not None:

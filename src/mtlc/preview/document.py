@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from mtlc.body import center_of_mass, forward, site_positions
 from mtlc.body.kinematics import Pose
+from mtlc.diagnostics.render import source_lines
 from mtlc.ergonomics.rula import score_frames, worst_grand
 from mtlc.ergonomics.view import DEFAULT_HALF_ANGLE_DEG
 from mtlc.ir.model import MotionIR, Segment
@@ -102,7 +103,7 @@ def figures(ir: MotionIR) -> dict[str, FloatArray]:
 
 def _ref(ref: Any, sources: Mapping[str, str]) -> dict[str, Any]:
     """A source reference with the text of its line, for the page's hover."""
-    lines = sources.get(ref.file, "").splitlines()
+    lines = source_lines(sources.get(ref.file, ""))  # not splitlines(): it breaks at \f too
     text = lines[ref.line - 1].strip() if 0 < ref.line <= len(lines) else ""
     return {"file": ref.file, "line": ref.line, "column": ref.column, "text": text}
 

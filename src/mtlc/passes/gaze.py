@@ -45,6 +45,7 @@ TURN_MIN = 0.2  # s: a head turn to a target close by (docs/passes.md, gaze: sou
 TURN_MAX = 0.4  # s: a head turn of TURN_FULL or more
 TURN_FULL = math.radians(60.0)
 SAME_TARGET = 1e-3  # m: targets closer than this are one target
+WORK_PAUSE = 0.5  # s: reaches closer than this in time are one stretch of work (a grasp between)
 EPS = 1e-9
 
 
@@ -129,14 +130,15 @@ def turn_time(angle: float) -> float:
 
 
 def reach_stretches(ir: MotionIR) -> list[Stretch]:
-    """The TA and TO segments (with a site), merged where they overlap or touch, in time order."""
+    """The TA and TO segments (with a site), in time order, merged where they overlap or follow
+    within ``WORK_PAUSE`` (a grasp or a release between two reaches keeps the eyes on the work)."""
     reaches = sorted(
         (s for s in ir.segments if s.kind in REACH_KINDS and s.goal.position is not None),
         key=lambda s: (s.start, s.end),
     )
     out: list[Stretch] = []
     for seg in reaches:
-        if out and seg.start <= out[-1].end + EPS:
+        if out and seg.start <= out[-1].end + WORK_PAUSE:
             out[-1].end = max(out[-1].end, seg.end)
             out[-1].reaches.append(seg)
         else:
@@ -181,6 +183,18 @@ def target_at(reaches: list[Segment], t: float) -> tuple[FloatArray, Segment] | 
 
 def _seen(p: FloatArray, earlier: FloatArray) -> bool:
     return bool(len(earlier)) and bool((np.linalg.norm(earlier - p, axis=1) <= SAME_TARGET).any())
+
+
+def held_targets(
+    targets: list[tuple[FloatArray, Segment] | None],
+) -> list[tuple[FloatArray, Segment]] | None:
+    """Targets with the pauses between reaches filled by the last site worked on."""
+    out: list[tuple[FloatArray, Segment]] = []
+    for t in targets:
+        if t is None and not out:
+            return None  # a part starts with a reach: cannot happen
+        out.append(out[-1] if t is None else t)
+    return out
 
 
 def sample_times(part: Stretch) -> FloatArray:
@@ -269,10 +283,10 @@ def follow_part(
     dofs = default_dofs(skel, ["gaze"], "arm")
     head0 = state.q_at(part.start)[dofs]
     body.q[:, dofs] = head0
-    targets = [target_at(part.reaches, float(t)) for t in times]
-    if any(t is None for t in targets):  # cannot happen: a part lies inside merged reaches
+    targets = held_targets([target_at(part.reaches, float(t)) for t in times])
+    if targets is None:
         return None
-    points = np.array([t[0] for t in targets if t is not None])
+    points = np.array([t[0] for t in targets])
     pose = forward(skel, body.q, body.root_position, body.root_rotation)
     eyes = np.asarray(site_positions(skel, pose, "gaze"))
     first = aim_errors(skel, body.q[:1], body.root_position[:1], body.root_rotation[:1],
@@ -288,15 +302,49 @@ def follow_part(
     aims = np.array([a.target for a in plan])
     q_rows = body.q[idx]
     roots = (body.root_position[idx], body.root_rotation[idx])
-    model = prepare(skel, ["gaze"], q_rows, root_position=roots[0], root_rotation=roots[1])
-    res = solve_ta(skel, [Goal("gaze", aim=aims)], q_rows, model=model, restarts=0,
-                   orientation_tol=TRACK_TOLERANCE)  # fmt: skip
-    errors = aim_errors(skel, res.q, roots[0], roots[1], aims)
+    q_head = aim_rows(skel, q_rows, roots, aims)
+    errors = aim_errors(skel, q_head, roots[0], roots[1], aims)
     kf_time = np.concatenate([[turn_start], times[idx]])
-    kf_q = np.vstack([head0[None], res.q[:, dofs]])
+    kf_q = np.vstack([head0[None], q_head[:, dofs]])
     last = targets[idx[-1]]
-    assert last is not None
     return implicit_segment(ir, part, last, kf_time, kf_q, errors, turn_start)
+
+
+def aim_rows(
+    skel: object, q_rows: FloatArray, roots: tuple[FloatArray, FloatArray], aims: FloatArray
+) -> FloatArray:
+    """Solve the head of every row for its aim, one batch per target.
+
+    Each target's first row is solved with restarts (the best of several starts: from a head
+    turned the other way a target far to the side has poor local minima) and its solution
+    starts the target's other rows, which then follow the body smoothly from one basin."""
+    out = np.array(q_rows, dtype=float, copy=True)
+    gaze_dofs = default_dofs(skel, ["gaze"], "arm")  # type: ignore[arg-type]
+    keys = [a.round(6).tobytes() for a in aims]
+    for key in dict.fromkeys(keys):
+        rows = np.array([k == key for k in keys])
+        first = int(np.argmax(rows))
+        seed = solve_rows(skel, out[first : first + 1], roots, aims, [first], restarts=2)
+        start = out[rows].copy()
+        start[:, gaze_dofs] = seed[0, gaze_dofs]
+        out[rows] = solve_rows(skel, start, roots, aims, np.flatnonzero(rows), restarts=0)
+    return out
+
+
+def solve_rows(
+    skel: object,
+    q_start: FloatArray,
+    roots: tuple[FloatArray, FloatArray],
+    aims: FloatArray,
+    rows: list[int] | np.ndarray,
+    restarts: int,
+) -> FloatArray:
+    """The damped least squares head (neck and head dofs) for some rows, from ``q_start``."""
+    model = prepare(skel, ["gaze"], q_start, root_position=roots[0][rows],
+                    root_rotation=roots[1][rows])  # fmt: skip
+    res = solve_ta(skel, [Goal("gaze", aim=aims[rows])], q_start, model=model,
+                   restarts=restarts, orientation_tol=TRACK_TOLERANCE)  # fmt: skip
+    return res.q
 
 
 def schedule(
@@ -321,21 +369,19 @@ def schedule(
         if times[first] <= turn_start + EPS:
             return []
     plan = [Aim(first, points[first])]
-    busy_until = times[first]
-    for i in range(first + 1, len(times)):
-        if times[i] < busy_until - EPS:
-            continue
+    i = first + 1
+    while i < len(times):
         current = plan[-1].target
         if np.linalg.norm(points[i] - current) <= SAME_TARGET:
             plan.append(Aim(i, points[i]))
+            i += 1
             continue
         plan.append(Aim(i, current))  # the change starts here, the head still on the old site
-        busy_until = times[i] + turn_time(_angle_between(eyes[i], current, points[i]))
-        j = int(np.searchsorted(times, busy_until - EPS, side="left"))
-        j = min(j, len(times) - 1)
+        done = times[i] + turn_time(_angle_between(eyes[i], current, points[i]))
+        j = min(int(np.searchsorted(times, done - EPS, side="left")), len(times) - 1)
         if j > i:
             plan.append(Aim(j, points[j]))
-            busy_until = times[j] + EPS
+        i = j + 1
     return plan
 
 

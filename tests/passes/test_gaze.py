@@ -1,0 +1,228 @@
+"""The gaze pass keeps the eyes on the work: the head follows every reach no look covers."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mtlc.frontend import run_frontend
+from mtlc.ir.model import GoalSpec, Keyframes, MotionIR, Provenance, Segment, SourceRef
+from mtlc.lint import LintConfig, lint_paths
+from mtlc.passes import run_motion
+from mtlc.passes.gaze import (
+    SAMPLE_STEP,
+    TURN_MAX,
+    TURN_MIN,
+    Stretch,
+    aim_errors,
+    body_at,
+    sample_times,
+    target_at,
+    turn_time,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+ONE_DEG = math.radians(1.0)
+
+# A knob reached without a look, a dial looked at while the other hand sets off (the look wins
+# over the reach it overlaps), and a shelf behind the manikin that no neck turns far enough for.
+KNOB = """\
+use stdlib.actions
+use stdlib.elements
+
+scene bench {
+    ground 0 cm
+    site knob at (25, 110, 40) cm normal (0, 0, -1)
+    site dial at (-30, 95, 35) cm normal (0, 0, -1)
+    site shelf at (0, 150, -40) cm normal (0, 1, 0)
+}
+
+task turn_knob "Reach a knob without looking first" {
+    manikin gb10000_1988 male p50
+    scene bench
+    reach(right, knob)
+    parallel {
+        look(dial)
+        reach(left, dial)
+    }
+    release(right)
+    reach(right, shelf)
+}
+"""
+SHELF_LINE = 20
+
+
+def compile_until_gaze(path: Path) -> MotionIR:
+    prog = run_frontend([path])
+    assert prog.timelines, [d.message for d in prog.diagnostics]
+    return run_motion(prog.timelines[0], prog.sink, until="gaze")
+
+
+@pytest.fixture(scope="module")
+def knob_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("gaze") / "knob.mtask"
+    path.write_text(KNOB, encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def knob(knob_file: Path) -> MotionIR:
+    return compile_until_gaze(knob_file)
+
+
+def implicit(ir: MotionIR, site: str | None = None) -> list[Segment]:
+    return [
+        s
+        for s in ir.segments
+        if s.kind == "gaze" and s.goal.params.get("implicit") and site in (None, s.goal.site)
+    ]
+
+
+def angles_at(ir: MotionIR, times: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Angle (rad) between the head's axis and the line to ``target``, as interpolated."""
+    body = body_at(ir, np.asarray(times, dtype=float))
+    targets = np.broadcast_to(target, (len(times), 3))
+    return aim_errors(ir.skeleton, body.q, body.root_position, body.root_rotation, targets)
+
+
+def contact_times(ir: MotionIR, site: str) -> tuple[np.ndarray, np.ndarray]:
+    """Every keyframe time of the TO segments on ``site``, and the site's position."""
+    tos = [s for s in ir.segments if s.kind == "TO" and s.goal.site == site]
+    assert tos and all(s.keyframes is not None for s in tos)
+    times = np.concatenate([s.keyframes.time for s in tos if s.keyframes is not None])
+    return times, np.asarray(tos[0].goal.position, dtype=float)
+
+
+def test_head_follows_a_reach_nobody_looked_at(knob: MotionIR) -> None:
+    (seg,) = implicit(knob, "knob")
+    assert seg.result["success"] and seg.result["angle_error"] <= ONE_DEG
+    times, site = contact_times(knob, "knob")
+    assert len(times) >= 5
+    assert angles_at(knob, times, site).max() <= ONE_DEG
+    # the trunk moves during the reach: the head is solved along it, not only at its end
+    kf = seg.keyframes
+    assert kf is not None and np.diff(kf.time[1:]).max() <= SAMPLE_STEP + 1e-9  # after the turn
+
+
+def test_tracking_holds_at_every_contact_keyframe_of_the_examples() -> None:
+    """Access panel (5th-percentile woman): the bolts and the handle are within the neck's
+    range, so the head is on them at every keyframe of every TO."""
+    ir = compile_until_gaze(ROOT / "examples" / "remove_access_panel.mtask")
+    for site in ("bolt_upper_left", "bolt_lower_right", "panel_handle"):
+        heads = implicit(ir, site)
+        assert heads and all(s.result["success"] for s in heads)
+        times, _ = contact_times(ir, site)
+        aimed = np.asarray(heads[-1].goal.position)  # two hands on the handle: their midpoint
+        assert angles_at(ir, times, aimed).max() <= ONE_DEG, site
+
+
+def test_head_turns_over_a_realistic_time(knob: MotionIR) -> None:
+    """The first reach starts at 0 s with the head straight ahead: it holds, then turns for
+    at least TURN_MIN before it is on the knob; the turn is spread over the samples between."""
+    (seg,) = implicit(knob, "knob")
+    kf = seg.keyframes
+    assert kf is not None
+    np.testing.assert_allclose(kf.q[0], knob.skeleton.q_comfort[[
+        knob.skeleton.dof_index(n) for n in kf.dofs]], atol=1e-12)  # fmt: skip
+    assert kf.time[1] - kf.time[0] >= TURN_MIN - 1e-9
+    late = angles_at(knob, kf.time[1:], np.asarray(seg.goal.position))
+    assert late.max() <= ONE_DEG
+
+
+def test_head_keyframes_stay_within_the_neck_limits(knob: MotionIR) -> None:
+    skel = knob.skeleton
+    segs = [s for s in knob.segments if s.kind == "gaze"]
+    assert len(segs) == 3  # knob; the look at the dial; the dial then the shelf (one stretch)
+    for seg in segs:
+        kf = seg.keyframes
+        assert kf is not None
+        idx = [skel.dof_index(n) for n in kf.dofs]
+        assert set(kf.dofs) == {"neck_flex", "neck_lat", "neck_rot", "head_flex", "head_lat"}
+        assert (kf.q >= skel.lower[idx] - 1e-9).all() and (kf.q <= skel.upper[idx] + 1e-9).all()
+
+
+def test_site_behind_stays_out_of_view_and_lint_reports_it(knob: MotionIR, knob_file: Path) -> None:
+    (seg,) = implicit(knob, "shelf")
+    assert seg.result["success"] is False and seg.result["angle_error"] > math.radians(30)
+    found = lint_paths([knob_file], LintConfig()).findings
+    lines = {f.span.line for f in found if f.code == "MT0607"}
+    assert SHELF_LINE in lines
+    (shelf,) = [f for f in found if f.code == "MT0607" and f.span.line == SHELF_LINE]
+    assert "`shelf`" in shelf.message
+
+
+def test_explicit_look_wins_where_it_overlaps_a_reach(knob: MotionIR) -> None:
+    (look,) = [s for s in knob.segments if s.kind == "gaze" and not s.goal.params]
+    assert look.goal.site == "dial"
+    for seg in implicit(knob):
+        kf = seg.keyframes
+        assert kf is not None
+        inside = (kf.time > look.start + 1e-9) & (kf.time < look.end - 1e-9)
+        assert not inside.any(), seg.goal.site
+    (after,) = implicit(knob, "shelf")  # the dial's reach, a release, the shelf: one stretch
+    assert after.start == pytest.approx(look.end)  # the work's head takes over where it ends
+    assert look.result["angle_error"] <= ONE_DEG
+
+
+def test_same_input_gives_the_same_head(knob: MotionIR, knob_file: Path) -> None:
+    again = compile_until_gaze(knob_file)
+    for a, b in zip(implicit(knob), implicit(again), strict=True):
+        assert a.keyframes is not None and b.keyframes is not None
+        assert a.keyframes.time.tobytes() == b.keyframes.time.tobytes()
+        assert a.keyframes.q.tobytes() == b.keyframes.q.tobytes()
+
+
+# -- the parts, without a body -----------------------------------------------------------------
+
+
+def reach(kind: str, start: float, end: float, at: tuple[float, float, float]) -> Segment:
+    ref = SourceRef("t.mtask", 1, 1, 1, 2)
+    goal = GoalSpec("r_hand", "s", np.array(at, dtype=float))
+    kf = Keyframes(time=np.linspace(start, end, 3))
+    return Segment("r_arm", kind, start, end, goal, Provenance(("t",), ref, ref), kf)
+
+
+def test_target_prefers_contact_then_the_midpoint() -> None:
+    a = reach("TA", 0.0, 1.0, (0.0, 1.0, 0.5))
+    b = reach("TA", 0.0, 1.0, (0.4, 1.0, 0.5))
+    c = reach("TO", 0.5, 1.0, (1.0, 2.0, 0.5))
+    hit = target_at([a, b], 0.2)
+    assert hit is not None
+    np.testing.assert_allclose(hit[0], [0.2, 1.0, 0.5])
+    hit = target_at([a, b, c], 0.7)
+    assert hit is not None and hit[1] is c
+    np.testing.assert_allclose(hit[0], [1.0, 2.0, 0.5])
+    twin = reach("TA", 0.0, 1.0, (0.0, 1.0, 0.5))
+    hit = target_at([a, twin], 0.5)  # one site is not averaged with itself
+    assert hit is not None
+    np.testing.assert_allclose(hit[0], [0.0, 1.0, 0.5])
+    assert target_at([a], 1.5) is None
+
+
+@given(st.floats(0.0, math.pi))
+def test_turn_time_is_between_the_bounds_and_grows(angle: float) -> None:
+    t = turn_time(angle)
+    assert TURN_MIN - 1e-12 <= t <= TURN_MAX + 1e-12
+    assert turn_time(angle + 0.1) >= t
+
+
+@settings(max_examples=50)
+@given(
+    st.floats(0.0, 5.0),
+    st.floats(0.01, 3.0),
+    st.lists(st.floats(0.0, 1.0), max_size=12),
+)
+def test_samples_cover_the_part_densely(start: float, length: float, marks: list[float]) -> None:
+    end = start + length
+    seg = reach("TO", start, end, (0.0, 1.0, 0.5))
+    seg.keyframes = Keyframes(time=np.array([start + m * length for m in marks] or [start]))
+    times = sample_times(Stretch(start, end, [seg]))
+    assert times[0] == pytest.approx(start, abs=1e-8) and times[-1] == pytest.approx(end, abs=1e-8)
+    assert (np.diff(times) > 0).all() and np.diff(times).max() <= SAMPLE_STEP + 1e-9
+    for t in seg.keyframes.time:
+        assert np.isclose(times, t, atol=1e-8, rtol=0).any()

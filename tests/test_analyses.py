@@ -138,15 +138,11 @@ def test_site_view_angles_on_the_manikin() -> None:
     assert eye[1] > 1.5  # a standing 50th-percentile man's eye is above 1.5 m
 
 
-def test_mt0607_site_out_of_view_in_the_lint_fixture() -> None:
-    """The bay's valve at 2.6 m is reached with the head tilted as far as the neck goes: out of
-    the 30° cone for both extremes, reported once at the task line that presses it."""
+def test_mt0607_the_gaze_pass_keeps_a_high_site_in_view() -> None:
+    """The bay's valve at 2.6 m: the head tilts back 70° (within the neck's 80° of extension)
+    while the hand presses it, so neither extreme manikin has it outside the 30° cone."""
     found = lint_paths([Path("tests/lint/data/bay.mtask")], LintConfig()).findings
-    (f,) = [f for f in found if f.code == "MT0607"]
-    assert (f.span.line, f.span.column) == (25, 5)
-    assert "`high_valve`" in f.message and len(f.manikins) == 2
-    worst = [float(m) for m in re.findall(r"(\d+\.\d)° off", " ".join(f.details))]
-    assert len(worst) == 2 and all(a > 30.0 for a in worst)
+    assert [f for f in found if f.code == "MT0607"] == []
 
 
 def test_mt0607_follows_the_configured_half_angle(lift_view: MotionView) -> None:

@@ -210,3 +210,40 @@ def test_report_is_a_command(tmp_path: Path, capsys) -> None:
     header = csv_path.read_text(encoding="utf-8").splitlines()[0]
     assert header.startswith("task,section,manikin")
     assert "MIL-HDBK-472" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- outputs that cannot be written
+
+TINY = "use stdlib.actions\n\nscene s {\n    site a at (0, 0, 100) cm\n}\n\ntask t {\n    scene s\n    walk_to(a)\n}\n"
+
+
+def test_compile_with_a_folder_in_the_way_replaces_nothing(tmp_path: Path, capsys) -> None:
+    src, out = tmp_path / "job.mtask", tmp_path / "out"
+    src.write_text(TINY, encoding="utf-8")
+    assert main(["compile", str(src), "--target", "all", "-o", str(out)]) == 0
+    script = out / "job.py"
+    script.write_text("OLD", encoding="utf-8")
+    ir = out / "job.t.ir.json"
+    ir.unlink()
+    ir.mkdir()
+    capsys.readouterr()
+    assert main(["compile", str(src), "--target", "all", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"mtlc: cannot write {ir}: it is a folder; nothing was written" in err
+    assert "internal error" not in err
+    assert script.read_text(encoding="utf-8") == "OLD"
+
+
+@pytest.mark.parametrize("command", ["lint", "report"])
+def test_lint_and_report_output_under_a_file_is_a_usage_error(
+    command: str, tmp_path: Path, capsys
+) -> None:
+    src, blocker = tmp_path / "job.mtask", tmp_path / "file"
+    src.write_text(TINY, encoding="utf-8")
+    blocker.write_text("", encoding="utf-8")
+    args = {"lint": ["--select", "MT0601", "-o"], "report": ["--manikins", "extremes", "--csv"]}
+    code = main([command, str(src), *args[command], str(blocker / "x.out")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert f"mtlc {command}: cannot write {blocker / 'x.out'}: " in err
+    assert "internal error" not in err

@@ -469,3 +469,98 @@ def test_every_docs_example_formats_safely() -> None:
     assert len(examples) >= 10
     for text in examples:
         _assert_safe_and_idempotent(text)
+
+
+# ---------------------------------------------------------------- comments and `mtlc: ignore`
+
+_SUP_SCENE = "scene s {\n    site a at (0, 0, 1) m\n}\n\n"
+
+
+def _coverage(text: str) -> Counter[tuple[str, frozenset[int]]]:
+    """Each suppression's code and the statements (by their place in the tree) it covers."""
+    return Counter((code, covered) for code, covered, _ in fmt._coverage(text, _parsed(text), "x"))
+
+
+def _parsed(text: str):  # type: ignore[no-untyped-def]
+    sink = DiagnosticSink()
+    module = parse_module(text, "x", sink)
+    assert sink.items == []
+    return module
+
+
+@pytest.mark.parametrize(
+    ("body", "expected"),
+    [
+        (
+            "parallel { a(); b() } # mtlc: ignore[MT0501]",
+            "    parallel {  # mtlc: ignore[MT0501]\n        a()\n        b()\n    }\n",
+        ),
+        (
+            "press(right, # mtlc: ignore[MT0501]\n far)",
+            "    press(right, far)  # mtlc: ignore[MT0501]\n",
+        ),
+        ("a(); b() # mtlc: ignore[MT0501]", "    a(); b()  # mtlc: ignore[MT0501]\n"),
+        ("repeat 2 { x() } # mtlc: ignore[MT0501]", "    repeat 2 {  # mtlc: ignore[MT0501]\n"),
+        ("a(); b() # plain", "    a()\n    b()  # plain\n"),
+    ],
+)
+def test_a_trailing_comment_keeps_covering_the_same_statements(body: str, expected: str) -> None:
+    text = f"{_SUP_SCENE}task t {{\n    {body}\n    c()\n}}\n"
+    out = _assert_safe_and_idempotent(text)
+    assert expected in out
+    assert _coverage(out) == _coverage(text)
+
+
+def test_the_review_file_lints_the_same_after_formatting() -> None:
+    text = (
+        "task t {\n    press(right, a)\n"
+        "    parallel { press(right, far); press(left, a) } # mtlc: ignore[MT0501]\n"
+        "    press(right, # mtlc: ignore[MT0501]\n        far)\n}\n"
+    )
+    out = _assert_safe_and_idempotent(text)
+    assert _coverage(out) == _coverage(text)
+    assert sum(len(covered) for _, covered in _coverage(text)) == 4  # parallel, 2 presses, press
+
+
+def test_an_ignore_that_the_layout_cannot_keep_is_refused() -> None:
+    """`hand` and the element start on one line: no canonical layout keeps both covered."""
+    text = "element e(hand: Hand, # mtlc: ignore[MT0602]\n    other: Hand,\n) {\n    still over 1 s\n}\n"
+    result = format_source(text, "x.mtask")
+    assert result.text is None
+    (diag,) = result.diagnostics
+    assert "mtlc: ignore" in diag.message and "line 1" in diag.message
+    assert "bug" not in (diag.help or "")
+
+
+_IGNORES = st.sampled_from(["# mtlc: ignore[MT0501]", "# mtlc: ignore[MT0601, MT0605]", "# c"])
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_random_ignores_cover_the_same_statements_or_are_refused(data: st.DataObject) -> None:
+    text = data.draw(_program()).replace("# c", data.draw(_IGNORES))
+    sink = DiagnosticSink()
+    parse_module(text, "x.mtask", sink)
+    assume(sink.items == [])
+    result = format_source(text, "x.mtask")
+    if result.text is None:
+        assert [d.code for d in result.diagnostics] == ["MT0900"]
+        assert "mtlc: ignore" in result.diagnostics[0].message
+        return
+    assert _coverage(result.text) == _coverage(text)
+    assert _formatted(result.text) == result.text
+
+
+# ---------------------------------------------------------------- files: modes and symlinks
+
+
+def test_formatting_keeps_the_mode_and_writes_through_a_symlink(tmp_path: Path) -> None:
+    private = _write(tmp_path / "priv.mtask", UGLY)
+    private.chmod(0o600)
+    target = _write(tmp_path / "target.mtask", UGLY)
+    link = tmp_path / "link.mtask"
+    link.symlink_to("target.mtask")
+    assert fmt_main([str(private), str(link), str(target)]) == 0
+    assert (private.stat().st_mode & 0o777) == 0o600
+    assert link.is_symlink() and target.read_text(encoding="utf-8") == PRETTY
+    assert private.read_text(encoding="utf-8") == PRETTY

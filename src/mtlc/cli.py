@@ -31,7 +31,7 @@ from mtlc.frontend import FrontendOptions, Program, run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.lint.command import add_lint_parser, run_lint_command
 from mtlc.metrics import Metrics, compute_metrics, render_metrics
-from mtlc.output import write_all_or_nothing
+from mtlc.output import OutputError, write_outputs
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.context import DEFAULT_FPS
 from mtlc.preview.command import add_preview_parsers, run_preview_command
@@ -172,6 +172,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         sys.stderr.write(f"mtlc: {exc}\n")
         return EXIT_USAGE
+    except OutputError as exc:  # a command that writes without write_outputs (preview)
+        sys.stderr.write(f"mtlc: {exc}\n")
+        return EXIT_USAGE
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:  # `mtlc check ... | head`: the reader left; not an error of ours
@@ -265,7 +268,9 @@ def cmd_compile(args: argparse.Namespace, program: Program) -> int:
     _report(program, args.format, stdout_taken=False)
     if program.sink.has_errors:
         return EXIT_ERRORS  # nothing is written: existing outputs stay as they were
-    write_all_or_nothing(files)
+    failed = write_outputs(files)
+    if failed is not None:
+        return failed
     if args.format == "text":
         _summary(program)
         for path in files:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,7 +17,7 @@ from typing import Any
 from mtlc.diagnostics import Diagnostic, DiagnosticSink
 from mtlc.diagnostics.render import render_json, render_text, use_color
 from mtlc.fmt import format_source
-from mtlc.output import write_all_or_nothing
+from mtlc.output import write_outputs
 from mtlc.semantics.modules import read_source
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE = 0, 1, 2
@@ -66,7 +67,9 @@ def run_fmt_command(args: argparse.Namespace) -> int:
     if args.check or args.diff:
         _show_changes(changed, diff=args.diff)
     else:
-        _write([o for o in changed if o.display != STDIN_NAME])
+        failed = _write([o for o in changed if o.display != STDIN_NAME])
+        if failed is not None:
+            return failed
         for o in done:
             if o.display == STDIN_NAME and o.formatted is not None:
                 sys.stdout.write(o.formatted)
@@ -79,7 +82,7 @@ def run_fmt_command(args: argparse.Namespace) -> int:
 
 def _expand(paths: list[str]) -> list[str]:
     """Files to format: each path given, and each *.mtask under a folder, in sorted order;
-    a file reached twice is formatted once."""
+    a file reached twice (also through a symlink) is formatted once."""
     found: list[str] = []
     for raw in paths:
         path = Path(raw)
@@ -87,7 +90,10 @@ def _expand(paths: list[str]) -> list[str]:
             found.extend(p.as_posix() for p in sorted(path.rglob("*.mtask")) if p.is_file())
         else:
             found.append(raw if raw == STDIN else path.as_posix())
-    return list(dict.fromkeys(found))
+    by_file: dict[str, str] = {}
+    for name in found:
+        by_file.setdefault(name if name == STDIN else os.path.realpath(name), name)
+    return list(by_file.values())
 
 
 def _format_one(raw: str, sink: DiagnosticSink, sources: dict[str, str]) -> _Outcome | None:
@@ -131,12 +137,16 @@ def _show_changes(changed: list[_Outcome], *, diff: bool) -> None:
         sys.stderr.write(f"{count} file{'s' if count != 1 else ''} would be reformatted\n")
 
 
-def _write(changed: list[_Outcome]) -> None:
-    """The changed files are written together, atomically: all of them or none."""
-    files: dict[Path, str] = {}
+def _write(changed: list[_Outcome]) -> int | None:
+    """The changed files are written together, atomically: all of them or none (then the exit
+    code). A symlink is written through to its file, which keeps its permissions."""
+    files: dict[Path, str | bytes] = {}
     for outcome in changed:
         assert outcome.formatted is not None
         files[Path(outcome.display)] = outcome.formatted
-    write_all_or_nothing(files)
+    failed = write_outputs(files, "mtlc fmt")
+    if failed is not None:
+        return failed
     for path in files:
         sys.stderr.write(f"reformatted {path.as_posix()}\n")
+    return None

@@ -18,6 +18,7 @@ from mtlc.lint.config import ConfigError, LintConfig, codes_of, load_config
 from mtlc.lint.engine import lint_paths
 from mtlc.lint.manikins import ManikinError, parse_selection
 from mtlc.lint.output import FORMATS, RENDERERS, render_text
+from mtlc.output import write_outputs
 
 EXIT_OK, EXIT_FINDINGS, EXIT_USAGE = 0, 1, 2
 
@@ -135,7 +136,9 @@ def _lint(args: argparse.Namespace, config: LintConfig, manikins: tuple) -> int:
     else:
         text = RENDERERS[args.format](result, root)
     if to_file:
-        args.output.write_text(text, encoding="utf-8")
+        failed = write_outputs({args.output: text}, "mtlc lint")
+        if failed is not None:
+            return failed
     else:
         sys.stdout.write(text)
     fail_on = Severity(args.fail_on) if args.fail_on else config.fail_on

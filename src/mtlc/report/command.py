@@ -16,7 +16,7 @@ from typing import Any
 from mtlc.diagnostics.render import render_text, use_color
 from mtlc.frontend import FrontendOptions, run_frontend
 from mtlc.lint.manikins import ManikinError, parse_selection
-from mtlc.output import write_all_or_nothing
+from mtlc.output import write_outputs
 from mtlc.report.analysis import Report, analyse_task
 from mtlc.report.csvout import render_csv
 from mtlc.report.html import render_html
@@ -116,7 +116,9 @@ def _report(args: argparse.Namespace, selection: tuple, ratio: dict[str, float])
         files[args.output] = render_html(report)
     if args.csv is not None:
         files[args.csv] = render_csv(report)
-    write_all_or_nothing(files)
+    failed = write_outputs(files, "mtlc report")
+    if failed is not None:
+        return failed
     sys.stdout.write(render_terminal(report, color=use_color(sys.stdout)))
     for path in files:
         sys.stderr.write(f"wrote {path}\n")

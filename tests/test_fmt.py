@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import re
+import shutil
 import subprocess
 import sys
 from collections import Counter
@@ -398,7 +399,7 @@ def test_cli_diff_prints_a_unified_diff(tmp_path: Path, capsys: pytest.CaptureFi
     assert fmt_main(["--diff", str(path)]) == 1
     out = capsys.readouterr().out
     assert "-  a( 1 ,2)\n+    a(1, 2)\n" in out
-    assert out.startswith(f"--- a/{path.as_posix()}\n+++ b/{path.as_posix()}\n")
+    assert out.startswith(f"--- {path.as_posix()}\n+++ {path.as_posix()}\n")  # absolute: no a/
     assert path.read_text(encoding="utf-8") == UGLY
 
 
@@ -564,3 +565,36 @@ def test_formatting_keeps_the_mode_and_writes_through_a_symlink(tmp_path: Path) 
     assert (private.stat().st_mode & 0o777) == 0o600
     assert link.is_symlink() and target.read_text(encoding="utf-8") == PRETTY
     assert private.read_text(encoding="utf-8") == PRETTY
+
+
+# ---------------------------------------------------------------- --diff is a patch that applies
+
+
+@pytest.mark.skipif(shutil.which("patch") is None, reason="needs patch(1)")
+@pytest.mark.parametrize(
+    "text",
+    [
+        "task t {\n  a( 1 ,2)\n}",  # no final new line
+        "task t {\r\n  a( 1 ,2)\r\n}\r\n",
+        "task t {\r  a( 1 ,2)\r}\r",
+        "task t { # form\x0cfeed \u2028 sep\n  a( 1 ,2)\n}\n",
+    ],
+    ids=["no-final-newline", "crlf", "cr", "ff-and-u2028"],
+)
+def test_diff_applies_with_patch(text: str, tmp_path: Path) -> None:
+    from mtlc.fmt.command import unified_diff
+
+    path = tmp_path / "x.mtask"
+    path.write_bytes(text.encode("utf-8"))
+    expected = _formatted(text)
+    diff = unified_diff(text, expected, path.as_posix())
+    assert diff.startswith(f"--- {path.as_posix()}\n+++ {path.as_posix()}\n")
+    done = subprocess.run(
+        ["patch", "-p0", "-s", "-i", "-"],
+        input=diff.encode("utf-8"),
+        cwd="/",
+        capture_output=True,
+        timeout=30,
+    )
+    assert done.returncode == 0, done.stderr + done.stdout
+    assert path.read_bytes() == expected.encode("utf-8")

@@ -122,19 +122,30 @@ def _show_changes(changed: list[_Outcome], *, diff: bool) -> None:
     for outcome in changed:
         assert outcome.formatted is not None
         if diff:
-            sys.stdout.writelines(
-                difflib.unified_diff(
-                    outcome.original.splitlines(keepends=True),
-                    outcome.formatted.splitlines(keepends=True),
-                    f"a/{outcome.display}",
-                    f"b/{outcome.display}",
-                )
-            )
+            sys.stdout.write(unified_diff(outcome.original, outcome.formatted, outcome.display))
         else:
             sys.stdout.write(f"{outcome.display}\n")
     if changed:
         count = len(changed)
         sys.stderr.write(f"{count} file{'s' if count != 1 else ''} would be reformatted\n")
+
+
+def unified_diff(original: str, formatted: str, display: str) -> str:
+    """A patch that `patch` and `git apply` take: lines are what ends in `\\n` (as for them; a
+    CR, form feed or U+2028 is just a character of its line), a last line without one is
+    marked, and an absolute path is not given an `a/` prefix (which would read `a//tmp/...`)."""
+    old, new = _patch_lines(original), _patch_lines(formatted)
+    relative = not display.startswith("/")
+    before, after = (f"a/{display}", f"b/{display}") if relative else (display, display)
+    out = []
+    for line in difflib.unified_diff(old, new, before, after):
+        out.append(line if line.endswith("\n") else line + "\n\\ No newline at end of file\n")
+    return "".join(out)
+
+
+def _patch_lines(text: str) -> list[str]:
+    lines = text.split("\n")
+    return [line + "\n" for line in lines[:-1]] + ([lines[-1]] if lines[-1] else [])
 
 
 def _write(changed: list[_Outcome]) -> int | None:

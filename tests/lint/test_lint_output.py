@@ -159,3 +159,27 @@ def test_github_one_line_per_finding(result: LintResult) -> None:
     lines = render_github(result, ROOT).splitlines()
     assert len(lines) == len(result.findings)
     assert all(ln.startswith("::warning file=tests/lint/data/bay.mtask,line=") for ln in lines)
+
+
+def test_sarif_uris_are_valid_uris(tmp_path: Path) -> None:
+    """Spaces, `%`, `,`, `:` and `#` in a folder name are escaped, so the URI reads back as the
+    same path; a file outside the root is a file:// URI of its own, with no base."""
+    from urllib.parse import unquote, urlsplit
+
+    from mtlc.lint.output import artifact_location
+
+    weird = "we ird%2C,:#dir/a b%20,c:#.mtask"
+    inside = artifact_location(weird, tmp_path)
+    assert inside == {
+        "uri": "we%20ird%252C%2C%3A%23dir/a%20b%2520%2Cc%3A%23.mtask",
+        "uriBaseId": "%SRCROOT%",
+    }
+    parts = urlsplit(inside["uri"])
+    assert (parts.scheme, parts.fragment, unquote(parts.path)) == ("", "", weird)
+    assert artifact_location(str(tmp_path / weird), tmp_path)["uri"] == inside["uri"]
+    outside = artifact_location("/elsewhere/x y.mtask", tmp_path)
+    assert outside == {"uri": "file:///elsewhere/x%20y.mtask"}
+    assert artifact_location("../up.mtask", tmp_path / "root") == {
+        "uri": (tmp_path / "up.mtask").as_uri()
+    }
+    assert artifact_location("bad\udcffname.mtask", tmp_path)["uri"] == "bad%FFname.mtask"

@@ -7,10 +7,12 @@ forward slashes, so outputs are the same on every machine and SARIF locations ar
 from __future__ import annotations
 
 import json
+import os
 import re
 from functools import cache
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 from mtlc import __version__
 from mtlc.diagnostics import CODES, Severity, Span
@@ -33,6 +35,21 @@ def display_path(file: str, root: Path) -> str:
         except ValueError:
             return path.as_posix()
     return path.as_posix()
+
+
+def artifact_location(file: str, root: Path) -> dict[str, str]:
+    """A SARIF artifactLocation with a valid URI: percent-encoded (a space, `%`, `#`, `:` and
+    non-UTF-8 bytes are escaped) and relative to %SRCROOT% inside the root; a file outside it is
+    a `file://` URI of its own, with no base."""
+    path = Path(file)
+    if not path.is_absolute() and ".." not in path.parts:
+        return {"uri": quote(os.fsencode(path.as_posix()), safe="/"), "uriBaseId": "%SRCROOT%"}
+    absolute = (path if path.is_absolute() else root / path).resolve()
+    try:
+        inside = absolute.relative_to(root.resolve())
+    except ValueError:
+        return {"uri": absolute.as_uri()}
+    return {"uri": quote(os.fsencode(inside.as_posix()), safe="/"), "uriBaseId": "%SRCROOT%"}
 
 
 def _relocated(span: Span, root: Path) -> Span:
@@ -213,7 +230,7 @@ def render_sarif(result: LintResult, root: Path) -> str:
                 "locations": [
                     {
                         "physicalLocation": {
-                            "artifactLocation": {"uri": s.file, "uriBaseId": "%SRCROOT%"},
+                            "artifactLocation": artifact_location(f.span.file, root),
                             "region": region,
                         }
                     }

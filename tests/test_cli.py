@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -247,3 +248,49 @@ def test_lint_and_report_output_under_a_file_is_a_usage_error(
     assert code == 2
     assert f"mtlc {command}: cannot write {blocker / 'x.out'}: " in err
     assert "internal error" not in err
+
+
+# ---------------------------------------------------------------- raw CR in a string
+
+
+def test_a_raw_cr_ends_a_string_like_a_new_line(tmp_path: Path, capsys) -> None:
+    """A CR is a line break for positions, so it cannot be inside a string either: otherwise
+    every line after it is numbered one too low and suppressions miss their findings."""
+    src = tmp_path / "rawcr.mtask"
+    text = (
+        "use stdlib.actions\n\nscene s {\n    site far at (0, 400, 40) cm normal (0, 0, -1)\n}\n\n"
+        'task t "x\ry" {\n    scene s\n    press(right, far) # mtlc: ignore[MT0501]\n}\n'
+    )
+    src.write_bytes(text.encode("utf-8"))
+    assert main(["lint", str(src), "--select", "MT0501,MT0606", "--format", "json"]) == 1
+    findings = json.loads(capsys.readouterr().out)["findings"]
+    lines = {(f["code"], f["span"]["line"]) for f in findings}
+    assert ("MT0103", 7) in lines  # the string ends at the CR: not closed on its line
+    assert ("MT0606", 10) in lines and ("MT0501", 9) not in lines  # not shifted a line up
+
+
+def test_an_unclosed_string_in_a_cr_only_file_is_an_error_on_its_line(
+    tmp_path: Path, capsys
+) -> None:
+    src = tmp_path / "cr.mtask"
+    src.write_bytes(b'task t {\r    f("abc\r    g()\r}\r')
+    assert main(["check", str(src), "--format", "json"]) == 1
+    diagnostics = json.loads(capsys.readouterr().out)["diagnostics"]
+    assert ("MT0103", 2) in {(d["code"], d["span"]["line"]) for d in diagnostics}
+
+
+# ---------------------------------------------------------------- file names that are not UTF-8
+
+
+def test_a_file_name_that_is_not_utf8_compiles_and_previews(tmp_path: Path) -> None:
+    name = os.fsdecode(b"bad\xffname.mtask")
+    src = tmp_path / name
+    src.write_text(TINY, encoding="utf-8")
+    out = tmp_path / "out"
+    args = ["compile", str(src), "--target", "all", "--source-map", "-o", str(out)]
+    assert main(args) == 0
+    assert main(["preview", str(src), "-o", str(out / "p.html")]) == 0
+    ir = json.loads((out / os.fsdecode(b"bad\xffname.t.ir.json")).read_bytes().decode("utf-8"))
+    assert ir["source"]["file"].endswith(name)  # reads back as the same (undecodable) name
+    for path in out.iterdir():
+        path.read_bytes().decode("utf-8")  # every output is valid UTF-8

@@ -7,6 +7,7 @@ is reported the same way everywhere: one line naming it, exit 2, nothing changed
 from __future__ import annotations
 
 import os
+import re
 import secrets
 import shutil
 import stat
@@ -32,6 +33,15 @@ class _Staged:
     target: Path  # where it goes (a symlink's resolved file)
     backup: str | None = None  # a link to the file it replaces, until all are in place
     placed: bool = False
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def escape_surrogates(json_text: str) -> str:
+    """JSON with each lone surrogate (a byte of a file name that is not UTF-8, as Python decodes
+    it) written as a `\\uXXXX` escape: the file is valid UTF-8 and reads back as the same name."""
+    return _SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", json_text)
 
 
 def write_outputs(files: dict[Path, str | bytes], command: str = "mtlc") -> int | None:

@@ -18,6 +18,7 @@ from mtlc.codegen.bvh import emit_bvh
 from mtlc.codegen.jackscript import emit_jackscript, function_name
 from mtlc.ir.model import MotionIR
 from mtlc.ir.serialize import to_json
+from mtlc.output import escape_surrogates
 
 MOTION_TARGETS = ("jackscript", "bvh", "ir")
 TARGET_CHOICES = (*MOTION_TARGETS, "all", "timeline")
@@ -58,7 +59,10 @@ def generate_file(
         if options.source_map:
             source_map = {**script.source_map, "script": f"{module}.py"}
             out[f"{module}.py.map.json"] = (
-                json.dumps(source_map, ensure_ascii=False, indent=1, sort_keys=True) + "\n"
+                escape_surrogates(
+                    json.dumps(source_map, ensure_ascii=False, indent=1, sort_keys=True)
+                )
+                + "\n"
             )
     for ir in irs:
         if "bvh" in options.targets:

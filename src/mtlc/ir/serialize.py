@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from mtlc.ir.model import IR_FORMAT_VERSION, Keyframes, MotionIR, Segment, SourceRef
+from mtlc.output import escape_surrogates
 
 DECIMALS = 6
 
@@ -116,5 +117,8 @@ def to_dict(ir: MotionIR) -> dict[str, Any]:
 
 def to_json(ir: MotionIR) -> str:
     return (
-        json.dumps(to_dict(ir), ensure_ascii=False, separators=(",", ":"), allow_nan=False) + "\n"
+        escape_surrogates(
+            json.dumps(to_dict(ir), ensure_ascii=False, separators=(",", ":"), allow_nan=False)
+        )
+        + "\n"
     )

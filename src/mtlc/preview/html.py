@@ -14,6 +14,8 @@ from functools import cache
 from importlib.resources import files
 from typing import Any
 
+from mtlc.output import escape_surrogates
+
 THREE_BUNDLE = "three.preview.min.js"
 _PLACEHOLDER = re.compile(r"__(TITLE|CSS|THREE|DATA|SERVE|PAGE_JS)__")
 
@@ -26,7 +28,9 @@ def asset(name: str) -> str:
 
 def script_json(value: Any) -> str:
     """JSON that is safe inside a <script> element: no '<', '>' or '&' can end it early."""
-    text = json.dumps(value, ensure_ascii=False, separators=(",", ":"), allow_nan=False)
+    text = escape_surrogates(
+        json.dumps(value, ensure_ascii=False, separators=(",", ":"), allow_nan=False)
+    )
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 

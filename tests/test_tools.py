@@ -19,6 +19,7 @@ from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import run_motion
+from mtlc.passes import tool as tool_pass
 from mtlc.passes.tool import arc_points, radius, stroke_plan, with_tools
 from mtlc.semantics.expand import _strokes
 from mtlc.semantics.timeline import ManikinSpec, Timeline
@@ -165,6 +166,36 @@ def test_tip_stays_on_the_fastener_and_hand_on_the_arc(wrench_ir: MotionIR) -> N
         # the hand's distance to the bolt's axis (along z) is the radius, 11.5 cm
         axis_dist = np.hypot(*(pts[engaged, 1] - bolt)[:, :2].T)
         assert np.allclose(axis_dist, 0.115, atol=1e-3)
+
+
+def test_reused_strokes_equal_the_solved_ones(
+    wrench_ir: MotionIR, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    # the 18 strokes of one bolt repeat one solved stroke; solving each afresh gives the same
+    monkeypatch.setattr(tool_pass, "REUSE_STROKES", False)
+    fresh = run_motion(_timeline(tmp_path), DiagnosticSink(), until="tool")
+    reused, solved = _strokes_of(wrench_ir), _strokes_of(fresh)
+    assert len(reused) == len(solved) == 18
+    for a, b in zip(reused, solved, strict=True):
+        assert a.keyframes.dofs == b.keyframes.dofs
+        assert np.allclose(a.keyframes.time, b.keyframes.time, atol=1e-12)
+        assert np.abs(a.keyframes.q - b.keyframes.q).max() <= 1e-9
+
+
+def test_strokes_start_where_the_motion_before_them_ends(wrench_ir: MotionIR) -> None:
+    # no jump at a stroke's start: its first keyframe is the pose the reach or stroke left
+    from mtlc.passes.state import PoseState
+
+    state = PoseState(wrench_ir)
+    strokes = _strokes_of(wrench_ir)
+    for seg in strokes:
+        before = state.q_at(seg.start, skip=seg)
+        idx = [state.skel.dof_index(n) for n in seg.keyframes.dofs]
+        assert np.abs(seg.keyframes.q[0] - before[idx]).max() <= 1e-9
+    last = strokes[-1]
+    first = state.q_at(strokes[0].start, skip=strokes)
+    idx = [state.skel.dof_index(n) for n in last.keyframes.dofs]
+    assert np.abs(last.keyframes.q[-1] - first[idx]).max() <= 1e-9  # back at the reach pose
 
 
 def test_reach_addresses_the_tool_tip(wrench_ir: MotionIR) -> None:

@@ -142,15 +142,16 @@ def arc_angle(centre: FloatArray, normal: Any, point: FloatArray) -> float:
 
 
 def stroke_plan(
-    theta_mid: float, turn: float, ratchet: bool
+    theta_start: float, turn: float, ratchet: bool
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Keyframe fractions of the stroke's time, arc angles and lift (0/1) for one stroke.
 
-    The swing runs from ``theta_mid - turn/2`` to ``theta_mid + turn/2`` (``turn`` signed, about
-    the fastener's normal) in steps of at most ``KEY_STEP``; a wrench is then lifted, swung back
-    over the middle and re-engaged at the start, a ratchet swings back engaged."""
-    steps = max(2, math.ceil(abs(turn) / KEY_STEP))
-    a0, a1 = theta_mid - turn / 2.0, theta_mid + turn / 2.0
+    The swing runs from ``theta_start`` (where the reach left the hand, so a stroke starts where
+    the motion before it ended) to ``theta_start + turn`` (``turn`` signed, about the fastener's
+    normal) in steps of at most ``KEY_STEP``; a wrench is then lifted, swung back over the
+    middle and re-engaged at the start, a ratchet swings back engaged."""
+    steps = max(2, math.ceil(abs(turn) / KEY_STEP - 1e-9))  # 60 deg is 12 steps, not 13
+    a0, a1 = theta_start, theta_start + turn
     swing = np.linspace(a0, a1, steps + 1)
     if ratchet:
         back = swing[::-1][1:]
@@ -161,7 +162,7 @@ def stroke_plan(
     frac = np.concatenate(
         [[0.0], np.linspace(SEAT_SHARE, SWING_SHARE, steps + 1), [0.7, 0.85, 1.0]]
     )
-    theta = np.concatenate([[a0], swing, [a1, theta_mid, a0]])
+    theta = np.concatenate([[a0], swing, [a1, a0 + turn / 2.0, a0]])
     lift = np.concatenate([np.zeros(steps + 2), [1.0, 1.0, 0.0]])
     return frac, theta, lift
 
@@ -210,47 +211,96 @@ def _errors(
     return np.linalg.norm(pts - np.stack(targets, axis=1), axis=-1).max(axis=1)
 
 
-def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, centres: dict) -> None:
-    """Keyframes of one stroke (see the module); ``centres`` keeps each series' middle angle and
-    the pose its first stroke started from."""
+@dataclasses.dataclass(frozen=True)
+class StrokeSolution:
+    """One stroke's solved keyframes (every keyframe solved from the series' reach pose), shared
+    by the strokes of a series that repeat it: same fastener, tool, angle, reach pose and root."""
+
+    q: FloatArray  # (K, D)
+    reach: str
+    tip_error: FloatArray  # (K,) m
+    frac: FloatArray  # (K,) share of the stroke's time
+    lift: FloatArray  # (K,) 0 engaged, 1 lifted off
+
+
+@dataclasses.dataclass
+class Series:
+    """A fastener's strokes so far: the arc angle and pose the reach left, and the solved
+    strokes by their key (so the 18 strokes of 3 turns at 60 deg cost one solve)."""
+
+    theta_start: float
+    q_reached: FloatArray
+    root: tuple[FloatArray, FloatArray]  # the strokes' root: the arms and trunk leave it put
+    solved: dict[tuple[Any, ...], StrokeSolution] = dataclasses.field(default_factory=dict)
+
+
+REUSE_STROKES = True  # tests turn it off to check the reused strokes equal the solved ones
+
+
+def _series(state: PoseState, seg: Segment, series: dict[Any, Series]) -> Series:
+    """The stroke's series, started at its first stroke from the pose the reach left."""
+    g = seg.goal
+    key = (seg.track, g.site, seg.provenance.origin)
+    if g.params["stroke"] == 1 or key not in series:
+        q0 = state.q_at(seg.start)
+        root = state.root_at(seg.start)
+        hand_now = state.site(f"{g.effector[0]}_hand", q0, root)
+        theta = arc_angle(np.asarray(g.position, float), g.params["normal"], hand_now)
+        series[key] = Series(theta, q0, root)
+    return series[key]
+
+
+def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSolution:
+    """Solve a stroke's keyframes (the grip on the arc, the tip on the fastener) from the
+    series' reach pose, or reuse the solution of an identical stroke of the series."""
     g = seg.goal
     tool = g.params["tool"]
+    turn = -float(g.params["angle"])  # twist angles loosen when negative: positive about n
+    key = (g.effector, round(turn, 9))  # the last stroke takes the rest: float noise
+    if REUSE_STROKES and key in run.solved:
+        return run.solved[key]
     site = np.asarray(g.position, float)
     normal = g.params["normal"]
-    q0 = state.q_at(seg.start)
-    root = state.root_at(seg.start)
-    r, out = radius(tool), axial_offset(tool)
-    key = (seg.track, g.site, seg.provenance.origin)
-    if g.params["stroke"] == 1 or key not in centres:
-        hand_now = state.site(f"{g.effector[0]}_hand", q0, root)
-        centres[key] = (arc_angle(site, normal, hand_now), q0)
-    turn = -float(g.params["angle"])  # twist angles loosen when negative: positive about n
-    theta_mid, q_reached = centres[key]
-    frac, theta, lift = stroke_plan(theta_mid, turn, tool.get("kind") == "ratchet")
+    frac, theta, lift = stroke_plan(run.theta_start, turn, tool.get("kind") == "ratchet")
     n = plane_basis(normal)[0]
-    hands = arc_points(site, normal, r, theta, out) + LIFT * lift[:, None] * n
+    hands = arc_points(site, normal, radius(tool), theta, axial_offset(tool))
+    hands = hands + LIFT * lift[:, None] * n
     tips = site + LIFT * lift[:, None] * n
-    q, reach, tip_err = _solve_keys(state, seg, hands, tips, q0, root)
+    q, reach, tip_err = _solve_keys(state, seg, hands, tips, run.q_reached, run.root)
+    run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift)
+    return run.solved[key]
+
+
+def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict) -> None:
+    """Keyframes of one stroke (see the module). The first keyframe is the pose the stroke
+    starts from (the motion before it is continuous), the last stroke's last keyframe the reach
+    pose (the motion after it was solved from there); the rest are the series' solved stroke."""
+    g = seg.goal
+    run = _series(state, seg, series)
+    root = run.root
+    sol = _solve_stroke_keys(state, seg, run)
+    q = sol.q.copy()
+    q[0] = state.q_at(seg.start)
     if g.params["stroke"] == g.params["strokes"]:
-        # the last stroke re-engages where the reach put the tool: the motion after it was
-        # solved from that pose (a trunk the strokes bent would otherwise stay bent)
-        q[-1] = q_reached
-        tip_err[-1] = _errors(state, q[-1:], root, [g.effector], [tips[-1:]])[0]
+        q[-1] = run.q_reached
+    ends = np.array([0, len(q) - 1])
+    tips = np.tile(np.asarray(g.position, float), (2, 1))
+    tip_err = sol.tip_error.copy()
+    tip_err[ends] = _errors(state, q[ends], root, [g.effector], [tips])
     # every stroke keys the trunk too, so no trunk angle holds across strokes solved differently
     names = chain_names(state.skel, [g.effector], "torso")
     idx = [state.skel.dof_index(nm) for nm in names]
     seg.keyframes = Keyframes(
-        time=seg.start + (seg.end - seg.start) * frac, dofs=names, q=q[:, idx]
+        time=seg.start + (seg.end - seg.start) * sol.frac, dofs=names, q=q[:, idx]
     )
-    engaged = lift == 0
-    worst = float(tip_err[engaged].max())
+    worst = float(tip_err[sol.lift == 0].max())
     seg.result = {
         "distance": float(tip_err[-1]),
         "success": bool(worst <= TOLERANCE and state.skel.within_limits(q[-1])),
-        "reach": reach,
-        "radius": r,
-        "swing": abs(turn),
-        "keyframes": len(frac),
+        "reach": sol.reach,
+        "radius": radius(g.params["tool"]),
+        "swing": abs(float(g.params["angle"])),
+        "keyframes": len(sol.frac),
         "tip_error_max": worst,
     }
     if worst > TOLERANCE:
@@ -267,8 +317,8 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if not strokes:
         return ir
     state = PoseState(ir)
-    centres: dict[Any, tuple[float, FloatArray]] = {}
+    series: dict[Any, Series] = {}
     for seg in strokes:
-        solve_stroke(ctx, state, seg, centres)
+        solve_stroke(ctx, state, seg, series)
     reanchor(ir, ctx.cache, _restaters())
     return ir

@@ -107,9 +107,15 @@ def test_walk_time_and_root_travel(tmp_path: Path) -> None:
 def test_turns_with_tool_mass_and_units(tmp_path: Path) -> None:
     t = expand(tmp_path, "    tool wrench_10mm\n    unscrew(right, ahead, turns: 1, load: 2 kg)\n")
     turns = [p for p in t.primitives if p.kind == "posture"]
-    assert len(turns) == 4
-    assert all(p.params["angle"] == pytest.approx(-3.141592653589793 / 2) for p in turns)
-    assert all(p.duration == pytest.approx(8.5 * TMU) for p in turns)  # 90°, 1-5 kg column
+    assert len(turns) == 6  # a wrench: strokes of at most 60° (docs/tools.md)
+    assert all(p.params["angle"] == pytest.approx(-3.141592653589793 / 3) for p in turns)
+    # per stroke: T 60° with 2 kg + the 0.06 kg wrench (1-5 kg column) 6.5, RL1 2.0, R-B over
+    # the chord 2 x 11.5 cm x sin 30° = 4.528 in, between 4 in (6.4) and 6 in (8.6):
+    # 6.4 + 0.264 x 2.2 = 6.9803, G1A 2.0
+    chord = 11.5 / 2.54
+    r_b = 6.4 + (chord - 4) / 2 * (8.6 - 6.4)
+    assert r_b == pytest.approx(6.9803, abs=1e-4)
+    assert all(p.duration == pytest.approx((6.5 + 2.0 + r_b + 2.0) * TMU) for p in turns)
     assert t.tool is not None and t.tool.properties["mass"] == pytest.approx(0.06)
 
 

@@ -72,7 +72,8 @@ def test_reachable_sites_are_touched_within_1mm(compiled: tuple[MotionIR, list])
 def test_to_keyframes_never_move_away(compiled: tuple[MotionIR, list]) -> None:
     ir, _ = compiled
     state = PoseState(ir)
-    for seg in (s for s in ir.segments if s.kind == "TO"):
+    # a wrench's strokes lift the tool off the fastener on purpose (tests/test_tools.py)
+    for seg in (s for s in ir.segments if s.kind == "TO" and "stroke" not in s.goal.params):
         kf = seg.keyframes
         assert kf is not None and 2 <= len(kf.time) <= 13
         assert np.all(np.diff(kf.time) >= 0) and kf.time[0] == seg.start and kf.time[-1] == seg.end
@@ -123,11 +124,16 @@ def test_segments_start_where_the_body_is(compiled: tuple[MotionIR, list]) -> No
         np.testing.assert_allclose(kf.q[0], before[idx], atol=1e-9)
 
 
+# spin_off's two half turns by hand and screw(turns: 2)'s eight quarter turns
+TWISTS_IN_FUEL_FILTER = 2 + 8
+
+
 def test_twists_turn_the_forearm_within_limits() -> None:
-    ir, _ = compile_file(ROOT / "examples" / "remove_access_panel.mtask")
+    # the fuel filter is turned by hand: twists of the forearm (the flagship's wrench swings)
+    ir, _ = compile_file(ROOT / "examples" / "replace_fuel_filter.mtask")
     state = PoseState(ir)
     twists = [s for s in ir.segments if s.goal.params.get("posture") == "twist"]
-    assert len(twists) == 48
+    assert len(twists) == TWISTS_IN_FUEL_FILTER
     d = ir.skeleton.dof_index("r_elbow_pro")
     for seg in twists:
         kf = seg.keyframes

@@ -414,7 +414,7 @@ def compute_metrics(ir: MotionIR) -> Metrics:
     hands = site_positions(skel, pose, ["r_hand", "l_hand"])
     for hand, label, t0, t1 in _reaches(ir):
         inside = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
-        path = hands[inside, 0 if hand == "r_hand" else 1]
+        path = hands[inside, 0 if hand.startswith("r_") else 1]
         smooth.setdefault(hand, []).append((label, ldlj(path, t[inside])))
     return Metrics(
         frames=len(t),

@@ -265,3 +265,52 @@ def test_tool_mass_moves_the_centre_of_mass_by_the_hand_computed_amount() -> Non
     expected = (big_m * before + m * middle) / (big_m + m)
     assert np.allclose(after, expected, atol=1e-9)
     assert np.linalg.norm(tip - hand) == pytest.approx(0.115, abs=1e-9)
+
+
+# ------------------------------------------------------------------ RULA's force/load score
+def test_force_score_follows_the_rula_table() -> None:
+    from mtlc.ergonomics.rula import force_score
+
+    kg = np.array([1.99, 0.0, 2.0, 0.0, 5.0, 0.0, 10.0, 0.0, 10.5])
+    time = np.arange(len(kg)) * 100.0  # each load for an instant, put down between: intermittent
+    assert force_score(kg, time).tolist() == [0, 0, 1, 0, 1, 0, 1, 0, 3]
+    t = np.linspace(0.0, 61.0, 123)
+    assert force_score(np.full(len(t), 5.0), t).tolist() == [2] * len(t)  # held a minute: static
+    t = np.linspace(0.0, 59.0, 119)
+    assert force_score(np.full(len(t), 5.0), t).tolist() == [1] * len(t)
+
+
+def test_held_load_is_the_tool_while_held_plus_the_load(tmp_path: Path) -> None:
+    from mtlc.ergonomics.rula import force_scores, held_load
+    from mtlc.passes import lower
+
+    ir = lower(_timeline(tmp_path, turns=1, args=", load: 3 kg"))
+    tooled = [s for s in ir.segments if "tool" in s.goal.params]
+    strokes = _strokes_of(ir)
+    start, end = min(s.start for s in tooled), max(s.end for s in tooled)
+    t = np.linspace(0.0, max(s.end for s in ir.segments) + 1.0, 400)
+    kg = held_load(ir, t)
+    held = (t >= start) & (t <= end)
+    in_stroke = np.any([(t >= s.start) & (t <= s.end) for s in strokes], axis=0)
+    assert np.allclose(kg["r"][~held], 0.0) and np.allclose(kg["l"], 0.0)
+    assert np.allclose(kg["r"][held & ~in_stroke], 0.06)  # the wrench alone, reaching with it
+    assert np.allclose(kg["r"][in_stroke], 3.06)  # and the load while turning
+    force = force_scores(ir, t)
+    assert force["r"][in_stroke].tolist() == [1] * int(in_stroke.sum())  # 2-10 kg, < 1 min
+    assert force["r"][~in_stroke].max() == 0 and force["l"].max() == 0
+
+
+def test_score_frames_raises_each_side_by_its_own_force() -> None:
+    from mtlc.ergonomics.rula import grand_score, score_frames
+
+    skel = build_manikin()
+    q = np.tile(skel.q_comfort, (3, 1))
+    pose = forward(skel, q)
+    feet = np.ones(3, dtype=bool)
+    bare = score_frames(skel, pose, q, feet)
+    force = {"r": np.array([0, 1, 3]), "l": np.zeros(3, dtype=np.int64)}
+    loaded = score_frames(skel, pose, q, feet, force=force)
+    expected = grand_score(bare["r"].score_a, bare["r"].score_b, 0, force["r"])
+    assert loaded["r"].grand.tolist() == expected.tolist()
+    assert loaded["l"].grand.tolist() == bare["l"].grand.tolist()
+    assert loaded["r"].grand[2] > bare["r"].grand[2]

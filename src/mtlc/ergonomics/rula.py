@@ -12,15 +12,18 @@ a joint counts as "neutral", "abducted", "twisted") are the constants below, doc
 from __future__ import annotations
 
 import csv
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
 from importlib.resources import files
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from mtlc.body.kinematics import Pose
 from mtlc.body.skeleton import Skeleton
+from mtlc.ir.model import MotionIR
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -33,6 +36,9 @@ RAISED_DEG = 10.0  # clavicle elevation beyond this: "shoulder raised"
 OUT_TO_SIDE_DEG = 45.0  # shoulder abduction beyond this: the forearm works out to the side
 TWIST_END_FRACTION = 0.75  # forearm rotation past 3/4 of its range: "near the end of twisting"
 SIDES = ("r", "l")
+LIGHT_KG = 2.0  # force/load score: under 2 kg intermittent is 0
+HEAVY_KG = 10.0  # over 10 kg is 3
+STATIC_S = 60.0  # a load held longer than a minute is "static" (2 for 2-10 kg)
 
 
 @dataclass(frozen=True)
@@ -121,11 +127,63 @@ def trunk_band(flexion_deg: FloatArray) -> IntArray:
     return np.select([a <= NEUTRAL_DEG, a <= 20, a <= 60], [1, 2, 3], 4).astype(np.int64)
 
 
-def grand_score(score_a: IntArray, score_b: IntArray, muscle: int = 0, force: int = 0) -> IntArray:
-    """Table C from A and B, each raised by the muscle-use and force/load scores."""
+def grand_score(
+    score_a: IntArray, score_b: IntArray, muscle: int = 0, force: int | IntArray = 0
+) -> IntArray:
+    """Table C from A and B, each raised by the muscle-use and force/load scores (``force``
+    one number for the task or one per frame)."""
     c = np.clip(np.asarray(score_a) + muscle + force, 1, 8)
     d = np.clip(np.asarray(score_b) + muscle + force, 1, 7)
     return table_c()[c - 1, d - 1]
+
+
+# -- force / load from what the hands hold ----------------------------------------------------
+
+
+def held_load(ir: MotionIR, time: FloatArray) -> dict[str, FloatArray]:
+    """Mass (kg) each hand holds per frame: a tool from the reach made with it to its last turn
+    (docs/tools.md), plus the ``load`` a segment carries (lift, carry, a turn with a load)."""
+    t = np.asarray(time, dtype=float)
+    out = {side: np.zeros(len(t)) for side in SIDES}
+    spans: dict[tuple[str, str], list[Any]] = {}  # (side, tool) -> [start, end, mass]
+    for seg in ir.segments:
+        side, params = seg.goal.effector[:1], seg.goal.params
+        if side not in out:
+            continue
+        inside = (t >= seg.start - 1e-9) & (t <= seg.end + 1e-9)
+        out[side] += np.where(inside, float(params.get("load", 0.0)), 0.0)
+        tool = params.get("tool")
+        if isinstance(tool, dict):
+            span = spans.setdefault((side, str(tool.get("name"))), [seg.start, seg.end, 0.0])
+            span[0], span[1] = min(span[0], seg.start), max(span[1], seg.end)
+            span[2] = float(tool.get("mass", 0.0))
+    for (side, _), (start, end, mass) in spans.items():
+        out[side] += np.where((t >= start - 1e-9) & (t <= end + 1e-9), mass, 0.0)
+    return out
+
+
+def _held_longer_than(mask: BoolArray, time: FloatArray, seconds: float) -> BoolArray:
+    """Frames in a run of ``mask`` that lasts ``seconds`` or longer."""
+    m = np.asarray(mask, dtype=bool)
+    edges = np.diff(np.concatenate([[0], m.astype(np.int8), [0]]))
+    out = np.zeros(len(m), dtype=bool)
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        out[a:b] = time[b - 1] - time[a] >= seconds
+    return out
+
+
+def force_score(load_kg: FloatArray, time: FloatArray) -> IntArray:
+    """RULA's force/load score per frame (McAtamney & Corlett 1993): under 2 kg 0; 2-10 kg
+    intermittent 1, held a minute or longer (static) 2; over 10 kg 3. Repetition is not
+    counted (docs/rula.md)."""
+    kg = np.asarray(load_kg, dtype=float)
+    static = _held_longer_than(kg >= LIGHT_KG, np.asarray(time, dtype=float), STATIC_S)
+    return np.select([kg < LIGHT_KG, kg > HEAVY_KG, static], [0, 3, 2], default=1).astype(np.int64)
+
+
+def force_scores(ir: MotionIR, time: FloatArray) -> dict[str, IntArray]:
+    """Each hand's force/load score per frame, from what it holds (:func:`held_load`)."""
+    return {side: force_score(kg, time) for side, kg in held_load(ir, time).items()}
 
 
 # -- angles from the pose --------------------------------------------------------------------
@@ -212,12 +270,13 @@ def score_frames(
     both_feet: BoolArray,
     *,
     muscle: int = 0,
-    force: int = 0,
+    force: int | Mapping[str, IntArray] = 0,
 ) -> dict[str, RulaScores]:
     """RULA scores per frame for the right and the left side.
 
     ``both_feet`` (N,): legs and feet supported with the weight even (legs score 1, else 2).
-    ``muscle`` (0 or 1) and ``force`` (0–3) are the task-level additions of the worksheet.
+    ``muscle`` (0 or 1) is the worksheet's task-level addition; ``force`` (0–3) one number for
+    the task or each side's score per frame (:func:`force_scores`).
     """
     qa = np.asarray(q, dtype=float)
     legs = np.where(np.asarray(both_feet, dtype=bool), 1, 2).astype(np.int64)
@@ -227,7 +286,8 @@ def score_frames(
     for side in SIDES:
         upper, lower, wrist, twist = arm_scores(skel, pose, qa, side)
         score_a = table_a()[upper - 1, lower - 1, wrist - 1, twist - 1]
-        grand = grand_score(score_a, score_b, muscle, force)
+        side_force = force if isinstance(force, int) else np.asarray(force[side], np.int64)
+        grand = grand_score(score_a, score_b, muscle, side_force)
         out[side] = RulaScores(
             upper, lower, wrist, twist, neck, trunk, legs, score_a, score_b, grand
         )

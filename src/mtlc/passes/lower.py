@@ -86,6 +86,8 @@ def _segments(p: Primitive) -> list[Segment]:
         site = HAND_SITE[p.effector]
         track = HAND_TRACK[p.effector]
         common = {"two_handed": params["two_handed"], "normal": params.get("normal")}
+        if params.get("load"):  # the mass the hand carries to this goal (RULA's force score)
+            common["load"] = params["load"]
         if params.get("tool") is not None:  # the goal is the tool's working point's
             site = tool_site(site, params["tool"])
             common["tool"] = params["tool"]
@@ -127,7 +129,8 @@ def _stroke(p: Primitive, prov: Provenance) -> Segment:
     the tool pass (the hand swings on an arc about the fastener while the tip stays on it)."""
     params = p.params
     site = tool_site(HAND_SITE[p.effector], params["tool"])
-    spec = {k: params[k] for k in ("angle", "stroke", "strokes", "tool", "normal")}
+    spec = {k: params[k] for k in ("angle", "stroke", "strokes", "tool", "normal", "load")
+            if k in params}  # fmt: skip
     goal = GoalSpec(site, params["site"], _vec(params["position"]), None, 0.0,
                     {**spec, "two_handed": False})  # fmt: skip
     return Segment(HAND_TRACK[p.effector], "TO", p.start, p.end, goal, prov)

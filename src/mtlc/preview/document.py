@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from mtlc.body import center_of_mass, forward, site_positions
 from mtlc.body.kinematics import Pose
 from mtlc.diagnostics.render import source_lines
-from mtlc.ergonomics.rula import score_frames, worst_grand
+from mtlc.ergonomics.rula import force_scores, score_frames, worst_grand
 from mtlc.ergonomics.view import DEFAULT_HALF_ANGLE_DEG
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.ir.serialize import to_dict
@@ -88,7 +88,9 @@ def figures(ir: MotionIR) -> dict[str, FloatArray]:
     stance = foot_stance(ir, t)
     pts, ok = support(skel, pose, stance, ir.ground)
     margin = support_margin(pts, ok, center_of_mass(skel, pose)[:, [0, 2]])
-    rula = worst_grand(score_frames(skel, pose, frames.q, stance.all(axis=1))).astype(float)
+    force = force_scores(ir, t)  # the held tool and loads, per hand
+    rula = worst_grand(score_frames(skel, pose, frames.q, stance.all(axis=1), force=force))
+    rula = rula.astype(float)
     return {
         "contact_error": contact_error_per_frame(ir, pose, t),
         "com_margin": margin,

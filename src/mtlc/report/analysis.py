@@ -180,7 +180,8 @@ def worst_rula(ir: MotionIR) -> RulaWorst | None:
     if view is None:
         return None
     both_feet = foot_stance(ir, view.time).all(axis=1)
-    scores = R.score_frames(ir.skeleton, view.pose, view.q, both_feet)
+    force = R.force_scores(ir, view.time)  # the held tool and loads, per hand
+    scores = R.score_frames(ir.skeleton, view.pose, view.q, both_feet, force=force)
     grand = R.worst_grand(scores)
     i = int(np.argmax(grand))
     side = "right" if scores["r"].grand[i] >= scores["l"].grand[i] else "left"

@@ -419,6 +419,8 @@ class Expander:
             t_h = t
             for i, angle in enumerate(strokes):
                 params = _stroke_params(angle, i, len(strokes), tool, fastener, arc)
+                if float(values["load"]) > 0:  # held besides the tool (RULA's force score)
+                    params["load"] = float(values["load"])
                 default = Timing("fixed", {"tmu": _stroke_tmu(angle, load, tool, arc)})
                 d = (
                     stated / len(strokes)

@@ -75,7 +75,8 @@ def rula(view: MotionView) -> list[Finding]:
     from mtlc.ergonomics import rula as R  # written alongside; imported when the rule runs
 
     both_feet = foot_stance(view.ir, view.time).all(axis=1)
-    scores = R.score_frames(view.ir.skeleton, view.pose, view.q, both_feet)
+    force = R.force_scores(view.ir, view.time)  # the held tool and loads, per hand
+    scores = R.score_frames(view.ir.skeleton, view.pose, view.q, both_feet, force=force)
     grand = R.worst_grand(scores)
     threshold = view.config.rula_threshold
     out = []

@@ -106,6 +106,16 @@ def approach_point(
     return target if norm < 1e-9 else target - dist * d / norm
 
 
+def effector_name(effector: str) -> str:
+    """How a message names an effector: "right hand", or "wrench_10mm in the right hand" for
+    a tool's working point (``r_tool_wrench_10mm``, docs/tools.md)."""
+    side, _, rest = effector.partition("_")
+    hand = HAND_NAMES.get(f"{side}_hand", effector)
+    if rest.startswith("tool_"):
+        return f"{rest[5:]} in the {hand}"
+    return HAND_NAMES.get(effector, effector)
+
+
 def report_short(ctx: PassContext, seg: Segment, short: float) -> None:
     """MT0501 once per goal (TA and TO of one goal share their origin)."""
     done: set[Any] = ctx.cache.setdefault("passes.unreachable", set())
@@ -115,7 +125,7 @@ def report_short(ctx: PassContext, seg: Segment, short: float) -> None:
     done.add(key)
     ctx.report(
         "MT0501",
-        f"the {HAND_NAMES.get(seg.goal.effector, seg.goal.effector)} cannot reach site `{seg.goal.site}`: "
+        f"the {effector_name(seg.goal.effector)} cannot reach site `{seg.goal.site}`: "
         f"{short * 1000:.0f} mm short",
         seg.provenance.origin,
     )

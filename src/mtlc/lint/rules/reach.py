@@ -1,7 +1,8 @@
 """MT0501 for the manikins between the selection's extremes, without a full compile each.
 
 The extremes are compiled in full (every motion pass). For each other manikin every contact
-goal (TO segment) is re-solved in one batched IK call per hand: the body starts in the joint
+goal (TO segment; a tool's tip on its site, the screened manikin holding the same tools) is
+re-solved in one batched IK call per hand: the body starts in the joint
 angles the nearest extreme (by stature) had when its hand arrived, its root where that extreme's
 root was, lowered or raised so the feet (or knees) stay on the ground, and the arm with the
 trunk (the TA pass's second strategy) reaches for the site. A hand left more than the passes'
@@ -22,7 +23,8 @@ from mtlc.ir.model import FloatArray, MotionIR, Segment
 from mtlc.lint.findings import Finding
 from mtlc.lint.manikins import label
 from mtlc.metrics import lowest_point
-from mtlc.passes.approach import HAND_NAMES, TOLERANCE
+from mtlc.passes.approach import HAND_NAMES, TOLERANCE, effector_name
+from mtlc.passes.tool import held_tools, is_stroke, with_tools
 from mtlc.semantics.timeline import ManikinSpec
 
 # the start pose is already the nearby manikin's solution: a few iterations from there suffice,
@@ -48,8 +50,10 @@ def contact_goals(ir: MotionIR) -> list[Reach]:
     seen: set[tuple[object, ...]] = set()
     out = []
     for seg in ir.segments:
-        if seg.kind != "TO" or seg.goal.position is None or seg.goal.effector not in HAND_NAMES:
+        if seg.kind != "TO" or seg.goal.position is None or is_stroke(seg):
             continue
+        if seg.goal.effector not in HAND_NAMES and "tool" not in seg.goal.params:
+            continue  # a hand, or a tool's tip on its site (docs/tools.md)
         key = (seg.provenance.origin, seg.goal.site, seg.track)
         if key in seen:
             continue
@@ -99,7 +103,8 @@ def screen_distances(ir: MotionIR, spec: ManikinSpec) -> list[tuple[Segment, flo
     goals = contact_goals(ir)
     if not goals:
         return []
-    skel = build_manikin(spec.population, spec.sex, spec.percentile)
+    # the other manikin holds the same tools: their tips are the goals' effectors
+    skel = with_tools(build_manikin(spec.population, spec.sex, spec.percentile), held_tools(ir))
     by_hands: dict[tuple[str, ...], list[tuple[Reach, ...]]] = {}
     for group in _pairs(goals):
         by_hands.setdefault(tuple(g.segment.goal.effector for g in group), []).append(group)
@@ -131,7 +136,7 @@ def screen_distances(ir: MotionIR, spec: ManikinSpec) -> list[tuple[Segment, flo
 def _finding(seg: Segment, short: float, manikin: str) -> Finding:
     o = seg.provenance.origin
     msg = (
-        f"the {HAND_NAMES[seg.goal.effector]} cannot reach site `{seg.goal.site}`: "
+        f"the {effector_name(seg.goal.effector)} cannot reach site `{seg.goal.site}`: "
         f"{short * 1000:.0f} mm short"
     )
     span = Span(o.file, o.line, o.column, o.end_line, o.end_column)

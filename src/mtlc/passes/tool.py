@@ -232,6 +232,30 @@ class Series:
     q_reached: FloatArray
     root: tuple[FloatArray, FloatArray]  # the strokes' root: the arms and trunk leave it put
     solved: dict[tuple[Any, ...], StrokeSolution] = dataclasses.field(default_factory=dict)
+    previous: Segment | None = None  # the stroke before, whose last keyframe this one starts at
+    tip_errors: dict[bytes, float] = dataclasses.field(default_factory=dict)  # by pose
+
+
+def _start_pose(state: PoseState, seg: Segment, run: Series) -> FloatArray:
+    """The pose a stroke starts from: the state's, the stroke before ending where it starts.
+    (The strokes are not added to the state one by one: indexing 18 strokes' keyframes cost
+    more than solving them.)"""
+    q = state.q_at(seg.start)
+    prev = run.previous
+    if prev is not None and prev.keyframes is not None and abs(prev.end - seg.start) <= 1e-9:
+        q[[state.skel.dof_index(n) for n in prev.keyframes.dofs]] = prev.keyframes.q[-1]
+    return q
+
+
+def _tip_error(state: PoseState, run: Series, seg: Segment, q: FloatArray) -> float:
+    """The tip's distance to the fastener in pose ``q`` (remembered: the poses repeat)."""
+    key = q.tobytes()
+    if key not in run.tip_errors:
+        tip = np.asarray(seg.goal.position, float)[None]
+        run.tip_errors[key] = float(
+            _errors(state, q[None], run.root, [seg.goal.effector], [tip])[0]
+        )
+    return run.tip_errors[key]
 
 
 REUSE_STROKES = True  # tests turn it off to check the reused strokes equal the solved ones
@@ -277,16 +301,13 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
     pose (the motion after it was solved from there); the rest are the series' solved stroke."""
     g = seg.goal
     run = _series(state, seg, series)
-    root = run.root
     sol = _solve_stroke_keys(state, seg, run)
     q = sol.q.copy()
-    q[0] = state.q_at(seg.start)
+    q[0] = _start_pose(state, seg, run)
     if g.params["stroke"] == g.params["strokes"]:
         q[-1] = run.q_reached
-    ends = np.array([0, len(q) - 1])
-    tips = np.tile(np.asarray(g.position, float), (2, 1))
     tip_err = sol.tip_error.copy()
-    tip_err[ends] = _errors(state, q[ends], root, [g.effector], [tips])
+    tip_err[0], tip_err[-1] = _tip_error(state, run, seg, q[0]), _tip_error(state, run, seg, q[-1])
     # every stroke keys the trunk too, so no trunk angle holds across strokes solved differently
     names = chain_names(state.skel, [g.effector], "torso")
     idx = [state.skel.dof_index(nm) for nm in names]
@@ -305,7 +326,7 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
     }
     if worst > TOLERANCE:
         report_short(ctx, seg, worst)
-    state.add(seg)
+    run.previous = seg
 
 
 def is_stroke(seg: Segment) -> bool:

@@ -65,6 +65,9 @@ def contact_error_per_frame(ir: MotionIR, pose: Pose, time: FloatArray) -> Float
             next_root = next((t for t in root_starts if t >= seg.end - 1e-9), math.inf)
             until = min(next_arm, next_root)
             resting = (time >= seg.end - 1e-9) & (time <= until + 1e-9)
+            # and the first frame at or after the TO's end, where the metrics measure (a
+            # wrench's stroke is followed at once by the next: no frame lies between)
+            resting[min(int(np.searchsorted(time, seg.end - 1e-9)), len(time) - 1)] = True
             if not resting.any():
                 continue
             hand = site_positions(ir.skeleton, pose, seg.goal.effector)[resting]

@@ -35,6 +35,7 @@ CONTACT_TOL = 0.01  # a foot point within 1 cm of the ground touches it
 # a kneeling knee bears weight on its front, about half a knee's depth (5 cm, as the posture
 # pass places it) below the joint centre: a knee centre this close to the ground supports
 KNEE_CONTACT = 0.05 + CONTACT_TOL
+KNEE_HALF_WIDTH = 0.025  # m: half a patella's breadth (about 5 cm in adults)
 HAND_SITES = ("r_hand", "l_hand", "r_fingertip", "l_fingertip")
 
 # Acceptance thresholds from the issue ("Motion metrics").
@@ -65,7 +66,7 @@ class Hull(NamedTuple):
 def hull(points: FloatArray, valid: BoolArray) -> Hull:
     """The convex hulls of ``points`` (N, P, 2) where ``valid`` (N, P), vectorised over frames.
 
-    With P ≤ 10 points every pair is tried as an edge: an edge has all the other points on one
+    With P ≤ 22 points every pair is tried as an edge: an edge has all the other points on one
     side. Computed once when the same support serves many centres of mass.
     """
     pts = np.asarray(points, dtype=float)
@@ -150,16 +151,19 @@ def support_push(
 # -- contact information ---------------------------------------------------------------------
 
 
+STEPPING_KINDS = ("locomotion", "posture")  # segments whose result records footsteps
+
+
 def foot_stance(ir: MotionIR, time: FloatArray) -> BoolArray:
     """(N, 2) which feet (r, l) stand at each time: both, except a foot in the air in a step.
 
-    Locomotion segments record their footsteps in ``result["steps"]`` (foot, t_lift, t_land);
-    between walks both feet stand.
+    Walks (locomotion segments) and the stepping kneel (a posture) record their footsteps in
+    ``result["steps"]`` (foot, t_lift, t_land); otherwise both feet stand.
     """
     t = np.asarray(time, dtype=float)
     stance = np.ones((len(t), 2), dtype=bool)
     for seg in ir.segments:
-        if seg.kind != "locomotion":
+        if seg.kind not in STEPPING_KINDS:
             continue
         for step in seg.result.get("steps", ()) or ():
             k = FEET.index(str(step["foot"])[0])
@@ -169,25 +173,32 @@ def foot_stance(ir: MotionIR, time: FloatArray) -> BoolArray:
 
 
 def rolling_points(ir: MotionIR, time: FloatArray) -> BoolArray:
-    """(N, 8) sole points lifting off as the foot rolls over its toe before a step.
+    """(N, 8) sole points lifting off as the foot rolls over its toe.
 
     Between a step's ``t_heel_off`` and ``t_lift`` the foot pivots about its toe: heel and balls
-    rise and swing, the toe stays put. Only the toe is then planted, so only it can skate.
+    rise and swing, the toe stays put. The stepping kneel records such windows as
+    ``result["rolls"]`` (foot, from, to): a foot on its toes. Only the toe is then planted, so
+    only it can skate.
     """
     t = np.asarray(time, dtype=float)
     out = np.zeros((len(t), len(FEET) * len(FOOT_POINT_NAMES)), dtype=bool)
     toe = FOOT_POINT_NAMES.index("toe")
+
+    def roll(foot: str, start: float, end: float) -> None:
+        k = FEET.index(foot[0])
+        inside = (t >= start) & (t <= end)
+        for j in range(len(FOOT_POINT_NAMES)):
+            if j != toe:
+                out[inside, k * len(FOOT_POINT_NAMES) + j] = True
+
     for seg in ir.segments:
-        if seg.kind != "locomotion":
+        if seg.kind not in STEPPING_KINDS:
             continue
         for step in seg.result.get("steps", ()) or ():
-            if "t_heel_off" not in step:
-                continue
-            k = FEET.index(str(step["foot"])[0])
-            roll = (t >= float(step["t_heel_off"])) & (t <= float(step["t_lift"]))
-            for j in range(len(FOOT_POINT_NAMES)):
-                if j != toe:
-                    out[roll, k * len(FOOT_POINT_NAMES) + j] = True
+            if "t_heel_off" in step:
+                roll(str(step["foot"]), float(step["t_heel_off"]), float(step["t_lift"]))
+        for window in seg.result.get("rolls", ()) or ():
+            roll(str(window["foot"]), float(window["from"]), float(window["to"]))
     return out
 
 
@@ -213,17 +224,98 @@ def contact_mask(feet: FloatArray, stance: BoolArray, ground: float) -> BoolArra
     return near & np.repeat(stance, len(FOOT_POINT_NAMES), axis=1)
 
 
-def support(skel: Any, pose: Any, stance: BoolArray, ground: float) -> tuple[FloatArray, BoolArray]:
-    """Ground-plane support points (N, 10, 2) and which bear weight (N, 10).
+def forefoot_patch(skel: Any, pose: Any) -> FloatArray:
+    """(N, 8, 3) the forefoot a foot stands on when its heel is up: four corners per foot
+    (right, then left), the toe tip ± half the ball's breadth across the foot and the same
+    points the ball-to-toe length behind it, flat on the ground along the foot's heading.
 
-    The eight sole points (touching, on a standing foot), then the right and left knee (a knee
-    centre within ``KNEE_CONTACT`` of the ground: kneeling).
+    The model's foot is rigid (no toe joint): when the heel rises its ball points rise with it,
+    while a real foot bends at the toes and keeps the metatarsal heads and the toes on the
+    ground (standing on tiptoe, kneeling on tucked toes). See docs/metrics.md.
+    """
+    out = []
+    for side in FEET:
+        toe, heel, med, lat = (
+            site_positions(skel, pose, f"{side}_{n}")
+            for n in ("toe", "heel", "ball_med", "ball_lat")
+        )
+        ahead = (toe - heel)[..., [0, 2]]
+        ahead /= np.maximum(np.linalg.norm(ahead, axis=-1, keepdims=True), 1e-9)
+        across = np.stack([ahead[..., 1], -ahead[..., 0]], axis=-1)
+        half = 0.5 * np.linalg.norm(med - lat, axis=-1, keepdims=True)
+        length = np.linalg.norm(toe - 0.5 * (med + lat), axis=-1, keepdims=True)
+        tip = toe[..., [0, 2]]
+        for back in (0.0, 1.0):
+            for sign in (1.0, -1.0):
+                xz = tip - back * length * ahead + sign * half * across
+                out.append(np.stack([xz[..., 0], toe[..., 1], xz[..., 1]], axis=-1))
+    return np.stack(out, axis=-2)
+
+
+def knee_patch(skel: Any, pose: Any) -> FloatArray:
+    """(N, 4, 3) where a kneeling knee bears weight: its centre ± ``KNEE_HALF_WIDTH`` along
+    the knee's axis (right knee, then left): the patella and the tibial tuberosity below it
+    are about a patella's breadth wide."""
+    out = []
+    for side in FEET:
+        j = skel.joint_index(f"{side}_knee")
+        axis = pose.R[..., j, :, 0]  # the knee flexes about its joint frame's X
+        centre = pose.p[..., j, :]
+        for sign in (1.0, -1.0):
+            out.append(centre + sign * KNEE_HALF_WIDTH * axis)
+    return np.stack(out, axis=-2)
+
+
+# support point slots: 8 sole points, 8 forefoot corners, 4 knee points, 2 hands
+SOLE_SLOTS = slice(0, 8)
+FOREFOOT_SLOTS = slice(8, 16)
+KNEE_SLOTS = slice(16, 20)
+HAND_SLOTS = slice(20, 22)
+ARM_TRACKS = {"r_hand": "r_arm", "l_hand": "l_arm"}
+
+
+def hand_contacts(ir: MotionIR, time: FloatArray) -> BoolArray:
+    """(N, 2) which hands (r, l) rest on a site: from the end of a TO segment (the hand is on
+    its site) until the next segment on the same arm track starts, or the end of the motion."""
+    t = np.asarray(time, dtype=float)
+    out = np.zeros((len(t), 2), dtype=bool)
+    for k, track in enumerate(ARM_TRACKS.values()):
+        segs = sorted(ir.on_track(track), key=lambda s: s.start)
+        for i, seg in enumerate(segs):
+            if seg.kind != "TO" or not _reachable(seg.result):  # short of its site: no rest
+                continue
+            later = [s.start for s in segs[i + 1 :] if s.start >= seg.end - 1e-9]
+            end = min(later, default=math.inf)
+            out[:, k] |= (t >= seg.end - 1e-9) & (t < end - 1e-9)
+    return out
+
+
+def support(
+    skel: Any, pose: Any, stance: BoolArray, ground: float, hands: BoolArray | None = None
+) -> tuple[FloatArray, BoolArray]:
+    """Ground-plane support points (N, 22, 2) and which bear weight (N, 22).
+
+    The eight sole points (touching, on a standing foot); the forefoot of a standing foot on its
+    toe (toe within ``CONTACT_TOL`` of the ground, heel above it: ``forefoot_patch``); each
+    kneeling knee (centre within ``KNEE_CONTACT`` of the ground) over its breadth
+    (``knee_patch``); and, where ``hands`` (N, 2) says so (``hand_contacts``), the grip point
+    of a hand resting on a site. Slots: ``SOLE_SLOTS``, ``FOREFOOT_SLOTS``, ``KNEE_SLOTS``,
+    ``HAND_SLOTS``.
     """
     feet = foot_points(skel, pose)
+    soles = contact_mask(feet, stance, ground)
+    n = len(FOOT_POINT_NAMES)
+    toe, heel = FOOT_POINT_NAMES.index("toe"), FOOT_POINT_NAMES.index("heel")
+    on_toe = stance & (feet[..., toe::n, 1] - ground <= CONTACT_TOL)
+    on_toe &= feet[..., heel::n, 1] - ground > CONTACT_TOL
+    fore = forefoot_patch(skel, pose)
     knees = pose.p[..., [skel.joint_index("r_knee"), skel.joint_index("l_knee")], :]
-    pts = np.concatenate([feet, knees], axis=-2)
+    kneeling = knees[..., 1] - ground <= KNEE_CONTACT
+    grips = site_positions(skel, pose, list(ARM_TRACKS))
+    resting = np.zeros(kneeling.shape, dtype=bool) if hands is None else np.asarray(hands, bool)
+    pts = np.concatenate([feet, fore, knee_patch(skel, pose), grips], axis=-2)
     ok = np.concatenate(
-        [contact_mask(feet, stance, ground), knees[..., 1] - ground <= KNEE_CONTACT], axis=-1
+        [soles, np.repeat(on_toe, 4, axis=-1), np.repeat(kneeling, 2, axis=-1), resting], axis=-1
     )
     return pts[..., [0, 2]], ok
 
@@ -389,7 +481,7 @@ def compute_metrics(ir: MotionIR) -> Metrics:
     skate = foot_skating(feet, planted, t) if len(t) > 1 else np.full((0, 8), np.nan)
     skating = float(np.nanmax(skate)) if np.isfinite(skate).any() else math.nan
     com = center_of_mass(skel, pose)
-    pts, ok = support(skel, pose, stance, ir.ground)
+    pts, ok = support(skel, pose, stance, ir.ground, hand_contacts(ir, t))
     margin = support_margin(pts, ok, com[:, [0, 2]])
     static = ~walking(ir, t)
     sel = margin[static & ~np.isnan(margin)]

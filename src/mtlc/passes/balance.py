@@ -35,9 +35,11 @@ from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.metrics import (
     FOOT_POINT_NAMES,
+    KNEE_SLOTS,
     contact_mask,
     foot_points,
     foot_stance,
+    hand_contacts,
     hull,
     hull_margin,
     lowest_point,
@@ -324,14 +326,14 @@ def balance_frames(
     pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
     stance = foot_stance(ir, t)
     contact = contact_mask(foot_points(skel, pose), stance, ir.ground)
-    all_pts, all_ok = support(skel, pose, stance, ir.ground)
+    all_pts, all_ok = support(skel, pose, stance, ir.ground, hand_contacts(ir, t))
     com = center_of_mass(skel, pose)
     all_hull = hull(all_pts, all_ok)  # the support stays where it was: one hull serves all
     before = hull_margin(all_hull, com[:, [0, 2]])
     after = before.copy()
     failed = np.zeros(len(t), dtype=bool)
     low = ~np.isnan(before) & (before < MARGIN)
-    kneeling = all_ok[:, -2:].any(axis=1)  # the pelvis cannot move without dragging a knee
+    kneeling = all_ok[:, KNEE_SLOTS].any(axis=1)  # the pelvis would drag a knee along
     failed[low & kneeling & (before < 0)] = True
     # a support with no inside (toes only, one edge) or a CoM farther than the pelvis may move
     # cannot be fixed here: report it without trying
@@ -340,7 +342,8 @@ def balance_frames(
     static = ~walking(ir, t)  # walking frames are measured, never moved nor reported
     failed[low & hopeless & (before < 0)] = True
     failed &= static
-    rows = np.flatnonzero(low & static & ~kneeling & ~hopeless)
+    # kneeling frames are balanced by the trunk alone: the pelvis would drag a knee along
+    rows = np.flatnonzero(low & static & ~hopeless)
     if rows.size == 0:
         return before, after, failed
     pts, ok = all_pts[rows], all_ok[rows]  # the support stays where it was
@@ -364,7 +367,7 @@ def balance_frames(
     worst = np.zeros(rows.size)
     margin = before[rows]
     # rows whose contacts gave out keep their last good pose and stop; converged rows stop
-    active = np.arange(rows.size)
+    active = np.flatnonzero(~kneeling[rows])
     cap = np.full(rows.size, MAX_STEP)
     p_rows = take_pose(pose, rows)  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
@@ -426,6 +429,7 @@ def balance_frames(
     # back, so that the smoothing pass finds no balance jump to undo
     size = np.abs(dq).max(axis=1) + 10.0 * np.hypot(*dr.T[[0, 2]]) + 10.0 * np.abs(dr[:, 1])
     dq, dr = blend(dq, size, BLEND_FRAMES), blend(dr, size, BLEND_FRAMES)
+    dr[kneeling] = 0.0  # a neighbour's pelvis correction must not drag a knee
     span = np.flatnonzero(np.abs(dq).max(axis=1) + np.abs(dr).max(axis=1) > 0)
     if span.size == 0:  # the blended corrections cancelled out: nothing to apply
         return before, after, failed

@@ -111,6 +111,8 @@ def interpolate_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.nda
             ys += [float(y) - (ir.ground + stand) for y in kf.root_position[:, 1]]
     position[:, 1] += track(ts, [np.array(y) for y in ys], grid)
     rotation = yaw_quaternion(heading)
+    keyed, keyed_position = keyed_root(ir, grid)  # a stepping kneel places the root itself
+    position[keyed] = keyed_position[keyed]
     # the gait sets the whole root while walking, including its closing step
     for seg in ir.segments:
         kf = seg.keyframes
@@ -125,6 +127,38 @@ def interpolate_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.nda
             quats = track(list(kf.time), list(kf.root_rotation), grid[inside])
             rotation[inside] = quats / np.linalg.norm(quats, axis=1, keepdims=True)
     return position, rotation
+
+
+def keyed_windows(ir: MotionIR) -> list[tuple[Any, float, float]]:
+    """Postures that place the root themselves (``result["root"] == "keyed"``: the stepping
+    kneel and the stand from it), with when they do: from the segment's start until the next
+    walk or root-placing posture starts (the root holds the last keyframe until then)."""
+    movers = sorted(
+        (s for s in ir.segments if s.kind == "locomotion"
+         or (s.kind == "posture" and s.keyframes is not None
+             and s.keyframes.root_position is not None)),
+        key=lambda s: s.start,
+    )  # fmt: skip
+    out = []
+    for i, seg in enumerate(movers):
+        if seg.kind == "posture" and seg.result.get("root") == "keyed":
+            nxt = [m.start for m in movers[i + 1 :] if m.start > seg.start + 1e-9]
+            out.append((seg, seg.start, min(nxt, default=np.inf)))
+    return out
+
+
+def keyed_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(mask (N,), positions (N, 3)) of the frames whose root a keyed posture sets."""
+    mask = np.zeros(len(grid), dtype=bool)
+    pos = np.zeros((len(grid), 3))
+    for seg, start, end in keyed_windows(ir):
+        kf = seg.keyframes
+        inside = (grid > start + 1e-9) & (grid <= end + 1e-9)
+        if kf is None or kf.root_position is None or not inside.any():
+            continue
+        mask |= inside
+        pos[inside] = track(list(kf.time), list(kf.root_position), grid[inside])
+    return mask, pos
 
 
 def gait_window(seg: Any) -> tuple[float, float]:
@@ -216,7 +250,7 @@ def correct_base(ir: MotionIR, frames: Frames) -> np.ndarray:
     """
     walking = walking_mask(ir, frames.time)
     before = frames.root_position[:, 1].copy()
-    standing = ~walking
+    standing = ~walking & ~keyed_root(ir, frames.time)[0]  # a keyed root is already exact
     # one forward kinematics for every frame: the foot points relative to the root
     feet = _feet_in_root_frame(ir.skeleton, frames.q, frames.root_rotation)
     if standing.any():

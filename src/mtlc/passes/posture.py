@@ -31,8 +31,9 @@ import numpy as np
 
 from mtlc.body import center_of_mass, forward, site_positions
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
-from mtlc.passes.context import PassContext
+from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import FOOT_POINTS
+from mtlc.passes.kneel import KneelPlan, plan_kneel, to_world
 from mtlc.passes.state import PoseState, mark, reanchor
 
 TRUNK_DOFS = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
@@ -223,10 +224,104 @@ def transition(skel: Any, cur: FloatArray, target: FloatArray, n: int) -> FloatA
     return np.stack([poses[0], *(balanced_lean(skel, p) for p in poses[1:-1]), poses[-1]])
 
 
+KNEEL_PLANS = "passes.posture.kneel_plans"  # ctx.cache: id(kneel segment) -> KneelPlan
+STAND_SETTLE = 0.3  # s: a stand from a kneel first brings trunk and arms to the kneel's pose
+ARM_DOFS = tuple(
+    f"{s}_{d}"
+    for s in ("r", "l")
+    for d in ("clavicle_elev", "clavicle_prot", "shoulder_flex", "shoulder_abd", "shoulder_rot",
+              "elbow_flex", "elbow_pro", "wrist_flex", "wrist_dev")
+)  # fmt: skip
+
+
+def _heading(rotation: FloatArray) -> float:
+    """Heading about +Y of a yaw-only root rotation (w, x, y, z)."""
+    return 2.0 * math.atan2(float(rotation[2]), float(rotation[0]))
+
+
+def _kneel_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
+    """The stepping kneel (``mtlc.passes.kneel``): dense keyframes of legs, spine and root."""
+    q0 = state.q_at(seg.start, skip=seg)
+    root, rot = state.root_at(seg.start, skip=seg)
+    knees = 2 if int(seg.goal.params.get("knees", 2)) == 2 else 1
+    ground = state.ir.ground
+    plan = plan_kneel(state.skel, q0, root, ground, knees, seg.end - seg.start)
+    frame = (root.copy(), _heading(rot), ground)
+    _keyed(seg, plan, seg.start, frame)
+    ctx.cache.setdefault(KNEEL_PLANS, {})[id(seg)] = (plan, frame)
+    state.add(seg)
+
+
+def _keyed(
+    seg: Segment, plan: KneelPlan, t0: float, frame: tuple[FloatArray, float, float]
+) -> None:
+    """Write a plan's keyframes (on the interpolation grid, placed in the world by ``frame``:
+    the starting root, heading and ground) and what it records (phases, steps, rolls)."""
+    times, x = plan.on_grid(t0, INTERNAL_FPS)
+    seg.keyframes = Keyframes(
+        time=times, dofs=plan.dofs, q=x[:, 3:].copy(), root_position=to_world(x, *frame)
+    )
+
+    def shift(d: dict[str, Any]) -> dict[str, Any]:
+        return {k: (v + t0 if isinstance(v, float) else v) for k, v in d.items()}
+
+    seg.result = {
+        "root": "keyed",
+        "root_height": float(x[-1, 1]),
+        "phases": [shift(p) for p in plan.phases],
+        "steps": [shift(p) for p in plan.steps],
+        "rolls": [shift(p) for p in plan.rolls],
+    }
+
+
+def _kneel_before(
+    ir: MotionIR, seg: Segment, ctx: PassContext
+) -> tuple[KneelPlan, tuple[FloatArray, float, float]] | None:
+    """The plan of the kneel the body is in when ``seg`` starts (the last whole-body posture
+    before it was a kneel), else None."""
+    before = [s for s in ir.on_track("root") if s.kind == "posture" and s.end <= seg.start + 1e-9]
+    last = max(before, key=lambda s: s.end, default=None)
+    if last is None or last.goal.params.get("posture") != "kneel":
+        return None
+    found: tuple[KneelPlan, tuple[FloatArray, float, float]] | None
+    found = ctx.cache.get(KNEEL_PLANS, {}).get(id(last))
+    return found
+
+
+def _stand_from_kneel(
+    seg: Segment, kneel: tuple[KneelPlan, tuple[FloatArray, float, float]], state: PoseState,
+    ctx: PassContext,
+) -> None:  # fmt: skip
+    """Rise by the kneel played backwards; first, for ``STAND_SETTLE``, trunk and arms go back
+    to where the kneel left them (the reaches in between leaned and moved them)."""
+    skel = state.skel
+    plan, frame = kneel
+    back = plan.reversed(seg.end - seg.start - STAND_SETTLE)
+    _keyed(seg, back, seg.start + STAND_SETTLE, frame)
+    kf = seg.keyframes
+    assert kf is not None and kf.root_position is not None
+    arm_idx = [skel.dof_index(n) for n in ARM_DOFS]
+    arms = np.asarray(skel.q_comfort, dtype=float)[arm_idx]
+    now = state.q_at(seg.start, skip=seg)
+    first = np.concatenate([kf.q[0], now[arm_idx]])
+    kf.q = np.concatenate([first[None], np.hstack([kf.q, np.tile(arms, (len(kf.time), 1))])])
+    kf.time = np.concatenate([[seg.start], kf.time])
+    kf.dofs = (*kf.dofs, *ARM_DOFS)
+    kf.root_position = np.concatenate([kf.root_position[:1], kf.root_position])
+    state.add(seg)
+    mark(ctx.cache, seg)  # its first keyframe holds the pose the reaches left
+
+
 def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     skel, ir = state.skel, state.ir
-    cur = state.q_at(seg.start, skip=seg)
     kind = seg.goal.params.get("posture", "stand")
+    if kind == "kneel":
+        _kneel_segment(seg, state, ctx)
+        return
+    if kind == "stand" and (kneel := _kneel_before(ir, seg, ctx)) is not None:
+        _stand_from_kneel(seg, kneel, state, ctx)
+        return
+    cur = state.q_at(seg.start, skip=seg)
     flat = kind in ("stand", "squat")
     arms = free_arms(ir, seg) if flat else ()
     target = target_posture(skel, cur, seg.goal.params, arms)

@@ -23,7 +23,7 @@ import numpy as np
 
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
-from mtlc.passes.interpolate import anchored_root, gait_window, track
+from mtlc.passes.interpolate import anchored_root, gait_window, keyed_windows, track
 
 # (time, segment id, keyframes, row, column); column −1 for a posture root height
 _Ref = tuple[float, int, Keyframes, int, int]
@@ -128,6 +128,13 @@ class PoseState:
                     gr = track(list(kf.time), list(kf.root_rotation), grid)[0]
                     rot = gr / np.linalg.norm(gr)
                 return gp, rot
+        skipped = _skip_ids(skip)
+        for seg, start, end in keyed_windows(self.ir):  # a stepping kneel places the root
+            kf = seg.keyframes
+            if id(seg) in skipped or kf is None or kf.root_position is None:
+                continue
+            if start + 1e-9 < t <= end + 1e-9:
+                return track(list(kf.time), list(kf.root_position), np.array([t]))[0], rot
         q = self.q_at(t, skip)
         pos = anchored_root(self.skel, q[None], pos[None], rot[None], self.ir.ground)[0]
         return pos, rot

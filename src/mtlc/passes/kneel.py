@@ -1,0 +1,603 @@
+"""The stepping kneel: a kneel (and the stand from it) that a person could do, as dense keyframes.
+
+With knee flexion limited to 135° and ankle dorsiflexion to 20°, no path from standing to both
+knees on the ground keeps the centre of mass over the feet without a step: a knee lands half a
+metre in front of its own toes. People kneel by stepping: the right foot steps back, the left
+foot steps forward into a split stance, the body lowers until the right knee is down (a half
+kneel: left foot flat in front, right knee and toes down), then the weight goes onto the right
+leg and the left foot steps back so that its knee lands beside the right one. Rising is the
+same motion in reverse. Each phase (``PHASES``) keeps the centre of mass over the support of
+the contacts it has, and a planted foot never slides: it steps (lifts, moves, lands) or rolls
+over its toe.
+
+The motion is solved frame by frame at the internal rate by a whole-body inverse kinematics
+(``track``): root position, both legs and the spine (flexion and lateral flexion) by damped
+Gauss-Newton with a numerical Jacobian, warm-started from the previous frame. Planted contacts
+weigh most, the centre of mass's target next, and a weak pull toward the previous frame keeps
+the solution smooth. Everything is computed in the body frame (facing +Z, root heading 0) and
+placed in the world at the end.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from mtlc.body import center_of_mass, forward, site_positions
+from mtlc.ir.model import FloatArray
+from mtlc.metrics import CONTACT_TOL
+
+KNEE_HEIGHT = 0.05  # m: knee centre above the ground when kneeling (as the kneel posture)
+TUCK_ANKLE = math.radians(10.0)  # kneeling ankles: toes tucked under, the foot near vertical
+SPLIT = 0.65  # m: the right toe this far behind the left toe when it lands (a half kneel)
+STEP_LIFT = 0.05  # m: a stepping foot's clearance at mid-swing
+LAND_PITCH = math.radians(25.0)  # the back foot lands on its toe, heel up by this much
+KNEEL_COM_BEHIND = 0.12  # m: the kneeling CoM's target behind the knees
+SINGLE_KNEE_AT = 0.25  # share of the knee-to-toe distance: the CoM target on one kneeling leg
+FPS = 60.0
+ITERATIONS = 10
+PLANT_W = 1000.0  # residual weights (per metre, per radian)
+KNEE_W = 60.0
+SWING_W = 40.0
+COM_W = 20.0
+SMOOTH_W = 1.0
+POLISH_SMOOTH = 0.01
+POLISH_ITERATIONS = 3
+LEVEL_W = 40.0
+NOMINAL_W = 0.1
+SPINE_W = 1.0
+GROUND_EPS = 2e-4  # m: the ground's barrier is smooth over this much
+
+# (name, share of the motion): the phases of kneeling on both knees, in order
+PHASES: tuple[tuple[str, float], ...] = (
+    ("weight on the left foot", 0.08),
+    ("right foot steps back", 0.15),
+    ("weight between the feet", 0.07),
+    ("down onto the right knee", 0.22),
+    ("weight on the right knee", 0.08),
+    ("left knee down beside it", 0.26),
+    ("settle on both knees", 0.14),
+)
+
+LEG_VARS = tuple(
+    f"{s}_{d}"
+    for s in ("r", "l")
+    for d in ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")
+)
+SPINE_VARS = ("lumbar_flex", "lumbar_lat", "thorax_flex", "thorax_lat")
+SOLE = ("toe", "heel", "ball_med", "ball_lat")
+LEFT_COLS = np.arange(3 + 6, 3 + 12)  # the left leg's columns in a state vector
+KNEE_COL, HIP_COL, ANKLE_COL = 3, 0, 4  # knee, hip and ankle flexion among a leg's dofs
+PELVIS_W = 20.0
+# mid-swing of the second knee's leg (hip flex, abd, rot, knee, ankle dorsi, inversion; NaN:
+# as the path has it): the knee folded, the thigh turned out and abducted and the foot pointed,
+# so the lower leg comes round the side; straight back under the hip it would pass 4-7 cm
+# below the ground (knee flexion stops at 135°, the kneeling pelvis is 0.48 m up)
+SWING_LEG = np.radians([np.nan, 5.0, 38.0, 133.0, -45.0, np.nan])
+LIFT_END = 0.2  # share of the second knee's phase in which its toe rises straight up
+LIFT_HIP = math.radians(15.0)  # and extra hip flexion: the thigh rises first
+LIFT_FLEX = math.radians(30.0)  # extra knee flexion at mid-swing: the foot clears the ground
+JOINT_W = 30.0
+LIFT_W = 150.0
+MIN_KNEE = 0.08  # rad: the least knee flexion (the comfortable pose's)
+HEEL_DOWN = 0.5  # share of the descent with the front heel down
+GROUND_SITES = [f"{s}_{n}" for s in ("r", "l") for n in (*SOLE, "foot")]
+
+
+def smoothstep(s: FloatArray | float) -> FloatArray:
+    s = np.clip(np.asarray(s, dtype=float), 0.0, 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@dataclass
+class Targets:
+    """What one frame must meet: points (site or ``joint:name``) with weights, a CoM target,
+    and relative constraints (a toe-standing foot kept level across and pointing ahead)."""
+
+    points: list[tuple[str, FloatArray, float]] = field(default_factory=list)
+    com: FloatArray | None = None
+    level: list[str] = field(default_factory=list)  # feet ("r", "l") kept level and ahead
+    nominal: FloatArray | None = None  # (V,) joint values weakly pulled toward (NaN: free)
+    nominal_w: FloatArray | float = 0.0  # (V,) their weights
+    com_w: float = COM_W
+    smooth: float = SMOOTH_W
+    joints: tuple[FloatArray, FloatArray, float] | None = None  # (columns of x, values, weight)
+    root_y: tuple[float, float] | None = None  # a pelvis height and its weight
+
+
+class Body:
+    """The whole-body IK's model: which dofs move, limits, and the residual of one frame."""
+
+    def __init__(self, skel: Any, q_base: FloatArray) -> None:
+        self.skel = skel
+        self.q_base = np.asarray(q_base, dtype=float).copy()
+        self.idx = np.array([skel.dof_index(n) for n in (*LEG_VARS, *SPINE_VARS)])
+        self.lo, self.hi = skel.lower[self.idx].copy(), skel.upper[self.idx].copy()
+        # a straight knee is singular (the hip cannot go down to first order): keep them bent
+        for col in (KNEE_COL, 6 + KNEE_COL):
+            self.lo[col] = max(self.lo[col], min(MIN_KNEE, float(q_base[self.idx[col]])))
+        self.knees = [skel.joint_index("r_knee"), skel.joint_index("l_knee")]
+
+    def q_of(self, x: FloatArray) -> FloatArray:
+        q = np.tile(self.q_base, (len(x), 1))
+        q[:, self.idx] = x[:, 3:]
+        return q
+
+    def pose(self, x: FloatArray) -> Any:
+        n = len(x)
+        return forward(self.skel, self.q_of(x), x[:, :3], np.tile([1.0, 0, 0, 0], (n, 1)))
+
+    def residual(self, x: FloatArray, tg: Targets, prev: FloatArray) -> FloatArray:
+        """Residuals (B, R) of a batch of candidate states ``x`` (B, 3 + V)."""
+        pose = self.pose(x)
+        out = []
+        for name, target, w in tg.points:
+            if name.startswith("joint:"):
+                p = pose.p[:, self.skel.joint_index(name[6:])]
+            else:
+                p = site_positions(self.skel, pose, name)
+            out.append(w * (p - target))
+        for side in tg.level:
+            pts = site_positions(self.skel, pose, [f"{side}_{n}" for n in SOLE])
+            across = pts[:, 2, 1] - pts[:, 3, 1]  # ball_med vs ball_lat height
+            ahead = pts[:, 0, 0] - pts[:, 1, 0]  # toe and heel on one line along +Z
+            out.append(np.stack([LEVEL_W * across, PLANT_W * ahead], axis=1))
+        # nothing below the ground: sole points, ankles, and knees no lower than kneeling
+        soles = site_positions(self.skel, pose, GROUND_SITES)[..., 1]
+        knees = pose.p[:, self.knees, 1] - (KNEE_HEIGHT - 0.002)
+        low = np.concatenate([soles, knees], axis=1)
+        out.append(PLANT_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))  # smooth min(·, 0)
+        if tg.com is not None:
+            out.append(tg.com_w * (center_of_mass(self.skel, pose)[:, [0, 2]] - tg.com))
+        out.append(tg.smooth * (x - prev))
+        if tg.root_y is not None:
+            out.append(tg.root_y[1] * (x[:, 1:2] - tg.root_y[0]))
+        if tg.joints is not None:
+            cols, values, w = tg.joints
+            out.append(w * (x[:, cols] - values))
+        if tg.nominal is not None:
+            free = np.isnan(tg.nominal)
+            w = np.where(free, 0.0, tg.nominal_w)
+            out.append(w * np.where(free, 0.0, x[:, 3:] - np.nan_to_num(tg.nominal)))
+        return np.concatenate(out, axis=1)
+
+    def _step(self, jac: FloatArray, r0: FloatArray, lam: float, x: FloatArray) -> FloatArray:
+        """A damped Gauss-Newton step; joints at a limit that the step would push past it are
+        held (their columns dropped), so the rest of the body still moves."""
+        n = len(x)
+        held = np.zeros(n, dtype=bool)
+        for _ in range(3):
+            j = np.where(held, 0.0, jac)
+            jtj = j.T @ j
+            damp = lam * (np.diag(jtj) + 1e-6)  # Marquardt: damping scaled per variable
+            step = -np.linalg.solve(jtj + np.diag(damp), j.T @ r0)
+            step[held] = 0.0
+            q, d = x[3:], step[3:]
+            out = ((q <= self.lo + 1e-9) & (d < 0)) | ((q >= self.hi - 1e-9) & (d > 0))
+            if not (out & ~held[3:]).any():
+                break
+            held[3:] |= out
+        return step
+
+    def solve(self, x0: FloatArray, tg: Targets, iterations: int = ITERATIONS) -> FloatArray:
+        """Damped Gauss-Newton from ``x0``, joints clipped into their limits at every step, then
+        polished: a few steps on the planted contacts alone put them back within microns (a
+        planted point that drifts by a fraction of a millimetre a frame skates centimetres a
+        second)."""
+        x = self._descend(x0, x0, tg, iterations)
+        hard = Targets(points=[p for p in tg.points if p[2] >= PLANT_W], level=tg.level,
+                       com=tg.com, com_w=tg.com_w)  # fmt: skip
+        return self._descend(x, x, hard, POLISH_ITERATIONS) if hard.points else x
+
+    def _descend(
+        self, x0: FloatArray, prev: FloatArray, tg: Targets, iterations: int
+    ) -> FloatArray:
+        x, lam, h = x0.copy(), 1e-2, 1e-6
+        n = len(x)
+        for _ in range(iterations):
+            batch = np.tile(x, (n + 1, 1))
+            batch[1:] += np.eye(n) * h
+            res = self.residual(batch, tg, prev)
+            r0 = res[0]
+            jac = (res[1:] - r0).T / h
+            step = self._step(jac, r0, lam, x)
+            cand = x + step
+            cand[3:] = np.clip(cand[3:], self.lo, self.hi)
+            rc = self.residual(cand[None], tg, prev)[0]
+            if rc @ rc < r0 @ r0:
+                x, lam = cand, max(lam * 0.3, 1e-5)
+            else:
+                lam *= 10.0
+        return x
+
+
+def track(body: Body, x0: FloatArray, targets: Callable[[float, FloatArray], Targets],
+          n: int) -> FloatArray:  # fmt: skip
+    """States (n, 3 + V) for u = 0..1: each frame solved from the previous one."""
+    xs = [x0.copy()]
+    for k in range(1, n):
+        u = k / (n - 1)
+        xs.append(body.solve(xs[-1], targets(u, xs[-1])))
+    return np.stack(xs)
+
+
+def _bisect(f: Callable[[float], float], lo: float, hi: float, n: int = 40) -> float:
+    flo = f(lo)
+    for _ in range(n):
+        mid = 0.5 * (lo + hi)
+        if (f(mid) > 0) == (flo > 0):
+            lo, flo = mid, f(mid)
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def kneeling_reach(skel: Any, side: str = "r") -> float:
+    """Horizontal distance (m) from a kneeling knee to its toe tip, toes tucked (``TUCK_ANKLE``):
+    the thigh vertical, the knee ``KNEE_HEIGHT`` above the ground, the toe on it."""
+    q = np.asarray(skel.q_comfort, dtype=float).copy()
+    q[skel.dof_index(f"{side}_hip_flex")] = 0.0
+    q[skel.dof_index(f"{side}_ankle_dorsi")] = TUCK_ANKLE
+    names = [f"{side}_{n}" for n in SOLE]
+    k_dof, knee = skel.dof_index(f"{side}_knee_flex"), skel.joint_index(f"{side}_knee")
+
+    def shape(k: float) -> tuple[float, float]:
+        qq = q.copy()
+        qq[k_dof] = k
+        pose = forward(skel, qq[None])
+        pts = site_positions(skel, pose, names)[0]
+        low = pts[:, 1].min()
+        return float(pose.p[0, knee, 1] - low - KNEE_HEIGHT), float(pose.p[0, knee, 2] - pts[0, 2])
+
+    k = _bisect(lambda k: shape(k)[0], math.radians(45), float(skel.upper[k_dof]))
+    return shape(k)[1]
+
+
+def _rx(a: float) -> FloatArray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+@dataclass
+class Geometry:
+    """The kneel's footholds in the body frame (x left, y up from the ground, z ahead)."""
+
+    rel: dict[str, FloatArray]  # sole points (toe, heel, balls) from the toe of a flat foot
+    toe0: dict[str, FloatArray]  # standing toes
+    left0: FloatArray  # the left toe, where it stands until its knee goes down
+    toe: dict[str, FloatArray]  # kneeling toes (the right one lands there from its step)
+    knees: dict[str, FloatArray]  # kneeling knee centres
+    com_right: FloatArray  # (2,) CoM targets: over the right foot...
+    com_left: FloatArray  # ...over the left foot stepped forward...
+    com_split: FloatArray  # ...between the left foot and the right forefoot...
+    com_half: FloatArray  # ...on the right knee and both forefeet...
+    com_one: FloatArray  # ...over the right kneeling leg...
+    com_kneel: FloatArray  # ...and kneeling on both knees
+
+    def foot(self, side: str, toe: FloatArray, pitch: float) -> list[FloatArray]:
+        """Sole points of a rigid foot with its toe at ``toe``, heel raised by ``pitch``."""
+        return [toe + _rx(pitch) @ r for r in self.rel[side]]
+
+
+FOREFOOT_CENTRE = 0.037  # m behind the toe tip: the middle of the forefoot a toe stands on
+
+
+def geometry(body: Body, x0: FloatArray) -> Geometry:
+    skel = body.skel
+    pose = body.pose(x0[None])
+    rel, toe0, centre = {}, {}, {}
+    for side in ("r", "l"):
+        pts = site_positions(skel, pose, [f"{side}_{n}" for n in SOLE])[0]
+        toe0[side] = pts[0].copy()
+        rel[side] = pts - pts[0]
+        rel[side][:, 1] = pts[:, 1] - pts[:, 1].min()  # soles level, on the ground
+        centre[side] = pts[:, [0, 2]].mean(axis=0)
+    reach = kneeling_reach(skel)
+    left0 = toe0["l"]
+    right = np.array([toe0["r"][0], 0.0, left0[2] - SPLIT])
+    toe = {"r": right, "l": np.array([toe0["l"][0], 0.0, right[2]])}
+    knees = {s: toe[s] + np.array([0.0, KNEE_HEIGHT, reach]) for s in ("r", "l")}
+    back = np.array([0.0, FOREFOOT_CENTRE])
+    fore_r, fore_l = toe["r"][[0, 2]] - back, left0[[0, 2]] - back
+    kr = knees["r"][[0, 2]]
+    left_c = centre["l"]
+    return Geometry(
+        rel, toe0, left0, toe, knees, centre["r"], left_c, 0.5 * (left_c + fore_r),
+        (kr + fore_r + fore_l) / 3.0, kr + SINGLE_KNEE_AT * (fore_r - kr),
+        0.5 * (knees["r"] + knees["l"])[[0, 2]] - np.array([0.0, KNEEL_COM_BEHIND]),
+    )  # fmt: skip
+
+
+def phase_edges(count: int = len(PHASES)) -> FloatArray:
+    """Where the first ``count`` phases start and end, as shares (0..1) of the motion."""
+    edges = np.cumsum([0.0, *(share for _, share in PHASES[:count])])
+    return edges / edges[-1]
+
+
+def _phase(u: float, count: int = len(PHASES)) -> tuple[int, float]:
+    """Which phase ``u`` (0..1 of the motion) falls in, and the progress through it."""
+    edges = phase_edges(count)
+    k = int(min(np.searchsorted(edges, u, side="right") - 1, count - 1))
+    return k, float((u - edges[k]) / (edges[k + 1] - edges[k]))
+
+
+def kneel_targets(
+    body: Body, geo: Geometry, x0: FloatArray, count: int = len(PHASES)
+) -> Callable[[float, FloatArray], Targets]:
+    """The targets of each frame of kneeling (the first ``count`` ``PHASES``), by u (0..1)."""
+    skel = body.skel
+    com0 = center_of_mass(skel, body.pose(x0[None]))[0, [0, 2]]
+    # joints pulled weakly toward where they started: the spine most (a person shifts the
+    # pelvis over the feet rather than folding the trunk), the hips' and ankles' side turns less
+    weights = np.zeros(len(body.idx))
+    for i, n in enumerate((*LEG_VARS, *SPINE_VARS)):
+        if n in SPINE_VARS:
+            weights[i] = SPINE_W
+        elif n.endswith(("hip_rot", "ankle_inv", "hip_abd")):
+            weights[i] = NOMINAL_W
+    nominal = np.where(weights > 0, x0[3:], np.nan)
+    start: dict[int, FloatArray] = {}  # the state each phase started from
+
+    def flat(side: str, toe: FloatArray) -> list[tuple[str, FloatArray, float]]:
+        pts = geo.foot(side, toe, 0.0)
+        return [(f"{side}_{n}", p, PLANT_W) for n, p in zip(SOLE, pts, strict=True)]
+
+    def swing(side: str, a: FloatArray, b: FloatArray, pa: float, pb: float, s: float) -> list:
+        """A stepping foot: up, across (done by 80 % of the swing), straight down; held as
+        firmly as a planted foot as it leaves the ground, so it does not slip first."""
+        e = float(smoothstep(s / 0.8))
+        toe = a + e * (b - a)
+        toe[1] += STEP_LIFT * math.sin(math.pi * s)
+        pts = geo.foot(side, toe, pa + e * (pb - pa))
+        firm = 1.0 - float(smoothstep(s / 0.25)) + float(smoothstep((s - 0.75) / 0.25))
+        w = SWING_W + (PLANT_W - SWING_W) * firm  # firm as it leaves and as it lands
+        return [(f"{side}_{n}", p, w) for n, p in zip(SOLE, pts, strict=True)]
+
+    def knee_at(side: str, x: FloatArray) -> FloatArray:
+        return body.pose(x[None]).p[0, skel.joint_index(f"{side}_knee")].copy()
+
+    def com_path(a: FloatArray, b: FloatArray, s: float) -> FloatArray:
+        return a + float(smoothstep(s)) * (b - a)
+
+    toe = geo.toe
+
+    def planted(*names: str) -> list[tuple[str, FloatArray, float]]:
+        out = []
+        for n in names:
+            side, what = n.split("_", 1)
+            if what == "toe0":  # the left toe where it stands
+                out.append((f"{side}_toe", geo.left0, PLANT_W))
+            elif what == "toe":
+                out.append((n, toe[side], PLANT_W))
+            else:
+                out.append((f"joint:{n}", geo.knees[side], PLANT_W))
+        return out
+
+    def targets(u: float, x: FloatArray) -> Targets:
+        k, s = _phase(u, count)
+        start.setdefault(k, x.copy())
+        tg = Targets(nominal=nominal, nominal_w=weights)
+        if k == 0:
+            tg.points = flat("r", geo.toe0["r"]) + flat("l", geo.left0)
+            tg.com = com_path(com0, geo.com_left, s)
+        elif k == 1:
+            # the right foot steps back: it lifts level (every sole point led), then only its
+            # toe is led (back, down) with the foot kept pointing ahead, its pitch left free
+            # (it lands on its toe)
+            path = swing("r", geo.toe0["r"], toe["r"], 0.0, 0.0, s)
+            lead = 1.0 - float(smoothstep((s - 0.2) / 0.4))
+            tg.points = (
+                flat("l", geo.left0) + [path[0]] + [(n, p, w * lead + 1e-3) for n, p, w in path[1:]]
+            )
+            tg.level = ["r"]
+            tg.com = geo.com_left
+        elif k == 2:
+            tg.points = flat("l", geo.left0) + planted("r_toe")
+            tg.level = ["r"]
+            tg.com = com_path(geo.com_left, geo.com_split, s)
+        elif k == 3:
+            # the left heel stays down for the first half, then the foot may roll on its toe
+            k0 = knee_at("r", start[k])
+            knee = k0 + float(smoothstep(s)) * (geo.knees["r"] - k0)
+            give = 1.0 - float(smoothstep((s - HEEL_DOWN + 0.15) / 0.3))  # the heel may rise
+            left = [
+                (n, p, w if n == "l_toe" else w * give + 1e-3) for n, p, w in flat("l", geo.left0)
+            ]
+            tg.points = left + planted("r_toe") + [("joint:r_knee", knee, KNEE_W)]
+            tg.level = ["r", "l"]
+            tg.com = com_path(geo.com_split, geo.com_half, s)
+        elif k == 4:
+            tg.points = planted("l_toe0", "r_toe", "r_knee")
+            tg.level = ["r", "l"]
+            tg.com = com_path(geo.com_half, geo.com_one, s)
+            tg.root_y = (start[k][1], PELVIS_W * float(smoothstep(s)))
+        elif k == 5:
+            # the left leg swings in joint space from where it was to its kneeling angles: the
+            # thigh lifts, the knee folds fully and the foot points back (the toes clear the
+            # ground), then knee and toe are guided onto their places
+            if "final" not in start:
+                start["final"] = body.solve(x, final_targets(x), iterations=80)
+            x_final = start["final"]
+            tg.points = planted("r_toe", "r_knee")
+            if "foot" not in start:
+                pose = body.pose(start[k][None])
+                start["foot"] = site_positions(skel, pose, [f"l_{n}" for n in SOLE])[0]
+            rise = float(smoothstep(s / LIFT_END))
+            held = 1.0 - float(smoothstep((s - LIFT_END) / 0.1))  # the foot is held as it was
+            if held > 0.0:  # ...while it rises straight up
+                up = np.array([0.0, 2 * STEP_LIFT * rise, 0.0])
+                w = LIFT_W + (PLANT_W - LIFT_W) * (1.0 - rise)
+                tg.points += [
+                    (f"l_{n}", p + up, w * held) for n, p in zip(SOLE, start["foot"], strict=True)
+                ]
+            if s >= LIFT_END:
+                x_lift = start.setdefault("lifted", x.copy())
+                v = (s - LIFT_END) / (1.0 - LIFT_END)
+                e = float(smoothstep(v / 0.8))
+                legs = x_lift[LEFT_COLS] + e * (x_final[LEFT_COLS] - x_lift[LEFT_COLS])
+                fold = float(smoothstep(v / 0.25) - smoothstep((v - 0.55) / 0.3))
+                legs = np.where(np.isnan(SWING_LEG), legs, legs + fold * (SWING_LEG - legs))
+                land = float(smoothstep((v - 0.45) / 0.35))
+                ramp = float(smoothstep(v / 0.15))
+                tg.joints = (LEFT_COLS, legs, JOINT_W * ramp * (1.0 - land) + 1e-3)
+                if land > 0.0:  # above its place first, then straight down
+                    hover = np.array(
+                        [0.0, 0.04 * (1.0 - float(smoothstep((v - 0.75) / 0.25))), 0.0]
+                    )
+                    tg.points += [("l_toe", toe["l"] + hover, PLANT_W * land),
+                                  ("joint:l_knee", geo.knees["l"] + hover, SWING_W * land)]  # fmt: skip
+            tg.level = ["r"]
+            tg.com = geo.com_one
+            tg.com_w = 3 * COM_W
+            tg.root_y = (start[4][1], PELVIS_W)
+        else:
+            tg.points = planted("r_toe", "l_toe", "r_knee", "l_knee")
+            tg.level = ["r", "l"]
+            tg.com = com_path(geo.com_one, geo.com_kneel, s)
+        return tg
+
+    def final_targets(x: FloatArray) -> Targets:
+        tg = Targets(nominal=nominal, nominal_w=weights, level=["r", "l"], com=geo.com_kneel)
+        tg.points = planted("r_toe", "l_toe", "r_knee", "l_knee")
+        return tg
+
+    return targets
+
+
+HALF_KNEEL_PHASES = 4  # kneel(1) stops after "down onto the right knee"
+PLANTED_DRIFT = 2e-4  # m: a point this still between two solved frames is planted there
+CONTACT_SITES = [f"{s}_{n}" for s in ("r", "l") for n in SOLE]
+
+
+@dataclass
+class KneelPlan:
+    """A kneel solved frame by frame, in the body frame (facing +Z, ground at y = 0), and what
+    the metrics need to know (times in s from the motion's start)."""
+
+    body: Body
+    time: FloatArray  # (N,)
+    x: FloatArray  # (N, 3 + V) body-frame states: root position, then ``dofs``
+    phases: list[dict[str, Any]]  # name, start, end
+    steps: list[dict[str, Any]]  # foot, t_lift, t_land: a foot in the air
+    rolls: list[dict[str, Any]]  # foot, from, to: a foot on its toe only
+
+    @property
+    def dofs(self) -> tuple[str, ...]:
+        return (*LEG_VARS, *SPINE_VARS)
+
+    def reversed(self, duration: float) -> KneelPlan:
+        """The same motion backwards (standing up from the kneel), lasting ``duration``."""
+        d, k = float(self.time[-1]), duration / float(self.time[-1])
+        return KneelPlan(
+            self.body, (d - self.time[::-1]) * k, self.x[::-1].copy(),
+            [{"name": f"{p['name']} (reversed)", "start": (d - p["end"]) * k,
+              "end": (d - p["start"]) * k} for p in reversed(self.phases)],
+            [{"foot": x["foot"], "t_lift": (d - x["t_land"]) * k, "t_land": (d - x["t_lift"]) * k}
+             for x in self.steps],
+            [{"foot": x["foot"], "from": (d - x["to"]) * k, "to": (d - x["from"]) * k}
+             for x in self.rolls],
+        )  # fmt: skip
+
+    def on_grid(self, t0: float, fps: float) -> tuple[FloatArray, FloatArray]:
+        """(times, states) at ``t0`` and then at the interpolation grid's instants (multiples of
+        1/fps): the frames the motion is made of are then solved poses, not blends of two.
+
+        Between two solved frames a state is blended, then its planted contacts (sole points
+        and knees that do not move between the two) are put back exactly (``Body.solve``'s
+        polish): blending the angles of two poses with a foot in the same place moves the foot.
+        """
+        end = t0 + float(self.time[-1])
+        grid = np.arange(np.floor(t0 * fps) + 1, np.floor(end * fps + 1e-6) + 1) / fps
+        times = np.unique(np.concatenate([[t0], grid[grid < end - 1e-6], [end]]))
+        rel = times - t0
+        k = np.clip(np.searchsorted(self.time, rel, side="right") - 1, 0, len(self.time) - 2)
+        f = (rel - self.time[k]) / (self.time[k + 1] - self.time[k])
+        x = self.x[k] + f[:, None] * (self.x[k + 1] - self.x[k])
+        pa, pb = self.body.pose(self.x[k]), self.body.pose(self.x[k + 1])
+        out = x.copy()
+        for i in range(len(times)):
+            if f[i] < 1e-9 or f[i] > 1 - 1e-9:
+                out[i] = self.x[k[i]] if f[i] < 0.5 else self.x[k[i] + 1]
+                continue
+            tg = Targets(points=self._planted(pa, pb, i), smooth=POLISH_SMOOTH)
+            if tg.points:
+                out[i] = self.body._descend(x[i], x[i], tg, POLISH_ITERATIONS)
+        return times, out
+
+    def _planted(self, pa: Any, pb: Any, i: int) -> list[tuple[str, FloatArray, float]]:
+        skel = self.body.skel
+        a, b = (
+            site_positions(skel, pa, CONTACT_SITES)[i],
+            site_positions(skel, pb, CONTACT_SITES)[i],
+        )
+        pts = [(n, a[j], PLANT_W) for j, n in enumerate(CONTACT_SITES)
+               if a[j, 1] < 0.002 and np.linalg.norm(b[j] - a[j]) < PLANTED_DRIFT]  # fmt: skip
+        for side in ("r", "l"):
+            j = skel.joint_index(f"{side}_knee")
+            ka, kb = pa.p[i, j], pb.p[i, j]
+            if ka[1] < KNEE_HEIGHT + 0.002 and np.linalg.norm(kb - ka) < PLANTED_DRIFT:
+                pts.append((f"joint:{side}_knee", ka, PLANT_W))
+        return pts
+
+
+def to_world(x: FloatArray, root_start: FloatArray, heading: float, ground: float) -> FloatArray:
+    """World root positions (N, 3) of body-frame states (the body frame's origin is under the
+    starting root, its +Z the heading)."""
+    c, s = math.cos(heading), math.sin(heading)
+    return np.stack([root_start[0] + c * x[:, 0] + s * x[:, 2], ground + x[:, 1],
+                     root_start[2] - s * x[:, 0] + c * x[:, 2]], axis=1)  # fmt: skip
+
+
+def plan_kneel(
+    skel: Any, q_start: FloatArray, root_start: FloatArray, ground: float, knees: int,
+    duration: float,
+) -> KneelPlan:  # fmt: skip
+    """Kneel on ``knees`` (1: the right, 2: both) from standing pose ``q_start`` (its root
+    ``root_start`` high) in ``duration`` seconds, solved at ``FPS``, in the body frame."""
+    count = len(PHASES) if knees == 2 else HALF_KNEEL_PHASES
+    body = Body(skel, q_start)
+    x0 = np.concatenate([[0.0, float(root_start[1]) - ground, 0.0], q_start[body.idx]])
+    geo = geometry(body, x0)
+    n = max(round(duration * FPS) + 1, 2)
+    xs = track(body, x0, kneel_targets(body, geo, x0, count), n)
+    edges = phase_edges(count) * duration
+    phases = [{"name": PHASES[k][0], "start": float(edges[k]), "end": float(edges[k + 1])}
+              for k in range(count)]  # fmt: skip
+    steps = [{"foot": "r", "t_lift": float(edges[1]), "t_land": float(edges[2])}]
+    rolls = [{"foot": "r", "from": float(edges[2]), "to": duration}]
+    left_roll = float(edges[3] + HEEL_DOWN * (edges[4] - edges[3]))
+    if knees == 2:
+        steps.append({"foot": "l", "t_lift": float(edges[5]), "t_land": float(edges[6])})
+        rolls += [{"foot": "l", "from": left_roll, "to": float(edges[5])},
+                  {"foot": "l", "from": float(edges[6]), "to": duration}]  # fmt: skip
+    else:
+        rolls.append({"foot": "l", "from": left_roll, "to": duration})
+    times = np.linspace(0.0, duration, n)
+    for step in steps:
+        step["t_lift"], step["t_land"] = _airborne(body, xs, times, step)
+    return KneelPlan(body, times, xs, phases, steps, rolls)
+
+
+STILL = 0.5 * 0.02 / FPS  # m a frame: a foot slower than half the skating limit (2 cm/s) stands
+
+
+def _airborne(
+    body: Body, xs: FloatArray, times: FloatArray, step: dict[str, Any]
+) -> tuple[float, float]:
+    """When a stepping foot really leaves and reaches the ground: around the step's phase, the
+    first and last frames in which a sole point near the ground (within ``CONTACT_TOL``) still
+    moves; a touchdown ends when the foot has stopped, not when its phase does."""
+    pts = site_positions(body.skel, body.pose(xs), [f"{step['foot']}_{n}" for n in SOLE])
+    near = pts[..., 1] <= CONTACT_TOL
+    slide = np.where(near[1:] & near[:-1], np.linalg.norm(np.diff(pts, axis=0), axis=-1), 0.0)
+    moving = slide.max(axis=1) > STILL  # (n-1,): a point on the ground slides (rolling is not)
+    a = int(np.searchsorted(times, step["t_lift"]))
+    b = int(np.searchsorted(times, step["t_land"]))
+    window = np.flatnonzero(moving[max(a - 2, 0) : min(b + 6, len(moving))]) + max(a - 2, 0)
+    if window.size == 0:
+        return float(step["t_lift"]), float(step["t_land"])
+    return float(times[window[0]]), float(times[window[-1] + 1])

@@ -25,6 +25,8 @@ class FrontendOptions:
     expansion_budget: int = DEFAULT_BUDGET
     manikin: ManikinSpec | None = None
     expand: bool = True
+    # scene sites at other positions (metres), by name: what `mtlc serve` does when one is dragged
+    site_overrides: tuple[tuple[str, tuple[float, float, float]], ...] = ()
 
 
 @dataclass
@@ -89,6 +91,7 @@ def expand_tasks(program: Program) -> Program:
         program.checker.callees,
         program.options.expansion_budget,
         program.options.manikin,
+        dict(program.options.site_overrides),
     )
     for module in program.roots:
         scope = program.scopes[id(module)]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -65,6 +66,7 @@ class Expander:
         callees: dict[Span, Symbol],
         budget: int = DEFAULT_BUDGET,
         manikin_override: ManikinSpec | None = None,
+        site_overrides: Mapping[str, tuple[float, float, float]] | None = None,
     ) -> None:
         self.sink = sink
         self.scopes = scopes
@@ -72,6 +74,8 @@ class Expander:
         self.callees = callees  # and for each call statement, the definition it calls
         self.budget = budget
         self.manikin_override = manikin_override
+        # positions (metres) that replace the scene's, by site name: `mtlc serve` moves sites
+        self.site_overrides = dict(site_overrides or {})
 
     # ------------------------------------------------------------ entry
     def expand_task(self, task: ast.Task, scope: Scope) -> Timeline | None:
@@ -173,7 +177,7 @@ class Expander:
         for site in scene.sites:
             if site.name in sites:
                 continue
-            position = self.eval(site.position, env)
+            position = self.site_overrides.get(site.name) or self.eval(site.position, env)
             normal = self.eval(site.normal, env) if site.normal is not None else None
             frame = self.eval(site.frame, env) if site.frame is not None else None
             if not all(math.isfinite(c) for c in (*position, *(normal or ()), *(frame or ()))):

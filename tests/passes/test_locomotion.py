@@ -55,9 +55,7 @@ def compiled() -> dict[str, MotionIR]:
 
 
 ALL_EXAMPLES = sorted(p.stem for p in (ROOT / "examples").glob("*.mtask"))
-PENDING_SKATING = {
-    "replace_fuel_filter": "kneeling moves the feet (posture/balance passes, issue 4 kneel fix)",
-}
+PENDING_SKATING: dict[str, str] = {}  # example -> why it still skates (none: the kneel steps)
 
 
 def _walks(ir: MotionIR) -> list:

@@ -2,20 +2,20 @@
 
 With knee flexion limited to 135° and ankle dorsiflexion to 20°, no path from standing to both
 knees on the ground keeps the centre of mass over the feet without a step: a knee lands half a
-metre in front of its own toes. People kneel by stepping: the right foot steps back, the left
-foot steps forward into a split stance, the body lowers until the right knee is down (a half
-kneel: left foot flat in front, right knee and toes down), then the weight goes onto the right
-leg and the left foot steps back so that its knee lands beside the right one. Rising is the
-same motion in reverse. Each phase (``PHASES``) keeps the centre of mass over the support of
-the contacts it has, and a planted foot never slides: it steps (lifts, moves, lands) or rolls
-over its toe.
+metre in front of its own toes. People kneel by stepping: the right foot steps back onto its
+toes, the body lowers onto the right knee (a half kneel: left foot in front, right knee and toes
+down), then the weight goes onto the right leg and the left leg swings back, folded, so that its
+knee lands beside the right one. Rising is the same motion in reverse. Each phase (``PHASES``)
+keeps the centre of mass over the support of the contacts it has (``mtlc.metrics.support``:
+soles, the forefoot of a foot on its toes, kneeling knees), and a planted foot never slides: it
+steps (lifts, moves, lands) or rolls on its toe.
 
-The motion is solved frame by frame at the internal rate by a whole-body inverse kinematics
-(``track``): root position, both legs and the spine (flexion and lateral flexion) by damped
-Gauss-Newton with a numerical Jacobian, warm-started from the previous frame. Planted contacts
-weigh most, the centre of mass's target next, and a weak pull toward the previous frame keeps
-the solution smooth. Everything is computed in the body frame (facing +Z, root heading 0) and
-placed in the world at the end.
+The motion is solved frame by frame at ``FPS`` by a whole-body inverse kinematics (``track``):
+root position, both legs and the spine (flexion and lateral flexion) by damped Gauss-Newton with
+a numerical Jacobian, warm-started from the previous frame. Planted contacts weigh most, the
+centre of mass's target next, and a pull toward the previous frame keeps the solution smooth;
+each frame is then polished on its planted contacts alone. Everything is computed in the body
+frame (facing +Z, ground at y = 0) and placed in the world at the end (``to_world``).
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ KNEE_W = 60.0
 SWING_W = 40.0
 COM_W = 20.0
 SMOOTH_W = 1.0
+ROOT_SMOOTH = 10.0  # the root's pull toward its last place, per metre, × a joint's per radian
 POLISH_SMOOTH = 0.01
 POLISH_ITERATIONS = 3
 LEVEL_W = 40.0
@@ -85,7 +86,7 @@ JOINT_W = 30.0
 LIFT_W = 150.0
 MIN_KNEE = 0.08  # rad: the least knee flexion (the comfortable pose's)
 HEEL_DOWN = 0.5  # share of the descent with the front heel down
-GROUND_SITES = [f"{s}_{n}" for s in ("r", "l") for n in (*SOLE, "foot")]
+GROUND_SITES = [f"{s}_{n}" for s in ("r", "l") for n in (*SOLE, "foot", "hand", "fingertip")]
 
 
 def smoothstep(s: FloatArray | float) -> FloatArray:
@@ -153,7 +154,8 @@ class Body:
         out.append(PLANT_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))  # smooth min(·, 0)
         if tg.com is not None:
             out.append(tg.com_w * (center_of_mass(self.skel, pose)[:, [0, 2]] - tg.com))
-        out.append(tg.smooth * (x - prev))
+        out.append(tg.smooth * ROOT_SMOOTH * (x[:, :3] - prev[:3]))
+        out.append(tg.smooth * (x[:, 3:] - prev[3:]))
         if tg.root_y is not None:
             out.append(tg.root_y[1] * (x[:, 1:2] - tg.root_y[0]))
         if tg.joints is not None:
@@ -552,12 +554,36 @@ def to_world(x: FloatArray, root_start: FloatArray, heading: float, ground: floa
                      root_start[2] - s * x[:, 0] + c * x[:, 2]], axis=1)  # fmt: skip
 
 
+_PLANS: dict[bytes, tuple[Any, KneelPlan]] = {}
+
+
 def plan_kneel(
     skel: Any, q_start: FloatArray, root_start: FloatArray, ground: float, knees: int,
     duration: float,
 ) -> KneelPlan:  # fmt: skip
     """Kneel on ``knees`` (1: the right, 2: both) from standing pose ``q_start`` (its root
-    ``root_start`` high) in ``duration`` seconds, solved at ``FPS``, in the body frame."""
+    ``root_start`` high) in ``duration`` seconds, solved at ``FPS``, in the body frame.
+
+    Memoised per skeleton and inputs (a compile solves each kneel once, but tests and tools
+    compile the same task many times; the entry keeps the skeleton alive so its id is not
+    reused). The result is the same either way: the solve is deterministic.
+    """
+    key = np.concatenate([q_start, [root_start[1] - ground, knees, duration]]).tobytes()
+    key += id(skel).to_bytes(8, "little")
+    hit = _PLANS.get(key)
+    if hit is not None and hit[0] is skel:
+        return hit[1]
+    if len(_PLANS) > 32:
+        _PLANS.clear()
+    plan = _solve_kneel(skel, q_start, root_start, ground, knees, duration)
+    _PLANS[key] = (skel, plan)
+    return plan
+
+
+def _solve_kneel(
+    skel: Any, q_start: FloatArray, root_start: FloatArray, ground: float, knees: int,
+    duration: float,
+) -> KneelPlan:  # fmt: skip
     count = len(PHASES) if knees == 2 else HALF_KNEEL_PHASES
     body = Body(skel, q_start)
     x0 = np.concatenate([[0.0, float(root_start[1]) - ground, 0.0], q_start[body.idx]])

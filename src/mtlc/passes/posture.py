@@ -13,8 +13,9 @@ lumbar + thorax and the legs fold under an upright pelvis:
 * squat(depth): hips, knees and ankles flexed with the feet flat (knee = hip + ankle
   dorsiflexion keeps the sole level), the root lowered by ``depth`` (0: the deepest the limits
   allow), heels on the ground;
-* kneel(knees): the kneeling leg's thigh vertical, foot plantar-flexed, knee ``KNEE_HEIGHT`` above
-  the ground with the toes on it; on one knee (the right) the left foot stands flat in front;
+* kneel(knees): the stepping kneel of ``mtlc.passes.kneel`` (the right foot steps back, the right
+  knee goes down, then the left one beside it), solved frame by frame with the root's whole
+  position keyed; a stand right after a kneel plays it backwards;
 * sit: hips and knees at 90°, feet flat on the ground (on a seat the scene does not model).
 
 A twist turns the forearm (``*_elbow_pro``, positive = pronation) by its angle from where it is,
@@ -171,7 +172,7 @@ def target_posture(
     if kind == "sit":
         vals = {f"{s}_{d}": math.pi / 2 for s in ("r", "l") for d in ("hip_flex", "knee_flex")}
         return _deg(skel, vals, q)
-    if kind == "kneel":
+    if kind == "kneel":  # a kneeling pose; the pass kneels by stepping (mtlc.passes.kneel)
         down = ("r", "l") if int(params.get("knees", 2)) == 2 else ("r",)
         for side in down:
             q = _deg(skel, {f"{side}_ankle_dorsi": skel.lower[skel.dof_index(f"{side}_ankle_dorsi")]},

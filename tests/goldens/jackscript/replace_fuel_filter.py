@@ -11,7 +11,7 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-1.82, 0.0, 59.051), start=0.0, duration=0.54)
+    human.Walk((-0.325, 0.0, 53.092), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -41,625 +41,868 @@ def replace_fuel_filter():
         'right_ankle': (-2.7418, -3.5626), 'left_hip': (12.1392, 0.4432, -0.1322),
         'left_knee': (63.5803,), 'left_ankle': (20.0, 0.4788),
     })
-    human.KeyRoot(0.4, (-2.533, 87.699, 43.131), (-5.0186, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.103, 87.904, 40.795), (-5.0186, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (21.9415, -1.0089, -6.2402), 'right_knee': (28.2807,),
-        'right_ankle': (6.5476, -3.259), 'left_hip': (26.1082, 0.5132, 0.9931),
-        'left_knee': (72.7324,), 'left_ankle': (20.0, 0.9917),
+        'right_hip': (21.9398, -1.0014, -6.2372), 'right_knee': (24.961,),
+        'right_ankle': (3.2322, -3.2509), 'left_hip': (27.6718, 0.5132, 0.9931),
+        'left_knee': (72.6051,), 'left_ankle': (20.0, 0.9917),
     })
     human.KeyRoot(0.5, (-1.064, 89.955, 50.959), (-8.8912, 0.0, 0.0))
     human.KeyJoints(0.5, {
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'right_hip': (12.0222, -0.8761, -1.7672), 'right_knee': (18.2667,),
         'right_ankle': (6.2776, -1.2246), 'left_hip': (13.9765, 0.8518, 1.7842),
         'left_knee': (21.7176,), 'left_ankle': (7.4656, 1.2322),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(0.6, (-2.955, 90.696, 71.189), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.782, 90.674, 56.293), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (-4.1304, 0.0182, 0.0), 'right_knee': (12.7183,),
-        'right_ankle': (12.9042, 0.0181), 'left_hip': (-4.2047, -0.0182, -0.0001),
-        'left_knee': (12.5664,), 'left_ankle': (12.8146, -0.0182),
+        'spine_lumbar': (4.792, -4.5964, 0.0), 'spine_thoracic': (0.8153, -0.812, 0.0),
+        'right_hip': (5.8978, 0.683, 0.0706), 'right_knee': (12.3629,),
+        'right_ankle': (6.4699, 0.6867), 'left_hip': (5.8771, -0.6831, -0.0703),
+        'left_knee': (12.3204,), 'left_ankle': (6.4449, -0.6867),
     })
-    human.KeyRoot(0.7, (-2.653, 93.408, 69.53), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.7, (4.748, 90.232, 62.274), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (-2.0653, 0.0156, 0.0024), 'right_ankle': (4.4705, 0.0158),
-        'left_hip': (-2.1061, -0.0156, -0.0025), 'left_ankle': (4.4219, -0.0158),
+        'spine_lumbar': (12.2077, -11.9628, 0.0), 'spine_thoracic': (1.9625, -2.1306, 0.0),
+        'right_hip': (2.7245, 4.1061, 0.1955), 'right_knee': (13.096,),
+        'right_ankle': (10.3827, 4.1108), 'left_hip': (2.7138, -4.1062, -0.1946),
+        'left_knee': (13.0741,), 'left_ankle': (10.3696, -4.1108),
     })
-    human.KeyRoot(0.8, (-1.857, 96.253, 65.189), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.8, (7.496, 89.948, 65.014), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (2.0348, 0.013, 0.0048), 'right_knee': (13.7356,),
-        'right_ankle': (-6.1566, 0.0138), 'left_hip': (2.0223, -0.013, -0.0048),
-        'left_knee': (13.71,), 'left_ankle': (-6.1701, -0.0139),
+        'spine_lumbar': (9.618, -5.9481, 0.0), 'spine_thoracic': (1.6173, -1.0578, 0.0),
+        'right_hip': (3.4264, 8.497, 0.2336), 'right_knee': (27.9194,),
+        'right_ankle': (20.0, 6.9233), 'left_hip': (0.0548, -6.3144, -0.006),
+        'left_knee': (10.7107,), 'left_ankle': (10.6563, -6.3145),
     })
-    human.KeyRoot(0.9, (-1.637, 98.63, 63.977), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.9, (9.759, 90.262, 58.433), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (3.253, 0.0103, 0.0075), 'right_knee': (12.6661,),
-        'right_ankle': (-15.7375, 0.0123), 'left_hip': (3.2639, -0.0103, -0.0076),
-        'left_knee': (12.6883,), 'left_ankle': (-15.7237, -0.0123),
+        'spine_lumbar': (41.0387, -2.6273, 0.0), 'spine_thoracic': (5.6064, -0.43, 0.0),
+        'right_hip': (-10.8277, 7.4141, -0.1281), 'right_knee': (23.1097,),
+        'right_ankle': (20.0, 7.1581), 'left_hip': (4.0792, -6.9748, -0.4882),
+        'left_knee': (9.2487,), 'left_ankle': (5.1968, -6.9912),
     })
-    human.KeyRoot(1.0, (-2.333, 100.22, 67.737), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.0, (9.154, 89.474, 63.925), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (2.5248, 0.0081, 0.0073), 'right_knee': (14.5473,),
-        'right_ankle': (-20.5735, 0.0104), 'left_hip': (2.5306, -0.0081, -0.0073),
-        'left_knee': (14.5591,), 'left_ankle': (-20.5642, -0.0104),
+        'spine_lumbar': (20.8112, -0.8092, 0.0), 'spine_thoracic': (3.1537, -0.1306, 0.0),
+        'right_hip': (-13.2933, 4.7978, 9.1411), 'right_knee': (45.0063,),
+        'right_ankle': (-19.1083, 9.4329), 'left_hip': (3.4199, -7.3175, -0.4367),
+        'left_knee': (15.6593,), 'left_ankle': (12.2738, -7.3304),
     })
-    human.KeyRoot(1.1, (-3.106, 101.34, 71.914), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.1, (8.878, 88.893, 63.925), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (1.9222, 0.0058, 0.0064), 'right_knee': (17.1719,),
-        'right_ankle': (-24.9106, 0.0082), 'left_hip': (1.9241, -0.0058, -0.0065),
-        'left_knee': (17.1756,), 'left_ankle': (-24.9048, -0.0082),
+        'spine_lumbar': (17.6664, -0.8713, 0.0), 'spine_thoracic': (2.862, -0.1486, 0.0),
+        'right_hip': (-13.8148, 2.7151, 17.2937), 'right_knee': (38.1799,),
+        'right_ankle': (-48.6635, 10.5963), 'left_hip': (5.8988, -7.1577, -0.738),
+        'left_knee': (20.831,), 'left_ankle': (14.9831, -7.1956),
     })
-    human.KeyRoot(1.2, (-3.937, 101.883, 76.406), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.2, (7.459, 89.171, 60.056), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'right_hip': (1.4451, 0.0035, 0.0049), 'right_knee': (20.4727,),
-        'right_ankle': (-28.7682, 0.0058), 'left_hip': (1.4455, -0.0035, -0.0049),
-        'left_knee': (20.4737,), 'left_ankle': (-28.7636, -0.0058),
+        'spine_lumbar': (-20.1123, 8.0631, 0.0), 'spine_thoracic': (-4.0065, 1.4377, 0.0),
+        'right_hip': (-12.9762, 2.815, 11.7651), 'right_knee': (36.4779,),
+        'right_ankle': (-39.7548, 15.892), 'left_hip': (8.8906, -5.6612, -0.8842),
+        'left_knee': (21.9369,), 'left_ankle': (13.0928, -5.7296),
     })
-    human.KeyRoot(1.3, (-4.805, 101.769, 81.099), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.3, (5.492, 90.215, 45.886), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'right_hip': (1.0753, 0.0015, 0.0026), 'right_knee': (24.3466,),
-        'right_ankle': (-32.1833, 0.0029), 'left_hip': (1.0755, -0.0015, -0.0026),
-        'left_knee': (24.3469,), 'left_ankle': (-32.1791, -0.0029),
+        'spine_lumbar': (-28.9396, 11.2704, 0.0), 'spine_thoracic': (-8.5108, 1.885, 0.0),
+        'right_hip': (-9.4505, 2.0315, 2.3299), 'right_knee': (40.2286,),
+        'right_ankle': (-8.654, 2.8567), 'left_hip': (10.8532, -2.532, -0.4848),
+        'left_knee': (6.9778,), 'left_ankle': (-3.8661, -2.578),
     })
-    human.KeyRoot(1.4, (-5.688, 100.935, 85.876), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.4, (6.403, 87.671, 37.091), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'right_hip': (0.8091, 0.0, 0.0), 'right_knee': (28.7261,), 'right_ankle': (-35.1702, 0.0),
-        'left_hip': (0.8091, 0.0, 0.0), 'left_knee': (28.7261,), 'left_ankle': (-35.1662, 0.0),
+        'spine_lumbar': (-1.6282, 10.5147, 0.0), 'spine_thoracic': (-0.4775, 1.8902, 0.0),
+        'right_hip': (5.2566, 1.2991, 2.5945), 'right_knee': (60.1233,),
+        'right_ankle': (-3.2698, 2.941), 'left_hip': (22.6577, -1.998, -0.8338),
+        'left_knee': (18.309,), 'left_ankle': (-4.3341, -2.165),
     })
-    human.KeyRoot(1.5, (-6.563, 99.33, 90.628), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.5, (5.282, 76.342, 37.941), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'right_knee': (33.6253,), 'right_ankle': (-37.685, 0.0), 'left_knee': (33.6253,),
-        'left_ankle': (-37.6811, 0.0),
+        'spine_lumbar': (-2.4454, 10.1131, 0.0), 'spine_thoracic': (-0.5479, 1.827, 0.0),
+        'right_hip': (10.8483, 0.7917, 2.0016), 'right_knee': (82.4729,),
+        'right_ankle': (14.0589, 2.0791), 'left_hip': (45.8084, -1.2081, -1.2535),
+        'left_knee': (63.0088,), 'left_ankle': (16.9605, -1.7435),
     })
-    human.KeyRoot(1.6, (-7.409, 97.007, 95.218), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.6, (5.359, 59.565, 29.937), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'right_knee': (38.7205,), 'right_ankle': (-39.8983, 0.0), 'left_knee': (38.7205,),
-        'left_ankle': (-39.8945, 0.0),
+        'spine_lumbar': (27.4614, 8.9694, 0.0), 'spine_thoracic': (4.2217, 1.5749, 0.0),
+        'right_hip': (31.0948, -0.2453, 1.4366), 'right_knee': (119.7162,),
+        'right_ankle': (19.9521, 2.0429), 'left_hip': (71.1943, -0.2533, -0.7565),
+        'left_knee': (91.3485,), 'left_ankle': (19.8628, -0.7983),
     })
-    human.KeyRoot(1.7, (-8.205, 94.013, 99.539), (-10.4375, 0.0, 0.0))
-    human.KeyJoints(1.7, {'right_ankle': (-41.8291, 0.0), 'left_ankle': (-41.8256, 0.0)})
-    human.KeyRoot(1.8, (-8.934, 90.427, 103.497), (-10.4375, 0.0, 0.0))
-    human.KeyJoints(1.8, {'right_ankle': (-43.4969, 0.0), 'left_ankle': (-43.4936, 0.0)})
-    human.KeyRoot(1.9, (-9.582, 86.355, 107.017), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.7, (3.317, 50.097, 37.326), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(1.7, {
+        'spine_lumbar': (8.6442, 9.5102, 0.0), 'spine_thoracic': (1.3665, 1.7132, 0.0),
+        'right_hip': (27.5746, -0.3846, 0.9012), 'right_knee': (130.4054,),
+        'right_ankle': (17.2787, 3.653), 'left_hip': (84.4888, 0.0098, -0.1012),
+        'left_knee': (116.8008,), 'left_ankle': (20.0, -0.1103),
+    })
+    human.KeyRoot(1.8, (2.042, 44.502, 41.766), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(1.8, {
+        'spine_lumbar': (-1.829, 9.5405, 0.0), 'spine_thoracic': (-0.4254, 1.7255, 0.0),
+        'right_hip': (25.6126, -0.5499, 0.81), 'right_knee': (135.0,),
+        'right_ankle': (10.8147, 6.5116), 'left_hip': (91.1311, -0.3085, 0.8738),
+        'left_knee': (129.4509,), 'left_ankle': (20.0, 0.9624),
+    })
+    human.KeyRoot(1.9, (1.912, 44.019, 42.531), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'right_hip': (0.2719, 0.0, 0.0), 'right_ankle': (-44.9208, 0.0),
-        'left_hip': (0.2719, 0.0, 0.0), 'left_ankle': (-44.9178, 0.0),
+        'spine_lumbar': (-3.63, 14.7254, 0.0), 'spine_thoracic': (-0.8603, 2.65, 0.0),
+        'right_hip': (25.0113, -0.5037, 0.7162), 'right_ankle': (9.9019, 6.0123),
+        'left_hip': (91.5805, -0.3352, 0.8792), 'left_knee': (130.8721,),
+        'left_ankle': (19.9999, 0.9816),
     })
-    human.KeyRoot(2.0, (-10.141, 81.926, 110.05), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.0, (1.06, 43.97, 42.306), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'right_knee': (59.7067,), 'right_ankle': (-46.1201, 0.0), 'left_knee': (59.7067,),
-        'left_ankle': (-46.1174, 0.0),
+        'spine_lumbar': (-2.3402, 20.0, 0.0), 'spine_thoracic': (-2.8699, 10.0, 0.0),
+        'right_hip': (25.1195, -1.6731, 2.2935), 'right_ankle': (8.9278, 19.7516),
+        'left_hip': (92.2091, -1.2099, 2.9353), 'left_knee': (131.042,),
+        'left_ankle': (18.6628, 3.1222),
     })
-    human.KeyRoot(2.1, (-10.605, 77.28, 112.573), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.1, (0.161, 43.869, 42.012), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'right_knee': (64.7654,), 'right_ankle': (-47.1142, 0.0), 'left_knee': (64.7654,),
-        'left_ankle': (-47.1118, 0.0),
+        'spine_lumbar': (-0.3222, 20.0, 0.0), 'spine_thoracic': (-5.9817, 10.0, 0.0),
+        'right_hip': (25.3291, -2.9211, 3.723), 'right_ankle': (6.8807, 33.8632),
+        'left_hip': (99.7299, -19.6062, 3.7386), 'left_knee': (134.7319,),
+        'left_ankle': (14.5972, 10.658),
     })
-    human.KeyRoot(2.2, (-10.976, 72.566, 114.586), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.2, (0.216, 43.876, 42.031), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'right_knee': (69.6132,), 'right_ankle': (-47.9221, 0.0), 'left_knee': (69.6132,),
-        'left_ankle': (-47.9201, 0.0),
+        'spine_lumbar': (-0.7068, 20.0, 0.0), 'spine_thoracic': (-3.0075, 10.0, 0.0),
+        'right_hip': (25.3144, -2.8451, 3.6478), 'right_ankle': (7.0323, 33.0323),
+        'left_hip': (104.3102, -24.9992, 16.9257), 'left_knee': (135.0,),
+        'left_ankle': (-0.6378, 35.0),
     })
-    human.KeyRoot(2.3, (-11.258, 67.932, 116.117), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.3, (0.065, 43.858, 41.982), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'right_knee': (74.1825,), 'right_ankle': (-48.5633, 0.0), 'left_knee': (74.1825,),
-        'left_ankle': (-48.5616, 0.0),
+        'spine_lumbar': (0.5359, 20.0, 0.0), 'spine_thoracic': (-7.6656, 10.0, 0.0),
+        'right_hip': (25.3513, -3.0495, 3.8167), 'right_ankle': (6.6644, 35.0),
+        'left_hip': (84.4345, 4.7551, 38.8632), 'left_knee': (134.2094,),
+        'left_ankle': (-44.9418, 25.1636),
     })
-    human.KeyRoot(2.4, (-11.46, 63.519, 117.214), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.4, (0.066, 43.857, 41.983), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'right_knee': (78.4052,), 'right_ankle': (-49.0569, 0.0), 'left_knee': (78.4052,),
-        'left_ankle': (-49.0556, 0.0),
+        'spine_lumbar': (4.3009, 19.9999, 0.0), 'spine_thoracic': (-8.5172, 10.0, 0.0),
+        'right_hip': (25.3512, -3.0492, 3.8171), 'right_knee': (134.999,),
+        'right_ankle': (6.6642, 35.0), 'left_hip': (56.3119, -7.4554, 29.3532),
+        'left_knee': (135.0,), 'left_ankle': (-46.4676, 11.3101),
     })
-    human.KeyRoot(2.5, (-11.594, 59.459, 117.94), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.5, (-0.21, 45.268, 45.273), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'right_hip': (0.029, 0.0, 0.0), 'right_knee': (82.2137,), 'right_ankle': (-49.4223, 0.0),
-        'left_hip': (0.0289, 0.0, 0.0), 'left_knee': (82.2137,), 'left_ankle': (-49.4213, 0.0),
+        'spine_lumbar': (-1.321, 20.0, 0.0), 'spine_thoracic': (-5.9908, 10.0, 0.0),
+        'right_hip': (20.5845, -2.6197, 3.971), 'right_knee': (130.2458,),
+        'right_ankle': (6.845, 34.0597), 'left_hip': (35.343, -20.5894, -2.0557),
+        'left_knee': (131.7644,), 'left_ankle': (-31.152, 2.2735),
     })
-    human.KeyRoot(2.6, (-11.674, 55.869, 118.371), (-10.4375, 0.0, 0.0))
-    human.KeyJoints(2.6, {'right_knee': (85.5401,), 'left_knee': (85.5401,)})
-    human.KeyRoot(2.7, (-11.713, 52.854, 118.585), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.6, (-0.239, 45.119, 44.885), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(2.6, {
+        'spine_lumbar': (3.7272, 20.0, 0.0), 'spine_thoracic': (-11.3108, 10.0, 0.0),
+        'right_hip': (21.1239, -2.7475, 4.0337), 'right_knee': (130.7686,),
+        'right_ankle': (6.6687, 35.0), 'left_hip': (25.1339, 1.8064, -1.6661),
+        'left_knee': (135.0,), 'left_ankle': (3.8298, -24.955),
+    })
+    human.KeyRoot(2.7, (0.834, 44.243, 42.878), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'right_knee': (88.3166,), 'right_ankle': (-49.8453, 0.0), 'left_knee': (88.3166,),
-        'left_ankle': (-49.8449, 0.0),
+        'spine_lumbar': (9.64, 19.9999, 0.0), 'spine_thoracic': (-4.7357, 10.0, 0.0),
+        'right_hip': (24.2374, -1.8307, 2.571), 'right_knee': (134.0893,),
+        'right_ankle': (8.6672, 22.0362), 'left_hip': (24.2374, 1.8307, -2.571),
+        'left_knee': (134.0893,), 'left_ankle': (8.6672, -22.0362),
     })
-    human.KeyRoot(2.8, (-11.727, 50.506, 118.662), (-10.4375, 0.0, 0.0))
-    human.KeyJoints(2.8, {'right_knee': (90.4752,), 'left_knee': (90.4752,)})
-    human.KeyRoot(2.9, (-11.729, 48.906, 118.669), (-10.4375, 0.0, 0.0))
-    human.KeyJoints(2.9, {'right_knee': (91.9483,), 'left_knee': (91.9483,)})
-    human.KeyRoot(3.0, (-11.727, 48.126, 118.659), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.8, (1.295, 44.84, 44.331), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(2.8, {
+        'spine_lumbar': (5.9666, 20.0, 0.0), 'spine_thoracic': (-0.9924, 10.0, 0.0),
+        'right_hip': (22.2792, -0.8767, 1.3694), 'right_knee': (132.2395,),
+        'right_ankle': (9.6554, 11.2006), 'left_hip': (22.2792, 0.8767, -1.3694),
+        'left_knee': (132.2395,), 'left_ankle': (9.6554, -11.2006),
+    })
+    human.KeyRoot(2.9, (1.54, 45.329, 45.632), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(2.9, {
+        'spine_lumbar': (3.6873, 10.8785, 0.0), 'spine_thoracic': (0.4969, 2.1185, 0.0),
+        'right_hip': (20.5108, -0.2434, 0.412), 'right_knee': (130.5074,),
+        'right_ankle': (9.9722, 3.2823), 'left_hip': (20.5108, 0.2434, -0.412),
+        'left_knee': (130.5074,), 'left_ankle': (9.9722, -3.2823),
+    })
+    human.KeyRoot(3.0, (1.514, 45.67, 46.587), (-10.4375, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_knee': (92.668,),
-        'right_ankle': (-49.9994, 0.0), 'left_knee': (92.668,), 'left_ankle': (-49.9994, 0.0),
+        'spine_lumbar': (2.3445, 1.0377, 0.0), 'spine_thoracic': (0.4126, 0.1904, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (19.1765, -0.0467, 0.0836),
+        'right_knee': (129.1763,), 'right_ankle': (10.0008, 0.6564),
+        'left_hip': (19.1765, 0.0467, -0.0836), 'left_knee': (129.1763,),
+        'left_ankle': (10.0008, -0.6564),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.0384, duration=0.2628)
-    human.KeyRoot(3.1, (-11.727, 48.059, 118.658), (-10.4375, 0.0, 0.0))
-    human.KeyJoints(3.1, {'neck': (4.8675, -4.6937, 9.4899), 'head': (2.0861, 1.5646)})
-    human.KeyJoints(3.2, {'neck': (23.4269, -22.5902, 45.6739), 'head': (10.0401, 7.5301)})
+    human.KeyRoot(3.1, (1.491, 45.754, 46.831), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(3.1, {
+        'spine_lumbar': (1.8216, -0.0415, 0.0), 'spine_thoracic': (0.3262, -0.0072, 0.0),
+        'neck': (4.8675, -4.6937, 3.2783), 'head': (2.0861, 1.5172),
+        'right_hip': (18.8317, -0.0186, 0.0338), 'right_knee': (128.8285,),
+        'right_ankle': (10.0009, 0.2642), 'left_hip': (18.8317, 0.0186, -0.0338),
+        'left_knee': (128.8285,), 'left_ankle': (10.0009, -0.2642),
+    })
+    human.KeyJoints(3.2, {'neck': (23.4269, -22.5902, 15.7783), 'head': (10.0401, 7.3023)})
     human.KeyJoints(3.3, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (34.9978, -33.7479, 68.2331), 'head': (14.9991, 11.2493),
+        'spine_lumbar': (1.8216, -0.0415, 0.0), 'spine_thoracic': (0.3262, -0.0072, 0.0),
+        'neck': (34.9978, -33.7479, 23.5715), 'head': (14.9991, 10.909),
         'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
         'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TA on r_arm at filter_bowl
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=3.3012, duration=0.873042)
     human.KeyJoints(3.4, {
-        'spine_lumbar': (-1.6311, -1.0874, -0.8156), 'spine_thoracic': (-0.292, 0.5437, -1.6311),
-        'right_clavicle': (-0.5437, -0.8156), 'right_shoulder': (6.4213, 6.4628, 12.8344),
-        'right_elbow': (32.5083, 17.6445), 'right_wrist': (0.6429, -0.7953),
+        'spine_lumbar': (4.2779, 0.6835, 0.751), 'spine_thoracic': (0.1351, 0.5061, 1.1111),
+        'neck': (35.0, -33.75, 21.3717), 'right_clavicle': (-0.3642, 0.8156),
+        'right_shoulder': (9.8419, 6.7651, 11.112), 'right_elbow': (33.7649, 17.1905),
+        'right_wrist': (-0.1096, -0.1698),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (-5.908, -3.9387, -2.954), 'spine_thoracic': (-1.0575, 1.9693, -5.908),
-        'right_clavicle': (-1.9693, -2.954), 'right_shoulder': (0.6537, 8.3854, 16.4403),
-        'right_elbow': (27.6074, 18.8395), 'right_wrist': (2.3596, -2.8839),
-        'right_knee': (92.7298,), 'left_knee': (92.7298,),
+        'spine_lumbar': (10.7185, 2.6108, 2.734), 'spine_thoracic': (-0.3988, 1.8585, 4.0808),
+        'neck': (35.0, -33.75, 16.355), 'head': (15.0, 10.7948), 'right_clavicle': (-1.3486, 2.954),
+        'right_shoulder': (13.153, 9.4802, 10.2017), 'right_elbow': (32.1588, 17.1954),
+        'right_wrist': (-0.3971, -0.6152),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (-11.7742, -7.8495, -5.8871), 'spine_thoracic': (-2.1076, 3.9247, -11.7742),
-        'right_clavicle': (-3.9247, -5.8871), 'right_shoulder': (-7.4074, 11.0224, 21.3862),
-        'right_elbow': (20.8852, 20.4786), 'right_wrist': (4.7809, -5.7557),
+        'spine_lumbar': (19.5525, 5.3107, 5.4835), 'spine_thoracic': (-1.2016, 3.7278, 8.275),
+        'neck': (35.0, -33.75, 10.197), 'head': (15.0, 10.3944),
+        'right_clavicle': (-2.7622, 5.8871), 'right_shoulder': (17.7808, 13.2044, 8.9531),
+        'right_elbow': (29.9559, 17.2022),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (-18.1732, -12.1154, -9.0866), 'spine_thoracic': (-3.253, 6.0577, -18.1732),
-        'right_clavicle': (-6.0577, -9.0866), 'right_shoulder': (-16.4603, 13.8989, 26.7812),
-        'right_elbow': (13.5526, 22.2666), 'right_wrist': (7.5376, -8.9002),
+        'spine_lumbar': (29.1888, 8.3532, 8.5341), 'spine_thoracic': (-2.1992, 5.7914, 13.0596),
+        'neck': (35.0, -33.75, 3.6068), 'head': (15.0, 10.8033),
+        'right_clavicle': (-4.4137, 9.0866), 'right_shoulder': (22.9779, 17.2667, 7.5912),
+        'right_elbow': (27.5529, 17.21),
     })
     human.KeyJoints(3.8, {
-        'spine_lumbar': (-24.0482, -16.0321, -12.0241),
-        'spine_thoracic': (-4.3047, 8.0161, -24.0482), 'right_clavicle': (-8.0161, -12.0241),
-        'right_shoulder': (-25.2034, 16.5398, 31.7345), 'right_elbow': (6.8203, 23.9081),
-        'right_wrist': (10.2603, -11.8073),
+        'spine_lumbar': (38.036, 11.3087, 11.4203), 'spine_thoracic': (-3.3175, 7.727, 17.8004),
+        'neck': (35.0, 30.0422, -15.4379), 'head': (15.0, -11.25),
+        'right_clavicle': (-6.112, 12.0241), 'right_shoulder': (27.9972, 20.9964, 6.3408),
+        'right_elbow': (25.3466, 17.2177), 'right_wrist': (-1.6164, -2.5041),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (-28.3427, -18.8951, -14.1713),
-        'spine_thoracic': (-5.0734, 9.4476, -28.3427), 'right_clavicle': (-9.4476, -14.1713),
-        'right_shoulder': (-32.3352, 18.4703, 35.3553), 'right_elbow': (1.8991, 25.1081),
-        'right_wrist': (12.5797, -13.9666),
+        'spine_lumbar': (44.5032, 13.7471, 13.6766), 'spine_thoracic': (-4.4827, 9.2119, 21.8632),
+        'neck': (35.0, 21.834, -17.849), 'right_clavicle': (-7.6659, 14.1713),
+        'right_shoulder': (32.0914, 23.7228, 5.4267), 'right_elbow': (23.7339, 17.2243),
+        'right_wrist': (-1.9051, -2.9512),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.0, {
-        'spine_lumbar': (-29.9993, -19.9996, -15.0), 'spine_thoracic': (-5.3695, 10.0, -30.0),
-        'right_clavicle': (-10.0, -15.0), 'right_shoulder': (-36.5541, 19.215, 36.7526),
-        'right_elbow': (0.0, 25.5711), 'right_wrist': (14.1266, -14.8679),
+        'spine_lumbar': (46.9988, 15.2387, 14.8374), 'spine_thoracic': (-5.6205, 9.924, 24.6138),
+        'neck': (35.0, 21.3395, -20.0917), 'right_clavicle': (-8.8842, 15.0),
+        'right_shoulder': (34.5133, 24.7748, 5.074), 'right_elbow': (23.1116, 17.2286),
+        'right_wrist': (-2.0165, -3.1238),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (-23.8854, -16.853, -14.1366),
-        'spine_thoracic': (-4.5716, 9.2247, -29.0973), 'right_clavicle': (-9.9523, -13.958),
-        'right_shoulder': (-34.894, 14.5211, 36.6014), 'right_elbow': (1.8687, 25.399),
-        'right_wrist': (14.6759, -14.7535),
+        'spine_lumbar': (41.8222, 17.3282, 13.4845), 'spine_thoracic': (-5.8276, 9.1033, 24.062),
+        'neck': (35.0, 28.1581, -20.978), 'right_clavicle': (-9.3306, 13.34),
+        'right_shoulder': (32.9288, 21.4099, 5.8244), 'right_elbow': (23.8467, 17.2199),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.174242, duration=0.2628)
     human.KeyJoints(4.2, {
-        'spine_lumbar': (-19.6267, -14.7561, -13.194),
-        'spine_thoracic': (-4.1245, 8.4532, -28.1705), 'right_clavicle': (-9.7724, -13.0224),
-        'right_shoulder': (-33.4214, 11.5923, 36.5317), 'right_elbow': (3.2988, 25.2926),
-        'right_wrist': (15.0246, -14.679),
+        'spine_lumbar': (38.6946, 18.5722, 13.0229), 'spine_thoracic': (-5.7056, 8.8162, 23.6139),
+        'neck': (35.0, 31.3661, -21.8625), 'right_clavicle': (-9.8334, 12.8396),
+        'right_shoulder': (31.6189, 19.1726, 6.3402), 'right_elbow': (24.2382, 17.2119),
+        'right_wrist': (-1.4492, -2.7583),
     })
-    human.KeyJoints(4.4, {'right_elbow': (3.2988, 25.2926)})
+    human.KeyJoints(4.4, {'right_elbow': (24.2382, 17.2119)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(4.5, {'right_elbow': (3.2988, 15.7153)})
-    human.KeyJoints(4.6, {'right_elbow': (3.2988, -24.4416)})
-    human.KeyJoints(4.7, {'right_elbow': (3.2988, -66.6338)})
+    human.KeyJoints(4.5, {'right_elbow': (24.2382, 8.3695)})
+    human.KeyJoints(4.6, {'right_elbow': (24.2382, -28.7054)})
+    human.KeyJoints(4.7, {'right_elbow': (24.2382, -67.6596)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=4.775442, duration=0.072)
-    human.KeyJoints(4.8, {'right_elbow': (3.2988, -80.0)})
+    human.KeyJoints(4.8, {'right_elbow': (24.2382, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.847442, duration=0.2628)
-    human.KeyJoints(5.1, {'right_elbow': (3.2988, -80.0)})
+    human.KeyJoints(5.1, {'right_elbow': (24.2382, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {'right_elbow': (3.2988, -52.2019)})
-    human.KeyJoints(5.3, {'right_elbow': (3.2988, 14.5082)})
-    human.KeyJoints(5.4, {'right_elbow': (3.2988, 71.0327)})
+    human.KeyJoints(5.2, {'right_elbow': (24.2382, -52.2019)})
+    human.KeyJoints(5.3, {'right_elbow': (24.2382, 14.5082)})
+    human.KeyJoints(5.4, {'right_elbow': (24.2382, 71.0327)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.448642, duration=0.072)
     human.KeyJoints(5.5, {
-        'spine_lumbar': (-19.6267, -14.7561, -13.194),
-        'spine_thoracic': (-4.1245, 8.4532, -28.1705),
-        'right_shoulder': (-33.4214, 11.5923, 36.5317), 'right_elbow': (3.2988, 80.0),
-        'right_wrist': (15.0246, -14.679), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0),
+        'spine_lumbar': (38.6946, 18.5722, 13.0229), 'spine_thoracic': (-5.7056, 8.8162, 23.6139),
+        'neck': (35.0, 31.3661, -21.8625), 'right_shoulder': (31.6189, 19.1726, 6.3402),
+        'right_elbow': (24.2382, 80.0), 'right_wrist': (-1.4492, -2.7583),
+        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
     })
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=5.520642, duration=0.072)
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TA on l_arm at filter_bowl
+    # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: gaze on head at drain_tray
+    human.LookAt((-35.0, 5.0, 80.0), start=5.520642, duration=1.546047)
     human.KeyJoints(5.6, {
-        'spine_lumbar': (-20.0522, -14.9712, -12.0374),
-        'spine_thoracic': (-4.2866, 7.6962, -27.3046),
-        'right_shoulder': (-33.9359, 10.4153, 35.5621), 'right_elbow': (3.3022, 79.848),
-        'right_wrist': (15.0596, -13.9043), 'left_clavicle': (0.3972, -0.2747),
-        'left_shoulder': (6.492, 6.1075, 11.6632), 'left_elbow': (33.5739, 17.2395),
-        'left_wrist': (0.0716, -0.1421),
+        'spine_lumbar': (39.538, 18.0509, 12.4614), 'spine_thoracic': (-5.9887, 8.6641, 23.1288),
+        'neck': (35.0, 31.9601, -20.5804), 'head': (15.0, -11.25),
+        'right_shoulder': (32.5441, 18.1152, 6.6967), 'right_elbow': (23.2439, 79.9956),
+        'right_wrist': (-1.3897, -2.6452), 'left_clavicle': (-0.3958, 0.531),
+        'left_shoulder': (9.5332, 5.7744, 11.3357), 'left_elbow': (34.3985, 17.187),
+        'left_wrist': (-0.0352, -0.006),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (-21.5578, -15.7323, -7.9453), 'spine_thoracic': (-4.8603, 5.0178, -24.215),
-        'right_shoulder': (-35.7564, 6.1673, 32.1296), 'right_elbow': (3.3145, 79.3104),
-        'right_wrist': (15.1833, -11.163), 'left_clavicle': (1.8027, -1.2724),
-        'left_shoulder': (-1.0139, 7.4445, 12.4058), 'left_elbow': (30.7305, 17.4192),
-        'left_wrist': (0.3401, -0.6447),
+        'spine_lumbar': (42.5224, 16.2068, 10.4744), 'spine_thoracic': (-7.0175, 8.126, 21.4125),
+        'neck': (35.0, 33.7442, -17.1485), 'head': (15.0, -11.1807),
+        'right_shoulder': (35.8176, 14.3741, 7.958), 'right_elbow': (19.7259, 79.98),
+        'right_wrist': (-1.1791, -2.2449), 'left_clavicle': (-1.7962, 2.41),
+        'left_shoulder': (12.899, 5.9414, 10.8928),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (-23.7232, -16.827, -2.0598), 'spine_thoracic': (-5.6853, 1.1658, -19.7095),
-        'right_shoulder': (-38.3746, -0.1443, 27.1891), 'right_wrist': (15.3611, -7.2205),
-        'left_clavicle': (3.8241, -2.7695), 'left_shoulder': (-11.9714, 9.3675, 13.5242),
-        'left_elbow': (26.6411, 17.6776), 'left_wrist': (0.7628, -1.3676),
+        'spine_lumbar': (46.8146, 13.5545, 7.6167), 'spine_thoracic': (-8.5622, 7.352, 18.9441),
+        'neck': (35.0, 33.75, -11.9007), 'head': (15.0, -10.9798),
+        'right_shoulder': (40.5256, 8.9935, 9.7721), 'right_elbow': (14.6662, 79.9576),
+        'left_clavicle': (-3.8104, 5.1123), 'left_shoulder': (17.8465, 6.2026, 10.2405),
+        'left_elbow': (34.6555, 17.1725), 'left_wrist': (-0.3646, -0.0574),
     })
     human.KeyJoints(5.9, {
-        'spine_lumbar': (-26.0961, -18.0265, 4.3896),
-        'spine_thoracic': (-6.5894, -3.0554, -14.6606),
-        'right_shoulder': (-41.2437, -7.4244, 21.7682), 'right_wrist': (15.556, -2.9002),
-        'left_clavicle': (6.0392, -4.5218), 'left_shoulder': (-24.2712, 11.4747, 14.8402),
-        'left_elbow': (22.1598, 17.9607),
+        'spine_lumbar': (51.5181, 10.648, 4.4852), 'spine_thoracic': (-10.3723, 6.5039, 16.2391),
+        'neck': (35.0, 33.75, -7.5597), 'head': (15.0, -11.25),
+        'right_shoulder': (45.6847, 3.0974, 11.7601), 'right_elbow': (9.1217, 79.933),
+        'left_clavicle': (-6.0175, 8.0735), 'left_shoulder': (23.4602, 6.5262, 9.4985),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (-28.2242, -19.1023, 10.1736),
-        'spine_thoracic': (-7.4002, -6.8411, -9.9408),
-        'right_shoulder': (-43.8169, -14.578, 16.8946), 'right_elbow': (3.3689, 76.9298),
-        'right_wrist': (15.7309, 0.9744), 'left_clavicle': (8.0257, -6.2854),
-        'left_shoulder': (-35.8042, 13.3646, 16.1759), 'left_elbow': (18.1409, 18.2146),
-        'left_wrist': (1.8796, -2.8702),
+        'spine_lumbar': (55.7363, 8.0414, 1.6768), 'spine_thoracic': (-12.197, 5.7433, 13.8132),
+        'neck': (35.0, 17.6784, 0.955), 'head': (15.0, -5.8928),
+        'right_shoulder': (50.3116, -2.1904, 13.5429), 'right_elbow': (4.1492, 79.911),
+        'right_wrist': (-0.2469, -0.4727), 'left_clavicle': (-7.9969, 10.7293),
+        'left_shoulder': (28.8245, 6.8809, 8.7861), 'left_elbow': (35.2471, 17.1547),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (-29.6552, -19.8257, 14.0629),
-        'spine_thoracic': (-7.9455, -9.3867, -6.4225),
-        'right_shoulder': (-45.5471, -20.5102, 13.5958), 'right_elbow': (3.3806, 76.4188),
-        'right_wrist': (15.8484, 3.5797), 'left_clavicle': (9.3615, -7.8163),
-        'left_shoulder': (-44.4611, 14.6353, 17.3531), 'left_elbow': (15.4385, 18.3854),
-        'left_wrist': (2.4781, -3.348),
+        'spine_lumbar': (58.5727, 6.2886, -0.2117), 'spine_thoracic': (-13.7859, 5.2318, 12.182),
+        'neck': (35.0, -33.5379, 11.1534), 'head': (15.0, 11.2198),
+        'right_shoulder': (53.4228, -5.7461, 14.7417), 'right_elbow': (0.8056, 79.8961),
+        'right_wrist': (-0.0468, -0.0921), 'left_clavicle': (-9.3279, 12.515),
+        'left_shoulder': (33.024, 7.2352, 8.2229), 'left_elbow': (35.685, 17.149),
+        'left_wrist': (-1.1049, -0.1405),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(6.2, {
-        'spine_lumbar': (-27.6951, -18.7391, 14.9927),
-        'spine_thoracic': (-7.1199, -9.2238, -4.9509),
-        'right_shoulder': (-43.602, -24.0665, 12.7623), 'right_elbow': (0.0, 76.5032),
-        'right_wrist': (1.9255, -0.4414), 'left_clavicle': (9.653, -8.8507),
-        'left_shoulder': (-48.1954, 13.5227, 18.1844), 'left_elbow': (15.1063, 18.4105),
-        'left_wrist': (3.0614, -3.3618),
+        'spine_lumbar': (58.0626, 6.064, -0.0203), 'spine_thoracic': (-14.9369, 5.6108, 12.3793),
+        'neck': (35.0, -33.6243, 11.2084), 'head': (15.0, 11.0964),
+        'right_shoulder': (53.0636, -4.9371, 15.0306), 'right_elbow': (0.0, 79.8926),
+        'right_wrist': (0.0012, -0.0002), 'left_clavicle': (-9.2084, 12.4692),
+        'left_shoulder': (35.2359, 7.5903, 7.916), 'left_wrist': (-1.3215, -0.0638),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (-22.1868, -14.6336, 12.9933),
-        'spine_thoracic': (-7.3773, -7.2038, -7.2398), 'right_clavicle': (-9.7724, -13.0224),
-        'right_shoulder': (-39.9989, -19.3135, 12.733), 'right_elbow': (1.5324, 75.6046),
-        'right_wrist': (15.6477, 0.5241), 'left_clavicle': (9.6112, -7.5444),
-        'left_shoulder': (-45.6393, 9.2034, 18.6417), 'left_elbow': (18.5163, 18.3545),
-        'left_wrist': (3.3054, -2.5709),
+        'spine_lumbar': (52.6822, 7.8164, 0.8518), 'spine_thoracic': (-13.9248, 5.6767, 13.173),
+        'neck': (35.0, 33.75, -2.9981), 'head': (15.0, -11.1617),
+        'right_shoulder': (48.9818, -1.5256, 15.0301), 'right_elbow': (1.0525, 79.8921),
+        'right_wrist': (-1.6173, 1.487), 'left_clavicle': (-9.2388, 11.5201),
+        'left_shoulder': (32.2168, 4.5291, 9.1493), 'left_elbow': (37.2957, 17.1573),
+        'left_wrist': (-0.9385, 0.2645),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.4, {
-        'spine_lumbar': (-21.6875, -10.5354, 12.2234),
-        'spine_thoracic': (-7.5178, -6.0537, -8.9869), 'right_clavicle': (-9.7233, -13.0975),
-        'right_shoulder': (-39.8259, -16.2332, 12.7714), 'right_elbow': (2.207, 75.3746),
-        'right_wrist': (15.4824, -2.1821), 'left_clavicle': (9.3888, -7.6449),
-        'left_shoulder': (-45.7036, 4.6606, 18.5285), 'left_elbow': (18.21, 17.9476),
-        'left_wrist': (3.543, -1.8804),
+        'spine_lumbar': (50.6193, 8.428, 1.277), 'spine_thoracic': (-13.3658, 5.6823, 13.5512),
+        'neck': (35.0, 33.702, -4.3993), 'head': (14.967, -10.7775),
+        'right_shoulder': (48.6718, 3.2994, 15.0623), 'right_elbow': (0.0, 79.8968),
+        'right_wrist': (4.5322, -2.3042), 'left_clavicle': (-9.1908, 11.04),
+        'left_shoulder': (30.7451, 3.3771, 9.6409), 'left_elbow': (37.5014, 17.1597),
+        'left_wrist': (-0.781, 0.3684),
     })
     human.KeyJoints(6.5, {
-        'spine_lumbar': (-23.2092, -3.0712, 10.9622), 'spine_thoracic': (-8.772, -4.4999, -13.2624),
-        'right_clavicle': (-9.5058, -13.4302), 'right_shoulder': (-40.4167, -3.149, 13.0171),
-        'right_wrist': (13.7362, -3.5697), 'left_shoulder': (-46.4706, -2.0615, 17.4037),
-        'left_elbow': (15.1047, 16.357),
+        'neck': (35.0, 32.09, -11.6412), 'head': (13.8576, -10.778),
+        'right_shoulder': (49.6368, 10.6621, 15.2027), 'right_wrist': (19.8714, -8.0915),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (-25.3644, 5.263, 9.7466), 'spine_thoracic': (-10.5482, -3.0912, -18.401),
-        'right_shoulder': (-41.2534, 15.2837, 13.3651), 'right_wrist': (11.2631, -4.4104),
-        'left_shoulder': (-47.5569, -9.2123, 15.8107), 'left_wrist': (3.9301, 0.3141),
+        'neck': (35.0, 29.3267, -24.0551), 'head': (11.9559, -10.7789),
+        'right_shoulder': (51.0035, 18.9118, 15.4016), 'right_wrist': (41.2509, -15.9452),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (-27.5075, 12.7412, 8.7441), 'spine_thoracic': (-12.3144, -1.9768, -23.179),
-        'right_clavicle': (-8.8915, -14.3698), 'right_shoulder': (-42.0855, 33.5763, 13.7111),
-        'right_wrist': (8.804, -4.8397), 'left_shoulder': (-48.637, -15.4659, 14.2267),
-        'left_elbow': (6.3333, 11.9641), 'left_wrist': (4.0659, 1.2937),
+        'neck': (35.0, 26.9664, -34.6588), 'head': (10.3315, -10.7796),
+        'right_shoulder': (52.3624, 26.6554, 15.5994), 'right_wrist': (62.3843, -23.6305),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (-28.9926, 17.6372, 8.1224),
-        'spine_thoracic': (-13.5383, -1.3058, -26.3729), 'right_clavicle': (-8.6792, -14.6945),
-        'right_shoulder': (-42.662, 46.24, 13.9509), 'right_elbow': (1.1944, 75.4742),
-        'right_wrist': (7.0999, -4.9933), 'left_shoulder': (-49.3856, -19.4964, 13.1291),
-        'left_elbow': (3.3027, 10.457), 'left_wrist': (4.1451, 1.9231),
+        'spine_lumbar': (50.6193, 8.428, 1.277), 'spine_thoracic': (-13.3658, 5.6823, 13.5512),
+        'neck': (35.0, 26.3842, -37.2744), 'head': (9.9308, -10.7798),
+        'right_clavicle': (-9.8334, 12.8396), 'right_shoulder': (53.3042, 32.4997, 15.7365),
+        'right_wrist': (76.9851, -28.9124), 'left_shoulder': (30.7451, 3.3771, 9.6409),
+        'left_elbow': (37.5014, 17.1597), 'left_wrist': (-0.781, 0.3684),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(6.9, {
-        'spine_lumbar': (-29.2997, 18.619, 8.0017), 'spine_thoracic': (-13.7914, -1.1779, -27.0208),
-        'right_shoulder': (-42.7813, 48.8577, 14.0005), 'right_wrist': (6.7475, -5.0096),
-        'left_shoulder': (-49.5404, -20.2974, 12.9021), 'left_elbow': (2.676, 10.146),
-        'left_wrist': (4.1599, 2.0479),
+        'spine_lumbar': (52.8116, 9.4869, 0.8579), 'spine_thoracic': (-11.6696, 6.1979, 12.8206),
+        'neck': (33.4608, 25.2045, -36.2257), 'head': (9.0894, -10.3558),
+        'right_clavicle': (-9.997, 11.8732), 'right_shoulder': (52.4281, 35.1835, 15.7251),
+        'right_elbow': (0.0, 79.9515), 'right_wrist': (79.8387, -29.9408),
+        'left_shoulder': (28.3996, 5.3234, 9.081), 'left_elbow': (46.0983, 17.1782),
+        'left_wrist': (-1.652, 2.2353),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=6.994689, duration=0.072)
-    human.KeyJoints(7.0, {'neck': (35.0, -33.75, 68.2374)})
+    human.KeyJoints(7.0, {
+        'spine_lumbar': (60.0, 13.5542, 3.2011), 'spine_thoracic': (-12.6389, 6.9451, 15.1601),
+        'neck': (32.7184, 23.3225, -38.5399), 'head': (6.8493, -9.6344),
+        'right_clavicle': (-6.9227, 14.3293), 'right_shoulder': (55.5707, 39.4452, 16.4914),
+        'right_elbow': (2.8193, 79.9997), 'right_wrist': (77.2581, -29.9967),
+        'left_shoulder': (25.6046, 4.7586, 9.4495), 'left_elbow': (55.6244, 17.2014),
+        'left_wrist': (-2.2236, 4.2798),
+    })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.066689, duration=0.2628)
-    human.KeyJoints(7.1, {'neck': (35.0, -30.7715, 61.6962), 'right_clavicle': (-8.6353, -14.7617)})
-    human.KeyJoints(7.2, {'neck': (35.0, 0.7361, -7.4979)})
+    human.KeyJoints(7.1, {'neck': (32.8036, 23.268, -39.0772), 'head': (7.209, -9.7057)})
+    human.KeyJoints(7.2, {'neck': (33.7048, 22.692, -44.7617), 'head': (11.0136, -10.4598)})
     human.KeyJoints(7.3, {
-        'spine_lumbar': (-29.2997, 18.619, 8.0017), 'spine_thoracic': (-13.7914, -1.1779, -27.0208),
-        'neck': (35.0, 31.391, -74.8193), 'right_shoulder': (-42.7813, 48.8577, 14.0005),
-        'right_elbow': (1.1518, 75.4784), 'right_wrist': (6.7475, -5.0096),
-        'left_clavicle': (9.3888, -7.6449), 'left_shoulder': (-49.5404, -20.2974, 12.9021),
-        'left_elbow': (2.676, 10.146), 'left_wrist': (4.1599, 2.0479),
+        'spine_lumbar': (60.0, 13.5542, 3.2011), 'spine_thoracic': (-12.6389, 6.9451, 15.1601),
+        'neck': (34.5817, 22.1316, -50.2922), 'head': (14.7151, -11.1935),
+        'right_shoulder': (55.5707, 39.4452, 16.4914), 'right_elbow': (2.8193, 79.9997),
+        'right_wrist': (77.2581, -29.9967), 'left_clavicle': (-9.1908, 11.04),
+        'left_shoulder': (25.6046, 4.7586, 9.4495), 'left_elbow': (55.6244, 17.2014),
+        'left_wrist': (-2.2236, 4.2798),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=7.329489, duration=2.069192)
     human.KeyJoints(7.4, {
-        'spine_lumbar': (-29.3237, 18.6637, 8.2417), 'spine_thoracic': (-13.8328, -0.7945, -25.065),
-        'neck': (35.0, 33.75, -80.0), 'right_shoulder': (-43.3541, 46.972, 13.8092),
-        'right_elbow': (1.1514, 75.2791), 'right_wrist': (7.3656, -5.0574),
-        'left_clavicle': (8.7238, -7.8905), 'left_shoulder': (-44.7682, -13.9344, 10.8671),
-        'left_elbow': (2.5842, 11.6782), 'left_wrist': (4.6495, 2.6636),
+        'spine_lumbar': (60.0, 13.7752, 2.5769), 'spine_thoracic': (-12.5296, 6.3639, 14.0819),
+        'neck': (34.1147, 22.3435, -49.4371), 'head': (15.0, -11.25),
+        'right_shoulder': (55.6912, 37.7682, 16.3305), 'right_elbow': (2.8237, 79.7997),
+        'right_wrist': (75.0319, -29.1002), 'left_clavicle': (-9.2185, 11.1758),
+        'left_shoulder': (26.0978, 4.4654, 9.5028), 'left_elbow': (54.6451, 17.2019),
+        'left_wrist': (-2.1394, 4.0832),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (-29.4242, 18.8515, 9.2461), 'spine_thoracic': (-14.0063, 0.8097, -16.8818),
-        'right_shoulder': (-45.751, 39.0817, 13.009), 'right_elbow': (1.15, 74.4453),
-        'right_wrist': (9.952, -5.2576), 'left_clavicle': (5.9412, -8.9206),
-        'left_shoulder': (-24.7016, 12.6902, 2.352), 'left_elbow': (2.2002, 18.0951),
-        'left_wrist': (6.6981, 5.24),
+        'spine_lumbar': (60.0, 14.7003, -0.0352), 'spine_thoracic': (-12.043, 3.9321, 9.5707),
+        'neck': (32.5621, 23.5689, -43.8099), 'right_shoulder': (56.2431, 30.7514, 15.6552),
+        'right_elbow': (2.8564, 78.963), 'right_wrist': (65.7171, -25.3487),
+        'left_clavicle': (-9.3347, 11.7441), 'left_shoulder': (28.1613, 3.2387, 9.7258),
+        'left_elbow': (50.5, 17.2047), 'left_wrist': (-1.7867, 3.2439),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (-29.573, 19.1317, 10.7328), 'spine_thoracic': (-14.2631, 3.1843, -4.7681),
-        'right_shoulder': (-49.2991, 27.4018, 11.8244), 'right_elbow': (1.1478, 73.2109),
-        'right_wrist': (13.7807, -5.5539), 'left_clavicle': (1.8222, -10.4509),
-        'left_shoulder': (5.2549, 52.1024, -10.2528), 'left_elbow': (1.6317, 27.6079),
-        'left_wrist': (9.7306, 9.0538),
+        'spine_lumbar': (60.0, 16.0697, -3.9019), 'spine_thoracic': (-11.2479, 0.3322, 2.8926),
+        'neck': (31.6704, 25.8423, -34.9593), 'right_shoulder': (57.181, 20.3644, 14.6499),
+        'right_elbow': (2.9412, 77.7244), 'right_wrist': (51.9284, -19.7955),
+        'left_shoulder': (31.2159, 1.4228, 10.0558), 'left_elbow': (44.2434, 17.2098),
+        'left_wrist': (-1.2646, 1.9596),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (-29.7371, 19.4449, 12.3733), 'spine_thoracic': (-14.5464, 5.8045, 8.5979),
-        'right_shoulder': (-53.2141, 14.5143, 10.5172), 'right_elbow': (1.1454, 71.8489),
-        'right_wrist': (18.0051, -5.8809), 'left_clavicle': (-2.7226, -12.1494),
-        'left_shoulder': (38.7702, 95.5892, -24.1607), 'left_elbow': (1.0044, 38.1299),
-        'left_wrist': (13.0766, 13.2619),
+        'spine_lumbar': (60.0, 17.5806, -8.1684), 'spine_thoracic': (-10.2337, -3.6398, -4.4758),
+        'neck': (32.1468, 29.7424, -24.9386), 'right_shoulder': (58.4373, 8.9035, 13.5302),
+        'right_elbow': (3.1018, 76.3577), 'right_wrist': (36.7142, -13.6681),
+        'left_shoulder': (34.5863, -0.5808, 10.42), 'left_elbow': (37.1188, 17.2173),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (-29.8838, 19.7319, 13.8387), 'spine_thoracic': (-14.7995, 8.1452, 20.5383),
-        'right_shoulder': (-56.7114, 3.0015, 9.3496), 'right_elbow': (1.1433, 70.6322),
-        'right_wrist': (21.779, -6.1729), 'left_clavicle': (-6.7827, -13.6843),
-        'left_shoulder': (69.5133, 134.4375, -36.5851), 'left_elbow': (0.444, 47.5741),
-        'left_wrist': (16.0658, 17.0211),
+        'spine_lumbar': (60.0, 18.9304, -11.9798), 'spine_thoracic': (-9.0896, -7.1882, -11.0583),
+        'neck': (34.4967, 33.6536, -15.188), 'head': (15.0, -11.25),
+        'right_shoulder': (59.9447, -1.3349, 12.5119), 'right_elbow': (3.3615, 75.1368),
+        'right_wrist': (23.1227, -8.1944), 'left_clavicle': (-9.8657, 14.3429),
+        'left_shoulder': (37.5973, -2.3707, 10.7453), 'left_elbow': (30.3698, 17.2273),
+        'left_wrist': (-0.174, -1.003),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (-29.98, 19.9332, 14.8006), 'spine_thoracic': (-14.9656, 9.6814, 28.3749),
-        'right_shoulder': (-59.0068, -4.5546, 8.5832), 'right_elbow': (1.1419, 69.8336),
-        'right_wrist': (24.2558, -6.3646), 'left_clavicle': (-9.4474, -14.7236),
-        'left_shoulder': (91.1531, 159.9343, -44.7395), 'left_elbow': (0.0763, 53.8537),
-        'left_wrist': (18.0276, 19.4884),
+        'spine_lumbar': (60.0, 19.8163, -14.4813), 'spine_thoracic': (-7.9051, -9.5171, -15.3786),
+        'neck': (35.0, 33.75, -9.5821), 'head': (15.0, -10.7929),
+        'right_shoulder': (61.6357, -8.0545, 11.8106), 'right_elbow': (3.7438, 74.3356),
+        'right_wrist': (14.2025, -4.6018), 'left_clavicle': (-9.9769, 14.8871),
+        'left_shoulder': (39.5734, -3.5454, 10.9589), 'left_elbow': (25.24, 17.2398),
+        'left_wrist': (0.1637, -2.2105),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.0, {
-        'spine_lumbar': (-30.0, 19.9994, 15.0), 'spine_thoracic': (-15.0, 10.0, 30.0),
-        'right_shoulder': (-59.4828, -6.1214, 8.4243), 'right_elbow': (1.1416, 69.668),
-        'right_wrist': (24.7694, -6.4044), 'left_clavicle': (-10.0, -14.9986),
-        'left_shoulder': (98.2257, 165.0467, -46.3846), 'left_elbow': (0.0, 55.2971),
-        'left_wrist': (18.3846, 19.8013),
+        'spine_lumbar': (60.0, 20.0, -14.7262), 'spine_thoracic': (-6.6401, -9.6446, -15.9852),
+        'neck': (35.0, 33.75, -8.1014), 'head': (15.0, -10.5834),
+        'right_shoulder': (63.3579, -8.9115, 11.6221), 'right_elbow': (6.2132, 74.2055),
+        'right_wrist': (21.5485, -6.8406), 'left_clavicle': (-9.742, 14.6831),
+        'left_shoulder': (40.3621, -1.6457, 10.5384), 'left_elbow': (22.8055, 17.2609),
+        'left_wrist': (0.0048, -2.9217),
     })
     human.KeyJoints(8.1, {
-        'left_shoulder': (100.6688, 163.5758, -46.2205), 'left_elbow': (0.311, 55.4686),
-        'left_wrist': (12.0806, 12.6011),
+        'spine_lumbar': (60.0, 20.0, -14.9676), 'spine_thoracic': (-1.2315, -9.9905, -28.0289),
+        'neck': (35.0, -7.2728, 8.1339), 'head': (15.0, 11.25),
+        'right_shoulder': (65.654, -19.1684, 11.7207), 'right_elbow': (2.8339, 73.8999),
+        'right_wrist': (-3.8475, 2.3918), 'left_clavicle': (-9.9652, 14.973),
+        'left_shoulder': (47.2818, 9.6557, 8.2608), 'left_elbow': (18.302, 17.317),
+        'left_wrist': (-1.0794, -3.9109),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.122677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'left_shoulder': (100.1505, 162.8913, -46.2179), 'left_wrist': (7.4066, 7.6098),
+        'spine_thoracic': (1.4507, -10.0, -30.0), 'neck': (35.0, 7.1287, 8.86),
+        'right_shoulder': (70.6013, -21.7715, 11.7273), 'right_elbow': (0.0, 74.1058),
+        'right_wrist': (5.1981, -5.4339), 'left_shoulder': (50.3821, 11.3823, 7.9296),
+        'left_elbow': (17.034, 17.3199), 'left_wrist': (-1.151, -4.0152),
     })
-    human.KeyJoints(8.3, {'left_elbow': (0.3963, 55.4922)})
+    human.KeyJoints(8.3, {'neck': (35.0, 7.1287, 8.86)})
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.4, {
-        'left_shoulder': (100.1879, 162.8769, -46.2038), 'left_elbow': (0.4031, 55.4965),
-        'left_wrist': (7.4196, 7.6096),
+        'neck': (34.9985, 7.0391, 9.099), 'left_shoulder': (50.3072, 11.405, 7.9006),
+        'left_elbow': (17.0979, 17.3169), 'left_wrist': (-1.166, -4.0011),
     })
     human.KeyJoints(8.5, {
-        'left_shoulder': (102.3372, 162.0715, -45.4194), 'left_elbow': (0.7791, 55.743),
-        'left_wrist': (8.178, 7.5956),
+        'neck': (34.9236, 2.5656, 21.0187), 'left_shoulder': (46.1116, 12.6862, 6.194),
+        'left_elbow': (20.687, 17.1427), 'left_wrist': (-2.0314, -3.2155),
     })
     human.KeyJoints(8.6, {
-        'left_shoulder': (107.3306, 160.2981, -43.677), 'left_elbow': (1.6069, 56.3023),
-        'left_wrist': (9.9792, 7.565),
+        'neck': (34.7916, -5.326, 42.0464), 'left_shoulder': (36.7591, 15.5856, 2.0879),
+        'left_elbow': (28.7375, 16.7403), 'left_wrist': (-4.0597, -1.4786),
     })
     human.KeyJoints(8.7, {
-        'left_shoulder': (114.5259, 157.9262, -41.3167), 'left_elbow': (2.7141, 57.083),
-        'left_wrist': (12.6483, 7.5239),
+        'neck': (34.6799, -11.999, 59.8268), 'left_shoulder': (24.0247, 19.6183, -4.0936),
+        'left_elbow': (39.7964, 16.1651), 'left_wrist': (-7.0157, 0.8588),
     })
     human.KeyJoints(8.8, {
-        'left_shoulder': (123.2808, 155.3253, -38.6785), 'left_wrist': (16.0101, 7.4789),
+        'neck': (34.655, -13.4905, 63.8012), 'left_shoulder': (9.6835, 24.2994, -12.0267),
+        'left_elbow': (52.411, 15.4724), 'left_wrist': (-10.6643, 3.4457),
     })
     human.KeyJoints(8.9, {
-        'left_shoulder': (132.9529, 152.865, -36.1025), 'left_elbow': (5.0768, 58.9433),
-        'left_wrist': (19.8898, 7.4363),
+        'left_shoulder': (-4.4894, 29.1442, -21.3873), 'left_elbow': (65.1286, 14.7174),
+        'left_wrist': (-14.7703, 5.9312),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (142.9001, 150.9148, -33.9288), 'left_elbow': (5.9871, 59.8403),
-        'left_wrist': (24.1123, 7.4026),
+        'left_shoulder': (-16.7189, 33.6679, -31.8517), 'left_elbow': (76.4962, 13.9553),
+        'left_wrist': (-19.0985, 7.9643),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (152.48, 149.8443, -32.4973), 'left_elbow': (6.4868, 60.5933),
-        'left_wrist': (28.5027, 7.3841),
+        'left_shoulder': (-25.23, 37.3855, -43.0958), 'left_elbow': (85.061, 13.2416),
+        'left_wrist': (-23.4138, 9.194),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.2, {
-        'left_shoulder': (157.5248, 151.212, -32.1922), 'left_elbow': (5.9383, 60.2798),
-        'left_wrist': (46.2115, 11.6387),
+        'left_shoulder': (-29.1413, 38.4315, -58.1494), 'left_elbow': (89.7517, 12.57),
+        'left_wrist': (-28.1809, 9.4895),
     })
     human.KeyJoints(9.3, {
-        'left_shoulder': (156.1204, 154.0501, -32.3837), 'left_elbow': (3.6248, 59.2261),
-        'left_wrist': (70.4095, 16.8075),
+        'left_shoulder': (-32.8379, 30.6158, -73.6156), 'left_elbow': (97.7338, 12.4345),
+        'left_wrist': (-33.9246, 10.8707),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.326681, duration=0.072)
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.398681, duration=0.2628)
     human.KeyJoints(9.4, {
-        'neck': (35.0, 33.7449, -79.9879), 'left_shoulder': (155.651, 154.5316, -32.4475),
-        'left_elbow': (2.5356, 59.0312), 'left_wrist': (76.0624, 17.5511),
+        'left_shoulder': (-33.4269, 26.8361, -74.1681), 'left_elbow': (102.2665, 12.955),
+        'left_wrist': (-35.136, 12.1398),
     })
-    human.KeyJoints(9.5, {'neck': (35.0, 11.3869, -26.9911)})
     human.KeyJoints(9.6, {
-        'spine_lumbar': (-30.0, 20.0, 15.0), 'spine_thoracic': (-15.0, 10.0, 30.0),
-        'neck': (35.0, -24.3956, 57.8267), 'right_shoulder': (-59.4828, -6.1214, 8.4243),
-        'right_elbow': (1.1416, 69.668), 'right_wrist': (24.7694, -6.4044),
-        'left_shoulder': (155.651, 154.5316, -32.4475), 'left_elbow': (2.5356, 59.0312),
-        'left_wrist': (76.0624, 17.5511),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (1.4507, -10.0, -30.0),
+        'neck': (34.655, -13.4905, 63.8012), 'head': (14.9102, 11.2492),
+        'right_shoulder': (70.6013, -21.7715, 11.7273), 'right_elbow': (0.0, 74.1058),
+        'right_wrist': (5.1981, -5.4339), 'left_shoulder': (-33.4269, 26.8361, -74.1681),
+        'left_elbow': (102.2665, 12.955), 'left_wrist': (-35.136, 12.1398),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=9.661481, duration=0.719288)
     human.KeyJoints(9.7, {
-        'spine_lumbar': (-30.0, 19.9187, 14.6147), 'spine_thoracic': (-15.0, 10.0, 29.3747),
-        'neck': (35.0, -33.75, 80.0), 'right_clavicle': (-8.6528, -14.7647),
-        'right_shoulder': (-59.269, -5.7342, 8.4141), 'right_elbow': (1.1966, 69.6866),
-        'right_wrist': (24.5998, -6.4094), 'left_shoulder': (155.4232, 154.8587, -33.1867),
-        'left_elbow': (2.5694, 59.1626), 'left_wrist': (74.8669, 17.5363),
+        'spine_lumbar': (60.0, 19.8224, -14.8308), 'spine_thoracic': (1.4138, -9.9394, -29.6541),
+        'neck': (34.4717, -13.4224, 63.3567), 'head': (14.8417, 11.2468),
+        'right_clavicle': (-6.9622, 14.3346), 'right_shoulder': (70.5118, -21.7483, 11.7249),
+        'right_elbow': (0.0643, 74.1037), 'right_wrist': (5.2771, -5.4034),
+        'left_shoulder': (-32.7182, 26.9874, -73.0787), 'left_elbow': (102.056, 13.0131),
+        'left_wrist': (-34.7637, 12.0929),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (-30.0, 19.0762, 10.6217), 'spine_thoracic': (-15.0, 10.0, 22.845),
-        'right_clavicle': (-8.8345, -14.7964), 'right_shoulder': (-57.0537, -1.7213, 8.3092),
-        'right_elbow': (1.7667, 69.8789), 'right_wrist': (22.8422, -6.4616),
-        'left_shoulder': (153.062, 158.2486, -40.847), 'left_elbow': (3.0221, 60.5243),
-        'left_wrist': (62.4767, 17.3003),
+        'spine_lumbar': (60.0, 17.9823, -13.0504), 'spine_thoracic': (1.0139, -9.2973, -26.0428),
+        'neck': (32.8224, -12.9887, 58.9055), 'head': (14.2409, 11.1815),
+        'right_clavicle': (-7.3718, 14.3922), 'right_shoulder': (69.5842, -21.5078, 11.6998),
+        'right_elbow': (0.7437, 74.0807), 'right_wrist': (6.0965, -5.0812),
+        'left_shoulder': (-25.3222, 28.5557, -61.7228), 'left_elbow': (99.7547, 13.616),
+        'left_wrist': (-30.8733, 11.5789),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (-30.0, 17.6389, 3.8097), 'spine_thoracic': (-15.0, 10.0, 11.5473),
-        'right_shoulder': (-53.2745, 5.1245, 8.1302), 'right_elbow': (2.7391, 70.2069),
-        'right_wrist': (19.8436, -6.5506), 'left_shoulder': (149.0339, 164.0315, -53.9151),
-        'left_elbow': (4.122, 62.8473), 'left_wrist': (41.3396, 16.6324),
+        'spine_lumbar': (60.0, 14.8431, -9.9269), 'spine_thoracic': (0.2738, -8.1578, -19.7961),
+        'neck': (30.0951, -12.6448, 50.5857), 'head': (13.7638, 11.0392),
+        'right_shoulder': (68.0018, -21.0974, 11.6571), 'right_elbow': (1.9439, 74.0382),
+        'right_wrist': (7.4943, -4.5112), 'left_shoulder': (-12.541, 31.2312, -42.1373),
+        'left_elbow': (95.4428, 14.6475), 'left_wrist': (-24.132, 10.6119),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (-30.0, 16.0054, -3.9317), 'spine_thoracic': (-15.0, 10.0, -1.6057),
-        'right_shoulder': (-48.9796, 12.9045, 7.9268), 'right_elbow': (3.8443, 70.5798),
-        'right_wrist': (16.4359, -6.6517), 'left_shoulder': (144.4562, 170.6036, -68.7664),
-        'left_elbow': (6.0209, 65.4873), 'left_wrist': (17.3183, 15.348),
+        'spine_lumbar': (60.0, 11.2756, -6.206), 'spine_thoracic': (-0.6818, -6.7757, -12.5269),
+        'neck': (27.2067, -12.757, 40.2449), 'head': (14.1093, 10.813),
+        'right_shoulder': (66.2034, -20.6311, 11.6085), 'right_wrist': (9.0828, -3.8232),
+        'left_shoulder': (2.3086, 34.2717, -19.4582), 'left_elbow': (89.7778, 15.8254),
+        'left_wrist': (-16.2642, 9.3347),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (-30.0, 14.5745, -10.7133), 'spine_thoracic': (-15.0, 10.0, -13.7012),
-        'right_clavicle': (-9.805, -14.9659), 'right_shoulder': (-45.2172, 19.7198, 7.7485),
-        'right_elbow': (4.8124, 70.9064), 'right_wrist': (13.4508, -6.7403),
-        'left_shoulder': (140.4462, 176.3608, -81.7763), 'left_elbow': (8.8707, 67.8),
-        'left_wrist': (-3.7244, 13.2626),
+        'spine_lumbar': (60.0, 8.1504, -2.6339), 'spine_thoracic': (-1.7283, -5.4055, -5.8482),
+        'neck': (24.7803, -15.2593, 30.7446), 'head': (14.9364, 11.2085),
+        'right_clavicle': (-9.5603, 14.7749), 'right_shoulder': (64.628, -20.2226, 11.566),
+        'right_elbow': (4.8043, 73.9248), 'right_wrist': (10.4743, -3.1472),
+        'left_shoulder': (15.91, 36.9352, 1.1787), 'left_elbow': (83.4173, 16.8678),
+        'left_wrist': (-8.9943, 7.8898),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (-30.0, 13.7448, -14.6455), 'spine_thoracic': (-15.0, 10.0, -21.8265),
-        'right_clavicle': (-9.9839, -14.9972), 'right_shoulder': (-43.0356, 23.6717, 7.6452),
-        'right_elbow': (5.3738, 71.0957), 'right_wrist': (11.7199, -6.7917),
-        'left_shoulder': (138.1209, 179.6991, -89.32), 'left_elbow': (12.8231, 69.141),
-        'left_wrist': (-15.926, 10.1916),
+        'spine_lumbar': (60.0, 6.3383, 0.0435), 'spine_thoracic': (-2.7409, -4.3019, -1.3728),
+        'neck': (24.947, -17.9681, 23.9493), 'right_clavicle': (-9.9636, 14.9083),
+        'right_shoulder': (63.7145, -19.9857, 11.5413), 'right_elbow': (5.9135, 73.8687),
+        'right_wrist': (11.2812, -2.6129), 'left_shoulder': (24.9467, 38.4797, 14.6375),
+        'left_elbow': (77.0191, 17.4927), 'left_wrist': (-4.0464, 6.4198),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.3, {
-        'spine_lumbar': (-27.3302, 14.6249, -14.5965),
-        'spine_thoracic': (-14.5337, 9.6534, -23.4048), 'right_clavicle': (-9.8773, -14.5048),
-        'right_shoulder': (-42.3427, 21.4717, 7.697), 'right_elbow': (5.9859, 71.0506),
-        'right_wrist': (11.6893, -6.5597), 'left_shoulder': (139.1515, 180.0, -89.9998),
-        'left_elbow': (18.4759, 69.0872), 'left_wrist': (-0.001, -0.0023),
+        'spine_lumbar': (58.1764, 6.7464, 1.004), 'spine_thoracic': (-3.5017, -3.7824, -0.2945),
+        'neck': (25.9478, -20.0598, 21.9276), 'right_clavicle': (-9.7851, 14.8842),
+        'right_shoulder': (63.5089, -21.2755, 11.5824), 'right_elbow': (6.2875, 73.8171),
+        'right_wrist': (11.4296, -2.3248), 'left_shoulder': (27.21, 36.7813, 17.8418),
+        'left_elbow': (70.365, 17.5696), 'left_wrist': (-2.5093, 4.841),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=10.380769, duration=0.072)
     human.KeyJoints(10.4, {
-        'spine_lumbar': (-23.1955, 15.5714, -13.5275),
-        'spine_thoracic': (-14.0341, 8.6667, -22.1503), 'right_clavicle': (-9.822, -13.2632),
-        'right_shoulder': (-40.7809, 18.5416, 7.7941), 'right_elbow': (7.3112, 70.9894),
-        'right_wrist': (11.7875, -6.3122), 'left_shoulder': (141.0224, 180.0, -90.0),
-        'left_elbow': (16.1652, 68.9722), 'left_wrist': (4.2063, -2.9162),
+        'spine_lumbar': (55.0887, 8.3345, 0.3628), 'spine_thoracic': (-3.0434, -4.1109, -0.8851),
+        'neck': (26.5755, -20.4681, 22.8872), 'right_clavicle': (-8.6052, 14.1962),
+        'right_shoulder': (61.4869, -22.7843, 11.6445), 'right_elbow': (5.4402, 73.7717),
+        'right_wrist': (11.8485, -2.1803), 'left_elbow': (65.1343, 17.5449),
+        'left_wrist': (-2.0717, 3.5639),
     })
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(10.5, {'right_elbow': (7.3112, 57.633)})
-    human.KeyJoints(10.6, {'right_elbow': (7.3112, -5.6862)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(10.7, {'right_elbow': (7.3112, -2.6821)})
-    human.KeyJoints(10.8, {'right_elbow': (7.3112, 60.404)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(10.9, {'right_elbow': (7.3112, 51.4844)})
-    human.KeyJoints(11.0, {'right_elbow': (7.3112, -10.9076)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.1, {'right_elbow': (7.3112, 3.8498)})
-    human.KeyJoints(11.2, {'right_elbow': (7.3112, 65.0866)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.3, {'right_elbow': (7.3112, 44.6209)})
-    human.KeyJoints(11.4, {'right_elbow': (7.3112, -14.9998)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.5, {'right_elbow': (7.3112, 10.9932)})
-    human.KeyJoints(11.6, {'right_elbow': (7.3112, 68.5369)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.7, {'right_elbow': (7.3112, 37.249)})
-    human.KeyJoints(11.8, {'right_elbow': (7.3112, -17.7564)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn: posture on r_hand
-    human.KeyJoints(11.9, {'right_elbow': (7.3112, -1.2199)})
-    human.KeyJoints(12.0, {'neck': (35.0, -33.75, 80.0), 'right_elbow': (7.3112, 63.7623)})
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(10.5, {'head': (15.0, 11.2312), 'right_elbow': (5.4402, 60.4152)})
+    human.KeyJoints(10.6, {'right_elbow': (5.4402, -2.9039)})
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(10.7, {'right_elbow': (5.4402, 0.1002)})
+    human.KeyJoints(10.8, {'right_elbow': (5.4402, 63.1863)})
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(10.9, {'right_elbow': (5.4402, 54.2667)})
+    human.KeyJoints(11.0, {'right_elbow': (5.4402, -8.1253)})
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.1, {'right_elbow': (5.4402, 6.632)})
+    human.KeyJoints(11.2, {'right_elbow': (5.4402, 67.8689)})
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.3, {'right_elbow': (5.4402, 47.4032)})
+    human.KeyJoints(11.4, {'right_elbow': (5.4402, -12.2176)})
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.5, {'right_elbow': (5.4402, 13.7755)})
+    human.KeyJoints(11.6, {'right_elbow': (5.4402, 71.3191)})
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.7, {'right_elbow': (5.4402, 40.0313)})
+    human.KeyJoints(11.8, {'right_elbow': (5.4402, -14.9742)})
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.9, {'right_elbow': (5.4402, 21.3241)})
+    human.KeyJoints(12.0, {'right_elbow': (5.4402, 73.3304)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.007969, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.079969, duration=0.2628)
-    human.KeyJoints(12.1, {'neck': (35.0, -33.3565, 79.0672), 'right_elbow': (7.3112, 70.9894)})
-    human.KeyJoints(12.2, {'neck': (35.0, -19.6397, 46.5533)})
-    human.KeyJoints(12.3, {'neck': (35.0, 13.5968, -32.2294)})
+    human.KeyJoints(12.1, {'right_elbow': (5.4402, 73.7717)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(12.4, {'neck': (35.0, 33.03, -78.2933)})
-    human.KeyJoints(13.2, {'neck': (35.0, 33.75, -80.0)})
-    human.KeyRoot(15.3, (-11.727, 48.059, 118.658), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(15.0, {'neck': (26.5433, -20.5557, 22.9061)})
     human.KeyJoints(15.3, {
-        'spine_lumbar': (-23.1955, 15.5714, -13.5275),
-        'spine_thoracic': (-14.0341, 8.6667, -22.1503), 'right_knee': (92.7298,),
-        'right_ankle': (-50.0, 0.0), 'left_knee': (92.7298,), 'left_ankle': (-50.0, 0.0),
+        'spine_lumbar': (55.0887, 8.3345, 0.3628), 'spine_thoracic': (-3.0434, -4.1109, -0.8851),
+        'right_clavicle': (-8.6052, 14.1962), 'right_shoulder': (61.4869, -22.7843, 11.6445),
+        'right_elbow': (5.4402, 73.7717), 'right_wrist': (11.8485, -2.1803),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (27.1728, 36.7459, 17.8546),
+        'left_elbow': (65.1343, 17.5449), 'left_wrist': (-2.0717, 3.5639),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > stand: posture on root
-    human.KeyRoot(15.4, (-11.726, 48.531, 118.653), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.4, {
-        'spine_lumbar': (-22.4998, 15.1044, -13.1218),
-        'spine_thoracic': (-13.6132, 8.4067, -21.4859), 'right_hip': (0.0117, 0.0, 0.0),
-        'right_knee': (92.3708,), 'right_ankle': (-49.7963, 0.0), 'left_hip': (0.0117, 0.0, 0.0),
-        'left_knee': (92.3708,), 'left_ankle': (-49.7963, 0.0),
+        'spine_lumbar': (49.6901, 7.5363, 0.3628), 'spine_thoracic': (-2.7439, -3.7473, -0.8851),
+        'right_clavicle': (-7.7852, 12.7574), 'right_shoulder': (58.7006, -20.63, 11.6237),
+        'right_elbow': (2.359, 68.0989), 'right_wrist': (4.8098, -1.163),
+        'left_clavicle': (-8.9865, 13.4798), 'left_shoulder': (25.6587, 33.3597, 17.3052),
+        'left_elbow': (61.4252, 17.51), 'left_wrist': (-1.8075, 3.0803),
     })
-    human.KeyRoot(15.5, (-11.71, 51.268, 118.568), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.5, {
-        'spine_lumbar': (-18.6253, 12.5034, -10.8622),
-        'spine_thoracic': (-11.269, 6.9591, -17.7861), 'right_knee': (90.2785,),
-        'right_ankle': (-48.6095, 0.0), 'left_knee': (90.2785,), 'left_ankle': (-48.6095, 0.0),
+        'spine_lumbar': (26.2493, 3.8439, 0.3628), 'right_clavicle': (-3.9917, 6.5102),
+        'right_shoulder': (33.8166, -7.6751, 11.5617), 'right_elbow': (19.404, 43.1599),
+        'right_wrist': (5.4684, -1.2583), 'left_clavicle': (-4.5859, 6.8788),
+        'left_shoulder': (17.4846, 19.8261, 14.438), 'left_elbow': (47.9355, 17.3531),
+        'left_wrist': (-0.9135, 1.5229),
     })
-    human.KeyRoot(15.6, (-11.645, 55.675, 118.215), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.6, (1.491, 45.754, 46.831), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.6, {
-        'spine_lumbar': (-12.786, 8.5834, -7.4567), 'spine_thoracic': (-7.736, 4.7773, -12.2098),
-        'right_knee': (86.8616,), 'right_ankle': (-46.6713, 0.0), 'left_knee': (86.8616,),
-        'left_ankle': (-46.6713, 0.0),
+        'spine_lumbar': (4.5205, 0.4206, 0.3628), 'spine_thoracic': (0.0633, -0.3315, -0.8851),
+        'right_clavicle': (-0.4748, 0.7193), 'right_shoulder': (11.7114, 4.068, 11.508),
+        'right_elbow': (32.2734, 20.057), 'right_wrist': (0.6603, -0.2532),
+        'left_clavicle': (-0.5067, 0.76), 'left_shoulder': (9.8435, 7.2744, 11.7992),
+        'left_elbow': (35.5073, 17.2083), 'left_wrist': (-0.0889, 0.0985),
+        'right_hip': (18.8317, -0.0186, 0.0338), 'right_knee': (128.8285,),
+        'right_ankle': (10.0009, 0.2642), 'left_hip': (18.8317, 0.0186, -0.0338),
+        'left_knee': (128.8285,), 'left_ankle': (10.0009, -0.2642),
     })
-    human.KeyRoot(15.7, (-11.503, 60.841, 117.444), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.7, (1.526, 45.612, 46.423), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (-6.6344, 4.4538, -3.8692), 'spine_thoracic': (-4.0141, 2.4789, -6.3355),
+        'spine_lumbar': (2.4235, 2.3042, 0.3628), 'spine_thoracic': (0.4543, 0.423, -0.8851),
+        'right_clavicle': (0.0, -0.053), 'right_shoulder': (8.7296, 5.667, 11.4918),
+        'right_elbow': (34.0175, 16.9773), 'right_wrist': (0.0008, -0.1004),
+        'left_clavicle': (0.0374, -0.056), 'left_shoulder': (8.7828, 5.5955, 11.4482),
+        'left_elbow': (33.9106, 17.1887), 'left_wrist': (0.0199, -0.0797),
+        'right_hip': (19.407, -0.0706, 0.1251), 'right_knee': (129.4067,),
+        'right_ankle': (9.9993, 0.9853), 'left_hip': (19.407, 0.0706, -0.1251),
+        'left_knee': (129.4067,), 'left_ankle': (9.9993, -0.9853),
     })
-    human.KeyRoot(15.8, (-11.288, 65.897, 116.279), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.8, (1.528, 45.238, 45.388), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (-1.8234, 1.2241, -1.0634), 'spine_thoracic': (-1.1032, 0.6813, -1.7413),
-        'right_knee': (78.5656,), 'right_ankle': (-41.9655, 0.0), 'left_knee': (78.5656,),
-        'left_ankle': (-41.9655, 0.0),
+        'spine_lumbar': (3.8716, 13.6524, 0.3628), 'spine_thoracic': (0.4508, 2.8396, -0.8851),
+        'right_hip': (20.8504, -0.3183, 0.5313), 'right_knee': (130.8447,),
+        'right_ankle': (9.952, 4.2491), 'left_hip': (20.8504, 0.3183, -0.5313),
+        'left_knee': (130.8447,), 'left_ankle': (9.952, -4.2491),
     })
-    human.KeyRoot(15.9, (-11.046, 70.082, 114.966), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.9, (1.181, 44.692, 43.955), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'right_knee': (74.9413,), 'right_ankle': (-39.9096, 0.0), 'left_knee': (74.9413,),
-        'left_ankle': (-39.9096, 0.0),
+        'spine_lumbar': (6.6668, 20.0, 0.3628), 'spine_thoracic': (-1.7215, 10.0, -0.8851),
+        'right_hip': (22.7838, -1.1167, 1.6996), 'right_knee': (132.7219,),
+        'right_ankle': (9.4572, 14.0466), 'left_hip': (22.7838, 1.1167, -1.6996),
+        'left_knee': (132.7219,), 'left_ankle': (9.4572, -14.0466),
     })
-    human.KeyRoot(16.0, (-10.792, 73.594, 113.584), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(16.1, (-10.499, 76.926, 111.997), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(16.2, (-10.171, 80.061, 110.214), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(16.3, (-9.808, 82.985, 108.245), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(16.4, (-9.413, 85.683, 106.099), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(16.5, (-8.987, 88.143, 103.787), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(16.6, (-8.533, 90.356, 101.321), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(16.7, (-8.053, 92.313, 98.714), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(16.8, (-7.549, 94.006, 95.978), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(16.9, (-7.023, 95.43, 93.127), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.0, (-6.48, 96.581, 90.176), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.1, (-5.92, 97.456, 87.139), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.2, (-5.348, 98.056, 84.031), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.3, (-4.765, 98.382, 80.866), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.4, (-4.174, 98.436, 77.66), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.5, (-3.579, 98.222, 74.429), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.6, (-2.982, 97.748, 71.186), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.7, (-2.385, 97.02, 67.948), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.8, (-1.792, 96.048, 64.729), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(17.9, (-1.205, 94.841, 61.544), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(18.0, (-0.627, 93.411, 58.406), (-10.4375, 0.0, 0.0))
-    human.KeyRoot(18.103969, (-0.038, 91.701, 55.209), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.0, (0.183, 44.104, 42.517), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.0, {
+        'spine_lumbar': (11.3058, 19.9998, 0.3628), 'spine_thoracic': (-9.7995, 10.0, -0.8851),
+        'right_hip': (24.6027, -2.7701, 3.6264), 'right_knee': (134.2952,),
+        'right_ankle': (7.1191, 32.5132), 'left_hip': (25.693, 7.3385, -0.4947),
+        'left_knee': (135.0,), 'left_ankle': (6.6654, -24.7522),
+    })
+    human.KeyRoot(16.1, (-0.26, 45.383, 45.578), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.1, {
+        'spine_lumbar': (0.7861, 20.0, 0.3628), 'spine_thoracic': (-8.2614, 10.0, -0.8851),
+        'right_elbow': (34.3241, 17.1523), 'right_hip': (20.146, -2.6079, 4.0134),
+        'right_knee': (129.8023,), 'right_ankle': (6.7995, 34.2931),
+        'left_hip': (24.2345, -16.4404, -6.9896), 'left_knee': (133.3347,),
+        'left_ankle': (-0.2062, -24.3133),
+    })
+    human.KeyRoot(16.2, (-0.014, 44.517, 43.43), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.2, {
+        'spine_lumbar': (3.6355, 20.0, 0.3628), 'spine_thoracic': (-5.7816, 10.0, -0.8851),
+        'left_elbow': (34.3775, 17.1887), 'right_hip': (23.2422, -2.808, 3.8532),
+        'right_knee': (132.9052,), 'right_ankle': (6.83, 34.1419),
+        'left_hip': (40.7509, -19.2388, -0.9084), 'left_knee': (132.4665,),
+        'left_ankle': (-42.2319, 5.9301),
+    })
+    human.KeyRoot(16.3, (0.065, 43.857, 41.982), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.3, {
+        'spine_lumbar': (2.8775, 20.0, 0.3628), 'spine_thoracic': (-7.5228, 10.0, -0.8851),
+        'right_shoulder': (8.5944, 5.7296, 11.4592), 'left_shoulder': (8.5944, 5.7296, 11.4592),
+        'right_hip': (25.3512, -3.0497, 3.8167), 'right_knee': (134.999,),
+        'right_ankle': (6.6643, 35.0), 'left_hip': (65.2928, 4.9141, 38.2383),
+        'left_knee': (133.5087,), 'left_ankle': (-45.1278, 15.2402),
+    })
+    human.KeyRoot(16.4, (0.063, 43.885, 42.041), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.4, {
+        'spine_lumbar': (-0.3706, 20.0, 0.3628), 'spine_thoracic': (-7.4534, 10.0, -0.8851),
+        'right_hip': (25.2646, -3.0381, 3.8233), 'right_knee': (134.9131,),
+        'right_ankle': (6.6657, 35.0), 'left_hip': (91.5903, -1.4887, 35.2977),
+        'left_knee': (133.927,), 'left_ankle': (-38.408, 29.2172),
+    })
+    human.KeyRoot(16.5, (0.197, 43.874, 42.024), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.5, {
+        'spine_lumbar': (-0.6694, 20.0, 0.3628), 'spine_thoracic': (-3.4224, 10.0, -0.8851),
+        'right_hip': (25.3196, -2.8719, 3.675), 'right_knee': (134.9989,),
+        'right_ankle': (6.9796, 33.3275), 'left_hip': (103.5981, -24.6383, 16.042),
+        'left_knee': (135.0,), 'left_ankle': (4.0184, 35.0),
+    })
+    human.KeyRoot(16.6, (0.146, 43.938, 42.156), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.6, {
+        'spine_lumbar': (-0.7073, 20.0, 0.3628), 'spine_thoracic': (-7.2561, 10.0, -0.8851),
+        'right_wrist': (0.0, 0.0), 'right_hip': (25.116, -2.9063, 3.7326), 'right_knee': (134.786,),
+        'right_ankle': (6.8832, 33.8508), 'left_hip': (96.1323, -18.6334, 1.5179),
+        'left_knee': (131.8615,), 'left_ankle': (18.0974, 6.4346),
+    })
+    human.KeyRoot(16.7, (1.541, 44.004, 42.442), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.7, {
+        'spine_lumbar': (-2.9381, 20.0, 0.3628), 'spine_thoracic': (-1.7953, 9.3343, -0.8851),
+        'right_hip': (25.045, -1.01, 1.4191), 'right_knee': (134.9999,),
+        'right_ankle': (9.6037, 12.0073), 'left_hip': (91.6507, -0.6674, 1.7357),
+        'left_knee': (130.8843,), 'left_ankle': (19.8613, 1.8264),
+    })
+    human.KeyRoot(16.8, (1.957, 44.021, 42.541), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.8, {
+        'spine_lumbar': (-3.802, 10.8883, 0.3628), 'spine_thoracic': (-0.8131, 1.9658, -0.8851),
+        'right_hip': (25.0087, -0.443, 0.6304), 'right_knee': (134.9999,),
+        'right_ankle': (9.9246, 5.2885), 'left_hip': (91.58, -0.2951, 0.7741),
+        'left_knee': (130.8728,), 'left_ankle': (19.9999, 0.8676),
+    })
+    human.KeyRoot(16.9, (2.385, 45.814, 40.209), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(16.9, {
+        'spine_lumbar': (2.0333, 9.3346, 0.3628), 'spine_thoracic': (0.2755, 1.6886, -0.8851),
+        'right_hip': (26.6803, -0.5915, 0.9606), 'right_knee': (134.4787,),
+        'right_ankle': (12.8262, 6.7669), 'left_hip': (89.7298, -0.1991, 0.6885),
+        'left_knee': (126.051,), 'left_ankle': (20.0, 0.7179),
+    })
+    human.KeyRoot(17.0, (4.128, 53.265, 34.291), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.0, {
+        'spine_lumbar': (16.3984, 9.3587, 0.3628), 'spine_thoracic': (2.5319, 1.6693, -0.8851),
+        'left_wrist': (0.0, 0.0), 'right_hip': (29.3044, -0.324, 1.0075), 'right_knee': (127.4653,),
+        'right_ankle': (19.6027, 2.4234), 'left_hip': (80.3985, -0.0146, -0.4396),
+        'left_knee': (108.31,), 'left_ankle': (20.0, -0.4398),
+    })
+    human.KeyRoot(17.1, (5.278, 67.345, 33.455), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.1, {
+        'spine_lumbar': (13.7496, 9.4353, 0.3628), 'spine_thoracic': (2.2721, 1.6943, -0.8851),
+        'right_hip': (21.8539, 0.1698, 1.7045), 'right_knee': (103.5859,),
+        'right_ankle': (19.2116, 1.7373), 'left_hip': (59.8205, -0.6107, -1.0621),
+        'left_knee': (79.8756,), 'left_ankle': (19.7764, -1.2269),
+    })
+    human.KeyRoot(17.2, (5.839, 81.047, 37.248), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.2, {
+        'spine_lumbar': (-1.8882, 10.2375, 0.3628), 'spine_thoracic': (-0.4523, 1.8489, -0.8851),
+        'right_hip': (8.6934, 1.0411, 2.2115), 'right_knee': (73.4447,),
+        'right_ankle': (8.6634, 2.3755), 'left_hip': (38.601, -1.5261, -1.2179),
+        'left_knee': (48.9687,), 'left_ankle': (10.384, -1.9524),
+    })
+    human.KeyRoot(17.3, (5.945, 89.628, 41.839), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.3, {
+        'spine_lumbar': (-16.128, 10.9741, 0.3628), 'spine_thoracic': (-3.5574, 1.9303, -0.8851),
+        'right_hip': (-2.8206, 1.7156, 2.4944), 'right_knee': (48.8697,),
+        'right_ankle': (-6.5857, 2.9201), 'left_hip': (13.3298, -2.3327, -0.5525),
+        'left_knee': (6.3193,), 'left_ankle': (-6.9992, -2.3972),
+    })
+    human.KeyRoot(17.4, (5.93, 90.213, 50.476), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.4, {
+        'spine_lumbar': (-30.0, 11.4245, 0.3628), 'spine_thoracic': (-13.5345, 1.8134, -0.8851),
+        'right_hip': (-11.031, 2.6336, 3.924), 'right_knee': (39.0258,),
+        'right_ankle': (-16.6537, 6.3516), 'left_hip': (10.8562, -3.3824, -0.6483),
+        'left_knee': (13.1412,), 'left_ankle': (2.3042, -3.4439),
+    })
+    human.KeyRoot(17.5, (8.382, 88.386, 63.716), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.5, {
+        'spine_lumbar': (5.6615, 1.6036, 0.3628), 'spine_thoracic': (0.9012, 0.2924, -0.8851),
+        'right_hip': (-15.0, 2.181, 16.7196), 'right_knee': (33.3473,),
+        'right_ankle': (-49.1082, 13.81), 'left_hip': (7.883, -6.8115, -0.9408),
+        'left_knee': (24.7701,), 'left_ankle': (16.9432, -6.8759),
+    })
+    human.KeyRoot(17.6, (8.857, 89.186, 64.74), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.6, {
+        'spine_lumbar': (16.5253, -0.5254, 0.3628), 'spine_thoracic': (2.6828, -0.0938, -0.8851),
+        'right_elbow': (34.3775, 17.1887), 'right_hip': (-14.9816, 2.7996, 14.4163),
+        'right_knee': (37.7137,), 'right_ankle': (-42.974, 9.0677),
+        'left_hip': (3.8703, -7.241, -0.4886), 'left_knee': (17.8089,),
+        'left_ankle': (13.9696, -7.2574),
+    })
+    human.KeyRoot(17.7, (9.638, 90.163, 60.414), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.7, {
+        'spine_lumbar': (33.8499, -1.5407, 0.3628), 'spine_thoracic': (4.5165, -0.2577, -0.8851),
+        'right_hip': (-14.1026, 6.8088, 3.5688), 'right_knee': (37.0521,),
+        'right_ankle': (9.3327, 7.6376), 'left_hip': (2.9792, -7.1527, -0.3713),
+        'left_knee': (9.7644,), 'left_ankle': (6.8085, -7.1623),
+    })
+    human.KeyRoot(17.8, (8.141, 90.116, 65.663), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.8, {
+        'spine_lumbar': (12.1491, -3.2406, 0.3628), 'spine_thoracic': (2.0415, -0.5838, -0.8851),
+        'right_hip': (-15.0, 7.412, -1.525), 'right_knee': (8.127,), 'right_ankle': (20.0, 7.1288),
+        'left_hip': (-3.2996, -6.8014, 0.3912), 'left_knee': (4.5869,),
+        'left_ankle': (7.8634, -6.8127),
+    })
+    human.KeyRoot(17.9, (6.328, 90.239, 64.488), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(17.9, {
+        'spine_lumbar': (8.9771, -9.2052, 0.3628), 'spine_thoracic': (1.4684, -1.6575, -0.8851),
+        'right_hip': (-0.5602, 10.8053, 0.2857), 'right_knee': (13.7166,),
+        'right_ankle': (15.3064, 6.5457), 'left_hip': (-0.7934, -5.4456, 0.0753),
+        'left_knee': (8.5385,), 'left_ankle': (9.3283, -5.4461),
+    })
+    human.KeyRoot(18.0, (2.266, 90.966, 58.435), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(18.0, {
+        'spine_lumbar': (9.6341, -9.3279, 0.3628), 'spine_thoracic': (1.6139, -1.6849, -0.8851),
+        'right_hip': (1.6585, 1.942, 0.0562), 'right_knee': (6.2495,),
+        'right_ankle': (4.592, 1.9428), 'left_hip': (1.6585, -1.942, -0.0562),
+        'left_knee': (6.2495,), 'left_ankle': (4.592, -1.9428),
+    })
+    human.KeyRoot(18.1, (0.006, 91.093, 55.008), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(18.1, {
+        'spine_lumbar': (0.1419, -0.1343, 0.3628), 'right_hip': (2.8603, 0.0048, 0.0002),
+        'right_knee': (4.5837,), 'right_ankle': (1.7235, 0.0048),
+        'left_hip': (2.8603, -0.0048, -0.0002), 'left_knee': (4.5837,),
+        'left_ankle': (1.7235, -0.0048),
+    })
+    human.KeyRoot(18.103969, (0.0, 91.087, 55.0), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.103969, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (35.0, 33.75, -80.0), 'head': (15.0, 11.25), 'right_clavicle': (-9.822, -13.2632),
-        'right_shoulder': (-40.7809, 18.5416, 7.7941), 'right_elbow': (7.3112, 70.9894),
-        'right_wrist': (11.7875, -6.3122), 'left_clavicle': (-10.0, -15.0),
-        'left_shoulder': (141.0224, 180.0, -90.0), 'left_elbow': (16.1652, 68.9722),
-        'left_wrist': (4.2063, -2.9162), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (0.0, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
-        'left_ankle': (0.0, 0.0),
+        'spine_lumbar': (0.0, 0.0, 0.3628), 'spine_thoracic': (0.0, 0.0, -0.8851),
+        'neck': (26.5433, -20.5557, 22.9061), 'head': (15.0, 11.2326), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
+        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
+        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
+        'left_ankle': (1.7189, 0.0),
     })

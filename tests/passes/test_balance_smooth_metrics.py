@@ -309,14 +309,7 @@ def compiled(path: Path) -> list[tuple[str, Metrics]]:
 
 # Properties other passes do not deliver yet (they are being written alongside): the example
 # stem and property, with the reason measured on the current pipeline.
-PENDING = {
-    ("replace_fuel_filter", "penetration"): "the left hand's TA from spares_box (grasped 10 cm "
-    "above the floor, fingers down) to filter_bowl (approached from below) has two keyframes and "
-    "the arm's joint-space path sweeps the fingertips 42.2 mm below the floor at 8.8 s: a TA "
-    "path needs a keyframe that clears the floor (approach pass; a raised mid keyframe where the "
-    "path dips measured 0.00 mm). Before the stepping kneel the box was out of reach (85 mm "
-    "short) and the hand never went that low",
-}
+PENDING: dict[tuple[str, str], str] = {}
 
 
 def _case(path: Path, prop: str) -> object:

@@ -270,14 +270,33 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
             # the hand arrives fingers first: raise its approach point by what they sink
             targets = [p + np.array([0.0, sink + GROUND_SLACK, 0.0]) for p in targets]
             q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned)
+        # the joint-space path from q0 to q1 may sweep the hand through the floor: lift it
+        mid = None
+        fs = np.linspace(0.0, 1.0, 9)[1:-1]
+        lows = [lowest_hand_point(state, segs, q0 + f * (q1 - q0), root) for f in fs]
+        sink = ir.ground + 0.02 - min(lows)
+        if sink > 0.0:
+            here = [state.site(s.goal.effector, q0, root) for s in segs]
+            mids = [
+                0.5 * (a + b) + np.array([0.0, sink, 0.0])
+                for a, b in zip(here, targets, strict=True)
+            ]
+            mid, _, _ = solve_group(ctx, state, segs, mids, 0.5 * (q0 + q1), root, pinned)
         for k, (seg, p, d) in enumerate(zip(segs, targets, dist, strict=True)):
             names = chain_names(skel, [seg.goal.effector], reach)
             if k == 0:  # one segment of the group carries the pinned arms
                 names = with_pinned(skel, names, pinned, reach)
             idx = [skel.dof_index(n) for n in names]
-            seg.keyframes = Keyframes(
-                time=np.array([t0, t1]), dofs=names, q=np.stack([q0[idx], q1[idx]])
-            )
+            if mid is None:
+                seg.keyframes = Keyframes(
+                    time=np.array([t0, t1]), dofs=names, q=np.stack([q0[idx], q1[idx]])
+                )
+            else:
+                seg.keyframes = Keyframes(
+                    time=np.array([t0, 0.5 * (t0 + t1), t1]),
+                    dofs=names,
+                    q=np.stack([q0[idx], mid[idx], q1[idx]]),
+                )
             ok = d <= TOLERANCE
             seg.result = {
                 "distance": d,

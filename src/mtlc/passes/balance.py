@@ -36,11 +36,13 @@ from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.metrics import (
     FOOT_POINT_NAMES,
     KNEE_SLOTS,
+    BoolArray,
+    FloatArray,
+    Hull,
     contact_mask,
     foot_points,
     foot_stance,
     hand_contacts,
-    hull,
     hull_margin,
     lowest_point,
     support,
@@ -49,6 +51,45 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.context import PassContext
+
+HULL_EPS = 1e-9  # m: as ``mtlc.metrics.hull``
+
+
+def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
+    """``mtlc.metrics.hull``, the same edges, computed per set of touching points: frames with
+    the same contacts share which pairs to try, and each pair is tested against the touching
+    points only (8 of 22 candidates when standing), not every pair against every point.
+    Orientations of pairs that are not edges are 0 (``hull_margin`` reads them only on edges)."""
+    pts = np.asarray(points, dtype=float)
+    ok = np.asarray(valid, dtype=bool)
+    used = ok.any(axis=0)
+    if used.sum() >= 3 and not used.all():
+        pts, ok = pts[:, used], ok[:, used]
+    ii, jj = np.triu_indices(ok.shape[1], 1)
+    a, d = pts[:, ii], pts[:, jj] - pts[:, ii]
+    length = np.hypot(d[..., 0], d[..., 1])
+    pair_ok = ok[:, ii] & ok[:, jj] & (length > 1e-9)
+    safe = np.where(length > 1e-9, length, 1.0)
+    edge = np.zeros(pair_ok.shape, dtype=bool)
+    orient = np.zeros(pair_ok.shape)
+    masks, inverse = np.unique(ok, axis=0, return_inverse=True)
+    for m, mask in enumerate(masks):
+        rows = np.flatnonzero(inverse.ravel() == m)
+        cols = np.flatnonzero(mask)
+        pairs = np.flatnonzero(mask[ii] & mask[jj])
+        if pairs.size == 0:
+            continue
+        sub = np.ix_(rows, pairs)
+        rel = pts[np.ix_(rows, cols)][:, None] - a[sub][:, :, None]
+        dd = d[sub]
+        side = (dd[..., None, 0] * rel[..., 1] - dd[..., None, 1] * rel[..., 0]) / safe[sub][
+            ..., None
+        ]
+        pos, neg = (side > HULL_EPS).any(axis=-1), (side < -HULL_EPS).any(axis=-1)
+        edge[sub] = pair_ok[sub] & ~(pos & neg)
+        orient[sub] = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
+    return Hull(a, d, safe, edge, orient, pts, ok)
+
 
 MARGIN = 0.01  # m: how far inside the support a corrected CoM ends
 ROUNDS = 6
@@ -243,7 +284,7 @@ def lean_trunk(
     distance and the margin.
     """
     skel = ir.skeleton
-    hulls = hull(pts, ok)
+    hulls = grouped_hull(pts, ok)
     names = [f"{j}_{m}" for j in ("lumbar", "thorax") for m in ("flex", "lat")]
     spine = np.asarray([skel.dof_index(n) for n in names], dtype=np.intp)
     lo, hi = skel.lower[spine], skel.upper[spine]
@@ -328,7 +369,7 @@ def balance_frames(
     contact = contact_mask(foot_points(skel, pose), stance, ir.ground)
     all_pts, all_ok = support(skel, pose, stance, ir.ground, hand_contacts(ir, t))
     com = center_of_mass(skel, pose)
-    all_hull = hull(all_pts, all_ok)  # the support stays where it was: one hull serves all
+    all_hull = grouped_hull(all_pts, all_ok)  # the support stays where it was: one hull serves all
     before = hull_margin(all_hull, com[:, [0, 2]])
     after = before.copy()
     failed = np.zeros(len(t), dtype=bool)

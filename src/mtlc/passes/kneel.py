@@ -603,6 +603,11 @@ def to_world(x: FloatArray, root_start: FloatArray, heading: float, ground: floa
 _PLANS: dict[bytes, tuple[Any, KneelPlan]] = {}
 
 
+def clear_plans() -> None:
+    """Forget the memoised kneels (``bench/compile.py`` times each compile's own solve)."""
+    _PLANS.clear()
+
+
 def plan_kneel(
     skel: Any, q_start: FloatArray, root_start: FloatArray, ground: float, knees: int,
     duration: float,

@@ -137,8 +137,10 @@ def drain_reservoir():
         'right_shoulder': (65.1949, 5.7296, 11.4592),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
+    # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
+    human.LookAt((-12.0, 20.0, 82.0), start=1.8468, duration=0.832997)
     human.KeyJoints(1.9, {
-        'neck': (-1.6812, 0.0, 0.0), 'head': (-1.6812, 0.0),
+        'neck': (-1.3734, 0.0, 0.0), 'head': (-1.3734, 0.0),
         'right_shoulder': (65.5813, 5.452, 11.5338), 'right_elbow': (34.3849, 17.1927),
         'right_wrist': (0.0209, -0.0126),
     })
@@ -156,12 +158,14 @@ def drain_reservoir():
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'right_clavicle': (0.0, 0.0), 'right_shoulder': (93.4314, -12.0896, 15.6298),
-        'right_elbow': (35.7424, 17.4101), 'right_wrist': (1.1505, -0.6959),
+        'neck': (-1.3734, 0.0, 0.0), 'head': (-1.3734, 0.0), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (93.4314, -12.0896, 15.6298), 'right_elbow': (35.7424, 17.4101),
+        'right_wrist': (1.1505, -0.6959),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(2.6, {
         'spine_lumbar': (59.9496, -0.5914, 1.0122), 'spine_thoracic': (27.7052, -0.6392, 0.798),
+        'neck': (-0.2562, 0.0665, -2.8565), 'head': (-0.256, 0.0002),
         'right_clavicle': (0.262, 0.6592), 'right_shoulder': (96.9664, -11.7522, 15.1592),
         'right_elbow': (36.4999, 17.4103), 'right_wrist': (0.9119, -0.5913),
     })
@@ -169,24 +173,27 @@ def drain_reservoir():
     human.Grasp('right_hand', 'close', start=2.679797, duration=0.072)
     human.KeyJoints(2.7, {
         'spine_lumbar': (60.0, -1.9903, 3.7891), 'spine_thoracic': (29.0254, -2.2543, 3.1186),
+        'neck': (-0.7363, 0.2546, -10.9478), 'head': (-0.7349, 0.0019),
         'right_clavicle': (1.2959, 1.8703), 'right_shoulder': (101.7668, -3.5564, 12.1465),
         'right_elbow': (32.7835, 17.4377), 'right_wrist': (-0.0476, -1.7372),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(2.8, {'right_elbow': (32.7835, 3.5815)})
     human.KeyJoints(2.9, {
-        'neck': (-1.6812, 0.0, 0.0), 'head': (-1.6812, 0.0), 'right_elbow': (32.7835, -59.7303),
+        'neck': (-0.7363, 0.2546, -10.9478), 'head': (-0.7349, 0.0019),
+        'right_elbow': (32.7835, -59.7303),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=2.946197, duration=0.2628)
     human.KeyJoints(3.0, {
-        'neck': (-1.4474, -0.0034, 0.1256), 'head': (-1.4474, 0.0),
+        'neck': (-0.5423, 0.2406, -10.3619), 'head': (-0.541, 0.0018),
         'right_elbow': (32.7835, -72.5623),
     })
-    human.KeyJoints(3.1, {'neck': (0.2259, -0.0274, 1.0248), 'head': (0.226, -0.0002)})
-    human.KeyJoints(3.2, {'neck': (3.5044, -0.0744, 2.7866), 'head': (3.5048, -0.0005)})
+    human.KeyJoints(3.1, {'neck': (0.8466, 0.1399, -6.1673), 'head': (0.8476, 0.0011)})
+    human.KeyJoints(3.2, {'neck': (3.5679, -0.0573, 2.0512), 'head': (3.5683, -0.0004)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(3.3, {'neck': (3.8778, -0.0797, 2.9873), 'head': (3.8782, -0.0005)})
+    human.KeyJoints(3.3, {'neck': (3.8778, -0.0797, 2.8866), 'head': (3.8782, -0.0005)})
+    human.KeyJoints(4.8, {'neck': (3.8778, -0.0797, 2.9873)})
     human.KeyJoints(7.2, {'right_elbow': (32.7835, -72.5623)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(7.3, {'right_elbow': (32.7835, -52.7863)})

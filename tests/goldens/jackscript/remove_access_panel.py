@@ -10,7 +10,7 @@ def remove_access_panel():
     # task remove_access_panel from examples/remove_access_panel.mtask
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
-    # examples/remove_access_panel.mtask:26:5 remove_access_panel > walk_to > travel: locomotion on root at panel_front
+    # examples/remove_access_panel.mtask:28:5 remove_access_panel > walk_to > travel: locomotion on root at panel_front
     human.Walk((-0.738, 0.0, 57.519), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
@@ -54,657 +54,2946 @@ def remove_access_panel():
         'left_hip': (15.7409, 1.0348, 0.2756), 'left_knee': (24.2703,),
         'left_ankle': (8.2441, 1.0708),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 112.0), start=0.54, duration=0.2628)
     human.KeyRoot(0.6, (0.0, 72.802, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'neck': (0.1419, -0.0007, -2.7675), 'head': (0.1428, 0.0), 'right_hip': (5.4298, 0.0, 0.0),
+        'neck': (0.1358, -0.0007, -2.6778), 'head': (0.137, 0.0), 'right_hip': (5.4298, 0.0, 0.0),
         'right_knee': (9.9869,), 'right_ankle': (4.5571, 0.0), 'left_hip': (5.3366, 0.0, 0.0),
         'left_knee': (9.7903,), 'left_ankle': (4.4478, 0.0),
     })
     human.KeyJoints(0.7, {
-        'neck': (0.7073, -0.0036, -13.7911), 'head': (0.7118, 0.0001),
+        'neck': (0.6852, -0.0036, -13.4679), 'head': (0.6906, 0.0001),
         'left_hip': (4.4022, 0.0, 0.0), 'left_knee': (7.8222,), 'left_ankle': (3.4174, 0.0),
     })
     human.KeyRoot(0.8, (0.0, 72.969, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (1.0702, -0.0054, -20.8676), 'head': (1.0771, 0.0001), 'right_clavicle': (0.0, 0.0),
+        'neck': (1.0686, -0.0054, -20.8444), 'head': (1.0756, 0.0001),
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
         'right_wrist': (0.0, 0.0), 'right_hip': (3.5038, 0.0001, -0.0012), 'right_knee': (5.9301,),
         'right_ankle': (2.4287, -0.0008), 'left_hip': (3.3634, 0.0, 0.0), 'left_knee': (5.6338,),
         'left_ankle': (2.2552, 0.0),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_left
+    human.LookAt((-20.0, 135.0, 112.0), start=0.8028, duration=10.90897)
     human.KeyJoints(0.9, {
-        'spine_lumbar': (0.2067, -0.2708, 0.1879), 'spine_thoracic': (-0.6188, -0.4126, 0.0841),
-        'right_clavicle': (0.8201, -0.187), 'right_shoulder': (10.614, 6.4984, 10.8126),
-        'right_elbow': (34.9053, 17.1715), 'right_wrist': (-0.2131, 0.0443),
+        'neck': (1.0892, -0.0037, -21.1442), 'right_shoulder': (11.8547, 5.7833, 11.0459),
+        'right_elbow': (34.3724, 16.9191), 'right_wrist': (-0.0312, -1.2377),
         'right_hip': (3.1096, 0.0, 0.0), 'right_knee': (5.0996,), 'right_ankle': (1.992, 0.0),
         'left_hip': (3.1132, 0.0, 0.0), 'left_knee': (5.1071,), 'left_ankle': (1.9961, 0.0),
     })
     human.KeyJoints(1.0, {
-        'spine_lumbar': (0.8099, -1.0168, 0.7247), 'spine_thoracic': (-2.3144, -1.5429, 0.3325),
-        'right_clavicle': (3.0672, -0.6993), 'right_shoulder': (16.1476, 8.6049, 9.0411),
-        'right_elbow': (36.3514, 17.1242), 'right_wrist': (-0.7968, 0.1657),
-        'right_hip': (3.0928, 0.0, 0.0), 'right_knee': (5.0642,), 'right_ankle': (1.9737, 0.0),
-        'left_hip': (3.0948, 0.0, 0.0), 'left_knee': (5.0684,), 'left_ankle': (1.976, 0.0),
+        'right_shoulder': (20.7879, 5.9306, 9.9137), 'right_elbow': (34.3544, 16.1804),
+        'right_wrist': (-0.1166, -4.6288), 'right_hip': (3.0928, 0.0, 0.0), 'right_knee': (5.0642,),
+        'right_ankle': (1.9737, 0.0), 'left_hip': (3.0948, 0.0, 0.0), 'left_knee': (5.0684,),
+        'left_ankle': (1.976, 0.0),
     })
     human.KeyJoints(1.1, {
-        'spine_lumbar': (1.7465, -2.0874, 1.5351), 'spine_thoracic': (-4.7281, -3.1521, 0.7244),
-        'right_clavicle': (6.266, -1.4286), 'right_shoulder': (24.0249, 11.6037, 6.5193),
-        'right_elbow': (38.4101, 17.0565), 'right_wrist': (-1.6278, 0.3385),
-        'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
-        'left_hip': (2.874, 0.0, 0.0), 'left_knee': (4.6105,), 'left_ankle': (1.7213, 0.0),
-    })
-    human.KeyJoints(1.2, {
-        'spine_lumbar': (2.9534, -3.3316, 2.5439), 'spine_thoracic': (-7.5008, -5.0006, 1.2388),
+        'right_shoulder': (33.5046, 6.1403, 8.3019), 'right_elbow': (34.32, 15.1287),
+        'right_wrist': (-0.2381, -9.4562), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
+        'right_ankle': (1.7189, 0.0), 'left_hip': (2.874, 0.0, 0.0), 'left_knee': (4.6105,),
+        'left_ankle': (1.7213, 0.0),
     })
     human.KeyJoints(1.3, {
-        'spine_lumbar': (4.3674, -4.5985, 3.6758), 'spine_thoracic': (-10.2735, -6.849, 1.8548),
-        'right_clavicle': (13.615, -3.1041), 'right_shoulder': (42.1226, 18.4932, 0.7256),
-        'right_elbow': (43.1398, 16.8993), 'right_wrist': (-3.5371, 0.7355),
+        'right_shoulder': (62.7206, 6.6219, 4.5988), 'right_elbow': (34.1889, 12.7126),
+        'right_wrist': (-0.5175, -20.5469),
     })
     human.KeyJoints(1.4, {
-        'spine_lumbar': (5.9254, -5.7372, 4.8552), 'spine_thoracic': (-12.6869, -8.4579, 2.5512),
-        'right_clavicle': (16.8134, -3.8333), 'right_shoulder': (49.9989, 21.4915, -1.7959),
-        'right_elbow': (45.1981, 16.8293), 'right_wrist': (-4.368, 0.9083),
+        'right_shoulder': (75.4357, 6.8316, 2.9872), 'right_elbow': (34.0853, 11.6611),
+        'right_wrist': (-0.639, -25.3737),
     })
     human.KeyJoints(1.5, {
-        'spine_lumbar': (7.5641, -6.5968, 6.0071), 'spine_thoracic': (-14.3819, -9.5879, 3.3073),
-        'right_clavicle': (19.0597, -4.3455), 'right_shoulder': (55.5307, 23.5974, -3.5668),
-        'right_elbow': (46.6438, 16.778), 'right_wrist': (-4.9516, 1.0296),
+        'right_shoulder': (84.366, 6.9788, 1.8553), 'right_elbow': (33.9519, 10.9226),
+        'right_wrist': (-0.7244, -28.7638),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
     human.KeyJoints(1.6, {
-        'spine_lumbar': (9.2224, -7.0267, 7.0577), 'spine_thoracic': (-14.9953, -9.9989, 4.1048),
-        'right_clavicle': (19.8779, -4.5269), 'right_shoulder': (57.5473, 24.3626, -4.2114),
-        'right_elbow': (47.1701, 16.7554), 'right_wrist': (-5.1638, 1.0738),
+        'spine_lumbar': (0.0082, 0.0, 0.0042), 'spine_thoracic': (0.006, 0.0, 0.0042),
+        'neck': (1.0799, -0.0077, -21.1622), 'head': (1.0853, 0.0001),
+        'right_clavicle': (0.0, 0.0038), 'right_shoulder': (87.6183, 7.0317, 1.4431),
+        'right_elbow': (33.782, 10.6536), 'right_wrist': (-0.755, -30.0),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (11.8746, -6.4071, 7.8235), 'spine_thoracic': (-14.7503, -10.0, 5.0131),
-        'right_clavicle': (21.0627, -4.2028), 'right_shoulder': (58.7235, 25.8437, -4.8269),
-        'right_wrist': (-5.2408, 0.8107),
+        'spine_lumbar': (3.6808, 0.7883, 0.5842), 'spine_thoracic': (-0.6196, -0.6405, 0.5764),
+        'neck': (-0.1887, -0.5394, -23.0322), 'head': (-0.2948, -0.001),
+        'right_clavicle': (1.0529, 0.2727), 'right_shoulder': (89.6342, 9.067, 0.4066),
+        'right_elbow': (32.6597, 10.3723), 'right_wrist': (-1.19, -30.0),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > grasp: grip on r_hand
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=1.795726, duration=0.072)
     human.KeyJoints(1.8, {
-        'spine_lumbar': (14.434, -5.5912, 8.3925), 'spine_thoracic': (-14.8905, -10.0, 5.7287),
-        'right_clavicle': (23.0771, -4.5026), 'right_shoulder': (60.6136, 28.4109, -5.8856),
-        'right_elbow': (45.4644, 16.6979), 'right_wrist': (-5.4373, 0.4836),
+        'spine_lumbar': (6.1101, 0.8138, 1.4228), 'spine_thoracic': (-1.6501, -1.602, 1.4096),
+        'neck': (-0.6148, -0.7533, -25.9869), 'head': (-0.7752, -0.0021),
+        'right_clavicle': (2.3148, 0.7854), 'right_shoulder': (91.8016, 10.5575, -0.3441),
+        'right_elbow': (31.9696, 10.1604), 'right_wrist': (-1.5015, -30.0),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(1.9, {'right_elbow': (45.4644, 10.0796)})
-    human.KeyJoints(2.0, {'right_elbow': (45.4644, -51.6021)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(2.1, {'right_elbow': (45.4644, -64.3846)})
-    human.KeyJoints(2.2, {'right_elbow': (45.4644, -1.7046)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(2.3, {'right_elbow': (45.4644, 5.2078)})
-    human.KeyJoints(2.4, {'right_elbow': (45.4644, -58.0093)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(2.5, {'right_elbow': (45.4644, -58.9917)})
-    human.KeyJoints(2.6, {'right_elbow': (45.4644, 4.3017)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(2.7, {'right_elbow': (45.4644, -0.6547)})
-    human.KeyJoints(2.8, {'right_elbow': (45.4644, -63.5632)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(2.9, {'right_elbow': (45.4644, -52.7112)})
-    human.KeyJoints(3.0, {'right_elbow': (45.4644, 9.3515)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(3.1, {'right_elbow': (45.4644, -7.3014)})
-    human.KeyJoints(3.2, {'right_elbow': (45.4644, -68.0573)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(3.3, {'right_elbow': (45.4644, -45.7499)})
-    human.KeyJoints(3.4, {'right_elbow': (45.4644, 13.2381)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(3.5, {'right_elbow': (45.4644, -14.5257)})
-    human.KeyJoints(3.6, {'right_elbow': (45.4644, -71.2849)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(3.7, {'right_elbow': (45.4644, -38.3142)})
-    human.KeyJoints(3.8, {'right_elbow': (45.4644, 15.7551)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(3.9, {'right_elbow': (45.4644, -22.1212)})
-    human.KeyJoints(4.0, {'right_elbow': (45.4644, -73.0396)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(4.1, {'right_elbow': (45.4644, -30.6106)})
-    human.KeyJoints(4.2, {'neck': (1.0705, -0.0054, -20.8747), 'right_elbow': (45.4644, 16.696)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=4.200526, duration=0.072)
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 112.0), start=4.272526, duration=0.2628)
-    human.KeyJoints(4.3, {'neck': (1.0295, -0.0106, -20.3307), 'head': (1.0376, 0.0001)})
-    human.KeyJoints(4.4, {'neck': (0.4275, -0.0869, -12.358)})
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(1.9, {
+        'spine_lumbar': (6.2927, 1.0869, 1.626), 'spine_thoracic': (-1.9036, -1.5991, 1.6018),
+        'neck': (-0.6349, -0.7629, -26.0794), 'head': (-0.7977, -0.0022),
+        'right_clavicle': (2.3747, 0.8996), 'right_shoulder': (91.6327, 10.7027, -0.3802),
+        'right_elbow': (32.241, 10.1494), 'right_wrist': (-1.5908, -29.4552),
+    })
+    human.KeyJoints(2.0, {
+        'spine_lumbar': (9.4249, 1.1789, 0.5854), 'spine_thoracic': (-3.4206, -4.5512, 0.5594),
+        'neck': (-0.8307, -0.8498, -26.7614), 'head': (-1.0142, -0.0029),
+        'right_clavicle': (6.6537, -0.7103), 'right_shoulder': (88.4602, 14.6729, 3.1617),
+        'right_elbow': (34.7031, 13.8892), 'right_wrist': (-0.2489, -23.0171),
+    })
+    human.KeyJoints(2.1, {
+        'spine_lumbar': (13.5042, 2.6502, -0.8564), 'spine_thoracic': (-3.586, -7.9244, -0.9233),
+        'neck': (-2.3593, -1.4353, -27.0354), 'head': (-2.6547, -0.0145),
+        'right_clavicle': (11.9852, -2.9794), 'right_shoulder': (88.253, 19.3507, 8.0357),
+        'right_elbow': (38.0183, 18.8795), 'right_wrist': (1.7772, -15.1897),
+    })
+    human.KeyJoints(2.2, {
+        'spine_lumbar': (17.3238, 5.5873, -3.3492), 'spine_thoracic': (-1.2807, -10.0, -3.2129),
+        'neck': (-5.821, -2.6889, -24.5202), 'head': (-6.3157, -0.082),
+        'right_clavicle': (16.7746, -5.289), 'right_shoulder': (94.5029, 22.8249, 13.9321),
+        'right_elbow': (41.6687, 24.1119), 'right_wrist': (4.4745, -8.6758),
+    })
+    human.KeyJoints(2.3, {
+        'spine_lumbar': (9.381, 1.9686, -2.2631), 'spine_thoracic': (-2.3792, -7.6521, -2.2332),
+        'neck': (-0.994, -0.8363, -22.5899), 'head': (-1.1529, -0.004),
+        'right_clavicle': (11.3317, -3.6674), 'right_shoulder': (86.3765, 17.2465, 10.1695),
+        'right_elbow': (39.1465, 20.0894), 'right_wrist': (2.6886, -13.7552),
+    })
+    human.KeyJoints(2.4, {
+        'spine_lumbar': (6.6088, 1.2283, 1.6445), 'spine_thoracic': (-2.2866, -1.731, 1.6121),
+        'neck': (-0.6116, -0.7533, -26.0462), 'head': (-0.7724, -0.0021),
+        'right_clavicle': (2.6691, 0.8533), 'right_shoulder': (91.0583, 11.082, -0.1697),
+        'right_elbow': (32.7256, 10.3601), 'right_wrist': (-1.548, -28.3363),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(2.5, {
+        'spine_lumbar': (7.799, 1.1219, 1.2328), 'spine_thoracic': (-3.0353, -3.0166, 1.2171),
+        'neck': (-0.5438, -0.7348, -26.4571), 'head': (-0.703, -0.002),
+        'right_clavicle': (4.4486, 0.2467), 'right_shoulder': (89.5973, 12.7064, 1.1352),
+        'right_elbow': (33.4515, 11.7759), 'right_wrist': (-1.0912, -26.1779),
+    })
+    human.KeyJoints(2.6, {
+        'spine_lumbar': (11.7442, 1.8036, -0.2409), 'spine_thoracic': (-3.5691, -6.4832, -0.2947),
+        'neck': (-1.6233, -1.1579, -27.0866), 'head': (-1.8659, -0.0083),
+        'right_clavicle': (9.6293, -2.0029), 'right_shoulder': (88.0246, 17.3143, 5.9348),
+        'right_elbow': (36.5764, 16.7453),
+    })
+    human.KeyJoints(2.7, {
+        'spine_lumbar': (15.8314, 4.262, -1.7956), 'spine_thoracic': (-3.4612, -9.8549, -1.8211),
+        'neck': (-3.5997, -1.8935, -26.5762), 'head': (-3.9769, -0.0311),
+        'right_clavicle': (15.2157, -4.254), 'right_shoulder': (89.3843, 21.988, 10.9333),
+        'right_elbow': (39.9563, 21.7228), 'right_wrist': (2.949, -10.8729),
+    })
+    human.KeyJoints(2.8, {
+        'spine_lumbar': (12.6691, 4.5416, -3.5386), 'spine_thoracic': (-1.6476, -9.8955, -3.4002),
+        'neck': (-3.0646, -1.6005, -21.8353), 'head': (-3.3497, -0.0224),
+        'right_clavicle': (15.5118, -5.1578), 'right_shoulder': (89.3092, 20.5611, 14.1613),
+        'right_elbow': (41.7922, 23.8642), 'right_wrist': (4.3749, -8.3428),
+    })
+    human.KeyJoints(2.9, {
+        'spine_lumbar': (7.2501, 1.0495, 0.0238), 'spine_thoracic': (-2.5482, -4.035, -0.0296),
+        'neck': (-0.3741, -0.6358, -24.7723), 'head': (-0.5053, -0.0014),
+        'right_clavicle': (5.7524, -1.0201), 'right_shoulder': (87.1077, 13.2353, 3.8193),
+        'right_elbow': (35.1291, 14.1123), 'right_wrist': (0.0658, -22.6105),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(3.0, {
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'right_clavicle': (2.4958, 0.9639),
+        'right_shoulder': (91.3283, 10.9625, -0.4005), 'right_elbow': (32.5878, 10.1432),
+        'right_wrist': (-1.641, -28.6693),
+    })
+    human.KeyJoints(3.1, {
+        'spine_lumbar': (9.9911, 1.2717, 0.4348), 'spine_thoracic': (-3.6154, -5.0849, 0.3911),
+        'neck': (-0.8901, -0.8755, -26.8992), 'head': (-1.0797, -0.0032),
+        'right_clavicle': (7.4402, -1.0267), 'right_shoulder': (88.0525, 15.4092, 3.7703),
+        'right_elbow': (35.136, 14.5569), 'right_wrist': (-0.0156, -21.8573),
+    })
+    human.KeyJoints(3.2, {
+        'spine_lumbar': (14.0791, 2.9852, -1.0373), 'spine_thoracic': (-3.6276, -8.425, -1.1112),
+        'neck': (-2.5984, -1.5252, -27.0159), 'head': (-2.9109, -0.017),
+        'right_clavicle': (12.8153, -3.3054), 'right_shoulder': (88.3282, 20.068, 8.6997),
+        'right_elbow': (38.4791, 19.5653), 'right_wrist': (2.0381, -14.0487),
+    })
+    human.KeyJoints(3.3, {
+        'spine_lumbar': (16.4529, 5.4558, -3.4703), 'spine_thoracic': (-1.3304, -10.0, -3.3306),
+        'neck': (-5.3026, -2.4797, -23.7272), 'head': (-5.7532, -0.0663),
+        'right_clavicle': (16.6325, -5.2816), 'right_shoulder': (93.4478, 22.4931, 14.1402),
+        'right_elbow': (41.7925, 24.1036), 'right_wrist': (4.4721, -8.393),
+    })
+    human.KeyJoints(3.4, {
+        'spine_lumbar': (8.536, 1.274, -1.6981), 'spine_thoracic': (-2.5713, -6.6887, -1.7084),
+        'neck': (-0.5118, -0.6653, -23.1897), 'head': (-0.6423, -0.002),
+        'right_clavicle': (9.7324, -3.0154), 'right_shoulder': (85.7722, 16.1035, 8.462),
+        'right_elbow': (38.0304, 18.4844), 'right_wrist': (1.9742, -16.0896),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(3.5, {
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
+        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
+        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+    })
+    human.KeyJoints(3.6, {
+        'spine_lumbar': (8.3257, 1.1107, 0.9693), 'spine_thoracic': (-3.0448, -3.4952, 0.9599),
+        'neck': (-0.6833, -0.7893, -26.5107), 'head': (-0.8536, -0.0024),
+        'right_clavicle': (5.1308, -0.0733), 'right_shoulder': (89.35, 13.2825, 1.8657),
+        'right_elbow': (33.8637, 12.5084), 'right_wrist': (-0.7676, -25.2095),
+    })
+    human.KeyJoints(3.7, {
+        'spine_lumbar': (12.33, 2.0535, -0.4563), 'spine_thoracic': (-3.5587, -6.9505, -0.5131),
+        'neck': (-1.8721, -1.252, -27.075), 'head': (-2.1326, -0.0102),
+        'right_shoulder': (88.0966, 17.9682, 6.646), 'right_elbow': (37.0601, 17.4629),
+        'right_wrist': (1.2109, -17.4604),
+    })
+    human.KeyJoints(3.8, {
+        'spine_lumbar': (16.5041, 4.9378, -2.6039), 'spine_thoracic': (-2.4313, -10.0, -2.4695),
+        'neck': (-4.6273, -2.2593, -25.5071), 'head': (-5.06, -0.0501),
+        'right_clavicle': (15.6722, -4.5244), 'right_shoulder': (91.9827, 22.1455, 12.2848),
+        'right_elbow': (40.7228, 22.7219), 'right_wrist': (3.6593, -10.2787),
+    })
+    human.KeyJoints(3.9, {
+        'spine_lumbar': (11.5494, 3.8037, -3.2595), 'spine_thoracic': (-1.8634, -9.3981, -3.1465),
+        'neck': (-2.248, -1.2938, -21.988), 'head': (-2.4821, -0.013),
+        'right_clavicle': (14.4423, -4.8234), 'right_shoulder': (88.2612, 19.5956, 13.2748),
+        'right_elbow': (41.2014, 23.0164), 'right_wrist': (3.9968, -9.5406),
+    })
+    human.KeyJoints(4.0, {
+        'spine_lumbar': (6.9626, 1.1162, 0.6869), 'spine_thoracic': (-2.4506, -3.0827, 0.639),
+        'neck': (-0.4391, -0.6711, -25.2001), 'head': (-0.5799, -0.0016),
+        'right_clavicle': (4.4566, -0.2532), 'right_shoulder': (88.5812, 12.3244, 2.1683),
+        'right_elbow': (34.1296, 12.5589), 'right_wrist': (-0.6036, -24.9738),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(4.1, {
+        'spine_lumbar': (6.6826, 1.2271, 1.7054), 'spine_thoracic': (-2.4189, -1.7412, 1.6757),
+        'neck': (-0.6005, -0.752, -26.2002), 'head': (-0.7618, -0.0021),
+        'right_clavicle': (2.6903, 0.9042), 'right_shoulder': (91.0694, 11.1445, -0.2821),
+        'right_elbow': (32.6566, 10.2767), 'right_wrist': (-1.6068, -28.4356),
+    })
+    human.KeyJoints(4.2, {
+        'spine_lumbar': (10.5663, 1.4073, 0.2203), 'spine_thoracic': (-3.629, -5.5594, 0.1703),
+        'neck': (-1.0678, -0.9436, -26.9347), 'head': (-1.2714, -0.0038),
+        'right_shoulder': (87.9449, 16.0494, 4.4713), 'right_elbow': (35.6014, 15.2754),
+        'right_wrist': (0.2824, -20.7647),
+    })
+    human.KeyJoints(4.3, {
+        'spine_lumbar': (14.646, 3.3404, -1.2035), 'spine_thoracic': (-3.6905, -8.9441, -1.2861),
+        'neck': (-2.8299, -1.6121, -27.0012), 'right_clavicle': (13.6767, -3.6345),
+        'right_shoulder': (88.3935, 20.8177, 9.3401), 'right_elbow': (38.924, 20.2363),
+        'right_wrist': (2.2821, -12.8903),
+    })
+    human.KeyJoints(4.4, {
+        'spine_lumbar': (15.1097, 5.2272, -3.5534), 'spine_thoracic': (-1.4152, -10.0, -3.4111),
+        'neck': (-4.6673, -2.2253, -22.8278), 'head': (-5.0668, -0.0502),
+        'right_clavicle': (16.3757, -5.2673), 'right_shoulder': (91.8658, 21.9364, 14.278),
+        'right_elbow': (41.8749, 24.0876), 'right_wrist': (4.4675, -8.1958),
+    })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (14.434, -5.5912, 8.3925), 'spine_thoracic': (-14.8905, -10.0, 5.7287),
-        'neck': (-0.2094, -0.1676, -3.9224), 'head': (-0.1656, -0.002),
-        'right_clavicle': (23.0771, -4.5026), 'right_shoulder': (60.6136, 28.4109, -5.8856),
-        'right_elbow': (45.4644, 16.6979), 'right_wrist': (-5.4373, 0.4836),
+        'spine_lumbar': (7.9666, 0.9789, -1.1813), 'spine_thoracic': (-2.6525, -5.8399, -1.2202),
+        'neck': (-0.2893, -0.587, -23.7868), 'head': (-0.4069, -0.0012),
+        'right_clavicle': (8.3711, -2.4171), 'right_shoulder': (85.5303, 15.1214, 6.9652),
+        'right_elbow': (37.069, 17.0755), 'right_wrist': (1.352, -18.1572),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.6, {
-        'spine_lumbar': (13.9879, -6.2929, 8.7142), 'spine_thoracic': (-14.8958, -10.0, 6.055),
-        'neck': (-0.2758, -0.176, -3.0424), 'right_clavicle': (23.0638, -4.2491),
-        'right_shoulder': (60.8829, 27.9774, -5.7172), 'right_elbow': (45.7994, 16.727),
-        'right_wrist': (-5.4226, 0.5773),
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
+        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
+        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (11.9789, -9.453, 10.1634), 'spine_thoracic': (-14.9199, -10.0, 7.5389),
-        'right_clavicle': (22.9884, -3.0703), 'right_shoulder': (62.096, 26.0253, -4.9589),
-        'right_elbow': (47.3086, 16.8582), 'right_wrist': (-5.3512, 0.9992),
+        'spine_lumbar': (8.8626, 1.1303, 0.7488), 'spine_thoracic': (-3.1761, -4.0039, 0.7382),
+        'neck': (-0.7739, -0.8255, -26.6057), 'head': (-0.9518, -0.0027),
+        'right_clavicle': (5.8617, -0.39), 'right_shoulder': (88.9825, 13.9349, 2.5389),
+        'right_elbow': (34.2775, 13.209), 'right_wrist': (-0.4891, -24.1657),
     })
     human.KeyJoints(4.8, {
-        'spine_lumbar': (9.2201, -13.7926, 12.1534), 'right_shoulder': (63.7618, 23.3446, -3.9175),
-        'right_elbow': (49.3809, 17.0382),
+        'spine_lumbar': (12.9138, 2.3342, -0.6603), 'spine_thoracic': (-3.5592, -7.4278, -0.7215),
+        'neck': (-2.1127, -1.3426, -27.0558), 'head': (-2.3906, -0.0121),
+        'right_clavicle': (11.1666, -2.6495), 'right_shoulder': (88.1731, 18.6429, 7.3428),
+        'right_elbow': (37.5388, 18.1705), 'right_wrist': (1.4979, -16.3401),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (6.6779, -17.7914, 13.9872), 'spine_thoracic': (-14.9832, -10.0, 11.6084),
-        'head': (-0.2302, -0.0021), 'right_clavicle': (22.6188, 0.448),
-        'right_shoulder': (65.2969, 20.8743, -2.9579), 'right_elbow': (51.2906, 17.2041),
-        'right_wrist': (-5.1071, 2.1125),
+        'spine_lumbar': (17.2487, 5.4767, -3.1192), 'spine_thoracic': (-1.5079, -10.0, -2.98),
+        'neck': (-5.6423, -2.6271, -25.0707), 'head': (-6.1299, -0.077),
+        'right_clavicle': (16.5425, -5.114), 'right_shoulder': (94.1174, 22.6919, 13.4488),
+        'right_elbow': (41.3885, 23.8294), 'right_wrist': (4.313, -9.2351),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (5.3187, -19.9295, 14.9677), 'spine_thoracic': (-14.9995, -10.0, 12.8416),
-        'right_clavicle': (22.3142, 1.8519), 'right_shoulder': (66.1176, 19.5536, -2.4449),
-        'right_elbow': (52.3116, 17.2928), 'right_wrist': (-4.9758, 2.398),
+        'spine_lumbar': (10.4281, 2.8868, -2.8138), 'spine_thoracic': (-2.1231, -8.6111, -2.7394),
+        'neck': (-1.5496, -1.0362, -22.2155), 'head': (-1.7416, -0.0068),
+        'right_clavicle': (12.9896, -4.3038), 'right_shoulder': (87.2521, 18.461, 11.8738),
+        'right_elbow': (40.2713, 21.6931), 'right_wrist': (3.405, -11.4383),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(5.1, {
-        'spine_lumbar': (9.0878, -20.0, 15.0), 'spine_thoracic': (-14.858, -10.0, 13.4651),
-        'right_clavicle': (23.2812, 1.6551), 'right_shoulder': (67.3566, 22.0086, -3.6513),
-        'right_elbow': (50.7291, 17.2438), 'right_wrist': (-5.1162, 1.8794),
+        'spine_lumbar': (6.7434, 1.1812, 1.2592), 'spine_thoracic': (-2.3555, -2.2719, 1.2196),
+        'neck': (-0.525, -0.7128, -25.6547), 'head': (-0.6761, -0.0018),
+        'right_clavicle': (3.3778, 0.4083), 'right_shoulder': (90.0176, 11.5726, 0.7651),
+        'right_elbow': (33.2856, 11.2392), 'right_wrist': (-1.1708, -26.9898),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=5.140976, duration=0.072)
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.2, {
-        'spine_lumbar': (11.1216, -20.0, 14.9993), 'spine_thoracic': (-14.9963, -10.0, 14.2294),
-        'right_clavicle': (24.746, 1.3257), 'right_shoulder': (69.1589, 24.1736, -4.6517),
-        'right_elbow': (49.8436, 17.2092), 'right_wrist': (-5.2808, 1.551),
+        'spine_lumbar': (7.2741, 1.1606, 1.4943), 'spine_thoracic': (-3.0187, -2.5012, 1.4691),
+        'neck': (-0.4525, -0.6994, -26.3991), 'head': (-0.6045, -0.0017),
+        'right_clavicle': (3.7256, 0.5646), 'right_shoulder': (89.9034, 12.0962, 0.4094),
+        'right_elbow': (33.0545, 11.0408), 'right_wrist': (-1.3927, -27.162),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(5.3, {'right_elbow': (49.8436, -20.75)})
-    human.KeyJoints(5.4, {'right_elbow': (49.8436, -72.4119)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(5.5, {'right_elbow': (49.8436, -30.9662)})
-    human.KeyJoints(5.6, {'right_elbow': (49.8436, 17.1868)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(5.7, {'right_elbow': (49.8436, -28.5019)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(5.8, {'right_elbow': (49.8436, -72.6877)})
-    human.KeyJoints(5.9, {'right_elbow': (49.8436, -23.1979)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(6.0, {'right_elbow': (49.8436, 16.5952)})
-    human.KeyJoints(6.1, {'right_elbow': (49.8436, -36.235)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(6.2, {'right_elbow': (49.8436, -71.2612)})
-    human.KeyJoints(6.3, {'right_elbow': (49.8436, -15.5517)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(6.4, {'right_elbow': (49.8436, 14.3852)})
-    human.KeyJoints(6.5, {'right_elbow': (49.8436, -43.7426)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(6.6, {'right_elbow': (49.8436, -68.3194)})
-    human.KeyJoints(6.7, {'right_elbow': (49.8436, -8.2342)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(6.8, {'right_elbow': (49.8436, 10.7632)})
-    human.KeyJoints(6.9, {'right_elbow': (49.8436, -50.8183)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(7.0, {'right_elbow': (49.8436, -64.0687)})
-    human.KeyJoints(7.1, {'right_elbow': (49.8436, -1.452)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(7.2, {'right_elbow': (49.8436, 5.9355)})
-    human.KeyJoints(7.3, {'right_elbow': (49.8436, -57.2555)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(7.4, {'right_elbow': (49.8436, -58.7157)})
-    human.KeyJoints(7.5, {'right_elbow': (49.8436, 4.5885)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=7.545776, duration=0.072)
+    human.KeyJoints(5.3, {
+        'spine_lumbar': (11.1479, 1.582, -0.0073), 'spine_thoracic': (-3.616, -6.0198, -0.06),
+        'neck': (-1.3163, -1.0392, -27.0009), 'head': (-1.538, -0.0054),
+        'right_clavicle': (8.8867, -1.6742), 'right_shoulder': (87.9474, 16.676, 5.1936),
+        'right_elbow': (36.0806, 16.0035), 'right_wrist': (0.5934, -19.6778),
+    })
+    human.KeyJoints(5.4, {
+        'spine_lumbar': (15.1946, 3.6983, -1.3375), 'spine_thoracic': (-3.7879, -9.5212, -1.4319),
+        'neck': (-3.03, -1.6875, -26.9949), 'head': (-3.3731, -0.0224),
+        'right_clavicle': (14.6153, -3.9735), 'right_shoulder': (88.4354, 21.6792, 9.919),
+        'right_elbow': (39.3309, 20.8711), 'right_wrist': (2.4893, -11.6574),
+    })
+    human.KeyJoints(5.5, {
+        'spine_lumbar': (13.7585, 4.9436, -3.5938), 'spine_thoracic': (-1.5171, -10.0, -3.45),
+        'neck': (-3.8679, -1.9091, -21.9033), 'head': (-4.2076, -0.0341),
+        'right_clavicle': (16.0399, -5.2472), 'right_shoulder': (90.3681, 21.284, 14.3428),
+        'right_elbow': (41.9138, 24.0648), 'right_wrist': (4.4609, -8.0988),
+    })
+    human.KeyJoints(5.6, {
+        'spine_lumbar': (7.5944, 0.9972, -0.6401), 'spine_thoracic': (-2.6247, -5.01, -0.6918),
+        'neck': (-0.3131, -0.6011, -24.2872), 'head': (-0.4347, -0.0013),
+        'right_clavicle': (7.1265, -1.7889), 'right_shoulder': (85.9531, 14.2145, 5.5145),
+        'right_elbow': (36.1656, 15.7082), 'right_wrist': (0.7562, -20.1984),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(5.7, {
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
+        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
+        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+    })
+    human.KeyJoints(5.8, {
+        'spine_lumbar': (9.4154, 1.1776, 0.5876), 'spine_thoracic': (-3.4151, -4.5419, 0.562),
+        'neck': (-0.83, -0.8494, -26.7581), 'head': (-1.0135, -0.0029),
+        'right_clavicle': (6.6402, -0.705), 'right_shoulder': (88.4704, 14.66, 3.1519),
+        'right_elbow': (34.696, 13.8782), 'right_wrist': (-0.2526, -23.0369),
+    })
+    human.KeyJoints(5.9, {
+        'spine_lumbar': (13.4944, 2.6448, -0.8533), 'spine_thoracic': (-3.5854, -7.916, -0.9201),
+        'neck': (-2.3552, -1.4338, -27.0357), 'head': (-2.6504, -0.0144),
+        'right_clavicle': (11.9715, -2.9739), 'right_shoulder': (88.2517, 19.3388, 8.0244),
+        'right_elbow': (38.0104, 18.8678), 'right_wrist': (1.7727, -15.2088),
+    })
+    human.KeyJoints(6.0, {
+        'spine_lumbar': (17.3318, 5.5884, -3.3469), 'spine_thoracic': (-1.2803, -10.0, -3.2107),
+        'neck': (-5.8264, -2.6911, -24.5321), 'head': (-6.3215, -0.0821),
+        'right_clavicle': (16.7758, -5.289), 'right_shoulder': (94.5126, 22.8278, 13.928),
+        'right_elbow': (41.6663, 24.1119), 'right_wrist': (4.4745, -8.6812),
+    })
+    human.KeyJoints(6.1, {
+        'spine_lumbar': (9.397, 1.9826, -2.2727), 'spine_thoracic': (-2.3753, -7.6685, -2.242),
+        'neck': (-1.0032, -0.8396, -22.5811), 'head': (-1.1626, -0.004),
+        'right_clavicle': (11.3595, -3.6784), 'right_shoulder': (86.3892, 17.2665, 10.1986),
+        'right_elbow': (39.1657, 20.1168), 'right_wrist': (2.7009, -13.7154),
+    })
+    human.KeyJoints(6.2, {
+        'spine_lumbar': (6.6102, 1.2278, 1.6403), 'spine_thoracic': (-2.2874, -1.7369, 1.6078),
+        'neck': (-0.6105, -0.7528, -26.0416), 'head': (-0.7712, -0.0021),
+        'right_clavicle': (2.6768, 0.8485), 'right_shoulder': (91.0466, 11.0873, -0.1595),
+        'right_elbow': (32.7317, 10.3697), 'right_wrist': (-1.5439, -28.3217),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(6.3, {
+        'spine_lumbar': (7.7902, 1.1224, 1.2377), 'spine_thoracic': (-3.0353, -3.0088, 1.2218),
+        'neck': (-0.541, -0.7337, -26.4565), 'head': (-0.6999, -0.002),
+        'right_clavicle': (4.4376, 0.2521), 'right_shoulder': (89.6006, 12.6974, 1.1223),
+        'right_elbow': (33.4445, 11.7633), 'right_wrist': (-1.0971, -26.1936),
+    })
+    human.KeyJoints(6.4, {
+        'spine_lumbar': (11.7343, 1.7997, -0.2372), 'spine_thoracic': (-3.5694, -6.4754, -0.2909),
+        'neck': (-1.6187, -1.1561, -27.0864), 'head': (-1.861, -0.0082),
+        'right_clavicle': (9.6167, -1.9974), 'right_shoulder': (88.0235, 17.3035, 5.9227),
+        'right_elbow': (36.5682, 16.7331),
+    })
+    human.KeyJoints(6.5, {
+        'spine_lumbar': (15.8199, 4.2498, -1.7815), 'spine_thoracic': (-3.4771, -9.8506, -1.8102),
+        'neck': (-3.5832, -1.8877, -26.5949), 'head': (-3.9595, -0.0309),
+        'right_clavicle': (15.2085, -4.2501), 'right_shoulder': (89.3429, 21.9858, 10.9101),
+        'right_elbow': (39.9429, 21.7061), 'right_wrist': (2.9372, -10.8822),
+    })
+    human.KeyJoints(6.6, {
+        'spine_lumbar': (12.6875, 4.5513, -3.5415), 'spine_thoracic': (-1.6447, -9.9006, -3.4028),
+        'neck': (-3.0785, -1.6058, -21.8336), 'head': (-3.3644, -0.0226),
+        'right_clavicle': (15.5254, -5.1614), 'right_shoulder': (89.3266, 20.5753, 14.1704),
+        'right_elbow': (41.7983, 23.8732), 'right_wrist': (4.3789, -8.3304),
+    })
+    human.KeyJoints(6.7, {
+        'spine_lumbar': (7.2554, 1.0484, 0.0124), 'spine_thoracic': (-2.5497, -4.0515, -0.041),
+        'neck': (-0.373, -0.6352, -24.7646), 'head': (-0.504, -0.0014),
+        'right_clavicle': (5.7752, -1.0333), 'right_shoulder': (87.0847, 13.2514, 3.8479),
+        'right_elbow': (35.1465, 14.1392), 'right_wrist': (0.0774, -22.5697),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(6.8, {
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'right_clavicle': (2.4958, 0.9639),
+        'right_shoulder': (91.3283, 10.9625, -0.4005), 'right_elbow': (32.5878, 10.1432),
+        'right_wrist': (-1.641, -28.6693),
+    })
+    human.KeyJoints(6.9, {
+        'spine_lumbar': (9.9815, 1.2699, 0.438), 'spine_thoracic': (-3.615, -5.0766, 0.3945),
+        'neck': (-0.8884, -0.8748, -26.8983), 'head': (-1.0778, -0.0032),
+        'right_clavicle': (7.4276, -1.0213), 'right_shoulder': (88.0549, 15.3979, 3.7592),
+        'right_elbow': (35.1284, 14.5452), 'right_wrist': (-0.0201, -21.876),
+    })
+    human.KeyJoints(7.0, {
+        'spine_lumbar': (14.0695, 2.9794, -1.0343), 'spine_thoracic': (-3.6267, -8.4165, -1.1081),
+        'neck': (-2.5944, -1.5237, -27.0162), 'head': (-2.9066, -0.017),
+        'right_clavicle': (12.8011, -3.2999), 'right_shoulder': (88.327, 20.0558, 8.6887),
+        'right_elbow': (38.4714, 19.5538), 'right_wrist': (2.0338, -14.068),
+    })
+    human.KeyJoints(7.1, {
+        'spine_lumbar': (16.4728, 5.459, -3.4685), 'spine_thoracic': (-1.3293, -10.0, -3.3289),
+        'neck': (-5.313, -2.4839, -23.7411), 'head': (-5.7645, -0.0666),
+        'right_clavicle': (16.6359, -5.2817), 'right_shoulder': (93.4716, 22.5009, 14.1373),
+        'right_elbow': (41.7908, 24.1038), 'right_wrist': (4.4722, -8.3971),
+    })
+    human.KeyJoints(7.2, {
+        'spine_lumbar': (8.5482, 1.2829, -1.7074), 'spine_thoracic': (-2.5689, -6.7043, -1.7171),
+        'neck': (-0.5183, -0.6677, -23.179), 'head': (-0.6492, -0.0021),
+        'right_clavicle': (9.758, -3.0261), 'right_shoulder': (85.7797, 16.1217, 8.4897),
+        'right_elbow': (38.0484, 18.5104), 'right_wrist': (1.9858, -16.0516),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(7.3, {
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
+        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
+        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+    })
+    human.KeyJoints(7.4, {
+        'spine_lumbar': (8.3168, 1.1105, 0.9733), 'spine_thoracic': (-3.0438, -3.4868, 0.9638),
+        'neck': (-0.6816, -0.7886, -26.5095), 'head': (-0.8517, -0.0024),
+        'right_clavicle': (5.1188, -0.068), 'right_shoulder': (89.3555, 13.272, 1.8541),
+        'right_elbow': (33.8568, 12.4964), 'right_wrist': (-0.7725, -25.2265),
+    })
+    human.KeyJoints(7.5, {
+        'spine_lumbar': (12.3202, 2.049, -0.4527), 'spine_thoracic': (-3.5588, -6.9426, -0.5095),
+        'neck': (-1.8681, -1.2505, -27.0753), 'head': (-2.1283, -0.0101),
+        'right_shoulder': (88.0954, 17.957, 6.6342), 'right_elbow': (37.052, 17.4509),
+        'right_wrist': (1.2059, -17.4792),
+    })
     human.KeyJoints(7.6, {
-        'neck': (-0.2758, -0.176, -3.0424), 'head': (-0.2302, -0.0021),
-        'right_elbow': (49.8436, 17.2092),
+        'spine_lumbar': (16.4931, 4.9289, -2.5947), 'spine_thoracic': (-2.4449, -10.0, -2.461),
+        'neck': (-4.6124, -2.2539, -25.517), 'head': (-5.0443, -0.0498),
+        'right_clavicle': (15.6621, -4.5183), 'right_shoulder': (91.9498, 22.1409, 12.2658),
+        'right_elbow': (40.7119, 22.7059), 'right_wrist': (3.6493, -10.2916),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
-    human.LookAt((-20.0, 105.0, 112.0), start=7.617776, duration=0.2628)
-    human.KeyJoints(7.7, {'neck': (7.923, 2.8298, -14.095), 'head': (3.3096, -0.5427)})
+    human.KeyJoints(7.7, {
+        'spine_lumbar': (11.5685, 3.8182, -3.2658), 'spine_thoracic': (-1.8593, -9.4092, -3.1522),
+        'neck': (-2.2612, -1.2987, -21.9847), 'head': (-2.4961, -0.0131),
+        'right_clavicle': (14.4641, -4.8307), 'right_shoulder': (88.2788, 19.6136, 13.2947),
+        'right_elbow': (41.2146, 23.0352), 'right_wrist': (4.0052, -9.5137),
+    })
     human.KeyJoints(7.8, {
-        'neck': (27.085, 9.8548, -39.9267), 'head': (11.5827, -1.8061),
-        'right_shoulder': (69.1589, 24.1736, -4.6517), 'right_elbow': (49.8436, 17.2092),
+        'spine_lumbar': (6.9669, 1.115, 0.6762), 'spine_thoracic': (-2.4523, -3.0979, 0.6281),
+        'neck': (-0.438, -0.6706, -25.1931), 'head': (-0.5786, -0.0016),
+        'right_clavicle': (4.4771, -0.2655), 'right_shoulder': (88.5557, 12.3387, 2.1947),
+        'right_elbow': (34.1456, 12.5837), 'right_wrist': (-0.5929, -24.9359),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.9, {
-        'neck': (35.0, 12.7566, -50.5967), 'head': (15.0, -2.328),
-        'right_shoulder': (68.9936, 24.1387, -4.6361), 'right_elbow': (49.7205, 17.2061),
-        'right_wrist': (-5.266, 1.529),
+        'spine_lumbar': (6.6755, 1.228, 1.7078), 'spine_thoracic': (-2.4092, -1.7316, 1.6781),
+        'neck': (-0.6029, -0.7529, -26.1973), 'head': (-0.7643, -0.0021),
+        'right_clavicle': (2.6773, 0.9083), 'right_shoulder': (91.0865, 11.1323, -0.2901),
+        'right_elbow': (32.6519, 10.2676), 'right_wrist': (-1.6092, -28.4513),
     })
     human.KeyJoints(8.0, {
-        'right_shoulder': (63.6671, 23.0158, -4.1354), 'right_elbow': (45.7532, 17.1046),
-        'right_wrist': (-4.7891, 0.8189),
+        'spine_lumbar': (10.5565, 1.4047, 0.2242), 'spine_thoracic': (-3.6289, -5.5516, 0.1742),
+        'neck': (-1.064, -0.9422, -26.9342), 'head': (-1.2674, -0.0038),
+        'right_shoulder': (87.9459, 16.0389, 4.4591), 'right_elbow': (35.5934, 15.2631),
+        'right_wrist': (0.2771, -20.7829),
     })
     human.KeyJoints(8.1, {
-        'right_shoulder': (53.1714, 20.8032, -3.1489), 'right_elbow': (37.9359, 16.9046),
-        'right_wrist': (-3.8493, -0.5803),
+        'spine_lumbar': (14.6367, 3.3346, -1.2011), 'spine_thoracic': (-3.6891, -8.9345, -1.2836),
+        'neck': (-2.8265, -1.6108, -27.0014), 'right_clavicle': (13.6612, -3.6288),
+        'right_shoulder': (88.3927, 20.8034, 9.3301), 'right_elbow': (38.9171, 20.2255),
+        'right_wrist': (2.2784, -12.911),
     })
     human.KeyJoints(8.2, {
-        'right_shoulder': (40.6872, 18.1714, -1.9754), 'right_elbow': (28.6376, 16.6667),
-        'right_wrist': (-2.7314, -2.2445),
+        'spine_lumbar': (15.1336, 5.2316, -3.5523), 'spine_thoracic': (-1.4136, -10.0, -3.41),
+        'neck': (-4.6797, -2.2302, -22.8459), 'head': (-5.0801, -0.0505),
+        'right_clavicle': (16.3808, -5.2676), 'right_shoulder': (91.8935, 21.947, 14.2763),
+        'right_elbow': (41.8739, 24.088), 'right_wrist': (4.4676, -8.1984),
     })
     human.KeyJoints(8.3, {
-        'right_shoulder': (29.3951, 15.7909, -0.9139), 'right_elbow': (20.227, 16.4515),
-        'right_wrist': (-1.7203, -3.7498),
+        'spine_lumbar': (7.9734, 0.9795, -1.1892), 'spine_thoracic': (-2.6523, -5.8525, -1.2278),
+        'neck': (-0.2898, -0.5872, -23.7781), 'head': (-0.4074, -0.0012),
+        'right_clavicle': (8.3909, -2.4263), 'right_shoulder': (85.5308, 15.136, 6.9873),
+        'right_elbow': (37.083, 17.0963), 'right_wrist': (1.3612, -18.1264),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.4, {
-        'spine_lumbar': (11.1216, -20.0, 14.9993), 'spine_thoracic': (-14.9963, -10.0, 14.2294),
-        'right_clavicle': (24.746, 1.3257), 'right_shoulder': (22.4755, 14.3322, -0.2635),
-        'right_elbow': (15.0733, 16.3197), 'right_wrist': (-1.1007, -4.6722),
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
+        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
+        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_left
     human.KeyJoints(8.5, {
-        'spine_lumbar': (10.6208, -20.0, 14.8766), 'spine_thoracic': (-14.9998, -10.0, 14.1723),
-        'right_clavicle': (25.4809, 1.0883), 'right_shoulder': (21.9045, 14.8608, -0.2677),
-        'right_elbow': (14.5748, 16.3117), 'right_wrist': (-1.1204, -4.7772),
+        'spine_lumbar': (8.8534, 1.1298, 0.7521), 'spine_thoracic': (-3.1733, -3.9952, 0.7416),
+        'neck': (-0.7726, -0.8249, -26.6039), 'head': (-0.9504, -0.0027),
+        'right_clavicle': (5.8491, -0.3846), 'right_shoulder': (88.9893, 13.9234, 2.5279),
+        'right_elbow': (34.2704, 13.1974), 'right_wrist': (-0.4936, -24.1839),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=8.585439, duration=0.072)
     human.KeyJoints(8.6, {
-        'spine_lumbar': (12.1154, -19.1442, 15.0), 'spine_thoracic': (-14.9551, -9.9303, 14.5896),
-        'right_clavicle': (26.6893, 1.0282), 'right_shoulder': (22.7372, 16.7662, -0.496),
-        'right_elbow': (14.7638, 16.3315), 'right_wrist': (-1.3568, -4.7702),
+        'spine_lumbar': (12.904, 2.3292, -0.657), 'spine_thoracic': (-3.5589, -7.4197, -0.7181),
+        'neck': (-2.1086, -1.341, -27.0561), 'head': (-2.3862, -0.0121),
+        'right_clavicle': (11.1532, -2.6441), 'right_shoulder': (88.1718, 18.6314, 7.3312),
+        'right_elbow': (37.5307, 18.1587), 'right_wrist': (1.4931, -16.3591),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(8.7, {'right_elbow': (14.7638, 5.2786)})
-    human.KeyJoints(8.8, {'right_elbow': (14.7638, -57.8824)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(8.9, {'right_elbow': (14.7638, -59.8339)})
-    human.KeyJoints(9.0, {'right_elbow': (14.7638, 3.4785)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(9.1, {'right_elbow': (14.7638, -0.5108)})
-    human.KeyJoints(9.2, {'right_elbow': (14.7638, -63.5136)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(9.3, {'right_elbow': (14.7638, -53.6181)})
-    human.KeyJoints(9.4, {'right_elbow': (14.7638, 8.614)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(9.5, {'right_elbow': (14.7638, -7.1013)})
-    human.KeyJoints(9.6, {'right_elbow': (14.7638, -68.1018)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(9.7, {'right_elbow': (14.7638, -46.7046)})
-    human.KeyJoints(9.8, {'right_elbow': (14.7638, 12.6033)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(9.9, {'right_elbow': (14.7638, -14.2863)})
-    human.KeyJoints(10.0, {'right_elbow': (14.7638, -71.4405)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(10.1, {'right_elbow': (14.7638, -39.2998)})
-    human.KeyJoints(10.2, {'right_elbow': (14.7638, 15.2397)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(10.3, {'right_elbow': (14.7638, -21.8592)})
-    human.KeyJoints(10.4, {'right_elbow': (14.7638, -73.3231)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(10.5, {'right_elbow': (14.7638, -31.6103)})
-    human.KeyJoints(10.6, {'right_elbow': (14.7638, 16.3168)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(10.7, {'right_elbow': (14.7638, -29.6136)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(10.8, {'right_elbow': (14.7638, -73.5466)})
-    human.KeyJoints(10.9, {'right_elbow': (14.7638, -23.8427)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=10.990239, duration=0.072)
+    human.KeyJoints(8.7, {
+        'spine_lumbar': (17.2383, 5.4697, -3.1122), 'spine_thoracic': (-1.5207, -10.0, -2.9728),
+        'neck': (-5.6282, -2.622, -25.0773), 'head': (-6.115, -0.0766),
+        'right_clavicle': (16.5291, -5.1046), 'right_shoulder': (94.0884, 22.6827, 13.4324),
+        'right_elbow': (41.3792, 23.8139), 'right_wrist': (4.3041, -9.2522),
+    })
+    human.KeyJoints(8.8, {
+        'spine_lumbar': (10.4465, 2.9027, -2.8223), 'spine_thoracic': (-2.1186, -8.626, -2.7472),
+        'neck': (-1.5595, -1.0398, -22.2114), 'head': (-1.7521, -0.0068),
+        'right_clavicle': (13.0161, -4.3137), 'right_shoulder': (87.2682, 18.4809, 11.9003),
+        'right_elbow': (40.2889, 21.7181), 'right_wrist': (3.4162, -11.4023),
+    })
+    human.KeyJoints(8.9, {
+        'spine_lumbar': (6.7464, 1.1802, 1.2509), 'spine_thoracic': (-2.357, -2.2836, 1.2111),
+        'neck': (-0.5233, -0.7121, -25.647), 'head': (-0.6743, -0.0018),
+        'right_clavicle': (3.3933, 0.3986), 'right_shoulder': (89.9958, 11.5834, 0.7855),
+        'right_elbow': (33.2978, 11.2583), 'right_wrist': (-1.1626, -26.9606),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(9.0, {
+        'spine_lumbar': (7.2644, 1.1615, 1.4981), 'spine_thoracic': (-3.0146, -2.4899, 1.4728),
+        'neck': (-0.4535, -0.6998, -26.3969), 'head': (-0.6055, -0.0017),
+        'right_clavicle': (3.7101, 0.5703), 'right_shoulder': (89.9157, 12.0823, 0.3975),
+        'right_elbow': (33.0478, 11.028), 'right_wrist': (-1.3967, -27.1819),
+    })
+    human.KeyJoints(9.1, {
+        'spine_lumbar': (11.1381, 1.5786, -0.0034), 'spine_thoracic': (-3.6168, -6.0122, -0.0561),
+        'neck': (-1.3113, -1.0373, -26.999), 'head': (-1.5326, -0.0054),
+        'right_clavicle': (8.8745, -1.6688), 'right_shoulder': (87.9464, 16.6655, 5.1813),
+        'right_elbow': (36.0724, 15.9912), 'right_wrist': (0.5881, -19.6961),
+    })
+    human.KeyJoints(9.2, {
+        'spine_lumbar': (15.1851, 3.6916, -1.3347), 'spine_thoracic': (-3.7867, -9.513, -1.4289),
+        'neck': (-3.0257, -1.6859, -26.9951), 'head': (-3.3686, -0.0223),
+        'right_clavicle': (14.6011, -3.968), 'right_shoulder': (88.4344, 21.6678, 9.9079),
+        'right_elbow': (39.3233, 20.8596), 'right_wrist': (2.4852, -11.6759),
+    })
+    human.KeyJoints(9.3, {
+        'spine_lumbar': (13.7787, 4.9486, -3.5935), 'spine_thoracic': (-1.5153, -10.0, -3.4497),
+        'neck': (-3.8815, -1.9144, -21.9125), 'head': (-4.2222, -0.0343),
+        'right_clavicle': (16.0461, -5.2476), 'right_shoulder': (90.3892, 21.295, 14.3423),
+        'right_elbow': (41.9135, 24.0652), 'right_wrist': (4.4611, -8.0995),
+    })
+    human.KeyJoints(9.4, {
+        'spine_lumbar': (7.6004, 0.9966, -0.6504), 'spine_thoracic': (-2.6256, -5.0254, -0.702),
+        'neck': (-0.3124, -0.6006, -24.2789), 'head': (-0.4338, -0.0013),
+        'right_clavicle': (7.1488, -1.8008), 'right_shoulder': (85.9391, 14.2305, 5.5413),
+        'right_elbow': (36.1822, 15.7335), 'right_wrist': (0.7672, -20.1604),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(9.5, {
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
+        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
+        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+    })
+    human.KeyJoints(9.6, {
+        'spine_lumbar': (9.406, 1.1763, 0.5899), 'spine_thoracic': (-3.4096, -4.5325, 0.5646),
+        'neck': (-0.8293, -0.8491, -26.7549), 'head': (-1.0127, -0.0029),
+        'right_clavicle': (6.6266, -0.6997), 'right_shoulder': (88.4807, 14.647, 3.1421),
+        'right_elbow': (34.6889, 13.8672), 'right_wrist': (-0.2562, -23.0567),
+    })
+    human.KeyJoints(9.7, {
+        'spine_lumbar': (13.4847, 2.6393, -0.8501), 'spine_thoracic': (-3.5849, -7.9077, -0.9168),
+        'neck': (-2.3512, -1.4323, -27.0361), 'head': (-2.6461, -0.0144),
+        'right_clavicle': (11.9577, -2.9685), 'right_shoulder': (88.2504, 19.327, 8.0131),
+        'right_elbow': (38.0026, 18.8562), 'right_wrist': (1.7682, -15.228),
+    })
+    human.KeyJoints(9.8, {
+        'spine_lumbar': (17.3395, 5.5895, -3.3445), 'spine_thoracic': (-1.2798, -10.0, -3.2084),
+        'neck': (-5.8316, -2.6932, -24.544), 'head': (-6.3272, -0.0823),
+        'right_clavicle': (16.7769, -5.2891), 'right_shoulder': (94.522, 22.8307, 13.9239),
+        'right_elbow': (41.6638, 24.112), 'right_wrist': (4.4745, -8.6866),
+    })
+    human.KeyJoints(9.9, {
+        'spine_lumbar': (9.4131, 1.9967, -2.2822), 'spine_thoracic': (-2.3714, -7.685, -2.2507),
+        'neck': (-1.0124, -0.8428, -22.5724), 'head': (-1.1723, -0.004),
+        'right_clavicle': (11.3873, -3.6893), 'right_shoulder': (86.4019, 17.2865, 10.2278),
+        'right_elbow': (39.1849, 20.1442), 'right_wrist': (2.7131, -13.6757),
+    })
+    human.KeyJoints(10.0, {
+        'spine_lumbar': (6.6117, 1.2272, 1.636), 'spine_thoracic': (-2.2882, -1.7429, 1.6035),
+        'neck': (-0.6094, -0.7522, -26.0368), 'head': (-0.7699, -0.0021),
+        'right_clavicle': (2.6846, 0.8435), 'right_shoulder': (91.0347, 11.0927, -0.1492),
+        'right_elbow': (32.7379, 10.3794), 'right_wrist': (-1.5397, -28.3068),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(10.1, {
+        'spine_lumbar': (7.7814, 1.1229, 1.2426), 'spine_thoracic': (-3.0353, -3.001, 1.2265),
+        'neck': (-0.5381, -0.7326, -26.4559), 'head': (-0.6968, -0.002),
+        'right_clavicle': (4.4265, 0.2575), 'right_shoulder': (89.6038, 12.6884, 1.1095),
+        'right_elbow': (33.4376, 11.7506), 'right_wrist': (-1.103, -26.2092),
+    })
+    human.KeyJoints(10.2, {
+        'spine_lumbar': (11.7245, 1.7958, -0.2334), 'spine_thoracic': (-3.5698, -6.4676, -0.2872),
+        'neck': (-1.6141, -1.1544, -27.0861), 'head': (-1.8561, -0.0082),
+        'right_clavicle': (9.6042, -1.992), 'right_shoulder': (88.0223, 17.2927, 5.9106),
+        'right_elbow': (36.56, 16.7209), 'right_wrist': (0.9016, -18.6057),
+    })
+    human.KeyJoints(10.3, {
+        'spine_lumbar': (15.8085, 4.2377, -1.7675), 'spine_thoracic': (-3.4928, -9.8462, -1.7993),
+        'neck': (-3.5669, -1.8818, -26.6134), 'head': (-3.9423, -0.0306),
+        'right_clavicle': (15.2013, -4.2461), 'right_shoulder': (89.3022, 21.9836, 10.887),
+        'right_elbow': (39.9297, 21.6894), 'right_wrist': (2.9254, -10.8916),
+    })
+    human.KeyJoints(10.4, {
+        'spine_lumbar': (12.7057, 4.561, -3.5443), 'spine_thoracic': (-1.6417, -9.9056, -3.4053),
+        'neck': (-3.0922, -1.611, -21.8321), 'head': (-3.3791, -0.0228),
+        'right_clavicle': (15.5388, -5.165), 'right_shoulder': (89.3439, 20.5894, 14.1793),
+        'right_elbow': (41.8042, 23.8819), 'right_wrist': (4.3827, -8.3184),
+    })
+    human.KeyJoints(10.5, {
+        'spine_lumbar': (7.2607, 1.0474, 0.0011), 'spine_thoracic': (-2.5513, -4.0679, -0.0524),
+        'neck': (-0.3718, -0.6346, -24.7569), 'head': (-0.5027, -0.0014),
+        'right_clavicle': (5.7979, -1.0464), 'right_shoulder': (87.0618, 13.2675, 3.8764),
+        'right_elbow': (35.1638, 14.1661), 'right_wrist': (0.089, -22.5288),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(10.6, {
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'right_clavicle': (2.4958, 0.9639),
+        'right_shoulder': (91.3283, 10.9625, -0.4005), 'right_elbow': (32.5878, 10.1432),
+        'right_wrist': (-1.641, -28.6693),
+    })
+    human.KeyJoints(10.7, {
+        'spine_lumbar': (9.9719, 1.2681, 0.4411), 'spine_thoracic': (-3.6147, -5.0682, 0.3978),
+        'neck': (-0.8867, -0.8741, -26.8973), 'head': (-1.076, -0.0032),
+        'right_clavicle': (7.415, -1.0159), 'right_shoulder': (88.0574, 15.3865, 3.7481),
+        'right_elbow': (35.1208, 14.5335), 'right_wrist': (-0.0246, -21.8948),
+    })
+    human.KeyJoints(10.8, {
+        'spine_lumbar': (14.0598, 2.9735, -1.0313), 'spine_thoracic': (-3.6258, -8.4079, -1.1051),
+        'neck': (-2.5904, -1.5222, -27.0165), 'head': (-2.9023, -0.0169),
+        'right_clavicle': (12.7869, -3.2944), 'right_shoulder': (88.3258, 20.0435, 8.6777),
+        'right_elbow': (38.4637, 19.5424), 'right_wrist': (2.0295, -14.0873),
+    })
+    human.KeyJoints(10.9, {
+        'spine_lumbar': (16.4925, 5.4621, -3.4668), 'spine_thoracic': (-1.3281, -10.0, -3.3272),
+        'neck': (-5.3235, -2.488, -23.7551), 'head': (-5.7758, -0.0669),
+        'right_clavicle': (16.6393, -5.2819), 'right_shoulder': (93.4953, 22.5087, 14.1344),
+        'right_elbow': (41.789, 24.104), 'right_wrist': (4.4722, -8.4012),
+    })
     human.KeyJoints(11.0, {
-        'neck': (35.0, 12.7566, -50.5967), 'head': (15.0, -2.328),
-        'right_elbow': (14.7638, 16.3315),
+        'spine_lumbar': (8.5605, 1.2919, -1.7167), 'spine_thoracic': (-2.5664, -6.72, -1.7258),
+        'neck': (-0.5249, -0.67, -23.1682), 'head': (-0.6562, -0.0021),
+        'right_clavicle': (9.7836, -3.0369), 'right_shoulder': (85.7872, 16.14, 8.5174),
+        'right_elbow': (38.0664, 18.5365), 'right_wrist': (1.9974, -16.0135),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=11.062239, duration=0.2628)
-    human.KeyJoints(11.1, {'neck': (34.2033, 12.7296, -48.8123), 'head': (14.7609, -2.4132)})
-    human.KeyJoints(11.2, {'neck': (27.3716, 12.4985, -33.5096), 'head': (12.7105, -3.144)})
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(11.1, {
+        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
+        'neck': (-0.6376, -0.7652, -26.1568), 'right_clavicle': (2.4958, 0.9639),
+        'right_shoulder': (91.3283, 10.9625, -0.4005), 'right_elbow': (32.5878, 10.1432),
+        'right_wrist': (-1.641, -28.6693),
+    })
+    human.KeyJoints(11.2, {
+        'spine_lumbar': (8.3079, 1.1104, 0.9773), 'spine_thoracic': (-3.0428, -3.4784, 0.9678),
+        'neck': (-0.6799, -0.788, -26.5082), 'head': (-0.8499, -0.0024),
+        'right_clavicle': (5.1068, -0.0626), 'right_shoulder': (89.3609, 13.2615, 1.8424),
+        'right_elbow': (33.85, 12.4844), 'right_wrist': (-0.7774, -25.2435),
+    })
     human.KeyJoints(11.3, {
-        'neck': (21.1382, 12.2875, -19.547), 'head': (10.8397, -3.8108),
-        'right_shoulder': (22.7372, 16.7662, -0.496), 'right_elbow': (14.7638, 16.3315),
-        'right_wrist': (-1.3568, -4.7702),
+        'spine_lumbar': (12.3103, 2.0445, -0.4492), 'spine_thoracic': (-3.5589, -6.9347, -0.5059),
+        'neck': (-1.864, -1.249, -27.0756), 'head': (-2.124, -0.0101),
+        'right_shoulder': (88.0941, 17.9458, 6.6223), 'right_elbow': (37.0439, 17.4389),
+        'right_wrist': (1.201, -17.498),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
     human.KeyJoints(11.4, {
-        'neck': (20.7754, 12.2752, -18.7344), 'head': (10.7308, -3.8496),
-        'right_shoulder': (24.2935, 15.2237, 0.2441), 'right_elbow': (16.1426, 16.4261),
-        'right_wrist': (-1.3219, -4.6664),
+        'spine_lumbar': (16.4824, 4.9201, -2.5854), 'spine_thoracic': (-2.4584, -10.0, -2.4526),
+        'neck': (-4.5978, -2.2486, -25.527), 'head': (-5.0288, -0.0495),
+        'right_clavicle': (15.6523, -4.5124), 'right_shoulder': (91.9173, 22.1367, 12.247),
+        'right_elbow': (40.7011, 22.6901), 'right_wrist': (3.6395, -10.3043),
     })
     human.KeyJoints(11.5, {
-        'right_shoulder': (30.0608, 9.6524, 2.9173), 'right_elbow': (21.191, 16.7701),
-        'right_wrist': (-1.1955, -4.2875),
+        'spine_lumbar': (11.6197, 3.8507, -3.2639), 'spine_thoracic': (-1.8552, -9.4202, -3.1508),
+        'neck': (-2.3027, -1.315, -21.9962), 'head': (-2.5406, -0.0134),
+        'right_clavicle': (14.4924, -4.8336), 'right_shoulder': (88.2965, 19.6473, 13.3127),
+        'right_elbow': (41.2461, 23.0534), 'right_wrist': (4.0092, -9.4519),
     })
     human.KeyJoints(11.6, {
-        'right_shoulder': (37.9734, 2.3805, 6.4064), 'right_elbow': (27.9601, 17.2256),
+        'spine_lumbar': (6.6615, 0.8546, 0.484), 'spine_thoracic': (-2.1339, -3.1158, 0.4471),
+        'neck': (-0.3867, -0.6487, -25.0715), 'head': (-0.5225, -0.0015),
+        'right_clavicle': (4.39, -0.3798), 'right_shoulder': (88.7751, 12.1101, 2.2538),
+        'right_elbow': (33.8028, 12.6186), 'right_wrist': (-0.5008, -25.6609),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=11.63977, duration=0.072)
     human.KeyJoints(11.7, {
-        'right_shoulder': (45.7681, -4.065, 9.499), 'right_elbow': (34.325, 17.6424),
-        'right_wrist': (-0.8845, -3.3112),
+        'spine_lumbar': (6.1101, 0.8138, 1.4228), 'spine_thoracic': (-1.6501, -1.602, 1.4096),
+        'neck': (-0.6148, -0.7533, -25.9869), 'head': (-0.7752, -0.0021),
+        'right_clavicle': (2.3148, 0.7854), 'right_shoulder': (91.8016, 10.5575, -0.3441),
+        'right_elbow': (31.9696, 10.1604), 'right_wrist': (-1.5015, -30.0),
     })
-    human.KeyJoints(11.8, {
-        'right_shoulder': (51.1821, -7.1575, 10.9828), 'right_elbow': (38.1606, 17.8703),
-        'right_wrist': (-0.8144, -3.0372),
-    })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_right
+    human.LookAt((20.0, 135.0, 112.0), start=11.71177, duration=0.2628)
+    human.KeyJoints(11.8, {'neck': (-0.7798, -0.5834, -13.9573), 'head': (-0.8793, -0.0023)})
     human.KeyJoints(11.9, {
-        'right_shoulder': (53.5756, -3.8938, 9.7177), 'right_elbow': (39.1868, 17.9073),
-        'right_wrist': (-1.3785, -2.9805),
+        'spine_lumbar': (6.1101, 0.8138, 1.4228), 'neck': (-1.1202, -0.2321, 10.8701),
+        'head': (-1.0941, -0.0028),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=11.930689, duration=0.072)
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_right
+    human.LookAt((20.0, 135.0, 112.0), start=11.97457, duration=10.521694)
     human.KeyJoints(12.0, {
-        'right_shoulder': (53.9655, -2.6409, 9.2547), 'right_elbow': (39.3106, 17.9158),
-        'right_wrist': (-1.5582, -3.0075),
+        'spine_lumbar': (6.0763, 0.7099, 1.4824), 'spine_thoracic': (-1.6906, -1.6208, 1.4663),
+        'neck': (-1.2277, -0.1031, 19.5746), 'head': (-1.1568, -0.0032),
+        'right_clavicle': (2.3134, 0.8427), 'right_shoulder': (91.7699, 10.4985, -0.3145),
+        'right_elbow': (31.9912, 10.1725), 'right_wrist': (-1.493, -29.98),
     })
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(12.1, {'right_elbow': (39.3106, -27.161)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(12.2, {'right_elbow': (39.3106, -72.0242)})
-    human.KeyJoints(12.3, {'right_elbow': (39.3106, -23.123)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(12.4, {'right_elbow': (39.3106, 17.4135)})
-    human.KeyJoints(12.5, {'right_elbow': (39.3106, -34.9033)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(12.6, {'right_elbow': (39.3106, -70.7305)})
-    human.KeyJoints(12.7, {'right_elbow': (39.3106, -15.4591)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(12.8, {'right_elbow': (39.3106, 15.3277)})
-    human.KeyJoints(12.9, {'right_elbow': (39.3106, -42.4371)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(13.0, {'right_elbow': (39.3106, -67.9045)})
-    human.KeyJoints(13.1, {'right_elbow': (39.3106, -8.1071)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(13.2, {'right_elbow': (39.3106, 11.8131)})
-    human.KeyJoints(13.3, {'right_elbow': (39.3106, -49.5557)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(13.4, {'right_elbow': (39.3106, -63.7528)})
-    human.KeyJoints(13.5, {'right_elbow': (39.3106, -1.2735)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(13.6, {'right_elbow': (39.3106, 7.0761)})
-    human.KeyJoints(13.7, {'right_elbow': (39.3106, -56.0527)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(13.8, {'right_elbow': (39.3106, -58.482)})
-    human.KeyJoints(13.9, {'right_elbow': (39.3106, 4.8353)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(14.0, {'right_elbow': (39.3106, 1.3231)})
-    human.KeyJoints(14.1, {'right_elbow': (39.3106, -61.7216)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > turn: posture on r_hand
-    human.KeyJoints(14.2, {'right_elbow': (39.3106, -52.2986)})
-    human.KeyJoints(14.3, {'right_elbow': (39.3106, 10.0126)})
-    # examples/remove_access_panel.mtask:28:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=14.335489, duration=0.072)
+    human.KeyJoints(12.1, {
+        'spine_lumbar': (5.4043, -1.3526, 2.6668), 'spine_thoracic': (-2.4953, -1.993, 2.5924),
+        'neck': (-0.9151, -0.1098, 14.7543), 'head': (-0.8526, -0.0049),
+        'right_clavicle': (2.2805, 1.9803), 'right_shoulder': (91.1053, 9.3261, 0.2736),
+        'right_elbow': (32.4203, 10.4136), 'right_wrist': (-1.3238, -29.5825),
+    })
+    human.KeyJoints(12.2, {
+        'spine_lumbar': (4.2094, -5.0202, 4.7729), 'spine_thoracic': (-3.9262, -2.6549, 4.5949),
+        'neck': (-0.1688, -0.1934, 5.9526), 'head': (-0.1131, -0.0039),
+        'right_clavicle': (2.2046, 4.0033), 'right_shoulder': (89.7937, 7.2412, 1.3193),
+    })
+    human.KeyJoints(12.3, {
+        'spine_lumbar': (2.9391, -8.919, 7.0117), 'spine_thoracic': (-5.4473, -3.3586, 6.7237),
+        'neck': (0.9091, -0.3806, -3.4721), 'head': (0.9764, -0.0037),
+        'right_clavicle': (2.0869, 6.1538), 'right_shoulder': (88.12, 5.025, 2.4309),
+        'right_elbow': (33.9943, 11.2978), 'right_wrist': (-0.7032, -28.1241),
+    })
+    human.KeyJoints(12.4, {
+        'spine_lumbar': (2.0411, -11.6752, 8.5944), 'spine_thoracic': (-6.5225, -3.8561, 8.2286),
+        'neck': (1.783, -0.572, -9.74), 'head': (1.8836, 0.0003), 'right_clavicle': (1.928, 7.6741),
+        'right_shoulder': (86.369, 3.4582, 3.2168), 'right_elbow': (34.5677, 11.6199),
+        'right_wrist': (-0.4772, -27.5929),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
+    human.KeyJoints(12.5, {
+        'spine_lumbar': (3.5164, -12.2355, 8.7118), 'spine_thoracic': (-5.9541, -3.8495, 8.3713),
+        'neck': (0.7919, -0.2058, -10.7586), 'head': (0.8326, 0.0008),
+        'right_clavicle': (1.6828, 7.7777), 'right_shoulder': (84.9321, 3.8166, 3.0677),
+        'right_elbow': (34.0157, 11.6128), 'right_wrist': (-0.5335, -27.9062),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=12.58022, duration=0.072)
+    human.KeyJoints(12.6, {
+        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
+        'neck': (0.1555, 0.0862, -14.731), 'head': (0.1476, 0.0049),
+        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (89.4645, 7.2709, 1.1479),
+        'right_elbow': (32.9279, 11.0536), 'right_wrist': (-1.3607, -29.9672),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(12.7, {
+        'spine_lumbar': (2.7157, -16.8758, 8.7848), 'spine_thoracic': (-8.732, -5.7567, 8.5134),
+        'neck': (2.5677, -0.6857, -16.6779), 'head': (2.709, -0.0186),
+        'right_clavicle': (2.7284, 7.4167), 'right_shoulder': (88.8794, 6.8446, -3.687),
+        'right_elbow': (23.1099, 7.5218), 'right_wrist': (-3.067, -29.9987),
+    })
+    human.KeyJoints(12.8, {
+        'spine_lumbar': (2.7574, -19.9024, 6.4716), 'spine_thoracic': (-9.5736, -9.997, 6.6813),
+        'neck': (3.4083, -0.9411, -17.9865), 'head': (3.6039, -0.0269),
+        'right_clavicle': (7.55, 5.2313), 'right_shoulder': (85.6248, 9.9001, 0.6075),
+        'right_elbow': (22.8066, 11.9454), 'right_wrist': (-1.1333, -29.1139),
+    })
+    human.KeyJoints(12.9, {
+        'spine_lumbar': (4.068, -20.0, 3.9023), 'spine_thoracic': (-8.8539, -10.0, 5.3692),
+        'neck': (2.2513, -0.6074, -15.3247), 'head': (2.3733, -0.0157),
+        'right_clavicle': (15.0157, 3.9414), 'right_shoulder': (87.1578, 12.3437, 7.7464),
+        'right_elbow': (22.1112, 19.0695), 'right_wrist': (2.6938, -25.5643),
+    })
+    human.KeyJoints(13.0, {
+        'spine_lumbar': (3.9841, -18.52, 3.0257), 'spine_thoracic': (-9.9031, -10.0, 5.3788),
+        'neck': (2.609, -0.7876, -12.5174), 'head': (2.7554, -0.0124),
+        'right_clavicle': (22.3152, 3.6991), 'right_shoulder': (87.0525, 14.3351, 13.3775),
+        'right_elbow': (20.7649, 24.4233), 'right_wrist': (5.6717, -20.9605),
+    })
+    human.KeyJoints(13.1, {
+        'spine_lumbar': (-0.9986, -19.9329, 4.4059), 'spine_thoracic': (-7.9711, -10.0, 5.4792),
+        'neck': (4.0868, -1.2645, -13.2574), 'head': (4.3227, -0.0281),
+        'right_clavicle': (11.3246, 4.5739), 'right_shoulder': (84.9566, 8.0725, 5.9039),
+        'right_elbow': (21.9729, 16.364), 'right_wrist': (1.7565, -27.2763),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(13.2, {
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+    })
+    human.KeyJoints(13.3, {
+        'spine_lumbar': (2.4217, -18.7761, 7.2712), 'spine_thoracic': (-8.7559, -8.2029, 7.3192),
+        'neck': (2.9389, -0.8007, -17.1568), 'head': (3.104, -0.0223),
+        'right_clavicle': (5.1535, 6.1634), 'right_shoulder': (87.643, 8.2188, -1.4192),
+        'right_elbow': (22.457, 9.887), 'right_wrist': (-1.961, -29.997),
+    })
+    human.KeyJoints(13.4, {
+        'spine_lumbar': (3.3346, -20.0, 4.7848), 'spine_thoracic': (-8.6473, -10.0, 5.7792),
+        'neck': (2.5523, -0.6917, -16.1109), 'right_clavicle': (11.7009, 4.5197),
+        'right_shoulder': (87.1126, 10.968, 4.7963), 'right_elbow': (22.0071, 16.114),
+        'right_wrist': (1.2307, -27.3945),
+    })
+    human.KeyJoints(13.5, {
+        'spine_lumbar': (4.7922, -18.7331, 3.3801), 'spine_thoracic': (-9.8248, -10.0, 5.5475),
+        'neck': (2.2152, -0.6273, -13.7077), 'head': (2.3364, -0.0135),
+        'right_clavicle': (20.7215, 3.8617), 'right_shoulder': (87.5015, 14.2659, 11.6343),
+        'right_elbow': (20.4946, 23.0176), 'right_wrist': (4.8524, -22.1328),
+    })
+    human.KeyJoints(13.6, {
+        'spine_lumbar': (0.132, -19.2282, 3.2361), 'spine_thoracic': (-8.8441, -10.0, 5.2686),
+        'neck': (3.8587, -1.2322, -11.9607), 'head': (4.0809, -0.015),
+        'right_clavicle': (18.7824, 3.9105), 'right_shoulder': (85.32, 10.7589, 12.007),
+        'right_elbow': (21.3895, 22.4168), 'right_wrist': (4.9195, -22.4954),
+    })
+    human.KeyJoints(13.7, {
+        'spine_lumbar': (0.8772, -18.4773, 7.2099), 'spine_thoracic': (-8.36, -7.8015, 7.1951),
+        'neck': (3.4247, -0.9883, -15.965), 'head': (3.6206, -0.0273),
+        'right_clavicle': (4.7829, 6.3699), 'right_shoulder': (87.0455, 7.0368, -1.2549),
+        'right_elbow': (22.4375, 9.7242), 'right_wrist': (-1.8373, -29.506),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(13.8, {
+        'spine_lumbar': (2.4486, -17.4001, 8.4941), 'spine_thoracic': (-8.7334, -6.2037, 8.2835),
+        'neck': (2.7631, -0.7475, -16.8764), 'head': (2.9168, -0.0205),
+        'right_clavicle': (2.9377, 7.2068), 'right_shoulder': (88.7009, 6.9418, -3.7017),
+        'right_elbow': (22.4824, 7.5723), 'right_wrist': (-3.042, -30.0),
+    })
+    human.KeyJoints(13.9, {
+        'spine_lumbar': (2.8528, -19.9911, 5.7309), 'spine_thoracic': (-8.6474, -9.9998, 6.2248),
+        'neck': (2.8626, -0.7745, -17.1654), 'head': (3.0227, -0.0215),
+        'right_clavicle': (8.3674, 5.0315), 'right_shoulder': (86.9682, 9.8849, 1.7769),
+        'right_elbow': (22.3484, 13.107), 'right_wrist': (-0.3514, -28.7467),
+    })
+    human.KeyJoints(14.0, {
+        'spine_lumbar': (4.2463, -19.9336, 3.7452), 'spine_thoracic': (-8.9859, -10.0, 5.3311),
+        'neck': (2.2114, -0.5978, -15.0061), 'head': (2.3309, -0.0153),
+        'right_clavicle': (16.28, 3.8658), 'right_shoulder': (87.2095, 12.82, 8.7069),
+        'right_elbow': (22.0261, 20.0423), 'right_wrist': (3.204, -24.7909),
+    })
+    human.KeyJoints(14.1, {
+        'spine_lumbar': (2.516, -18.6589, 2.9982), 'spine_thoracic': (-9.6649, -10.0, 5.2883),
+        'neck': (3.0846, -0.9633, -12.0854), 'head': (3.2603, -0.0122),
+        'right_clavicle': (21.9396, 3.7158), 'right_shoulder': (86.3144, 13.4587, 13.4785),
+        'right_elbow': (20.8975, 24.3153), 'right_wrist': (5.699, -20.9954),
+    })
+    human.KeyJoints(14.2, {
+        'spine_lumbar': (-1.0848, -19.9996, 4.8507), 'spine_thoracic': (-7.8904, -9.9995, 5.581),
+        'neck': (4.1142, -1.2664, -13.9074), 'head': (4.3518, -0.0305),
+        'right_clavicle': (9.4522, 4.8372), 'right_shoulder': (84.9308, 7.6477, 4.1381),
+        'right_elbow': (22.1095, 14.6668), 'right_wrist': (0.8543, -28.1626),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(14.3, {
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+    })
     human.KeyJoints(14.4, {
-        'neck': (20.7754, 12.2752, -18.7344), 'head': (10.7308, -3.8496),
-        'right_elbow': (39.3106, 17.9158),
+        'spine_lumbar': (2.5498, -19.1795, 7.2156), 'spine_thoracic': (-9.6782, -8.8376, 7.2478),
+        'neck': (3.422, -0.9508, -17.7501), 'head': (3.6185, -0.027),
+        'right_clavicle': (6.0594, 5.8657), 'right_shoulder': (86.0674, 9.0953, -0.8352),
+        'right_elbow': (22.9204, 10.4656), 'right_wrist': (-1.8326, -29.9625),
     })
-    # examples/remove_access_panel.mtask:30:5 remove_access_panel > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=14.407489, duration=0.2628)
-    human.KeyJoints(14.5, {'neck': (21.8598, 10.7515, -26.9977), 'head': (9.8326, -3.5159)})
+    human.KeyJoints(14.5, {
+        'spine_lumbar': (3.5345, -20.0, 4.5093), 'spine_thoracic': (-8.723, -10.0, 5.6582),
+        'neck': (2.4764, -0.6718, -15.8327), 'head': (2.6122, -0.0178),
+        'right_clavicle': (12.8333, 4.3507), 'right_shoulder': (87.1098, 11.41, 5.7672),
+        'right_elbow': (21.9702, 17.0875), 'right_wrist': (1.7244, -26.8037),
+    })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (12.1154, -19.1442, 15.0), 'spine_thoracic': (-14.9551, -9.9303, 14.5896),
-        'neck': (23.9148, 7.8642, -42.6566), 'head': (8.1305, -2.8836),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
+        'spine_lumbar': (5.1821, -18.4673, 3.1553), 'spine_thoracic': (-10.0441, -10.0, 5.5165),
+        'neck': (2.096, -0.5961, -13.3836), 'head': (2.2104, -0.0114),
+        'right_clavicle': (22.2706, 3.7167), 'right_shoulder': (87.674, 14.8969, 12.8169),
+        'right_elbow': (20.5588, 24.2557), 'right_wrist': (5.4595, -21.1324),
     })
-    # examples/remove_access_panel.mtask:30:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
-    # examples/remove_access_panel.mtask:30:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
     human.KeyJoints(14.7, {
-        'spine_lumbar': (12.0472, -19.0475, 14.9426),
-        'spine_thoracic': (-14.9554, -9.9156, 14.5166), 'neck': (24.5869, 6.9198, -47.7783),
-        'head': (7.5738, -2.6768), 'right_clavicle': (26.6898, 1.0004),
-        'right_shoulder': (53.9528, -2.6763, 9.2682), 'right_elbow': (39.3348, 17.9123),
-        'right_wrist': (-1.5558, -3.0013), 'left_clavicle': (-0.0412, 0.0128),
-        'left_shoulder': (8.8576, 5.6575, 11.428), 'left_elbow': (34.4554, 17.1868),
-        'left_wrist': (-0.012, 0.0107),
+        'spine_lumbar': (-0.3536, -19.4976, 3.5562), 'spine_thoracic': (-8.5044, -10.0, 5.32),
+        'neck': (3.9382, -1.2503, -12.236), 'head': (4.1651, -0.0185),
+        'right_clavicle': (16.3939, 4.0923), 'right_shoulder': (85.1598, 9.7532, 10.1781),
+        'right_elbow': (21.5929, 20.5646), 'right_wrist': (3.9679, -24.0785),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (10.944, -17.4838, 14.0138), 'spine_thoracic': (-14.9592, -9.6748, 13.3357),
-        'right_clavicle': (26.6973, 0.552), 'right_shoulder': (53.7467, -3.2487, 9.487),
-        'right_elbow': (39.7252, 17.8549), 'left_clavicle': (-0.7111, 0.227),
-        'left_shoulder': (13.116, 4.4915, 10.9177), 'left_elbow': (35.7163, 17.1546),
-        'left_wrist': (-0.2056, 0.184),
+        'spine_lumbar': (1.7479, -17.8018, 7.9973), 'spine_thoracic': (-8.5684, -6.8261, 7.8473),
+        'neck': (3.0998, -0.8692, -16.4192), 'head': (3.2751, -0.0243),
+        'right_clavicle': (3.6096, 6.8926), 'right_shoulder': (87.9839, 6.9129, -2.744),
+        'right_elbow': (22.516, 8.3918), 'right_wrist': (-2.5737, -29.795),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.9, {
-        'spine_lumbar': (8.8449, -14.5082, 12.2464), 'spine_thoracic': (-14.9666, -9.203, 11.0885),
-        'right_clavicle': (26.7115, -0.3014), 'right_shoulder': (53.3546, -4.3378, 9.9034),
-        'right_elbow': (40.468, 17.7453), 'right_wrist': (-1.4364, -2.71),
-        'left_clavicle': (-1.9953, 0.6579), 'left_shoulder': (21.2195, 2.2727, 9.9242),
-        'left_elbow': (38.1157, 17.0925),
+        'spine_lumbar': (2.3545, -18.0297, 7.9598), 'spine_thoracic': (-8.6852, -6.9989, 7.8646),
+        'neck': (2.8416, -0.7712, -17.0108), 'right_clavicle': (3.7605, 6.7848),
+        'right_shoulder': (88.3972, 7.3977, -2.9204), 'right_elbow': (22.2357, 8.3914),
+        'right_wrist': (-2.6433, -30.0),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (6.2079, -10.7703, 10.0262), 'left_shoulder': (31.399, -0.5146, 8.6334),
-        'left_wrist': (-1.0367, 0.928),
+        'spine_lumbar': (2.9863, -20.0, 5.3206), 'spine_thoracic': (-8.5058, -10.0, 6.0126),
+        'neck': (2.6766, -0.7224, -16.6866), 'head': (2.8248, -0.0197),
+        'right_clavicle': (9.3727, 4.8519), 'right_shoulder': (87.1875, 10.0357, 2.8403),
+        'right_elbow': (22.2044, 14.1616), 'right_wrist': (0.2463, -28.3724),
     })
     human.KeyJoints(15.1, {
-        'spine_lumbar': (3.4915, -6.9197, 7.7391), 'spine_thoracic': (-14.9854, -7.9035, 5.3577),
-        'right_clavicle': (26.7477, -2.4776), 'right_shoulder': (52.3545, -7.1153, 10.9654),
-        'right_elbow': (42.3625, 17.4632), 'left_clavicle': (-5.3378, 1.9243),
-        'left_shoulder': (41.8853, -3.3858, 7.2307), 'left_elbow': (44.2348, 16.9274),
+        'spine_lumbar': (4.2949, -19.2373, 3.7249), 'spine_thoracic': (-9.4329, -10.0, 5.5754),
+        'neck': (2.3385, -0.6543, -14.4334), 'head': (2.4664, -0.0163),
+        'right_clavicle': (18.0659, 4.026), 'right_shoulder': (87.2806, 13.2869, 9.6308),
+        'right_elbow': (20.6814, 20.9969), 'right_wrist': (3.7992, -23.7231),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (1.1538, -3.606, 5.7709), 'spine_thoracic': (-14.9936, -7.2443, 2.8553),
-        'right_clavicle': (26.7635, -3.4279), 'right_shoulder': (51.9178, -8.3282, 11.4291),
-        'right_elbow': (43.1898, 17.3377), 'right_wrist': (-1.1173, -2.0104),
-        'left_clavicle': (-6.8619, 2.6368), 'left_shoulder': (50.9093, -5.8567, 5.9021),
-        'left_elbow': (46.9067, 16.8487), 'left_wrist': (-1.9237, 1.7219),
+        'spine_lumbar': (1.3118, -18.8127, 2.9859), 'spine_thoracic': (-9.4139, -10.0, 5.2345),
+        'neck': (3.5648, -1.1388, -11.7333), 'head': (3.7697, -0.0114),
+        'right_clavicle': (21.4532, 3.7383), 'right_shoulder': (85.745, 12.5571, 13.522),
+        'right_elbow': (21.0406, 24.1676), 'right_wrist': (5.7101, -21.0441),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (-0.3467, -1.4789, 4.5075), 'spine_thoracic': (-14.9989, -6.691, 1.249),
-        'right_clavicle': (26.7736, -4.0379), 'right_shoulder': (51.6375, -9.1067, 11.7268),
-        'right_elbow': (43.7208, 17.2538), 'right_wrist': (-1.0327, -1.8739),
-        'left_clavicle': (-7.9315, 3.3205), 'left_shoulder': (56.7019, -7.4427, 4.833),
-        'left_elbow': (48.6219, 16.789), 'left_wrist': (-2.187, 1.9576),
+        'spine_lumbar': (-0.7762, -19.7602, 5.4647), 'spine_thoracic': (-7.9643, -9.6537, 5.8949),
+        'neck': (3.9804, -1.211, -14.6343), 'head': (4.2101, -0.03),
+        'right_clavicle': (7.8765, 5.2257), 'right_shoulder': (85.2635, 7.4138, 2.4435),
+        'right_elbow': (22.2239, 13.0835), 'right_wrist': (0.0023, -28.6614),
     })
-    # examples/remove_access_panel.mtask:30:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
-    # examples/remove_access_panel.mtask:30:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.4, {
-        'spine_lumbar': (2.4441, -1.0137, 4.2763), 'spine_thoracic': (-14.2312, -6.3568, 1.0136),
-        'right_clavicle': (26.7089, -3.8569), 'right_shoulder': (51.7337, -9.0052, 11.6697),
-        'right_elbow': (43.5032, 17.2316), 'right_wrist': (-1.0068, -1.9311),
-        'left_clavicle': (-8.308, 4.0243), 'left_shoulder': (57.7533, -7.4724, 4.2298),
-        'left_elbow': (48.4549, 16.7607),
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (8.8603, -1.3978, 5.2584), 'spine_thoracic': (-15.0, -6.7514, 1.0965),
-        'right_clavicle': (28.3576, -4.3835), 'right_shoulder': (58.5496, -4.7952, 9.4754),
-        'right_elbow': (44.0065, 17.2567), 'right_wrist': (-1.7706, -1.9953),
-        'left_clavicle': (-8.1226, 8.0342), 'left_shoulder': (66.0219, -6.7711, 3.6618),
-        'left_elbow': (48.8319, 16.7556), 'left_wrist': (-2.3698, 1.8329),
+        'spine_lumbar': (2.6561, -19.6177, 6.9695), 'spine_thoracic': (-9.7115, -9.603, 7.0371),
+        'neck': (3.4489, -0.958, -17.965), 'head': (3.6472, -0.0273),
+        'right_clavicle': (6.8076, 5.5314), 'right_shoulder': (85.6522, 9.6718, -0.1955),
+        'right_elbow': (22.9201, 11.1215), 'right_wrist': (-1.5766, -29.6522),
     })
-    # examples/remove_access_panel.mtask:30:5 remove_access_panel > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=15.537924, duration=0.072)
-    # examples/remove_access_panel.mtask:30:5 remove_access_panel > pick > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=15.537924, duration=0.072)
-    human.KeyRoot(15.6, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(15.6, {
-        'spine_lumbar': (11.2255, -1.884, 4.4246), 'spine_thoracic': (-14.9966, -6.8615, -0.1697),
-        'right_clavicle': (28.8809, -4.7383), 'right_shoulder': (60.3036, -4.562, 9.2771),
-        'right_elbow': (44.9612, 17.2684), 'right_wrist': (-1.9101, -1.7872),
-        'left_clavicle': (-7.9557, 10.0587), 'left_shoulder': (70.2174, -4.9632, 2.7126),
-        'left_elbow': (47.8976, 16.7354), 'left_wrist': (-2.5331, 1.4794),
-        'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
-        'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
+        'spine_lumbar': (3.7686, -20.0, 4.232), 'spine_thoracic': (-8.7904, -10.0, 5.5294),
+        'neck': (2.3803, -0.6446, -15.5643), 'head': (2.5102, -0.0169),
+        'right_clavicle': (13.9446, 4.1707), 'right_shoulder': (87.1251, 11.8624, 6.7488),
+        'right_elbow': (22.006, 18.0702), 'right_wrist': (2.2133, -26.204),
     })
-    # examples/remove_access_panel.mtask:31:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
-    human.Walk((139.115, 0.0, 20.189), start=15.609924, duration=1.08)
-    human.KeyRoot(15.7, (-1.823, 72.89, 59.857), (11.5959, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'right_shoulder': (59.7563, -4.4917, 9.2818), 'right_elbow': (44.7701, 17.2664),
-        'right_wrist': (-1.8961, -1.8338), 'left_shoulder': (69.6045, -5.229, 2.8455),
-        'left_elbow': (47.9105, 16.7372), 'right_hip': (5.3123, -0.3528, -11.6949),
-        'right_knee': (11.9032,), 'right_ankle': (5.9957, -1.4195),
-        'left_hip': (14.5992, 8.6897, -21.426), 'left_knee': (35.9665,),
-        'left_ankle': (16.9157, 1.4038),
+        'spine_lumbar': (5.0763, -18.4301, 3.0686), 'spine_thoracic': (-10.0613, -10.0, 5.4676),
+        'neck': (2.1618, -0.6229, -12.9916), 'head': (2.2805, -0.0113),
+        'right_clavicle': (22.5339, 3.6897), 'right_shoulder': (87.6137, 14.9248, 13.2145),
+        'right_elbow': (20.65, 24.4835), 'right_wrist': (5.6255, -20.9414),
     })
-    human.KeyRoot(15.8, (2.2, 72.827, 58.747), (31.9944, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'right_shoulder': (59.6681, -4.4612, 9.2745), 'right_elbow': (45.0539, 17.2694),
-        'right_wrist': (-1.9253, -1.7726), 'left_shoulder': (69.5738, -5.2342, 2.8485),
-        'left_elbow': (48.1105, 16.7389), 'left_wrist': (-2.517, 1.5495),
-        'right_hip': (24.6588, 6.9246, -7.502), 'right_knee': (53.0425,),
-        'right_ankle': (17.1755, 1.5357), 'left_hip': (4.499, -2.268, -3.6102),
-        'left_knee': (7.8572,), 'left_ankle': (3.5095, -2.5404),
+        'spine_lumbar': (-0.7406, -19.7475, 3.9565), 'spine_thoracic': (-8.1964, -10.0, 5.3905),
+        'neck': (4.0172, -1.2587, -12.6413), 'head': (4.2489, -0.0229),
+        'right_clavicle': (13.7939, 4.3173), 'right_shoulder': (85.0365, 8.822, 8.0486),
+        'right_elbow': (21.7926, 18.456), 'right_wrist': (2.8633, -25.7811),
     })
-    human.KeyRoot(15.9, (3.049, 72.683, 63.745), (58.3924, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'right_shoulder': (59.3586, -4.5301, 9.3227), 'right_elbow': (46.2, 17.2808),
-        'right_wrist': (-2.0167, -1.5163), 'left_shoulder': (69.2999, -5.067, 2.7758),
-        'left_elbow': (49.1698, 16.7471), 'left_wrist': (-2.6407, 1.8068),
-        'right_hip': (4.0101, -2.2661, 12.313), 'right_knee': (11.5994,),
-        'right_ankle': (7.2014, -1.3545), 'left_hip': (14.4385, -6.9604, 19.2696),
-        'left_knee': (32.3857,), 'left_ankle': (11.6834, -0.1948),
+        'spine_lumbar': (2.3472, -17.3368, 8.5148), 'spine_thoracic': (-8.7118, -6.1548, 8.2901),
+        'neck': (2.8099, -0.7654, -16.7539), 'head': (2.9666, -0.0211),
+        'right_clavicle': (2.8867, 7.2376), 'right_shoulder': (88.6299, 6.8415, -3.6838),
+        'right_elbow': (22.5636, 7.5558), 'right_wrist': (-3.0374, -29.965),
     })
-    human.KeyRoot(16.0, (-2.097, 72.723, 61.178), (85.4272, 0.0, 0.0))
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.0, {
-        'right_shoulder': (59.5013, -4.6788, 9.3761), 'right_elbow': (46.021, 17.2786),
-        'right_wrist': (-1.9809, -1.549), 'left_shoulder': (69.285, -4.9198, 2.708),
-        'left_elbow': (49.1877, 16.7464), 'left_wrist': (-2.664, 1.8049),
-        'right_hip': (9.7429, 1.8475, -14.5159), 'right_knee': (19.2966,),
-        'right_ankle': (7.229, -0.6692), 'left_hip': (6.7503, 2.0539, -23.1629),
-        'left_knee': (15.455,), 'left_ankle': (9.1602, -0.0177),
+        'spine_lumbar': (2.3706, -18.4027, 7.4932), 'spine_thoracic': (-8.6187, -7.5916, 7.5133),
+        'neck': (2.8472, -0.7726, -17.0336), 'head': (3.0063, -0.0213),
+        'right_clavicle': (4.4016, 6.4708), 'right_shoulder': (88.1936, 7.7181, -2.1431),
+        'right_elbow': (22.2795, 9.1704), 'right_wrist': (-2.2341, -30.0),
     })
-    human.KeyRoot(16.1, (-0.594, 72.449, 58.744), (100.1464, 0.0, 0.0))
     human.KeyJoints(16.1, {
-        'right_shoulder': (59.9292, -4.6504, 9.3375), 'right_elbow': (45.287, 17.2713),
-        'right_wrist': (-1.9229, -1.7119), 'left_shoulder': (69.7205, -4.9418, 2.711),
-        'left_elbow': (48.4268, 16.7399), 'left_wrist': (-2.5881, 1.6137),
-        'right_hip': (26.6574, 1.9284, 5.0716), 'right_knee': (53.1691,),
-        'right_ankle': (20.0, 1.8656), 'left_hip': (10.1132, -0.7177, -6.3879),
-        'left_knee': (20.8017,), 'left_ankle': (9.0097, -1.8234),
+        'spine_lumbar': (3.1584, -20.0, 5.0646), 'spine_thoracic': (-8.568, -10.0, 5.898),
+        'neck': (2.6166, -0.7075, -16.4053), 'right_clavicle': (10.5351, 4.6842),
+        'right_shoulder': (87.1374, 10.5311, 3.8146), 'right_elbow': (22.1528, 15.1297),
+        'right_wrist': (0.7244, -27.9601),
     })
-    human.KeyRoot(16.2, (9.595, 69.395, 60.057), (106.2512, 0.0, 0.0))
     human.KeyJoints(16.2, {
-        'right_shoulder': (59.9835, -4.756, 9.3783), 'right_elbow': (45.4936, 17.2732),
-        'left_shoulder': (69.7036, -4.7934, 2.6427), 'left_elbow': (48.6998, 16.7414),
-        'left_wrist': (-2.635, 1.6749), 'right_hip': (24.4649, -1.3738, -1.5394),
-        'right_knee': (62.1411,), 'right_ankle': (13.9187, -2.0635),
-        'left_hip': (45.0029, 0.1867, 1.1247), 'left_knee': (83.0849,),
-        'left_ankle': (11.4744, 2.2889),
+        'spine_lumbar': (4.4674, -18.9263, 3.6108), 'spine_thoracic': (-9.6637, -10.0, 5.5879),
+        'neck': (2.3166, -0.6521, -14.0352), 'head': (2.4434, -0.0156),
+        'right_clavicle': (19.4663, 3.9949), 'right_shoulder': (87.3766, 13.763, 10.6049),
+        'right_elbow': (20.5019, 21.9838), 'right_wrist': (4.3351, -22.8918),
     })
-    human.KeyRoot(16.3, (32.522, 67.662, 50.694), (106.2512, 0.0, 0.0))
     human.KeyJoints(16.3, {
-        'right_shoulder': (59.927, -4.5892, 9.312), 'right_elbow': (45.5098, 17.2738),
-        'right_wrist': (-1.9519, -1.6653), 'left_shoulder': (69.8171, -4.9589, 2.7172),
-        'right_hip': (8.2, 1.4333, 1.0938), 'right_knee': (72.3149,),
-        'right_ankle': (18.4981, 0.5416), 'left_hip': (31.5863, -0.4813, -0.2941),
-        'left_knee': (37.2526,), 'left_ankle': (5.6833, -0.5637),
+        'spine_lumbar': (0.6923, -18.9829, 3.0328), 'spine_thoracic': (-9.1668, -10.0, 5.2382),
+        'neck': (3.749, -1.1975, -11.7612), 'head': (3.9648, -0.0121),
+        'right_clavicle': (20.6025, 3.7866), 'right_shoulder': (85.513, 11.7374, 13.2292),
+        'right_elbow': (21.1977, 23.7224), 'right_wrist': (5.5567, -21.367),
     })
-    human.KeyRoot(16.4, (71.533, 66.664, 38.915), (106.2512, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'right_shoulder': (60.1064, -4.5644, 9.2904), 'right_elbow': (45.2726, 17.2715),
-        'right_wrist': (-1.9359, -1.7186), 'left_shoulder': (70.0243, -4.9675, 2.7178),
-        'left_elbow': (48.2138, 16.7382), 'left_wrist': (-2.5628, 1.5595),
-        'right_hip': (40.5744, 1.5369, 0.9337), 'right_knee': (41.3659,),
-        'right_ankle': (-4.0074, 0.8659), 'left_hip': (13.7703, -0.681, -0.8659),
-        'left_knee': (70.4682,), 'left_ankle': (18.5494, -1.1009),
+        'spine_lumbar': (-0.0514, -19.1978, 6.3006), 'spine_thoracic': (-8.1378, -8.8418, 6.4824),
+        'neck': (3.7032, -1.0978, -15.3929), 'head': (3.9162, -0.0288),
+        'right_clavicle': (6.275, 5.7702), 'right_shoulder': (86.0446, 7.2083, 0.5754),
+        'right_elbow': (22.3359, 11.3759), 'right_wrist': (-0.9292, -29.1155),
     })
-    human.KeyRoot(16.5, (99.744, 63.423, 34.552), (106.2512, 0.0, 0.0))
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.5, {
-        'right_shoulder': (59.0334, -4.45, 9.3094), 'right_elbow': (47.3048, 17.2922),
-        'right_wrist': (-2.1252, -1.2759), 'left_shoulder': (69.161, -5.0467, 2.7687),
-        'left_elbow': (49.9953, 16.7541), 'left_wrist': (-2.7205, 2.0116),
-        'right_hip': (37.3927, -1.4926, -3.0205), 'right_knee': (81.6381,),
-        'right_ankle': (18.0095, -3.3698), 'left_hip': (68.207, -7.5458, 18.0633),
-        'left_knee': (71.6412,), 'left_ankle': (-4.1402, 10.9289),
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
     })
-    human.KeyRoot(16.6, (126.921, 66.187, 21.112), (101.4239, 0.0, 0.0))
     human.KeyJoints(16.6, {
-        'neck': (24.5869, 6.9198, -47.7783), 'right_shoulder': (58.9503, -4.6213, 9.3864),
-        'right_elbow': (47.7269, 17.296), 'right_wrist': (-2.1385, -1.1749),
-        'left_shoulder': (68.9404, -4.8436, 2.6785), 'left_elbow': (50.5785, 16.758),
-        'left_wrist': (-2.8054, 2.1489), 'right_hip': (19.2495, 1.7281, 5.5637),
-        'right_knee': (87.8573,), 'right_ankle': (20.0, 4.4083),
-        'left_hip': (34.8554, -5.5876, 10.0514), 'left_knee': (44.0481,),
-        'left_ankle': (8.825, 1.2071),
+        'spine_lumbar': (2.7558, -19.9004, 6.4822), 'spine_thoracic': (-9.5827, -9.997, 6.6883),
+        'neck': (3.4129, -0.9426, -17.9929), 'head': (3.6089, -0.0269),
+        'right_clavicle': (7.5369, 5.2352), 'right_shoulder': (85.613, 9.9002, 0.5906),
+        'right_elbow': (22.8115, 11.9285), 'right_wrist': (-1.1437, -29.1205),
     })
-    # examples/remove_access_panel.mtask:32:5 remove_access_panel > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=16.689924, duration=0.2628)
-    human.KeyRoot(16.7, (140.482, 72.713, 20.085), (90.0, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'neck': (24.6023, 6.8598, -47.676), 'head': (7.5847, -2.6562),
-        'right_shoulder': (59.1951, -4.3259, 9.2474), 'right_elbow': (47.6274, 17.2959),
-        'left_shoulder': (69.538, -5.0527, 2.7652), 'left_elbow': (49.9765, 16.7539),
-        'right_hip': (5.7251, -0.0725, -0.0073), 'right_knee': (11.4774,),
-        'right_ankle': (5.7522, -0.0729), 'left_hip': (5.764, 0.0725, 0.0073),
-        'left_knee': (11.5593,), 'left_ankle': (5.7988, 0.0729),
+        'spine_lumbar': (4.0629, -20.0, 3.9077), 'spine_thoracic': (-8.8528, -10.0, 5.3718),
+        'neck': (2.2535, -0.608, -15.3286), 'head': (2.3756, -0.0157),
+        'right_clavicle': (14.998, 3.9452), 'right_shoulder': (87.1571, 12.3356, 7.73),
+        'right_elbow': (22.109, 19.0529), 'right_wrist': (2.6859, -25.5754),
     })
     human.KeyJoints(16.8, {
-        'neck': (26.4178, -0.2311, -35.582), 'head': (8.8795, -0.2281),
-        'right_wrist': (-2.1331, -1.2998), 'right_hip': (5.395, -0.0623, -0.0059),
-        'right_knee': (10.6459,), 'right_ankle': (5.2472, -0.0625),
-        'left_hip': (5.5174, 0.0623, 0.0061), 'left_knee': (10.904,),
-        'left_ankle': (5.3924, 0.0625),
+        'spine_lumbar': (4.0074, -18.5179, 3.0263), 'spine_thoracic': (-9.9066, -10.0, 5.3805),
+        'neck': (2.601, -0.7846, -12.5249), 'head': (2.7469, -0.0124),
+        'right_clavicle': (22.3203, 3.6989), 'right_shoulder': (87.0643, 14.3481, 13.3753),
+        'right_elbow': (20.7629, 24.4247), 'right_wrist': (5.6711, -20.96),
     })
     human.KeyJoints(16.9, {
-        'neck': (31.2459, -19.0879, -3.4203), 'head': (12.3227, 6.2292),
-        'right_shoulder': (59.5309, -4.4297, 9.2699), 'right_elbow': (46.758, 17.2869),
-        'right_wrist': (-2.084, -1.3968), 'left_shoulder': (69.6998, -5.0072, 2.7415),
-        'left_elbow': (49.3483, 16.7482),
+        'spine_lumbar': (-0.9956, -19.9307, 4.3983), 'spine_thoracic': (-7.9738, -10.0, 5.4776),
+        'neck': (4.0859, -1.2644, -13.2464), 'head': (4.3217, -0.028),
+        'right_clavicle': (11.3619, 4.5695), 'right_shoulder': (84.9575, 8.0826, 5.9375),
+        'right_elbow': (21.9702, 16.3965), 'right_wrist': (1.7737, -27.2555),
     })
-    # examples/remove_access_panel.mtask:32:5 remove_access_panel > place > move: TA on l_arm at bench_top
-    # examples/remove_access_panel.mtask:32:5 remove_access_panel > place > move: TA on r_arm at bench_top
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.0, {
-        'neck': (35.0, -33.75, 21.5869), 'head': (15.0, 11.25),
-        'right_shoulder': (58.9283, -4.7365, 9.6431), 'right_elbow': (45.7451, 17.2833),
-        'right_wrist': (-1.8837, -1.5364), 'left_shoulder': (68.7095, -4.9307, 2.7425),
-        'left_elbow': (49.1229, 16.7459), 'left_wrist': (-2.6328, 1.7643),
-        'right_hip': (3.9924, -0.0441, -0.0031), 'right_knee': (7.3887,),
-        'right_ankle': (3.3935, -0.0442), 'left_hip': (4.1041, 0.0441, 0.0032),
-        'left_knee': (7.6243,), 'left_ankle': (3.5213, 0.0442),
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
     })
-    human.KeyRoot(17.1, (140.165, 72.95, 20.054), (90.0, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'right_shoulder': (48.55, -6.0657, 12.4514), 'right_elbow': (51.6064, 17.3978),
-        'right_wrist': (-1.6734, 0.3388), 'left_shoulder': (57.207, -4.6585, 2.9662),
-        'left_elbow': (58.2855, 16.8247), 'left_wrist': (-3.4022, 3.9027),
-        'right_hip': (3.4904, -0.0461, -0.0033), 'right_knee': (6.1987,),
-        'right_ankle': (2.705, -0.0459), 'left_knee': (6.5616,),
+        'spine_lumbar': (2.4201, -18.7694, 7.2723), 'spine_thoracic': (-8.743, -8.1924, 7.3206),
+        'neck': (2.9321, -0.7986, -17.1489), 'head': (3.0967, -0.0222),
+        'right_clavicle': (5.1388, 6.1684), 'right_shoulder': (87.6662, 8.2054, -1.4294),
+        'right_elbow': (22.4497, 9.8769), 'right_wrist': (-1.9634, -29.9972),
     })
     human.KeyJoints(17.2, {
-        'right_shoulder': (31.6612, -8.2659, 17.1608), 'right_elbow': (60.9817, 17.5914),
-        'right_wrist': (-1.2974, 3.3384), 'left_shoulder': (38.117, -4.1347, 3.3241),
-        'left_elbow': (72.9434, 16.9506), 'left_wrist': (-4.7058, 7.347), 'right_knee': (5.5882,),
-        'right_ankle': (2.3097, -0.0346), 'left_hip': (3.2749, 0.0389, 0.0105),
-        'left_knee': (5.6112,), 'left_ankle': (2.3159, 0.0374),
+        'spine_lumbar': (3.3316, -20.0, 4.7894), 'spine_thoracic': (-8.6459, -10.0, 5.7812),
+        'neck': (2.5533, -0.6919, -16.1157), 'right_clavicle': (11.6816, 4.5224),
+        'right_shoulder': (87.1129, 10.9606, 4.7801), 'right_elbow': (22.0094, 16.0977),
+        'right_wrist': (1.2223, -27.4046),
     })
-    human.KeyRoot(17.3, (140.027, 72.984, 20.031), (90.0, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'right_shoulder': (12.6694, -10.8122, 22.7265), 'right_elbow': (71.2095, 17.8232),
-        'right_wrist': (-0.8091, 6.6107), 'left_shoulder': (15.9304, -3.3894, 3.7144),
-        'left_elbow': (88.9381, 17.0879), 'left_wrist': (-6.2716, 11.1514),
-        'right_hip': (3.134, -0.0261, -0.0016), 'right_knee': (5.1992,), 'left_knee': (5.1641,),
-        'left_ankle': (2.0483, 0.0262),
+        'spine_lumbar': (4.7865, -18.7372, 3.3837), 'spine_thoracic': (-9.8215, -10.0, 5.5481),
+        'neck': (2.2169, -0.6278, -13.7133), 'head': (2.3382, -0.0135),
+        'right_clavicle': (20.6974, 3.8638), 'right_shoulder': (87.499, 14.2563, 11.6157),
+        'right_elbow': (20.4943, 22.9984), 'right_wrist': (4.8428, -22.1479),
     })
     human.KeyJoints(17.4, {
-        'right_shoulder': (-4.018, -13.1797, 28.1036), 'right_elbow': (79.6282, 18.0524),
-        'right_wrist': (-0.2618, 9.3042), 'left_shoulder': (-4.8621, -2.4525, 4.0357),
-        'left_elbow': (102.1108, 17.201), 'left_wrist': (-7.8277, 14.3702), 'left_knee': (4.9339,),
+        'spine_lumbar': (0.1408, -19.2238, 3.2316), 'spine_thoracic': (-8.8498, -10.0, 5.2679),
+        'neck': (3.8572, -1.2317, -11.9566), 'head': (4.0793, -0.0149),
+        'right_clavicle': (18.8186, 3.9079), 'right_shoulder': (85.323, 10.7758, 12.0333),
+        'right_elbow': (21.3862, 22.444), 'right_wrist': (4.9332, -22.4718),
     })
     human.KeyJoints(17.5, {
-        'right_shoulder': (-13.9937, -14.8433, 32.2473), 'right_elbow': (83.5761, 18.238),
-        'right_wrist': (0.291, 10.5673), 'left_shoulder': (-19.7697, -1.354, 4.1864),
-        'left_elbow': (108.303, 17.254), 'left_wrist': (-9.1019, 16.0575),
-        'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
-        'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
+        'spine_lumbar': (0.8615, -18.4895, 7.1953), 'spine_thoracic': (-8.3563, -7.8191, 7.1833),
+        'neck': (3.4293, -0.9901, -15.9573), 'head': (3.6255, -0.0273),
+        'right_clavicle': (4.8056, 6.3602), 'right_shoulder': (87.0286, 7.0392, -1.2265),
+        'right_elbow': (22.436, 9.7497), 'right_wrist': (-1.8232, -29.5003),
     })
-    # examples/remove_access_panel.mtask:32:5 remove_access_panel > place > move: TO on l_arm at bench_top
-    # examples/remove_access_panel.mtask:32:5 remove_access_panel > place > move: TO on r_arm at bench_top
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.6, {
-        'right_shoulder': (-16.8954, -15.5726, 34.6592), 'right_elbow': (82.4191, 18.3621),
-        'right_wrist': (0.9162, 10.5267), 'left_shoulder': (-27.9645, 0.5493, 1.8379),
-        'left_elbow': (109.8857, 17.0917), 'left_wrist': (-10.178, 16.7279),
+        'spine_lumbar': (2.4504, -17.3908, 8.5015), 'spine_thoracic': (-8.734, -6.1927, 8.2894),
+        'neck': (2.7617, -0.747, -16.8741), 'head': (2.9153, -0.0205),
+        'right_clavicle': (2.9264, 7.2127), 'right_shoulder': (88.7051, 6.9354, -3.712),
+        'right_elbow': (22.4872, 7.5614), 'right_wrist': (-3.0473, -30.0),
     })
-    # examples/remove_access_panel.mtask:32:5 remove_access_panel > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=17.650983, duration=0.072)
-    # examples/remove_access_panel.mtask:32:5 remove_access_panel > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=17.650983, duration=0.072)
     human.KeyJoints(17.7, {
-        'right_shoulder': (-18.4996, -15.8817, 36.1038), 'right_elbow': (83.3267, 18.4054),
-        'right_wrist': (1.2015, 10.9068), 'left_shoulder': (-31.5143, 0.669, 1.6968),
-        'left_elbow': (113.5502, 17.1436), 'left_wrist': (-10.6816, 17.9166),
+        'spine_lumbar': (2.851, -19.9903, 5.7422), 'spine_thoracic': (-8.6604, -9.9998, 6.2313),
+        'neck': (2.8712, -0.777, -17.18), 'head': (3.0319, -0.0216),
+        'right_clavicle': (8.3525, 5.0346), 'right_shoulder': (86.9487, 9.8851, 1.7567),
+        'right_elbow': (22.3552, 13.087), 'right_wrist': (-0.3646, -28.7528),
     })
-    human.KeyRoot(17.722983, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(17.722983, {
-        'spine_lumbar': (11.2255, -1.884, 4.4246), 'spine_thoracic': (-14.9966, -6.8615, -0.1697),
-        'neck': (35.0, -33.75, 21.5869), 'head': (15.0, 11.25),
-        'right_clavicle': (28.8809, -4.7383), 'right_shoulder': (-18.4996, -15.8817, 36.1038),
-        'right_elbow': (83.3267, 18.4054), 'right_wrist': (1.2015, 10.9068),
-        'left_clavicle': (-7.9557, 10.0587), 'left_shoulder': (-31.5143, 0.669, 1.6968),
-        'left_elbow': (113.5502, 17.1436), 'left_wrist': (-10.6816, 17.9166),
+    human.KeyJoints(17.8, {
+        'spine_lumbar': (4.2452, -19.9407, 3.7457), 'spine_thoracic': (-8.9804, -10.0, 5.3283),
+        'neck': (2.2099, -0.5971, -15.0143), 'head': (2.3294, -0.0153),
+        'right_clavicle': (16.2527, 3.864), 'right_shoulder': (87.2085, 12.8121, 8.6912),
+        'right_elbow': (22.0412, 20.0262), 'right_wrist': (3.1944, -24.8073),
+    })
+    human.KeyJoints(17.9, {
+        'spine_lumbar': (2.5403, -18.6563, 2.9985), 'spine_thoracic': (-9.6692, -10.0, 5.2896),
+        'neck': (3.0755, -0.9599, -12.0931), 'head': (3.2506, -0.0123),
+        'right_clavicle': (21.947, 3.7154), 'right_shoulder': (86.3264, 13.4745, 13.4773),
+        'right_elbow': (20.8951, 24.3174), 'right_wrist': (5.6986, -20.9947),
+    })
+    human.KeyJoints(18.0, {
+        'spine_lumbar': (-1.0851, -19.9999, 4.8432), 'spine_thoracic': (-7.8904, -9.9998, 5.5789),
+        'neck': (4.1143, -1.2665, -13.8968), 'head': (4.352, -0.0305),
+        'right_clavicle': (9.4776, 4.8327), 'right_shoulder': (84.9305, 7.6519, 4.1638),
+        'right_elbow': (22.1076, 14.6912), 'right_wrist': (0.8673, -28.154),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(18.1, {
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+    })
+    human.KeyJoints(18.2, {
+        'spine_lumbar': (2.5477, -19.1728, 7.217), 'spine_thoracic': (-9.6695, -8.8268, 7.2494),
+        'neck': (3.4175, -0.9494, -17.7427), 'head': (3.6136, -0.027),
+        'right_clavicle': (6.045, 5.8708), 'right_shoulder': (86.0852, 9.0829, -0.8454),
+        'right_elbow': (22.9162, 10.4554), 'right_wrist': (-1.8353, -29.9634),
+    })
+    human.KeyJoints(18.3, {
+        'spine_lumbar': (3.5308, -20.0, 4.5139), 'spine_thoracic': (-8.7218, -10.0, 5.6604),
+        'neck': (2.4779, -0.6722, -15.8373), 'head': (2.6138, -0.0179),
+        'right_clavicle': (12.8145, 4.3537), 'right_shoulder': (87.1096, 11.4025, 5.7507),
+        'right_elbow': (21.9698, 17.071), 'right_wrist': (1.7162, -26.8135),
+    })
+    human.KeyJoints(18.4, {
+        'spine_lumbar': (5.177, -18.4707, 3.1584), 'spine_thoracic': (-10.0412, -10.0, 5.5171),
+        'neck': (2.0976, -0.5966, -13.3893), 'head': (2.2121, -0.0114),
+        'right_clavicle': (22.2508, 3.7186), 'right_shoulder': (87.6718, 14.8888, 12.8009),
+        'right_elbow': (20.5572, 24.2399), 'right_wrist': (5.4515, -21.1453),
+    })
+    human.KeyJoints(18.5, {
+        'spine_lumbar': (-0.3461, -19.4931, 3.55), 'spine_thoracic': (-8.51, -10.0, 5.319),
+        'neck': (3.937, -1.2502, -12.2312), 'head': (4.1638, -0.0184),
+        'right_clavicle': (16.437, 4.0888), 'right_shoulder': (85.1622, 9.7698, 10.2123),
+        'right_elbow': (21.5895, 20.5987), 'right_wrist': (3.9857, -24.0499),
+    })
+    human.KeyJoints(18.6, {
+        'spine_lumbar': (1.7348, -17.8119, 7.9858), 'spine_thoracic': (-8.5653, -6.8407, 7.8376),
+        'neck': (3.1056, -0.8713, -16.4121), 'head': (3.2812, -0.0243),
+        'right_clavicle': (3.6261, 6.885), 'right_shoulder': (87.9699, 6.9145, -2.7228),
+        'right_elbow': (22.5149, 8.4107), 'right_wrist': (-2.5632, -29.7911),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(18.7, {
+        'spine_lumbar': (2.3548, -18.0217, 7.9673), 'spine_thoracic': (-8.686, -6.9877, 7.8705),
+        'neck': (2.8412, -0.771, -17.0098), 'head': (2.9999, -0.0213),
+        'right_clavicle': (3.7485, 6.7907), 'right_shoulder': (88.4016, 7.3912, -2.9327),
+        'right_elbow': (22.2365, 8.3788), 'right_wrist': (-2.6495, -30.0),
+    })
+    human.KeyJoints(18.8, {
+        'spine_lumbar': (2.9835, -20.0, 5.3252), 'spine_thoracic': (-8.5049, -10.0, 6.0147),
+        'neck': (2.6778, -0.7227, -16.6917), 'head': (2.8261, -0.0197),
+        'right_clavicle': (9.3536, 4.8547), 'right_shoulder': (87.1884, 10.0285, 2.8237),
+        'right_elbow': (22.2052, 14.1451), 'right_wrist': (0.238, -28.3787),
+    })
+    human.KeyJoints(18.9, {
+        'spine_lumbar': (4.2939, -19.248, 3.7254), 'spine_thoracic': (-9.4261, -10.0, 5.5725),
+        'neck': (2.337, -0.6536, -14.4425), 'head': (2.4648, -0.0163),
+        'right_clavicle': (18.0371, 4.0241), 'right_shoulder': (87.2793, 13.279, 9.615),
+        'right_elbow': (20.698, 20.9807), 'right_wrist': (3.7894, -23.7403),
+    })
+    human.KeyJoints(19.0, {
+        'spine_lumbar': (1.3263, -18.8102, 2.986), 'spine_thoracic': (-9.4179, -10.0, 5.2349),
+        'neck': (3.5592, -1.1368, -11.7361), 'head': (3.7638, -0.0114),
+        'right_clavicle': (21.462, 3.7379), 'right_shoulder': (85.7513, 12.571, 13.5217),
+        'right_elbow': (21.0382, 24.1704), 'right_wrist': (5.7101, -21.0431),
+    })
+    human.KeyJoints(19.1, {
+        'spine_lumbar': (-0.7855, -19.7674, 5.4521), 'spine_thoracic': (-7.9621, -9.6641, 5.8869),
+        'neck': (3.9843, -1.2126, -14.6211), 'head': (4.2142, -0.03),
+        'right_clavicle': (7.9037, 5.2175), 'right_shoulder': (85.2535, 7.4175, 2.4742),
+        'right_elbow': (22.222, 13.1118), 'right_wrist': (0.0176, -28.6533),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(19.2, {
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+    })
+    human.KeyJoints(19.3, {
+        'spine_lumbar': (2.6544, -19.6102, 6.9765), 'spine_thoracic': (-9.7124, -9.5893, 7.0424),
+        'neck': (3.449, -0.9581, -17.9625), 'head': (3.6473, -0.0273),
+        'right_clavicle': (6.796, 5.5373), 'right_shoulder': (85.6564, 9.6634, -0.2067),
+        'right_elbow': (22.9212, 11.1098), 'right_wrist': (-1.5824, -29.6621),
+    })
+    human.KeyJoints(19.4, {
+        'spine_lumbar': (3.7645, -20.0, 4.2367), 'spine_thoracic': (-8.7892, -10.0, 5.5316),
+        'neck': (2.382, -0.6451, -15.5687), 'head': (2.512, -0.0169),
+        'right_clavicle': (13.9259, 4.1738), 'right_shoulder': (87.1248, 11.8547, 6.7323),
+        'right_elbow': (22.0052, 18.0537), 'right_wrist': (2.2051, -26.2144),
+    })
+    human.KeyJoints(19.5, {
+        'spine_lumbar': (5.0871, -18.4293, 3.0695), 'spine_thoracic': (-10.0628, -10.0, 5.4688),
+        'neck': (2.1566, -0.621, -12.9993), 'head': (2.275, -0.0113),
+        'right_clavicle': (22.5358, 3.6897), 'right_shoulder': (87.6194, 14.9305, 13.2113),
+        'right_elbow': (20.6483, 24.484), 'right_wrist': (5.6246, -20.9412),
+    })
+    human.KeyJoints(19.6, {
+        'spine_lumbar': (-0.735, -19.7437, 3.9493), 'spine_thoracic': (-8.201, -10.0, 5.3892),
+        'neck': (4.0159, -1.2586, -12.6324), 'head': (4.2475, -0.0228),
+        'right_clavicle': (13.8373, 4.3133), 'right_shoulder': (85.0382, 8.8365, 8.0851),
+        'right_elbow': (21.7894, 18.4919), 'right_wrist': (2.8822, -25.7534),
+    })
+    human.KeyJoints(19.7, {
+        'spine_lumbar': (2.3406, -17.3419, 8.5092), 'spine_thoracic': (-8.7102, -6.1622, 8.2852),
+        'neck': (2.8133, -0.7666, -16.7501), 'head': (2.9703, -0.0211),
+        'right_clavicle': (2.8942, 7.2338), 'right_shoulder': (88.6228, 6.8422, -3.6738),
+        'right_elbow': (22.5631, 7.5646), 'right_wrist': (-3.0325, -29.9632),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(19.8, {
+        'spine_lumbar': (2.3701, -18.397, 7.5004), 'spine_thoracic': (-8.6198, -7.5818, 7.5187),
+        'neck': (2.8472, -0.7726, -17.0333), 'head': (3.0063, -0.0213),
+        'right_clavicle': (4.3907, 6.476), 'right_shoulder': (88.1972, 7.7125, -2.1567),
+        'right_elbow': (22.278, 9.157), 'right_wrist': (-2.2409, -30.0),
+    })
+    human.KeyJoints(19.9, {
+        'spine_lumbar': (3.1555, -20.0, 5.0693), 'spine_thoracic': (-8.567, -10.0, 5.9),
+        'neck': (2.6177, -0.7078, -16.4103), 'right_clavicle': (10.5161, 4.687),
+        'right_shoulder': (87.1379, 10.5241, 3.7982), 'right_elbow': (22.1542, 15.1132),
+        'right_wrist': (0.716, -27.9681),
+    })
+    human.KeyJoints(20.0, {
+        'spine_lumbar': (4.4624, -18.9295, 3.6145), 'spine_thoracic': (-9.661, -10.0, 5.5885),
+        'neck': (2.3181, -0.6524, -14.0407), 'head': (2.445, -0.0157),
+        'right_clavicle': (19.4456, 3.997), 'right_shoulder': (87.3747, 13.7549, 10.5881),
+        'right_elbow': (20.5023, 21.9669), 'right_wrist': (4.3266, -22.904),
+    })
+    human.KeyJoints(20.1, {
+        'spine_lumbar': (0.702, -18.9794, 3.0307), 'spine_thoracic': (-9.1716, -10.0, 5.2379),
+        'neck': (3.7468, -1.1968, -11.759), 'head': (3.9624, -0.012),
+        'right_clavicle': (20.6252, 3.7852), 'right_shoulder': (85.5164, 11.7525, 13.2421),
+        'right_elbow': (21.1948, 23.7373), 'right_wrist': (5.5635, -21.3545),
+    })
+    human.KeyJoints(20.2, {
+        'spine_lumbar': (-0.0658, -19.209, 6.2856), 'spine_thoracic': (-8.1343, -8.858, 6.4711),
+        'neck': (3.7082, -1.0999, -15.3812), 'head': (3.9215, -0.0288),
+        'right_clavicle': (6.3014, 5.7603), 'right_shoulder': (86.0291, 7.2115, 0.607),
+        'right_elbow': (22.3341, 11.4045), 'right_wrist': (-0.9135, -29.1084),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(20.3, {
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+    })
+    human.KeyJoints(20.4, {
+        'spine_lumbar': (2.7541, -19.8983, 6.4925), 'spine_thoracic': (-9.5913, -9.9969, 6.6952),
+        'neck': (3.4173, -0.944, -17.9989), 'head': (3.6136, -0.027),
+        'right_clavicle': (7.5238, 5.239), 'right_shoulder': (85.6021, 9.9004, 0.5739),
+        'right_elbow': (22.8161, 11.9117), 'right_wrist': (-1.1539, -29.1272),
+    })
+    human.KeyJoints(20.5, {
+        'spine_lumbar': (4.0578, -20.0, 3.9131), 'spine_thoracic': (-8.8517, -10.0, 5.3745),
+        'neck': (2.2557, -0.6087, -15.3325), 'head': (2.3779, -0.0157),
+        'right_clavicle': (14.9803, 3.949), 'right_shoulder': (87.1563, 12.3275, 7.7135),
+        'right_elbow': (22.1067, 19.0364), 'right_wrist': (2.678, -25.5864),
+    })
+    human.KeyJoints(20.6, {
+        'spine_lumbar': (4.0305, -18.5159, 3.0269), 'spine_thoracic': (-9.91, -10.0, 5.3821),
+        'neck': (2.5929, -0.7817, -12.5324), 'head': (2.7383, -0.0124),
+        'right_clavicle': (22.3254, 3.6987), 'right_shoulder': (87.0761, 14.361, 13.3731),
+        'right_elbow': (20.7608, 24.4261), 'right_wrist': (5.6704, -20.9596),
+    })
+    human.KeyJoints(20.7, {
+        'spine_lumbar': (-0.9926, -19.9284, 4.3908), 'spine_thoracic': (-7.9765, -10.0, 5.476),
+        'neck': (4.085, -1.2643, -13.2353), 'head': (4.3208, -0.028),
+        'right_clavicle': (11.3994, 4.5651), 'right_shoulder': (84.9584, 8.0928, 5.9711),
+        'right_elbow': (21.9675, 16.4291), 'right_wrist': (1.791, -27.2344),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(20.8, {
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+    })
+    human.KeyJoints(20.9, {
+        'spine_lumbar': (2.4184, -18.7627, 7.2735), 'spine_thoracic': (-8.7305, -8.1819, 7.322),
+        'neck': (2.9255, -0.7965, -17.1414), 'head': (3.0897, -0.0221),
+        'right_clavicle': (5.1242, 6.1734), 'right_shoulder': (87.6889, 8.1922, -1.4396),
+        'right_elbow': (22.4426, 9.8668), 'right_wrist': (-1.9658, -29.9975),
+    })
+    human.KeyJoints(21.0, {
+        'spine_lumbar': (3.3285, -20.0, 4.794), 'spine_thoracic': (-8.6445, -10.0, 5.7831),
+        'neck': (2.5544, -0.6922, -16.1204), 'right_clavicle': (11.6623, 4.5252),
+        'right_shoulder': (87.1132, 10.9532, 4.7639), 'right_elbow': (22.0117, 16.0814),
+        'right_wrist': (1.2139, -27.4148),
+    })
+    human.KeyJoints(21.1, {
+        'spine_lumbar': (4.7808, -18.7412, 3.3872), 'spine_thoracic': (-9.8182, -10.0, 5.5486),
+        'neck': (2.2186, -0.6282, -13.7188), 'head': (2.34, -0.0136),
+        'right_clavicle': (20.6737, 3.866), 'right_shoulder': (87.4966, 14.2469, 11.5973),
+        'right_elbow': (20.494, 22.9795), 'right_wrist': (4.8334, -22.1628),
+    })
+    human.KeyJoints(21.2, {
+        'spine_lumbar': (0.1497, -19.2194, 3.2272), 'spine_thoracic': (-8.8555, -10.0, 5.2672),
+        'neck': (3.8557, -1.2313, -11.9524), 'head': (4.0777, -0.0149),
+        'right_clavicle': (18.8546, 3.9053), 'right_shoulder': (85.3259, 10.7927, 12.0595),
+        'right_elbow': (21.3828, 22.4711), 'right_wrist': (4.9469, -22.4483),
+    })
+    human.KeyJoints(21.3, {
+        'spine_lumbar': (0.8458, -18.5016, 7.1806), 'spine_thoracic': (-8.3525, -7.8366, 7.1714),
+        'neck': (3.4339, -0.9918, -15.9495), 'head': (3.6304, -0.0273),
+        'right_clavicle': (4.8284, 6.3505), 'right_shoulder': (87.0117, 7.0417, -1.1981),
+        'right_elbow': (22.4345, 9.7752), 'right_wrist': (-1.8091, -29.4945),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(21.4, {
+        'spine_lumbar': (2.4522, -17.3818, 8.5088), 'spine_thoracic': (-8.7346, -6.1818, 8.2951),
+        'neck': (2.7602, -0.7466, -16.8718), 'head': (2.9138, -0.0205),
+        'right_clavicle': (2.9153, 7.2185), 'right_shoulder': (88.7091, 6.9293, -3.722),
+        'right_elbow': (22.492, 7.5508), 'right_wrist': (-3.0525, -30.0),
+    })
+    human.KeyJoints(21.5, {
+        'spine_lumbar': (2.8493, -19.9895, 5.7537), 'spine_thoracic': (-8.6738, -9.9997, 6.2379),
+        'neck': (2.88, -0.7797, -17.1948), 'head': (3.0413, -0.0217),
+        'right_clavicle': (8.3378, 5.0377), 'right_shoulder': (86.9287, 9.8853, 1.7364),
+        'right_elbow': (22.3622, 13.067), 'right_wrist': (-0.3779, -28.7588),
+    })
+    human.KeyJoints(21.6, {
+        'spine_lumbar': (4.2441, -19.9474, 3.7462), 'spine_thoracic': (-8.9751, -10.0, 5.3257),
+        'neck': (2.2086, -0.5965, -15.0223), 'head': (2.3279, -0.0153),
+        'right_clavicle': (16.2256, 3.8623), 'right_shoulder': (87.2075, 12.8042, 8.6755),
+        'right_elbow': (22.0556, 20.0101), 'right_wrist': (3.1849, -24.8235),
+    })
+    human.KeyJoints(21.7, {
+        'spine_lumbar': (2.5648, -18.6538, 2.9989), 'spine_thoracic': (-9.6735, -10.0, 5.2909),
+        'neck': (3.0664, -0.9565, -12.1008), 'head': (3.2409, -0.0123),
+        'right_clavicle': (21.9544, 3.7151), 'right_shoulder': (86.3385, 13.4902, 13.4761),
+        'right_elbow': (20.8928, 24.3196), 'right_wrist': (5.6983, -20.994),
+    })
+    human.KeyJoints(21.8, {
+        'spine_lumbar': (-1.0853, -20.0, 4.8358), 'spine_thoracic': (-7.8903, -10.0, 5.577),
+        'neck': (4.1144, -1.2665, -13.8862), 'head': (4.352, -0.0305),
+        'right_clavicle': (9.503, 4.8282), 'right_shoulder': (84.9303, 7.656, 4.1893),
+        'right_elbow': (22.1057, 14.7155), 'right_wrist': (0.8803, -28.1453),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(21.9, {
+        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
+        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
+        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
+        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+    })
+    human.KeyJoints(22.0, {
+        'spine_lumbar': (2.5455, -19.166, 7.2184), 'spine_thoracic': (-9.6602, -8.8161, 7.2511),
+        'neck': (3.4126, -0.9479, -17.735), 'head': (3.6085, -0.0269),
+        'right_clavicle': (6.0304, 5.8759), 'right_shoulder': (86.1036, 9.0702, -0.8556),
+        'right_elbow': (22.9118, 10.4451), 'right_wrist': (-1.838, -29.9642),
+    })
+    human.KeyJoints(22.1, {
+        'spine_lumbar': (3.5271, -20.0, 4.5186), 'spine_thoracic': (-8.7207, -10.0, 5.6625),
+        'neck': (2.4794, -0.6726, -15.8419), 'head': (2.6154, -0.0179),
+        'right_clavicle': (12.7956, 4.3566), 'right_shoulder': (87.1095, 11.395, 5.7342),
+        'right_elbow': (21.9695, 17.0545), 'right_wrist': (1.7079, -26.8233),
+    })
+    human.KeyJoints(22.2, {
+        'spine_lumbar': (5.1718, -18.4742, 3.1616), 'spine_thoracic': (-10.0384, -10.0, 5.5176),
+        'neck': (2.0992, -0.597, -13.395), 'head': (2.2138, -0.0114),
+        'right_clavicle': (22.2306, 3.7205), 'right_shoulder': (87.6694, 14.8805, 12.7846),
+        'right_elbow': (20.5557, 24.2237), 'right_wrist': (5.4433, -21.1586),
+    })
+    human.KeyJoints(22.3, {
+        'spine_lumbar': (-0.3386, -19.4886, 3.523), 'spine_thoracic': (-8.5156, -10.0, 5.3162),
+        'neck': (3.9337, -1.2499, -12.2057), 'head': (4.1603, -0.0182),
+        'right_clavicle': (16.4816, 4.0744), 'right_shoulder': (85.1647, 9.7041, 9.7658),
+        'right_elbow': (21.4406, 20.2818), 'right_wrist': (3.847, -24.0262),
+    })
+    human.KeyJoints(22.4, {
+        'spine_lumbar': (5.3719, -15.1876, 8.7413), 'spine_thoracic': (-8.3168, -5.6253, 8.433),
+        'neck': (1.1887, -0.25, -15.1866), 'head': (1.2446, -0.0055),
+        'right_clavicle': (3.6277, 7.3438), 'right_shoulder': (88.4967, 7.3088, 1.5121),
+        'right_elbow': (30.7347, 11.5076), 'right_wrist': (-1.0726, -29.7587),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=22.424264, duration=0.072)
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
+    human.LookAt((-20.0, 105.0, 112.0), start=22.496264, duration=0.2628)
+    human.KeyJoints(22.5, {
+        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
+        'neck': (0.1764, 0.0841, -14.747), 'head': (0.1565, 0.0049),
+        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (89.4645, 7.2709, 1.1479),
+        'right_elbow': (32.9279, 11.0536), 'right_wrist': (-1.3607, -29.9672),
+    })
+    human.KeyJoints(22.6, {'neck': (12.1571, -1.1026, -23.9089), 'head': (5.2632, -0.0176)})
+    human.KeyJoints(22.7, {
+        'neck': (30.5109, -2.9207, -37.9446), 'head': (13.0865, -0.0964),
+        'right_shoulder': (89.4645, 7.2709, 1.1479), 'right_elbow': (32.9279, 11.0536),
+        'right_wrist': (-1.3607, -29.9672),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_left
+    human.LookAt((-20.0, 105.0, 112.0), start=22.759064, duration=10.620907)
+    human.KeyJoints(22.8, {
+        'neck': (35.0, -2.6492, -41.2166), 'head': (15.0, -0.6381),
+        'right_shoulder': (88.3428, 7.5178, 0.9684), 'right_elbow': (33.0321, 10.9712),
+        'right_wrist': (-1.4182, -29.5192),
+    })
+    human.KeyJoints(22.9, {
+        'right_shoulder': (77.8213, 9.9215, -0.7724), 'right_elbow': (34.0116, 10.1721),
+        'right_wrist': (-1.9727, -25.3167),
+    })
+    human.KeyJoints(23.0, {
+        'right_shoulder': (60.2642, 14.2082, -3.8587), 'right_elbow': (35.6534, 8.7561),
+        'right_wrist': (-2.9442, -18.3041),
+    })
+    human.KeyJoints(23.1, {
+        'right_shoulder': (40.661, 19.5417, -7.6644), 'right_elbow': (37.5007, 7.0112),
+        'right_wrist': (-4.121, -10.4743),
+    })
+    human.KeyJoints(23.2, {
+        'right_shoulder': (24.0011, 25.0855, -11.5636), 'right_elbow': (39.097, 5.2254),
+        'right_wrist': (-5.2909, -3.8201),
+    })
+    human.KeyJoints(23.3, {
+        'right_shoulder': (15.2739, 30.0033, -14.9304), 'right_elbow': (39.9856, 3.6867),
+        'right_wrist': (-6.2421, -0.3343),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_left
+    human.KeyJoints(23.4, {
+        'right_shoulder': (15.9794, 33.5909, -17.2733), 'right_elbow': (39.7506, 2.6187),
+        'right_wrist': (-6.7993, -0.89),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=23.463927, duration=0.072)
+    human.KeyJoints(23.5, {
+        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
+        'neck': (35.0, -2.615, -41.2089), 'head': (15.0, -0.6589),
+        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (18.715, 33.7563, -16.6404),
+        'right_elbow': (36.5418, 2.8816), 'right_wrist': (-6.3525, -4.8709),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(23.6, {
+        'spine_lumbar': (11.5585, -1.5537, 10.7722), 'spine_thoracic': (-9.8519, -2.4851, 10.0568),
+        'neck': (32.4124, -4.602, -42.0314), 'head': (12.4191, -1.0957),
+        'right_clavicle': (6.3583, 8.5278), 'right_shoulder': (20.7017, 39.3639, -12.3809),
+        'right_elbow': (44.4025, 7.7262), 'right_wrist': (-6.0299, 11.5317),
+    })
+    human.KeyJoints(23.7, {
+        'spine_lumbar': (13.1565, -3.7671, 9.9952), 'spine_thoracic': (-7.2966, -6.4239, 9.9362),
+        'neck': (32.699, -4.7171, -43.1791), 'head': (12.5864, -1.1087),
+        'right_clavicle': (10.4897, 8.5269), 'right_shoulder': (16.7912, 43.1677, -8.8974),
+        'right_elbow': (44.2565, 12.5923), 'right_wrist': (-5.9605, 13.2744),
+    })
+    human.KeyJoints(23.8, {
+        'spine_lumbar': (14.4723, -7.6626, 9.0161), 'spine_thoracic': (-4.3932, -10.0, 9.7014),
+        'neck': (33.3697, -4.6349, -44.6634), 'head': (13.181, -1.1149),
+        'right_clavicle': (13.6157, 8.8001), 'right_shoulder': (12.275, 46.8814, -6.1354),
+        'right_elbow': (43.5251, 16.8973), 'right_wrist': (-6.1566, 13.5426),
+    })
+    human.KeyJoints(23.9, {
+        'spine_lumbar': (12.8882, -12.7316, 8.0865), 'spine_thoracic': (-1.7653, -10.0, 9.3358),
+        'neck': (33.7438, -4.3419, -44.688), 'head': (13.5992, -1.084),
+        'right_clavicle': (15.0374, 9.0498), 'right_shoulder': (7.9172, 48.1514, -3.7089),
+        'right_elbow': (42.8777, 20.0766), 'right_wrist': (-6.3808, 13.2888),
+    })
+    human.KeyJoints(24.0, {
+        'spine_lumbar': (10.6176, -5.6704, 9.0633), 'spine_thoracic': (-6.0623, -7.1098, 9.1328),
+        'neck': (32.6034, -4.1052, -41.0566), 'head': (12.825, -1.0632),
+        'right_clavicle': (9.9292, 8.1038), 'right_shoulder': (14.5354, 41.9625, -7.111),
+        'right_elbow': (44.8423, 14.1345), 'right_wrist': (-5.8077, 14.5293),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(24.1, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(24.2, {
+        'spine_lumbar': (12.5164, -2.7093, 10.3332), 'spine_thoracic': (-8.3674, -4.7593, 10.0045),
+        'neck': (32.53, -4.7008, -42.6862), 'head': (12.4579, -1.1047),
+        'right_clavicle': (8.7359, 8.5316), 'right_shoulder': (18.4461, 41.6208, -10.4065),
+        'right_elbow': (44.4189, 10.5206), 'right_wrist': (-5.9802, 12.7004),
+    })
+    human.KeyJoints(24.3, {
+        'spine_lumbar': (13.8516, -5.4837, 9.5261), 'spine_thoracic': (-5.8371, -8.6953, 9.836),
+        'neck': (33.0331, -4.6451, -43.8279), 'head': (12.8971, -1.1094),
+        'right_clavicle': (12.7706, 8.5674), 'right_shoulder': (14.5194, 44.9003, -6.7931),
+        'right_elbow': (43.7503, 15.2923), 'right_wrist': (-5.9654, 13.4834),
+    })
+    human.KeyJoints(24.4, {
+        'spine_lumbar': (14.8586, -11.2414, 8.4754), 'spine_thoracic': (-2.5384, -10.0, 9.6504),
+        'neck': (33.8325, -4.7166, -46.1253), 'head': (13.5139, -1.1314),
+        'right_clavicle': (15.8177, 9.1597), 'right_shoulder': (9.2405, 49.2731, -4.7211),
+        'right_elbow': (42.4824, 19.4853), 'right_wrist': (-6.4525, 12.6965),
+    })
+    human.KeyJoints(24.5, {
+        'spine_lumbar': (11.0632, -10.006, 8.372), 'spine_thoracic': (-3.3034, -9.0435, 9.1569),
+        'neck': (33.2305, -4.1047, -42.426), 'head': (13.2565, -1.0201),
+        'right_clavicle': (12.4155, 8.4709), 'right_shoulder': (10.2521, 44.7537, -4.7692),
+        'right_elbow': (44.1696, 17.9967), 'right_wrist': (-6.0332, 14.2212),
+    })
+    human.KeyJoints(24.6, {
+        'spine_lumbar': (11.2212, -1.9355, 10.569), 'spine_thoracic': (-9.5154, -2.9287, 9.8961),
+        'neck': (32.4193, -4.4815, -41.6965), 'head': (12.4823, -1.087),
+        'right_clavicle': (6.4293, 8.4475), 'right_shoulder': (20.1286, 39.2596, -11.9645),
+        'right_elbow': (44.4537, 8.1249), 'right_wrist': (-6.001, 11.8116),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(24.7, {
+        'spine_lumbar': (11.7886, -1.8453, 10.6512), 'spine_thoracic': (-9.4246, -3.1322, 10.0496),
+        'neck': (32.4313, -4.6302, -42.2103), 'head': (12.4152, -1.098),
+        'right_clavicle': (6.9414, 8.5326), 'right_shoulder': (20.0576, 39.9167, -11.9101),
+        'right_elbow': (44.426, 8.4071), 'right_wrist': (-6.017, 11.8298),
+    })
+    human.KeyJoints(24.8, {
+        'spine_lumbar': (13.3475, -4.1624, 9.8796), 'spine_thoracic': (-6.9362, -6.983, 9.911),
+        'neck': (32.7706, -4.7119, -43.3437), 'head': (12.6483, -1.1094),
+        'right_clavicle': (11.0581, 8.5294), 'right_shoulder': (16.2309, 43.6397, -8.3936),
+        'right_elbow': (44.166, 13.2689), 'right_wrist': (-5.9595, 13.391),
+    })
+    human.KeyJoints(24.9, {
+        'spine_lumbar': (14.5339, -8.3713, 8.8869), 'spine_thoracic': (-4.0686, -10.0, 9.6908),
+        'neck': (33.4544, -4.647, -44.9213), 'head': (13.2449, -1.1175),
+        'right_clavicle': (14.4099, 8.8518), 'right_shoulder': (11.6934, 47.2992, -5.4622),
+        'right_elbow': (43.2418, 17.6636), 'right_wrist': (-6.1818, 13.2845),
+    })
+    human.KeyJoints(25.0, {
+        'spine_lumbar': (12.1445, -12.9073, 8.0316), 'spine_thoracic': (-1.6688, -10.0, 9.2354),
+        'neck': (33.6899, -4.1925, -43.9583), 'head': (13.5997, -1.0456),
+        'right_clavicle': (14.5191, 8.9726), 'right_shoulder': (7.7504, 47.4763, -3.5965),
+        'right_elbow': (43.1226, 20.1244), 'right_wrist': (-6.3373, 13.5766),
+    })
+    human.KeyJoints(25.1, {
+        'spine_lumbar': (10.6966, -4.6552, 9.3841), 'spine_thoracic': (-6.9192, -6.217, 9.2327),
+        'neck': (32.523, -4.1726, -41.1342), 'head': (12.7173, -1.0696),
+        'right_clavicle': (9.0573, 8.1488), 'right_shoulder': (15.908, 41.2225, -8.1597),
+        'right_elbow': (44.7914, 12.728), 'right_wrist': (-5.833, 14.1738),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(25.2, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(25.3, {
+        'spine_lumbar': (12.7389, -3.0379, 10.2231), 'spine_thoracic': (-8.0147, -5.3072, 9.9838),
+        'neck': (32.5782, -4.7135, -42.8485), 'head': (12.4907, -1.1063),
+        'right_clavicle': (9.3228, 8.5286), 'right_shoulder': (17.9031, 42.1527, -9.9077),
+        'right_elbow': (44.3837, 11.2121), 'right_wrist': (-5.9714, 12.926),
+    })
+    human.KeyJoints(25.4, {
+        'spine_lumbar': (14.0078, -5.9945, 9.4005), 'spine_thoracic': (-5.4499, -9.2567, 9.8103),
+        'neck': (33.1363, -4.6165, -43.9974), 'right_clavicle': (13.2477, 8.5961),
+        'right_shoulder': (13.9188, 45.3016, -6.3493), 'right_elbow': (43.6024, 15.9248),
+        'right_wrist': (-5.971, 13.4413),
+    })
+    human.KeyJoints(25.5, {
+        'spine_lumbar': (14.6695, -11.8166, 8.3444), 'spine_thoracic': (-2.2528, -10.0, 9.6186),
+        'neck': (33.8307, -4.6632, -45.972), 'head': (13.5665, -1.1282),
+        'right_clavicle': (15.8348, 9.1614), 'right_shoulder': (8.7545, 49.2097, -4.303),
+        'right_elbow': (42.4803, 19.7743), 'right_wrist': (-6.4434, 12.6982),
+    })
+    human.KeyJoints(25.6, {
+        'spine_lumbar': (10.8154, -8.356, 8.5918), 'spine_thoracic': (-4.2783, -8.428, 9.1416),
+        'neck': (33.0007, -4.1038, -41.8231), 'head': (13.1103, -1.0304),
+        'right_clavicle': (11.5633, 8.2796), 'right_shoulder': (11.7529, 43.709, -5.5203),
+        'right_elbow': (44.5239, 16.6894), 'right_wrist': (-5.9159, 14.3933),
+    })
+    human.KeyJoints(25.7, {
+        'spine_lumbar': (11.3324, -1.5099, 10.7848), 'spine_thoracic': (-9.9497, -2.3306, 10.0369),
+        'neck': (32.4081, -4.5571, -41.9177), 'head': (12.4347, -1.0923),
+        'right_clavicle': (5.9908, 8.5108), 'right_shoulder': (20.8397, 38.9543, -12.6526),
+        'right_elbow': (44.3821, 7.3267), 'right_wrist': (-6.0366, 11.3105),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(25.8, {
+        'spine_lumbar': (12.0387, -2.1106, 10.5484), 'spine_thoracic': (-9.0749, -3.6672, 10.038),
+        'neck': (32.4565, -4.6593, -42.3653), 'head': (12.421, -1.1005),
+        'right_clavicle': (7.5397, 8.5344), 'right_shoulder': (19.5273, 40.4969, -11.4112),
+        'right_elbow': (44.439, 9.1122), 'right_wrist': (-6.0033, 12.1487),
+    })
+    human.KeyJoints(25.9, {
+        'spine_lumbar': (13.5277, -4.5811, 9.7625), 'spine_thoracic': (-6.5724, -7.5453, 9.8853),
+        'neck': (32.85, -4.698, -43.508), 'head': (12.7203, -1.1097),
+        'right_clavicle': (11.6186, 8.5366), 'right_shoulder': (15.6646, 44.0894, -7.8876),
+        'right_elbow': (44.0557, 13.9399), 'right_wrist': (-5.9593, 13.4633),
+    })
+    human.KeyJoints(26.0, {
+        'spine_lumbar': (14.6832, -9.3716, 8.7541), 'spine_thoracic': (-3.4907, -10.0, 9.6632),
+        'neck': (33.5803, -4.6934, -45.3934), 'head': (13.3264, -1.1238),
+        'right_clavicle': (14.6931, 8.9387), 'right_shoulder': (10.7777, 48.1355, -5.4461),
+        'right_elbow': (43.0614, 18.1736), 'right_wrist': (-6.344, 13.2468),
+    })
+    human.KeyJoints(26.1, {
+        'spine_lumbar': (11.7506, -12.5705, 8.0681), 'spine_thoracic': (-1.8539, -9.8957, 9.2042),
+        'neck': (33.5843, -4.146, -43.4013), 'head': (13.5479, -1.0323),
+        'right_clavicle': (13.9527, 8.8598), 'right_shoulder': (8.0326, 46.7405, -3.7236),
+        'right_elbow': (43.3987, 19.8865), 'right_wrist': (-6.2702, 13.7886),
+    })
+    human.KeyJoints(26.2, {
+        'spine_lumbar': (10.8543, -3.6241, 9.7906), 'spine_thoracic': (-7.864, -5.0881, 9.4322),
+        'neck': (32.4672, -4.2853, -41.2777), 'head': (12.6247, -1.0747),
+        'right_clavicle': (8.0994, 8.2386), 'right_shoulder': (17.4367, 40.4758, -9.4715),
+        'right_elbow': (44.6899, 11.0926), 'right_wrist': (-5.8835, 13.4634),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(26.3, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(26.4, {
+        'spine_lumbar': (12.9512, -3.3881, 10.111), 'spine_thoracic': (-7.6599, -5.859, 9.961),
+        'neck': (32.634, -4.7172, -43.0119), 'head': (12.5329, -1.1076),
+        'right_clavicle': (9.9044, 8.5272), 'right_shoulder': (17.3547, 42.6657, -9.4076),
+        'right_elbow': (44.3306, 11.8989), 'right_wrist': (-5.965, 13.1157),
+    })
+    human.KeyJoints(26.5, {
+        'spine_lumbar': (14.3039, -6.8335, 9.1958), 'spine_thoracic': (-4.8671, -9.8429, 9.7396),
+        'neck': (33.2614, -4.624, -44.3378), 'right_clavicle': (13.3411, 8.7071),
+        'right_shoulder': (13.0422, 46.1822, -6.325), 'right_elbow': (43.5909, 16.3454),
+        'right_wrist': (-6.0803, 13.5513),
+    })
+    human.KeyJoints(26.6, {
+        'spine_lumbar': (13.8882, -12.3328, 8.2045), 'spine_thoracic': (-1.9808, -10.0, 9.4915),
+        'neck': (33.7863, -4.5115, -45.3665), 'head': (13.5965, -1.1146),
+        'right_clavicle': (15.5179, 9.1179), 'right_shoulder': (8.2882, 48.7867, -3.9659),
+        'right_elbow': (42.6406, 19.9557), 'right_wrist': (-6.4183, 12.9499),
+    })
+    human.KeyJoints(26.7, {
+        'spine_lumbar': (10.6593, -6.8273, 8.8273), 'spine_thoracic': (-5.2375, -7.7689, 9.1325),
+        'neck': (32.7555, -4.1033, -41.2532), 'head': (12.9565, -1.0498),
+        'right_clavicle': (10.7227, 8.1438), 'right_shoulder': (13.2397, 42.7525, -6.3197),
+        'right_elbow': (44.7699, 15.3575), 'right_wrist': (-5.8324, 14.5065),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(26.8, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(26.9, {
+        'spine_lumbar': (12.2801, -2.3965, 10.4429), 'spine_thoracic': (-8.7246, -4.2065, 10.0231),
+        'neck': (32.4888, -4.6826, -42.5231), 'head': (12.4334, -1.1027),
+        'right_clavicle': (8.1347, 8.5341), 'right_shoulder': (18.9933, 41.0621, -10.9129),
+        'right_elbow': (44.4379, 9.8128), 'right_wrist': (-5.991, 12.4374),
+    })
+    human.KeyJoints(27.0, {
+        'spine_lumbar': (13.6973, -5.0241, 9.6439), 'spine_thoracic': (-6.2049, -8.1104, 9.8596),
+        'neck': (32.9373, -4.6775, -43.6716), 'head': (12.8024, -1.1096),
+        'right_clavicle': (12.1703, 8.5496), 'right_shoulder': (15.0921, 44.5163, -7.3789),
+        'right_elbow': (43.9252, 14.6051), 'right_wrist': (-5.962, 13.4989),
+    })
+    human.KeyJoints(27.1, {
+        'spine_lumbar': (14.8073, -10.3874, 8.6191), 'spine_thoracic': (-2.9229, -10.0, 9.6483),
+        'neck': (33.7121, -4.7228, -45.8389), 'head': (13.4165, -1.1292),
+        'right_clavicle': (15.0175, 9.0434), 'right_shoulder': (9.8848, 48.8753, -5.4024),
+        'right_elbow': (42.8508, 18.7049), 'right_wrist': (-6.4555, 13.1752),
+    })
+    human.KeyJoints(27.2, {
+        'spine_lumbar': (11.3861, -11.5215, 8.1878), 'spine_thoracic': (-2.4389, -9.5598, 9.1782),
+        'neck': (33.4183, -4.116, -42.9136), 'head': (13.4087, -1.0234),
+        'right_clavicle': (13.2391, 8.6805), 'right_shoulder': (8.9268, 45.8081, -4.1365),
+        'right_elbow': (43.7674, 19.1307), 'right_wrist': (-6.1613, 14.0095),
+    })
+    human.KeyJoints(27.3, {
+        'spine_lumbar': (11.044, -2.685, 10.2086), 'spine_thoracic': (-8.7687, -3.9282, 9.672),
+        'neck': (32.4382, -4.3809, -41.4387), 'head': (12.5518, -1.0801),
+        'right_clavicle': (7.1839, 8.3466), 'right_shoulder': (18.9089, 39.7985, -10.8123),
+        'right_elbow': (44.5678, 9.4804), 'right_wrist': (-5.9442, 12.6094),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(27.4, {
+        'spine_lumbar': (11.4673, -1.5492, 10.7741), 'spine_thoracic': (-9.8588, -2.4748, 10.0569),
+        'neck': (32.4122, -4.5868, -42.0238), 'head': (12.4224, -1.0945),
+        'right_clavicle': (6.1944, 8.5249), 'right_shoulder': (20.7119, 39.1778, -12.5331),
+        'right_elbow': (44.3888, 7.5244), 'right_wrist': (-6.0354, 11.3944),
+    })
+    human.KeyJoints(27.5, {
+        'spine_lumbar': (13.1532, -3.7606, 9.9971), 'spine_thoracic': (-7.3026, -6.4146, 9.9367),
+        'neck': (32.6979, -4.7171, -43.1763), 'head': (12.5854, -1.1087),
+        'right_clavicle': (10.4801, 8.5269), 'right_shoulder': (16.8006, 43.1595, -8.9059),
+        'right_elbow': (44.2578, 12.5809), 'right_wrist': (-5.9606, 13.2722),
+    })
+    human.KeyJoints(27.6, {
+        'spine_lumbar': (14.4711, -7.651, 9.0185), 'spine_thoracic': (-4.3987, -10.0, 9.7016),
+        'neck': (33.3683, -4.6347, -44.6593), 'head': (13.1799, -1.1148),
+        'right_clavicle': (13.6039, 8.7992), 'right_shoulder': (12.2848, 46.8742, -6.1463),
+        'right_elbow': (43.5287, 16.8848), 'right_wrist': (-6.1561, 13.5465),
+    })
+    human.KeyJoints(27.7, {
+        'spine_lumbar': (12.904, -12.7265, 8.088), 'spine_thoracic': (-1.7681, -10.0, 9.3382),
+        'neck': (33.7446, -4.3451, -44.7008), 'head': (13.5991, -1.0848),
+        'right_clavicle': (15.0461, 9.0511), 'right_shoulder': (7.9219, 48.1628, -3.7121),
+        'right_elbow': (42.8735, 20.0752), 'right_wrist': (-6.3815, 13.2832),
+    })
+    human.KeyJoints(27.8, {
+        'spine_lumbar': (10.6172, -5.6867, 9.059), 'spine_thoracic': (-6.0494, -7.1217, 9.1323),
+        'neck': (32.605, -4.1048, -41.0562), 'head': (12.827, -1.0631),
+        'right_clavicle': (9.9424, 8.1036), 'right_shoulder': (14.5149, 41.9745, -7.0969),
+        'right_elbow': (44.8425, 14.1547), 'right_wrist': (-5.8076, 14.531),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(27.9, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(28.0, {
+        'spine_lumbar': (12.5126, -2.7039, 10.335), 'spine_thoracic': (-8.3734, -4.7501, 10.0048),
+        'neck': (32.5293, -4.7006, -42.6835), 'head': (12.4575, -1.1047),
+        'right_clavicle': (8.726, 8.5317), 'right_shoulder': (18.4552, 41.6117, -10.4149),
+        'right_elbow': (44.4193, 10.5089), 'right_wrist': (-5.9803, 12.6964),
+    })
+    human.KeyJoints(28.1, {
+        'spine_lumbar': (13.8493, -5.4763, 9.528), 'spine_thoracic': (-5.843, -8.6854, 9.8363),
+        'neck': (33.0314, -4.6458, -43.8255), 'head': (12.8954, -1.1094),
+        'right_clavicle': (12.7596, 8.5671), 'right_shoulder': (14.5286, 44.8947, -6.8044),
+        'right_elbow': (43.7539, 15.2806), 'right_wrist': (-5.9653, 13.4843),
+    })
+    human.KeyJoints(28.2, {
+        'spine_lumbar': (14.8581, -11.2296, 8.4776), 'spine_thoracic': (-2.5438, -10.0, 9.6504),
+        'neck': (33.8314, -4.7168, -46.1228), 'head': (13.5126, -1.1314),
+        'right_clavicle': (15.8088, 9.1586), 'right_shoulder': (9.2495, 49.2697, -4.7324),
+        'right_elbow': (42.4863, 19.4755), 'right_wrist': (-6.4526, 12.7023),
+    })
+    human.KeyJoints(28.3, {
+        'spine_lumbar': (11.068, -10.0332, 8.3686), 'spine_thoracic': (-3.2876, -9.0532, 9.1572),
+        'neck': (33.2336, -4.1047, -42.4345), 'head': (13.2587, -1.0201),
+        'right_clavicle': (12.4297, 8.4744), 'right_shoulder': (10.2279, 44.7715, -4.7574),
+        'right_elbow': (44.1631, 18.0176), 'right_wrist': (-6.0353, 14.2179),
+    })
+    human.KeyJoints(28.4, {
+        'spine_lumbar': (11.2186, -1.9456, 10.564), 'spine_thoracic': (-9.5052, -2.9426, 9.8929),
+        'neck': (32.4195, -4.4799, -41.692), 'head': (12.4833, -1.0869),
+        'right_clavicle': (6.4396, 8.446), 'right_shoulder': (20.1119, 39.2669, -11.9485),
+        'right_elbow': (44.4554, 8.1436), 'right_wrist': (-6.0001, 11.823),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(28.5, {
+        'spine_lumbar': (11.7844, -1.841, 10.6529), 'spine_thoracic': (-9.4305, -3.1232, 10.0497),
+        'neck': (32.431, -4.6296, -42.2077), 'head': (12.4152, -1.0979),
+        'right_clavicle': (6.9313, 8.5326), 'right_shoulder': (20.0665, 39.9069, -11.9186),
+        'right_elbow': (44.4257, 8.3951), 'right_wrist': (-6.0172, 11.8242),
+    })
+    human.KeyJoints(28.6, {
+        'spine_lumbar': (13.3443, -4.1555, 9.8816), 'spine_thoracic': (-6.9423, -6.9736, 9.9114),
+        'neck': (32.7693, -4.7121, -43.3409), 'head': (12.6472, -1.1094),
+        'right_clavicle': (11.0486, 8.5293), 'right_shoulder': (16.2404, 43.6319, -8.4021),
+        'right_elbow': (44.1677, 13.2576), 'right_wrist': (-5.9595, 13.3893),
+    })
+    human.KeyJoints(28.7, {
+        'spine_lumbar': (14.5326, -8.3579, 8.889), 'spine_thoracic': (-4.0752, -10.0, 9.691),
+        'neck': (33.4528, -4.6467, -44.916), 'head': (13.2437, -1.1174),
+        'right_clavicle': (14.4003, 8.8508), 'right_shoulder': (11.7048, 47.2906, -5.4671),
+        'right_elbow': (43.246, 17.6524), 'right_wrist': (-6.1811, 13.2869),
+    })
+    human.KeyJoints(28.8, {
+        'spine_lumbar': (12.1526, -12.9067, 8.0318), 'spine_thoracic': (-1.6692, -10.0, 9.2363),
+        'neck': (33.691, -4.1938, -43.9691), 'head': (13.5997, -1.0459),
+        'right_clavicle': (14.5276, 8.9739), 'right_shoulder': (7.7511, 47.4873, -3.597),
+        'right_elbow': (43.1187, 20.1243), 'right_wrist': (-6.3381, 13.5728),
+    })
+    human.KeyJoints(28.9, {
+        'spine_lumbar': (10.6945, -4.6728, 9.3778), 'spine_thoracic': (-6.9037, -6.2346, 9.23),
+        'neck': (32.5241, -4.1709, -41.1321), 'head': (12.719, -1.0695),
+        'right_clavicle': (9.0731, 8.1476), 'right_shoulder': (15.883, 41.2353, -8.1392),
+        'right_elbow': (44.7928, 12.7543), 'right_wrist': (-5.8323, 14.1833),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(29.0, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(29.1, {
+        'spine_lumbar': (12.7353, -3.0322, 10.225), 'spine_thoracic': (-8.0206, -5.2979, 9.9841),
+        'neck': (32.5773, -4.7133, -42.8457), 'head': (12.49, -1.1063),
+        'right_clavicle': (9.313, 8.5287), 'right_shoulder': (17.9123, 42.1439, -9.9161),
+        'right_elbow': (44.3845, 11.2005), 'right_wrist': (-5.9715, 12.9225),
+    })
+    human.KeyJoints(29.2, {
+        'spine_lumbar': (14.0045, -5.9841, 9.4031), 'spine_thoracic': (-5.4575, -9.248, 9.8109),
+        'neck': (33.1344, -4.6165, -43.9937), 'right_clavicle': (13.2448, 8.5954),
+        'right_shoulder': (13.9305, 45.2926, -6.3501), 'right_elbow': (43.6028, 15.916),
+        'right_wrist': (-5.9709, 13.4413),
+    })
+    human.KeyJoints(29.3, {
+        'spine_lumbar': (14.6784, -11.8073, 8.3468), 'spine_thoracic': (-2.2576, -10.0, 9.6201),
+        'neck': (33.8313, -4.6652, -45.9799), 'head': (13.5658, -1.1283),
+        'right_clavicle': (15.8382, 9.1619), 'right_shoulder': (8.7626, 49.2142, -4.3091),
+        'right_elbow': (42.4786, 19.7707), 'right_wrist': (-6.4437, 12.6953),
+    })
+    human.KeyJoints(29.4, {
+        'spine_lumbar': (10.8189, -8.3836, 8.5879), 'spine_thoracic': (-4.2616, -8.4389, 9.1418),
+        'neck': (33.005, -4.1038, -41.8339), 'head': (13.1129, -1.0301),
+        'right_clavicle': (11.5777, 8.2825), 'right_shoulder': (11.7272, 43.7261, -5.507),
+        'right_elbow': (44.5187, 16.7121), 'right_wrist': (-5.9176, 14.3908),
+    })
+    human.KeyJoints(29.5, {
+        'spine_lumbar': (11.3314, -1.5139, 10.7827), 'spine_thoracic': (-9.9456, -2.3364, 10.0355),
+        'neck': (32.4082, -4.5563, -41.9153), 'head': (12.4352, -1.0922),
+        'right_clavicle': (5.995, 8.5102), 'right_shoulder': (20.8329, 38.9571, -12.646),
+        'right_elbow': (44.3828, 7.3344), 'right_wrist': (-6.0362, 11.3154),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(29.6, {
+        'spine_lumbar': (12.0345, -2.106, 10.5501), 'spine_thoracic': (-9.0808, -3.6581, 10.0383),
+        'neck': (32.456, -4.6588, -42.3626), 'head': (12.4209, -1.1004),
+        'right_clavicle': (7.5297, 8.5344), 'right_shoulder': (19.5362, 40.4873, -11.4195),
+        'right_elbow': (44.4388, 9.1004), 'right_wrist': (-6.0035, 12.1436),
+    })
+    human.KeyJoints(29.7, {
+        'spine_lumbar': (13.5247, -4.5739, 9.7645), 'spine_thoracic': (-6.5786, -7.5358, 9.8857),
+        'neck': (32.8486, -4.6982, -43.5052), 'head': (12.719, -1.1097),
+        'right_clavicle': (11.6092, 8.5364), 'right_shoulder': (15.6741, 44.0821, -7.8961),
+        'right_elbow': (44.0577, 13.9287), 'right_wrist': (-5.9593, 13.4626),
+    })
+    human.KeyJoints(29.8, {
+        'spine_lumbar': (14.6801, -9.3528, 8.7563), 'spine_thoracic': (-3.5023, -10.0, 9.6638),
+        'neck': (33.5779, -4.6923, -45.3839), 'head': (13.3249, -1.1236),
+        'right_clavicle': (14.6898, 8.9369), 'right_shoulder': (10.7954, 48.1185, -5.4459),
+        'right_elbow': (43.0641, 18.1662), 'right_wrist': (-6.34, 13.2471),
+    })
+    human.KeyJoints(29.9, {
+        'spine_lumbar': (11.757, -12.5828, 8.0667), 'spine_thoracic': (-1.8471, -9.8995, 9.2046),
+        'neck': (33.5867, -4.1467, -43.41), 'head': (13.5497, -1.0325),
+        'right_clavicle': (13.9636, 8.8624), 'right_shoulder': (8.0223, 46.7547, -3.7189),
+        'right_elbow': (43.3931, 19.8952), 'right_wrist': (-6.2717, 13.7849),
+    })
+    human.KeyJoints(30.0, {
+        'spine_lumbar': (10.8513, -3.641, 9.7835), 'spine_thoracic': (-7.8481, -5.1079, 9.4283),
+        'neck': (32.4679, -4.2834, -41.275), 'head': (12.6261, -1.0746),
+        'right_clavicle': (8.1155, 8.2369), 'right_shoulder': (17.4109, 40.488, -9.4485),
+        'right_elbow': (44.6918, 11.1206), 'right_wrist': (-5.8825, 13.4771),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(30.1, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(30.2, {
+        'spine_lumbar': (12.9477, -3.382, 10.1129), 'spine_thoracic': (-7.6659, -5.8496, 9.9614),
+        'neck': (32.633, -4.7172, -43.0092), 'head': (12.5321, -1.1076),
+        'right_clavicle': (9.8946, 8.5272), 'right_shoulder': (17.364, 42.6572, -9.416),
+        'right_elbow': (44.3316, 11.8874), 'right_wrist': (-5.9651, 13.1127),
+    })
+    human.KeyJoints(30.3, {
+        'spine_lumbar': (14.2988, -6.8177, 9.1995), 'spine_thoracic': (-4.8774, -9.8347, 9.7409),
+        'neck': (33.2593, -4.6238, -44.3313), 'right_clavicle': (13.3399, 8.7047),
+        'right_shoulder': (13.0578, 46.1656, -6.3253), 'right_elbow': (43.5911, 16.3387),
+        'right_wrist': (-6.0779, 13.549),
+    })
+    human.KeyJoints(30.4, {
+        'spine_lumbar': (13.9042, -12.3249, 8.2067), 'spine_thoracic': (-1.9851, -10.0, 9.494),
+        'neck': (33.7871, -4.5141, -45.3771), 'head': (13.5963, -1.1149),
+        'right_clavicle': (15.5248, 9.1188), 'right_shoulder': (8.2955, 48.7959, -3.9711),
+        'right_elbow': (42.6372, 19.9532), 'right_wrist': (-6.4189, 12.9447),
+    })
+    human.KeyJoints(30.5, {
+        'spine_lumbar': (10.661, -6.8505, 8.8233), 'spine_thoracic': (-5.2222, -7.78, 9.1326),
+        'neck': (32.7591, -4.1033, -41.2607), 'head': (12.959, -1.0494),
+        'right_clavicle': (10.7365, 8.1454), 'right_shoulder': (13.2159, 42.7674, -6.3062),
+        'right_elbow': (44.767, 15.3793), 'right_wrist': (-5.8334, 14.5052),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(30.6, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(30.7, {
+        'spine_lumbar': (12.2761, -2.3915, 10.4447), 'spine_thoracic': (-8.7305, -4.1974, 10.0234),
+        'neck': (32.4882, -4.6822, -42.5204), 'head': (12.4331, -1.1027),
+        'right_clavicle': (8.1247, 8.5342), 'right_shoulder': (19.0023, 41.0527, -10.9213),
+        'right_elbow': (44.4381, 9.8011), 'right_wrist': (-5.9912, 12.4327),
+    })
+    human.KeyJoints(30.8, {
+        'spine_lumbar': (13.6945, -5.0164, 9.6459), 'spine_thoracic': (-6.2111, -8.1009, 9.86),
+        'neck': (32.9358, -4.6779, -43.6689), 'head': (12.801, -1.1096),
+        'right_clavicle': (12.161, 8.5493), 'right_shoulder': (15.1017, 44.5093, -7.3875),
+        'right_elbow': (43.9275, 14.5939), 'right_wrist': (-5.9619, 13.4985),
+    })
+    human.KeyJoints(30.9, {
+        'spine_lumbar': (14.8061, -10.372, 8.6215), 'spine_thoracic': (-2.9302, -10.0, 9.6482),
+        'neck': (33.7099, -4.7228, -45.833), 'head': (13.4148, -1.1291),
+        'right_clavicle': (15.0062, 9.0414), 'right_shoulder': (9.897, 48.8668, -5.4084),
+        'right_elbow': (42.8565, 18.6926), 'right_wrist': (-6.4555, 13.1805),
+    })
+    human.KeyJoints(31.0, {
+        'spine_lumbar': (11.3919, -11.5435, 8.1853), 'spine_thoracic': (-2.4264, -9.567, 9.1786),
+        'neck': (33.4214, -4.1164, -42.9216), 'head': (13.4113, -1.0235),
+        'right_clavicle': (13.2521, 8.6838), 'right_shoulder': (8.9078, 45.8249, -4.1276),
+        'right_elbow': (43.7608, 19.1468), 'right_wrist': (-6.1633, 14.0058),
+    })
+    human.KeyJoints(31.1, {
+        'spine_lumbar': (11.0408, -2.6994, 10.2019), 'spine_thoracic': (-8.7545, -3.9469, 9.668),
+        'neck': (32.4386, -4.3794, -41.4353), 'head': (12.553, -1.0799),
+        'right_clavicle': (7.1983, 8.3448), 'right_shoulder': (18.8858, 39.8089, -10.7908),
+        'right_elbow': (44.5698, 9.5059), 'right_wrist': (-5.9432, 12.6238),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(31.2, {
+        'spine_lumbar': (11.4622, -1.5447, 10.776), 'spine_thoracic': (-9.8655, -2.4646, 10.057),
+        'neck': (32.4119, -4.5861, -42.021), 'head': (12.4226, -1.0944),
+        'right_clavicle': (6.1828, 8.5247), 'right_shoulder': (20.7221, 39.1662, -12.5428),
+        'right_elbow': (44.388, 7.5107), 'right_wrist': (-6.0357, 11.3874),
+    })
+    human.KeyJoints(31.3, {
+        'spine_lumbar': (13.1499, -3.7541, 9.9991), 'spine_thoracic': (-7.3087, -6.4052, 9.9371),
+        'neck': (32.6968, -4.7171, -43.1736), 'head': (12.5845, -1.1087),
+        'right_clavicle': (10.4705, 8.5269), 'right_shoulder': (16.8099, 43.1514, -8.9144),
+        'right_elbow': (44.2592, 12.5694), 'right_wrist': (-5.9606, 13.2699),
+    })
+    human.KeyJoints(31.4, {
+        'spine_lumbar': (14.47, -7.6393, 9.0208), 'spine_thoracic': (-4.4043, -10.0, 9.7019),
+        'neck': (33.3668, -4.6345, -44.6551), 'head': (13.1788, -1.1148),
+        'right_clavicle': (13.5923, 8.7983), 'right_shoulder': (12.2946, 46.8669, -6.157),
+        'right_elbow': (43.5323, 16.8724), 'right_wrist': (-6.1557, 13.5502),
+    })
+    human.KeyJoints(31.5, {
+        'spine_lumbar': (12.9199, -12.7214, 8.0896), 'spine_thoracic': (-1.7709, -10.0, 9.3406),
+        'neck': (33.7453, -4.3482, -44.7135), 'head': (13.5991, -1.0855),
+        'right_clavicle': (15.0547, 9.0523), 'right_shoulder': (7.9267, 48.1742, -3.7154),
+        'right_elbow': (42.8693, 20.0738), 'right_wrist': (-6.3822, 13.2776),
+    })
+    human.KeyJoints(31.6, {
+        'spine_lumbar': (10.6169, -5.703, 9.0548), 'spine_thoracic': (-6.0365, -7.1334, 9.1319),
+        'neck': (32.6065, -4.1045, -41.0558), 'head': (12.8289, -1.0629),
+        'right_clavicle': (9.9555, 8.1034), 'right_shoulder': (14.4944, 41.9864, -7.083),
+        'right_elbow': (44.8427, 14.1749), 'right_wrist': (-5.8075, 14.5326),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(31.7, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(31.8, {
+        'spine_lumbar': (12.5088, -2.6986, 10.3368), 'spine_thoracic': (-8.3793, -4.7409, 10.0051),
+        'neck': (32.5286, -4.7003, -42.6808), 'head': (12.457, -1.1046),
+        'right_clavicle': (8.7161, 8.5317), 'right_shoulder': (18.4643, 41.6026, -10.4233),
+        'right_elbow': (44.4196, 10.4972), 'right_wrist': (-5.9805, 12.6923),
+    })
+    human.KeyJoints(31.9, {
+        'spine_lumbar': (13.847, -5.4688, 9.5299), 'spine_thoracic': (-5.8489, -8.6756, 9.8367),
+        'neck': (33.0298, -4.6466, -43.8231), 'head': (12.8937, -1.1094),
+        'right_clavicle': (12.7486, 8.5668), 'right_shoulder': (14.5377, 44.8891, -6.8156),
+        'right_elbow': (43.7575, 15.2689), 'right_wrist': (-5.9652, 13.4853),
+    })
+    human.KeyJoints(32.0, {
+        'spine_lumbar': (14.8577, -11.2177, 8.4799), 'spine_thoracic': (-2.5492, -10.0, 9.6503),
+        'neck': (33.8302, -4.7169, -46.1201), 'head': (13.5113, -1.1314),
+        'right_clavicle': (15.7995, 9.1574), 'right_shoulder': (9.2587, 49.2661, -4.7438),
+        'right_elbow': (42.4904, 19.4655), 'right_wrist': (-6.4527, 12.7084),
+    })
+    human.KeyJoints(32.1, {
+        'spine_lumbar': (11.0729, -10.0604, 8.3651), 'spine_thoracic': (-3.2719, -9.0628, 9.1576),
+        'neck': (33.2366, -4.1047, -42.4428), 'head': (13.2609, -1.02),
+        'right_clavicle': (12.4438, 8.4779), 'right_shoulder': (10.2038, 44.7893, -4.7456),
+        'right_elbow': (44.1566, 18.0384), 'right_wrist': (-6.0375, 14.2146),
+    })
+    human.KeyJoints(32.2, {
+        'spine_lumbar': (11.2161, -1.9558, 10.5589), 'spine_thoracic': (-9.4949, -2.9567, 9.8897),
+        'neck': (32.4198, -4.4782, -41.6874), 'head': (12.4844, -1.0868),
+        'right_clavicle': (6.45, 8.4445), 'right_shoulder': (20.095, 39.2742, -11.9323),
+        'right_elbow': (44.457, 8.1624), 'right_wrist': (-5.9993, 11.8345),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(32.3, {
+        'spine_lumbar': (11.7801, -1.8368, 10.6546), 'spine_thoracic': (-9.4364, -3.1143, 10.0499),
+        'neck': (32.4306, -4.6291, -42.2051), 'head': (12.4152, -1.0979),
+        'right_clavicle': (6.9212, 8.5326), 'right_shoulder': (20.0754, 39.897, -11.927),
+        'right_elbow': (44.4254, 8.3832), 'right_wrist': (-6.0175, 11.8186),
+    })
+    human.KeyJoints(32.4, {
+        'spine_lumbar': (13.3412, -4.1487, 9.8835), 'spine_thoracic': (-6.9484, -6.9641, 9.9119),
+        'neck': (32.7681, -4.7123, -43.3381), 'head': (12.6461, -1.1093),
+        'right_clavicle': (11.0391, 8.5292), 'right_shoulder': (16.2499, 43.6241, -8.4106),
+        'right_elbow': (44.1694, 13.2462), 'right_wrist': (-5.9595, 13.3875),
+    })
+    human.KeyJoints(32.5, {
+        'spine_lumbar': (14.5312, -8.3445, 8.8912), 'spine_thoracic': (-4.0817, -10.0, 9.6912),
+        'neck': (33.4512, -4.6464, -44.9109), 'head': (13.2426, -1.1174),
+        'right_clavicle': (14.3904, 8.8498), 'right_shoulder': (11.716, 47.282, -5.4725),
+        'right_elbow': (43.2504, 17.641), 'right_wrist': (-6.1804, 13.2895),
+    })
+    human.KeyJoints(32.6, {
+        'spine_lumbar': (12.161, -12.9059, 8.0321), 'spine_thoracic': (-1.6696, -10.0, 9.2371),
+        'neck': (33.6922, -4.1952, -43.9799), 'head': (13.5997, -1.0463),
+        'right_clavicle': (14.5361, 8.9752), 'right_shoulder': (7.7518, 47.4983, -3.5975),
+        'right_elbow': (43.1148, 20.1241), 'right_wrist': (-6.3388, 13.569),
+    })
+    human.KeyJoints(32.7, {
+        'spine_lumbar': (10.6924, -4.6903, 9.3715), 'spine_thoracic': (-6.8882, -6.2521, 9.2274),
+        'neck': (32.5253, -4.1692, -41.1301), 'head': (12.7207, -1.0694),
+        'right_clavicle': (9.0888, 8.1464), 'right_shoulder': (15.858, 41.248, -8.1188),
+        'right_elbow': (44.7941, 12.7805), 'right_wrist': (-5.8317, 14.1927),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(32.8, {
+        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
+        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+    })
+    human.KeyJoints(32.9, {
+        'spine_lumbar': (12.7316, -3.0265, 10.2268), 'spine_thoracic': (-8.0266, -5.2887, 9.9845),
+        'neck': (32.5764, -4.7131, -42.843), 'head': (12.4894, -1.1063),
+        'right_clavicle': (9.3031, 8.5287), 'right_shoulder': (17.9215, 42.1351, -9.9245),
+        'right_elbow': (44.3853, 11.1889), 'right_wrist': (-5.9717, 12.9189),
+    })
+    human.KeyJoints(33.0, {
+        'spine_lumbar': (14.0012, -5.9737, 9.4056), 'spine_thoracic': (-5.4651, -9.2392, 9.8115),
+        'neck': (33.1326, -4.6166, -43.99), 'right_clavicle': (13.2416, 8.5948),
+        'right_shoulder': (13.9422, 45.2838, -6.3513), 'right_elbow': (43.6033, 15.9071),
+        'right_wrist': (-5.9707, 13.4413),
+    })
+    human.KeyJoints(33.1, {
+        'spine_lumbar': (14.6871, -11.7981, 8.3491), 'spine_thoracic': (-2.2624, -10.0, 9.6215),
+        'neck': (33.8318, -4.6673, -45.9877), 'head': (13.565, -1.1285),
+        'right_clavicle': (15.8415, 9.1623), 'right_shoulder': (8.7708, 49.2186, -4.3152),
+        'right_elbow': (42.4769, 19.7672), 'right_wrist': (-6.444, 12.6926),
+    })
+    human.KeyJoints(33.2, {
+        'spine_lumbar': (11.1296, -7.6082, 8.6657), 'spine_thoracic': (-4.3954, -8.3342, 9.142),
+        'neck': (32.8862, -4.199, -41.9013), 'head': (12.9969, -1.0537),
+        'right_clavicle': (11.7748, 8.334), 'right_shoulder': (11.8985, 44.1143, -5.3845),
+        'right_elbow': (44.5134, 16.9266), 'right_wrist': (-5.9194, 14.3883),
+    })
+    human.KeyJoints(33.3, {
+        'spine_lumbar': (7.2, -13.6658, 9.5815), 'spine_thoracic': (-8.3925, -4.4892, 9.1575),
+        'neck': (34.9287, -2.6577, -41.1929), 'head': (14.9355, -0.6702),
+        'right_clavicle': (2.8652, 7.9025), 'right_shoulder': (18.6424, 33.9243, -16.4236),
+        'right_elbow': (36.7648, 3.1233), 'right_wrist': (-6.3379, -4.3494),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=33.307971, duration=0.072)
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_right
+    human.LookAt((20.0, 105.0, 112.0), start=33.379971, duration=0.2628)
+    human.KeyJoints(33.4, {
+        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'neck': (34.8209, -2.5885, -40.6102),
+        'head': (14.8771, -0.6497), 'right_clavicle': (2.7151, 7.8999),
+        'right_shoulder': (18.715, 33.7563, -16.6404), 'right_elbow': (36.5418, 2.8816),
+        'right_wrist': (-6.3525, -4.8709),
+    })
+    human.KeyJoints(33.5, {'neck': (30.2875, -1.9175, -25.4546), 'head': (11.7668, -0.417)})
+    human.KeyJoints(33.6, {
+        'neck': (24.94, -1.1259, -7.5777), 'head': (8.098, -0.1425),
+        'right_shoulder': (18.715, 33.7563, -16.6404), 'right_elbow': (36.5418, 2.8816),
+        'right_wrist': (-6.3525, -4.8709),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
+    human.LookAt((20.0, 105.0, 112.0), start=33.642771, duration=10.521694)
+    human.KeyJoints(33.7, {
+        'neck': (24.173, -1.0124, -5.0135), 'head': (7.5718, -0.1032),
+        'right_shoulder': (19.824, 32.3938, -15.4802), 'right_elbow': (36.4064, 3.511),
+        'right_wrist': (-6.1145, -5.4088),
+    })
+    human.KeyJoints(33.8, {
+        'right_shoulder': (25.9724, 25.0075, -9.191), 'right_elbow': (35.6725, 6.9225),
+        'right_wrist': (-4.8241, -8.3278),
+    })
+    human.KeyJoints(33.9, {
+        'right_shoulder': (35.1594, 14.4512, -0.2025), 'right_elbow': (34.6235, 11.7982),
+        'right_wrist': (-2.98, -12.5094),
+    })
+    human.KeyJoints(34.0, {
+        'right_shoulder': (44.6826, 4.4529, 8.3109), 'right_elbow': (33.63, 16.4162),
+        'right_wrist': (-1.2333, -16.4903),
+    })
+    human.KeyJoints(34.1, {
+        'right_shoulder': (51.8395, -1.2591, 13.1745), 'right_elbow': (33.0625, 19.0544),
+        'right_wrist': (-0.2354, -18.807),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
+    human.KeyJoints(34.2, {
+        'right_shoulder': (55.0614, 0.6487, 12.0077), 'right_elbow': (33.8285, 18.6255),
+        'right_wrist': (-0.8196, -18.9912),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=34.248422, duration=0.072)
+    human.KeyJoints(34.3, {
+        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
+        'neck': (24.173, -1.0124, -5.0135), 'head': (7.5718, -0.1032),
+        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (57.1974, 2.088, 10.9299),
+        'right_elbow': (31.9977, 18.3404), 'right_wrist': (-1.0805, -21.1506),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(34.4, {
+        'spine_lumbar': (7.0985, -14.8697, 9.7278), 'spine_thoracic': (-9.4567, -5.5481, 9.4087),
+        'neck': (24.4819, -1.0955, -5.9481), 'head': (8.0711, -0.1162),
+        'right_clavicle': (4.173, 7.9635), 'right_shoulder': (56.3311, 3.6604, 11.8034),
+        'right_elbow': (32.1932, 19.5197), 'right_wrist': (-0.7602, -20.2424),
+    })
+    human.KeyJoints(34.5, {
+        'spine_lumbar': (4.6137, -19.247, 9.0278), 'spine_thoracic': (-10.3648, -9.891, 9.3675),
+        'neck': (25.0806, -1.16, -7.0352), 'head': (9.0711, -0.1445),
+        'right_clavicle': (8.9561, 7.9177), 'right_shoulder': (56.102, 5.4941, 15.0834),
+        'right_elbow': (30.311, 23.1698), 'right_wrist': (0.5741, -23.108),
+    })
+    human.KeyJoints(34.6, {
+        'spine_lumbar': (2.4046, -19.998, 9.3021), 'spine_thoracic': (-11.5292, -10.0, 10.8411),
+        'neck': (25.9779, -1.1741, -7.9324), 'head': (10.3125, -0.1686),
+        'right_clavicle': (16.5638, 9.432), 'right_shoulder': (57.0426, 7.49, 20.6696),
+        'right_elbow': (26.5881, 29.0807), 'right_wrist': (3.1652, -26.4598),
+    })
+    human.KeyJoints(34.7, {
+        'spine_lumbar': (-3.5601, -20.0, 10.2989), 'spine_thoracic': (-12.1866, -10.0, 12.7724),
+        'neck': (27.7936, -1.0108, -7.9107), 'head': (12.17, -0.1692),
+        'right_clavicle': (20.5889, 11.3847), 'right_shoulder': (55.9029, 5.0745, 21.9561),
+        'right_elbow': (19.5344, 31.0387), 'right_wrist': (4.4817, -24.5737),
+    })
+    human.KeyJoints(34.8, {
+        'spine_lumbar': (1.9298, -18.2373, 8.6792), 'spine_thoracic': (-9.0976, -9.2934, 9.0385),
+        'neck': (25.2273, -0.868, -4.9968), 'head': (9.0876, -0.1331),
+        'right_clavicle': (7.2739, 8.0852), 'right_shoulder': (54.9259, 2.5162, 15.2871),
+        'right_elbow': (31.0215, 22.3254), 'right_wrist': (0.6024, -23.2452),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(34.9, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(35.0, {
+        'spine_lumbar': (5.4751, -17.6756, 9.5079), 'spine_thoracic': (-10.4338, -8.1667, 9.4826),
+        'neck': (24.9704, -1.1575, -6.9339), 'head': (8.9162, -0.1413),
+        'right_clavicle': (6.7458, 7.8987), 'right_shoulder': (55.4238, 4.9719, 13.2328),
+        'right_elbow': (31.1089, 21.3269), 'right_wrist': (-0.1567, -21.9018),
+    })
+    human.KeyJoints(35.1, {
+        'spine_lumbar': (3.3676, -19.1783, 9.0843), 'spine_thoracic': (-10.8231, -10.0, 10.0821),
+        'neck': (25.505, -1.121, -7.1246), 'head': (9.6534, -0.155),
+        'right_clavicle': (13.3433, 8.7353), 'right_shoulder': (56.9623, 6.4753, 18.5542),
+        'right_elbow': (28.4346, 26.6962), 'right_wrist': (2.1408, -25.9157),
+    })
+    human.KeyJoints(35.2, {
+        'spine_lumbar': (-0.0498, -20.0, 10.2509), 'spine_thoracic': (-12.7036, -10.0, 12.8264),
+        'neck': (27.2366, -1.2491, -9.2894), 'head': (11.6162, -0.1726),
+        'right_clavicle': (21.3603, 11.2626), 'right_shoulder': (57.5839, 7.6112, 21.5349),
+        'right_elbow': (19.0775, 31.3321), 'right_wrist': (4.3411, -24.1896),
+    })
+    human.KeyJoints(35.3, {
+        'spine_lumbar': (-1.334, -19.5544, 8.9059), 'spine_thoracic': (-9.9237, -10.0, 9.814),
+        'neck': (26.2915, -0.8286, -5.4162), 'head': (10.5474, -0.1595),
+        'right_clavicle': (12.6608, 8.8868), 'right_shoulder': (54.7973, 2.8126, 18.6224),
+        'right_elbow': (27.2364, 26.1575), 'right_wrist': (2.3422, -24.2634),
+    })
+    human.KeyJoints(35.4, {
+        'spine_lumbar': (7.8771, -13.6088, 9.8251), 'spine_thoracic': (-8.8352, -4.5067, 9.3897),
+        'neck': (24.1033, -1.0557, -5.3245), 'head': (7.561, -0.1075),
+        'right_clavicle': (3.1453, 8.0108), 'right_shoulder': (56.9113, 3.0022, 11.4151),
+        'right_elbow': (32.7432, 18.889), 'right_wrist': (-0.9546, -19.4088),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(35.5, {
+        'spine_lumbar': (6.6623, -15.5613, 9.628), 'spine_thoracic': (-9.6646, -6.2046, 9.3911),
+        'neck': (24.6469, -1.1102, -6.2023), 'head': (8.2984, -0.1205),
+        'right_clavicle': (4.8021, 7.933), 'right_shoulder': (56.1723, 3.9421, 12.1637),
+        'right_elbow': (31.8856, 19.9655), 'right_wrist': (-0.609, -20.738),
+    })
+    human.KeyJoints(35.6, {
+        'spine_lumbar': (4.3593, -19.3179, 8.7527), 'spine_thoracic': (-10.0225, -10.0, 9.2292),
+        'neck': (24.9954, -1.126, -6.7109), 'head': (8.9131, -0.1392),
+        'right_clavicle': (9.9457, 7.9425), 'right_shoulder': (56.8877, 5.3891, 16.1636),
+        'right_elbow': (29.8619, 24.1127), 'right_wrist': (1.0019, -23.8572),
+    })
+    human.KeyJoints(35.7, {
+        'spine_lumbar': (1.7019, -19.7272, 9.6823), 'spine_thoracic': (-11.9765, -10.0, 11.608),
+        'neck': (26.3796, -1.2069, -8.4487), 'head': (10.7373, -0.1703),
+        'right_clavicle': (18.2686, 10.107), 'right_shoulder': (57.3319, 7.506, 20.6762),
+        'right_elbow': (23.5534, 29.7515), 'right_wrist': (3.5038, -25.6129),
+    })
+    human.KeyJoints(35.8, {
+        'spine_lumbar': (-3.391, -19.9703, 10.1627), 'spine_thoracic': (-11.8278, -10.0, 12.4649),
+        'neck': (27.6004, -0.9563, -7.3639), 'head': (11.9772, -0.1681),
+        'right_clavicle': (19.6432, 11.1427), 'right_shoulder': (55.5896, 4.4769, 21.6799),
+        'right_elbow': (20.3968, 30.5202), 'right_wrist': (4.2972, -24.5534),
+    })
+    human.KeyJoints(35.9, {
+        'spine_lumbar': (3.6868, -16.9779, 8.9752), 'spine_thoracic': (-8.9984, -8.0571, 9.1292),
+        'neck': (24.967, -0.9645, -5.3826), 'head': (8.6769, -0.1233),
+        'right_clavicle': (5.867, 8.0558), 'right_shoulder': (55.4387, 2.6417, 14.0581),
+        'right_elbow': (31.6491, 21.1848), 'right_wrist': (0.0866, -22.2085),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(36.0, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(36.1, {
+        'spine_lumbar': (5.1415, -18.3647, 9.4928), 'spine_thoracic': (-10.6631, -8.8501, 9.5343),
+        'neck': (25.1056, -1.1792, -7.2309), 'head': (9.1322, -0.1471),
+        'right_clavicle': (7.4072, 7.9005), 'right_shoulder': (55.2324, 5.341, 13.6182),
+        'right_elbow': (30.8922, 21.8), 'right_wrist': (0.006, -22.2026),
+    })
+    human.KeyJoints(36.2, {
+        'spine_lumbar': (3.0439, -19.3381, 9.1713), 'spine_thoracic': (-11.0656, -10.0, 10.3437),
+        'neck': (25.655, -1.1322, -7.3523), 'head': (9.8883, -0.1611),
+        'right_clavicle': (14.4379, 8.976), 'right_shoulder': (56.9919, 6.8063, 19.2798),
+        'right_elbow': (27.8597, 27.507), 'right_wrist': (2.501, -26.2891),
+    })
+    human.KeyJoints(36.3, {
+        'spine_lumbar': (-1.4907, -20.0, 10.2773), 'spine_thoracic': (-12.5839, -10.0, 12.8156),
+        'neck': (27.4855, -1.1405, -8.6781), 'head': (11.8636, -0.1711),
+        'right_clavicle': (21.1971, 11.3293), 'right_shoulder': (57.0541, 6.8472, 21.7454),
+        'right_elbow': (19.1718, 31.2718), 'right_wrist': (4.4166, -24.3356),
+    })
+    human.KeyJoints(36.4, {
+        'spine_lumbar': (-0.4121, -19.3324, 8.5923), 'spine_thoracic': (-9.4364, -10.0, 9.1585),
+        'neck': (25.8722, -0.7992, -4.8265), 'head': (10.0183, -0.1515),
+        'right_clavicle': (10.3666, 8.3052), 'right_shoulder': (54.6649, 2.5171, 17.4362),
+        'right_elbow': (29.2334, 24.6317), 'right_wrist': (1.6442, -24.1063),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(36.5, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(36.6, {
+        'spine_lumbar': (6.249, -16.2554, 9.5568), 'spine_thoracic': (-9.8919, -6.8589, 9.3945),
+        'neck': (24.7459, -1.1224, -6.4098), 'head': (8.4898, -0.1266),
+        'right_clavicle': (5.4392, 7.9135), 'right_shoulder': (55.9798, 4.2501, 12.5246),
+        'right_elbow': (31.6018, 20.4164), 'right_wrist': (-0.4575, -21.1801),
+    })
+    human.KeyJoints(36.7, {
+        'spine_lumbar': (4.0089, -19.2594, 8.8635), 'spine_thoracic': (-10.3069, -10.0, 9.5217),
+        'neck': (25.1802, -1.1206, -6.8301), 'head': (9.1775, -0.1446),
+        'right_clavicle': (11.0764, 8.2141), 'right_shoulder': (56.906, 5.7777, 16.9414),
+        'right_elbow': (29.3687, 24.9686), 'right_wrist': (1.3631, -24.5923),
+    })
+    human.KeyJoints(36.8, {
+        'spine_lumbar': (1.0981, -19.6195, 10.0382), 'spine_thoracic': (-12.407, -10.0, 12.3485),
+        'neck': (26.7505, -1.2469, -9.0092), 'head': (11.1173, -0.1718),
+        'right_clavicle': (19.9576, 10.7553), 'right_shoulder': (57.6101, 7.56, 20.7466),
+        'right_elbow': (20.6651, 30.474), 'right_wrist': (3.858, -24.6647),
+    })
+    human.KeyJoints(36.9, {
+        'spine_lumbar': (-2.9118, -19.8819, 9.8102), 'spine_thoracic': (-11.2501, -10.0, 11.7141),
+        'neck': (27.1575, -0.9065, -6.715), 'head': (11.5254, -0.1668),
+        'right_clavicle': (17.7382, 10.5145), 'right_shoulder': (55.2857, 3.8601, 20.9237),
+        'right_elbow': (22.2937, 29.3702), 'right_wrist': (3.7992, -24.4923),
+    })
+    human.KeyJoints(37.0, {
+        'spine_lumbar': (5.4817, -15.5799, 9.3215), 'spine_thoracic': (-8.9194, -6.6106, 9.2353),
+        'neck': (24.6913, -1.012, -5.4633), 'head': (8.2913, -0.1167),
+        'right_clavicle': (4.6228, 8.0334), 'right_shoulder': (56.0387, 2.7886, 12.8904),
+        'right_elbow': (32.1675, 20.1489), 'right_wrist': (-0.3828, -21.0496),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(37.1, {
+        'spine_lumbar': (7.6943, -13.9529, 9.8132), 'spine_thoracic': (-9.0509, -4.7656, 9.4026),
+        'neck': (24.2118, -1.0705, -5.5294), 'head': (7.7075, -0.11),
+        'right_clavicle': (3.4241, 7.9959), 'right_shoulder': (56.7224, 3.2261, 11.4833),
+        'right_elbow': (32.5838, 19.0438), 'right_wrist': (-0.9129, -19.6228),
+    })
+    human.KeyJoints(37.2, {
+        'spine_lumbar': (4.8514, -18.9838, 9.4361), 'spine_thoracic': (-10.8187, -9.5358, 9.5676),
+        'neck': (25.2025, -1.1953, -7.449), 'head': (9.2904, -0.1515),
+        'right_clavicle': (8.0938, 7.9132), 'right_shoulder': (55.1444, 5.6532, 14.09),
+        'right_elbow': (30.6735, 22.3241), 'right_wrist': (0.2006, -22.5044),
+    })
+    human.KeyJoints(37.3, {
+        'spine_lumbar': (2.7354, -19.6422, 9.2377), 'spine_thoracic': (-11.2923, -10.0, 10.5827),
+        'neck': (25.8049, -1.1495, -7.6147), 'head': (10.0999, -0.1655),
+        'right_clavicle': (15.4804, 9.1957), 'right_shoulder': (57.0165, 7.1701, 20.037),
+        'right_elbow': (27.2825, 28.3006), 'right_wrist': (2.8383, -26.4195),
+    })
+    human.KeyJoints(37.4, {
+        'spine_lumbar': (-2.8916, -20.0, 10.2932), 'spine_thoracic': (-12.4028, -10.0, 12.7974),
+        'neck': (27.6808, -1.0709, -8.2948), 'head': (12.0579, -0.1702),
+        'right_clavicle': (20.9336, 11.3701), 'right_shoulder': (56.4054, 5.8835, 21.8956),
+        'right_elbow': (19.3269, 31.1722), 'right_wrist': (4.4643, -24.4944),
+    })
+    human.KeyJoints(37.5, {
+        'spine_lumbar': (0.5216, -19.054, 8.5179), 'spine_thoracic': (-9.2159, -9.9671, 8.989),
+        'neck': (25.5188, -0.7951, -4.6742), 'head': (9.5361, -0.1432),
+        'right_clavicle': (8.7356, 8.1219), 'right_shoulder': (54.6465, 2.4478, 16.4238),
+        'right_elbow': (30.3064, 23.4632), 'right_wrist': (1.1154, -23.9037),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(37.6, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(37.7, {
+        'spine_lumbar': (5.8568, -16.954, 9.5153), 'spine_thoracic': (-10.1441, -7.5099, 9.4238),
+        'neck': (24.8221, -1.1344, -6.6078), 'head': (8.6694, -0.1344),
+        'right_clavicle': (6.0841, 7.9025), 'right_shoulder': (55.7417, 4.5898, 12.8808),
+        'right_elbow': (31.3423, 20.8694), 'right_wrist': (-0.307, -21.5691),
+    })
+    human.KeyJoints(37.8, {
+        'spine_lumbar': (3.6846, -19.2061, 8.9763), 'spine_thoracic': (-10.5709, -10.0, 9.8048),
+        'neck': (25.3476, -1.1203, -6.9619), 'head': (9.4202, -0.1498),
+        'right_clavicle': (12.2055, 8.4776), 'right_shoulder': (56.9314, 6.1347, 17.7454),
+        'right_elbow': (28.9104, 25.8305), 'right_wrist': (1.7465, -25.3129),
+    })
+    human.KeyJoints(37.9, {
+        'spine_lumbar': (0.7649, -19.9721, 10.2071), 'spine_thoracic': (-12.7171, -10.0, 12.8031),
+        'neck': (26.9753, -1.2917, -9.5116), 'head': (11.352, -0.1731),
+        'right_clavicle': (21.3199, 11.153), 'right_shoulder': (57.734, 7.8144, 21.2637),
+        'right_elbow': (19.1386, 31.2947), 'right_wrist': (4.2228, -24.1717),
+    })
+    human.KeyJoints(38.0, {
+        'spine_lumbar': (-2.2042, -19.7421, 9.3554), 'spine_thoracic': (-10.5774, -10.0, 10.7562),
+        'neck': (26.7145, -0.8663, -6.1015), 'head': (11.0478, -0.1648),
+        'right_clavicle': (15.2869, 9.6998), 'right_shoulder': (55.0146, 3.2867, 19.8554),
+        'right_elbow': (24.7268, 27.841), 'right_wrist': (3.1106, -24.3951),
+    })
+    human.KeyJoints(38.1, {
+        'spine_lumbar': (6.9857, -14.3551, 9.6327), 'spine_thoracic': (-8.864, -5.3106, 9.3307),
+        'neck': (24.3539, -1.0393, -5.3951), 'head': (7.8659, -0.1111),
+        'right_clavicle': (3.6731, 8.0183), 'right_shoulder': (56.5779, 2.9206, 11.9541),
+        'right_elbow': (32.5429, 19.3432), 'right_wrist': (-0.7484, -20.0308),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(38.2, {
+        'spine_lumbar': (7.1062, -14.8577, 9.7293), 'spine_thoracic': (-9.4526, -5.5371, 9.4088),
+        'neck': (24.4787, -1.0952, -5.9433), 'head': (8.0669, -0.1161),
+        'right_clavicle': (4.1625, 7.964), 'right_shoulder': (56.3344, 3.6552, 11.7981),
+        'right_elbow': (32.1984, 19.5126), 'right_wrist': (-0.7626, -20.2339),
+    })
+    human.KeyJoints(38.3, {
+        'spine_lumbar': (4.6174, -19.2438, 9.0381), 'spine_thoracic': (-10.3777, -9.8864, 9.3732),
+        'neck': (25.0841, -1.1611, -7.0471), 'head': (9.0775, -0.1447),
+        'right_clavicle': (8.9404, 7.9176), 'right_shoulder': (56.0747, 5.4988, 15.0623),
+        'right_elbow': (30.3182, 23.1531), 'right_wrist': (0.5663, -23.0952),
+    })
+    human.KeyJoints(38.4, {
+        'spine_lumbar': (2.4117, -19.9968, 9.3004), 'spine_thoracic': (-11.5243, -10.0, 10.8351),
+        'neck': (25.9741, -1.1737, -7.9262), 'head': (10.308, -0.1685),
+        'right_clavicle': (16.5425, 9.4266), 'right_shoulder': (57.0419, 7.4887, 20.6675),
+        'right_elbow': (26.6052, 29.0685), 'right_wrist': (3.1596, -26.4597),
+    })
+    human.KeyJoints(38.5, {
+        'spine_lumbar': (-3.5591, -20.0, 10.2989), 'spine_thoracic': (-12.1902, -10.0, 12.7729),
+        'neck': (27.7935, -1.0118, -7.9182), 'head': (12.1698, -0.1692),
+        'right_clavicle': (20.5951, 11.3847), 'right_shoulder': (55.9084, 5.0845, 21.956),
+        'right_elbow': (19.5306, 31.0411), 'right_wrist': (4.4817, -24.5736),
+    })
+    human.KeyJoints(38.6, {
+        'spine_lumbar': (1.9025, -18.2555, 8.6751), 'spine_thoracic': (-9.0994, -9.3103, 9.0372),
+        'neck': (25.2318, -0.8663, -4.9897), 'head': (9.0948, -0.1333),
+        'right_clavicle': (7.2982, 8.0857), 'right_shoulder': (54.9189, 2.5145, 15.3073),
+        'right_elbow': (31.0102, 22.3448), 'right_wrist': (0.6111, -23.2601),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(38.7, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(38.8, {
+        'spine_lumbar': (5.4812, -17.6638, 9.508), 'spine_thoracic': (-10.4291, -8.1558, 9.4814),
+        'neck': (24.9677, -1.1571, -6.9281), 'head': (8.912, -0.1412),
+        'right_clavicle': (6.7347, 7.8988), 'right_shoulder': (55.4289, 4.9655, 13.2268),
+        'right_elbow': (31.1126, 21.3192), 'right_wrist': (-0.1592, -21.8966),
+    })
+    human.KeyJoints(38.9, {
+        'spine_lumbar': (3.373, -19.1777, 9.0828), 'spine_thoracic': (-10.819, -10.0, 10.0776),
+        'neck': (25.5025, -1.121, -7.1214), 'head': (9.6495, -0.1549),
+        'right_clavicle': (13.3247, 8.7312), 'right_shoulder': (56.9618, 6.4697, 18.5416),
+        'right_elbow': (28.4435, 26.6822), 'right_wrist': (2.1346, -25.9085),
+    })
+    human.KeyJoints(39.0, {
+        'spine_lumbar': (-0.0292, -20.0, 10.2504), 'spine_thoracic': (-12.7049, -10.0, 12.8265),
+        'neck': (27.232, -1.2508, -9.2989), 'head': (11.6116, -0.1726),
+        'right_clavicle': (21.362, 11.2613), 'right_shoulder': (57.5903, 7.6202, 21.531),
+        'right_elbow': (19.0765, 31.3328), 'right_wrist': (4.3396, -24.1877),
+    })
+    human.KeyJoints(39.1, {
+        'spine_lumbar': (-1.3492, -19.5578, 8.9126), 'spine_thoracic': (-9.9335, -10.0, 9.828),
+        'neck': (26.2987, -0.8292, -5.4278), 'head': (10.5563, -0.1596),
+        'right_clavicle': (12.7031, 8.899), 'right_shoulder': (54.8003, 2.8192, 18.6431),
+        'right_elbow': (27.1974, 26.1851), 'right_wrist': (2.3548, -24.2659),
+    })
+    human.KeyJoints(39.2, {
+        'spine_lumbar': (7.8694, -13.6153, 9.8234), 'spine_thoracic': (-8.8354, -4.5138, 9.3892),
+        'neck': (24.1057, -1.0556, -5.3253), 'head': (7.5638, -0.1075),
+        'right_clavicle': (3.1497, 8.0109), 'right_shoulder': (56.9084, 3.0014, 11.4197),
+        'right_elbow': (32.7416, 18.8928), 'right_wrist': (-0.9529, -19.4142),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(39.3, {
+        'spine_lumbar': (6.6694, -15.5498, 9.6295), 'spine_thoracic': (-9.6612, -6.1935, 9.3914),
+        'neck': (24.6446, -1.11, -6.1984), 'head': (8.2949, -0.1204),
+        'right_clavicle': (4.7914, 7.9335), 'right_shoulder': (56.1749, 3.9374, 12.1574),
+        'right_elbow': (31.8906, 19.9578), 'right_wrist': (-0.6116, -20.73),
+    })
+    human.KeyJoints(39.4, {
+        'spine_lumbar': (4.3646, -19.3184, 8.7518), 'spine_thoracic': (-10.02, -10.0, 9.2267),
+        'neck': (24.9938, -1.1262, -6.7099), 'head': (8.9109, -0.1391),
+        'right_clavicle': (9.9277, 7.9402), 'right_shoulder': (56.8872, 5.3858, 16.1493),
+        'right_elbow': (29.8698, 24.0981), 'right_wrist': (0.9956, -23.8449),
+    })
+    human.KeyJoints(39.5, {
+        'spine_lumbar': (1.7159, -19.7339, 9.6735), 'spine_thoracic': (-11.9678, -10.0, 11.5915),
+        'neck': (26.3714, -1.2063, -8.4387), 'head': (10.729, -0.1703),
+        'right_clavicle': (18.2365, 10.0926), 'right_shoulder': (57.3248, 7.5059, 20.6762),
+        'right_elbow': (23.6222, 29.7406), 'right_wrist': (3.4981, -25.6356),
+    })
+    human.KeyJoints(39.6, {
+        'spine_lumbar': (-3.3966, -19.9713, 10.1671), 'spine_thoracic': (-11.836, -10.0, 12.4744),
+        'neck': (27.6064, -0.9572, -7.3744), 'head': (11.9833, -0.1681),
+        'right_clavicle': (19.6683, 11.1505), 'right_shoulder': (55.5949, 4.4873, 21.689),
+        'right_elbow': (20.3723, 30.5348), 'right_wrist': (4.3033, -24.5541),
+    })
+    human.KeyJoints(39.7, {
+        'spine_lumbar': (3.6559, -17.0012, 8.9695), 'spine_thoracic': (-8.9999, -8.0806, 9.1275),
+        'neck': (24.9713, -0.9631, -5.3778), 'head': (8.6835, -0.1235),
+        'right_clavicle': (5.8897, 8.0562), 'right_shoulder': (55.4289, 2.6393, 14.0788),
+        'right_elbow': (31.6393, 21.2035), 'right_wrist': (0.095, -22.2277),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(39.8, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(39.9, {
+        'spine_lumbar': (5.1467, -18.3525, 9.4934), 'spine_thoracic': (-10.6595, -8.8372, 9.5336),
+        'neck': (25.1034, -1.1789, -7.226), 'head': (9.1286, -0.147),
+        'right_clavicle': (7.3962, 7.9003), 'right_shoulder': (55.2346, 5.3341, 13.6115),
+        'right_elbow': (30.8956, 21.792), 'right_wrist': (0.0032, -22.198),
+    })
+    human.KeyJoints(40.0, {
+        'spine_lumbar': (3.0494, -19.3342, 9.17), 'spine_thoracic': (-11.0615, -10.0, 10.3393),
+        'neck': (25.6524, -1.1319, -7.348), 'head': (9.8844, -0.161),
+        'right_clavicle': (14.4196, 8.972), 'right_shoulder': (56.9914, 6.8007, 19.268),
+        'right_elbow': (27.8699, 27.4936), 'right_wrist': (2.4951, -26.2845),
+    })
+    human.KeyJoints(40.1, {
+        'spine_lumbar': (-1.4649, -20.0, 10.2769), 'spine_thoracic': (-12.5865, -10.0, 12.8158),
+        'neck': (27.4821, -1.142, -8.6867), 'head': (11.8602, -0.1712),
+        'right_clavicle': (21.2008, 11.3284), 'right_shoulder': (57.0647, 6.8627, 21.7423),
+        'right_elbow': (19.1696, 31.2731), 'right_wrist': (4.4156, -24.3327),
+    })
+    human.KeyJoints(40.2, {
+        'spine_lumbar': (-0.4277, -19.3364, 8.5959), 'spine_thoracic': (-9.4426, -10.0, 9.166),
+        'neck': (25.8789, -0.7995, -4.8337), 'head': (10.027, -0.1516),
+        'right_clavicle': (10.4006, 8.3121), 'right_shoulder': (54.6663, 2.5203, 17.4551),
+        'right_elbow': (29.2064, 24.6549), 'right_wrist': (1.6548, -24.1092),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(40.3, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(40.4, {
+        'spine_lumbar': (6.2558, -16.2436, 9.5578), 'spine_thoracic': (-9.8878, -6.8479, 9.3941),
+        'neck': (24.7448, -1.1222, -6.4068), 'head': (8.4869, -0.1265),
+        'right_clavicle': (5.4285, 7.9138), 'right_shoulder': (55.9835, 4.2446, 12.5186),
+        'right_elbow': (31.6064, 20.4088), 'right_wrist': (-0.46, -21.173),
+    })
+    human.KeyJoints(40.5, {
+        'spine_lumbar': (4.0149, -19.2605, 8.8614), 'spine_thoracic': (-10.3015, -10.0, 9.5161),
+        'neck': (25.1767, -1.1207, -6.8276), 'head': (9.1724, -0.1445),
+        'right_clavicle': (11.057, 8.2089), 'right_shoulder': (56.9057, 5.7703, 16.9286),
+        'right_elbow': (29.377, 24.9543), 'right_wrist': (1.357, -24.5801),
+    })
+    human.KeyJoints(40.6, {
+        'spine_lumbar': (1.1042, -19.615, 10.0344), 'spine_thoracic': (-12.4004, -10.0, 12.3386),
+        'neck': (26.7462, -1.2461, -8.9992), 'head': (11.1128, -0.1717),
+        'right_clavicle': (19.9295, 10.7469), 'right_shoulder': (57.6072, 7.5565, 20.7406),
+        'right_elbow': (20.6993, 30.4583), 'right_wrist': (3.8512, -24.6757),
+    })
+    human.KeyJoints(40.7, {
+        'spine_lumbar': (-2.922, -19.8839, 9.8173), 'spine_thoracic': (-11.261, -10.0, 11.7291),
+        'neck': (27.1656, -0.9073, -6.726), 'head': (11.5338, -0.1668),
+        'right_clavicle': (17.776, 10.5271), 'right_shoulder': (55.2906, 3.8703, 20.9395),
+        'right_elbow': (22.2559, 29.3934), 'right_wrist': (3.8095, -24.4937),
+    })
+    human.KeyJoints(40.8, {
+        'spine_lumbar': (5.453, -15.6029, 9.3157), 'spine_thoracic': (-8.9205, -6.6347, 9.2336),
+        'neck': (24.6967, -1.0115, -5.464), 'head': (8.2983, -0.1168),
+        'right_clavicle': (4.6417, 8.0337), 'right_shoulder': (56.0286, 2.7861, 12.9086),
+        'right_elbow': (32.1598, 20.1648), 'right_wrist': (-0.3756, -21.0687),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(40.9, {
+        'spine_lumbar': (7.7047, -13.937, 9.8145), 'spine_thoracic': (-9.043, -4.7526, 9.4024),
+        'neck': (24.2067, -1.0701, -5.5216), 'head': (7.7008, -0.1099),
+        'right_clavicle': (3.4116, 7.9964), 'right_shoulder': (56.7305, 3.2183, 11.4785),
+        'right_elbow': (32.5904, 19.0362), 'right_wrist': (-0.9154, -19.6122),
+    })
+    human.KeyJoints(41.0, {
+        'spine_lumbar': (4.8559, -18.9771, 9.4375), 'spine_thoracic': (-10.8178, -9.5277, 9.5674),
+        'neck': (25.2019, -1.1952, -7.4477), 'head': (9.2894, -0.1515),
+        'right_clavicle': (8.0811, 7.9131), 'right_shoulder': (55.1448, 5.6513, 14.0801),
+        'right_elbow': (30.6779, 22.3137), 'right_wrist': (0.1965, -22.498),
+    })
+    human.KeyJoints(41.1, {
+        'spine_lumbar': (2.7401, -19.6346, 9.2369), 'spine_thoracic': (-11.2888, -10.0, 10.5793),
+        'neck': (25.8025, -1.1492, -7.6101), 'head': (10.0968, -0.1655),
+        'right_clavicle': (15.4641, 9.1925), 'right_shoulder': (57.0162, 7.1629, 20.0222),
+        'right_elbow': (27.2911, 28.2872), 'right_wrist': (2.8328, -26.4183),
+    })
+    human.KeyJoints(41.2, {
+        'spine_lumbar': (-2.8722, -20.0, 10.293), 'spine_thoracic': (-12.4062, -10.0, 12.7978),
+        'neck': (27.6777, -1.072, -8.3006), 'head': (12.0548, -0.1702),
+        'right_clavicle': (20.9387, 11.3696), 'right_shoulder': (56.4158, 5.8994, 21.8937),
+        'right_elbow': (19.3238, 31.1742), 'right_wrist': (4.4637, -24.4922),
+    })
+    human.KeyJoints(41.3, {
+        'spine_lumbar': (0.5034, -19.0617, 8.5169), 'spine_thoracic': (-9.2179, -9.9712, 8.9887),
+        'neck': (25.5241, -0.7946, -4.6719), 'head': (9.5437, -0.1433),
+        'right_clavicle': (8.7593, 8.1226), 'right_shoulder': (54.6448, 2.4474, 16.4407),
+        'right_elbow': (30.2941, 23.4812), 'right_wrist': (1.1234, -23.9097),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(41.4, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(41.5, {
+        'spine_lumbar': (5.8632, -16.9422, 9.5155), 'spine_thoracic': (-10.1398, -7.499, 9.4233),
+        'neck': (24.8204, -1.1342, -6.6038), 'head': (8.6659, -0.1343),
+        'right_clavicle': (6.0732, 7.9026), 'right_shoulder': (55.7459, 4.5839, 12.8748),
+        'right_elbow': (31.3464, 20.8617), 'right_wrist': (-0.3095, -21.563),
+    })
+    human.KeyJoints(41.6, {
+        'spine_lumbar': (3.6898, -19.207, 8.9744), 'spine_thoracic': (-10.5667, -10.0, 9.8002),
+        'neck': (25.345, -1.1203, -6.9596), 'head': (9.4163, -0.1497),
+        'right_clavicle': (12.1865, 8.4733), 'right_shoulder': (56.9309, 6.1291, 17.7315),
+        'right_elbow': (28.9178, 25.8159), 'right_wrist': (1.7398, -25.3006),
+    })
+    human.KeyJoints(41.7, {
+        'spine_lumbar': (0.7717, -19.9684, 10.2055), 'spine_thoracic': (-12.7146, -10.0, 12.7996),
+        'neck': (26.9715, -1.2913, -9.5075), 'head': (11.3481, -0.1731),
+        'right_clavicle': (21.3088, 11.1491), 'right_shoulder': (57.7331, 7.8118, 21.2562),
+        'right_elbow': (19.1501, 31.2877), 'right_wrist': (4.2188, -24.1755),
+    })
+    human.KeyJoints(41.8, {
+        'spine_lumbar': (-2.2176, -19.7448, 9.3633), 'spine_thoracic': (-10.5888, -10.0, 10.7728),
+        'neck': (26.721, -0.8669, -6.1115), 'head': (11.0552, -0.1648),
+        'right_clavicle': (15.3304, 9.714), 'right_shoulder': (55.0188, 3.2956, 19.875),
+        'right_elbow': (24.6842, 27.8685), 'right_wrist': (3.1231, -24.397),
+    })
+    human.KeyJoints(41.9, {
+        'spine_lumbar': (6.9645, -14.3726, 9.6282), 'spine_thoracic': (-8.8647, -5.3293, 9.3294),
+        'neck': (24.3593, -1.0389, -5.3965), 'head': (7.8726, -0.1112),
+        'right_clavicle': (3.6859, 8.0185), 'right_shoulder': (56.5701, 2.9187, 11.967),
+        'right_elbow': (32.538, 19.3541), 'right_wrist': (-0.7434, -20.0454),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(42.0, {
+        'spine_lumbar': (7.1139, -14.8457, 9.7308), 'spine_thoracic': (-9.4484, -5.5262, 9.4089),
+        'neck': (24.4756, -1.095, -5.9386), 'head': (8.0626, -0.116),
+        'right_clavicle': (4.1521, 7.9645), 'right_shoulder': (56.3378, 3.6501, 11.7928),
+        'right_elbow': (32.2037, 19.5055), 'right_wrist': (-0.7649, -20.2255),
+    })
+    human.KeyJoints(42.1, {
+        'spine_lumbar': (4.621, -19.2405, 9.0484), 'spine_thoracic': (-10.3907, -9.8818, 9.3789),
+        'neck': (25.0877, -1.1621, -7.059), 'head': (9.0838, -0.1449),
+        'right_clavicle': (8.9248, 7.9176), 'right_shoulder': (56.0474, 5.5036, 15.0413),
+        'right_elbow': (30.3255, 23.1365), 'right_wrist': (0.5586, -23.0825),
+    })
+    human.KeyJoints(42.2, {
+        'spine_lumbar': (2.4187, -19.9954, 9.2988), 'spine_thoracic': (-11.5194, -10.0, 10.8292),
+        'neck': (25.9704, -1.1732, -7.9199), 'head': (10.3036, -0.1685),
+        'right_clavicle': (16.5213, 9.4212), 'right_shoulder': (57.0412, 7.4871, 20.6651),
+        'right_elbow': (26.622, 29.0563), 'right_wrist': (3.1541, -26.4596),
+    })
+    human.KeyJoints(42.3, {
+        'spine_lumbar': (-3.5577, -20.0, 10.2988), 'spine_thoracic': (-12.1939, -10.0, 12.7733),
+        'neck': (27.7932, -1.0127, -7.9257), 'head': (12.1696, -0.1692),
+        'right_clavicle': (20.6012, 11.3847), 'right_shoulder': (55.9141, 5.0946, 21.9559),
+        'right_elbow': (19.5268, 31.0435), 'right_wrist': (4.4817, -24.5734),
+    })
+    human.KeyJoints(42.4, {
+        'spine_lumbar': (1.8752, -18.2736, 8.6711), 'spine_thoracic': (-9.1012, -9.3271, 9.036),
+        'neck': (25.2363, -0.8647, -4.9826), 'head': (9.102, -0.1334),
+        'right_clavicle': (7.3226, 8.0863), 'right_shoulder': (54.9119, 2.5128, 15.3275),
+        'right_elbow': (30.9989, 22.3641), 'right_wrist': (0.6199, -23.2749),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(42.5, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(42.6, {
+        'spine_lumbar': (5.4873, -17.652, 9.5081), 'spine_thoracic': (-10.4244, -8.1449, 9.4803),
+        'neck': (24.965, -1.1567, -6.9223), 'head': (8.9078, -0.1411),
+        'right_clavicle': (6.7237, 7.8988), 'right_shoulder': (55.434, 4.9591, 13.2209),
+        'right_elbow': (31.1163, 21.3116), 'right_wrist': (-0.1618, -21.8914),
+    })
+    human.KeyJoints(42.7, {
+        'spine_lumbar': (3.3784, -19.1773, 9.0812), 'spine_thoracic': (-10.8149, -10.0, 10.0731),
+        'neck': (25.4999, -1.1209, -7.1182), 'head': (9.6456, -0.1548),
+        'right_clavicle': (13.3061, 8.727), 'right_shoulder': (56.9613, 6.4641, 18.5288),
+        'right_elbow': (28.4523, 26.6683), 'right_wrist': (2.1283, -25.9012),
+    })
+    human.KeyJoints(42.8, {
+        'spine_lumbar': (-0.0088, -20.0, 10.2499), 'spine_thoracic': (-12.7062, -10.0, 12.8266),
+        'neck': (27.2274, -1.2525, -9.3083), 'head': (11.6071, -0.1727),
+        'right_clavicle': (21.3637, 11.2599), 'right_shoulder': (57.5965, 7.6291, 21.5271),
+        'right_elbow': (19.0755, 31.3334), 'right_wrist': (4.3381, -24.186),
+    })
+    human.KeyJoints(42.9, {
+        'spine_lumbar': (-1.3643, -19.5613, 8.9193), 'spine_thoracic': (-9.9435, -10.0, 9.8421),
+        'neck': (26.3059, -0.8298, -5.4395), 'head': (10.5651, -0.1597),
+        'right_clavicle': (12.7454, 8.9112), 'right_shoulder': (54.8033, 2.8258, 18.6638),
+        'right_elbow': (27.1582, 26.2126), 'right_wrist': (2.3674, -24.2683),
+    })
+    human.KeyJoints(43.0, {
+        'spine_lumbar': (7.8615, -13.6221, 9.8217), 'spine_thoracic': (-8.8357, -4.5211, 9.3887),
+        'neck': (24.1081, -1.0554, -5.326), 'head': (7.5667, -0.1075),
+        'right_clavicle': (3.1542, 8.0109), 'right_shoulder': (56.9053, 3.0007, 11.4244),
+        'right_elbow': (32.7399, 18.8968), 'right_wrist': (-0.9511, -19.4198),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(43.1, {
+        'spine_lumbar': (6.6765, -15.5383, 9.6311), 'spine_thoracic': (-9.6578, -6.1825, 9.3917),
+        'neck': (24.6422, -1.1098, -6.1945), 'head': (8.2914, -0.1203),
+        'right_clavicle': (4.7808, 7.9339), 'right_shoulder': (56.1774, 3.9327, 12.151),
+        'right_elbow': (31.8956, 19.9501), 'right_wrist': (-0.6142, -20.7219),
+    })
+    human.KeyJoints(43.2, {
+        'spine_lumbar': (4.3699, -19.3189, 8.751), 'spine_thoracic': (-10.0178, -10.0, 9.2244),
+        'neck': (24.9923, -1.1263, -6.709), 'head': (8.9088, -0.1391),
+        'right_clavicle': (9.9098, 7.938), 'right_shoulder': (56.8867, 5.3827, 16.135),
+        'right_elbow': (29.8777, 24.0834), 'right_wrist': (0.9893, -23.8327),
+    })
+    human.KeyJoints(43.3, {
+        'spine_lumbar': (1.7299, -19.7406, 9.6646), 'spine_thoracic': (-11.959, -10.0, 11.5751),
+        'neck': (26.3632, -1.2056, -8.4287), 'head': (10.7206, -0.1703),
+        'right_clavicle': (18.2043, 10.0782), 'right_shoulder': (57.3177, 7.5057, 20.6762),
+        'right_elbow': (23.6912, 29.7297), 'right_wrist': (3.4923, -25.6582),
+    })
+    human.KeyJoints(43.4, {
+        'spine_lumbar': (-3.4022, -19.9723, 10.1714), 'spine_thoracic': (-11.8441, -10.0, 12.4838),
+        'neck': (27.6124, -0.9581, -7.3848), 'head': (11.9893, -0.1681),
+        'right_clavicle': (19.693, 11.1583), 'right_shoulder': (55.6001, 4.4976, 21.698),
+        'right_elbow': (20.3482, 30.5493), 'right_wrist': (4.3092, -24.5547),
+    })
+    human.KeyJoints(43.5, {
+        'spine_lumbar': (3.6251, -17.0243, 8.9639), 'spine_thoracic': (-9.0014, -8.1041, 9.1257),
+        'neck': (24.9757, -0.9617, -5.373), 'head': (8.6901, -0.1236),
+        'right_clavicle': (5.9124, 8.0566), 'right_shoulder': (55.4192, 2.637, 14.0995),
+        'right_elbow': (31.6295, 21.2222), 'right_wrist': (0.1035, -22.2469),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(43.6, {
+        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
+        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+    })
+    human.KeyJoints(43.7, {
+        'spine_lumbar': (5.152, -18.3403, 9.4939), 'spine_thoracic': (-10.6559, -8.8243, 9.5328),
+        'neck': (25.1012, -1.1785, -7.2211), 'head': (9.125, -0.1469),
+        'right_clavicle': (7.3852, 7.9001), 'right_shoulder': (55.2368, 5.3273, 13.6048),
+        'right_elbow': (30.899, 21.7841), 'right_wrist': (0.0004, -22.1934),
+    })
+    human.KeyJoints(43.8, {
+        'spine_lumbar': (3.0549, -19.3302, 9.1686), 'spine_thoracic': (-11.0575, -10.0, 10.335),
+        'neck': (25.6499, -1.1317, -7.3437), 'head': (9.8805, -0.1609),
+        'right_clavicle': (14.4013, 8.9681), 'right_shoulder': (56.9909, 6.7952, 19.2561),
+        'right_elbow': (27.8802, 27.4801), 'right_wrist': (2.4892, -26.2798),
+    })
+    human.KeyJoints(43.9, {
+        'spine_lumbar': (-1.439, -20.0, 10.2765), 'spine_thoracic': (-12.5891, -10.0, 12.8161),
+        'neck': (27.4786, -1.1436, -8.6954), 'head': (11.8567, -0.1712),
+        'right_clavicle': (21.2044, 11.3274), 'right_shoulder': (57.0753, 6.8782, 21.7392),
+        'right_elbow': (19.1675, 31.2745), 'right_wrist': (4.4145, -24.3299),
+    })
+    human.KeyJoints(44.0, {
+        'spine_lumbar': (-0.4228, -19.3391, 8.5996), 'spine_thoracic': (-9.5044, -10.0, 9.1737),
+        'neck': (25.8901, -0.7995, -4.8402), 'head': (10.0418, -0.1518),
+        'right_clavicle': (10.4667, 8.3392), 'right_shoulder': (54.6677, 2.5871, 17.4945),
+        'right_elbow': (29.2845, 24.7131), 'right_wrist': (1.6727, -24.1047),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=44.092466, duration=0.072)
+    human.KeyJoints(44.1, {
+        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
+        'neck': (24.173, -1.0124, -5.0135), 'head': (7.5718, -0.1032),
+        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (57.1974, 2.088, 10.9299),
+        'right_elbow': (31.9977, 18.3404), 'right_wrist': (-1.0805, -21.1506),
+    })
+    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
+    human.LookAt((0.0, 120.0, 110.0), start=44.164466, duration=0.2628)
+    human.KeyJoints(44.2, {'neck': (24.1001, -1.1897, -6.4174), 'head': (7.5559, -0.1097)})
+    human.KeyJoints(44.3, {'neck': (23.4082, -2.8729, -19.7429)})
+    human.KeyJoints(44.4, {
+        'neck': (22.7561, -4.4591, -32.2995), 'head': (7.2625, -0.2298),
+        'right_shoulder': (57.1974, 2.088, 10.9299), 'right_elbow': (31.9977, 18.3404),
+        'right_wrist': (-1.0805, -21.1506), 'left_shoulder': (8.5944, 5.7296, 11.4592),
+        'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0),
+    })
+    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
+    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
+    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
+    human.LookAt((0.0, 120.0, 110.0), start=44.427266, duration=0.867635)
+    human.KeyJoints(44.5, {
+        'neck': (22.7122, -4.5659, -33.1451), 'right_shoulder': (56.3701, 2.8672, 10.475),
+        'right_elbow': (33.8103, 18.5408), 'right_wrist': (-1.5428, -21.066),
+        'left_shoulder': (10.6814, 4.7563, 11.5629), 'left_elbow': (33.9559, 17.2166),
+        'left_wrist': (0.0421, -0.1772),
+    })
+    human.KeyJoints(44.6, {
+        'right_shoulder': (53.0133, 6.0798, 8.5836), 'right_elbow': (41.165, 19.354),
+        'right_wrist': (-3.4226, -20.7229), 'left_shoulder': (19.209, 0.7433, 11.9917),
+        'left_elbow': (32.2454, 17.3298), 'left_wrist': (0.2164, -0.8963),
+    })
+    human.KeyJoints(44.7, {
+        'right_shoulder': (47.9676, 11.0356, 5.6274), 'right_elbow': (52.22, 20.5764),
+        'right_wrist': (-6.258, -20.2072), 'left_shoulder': (32.1738, -5.447, 12.6554),
+        'left_elbow': (29.6743, 17.4999), 'left_wrist': (0.4867, -1.9772),
+    })
+    human.KeyJoints(44.8, {
+        'right_shoulder': (42.2019, 16.9247, 2.0473), 'right_elbow': (64.8526, 21.9733),
+        'right_wrist': (-9.5157, -19.6178), 'left_shoulder': (47.2502, -12.8031, 13.4481),
+        'left_elbow': (26.7362, 17.6942),
+    })
+    human.KeyJoints(44.9, {
+        'right_shoulder': (36.6849, 22.9373, -1.7156), 'right_elbow': (76.9401, 23.3099),
+        'right_wrist': (-12.6621, -19.0539), 'left_shoulder': (62.1128, -20.3133, 14.2637),
+        'left_elbow': (23.9249, 17.8802), 'left_wrist': (1.1446, -4.3941),
+    })
+    human.KeyJoints(45.0, {
+        'right_shoulder': (32.3856, 28.2635, -5.2203), 'right_elbow': (86.3598, 24.3515),
+        'right_wrist': (-15.1639, -18.6145), 'left_shoulder': (74.4361, -26.9661, 14.9963),
+        'left_elbow': (21.7341, 18.0251), 'left_wrist': (1.4469, -5.315),
+    })
+    human.KeyJoints(45.1, {
+        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
+        'neck': (22.7122, -4.5659, -33.1451), 'head': (7.2529, -0.2338),
+        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (30.2729, 32.0934, -8.0258),
+        'right_elbow': (90.9888, 24.8633), 'right_wrist': (-16.4875, -18.3985),
+        'left_clavicle': (0.0, 0.0), 'left_shoulder': (81.8945, -31.7498, 15.5399),
+        'left_elbow': (20.6575, 18.0964), 'left_wrist': (1.6746, -5.7676),
+    })
+    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
+    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
+    human.KeyJoints(45.2, {
+        'spine_lumbar': (11.7337, -12.3932, 9.1975), 'spine_thoracic': (-10.9157, -5.1857, 8.6988),
+        'neck': (21.9602, -4.9145, -33.2548), 'right_clavicle': (4.6853, 8.682),
+        'right_shoulder': (32.1228, 34.2192, -9.613), 'right_elbow': (89.5507, 24.778),
+        'right_wrist': (-16.4644, -18.6423), 'left_clavicle': (-0.9778, 1.3858),
+        'left_shoulder': (85.1888, -31.8735, 15.378), 'left_elbow': (21.3373, 18.1179),
+        'left_wrist': (1.4577, -5.5833),
+    })
+    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
+    human.Grasp('left_hand', 'close', start=45.294901, duration=0.072)
+    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=45.294901, duration=0.072)
+    human.KeyRoot(45.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(45.3, {
+        'spine_lumbar': (17.0071, -11.4445, 7.5102), 'spine_thoracic': (-14.6839, -6.4027, 6.8752),
+        'neck': (21.299, -4.9839, -31.4706), 'head': (6.1657, -0.4464),
+        'right_clavicle': (6.9972, 9.7296), 'right_shoulder': (34.5012, 35.235, -9.8523),
+        'right_elbow': (90.6915, 24.8972), 'right_wrist': (-16.5326, -18.2955),
+        'left_clavicle': (-2.4881, 4.0), 'left_shoulder': (89.3018, -29.1524, 14.6435),
+        'left_elbow': (21.618, 18.1688), 'left_wrist': (0.8948, -5.4732),
+        'right_hip': (2.8648, 0.0, 0.0), 'right_ankle': (1.7189, 0.0),
+        'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
+    })
+    # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
+    human.Walk((136.93, 0.0, 19.817), start=45.366901, duration=1.08)
+    human.KeyRoot(45.4, (-1.184, 72.988, 60.234), (4.3418, 0.0, 0.0))
+    human.KeyJoints(45.4, {
+        'right_shoulder': (33.3379, 35.3431, -10.4388), 'right_elbow': (90.0638, 24.8626),
+        'right_wrist': (-16.6575, -18.5562), 'left_shoulder': (89.7892, -29.8421, 14.744),
+        'left_elbow': (19.2234, 18.1528), 'left_wrist': (1.1031, -5.7219),
+        'right_hip': (2.2221, -0.8249, -4.3391), 'right_knee': (4.6075,),
+        'right_ankle': (2.4453, -0.9922), 'left_hip': (12.1977, -0.188, 3.0288),
+        'left_knee': (23.7506,), 'left_ankle': (11.5428, 1.0986),
+    })
+    human.KeyRoot(45.5, (-0.143, 72.93, 58.204), (17.3807, 0.0, 0.0))
+    human.KeyJoints(45.5, {
+        'left_shoulder': (88.7911, -29.6844, 14.7667), 'left_elbow': (21.1202, 18.1584),
+        'right_hip': (12.6669, 4.1244, -16.8791), 'right_knee': (26.5005,),
+        'right_ankle': (7.3427, 0.2004), 'left_hip': (3.6501, 0.2974, -18.0533),
+        'left_knee': (6.6075,), 'left_ankle': (3.0415, -0.8483),
+    })
+    human.KeyRoot(45.6, (3.383, 72.867, 60.836), (43.4447, 0.0, 0.0))
+    human.KeyJoints(45.6, {
+        'right_elbow': (90.9625, 24.9578), 'right_wrist': (-16.8698, -18.4581),
+        'left_shoulder': (88.1564, -29.6548, 14.7943), 'left_elbow': (22.3586, 18.1614),
+        'left_wrist': (0.9612, -5.4072), 'right_hip': (15.6177, -6.012, 27.3014),
+        'right_knee': (32.198,), 'right_ankle': (14.9259, 1.7456),
+        'left_hip': (6.7827, -3.2385, 7.6328), 'left_knee': (14.8819,),
+        'left_ankle': (6.2165, -2.2882),
+    })
+    human.KeyRoot(45.7, (1.133, 72.674, 63.615), (69.6796, 0.0, 0.0))
+    human.KeyJoints(45.7, {
+        'right_shoulder': (32.827, 35.426, -10.7382), 'right_elbow': (91.8408, 25.0454),
+        'right_wrist': (-17.0303, -18.329), 'left_shoulder': (86.7001, -29.4044, 14.827),
+        'left_elbow': (25.3833, 18.1712), 'left_wrist': (0.8049, -5.0786),
+        'right_hip': (4.5564, -2.0379, 1.022), 'right_knee': (11.5183,),
+        'right_ankle': (6.8943, -1.9582), 'left_hip': (22.3543, 0.9777, -2.8237),
+        'left_knee': (48.1925,), 'left_ankle': (15.9577, 0.1031),
+    })
+    human.KeyRoot(45.8, (-1.812, 72.75, 59.066), (92.6472, 0.0, 0.0))
+    human.KeyJoints(45.8, {
+        'right_shoulder': (33.0665, 35.2037, -10.3818), 'right_elbow': (91.8716, 25.0329),
+        'left_shoulder': (86.3747, -29.0891, 14.787), 'left_elbow': (25.9645, 18.1764),
+        'right_hip': (13.9826, 7.0759, -18.0818), 'right_knee': (30.1287,),
+        'right_ankle': (10.3681, 1.3362), 'left_hip': (5.2881, -0.4345, -13.6978),
+        'left_knee': (10.3446,), 'left_ankle': (5.3024, -1.671),
+    })
+    human.KeyRoot(45.9, (1.189, 71.466, 60.318), (106.0756, 0.0, 0.0))
+    human.KeyJoints(45.9, {
+        'right_shoulder': (33.4319, 35.1612, -10.1875), 'right_elbow': (91.7095, 25.009),
+        'right_wrist': (-16.838, -18.2427), 'left_shoulder': (86.7847, -28.996, 14.7481),
+        'left_elbow': (25.4821, 18.1771), 'left_wrist': (0.7442, -5.0807),
+        'right_hip': (11.438, 0.0839, 0.1989), 'right_knee': (24.947,),
+        'right_ankle': (13.5075, 0.1201), 'left_hip': (30.5039, 0.0092, -0.2933),
+        'left_knee': (57.0276,), 'left_ankle': (0.6657, -0.1664),
+    })
+    human.KeyRoot(46.0, (18.658, 68.222, 57.511), (106.2512, 0.0, 0.0))
+    human.KeyJoints(46.0, {
+        'right_shoulder': (34.0791, 35.2263, -10.0087), 'right_elbow': (90.8054, 24.9149),
+        'right_wrist': (-16.6157, -18.326), 'left_shoulder': (88.8348, -29.2193, 14.6799),
+        'left_elbow': (22.0551, 18.168), 'left_wrist': (0.8966, -5.4351),
+        'right_hip': (20.3738, -1.3229, -1.8792), 'right_knee': (69.4215,),
+        'right_ankle': (14.4338, -2.2962), 'left_hip': (40.5944, 2.266, -1.296),
+        'left_knee': (23.7506,), 'left_ankle': (-18.1973, 1.7165),
+    })
+    human.KeyRoot(46.1, (43.78, 67.307, 45.621), (106.2512, 0.0, 0.0))
+    human.KeyJoints(46.1, {
+        'right_shoulder': (34.0969, 35.2209, -9.9953), 'right_elbow': (91.0419, 24.9369),
+        'right_wrist': (-16.6468, -18.2832), 'left_shoulder': (88.3974, -29.1122, 14.6835),
+        'left_elbow': (22.9901, 18.1715), 'left_wrist': (0.8442, -5.3359),
+        'right_hip': (35.5272, 1.1529, 4.1411), 'right_knee': (86.4299,),
+        'right_ankle': (15.3007, 2.9502), 'left_hip': (29.1208, -1.8466, -1.2991),
+        'left_knee': (53.8624,), 'left_ankle': (18.7864, -2.2552),
+    })
+    human.KeyRoot(46.2, (86.518, 65.264, 36.591), (106.2512, 0.0, 0.0))
+    human.KeyJoints(46.2, {
+        'right_shoulder': (33.1732, 35.2439, -10.3871), 'right_elbow': (92.577, 25.1006),
+        'right_wrist': (-17.0334, -18.1386), 'left_shoulder': (85.6281, -28.8881, 14.792),
+        'left_elbow': (27.9451, 18.1842), 'left_wrist': (0.6271, -4.8095),
+        'right_hip': (33.9376, -0.7637, -0.5395), 'right_knee': (54.9005,),
+        'right_ankle': (19.7541, -0.938), 'left_hip': (2.5201, 0.9371, -0.3015),
+        'left_knee': (67.6148,), 'left_ankle': (17.0571, 0.6506),
+    })
+    human.KeyRoot(46.3, (115.863, 63.244, 27.982), (106.2512, 0.0, 0.0))
+    human.KeyJoints(46.3, {
+        'right_shoulder': (33.4073, 35.2386, -10.2884), 'right_elbow': (92.29, 25.0689),
+        'right_wrist': (-16.9509, -18.1581), 'left_shoulder': (86.1532, -28.9033, 14.766),
+        'left_elbow': (27.0708, 18.1824), 'left_wrist': (0.6604, -4.9005),
+        'right_hip': (22.9754, -0.4869, -1.049), 'right_knee': (84.3867,),
+        'right_ankle': (19.2958, -1.1566), 'left_hip': (42.2355, -4.8268, 17.5317),
+        'left_knee': (35.2273,), 'left_ankle': (-6.5747, 8.2258),
+    })
+    human.KeyRoot(46.4, (133.664, 69.765, 19.74), (95.6459, 0.0, 0.0))
+    human.KeyJoints(46.4, {
+        'neck': (21.299, -4.9839, -31.4706), 'head': (6.1657, -0.4464),
+        'right_shoulder': (32.8896, 35.2763, -10.5372), 'right_elbow': (92.9367, 25.1415),
+        'right_wrist': (-17.1425, -18.1165), 'left_shoulder': (85.0471, -28.8985, 14.826),
+        'left_elbow': (28.948, 18.186), 'left_wrist': (0.5917, -4.7048),
+        'right_hip': (36.1924, 2.9892, -3.0865), 'right_knee': (64.0993,),
+        'right_ankle': (16.4978, 0.9115), 'left_hip': (22.6834, -2.3666, 5.1311),
+        'left_knee': (33.1873,), 'left_ankle': (10.39, -0.1981),
+    })
+    # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
+    human.LookAt((160.0, 90.0, 20.0), start=46.446901, duration=0.2628)
+    human.KeyRoot(46.5, (140.628, 72.792, 19.905), (90.0, 0.0, 0.0))
+    human.KeyJoints(46.5, {
+        'neck': (22.751, -0.879, -31.2718), 'head': (7.1019, -1.5913),
+        'right_shoulder': (33.3566, 35.4608, -10.5701), 'right_elbow': (92.5289, 25.1039),
+        'left_shoulder': (86.2602, -29.0823, 14.7934), 'left_elbow': (27.2715, 18.1813),
+        'right_hip': (4.9447, 0.081, 0.0076), 'right_knee': (10.0952,),
+        'right_ankle': (5.1411, 0.0811), 'left_hip': (5.0142, -0.0811, -0.0062),
+        'left_knee': (10.2418,), 'left_ankle': (5.2248, -0.082),
+    })
+    human.KeyJoints(46.6, {
+        'neck': (29.831, 19.1368, -30.3028), 'head': (11.6671, -7.1741), 'right_knee': (9.2647,),
+        'left_knee': (9.321,),
+    })
+    human.KeyJoints(46.7, {
+        'neck': (34.9454, 33.5956, -29.6028), 'head': (14.9648, -11.2069),
+        'right_shoulder': (33.7018, 35.379, -10.3375), 'right_elbow': (91.9673, 25.0402),
+        'right_wrist': (-16.8942, -18.1959), 'left_shoulder': (87.0897, -29.074, 14.7466),
+        'left_elbow': (25.697, 18.1781), 'left_wrist': (0.7264, -5.0333),
+        'right_hip': (4.3698, 0.0506, 0.0039), 'right_knee': (8.5356,),
+        'right_ankle': (4.1638, 0.0508), 'left_hip': (4.3535, -0.0506, -0.0038),
+        'left_knee': (8.5012,), 'left_ankle': (4.145, -0.0508),
+    })
+    # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
+    # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
+    # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
+    human.LookAt((160.0, 90.0, 20.0), start=46.709701, duration=0.698258)
+    human.KeyJoints(46.8, {
+        'neck': (35.0, 33.75, -29.5953), 'right_shoulder': (30.5291, 33.6232, -9.3307),
+        'right_elbow': (92.3575, 25.0477), 'right_wrist': (-16.8614, -17.8867),
+        'left_shoulder': (83.063, -29.4308, 14.7701), 'left_elbow': (26.4101, 18.4651),
+        'left_wrist': (-0.9537, -3.8522), 'right_hip': (3.9584, 0.0354, 0.0024),
+        'right_knee': (7.4707,), 'right_ankle': (3.5105, 0.0355),
+        'left_hip': (3.9213, -0.0354, -0.0024), 'left_knee': (7.3925,),
+        'left_ankle': (3.4682, -0.0355),
+    })
+    human.KeyRoot(46.9, (140.197, 72.971, 19.976), (90.0, 0.0, 0.0))
+    human.KeyJoints(46.9, {
+        'right_shoulder': (18.9329, 28.8417, -7.664), 'right_elbow': (97.1011, 25.4761),
+        'right_wrist': (-17.7978, -16.7228), 'left_shoulder': (64.9363, -30.2235, 15.1308),
+        'left_elbow': (40.1854, 19.3088), 'left_wrist': (-6.3318, 0.7673),
+        'right_hip': (3.2773, 0.0202, -0.0027), 'right_knee': (5.8045,),
+        'right_ankle': (2.4923, 0.0201), 'left_hip': (3.2932, -0.0205, 0.0031),
+        'left_knee': (5.8385,), 'left_ankle': (2.5237, -0.0203),
+    })
+    human.KeyJoints(47.0, {
+        'right_shoulder': (3.0957, 22.1379, -5.0586), 'right_elbow': (103.3043, 26.0364),
+        'left_shoulder': (40.38, -31.2602, 15.6023), 'left_wrist': (-13.6348, 6.8177),
+        'right_knee': (5.395,), 'right_ankle': (2.2, 0.005), 'left_knee': (5.419,),
+        'left_ankle': (2.2195, -0.0046),
+    })
+    human.KeyRoot(47.1, (140.026, 72.987, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(47.1, {
+        'right_shoulder': (-13.5485, 14.7795, -1.727), 'right_elbow': (109.3271, 26.5803),
+        'right_wrist': (-20.2111, -13.723), 'left_shoulder': (14.9327, -32.2666, 16.0602),
+        'left_elbow': (76.8743, 21.4832), 'left_wrist': (-21.234, 12.7103),
+        'right_hip': (3.0963, 0.0, 0.0), 'right_knee': (5.1187,), 'right_ankle': (2.0243, 0.0),
+        'left_hip': (3.0983, 0.0, 0.0), 'left_knee': (5.123,), 'left_ankle': (2.0267, 0.0),
+    })
+    human.KeyJoints(47.2, {
+        'right_shoulder': (-27.5653, 8.0343, 2.1181), 'right_elbow': (113.5297, 26.9599),
+        'right_wrist': (-21.0406, -12.6919), 'left_shoulder': (-5.8668, -32.9689, 16.3797),
+        'left_elbow': (90.7889, 22.2307), 'left_wrist': (-27.5008, 16.8566),
         'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
         'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
+    })
+    # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
+    # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
+    human.KeyJoints(47.3, {
+        'right_shoulder': (-35.5879, 3.1534, 6.8246), 'right_elbow': (113.5326, 26.9314),
+        'right_wrist': (-20.7986, -12.5276), 'left_shoulder': (-16.5876, -31.5409, 14.7775),
+        'left_elbow': (96.0555, 22.2427), 'left_wrist': (-30.8217, 17.8849),
+    })
+    human.KeyJoints(47.4, {
+        'right_shoulder': (-40.1452, -1.1147, 13.7435), 'right_elbow': (110.3889, 26.534),
+        'right_wrist': (-19.0605, -12.6355), 'left_shoulder': (-26.9646, -28.2904, 12.5157),
+        'left_elbow': (104.7474, 22.806), 'left_wrist': (-33.894, 20.0),
+    })
+    # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
+    human.Grasp('left_hand', 'open', start=47.407959, duration=0.072)
+    # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=47.407959, duration=0.072)
+    human.KeyRoot(47.479959, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(47.479959, {
+        'spine_lumbar': (17.0071, -11.4445, 7.5102), 'spine_thoracic': (-14.6839, -6.4027, 6.8752),
+        'neck': (35.0, 33.75, -29.5953), 'head': (15.0, -11.25), 'right_clavicle': (6.9972, 9.7296),
+        'right_shoulder': (-40.2471, -1.5898, 14.4624), 'right_elbow': (110.5049, 26.5332),
+        'right_wrist': (-18.9182, -12.5291), 'left_clavicle': (-2.4881, 4.0),
+        'left_shoulder': (-26.869, -28.5778, 12.87), 'left_elbow': (105.468, 22.9257),
+        'left_wrist': (-33.9242, 20.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
+        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
+        'left_ankle': (1.7189, 0.0),
     })

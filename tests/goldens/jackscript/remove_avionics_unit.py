@@ -60,17 +60,17 @@ def remove_avionics_unit():
     human.LookAt((22.0, 178.0, 100.0), start=0.54, duration=0.2628)
     human.KeyRoot(0.6, (0.0, 72.826, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'neck': (-2.6125, 0.0, 0.0), 'head': (-2.2385, 0.0), 'right_hip': (5.1434, 0.0, 0.0),
+        'neck': (-2.476, 0.0, 0.0), 'head': (-2.0969, 0.0), 'right_hip': (5.1434, 0.0, 0.0),
         'right_knee': (9.3837,), 'right_ankle': (4.2403, 0.0), 'left_hip': (5.0976, 0.0, 0.0),
         'left_knee': (9.287,), 'left_ankle': (4.1868, 0.0),
     })
     human.KeyJoints(0.7, {
-        'neck': (-13.0189, 0.0, 0.0), 'head': (-11.1553, 0.0), 'left_knee': (7.3445,),
+        'neck': (-12.5268, 0.0, 0.0), 'head': (-10.6449, 0.0), 'left_knee': (7.3445,),
     })
     human.KeyRoot(0.8, (0.0, 72.97, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (-19.6991, 0.0, 0.0), 'head': (-16.8792, 0.0), 'right_clavicle': (0.0, 0.0),
+        'neck': (-19.6637, 0.0, 0.0), 'head': (-16.8425, 0.0), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
         'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
         'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0),
@@ -80,17 +80,21 @@ def remove_avionics_unit():
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
+    # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: gaze on head at latch_right
+    human.LookAt((0.0, 178.0, 100.0), start=0.8028, duration=1.836346)
     human.KeyJoints(0.9, {
         'spine_lumbar': (0.0844, -0.0909, -0.3271), 'spine_thoracic': (0.2976, 0.0244, -0.6542),
-        'right_clavicle': (0.5952, -0.3271), 'right_shoulder': (8.5094, 9.4653, 10.2972),
-        'right_elbow': (33.9093, 17.0012), 'right_wrist': (0.0072, -0.0191),
-        'left_clavicle': (0.6526, 0.2398), 'left_shoulder': (11.442, 5.8946, 11.2736),
-        'left_elbow': (34.3349, 15.1753), 'left_wrist': (-0.1521, -0.0457),
-        'right_hip': (3.1133, 0.0, 0.0), 'right_knee': (5.1074,), 'right_ankle': (1.996, 0.0),
-        'left_hip': (3.1178, 0.0, 0.0), 'left_knee': (5.1168,), 'left_ankle': (2.0011, 0.0),
+        'neck': (-20.2553, -0.1825, 0.591), 'right_clavicle': (0.5952, -0.3271),
+        'right_shoulder': (8.5094, 9.4653, 10.2972), 'right_elbow': (33.9093, 17.0012),
+        'right_wrist': (0.0072, -0.0191), 'left_clavicle': (0.6526, 0.2398),
+        'left_shoulder': (11.442, 5.8946, 11.2736), 'left_elbow': (34.3349, 15.1753),
+        'left_wrist': (-0.1521, -0.0457), 'right_hip': (3.1133, 0.0, 0.0), 'right_knee': (5.1074,),
+        'right_ankle': (1.996, 0.0), 'left_hip': (3.1178, 0.0, 0.0), 'left_knee': (5.1168,),
+        'left_ankle': (2.0011, 0.0),
     })
     human.KeyJoints(1.0, {
         'spine_lumbar': (0.3466, -0.3502, -1.2601), 'spine_thoracic': (1.1465, 0.0942, -2.5202),
+        'neck': (-20.8972, -0.6299, 2.0396), 'head': (-18.1789, -0.0017),
         'right_clavicle': (2.3009, -1.2601), 'right_shoulder': (8.267, 20.1218, 6.9827),
         'right_elbow': (32.5564, 16.4661), 'left_clavicle': (2.5143, 0.9286),
         'left_shoulder': (19.5967, 6.3688, 10.743), 'left_elbow': (34.2055, 9.4318),
@@ -100,6 +104,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.1, {
         'spine_lumbar': (0.7852, -0.7411, -2.6664), 'spine_thoracic': (2.4261, 0.1993, -5.3328),
+        'neck': (-21.9977, -1.2839, 4.1716), 'head': (-19.334, -0.0061),
         'right_clavicle': (4.8876, -2.6664), 'right_shoulder': (7.9016, 36.1834, 1.987),
         'right_elbow': (30.482, 15.6596), 'left_clavicle': (5.3208, 1.9763),
         'left_shoulder': (31.9524, 7.0909, 9.9403), 'left_elbow': (33.9944, 0.775),
@@ -109,6 +114,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.2, {
         'spine_lumbar': (1.3989, -1.2265, -4.413), 'spine_thoracic': (4.0152, 0.3299, -8.826),
+        'neck': (-24.7259, -2.008, 6.503), 'head': (-19.603, -0.0155),
         'right_clavicle': (8.1253, -4.413), 'right_shoulder': (7.4478, 56.1316, -4.2175),
         'right_elbow': (27.8498, 14.6578), 'right_wrist': (0.1119, -0.2843),
         'left_clavicle': (8.8071, 3.2926), 'left_shoulder': (47.4004, 7.9994, 8.9386),
@@ -116,17 +122,20 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.3, {
         'spine_lumbar': (2.1863, -1.7695, -6.3669), 'spine_thoracic': (5.793, 0.4759, -12.7338),
-        'right_clavicle': (11.784, -6.3669), 'right_shoulder': (6.9401, 78.4474, -11.1584),
-        'right_elbow': (24.8234, 13.537), 'left_clavicle': (12.7082, 4.7872),
-        'left_shoulder': (64.8322, 9.0329, 7.8113), 'left_elbow': (33.3467, -22.0041),
+        'neck': (-28.6059, -2.6988, 8.6945), 'right_clavicle': (11.784, -6.3669),
+        'right_shoulder': (6.9401, 78.4474, -11.1584), 'right_elbow': (24.8234, 13.537),
+        'left_clavicle': (12.7082, 4.7872), 'left_shoulder': (64.8322, 9.0329, 7.8113),
+        'left_elbow': (33.3467, -22.0041),
     })
     human.KeyJoints(1.4, {
         'spine_lumbar': (3.146, -2.3332, -8.3951), 'spine_thoracic': (7.6384, 0.6275, -16.7902),
-        'right_shoulder': (6.4131, 101.6123, -18.3634), 'left_clavicle': (16.7591, 6.3698),
-        'left_shoulder': (83.1389, 10.1298, 6.6315), 'left_elbow': (32.9202, -34.4892),
+        'neck': (-33.0555, -3.2691, 10.4789), 'right_shoulder': (6.4131, 101.6123, -18.3634),
+        'left_clavicle': (16.7591, 6.3698), 'left_shoulder': (83.1389, 10.1298, 6.6315),
+        'left_elbow': (32.9202, -34.4892),
     })
     human.KeyJoints(1.5, {
         'spine_lumbar': (4.2766, -2.8806, -10.3647), 'spine_thoracic': (9.4304, 0.7747, -20.7294),
+        'neck': (-37.6921, -3.5822, 11.3581), 'head': (-19.1879, -0.1445),
         'right_clavicle': (19.4442, -10.3647), 'right_shoulder': (5.9014, 124.1073, -25.3601),
         'right_elbow': (18.2425, 11.243), 'left_clavicle': (20.6949, 7.9501),
         'left_shoulder': (101.2121, 11.2286, 5.4724), 'left_elbow': (32.4321, -46.6134),
@@ -134,6 +143,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.6, {
         'spine_lumbar': (5.5768, -3.3747, -12.1427), 'spine_thoracic': (11.0481, 0.9076, -24.2853),
+        'neck': (-42.2412, -3.629, 11.3256), 'head': (-18.9881, -0.2173),
         'right_clavicle': (22.9857, -12.1427), 'right_shoulder': (5.4394, 144.4138, -31.6761),
         'right_elbow': (15.0153, 10.2223), 'left_clavicle': (24.2505, 9.4379),
         'left_shoulder': (117.943, 12.2679, 4.4073), 'left_elbow': (31.8872, -57.558),
@@ -141,6 +151,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.7, {
         'spine_lumbar': (7.0452, -3.7786, -13.596), 'spine_thoracic': (12.3705, 1.0162, -27.192),
+        'neck': (-46.1946, -3.37, 10.4748), 'head': (-18.9367, -0.2295),
         'right_clavicle': (26.0282, -13.596), 'right_shoulder': (5.0618, 161.0129, -36.8389),
         'right_elbow': (12.0484, 9.3873), 'right_wrist': (0.5064, -1.1566),
         'left_clavicle': (27.1609, 10.7429), 'left_shoulder': (132.223, 13.1862, 3.5092),
@@ -148,6 +159,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.8, {
         'spine_lumbar': (8.6804, -4.0554, -14.5918), 'spine_thoracic': (13.2765, 1.0907, -29.1836),
+        'neck': (-48.5099, -2.6607, 8.988), 'head': (-19.8511, -0.0428),
         'right_clavicle': (28.3415, -14.5918), 'right_shoulder': (4.8031, 172.3861, -40.3763),
         'right_elbow': (9.5055, 8.8143), 'left_clavicle': (29.1613, 11.7747),
         'left_shoulder': (142.9434, 13.9219, 2.8515), 'left_elbow': (30.6476, -72.6342),
@@ -155,6 +167,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.9, {
         'spine_lumbar': (10.481, -4.168, -14.997), 'spine_thoracic': (13.6452, 1.121, -29.9941),
+        'neck': (-50.8594, -1.8889, 7.2869), 'head': (-19.8536, 0.0076),
         'right_clavicle': (29.6959, -14.997), 'right_shoulder': (4.6978, 177.0143, -41.8159),
         'right_elbow': (7.5501, 8.5795), 'right_wrist': (0.7187, -1.554),
         'left_clavicle': (29.9865, 12.4431), 'left_shoulder': (148.9957, 14.4136, 2.5073),
@@ -164,13 +177,14 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.0, {
         'spine_lumbar': (14.7091, -3.8016, -15.0), 'spine_thoracic': (11.4041, 1.0753, -30.0),
-        'right_clavicle': (30.0, -15.0), 'right_shoulder': (5.0094, 175.1272, -41.754),
-        'right_elbow': (5.9799, 8.5763), 'left_clavicle': (30.0, 12.9673),
-        'left_shoulder': (151.7152, 14.3082, 2.4962), 'left_elbow': (28.4767, -75.1465),
-        'left_wrist': (-7.383, -2.1073),
+        'neck': (-53.5639, -0.9008, 4.2862), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (5.0094, 175.1272, -41.754), 'right_elbow': (5.9799, 8.5763),
+        'left_clavicle': (30.0, 12.9673), 'left_shoulder': (151.7152, 14.3082, 2.4962),
+        'left_elbow': (28.4767, -75.1465), 'left_wrist': (-7.383, -2.1073),
     })
     human.KeyJoints(2.1, {
         'spine_lumbar': (21.1165, -2.348, -15.0), 'spine_thoracic': (6.2414, 1.1965, -30.0),
+        'neck': (-57.0672, -0.26, 1.8793), 'head': (-19.5419, 0.003),
         'right_shoulder': (5.6749, 173.1622, -41.7093), 'right_elbow': (3.7945, 8.5781),
         'right_wrist': (0.9894, -2.1286), 'left_clavicle': (30.0, 14.8709),
         'left_shoulder': (157.1251, 11.9403, 2.9659), 'left_elbow': (24.199, -75.1785),
@@ -180,14 +194,14 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(2.2, {
         'spine_lumbar': (27.0121, -0.0511, -15.0), 'spine_thoracic': (-0.6836, -0.5472, -30.0),
-        'right_shoulder': (6.2003, 171.8684, -41.6984), 'right_elbow': (0.8901, 8.5842),
-        'right_wrist': (0.5937, -1.5593), 'left_clavicle': (30.0, 15.0),
-        'left_shoulder': (168.2071, 8.7303, 3.3465), 'left_elbow': (7.8817, -75.1842),
-        'left_wrist': (-6.5149, -2.1073),
+        'neck': (-57.958, 0.0814, 0.0515), 'right_shoulder': (6.2003, 171.8684, -41.6984),
+        'right_elbow': (0.8901, 8.5842), 'right_wrist': (0.5937, -1.5593),
+        'left_clavicle': (30.0, 15.0), 'left_shoulder': (168.2071, 8.7303, 3.3465),
+        'left_elbow': (7.8817, -75.1842), 'left_wrist': (-6.5149, -2.1073),
     })
     human.KeyJoints(2.3, {
-        'left_shoulder': (168.7512, 8.6473, 3.3487), 'left_elbow': (6.9284, -75.1829),
-        'left_wrist': (-6.222, -2.0014),
+        'neck': (-57.9933, 0.0905, -0.0003), 'left_shoulder': (168.7512, 8.6473, 3.3487),
+        'left_elbow': (6.9284, -75.1829), 'left_wrist': (-6.222, -2.0014),
     })
     human.KeyJoints(2.4, {
         'spine_thoracic': (-0.7639, -0.6441, -30.0), 'right_wrist': (0.4778, -1.3174),
@@ -195,25 +209,26 @@ def remove_avionics_unit():
         'left_wrist': (-5.7372, -1.8306),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (27.2247, 0.1333, -15.0), 'right_elbow': (0.452, 8.5853),
-        'right_wrist': (0.3766, -1.0992), 'left_shoulder': (170.3659, 8.4187, 3.3526),
-        'left_elbow': (4.118, -75.1792), 'left_wrist': (-4.9341, -1.5556),
+        'spine_lumbar': (27.2247, 0.1333, -15.0), 'neck': (-58.3625, 0.1027, -0.0685),
+        'right_elbow': (0.452, 8.5853), 'right_wrist': (0.3766, -1.0992),
+        'left_shoulder': (170.3659, 8.4187, 3.3526), 'left_elbow': (4.118, -75.1792),
+        'left_wrist': (-4.9341, -1.5556),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=2.567146, duration=0.072)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=2.567146, duration=0.072)
     human.KeyJoints(2.6, {
-        'neck': (-19.7057, 0.0, 0.0), 'head': (-16.8849, 0.0),
+        'neck': (-58.3625, 0.1027, -0.0685), 'head': (-19.5783, 0.0027),
         'right_shoulder': (6.3631, 171.7904, -41.6984),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
     human.LookAt((0.0, 172.0, 98.0), start=2.639146, duration=0.2628)
-    human.KeyJoints(2.7, {'neck': (-21.6801, -0.0055, 0.0306), 'head': (-17.0183, 0.0)})
-    human.KeyJoints(2.8, {'neck': (-33.4808, -0.0383, 0.2134), 'head': (-17.8153, -0.0001)})
+    human.KeyJoints(2.7, {'neck': (-58.0984, 0.0748, 0.0182)})
+    human.KeyJoints(2.8, {'neck': (-57.0707, -0.0335, 0.3555)})
     human.KeyJoints(2.9, {
         'spine_lumbar': (27.2247, 0.1333, -15.0), 'spine_thoracic': (-0.7019, -0.6329, -30.0),
-        'neck': (-55.8799, -0.1005, 0.5604), 'head': (-19.3282, -0.0004),
+        'neck': (-56.4211, -0.102, 0.5686), 'head': (-19.3648, -0.0004),
         'right_shoulder': (6.3631, 171.7904, -41.6984), 'right_elbow': (0.452, 8.5853),
         'right_wrist': (0.3766, -1.0992), 'left_clavicle': (30.0, 15.0),
         'left_shoulder': (170.3659, 8.4187, 3.3526), 'left_elbow': (4.118, -75.1792),
@@ -221,15 +236,19 @@ def remove_avionics_unit():
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
+    # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
+    human.LookAt((0.0, 165.0, 75.0), start=2.901946, duration=2.430743)
     human.KeyJoints(3.0, {
         'spine_lumbar': (25.5971, 0.9206, -11.0556), 'spine_thoracic': (3.8136, -1.7062, -18.8591),
-        'neck': (-56.4207, -0.1021, 0.5687), 'right_shoulder': (64.3444, 122.5238, -27.9589),
-        'right_elbow': (1.4948, 5.1668), 'right_wrist': (0.4358, -0.8118),
-        'left_clavicle': (30.0, 5.7292), 'left_shoulder': (113.7735, 57.0594, 25.6077),
-        'left_elbow': (3.4616, -23.8392), 'left_wrist': (-3.2055, -1.2765),
+        'neck': (-59.1916, 0.0374, -0.4879), 'head': (-19.9236, 0.1995),
+        'right_shoulder': (64.3444, 122.5238, -27.9589), 'right_elbow': (1.4948, 5.1668),
+        'right_wrist': (0.4358, -0.8118), 'left_clavicle': (30.0, 5.7292),
+        'left_shoulder': (113.7735, 57.0594, 25.6077), 'left_elbow': (3.4616, -23.8392),
+        'left_wrist': (-3.2055, -1.2765),
     })
     human.KeyJoints(3.1, {
         'spine_lumbar': (22.9423, 2.3383, -4.6217), 'spine_thoracic': (11.619, -3.4569, -0.6335),
+        'neck': (-60.0, 20.4624, 13.4815), 'head': (-20.0, -7.1778),
         'right_clavicle': (30.0, -15.0), 'right_shoulder': (158.9208, 42.1623, -5.5476),
         'right_elbow': (3.1957, -0.4094), 'right_wrist': (0.5323, -0.3431),
         'left_clavicle': (30.0, -9.393), 'left_shoulder': (21.422, 136.3998, 61.9091),
@@ -239,6 +258,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(3.2, {
         'spine_lumbar': (23.2097, 3.0062, -3.2068), 'spine_thoracic': (14.4746, -3.6898, 3.5481),
+        'neck': (-60.0, 33.6822, 25.8964), 'head': (-20.0, -11.25),
         'right_clavicle': (30.0, -14.7926), 'right_shoulder': (179.7221, 24.3614, -0.5558),
         'right_elbow': (3.4057, -1.6517), 'right_wrist': (0.5372, -0.2799),
         'left_clavicle': (30.0, -12.7289), 'left_shoulder': (0.7411, 154.0714, 69.9993),
@@ -250,30 +270,35 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'close', start=3.291054, duration=0.072)
     human.KeyJoints(3.3, {
         'spine_lumbar': (25.2115, 1.6706, -3.1542), 'spine_thoracic': (12.8766, -2.6383, 3.7721),
-        'right_clavicle': (30.0, -15.0), 'right_shoulder': (180.0, 26.1955, -0.6078),
-        'right_elbow': (3.2516, -1.6499), 'right_wrist': (0.2677, -0.2847),
-        'left_clavicle': (30.0, -14.4368), 'left_shoulder': (2.4581, 153.4396, 70.0),
-        'left_elbow': (1.7078, 78.5666), 'left_wrist': (0.3777, -0.4421),
+        'neck': (-60.0, 33.75, 26.1461), 'head': (-20.0, -10.9243), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (180.0, 26.1955, -0.6078), 'right_elbow': (3.2516, -1.6499),
+        'right_wrist': (0.2677, -0.2847), 'left_clavicle': (30.0, -14.4368),
+        'left_shoulder': (2.4581, 153.4396, 70.0), 'left_elbow': (1.7078, 78.5666),
+        'left_wrist': (0.3777, -0.4421),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(3.4, {
+        'neck': (-60.0, 33.75, 27.0727), 'head': (-20.0, -10.1367),
         'right_shoulder': (179.5684, 26.2744, -0.633), 'right_elbow': (4.8343, -1.6087),
         'right_wrist': (0.3334, 0.0948), 'left_shoulder': (3.6687, 153.9401, 69.401),
         'left_elbow': (3.3031, 78.4164), 'left_wrist': (-0.2081, -0.8813),
     })
     human.KeyJoints(3.5, {
+        'neck': (-60.0, 33.75, 36.055), 'head': (-20.0, -2.5009),
         'right_shoulder': (175.2085, 27.12, -0.9118), 'right_elbow': (20.8227, -1.1923),
         'right_wrist': (0.9973, 3.9283), 'left_shoulder': (15.999, 159.0112, 63.3499),
         'left_elbow': (19.4195, 76.8891), 'left_wrist': (-6.1266, -5.3178),
     })
     human.KeyJoints(3.6, {
+        'neck': (-60.0, 33.75, 47.3648), 'head': (-20.0, 7.1134),
         'right_shoulder': (169.0632, 28.4853, -1.3924), 'right_elbow': (43.3589, -0.6054),
         'right_wrist': (1.9331, 9.3318), 'left_shoulder': (33.7373, 166.2111, 54.8207),
         'left_elbow': (42.1361, 74.7044), 'left_wrist': (-14.4688, -11.5713),
     })
     human.KeyJoints(3.7, {
         'spine_lumbar': (25.2115, 1.6706, -3.1542), 'spine_thoracic': (12.8766, -2.6383, 3.7721),
+        'neck': (-60.0, 33.75, 52.076), 'head': (-20.0, 11.1183),
         'right_shoulder': (164.7735, 29.8594, -1.9407), 'right_elbow': (59.09, -0.1957),
         'right_wrist': (2.5863, 13.1036), 'left_clavicle': (30.0, -14.4368),
         'left_shoulder': (46.9904, 171.3636, 48.867), 'left_elbow': (57.9931, 73.1017),
@@ -283,6 +308,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(3.8, {
         'spine_lumbar': (19.8692, 0.5639, -5.1018), 'spine_thoracic': (14.6276, -1.3499, 2.1396),
+        'neck': (-60.0, 33.75, 38.0132), 'head': (-20.0, -11.25),
         'right_shoulder': (166.2283, 30.3687, -2.2125), 'right_elbow': (48.569, -0.0451),
         'right_wrist': (2.4028, 9.5725), 'left_clavicle': (30.0, -13.3234),
         'left_shoulder': (41.0238, 169.3377, 46.4125), 'left_elbow': (48.3349, 71.8038),
@@ -292,10 +318,10 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(3.9, {
         'spine_lumbar': (17.7325, -0.1726, -6.3034), 'spine_thoracic': (15.7784, 0.0756, 1.3009),
-        'right_shoulder': (169.7524, 28.5747, -1.3028), 'right_elbow': (39.4833, 0.2263),
-        'right_wrist': (2.4325, 6.4099), 'left_clavicle': (30.0, -12.8005),
-        'left_shoulder': (34.0576, 164.74, 45.3014), 'left_elbow': (37.2706, 70.2874),
-        'left_wrist': (-12.393, -15.2411),
+        'neck': (-60.0, 33.75, 35.731), 'right_shoulder': (169.7524, 28.5747, -1.3028),
+        'right_elbow': (39.4833, 0.2263), 'right_wrist': (2.4325, 6.4099),
+        'left_clavicle': (30.0, -12.8005), 'left_shoulder': (34.0576, 164.74, 45.3014),
+        'left_elbow': (37.2706, 70.2874), 'left_wrist': (-12.393, -15.2411),
     })
     human.KeyJoints(4.0, {
         'right_shoulder': (171.3988, 28.4113, -1.0954),
@@ -383,30 +409,37 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.0, (-6.963, 70.797, 51.685), (-97.6952, 0.0, 0.0))
     human.KeyJoints(6.0, {
+        'neck': (-60.0, 33.75, 35.731), 'head': (-20.0, -11.25),
         'right_hip': (37.344, 0.6952, 1.0937), 'right_knee': (75.2827,),
         'right_ankle': (13.924, 2.0055), 'left_hip': (14.0305, -1.5235, -0.5805),
         'left_knee': (39.5204,), 'left_ankle': (18.6866, -1.6309),
     })
+    # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
+    human.LookAt((-110.0, 85.0, 40.0), start=6.01269, duration=1.197891)
     human.KeyRoot(6.1, (-24.085, 69.435, 47.788), (-97.6952, 0.0, 0.0))
     human.KeyJoints(6.1, {
+        'neck': (-48.3973, 25.506, 32.0796), 'head': (-15.7253, -8.8304),
         'right_hip': (26.0625, 0.1868, 0.0913), 'right_knee': (23.6073,),
         'right_ankle': (-2.4411, 0.2078), 'left_hip': (11.6336, -0.1654, -0.1735),
         'left_knee': (61.4037,), 'left_ankle': (15.1642, -0.24),
     })
     human.KeyRoot(6.2, (-45.054, 68.203, 43.002), (-97.6952, 0.0, 0.0))
     human.KeyJoints(6.2, {
+        'neck': (-17.0147, 3.2078, 22.2034), 'head': (-4.1633, -2.2861),
         'right_hip': (26.7401, -1.264, -1.1995), 'right_knee': (61.1706,),
         'right_ankle': (17.6764, -1.7424), 'left_hip': (52.1978, 4.5465, -5.4124),
         'left_knee': (53.4444,), 'left_ankle': (-6.69, -1.3598),
     })
     human.KeyRoot(6.3, (-66.42, 69.055, 43.218), (-96.061, 0.0, 0.0))
     human.KeyJoints(6.3, {
+        'neck': (16.6284, -20.6965, 11.6159), 'head': (8.2315, 4.7296),
         'right_hip': (13.6684, 0.9414, -0.4661), 'right_knee': (71.1775,),
         'right_ankle': (20.0, 1.3018), 'left_hip': (27.0299, 0.1909, -6.7016),
         'left_knee': (31.3014,), 'left_ankle': (4.4144, -2.871),
     })
     human.KeyRoot(6.4, (-78.655, 72.466, 40.984), (-90.6329, 0.0, 0.0))
     human.KeyJoints(6.4, {
+        'neck': (34.7192, -33.5505, 5.9227), 'head': (14.8966, 8.5022),
         'right_shoulder': (179.6165, 27.7155, -0.1667), 'right_elbow': (36.7687, 1.855),
         'right_wrist': (1.776, 3.9596), 'left_shoulder': (40.2699, 160.994, 40.4651),
         'left_elbow': (35.7009, 64.9934), 'left_wrist': (-11.9791, -15.6434),
@@ -418,6 +451,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(6.5, (-80.127, 72.865, 40.09), (-90.0, 0.0, 0.0))
     human.KeyJoints(6.5, {
+        'neck': (35.0, -33.75, 5.8343), 'head': (15.0, 8.5607),
         'right_shoulder': (173.1942, 26.6677, 1.8322), 'right_elbow': (39.4884, 0.5012),
         'right_wrist': (4.9018, 3.6317), 'left_shoulder': (41.0836, 153.5524, 41.3434),
         'left_elbow': (38.7135, 59.0427), 'left_wrist': (-9.1725, -16.084),
@@ -485,11 +519,11 @@ def remove_avionics_unit():
     human.KeyRoot(7.282581, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(7.282581, {
         'spine_lumbar': (17.7325, -0.1726, -6.3034), 'spine_thoracic': (15.7784, 0.0756, 1.3009),
-        'neck': (-56.4207, -0.1021, 0.5687), 'head': (-19.3648, -0.0004),
-        'right_clavicle': (30.0, -15.0), 'right_shoulder': (47.2686, -8.2156, 49.7532),
-        'right_elbow': (67.0072, -19.0342), 'right_wrist': (54.5398, -13.6962),
-        'left_clavicle': (30.0, -12.8005), 'left_shoulder': (53.5772, 7.9902, 69.4788),
-        'left_elbow': (77.394, -48.017), 'left_wrist': (38.0779, -29.9965),
-        'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
-        'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
+        'neck': (35.0, -33.75, 5.8343), 'head': (15.0, 8.5607), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (47.2686, -8.2156, 49.7532), 'right_elbow': (67.0072, -19.0342),
+        'right_wrist': (54.5398, -13.6962), 'left_clavicle': (30.0, -12.8005),
+        'left_shoulder': (53.5772, 7.9902, 69.4788), 'left_elbow': (77.394, -48.017),
+        'left_wrist': (38.0779, -29.9965), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
+        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
+        'left_ankle': (1.7189, 0.0),
     })

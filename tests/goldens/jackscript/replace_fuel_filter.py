@@ -397,36 +397,40 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.4, {
         'spine_lumbar': (50.6193, 8.428, 1.277), 'spine_thoracic': (-13.3658, 5.6823, 13.5512),
-        'neck': (35.0, 33.702, -4.3993), 'head': (14.967, -10.7775),
-        'right_shoulder': (48.6718, 3.2994, 15.0623), 'right_elbow': (0.0, 79.8968),
-        'right_wrist': (4.5322, -2.3042), 'left_clavicle': (-9.1908, 11.04),
+        'neck': (35.0, 33.6659, -4.5614), 'head': (14.9422, -10.7775),
+        'right_shoulder': (46.4711, 9.1805, 22.5492), 'right_elbow': (10.3622, 60.0522),
+        'right_wrist': (6.023, -5.2127), 'left_clavicle': (-9.1908, 11.04),
         'left_shoulder': (30.7451, 3.3771, 9.6409), 'left_elbow': (37.5014, 17.1597),
         'left_wrist': (-0.781, 0.3684),
     })
     human.KeyJoints(6.5, {
-        'neck': (35.0, 32.09, -11.6412), 'head': (13.8576, -10.778),
-        'right_shoulder': (49.6368, 10.6621, 15.2027), 'right_wrist': (19.8714, -8.0915),
+        'neck': (35.0, 31.7079, -13.3578), 'head': (13.5946, -10.7781),
+        'right_shoulder': (43.7365, 33.9395, 48.0265), 'right_elbow': (45.4747, -7.1777),
+        'right_wrist': (25.2185, -19.6962),
     })
     human.KeyJoints(6.6, {
-        'neck': (35.0, 29.3267, -24.0551), 'head': (11.9559, -10.7789),
-        'right_shoulder': (51.0035, 18.9118, 15.4016), 'right_wrist': (41.2509, -15.9452),
+        'neck': (35.0, 28.6594, -27.0532), 'head': (11.4966, -10.7791),
+        'right_shoulder': (42.5526, 47.6041, 62.9065), 'right_elbow': (65.9821, -46.4432),
+        'right_wrist': (44.6578, -28.6235),
     })
     human.KeyJoints(6.7, {
-        'neck': (35.0, 26.9664, -34.6588), 'head': (10.3315, -10.7796),
-        'right_shoulder': (52.3624, 26.6554, 15.5994), 'right_wrist': (62.3843, -23.6305),
+        'neck': (35.0, 26.5381, -36.5829), 'head': (10.0368, -10.7797),
+        'right_shoulder': (46.1757, 43.2896, 47.3415), 'right_elbow': (44.1428, -4.5949),
+        'right_wrist': (61.8794, -29.4535),
     })
     human.KeyJoints(6.8, {
         'spine_lumbar': (50.6193, 8.428, 1.277), 'spine_thoracic': (-13.3658, 5.6823, 13.5512),
         'neck': (35.0, 26.3842, -37.2744), 'head': (9.9308, -10.7798),
-        'right_clavicle': (-9.8334, 12.8396), 'right_shoulder': (53.3042, 32.4997, 15.7365),
-        'right_wrist': (76.9851, -28.9124), 'left_shoulder': (30.7451, 3.3771, 9.6409),
-        'left_elbow': (37.5014, 17.1597), 'left_wrist': (-0.781, 0.3684),
+        'right_clavicle': (-9.8334, 12.8396), 'right_shoulder': (51.953, 36.4099, 22.4806),
+        'right_elbow': (9.3188, 62.1345), 'right_wrist': (76.6426, -29.9164),
+        'left_shoulder': (30.7451, 3.3771, 9.6409), 'left_elbow': (37.5014, 17.1597),
+        'left_wrist': (-0.781, 0.3684),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(6.9, {
         'spine_lumbar': (52.8116, 9.4869, 0.8579), 'spine_thoracic': (-11.6696, 6.1979, 12.8206),
         'neck': (33.4608, 25.2045, -36.2257), 'head': (9.0894, -10.3558),
-        'right_clavicle': (-9.997, 11.8732), 'right_shoulder': (52.4281, 35.1835, 15.7251),
+        'right_clavicle': (-9.997, 11.8732), 'right_shoulder': (52.4281, 35.1784, 15.7247),
         'right_elbow': (0.0, 79.9515), 'right_wrist': (79.8387, -29.9408),
         'left_shoulder': (28.3996, 5.3234, 9.081), 'left_elbow': (46.0983, 17.1782),
         'left_wrist': (-1.652, 2.2353),
@@ -457,53 +461,53 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=7.329489, duration=2.069192)
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, 13.7752, 2.5769), 'spine_thoracic': (-12.5296, 6.3639, 14.0819),
-        'neck': (34.1147, 22.3435, -49.4371), 'head': (15.0, -11.25),
-        'right_shoulder': (55.6912, 37.7682, 16.3305), 'right_elbow': (2.8237, 79.7997),
-        'right_wrist': (75.0319, -29.1002), 'left_clavicle': (-9.2185, 11.1758),
-        'left_shoulder': (26.0978, 4.4654, 9.5028), 'left_elbow': (54.6451, 17.2019),
-        'left_wrist': (-2.1394, 4.0832),
+        'spine_lumbar': (59.9531, 13.4758, 2.1422), 'spine_thoracic': (-12.5106, 6.0815, 13.5604),
+        'neck': (33.8765, 22.6563, -48.6981), 'head': (15.0, -11.25),
+        'right_shoulder': (55.768, 36.9816, 16.2299), 'right_elbow': (2.7199, 79.7432),
+        'right_wrist': (74.5794, -28.8493), 'left_clavicle': (-9.2602, 11.3517),
+        'left_shoulder': (24.4409, 4.7147, 9.5024), 'left_elbow': (56.1892, 17.216),
+        'left_wrist': (-2.287, 4.35),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, 14.7003, -0.0352), 'spine_thoracic': (-12.043, 3.9321, 9.5707),
-        'neck': (32.5621, 23.5689, -43.8099), 'right_shoulder': (56.2431, 30.7514, 15.6552),
-        'right_elbow': (2.8564, 78.963), 'right_wrist': (65.7171, -25.3487),
-        'left_clavicle': (-9.3347, 11.7441), 'left_shoulder': (28.1613, 3.2387, 9.7258),
-        'left_elbow': (50.5, 17.2047), 'left_wrist': (-1.7867, 3.2439),
+        'spine_lumbar': (59.7932, 13.2089, -1.7734), 'spine_thoracic': (-11.9893, 2.8422, 7.5593),
+        'neck': (32.7675, 24.6723, -40.7134), 'right_shoulder': (56.558, 27.7302, 15.2549),
+        'right_elbow': (2.3815, 78.7659), 'right_wrist': (64.3038, -24.4766),
+        'left_shoulder': (20.4781, 4.5151, 9.7092), 'left_elbow': (58.1124, 17.2656),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (60.0, 16.0697, -3.9019), 'spine_thoracic': (-11.2479, 0.3322, 2.8926),
-        'neck': (31.6704, 25.8423, -34.9593), 'right_shoulder': (57.181, 20.3644, 14.6499),
-        'right_elbow': (2.9412, 77.7244), 'right_wrist': (51.9284, -19.7955),
-        'left_shoulder': (31.2159, 1.4228, 10.0558), 'left_elbow': (44.2434, 17.2098),
-        'left_wrist': (-1.2646, 1.9596),
+        'spine_lumbar': (59.6499, 12.9697, -6.2538), 'spine_thoracic': (-11.2568, -0.9967, 0.4447),
+        'neck': (32.6853, 28.2988, -31.171), 'right_shoulder': (57.6358, 16.7338, 14.1153),
+        'right_elbow': (2.0783, 77.5642), 'right_wrist': (51.474, -19.0968),
+        'left_clavicle': (-9.7576, 13.6373), 'left_shoulder': (16.9267, 4.1781, 9.979),
+        'left_elbow': (59.836, 17.3101), 'left_wrist': (-2.6963, 4.8032),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, 17.5806, -8.1684), 'spine_thoracic': (-10.2337, -3.6398, -4.4758),
-        'neck': (32.1468, 29.7424, -24.9386), 'right_shoulder': (58.4373, 8.9035, 13.5302),
-        'right_elbow': (3.1018, 76.3577), 'right_wrist': (36.7142, -13.6681),
-        'left_shoulder': (34.5863, -0.5808, 10.42), 'left_elbow': (37.1188, 17.2173),
+        'spine_lumbar': (59.656, 13.4633, -9.3807), 'spine_thoracic': (-10.4397, -3.9854, -5.1007),
+        'neck': (33.5884, 31.5801, -23.7364), 'head': (15.0, -11.25),
+        'right_shoulder': (58.7209, 8.0969, 13.2713), 'right_elbow': (2.0629, 76.5232),
+        'right_wrist': (39.8746, -14.4291), 'left_clavicle': (-9.8694, 14.2265),
+        'left_shoulder': (18.155, 3.2338, 10.2538), 'left_elbow': (57.492, 17.3118),
+        'left_wrist': (-2.5038, 4.321),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (60.0, 18.9304, -11.9798), 'spine_thoracic': (-9.0896, -7.1882, -11.0583),
-        'neck': (34.4967, 33.6536, -15.188), 'head': (15.0, -11.25),
-        'right_shoulder': (59.9447, -1.3349, 12.5119), 'right_elbow': (3.3615, 75.1368),
-        'right_wrist': (23.1227, -8.1944), 'left_clavicle': (-9.8657, 14.3429),
-        'left_shoulder': (37.5973, -2.3707, 10.7453), 'left_elbow': (30.3698, 17.2273),
-        'left_wrist': (-0.174, -1.003),
+        'spine_lumbar': (59.8045, 16.2862, -12.3556), 'spine_thoracic': (-9.3115, -7.111, -10.9062),
+        'neck': (34.9732, 33.75, -15.2885), 'right_shoulder': (59.9822, -1.0067, 12.4409),
+        'right_elbow': (2.3705, 75.3228), 'right_wrist': (25.9456, -9.0389),
+        'left_clavicle': (-9.9432, 14.6566), 'left_shoulder': (27.5816, 0.1118, 10.6251),
+        'left_elbow': (43.4359, 17.2848), 'left_wrist': (-1.3216, 1.5166),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (60.0, 19.8163, -14.4813), 'spine_thoracic': (-7.9051, -9.5171, -15.3786),
-        'neck': (35.0, 33.75, -9.5821), 'head': (15.0, -10.7929),
-        'right_shoulder': (61.6357, -8.0545, 11.8106), 'right_elbow': (3.7438, 74.3356),
-        'right_wrist': (14.2025, -4.6018), 'left_clavicle': (-9.9769, 14.8871),
-        'left_shoulder': (39.5734, -3.5454, 10.9589), 'left_elbow': (25.24, 17.2398),
-        'left_wrist': (0.1637, -2.2105),
+        'spine_lumbar': (59.9607, 19.2525, -14.5245),
+        'spine_thoracic': (-8.0057, -9.4732, -15.2954), 'neck': (35.0, 33.75, -9.671),
+        'head': (15.0, -10.8953), 'right_shoulder': (61.5591, -7.9071, 11.8045),
+        'right_elbow': (3.182, 74.3825), 'right_wrist': (14.877, -4.8145),
+        'left_clavicle': (-9.9904, 14.9408), 'left_shoulder': (37.4871, -3.0132, 10.932),
+        'left_elbow': (28.0732, 17.2564), 'left_wrist': (-0.0793, -1.6444),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.0, {
         'spine_lumbar': (60.0, 20.0, -14.7262), 'spine_thoracic': (-6.6401, -9.6446, -15.9852),
-        'neck': (35.0, 33.75, -8.1014), 'head': (15.0, -10.5834),
+        'neck': (35.0, 33.75, -8.3722), 'head': (15.0, -10.5592),
         'right_shoulder': (63.3579, -8.9115, 11.6221), 'right_elbow': (6.2132, 74.2055),
         'right_wrist': (21.5485, -6.8406), 'left_clavicle': (-9.742, 14.6831),
         'left_shoulder': (40.3621, -1.6457, 10.5384), 'left_elbow': (22.8055, 17.2609),
@@ -511,7 +515,7 @@ def replace_fuel_filter():
     })
     human.KeyJoints(8.1, {
         'spine_lumbar': (60.0, 20.0, -14.9676), 'spine_thoracic': (-1.2315, -9.9905, -28.0289),
-        'neck': (35.0, -7.2728, 8.1339), 'head': (15.0, 11.25),
+        'neck': (35.0, -7.2761, 8.134), 'head': (15.0, 11.25),
         'right_shoulder': (65.654, -19.1684, 11.7207), 'right_elbow': (2.8339, 73.8999),
         'right_wrist': (-3.8475, 2.3918), 'left_clavicle': (-9.9652, 14.973),
         'left_shoulder': (47.2818, 9.6557, 8.2608), 'left_elbow': (18.302, 17.317),
@@ -520,44 +524,47 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.122677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (1.4507, -10.0, -30.0), 'neck': (35.0, 7.1287, 8.86),
+        'spine_thoracic': (1.4507, -10.0, -30.0), 'neck': (35.0, 7.1275, 8.8601),
         'right_shoulder': (70.6013, -21.7715, 11.7273), 'right_elbow': (0.0, 74.1058),
         'right_wrist': (5.1981, -5.4339), 'left_shoulder': (50.3821, 11.3823, 7.9296),
         'left_elbow': (17.034, 17.3199), 'left_wrist': (-1.151, -4.0152),
     })
-    human.KeyJoints(8.3, {'neck': (35.0, 7.1287, 8.86)})
+    human.KeyJoints(8.3, {
+        'neck': (35.0, 7.1275, 8.8601), 'left_shoulder': (50.3821, 11.3823, 7.9296),
+        'left_elbow': (17.034, 17.3199),
+    })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.4, {
-        'neck': (34.9985, 7.0391, 9.099), 'left_shoulder': (50.3072, 11.405, 7.9006),
-        'left_elbow': (17.0979, 17.3169), 'left_wrist': (-1.166, -4.0011),
+        'neck': (34.9985, 7.0378, 9.099), 'left_shoulder': (50.1818, 11.3755, 7.8734),
+        'left_elbow': (17.383, 17.3209), 'left_wrist': (-1.2077, -3.9355),
     })
     human.KeyJoints(8.5, {
-        'neck': (34.9236, 2.5656, 21.0187), 'left_shoulder': (46.1116, 12.6862, 6.194),
-        'left_elbow': (20.687, 17.1427), 'left_wrist': (-2.0314, -3.2155),
+        'neck': (34.9236, 2.5646, 21.0187), 'left_shoulder': (39.9324, 11.0343, 4.8481),
+        'left_elbow': (34.7903, 17.3688), 'left_wrist': (-4.1205, 0.0395),
     })
     human.KeyJoints(8.6, {
-        'neck': (34.7916, -5.326, 42.0464), 'left_shoulder': (36.7591, 15.5856, 2.0879),
-        'left_elbow': (28.7375, 16.7403), 'left_wrist': (-4.0597, -1.4786),
+        'neck': (34.7916, -5.3265, 42.0464), 'left_shoulder': (20.746, 10.4325, -1.4326),
+        'left_elbow': (65.4987, 17.4532), 'left_wrist': (-9.6258, 7.0517),
     })
     human.KeyJoints(8.7, {
-        'neck': (34.6799, -11.999, 59.8268), 'left_shoulder': (24.0247, 19.6183, -4.0936),
-        'left_elbow': (39.7964, 16.1651), 'left_wrist': (-7.0157, 0.8588),
+        'neck': (34.6799, -11.999, 59.8268), 'left_shoulder': (1.7883, 9.9237, -9.0778),
+        'left_elbow': (91.4649, 17.5246), 'left_wrist': (-15.1889, 12.9811),
     })
     human.KeyJoints(8.8, {
-        'neck': (34.655, -13.4905, 63.8012), 'left_shoulder': (9.6835, 24.2994, -12.0267),
-        'left_elbow': (52.411, 15.4724), 'left_wrist': (-10.6643, 3.4457),
+        'neck': (34.655, -13.4905, 63.8012), 'left_shoulder': (-8.8395, 10.5246, -16.3479),
+        'left_elbow': (96.9841, 17.4376), 'left_wrist': (-18.4934, 14.1657),
     })
     human.KeyJoints(8.9, {
-        'left_shoulder': (-4.4894, 29.1442, -21.3873), 'left_elbow': (65.1286, 14.7174),
-        'left_wrist': (-14.7703, 5.9312),
+        'left_shoulder': (-15.7526, 17.5791, -23.7473), 'left_elbow': (94.2311, 16.4051),
+        'left_wrist': (-20.3017, 12.8048),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (-16.7189, 33.6679, -31.8517), 'left_elbow': (76.4962, 13.9553),
-        'left_wrist': (-19.0985, 7.9643),
+        'left_shoulder': (-21.3311, 28.0333, -32.3059), 'left_elbow': (90.3528, 14.8175),
+        'left_wrist': (-21.8214, 10.8877),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (-25.23, 37.3855, -43.0958), 'left_elbow': (85.061, 13.2416),
-        'left_wrist': (-23.4138, 9.194),
+        'left_shoulder': (-25.7284, 36.7208, -42.8235), 'left_elbow': (87.5909, 13.3667),
+        'left_wrist': (-23.8959, 9.5224),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.2, {
@@ -579,77 +586,79 @@ def replace_fuel_filter():
     human.KeyJoints(9.6, {
         'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (1.4507, -10.0, -30.0),
         'neck': (34.655, -13.4905, 63.8012), 'head': (14.9102, 11.2492),
-        'right_shoulder': (70.6013, -21.7715, 11.7273), 'right_elbow': (0.0, 74.1058),
-        'right_wrist': (5.1981, -5.4339), 'left_shoulder': (-33.4269, 26.8361, -74.1681),
-        'left_elbow': (102.2665, 12.955), 'left_wrist': (-35.136, 12.1398),
+        'right_clavicle': (-6.9227, 14.3293), 'right_shoulder': (70.6013, -21.7715, 11.7273),
+        'right_elbow': (0.0, 74.1058), 'right_wrist': (5.1981, -5.4339),
+        'left_shoulder': (-33.4269, 26.8361, -74.1681), 'left_elbow': (102.2665, 12.955),
+        'left_wrist': (-35.136, 12.1398),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.661481, duration=0.719288)
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 19.8224, -14.8308), 'spine_thoracic': (1.4138, -9.9394, -29.6541),
-        'neck': (34.4717, -13.4224, 63.3567), 'head': (14.8417, 11.2468),
-        'right_clavicle': (-6.9622, 14.3346), 'right_shoulder': (70.5118, -21.7483, 11.7249),
-        'right_elbow': (0.0643, 74.1037), 'right_wrist': (5.2771, -5.4034),
-        'left_shoulder': (-32.7182, 26.9874, -73.0787), 'left_elbow': (102.056, 13.0131),
-        'left_wrist': (-34.7637, 12.0929),
+        'spine_lumbar': (60.0, 19.7688, -14.7382), 'spine_thoracic': (1.1287, -9.8999, -29.1225),
+        'neck': (34.2545, -13.4137, 62.7365), 'head': (14.8354, 11.2498),
+        'right_clavicle': (-7.0317, 14.3609), 'right_shoulder': (69.6435, -21.338, 11.7255),
+        'right_elbow': (1.5848, 73.8556), 'right_wrist': (7.6274, -5.813),
+        'left_shoulder': (-32.2661, 27.4082, -71.9352), 'left_elbow': (101.377, 13.033),
+        'left_wrist': (-34.3285, 11.9583),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 17.9823, -13.0504), 'spine_thoracic': (1.0139, -9.2973, -26.0428),
-        'neck': (32.8224, -12.9887, 58.9055), 'head': (14.2409, 11.1815),
-        'right_clavicle': (-7.3718, 14.3922), 'right_shoulder': (69.5842, -21.5078, 11.6998),
-        'right_elbow': (0.7437, 74.0807), 'right_wrist': (6.0965, -5.0812),
-        'left_shoulder': (-25.3222, 28.5557, -61.7228), 'left_elbow': (99.7547, 13.616),
-        'left_wrist': (-30.8733, 11.5789),
+        'spine_lumbar': (60.0, 17.5669, -12.2445), 'spine_thoracic': (-1.6537, -8.9463, -21.2001),
+        'neck': (31.5011, -13.3142, 54.2028), 'head': (14.5398, 11.1214),
+        'right_clavicle': (-8.0014, 14.6344), 'right_shoulder': (61.3665, -17.5917, 11.7079),
+        'right_elbow': (15.28, 71.6931), 'right_wrist': (28.621, -9.089),
+        'left_shoulder': (-21.3613, 32.3565, -51.4135), 'left_elbow': (93.4058, 13.7744),
+        'left_wrist': (-26.9261, 10.3162),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (60.0, 14.8431, -9.9269), 'spine_thoracic': (0.2738, -8.1578, -19.7961),
-        'neck': (30.0951, -12.6448, 50.5857), 'head': (13.7638, 11.0392),
-        'right_shoulder': (68.0018, -21.0974, 11.6571), 'right_elbow': (1.9439, 74.0382),
-        'right_wrist': (7.4943, -4.5112), 'left_shoulder': (-12.541, 31.2312, -42.1373),
-        'left_elbow': (95.4428, 14.6475), 'left_wrist': (-24.132, 10.6119),
+        'spine_lumbar': (60.0, 14.437, -8.6999), 'spine_thoracic': (-4.6129, -7.5908, -11.4636),
+        'neck': (28.3792, -14.2, 42.5927), 'head': (14.941, 11.1456),
+        'right_clavicle': (-9.137, 14.9253), 'right_shoulder': (52.5635, -13.6073, 11.6795),
+        'right_elbow': (29.8456, 69.3931), 'right_wrist': (50.9489, -12.5732),
+        'left_shoulder': (-6.3869, 37.6331, -24.8479), 'left_elbow': (83.8256, 14.8256),
+        'left_wrist': (-17.4124, 8.2837),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 11.2756, -6.206), 'spine_thoracic': (-0.6818, -6.7757, -12.5269),
-        'neck': (27.2067, -12.757, 40.2449), 'head': (14.1093, 10.813),
-        'right_shoulder': (66.2034, -20.6311, 11.6085), 'right_wrist': (9.0828, -3.8232),
-        'left_shoulder': (2.3086, 34.2717, -19.4582), 'left_elbow': (89.7778, 15.8254),
-        'left_wrist': (-16.2642, 9.3347),
+        'spine_lumbar': (60.0, 11.6894, -5.6878), 'spine_thoracic': (-4.9553, -6.4514, -6.5054),
+        'neck': (27.1095, -15.3009, 35.0725), 'right_clavicle': (-9.5961, 14.9735),
+        'right_shoulder': (52.0291, -13.3375, 11.6445), 'right_elbow': (30.2007, 69.3966),
+        'right_wrist': (51.2182, -12.321), 'left_shoulder': (5.2346, 38.5777, -8.0028),
+        'left_elbow': (79.6446, 15.7375), 'left_wrist': (-11.5747, 7.2685),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 8.1504, -2.6339), 'spine_thoracic': (-1.7283, -5.4055, -5.8482),
-        'neck': (24.7803, -15.2593, 30.7446), 'head': (14.9364, 11.2085),
-        'right_clavicle': (-9.5603, 14.7749), 'right_shoulder': (64.628, -20.2226, 11.566),
-        'right_elbow': (4.8043, 73.9248), 'right_wrist': (10.4743, -3.1472),
-        'left_shoulder': (15.91, 36.9352, 1.1787), 'left_elbow': (83.4173, 16.8678),
-        'left_wrist': (-8.9943, 7.8898),
+        'spine_lumbar': (60.0, 8.5606, -2.5516), 'spine_thoracic': (-4.0286, -5.303, -3.337),
+        'neck': (25.5527, -17.1291, 28.7508), 'right_clavicle': (-9.8491, 14.9624),
+        'right_shoulder': (57.5212, -15.8653, 11.5875), 'right_elbow': (18.3285, 71.5987),
+        'right_wrist': (31.5072, -7.587), 'left_shoulder': (16.5926, 38.6051, 5.5651),
+        'left_elbow': (77.9568, 16.7578), 'left_wrist': (-7.1002, 6.7822),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (60.0, 6.3383, 0.0435), 'spine_thoracic': (-2.7409, -4.3019, -1.3728),
-        'neck': (24.947, -17.9681, 23.9493), 'right_clavicle': (-9.9636, 14.9083),
-        'right_shoulder': (63.7145, -19.9857, 11.5413), 'right_elbow': (5.9135, 73.8687),
-        'right_wrist': (11.2812, -2.6129), 'left_shoulder': (24.9467, 38.4797, 14.6375),
-        'left_elbow': (77.0191, 17.4927), 'left_wrist': (-4.0464, 6.4198),
+        'spine_lumbar': (60.0, 6.3879, 0.0379), 'spine_thoracic': (-3.1734, -4.2966, -1.1366),
+        'neck': (25.1531, -18.298, 23.7666), 'right_clavicle': (-9.9879, 14.9522),
+        'right_shoulder': (62.8608, -19.0262, 11.5436), 'right_elbow': (7.3722, 73.631),
+        'right_wrist': (13.3163, -3.0708), 'left_shoulder': (24.967, 38.6179, 15.0022),
+        'left_elbow': (75.9831, 17.4785), 'left_wrist': (-3.8751, 6.2206),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.3, {
         'spine_lumbar': (58.1764, 6.7464, 1.004), 'spine_thoracic': (-3.5017, -3.7824, -0.2945),
-        'neck': (25.9478, -20.0598, 21.9276), 'right_clavicle': (-9.7851, 14.8842),
-        'right_shoulder': (63.5089, -21.2755, 11.5824), 'right_elbow': (6.2875, 73.8171),
-        'right_wrist': (11.4296, -2.3248), 'left_shoulder': (27.21, 36.7813, 17.8418),
-        'left_elbow': (70.365, 17.5696), 'left_wrist': (-2.5093, 4.841),
+        'neck': (25.9442, -20.0518, 21.9198), 'head': (15.0, 11.2291),
+        'right_clavicle': (-9.7851, 14.8842), 'right_shoulder': (63.5089, -21.2755, 11.5824),
+        'right_elbow': (6.2875, 73.8171), 'right_wrist': (11.4296, -2.3248),
+        'left_shoulder': (27.21, 36.7813, 17.8418), 'left_elbow': (70.365, 17.5696),
+        'left_wrist': (-2.5093, 4.841),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=10.380769, duration=0.072)
     human.KeyJoints(10.4, {
         'spine_lumbar': (55.0887, 8.3345, 0.3628), 'spine_thoracic': (-3.0434, -4.1109, -0.8851),
-        'neck': (26.5755, -20.4681, 22.8872), 'right_clavicle': (-8.6052, 14.1962),
+        'neck': (26.5768, -20.451, 22.8786), 'right_clavicle': (-8.6052, 14.1962),
         'right_shoulder': (61.4869, -22.7843, 11.6445), 'right_elbow': (5.4402, 73.7717),
         'right_wrist': (11.8485, -2.1803), 'left_elbow': (65.1343, 17.5449),
         'left_wrist': (-2.0717, 3.5639),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.5, {'head': (15.0, 11.2312), 'right_elbow': (5.4402, 60.4152)})
+    human.KeyJoints(10.5, {'right_elbow': (5.4402, 60.4152)})
     human.KeyJoints(10.6, {'right_elbow': (5.4402, -2.9039)})
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(10.7, {'right_elbow': (5.4402, 0.1002)})
@@ -677,8 +686,9 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.079969, duration=0.2628)
     human.KeyJoints(12.1, {'right_elbow': (5.4402, 73.7717)})
+    human.KeyJoints(12.2, {'neck': (26.5698, -20.4729, 22.8844)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(15.0, {'neck': (26.5433, -20.5557, 22.9061)})
+    human.KeyJoints(12.7, {'neck': (26.5433, -20.5557, 22.9061)})
     human.KeyJoints(15.3, {
         'spine_lumbar': (55.0887, 8.3345, 0.3628), 'spine_thoracic': (-3.0434, -4.1109, -0.8851),
         'right_clavicle': (-8.6052, 14.1962), 'right_shoulder': (61.4869, -22.7843, 11.6445),

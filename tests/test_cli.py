@@ -294,3 +294,21 @@ def test_a_file_name_that_is_not_utf8_compiles_and_previews(tmp_path: Path) -> N
     assert ir["source"]["file"].endswith(name)  # reads back as the same (undecodable) name
     for path in out.iterdir():
         path.read_bytes().decode("utf-8")  # every output is valid UTF-8
+
+
+@pytest.mark.parametrize(("command", "module", "inner"), [("lint", "mtlc.lint.command", "_lint"), ("report", "mtlc.report.command", "_report")])  # fmt: skip
+def test_a_bug_in_lint_or_report_is_one_line_and_exit_2(
+    command: str, module: str, inner: str, monkeypatch, capsys
+) -> None:
+    import importlib
+
+    def boom(*args: object) -> int:
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(importlib.import_module(module), inner, boom)
+    assert main([command, FLAGSHIP]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"mtlc {command}: internal error: RuntimeError: boom (MT0900; "
+        "rerun with MTLC_DEBUG=1 for the trace and report it)\n"
+    )

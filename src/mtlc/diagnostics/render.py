@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import os
 import re
+import sys
+import traceback
 import unicodedata
 from collections.abc import Callable, Iterable, Mapping
 from typing import IO
@@ -154,3 +156,13 @@ def render_json(diagnostics: Iterable[Diagnostic]) -> str:
         },
     }
     return json.dumps(doc, indent=2, ensure_ascii=False, sort_keys=False) + "\n"
+
+
+def report_internal_error(command: str, exc: BaseException) -> None:
+    """A bug as one line on stderr (MT0900), never a bare traceback; MTLC_DEBUG=1 shows it."""
+    if os.environ.get("MTLC_DEBUG"):
+        traceback.print_exception(exc)
+    sys.stderr.write(
+        f"mtlc {command}: internal error: {type(exc).__name__}: {exc} (MT0900; "
+        "rerun with MTLC_DEBUG=1 for the trace and report it)\n"
+    )

@@ -7,13 +7,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import sys
-import traceback
 from pathlib import Path
 
 from mtlc.diagnostics import Severity
-from mtlc.diagnostics.render import use_color
+from mtlc.diagnostics.render import report_internal_error, use_color
 from mtlc.lint.config import ConfigError, LintConfig, codes_of, load_config
 from mtlc.lint.engine import lint_paths
 from mtlc.lint.manikins import ManikinError, parse_selection
@@ -106,12 +104,7 @@ def run_lint_command(args: argparse.Namespace) -> int:
     try:
         return _lint(args, config, manikins)
     except Exception as exc:  # a bug: one line and exit 2, never a bare traceback
-        if os.environ.get("MTLC_DEBUG"):
-            traceback.print_exc()
-        sys.stderr.write(
-            f"mtlc lint: internal error: {type(exc).__name__}: {exc} (MT0900; "
-            "rerun with MTLC_DEBUG=1 for the trace and report it)\n"
-        )
+        report_internal_error("lint", exc)
         return EXIT_USAGE
 
 

@@ -7,13 +7,11 @@ not an error), 1 errors in the input, 2 a usage or internal error.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import traceback
 from pathlib import Path
 from typing import Any
 
-from mtlc.diagnostics.render import render_text, use_color
+from mtlc.diagnostics.render import render_text, report_internal_error, use_color
 from mtlc.frontend import FrontendOptions, run_frontend
 from mtlc.lint.manikins import ManikinError, parse_selection
 from mtlc.output import write_outputs
@@ -88,12 +86,7 @@ def run_report_command(args: argparse.Namespace) -> int:
     try:
         return _report(args, selection, ratio)
     except Exception as exc:  # a bug: one line and exit 2, never a bare traceback
-        if os.environ.get("MTLC_DEBUG"):
-            traceback.print_exc()
-        sys.stderr.write(
-            f"mtlc report: internal error: {type(exc).__name__}: {exc} (MT0900; "
-            "rerun with MTLC_DEBUG=1 for the trace and report it)\n"
-        )
+        report_internal_error("report", exc)
         return EXIT_USAGE
 
 

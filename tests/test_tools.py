@@ -238,6 +238,41 @@ def test_screwdriver_tip_lies_on_the_forearm_axis() -> None:
     assert np.ptp(np.array(tips), axis=0).max() <= 1e-9
 
 
+def test_screwdriver_reach_puts_the_tool_axis_on_the_screw_axis(tmp_path: Path) -> None:
+    # the grip is a goal 15 cm behind the tip on the site's normal (0, 0, -1): the tool's axis
+    # (tip to grip) is the normal within 5 deg at the end of the reach, the tip within 1 mm
+    from mtlc.passes.state import PoseState
+    from mtlc.passes.tool import axis_angle
+
+    sink = DiagnosticSink()
+    timeline = _timeline(tmp_path, setting="tool screwdriver_flat", turns=1)
+    ir = run_motion(timeline, sink, until="contact")  # a screwdriver compiles: no crash
+    assert not [d for d in sink.sorted() if d.code == "MT0501"]
+    state = PoseState(ir)
+    to = next(s for s in ir.segments if s.kind == "TO" and s.track == "r_arm")
+    q, root = state.q_at(to.end), state.root_at(to.end)
+    pose = forward(ir.skeleton, q[None], root[0][None], root[1][None])
+    angle = axis_angle(ir.skeleton, pose, to.goal.effector, (0.0, 0.0, -1.0))[0]
+    assert math.degrees(angle) <= 5.0
+    tip = state.site("r_tool_screwdriver_flat", q, root)
+    assert np.linalg.norm(tip - np.array([0.20, 1.35, 1.12])) <= 1e-3
+    grip = state.site("r_hand", q, root)
+    assert np.linalg.norm(grip - tip) == pytest.approx(0.15, abs=1e-9)
+
+
+def test_only_tool_sites_are_added_for_a_screwdriver_twist() -> None:
+    # a twist names the screwdriver but addresses the hand: the hand is not a tool site
+    from types import SimpleNamespace
+
+    tool = {"name": "screwdriver_flat", "kind": "screwdriver", "tip": (0.0, 0.15, 0.0)}
+    segs = [
+        SimpleNamespace(goal=SimpleNamespace(effector=eff, params={"tool": tool}))
+        for eff in ("r_hand", "r_tool_screwdriver_flat")
+    ]
+    ir = SimpleNamespace(segments=segs)
+    assert list(tool_pass.held_tools(ir)) == ["r_tool_screwdriver_flat"]
+
+
 def test_explicit_tool_argument_overrides_the_task(tmp_path: Path) -> None:
     timeline = _timeline(tmp_path, setting="", turns=1, args=", tool: wrench_13mm")
     strokes = [p for p in timeline.primitives if p.params.get("posture") == "stroke"]

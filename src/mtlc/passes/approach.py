@@ -187,6 +187,15 @@ def repin(
     return out
 
 
+def seg_goals(skel: Any, seg: Segment, target: FloatArray) -> list[Goal]:
+    """The segment's goal at ``target``, then any goals that align its tool with the fastener
+    (a screwdriver's axis on the screw's, ``tool.axis_goals``)."""
+    from mtlc.passes.tool import axis_goals
+
+    goal = Goal(seg.goal.effector, position=target, orientation=seg.goal.orientation)
+    return [goal, *axis_goals(skel, seg, target)]
+
+
 def solve_group(
     ctx: PassContext,
     state: PoseState,
@@ -201,19 +210,16 @@ def solve_group(
     skel = state.skel
     q = q0.copy()
     for seg, p in zip(segs, targets, strict=True):
-        goal = Goal(seg.goal.effector, position=p, orientation=seg.goal.orientation)
-        m = model_for(ctx, skel, (seg.goal.effector,), "arm", q, root)
-        q = solve_ta(skel, [goal], q, model=m).q[0]
+        arm_goals = seg_goals(skel, seg, p)
+        m = model_for(ctx, skel, tuple(g.effector for g in arm_goals), "arm", q, root)
+        q = solve_ta(skel, arm_goals, q, model=m).q[0]
     dist = [
         hand_distance(state, s.goal.effector, q, root, p)
         for s, p in zip(segs, targets, strict=True)
     ]
     if max(dist) <= TOLERANCE:
         return q, "arm", dist
-    goals = [
-        Goal(s.goal.effector, position=p, orientation=s.goal.orientation)
-        for s, p in zip(segs, targets, strict=True)
-    ]
+    goals = [g for s, p in zip(segs, targets, strict=True) for g in seg_goals(skel, s, p)]
     effs = tuple(g.effector for g in goals)
     m = model_for(ctx, skel, effs, "torso", q0, root)
     qt = solve_ta(skel, goals, q0, model=m).q[0]

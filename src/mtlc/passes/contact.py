@@ -33,6 +33,7 @@ from mtlc.passes.approach import (
     pinned_hands,
     repin,
     report_short,
+    seg_goals,
     with_pinned,
 )
 from mtlc.passes.context import PassContext
@@ -132,11 +133,8 @@ def best_path(
     straight joint-space line to a DLS solution (kept samples still never move away).
     Returns the path, the reach used and the (T, H) distances along it."""
     skel = state.skel
-    goals = [
-        Goal(s.goal.effector, position=p, orientation=s.goal.orientation)
-        for s, p in zip(segs, targets, strict=True)
-    ]
-    effs = [g.effector for g in goals]
+    goals = [g for s, p in zip(segs, targets, strict=True) for g in seg_goals(skel, s, p)]
+    effs = [s.goal.effector for s in segs]
     path = _gradient(ctx, state, goals, q0, root, reach, MAX_ITER // 4 if hopeless else MAX_ITER)
     dist = _distances(skel, path, effs, targets, root)
     if hopeless or dist[-1].max() <= TOLERANCE:
@@ -144,7 +142,7 @@ def best_path(
     tries = []
     if reach != "torso":
         tries.append(("torso", _gradient(ctx, state, goals, q0, root, "torso", MAX_ITER)))
-    model = model_for(ctx, skel, tuple(effs), "torso", q0, root)
+    model = model_for(ctx, skel, tuple(g.effector for g in goals), "torso", q0, root)
     q_star = solve_ta(skel, goals, q0, model=model).q[0]
     line = q0[None] + np.linspace(0.0, 1.0, 2 * MAX_KEYFRAMES)[:, None] * (q_star - q0)[None]
     tries.append(("torso", line))

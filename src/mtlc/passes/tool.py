@@ -13,7 +13,9 @@ Two passes (docs/tools.md):
   engaged. Every keyframe is solved by damped least squares for two goals: the grip on the arc
   and the tip on the fastener (lifted by ``LIFT`` while off).
 
-A screwdriver or pliers keep the forearm twists of the posture pass; only their tip is the goal.
+A screwdriver or pliers keep the forearm twists of the posture pass. Their reach (TA and TO) is
+solved with the tool's axis on the fastener's axis (``axis_goals``: the grip on the site's normal
+line behind the tip).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from mtlc.body import site_positions
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.body.skeleton import Site, Skeleton
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
@@ -36,6 +39,7 @@ SEAT_SHARE = 0.1  # share of a stroke's time the wrench rests on the fastener be
 SWING_SHARE = 0.6  # share of a stroke's time spent turning; the rest re-positions
 KEY_STEP = math.radians(5.0)  # at most this much arc between keyframes
 HAND_FRAME_AXIS = (0.0, -1.0, 0.0)  # a tool's default `axis`: back along the hand
+AXIAL_KINDS = ("screwdriver", "pliers")  # tools turned by the forearm about their own axis
 
 
 def tool_site(hand_site: str, tool: dict[str, Any]) -> str:
@@ -68,13 +72,19 @@ def axial_offset(tool: dict[str, Any]) -> float:
 
 # ------------------------------------------------------------------ equip
 def held_tools(ir: MotionIR) -> dict[str, dict[str, Any]]:
-    """Tool sites the segments address, with their tool, by site name."""
+    """Tool sites the segments address, with their tool, by site name (a forearm twist with a
+    screwdriver names the tool but addresses the hand: not a tool site)."""
     out: dict[str, dict[str, Any]] = {}
     for seg in ir.segments:
-        tool = seg.goal.params.get("tool")
-        if tool is not None and "tip" in tool and seg.goal.effector.startswith(("r_", "l_")):
-            out.setdefault(seg.goal.effector, tool)
+        tool, eff = seg.goal.params.get("tool"), seg.goal.effector
+        if tool is not None and "tip" in tool and _is_tool_site(eff, tool):
+            out.setdefault(eff, tool)
     return dict(sorted(out.items()))
+
+
+def _is_tool_site(effector: str, tool: dict[str, Any]) -> bool:
+    """Whether a goal addresses the tool's working point (not the hand holding it)."""
+    return effector[:2] in ("r_", "l_") and effector == tool_site(effector, tool)
 
 
 def with_tools(skel: Skeleton, tools: dict[str, dict[str, Any]]) -> Skeleton:
@@ -105,6 +115,33 @@ def _carrying(skel: Skeleton, joint: Any, tool: dict[str, Any] | None) -> Any:
     m_hand, m_tool = float(joint.mass), float(tool["mass"])
     com = (m_hand * np.asarray(joint.com) + m_tool * middle) / (m_hand + m_tool)
     return dataclasses.replace(joint, mass=m_hand + m_tool, com=tuple(float(c) for c in com))
+
+
+def axis_goals(skel: Skeleton, seg: Segment, tip_target: FloatArray) -> list[Goal]:
+    """An extra goal that puts a screwdriver's (or pliers') axis on the fastener's axis: the grip
+    on the site's normal line behind ``tip_target``, at the tool's grip-to-tip distance. Empty for
+    other tools, bare hands and sites without a normal.
+
+    (Putting the elbow on that line too, so the forearm is in line and its twist keeps the axis,
+    left the reach 0.6 m short for a screw in front of the chest: see docs/tools.md, limits.)"""
+    g = seg.goal
+    tool, normal = g.params.get("tool"), g.params.get("normal")
+    if tool is None or tool.get("kind") not in AXIAL_KINDS or normal is None:
+        return []
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    hand = f"{g.effector[0]}_hand"
+    tip = np.asarray(skel.site(g.effector).offset)
+    grip_back = float(np.linalg.norm(tip - np.asarray(skel.site(hand).offset)))
+    return [Goal(hand, position=tip_target + grip_back * n)]
+
+
+def axis_angle(skel: Skeleton, pose: Any, effector: str, normal: Any) -> FloatArray:
+    """(K,) angle (rad) between a tool's axis (tip to grip) and the fastener's normal."""
+    pts = np.asarray(site_positions(skel, pose, [effector, f"{effector[0]}_hand"]))
+    axis = pts[..., 1, :] - pts[..., 0, :]
+    axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    return np.arccos(np.clip(axis @ n, -1.0, 1.0)).reshape(-1)
 
 
 def equip(ir: MotionIR, ctx: PassContext) -> MotionIR:

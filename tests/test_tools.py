@@ -286,20 +286,32 @@ def test_unknown_tool_and_bad_swing_are_diagnosed(tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------ mass
-def test_tool_mass_moves_the_centre_of_mass_by_the_hand_computed_amount() -> None:
-    skel = build_manikin()
-    tooled = with_tools(skel, {"r_tool_wrench_10mm": WRENCH_10})
-    q = skel.q_comfort[None]
-    before = center_of_mass(skel, forward(skel, q))[0]
-    after = center_of_mass(tooled, forward(tooled, q))[0]
+def test_tool_mass_moves_the_centre_of_mass_only_while_held(wrench_ir: MotionIR) -> None:
+    from mtlc.passes.tool import carried_com, held_spans
+
+    skel = wrench_ir.skeleton
+    assert skel is not None
+    assert skel.total_mass == pytest.approx(build_manikin().total_mass, abs=1e-12)  # not on it
+    ((site, tool, start, end),) = held_spans(wrench_ir)
+    assert site == "r_tool_wrench_10mm" and tool["mass"] == 0.06
+    tooled = [s for s in wrench_ir.segments if "tool" in s.goal.params]
+    assert start == min(s.start for s in tooled) and end == max(s.end for s in tooled)
+    time = np.array([start - 0.5, start, 0.5 * (start + end), end, end + 0.5])
+    pose = forward(skel, np.tile(skel.q_comfort, (len(time), 1)))
+    bare = center_of_mass(skel, pose)
+    com = carried_com(wrench_ir, pose, time)
     # the tool's centre: the middle of grip and tip, 5.75 cm from the grip toward the thumb
-    hand = site_positions(skel, forward(skel, q), "r_hand")[0]
-    tip = site_positions(tooled, forward(tooled, q), "r_tool_wrench_10mm")[0]
+    hand = site_positions(skel, pose, "r_hand")
+    tip = site_positions(skel, pose, "r_tool_wrench_10mm")
     middle = 0.5 * (hand + tip)
     m, big_m = 0.06, skel.total_mass
-    expected = (big_m * before + m * middle) / (big_m + m)
-    assert np.allclose(after, expected, atol=1e-9)
-    assert np.linalg.norm(tip - hand) == pytest.approx(0.115, abs=1e-9)
+    held = np.array([False, True, True, True, False])
+    expected = np.where(held[:, None], (big_m * bare + m * middle) / (big_m + m), bare)
+    assert np.allclose(com, expected, atol=1e-12)
+    assert np.allclose(com[~held], bare[~held], atol=0.0)  # zero shift outside the window
+    shift = np.linalg.norm(com[held] - bare[held], axis=1)
+    assert np.all(shift > 1e-4) and np.all(shift < 1e-3)  # 60 g on 59 kg: under 1 mm
+    assert np.allclose(np.linalg.norm(tip - hand, axis=1), 0.115, atol=1e-9)
 
 
 # ------------------------------------------------------------------ RULA's force/load score

@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mtlc.body import center_of_mass, forward, site_positions
+from mtlc.body import forward, site_positions
 from mtlc.ir.model import MotionIR
 
 FloatArray = NDArray[np.float64]
@@ -480,7 +480,9 @@ def compute_metrics(ir: MotionIR) -> Metrics:
     planted = contact & ~rolling_points(ir, t)
     skate = foot_skating(feet, planted, t) if len(t) > 1 else np.full((0, 8), np.nan)
     skating = float(np.nanmax(skate)) if np.isfinite(skate).any() else math.nan
-    com = center_of_mass(skel, pose)
+    from mtlc.passes.tool import carried_com  # the passes import the metrics
+
+    com = carried_com(ir, pose, t)  # with the tools the hands hold while they hold them
     pts, ok = support(skel, pose, stance, ir.ground, hand_contacts(ir, t))
     margin = support_margin(pts, ok, com[:, [0, 2]])
     static = ~walking(ir, t)

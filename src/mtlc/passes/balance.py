@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from mtlc.body import Pose, center_of_mass, com_jacobian, forward, site_positions, site_rotation
+from mtlc.body import Pose, com_jacobian, forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.metrics import (
@@ -51,6 +51,7 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.context import PassContext
+from mtlc.passes.tool import carried_com
 
 HULL_EPS = 1e-9  # m: as ``mtlc.metrics.hull``
 
@@ -275,6 +276,7 @@ def lean_trunk(
     ok: np.ndarray,
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
+    time: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Move the CoM with the trunk (lumbar and thorax) when the pelvis cannot move far enough.
 
@@ -293,7 +295,7 @@ def lean_trunk(
     active = np.arange(len(q))
     for _ in range(ROUNDS):
         p = forward(skel, q[active], root[active], rot[active])
-        c = center_of_mass(skel, p)[:, [0, 2]]
+        c = carried_com(ir, p, time[active])[:, [0, 2]]
         push = support_push(pts[active], ok[active], c, MARGIN, hulls.take(active))
         moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
         if not moving.all():
@@ -315,7 +317,7 @@ def lean_trunk(
         )
         q[active], root[active], worst[active] = qa, ra, wa
     p = forward(skel, q, root, rot)
-    margin = support_margin(pts, ok, center_of_mass(skel, p)[:, [0, 2]], hulls)
+    margin = support_margin(pts, ok, carried_com(ir, p, time)[:, [0, 2]], hulls)
     return q, root, worst, margin
 
 
@@ -368,7 +370,7 @@ def balance_frames(
     stance = foot_stance(ir, t)
     contact = contact_mask(foot_points(skel, pose), stance, ir.ground)
     all_pts, all_ok = support(skel, pose, stance, ir.ground, hand_contacts(ir, t))
-    com = center_of_mass(skel, pose)
+    com = carried_com(ir, pose, t)  # with the tools the hands hold
     all_hull = grouped_hull(all_pts, all_ok)  # the support stays where it was: one hull serves all
     before = hull_margin(all_hull, com[:, [0, 2]])
     after = before.copy()
@@ -412,7 +414,7 @@ def balance_frames(
     cap = np.full(rows.size, MAX_STEP)
     p_rows = take_pose(pose, rows)  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
-        c = center_of_mass(skel, take_pose(p_rows, active))[:, [0, 2]]
+        c = carried_com(ir, take_pose(p_rows, active), t[rows][active])[:, [0, 2]]
         push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
         moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
         active, push = active[moving], push[moving]
@@ -435,7 +437,7 @@ def balance_frames(
         cap[active[lost]] /= 2  # a joint ran out of range: retry with half the step
         active = active[(cap[active] >= MIN_STEP) & ~far]
     p = p_rows
-    margin = hull_margin(hulls, center_of_mass(skel, p)[:, [0, 2]])
+    margin = hull_margin(hulls, carried_com(ir, p, t[rows])[:, [0, 2]])
     # nothing may go deeper below the ground than it was or than GROUND_SLACK
     floor = np.minimum(lowest_point(skel, pose)[rows] - 1e-4, ir.ground - GROUND_SLACK)
     good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
@@ -448,7 +450,7 @@ def balance_frames(
         rs = np.where(good[retry, None], root[retry], root0[retry])
         sub_feet, sub_hands = _sub_feet(feet, retry), _sub_hands(hands, retry)
         q2, r2, w2, m2 = lean_trunk(
-            ir, qs, rs, rot[retry], pts[retry], ok[retry], sub_feet, sub_hands
+            ir, qs, rs, rot[retry], pts[retry], ok[retry], sub_feet, sub_hands, t[rows][retry]
         )
         ok2 = (w2 <= POSITION_TOL) & skel.within_limits(q2, tol=1e-6) & (m2 > margin[retry])
         ok2 &= lowest_point(skel, forward(skel, q2, r2, rot[retry])) >= floor[retry]
@@ -488,7 +490,7 @@ def balance_frames(
     floor_b = np.minimum(lowest_point(skel, pose)[span] - 1e-4, ir.ground - GROUND_SLACK)
     fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
     fine &= lowest_point(skel, pb) >= floor_b
-    mb = hull_margin(all_hull.take(span), center_of_mass(skel, pb)[:, [0, 2]])
+    mb = hull_margin(all_hull.take(span), carried_com(ir, pb, t[span])[:, [0, 2]])
     # a blended frame must keep its contacts and be at least as balanced as its own correction
     own = np.full(len(t), -np.inf)
     own[rows[good]] = margin[good]

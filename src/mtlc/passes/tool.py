@@ -4,8 +4,8 @@ Two passes (docs/tools.md):
 
 * ``equip``, after the manikin: every tool a goal is made with becomes a site on that hand, its
   working point (``r_tool_wrench_10mm``), so TA and TO solve for the tip on the site and metrics
-  measure the tip; the heaviest tool a hand holds adds its mass to the hand's segment (at the
-  middle of grip and tip), so the centre of mass and balance carry it.
+  measure the tip. A held tool's mass counts in the centre of mass (balance, metrics) while it
+  is held, a point at the middle of grip and tip (``carried_com``).
 * ``solve``, after contact: a wrench's strokes (TO segments with a ``stroke`` number). The hand
   holds the handle at the arc's radius ``r`` (the grip's distance from the fastener's axis) and
   swings about the fastener's axis (its site's normal) through the stroke's angle, the tip on the
@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import site_positions
+from mtlc.body import center_of_mass, site_positions
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.body.skeleton import Site, Skeleton
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
@@ -88,33 +88,53 @@ def _is_tool_site(effector: str, tool: dict[str, Any]) -> bool:
 
 
 def with_tools(skel: Skeleton, tools: dict[str, dict[str, Any]]) -> Skeleton:
-    """The skeleton with a site at each tool's tip and each hand carrying its heaviest tool."""
+    """The skeleton with a site at each tool's tip. The tool's mass is not the skeleton's: it
+    counts only while the tool is held (``carried_com``)."""
     sites = list(skel.sites)
-    heaviest: dict[str, dict[str, Any]] = {}
     for name, tool in tools.items():
         side = name[0]
         hand = skel.site(f"{side}_hand")
         grip = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float)
         tip = np.asarray(hand.offset) + hand_to_joint(np.asarray(tool["tip"], float) - grip, side)
         sites.append(Site(name, hand.joint, tuple(float(c) for c in tip), "effector"))
-        best = heaviest.get(side)
-        if best is None or float(tool.get("mass", 0.0)) > float(best.get("mass", 0.0)):
-            heaviest[side] = tool
-    joints = [_carrying(skel, j, heaviest.get(j.name[0])) for j in skel.joints]
-    return dataclasses.replace(skel, joints=tuple(joints), sites=tuple(sites))
+    return dataclasses.replace(skel, sites=tuple(sites))
 
 
-def _carrying(skel: Skeleton, joint: Any, tool: dict[str, Any] | None) -> Any:
-    """A wrist joint's segment with the tool's mass added at the middle of grip and tip."""
-    if tool is None or not joint.name.endswith("_wrist") or float(tool.get("mass", 0.0)) <= 0:
-        return joint
-    side = joint.name[0]
-    hand = np.asarray(skel.site(f"{side}_hand").offset)
-    grip = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float)
-    middle = hand + hand_to_joint(0.5 * (np.asarray(tool["tip"], float) - grip), side)
-    m_hand, m_tool = float(joint.mass), float(tool["mass"])
-    com = (m_hand * np.asarray(joint.com) + m_tool * middle) / (m_hand + m_tool)
-    return dataclasses.replace(joint, mass=m_hand + m_tool, com=tuple(float(c) for c in com))
+def held_spans(ir: MotionIR) -> list[tuple[str, dict[str, Any], float, float]]:
+    """(tool site, tool, start, end) per tool a hand holds: from the first segment made with it
+    to its last (reach to last stroke or turn), the window RULA's ``held_load`` uses."""
+    spans: dict[str, list[Any]] = {}
+    for seg in ir.segments:
+        tool, side = seg.goal.params.get("tool"), seg.goal.effector[:1]
+        if not isinstance(tool, dict) or "tip" not in tool or side not in ("r", "l"):
+            continue
+        span = spans.setdefault(tool_site(f"{side}_hand", tool), [tool, seg.start, seg.end])
+        span[1], span[2] = min(span[1], seg.start), max(span[2], seg.end)
+    return [(site, tool, start, end) for site, (tool, start, end) in sorted(spans.items())]
+
+
+def carried_com(ir: MotionIR, pose: Any, time: Any) -> FloatArray:
+    """(T, 3) centre of mass of the body and the tools it holds at ``time`` (T,) in ``pose``.
+
+    Each held tool is a point mass at the middle of grip and tip during its held window
+    (``held_spans``); outside the window it weighs nothing. The solvers' CoM Jacobian leaves the
+    tools out (at most 1.2 kg against ~60 kg)."""
+    skel = ir.skeleton
+    assert skel is not None
+    t = np.asarray(time, dtype=float)
+    big_m = float(skel.total_mass)
+    moment = big_m * center_of_mass(skel, pose)
+    mass = np.full(t.shape, big_m)
+    names = {s.name for s in skel.sites}
+    for site, tool, start, end in held_spans(ir):
+        m = float(tool.get("mass", 0.0))
+        if m <= 0.0 or site not in names:
+            continue
+        held = m * ((t >= start - 1e-9) & (t <= end + 1e-9))
+        ends = np.asarray(site_positions(skel, pose, [f"{site[0]}_hand", site]))
+        moment += held[:, None] * 0.5 * (ends[..., 0, :] + ends[..., 1, :])
+        mass += held
+    return moment / mass[:, None]
 
 
 def axis_goals(skel: Skeleton, seg: Segment, tip_target: FloatArray) -> list[Goal]:

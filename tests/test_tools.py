@@ -260,6 +260,34 @@ def test_screwdriver_reach_puts_the_tool_axis_on_the_screw_axis(tmp_path: Path) 
     assert np.linalg.norm(grip - tip) == pytest.approx(0.15, abs=1e-9)
 
 
+def test_screwdriver_twist_turns_the_tool_about_the_screw_axis(tmp_path: Path) -> None:
+    # every keyframe of the twists: the tip on the screw within 1 mm, the tool's axis on the
+    # screw's normal within 5 deg, and the hand turned about that axis the twist's way
+    from mtlc.body import site_rotation
+    from mtlc.passes.state import PoseState
+    from mtlc.passes.tool import axis_angle, roll_about
+
+    timeline = _timeline(tmp_path, setting="tool screwdriver_flat", turns=1)
+    ir = run_motion(timeline, DiagnosticSink(), until="tool")
+    skel, state = ir.skeleton, PoseState(ir)
+    assert skel is not None
+    twists = [s for s in ir.segments if s.goal.params.get("posture") == "twist"]
+    n = np.array([0.0, 0.0, -1.0])
+    for seg in twists:
+        assert seg.keyframes is not None and len(seg.keyframes.time) >= 3
+        times = seg.keyframes.time
+        q = np.stack([state.q_at(float(t)) for t in times])
+        roots = [state.root_at(float(t)) for t in times]
+        pose = forward(skel, q, np.stack([r[0] for r in roots]), np.stack([r[1] for r in roots]))
+        tip = site_positions(skel, pose, "r_tool_screwdriver_flat")
+        assert np.linalg.norm(tip - np.array([0.20, 1.35, 1.12]), axis=1).max() <= 1e-3
+        assert np.degrees(axis_angle(skel, pose, "r_tool_screwdriver_flat", n)).max() <= 5.0
+        rot = site_rotation(skel, pose, "r_hand")
+        roll = roll_about(rot @ rot[0].T, n)
+        assert np.all(np.diff(np.sign(seg.result["angle"]) * roll) > 0)  # turning, one way
+        assert abs(seg.result["turned"]) >= math.radians(20.0)  # part of the quarter turn
+
+
 def test_only_tool_sites_are_added_for_a_screwdriver_twist() -> None:
     # a twist names the screwdriver but addresses the hand: the hand is not a tool site
     from types import SimpleNamespace

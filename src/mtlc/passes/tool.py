@@ -13,9 +13,9 @@ Two passes (docs/tools.md):
   engaged. Every keyframe is solved by damped least squares for two goals: the grip on the arc
   and the tip on the fastener (lifted by ``LIFT`` while off).
 
-A screwdriver or pliers keep the forearm twists of the posture pass. Their reach (TA and TO) is
-solved with the tool's axis on the fastener's axis (``axis_goals``: the grip on the site's normal
-line behind the tip).
+A screwdriver's or pliers' reach (TA and TO) is solved with the tool's axis on the fastener's axis
+(``axis_goals``: the grip on the site's normal line behind the tip), and its twists are re-solved
+here so the hand turns about that axis with the tip on the fastener (``solve_axial_twist``).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import center_of_mass, site_positions
+from mtlc.body import center_of_mass, forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.body.skeleton import Site, Skeleton
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
@@ -386,13 +386,134 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
     run.previous = seg
 
 
+# ------------------------------------------------------------------ axial twists
+TWIST_STEP = math.radians(5.0)  # at most this much turn between a twist's keyframes
+
+
+def is_axial_twist(seg: Segment) -> bool:
+    """A forearm twist made with a screwdriver or pliers."""
+    tool = seg.goal.params.get("tool")
+    return (
+        seg.goal.params.get("posture") == "twist"
+        and isinstance(tool, dict)
+        and tool.get("kind") in AXIAL_KINDS
+    )
+
+
+def _reach_before(ir: MotionIR, seg: Segment) -> Segment | None:
+    """The TO that put this twist's tool on its fastener: the hand's latest before the twist."""
+    side = seg.goal.effector[0]
+    tos = [
+        s
+        for s in ir.segments
+        if s.kind == "TO"
+        and s.goal.effector[:1] == side
+        and s.end <= seg.start + 1e-9
+        and axis_goals(ir.skeleton, s, np.asarray(s.goal.position, float))  # type: ignore[arg-type]
+    ]
+    return max(tos, key=lambda s: s.end, default=None)
+
+
+def rotation_about(axis: FloatArray, angle: FloatArray) -> FloatArray:
+    """(K, 3, 3) rotations by ``angle`` (K,) about the unit ``axis`` (Rodrigues)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    a = np.asarray(angle, float)[:, None, None]
+    return np.eye(3) + np.sin(a) * k + (1.0 - np.cos(a)) * (k @ k)
+
+
+def solve_axial_twist(state: PoseState, seg: Segment, reach: Segment) -> None:
+    """Re-solve a screwdriver's twist so the tool turns about the screw's axis.
+
+    The posture pass turns the forearm alone, about the forearm's axis, which is the screw's
+    only when the wrist is straight. Here every keyframe (one per ``TWIST_STEP``) is solved on
+    the arm for the tip on the screw, the grip on the screw's axis and the hand's frame turned
+    about that axis by the twist's share of its angle, each from the keyframe before."""
+    skel = state.skel
+    side = seg.goal.effector[0]
+    hand, tip_site = f"{side}_hand", reach.goal.effector
+    assert seg.keyframes is not None
+    turn = float(seg.keyframes.q[-1, 0] - seg.keyframes.q[0, 0])  # the posture pass's pronation
+    site = np.asarray(reach.goal.position, float)
+    n = np.asarray(reach.goal.params["normal"], float)
+    n = n / np.linalg.norm(n)
+    extra = axis_goals(skel, reach, site)
+    q = state.q_at(seg.start, skip=seg)
+    root = state.root_at(seg.start)
+    rot0 = site_rotation(skel, forward(skel, q[None], root[0][None], root[1][None]), hand)[0]
+    steps = max(1, math.ceil(abs(turn) / TWIST_STEP - 1e-9))
+    frac = np.linspace(0.0, 1.0, steps + 1)
+    # the pronation axis points from the wrist to the elbow: +n for the right arm's +turn
+    targets = rotation_about(n, (1.0 if side == "r" else -1.0) * turn * frac) @ rot0
+    rows = [q]
+    for r in targets[1:]:
+        goals = [
+            Goal(tip_site, position=site),
+            Goal(hand, position=extra[0].position, orientation=r, orientation_weight=0.1),
+        ]
+        model = prepare(skel, [tip_site, hand], rows[-1], reach="arm", root_position=root[0],
+                        root_rotation=root[1])  # fmt: skip
+        rows.append(solve_ta(skel, goals, rows[-1], model=model, restarts=0, tol=2e-4).q[0])
+    qs = np.stack(rows)
+    k = len(qs)
+    pose = forward(skel, qs, np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1)))
+    roll = roll_about(site_rotation(skel, pose, hand) @ rot0.T, n)
+    keep, prog = progress_keys(roll)
+    names = chain_names(skel, [tip_site], "arm")
+    idx = [skel.dof_index(nm) for nm in names]
+    seg.keyframes = Keyframes(
+        time=seg.start + (seg.end - seg.start) * prog, dofs=names, q=qs[keep][:, idx]
+    )
+    seg.result = {**(seg.result or {}), "angle": turn, "turned": float(roll[keep[-1]])}
+
+
+def roll_about(rel: FloatArray, n: FloatArray) -> FloatArray:
+    """(K,) signed angle of the rotations ``rel`` (K, 3, 3) about the unit axis ``n``."""
+    skew = rel - np.swapaxes(rel, -1, -2)
+    vec = 0.5 * np.stack([skew[:, 2, 1], skew[:, 0, 2], skew[:, 1, 0]], axis=-1)
+    return np.arctan2(vec @ n, 0.5 * (np.trace(rel, axis1=-2, axis2=-1) - 1.0))
+
+
+def progress_keys(roll: FloatArray) -> tuple[list[int], FloatArray]:
+    """Keyframes where the turn advances, timed by their share of the turn made: a turn the
+    joints stop short of is spread over the twist, not made in its first keyframes."""
+    done = np.abs(roll - roll[0])
+    keep = [0]
+    for i in range(1, len(roll)):
+        if done[i] > done[keep[-1]] + 1e-4:
+            keep.append(i)
+    if len(keep) == 1:
+        return [0, 0], np.array([0.0, 1.0])
+    return keep, done[keep] / done[keep[-1]]
+
+
+def solve_axial_twists(ir: MotionIR, ctx: PassContext) -> bool:
+    """Every screwdriver twist re-solved about its screw's axis, in time order; whether any."""
+    from mtlc.passes.state import mark
+
+    twists = sorted((s for s in ir.segments if is_axial_twist(s)), key=lambda s: s.start)
+    if not twists:
+        return False
+    state = PoseState(ir)
+    for seg in twists:
+        reach = _reach_before(ir, seg)
+        if reach is None:
+            continue
+        solve_axial_twist(state, seg, reach)
+        state = PoseState(ir)  # the next twist starts where this one ends
+        mark(ctx.cache, seg)  # from now on: its first keyframe holds the pose before it
+    return True
+
+
 def is_stroke(seg: Segment) -> bool:
     return seg.kind == "TO" and "stroke" in seg.goal.params
 
 
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    twisted = solve_axial_twists(ir, ctx)
     strokes = sorted((s for s in ir.segments if is_stroke(s)), key=lambda s: s.start)
     if not strokes:
+        if twisted:
+            reanchor(ir, ctx.cache, _restaters())
         return ir
     state = PoseState(ir)
     series: dict[Any, Series] = {}

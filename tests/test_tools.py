@@ -260,32 +260,140 @@ def test_screwdriver_reach_puts_the_tool_axis_on_the_screw_axis(tmp_path: Path) 
     assert np.linalg.norm(grip - tip) == pytest.approx(0.15, abs=1e-9)
 
 
-def test_screwdriver_twist_turns_the_tool_about_the_screw_axis(tmp_path: Path) -> None:
-    # every keyframe of the twists: the tip on the screw within 1 mm, the tool's axis on the
-    # screw's normal within 5 deg, and the hand turned about that axis the twist's way
+@pytest.fixture(scope="module")
+def screwdriver_ir(tmp_path_factory: pytest.TempPathFactory) -> tuple[MotionIR, list[str]]:
+    """The test scene turned one turn with a screwdriver, every pass run, and its codes."""
+    sink = DiagnosticSink()
+    timeline = _timeline(tmp_path_factory.mktemp("screw"), "tool screwdriver_flat", turns=1)
+    ir = run_motion(timeline, sink)
+    return ir, [d.code for d in sink.sorted()]
+
+
+def _twist_frames(ir: MotionIR, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tip distance to the screw (m), tool-axis angle to its normal (rad) and hand roll about
+    the normal (rad, from the first time) at ``times``."""
     from mtlc.body import site_rotation
     from mtlc.passes.state import PoseState
     from mtlc.passes.tool import axis_angle, roll_about
 
-    timeline = _timeline(tmp_path, setting="tool screwdriver_flat", turns=1)
-    ir = run_motion(timeline, DiagnosticSink(), until="tool")
     skel, state = ir.skeleton, PoseState(ir)
     assert skel is not None
-    twists = [s for s in ir.segments if s.goal.params.get("posture") == "twist"]
+    q = np.stack([state.q_at(float(t)) for t in times])
+    roots = [state.root_at(float(t)) for t in times]
+    pose = forward(skel, q, np.stack([r[0] for r in roots]), np.stack([r[1] for r in roots]))
+    tip = site_positions(skel, pose, "r_tool_screwdriver_flat")
     n = np.array([0.0, 0.0, -1.0])
+    rot = site_rotation(skel, pose, "r_hand")
+    return (
+        np.linalg.norm(tip - np.array([0.20, 1.35, 1.12]), axis=1),
+        axis_angle(skel, pose, "r_tool_screwdriver_flat", n),
+        roll_about(rot @ rot[0].T, n),
+    )
+
+
+def test_screwdriver_quarter_turns_turn_the_screw_a_quarter_each(screwdriver_ir) -> None:
+    # unscrew: each twist asks -90 deg, loosening: +90 deg about the normal (0, 0, -1),
+    # counter-clockwise seen from the front like a wrench. The turn made is the roll gained
+    # while gripping (the legs rolling the loosening way; a released hand rolls back)
+    ir, codes = screwdriver_ir
+    assert "MT0501" not in codes  # the whole turn is made: nothing reported short
+    twists = [s for s in ir.segments if s.goal.params.get("posture") == "twist"]
+    assert len(twists) == 4
     for seg in twists:
-        assert seg.keyframes is not None and len(seg.keyframes.time) >= 3
-        times = seg.keyframes.time
-        q = np.stack([state.q_at(float(t)) for t in times])
-        roots = [state.root_at(float(t)) for t in times]
-        pose = forward(skel, q, np.stack([r[0] for r in roots]), np.stack([r[1] for r in roots]))
-        tip = site_positions(skel, pose, "r_tool_screwdriver_flat")
-        assert np.linalg.norm(tip - np.array([0.20, 1.35, 1.12]), axis=1).max() <= 1e-3
-        assert np.degrees(axis_angle(skel, pose, "r_tool_screwdriver_flat", n)).max() <= 5.0
-        rot = site_rotation(skel, pose, "r_hand")
-        roll = roll_about(rot @ rot[0].T, n)
-        assert np.all(np.diff(np.sign(seg.result["angle"]) * roll) > 0)  # turning, one way
-        assert abs(seg.result["turned"]) >= math.radians(20.0)  # part of the quarter turn
+        tip, axis, roll = _twist_frames(ir, seg.keyframes.time)
+        steps = np.diff(roll)
+        assert math.degrees(steps[steps > 0].sum()) == pytest.approx(90.0, abs=5.0)
+        assert math.degrees(seg.result["turned"]) == pytest.approx(90.0, abs=1e-6)
+        assert seg.result["grips"] >= 1
+        assert math.degrees(axis.max()) <= 2.0  # the tool's axis on the screw's
+        assert tip.max() <= 1e-3  # the tip on the screw at every keyframe
+
+
+def test_screwdriver_tip_stays_on_the_screw_between_keyframes(screwdriver_ir) -> None:
+    # sampled at 30 fps through the twists, every pass run: the tip within 1 mm of the screw
+    ir, _ = screwdriver_ir
+    twists = [s for s in ir.segments if s.goal.params.get("posture") == "twist"]
+    t0, t1 = twists[0].start, twists[-1].end
+    times = np.arange(math.ceil(t0 * 30), math.floor(t1 * 30) + 1) / 30.0
+    tip, axis, _ = _twist_frames(ir, times)
+    assert len(times) >= 20 and tip.max() <= 1e-3
+    assert math.degrees(axis.max()) <= 2.0
+
+
+def test_regrip_plan_winds_back_and_grips_again_by_hand() -> None:
+    # wrist range -35..+5 deg, hand at 0, a 90 deg turn: 5 deg of room is less than a bite
+    # (30 deg), so wind back to -35, turn 40, back, 40, back, the last 10: 3 grips
+    from mtlc.passes.tool import regrip_plan
+
+    r = math.radians
+    points, grips = regrip_plan(r(-35), r(5), 0.0, r(90))
+    assert np.allclose(np.degrees(points), [0, -35, 5, -35, 5, -35, -25], atol=1e-9)
+    assert grips == [False, True, False, True, False, True]
+    # a wide range turns at once, either way
+    assert regrip_plan(r(-100), r(100), 0.0, r(90)) == ([0.0, r(90)], [True])
+    points, grips = regrip_plan(r(-100), r(100), 0.0, -r(90))
+    assert np.allclose(points, [0.0, -r(90)]) and grips == [True]
+
+
+def test_regrip_plan_stops_after_max_grips() -> None:
+    # a 20 deg range makes 4 grips of 20 deg: 80 of the 90 deg (reported short by the pass)
+    from mtlc.passes.tool import MAX_GRIPS, regrip_plan
+
+    r = math.radians
+    points, grips = regrip_plan(r(-10), r(10), r(-10), r(90))
+    assert sum(grips) == MAX_GRIPS == 4
+    made = sum(b - a for a, b, g in zip(points[:-1], points[1:], grips, strict=True) if g)
+    assert math.degrees(made) == pytest.approx(80.0, abs=1e-9)
+
+
+@given(
+    lo=st.floats(-math.pi, 0.0),
+    hi=st.floats(0.0, math.pi),
+    at=st.floats(0.0, 1.0),
+    turn=st.floats(-math.pi, math.pi),
+)
+@settings(max_examples=200, deadline=None)
+def test_regrip_plan_stays_in_range_and_turns_one_way(
+    lo: float, hi: float, at: float, turn: float
+) -> None:
+    from mtlc.passes.tool import MAX_GRIPS, regrip_plan
+
+    start = lo + at * (hi - lo)
+    points, grips = regrip_plan(lo, hi, start, turn)
+    assert all(lo - 1e-9 <= p <= hi + 1e-9 for p in points)
+    d = 1.0 if turn >= 0 else -1.0
+    legs = np.diff(points)
+    held = np.asarray(grips, bool)
+    assert np.all(d * legs[held] > 0) and np.all(d * legs[~held] < 0)  # grip turns, release back
+    made = float(d * legs[held].sum())
+    assert made <= abs(turn) + 1e-9 and sum(grips) <= MAX_GRIPS
+    if (MAX_GRIPS - 1) * (hi - lo) >= abs(turn):
+        assert made == pytest.approx(abs(turn), abs=1e-9)
+
+
+def test_twist_keys_time_the_return_at_twice_the_pace() -> None:
+    # path nodes every 10 deg from -20 to +20; plan 0 -> -20 released, -20 -> 20 gripping:
+    # 20 deg at pace 2 costs 10, 40 deg at pace 1 costs 40: the turning point at 10/50
+    from mtlc.passes.tool import RollPath, twist_keys
+
+    r = np.radians([-20.0, -10.0, 0.0, 10.0, 20.0])
+    path = RollPath(r, np.zeros((5, 3)))
+    frac, rolls, held = twist_keys(path, [0.0, r[0], r[-1]], [False, True])
+    assert np.allclose(np.degrees(rolls), [0, -10, -20, -10, 0, 10, 20], atol=1e-9)
+    assert np.allclose(frac, [0, 0.1, 0.2, 0.4, 0.6, 0.8, 1.0], atol=1e-9)
+    assert held.tolist() == [1, 0, 0, 1, 1, 1, 1]
+
+
+def test_short_turn_is_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # one grip a twist: the wrist's 40 deg range cannot make a quarter turn: MT0501 says how much
+    monkeypatch.setattr(tool_pass, "MAX_GRIPS", 1)
+    sink = DiagnosticSink()
+    timeline = _timeline(tmp_path, setting="tool screwdriver_flat", turns=1)
+    ir = run_motion(timeline, sink, until="tool")
+    short = [d for d in sink.sorted() if d.code == "MT0501"]
+    assert short and "cannot turn the screw at site `bolt` by 90 deg" in short[0].message
+    twists = [s for s in ir.segments if s.goal.params.get("posture") == "twist"]
+    assert all(abs(s.result["turned"]) < math.radians(85.0) for s in twists)
 
 
 def test_only_tool_sites_are_added_for_a_screwdriver_twist() -> None:

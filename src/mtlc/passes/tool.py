@@ -421,49 +421,241 @@ def rotation_about(axis: FloatArray, angle: FloatArray) -> FloatArray:
     return np.eye(3) + np.sin(a) * k + (1.0 - np.cos(a)) * (k @ k)
 
 
-def solve_axial_twist(state: PoseState, seg: Segment, reach: Segment) -> None:
-    """Re-solve a screwdriver's twist so the tool turns about the screw's axis.
+@dataclasses.dataclass(frozen=True)
+class RollPath:
+    """The arm's poses that keep a screwdriver on its screw while the hand rolls about the
+    screw's axis, from one stop to the other: ``roll`` (P,) rad about the axis from the reach
+    pose, increasing; ``q`` (P, D) the poses. A twist moves along it (``regrip_plan``)."""
 
-    The posture pass turns the forearm alone, about the forearm's axis, which is the screw's
-    only when the wrist is straight. Here every keyframe (one per ``TWIST_STEP``) is solved on
-    the arm for the tip on the screw, the grip on the screw's axis and the hand's frame turned
-    about that axis by the twist's share of its angle, each from the keyframe before."""
-    skel = state.skel
-    side = seg.goal.effector[0]
-    hand, tip_site = f"{side}_hand", reach.goal.effector
-    assert seg.keyframes is not None
-    turn = float(seg.keyframes.q[-1, 0] - seg.keyframes.q[0, 0])  # the posture pass's pronation
+    roll: FloatArray
+    q: FloatArray
+
+    def at(self, theta: FloatArray) -> FloatArray:
+        """(K, D) poses at rolls ``theta`` (K,), interpolated between the solved ones."""
+        th = np.clip(np.asarray(theta, float), self.roll[0], self.roll[-1])
+        i = np.clip(np.searchsorted(self.roll, th) - 1, 0, max(len(self.roll) - 2, 0))
+        j = np.minimum(i + 1, len(self.roll) - 1)
+        span = np.where(j > i, self.roll[j] - self.roll[i], 1.0)
+        w = np.where(j > i, (th - self.roll[i]) / span, 0.0)[:, None]
+        return (1.0 - w) * self.q[i] + w * self.q[j]
+
+
+ROLL_STALL = math.radians(1.0)  # a step that rolls the hand less than this: the joints' stop
+AXIS_TOLERANCE = math.radians(2.0)  # the tool's axis may leave the screw's by this much
+MAX_ROLL = math.pi  # the hand is not rolled further than this either way
+MIN_BITE = math.radians(30.0)  # a smaller turn than this is made after winding the wrist back
+MAX_GRIPS = 4  # grips per twist at most: a hand that rolls < 22.5 deg is reported short
+RETURN_PACE = 2.0  # the released hand rolls back this many times faster than it turns
+MID_TIP_ERROR = 5e-4  # m: a path step whose middle leaves the screw by more is halved
+
+
+def _twist_problem(skel: Skeleton, reach: Segment) -> tuple[str, str, FloatArray, FloatArray, Goal]:
+    """(hand, tool tip site, screw position, unit screw normal, grip-on-axis goal)."""
+    side = reach.goal.effector[0]
     site = np.asarray(reach.goal.position, float)
     n = np.asarray(reach.goal.params["normal"], float)
-    n = n / np.linalg.norm(n)
-    extra = axis_goals(skel, reach, site)
-    q = state.q_at(seg.start, skip=seg)
-    root = state.root_at(seg.start)
-    rot0 = site_rotation(skel, forward(skel, q[None], root[0][None], root[1][None]), hand)[0]
-    steps = max(1, math.ceil(abs(turn) / TWIST_STEP - 1e-9))
-    frac = np.linspace(0.0, 1.0, steps + 1)
-    # the pronation axis points from the wrist to the elbow: +n for the right arm's +turn
-    targets = rotation_about(n, (1.0 if side == "r" else -1.0) * turn * frac) @ rot0
-    rows = [q]
-    for r in targets[1:]:
-        goals = [
-            Goal(tip_site, position=site),
-            Goal(hand, position=extra[0].position, orientation=r, orientation_weight=0.1),
-        ]
-        model = prepare(skel, [tip_site, hand], rows[-1], reach="arm", root_position=root[0],
-                        root_rotation=root[1])  # fmt: skip
-        rows.append(solve_ta(skel, goals, rows[-1], model=model, restarts=0, tol=2e-4).q[0])
-    qs = np.stack(rows)
-    k = len(qs)
-    pose = forward(skel, qs, np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1)))
-    roll = roll_about(site_rotation(skel, pose, hand) @ rot0.T, n)
-    keep, prog = progress_keys(roll)
-    names = chain_names(skel, [tip_site], "arm")
-    idx = [skel.dof_index(nm) for nm in names]
-    seg.keyframes = Keyframes(
-        time=seg.start + (seg.end - seg.start) * prog, dofs=names, q=qs[keep][:, idx]
+    return (
+        f"{side}_hand",
+        reach.goal.effector,
+        site,
+        n / np.linalg.norm(n),
+        axis_goals(skel, reach, site)[0],
     )
-    seg.result = {**(seg.result or {}), "angle": turn, "turned": float(roll[keep[-1]])}
+
+
+def _roll_solve(
+    skel: Skeleton, reach: Segment, q: FloatArray, root: Any, rot0: FloatArray, theta: FloatArray
+) -> FloatArray:
+    """(K, D) poses from ``q`` (K, D): tip on the screw, grip on its axis, hand frame rolled by
+    ``theta`` (K,) about the axis from ``rot0``."""
+    hand, tip_site, site, n, grip = _twist_problem(skel, reach)
+    k = len(q)
+    goals = [
+        Goal(tip_site, position=np.tile(site, (k, 1))),
+        Goal(hand, position=np.tile(grip.position, (k, 1)),
+             orientation=rotation_about(n, theta) @ rot0, orientation_weight=0.1),
+    ]  # fmt: skip
+    rp, rr = np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1))
+    model = prepare(skel, [tip_site, hand], q, reach="arm", root_position=rp, root_rotation=rr)
+    return solve_ta(skel, goals, q, model=model, restarts=0, tol=2e-4).q
+
+
+def _roll_fit(
+    skel: Skeleton, reach: Segment, q: FloatArray, root: Any, rot0: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(K,) roll about the screw's axis, tip distance to the screw and tool-axis angle of the
+    poses ``q`` (K, D)."""
+    hand, tip_site, site, n, _ = _twist_problem(skel, reach)
+    k = len(q)
+    pose = forward(skel, q, np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1)))
+    roll = roll_about(site_rotation(skel, pose, hand) @ rot0.T, n)
+    tip = np.asarray(site_positions(skel, pose, tip_site)).reshape(k, 3)
+    axis = axis_angle(skel, pose, tip_site, n)
+    return roll, np.linalg.norm(tip - site, axis=1), axis
+
+
+def _roll_walk(
+    skel: Skeleton, reach: Segment, q0: FloatArray, root: Any, rot0: FloatArray, sign: float
+) -> list[tuple[float, FloatArray]]:
+    """Poses rolling the hand one way (``sign``) about the axis in ``TWIST_STEP`` steps, each
+    solved from the one before, up to the joints' stop: where a step stalls or lets the tip
+    or the tool's axis off the screw."""
+    out: list[tuple[float, FloatArray]] = []
+    q, roll = q0, 0.0
+    while abs(roll) < MAX_ROLL - 1e-9:
+        target = roll + sign * min(TWIST_STEP, MAX_ROLL - abs(roll))
+        nxt = _roll_solve(skel, reach, q[None], root, rot0, np.array([target]))[0]
+        got, tip, axis = (float(v[0]) for v in _roll_fit(skel, reach, nxt[None], root, rot0))
+        if sign * (got - roll) < ROLL_STALL or tip > TOLERANCE or axis > AXIS_TOLERANCE:
+            break
+        if not skel.within_limits(nxt):
+            break
+        out.append((got, nxt))
+        q, roll = nxt, got
+    return out
+
+
+def _refine(
+    skel: Skeleton, reach: Segment, path: RollPath, root: Any, rot0: FloatArray
+) -> RollPath:
+    """The path with a solved pose at the middle of every step whose interpolated middle lets
+    the tip off the screw by more than ``MID_TIP_ERROR`` (joint-space interpolation between
+    poses 5 deg apart drifted 2.5 mm)."""
+    if len(path.roll) < 2:
+        return path
+    mid_q = 0.5 * (path.q[:-1] + path.q[1:])
+    mid_roll = 0.5 * (path.roll[:-1] + path.roll[1:])
+    _, tip, _ = _roll_fit(skel, reach, mid_q, root, rot0)
+    bad = np.flatnonzero(tip > MID_TIP_ERROR)
+    if not len(bad):
+        return path
+    solved = _roll_solve(skel, reach, mid_q[bad], root, rot0, mid_roll[bad])
+    got, tip_s, _ = _roll_fit(skel, reach, solved, root, rot0)
+    ok = (tip_s <= TOLERANCE) & (got > path.roll[bad]) & (got < path.roll[bad + 1])
+    roll = np.concatenate([path.roll, got[ok]])
+    order = np.argsort(roll, kind="stable")
+    return RollPath(roll[order], np.concatenate([path.q, solved[ok]])[order])
+
+
+def roll_path(
+    skel: Skeleton, reach: Segment, q0: FloatArray, root: Any, rot0: FloatArray
+) -> RollPath:
+    """The hand's roll about the screw's axis both ways from ``q0`` to the joints' stops."""
+    down = _roll_walk(skel, reach, q0, root, rot0, -1.0)[::-1]
+    up = _roll_walk(skel, reach, q0, root, rot0, 1.0)
+    rolls = np.array([r for r, _ in down] + [0.0] + [r for r, _ in up])
+    qs = np.stack([q for _, q in down] + [q0] + [q for _, q in up])
+    return _refine(skel, reach, RollPath(rolls, qs), root, rot0)
+
+
+def regrip_plan(lo: float, hi: float, start: float, turn: float) -> tuple[list[float], list[bool]]:
+    """Rolls the hand passes through to turn the screw by ``turn`` (signed) from ``start``,
+    within the wrist's range [lo, hi], and for each leg between them whether the hand grips
+    (turning the screw) or has let go (rolling back to wind the wrist up again).
+
+    A turn the wrist has room for is made at once; otherwise the hand first rolls back to the
+    far stop (people wind the wrist before turning), then turns as far as it can, lets go, rolls
+    back and grips again, at most ``MAX_GRIPS`` times (the turn made may fall short)."""
+    d = 1.0 if turn >= 0 else -1.0
+    end, back = (hi, lo) if d > 0 else (lo, hi)
+    points, grips, left = [start], [], abs(turn)
+    while left > 1e-9 and sum(grips) < MAX_GRIPS:
+        cur = points[-1]
+        room = max(d * (end - cur), 0.0)
+        wound = abs(cur - back) <= 1e-9
+        if room < min(left, MIN_BITE, hi - lo) - 1e-9 and not wound:
+            points.append(back)
+            grips.append(False)
+            continue
+        bite = min(room, left)
+        if bite <= 1e-9:
+            break
+        points.append(cur + d * bite)
+        grips.append(True)
+        left -= bite
+    return points, grips
+
+
+def twist_keys(
+    path: RollPath, points: list[float], grips: list[bool]
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(K,) time fractions, (K,) rolls and (K,) grip flags (1 while the key's leg grips) of a
+    twist's keyframes: the plan's turning points and every path pose between them, timed by the
+    roll (a released hand rolls back ``RETURN_PACE`` times faster)."""
+    rolls, held = [points[0]], [1.0]
+    for a, b, grip in zip(points[:-1], points[1:], grips, strict=True):
+        lo, hi = min(a, b), max(a, b)
+        inner = path.roll[(path.roll > lo + 1e-9) & (path.roll < hi - 1e-9)]
+        for r in [*(inner if b > a else inner[::-1]), b]:
+            rolls.append(float(r))
+            held.append(1.0 if grip else 0.0)
+    th = np.asarray(rolls)
+    pace = np.where(np.asarray(held[1:]) > 0, 1.0, RETURN_PACE)
+    cost = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(th)) / pace)])
+    if len(th) < 2 or cost[-1] <= 1e-12:
+        return np.array([0.0, 1.0]), np.array([th[0], th[0]]), np.array([1.0, 1.0])
+    return cost / cost[-1], th, np.asarray(held)
+
+
+@dataclasses.dataclass
+class TwistRun:
+    """A screw's twists so far: the roll path and the roll the last twist left the hand at."""
+
+    path: RollPath
+    rot0: FloatArray
+    roll: float = 0.0
+
+
+def _twist_run(state: PoseState, seg: Segment, reach: Segment, runs: dict) -> TwistRun:
+    """The screw's path, solved at its first twist from the pose the reach left."""
+    skel = state.skel
+    key = id(reach)
+    if key not in runs:
+        q = state.q_at(seg.start, skip=seg)
+        root = state.root_at(seg.start)
+        hand = f"{reach.goal.effector[0]}_hand"
+        rot0 = site_rotation(skel, forward(skel, q[None], root[0][None], root[1][None]), hand)[0]
+        runs[key] = TwistRun(roll_path(skel, reach, q, root, rot0), rot0)
+    return runs[key]
+
+
+def solve_axial_twist(ctx: PassContext, state: PoseState, seg: Segment, reach: Segment,
+                      runs: dict) -> None:  # fmt: skip
+    """Re-solve a screwdriver's twist so the tool turns about the screw's axis by the twist's
+    angle (loosening, a negative angle, turns counter-clockwise seen from the front, like a
+    wrench): along the screw's roll path (``roll_path``), re-gripping where the wrist's range
+    is short of the turn (``regrip_plan``); a turn still short after ``MAX_GRIPS`` grips is
+    reported (MT0501)."""
+    skel = state.skel
+    run = _twist_run(state, seg, reach, runs)
+    turn = -float(seg.goal.params["angle"])
+    points, grips = regrip_plan(float(run.path.roll[0]), float(run.path.roll[-1]), run.roll, turn)
+    frac, rolls, _ = twist_keys(run.path, points, grips)
+    qs = run.path.at(rolls)
+    names = chain_names(skel, [reach.goal.effector], "arm")
+    idx = [skel.dof_index(nm) for nm in names]
+    seg.keyframes = Keyframes(time=seg.start + (seg.end - seg.start) * frac, dofs=names,
+                              q=qs[:, idx])  # fmt: skip
+    turned = float(sum(b - a for a, b, g in zip(points[:-1], points[1:], grips, strict=True) if g))
+    run.roll = float(rolls[-1])
+    seg.result = {**(seg.result or {}), "angle": turn, "turned": turned,
+                  "grips": int(sum(grips))}  # fmt: skip
+    if abs(turned - turn) > math.radians(5.0):
+        _report_short_turn(ctx, seg, reach, turn, turned)
+
+
+def _report_short_turn(
+    ctx: PassContext, seg: Segment, reach: Segment, turn: float, turned: float
+) -> None:
+    """MT0501: the wrist's range (``MAX_GRIPS`` grips) cannot make the twist's turn."""
+    tool = seg.goal.params["tool"]["name"]
+    ctx.report(
+        "MT0501",
+        f"the {tool} in the {'right' if reach.goal.effector[0] == 'r' else 'left'} hand cannot "
+        f"turn the screw at site `{reach.goal.site}` by {abs(math.degrees(turn)):.0f} deg: "
+        f"{abs(math.degrees(turned)):.0f} deg turned in {MAX_GRIPS} grips",
+        seg.provenance.origin,
+    )
 
 
 def roll_about(rel: FloatArray, n: FloatArray) -> FloatArray:
@@ -471,19 +663,6 @@ def roll_about(rel: FloatArray, n: FloatArray) -> FloatArray:
     skew = rel - np.swapaxes(rel, -1, -2)
     vec = 0.5 * np.stack([skew[:, 2, 1], skew[:, 0, 2], skew[:, 1, 0]], axis=-1)
     return np.arctan2(vec @ n, 0.5 * (np.trace(rel, axis1=-2, axis2=-1) - 1.0))
-
-
-def progress_keys(roll: FloatArray) -> tuple[list[int], FloatArray]:
-    """Keyframes where the turn advances, timed by their share of the turn made: a turn the
-    joints stop short of is spread over the twist, not made in its first keyframes."""
-    done = np.abs(roll - roll[0])
-    keep = [0]
-    for i in range(1, len(roll)):
-        if done[i] > done[keep[-1]] + 1e-4:
-            keep.append(i)
-    if len(keep) == 1:
-        return [0, 0], np.array([0.0, 1.0])
-    return keep, done[keep] / done[keep[-1]]
 
 
 def solve_axial_twists(ir: MotionIR, ctx: PassContext) -> bool:
@@ -494,12 +673,12 @@ def solve_axial_twists(ir: MotionIR, ctx: PassContext) -> bool:
     if not twists:
         return False
     state = PoseState(ir)
+    runs: dict[int, TwistRun] = {}
     for seg in twists:
         reach = _reach_before(ir, seg)
         if reach is None:
             continue
-        solve_axial_twist(state, seg, reach)
-        state = PoseState(ir)  # the next twist starts where this one ends
+        solve_axial_twist(ctx, state, seg, reach, runs)
         mark(ctx.cache, seg)  # from now on: its first keyframe holds the pose before it
     return True
 

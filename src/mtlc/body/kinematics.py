@@ -121,7 +121,11 @@ def axis_angle(axes: ArrayLike, angles: ArrayLike) -> FloatArray:
     th = np.asarray(angles, dtype=float)
     s, c = np.sin(th)[..., None, None], np.cos(th)[..., None, None]
     K = skew(a)
-    return np.eye(3) + s * K + (1 - c) * (K @ K)
+    return _rodrigues(K, K @ K, s, c)
+
+
+def _rodrigues(K: FloatArray, KK: FloatArray, s: FloatArray, c: FloatArray) -> FloatArray:
+    return np.eye(3) + s * K + (1 - c) * KK
 
 
 def skew(v: ArrayLike) -> FloatArray:
@@ -176,6 +180,69 @@ def _root_inputs(
     return rp, RR
 
 
+@dataclass(frozen=True)
+class _Plan:
+    """What ``forward`` precomputes once per skeleton (the per-joint Python loop it replaces
+    was most of a small batch's cost): each dof's cross-product matrix K and K², where each
+    joint's first, second and third dof sit among the dofs (``n_dofs``: no such dof, the
+    identity), and the joints grouped by depth in the tree."""
+
+    IKK: FloatArray  # (D + 1, 1, 9): I + K² flattened, then the identity ("no dof")
+    K9: FloatArray  # (D + 1, 1, 9)
+    KK9: FloatArray  # (D + 1, 1, 9)
+    slot_dof: NDArray[np.intp]  # (3, J)
+    prefix: NDArray[np.intp]  # (D,) dof k's rotations before it: 0 (none), 1 + J·(slot-1) + joint
+    dof_parent: NDArray[np.intp]  # (D,) its joint's parent + 1 (0: the root's base frame)
+    levels: tuple[tuple[NDArray[np.intp], NDArray[np.intp]], ...]  # (joints, parents), depth ≥ 1
+
+
+def _plan(skel: Skeleton) -> _Plan:
+    cached = skel.__dict__.get("_fk_plan")
+    if isinstance(cached, _Plan):
+        return cached
+    nj, nd = skel.n_joints, skel.n_dofs
+    if int(skel.joint_dof_count.max(initial=0)) > 3:
+        raise ValueError("forward kinematics handles at most 3 dofs a joint")
+    slot_dof = np.full((3, nj), nd, dtype=np.intp)
+    prefix = np.empty(nd, dtype=np.intp)
+    for j in range(nj):
+        for k in range(int(skel.joint_dof_count[j])):
+            d = int(skel.joint_dof_start[j]) + k
+            slot_dof[k, j] = d
+            prefix[d] = 0 if k == 0 else 1 + (k - 1) * nj + j
+    depth = np.zeros(nj, dtype=np.intp)
+    for j in range(1, nj):
+        depth[j] = depth[skel.parent[j]] + 1
+    levels = tuple(
+        (joints, skel.parent[joints])
+        for joints in (np.flatnonzero(depth == d) for d in range(1, int(depth.max(initial=0)) + 1))
+    )
+    K = np.concatenate([skew(skel.dof_axis), np.zeros((1, 3, 3))])
+    KK = K @ K
+    plan = _Plan(
+        (np.eye(3) + KK).reshape(-1, 1, 9),
+        K.reshape(-1, 1, 9),
+        KK.reshape(-1, 1, 9),
+        slot_dof,
+        prefix,
+        skel.parent[skel.dof_joint] + 1,
+        levels,
+    )
+    skel.__dict__["_fk_plan"] = plan
+    return plan
+
+
+def _homogeneous(R: FloatArray, p: FloatArray) -> FloatArray:
+    T = np.zeros((*R.shape[:-2], 4, 4))
+    T[..., :3, :3] = R
+    T[..., :3, 3] = p
+    T[..., 3, 3] = 1.0
+    return T
+
+
+FK_CHUNK = 48  # configurations a chunk: temporaries stay small (fresh large ones page-fault)
+
+
 def forward(
     skel: Skeleton,
     q: ArrayLike,
@@ -192,25 +259,46 @@ def forward(
         raise ValueError(f"q has {qa.shape[-1]} angles, the skeleton has {skel.n_dofs}")
     batch = qa.shape[:-1]
     rp, RR = _root_inputs(skel, batch, root_position, root_rotation)
-    Rd = axis_angle(skel.dof_axis, qa)  # (..., D, 3, 3)
-    nj = skel.n_joints
-    R = np.empty((*batch, nj, 3, 3))
-    p = np.empty((*batch, nj, 3))
-    axes = np.empty((*batch, skel.n_dofs, 3))
-    for j in range(nj):
-        pj = int(skel.parent[j])
-        if pj < 0:
-            Rw, pw = RR, rp + RR @ skel.offsets[j]
-        else:
-            Rw = R[..., pj, :, :]
-            pw = p[..., pj, :] + Rw @ skel.offsets[j]
-        s = int(skel.joint_dof_start[j])
-        for k in range(s, s + int(skel.joint_dof_count[j])):
-            axes[..., k, :] = Rw @ skel.dof_axis[k]
-            Rw = Rw @ Rd[..., k, :, :]
-        R[..., j, :, :] = Rw
-        p[..., j, :] = pw
-    return Pose(R=R, p=p, axes=axes, root=np.array(rp))
+    n, nj = int(np.prod(batch)), skel.n_joints
+    qf, rpf, RRf = qa.reshape(n, -1), rp.reshape(n, 3), RR.reshape(n, 3, 3)
+    R, p, axes = np.empty((n, nj, 3, 3)), np.empty((n, nj, 3)), np.empty((n, skel.n_dofs, 3))
+    for a in range(0, n, FK_CHUNK):
+        c = slice(a, a + FK_CHUNK)
+        R[c], p[c], axes[c] = _forward_flat(skel, qf[c], rpf[c], RRf[c])
+    return Pose(
+        R=R.reshape(*batch, nj, 3, 3), p=p.reshape(*batch, nj, 3),
+        axes=axes.reshape(*batch, skel.n_dofs, 3), root=np.array(rp),
+    )  # fmt: skip
+
+
+def _forward_flat(
+    skel: Skeleton, q: FloatArray, rp: FloatArray, RR: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``forward`` of (n, D) angles, joint-major inside (a joint's or dof's frames are one
+    contiguous block, so gathering them is a copy, not a strided walk): each joint's local
+    transform for all joints at once, then the joints of one depth placed together (19 joints
+    are 7 levels deep)."""
+    plan = _plan(skel)
+    n = len(q)
+    qt = np.concatenate([q.T, np.zeros((1, n))])[..., None]  # (D + 1, n, 1): a 0 for "no dof"
+    Rd = (plan.IKK + np.sin(qt) * plan.K9 - np.cos(qt) * plan.KK9).reshape(-1, n, 3, 3)
+    G = Rd[plan.slot_dof]  # (3, J, n, 3, 3): each joint's first, second and third dof
+    P2 = G[0] @ G[1]
+    W = np.empty((skel.n_joints, n, 4, 4))  # each joint in its parent's frame, then the world
+    W[..., :3, :3] = P2 @ G[2]
+    W[..., :3, 3] = skel.offsets[:, None]
+    W[..., 3, :] = (0.0, 0.0, 0.0, 1.0)
+    W[0] = _homogeneous(RR, rp) @ W[0]
+    for joints, parents in plan.levels:
+        W[joints] = W[parents] @ W[joints]
+    # a dof's axis turns with its parent's frame and the joint's dofs before it
+    before = np.concatenate([Rd[-1:], G[0], P2])[plan.prefix]  # (D, n, 3, 3); Rd[-1]: I
+    frames = np.concatenate([RR[None], W[..., :3, :3]])[plan.dof_parent] @ before
+    axes = np.einsum("dnab,db->dna", frames, skel.dof_axis)
+    return (
+        W[..., :3, :3].transpose(1, 0, 2, 3), W[..., :3, 3].transpose(1, 0, 2),
+        axes.transpose(1, 0, 2),
+    )  # fmt: skip
 
 
 def site_positions(skel: Skeleton, pose: Pose, names: Sequence[str] | str) -> FloatArray:

@@ -15,7 +15,8 @@ Two passes (docs/tools.md):
 
 A screwdriver's or pliers' reach (TA and TO) is solved with the tool's axis on the fastener's axis
 (``axis_goals``: the grip on the site's normal line behind the tip), and its twists are re-solved
-here so the hand turns about that axis with the tip on the fastener (``solve_axial_twist``).
+here so the hand turns about that axis with the tip on the fastener, re-gripping where the
+wrist's range is short of the turn (``solve_axial_twist``).
 """
 
 from __future__ import annotations

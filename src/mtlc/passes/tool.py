@@ -648,7 +648,12 @@ def solve_axial_twist(ctx: PassContext, state: PoseState, seg: Segment, reach: S
 def _report_short_turn(
     ctx: PassContext, seg: Segment, reach: Segment, turn: float, turned: float
 ) -> None:
-    """MT0501: the wrist's range (``MAX_GRIPS`` grips) cannot make the twist's turn."""
+    """MT0501 once per screw: the wrist's range (``MAX_GRIPS`` grips) cannot make the twist's
+    turn (the first short twist's numbers; a screw's quarter turns repeat)."""
+    done: set[Any] = ctx.cache.setdefault("passes.tool.short_turns", set())
+    if id(reach) in done:
+        return
+    done.add(id(reach))
     tool = seg.goal.params["tool"]["name"]
     ctx.report(
         "MT0501",

@@ -187,9 +187,7 @@ class _Plan:
     joint's first, second and third dof sit among the dofs (``n_dofs``: no such dof, the
     identity), and the joints grouped by depth in the tree."""
 
-    IKK: FloatArray  # (D + 1, 1, 9): I + K² flattened, then the identity ("no dof")
-    K9: FloatArray  # (D + 1, 1, 9)
-    KK9: FloatArray  # (D + 1, 1, 9)
+    basis: FloatArray  # (D + 1, 3, 9): I + K², K and K² flattened; last, the identity ("no dof")
     slot_dof: NDArray[np.intp]  # (3, J)
     prefix: NDArray[np.intp]  # (D,) dof k's rotations before it: 0 (none), 1 + J·(slot-1) + joint
     dof_parent: NDArray[np.intp]  # (D,) its joint's parent + 1 (0: the root's base frame)
@@ -220,9 +218,7 @@ def _plan(skel: Skeleton) -> _Plan:
     K = np.concatenate([skew(skel.dof_axis), np.zeros((1, 3, 3))])
     KK = K @ K
     plan = _Plan(
-        (np.eye(3) + KK).reshape(-1, 1, 9),
-        K.reshape(-1, 1, 9),
-        KK.reshape(-1, 1, 9),
+        np.stack([(np.eye(3) + KK).reshape(-1, 9), K.reshape(-1, 9), KK.reshape(-1, 9)], axis=1),
         slot_dof,
         prefix,
         skel.parent[skel.dof_joint] + 1,
@@ -248,11 +244,15 @@ def forward(
     q: ArrayLike,
     root_position: ArrayLike | None = None,
     root_rotation: ArrayLike | None = None,
+    *,
+    with_axes: bool = True,
 ) -> Pose:
     """Forward kinematics of every joint for a batch of configurations.
 
     ``q`` is (..., n_dofs); ``root_position`` (..., 3) defaults to standing on the ground;
     ``root_rotation`` is a quaternion (..., 4) w first, or a matrix (..., 3, 3).
+    ``with_axes=False`` leaves the dofs' axes out (``axes`` is then (..., 0, 3)): a caller
+    that needs no Jacobian saves a quarter of the work.
     """
     qa = np.asarray(q, dtype=float)
     if qa.shape[-1] != skel.n_dofs:
@@ -261,18 +261,19 @@ def forward(
     rp, RR = _root_inputs(skel, batch, root_position, root_rotation)
     n, nj = int(np.prod(batch)), skel.n_joints
     qf, rpf, RRf = qa.reshape(n, -1), rp.reshape(n, 3), RR.reshape(n, 3, 3)
-    R, p, axes = np.empty((n, nj, 3, 3)), np.empty((n, nj, 3)), np.empty((n, skel.n_dofs, 3))
+    nd = skel.n_dofs if with_axes else 0
+    R, p, axes = np.empty((n, nj, 3, 3)), np.empty((n, nj, 3)), np.empty((n, nd, 3))
     for a in range(0, n, FK_CHUNK):
         c = slice(a, a + FK_CHUNK)
-        R[c], p[c], axes[c] = _forward_flat(skel, qf[c], rpf[c], RRf[c])
+        R[c], p[c], axes[c] = _forward_flat(skel, qf[c], rpf[c], RRf[c], with_axes)
     return Pose(
         R=R.reshape(*batch, nj, 3, 3), p=p.reshape(*batch, nj, 3),
-        axes=axes.reshape(*batch, skel.n_dofs, 3), root=np.array(rp),
+        axes=axes.reshape(*batch, nd, 3), root=np.array(rp),
     )  # fmt: skip
 
 
 def _forward_flat(
-    skel: Skeleton, q: FloatArray, rp: FloatArray, RR: FloatArray
+    skel: Skeleton, q: FloatArray, rp: FloatArray, RR: FloatArray, with_axes: bool
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``forward`` of (n, D) angles, joint-major inside (a joint's or dof's frames are one
     contiguous block, so gathering them is a copy, not a strided walk): each joint's local
@@ -280,8 +281,9 @@ def _forward_flat(
     are 7 levels deep)."""
     plan = _plan(skel)
     n = len(q)
-    qt = np.concatenate([q.T, np.zeros((1, n))])[..., None]  # (D + 1, n, 1): a 0 for "no dof"
-    Rd = (plan.IKK + np.sin(qt) * plan.K9 - np.cos(qt) * plan.KK9).reshape(-1, n, 3, 3)
+    qt = np.concatenate([q.T, np.zeros((1, n))])  # (D + 1, n): a 0 for "no dof"
+    coef = np.stack([np.ones_like(qt), np.sin(qt), -np.cos(qt)], axis=-1)
+    Rd = (coef @ plan.basis).reshape(-1, n, 3, 3)  # Rodrigues: I + K² + sin·K − cos·K²
     G = Rd[plan.slot_dof]  # (3, J, n, 3, 3): each joint's first, second and third dof
     P2 = G[0] @ G[1]
     W = np.empty((skel.n_joints, n, 4, 4))  # each joint in its parent's frame, then the world
@@ -291,6 +293,9 @@ def _forward_flat(
     W[0] = _homogeneous(RR, rp) @ W[0]
     for joints, parents in plan.levels:
         W[joints] = W[parents] @ W[joints]
+    if not with_axes:
+        none = np.empty((n, 0, 3))
+        return W[..., :3, :3].transpose(1, 0, 2, 3), W[..., :3, 3].transpose(1, 0, 2), none
     # a dof's axis turns with its parent's frame and the joint's dofs before it
     before = np.concatenate([Rd[-1:], G[0], P2])[plan.prefix]  # (D, n, 3, 3); Rd[-1]: I
     frames = np.concatenate([RR[None], W[..., :3, :3]])[plan.dof_parent] @ before

@@ -86,7 +86,8 @@ JOINT_W = 30.0
 LIFT_W = 150.0
 MIN_KNEE = 0.08  # rad: the least knee flexion (the comfortable pose's)
 HEEL_DOWN = 0.5  # share of the descent with the front heel down
-GROUND_SITES = [f"{s}_{n}" for s in ("r", "l") for n in (*SOLE, "foot", "hand", "fingertip")]
+GROUND_SITES = tuple(f"{s}_{n}" for s in ("r", "l") for n in (*SOLE, "foot", "hand", "fingertip"))
+SOLE_SITES = {s: tuple(f"{s}_{n}" for n in SOLE) for s in ("r", "l")}
 
 
 def smoothstep(s: FloatArray | float) -> FloatArray:
@@ -122,6 +123,18 @@ class Body:
         for col in (KNEE_COL, 6 + KNEE_COL):
             self.lo[col] = max(self.lo[col], min(MIN_KNEE, float(q_base[self.idx[col]])))
         self.knees = [skel.joint_index("r_knee"), skel.joint_index("l_knee")]
+        self._sites: dict[tuple[str, ...], tuple[list[int], FloatArray]] = {}
+
+    def sites(self, pose: Any, names: tuple[str, ...]) -> FloatArray:
+        """``site_positions`` with the sites' joints and offsets looked up once (the look-up
+        was a fifth of a residual's cost)."""
+        found = self._sites.get(names)
+        if found is None:
+            js = [self.skel.joint_index(self.skel.site(n).joint) for n in names]
+            offsets = np.array([self.skel.site(n).offset for n in names], dtype=float)
+            found = self._sites[names] = (js, offsets)
+        js, offsets = found
+        return pose.p[..., js, :] + np.einsum("...sij,sj->...si", pose.R[..., js, :, :], offsets)
 
     def q_of(self, x: FloatArray) -> FloatArray:
         q = np.tile(self.q_base, (len(x), 1))
@@ -129,8 +142,7 @@ class Body:
         return q
 
     def pose(self, x: FloatArray) -> Any:
-        n = len(x)
-        return forward(self.skel, self.q_of(x), x[:, :3], np.tile([1.0, 0, 0, 0], (n, 1)))
+        return forward(self.skel, self.q_of(x), x[:, :3], with_axes=False)  # the body frame
 
     def residual(self, x: FloatArray, tg: Targets, prev: FloatArray) -> FloatArray:
         """Residuals (B, R) of a batch of candidate states ``x`` (B, 3 + V)."""
@@ -140,15 +152,15 @@ class Body:
             if name.startswith("joint:"):
                 p = pose.p[:, self.skel.joint_index(name[6:])]
             else:
-                p = site_positions(self.skel, pose, name)
+                p = self.sites(pose, (name,))[..., 0, :]
             out.append(w * (p - target))
         for side in tg.level:
-            pts = site_positions(self.skel, pose, [f"{side}_{n}" for n in SOLE])
+            pts = self.sites(pose, SOLE_SITES[side])
             across = pts[:, 2, 1] - pts[:, 3, 1]  # ball_med vs ball_lat height
             ahead = pts[:, 0, 0] - pts[:, 1, 0]  # toe and heel on one line along +Z
             out.append(np.stack([LEVEL_W * across, PLANT_W * ahead], axis=1))
         # nothing below the ground: sole points, ankles, and knees no lower than kneeling
-        soles = site_positions(self.skel, pose, GROUND_SITES)[..., 1]
+        soles = self.sites(pose, GROUND_SITES)[..., 1]
         knees = pose.p[:, self.knees, 1] - (KNEE_HEIGHT - 0.002)
         low = np.concatenate([soles, knees], axis=1)
         out.append(PLANT_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))  # smooth min(·, 0)

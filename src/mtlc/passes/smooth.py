@@ -23,11 +23,9 @@ pelvis and trunk smooth through a contact window while the hand and feet stay pu
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
-from mtlc.body import Pose, center_of_mass, forward, site_positions, site_rotation
+from mtlc.body import Pose, forward, site_positions, site_rotation
 from mtlc.ir.model import Frames, MotionIR
 from mtlc.metrics import (
     contact_mask,
@@ -47,6 +45,7 @@ from mtlc.passes.balance import (
     take_pose,
 )
 from mtlc.passes.context import PassContext
+from mtlc.passes.tool import carried_com
 
 STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
 JUMP_Q = 1e-3  # rad: smaller offsets are the interpolation's own
@@ -136,9 +135,9 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         moved |= pins[h] & (off > PIN_TOL)
     sub = np.flatnonzero(moved)
     stance = foot_stance(ir, t[rows])
-    margin_before = _margin(skel, pose, stance, ir.ground)
+    margin_before = carried_margin(ir, pose, t[rows], stance)
     if sub.size == 0:
-        _rebalance(ir, frames, rows, margin_before, _margin(skel, after, stance, ir.ground))
+        _rebalance(ir, frames, rows, margin_before, carried_margin(ir, after, t[rows], stance))
         return ir
     touching = contact[sub].reshape(sub.size, 2, -1).any(axis=2)
     feet = {
@@ -163,13 +162,16 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     frames.q[fix] = q
     frames.root_position[fix] = root
     final = forward(skel, frames.q[rows], frames.root_position[rows], rot)
-    _rebalance(ir, frames, rows, margin_before, _margin(skel, final, stance, ir.ground))
+    _rebalance(ir, frames, rows, margin_before, carried_margin(ir, final, t[rows], stance))
     return ir
 
 
-def _margin(skel: Any, pose: Pose, stance: np.ndarray, ground: float) -> np.ndarray:
-    pts, ok = support(skel, pose, stance, ground)
-    return support_margin(pts, ok, center_of_mass(skel, pose)[:, [0, 2]])
+def carried_margin(ir: MotionIR, pose: Pose, time: np.ndarray, stance: np.ndarray) -> np.ndarray:
+    """(N,) support margin of ``pose`` at ``time``, the centre of mass counting the tools the
+    hands hold (``carried_com``), so this check judges balance as the balance pass and the
+    metrics do; the feet (and knees) are the support, as before."""
+    pts, ok = support(ir.skeleton, pose, stance, ir.ground)
+    return support_margin(pts, ok, carried_com(ir, pose, time)[:, [0, 2]])
 
 
 def _rebalance(

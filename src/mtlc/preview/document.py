@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mtlc.body import center_of_mass, forward, site_positions
+from mtlc.body import forward, site_positions
 from mtlc.body.kinematics import Pose
 from mtlc.diagnostics.render import source_lines
 from mtlc.ergonomics.rula import force_scores, score_frames, worst_grand
@@ -24,6 +24,7 @@ from mtlc.ergonomics.view import DEFAULT_HALF_ANGLE_DEG
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.ir.serialize import to_dict
 from mtlc.metrics import foot_stance, penetration, support, support_margin
+from mtlc.passes.tool import carried_com
 
 FloatArray = NDArray[np.float64]
 PREVIEW_FORMAT_VERSION = 1
@@ -90,7 +91,7 @@ def figures(ir: MotionIR) -> dict[str, FloatArray]:
     pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
     stance = foot_stance(ir, t)
     pts, ok = support(skel, pose, stance, ir.ground)
-    margin = support_margin(pts, ok, center_of_mass(skel, pose)[:, [0, 2]])
+    margin = support_margin(pts, ok, carried_com(ir, pose, t)[:, [0, 2]])  # tools held count
     force = force_scores(ir, t)  # the held tool and loads, per hand
     rula = worst_grand(score_frames(skel, pose, frames.q, stance.all(axis=1), force=force))
     rula = rula.astype(float)

@@ -106,3 +106,89 @@ def test_grand_score_is_monotone(a: int, b: int, muscle: int, force: int) -> Non
 
 def test_action_levels() -> None:
     assert rula.action_level(np.array([1, 2, 3, 4, 5, 6, 7])).tolist() == [1, 1, 2, 2, 3, 3, 4]
+
+
+# -- repetition: a fastener's strokes or grips (muscle use +1, 2-10 kg scores 2) --------------
+
+
+def test_four_a_minute_is_repeated_and_one_action_never_is() -> None:
+    # rula_bands.csv, muscle_use: "action repeated >=4 times/min"
+    assert rula.repetition_rate(18, 270.0) == pytest.approx(4.0)
+    assert rula.Repetition("r", "bolt", 18, 0.0, 270.0).repeated  # exactly 4 a minute
+    assert not rula.Repetition("r", "bolt", 18, 0.0, 271.0).repeated  # 3.99 a minute
+    assert not rula.Repetition("r", "bolt", 1, 0.0, 0.5).repeated  # 120 a minute, but once
+
+
+@given(st.integers(2, 200), st.floats(0.1, 3600.0))
+def test_repeated_iff_at_least_four_a_minute(count: int, seconds: float) -> None:
+    rep = rula.Repetition("l", "nut", count, 10.0, 10.0 + seconds)
+    assert rep.repeated == (count / (seconds / 60.0) >= rula.REPEATED_PER_MIN - 1e-9)
+
+
+def _wrench_ir(tmp_path, setting: str, turns: int, args: str = ""):  # type: ignore[no-untyped-def]
+    from test_tools import _timeline
+
+    from mtlc.passes import lower
+
+    return lower(_timeline(tmp_path, setting, turns=turns, args=args))
+
+
+def test_wrench_strokes_worked_example(tmp_path, skel) -> None:  # type: ignore[no-untyped-def]
+    """3 turns at 60° with a 3 kg load: 18 strokes back to back, N = 18 × d seconds (d one
+    stroke's MTM time) -> 18 / (N / 60) a minute, far above 4: muscle use +1 and force/load 2
+    (3.06 kg, repeated) from the first stroke's start to the last's end, right hand only."""
+    ir = _wrench_ir(tmp_path, "tool wrench_10mm", 3, ", load: 3 kg")
+    strokes = sorted((s for s in ir.segments if "stroke" in s.goal.params), key=lambda s: s.start)
+    d = strokes[0].end - strokes[0].start
+    n_seconds = 18 * d  # back to back: each starts where the one before ends
+    (rep,) = rula.repetitions(ir)
+    assert (rep.side, rep.site, rep.count) == ("r", "bolt", 18)
+    assert rep.end - rep.start == pytest.approx(n_seconds, abs=1e-9)
+    assert rep.per_minute == pytest.approx(18 * 60 / n_seconds)  # 95.3 a minute here
+    assert rep.per_minute > 90.0 and rep.repeated
+    # the score changes at the first stroke's first frame: one frame before it and one at it
+    t = np.array([rep.start - 0.05, rep.start, 0.5 * (rep.start + rep.end), rep.end + 0.05])
+    muscle, force = rula.muscle_scores(ir, t), rula.force_scores(ir, t)
+    assert muscle["r"].tolist() == [0, 1, 1, 0] and muscle["l"].tolist() == [0, 0, 0, 0]
+    assert force["r"].tolist() == [0, 2, 2, 0]  # the wrench alone 0.06 kg; 3.06 kg repeated 2
+    assert force["l"].tolist() == [0, 0, 0, 0]
+    # the grand score at those frames, in one posture: C = A + muscle + force, D = B + ...
+    q = np.tile(skel.q_comfort, (len(t), 1))
+    pose = forward(skel, q)
+    feet = np.ones(len(t), dtype=bool)
+    bare = rula.score_frames(skel, pose, q, feet)["r"]
+    scored = rula.score_frames(skel, pose, q, feet, muscle=muscle, force=force)["r"]
+    a, b = int(bare.score_a[0]), int(bare.score_b[0])
+    before = rula.table_c()[min(a, 8) - 1, min(b, 7) - 1]
+    during = rula.table_c()[min(a + 3, 8) - 1, min(b + 3, 7) - 1]
+    assert scored.grand.tolist() == [before, during, during, before]
+    assert during > before
+
+
+def test_repetition_without_a_tool_is_not_counted(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    ir = _wrench_ir(tmp_path, "", 1)  # bare-hand quarter turns: no strokes, no tool grips
+    assert rula.repetitions(ir) == []
+    t = np.linspace(0.0, max(s.end for s in ir.segments), 50)
+    assert all(m.max() == 0 for m in rula.muscle_scores(ir, t).values())
+
+
+def test_screwdriver_grips_worked_example(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """One turn with a screwdriver: 4 quarter turns of 3 grips each (docs/tools.md) = 12 grips
+    over the 4 twists' window: repeated. The screwdriver weighs 0.08 kg: force/load stays 0."""
+    from test_tools import _timeline
+
+    from mtlc.diagnostics import DiagnosticSink
+    from mtlc.passes import run_motion
+
+    ir = run_motion(_timeline(tmp_path, "tool screwdriver_flat", turns=1), DiagnosticSink())
+    twists = sorted(
+        (s for s in ir.segments if s.goal.params.get("posture") == "twist"), key=lambda s: s.start
+    )
+    assert [s.result["grips"] for s in twists] == [3, 3, 3, 3]
+    (rep,) = rula.repetitions(ir)
+    assert (rep.side, rep.site, rep.count) == ("r", "bolt", 12)
+    assert (rep.start, rep.end) == (twists[0].start, twists[-1].end)
+    assert rep.per_minute == pytest.approx(12 * 60 / (twists[-1].end - twists[0].start))
+    t = np.array([twists[0].start - 0.05, twists[1].start, twists[-1].end + 0.05])
+    assert rula.muscle_scores(ir, t)["r"].tolist() == [0, 1, 0]
+    assert rula.force_scores(ir, t)["r"].tolist() == [0, 0, 0]

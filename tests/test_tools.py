@@ -479,7 +479,8 @@ def test_held_load_is_the_tool_while_held_plus_the_load(tmp_path: Path) -> None:
     assert np.allclose(kg["r"][held & ~in_stroke], 0.06)  # the wrench alone, reaching with it
     assert np.allclose(kg["r"][in_stroke], 3.06)  # and the load while turning
     force = force_scores(ir, t)
-    assert force["r"][in_stroke].tolist() == [1] * int(in_stroke.sum())  # 2-10 kg, < 1 min
+    # 2-10 kg, under a minute but repeated: 6 strokes in seconds (tests/test_rula.py)
+    assert force["r"][in_stroke].tolist() == [2] * int(in_stroke.sum())
     assert force["r"][~in_stroke].max() == 0 and force["l"].max() == 0
 
 

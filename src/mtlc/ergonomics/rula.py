@@ -39,6 +39,8 @@ SIDES = ("r", "l")
 LIGHT_KG = 2.0  # force/load score: under 2 kg intermittent is 0
 HEAVY_KG = 10.0  # over 10 kg is 3
 STATIC_S = 60.0  # a load held longer than a minute is "static" (2 for 2-10 kg)
+REPEATED_PER_MIN = 4.0  # "action repeated >=4 times/min": muscle use +1, 2-10 kg scores 2
+AXIAL_TOOLS = ("screwdriver", "pliers")  # turned by re-gripping (mtlc.passes.tool.AXIAL_KINDS)
 
 
 @dataclass(frozen=True)
@@ -128,10 +130,10 @@ def trunk_band(flexion_deg: FloatArray) -> IntArray:
 
 
 def grand_score(
-    score_a: IntArray, score_b: IntArray, muscle: int = 0, force: int | IntArray = 0
+    score_a: IntArray, score_b: IntArray, muscle: int | IntArray = 0, force: int | IntArray = 0
 ) -> IntArray:
-    """Table C from A and B, each raised by the muscle-use and force/load scores (``force``
-    one number for the task or one per frame)."""
+    """Table C from A and B, each raised by the muscle-use and force/load scores (each one
+    number for the task or one per frame)."""
     c = np.clip(np.asarray(score_a) + muscle + force, 1, 8)
     d = np.clip(np.asarray(score_b) + muscle + force, 1, 7)
     return table_c()[c - 1, d - 1]
@@ -162,6 +164,93 @@ def held_load(ir: MotionIR, time: FloatArray) -> dict[str, FloatArray]:
     return out
 
 
+# -- repetition: a fastener's strokes or grips -------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Repetition:
+    """One hand's repeated actions on one fastener: ``count`` strokes or grips from ``start`` to
+    ``end`` (s), the fastener's turning window."""
+
+    side: str
+    site: str
+    count: int
+    start: float
+    end: float
+
+    @property
+    def per_minute(self) -> float:
+        return repetition_rate(self.count, self.end - self.start)
+
+    @property
+    def repeated(self) -> bool:
+        """RULA's "repeated": at least two actions, at ``REPEATED_PER_MIN`` a minute or more."""
+        return self.count >= 2 and self.per_minute >= REPEATED_PER_MIN
+
+
+def repetition_rate(count: int, seconds: float) -> float:
+    """Actions a minute: ``count`` over a window of ``seconds``."""
+    return 60.0 * count / seconds if seconds > 0 else float("inf")
+
+
+def repetitions(ir: MotionIR) -> list[Repetition]:
+    """Each fastener's turning, per hand: a wrench's strokes (segments with ``stroke`` in their
+    params; a series starts again at stroke 1) and a screwdriver's or pliers' grips (the twists
+    after a reach made with the tool, each counting ``result["grips"]``, 1 before the tool pass
+    has re-gripped it). Ordered by start."""
+    series: dict[tuple[str, int], list[Any]] = {}  # (side, series id) -> [site, count, t0, t1]
+    current: dict[str, tuple[int, str]] = {}  # side -> (series id, fastener) under way
+    for seg in sorted(ir.segments, key=lambda s: (s.start, s.end)):
+        side, params = seg.goal.effector[:1], seg.goal.params
+        tool = params.get("tool")
+        if side not in SIDES or not isinstance(tool, dict):
+            continue
+        axial = tool.get("kind") in AXIAL_TOOLS
+        if "stroke" in params:
+            site = str(seg.goal.site)
+            if int(params["stroke"]) == 1 or current.get(side, (0, ""))[1] != site:
+                current[side] = (id(seg), site)
+            _count(series, (side, current[side][0]), site, 1, seg.start, seg.end)
+        elif seg.kind == "TO" and axial:
+            current[side] = (id(seg), str(seg.goal.site))  # the reach onto the next screw
+        elif params.get("posture") == "twist" and axial and side in current:
+            grips = int((seg.result or {}).get("grips", 1))
+            ident, site = current[side]
+            _count(series, (side, ident), site, grips, seg.start, seg.end)
+    out = [Repetition(side, *vals) for (side, _), vals in series.items()]
+    return sorted(out, key=lambda r: (r.start, r.side, r.site))
+
+
+def _count(
+    series: dict[tuple[str, int], list[Any]],
+    key: tuple[str, int],
+    site: str,
+    count: int,
+    start: float,
+    end: float,
+) -> None:
+    """Add ``count`` actions from ``start`` to ``end`` to a series, widening its window."""
+    entry = series.setdefault(key, [site, 0, start, end])
+    entry[1] += count
+    entry[2], entry[3] = min(entry[2], start), max(entry[3], end)
+
+
+def repeated_frames(ir: MotionIR, time: FloatArray) -> dict[str, BoolArray]:
+    """Per hand, the frames inside the turning window of a repeated series (``repetitions``)."""
+    t = np.asarray(time, dtype=float)
+    out = {side: np.zeros(len(t), dtype=bool) for side in SIDES}
+    for rep in repetitions(ir):
+        if rep.repeated:
+            out[rep.side] |= (t >= rep.start - 1e-9) & (t <= rep.end + 1e-9)
+    return out
+
+
+def muscle_scores(ir: MotionIR, time: FloatArray) -> dict[str, IntArray]:
+    """Each hand's muscle-use score per frame: +1 while it repeats an action 4 times a minute
+    or more (a fastener's strokes or grips); 0 elsewhere (a static posture is not scored)."""
+    return {side: rep.astype(np.int64) for side, rep in repeated_frames(ir, time).items()}
+
+
 def _held_longer_than(mask: BoolArray, time: FloatArray, seconds: float) -> BoolArray:
     """Frames in a run of ``mask`` that lasts ``seconds`` or longer."""
     m = np.asarray(mask, dtype=bool)
@@ -172,18 +261,24 @@ def _held_longer_than(mask: BoolArray, time: FloatArray, seconds: float) -> Bool
     return out
 
 
-def force_score(load_kg: FloatArray, time: FloatArray) -> IntArray:
+def force_score(
+    load_kg: FloatArray, time: FloatArray, repeated: BoolArray | None = None
+) -> IntArray:
     """RULA's force/load score per frame (McAtamney & Corlett 1993): under 2 kg 0; 2-10 kg
-    intermittent 1, held a minute or longer (static) 2; over 10 kg 3. Repetition is not
-    counted (docs/rula.md)."""
+    intermittent 1, held a minute or longer (static) or on a ``repeated`` frame 2; over 10 kg
+    3."""
     kg = np.asarray(load_kg, dtype=float)
     static = _held_longer_than(kg >= LIGHT_KG, np.asarray(time, dtype=float), STATIC_S)
+    if repeated is not None:
+        static = static | np.asarray(repeated, dtype=bool)
     return np.select([kg < LIGHT_KG, kg > HEAVY_KG, static], [0, 3, 2], default=1).astype(np.int64)
 
 
 def force_scores(ir: MotionIR, time: FloatArray) -> dict[str, IntArray]:
-    """Each hand's force/load score per frame, from what it holds (:func:`held_load`)."""
-    return {side: force_score(kg, time) for side, kg in held_load(ir, time).items()}
+    """Each hand's force/load score per frame, from what it holds (:func:`held_load`) and
+    whether it repeats its action (:func:`repeated_frames`)."""
+    repeated = repeated_frames(ir, time)
+    return {side: force_score(kg, time, repeated[side]) for side, kg in held_load(ir, time).items()}
 
 
 # -- angles from the pose --------------------------------------------------------------------
@@ -269,14 +364,14 @@ def score_frames(
     q: FloatArray,
     both_feet: BoolArray,
     *,
-    muscle: int = 0,
+    muscle: int | Mapping[str, IntArray] = 0,
     force: int | Mapping[str, IntArray] = 0,
 ) -> dict[str, RulaScores]:
     """RULA scores per frame for the right and the left side.
 
     ``both_feet`` (N,): legs and feet supported with the weight even (legs score 1, else 2).
-    ``muscle`` (0 or 1) is the worksheet's task-level addition; ``force`` (0–3) one number for
-    the task or each side's score per frame (:func:`force_scores`).
+    ``muscle`` (0 or 1) and ``force`` (0–3) are each one number for the task or each side's
+    score per frame (:func:`muscle_scores`, :func:`force_scores`).
     """
     qa = np.asarray(q, dtype=float)
     legs = np.where(np.asarray(both_feet, dtype=bool), 1, 2).astype(np.int64)
@@ -286,12 +381,16 @@ def score_frames(
     for side in SIDES:
         upper, lower, wrist, twist = arm_scores(skel, pose, qa, side)
         score_a = table_a()[upper - 1, lower - 1, wrist - 1, twist - 1]
-        side_force = force if isinstance(force, int) else np.asarray(force[side], np.int64)
-        grand = grand_score(score_a, score_b, muscle, side_force)
+        grand = grand_score(score_a, score_b, _of_side(muscle, side), _of_side(force, side))
         out[side] = RulaScores(
             upper, lower, wrist, twist, neck, trunk, legs, score_a, score_b, grand
         )
     return out
+
+
+def _of_side(score: int | Mapping[str, IntArray], side: str) -> int | IntArray:
+    """A task-level score as it is, or one side's per-frame scores."""
+    return score if isinstance(score, int) else np.asarray(score[side], np.int64)
 
 
 def worst_grand(scores: dict[str, RulaScores]) -> IntArray:

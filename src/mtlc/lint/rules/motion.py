@@ -76,7 +76,10 @@ def rula(view: MotionView) -> list[Finding]:
 
     both_feet = foot_stance(view.ir, view.time).all(axis=1)
     force = R.force_scores(view.ir, view.time)  # the held tool and loads, per hand
-    scores = R.score_frames(view.ir.skeleton, view.pose, view.q, both_feet, force=force)
+    muscle = R.muscle_scores(view.ir, view.time)  # repeated strokes or grips, per hand
+    scores = R.score_frames(
+        view.ir.skeleton, view.pose, view.q, both_feet, muscle=muscle, force=force
+    )
     grand = R.worst_grand(scores)
     threshold = view.config.rula_threshold
     out = []

@@ -48,8 +48,9 @@ def sustained_posture(view: MotionView) -> list[Finding]:
     assert view.ir.frames is not None
     both_feet = foot_stance(view.ir, view.time).all(axis=1)
     force = R.force_scores(view.ir, view.time)  # the held tool and loads, per hand
+    muscle = R.muscle_scores(view.ir, view.time)  # repeated strokes or grips, per hand
     grand = R.worst_grand(
-        R.score_frames(view.ir.skeleton, view.pose, view.q, both_feet, force=force)
+        R.score_frames(view.ir.skeleton, view.pose, view.q, both_feet, muscle=muscle, force=force)
     )
     cfg = view.config
     runs = runs_at_or_above(grand, cfg.sustained_rula, view.ir.frames.fps, cfg.sustained_seconds)

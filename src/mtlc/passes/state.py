@@ -69,12 +69,19 @@ class PoseState:
         if kf is None:
             return
         sid = id(seg)
+        times = np.asarray(kf.time, dtype=float).tolist()
+        ordered = bool(np.all(np.diff(kf.time) >= 0.0))
         for c, name in enumerate(kf.dofs):
             d = self.skel.dof_index(name)
-            for row, t in enumerate(kf.time):
-                i = bisect_right(self._t[d], float(t))
-                self._t[d].insert(i, float(t))
-                self._r[d].insert(i, (float(t), sid, kf, row, c))
+            ts, refs = self._t[d], self._r[d]
+            if ordered and (not ts or times[0] >= ts[-1]):  # all after the rest: append
+                ts.extend(times)
+                refs.extend((t, sid, kf, row, c) for row, t in enumerate(times))
+                continue
+            for row, t in enumerate(times):
+                i = bisect_right(ts, t)
+                ts.insert(i, t)
+                refs.insert(i, (t, sid, kf, row, c))
         if seg.kind == "posture" and kf.root_position is not None:
             for row, t in enumerate(kf.time):
                 i = bisect_right(self._rt, float(t))

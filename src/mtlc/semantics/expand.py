@@ -16,7 +16,7 @@ from typing import Any
 
 from mtlc.diagnostics import DiagnosticSink, Label, Span
 from mtlc.semantics import builtins as B
-from mtlc.semantics import mtm
+from mtlc.semantics import mtm, turning
 from mtlc.semantics import types as T
 from mtlc.semantics.check import check_manikin
 from mtlc.semantics.scopes import Scope, Symbol
@@ -86,6 +86,7 @@ class Expander:
         self.other_sites: dict[str, Site] = {}  # sites of other scenes, named scene.site
         self.hand_pos: dict[str, tuple[float, float, float] | None] = {}
         self.root = (0.0, 0.0, 0.0)
+        self.mtm_walks: set[int] = set()  # walks timed by MTM paces, which get turn time too
         self.posture = "stand"
         self.tool: Tool | None = None
         spec = ManikinSpec(*B.DEFAULT_MANIKIN)
@@ -125,6 +126,7 @@ class Expander:
             )
             self.out = timeline.primitives
             self.block(task.body, env, 0.0)
+            turning.add_turn_time(timeline.primitives, self.mtm_walks, (0.0, ground, 0.0))
             timeline.sites = [*self.task_sites.values(), *self.other_sites.values()]
         except _BudgetExceeded as exc:
             needed = f" (it would need about {exc.needed:,})" if exc.needed else ""
@@ -485,6 +487,9 @@ class Expander:
             "distance": distance,
         }
         self.emit("locomotion", "root", t, t + d, params, stmt, env)
+        rule = timing if timing is not None else Timing("walk", {})
+        if isinstance(rule, Timing) and rule.rule == "walk":
+            self.mtm_walks.add(id(self.out[-1]))
         self.root = goal
         for h in HAND_REST:
             self.hand_pos[h] = None  # the hands come back to the sides while walking

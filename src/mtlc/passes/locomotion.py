@@ -32,6 +32,9 @@ from scipy.interpolate import PchipInterpolator
 from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 
+# the front end times the turns these thresholds make the gait step (mtlc.semantics.turning)
+from mtlc.semantics.turning import FINAL_TURN, MAX_TWIST, MIN_DISTANCE, TURN_IN_PLACE
+
 FloatArray = NDArray[np.float64]
 
 # Step length / stature for normal walking: the pedometer rule (women 0.413, men 0.415).
@@ -39,10 +42,7 @@ STEP_LENGTH_RATIO = {"female": 0.413, "male": 0.415}
 STEP_HEIGHT_RATIO = 0.045  # mid-swing ankle rise / stature: ~7 cm for a 1.6 m manikin
 DOUBLE_SUPPORT = 0.2  # share of each step with both feet down (10 % at each end)
 SWAY = 0.3  # lateral pelvis shift toward the stance foot in single support, × half stance width
-TURN_IN_PLACE = math.radians(30)  # larger heading changes are stepped in place first
 MAX_TURN_STEP = math.radians(40)  # heading change per pivot step
-MAX_TWIST = math.radians(35)  # the last two steps land this much turned toward the work
-FINAL_TURN = math.radians(3)  # a smaller turn left after arriving is not stepped
 TOE_OFF_PITCH = math.radians(40)  # heel rise at toe-off of a full stride (less for short ones)
 HEEL_OFF = 0.45  # the heel rises this many steps before toe-off (mid-swing of the other foot)
 LEAD = 0.2  # at double support the pelvis is ahead of the feet's mid-point by this × the move
@@ -52,7 +52,6 @@ DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interp
 SWING_TOL = 5e-3  # m: a swinging foot's
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
-MIN_DISTANCE = 0.02  # m: shorter walks only turn
 MIN_DURATION = 1e-6  # s: a walk with less time (a zero-length MTM walk) takes no steps
 LEGS = ("r", "l")
 LEG_DOFS = ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")

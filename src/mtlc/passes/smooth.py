@@ -158,7 +158,15 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     # came down): raise the root by what it added below the ground, h = L − x
     low_before = lowest_point(skel, pose)[sub]
     low_after = lowest_point(skel, forward(skel, q, root, frames.root_rotation[fix]))
-    root[:, 1] += np.maximum(np.minimum(low_before, ir.ground) - low_after, 0.0)
+    lift = np.maximum(np.minimum(low_before, ir.ground) - low_after, 0.0)
+    root[:, 1] += lift
+    up = np.flatnonzero(lift > 0.0)
+    if up.size:  # the raise took the standing feet up with it: put them back down, legs bent
+        q[up], root[up], _ = restore_contacts(
+            ir, q[up], root[up], frames.root_rotation[fix][up],
+            {n: (p[up], r[up], touch[up]) for n, (p, r, touch) in feet.items()},
+            {h: (mask[up], at[up]) for h, (mask, at) in hands.items()},
+        )  # fmt: skip
     frames.q[fix] = q
     frames.root_position[fix] = root
     final = forward(skel, frames.q[rows], frames.root_position[rows], rot)

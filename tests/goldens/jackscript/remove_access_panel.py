@@ -56,23 +56,20 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 112.0), start=0.54, duration=0.2628)
-    human.KeyRoot(0.6, (0.0, 72.802, 60.0), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.0, 72.791, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
         'neck': (0.1358, -0.0007, -2.6778), 'head': (0.137, 0.0), 'right_hip': (5.4298, 0.0, 0.0),
         'right_knee': (9.9869,), 'right_ankle': (4.5571, 0.0), 'left_hip': (5.3366, 0.0, 0.0),
         'left_knee': (9.7903,), 'left_ankle': (4.4478, 0.0),
     })
-    human.KeyJoints(0.7, {
-        'neck': (0.6852, -0.0036, -13.4679), 'head': (0.6906, 0.0001),
-        'left_hip': (4.4022, 0.0, 0.0), 'left_knee': (7.8222,), 'left_ankle': (3.4174, 0.0),
-    })
-    human.KeyRoot(0.8, (0.0, 72.969, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(0.7, {'neck': (0.6852, -0.0036, -13.4679), 'head': (0.6906, 0.0001)})
+    human.KeyRoot(0.8, (0.0, 72.955, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'neck': (1.0686, -0.0054, -20.8444), 'head': (1.0756, 0.0001),
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
-        'right_wrist': (0.0, 0.0), 'right_hip': (3.5038, 0.0001, -0.0012), 'right_knee': (5.9301,),
-        'right_ankle': (2.4287, -0.0008), 'left_hip': (3.3634, 0.0, 0.0), 'left_knee': (5.6338,),
-        'left_ankle': (2.2552, 0.0),
+        'right_wrist': (0.0, 0.0), 'right_hip': (3.5041, 0.0, 0.0), 'right_knee': (5.9306,),
+        'right_ankle': (2.4266, 0.0), 'left_hip': (3.4281, 0.0, 0.0), 'left_knee': (5.7702,),
+        'left_ankle': (2.3388, 0.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_left
@@ -166,6 +163,7 @@ def remove_access_panel():
         'right_elbow': (32.7256, 10.3601), 'right_wrist': (-1.548, -28.3363),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyRoot(2.5, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(2.5, {
         'spine_lumbar': (7.799, 1.1219, 1.2328), 'spine_thoracic': (-3.0353, -3.0166, 1.2171),
         'neck': (-0.5438, -0.7348, -26.4571), 'head': (-0.703, -0.002),
@@ -2800,194 +2798,320 @@ def remove_access_panel():
         'right_clavicle': (6.9972, 9.7296), 'right_shoulder': (34.5012, 35.235, -9.8523),
         'right_elbow': (90.6915, 24.8972), 'right_wrist': (-16.5326, -18.2955),
         'left_clavicle': (-2.4881, 4.0), 'left_shoulder': (89.3018, -29.1524, 14.6435),
-        'left_elbow': (21.618, 18.1688), 'left_wrist': (0.8948, -5.4732),
-        'right_hip': (2.8648, 0.0, 0.0), 'right_ankle': (1.7189, 0.0),
-        'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
+        'left_wrist': (0.8948, -5.4732), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
+        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
+        'left_ankle': (1.7189, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
-    human.Walk((136.93, 0.0, 19.817), start=45.366901, duration=1.08)
-    human.KeyRoot(45.4, (-1.184, 72.988, 60.234), (4.3418, 0.0, 0.0))
+    human.Walk((139.2, 0.0, 19.967), start=45.366901, duration=3.7584)
+    human.KeyRoot(45.4, (-0.457, 72.984, 60.131), (1.2476, 0.0, 0.0))
     human.KeyJoints(45.4, {
-        'right_shoulder': (33.3379, 35.3431, -10.4388), 'right_elbow': (90.0638, 24.8626),
-        'right_wrist': (-16.6575, -18.5562), 'left_shoulder': (89.7892, -29.8421, 14.744),
-        'left_elbow': (19.2234, 18.1528), 'left_wrist': (1.1031, -5.7219),
-        'right_hip': (2.2221, -0.8249, -4.3391), 'right_knee': (4.6075,),
-        'right_ankle': (2.4453, -0.9922), 'left_hip': (12.1977, -0.188, 3.0288),
-        'left_knee': (23.7506,), 'left_ankle': (11.5428, 1.0986),
+        'right_shoulder': (33.6987, 35.0039, -9.897), 'right_elbow': (90.5645, 24.887),
+        'left_shoulder': (88.4385, -29.1667, 14.691), 'left_elbow': (21.8923, 18.1666),
+        'right_hip': (2.912, -0.3239, -1.2657), 'right_knee': (5.2205,),
+        'right_ankle': (2.3182, -0.3877), 'left_hip': (8.6558, 0.2004, 1.3075),
+        'left_knee': (16.2701,), 'left_ankle': (5.4686, 0.3951),
     })
-    human.KeyRoot(45.5, (-0.143, 72.93, 58.204), (17.3807, 0.0, 0.0))
+    human.KeyRoot(45.5, (-1.844, 72.931, 60.42), (5.017, 0.0, 0.0))
     human.KeyJoints(45.5, {
-        'left_shoulder': (88.7911, -29.6844, 14.7667), 'left_elbow': (21.1202, 18.1584),
-        'right_hip': (12.6669, 4.1244, -16.8791), 'right_knee': (26.5005,),
-        'right_ankle': (7.3427, 0.2004), 'left_hip': (3.6501, 0.2974, -18.0533),
-        'left_knee': (6.6075,), 'left_ankle': (3.0415, -0.8483),
+        'right_wrist': (-16.5817, -18.3704), 'right_hip': (2.7361, -1.3116, -5.0832),
+        'right_knee': (6.0773,), 'right_ankle': (3.4638, -1.547),
+        'left_hip': (16.3963, 0.2882, 3.7726), 'left_knee': (32.1458,),
+        'left_ankle': (13.7009, 1.6528),
     })
-    human.KeyRoot(45.6, (3.383, 72.867, 60.836), (43.4447, 0.0, 0.0))
+    human.KeyRoot(45.6, (-2.364, 72.867, 60.468), (8.787, 0.0, 0.0))
     human.KeyJoints(45.6, {
-        'right_elbow': (90.9625, 24.9578), 'right_wrist': (-16.8698, -18.4581),
-        'left_shoulder': (88.1564, -29.6548, 14.7943), 'left_elbow': (22.3586, 18.1614),
-        'left_wrist': (0.9612, -5.4072), 'right_hip': (15.6177, -6.012, 27.3014),
-        'right_knee': (32.198,), 'right_ankle': (14.9259, 1.7456),
-        'left_hip': (6.7827, -3.2385, 7.6328), 'left_knee': (14.8819,),
-        'left_ankle': (6.2165, -2.2882),
+        'right_hip': (2.9976, -1.4943, -8.8722), 'right_knee': (7.38,),
+        'right_ankle': (4.6449, -1.9358), 'left_hip': (21.939, 6.2235, -8.7078),
+        'left_knee': (47.5566,), 'left_ankle': (15.1791, 1.926),
     })
-    human.KeyRoot(45.7, (1.133, 72.674, 63.615), (69.6796, 0.0, 0.0))
+    human.KeyRoot(45.7, (-1.908, 72.803, 59.67), (12.2558, 0.0, 0.0))
     human.KeyJoints(45.7, {
-        'right_shoulder': (32.827, 35.426, -10.7382), 'right_elbow': (91.8408, 25.0454),
-        'right_wrist': (-17.0303, -18.329), 'left_shoulder': (86.7001, -29.4044, 14.827),
-        'left_elbow': (25.3833, 18.1712), 'left_wrist': (0.8049, -5.0786),
-        'right_hip': (4.5564, -2.0379, 1.022), 'right_knee': (11.5183,),
-        'right_ankle': (6.8943, -1.9582), 'left_hip': (22.3543, 0.9777, -2.8237),
-        'left_knee': (48.1925,), 'left_ankle': (15.9577, 0.1031),
+        'right_hip': (7.098, 0.0378, -12.3776), 'right_knee': (15.4467,),
+        'right_ankle': (7.168, -1.4818), 'left_hip': (13.0339, 7.9661, -21.4426),
+        'left_knee': (31.8679,), 'left_ankle': (15.708, 1.3795),
     })
-    human.KeyRoot(45.8, (-1.812, 72.75, 59.066), (92.6472, 0.0, 0.0))
+    human.KeyRoot(45.8, (-0.912, 72.746, 58.493), (15.9969, 0.0, 0.0))
     human.KeyJoints(45.8, {
-        'right_shoulder': (33.0665, 35.2037, -10.3818), 'right_elbow': (91.8716, 25.0329),
-        'left_shoulder': (86.3747, -29.0891, 14.787), 'left_elbow': (25.9645, 18.1764),
-        'right_hip': (13.9826, 7.0759, -18.0818), 'right_knee': (30.1287,),
-        'right_ankle': (10.3681, 1.3362), 'left_hip': (5.2881, -0.4345, -13.6978),
-        'left_knee': (10.3446,), 'left_ankle': (5.3024, -1.671),
+        'left_shoulder': (88.7455, -29.1548, 14.6728), 'left_elbow': (21.9573, 18.1681),
+        'right_hip': (12.5265, 3.0394, -15.7671), 'right_knee': (25.9793,),
+        'right_ankle': (8.1434, -0.5244), 'left_hip': (5.3277, 1.7511, -19.3446),
+        'left_knee': (10.8698,), 'left_ankle': (5.2589, -0.1173),
     })
-    human.KeyRoot(45.9, (1.189, 71.466, 60.318), (106.0756, 0.0, 0.0))
+    human.KeyRoot(45.9, (0.21, 72.697, 58.426), (21.6316, 0.0, 0.0))
     human.KeyJoints(45.9, {
-        'right_shoulder': (33.4319, 35.1612, -10.1875), 'right_elbow': (91.7095, 25.009),
-        'right_wrist': (-16.838, -18.2427), 'left_shoulder': (86.7847, -28.996, 14.7481),
-        'left_elbow': (25.4821, 18.1771), 'left_wrist': (0.7442, -5.0807),
-        'right_hip': (11.438, 0.0839, 0.1989), 'right_knee': (24.947,),
-        'right_ankle': (13.5075, 0.1201), 'left_hip': (30.5039, 0.0092, -0.2933),
-        'left_knee': (57.0276,), 'left_ankle': (0.6657, -0.1664),
+        'left_shoulder': (88.7431, -29.1362, 14.6696), 'left_elbow': (22.0659, 18.1688),
+        'right_hip': (12.7242, 6.3696, -20.5582), 'right_knee': (29.2394,),
+        'right_ankle': (8.6082, 0.6979), 'left_hip': (6.1466, 0.3497, -13.8263),
+        'left_ankle': (5.4532, -1.1285),
     })
-    human.KeyRoot(46.0, (18.658, 68.222, 57.511), (106.2512, 0.0, 0.0))
+    human.KeyRoot(46.0, (1.607, 72.623, 58.761), (29.638, 0.0, 0.0))
     human.KeyJoints(46.0, {
-        'right_shoulder': (34.0791, 35.2263, -10.0087), 'right_elbow': (90.8054, 24.9149),
-        'right_wrist': (-16.6157, -18.326), 'left_shoulder': (88.8348, -29.2193, 14.6799),
-        'left_elbow': (22.0551, 18.168), 'left_wrist': (0.8966, -5.4351),
-        'right_hip': (20.3738, -1.3229, -1.8792), 'right_knee': (69.4215,),
-        'right_ankle': (14.4338, -2.2962), 'left_hip': (40.5944, 2.266, -1.296),
-        'left_knee': (23.7506,), 'left_ankle': (-18.1973, 1.7165),
+        'right_hip': (21.118, 9.3541, -17.45), 'right_knee': (49.3719,),
+        'right_ankle': (17.7307, 1.6732), 'left_hip': (6.5879, -1.4361, -5.9796),
+        'left_ankle': (5.7775, -2.104),
     })
-    human.KeyRoot(46.1, (43.78, 67.307, 45.621), (106.2512, 0.0, 0.0))
+    human.KeyRoot(46.1, (2.463, 72.565, 59.412), (37.558, 0.0, 0.0))
     human.KeyJoints(46.1, {
-        'right_shoulder': (34.0969, 35.2209, -9.9953), 'right_elbow': (91.0419, 24.9369),
-        'right_wrist': (-16.6468, -18.2832), 'left_shoulder': (88.3974, -29.1122, 14.6835),
-        'left_elbow': (22.9901, 18.1715), 'left_wrist': (0.8442, -5.3359),
-        'right_hip': (35.5272, 1.1529, 4.1411), 'right_knee': (86.4299,),
-        'right_ankle': (15.3007, 2.9502), 'left_hip': (29.1208, -1.8466, -1.2991),
-        'left_knee': (53.8624,), 'left_ankle': (18.7864, -2.2552),
+        'right_shoulder': (34.3547, 35.2021, -9.8714), 'right_elbow': (90.7199, 24.9007),
+        'right_hip': (26.3187, -5.3644, 14.1933), 'right_knee': (52.8471,),
+        'right_ankle': (18.3652, 1.6649), 'left_hip': (6.7338, -2.6464, 1.8387),
+        'left_knee': (12.8897,), 'left_ankle': (6.0571, -2.4112),
     })
-    human.KeyRoot(46.2, (86.518, 65.264, 36.591), (106.2512, 0.0, 0.0))
+    human.KeyRoot(46.2, (2.971, 72.499, 61.708), (45.0968, 0.0, 0.0))
     human.KeyJoints(46.2, {
-        'right_shoulder': (33.1732, 35.2439, -10.3871), 'right_elbow': (92.577, 25.1006),
-        'right_wrist': (-17.0334, -18.1386), 'left_shoulder': (85.6281, -28.8881, 14.792),
-        'left_elbow': (27.9451, 18.1842), 'left_wrist': (0.6271, -4.8095),
-        'right_hip': (33.9376, -0.7637, -0.5395), 'right_knee': (54.9005,),
-        'right_ankle': (19.7541, -0.938), 'left_hip': (2.5201, 0.9371, -0.3015),
-        'left_knee': (67.6148,), 'left_ankle': (17.0571, 0.6506),
+        'right_shoulder': (34.5012, 35.235, -9.8523), 'left_shoulder': (89.3018, -29.1524, 14.6435),
+        'left_elbow': (21.618, 18.1688), 'right_hip': (13.5577, -5.5158, 25.1861),
+        'right_knee': (28.5663,), 'right_ankle': (13.9119, 0.8205),
+        'left_hip': (9.7328, -3.1858, 9.2109), 'left_knee': (21.4226,),
+        'left_ankle': (9.0744, -1.5488),
     })
-    human.KeyRoot(46.3, (115.863, 63.244, 27.982), (106.2512, 0.0, 0.0))
+    human.KeyRoot(46.3, (3.214, 72.487, 63.523), (52.6355, 0.0, 0.0))
     human.KeyJoints(46.3, {
-        'right_shoulder': (33.4073, 35.2386, -10.2884), 'right_elbow': (92.29, 25.0689),
-        'right_wrist': (-16.9509, -18.1581), 'left_shoulder': (86.1532, -28.9033, 14.766),
-        'left_elbow': (27.0708, 18.1824), 'left_wrist': (0.6604, -4.9005),
-        'right_hip': (22.9754, -0.4869, -1.049), 'right_knee': (84.3867,),
-        'right_ankle': (19.2958, -1.1566), 'left_hip': (42.2355, -4.8268, 17.5317),
-        'left_knee': (35.2273,), 'left_ankle': (-6.5747, 8.2258),
+        'right_hip': (5.8833, -2.9194, 17.9945), 'right_knee': (14.7503,),
+        'right_ankle': (8.2554, -0.9465), 'left_hip': (12.7427, -4.5058, 16.5865),
+        'left_ankle': (9.9172, -0.6028),
     })
-    human.KeyRoot(46.4, (133.664, 69.765, 19.74), (95.6459, 0.0, 0.0))
+    human.KeyRoot(46.4, (2.505, 72.487, 63.748), (60.1743, 0.0, 0.0))
     human.KeyJoints(46.4, {
+        'right_hip': (5.5979, -2.6278, 10.4498), 'right_ankle': (8.4783, -1.5575),
+        'left_hip': (16.7947, -7.2202, 23.7977), 'left_knee': (36.4564,),
+        'left_ankle': (12.0032, 0.3668),
+    })
+    human.KeyRoot(46.5, (0.97, 72.487, 63.861), (67.713, 0.0, 0.0))
+    human.KeyJoints(46.5, {
+        'right_hip': (6.0302, -2.5097, 2.871), 'right_knee': (14.1789,),
+        'right_ankle': (8.0273, -2.191), 'left_hip': (26.5139, -4.6396, 10.675),
+        'left_knee': (55.9472,), 'left_ankle': (19.2126, 0.7143),
+    })
+    human.KeyRoot(46.6, (-0.471, 72.487, 63.444), (75.5275, 0.0, 0.0))
+    human.KeyJoints(46.6, {
+        'right_hip': (6.9669, -1.668, -4.935), 'right_knee': (14.8115,),
+        'right_ankle': (7.8461, -2.2477), 'left_hip': (19.1979, 9.9263, -20.2579),
+        'left_knee': (48.7769,), 'left_ankle': (19.1823, 2.3944),
+    })
+    human.KeyRoot(46.7, (-2.03, 72.487, 61.61), (83.6646, 0.0, 0.0))
+    human.KeyJoints(46.7, {
+        'right_hip': (10.3182, 1.2791, -12.8427), 'right_knee': (20.275,),
+        'right_ankle': (8.1983, -1.0563), 'left_hip': (8.2472, 4.0413, -22.2395),
+        'left_knee': (19.6661,), 'left_ankle': (10.4264, 0.7109),
+    })
+    human.KeyRoot(46.8, (-2.532, 72.487, 60.108), (89.6767, 0.0, 0.0))
+    human.KeyJoints(46.8, {
+        'right_hip': (11.6484, 4.1779, -18.3782), 'right_knee': (23.9593,),
+        'right_ankle': (8.4305, 0.2327), 'left_hip': (7.5649, 1.3166, -16.5467),
+        'left_knee': (14.76,), 'left_ankle': (7.1377, -0.8973),
+    })
+    human.KeyRoot(46.9, (-2.017, 72.487, 59.015), (93.5537, 0.0, 0.0))
+    human.KeyJoints(46.9, {
+        'right_hip': (17.518, 8.3795, -20.3789), 'right_knee': (39.6589,),
+        'right_ankle': (17.1525, 1.4745), 'left_hip': (7.4622, -0.1471, -12.8203),
+        'left_knee': (14.4467,), 'left_ankle': (7.2031, -1.7936),
+    })
+    human.KeyRoot(47.0, (-1.208, 72.487, 58.418), (96.9811, 0.0, 0.0))
+    human.KeyJoints(47.0, {
+        'right_hip': (26.7527, 5.7645, -6.7126), 'right_knee': (55.7385,),
+        'right_ankle': (19.297, 2.066), 'left_hip': (7.011, -1.0423, -9.4617),
+        'left_knee': (14.2438,), 'left_ankle': (7.4967, -2.1706),
+    })
+    human.KeyRoot(47.1, (-0.445, 72.487, 59.095), (101.5311, 0.0, 0.0))
+    human.KeyJoints(47.1, {
+        'right_hip': (20.7406, 0.2561, 4.1003), 'right_knee': (41.1712,),
+        'right_ankle': (19.2524, 1.5934), 'left_hip': (13.8809, -0.3244, -5.0802),
+        'left_knee': (27.9012,), 'left_ankle': (9.0432, -1.537),
+    })
+    human.KeyRoot(47.2, (0.583, 72.492, 60.332), (105.6354, 0.0, 0.0))
+    human.KeyJoints(47.2, {
+        'right_hip': (7.2592, 0.1749, 0.6424), 'right_knee': (14.9444,),
+        'right_ankle': (7.6779, 0.2544), 'left_hip': (27.0172, 0.0791, -0.7821),
+        'left_knee': (50.2367,), 'left_ankle': (0.882, -0.3079),
+    })
+    human.KeyRoot(47.3, (2.856, 72.289, 60.482), (106.2512, 0.0, 0.0))
+    human.KeyJoints(47.3, {
+        'right_hip': (6.303, -0.4147, -0.0461), 'right_knee': (16.9698,),
+        'right_ankle': (10.6699, -0.4173), 'left_hip': (31.3105, 0.2644, 0.5144),
+        'left_knee': (58.9446,), 'left_ankle': (-4.3341, 0.5784),
+    })
+    human.KeyRoot(47.4, (8.183, 71.514, 60.068), (106.2512, 0.0, 0.0))
+    human.KeyJoints(47.4, {
+        'right_hip': (3.6556, -1.3723, -0.088), 'right_knee': (20.9859,),
+        'right_ankle': (17.3352, -1.3751), 'left_hip': (36.4771, 0.8227, 1.751),
+        'left_knee': (71.7225,), 'left_ankle': (6.5042, 1.9346),
+    })
+    human.KeyRoot(47.5, (14.237, 69.77, 59.311), (106.2512, 0.0, 0.0))
+    human.KeyJoints(47.5, {
+        'right_hip': (22.9579, -1.6239, -2.3063), 'right_knee': (65.3123,),
+        'right_ankle': (10.4888, -2.8204), 'left_hip': (48.582, 1.516, 2.4654),
+        'left_knee': (57.1654,), 'left_ankle': (-1.5699, 2.894),
+    })
+    human.KeyRoot(47.6, (20.651, 67.948, 56.62), (106.2512, 0.0, 0.0))
+    human.KeyJoints(47.6, {
+        'right_wrist': (-16.5326, -18.2955), 'right_hip': (17.3837, -1.1974, -1.4896),
+        'right_knee': (68.1493,), 'right_ankle': (16.9594, -1.9111),
+        'left_hip': (33.3129, 1.4, 0.9155), 'left_knee': (16.905,),
+        'left_ankle': (-16.5538, 1.6727),
+    })
+    human.KeyRoot(47.7, (27.645, 68.214, 52.943), (106.2512, 0.0, 0.0))
+    human.KeyJoints(47.7, {
+        'right_hip': (6.5971, -0.14, -0.1231), 'right_knee': (60.3386,),
+        'right_ankle': (18.9986, -0.1864), 'left_hip': (29.8471, 0.1469, 0.0843),
+        'left_knee': (24.3024,), 'left_ankle': (-5.5462, 0.1694),
+    })
+    human.KeyRoot(47.8, (34.589, 70.06, 49.663), (106.2512, 0.0, 0.0))
+    human.KeyJoints(47.8, {
+        'right_hip': (-3.5309, 0.7927, 0.5811), 'right_knee': (50.0156,),
+        'right_ankle': (13.2699, 0.9829), 'left_hip': (23.6332, -0.8344, -0.3651),
+        'left_knee': (25.566,), 'left_ankle': (1.9344, -0.9107),
+    })
+    human.KeyRoot(47.9, (42.112, 71.481, 46.296), (106.2512, 0.0, 0.0))
+    human.KeyJoints(47.9, {
+        'right_hip': (17.8993, 1.4747, 1.8349), 'right_knee': (70.5887,),
+        'right_ankle': (18.9457, 2.354), 'left_hip': (15.2133, -1.8081, -0.4916),
+        'left_knee': (23.0295,), 'left_ankle': (7.8232, -1.8737),
+    })
+    human.KeyRoot(48.0, (52.871, 68.025, 42.95), (106.2512, 0.0, 0.0))
+    human.KeyJoints(48.0, {
+        'right_hip': (48.7252, 1.5015, 2.1169), 'right_knee': (45.1185,),
+        'right_ankle': (-9.9023, 2.5951), 'left_hip': (26.9827, -1.6773, -1.8142),
+        'left_knee': (64.2593,), 'left_ankle': (17.0354, -2.4706),
+    })
+    human.KeyRoot(48.1, (68.928, 67.07, 39.422), (106.2512, 0.0, 0.0))
+    human.KeyJoints(48.1, {
+        'right_hip': (34.1897, 0.974, 0.6581), 'right_knee': (23.341,),
+        'right_ankle': (-11.0185, 1.1755), 'left_hip': (16.0723, -0.8392, -1.0842),
+        'left_knee': (70.3437,), 'left_ankle': (18.0881, -1.371),
+    })
+    human.KeyRoot(48.2, (81.333, 69.284, 37.294), (106.2512, 0.0, 0.0))
+    human.KeyJoints(48.2, {
+        'right_hip': (26.3815, -0.1493, -0.0741), 'right_knee': (30.594,),
+        'right_ankle': (4.2112, -0.1667), 'left_hip': (-4.2315, 0.1459, 0.0984),
+        'left_knee': (48.7773,), 'left_ankle': (14.7667, 0.176),
+    })
+    human.KeyRoot(48.3, (87.873, 70.568, 36.587), (106.2512, 0.0, 0.0))
+    human.KeyJoints(48.3, {
+        'right_hip': (19.7098, -1.1127, -0.3986), 'right_knee': (28.7798,),
+        'right_ankle': (9.0728, -1.1819), 'left_hip': (-12.3982, 1.0452, 0.6737),
+        'left_knee': (40.8921,), 'left_ankle': (13.5181, 1.134),
+    })
+    human.KeyRoot(48.4, (93.828, 69.645, 35.89), (106.2512, 0.0, 0.0))
+    human.KeyJoints(48.4, {
+        'right_hip': (18.1218, -1.9897, -0.651), 'right_knee': (36.3992,),
+        'right_ankle': (18.2881, -2.0935), 'left_hip': (35.7096, -2.8435, 7.6577),
+        'left_knee': (78.9613,), 'left_ankle': (19.0, 2.3552),
+    })
+    human.KeyRoot(48.5, (103.118, 63.213, 33.365), (106.2512, 0.0, 0.0))
+    human.KeyJoints(48.5, {
+        'right_hip': (35.8334, -1.2722, -2.9904), 'right_knee': (84.5118,),
+        'right_ankle': (17.5705, -3.2495), 'left_hip': (48.8712, -3.1436, 20.2829),
+        'left_knee': (29.7959,), 'left_ankle': (-19.8682, 13.1113),
+    })
+    human.KeyRoot(48.6, (114.031, 63.502, 28.748), (106.2512, 0.0, 0.0))
+    human.KeyJoints(48.6, {
+        'right_hip': (24.8932, -0.5959, -1.3184), 'right_knee': (84.3598,),
+        'right_ankle': (18.6845, -1.4467), 'left_hip': (40.6848, -3.7301, 18.1217),
+        'left_knee': (28.5939,), 'left_ankle': (-11.5273, 8.9386),
+    })
+    human.KeyRoot(48.7, (121.201, 66.826, 24.938), (105.7233, 0.0, 0.0))
+    human.KeyJoints(48.7, {
+        'right_hip': (9.673, 0.2804, 0.936), 'right_knee': (67.3258,),
+        'right_ankle': (18.9374, 0.5558), 'left_hip': (33.6786, -4.6804, 15.7908),
+        'left_knee': (29.6596,), 'left_ankle': (-3.9904, 4.9084),
+    })
+    human.KeyRoot(48.8, (125.847, 69.518, 21.352), (101.9932, 0.0, 0.0))
+    human.KeyJoints(48.8, {
+        'right_hip': (6.3975, 1.9185, 5.4878), 'right_knee': (64.8773,),
+        'right_ankle': (19.4867, 3.2762), 'left_hip': (25.4121, -3.9473, 11.416),
+        'left_knee': (23.2548,), 'left_ankle': (-2.4075, 1.375),
+    })
+    human.KeyRoot(48.9, (130.139, 71.009, 19.848), (97.7936, 0.0, 0.0))
+    human.KeyJoints(48.9, {
+        'right_hip': (27.1536, 3.4714, 1.6881), 'right_knee': (68.7815,),
+        'right_ankle': (19.4218, 4.1793), 'left_hip': (19.3998, -2.6671, 7.3259),
+        'left_knee': (19.7052,), 'left_ankle': (0.1306, -0.0675),
+    })
+    human.KeyRoot(49.0, (134.606, 71.813, 19.864), (94.3344, 0.0, 0.0))
+    human.KeyJoints(49.0, {
+        'right_hip': (22.3632, 1.8105, -3.868), 'right_knee': (37.2143,),
+        'right_ankle': (14.9329, 0.1915), 'left_hip': (14.7028, -1.1962, 4.1675),
+        'left_knee': (18.6736,), 'left_ankle': (3.9064, -0.0982),
+    })
+    human.KeyRoot(49.1, (138.93, 72.483, 19.956), (90.8752, 0.0, 0.0))
+    human.KeyJoints(49.1, {
         'neck': (21.299, -4.9839, -31.4706), 'head': (6.1657, -0.4464),
-        'right_shoulder': (32.8896, 35.2763, -10.5372), 'right_elbow': (92.9367, 25.1415),
-        'right_wrist': (-17.1425, -18.1165), 'left_shoulder': (85.0471, -28.8985, 14.826),
-        'left_elbow': (28.948, 18.186), 'left_wrist': (0.5917, -4.7048),
-        'right_hip': (36.1924, 2.9892, -3.0865), 'right_knee': (64.0993,),
-        'right_ankle': (16.4978, 0.9115), 'left_hip': (22.6834, -2.3666, 5.1311),
-        'left_knee': (33.1873,), 'left_ankle': (10.39, -0.1981),
+        'right_hip': (8.4367, 0.1666, -0.8601), 'right_knee': (14.6119,),
+        'right_ankle': (6.1847, 0.0386), 'left_hip': (8.6006, -0.1674, 0.8598),
+        'left_knee': (14.5078,), 'left_ankle': (5.9057, -0.037),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=46.446901, duration=0.2628)
-    human.KeyRoot(46.5, (140.628, 72.792, 19.905), (90.0, 0.0, 0.0))
-    human.KeyJoints(46.5, {
-        'neck': (22.751, -0.879, -31.2718), 'head': (7.1019, -1.5913),
-        'right_shoulder': (33.3566, 35.4608, -10.5701), 'right_elbow': (92.5289, 25.1039),
-        'left_shoulder': (86.2602, -29.0823, 14.7934), 'left_elbow': (27.2715, 18.1813),
-        'right_hip': (4.9447, 0.081, 0.0076), 'right_knee': (10.0952,),
-        'right_ankle': (5.1411, 0.0811), 'left_hip': (5.0142, -0.0811, -0.0062),
-        'left_knee': (10.2418,), 'left_ankle': (5.2248, -0.082),
+    human.LookAt((160.0, 90.0, 20.0), start=49.125301, duration=0.2628)
+    human.KeyRoot(49.2, (140.0, 72.991, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(49.2, {
+        'neck': (23.9906, 2.6255, -31.1022), 'head': (7.9012, -2.5688),
+        'right_hip': (3.0262, 0.0, 0.0), 'right_knee': (4.9238,), 'right_ankle': (1.8999, 0.0),
+        'left_hip': (3.0247, 0.0, 0.0), 'left_knee': (4.9207,), 'left_ankle': (1.8983, 0.0),
     })
-    human.KeyJoints(46.6, {
-        'neck': (29.831, 19.1368, -30.3028), 'head': (11.6671, -7.1741), 'right_knee': (9.2647,),
-        'left_knee': (9.321,),
-    })
-    human.KeyJoints(46.7, {
-        'neck': (34.9454, 33.5956, -29.6028), 'head': (14.9648, -11.2069),
-        'right_shoulder': (33.7018, 35.379, -10.3375), 'right_elbow': (91.9673, 25.0402),
-        'right_wrist': (-16.8942, -18.1959), 'left_shoulder': (87.0897, -29.074, 14.7466),
-        'left_elbow': (25.697, 18.1781), 'left_wrist': (0.7264, -5.0333),
-        'right_hip': (4.3698, 0.0506, 0.0039), 'right_knee': (8.5356,),
-        'right_ankle': (4.1638, 0.0508), 'left_hip': (4.3535, -0.0506, -0.0038),
-        'left_knee': (8.5012,), 'left_ankle': (4.145, -0.0508),
+    human.KeyJoints(49.3, {
+        'neck': (31.413, 23.6093, -30.0863), 'head': (12.6871, -8.4216),
+        'right_shoulder': (34.5012, 35.235, -9.8523), 'left_shoulder': (89.3018, -29.1524, 14.6435),
+        'left_elbow': (21.618, 18.1688),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=46.709701, duration=0.698258)
-    human.KeyJoints(46.8, {
-        'neck': (35.0, 33.75, -29.5953), 'right_shoulder': (30.5291, 33.6232, -9.3307),
-        'right_elbow': (92.3575, 25.0477), 'right_wrist': (-16.8614, -17.8867),
-        'left_shoulder': (83.063, -29.4308, 14.7701), 'left_elbow': (26.4101, 18.4651),
-        'left_wrist': (-0.9537, -3.8522), 'right_hip': (3.9584, 0.0354, 0.0024),
-        'right_knee': (7.4707,), 'right_ankle': (3.5105, 0.0355),
-        'left_hip': (3.9213, -0.0354, -0.0024), 'left_knee': (7.3925,),
-        'left_ankle': (3.4682, -0.0355),
+    human.LookAt((160.0, 90.0, 20.0), start=49.388101, duration=0.698258)
+    human.KeyJoints(49.4, {
+        'neck': (35.0, 33.75, -29.5953), 'head': (15.0, -11.25),
+        'right_shoulder': (34.4259, 35.2046, -9.8428), 'right_elbow': (90.7235, 24.9001),
+        'right_wrist': (-16.5389, -18.2876), 'left_shoulder': (89.1833, -29.1578, 14.6459),
+        'left_elbow': (21.7095, 18.1745), 'left_wrist': (0.8597, -5.4421),
+        'right_hip': (3.0219, 0.0, 0.0), 'right_knee': (4.9148,), 'right_ankle': (1.8952, 0.0),
+        'left_hip': (3.0213, 0.0, 0.0), 'left_knee': (4.9135,), 'left_ankle': (1.8945, 0.0),
     })
-    human.KeyRoot(46.9, (140.197, 72.971, 19.976), (90.0, 0.0, 0.0))
-    human.KeyJoints(46.9, {
-        'right_shoulder': (18.9329, 28.8417, -7.664), 'right_elbow': (97.1011, 25.4761),
-        'right_wrist': (-17.7978, -16.7228), 'left_shoulder': (64.9363, -30.2235, 15.1308),
-        'left_elbow': (40.1854, 19.3088), 'left_wrist': (-6.3318, 0.7673),
-        'right_hip': (3.2773, 0.0202, -0.0027), 'right_knee': (5.8045,),
-        'right_ankle': (2.4923, 0.0201), 'left_hip': (3.2932, -0.0205, 0.0031),
-        'left_knee': (5.8385,), 'left_ankle': (2.5237, -0.0203),
-    })
-    human.KeyJoints(47.0, {
-        'right_shoulder': (3.0957, 22.1379, -5.0586), 'right_elbow': (103.3043, 26.0364),
-        'left_shoulder': (40.38, -31.2602, 15.6023), 'left_wrist': (-13.6348, 6.8177),
-        'right_knee': (5.395,), 'right_ankle': (2.2, 0.005), 'left_knee': (5.419,),
-        'left_ankle': (2.2195, -0.0046),
-    })
-    human.KeyRoot(47.1, (140.026, 72.987, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(47.1, {
-        'right_shoulder': (-13.5485, 14.7795, -1.727), 'right_elbow': (109.3271, 26.5803),
-        'right_wrist': (-20.2111, -13.723), 'left_shoulder': (14.9327, -32.2666, 16.0602),
-        'left_elbow': (76.8743, 21.4832), 'left_wrist': (-21.234, 12.7103),
-        'right_hip': (3.0963, 0.0, 0.0), 'right_knee': (5.1187,), 'right_ankle': (2.0243, 0.0),
-        'left_hip': (3.0983, 0.0, 0.0), 'left_knee': (5.123,), 'left_ankle': (2.0267, 0.0),
-    })
-    human.KeyJoints(47.2, {
-        'right_shoulder': (-27.5653, 8.0343, 2.1181), 'right_elbow': (113.5297, 26.9599),
-        'right_wrist': (-21.0406, -12.6919), 'left_shoulder': (-5.8668, -32.9689, 16.3797),
-        'left_elbow': (90.7889, 22.2307), 'left_wrist': (-27.5008, 16.8566),
-        'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
+    human.KeyJoints(49.5, {
+        'right_shoulder': (28.5564, 32.817, -9.0609), 'right_elbow': (93.176, 25.1216),
+        'right_wrist': (-17.023, -17.6859), 'left_shoulder': (79.9709, -29.5676, 14.8324),
+        'left_elbow': (28.7741, 18.6107), 'left_wrist': (-1.8703, -3.0555),
+        'right_hip': (2.8548, 0.0, 0.0), 'right_knee': (4.5782,), 'right_ankle': (1.7513, 0.0),
         'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
+    })
+    human.KeyJoints(49.6, {
+        'right_shoulder': (15.7533, 27.513, -7.1734), 'right_elbow': (98.3737, 25.591),
+        'right_wrist': (-18.049, -16.4105), 'left_shoulder': (59.9865, -30.4362, 15.2275),
+        'left_elbow': (43.9123, 19.5351), 'left_wrist': (-7.8021, 2.0075),
+    })
+    human.KeyJoints(49.7, {
+        'right_shoulder': (-0.549, 20.5604, -4.3931), 'right_elbow': (104.6767, 26.1603),
+        'right_wrist': (-19.2931, -14.864), 'left_shoulder': (34.7688, -31.4895, 15.7067),
+        'left_elbow': (62.6245, 20.6561), 'left_wrist': (-15.307, 8.1584),
+    })
+    human.KeyJoints(49.8, {
+        'right_shoulder': (-16.9165, 13.2271, -0.9327), 'right_elbow': (110.4452, 26.6813),
+        'right_wrist': (-20.4318, -13.4487), 'left_shoulder': (9.8564, -32.4535, 16.1452),
+        'left_elbow': (80.4113, 21.6821), 'left_wrist': (-22.7564, 13.8083),
+    })
+    human.KeyJoints(49.9, {
+        'right_shoulder': (-29.9147, 6.7809, 2.9954), 'right_elbow': (114.0394, 27.0059),
+        'right_wrist': (-21.1413, -12.5668), 'left_shoulder': (-9.2118, -33.0541, 16.4184),
+        'left_elbow': (92.7731, 22.3213), 'left_wrist': (-28.5215, 17.3688),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
-    human.KeyJoints(47.3, {
-        'right_shoulder': (-35.5879, 3.1534, 6.8246), 'right_elbow': (113.5326, 26.9314),
-        'right_wrist': (-20.7986, -12.5276), 'left_shoulder': (-16.5876, -31.5409, 14.7775),
-        'left_elbow': (96.0555, 22.2427), 'left_wrist': (-30.8217, 17.8849),
-    })
-    human.KeyJoints(47.4, {
-        'right_shoulder': (-40.1452, -1.1147, 13.7435), 'right_elbow': (110.3889, 26.534),
-        'right_wrist': (-19.0605, -12.6355), 'left_shoulder': (-26.9646, -28.2904, 12.5157),
-        'left_elbow': (104.7474, 22.806), 'left_wrist': (-33.894, 20.0),
+    human.KeyJoints(50.0, {
+        'right_shoulder': (-36.6541, 2.2991, 8.2505), 'right_elbow': (112.6979, 26.8304),
+        'right_wrist': (-20.4126, -12.5866), 'left_shoulder': (-18.0718, -30.0968, 13.2242),
+        'left_elbow': (96.659, 22.1186), 'left_wrist': (-31.3168, 17.9211),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=47.407959, duration=0.072)
+    human.Grasp('left_hand', 'open', start=50.086359, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=47.407959, duration=0.072)
-    human.KeyRoot(47.479959, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(47.479959, {
+    human.Grasp('right_hand', 'open', start=50.086359, duration=0.072)
+    human.KeyJoints(50.1, {
+        'right_shoulder': (-40.2471, -1.5898, 14.4624), 'right_elbow': (110.5049, 26.5332),
+        'right_wrist': (-18.9182, -12.5291), 'left_shoulder': (-26.869, -28.5778, 12.87),
+        'left_elbow': (105.468, 22.9257), 'left_wrist': (-33.9242, 20.0),
+    })
+    human.KeyRoot(50.158359, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(50.158359, {
         'spine_lumbar': (17.0071, -11.4445, 7.5102), 'spine_thoracic': (-14.6839, -6.4027, 6.8752),
         'neck': (35.0, 33.75, -29.5953), 'head': (15.0, -11.25), 'right_clavicle': (6.9972, 9.7296),
         'right_shoulder': (-40.2471, -1.5898, 14.4624), 'right_elbow': (110.5049, 26.5332),

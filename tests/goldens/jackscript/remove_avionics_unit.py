@@ -58,30 +58,30 @@ def remove_avionics_unit():
     human.LookAt((-22.0, 178.0, 100.0), start=0.54, duration=0.2628)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > look: gaze on head at latch_right
     human.LookAt((22.0, 178.0, 100.0), start=0.54, duration=0.2628)
-    human.KeyRoot(0.6, (0.0, 72.826, 50.0), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.0, 72.82, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
         'neck': (-2.476, 0.0, 0.0), 'head': (-2.0969, 0.0), 'right_hip': (5.1434, 0.0, 0.0),
         'right_knee': (9.3837,), 'right_ankle': (4.2403, 0.0), 'left_hip': (5.0976, 0.0, 0.0),
         'left_knee': (9.287,), 'left_ankle': (4.1868, 0.0),
     })
     human.KeyJoints(0.7, {
-        'neck': (-12.5268, 0.0, 0.0), 'head': (-10.6449, 0.0), 'left_knee': (7.3445,),
+        'neck': (-12.5268, 0.0, 0.0), 'head': (-10.6449, 0.0), 'left_hip': (4.1754, 0.0, 0.0),
+        'left_knee': (7.3445,), 'left_ankle': (3.165, 0.0),
     })
-    human.KeyRoot(0.8, (0.0, 72.97, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (-19.6637, 0.0, 0.0), 'head': (-16.8425, 0.0), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
         'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
-        'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0),
-        'right_hip': (3.4375, 0.0, -0.0009), 'right_knee': (5.7904,),
-        'right_ankle': (2.354, -0.0005), 'left_hip': (3.3429, 0.0, 0.0), 'left_knee': (5.5906,),
-        'left_ankle': (2.2334, 0.0),
+        'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0), 'right_hip': (3.4377, 0.0, 0.0),
+        'right_knee': (5.7907,), 'right_ankle': (2.353, 0.0), 'left_hip': (3.402, 0.0, 0.0),
+        'left_knee': (5.7153,), 'left_ankle': (2.3102, 0.0),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: gaze on head at latch_right
     human.LookAt((0.0, 178.0, 100.0), start=0.8028, duration=1.836346)
+    human.KeyRoot(0.9, (0.0, 72.987, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.9, {
         'spine_lumbar': (0.0844, -0.0909, -0.3271), 'spine_thoracic': (0.2976, 0.0244, -0.6542),
         'neck': (-20.2553, -0.1825, 0.591), 'right_clavicle': (0.5952, -0.3271),
@@ -369,155 +369,302 @@ def remove_avionics_unit():
         'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
-    human.Walk((-78.842, 0.0, 40.871), start=5.33269, duration=1.08)
-    human.KeyRoot(5.4, (2.507, 72.645, 50.542), (-7.1036, 0.0, 0.0))
+    human.Walk((-79.722, 0.0, 40.152), start=5.33269, duration=3.7584)
+    human.KeyRoot(5.4, (1.168, 72.256, 50.317), (-2.0413, 0.0, 0.0))
     human.KeyJoints(5.4, {
         'right_elbow': (36.7687, 1.855), 'right_wrist': (1.776, 3.9596),
-        'right_hip': (25.3512, 3.6394, -2.81), 'right_knee': (52.9952,),
-        'right_ankle': (18.2671, 2.1353), 'left_hip': (5.2072, -1.4542, -7.2613),
-        'left_knee': (11.839,), 'left_ankle': (6.8478, -2.0942),
+        'right_hip': (15.119, 0.5517, 2.4791), 'right_knee': (29.808,),
+        'right_ankle': (11.6255, 1.0327), 'left_hip': (8.5527, -0.6882, -2.1677),
+        'left_knee': (17.6006,), 'left_ankle': (9.0861, -1.0024),
     })
-    human.KeyRoot(5.5, (0.108, 72.619, 48.617), (-18.3986, 0.0, 0.0))
+    human.KeyRoot(5.5, (2.202, 72.286, 50.518), (-5.0739, 0.0, 0.0))
     human.KeyJoints(5.5, {
-        'right_hip': (6.7657, 0.9646, -14.1518), 'right_knee': (13.0111,),
-        'right_ankle': (6.2223, -0.7215), 'left_hip': (13.3927, 4.6735, -17.7874),
-        'left_knee': (29.2594,), 'left_ankle': (8.9456, 0.2718),
+        'right_hip': (24.6643, 0.7659, 3.5028), 'right_knee': (49.8193,),
+        'right_ankle': (20.0, 1.9628), 'left_hip': (7.8083, -1.1683, -5.2793),
+        'left_knee': (16.9516,), 'left_ankle': (9.2863, -1.8692),
     })
-    human.KeyRoot(5.6, (-2.553, 72.598, 51.33), (-40.1386, 0.0, 0.0))
+    human.KeyRoot(5.6, (2.56, 72.317, 50.548), (-8.1068, 0.0, 0.0))
     human.KeyJoints(5.6, {
-        'right_hip': (8.6048, -2.6823, 7.2111), 'right_knee': (18.3164,),
-        'right_ankle': (7.9671, -1.5548), 'left_hip': (16.4898, -6.6208, 25.6272),
-        'left_knee': (33.2756,), 'left_ankle': (15.4168, 1.0102),
+        'right_hip': (27.921, 6.0968, -7.6089), 'right_knee': (59.9701,),
+        'right_ankle': (20.0, 2.1745), 'left_hip': (7.253, -1.1081, -8.3081),
+        'left_knee': (16.4084,), 'left_ankle': (9.3926, -2.1329),
     })
-    human.KeyRoot(5.7, (-0.788, 72.58, 53.868), (-61.2456, 0.0, 0.0))
+    human.KeyRoot(5.7, (2.139, 72.347, 49.948), (-10.9064, 0.0, 0.0))
     human.KeyJoints(5.7, {
-        'right_hip': (26.7442, -6.2031, 12.3884), 'right_knee': (56.5022,),
-        'right_ankle': (20.0, 0.8585), 'left_hip': (5.4205, -2.4416, 3.6699),
-        'left_knee': (12.8997,), 'left_ankle': (7.3312, -2.0796),
+        'right_hip': (19.7314, 8.1681, -18.871), 'right_knee': (45.619,),
+        'right_ankle': (20.0, 1.7117), 'left_hip': (8.7798, -0.0431, -11.0671),
+        'left_knee': (19.2172,), 'left_ankle': (9.6907, -1.7212),
     })
-    human.KeyRoot(5.8, (2.26, 72.562, 50.034), (-82.0217, 0.0, 0.0))
+    human.KeyRoot(5.8, (1.22, 72.377, 48.922), (-13.7857, 0.0, 0.0))
     human.KeyJoints(5.8, {
-        'right_hip': (7.1021, 1.3072, -15.6338), 'right_knee': (13.8004,),
-        'right_ankle': (6.6149, -0.66), 'left_hip': (11.1723, 3.4581, -16.5395),
-        'left_knee': (22.574,), 'left_ankle': (8.036, 0.09),
+        'right_hip': (9.0496, 2.9024, -18.4481), 'right_knee': (19.3853,),
+        'right_ankle': (9.4999, 0.3961), 'left_hip': (12.6519, 2.2242, -13.6937),
+        'left_knee': (26.3417,), 'left_ankle': (9.6976, -0.8648),
     })
-    human.KeyRoot(5.9, (0.178, 72.45, 48.906), (-93.0952, 0.0, 0.0))
+    human.KeyRoot(5.9, (0.249, 72.407, 48.608), (-17.6429, 0.0, 0.0))
     human.KeyJoints(5.9, {
-        'right_hip': (12.3855, -0.6014, -4.946), 'right_knee': (25.0682,),
-        'right_ankle': (9.2184, -1.6484), 'left_hip': (23.4166, 0.9085, 5.1158),
-        'left_knee': (46.7083,), 'left_ankle': (20.0, 1.6232),
+        'right_hip': (8.0141, 1.5103, -14.8589), 'right_knee': (15.8622,),
+        'right_ankle': (7.7357, -0.6031), 'left_hip': (14.1373, 4.5572, -17.0496),
+        'left_knee': (30.4923,), 'left_ankle': (9.608, 0.1181),
     })
-    human.KeyRoot(6.0, (-6.963, 70.797, 51.685), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(6.0, (-1.014, 72.437, 48.789), (-23.4941, 0.0, 0.0))
     human.KeyJoints(6.0, {
+        'right_hip': (7.9431, -0.3232, -9.201), 'right_ankle': (7.3967, -1.5822),
+        'left_hip': (17.5907, 8.5231, -21.2436), 'left_knee': (42.0694,),
+        'left_ankle': (16.4426, 1.4859),
+    })
+    human.KeyRoot(6.1, (-2.107, 72.467, 49.142), (-30.1629, 0.0, 0.0))
+    human.KeyJoints(6.1, {
+        'right_hip': (7.5868, -1.9549, -2.6806), 'right_knee': (14.4575,),
+        'right_ankle': (6.968, -2.2897), 'left_hip': (26.6325, 4.7031, -6.0818),
+        'left_knee': (56.8721,), 'left_ankle': (19.4034, 1.4762),
+    })
+    human.KeyRoot(6.2, (-2.514, 72.487, 50.034), (-36.3218, 0.0, 0.0))
+    human.KeyJoints(6.2, {
+        'right_hip': (7.5815, -2.6428, 3.428), 'right_knee': (15.0949,),
+        'right_ankle': (7.1259, -2.1644), 'left_hip': (24.5462, -6.9413, 19.3443),
+        'left_knee': (49.7087,), 'left_ankle': (19.1575, 1.8438),
+    })
+    human.KeyRoot(6.3, (-2.746, 72.487, 52.151), (-42.387, 0.0, 0.0))
+    human.KeyJoints(6.3, {
+        'right_hip': (10.0888, -3.0029, 9.384), 'right_knee': (22.2983,),
+        'right_ankle': (9.3513, -1.2804), 'left_hip': (11.687, -4.2284, 22.3639),
+        'left_knee': (24.5953,), 'left_ankle': (12.1322, 0.4961),
+    })
+    human.KeyRoot(6.4, (-2.843, 72.487, 53.572), (-48.4522, 0.0, 0.0))
+    human.KeyJoints(6.4, {
+        'right_hip': (12.5211, -4.051, 15.335), 'right_knee': (28.1788,),
+        'right_ankle': (9.9234, -0.5277), 'left_hip': (5.9877, -2.6531, 16.4915),
+        'left_knee': (14.7809,), 'left_ankle': (8.2895, -0.8326),
+    })
+    human.KeyRoot(6.5, (-2.272, 72.487, 53.729), (-54.5175, 0.0, 0.0))
+    human.KeyJoints(6.5, {
+        'right_hip': (15.4777, -5.9188, 21.2245), 'right_knee': (33.3725,),
+        'right_ankle': (11.0606, 0.2187), 'left_hip': (5.7151, -2.4187, 10.4211),
+        'left_ankle': (8.5002, -1.3344),
+    })
+    human.KeyRoot(6.6, (-0.977, 72.487, 53.817), (-60.5827, 0.0, 0.0))
+    human.KeyJoints(6.6, {
+        'right_hip': (24.9024, -6.7402, 16.1972), 'right_knee': (52.3995,),
+        'right_ankle': (19.2064, 0.8842), 'left_hip': (6.0148, -2.4404, 4.3128),
+        'left_ankle': (8.119, -1.9683),
+    })
+    human.KeyRoot(6.7, (0.164, 72.487, 53.767), (-66.6907, 0.0, 0.0))
+    human.KeyJoints(6.7, {
+        'right_hip': (23.9077, 6.1782, -9.4902), 'right_knee': (54.9495,),
+        'right_ankle': (19.1769, 1.86), 'left_hip': (6.3209, -2.1693, -1.8089),
+        'left_knee': (14.1036,), 'left_ankle': (7.8449, -2.3603),
+    })
+    human.KeyRoot(6.8, (1.293, 72.487, 52.464), (-73.3421, 0.0, 0.0))
+    human.KeyJoints(6.8, {
+        'right_hip': (13.5507, 7.8791, -22.8771), 'right_knee': (34.7981,),
+        'right_ankle': (19.1474, 1.925), 'left_hip': (8.503, -0.4633, -8.3925),
+        'left_knee': (17.228,), 'left_ankle': (8.1095, -1.6902),
+    })
+    human.KeyRoot(6.9, (2.132, 72.487, 50.678), (-79.3953, 0.0, 0.0))
+    human.KeyJoints(6.9, {
+        'right_hip': (7.006, 2.3054, -18.1585), 'right_knee': (14.904,),
+        'right_ankle': (7.5336, -0.0043), 'left_hip': (10.9399, 2.3036, -14.1071),
+        'left_knee': (21.6595,), 'left_ankle': (8.262, -0.4576),
+    })
+    human.KeyRoot(7.0, (2.119, 72.487, 49.604), (-83.4841, 0.0, 0.0))
+    human.KeyJoints(7.0, {
+        'right_hip': (7.6424, 0.8497, -14.2243), 'right_ankle': (7.0803, -1.0564),
+        'left_hip': (11.5306, 4.3399, -17.8458), 'left_knee': (24.106,),
+        'left_ankle': (8.7986, 0.537),
+    })
+    human.KeyRoot(7.1, (1.499, 72.487, 48.737), (-86.4355, 0.0, 0.0))
+    human.KeyJoints(7.1, {
+        'right_hip': (7.4256, -0.3482, -11.3957), 'right_ankle': (7.2148, -1.8019),
+        'left_hip': (19.0416, 8.2525, -18.0157), 'left_knee': (42.5533,),
+        'left_ankle': (19.0471, 1.5901),
+    })
+    human.KeyRoot(7.2, (0.737, 72.487, 48.298), (-89.1984, 0.0, 0.0))
+    human.KeyJoints(7.2, {
+        'right_hip': (7.0018, -1.1106, -8.6913), 'right_knee': (14.2409,),
+        'right_ankle': (7.4837, -2.1455), 'left_hip': (26.5939, 5.3584, -5.9229),
+        'left_knee': (55.3965,), 'left_ankle': (19.1964, 2.1143),
+    })
+    human.KeyRoot(7.3, (0.15, 72.554, 48.8), (-92.8151, 0.0, 0.0))
+    human.KeyJoints(7.3, {
+        'right_hip': (11.1223, -0.7358, -5.206), 'right_knee': (22.6585,),
+        'right_ankle': (8.7119, -1.7244), 'left_hip': (21.8794, 0.5232, 3.6865),
+        'left_knee': (43.7906,), 'left_ankle': (19.1654, 1.8102),
+    })
+    human.KeyRoot(7.4, (-0.484, 72.487, 49.987), (-96.4549, 0.0, 0.0))
+    human.KeyJoints(7.4, {
+        'right_hip': (22.1829, -0.1021, -1.5808), 'right_knee': (42.7909,),
+        'right_ankle': (5.629, -0.7156), 'left_hip': (8.9102, 0.488, 1.3248),
+        'left_knee': (18.0766,), 'left_ankle': (9.1545, 0.6487),
+    })
+    human.KeyRoot(7.5, (-1.555, 72.487, 50.832), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(7.5, {
+        'right_hip': (28.2018, 0.1481, 0.2007), 'right_knee': (52.934,),
+        'right_ankle': (-0.6412, 0.2494), 'left_hip': (6.4164, -0.1965, -0.0223),
+        'left_knee': (14.8477,), 'left_ankle': (8.4342, -0.1978),
+    })
+    human.KeyRoot(7.6, (-4.571, 72.148, 51.359), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(7.6, {
+        'right_hip': (29.2003, 0.725, 1.0531), 'right_knee': (60.2924,),
+        'right_ankle': (4.8418, 1.2785), 'left_hip': (5.2253, -0.9945, -0.0911),
+        'left_knee': (17.6473,), 'left_ankle': (12.425, -0.9987),
+    })
+    human.KeyRoot(7.7, (-8.96, 71.644, 51.713), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(7.7, {
+        'right_hip': (39.2031, 1.2703, 2.0316), 'right_knee': (68.5817,),
+        'right_ankle': (10.6069, 2.3959), 'left_hip': (2.0157, -1.8208, -0.0641),
+        'left_knee': (18.7543,), 'left_ankle': (16.741, -1.822),
+    })
+    human.KeyRoot(7.8, (-13.436, 70.762, 51.484), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(7.8, {
+        'right_hip': (42.1466, 1.7272, 1.833), 'right_knee': (45.7513,),
+        'right_ankle': (-0.9375, 2.5183), 'left_hip': (15.1091, -1.9549, -1.3298),
+        'left_knee': (51.2363,), 'left_ankle': (17.0508, -2.3665),
+    })
+    human.KeyRoot(7.9, (-18.479, 69.491, 49.817), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(7.9, {
+        'right_hip': (28.7975, 1.2002, 0.6597), 'right_knee': (18.4976,),
+        'right_ankle': (-10.293, 1.3695), 'left_hip': (14.5323, -1.137, -0.9694),
+        'left_knee': (58.8721,), 'left_ankle': (18.4272, -1.4941),
+    })
+    human.KeyRoot(8.0, (-23.869, 69.633, 47.758), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(8.0, {
+        'right_hip': (25.1369, 0.1398, 0.0656), 'right_knee': (21.3735,),
+        'right_ankle': (-3.7633, 0.1544), 'left_hip': (11.4469, -0.1241, -0.1269),
+        'left_knee': (60.6176,), 'left_ankle': (14.9888, -0.1775),
+    })
+    human.KeyRoot(8.1, (-29.282, 70.779, 45.81), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(8.1, {
+        'right_hip': (20.562, -0.8528, -0.3199), 'right_knee': (22.2278,),
+        'right_ankle': (1.6709, -0.9108), 'left_hip': (5.8216, 0.7387, 0.7537),
+        'left_knee': (56.7987,), 'left_ankle': (10.744, 1.0553),
+    })
+    human.KeyRoot(8.2, (-34.925, 71.783, 43.777), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(8.2, {
+        'right_hip': (14.2226, -1.9283, -0.4886), 'right_knee': (19.7155,),
+        'right_ankle': (5.5034, -1.9893), 'left_hip': (12.2914, 2.0616, 1.0898),
+        'left_knee': (66.145,), 'left_ankle': (18.5475, 2.7427),
+    })
+    human.KeyRoot(8.3, (-41.165, 70.82, 42.901), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(8.3, {
+        'right_hip': (13.3114, -1.9925, -0.4713), 'right_knee': (29.3361,),
+        'right_ankle': (16.0351, -2.0475), 'left_hip': (44.169, 4.177, -2.368),
+        'left_knee': (65.7429,), 'left_ankle': (6.9812, 1.3994),
+    })
+    human.KeyRoot(8.4, (-49.047, 67.978, 42.767), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(8.4, {
+        'right_hip': (25.4708, -1.004, -1.0841), 'right_knee': (65.1723,),
+        'right_ankle': (17.9798, -1.4776), 'left_hip': (36.4496, 2.5321, -7.6034),
+        'left_knee': (20.3917,), 'left_ankle': (-16.6836, -2.4664),
+    })
+    human.KeyRoot(8.5, (-56.961, 68.024, 42.695), (-97.6952, 0.0, 0.0))
+    human.KeyJoints(8.5, {
+        'right_hip': (19.4519, -0.2953, -0.3255), 'right_knee': (66.5981,),
+        'right_ankle': (18.8102, -0.4395), 'left_hip': (29.4092, 1.6616, -7.8905),
+        'left_knee': (19.568,), 'left_ankle': (-9.9149, -2.413),
+    })
+    human.KeyRoot(8.6, (-62.415, 69.201, 42.738), (-97.4901, 0.0, 0.0))
+    human.KeyJoints(8.6, {
         'neck': (-60.0, 33.75, 35.731), 'head': (-20.0, -11.25),
-        'right_hip': (37.344, 0.6952, 1.0937), 'right_knee': (75.2827,),
-        'right_ankle': (13.924, 2.0055), 'left_hip': (14.0305, -1.5235, -0.5805),
-        'left_knee': (39.5204,), 'left_ankle': (18.6866, -1.6309),
+        'right_hip': (10.9789, 0.3146, 0.0286), 'right_knee': (58.8441,),
+        'right_ankle': (19.0017, 0.3589), 'left_hip': (26.747, 1.218, -7.7718),
+        'left_knee': (24.0364,), 'left_ankle': (-2.636, -2.4101),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
-    human.LookAt((-110.0, 85.0, 40.0), start=6.01269, duration=1.197891)
-    human.KeyRoot(6.1, (-24.085, 69.435, 47.788), (-97.6952, 0.0, 0.0))
-    human.KeyJoints(6.1, {
-        'neck': (-48.3973, 25.506, 32.0796), 'head': (-15.7253, -8.8304),
-        'right_hip': (26.0625, 0.1868, 0.0913), 'right_knee': (23.6073,),
-        'right_ankle': (-2.4411, 0.2078), 'left_hip': (11.6336, -0.1654, -0.1735),
-        'left_knee': (61.4037,), 'left_ankle': (15.1642, -0.24),
+    human.LookAt((-110.0, 85.0, 40.0), start=8.69109, duration=1.197891)
+    human.KeyRoot(8.7, (-66.275, 70.541, 43.075), (-96.0413, 0.0, 0.0))
+    human.KeyJoints(8.7, {
+        'neck': (-59.8607, 33.651, 35.6871), 'head': (-19.9487, -11.2209),
+        'right_hip': (7.9986, 1.0667, -0.6991), 'right_knee': (59.2039,),
+        'right_ankle': (19.0217, 1.1329), 'left_hip': (21.5276, -0.2826, -6.6005),
+        'left_knee': (19.9368,), 'left_ankle': (-1.4336, -2.6789),
     })
-    human.KeyRoot(6.2, (-45.054, 68.203, 43.002), (-97.6952, 0.0, 0.0))
-    human.KeyJoints(6.2, {
-        'neck': (-17.0147, 3.2078, 22.2034), 'head': (-4.1633, -2.2861),
-        'right_hip': (26.7401, -1.264, -1.1995), 'right_knee': (61.1706,),
-        'right_ankle': (17.6764, -1.7424), 'left_hip': (52.1978, 4.5465, -5.4124),
-        'left_knee': (53.4444,), 'left_ankle': (-6.69, -1.3598),
+    human.KeyRoot(8.8, (-69.721, 71.348, 43.362), (-94.197, 0.0, 0.0))
+    human.KeyJoints(8.8, {
+        'neck': (-42.7069, 21.4628, 30.2888), 'head': (-13.6289, -7.6438),
+        'right_hip': (23.1091, 1.0379, 0.9614), 'right_knee': (68.6656,),
+        'right_ankle': (19.0117, 1.4861), 'left_hip': (17.5752, -1.5202, -4.8784),
+        'left_knee': (17.5459,), 'left_ankle': (0.142, -2.9164),
     })
-    human.KeyRoot(6.3, (-66.42, 69.055, 43.218), (-96.061, 0.0, 0.0))
-    human.KeyJoints(6.3, {
-        'neck': (16.6284, -20.6965, 11.6159), 'head': (8.2315, 4.7296),
-        'right_hip': (13.6684, 0.9414, -0.4661), 'right_knee': (71.1775,),
-        'right_ankle': (20.0, 1.3018), 'left_hip': (27.0299, 0.1909, -6.7016),
-        'left_knee': (31.3014,), 'left_ankle': (4.4144, -2.871),
+    human.KeyRoot(8.9, (-73.344, 71.884, 43.016), (-92.7387, 0.0, 0.0))
+    human.KeyJoints(8.9, {
+        'neck': (-9.3278, -2.2539, 19.7844), 'head': (-1.3313, -0.6831),
+        'right_hip': (28.3908, 1.1023, 3.1282), 'right_knee': (50.0692,),
+        'right_ankle': (19.0017, 2.4551), 'left_hip': (14.1959, -1.8568, -3.2917),
+        'left_knee': (16.8148,), 'left_ankle': (2.7344, -2.6045),
     })
-    human.KeyRoot(6.4, (-78.655, 72.466, 40.984), (-90.6329, 0.0, 0.0))
-    human.KeyJoints(6.4, {
-        'neck': (34.7192, -33.5505, 5.9227), 'head': (14.8966, 8.5022),
-        'right_shoulder': (179.6165, 27.7155, -0.1667), 'right_elbow': (36.7687, 1.855),
-        'right_wrist': (1.776, 3.9596), 'left_shoulder': (40.2699, 160.994, 40.4651),
-        'left_elbow': (35.7009, 64.9934), 'left_wrist': (-11.9791, -15.6434),
-        'right_hip': (8.8626, 0.7383, 0.7557), 'right_knee': (14.6019,),
-        'right_ankle': (5.7537, 0.8459), 'left_hip': (8.7579, -0.7389, -0.7543),
-        'left_knee': (14.7057,), 'left_ankle': (5.9641, -0.845),
+    human.KeyRoot(9.0, (-76.878, 72.153, 41.703), (-91.3055, 0.0, 0.0))
+    human.KeyJoints(9.0, {
+        'neck': (22.4641, -24.8429, 9.7794), 'head': (10.3815, 5.9466),
+        'right_shoulder': (179.6165, 27.7155, -0.1667),
+        'left_shoulder': (40.2699, 160.994, 40.4651), 'left_elbow': (35.7009, 64.9934),
+        'right_hip': (14.108, 1.1223, 1.626), 'right_knee': (22.1797,),
+        'right_ankle': (8.0008, 1.4829), 'left_hip': (11.5047, -1.179, -1.5718),
+        'left_knee': (17.3789,), 'left_ankle': (5.9071, -1.4684),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
-    human.KeyRoot(6.5, (-80.127, 72.865, 40.09), (-90.0, 0.0, 0.0))
-    human.KeyJoints(6.5, {
+    human.KeyRoot(9.1, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyJoints(9.1, {
         'neck': (35.0, -33.75, 5.8343), 'head': (15.0, 8.5607),
-        'right_shoulder': (173.1942, 26.6677, 1.8322), 'right_elbow': (39.4884, 0.5012),
-        'right_wrist': (4.9018, 3.6317), 'left_shoulder': (41.0836, 153.5524, 41.3434),
-        'left_elbow': (38.7135, 59.0427), 'left_wrist': (-9.1725, -16.084),
-        'right_hip': (4.5963, 0.0769, 0.0062), 'right_knee': (8.4605,),
-        'right_ankle': (3.8601, 0.0772), 'left_hip': (4.6637, -0.0769, -0.0063),
-        'left_knee': (8.6025,), 'left_ankle': (3.9378, -0.0771),
+        'right_shoulder': (179.5439, 27.7037, -0.1443), 'right_elbow': (36.7995, 1.8396),
+        'right_wrist': (1.8115, 3.956), 'left_shoulder': (40.2791, 160.9096, 40.4748),
+        'left_elbow': (35.7351, 64.9258), 'left_wrist': (-11.9472, -15.6483),
+        'right_hip': (3.0994, 0.0, 0.0), 'right_knee': (5.0782,), 'right_ankle': (1.981, 0.0),
+        'left_hip': (3.0977, 0.0, 0.0), 'left_knee': (5.0746,), 'left_ankle': (1.9791, 0.0),
     })
-    human.KeyJoints(6.6, {
-        'right_shoulder': (153.2944, 23.3787, 8.122), 'right_elbow': (47.8476, -3.6598),
-        'right_wrist': (14.5091, 2.5351), 'left_shoulder': (43.5846, 130.6801, 44.1778),
-        'left_elbow': (47.9731, 40.7529), 'left_wrist': (-0.5462, -17.4977),
-        'right_hip': (4.0024, 0.0577, 0.0044), 'right_knee': (7.1695,),
-        'right_ankle': (3.162, 0.0578), 'left_hip': (4.0706, -0.0577, -0.0045),
-        'left_knee': (7.3131,), 'left_ankle': (3.238, -0.0577),
+    human.KeyJoints(9.2, {
+        'right_shoulder': (169.8598, 26.1206, 2.877), 'right_elbow': (40.8955, -0.1993),
+        'right_wrist': (6.5189, 3.4555), 'left_shoulder': (41.5046, 149.7024, 41.8076),
+        'left_elbow': (40.2722, 55.964), 'left_wrist': (-7.7204, -16.3163),
     })
-    human.KeyJoints(6.7, {
-        'right_shoulder': (125.3016, 18.6552, 17.1905), 'right_elbow': (59.4503, -9.4354),
-        'right_wrist': (27.8442, 0.8073), 'left_shoulder': (47.0561, 98.9331, 48.425),
-        'left_elbow': (60.8255, 15.3663), 'left_wrist': (11.4271, -19.598), 'right_knee': (6.3343,),
-        'left_hip': (3.656, -0.0386, -0.0027), 'left_knee': (6.3942,),
-        'left_ankle': (2.7348, -0.0386),
+    human.KeyJoints(9.3, {
+        'right_shoulder': (147.7433, 22.4514, 9.899), 'right_elbow': (50.1636, -4.8127),
+        'right_wrist': (17.1709, 2.2104), 'left_shoulder': (44.2776, 124.3432, 44.9949),
+        'left_elbow': (50.5385, 35.6855), 'left_wrist': (1.8437, -17.9035),
+        'right_hip': (3.0829, 0.0, 0.0), 'right_knee': (5.0434,), 'right_ankle': (1.963, 0.0),
+        'left_hip': (3.0822, 0.0, 0.0), 'left_knee': (5.042,), 'left_ankle': (1.9623, 0.0),
     })
-    human.KeyJoints(6.8, {
-        'right_shoulder': (94.7505, 13.328, 27.4794), 'right_elbow': (71.8364, -15.6009),
-        'right_wrist': (42.0797, -1.4068), 'left_shoulder': (50.762, 65.0424, 53.5213),
-        'left_elbow': (74.5457, -11.7344), 'left_wrist': (24.2089, -22.088),
-        'right_hip': (3.3316, 0.0193, 0.0045), 'right_knee': (5.6582,),
-        'right_ankle': (2.3048, 0.0191), 'left_hip': (3.3892, -0.0193, -0.0029),
-        'left_knee': (5.7781,), 'left_ankle': (2.3511, -0.0184),
+    human.KeyJoints(9.4, {
+        'right_shoulder': (118.7292, 17.5272, 19.3631), 'right_elbow': (62.1438, -10.7761),
+        'right_wrist': (30.9398, 0.3653), 'left_shoulder': (47.862, 91.5632, 49.4733),
+        'left_elbow': (63.8091, 9.473), 'left_wrist': (14.2066, -20.113),
+        'right_hip': (2.872, 0.0, 0.0), 'right_knee': (4.6024,), 'right_ankle': (1.7189, 0.0),
+        'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5883,), 'left_ankle': (1.7189, 0.0),
     })
-    human.KeyRoot(6.9, (-80.035, 72.977, 40.009), (-90.0, 0.0, 0.0))
-    human.KeyJoints(6.9, {
-        'right_shoulder': (67.1761, 8.2281, 37.43), 'right_elbow': (82.5459, -20.9318),
-        'right_wrist': (54.3882, -3.9626), 'left_shoulder': (53.9662, 35.7393, 58.9032),
-        'left_elbow': (86.4087, -35.1667), 'left_wrist': (35.2605, -24.671),
-        'right_knee': (5.4253,), 'left_hip': (3.2317, -0.0077, -0.0011), 'left_knee': (5.4187,),
-        'left_ankle': (2.1665, -0.0074),
+    human.KeyJoints(9.5, {
+        'right_shoulder': (88.3524, 12.1787, 29.7108), 'right_elbow': (74.3761, -16.8651),
+        'right_wrist': (44.9985, -1.9349), 'left_shoulder': (51.5218, 58.0935, 54.679),
+        'left_elbow': (77.3589, -17.2911), 'left_wrist': (26.8297, -22.6482),
     })
-    human.KeyJoints(7.0, {
-        'right_shoulder': (48.1133, 4.1862, 45.484), 'right_elbow': (89.1188, -24.2036),
-        'right_wrist': (61.9424, -6.7152), 'left_shoulder': (55.9328, 17.7548, 64.0072),
-        'left_elbow': (93.6895, -49.548), 'left_wrist': (42.0433, -27.0503),
-        'right_hip': (3.1865, 0.0, 0.0011), 'right_knee': (5.295,), 'right_ankle': (2.0935, 0.0),
-        'left_hip': (3.1856, 0.0, -0.0001), 'left_knee': (5.2934,), 'left_ankle': (2.0958, 0.0),
+    human.KeyJoints(9.6, {
+        'right_shoulder': (62.1479, 7.2369, 39.3838), 'right_elbow': (84.4003, -21.8549),
+        'right_wrist': (56.5195, -4.5455), 'left_shoulder': (54.5211, 30.6652, 60.0486),
+        'left_elbow': (88.4629, -39.2241), 'left_wrist': (37.1742, -25.2124),
+    })
+    human.KeyJoints(9.7, {
+        'right_shoulder': (45.6505, 3.5327, 46.8234), 'right_elbow': (89.7566, -24.5211),
+        'right_wrist': (62.6755, -7.3215), 'left_shoulder': (56.1236, 16.0096, 65.0185),
+        'left_elbow': (94.396, -50.9435), 'left_wrist': (42.7015, -27.5086),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
-    human.KeyJoints(7.1, {
-        'right_shoulder': (42.7387, 0.6665, 49.808), 'right_elbow': (83.3839, -22.9362),
-        'right_wrist': (61.2561, -9.972), 'left_shoulder': (53.4968, 15.8989, 68.5309),
-        'left_elbow': (91.3605, -50.866), 'left_wrist': (42.6354, -29.0237),
-        'right_hip': (2.8923, -0.0017, 0.0037), 'right_knee': (4.6363,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8704, 0.0023, 0.0), 'left_knee': (4.6003,),
-        'left_ankle': (1.7297, 0.0),
-    })
-    human.KeyJoints(7.2, {
-        'right_shoulder': (47.1039, -7.9079, 49.7631), 'right_elbow': (68.2623, -19.3227),
-        'right_wrist': (55.0084, -13.4221), 'left_shoulder': (53.4756, 8.8193, 69.4551),
-        'left_elbow': (78.8722, -48.3071), 'left_wrist': (38.5857, -29.9593),
+    human.KeyJoints(9.8, {
+        'right_shoulder': (43.5213, -1.1295, 49.9215), 'right_elbow': (80.4498, -22.2131),
+        'right_wrist': (60.1066, -10.6862), 'left_shoulder': (52.6077, 15.3019, 69.3336),
+        'left_elbow': (88.648, -50.276), 'left_wrist': (41.9823, -29.4932),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=7.210581, duration=0.072)
+    human.Grasp('left_hand', 'open', start=9.888981, duration=0.072)
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=7.210581, duration=0.072)
-    human.KeyRoot(7.282581, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
-    human.KeyJoints(7.282581, {
+    human.Grasp('right_hand', 'open', start=9.888981, duration=0.072)
+    human.KeyJoints(9.9, {
+        'right_shoulder': (47.2686, -8.2156, 49.7532), 'right_elbow': (67.0072, -19.0342),
+        'right_wrist': (54.5398, -13.6962), 'left_shoulder': (53.5772, 7.9902, 69.4788),
+        'left_elbow': (77.394, -48.017), 'left_wrist': (38.0779, -29.9965),
+    })
+    human.KeyRoot(9.960981, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyJoints(9.960981, {
         'spine_lumbar': (17.7325, -0.1726, -6.3034), 'spine_thoracic': (15.7784, 0.0756, 1.3009),
         'neck': (35.0, -33.75, 5.8343), 'head': (15.0, 8.5607), 'right_clavicle': (30.0, -15.0),
         'right_shoulder': (47.2686, -8.2156, 49.7532), 'right_elbow': (67.0072, -19.0342),

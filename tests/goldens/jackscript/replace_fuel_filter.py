@@ -482,167 +482,167 @@ def replace_fuel_filter():
         'left_elbow': (59.836, 17.3101), 'left_wrist': (-2.6963, 4.8032),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (59.656, 13.4633, -9.3807), 'spine_thoracic': (-10.4397, -3.9854, -5.1007),
-        'neck': (33.5884, 31.5801, -23.7364), 'head': (15.0, -11.25),
-        'right_shoulder': (58.7209, 8.0969, 13.2713), 'right_elbow': (2.0629, 76.5232),
+        'spine_lumbar': (59.656, 13.4633, -9.3807), 'spine_thoracic': (-10.4396, -3.9854, -5.1007),
+        'neck': (33.5883, 31.5801, -23.7364), 'head': (15.0, -11.25),
+        'right_shoulder': (58.721, 8.0969, 13.2713), 'right_elbow': (2.0629, 76.5232),
         'right_wrist': (39.8746, -14.4291), 'left_clavicle': (-9.8694, 14.2265),
-        'left_shoulder': (18.155, 3.2338, 10.2538), 'left_elbow': (57.492, 17.3118),
-        'left_wrist': (-2.5038, 4.321),
+        'left_shoulder': (18.155, 3.2338, 10.2538), 'left_elbow': (57.4918, 17.3118),
+        'left_wrist': (-2.5038, 4.3209),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (59.8045, 16.2862, -12.3556), 'spine_thoracic': (-9.3115, -7.111, -10.9062),
-        'neck': (34.9732, 33.75, -15.2885), 'right_shoulder': (59.9822, -1.0067, 12.4409),
-        'right_elbow': (2.3705, 75.3228), 'right_wrist': (25.9456, -9.0389),
+        'spine_lumbar': (59.8045, 16.2862, -12.3556), 'spine_thoracic': (-9.311, -7.111, -10.9062),
+        'neck': (34.9731, 33.75, -15.2884), 'right_shoulder': (59.9829, -1.0067, 12.4409),
+        'right_elbow': (2.3707, 75.3228), 'right_wrist': (25.9456, -9.0389),
         'left_clavicle': (-9.9432, 14.6566), 'left_shoulder': (27.5816, 0.1118, 10.6251),
-        'left_elbow': (43.4359, 17.2848), 'left_wrist': (-1.3216, 1.5166),
+        'left_elbow': (43.4347, 17.2848), 'left_wrist': (-1.3216, 1.5162),
     })
     human.KeyJoints(7.9, {
         'spine_lumbar': (59.9607, 19.2525, -14.5245),
-        'spine_thoracic': (-8.0057, -9.4732, -15.2954), 'neck': (35.0, 33.75, -9.671),
-        'head': (15.0, -10.8953), 'right_shoulder': (61.5591, -7.9071, 11.8045),
-        'right_elbow': (3.182, 74.3825), 'right_wrist': (14.877, -4.8145),
+        'spine_thoracic': (-8.0052, -9.4732, -15.2954), 'neck': (35.0, 33.75, -9.6708),
+        'head': (15.0, -10.8952), 'right_shoulder': (61.5598, -7.9071, 11.8044),
+        'right_elbow': (3.1822, 74.3825), 'right_wrist': (14.877, -4.8145),
         'left_clavicle': (-9.9904, 14.9408), 'left_shoulder': (37.4871, -3.0132, 10.932),
-        'left_elbow': (28.0732, 17.2564), 'left_wrist': (-0.0793, -1.6444),
+        'left_elbow': (28.072, 17.2564), 'left_wrist': (-0.0793, -1.6448),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 20.0, -14.7262), 'spine_thoracic': (-6.6401, -9.6446, -15.9852),
-        'neck': (35.0, 33.75, -8.3722), 'head': (15.0, -10.5592),
-        'right_shoulder': (63.3579, -8.9115, 11.6221), 'right_elbow': (6.2132, 74.2055),
-        'right_wrist': (21.5485, -6.8406), 'left_clavicle': (-9.742, 14.6831),
-        'left_shoulder': (40.3621, -1.6457, 10.5384), 'left_elbow': (22.8055, 17.2609),
-        'left_wrist': (0.0048, -2.9217),
+        'spine_lumbar': (60.0, 20.0, -14.7237), 'spine_thoracic': (-6.642, -9.6441, -15.9831),
+        'neck': (35.0, 33.75, -8.3752), 'head': (15.0, -10.5549),
+        'right_shoulder': (63.3577, -8.9085, 11.6221), 'right_elbow': (6.2157, 74.2056),
+        'right_wrist': (21.5709, -6.8482), 'left_clavicle': (-9.7398, 14.6803),
+        'left_shoulder': (40.3592, -1.6533, 10.54), 'left_elbow': (22.8078, 17.2608),
+        'left_wrist': (0.0056, -2.9211),
     })
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -14.9676), 'spine_thoracic': (-1.2315, -9.9905, -28.0289),
-        'neck': (35.0, -7.2761, 8.134), 'head': (15.0, 11.25),
-        'right_shoulder': (65.654, -19.1684, 11.7207), 'right_elbow': (2.8339, 73.8999),
-        'right_wrist': (-3.8475, 2.3918), 'left_clavicle': (-9.9652, 14.973),
-        'left_shoulder': (47.2818, 9.6557, 8.2608), 'left_elbow': (18.302, 17.317),
-        'left_wrist': (-1.0794, -3.9109),
+        'spine_lumbar': (60.0, 20.0, -14.9662), 'spine_thoracic': (-1.2434, -9.99, -27.9979),
+        'neck': (35.0, -7.3565, 8.1143), 'head': (15.0, 11.25),
+        'right_shoulder': (65.65, -19.1426, 11.7204), 'right_elbow': (2.8287, 73.9008),
+        'right_wrist': (-3.8386, 2.385), 'left_clavicle': (-9.9637, 14.9718),
+        'left_shoulder': (47.2682, 9.6265, 8.2657), 'left_elbow': (18.3099, 17.3168),
+        'left_wrist': (-1.0762, -3.9089),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.122677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (1.4507, -10.0, -30.0), 'neck': (35.0, 7.1275, 8.8601),
-        'right_shoulder': (70.6013, -21.7715, 11.7273), 'right_elbow': (0.0, 74.1058),
-        'right_wrist': (5.1981, -5.4339), 'left_shoulder': (50.3821, 11.3823, 7.9296),
-        'left_elbow': (17.034, 17.3199), 'left_wrist': (-1.151, -4.0152),
+        'spine_thoracic': (1.4425, -10.0, -30.0), 'neck': (35.0, 7.087, 8.8615),
+        'right_shoulder': (70.6029, -21.7735, 11.7273), 'right_elbow': (0.0, 74.1055),
+        'right_wrist': (5.2656, -5.4585), 'left_shoulder': (50.3592, 11.388, 7.9292),
+        'left_elbow': (17.0359, 17.32), 'left_wrist': (-1.152, -4.0162),
     })
     human.KeyJoints(8.3, {
-        'neck': (35.0, 7.1275, 8.8601), 'left_shoulder': (50.3821, 11.3823, 7.9296),
-        'left_elbow': (17.034, 17.3199),
+        'neck': (35.0, 7.087, 8.8615), 'left_shoulder': (50.3592, 11.388, 7.9292),
+        'left_elbow': (17.0359, 17.32),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.4, {
-        'neck': (34.9985, 7.0378, 9.099), 'left_shoulder': (50.1818, 11.3755, 7.8734),
-        'left_elbow': (17.383, 17.3209), 'left_wrist': (-1.2077, -3.9355),
+        'neck': (34.9985, 6.9975, 9.1005), 'left_shoulder': (50.159, 11.3811, 7.873),
+        'left_elbow': (17.3849, 17.3209), 'left_wrist': (-1.2087, -3.9365),
     })
     human.KeyJoints(8.5, {
-        'neck': (34.9236, 2.5646, 21.0187), 'left_shoulder': (39.9324, 11.0343, 4.8481),
-        'left_elbow': (34.7903, 17.3688), 'left_wrist': (-4.1205, 0.0395),
+        'neck': (34.9236, 2.532, 21.0197), 'left_shoulder': (39.9143, 11.0388, 4.8477),
+        'left_elbow': (34.7918, 17.3688), 'left_wrist': (-4.1212, 0.0387),
     })
     human.KeyJoints(8.6, {
-        'neck': (34.7916, -5.3265, 42.0464), 'left_shoulder': (20.746, 10.4325, -1.4326),
-        'left_elbow': (65.4987, 17.4532), 'left_wrist': (-9.6258, 7.0517),
+        'neck': (34.7915, -5.3457, 42.0465), 'left_shoulder': (20.7365, 10.4348, -1.4329),
+        'left_elbow': (65.4994, 17.4532), 'left_wrist': (-9.6262, 7.0513),
     })
     human.KeyJoints(8.7, {
-        'neck': (34.6799, -11.999, 59.8268), 'left_shoulder': (1.7883, 9.9237, -9.0778),
-        'left_elbow': (91.4649, 17.5246), 'left_wrist': (-15.1889, 12.9811),
+        'neck': (34.6798, -12.0068, 59.8262), 'left_shoulder': (1.7862, 9.9241, -9.0779),
+        'left_elbow': (91.465, 17.5246), 'left_wrist': (-15.189, 12.9811),
     })
     human.KeyJoints(8.8, {
-        'neck': (34.655, -13.4905, 63.8012), 'left_shoulder': (-8.8395, 10.5246, -16.3479),
+        'neck': (34.6548, -13.4957, 63.8003), 'left_shoulder': (-8.8391, 10.5249, -16.3478),
         'left_elbow': (96.9841, 17.4376), 'left_wrist': (-18.4934, 14.1657),
     })
     human.KeyJoints(8.9, {
-        'left_shoulder': (-15.7526, 17.5791, -23.7473), 'left_elbow': (94.2311, 16.4051),
-        'left_wrist': (-20.3017, 12.8048),
+        'left_shoulder': (-15.7504, 17.5821, -23.7469), 'left_elbow': (94.2311, 16.4053),
+        'left_wrist': (-20.3016, 12.8048),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (-21.3311, 28.0333, -32.3059), 'left_elbow': (90.3528, 14.8175),
-        'left_wrist': (-21.8214, 10.8877),
+        'left_shoulder': (-21.3279, 28.0385, -32.3052), 'left_elbow': (90.3528, 14.8179),
+        'left_wrist': (-21.8213, 10.8877),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (-25.7284, 36.7208, -42.8235), 'left_elbow': (87.5909, 13.3667),
-        'left_wrist': (-23.8959, 9.5224),
+        'left_shoulder': (-25.7267, 36.7237, -42.8232), 'left_elbow': (87.5909, 13.3669),
+        'left_wrist': (-23.8958, 9.5224),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.2, {
-        'left_shoulder': (-29.1413, 38.4315, -58.1494), 'left_elbow': (89.7517, 12.57),
-        'left_wrist': (-28.1809, 9.4895),
+        'left_shoulder': (-29.1444, 38.4267, -58.1497), 'left_elbow': (89.7488, 12.5698),
+        'left_wrist': (-28.1811, 9.4889),
     })
     human.KeyJoints(9.3, {
-        'left_shoulder': (-32.8379, 30.6158, -73.6156), 'left_elbow': (97.7338, 12.4345),
-        'left_wrist': (-33.9246, 10.8707),
+        'left_shoulder': (-32.8444, 30.6095, -73.6134), 'left_elbow': (97.7309, 12.4344),
+        'left_wrist': (-33.9245, 10.8703),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.326681, duration=0.072)
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.398681, duration=0.2628)
     human.KeyJoints(9.4, {
-        'left_shoulder': (-33.4269, 26.8361, -74.1681), 'left_elbow': (102.2665, 12.955),
-        'left_wrist': (-35.136, 12.1398),
+        'left_shoulder': (-33.4336, 26.8301, -74.1649), 'left_elbow': (102.2637, 12.9551),
+        'left_wrist': (-35.1357, 12.1395),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (1.4507, -10.0, -30.0),
-        'neck': (34.655, -13.4905, 63.8012), 'head': (14.9102, 11.2492),
-        'right_clavicle': (-6.9227, 14.3293), 'right_shoulder': (70.6013, -21.7715, 11.7273),
-        'right_elbow': (0.0, 74.1058), 'right_wrist': (5.1981, -5.4339),
-        'left_shoulder': (-33.4269, 26.8361, -74.1681), 'left_elbow': (102.2665, 12.955),
-        'left_wrist': (-35.136, 12.1398),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (1.4425, -10.0, -30.0),
+        'neck': (34.6548, -13.4957, 63.8003), 'head': (14.9102, 11.2492),
+        'right_clavicle': (-6.9227, 14.3293), 'right_shoulder': (70.6029, -21.7735, 11.7273),
+        'right_elbow': (0.0, 74.1055), 'right_wrist': (5.2656, -5.4585),
+        'left_shoulder': (-33.4336, 26.8301, -74.1649), 'left_elbow': (102.2637, 12.9551),
+        'left_wrist': (-35.1357, 12.1395),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.661481, duration=0.719288)
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 19.7688, -14.7382), 'spine_thoracic': (1.1287, -9.8999, -29.1225),
-        'neck': (34.2545, -13.4137, 62.7365), 'head': (14.8354, 11.2498),
-        'right_clavicle': (-7.0317, 14.3609), 'right_shoulder': (69.6435, -21.338, 11.7255),
-        'right_elbow': (1.5848, 73.8556), 'right_wrist': (7.6274, -5.813),
-        'left_shoulder': (-32.2661, 27.4082, -71.9352), 'left_elbow': (101.377, 13.033),
-        'left_wrist': (-34.3285, 11.9583),
+        'spine_lumbar': (60.0, 19.7688, -14.7382), 'spine_thoracic': (1.1209, -9.8999, -29.1225),
+        'neck': (34.2544, -13.4187, 62.7358), 'head': (14.8353, 11.2498),
+        'right_clavicle': (-7.0317, 14.3609), 'right_shoulder': (69.6451, -21.3399, 11.7255),
+        'right_elbow': (1.5848, 73.8553), 'right_wrist': (7.6916, -5.8364),
+        'left_shoulder': (-32.2725, 27.4026, -71.9322), 'left_elbow': (101.3744, 13.033),
+        'left_wrist': (-34.3282, 11.9581),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 17.5669, -12.2445), 'spine_thoracic': (-1.6537, -8.9463, -21.2001),
-        'neck': (31.5011, -13.3142, 54.2028), 'head': (14.5398, 11.1214),
-        'right_clavicle': (-8.0014, 14.6344), 'right_shoulder': (61.3665, -17.5917, 11.7079),
-        'right_elbow': (15.28, 71.6931), 'right_wrist': (28.621, -9.089),
-        'left_shoulder': (-21.3613, 32.3565, -51.4135), 'left_elbow': (93.4058, 13.7744),
-        'left_wrist': (-26.9261, 10.3162),
+        'spine_lumbar': (60.0, 17.5669, -12.2445), 'spine_thoracic': (-1.658, -8.9463, -21.2001),
+        'neck': (31.5006, -13.3185, 54.2028), 'head': (14.5391, 11.1213),
+        'right_clavicle': (-8.0014, 14.6344), 'right_shoulder': (61.3674, -17.5927, 11.7078),
+        'right_elbow': (15.28, 71.6929), 'right_wrist': (28.6567, -9.102),
+        'left_shoulder': (-21.3651, 32.3534, -51.4118), 'left_elbow': (93.4043, 13.7744),
+        'left_wrist': (-26.9259, 10.3161),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (60.0, 14.437, -8.6999), 'spine_thoracic': (-4.6129, -7.5908, -11.4636),
-        'neck': (28.3792, -14.2, 42.5927), 'head': (14.941, 11.1456),
-        'right_clavicle': (-9.137, 14.9253), 'right_shoulder': (52.5635, -13.6073, 11.6795),
-        'right_elbow': (29.8456, 69.3931), 'right_wrist': (50.9489, -12.5732),
-        'left_shoulder': (-6.3869, 37.6331, -24.8479), 'left_elbow': (83.8256, 14.8256),
-        'left_wrist': (-17.4124, 8.2837),
+        'spine_lumbar': (60.0, 14.437, -8.6999), 'spine_thoracic': (-4.6136, -7.5908, -11.4636),
+        'neck': (28.3773, -14.2027, 42.5932), 'head': (14.941, 11.1455),
+        'right_clavicle': (-9.137, 14.9253), 'right_shoulder': (52.5636, -13.6075, 11.6795),
+        'right_elbow': (29.8456, 69.3931), 'right_wrist': (50.9541, -12.5751),
+        'left_shoulder': (-6.3878, 37.6326, -24.8476), 'left_elbow': (83.8254, 14.8256),
+        'left_wrist': (-17.4123, 8.2837),
     })
     human.KeyJoints(10.0, {
         'spine_lumbar': (60.0, 11.6894, -5.6878), 'spine_thoracic': (-4.9553, -6.4514, -6.5054),
-        'neck': (27.1095, -15.3009, 35.0725), 'right_clavicle': (-9.5961, 14.9735),
+        'neck': (27.1077, -15.3037, 35.073), 'right_clavicle': (-9.5961, 14.9735),
         'right_shoulder': (52.0291, -13.3375, 11.6445), 'right_elbow': (30.2007, 69.3966),
-        'right_wrist': (51.2182, -12.321), 'left_shoulder': (5.2346, 38.5777, -8.0028),
+        'right_wrist': (51.2182, -12.321), 'left_shoulder': (5.2349, 38.5777, -8.0029),
         'left_elbow': (79.6446, 15.7375), 'left_wrist': (-11.5747, 7.2685),
     })
     human.KeyJoints(10.1, {
         'spine_lumbar': (60.0, 8.5606, -2.5516), 'spine_thoracic': (-4.0286, -5.303, -3.337),
-        'neck': (25.5527, -17.1291, 28.7508), 'right_clavicle': (-9.8491, 14.9624),
+        'neck': (25.5511, -17.1322, 28.7513), 'right_clavicle': (-9.8491, 14.9624),
         'right_shoulder': (57.5212, -15.8653, 11.5875), 'right_elbow': (18.3285, 71.5987),
-        'right_wrist': (31.5072, -7.587), 'left_shoulder': (16.5926, 38.6051, 5.5651),
-        'left_elbow': (77.9568, 16.7578), 'left_wrist': (-7.1002, 6.7822),
+        'right_wrist': (31.5072, -7.587), 'left_shoulder': (16.5929, 38.6051, 5.565),
+        'left_elbow': (77.9569, 16.7578), 'left_wrist': (-7.1002, 6.7822),
     })
     human.KeyJoints(10.2, {
         'spine_lumbar': (60.0, 6.3879, 0.0379), 'spine_thoracic': (-3.1734, -4.2966, -1.1366),
-        'neck': (25.1531, -18.298, 23.7666), 'right_clavicle': (-9.9879, 14.9522),
+        'neck': (25.1515, -18.3015, 23.767), 'right_clavicle': (-9.9879, 14.9522),
         'right_shoulder': (62.8608, -19.0262, 11.5436), 'right_elbow': (7.3722, 73.631),
-        'right_wrist': (13.3163, -3.0708), 'left_shoulder': (24.967, 38.6179, 15.0022),
+        'right_wrist': (13.3163, -3.0708), 'left_shoulder': (24.9671, 38.6179, 15.0021),
         'left_elbow': (75.9831, 17.4785), 'left_wrist': (-3.8751, 6.2206),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.3, {
         'spine_lumbar': (58.1764, 6.7464, 1.004), 'spine_thoracic': (-3.5017, -3.7824, -0.2945),
-        'neck': (25.9442, -20.0518, 21.9198), 'head': (15.0, 11.2291),
+        'neck': (25.9428, -20.0554, 21.9203), 'head': (15.0, 11.2291),
         'right_clavicle': (-9.7851, 14.8842), 'right_shoulder': (63.5089, -21.2755, 11.5824),
         'right_elbow': (6.2875, 73.8171), 'right_wrist': (11.4296, -2.3248),
         'left_shoulder': (27.21, 36.7813, 17.8418), 'left_elbow': (70.365, 17.5696),
@@ -652,7 +652,7 @@ def replace_fuel_filter():
     human.Grasp('right_hand', 'close', start=10.380769, duration=0.072)
     human.KeyJoints(10.4, {
         'spine_lumbar': (55.0887, 8.3345, 0.3628), 'spine_thoracic': (-3.0434, -4.1109, -0.8851),
-        'neck': (26.5768, -20.451, 22.8786), 'right_clavicle': (-8.6052, 14.1962),
+        'neck': (26.5753, -20.4545, 22.8792), 'right_clavicle': (-8.6052, 14.1962),
         'right_shoulder': (61.4869, -22.7843, 11.6445), 'right_elbow': (5.4402, 73.7717),
         'right_wrist': (11.8485, -2.1803), 'left_elbow': (65.1343, 17.5449),
         'left_wrist': (-2.0717, 3.5639),
@@ -686,9 +686,9 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.079969, duration=0.2628)
     human.KeyJoints(12.1, {'right_elbow': (5.4402, 73.7717)})
-    human.KeyJoints(12.2, {'neck': (26.5698, -20.4729, 22.8844)})
+    human.KeyJoints(12.2, {'neck': (26.5683, -20.4764, 22.885)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(12.7, {'neck': (26.5433, -20.5557, 22.9061)})
+    human.KeyJoints(12.7, {'neck': (26.5418, -20.5593, 22.9067)})
     human.KeyJoints(15.3, {
         'spine_lumbar': (55.0887, 8.3345, 0.3628), 'spine_thoracic': (-3.0434, -4.1109, -0.8851),
         'right_clavicle': (-8.6052, 14.1962), 'right_shoulder': (61.4869, -22.7843, 11.6445),
@@ -713,7 +713,7 @@ def replace_fuel_filter():
     })
     human.KeyRoot(15.6, (1.491, 45.754, 46.831), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.6, {
-        'spine_lumbar': (4.5205, 0.4206, 0.3628), 'spine_thoracic': (0.0633, -0.3315, -0.8851),
+        'spine_lumbar': (4.5205, 0.4206, 0.3628), 'spine_thoracic': (0.0633, -0.3316, -0.8851),
         'right_clavicle': (-0.4748, 0.7193), 'right_shoulder': (11.7114, 4.068, 11.508),
         'right_elbow': (32.2734, 20.057), 'right_wrist': (0.6603, -0.2532),
         'left_clavicle': (-0.5067, 0.76), 'left_shoulder': (9.8435, 7.2744, 11.7992),
@@ -829,7 +829,7 @@ def replace_fuel_filter():
     })
     human.KeyRoot(17.1, (5.278, 67.345, 33.455), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (13.7496, 9.4353, 0.3628), 'spine_thoracic': (2.2721, 1.6943, -0.8851),
+        'spine_lumbar': (13.7497, 9.4353, 0.3628), 'spine_thoracic': (2.2721, 1.6943, -0.8851),
         'right_hip': (21.8539, 0.1698, 1.7045), 'right_knee': (103.5859,),
         'right_ankle': (19.2116, 1.7373), 'left_hip': (59.8205, -0.6107, -1.0621),
         'left_knee': (79.8756,), 'left_ankle': (19.7764, -1.2269),
@@ -908,7 +908,7 @@ def replace_fuel_filter():
     human.KeyRoot(18.103969, (0.0, 91.087, 55.0), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.103969, {
         'spine_lumbar': (0.0, 0.0, 0.3628), 'spine_thoracic': (0.0, 0.0, -0.8851),
-        'neck': (26.5433, -20.5557, 22.9061), 'head': (15.0, 11.2326), 'right_clavicle': (0.0, 0.0),
+        'neck': (26.5418, -20.5593, 22.9067), 'head': (15.0, 11.2326), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),

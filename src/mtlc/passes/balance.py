@@ -27,6 +27,7 @@ the task that led to the segment active then.
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 
 import numpy as np
 
@@ -127,11 +128,12 @@ def hand_pins(ir: MotionIR, time: np.ndarray) -> dict[str, np.ndarray]:
     for hand, track in HANDS.items():
         mask = np.zeros(len(t), dtype=bool)
         segs = sorted(ir.on_track(track), key=lambda s: s.start)
+        starts = [s.start for s in segs]
         for i, seg in enumerate(segs):
             if seg.kind != "TO":
                 continue
-            later = [s.start for s in segs[i + 1 :] if s.start >= seg.end - 1e-9]
-            end = min(later, default=math.inf)
+            j = bisect_left(starts, seg.end - 1e-9, lo=i + 1)  # the first later start
+            end = starts[j] if j < len(starts) else math.inf
             mask |= (t >= seg.start - 1e-9) & (t < end - 1e-9)
         pins[hand] = mask
     return pins

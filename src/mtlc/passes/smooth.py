@@ -40,6 +40,7 @@ from mtlc.passes.balance import (
     HANDS,
     MARGIN,
     balance_frames,
+    grouped_hull,
     hand_pins,
     restore_contacts,
     take_pose,
@@ -179,7 +180,7 @@ def carried_margin(ir: MotionIR, pose: Pose, time: np.ndarray, stance: np.ndarra
     hands hold (``carried_com``), so this check judges balance as the balance pass and the
     metrics do; the feet (and knees) are the support, as before."""
     pts, ok = support(ir.skeleton, pose, stance, ir.ground)
-    return support_margin(pts, ok, carried_com(ir, pose, time)[:, [0, 2]])
+    return support_margin(pts, ok, carried_com(ir, pose, time)[:, [0, 2]], grouped_hull(pts, ok))
 
 
 def _rebalance(

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from bisect import bisect_right
 from collections.abc import Callable, Collection
+from itertools import repeat
 from typing import Any
 
 import numpy as np
@@ -76,7 +77,7 @@ class PoseState:
             ts, refs = self._t[d], self._r[d]
             if ordered and (not ts or times[0] >= ts[-1]):  # all after the rest: append
                 ts.extend(times)
-                refs.extend((t, sid, kf, row, c) for row, t in enumerate(times))
+                refs.extend(zip(times, repeat(sid), repeat(kf), range(len(times)), repeat(c)))
                 continue
             for row, t in enumerate(times):
                 i = bisect_right(ts, t)

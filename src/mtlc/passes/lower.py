@@ -19,12 +19,12 @@ from mtlc.diagnostics import Span
 from mtlc.ir.model import GoalSpec, MotionIR, Provenance, RootPlan, Segment, SourceRef
 from mtlc.passes.tool import tool_site
 from mtlc.semantics.timeline import Primitive, Timeline
+from mtlc.semantics.turning import arrival_heading, heading_to, wrap
 
 HAND_TRACK = {"left_hand": "l_arm", "right_hand": "r_arm"}
 HAND_SITE = {"left_hand": "l_hand", "right_hand": "r_hand"}
 GRIP_TRACK = {"left_hand": "l_hand", "right_hand": "r_hand"}
 TURN_TIME = 0.5  # seconds the plan takes to turn toward the way a walk goes (the gait steps it)
-WORK_MIN_DISTANCE = 0.1  # m: work closer than this to where a walk ends gives no direction
 
 
 def _ref(span: Span) -> SourceRef:
@@ -136,40 +136,6 @@ def _stroke(p: Primitive, prov: Provenance) -> Segment:
     return Segment(HAND_TRACK[p.effector], "TO", p.start, p.end, goal, prov)
 
 
-def _heading_to(src: np.ndarray, dst: np.ndarray, default: float) -> float:
-    d = dst - src
-    if math.hypot(d[0], d[2]) < 1e-6:
-        return default
-    return math.atan2(d[0], d[2])  # yaw about +Y; 0 faces +Z
-
-
-def work_after(prims: list[Primitive], walk: Primitive) -> np.ndarray | None:
-    """Where the work is after ``walk``: the mean site of the reaches before the next walk
-    (a site reached often weighs more), which the body faces when the walk names no ``facing``."""
-    sites = []
-    for p in prims:
-        if p is walk or p.start < walk.end - 1e-9:
-            continue
-        if p.kind == "locomotion":
-            break
-        if p.kind == "goal":
-            sites.append(np.asarray(p.params["position"], dtype=float))
-    return np.mean(sites, axis=0) if sites else None
-
-
-def arrival_heading(
-    prims: list[Primitive], walk: Primitive, goal: np.ndarray, walking: float
-) -> float:
-    """Which way the body faces once a walk has arrived: its ``facing`` site, else the next
-    reach's site, else the way it walked. The gait steps this turn (closing and pivot steps),
-    so the planted feet never twist."""
-    face = walk.params.get("facing_position")
-    work = _vec(face) if face is not None else work_after(prims, walk)
-    if work is None or math.hypot(*(work - goal)[[0, 2]]) < WORK_MIN_DISTANCE:
-        return walking
-    return _heading_to(goal, work, walking)
-
-
 def plan_root(timeline: Timeline) -> RootPlan:
     """Knots of the root's ground position and heading (the height is added by the manikin).
 
@@ -193,15 +159,11 @@ def plan_root(timeline: Timeline) -> RootPlan:
         if p.kind != "locomotion":
             continue
         goal = np.asarray(p.params["to"], dtype=float)
-        walk_heading = _heading_to(pos, goal, heading)
-        heading = arrival_heading(prims, p, goal, walk_heading)
+        walk_heading = heading_to(pos, goal, heading)
+        heading = arrival_heading(prims, p, walk_heading)
         # turn toward the way to go at the start, arrive facing the work
         knot(p.start, pos, headings[-1])
         knot(min(p.start + TURN_TIME / 2, p.end), pos, walk_heading)
-        knot(p.end, goal, headings[-1] + _wrap(heading - headings[-1]))
+        knot(p.end, goal, headings[-1] + wrap(heading - headings[-1]))
         pos = goal
     return RootPlan(time=np.array(times), position=np.array(positions), heading=np.array(headings))
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi

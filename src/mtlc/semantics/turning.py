@@ -15,6 +15,8 @@ import math
 from collections.abc import Iterable, Sequence
 from itertools import islice
 
+import numpy as np
+
 from mtlc.semantics import mtm
 from mtlc.semantics import types as T
 from mtlc.semantics.timeline import Primitive
@@ -44,24 +46,19 @@ def heading_to(src: Point, dst: Point, default: float) -> float:
     return math.atan2(dx, dz)
 
 
-def work_after(prims: Iterable[Primitive], walk: Primitive) -> tuple[float, float, float] | None:
-    """The mean site of the reaches after ``walk`` and before the next walk (as lowering does)."""
-    sites: list[Point] = []
+def work_after(prims: Iterable[Primitive], walk: Primitive) -> np.ndarray | None:
+    """Where the work is after ``walk``: the mean site of the reaches before the next walk
+    (a site reached often weighs more), which the body faces when the walk names no ``facing``.
+    Lowering's root plan uses this too: the time given to turning and the turn made agree."""
+    sites = []
     for p in prims:
         if p is walk or p.start < walk.end - 1e-9:
             continue
         if p.kind == "locomotion":
             break
         if p.kind == "goal":
-            sites.append(p.params["position"])
-    if not sites:
-        return None
-    n = len(sites)
-    return (
-        sum(s[0] for s in sites) / n,
-        sum(s[1] for s in sites) / n,
-        sum(s[2] for s in sites) / n,
-    )
+            sites.append(np.asarray(p.params["position"], dtype=float))
+    return np.mean(sites, axis=0) if sites else None
 
 
 def arrival_heading(prims: Iterable[Primitive], walk: Primitive, walking: float) -> float:

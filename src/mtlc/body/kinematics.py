@@ -309,11 +309,21 @@ def _forward_flat(
 def site_positions(skel: Skeleton, pose: Pose, names: Sequence[str] | str) -> FloatArray:
     """World positions (..., S, 3) of named sites (or (..., 3) for one name)."""
     single = isinstance(names, str)
-    nl = [names] if isinstance(names, str) else list(names)
-    js = [skel.joint_index(skel.site(n).joint) for n in nl]
-    offs = np.array([skel.site(n).offset for n in nl], dtype=float)
+    js, offs = _site_lookup(skel, (names,) if isinstance(names, str) else tuple(names))
     out = pose.p[..., js, :] + np.einsum("...sij,sj->...si", pose.R[..., js, :, :], offs)
     return out[..., 0, :] if single else out
+
+
+def _site_lookup(skel: Skeleton, names: tuple[str, ...]) -> tuple[list[int], FloatArray]:
+    """The sites' joints and offsets, looked up once per skeleton (solvers ask for the same
+    sites thousands of times; the look-up was a fifth of a small batch's cost)."""
+    cache: dict[tuple[str, ...], tuple[list[int], FloatArray]]
+    cache = skel.__dict__.setdefault("_site_lookup", {})
+    found = cache.get(names)
+    if found is None:
+        js = [skel.joint_index(skel.site(n).joint) for n in names]
+        found = cache[names] = (js, np.array([skel.site(n).offset for n in names], dtype=float))
+    return found
 
 
 def site_rotation(skel: Skeleton, pose: Pose, name: str) -> FloatArray:

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from mtlc.body.kinematics import Pose
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import MotionIR
+from mtlc.passes.tool import AXIAL_KINDS  # tools turned by re-gripping
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -40,7 +41,6 @@ LIGHT_KG = 2.0  # force/load score: under 2 kg intermittent is 0
 HEAVY_KG = 10.0  # over 10 kg is 3
 STATIC_S = 60.0  # a load held longer than a minute is "static" (2 for 2-10 kg)
 REPEATED_PER_MIN = 4.0  # "action repeated >=4 times/min": muscle use +1, 2-10 kg scores 2
-AXIAL_TOOLS = ("screwdriver", "pliers")  # turned by re-gripping (mtlc.passes.tool.AXIAL_KINDS)
 
 
 @dataclass(frozen=True)
@@ -205,7 +205,7 @@ def repetitions(ir: MotionIR) -> list[Repetition]:
         tool = params.get("tool")
         if side not in SIDES or not isinstance(tool, dict):
             continue
-        axial = tool.get("kind") in AXIAL_TOOLS
+        axial = tool.get("kind") in AXIAL_KINDS
         if "stroke" in params:
             site = str(seg.goal.site)
             if int(params["stroke"]) == 1 or current.get(side, (0, ""))[1] != site:
@@ -274,11 +274,13 @@ def force_score(
     return np.select([kg < LIGHT_KG, kg > HEAVY_KG, static], [0, 3, 2], default=1).astype(np.int64)
 
 
-def force_scores(ir: MotionIR, time: FloatArray) -> dict[str, IntArray]:
+def force_scores(
+    ir: MotionIR, time: FloatArray, repeated: Mapping[str, BoolArray] | None = None
+) -> dict[str, IntArray]:
     """Each hand's force/load score per frame, from what it holds (:func:`held_load`) and
-    whether it repeats its action (:func:`repeated_frames`)."""
-    repeated = repeated_frames(ir, time)
-    return {side: force_score(kg, time, repeated[side]) for side, kg in held_load(ir, time).items()}
+    whether it repeats its action (``repeated``, default :func:`repeated_frames`)."""
+    rep = repeated_frames(ir, time) if repeated is None else repeated
+    return {side: force_score(kg, time, rep[side]) for side, kg in held_load(ir, time).items()}
 
 
 # -- angles from the pose --------------------------------------------------------------------
@@ -386,6 +388,18 @@ def score_frames(
             upper, lower, wrist, twist, neck, trunk, legs, score_a, score_b, grand
         )
     return out
+
+
+def task_scores(
+    ir: MotionIR, pose: Pose, q: FloatArray, time: FloatArray, both_feet: BoolArray
+) -> dict[str, RulaScores]:
+    """:func:`score_frames` with each hand's muscle-use and force/load scores from the task
+    (what it holds, what it repeats): the one call lint, report and preview make."""
+    repeated = repeated_frames(ir, time)
+    muscle = {side: rep.astype(np.int64) for side, rep in repeated.items()}
+    force = force_scores(ir, time, repeated)
+    assert ir.skeleton is not None
+    return score_frames(ir.skeleton, pose, q, both_feet, muscle=muscle, force=force)
 
 
 def _of_side(score: int | Mapping[str, IntArray], side: str) -> int | IntArray:

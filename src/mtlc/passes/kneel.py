@@ -123,18 +123,6 @@ class Body:
         for col in (KNEE_COL, 6 + KNEE_COL):
             self.lo[col] = max(self.lo[col], min(MIN_KNEE, float(q_base[self.idx[col]])))
         self.knees = [skel.joint_index("r_knee"), skel.joint_index("l_knee")]
-        self._sites: dict[tuple[str, ...], tuple[list[int], FloatArray]] = {}
-
-    def sites(self, pose: Any, names: tuple[str, ...]) -> FloatArray:
-        """``site_positions`` with the sites' joints and offsets looked up once (the look-up
-        was a fifth of a residual's cost)."""
-        found = self._sites.get(names)
-        if found is None:
-            js = [self.skel.joint_index(self.skel.site(n).joint) for n in names]
-            offsets = np.array([self.skel.site(n).offset for n in names], dtype=float)
-            found = self._sites[names] = (js, offsets)
-        js, offsets = found
-        return pose.p[..., js, :] + np.einsum("...sij,sj->...si", pose.R[..., js, :, :], offsets)
 
     def q_of(self, x: FloatArray) -> FloatArray:
         q = np.tile(self.q_base, (len(x), 1))
@@ -152,15 +140,15 @@ class Body:
             if name.startswith("joint:"):
                 p = pose.p[:, self.skel.joint_index(name[6:])]
             else:
-                p = self.sites(pose, (name,))[..., 0, :]
+                p = site_positions(self.skel, pose, name)
             out.append(w * (p - target))
         for side in tg.level:
-            pts = self.sites(pose, SOLE_SITES[side])
+            pts = site_positions(self.skel, pose, SOLE_SITES[side])
             across = pts[:, 2, 1] - pts[:, 3, 1]  # ball_med vs ball_lat height
             ahead = pts[:, 0, 0] - pts[:, 1, 0]  # toe and heel on one line along +Z
             out.append(np.stack([LEVEL_W * across, PLANT_W * ahead], axis=1))
         # nothing below the ground: sole points, ankles, and knees no lower than kneeling
-        soles = self.sites(pose, GROUND_SITES)[..., 1]
+        soles = site_positions(self.skel, pose, GROUND_SITES)[..., 1]
         knees = pose.p[:, self.knees, 1] - (KNEE_HEIGHT - 0.002)
         low = np.concatenate([soles, knees], axis=1)
         out.append(PLANT_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))  # smooth min(·, 0)

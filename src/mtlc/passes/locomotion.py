@@ -33,7 +33,7 @@ from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 
 # the front end times the turns these thresholds make the gait step (mtlc.semantics.turning)
-from mtlc.semantics.turning import FINAL_TURN, MAX_TWIST, MIN_DISTANCE, TURN_IN_PLACE
+from mtlc.semantics.turning import FINAL_TURN, MAX_TWIST, MIN_DISTANCE, TURN_IN_PLACE, wrap
 
 FloatArray = NDArray[np.float64]
 
@@ -203,10 +203,6 @@ class Step:
     toe_off_pitch: float = 0.0  # rad, nose down at toe-off
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
 def _side(heading: float, foot: str, offset: Any) -> FloatArray:
     """A foot's ankle from the stance centre: ``offset`` is (half width, forward) in the body
     frame (the manikin's left is +X at heading 0), or a bare half width."""
@@ -244,7 +240,7 @@ def plan_footsteps(
     distance = float(np.hypot(d[0], d[2]))
     if distance < MIN_DISTANCE:
         walk_heading = h0
-    turn = _wrap(walk_heading - h0)
+    turn = wrap(walk_heading - h0)
 
     def put(f: str, fp: Footprint, pelvis: float) -> None:
         steps.append(Step(f, feet[f], fp, pelvis))
@@ -263,7 +259,7 @@ def plan_footsteps(
 
     if abs(turn) > TURN_IN_PLACE:
         foot = pivot(centre, h0, turn, "l" if turn > 0 else "r")  # open toward the turn
-    twist = float(np.clip(_wrap(final_heading - walk_heading), -MAX_TWIST, MAX_TWIST))
+    twist = float(np.clip(wrap(final_heading - walk_heading), -MAX_TWIST, MAX_TWIST))
     end_heading = walk_heading + twist
     if distance >= MIN_DISTANCE:
         n = max(1, math.ceil(distance / gait.step_length - 1e-9))
@@ -281,7 +277,7 @@ def plan_footsteps(
         foot = _other(foot)
         centre, h0 = goal, end_heading
     # the rest of the turn toward the work, stepped in place (the next foot in turn opens)
-    rest = _wrap(final_heading - h0)
+    rest = wrap(final_heading - h0)
     if abs(rest) > FINAL_TURN:
         pivot(centre, h0, rest, foot)
     return steps
@@ -371,11 +367,11 @@ class WalkMotion:
             ahead = centre_after + lead * (centre_after - centre_before)
             ts += [mid_t, b]
             xz += [mid[[0, 2]], ahead[[0, 2]]]
-            h = hs[-1] + _wrap(st.pelvis_heading - hs[-1])
+            h = hs[-1] + wrap(st.pelvis_heading - hs[-1])
             hs += [(hs[-1] + h) / 2, h]
         ts.append(self.t1)
         xz.append(self.root_end[[0, 2]])
-        hs.append(hs[-1] + _wrap(self.heading_end - hs[-1]))
+        hs.append(hs[-1] + wrap(self.heading_end - hs[-1]))
         t = np.asarray(ts)
         keep = np.append(np.diff(t) > 1e-6, True)  # at equal times the later knot wins
         self._t = t[keep]
@@ -446,7 +442,7 @@ class WalkMotion:
                     s = u * u * u * (10 - 15 * u + 6 * u * u)
                     pos[sw] = start + s[:, None] * (a1 - start)
                     pos[sw, 1] += self.gait.step_height * np.sin(np.pi * tau) ** 2
-                    head[sw] = h0 + s * _wrap(st.end.heading - h0)
+                    head[sw] = h0 + s * wrap(st.end.heading - h0)
                     pitch[sw] = st.toe_off_pitch * (1 - s)
                     planted[sw] = False
             out[f] = FootTrack(pos, head, pitch, planted, anchor)
@@ -797,7 +793,7 @@ def settle_plan(ir: MotionIR, legs: LegModel, kf: Keyframes, t_from: float, t_to
     inside = (plan.time >= t_from - 1e-9) & (plan.time <= t_to + 1e-9)
     plan.position[inside] += delta
     # a walk that only turned its pelvis under the feet ends facing the feet's way (see generate)
-    turn = _wrap(float(_heading_of(kf.root_rotation[-1:])[0]) - float(plan.at(t_from)[1]))
+    turn = wrap(float(_heading_of(kf.root_rotation[-1:])[0]) - float(plan.at(t_from)[1]))
     if abs(turn) > 1e-7:
         plan.heading[inside] += turn
 
@@ -928,7 +924,7 @@ def _unstepped_heading(feet: dict[str, Footprint], planned: float) -> float:
     small to step (under ``FINAL_TURN``); the pelvis turned alone and the standing body after it
     turned its feet on the spot (1 cm walks skated 1.7 cm/s)."""
     feet_heading = _feet_heading(feet)
-    off = _wrap(planned - feet_heading)
+    off = wrap(planned - feet_heading)
     return planned if abs(off) < 1e-9 else planned - off
 
 
@@ -936,7 +932,7 @@ def _plan_moved(plan: Any, t_from: float, t_to: float) -> bool:
     """Whether the root plan moves or turns the standing body between two walks (it does when
     a walk without time, absorbed by the plan, falls between them)."""
     (a, ha), (b, hb) = plan.at(t_from), plan.at(t_to)
-    return bool(np.hypot(*(b - a)[[0, 2]]) > 1e-6 or abs(_wrap(float(hb) - float(ha))) > 1e-6)
+    return bool(np.hypot(*(b - a)[[0, 2]]) > 1e-6 or abs(wrap(float(hb) - float(ha))) > 1e-6)
 
 
 def _record_instant_walk(seg: Segment) -> None:

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from mtlc.body import forward, site_positions
 from mtlc.body.kinematics import Pose
 from mtlc.diagnostics.render import source_lines
-from mtlc.ergonomics.rula import force_scores, muscle_scores, score_frames, worst_grand
+from mtlc.ergonomics.rula import task_scores, worst_grand
 from mtlc.ergonomics.view import DEFAULT_HALF_ANGLE_DEG
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.ir.serialize import to_dict
@@ -92,11 +92,7 @@ def figures(ir: MotionIR) -> dict[str, FloatArray]:
     stance = foot_stance(ir, t)
     pts, ok = support(skel, pose, stance, ir.ground)
     margin = support_margin(pts, ok, carried_com(ir, pose, t)[:, [0, 2]])  # tools held count
-    force = force_scores(ir, t)  # the held tool and loads, per hand
-    muscle = muscle_scores(ir, t)  # repeated strokes or grips, per hand
-    rula = worst_grand(
-        score_frames(skel, pose, frames.q, stance.all(axis=1), muscle=muscle, force=force)
-    )
+    rula = worst_grand(task_scores(ir, pose, frames.q, t, stance.all(axis=1)))
     rula = rula.astype(float)
     return {
         "contact_error": contact_error_per_frame(ir, pose, t),

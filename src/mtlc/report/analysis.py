@@ -180,9 +180,7 @@ def worst_rula(ir: MotionIR) -> RulaWorst | None:
     if view is None:
         return None
     both_feet = foot_stance(ir, view.time).all(axis=1)
-    force = R.force_scores(ir, view.time)  # the held tool and loads, per hand
-    muscle = R.muscle_scores(ir, view.time)  # repeated strokes or grips, per hand
-    scores = R.score_frames(ir.skeleton, view.pose, view.q, both_feet, muscle=muscle, force=force)
+    scores = R.task_scores(ir, view.pose, view.q, view.time, both_feet)
     grand = R.worst_grand(scores)
     i = int(np.argmax(grand))
     side = "right" if scores["r"].grand[i] >= scores["l"].grand[i] else "left"

@@ -487,9 +487,8 @@ class Expander:
             "distance": distance,
         }
         self.emit("locomotion", "root", t, t + d, params, stmt, env)
-        rule = timing if timing is not None else Timing("walk", {})
-        if isinstance(rule, Timing) and rule.rule == "walk":
-            self.mtm_walks.add(id(self.out[-1]))
+        if timing is None or (isinstance(timing, Timing) and timing.rule == "walk"):
+            self.mtm_walks.add(id(self.out[-1]))  # timed by MTM paces: gets turn time too
         self.root = goal
         for h in HAND_REST:
             self.hand_pos[h] = None  # the hands come back to the sides while walking

@@ -75,11 +75,7 @@ def rula(view: MotionView) -> list[Finding]:
     from mtlc.ergonomics import rula as R  # written alongside; imported when the rule runs
 
     both_feet = foot_stance(view.ir, view.time).all(axis=1)
-    force = R.force_scores(view.ir, view.time)  # the held tool and loads, per hand
-    muscle = R.muscle_scores(view.ir, view.time)  # repeated strokes or grips, per hand
-    scores = R.score_frames(
-        view.ir.skeleton, view.pose, view.q, both_feet, muscle=muscle, force=force
-    )
+    scores = R.task_scores(view.ir, view.pose, view.q, view.time, both_feet)
     grand = R.worst_grand(scores)
     threshold = view.config.rula_threshold
     out = []

@@ -47,11 +47,7 @@ def sustained_posture(view: MotionView) -> list[Finding]:
 
     assert view.ir.frames is not None
     both_feet = foot_stance(view.ir, view.time).all(axis=1)
-    force = R.force_scores(view.ir, view.time)  # the held tool and loads, per hand
-    muscle = R.muscle_scores(view.ir, view.time)  # repeated strokes or grips, per hand
-    grand = R.worst_grand(
-        R.score_frames(view.ir.skeleton, view.pose, view.q, both_feet, muscle=muscle, force=force)
-    )
+    grand = R.worst_grand(R.task_scores(view.ir, view.pose, view.q, view.time, both_feet))
     cfg = view.config
     runs = runs_at_or_above(grand, cfg.sustained_rula, view.ir.frames.fps, cfg.sustained_seconds)
     return [_finding(view, run) for run in runs]

@@ -35,6 +35,8 @@ ARM_TRACKS = ("l_arm", "r_arm")
 HAND_NAMES = {"r_hand": "right hand", "l_hand": "left hand"}
 FINGERTIPS = {"r_hand": "r_fingertip", "l_hand": "l_fingertip"}
 GROUND_SLACK = 5e-4  # m a hand point may dip below the ground (half the 1 mm budget)
+FLAT_CLEARANCE = 0.02  # m: a site this close to fingers pointing down at the floor is "low"
+FLAT_NORMAL_UP = 0.5  # a low site is come down on (its normal this far up, or none)
 LIFTS = 3  # re-solves that raise an approach point whose pose puts the fingers in the floor
 
 
@@ -196,6 +198,40 @@ def seg_goals(skel: Any, seg: Segment, target: FloatArray) -> list[Goal]:
     return [goal, *axis_goals(skel, seg, target)]
 
 
+def flat_hand(
+    state: PoseState, seg: Segment, root: tuple[FloatArray, FloatArray]
+) -> FloatArray | None:
+    """The fingertip's offset from the hand (horizontal, away from the pelvis, the fingers'
+    length) that lays the hand flat when it comes down on a site so low that fingers pointing
+    down would reach the floor; None for any other site.
+
+    The TA goal is a position only, so the hand arrives at the approach point in whatever
+    orientation the solver found. Above a tray 5 cm up, fingers pointing down are already at
+    the floor, and the last few centimetres (TO) are then cut off by it: the reach is reported
+    short, and whether it is depends on the solver's path. Laying the hand flat at the
+    approach point (a fingertip goal, ``seg_goals``) leaves TO a straight descent.
+    """
+    effector = seg.goal.effector
+    site = seg.goal.position
+    if effector not in FINGERTIPS or site is None:
+        return None
+    normal = seg.goal.params.get("approach_normal") or seg.goal.params.get("normal")
+    if normal is not None and normal[1] < FLAT_NORMAL_UP * float(np.linalg.norm(normal)):
+        return None
+    skel = state.skel
+    fingers = float(
+        np.linalg.norm(
+            np.subtract(skel.site(FINGERTIPS[effector]).offset, skel.site(effector).offset)
+        )
+    )
+    if float(site[1]) - state.ir.ground > fingers + FLAT_CLEARANCE:
+        return None
+    away = np.asarray(site, dtype=float) - root[0]
+    away[1] = 0.0
+    norm = float(np.linalg.norm(away))
+    return None if norm < 1e-6 else away * (fingers / norm)
+
+
 def solve_group(
     ctx: PassContext,
     state: PoseState,
@@ -204,13 +240,42 @@ def solve_group(
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
     pinned: list[Goal] | None = None,
+    flat: list[FloatArray | None] | None = None,
 ) -> tuple[FloatArray, str, list[float]]:
     """Best pose for one or two hands: arm chains first, then (together) with the torso; a
-    torso pose puts the ``pinned`` hands back on their sites (``repin``)."""
+    torso pose puts the ``pinned`` hands back on their sites (``repin``). ``flat``: per
+    segment, the fingers' offset from the hand that lays it flat (``flat_hand``), or None; a
+    pose that lays the hands flat is kept only if it reaches as well as one that does not."""
+    if flat is not None and any(f is not None for f in flat):
+        laid = _solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
+        if max(laid[2]) <= TOLERANCE:
+            return laid
+        plain = _solve_group(ctx, state, segs, targets, q0, root, pinned, None)
+        return laid if max(laid[2]) <= max(plain[2]) else plain
+    return _solve_group(ctx, state, segs, targets, q0, root, pinned, None)
+
+
+def _solve_group(
+    ctx: PassContext,
+    state: PoseState,
+    segs: list[Segment],
+    targets: list[FloatArray],
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    pinned: list[Goal] | None,
+    flat: list[FloatArray | None] | None,
+) -> tuple[FloatArray, str, list[float]]:
     skel = state.skel
+
+    def goals_of(k: int, seg: Segment, p: FloatArray) -> list[Goal]:
+        goals = seg_goals(skel, seg, p)
+        if flat is not None and flat[k] is not None:
+            goals.append(Goal(FINGERTIPS[seg.goal.effector], position=p + flat[k]))
+        return goals
+
     q = q0.copy()
-    for seg, p in zip(segs, targets, strict=True):
-        arm_goals = seg_goals(skel, seg, p)
+    for k, (seg, p) in enumerate(zip(segs, targets, strict=True)):
+        arm_goals = goals_of(k, seg, p)
         m = model_for(ctx, skel, tuple(g.effector for g in arm_goals), "arm", q, root)
         q = solve_ta(skel, arm_goals, q, model=m).q[0]
     dist = [
@@ -219,7 +284,9 @@ def solve_group(
     ]
     if max(dist) <= TOLERANCE:
         return q, "arm", dist
-    goals = [g for s, p in zip(segs, targets, strict=True) for g in seg_goals(skel, s, p)]
+    goals = [
+        g for k, (s, p) in enumerate(zip(segs, targets, strict=True)) for g in goals_of(k, s, p)
+    ]
     effs = tuple(g.effector for g in goals)
     m = model_for(ctx, skel, effs, "torso", q0, root)
     qt = solve_ta(skel, goals, q0, model=m).q[0]
@@ -268,14 +335,15 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
             seg.goal.position = hand_target(ir, seg, root[1])
             targets.append(approach_point(state, seg, seg.goal.position, q0, root))
         pinned = pinned_hands(state, segs, q0, root)
-        q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned)
+        flat = [flat_hand(state, seg, root) for seg in segs]
+        q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
         for _ in range(LIFTS):
             sink = ir.ground - GROUND_SLACK - lowest_hand_point(state, segs, q1, root)
             if sink <= 0.0:
                 break
             # the hand arrives fingers first: raise its approach point by what they sink
             targets = [p + np.array([0.0, sink + GROUND_SLACK, 0.0]) for p in targets]
-            q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned)
+            q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
         # the joint-space path from q0 to q1 may sweep the hand through the floor: lift it
         mid = None
         fs = np.linspace(0.0, 1.0, 9)[1:-1]

@@ -12,7 +12,7 @@ steps (lifts, moves, lands) or rolls on its toe.
 
 The motion is solved frame by frame at ``FPS`` by a whole-body inverse kinematics (``track``):
 root position, both legs and the spine (flexion and lateral flexion) by damped Gauss-Newton with
-a numerical Jacobian, warm-started from the previous frame. Planted contacts weigh most, the
+an analytic Jacobian, warm-started from the previous frame. Planted contacts weigh most, the
 centre of mass's target next, and a pull toward the previous frame keeps the solution smooth;
 each frame is then polished on its planted contacts alone. Everything is computed in the body
 frame (facing +Z, ground at y = 0) and placed in the world at the end (``to_world``).
@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from mtlc.body import center_of_mass, forward, site_positions
+from mtlc.body.kinematics import segment_coms
 from mtlc.ir.model import FloatArray
 from mtlc.metrics import CONTACT_TOL
 
@@ -40,6 +41,7 @@ KNEEL_COM_BEHIND = 0.12  # m: the kneeling CoM's target behind the knees
 SINGLE_KNEE_AT = 0.25  # share of the knee-to-toe distance: the CoM target on one kneeling leg
 FPS = 60.0
 ITERATIONS = 10
+STEP_TOL = 1e-5  # rad or m: a frame whose last step was this small has converged
 PLANT_W = 1000.0  # residual weights (per metre, per radian)
 KNEE_W = 60.0
 SWING_W = 40.0
@@ -123,6 +125,20 @@ class Body:
         for col in (KNEE_COL, 6 + KNEE_COL):
             self.lo[col] = max(self.lo[col], min(MIN_KNEE, float(q_base[self.idx[col]])))
         self.knees = [skel.joint_index("r_knee"), skel.joint_index("l_knee")]
+        # the points a target can name: the joint each rides on and its offset there
+        names = (*GROUND_SITES, "joint:r_knee", "joint:l_knee")
+        self.points = {n: i for i, n in enumerate(names)}
+        self.point_joint = np.array(
+            [skel.joint_index(n[6:] if n.startswith("joint:") else skel.site(n).joint)
+             for n in names]
+        )  # fmt: skip
+        self.point_offset = np.array(
+            [np.zeros(3) if n.startswith("joint:") else skel.site(n).offset for n in names],
+            dtype=float,
+        )
+        self.moves = skel.ancestor[self.point_joint][:, skel.dof_joint[self.idx]]  # (P, V)
+        self.below = skel.ancestor[:, skel.dof_joint[self.idx]].T  # (V, J): segments a dof moves
+        self.carried = self.below.astype(float) @ skel.masses  # (V,) mass each dof carries
 
     def q_of(self, x: FloatArray) -> FloatArray:
         q = np.tile(self.q_base, (len(x), 1))
@@ -206,7 +222,10 @@ class Body:
             cand[3:] = np.clip(cand[3:], self.lo, self.hi)
             rc, jc = self._linearise(cand, tg, prev)
             if rc @ rc < r0 @ r0:
+                done = float(np.abs(cand - x).max()) < STEP_TOL
                 x, r0, jac, lam = cand, rc, jc, max(lam * 0.3, 1e-5)
+                if done:
+                    break
             else:
                 lam *= 10.0
         return x
@@ -214,14 +233,64 @@ class Body:
     def _linearise(
         self, x: FloatArray, tg: Targets, prev: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """Residual and forward-difference Jacobian at ``x`` in one batched call: a candidate is
-        evaluated with its Jacobian, which the next step then needs if it is accepted (one
-        forward kinematics call per iteration instead of two; the call's overhead dominates)."""
-        h, n = 1e-6, len(x)
-        batch = np.tile(x, (n + 1, 1))
-        batch[1:] += np.eye(n) * h
-        res = self.residual(batch, tg, prev)
-        return res[0], (res[1:] - res[0]).T / h
+        """Residual (R,) and its Jacobian (R, 3 + V) at ``x``, in ``residual``'s order, from one
+        forward kinematics call: a point's column for a dof is ``axis × (point − joint)``, the
+        root's are the identity, the centre of mass's is the same over the mass a dof carries
+        (a candidate is evaluated with its Jacobian, which the next step needs if accepted)."""
+        skel, n = self.skel, len(x)
+        pose = forward(skel, self.q_of(x[None])[0], x[:3])
+        pts = pose.p[self.point_joint] + np.einsum(
+            "pab,pb->pa", pose.R[self.point_joint], self.point_offset
+        )
+        axes, origins = pose.axes[self.idx], pose.p[skel.dof_joint[self.idx]]
+        jac = np.zeros((len(pts), 3, n))
+        jac[:, :, :3] = np.eye(3)
+        cols = np.cross(axes, pts[:, None, :] - origins) * self.moves[..., None]  # (P, V, 3)
+        jac[:, :, 3:] = cols.transpose(0, 2, 1)
+        res: list[FloatArray] = []
+        rows: list[FloatArray] = []
+        for name, target, w in tg.points:
+            i = self.points[name]
+            res.append(w * (pts[i] - target))
+            rows.append(w * jac[i])
+        for side in tg.level:
+            toe, heel, med, lat = (self.points[f"{side}_{n}"] for n in SOLE)
+            res.append(np.array([LEVEL_W * (pts[med, 1] - pts[lat, 1]),
+                                 PLANT_W * (pts[toe, 0] - pts[heel, 0])]))  # fmt: skip
+            rows.append(np.stack([LEVEL_W * (jac[med, 1] - jac[lat, 1]),
+                                  PLANT_W * (jac[toe, 0] - jac[heel, 0])]))  # fmt: skip
+        low = pts[:, 1].copy()  # the ground's barrier: sole points as they are, knees raised
+        low[len(GROUND_SITES) :] -= KNEE_HEIGHT - 0.002
+        root = np.sqrt(low * low + GROUND_EPS**2)
+        res.append(PLANT_W * 0.5 * (low - root))
+        rows.append((PLANT_W * 0.5 * (1.0 - low / root))[:, None] * jac[:, 1])
+        if tg.com is not None:
+            c = center_of_mass(skel, pose)
+            mc = np.einsum("vj,j,ja->va", self.below, skel.masses, segment_coms(skel, pose))
+            jc = np.zeros((3, n))
+            jc[:, :3] = np.eye(3)
+            jc[:, 3:] = (np.cross(axes, mc - self.carried[:, None] * origins)
+                         / skel.total_mass).T  # fmt: skip
+            res.append(tg.com_w * (c[[0, 2]] - tg.com))
+            rows.append(tg.com_w * jc[[0, 2]])
+        eye = np.eye(n)
+        scale = np.full(n, tg.smooth)
+        scale[:3] *= ROOT_SMOOTH
+        res.append(scale * (x - prev))
+        rows.append(scale[:, None] * eye)
+        if tg.root_y is not None:
+            res.append(np.array([tg.root_y[1] * (x[1] - tg.root_y[0])]))
+            rows.append(tg.root_y[1] * eye[1:2])
+        if tg.joints is not None:
+            jcols, values, w = tg.joints
+            res.append(w * (x[jcols] - values))
+            rows.append(w * eye[jcols])
+        if tg.nominal is not None:
+            free = np.isnan(tg.nominal)
+            w = np.where(free, 0.0, tg.nominal_w)
+            res.append(w * np.where(free, 0.0, x[3:] - np.nan_to_num(tg.nominal)))
+            rows.append(w[:, None] * eye[3:])
+        return np.concatenate(res), np.concatenate([r.reshape(-1, n) for r in rows])
 
 
 def track(body: Body, x0: FloatArray, targets: Callable[[float, FloatArray], Targets],

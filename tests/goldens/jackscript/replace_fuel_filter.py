@@ -11,7 +11,7 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-0.325, 0.0, 53.092), start=0.0, duration=0.54)
+    human.Walk((-0.327, 0.0, 53.102), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -55,196 +55,195 @@ def replace_fuel_filter():
         'left_knee': (21.7176,), 'left_ankle': (7.4656, 1.2322),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(0.6, (0.782, 90.674, 56.293), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.778, 90.664, 56.317), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'spine_lumbar': (4.792, -4.5964, 0.0), 'spine_thoracic': (0.8153, -0.812, 0.0),
-        'right_hip': (5.8978, 0.683, 0.0706), 'right_knee': (12.3629,),
-        'right_ankle': (6.4699, 0.6867), 'left_hip': (5.8771, -0.6831, -0.0703),
-        'left_knee': (12.3204,), 'left_ankle': (6.4449, -0.6867),
+        'spine_lumbar': (4.6522, -4.5948, 0.0), 'spine_thoracic': (0.7843, -0.8038, 0.0),
+        'right_hip': (5.9416, 0.6832, 0.0711), 'right_knee': (12.4877,),
+        'right_ankle': (6.5511, 0.6869), 'left_hip': (5.9214, -0.6832, -0.0709),
+        'left_knee': (12.4463,), 'left_ankle': (6.5266, -0.6869),
     })
-    human.KeyRoot(0.7, (4.748, 90.232, 62.274), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.7, (4.662, 90.217, 62.184), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'spine_lumbar': (12.2077, -11.9628, 0.0), 'spine_thoracic': (1.9625, -2.1306, 0.0),
-        'right_hip': (2.7245, 4.1061, 0.1955), 'right_knee': (13.096,),
-        'right_ankle': (10.3827, 4.1108), 'left_hip': (2.7138, -4.1062, -0.1946),
-        'left_knee': (13.0741,), 'left_ankle': (10.3696, -4.1108),
+        'spine_lumbar': (12.3488, -12.2681, 0.0), 'spine_thoracic': (1.9763, -2.1779, 0.0),
+        'right_hip': (2.9266, 4.0375, 0.2065), 'right_knee': (13.4087,),
+        'right_ankle': (10.4935, 4.0428), 'left_hip': (2.9167, -4.0376, -0.2057),
+        'left_knee': (13.3884,), 'left_ankle': (10.4812, -4.0428),
     })
-    human.KeyRoot(0.8, (7.496, 89.948, 65.014), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.8, (7.415, 89.982, 64.665), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'spine_lumbar': (9.618, -5.9481, 0.0), 'spine_thoracic': (1.6173, -1.0578, 0.0),
-        'right_hip': (3.4264, 8.497, 0.2336), 'right_knee': (27.9194,),
-        'right_ankle': (20.0, 6.9233), 'left_hip': (0.0548, -6.3144, -0.006),
-        'left_knee': (10.7107,), 'left_ankle': (10.6563, -6.3145),
+        'spine_lumbar': (10.5817, -6.3644, 0.0), 'spine_thoracic': (1.7659, -1.126, 0.0),
+        'right_hip': (3.8494, 8.3308, 0.2656), 'right_knee': (28.1848,),
+        'right_ankle': (20.0, 6.7784), 'left_hip': (0.3596, -6.2139, -0.0389),
+        'left_knee': (10.8707,), 'left_ankle': (10.5133, -6.2141),
     })
-    human.KeyRoot(0.9, (9.759, 90.262, 58.433), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.9, (9.609, 90.278, 58.41), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'spine_lumbar': (41.0387, -2.6273, 0.0), 'spine_thoracic': (5.6064, -0.43, 0.0),
-        'right_hip': (-10.8277, 7.4141, -0.1281), 'right_knee': (23.1097,),
-        'right_ankle': (20.0, 7.1581), 'left_hip': (4.0792, -6.9748, -0.4882),
-        'left_knee': (9.2487,), 'left_ankle': (5.1968, -6.9912),
+        'spine_lumbar': (41.0206, -3.0736, 0.0), 'spine_thoracic': (5.5999, -0.5008, 0.0),
+        'right_hip': (-10.8233, 7.2926, -0.125), 'right_knee': (23.1215,),
+        'right_ankle': (20.0, 7.035), 'left_hip': (4.101, -6.8706, -0.4836), 'left_knee': (9.3003,),
+        'left_ankle': (5.2258, -6.8869),
     })
-    human.KeyRoot(1.0, (9.154, 89.474, 63.925), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.0, (8.982, 89.507, 63.856), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'spine_lumbar': (20.8112, -0.8092, 0.0), 'spine_thoracic': (3.1537, -0.1306, 0.0),
-        'right_hip': (-13.2933, 4.7978, 9.1411), 'right_knee': (45.0063,),
-        'right_ankle': (-19.1083, 9.4329), 'left_hip': (3.4199, -7.3175, -0.4367),
-        'left_knee': (15.6593,), 'left_ankle': (12.2738, -7.3304),
+        'spine_lumbar': (20.9484, -1.3626, 0.0), 'spine_thoracic': (3.1704, -0.2251, 0.0),
+        'right_hip': (-13.2782, 4.7275, 8.9707), 'right_knee': (44.9884,),
+        'right_ankle': (-19.0465, 9.2739), 'left_hip': (3.4128, -7.191, -0.4283),
+        'left_knee': (15.5942,), 'left_ankle': (12.2147, -7.2036),
     })
-    human.KeyRoot(1.1, (8.878, 88.893, 63.925), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.1, (8.722, 89.011, 63.786), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'spine_lumbar': (17.6664, -0.8713, 0.0), 'spine_thoracic': (2.862, -0.1486, 0.0),
-        'right_hip': (-13.8148, 2.7151, 17.2937), 'right_knee': (38.1799,),
-        'right_ankle': (-48.6635, 10.5963), 'left_hip': (5.8988, -7.1577, -0.738),
-        'left_knee': (20.831,), 'left_ankle': (14.9831, -7.1956),
+        'spine_lumbar': (18.063, -1.3779, 0.0), 'spine_thoracic': (2.9157, -0.2363, 0.0),
+        'right_hip': (-13.8096, 2.6965, 16.8367), 'right_knee': (38.015,),
+        'right_ankle': (-48.6651, 9.8671), 'left_hip': (5.6521, -7.0287, -0.6942),
+        'left_knee': (20.1704,), 'left_ankle': (14.5657, -7.0629),
     })
-    human.KeyRoot(1.2, (7.459, 89.171, 60.056), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.2, (7.379, 89.487, 59.671), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (-20.1123, 8.0631, 0.0), 'spine_thoracic': (-4.0065, 1.4377, 0.0),
-        'right_hip': (-12.9762, 2.815, 11.7651), 'right_knee': (36.4779,),
-        'right_ankle': (-39.7548, 15.892), 'left_hip': (8.8906, -5.6612, -0.8842),
-        'left_knee': (21.9369,), 'left_ankle': (13.0928, -5.7296),
+        'spine_lumbar': (-18.8125, 7.6723, 0.0), 'spine_thoracic': (-3.7393, 1.3733, 0.0),
+        'right_hip': (-12.4376, 2.5568, 11.7671), 'right_knee': (36.5065,),
+        'right_ankle': (-40.989, 14.2999), 'left_hip': (8.086, -5.5504, -0.7874),
+        'left_knee': (19.7727,), 'left_ankle': (11.7277, -5.6058),
     })
-    human.KeyRoot(1.3, (5.492, 90.215, 45.886), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.3, (5.349, 90.27, 45.911), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (-28.9396, 11.2704, 0.0), 'spine_thoracic': (-8.5108, 1.885, 0.0),
-        'right_hip': (-9.4505, 2.0315, 2.3299), 'right_knee': (40.2286,),
-        'right_ankle': (-8.654, 2.8567), 'left_hip': (10.8532, -2.532, -0.4848),
-        'left_knee': (6.9778,), 'left_ankle': (-3.8661, -2.578),
+        'spine_lumbar': (-29.3945, 10.8715, 0.0), 'spine_thoracic': (-8.8596, 1.8131, 0.0),
+        'right_hip': (-7.5848, 1.8426, 2.5156), 'right_knee': (42.7997,),
+        'right_ankle': (-10.9433, 2.8704), 'left_hip': (10.2952, -2.4428, -0.4431),
+        'left_knee': (5.9161,), 'left_ankle': (-4.3723, -2.4827),
     })
-    human.KeyRoot(1.4, (6.403, 87.671, 37.091), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.4, (5.711, 89.741, 42.065), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (-1.6282, 10.5147, 0.0), 'spine_thoracic': (-0.4775, 1.8902, 0.0),
-        'right_hip': (5.2566, 1.2991, 2.5945), 'right_knee': (60.1233,),
-        'right_ankle': (-3.2698, 2.941), 'left_hip': (22.6577, -1.998, -0.8338),
-        'left_knee': (18.309,), 'left_ankle': (-4.3341, -2.165),
+        'spine_lumbar': (-15.4833, 11.1463, 0.0), 'spine_thoracic': (-3.2718, 1.9631, 0.0),
+        'right_hip': (0.1692, 1.4093, 2.9646), 'right_knee': (52.4723,),
+        'right_ankle': (-12.0061, 4.0239), 'left_hip': (12.3465, -2.2111, -0.4838),
+        'left_knee': (4.7004,), 'left_ankle': (-7.6366, -2.2634),
     })
-    human.KeyRoot(1.5, (5.282, 76.342, 37.941), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.5, (4.843, 79.182, 41.12), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (-2.4454, 10.1131, 0.0), 'spine_thoracic': (-0.5479, 1.827, 0.0),
-        'right_hip': (10.8483, 0.7917, 2.0016), 'right_knee': (82.4729,),
-        'right_ankle': (14.0589, 2.0791), 'left_hip': (45.8084, -1.2081, -1.2535),
-        'left_knee': (63.0088,), 'left_ankle': (16.9605, -1.7435),
+        'spine_lumbar': (-11.5398, 10.5117, 0.0), 'spine_thoracic': (-2.3269, 1.8858, 0.0),
+        'right_hip': (7.3452, 0.8426, 2.1666), 'right_knee': (75.812,),
+        'right_ankle': (7.1654, 2.6606), 'left_hip': (40.1884, -1.3599, -1.1589),
+        'left_knee': (57.5587,), 'left_ankle': (17.1279, -1.7872),
     })
-    human.KeyRoot(1.6, (5.359, 59.565, 29.937), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.6, (5.361, 59.074, 29.769), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'spine_lumbar': (27.4614, 8.9694, 0.0), 'spine_thoracic': (4.2217, 1.5749, 0.0),
-        'right_hip': (31.0948, -0.2453, 1.4366), 'right_knee': (119.7162,),
-        'right_ankle': (19.9521, 2.0429), 'left_hip': (71.1943, -0.2533, -0.7565),
-        'left_knee': (91.3485,), 'left_ankle': (19.8628, -0.7983),
+        'spine_lumbar': (27.8382, 8.8894, 0.0), 'spine_thoracic': (4.2661, 1.5593, 0.0),
+        'right_hip': (31.8727, -0.2699, 1.3513), 'right_knee': (120.7717,),
+        'right_ankle': (19.3681, 1.6263), 'left_hip': (71.8868, -0.237, -0.7376),
+        'left_knee': (92.0381,), 'left_ankle': (19.8545, -0.7761),
     })
-    human.KeyRoot(1.7, (3.317, 50.097, 37.326), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.7, (3.401, 49.61, 36.69), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'spine_lumbar': (8.6442, 9.5102, 0.0), 'spine_thoracic': (1.3665, 1.7132, 0.0),
-        'right_hip': (27.5746, -0.3846, 0.9012), 'right_knee': (130.4054,),
-        'right_ankle': (17.2787, 3.653), 'left_hip': (84.4888, 0.0098, -0.1012),
-        'left_knee': (116.8008,), 'left_ankle': (20.0, -0.1103),
+        'spine_lumbar': (10.5545, 9.4082, 0.0), 'spine_thoracic': (1.6623, 1.6914, 0.0),
+        'right_hip': (28.8931, -0.43, 0.92), 'right_knee': (131.6678,),
+        'right_ankle': (16.6087, 3.9043), 'left_hip': (85.1929, 0.0031, -0.0452),
+        'left_knee': (116.7663,), 'left_ankle': (20.0, -0.0546),
     })
-    human.KeyRoot(1.8, (2.042, 44.502, 41.766), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.8, (2.049, 44.509, 41.762), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'spine_lumbar': (-1.829, 9.5405, 0.0), 'spine_thoracic': (-0.4254, 1.7255, 0.0),
-        'right_hip': (25.6126, -0.5499, 0.81), 'right_knee': (135.0,),
-        'right_ankle': (10.8147, 6.5116), 'left_hip': (91.1311, -0.3085, 0.8738),
-        'left_knee': (129.4509,), 'left_ankle': (20.0, 0.9624),
+        'spine_lumbar': (-1.817, 9.5624, 0.0), 'spine_thoracic': (-0.4282, 1.7293, 0.0),
+        'right_hip': (25.6415, -0.5419, 0.7965), 'right_knee': (135.0,),
+        'right_ankle': (10.7674, 6.4006), 'left_hip': (91.1244, -0.3032, 0.8589),
+        'left_knee': (129.437,), 'left_ankle': (19.998, 0.9452),
     })
-    human.KeyRoot(1.9, (1.912, 44.019, 42.531), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.9, (1.914, 44.02, 42.532), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'spine_lumbar': (-3.63, 14.7254, 0.0), 'spine_thoracic': (-0.8603, 2.65, 0.0),
-        'right_hip': (25.0113, -0.5037, 0.7162), 'right_ankle': (9.9019, 6.0123),
-        'left_hip': (91.5805, -0.3352, 0.8792), 'left_knee': (130.8721,),
-        'left_ankle': (19.9999, 0.9816),
+        'spine_lumbar': (-3.6303, 14.7328, 0.0), 'spine_thoracic': (-0.8606, 2.6513, 0.0),
+        'right_hip': (25.0109, -0.501, 0.7124), 'right_ankle': (9.9031, 5.9795),
+        'left_hip': (91.5803, -0.3333, 0.8743), 'left_knee': (130.8722,),
+        'left_ankle': (20.0, 0.9761),
     })
-    human.KeyRoot(2.0, (1.06, 43.97, 42.306), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.0, (1.061, 43.97, 42.307), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'spine_lumbar': (-2.3402, 20.0, 0.0), 'spine_thoracic': (-2.8699, 10.0, 0.0),
-        'right_hip': (25.1195, -1.6731, 2.2935), 'right_ankle': (8.9278, 19.7516),
-        'left_hip': (92.2091, -1.2099, 2.9353), 'left_knee': (131.042,),
-        'left_ankle': (18.6628, 3.1222),
+        'spine_lumbar': (-2.3493, 20.0, 0.0), 'spine_thoracic': (-2.8694, 10.0, 0.0),
+        'right_hip': (25.1192, -1.6708, 2.2906), 'right_ankle': (8.9306, 19.7253),
+        'left_hip': (92.514, -1.2694, 2.9656), 'left_knee': (131.137,),
+        'left_ankle': (17.9908, 3.174),
     })
-    human.KeyRoot(2.1, (0.161, 43.869, 42.012), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.1, (0.158, 43.869, 42.011), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (-0.3222, 20.0, 0.0), 'spine_thoracic': (-5.9817, 10.0, 0.0),
-        'right_hip': (25.3291, -2.9211, 3.723), 'right_ankle': (6.8807, 33.8632),
-        'left_hip': (99.7299, -19.6062, 3.7386), 'left_knee': (134.7319,),
-        'left_ankle': (14.5972, 10.658),
+        'spine_lumbar': (-0.3354, 20.0, 0.0), 'spine_thoracic': (-5.9086, 10.0, 0.0),
+        'right_hip': (25.3299, -2.9249, 3.727), 'right_ankle': (6.8732, 33.9055),
+        'left_hip': (100.1483, -19.7166, 4.0827), 'left_knee': (134.7533,),
+        'left_ankle': (13.4794, 11.1926),
     })
-    human.KeyRoot(2.2, (0.216, 43.876, 42.031), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.2, (0.217, 43.877, 42.032), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (-0.7068, 20.0, 0.0), 'spine_thoracic': (-3.0075, 10.0, 0.0),
-        'right_hip': (25.3144, -2.8451, 3.6478), 'right_ankle': (7.0323, 33.0323),
-        'left_hip': (104.3102, -24.9992, 16.9257), 'left_knee': (135.0,),
-        'left_ankle': (-0.6378, 35.0),
+        'spine_lumbar': (-0.7902, 20.0, 0.0), 'spine_thoracic': (-2.3007, 10.0, 0.0),
+        'right_hip': (25.3139, -2.8428, 3.6459), 'right_ankle': (7.0373, 33.0082),
+        'left_hip': (105.5198, -25.0, 17.4913), 'left_knee': (135.0,),
+        'left_ankle': (-5.3156, 35.0),
     })
     human.KeyRoot(2.3, (0.065, 43.858, 41.982), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.5359, 20.0, 0.0), 'spine_thoracic': (-7.6656, 10.0, 0.0),
+        'spine_lumbar': (0.4577, 20.0, 0.0), 'spine_thoracic': (-7.6549, 10.0, 0.0),
         'right_hip': (25.3513, -3.0495, 3.8167), 'right_ankle': (6.6644, 35.0),
-        'left_hip': (84.4345, 4.7551, 38.8632), 'left_knee': (134.2094,),
-        'left_ankle': (-44.9418, 25.1636),
+        'left_hip': (85.3965, 4.7348, 38.8762), 'left_knee': (134.1896,),
+        'left_ankle': (-44.9541, 25.1738),
     })
     human.KeyRoot(2.4, (0.066, 43.857, 41.983), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'spine_lumbar': (4.3009, 19.9999, 0.0), 'spine_thoracic': (-8.5172, 10.0, 0.0),
+        'spine_lumbar': (4.2047, 19.9999, 0.0), 'spine_thoracic': (-8.5294, 10.0, 0.0),
         'right_hip': (25.3512, -3.0492, 3.8171), 'right_knee': (134.999,),
-        'right_ankle': (6.6642, 35.0), 'left_hip': (56.3119, -7.4554, 29.3532),
-        'left_knee': (135.0,), 'left_ankle': (-46.4676, 11.3101),
+        'right_ankle': (6.6642, 35.0), 'left_hip': (56.8141, -7.4398, 29.382),
+        'left_knee': (135.0,), 'left_ankle': (-46.483, 11.3268),
     })
-    human.KeyRoot(2.5, (-0.21, 45.268, 45.273), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.5, (-0.204, 45.249, 45.223), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'spine_lumbar': (-1.321, 20.0, 0.0), 'spine_thoracic': (-5.9908, 10.0, 0.0),
-        'right_hip': (20.5845, -2.6197, 3.971), 'right_knee': (130.2458,),
-        'right_ankle': (6.845, 34.0597), 'left_hip': (35.343, -20.5894, -2.0557),
-        'left_knee': (131.7644,), 'left_ankle': (-31.152, 2.2735),
+        'spine_lumbar': (-1.182, 20.0, 0.0), 'spine_thoracic': (-5.9666, 10.0, 0.0),
+        'right_hip': (20.6558, -2.6244, 3.9675), 'right_knee': (130.3173,),
+        'right_ankle': (6.8455, 34.0569), 'left_hip': (35.4523, -20.5547, -2.0454),
+        'left_knee': (131.8163,), 'left_ankle': (-31.2751, 2.3126),
     })
-    human.KeyRoot(2.6, (-0.239, 45.119, 44.885), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.6, (-0.238, 45.117, 44.878), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.6, {
-        'spine_lumbar': (3.7272, 20.0, 0.0), 'spine_thoracic': (-11.3108, 10.0, 0.0),
-        'right_hip': (21.1239, -2.7475, 4.0337), 'right_knee': (130.7686,),
-        'right_ankle': (6.6687, 35.0), 'left_hip': (25.1339, 1.8064, -1.6661),
-        'left_knee': (135.0,), 'left_ankle': (3.8298, -24.955),
+        'spine_lumbar': (3.7467, 20.0, 0.0), 'spine_thoracic': (-11.3074, 10.0, 0.0),
+        'right_hip': (21.1339, -2.7482, 4.0332), 'right_knee': (130.7786,),
+        'right_ankle': (6.6687, 35.0), 'left_hip': (25.1511, 1.8083, -1.667), 'left_knee': (135.0,),
+        'left_ankle': (3.8172, -24.9549),
     })
-    human.KeyRoot(2.7, (0.834, 44.243, 42.878), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.7, (0.838, 44.236, 42.862), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'spine_lumbar': (9.64, 19.9999, 0.0), 'spine_thoracic': (-4.7357, 10.0, 0.0),
-        'right_hip': (24.2374, -1.8307, 2.571), 'right_knee': (134.0893,),
-        'right_ankle': (8.6672, 22.0362), 'left_hip': (24.2374, 1.8307, -2.571),
-        'left_knee': (134.0893,), 'left_ankle': (8.6672, -22.0362),
+        'spine_lumbar': (9.69, 19.9999, 0.0), 'spine_thoracic': (-4.7289, 10.0, 0.0),
+        'right_hip': (24.262, -1.83, 2.5677), 'right_knee': (134.1141,),
+        'right_ankle': (8.6699, 22.0138), 'left_hip': (24.262, 1.83, -2.5677),
+        'left_knee': (134.1141,), 'left_ankle': (8.6699, -22.0138),
     })
-    human.KeyRoot(2.8, (1.295, 44.84, 44.331), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.8, (1.31, 44.805, 44.249), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (5.9666, 20.0, 0.0), 'spine_thoracic': (-0.9924, 10.0, 0.0),
-        'right_hip': (22.2792, -0.8767, 1.3694), 'right_knee': (132.2395,),
-        'right_ankle': (9.6554, 11.2006), 'left_hip': (22.2792, 0.8767, -1.3694),
-        'left_knee': (132.2395,), 'left_ankle': (9.6554, -11.2006),
+        'spine_lumbar': (6.2124, 20.0, 0.0), 'spine_thoracic': (-0.9496, 10.0, 0.0),
+        'right_hip': (22.3997, -0.8775, 1.3645), 'right_ankle': (9.6569, 11.175),
+        'left_hip': (22.3997, 0.8775, -1.3645), 'left_ankle': (9.6569, -11.175),
     })
-    human.KeyRoot(2.9, (1.54, 45.329, 45.632), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.9, (1.552, 45.303, 45.565), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.9, {
-        'spine_lumbar': (3.6873, 10.8785, 0.0), 'spine_thoracic': (0.4969, 2.1185, 0.0),
-        'right_hip': (20.5108, -0.2434, 0.412), 'right_knee': (130.5074,),
-        'right_ankle': (9.9722, 3.2823), 'left_hip': (20.5108, 0.2434, -0.412),
-        'left_knee': (130.5074,), 'left_ankle': (9.9722, -3.2823),
+        'spine_lumbar': (3.8779, 10.8801, 0.0), 'spine_thoracic': (0.5307, 2.1187, 0.0),
+        'right_hip': (20.6086, -0.2428, 0.4096), 'right_knee': (130.6051,),
+        'right_ankle': (9.9725, 3.2661), 'left_hip': (20.6086, 0.2428, -0.4096),
+        'left_knee': (130.6051,), 'left_ankle': (9.9725, -3.2661),
     })
-    human.KeyRoot(3.0, (1.514, 45.67, 46.587), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(3.0, (1.534, 45.633, 46.483), (-10.4375, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'spine_lumbar': (2.3445, 1.0377, 0.0), 'spine_thoracic': (0.4126, 0.1904, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (19.1765, -0.0467, 0.0836),
-        'right_knee': (129.1763,), 'right_ankle': (10.0008, 0.6564),
-        'left_hip': (19.1765, 0.0467, -0.0836), 'left_knee': (129.1763,),
-        'left_ankle': (10.0008, -0.6564),
+        'spine_lumbar': (2.6322, 1.0386, 0.0), 'spine_thoracic': (0.4637, 0.1906, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (19.3258, -0.0464, 0.0825),
+        'right_knee': (129.3257,), 'right_ankle': (10.0008, 0.6487),
+        'left_hip': (19.3258, 0.0464, -0.0825), 'left_knee': (129.3257,),
+        'left_ankle': (10.0008, -0.6487),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.0384, duration=0.2628)
-    human.KeyRoot(3.1, (1.491, 45.754, 46.831), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(3.1, (1.51, 45.717, 46.727), (-10.4375, 0.0, 0.0))
     human.KeyJoints(3.1, {
-        'spine_lumbar': (1.8216, -0.0415, 0.0), 'spine_thoracic': (0.3262, -0.0072, 0.0),
-        'neck': (4.8675, -4.6937, 3.2783), 'head': (2.0861, 1.5172),
-        'right_hip': (18.8317, -0.0186, 0.0338), 'right_knee': (128.8285,),
-        'right_ankle': (10.0009, 0.2642), 'left_hip': (18.8317, 0.0186, -0.0338),
-        'left_knee': (128.8285,), 'left_ankle': (10.0009, -0.2642),
+        'spine_lumbar': (2.1112, -0.0408, 0.0), 'spine_thoracic': (0.3778, -0.0071, 0.0),
+        'neck': (4.8675, -4.6937, 3.257), 'head': (2.0861, 1.5168),
+        'right_hip': (18.9817, -0.0183, 0.0329), 'right_knee': (128.9784,),
+        'right_ankle': (10.0009, 0.2583), 'left_hip': (18.9817, 0.0183, -0.0329),
+        'left_knee': (128.9784,), 'left_ankle': (10.0009, -0.2583),
     })
-    human.KeyJoints(3.2, {'neck': (23.4269, -22.5902, 15.7783), 'head': (10.0401, 7.3023)})
+    human.KeyJoints(3.2, {'neck': (23.4269, -22.5902, 15.6755), 'head': (10.0401, 7.3)})
     human.KeyJoints(3.3, {
-        'spine_lumbar': (1.8216, -0.0415, 0.0), 'spine_thoracic': (0.3262, -0.0072, 0.0),
-        'neck': (34.9978, -33.7479, 23.5715), 'head': (14.9991, 10.909),
+        'spine_lumbar': (2.1112, -0.0408, 0.0), 'spine_thoracic': (0.3778, -0.0071, 0.0),
+        'neck': (34.9978, -33.7479, 23.4179), 'head': (14.9991, 10.9056),
         'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
         'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0),
     })
@@ -252,665 +251,665 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.3012, duration=0.873042)
     human.KeyJoints(3.4, {
-        'spine_lumbar': (4.2779, 0.6835, 0.751), 'spine_thoracic': (0.1351, 0.5061, 1.1111),
-        'neck': (35.0, -33.75, 21.3717), 'right_clavicle': (-0.3642, 0.8156),
-        'right_shoulder': (9.8419, 6.7651, 11.112), 'right_elbow': (33.7649, 17.1905),
-        'right_wrist': (-0.1096, -0.1698),
+        'spine_lumbar': (4.5542, 0.6791, 0.7536), 'spine_thoracic': (0.1815, 0.5076, 1.1073),
+        'neck': (35.0, -33.75, 21.2269), 'right_clavicle': (-0.3631, 0.8156),
+        'right_shoulder': (9.8445, 6.7604, 11.1119), 'right_elbow': (33.7706, 17.1905),
+        'right_wrist': (-0.1097, -0.1688),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (10.7185, 2.6108, 2.734), 'spine_thoracic': (-0.3988, 1.8585, 4.0808),
-        'neck': (35.0, -33.75, 16.355), 'head': (15.0, 10.7948), 'right_clavicle': (-1.3486, 2.954),
-        'right_shoulder': (13.153, 9.4802, 10.2017), 'right_elbow': (32.1588, 17.1954),
-        'right_wrist': (-0.3971, -0.6152),
+        'spine_lumbar': (10.9599, 2.5927, 2.7427), 'spine_thoracic': (-0.3666, 1.8633, 4.0668),
+        'neck': (35.0, -33.75, 16.2306), 'head': (15.0, 10.7984),
+        'right_clavicle': (-1.3446, 2.954), 'right_shoulder': (13.1627, 9.4633, 10.2015),
+        'right_elbow': (32.1795, 17.1952), 'right_wrist': (-0.3972, -0.6113),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (19.5525, 5.3107, 5.4835), 'spine_thoracic': (-1.2016, 3.7278, 8.275),
-        'neck': (35.0, -33.75, 10.197), 'head': (15.0, 10.3944),
-        'right_clavicle': (-2.7622, 5.8871), 'right_shoulder': (17.7808, 13.2044, 8.9531),
-        'right_elbow': (29.9559, 17.2022),
+        'spine_lumbar': (19.7459, 5.2737, 5.4996), 'spine_thoracic': (-1.1896, 3.7365, 8.2469),
+        'neck': (35.0, -33.75, 10.0979), 'head': (15.0, 10.4121),
+        'right_clavicle': (-2.7538, 5.8871), 'right_shoulder': (17.8002, 13.1707, 8.9527),
+        'right_elbow': (29.9972, 17.2018),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (29.1888, 8.3532, 8.5341), 'spine_thoracic': (-2.1992, 5.7914, 13.0596),
-        'neck': (35.0, -33.75, 3.6068), 'head': (15.0, 10.8033),
-        'right_clavicle': (-4.4137, 9.0866), 'right_shoulder': (22.9779, 17.2667, 7.5912),
-        'right_elbow': (27.5529, 17.21),
+        'spine_lumbar': (29.3299, 8.2954, 8.5562), 'spine_thoracic': (-2.2107, 5.8032, 13.0158),
+        'neck': (35.0, -33.75, 3.5377), 'head': (15.0, 10.8164),
+        'right_clavicle': (-4.3999, 9.0866), 'right_shoulder': (23.0085, 17.2148, 7.5905),
+        'right_elbow': (27.6166, 17.2094),
     })
     human.KeyJoints(3.8, {
-        'spine_lumbar': (38.036, 11.3087, 11.4203), 'spine_thoracic': (-3.3175, 7.727, 17.8004),
-        'neck': (35.0, 30.0422, -15.4379), 'head': (15.0, -11.25),
-        'right_clavicle': (-6.112, 12.0241), 'right_shoulder': (27.9972, 20.9964, 6.3408),
-        'right_elbow': (25.3466, 17.2177), 'right_wrist': (-1.6164, -2.5041),
+        'spine_lumbar': (38.1291, 11.2315, 11.4445), 'spine_thoracic': (-3.353, 7.7398, 17.7416),
+        'neck': (35.0, 29.6974, -15.3333), 'head': (15.0, -11.25),
+        'right_clavicle': (-6.0923, 12.0241), 'right_shoulder': (28.0387, 20.9277, 6.3398),
+        'right_elbow': (25.4309, 17.2169), 'right_wrist': (-1.6166, -2.4884),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (44.5032, 13.7471, 13.6766), 'spine_thoracic': (-4.4827, 9.2119, 21.8632),
-        'neck': (35.0, 21.834, -17.849), 'right_clavicle': (-7.6659, 14.1713),
-        'right_shoulder': (32.0914, 23.7228, 5.4267), 'right_elbow': (23.7339, 17.2243),
-        'right_wrist': (-1.9051, -2.9512),
+        'spine_lumbar': (44.5611, 13.6551, 13.6965), 'spine_thoracic': (-4.5399, 9.2225, 21.7925),
+        'neck': (35.0, 21.587, -17.7657), 'right_clavicle': (-7.6403, 14.1713),
+        'right_shoulder': (32.142, 23.6418, 5.4256), 'right_elbow': (23.8333, 17.2234),
+        'right_wrist': (-1.9053, -2.9328),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.0, {
-        'spine_lumbar': (46.9988, 15.2387, 14.8374), 'spine_thoracic': (-5.6205, 9.924, 24.6138),
-        'neck': (35.0, 21.3395, -20.0917), 'right_clavicle': (-8.8842, 15.0),
-        'right_shoulder': (34.5133, 24.7748, 5.074), 'right_elbow': (23.1116, 17.2286),
-        'right_wrist': (-2.0165, -3.1238),
+        'spine_lumbar': (47.0433, 15.14, 14.8442), 'spine_thoracic': (-5.6944, 9.9274, 24.5365),
+        'neck': (35.0, 21.1734, -20.0045), 'right_clavicle': (-8.8532, 15.0),
+        'right_shoulder': (34.5698, 24.6891, 5.0729), 'right_elbow': (23.2168, 17.2277),
+        'right_wrist': (-2.0167, -3.1043),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (41.8222, 17.3282, 13.4845), 'spine_thoracic': (-5.8276, 9.1033, 24.062),
-        'neck': (35.0, 28.1581, -20.978), 'right_clavicle': (-9.3306, 13.34),
-        'right_shoulder': (32.9288, 21.4099, 5.8244), 'right_elbow': (23.8467, 17.2199),
+        'spine_lumbar': (41.9094, 17.2163, 13.4948), 'spine_thoracic': (-5.912, 9.113, 23.9978),
+        'neck': (35.0, 28.0424, -20.8935), 'right_clavicle': (-9.3326, 13.3541),
+        'right_shoulder': (33.0072, 21.3696, 5.8167), 'right_elbow': (23.961, 17.2194),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.174242, duration=0.2628)
     human.KeyJoints(4.2, {
-        'spine_lumbar': (38.6946, 18.5722, 13.0229), 'spine_thoracic': (-5.7056, 8.8162, 23.6139),
-        'neck': (35.0, 31.3661, -21.8625), 'right_clavicle': (-9.8334, 12.8396),
-        'right_shoulder': (31.6189, 19.1726, 6.3402), 'right_elbow': (24.2382, 17.2119),
-        'right_wrist': (-1.4492, -2.7583),
+        'spine_lumbar': (38.7449, 18.475, 13.0214), 'spine_thoracic': (-5.7787, 8.8195, 23.5371),
+        'neck': (35.0, 31.2682, -21.7619), 'right_clavicle': (-9.8304, 12.8393),
+        'right_shoulder': (31.6777, 19.1034, 6.3418), 'right_elbow': (24.3489, 17.2113),
+        'right_wrist': (-1.4514, -2.7371),
     })
-    human.KeyJoints(4.4, {'right_elbow': (24.2382, 17.2119)})
+    human.KeyJoints(4.4, {'right_elbow': (24.3489, 17.2113)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(4.5, {'right_elbow': (24.2382, 8.3695)})
-    human.KeyJoints(4.6, {'right_elbow': (24.2382, -28.7054)})
-    human.KeyJoints(4.7, {'right_elbow': (24.2382, -67.6596)})
+    human.KeyJoints(4.5, {'right_elbow': (24.3489, 8.3691)})
+    human.KeyJoints(4.6, {'right_elbow': (24.3489, -28.7057)})
+    human.KeyJoints(4.7, {'right_elbow': (24.3489, -67.6596)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=4.775442, duration=0.072)
-    human.KeyJoints(4.8, {'right_elbow': (24.2382, -80.0)})
+    human.KeyJoints(4.8, {'right_elbow': (24.3489, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.847442, duration=0.2628)
-    human.KeyJoints(5.1, {'right_elbow': (24.2382, -80.0)})
+    human.KeyJoints(5.1, {'right_elbow': (24.3489, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {'right_elbow': (24.2382, -52.2019)})
-    human.KeyJoints(5.3, {'right_elbow': (24.2382, 14.5082)})
-    human.KeyJoints(5.4, {'right_elbow': (24.2382, 71.0327)})
+    human.KeyJoints(5.2, {'right_elbow': (24.3489, -52.2019)})
+    human.KeyJoints(5.3, {'right_elbow': (24.3489, 14.5082)})
+    human.KeyJoints(5.4, {'right_elbow': (24.3489, 71.0327)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.448642, duration=0.072)
     human.KeyJoints(5.5, {
-        'spine_lumbar': (38.6946, 18.5722, 13.0229), 'spine_thoracic': (-5.7056, 8.8162, 23.6139),
-        'neck': (35.0, 31.3661, -21.8625), 'right_shoulder': (31.6189, 19.1726, 6.3402),
-        'right_elbow': (24.2382, 80.0), 'right_wrist': (-1.4492, -2.7583),
+        'spine_lumbar': (38.7449, 18.475, 13.0214), 'spine_thoracic': (-5.7787, 8.8195, 23.5371),
+        'neck': (35.0, 31.2682, -21.7619), 'right_shoulder': (31.6777, 19.1034, 6.3418),
+        'right_elbow': (24.3489, 80.0), 'right_wrist': (-1.4514, -2.7371),
         'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
     })
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=5.520642, duration=0.072)
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TA on l_arm at filter_bowl
-    # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: gaze on head at drain_tray
-    human.LookAt((-35.0, 5.0, 80.0), start=5.520642, duration=1.546047)
+    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
+    human.LookAt((-35.0, 5.0, 80.0), start=5.520642, duration=1.618047)
     human.KeyJoints(5.6, {
-        'spine_lumbar': (39.538, 18.0509, 12.4614), 'spine_thoracic': (-5.9887, 8.6641, 23.1288),
-        'neck': (35.0, 31.9601, -20.5804), 'head': (15.0, -11.25),
-        'right_shoulder': (32.5441, 18.1152, 6.6967), 'right_elbow': (23.2439, 79.9956),
-        'right_wrist': (-1.3897, -2.6452), 'left_clavicle': (-0.3958, 0.531),
-        'left_shoulder': (9.5332, 5.7744, 11.3357), 'left_elbow': (34.3985, 17.187),
-        'left_wrist': (-0.0352, -0.006),
+        'spine_lumbar': (39.5869, 17.962, 12.4611), 'spine_thoracic': (-6.0607, 8.6685, 23.0533),
+        'neck': (35.0, 32.1075, -20.6519), 'head': (15.0, -11.25),
+        'right_shoulder': (32.6033, 18.0467, 6.6968), 'right_elbow': (23.3501, 79.9958),
+        'right_wrist': (-1.3915, -2.6253), 'left_clavicle': (-0.396, 0.5306),
+        'left_shoulder': (9.5347, 5.7752, 11.3356), 'left_elbow': (34.3993, 17.187),
+        'left_wrist': (-0.0354, -0.0056),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (42.5224, 16.2068, 10.4744), 'spine_thoracic': (-7.0175, 8.126, 21.4125),
-        'neck': (35.0, 33.7442, -17.1485), 'head': (15.0, -11.1807),
-        'right_shoulder': (35.8176, 14.3741, 7.958), 'right_elbow': (19.7259, 79.98),
-        'right_wrist': (-1.1791, -2.2449), 'left_clavicle': (-1.7962, 2.41),
-        'left_shoulder': (12.899, 5.9414, 10.8928),
+        'spine_lumbar': (42.5661, 16.1471, 10.4787), 'spine_thoracic': (-7.0847, 8.1341, 21.3415),
+        'neck': (35.0, 33.7409, -17.0597), 'head': (15.0, -11.1834),
+        'right_shoulder': (35.8784, 14.3075, 7.9529), 'right_elbow': (19.816, 79.9809),
+        'right_wrist': (-1.1795, -2.2298), 'left_clavicle': (-1.7972, 2.408),
+        'left_shoulder': (12.906, 5.9456, 10.8921),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (46.8146, 13.5545, 7.6167), 'spine_thoracic': (-8.5622, 7.352, 18.9441),
-        'neck': (35.0, 33.75, -11.9007), 'head': (15.0, -10.9798),
-        'right_shoulder': (40.5256, 8.9935, 9.7721), 'right_elbow': (14.6662, 79.9576),
-        'left_clavicle': (-3.8104, 5.1123), 'left_shoulder': (17.8465, 6.2026, 10.2405),
-        'left_elbow': (34.6555, 17.1725), 'left_wrist': (-0.3646, -0.0574),
+        'spine_lumbar': (46.8508, 13.5368, 7.6275), 'spine_thoracic': (-8.6214, 7.3656, 18.8796),
+        'neck': (35.0, 33.75, -11.8258), 'head': (15.0, -10.983),
+        'right_shoulder': (40.5887, 8.9298, 9.7595), 'right_elbow': (14.7332, 79.9595),
+        'left_clavicle': (-3.8125, 5.1081), 'left_shoulder': (17.8616, 6.212, 10.2388),
+        'left_elbow': (34.665, 17.1724), 'left_wrist': (-0.3664, -0.0537),
     })
     human.KeyJoints(5.9, {
-        'spine_lumbar': (51.5181, 10.648, 4.4852), 'spine_thoracic': (-10.3723, 6.5039, 16.2391),
-        'neck': (35.0, 33.75, -7.5597), 'head': (15.0, -11.25),
-        'right_shoulder': (45.6847, 3.0974, 11.7601), 'right_elbow': (9.1217, 79.933),
-        'left_clavicle': (-6.0175, 8.0735), 'left_shoulder': (23.4602, 6.5262, 9.4985),
+        'spine_lumbar': (51.5461, 10.6764, 4.503), 'spine_thoracic': (-10.4207, 6.5234, 16.1818),
+        'neck': (35.0, 33.75, -7.4704), 'head': (15.0, -11.25),
+        'right_shoulder': (45.7504, 3.0368, 11.7393), 'right_elbow': (9.1634, 79.936),
+        'left_clavicle': (-6.0209, 8.067), 'left_shoulder': (23.4847, 6.5425, 9.4951),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (55.7363, 8.0414, 1.6768), 'spine_thoracic': (-12.197, 5.7433, 13.8132),
-        'neck': (35.0, 17.6784, 0.955), 'head': (15.0, -5.8928),
-        'right_shoulder': (50.3116, -2.1904, 13.5429), 'right_elbow': (4.1492, 79.911),
-        'right_wrist': (-0.2469, -0.4727), 'left_clavicle': (-7.9969, 10.7293),
-        'left_shoulder': (28.8245, 6.8809, 8.7861), 'left_elbow': (35.2471, 17.1547),
+        'spine_lumbar': (55.757, 8.1111, 1.701), 'spine_thoracic': (-12.2323, 5.7681, 13.7623),
+        'neck': (35.0, 17.6784, 1.0457), 'head': (15.0, -5.8928),
+        'right_shoulder': (50.3795, -2.2482, 13.5147), 'right_elbow': (4.1682, 79.9149),
+        'right_wrist': (-0.2409, -0.4749), 'left_clavicle': (-8.0014, 10.7205),
+        'left_shoulder': (28.8586, 6.905, 8.7804), 'left_elbow': (35.2727, 17.1544),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (58.5727, 6.2886, -0.2117), 'spine_thoracic': (-13.7859, 5.2318, 12.182),
-        'neck': (35.0, -33.5379, 11.1534), 'head': (15.0, 11.2198),
-        'right_shoulder': (53.4228, -5.7461, 14.7417), 'right_elbow': (0.8056, 79.8961),
-        'right_wrist': (-0.0468, -0.0921), 'left_clavicle': (-9.3279, 12.515),
-        'left_shoulder': (33.024, 7.2352, 8.2229), 'left_elbow': (35.685, 17.149),
-        'left_wrist': (-1.1049, -0.1405),
+        'spine_lumbar': (58.5884, 6.3861, -0.1832), 'spine_thoracic': (-13.806, 5.2603, 12.1354),
+        'neck': (35.0, -33.3532, 11.1606), 'head': (15.0, 11.2254),
+        'right_shoulder': (53.4922, -5.8019, 14.7086), 'right_elbow': (0.8093, 79.9008),
+        'right_wrist': (-0.0394, -0.0956), 'left_clavicle': (-9.3331, 12.5049),
+        'left_shoulder': (33.0664, 7.2676, 8.2139), 'left_elbow': (35.7208, 17.1486),
+        'left_wrist': (-1.1106, -0.1314),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(6.2, {
-        'spine_lumbar': (58.0626, 6.064, -0.0203), 'spine_thoracic': (-14.9369, 5.6108, 12.3793),
-        'neck': (35.0, -33.6243, 11.2084), 'head': (15.0, 11.0964),
-        'right_shoulder': (53.0636, -4.9371, 15.0306), 'right_elbow': (0.0, 79.8926),
-        'right_wrist': (0.0012, -0.0002), 'left_clavicle': (-9.2084, 12.4692),
-        'left_shoulder': (35.2359, 7.5903, 7.916), 'left_wrist': (-1.3215, -0.0638),
+        'spine_lumbar': (58.0765, 6.1677, 0.0113), 'spine_thoracic': (-14.9389, 5.6406, 12.3361),
+        'neck': (35.0, -33.5189, 11.2024), 'head': (15.0, 11.1022),
+        'right_shoulder': (53.138, -4.9846, 14.9963), 'right_elbow': (0.0, 79.8974),
+        'right_wrist': (0.0058, -0.0009), 'left_clavicle': (-9.2126, 12.4565),
+        'left_shoulder': (35.2838, 7.6322, 7.9028), 'left_wrist': (-1.3286, -0.0545),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (52.6822, 7.8164, 0.8518), 'spine_thoracic': (-13.9248, 5.6767, 13.173),
-        'neck': (35.0, 33.75, -2.9981), 'head': (15.0, -11.1617),
-        'right_shoulder': (48.9818, -1.5256, 15.0301), 'right_elbow': (1.0525, 79.8921),
-        'right_wrist': (-1.6173, 1.487), 'left_clavicle': (-9.2388, 11.5201),
-        'left_shoulder': (32.2168, 4.5291, 9.1493), 'left_elbow': (37.2957, 17.1573),
-        'left_wrist': (-0.9385, 0.2645),
+        'spine_lumbar': (52.6746, 7.9318, 0.8837), 'spine_thoracic': (-13.9221, 5.7042, 13.1301),
+        'neck': (35.0, 33.608, -2.8731), 'head': (15.0, -11.1483),
+        'right_shoulder': (49.0857, -1.5671, 14.996), 'right_elbow': (0.9805, 79.897),
+        'right_wrist': (-1.4719, 1.4027), 'left_clavicle': (-9.249, 11.5058),
+        'left_shoulder': (32.2501, 4.554, 9.1445), 'left_elbow': (37.3447, 17.1571),
+        'left_wrist': (-0.9436, 0.2761),
     })
-    # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: TA on r_arm at drain_tray
+    # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
+    human.Grasp('left_hand', 'open', start=6.333722, duration=0.072)
     human.KeyJoints(6.4, {
-        'spine_lumbar': (50.6193, 8.428, 1.277), 'spine_thoracic': (-13.3658, 5.6823, 13.5512),
-        'neck': (35.0, 33.6659, -4.5614), 'head': (14.9422, -10.7775),
-        'right_shoulder': (46.4711, 9.1805, 22.5492), 'right_elbow': (10.3622, 60.0522),
-        'right_wrist': (6.023, -5.2127), 'left_clavicle': (-9.1908, 11.04),
-        'left_shoulder': (30.7451, 3.3771, 9.6409), 'left_elbow': (37.5014, 17.1597),
-        'left_wrist': (-0.781, 0.3684),
+        'spine_lumbar': (50.6437, 8.5294, 1.3127), 'spine_thoracic': (-13.3716, 5.7139, 13.5117),
+        'neck': (35.0, 33.75, -4.1292), 'head': (15.0, -10.7852),
+        'right_clavicle': (-9.8304, 12.8393), 'right_shoulder': (48.5312, -0.4342, 14.9964),
+        'right_elbow': (0.0, 79.8975), 'right_wrist': (0.7366, -0.6992),
+        'left_clavicle': (-9.1953, 11.0236), 'left_shoulder': (30.8024, 3.4351, 9.6236),
+        'left_elbow': (37.5464, 17.1595), 'left_wrist': (-0.7906, 0.3777),
     })
+    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.5, {
-        'neck': (35.0, 31.7079, -13.3578), 'head': (13.5946, -10.7781),
-        'right_shoulder': (43.7365, 33.9395, 48.0265), 'right_elbow': (45.4747, -7.1777),
-        'right_wrist': (25.2185, -19.6962),
+        'spine_lumbar': (51.43, 9.4933, 1.3444), 'spine_thoracic': (-12.8913, 6.0741, 12.8787),
+        'neck': (34.493, 32.7074, -8.0576), 'head': (13.4848, -10.5151),
+        'right_clavicle': (-9.8135, 12.0598), 'right_shoulder': (48.9962, 1.2907, 14.8664),
+        'right_elbow': (2.698, 78.4066), 'right_wrist': (-5.2075, -0.332),
+        'left_shoulder': (31.1202, 4.1203, 9.348), 'left_wrist': (-0.8862, 0.3589),
     })
     human.KeyJoints(6.6, {
-        'neck': (35.0, 28.6594, -27.0532), 'head': (11.4966, -10.7791),
-        'right_shoulder': (42.5526, 47.6041, 62.9065), 'right_elbow': (65.9821, -46.4432),
-        'right_wrist': (44.6578, -28.6235),
+        'spine_lumbar': (53.5047, 12.0369, 1.4648), 'spine_thoracic': (-11.4437, 7.0245, 11.2083),
+        'neck': (33.102, 30.0615, -17.3543), 'head': (9.7841, -9.8229),
+        'right_clavicle': (-9.7692, 10.0026), 'right_shoulder': (50.2234, 5.9616, 14.4932),
+        'right_elbow': (9.8176, 74.4299), 'right_wrist': (-20.8932, 0.6368),
+        'left_shoulder': (32.1343, 5.9284, 8.6207),
     })
     human.KeyJoints(6.7, {
-        'neck': (35.0, 26.5381, -36.5829), 'head': (10.0368, -10.7797),
-        'right_shoulder': (46.1757, 43.2896, 47.3415), 'right_elbow': (44.1428, -4.5949),
-        'right_wrist': (61.8794, -29.4535),
+        'spine_lumbar': (56.1118, 15.2332, 1.7025), 'spine_thoracic': (-9.2048, 8.2188, 9.1094),
+        'neck': (31.2308, 26.9822, -26.5412), 'head': (5.8283, -9.001),
+        'right_clavicle': (-9.7134, 7.4176), 'right_shoulder': (51.7655, 12.1089, 13.9537),
+        'right_elbow': (18.7642, 69.3331), 'right_wrist': (-40.6041, 1.8542),
+        'left_shoulder': (33.818, 8.2004, 7.7068),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (50.6193, 8.428, 1.277), 'spine_thoracic': (-13.3658, 5.6823, 13.5512),
-        'neck': (35.0, 26.3842, -37.2744), 'head': (9.9308, -10.7798),
-        'right_clavicle': (-9.8334, 12.8396), 'right_shoulder': (51.953, 36.4099, 22.4806),
-        'right_elbow': (9.3188, 62.1345), 'right_wrist': (76.6426, -29.9164),
-        'left_shoulder': (30.7451, 3.3771, 9.6409), 'left_elbow': (37.5014, 17.1597),
-        'left_wrist': (-0.781, 0.3684),
+        'spine_lumbar': (58.492, 18.1512, 2.0857), 'spine_thoracic': (-6.3523, 9.3092, 7.1931),
+        'neck': (29.2664, 24.642, -30.0937), 'head': (3.5489, -8.3422),
+        'right_clavicle': (-9.6625, 5.0576), 'right_shoulder': (53.1734, 18.2559, 13.3257),
+        'right_elbow': (26.9318, 64.4886), 'right_wrist': (-58.5989, 2.9657),
+        'left_shoulder': (36.1432, 10.2746, 6.8725), 'left_wrist': (-1.7454, 0.1191),
     })
-    # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(6.9, {
-        'spine_lumbar': (52.8116, 9.4869, 0.8579), 'spine_thoracic': (-11.6696, 6.1979, 12.8206),
-        'neck': (33.4608, 25.2045, -36.2257), 'head': (9.0894, -10.3558),
-        'right_clavicle': (-9.997, 11.8732), 'right_shoulder': (52.4281, 35.1784, 15.7247),
-        'right_elbow': (0.0, 79.9515), 'right_wrist': (79.8387, -29.9408),
-        'left_shoulder': (28.3996, 5.3234, 9.081), 'left_elbow': (46.0983, 17.1782),
-        'left_wrist': (-1.652, 2.2353),
+        'spine_lumbar': (59.8857, 19.8599, 2.6427), 'spine_thoracic': (-3.0639, 9.9477, 6.071),
+        'neck': (27.1908, 23.2473, -28.3748), 'head': (2.6913, -7.9032),
+        'right_clavicle': (-9.6327, 3.6757), 'right_shoulder': (53.9978, 22.9258, 12.6866),
+        'right_elbow': (31.7146, 61.2684), 'right_wrist': (-69.1361, 3.6165),
+        'left_shoulder': (39.0818, 11.4893, 6.3839), 'left_elbow': (37.535, 17.1454),
+        'left_wrist': (-1.915, 0.0075),
     })
-    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=6.994689, duration=0.072)
+    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.0, {
-        'spine_lumbar': (60.0, 13.5542, 3.2011), 'spine_thoracic': (-12.6389, 6.9451, 15.1601),
-        'neck': (32.7184, 23.3225, -38.5399), 'head': (6.8493, -9.6344),
-        'right_clavicle': (-6.9227, 14.3293), 'right_shoulder': (55.5707, 39.4452, 16.4914),
-        'right_elbow': (2.8193, 79.9997), 'right_wrist': (77.2581, -29.9967),
-        'left_shoulder': (25.6046, 4.7586, 9.4495), 'left_elbow': (55.6244, 17.2014),
-        'left_wrist': (-2.2236, 4.2798),
+        'spine_lumbar': (60.0, 20.0, 4.6139), 'spine_thoracic': (-0.2637, 10.0, 7.3849),
+        'neck': (26.6734, 22.3663, -30.7378), 'head': (0.9991, -7.5097),
+        'right_clavicle': (-8.7755, 4.7115), 'right_shoulder': (55.0603, 27.2614, 11.1374),
+        'right_elbow': (28.8143, 60.0807), 'right_wrist': (-67.9117, 2.8716),
+        'left_shoulder': (44.1495, 8.685, 7.244), 'left_elbow': (34.3186, 17.1245),
+        'left_wrist': (-1.2682, -0.6375),
     })
-    # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > look: gaze on head at spares_box
-    human.LookAt((-40.0, 10.0, 60.0), start=7.066689, duration=0.2628)
-    human.KeyJoints(7.1, {'neck': (32.8036, 23.268, -39.0772), 'head': (7.209, -9.7057)})
-    human.KeyJoints(7.2, {'neck': (33.7048, 22.692, -44.7617), 'head': (11.0136, -10.4598)})
-    human.KeyJoints(7.3, {
-        'spine_lumbar': (60.0, 13.5542, 3.2011), 'spine_thoracic': (-12.6389, 6.9451, 15.1601),
-        'neck': (34.5817, 22.1316, -50.2922), 'head': (14.7151, -11.1935),
-        'right_shoulder': (55.5707, 39.4452, 16.4914), 'right_elbow': (2.8193, 79.9997),
-        'right_wrist': (77.2581, -29.9967), 'left_clavicle': (-9.1908, 11.04),
-        'left_shoulder': (25.6046, 4.7586, 9.4495), 'left_elbow': (55.6244, 17.2014),
-        'left_wrist': (-2.2236, 4.2798),
+    # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=7.066689, duration=0.072)
+    human.KeyJoints(7.1, {
+        'spine_lumbar': (60.0, 20.0, 6.4256), 'spine_thoracic': (1.1057, 10.0, 8.9381),
+        'neck': (26.8423, 21.8652, -33.5607), 'head': (-0.1814, -7.1881),
+        'right_clavicle': (-7.2196, 6.0004), 'right_shoulder': (56.734, 31.3321, 9.6373),
+        'right_elbow': (25.4529, 59.3032), 'right_wrist': (-65.4775, 1.981),
+        'left_shoulder': (48.4087, 5.4541, 8.2335), 'left_elbow': (29.7874, 17.1049),
+        'left_wrist': (-0.4913, -1.495),
     })
-    # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=7.329489, duration=2.069192)
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
+    human.LookAt((-40.0, 10.0, 60.0), start=7.138689, duration=0.2628)
+    human.KeyJoints(7.2, {'neck': (27.9671, 19.4366, -35.5465), 'head': (1.9119, -7.7481)})
+    human.KeyJoints(7.3, {'neck': (32.2898, 10.1037, -43.1778), 'head': (9.9563, -9.9005)})
     human.KeyJoints(7.4, {
-        'spine_lumbar': (59.9531, 13.4758, 2.1422), 'spine_thoracic': (-12.5106, 6.0815, 13.5604),
-        'neck': (33.8765, 22.6563, -48.6981), 'head': (15.0, -11.25),
-        'right_shoulder': (55.768, 36.9816, 16.2299), 'right_elbow': (2.7199, 79.7432),
-        'right_wrist': (74.5794, -28.8493), 'left_clavicle': (-9.2602, 11.3517),
-        'left_shoulder': (24.4409, 4.7147, 9.5024), 'left_elbow': (56.1892, 17.216),
-        'left_wrist': (-2.287, 4.35),
+        'spine_lumbar': (60.0, 20.0, 6.4256), 'spine_thoracic': (1.1057, 10.0, 8.9381),
+        'neck': (34.9992, 4.254, -47.961), 'head': (14.9985, -11.2496),
+        'right_shoulder': (56.734, 31.3321, 9.6373), 'right_elbow': (25.4529, 59.3032),
+        'right_wrist': (-65.4775, 1.981), 'left_clavicle': (-9.1953, 11.0236),
+        'left_shoulder': (48.4087, 5.4541, 8.2335), 'left_elbow': (29.7874, 17.1049),
+        'left_wrist': (-0.4913, -1.495),
     })
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
+    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=7.401489, duration=2.069192)
     human.KeyJoints(7.5, {
-        'spine_lumbar': (59.7932, 13.2089, -1.7734), 'spine_thoracic': (-11.9893, 2.8422, 7.5593),
-        'neck': (32.7675, 24.6723, -40.7134), 'right_shoulder': (56.558, 27.7302, 15.2549),
-        'right_elbow': (2.3815, 78.7659), 'right_wrist': (64.3038, -24.4766),
-        'left_shoulder': (20.4781, 4.5151, 9.7092), 'left_elbow': (58.1124, 17.2656),
+        'spine_lumbar': (60.0, 20.0, 4.2547), 'spine_thoracic': (1.1335, 9.142, 5.4203),
+        'neck': (33.3756, 4.5005, -42.9763), 'head': (14.6617, -11.2323),
+        'right_shoulder': (57.5608, 25.3646, 10.558), 'right_elbow': (24.3107, 59.4579),
+        'right_wrist': (-61.2414, 1.8748), 'left_clavicle': (-9.3132, 11.5971),
+        'left_shoulder': (42.185, 7.2735, 9.5831), 'left_elbow': (38.7686, 20.7411),
+        'left_wrist': (-10.0083, 2.4671),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (59.6499, 12.9697, -6.2538), 'spine_thoracic': (-11.2568, -0.9967, 0.4447),
-        'neck': (32.6853, 28.2988, -31.171), 'right_shoulder': (57.6358, 16.7338, 14.1153),
-        'right_elbow': (2.0783, 77.5642), 'right_wrist': (51.474, -19.0968),
-        'left_clavicle': (-9.7576, 13.6373), 'left_shoulder': (16.9267, 4.1781, 9.979),
-        'left_elbow': (59.836, 17.3101), 'left_wrist': (-2.6963, 4.8032),
+        'spine_thoracic': (1.2139, 7.1658, -2.5656), 'neck': (30.6474, 5.7288, -32.1142),
+        'head': (14.1578, -11.1629), 'right_shoulder': (59.5435, 11.9231, 12.5317),
+        'right_elbow': (21.5086, 59.7649), 'right_wrist': (-51.3327, 1.5998),
+        'left_clavicle': (-9.5568, 12.8147), 'left_shoulder': (29.8328, 10.8844, 12.7282),
+        'left_elbow': (56.5941, 29.004), 'left_wrist': (-29.8857, 10.5838),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (59.656, 13.4633, -9.3807), 'spine_thoracic': (-10.4396, -3.9854, -5.1007),
-        'neck': (33.5883, 31.5801, -23.7364), 'head': (15.0, -11.25),
-        'right_shoulder': (58.721, 8.0969, 13.2713), 'right_elbow': (2.0629, 76.5232),
-        'right_wrist': (39.8746, -14.4291), 'left_clavicle': (-9.8694, 14.2265),
-        'left_shoulder': (18.155, 3.2338, 10.2538), 'left_elbow': (57.4918, 17.3118),
-        'left_wrist': (-2.5038, 4.3209),
+        'spine_lumbar': (60.0, 20.0, -5.3885), 'spine_thoracic': (1.3394, 5.0609, -10.7859),
+        'neck': (28.5624, 7.4646, -21.1307), 'head': (14.8928, -11.1709),
+        'right_shoulder': (61.8481, -1.6506, 14.2729), 'right_elbow': (18.1028, 59.9708),
+        'left_clavicle': (-9.7472, 13.8577), 'left_shoulder': (21.546, 13.3069, 16.1685),
+        'left_elbow': (68.5528, 37.5307), 'left_wrist': (-46.0406, 16.7507),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (59.8045, 16.2862, -12.3556), 'spine_thoracic': (-9.311, -7.111, -10.9062),
-        'neck': (34.9731, 33.75, -15.2884), 'right_shoulder': (59.9829, -1.0067, 12.4409),
-        'right_elbow': (2.3707, 75.3228), 'right_wrist': (25.9456, -9.0389),
-        'left_clavicle': (-9.9432, 14.6566), 'left_shoulder': (27.5816, 0.1118, 10.6251),
-        'left_elbow': (43.4347, 17.2848), 'left_wrist': (-1.3216, 1.5162),
+        'spine_thoracic': (1.7632, 3.1262, -17.6877), 'neck': (28.2109, 10.453, -11.8637),
+        'head': (15.0, -11.2476), 'right_shoulder': (64.5172, -12.4733, 15.1939),
+        'right_elbow': (13.6349, 59.8462), 'right_wrist': (-29.3979, 0.8108),
+        'left_shoulder': (25.566, 12.9505, 19.5592), 'left_elbow': (62.6986, 44.7371),
+        'left_wrist': (-52.1643, 18.3434),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (59.9607, 19.2525, -14.5245),
-        'spine_thoracic': (-8.0052, -9.4732, -15.2954), 'neck': (35.0, 33.75, -9.6708),
-        'head': (15.0, -10.8952), 'right_shoulder': (61.5598, -7.9071, 11.8044),
-        'right_elbow': (3.1822, 74.3825), 'right_wrist': (14.877, -4.8145),
-        'left_clavicle': (-9.9904, 14.9408), 'left_shoulder': (37.4871, -3.0132, 10.932),
-        'left_elbow': (28.072, 17.2564), 'left_wrist': (-0.0793, -1.6448),
+        'spine_lumbar': (60.0, 20.0, -12.5729), 'spine_thoracic': (2.8031, 0.9857, -24.947),
+        'neck': (29.512, 14.3501, -2.3315), 'right_shoulder': (67.9007, -23.5444, 15.9727),
+        'right_elbow': (7.5347, 59.4894), 'right_wrist': (-16.5574, 0.1867),
+        'left_clavicle': (-9.8473, 14.7538), 'left_shoulder': (37.2282, 11.7654, 23.465),
+        'left_elbow': (45.1913, 52.3445), 'left_wrist': (-56.7615, 19.4073),
     })
-    # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 20.0, -14.7237), 'spine_thoracic': (-6.642, -9.6441, -15.9831),
-        'neck': (35.0, 33.75, -8.3752), 'head': (15.0, -10.5549),
-        'right_shoulder': (63.3577, -8.9085, 11.6221), 'right_elbow': (6.2157, 74.2056),
-        'right_wrist': (21.5709, -6.8482), 'left_clavicle': (-9.7398, 14.6803),
-        'left_shoulder': (40.3592, -1.6533, 10.54), 'left_elbow': (22.8078, 17.2608),
-        'left_wrist': (0.0056, -2.9211),
+        'spine_lumbar': (60.0, 20.0, -14.7993), 'spine_thoracic': (4.1208, -0.4078, -29.5778),
+        'neck': (30.903, 16.2445, 3.9344), 'right_shoulder': (70.2146, -30.5245, 16.422),
+        'right_elbow': (3.2632, 59.2009), 'right_wrist': (-8.0281, -0.8427),
+        'left_clavicle': (-9.8691, 14.9805), 'left_shoulder': (46.6551, 10.8073, 26.0473),
+        'left_elbow': (29.4326, 57.2045), 'left_wrist': (-59.2589, 19.9554),
     })
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -14.9662), 'spine_thoracic': (-1.2434, -9.99, -27.9979),
-        'neck': (35.0, -7.3565, 8.1143), 'head': (15.0, 11.25),
-        'right_shoulder': (65.65, -19.1426, 11.7204), 'right_elbow': (2.8287, 73.9008),
-        'right_wrist': (-3.8386, 2.385), 'left_clavicle': (-9.9637, 14.9718),
-        'left_shoulder': (47.2682, 9.6265, 8.2657), 'left_elbow': (18.3099, 17.3168),
-        'left_wrist': (-1.0762, -3.9089),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (6.1322, -0.2412, -30.0),
+        'neck': (29.6582, 15.7014, 4.7887), 'right_shoulder': (69.2192, -31.1206, 16.4635),
+        'right_elbow': (6.5894, 59.2318), 'right_wrist': (-10.7261, -1.5371),
+        'left_clavicle': (-9.9898, 15.0), 'left_shoulder': (49.459, 15.0603, 24.6563),
+        'left_elbow': (23.4994, 56.9778), 'left_wrist': (-57.5895, 18.8189),
     })
-    # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=8.122677, duration=0.2628)
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
+    human.Grasp('left_hand', 'close', start=8.194677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (1.4425, -10.0, -30.0), 'neck': (35.0, 7.087, 8.8615),
-        'right_shoulder': (70.6029, -21.7735, 11.7273), 'right_elbow': (0.0, 74.1055),
-        'right_wrist': (5.2656, -5.4585), 'left_shoulder': (50.3592, 11.388, 7.9292),
-        'left_elbow': (17.0359, 17.32), 'left_wrist': (-1.152, -4.0162),
+        'spine_thoracic': (15.9352, -4.0334, -30.0), 'neck': (23.5747, 12.7146, 5.9779),
+        'right_shoulder': (69.3388, -31.8996, 16.4991), 'right_elbow': (18.3514, 59.0442),
+        'right_wrist': (-24.9216, -3.533), 'left_shoulder': (64.5537, 11.4501, 24.1942),
+        'left_elbow': (11.7192, 56.4873), 'left_wrist': (-43.1732, 14.6153),
     })
-    human.KeyJoints(8.3, {
-        'neck': (35.0, 7.087, 8.8615), 'left_shoulder': (50.3592, 11.388, 7.9292),
-        'left_elbow': (17.0359, 17.32),
-    })
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.4, {
-        'neck': (34.9985, 6.9975, 9.1005), 'left_shoulder': (50.159, 11.3811, 7.873),
-        'left_elbow': (17.3849, 17.3209), 'left_wrist': (-1.2087, -3.9365),
+        'neck': (23.5747, 12.7146, 5.9779), 'head': (15.0, -11.25),
+        'left_shoulder': (64.5537, 11.4501, 24.1942), 'left_elbow': (11.7192, 56.4873),
+        'left_wrist': (-43.1732, 14.6153),
     })
+    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.5, {
-        'neck': (34.9236, 2.532, 21.0197), 'left_shoulder': (39.9143, 11.0388, 4.8477),
-        'left_elbow': (34.7918, 17.3688), 'left_wrist': (-4.1212, 0.0387),
+        'neck': (23.8742, 12.1001, 7.6493), 'head': (14.9702, -10.6182),
+        'left_shoulder': (63.6322, 11.5783, 23.5731), 'left_elbow': (12.1992, 56.272),
+        'left_wrist': (-43.2991, 14.5621),
     })
     human.KeyJoints(8.6, {
-        'neck': (34.7915, -5.3457, 42.0465), 'left_shoulder': (20.7365, 10.4348, -1.4329),
-        'left_elbow': (65.4994, 17.4532), 'left_wrist': (-9.6262, 7.0513),
+        'neck': (26.3712, 6.9756, 21.586), 'head': (14.722, -5.3494),
+        'left_shoulder': (55.1547, 12.8201, 17.7804), 'left_elbow': (16.7009, 54.2908),
+        'left_wrist': (-44.4801, 14.0733),
     })
     human.KeyJoints(8.7, {
-        'neck': (34.6798, -12.0068, 59.8262), 'left_shoulder': (1.7862, 9.9241, -9.0779),
-        'left_elbow': (91.465, 17.5246), 'left_wrist': (-15.189, 12.9811),
+        'neck': (30.029, -0.5309, 42.0012), 'head': (14.3583, 2.3684),
+        'left_shoulder': (40.0959, 15.2123, 7.2534), 'left_elbow': (24.9558, 50.7714),
+        'left_wrist': (-46.6445, 13.2049),
     })
     human.KeyJoints(8.8, {
-        'neck': (34.6548, -13.4957, 63.8003), 'left_shoulder': (-8.8391, 10.5249, -16.3478),
-        'left_elbow': (96.9841, 17.4376), 'left_wrist': (-18.4934, 14.1657),
+        'neck': (33.1713, -6.9797, 59.5394), 'head': (14.0459, 8.9987),
+        'left_shoulder': (21.2688, 18.5457, -6.3445), 'left_elbow': (35.7521, 46.3714),
+        'left_wrist': (-49.4732, 12.1192),
     })
     human.KeyJoints(8.9, {
-        'left_shoulder': (-15.7504, 17.5821, -23.7469), 'left_elbow': (94.2311, 16.4053),
-        'left_wrist': (-20.3016, 12.8048),
+        'neck': (34.1878, -9.0657, 65.2126), 'head': (13.9448, 11.1434),
+        'left_shoulder': (1.4864, 22.6115, -21.3495), 'left_elbow': (47.8775, 41.7481),
+        'left_wrist': (-52.6469, 10.9784),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (-21.3279, 28.0385, -32.3052), 'left_elbow': (90.3528, 14.8179),
-        'left_wrist': (-21.8213, 10.8877),
+        'left_shoulder': (-16.4383, 27.2006, -36.0982), 'left_elbow': (60.12, 37.559),
+        'left_wrist': (-55.8464, 9.9448),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (-25.7267, 36.7237, -42.8232), 'left_elbow': (87.5909, 13.3669),
-        'left_wrist': (-23.8958, 9.5224),
+        'left_shoulder': (-29.6921, 32.104, -48.927), 'left_elbow': (71.2675, 34.4616),
+        'left_wrist': (-58.7525, 9.1805),
     })
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.2, {
-        'left_shoulder': (-29.1444, 38.4267, -58.1497), 'left_elbow': (89.7488, 12.5698),
-        'left_wrist': (-28.1811, 9.4889),
+        'left_shoulder': (-35.462, 37.1127, -58.1722), 'left_elbow': (80.108, 33.1131),
+        'left_wrist': (-61.0459, 8.8478),
     })
+    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'left_shoulder': (-32.8444, 30.6095, -73.6134), 'left_elbow': (97.7309, 12.4344),
-        'left_wrist': (-33.9245, 10.8703),
+        'left_shoulder': (-34.692, 43.3611, -64.2126), 'left_elbow': (86.7206, 33.2302),
+        'left_wrist': (-62.8644, 9.1306),
     })
-    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=9.326681, duration=0.072)
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=9.398681, duration=0.2628)
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
+    human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'left_shoulder': (-33.4336, 26.8301, -74.1649), 'left_elbow': (102.2637, 12.9551),
-        'left_wrist': (-35.1357, 12.1395),
+        'left_shoulder': (-34.2026, 40.566, -73.531), 'left_elbow': (96.4643, 33.4203),
+        'left_wrist': (-67.626, 9.6957),
     })
-    human.KeyJoints(9.6, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (1.4425, -10.0, -30.0),
-        'neck': (34.6548, -13.4957, 63.8003), 'head': (14.9102, 11.2492),
-        'right_clavicle': (-6.9227, 14.3293), 'right_shoulder': (70.6029, -21.7735, 11.7273),
-        'right_elbow': (0.0, 74.1055), 'right_wrist': (5.2656, -5.4585),
-        'left_shoulder': (-33.4336, 26.8301, -74.1649), 'left_elbow': (102.2637, 12.9551),
-        'left_wrist': (-35.1357, 12.1395),
-    })
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=9.661481, duration=0.719288)
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
+    human.KeyJoints(9.5, {'neck': (34.1851, -9.0607, 65.2105), 'head': (13.9376, 11.1441)})
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 19.7688, -14.7382), 'spine_thoracic': (1.1209, -9.8999, -29.1225),
-        'neck': (34.2544, -13.4187, 62.7358), 'head': (14.8353, 11.2498),
-        'right_clavicle': (-7.0317, 14.3609), 'right_shoulder': (69.6451, -21.3399, 11.7255),
-        'right_elbow': (1.5848, 73.8553), 'right_wrist': (7.6916, -5.8364),
-        'left_shoulder': (-32.2725, 27.4026, -71.9322), 'left_elbow': (101.3744, 13.033),
-        'left_wrist': (-34.3282, 11.9581),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (15.9352, -4.0334, -30.0),
+        'neck': (34.0559, -8.9276, 65.0554), 'right_clavicle': (-7.2196, 6.0004),
+        'right_shoulder': (69.3388, -31.8996, 16.4991), 'right_elbow': (18.3514, 59.0442),
+        'right_wrist': (-24.9216, -3.533), 'left_shoulder': (-34.2026, 40.566, -73.531),
+        'left_elbow': (96.4643, 33.4203), 'left_wrist': (-67.626, 9.6957),
     })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 17.5669, -12.2445), 'spine_thoracic': (-1.658, -8.9463, -21.2001),
-        'neck': (31.5006, -13.3185, 54.2028), 'head': (14.5391, 11.1213),
-        'right_clavicle': (-8.0014, 14.6344), 'right_shoulder': (61.3674, -17.5927, 11.7078),
-        'right_elbow': (15.28, 71.6929), 'right_wrist': (28.6567, -9.102),
-        'left_shoulder': (-21.3651, 32.3534, -51.4118), 'left_elbow': (93.4043, 13.7744),
-        'left_wrist': (-26.9259, 10.3161),
+        'spine_lumbar': (60.0, 19.4769, -14.3944), 'spine_thoracic': (15.8151, -3.8216, -29.355),
+        'neck': (33.7805, -8.9127, 64.1981), 'head': (13.7216, 11.1768),
+        'right_clavicle': (-7.3225, 6.3045), 'right_shoulder': (69.3949, -31.7124, 16.4862),
+        'right_elbow': (17.8778, 58.971), 'right_wrist': (-24.2391, -3.4714),
+        'left_shoulder': (-31.8489, 41.0811, -70.2757), 'left_elbow': (96.2384, 34.0603),
+        'left_wrist': (-65.6467, 9.7181),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (60.0, 14.437, -8.6999), 'spine_thoracic': (-4.6136, -7.5908, -11.4636),
-        'neck': (28.3773, -14.2027, 42.5932), 'head': (14.941, 11.1455),
-        'right_clavicle': (-9.137, 14.9253), 'right_shoulder': (52.5636, -13.6075, 11.6795),
-        'right_elbow': (29.8456, 69.3931), 'right_wrist': (50.9541, -12.5751),
-        'left_shoulder': (-6.3878, 37.6326, -24.8476), 'left_elbow': (83.8254, 14.8256),
-        'left_wrist': (-17.4123, 8.2837),
+        'spine_lumbar': (60.0, 17.1333, -11.6416), 'spine_thoracic': (15.2492, -2.8625, -26.4217),
+        'neck': (31.9939, -8.1909, 59.2744), 'head': (12.806, 11.1618),
+        'right_clavicle': (-7.7833, 7.6781), 'right_shoulder': (69.653, -30.8741, 16.4286),
+        'right_elbow': (15.7557, 58.643), 'right_wrist': (-21.1806, -3.1865),
+        'left_shoulder': (-21.216, 43.3888, -55.5796), 'left_elbow': (95.1125, 36.9361),
+        'left_wrist': (-56.6979, 9.8188),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 11.6894, -5.6878), 'spine_thoracic': (-4.9553, -6.4514, -6.5054),
-        'neck': (27.1077, -15.3037, 35.073), 'right_clavicle': (-9.5961, 14.9735),
-        'right_shoulder': (52.0291, -13.3375, 11.6445), 'right_elbow': (30.2007, 69.3966),
-        'right_wrist': (51.2182, -12.321), 'left_shoulder': (5.2349, 38.5777, -8.0029),
-        'left_elbow': (79.6446, 15.7375), 'left_wrist': (-11.5747, 7.2685),
+        'spine_lumbar': (60.0, 13.7105, -7.5157), 'spine_thoracic': (14.3488, -1.435, -22.0218),
+        'neck': (29.4881, -7.5257, 51.3546), 'head': (11.7738, 11.0929),
+        'right_clavicle': (-8.4564, 9.7133), 'right_elbow': (12.6565, 58.1641),
+        'right_wrist': (-16.7113, -2.7467), 'left_shoulder': (-5.4511, 46.7592, -33.818),
+        'left_elbow': (93.1651, 41.1604), 'left_wrist': (-43.4114, 9.9658),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 8.5606, -2.5516), 'spine_thoracic': (-4.0286, -5.303, -3.337),
-        'neck': (25.5511, -17.1322, 28.7513), 'right_clavicle': (-9.8491, 14.9624),
-        'right_shoulder': (57.5212, -15.8653, 11.5875), 'right_elbow': (18.3285, 71.5987),
-        'right_wrist': (31.5072, -7.587), 'left_shoulder': (16.5929, 38.6051, 5.565),
-        'left_elbow': (77.9569, 16.7578), 'left_wrist': (-7.1002, 6.7822),
+        'spine_lumbar': (60.0, 10.0989, -2.9618), 'spine_thoracic': (13.2587, 0.1223, -17.159),
+        'neck': (26.8826, -7.086, 42.0194), 'head': (11.4341, 10.9236),
+        'right_clavicle': (-9.1667, 11.9163), 'right_shoulder': (70.5014, -28.3579, 16.2557),
+        'right_elbow': (9.3863, 57.6588), 'right_wrist': (-11.9912, -2.2378),
+        'left_shoulder': (11.6306, 50.3155, -10.2899), 'left_elbow': (90.5345, 45.6637),
+        'left_wrist': (-28.9803, 10.1209),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (60.0, 6.3879, 0.0379), 'spine_thoracic': (-3.1734, -4.2966, -1.1366),
-        'neck': (25.1515, -18.3015, 23.767), 'right_clavicle': (-9.9879, 14.9522),
-        'right_shoulder': (62.8608, -19.0262, 11.5436), 'right_elbow': (7.3722, 73.631),
-        'right_wrist': (13.3163, -3.0708), 'left_shoulder': (24.9671, 38.6179, 15.0021),
-        'left_elbow': (75.9831, 17.4785), 'left_wrist': (-3.8751, 6.2206),
+        'spine_lumbar': (60.0, 7.1891, 1.0749), 'spine_thoracic': (12.1232, 1.4707, -12.8368),
+        'neck': (24.7971, -8.0242, 33.5447), 'head': (11.4124, 11.0992),
+        'right_clavicle': (-9.7389, 13.7931), 'right_shoulder': (70.931, -27.3171, 16.1842),
+        'right_elbow': (6.7516, 57.2516), 'right_wrist': (-8.18, -1.7453),
+        'left_shoulder': (26.2144, 53.1807, 9.7058), 'left_elbow': (87.359, 49.3763),
+        'left_wrist': (-16.5974, 10.2458),
     })
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.3, {
-        'spine_lumbar': (58.1764, 6.7464, 1.004), 'spine_thoracic': (-3.5017, -3.7824, -0.2945),
-        'neck': (25.9428, -20.0554, 21.9203), 'head': (15.0, 11.2291),
-        'right_clavicle': (-9.7851, 14.8842), 'right_shoulder': (63.5089, -21.2755, 11.5824),
-        'right_elbow': (6.2875, 73.8171), 'right_wrist': (11.4296, -2.3248),
-        'left_shoulder': (27.21, 36.7813, 17.8418), 'left_elbow': (70.365, 17.5696),
-        'left_wrist': (-2.5093, 4.841),
+        'spine_lumbar': (60.0, 5.8715, 3.6492), 'spine_thoracic': (11.0869, 2.2713, -10.0592),
+        'neck': (23.5895, -8.973, 28.2193), 'head': (12.0138, 11.1001),
+        'right_clavicle': (-9.998, 14.8498), 'right_shoulder': (71.2572, -26.8457, 16.1518),
+        'right_elbow': (5.5585, 57.0673), 'right_wrist': (-6.4376, -1.3549),
+        'left_shoulder': (34.4852, 54.4782, 20.8702), 'left_elbow': (83.7771, 51.2286),
+        'left_wrist': (-9.4557, 10.3024),
     })
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=10.380769, duration=0.072)
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {
-        'spine_lumbar': (55.0887, 8.3345, 0.3628), 'spine_thoracic': (-3.0434, -4.1109, -0.8851),
-        'neck': (26.5753, -20.4545, 22.8792), 'right_clavicle': (-8.6052, 14.1962),
-        'right_shoulder': (61.4869, -22.7843, 11.6445), 'right_elbow': (5.4402, 73.7717),
-        'right_wrist': (11.8485, -2.1803), 'left_elbow': (65.1343, 17.5449),
-        'left_wrist': (-2.0717, 3.5639),
+        'spine_lumbar': (57.4611, 6.9152, 3.6874), 'spine_thoracic': (10.9425, 2.3194, -10.0044),
+        'neck': (23.8823, -9.9102, 27.2072), 'head': (12.4699, 11.1273),
+        'right_clavicle': (-9.2115, 14.3656), 'right_shoulder': (70.3854, -28.3723, 16.2553),
+        'right_elbow': (5.3203, 57.0811), 'right_wrist': (-6.3384, -1.1762),
+        'left_shoulder': (34.9967, 52.2722, 22.5476), 'left_elbow': (78.6139, 51.3848),
+        'left_wrist': (-7.8739, 9.5618),
     })
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.5, {'right_elbow': (5.4402, 60.4152)})
-    human.KeyJoints(10.6, {'right_elbow': (5.4402, -2.9039)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.7, {'right_elbow': (5.4402, 0.1002)})
-    human.KeyJoints(10.8, {'right_elbow': (5.4402, 63.1863)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.9, {'right_elbow': (5.4402, 54.2667)})
-    human.KeyJoints(11.0, {'right_elbow': (5.4402, -8.1253)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.1, {'right_elbow': (5.4402, 6.632)})
-    human.KeyJoints(11.2, {'right_elbow': (5.4402, 67.8689)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.3, {'right_elbow': (5.4402, 47.4032)})
-    human.KeyJoints(11.4, {'right_elbow': (5.4402, -12.2176)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.5, {'right_elbow': (5.4402, 13.7755)})
-    human.KeyJoints(11.6, {'right_elbow': (5.4402, 71.3191)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.7, {'right_elbow': (5.4402, 40.0313)})
-    human.KeyJoints(11.8, {'right_elbow': (5.4402, -14.9742)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.9, {'right_elbow': (5.4402, 21.3241)})
-    human.KeyJoints(12.0, {'right_elbow': (5.4402, 73.3304)})
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > screw > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=12.007969, duration=0.072)
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=12.079969, duration=0.2628)
-    human.KeyJoints(12.1, {'right_elbow': (5.4402, 73.7717)})
-    human.KeyJoints(12.2, {'neck': (26.5683, -20.4764, 22.885)})
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(12.7, {'neck': (26.5418, -20.5593, 22.9067)})
-    human.KeyJoints(15.3, {
-        'spine_lumbar': (55.0887, 8.3345, 0.3628), 'spine_thoracic': (-3.0434, -4.1109, -0.8851),
-        'right_clavicle': (-8.6052, 14.1962), 'right_shoulder': (61.4869, -22.7843, 11.6445),
-        'right_elbow': (5.4402, 73.7717), 'right_wrist': (11.8485, -2.1803),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (27.1728, 36.7459, 17.8546),
-        'left_elbow': (65.1343, 17.5449), 'left_wrist': (-2.0717, 3.5639),
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
+    human.KeyJoints(10.5, {
+        'spine_lumbar': (55.0628, 8.0758, 3.3688), 'spine_thoracic': (11.2184, 2.2314, -10.3566),
+        'neck': (23.8499, -10.0237, 27.4425), 'head': (13.0395, 11.1225),
+        'right_clavicle': (-8.3184, 13.977), 'right_shoulder': (68.9507, -29.4226, 16.3306),
+        'right_elbow': (4.875, 57.0856), 'right_wrist': (-6.2055, -1.1103),
+        'left_shoulder': (34.8426, 51.8326, 22.8926), 'left_elbow': (74.8179, 51.4412),
+        'left_wrist': (-7.0256, 8.9524),
     })
-    # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > stand: posture on root
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(10.6, {'right_elbow': (4.875, 64.7247)})
+    human.KeyJoints(10.7, {'right_elbow': (4.875, 79.3756)})
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(10.8, {'right_elbow': (4.875, 46.2596)})
+    human.KeyJoints(10.9, {'right_elbow': (4.875, -8.7459)})
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.0, {'right_elbow': (4.875, 27.5524)})
+    human.KeyJoints(11.1, {'right_elbow': (4.875, 79.5587)})
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.2, {'right_elbow': (4.875, 38.5859)})
+    human.KeyJoints(11.3, {'right_elbow': (4.875, -9.9602)})
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.4, {'right_elbow': (4.875, 35.2996)})
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.5, {'right_elbow': (4.875, 79.9262)})
+    human.KeyJoints(11.6, {'right_elbow': (4.875, 30.8169)})
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.7, {'right_elbow': (4.875, -9.4596)})
+    human.KeyJoints(11.8, {'right_elbow': (4.875, 43.0388)})
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.9, {'right_elbow': (4.875, 78.5857)})
+    human.KeyJoints(12.0, {'right_elbow': (4.875, 23.1591)})
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=12.079969, duration=0.072)
+    human.KeyJoints(12.1, {'right_elbow': (4.875, -10.0)})
+    # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=12.151969, duration=0.2628)
+    human.KeyJoints(12.2, {'neck': (23.858, -10.0279, 27.441), 'head': (13.0309, 11.1227)})
+    human.KeyJoints(12.4, {'neck': (24.065, -10.1335, 27.4043), 'head': (12.8091, 11.1288)})
+    # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
     human.KeyJoints(15.4, {
-        'spine_lumbar': (49.6901, 7.5363, 0.3628), 'spine_thoracic': (-2.7439, -3.7473, -0.8851),
-        'right_clavicle': (-7.7852, 12.7574), 'right_shoulder': (58.7006, -20.63, 11.6237),
-        'right_elbow': (2.359, 68.0989), 'right_wrist': (4.8098, -1.163),
-        'left_clavicle': (-8.9865, 13.4798), 'left_shoulder': (25.6587, 33.3597, 17.3052),
-        'left_elbow': (61.4252, 17.51), 'left_wrist': (-1.8075, 3.0803),
+        'spine_lumbar': (55.0628, 8.0758, 3.3688), 'spine_thoracic': (11.2184, 2.2314, -10.3566),
+        'right_clavicle': (-8.3184, 13.977), 'right_shoulder': (68.9507, -29.4226, 16.3306),
+        'right_elbow': (4.875, -10.0), 'right_wrist': (-6.2055, -1.1103),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.8426, 51.8326, 22.8926),
+        'left_elbow': (74.8179, 51.4412), 'left_wrist': (-7.0256, 8.9524),
     })
+    # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(15.5, {
-        'spine_lumbar': (26.2493, 3.8439, 0.3628), 'right_clavicle': (-3.9917, 6.5102),
-        'right_shoulder': (33.8166, -7.6751, 11.5617), 'right_elbow': (19.404, 43.1599),
-        'right_wrist': (5.4684, -1.2583), 'left_clavicle': (-4.5859, 6.8788),
-        'left_shoulder': (17.4846, 19.8261, 14.438), 'left_elbow': (47.9355, 17.3531),
-        'left_wrist': (-0.9135, 1.5229),
+        'spine_lumbar': (44.4154, 6.4827, 3.3688), 'spine_thoracic': (9.0386, 1.792, -10.3566),
+        'right_clavicle': (-6.6856, 11.1665), 'right_shoulder': (58.5019, -22.7106, 15.3813),
+        'right_elbow': (7.9642, -4.5892), 'right_wrist': (-4.2353, -1.3997),
+        'left_clavicle': (-8.0372, 11.9838), 'left_shoulder': (29.8301, 42.3481, 20.6366),
+        'left_elbow': (66.2929, 44.5572), 'left_wrist': (-5.5546, 7.1119),
     })
-    human.KeyRoot(15.6, (1.491, 45.754, 46.831), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.6, {
-        'spine_lumbar': (4.5205, 0.4206, 0.3628), 'spine_thoracic': (0.0633, -0.3316, -0.8851),
-        'right_clavicle': (-0.4748, 0.7193), 'right_shoulder': (11.7114, 4.068, 11.508),
-        'right_elbow': (32.2734, 20.057), 'right_wrist': (0.6603, -0.2532),
-        'left_clavicle': (-0.5067, 0.76), 'left_shoulder': (9.8435, 7.2744, 11.7992),
-        'left_elbow': (35.5073, 17.2083), 'left_wrist': (-0.0889, 0.0985),
-        'right_hip': (18.8317, -0.0186, 0.0338), 'right_knee': (128.8285,),
-        'right_ankle': (10.0009, 0.2642), 'left_hip': (18.8317, 0.0186, -0.0338),
-        'left_knee': (128.8285,), 'left_ankle': (10.0009, -0.2642),
+        'spine_lumbar': (19.2107, 2.614, 3.3688), 'spine_thoracic': (3.8785, 0.7251, -10.3566),
+        'right_clavicle': (-2.7208, 4.5136), 'right_shoulder': (28.6141, -5.8457, 13.0782),
+        'right_elbow': (23.9822, 8.4015), 'right_wrist': (-1.9461, -0.5542),
+        'left_clavicle': (-3.2708, 4.8439), 'left_shoulder': (17.3549, 20.5653, 15.1384),
+        'left_elbow': (47.0516, 28.2485), 'left_wrist': (-2.2489, 2.8348),
     })
-    human.KeyRoot(15.7, (1.526, 45.612, 46.423), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.7, (1.51, 45.717, 46.727), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (2.4235, 2.3042, 0.3628), 'spine_thoracic': (0.4543, 0.423, -0.8851),
-        'right_clavicle': (0.0, -0.053), 'right_shoulder': (8.7296, 5.667, 11.4918),
-        'right_elbow': (34.0175, 16.9773), 'right_wrist': (0.0008, -0.1004),
-        'left_clavicle': (0.0374, -0.056), 'left_shoulder': (8.7828, 5.5955, 11.4482),
-        'left_elbow': (33.9106, 17.1887), 'left_wrist': (0.0199, -0.0797),
-        'right_hip': (19.407, -0.0706, 0.1251), 'right_knee': (129.4067,),
-        'right_ankle': (9.9993, 0.9853), 'left_hip': (19.407, 0.0706, -0.1251),
-        'left_knee': (129.4067,), 'left_ankle': (9.9993, -0.9853),
+        'spine_lumbar': (2.2974, 0.0163, 3.3688), 'spine_thoracic': (0.4159, 0.0087, -10.3566),
+        'right_clavicle': (-0.0585, 0.0491), 'right_shoulder': (9.1107, 5.4392, 11.527),
+        'right_elbow': (33.8569, 17.0931), 'right_wrist': (-0.0015, -0.0965),
+        'left_clavicle': (-0.0703, 0.0527), 'left_shoulder': (8.9229, 5.934, 11.4701),
+        'left_elbow': (34.2139, 17.3091), 'left_wrist': (-0.0394, -0.0089),
+        'right_hip': (18.9817, -0.0183, 0.0329), 'right_knee': (128.9784,),
+        'right_ankle': (10.0009, 0.2583), 'left_hip': (18.9817, 0.0183, -0.0329),
+        'left_knee': (128.9784,), 'left_ankle': (10.0009, -0.2583),
     })
-    human.KeyRoot(15.8, (1.528, 45.238, 45.388), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.8, (1.553, 45.493, 46.087), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (3.8716, 13.6524, 0.3628), 'spine_thoracic': (0.4508, 2.8396, -0.8851),
-        'right_hip': (20.8504, -0.3183, 0.5313), 'right_knee': (130.8447,),
-        'right_ankle': (9.952, 4.2491), 'left_hip': (20.8504, 0.3183, -0.5313),
-        'left_knee': (130.8447,), 'left_ankle': (9.952, -4.2491),
+        'spine_lumbar': (3.0606, 4.8062, 3.3688), 'spine_thoracic': (0.5037, 0.8877, -10.3566),
+        'right_shoulder': (8.6544, 5.7034, 11.4848), 'right_elbow': (34.1413, 17.267),
+        'left_clavicle': (0.0, -0.0432), 'left_shoulder': (8.7235, 5.6251, 11.4039),
+        'left_elbow': (34.0012, 17.0902), 'right_hip': (19.8805, -0.116, 0.2017),
+        'right_knee': (129.8797,), 'right_ankle': (9.9949, 1.5953),
+        'left_hip': (19.8805, 0.116, -0.2017), 'left_knee': (129.8797,),
+        'left_ankle': (9.9949, -1.5953),
     })
-    human.KeyRoot(15.9, (1.181, 44.692, 43.955), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.9, (1.5, 45.082, 44.972), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'spine_lumbar': (6.6668, 20.0, 0.3628), 'spine_thoracic': (-1.7215, 10.0, -0.8851),
-        'right_hip': (22.7838, -1.1167, 1.6996), 'right_knee': (132.7219,),
-        'right_ankle': (9.4572, 14.0466), 'left_hip': (22.7838, 1.1167, -1.6996),
-        'left_knee': (132.7219,), 'left_ankle': (9.4572, -14.0466),
+        'spine_lumbar': (4.6521, 17.3216, 3.3688), 'spine_thoracic': (0.2832, 4.3779, -10.3566),
+        'right_clavicle': (0.0, -0.0313), 'right_hip': (21.4261, -0.4539, 0.7394),
+        'right_knee': (131.4148,), 'right_ankle': (9.9039, 5.9564),
+        'left_hip': (21.4261, 0.4539, -0.7394), 'left_knee': (131.4148,),
+        'left_ankle': (9.9039, -5.9564),
     })
-    human.KeyRoot(16.0, (0.183, 44.104, 42.517), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.0, (1.074, 44.5, 43.489), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.0, {
-        'spine_lumbar': (11.3058, 19.9998, 0.3628), 'spine_thoracic': (-9.7995, 10.0, -0.8851),
-        'right_hip': (24.6027, -2.7701, 3.6264), 'right_knee': (134.2952,),
-        'right_ankle': (7.1191, 32.5132), 'left_hip': (25.693, 7.3385, -0.4947),
-        'left_knee': (135.0,), 'left_ankle': (6.6654, -24.7522),
+        'spine_lumbar': (7.7813, 20.0, 3.3688), 'spine_thoracic': (-2.4635, 10.0, -10.3566),
+        'right_hip': (23.4217, -1.3696, 2.0187), 'right_knee': (133.3328,),
+        'right_ankle': (9.2138, 16.9068), 'left_hip': (23.4217, 1.3696, -2.0188),
+        'left_knee': (133.3328,), 'left_ankle': (9.2138, -16.9068),
     })
-    human.KeyRoot(16.1, (-0.26, 45.383, 45.578), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.1, (-0.131, 44.708, 43.872), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.1, {
-        'spine_lumbar': (0.7861, 20.0, 0.3628), 'spine_thoracic': (-8.2614, 10.0, -0.8851),
-        'right_elbow': (34.3241, 17.1523), 'right_hip': (20.146, -2.6079, 4.0134),
-        'right_knee': (129.8023,), 'right_ankle': (6.7995, 34.2931),
-        'left_hip': (24.2345, -16.4404, -6.9896), 'left_knee': (133.3347,),
-        'left_ankle': (-0.2062, -24.3133),
+        'spine_lumbar': (7.1865, 19.9999, 3.3688), 'spine_thoracic': (-11.2811, 10.0, -10.3566),
+        'left_elbow': (34.2138, 17.1559), 'left_wrist': (0.007, -0.0283),
+        'right_hip': (22.5846, -2.8513, 3.9619), 'right_knee': (132.2308,),
+        'right_ankle': (6.6672, 35.0), 'left_hip': (24.7341, 3.9664, -1.7281),
+        'left_knee': (135.0,), 'left_ankle': (5.1246, -24.9232),
     })
-    human.KeyRoot(16.2, (-0.014, 44.517, 43.43), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.2, (-0.229, 45.411, 45.656), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.2, {
-        'spine_lumbar': (3.6355, 20.0, 0.3628), 'spine_thoracic': (-5.7816, 10.0, -0.8851),
-        'left_elbow': (34.3775, 17.1887), 'right_hip': (23.2422, -2.808, 3.8532),
-        'right_knee': (132.9052,), 'right_ankle': (6.83, 34.1419),
-        'left_hip': (40.7509, -19.2388, -0.9084), 'left_knee': (132.4665,),
-        'left_ankle': (-42.2319, 5.9301),
+        'spine_lumbar': (-0.4173, 20.0, 3.3688), 'spine_thoracic': (-7.8408, 10.0, -10.3566),
+        'right_elbow': (34.3869, 17.1974), 'left_elbow': (34.3645, 17.1778),
+        'right_hip': (20.0442, -2.5528, 3.958), 'right_knee': (129.7112,),
+        'right_ankle': (6.911, 33.6906), 'left_hip': (27.8772, -19.8846, -5.3916),
+        'left_knee': (132.9633,), 'left_ankle': (-8.783, -8.0256),
     })
-    human.KeyRoot(16.3, (0.065, 43.857, 41.982), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.3, (0.123, 43.864, 41.999), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.3, {
-        'spine_lumbar': (2.8775, 20.0, 0.3628), 'spine_thoracic': (-7.5228, 10.0, -0.8851),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'left_shoulder': (8.5944, 5.7296, 11.4592),
-        'right_hip': (25.3512, -3.0497, 3.8167), 'right_knee': (134.999,),
-        'right_ankle': (6.6643, 35.0), 'left_hip': (65.2928, 4.9141, 38.2383),
-        'left_knee': (133.5087,), 'left_ankle': (-45.1278, 15.2402),
+        'spine_lumbar': (7.807, 19.9999, 3.3688), 'spine_thoracic': (-6.8995, 10.0, -10.3566),
+        'left_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.3392, -2.9735, 3.7746),
+        'right_knee': (134.9989,), 'right_ankle': (6.776, 34.4343),
+        'left_hip': (44.5747, -18.6044, 4.1747), 'left_knee': (134.5461,),
+        'left_ankle': (-45.8876, 8.9857),
     })
-    human.KeyRoot(16.4, (0.063, 43.885, 42.041), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.4, (0.065, 43.857, 41.982), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (-0.3706, 20.0, 0.3628), 'spine_thoracic': (-7.4534, 10.0, -0.8851),
-        'right_hip': (25.2646, -3.0381, 3.8233), 'right_knee': (134.9131,),
-        'right_ankle': (6.6657, 35.0), 'left_hip': (91.5903, -1.4887, 35.2977),
-        'left_knee': (133.927,), 'left_ankle': (-38.408, 29.2172),
+        'spine_lumbar': (1.6471, 20.0, 3.3688), 'spine_thoracic': (-7.649, 10.0, -10.3566),
+        'right_ankle': (6.6643, 35.0), 'left_hip': (73.9074, 4.983, 38.6407),
+        'left_knee': (133.9947,), 'left_ankle': (-45.2394, 19.3557),
     })
-    human.KeyRoot(16.5, (0.197, 43.874, 42.024), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.5, (0.077, 43.873, 42.015), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.5, {
-        'spine_lumbar': (-0.6694, 20.0, 0.3628), 'spine_thoracic': (-3.4224, 10.0, -0.8851),
-        'right_hip': (25.3196, -2.8719, 3.675), 'right_knee': (134.9989,),
-        'right_ankle': (6.9796, 33.3275), 'left_hip': (103.5981, -24.6383, 16.042),
-        'left_knee': (135.0,), 'left_ankle': (4.0184, 35.0),
+        'spine_lumbar': (-1.1435, 20.0, 3.3688), 'spine_thoracic': (-5.338, 10.0, -10.3566),
+        'right_hip': (25.3057, -3.0303, 3.8246), 'right_ankle': (6.6693, 34.9989),
+        'left_hip': (97.8396, -9.7276, 28.7489), 'left_knee': (134.2233,),
+        'left_ankle': (-25.2442, 31.93),
     })
-    human.KeyRoot(16.6, (0.146, 43.938, 42.156), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.6, (0.19, 43.873, 42.022), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.7073, 20.0, 0.3628), 'spine_thoracic': (-7.2561, 10.0, -0.8851),
-        'right_wrist': (0.0, 0.0), 'right_hip': (25.116, -2.9063, 3.7326), 'right_knee': (134.786,),
-        'right_ankle': (6.8832, 33.8508), 'left_hip': (96.1323, -18.6334, 1.5179),
-        'left_knee': (131.8615,), 'left_ankle': (18.0974, 6.4346),
+        'spine_lumbar': (-0.5245, 20.0, 3.3688), 'spine_thoracic': (-4.165, 10.0, -10.3566),
+        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.3214, -2.8813, 3.6845),
+        'right_ankle': (6.9614, 33.4306), 'left_hip': (102.2689, -24.2013, 15.526),
+        'left_knee': (135.0,), 'left_ankle': (7.0408, 35.0),
     })
-    human.KeyRoot(16.7, (1.541, 44.004, 42.442), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.7, (0.116, 43.863, 41.997), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-2.9381, 20.0, 0.3628), 'spine_thoracic': (-1.7953, 9.3343, -0.8851),
-        'right_hip': (25.045, -1.01, 1.4191), 'right_knee': (134.9999,),
-        'right_ankle': (9.6037, 12.0073), 'left_hip': (91.6507, -0.6674, 1.7357),
-        'left_knee': (130.8843,), 'left_ankle': (19.8613, 1.8264),
+        'spine_lumbar': (-0.8662, 20.0, 3.3688), 'spine_thoracic': (-7.906, 10.0, -10.3566),
+        'right_wrist': (0.0, 0.0), 'right_hip': (25.3408, -2.9824, 3.7771),
+        'right_ankle': (6.766, 34.4891), 'left_hip': (93.3237, -2.5624, 5.4751),
+        'left_knee': (131.316,), 'left_ankle': (16.1616, 6.0211),
     })
-    human.KeyRoot(16.8, (1.957, 44.021, 42.541), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.8, (1.806, 44.016, 42.507), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-3.802, 10.8883, 0.3628), 'spine_thoracic': (-0.8131, 1.9658, -0.8851),
-        'right_hip': (25.0087, -0.443, 0.6304), 'right_knee': (134.9999,),
-        'right_ankle': (9.9246, 5.2885), 'left_hip': (91.58, -0.2951, 0.7741),
-        'left_knee': (130.8728,), 'left_ankle': (19.9999, 0.8676),
+        'spine_lumbar': (-3.3605, 19.7202, 3.3688), 'spine_thoracic': (-1.0486, 4.3119, -10.3566),
+        'right_hip': (25.0187, -0.6488, 0.9202), 'right_ankle': (9.8364, 7.7373),
+        'left_hip': (91.6424, -0.4344, 1.1305), 'left_knee': (130.8904,),
+        'left_ankle': (19.8686, 1.2477),
     })
-    human.KeyRoot(16.9, (2.385, 45.814, 40.209), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.9, (1.952, 44.044, 42.502), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (2.0333, 9.3346, 0.3628), 'spine_thoracic': (0.2755, 1.6886, -0.8851),
-        'right_hip': (26.6803, -0.5915, 0.9606), 'right_knee': (134.4787,),
-        'right_ankle': (12.8262, 6.7669), 'left_hip': (89.7298, -0.1991, 0.6885),
-        'left_knee': (126.051,), 'left_ankle': (20.0, 0.7179),
+        'spine_lumbar': (-3.7377, 9.8386, 3.3688), 'spine_thoracic': (-0.7855, 1.7777, -10.3566),
+        'right_hip': (25.0378, -0.4564, 0.6508), 'right_knee': (135.0,),
+        'right_ankle': (9.9657, 5.4663), 'left_hip': (91.5583, -0.3037, 0.7996),
+        'left_knee': (130.8041,), 'left_ankle': (20.0, 0.8982),
     })
-    human.KeyRoot(17.0, (4.128, 53.265, 34.291), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.0, (2.796, 47.256, 38.659), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (16.3984, 9.3587, 0.3628), 'spine_thoracic': (2.5319, 1.6693, -0.8851),
-        'left_wrist': (0.0, 0.0), 'right_hip': (29.3044, -0.324, 1.0075), 'right_knee': (127.4653,),
-        'right_ankle': (19.6027, 2.4234), 'left_hip': (80.3985, -0.0146, -0.4396),
-        'left_knee': (108.31,), 'left_ankle': (20.0, -0.4398),
+        'spine_lumbar': (5.8162, 9.3035, 3.3688), 'spine_thoracic': (0.9162, 1.6801, -10.3566),
+        'right_hip': (27.8352, -0.5542, 0.9888), 'right_knee': (133.6779,),
+        'right_ankle': (14.4024, 5.9625), 'left_hip': (88.0853, -0.0896, 0.3991),
+        'left_knee': (122.3709,), 'left_ankle': (20.0, 0.3963),
     })
-    human.KeyRoot(17.1, (5.278, 67.345, 33.455), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.1, (5.004, 54.456, 30.216), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (13.7497, 9.4353, 0.3628), 'spine_thoracic': (2.2721, 1.6943, -0.8851),
-        'right_hip': (21.8539, 0.1698, 1.7045), 'right_knee': (103.5859,),
-        'right_ankle': (19.2116, 1.7373), 'left_hip': (59.8205, -0.6107, -1.0621),
-        'left_knee': (79.8756,), 'left_ankle': (19.7764, -1.2269),
+        'spine_lumbar': (28.4332, 8.9824, 3.3688), 'spine_thoracic': (4.2009, 1.5673, -10.3566),
+        'right_hip': (34.0005, -0.3737, 1.108), 'right_knee': (128.0908,),
+        'right_ankle': (19.4373, 1.8349), 'left_hip': (78.4754, -0.0875, -0.5342),
+        'left_knee': (100.8678,), 'left_ankle': (20.0, -0.5445),
     })
-    human.KeyRoot(17.2, (5.839, 81.047, 37.248), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.2, (5.06, 72.07, 36.663), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (-1.8882, 10.2375, 0.3628), 'spine_thoracic': (-0.4523, 1.8489, -0.8851),
-        'right_hip': (8.6934, 1.0411, 2.2115), 'right_knee': (73.4447,),
-        'right_ankle': (8.6634, 2.3755), 'left_hip': (38.601, -1.5261, -1.2179),
-        'left_knee': (48.9687,), 'left_ankle': (10.384, -1.9524),
+        'spine_lumbar': (2.2282, 9.6787, 3.3688), 'spine_thoracic': (0.2637, 1.7425, -10.3566),
+        'right_hip': (16.0894, 0.4106, 1.9021), 'right_knee': (93.0527,),
+        'right_ankle': (15.1529, 1.9826), 'left_hip': (52.2163, -0.8886, -1.1574),
+        'left_knee': (72.2704,), 'left_ankle': (19.7895, -1.461),
     })
-    human.KeyRoot(17.3, (5.945, 89.628, 41.839), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.3, (6.32, 88.326, 36.127), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (-16.128, 10.9741, 0.3628), 'spine_thoracic': (-3.5574, 1.9303, -0.8851),
-        'right_hip': (-2.8206, 1.7156, 2.4944), 'right_knee': (48.8697,),
-        'right_ankle': (-6.5857, 2.9201), 'left_hip': (13.3298, -2.3327, -0.5525),
-        'left_knee': (6.3193,), 'left_ankle': (-6.9992, -2.3972),
+        'spine_lumbar': (3.3255, 10.3973, 3.3688), 'spine_thoracic': (0.4132, 1.863, -10.3566),
+        'right_hip': (8.9163, 0.91, 2.9778), 'right_knee': (62.7879,),
+        'right_ankle': (-10.2335, 3.849), 'left_hip': (18.2728, -1.8686, -0.6169),
+        'left_knee': (8.2925,), 'left_ankle': (-9.9702, -1.9677),
     })
-    human.KeyRoot(17.4, (5.93, 90.213, 50.476), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.4, (5.368, 90.276, 45.554), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-30.0, 11.4245, 0.3628), 'spine_thoracic': (-13.5345, 1.8134, -0.8851),
-        'right_hip': (-11.031, 2.6336, 3.924), 'right_knee': (39.0258,),
-        'right_ankle': (-16.6537, 6.3516), 'left_hip': (10.8562, -3.3824, -0.6483),
-        'left_knee': (13.1412,), 'left_ankle': (2.3042, -3.4439),
+        'spine_lumbar': (-28.5336, 10.9518, 3.3688), 'spine_thoracic': (-6.7337, 1.8687, -10.3566),
+        'right_hip': (-6.8187, 1.7911, 2.5526), 'right_knee': (43.723,),
+        'right_ankle': (-11.1955, 2.9117), 'left_hip': (9.8818, -2.4147, -0.4205),
+        'left_knee': (4.5841,), 'left_ankle': (-5.2888, -2.4511),
     })
-    human.KeyRoot(17.5, (8.382, 88.386, 63.716), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.5, (6.597, 90.137, 55.638), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (5.6615, 1.6036, 0.3628), 'spine_thoracic': (0.9012, 0.2924, -0.8851),
-        'right_hip': (-15.0, 2.181, 16.7196), 'right_knee': (33.3473,),
-        'right_ankle': (-49.1082, 13.81), 'left_hip': (7.883, -6.8115, -0.9408),
-        'left_knee': (24.7701,), 'left_ankle': (16.9432, -6.8759),
+        'spine_lumbar': (-29.2311, 10.119, 3.3688), 'spine_thoracic': (-6.8672, 1.7439, -10.3566),
+        'right_hip': (-10.5898, 2.7263, 8.1304), 'right_knee': (39.0704,),
+        'right_ankle': (-32.0516, 13.6885), 'left_hip': (8.545, -4.4872, -0.6735),
+        'left_knee': (15.344,), 'left_ankle': (6.8255, -4.5374),
     })
-    human.KeyRoot(17.6, (8.857, 89.186, 64.74), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.6, (8.585, 88.615, 63.61), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (16.5253, -0.5254, 0.3628), 'spine_thoracic': (2.6828, -0.0938, -0.8851),
-        'right_elbow': (34.3775, 17.1887), 'right_hip': (-14.9816, 2.7996, 14.4163),
-        'right_knee': (37.7137,), 'right_ankle': (-42.974, 9.0677),
-        'left_hip': (3.8703, -7.241, -0.4886), 'left_knee': (17.8089,),
-        'left_ankle': (13.9696, -7.2574),
+        'spine_lumbar': (18.4869, -1.5385, 3.3688), 'spine_thoracic': (2.9919, -0.2756, -10.3566),
+        'right_hip': (-15.0, 2.0884, 16.8551), 'right_knee': (32.8407,),
+        'right_ankle': (-49.9979, 11.1604), 'left_hip': (7.2319, -6.9266, -0.8767),
+        'left_knee': (23.2166,), 'left_ankle': (16.0379, -6.9817),
     })
-    human.KeyRoot(17.7, (9.638, 90.163, 60.414), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.7, (8.801, 89.441, 64.417), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (33.8499, -1.5407, 0.3628), 'spine_thoracic': (4.5165, -0.2577, -0.8851),
-        'right_hip': (-14.1026, 6.8088, 3.5688), 'right_knee': (37.0521,),
-        'right_ankle': (9.3327, 7.6376), 'left_hip': (2.9792, -7.1527, -0.3713),
-        'left_knee': (9.7644,), 'left_ankle': (6.8085, -7.1623),
+        'spine_lumbar': (18.209, -1.1163, 3.3688), 'spine_thoracic': (2.8781, -0.1983, -10.3566),
+        'right_hip': (-15.0, 3.5886, 11.7938), 'right_knee': (40.0099,),
+        'right_ankle': (-33.9152, 8.6108), 'left_hip': (3.1208, -7.1466, -0.3886),
+        'left_knee': (15.8299,), 'left_ankle': (12.7334, -7.1571),
     })
-    human.KeyRoot(17.8, (8.141, 90.116, 65.663), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.8, (9.806, 90.393, 57.733), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (12.1491, -3.2406, 0.3628), 'spine_thoracic': (2.0415, -0.5838, -0.8851),
-        'right_hip': (-15.0, 7.412, -1.525), 'right_knee': (8.127,), 'right_ankle': (20.0, 7.1288),
-        'left_hip': (-3.2996, -6.8014, 0.3912), 'left_knee': (4.5869,),
-        'left_ankle': (7.8634, -6.8127),
+        'spine_lumbar': (44.1526, -2.5778, 3.3688), 'spine_thoracic': (5.6595, -0.4241, -10.3566),
+        'right_hip': (-12.636, 7.1564, 0.8258), 'right_knee': (26.746,),
+        'right_ankle': (20.0, 7.0469), 'left_hip': (3.471, -6.9133, -0.4183), 'left_knee': (7.041,),
+        'left_ankle': (3.5952, -6.9259),
     })
-    human.KeyRoot(17.9, (6.328, 90.239, 64.488), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.9, (7.211, 89.923, 67.816), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (8.9771, -9.2052, 0.3628), 'spine_thoracic': (1.4684, -1.6575, -0.8851),
-        'right_hip': (-0.5602, 10.8053, 0.2857), 'right_knee': (13.7166,),
-        'right_ankle': (15.3064, 6.5457), 'left_hip': (-0.7934, -5.4456, 0.0753),
-        'left_knee': (8.5385,), 'left_ankle': (9.3283, -5.4461),
+        'spine_lumbar': (3.5635, -4.8915, 3.3688), 'spine_thoracic': (0.5546, -0.8835, -10.3566),
+        'right_hip': (-12.711, 7.6331, -1.5388), 'right_knee': (7.9731,),
+        'right_ankle': (20.0, 7.0231), 'left_hip': (-4.8701, -6.4477, 0.5482),
+        'left_knee': (4.5936,), 'left_ankle': (9.4329, -6.4708),
     })
-    human.KeyRoot(18.0, (2.266, 90.966, 58.435), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(18.0, (5.359, 90.386, 63.105), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.0, {
-        'spine_lumbar': (9.6341, -9.3279, 0.3628), 'spine_thoracic': (1.6139, -1.6849, -0.8851),
-        'right_hip': (1.6585, 1.942, 0.0562), 'right_knee': (6.2495,),
-        'right_ankle': (4.592, 1.9428), 'left_hip': (1.6585, -1.942, -0.0562),
-        'left_knee': (6.2495,), 'left_ankle': (4.592, -1.9428),
+        'spine_lumbar': (11.6827, -11.7104, 3.3688), 'spine_thoracic': (1.8892, -2.1033, -10.3566),
+        'right_hip': (0.4698, 4.616, 0.0378), 'right_knee': (9.4589,),
+        'right_ankle': (8.9907, 4.6162), 'left_hip': (0.4698, -4.616, -0.0378),
+        'left_knee': (9.4589,), 'left_ankle': (8.9907, -4.6162),
     })
-    human.KeyRoot(18.1, (0.006, 91.093, 55.008), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(18.1, (1.208, 91.043, 56.859), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.1, {
-        'spine_lumbar': (0.1419, -0.1343, 0.3628), 'right_hip': (2.8603, 0.0048, 0.0002),
-        'right_knee': (4.5837,), 'right_ankle': (1.7235, 0.0048),
-        'left_hip': (2.8603, -0.0048, -0.0002), 'left_knee': (4.5837,),
-        'left_ankle': (1.7235, -0.0048),
+        'spine_lumbar': (6.4697, -6.391, 3.3688), 'spine_thoracic': (1.1132, -1.1582, -10.3566),
+        'right_hip': (2.3257, 1.0376, 0.0421), 'right_knee': (5.7212,),
+        'right_ankle': (3.3959, 1.0385), 'left_hip': (2.3257, -1.0376, -0.0421),
+        'left_knee': (5.7212,), 'left_ankle': (3.3959, -1.0385),
     })
-    human.KeyRoot(18.103969, (0.0, 91.087, 55.0), (-10.4375, 0.0, 0.0))
-    human.KeyJoints(18.103969, {
-        'spine_lumbar': (0.0, 0.0, 0.3628), 'spine_thoracic': (0.0, 0.0, -0.8851),
-        'neck': (26.5418, -20.5593, 22.9067), 'head': (15.0, 11.2326), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
-        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
+    human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.4375, 0.0, 0.0))
+    human.KeyJoints(18.175969, {
+        'spine_lumbar': (0.0, 0.0, 3.3688), 'spine_thoracic': (0.0, 0.0, -10.3566),
+        'neck': (24.0913, -10.1469, 27.3997), 'head': (12.7809, 11.1296),
+        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
+        'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
         'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),

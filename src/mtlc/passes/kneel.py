@@ -149,7 +149,8 @@ class Body:
         return forward(self.skel, self.q_of(x), x[:, :3], with_axes=False)  # the body frame
 
     def residual(self, x: FloatArray, tg: Targets, prev: FloatArray) -> FloatArray:
-        """Residuals (B, R) of a batch of candidate states ``x`` (B, 3 + V)."""
+        """Residuals (B, R) of a batch of candidate states ``x`` (B, 3 + V): the plain statement
+        of what ``_linearise`` computes with its Jacobian for one state (its test's reference)."""
         pose = self.pose(x)
         out = []
         for name, target, w in tg.points:

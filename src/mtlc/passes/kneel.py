@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from mtlc.body import center_of_mass, forward, site_positions
-from mtlc.body.kinematics import segment_coms
+from mtlc.body.kinematics import com_jacobian
 from mtlc.ir.model import FloatArray
 from mtlc.metrics import CONTACT_TOL
 
@@ -137,8 +137,6 @@ class Body:
             dtype=float,
         )
         self.moves = skel.ancestor[self.point_joint][:, skel.dof_joint[self.idx]]  # (P, V)
-        self.below = skel.ancestor[:, skel.dof_joint[self.idx]].T  # (V, J): segments a dof moves
-        self.carried = self.below.astype(float) @ skel.masses  # (V,) mass each dof carries
 
     def q_of(self, x: FloatArray) -> FloatArray:
         q = np.tile(self.q_base, (len(x), 1))
@@ -236,8 +234,7 @@ class Body:
     ) -> tuple[FloatArray, FloatArray]:
         """Residual (R,) and its Jacobian (R, 3 + V) at ``x``, in ``residual``'s order, from one
         forward kinematics call: a point's column for a dof is ``axis × (point − joint)``, the
-        root's are the identity, the centre of mass's is the same over the mass a dof carries
-        (a candidate is evaluated with its Jacobian, which the next step needs if accepted)."""
+        root's are the identity, the centre of mass's ``com_jacobian`` (a candidate is evaluated with its Jacobian, which the next step needs if accepted)."""
         skel, n = self.skel, len(x)
         pose = forward(skel, self.q_of(x[None])[0], x[:3])
         pts = pose.p[self.point_joint] + np.einsum(
@@ -267,11 +264,9 @@ class Body:
         rows.append((PLANT_W * 0.5 * (1.0 - low / root))[:, None] * jac[:, 1])
         if tg.com is not None:
             c = center_of_mass(skel, pose)
-            mc = np.einsum("vj,j,ja->va", self.below, skel.masses, segment_coms(skel, pose))
             jc = np.zeros((3, n))
             jc[:, :3] = np.eye(3)
-            jc[:, 3:] = (np.cross(axes, mc - self.carried[:, None] * origins)
-                         / skel.total_mass).T  # fmt: skip
+            jc[:, 3:] = com_jacobian(skel, pose)[:, self.idx]
             res.append(tg.com_w * (c[[0, 2]] - tg.com))
             rows.append(tg.com_w * jc[[0, 2]])
         eye = np.eye(n)

@@ -127,16 +127,25 @@ def best_path(
     root: tuple[FloatArray, FloatArray],
     reach: str,
     hopeless: bool,
+    pinned: list[Goal] | None = None,
 ) -> tuple[FloatArray, str, FloatArray]:
     """The path onto the sites: the gradient path on TA's chain; if it stalls short of a
     reachable site (a local minimum at a limit), the gradient path with the torso, then the
     straight joint-space line to a DLS solution (kept samples still never move away).
-    Returns the path, the reach used and the (T, H) distances along it."""
+    Each is judged as it will be used: a torso path with the other hand put back (``pinned``),
+    every path cut where a hand meets the floor (``above_ground``). Returns the path, the
+    reach used and the (T, H) distances along it."""
     skel = state.skel
     goals = [g for s, p in zip(segs, targets, strict=True) for g in seg_goals(skel, s, p)]
     effs = [s.goal.effector for s in segs]
+
+    def finished(p: FloatArray, r: str) -> tuple[FloatArray, FloatArray]:
+        if r == "torso" and pinned:  # the trunk carried the other arm: put its hand back
+            p = repin(ctx, skel, p, pinned, root)
+        return above_ground(state, p, _distances(skel, p, effs, targets, root), effs, root)
+
     path = _gradient(ctx, state, goals, q0, root, reach, MAX_ITER // 4 if hopeless else MAX_ITER)
-    dist = _distances(skel, path, effs, targets, root)
+    path, dist = finished(path, reach)
     if hopeless or dist[-1].max() <= TOLERANCE:
         return path, reach, dist
     tries = []
@@ -147,7 +156,7 @@ def best_path(
     line = q0[None] + np.linspace(0.0, 1.0, 2 * MAX_KEYFRAMES)[:, None] * (q_star - q0)[None]
     tries.append(("torso", line))
     for r, p in tries:
-        d = _distances(skel, p, effs, targets, root)
+        p, d = finished(p, r)
         if d[-1].max() < dist[-1].max():
             path, reach, dist = p, r, d
         if dist[-1].max() <= TOLERANCE:
@@ -195,10 +204,7 @@ def _solve_parts(
     with the kept samples and their progress (``select_keys``)."""
     out = []
     for psegs, ptargets, reach, hopeless in parts:
-        path, used, dist = best_path(ctx, state, psegs, ptargets, q0, root, reach, hopeless)
-        if used == "torso" and pinned:  # the trunk carried the other arm: put its hand back
-            path = repin(ctx, state.skel, path, pinned, root)
-        path, dist = above_ground(state, path, dist, [s.goal.effector for s in psegs], root)
+        path, used, dist = best_path(ctx, state, psegs, ptargets, q0, root, reach, hopeless, pinned)
         keep, prog = select_keys(dist)
         q0 = path[keep[-1]].copy()
         out.append((path, psegs, used, dist, keep, prog))

@@ -28,7 +28,6 @@ from typing import Any
 import numpy as np
 
 from mtlc.body import center_of_mass, forward, site_positions
-from mtlc.body.kinematics import com_jacobian
 from mtlc.ir.model import FloatArray
 from mtlc.metrics import CONTACT_TOL
 
@@ -39,7 +38,7 @@ STEP_LIFT = 0.05  # m: a stepping foot's clearance at mid-swing
 LAND_PITCH = math.radians(25.0)  # the back foot lands on its toe, heel up by this much
 KNEEL_COM_BEHIND = 0.12  # m: the kneeling CoM's target behind the knees
 SINGLE_KNEE_AT = 0.25  # share of the knee-to-toe distance: the CoM target on one kneeling leg
-FPS = 60.0
+FPS = 30.0
 ITERATIONS = 10
 STEP_TOL = 1e-5  # rad or m: a frame whose last step was this small has converged
 PLANT_W = 1000.0  # residual weights (per metre, per radian)
@@ -90,6 +89,8 @@ MIN_KNEE = 0.08  # rad: the least knee flexion (the comfortable pose's)
 HEEL_DOWN = 0.5  # share of the descent with the front heel down
 GROUND_SITES = tuple(f"{s}_{n}" for s in ("r", "l") for n in (*SOLE, "foot", "hand", "fingertip"))
 SOLE_SITES = {s: tuple(f"{s}_{n}" for n in SOLE) for s in ("r", "l")}
+CONTACT_SITES = tuple(f"{s}_{n}" for s in ("r", "l") for n in SOLE)
+KNEE_POINTS = ("joint:r_knee", "joint:l_knee")
 
 
 def smoothstep(s: FloatArray | float) -> FloatArray:
@@ -111,6 +112,7 @@ class Targets:
     smooth: float = SMOOTH_W
     joints: tuple[FloatArray, FloatArray, float] | None = None  # (columns of x, values, weight)
     root_y: tuple[float, float] | None = None  # a pelvis height and its weight
+    linear: Any = field(default=None, repr=False, compare=False)  # ``Body._linear_rows``'s form
 
 
 class Body:
@@ -126,7 +128,7 @@ class Body:
             self.lo[col] = max(self.lo[col], min(MIN_KNEE, float(q_base[self.idx[col]])))
         self.knees = [skel.joint_index("r_knee"), skel.joint_index("l_knee")]
         # the points a target can name: the joint each rides on and its offset there
-        names = (*GROUND_SITES, "joint:r_knee", "joint:l_knee")
+        names = (*GROUND_SITES, *KNEE_POINTS)
         self.points = {n: i for i, n in enumerate(names)}
         self.point_joint = np.array(
             [skel.joint_index(n[6:] if n.startswith("joint:") else skel.site(n).joint)
@@ -136,7 +138,15 @@ class Body:
             [np.zeros(3) if n.startswith("joint:") else skel.site(n).offset for n in names],
             dtype=float,
         )
+        # then every segment's centre of mass: the body's is their mass-weighted mean
+        self.point_joint = np.concatenate([self.point_joint, np.arange(skel.n_joints)])
+        self.point_offset = np.concatenate([self.point_offset, skel.coms])
+        self.mass_share = skel.masses / skel.total_mass
         self.moves = skel.ancestor[self.point_joint][:, skel.dof_joint[self.idx]]  # (P, V)
+        self.n_named = len(names)  # the points a target names; the segments' come after
+        self.ground_lift = np.zeros(len(names))  # the barrier's height of each named point
+        self.ground_lift[len(GROUND_SITES) :] = KNEE_HEIGHT - 0.002  # knees: as kneeling
+        self.contact_idx = np.array([self.points[n] for n in (*CONTACT_SITES, *KNEE_POINTS)])
 
     def q_of(self, x: FloatArray) -> FloatArray:
         q = np.tile(self.q_base, (len(x), 1))
@@ -162,13 +172,13 @@ class Body:
             across = pts[:, 2, 1] - pts[:, 3, 1]  # ball_med vs ball_lat height
             ahead = pts[:, 0, 0] - pts[:, 1, 0]  # toe and heel on one line along +Z
             out.append(np.stack([LEVEL_W * across, PLANT_W * ahead], axis=1))
+        if tg.com is not None:
+            out.append(tg.com_w * (center_of_mass(self.skel, pose)[:, [0, 2]] - tg.com))
         # nothing below the ground: sole points, ankles, and knees no lower than kneeling
         soles = site_positions(self.skel, pose, GROUND_SITES)[..., 1]
         knees = pose.p[:, self.knees, 1] - (KNEE_HEIGHT - 0.002)
         low = np.concatenate([soles, knees], axis=1)
         out.append(PLANT_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))  # smooth min(·, 0)
-        if tg.com is not None:
-            out.append(tg.com_w * (center_of_mass(self.skel, pose)[:, [0, 2]] - tg.com))
         out.append(tg.smooth * ROOT_SMOOTH * (x[:, :3] - prev[:3]))
         out.append(tg.smooth * (x[:, 3:] - prev[3:]))
         if tg.root_y is not None:
@@ -183,21 +193,28 @@ class Body:
         return np.concatenate(out, axis=1)
 
     def _step(self, jac: FloatArray, r0: FloatArray, lam: float, x: FloatArray) -> FloatArray:
-        """A damped Gauss-Newton step; joints at a limit that the step would push past it are
-        held (their columns dropped), so the rest of the body still moves."""
-        n = len(x)
-        held = np.zeros(n, dtype=bool)
+        """``steps`` for one frame."""
+        return self.steps(jac[None], r0[None], np.array([lam]), x[None])[0]
+
+    def steps(self, jac: FloatArray, r0: FloatArray, lam: FloatArray, x: FloatArray) -> FloatArray:
+        """Damped Gauss-Newton steps (F, n) of F frames at once (``jac`` (F, R, n), ``r0``
+        (F, R)); joints at a limit that a step would push past it are held (their columns
+        dropped), so the rest of the body still moves."""
+        f, n = x.shape
+        held = np.zeros((f, n), dtype=bool)
+        diag = np.arange(n)
         for _ in range(3):
-            j = np.where(held, 0.0, jac)
-            jtj = j.T @ j
-            damp = lam * (np.diag(jtj) + 1e-6)  # Marquardt: damping scaled per variable
-            step = -np.linalg.solve(jtj + np.diag(damp), j.T @ r0)
+            j = np.where(held[:, None, :], 0.0, jac)
+            jtj = np.swapaxes(j, 1, 2) @ j
+            # Marquardt: damping scaled per variable
+            jtj[:, diag, diag] += lam[:, None] * (jtj[:, diag, diag] + 1e-6)
+            step = -np.linalg.solve(jtj, np.einsum("frn,fr->fn", j, r0)[..., None])[..., 0]
             step[held] = 0.0
-            q, d = x[3:], step[3:]
+            q, d = x[:, 3:], step[:, 3:]
             out = ((q <= self.lo + 1e-9) & (d < 0)) | ((q >= self.hi - 1e-9) & (d > 0))
-            if not (out & ~held[3:]).any():
+            if not (out & ~held[:, 3:]).any():
                 break
-            held[3:] |= out
+            held[:, 3:] |= out
         return step
 
     def solve(self, x0: FloatArray, tg: Targets, iterations: int = ITERATIONS) -> FloatArray:
@@ -229,64 +246,101 @@ class Body:
                 lam *= 10.0
         return x
 
-    def _linearise(
-        self, x: FloatArray, tg: Targets, prev: FloatArray
-    ) -> tuple[FloatArray, FloatArray]:
-        """Residual (R,) and its Jacobian (R, 3 + V) at ``x``, in ``residual``'s order, from one
-        forward kinematics call: a point's column for a dof is ``axis × (point − joint)``, the
-        root's are the identity, the centre of mass's ``com_jacobian`` (a candidate is evaluated with its Jacobian, which the next step needs if accepted)."""
-        skel, n = self.skel, len(x)
-        pose = forward(skel, self.q_of(x[None])[0], x[:3])
-        pts = pose.p[self.point_joint] + np.einsum(
-            "pab,pb->pa", pose.R[self.point_joint], self.point_offset
+    def kinematics(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Points (F, P + 1, 3) of states ``x`` (F, n): the named points, then the centre of
+        mass; and their Jacobians (F, P + 1, 3, n), from one forward kinematics call: a point's
+        column for a dof is ``axis × (point − joint)``, the root's the identity."""
+        f, n = x.shape
+        pose = forward(self.skel, self.q_of(x), x[:, :3])
+        pts = pose.p[:, self.point_joint] + np.einsum(
+            "fpab,pb->fpa", pose.R[:, self.point_joint], self.point_offset
         )
-        axes, origins = pose.axes[self.idx], pose.p[skel.dof_joint[self.idx]]
-        jac = np.zeros((len(pts), 3, n))
-        jac[:, :, :3] = np.eye(3)
-        cols = np.cross(axes, pts[:, None, :] - origins) * self.moves[..., None]  # (P, V, 3)
-        jac[:, :, 3:] = cols.transpose(0, 2, 1)
-        res: list[FloatArray] = []
-        rows: list[FloatArray] = []
+        axes, origins = pose.axes[:, self.idx], pose.p[:, self.skel.dof_joint[self.idx]]
+        jac = np.empty((f, len(pts[0]), 3, n))
+        jac[..., :3] = np.eye(3)
+        cols = np.cross(axes[:, None], pts[:, :, None] - origins[:, None]) * self.moves[..., None]
+        jac[..., 3:] = np.swapaxes(cols, 2, 3)  # (F, P, V, 3) -> (F, P, 3, V)
+        m = self.n_named
+        com = np.einsum("j,fja->fa", self.mass_share, pts[:, m:])[:, None]
+        com_jac = np.einsum("j,fjan->fan", self.mass_share, jac[:, m:])[:, None]
+        return (np.concatenate([pts[:, :m], com], axis=1),
+                np.concatenate([jac[:, :m], com_jac], axis=1))  # fmt: skip
+
+    def barrier(self, pts: FloatArray, jac: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The ground's residual (..., P) and Jacobian (..., P, n): a smooth min(height, 0) of
+        the named points (knees no lower than kneeling), from ``kinematics``' output."""
+        m = self.n_named
+        low = pts[..., :m, 1] - self.ground_lift
+        root = np.sqrt(low * low + GROUND_EPS**2)
+        return PLANT_W * 0.5 * (low - root), (PLANT_W * 0.5 * (1.0 - low / root))[..., None] * jac[
+            ..., :m, 1, :
+        ]
+
+    def _linear_rows(self, tg: Targets) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``tg``'s residual rows that are linear in the points: A @ points - a (targets,
+        levels, the CoM's); and those linear in the state: B @ x - b (smoothness to the
+        previous frame, whose part of b is left for the call, then pelvis height, joint
+        values, nominal pose). Built once per ``Targets``: a frame's solve reuses them."""
+        if tg.linear is not None:
+            return tg.linear  # type: ignore[no-any-return]
+        n, m = 3 + len(self.idx), self.n_named
+        width = 3 * (m + 1)
+        A: list[FloatArray] = []
+        a: list[float] = []
+
+        def row(coefs: dict[tuple[int, int], float], value: float) -> None:
+            r = np.zeros(width)
+            for (point, axis), c in coefs.items():
+                r[3 * point + axis] += c
+            A.append(r)
+            a.append(value)
+
         for name, target, w in tg.points:
-            i = self.points[name]
-            res.append(w * (pts[i] - target))
-            rows.append(w * jac[i])
+            for axis in range(3):
+                row({(self.points[name], axis): w}, w * float(target[axis]))
         for side in tg.level:
             toe, heel, med, lat = (self.points[f"{side}_{n}"] for n in SOLE)
-            res.append(np.array([LEVEL_W * (pts[med, 1] - pts[lat, 1]),
-                                 PLANT_W * (pts[toe, 0] - pts[heel, 0])]))  # fmt: skip
-            rows.append(np.stack([LEVEL_W * (jac[med, 1] - jac[lat, 1]),
-                                  PLANT_W * (jac[toe, 0] - jac[heel, 0])]))  # fmt: skip
-        low = pts[:, 1].copy()  # the ground's barrier: sole points as they are, knees raised
-        low[len(GROUND_SITES) :] -= KNEE_HEIGHT - 0.002
-        root = np.sqrt(low * low + GROUND_EPS**2)
-        res.append(PLANT_W * 0.5 * (low - root))
-        rows.append((PLANT_W * 0.5 * (1.0 - low / root))[:, None] * jac[:, 1])
+            row({(med, 1): LEVEL_W, (lat, 1): -LEVEL_W}, 0.0)
+            row({(toe, 0): PLANT_W, (heel, 0): -PLANT_W}, 0.0)
         if tg.com is not None:
-            c = center_of_mass(skel, pose)
-            jc = np.zeros((3, n))
-            jc[:, :3] = np.eye(3)
-            jc[:, 3:] = com_jacobian(skel, pose)[:, self.idx]
-            res.append(tg.com_w * (c[[0, 2]] - tg.com))
-            rows.append(tg.com_w * jc[[0, 2]])
+            row({(m, 0): tg.com_w}, tg.com_w * float(tg.com[0]))
+            row({(m, 2): tg.com_w}, tg.com_w * float(tg.com[1]))
         eye = np.eye(n)
         scale = np.full(n, tg.smooth)
         scale[:3] *= ROOT_SMOOTH
-        res.append(scale * (x - prev))
-        rows.append(scale[:, None] * eye)
+        B, b = [scale[:, None] * eye], [np.zeros(n)]
         if tg.root_y is not None:
-            res.append(np.array([tg.root_y[1] * (x[1] - tg.root_y[0])]))
-            rows.append(tg.root_y[1] * eye[1:2])
+            B.append(tg.root_y[1] * eye[1:2])
+            b.append(np.array([tg.root_y[1] * tg.root_y[0]]))
         if tg.joints is not None:
-            jcols, values, w = tg.joints
-            res.append(w * (x[jcols] - values))
-            rows.append(w * eye[jcols])
+            cols, values, w = tg.joints
+            B.append(w * eye[cols])
+            b.append(w * values)
         if tg.nominal is not None:
             free = np.isnan(tg.nominal)
             w = np.where(free, 0.0, tg.nominal_w)
-            res.append(w * np.where(free, 0.0, x[3:] - np.nan_to_num(tg.nominal)))
-            rows.append(w[:, None] * eye[3:])
-        return np.concatenate(res), np.concatenate([r.reshape(-1, n) for r in rows])
+            B.append(w[:, None] * eye[3:])
+            b.append(w * np.where(free, 0.0, np.nan_to_num(tg.nominal)))
+        tg.linear = (
+            np.array(A).reshape(-1, width), np.array(a), np.concatenate(B), np.concatenate(b),
+            scale,
+        )  # fmt: skip
+        return tg.linear  # type: ignore[no-any-return]
+
+    def _linearise(
+        self, x: FloatArray, tg: Targets, prev: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """Residual (R,) and its Jacobian (R, n) at ``x``, in ``residual``'s order (a candidate
+        is evaluated with its Jacobian, which the next step needs if accepted)."""
+        A, a, B, b, scale = self._linear_rows(tg)
+        pts, jac = self.kinematics(x[None])
+        n = len(x)
+        lin_r = A @ pts[0].reshape(-1) - a
+        lin_j = A @ jac[0].reshape(-1, n)
+        ground_r, ground_j = self.barrier(pts[0], jac[0])
+        state_r = B @ x - b
+        state_r[:n] -= scale * prev
+        return np.concatenate([lin_r, ground_r, state_r]), np.concatenate([lin_j, ground_j, B])
 
 
 def track(body: Body, x0: FloatArray, targets: Callable[[float, FloatArray], Targets],
@@ -543,8 +597,6 @@ def kneel_targets(
 
 
 HALF_KNEEL_PHASES = 4  # kneel(1) stops after "down onto the right knee"
-PLANTED_DRIFT = 2e-4  # m: a point this still between two solved frames is planted there
-CONTACT_SITES = [f"{s}_{n}" for s in ("r", "l") for n in SOLE]
 
 
 @dataclass
@@ -580,9 +632,10 @@ class KneelPlan:
         """(times, states) at ``t0`` and then at the interpolation grid's instants (multiples of
         1/fps): the frames the motion is made of are then solved poses, not blends of two.
 
-        Between two solved frames a state is blended, then its planted contacts (sole points
-        and knees that do not move between the two) are put back exactly (``Body.solve``'s
-        polish): blending the angles of two poses with a foot in the same place moves the foot.
+        Between two solved frames a state is blended, then its sole points and knees are put
+        where a straight line between the two frames has them (``polish_frames``): blending the
+        angles of two poses moves a foot off its place (millimetres sideways as a heel starts
+        to rise and hip and ankle trade turns; centimetres as a foot leaves the ground).
         """
         end = t0 + float(self.time[-1])
         grid = np.arange(np.floor(t0 * fps) + 1, np.floor(end * fps + 1e-6) + 1) / fps
@@ -596,21 +649,14 @@ class KneelPlan:
         out[exact] = np.where((f[exact] < 0.5)[:, None], self.x[k[exact]], self.x[k[exact] + 1])
         blended = np.flatnonzero(~exact)
         if blended.size:
-            target, weight = self._planted(self.x[k[blended]], self.x[k[blended] + 1])
-            rows = blended[weight.any(axis=1)]
-            keep = weight.any(axis=1)
-            if rows.size:
-                out[rows] = polish_frames(self.body, x[rows], target[keep], weight[keep])
+            a, b = (_contact_points(self.body, self.x[k[blended] + i]) for i in (0, 1))
+            low = np.full(a.shape[1], CONTACT_TOL)
+            low[len(CONTACT_SITES) :] += KNEE_HEIGHT
+            down = (a[..., 1] < low) & (b[..., 1] < low)  # on the ground in both: firm
+            target = a + f[blended, None, None] * (b - a)
+            weight = np.where(down, PLANT_W, SWING_W)
+            out[blended] = polish_frames(self.body, x[blended], target, weight)
         return times, out
-
-    def _planted(self, xa: FloatArray, xb: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Contact points (sole sites, then knees) that stay put between states ``xa`` and
-        ``xb`` (F, 3 + V): their places (F, P, 3) and weights (F, P) (0: not planted)."""
-        a, b = _contact_points(self.body, xa), _contact_points(self.body, xb)
-        low = np.full(a.shape[1], 0.002)
-        low[len(CONTACT_SITES) :] = KNEE_HEIGHT + 0.002
-        still = (a[..., 1] < low) & (np.linalg.norm(b - a, axis=-1) < PLANTED_DRIFT)
-        return a, np.where(still, PLANT_W, 0.0)
 
 
 def _contact_points(body: Body, x: FloatArray) -> FloatArray:
@@ -621,38 +667,34 @@ def _contact_points(body: Body, x: FloatArray) -> FloatArray:
 
 
 def polish_frames(body: Body, x0: FloatArray, target: FloatArray, weight: FloatArray) -> FloatArray:
-    """``Body._descend`` on planted contacts alone (``POLISH_SMOOTH``, ``POLISH_ITERATIONS``),
-    for many frames at once: one forward kinematics call per iteration for all frames' finite
-    differences instead of one per frame (the calls' overhead, not their size, is the cost).
-    Unplanted points have weight 0, so each frame minimises the same sum as the serial polish."""
+    """``Body._descend`` on the contact points alone (``CONTACT_SITES`` and the knees, at
+    ``target`` (F, 10, 3) with ``weight`` (F, 10)), with ``POLISH_SMOOTH`` and
+    ``POLISH_ITERATIONS``, for F frames at once: one forward kinematics call and one batched
+    solve per iteration."""
     f, n = x0.shape
-    h = 1e-6
+    rows, w = body.contact_idx, weight[..., None]
+    scale = np.full(n, POLISH_SMOOTH)
+    scale[:3] *= ROOT_SMOOTH
 
-    def residual(xr: FloatArray, rep: int) -> FloatArray:
-        pts = _contact_points(body, xr.reshape(-1, n)).reshape(f, rep, -1, 3)
-        r = [(weight[:, None, :, None] * (pts - target[:, None])).reshape(f, rep, -1)]
-        pose_y = body.pose(xr.reshape(-1, n))
-        soles = site_positions(body.skel, pose_y, GROUND_SITES)[..., 1]
-        knees = pose_y.p[:, body.knees, 1] - (KNEE_HEIGHT - 0.002)
-        low = np.concatenate([soles, knees], axis=1).reshape(f, rep, -1)
-        r.append(PLANT_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))
-        r.append(POLISH_SMOOTH * ROOT_SMOOTH * (xr[..., :3] - x0[:, None, :3]))
-        r.append(POLISH_SMOOTH * (xr[..., 3:] - x0[:, None, 3:]))
-        return np.concatenate(r, axis=-1)
+    def linearise(x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        pts, jac = body.kinematics(x)
+        ground_r, ground_j = body.barrier(pts, jac)
+        res = np.concatenate([(w * (pts[:, rows] - target)).reshape(f, -1), ground_r,
+                              scale * (x - x0)], axis=1)  # fmt: skip
+        jacs = [(w[..., None] * jac[:, rows]).reshape(f, -1, n), ground_j,
+                np.broadcast_to(np.diag(scale), (f, n, n))]  # fmt: skip
+        return res, np.concatenate(jacs, axis=1)
 
     x, lam = x0.copy(), np.full(f, 1e-2)
+    r0, jac = linearise(x)
     for _ in range(POLISH_ITERATIONS):
-        batch = np.repeat(x[:, None], n + 1, axis=1)
-        batch[:, 1:] += np.eye(n) * h
-        res = residual(batch, n + 1)
-        r0 = res[:, 0]
-        jac = np.swapaxes(res[:, 1:] - r0[:, None], 1, 2) / h  # (F, R, n)
-        step = np.stack([body._step(jac[i], r0[i], lam[i], x[i]) for i in range(f)])
-        cand = x + step
+        cand = x + body.steps(jac, r0, lam, x)
         cand[:, 3:] = np.clip(cand[:, 3:], body.lo, body.hi)
-        rc = residual(cand[:, None], 1)[:, 0]
+        rc, jc = linearise(cand)
         better = np.einsum("fr,fr->f", rc, rc) < np.einsum("fr,fr->f", r0, r0)
         x = np.where(better[:, None], cand, x)
+        r0 = np.where(better[:, None], rc, r0)
+        jac = np.where(better[:, None, None], jc, jac)
         lam = np.where(better, np.maximum(lam * 0.3, 1e-5), lam * 10.0)
     return x
 
@@ -735,7 +777,7 @@ def _airborne(
     moves; a touchdown ends when the foot has stopped, not when its phase does."""
     pts = site_positions(body.skel, body.pose(xs), [f"{step['foot']}_{n}" for n in SOLE])
     near = pts[..., 1] <= CONTACT_TOL
-    slide = np.where(near[1:] & near[:-1], np.linalg.norm(np.diff(pts, axis=0), axis=-1), 0.0)
+    slide = np.where(near[1:] | near[:-1], np.linalg.norm(np.diff(pts, axis=0), axis=-1), 0.0)
     moving = slide.max(axis=1) > STILL  # (n-1,): a point on the ground slides (rolling is not)
     a = int(np.searchsorted(times, step["t_lift"]))
     b = int(np.searchsorted(times, step["t_land"]))

@@ -11,7 +11,7 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-0.327, 0.0, 53.102), start=0.0, duration=0.54)
+    human.Walk((-0.386, 0.0, 53.024), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -55,195 +55,195 @@ def replace_fuel_filter():
         'left_knee': (21.7176,), 'left_ankle': (7.4656, 1.2322),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(0.6, (0.778, 90.664, 56.317), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.63, 90.667, 56.122), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'spine_lumbar': (4.6522, -4.5948, 0.0), 'spine_thoracic': (0.7843, -0.8038, 0.0),
-        'right_hip': (5.9416, 0.6832, 0.0711), 'right_knee': (12.4877,),
-        'right_ankle': (6.5511, 0.6869), 'left_hip': (5.9214, -0.6832, -0.0709),
-        'left_knee': (12.4463,), 'left_ankle': (6.5266, -0.6869),
+        'spine_lumbar': (4.9333, -4.8351, 0.0), 'spine_thoracic': (0.8701, -0.8913, 0.0),
+        'right_hip': (6.0481, 0.5597, 0.0593), 'right_knee': (12.4739,),
+        'right_ankle': (6.4305, 0.5628), 'left_hip': (6.0279, -0.5597, -0.0591),
+        'left_knee': (12.4327,), 'left_ankle': (6.4062, -0.5628),
     })
-    human.KeyRoot(0.7, (4.662, 90.217, 62.184), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.7, (3.603, 90.408, 60.68), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'spine_lumbar': (12.3488, -12.2681, 0.0), 'spine_thoracic': (1.9763, -2.1779, 0.0),
-        'right_hip': (2.9266, 4.0375, 0.2065), 'right_knee': (13.4087,),
-        'right_ankle': (10.4935, 4.0428), 'left_hip': (2.9167, -4.0376, -0.2057),
-        'left_knee': (13.3884,), 'left_ankle': (10.4812, -4.0428),
+        'spine_lumbar': (16.4641, -15.7857, 0.0), 'spine_thoracic': (2.6105, -2.8281, 0.0),
+        'right_hip': (3.5967, 3.1287, 0.1967), 'right_knee': (12.9752,),
+        'right_ankle': (9.3877, 3.1348), 'left_hip': (3.5859, -3.1287, -0.1961),
+        'left_knee': (12.9531,), 'left_ankle': (9.3745, -3.1348),
     })
-    human.KeyRoot(0.8, (7.415, 89.982, 64.665), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.8, (5.662, 90.384, 61.858), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'spine_lumbar': (10.5817, -6.3644, 0.0), 'spine_thoracic': (1.7659, -1.126, 0.0),
-        'right_hip': (3.8494, 8.3308, 0.2656), 'right_knee': (28.1848,),
-        'right_ankle': (20.0, 6.7784), 'left_hip': (0.3596, -6.2139, -0.0389),
-        'left_knee': (10.8707,), 'left_ankle': (10.5133, -6.2141),
+        'spine_lumbar': (18.1177, -12.6822, 0.0), 'spine_thoracic': (2.8762, -2.2633, 0.0),
+        'right_hip': (6.9162, 4.7771, 0.3396), 'right_knee': (29.2041,),
+        'right_ankle': (20.0, 4.8031), 'left_hip': (1.94, -4.6635, -0.1517),
+        'left_knee': (10.6701,), 'left_ankle': (8.7321, -4.6649),
     })
-    human.KeyRoot(0.9, (9.609, 90.278, 58.41), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.9, (7.016, 90.433, 59.833), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'spine_lumbar': (41.0206, -3.0736, 0.0), 'spine_thoracic': (5.5999, -0.5008, 0.0),
-        'right_hip': (-10.8233, 7.2926, -0.125), 'right_knee': (23.1215,),
-        'right_ankle': (20.0, 7.035), 'left_hip': (4.101, -6.8706, -0.4836), 'left_knee': (9.3003,),
-        'left_ankle': (5.2258, -6.8869),
+        'spine_lumbar': (33.6414, -9.6051, 0.0), 'spine_thoracic': (4.8939, -1.6585, 0.0),
+        'right_hip': (-10.7619, 5.1304, 0.1298), 'right_knee': (25.2462,),
+        'right_ankle': (20.0, 5.1758), 'left_hip': (3.2295, -5.3119, -0.2937),
+        'left_knee': (10.1618,), 'left_ankle': (6.943, -5.319),
     })
-    human.KeyRoot(1.0, (8.982, 89.507, 63.856), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.0, (7.862, 90.035, 62.244), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'spine_lumbar': (20.9484, -1.3626, 0.0), 'spine_thoracic': (3.1704, -0.2251, 0.0),
-        'right_hip': (-13.2782, 4.7275, 8.9707), 'right_knee': (44.9884,),
-        'right_ankle': (-19.0465, 9.2739), 'left_hip': (3.4128, -7.191, -0.4283),
-        'left_knee': (15.5942,), 'left_ankle': (12.2147, -7.2036),
+        'spine_lumbar': (26.266, -5.4538, 0.0), 'spine_thoracic': (3.8807, -0.9501, 0.0),
+        'right_hip': (-12.523, 4.2646, 7.0804), 'right_knee': (44.1933,),
+        'right_ankle': (-15.7453, 7.5988), 'left_hip': (2.8974, -6.2029, -0.3136),
+        'left_knee': (12.5929,), 'left_ankle': (9.7174, -6.2107),
     })
-    human.KeyRoot(1.1, (8.722, 89.011, 63.786), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.1, (8.163, 89.873, 62.386), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'spine_lumbar': (18.063, -1.3779, 0.0), 'spine_thoracic': (2.9157, -0.2363, 0.0),
-        'right_hip': (-13.8096, 2.6965, 16.8367), 'right_knee': (38.015,),
-        'right_ankle': (-48.6651, 9.8671), 'left_hip': (5.6521, -7.0287, -0.6942),
-        'left_knee': (20.1704,), 'left_ankle': (14.5657, -7.0629),
+        'spine_lumbar': (23.1996, -3.7038, 0.0), 'spine_thoracic': (3.5716, -0.6558, 0.0),
+        'right_hip': (-13.5958, 2.458, 13.4546), 'right_knee': (34.7698,),
+        'right_ankle': (-45.8682, 6.0074), 'left_hip': (3.5248, -6.4304, -0.3956),
+        'left_knee': (13.9946,), 'left_ankle': (10.4963, -6.4425),
     })
-    human.KeyRoot(1.2, (7.379, 89.487, 59.671), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.2, (7.351, 90.33, 59.177), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (-18.8125, 7.6723, 0.0), 'spine_thoracic': (-3.7393, 1.3733, 0.0),
-        'right_hip': (-12.4376, 2.5568, 11.7671), 'right_knee': (36.5065,),
-        'right_ankle': (-40.989, 14.2999), 'left_hip': (8.086, -5.5504, -0.7874),
-        'left_knee': (19.7727,), 'left_ankle': (11.7277, -5.6058),
+        'spine_lumbar': (-16.2251, 7.4467, 0.0), 'spine_thoracic': (-3.3969, 1.3205, 0.0),
+        'right_hip': (-13.3345, 2.6867, 10.3133), 'right_knee': (34.077,),
+        'right_ankle': (-41.0344, 8.536), 'left_hip': (4.4466, -5.4531, -0.4235),
+        'left_knee': (11.6566,), 'left_ankle': (7.2323, -5.4695),
     })
-    human.KeyRoot(1.3, (5.349, 90.27, 45.911), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.3, (6.521, 90.637, 50.729), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (-29.3945, 10.8715, 0.0), 'spine_thoracic': (-8.8596, 1.8131, 0.0),
-        'right_hip': (-7.5848, 1.8426, 2.5156), 'right_knee': (42.7997,),
-        'right_ankle': (-10.9433, 2.8704), 'left_hip': (10.2952, -2.4428, -0.4431),
-        'left_knee': (5.9161,), 'left_ankle': (-4.3723, -2.4827),
+        'spine_lumbar': (-30.0, 15.3959, 0.0), 'spine_thoracic': (-15.0, 1.7163, 0.0),
+        'right_hip': (-12.9303, 3.0923, 4.0055), 'right_knee': (35.6562,),
+        'right_ankle': (-16.6191, 6.4055), 'left_hip': (6.9939, -3.826, -0.4682),
+        'left_knee': (5.492,), 'left_ankle': (-1.4888, -3.8547),
     })
-    human.KeyRoot(1.4, (5.711, 89.741, 42.065), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.4, (6.528, 90.312, 46.586), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (-15.4833, 11.1463, 0.0), 'spine_thoracic': (-3.2718, 1.9631, 0.0),
-        'right_hip': (0.1692, 1.4093, 2.9646), 'right_knee': (52.4723,),
-        'right_ankle': (-12.0061, 4.0239), 'left_hip': (12.3465, -2.2111, -0.4838),
-        'left_knee': (4.7004,), 'left_ankle': (-7.6366, -2.2634),
+        'spine_lumbar': (-28.1678, 16.087, 0.0), 'spine_thoracic': (-10.1938, 2.5193, 0.0),
+        'right_hip': (-4.5999, 2.2328, 4.4156), 'right_knee': (46.5282,),
+        'right_ankle': (-16.5712, 6.4638), 'left_hip': (9.3379, -3.3157, -0.5449),
+        'left_knee': (4.5862,), 'left_ankle': (-4.736, -3.3601),
     })
-    human.KeyRoot(1.5, (4.843, 79.182, 41.12), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.5, (6.163, 86.676, 40.05), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (-11.5398, 10.5117, 0.0), 'spine_thoracic': (-2.3269, 1.8858, 0.0),
-        'right_hip': (7.3452, 0.8426, 2.1666), 'right_knee': (75.812,),
-        'right_ankle': (7.1654, 2.6606), 'left_hip': (40.1884, -1.3599, -1.1589),
-        'left_knee': (57.5587,), 'left_ankle': (17.1279, -1.7872),
+        'spine_lumbar': (-5.2983, 14.0103, 0.0), 'spine_thoracic': (-1.7545, 2.4696, 0.0),
+        'right_hip': (8.2373, 0.899, 4.2026), 'right_knee': (65.2716,),
+        'right_ankle': (-12.7495, 7.0827), 'left_hip': (26.2522, -2.1588, -1.0747),
+        'left_knee': (29.3908,), 'left_ankle': (2.9374, -2.4068),
     })
-    human.KeyRoot(1.6, (5.361, 59.074, 29.769), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.6, (5.53, 68.344, 34.843), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'spine_lumbar': (27.8382, 8.8894, 0.0), 'spine_thoracic': (4.2661, 1.5593, 0.0),
-        'right_hip': (31.8727, -0.2699, 1.3513), 'right_knee': (120.7717,),
-        'right_ankle': (19.3681, 1.6263), 'left_hip': (71.8868, -0.237, -0.7376),
-        'left_knee': (92.0381,), 'left_ankle': (19.8545, -0.7761),
+        'spine_lumbar': (13.5851, 12.2476, 0.0), 'spine_thoracic': (2.1514, 2.1794, 0.0),
+        'right_hip': (21.0834, 0.2, 2.8284), 'right_knee': (101.8573,),
+        'right_ankle': (15.8099, 5.5202), 'left_hip': (58.3235, -0.8591, -1.4522),
+        'left_knee': (79.3237,), 'left_ankle': (19.9363, -1.6772),
     })
-    human.KeyRoot(1.7, (3.401, 49.61, 36.69), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.7, (2.927, 51.617, 40.301), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'spine_lumbar': (10.5545, 9.4082, 0.0), 'spine_thoracic': (1.6623, 1.6914, 0.0),
-        'right_hip': (28.8931, -0.43, 0.92), 'right_knee': (131.6678,),
-        'right_ankle': (16.6087, 3.9043), 'left_hip': (85.1929, 0.0031, -0.0452),
-        'left_knee': (116.7663,), 'left_ankle': (20.0, -0.0546),
+        'spine_lumbar': (-0.6898, 10.0272, 0.0), 'spine_thoracic': (-0.2536, 1.8081, 0.0),
+        'right_hip': (23.5771, -0.4056, 1.1352), 'right_knee': (126.0072,),
+        'right_ankle': (16.2593, 3.7839), 'left_hip': (82.0637, 0.0468, -0.3702),
+        'left_knee': (117.8561,), 'left_ankle': (20.0, -0.3862),
     })
-    human.KeyRoot(1.8, (2.049, 44.509, 41.762), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.8, (2.004, 44.978, 42.645), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'spine_lumbar': (-1.817, 9.5624, 0.0), 'spine_thoracic': (-0.4282, 1.7293, 0.0),
-        'right_hip': (25.6415, -0.5419, 0.7965), 'right_knee': (135.0,),
-        'right_ankle': (10.7674, 6.4006), 'left_hip': (91.1244, -0.3032, 0.8589),
-        'left_knee': (129.437,), 'left_ankle': (19.998, 0.9452),
+        'spine_lumbar': (-4.5427, 9.9416, 0.0), 'spine_thoracic': (-0.9446, 1.7943, 0.0),
+        'right_hip': (24.3449, -0.4114, 0.6391), 'right_knee': (133.6423,),
+        'right_ankle': (10.8139, 4.8572), 'left_hip': (90.2794, -0.2168, 0.6022),
+        'left_knee': (129.7102,), 'left_ankle': (20.0, 0.6576),
     })
-    human.KeyRoot(1.9, (1.914, 44.02, 42.532), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.9, (1.931, 44.02, 42.535), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'spine_lumbar': (-3.6303, 14.7328, 0.0), 'spine_thoracic': (-0.8606, 2.6513, 0.0),
-        'right_hip': (25.0109, -0.501, 0.7124), 'right_ankle': (9.9031, 5.9795),
-        'left_hip': (91.5803, -0.3333, 0.8743), 'left_knee': (130.8722,),
-        'left_ankle': (20.0, 0.9761),
+        'spine_lumbar': (-3.6317, 14.8655, 0.0), 'spine_thoracic': (-0.8602, 2.6753, 0.0),
+        'right_hip': (25.0103, -0.4776, 0.6792), 'right_knee': (135.0,),
+        'right_ankle': (9.9121, 5.6999), 'left_hip': (91.5804, -0.3175, 0.8328),
+        'left_knee': (130.8724,), 'left_ankle': (20.0, 0.9272),
     })
-    human.KeyRoot(2.0, (1.061, 43.97, 42.307), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.0, (1.146, 44.152, 42.711), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'spine_lumbar': (-2.3493, 20.0, 0.0), 'spine_thoracic': (-2.8694, 10.0, 0.0),
-        'right_hip': (25.1192, -1.6708, 2.2906), 'right_ankle': (8.9306, 19.7253),
-        'left_hip': (92.514, -1.2694, 2.9656), 'left_knee': (131.137,),
-        'left_ankle': (17.9908, 3.174),
+        'spine_lumbar': (-3.6274, 20.0, 0.0), 'spine_thoracic': (-2.8918, 10.0, 0.0),
+        'right_hip': (24.5564, -1.4623, 2.0623), 'right_knee': (134.4613,),
+        'right_ankle': (9.1546, 17.5359), 'left_hip': (91.8479, -1.0569, 2.5549),
+        'left_knee': (131.1849,), 'left_ankle': (18.7388, 2.66),
     })
-    human.KeyRoot(2.1, (0.158, 43.869, 42.011), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.1, (0.262, 43.882, 42.046), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (-0.3354, 20.0, 0.0), 'spine_thoracic': (-5.9086, 10.0, 0.0),
-        'right_hip': (25.3299, -2.9249, 3.727), 'right_ankle': (6.8732, 33.9055),
-        'left_hip': (100.1483, -19.7166, 4.0827), 'left_knee': (134.7533,),
-        'left_ankle': (13.4794, 11.1926),
+        'spine_lumbar': (-0.0417, 20.0, 0.0), 'spine_thoracic': (-7.2306, 10.0, 0.0),
+        'right_hip': (25.303, -2.7804, 3.5785), 'right_knee': (134.9996,),
+        'right_ankle': (7.1563, 32.3063), 'left_hip': (99.0268, -20.2252, 1.8903),
+        'left_knee': (134.4864,), 'left_ankle': (14.9264, 8.1597),
     })
-    human.KeyRoot(2.2, (0.217, 43.877, 42.032), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.2, (0.204, 43.875, 42.026), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (-0.7902, 20.0, 0.0), 'spine_thoracic': (-2.3007, 10.0, 0.0),
-        'right_hip': (25.3139, -2.8428, 3.6459), 'right_ankle': (7.0373, 33.0082),
-        'left_hip': (105.5198, -25.0, 17.4913), 'left_knee': (135.0,),
-        'left_ankle': (-5.3156, 35.0),
+        'spine_lumbar': (-0.6133, 20.0, 0.0), 'spine_thoracic': (-3.6806, 10.0, 0.0),
+        'right_ankle': (7.0016, 33.2047), 'left_hip': (103.113, -24.8376, 16.5748),
+        'left_knee': (135.0,), 'left_ankle': (2.5474, 35.0),
     })
-    human.KeyRoot(2.3, (0.065, 43.858, 41.982), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.3, (0.076, 43.863, 41.994), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.4577, 20.0, 0.0), 'spine_thoracic': (-7.6549, 10.0, 0.0),
-        'right_hip': (25.3513, -3.0495, 3.8167), 'right_ankle': (6.6644, 35.0),
-        'left_hip': (85.3965, 4.7348, 38.8762), 'left_knee': (134.1896,),
-        'left_ankle': (-44.9541, 25.1738),
+        'spine_lumbar': (0.2438, 20.0, 0.0), 'spine_thoracic': (-7.9454, 10.0, 0.0),
+        'right_hip': (25.3357, -3.0334, 3.8229), 'right_ankle': (6.6675, 35.0),
+        'left_hip': (83.1947, 0.0006, 37.0787), 'left_knee': (133.9751,),
+        'left_ankle': (-43.7247, 25.3816),
     })
-    human.KeyRoot(2.4, (0.066, 43.857, 41.983), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.4, (0.092, 43.859, 41.986), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'spine_lumbar': (4.2047, 19.9999, 0.0), 'spine_thoracic': (-8.5294, 10.0, 0.0),
-        'right_hip': (25.3512, -3.0492, 3.8171), 'right_knee': (134.999,),
-        'right_ankle': (6.6642, 35.0), 'left_hip': (56.8141, -7.4398, 29.382),
-        'left_knee': (135.0,), 'left_ankle': (-46.483, 11.3268),
+        'spine_lumbar': (4.3968, 19.9999, 0.0), 'spine_thoracic': (-8.1098, 10.0, 0.0),
+        'right_hip': (25.3524, -3.0135, 3.8297), 'right_knee': (135.0,),
+        'right_ankle': (6.6648, 35.0), 'left_hip': (56.5474, -6.0683, 29.9215),
+        'left_knee': (134.8741,), 'left_ankle': (-45.4668, 12.1592),
     })
-    human.KeyRoot(2.5, (-0.204, 45.249, 45.223), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.5, (-0.197, 45.222, 45.153), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'spine_lumbar': (-1.182, 20.0, 0.0), 'spine_thoracic': (-5.9666, 10.0, 0.0),
-        'right_hip': (20.6558, -2.6244, 3.9675), 'right_knee': (130.3173,),
-        'right_ankle': (6.8455, 34.0569), 'left_hip': (35.4523, -20.5547, -2.0454),
-        'left_knee': (131.8163,), 'left_ankle': (-31.2751, 2.3126),
+        'spine_lumbar': (-0.8592, 20.0, 0.0), 'spine_thoracic': (-6.3147, 10.0, 0.0),
+        'right_hip': (20.7564, -2.6317, 3.9636), 'right_knee': (130.4178,),
+        'right_ankle': (6.8441, 34.0643), 'left_hip': (35.7174, -20.4101, -1.7481),
+        'left_knee': (131.4646,), 'left_ankle': (-30.3901, 3.6568),
     })
-    human.KeyRoot(2.6, (-0.238, 45.117, 44.878), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.6, (-0.229, 45.167, 45.006), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.6, {
-        'spine_lumbar': (3.7467, 20.0, 0.0), 'spine_thoracic': (-11.3074, 10.0, 0.0),
-        'right_hip': (21.1339, -2.7482, 4.0332), 'right_knee': (130.7786,),
-        'right_ankle': (6.6687, 35.0), 'left_hip': (25.1511, 1.8083, -1.667), 'left_knee': (135.0,),
-        'left_ankle': (3.8172, -24.9549),
+        'spine_lumbar': (2.4481, 20.0, 0.0), 'spine_thoracic': (-10.4368, 10.0, 0.0),
+        'right_hip': (20.9551, -2.707, 4.0175), 'right_knee': (130.6036,),
+        'right_ankle': (6.7182, 34.7327), 'left_hip': (25.6068, -2.6127, -2.2324),
+        'left_knee': (134.5977,), 'left_ankle': (-2.6857, -24.6293),
     })
-    human.KeyRoot(2.7, (0.838, 44.236, 42.862), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.7, (0.616, 44.18, 42.717), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'spine_lumbar': (9.69, 19.9999, 0.0), 'spine_thoracic': (-4.7289, 10.0, 0.0),
-        'right_hip': (24.262, -1.83, 2.5677), 'right_knee': (134.1141,),
-        'right_ankle': (8.6699, 22.0138), 'left_hip': (24.262, 1.83, -2.5677),
-        'left_knee': (134.1141,), 'left_ankle': (8.6699, -22.0138),
+        'spine_lumbar': (10.4264, 19.9999, 0.0), 'spine_thoracic': (-6.8519, 10.0, 0.0),
+        'right_hip': (24.4168, -2.1551, 2.9584), 'right_knee': (134.2181,),
+        'right_ankle': (8.1869, 25.7213), 'left_hip': (24.4229, 1.9151, -2.5983),
+        'left_knee': (134.2727,), 'left_ankle': (8.395, -24.0959),
     })
-    human.KeyRoot(2.8, (1.31, 44.805, 44.249), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.8, (1.263, 44.561, 43.656), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (6.2124, 20.0, 0.0), 'spine_thoracic': (-0.9496, 10.0, 0.0),
-        'right_hip': (22.3997, -0.8775, 1.3645), 'right_ankle': (9.6569, 11.175),
-        'left_hip': (22.3997, 0.8775, -1.3645), 'left_ankle': (9.6569, -11.175),
+        'spine_lumbar': (8.0063, 19.9999, 0.0), 'spine_thoracic': (-1.1987, 9.4997, 0.0),
+        'right_hip': (23.2307, -1.0818, 1.6218), 'right_knee': (133.1739,),
+        'right_ankle': (9.502, 13.4577), 'left_hip': (23.2307, 1.0818, -1.6218),
+        'left_knee': (133.1739,), 'left_ankle': (9.502, -13.4577),
     })
-    human.KeyRoot(2.9, (1.552, 45.303, 45.565), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.9, (1.567, 44.953, 44.655), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.9, {
-        'spine_lumbar': (3.8779, 10.8801, 0.0), 'spine_thoracic': (0.5307, 2.1187, 0.0),
-        'right_hip': (20.6086, -0.2428, 0.4096), 'right_knee': (130.6051,),
-        'right_ankle': (9.9725, 3.2661), 'left_hip': (20.6086, 0.2428, -0.4096),
-        'left_knee': (130.6051,), 'left_ankle': (9.9725, -3.2661),
+        'spine_lumbar': (6.4159, 10.3298, 0.0), 'spine_thoracic': (0.7098, 2.6812, 0.0),
+        'right_hip': (21.8906, -0.4433, 0.7094), 'right_knee': (131.88,),
+        'right_ankle': (9.9108, 5.7428), 'left_hip': (21.8906, 0.4433, -0.7094),
+        'left_knee': (131.88,), 'left_ankle': (9.9108, -5.7428),
     })
-    human.KeyRoot(3.0, (1.534, 45.633, 46.483), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(3.0, (1.636, 45.273, 45.498), (-10.4375, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'spine_lumbar': (2.6322, 1.0386, 0.0), 'spine_thoracic': (0.4637, 0.1906, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (19.3258, -0.0464, 0.0825),
-        'right_knee': (129.3257,), 'right_ankle': (10.0008, 0.6487),
-        'left_hip': (19.3258, 0.0464, -0.0825), 'left_knee': (129.3257,),
-        'left_ankle': (10.0008, -0.6487),
+        'spine_lumbar': (5.3252, 0.8438, 0.0), 'spine_thoracic': (0.8856, 0.2526, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (20.7229, -0.1495, 0.2511),
+        'right_knee': (130.7216,), 'right_ankle': (9.9909, 2.0037),
+        'left_hip': (20.7229, 0.1495, -0.2511), 'left_knee': (130.7216,),
+        'left_ankle': (9.9909, -2.0037),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.0384, duration=0.2628)
-    human.KeyRoot(3.1, (1.51, 45.717, 46.727), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(3.1, (1.631, 45.369, 45.759), (-10.4375, 0.0, 0.0))
     human.KeyJoints(3.1, {
-        'spine_lumbar': (2.1112, -0.0408, 0.0), 'spine_thoracic': (0.3778, -0.0071, 0.0),
-        'neck': (4.8675, -4.6937, 3.257), 'head': (2.0861, 1.5168),
-        'right_hip': (18.9817, -0.0183, 0.0329), 'right_knee': (128.9784,),
-        'right_ankle': (10.0009, 0.2583), 'left_hip': (18.9817, 0.0183, -0.0329),
-        'left_knee': (128.9784,), 'left_ankle': (10.0009, -0.2583),
+        'spine_lumbar': (4.7699, -0.2177, 0.0), 'spine_thoracic': (0.8209, 0.0035, 0.0),
+        'neck': (4.8675, -4.6937, 3.0786), 'head': (2.0861, 1.5168),
+        'right_hip': (20.3571, -0.0938, 0.16), 'right_knee': (130.3534,),
+        'right_ankle': (9.9967, 1.2716), 'left_hip': (20.3571, 0.0938, -0.16),
+        'left_knee': (130.3534,), 'left_ankle': (9.9967, -1.2716),
     })
-    human.KeyJoints(3.2, {'neck': (23.4269, -22.5902, 15.6755), 'head': (10.0401, 7.3)})
+    human.KeyJoints(3.2, {'neck': (23.4269, -22.5902, 14.8172), 'head': (10.0401, 7.3004)})
     human.KeyJoints(3.3, {
-        'spine_lumbar': (2.1112, -0.0408, 0.0), 'spine_thoracic': (0.3778, -0.0071, 0.0),
-        'neck': (34.9978, -33.7479, 23.4179), 'head': (14.9991, 10.9056),
+        'spine_lumbar': (4.7699, -0.2177, 0.0), 'spine_thoracic': (0.8209, 0.0035, 0.0),
+        'neck': (34.9978, -33.7479, 22.1357), 'head': (14.9991, 10.9062),
         'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
         'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0),
     })
@@ -251,82 +251,82 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.3012, duration=0.873042)
     human.KeyJoints(3.4, {
-        'spine_lumbar': (4.5542, 0.6791, 0.7536), 'spine_thoracic': (0.1815, 0.5076, 1.1073),
-        'neck': (35.0, -33.75, 21.2269), 'right_clavicle': (-0.3631, 0.8156),
-        'right_shoulder': (9.8445, 6.7604, 11.1119), 'right_elbow': (33.7706, 17.1905),
-        'right_wrist': (-0.1097, -0.1688),
+        'spine_lumbar': (7.0896, 0.4485, 0.7776), 'spine_thoracic': (0.5735, 0.53, 1.0698),
+        'neck': (35.0, -33.75, 20.0147), 'right_clavicle': (-0.3592, 0.8156),
+        'right_shoulder': (9.8706, 6.7157, 11.1119), 'right_elbow': (33.8262, 17.19),
+        'right_wrist': (-0.1101, -0.1584),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (10.9599, 2.5927, 2.7427), 'spine_thoracic': (-0.3666, 1.8633, 4.0668),
-        'neck': (35.0, -33.75, 16.2306), 'head': (15.0, 10.7984),
-        'right_clavicle': (-1.3446, 2.954), 'right_shoulder': (13.1627, 9.4633, 10.2015),
-        'right_elbow': (32.1795, 17.1952), 'right_wrist': (-0.3972, -0.6113),
+        'spine_lumbar': (13.172, 2.2208, 2.8245), 'spine_thoracic': (-0.1117, 1.9142, 3.9297),
+        'neck': (35.0, -33.75, 15.1836), 'head': (15.0, 10.8449),
+        'right_clavicle': (-1.3286, 2.954), 'right_shoulder': (13.2577, 9.3015, 10.2013),
+        'right_elbow': (32.3808, 17.1935), 'right_wrist': (-0.3986, -0.5736),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (19.7459, 5.2737, 5.4996), 'spine_thoracic': (-1.1896, 3.7365, 8.2469),
-        'neck': (35.0, -33.75, 10.0979), 'head': (15.0, 10.4121),
-        'right_clavicle': (-2.7538, 5.8871), 'right_shoulder': (17.8002, 13.1707, 8.9527),
-        'right_elbow': (29.9972, 17.2018),
+        'spine_lumbar': (21.5146, 4.7065, 5.6497), 'spine_thoracic': (-1.1301, 3.8206, 7.9696),
+        'neck': (35.0, -33.75, 9.2749), 'head': (15.0, 10.5754),
+        'right_clavicle': (-2.7176, 5.8871), 'right_shoulder': (17.9916, 12.8481, 8.9523),
+        'right_elbow': (30.3983, 17.1985),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (29.3299, 8.2954, 8.5562), 'spine_thoracic': (-2.2107, 5.8032, 13.0158),
-        'neck': (35.0, -33.75, 3.5377), 'head': (15.0, 10.8164),
-        'right_clavicle': (-4.3999, 9.0866), 'right_shoulder': (23.0085, 17.2148, 7.5905),
-        'right_elbow': (27.6166, 17.2094),
+        'spine_lumbar': (30.6149, 7.5128, 8.7617), 'spine_thoracic': (-2.3769, 5.9137, 12.5794),
+        'neck': (35.0, -33.75, 2.9319), 'head': (15.0, 10.6989),
+        'right_clavicle': (-4.3355, 9.0866), 'right_shoulder': (23.3075, 16.7168, 7.5898),
+        'right_elbow': (28.2357, 17.2043),
     })
     human.KeyJoints(3.8, {
-        'spine_lumbar': (38.1291, 11.2315, 11.4445), 'spine_thoracic': (-3.353, 7.7398, 17.7416),
-        'neck': (35.0, 29.6974, -15.3333), 'head': (15.0, -11.25),
-        'right_clavicle': (-6.0923, 12.0241), 'right_shoulder': (28.0387, 20.9277, 6.3398),
-        'right_elbow': (25.4309, 17.2169), 'right_wrist': (-1.6166, -2.4884),
+        'spine_lumbar': (38.9701, 10.247, 11.6692), 'spine_thoracic': (-3.7473, 7.858, 17.1493),
+        'neck': (35.0, 26.7242, -14.3174), 'head': (15.0, -11.25),
+        'right_clavicle': (-5.9916, 12.0241), 'right_shoulder': (28.441, 20.2688, 6.339),
+        'right_elbow': (26.2502, 17.2104), 'right_wrist': (-1.6225, -2.3347),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (44.5611, 13.6551, 13.6965), 'spine_thoracic': (-4.5399, 9.2225, 21.7925),
-        'neck': (35.0, 21.587, -17.7657), 'right_clavicle': (-7.6403, 14.1713),
-        'right_shoulder': (32.142, 23.6418, 5.4256), 'right_elbow': (23.8333, 17.2234),
-        'right_wrist': (-1.9053, -2.9328),
+        'spine_lumbar': (45.0775, 12.5164, 13.8808), 'spine_thoracic': (-5.1367, 9.318, 21.0689),
+        'neck': (35.0, 19.3604, -16.9467), 'right_clavicle': (-7.4951, 14.1713),
+        'right_shoulder': (32.6275, 22.8652, 5.4246), 'right_elbow': (24.7988, 17.2159),
+        'right_wrist': (-1.9123, -2.7516),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.0, {
-        'spine_lumbar': (47.0433, 15.14, 14.8442), 'spine_thoracic': (-5.6944, 9.9274, 24.5365),
-        'neck': (35.0, 21.1734, -20.0045), 'right_clavicle': (-8.8532, 15.0),
-        'right_shoulder': (34.5698, 24.6891, 5.0729), 'right_elbow': (23.2168, 17.2277),
-        'right_wrist': (-2.0167, -3.1043),
+        'spine_lumbar': (47.4343, 13.928, 14.9052), 'spine_thoracic': (-6.4402, 9.9581, 23.7284),
+        'neck': (35.0, 19.6003, -19.146), 'right_clavicle': (-8.6554, 15.0),
+        'right_shoulder': (35.1024, 23.8671, 5.0718), 'right_elbow': (24.2388, 17.2204),
+        'right_wrist': (-2.0241, -2.9125),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (41.9094, 17.2163, 13.4948), 'spine_thoracic': (-5.912, 9.113, 23.9978),
-        'neck': (35.0, 28.0424, -20.8935), 'right_clavicle': (-9.3326, 13.3541),
-        'right_shoulder': (33.0072, 21.3696, 5.8167), 'right_elbow': (23.961, 17.2194),
+        'spine_lumbar': (42.9111, 15.7361, 13.8132), 'spine_thoracic': (-6.7907, 9.3244, 23.5137),
+        'neck': (35.0, 26.329, -20.2564), 'right_clavicle': (-9.3358, 13.7006),
+        'right_shoulder': (33.9269, 20.9799, 5.7457), 'right_elbow': (25.0263, 17.2154),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.174242, duration=0.2628)
     human.KeyJoints(4.2, {
-        'spine_lumbar': (38.7449, 18.475, 13.0214), 'spine_thoracic': (-5.7787, 8.8195, 23.5371),
-        'neck': (35.0, 31.2682, -21.7619), 'right_clavicle': (-9.8304, 12.8393),
-        'right_shoulder': (31.6777, 19.1034, 6.3418), 'right_elbow': (24.3489, 17.2113),
-        'right_wrist': (-1.4514, -2.7371),
+        'spine_lumbar': (39.2631, 17.2311, 13.0863), 'spine_thoracic': (-6.4835, 8.8883, 22.7929),
+        'neck': (35.0, 30.5613, -20.7344), 'right_clavicle': (-9.7723, 12.8985),
+        'right_shoulder': (32.2377, 18.4307, 6.368), 'right_elbow': (25.4029, 17.2071),
+        'right_wrist': (-1.4743, -2.5324),
     })
-    human.KeyJoints(4.4, {'right_elbow': (24.3489, 17.2113)})
+    human.KeyJoints(4.4, {'right_elbow': (25.4029, 17.2071)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(4.5, {'right_elbow': (24.3489, 8.3691)})
-    human.KeyJoints(4.6, {'right_elbow': (24.3489, -28.7057)})
-    human.KeyJoints(4.7, {'right_elbow': (24.3489, -67.6596)})
+    human.KeyJoints(4.5, {'right_elbow': (25.4029, 8.3652)})
+    human.KeyJoints(4.6, {'right_elbow': (25.4029, -28.708)})
+    human.KeyJoints(4.7, {'right_elbow': (25.4029, -67.6602)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=4.775442, duration=0.072)
-    human.KeyJoints(4.8, {'right_elbow': (24.3489, -80.0)})
+    human.KeyJoints(4.8, {'right_elbow': (25.4029, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.847442, duration=0.2628)
-    human.KeyJoints(5.1, {'right_elbow': (24.3489, -80.0)})
+    human.KeyJoints(5.1, {'right_elbow': (25.4029, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {'right_elbow': (24.3489, -52.2019)})
-    human.KeyJoints(5.3, {'right_elbow': (24.3489, 14.5082)})
-    human.KeyJoints(5.4, {'right_elbow': (24.3489, 71.0327)})
+    human.KeyJoints(5.2, {'right_elbow': (25.4029, -52.2019)})
+    human.KeyJoints(5.3, {'right_elbow': (25.4029, 14.5082)})
+    human.KeyJoints(5.4, {'right_elbow': (25.4029, 71.0327)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.448642, duration=0.072)
     human.KeyJoints(5.5, {
-        'spine_lumbar': (38.7449, 18.475, 13.0214), 'spine_thoracic': (-5.7787, 8.8195, 23.5371),
-        'neck': (35.0, 31.2682, -21.7619), 'right_shoulder': (31.6777, 19.1034, 6.3418),
-        'right_elbow': (24.3489, 80.0), 'right_wrist': (-1.4514, -2.7371),
+        'spine_lumbar': (39.2631, 17.2311, 13.0863), 'spine_thoracic': (-6.4835, 8.8883, 22.7929),
+        'neck': (35.0, 30.5613, -20.7344), 'right_shoulder': (32.2377, 18.4307, 6.368),
+        'right_elbow': (25.4029, 80.0), 'right_wrist': (-1.4743, -2.5324),
         'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
     })
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
@@ -335,579 +335,581 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=5.520642, duration=1.618047)
     human.KeyJoints(5.6, {
-        'spine_lumbar': (39.5869, 17.962, 12.4611), 'spine_thoracic': (-6.0607, 8.6685, 23.0533),
-        'neck': (35.0, 32.1075, -20.6519), 'head': (15.0, -11.25),
-        'right_shoulder': (32.6033, 18.0467, 6.6968), 'right_elbow': (23.3501, 79.9958),
-        'right_wrist': (-1.3915, -2.6253), 'left_clavicle': (-0.396, 0.5306),
-        'left_shoulder': (9.5347, 5.7752, 11.3356), 'left_elbow': (34.3993, 17.187),
-        'left_wrist': (-0.0354, -0.0056),
+        'spine_lumbar': (40.0896, 16.8105, 12.5355), 'spine_thoracic': (-6.779, 8.7358, 22.2962),
+        'neck': (35.0, 31.071, -19.5464), 'right_shoulder': (33.186, 17.3527, 6.7111),
+        'right_elbow': (24.3608, 79.9961), 'right_wrist': (-1.2254, -2.4985),
+        'left_clavicle': (-0.399, 0.506), 'left_shoulder': (9.5452, 5.797, 11.335),
+        'left_elbow': (34.418, 17.1871), 'left_wrist': (-0.039, 0.0004),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (42.5661, 16.1471, 10.4787), 'spine_thoracic': (-7.0847, 8.1341, 21.3415),
-        'neck': (35.0, 33.7409, -17.0597), 'head': (15.0, -11.1834),
-        'right_shoulder': (35.8784, 14.3075, 7.9529), 'right_elbow': (19.816, 79.9809),
-        'right_wrist': (-1.1795, -2.2298), 'left_clavicle': (-1.7972, 2.408),
-        'left_shoulder': (12.906, 5.9456, 10.8921),
+        'spine_lumbar': (43.0142, 15.3224, 10.5866), 'spine_thoracic': (-7.8396, 8.1965, 20.5389),
+        'neck': (35.0, 33.7121, -16.1976), 'head': (15.0, -11.1997),
+        'right_shoulder': (36.5413, 13.5385, 7.927), 'right_elbow': (20.6738, 79.9822),
+        'right_wrist': (-0.3447, -2.3624), 'left_clavicle': (-1.8107, 2.2962),
+        'left_shoulder': (12.9533, 6.0469, 10.8886), 'left_elbow': (34.5823, 17.1814),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (46.8508, 13.5368, 7.6275), 'spine_thoracic': (-8.6214, 7.3656, 18.8796),
-        'neck': (35.0, 33.75, -11.8258), 'head': (15.0, -10.983),
-        'right_shoulder': (40.5887, 8.9298, 9.7595), 'right_elbow': (14.7332, 79.9595),
-        'left_clavicle': (-3.8125, 5.1081), 'left_shoulder': (17.8616, 6.212, 10.2388),
-        'left_elbow': (34.665, 17.1724), 'left_wrist': (-0.3664, -0.0537),
+        'spine_lumbar': (47.2203, 13.1821, 7.7836), 'spine_thoracic': (-9.4013, 7.4207, 18.0116),
+        'neck': (35.0, 33.75, -11.0048), 'head': (15.0, -10.9917),
+        'right_shoulder': (41.367, 8.0529, 9.6803), 'right_elbow': (15.3709, 79.9622),
+        'right_wrist': (0.9221, -2.1278), 'left_clavicle': (-3.841, 4.8709),
+        'left_shoulder': (17.9604, 6.4339, 10.2288), 'left_elbow': (34.8691, 17.1732),
+        'left_wrist': (-0.4023, 0.0068),
     })
     human.KeyJoints(5.9, {
-        'spine_lumbar': (51.5461, 10.6764, 4.503), 'spine_thoracic': (-10.4207, 6.5234, 16.1818),
-        'neck': (35.0, 33.75, -7.4704), 'head': (15.0, -11.25),
-        'right_shoulder': (45.7504, 3.0368, 11.7393), 'right_elbow': (9.1634, 79.936),
-        'left_clavicle': (-6.0209, 8.067), 'left_shoulder': (23.4847, 6.5425, 9.4951),
+        'spine_lumbar': (51.8295, 10.8367, 4.7121), 'spine_thoracic': (-11.1779, 6.5706, 15.242),
+        'neck': (35.0, 33.7261, -6.4042), 'head': (15.0, -11.25),
+        'right_shoulder': (46.655, 2.0415, 11.61), 'right_elbow': (9.56, 79.9403),
+        'right_wrist': (2.3102, -1.8006), 'left_clavicle': (-6.0659, 7.6923),
+        'left_shoulder': (23.6375, 6.9075, 9.4739), 'left_elbow': (35.2741, 17.1642),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (55.757, 8.1111, 1.701), 'spine_thoracic': (-12.2323, 5.7681, 13.7623),
-        'neck': (35.0, 17.6784, 1.0457), 'head': (15.0, -5.8928),
-        'right_shoulder': (50.3795, -2.2482, 13.5147), 'right_elbow': (4.1682, 79.9149),
-        'right_wrist': (-0.2409, -0.4749), 'left_clavicle': (-8.0014, 10.7205),
-        'left_shoulder': (28.8586, 6.905, 8.7804), 'left_elbow': (35.2727, 17.1544),
+        'spine_lumbar': (55.9631, 8.7333, 1.9575), 'spine_thoracic': (-12.8835, 5.8083, 12.7582),
+        'neck': (35.0, 17.1392, 1.898), 'head': (15.0, -5.8928),
+        'right_shoulder': (51.3975, -3.3496, 13.355), 'right_elbow': (4.3486, 79.9207),
+        'right_wrist': (3.5551, -1.3868), 'left_clavicle': (-8.0612, 10.2227),
+        'left_shoulder': (29.0555, 7.4173, 8.7423), 'left_elbow': (35.7933, 17.1562),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (58.5884, 6.3861, -0.1832), 'spine_thoracic': (-13.806, 5.2603, 12.1354),
-        'neck': (35.0, -33.3532, 11.1606), 'head': (15.0, 11.2254),
-        'right_shoulder': (53.4922, -5.8019, 14.7086), 'right_elbow': (0.8093, 79.9008),
-        'right_wrist': (-0.0394, -0.0956), 'left_clavicle': (-9.3331, 12.5049),
-        'left_shoulder': (33.0664, 7.2676, 8.2139), 'left_elbow': (35.7208, 17.1486),
-        'left_wrist': (-1.1106, -0.1314),
+        'spine_lumbar': (58.7427, 7.319, 0.1052), 'spine_thoracic': (-14.2319, 5.2956, 11.0881),
+        'neck': (35.0, -28.9348, 11.8149), 'head': (15.0, 11.25),
+        'right_shoulder': (54.5865, -6.9747, 14.5542), 'right_elbow': (0.8443, 79.9075),
+        'right_wrist': (4.3921, -0.8923), 'left_clavicle': (-9.4029, 11.9241),
+        'left_shoulder': (33.2854, 7.913, 8.1521), 'left_elbow': (36.4224, 17.1508),
+        'left_wrist': (-1.2087, 0.0443),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(6.2, {
-        'spine_lumbar': (58.0765, 6.1677, 0.0113), 'spine_thoracic': (-14.9389, 5.6406, 12.3361),
-        'neck': (35.0, -33.5189, 11.2024), 'head': (15.0, 11.1022),
-        'right_shoulder': (53.138, -4.9846, 14.9963), 'right_elbow': (0.0, 79.8974),
-        'right_wrist': (0.0058, -0.0009), 'left_clavicle': (-9.2126, 12.4565),
-        'left_shoulder': (35.2838, 7.6322, 7.9028), 'left_wrist': (-1.3286, -0.0545),
+        'spine_lumbar': (58.2974, 7.1563, 0.2924), 'spine_thoracic': (-14.9677, 5.6545, 11.2655),
+        'neck': (35.0, -32.0903, 11.7409), 'head': (15.0, 11.1977),
+        'right_shoulder': (53.8381, -6.0406, 14.8935), 'right_elbow': (0.0, 79.9186),
+        'right_wrist': (1.2877, -0.1182), 'left_clavicle': (-9.2929, 11.864),
+        'left_shoulder': (35.4946, 8.3814, 7.8082), 'left_wrist': (-1.4378, 0.1359),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (52.6746, 7.9318, 0.8837), 'spine_thoracic': (-13.9221, 5.7042, 13.1301),
-        'neck': (35.0, 33.608, -2.8731), 'head': (15.0, -11.1483),
-        'right_shoulder': (49.0857, -1.5671, 14.996), 'right_elbow': (0.9805, 79.897),
-        'right_wrist': (-1.4719, 1.4027), 'left_clavicle': (-9.249, 11.5058),
-        'left_shoulder': (32.2501, 4.554, 9.1445), 'left_elbow': (37.3447, 17.1571),
-        'left_wrist': (-0.9436, 0.2761),
+        'spine_lumbar': (52.8716, 8.8994, 1.197), 'spine_thoracic': (-13.963, 5.7397, 12.091),
+        'neck': (35.0, 33.3363, -1.9665), 'head': (15.0, -11.25),
+        'right_shoulder': (48.3001, -2.2577, 14.9197), 'right_elbow': (3.3312, 79.8824),
+        'right_wrist': (-2.6047, -0.1369), 'left_clavicle': (-9.3993, 10.8895),
+        'left_shoulder': (32.597, 5.5161, 8.9959), 'left_elbow': (38.2259, 17.1612),
+        'left_wrist': (-1.0885, 0.4781),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=6.333722, duration=0.072)
     human.KeyJoints(6.4, {
-        'spine_lumbar': (50.6437, 8.5294, 1.3127), 'spine_thoracic': (-13.3716, 5.7139, 13.5117),
-        'neck': (35.0, 33.75, -4.1292), 'head': (15.0, -10.7852),
-        'right_clavicle': (-9.8304, 12.8393), 'right_shoulder': (48.5312, -0.4342, 14.9964),
-        'right_elbow': (0.0, 79.8975), 'right_wrist': (0.7366, -0.6992),
-        'left_clavicle': (-9.1953, 11.0236), 'left_shoulder': (30.8024, 3.4351, 9.6236),
-        'left_elbow': (37.5464, 17.1595), 'left_wrist': (-0.7906, 0.3777),
+        'spine_lumbar': (50.9155, 9.544, 1.5724), 'spine_thoracic': (-13.44, 5.7364, 12.4269),
+        'neck': (35.0, 33.75, -3.1441), 'head': (15.0, -11.25),
+        'right_clavicle': (-9.7723, 12.8985), 'right_shoulder': (49.9189, -1.609, 14.9366),
+        'right_elbow': (2.426, 79.6809), 'right_wrist': (13.8603, -1.5993),
+        'left_clavicle': (-9.3934, 10.454), 'left_shoulder': (31.1878, 4.2747, 9.5313),
+        'left_elbow': (38.4609, 17.1648), 'left_wrist': (-0.9224, 0.5939),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.5, {
-        'spine_lumbar': (51.43, 9.4933, 1.3444), 'spine_thoracic': (-12.8913, 6.0741, 12.8787),
-        'neck': (34.493, 32.7074, -8.0576), 'head': (13.4848, -10.5151),
-        'right_clavicle': (-9.8135, 12.0598), 'right_shoulder': (48.9962, 1.2907, 14.8664),
-        'right_elbow': (2.698, 78.4066), 'right_wrist': (-5.2075, -0.332),
-        'left_shoulder': (31.1202, 4.1203, 9.348), 'left_wrist': (-0.8862, 0.3589),
+        'spine_lumbar': (51.6789, 10.4227, 1.6036), 'spine_thoracic': (-13.0445, 6.0947, 11.7413),
+        'neck': (34.4796, 32.6276, -7.0108), 'head': (13.5176, -10.9332),
+        'right_clavicle': (-9.7729, 12.174), 'right_shoulder': (50.2918, 0.0884, 14.785),
+        'right_elbow': (4.7784, 78.4941), 'right_wrist': (6.8499, -1.2619),
+        'left_shoulder': (31.4407, 4.9984, 9.2413), 'left_wrist': (-1.0232, 0.5607),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (53.5047, 12.0369, 1.4648), 'spine_thoracic': (-11.4437, 7.0245, 11.2083),
-        'neck': (33.102, 30.0615, -17.3543), 'head': (9.7841, -9.8229),
-        'right_clavicle': (-9.7692, 10.0026), 'right_shoulder': (50.2234, 5.9616, 14.4932),
-        'right_elbow': (9.8176, 74.4299), 'right_wrist': (-20.8932, 0.6368),
-        'left_shoulder': (32.1343, 5.9284, 8.6207),
+        'spine_lumbar': (53.6933, 12.7412, 1.7207), 'spine_thoracic': (-11.8355, 7.0401, 9.9319),
+        'neck': (33.0619, 29.8083, -16.1614), 'head': (9.916, -10.1312),
+        'right_clavicle': (-9.7762, 10.2622), 'right_shoulder': (51.2761, 4.6931, 14.3527),
+        'right_elbow': (10.986, 75.3232), 'right_wrist': (-11.6496, -0.3716),
+        'left_shoulder': (32.2581, 6.908, 8.4759),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (56.1118, 15.2332, 1.7025), 'spine_thoracic': (-9.2048, 8.2188, 9.1094),
-        'neck': (31.2308, 26.9822, -26.5412), 'head': (5.8283, -9.001),
-        'right_clavicle': (-9.7134, 7.4176), 'right_shoulder': (51.7655, 12.1089, 13.9537),
-        'right_elbow': (18.7642, 69.3331), 'right_wrist': (-40.6041, 1.8542),
-        'left_shoulder': (33.818, 8.2004, 7.7068),
+        'spine_lumbar': (56.2248, 15.6548, 1.9492), 'spine_thoracic': (-9.9312, 8.2282, 7.6583),
+        'neck': (31.1767, 26.5977, -25.204), 'head': (6.1133, -9.2028),
+        'right_clavicle': (-9.7846, 7.8598), 'right_shoulder': (52.5128, 10.7725, 13.734),
+        'right_elbow': (18.7866, 71.2474), 'right_wrist': (-34.8964, 0.7471),
+        'left_shoulder': (33.635, 9.3076, 7.5142),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (58.492, 18.1512, 2.0857), 'spine_thoracic': (-6.3523, 9.3092, 7.1931),
-        'neck': (29.2664, 24.642, -30.0937), 'head': (3.5489, -8.3422),
-        'right_clavicle': (-9.6625, 5.0576), 'right_shoulder': (53.1734, 18.2559, 13.3257),
-        'right_elbow': (26.9318, 64.4886), 'right_wrist': (-58.5989, 2.9657),
-        'left_shoulder': (36.1432, 10.2746, 6.8725), 'left_wrist': (-1.7454, 0.1191),
+        'spine_lumbar': (58.5358, 18.3147, 2.3141), 'spine_thoracic': (-7.451, 9.3128, 5.5825),
+        'neck': (29.2397, 24.3047, -28.6957), 'head': (4.0279, -8.5077),
+        'right_clavicle': (-9.8004, 5.6666), 'right_shoulder': (53.6419, 16.8869, 13.0239),
+        'right_elbow': (25.9081, 67.3508), 'right_wrist': (-56.1192, 1.7685),
+        'left_shoulder': (35.5656, 11.4984, 6.6361), 'left_wrist': (-1.9288, 0.2629),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (59.8857, 19.8599, 2.6427), 'spine_thoracic': (-3.0639, 9.9477, 6.071),
-        'neck': (27.1908, 23.2473, -28.3748), 'head': (2.6913, -7.9032),
-        'right_clavicle': (-9.6327, 3.6757), 'right_shoulder': (53.9978, 22.9258, 12.6866),
-        'right_elbow': (31.7146, 61.2684), 'right_wrist': (-69.1361, 3.6165),
-        'left_shoulder': (39.0818, 11.4893, 6.3839), 'left_elbow': (37.535, 17.1454),
-        'left_wrist': (-1.915, 0.0075),
+        'spine_lumbar': (59.8891, 19.8723, 2.8409), 'spine_thoracic': (-4.5145, 9.9479, 4.3671),
+        'neck': (27.2817, 23.0784, -26.8908), 'head': (3.3235, -8.093),
+        'right_clavicle': (-9.8258, 4.3823), 'right_shoulder': (54.3031, 21.5966, 12.3175),
+        'right_elbow': (30.0782, 64.7177), 'right_wrist': (-68.5467, 2.3666),
+        'left_shoulder': (38.0439, 12.7812, 6.122), 'left_elbow': (38.5688, 17.1456),
+        'left_wrist': (-2.1075, 0.2041),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.0, {
-        'spine_lumbar': (60.0, 20.0, 4.6139), 'spine_thoracic': (-0.2637, 10.0, 7.3849),
-        'neck': (26.6734, 22.3663, -30.7378), 'head': (0.9991, -7.5097),
-        'right_clavicle': (-8.7755, 4.7115), 'right_shoulder': (55.0603, 27.2614, 11.1374),
-        'right_elbow': (28.8143, 60.0807), 'right_wrist': (-67.9117, 2.8716),
-        'left_shoulder': (44.1495, 8.685, 7.244), 'left_elbow': (34.3186, 17.1245),
-        'left_wrist': (-1.2682, -0.6375),
+        'spine_lumbar': (60.0, 20.0, 5.47), 'spine_thoracic': (-1.6773, 10.0, 6.278),
+        'neck': (26.9062, 22.0526, -30.3041), 'head': (1.3406, -7.5915),
+        'right_clavicle': (-8.7935, 5.9935), 'right_shoulder': (55.696, 26.5252, 10.5885),
+        'right_elbow': (26.6871, 63.5186), 'right_wrist': (-67.0101, 1.5414),
+        'left_shoulder': (44.3707, 8.729, 7.4263), 'left_elbow': (33.5467, 17.1161),
+        'left_wrist': (-1.1258, -0.7724),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.066689, duration=0.072)
     human.KeyJoints(7.1, {
-        'spine_lumbar': (60.0, 20.0, 6.4256), 'spine_thoracic': (1.1057, 10.0, 8.9381),
-        'neck': (26.8423, 21.8652, -33.5607), 'head': (-0.1814, -7.1881),
-        'right_clavicle': (-7.2196, 6.0004), 'right_shoulder': (56.734, 31.3321, 9.6373),
-        'right_elbow': (25.4529, 59.3032), 'right_wrist': (-65.4775, 1.981),
-        'left_shoulder': (48.4087, 5.4541, 8.2335), 'left_elbow': (29.7874, 17.1049),
-        'left_wrist': (-0.4913, -1.495),
+        'spine_lumbar': (60.0, 20.0, 6.6958), 'spine_thoracic': (-0.438, 10.0, 7.2542),
+        'neck': (26.8809, 21.659, -32.0983), 'head': (0.4512, -7.3857),
+        'right_clavicle': (-7.4695, 6.7463), 'right_shoulder': (57.0993, 30.2566, 9.2764),
+        'right_elbow': (23.9724, 62.8589), 'right_wrist': (-64.9767, 0.8016),
+        'left_shoulder': (47.2949, 6.6548, 8.0758), 'left_elbow': (30.9466, 17.1077),
+        'left_wrist': (-0.6525, -1.2632),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.138689, duration=0.2628)
-    human.KeyJoints(7.2, {'neck': (27.9671, 19.4366, -35.5465), 'head': (1.9119, -7.7481)})
-    human.KeyJoints(7.3, {'neck': (32.2898, 10.1037, -43.1778), 'head': (9.9563, -9.9005)})
+    human.KeyJoints(7.2, {'neck': (28.0004, 19.2228, -34.1092), 'head': (2.4573, -7.9185)})
+    human.KeyJoints(7.3, {'neck': (32.3026, 9.8608, -41.8369), 'head': (10.1665, -9.9662)})
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, 20.0, 6.4256), 'spine_thoracic': (1.1057, 10.0, 8.9381),
-        'neck': (34.9992, 4.254, -47.961), 'head': (14.9985, -11.2496),
-        'right_shoulder': (56.734, 31.3321, 9.6373), 'right_elbow': (25.4529, 59.3032),
-        'right_wrist': (-65.4775, 1.981), 'left_clavicle': (-9.1953, 11.0236),
-        'left_shoulder': (48.4087, 5.4541, 8.2335), 'left_elbow': (29.7874, 17.1049),
-        'left_wrist': (-0.4913, -1.495),
+        'spine_lumbar': (60.0, 20.0, 6.6958), 'spine_thoracic': (-0.438, 10.0, 7.2542),
+        'neck': (34.9992, 3.9927, -46.6805), 'head': (14.9986, -11.2496),
+        'right_shoulder': (57.0993, 30.2566, 9.2764), 'right_elbow': (23.9724, 62.8589),
+        'right_wrist': (-64.9767, 0.8016), 'left_clavicle': (-9.3934, 10.454),
+        'left_shoulder': (47.2949, 6.6548, 8.0758), 'left_elbow': (30.9466, 17.1077),
+        'left_wrist': (-0.6525, -1.2632),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=7.401489, duration=2.069192)
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, 20.0, 4.2547), 'spine_thoracic': (1.1335, 9.142, 5.4203),
-        'neck': (33.3756, 4.5005, -42.9763), 'head': (14.6617, -11.2323),
-        'right_shoulder': (57.5608, 25.3646, 10.558), 'right_elbow': (24.3107, 59.4579),
-        'right_wrist': (-61.2414, 1.8748), 'left_clavicle': (-9.3132, 11.5971),
-        'left_shoulder': (42.185, 7.2735, 9.5831), 'left_elbow': (38.7686, 20.7411),
-        'left_wrist': (-10.0083, 2.4671),
+        'spine_lumbar': (60.0, 20.0, 4.4924), 'spine_thoracic': (-0.4626, 9.0656, 3.8699),
+        'neck': (33.4504, 4.3382, -41.7049), 'head': (14.7531, -11.2308),
+        'right_shoulder': (57.8311, 24.413, 10.1999), 'right_elbow': (22.9175, 63.0136),
+        'right_wrist': (-60.3106, 0.7711), 'left_clavicle': (-9.466, 11.0656),
+        'left_shoulder': (41.0164, 8.3624, 9.3116), 'left_elbow': (39.8186, 20.6545),
+        'left_wrist': (-9.9534, 2.6748),
     })
     human.KeyJoints(7.6, {
-        'spine_thoracic': (1.2139, 7.1658, -2.5656), 'neck': (30.6474, 5.7288, -32.1142),
-        'head': (14.1578, -11.1629), 'right_shoulder': (59.5435, 11.9231, 12.5317),
-        'right_elbow': (21.5086, 59.7649), 'right_wrist': (-51.3327, 1.5998),
-        'left_clavicle': (-9.5568, 12.8147), 'left_shoulder': (29.8328, 10.8844, 12.7282),
-        'left_elbow': (56.5941, 29.004), 'left_wrist': (-29.8857, 10.5838),
+        'spine_thoracic': (-0.5115, 6.9135, -3.8071), 'neck': (30.9152, 5.7458, -30.9784),
+        'head': (14.3973, -11.1648), 'right_shoulder': (59.5949, 11.2677, 12.182),
+        'right_elbow': (20.3242, 63.3205), 'right_wrist': (-49.4083, 0.6861),
+        'left_clavicle': (-9.6101, 12.3773), 'left_shoulder': (28.5554, 11.7516, 12.2047),
+        'left_elbow': (57.4271, 28.7103), 'left_wrist': (-29.418, 10.7367),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, 20.0, -5.3885), 'spine_thoracic': (1.3394, 5.0609, -10.7859),
-        'neck': (28.5624, 7.4646, -21.1307), 'head': (14.8928, -11.1709),
-        'right_shoulder': (61.8481, -1.6506, 14.2729), 'right_elbow': (18.1028, 59.9708),
-        'left_clavicle': (-9.7472, 13.8577), 'left_shoulder': (21.546, 13.3069, 16.1685),
-        'left_elbow': (68.5528, 37.5307), 'left_wrist': (-46.0406, 16.7507),
+        'spine_lumbar': (60.0, 20.0, -5.288), 'spine_thoracic': (-0.5443, 4.6213, -11.6946),
+        'neck': (29.3105, 7.6742, -20.2009), 'head': (14.995, -11.1768),
+        'right_shoulder': (61.6661, -1.964, 13.9376), 'right_elbow': (17.1591, 63.5264),
+        'left_clavicle': (-9.7067, 13.536), 'left_shoulder': (20.1956, 14.0254, 15.4013),
+        'left_elbow': (69.2403, 37.013), 'left_wrist': (-45.3414, 16.8465),
     })
     human.KeyJoints(7.8, {
-        'spine_thoracic': (1.7632, 3.1262, -17.6877), 'neck': (28.2109, 10.453, -11.8637),
-        'head': (15.0, -11.2476), 'right_shoulder': (64.5172, -12.4733, 15.1939),
-        'right_elbow': (13.6349, 59.8462), 'right_wrist': (-29.3979, 0.8108),
-        'left_shoulder': (25.566, 12.9505, 19.5592), 'left_elbow': (62.6986, 44.7371),
-        'left_wrist': (-52.1643, 18.3434),
+        'spine_thoracic': (-0.2761, 2.5145, -18.2835), 'neck': (29.3779, 10.8231, -11.1446),
+        'right_shoulder': (64.1323, -12.421, 14.879), 'right_elbow': (12.957, 63.4083),
+        'right_wrist': (-25.4121, 0.3703), 'left_shoulder': (24.043, 13.5693, 18.636),
+        'left_elbow': (63.5125, 44.0072), 'left_wrist': (-51.5653, 18.3969),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (60.0, 20.0, -12.5729), 'spine_thoracic': (2.8031, 0.9857, -24.947),
-        'neck': (29.512, 14.3501, -2.3315), 'right_shoulder': (67.9007, -23.5444, 15.9727),
-        'right_elbow': (7.5347, 59.4894), 'right_wrist': (-16.5574, 0.1867),
-        'left_clavicle': (-9.8473, 14.7538), 'left_shoulder': (37.2282, 11.7654, 23.465),
-        'left_elbow': (45.1913, 52.3445), 'left_wrist': (-56.7615, 19.4073),
+        'spine_lumbar': (60.0, 20.0, -12.5496), 'spine_thoracic': (0.6241, 0.1835, -25.1949),
+        'neck': (30.9521, 14.7609, -1.8794), 'right_shoulder': (67.3112, -23.068, 15.6795),
+        'right_elbow': (7.1793, 63.0691), 'right_wrist': (-11.4638, -0.0494),
+        'left_clavicle': (-9.7064, 14.6728), 'left_shoulder': (35.2426, 12.1266, 22.4201),
+        'left_elbow': (46.3434, 51.3772), 'left_wrist': (-56.2847, 19.4272),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 20.0, -14.7993), 'spine_thoracic': (4.1208, -0.4078, -29.5778),
-        'neck': (30.903, 16.2445, 3.9344), 'right_shoulder': (70.2146, -30.5245, 16.422),
-        'right_elbow': (3.2632, 59.2009), 'right_wrist': (-8.0281, -0.8427),
-        'left_clavicle': (-9.8691, 14.9805), 'left_shoulder': (46.6551, 10.8073, 26.0473),
-        'left_elbow': (29.4326, 57.2045), 'left_wrist': (-59.2589, 19.9554),
+        'spine_lumbar': (60.0, 20.0, -14.7974), 'spine_thoracic': (1.8594, -1.3341, -29.5987),
+        'neck': (32.4576, 16.599, 4.1975), 'head': (15.0, -11.25),
+        'right_shoulder': (69.4971, -29.7672, 16.1426), 'right_elbow': (3.125, 62.7948),
+        'right_wrist': (-2.2117, -0.9008), 'left_clavicle': (-9.6983, 14.9739),
+        'left_shoulder': (44.2958, 10.9604, 24.9363), 'left_elbow': (30.8035, 56.0822),
+        'left_wrist': (-58.8614, 19.957),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (6.1322, -0.2412, -30.0),
-        'neck': (29.6582, 15.7014, 4.7887), 'right_shoulder': (69.2192, -31.1206, 16.4635),
-        'right_elbow': (6.5894, 59.2318), 'right_wrist': (-10.7261, -1.5371),
-        'left_clavicle': (-9.9898, 15.0), 'left_shoulder': (49.459, 15.0603, 24.6563),
-        'left_elbow': (23.4994, 56.9778), 'left_wrist': (-57.5895, 18.8189),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (3.8892, -1.1941, -30.0),
+        'neck': (31.2207, 16.0758, 5.0295), 'right_shoulder': (67.2513, -30.0006, 16.1918),
+        'right_elbow': (8.8011, 62.824), 'right_wrist': (-3.9318, -1.7531),
+        'left_shoulder': (46.923, 15.1328, 23.5243), 'left_elbow': (24.8333, 55.8442),
+        'left_wrist': (-57.2571, 18.8259),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.194677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (15.9352, -4.0334, -30.0), 'neck': (23.5747, 12.7146, 5.9779),
-        'right_shoulder': (69.3388, -31.8996, 16.4991), 'right_elbow': (18.3514, 59.0442),
-        'right_wrist': (-24.9216, -3.533), 'left_shoulder': (64.5537, 11.4501, 24.1942),
-        'left_elbow': (11.7192, 56.4873), 'left_wrist': (-43.1732, 14.6153),
+        'spine_thoracic': (13.2513, -6.2115, -30.0), 'neck': (25.9509, 13.8402, 6.3737),
+        'right_shoulder': (65.7129, -29.9726, 16.2679), 'right_elbow': (23.9426, 62.9351),
+        'right_wrist': (-10.2763, -3.8612), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (61.2913, 12.1399, 23.0376), 'left_elbow': (12.7361, 55.3067),
+        'left_wrist': (-43.3815, 14.6834),
     })
     human.KeyJoints(8.4, {
-        'neck': (23.5747, 12.7146, 5.9779), 'head': (15.0, -11.25),
-        'left_shoulder': (64.5537, 11.4501, 24.1942), 'left_elbow': (11.7192, 56.4873),
-        'left_wrist': (-43.1732, 14.6153),
+        'neck': (25.9509, 13.8402, 6.3737), 'head': (15.0, -11.25),
+        'left_shoulder': (61.2913, 12.1399, 23.0376), 'left_elbow': (12.7361, 55.3067),
+        'left_wrist': (-43.3815, 14.6834),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.5, {
-        'neck': (23.8742, 12.1001, 7.6493), 'head': (14.9702, -10.6182),
-        'left_shoulder': (63.6322, 11.5783, 23.5731), 'left_elbow': (12.1992, 56.272),
-        'left_wrist': (-43.2991, 14.5621),
+        'neck': (26.1884, 13.2046, 8.0498), 'head': (14.972, -10.6181),
+        'left_shoulder': (60.397, 12.2547, 22.4232), 'left_elbow': (13.2054, 55.0941),
+        'left_wrist': (-43.502, 14.6199),
     })
     human.KeyJoints(8.6, {
-        'neck': (26.3712, 6.9756, 21.586), 'head': (14.722, -5.3494),
-        'left_shoulder': (55.1547, 12.8201, 17.7804), 'left_elbow': (16.7009, 54.2908),
-        'left_wrist': (-44.4801, 14.0733),
+        'neck': (28.1688, 7.9043, 22.0262), 'head': (14.7387, -5.3485),
+        'left_shoulder': (52.1696, 13.3716, 16.6919), 'left_elbow': (17.6099, 53.1383),
+        'left_wrist': (-44.633, 14.0348),
     })
     human.KeyJoints(8.7, {
-        'neck': (30.029, -0.5309, 42.0012), 'head': (14.3583, 2.3684),
-        'left_shoulder': (40.0959, 15.2123, 7.2534), 'left_elbow': (24.9558, 50.7714),
-        'left_wrist': (-46.6445, 13.2049),
+        'neck': (31.0698, 0.1403, 42.4996), 'head': (14.3968, 2.3705),
+        'left_shoulder': (37.5551, 15.5408, 6.273), 'left_elbow': (25.6966, 49.6641),
+        'left_wrist': (-46.7077, 12.9956),
     })
     human.KeyJoints(8.8, {
-        'neck': (33.1713, -6.9797, 59.5394), 'head': (14.0459, 8.9987),
-        'left_shoulder': (21.2688, 18.5457, -6.3445), 'left_elbow': (35.7521, 46.3714),
-        'left_wrist': (-49.4732, 12.1192),
+        'neck': (33.5619, -6.5297, 60.0877), 'head': (14.1032, 9.0017),
+        'left_shoulder': (19.2835, 18.5934, -7.1913), 'left_elbow': (36.29, 45.3205),
+        'left_wrist': (-49.4226, 11.6963),
     })
     human.KeyJoints(8.9, {
-        'neck': (34.1878, -9.0657, 65.2126), 'head': (13.9448, 11.1434),
-        'left_shoulder': (1.4864, 22.6115, -21.3495), 'left_elbow': (47.8775, 41.7481),
-        'left_wrist': (-52.6469, 10.9784),
+        'neck': (34.3681, -8.6872, 65.7771), 'head': (14.0082, 11.1468),
+        'left_shoulder': (0.0847, 22.3607, -22.0587), 'left_elbow': (48.2149, 40.7565),
+        'left_wrist': (-52.474, 10.3312),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (-16.4383, 27.2006, -36.0982), 'left_elbow': (60.12, 37.559),
-        'left_wrist': (-55.8464, 9.9448),
+        'left_shoulder': (-17.311, 26.6737, -36.6871), 'left_elbow': (60.2961, 36.6211),
+        'left_wrist': (-55.5584, 9.0942),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (-29.6921, 32.104, -48.927), 'left_elbow': (71.2675, 34.4616),
-        'left_wrist': (-58.7525, 9.1805),
+        'left_shoulder': (-30.1738, 31.3637, -49.4341), 'left_elbow': (71.3583, 33.5633),
+        'left_wrist': (-58.3721, 8.1795),
     })
     human.KeyJoints(9.2, {
-        'left_shoulder': (-35.462, 37.1127, -58.1722), 'left_elbow': (80.108, 33.1131),
-        'left_wrist': (-61.0459, 8.8478),
+        'left_shoulder': (-35.7735, 36.2618, -58.6576), 'left_elbow': (80.2262, 32.2322),
+        'left_wrist': (-60.6116, 7.7813),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'left_shoulder': (-34.692, 43.3611, -64.2126), 'left_elbow': (86.7206, 33.2302),
-        'left_wrist': (-62.8644, 9.1306),
+        'left_shoulder': (-35.0502, 42.8384, -64.7221), 'left_elbow': (86.9723, 32.4262),
+        'left_wrist': (-62.4012, 8.1416),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'left_shoulder': (-34.2026, 40.566, -73.531), 'left_elbow': (96.4643, 33.4203),
-        'left_wrist': (-67.626, 9.6957),
+        'left_shoulder': (-34.3742, 40.7499, -74.5362), 'left_elbow': (96.7692, 32.6504),
+        'left_wrist': (-67.0906, 8.7033),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
-    human.KeyJoints(9.5, {'neck': (34.1851, -9.0607, 65.2105), 'head': (13.9376, 11.1441)})
+    human.KeyJoints(9.5, {'neck': (34.3663, -8.6825, 65.7758), 'head': (14.0017, 11.1472)})
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (15.9352, -4.0334, -30.0),
-        'neck': (34.0559, -8.9276, 65.0554), 'right_clavicle': (-7.2196, 6.0004),
-        'right_shoulder': (69.3388, -31.8996, 16.4991), 'right_elbow': (18.3514, 59.0442),
-        'right_wrist': (-24.9216, -3.533), 'left_shoulder': (-34.2026, 40.566, -73.531),
-        'left_elbow': (96.4643, 33.4203), 'left_wrist': (-67.626, 9.6957),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.2513, -6.2115, -30.0),
+        'neck': (34.2643, -8.5557, 65.6647), 'right_clavicle': (-7.4695, 6.7463),
+        'right_shoulder': (65.7129, -29.9726, 16.2679), 'right_elbow': (23.9426, 62.9351),
+        'right_wrist': (-10.2763, -3.8612), 'left_shoulder': (-34.3742, 40.7499, -74.5362),
+        'left_elbow': (96.7692, 32.6504), 'left_wrist': (-67.0906, 8.7033),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.4769, -14.3944), 'spine_thoracic': (15.8151, -3.8216, -29.355),
-        'neck': (33.7805, -8.9127, 64.1981), 'head': (13.7216, 11.1768),
-        'right_clavicle': (-7.3225, 6.3045), 'right_shoulder': (69.3949, -31.7124, 16.4862),
-        'right_elbow': (17.8778, 58.971), 'right_wrist': (-24.2391, -3.4714),
-        'left_shoulder': (-31.8489, 41.0811, -70.2757), 'left_elbow': (96.2384, 34.0603),
-        'left_wrist': (-65.6467, 9.7181),
+        'spine_lumbar': (60.0, 19.4793, -14.3817), 'spine_thoracic': (13.1501, -5.9333, -29.3428),
+        'neck': (33.9462, -8.5388, 64.684), 'head': (13.7947, 11.1758),
+        'right_clavicle': (-7.5631, 7.0517), 'right_shoulder': (65.8817, -29.8226, 16.2512),
+        'right_elbow': (23.2786, 62.8445), 'right_wrist': (-9.9663, -3.7899),
+        'left_shoulder': (-32.0018, 41.212, -71.212), 'left_elbow': (96.4817, 33.2706),
+        'left_wrist': (-65.2566, 8.8141),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (60.0, 17.1333, -11.6416), 'spine_thoracic': (15.2492, -2.8625, -26.4217),
-        'neck': (31.9939, -8.1909, 59.2744), 'head': (12.806, 11.1618),
-        'right_clavicle': (-7.7833, 7.6781), 'right_shoulder': (69.653, -30.8741, 16.4286),
-        'right_elbow': (15.7557, 58.643), 'right_wrist': (-21.1806, -3.1865),
-        'left_shoulder': (-21.216, 43.3888, -55.5796), 'left_elbow': (95.1125, 36.9361),
-        'left_wrist': (-56.6979, 9.8188),
+        'spine_lumbar': (60.0, 17.1467, -11.5728), 'spine_thoracic': (12.6701, -4.6758, -26.356),
+        'neck': (32.1243, -7.8743, 59.5166), 'right_clavicle': (-7.9826, 8.4198),
+        'right_shoulder': (66.6486, -29.1504, 16.1762), 'right_elbow': (20.3043, 62.4384),
+        'right_wrist': (-8.5766, -3.4615), 'left_shoulder': (-21.2923, 43.2821, -56.2112),
+        'left_elbow': (95.0692, 36.0583), 'left_wrist': (-56.956, 9.3104),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 13.7105, -7.5157), 'spine_thoracic': (14.3488, -1.435, -22.0218),
-        'neck': (29.4881, -7.5257, 51.3546), 'head': (11.7738, 11.0929),
-        'right_clavicle': (-8.4564, 9.7133), 'right_elbow': (12.6565, 58.1641),
-        'right_wrist': (-16.7113, -2.7467), 'left_shoulder': (-5.4511, 46.7592, -33.818),
-        'left_elbow': (93.1651, 41.1604), 'left_wrist': (-43.4114, 9.9658),
+        'spine_lumbar': (60.0, 13.7399, -7.3666), 'spine_thoracic': (11.898, -2.8093, -21.8811),
+        'neck': (29.5861, -7.2841, 51.2654), 'head': (11.9604, 11.0929),
+        'right_clavicle': (-8.5952, 10.418), 'right_shoulder': (67.7964, -28.1688, 16.0666),
+        'right_elbow': (15.9604, 61.8454), 'right_wrist': (-6.5453, -2.9577),
+        'left_shoulder': (-5.4353, 46.3054, -34.0139), 'left_elbow': (92.6744, 40.1539),
+        'left_wrist': (-44.6076, 10.0352),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 10.0989, -2.9618), 'spine_thoracic': (13.2587, 0.1223, -17.159),
-        'neck': (26.8826, -7.086, 42.0194), 'head': (11.4341, 10.9236),
-        'right_clavicle': (-9.1667, 11.9163), 'right_shoulder': (70.5014, -28.3579, 16.2557),
-        'right_elbow': (9.3863, 57.6588), 'right_wrist': (-11.9912, -2.2378),
-        'left_shoulder': (11.6306, 50.3155, -10.2899), 'left_elbow': (90.5345, 45.6637),
-        'left_wrist': (-28.9803, 10.1209),
+        'spine_lumbar': (60.0, 10.1453, -2.7311), 'spine_thoracic': (10.9486, -0.7833, -16.9451),
+        'neck': (26.9733, -6.9315, 41.6602), 'head': (11.7082, 10.9215),
+        'right_clavicle': (-9.2416, 12.5263), 'right_shoulder': (69.0605, -27.133, 15.951),
+        'right_elbow': (11.377, 61.2196), 'right_wrist': (-4.3988, -2.3802),
+        'left_shoulder': (11.7063, 49.4954, -10.0435), 'left_elbow': (89.5167, 44.5211),
+        'left_wrist': (-31.15, 10.8),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (60.0, 7.1891, 1.0749), 'spine_thoracic': (12.1232, 1.4707, -12.8368),
-        'neck': (24.7971, -8.0242, 33.5447), 'head': (11.4124, 11.0992),
-        'right_clavicle': (-9.7389, 13.7931), 'right_shoulder': (70.931, -27.3171, 16.1842),
-        'right_elbow': (6.7516, 57.2516), 'right_wrist': (-8.18, -1.7453),
-        'left_shoulder': (26.2144, 53.1807, 9.7058), 'left_elbow': (87.359, 49.3763),
-        'left_wrist': (-16.5974, 10.2458),
+        'spine_lumbar': (60.0, 7.2491, 1.3658), 'spine_thoracic': (9.9362, 0.953, -12.5751),
+        'neck': (24.8641, -7.9717, 33.0545), 'head': (11.7515, 11.0746),
+        'right_clavicle': (-9.7624, 14.2249), 'right_shoulder': (70.1761, -26.2985, 15.8579),
+        'right_elbow': (7.6841, 60.7155), 'right_wrist': (-2.6635, -1.8305),
+        'left_shoulder': (26.2696, 52.0656, 10.2762), 'left_elbow': (85.8158, 48.1239),
+        'left_wrist': (-19.5215, 11.4163),
     })
     human.KeyJoints(10.3, {
-        'spine_lumbar': (60.0, 5.8715, 3.6492), 'spine_thoracic': (11.0869, 2.2713, -10.0592),
-        'neck': (23.5895, -8.973, 28.2193), 'head': (12.0138, 11.1001),
-        'right_clavicle': (-9.998, 14.8498), 'right_shoulder': (71.2572, -26.8457, 16.1518),
-        'right_elbow': (5.5585, 57.0673), 'right_wrist': (-6.4376, -1.3549),
-        'left_shoulder': (34.4852, 54.4782, 20.8702), 'left_elbow': (83.7771, 51.2286),
-        'left_wrist': (-9.4557, 10.3024),
+        'spine_lumbar': (60.0, 5.9377, 3.956), 'spine_thoracic': (8.9757, 1.9502, -9.7981),
+        'neck': (23.8835, -9.1476, 27.6822), 'head': (12.1531, 11.1162),
+        'right_clavicle': (-9.9982, 14.9941), 'right_shoulder': (70.8784, -25.9206, 15.8158),
+        'right_elbow': (6.0119, 60.4872), 'right_wrist': (-1.8658, -1.4104),
+        'left_shoulder': (34.3919, 53.2295, 21.522), 'left_elbow': (81.7912, 49.926),
+        'left_wrist': (-12.6606, 11.6953),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {
-        'spine_lumbar': (57.4611, 6.9152, 3.6874), 'spine_thoracic': (10.9425, 2.3194, -10.0044),
-        'neck': (23.8823, -9.9102, 27.2072), 'head': (12.4699, 11.1273),
-        'right_clavicle': (-9.2115, 14.3656), 'right_shoulder': (70.3854, -28.3723, 16.2553),
-        'right_elbow': (5.3203, 57.0811), 'right_wrist': (-6.3384, -1.1762),
-        'left_shoulder': (34.9967, 52.2722, 22.5476), 'left_elbow': (78.6139, 51.3848),
-        'left_wrist': (-7.8739, 9.5618),
+        'spine_lumbar': (57.0779, 7.127, 4.0814), 'spine_thoracic': (8.7729, 2.0184, -9.6526),
+        'neck': (23.9657, -9.9762, 26.6586), 'head': (12.8938, 11.1131),
+        'right_shoulder': (69.8486, -27.6331, 15.9291), 'right_elbow': (5.7865, 60.4879),
+        'right_wrist': (-1.7128, -1.2093), 'left_shoulder': (34.9487, 50.9976, 23.181),
+        'left_elbow': (75.9146, 50.0781), 'left_wrist': (-10.8596, 10.7925),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (55.0628, 8.0758, 3.3688), 'spine_thoracic': (11.2184, 2.2314, -10.3566),
-        'neck': (23.8499, -10.0237, 27.4425), 'head': (13.0395, 11.1225),
-        'right_clavicle': (-8.3184, 13.977), 'right_shoulder': (68.9507, -29.4226, 16.3306),
-        'right_elbow': (4.875, 57.0856), 'right_wrist': (-6.2055, -1.1103),
-        'left_shoulder': (34.8426, 51.8326, 22.8926), 'left_elbow': (74.8179, 51.4412),
-        'left_wrist': (-7.0256, 8.9524),
+        'spine_lumbar': (55.0944, 8.121, 3.7115), 'spine_thoracic': (9.076, 1.9137, -10.0535),
+        'neck': (24.1484, -10.2414, 26.9144), 'head': (13.2034, 11.1228),
+        'right_clavicle': (-8.3596, 14.032), 'right_shoulder': (68.6319, -28.5304, 15.9917),
+        'right_elbow': (5.3299, 60.4868), 'right_wrist': (-1.5612, -1.1383),
+        'left_shoulder': (34.7363, 50.5663, 23.5276), 'left_elbow': (72.7017, 50.118),
+        'left_wrist': (-10.0966, 10.2488),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.6, {'right_elbow': (4.875, 64.7247)})
-    human.KeyJoints(10.7, {'right_elbow': (4.875, 79.3756)})
+    human.KeyJoints(10.6, {'right_elbow': (5.3299, 30.483)})
+    human.KeyJoints(10.7, {'right_elbow': (5.3299, -27.0606)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.8, {'right_elbow': (4.875, 46.2596)})
-    human.KeyJoints(10.9, {'right_elbow': (4.875, -8.7459)})
+    human.KeyJoints(10.8, {'right_elbow': (5.3299, 4.2272)})
+    human.KeyJoints(10.9, {'right_elbow': (5.3299, 59.2327)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.0, {'right_elbow': (4.875, 27.5524)})
-    human.KeyJoints(11.1, {'right_elbow': (4.875, 79.5587)})
+    human.KeyJoints(11.0, {'right_elbow': (5.3299, 22.9344)})
+    human.KeyJoints(11.1, {'right_elbow': (5.3299, -29.0719)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.2, {'right_elbow': (4.875, 38.5859)})
-    human.KeyJoints(11.3, {'right_elbow': (4.875, -9.9602)})
+    human.KeyJoints(11.2, {'right_elbow': (5.3299, 11.9009)})
+    human.KeyJoints(11.3, {'right_elbow': (5.3299, 60.4471)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.4, {'right_elbow': (4.875, 35.2996)})
+    human.KeyJoints(11.4, {'right_elbow': (5.3299, 15.1872)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.5, {'right_elbow': (4.875, 79.9262)})
-    human.KeyJoints(11.6, {'right_elbow': (4.875, 30.8169)})
+    human.KeyJoints(11.5, {'right_elbow': (5.3299, -29.4394)})
+    human.KeyJoints(11.6, {'right_elbow': (5.3299, 19.6699)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.7, {'right_elbow': (4.875, -9.4596)})
-    human.KeyJoints(11.8, {'right_elbow': (4.875, 43.0388)})
+    human.KeyJoints(11.7, {'right_elbow': (5.3299, 59.9465)})
+    human.KeyJoints(11.8, {'right_elbow': (5.3299, 7.448)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.9, {'right_elbow': (4.875, 78.5857)})
-    human.KeyJoints(12.0, {'right_elbow': (4.875, 23.1591)})
+    human.KeyJoints(11.9, {'right_elbow': (5.3299, -28.0989)})
+    human.KeyJoints(12.0, {'right_elbow': (5.3299, 27.3277)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.079969, duration=0.072)
-    human.KeyJoints(12.1, {'right_elbow': (4.875, -10.0)})
+    human.KeyJoints(12.1, {'right_elbow': (5.3299, 60.4868)})
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.151969, duration=0.2628)
-    human.KeyJoints(12.2, {'neck': (23.858, -10.0279, 27.441), 'head': (13.0309, 11.1227)})
-    human.KeyJoints(12.4, {'neck': (24.065, -10.1335, 27.4043), 'head': (12.8091, 11.1288)})
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
     human.KeyJoints(15.4, {
-        'spine_lumbar': (55.0628, 8.0758, 3.3688), 'spine_thoracic': (11.2184, 2.2314, -10.3566),
-        'right_clavicle': (-8.3184, 13.977), 'right_shoulder': (68.9507, -29.4226, 16.3306),
-        'right_elbow': (4.875, -10.0), 'right_wrist': (-6.2055, -1.1103),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.8426, 51.8326, 22.8926),
-        'left_elbow': (74.8179, 51.4412), 'left_wrist': (-7.0256, 8.9524),
+        'spine_lumbar': (55.0944, 8.121, 3.7115), 'spine_thoracic': (9.076, 1.9137, -10.0535),
+        'right_clavicle': (-8.3596, 14.032), 'right_shoulder': (68.6319, -28.5304, 15.9917),
+        'right_elbow': (5.3299, 60.4868), 'right_wrist': (-1.5612, -1.1383),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.7363, 50.5663, 23.5276),
+        'left_elbow': (72.7017, 50.118), 'left_wrist': (-10.0966, 10.2488),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(15.5, {
-        'spine_lumbar': (44.4154, 6.4827, 3.3688), 'spine_thoracic': (9.0386, 1.792, -10.3566),
-        'right_clavicle': (-6.6856, 11.1665), 'right_shoulder': (58.5019, -22.7106, 15.3813),
-        'right_elbow': (7.9642, -4.5892), 'right_wrist': (-4.2353, -1.3997),
-        'left_clavicle': (-8.0372, 11.9838), 'left_shoulder': (29.8301, 42.3481, 20.6366),
-        'left_elbow': (66.2929, 44.5572), 'left_wrist': (-5.5546, 7.1119),
+        'spine_lumbar': (44.9753, 6.4842, 3.7115), 'spine_thoracic': (7.4556, 1.5388, -10.0535),
+        'right_clavicle': (-6.7187, 11.2105), 'right_shoulder': (58.122, -22.0381, 15.1025),
+        'right_elbow': (8.6467, 51.7658), 'right_wrist': (-0.6473, -1.1415),
+        'left_clavicle': (-8.0372, 11.9838), 'left_shoulder': (29.7719, 41.3562, 21.1252),
+        'left_elbow': (64.6437, 43.4976), 'left_wrist': (-8.0261, 8.1543),
     })
     human.KeyJoints(15.6, {
-        'spine_lumbar': (19.2107, 2.614, 3.3688), 'spine_thoracic': (3.8785, 0.7251, -10.3566),
-        'right_clavicle': (-2.7208, 4.5136), 'right_shoulder': (28.6141, -5.8457, 13.0782),
-        'right_elbow': (23.9822, 8.4015), 'right_wrist': (-1.9461, -0.5542),
-        'left_clavicle': (-3.2708, 4.8439), 'left_shoulder': (17.3549, 20.5653, 15.1384),
-        'left_elbow': (47.0516, 28.2485), 'left_wrist': (-2.2489, 2.8348),
+        'spine_lumbar': (21.0211, 2.5098, 3.7115), 'spine_thoracic': (3.521, 0.6283, -10.0535),
+        'right_clavicle': (-2.7343, 4.5313), 'right_shoulder': (28.5194, -5.5584, 12.9657),
+        'right_elbow': (24.191, 31.1688), 'right_wrist': (-0.3925, -0.5194),
+        'left_clavicle': (-3.2708, 4.8439), 'left_shoulder': (17.3324, 20.1718, 15.3355),
+        'left_elbow': (46.419, 27.8201), 'left_wrist': (-3.2583, 3.2672),
     })
-    human.KeyRoot(15.7, (1.51, 45.717, 46.727), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.7, (1.631, 45.369, 45.759), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (2.2974, 0.0163, 3.3688), 'spine_thoracic': (0.4159, 0.0087, -10.3566),
-        'right_clavicle': (-0.0585, 0.0491), 'right_shoulder': (9.1107, 5.4392, 11.527),
-        'right_elbow': (33.8569, 17.0931), 'right_wrist': (-0.0015, -0.0965),
-        'left_clavicle': (-0.0703, 0.0527), 'left_shoulder': (8.9229, 5.934, 11.4701),
-        'left_elbow': (34.2139, 17.3091), 'left_wrist': (-0.0394, -0.0089),
-        'right_hip': (18.9817, -0.0183, 0.0329), 'right_knee': (128.9784,),
-        'right_ankle': (10.0009, 0.2583), 'left_hip': (18.9817, 0.0183, -0.0329),
-        'left_knee': (128.9784,), 'left_ankle': (10.0009, -0.2583),
+        'spine_lumbar': (4.9469, -0.159, 3.7115), 'spine_thoracic': (0.8789, 0.0169, -10.0535),
+        'right_clavicle': (-0.0588, 0.0493), 'right_shoulder': (9.1311, 5.4416, 11.5234),
+        'right_elbow': (33.8801, 17.3409), 'right_wrist': (0.0293, -0.0919),
+        'left_clavicle': (-0.0703, 0.0527), 'left_shoulder': (8.9269, 5.9373, 11.4696),
+        'left_elbow': (34.2564, 17.3044), 'left_wrist': (-0.0655, 0.0109),
+        'right_hip': (20.3571, -0.0938, 0.16), 'right_knee': (130.3534,),
+        'right_ankle': (9.9967, 1.2716), 'left_hip': (20.3571, 0.0938, -0.16),
+        'left_knee': (130.3534,), 'left_ankle': (9.9967, -1.2716),
     })
-    human.KeyRoot(15.8, (1.553, 45.493, 46.087), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.8, (1.62, 45.129, 45.115), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (3.0606, 4.8062, 3.3688), 'spine_thoracic': (0.5037, 0.8877, -10.3566),
-        'right_shoulder': (8.6544, 5.7034, 11.4848), 'right_elbow': (34.1413, 17.267),
-        'left_clavicle': (0.0, -0.0432), 'left_shoulder': (8.7235, 5.6251, 11.4039),
-        'left_elbow': (34.0012, 17.0902), 'right_hip': (19.8805, -0.116, 0.2017),
-        'right_knee': (129.8797,), 'right_ankle': (9.9949, 1.5953),
-        'left_hip': (19.8805, 0.116, -0.2017), 'left_knee': (129.8797,),
-        'left_ankle': (9.9949, -1.5953),
+        'spine_lumbar': (5.7275, 4.5349, 3.7115), 'spine_thoracic': (0.8846, 1.1002, -10.0535),
+        'right_shoulder': (8.6743, 5.6995, 11.484), 'right_elbow': (34.1555, 17.0642),
+        'left_clavicle': (0.0, -0.0432), 'left_shoulder': (8.7267, 5.6354, 11.3998),
+        'left_elbow': (34.0485, 17.094), 'right_hip': (21.2558, -0.2627, 0.4317),
+        'right_knee': (131.2519,), 'right_ankle': (9.9687, 3.466),
+        'left_hip': (21.2558, 0.2627, -0.4317), 'left_knee': (131.2519,),
+        'left_ankle': (9.9687, -3.466),
     })
-    human.KeyRoot(15.9, (1.5, 45.082, 44.972), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.9, (1.458, 44.767, 44.176), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'spine_lumbar': (4.6521, 17.3216, 3.3688), 'spine_thoracic': (0.2832, 4.3779, -10.3566),
-        'right_clavicle': (0.0, -0.0313), 'right_hip': (21.4261, -0.4539, 0.7394),
-        'right_knee': (131.4148,), 'right_ankle': (9.9039, 5.9564),
-        'left_hip': (21.4261, 0.4539, -0.7394), 'left_knee': (131.4148,),
-        'left_ankle': (9.9039, -5.9564),
+        'spine_lumbar': (6.9698, 16.5523, 3.7115), 'spine_thoracic': (0.1628, 5.333, -10.0535),
+        'right_clavicle': (0.0, -0.0314), 'right_hip': (22.5402, -0.7008, 1.0888),
+        'right_ankle': (9.7829, 8.904), 'left_hip': (22.5402, 0.7008, -1.0888),
+        'left_ankle': (9.7829, -8.904),
     })
-    human.KeyRoot(16.0, (1.074, 44.5, 43.489), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.0, (0.987, 44.347, 43.128), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.0, {
-        'spine_lumbar': (7.7813, 20.0, 3.3688), 'spine_thoracic': (-2.4635, 10.0, -10.3566),
-        'right_hip': (23.4217, -1.3696, 2.0187), 'right_knee': (133.3328,),
-        'right_ankle': (9.2138, 16.9068), 'left_hip': (23.4217, 1.3696, -2.0188),
-        'left_knee': (133.3328,), 'left_ankle': (9.2138, -16.9068),
+        'spine_lumbar': (9.0039, 19.9999, 3.7115), 'spine_thoracic': (-3.356, 10.0, -10.0535),
+        'left_wrist': (0.0064, -0.0348), 'right_hip': (23.9161, -1.5698, 2.2555),
+        'right_knee': (133.8036,), 'right_ankle': (8.9971, 19.1009),
+        'left_hip': (23.9161, 1.5698, -2.2555), 'left_knee': (133.8036,),
+        'left_ankle': (8.9971, -19.1009),
     })
-    human.KeyRoot(16.1, (-0.131, 44.708, 43.872), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.1, (-0.047, 44.36, 43.072), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.1, {
-        'spine_lumbar': (7.1865, 19.9999, 3.3688), 'spine_thoracic': (-11.2811, 10.0, -10.3566),
-        'left_elbow': (34.2138, 17.1559), 'left_wrist': (0.007, -0.0283),
-        'right_hip': (22.5846, -2.8513, 3.9619), 'right_knee': (132.2308,),
-        'right_ankle': (6.6672, 35.0), 'left_hip': (24.7341, 3.9664, -1.7281),
-        'left_knee': (135.0,), 'left_ankle': (5.1246, -24.9232),
+        'spine_lumbar': (9.6033, 19.9999, 3.7115), 'spine_thoracic': (-11.0017, 10.0, -10.0535),
+        'left_elbow': (34.2323, 17.1572), 'right_hip': (23.749, -2.935, 3.9021),
+        'right_knee': (133.3969,), 'right_ankle': (6.6669, 35.0),
+        'left_hip': (24.2869, 1.3839, -1.6635), 'left_knee': (134.8801,),
+        'left_ankle': (7.2646, -25.0),
     })
-    human.KeyRoot(16.2, (-0.229, 45.411, 45.656), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.2, (-0.233, 45.306, 45.373), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.2, {
-        'spine_lumbar': (-0.4173, 20.0, 3.3688), 'spine_thoracic': (-7.8408, 10.0, -10.3566),
-        'right_elbow': (34.3869, 17.1974), 'left_elbow': (34.3645, 17.1778),
-        'right_hip': (20.0442, -2.5528, 3.958), 'right_knee': (129.7112,),
-        'right_ankle': (6.911, 33.6906), 'left_hip': (27.8772, -19.8846, -5.3916),
-        'left_knee': (132.9633,), 'left_ankle': (-8.783, -8.0256),
+        'spine_lumbar': (-0.1816, 20.0, 3.7115), 'spine_thoracic': (-7.4053, 10.0, -10.0535),
+        'right_elbow': (34.3868, 17.1749), 'left_elbow': (34.3652, 17.1782),
+        'right_hip': (20.4392, -2.6258, 3.9693), 'right_knee': (130.1006,),
+        'right_ankle': (6.8503, 34.0276), 'left_hip': (30.6157, -19.4103, -4.856),
+        'left_knee': (132.6791,), 'left_ankle': (-14.4242, -6.5153),
     })
-    human.KeyRoot(16.3, (0.123, 43.864, 41.999), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.3, (0.094, 43.98, 42.243), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.3, {
-        'spine_lumbar': (7.807, 19.9999, 3.3688), 'spine_thoracic': (-6.8995, 10.0, -10.3566),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.3392, -2.9735, 3.7746),
-        'right_knee': (134.9989,), 'right_ankle': (6.776, 34.4343),
-        'left_hip': (44.5747, -18.6044, 4.1747), 'left_knee': (134.5461,),
-        'left_ankle': (-45.8876, 8.9857),
+        'spine_lumbar': (7.0486, 19.9999, 3.7115), 'spine_thoracic': (-6.8264, 10.0, -10.0535),
+        'left_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (24.9773, -2.9535, 3.7912),
+        'right_knee': (134.6367,), 'right_ankle': (6.7766, 34.4298),
+        'left_hip': (44.5896, -18.9587, 5.041), 'left_knee': (133.4666,),
+        'left_ankle': (-45.0495, 10.0425),
     })
     human.KeyRoot(16.4, (0.065, 43.857, 41.982), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (1.6471, 20.0, 3.3688), 'spine_thoracic': (-7.649, 10.0, -10.3566),
-        'right_ankle': (6.6643, 35.0), 'left_hip': (73.9074, 4.983, 38.6407),
-        'left_knee': (133.9947,), 'left_ankle': (-45.2394, 19.3557),
+        'spine_lumbar': (1.8817, 20.0, 3.7115), 'spine_thoracic': (-7.6389, 10.0, -10.0535),
+        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.352, -3.0488, 3.817),
+        'right_knee': (135.0,), 'right_ankle': (6.6652, 35.0),
+        'left_hip': (72.2644, 4.7742, 37.9953), 'left_knee': (133.0901,),
+        'left_ankle': (-44.9546, 20.0257),
     })
-    human.KeyRoot(16.5, (0.077, 43.873, 42.015), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.5, (-0.09, 44.516, 43.425), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.5, {
-        'spine_lumbar': (-1.1435, 20.0, 3.3688), 'spine_thoracic': (-5.338, 10.0, -10.3566),
-        'right_hip': (25.3057, -3.0303, 3.8246), 'right_ankle': (6.6693, 34.9989),
-        'left_hip': (97.8396, -9.7276, 28.7489), 'left_knee': (134.2233,),
-        'left_ankle': (-25.2442, 31.93),
+        'spine_lumbar': (-5.2112, 20.0, 3.7115), 'spine_thoracic': (-6.919, 10.0, -10.0535),
+        'right_hip': (23.2323, -2.9083, 3.9259), 'right_knee': (132.8795,),
+        'right_ankle': (6.6697, 35.0), 'left_hip': (95.0031, -23.486, 27.5653),
+        'left_ankle': (-22.2599, 33.5551),
     })
-    human.KeyRoot(16.6, (0.19, 43.873, 42.022), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.6, (0.189, 43.873, 42.021), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.5245, 20.0, 3.3688), 'spine_thoracic': (-4.165, 10.0, -10.3566),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.3214, -2.8813, 3.6845),
-        'right_ankle': (6.9614, 33.4306), 'left_hip': (102.2689, -24.2013, 15.526),
-        'left_knee': (135.0,), 'left_ankle': (7.0408, 35.0),
+        'spine_lumbar': (-0.2897, 20.0, 3.7115), 'spine_thoracic': (-5.5136, 10.0, -10.0535),
+        'right_hip': (25.323, -2.8821, 3.6856), 'right_knee': (135.0,),
+        'right_ankle': (6.958, 33.4447), 'left_hip': (101.029, -23.6846, 14.6807),
+        'left_knee': (135.0,), 'left_ankle': (10.5775, 35.0),
     })
-    human.KeyRoot(16.7, (0.116, 43.863, 41.997), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.7, (0.052, 44.099, 42.497), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-0.8662, 20.0, 3.3688), 'spine_thoracic': (-7.906, 10.0, -10.3566),
-        'right_wrist': (0.0, 0.0), 'right_hip': (25.3408, -2.9824, 3.7771),
-        'right_ankle': (6.766, 34.4891), 'left_hip': (93.3237, -2.5624, 5.4751),
-        'left_knee': (131.316,), 'left_ankle': (16.1616, 6.0211),
+        'spine_lumbar': (-2.3337, 20.0, 3.7115), 'spine_thoracic': (-8.7281, 10.0, -10.0535),
+        'right_wrist': (0.0, 0.0), 'right_hip': (24.6002, -2.9455, 3.8297),
+        'right_knee': (134.2557,), 'right_ankle': (6.7377, 34.6413),
+        'left_hip': (91.8235, -2.1559, 5.1849), 'left_knee': (131.1981,),
+        'left_ankle': (18.5547, 5.4914),
     })
-    human.KeyRoot(16.8, (1.806, 44.016, 42.507), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.8, (1.83, 44.024, 42.528), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-3.3605, 19.7202, 3.3688), 'spine_thoracic': (-1.0486, 4.3119, -10.3566),
-        'right_hip': (25.0187, -0.6488, 0.9202), 'right_ankle': (9.8364, 7.7373),
-        'left_hip': (91.6424, -0.4344, 1.1305), 'left_knee': (130.8904,),
-        'left_ankle': (19.8686, 1.2477),
+        'spine_lumbar': (-3.4195, 19.6876, 3.7115), 'spine_thoracic': (-1.061, 4.476, -10.0535),
+        'right_hip': (24.9946, -0.612, 0.869), 'right_knee': (134.9778,),
+        'right_ankle': (9.8545, 7.3025), 'left_hip': (91.6047, -0.4077, 1.0635),
+        'left_knee': (130.8889,), 'left_ankle': (19.9208, 1.1652),
     })
-    human.KeyRoot(16.9, (1.952, 44.044, 42.502), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.9, (1.969, 44.174, 42.718), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-3.7377, 9.8386, 3.3688), 'spine_thoracic': (-0.7855, 1.7777, -10.3566),
-        'right_hip': (25.0378, -0.4564, 0.6508), 'right_knee': (135.0,),
-        'right_ankle': (9.9657, 5.4663), 'left_hip': (91.5583, -0.3037, 0.7996),
-        'left_knee': (130.8041,), 'left_ankle': (20.0, 0.8982),
+        'spine_lumbar': (-4.4129, 10.0194, 3.7115), 'spine_thoracic': (-0.919, 1.8086, -10.0535),
+        'right_hip': (24.713, -0.3882, 0.5616), 'right_knee': (134.6516,),
+        'right_ankle': (10.0159, 4.6599), 'left_hip': (91.3297, -0.2552, 0.6702),
+        'left_knee': (130.846,), 'left_ankle': (20.0, 0.7477),
     })
-    human.KeyRoot(17.0, (2.796, 47.256, 38.659), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.0, (2.479, 48.758, 41.414), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (5.8162, 9.3035, 3.3688), 'spine_thoracic': (0.9162, 1.6801, -10.3566),
-        'right_hip': (27.8352, -0.5542, 0.9888), 'right_knee': (133.6779,),
-        'right_ankle': (14.4024, 5.9625), 'left_hip': (88.0853, -0.0896, 0.3991),
-        'left_knee': (122.3709,), 'left_ankle': (20.0, 0.3963),
+        'spine_lumbar': (-2.6886, 9.9168, 3.7115), 'spine_thoracic': (-0.6076, 1.7896, -10.0535),
+        'right_hip': (23.7721, -0.4426, 0.9468), 'right_knee': (129.384,),
+        'right_ankle': (14.2805, 4.513), 'left_hip': (85.5961, -0.014, 0.0457),
+        'left_knee': (123.2257,), 'left_ankle': (20.0, 0.0311),
     })
-    human.KeyRoot(17.1, (5.004, 54.456, 30.216), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.1, (4.353, 60.044, 36.731), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (28.4332, 8.9824, 3.3688), 'spine_thoracic': (4.2009, 1.5673, -10.3566),
-        'right_hip': (34.0005, -0.3737, 1.108), 'right_knee': (128.0908,),
-        'right_ankle': (19.4373, 1.8349), 'left_hip': (78.4754, -0.0875, -0.5342),
-        'left_knee': (100.8678,), 'left_ankle': (20.0, -0.5445),
+        'spine_lumbar': (7.4095, 10.7173, 3.7115), 'spine_thoracic': (1.126, 1.9178, -10.0535),
+        'right_hip': (23.4249, -0.2176, 1.9941), 'right_knee': (115.0659,),
+        'right_ankle': (18.3213, 3.9598), 'left_hip': (71.0692, -0.2352, -1.1491),
+        'left_knee': (99.7663,), 'left_ankle': (20.0, -1.1781),
     })
-    human.KeyRoot(17.2, (5.06, 72.07, 36.663), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.2, (5.16, 82.147, 44.193), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (2.2282, 9.6787, 3.3688), 'spine_thoracic': (0.2637, 1.7425, -10.3566),
-        'right_hip': (16.0894, 0.4106, 1.9021), 'right_knee': (93.0527,),
-        'right_ankle': (15.1529, 1.9826), 'left_hip': (52.2163, -0.8886, -1.1574),
-        'left_knee': (72.2704,), 'left_ankle': (19.7895, -1.461),
+        'spine_lumbar': (-17.6528, 14.0464, 3.7115), 'spine_thoracic': (-3.9438, 2.4695, -10.0535),
+        'right_hip': (5.6534, 1.0327, 3.7288), 'right_knee': (70.2646,),
+        'right_ankle': (-4.287, 7.439), 'left_hip': (34.199, -1.9572, -1.3529),
+        'left_knee': (50.6127,), 'left_ankle': (15.9727, -2.3563),
     })
-    human.KeyRoot(17.3, (6.32, 88.326, 36.127), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.3, (6.729, 89.733, 42.642), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (3.3255, 10.3973, 3.3688), 'spine_thoracic': (0.4132, 1.863, -10.3566),
-        'right_hip': (8.9163, 0.91, 2.9778), 'right_knee': (62.7879,),
-        'right_ankle': (-10.2335, 3.849), 'left_hip': (18.2728, -1.8686, -0.6169),
-        'left_knee': (8.2925,), 'left_ankle': (-9.9702, -1.9677),
+        'spine_lumbar': (-15.1024, 15.271, 3.7115), 'spine_thoracic': (-5.6178, 2.5299, -10.0535),
+        'right_hip': (1.7469, 1.6625, 4.641), 'right_knee': (54.184,),
+        'right_ankle': (-16.0154, 7.1466), 'left_hip': (12.4445, -2.9561, -0.652),
+        'left_knee': (5.4216,), 'left_ankle': (-7.0063, -3.027),
     })
-    human.KeyRoot(17.4, (5.368, 90.276, 45.554), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.4, (6.535, 90.524, 48.742), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-28.5336, 10.9518, 3.3688), 'spine_thoracic': (-6.7337, 1.8687, -10.3566),
-        'right_hip': (-6.8187, 1.7911, 2.5526), 'right_knee': (43.723,),
-        'right_ankle': (-11.1955, 2.9117), 'left_hip': (9.8818, -2.4147, -0.4205),
-        'left_knee': (4.5841,), 'left_ankle': (-5.2888, -2.4511),
+        'spine_lumbar': (-30.0, 15.4466, 3.7115), 'spine_thoracic': (-15.0, 1.8795, -10.0535),
+        'right_hip': (-9.9319, 2.745, 3.8813), 'right_knee': (39.6685,),
+        'right_ankle': (-15.0036, 5.2796), 'left_hip': (7.8868, -3.5889, -0.4968),
+        'left_knee': (4.5885,), 'left_ankle': (-3.2825, -3.6233),
     })
-    human.KeyRoot(17.5, (6.597, 90.137, 55.638), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.5, (6.862, 90.65, 56.189), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-29.2311, 10.119, 3.3688), 'spine_thoracic': (-6.8672, 1.7439, -10.3566),
-        'right_hip': (-10.5898, 2.7263, 8.1304), 'right_knee': (39.0704,),
-        'right_ankle': (-32.0516, 13.6885), 'left_hip': (8.545, -4.4872, -0.6735),
-        'left_knee': (15.344,), 'left_ankle': (6.8255, -4.5374),
+        'spine_lumbar': (-26.0971, 10.8431, 3.7115), 'spine_thoracic': (-10.2765, 1.7776, -10.0535),
+        'right_hip': (-12.9906, 3.0038, 7.4271), 'right_knee': (35.2448,),
+        'right_ankle': (-31.6591, 8.6012), 'left_hip': (4.7394, -4.7389, -0.3924),
+        'left_knee': (8.2806,), 'left_ankle': (3.5573, -4.755),
     })
-    human.KeyRoot(17.6, (8.585, 88.615, 63.61), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.6, (8.171, 89.983, 62.13), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (18.4869, -1.5385, 3.3688), 'spine_thoracic': (2.9919, -0.2756, -10.3566),
-        'right_hip': (-15.0, 2.0884, 16.8551), 'right_knee': (32.8407,),
-        'right_ankle': (-49.9979, 11.1604), 'left_hip': (7.2319, -6.9266, -0.8767),
-        'left_knee': (23.2166,), 'left_ankle': (16.0379, -6.9817),
+        'spine_lumbar': (21.3013, -2.9107, 3.7115), 'spine_thoracic': (3.3078, -0.5114, -10.0535),
+        'right_hip': (-14.9842, 2.3362, 14.0966), 'right_knee': (31.1571,),
+        'right_ankle': (-49.3323, 6.3831), 'left_hip': (3.1642, -6.3984, -0.353),
+        'left_knee': (12.899,), 'left_ankle': (9.7547, -6.4082),
     })
-    human.KeyRoot(17.7, (8.801, 89.441, 64.417), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.7, (7.948, 90.083, 62.541), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (18.209, -1.1163, 3.3688), 'spine_thoracic': (2.8781, -0.1983, -10.3566),
-        'right_hip': (-15.0, 3.5886, 11.7938), 'right_knee': (40.0099,),
-        'right_ankle': (-33.9152, 8.6108), 'left_hip': (3.1208, -7.1466, -0.3886),
-        'left_knee': (15.8299,), 'left_ankle': (12.7334, -7.1571),
+        'spine_lumbar': (24.8265, -4.8663, 3.7115), 'spine_thoracic': (3.7199, -0.846, -10.0535),
+        'right_hip': (-14.2723, 3.6412, 8.9506), 'right_knee': (39.3397,),
+        'right_ankle': (-27.9827, 7.3165), 'left_hip': (2.1714, -6.2971, -0.2383),
+        'left_knee': (11.495,), 'left_ankle': (9.3366, -6.3015),
     })
-    human.KeyRoot(17.8, (9.806, 90.393, 57.733), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.8, (7.427, 90.597, 59.588), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (44.1526, -2.5778, 3.3688), 'spine_thoracic': (5.6595, -0.4241, -10.3566),
-        'right_hip': (-12.636, 7.1564, 0.8258), 'right_knee': (26.746,),
-        'right_ankle': (20.0, 7.0469), 'left_hip': (3.471, -6.9133, -0.4183), 'left_knee': (7.041,),
-        'left_ankle': (3.5952, -6.9259),
+        'spine_lumbar': (35.1302, -8.5509, 3.7115), 'spine_thoracic': (5.0249, -1.4562, -10.0535),
+        'right_hip': (-12.8469, 5.417, 1.1303), 'right_knee': (28.8884,),
+        'right_ankle': (17.9978, 5.6154), 'left_hip': (1.747, -5.551, -0.169),
+        'left_knee': (6.6933,), 'left_ankle': (4.9538, -5.5532),
     })
-    human.KeyRoot(17.9, (7.211, 89.923, 67.816), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.9, (5.795, 90.661, 62.035), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (3.5635, -4.8915, 3.3688), 'spine_thoracic': (0.5546, -0.8835, -10.3566),
-        'right_hip': (-12.711, 7.6331, -1.5388), 'right_knee': (7.9731,),
-        'right_ankle': (20.0, 7.0231), 'left_hip': (-4.8701, -6.4477, 0.5482),
-        'left_knee': (4.5936,), 'left_ankle': (9.4329, -6.4708),
+        'spine_lumbar': (19.4139, -12.2223, 3.7115), 'spine_thoracic': (3.071, -2.1681, -10.0535),
+        'right_hip': (-2.6872, 5.04, -0.3232), 'right_knee': (16.4346,),
+        'right_ankle': (20.0, 6.0159), 'left_hip': (-1.0985, -4.76, 0.0912), 'left_knee': (4.6598,),
+        'left_ankle': (5.7507, -4.7593),
     })
-    human.KeyRoot(18.0, (5.359, 90.386, 63.105), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(18.0, (4.142, 90.648, 61.364), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.0, {
-        'spine_lumbar': (11.6827, -11.7104, 3.3688), 'spine_thoracic': (1.8892, -2.1033, -10.3566),
-        'right_hip': (0.4698, 4.616, 0.0378), 'right_knee': (9.4589,),
-        'right_ankle': (8.9907, 4.6162), 'left_hip': (0.4698, -4.616, -0.0378),
-        'left_knee': (9.4589,), 'left_ankle': (8.9907, -4.6162),
+        'spine_lumbar': (16.5431, -15.9286, 3.7115), 'spine_thoracic': (2.5951, -2.8374, -10.0535),
+        'right_hip': (0.9958, 3.5719, 0.062), 'right_knee': (8.4419,),
+        'right_ankle': (7.4481, 3.5724), 'left_hip': (0.9958, -3.5719, -0.062),
+        'left_knee': (8.4419,), 'left_ankle': (7.4481, -3.5724),
     })
-    human.KeyRoot(18.1, (1.208, 91.043, 56.859), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(18.1, (1.014, 91.055, 56.572), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.1, {
-        'spine_lumbar': (6.4697, -6.391, 3.3688), 'spine_thoracic': (1.1132, -1.1582, -10.3566),
-        'right_hip': (2.3257, 1.0376, 0.0421), 'right_knee': (5.7212,),
-        'right_ankle': (3.3959, 1.0385), 'left_hip': (2.3257, -1.0376, -0.0421),
-        'left_knee': (5.7212,), 'left_ankle': (3.3959, -1.0385),
+        'spine_lumbar': (7.3566, -7.1821, 3.7115), 'spine_thoracic': (1.2522, -1.2994, -10.0535),
+        'right_hip': (2.4087, 0.8722, 0.0367), 'right_knee': (5.5475,),
+        'right_ankle': (3.1391, 0.873), 'left_hip': (2.4087, -0.8722, -0.0367),
+        'left_knee': (5.5475,), 'left_ankle': (3.1391, -0.873),
     })
     human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.175969, {
-        'spine_lumbar': (0.0, 0.0, 3.3688), 'spine_thoracic': (0.0, 0.0, -10.3566),
-        'neck': (24.0913, -10.1469, 27.3997), 'head': (12.7809, 11.1296),
+        'spine_lumbar': (0.0, 0.0, 3.7115), 'spine_thoracic': (0.0, 0.0, -10.0535),
+        'neck': (24.2045, -10.1978, 26.9094), 'head': (13.1767, 11.1162),
         'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
         'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),

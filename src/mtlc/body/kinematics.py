@@ -128,6 +128,19 @@ def _rodrigues(K: FloatArray, KK: FloatArray, s: FloatArray, c: FloatArray) -> F
     return np.eye(3) + s * K + (1 - c) * KK
 
 
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``np.cross`` over the last axis (length 3), broadcast: the same products in the same
+    order, without its axis bookkeeping (a third of a small call's time; a quarter of a
+    large one's)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
+    return out
+
+
 def skew(v: ArrayLike) -> FloatArray:
     """Cross-product matrices [v]× of shape (..., 3, 3)."""
     va = np.asarray(v, dtype=float)
@@ -354,7 +367,7 @@ def point_jacobian(
     """
     mask = skel.ancestor[joint][skel.dof_joint]  # (D,)
     origins = pose.p[..., skel.dof_joint, :]
-    Jp = np.cross(pose.axes, point[..., None, :] - origins) * mask[:, None]
+    Jp = cross(pose.axes, point[..., None, :] - origins) * mask[:, None]
     Jp = np.swapaxes(Jp, -1, -2)
     blocks = [Jp]
     if orientation:
@@ -414,7 +427,7 @@ def com_jacobian(skel: Skeleton, pose: Pose, *, root: bool = False) -> FloatArra
     mc = np.einsum("kj,j,...ja->...ka", below, skel.masses, c)
     mk = below.astype(float) @ skel.masses  # (D,)
     origins = pose.p[..., skel.dof_joint, :]
-    cols = np.cross(pose.axes, mc - mk[:, None] * origins) / M
+    cols = cross(pose.axes, mc - mk[:, None] * origins) / M
     J = np.swapaxes(cols, -1, -2)
     if root:
         com = center_of_mass(skel, pose)

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from mtlc.body import center_of_mass, forward, site_positions
+from mtlc.body.kinematics import cross
 from mtlc.ir.model import FloatArray
 from mtlc.metrics import CONTACT_TOL
 
@@ -258,7 +259,7 @@ class Body:
         axes, origins = pose.axes[:, self.idx], pose.p[:, self.skel.dof_joint[self.idx]]
         jac = np.empty((f, len(pts[0]), 3, n))
         jac[..., :3] = np.eye(3)
-        cols = np.cross(axes[:, None], pts[:, :, None] - origins[:, None]) * self.moves[..., None]
+        cols = cross(axes[:, None], pts[:, :, None] - origins[:, None]) * self.moves[..., None]
         jac[..., 3:] = np.swapaxes(cols, 2, 3)  # (F, P, V, 3) -> (F, P, 3, V)
         m = self.n_named
         com = np.einsum("j,fja->fa", self.mass_share, pts[:, m:])[:, None]

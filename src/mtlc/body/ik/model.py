@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..kinematics import _root_inputs, skew
+from ..kinematics import _root_inputs, cross, skew
 from ..skeleton import Skeleton
 
 FloatArray = NDArray[np.float64]
@@ -279,7 +279,7 @@ class ChainModel:
         # Jacobians: columns a_k x (p_s - o_k), masked to the dofs that move each site.
         d = site_p[:, :, None, :] - origins[:, None, :, :]  # (b, S, nA, 3)
         ax = np.broadcast_to(axes[:, None], d.shape)
-        Jp = np.cross(ax, d) * self.mask[None, :, :, None]
+        Jp = cross(ax, d) * self.mask[None, :, :, None]
         Jw = ax * self.mask[None, :, :, None]
         return site_p, site_R, np.swapaxes(Jp, -1, -2), np.swapaxes(Jw, -1, -2)
 

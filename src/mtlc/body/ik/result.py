@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..kinematics import rotation_error
+from ..kinematics import cross, rotation_error
 from .goals import GoalArrays
 from .model import ChainModel, _take
 
@@ -80,7 +80,7 @@ def residual(
             d = site_R[:, i] @ direction
             u = _take(ga.aim[i], rows, b) - site_p[:, i]
             u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
-            cr = np.cross(d, u)
+            cr = cross(d, u)
             sn = np.linalg.norm(cr, axis=-1)
             ang = np.arctan2(sn, np.einsum("bi,bi->b", d, u))
             axis = np.where(sn[:, None] > 1e-12, cr / np.maximum(sn, 1e-300)[:, None], 0.0)

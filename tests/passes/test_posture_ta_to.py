@@ -252,3 +252,23 @@ def test_gaze_reaches_targets_within_neck_range() -> None:
     bolts = [s for s in explicit_looks(ir) if (s.goal.site or "").startswith("bolt")]
     assert len(bolts) == 4
     assert all(s.result["success"] and s.result["angle_error"] < math.radians(1) for s in bolts)
+
+
+@pytest.mark.parametrize("height_cm", [3, 7, 12])
+def test_the_kneeling_reach_to_a_tray_near_the_floor_arrives(
+    tmp_path: Path, height_cm: int
+) -> None:
+    # the fuel filter's drain tray moved between 3 and 12 cm up: the kneeling right hand lays
+    # flat above it (TA) and comes straight down (TO); a path that would arrive only through
+    # the floor is judged cut where it meets the floor, and another one is taken
+    source = (ROOT / "examples" / "replace_fuel_filter.mtask").read_text(encoding="utf-8")
+    moved = source.replace(
+        "site drain_tray at (-35, 5, 80)", f"site drain_tray at (-35, {height_cm}, 80)"
+    )
+    assert moved != source
+    path = tmp_path / "fuel_filter.mtask"
+    path.write_text(moved, encoding="utf-8")
+    ir, diags = compile_file(path)
+    to = next(s for s in ir.segments if s.kind == "TO" and s.goal.site == "drain_tray")
+    assert to.provenance.origin.line not in short_lines(diags)
+    assert to.result["distance"] <= MM

@@ -12,10 +12,13 @@ steps (lifts, moves, lands) or rolls on its toe.
 
 The motion is solved frame by frame at ``FPS`` by a whole-body inverse kinematics (``track``):
 root position, both legs and the spine (flexion and lateral flexion) by damped Gauss-Newton with
-an analytic Jacobian, warm-started from the previous frame. Planted contacts weigh most, the
-centre of mass's target next, and a pull toward the previous frame keeps the solution smooth;
-each frame is then polished on its planted contacts alone. Everything is computed in the body
-frame (facing +Z, ground at y = 0) and placed in the world at the end (``to_world``).
+an analytic Jacobian, started from the previous frame moved on by its last change. Planted
+contacts weigh most, the centre of mass's target next, and a pull toward the previous frame
+keeps the solution smooth; all frames are then polished at once on their planted contacts
+(``Body.descend`` solves many frames in one batch). The interpolation grid's frames between
+two solved ones are blends polished onto the contacts' straight paths (``KneelPlan.on_grid``).
+Everything is computed in the body frame (facing +Z, ground at y = 0) and placed in the world
+at the end (``to_world``).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from mtlc.body import center_of_mass, forward, site_positions
-from mtlc.body.kinematics import cross
+from mtlc.body.kinematics import com_jacobian, cross
 from mtlc.ir.model import FloatArray
 from mtlc.metrics import CONTACT_TOL
 
@@ -40,7 +43,8 @@ LAND_PITCH = math.radians(25.0)  # the back foot lands on its toe, heel up by th
 KNEEL_COM_BEHIND = 0.12  # m: the kneeling CoM's target behind the knees
 SINGLE_KNEE_AT = 0.25  # share of the knee-to-toe distance: the CoM target on one kneeling leg
 FPS = 30.0
-ITERATIONS = 10
+ITERATIONS = 8  # Gauss-Newton iterations a frame (it does not converge: see docs/passes.md)
+PREDICT = 1.0  # a frame starts from the last one moved on by this share of its last change
 STEP_TOL = 1e-5  # rad or m: a frame whose last step was this small has converged
 PLANT_W = 1000.0  # residual weights (per metre, per radian)
 KNEE_W = 60.0
@@ -49,7 +53,7 @@ COM_W = 20.0
 SMOOTH_W = 1.0
 ROOT_SMOOTH = 10.0  # the root's pull toward its last place, per metre, × a joint's per radian
 POLISH_SMOOTH = 0.01
-POLISH_ITERATIONS = 3
+POLISH_ITERATIONS = 8
 LEVEL_W = 40.0
 NOMINAL_W = 0.1
 SPINE_W = 1.0
@@ -139,15 +143,10 @@ class Body:
             [np.zeros(3) if n.startswith("joint:") else skel.site(n).offset for n in names],
             dtype=float,
         )
-        # then every segment's centre of mass: the body's is their mass-weighted mean
-        self.point_joint = np.concatenate([self.point_joint, np.arange(skel.n_joints)])
-        self.point_offset = np.concatenate([self.point_offset, skel.coms])
-        self.mass_share = skel.masses / skel.total_mass
         self.moves = skel.ancestor[self.point_joint][:, skel.dof_joint[self.idx]]  # (P, V)
-        self.n_named = len(names)  # the points a target names; the segments' come after
+        self.n_named = len(names)  # the points a target names; the centre of mass after them
         self.ground_lift = np.zeros(len(names))  # the barrier's height of each named point
         self.ground_lift[len(GROUND_SITES) :] = KNEE_HEIGHT - 0.002  # knees: as kneeling
-        self.contact_idx = np.array([self.points[n] for n in (*CONTACT_SITES, *KNEE_POINTS)])
 
     def q_of(self, x: FloatArray) -> FloatArray:
         q = np.tile(self.q_base, (len(x), 1))
@@ -193,10 +192,6 @@ class Body:
             out.append(w * np.where(free, 0.0, x[:, 3:] - np.nan_to_num(tg.nominal)))
         return np.concatenate(out, axis=1)
 
-    def _step(self, jac: FloatArray, r0: FloatArray, lam: float, x: FloatArray) -> FloatArray:
-        """``steps`` for one frame."""
-        return self.steps(jac[None], r0[None], np.array([lam]), x[None])[0]
-
     def steps(self, jac: FloatArray, r0: FloatArray, lam: FloatArray, x: FloatArray) -> FloatArray:
         """Damped Gauss-Newton steps (F, n) of F frames at once (``jac`` (F, R, n), ``r0``
         (F, R)); joints at a limit that a step would push past it are held (their columns
@@ -204,68 +199,99 @@ class Body:
         f, n = x.shape
         held = np.zeros((f, n), dtype=bool)
         diag = np.arange(n)
+        jtj0 = np.swapaxes(jac, 1, 2) @ jac
+        g0 = np.einsum("frn,fr->fn", jac, r0)
+        jtj, g = jtj0.copy(), g0
         for _ in range(3):
-            j = np.where(held[:, None, :], 0.0, jac)
-            jtj = np.swapaxes(j, 1, 2) @ j
             # Marquardt: damping scaled per variable
             jtj[:, diag, diag] += lam[:, None] * (jtj[:, diag, diag] + 1e-6)
-            step = -np.linalg.solve(jtj, np.einsum("frn,fr->fn", j, r0)[..., None])[..., 0]
+            step = -np.linalg.solve(jtj, g[..., None])[..., 0]
             step[held] = 0.0
             q, d = x[:, 3:], step[:, 3:]
             out = ((q <= self.lo + 1e-9) & (d < 0)) | ((q >= self.hi - 1e-9) & (d > 0))
             if not (out & ~held[:, 3:]).any():
                 break
             held[:, 3:] |= out
+            free = ~held  # a held column dropped: its row and column of JᵀJ, its entry of Jᵀr
+            jtj = jtj0 * (free[:, :, None] & free[:, None, :])
+            g = g0 * free
         return step
 
     def solve(self, x0: FloatArray, tg: Targets, iterations: int = ITERATIONS) -> FloatArray:
         """Damped Gauss-Newton from ``x0``, joints clipped into their limits at every step, then
-        polished: a few steps on the planted contacts alone put them back within microns (a
-        planted point that drifts by a fraction of a millimetre a frame skates centimetres a
-        second)."""
-        x = self._descend(x0, x0, tg, iterations)
-        hard = Targets(points=[p for p in tg.points if p[2] >= PLANT_W], level=tg.level,
-                       com=tg.com, com_w=tg.com_w)  # fmt: skip
-        return self._descend(x, x, hard, POLISH_ITERATIONS) if hard.points else x
+        polished (``polish``)."""
+        x = self.descend(x0[None], x0[None], [tg], iterations)
+        return self.polish(x, [tg])[0]
 
-    def _descend(
-        self, x0: FloatArray, prev: FloatArray, tg: Targets, iterations: int
+    def polish(self, x: FloatArray, tgs: list[Targets]) -> FloatArray:
+        """A few steps on the planted contacts (weight ``PLANT_W``), levels and CoM alone, for
+        states ``x`` (F, n) at once: they put planted points back within microns (a planted
+        point that drifts by a fraction of a millimetre a frame skates centimetres a second)."""
+        hard = [Targets(points=[p for p in tg.points if p[2] >= PLANT_W], level=tg.level,
+                        com=tg.com, com_w=tg.com_w) for tg in tgs]  # fmt: skip
+        rows = [i for i, tg in enumerate(hard) if tg.points]
+        out = x.copy()
+        if rows:
+            out[rows] = self.descend(x[rows], x[rows], [hard[i] for i in rows], POLISH_ITERATIONS)
+        return out
+
+    def descend(
+        self, x0: FloatArray, prev: FloatArray, tgs: list[Targets], iterations: int
     ) -> FloatArray:
-        x, lam = x0.copy(), 1e-2
-        r0, jac = self._linearise(x, tg, prev)
+        """Damped Gauss-Newton of F frames at once (states (F, n), one ``Targets`` each, each
+        pulled toward its ``prev``): a frame stops once its step is under ``STEP_TOL``, and
+        only the frames still moving are computed."""
+        lin = self._stacked_rows(tgs)
+        x, lam = x0.copy(), np.full(len(x0), 1e-2)
+        r0, jac = self._linearise_batch(x, lin, prev)
+        live = np.arange(len(x0))
+        xl = x.copy()
         for _ in range(iterations):
-            step = self._step(jac, r0, lam, x)
-            cand = x + step
-            cand[3:] = np.clip(cand[3:], self.lo, self.hi)
-            rc, jc = self._linearise(cand, tg, prev)
-            if rc @ rc < r0 @ r0:
-                done = float(np.abs(cand - x).max()) < STEP_TOL
-                x, r0, jac, lam = cand, rc, jc, max(lam * 0.3, 1e-5)
-                if done:
-                    break
-            else:
-                lam *= 10.0
+            cand = xl + self.steps(jac, r0, lam, xl)
+            cand[:, 3:] = np.clip(cand[:, 3:], self.lo, self.hi)
+            rc, jc = self._linearise_batch(cand, lin, prev)
+            better = np.einsum("fr,fr->f", rc, rc) < np.einsum("fr,fr->f", r0, r0)
+            going = ~(better & (np.abs(cand - xl).max(axis=1) < STEP_TOL))
+            xl[better], r0[better], jac[better] = cand[better], rc[better], jc[better]
+            lam = np.where(better, np.maximum(lam * 0.3, 1e-5), lam * 10.0)
+            if not going.all():  # frames that have converged leave the batch
+                x[live] = xl
+                live, xl, r0, jac, lam, prev = (
+                    live[going],
+                    xl[going],
+                    r0[going],
+                    jac[going],
+                    lam[going],
+                    prev[going],
+                )
+                lin = tuple(a[going] for a in lin)
+                if not live.size:
+                    return x
+        x[live] = xl
         return x
 
-    def kinematics(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def kinematics(self, x: FloatArray, com: bool = True) -> tuple[FloatArray, FloatArray]:
         """Points (F, P + 1, 3) of states ``x`` (F, n): the named points, then the centre of
-        mass; and their Jacobians (F, P + 1, 3, n), from one forward kinematics call: a point's
-        column for a dof is ``axis × (point − joint)``, the root's the identity."""
+        mass (zeros unless ``com``); and their Jacobians (F, P + 1, 3, n), from one forward
+        kinematics call: a point's column for a dof is ``axis × (point − joint)``, the root's
+        the identity."""
         f, n = x.shape
-        pose = forward(self.skel, self.q_of(x), x[:, :3])
-        pts = pose.p[:, self.point_joint] + np.einsum(
+        skel, m = self.skel, self.n_named
+        pose = forward(skel, self.q_of(x), x[:, :3])
+        pts = np.zeros((f, m + 1, 3))
+        pts[:, :m] = pose.p[:, self.point_joint] + np.einsum(
             "fpab,pb->fpa", pose.R[:, self.point_joint], self.point_offset
         )
-        axes, origins = pose.axes[:, self.idx], pose.p[:, self.skel.dof_joint[self.idx]]
-        jac = np.empty((f, len(pts[0]), 3, n))
-        jac[..., :3] = np.eye(3)
-        cols = cross(axes[:, None], pts[:, :, None] - origins[:, None]) * self.moves[..., None]
-        jac[..., 3:] = np.swapaxes(cols, 2, 3)  # (F, P, V, 3) -> (F, P, 3, V)
-        m = self.n_named
-        com = np.einsum("j,fja->fa", self.mass_share, pts[:, m:])[:, None]
-        com_jac = np.einsum("j,fjan->fan", self.mass_share, jac[:, m:])[:, None]
-        return (np.concatenate([pts[:, :m], com], axis=1),
-                np.concatenate([jac[:, :m], com_jac], axis=1))  # fmt: skip
+        axes, origins = pose.axes[:, self.idx], pose.p[:, skel.dof_joint[self.idx]]
+        jac = np.zeros((f, m + 1, 3, n))
+        jac[:, :m, :, :3] = np.eye(3)
+        cols = cross(axes[:, None], pts[:, :m, None] - origins[:, None]) * self.moves[..., None]
+        jac[:, :m, :, 3:] = np.swapaxes(cols, 2, 3)  # (F, P, V, 3) -> (F, P, 3, V)
+        if com:
+            pts[:, m] = center_of_mass(skel, pose)
+            jac[:, m, :, :3] = np.eye(3)
+            jac[:, m, :, 3:] = com_jacobian(skel, pose)[..., self.idx]
+        return pts, jac
 
     def barrier(self, pts: FloatArray, jac: FloatArray) -> tuple[FloatArray, FloatArray]:
         """The ground's residual (..., P) and Jacobian (..., P, n): a smooth min(height, 0) of
@@ -328,30 +354,58 @@ class Body:
         )  # fmt: skip
         return tg.linear  # type: ignore[no-any-return]
 
+    def _stacked_rows(self, tgs: list[Targets]) -> tuple[FloatArray, ...]:
+        """``_linear_rows`` of F frames, stacked (frames with fewer rows padded with zeros)."""
+        forms = [self._linear_rows(tg) for tg in tgs]
+
+        def stack(k: int) -> FloatArray:
+            parts = [form[k] for form in forms]
+            out = np.zeros((len(parts), max(len(p) for p in parts), *parts[0].shape[1:]))
+            for f, p in enumerate(parts):
+                out[f, : len(p)] = p
+            return out
+
+        return tuple(stack(k) for k in range(5))
+
+    def _linearise_batch(
+        self, x: FloatArray, lin: tuple[FloatArray, ...], prev: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """Residuals (F, R) and Jacobians (F, R, n) at states ``x`` (F, n), in ``residual``'s
+        order (a candidate is evaluated with its Jacobian, which the next step needs if
+        accepted)."""
+        A, a, B, b, scale = lin
+        pts, jac = self.kinematics(x, com=bool(A[..., -3:].any()))  # the CoM's columns
+        f, n = x.shape
+        lin_r = np.einsum("frw,fw->fr", A, pts.reshape(f, -1)) - a
+        lin_j = A @ jac.reshape(f, -1, n)
+        ground_r, ground_j = self.barrier(pts, jac)
+        state_r = np.einsum("frn,fn->fr", B, x) - b
+        state_r[:, :n] -= scale * prev  # the pull toward the previous frame
+        return (np.concatenate([lin_r, ground_r, state_r], axis=1),
+                np.concatenate([lin_j, ground_j, B], axis=1))  # fmt: skip
+
     def _linearise(
         self, x: FloatArray, tg: Targets, prev: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """Residual (R,) and its Jacobian (R, n) at ``x``, in ``residual``'s order (a candidate
-        is evaluated with its Jacobian, which the next step needs if accepted)."""
-        A, a, B, b, scale = self._linear_rows(tg)
-        pts, jac = self.kinematics(x[None])
-        n = len(x)
-        lin_r = A @ pts[0].reshape(-1) - a
-        lin_j = A @ jac[0].reshape(-1, n)
-        ground_r, ground_j = self.barrier(pts[0], jac[0])
-        state_r = B @ x - b
-        state_r[:n] -= scale * prev
-        return np.concatenate([lin_r, ground_r, state_r]), np.concatenate([lin_j, ground_j, B])
+        """``_linearise_batch`` of one state."""
+        r, jac = self._linearise_batch(x[None], self._stacked_rows([tg]), prev[None])
+        return r[0], jac[0]
 
 
 def track(body: Body, x0: FloatArray, targets: Callable[[float, FloatArray], Targets],
           n: int) -> FloatArray:  # fmt: skip
-    """States (n, 3 + V) for u = 0..1: each frame solved from the previous one."""
-    xs = [x0.copy()]
+    """States (n, 3 + V) for u = 0..1: each frame solved from the previous one, then all
+    polished at once (the next frame starts from the unpolished one: the polish moves planted
+    points by microns, and the targets that hold them are absolute places)."""
+    xs, tgs = [x0.copy()], []
     for k in range(1, n):
-        u = k / (n - 1)
-        xs.append(body.solve(xs[-1], targets(u, xs[-1])))
-    return np.stack(xs)
+        tgs.append(targets(k / (n - 1), xs[-1]))
+        guess = xs[-1] + PREDICT * (xs[-1] - xs[-2]) if k > 1 else xs[-1]
+        guess[3:] = np.clip(guess[3:], body.lo, body.hi)
+        xs.append(body.descend(guess[None], xs[-1][None], tgs[-1:], ITERATIONS)[0])
+    out = np.stack(xs)
+    out[1:] = body.polish(out[1:], tgs)
+    return out
 
 
 def _bisect(f: Callable[[float], float], lo: float, hi: float, n: int = 40) -> float:
@@ -668,36 +722,13 @@ def _contact_points(body: Body, x: FloatArray) -> FloatArray:
 
 
 def polish_frames(body: Body, x0: FloatArray, target: FloatArray, weight: FloatArray) -> FloatArray:
-    """``Body._descend`` on the contact points alone (``CONTACT_SITES`` and the knees, at
-    ``target`` (F, 10, 3) with ``weight`` (F, 10)), with ``POLISH_SMOOTH`` and
-    ``POLISH_ITERATIONS``, for F frames at once: one forward kinematics call and one batched
-    solve per iteration."""
-    f, n = x0.shape
-    rows, w = body.contact_idx, weight[..., None]
-    scale = np.full(n, POLISH_SMOOTH)
-    scale[:3] *= ROOT_SMOOTH
-
-    def linearise(x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        pts, jac = body.kinematics(x)
-        ground_r, ground_j = body.barrier(pts, jac)
-        res = np.concatenate([(w * (pts[:, rows] - target)).reshape(f, -1), ground_r,
-                              scale * (x - x0)], axis=1)  # fmt: skip
-        jacs = [(w[..., None] * jac[:, rows]).reshape(f, -1, n), ground_j,
-                np.broadcast_to(np.diag(scale), (f, n, n))]  # fmt: skip
-        return res, np.concatenate(jacs, axis=1)
-
-    x, lam = x0.copy(), np.full(f, 1e-2)
-    r0, jac = linearise(x)
-    for _ in range(POLISH_ITERATIONS):
-        cand = x + body.steps(jac, r0, lam, x)
-        cand[:, 3:] = np.clip(cand[:, 3:], body.lo, body.hi)
-        rc, jc = linearise(cand)
-        better = np.einsum("fr,fr->f", rc, rc) < np.einsum("fr,fr->f", r0, r0)
-        x = np.where(better[:, None], cand, x)
-        r0 = np.where(better[:, None], rc, r0)
-        jac = np.where(better[:, None, None], jc, jac)
-        lam = np.where(better, np.maximum(lam * 0.3, 1e-5), lam * 10.0)
-    return x
+    """``Body.descend`` of F frames on their contact points alone (``CONTACT_SITES`` and the
+    knees, at ``target`` (F, 10, 3) with ``weight`` (F, 10)), with ``POLISH_SMOOTH`` and
+    ``POLISH_ITERATIONS``."""
+    names = (*CONTACT_SITES, *KNEE_POINTS)
+    tgs = [Targets(points=list(zip(names, t, w, strict=True)), smooth=POLISH_SMOOTH)
+           for t, w in zip(target, weight.tolist(), strict=True)]  # fmt: skip
+    return body.descend(x0, x0, tgs, POLISH_ITERATIONS)
 
 
 def to_world(x: FloatArray, root_start: FloatArray, heading: float, ground: float) -> FloatArray:

@@ -11,7 +11,7 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-0.386, 0.0, 53.024), start=0.0, duration=0.54)
+    human.Walk((-0.396, 0.0, 53.021), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -55,195 +55,194 @@ def replace_fuel_filter():
         'left_knee': (21.7176,), 'left_ankle': (7.4656, 1.2322),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(0.6, (0.63, 90.667, 56.122), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.605, 90.668, 56.115), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'spine_lumbar': (4.9333, -4.8351, 0.0), 'spine_thoracic': (0.8701, -0.8913, 0.0),
-        'right_hip': (6.0481, 0.5597, 0.0593), 'right_knee': (12.4739,),
-        'right_ankle': (6.4305, 0.5628), 'left_hip': (6.0279, -0.5597, -0.0591),
-        'left_knee': (12.4327,), 'left_ankle': (6.4062, -0.5628),
+        'spine_lumbar': (4.9522, -4.9172, 0.0), 'spine_thoracic': (0.8709, -0.9065, 0.0),
+        'right_hip': (6.0471, 0.5422, 0.0575), 'right_knee': (12.4691,),
+        'right_ankle': (6.4266, 0.5453), 'left_hip': (6.027, -0.5423, -0.0573),
+        'left_knee': (12.4278,), 'left_ankle': (6.4022, -0.5453),
     })
-    human.KeyRoot(0.7, (3.603, 90.408, 60.68), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.7, (3.766, 90.376, 60.935), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'spine_lumbar': (16.4641, -15.7857, 0.0), 'spine_thoracic': (2.6105, -2.8281, 0.0),
-        'right_hip': (3.5967, 3.1287, 0.1967), 'right_knee': (12.9752,),
-        'right_ankle': (9.3877, 3.1348), 'left_hip': (3.5859, -3.1287, -0.1961),
-        'left_knee': (12.9531,), 'left_ankle': (9.3745, -3.1348),
+        'spine_lumbar': (15.6638, -15.1594, 0.0), 'spine_thoracic': (2.492, -2.72, 0.0),
+        'right_hip': (3.4986, 3.2715, 0.2001), 'right_knee': (13.0837,),
+        'right_ankle': (9.5946, 3.2775), 'left_hip': (3.4881, -3.2715, -0.1994),
+        'left_knee': (13.0622,), 'left_ankle': (9.5817, -3.2775),
     })
-    human.KeyRoot(0.8, (5.662, 90.384, 61.858), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.8, (7.078, 90.348, 60.502), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'spine_lumbar': (18.1177, -12.6822, 0.0), 'spine_thoracic': (2.8762, -2.2633, 0.0),
-        'right_hip': (6.9162, 4.7771, 0.3396), 'right_knee': (29.2041,),
-        'right_ankle': (20.0, 4.8031), 'left_hip': (1.94, -4.6635, -0.1517),
-        'left_knee': (10.6701,), 'left_ankle': (8.7321, -4.6649),
+        'spine_lumbar': (23.0118, -9.1535, 0.0), 'spine_thoracic': (3.5803, -1.6235, 0.0),
+        'right_hip': (9.16, 5.416, 0.5171), 'right_knee': (30.7071,), 'right_ankle': (20.0, 5.4313),
+        'left_hip': (3.1202, -5.4414, -0.2962), 'left_knee': (10.8455,),
+        'left_ankle': (7.7394, -5.4495),
     })
-    human.KeyRoot(0.9, (7.016, 90.433, 59.833), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.9, (9.457, 90.28, 58.687), (-10.4375, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'spine_lumbar': (33.6414, -9.6051, 0.0), 'spine_thoracic': (4.8939, -1.6585, 0.0),
-        'right_hip': (-10.7619, 5.1304, 0.1298), 'right_knee': (25.2462,),
-        'right_ankle': (20.0, 5.1758), 'left_hip': (3.2295, -5.3119, -0.2937),
-        'left_knee': (10.1618,), 'left_ankle': (6.943, -5.319),
+        'spine_lumbar': (41.6211, -3.231, 0.0), 'spine_thoracic': (5.5441, -0.5398, 0.0),
+        'right_hip': (-11.416, 7.004, -0.2978), 'right_knee': (21.5153,),
+        'right_ankle': (20.0, 7.103), 'left_hip': (3.9348, -6.8043, -0.459), 'left_knee': (9.3832,),
+        'left_ankle': (5.4721, -6.8186),
     })
-    human.KeyRoot(1.0, (7.862, 90.035, 62.244), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.0, (9.133, 89.798, 62.643), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'spine_lumbar': (26.266, -5.4538, 0.0), 'spine_thoracic': (3.8807, -0.9501, 0.0),
-        'right_hip': (-12.523, 4.2646, 7.0804), 'right_knee': (44.1933,),
-        'right_ankle': (-15.7453, 7.5988), 'left_hip': (2.8974, -6.2029, -0.3136),
-        'left_knee': (12.5929,), 'left_ankle': (9.7174, -6.2107),
+        'spine_lumbar': (25.9738, -1.4101, 0.0), 'spine_thoracic': (3.7576, -0.2465, 0.0),
+        'right_hip': (-12.8713, 4.6897, 7.6327), 'right_knee': (44.1417,),
+        'right_ankle': (-15.3757, 8.3916), 'left_hip': (3.2171, -7.1195, -0.3996),
+        'left_knee': (13.4637,), 'left_ankle': (10.2769, -7.1307),
     })
-    human.KeyRoot(1.1, (8.163, 89.873, 62.386), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.1, (9.029, 89.309, 63.414), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'spine_lumbar': (23.1996, -3.7038, 0.0), 'spine_thoracic': (3.5716, -0.6558, 0.0),
-        'right_hip': (-13.5958, 2.458, 13.4546), 'right_knee': (34.7698,),
-        'right_ankle': (-45.8682, 6.0074), 'left_hip': (3.5248, -6.4304, -0.3956),
-        'left_knee': (13.9946,), 'left_ankle': (10.4963, -6.4425),
+        'spine_lumbar': (21.3551, -0.6062, 0.0), 'spine_thoracic': (3.4513, -0.1136, 0.0),
+        'right_hip': (-13.209, 2.1558, 16.1399), 'right_knee': (35.1156,),
+        'right_ankle': (-48.3611, 7.468), 'left_hip': (4.7709, -7.1728, -0.5974),
+        'left_knee': (17.7509,), 'left_ankle': (13.0219, -7.1975),
     })
-    human.KeyRoot(1.2, (7.351, 90.33, 59.177), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.2, (7.96, 89.734, 59.082), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (-16.2251, 7.4467, 0.0), 'spine_thoracic': (-3.3969, 1.3205, 0.0),
-        'right_hip': (-13.3345, 2.6867, 10.3133), 'right_knee': (34.077,),
-        'right_ankle': (-41.0344, 8.536), 'left_hip': (4.4466, -5.4531, -0.4235),
-        'left_knee': (11.6566,), 'left_ankle': (7.2323, -5.4695),
+        'spine_lumbar': (-16.3645, 9.1899, 0.0), 'spine_thoracic': (-3.4117, 1.628, 0.0),
+        'right_hip': (-12.963, 3.0257, 10.5661), 'right_knee': (35.9017,),
+        'right_ankle': (-37.9398, 10.0061), 'left_hip': (7.4298, -5.8583, -0.7628),
+        'left_knee': (17.4531,), 'left_ankle': (10.065, -5.9076),
     })
-    human.KeyRoot(1.3, (6.521, 90.637, 50.729), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.3, (6.141, 90.277, 46.568), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (-30.0, 15.3959, 0.0), 'spine_thoracic': (-15.0, 1.7163, 0.0),
-        'right_hip': (-12.9303, 3.0923, 4.0055), 'right_knee': (35.6562,),
-        'right_ankle': (-16.6191, 6.4055), 'left_hip': (6.9939, -3.826, -0.4682),
-        'left_knee': (5.492,), 'left_ankle': (-1.4888, -3.8547),
+        'spine_lumbar': (-30.0, 13.4577, 0.0), 'spine_thoracic': (-9.6864, 2.2241, 0.0),
+        'right_hip': (-8.8711, 2.3904, 3.0412), 'right_knee': (41.0879,),
+        'right_ankle': (-10.7078, 3.9829), 'left_hip': (10.1092, -3.0503, -0.543),
+        'left_knee': (6.23,), 'left_ankle': (-3.8671, -3.098),
     })
-    human.KeyRoot(1.4, (6.528, 90.312, 46.586), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.4, (6.842, 88.29, 37.986), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (-28.1678, 16.087, 0.0), 'spine_thoracic': (-10.1938, 2.5193, 0.0),
-        'right_hip': (-4.5999, 2.2328, 4.4156), 'right_knee': (46.5282,),
-        'right_ankle': (-16.5712, 6.4638), 'left_hip': (9.3379, -3.3157, -0.5449),
-        'left_knee': (4.5862,), 'left_ankle': (-4.736, -3.3601),
+        'spine_lumbar': (-4.2194, 12.4253, 0.0), 'spine_thoracic': (-1.2498, 2.2053, 0.0),
+        'right_hip': (6.3519, 1.3127, 3.53), 'right_knee': (60.6022,),
+        'right_ankle': (-8.9902, 3.864), 'left_hip': (19.9421, -2.4122, -0.8749),
+        'left_knee': (14.0479,), 'left_ankle': (-5.8758, -2.5659),
     })
-    human.KeyRoot(1.5, (6.163, 86.676, 40.05), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.5, (5.73, 76.097, 37.485), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (-5.2983, 14.0103, 0.0), 'spine_thoracic': (-1.7545, 2.4696, 0.0),
-        'right_hip': (8.2373, 0.899, 4.2026), 'right_knee': (65.2716,),
-        'right_ankle': (-12.7495, 7.0827), 'left_hip': (26.2522, -2.1588, -1.0747),
-        'left_knee': (29.3908,), 'left_ankle': (2.9374, -2.4068),
+        'spine_lumbar': (-1.5975, 11.3012, 0.0), 'spine_thoracic': (-0.4575, 2.0353, 0.0),
+        'right_hip': (13.2219, 0.7454, 2.6001), 'right_knee': (85.0248,),
+        'right_ankle': (11.0291, 2.7462), 'left_hip': (46.5416, -1.3965, -1.5017),
+        'left_knee': (63.4652,), 'left_ankle': (16.3943, -2.0537),
     })
-    human.KeyRoot(1.6, (5.53, 68.344, 34.843), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.6, (5.43, 59.097, 30.023), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'spine_lumbar': (13.5851, 12.2476, 0.0), 'spine_thoracic': (2.1514, 2.1794, 0.0),
-        'right_hip': (21.0834, 0.2, 2.8284), 'right_knee': (101.8573,),
-        'right_ankle': (15.8099, 5.5202), 'left_hip': (58.3235, -0.8591, -1.4522),
-        'left_knee': (79.3237,), 'left_ankle': (19.9363, -1.6772),
+        'spine_lumbar': (26.6137, 9.3164, 0.0), 'spine_thoracic': (4.092, 1.6354, 0.0),
+        'right_hip': (32.1565, -0.3619, 1.6024), 'right_knee': (120.8806,),
+        'right_ankle': (18.0688, 1.9349), 'left_hip': (72.0037, -0.2683, -0.8671),
+        'left_knee': (92.4535,), 'left_ankle': (19.6463, -0.9129),
     })
-    human.KeyRoot(1.7, (2.927, 51.617, 40.301), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.7, (3.72, 48.492, 34.801), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'spine_lumbar': (-0.6898, 10.0272, 0.0), 'spine_thoracic': (-0.2536, 1.8081, 0.0),
-        'right_hip': (23.5771, -0.4056, 1.1352), 'right_knee': (126.0072,),
-        'right_ankle': (16.2593, 3.7839), 'left_hip': (82.0637, 0.0468, -0.3702),
-        'left_knee': (117.8561,), 'left_ankle': (20.0, -0.3862),
+        'spine_lumbar': (16.5211, 9.3451, 0.0), 'spine_thoracic': (2.5286, 1.665, 0.0),
+        'right_hip': (32.0151, -0.4858, 0.8932), 'right_knee': (134.6558,),
+        'right_ankle': (16.2434, 3.8022), 'left_hip': (89.3705, -0.0046, 0.0039),
+        'left_knee': (117.3828,), 'left_ankle': (14.1348, -0.0039),
     })
-    human.KeyRoot(1.8, (2.004, 44.978, 42.645), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.8, (2.091, 44.581, 41.754), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'spine_lumbar': (-4.5427, 9.9416, 0.0), 'spine_thoracic': (-0.9446, 1.7943, 0.0),
-        'right_hip': (24.3449, -0.4114, 0.6391), 'right_knee': (133.6423,),
-        'right_ankle': (10.8139, 4.8572), 'left_hip': (90.2794, -0.2168, 0.6022),
-        'left_knee': (129.7102,), 'left_ankle': (20.0, 0.6576),
+        'spine_lumbar': (-1.888, 9.5715, 0.0), 'spine_thoracic': (-0.4889, 1.728, 0.0),
+        'right_hip': (25.459, -0.3703, 0.5536), 'right_knee': (134.8944,),
+        'right_ankle': (11.2427, 5.0901), 'left_hip': (97.1969, -0.6953, 0.9945),
+        'left_knee': (130.857,), 'left_ankle': (5.9532, 1.2244),
     })
-    human.KeyRoot(1.9, (1.931, 44.02, 42.535), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.9, (1.925, 44.02, 42.534), (-10.4375, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'spine_lumbar': (-3.6317, 14.8655, 0.0), 'spine_thoracic': (-0.8602, 2.6753, 0.0),
-        'right_hip': (25.0103, -0.4776, 0.6792), 'right_knee': (135.0,),
-        'right_ankle': (9.9121, 5.6999), 'left_hip': (91.5804, -0.3175, 0.8328),
-        'left_knee': (130.8724,), 'left_ankle': (20.0, 0.9272),
+        'spine_lumbar': (-3.7688, 14.6185, 0.0), 'spine_thoracic': (-0.8837, 2.6317, 0.0),
+        'right_hip': (25.0107, -0.4865, 0.6917), 'right_knee': (135.0,),
+        'right_ankle': (9.9087, 5.8057), 'left_hip': (100.0764, -1.172, 1.2955),
+        'left_knee': (132.4846,), 'left_ankle': (0.3532, 1.8193),
     })
-    human.KeyRoot(2.0, (1.146, 44.152, 42.711), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.0, (1.055, 43.977, 42.322), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'spine_lumbar': (-3.6274, 20.0, 0.0), 'spine_thoracic': (-2.8918, 10.0, 0.0),
-        'right_hip': (24.5564, -1.4623, 2.0623), 'right_knee': (134.4613,),
-        'right_ankle': (9.1546, 17.5359), 'left_hip': (91.8479, -1.0569, 2.5549),
-        'left_knee': (131.1849,), 'left_ankle': (18.7388, 2.66),
+        'spine_lumbar': (-2.6924, 20.0, 0.0), 'spine_thoracic': (-2.1214, 10.0, 0.0),
+        'right_hip': (25.0962, -1.675, 2.2794), 'right_ankle': (8.9384, 19.6526),
+        'left_hip': (101.9775, -5.99, 5.4476), 'left_knee': (132.4458,),
+        'left_ankle': (-5.3227, 8.182),
     })
-    human.KeyRoot(2.1, (0.262, 43.882, 42.046), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.1, (0.357, 43.896, 42.082), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (-0.0417, 20.0, 0.0), 'spine_thoracic': (-7.2306, 10.0, 0.0),
-        'right_hip': (25.303, -2.7804, 3.5785), 'right_knee': (134.9996,),
-        'right_ankle': (7.1563, 32.3063), 'left_hip': (99.0268, -20.2252, 1.8903),
-        'left_knee': (134.4864,), 'left_ankle': (14.9264, 8.1597),
+        'spine_lumbar': (-0.6099, 20.0, 0.0), 'spine_thoracic': (-3.3735, 10.0, 0.0),
+        'right_hip': (25.2742, -2.6474, 3.4014), 'right_ankle': (7.4535, 30.5441),
+        'left_hip': (105.4521, -24.9383, 12.7146), 'left_knee': (134.6919,),
+        'left_ankle': (-10.1122, 28.8727),
     })
-    human.KeyRoot(2.2, (0.204, 43.875, 42.026), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.2, (0.077, 43.874, 42.017), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (-0.6133, 20.0, 0.0), 'spine_thoracic': (-3.6806, 10.0, 0.0),
-        'right_ankle': (7.0016, 33.2047), 'left_hip': (103.113, -24.8376, 16.5748),
-        'left_knee': (135.0,), 'left_ankle': (2.5474, 35.0),
+        'spine_lumbar': (0.5436, 20.0, 0.0), 'spine_thoracic': (-9.6079, 10.0, 0.0),
+        'right_hip': (25.3027, -3.0295, 3.8249), 'right_ankle': (6.6702, 35.0),
+        'left_hip': (120.8969, -10.0955, -15.1176), 'left_knee': (131.4286,),
+        'left_ankle': (-35.5564, -23.0569),
     })
-    human.KeyRoot(2.3, (0.076, 43.863, 41.994), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.3, (0.114, 43.861, 41.993), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.2438, 20.0, 0.0), 'spine_thoracic': (-7.9454, 10.0, 0.0),
-        'right_hip': (25.3357, -3.0334, 3.8229), 'right_ankle': (6.6675, 35.0),
-        'left_hip': (83.1947, 0.0006, 37.0787), 'left_knee': (133.9751,),
-        'left_ankle': (-43.7247, 25.3816),
+        'spine_lumbar': (0.2816, 20.0, 0.0), 'right_hip': (25.3465, -2.9876, 3.8132),
+        'right_ankle': (6.7087, 34.7942), 'left_hip': (96.3901, -23.488, 31.0042),
+        'left_knee': (133.3737,), 'left_ankle': (-44.4758, -19.4341),
     })
-    human.KeyRoot(2.4, (0.092, 43.859, 41.986), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.4, (0.014, 43.856, 41.976), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'spine_lumbar': (4.3968, 19.9999, 0.0), 'spine_thoracic': (-8.1098, 10.0, 0.0),
-        'right_hip': (25.3524, -3.0135, 3.8297), 'right_knee': (135.0,),
-        'right_ankle': (6.6648, 35.0), 'left_hip': (56.5474, -6.0683, 29.9215),
-        'left_knee': (134.8741,), 'left_ankle': (-45.4668, 12.1592),
+        'spine_lumbar': (3.1274, 20.0, 0.0), 'spine_thoracic': (-8.4159, 10.0, 0.0),
+        'right_hip': (25.3488, -3.119, 3.7923), 'right_knee': (134.9948,),
+        'right_ankle': (6.6648, 35.0), 'left_hip': (63.9225, -9.0586, 27.5708),
+        'left_knee': (135.0,), 'left_ankle': (-45.7194, -11.197),
     })
-    human.KeyRoot(2.5, (-0.197, 45.222, 45.153), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.5, (0.063, 44.827, 44.171), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'spine_lumbar': (-0.8592, 20.0, 0.0), 'spine_thoracic': (-6.3147, 10.0, 0.0),
-        'right_hip': (20.7564, -2.6317, 3.9636), 'right_knee': (130.4178,),
-        'right_ankle': (6.8441, 34.0643), 'left_hip': (35.7174, -20.4101, -1.7481),
-        'left_knee': (131.4646,), 'left_ankle': (-30.3901, 3.6568),
+        'spine_lumbar': (1.9319, 20.0, 0.0), 'spine_thoracic': (-5.1283, 10.0, 0.0),
+        'right_hip': (22.2047, -2.528, 3.6576), 'right_knee': (131.9099,),
+        'right_ankle': (7.2682, 31.65), 'left_hip': (37.4832, -20.9924, -3.0638),
+        'left_knee': (131.7827,), 'left_ankle': (-31.5337, -0.891),
     })
-    human.KeyRoot(2.6, (-0.229, 45.167, 45.006), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.6, (-0.118, 45.044, 44.698), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.6, {
-        'spine_lumbar': (2.4481, 20.0, 0.0), 'spine_thoracic': (-10.4368, 10.0, 0.0),
-        'right_hip': (20.9551, -2.707, 4.0175), 'right_knee': (130.6036,),
-        'right_ankle': (6.7182, 34.7327), 'left_hip': (25.6068, -2.6127, -2.2324),
-        'left_knee': (134.5977,), 'left_ankle': (-2.6857, -24.6293),
+        'spine_lumbar': (3.5846, 20.0, 0.0), 'spine_thoracic': (-9.3133, 10.0, 0.0),
+        'right_hip': (21.4165, -2.6362, 3.9871), 'right_knee': (131.0722,),
+        'right_ankle': (6.7756, 34.4219), 'left_hip': (22.4515, -4.3203, -0.225),
+        'left_knee': (135.0,), 'left_ankle': (7.1417, -13.2073),
     })
-    human.KeyRoot(2.7, (0.616, 44.18, 42.717), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.7, (0.832, 44.086, 42.529), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'spine_lumbar': (10.4264, 19.9999, 0.0), 'spine_thoracic': (-6.8519, 10.0, 0.0),
-        'right_hip': (24.4168, -2.1551, 2.9584), 'right_knee': (134.2181,),
-        'right_ankle': (8.1869, 25.7213), 'left_hip': (24.4229, 1.9151, -2.5983),
-        'left_knee': (134.2727,), 'left_ankle': (8.395, -24.0959),
+        'spine_lumbar': (10.6707, 19.9999, 0.0), 'spine_thoracic': (-4.2647, 10.0, 0.0),
+        'right_hip': (24.7401, -1.9167, 2.657), 'right_knee': (134.5791,),
+        'right_ankle': (8.5568, 22.9407), 'left_hip': (24.712, 1.3481, -2.0164),
+        'left_knee': (134.6344,), 'left_ankle': (8.8802, -20.6823),
     })
-    human.KeyRoot(2.8, (1.263, 44.561, 43.656), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.8, (1.372, 44.562, 43.673), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (8.0063, 19.9999, 0.0), 'spine_thoracic': (-1.1987, 9.4997, 0.0),
-        'right_hip': (23.2307, -1.0818, 1.6218), 'right_knee': (133.1739,),
-        'right_ankle': (9.502, 13.4577), 'left_hip': (23.2307, 1.0818, -1.6218),
-        'left_knee': (133.1739,), 'left_ankle': (9.502, -13.4577),
+        'spine_lumbar': (7.8219, 19.9999, 0.0), 'spine_thoracic': (-0.2076, 9.5186, 0.0),
+        'right_hip': (23.2335, -0.9351, 1.4081), 'right_ankle': (9.627, 11.6496),
+        'left_hip': (23.2335, 0.9351, -1.4081), 'left_ankle': (9.627, -11.6496),
     })
-    human.KeyRoot(2.9, (1.567, 44.953, 44.655), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.9, (1.592, 44.995, 44.765), (-10.4375, 0.0, 0.0))
     human.KeyJoints(2.9, {
-        'spine_lumbar': (6.4159, 10.3298, 0.0), 'spine_thoracic': (0.7098, 2.6812, 0.0),
-        'right_hip': (21.8906, -0.4433, 0.7094), 'right_knee': (131.88,),
-        'right_ankle': (9.9108, 5.7428), 'left_hip': (21.8906, 0.4433, -0.7094),
-        'left_knee': (131.88,), 'left_ankle': (9.9108, -5.7428),
+        'spine_lumbar': (6.0967, 10.5194, 0.0), 'spine_thoracic': (0.8473, 2.2586, 0.0),
+        'right_hip': (21.7423, -0.3836, 0.618), 'right_knee': (131.7343,),
+        'right_ankle': (9.933, 4.992), 'left_hip': (21.7423, 0.3836, -0.618),
+        'left_knee': (131.7343,), 'left_ankle': (9.933, -4.992),
     })
-    human.KeyRoot(3.0, (1.636, 45.273, 45.498), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(3.0, (1.612, 45.328, 45.643), (-10.4375, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'spine_lumbar': (5.3252, 0.8438, 0.0), 'spine_thoracic': (0.8856, 0.2526, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (20.7229, -0.1495, 0.2511),
-        'right_knee': (130.7216,), 'right_ankle': (9.9909, 2.0037),
-        'left_hip': (20.7229, 0.1495, -0.2511), 'left_knee': (130.7216,),
-        'left_ankle': (9.9909, -2.0037),
+        'spine_lumbar': (4.9207, 0.8526, 0.0), 'spine_thoracic': (0.8407, 0.1977, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (20.5146, -0.146, 0.2474),
+        'right_knee': (130.5133,), 'right_ankle': (9.9912, 1.9699),
+        'left_hip': (20.5146, 0.146, -0.2474), 'left_knee': (130.5133,),
+        'left_ankle': (9.9912, -1.9699),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.0384, duration=0.2628)
-    human.KeyRoot(3.1, (1.631, 45.369, 45.759), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(3.1, (1.6, 45.427, 45.912), (-10.4375, 0.0, 0.0))
     human.KeyJoints(3.1, {
-        'spine_lumbar': (4.7699, -0.2177, 0.0), 'spine_thoracic': (0.8209, 0.0035, 0.0),
-        'neck': (4.8675, -4.6937, 3.0786), 'head': (2.0861, 1.5168),
-        'right_hip': (20.3571, -0.0938, 0.16), 'right_knee': (130.3534,),
-        'right_ankle': (9.9967, 1.2716), 'left_hip': (20.3571, 0.0938, -0.16),
-        'left_knee': (130.3534,), 'left_ankle': (9.9967, -1.2716),
+        'spine_lumbar': (4.3429, -0.2254, 0.0), 'spine_thoracic': (0.7578, -0.0224, 0.0),
+        'neck': (4.8675, -4.6937, 3.1099), 'head': (2.0861, 1.5165),
+        'right_hip': (20.1361, -0.0968, 0.1667), 'right_knee': (130.1324,),
+        'right_ankle': (9.9963, 1.3219), 'left_hip': (20.1361, 0.0968, -0.1667),
+        'left_knee': (130.1324,), 'left_ankle': (9.9963, -1.3219),
     })
-    human.KeyJoints(3.2, {'neck': (23.4269, -22.5902, 14.8172), 'head': (10.0401, 7.3004)})
+    human.KeyJoints(3.2, {'neck': (23.4269, -22.5902, 14.9675), 'head': (10.0401, 7.2986)})
     human.KeyJoints(3.3, {
-        'spine_lumbar': (4.7699, -0.2177, 0.0), 'spine_thoracic': (0.8209, 0.0035, 0.0),
-        'neck': (34.9978, -33.7479, 22.1357), 'head': (14.9991, 10.9062),
+        'spine_lumbar': (4.3429, -0.2254, 0.0), 'spine_thoracic': (0.7578, -0.0224, 0.0),
+        'neck': (34.9978, -33.7479, 22.3602), 'head': (14.9991, 10.9036),
         'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
         'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0),
     })
@@ -251,82 +250,81 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.3012, duration=0.873042)
     human.KeyJoints(3.4, {
-        'spine_lumbar': (7.0896, 0.4485, 0.7776), 'spine_thoracic': (0.5735, 0.53, 1.0698),
-        'neck': (35.0, -33.75, 20.0147), 'right_clavicle': (-0.3592, 0.8156),
-        'right_shoulder': (9.8706, 6.7157, 11.1119), 'right_elbow': (33.8262, 17.19),
-        'right_wrist': (-0.1101, -0.1584),
+        'spine_lumbar': (6.6823, 0.4481, 0.7738), 'spine_thoracic': (0.5183, 0.5036, 1.0755),
+        'neck': (35.0, -33.75, 20.226), 'right_clavicle': (-0.3601, 0.8156),
+        'right_shoulder': (9.867, 6.7223, 11.1119), 'right_elbow': (33.818, 17.1901),
+        'right_wrist': (-0.11, -0.1599),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (13.172, 2.2208, 2.8245), 'spine_thoracic': (-0.1117, 1.9142, 3.9297),
-        'neck': (35.0, -33.75, 15.1836), 'head': (15.0, 10.8449),
-        'right_clavicle': (-1.3286, 2.954), 'right_shoulder': (13.2577, 9.3015, 10.2013),
-        'right_elbow': (32.3808, 17.1935), 'right_wrist': (-0.3986, -0.5736),
+        'spine_lumbar': (12.8164, 2.2397, 2.8116), 'spine_thoracic': (-0.1456, 1.8869, 3.9505),
+        'neck': (35.0, -33.75, 15.3643), 'head': (15.0, 10.8358),
+        'right_clavicle': (-1.3321, 2.954), 'right_shoulder': (13.2446, 9.3254, 10.2014),
+        'right_elbow': (32.351, 17.1937), 'right_wrist': (-0.3984, -0.5792),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (21.5146, 4.7065, 5.6497), 'spine_thoracic': (-1.1301, 3.8206, 7.9696),
-        'neck': (35.0, -33.75, 9.2749), 'head': (15.0, 10.5754),
-        'right_clavicle': (-2.7176, 5.8871), 'right_shoulder': (17.9916, 12.8481, 8.9523),
-        'right_elbow': (30.3983, 17.1985),
+        'spine_lumbar': (21.2299, 4.7522, 5.626), 'spine_thoracic': (-1.1336, 3.793, 8.0117),
+        'neck': (35.0, -33.75, 9.4159), 'head': (15.0, 10.551), 'right_clavicle': (-2.7251, 5.8871),
+        'right_shoulder': (17.9651, 12.8959, 8.9525), 'right_elbow': (30.3389, 17.199),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (30.6149, 7.5128, 8.7617), 'spine_thoracic': (-2.3769, 5.9137, 12.5794),
-        'neck': (35.0, -33.75, 2.9319), 'head': (15.0, 10.6989),
-        'right_clavicle': (-4.3355, 9.0866), 'right_shoulder': (23.3075, 16.7168, 7.5898),
-        'right_elbow': (28.2357, 17.2043),
+        'spine_lumbar': (30.4076, 7.5882, 8.7292), 'spine_thoracic': (-2.3456, 5.8873, 12.6455),
+        'neck': (35.0, -33.75, 3.0322), 'head': (15.0, 10.6996),
+        'right_clavicle': (-4.3483, 9.0866), 'right_shoulder': (23.266, 16.7905, 7.5903),
+        'right_elbow': (28.1441, 17.2051),
     })
     human.KeyJoints(3.8, {
-        'spine_lumbar': (38.9701, 10.247, 11.6692), 'spine_thoracic': (-3.7473, 7.858, 17.1493),
-        'neck': (35.0, 26.7242, -14.3174), 'head': (15.0, -11.25),
-        'right_clavicle': (-5.9916, 12.0241), 'right_shoulder': (28.441, 20.2688, 6.339),
-        'right_elbow': (26.2502, 17.2104), 'right_wrist': (-1.6225, -2.3347),
+        'spine_lumbar': (38.8338, 10.3504, 11.6337), 'spine_thoracic': (-3.6811, 7.8352, 17.2386),
+        'neck': (35.0, 27.0087, -14.475), 'head': (15.0, -11.25),
+        'right_clavicle': (-6.0106, 12.0241), 'right_shoulder': (28.3851, 20.3663, 6.3395),
+        'right_elbow': (26.129, 17.2114), 'right_wrist': (-1.6217, -2.3575),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (45.0775, 12.5164, 13.8808), 'spine_thoracic': (-5.1367, 9.318, 21.0689),
-        'neck': (35.0, 19.3604, -16.9467), 'right_clavicle': (-7.4951, 14.1713),
-        'right_shoulder': (32.6275, 22.8652, 5.4246), 'right_elbow': (24.7988, 17.2159),
-        'right_wrist': (-1.9123, -2.7516),
+        'spine_lumbar': (44.9931, 12.6413, 13.8517), 'spine_thoracic': (-5.0398, 9.3021, 21.1775),
+        'neck': (35.0, 19.6692, -17.0688), 'right_clavicle': (-7.521, 14.1713),
+        'right_shoulder': (32.5599, 22.9801, 5.4253), 'right_elbow': (24.656, 17.2171),
+        'right_wrist': (-1.9113, -2.7785),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.0, {
-        'spine_lumbar': (47.4343, 13.928, 14.9052), 'spine_thoracic': (-6.4402, 9.9581, 23.7284),
-        'neck': (35.0, 19.6003, -19.146), 'right_clavicle': (-8.6554, 15.0),
-        'right_shoulder': (35.1024, 23.8671, 5.0718), 'right_elbow': (24.2388, 17.2204),
-        'right_wrist': (-2.0241, -2.9125),
+        'spine_lumbar': (47.37, 14.0637, 14.8956), 'spine_thoracic': (-6.3214, 9.9535, 23.8487),
+        'neck': (35.0, 19.8396, -19.2714), 'right_clavicle': (-8.6888, 15.0),
+        'right_shoulder': (35.0281, 23.9887, 5.0725), 'right_elbow': (24.0876, 17.2216),
+        'right_wrist': (-2.0231, -2.941),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (42.9111, 15.7361, 13.8132), 'spine_thoracic': (-6.7907, 9.3244, 23.5137),
-        'neck': (35.0, 26.329, -20.2564), 'right_clavicle': (-9.3358, 13.7006),
-        'right_shoulder': (33.9269, 20.9799, 5.7457), 'right_elbow': (25.0263, 17.2154),
+        'spine_lumbar': (42.7786, 15.9057, 13.7723), 'spine_thoracic': (-6.6593, 9.2979, 23.5919),
+        'neck': (35.0, 26.5867, -20.3575), 'right_clavicle': (-9.3654, 13.6574),
+        'right_shoulder': (33.8069, 21.0638, 5.7512), 'right_elbow': (24.8716, 17.2162),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.174242, duration=0.2628)
     human.KeyJoints(4.2, {
-        'spine_lumbar': (39.2631, 17.2311, 13.0863), 'spine_thoracic': (-6.4835, 8.8883, 22.7929),
-        'neck': (35.0, 30.5613, -20.7344), 'right_clavicle': (-9.7723, 12.8985),
-        'right_shoulder': (32.2377, 18.4307, 6.368), 'right_elbow': (25.4029, 17.2071),
-        'right_wrist': (-1.4743, -2.5324),
+        'spine_lumbar': (39.2347, 17.3511, 13.0837), 'spine_thoracic': (-6.3763, 8.883, 22.9099),
+        'neck': (35.0, 30.6695, -20.8579), 'right_clavicle': (-9.8005, 12.8974),
+        'right_shoulder': (32.1868, 18.5776, 6.3534), 'right_elbow': (25.2407, 17.208),
+        'right_wrist': (-1.4764, -2.5653),
     })
-    human.KeyJoints(4.4, {'right_elbow': (25.4029, 17.2071)})
+    human.KeyJoints(4.4, {'right_elbow': (25.2407, 17.208)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(4.5, {'right_elbow': (25.4029, 8.3652)})
-    human.KeyJoints(4.6, {'right_elbow': (25.4029, -28.708)})
-    human.KeyJoints(4.7, {'right_elbow': (25.4029, -67.6602)})
+    human.KeyJoints(4.5, {'right_elbow': (25.2407, 8.3661)})
+    human.KeyJoints(4.6, {'right_elbow': (25.2407, -28.7075)})
+    human.KeyJoints(4.7, {'right_elbow': (25.2407, -67.6601)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=4.775442, duration=0.072)
-    human.KeyJoints(4.8, {'right_elbow': (25.4029, -80.0)})
+    human.KeyJoints(4.8, {'right_elbow': (25.2407, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.847442, duration=0.2628)
-    human.KeyJoints(5.1, {'right_elbow': (25.4029, -80.0)})
+    human.KeyJoints(5.1, {'right_elbow': (25.2407, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {'right_elbow': (25.4029, -52.2019)})
-    human.KeyJoints(5.3, {'right_elbow': (25.4029, 14.5082)})
-    human.KeyJoints(5.4, {'right_elbow': (25.4029, 71.0327)})
+    human.KeyJoints(5.2, {'right_elbow': (25.2407, -52.2019)})
+    human.KeyJoints(5.3, {'right_elbow': (25.2407, 14.5082)})
+    human.KeyJoints(5.4, {'right_elbow': (25.2407, 71.0327)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.448642, duration=0.072)
     human.KeyJoints(5.5, {
-        'spine_lumbar': (39.2631, 17.2311, 13.0863), 'spine_thoracic': (-6.4835, 8.8883, 22.7929),
-        'neck': (35.0, 30.5613, -20.7344), 'right_shoulder': (32.2377, 18.4307, 6.368),
-        'right_elbow': (25.4029, 80.0), 'right_wrist': (-1.4743, -2.5324),
+        'spine_lumbar': (39.2347, 17.3511, 13.0837), 'spine_thoracic': (-6.3763, 8.883, 22.9099),
+        'neck': (35.0, 30.6695, -20.8579), 'right_shoulder': (32.1868, 18.5776, 6.3534),
+        'right_elbow': (25.2407, 80.0), 'right_wrist': (-1.4764, -2.5653),
         'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
     })
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
@@ -335,581 +333,576 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=5.520642, duration=1.618047)
     human.KeyJoints(5.6, {
-        'spine_lumbar': (40.0896, 16.8105, 12.5355), 'spine_thoracic': (-6.779, 8.7358, 22.2962),
-        'neck': (35.0, 31.071, -19.5464), 'right_shoulder': (33.186, 17.3527, 6.7111),
-        'right_elbow': (24.3608, 79.9961), 'right_wrist': (-1.2254, -2.4985),
-        'left_clavicle': (-0.399, 0.506), 'left_shoulder': (9.5452, 5.797, 11.335),
-        'left_elbow': (34.418, 17.1871), 'left_wrist': (-0.039, 0.0004),
+        'spine_lumbar': (40.0618, 16.9254, 12.5314), 'spine_thoracic': (-6.6742, 8.7271, 22.4112),
+        'neck': (35.0, 31.18, -19.6702), 'head': (15.0, -11.25),
+        'right_shoulder': (33.1324, 17.4949, 6.6999), 'right_elbow': (24.2053, 79.996),
+        'right_wrist': (-1.224, -2.5304), 'left_clavicle': (-0.3988, 0.5072),
+        'left_shoulder': (9.542, 5.7976, 11.3353), 'left_elbow': (34.4157, 17.1872),
+        'left_wrist': (-0.0387, 0.0002),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (43.0142, 15.3224, 10.5866), 'spine_thoracic': (-7.8396, 8.1965, 20.5389),
-        'neck': (35.0, 33.7121, -16.1976), 'head': (15.0, -11.1997),
-        'right_shoulder': (36.5413, 13.5385, 7.927), 'right_elbow': (20.6738, 79.9822),
-        'right_wrist': (-0.3447, -2.3624), 'left_clavicle': (-1.8107, 2.2962),
-        'left_shoulder': (12.9533, 6.0469, 10.8886), 'left_elbow': (34.5823, 17.1814),
+        'spine_lumbar': (42.9882, 15.4194, 10.5773), 'spine_thoracic': (-7.7439, 8.1756, 20.6469),
+        'neck': (35.0, 33.7171, -16.3036), 'head': (15.0, -11.196),
+        'right_shoulder': (36.4782, 13.664, 7.9281), 'right_elbow': (20.5418, 79.9817),
+        'right_wrist': (-0.3312, -2.3905), 'left_clavicle': (-1.8096, 2.3017),
+        'left_shoulder': (12.9387, 6.0495, 10.8897), 'left_elbow': (34.5715, 17.1816),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (47.2203, 13.1821, 7.7836), 'spine_thoracic': (-9.4013, 7.4207, 18.0116),
-        'neck': (35.0, 33.75, -11.0048), 'head': (15.0, -10.9917),
-        'right_shoulder': (41.367, 8.0529, 9.6803), 'right_elbow': (15.3709, 79.9622),
-        'right_wrist': (0.9221, -2.1278), 'left_clavicle': (-3.841, 4.8709),
-        'left_shoulder': (17.9604, 6.4339, 10.2288), 'left_elbow': (34.8691, 17.1732),
-        'left_wrist': (-0.4023, 0.0068),
+        'spine_lumbar': (47.197, 13.2535, 7.7668), 'spine_thoracic': (-9.3199, 7.3823, 18.1093),
+        'neck': (35.0, 33.75, -11.0967), 'head': (15.0, -10.9861),
+        'right_shoulder': (41.2902, 8.1544, 9.6993), 'right_elbow': (15.2728, 79.9611),
+        'right_wrist': (0.9529, -2.15), 'left_clavicle': (-3.8388, 4.8827),
+        'left_shoulder': (17.9291, 6.4394, 10.2313), 'left_elbow': (34.8446, 17.1735),
+        'left_wrist': (-0.3999, 0.0043),
     })
     human.KeyJoints(5.9, {
-        'spine_lumbar': (51.8295, 10.8367, 4.7121), 'spine_thoracic': (-11.1779, 6.5706, 15.242),
-        'neck': (35.0, 33.7261, -6.4042), 'head': (15.0, -11.25),
-        'right_shoulder': (46.655, 2.0415, 11.61), 'right_elbow': (9.56, 79.9403),
-        'right_wrist': (2.3102, -1.8006), 'left_clavicle': (-6.0659, 7.6923),
-        'left_shoulder': (23.6375, 6.9075, 9.4739), 'left_elbow': (35.2741, 17.1642),
+        'spine_lumbar': (51.8091, 10.8799, 4.6871), 'spine_thoracic': (-11.1148, 6.5131, 15.3286),
+        'neck': (35.0, 33.7259, -6.5088), 'head': (15.0, -11.25),
+        'right_shoulder': (46.5634, 2.1169, 11.6488), 'right_elbow': (9.499, 79.9386),
+        'right_wrist': (2.3601, -1.8157), 'left_clavicle': (-6.0624, 7.711),
+        'left_shoulder': (23.5873, 6.9162, 9.4781), 'left_elbow': (35.2325, 17.1647),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (55.9631, 8.7333, 1.9575), 'spine_thoracic': (-12.8835, 5.8083, 12.7582),
-        'neck': (35.0, 17.1392, 1.898), 'head': (15.0, -5.8928),
-        'right_shoulder': (51.3975, -3.3496, 13.355), 'right_elbow': (4.3486, 79.9207),
-        'right_wrist': (3.5551, -1.3868), 'left_clavicle': (-8.0612, 10.2227),
-        'left_shoulder': (29.0555, 7.4173, 8.7423), 'left_elbow': (35.7933, 17.1562),
+        'spine_lumbar': (55.9453, 8.7513, 1.9251), 'spine_thoracic': (-12.8408, 5.7335, 12.8348),
+        'neck': (35.0, 17.6784, 1.6264), 'head': (15.0, -5.9164),
+        'right_shoulder': (51.2925, -3.2978, 13.4118), 'right_elbow': (4.3208, 79.9184),
+        'right_wrist': (3.6221, -1.3941), 'left_clavicle': (-8.0566, 10.2475),
+        'left_shoulder': (28.9873, 7.429, 8.7483), 'left_elbow': (35.7324, 17.1568),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (58.7427, 7.319, 0.1052), 'spine_thoracic': (-14.2319, 5.2956, 11.0881),
-        'neck': (35.0, -28.9348, 11.8149), 'head': (15.0, 11.25),
-        'right_shoulder': (54.5865, -6.9747, 14.5542), 'right_elbow': (0.8443, 79.9075),
-        'right_wrist': (4.3921, -0.8923), 'left_clavicle': (-9.4029, 11.9241),
-        'left_shoulder': (33.2854, 7.913, 8.1521), 'left_elbow': (36.4224, 17.1508),
-        'left_wrist': (-1.2087, 0.0443),
+        'spine_lumbar': (58.7266, 7.3199, 0.0678), 'spine_thoracic': (-14.2104, 5.2093, 11.1578),
+        'neck': (35.0, -29.5046, 11.876), 'head': (15.0, 11.25),
+        'right_shoulder': (54.4724, -6.9387, 14.6238), 'right_elbow': (0.8389, 79.9048),
+        'right_wrist': (4.4707, -0.8922), 'left_clavicle': (-9.3976, 11.9531),
+        'left_shoulder': (33.2033, 7.9268, 8.1597), 'left_elbow': (36.3417, 17.1514),
+        'left_wrist': (-1.2025, 0.0293),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(6.2, {
-        'spine_lumbar': (58.2974, 7.1563, 0.2924), 'spine_thoracic': (-14.9677, 5.6545, 11.2655),
-        'neck': (35.0, -32.0903, 11.7409), 'head': (15.0, 11.1977),
-        'right_shoulder': (53.8381, -6.0406, 14.8935), 'right_elbow': (0.0, 79.9186),
-        'right_wrist': (1.2877, -0.1182), 'left_clavicle': (-9.2929, 11.864),
-        'left_shoulder': (35.4946, 8.3814, 7.8082), 'left_wrist': (-1.4378, 0.1359),
+        'spine_lumbar': (58.2737, 7.1555, 0.2584), 'spine_thoracic': (-14.9669, 5.5696, 11.3364),
+        'neck': (35.0, -32.2643, 11.7892), 'head': (15.0, 11.189),
+        'right_shoulder': (53.696, -5.9969, 14.9672), 'right_elbow': (0.0, 79.9162),
+        'right_wrist': (1.2921, -0.115), 'left_clavicle': (-9.284, 11.8914),
+        'left_shoulder': (35.405, 8.3953, 7.8173), 'left_wrist': (-1.4311, 0.1157),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (52.8716, 8.8994, 1.197), 'spine_thoracic': (-13.963, 5.7397, 12.091),
-        'neck': (35.0, 33.3363, -1.9665), 'head': (15.0, -11.25),
-        'right_shoulder': (48.3001, -2.2577, 14.9197), 'right_elbow': (3.3312, 79.8824),
-        'right_wrist': (-2.6047, -0.1369), 'left_clavicle': (-9.3993, 10.8895),
-        'left_shoulder': (32.597, 5.5161, 8.9959), 'left_elbow': (38.2259, 17.1612),
-        'left_wrist': (-1.0885, 0.4781),
+        'spine_lumbar': (52.8436, 8.902, 1.1634), 'spine_thoracic': (-13.9598, 5.6533, 12.163),
+        'neck': (35.0, 33.6196, -2.2677), 'head': (15.0, -11.25),
+        'right_shoulder': (48.1224, -2.2148, 14.9938), 'right_elbow': (3.3565, 79.8797),
+        'right_wrist': (-2.7535, -0.1352), 'left_clavicle': (-9.3903, 10.9139),
+        'left_shoulder': (32.4924, 5.5177, 9.0065), 'left_elbow': (38.1268, 17.1617),
+        'left_wrist': (-1.0799, 0.4568),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=6.333722, duration=0.072)
     human.KeyJoints(6.4, {
-        'spine_lumbar': (50.9155, 9.544, 1.5724), 'spine_thoracic': (-13.44, 5.7364, 12.4269),
-        'neck': (35.0, 33.75, -3.1441), 'head': (15.0, -11.25),
-        'right_clavicle': (-9.7723, 12.8985), 'right_shoulder': (49.9189, -1.609, 14.9366),
-        'right_elbow': (2.426, 79.6809), 'right_wrist': (13.8603, -1.5993),
-        'left_clavicle': (-9.3934, 10.454), 'left_shoulder': (31.1878, 4.2747, 9.5313),
-        'left_elbow': (38.4609, 17.1648), 'left_wrist': (-0.9224, 0.5939),
+        'spine_lumbar': (50.8888, 9.5476, 1.539), 'spine_thoracic': (-13.438, 5.6513, 12.4996),
+        'neck': (35.0, 33.75, -3.2951), 'head': (15.0, -11.25),
+        'right_clavicle': (-9.8005, 12.8974), 'right_shoulder': (49.8467, -1.5945, 15.0108),
+        'right_elbow': (2.2402, 79.6819), 'right_wrist': (13.6169, -1.5354),
+        'left_clavicle': (-9.3827, 10.4787), 'left_shoulder': (31.0865, 4.2745, 9.5412),
+        'left_elbow': (38.3615, 17.1652), 'left_wrist': (-0.9134, 0.5724),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.5, {
-        'spine_lumbar': (51.6789, 10.4227, 1.6036), 'spine_thoracic': (-13.0445, 6.0947, 11.7413),
-        'neck': (34.4796, 32.6276, -7.0108), 'head': (13.5176, -10.9332),
-        'right_clavicle': (-9.7729, 12.174), 'right_shoulder': (50.2918, 0.0884, 14.785),
-        'right_elbow': (4.7784, 78.4941), 'right_wrist': (6.8499, -1.2619),
-        'left_shoulder': (31.4407, 4.9984, 9.2413), 'left_wrist': (-1.0232, 0.5607),
+        'spine_lumbar': (51.6544, 10.4259, 1.5701), 'spine_thoracic': (-13.038, 6.0167, 11.816),
+        'neck': (34.4819, 32.6433, -7.1533), 'head': (13.5197, -10.9322),
+        'right_clavicle': (-9.8023, 12.1725), 'right_shoulder': (50.22, 0.1162, 14.8485),
+        'right_elbow': (4.6103, 78.4899), 'right_wrist': (6.6165, -1.1994),
+        'left_shoulder': (31.3446, 4.99, 9.2543), 'left_wrist': (-1.0127, 0.5382),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (53.6933, 12.7412, 1.7207), 'spine_thoracic': (-11.8355, 7.0401, 9.9319),
-        'neck': (33.0619, 29.8083, -16.1614), 'head': (9.916, -10.1312),
-        'right_clavicle': (-9.7762, 10.2622), 'right_shoulder': (51.2761, 4.6931, 14.3527),
-        'right_elbow': (10.986, 75.3232), 'right_wrist': (-11.6496, -0.3716),
-        'left_shoulder': (32.2581, 6.908, 8.4759),
+        'spine_lumbar': (53.6748, 12.7437, 1.687), 'spine_thoracic': (-11.817, 6.981, 10.012),
+        'neck': (33.0697, 29.8605, -16.2837), 'head': (9.9216, -10.1273),
+        'right_clavicle': (-9.8104, 10.2595), 'right_shoulder': (51.2053, 4.7557, 14.3871),
+        'right_elbow': (10.8646, 75.3052), 'right_wrist': (-11.8565, -0.3126),
+        'left_shoulder': (32.1777, 6.8781, 8.4972),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (56.2248, 15.6548, 1.9492), 'spine_thoracic': (-9.9312, 8.2282, 7.6583),
-        'neck': (31.1767, 26.5977, -25.204), 'head': (6.1133, -9.2028),
-        'right_clavicle': (-9.7846, 7.8598), 'right_shoulder': (52.5128, 10.7725, 13.734),
-        'right_elbow': (18.7866, 71.2474), 'right_wrist': (-34.8964, 0.7471),
-        'left_shoulder': (33.635, 9.3076, 7.5142),
+        'spine_lumbar': (56.2137, 15.6563, 1.9153), 'spine_thoracic': (-9.8961, 8.1928, 7.745),
+        'neck': (31.1897, 26.6843, -25.3063), 'head': (6.1191, -9.1952),
+        'right_clavicle': (-9.8283, 7.8557), 'right_shoulder': (52.4433, 10.8774, 13.7305),
+        'right_elbow': (18.724, 71.2119), 'right_wrist': (-35.07, 0.8016),
+        'left_shoulder': (33.5789, 9.2508, 7.5459),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (58.5358, 18.3147, 2.3141), 'spine_thoracic': (-7.451, 9.3128, 5.5825),
-        'neck': (29.2397, 24.3047, -28.6957), 'head': (4.0279, -8.5077),
-        'right_clavicle': (-9.8004, 5.6666), 'right_shoulder': (53.6419, 16.8869, 13.0239),
-        'right_elbow': (25.9081, 67.3508), 'right_wrist': (-56.1192, 1.7685),
-        'left_shoulder': (35.5656, 11.4984, 6.6361), 'left_wrist': (-1.9288, 0.2629),
+        'spine_lumbar': (58.5315, 18.3153, 2.2806), 'spine_thoracic': (-7.3985, 9.2991, 5.6755),
+        'neck': (29.2544, 24.4007, -28.7906), 'head': (4.0253, -8.4961),
+        'right_clavicle': (-9.8597, 5.6612), 'right_shoulder': (53.5736, 17.028, 12.9832),
+        'right_elbow': (25.899, 67.2992), 'right_wrist': (-56.2624, 1.8189),
+        'left_shoulder': (35.5406, 11.4168, 6.6774), 'left_wrist': (-1.9048, 0.2307),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (59.8891, 19.8723, 2.8409), 'spine_thoracic': (-4.5145, 9.9479, 4.3671),
-        'neck': (27.2817, 23.0784, -26.8908), 'head': (3.3235, -8.093),
-        'right_clavicle': (-9.8258, 4.3823), 'right_shoulder': (54.3031, 21.5966, 12.3175),
-        'right_elbow': (30.0782, 64.7177), 'right_wrist': (-68.5467, 2.3666),
-        'left_shoulder': (38.0439, 12.7812, 6.122), 'left_elbow': (38.5688, 17.1456),
-        'left_wrist': (-2.1075, 0.2041),
+        'spine_lumbar': (59.8887, 19.8724, 2.8082), 'spine_thoracic': (-4.447, 9.9469, 4.4636),
+        'neck': (27.2907, 23.1646, -26.994), 'head': (3.3123, -8.0784),
+        'right_clavicle': (-9.9082, 4.3761), 'right_shoulder': (54.2355, 21.754, 12.2497),
+        'right_elbow': (30.1005, 64.6562), 'right_wrist': (-68.6721, 2.4146),
+        'left_shoulder': (38.055, 12.6852, 6.1689), 'left_elbow': (38.3928, 17.1464),
+        'left_wrist': (-2.0809, 0.17),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.0, {
-        'spine_lumbar': (60.0, 20.0, 5.47), 'spine_thoracic': (-1.6773, 10.0, 6.278),
-        'neck': (26.9062, 22.0526, -30.3041), 'head': (1.3406, -7.5915),
-        'right_clavicle': (-8.7935, 5.9935), 'right_shoulder': (55.696, 26.5252, 10.5885),
-        'right_elbow': (26.6871, 63.5186), 'right_wrist': (-67.0101, 1.5414),
-        'left_shoulder': (44.3707, 8.729, 7.4263), 'left_elbow': (33.5467, 17.1161),
-        'left_wrist': (-1.1258, -0.7724),
+        'spine_lumbar': (60.0, 20.0, 5.3095), 'spine_thoracic': (-1.6081, 10.0, 6.2481),
+        'neck': (26.8724, 22.1576, -30.1799), 'head': (1.379, -7.5961),
+        'right_clavicle': (-8.8867, 5.8627), 'right_shoulder': (55.4918, 26.4839, 10.5885),
+        'right_elbow': (26.8361, 63.4901), 'right_wrist': (-67.2426, 1.6275),
+        'left_shoulder': (44.1265, 8.8896, 7.38), 'left_elbow': (33.7831, 17.1192),
+        'left_wrist': (-1.1712, -0.7228),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.066689, duration=0.072)
     human.KeyJoints(7.1, {
-        'spine_lumbar': (60.0, 20.0, 6.6958), 'spine_thoracic': (-0.438, 10.0, 7.2542),
-        'neck': (26.8809, 21.659, -32.0983), 'head': (0.4512, -7.3857),
-        'right_clavicle': (-7.4695, 6.7463), 'right_shoulder': (57.0993, 30.2566, 9.2764),
-        'right_elbow': (23.9724, 62.8589), 'right_wrist': (-64.9767, 0.8016),
-        'left_shoulder': (47.2949, 6.6548, 8.0758), 'left_elbow': (30.9466, 17.1077),
-        'left_wrist': (-0.6525, -1.2632),
+        'spine_lumbar': (60.0, 20.0, 6.6936), 'spine_thoracic': (-0.3203, 9.9998, 7.3755),
+        'neck': (26.8916, 21.7318, -32.2391), 'head': (0.4103, -7.3627),
+        'right_clavicle': (-7.4486, 6.7525), 'right_shoulder': (57.0192, 30.453, 9.1923),
+        'right_elbow': (23.9416, 62.7867), 'right_wrist': (-65.0628, 0.8386),
+        'left_shoulder': (47.4083, 6.5079, 8.1244), 'left_elbow': (30.6831, 17.1081),
+        'left_wrist': (-0.6172, -1.3103),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.138689, duration=0.2628)
-    human.KeyJoints(7.2, {'neck': (28.0004, 19.2228, -34.1092), 'head': (2.4573, -7.9185)})
-    human.KeyJoints(7.3, {'neck': (32.3026, 9.8608, -41.8369), 'head': (10.1665, -9.9662)})
+    human.KeyJoints(7.2, {'neck': (28.0096, 19.2982, -34.2467), 'head': (2.422, -7.8987)})
+    human.KeyJoints(7.3, {'neck': (32.3062, 9.9462, -41.9618), 'head': (10.1529, -9.9585)})
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, 20.0, 6.6958), 'spine_thoracic': (-0.438, 10.0, 7.2542),
-        'neck': (34.9992, 3.9927, -46.6805), 'head': (14.9986, -11.2496),
-        'right_shoulder': (57.0993, 30.2566, 9.2764), 'right_elbow': (23.9724, 62.8589),
-        'right_wrist': (-64.9767, 0.8016), 'left_clavicle': (-9.3934, 10.454),
-        'left_shoulder': (47.2949, 6.6548, 8.0758), 'left_elbow': (30.9466, 17.1077),
-        'left_wrist': (-0.6525, -1.2632),
+        'spine_lumbar': (60.0, 20.0, 6.6936), 'spine_thoracic': (-0.3203, 9.9998, 7.3755),
+        'neck': (34.9992, 4.0844, -46.7976), 'head': (14.9986, -11.2496),
+        'right_shoulder': (57.0192, 30.453, 9.1923), 'right_elbow': (23.9416, 62.7867),
+        'right_wrist': (-65.0628, 0.8386), 'left_clavicle': (-9.3827, 10.4787),
+        'left_shoulder': (47.4083, 6.5079, 8.1244), 'left_elbow': (30.6831, 17.1081),
+        'left_wrist': (-0.6172, -1.3103),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=7.401489, duration=2.069192)
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, 20.0, 4.4924), 'spine_thoracic': (-0.4626, 9.0656, 3.8699),
-        'neck': (33.4504, 4.3382, -41.7049), 'head': (14.7531, -11.2308),
-        'right_shoulder': (57.8311, 24.413, 10.1999), 'right_elbow': (22.9175, 63.0136),
-        'right_wrist': (-60.3106, 0.7711), 'left_clavicle': (-9.466, 11.0656),
-        'left_shoulder': (41.0164, 8.3624, 9.3116), 'left_elbow': (39.8186, 20.6545),
-        'left_wrist': (-9.9534, 2.6748),
+        'spine_lumbar': (60.0, 20.0, 4.4865), 'spine_thoracic': (-0.3366, 9.0624, 3.9783),
+        'neck': (33.4417, 4.4232, -41.8123), 'head': (14.7504, -11.2305),
+        'right_shoulder': (57.7515, 24.5913, 10.1162), 'right_elbow': (22.8959, 62.9462),
+        'right_wrist': (-60.4896, 0.8065), 'left_clavicle': (-9.464, 11.0893),
+        'left_shoulder': (41.1148, 8.2529, 9.3734), 'left_elbow': (39.5951, 20.6717),
+        'left_wrist': (-9.9671, 2.6338),
     })
     human.KeyJoints(7.6, {
-        'spine_thoracic': (-0.5115, 6.9135, -3.8071), 'neck': (30.9152, 5.7458, -30.9784),
-        'head': (14.3973, -11.1648), 'right_shoulder': (59.5949, 11.2677, 12.182),
-        'right_elbow': (20.3242, 63.3205), 'right_wrist': (-49.4083, 0.6861),
-        'left_clavicle': (-9.6101, 12.3773), 'left_shoulder': (28.5554, 11.7516, 12.2047),
-        'left_elbow': (57.4271, 28.7103), 'left_wrist': (-29.418, 10.7367),
+        'spine_thoracic': (-0.3688, 6.9035, -3.7271), 'neck': (30.8894, 5.8211, -31.0626),
+        'head': (14.3936, -11.1638), 'right_shoulder': (59.516, 11.4059, 12.0985),
+        'right_elbow': (20.3231, 63.2629), 'right_wrist': (-49.8006, 0.7171),
+        'left_clavicle': (-9.6285, 12.3978), 'left_shoulder': (28.624, 11.7162, 12.2969),
+        'left_elbow': (57.2832, 28.7663), 'left_wrist': (-29.524, 10.7088),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, 20.0, -5.288), 'spine_thoracic': (-0.5443, 4.6213, -11.6946),
-        'neck': (29.3105, 7.6742, -20.2009), 'head': (14.995, -11.1768),
-        'right_shoulder': (61.6661, -1.964, 13.9376), 'right_elbow': (17.1591, 63.5264),
-        'left_clavicle': (-9.7067, 13.536), 'left_shoulder': (20.1956, 14.0254, 15.4013),
-        'left_elbow': (69.2403, 37.013), 'left_wrist': (-45.3414, 16.8465),
+        'spine_lumbar': (60.0, 20.0, -5.3043), 'spine_thoracic': (-0.3904, 4.604, -11.6423),
+        'neck': (29.2732, 7.7464, -20.2617), 'head': (14.9949, -11.1766),
+        'right_shoulder': (61.5874, -1.864, 13.8524), 'right_elbow': (17.1784, 63.4753),
+        'left_clavicle': (-9.7484, 13.5519), 'left_shoulder': (20.2442, 14.0397, 15.5261),
+        'left_elbow': (69.1497, 37.111), 'left_wrist': (-45.4955, 16.8307),
     })
     human.KeyJoints(7.8, {
-        'spine_thoracic': (-0.2761, 2.5145, -18.2835), 'neck': (29.3779, 10.8231, -11.1446),
-        'right_shoulder': (64.1323, -12.421, 14.879), 'right_elbow': (12.957, 63.4083),
-        'right_wrist': (-25.4121, 0.3703), 'left_shoulder': (24.043, 13.5693, 18.636),
-        'left_elbow': (63.5125, 44.0072), 'left_wrist': (-51.5653, 18.3969),
+        'spine_thoracic': (-0.1085, 2.4904, -18.2514), 'neck': (29.3319, 10.9087, -11.1919),
+        'right_shoulder': (64.0512, -12.3471, 14.7891), 'right_elbow': (12.985, 63.3593),
+        'right_wrist': (-26.2282, 0.3862), 'left_shoulder': (24.119, 13.5927, 18.791),
+        'left_elbow': (63.3853, 44.145), 'left_wrist': (-51.6891, 18.3883),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (60.0, 20.0, -12.5496), 'spine_thoracic': (0.6241, 0.1835, -25.1949),
-        'neck': (30.9521, 14.7609, -1.8794), 'right_shoulder': (67.3112, -23.068, 15.6795),
-        'right_elbow': (7.1793, 63.0691), 'right_wrist': (-11.4638, -0.0494),
-        'left_clavicle': (-9.7064, 14.6728), 'left_shoulder': (35.2426, 12.1266, 22.4201),
-        'left_elbow': (46.3434, 51.3772), 'left_wrist': (-56.2847, 19.4272),
+        'spine_lumbar': (60.0, 20.0, -12.5553), 'spine_thoracic': (0.8279, 0.1518, -25.1821),
+        'neck': (30.8918, 14.8494, -1.9101), 'right_shoulder': (67.2252, -23.0182, 15.5844),
+        'right_elbow': (7.2044, 63.0252), 'right_wrist': (-12.4935, -0.0457),
+        'left_clavicle': (-9.7832, 14.677), 'left_shoulder': (35.3948, 12.1703, 22.6086),
+        'left_elbow': (46.1178, 51.5595), 'left_wrist': (-56.3732, 19.424),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 20.0, -14.7974), 'spine_thoracic': (1.8594, -1.3341, -29.5987),
-        'neck': (32.4576, 16.599, 4.1975), 'head': (15.0, -11.25),
-        'right_shoulder': (69.4971, -29.7672, 16.1426), 'right_elbow': (3.125, 62.7948),
-        'right_wrist': (-2.2117, -0.9008), 'left_clavicle': (-9.6983, 14.9739),
-        'left_shoulder': (44.2958, 10.9604, 24.9363), 'left_elbow': (30.8035, 56.0822),
-        'left_wrist': (-58.8614, 19.957),
+        'spine_lumbar': (60.0, 20.0, -14.7979), 'spine_thoracic': (2.0931, -1.3706, -29.5976),
+        'neck': (32.3852, 16.6798, 4.18), 'head': (15.0, -11.25),
+        'right_shoulder': (69.4073, -29.7321, 16.0441), 'right_elbow': (3.1449, 62.7551),
+        'right_wrist': (-3.3787, -0.9024), 'left_clavicle': (-9.7897, 14.9742),
+        'left_shoulder': (44.5096, 11.0205, 25.1467), 'left_elbow': (30.5164, 56.2935),
+        'left_wrist': (-58.9273, 19.9567),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (3.8892, -1.1941, -30.0),
-        'neck': (31.2207, 16.0758, 5.0295), 'right_shoulder': (67.2513, -30.0006, 16.1918),
-        'right_elbow': (8.8011, 62.824), 'right_wrist': (-3.9318, -1.7531),
-        'left_shoulder': (46.923, 15.1328, 23.5243), 'left_elbow': (24.8333, 55.8442),
-        'left_wrist': (-57.2571, 18.8259),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.1058, -1.2299, -30.0),
+        'neck': (31.1596, 16.1613, 5.009), 'right_shoulder': (67.4916, -30.0623, 16.0901),
+        'right_elbow': (8.1429, 62.7864), 'right_wrist': (-5.5025, -1.7115),
+        'left_shoulder': (47.1466, 15.1972, 23.744), 'left_elbow': (24.5774, 56.0601),
+        'left_wrist': (-57.3273, 18.8317),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.194677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (13.2513, -6.2115, -30.0), 'neck': (25.9509, 13.8402, 6.3737),
-        'right_shoulder': (65.7129, -29.9726, 16.2679), 'right_elbow': (23.9426, 62.9351),
-        'right_wrist': (-10.2763, -3.8612), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (61.2913, 12.1399, 23.0376), 'left_elbow': (12.7361, 55.3067),
-        'left_wrist': (-43.3815, 14.6834),
+        'spine_thoracic': (13.4742, -6.2044, -30.0), 'neck': (25.8684, 13.9072, 6.3372),
+        'right_shoulder': (66.0791, -30.173, 16.1556), 'right_elbow': (22.6174, 62.8627),
+        'right_wrist': (-13.9832, -3.7998), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (61.4978, 12.1269, 23.2664), 'left_elbow': (12.5623, 55.5337),
+        'left_wrist': (-43.4235, 14.7004),
     })
     human.KeyJoints(8.4, {
-        'neck': (25.9509, 13.8402, 6.3737), 'head': (15.0, -11.25),
-        'left_shoulder': (61.2913, 12.1399, 23.0376), 'left_elbow': (12.7361, 55.3067),
-        'left_wrist': (-43.3815, 14.6834),
+        'neck': (25.8684, 13.9072, 6.3372), 'head': (15.0, -11.25),
+        'left_shoulder': (61.4978, 12.1269, 23.2664), 'left_elbow': (12.5623, 55.5337),
+        'left_wrist': (-43.4235, 14.7004),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.5, {
-        'neck': (26.1884, 13.2046, 8.0498), 'head': (14.972, -10.6181),
-        'left_shoulder': (60.397, 12.2547, 22.4232), 'left_elbow': (13.2054, 55.0941),
-        'left_wrist': (-43.502, 14.6199),
+        'neck': (26.1077, 13.2698, 8.0127), 'head': (14.9719, -10.618),
+        'left_shoulder': (60.6038, 12.2428, 22.6471), 'left_elbow': (13.0339, 55.3198),
+        'left_wrist': (-43.5445, 14.6371),
     })
     human.KeyJoints(8.6, {
-        'neck': (28.1688, 7.9043, 22.0262), 'head': (14.7387, -5.3485),
-        'left_shoulder': (52.1696, 13.3716, 16.6919), 'left_elbow': (17.6099, 53.1383),
-        'left_wrist': (-44.633, 14.0348),
+        'neck': (28.1033, 7.9543, 21.9846), 'head': (14.7377, -5.3483),
+        'left_shoulder': (52.3782, 13.3709, 16.8716), 'left_elbow': (17.4595, 53.3517),
+        'left_wrist': (-44.6795, 14.0553),
     })
     human.KeyJoints(8.7, {
-        'neck': (31.0698, 0.1403, 42.4996), 'head': (14.3968, 2.3705),
-        'left_shoulder': (37.5551, 15.5408, 6.273), 'left_elbow': (25.6966, 49.6641),
-        'left_wrist': (-46.7077, 12.9956),
+        'neck': (31.0266, 0.168, 42.4514), 'head': (14.3947, 2.3711),
+        'left_shoulder': (37.7667, 15.5594, 6.3769), 'left_elbow': (25.5828, 49.8557),
+        'left_wrist': (-46.7609, 13.0218),
     })
     human.KeyJoints(8.8, {
-        'neck': (33.5619, -6.5297, 60.0877), 'head': (14.1032, 9.0017),
-        'left_shoulder': (19.2835, 18.5934, -7.1913), 'left_elbow': (36.29, 45.3205),
-        'left_wrist': (-49.4226, 11.6963),
+        'neck': (33.5379, -6.521, 60.0338), 'head': (14.0999, 9.0026),
+        'left_shoulder': (19.4989, 18.6356, -7.1773), 'left_elbow': (36.2209, 45.4849),
+        'left_wrist': (-49.4831, 11.7296),
     })
     human.KeyJoints(8.9, {
-        'neck': (34.3681, -8.6872, 65.7771), 'head': (14.0082, 11.1468),
-        'left_shoulder': (0.0847, 22.3607, -22.0587), 'left_elbow': (48.2149, 40.7565),
-        'left_wrist': (-52.474, 10.3312),
+        'neck': (34.3502, -8.6847, 65.7213), 'head': (14.0046, 11.1478),
+        'left_shoulder': (0.3042, 22.4266, -22.1313), 'left_elbow': (48.1907, 40.8924),
+        'left_wrist': (-52.5409, 10.3719),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (-17.311, 26.6737, -36.6871), 'left_elbow': (60.2961, 36.6211),
-        'left_wrist': (-55.5584, 9.0942),
+        'left_shoulder': (-17.0879, 26.7594, -36.8252), 'left_elbow': (60.3094, 36.7311),
+        'left_wrist': (-55.6285, 9.1417),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (-30.1738, 31.3637, -49.4341), 'left_elbow': (71.3583, 33.5633),
-        'left_wrist': (-58.3721, 8.1795),
+        'left_shoulder': (-29.9479, 31.4611, -49.5994), 'left_elbow': (71.394, 33.6542),
+        'left_wrist': (-58.4407, 8.2321),
     })
     human.KeyJoints(9.2, {
-        'left_shoulder': (-35.7735, 36.2618, -58.6576), 'left_elbow': (80.2262, 32.2322),
-        'left_wrist': (-60.6116, 7.7813),
+        'left_shoulder': (-35.5465, 36.359, -58.7941), 'left_elbow': (80.2615, 32.3147),
+        'left_wrist': (-60.6718, 7.8361),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'left_shoulder': (-35.0502, 42.8384, -64.7221), 'left_elbow': (86.9723, 32.4262),
-        'left_wrist': (-62.4012, 8.1416),
+        'left_shoulder': (-34.8189, 42.8838, -64.7686), 'left_elbow': (86.9815, 32.5134),
+        'left_wrist': (-62.4435, 8.2003),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'left_shoulder': (-34.3742, 40.7499, -74.5362), 'left_elbow': (96.7692, 32.6504),
-        'left_wrist': (-67.0906, 8.7033),
+        'left_shoulder': (-34.1561, 40.7569, -74.4287), 'left_elbow': (96.7815, 32.7529),
+        'left_wrist': (-67.1161, 8.7807),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
-    human.KeyJoints(9.5, {'neck': (34.3663, -8.6825, 65.7758), 'head': (14.0017, 11.1472)})
+    human.KeyJoints(9.5, {'neck': (34.3484, -8.6799, 65.72), 'head': (13.9981, 11.1482)})
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.2513, -6.2115, -30.0),
-        'neck': (34.2643, -8.5557, 65.6647), 'right_clavicle': (-7.4695, 6.7463),
-        'right_shoulder': (65.7129, -29.9726, 16.2679), 'right_elbow': (23.9426, 62.9351),
-        'right_wrist': (-10.2763, -3.8612), 'left_shoulder': (-34.3742, 40.7499, -74.5362),
-        'left_elbow': (96.7692, 32.6504), 'left_wrist': (-67.0906, 8.7033),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.4742, -6.2044, -30.0),
+        'neck': (34.2441, -8.5529, 65.6045), 'right_clavicle': (-7.4486, 6.7525),
+        'right_shoulder': (66.0791, -30.173, 16.1556), 'right_elbow': (22.6174, 62.8627),
+        'right_wrist': (-13.9832, -3.7998), 'left_shoulder': (-34.1561, 40.7569, -74.4287),
+        'left_elbow': (96.7815, 32.7529), 'left_wrist': (-67.1161, 8.7807),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.4793, -14.3817), 'spine_thoracic': (13.1501, -5.9333, -29.3428),
-        'neck': (33.9462, -8.5388, 64.684), 'head': (13.7947, 11.1758),
-        'right_clavicle': (-7.5631, 7.0517), 'right_shoulder': (65.8817, -29.8226, 16.2512),
-        'right_elbow': (23.2786, 62.8445), 'right_wrist': (-9.9663, -3.7899),
-        'left_shoulder': (-32.0018, 41.212, -71.212), 'left_elbow': (96.4817, 33.2706),
-        'left_wrist': (-65.2566, 8.8141),
+        'spine_lumbar': (60.0, 19.4793, -14.3826), 'spine_thoracic': (13.3713, -5.9278, -29.3428),
+        'neck': (33.9295, -8.5373, 64.632), 'head': (13.7915, 11.1771),
+        'right_clavicle': (-7.543, 7.0577), 'right_shoulder': (66.232, -30.0176, 16.1397),
+        'right_elbow': (22.0005, 62.7733), 'right_wrist': (-13.5695, -3.7302),
+        'left_shoulder': (-31.7902, 41.2221, -71.1069), 'left_elbow': (96.4938, 33.3737),
+        'left_wrist': (-65.2835, 8.8913),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (60.0, 17.1467, -11.5728), 'spine_thoracic': (12.6701, -4.6758, -26.356),
-        'neck': (32.1243, -7.8743, 59.5166), 'right_clavicle': (-7.9826, 8.4198),
-        'right_shoulder': (66.6486, -29.1504, 16.1762), 'right_elbow': (20.3043, 62.4384),
-        'right_wrist': (-8.5766, -3.4615), 'left_shoulder': (-21.2923, 43.2821, -56.2112),
-        'left_elbow': (95.0692, 36.0583), 'left_wrist': (-56.956, 9.3104),
+        'spine_lumbar': (60.0, 17.1464, -11.5776), 'spine_thoracic': (12.8837, -4.6774, -26.356),
+        'neck': (32.1111, -7.8753, 59.474), 'right_clavicle': (-7.9659, 8.4248),
+        'right_shoulder': (66.9272, -29.3215, 16.0687), 'right_elbow': (19.2369, 62.3728),
+        'right_wrist': (-11.716, -3.4096), 'left_shoulder': (-21.1101, 43.3062, -56.117),
+        'left_elbow': (95.0808, 36.164), 'left_wrist': (-56.9891, 9.3866),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 13.7399, -7.3666), 'spine_thoracic': (11.898, -2.8093, -21.8811),
-        'neck': (29.5861, -7.2841, 51.2654), 'head': (11.9604, 11.0929),
-        'right_clavicle': (-8.5952, 10.418), 'right_shoulder': (67.7964, -28.1688, 16.0666),
-        'right_elbow': (15.9604, 61.8454), 'right_wrist': (-6.5453, -2.9577),
-        'left_shoulder': (-5.4353, 46.3054, -34.0139), 'left_elbow': (92.6744, 40.1539),
-        'left_wrist': (-44.6076, 10.0352),
+        'spine_lumbar': (60.0, 13.7392, -7.3771), 'spine_thoracic': (12.1005, -2.8217, -21.881),
+        'neck': (29.5785, -7.2888, 51.2386), 'head': (11.9626, 11.093),
+        'right_clavicle': (-8.5836, 10.4214), 'right_shoulder': (67.9694, -28.3049, 15.965),
+        'right_elbow': (15.2007, 61.7879), 'right_wrist': (-9.0075, -2.9172),
+        'left_shoulder': (-5.2961, 46.3501, -33.9366), 'left_elbow': (92.6859, 40.2634),
+        'left_wrist': (-44.65, 10.11),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 10.1453, -2.7311), 'spine_thoracic': (10.9486, -0.7833, -16.9451),
-        'neck': (26.9733, -6.9315, 41.6602), 'head': (11.7082, 10.9215),
-        'right_clavicle': (-9.2416, 12.5263), 'right_shoulder': (69.0605, -27.133, 15.951),
-        'right_elbow': (11.377, 61.2196), 'right_wrist': (-4.3988, -2.3802),
-        'left_shoulder': (11.7063, 49.4954, -10.0435), 'left_elbow': (89.5167, 44.5211),
-        'left_wrist': (-31.15, 10.8),
+        'spine_lumbar': (60.0, 10.1442, -2.7476), 'spine_thoracic': (11.1392, -0.8073, -16.945),
+        'neck': (26.9709, -6.9405, 41.6499), 'head': (11.7125, 10.9215),
+        'right_clavicle': (-9.2353, 12.5281), 'right_shoulder': (69.12, -27.2322, 15.8556),
+        'right_elbow': (10.9419, 61.1707), 'right_wrist': (-6.1469, -2.352),
+        'left_shoulder': (11.8004, 49.5618, -9.9859), 'left_elbow': (89.5295, 44.6351),
+        'left_wrist': (-31.2026, 10.8733),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (60.0, 7.2491, 1.3658), 'spine_thoracic': (9.9362, 0.953, -12.5751),
-        'neck': (24.8641, -7.9717, 33.0545), 'head': (11.7515, 11.0746),
-        'right_clavicle': (-9.7624, 14.2249), 'right_shoulder': (70.1761, -26.2985, 15.8579),
-        'right_elbow': (7.6841, 60.7155), 'right_wrist': (-2.6635, -1.8305),
-        'left_shoulder': (26.2696, 52.0656, 10.2762), 'left_elbow': (85.8158, 48.1239),
-        'left_wrist': (-19.5215, 11.4163),
+        'spine_lumbar': (60.0, 7.2477, 1.3443), 'spine_thoracic': (10.1174, 0.9188, -12.5749),
+        'neck': (24.8669, -7.9806, 33.0568), 'head': (11.7571, 11.0761),
+        'right_clavicle': (-9.7604, 14.2255), 'right_shoulder': (70.1405, -26.368, 15.7674),
+        'right_elbow': (7.5105, 60.6734), 'right_wrist': (-3.8371, -1.8128),
+        'left_shoulder': (26.3278, 52.1495, 10.3148), 'left_elbow': (85.8321, 48.242),
+        'left_wrist': (-19.5833, 11.4883),
     })
     human.KeyJoints(10.3, {
-        'spine_lumbar': (60.0, 5.9377, 3.956), 'spine_thoracic': (8.9757, 1.9502, -9.7981),
-        'neck': (23.8835, -9.1476, 27.6822), 'head': (12.1531, 11.1162),
-        'right_clavicle': (-9.9982, 14.9941), 'right_shoulder': (70.8784, -25.9206, 15.8158),
-        'right_elbow': (6.0119, 60.4872), 'right_wrist': (-1.8658, -1.4104),
-        'left_shoulder': (34.3919, 53.2295, 21.522), 'left_elbow': (81.7912, 49.926),
-        'left_wrist': (-12.6606, 11.6953),
+        'spine_lumbar': (60.0, 5.9361, 3.9321), 'spine_thoracic': (9.1526, 1.9099, -9.7979),
+        'neck': (23.8869, -9.1545, 27.6912), 'head': (12.1609, 11.1169),
+        'right_clavicle': (-9.9982, 14.9941), 'right_shoulder': (70.7923, -25.9766, 15.7275),
+        'right_elbow': (5.9567, 60.4483), 'right_wrist': (-2.781, -1.3985),
+        'left_shoulder': (34.4344, 53.3212, 21.5453), 'left_elbow': (81.8143, 50.0472),
+        'left_wrist': (-12.7284, 11.7668),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {
-        'spine_lumbar': (57.0779, 7.127, 4.0814), 'spine_thoracic': (8.7729, 2.0184, -9.6526),
-        'neck': (23.9657, -9.9762, 26.6586), 'head': (12.8938, 11.1131),
-        'right_shoulder': (69.8486, -27.6331, 15.9291), 'right_elbow': (5.7865, 60.4879),
-        'right_wrist': (-1.7128, -1.2093), 'left_shoulder': (34.9487, 50.9976, 23.181),
-        'left_elbow': (75.9146, 50.0781), 'left_wrist': (-10.8596, 10.7925),
+        'spine_lumbar': (57.1209, 7.1165, 4.0391), 'spine_thoracic': (8.9619, 1.9741, -9.6719),
+        'neck': (23.9735, -9.9614, 26.7145), 'head': (12.8808, 11.1147),
+        'right_clavicle': (-9.1932, 14.4515), 'right_shoulder': (69.7648, -27.6458, 15.84),
+        'right_elbow': (5.7282, 60.4518), 'right_wrist': (-2.6377, -1.2029),
+        'left_shoulder': (34.9463, 51.1833, 23.1616), 'left_elbow': (76.0649, 50.1976),
+        'left_wrist': (-10.9658, 10.8868),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (55.0944, 8.121, 3.7115), 'spine_thoracic': (9.076, 1.9137, -10.0535),
-        'neck': (24.1484, -10.2414, 26.9144), 'head': (13.2034, 11.1228),
-        'right_clavicle': (-8.3596, 14.032), 'right_shoulder': (68.6319, -28.5304, 15.9917),
-        'right_elbow': (5.3299, 60.4868), 'right_wrist': (-1.5612, -1.1383),
-        'left_shoulder': (34.7363, 50.5663, 23.5276), 'left_elbow': (72.7017, 50.118),
-        'left_wrist': (-10.0966, 10.2488),
+        'spine_lumbar': (55.0845, 8.1203, 3.6918), 'spine_thoracic': (9.254, 1.873, -10.0493),
+        'neck': (24.1492, -10.2465, 26.9133), 'head': (13.2084, 11.1236),
+        'right_clavicle': (-8.3584, 14.0354), 'right_shoulder': (68.5374, -28.5941, 15.9059),
+        'right_elbow': (5.2762, 60.4523), 'right_wrist': (-2.4928, -1.127),
+        'left_shoulder': (34.7912, 50.6328, 23.5584), 'left_elbow': (72.7121, 50.2424),
+        'left_wrist': (-10.1545, 10.3193),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.6, {'right_elbow': (5.3299, 30.483)})
-    human.KeyJoints(10.7, {'right_elbow': (5.3299, -27.0606)})
+    human.KeyJoints(10.6, {'right_elbow': (5.2762, 30.4484)})
+    human.KeyJoints(10.7, {'right_elbow': (5.2762, -27.0952)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.8, {'right_elbow': (5.3299, 4.2272)})
-    human.KeyJoints(10.9, {'right_elbow': (5.3299, 59.2327)})
+    human.KeyJoints(10.8, {'right_elbow': (5.2762, 4.1927)})
+    human.KeyJoints(10.9, {'right_elbow': (5.2762, 59.1981)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.0, {'right_elbow': (5.3299, 22.9344)})
-    human.KeyJoints(11.1, {'right_elbow': (5.3299, -29.0719)})
+    human.KeyJoints(11.0, {'right_elbow': (5.2762, 22.8998)})
+    human.KeyJoints(11.1, {'right_elbow': (5.2762, -29.1065)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.2, {'right_elbow': (5.3299, 11.9009)})
-    human.KeyJoints(11.3, {'right_elbow': (5.3299, 60.4471)})
+    human.KeyJoints(11.2, {'right_elbow': (5.2762, 11.8664)})
+    human.KeyJoints(11.3, {'right_elbow': (5.2762, 60.4125)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.4, {'right_elbow': (5.3299, 15.1872)})
+    human.KeyJoints(11.4, {'right_elbow': (5.2762, 15.1527)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.5, {'right_elbow': (5.3299, -29.4394)})
-    human.KeyJoints(11.6, {'right_elbow': (5.3299, 19.6699)})
+    human.KeyJoints(11.5, {'right_elbow': (5.2762, -29.474)})
+    human.KeyJoints(11.6, {'right_elbow': (5.2762, 19.6354)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.7, {'right_elbow': (5.3299, 59.9465)})
-    human.KeyJoints(11.8, {'right_elbow': (5.3299, 7.448)})
+    human.KeyJoints(11.7, {'right_elbow': (5.2762, 59.9119)})
+    human.KeyJoints(11.8, {'right_elbow': (5.2762, 7.4134)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.9, {'right_elbow': (5.3299, -28.0989)})
-    human.KeyJoints(12.0, {'right_elbow': (5.3299, 27.3277)})
+    human.KeyJoints(11.9, {'right_elbow': (5.2762, -28.1334)})
+    human.KeyJoints(12.0, {'right_elbow': (5.2762, 27.2932)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.079969, duration=0.072)
-    human.KeyJoints(12.1, {'right_elbow': (5.3299, 60.4868)})
+    human.KeyJoints(12.1, {'right_elbow': (5.2762, 60.4523)})
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.151969, duration=0.2628)
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
     human.KeyJoints(15.4, {
-        'spine_lumbar': (55.0944, 8.121, 3.7115), 'spine_thoracic': (9.076, 1.9137, -10.0535),
-        'right_clavicle': (-8.3596, 14.032), 'right_shoulder': (68.6319, -28.5304, 15.9917),
-        'right_elbow': (5.3299, 60.4868), 'right_wrist': (-1.5612, -1.1383),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.7363, 50.5663, 23.5276),
-        'left_elbow': (72.7017, 50.118), 'left_wrist': (-10.0966, 10.2488),
+        'spine_lumbar': (55.0845, 8.1203, 3.6918), 'spine_thoracic': (9.254, 1.873, -10.0493),
+        'right_clavicle': (-8.3584, 14.0354), 'right_shoulder': (68.5374, -28.5941, 15.9059),
+        'right_elbow': (5.2762, 60.4523), 'right_wrist': (-2.4928, -1.127),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.7912, 50.6328, 23.5584),
+        'left_elbow': (72.7121, 50.2424), 'left_wrist': (-10.1545, 10.3193),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(15.5, {
-        'spine_lumbar': (44.9753, 6.4842, 3.7115), 'spine_thoracic': (7.4556, 1.5388, -10.0535),
-        'right_clavicle': (-6.7187, 11.2105), 'right_shoulder': (58.122, -22.0381, 15.1025),
-        'right_elbow': (8.6467, 51.7658), 'right_wrist': (-0.6473, -1.1415),
-        'left_clavicle': (-8.0372, 11.9838), 'left_shoulder': (29.7719, 41.3562, 21.1252),
-        'left_elbow': (64.6437, 43.4976), 'left_wrist': (-8.0261, 8.1543),
+        'spine_lumbar': (44.8814, 6.4822, 3.6918), 'spine_thoracic': (7.5863, 1.501, -10.0493),
+        'right_clavicle': (-6.7178, 11.2132), 'right_shoulder': (58.0367, -22.0775, 15.0345),
+        'right_elbow': (8.6376, 51.7342), 'right_wrist': (-1.3128, -1.127),
+        'left_clavicle': (-8.0372, 11.9838), 'left_shoulder': (29.8165, 41.4077, 21.1502),
+        'left_elbow': (64.6488, 43.5971), 'left_wrist': (-8.0717, 8.2103),
     })
     human.KeyJoints(15.6, {
-        'spine_lumbar': (21.0211, 2.5098, 3.7115), 'spine_thoracic': (3.521, 0.6283, -10.0535),
-        'right_clavicle': (-2.7343, 4.5313), 'right_shoulder': (28.5194, -5.5584, 12.9657),
-        'right_elbow': (24.191, 31.1688), 'right_wrist': (-0.3925, -0.5194),
-        'left_clavicle': (-3.2708, 4.8439), 'left_shoulder': (17.3324, 20.1718, 15.3355),
-        'left_elbow': (46.419, 27.8201), 'left_wrist': (-3.2583, 3.2672),
+        'spine_lumbar': (20.7287, 2.5043, 3.6918), 'spine_thoracic': (3.5367, 0.5975, -10.0493),
+        'right_clavicle': (-2.7339, 4.5324), 'right_shoulder': (28.4901, -5.5787, 12.9379),
+        'right_elbow': (24.17, 31.1568), 'right_wrist': (-0.6912, -0.5162),
+        'left_clavicle': (-3.2708, 4.8439), 'left_shoulder': (17.3514, 20.1925, 15.3456),
+        'left_elbow': (46.4189, 27.8603), 'left_wrist': (-3.2766, 3.2894),
     })
-    human.KeyRoot(15.7, (1.631, 45.369, 45.759), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.7, (1.6, 45.427, 45.912), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (4.9469, -0.159, 3.7115), 'spine_thoracic': (0.8789, 0.0169, -10.0535),
-        'right_clavicle': (-0.0588, 0.0493), 'right_shoulder': (9.1311, 5.4416, 11.5234),
-        'right_elbow': (33.8801, 17.3409), 'right_wrist': (0.0293, -0.0919),
-        'left_clavicle': (-0.0703, 0.0527), 'left_shoulder': (8.9269, 5.9373, 11.4696),
-        'left_elbow': (34.2564, 17.3044), 'left_wrist': (-0.0655, 0.0109),
-        'right_hip': (20.3571, -0.0938, 0.16), 'right_knee': (130.3534,),
-        'right_ankle': (9.9967, 1.2716), 'left_hip': (20.3571, 0.0938, -0.16),
-        'left_knee': (130.3534,), 'left_ankle': (9.9967, -1.2716),
+        'spine_lumbar': (4.5212, -0.1668, 3.6918), 'spine_thoracic': (0.8175, -0.0091, -10.0493),
+        'right_clavicle': (-0.0588, 0.0493), 'right_shoulder': (9.1314, 5.4408, 11.5229),
+        'right_elbow': (33.877, 17.3408), 'right_wrist': (0.0231, -0.0924),
+        'left_clavicle': (-0.0703, 0.0527), 'left_shoulder': (8.9284, 5.9372, 11.4697),
+        'left_elbow': (34.2532, 17.3049), 'left_wrist': (-0.0657, 0.0107),
+        'right_hip': (20.1361, -0.0968, 0.1667), 'right_knee': (130.1324,),
+        'right_ankle': (9.9963, 1.3219), 'left_hip': (20.1361, 0.0968, -0.1667),
+        'left_knee': (130.1324,), 'left_ankle': (9.9963, -1.3219),
     })
-    human.KeyRoot(15.8, (1.62, 45.129, 45.115), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.8, (1.613, 45.179, 45.245), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (5.7275, 4.5349, 3.7115), 'spine_thoracic': (0.8846, 1.1002, -10.0535),
-        'right_shoulder': (8.6743, 5.6995, 11.484), 'right_elbow': (34.1555, 17.0642),
-        'left_clavicle': (0.0, -0.0432), 'left_shoulder': (8.7267, 5.6354, 11.3998),
-        'left_elbow': (34.0485, 17.094), 'right_hip': (21.2558, -0.2627, 0.4317),
-        'right_knee': (131.2519,), 'right_ankle': (9.9687, 3.466),
-        'left_hip': (21.2558, 0.2627, -0.4317), 'left_knee': (131.2519,),
-        'left_ankle': (9.9687, -3.466),
+        'spine_lumbar': (5.3611, 4.5954, 3.6918), 'spine_thoracic': (0.8895, 0.9539, -10.0493),
+        'right_shoulder': (8.6749, 5.6993, 11.4841), 'right_elbow': (34.1537, 17.0643),
+        'left_clavicle': (0.0, -0.0432), 'left_shoulder': (8.7274, 5.635, 11.3997),
+        'left_elbow': (34.0462, 17.0936), 'right_hip': (21.0717, -0.241, 0.399),
+        'right_knee': (131.0683,), 'right_ankle': (9.9737, 3.197),
+        'left_hip': (21.0717, 0.241, -0.399), 'left_knee': (131.0683,),
+        'left_ankle': (9.9737, -3.197),
     })
-    human.KeyRoot(15.9, (1.458, 44.767, 44.176), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.9, (1.542, 44.797, 44.263), (-10.4375, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'spine_lumbar': (6.9698, 16.5523, 3.7115), 'spine_thoracic': (0.1628, 5.333, -10.0535),
-        'right_clavicle': (0.0, -0.0314), 'right_hip': (22.5402, -0.7008, 1.0888),
-        'right_ankle': (9.7829, 8.904), 'left_hip': (22.5402, 0.7008, -1.0888),
-        'left_ankle': (9.7829, -8.904),
+        'spine_lumbar': (6.6794, 17.0554, 3.6918), 'spine_thoracic': (0.6559, 4.1087, -10.0493),
+        'right_clavicle': (0.0, -0.0314), 'right_hip': (22.4385, -0.5702, 0.8916),
+        'right_knee': (132.4216,), 'right_ankle': (9.8557, 7.2708),
+        'left_hip': (22.4385, 0.5702, -0.8916), 'left_knee': (132.4216,),
+        'left_ankle': (9.8557, -7.2708),
     })
-    human.KeyRoot(16.0, (0.987, 44.347, 43.128), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.0, (1.117, 44.289, 43.012), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.0, {
-        'spine_lumbar': (9.0039, 19.9999, 3.7115), 'spine_thoracic': (-3.356, 10.0, -10.0535),
-        'left_wrist': (0.0064, -0.0348), 'right_hip': (23.9161, -1.5698, 2.2555),
-        'right_knee': (133.8036,), 'right_ankle': (8.9971, 19.1009),
-        'left_hip': (23.9161, 1.5698, -2.2555), 'left_knee': (133.8036,),
-        'left_ankle': (8.9971, -19.1009),
+        'spine_lumbar': (9.1006, 19.9999, 3.6918), 'spine_thoracic': (-1.7906, 10.0, -10.0493),
+        'left_wrist': (0.006, -0.0337), 'right_hip': (24.116, -1.4281, 2.049),
+        'right_knee': (134.023,), 'right_ankle': (9.175, 17.3193),
+        'left_hip': (24.116, 1.4281, -2.049), 'left_knee': (134.023,),
+        'left_ankle': (9.175, -17.3193),
     })
-    human.KeyRoot(16.1, (-0.047, 44.36, 43.072), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.1, (-0.056, 44.345, 43.036), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.1, {
-        'spine_lumbar': (9.6033, 19.9999, 3.7115), 'spine_thoracic': (-11.0017, 10.0, -10.0535),
-        'left_elbow': (34.2323, 17.1572), 'right_hip': (23.749, -2.935, 3.9021),
-        'right_knee': (133.3969,), 'right_ankle': (6.6669, 35.0),
-        'left_hip': (24.2869, 1.3839, -1.6635), 'left_knee': (134.8801,),
-        'left_ankle': (7.2646, -25.0),
+        'spine_lumbar': (9.4486, 19.9999, 3.6918), 'spine_thoracic': (-9.0519, 10.0, -10.0493),
+        'right_hip': (23.7986, -2.956, 3.8939), 'right_knee': (133.4459,),
+        'right_ankle': (6.6675, 35.0), 'left_hip': (24.0691, -0.7739, 0.385),
+        'left_knee': (134.9753,), 'left_ankle': (8.3584, -19.1518),
     })
-    human.KeyRoot(16.2, (-0.233, 45.306, 45.373), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.2, (-0.125, 45.363, 45.533), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.2, {
-        'spine_lumbar': (-0.1816, 20.0, 3.7115), 'spine_thoracic': (-7.4053, 10.0, -10.0535),
+        'spine_lumbar': (0.4359, 20.0, 3.6918), 'spine_thoracic': (-6.8176, 10.0, -10.0493),
         'right_elbow': (34.3868, 17.1749), 'left_elbow': (34.3652, 17.1782),
-        'right_hip': (20.4392, -2.6258, 3.9693), 'right_knee': (130.1006,),
-        'right_ankle': (6.8503, 34.0276), 'left_hip': (30.6157, -19.4103, -4.856),
-        'left_knee': (132.6791,), 'left_ankle': (-14.4242, -6.5153),
+        'right_hip': (20.2401, -2.4457, 3.7759), 'right_knee': (129.9365,),
+        'right_ankle': (7.2053, 32.0176), 'left_hip': (25.4756, -20.7792, -4.841),
+        'left_knee': (132.2055,), 'left_ankle': (-1.6193, -1.63),
     })
-    human.KeyRoot(16.3, (0.094, 43.98, 42.243), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.3, (0.22, 43.903, 42.087), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.3, {
-        'spine_lumbar': (7.0486, 19.9999, 3.7115), 'spine_thoracic': (-6.8264, 10.0, -10.0535),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (24.9773, -2.9535, 3.7912),
-        'right_knee': (134.6367,), 'right_ankle': (6.7766, 34.4298),
-        'left_hip': (44.5896, -18.9587, 5.041), 'left_knee': (133.4666,),
-        'left_ankle': (-45.0495, 10.0425),
+        'spine_lumbar': (7.1974, 19.9999, 3.6918), 'spine_thoracic': (-5.5065, 10.0, -10.0493),
+        'left_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.2339, -2.8254, 3.6222),
+        'right_knee': (134.9226,), 'right_ankle': (7.075, 32.7679),
+        'left_hip': (46.2635, -19.6705, 3.0206), 'left_ankle': (-46.1125, -3.9767),
     })
-    human.KeyRoot(16.4, (0.065, 43.857, 41.982), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.4, (0.037, 43.856, 41.978), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (1.8817, 20.0, 3.7115), 'spine_thoracic': (-7.6389, 10.0, -10.0535),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.352, -3.0488, 3.817),
-        'right_knee': (135.0,), 'right_ankle': (6.6652, 35.0),
-        'left_hip': (72.2644, 4.7742, 37.9953), 'left_knee': (133.0901,),
-        'left_ankle': (-44.9546, 20.0257),
+        'spine_lumbar': (1.0426, 20.0, 3.6918), 'spine_thoracic': (-8.777, 10.0, -10.0493),
+        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.3497, -3.0913, 3.7923),
+        'right_knee': (134.9989,), 'right_ankle': (6.6838, 34.9249),
+        'left_hip': (83.4054, -21.5665, 31.5962), 'left_knee': (134.2358,),
+        'left_ankle': (-44.4749, -16.4177),
     })
-    human.KeyRoot(16.5, (-0.09, 44.516, 43.425), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.5, {
-        'spine_lumbar': (-5.2112, 20.0, 3.7115), 'spine_thoracic': (-6.919, 10.0, -10.0535),
-        'right_hip': (23.2323, -2.9083, 3.9259), 'right_knee': (132.8795,),
-        'right_ankle': (6.6697, 35.0), 'left_hip': (95.0031, -23.486, 27.5653),
-        'left_ankle': (-22.2599, 33.5551),
+        'spine_lumbar': (0.1608, 20.0, 3.6918), 'spine_thoracic': (-9.4483, 10.0, -10.0493),
+        'left_hip': (111.0054, -17.9352, 10.9203), 'left_ankle': (-37.1938, -23.1092),
     })
-    human.KeyRoot(16.6, (0.189, 43.873, 42.021), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.2897, 20.0, 3.7115), 'spine_thoracic': (-5.5136, 10.0, -10.0535),
-        'right_hip': (25.323, -2.8821, 3.6856), 'right_knee': (135.0,),
-        'right_ankle': (6.958, 33.4447), 'left_hip': (101.029, -23.6846, 14.6807),
-        'left_knee': (135.0,), 'left_ankle': (10.5775, 35.0),
+        'spine_lumbar': (-0.2941, 20.0, 3.6918), 'spine_thoracic': (-6.1495, 10.0, -10.0493),
+        'right_ankle': (6.671, 34.9956), 'left_hip': (118.7788, -9.3232, -17.4858),
+        'left_knee': (131.1876,), 'left_ankle': (-30.5164, -24.6699),
     })
-    human.KeyRoot(16.7, (0.052, 44.099, 42.497), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.7, (0.102, 43.861, 41.992), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-2.3337, 20.0, 3.7115), 'spine_thoracic': (-8.7281, 10.0, -10.0535),
-        'right_wrist': (0.0, 0.0), 'right_hip': (24.6002, -2.9455, 3.8297),
-        'right_knee': (134.2557,), 'right_ankle': (6.7377, 34.6413),
-        'left_hip': (91.8235, -2.1559, 5.1849), 'left_knee': (131.1981,),
-        'left_ankle': (18.5547, 5.4914),
+        'spine_lumbar': (-1.1036, 20.0, 3.6918), 'spine_thoracic': (-6.3414, 10.0, -10.0493),
+        'right_wrist': (0.0, 0.0), 'right_hip': (25.3455, -3.0019, 3.7962),
+        'right_ankle': (6.7252, 34.6959), 'left_hip': (100.9455, -9.4376, 9.1421),
+        'left_knee': (132.3865,), 'left_ankle': (-3.9024, 13.1225),
     })
-    human.KeyRoot(16.8, (1.83, 44.024, 42.528), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.8, (1.814, 44.016, 42.509), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-3.4195, 19.6876, 3.7115), 'spine_thoracic': (-1.061, 4.476, -10.0535),
-        'right_hip': (24.9946, -0.612, 0.869), 'right_knee': (134.9778,),
-        'right_ankle': (9.8545, 7.3025), 'left_hip': (91.6047, -0.4077, 1.0635),
-        'left_knee': (130.8889,), 'left_ankle': (19.9208, 1.1652),
+        'spine_lumbar': (-3.512, 19.6698, 3.6918), 'spine_thoracic': (-1.0222, 3.9841, -10.0493),
+        'right_hip': (25.0182, -0.6376, 0.9042), 'right_ankle': (9.8421, 7.6023),
+        'left_hip': (100.2915, -1.5913, 1.7244), 'left_knee': (132.4902,),
+        'left_ankle': (-0.2121, 2.4351),
     })
-    human.KeyRoot(16.9, (1.969, 44.174, 42.718), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.4375, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-4.4129, 10.0194, 3.7115), 'spine_thoracic': (-0.919, 1.8086, -10.0535),
-        'right_hip': (24.713, -0.3882, 0.5616), 'right_knee': (134.6516,),
-        'right_ankle': (10.0159, 4.6599), 'left_hip': (91.3297, -0.2552, 0.6702),
-        'left_knee': (130.846,), 'left_ankle': (20.0, 0.7477),
+        'spine_lumbar': (-3.8061, 9.8082, 3.6918), 'spine_thoracic': (-0.8213, 1.771, -10.0493),
+        'right_hip': (25.037, -0.3969, 0.5677), 'right_ankle': (10.0635, 4.8329),
+        'left_hip': (98.8707, -0.8115, 0.9994), 'left_knee': (132.2972,),
+        'left_ankle': (3.2206, 1.3348),
     })
-    human.KeyRoot(17.0, (2.479, 48.758, 41.414), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.0, (2.995, 46.839, 37.706), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (-2.6886, 9.9168, 3.7115), 'spine_thoracic': (-0.6076, 1.7896, -10.0535),
-        'right_hip': (23.7721, -0.4426, 0.9468), 'right_knee': (129.384,),
-        'right_ankle': (14.2805, 4.513), 'left_hip': (85.5961, -0.014, 0.0457),
-        'left_knee': (123.2257,), 'left_ankle': (20.0, 0.0311),
+        'spine_lumbar': (8.7853, 9.365, 3.6918), 'spine_thoracic': (1.3119, 1.6821, -10.0493),
+        'right_hip': (29.2694, -0.4935, 0.8351), 'right_knee': (134.9996,),
+        'right_ankle': (14.452, 5.0404), 'left_hip': (92.4332, -0.1699, 0.4135),
+        'left_knee': (123.2998,), 'left_ankle': (11.6435, 0.4344),
     })
-    human.KeyRoot(17.1, (4.353, 60.044, 36.731), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (7.4095, 10.7173, 3.7115), 'spine_thoracic': (1.126, 1.9178, -10.0535),
-        'right_hip': (23.4249, -0.2176, 1.9941), 'right_knee': (115.0659,),
-        'right_ankle': (18.3213, 3.9598), 'left_hip': (71.0692, -0.2352, -1.1491),
-        'left_knee': (99.7663,), 'left_ankle': (20.0, -1.1781),
+        'spine_lumbar': (28.0974, 9.1749, 3.6918), 'spine_thoracic': (4.2104, 1.6031, -10.0493),
+        'right_hip': (34.6699, -0.4626, 1.2496), 'right_knee': (128.6567,),
+        'right_ankle': (18.3394, 2.0379), 'left_hip': (79.247, -0.0798, -0.6084),
+        'left_knee': (101.5648,), 'left_ankle': (19.0325, -0.6204),
     })
-    human.KeyRoot(17.2, (5.16, 82.147, 44.193), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.2, (5.498, 71.895, 36.148), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (-17.6528, 14.0464, 3.7115), 'spine_thoracic': (-3.9438, 2.4695, -10.0535),
-        'right_hip': (5.6534, 1.0327, 3.7288), 'right_knee': (70.2646,),
-        'right_ankle': (-4.287, 7.439), 'left_hip': (34.199, -1.9572, -1.3529),
-        'left_knee': (50.6127,), 'left_ankle': (15.9727, -2.3563),
+        'spine_lumbar': (3.6925, 10.7966, 3.6918), 'spine_thoracic': (0.524, 1.9456, -10.0493),
+        'right_hip': (17.3038, 0.422, 2.3778), 'right_knee': (94.2054,),
+        'right_ankle': (14.2656, 2.4695), 'left_hip': (52.9399, -1.05, -1.4258),
+        'left_knee': (72.5328,), 'left_ankle': (18.9078, -1.7744),
     })
-    human.KeyRoot(17.3, (6.729, 89.733, 42.642), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.3, (6.834, 85.806, 36.181), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (-15.1024, 15.271, 3.7115), 'spine_thoracic': (-5.6178, 2.5299, -10.0535),
-        'right_hip': (1.7469, 1.6625, 4.641), 'right_knee': (54.184,),
-        'right_ankle': (-16.0154, 7.1466), 'left_hip': (12.4445, -2.9561, -0.652),
-        'left_knee': (5.4216,), 'left_ankle': (-7.0063, -3.027),
+        'spine_lumbar': (0.0867, 12.084, 3.6918), 'spine_thoracic': (-0.3018, 2.1603, -10.0493),
+        'right_hip': (10.1432, 1.0684, 3.358), 'right_knee': (67.8135,),
+        'right_ankle': (-4.6864, 3.6721), 'left_hip': (28.72, -2.1085, -1.1549),
+        'left_knee': (28.7198,), 'left_ankle': (0.0213, -2.4039),
     })
-    human.KeyRoot(17.4, (6.535, 90.524, 48.742), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.4, (6.21, 90.189, 45.35), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-30.0, 15.4466, 3.7115), 'spine_thoracic': (-15.0, 1.8795, -10.0535),
-        'right_hip': (-9.9319, 2.745, 3.8813), 'right_knee': (39.6685,),
-        'right_ankle': (-15.0036, 5.2796), 'left_hip': (7.8868, -3.5889, -0.4968),
-        'left_knee': (4.5885,), 'left_ankle': (-3.2825, -3.6233),
+        'spine_lumbar': (-27.2381, 13.4028, 3.6918), 'spine_thoracic': (-7.2316, 2.2707, -10.0493),
+        'right_hip': (-6.1745, 2.175, 3.1919), 'right_knee': (44.5724,),
+        'right_ankle': (-11.1117, 3.8257), 'left_hip': (10.1434, -2.9503, -0.5276),
+        'left_knee': (4.6118,), 'left_ankle': (-5.5179, -2.9971),
     })
-    human.KeyRoot(17.5, (6.862, 90.65, 56.189), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.5, (7.348, 90.212, 55.24), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-26.0971, 10.8431, 3.7115), 'spine_thoracic': (-10.2765, 1.7776, -10.0535),
-        'right_hip': (-12.9906, 3.0038, 7.4271), 'right_knee': (35.2448,),
-        'right_ankle': (-31.6591, 8.6012), 'left_hip': (4.7394, -4.7389, -0.3924),
-        'left_knee': (8.2806,), 'left_ankle': (3.5573, -4.755),
+        'spine_lumbar': (-26.0205, 11.8315, 3.6918), 'spine_thoracic': (-7.1367, 2.0216, -10.0493),
+        'right_hip': (-11.8242, 3.1814, 7.2721), 'right_knee': (37.7024,),
+        'right_ankle': (-28.3151, 8.7396), 'left_hip': (8.1653, -4.9382, -0.7076),
+        'left_knee': (13.8221,), 'left_ankle': (5.6874, -4.9887),
     })
-    human.KeyRoot(17.6, (8.171, 89.983, 62.13), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.6, (9.086, 89.367, 62.809), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (21.3013, -2.9107, 3.7115), 'spine_thoracic': (3.3078, -0.5114, -10.0535),
-        'right_hip': (-14.9842, 2.3362, 14.0966), 'right_knee': (31.1571,),
-        'right_ankle': (-49.3323, 6.3831), 'left_hip': (3.1642, -6.3984, -0.353),
-        'left_knee': (12.899,), 'left_ankle': (9.7547, -6.4082),
+        'spine_lumbar': (19.9925, 0.1363, 3.6918), 'spine_thoracic': (3.1973, 0.0265, -10.0493),
+        'right_hip': (-14.8588, 2.4462, 15.7662), 'right_knee': (32.1432,),
+        'right_ankle': (-48.9201, 8.0278), 'left_hip': (5.1293, -7.1276, -0.6381),
+        'left_knee': (17.6237,), 'left_ankle': (12.5341, -7.156),
     })
-    human.KeyRoot(17.7, (7.948, 90.083, 62.541), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.7, (9.056, 89.807, 63.334), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (24.8265, -4.8663, 3.7115), 'spine_thoracic': (3.7199, -0.846, -10.0535),
-        'right_hip': (-14.2723, 3.6412, 8.9506), 'right_knee': (39.3397,),
-        'right_ankle': (-27.9827, 7.3165), 'left_hip': (2.1714, -6.2971, -0.2383),
-        'left_knee': (11.495,), 'left_ankle': (9.3366, -6.3015),
+        'spine_lumbar': (23.0494, -1.1397, 3.6918), 'spine_thoracic': (3.4266, -0.1952, -10.0493),
+        'right_hip': (-14.6151, 3.8998, 10.07), 'right_knee': (39.2594,),
+        'right_ankle': (-28.9032, 7.5229), 'left_hip': (2.3618, -7.1575, -0.2944),
+        'left_knee': (12.6946,), 'left_ankle': (10.3512, -7.1637),
     })
-    human.KeyRoot(17.8, (7.427, 90.597, 59.588), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.8, (9.478, 90.433, 59.387), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (35.1302, -8.5509, 3.7115), 'spine_thoracic': (5.0249, -1.4562, -10.0535),
-        'right_hip': (-12.8469, 5.417, 1.1303), 'right_knee': (28.8884,),
-        'right_ankle': (17.9978, 5.6154), 'left_hip': (1.747, -5.551, -0.169),
-        'left_knee': (6.6933,), 'left_ankle': (4.9538, -5.5532),
+        'spine_lumbar': (39.931, -2.8941, 3.6918), 'spine_thoracic': (5.2971, -0.4772, -10.0493),
+        'right_hip': (-13.8826, 6.9803, 1.0333), 'right_knee': (26.0799,),
+        'right_ankle': (18.2502, 7.1578), 'left_hip': (1.6557, -6.9047, -0.1991),
+        'left_knee': (5.7043,), 'left_ankle': (4.0604, -6.9077),
     })
-    human.KeyRoot(17.9, (5.795, 90.661, 62.035), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.9, (7.866, 90.637, 59.089), (-10.4375, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (19.4139, -12.2223, 3.7115), 'spine_thoracic': (3.071, -2.1681, -10.0535),
-        'right_hip': (-2.6872, 5.04, -0.3232), 'right_knee': (16.4346,),
-        'right_ankle': (20.0, 6.0159), 'left_hip': (-1.0985, -4.76, 0.0912), 'left_knee': (4.6598,),
-        'left_ankle': (5.7507, -4.7593),
+        'spine_lumbar': (28.0523, -7.7182, 3.6918), 'spine_thoracic': (4.2627, -1.3451, -10.0493),
+        'right_hip': (4.5713, 6.0657, 0.5219), 'right_knee': (24.9366,),
+        'right_ankle': (20.0, 6.2925), 'left_hip': (1.3603, -5.7803, -0.137),
+        'left_knee': (5.1076,), 'left_ankle': (3.7537, -5.7817),
     })
-    human.KeyRoot(18.0, (4.142, 90.648, 61.364), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(18.0, (4.368, 90.602, 61.681), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.0, {
-        'spine_lumbar': (16.5431, -15.9286, 3.7115), 'spine_thoracic': (2.5951, -2.8374, -10.0535),
-        'right_hip': (0.9958, 3.5719, 0.062), 'right_knee': (8.4419,),
-        'right_ankle': (7.4481, 3.5724), 'left_hip': (0.9958, -3.5719, -0.062),
-        'left_knee': (8.4419,), 'left_ankle': (7.4481, -3.5724),
+        'spine_lumbar': (15.545, -15.0788, 3.6918), 'spine_thoracic': (2.4531, -2.691, -10.0493),
+        'right_hip': (0.9287, 3.7642, 0.061), 'right_knee': (8.6842,),
+        'right_ankle': (7.7575, 3.7647), 'left_hip': (0.9287, -3.7642, -0.061),
+        'left_knee': (8.6842,), 'left_ankle': (7.7575, -3.7647),
     })
-    human.KeyRoot(18.1, (1.014, 91.055, 56.572), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(18.1, (0.997, 91.055, 56.584), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.1, {
-        'spine_lumbar': (7.3566, -7.1821, 3.7115), 'spine_thoracic': (1.2522, -1.2994, -10.0535),
-        'right_hip': (2.4087, 0.8722, 0.0367), 'right_knee': (5.5475,),
-        'right_ankle': (3.1391, 0.873), 'left_hip': (2.4087, -0.8722, -0.0367),
-        'left_knee': (5.5475,), 'left_ankle': (3.1391, -0.873),
+        'spine_lumbar': (7.3226, -7.2363, 3.6918), 'spine_thoracic': (1.2426, -1.3089, -10.0493),
+        'right_hip': (2.3997, 0.8622, 0.0361), 'right_knee': (5.5501,),
+        'right_ankle': (3.1506, 0.8629), 'left_hip': (2.3997, -0.8622, -0.0361),
+        'left_knee': (5.5501,), 'left_ankle': (3.1506, -0.8629),
     })
     human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.175969, {
-        'spine_lumbar': (0.0, 0.0, 3.7115), 'spine_thoracic': (0.0, 0.0, -10.0535),
-        'neck': (24.2045, -10.1978, 26.9094), 'head': (13.1767, 11.1162),
+        'spine_lumbar': (0.0, 0.0, 3.6918), 'spine_thoracic': (0.0, 0.0, -10.0493),
+        'neck': (24.2056, -10.2028, 26.9082), 'head': (13.1813, 11.117),
         'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
         'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),

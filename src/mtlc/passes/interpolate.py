@@ -18,10 +18,11 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import PchipInterpolator
 
 from mtlc.body import forward, site_positions
-from mtlc.ir.model import Frames, MotionIR, yaw_quaternion
+from mtlc.ir.model import FloatArray, Frames, MotionIR, yaw_quaternion
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 
 FOOT_POINTS = (
@@ -42,7 +43,7 @@ def time_grid(duration: float, fps: float) -> np.ndarray:
     return grid if grid[-1] >= duration - 1e-9 else np.append(grid, duration)
 
 
-def track(times: list[float], values: list[np.ndarray], grid: np.ndarray) -> np.ndarray:
+def track(times: ArrayLike, values: ArrayLike, grid: np.ndarray) -> np.ndarray:
     """Values on ``grid`` through keyframes, holding before the first and after the last."""
     t = np.asarray(times)
     v = np.asarray(values)
@@ -71,27 +72,47 @@ def interpolate_joints(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
     """
     skel = ir.skeleton
     rest = np.asarray(skel.q_comfort, dtype=float)
-    keys: dict[int, list[tuple[float, int, float, bool]]] = {}
+    # per dof, its keyframe columns: (times, segment order, values)
+    columns: dict[int, list[tuple[FloatArray, int, FloatArray]]] = {}
     for order, seg in enumerate(ir.segments):
         kf = seg.keyframes
         if kf is None or not kf.dofs:
             continue
-        idx = [skel.dof_index(d) for d in kf.dofs]
-        for k, t in enumerate(kf.time):
-            for j, d in enumerate(idx):
-                keys.setdefault(d, []).append((float(t), order, float(kf.q[k, j]), k == 0))
+        t = np.asarray(kf.time, dtype=float)
+        for j, name in enumerate(kf.dofs):
+            columns.setdefault(skel.dof_index(name), []).append((t, order, kf.q[:, j]))
     q = np.tile(rest, (len(grid), 1))
-    for d, entries in keys.items():
-        entries.sort(key=lambda e: (e[0], e[1]))
-        ts, vs = [0.0], [rest[d]]
-        for t, _, v, first in entries:
-            if first and t - ts[-1] > 2 * HOLD_EPS:
-                ts.append(t - HOLD_EPS)  # hold until the next segment takes over
-                vs.append(vs[-1])
-            ts.append(t)
-            vs.append(v)
-        q[:, d] = track(ts, vs, grid)
+    curves: dict[bytes, tuple[FloatArray, list[int], list[FloatArray]]] = {}
+    for d, parts in columns.items():
+        ts, vs = _held_curve(parts, float(rest[d]))
+        _, dofs, values = curves.setdefault(ts.tobytes(), (ts, [], []))
+        dofs.append(d)
+        values.append(vs)
+    for ts, dofs, values in curves.values():  # dofs keyed at the same times: one spline
+        q[:, dofs] = track(ts, np.stack(values, axis=1), grid)
     return q
+
+
+def _held_curve(
+    parts: list[tuple[FloatArray, int, FloatArray]], rest: float
+) -> tuple[FloatArray, FloatArray]:
+    """One dof's knots: from ``rest`` at 0 through its keyframes in time order (at equal times
+    in segment order), with a hold just before each segment's first keyframe."""
+    t = np.concatenate([p[0] for p in parts])
+    order = np.concatenate([np.full(len(p[0]), p[1]) for p in parts])
+    v = np.concatenate([np.asarray(p[2], dtype=float) for p in parts])
+    first = np.concatenate([np.arange(len(p[0])) == 0 for p in parts])
+    by = np.lexsort((order, t))
+    t, v, first = t[by], v[by], first[by]
+    before_t = np.concatenate([[0.0], t[:-1]])
+    before_v = np.concatenate([[rest], v[:-1]])
+    hold = first & (t - before_t > 2 * HOLD_EPS)  # hold until the next segment takes over
+    # knot 2k is entry k's hold (if any), knot 2k + 1 the entry itself
+    slot = np.concatenate([[-1], np.flatnonzero(hold) * 2, np.arange(len(t)) * 2 + 1])
+    knots_t = np.concatenate([[0.0], t[hold] - HOLD_EPS, t])
+    knots_v = np.concatenate([[rest], before_v[hold], v])
+    by = np.argsort(slot, kind="stable")
+    return knots_t[by], knots_v[by]
 
 
 def interpolate_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -205,6 +205,7 @@ class _Plan:
     prefix: NDArray[np.intp]  # (D,) dof k's rotations before it: 0 (none), 1 + J·(slot-1) + joint
     dof_parent: NDArray[np.intp]  # (D,) its joint's parent + 1 (0: the root's base frame)
     levels: tuple[tuple[NDArray[np.intp], NDArray[np.intp]], ...]  # (joints, parents), depth ≥ 1
+    chains: NDArray[np.intp]  # (depth + 1, J): each joint's path from the root; J: the identity
 
 
 def _plan(skel: Skeleton) -> _Plan:
@@ -228,6 +229,12 @@ def _plan(skel: Skeleton) -> _Plan:
         (joints, skel.parent[joints])
         for joints in (np.flatnonzero(depth == d) for d in range(1, int(depth.max(initial=0)) + 1))
     )
+    chains = np.full((int(depth.max(initial=0)) + 1, nj), nj, dtype=np.intp)
+    for j in range(nj):
+        k = j
+        while k >= 0:
+            chains[depth[k], j] = k
+            k = int(skel.parent[k])
     K = np.concatenate([skew(skel.dof_axis), np.zeros((1, 3, 3))])
     KK = K @ K
     plan = _Plan(
@@ -236,6 +243,7 @@ def _plan(skel: Skeleton) -> _Plan:
         prefix,
         skel.parent[skel.dof_joint] + 1,
         levels,
+        chains,
     )
     skel.__dict__["_fk_plan"] = plan
     return plan
@@ -249,6 +257,7 @@ def _homogeneous(R: FloatArray, p: FloatArray) -> FloatArray:
     return T
 
 
+CHAIN_BATCH = 8  # configurations up to which joints are placed by their paths, not by levels
 FK_CHUNK = 48  # configurations a chunk: temporaries stay small (fresh large ones page-fault)
 
 
@@ -304,8 +313,14 @@ def _forward_flat(
     W[..., :3, 3] = skel.offsets[:, None]
     W[..., 3, :] = (0.0, 0.0, 0.0, 1.0)
     W[0] = _homogeneous(RR, rp) @ W[0]
-    for joints, parents in plan.levels:
-        W[joints] = W[parents] @ W[joints]
+    if n <= CHAIN_BATCH:  # a few numpy calls over every joint's path at once
+        L = np.concatenate([W, np.broadcast_to(np.eye(4), (1, n, 4, 4))])[plan.chains]
+        W = L[0]
+        for link in L[1:]:
+            W = W @ link  # the same products, in the same order, as level by level
+    else:  # a large batch: each product once (a path's padding would multiply it)
+        for joints, parents in plan.levels:
+            W[joints] = W[parents] @ W[joints]
     if not with_axes:
         none = np.empty((n, 0, 3))
         return W[..., :3, :3].transpose(1, 0, 2, 3), W[..., :3, 3].transpose(1, 0, 2), none

@@ -25,13 +25,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from mtlc.body import center_of_mass, forward, site_positions
-from mtlc.body.kinematics import com_jacobian, cross
+from mtlc.body.kinematics import cross, segment_coms
+from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray
 from mtlc.metrics import CONTACT_TOL
 
@@ -121,6 +122,40 @@ class Targets:
     linear: Any = field(default=None, repr=False, compare=False)
 
 
+LOWER_JOINTS = ("pelvis", "lumbar", "thorax", "r_hip", "r_knee", "r_ankle", "l_hip", "l_knee",
+                "l_ankle")  # fmt: skip
+
+
+def lower_body(skel: Skeleton, q_base: FloatArray) -> Skeleton:
+    """The manikin the kneel's solve runs on: the joints it moves (``LOWER_JOINTS``), with the
+    head and arms, which keep their ``q_base`` angles, one rigid body with the thorax (their
+    mass and centre of mass lumped into its segment, their sites moved onto its frame). The
+    same points and centre of mass as ``skel`` for any state; 9 joints 4 deep instead of 19
+    joints 7 deep, which is what a frame's forward kinematics costs."""
+    pose = forward(skel, np.asarray(q_base, dtype=float)[None])
+    th = skel.joint_index("thorax")
+    R, p = pose.R[0, th], pose.p[0, th]
+    rigid = skel.ancestor[:, th]  # the thorax and every joint below it
+    mass = float(skel.masses[rigid].sum())
+    com = R.T @ (skel.masses[rigid] @ segment_coms(skel, pose)[0, rigid] / mass - p)
+    joints = [
+        replace(j, mass=mass, com=tuple(com)) if j.name == "thorax" else j
+        for j in skel.joints
+        if j.name in LOWER_JOINTS
+    ]
+    sites = []
+    for site in skel.sites:
+        if site.joint in LOWER_JOINTS:
+            sites.append(site)
+            continue
+        j = skel.joint_index(site.joint)
+        Rj, pj = pose.R[0, j], pose.p[0, j]
+        where = R.T @ (pj + Rj @ np.asarray(site.offset) - p)
+        direction = None if site.direction is None else tuple(R.T @ Rj @ site.direction)
+        sites.append(replace(site, joint="thorax", offset=tuple(where), direction=direction))
+    return Skeleton(tuple(joints), tuple(sites), comfort=dict(skel.comfort))
+
+
 class Body:
     """The whole-body IK's model: which dofs move, limits, and the residual of one frame."""
 
@@ -136,16 +171,25 @@ class Body:
         # the points a target can name: the joint each rides on and its offset there
         names = (*GROUND_SITES, *KNEE_POINTS)
         self.points = {n: i for i, n in enumerate(names)}
+        self.n_named = len(names)  # the points a target names; the centre of mass after them
+        # what ``kinematics`` runs on: the joints the kneel moves, the rest rigid on the thorax
+        small = lower_body(skel, self.q_base)
+        self.small = small
+        self.small_base = np.array([self.q_base[skel.dof_index(n)] for n in small.dof_names])
+        self.small_cols = np.array([small.dof_index(skel.dof_names[i]) for i in self.idx])
         self.point_joint = np.array(
-            [skel.joint_index(n[6:] if n.startswith("joint:") else skel.site(n).joint)
+            [small.joint_index(n[6:] if n.startswith("joint:") else small.site(n).joint)
              for n in names]
         )  # fmt: skip
         self.point_offset = np.array(
-            [np.zeros(3) if n.startswith("joint:") else skel.site(n).offset for n in names],
+            [np.zeros(3) if n.startswith("joint:") else small.site(n).offset for n in names],
             dtype=float,
         )
-        self.moves = skel.ancestor[self.point_joint][:, skel.dof_joint[self.idx]]  # (P, V)
-        self.n_named = len(names)  # the points a target names; the centre of mass after them
+        self.dof_joint = small.dof_joint[self.small_cols]  # (V,) the joint each variable turns
+        self.moves = small.ancestor[self.point_joint][:, self.dof_joint]  # (P, V)
+        below = small.ancestor[:, self.dof_joint].T  # (V, J): segment j moves with variable v
+        self.mass_below = below * small.masses  # (V, J)
+        self.carried = (below @ small.masses)[:, None]  # (V, 1): the mass each variable turns
         self.ground_lift = np.zeros(len(names))  # the barrier's height of each named point
         self.ground_lift[len(GROUND_SITES) :] = KNEE_HEIGHT - 0.002  # knees: as kneeling
 
@@ -275,24 +319,30 @@ class Body:
     def kinematics(self, x: FloatArray, com: bool = True) -> tuple[FloatArray, FloatArray]:
         """Points (F, P + 1, 3) of states ``x`` (F, n): the named points, then the centre of
         mass (zeros unless ``com``); and their Jacobians (F, P + 1, 3, n), from one forward
-        kinematics call: a point's column for a dof is ``axis × (point − joint)``, the root's
-        the identity."""
+        kinematics call on ``small``: a point's column for a variable is ``axis × (point −
+        joint)``, the CoM's ``axis × (Σ m c − M_v · joint) / M`` over the segments the variable
+        turns (M_v their mass), the root's the identity."""
         f, n = x.shape
-        skel, m = self.skel, self.n_named
-        pose = forward(skel, self.q_of(x), x[:, :3])
+        small, m = self.small, self.n_named
+        q = np.tile(self.small_base, (f, 1))
+        q[:, self.small_cols] = x[:, 3:]
+        pose = forward(small, q, x[:, :3])
         pts = np.zeros((f, m + 1, 3))
         pts[:, :m] = pose.p[:, self.point_joint] + np.einsum(
             "fpab,pb->fpa", pose.R[:, self.point_joint], self.point_offset
         )
-        axes, origins = pose.axes[:, self.idx], pose.p[:, skel.dof_joint[self.idx]]
+        axes, origins = pose.axes[:, self.small_cols], pose.p[:, self.dof_joint]
+        arms = np.zeros((f, m + 1, n - 3, 3))  # what each axis turns about its joint
+        arms[:, :m] = (pts[:, :m, None] - origins[:, None]) * self.moves[..., None]
         jac = np.zeros((f, m + 1, 3, n))
         jac[:, :m, :, :3] = np.eye(3)
-        cols = cross(axes[:, None], pts[:, :m, None] - origins[:, None]) * self.moves[..., None]
-        jac[:, :m, :, 3:] = np.swapaxes(cols, 2, 3)  # (F, P, V, 3) -> (F, P, 3, V)
         if com:
-            pts[:, m] = center_of_mass(skel, pose)
+            segments = pose.p + np.einsum("fjab,jb->fja", pose.R, small.coms)
+            total = small.total_mass
+            pts[:, m] = np.einsum("j,fja->fa", small.masses, segments) / total
+            arms[:, m] = (self.mass_below @ segments - self.carried * origins) / total
             jac[:, m, :, :3] = np.eye(3)
-            jac[:, m, :, 3:] = com_jacobian(skel, pose)[..., self.idx]
+        jac[:, :, :, 3:] = np.swapaxes(cross(axes[:, None], arms), 2, 3)
         return pts, jac
 
     def barrier(self, pts: FloatArray, jac: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -314,26 +364,23 @@ class Body:
             return tg.linear  # type: ignore[no-any-return]
         n, m = 3 + len(self.idx), self.n_named
         width = 3 * (m + 1)
-        A: list[FloatArray] = []
-        a: list[float] = []
-
-        def row(coefs: dict[tuple[int, int], float], value: float) -> None:
-            r = np.zeros(width)
-            for (point, axis), c in coefs.items():
-                r[3 * point + axis] += c
-            A.append(r)
-            a.append(value)
-
-        for name, target, w in tg.points:
-            for axis in range(3):
-                row({(self.points[name], axis): w}, w * float(target[axis]))
+        # a target point: three rows, w at the point's coordinate
+        k = len(tg.points)
+        point = np.repeat(np.array([self.points[p[0]] for p in tg.points], dtype=np.intp), 3)
+        weight = np.repeat(np.array([p[2] for p in tg.points], dtype=float), 3)
+        A = np.zeros((3 * k + 2 * len(tg.level) + 2 * (tg.com is not None), width))
+        A[np.arange(3 * k), 3 * point + np.tile(np.arange(3), k)] = weight
+        a = [weight * np.array([p[1] for p in tg.points], dtype=float).reshape(3 * k)]
+        r = 3 * k
         for side in tg.level:
             toe, heel, med, lat = (self.points[f"{side}_{n}"] for n in SOLE)
-            row({(med, 1): LEVEL_W, (lat, 1): -LEVEL_W}, 0.0)
-            row({(toe, 0): PLANT_W, (heel, 0): -PLANT_W}, 0.0)
+            A[r, [3 * med + 1, 3 * lat + 1]] = LEVEL_W, -LEVEL_W  # level across
+            A[r + 1, [3 * toe, 3 * heel]] = PLANT_W, -PLANT_W  # toe and heel on one line
+            a.append(np.zeros(2))
+            r += 2
         if tg.com is not None:
-            row({(m, 0): tg.com_w}, tg.com_w * float(tg.com[0]))
-            row({(m, 2): tg.com_w}, tg.com_w * float(tg.com[1]))
+            A[r, 3 * m], A[r + 1, 3 * m + 2] = tg.com_w, tg.com_w
+            a.append(tg.com_w * np.asarray(tg.com, dtype=float))
         eye = np.eye(n)
         scale = np.full(n, tg.smooth)
         scale[:3] *= ROOT_SMOOTH
@@ -350,10 +397,7 @@ class Body:
             w = np.where(free, 0.0, tg.nominal_w)
             B.append(w[:, None] * eye[3:])
             b.append(w * np.where(free, 0.0, np.nan_to_num(tg.nominal)))
-        tg.linear = (
-            np.array(A).reshape(-1, width), np.array(a), np.concatenate(B), np.concatenate(b),
-            scale,
-        )  # fmt: skip
+        tg.linear = (A, np.concatenate(a), np.concatenate(B), np.concatenate(b), scale)
         return tg.linear  # type: ignore[no-any-return]
 
     def _stacked_rows(self, tgs: list[Targets]) -> tuple[FloatArray, ...]:

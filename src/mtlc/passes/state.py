@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from bisect import bisect_right
 from collections.abc import Callable, Collection
-from itertools import repeat
 from typing import Any
 
 import numpy as np
@@ -26,8 +25,9 @@ from mtlc.body import forward, site_positions
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.passes.interpolate import anchored_root, gait_window, keyed_windows, track
 
-# (time, segment id, keyframes, row, column); column −1 for a posture root height
-_Ref = tuple[float, int, Keyframes, int, int]
+# a keyframe column: (segment id, keyframes, column); column −1 for a posture root height
+_Block = tuple[int, Keyframes, int]
+ROW_BITS = 24  # a reference is block << ROW_BITS | row: the index holds ints, not tuples
 # the segment(s) whose keyframes a query ignores
 Skip = Segment | Collection[Segment] | None
 
@@ -50,10 +50,11 @@ class PoseState:
         self.skel = skel
         self.rest = np.asarray(skel.q_comfort, dtype=float)
         self.stand_y = ir.ground + float(np.asarray(skel.root_position)[1])
+        self._blocks: list[_Block] = []
         self._t: list[list[float]] = [[] for _ in range(skel.n_dofs)]
-        self._r: list[list[_Ref]] = [[] for _ in range(skel.n_dofs)]
+        self._r: list[list[int]] = [[] for _ in range(skel.n_dofs)]
         self._rt: list[float] = []
-        self._rr: list[_Ref] = []
+        self._rr: list[int] = []
         for seg in ir.segments:
             if seg.keyframes is not None:
                 self.add(seg)
@@ -72,31 +73,33 @@ class PoseState:
         sid = id(seg)
         times = np.asarray(kf.time, dtype=float).tolist()
         ordered = bool(np.all(np.diff(kf.time) >= 0.0))
-        for c, name in enumerate(kf.dofs):
-            d = self.skel.dof_index(name)
-            ts, refs = self._t[d], self._r[d]
+        columns = [(self.skel.dof_index(name), c) for c, name in enumerate(kf.dofs)]
+        if seg.kind == "posture" and kf.root_position is not None:
+            columns.append((-1, -1))
+        for d, c in columns:
+            ts, refs = (self._t[d], self._r[d]) if d >= 0 else (self._rt, self._rr)
+            code = len(self._blocks) << ROW_BITS
+            self._blocks.append((sid, kf, c))
             if ordered and (not ts or times[0] >= ts[-1]):  # all after the rest: append
                 ts.extend(times)
-                refs.extend(zip(times, repeat(sid), repeat(kf), range(len(times)), repeat(c)))
+                refs.extend(range(code, code + len(times)))
                 continue
             for row, t in enumerate(times):
                 i = bisect_right(ts, t)
                 ts.insert(i, t)
-                refs.insert(i, (t, sid, kf, row, c))
-        if seg.kind == "posture" and kf.root_position is not None:
-            for row, t in enumerate(kf.time):
-                i = bisect_right(self._rt, float(t))
-                self._rt.insert(i, float(t))
-                self._rr.insert(i, (float(t), sid, kf, row, -1))
+                refs.insert(i, code + row)
 
-    @staticmethod
     def _latest(
-        times: list[float], refs: list[_Ref], t: float, skip: frozenset[int]
-    ) -> _Ref | None:
+        self, times: list[float], refs: list[int], t: float, skip: frozenset[int]
+    ) -> tuple[Keyframes, int, int] | None:
+        """The keyframe that sets a value at ``t``: (keyframes, row, column)."""
         i = bisect_right(times, t + 1e-9) - 1
-        while i >= 0 and refs[i][1] in skip:
+        while i >= 0:
+            sid, kf, c = self._blocks[refs[i] >> ROW_BITS]
+            if sid not in skip:
+                return kf, refs[i] & ((1 << ROW_BITS) - 1), c
             i -= 1
-        return refs[i] if i >= 0 else None
+        return None
 
     def q_at(self, t: float, skip: Skip = None) -> FloatArray:
         """Every dof at time ``t`` (after the keyframes at ``t``), ignoring the ``skip`` segment(s)."""
@@ -105,7 +108,7 @@ class PoseState:
         for d in range(len(q)):
             ref = self._latest(self._t[d], self._r[d], t, sid)
             if ref is not None:
-                q[d] = ref[2].q[ref[3], ref[4]]
+                q[d] = ref[0].q[ref[1], ref[2]]
         return q
 
     def height_at(self, t: float, skip: Skip = None) -> float:
@@ -113,9 +116,9 @@ class PoseState:
         ref = self._latest(self._rt, self._rr, t, _skip_ids(skip))
         if ref is None:
             return self.stand_y
-        rp = ref[2].root_position
+        rp = ref[0].root_position
         assert rp is not None
-        return float(rp[ref[3], 1])
+        return float(rp[ref[1], 1])
 
     def root_at(self, t: float, skip: Skip = None) -> tuple[FloatArray, FloatArray]:
         """Root position and rotation (w first) at ``t``: the plan's ground position and heading,

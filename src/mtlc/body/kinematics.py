@@ -183,14 +183,20 @@ def _root_inputs(
     root_rotation: ArrayLike | None,
 ) -> tuple[FloatArray, FloatArray]:
     rp = skel.root_position if root_position is None else np.asarray(root_position, dtype=float)
-    rp = np.broadcast_to(rp, (*batch, 3))
+    if rp.shape[:-1] != batch:  # (a broadcast costs a solver's small batch more than its FK)
+        rp = np.broadcast_to(rp, (*batch, 3))
     if root_rotation is None:
-        RR = np.broadcast_to(np.eye(3), (*batch, 3, 3))
+        RR = np.broadcast_to(_EYE3, (*batch, 3, 3))
     else:
         rr = np.asarray(root_rotation, dtype=float)
         RR = quat_to_matrix(rr) if rr.shape[-1] == 4 else rr
-        RR = np.broadcast_to(RR, (*batch, 3, 3))
+        if RR.shape[:-2] != batch:
+            RR = np.broadcast_to(RR, (*batch, 3, 3))
     return rp, RR
+
+
+_EYE3 = np.eye(3)
+_EYE3.setflags(write=False)
 
 
 @dataclass(frozen=True)

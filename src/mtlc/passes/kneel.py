@@ -190,6 +190,10 @@ class Body:
         below = small.ancestor[:, self.dof_joint].T  # (V, J): segment j moves with variable v
         self.mass_below = below * small.masses  # (V, J)
         self.carried = (below @ small.masses)[:, None]  # (V, 1): the mass each variable turns
+        # the root's Jacobian columns of the points, and of the CoM ([1]) or not ([0])
+        self.root_columns = np.zeros((2, len(names) + 1, 3, 3))
+        self.root_columns[:, : len(names)] = np.eye(3)
+        self.root_columns[1, len(names)] = np.eye(3)
         self.ground_lift = np.zeros(len(names))  # the barrier's height of each named point
         self.ground_lift[len(GROUND_SITES) :] = KNEE_HEIGHT - 0.002  # knees: as kneeling
 
@@ -324,7 +328,8 @@ class Body:
         turns (M_v their mass), the root's the identity."""
         f, n = x.shape
         small, m = self.small, self.n_named
-        q = np.tile(self.small_base, (f, 1))
+        q = np.empty((f, len(self.small_base)))
+        q[:] = self.small_base
         q[:, self.small_cols] = x[:, 3:]
         pose = forward(small, q, x[:, :3])
         pts = np.zeros((f, m + 1, 3))
@@ -334,14 +339,13 @@ class Body:
         axes, origins = pose.axes[:, self.small_cols], pose.p[:, self.dof_joint]
         arms = np.zeros((f, m + 1, n - 3, 3))  # what each axis turns about its joint
         arms[:, :m] = (pts[:, :m, None] - origins[:, None]) * self.moves[..., None]
-        jac = np.zeros((f, m + 1, 3, n))
-        jac[:, :m, :, :3] = np.eye(3)
+        jac = np.empty((f, m + 1, 3, n))
+        jac[..., :3] = self.root_columns[int(com)]
         if com:
             segments = pose.p + np.einsum("fjab,jb->fja", pose.R, small.coms)
             total = small.total_mass
             pts[:, m] = np.einsum("j,fja->fa", small.masses, segments) / total
             arms[:, m] = (self.mass_below @ segments - self.carried * origins) / total
-            jac[:, m, :, :3] = np.eye(3)
         jac[:, :, :, 3:] = np.swapaxes(cross(axes[:, None], arms), 2, 3)
         return pts, jac
 

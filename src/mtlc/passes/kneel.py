@@ -246,19 +246,23 @@ class Body:
         (F, R)); joints at a limit that a step would push past it are held (their columns
         dropped), so the rest of the body still moves."""
         f, n = x.shape
-        held = np.zeros((f, n), dtype=bool)
-        diag = np.arange(n)
-        jtj0 = np.swapaxes(jac, 1, 2) @ jac
+        jtj = np.swapaxes(jac, 1, 2) @ jac
         g0 = np.einsum("frn,fr->fn", jac, r0)
-        jtj, g = jtj0.copy(), g0
+        jtj0, g = jtj.copy(), g0
+        q = x[:, 3:]
+        low, high = q <= self.lo + 1e-9, q >= self.hi - 1e-9
+        bound = bool(low.any() or high.any())  # no joint at a limit: nothing to hold
+        held = np.zeros((f, n), dtype=bool)
         for _ in range(3):
-            # Marquardt: damping scaled per variable
-            jtj[:, diag, diag] += lam[:, None] * (jtj[:, diag, diag] + 1e-6)
+            diag = jtj.reshape(f, n * n)[:, :: n + 1]  # a view: Marquardt's damping, per variable
+            diag += lam[:, None] * (diag + 1e-6)
             step = -np.linalg.solve(jtj, g[..., None])[..., 0]
+            if not bound:
+                break
             step[held] = 0.0
-            q, d = x[:, 3:], step[:, 3:]
-            out = ((q <= self.lo + 1e-9) & (d < 0)) | ((q >= self.hi - 1e-9) & (d > 0))
-            if not (out & ~held[:, 3:]).any():
+            d = step[:, 3:]
+            out = ((low & (d < 0)) | (high & (d > 0))) & ~held[:, 3:]
+            if not out.any():
                 break
             held[:, 3:] |= out
             free = ~held  # a held column dropped: its row and column of JᵀJ, its entry of Jᵀr
@@ -294,25 +298,32 @@ class Body:
         com = any(tg.com is not None for tg in tgs)  # the CoM is computed only if a row uses it
         x, lam = x0.copy(), np.full(len(x0), 1e-2)
         r0, jac = self._linearise_batch(x, lin, prev, com)
+        cost = np.einsum("fr,fr->f", r0, r0)
         live = np.arange(len(x0))
         xl = x.copy()
         for _ in range(iterations):
             cand = xl + self.steps(jac, r0, lam, xl)
             cand[:, 3:] = np.clip(cand[:, 3:], self.lo, self.hi)
             rc, jc = self._linearise_batch(cand, lin, prev, com)
-            better = np.einsum("fr,fr->f", rc, rc) < np.einsum("fr,fr->f", r0, r0)
+            cost_c = np.einsum("fr,fr->f", rc, rc)
+            better = cost_c < cost
             going = ~(better & (np.abs(cand - xl).max(axis=1) < STEP_TOL))
-            xl[better], r0[better], jac[better] = cand[better], rc[better], jc[better]
+            if better.all():
+                xl, r0, jac, cost = cand, rc, jc, cost_c
+            else:
+                xl[better], r0[better], jac[better] = cand[better], rc[better], jc[better]
+                cost = np.where(better, cost_c, cost)
             lam = np.where(better, np.maximum(lam * 0.3, 1e-5), lam * 10.0)
             if not going.all():  # frames that have converged leave the batch
                 x[live] = xl
-                live, xl, r0, jac, lam, prev = (
+                live, xl, r0, jac, lam, prev, cost = (
                     live[going],
                     xl[going],
                     r0[going],
                     jac[going],
                     lam[going],
                     prev[going],
+                    cost[going],
                 )
                 lin = tuple(a[going] for a in lin)
                 if not live.size:
@@ -407,6 +418,8 @@ class Body:
     def _stacked_rows(self, tgs: list[Targets]) -> tuple[FloatArray, ...]:
         """``_linear_rows`` of F frames, stacked (frames with fewer rows padded with zeros)."""
         forms = [self._linear_rows(tg) for tg in tgs]
+        if len(forms) == 1:
+            return tuple(a[None] for a in forms[0])
 
         def stack(k: int) -> FloatArray:
             parts = [form[k] for form in forms]

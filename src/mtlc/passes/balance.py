@@ -74,20 +74,24 @@ def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
     safe = np.where(length > 1e-9, length, 1.0)
     edge = np.zeros(pair_ok.shape, dtype=bool)
     orient = np.zeros(pair_ok.shape)
-    masks, inverse = np.unique(ok, axis=0, return_inverse=True)
-    for m, mask in enumerate(masks):
-        rows = np.flatnonzero(inverse.ravel() == m)
+    # frames grouped by their set of touching points (a bit each: ``np.unique`` of the rows
+    # themselves sorts them as byte strings, a tenth of the whole)
+    bits = ok.astype(np.int64) @ (np.int64(1) << np.arange(ok.shape[1], dtype=np.int64))
+    _, first, inverse = np.unique(bits, return_index=True, return_inverse=True)
+    for m, mask in enumerate(ok[first]):
+        rows = np.flatnonzero(inverse == m)
         cols = np.flatnonzero(mask)
         pairs = np.flatnonzero(mask[ii] & mask[jj])
         if pairs.size == 0:
             continue
         sub = np.ix_(rows, pairs)
-        rel = pts[np.ix_(rows, cols)][:, None] - a[sub][:, :, None]
-        dd = d[sub]
-        side = (dd[..., None, 0] * rel[..., 1] - dd[..., None, 1] * rel[..., 0]) / safe[sub][
-            ..., None
-        ]
-        pos, neg = (side > HULL_EPS).any(axis=-1), (side < -HULL_EPS).any(axis=-1)
+        dd, aa = d[sub], a[sub]
+        # the side of every point to every pair's line: d × (p − a) = d × p − d × a
+        normal = np.stack([-dd[..., 1], dd[..., 0]], axis=-1)  # (R, E, 2)
+        side = normal @ np.swapaxes(pts[np.ix_(rows, cols)], 1, 2)  # (R, E, K)
+        side -= (dd[..., 0] * aa[..., 1] - dd[..., 1] * aa[..., 0])[..., None]
+        tol = (HULL_EPS * safe[sub])[..., None]  # HULL_EPS metres from the line
+        pos, neg = (side > tol).any(axis=-1), (side < -tol).any(axis=-1)
         edge[sub] = pair_ok[sub] & ~(pos & neg)
         orient[sub] = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
     return Hull(a, d, safe, edge, orient, pts, ok)

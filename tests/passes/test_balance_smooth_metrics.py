@@ -89,6 +89,27 @@ def test_support_margin_of_a_known_square() -> None:
     assert np.isnan(support_margin(pts[:1], np.zeros((1, 4), bool), com[:1]))[0]
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), collinear=st.booleans())
+def test_the_grouped_hull_gives_the_margins_of_the_plain_one(seed: int, collinear: bool) -> None:
+    """``balance.grouped_hull`` (frames grouped by their contacts, edges only) against
+    ``metrics.hull`` (every pair of every frame), CoMs inside and outside; frames share a few
+    contact sets, as a motion's do, and points on one line test the side tolerance."""
+    from mtlc.metrics import hull, hull_margin
+
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(-0.3, 0.3, (40, 12, 2))
+    if collinear:
+        pts[:, :4, 1] = pts[:, :1, 1]  # four points on one line, the hull's edge or inside
+    ok = rng.random((5, 12)) < 0.6
+    ok = ok[rng.integers(0, 5, 40)]
+    com = rng.uniform(-0.4, 0.4, (40, 2))
+    want = hull_margin(hull(pts, ok), com)
+    got = hull_margin(balance.grouped_hull(pts, ok), com)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+
+
 def one_legged(n: int, lift_deg: float = 20.0) -> Frames:
     """Standing on the right foot: the left leg abducted, its sole off the ground."""
     f = standing(n)

@@ -61,7 +61,8 @@ def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
     """``mtlc.metrics.hull``, the same edges, computed per set of touching points: frames with
     the same contacts share which pairs to try, and each pair is tested against the touching
     points only (8 of 22 candidates when standing), not every pair against every point.
-    Orientations of pairs that are not edges are 0 (``hull_margin`` reads them only on edges)."""
+    Each frame keeps only its edges (first, padded with non-edges to the most edges a frame
+    has): ``hull_margin`` reads nothing else, and a hull has a few of the pairs."""
     pts = np.asarray(points, dtype=float)
     ok = np.asarray(valid, dtype=bool)
     used = ok.any(axis=0)
@@ -94,7 +95,15 @@ def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
         pos, neg = (side > tol).any(axis=-1), (side < -tol).any(axis=-1)
         edge[sub] = pair_ok[sub] & ~(pos & neg)
         orient[sub] = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
-    return Hull(a, d, safe, edge, orient, pts, ok)
+    # only the edges are kept, first in each frame (a frame's hull has a few of the pairs):
+    # what reads a hull (``hull_margin``) then works on those
+    keep = max(int(edge.sum(axis=1).max(initial=0)), 1)
+    order = np.argsort(~edge, axis=1, kind="stable")[:, :keep]
+
+    def edges(x: np.ndarray) -> np.ndarray:
+        return np.take_along_axis(x, order if x.ndim == 2 else order[..., None], axis=1)
+
+    return Hull(edges(a), edges(d), edges(safe), edges(edge), edges(orient), pts, ok)
 
 
 MARGIN = 0.01  # m: how far inside the support a corrected CoM ends

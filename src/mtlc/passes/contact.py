@@ -69,8 +69,9 @@ def _distances(
     """(K, H) distance of each hand to its target for K configurations."""
     k = configs.shape[0]
     pose = forward(
-        skel, configs, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4))
-    )
+        skel, configs, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4)),
+        with_axes=False,
+    )  # fmt: skip
     pts = np.asarray(site_positions(skel, pose, effectors)).reshape(k, len(effectors), 3)
     return np.linalg.norm(pts - np.stack(targets)[None], axis=-1)
 
@@ -180,8 +181,9 @@ def above_ground(
     names = [n for e in effectors for n in (e, FINGERTIPS.get(e, e))]
     k = len(path)
     pose = forward(
-        state.skel, path, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4))
-    )
+        state.skel, path, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4)),
+        with_axes=False,
+    )  # fmt: skip
     low = np.asarray(site_positions(state.skel, pose, names))[..., 1].min(axis=-1)
     below = np.flatnonzero(low < state.ir.ground - GROUND_SLACK)
     if below.size == 0 or below[0] == 0:  # nothing below, or already below where TA left it

@@ -104,7 +104,7 @@ def aim_errors(
     targets: FloatArray,
 ) -> FloatArray:
     """Per row, the angle (rad) between the head's forward axis and the line to its target."""
-    pose = forward(skel, q, root_position, root_rotation)  # type: ignore[arg-type]
+    pose = forward(skel, q, root_position, root_rotation, with_axes=False)  # type: ignore[arg-type]
     eye = np.asarray(site_positions(skel, pose, "gaze"))  # type: ignore[arg-type]
     look = np.asarray(site_direction(skel, pose, "gaze"))  # type: ignore[arg-type]
     want = targets - eye
@@ -287,7 +287,7 @@ def follow_part(
     if targets is None:
         return None
     points = np.array([t[0] for t in targets])
-    pose = forward(skel, body.q, body.root_position, body.root_rotation)
+    pose = forward(skel, body.q, body.root_position, body.root_rotation, with_axes=False)
     eyes = np.asarray(site_positions(skel, pose, "gaze"))
     first = aim_errors(skel, body.q[:1], body.root_position[:1], body.root_rotation[:1],
                        points[:1])  # fmt: skip

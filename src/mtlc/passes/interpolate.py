@@ -200,13 +200,15 @@ def walking_mask(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
 
 
 def lowest_foot_point(ir: MotionIR, frames: Frames) -> np.ndarray:
-    pose = forward(ir.skeleton, frames.q, frames.root_position, frames.root_rotation)
+    pose = forward(
+        ir.skeleton, frames.q, frames.root_position, frames.root_rotation, with_axes=False
+    )
     return site_positions(ir.skeleton, pose, list(FOOT_POINTS))[..., 1].min(axis=-1)
 
 
 def _feet_in_root_frame(skel: Any, q: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """Foot points (N, P, 3) relative to the root position, for joint angles and root rotation."""
-    pose = forward(skel, q, np.zeros((len(q), 3)), rotation)
+    pose = forward(skel, q, np.zeros((len(q), 3)), rotation, with_axes=False)
     return site_positions(skel, pose, list(FOOT_POINTS))
 
 

@@ -123,8 +123,8 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         return ir
     # contacts before and after, on the changed frames only (forward kinematics is the cost)
     rot = frames.root_rotation[rows]
-    pose = forward(skel, q0[rows], root0[rows], rot)
-    after = forward(skel, frames.q[rows], frames.root_position[rows], rot)
+    pose = forward(skel, q0[rows], root0[rows], rot, with_axes=False)
+    after = forward(skel, frames.q[rows], frames.root_position[rows], rot, with_axes=False)
     contact = contact_mask(foot_points(skel, pose), foot_stance(ir, t[rows]), ir.ground)
     pins = {h: m[rows] for h, m in hand_pins(ir, t).items()}
     hands_before = {h: site_positions(skel, pose, h) for h in HANDS}
@@ -158,7 +158,9 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     # smoothing must not sink anything deeper (a swing toe near the ground when the pelvis
     # came down): raise the root by what it added below the ground, h = L − x
     low_before = lowest_point(skel, pose)[sub]
-    low_after = lowest_point(skel, forward(skel, q, root, frames.root_rotation[fix]))
+    low_after = lowest_point(
+        skel, forward(skel, q, root, frames.root_rotation[fix], with_axes=False)
+    )
     lift = np.maximum(np.minimum(low_before, ir.ground) - low_after, 0.0)
     root[:, 1] += lift
     up = np.flatnonzero(lift > 0.0)
@@ -170,7 +172,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         )  # fmt: skip
     frames.q[fix] = q
     frames.root_position[fix] = root
-    final = forward(skel, frames.q[rows], frames.root_position[rows], rot)
+    final = forward(skel, frames.q[rows], frames.root_position[rows], rot, with_axes=False)
     _rebalance(ir, frames, rows, margin_before, carried_margin(ir, final, t[rows], stance))
     return ir
 

@@ -152,7 +152,7 @@ class PoseState:
 
     def site(self, name: str, q: FloatArray, root: tuple[FloatArray, FloatArray]) -> FloatArray:
         """World position of one body site (or joint centre, with ``joint:`` prefix)."""
-        pose = forward(self.skel, q[None], root[0][None], root[1][None])
+        pose = forward(self.skel, q[None], root[0][None], root[1][None], with_axes=False)
         if name.startswith("joint:"):
             return np.asarray(pose.p[0, self.skel.joint_index(name[6:])])
         return np.asarray(site_positions(self.skel, pose, name)[0])

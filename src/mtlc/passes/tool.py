@@ -264,7 +264,9 @@ def _errors(
     from mtlc.body import forward, site_positions
 
     k = len(q)
-    pose = forward(state.skel, q, np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1)))
+    pose = forward(
+        state.skel, q, np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1)), with_axes=False
+    )
     pts = np.asarray(site_positions(state.skel, pose, sites)).reshape(k, len(sites), 3)
     return np.linalg.norm(pts - np.stack(targets, axis=1), axis=-1).max(axis=1)
 
@@ -488,7 +490,7 @@ def _roll_fit(
     poses ``q`` (K, D)."""
     hand, tip_site, site, n, _ = _twist_problem(skel, reach)
     k = len(q)
-    pose = forward(skel, q, np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1)))
+    pose = forward(skel, q, np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1)), with_axes=False)
     roll = roll_about(site_rotation(skel, pose, hand) @ rot0.T, n)
     tip = np.asarray(site_positions(skel, pose, tip_site)).reshape(k, 3)
     axis = axis_angle(skel, pose, tip_site, n)

@@ -90,18 +90,27 @@ def test_support_margin_of_a_known_square() -> None:
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), collinear=st.booleans())
-def test_the_grouped_hull_gives_the_margins_of_the_plain_one(seed: int, collinear: bool) -> None:
+@given(seed=st.integers(0, 2**31 - 1), collinear=st.booleans(), count=st.sampled_from([12, 70]))
+def test_the_grouped_hull_gives_the_margins_of_the_plain_one(
+    seed: int, collinear: bool, count: int
+) -> None:
     """``balance.grouped_hull`` (frames grouped by their contacts, edges only) against
     ``metrics.hull`` (every pair of every frame), CoMs inside and outside; frames share a few
-    contact sets, as a motion's do, and points on one line test the side tolerance."""
+    contact sets, as a motion's do, and points on one line test the side tolerance. 70 points
+    take the grouping by rows (a contact set of 64 or more does not fit one int's bits)."""
     from mtlc.metrics import hull, hull_margin
 
     rng = np.random.default_rng(seed)
-    pts = rng.uniform(-0.3, 0.3, (40, 12, 2))
+    pts = rng.uniform(-0.3, 0.3, (40, count, 2))
     if collinear:
         pts[:, :4, 1] = pts[:, :1, 1]  # four points on one line, the hull's edge or inside
-    ok = rng.random((5, 12)) < 0.6
+    ok = rng.random((5, count)) < 0.6
+    if count > 64:
+        # sets that an int's 64 bits would merge (a bit past 63 lost or wrapped round), one of
+        # every point (none is dropped: point 64 stays the 65th), and point 64 a far corner
+        ok[1], ok[2], ok[3] = ok[0], ok[0], True
+        ok[0, [0, 64]], ok[1, [0, 64]], ok[2, [0, 64]] = (True, False), (False, True), (True, True)
+        pts[:, 64] = (0.5, 0.5)
     ok = ok[rng.integers(0, 5, 40)]
     com = rng.uniform(-0.4, 0.4, (40, 2))
     want = hull_margin(hull(pts, ok), com)

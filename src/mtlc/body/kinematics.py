@@ -195,8 +195,9 @@ def _root_inputs(
     return rp, RR
 
 
-_EYE3 = np.eye(3)
+_EYE3, _EYE4 = np.eye(3), np.eye(4)
 _EYE3.setflags(write=False)
+_EYE4.setflags(write=False)
 
 
 @dataclass(frozen=True)
@@ -320,7 +321,7 @@ def _forward_flat(
     W[..., 3, :] = (0.0, 0.0, 0.0, 1.0)
     W[0] = _homogeneous(RR, rp) @ W[0]
     if n <= CHAIN_BATCH:  # a few numpy calls over every joint's path at once
-        L = np.concatenate([W, np.broadcast_to(np.eye(4), (1, n, 4, 4))])[plan.chains]
+        L = np.concatenate([W, np.broadcast_to(_EYE4, (1, n, 4, 4))])[plan.chains]
         W = L[0]
         for link in L[1:]:
             W = W @ link  # the same products, in the same order, as level by level

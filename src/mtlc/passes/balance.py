@@ -75,10 +75,15 @@ def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
     safe = np.where(length > 1e-9, length, 1.0)
     edge = np.zeros(pair_ok.shape, dtype=bool)
     orient = np.zeros(pair_ok.shape)
-    # frames grouped by their set of touching points (a bit each: ``np.unique`` of the rows
-    # themselves sorts them as byte strings, a tenth of the whole)
-    bits = ok.astype(np.int64) @ (np.int64(1) << np.arange(ok.shape[1], dtype=np.int64))
-    _, first, inverse = np.unique(bits, return_index=True, return_inverse=True)
+    # frames grouped by their set of touching points, a bit each in one int (``np.unique`` of
+    # the rows themselves sorts them as byte strings, a tenth of the whole): with 64 points or
+    # more, by the rows
+    if ok.shape[1] < 64:
+        keys = ok.astype(np.int64) @ (np.int64(1) << np.arange(ok.shape[1], dtype=np.int64))
+        _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    else:
+        _, first, inverse = np.unique(ok, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
     for m, mask in enumerate(ok[first]):
         rows = np.flatnonzero(inverse == m)
         cols = np.flatnonzero(mask)

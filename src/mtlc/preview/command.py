@@ -22,6 +22,30 @@ from mtlc.preview.html import render_page
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE = 0, 1, 2
 DEFAULT_PORT = 8765
+POLL_RANGE = (0.01, 3600.0)  # s: `--poll inf` ended the watcher, `--poll nan` spun a core
+
+
+def poll_seconds(text: str) -> float:
+    """``--poll S``: a finite number of seconds in ``POLL_RANGE`` (argparse says why not, exit 2)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, not {text!r}") from None
+    lo, hi = POLL_RANGE
+    if not lo <= value <= hi:  # also false for nan
+        raise argparse.ArgumentTypeError(f"must be between {lo:g} and {hi:g} seconds")
+    return value
+
+
+def port_number(text: str) -> int:
+    """``--port N``: 0 (a free port) to 65535."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a port number, not {text!r}") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError("must be between 0 (a free port) and 65535")
+    return value
 
 
 def add_preview_parsers(
@@ -43,10 +67,10 @@ def add_preview_parsers(
     frontend_options(serve)
     serve.add_argument("--host", default="127.0.0.1",
                        help="address to listen on (default 127.0.0.1: this machine only)")  # fmt: skip
-    serve.add_argument("--port", type=int, default=DEFAULT_PORT,
+    serve.add_argument("--port", type=port_number, default=DEFAULT_PORT,
                        help=f"port (default {DEFAULT_PORT}; 0 picks a free one)")  # fmt: skip
-    serve.add_argument("--poll", type=float, default=0.5, metavar="S",
-                       help="how often to look for a saved file, in seconds (default 0.5)")  # fmt: skip
+    serve.add_argument("--poll", type=poll_seconds, default=0.5, metavar="S",
+                       help="how often to look for a saved file, in seconds (0.01 to 3600, default 0.5)")  # fmt: skip
     _task_and_fps(serve)
 
 
@@ -165,8 +189,8 @@ def _preview(args: argparse.Namespace) -> int:
 def _serve(args: argparse.Namespace) -> int:
     from mtlc.preview.server import MotionHub, PreviewServer
 
-    if not 0 <= args.port <= 65535 or args.poll <= 0:
-        sys.stderr.write("mtlc: --port must be 0..65535 and --poll positive\n")
+    if not 0 <= args.port <= 65535 or not POLL_RANGE[0] <= args.poll <= POLL_RANGE[1]:
+        sys.stderr.write("mtlc: --port must be 0..65535 and --poll 0.01..3600 seconds\n")
         return EXIT_USAGE
     hub = MotionHub(list(args.files), _options(args), MotionOptions(fps=args.fps), task=args.task)
     server = PreviewServer(hub, host=args.host, port=args.port, poll=args.poll)

@@ -6,10 +6,13 @@ event and the page keeps the last good motion. Dragging a site POSTs ``{"site", 
 ``/site``; the server recompiles with the site there and streams the result. Saving the
 ``.mtask`` file recompiles too (the file's modification time is polled).
 
-Standard library only: ``ThreadingHTTPServer``, one thread per client. Requests are refused,
-never fatal: bodies over ``MAX_BODY`` bytes, invalid JSON, unknown sites, non-finite numbers or
-sites moved far from the scene get a 4xx reply with a JSON error and the server carries on; a
-compile that crashes is an MT0900 diagnostics event (and a 500 to the move that caused it).
+Standard library only: ``ThreadingHTTPServer``, one thread per client, at most ``MAX_WORKERS``
+at a time (one more gets a 503 at once), each dropped after ``REQUEST_TIMEOUT_S`` of silence.
+Requests are refused, never fatal: bodies over ``MAX_BODY`` bytes, invalid or deeply nested
+JSON, numbers too large for a float, unknown sites, non-finite numbers or sites moved far from
+the scene get a 4xx reply with a JSON error and the server carries on; a compile that crashes
+is an MT0900 diagnostics event (and a 500 to the move that caused it). A client that goes away
+mid-reply is one line on stderr, never a traceback.
 
 Only this machine's pages may talk to it: the ``Host`` header must name the server (a DNS
 rebinding page has its own name there), a POST must be ``application/json`` (a cross-site form
@@ -47,6 +50,7 @@ MAX_COORDINATE = 1000.0  # m: a site farther than 1 km from the origin is a mist
 SCENE_REACH = 50.0  # m: a site moves at most this far (per axis) from the scene's centre
 KEEPALIVE_S = 15.0
 REQUEST_TIMEOUT_S = 30.0  # a client silent this long (request line, body, or reading) is dropped
+MAX_WORKERS = 32  # connections served at once: each open page holds one for its event stream
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
 
 
@@ -64,6 +68,8 @@ def parse_site_move(
         doc = json.loads(body.decode("utf-8"), parse_constant=_reject_constant)
     except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as exc:
         raise BadRequest(f"not JSON: {exc}") from None
+    except RecursionError:  # 4,000 `[` fit in MAX_BODY
+        raise BadRequest("not JSON a site move can be: nested too deeply") from None
     if not isinstance(doc, dict) or set(doc) != {"site", "position"}:
         raise BadRequest('expected an object with exactly "site" and "position"')
     name, position = doc["site"], doc["position"]
@@ -73,7 +79,10 @@ def parse_site_move(
         raise BadRequest("position must be a list of three numbers (metres)")
     if not all(isinstance(c, int | float) and not isinstance(c, bool) for c in position):
         raise BadRequest("position must be a list of three numbers (metres)")
-    coords = tuple(float(c) for c in position)
+    try:
+        coords = tuple(float(c) for c in position)
+    except OverflowError:  # an integer of 400 digits
+        raise BadRequest(f"position must be finite and within {MAX_COORDINATE:g} m") from None
     if not all(math.isfinite(c) and abs(c) <= MAX_COORDINATE for c in coords):
         raise BadRequest(f"position must be finite and within {MAX_COORDINATE:g} m")
     if any(abs(c - m) > SCENE_REACH for c, m in zip(coords, centre, strict=True)):
@@ -390,7 +399,62 @@ def make_handler(hub: MotionHub, page: str) -> type[BaseHTTPRequestHandler]:
     return Handler
 
 
-class IPv6Server(ThreadingHTTPServer):
+CLIENT_GONE = (BrokenPipeError, ConnectionResetError, ConnectionAbortedError, TimeoutError)
+BUSY_REPLY = (
+    b"HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\n"
+    b"Content-Length: 52\r\nRetry-After: 1\r\nConnection: close\r\n\r\n"
+    b'{"error": "too many connections; try again shortly"}'
+)
+
+
+class BoundedServer(ThreadingHTTPServer):
+    """A thread per connection, at most ``max_workers`` at once: 200 idle sockets held 198
+    threads. A connection over the bound is answered 503 by the accepting thread and closed;
+    an error while answering is one line on stderr (a browser that went away is no bug)."""
+
+    max_workers = MAX_WORKERS
+    daemon_threads = True
+
+    def server_activate(self) -> None:
+        self._slots = threading.BoundedSemaphore(self.max_workers)
+        super().server_activate()
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        if not self._slots.acquire(blocking=False):
+            self._refuse(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self._slots.release()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
+
+    def _refuse(self, request: socket.socket) -> None:
+        try:
+            request.settimeout(1.0)
+            request.sendall(BUSY_REPLY)
+        except OSError:
+            pass
+        self.shutdown_request(request)
+
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        exc = sys.exc_info()[1]
+        who = f"{client_address[0]}:{client_address[1]}" if client_address else "a client"
+        if isinstance(exc, CLIENT_GONE):
+            sys.stderr.write(f"mtlc serve: {who} went away ({type(exc).__name__})\n")
+            return
+        sys.stderr.write(f"mtlc serve: error answering {who}: {type(exc).__name__}: {exc}\n")
+        if os.environ.get("MTLC_DEBUG"):
+            traceback.print_exc()
+
+
+class IPv6Server(BoundedServer):
     """``--host ::1``: the standard server is IPv4 only ("Address family not supported")."""
 
     address_family = socket.AF_INET6
@@ -447,9 +511,8 @@ class PreviewServer:
     def start(self) -> None:
         self.hub.recompile()
         page = render_page(None, serve=True, title="mtlc serve")
-        server_class = IPv6Server if ":" in self.host else ThreadingHTTPServer
+        server_class = IPv6Server if ":" in self.host else BoundedServer
         self.httpd = server_class((self.host, self.port), make_handler(self.hub, page))
-        self.httpd.daemon_threads = True
         threading.Thread(target=self.httpd.serve_forever, daemon=True, name="mtlc-http").start()
         self.watcher = FileWatcher(self.hub.paths, self.hub.recompile, self.poll)
         self.watcher.start()

@@ -1,22 +1,40 @@
-"""Write output files atomically: a reader sees the old files or the new ones, never a mix.
+"""Write output files as one transaction: the set is all old or all new, even after a SIGKILL.
 
 Every command that writes files goes through ``write_outputs``, so a file that cannot be written
 is reported the same way everywhere: one line naming it, exit 2, nothing changed.
+
+How (docs/output-files.md): under an exclusive ``flock`` of each folder written into, every new
+file is written into a fresh staging folder ``.mtlc-stage-<random>`` beside its target, with a
+hard link to each file it replaces. The rename of ``journal.json`` into the (first) staging
+folder is the commit point; then each staged file is renamed over its target and the staging
+folders are removed. The next write into the folder recovers whatever a kill left: a staging
+folder with a journal is rolled forward (or, if a failing rename had begun undoing it, back),
+one without is thrown away, and so are the `.NAME.XXXXXXXX.tmp` / `.old` files of the former
+scheme.
 """
 
 from __future__ import annotations
 
+import fcntl
+import json
 import os
 import re
 import secrets
 import shutil
 import stat
 import sys
-import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 EXIT_USAGE = 2
+LOCK_TIMEOUT_S = 30.0  # a second write into a folder waits this long for the first, then fails
+STAGE_PREFIX = ".mtlc-stage-"
+JOURNAL = "journal.json"  # in the first staging folder; its rename is the commit point
+PRIMARY = "primary"  # in every other staging folder: the path of the one with the journal
+_FORMER_TEMP = re.compile(r"^\.(?P<name>.+)\.(?:[a-z0-9_]{8}\.tmp|[0-9a-f]{12}\.old)$")
 
 
 class OutputError(Exception):
@@ -28,11 +46,21 @@ class OutputError(Exception):
 
 
 @dataclass
-class _Staged:
-    tmp: str  # the new content, beside the target
+class _Entry:
+    staged: Path  # the new content, in the staging folder beside the target
     target: Path  # where it goes (a symlink's resolved file)
-    backup: str | None = None  # a link to the file it replaces, until all are in place
-    placed: bool = False
+    backup: Path | None  # a hard link to the file it replaces (None: a new file)
+
+    def as_dict(self) -> dict[str, str | None]:
+        backup = None if self.backup is None else os.fsdecode(self.backup)
+        return {"staged": os.fsdecode(self.staged), "target": os.fsdecode(self.target),
+                "backup": backup}  # fmt: skip
+
+    @staticmethod
+    def from_dict(d: dict[str, str | None]) -> _Entry:
+        backup = d.get("backup")
+        return _Entry(Path(str(d["staged"])), Path(str(d["target"])),
+                      None if backup is None else Path(backup))  # fmt: skip
 
 
 _SURROGATE = re.compile("[\ud800-\udfff]")
@@ -55,26 +83,256 @@ def write_outputs(files: dict[Path, str | bytes], command: str = "mtlc") -> int 
 
 
 def write_all_or_nothing(files: dict[Path, str | bytes]) -> None:
-    """Write every file, or (if one write fails) leave every existing file as it was.
+    """Write every file, or (if one write fails) leave every existing file as it was; after a
+    kill at any point, the next write into the folder completes or undoes this one.
 
-    Each file is staged beside its target first; only when all are staged are they moved into
-    place, one rename each, each replaced file kept under a temporary name until the last
-    rename has succeeded, so that a failing rename puts every earlier one back. A symlink is
-    written through (its target gets the content) and a replaced file keeps its mode.
+    A symlink is written through (its target gets the content) and a replaced file keeps its
+    mode. Two writes into one folder are serialised (``flock``, ``LOCK_TIMEOUT_S``).
     """
-    targets = {path: _target(path) for path in files}
+    if not files:
+        return
+    targets = {path: Path(os.path.abspath(_target(path))) for path in files}
     for path, target in targets.items():
         _check_writable(path, target)
-    staged: list[_Staged] = []
+    folders: dict[Path, Path] = {}  # folder -> the first path the user named in it
+    for path, target in targets.items():
+        folders.setdefault(target.parent, path)
+    for folder, path in folders.items():
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(path, _reason(exc)) from exc
+    ordered = sorted(folders, key=os.fsencode)  # one order for every writer: no deadlock
+    with _locked(ordered, folders):
+        for folder in ordered:
+            recover(folder, keep={t.name for t in targets.values() if t.parent == folder})
+        _Transaction(ordered, folders).run(files, targets)
+
+
+def recover(folder: Path, keep: set[str] | frozenset[str] = frozenset()) -> None:
+    """Finish or undo what a killed write left in ``folder`` (the caller holds its lock).
+
+    A staging folder whose transaction committed (its journal, or its primary's, exists) is
+    rolled forward; any other is removed. Temporaries of the former scheme
+    (``.NAME.XXXXXXXX.tmp``, ``.NAME.<12 hex>.old``) are removed when NAME exists or is in
+    ``keep``: a name of that shape is never removed blindly from a folder of sources.
+    """
     try:
-        for path, data in files.items():
-            staged.append(_stage(path, targets[path], data))
-        _commit(staged)
+        names = os.listdir(folder)
+    except OSError:
+        return
+    for name in names:
+        path = folder / name
+        if name.startswith(STAGE_PREFIX) and path.is_dir() and not path.is_symlink():
+            journal = path / JOURNAL
+            pointer = path / PRIMARY
+            if not journal.exists() and pointer.exists():
+                journal = Path(pointer.read_text(encoding="utf-8")) / JOURNAL
+            if journal.exists():
+                _finish(journal)
+            shutil.rmtree(path, ignore_errors=True)
+        elif (
+            (m := _FORMER_TEMP.match(name))
+            and path.is_file()
+            and (m["name"] in keep or (folder / m["name"]).exists())
+        ):
+            path.unlink(missing_ok=True)
+
+
+def _step() -> None:
+    """Called before every change to the file system: the crash tests kill the process here."""
+
+
+class _Transaction:
+    """One write: stage, commit (the journal's rename), apply, clean up."""
+
+    def __init__(self, ordered: list[Path], named: dict[Path, Path]) -> None:
+        token = secrets.token_hex(6)
+        self.named = named
+        self.stages = {folder: folder / f"{STAGE_PREFIX}{token}" for folder in ordered}
+        self.primary = self.stages[ordered[0]]
+        self.entries: list[_Entry] = []
+        self.asked: dict[Path, Path] = {}  # target -> the path as the user named it
+        self.settled = True  # False from the commit until every file is new (or old) again
+
+    def run(self, files: dict[Path, str | bytes], targets: dict[Path, Path]) -> None:
+        try:
+            self._stage(files, targets)
+            self._commit()
+            self._apply()
+        finally:
+            if self.settled:  # else (an interrupt mid-apply) the next write finishes it
+                self._clean()
+
+    def _stage(self, files: dict[Path, str | bytes], targets: dict[Path, Path]) -> None:
+        for folder, stage in self.stages.items():
+            try:
+                _step()
+                stage.mkdir()
+                if stage != self.primary:
+                    _write(stage / PRIMARY, os.fsencode(self.primary), 0o600)
+            except OSError as exc:
+                raise OutputError(self.named[folder], _reason(exc)) from exc
+        for k, (path, data) in enumerate(files.items()):
+            target = targets[path]
+            self.asked[target] = path
+            stage = self.stages[target.parent]
+            raw = data.encode("utf-8") if isinstance(data, str) else data
+            entry = _Entry(stage / f"{k}.new", target, None)
+            try:
+                _step()
+                _write(entry.staged, raw, _mode_for(target))
+                if target.exists():
+                    entry.backup = stage / f"{k}.old"
+                    _step()
+                    _link_or_copy(target, entry.backup)
+            except OSError as exc:
+                raise OutputError(path, _reason(exc)) from exc
+            self.entries.append(entry)
+        for stage in self.stages.values():
+            _fsync_dir(stage)
+
+    def _commit(self) -> None:
+        """The commit point: after this rename the new set is what the folder will hold."""
+        self._journal("forward")
+        self.settled = False  # (cleaning before any rename is safe: the set stays all old)
+
+    def _journal(self, state: str) -> None:
+        doc = {"version": 1, "state": state, "entries": [e.as_dict() for e in self.entries]}
+        tmp = self.primary / f"{JOURNAL}.tmp"
+        tmp.unlink(missing_ok=True)
+        try:
+            _step()
+            _write(tmp, escape_surrogates(json.dumps(doc)).encode("utf-8"), 0o600)
+            _step()
+            os.replace(tmp, self.primary / JOURNAL)
+            _fsync_dir(self.primary)
+        except OSError as exc:
+            raise OutputError(self.asked[self.entries[0].target], _reason(exc)) from exc
+
+    def _apply(self) -> None:
+        for entry in self.entries:
+            try:
+                _step()
+                os.replace(entry.staged, entry.target)
+            except OSError as exc:
+                self._undo()
+                raise OutputError(self.asked[entry.target], _reason(exc)) from exc
+        for folder in self.stages:
+            _fsync_dir(folder)
+        self.settled = True
+
+    def _undo(self) -> None:
+        """A rename failed after the commit: mark the journal "back" and put every file back
+        (if that fails too, the journal stays and the next write finishes undoing)."""
+        self._journal("back")
+        for entry in reversed(self.entries):
+            _roll(entry, "back")
+        self.settled = True
+
+    def _clean(self) -> None:
+        """Remove the staging folders, the primary (with the journal) last."""
+        for stage in sorted(self.stages.values(), key=lambda s: s == self.primary):
+            _step()
+            shutil.rmtree(stage, ignore_errors=True)
+
+
+def _finish(journal: Path) -> None:
+    """Roll a committed transaction forward (or back, if it was being undone), then remove its
+    other staging folders; idempotent, so a kill during recovery is recovered the same way."""
+    try:
+        doc = json.loads(journal.read_text(encoding="utf-8"))
+        entries = [_Entry.from_dict(d) for d in doc["entries"]]
+        state = doc["state"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return  # not a journal mtlc wrote: the staging folder is removed, nothing applied
+    for entry in entries if state == "forward" else reversed(entries):
+        _roll(entry, state)
+    for entry in entries:
+        if entry.staged.parent != journal.parent:
+            shutil.rmtree(entry.staged.parent, ignore_errors=True)
+
+
+def _roll(entry: _Entry, state: str) -> None:
+    """Forward: the staged file into place, if not there yet. Back: the old file into place
+    (its hard link), or a file that was new removed."""
+    if state == "forward":
+        if entry.staged.exists():
+            _step()
+            os.replace(entry.staged, entry.target)
+    elif entry.backup is not None:
+        if entry.backup.exists():
+            _step()
+            os.replace(entry.backup, entry.target)
+    elif not entry.staged.exists():  # it was placed
+        _step()
+        entry.target.unlink(missing_ok=True)
+
+
+@contextmanager
+def _locked(folders: list[Path], named: dict[Path, Path]) -> Iterator[None]:
+    """An exclusive ``flock`` on each folder itself (no lock file is left among the outputs),
+    waiting at most ``LOCK_TIMEOUT_S`` for another mtlc writing there."""
+    fds: list[int] = []
+    try:
+        for folder in folders:
+            try:
+                fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+            except OSError as exc:
+                raise OutputError(named[folder], _reason(exc)) from exc
+            fds.append(fd)
+            deadline = time.monotonic() + LOCK_TIMEOUT_S
+            while True:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except BlockingIOError:
+                    if time.monotonic() >= deadline:
+                        raise OutputError(
+                            named[folder],
+                            f"another mtlc has been writing into {folder} for "
+                            f"{LOCK_TIMEOUT_S:g} s; run again when it has finished",
+                        ) from None
+                    time.sleep(0.05)
+                except OSError:  # a file system without locks: write unserialised
+                    break
+        yield
     finally:
-        for s in staged:
-            for leftover in (s.tmp, s.backup):
-                if leftover is not None:
-                    Path(leftover).unlink(missing_ok=True)
+        for fd in fds:
+            os.close(fd)
+
+
+def _write(path: Path, raw: bytes, mode: int) -> None:
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    try:
+        os.fchmod(fd, mode)
+        with os.fdopen(fd, "wb") as f:
+            f.write(raw)
+            f.flush()
+            os.fsync(f.fileno())
+    except BaseException:
+        path.unlink(missing_ok=True)
+        raise
+
+
+def _link_or_copy(target: Path, backup: Path) -> None:
+    try:
+        os.link(target, backup)
+    except OSError:  # a file system without hard links
+        shutil.copy2(target, backup)
+
+
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def _target(path: Path) -> Path:
@@ -93,67 +351,12 @@ def _check_writable(path: Path, target: Path) -> None:
             break
 
 
-def _stage(path: Path, target: Path, data: str | bytes) -> _Staged:
-    raw = data.encode("utf-8") if isinstance(data, str) else data
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    except OSError as exc:
-        raise OutputError(path, _reason(exc)) from exc
-    staged = _Staged(tmp, target)
-    try:
-        os.chmod(tmp, _mode_for(target))  # mkstemp makes 0600
-        with os.fdopen(fd, "wb") as f:
-            f.write(raw)
-            f.flush()
-            os.fsync(f.fileno())
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise OutputError(path, _reason(exc)) from exc
-    return staged
-
-
 def _mode_for(target: Path) -> int:
     """An existing file keeps its permissions; a new one is an ordinary file (0666 - umask)."""
     try:
         return stat.S_IMODE(target.stat().st_mode)
     except OSError:
         return 0o666 & ~_umask()
-
-
-def _commit(staged: list[_Staged]) -> None:
-    """Rename every staged file into place; on any failure put back what was there."""
-    try:
-        for s in staged:
-            s.backup = _keep_old(s.target)
-            os.replace(s.tmp, s.target)
-            s.placed = True
-    except OSError as exc:
-        _restore(staged)
-        raise OutputError(s.target, _reason(exc)) from exc
-
-
-def _keep_old(target: Path) -> str | None:
-    """A second name for the file about to be replaced (a hard link, else a copy), or None."""
-    if not target.exists():
-        return None
-    backup = str(target.parent / f".{target.name}.{secrets.token_hex(6)}.old")
-    try:
-        os.link(target, backup)
-    except OSError:  # a file system without hard links
-        shutil.copy2(target, backup)
-    return backup
-
-
-def _restore(staged: list[_Staged]) -> None:
-    for s in reversed(staged):
-        if not s.placed:
-            continue
-        if s.backup is not None:
-            os.replace(s.backup, s.target)
-            s.backup = None
-        else:
-            s.target.unlink(missing_ok=True)
 
 
 def _reason(exc: OSError) -> str:

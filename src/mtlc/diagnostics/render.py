@@ -25,6 +25,20 @@ _BLUE = "\x1b[1;34m"
 _BOLD = "\x1b[1m"
 _RESET = "\x1b[0m"
 _LINE_BREAK = re.compile(r"\r\n|\n|\r")
+# What a terminal would obey or reorder rather than show: C0 and C1 controls (ESC starts colour
+# and cursor sequences, \x9b is a one-byte CSI), DEL, the bidirectional embeddings, overrides
+# and isolates (U+202E turns "gnp.exe" into "exe.png"), the marks, and the line separators.
+_BIDI = r"\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069"
+_UNSAFE_CHAR = re.compile(r"[\x00-\x1f\x7f-\x9f" + _BIDI + "]")
+_UNSAFE_BUT_NEWLINE = re.compile(r"[\x00-\x09\x0b-\x1f\x7f-\x9f" + _BIDI + "]")
+
+
+def terminal_safe(text: str, *, newlines: bool = False) -> str:
+    """``text`` from a task file (a title, a name, a path) made safe to print: every control
+    and bidi character becomes its `.mtask` escape, ``\\u{1b}``, so it is seen, not obeyed;
+    with ``newlines``, a line break (mtlc's own, in help and notes) is kept."""
+    pattern = _UNSAFE_BUT_NEWLINE if newlines else _UNSAFE_CHAR
+    return pattern.sub(lambda m: f"\\u{{{ord(m.group()):x}}}", text)
 
 
 def use_color(stream: IO[str]) -> bool:
@@ -65,7 +79,7 @@ def _printable(line: str) -> tuple[str, list[int]]:
             pad = 4 - width % 4
             out.append(" " * pad)
             width += pad
-        elif ord(ch) < 32 or ord(ch) == 127:
+        elif _UNSAFE_CHAR.match(ch):  # a control or bidi character: one column, shown as �
             out.append("\N{REPLACEMENT CHARACTER}")
             width += 1
         else:
@@ -98,20 +112,21 @@ def render_one(d: Diagnostic, sources: Mapping[str, str], *, color: bool = False
     c = (lambda s, code: f"{code}{s}{_RESET}") if color else (lambda s, code: s)
     width = len(str(max([d.span.end_line] + [lb.span.line for lb in d.labels])))
     pad = " " * width
-    out = [c(f"{sev.value}[{d.code}]", _COLORS[sev]) + c(f": {d.message}", _BOLD)]
-    out.append(f"{pad}{c('-->', _BLUE)} {d.span.file}:{d.span.line}:{d.span.column}")
+    safe = terminal_safe  # messages and paths quote task files: never let them drive the terminal
+    message = safe(d.message)
+    out = [c(f"{sev.value}[{d.code}]", _COLORS[sev]) + c(f": {message}", _BOLD)]
+    out.append(f"{pad}{c('-->', _BLUE)} {safe(d.span.file)}:{d.span.line}:{d.span.column}")
     out.extend(_snippet(d.span, sources, width, "", c, _COLORS[sev]))
     for label in d.labels:
-        out.append(
-            f"{pad}{c('-->', _BLUE)} {label.span.file}:{label.span.line}:{label.span.column}"
-        )
-        out.extend(_snippet(label.span, sources, width, label.message, c, _BLUE, mark="-"))
+        where = f"{safe(label.span.file)}:{label.span.line}:{label.span.column}"
+        out.append(f"{pad}{c('-->', _BLUE)} {where}")
+        out.extend(_snippet(label.span, sources, width, safe(label.message), c, _BLUE, mark="-"))
     if d.help or d.notes:
         out.append(f"{pad} {c('|', _BLUE)}")
     for note in d.notes:
-        out.append(f"{pad} {c('=', _BLUE)} {c('note', _BOLD)}: {note}")
+        out.append(f"{pad} {c('=', _BLUE)} {c('note', _BOLD)}: {safe(note, newlines=True)}")
     if d.help:
-        out.append(f"{pad} {c('=', _BLUE)} {c('help', _BOLD)}: {d.help}")
+        out.append(f"{pad} {c('=', _BLUE)} {c('help', _BOLD)}: {safe(d.help, newlines=True)}")
     return "\n".join(out) + "\n"
 
 

@@ -14,6 +14,7 @@ from functools import cache
 from importlib.resources import files
 from typing import Any
 
+from mtlc.diagnostics.render import terminal_safe
 from mtlc.output import escape_surrogates
 
 THREE_BUNDLE = "three.preview.min.js"
@@ -40,7 +41,7 @@ def render_page(document: dict[str, Any] | None, *, serve: bool = False, title: 
         source = document["ir"]["source"]
         title = source.get("title") or source["task"]
     values = {
-        "TITLE": html.escape(title or "mtlc preview"),
+        "TITLE": html.escape(terminal_safe(title or "mtlc preview")),  # no raw ESC, NUL, U+202E
         "CSS": asset("page.css"),
         "THREE": asset(f"vendor/{THREE_BUNDLE}"),
         "DATA": script_json(document),

@@ -1,9 +1,13 @@
-"""The report as one flat CSV table (columns in docs/report.md): a row per measured number."""
+"""The report as one flat CSV table (columns in docs/report.md): a row per measured number.
+
+Every cell goes through ``csv_cell``: a text a spreadsheet would run as a formula gets a
+leading apostrophe (OWASP's CSV-injection rule); numbers stay numbers."""
 
 from __future__ import annotations
 
 import csv
 import io
+import math
 
 from mtlc.report.access import access_rows, groups, populations
 from mtlc.report.analysis import Report, TaskResult
@@ -21,8 +25,24 @@ def render_csv(report: Report) -> str:
     writer.writerow(COLUMNS)
     for task in report.tasks:
         for row in _task_rows(task, report):
-            writer.writerow([row.get(c, "") for c in COLUMNS])
+            writer.writerow([csv_cell(row.get(c, "")) for c in COLUMNS])
     return out.getvalue()
+
+
+FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def csv_cell(text: str) -> str:
+    """``text``, with a leading ``'`` when it starts as a formula would (= + - @ tab CR) and is
+    not a finite number: `=HYPERLINK(...)` in a title is shown, not run; -0.5 stays -0.5."""
+    if not text.startswith(FORMULA_START):
+        return text
+    try:
+        if math.isfinite(float(text)):
+            return text
+    except ValueError:
+        pass
+    return "'" + text
 
 
 def _task_rows(task: TaskResult, report: Report) -> list[dict[str, str]]:

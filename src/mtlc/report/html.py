@@ -1,10 +1,12 @@
 """The report as one self-contained HTML page: inline CSS, no script, no external asset.
-Every text that comes from a task file goes through ``html.escape``."""
+Every text goes through ``escape``: ``html.escape`` after ``terminal_safe``, so markup is shown
+as text and a control or bidi character (U+202E reverses what follows) as its escape."""
 
 from __future__ import annotations
 
-from html import escape
+import html
 
+from mtlc.diagnostics.render import terminal_safe
 from mtlc.report.analysis import Report
 from mtlc.report.tables import Table, ratio_text, task_heading, task_tables
 
@@ -18,6 +20,11 @@ td.ok { background: #e3f4e3; color: #135b13; }
 td.bad { background: #fbe3e3; color: #8b1111; font-weight: 600; }
 p.note { color: #555; font-size: .9em; max-width: 60em; }
 """
+
+
+def escape(text: str) -> str:
+    """Text from a task file as HTML text: markup and controls inert, visible."""
+    return html.escape(terminal_safe(text))
 
 
 def render_html(report: Report) -> str:

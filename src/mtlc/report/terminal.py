@@ -1,4 +1,7 @@
-"""The report in the terminal: rich tables, coloured only on a terminal (NO_COLOR honoured)."""
+"""The report in the terminal: rich tables, coloured only on a terminal (NO_COLOR honoured).
+
+Every text goes through ``terminal_safe``: a title holding ESC, NUL or U+202E is shown with
+those characters as escapes (``\\u{1b}``), never sent to the terminal to obey."""
 
 from __future__ import annotations
 
@@ -8,6 +11,7 @@ from rich.console import Console
 from rich.table import Table as RichTable
 from rich.text import Text
 
+from mtlc.diagnostics.render import terminal_safe
 from mtlc.report.analysis import Report
 from mtlc.report.tables import Table, ratio_text, task_heading, task_tables
 
@@ -40,18 +44,20 @@ def render_terminal(report: Report, *, color: bool, width: int | None = None) ->
     )
     for task in report.tasks:
         console.print()
-        console.print(Text(task_heading(task), style="bold"))
+        console.print(Text(terminal_safe(task_heading(task)), style="bold"))
         for table in task_tables(task, report):
             console.print(_rich(table))
-            console.print(Text(table.note, style="dim"))
+            console.print(Text(terminal_safe(table.note), style="dim"))
     return out.getvalue()
 
 
 def _rich(table: Table) -> RichTable:
-    t = RichTable(title=table.title, title_justify="left", show_lines=False)
+    t = RichTable(title=Text(terminal_safe(table.title)), title_justify="left", show_lines=False)
     for k, name in enumerate(table.header):
-        t.add_column(Text(name), overflow="fold", no_wrap=k == 0)
+        t.add_column(Text(terminal_safe(name)), overflow="fold", no_wrap=k == 0)
     marks = table.marks or [("",) * len(table.header)] * len(table.rows)
     for row, mark in zip(table.rows, marks, strict=True):
-        t.add_row(*(Text(c, style=STYLES[m]) for c, m in zip(row, mark, strict=True)))
+        t.add_row(
+            *(Text(terminal_safe(c), style=STYLES[m]) for c, m in zip(row, mark, strict=True))
+        )
     return t

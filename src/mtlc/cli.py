@@ -25,13 +25,13 @@ from mtlc.codegen import (
     stem_of,
 )
 from mtlc.diagnostics import CODES, DiagnosticSink, Span
-from mtlc.diagnostics.render import render_json, render_text, use_color
+from mtlc.diagnostics.render import render_json, render_text, terminal_safe, use_color
 from mtlc.fmt.command import add_fmt_parser, run_fmt_command
 from mtlc.frontend import FrontendOptions, Program, run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.lint.command import add_lint_parser, run_lint_command
 from mtlc.metrics import Metrics, compute_metrics, render_metrics
-from mtlc.output import OutputError, write_outputs
+from mtlc.output import OutputError, safe_file_name, write_outputs
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.context import DEFAULT_FPS
 from mtlc.preview.command import add_preview_parsers, run_preview_command
@@ -173,7 +173,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.write(f"mtlc: {exc}\n")
         return EXIT_USAGE
     except OutputError as exc:  # a command that writes without write_outputs (preview)
-        sys.stderr.write(f"mtlc: {exc}\n")
+        sys.stderr.write(f"mtlc: {terminal_safe(str(exc))}\n")
         return EXIT_USAGE
     except KeyboardInterrupt:
         return 130
@@ -274,7 +274,7 @@ def cmd_compile(args: argparse.Namespace, program: Program) -> int:
     if args.format == "text":
         _summary(program)
         for path in files:
-            print(f"wrote {path}")
+            print(f"wrote {terminal_safe(str(path))}")
     if measured:
         sys.stdout.write(render_metrics(measured))
     return EXIT_OK
@@ -283,13 +283,17 @@ def cmd_compile(args: argparse.Namespace, program: Program) -> int:
 def _claim(
     files: dict[Path, str | bytes], folder: Path, named: dict[str, str | bytes], source: str
 ) -> None:
-    """Add outputs, refusing two sources that would write the same file (one would be lost)."""
+    """Add outputs under safe names (``safe_file_name``: no newline, U+2028 or U+202E from a
+    file or task name reaches the file system), refusing two that would write the same file
+    (one would be lost), whether the names were equal or became equal once made safe."""
     for name, data in named.items():
-        target = folder / name
+        target = folder / safe_file_name(name)
         if target in files:
+            shown = terminal_safe(str(target))
             raise UsageError(
-                f"two outputs would both be written to {target} (the second from {source}); "
-                "give the files or the tasks different names, or compile them into different folders"
+                f"two outputs would both be written to {shown} (the second from "
+                f"{terminal_safe(source)}); give the files or the tasks different names, or "
+                "compile them into different folders"
             )
         files[target] = data
 

@@ -29,6 +29,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from mtlc.diagnostics.render import terminal_safe
+
 EXIT_USAGE = 2
 LOCK_TIMEOUT_S = 30.0  # a second write into a folder waits this long for the first, then fails
 STAGE_PREFIX = ".mtlc-stage-"
@@ -72,12 +74,31 @@ def escape_surrogates(json_text: str) -> str:
     return _SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", json_text)
 
 
+# A file name must not hold what a terminal or a file manager would obey or reorder: controls
+# (a newline splits `ls` output), DEL, C1, bidi controls (U+202E shows `gnp.exe` as `exe.png`),
+# line separators; nor a path separator.
+_UNSAFE_IN_NAME = re.compile(
+    "[\x00-\x1f\x7f-\x9f/\\\\\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069]"
+)
+
+
+def safe_file_name(name: str) -> str:
+    """``name`` (an output's file name, made of a source's stem and a task's name) with each
+    unsafe character percent-encoded as its UTF-8 bytes: a newline is ``%0A``, U+202E
+    ``%E2%80%AE``, ``/`` ``%2F``. Everything else (Chinese, accents, a lone surrogate standing
+    for a non-UTF-8 byte) is kept. Deterministic; a name that already reads ``%0A`` could meet
+    an encoded one, which the caller refuses as a collision (docs/output-files.md)."""
+    return _UNSAFE_IN_NAME.sub(
+        lambda m: "".join(f"%{b:02X}" for b in m.group().encode("utf-8")), name
+    )
+
+
 def write_outputs(files: dict[Path, str | bytes], command: str = "mtlc") -> int | None:
     """Write every file, or report (to stderr) why not and return exit code 2; None on success."""
     try:
         write_all_or_nothing(files)
     except OutputError as exc:
-        sys.stderr.write(f"{command}: {exc}\n")
+        sys.stderr.write(f"{command}: {terminal_safe(str(exc))}\n")
         return EXIT_USAGE
     return None
 

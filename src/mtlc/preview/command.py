@@ -12,9 +12,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from mtlc.diagnostics.render import render_json, render_text, use_color
+from mtlc.diagnostics.render import render_json, render_text, terminal_safe, use_color
 from mtlc.frontend import FrontendOptions
-from mtlc.output import write_all_or_nothing
+from mtlc.output import safe_file_name, write_all_or_nothing
 from mtlc.passes import MotionOptions
 from mtlc.passes.context import DEFAULT_FPS
 from mtlc.preview.compile import Compiled, compile_motions
@@ -131,7 +131,7 @@ def _targets(args: argparse.Namespace, compiled: Compiled) -> dict[tuple[str, st
     for ir in compiled.motions:
         html = args.output
         if args.output is None and args.png is None:
-            html = Path(f"{Path(ir.file).stem}.{ir.task}.html")
+            html = Path(safe_file_name(f"{Path(ir.file).stem}.{ir.task}.html"))
         out[(ir.file, ir.task)] = (html, args.png)
     _refuse_collisions(out)
     return out
@@ -165,7 +165,7 @@ def _preview(args: argparse.Namespace) -> int:
     try:
         targets = _targets(args, compiled)
     except TargetError as exc:
-        sys.stderr.write(f"mtlc: {exc}\n")
+        sys.stderr.write(f"mtlc: {terminal_safe(str(exc))}\n")
         return EXIT_USAGE
     for ir, doc in zip(compiled.motions, compiled.documents(), strict=True):
         html, png = targets[(ir.file, ir.task)]
@@ -182,7 +182,7 @@ def _preview(args: argparse.Namespace) -> int:
     write_all_or_nothing(files)
     if args.format == "text":
         for path in files:
-            print(f"wrote {path}")
+            print(f"wrote {terminal_safe(str(path))}")
     return EXIT_OK
 
 

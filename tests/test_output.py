@@ -385,3 +385,21 @@ def test_a_compile_killed_at_each_step_of_its_swap(tmp_path: Path) -> None:
     assert set(result["states"]) == {"old", "new"}, result["states"]
     first_new = result["states"].index("new")
     assert all(s == "new" for s in result["states"][first_new:])  # from the commit on
+
+
+def test_a_planted_journal_cannot_move_files_outside_its_folder(tmp_path: Path) -> None:
+    """A journal that would rename a staged file over a file in another folder is not one
+    mtlc wrote: recovery removes its staging folder and touches nothing else."""
+    out, victim = tmp_path / "out", tmp_path / "victim"
+    out.mkdir()
+    victim.mkdir()
+    (victim / "precious.txt").write_text("precious", encoding="utf-8")
+    stage = out / ".mtlc-stage-0123456789ab"
+    stage.mkdir()
+    (stage / "0.new").write_text("evil", encoding="utf-8")
+    entry = {"staged": str(stage / "0.new"), "target": str(victim / "precious.txt"), "backup": None}
+    doc = {"version": 1, "state": "forward", "entries": [entry]}
+    (stage / "journal.json").write_text(json.dumps(doc), encoding="utf-8")
+    output.recover(out)
+    assert (victim / "precious.txt").read_text(encoding="utf-8") == "precious"
+    assert list(out.iterdir()) == []

@@ -267,11 +267,25 @@ def _finish(journal: Path) -> None:
         state = doc["state"]
     except (OSError, ValueError, KeyError, TypeError):
         return  # not a journal mtlc wrote: the staging folder is removed, nothing applied
+    if state not in ("forward", "back") or not all(_contained(e) for e in entries):
+        return  # a journal that would move files elsewhere is not one mtlc wrote
     for entry in entries if state == "forward" else reversed(entries):
         _roll(entry, state)
     for entry in entries:
         if entry.staged.parent != journal.parent:
             shutil.rmtree(entry.staged.parent, ignore_errors=True)
+
+
+def _contained(entry: _Entry) -> bool:
+    """Whether an entry only moves files between a staging folder and the folder holding it:
+    a journal planted in a shared folder cannot make a recovery overwrite files elsewhere."""
+    stage = entry.staged.parent
+    return (
+        stage.name.startswith(STAGE_PREFIX)
+        and stage.parent == entry.target.parent
+        and (entry.backup is None or entry.backup.parent == stage)
+        and ".." not in entry.staged.parts + entry.target.parts
+    )
 
 
 def _roll(entry: _Entry, state: str) -> None:

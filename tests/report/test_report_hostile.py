@@ -129,3 +129,14 @@ def test_the_preview_title_has_nothing_to_obey() -> None:
     page = render_page(None, title="a\u202egnp.exe\x1b[2J</title>")
     head = page.split("</title>", 1)[0]
     assert r"a\u{202e}gnp.exe\u{1b}[2J&lt;/title&gt;" in head
+
+
+def test_lint_github_annotations_show_escapes() -> None:
+    from mtlc.lint.engine import LintResult
+    from mtlc.lint.findings import Finding
+    from mtlc.lint.output import render_github
+
+    finding = Finding("MT0201", "title \x1b[2J\u202e\nsecond line", Span("t.mtask", 1, 1, 1, 2))
+    result = LintResult([finding], {}, [Path("t.mtask")], (), ())
+    out = render_github(result, Path.cwd())
+    assert out.endswith(r"::title \u{1b}[2J\u{202e}%0Asecond line" + "\n")

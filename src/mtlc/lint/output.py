@@ -16,7 +16,7 @@ from urllib.parse import quote
 
 from mtlc import __version__
 from mtlc.diagnostics import CODES, Severity, Span
-from mtlc.diagnostics.render import render_one
+from mtlc.diagnostics.render import render_one, terminal_safe
 from mtlc.lint.engine import LintResult
 from mtlc.lint.findings import Finding
 from mtlc.lint.manikins import label
@@ -166,7 +166,8 @@ def render_github(result: LintResult, root: Path) -> str:
             ("title", f"{f.code} {f.name}"),
         ]
         head = ",".join(f"{k}={escape_property(v)}" for k, v in props)
-        lines.append(f"::{_GITHUB_LEVEL[f.severity]} {head}::{escape_data(_full_message(f))}\n")
+        message = escape_data(terminal_safe(_full_message(f), newlines=True))  # no raw ESC in logs
+        lines.append(f"::{_GITHUB_LEVEL[f.severity]} {head}::{message}\n")
     return "".join(lines)
 
 

@@ -403,3 +403,34 @@ def test_a_planted_journal_cannot_move_files_outside_its_folder(tmp_path: Path) 
     output.recover(out)
     assert (victim / "precious.txt").read_text(encoding="utf-8") == "precious"
     assert list(out.iterdir()) == []
+
+
+def test_a_busy_primary_folder_is_left_to_its_own_recovery(tmp_path: Path) -> None:
+    """Killed mid-apply over two folders; recovering the second folder while the first (which
+    holds the journal) is locked by another writer leaves the transaction alone; recovering
+    the first then finishes it in both."""
+    first, second = tmp_path / "a", tmp_path / "b"  # "a" sorts first: it holds the journal
+    first.mkdir()
+    second.mkdir()
+    old = {first / "x.txt": "old x", second / "y.txt": "old y"}
+    new: dict[Path, str | bytes] = {first / "x.txt": "new x", second / "y.txt": "new y"}
+    step = 1
+    while True:
+        for folder in (first, second):
+            for path in folder.iterdir():
+                shutil.rmtree(path) if path.is_dir() else path.unlink()
+        for path, text in old.items():
+            path.write_text(text, encoding="utf-8")
+        assert _killed_at(step, new)
+        if _state(old, new).startswith("mixed"):
+            break
+        step += 1
+    fd = os.open(first, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        output.recover(second)
+        assert _state(old, new).startswith("mixed") and _leftovers(second) != []
+    finally:
+        os.close(fd)
+    output.recover(first)
+    assert _state(old, new) == "new" and _leftovers(first, second) == []

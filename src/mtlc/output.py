@@ -124,9 +124,10 @@ def write_all_or_nothing(files: dict[Path, str | bytes]) -> None:
         except OSError as exc:
             raise OutputError(path, _reason(exc)) from exc
     ordered = sorted(folders, key=os.fsencode)  # one order for every writer: no deadlock
-    with _locked(ordered, folders):
+    with _locked(ordered, folders) as locked:
         for folder in ordered:
-            recover(folder, keep={t.name for t in targets.values() if t.parent == folder})
+            if folder in locked:  # unlocked, another writer's staging folder could be live
+                recover(folder, keep={t.name for t in targets.values() if t.parent == folder})
         _Transaction(ordered, folders).run(files, targets)
 
 
@@ -147,10 +148,12 @@ def recover(folder: Path, keep: set[str] | frozenset[str] = frozenset()) -> None
         if name.startswith(STAGE_PREFIX) and path.is_dir() and not path.is_symlink():
             journal = path / JOURNAL
             pointer = path / PRIMARY
-            if not journal.exists() and pointer.exists():
-                journal = Path(pointer.read_text(encoding="utf-8")) / JOURNAL
             if journal.exists():
                 _finish(journal)
+            elif pointer.exists():  # the journal is in another folder: finish it there
+                primary = Path(os.fsdecode(pointer.read_bytes()))
+                if (primary / JOURNAL).exists() and not _finish_elsewhere(primary):
+                    continue  # that folder is busy: its next write (or ours) finishes it
             shutil.rmtree(path, ignore_errors=True)
         elif (
             (m := _FORMER_TEMP.match(name))
@@ -276,6 +279,28 @@ def _finish(journal: Path) -> None:
             shutil.rmtree(entry.staged.parent, ignore_errors=True)
 
 
+def _finish_elsewhere(primary: Path) -> bool:
+    """Finish the transaction whose journal is in ``primary`` (a staging folder in another
+    folder) if that folder's lock is free, and remove its staging folder; False if busy."""
+    if not primary.name.startswith(STAGE_PREFIX):
+        return True  # not a pointer mtlc wrote: this staging folder is removed
+    try:
+        fd = os.open(primary.parent, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError:
+        return True
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return False
+    try:
+        _finish(primary / JOURNAL)
+        shutil.rmtree(primary, ignore_errors=True)
+    finally:
+        os.close(fd)
+    return True
+
+
 def _contained(entry: _Entry) -> bool:
     """Whether an entry only moves files between a staging folder and the folder holding it:
     a journal planted in a shared folder cannot make a recovery overwrite files elsewhere."""
@@ -305,10 +330,12 @@ def _roll(entry: _Entry, state: str) -> None:
 
 
 @contextmanager
-def _locked(folders: list[Path], named: dict[Path, Path]) -> Iterator[None]:
+def _locked(folders: list[Path], named: dict[Path, Path]) -> Iterator[set[Path]]:
     """An exclusive ``flock`` on each folder itself (no lock file is left among the outputs),
-    waiting at most ``LOCK_TIMEOUT_S`` for another mtlc writing there."""
+    waiting at most ``LOCK_TIMEOUT_S`` for another mtlc writing there; yields the folders
+    locked (a file system without ``flock`` is written unserialised)."""
     fds: list[int] = []
+    locked: set[Path] = set()
     try:
         for folder in folders:
             try:
@@ -320,6 +347,7 @@ def _locked(folders: list[Path], named: dict[Path, Path]) -> Iterator[None]:
             while True:
                 try:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    locked.add(folder)
                     break
                 except BlockingIOError:
                     if time.monotonic() >= deadline:
@@ -331,7 +359,7 @@ def _locked(folders: list[Path], named: dict[Path, Path]) -> Iterator[None]:
                     time.sleep(0.05)
                 except OSError:  # a file system without locks: write unserialised
                     break
-        yield
+        yield locked
     finally:
         for fd in fds:
             os.close(fd)

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mtlc.diagnostics.render import render_text, report_internal_error, use_color
+from mtlc.diagnostics.render import render_text, report_internal_error, terminal_safe, use_color
 from mtlc.frontend import FrontendOptions, run_frontend
 from mtlc.lint.manikins import ManikinError, parse_selection
 from mtlc.output import write_outputs
@@ -81,7 +81,7 @@ def run_report_command(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     missing = [str(p) for p in args.files if not p.is_file()]
     if missing:
-        sys.stderr.write(f"mtlc report: no such file: {', '.join(missing)}\n")
+        sys.stderr.write(f"mtlc report: no such file: {terminal_safe(', '.join(missing))}\n")
         return EXIT_USAGE
     try:
         return _report(args, selection, ratio)
@@ -114,7 +114,7 @@ def _report(args: argparse.Namespace, selection: tuple, ratio: dict[str, float])
         return failed
     sys.stdout.write(render_terminal(report, color=use_color(sys.stdout)))
     for path in files:
-        sys.stderr.write(f"wrote {path}\n")
+        sys.stderr.write(f"wrote {terminal_safe(str(path))}\n")
     return EXIT_OK
 
 

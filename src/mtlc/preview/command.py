@@ -201,7 +201,8 @@ def _serve(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     if hub.last_diagnostics is not None:
         sys.stderr.write("mtlc: the first compile failed; fix the file and save it\n")
-    print(f"serving {', '.join(map(str, args.files))} at {server.url} (Ctrl-C stops)", flush=True)
+    names = terminal_safe(", ".join(map(str, args.files)))
+    print(f"serving {names} at {server.url} (Ctrl-C stops)", flush=True)
     try:
         threading.Event().wait()
     except KeyboardInterrupt:

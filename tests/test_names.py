@@ -177,3 +177,41 @@ def test_chinese_procedure_lints_and_reports(tmp_path: Path, capsys) -> None:
     assert main(["report", rel, "--manikins", "extremes", "--csv", str(csv)]) == 0
     out = capsys.readouterr().out
     assert "更换燃油滤芯" in out and "滤杯" in csv.read_text(encoding="utf-8")
+
+
+# -- help lines ------------------------------------------------------------------------------
+
+
+def _diagnostics(tmp_path: Path, text: str):
+    path = tmp_path / "main.mtask"
+    path.write_text(text, encoding="utf-8")
+    return run_frontend([path]).diagnostics
+
+
+BAY = "use stdlib.actions\n\nscene bay {\n    site a at (0, 120, 60) cm\n}\n\n"
+
+
+def test_a_missing_stdlib_use_is_named(tmp_path: Path) -> None:
+    text = BAY + "task t {\n    scene bay\n    tool wrench_10mm\n    walk_to(a)\n}\n"
+    (diag,) = _diagnostics(tmp_path, text)
+    assert diag.code == "MT0201" and "add `use stdlib.tools`" in (diag.help or "")
+
+
+def test_unit_suggestions_stay_in_the_expected_dimension(tmp_path: Path) -> None:
+    text = BAY.replace("60) cm", "60) cms") + "task t {\n    scene bay\n    inspect(a, 3 cms)\n}\n"
+    helps = [d.help for d in _diagnostics(tmp_path, text)]
+    assert helps == ["did you mean `cm`?", "did you mean `ms`?"]  # a Length, then a Duration
+    text = BAY + "task t {\n    scene bay\n    inspect(a, 3 s * (1 cms / 1 cm))\n}\n"
+    assert "`cm` or `ms`" in (_diagnostics(tmp_path, text)[0].help or "")  # no context: both
+
+
+def test_a_missing_comma_is_pointed_at(tmp_path: Path) -> None:
+    for call, column, between in [
+        ("unscrew(right a, turns: 1)", 18, "arguments"),
+        ("unscrew(right, a, turns: 1 load: 2 kg)", 31, "arguments"),
+        ("inspect(a, (1 s 2 s))", 20, "items"),
+    ]:
+        text = BAY + f"task t {{\n    scene bay\n    {call}\n}}\n"
+        (diag,) = _diagnostics(tmp_path, text)
+        assert diag.message == f"expected `,` between {between}", call
+        assert (diag.span.line, diag.span.column) == (9, column), call

@@ -72,3 +72,14 @@ def test_tutorial_compile_writes_what_it_says(tmp_path: Path) -> None:
     script = (out / "replace_lamp.py").read_text(encoding="utf-8")
     assert "def replace_lamp():" in script and "human.Walk(" in script
     assert re.search(r"# \S*replace_lamp\.mtask:\d+:\d+ replace_lamp > walk_to > travel", script)
+
+
+def test_the_examples_suppressions_are_explained() -> None:
+    """Each example's `# mtlc: ignore[...]` is listed, code for code, in docs/lint.md."""
+    lint = (DOCS / "lint.md").read_text(encoding="utf-8")
+    for path in sorted((ROOT / "examples").glob("*.mtask")):
+        found = re.findall(r"mtlc: ignore\[([^\]]*)\]", path.read_text(encoding="utf-8"))
+        codes = sorted(c.strip() for group in found for c in group.split(","))
+        row = re.search(rf"^\| `{path.stem}` \| ([^|]*) \|", lint, re.M)
+        assert row is not None, f"docs/lint.md does not explain {path.name}'s suppressions"
+        assert sorted(c.strip() for c in row.group(1).split(",")) == codes, path.name

@@ -263,3 +263,15 @@ def test_readme_excerpt_is_the_example_as_it_is() -> None:
     lines = code(excerpt)
     starts = [i for i, line in enumerate(example) if line == lines[0]]
     assert any(example[i : i + len(lines)] == lines for i in starts), excerpt
+
+
+def test_language_reference_lists_the_grammars_keywords_and_number_pattern() -> None:
+    from mtlc.syntax.grammar import lexicon
+
+    text = (DOCS / "language.md").read_text(encoding="utf-8")
+    listed = re.search(r"The keywords are: `([^`]*)`", text)
+    assert listed is not None
+    assert set(listed.group(1).split()) == set(lexicon().keywords)
+    number = lexicon().patterns["NUMBER"]
+    assert number == r"([0-9]+(\.[0-9]*)?|\.[0-9]+)([eE][+-]?[0-9]+)?"  # as the page writes it
+    assert "`([0-9]+(.[0-9]*)? | .[0-9]+) ([eE][+-]?[0-9]+)?`" in text

@@ -215,3 +215,10 @@ def test_a_missing_comma_is_pointed_at(tmp_path: Path) -> None:
         (diag,) = _diagnostics(tmp_path, text)
         assert diag.message == f"expected `,` between {between}", call
         assert (diag.span.line, diag.span.column) == (9, column), call
+
+
+def test_function_names_escape_without_ambiguity() -> None:
+    from mtlc.codegen.jackscript import function_name
+
+    assert function_name("拆卸", set()) == "_u62c6_u5378"
+    assert function_name("\u10000", set()) != function_name("\U00010000", set())

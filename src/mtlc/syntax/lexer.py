@@ -83,13 +83,11 @@ _SMART_OPEN = "\u201c\u201e\u201f"  # “ „ ‟
 
 def _smart_close(text: str, pos: int) -> int:
     """The end of a string in typographic quotes (“...”) opened at ``pos``, or -1."""
-    for i in range(pos + 1, min(len(text), pos + 1000)):
-        ch = text[i]
-        if ch == "\u201d":
-            return i + 1
-        if ch in '\r\n"':
-            return -1
-    return -1
+    close = text.find("\u201d", pos + 1, pos + 200)  # C speed: a line of “ stays linear
+    if close < 0:
+        return -1
+    body = text[pos + 1 : close]
+    return -1 if "\n" in body or "\r" in body or '"' in body else close + 1
 
 
 def _scan(text: str) -> Iterator[tuple[str, int, int]]:
@@ -117,9 +115,13 @@ def _scan(text: str) -> Iterator[tuple[str, int, int]]:
             elif _continues_name(text[pos]):  # a word that starts with a mark
                 kind, end = "NAME", _name_end(text, end)
             else:
-                while end < n and _starts_nothing(text[end], wide):
+                while end < n and (
+                    _starts_nothing(text[end], wide)
+                    or (text[end] in _SMART_OPEN and _smart_close(text, end) < 0)
+                ):
                     end += 1
-            matches = rx.finditer(text, end)
+            if end != m.end():
+                matches = rx.finditer(text, end)
         yield kind, pos, end
 
 
@@ -152,8 +154,10 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
     def error(code: str, message: str, help: str | None = None) -> None:
         """Report the current lexeme (at most MAX_ERRORS_PER_FILE of them)."""
         nonlocal errors
-        span = Span(file, line, col, line, col + (end - start), start, end)
         errors += 1
+        if errors > MAX_ERRORS_PER_FILE + 1:
+            return
+        span = Span(file, line, col, line, col + (end - start), start, end)
         if errors == MAX_ERRORS_PER_FILE + 1:
             sink.report(
                 "MT0106",
@@ -178,11 +182,12 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
         if kind == "WIDE":
             ascii_form = wide[value]
             shown = "a space" if ascii_form == " " else f"`{ascii_form}`"
-            error(
-                "MT0102",
-                f"unexpected character {_describe_char(value)}",
-                help=f"write {shown} instead (mtlc reads it as one here)",
-            )
+            if errors <= MAX_ERRORS_PER_FILE:  # past it, skip building the message
+                error(
+                    "MT0102",
+                    f"unexpected character {_describe_char(value)}",
+                    help=f"write {shown} instead (mtlc reads it as one here)",
+                )
             if ascii_form == " ":
                 continue
             value, kind = ascii_form, "PUNCT"
@@ -232,13 +237,15 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
             # a bad string still stands for a value, so the statement around it parses
             tokens.append(Token("STRING", '""', start, line, col, line, col + len(value), end))
             continue
-        else:
+        elif errors <= MAX_ERRORS_PER_FILE:
             shown = value if len(value) <= 20 else value[:20] + "…"
             error(
                 "MT0102",
                 f"unexpected character{'s' if len(value) > 1 else ''} {shown!r}",
                 help=_bad_help(value),
             )
+            continue
+        else:
             continue
         tokens.append(Token(ttype, value, start, line, col, line, col + (end - start), end))
     return tokens

@@ -144,7 +144,7 @@ def test_long_expression_is_refused_without_recursion_error() -> None:
 
 def test_every_character_is_tokenized_or_reported() -> None:
     """The tokenizer must not skip characters silently (control and unicode space included)."""
-    for ch in ["\x00", "\x1c", "\x1f", "\u2028", "\u00a0", "\ufeff", "é"]:
+    for ch in ["\x00", "\x1c", "\x1f", "\u2028", "\u00a0", "\ufeff", "\u3000", "😀"]:
         sink = DiagnosticSink()
         tokenize(f"task t {{ {ch} }}", "x.mtask", sink)
         assert [d.code for d in sink.items] == ["MT0102"], repr(ch)

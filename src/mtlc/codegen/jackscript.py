@@ -102,7 +102,10 @@ def function_name(task: str, taken: set[str]) -> str:
 
 
 def _hex(ch: str) -> str:
-    return f"_u{ord(ch):04x}"
+    """`_u` and 4 hex digits, or `_U` and 8 beyond the BMP, so that no escape is a prefix of
+    another (U+1000 then `0` is `_u10000`, U+10000 is `_U00010000`)."""
+    code = ord(ch)
+    return f"_u{code:04x}" if code <= 0xFFFF else f"_U{code:08x}"
 
 
 def number(value: float, decimals: int) -> str:

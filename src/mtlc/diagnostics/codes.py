@@ -40,6 +40,7 @@ _ALL = [
         "MT0106", "too-many-errors", Severity.ERROR, "so many syntax errors that checking stopped"
     ),
     Code("MT0107", "invalid-escape", Severity.ERROR, "an unknown escape sequence in a string"),
+    Code("MT0108", "invalid-name", Severity.ERROR, "a word that is not a valid name"),
     # modules and names
     Code("MT0201", "unknown-name", Severity.ERROR, "a name that is not defined"),
     Code("MT0202", "duplicate-definition", Severity.ERROR, "a name defined twice"),

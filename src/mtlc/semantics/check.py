@@ -506,7 +506,7 @@ class Checker:
             self.mismatch(expr, actual, T.DURATION)
 
     def expect_vector(self, expr: ast.Expr, expected: T.VectorType, env: Env, what: str) -> None:
-        actual = self.infer(expr, env)
+        actual = self.infer(expr, env, expected)
         if actual == T.UNKNOWN:
             return
         if not isinstance(actual, T.VectorType):
@@ -532,7 +532,7 @@ class Checker:
             case ast.Number(unit=None, is_int=is_int):
                 return T.INT if is_int else T.NUMBER
             case ast.Number(unit=unit):
-                return self.unit_type(unit, expr.unit_span or expr.span)[0]
+                return self.unit_type(unit, expr.unit_span or expr.span, expected)[0]
             case ast.String():
                 return T.STRING
             case ast.Name(name=name):
@@ -550,7 +550,7 @@ class Checker:
             case ast.Binary():
                 return self.infer_binary(expr, env, expected)
             case ast.Vector():
-                return self.infer_vector(expr, env)
+                return self.infer_vector(expr, env, expected)
             case ast.ListExpr(items=items):
                 if not items:
                     return T.ListType(T.UNKNOWN)
@@ -568,14 +568,19 @@ class Checker:
             case _:
                 return T.UNKNOWN
 
-    def unit_type(self, unit: str, span: Span) -> tuple[T.Type, float]:
+    def unit_type(
+        self, unit: str, span: Span, expected: T.Type | None = None
+    ) -> tuple[T.Type, float]:
         found = T.UNITS.get(unit)
         if found is None:
+            # `cms` where a Length is wanted means `cm`, not the `ms` that is as close
+            dim = getattr(expected, "dim", None)
+            same = [u for u, (d, _) in T.UNITS.items() if d == dim and dim != T.NONE_DIM]
             self.sink.report(
                 "MT0303",
                 f"unknown unit `{unit}`",
                 span,
-                help=suggest(unit, T.UNITS, "units"),
+                help=suggest(unit, T.UNITS, "units", preferred=same),
             )
             return T.UNKNOWN, 1.0
         return T.Quantity(found[0]), found[1]
@@ -633,7 +638,7 @@ class Checker:
             pool += [s.name for s in env.scene.decl.sites]  # type: ignore[attr-defined]
         if isinstance(expected, T.EnumType):
             pool += list(expected.members)
-        help = did_you_mean(name, pool)
+        help = _module_hint(name) or did_you_mean(name, pool)
         if help is None and isinstance(expected, T.EnumType):
             help = f"{expected} is one of: {', '.join(expected.members)}"
         if help is None and expected == T.SITE and env.level == "task" and env.scene is None:
@@ -719,6 +724,8 @@ class Checker:
 
     def infer_binary(self, expr: ast.Binary, env: Env, expected: T.Type | None) -> T.Type:
         hint = expected if isinstance(expected, T.Quantity | T.VectorType) else None
+        if expr.op in "*/":
+            hint = None  # `3 s * (30 cm / 1 m)`: the operands need not be of the result's kind
         left = self.infer(expr.left, env, hint)
         right = self.infer(expr.right, env, hint)
         if T.UNKNOWN in (left, right):
@@ -762,7 +769,7 @@ class Checker:
         integer = op == "*" and left.integer and right.integer  # type: ignore[union-attr]
         return T.Quantity(dim, integer)  # type: ignore[arg-type]
 
-    def infer_vector(self, expr: ast.Vector, env: Env) -> T.Type:
+    def infer_vector(self, expr: ast.Vector, env: Env, expected: T.Type | None = None) -> T.Type:
         dims = []
         for item in expr.items:
             t = self.infer(item, env)
@@ -773,7 +780,7 @@ class Checker:
                 return T.UNKNOWN
             dims.append(t.dim)
         if expr.unit is not None:
-            utype, _ = self.unit_type(expr.unit, expr.unit_span or expr.span)
+            utype, _ = self.unit_type(expr.unit, expr.unit_span or expr.span, expected)
             if utype == T.UNKNOWN:
                 return T.UNKNOWN
             for item, dim in zip(expr.items, dims, strict=True):

@@ -1,12 +1,18 @@
-"""Turn source text into lark tokens, reporting bad characters and unterminated strings.
+"""Turn source text into lark tokens, reporting bad characters, bad names and open strings.
 
 Newlines are tokens (they end statements) except inside ( ) and [ ], where they are dropped, so
 argument lists may span lines. Runs of characters that start no token become one diagnostic.
+Names are Unicode identifiers (XID_Start or `_`, then XID_Continue: str.isidentifier), read in
+their NFC form, so two spellings of one name are one name; a word that is not a valid name is
+one diagnostic (MT0108) and still a name to the parser. Full-width punctuation (`，` `（`) is
+one diagnostic and read as its ASCII form.
 """
 
 from __future__ import annotations
 
 import re
+import unicodedata
+from collections.abc import Iterator
 from functools import cache
 
 from lark import Token
@@ -16,13 +22,13 @@ from mtlc.syntax.grammar import lexicon
 
 NEWLINE = "_NL"
 MAX_ERRORS_PER_FILE = 50
+_WORD = re.compile(r"\w*")
 
 
 @cache
 def _master_regex() -> re.Pattern[str]:
     lx = lexicon()
     punct = "|".join(re.escape(p) for p in sorted(lx.punctuation, key=len, reverse=True))
-    starters = re.escape("".join(sorted({p[0] for p in lx.punctuation})))
     return re.compile(
         "|".join(
             [
@@ -34,23 +40,135 @@ def _master_regex() -> re.Pattern[str]:
                 f"(?P<STRING>{lx.patterns['STRING']})",
                 r'(?P<BADSTRING>"[^\r\n]*)',
                 f"(?P<PUNCT>{punct})",
-                # every other character: the class must exclude exactly what the groups above match
-                rf'(?P<BAD>[^ \t\f\v\r\nA-Za-z0-9_"\#{starters}]+)',
+                # every other character, one at a time: _scan joins runs of them
+                r"(?P<BAD>[\s\S])",
             ]
         )
     )
 
 
+@cache
+def _wide_forms() -> dict[str, str]:
+    """Full-width and other look-alike punctuation -> the ASCII token or space it stands for.
+
+    Chinese input methods type `，` `（` `：` and the ideographic space; NFKC maps them to
+    `,` `(` `:` and ` `. Each is reported once and then read as what it looks like, so one
+    slip gives one diagnostic instead of a cascade of parse errors.
+    """
+    wanted = set(lexicon().punctuation) | {" "}
+    forms = {}
+    for code in (*range(0xA0, 0x100), *range(0x2000, 0x2070), *range(0x3000, 0x3020),
+                 *range(0xFE50, 0xFE70), *range(0xFF00, 0xFF61)):  # fmt: skip
+        ch = chr(code)
+        folded = unicodedata.normalize("NFKC", ch)
+        if folded in wanted:
+            forms[ch] = folded
+        elif folded.strip() == "" and ch.isspace() and ch not in "\x85\u2028\u2029":
+            forms[ch] = " "
+    return forms
+
+
+def _continues_name(ch: str) -> bool:
+    """Can ``ch`` (not ASCII) belong to a word? Letters, digits, marks and XID_Continue.
+
+    The regex's ``\\w`` misses combining marks (a decomposed `é`, Devanagari vowel signs) and
+    the few XID_Continue punctuation marks (U+00B7); they are taken here, and whether the
+    word is a valid name is decided on its NFC form by str.isidentifier.
+    """
+    return ch.isalnum() or ("a" + ch).isidentifier() or unicodedata.category(ch)[0] == "M"
+
+
+_SMART_OPEN = "\u201c\u201e\u201f"  # “ „ ‟
+
+
+def _smart_close(text: str, pos: int) -> int:
+    """The end of a string in typographic quotes (“...”) opened at ``pos``, or -1."""
+    close = text.find("\u201d", pos + 1, pos + 200)  # C speed: a line of “ stays linear
+    if close < 0:
+        return -1
+    body = text[pos + 1 : close]
+    return -1 if "\n" in body or "\r" in body or '"' in body else close + 1
+
+
+def _scan(text: str) -> Iterator[tuple[str, int, int]]:
+    """(kind, start, end) for every lexeme of ``text``, covering it without gaps.
+
+    Kinds are the regex's groups plus WIDE (a look-alike of an ASCII token, see _wide_forms).
+    A NAME is a whole word, even when it is not a valid name, and a BAD a run of characters
+    that start no token: each is one lexeme, so it gets one diagnostic.
+    """
+    rx = _master_regex()
+    wide = _wide_forms()
+    n = len(text)
+    matches = rx.finditer(text)
+    while (m := next(matches, None)) is not None:
+        kind, (pos, end) = m.lastgroup or "BAD", m.span()
+        if kind == "NAME":
+            if end < n and not text[end].isascii() and _continues_name(text[end]):
+                end = _name_end(text, end)
+                matches = rx.finditer(text, end)  # go on after the longer word
+        elif kind == "BAD":
+            if text[pos] in wide:
+                kind = "WIDE"
+            elif text[pos] in _SMART_OPEN and (close := _smart_close(text, pos)) > 0:
+                kind, end = "SMARTSTRING", close
+            elif _continues_name(text[pos]):  # a word that starts with a mark
+                kind, end = "NAME", _name_end(text, end)
+            else:
+                while end < n and (
+                    _starts_nothing(text[end], wide)
+                    or (text[end] in _SMART_OPEN and _smart_close(text, end) < 0)
+                ):
+                    end += 1
+            if end != m.end():
+                matches = rx.finditer(text, end)
+        yield kind, pos, end
+
+
+def _name_end(text: str, end: int) -> int:
+    """The end of the word that goes on at ``end`` past what ``\\w`` matched."""
+    n = len(text)
+    while end < n and not text[end].isascii() and _continues_name(text[end]):
+        end = _WORD.match(text, end + 1).end()  # type: ignore[union-attr]
+    return end
+
+
+def _starts_nothing(ch: str, wide: dict[str, str]) -> bool:
+    """``ch`` starts no token and is none of the bad characters _scan treats on their own."""
+    if ch.isspace() or ch in wide or ch in _SMART_OPEN:
+        return False
+    if ch.isascii():
+        return _master_regex().match(ch).lastgroup == "BAD"  # type: ignore[union-attr]
+    return not _continues_name(ch)
+
+
 def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
     lx = lexicon()
     keywords, punctuation = lx.keywords, lx.punctuation
+    wide = _wide_forms()
     tokens: list[Token] = []
     line, line_start = 1, 0
     brackets: list[str] = []  # open ( and [ and {, innermost last
     errors = 0
-    for m in _master_regex().finditer(text):
-        kind = m.lastgroup
-        start, end = m.start(), m.end()
+
+    def error(code: str, message: str, help: str | None = None) -> None:
+        """Report the current lexeme (at most MAX_ERRORS_PER_FILE of them)."""
+        nonlocal errors
+        errors += 1
+        if errors > MAX_ERRORS_PER_FILE + 1:
+            return
+        span = Span(file, line, col, line, col + (end - start), start, end)
+        if errors == MAX_ERRORS_PER_FILE + 1:
+            sink.report(
+                "MT0106",
+                f"more than {MAX_ERRORS_PER_FILE} bad characters or names; the rest are not "
+                "reported",
+                span,
+            )
+        if errors <= MAX_ERRORS_PER_FILE:
+            sink.report(code, message, span, help=help)
+
+    for kind, start, end in _scan(text):
         if kind == "WS" or kind == "COMMENT":
             continue
         col = start - line_start + 1
@@ -60,8 +178,32 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
             line += 1
             line_start = end
             continue
-        value = m.group()
+        value = text[start:end]
+        if kind == "WIDE":
+            ascii_form = wide[value]
+            shown = "a space" if ascii_form == " " else f"`{ascii_form}`"
+            if errors <= MAX_ERRORS_PER_FILE:  # past it, skip building the message
+                error(
+                    "MT0102",
+                    f"unexpected character {_describe_char(value)}",
+                    help=f"write {shown} instead (mtlc reads it as one here)",
+                )
+            if ascii_form == " ":
+                continue
+            value, kind = ascii_form, "PUNCT"
+        if kind == "NAME" and value.isdecimal():  # non-ASCII digits: ASCII ones are a NUMBER
+            digits = "".join(str(unicodedata.decimal(ch)) for ch in value)
+            error(
+                "MT0102",
+                f"unexpected digits `{value}`",
+                help=f"write numbers with the digits 0-9: `{digits}` (mtlc reads it so here)",
+            )
+            value, kind = digits, "NUMBER"
         if kind == "NAME":
+            if not value.isascii():
+                value = unicodedata.normalize("NFC", value)
+                if not value.isidentifier():
+                    error("MT0108", f"`{value}` is not a valid name", help=_name_help(value))
             ttype = keywords.get(value, "NAME")
         elif kind == "PUNCT":
             ttype = punctuation[value]
@@ -75,57 +217,77 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
                         pass
         elif kind in ("NUMBER", "STRING"):
             ttype = kind
-        else:
-            errors += 1
-            if errors == MAX_ERRORS_PER_FILE + 1:
-                sink.report(
-                    "MT0106",
-                    f"more than {MAX_ERRORS_PER_FILE} bad characters; the rest are not reported",
-                    Span(file, line, col, line, col + 1, start, start + 1),
-                )
-            if errors <= MAX_ERRORS_PER_FILE:
-                span = Span(file, line, col, line, col + len(value), start, end)
-                if kind == "BADSTRING":
-                    sink.report(
-                        "MT0103",
-                        "string is not closed before the end of the line",
-                        span,
-                        help='close it with `"`; a string cannot span lines (write \\n instead)',
-                    )
-                else:
-                    shown = value if len(value) <= 20 else value[:20] + "…"
-                    sink.report(
-                        "MT0102",
-                        f"unexpected character{'s' if len(value) > 1 else ''} {shown!r}",
-                        span,
-                    )
-            # a bad string still stands for a value, so the statement around it parses
-            if kind == "BADSTRING":
-                tokens.append(Token("STRING", '""', start, line, col, line, col + len(value), end))
+        elif kind == "SMARTSTRING":
+            error(
+                "MT0102",
+                "a string in typographic quotes",
+                help=f'strings use the straight quote `"`: write "{value[1:-1]}" '
+                "(mtlc reads it as one here)",
+            )
+            body = value[1:-1]
+            literal = f'"{body}"' if "\\" not in body else '""'
+            tokens.append(Token("STRING", literal, start, line, col, line, col + len(value), end))
             continue
-        tokens.append(Token(ttype, value, start, line, col, line, col + len(value), end))
+        elif kind == "BADSTRING":
+            error(
+                "MT0103",
+                "string is not closed before the end of the line",
+                help='close it with `"`; a string cannot span lines (write \\n instead)',
+            )
+            # a bad string still stands for a value, so the statement around it parses
+            tokens.append(Token("STRING", '""', start, line, col, line, col + len(value), end))
+            continue
+        elif errors <= MAX_ERRORS_PER_FILE:
+            shown = value if len(value) <= 20 else value[:20] + "…"
+            error(
+                "MT0102",
+                f"unexpected character{'s' if len(value) > 1 else ''} {shown!r}",
+                help=_bad_help(value),
+            )
+            continue
+        else:
+            continue
+        tokens.append(Token(ttype, value, start, line, col, line, col + (end - start), end))
     return tokens
+
+
+def _describe_char(ch: str) -> str:
+    name = unicodedata.name(ch, "")
+    return f"`{ch}` (U+{ord(ch):04X} {name})" if name else f"U+{ord(ch):04X}"
+
+
+def _name_help(word: str) -> str:
+    """Which character of ``word`` spoils it, and the rule (one help line for the whole word)."""
+    if not word[0].isidentifier():
+        first = f"it cannot start with {_describe_char(word[0])}"
+    else:
+        bad = next((ch for ch in word if not ("_" + ch).isidentifier()), word[0])
+        first = f"{_describe_char(bad)} cannot be part of a name"
+    return f"{first}: a name is letters (any script), digits and `_`, and starts with no digit"
+
+
+def _bad_help(value: str) -> str | None:
+    if value[0] in "\u201c\u201d\u201e\u201f\u2033":
+        return 'strings use the straight quote `"`'
+    return None
 
 
 def comments(text: str) -> list[Token]:
     """Every comment in ``text`` as a COMMENT token with its position (for `mtlc fmt`).
 
     ``tokenize`` drops comments, so the parser never sees them; this scans with the same
-    regex, so a `#` inside a string is never taken for a comment.
+    scanner, so a `#` inside a string is never taken for a comment.
     """
     found: list[Token] = []
     line, line_start = 1, 0
-    for m in _master_regex().finditer(text):
-        kind = m.lastgroup
+    for kind, start, end in _scan(text):
         if kind == "NL":
             line += 1
-            line_start = m.end()
+            line_start = end
         elif kind == "COMMENT":
-            col = m.start() - line_start + 1
+            col = start - line_start + 1
             found.append(
-                Token(
-                    "COMMENT", m.group(), m.start(), line, col, line, col + len(m.group()), m.end()
-                )
+                Token("COMMENT", text[start:end], start, line, col, line, col + end - start, end)
             )
     return found
 

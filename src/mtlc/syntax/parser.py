@@ -43,7 +43,10 @@ def parse_module(text: str, file: str, sink: DiagnosticSink) -> ast.Module:
     tokens = tokenize(text, file, sink)
     uses: list[ast.Use] = []
     decls: list[ast.Decl] = []
-    broken: set[str] = set()
+    # a word reported as an invalid name (MT0108) is not reported again as an unknown name
+    broken: set[str] = {
+        t.value for t in tokens if t.type == "NAME" and not t.isascii() and not t.isidentifier()
+    }
     errors_before = len(sink.items)
     for item_tokens in _split_items(tokens, file, sink):
         if len(sink.items) - errors_before > MAX_SYNTAX_ERRORS:
@@ -193,19 +196,85 @@ def _parse_item(tokens: list[Token], file: str, sink: DiagnosticSink) -> ast.Nod
                 )
                 return None
             index = next(i for i, t in enumerate(tokens) if t is bad)
-            sink.report(
-                "MT0101",
-                f"unexpected {_describe_token(bad)}",
-                token_span(file, where),
-                notes=(f"expected {_one_of(expected)}",) if 0 < len(expected) <= 8 else (),
-                help=_keyword_hint(tokens[index - 1]) if index > 0 else None,
-            )
+            gap, between = _missing_comma(tokens, index, err.expected)
+            if between:
+                before, bad = tokens[gap - 1], tokens[gap]
+                sink.report(
+                    "MT0101",
+                    f"expected `,` between {between}",
+                    Span(
+                        file,
+                        before.end_line,
+                        before.end_column,
+                        bad.line,
+                        bad.column,
+                        before.end_pos,
+                        bad.start_pos,
+                    ),
+                    help=f"add `,` after `{before.value}`",
+                )
+            else:
+                sink.report(
+                    "MT0101",
+                    f"unexpected {_describe_token(bad)}",
+                    token_span(file, where),
+                    notes=(f"expected {_one_of(expected)}",) if 0 < len(expected) <= 8 else (),
+                    help=_keyword_hint(tokens[index - 1]) if index > 0 else None,
+                )
             tokens = _drop_statement(tokens, index)
             if not tokens:
                 return None
         except UnexpectedInput:
             return None
     return None
+
+
+_STARTS_EXPR = {"NAME", "NUMBER", "STRING", "LPAR", "LSQB", "MINUS"}
+
+
+def _missing_comma(tokens: list[Token], index: int, expected: set[str]) -> tuple[int, str | None]:
+    """`f(a b)`, `(0 120, 60) cm`: where a `,` is missing, and what it separates.
+
+    Only when a `,` could come here, the token could start the next item, and the innermost
+    open bracket is a `(` or `[` of this statement: "arguments" after a call's name, else "items".
+    In `f(turns: 1 load: 2 kg)` the parser took `load` for the unit of `1` and stops at the `:`:
+    the comma is missing before `load`.
+    """
+    keywords = set(lexicon().keywords.values())
+    if (
+        tokens[index].type == "COLON"
+        and index >= 2
+        and tokens[index - 2].type == "NUMBER"
+        and tokens[index - 1].type in keywords | {"NAME"}
+    ):
+        index -= 1
+        expected = {"COMMA"}
+    bad = tokens[index]
+    starts = bad.type in _STARTS_EXPR or bad.type in keywords
+    if index == 0 or "COMMA" not in expected or not starts:
+        return index, None
+    depth = 0
+    for i in range(index - 1, -1, -1):
+        t = tokens[i].type
+        if t in _CLOSERS:
+            depth += 1
+        elif t in _OPENERS:
+            if depth == 0:
+                if t == "LBRACE":
+                    return index, None
+                return index, "arguments" if t == "LPAR" and _is_callee(tokens, i - 1) else "items"
+            depth -= 1
+    return index, None
+
+
+def _is_callee(tokens: list[Token], i: int) -> bool:
+    """Is ``tokens[i]`` (before a `(`) a name being called, not a keyword such as `at`?"""
+    if i < 0:
+        return False
+    if tokens[i].type in ("NAME", "RPAR"):
+        return True
+    keyword = tokens[i].type in lexicon().keywords.values()
+    return keyword and (i == 0 or tokens[i - 1].type in (NEWLINE, "SEMICOLON", "LBRACE", "DOT"))
 
 
 def _keyword_hint(previous: Token) -> str | None:

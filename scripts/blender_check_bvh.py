@@ -1,18 +1,30 @@
-"""Check that Blender imports our BVH files as we wrote them; run by scripts/check_blender.sh.
+"""Check that Blender imports our BVH files as we meant them; run by scripts/check_blender.sh.
 
 Two halves in one file, so the expectations and the check cannot drift apart:
 
-* with our Python (mtlc importable): ``python scripts/blender_check_bvh.py expect FILE.mtask OUT
-  [--emit]`` compiles every task of FILE, computes with our forward kinematics what Blender
-  must show, and writes ``OUT/<stem>.<task>.expected.json`` (and, with ``--emit``, the BVH
-  itself, for when the CLI has no ``--target bvh``);
+* with any Python 3 and numpy: ``python scripts/blender_check_bvh.py expect OUT/<stem>.<task>.ir.json``
+  reads the IR that ``mtlc compile --target all`` wrote beside the BVH (the compile's own output,
+  not a second compile) and writes ``OUT/<stem>.<task>.expected.json``: the frame count and rate,
+  the ground, every foot contact point and hand site (joint and offset), the frames where the
+  body stands (no walk, no posture change), every hand's goal site at the end of each of its TO
+  segments, and every joint's position at the first of them (forward kinematics from the IR's
+  JSON alone, as docs/ir.md shows);
 * inside Blender: ``blender --background --factory-startup --python-exit-code 1 --python
-  scripts/blender_check_bvh.py -- FILE.bvh FILE.expected.json`` imports the BVH with
-  ``bpy.ops.import_anim.bvh`` (scale 0.01: the file is in centimetres; axes forward −Z, up Y:
-  our Y-up world to Blender's Z-up one) and checks the frame count, every joint at a contact
-  frame and the hand (the wrist bone's tail, the BVH End Site at the grip point) there.
+  scripts/blender_check_bvh.py -- A.bvh A.expected.json [B.bvh B.expected.json ...]`` imports
+  each BVH into an empty scene with ``bpy.ops.import_anim.bvh`` (scale 0.01: the file is in
+  centimetres; axes forward −Z, up Y: our Y-up world to Blender's Z-up one) and checks, in
+  Blender's own coordinates (metres, Z up):
 
-Exit status 0 when everything matches within the tolerance, 1 otherwise.
+  - the frame count, and the scene's frame rate against the BVH's ``Frame Time`` and the IR's fps;
+  - feet on the ground: on every frame no sole point (heel, toe, balls) below the floor, and on
+    every standing frame each foot's lowest sole point on it;
+  - every hand at its goal site on the first frame at or after each TO end (where it holds);
+    where the IR says the reach fell short, at the distance the IR reports;
+  - every bone's head at the first TO end against our forward kinematics.
+
+  Everything within TOLERANCE_M (1 mm). One Blender process checks every file given.
+
+Exit status 0 when everything matches, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -23,63 +35,115 @@ from pathlib import Path
 from typing import Any
 
 TOLERANCE_M = 1e-3  # Blender keeps float32 matrices: about 1e-7 m here, far inside a millimetre
+FPS_TOLERANCE = 1e-4  # the BVH writes 1/fps with 8 decimals: 30 fps reads back as 30.0000003
 BVH_UNITS_PER_METRE = 100.0
+HANDS = ("r_hand", "l_hand")
+# Segments during which the feet may leave the floor: walking, and kneeling or squatting down.
+MOVING_KINDS = ("locomotion", "posture")
 
 
-# -- our side: expectations ----------------------------------------------------------------
-def contact(ir: Any) -> tuple[int, str, str]:
-    """(frame, wrist joint, hand site) where the right hand's first TO segment ends.
-
-    The left hand's when the right one never reaches.
-    """
+# -- our side: expectations from the IR's JSON -----------------------------------------------
+def _axis_angle(axis: Any, angle: float) -> Any:
     import numpy as np
 
-    reaches = [s for s in ir.segments if s.kind == "TO" and s.goal.effector in ("r_hand", "l_hand")]
-    for seg in sorted(reaches, key=lambda s: s.goal.effector != "r_hand"):  # right hand first
-        frame = int(np.argmin(np.abs(ir.frames.time - seg.end)))
-        side = seg.goal.effector[0]
-        return frame, f"{side}_wrist", seg.goal.effector
-    raise SystemExit(f"{ir.file}: task {ir.task} has no TO segment of a hand")
+    x, y, z = axis
+    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
 
 
-def expectations(ir: Any) -> dict[str, Any]:
-    """What Blender must show for one task, in our world (metres, Y up)."""
-    from mtlc.body.kinematics import forward, site_positions
+def _quat_matrix(w: float, x: float, y: float, z: float) -> Any:
+    import numpy as np
 
-    f = ir.frames
-    frame, wrist, hand = contact(ir)
-    pose = forward(ir.skeleton, f.q[frame], f.root_position[frame], f.root_rotation[frame])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def joint_positions(doc: dict[str, Any], frame: int) -> dict[str, list[float]]:
+    """Every joint's world position (m, Y up) at one frame: docs/ir.md's forward kinematics."""
+    import numpy as np
+
+    f = doc["frames"]
+    angle = dict(zip(f["dof_names"], f["q"][frame], strict=True))
+    world: dict[str, tuple[Any, Any]] = {}
+    for joint in doc["manikin"]["joints"]:
+        if joint["parent"] is None:
+            R = _quat_matrix(*f["root_rotation"][frame])
+            p = np.array(f["root_position"][frame]) + R @ np.array(joint["offset"])
+        else:
+            Rp, pp = world[joint["parent"]]
+            R, p = Rp, pp + Rp @ np.array(joint["offset"])
+        for dof in joint["dofs"]:
+            R = R @ _axis_angle(dof["axis"], angle[dof["name"]])
+        world[joint["name"]] = (R, p)
+    return {name: [round(float(v), 9) for v in p] for name, (_, p) in world.items()}
+
+
+def expectations(doc: dict[str, Any]) -> dict[str, Any]:
+    """What Blender must show for one task, in our world (metres, Y up), from its IR."""
+    f = doc["frames"]
+    times = f["time"]
+    n = len(times)
+    manikin = doc["manikin"]
+    sites = {s["name"]: s for s in manikin["effectors"] + manikin["contact_points"]}
+
+    def first_frame_at_or_after(t: float) -> int:
+        return next((k for k, tk in enumerate(times) if tk >= t - 1e-6), n - 1)
+
+    moving = [(s["t_start"], s["t_end"]) for s in doc["segments"] if s["kind"] in MOVING_KINDS]
+    standing = [k for k, t in enumerate(times) if not any(a <= t <= b for a, b in moving)]
+    to_ends = []
+    for s in doc["segments"]:
+        goal = s["goal"]
+        if s["kind"] != "TO" or goal["effector"] not in HANDS or goal["position"] is None:
+            continue
+        result = s.get("result") or {}
+        reached = bool(result.get("success", True))
+        to_ends.append(
+            {
+                "frame": first_frame_at_or_after(s["t_end"]),
+                "hand": goal["effector"],
+                "site": goal["site"],
+                "goal": goal["position"],
+                # where the IR says the reach fell short, the hand stays that far from the site
+                "distance": 0.0 if reached else float(result.get("distance", 0.0)),
+                "path": s["path"],
+            }
+        )
+    if not to_ends:
+        raise SystemExit(f"task {doc['source']['task']} has no TO segment of a hand")
+    feet = {
+        side: [
+            {"name": p["name"], "joint": p["joint"], "offset": p["offset"]}
+            for p in manikin["contact_points"]
+            if p["name"].startswith(f"{side}_")
+        ]
+        for side in ("r", "l")
+    }
+    contact_frame = to_ends[0]["frame"]
     return {
-        "task": ir.task,
-        "frames": len(f.time),
-        "fps": f.fps,
-        "contact_frame": frame,
-        "hand_bone": wrist,
-        "hand_site": hand,
-        "hand": [round(float(v), 9) for v in site_positions(ir.skeleton, pose, hand)],
-        "joints": {
-            name: [round(float(v), 9) for v in pose.p[i]]
-            for i, name in enumerate(ir.skeleton.joint_names)
-        },
+        "task": doc["source"]["task"],
+        "frames": n,
+        "fps": f["fps"],
+        "ground": doc["scene"]["ground"],
+        "feet": feet,
+        "hands": {h: {"joint": sites[h]["joint"], "offset": sites[h]["offset"]} for h in HANDS},
+        "standing_frames": standing,
+        "to_ends": to_ends,
+        "contact_frame": contact_frame,
+        "joints": joint_positions(doc, contact_frame),
     }
 
 
-def write_expectations(mtask: Path, out: Path, emit: bool) -> None:
-    from mtlc.codegen.bvh import emit_bvh
-    from mtlc.frontend import run_frontend
-    from mtlc.passes import run_motion
-
-    program = run_frontend([mtask])
-    if program.sink.has_errors:
-        raise SystemExit(f"{mtask}: does not compile")
-    out.mkdir(parents=True, exist_ok=True)
-    for timeline in program.timelines:
-        ir = run_motion(timeline, program.sink)
-        base = out / f"{mtask.stem}.{ir.task}"
-        if emit:
-            Path(f"{base}.bvh").write_text(emit_bvh(ir), encoding="utf-8")
-        text = json.dumps(expectations(ir), indent=1, sort_keys=True) + "\n"
-        Path(f"{base}.expected.json").write_text(text, encoding="utf-8")
+def write_expectations(ir_json: Path) -> Path:
+    doc = json.loads(ir_json.read_text(encoding="utf-8"))
+    out = ir_json.with_name(ir_json.name.removesuffix(".ir.json") + ".expected.json")
+    out.write_text(json.dumps(expectations(doc), indent=1, sort_keys=True) + "\n", "utf-8")
+    return out
 
 
 # -- Blender's side: the check -------------------------------------------------------------
@@ -91,8 +155,8 @@ def blender_check(bvh: Path, expected_path: Path) -> list[str]:
 
     expected = json.loads(expected_path.read_text(encoding="utf-8"))
     tolerate_removed_open_mode()
-    bpy.ops.object.select_all(action="SELECT")
-    bpy.ops.object.delete()
+    for obj in list(bpy.data.objects):
+        bpy.data.objects.remove(obj, do_unlink=True)
     result = bpy.ops.import_anim.bvh(
         filepath=str(bvh),
         target="ARMATURE",
@@ -108,23 +172,68 @@ def blender_check(bvh: Path, expected_path: Path) -> list[str]:
     if result != {"FINISHED"}:
         return [f"import_anim.bvh returned {result}"]
     arm = bpy.context.view_layer.objects.active
-    problems = check_frame_count(arm, expected["frames"])
-    to_blender = axis_conversion(from_forward="-Z", from_up="Y").to_4x4()
     scene = bpy.context.scene
-    scene.frame_set(1 + expected["contact_frame"])
-    bpy.context.view_layer.update()
-    for name, ours in expected["joints"].items():
-        got = arm.matrix_world @ arm.pose.bones[name].head
-        problems += compare(f"joint {name}", got, to_blender @ Vector(ours))
-    hand = arm.matrix_world @ arm.pose.bones[expected["hand_bone"]].tail
-    problems += compare(
-        f"hand {expected['hand_site']}", hand, to_blender @ Vector(expected["hand"])
+    problems = check_frame_count(arm, expected["frames"])
+    problems += check_fps(scene, bvh, expected["fps"])
+    to_blender = axis_conversion(from_forward="-Z", from_up="Y").to_3x3()
+    world = arm.matrix_world
+    to_armature = world.to_3x3().inverted()
+    rest_inverse = {b.name: b.bone.matrix_local.to_3x3().inverted() for b in arm.pose.bones}
+
+    def point(joint: str, offset: list[float]) -> Vector:
+        """A point fixed in our joint's frame, in Blender's world: at rest our joint frames are
+        the world's axes, so the bone's rotation from its rest pose carries the offset."""
+        bone = arm.pose.bones[joint]
+        turn = bone.matrix.to_3x3() @ rest_inverse[joint]
+        return world @ (bone.head + turn @ (to_armature @ (to_blender @ Vector(offset))))
+
+    ground = expected["ground"]  # our Y is Blender's Z
+    standing = set(expected["standing_frames"])
+    to_ends: dict[int, list[dict[str, Any]]] = {}
+    for end in expected["to_ends"]:
+        to_ends.setdefault(end["frame"], []).append(end)
+    lowest, highest_standing, worst_hand = float("inf"), 0.0, 0.0
+    feet_problems: list[str] = []
+    for frame in range(expected["frames"]):
+        scene.frame_set(1 + frame)
+        for side, points in expected["feet"].items():
+            heights = [point(p["joint"], p["offset"]).z - ground for p in points]
+            low = min(heights)
+            lowest = min(lowest, low)
+            if low < -TOLERANCE_M:
+                feet_problems.append(
+                    f"frame {frame}: {side} sole {low * 1000:.3f} mm below the floor"
+                )
+            if frame in standing:
+                highest_standing = max(highest_standing, low)
+                if low > TOLERANCE_M:
+                    feet_problems.append(
+                        f"frame {frame}: standing {side} foot {low * 1000:.3f} mm above the floor"
+                    )
+        for end in to_ends.get(frame, []):
+            hand = expected["hands"][end["hand"]]
+            got = point(hand["joint"], hand["offset"])
+            off = (got - to_blender @ Vector(end["goal"])).length
+            error = abs(off - end["distance"])
+            worst_hand = max(worst_hand, error)
+            if error > TOLERANCE_M:
+                problems.append(
+                    f"frame {frame}: {end['hand']} {off * 1000:.3f} mm from {end['site']} "
+                    f"({end['path']}), expected {end['distance'] * 1000:.3f} mm "
+                    f"({error * 1000:.3f} mm off)"
+                )
+        if frame == expected["contact_frame"]:
+            for name, ours in expected["joints"].items():
+                got = world @ arm.pose.bones[name].head
+                problems += compare(f"joint {name}", got, to_blender @ Vector(ours))
+    problems += feet_problems[:10] + (
+        [f"... and {len(feet_problems) - 10} more foot problems"] if len(feet_problems) > 10 else []
     )
-    distance = (hand - to_blender @ Vector(expected["hand"])).length
     print(
-        f"{bvh.name}: {expected['frames']} frames expected; contact frame {expected['contact_frame']}: "
-        f"{expected['hand_site']} at {tuple(round(v, 4) for v in hand)} (Blender, m), "
-        f"{distance * 1000:.4f} mm from our FK"
+        f"{bvh.name}: {expected['frames']} frames at {scene.render.fps / scene.render.fps_base:.4f}"
+        f" fps; feet: lowest sole {lowest * 1000:+.3f} mm, standing feet within"
+        f" {highest_standing * 1000:.3f} mm of the floor on {len(standing)} frames;"
+        f" {len(expected['to_ends'])} TO ends: hands within {worst_hand * 1000:.3f} mm"
     )
     return problems
 
@@ -158,6 +267,27 @@ def check_frame_count(arm: Any, frames: int) -> list[str]:
     return problems
 
 
+def check_fps(scene: Any, bvh: Path, fps: float) -> list[str]:
+    """The scene's rate is the BVH's ``Frame Time`` (what the importer read) and the IR's fps."""
+    frame_time = None
+    with bvh.open(encoding="utf-8") as text:
+        for line in text:
+            if line.startswith("Frame Time:"):
+                frame_time = float(line.split(":", 1)[1])
+                break
+    if frame_time is None:
+        return ["no Frame Time line"]
+    scene_fps = scene.render.fps / scene.render.fps_base
+    problems = []
+    if abs(scene_fps - 1.0 / frame_time) > FPS_TOLERANCE:
+        problems.append(
+            f"scene at {scene_fps} fps, the BVH's Frame Time {frame_time} says {1 / frame_time}"
+        )
+    if abs(scene_fps - fps) > FPS_TOLERANCE:
+        problems.append(f"scene at {scene_fps} fps, the IR at {fps} fps")
+    return problems
+
+
 def compare(what: str, got: Any, want: Any) -> list[str]:
     error = (got - want).length
     if error <= TOLERANCE_M:
@@ -166,14 +296,23 @@ def compare(what: str, got: Any, want: Any) -> list[str]:
 
 
 def main(argv: list[str]) -> int:
-    if "--" in argv:  # inside Blender: arguments after "--"
-        bvh, expected = argv[argv.index("--") + 1 :][:2]
-        problems = blender_check(Path(bvh), Path(expected))
-        for p in problems:
-            print(f"FAIL {Path(bvh).name}: {p}", file=sys.stderr)
-        return 1 if problems else 0
-    if len(argv) >= 4 and argv[1] == "expect":
-        write_expectations(Path(argv[2]), Path(argv[3]), emit="--emit" in argv[4:])
+    if "--" in argv:  # inside Blender: pairs of files after "--"
+        args = argv[argv.index("--") + 1 :]
+        if not args or len(args) % 2:
+            print("usage: blender ... -- A.bvh A.expected.json [B.bvh ...]", file=sys.stderr)
+            return 2
+        failed = 0
+        for bvh, expected in zip(args[::2], args[1::2], strict=True):
+            problems = blender_check(Path(bvh), Path(expected))
+            for p in problems:
+                print(f"FAIL {Path(bvh).name} ({Path(expected).name}): {p}", file=sys.stderr)
+            print(f"{'FAIL' if problems else 'ok  '} {Path(bvh).name} ({Path(expected).name})")
+            failed += bool(problems)
+        sys.stdout.flush()
+        return 1 if failed else 0
+    if len(argv) >= 3 and argv[1] == "expect":
+        for ir_json in argv[2:]:
+            write_expectations(Path(ir_json))
         return 0
     print(__doc__, file=sys.stderr)
     return 2

@@ -391,12 +391,19 @@ def test_preview_document_carries_the_half_angle(lift_view: MotionView) -> None:
 @pytest.fixture(scope="module")
 def chromium():  # type: ignore[no-untyped-def]
     """A headless Chromium (as tests/preview uses), or skip when it is not installed."""
-    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium (the test extra)")
-    from preview.preview_support import CHROMEDRIVER, CHROMIUM, CHROMIUM_FLAGS
+    from preview.preview_support import (
+        CHROMEDRIVER,
+        CHROMIUM,
+        CHROMIUM_FLAGS,
+        CHROMIUM_MISSING,
+        SELENIUM_MISSING,
+    )
+
+    webdriver = pytest.importorskip("selenium.webdriver", reason=SELENIUM_MISSING)
     from selenium.webdriver.chrome.service import Service
 
     if not CHROMIUM.exists() or not CHROMEDRIVER.exists():
-        pytest.skip("Chromium is not installed (tests/preview installs it)")
+        pytest.skip(CHROMIUM_MISSING)
     options = webdriver.ChromeOptions()
     options.binary_location = str(CHROMIUM)
     for flag in CHROMIUM_FLAGS:

@@ -54,8 +54,8 @@ def test_docs_forward_kinematics_matches_mtlc(path: Path, docs_fk: dict) -> None
     for row, frame in enumerate(frames):
         for k, name in enumerate(names):
             theirs = docs_fk["point"](doc, int(frame), name)
-            # the JSON's 6-decimal rounding of offsets and angles moves points by micrometres
-            assert np.allclose(theirs, ours[row, k], atol=2e-5), (name, frame)
+            # the JSON's rounding (0.01 mm, 1e-5 rad) moves points by up to 0.012 mm here
+            assert np.allclose(theirs, ours[row, k], atol=5e-5), (name, frame)
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)

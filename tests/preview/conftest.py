@@ -21,7 +21,16 @@ from mtlc.preview.compile import compile_motions
 from mtlc.preview.html import render_page
 from mtlc.preview.server import MotionHub, PreviewServer
 
-from .preview_support import CHROMEDRIVER, CHROMIUM, CHROMIUM_FLAGS, EXAMPLES, ROOT, Example
+from .preview_support import (
+    CHROMEDRIVER,
+    CHROMIUM,
+    CHROMIUM_FLAGS,
+    CHROMIUM_MISSING,
+    EXAMPLES,
+    ROOT,
+    SELENIUM_MISSING,
+    Example,
+)
 
 
 @pytest.fixture(scope="session")
@@ -40,21 +49,23 @@ def examples(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Example]:
 
 
 def _ensure_chromium() -> str | None:
-    """None when Chromium and its driver are there (installing them if needed), else why not."""
+    """None when Chromium and its driver are there (installing them if we can), else one line
+    naming what to install (the script's own reason after it)."""
     if not CHROMIUM.exists() or not CHROMEDRIVER.exists():
         script = ROOT / "scripts" / "install_chromium.sh"
         run = subprocess.run(["sh", str(script)], capture_output=True, text=True, timeout=900)
         if run.returncode != 0:
-            return f"Chromium could not be installed: {(run.stderr or run.stdout).strip()[-300:]}"
+            why = " ".join((run.stderr or run.stdout).split())[-200:]
+            return f"{CHROMIUM_MISSING} [{why}]"
     if not CHROMIUM.exists() or not CHROMEDRIVER.exists():
-        return "Chromium or chromedriver is still missing after scripts/install_chromium.sh"
+        return CHROMIUM_MISSING
     return None
 
 
 @pytest.fixture(scope="session")
 def browser() -> Iterator[Any]:
     """A headless Chromium driven by selenium through Debian's chromedriver."""
-    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium (the test extra)")
+    webdriver = pytest.importorskip("selenium.webdriver", reason=SELENIUM_MISSING)
     from selenium.webdriver.chrome.service import Service
 
     reason = _ensure_chromium()

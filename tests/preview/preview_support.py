@@ -16,6 +16,12 @@ ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
+# The one line a skipped browser test prints: exactly what to install.
+CHROMIUM_MISSING = (
+    "Chromium and chromedriver are not installed: run scripts/install_chromium.sh as root "
+    "(apt: chromium chromium-driver fonts-dejavu-core)"
+)
+SELENIUM_MISSING = "selenium is not installed: pip install -e '.[test]'"
 CHROMIUM_FLAGS = [
     "--headless",
     "--no-sandbox",

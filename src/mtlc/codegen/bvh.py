@@ -28,7 +28,9 @@ from mtlc.ir.model import MotionIR
 FloatArray = NDArray[np.float64]
 
 CENTIMETRES_PER_METRE = 100.0
-DECIMALS = 6  # 1e-8 m and 1e-6 degrees: far below the 1 mm read-back tolerance
+# Lengths to 0.01 mm (3 decimals of a cm), angles to 0.001°: far coarser than what another BLAS
+# build changes (about 1e-6°), far inside the 1 mm read-back tolerance. docs/bvh.md.
+DECIMALS = 3
 AXIS_LETTERS = "XYZ"
 # The root turns mostly about the vertical: yaw first, so the decomposition's singular
 # configuration is a pelvis pitched by 90 degrees.

@@ -35,7 +35,9 @@ TA_MODES = ("keyframes", "jack")
 SOURCE_MAP_VERSION = 1
 TIME_DECIMALS = 6  # 1 µs: frame times stay on their frames
 LENGTH_DECIMALS = 3  # centimetres to 0.01 mm
-ANGLE_DECIMALS = 4  # degrees to 1e-4
+ANGLE_DECIMALS = (
+    3  # degrees to 0.001: coarser than BLAS noise (~1e-6°), finer than the replay's 1e-3° check
+)
 ANGLE_TOLERANCE_DEG = 0.05  # linear interpolation between keys stays this close to every frame
 POSITION_TOLERANCE_CM = 0.03  # ... and each root coordinate this close (0.3 mm)
 LINE_LENGTH = 100

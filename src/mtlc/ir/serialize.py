@@ -2,7 +2,8 @@
 
 It carries the skeleton (joint tree, offsets, dof axes in order, limits, masses, centres of
 mass), the scene, the goals, every segment with its keyframes and provenance, and the sampled
-frames. Numbers are rounded to 6 decimals (1 µm, 1 µrad) so the same input gives the same bytes.
+frames. Numbers are rounded (lengths to 0.01 mm, angles to 1e-5 rad, times to 1 µs) so the same
+input gives the same bytes and the last printed digit is not floating-point noise.
 """
 
 from __future__ import annotations
@@ -15,23 +16,31 @@ import numpy as np
 from mtlc.ir.model import IR_FORMAT_VERSION, Keyframes, MotionIR, Segment, SourceRef
 from mtlc.output import escape_surrogates
 
-DECIMALS = 6
+DECIMALS = 5  # lengths to 0.01 mm, angles to 1e-5 rad (0.0006°), masses to 0.01 g
+TIME_DECIMALS = 6  # times to 1 µs, as JackScript writes them: frame times stay on their frames
+# Keys whose numbers are times (s) or rates (1/s); every other number gets DECIMALS.
+TIME_KEYS = frozenset({"time", "t_start", "t_end", "fps"})
 
 
-def _num(v: Any) -> Any:
+def _num(v: Any, decimals: int = DECIMALS) -> Any:
+    """JSON-able copy of ``v`` with every float rounded, and -0.0 written as 0.0.
+
+    The rounding is far coarser than the last bits a different BLAS build changes (about 1e-8
+    rad on the examples) and far finer than a reader needs to recompute frames (docs/ir.md).
+    """
     if isinstance(v, np.ndarray):
-        return _num(v.tolist())
+        return _num(v.tolist(), decimals)
     if isinstance(v, float | np.floating):
-        r = round(float(v), DECIMALS)
+        r = round(float(v), decimals)
         return 0.0 if r == 0 else r
     if isinstance(v, np.integer):
         return int(v)
     if isinstance(v, np.bool_):
         return bool(v)
     if isinstance(v, list | tuple):
-        return [_num(x) for x in v]
+        return [_num(x, decimals) for x in v]
     if isinstance(v, dict):
-        return {k: _num(x) for k, x in v.items()}
+        return {k: _num(x, TIME_DECIMALS if k in TIME_KEYS else decimals) for k, x in v.items()}
     return v
 
 

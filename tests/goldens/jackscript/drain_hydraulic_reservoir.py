@@ -15,257 +15,241 @@ def drain_reservoir():
     human.KeyRoot(0.0, (0.0, 84.188, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
-        'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
-        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.749, 0.0, 0.0), 'right_knee': (4.6565,),
-        'right_ankle': (1.9075, 0.0), 'left_hip': (2.749, 0.0, 0.0), 'left_knee': (4.6565,),
-        'left_ankle': (1.9075, 0.0),
+        'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
+        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.749, 0.0, 0.0), 'right_knee': (4.657,),
+        'right_ankle': (1.907, 0.0), 'left_hip': (2.749, 0.0, 0.0), 'left_knee': (4.657,),
+        'left_ankle': (1.907, 0.0),
     })
     human.KeyRoot(0.1, (2.421, 82.071, 8.421), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (42.1817, 3.2333, -1.076), 'right_knee': (80.6934,),
-        'right_ankle': (18.3598, 2.0447), 'left_hip': (6.0036, -1.8258, -0.1921),
-        'left_knee': (24.3782,), 'left_ankle': (18.3841, -1.8358),
+        'right_hip': (42.182, 3.233, -1.076), 'right_knee': (80.693,),
+        'right_ankle': (18.36, 2.045), 'left_hip': (6.004, -1.826, -0.192), 'left_knee': (24.378,),
+        'left_ankle': (18.384, -1.836),
     })
     human.KeyRoot(0.2, (1.643, 80.077, 16.391), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (36.5239, 4.9317, -18.2255), 'right_knee': (34.6883,),
-        'right_ankle': (-1.9897, -5.5163), 'left_hip': (18.4846, -1.0762, -0.9305),
-        'left_knee': (58.6824,), 'left_ankle': (17.8428, -1.4226),
+        'right_hip': (36.524, 4.932, -18.226), 'right_knee': (34.688,),
+        'right_ankle': (-1.99, -5.516), 'left_hip': (18.485, -1.076, -0.931),
+        'left_knee': (58.682,), 'left_ankle': (17.843, -1.423),
     })
-    human.KeyRoot(0.3, (-0.39, 80.191, 24.402), (-0.7888, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.39, 80.191, 24.402), (-0.789, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (25.4551, 2.9468, -17.6141), 'right_knee': (23.8822,),
-        'right_ankle': (-1.2817, -4.923), 'left_hip': (13.9606, 0.4218, -0.5592),
-        'left_knee': (61.3998,), 'left_ankle': (19.4726, 0.3353),
+        'right_hip': (25.455, 2.947, -17.614), 'right_knee': (23.882,),
+        'right_ankle': (-1.282, -4.923), 'left_hip': (13.961, 0.422, -0.559), 'left_knee': (61.4,),
+        'left_ankle': (19.473, 0.335),
     })
-    human.KeyRoot(0.4, (-1.529, 81.832, 32.968), (-8.6399, 0.0, 0.0))
+    human.KeyRoot(0.4, (-1.529, 81.832, 32.968), (-8.64, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (19.3594, -0.5564, -10.0668), 'right_knee': (22.834,),
-        'right_ankle': (3.8398, -3.8396), 'left_hip': (28.7012, -0.0871, 0.5063),
-        'left_knee': (72.0405,), 'left_ankle': (20.0, 0.1645),
+        'right_hip': (19.359, -0.556, -10.067), 'right_knee': (22.834,),
+        'right_ankle': (3.84, -3.84), 'left_hip': (28.701, -0.087, 0.506), 'left_knee': (72.04,),
+        'left_ankle': (20.0, 0.164),
     })
     human.KeyRoot(0.5, (-0.779, 83.259, 41.549), (-15.307, 0.0, 0.0))
     human.KeyJoints(0.5, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'left_shoulder': (8.5944, 5.7296, 11.4592),
-        'right_hip': (11.1583, -0.8023, -2.871), 'right_knee': (17.4428,),
-        'right_ankle': (6.3391, -1.3416), 'left_hip': (13.7351, 0.7602, 2.8902),
-        'left_knee': (21.4921,), 'left_ankle': (7.4283, 1.3584),
+        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
+        'right_hip': (11.158, -0.802, -2.871), 'right_knee': (17.443,),
+        'right_ankle': (6.339, -1.342), 'left_hip': (13.735, 0.76, 2.89), 'left_knee': (21.492,),
+        'left_ankle': (7.428, 1.358),
     })
     # examples/drain_hydraulic_reservoir.mtask:23:5 drain_reservoir > squat: posture on root
-    human.KeyRoot(0.6, (0.36, 83.649, 43.962), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.36, 83.649, 43.962), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'spine_lumbar': (1.7358, 0.0, 0.0), 'spine_thoracic': (0.8213, 0.0, 0.0),
-        'right_shoulder': (10.2863, 5.7296, 11.4592), 'left_shoulder': (10.2863, 5.7296, 11.4592),
-        'right_hip': (8.3151, 0.0162, 0.0024), 'right_knee': (14.0904,),
-        'right_ankle': (5.7801, 0.0164), 'left_hip': (8.3026, -0.0162, -0.0024),
-        'left_knee': (14.0646,), 'left_ankle': (5.7646, -0.0164),
+        'spine_lumbar': (1.736, 0.0, 0.0), 'spine_thoracic': (0.821, 0.0, 0.0),
+        'right_shoulder': (10.286, 5.73, 11.459), 'left_shoulder': (10.286, 5.73, 11.459),
+        'right_hip': (8.315, 0.016, 0.002), 'right_knee': (14.09,), 'right_ankle': (5.78, 0.016),
+        'left_hip': (8.303, -0.016, -0.002), 'left_knee': (14.065,), 'left_ankle': (5.765, -0.016),
     })
-    human.KeyRoot(0.7, (1.82, 82.611, 39.451), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(0.7, (1.82, 82.611, 39.451), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'spine_lumbar': (8.6475, 0.0, 0.0), 'spine_thoracic': (4.2831, 0.0, 0.0),
-        'right_shoulder': (16.8743, 5.7296, 11.4592), 'left_shoulder': (16.8743, 5.7296, 11.4592),
-        'right_hip': (15.459, 0.014, 0.0039), 'right_knee': (21.4142,),
-        'right_ankle': (5.9582, 0.0145), 'left_hip': (15.4573, -0.014, -0.0039),
-        'left_knee': (21.4108,), 'left_ankle': (5.9557, -0.0145),
+        'spine_lumbar': (8.647, 0.0, 0.0), 'spine_thoracic': (4.283, 0.0, 0.0),
+        'right_shoulder': (16.874, 5.73, 11.459), 'left_shoulder': (16.874, 5.73, 11.459),
+        'right_hip': (15.459, 0.014, 0.004), 'right_knee': (21.414,), 'right_ankle': (5.958, 0.015),
+        'left_hip': (15.457, -0.014, -0.004), 'left_knee': (21.411,), 'left_ankle': (5.956, -0.015),
     })
-    human.KeyRoot(0.8, (3.065, 80.848, 35.603), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(0.8, (3.065, 80.848, 35.603), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_shoulder': (22.758, 5.7296, 11.4592), 'left_shoulder': (22.758, 5.7296, 11.4592),
-        'right_hip': (22.8158, 0.0117, 0.0049), 'right_knee': (29.9699,),
-        'right_ankle': (7.1674, 0.0127), 'left_hip': (22.8145, -0.0117, -0.005),
-        'left_knee': (29.9673,), 'left_ankle': (7.165, -0.0127),
+        'right_shoulder': (22.758, 5.73, 11.459), 'left_shoulder': (22.758, 5.73, 11.459),
+        'right_hip': (22.816, 0.012, 0.005), 'right_knee': (29.97,), 'right_ankle': (7.167, 0.013),
+        'left_hip': (22.815, -0.012, -0.005), 'left_knee': (29.967,), 'left_ankle': (7.165, -0.013),
     })
-    human.KeyRoot(0.9, (4.133, 78.551, 32.3), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(0.9, (4.133, 78.551, 32.3), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'spine_lumbar': (21.8811, 0.0, 0.0), 'spine_thoracic': (10.9118, 0.0, 0.0),
-        'right_hip': (29.8462, 0.0094, 0.0054), 'right_knee': (38.3896,),
-        'right_ankle': (8.5507, 0.0108), 'left_hip': (29.8469, -0.0094, -0.0055),
-        'left_knee': (38.391,), 'left_ankle': (8.5521, -0.0109),
+        'spine_lumbar': (21.881, 0.0, 0.0), 'spine_thoracic': (10.912, 0.0, 0.0),
+        'right_hip': (29.846, 0.009, 0.005), 'right_knee': (38.39,), 'right_ankle': (8.551, 0.011),
+        'left_hip': (29.847, -0.009, -0.005), 'left_knee': (38.391,), 'left_ankle': (8.552, -0.011),
     })
-    human.KeyRoot(1.0, (5.103, 75.629, 29.3), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(1.0, (5.103, 75.629, 29.3), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'spine_lumbar': (29.4635, 0.0, 0.0), 'spine_thoracic': (14.709, 0.0, 0.0),
-        'right_knee': (47.1386,), 'left_knee': (47.139,),
+        'spine_lumbar': (29.464, 0.0, 0.0), 'spine_thoracic': (14.709, 0.0, 0.0),
+        'right_knee': (47.139,), 'left_knee': (47.139,),
     })
-    human.KeyRoot(1.1, (5.954, 72.145, 26.667), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(1.1, (5.954, 72.145, 26.667), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'spine_lumbar': (38.3848, 0.0, 0.0), 'right_ankle': (11.7269, 0.007),
-        'left_ankle': (11.7271, -0.007),
+        'spine_lumbar': (38.385, 0.0, 0.0), 'right_ankle': (11.727, 0.007),
+        'left_ankle': (11.727, -0.007),
     })
-    human.KeyRoot(1.2, (6.667, 68.156, 24.461), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(1.2, (6.667, 68.156, 24.461), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (47.1331, 0.0, 0.0), 'spine_thoracic': (23.5557, 0.0, 0.0),
-        'right_hip': (51.5492, 0.003, 0.0038), 'right_knee': (64.9318,),
-        'left_hip': (51.5492, -0.003, -0.0038), 'left_knee': (64.9318,),
+        'spine_lumbar': (47.133, 0.0, 0.0), 'spine_thoracic': (23.556, 0.0, 0.0),
+        'right_hip': (51.549, 0.003, 0.004), 'right_knee': (64.932,),
+        'left_hip': (51.549, -0.003, -0.004), 'left_knee': (64.932,),
     })
-    human.KeyRoot(1.3, (7.223, 63.723, 22.736), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(1.3, (7.223, 63.723, 22.736), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (56.7103, 0.0, 0.0), 'spine_thoracic': (28.3502, 0.0, 0.0),
-        'right_shoulder': (49.8075, 5.7296, 11.4592), 'left_shoulder': (49.8075, 5.7296, 11.4592),
-        'right_hip': (58.8419, 0.001, 0.0023), 'right_knee': (73.9143,),
-        'left_hip': (58.8419, -0.001, -0.0023), 'left_knee': (73.9144,),
+        'spine_lumbar': (56.71, 0.0, 0.0), 'spine_thoracic': (28.35, 0.0, 0.0),
+        'right_shoulder': (49.807, 5.73, 11.459), 'left_shoulder': (49.807, 5.73, 11.459),
+        'right_hip': (58.842, 0.001, 0.002), 'right_knee': (73.914,),
+        'left_hip': (58.842, -0.001, -0.002), 'left_knee': (73.914,),
     })
-    human.KeyRoot(1.4, (7.617, 58.777, 21.514), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(1.4, (7.617, 58.777, 21.514), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.4, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'right_shoulder': (55.36, 5.7296, 11.4592), 'left_shoulder': (55.36, 5.7296, 11.4592),
-        'right_hip': (66.3348, 0.0, 0.0), 'right_knee': (83.1583,), 'right_ankle': (16.8235, 0.0),
-        'left_hip': (66.3348, 0.0, 0.0), 'left_knee': (83.1583,), 'left_ankle': (16.8235, 0.0),
+        'right_shoulder': (55.36, 5.73, 11.459), 'left_shoulder': (55.36, 5.73, 11.459),
+        'right_hip': (66.335, 0.0, 0.0), 'right_knee': (83.158,), 'right_ankle': (16.823, 0.0),
+        'left_hip': (66.335, 0.0, 0.0), 'left_knee': (83.158,), 'left_ankle': (16.823, 0.0),
     })
-    human.KeyRoot(1.5, (7.838, 52.163, 20.833), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(1.5, (7.838, 52.163, 20.833), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'right_shoulder': (62.2677, 5.7296, 11.4592), 'left_shoulder': (62.2677, 5.7296, 11.4592),
-        'right_hip': (75.7099, 0.0, 0.0), 'right_knee': (94.7645,), 'right_ankle': (19.0546, 0.0),
-        'left_hip': (75.7099, 0.0, 0.0), 'left_knee': (94.7645,), 'left_ankle': (19.0546, 0.0),
+        'right_shoulder': (62.268, 5.73, 11.459), 'left_shoulder': (62.268, 5.73, 11.459),
+        'right_hip': (75.71, 0.0, 0.0), 'right_knee': (94.764,), 'right_ankle': (19.055, 0.0),
+        'left_hip': (75.71, 0.0, 0.0), 'left_knee': (94.764,), 'left_ankle': (19.055, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:24:5 drain_reservoir > look: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=1.584, duration=0.2628)
-    human.KeyRoot(1.6, (7.838, 49.255, 20.832), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(1.6, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'neck': (-0.0179, 0.0, 0.0), 'head': (-0.0179, 0.0),
-        'right_shoulder': (65.1949, 5.7296, 11.4592), 'left_shoulder': (65.1949, 5.7296, 11.4592),
-        'right_hip': (79.6826, 0.0, 0.0), 'right_knee': (99.6826,), 'right_ankle': (20.0, 0.0),
-        'left_hip': (79.6826, 0.0, 0.0), 'left_knee': (99.6826,), 'left_ankle': (20.0, 0.0),
+        'neck': (-0.018, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_shoulder': (65.195, 5.73, 11.459),
+        'left_shoulder': (65.195, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
+        'right_knee': (99.683,), 'right_ankle': (20.0, 0.0), 'left_hip': (79.683, 0.0, 0.0),
+        'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
-    human.KeyJoints(1.7, {'neck': (-0.6935, 0.0, 0.0), 'head': (-0.6935, 0.0)})
+    human.KeyJoints(1.7, {'neck': (-0.693, 0.0, 0.0), 'head': (-0.693, 0.0)})
     human.KeyJoints(1.8, {
-        'neck': (-1.5402, 0.0, 0.0), 'head': (-1.5402, 0.0),
-        'right_shoulder': (65.1949, 5.7296, 11.4592),
+        'neck': (-1.54, 0.0, 0.0), 'head': (-1.54, 0.0), 'right_shoulder': (65.195, 5.73, 11.459),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=1.8468, duration=0.832997)
     human.KeyJoints(1.9, {
-        'neck': (-1.3734, 0.0, 0.0), 'head': (-1.3734, 0.0),
-        'right_shoulder': (65.5813, 5.452, 11.5338), 'right_elbow': (34.3849, 17.1927),
-        'right_wrist': (0.0209, -0.0126),
+        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0),
+        'right_shoulder': (65.581, 5.452, 11.534), 'right_elbow': (34.385, 17.193),
+        'right_wrist': (0.021, -0.013),
     })
-    human.KeyJoints(2.0, {'right_shoulder': (68.1243, 3.6481, 12.0133)})
+    human.KeyJoints(2.0, {'right_shoulder': (68.124, 3.648, 12.013)})
     human.KeyJoints(2.1, {
-        'right_shoulder': (72.4449, 0.6456, 12.7953), 'right_elbow': (34.5586, 17.2604),
-        'right_wrist': (0.3725, -0.2253),
+        'right_shoulder': (72.445, 0.646, 12.795), 'right_elbow': (34.559, 17.26),
+        'right_wrist': (0.373, -0.225),
     })
-    human.KeyJoints(2.2, {'right_shoulder': (77.8396, -2.9924, 13.714)})
+    human.KeyJoints(2.2, {'right_shoulder': (77.84, -2.992, 13.714)})
     human.KeyJoints(2.3, {
-        'right_shoulder': (83.6047, -6.703, 14.6033), 'right_elbow': (34.9962, 17.3568),
+        'right_shoulder': (83.605, -6.703, 14.603), 'right_elbow': (34.996, 17.357),
     })
     human.KeyJoints(2.4, {
-        'right_shoulder': (89.0365, -9.9231, 15.2973), 'right_wrist': (1.0635, -0.6433),
+        'right_shoulder': (89.036, -9.923, 15.297), 'right_wrist': (1.063, -0.643),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'neck': (-1.3734, 0.0, 0.0), 'head': (-1.3734, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (93.4314, -12.0896, 15.6298), 'right_elbow': (35.7424, 17.4101),
-        'right_wrist': (1.1505, -0.6959),
+        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (93.431, -12.09, 15.63), 'right_elbow': (35.742, 17.41),
+        'right_wrist': (1.151, -0.696),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(2.6, {
-        'spine_lumbar': (59.9496, -0.5914, 1.0122), 'spine_thoracic': (27.7052, -0.6392, 0.798),
-        'neck': (-0.2562, 0.0665, -2.8565), 'head': (-0.256, 0.0002),
-        'right_clavicle': (0.262, 0.6592), 'right_shoulder': (96.9664, -11.7522, 15.1592),
-        'right_elbow': (36.4999, 17.4103), 'right_wrist': (0.9119, -0.5913),
+        'spine_lumbar': (59.95, -0.591, 1.012), 'spine_thoracic': (27.705, -0.639, 0.798),
+        'neck': (-0.256, 0.066, -2.856), 'head': (-0.256, 0.0), 'right_clavicle': (0.262, 0.659),
+        'right_shoulder': (96.966, -11.752, 15.159), 'right_elbow': (36.5, 17.41),
+        'right_wrist': (0.912, -0.591),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.679797, duration=0.072)
     human.KeyJoints(2.7, {
-        'spine_lumbar': (60.0, -1.9903, 3.7891), 'spine_thoracic': (29.0254, -2.2543, 3.1186),
-        'neck': (-0.7363, 0.2546, -10.9478), 'head': (-0.7349, 0.0019),
-        'right_clavicle': (1.2959, 1.8703), 'right_shoulder': (101.7668, -3.5564, 12.1465),
-        'right_elbow': (32.7835, 17.4377), 'right_wrist': (-0.0476, -1.7372),
+        'spine_lumbar': (60.0, -1.99, 3.789), 'spine_thoracic': (29.025, -2.254, 3.119),
+        'neck': (-0.736, 0.255, -10.948), 'head': (-0.735, 0.002), 'right_clavicle': (1.296, 1.87),
+        'right_shoulder': (101.767, -3.556, 12.146), 'right_elbow': (32.783, 17.438),
+        'right_wrist': (-0.048, -1.737),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(2.8, {'right_elbow': (32.7835, 3.5815)})
+    human.KeyJoints(2.8, {'right_elbow': (32.783, 3.582)})
     human.KeyJoints(2.9, {
-        'neck': (-0.7363, 0.2546, -10.9478), 'head': (-0.7349, 0.0019),
-        'right_elbow': (32.7835, -59.7303),
+        'neck': (-0.736, 0.255, -10.948), 'head': (-0.735, 0.002), 'right_elbow': (32.783, -59.73),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=2.946197, duration=0.2628)
     human.KeyJoints(3.0, {
-        'neck': (-0.5423, 0.2406, -10.3619), 'head': (-0.541, 0.0018),
-        'right_elbow': (32.7835, -72.5623),
+        'neck': (-0.542, 0.241, -10.362), 'head': (-0.541, 0.002), 'right_elbow': (32.783, -72.562),
     })
-    human.KeyJoints(3.1, {'neck': (0.8466, 0.1399, -6.1673), 'head': (0.8476, 0.0011)})
-    human.KeyJoints(3.2, {'neck': (3.5679, -0.0573, 2.0512), 'head': (3.5683, -0.0004)})
+    human.KeyJoints(3.1, {'neck': (0.847, 0.14, -6.167), 'head': (0.848, 0.001)})
+    human.KeyJoints(3.2, {'neck': (3.568, -0.057, 2.051), 'head': (3.568, 0.0)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(3.3, {'neck': (3.8778, -0.0797, 2.8866), 'head': (3.8782, -0.0005)})
-    human.KeyJoints(4.8, {'neck': (3.8778, -0.0797, 2.9873)})
-    human.KeyJoints(7.2, {'right_elbow': (32.7835, -72.5623)})
+    human.KeyJoints(3.3, {'neck': (3.878, -0.08, 2.887), 'head': (3.878, -0.001)})
+    human.KeyJoints(4.8, {'neck': (3.878, -0.08, 2.987)})
+    human.KeyJoints(7.2, {'right_elbow': (32.783, -72.562)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(7.3, {'right_elbow': (32.7835, -52.7863)})
-    human.KeyRoot(7.4, (7.838, 49.255, 20.832), (-17.9691, 0.0, 0.0))
+    human.KeyJoints(7.3, {'right_elbow': (32.783, -52.786)})
+    human.KeyRoot(7.4, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, -1.9903, 3.7891), 'spine_thoracic': (29.0254, -2.2543, 3.1186),
-        'right_shoulder': (101.7668, -3.5564, 12.1465), 'right_elbow': (32.7835, 14.3273),
-        'right_wrist': (-0.0476, -1.7372), 'left_shoulder': (65.1949, 5.7296, 11.4592),
-        'right_hip': (79.6826, 0.0, 0.0), 'right_knee': (99.6826,), 'right_ankle': (20.0, 0.0),
-        'left_hip': (79.6826, 0.0, 0.0), 'left_knee': (99.6826,), 'left_ankle': (20.0, 0.0),
+        'spine_lumbar': (60.0, -1.99, 3.789), 'spine_thoracic': (29.025, -2.254, 3.119),
+        'right_shoulder': (101.767, -3.556, 12.146), 'right_elbow': (32.783, 14.327),
+        'right_wrist': (-0.048, -1.737), 'left_shoulder': (65.195, 5.73, 11.459),
+        'right_hip': (79.683, 0.0, 0.0), 'right_knee': (99.683,), 'right_ankle': (20.0, 0.0),
+        'left_hip': (79.683, 0.0, 0.0), 'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.403397, duration=0.072)
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
-    human.KeyRoot(7.5, (7.84, 49.586, 20.827), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(7.5, (7.84, 49.586, 20.827), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, -1.9267, 3.668), 'spine_thoracic': (29.0565, -2.1823, 3.0189),
-        'right_shoulder': (101.9582, -3.5832, 12.1424), 'right_elbow': (32.3545, 17.4367),
-        'left_shoulder': (64.8676, 5.7296, 11.4592), 'right_hip': (79.2384, 0.0, 0.0),
-        'right_knee': (99.1327,), 'right_ankle': (19.9131, 0.0), 'left_hip': (79.2384, 0.0, 0.0),
-        'left_knee': (99.1327,), 'left_ankle': (19.9131, 0.0),
+        'spine_lumbar': (60.0, -1.927, 3.668), 'spine_thoracic': (29.057, -2.182, 3.019),
+        'right_shoulder': (101.958, -3.583, 12.142), 'right_elbow': (32.354, 17.437),
+        'left_shoulder': (64.868, 5.73, 11.459), 'right_hip': (79.238, 0.0, 0.0),
+        'right_knee': (99.133,), 'right_ankle': (19.913, 0.0), 'left_hip': (79.238, 0.0, 0.0),
+        'left_knee': (99.133,), 'left_ankle': (19.913, 0.0),
     })
-    human.KeyRoot(7.6, (7.802, 54.171, 20.944), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(7.6, (7.802, 54.171, 20.944), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'spine_lumbar': (60.0, -0.8685, 1.6535), 'spine_thoracic': (29.5747, -0.9838, 1.3609),
-        'right_wrist': (-0.021, -1.8143), 'left_shoulder': (60.2676, 5.7296, 11.4592),
-        'right_hip': (72.9953, 0.0, 0.0), 'right_knee': (91.4038,), 'right_ankle': (18.2842, 0.0),
-        'left_hip': (72.9953, 0.0, 0.0), 'left_knee': (91.4038,), 'left_ankle': (18.2842, 0.0),
+        'spine_lumbar': (60.0, -0.869, 1.654), 'spine_thoracic': (29.575, -0.984, 1.361),
+        'right_wrist': (-0.021, -1.814), 'left_shoulder': (60.268, 5.73, 11.459),
+        'right_hip': (72.995, 0.0, 0.0), 'right_knee': (91.404,), 'right_ankle': (18.284, 0.0),
+        'left_hip': (72.995, 0.0, 0.0), 'left_knee': (91.404,), 'left_ankle': (18.284, 0.0),
     })
-    human.KeyRoot(7.7, (7.534, 60.084, 21.769), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(7.7, (7.534, 60.084, 21.769), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, -0.0029, 0.0055), 'spine_thoracic': (29.9986, -0.0033, 0.0045),
-        'left_shoulder': (54.0689, 5.7296, 11.4592), 'right_hip': (64.5793, 0.0, 0.0),
-        'right_knee': (80.965,), 'right_ankle': (16.0513, 0.0), 'left_hip': (64.5793, 0.0, 0.0),
-        'left_knee': (80.965,), 'left_ankle': (16.0513, 0.0),
+        'spine_lumbar': (60.0, -0.003, 0.005), 'spine_thoracic': (29.999, -0.003, 0.005),
+        'left_shoulder': (54.069, 5.73, 11.459), 'right_hip': (64.579, 0.0, 0.0),
+        'right_knee': (80.965,), 'right_ankle': (16.051, 0.0), 'left_hip': (64.579, 0.0, 0.0),
+        'left_knee': (80.965,), 'left_ankle': (16.051, 0.0),
     })
-    human.KeyRoot(7.8, (7.153, 64.492, 22.946), (-17.9691, 0.0, 0.0))
-    human.KeyJoints(7.8, {
-        'spine_lumbar': (54.3573, 0.0, 0.0), 'spine_thoracic': (27.1786, 0.0, 0.0),
-    })
-    human.KeyRoot(7.9, (6.631, 68.579, 24.553), (-17.9691, 0.0, 0.0))
-    human.KeyJoints(7.9, {
-        'spine_lumbar': (43.1738, 0.0, 0.0), 'spine_thoracic': (21.5869, 0.0, 0.0),
-    })
-    human.KeyRoot(8.0, (5.982, 72.298, 26.556), (-17.9691, 0.0, 0.0))
-    human.KeyJoints(8.0, {
-        'spine_lumbar': (35.0647, 0.0, 0.0), 'spine_thoracic': (17.5324, 0.0, 0.0),
-    })
-    human.KeyRoot(8.1, (5.216, 75.602, 28.916), (-17.9691, 0.0, 0.0))
-    human.KeyJoints(8.1, {
-        'spine_lumbar': (28.0564, 0.0, 0.0), 'spine_thoracic': (14.0282, 0.0, 0.0),
-    })
-    human.KeyRoot(8.2, (4.35, 78.449, 31.589), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(7.8, (7.153, 64.492, 22.946), (-17.969, 0.0, 0.0))
+    human.KeyJoints(7.8, {'spine_lumbar': (54.357, 0.0, 0.0), 'spine_thoracic': (27.179, 0.0, 0.0)})
+    human.KeyRoot(7.9, (6.631, 68.579, 24.553), (-17.969, 0.0, 0.0))
+    human.KeyJoints(7.9, {'spine_lumbar': (43.174, 0.0, 0.0), 'spine_thoracic': (21.587, 0.0, 0.0)})
+    human.KeyRoot(8.0, (5.982, 72.298, 26.556), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.0, {'spine_lumbar': (35.065, 0.0, 0.0), 'spine_thoracic': (17.532, 0.0, 0.0)})
+    human.KeyRoot(8.1, (5.216, 75.602, 28.916), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.1, {'spine_lumbar': (28.056, 0.0, 0.0), 'spine_thoracic': (14.028, 0.0, 0.0)})
+    human.KeyRoot(8.2, (4.35, 78.449, 31.589), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.2, {
-        'spine_lumbar': (21.9523, 0.0, 0.0), 'spine_thoracic': (10.9762, 0.0, 0.0),
-        'right_shoulder': (101.7668, -3.5564, 12.1465), 'right_elbow': (32.7835, 17.4377),
+        'spine_lumbar': (21.952, 0.0, 0.0), 'spine_thoracic': (10.976, 0.0, 0.0),
+        'right_shoulder': (101.767, -3.556, 12.146), 'right_elbow': (32.783, 17.438),
     })
-    human.KeyRoot(8.3, (3.398, 80.803, 34.524), (-17.9691, 0.0, 0.0))
-    human.KeyJoints(8.3, {'spine_lumbar': (16.7474, 0.0, 0.0)})
-    human.KeyRoot(8.4, (2.377, 82.642, 37.671), (-17.9691, 0.0, 0.0))
-    human.KeyJoints(8.4, {'spine_lumbar': (11.6926, 0.0, 0.0)})
-    human.KeyRoot(8.5, (1.306, 83.938, 40.973), (-17.9691, 0.0, 0.0))
-    human.KeyRoot(8.6, (0.203, 84.672, 44.374), (-17.9691, 0.0, 0.0))
-    human.KeyJoints(8.6, {'spine_thoracic': (0.6217, 0.0, 0.0)})
-    human.KeyRoot(8.623797, (-0.062, 84.763, 45.191), (-17.9691, 0.0, 0.0))
+    human.KeyRoot(8.3, (3.398, 80.803, 34.524), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.3, {'spine_lumbar': (16.747, 0.0, 0.0)})
+    human.KeyRoot(8.4, (2.377, 82.642, 37.671), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.4, {'spine_lumbar': (11.693, 0.0, 0.0)})
+    human.KeyRoot(8.5, (1.306, 83.938, 40.973), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.6, (0.203, 84.672, 44.374), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.6, {'spine_thoracic': (0.622, 0.0, 0.0)})
+    human.KeyRoot(8.623797, (-0.062, 84.763, 45.191), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.623797, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (3.8778, -0.0797, 2.9873), 'head': (3.8782, -0.0005),
-        'right_clavicle': (1.2959, 1.8703), 'right_shoulder': (101.7668, -3.5564, 12.1465),
-        'right_elbow': (32.7835, 17.4377), 'right_wrist': (-0.0476, -1.7372),
-        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
-        'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0), 'right_hip': (2.8648, 0.0, 0.0),
-        'right_knee': (4.5837,), 'right_ankle': (0.0, 0.0), 'left_hip': (2.8648, 0.0, 0.0),
-        'left_knee': (4.5837,), 'left_ankle': (0.0, 0.0),
+        'neck': (3.878, -0.08, 2.987), 'head': (3.878, -0.001), 'right_clavicle': (1.296, 1.87),
+        'right_shoulder': (101.767, -3.556, 12.146), 'right_elbow': (32.783, 17.438),
+        'right_wrist': (-0.048, -1.737), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (0.0, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (0.0, 0.0),
     })

@@ -15,2777 +15,2774 @@ def remove_access_panel():
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
-        'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
-        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.7493, 0.0, 0.0), 'right_knee': (4.6657,),
-        'right_ankle': (1.9163, 0.0), 'left_hip': (2.7493, 0.0, 0.0), 'left_knee': (4.6657,),
-        'left_ankle': (1.9163, 0.0),
+        'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
+        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.749, 0.0, 0.0), 'right_knee': (4.666,),
+        'right_ankle': (1.916, 0.0), 'left_hip': (2.749, 0.0, 0.0), 'left_knee': (4.666,),
+        'left_ankle': (1.916, 0.0),
     })
     human.KeyRoot(0.1, (2.272, 67.882, 11.671), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (52.8523, 0.86, 2.9413), 'right_knee': (99.531,),
-        'right_ankle': (14.4265, 3.1214), 'left_hip': (26.6977, -1.4353, -2.1304),
-        'left_knee': (70.169,), 'left_ankle': (14.1519, -2.5686),
+        'right_hip': (52.852, 0.86, 2.941), 'right_knee': (99.531,), 'right_ankle': (14.426, 3.121),
+        'left_hip': (26.698, -1.435, -2.13), 'left_knee': (70.169,), 'left_ankle': (14.152, -2.569),
     })
     human.KeyRoot(0.2, (1.578, 62.836, 22.958), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (47.9676, 1.3798, 0.8184), 'right_knee': (30.1643,),
-        'right_ankle': (-18.1754, 1.4509), 'left_hip': (24.9437, -0.7198, -2.0029),
-        'left_knee': (87.0561,), 'left_ankle': (16.8283, -2.1282),
+        'right_hip': (47.968, 1.38, 0.818), 'right_knee': (30.164,),
+        'right_ankle': (-18.175, 1.451), 'left_hip': (24.944, -0.72, -2.003),
+        'left_knee': (87.056,), 'left_ankle': (16.828, -2.128),
     })
     human.KeyRoot(0.3, (-0.635, 64.164, 34.078), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (41.0463, -0.4699, -0.4093), 'right_knee': (34.7155,),
-        'right_ankle': (-6.3254, -0.6232), 'left_hip': (9.4975, 0.413, 0.591),
-        'left_knee': (76.6892,), 'left_ankle': (20.0, 0.7211),
+        'right_hip': (41.046, -0.47, -0.409), 'right_knee': (34.715,),
+        'right_ankle': (-6.325, -0.623), 'left_hip': (9.497, 0.413, 0.591), 'left_knee': (76.689,),
+        'left_ankle': (20.0, 0.721),
     })
     human.KeyRoot(0.4, (-2.429, 68.569, 45.221), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (28.9122, -1.9401, -1.0713), 'right_knee': (31.5757,),
-        'right_ankle': (2.6849, -2.2161), 'left_hip': (27.4428, 1.4613, 2.5082),
-        'left_knee': (81.0979,), 'left_ankle': (19.9712, 2.9026),
+        'right_hip': (28.912, -1.94, -1.071), 'right_knee': (31.576,),
+        'right_ankle': (2.685, -2.216), 'left_hip': (27.443, 1.461, 2.508), 'left_knee': (81.098,),
+        'left_ankle': (19.971, 2.903),
     })
     human.KeyRoot(0.5, (-1.23, 71.771, 55.866), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (14.0776, -1.0356, -0.2598),
-        'right_knee': (20.649,), 'right_ankle': (6.5788, -1.0677),
-        'left_hip': (15.7409, 1.0348, 0.2756), 'left_knee': (24.2703,),
-        'left_ankle': (8.2441, 1.0708),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (14.078, -1.036, -0.26),
+        'right_knee': (20.649,), 'right_ankle': (6.579, -1.068), 'left_hip': (15.741, 1.035, 0.276),
+        'left_knee': (24.27,), 'left_ankle': (8.244, 1.071),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 112.0), start=0.54, duration=0.2628)
     human.KeyRoot(0.6, (0.0, 72.791, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'neck': (0.1358, -0.0007, -2.6778), 'head': (0.137, 0.0), 'right_hip': (5.4298, 0.0, 0.0),
-        'right_knee': (9.9869,), 'right_ankle': (4.5571, 0.0), 'left_hip': (5.3366, 0.0, 0.0),
-        'left_knee': (9.7903,), 'left_ankle': (4.4478, 0.0),
+        'neck': (0.136, -0.001, -2.678), 'head': (0.137, 0.0), 'right_hip': (5.43, 0.0, 0.0),
+        'right_knee': (9.987,), 'right_ankle': (4.557, 0.0), 'left_hip': (5.337, 0.0, 0.0),
+        'left_knee': (9.79,), 'left_ankle': (4.448, 0.0),
     })
-    human.KeyJoints(0.7, {'neck': (0.6852, -0.0036, -13.4679), 'head': (0.6906, 0.0001)})
+    human.KeyJoints(0.7, {'neck': (0.685, -0.004, -13.468), 'head': (0.691, 0.0)})
     human.KeyRoot(0.8, (0.0, 72.955, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'neck': (1.0686, -0.0054, -20.8444), 'head': (1.0756, 0.0001),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
-        'right_wrist': (0.0, 0.0), 'right_hip': (3.5041, 0.0, 0.0), 'right_knee': (5.9306,),
-        'right_ankle': (2.4266, 0.0), 'left_hip': (3.4281, 0.0, 0.0), 'left_knee': (5.7702,),
-        'left_ankle': (2.3388, 0.0),
+        'neck': (1.069, -0.005, -20.844), 'head': (1.076, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'right_hip': (3.504, 0.0, 0.0), 'right_knee': (5.931,),
+        'right_ankle': (2.427, 0.0), 'left_hip': (3.428, 0.0, 0.0), 'left_knee': (5.77,),
+        'left_ankle': (2.339, 0.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 112.0), start=0.8028, duration=10.90897)
     human.KeyJoints(0.9, {
-        'neck': (1.0892, -0.0037, -21.1442), 'right_shoulder': (11.8547, 5.7833, 11.0459),
-        'right_elbow': (34.3724, 16.9191), 'right_wrist': (-0.0312, -1.2377),
-        'right_hip': (3.1096, 0.0, 0.0), 'right_knee': (5.0996,), 'right_ankle': (1.992, 0.0),
-        'left_hip': (3.1132, 0.0, 0.0), 'left_knee': (5.1071,), 'left_ankle': (1.9961, 0.0),
+        'neck': (1.089, -0.004, -21.144), 'right_shoulder': (11.855, 5.783, 11.046),
+        'right_elbow': (34.372, 16.919), 'right_wrist': (-0.031, -1.238),
+        'right_hip': (3.11, 0.0, 0.0), 'right_knee': (5.1,), 'right_ankle': (1.992, 0.0),
+        'left_hip': (3.113, 0.0, 0.0), 'left_knee': (5.107,), 'left_ankle': (1.996, 0.0),
     })
     human.KeyJoints(1.0, {
-        'right_shoulder': (20.7879, 5.9306, 9.9137), 'right_elbow': (34.3544, 16.1804),
-        'right_wrist': (-0.1166, -4.6288), 'right_hip': (3.0928, 0.0, 0.0), 'right_knee': (5.0642,),
-        'right_ankle': (1.9737, 0.0), 'left_hip': (3.0948, 0.0, 0.0), 'left_knee': (5.0684,),
+        'right_shoulder': (20.788, 5.931, 9.914), 'right_elbow': (34.354, 16.18),
+        'right_wrist': (-0.117, -4.629), 'right_hip': (3.093, 0.0, 0.0), 'right_knee': (5.064,),
+        'right_ankle': (1.974, 0.0), 'left_hip': (3.095, 0.0, 0.0), 'left_knee': (5.068,),
         'left_ankle': (1.976, 0.0),
     })
     human.KeyJoints(1.1, {
-        'right_shoulder': (33.5046, 6.1403, 8.3019), 'right_elbow': (34.32, 15.1287),
-        'right_wrist': (-0.2381, -9.4562), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.874, 0.0, 0.0), 'left_knee': (4.6105,),
-        'left_ankle': (1.7213, 0.0),
+        'right_shoulder': (33.505, 6.14, 8.302), 'right_elbow': (34.32, 15.129),
+        'right_wrist': (-0.238, -9.456), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.874, 0.0, 0.0), 'left_knee': (4.61,),
+        'left_ankle': (1.721, 0.0),
     })
     human.KeyJoints(1.3, {
-        'right_shoulder': (62.7206, 6.6219, 4.5988), 'right_elbow': (34.1889, 12.7126),
-        'right_wrist': (-0.5175, -20.5469),
+        'right_shoulder': (62.721, 6.622, 4.599), 'right_elbow': (34.189, 12.713),
+        'right_wrist': (-0.517, -20.547),
     })
     human.KeyJoints(1.4, {
-        'right_shoulder': (75.4357, 6.8316, 2.9872), 'right_elbow': (34.0853, 11.6611),
-        'right_wrist': (-0.639, -25.3737),
+        'right_shoulder': (75.436, 6.832, 2.987), 'right_elbow': (34.085, 11.661),
+        'right_wrist': (-0.639, -25.374),
     })
     human.KeyJoints(1.5, {
-        'right_shoulder': (84.366, 6.9788, 1.8553), 'right_elbow': (33.9519, 10.9226),
-        'right_wrist': (-0.7244, -28.7638),
+        'right_shoulder': (84.366, 6.979, 1.855), 'right_elbow': (33.952, 10.923),
+        'right_wrist': (-0.724, -28.764),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
     human.KeyJoints(1.6, {
-        'spine_lumbar': (0.0082, 0.0, 0.0042), 'spine_thoracic': (0.006, 0.0, 0.0042),
-        'neck': (1.0799, -0.0077, -21.1622), 'head': (1.0853, 0.0001),
-        'right_clavicle': (0.0, 0.0038), 'right_shoulder': (87.6183, 7.0317, 1.4431),
-        'right_elbow': (33.782, 10.6536), 'right_wrist': (-0.755, -30.0),
+        'spine_lumbar': (0.008, 0.0, 0.004), 'spine_thoracic': (0.006, 0.0, 0.004),
+        'neck': (1.08, -0.008, -21.162), 'head': (1.085, 0.0), 'right_clavicle': (0.0, 0.004),
+        'right_shoulder': (87.618, 7.032, 1.443), 'right_elbow': (33.782, 10.654),
+        'right_wrist': (-0.755, -30.0),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (3.6808, 0.7883, 0.5842), 'spine_thoracic': (-0.6196, -0.6405, 0.5764),
-        'neck': (-0.1887, -0.5394, -23.0322), 'head': (-0.2948, -0.001),
-        'right_clavicle': (1.0529, 0.2727), 'right_shoulder': (89.6342, 9.067, 0.4066),
-        'right_elbow': (32.6597, 10.3723), 'right_wrist': (-1.19, -30.0),
+        'spine_lumbar': (3.681, 0.788, 0.584), 'spine_thoracic': (-0.62, -0.64, 0.576),
+        'neck': (-0.189, -0.539, -23.032), 'head': (-0.295, -0.001),
+        'right_clavicle': (1.053, 0.273), 'right_shoulder': (89.634, 9.067, 0.407),
+        'right_elbow': (32.66, 10.372), 'right_wrist': (-1.19, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=1.795726, duration=0.072)
     human.KeyJoints(1.8, {
-        'spine_lumbar': (6.1101, 0.8138, 1.4228), 'spine_thoracic': (-1.6501, -1.602, 1.4096),
-        'neck': (-0.6148, -0.7533, -25.9869), 'head': (-0.7752, -0.0021),
-        'right_clavicle': (2.3148, 0.7854), 'right_shoulder': (91.8016, 10.5575, -0.3441),
-        'right_elbow': (31.9696, 10.1604), 'right_wrist': (-1.5015, -30.0),
+        'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
+        'neck': (-0.615, -0.753, -25.987), 'head': (-0.775, -0.002),
+        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.802, 10.558, -0.344),
+        'right_elbow': (31.97, 10.16), 'right_wrist': (-1.501, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(1.9, {
-        'spine_lumbar': (6.2927, 1.0869, 1.626), 'spine_thoracic': (-1.9036, -1.5991, 1.6018),
-        'neck': (-0.6349, -0.7629, -26.0794), 'head': (-0.7977, -0.0022),
-        'right_clavicle': (2.3747, 0.8996), 'right_shoulder': (91.6327, 10.7027, -0.3802),
-        'right_elbow': (32.241, 10.1494), 'right_wrist': (-1.5908, -29.4552),
+        'spine_lumbar': (6.293, 1.087, 1.626), 'spine_thoracic': (-1.904, -1.599, 1.602),
+        'neck': (-0.635, -0.763, -26.079), 'head': (-0.798, -0.002), 'right_clavicle': (2.375, 0.9),
+        'right_shoulder': (91.633, 10.703, -0.38), 'right_elbow': (32.241, 10.149),
+        'right_wrist': (-1.591, -29.455),
     })
     human.KeyJoints(2.0, {
-        'spine_lumbar': (9.4249, 1.1789, 0.5854), 'spine_thoracic': (-3.4206, -4.5512, 0.5594),
-        'neck': (-0.8307, -0.8498, -26.7614), 'head': (-1.0142, -0.0029),
-        'right_clavicle': (6.6537, -0.7103), 'right_shoulder': (88.4602, 14.6729, 3.1617),
-        'right_elbow': (34.7031, 13.8892), 'right_wrist': (-0.2489, -23.0171),
+        'spine_lumbar': (9.425, 1.179, 0.585), 'spine_thoracic': (-3.421, -4.551, 0.559),
+        'neck': (-0.831, -0.85, -26.761), 'head': (-1.014, -0.003),
+        'right_clavicle': (6.654, -0.71), 'right_shoulder': (88.46, 14.673, 3.162),
+        'right_elbow': (34.703, 13.889), 'right_wrist': (-0.249, -23.017),
     })
     human.KeyJoints(2.1, {
-        'spine_lumbar': (13.5042, 2.6502, -0.8564), 'spine_thoracic': (-3.586, -7.9244, -0.9233),
-        'neck': (-2.3593, -1.4353, -27.0354), 'head': (-2.6547, -0.0145),
-        'right_clavicle': (11.9852, -2.9794), 'right_shoulder': (88.253, 19.3507, 8.0357),
-        'right_elbow': (38.0183, 18.8795), 'right_wrist': (1.7772, -15.1897),
+        'spine_lumbar': (13.504, 2.65, -0.856), 'spine_thoracic': (-3.586, -7.924, -0.923),
+        'neck': (-2.359, -1.435, -27.035), 'head': (-2.655, -0.014),
+        'right_clavicle': (11.985, -2.979), 'right_shoulder': (88.253, 19.351, 8.036),
+        'right_elbow': (38.018, 18.879), 'right_wrist': (1.777, -15.19),
     })
     human.KeyJoints(2.2, {
-        'spine_lumbar': (17.3238, 5.5873, -3.3492), 'spine_thoracic': (-1.2807, -10.0, -3.2129),
-        'neck': (-5.821, -2.6889, -24.5202), 'head': (-6.3157, -0.082),
-        'right_clavicle': (16.7746, -5.289), 'right_shoulder': (94.5029, 22.8249, 13.9321),
-        'right_elbow': (41.6687, 24.1119), 'right_wrist': (4.4745, -8.6758),
+        'spine_lumbar': (17.324, 5.587, -3.349), 'spine_thoracic': (-1.281, -10.0, -3.213),
+        'neck': (-5.821, -2.689, -24.52), 'head': (-6.316, -0.082),
+        'right_clavicle': (16.775, -5.289), 'right_shoulder': (94.503, 22.825, 13.932),
+        'right_elbow': (41.669, 24.112), 'right_wrist': (4.474, -8.676),
     })
     human.KeyJoints(2.3, {
-        'spine_lumbar': (9.381, 1.9686, -2.2631), 'spine_thoracic': (-2.3792, -7.6521, -2.2332),
-        'neck': (-0.994, -0.8363, -22.5899), 'head': (-1.1529, -0.004),
-        'right_clavicle': (11.3317, -3.6674), 'right_shoulder': (86.3765, 17.2465, 10.1695),
-        'right_elbow': (39.1465, 20.0894), 'right_wrist': (2.6886, -13.7552),
+        'spine_lumbar': (9.381, 1.969, -2.263), 'spine_thoracic': (-2.379, -7.652, -2.233),
+        'neck': (-0.994, -0.836, -22.59), 'head': (-1.153, -0.004),
+        'right_clavicle': (11.332, -3.667), 'right_shoulder': (86.377, 17.247, 10.169),
+        'right_elbow': (39.147, 20.089), 'right_wrist': (2.689, -13.755),
     })
     human.KeyJoints(2.4, {
-        'spine_lumbar': (6.6088, 1.2283, 1.6445), 'spine_thoracic': (-2.2866, -1.731, 1.6121),
-        'neck': (-0.6116, -0.7533, -26.0462), 'head': (-0.7724, -0.0021),
-        'right_clavicle': (2.6691, 0.8533), 'right_shoulder': (91.0583, 11.082, -0.1697),
-        'right_elbow': (32.7256, 10.3601), 'right_wrist': (-1.548, -28.3363),
+        'spine_lumbar': (6.609, 1.228, 1.645), 'spine_thoracic': (-2.287, -1.731, 1.612),
+        'neck': (-0.612, -0.753, -26.046), 'head': (-0.772, -0.002),
+        'right_clavicle': (2.669, 0.853), 'right_shoulder': (91.058, 11.082, -0.17),
+        'right_elbow': (32.726, 10.36), 'right_wrist': (-1.548, -28.336),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyRoot(2.5, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'spine_lumbar': (7.799, 1.1219, 1.2328), 'spine_thoracic': (-3.0353, -3.0166, 1.2171),
-        'neck': (-0.5438, -0.7348, -26.4571), 'head': (-0.703, -0.002),
-        'right_clavicle': (4.4486, 0.2467), 'right_shoulder': (89.5973, 12.7064, 1.1352),
-        'right_elbow': (33.4515, 11.7759), 'right_wrist': (-1.0912, -26.1779),
+        'spine_lumbar': (7.799, 1.122, 1.233), 'spine_thoracic': (-3.035, -3.017, 1.217),
+        'neck': (-0.544, -0.735, -26.457), 'head': (-0.703, -0.002),
+        'right_clavicle': (4.449, 0.247), 'right_shoulder': (89.597, 12.706, 1.135),
+        'right_elbow': (33.451, 11.776), 'right_wrist': (-1.091, -26.178),
     })
     human.KeyJoints(2.6, {
-        'spine_lumbar': (11.7442, 1.8036, -0.2409), 'spine_thoracic': (-3.5691, -6.4832, -0.2947),
-        'neck': (-1.6233, -1.1579, -27.0866), 'head': (-1.8659, -0.0083),
-        'right_clavicle': (9.6293, -2.0029), 'right_shoulder': (88.0246, 17.3143, 5.9348),
-        'right_elbow': (36.5764, 16.7453),
+        'spine_lumbar': (11.744, 1.804, -0.241), 'spine_thoracic': (-3.569, -6.483, -0.295),
+        'neck': (-1.623, -1.158, -27.087), 'head': (-1.866, -0.008),
+        'right_clavicle': (9.629, -2.003), 'right_shoulder': (88.025, 17.314, 5.935),
+        'right_elbow': (36.576, 16.745),
     })
     human.KeyJoints(2.7, {
-        'spine_lumbar': (15.8314, 4.262, -1.7956), 'spine_thoracic': (-3.4612, -9.8549, -1.8211),
-        'neck': (-3.5997, -1.8935, -26.5762), 'head': (-3.9769, -0.0311),
-        'right_clavicle': (15.2157, -4.254), 'right_shoulder': (89.3843, 21.988, 10.9333),
-        'right_elbow': (39.9563, 21.7228), 'right_wrist': (2.949, -10.8729),
+        'spine_lumbar': (15.831, 4.262, -1.796), 'spine_thoracic': (-3.461, -9.855, -1.821),
+        'neck': (-3.6, -1.894, -26.576), 'head': (-3.977, -0.031),
+        'right_clavicle': (15.216, -4.254), 'right_shoulder': (89.384, 21.988, 10.933),
+        'right_elbow': (39.956, 21.723), 'right_wrist': (2.949, -10.873),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (12.6691, 4.5416, -3.5386), 'spine_thoracic': (-1.6476, -9.8955, -3.4002),
-        'neck': (-3.0646, -1.6005, -21.8353), 'head': (-3.3497, -0.0224),
-        'right_clavicle': (15.5118, -5.1578), 'right_shoulder': (89.3092, 20.5611, 14.1613),
-        'right_elbow': (41.7922, 23.8642), 'right_wrist': (4.3749, -8.3428),
+        'spine_lumbar': (12.669, 4.542, -3.539), 'spine_thoracic': (-1.648, -9.895, -3.4),
+        'neck': (-3.065, -1.601, -21.835), 'head': (-3.35, -0.022),
+        'right_clavicle': (15.512, -5.158), 'right_shoulder': (89.309, 20.561, 14.161),
+        'right_elbow': (41.792, 23.864), 'right_wrist': (4.375, -8.343),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (7.2501, 1.0495, 0.0238), 'spine_thoracic': (-2.5482, -4.035, -0.0296),
-        'neck': (-0.3741, -0.6358, -24.7723), 'head': (-0.5053, -0.0014),
-        'right_clavicle': (5.7524, -1.0201), 'right_shoulder': (87.1077, 13.2353, 3.8193),
-        'right_elbow': (35.1291, 14.1123), 'right_wrist': (0.0658, -22.6105),
+        'spine_lumbar': (7.25, 1.049, 0.024), 'spine_thoracic': (-2.548, -4.035, -0.03),
+        'neck': (-0.374, -0.636, -24.772), 'head': (-0.505, -0.001),
+        'right_clavicle': (5.752, -1.02), 'right_shoulder': (87.108, 13.235, 3.819),
+        'right_elbow': (35.129, 14.112), 'right_wrist': (0.066, -22.61),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.0, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'right_clavicle': (2.4958, 0.9639),
-        'right_shoulder': (91.3283, 10.9625, -0.4005), 'right_elbow': (32.5878, 10.1432),
-        'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (9.9911, 1.2717, 0.4348), 'spine_thoracic': (-3.6154, -5.0849, 0.3911),
-        'neck': (-0.8901, -0.8755, -26.8992), 'head': (-1.0797, -0.0032),
-        'right_clavicle': (7.4402, -1.0267), 'right_shoulder': (88.0525, 15.4092, 3.7703),
-        'right_elbow': (35.136, 14.5569), 'right_wrist': (-0.0156, -21.8573),
+        'spine_lumbar': (9.991, 1.272, 0.435), 'spine_thoracic': (-3.615, -5.085, 0.391),
+        'neck': (-0.89, -0.875, -26.899), 'head': (-1.08, -0.003), 'right_clavicle': (7.44, -1.027),
+        'right_shoulder': (88.053, 15.409, 3.77), 'right_elbow': (35.136, 14.557),
+        'right_wrist': (-0.016, -21.857),
     })
     human.KeyJoints(3.2, {
-        'spine_lumbar': (14.0791, 2.9852, -1.0373), 'spine_thoracic': (-3.6276, -8.425, -1.1112),
-        'neck': (-2.5984, -1.5252, -27.0159), 'head': (-2.9109, -0.017),
-        'right_clavicle': (12.8153, -3.3054), 'right_shoulder': (88.3282, 20.068, 8.6997),
-        'right_elbow': (38.4791, 19.5653), 'right_wrist': (2.0381, -14.0487),
+        'spine_lumbar': (14.079, 2.985, -1.037), 'spine_thoracic': (-3.628, -8.425, -1.111),
+        'neck': (-2.598, -1.525, -27.016), 'head': (-2.911, -0.017),
+        'right_clavicle': (12.815, -3.305), 'right_shoulder': (88.328, 20.068, 8.7),
+        'right_elbow': (38.479, 19.565), 'right_wrist': (2.038, -14.049),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (16.4529, 5.4558, -3.4703), 'spine_thoracic': (-1.3304, -10.0, -3.3306),
-        'neck': (-5.3026, -2.4797, -23.7272), 'head': (-5.7532, -0.0663),
-        'right_clavicle': (16.6325, -5.2816), 'right_shoulder': (93.4478, 22.4931, 14.1402),
-        'right_elbow': (41.7925, 24.1036), 'right_wrist': (4.4721, -8.393),
+        'spine_lumbar': (16.453, 5.456, -3.47), 'spine_thoracic': (-1.33, -10.0, -3.331),
+        'neck': (-5.303, -2.48, -23.727), 'head': (-5.753, -0.066),
+        'right_clavicle': (16.632, -5.282), 'right_shoulder': (93.448, 22.493, 14.14),
+        'right_elbow': (41.793, 24.104), 'right_wrist': (4.472, -8.393),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (8.536, 1.274, -1.6981), 'spine_thoracic': (-2.5713, -6.6887, -1.7084),
-        'neck': (-0.5118, -0.6653, -23.1897), 'head': (-0.6423, -0.002),
-        'right_clavicle': (9.7324, -3.0154), 'right_shoulder': (85.7722, 16.1035, 8.462),
-        'right_elbow': (38.0304, 18.4844), 'right_wrist': (1.9742, -16.0896),
+        'spine_lumbar': (8.536, 1.274, -1.698), 'spine_thoracic': (-2.571, -6.689, -1.708),
+        'neck': (-0.512, -0.665, -23.19), 'head': (-0.642, -0.002),
+        'right_clavicle': (9.732, -3.015), 'right_shoulder': (85.772, 16.103, 8.462),
+        'right_elbow': (38.03, 18.484), 'right_wrist': (1.974, -16.09),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.5, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
-        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
-        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (8.3257, 1.1107, 0.9693), 'spine_thoracic': (-3.0448, -3.4952, 0.9599),
-        'neck': (-0.6833, -0.7893, -26.5107), 'head': (-0.8536, -0.0024),
-        'right_clavicle': (5.1308, -0.0733), 'right_shoulder': (89.35, 13.2825, 1.8657),
-        'right_elbow': (33.8637, 12.5084), 'right_wrist': (-0.7676, -25.2095),
+        'spine_lumbar': (8.326, 1.111, 0.969), 'spine_thoracic': (-3.045, -3.495, 0.96),
+        'neck': (-0.683, -0.789, -26.511), 'head': (-0.854, -0.002),
+        'right_clavicle': (5.131, -0.073), 'right_shoulder': (89.35, 13.282, 1.866),
+        'right_elbow': (33.864, 12.508), 'right_wrist': (-0.768, -25.209),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (12.33, 2.0535, -0.4563), 'spine_thoracic': (-3.5587, -6.9505, -0.5131),
-        'neck': (-1.8721, -1.252, -27.075), 'head': (-2.1326, -0.0102),
-        'right_shoulder': (88.0966, 17.9682, 6.646), 'right_elbow': (37.0601, 17.4629),
-        'right_wrist': (1.2109, -17.4604),
+        'spine_lumbar': (12.33, 2.054, -0.456), 'spine_thoracic': (-3.559, -6.951, -0.513),
+        'neck': (-1.872, -1.252, -27.075), 'head': (-2.133, -0.01),
+        'right_shoulder': (88.097, 17.968, 6.646), 'right_elbow': (37.06, 17.463),
+        'right_wrist': (1.211, -17.46),
     })
     human.KeyJoints(3.8, {
-        'spine_lumbar': (16.5041, 4.9378, -2.6039), 'spine_thoracic': (-2.4313, -10.0, -2.4695),
-        'neck': (-4.6273, -2.2593, -25.5071), 'head': (-5.06, -0.0501),
-        'right_clavicle': (15.6722, -4.5244), 'right_shoulder': (91.9827, 22.1455, 12.2848),
-        'right_elbow': (40.7228, 22.7219), 'right_wrist': (3.6593, -10.2787),
+        'spine_lumbar': (16.504, 4.938, -2.604), 'spine_thoracic': (-2.431, -10.0, -2.47),
+        'neck': (-4.627, -2.259, -25.507), 'head': (-5.06, -0.05),
+        'right_clavicle': (15.672, -4.524), 'right_shoulder': (91.983, 22.146, 12.285),
+        'right_elbow': (40.723, 22.722), 'right_wrist': (3.659, -10.279),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (11.5494, 3.8037, -3.2595), 'spine_thoracic': (-1.8634, -9.3981, -3.1465),
-        'neck': (-2.248, -1.2938, -21.988), 'head': (-2.4821, -0.013),
-        'right_clavicle': (14.4423, -4.8234), 'right_shoulder': (88.2612, 19.5956, 13.2748),
-        'right_elbow': (41.2014, 23.0164), 'right_wrist': (3.9968, -9.5406),
+        'spine_lumbar': (11.549, 3.804, -3.26), 'spine_thoracic': (-1.863, -9.398, -3.146),
+        'neck': (-2.248, -1.294, -21.988), 'head': (-2.482, -0.013),
+        'right_clavicle': (14.442, -4.823), 'right_shoulder': (88.261, 19.596, 13.275),
+        'right_elbow': (41.201, 23.016), 'right_wrist': (3.997, -9.541),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (6.9626, 1.1162, 0.6869), 'spine_thoracic': (-2.4506, -3.0827, 0.639),
-        'neck': (-0.4391, -0.6711, -25.2001), 'head': (-0.5799, -0.0016),
-        'right_clavicle': (4.4566, -0.2532), 'right_shoulder': (88.5812, 12.3244, 2.1683),
-        'right_elbow': (34.1296, 12.5589), 'right_wrist': (-0.6036, -24.9738),
+        'spine_lumbar': (6.963, 1.116, 0.687), 'spine_thoracic': (-2.451, -3.083, 0.639),
+        'neck': (-0.439, -0.671, -25.2), 'head': (-0.58, -0.002), 'right_clavicle': (4.457, -0.253),
+        'right_shoulder': (88.581, 12.324, 2.168), 'right_elbow': (34.13, 12.559),
+        'right_wrist': (-0.604, -24.974),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.1, {
-        'spine_lumbar': (6.6826, 1.2271, 1.7054), 'spine_thoracic': (-2.4189, -1.7412, 1.6757),
-        'neck': (-0.6005, -0.752, -26.2002), 'head': (-0.7618, -0.0021),
-        'right_clavicle': (2.6903, 0.9042), 'right_shoulder': (91.0694, 11.1445, -0.2821),
-        'right_elbow': (32.6566, 10.2767), 'right_wrist': (-1.6068, -28.4356),
+        'spine_lumbar': (6.683, 1.227, 1.705), 'spine_thoracic': (-2.419, -1.741, 1.676),
+        'neck': (-0.601, -0.752, -26.2), 'head': (-0.762, -0.002), 'right_clavicle': (2.69, 0.904),
+        'right_shoulder': (91.069, 11.145, -0.282), 'right_elbow': (32.657, 10.277),
+        'right_wrist': (-1.607, -28.436),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (10.5663, 1.4073, 0.2203), 'spine_thoracic': (-3.629, -5.5594, 0.1703),
-        'neck': (-1.0678, -0.9436, -26.9347), 'head': (-1.2714, -0.0038),
-        'right_shoulder': (87.9449, 16.0494, 4.4713), 'right_elbow': (35.6014, 15.2754),
-        'right_wrist': (0.2824, -20.7647),
+        'spine_lumbar': (10.566, 1.407, 0.22), 'spine_thoracic': (-3.629, -5.559, 0.17),
+        'neck': (-1.068, -0.944, -26.935), 'head': (-1.271, -0.004),
+        'right_shoulder': (87.945, 16.049, 4.471), 'right_elbow': (35.601, 15.275),
+        'right_wrist': (0.282, -20.765),
     })
     human.KeyJoints(4.3, {
-        'spine_lumbar': (14.646, 3.3404, -1.2035), 'spine_thoracic': (-3.6905, -8.9441, -1.2861),
-        'neck': (-2.8299, -1.6121, -27.0012), 'right_clavicle': (13.6767, -3.6345),
-        'right_shoulder': (88.3935, 20.8177, 9.3401), 'right_elbow': (38.924, 20.2363),
-        'right_wrist': (2.2821, -12.8903),
+        'spine_lumbar': (14.646, 3.34, -1.203), 'spine_thoracic': (-3.691, -8.944, -1.286),
+        'neck': (-2.83, -1.612, -27.001), 'right_clavicle': (13.677, -3.634),
+        'right_shoulder': (88.394, 20.818, 9.34), 'right_elbow': (38.924, 20.236),
+        'right_wrist': (2.282, -12.89),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (15.1097, 5.2272, -3.5534), 'spine_thoracic': (-1.4152, -10.0, -3.4111),
-        'neck': (-4.6673, -2.2253, -22.8278), 'head': (-5.0668, -0.0502),
-        'right_clavicle': (16.3757, -5.2673), 'right_shoulder': (91.8658, 21.9364, 14.278),
-        'right_elbow': (41.8749, 24.0876), 'right_wrist': (4.4675, -8.1958),
+        'spine_lumbar': (15.11, 5.227, -3.553), 'spine_thoracic': (-1.415, -10.0, -3.411),
+        'neck': (-4.667, -2.225, -22.828), 'head': (-5.067, -0.05),
+        'right_clavicle': (16.376, -5.267), 'right_shoulder': (91.866, 21.936, 14.278),
+        'right_elbow': (41.875, 24.088), 'right_wrist': (4.468, -8.196),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (7.9666, 0.9789, -1.1813), 'spine_thoracic': (-2.6525, -5.8399, -1.2202),
-        'neck': (-0.2893, -0.587, -23.7868), 'head': (-0.4069, -0.0012),
-        'right_clavicle': (8.3711, -2.4171), 'right_shoulder': (85.5303, 15.1214, 6.9652),
-        'right_elbow': (37.069, 17.0755), 'right_wrist': (1.352, -18.1572),
+        'spine_lumbar': (7.967, 0.979, -1.181), 'spine_thoracic': (-2.652, -5.84, -1.22),
+        'neck': (-0.289, -0.587, -23.787), 'head': (-0.407, -0.001),
+        'right_clavicle': (8.371, -2.417), 'right_shoulder': (85.53, 15.121, 6.965),
+        'right_elbow': (37.069, 17.075), 'right_wrist': (1.352, -18.157),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.6, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
-        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
-        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (8.8626, 1.1303, 0.7488), 'spine_thoracic': (-3.1761, -4.0039, 0.7382),
-        'neck': (-0.7739, -0.8255, -26.6057), 'head': (-0.9518, -0.0027),
-        'right_clavicle': (5.8617, -0.39), 'right_shoulder': (88.9825, 13.9349, 2.5389),
-        'right_elbow': (34.2775, 13.209), 'right_wrist': (-0.4891, -24.1657),
+        'spine_lumbar': (8.863, 1.13, 0.749), 'spine_thoracic': (-3.176, -4.004, 0.738),
+        'neck': (-0.774, -0.825, -26.606), 'head': (-0.952, -0.003),
+        'right_clavicle': (5.862, -0.39), 'right_shoulder': (88.982, 13.935, 2.539),
+        'right_elbow': (34.277, 13.209), 'right_wrist': (-0.489, -24.166),
     })
     human.KeyJoints(4.8, {
-        'spine_lumbar': (12.9138, 2.3342, -0.6603), 'spine_thoracic': (-3.5592, -7.4278, -0.7215),
-        'neck': (-2.1127, -1.3426, -27.0558), 'head': (-2.3906, -0.0121),
-        'right_clavicle': (11.1666, -2.6495), 'right_shoulder': (88.1731, 18.6429, 7.3428),
-        'right_elbow': (37.5388, 18.1705), 'right_wrist': (1.4979, -16.3401),
+        'spine_lumbar': (12.914, 2.334, -0.66), 'spine_thoracic': (-3.559, -7.428, -0.722),
+        'neck': (-2.113, -1.343, -27.056), 'head': (-2.391, -0.012),
+        'right_clavicle': (11.167, -2.65), 'right_shoulder': (88.173, 18.643, 7.343),
+        'right_elbow': (37.539, 18.171), 'right_wrist': (1.498, -16.34),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (17.2487, 5.4767, -3.1192), 'spine_thoracic': (-1.5079, -10.0, -2.98),
-        'neck': (-5.6423, -2.6271, -25.0707), 'head': (-6.1299, -0.077),
-        'right_clavicle': (16.5425, -5.114), 'right_shoulder': (94.1174, 22.6919, 13.4488),
-        'right_elbow': (41.3885, 23.8294), 'right_wrist': (4.313, -9.2351),
+        'spine_lumbar': (17.249, 5.477, -3.119), 'spine_thoracic': (-1.508, -10.0, -2.98),
+        'neck': (-5.642, -2.627, -25.071), 'head': (-6.13, -0.077),
+        'right_clavicle': (16.543, -5.114), 'right_shoulder': (94.117, 22.692, 13.449),
+        'right_elbow': (41.389, 23.829), 'right_wrist': (4.313, -9.235),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (10.4281, 2.8868, -2.8138), 'spine_thoracic': (-2.1231, -8.6111, -2.7394),
-        'neck': (-1.5496, -1.0362, -22.2155), 'head': (-1.7416, -0.0068),
-        'right_clavicle': (12.9896, -4.3038), 'right_shoulder': (87.2521, 18.461, 11.8738),
-        'right_elbow': (40.2713, 21.6931), 'right_wrist': (3.405, -11.4383),
+        'spine_lumbar': (10.428, 2.887, -2.814), 'spine_thoracic': (-2.123, -8.611, -2.739),
+        'neck': (-1.55, -1.036, -22.216), 'head': (-1.742, -0.007),
+        'right_clavicle': (12.99, -4.304), 'right_shoulder': (87.252, 18.461, 11.874),
+        'right_elbow': (40.271, 21.693), 'right_wrist': (3.405, -11.438),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (6.7434, 1.1812, 1.2592), 'spine_thoracic': (-2.3555, -2.2719, 1.2196),
-        'neck': (-0.525, -0.7128, -25.6547), 'head': (-0.6761, -0.0018),
-        'right_clavicle': (3.3778, 0.4083), 'right_shoulder': (90.0176, 11.5726, 0.7651),
-        'right_elbow': (33.2856, 11.2392), 'right_wrist': (-1.1708, -26.9898),
+        'spine_lumbar': (6.743, 1.181, 1.259), 'spine_thoracic': (-2.356, -2.272, 1.22),
+        'neck': (-0.525, -0.713, -25.655), 'head': (-0.676, -0.002),
+        'right_clavicle': (3.378, 0.408), 'right_shoulder': (90.018, 11.573, 0.765),
+        'right_elbow': (33.286, 11.239), 'right_wrist': (-1.171, -26.99),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.2, {
-        'spine_lumbar': (7.2741, 1.1606, 1.4943), 'spine_thoracic': (-3.0187, -2.5012, 1.4691),
-        'neck': (-0.4525, -0.6994, -26.3991), 'head': (-0.6045, -0.0017),
-        'right_clavicle': (3.7256, 0.5646), 'right_shoulder': (89.9034, 12.0962, 0.4094),
-        'right_elbow': (33.0545, 11.0408), 'right_wrist': (-1.3927, -27.162),
+        'spine_lumbar': (7.274, 1.161, 1.494), 'spine_thoracic': (-3.019, -2.501, 1.469),
+        'neck': (-0.452, -0.699, -26.399), 'head': (-0.604, -0.002),
+        'right_clavicle': (3.726, 0.565), 'right_shoulder': (89.903, 12.096, 0.409),
+        'right_elbow': (33.055, 11.041), 'right_wrist': (-1.393, -27.162),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (11.1479, 1.582, -0.0073), 'spine_thoracic': (-3.616, -6.0198, -0.06),
-        'neck': (-1.3163, -1.0392, -27.0009), 'head': (-1.538, -0.0054),
-        'right_clavicle': (8.8867, -1.6742), 'right_shoulder': (87.9474, 16.676, 5.1936),
-        'right_elbow': (36.0806, 16.0035), 'right_wrist': (0.5934, -19.6778),
+        'spine_lumbar': (11.148, 1.582, -0.007), 'spine_thoracic': (-3.616, -6.02, -0.06),
+        'neck': (-1.316, -1.039, -27.001), 'head': (-1.538, -0.005),
+        'right_clavicle': (8.887, -1.674), 'right_shoulder': (87.947, 16.676, 5.194),
+        'right_elbow': (36.081, 16.004), 'right_wrist': (0.593, -19.678),
     })
     human.KeyJoints(5.4, {
-        'spine_lumbar': (15.1946, 3.6983, -1.3375), 'spine_thoracic': (-3.7879, -9.5212, -1.4319),
-        'neck': (-3.03, -1.6875, -26.9949), 'head': (-3.3731, -0.0224),
-        'right_clavicle': (14.6153, -3.9735), 'right_shoulder': (88.4354, 21.6792, 9.919),
-        'right_elbow': (39.3309, 20.8711), 'right_wrist': (2.4893, -11.6574),
+        'spine_lumbar': (15.195, 3.698, -1.338), 'spine_thoracic': (-3.788, -9.521, -1.432),
+        'neck': (-3.03, -1.688, -26.995), 'head': (-3.373, -0.022),
+        'right_clavicle': (14.615, -3.973), 'right_shoulder': (88.435, 21.679, 9.919),
+        'right_elbow': (39.331, 20.871), 'right_wrist': (2.489, -11.657),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (13.7585, 4.9436, -3.5938), 'spine_thoracic': (-1.5171, -10.0, -3.45),
-        'neck': (-3.8679, -1.9091, -21.9033), 'head': (-4.2076, -0.0341),
-        'right_clavicle': (16.0399, -5.2472), 'right_shoulder': (90.3681, 21.284, 14.3428),
-        'right_elbow': (41.9138, 24.0648), 'right_wrist': (4.4609, -8.0988),
+        'spine_lumbar': (13.758, 4.944, -3.594), 'spine_thoracic': (-1.517, -10.0, -3.45),
+        'neck': (-3.868, -1.909, -21.903), 'head': (-4.208, -0.034),
+        'right_clavicle': (16.04, -5.247), 'right_shoulder': (90.368, 21.284, 14.343),
+        'right_elbow': (41.914, 24.065), 'right_wrist': (4.461, -8.099),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (7.5944, 0.9972, -0.6401), 'spine_thoracic': (-2.6247, -5.01, -0.6918),
-        'neck': (-0.3131, -0.6011, -24.2872), 'head': (-0.4347, -0.0013),
-        'right_clavicle': (7.1265, -1.7889), 'right_shoulder': (85.9531, 14.2145, 5.5145),
-        'right_elbow': (36.1656, 15.7082), 'right_wrist': (0.7562, -20.1984),
+        'spine_lumbar': (7.594, 0.997, -0.64), 'spine_thoracic': (-2.625, -5.01, -0.692),
+        'neck': (-0.313, -0.601, -24.287), 'head': (-0.435, -0.001),
+        'right_clavicle': (7.127, -1.789), 'right_shoulder': (85.953, 14.215, 5.514),
+        'right_elbow': (36.166, 15.708), 'right_wrist': (0.756, -20.198),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.7, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
-        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
-        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (9.4154, 1.1776, 0.5876), 'spine_thoracic': (-3.4151, -4.5419, 0.562),
-        'neck': (-0.83, -0.8494, -26.7581), 'head': (-1.0135, -0.0029),
-        'right_clavicle': (6.6402, -0.705), 'right_shoulder': (88.4704, 14.66, 3.1519),
-        'right_elbow': (34.696, 13.8782), 'right_wrist': (-0.2526, -23.0369),
+        'spine_lumbar': (9.415, 1.178, 0.588), 'spine_thoracic': (-3.415, -4.542, 0.562),
+        'neck': (-0.83, -0.849, -26.758), 'head': (-1.013, -0.003),
+        'right_clavicle': (6.64, -0.705), 'right_shoulder': (88.47, 14.66, 3.152),
+        'right_elbow': (34.696, 13.878), 'right_wrist': (-0.253, -23.037),
     })
     human.KeyJoints(5.9, {
-        'spine_lumbar': (13.4944, 2.6448, -0.8533), 'spine_thoracic': (-3.5854, -7.916, -0.9201),
-        'neck': (-2.3552, -1.4338, -27.0357), 'head': (-2.6504, -0.0144),
-        'right_clavicle': (11.9715, -2.9739), 'right_shoulder': (88.2517, 19.3388, 8.0244),
-        'right_elbow': (38.0104, 18.8678), 'right_wrist': (1.7727, -15.2088),
+        'spine_lumbar': (13.494, 2.645, -0.853), 'spine_thoracic': (-3.585, -7.916, -0.92),
+        'neck': (-2.355, -1.434, -27.036), 'head': (-2.65, -0.014),
+        'right_clavicle': (11.971, -2.974), 'right_shoulder': (88.252, 19.339, 8.024),
+        'right_elbow': (38.01, 18.868), 'right_wrist': (1.773, -15.209),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (17.3318, 5.5884, -3.3469), 'spine_thoracic': (-1.2803, -10.0, -3.2107),
-        'neck': (-5.8264, -2.6911, -24.5321), 'head': (-6.3215, -0.0821),
-        'right_clavicle': (16.7758, -5.289), 'right_shoulder': (94.5126, 22.8278, 13.928),
-        'right_elbow': (41.6663, 24.1119), 'right_wrist': (4.4745, -8.6812),
+        'spine_lumbar': (17.332, 5.588, -3.347), 'spine_thoracic': (-1.28, -10.0, -3.211),
+        'neck': (-5.826, -2.691, -24.532), 'head': (-6.322, -0.082),
+        'right_clavicle': (16.776, -5.289), 'right_shoulder': (94.513, 22.828, 13.928),
+        'right_elbow': (41.666, 24.112), 'right_wrist': (4.474, -8.681),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (9.397, 1.9826, -2.2727), 'spine_thoracic': (-2.3753, -7.6685, -2.242),
-        'neck': (-1.0032, -0.8396, -22.5811), 'head': (-1.1626, -0.004),
-        'right_clavicle': (11.3595, -3.6784), 'right_shoulder': (86.3892, 17.2665, 10.1986),
-        'right_elbow': (39.1657, 20.1168), 'right_wrist': (2.7009, -13.7154),
+        'spine_lumbar': (9.397, 1.983, -2.273), 'spine_thoracic': (-2.375, -7.669, -2.242),
+        'neck': (-1.003, -0.84, -22.581), 'head': (-1.163, -0.004),
+        'right_clavicle': (11.359, -3.678), 'right_shoulder': (86.389, 17.267, 10.199),
+        'right_elbow': (39.166, 20.117), 'right_wrist': (2.701, -13.715),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (6.6102, 1.2278, 1.6403), 'spine_thoracic': (-2.2874, -1.7369, 1.6078),
-        'neck': (-0.6105, -0.7528, -26.0416), 'head': (-0.7712, -0.0021),
-        'right_clavicle': (2.6768, 0.8485), 'right_shoulder': (91.0466, 11.0873, -0.1595),
-        'right_elbow': (32.7317, 10.3697), 'right_wrist': (-1.5439, -28.3217),
+        'spine_lumbar': (6.61, 1.228, 1.64), 'spine_thoracic': (-2.287, -1.737, 1.608),
+        'neck': (-0.611, -0.753, -26.042), 'head': (-0.771, -0.002),
+        'right_clavicle': (2.677, 0.848), 'right_shoulder': (91.047, 11.087, -0.16),
+        'right_elbow': (32.732, 10.37), 'right_wrist': (-1.544, -28.322),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.3, {
-        'spine_lumbar': (7.7902, 1.1224, 1.2377), 'spine_thoracic': (-3.0353, -3.0088, 1.2218),
-        'neck': (-0.541, -0.7337, -26.4565), 'head': (-0.6999, -0.002),
-        'right_clavicle': (4.4376, 0.2521), 'right_shoulder': (89.6006, 12.6974, 1.1223),
-        'right_elbow': (33.4445, 11.7633), 'right_wrist': (-1.0971, -26.1936),
+        'spine_lumbar': (7.79, 1.122, 1.238), 'spine_thoracic': (-3.035, -3.009, 1.222),
+        'neck': (-0.541, -0.734, -26.457), 'head': (-0.7, -0.002), 'right_clavicle': (4.438, 0.252),
+        'right_shoulder': (89.601, 12.697, 1.122), 'right_elbow': (33.445, 11.763),
+        'right_wrist': (-1.097, -26.194),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (11.7343, 1.7997, -0.2372), 'spine_thoracic': (-3.5694, -6.4754, -0.2909),
-        'neck': (-1.6187, -1.1561, -27.0864), 'head': (-1.861, -0.0082),
-        'right_clavicle': (9.6167, -1.9974), 'right_shoulder': (88.0235, 17.3035, 5.9227),
-        'right_elbow': (36.5682, 16.7331),
+        'spine_lumbar': (11.734, 1.8, -0.237), 'spine_thoracic': (-3.569, -6.475, -0.291),
+        'neck': (-1.619, -1.156, -27.086), 'head': (-1.861, -0.008),
+        'right_clavicle': (9.617, -1.997), 'right_shoulder': (88.023, 17.304, 5.923),
+        'right_elbow': (36.568, 16.733),
     })
     human.KeyJoints(6.5, {
-        'spine_lumbar': (15.8199, 4.2498, -1.7815), 'spine_thoracic': (-3.4771, -9.8506, -1.8102),
-        'neck': (-3.5832, -1.8877, -26.5949), 'head': (-3.9595, -0.0309),
-        'right_clavicle': (15.2085, -4.2501), 'right_shoulder': (89.3429, 21.9858, 10.9101),
-        'right_elbow': (39.9429, 21.7061), 'right_wrist': (2.9372, -10.8822),
+        'spine_lumbar': (15.82, 4.25, -1.781), 'spine_thoracic': (-3.477, -9.851, -1.81),
+        'neck': (-3.583, -1.888, -26.595), 'head': (-3.96, -0.031),
+        'right_clavicle': (15.209, -4.25), 'right_shoulder': (89.343, 21.986, 10.91),
+        'right_elbow': (39.943, 21.706), 'right_wrist': (2.937, -10.882),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (12.6875, 4.5513, -3.5415), 'spine_thoracic': (-1.6447, -9.9006, -3.4028),
-        'neck': (-3.0785, -1.6058, -21.8336), 'head': (-3.3644, -0.0226),
-        'right_clavicle': (15.5254, -5.1614), 'right_shoulder': (89.3266, 20.5753, 14.1704),
-        'right_elbow': (41.7983, 23.8732), 'right_wrist': (4.3789, -8.3304),
+        'spine_lumbar': (12.687, 4.551, -3.541), 'spine_thoracic': (-1.645, -9.901, -3.403),
+        'neck': (-3.078, -1.606, -21.834), 'head': (-3.364, -0.023),
+        'right_clavicle': (15.525, -5.161), 'right_shoulder': (89.327, 20.575, 14.17),
+        'right_elbow': (41.798, 23.873), 'right_wrist': (4.379, -8.33),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (7.2554, 1.0484, 0.0124), 'spine_thoracic': (-2.5497, -4.0515, -0.041),
-        'neck': (-0.373, -0.6352, -24.7646), 'head': (-0.504, -0.0014),
-        'right_clavicle': (5.7752, -1.0333), 'right_shoulder': (87.0847, 13.2514, 3.8479),
-        'right_elbow': (35.1465, 14.1392), 'right_wrist': (0.0774, -22.5697),
+        'spine_lumbar': (7.255, 1.048, 0.012), 'spine_thoracic': (-2.55, -4.051, -0.041),
+        'neck': (-0.373, -0.635, -24.765), 'head': (-0.504, -0.001),
+        'right_clavicle': (5.775, -1.033), 'right_shoulder': (87.085, 13.251, 3.848),
+        'right_elbow': (35.146, 14.139), 'right_wrist': (0.077, -22.57),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.8, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'right_clavicle': (2.4958, 0.9639),
-        'right_shoulder': (91.3283, 10.9625, -0.4005), 'right_elbow': (32.5878, 10.1432),
-        'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (9.9815, 1.2699, 0.438), 'spine_thoracic': (-3.615, -5.0766, 0.3945),
-        'neck': (-0.8884, -0.8748, -26.8983), 'head': (-1.0778, -0.0032),
-        'right_clavicle': (7.4276, -1.0213), 'right_shoulder': (88.0549, 15.3979, 3.7592),
-        'right_elbow': (35.1284, 14.5452), 'right_wrist': (-0.0201, -21.876),
+        'spine_lumbar': (9.982, 1.27, 0.438), 'spine_thoracic': (-3.615, -5.077, 0.394),
+        'neck': (-0.888, -0.875, -26.898), 'head': (-1.078, -0.003),
+        'right_clavicle': (7.428, -1.021), 'right_shoulder': (88.055, 15.398, 3.759),
+        'right_elbow': (35.128, 14.545), 'right_wrist': (-0.02, -21.876),
     })
     human.KeyJoints(7.0, {
-        'spine_lumbar': (14.0695, 2.9794, -1.0343), 'spine_thoracic': (-3.6267, -8.4165, -1.1081),
-        'neck': (-2.5944, -1.5237, -27.0162), 'head': (-2.9066, -0.017),
-        'right_clavicle': (12.8011, -3.2999), 'right_shoulder': (88.327, 20.0558, 8.6887),
-        'right_elbow': (38.4714, 19.5538), 'right_wrist': (2.0338, -14.068),
+        'spine_lumbar': (14.069, 2.979, -1.034), 'spine_thoracic': (-3.627, -8.416, -1.108),
+        'neck': (-2.594, -1.524, -27.016), 'head': (-2.907, -0.017),
+        'right_clavicle': (12.801, -3.3), 'right_shoulder': (88.327, 20.056, 8.689),
+        'right_elbow': (38.471, 19.554), 'right_wrist': (2.034, -14.068),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (16.4728, 5.459, -3.4685), 'spine_thoracic': (-1.3293, -10.0, -3.3289),
-        'neck': (-5.313, -2.4839, -23.7411), 'head': (-5.7645, -0.0666),
-        'right_clavicle': (16.6359, -5.2817), 'right_shoulder': (93.4716, 22.5009, 14.1373),
-        'right_elbow': (41.7908, 24.1038), 'right_wrist': (4.4722, -8.3971),
+        'spine_lumbar': (16.473, 5.459, -3.469), 'spine_thoracic': (-1.329, -10.0, -3.329),
+        'neck': (-5.313, -2.484, -23.741), 'head': (-5.765, -0.067),
+        'right_clavicle': (16.636, -5.282), 'right_shoulder': (93.472, 22.501, 14.137),
+        'right_elbow': (41.791, 24.104), 'right_wrist': (4.472, -8.397),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (8.5482, 1.2829, -1.7074), 'spine_thoracic': (-2.5689, -6.7043, -1.7171),
-        'neck': (-0.5183, -0.6677, -23.179), 'head': (-0.6492, -0.0021),
-        'right_clavicle': (9.758, -3.0261), 'right_shoulder': (85.7797, 16.1217, 8.4897),
-        'right_elbow': (38.0484, 18.5104), 'right_wrist': (1.9858, -16.0516),
+        'spine_lumbar': (8.548, 1.283, -1.707), 'spine_thoracic': (-2.569, -6.704, -1.717),
+        'neck': (-0.518, -0.668, -23.179), 'head': (-0.649, -0.002),
+        'right_clavicle': (9.758, -3.026), 'right_shoulder': (85.78, 16.122, 8.49),
+        'right_elbow': (38.048, 18.51), 'right_wrist': (1.986, -16.052),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.3, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
-        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
-        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (8.3168, 1.1105, 0.9733), 'spine_thoracic': (-3.0438, -3.4868, 0.9638),
-        'neck': (-0.6816, -0.7886, -26.5095), 'head': (-0.8517, -0.0024),
-        'right_clavicle': (5.1188, -0.068), 'right_shoulder': (89.3555, 13.272, 1.8541),
-        'right_elbow': (33.8568, 12.4964), 'right_wrist': (-0.7725, -25.2265),
+        'spine_lumbar': (8.317, 1.111, 0.973), 'spine_thoracic': (-3.044, -3.487, 0.964),
+        'neck': (-0.682, -0.789, -26.509), 'head': (-0.852, -0.002),
+        'right_clavicle': (5.119, -0.068), 'right_shoulder': (89.355, 13.272, 1.854),
+        'right_elbow': (33.857, 12.496), 'right_wrist': (-0.773, -25.227),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (12.3202, 2.049, -0.4527), 'spine_thoracic': (-3.5588, -6.9426, -0.5095),
-        'neck': (-1.8681, -1.2505, -27.0753), 'head': (-2.1283, -0.0101),
-        'right_shoulder': (88.0954, 17.957, 6.6342), 'right_elbow': (37.052, 17.4509),
-        'right_wrist': (1.2059, -17.4792),
+        'spine_lumbar': (12.32, 2.049, -0.453), 'spine_thoracic': (-3.559, -6.943, -0.509),
+        'neck': (-1.868, -1.251, -27.075), 'head': (-2.128, -0.01),
+        'right_shoulder': (88.095, 17.957, 6.634), 'right_elbow': (37.052, 17.451),
+        'right_wrist': (1.206, -17.479),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (16.4931, 4.9289, -2.5947), 'spine_thoracic': (-2.4449, -10.0, -2.461),
-        'neck': (-4.6124, -2.2539, -25.517), 'head': (-5.0443, -0.0498),
-        'right_clavicle': (15.6621, -4.5183), 'right_shoulder': (91.9498, 22.1409, 12.2658),
-        'right_elbow': (40.7119, 22.7059), 'right_wrist': (3.6493, -10.2916),
+        'spine_lumbar': (16.493, 4.929, -2.595), 'spine_thoracic': (-2.445, -10.0, -2.461),
+        'neck': (-4.612, -2.254, -25.517), 'head': (-5.044, -0.05),
+        'right_clavicle': (15.662, -4.518), 'right_shoulder': (91.95, 22.141, 12.266),
+        'right_elbow': (40.712, 22.706), 'right_wrist': (3.649, -10.292),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (11.5685, 3.8182, -3.2658), 'spine_thoracic': (-1.8593, -9.4092, -3.1522),
-        'neck': (-2.2612, -1.2987, -21.9847), 'head': (-2.4961, -0.0131),
-        'right_clavicle': (14.4641, -4.8307), 'right_shoulder': (88.2788, 19.6136, 13.2947),
-        'right_elbow': (41.2146, 23.0352), 'right_wrist': (4.0052, -9.5137),
+        'spine_lumbar': (11.569, 3.818, -3.266), 'spine_thoracic': (-1.859, -9.409, -3.152),
+        'neck': (-2.261, -1.299, -21.985), 'head': (-2.496, -0.013),
+        'right_clavicle': (14.464, -4.831), 'right_shoulder': (88.279, 19.614, 13.295),
+        'right_elbow': (41.215, 23.035), 'right_wrist': (4.005, -9.514),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (6.9669, 1.115, 0.6762), 'spine_thoracic': (-2.4523, -3.0979, 0.6281),
-        'neck': (-0.438, -0.6706, -25.1931), 'head': (-0.5786, -0.0016),
-        'right_clavicle': (4.4771, -0.2655), 'right_shoulder': (88.5557, 12.3387, 2.1947),
-        'right_elbow': (34.1456, 12.5837), 'right_wrist': (-0.5929, -24.9359),
+        'spine_lumbar': (6.967, 1.115, 0.676), 'spine_thoracic': (-2.452, -3.098, 0.628),
+        'neck': (-0.438, -0.671, -25.193), 'head': (-0.579, -0.002),
+        'right_clavicle': (4.477, -0.266), 'right_shoulder': (88.556, 12.339, 2.195),
+        'right_elbow': (34.146, 12.584), 'right_wrist': (-0.593, -24.936),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.9, {
-        'spine_lumbar': (6.6755, 1.228, 1.7078), 'spine_thoracic': (-2.4092, -1.7316, 1.6781),
-        'neck': (-0.6029, -0.7529, -26.1973), 'head': (-0.7643, -0.0021),
-        'right_clavicle': (2.6773, 0.9083), 'right_shoulder': (91.0865, 11.1323, -0.2901),
-        'right_elbow': (32.6519, 10.2676), 'right_wrist': (-1.6092, -28.4513),
+        'spine_lumbar': (6.675, 1.228, 1.708), 'spine_thoracic': (-2.409, -1.732, 1.678),
+        'neck': (-0.603, -0.753, -26.197), 'head': (-0.764, -0.002),
+        'right_clavicle': (2.677, 0.908), 'right_shoulder': (91.086, 11.132, -0.29),
+        'right_elbow': (32.652, 10.268), 'right_wrist': (-1.609, -28.451),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (10.5565, 1.4047, 0.2242), 'spine_thoracic': (-3.6289, -5.5516, 0.1742),
-        'neck': (-1.064, -0.9422, -26.9342), 'head': (-1.2674, -0.0038),
-        'right_shoulder': (87.9459, 16.0389, 4.4591), 'right_elbow': (35.5934, 15.2631),
-        'right_wrist': (0.2771, -20.7829),
+        'spine_lumbar': (10.557, 1.405, 0.224), 'spine_thoracic': (-3.629, -5.552, 0.174),
+        'neck': (-1.064, -0.942, -26.934), 'head': (-1.267, -0.004),
+        'right_shoulder': (87.946, 16.039, 4.459), 'right_elbow': (35.593, 15.263),
+        'right_wrist': (0.277, -20.783),
     })
     human.KeyJoints(8.1, {
-        'spine_lumbar': (14.6367, 3.3346, -1.2011), 'spine_thoracic': (-3.6891, -8.9345, -1.2836),
-        'neck': (-2.8265, -1.6108, -27.0014), 'right_clavicle': (13.6612, -3.6288),
-        'right_shoulder': (88.3927, 20.8034, 9.3301), 'right_elbow': (38.9171, 20.2255),
-        'right_wrist': (2.2784, -12.911),
+        'spine_lumbar': (14.637, 3.335, -1.201), 'spine_thoracic': (-3.689, -8.934, -1.284),
+        'neck': (-2.826, -1.611, -27.001), 'right_clavicle': (13.661, -3.629),
+        'right_shoulder': (88.393, 20.803, 9.33), 'right_elbow': (38.917, 20.226),
+        'right_wrist': (2.278, -12.911),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (15.1336, 5.2316, -3.5523), 'spine_thoracic': (-1.4136, -10.0, -3.41),
-        'neck': (-4.6797, -2.2302, -22.8459), 'head': (-5.0801, -0.0505),
-        'right_clavicle': (16.3808, -5.2676), 'right_shoulder': (91.8935, 21.947, 14.2763),
-        'right_elbow': (41.8739, 24.088), 'right_wrist': (4.4676, -8.1984),
+        'spine_lumbar': (15.134, 5.232, -3.552), 'spine_thoracic': (-1.414, -10.0, -3.41),
+        'neck': (-4.68, -2.23, -22.846), 'head': (-5.08, -0.051),
+        'right_clavicle': (16.381, -5.268), 'right_shoulder': (91.893, 21.947, 14.276),
+        'right_elbow': (41.874, 24.088), 'right_wrist': (4.468, -8.198),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (7.9734, 0.9795, -1.1892), 'spine_thoracic': (-2.6523, -5.8525, -1.2278),
-        'neck': (-0.2898, -0.5872, -23.7781), 'head': (-0.4074, -0.0012),
-        'right_clavicle': (8.3909, -2.4263), 'right_shoulder': (85.5308, 15.136, 6.9873),
-        'right_elbow': (37.083, 17.0963), 'right_wrist': (1.3612, -18.1264),
+        'spine_lumbar': (7.973, 0.979, -1.189), 'spine_thoracic': (-2.652, -5.853, -1.228),
+        'neck': (-0.29, -0.587, -23.778), 'head': (-0.407, -0.001),
+        'right_clavicle': (8.391, -2.426), 'right_shoulder': (85.531, 15.136, 6.987),
+        'right_elbow': (37.083, 17.096), 'right_wrist': (1.361, -18.126),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.4, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
-        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
-        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (8.8534, 1.1298, 0.7521), 'spine_thoracic': (-3.1733, -3.9952, 0.7416),
-        'neck': (-0.7726, -0.8249, -26.6039), 'head': (-0.9504, -0.0027),
-        'right_clavicle': (5.8491, -0.3846), 'right_shoulder': (88.9893, 13.9234, 2.5279),
-        'right_elbow': (34.2704, 13.1974), 'right_wrist': (-0.4936, -24.1839),
+        'spine_lumbar': (8.853, 1.13, 0.752), 'spine_thoracic': (-3.173, -3.995, 0.742),
+        'neck': (-0.773, -0.825, -26.604), 'head': (-0.95, -0.003),
+        'right_clavicle': (5.849, -0.385), 'right_shoulder': (88.989, 13.923, 2.528),
+        'right_elbow': (34.27, 13.197), 'right_wrist': (-0.494, -24.184),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (12.904, 2.3292, -0.657), 'spine_thoracic': (-3.5589, -7.4197, -0.7181),
-        'neck': (-2.1086, -1.341, -27.0561), 'head': (-2.3862, -0.0121),
-        'right_clavicle': (11.1532, -2.6441), 'right_shoulder': (88.1718, 18.6314, 7.3312),
-        'right_elbow': (37.5307, 18.1587), 'right_wrist': (1.4931, -16.3591),
+        'spine_lumbar': (12.904, 2.329, -0.657), 'spine_thoracic': (-3.559, -7.42, -0.718),
+        'neck': (-2.109, -1.341, -27.056), 'head': (-2.386, -0.012),
+        'right_clavicle': (11.153, -2.644), 'right_shoulder': (88.172, 18.631, 7.331),
+        'right_elbow': (37.531, 18.159), 'right_wrist': (1.493, -16.359),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (17.2383, 5.4697, -3.1122), 'spine_thoracic': (-1.5207, -10.0, -2.9728),
-        'neck': (-5.6282, -2.622, -25.0773), 'head': (-6.115, -0.0766),
-        'right_clavicle': (16.5291, -5.1046), 'right_shoulder': (94.0884, 22.6827, 13.4324),
-        'right_elbow': (41.3792, 23.8139), 'right_wrist': (4.3041, -9.2522),
+        'spine_lumbar': (17.238, 5.47, -3.112), 'spine_thoracic': (-1.521, -10.0, -2.973),
+        'neck': (-5.628, -2.622, -25.077), 'head': (-6.115, -0.077),
+        'right_clavicle': (16.529, -5.105), 'right_shoulder': (94.088, 22.683, 13.432),
+        'right_elbow': (41.379, 23.814), 'right_wrist': (4.304, -9.252),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (10.4465, 2.9027, -2.8223), 'spine_thoracic': (-2.1186, -8.626, -2.7472),
-        'neck': (-1.5595, -1.0398, -22.2114), 'head': (-1.7521, -0.0068),
-        'right_clavicle': (13.0161, -4.3137), 'right_shoulder': (87.2682, 18.4809, 11.9003),
-        'right_elbow': (40.2889, 21.7181), 'right_wrist': (3.4162, -11.4023),
+        'spine_lumbar': (10.446, 2.903, -2.822), 'spine_thoracic': (-2.119, -8.626, -2.747),
+        'neck': (-1.559, -1.04, -22.211), 'head': (-1.752, -0.007),
+        'right_clavicle': (13.016, -4.314), 'right_shoulder': (87.268, 18.481, 11.9),
+        'right_elbow': (40.289, 21.718), 'right_wrist': (3.416, -11.402),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (6.7464, 1.1802, 1.2509), 'spine_thoracic': (-2.357, -2.2836, 1.2111),
-        'neck': (-0.5233, -0.7121, -25.647), 'head': (-0.6743, -0.0018),
-        'right_clavicle': (3.3933, 0.3986), 'right_shoulder': (89.9958, 11.5834, 0.7855),
-        'right_elbow': (33.2978, 11.2583), 'right_wrist': (-1.1626, -26.9606),
+        'spine_lumbar': (6.746, 1.18, 1.251), 'spine_thoracic': (-2.357, -2.284, 1.211),
+        'neck': (-0.523, -0.712, -25.647), 'head': (-0.674, -0.002),
+        'right_clavicle': (3.393, 0.399), 'right_shoulder': (89.996, 11.583, 0.785),
+        'right_elbow': (33.298, 11.258), 'right_wrist': (-1.163, -26.961),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.0, {
-        'spine_lumbar': (7.2644, 1.1615, 1.4981), 'spine_thoracic': (-3.0146, -2.4899, 1.4728),
-        'neck': (-0.4535, -0.6998, -26.3969), 'head': (-0.6055, -0.0017),
-        'right_clavicle': (3.7101, 0.5703), 'right_shoulder': (89.9157, 12.0823, 0.3975),
-        'right_elbow': (33.0478, 11.028), 'right_wrist': (-1.3967, -27.1819),
+        'spine_lumbar': (7.264, 1.161, 1.498), 'spine_thoracic': (-3.015, -2.49, 1.473),
+        'neck': (-0.453, -0.7, -26.397), 'head': (-0.606, -0.002), 'right_clavicle': (3.71, 0.57),
+        'right_shoulder': (89.916, 12.082, 0.397), 'right_elbow': (33.048, 11.028),
+        'right_wrist': (-1.397, -27.182),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (11.1381, 1.5786, -0.0034), 'spine_thoracic': (-3.6168, -6.0122, -0.0561),
-        'neck': (-1.3113, -1.0373, -26.999), 'head': (-1.5326, -0.0054),
-        'right_clavicle': (8.8745, -1.6688), 'right_shoulder': (87.9464, 16.6655, 5.1813),
-        'right_elbow': (36.0724, 15.9912), 'right_wrist': (0.5881, -19.6961),
+        'spine_lumbar': (11.138, 1.579, -0.003), 'spine_thoracic': (-3.617, -6.012, -0.056),
+        'neck': (-1.311, -1.037, -26.999), 'head': (-1.533, -0.005),
+        'right_clavicle': (8.875, -1.669), 'right_shoulder': (87.946, 16.665, 5.181),
+        'right_elbow': (36.072, 15.991), 'right_wrist': (0.588, -19.696),
     })
     human.KeyJoints(9.2, {
-        'spine_lumbar': (15.1851, 3.6916, -1.3347), 'spine_thoracic': (-3.7867, -9.513, -1.4289),
-        'neck': (-3.0257, -1.6859, -26.9951), 'head': (-3.3686, -0.0223),
-        'right_clavicle': (14.6011, -3.968), 'right_shoulder': (88.4344, 21.6678, 9.9079),
-        'right_elbow': (39.3233, 20.8596), 'right_wrist': (2.4852, -11.6759),
+        'spine_lumbar': (15.185, 3.692, -1.335), 'spine_thoracic': (-3.787, -9.513, -1.429),
+        'neck': (-3.026, -1.686, -26.995), 'head': (-3.369, -0.022),
+        'right_clavicle': (14.601, -3.968), 'right_shoulder': (88.434, 21.668, 9.908),
+        'right_elbow': (39.323, 20.86), 'right_wrist': (2.485, -11.676),
     })
     human.KeyJoints(9.3, {
-        'spine_lumbar': (13.7787, 4.9486, -3.5935), 'spine_thoracic': (-1.5153, -10.0, -3.4497),
-        'neck': (-3.8815, -1.9144, -21.9125), 'head': (-4.2222, -0.0343),
-        'right_clavicle': (16.0461, -5.2476), 'right_shoulder': (90.3892, 21.295, 14.3423),
-        'right_elbow': (41.9135, 24.0652), 'right_wrist': (4.4611, -8.0995),
+        'spine_lumbar': (13.779, 4.949, -3.593), 'spine_thoracic': (-1.515, -10.0, -3.45),
+        'neck': (-3.882, -1.914, -21.912), 'head': (-4.222, -0.034),
+        'right_clavicle': (16.046, -5.248), 'right_shoulder': (90.389, 21.295, 14.342),
+        'right_elbow': (41.913, 24.065), 'right_wrist': (4.461, -8.1),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (7.6004, 0.9966, -0.6504), 'spine_thoracic': (-2.6256, -5.0254, -0.702),
-        'neck': (-0.3124, -0.6006, -24.2789), 'head': (-0.4338, -0.0013),
-        'right_clavicle': (7.1488, -1.8008), 'right_shoulder': (85.9391, 14.2305, 5.5413),
-        'right_elbow': (36.1822, 15.7335), 'right_wrist': (0.7672, -20.1604),
+        'spine_lumbar': (7.6, 0.997, -0.65), 'spine_thoracic': (-2.626, -5.025, -0.702),
+        'neck': (-0.312, -0.601, -24.279), 'head': (-0.434, -0.001),
+        'right_clavicle': (7.149, -1.801), 'right_shoulder': (85.939, 14.231, 5.541),
+        'right_elbow': (36.182, 15.734), 'right_wrist': (0.767, -20.16),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.5, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'head': (-0.8012, -0.0022),
-        'right_clavicle': (2.4958, 0.9639), 'right_shoulder': (91.3283, 10.9625, -0.4005),
-        'right_elbow': (32.5878, 10.1432), 'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (9.406, 1.1763, 0.5899), 'spine_thoracic': (-3.4096, -4.5325, 0.5646),
-        'neck': (-0.8293, -0.8491, -26.7549), 'head': (-1.0127, -0.0029),
-        'right_clavicle': (6.6266, -0.6997), 'right_shoulder': (88.4807, 14.647, 3.1421),
-        'right_elbow': (34.6889, 13.8672), 'right_wrist': (-0.2562, -23.0567),
+        'spine_lumbar': (9.406, 1.176, 0.59), 'spine_thoracic': (-3.41, -4.533, 0.565),
+        'neck': (-0.829, -0.849, -26.755), 'head': (-1.013, -0.003),
+        'right_clavicle': (6.627, -0.7), 'right_shoulder': (88.481, 14.647, 3.142),
+        'right_elbow': (34.689, 13.867), 'right_wrist': (-0.256, -23.057),
     })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (13.4847, 2.6393, -0.8501), 'spine_thoracic': (-3.5849, -7.9077, -0.9168),
-        'neck': (-2.3512, -1.4323, -27.0361), 'head': (-2.6461, -0.0144),
-        'right_clavicle': (11.9577, -2.9685), 'right_shoulder': (88.2504, 19.327, 8.0131),
-        'right_elbow': (38.0026, 18.8562), 'right_wrist': (1.7682, -15.228),
+        'spine_lumbar': (13.485, 2.639, -0.85), 'spine_thoracic': (-3.585, -7.908, -0.917),
+        'neck': (-2.351, -1.432, -27.036), 'head': (-2.646, -0.014),
+        'right_clavicle': (11.958, -2.968), 'right_shoulder': (88.25, 19.327, 8.013),
+        'right_elbow': (38.003, 18.856), 'right_wrist': (1.768, -15.228),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (17.3395, 5.5895, -3.3445), 'spine_thoracic': (-1.2798, -10.0, -3.2084),
-        'neck': (-5.8316, -2.6932, -24.544), 'head': (-6.3272, -0.0823),
-        'right_clavicle': (16.7769, -5.2891), 'right_shoulder': (94.522, 22.8307, 13.9239),
-        'right_elbow': (41.6638, 24.112), 'right_wrist': (4.4745, -8.6866),
+        'spine_lumbar': (17.339, 5.589, -3.345), 'spine_thoracic': (-1.28, -10.0, -3.208),
+        'neck': (-5.832, -2.693, -24.544), 'head': (-6.327, -0.082),
+        'right_clavicle': (16.777, -5.289), 'right_shoulder': (94.522, 22.831, 13.924),
+        'right_elbow': (41.664, 24.112), 'right_wrist': (4.474, -8.687),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (9.4131, 1.9967, -2.2822), 'spine_thoracic': (-2.3714, -7.685, -2.2507),
-        'neck': (-1.0124, -0.8428, -22.5724), 'head': (-1.1723, -0.004),
-        'right_clavicle': (11.3873, -3.6893), 'right_shoulder': (86.4019, 17.2865, 10.2278),
-        'right_elbow': (39.1849, 20.1442), 'right_wrist': (2.7131, -13.6757),
+        'spine_lumbar': (9.413, 1.997, -2.282), 'spine_thoracic': (-2.371, -7.685, -2.251),
+        'neck': (-1.012, -0.843, -22.572), 'head': (-1.172, -0.004),
+        'right_clavicle': (11.387, -3.689), 'right_shoulder': (86.402, 17.287, 10.228),
+        'right_elbow': (39.185, 20.144), 'right_wrist': (2.713, -13.676),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (6.6117, 1.2272, 1.636), 'spine_thoracic': (-2.2882, -1.7429, 1.6035),
-        'neck': (-0.6094, -0.7522, -26.0368), 'head': (-0.7699, -0.0021),
-        'right_clavicle': (2.6846, 0.8435), 'right_shoulder': (91.0347, 11.0927, -0.1492),
-        'right_elbow': (32.7379, 10.3794), 'right_wrist': (-1.5397, -28.3068),
+        'spine_lumbar': (6.612, 1.227, 1.636), 'spine_thoracic': (-2.288, -1.743, 1.603),
+        'neck': (-0.609, -0.752, -26.037), 'head': (-0.77, -0.002),
+        'right_clavicle': (2.685, 0.844), 'right_shoulder': (91.035, 11.093, -0.149),
+        'right_elbow': (32.738, 10.379), 'right_wrist': (-1.54, -28.307),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.1, {
-        'spine_lumbar': (7.7814, 1.1229, 1.2426), 'spine_thoracic': (-3.0353, -3.001, 1.2265),
-        'neck': (-0.5381, -0.7326, -26.4559), 'head': (-0.6968, -0.002),
-        'right_clavicle': (4.4265, 0.2575), 'right_shoulder': (89.6038, 12.6884, 1.1095),
-        'right_elbow': (33.4376, 11.7506), 'right_wrist': (-1.103, -26.2092),
+        'spine_lumbar': (7.781, 1.123, 1.243), 'spine_thoracic': (-3.035, -3.001, 1.227),
+        'neck': (-0.538, -0.733, -26.456), 'head': (-0.697, -0.002),
+        'right_clavicle': (4.427, 0.258), 'right_shoulder': (89.604, 12.688, 1.109),
+        'right_elbow': (33.438, 11.751), 'right_wrist': (-1.103, -26.209),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (11.7245, 1.7958, -0.2334), 'spine_thoracic': (-3.5698, -6.4676, -0.2872),
-        'neck': (-1.6141, -1.1544, -27.0861), 'head': (-1.8561, -0.0082),
-        'right_clavicle': (9.6042, -1.992), 'right_shoulder': (88.0223, 17.2927, 5.9106),
-        'right_elbow': (36.56, 16.7209), 'right_wrist': (0.9016, -18.6057),
+        'spine_lumbar': (11.724, 1.796, -0.233), 'spine_thoracic': (-3.57, -6.468, -0.287),
+        'neck': (-1.614, -1.154, -27.086), 'head': (-1.856, -0.008),
+        'right_clavicle': (9.604, -1.992), 'right_shoulder': (88.022, 17.293, 5.911),
+        'right_elbow': (36.56, 16.721), 'right_wrist': (0.902, -18.606),
     })
     human.KeyJoints(10.3, {
-        'spine_lumbar': (15.8085, 4.2377, -1.7675), 'spine_thoracic': (-3.4928, -9.8462, -1.7993),
-        'neck': (-3.5669, -1.8818, -26.6134), 'head': (-3.9423, -0.0306),
-        'right_clavicle': (15.2013, -4.2461), 'right_shoulder': (89.3022, 21.9836, 10.887),
-        'right_elbow': (39.9297, 21.6894), 'right_wrist': (2.9254, -10.8916),
+        'spine_lumbar': (15.808, 4.238, -1.767), 'spine_thoracic': (-3.493, -9.846, -1.799),
+        'neck': (-3.567, -1.882, -26.613), 'head': (-3.942, -0.031),
+        'right_clavicle': (15.201, -4.246), 'right_shoulder': (89.302, 21.984, 10.887),
+        'right_elbow': (39.93, 21.689), 'right_wrist': (2.925, -10.892),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (12.7057, 4.561, -3.5443), 'spine_thoracic': (-1.6417, -9.9056, -3.4053),
-        'neck': (-3.0922, -1.611, -21.8321), 'head': (-3.3791, -0.0228),
-        'right_clavicle': (15.5388, -5.165), 'right_shoulder': (89.3439, 20.5894, 14.1793),
-        'right_elbow': (41.8042, 23.8819), 'right_wrist': (4.3827, -8.3184),
+        'spine_lumbar': (12.706, 4.561, -3.544), 'spine_thoracic': (-1.642, -9.906, -3.405),
+        'neck': (-3.092, -1.611, -21.832), 'head': (-3.379, -0.023),
+        'right_clavicle': (15.539, -5.165), 'right_shoulder': (89.344, 20.589, 14.179),
+        'right_elbow': (41.804, 23.882), 'right_wrist': (4.383, -8.318),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (7.2607, 1.0474, 0.0011), 'spine_thoracic': (-2.5513, -4.0679, -0.0524),
-        'neck': (-0.3718, -0.6346, -24.7569), 'head': (-0.5027, -0.0014),
-        'right_clavicle': (5.7979, -1.0464), 'right_shoulder': (87.0618, 13.2675, 3.8764),
-        'right_elbow': (35.1638, 14.1661), 'right_wrist': (0.089, -22.5288),
+        'spine_lumbar': (7.261, 1.047, 0.001), 'spine_thoracic': (-2.551, -4.068, -0.052),
+        'neck': (-0.372, -0.635, -24.757), 'head': (-0.503, -0.001),
+        'right_clavicle': (5.798, -1.046), 'right_shoulder': (87.062, 13.268, 3.876),
+        'right_elbow': (35.164, 14.166), 'right_wrist': (0.089, -22.529),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.6, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'right_clavicle': (2.4958, 0.9639),
-        'right_shoulder': (91.3283, 10.9625, -0.4005), 'right_elbow': (32.5878, 10.1432),
-        'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (9.9719, 1.2681, 0.4411), 'spine_thoracic': (-3.6147, -5.0682, 0.3978),
-        'neck': (-0.8867, -0.8741, -26.8973), 'head': (-1.076, -0.0032),
-        'right_clavicle': (7.415, -1.0159), 'right_shoulder': (88.0574, 15.3865, 3.7481),
-        'right_elbow': (35.1208, 14.5335), 'right_wrist': (-0.0246, -21.8948),
+        'spine_lumbar': (9.972, 1.268, 0.441), 'spine_thoracic': (-3.615, -5.068, 0.398),
+        'neck': (-0.887, -0.874, -26.897), 'head': (-1.076, -0.003),
+        'right_clavicle': (7.415, -1.016), 'right_shoulder': (88.057, 15.386, 3.748),
+        'right_elbow': (35.121, 14.533), 'right_wrist': (-0.025, -21.895),
     })
     human.KeyJoints(10.8, {
-        'spine_lumbar': (14.0598, 2.9735, -1.0313), 'spine_thoracic': (-3.6258, -8.4079, -1.1051),
-        'neck': (-2.5904, -1.5222, -27.0165), 'head': (-2.9023, -0.0169),
-        'right_clavicle': (12.7869, -3.2944), 'right_shoulder': (88.3258, 20.0435, 8.6777),
-        'right_elbow': (38.4637, 19.5424), 'right_wrist': (2.0295, -14.0873),
+        'spine_lumbar': (14.06, 2.974, -1.031), 'spine_thoracic': (-3.626, -8.408, -1.105),
+        'neck': (-2.59, -1.522, -27.017), 'head': (-2.902, -0.017),
+        'right_clavicle': (12.787, -3.294), 'right_shoulder': (88.326, 20.044, 8.678),
+        'right_elbow': (38.464, 19.542), 'right_wrist': (2.03, -14.087),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (16.4925, 5.4621, -3.4668), 'spine_thoracic': (-1.3281, -10.0, -3.3272),
-        'neck': (-5.3235, -2.488, -23.7551), 'head': (-5.7758, -0.0669),
-        'right_clavicle': (16.6393, -5.2819), 'right_shoulder': (93.4953, 22.5087, 14.1344),
-        'right_elbow': (41.789, 24.104), 'right_wrist': (4.4722, -8.4012),
+        'spine_lumbar': (16.493, 5.462, -3.467), 'spine_thoracic': (-1.328, -10.0, -3.327),
+        'neck': (-5.323, -2.488, -23.755), 'head': (-5.776, -0.067),
+        'right_clavicle': (16.639, -5.282), 'right_shoulder': (93.495, 22.509, 14.134),
+        'right_elbow': (41.789, 24.104), 'right_wrist': (4.472, -8.401),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (8.5605, 1.2919, -1.7167), 'spine_thoracic': (-2.5664, -6.72, -1.7258),
-        'neck': (-0.5249, -0.67, -23.1682), 'head': (-0.6562, -0.0021),
-        'right_clavicle': (9.7836, -3.0369), 'right_shoulder': (85.7872, 16.14, 8.5174),
-        'right_elbow': (38.0664, 18.5365), 'right_wrist': (1.9974, -16.0135),
+        'spine_lumbar': (8.56, 1.292, -1.717), 'spine_thoracic': (-2.566, -6.72, -1.726),
+        'neck': (-0.525, -0.67, -23.168), 'head': (-0.656, -0.002),
+        'right_clavicle': (9.784, -3.037), 'right_shoulder': (85.787, 16.14, 8.517),
+        'right_elbow': (38.066, 18.536), 'right_wrist': (1.997, -16.014),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.1, {
-        'spine_lumbar': (6.5774, 1.2405, 1.7402), 'spine_thoracic': (-2.2687, -1.5974, 1.7099),
-        'neck': (-0.6376, -0.7652, -26.1568), 'right_clavicle': (2.4958, 0.9639),
-        'right_shoulder': (91.3283, 10.9625, -0.4005), 'right_elbow': (32.5878, 10.1432),
-        'right_wrist': (-1.641, -28.6693),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (8.3079, 1.1104, 0.9773), 'spine_thoracic': (-3.0428, -3.4784, 0.9678),
-        'neck': (-0.6799, -0.788, -26.5082), 'head': (-0.8499, -0.0024),
-        'right_clavicle': (5.1068, -0.0626), 'right_shoulder': (89.3609, 13.2615, 1.8424),
-        'right_elbow': (33.85, 12.4844), 'right_wrist': (-0.7774, -25.2435),
+        'spine_lumbar': (8.308, 1.11, 0.977), 'spine_thoracic': (-3.043, -3.478, 0.968),
+        'neck': (-0.68, -0.788, -26.508), 'head': (-0.85, -0.002),
+        'right_clavicle': (5.107, -0.063), 'right_shoulder': (89.361, 13.261, 1.842),
+        'right_elbow': (33.85, 12.484), 'right_wrist': (-0.777, -25.244),
     })
     human.KeyJoints(11.3, {
-        'spine_lumbar': (12.3103, 2.0445, -0.4492), 'spine_thoracic': (-3.5589, -6.9347, -0.5059),
-        'neck': (-1.864, -1.249, -27.0756), 'head': (-2.124, -0.0101),
-        'right_shoulder': (88.0941, 17.9458, 6.6223), 'right_elbow': (37.0439, 17.4389),
+        'spine_lumbar': (12.31, 2.045, -0.449), 'spine_thoracic': (-3.559, -6.935, -0.506),
+        'neck': (-1.864, -1.249, -27.076), 'head': (-2.124, -0.01),
+        'right_shoulder': (88.094, 17.946, 6.622), 'right_elbow': (37.044, 17.439),
         'right_wrist': (1.201, -17.498),
     })
     human.KeyJoints(11.4, {
-        'spine_lumbar': (16.4824, 4.9201, -2.5854), 'spine_thoracic': (-2.4584, -10.0, -2.4526),
-        'neck': (-4.5978, -2.2486, -25.527), 'head': (-5.0288, -0.0495),
-        'right_clavicle': (15.6523, -4.5124), 'right_shoulder': (91.9173, 22.1367, 12.247),
-        'right_elbow': (40.7011, 22.6901), 'right_wrist': (3.6395, -10.3043),
+        'spine_lumbar': (16.482, 4.92, -2.585), 'spine_thoracic': (-2.458, -10.0, -2.453),
+        'neck': (-4.598, -2.249, -25.527), 'head': (-5.029, -0.049),
+        'right_clavicle': (15.652, -4.512), 'right_shoulder': (91.917, 22.137, 12.247),
+        'right_elbow': (40.701, 22.69), 'right_wrist': (3.639, -10.304),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (11.6197, 3.8507, -3.2639), 'spine_thoracic': (-1.8552, -9.4202, -3.1508),
-        'neck': (-2.3027, -1.315, -21.9962), 'head': (-2.5406, -0.0134),
-        'right_clavicle': (14.4924, -4.8336), 'right_shoulder': (88.2965, 19.6473, 13.3127),
-        'right_elbow': (41.2461, 23.0534), 'right_wrist': (4.0092, -9.4519),
+        'spine_lumbar': (11.62, 3.851, -3.264), 'spine_thoracic': (-1.855, -9.42, -3.151),
+        'neck': (-2.303, -1.315, -21.996), 'head': (-2.541, -0.013),
+        'right_clavicle': (14.492, -4.834), 'right_shoulder': (88.296, 19.647, 13.313),
+        'right_elbow': (41.246, 23.053), 'right_wrist': (4.009, -9.452),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (6.6615, 0.8546, 0.484), 'spine_thoracic': (-2.1339, -3.1158, 0.4471),
-        'neck': (-0.3867, -0.6487, -25.0715), 'head': (-0.5225, -0.0015),
-        'right_clavicle': (4.39, -0.3798), 'right_shoulder': (88.7751, 12.1101, 2.2538),
-        'right_elbow': (33.8028, 12.6186), 'right_wrist': (-0.5008, -25.6609),
+        'spine_lumbar': (6.661, 0.855, 0.484), 'spine_thoracic': (-2.134, -3.116, 0.447),
+        'neck': (-0.387, -0.649, -25.072), 'head': (-0.523, -0.001),
+        'right_clavicle': (4.39, -0.38), 'right_shoulder': (88.775, 12.11, 2.254),
+        'right_elbow': (33.803, 12.619), 'right_wrist': (-0.501, -25.661),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=11.63977, duration=0.072)
     human.KeyJoints(11.7, {
-        'spine_lumbar': (6.1101, 0.8138, 1.4228), 'spine_thoracic': (-1.6501, -1.602, 1.4096),
-        'neck': (-0.6148, -0.7533, -25.9869), 'head': (-0.7752, -0.0021),
-        'right_clavicle': (2.3148, 0.7854), 'right_shoulder': (91.8016, 10.5575, -0.3441),
-        'right_elbow': (31.9696, 10.1604), 'right_wrist': (-1.5015, -30.0),
+        'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
+        'neck': (-0.615, -0.753, -25.987), 'head': (-0.775, -0.002),
+        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.802, 10.558, -0.344),
+        'right_elbow': (31.97, 10.16), 'right_wrist': (-1.501, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_right
     human.LookAt((20.0, 135.0, 112.0), start=11.71177, duration=0.2628)
-    human.KeyJoints(11.8, {'neck': (-0.7798, -0.5834, -13.9573), 'head': (-0.8793, -0.0023)})
+    human.KeyJoints(11.8, {'neck': (-0.78, -0.583, -13.957), 'head': (-0.879, -0.002)})
     human.KeyJoints(11.9, {
-        'spine_lumbar': (6.1101, 0.8138, 1.4228), 'neck': (-1.1202, -0.2321, 10.8701),
-        'head': (-1.0941, -0.0028),
+        'spine_lumbar': (6.11, 0.814, 1.423), 'neck': (-1.12, -0.232, 10.87),
+        'head': (-1.094, -0.003),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_right
     human.LookAt((20.0, 135.0, 112.0), start=11.97457, duration=10.521694)
     human.KeyJoints(12.0, {
-        'spine_lumbar': (6.0763, 0.7099, 1.4824), 'spine_thoracic': (-1.6906, -1.6208, 1.4663),
-        'neck': (-1.2277, -0.1031, 19.5746), 'head': (-1.1568, -0.0032),
-        'right_clavicle': (2.3134, 0.8427), 'right_shoulder': (91.7699, 10.4985, -0.3145),
-        'right_elbow': (31.9912, 10.1725), 'right_wrist': (-1.493, -29.98),
+        'spine_lumbar': (6.076, 0.71, 1.482), 'spine_thoracic': (-1.691, -1.621, 1.466),
+        'neck': (-1.228, -0.103, 19.575), 'head': (-1.157, -0.003),
+        'right_clavicle': (2.313, 0.843), 'right_shoulder': (91.77, 10.498, -0.314),
+        'right_elbow': (31.991, 10.173), 'right_wrist': (-1.493, -29.98),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (5.4043, -1.3526, 2.6668), 'spine_thoracic': (-2.4953, -1.993, 2.5924),
-        'neck': (-0.9151, -0.1098, 14.7543), 'head': (-0.8526, -0.0049),
-        'right_clavicle': (2.2805, 1.9803), 'right_shoulder': (91.1053, 9.3261, 0.2736),
-        'right_elbow': (32.4203, 10.4136), 'right_wrist': (-1.3238, -29.5825),
+        'spine_lumbar': (5.404, -1.353, 2.667), 'spine_thoracic': (-2.495, -1.993, 2.592),
+        'neck': (-0.915, -0.11, 14.754), 'head': (-0.853, -0.005), 'right_clavicle': (2.28, 1.98),
+        'right_shoulder': (91.105, 9.326, 0.274), 'right_elbow': (32.42, 10.414),
+        'right_wrist': (-1.324, -29.582),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (4.2094, -5.0202, 4.7729), 'spine_thoracic': (-3.9262, -2.6549, 4.5949),
-        'neck': (-0.1688, -0.1934, 5.9526), 'head': (-0.1131, -0.0039),
-        'right_clavicle': (2.2046, 4.0033), 'right_shoulder': (89.7937, 7.2412, 1.3193),
+        'spine_lumbar': (4.209, -5.02, 4.773), 'spine_thoracic': (-3.926, -2.655, 4.595),
+        'neck': (-0.169, -0.193, 5.953), 'head': (-0.113, -0.004), 'right_clavicle': (2.205, 4.003),
+        'right_shoulder': (89.794, 7.241, 1.319),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (2.9391, -8.919, 7.0117), 'spine_thoracic': (-5.4473, -3.3586, 6.7237),
-        'neck': (0.9091, -0.3806, -3.4721), 'head': (0.9764, -0.0037),
-        'right_clavicle': (2.0869, 6.1538), 'right_shoulder': (88.12, 5.025, 2.4309),
-        'right_elbow': (33.9943, 11.2978), 'right_wrist': (-0.7032, -28.1241),
+        'spine_lumbar': (2.939, -8.919, 7.012), 'spine_thoracic': (-5.447, -3.359, 6.724),
+        'neck': (0.909, -0.381, -3.472), 'head': (0.976, -0.004), 'right_clavicle': (2.087, 6.154),
+        'right_shoulder': (88.12, 5.025, 2.431), 'right_elbow': (33.994, 11.298),
+        'right_wrist': (-0.703, -28.124),
     })
     human.KeyJoints(12.4, {
-        'spine_lumbar': (2.0411, -11.6752, 8.5944), 'spine_thoracic': (-6.5225, -3.8561, 8.2286),
-        'neck': (1.783, -0.572, -9.74), 'head': (1.8836, 0.0003), 'right_clavicle': (1.928, 7.6741),
-        'right_shoulder': (86.369, 3.4582, 3.2168), 'right_elbow': (34.5677, 11.6199),
-        'right_wrist': (-0.4772, -27.5929),
+        'spine_lumbar': (2.041, -11.675, 8.594), 'spine_thoracic': (-6.523, -3.856, 8.229),
+        'neck': (1.783, -0.572, -9.74), 'head': (1.884, 0.0), 'right_clavicle': (1.928, 7.674),
+        'right_shoulder': (86.369, 3.458, 3.217), 'right_elbow': (34.568, 11.62),
+        'right_wrist': (-0.477, -27.593),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(12.5, {
-        'spine_lumbar': (3.5164, -12.2355, 8.7118), 'spine_thoracic': (-5.9541, -3.8495, 8.3713),
-        'neck': (0.7919, -0.2058, -10.7586), 'head': (0.8326, 0.0008),
-        'right_clavicle': (1.6828, 7.7777), 'right_shoulder': (84.9321, 3.8166, 3.0677),
-        'right_elbow': (34.0157, 11.6128), 'right_wrist': (-0.5335, -27.9062),
+        'spine_lumbar': (3.516, -12.235, 8.712), 'spine_thoracic': (-5.954, -3.849, 8.371),
+        'neck': (0.792, -0.206, -10.759), 'head': (0.833, 0.001), 'right_clavicle': (1.683, 7.778),
+        'right_shoulder': (84.932, 3.817, 3.068), 'right_elbow': (34.016, 11.613),
+        'right_wrist': (-0.534, -27.906),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=12.58022, duration=0.072)
     human.KeyJoints(12.6, {
-        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
-        'neck': (0.1555, 0.0862, -14.731), 'head': (0.1476, 0.0049),
-        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (89.4645, 7.2709, 1.1479),
-        'right_elbow': (32.9279, 11.0536), 'right_wrist': (-1.3607, -29.9672),
+        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
+        'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
+        'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
+        'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(12.7, {
-        'spine_lumbar': (2.7157, -16.8758, 8.7848), 'spine_thoracic': (-8.732, -5.7567, 8.5134),
-        'neck': (2.5677, -0.6857, -16.6779), 'head': (2.709, -0.0186),
-        'right_clavicle': (2.7284, 7.4167), 'right_shoulder': (88.8794, 6.8446, -3.687),
-        'right_elbow': (23.1099, 7.5218), 'right_wrist': (-3.067, -29.9987),
+        'spine_lumbar': (2.716, -16.876, 8.785), 'spine_thoracic': (-8.732, -5.757, 8.513),
+        'neck': (2.568, -0.686, -16.678), 'head': (2.709, -0.019), 'right_clavicle': (2.728, 7.417),
+        'right_shoulder': (88.879, 6.845, -3.687), 'right_elbow': (23.11, 7.522),
+        'right_wrist': (-3.067, -29.999),
     })
     human.KeyJoints(12.8, {
-        'spine_lumbar': (2.7574, -19.9024, 6.4716), 'spine_thoracic': (-9.5736, -9.997, 6.6813),
-        'neck': (3.4083, -0.9411, -17.9865), 'head': (3.6039, -0.0269),
-        'right_clavicle': (7.55, 5.2313), 'right_shoulder': (85.6248, 9.9001, 0.6075),
-        'right_elbow': (22.8066, 11.9454), 'right_wrist': (-1.1333, -29.1139),
+        'spine_lumbar': (2.757, -19.902, 6.472), 'spine_thoracic': (-9.574, -9.997, 6.681),
+        'neck': (3.408, -0.941, -17.987), 'head': (3.604, -0.027), 'right_clavicle': (7.55, 5.231),
+        'right_shoulder': (85.625, 9.9, 0.607), 'right_elbow': (22.807, 11.945),
+        'right_wrist': (-1.133, -29.114),
     })
     human.KeyJoints(12.9, {
-        'spine_lumbar': (4.068, -20.0, 3.9023), 'spine_thoracic': (-8.8539, -10.0, 5.3692),
-        'neck': (2.2513, -0.6074, -15.3247), 'head': (2.3733, -0.0157),
-        'right_clavicle': (15.0157, 3.9414), 'right_shoulder': (87.1578, 12.3437, 7.7464),
-        'right_elbow': (22.1112, 19.0695), 'right_wrist': (2.6938, -25.5643),
+        'spine_lumbar': (4.068, -20.0, 3.902), 'spine_thoracic': (-8.854, -10.0, 5.369),
+        'neck': (2.251, -0.607, -15.325), 'head': (2.373, -0.016),
+        'right_clavicle': (15.016, 3.941), 'right_shoulder': (87.158, 12.344, 7.746),
+        'right_elbow': (22.111, 19.069), 'right_wrist': (2.694, -25.564),
     })
     human.KeyJoints(13.0, {
-        'spine_lumbar': (3.9841, -18.52, 3.0257), 'spine_thoracic': (-9.9031, -10.0, 5.3788),
-        'neck': (2.609, -0.7876, -12.5174), 'head': (2.7554, -0.0124),
-        'right_clavicle': (22.3152, 3.6991), 'right_shoulder': (87.0525, 14.3351, 13.3775),
-        'right_elbow': (20.7649, 24.4233), 'right_wrist': (5.6717, -20.9605),
+        'spine_lumbar': (3.984, -18.52, 3.026), 'spine_thoracic': (-9.903, -10.0, 5.379),
+        'neck': (2.609, -0.788, -12.517), 'head': (2.755, -0.012),
+        'right_clavicle': (22.315, 3.699), 'right_shoulder': (87.052, 14.335, 13.377),
+        'right_elbow': (20.765, 24.423), 'right_wrist': (5.672, -20.96),
     })
     human.KeyJoints(13.1, {
-        'spine_lumbar': (-0.9986, -19.9329, 4.4059), 'spine_thoracic': (-7.9711, -10.0, 5.4792),
-        'neck': (4.0868, -1.2645, -13.2574), 'head': (4.3227, -0.0281),
-        'right_clavicle': (11.3246, 4.5739), 'right_shoulder': (84.9566, 8.0725, 5.9039),
-        'right_elbow': (21.9729, 16.364), 'right_wrist': (1.7565, -27.2763),
+        'spine_lumbar': (-0.999, -19.933, 4.406), 'spine_thoracic': (-7.971, -10.0, 5.479),
+        'neck': (4.087, -1.264, -13.257), 'head': (4.323, -0.028),
+        'right_clavicle': (11.325, 4.574), 'right_shoulder': (84.957, 8.072, 5.904),
+        'right_elbow': (21.973, 16.364), 'right_wrist': (1.756, -27.276),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.2, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(13.3, {
-        'spine_lumbar': (2.4217, -18.7761, 7.2712), 'spine_thoracic': (-8.7559, -8.2029, 7.3192),
-        'neck': (2.9389, -0.8007, -17.1568), 'head': (3.104, -0.0223),
-        'right_clavicle': (5.1535, 6.1634), 'right_shoulder': (87.643, 8.2188, -1.4192),
-        'right_elbow': (22.457, 9.887), 'right_wrist': (-1.961, -29.997),
+        'spine_lumbar': (2.422, -18.776, 7.271), 'spine_thoracic': (-8.756, -8.203, 7.319),
+        'neck': (2.939, -0.801, -17.157), 'head': (3.104, -0.022), 'right_clavicle': (5.153, 6.163),
+        'right_shoulder': (87.643, 8.219, -1.419), 'right_elbow': (22.457, 9.887),
+        'right_wrist': (-1.961, -29.997),
     })
     human.KeyJoints(13.4, {
-        'spine_lumbar': (3.3346, -20.0, 4.7848), 'spine_thoracic': (-8.6473, -10.0, 5.7792),
-        'neck': (2.5523, -0.6917, -16.1109), 'right_clavicle': (11.7009, 4.5197),
-        'right_shoulder': (87.1126, 10.968, 4.7963), 'right_elbow': (22.0071, 16.114),
-        'right_wrist': (1.2307, -27.3945),
+        'spine_lumbar': (3.335, -20.0, 4.785), 'spine_thoracic': (-8.647, -10.0, 5.779),
+        'neck': (2.552, -0.692, -16.111), 'right_clavicle': (11.701, 4.52),
+        'right_shoulder': (87.113, 10.968, 4.796), 'right_elbow': (22.007, 16.114),
+        'right_wrist': (1.231, -27.394),
     })
     human.KeyJoints(13.5, {
-        'spine_lumbar': (4.7922, -18.7331, 3.3801), 'spine_thoracic': (-9.8248, -10.0, 5.5475),
-        'neck': (2.2152, -0.6273, -13.7077), 'head': (2.3364, -0.0135),
-        'right_clavicle': (20.7215, 3.8617), 'right_shoulder': (87.5015, 14.2659, 11.6343),
-        'right_elbow': (20.4946, 23.0176), 'right_wrist': (4.8524, -22.1328),
+        'spine_lumbar': (4.792, -18.733, 3.38), 'spine_thoracic': (-9.825, -10.0, 5.548),
+        'neck': (2.215, -0.627, -13.708), 'head': (2.336, -0.014),
+        'right_clavicle': (20.721, 3.862), 'right_shoulder': (87.502, 14.266, 11.634),
+        'right_elbow': (20.495, 23.018), 'right_wrist': (4.852, -22.133),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (0.132, -19.2282, 3.2361), 'spine_thoracic': (-8.8441, -10.0, 5.2686),
-        'neck': (3.8587, -1.2322, -11.9607), 'head': (4.0809, -0.015),
-        'right_clavicle': (18.7824, 3.9105), 'right_shoulder': (85.32, 10.7589, 12.007),
-        'right_elbow': (21.3895, 22.4168), 'right_wrist': (4.9195, -22.4954),
+        'spine_lumbar': (0.132, -19.228, 3.236), 'spine_thoracic': (-8.844, -10.0, 5.269),
+        'neck': (3.859, -1.232, -11.961), 'head': (4.081, -0.015), 'right_clavicle': (18.782, 3.91),
+        'right_shoulder': (85.32, 10.759, 12.007), 'right_elbow': (21.39, 22.417),
+        'right_wrist': (4.92, -22.495),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (0.8772, -18.4773, 7.2099), 'spine_thoracic': (-8.36, -7.8015, 7.1951),
-        'neck': (3.4247, -0.9883, -15.965), 'head': (3.6206, -0.0273),
-        'right_clavicle': (4.7829, 6.3699), 'right_shoulder': (87.0455, 7.0368, -1.2549),
-        'right_elbow': (22.4375, 9.7242), 'right_wrist': (-1.8373, -29.506),
+        'spine_lumbar': (0.877, -18.477, 7.21), 'spine_thoracic': (-8.36, -7.802, 7.195),
+        'neck': (3.425, -0.988, -15.965), 'head': (3.621, -0.027), 'right_clavicle': (4.783, 6.37),
+        'right_shoulder': (87.046, 7.037, -1.255), 'right_elbow': (22.438, 9.724),
+        'right_wrist': (-1.837, -29.506),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.8, {
-        'spine_lumbar': (2.4486, -17.4001, 8.4941), 'spine_thoracic': (-8.7334, -6.2037, 8.2835),
-        'neck': (2.7631, -0.7475, -16.8764), 'head': (2.9168, -0.0205),
-        'right_clavicle': (2.9377, 7.2068), 'right_shoulder': (88.7009, 6.9418, -3.7017),
-        'right_elbow': (22.4824, 7.5723), 'right_wrist': (-3.042, -30.0),
+        'spine_lumbar': (2.449, -17.4, 8.494), 'spine_thoracic': (-8.733, -6.204, 8.284),
+        'neck': (2.763, -0.747, -16.876), 'head': (2.917, -0.021), 'right_clavicle': (2.938, 7.207),
+        'right_shoulder': (88.701, 6.942, -3.702), 'right_elbow': (22.482, 7.572),
+        'right_wrist': (-3.042, -30.0),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (2.8528, -19.9911, 5.7309), 'spine_thoracic': (-8.6474, -9.9998, 6.2248),
-        'neck': (2.8626, -0.7745, -17.1654), 'head': (3.0227, -0.0215),
-        'right_clavicle': (8.3674, 5.0315), 'right_shoulder': (86.9682, 9.8849, 1.7769),
-        'right_elbow': (22.3484, 13.107), 'right_wrist': (-0.3514, -28.7467),
+        'spine_lumbar': (2.853, -19.991, 5.731), 'spine_thoracic': (-8.647, -10.0, 6.225),
+        'neck': (2.863, -0.774, -17.165), 'head': (3.023, -0.021), 'right_clavicle': (8.367, 5.032),
+        'right_shoulder': (86.968, 9.885, 1.777), 'right_elbow': (22.348, 13.107),
+        'right_wrist': (-0.351, -28.747),
     })
     human.KeyJoints(14.0, {
-        'spine_lumbar': (4.2463, -19.9336, 3.7452), 'spine_thoracic': (-8.9859, -10.0, 5.3311),
-        'neck': (2.2114, -0.5978, -15.0061), 'head': (2.3309, -0.0153),
-        'right_clavicle': (16.28, 3.8658), 'right_shoulder': (87.2095, 12.82, 8.7069),
-        'right_elbow': (22.0261, 20.0423), 'right_wrist': (3.204, -24.7909),
+        'spine_lumbar': (4.246, -19.934, 3.745), 'spine_thoracic': (-8.986, -10.0, 5.331),
+        'neck': (2.211, -0.598, -15.006), 'head': (2.331, -0.015), 'right_clavicle': (16.28, 3.866),
+        'right_shoulder': (87.209, 12.82, 8.707), 'right_elbow': (22.026, 20.042),
+        'right_wrist': (3.204, -24.791),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (2.516, -18.6589, 2.9982), 'spine_thoracic': (-9.6649, -10.0, 5.2883),
-        'neck': (3.0846, -0.9633, -12.0854), 'head': (3.2603, -0.0122),
-        'right_clavicle': (21.9396, 3.7158), 'right_shoulder': (86.3144, 13.4587, 13.4785),
-        'right_elbow': (20.8975, 24.3153), 'right_wrist': (5.699, -20.9954),
+        'spine_lumbar': (2.516, -18.659, 2.998), 'spine_thoracic': (-9.665, -10.0, 5.288),
+        'neck': (3.085, -0.963, -12.085), 'head': (3.26, -0.012), 'right_clavicle': (21.94, 3.716),
+        'right_shoulder': (86.314, 13.459, 13.479), 'right_elbow': (20.897, 24.315),
+        'right_wrist': (5.699, -20.995),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (-1.0848, -19.9996, 4.8507), 'spine_thoracic': (-7.8904, -9.9995, 5.581),
-        'neck': (4.1142, -1.2664, -13.9074), 'head': (4.3518, -0.0305),
-        'right_clavicle': (9.4522, 4.8372), 'right_shoulder': (84.9308, 7.6477, 4.1381),
-        'right_elbow': (22.1095, 14.6668), 'right_wrist': (0.8543, -28.1626),
+        'spine_lumbar': (-1.085, -20.0, 4.851), 'spine_thoracic': (-7.89, -9.999, 5.581),
+        'neck': (4.114, -1.266, -13.907), 'head': (4.352, -0.03), 'right_clavicle': (9.452, 4.837),
+        'right_shoulder': (84.931, 7.648, 4.138), 'right_elbow': (22.109, 14.667),
+        'right_wrist': (0.854, -28.163),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.3, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (2.5498, -19.1795, 7.2156), 'spine_thoracic': (-9.6782, -8.8376, 7.2478),
-        'neck': (3.422, -0.9508, -17.7501), 'head': (3.6185, -0.027),
-        'right_clavicle': (6.0594, 5.8657), 'right_shoulder': (86.0674, 9.0953, -0.8352),
-        'right_elbow': (22.9204, 10.4656), 'right_wrist': (-1.8326, -29.9625),
+        'spine_lumbar': (2.55, -19.179, 7.216), 'spine_thoracic': (-9.678, -8.838, 7.248),
+        'neck': (3.422, -0.951, -17.75), 'head': (3.618, -0.027), 'right_clavicle': (6.059, 5.866),
+        'right_shoulder': (86.067, 9.095, -0.835), 'right_elbow': (22.92, 10.466),
+        'right_wrist': (-1.833, -29.963),
     })
     human.KeyJoints(14.5, {
-        'spine_lumbar': (3.5345, -20.0, 4.5093), 'spine_thoracic': (-8.723, -10.0, 5.6582),
-        'neck': (2.4764, -0.6718, -15.8327), 'head': (2.6122, -0.0178),
-        'right_clavicle': (12.8333, 4.3507), 'right_shoulder': (87.1098, 11.41, 5.7672),
-        'right_elbow': (21.9702, 17.0875), 'right_wrist': (1.7244, -26.8037),
+        'spine_lumbar': (3.534, -20.0, 4.509), 'spine_thoracic': (-8.723, -10.0, 5.658),
+        'neck': (2.476, -0.672, -15.833), 'head': (2.612, -0.018),
+        'right_clavicle': (12.833, 4.351), 'right_shoulder': (87.11, 11.41, 5.767),
+        'right_elbow': (21.97, 17.087), 'right_wrist': (1.724, -26.804),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (5.1821, -18.4673, 3.1553), 'spine_thoracic': (-10.0441, -10.0, 5.5165),
-        'neck': (2.096, -0.5961, -13.3836), 'head': (2.2104, -0.0114),
-        'right_clavicle': (22.2706, 3.7167), 'right_shoulder': (87.674, 14.8969, 12.8169),
-        'right_elbow': (20.5588, 24.2557), 'right_wrist': (5.4595, -21.1324),
+        'spine_lumbar': (5.182, -18.467, 3.155), 'spine_thoracic': (-10.044, -10.0, 5.517),
+        'neck': (2.096, -0.596, -13.384), 'head': (2.21, -0.011), 'right_clavicle': (22.271, 3.717),
+        'right_shoulder': (87.674, 14.897, 12.817), 'right_elbow': (20.559, 24.256),
+        'right_wrist': (5.459, -21.132),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (-0.3536, -19.4976, 3.5562), 'spine_thoracic': (-8.5044, -10.0, 5.32),
-        'neck': (3.9382, -1.2503, -12.236), 'head': (4.1651, -0.0185),
-        'right_clavicle': (16.3939, 4.0923), 'right_shoulder': (85.1598, 9.7532, 10.1781),
-        'right_elbow': (21.5929, 20.5646), 'right_wrist': (3.9679, -24.0785),
+        'spine_lumbar': (-0.354, -19.498, 3.556), 'spine_thoracic': (-8.504, -10.0, 5.32),
+        'neck': (3.938, -1.25, -12.236), 'head': (4.165, -0.018), 'right_clavicle': (16.394, 4.092),
+        'right_shoulder': (85.16, 9.753, 10.178), 'right_elbow': (21.593, 20.565),
+        'right_wrist': (3.968, -24.078),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (1.7479, -17.8018, 7.9973), 'spine_thoracic': (-8.5684, -6.8261, 7.8473),
-        'neck': (3.0998, -0.8692, -16.4192), 'head': (3.2751, -0.0243),
-        'right_clavicle': (3.6096, 6.8926), 'right_shoulder': (87.9839, 6.9129, -2.744),
-        'right_elbow': (22.516, 8.3918), 'right_wrist': (-2.5737, -29.795),
+        'spine_lumbar': (1.748, -17.802, 7.997), 'spine_thoracic': (-8.568, -6.826, 7.847),
+        'neck': (3.1, -0.869, -16.419), 'head': (3.275, -0.024), 'right_clavicle': (3.61, 6.893),
+        'right_shoulder': (87.984, 6.913, -2.744), 'right_elbow': (22.516, 8.392),
+        'right_wrist': (-2.574, -29.795),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.9, {
-        'spine_lumbar': (2.3545, -18.0297, 7.9598), 'spine_thoracic': (-8.6852, -6.9989, 7.8646),
-        'neck': (2.8416, -0.7712, -17.0108), 'right_clavicle': (3.7605, 6.7848),
-        'right_shoulder': (88.3972, 7.3977, -2.9204), 'right_elbow': (22.2357, 8.3914),
-        'right_wrist': (-2.6433, -30.0),
+        'spine_lumbar': (2.354, -18.03, 7.96), 'spine_thoracic': (-8.685, -6.999, 7.865),
+        'neck': (2.842, -0.771, -17.011), 'right_clavicle': (3.76, 6.785),
+        'right_shoulder': (88.397, 7.398, -2.92), 'right_elbow': (22.236, 8.391),
+        'right_wrist': (-2.643, -30.0),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (2.9863, -20.0, 5.3206), 'spine_thoracic': (-8.5058, -10.0, 6.0126),
-        'neck': (2.6766, -0.7224, -16.6866), 'head': (2.8248, -0.0197),
-        'right_clavicle': (9.3727, 4.8519), 'right_shoulder': (87.1875, 10.0357, 2.8403),
-        'right_elbow': (22.2044, 14.1616), 'right_wrist': (0.2463, -28.3724),
+        'spine_lumbar': (2.986, -20.0, 5.321), 'spine_thoracic': (-8.506, -10.0, 6.013),
+        'neck': (2.677, -0.722, -16.687), 'head': (2.825, -0.02), 'right_clavicle': (9.373, 4.852),
+        'right_shoulder': (87.188, 10.036, 2.84), 'right_elbow': (22.204, 14.162),
+        'right_wrist': (0.246, -28.372),
     })
     human.KeyJoints(15.1, {
-        'spine_lumbar': (4.2949, -19.2373, 3.7249), 'spine_thoracic': (-9.4329, -10.0, 5.5754),
-        'neck': (2.3385, -0.6543, -14.4334), 'head': (2.4664, -0.0163),
-        'right_clavicle': (18.0659, 4.026), 'right_shoulder': (87.2806, 13.2869, 9.6308),
-        'right_elbow': (20.6814, 20.9969), 'right_wrist': (3.7992, -23.7231),
+        'spine_lumbar': (4.295, -19.237, 3.725), 'spine_thoracic': (-9.433, -10.0, 5.575),
+        'neck': (2.339, -0.654, -14.433), 'head': (2.466, -0.016),
+        'right_clavicle': (18.066, 4.026), 'right_shoulder': (87.281, 13.287, 9.631),
+        'right_elbow': (20.681, 20.997), 'right_wrist': (3.799, -23.723),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (1.3118, -18.8127, 2.9859), 'spine_thoracic': (-9.4139, -10.0, 5.2345),
-        'neck': (3.5648, -1.1388, -11.7333), 'head': (3.7697, -0.0114),
-        'right_clavicle': (21.4532, 3.7383), 'right_shoulder': (85.745, 12.5571, 13.522),
-        'right_elbow': (21.0406, 24.1676), 'right_wrist': (5.7101, -21.0441),
+        'spine_lumbar': (1.312, -18.813, 2.986), 'spine_thoracic': (-9.414, -10.0, 5.235),
+        'neck': (3.565, -1.139, -11.733), 'head': (3.77, -0.011), 'right_clavicle': (21.453, 3.738),
+        'right_shoulder': (85.745, 12.557, 13.522), 'right_elbow': (21.041, 24.168),
+        'right_wrist': (5.71, -21.044),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (-0.7762, -19.7602, 5.4647), 'spine_thoracic': (-7.9643, -9.6537, 5.8949),
-        'neck': (3.9804, -1.211, -14.6343), 'head': (4.2101, -0.03),
-        'right_clavicle': (7.8765, 5.2257), 'right_shoulder': (85.2635, 7.4138, 2.4435),
-        'right_elbow': (22.2239, 13.0835), 'right_wrist': (0.0023, -28.6614),
+        'spine_lumbar': (-0.776, -19.76, 5.465), 'spine_thoracic': (-7.964, -9.654, 5.895),
+        'neck': (3.98, -1.211, -14.634), 'head': (4.21, -0.03), 'right_clavicle': (7.877, 5.226),
+        'right_shoulder': (85.263, 7.414, 2.444), 'right_elbow': (22.224, 13.083),
+        'right_wrist': (0.002, -28.661),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.4, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (2.6561, -19.6177, 6.9695), 'spine_thoracic': (-9.7115, -9.603, 7.0371),
-        'neck': (3.4489, -0.958, -17.965), 'head': (3.6472, -0.0273),
-        'right_clavicle': (6.8076, 5.5314), 'right_shoulder': (85.6522, 9.6718, -0.1955),
-        'right_elbow': (22.9201, 11.1215), 'right_wrist': (-1.5766, -29.6522),
+        'spine_lumbar': (2.656, -19.618, 6.969), 'spine_thoracic': (-9.711, -9.603, 7.037),
+        'neck': (3.449, -0.958, -17.965), 'head': (3.647, -0.027), 'right_clavicle': (6.808, 5.531),
+        'right_shoulder': (85.652, 9.672, -0.195), 'right_elbow': (22.92, 11.121),
+        'right_wrist': (-1.577, -29.652),
     })
     human.KeyJoints(15.6, {
-        'spine_lumbar': (3.7686, -20.0, 4.232), 'spine_thoracic': (-8.7904, -10.0, 5.5294),
-        'neck': (2.3803, -0.6446, -15.5643), 'head': (2.5102, -0.0169),
-        'right_clavicle': (13.9446, 4.1707), 'right_shoulder': (87.1251, 11.8624, 6.7488),
-        'right_elbow': (22.006, 18.0702), 'right_wrist': (2.2133, -26.204),
+        'spine_lumbar': (3.769, -20.0, 4.232), 'spine_thoracic': (-8.79, -10.0, 5.529),
+        'neck': (2.38, -0.645, -15.564), 'head': (2.51, -0.017), 'right_clavicle': (13.945, 4.171),
+        'right_shoulder': (87.125, 11.862, 6.749), 'right_elbow': (22.006, 18.07),
+        'right_wrist': (2.213, -26.204),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (5.0763, -18.4301, 3.0686), 'spine_thoracic': (-10.0613, -10.0, 5.4676),
-        'neck': (2.1618, -0.6229, -12.9916), 'head': (2.2805, -0.0113),
-        'right_clavicle': (22.5339, 3.6897), 'right_shoulder': (87.6137, 14.9248, 13.2145),
-        'right_elbow': (20.65, 24.4835), 'right_wrist': (5.6255, -20.9414),
+        'spine_lumbar': (5.076, -18.43, 3.069), 'spine_thoracic': (-10.061, -10.0, 5.468),
+        'neck': (2.162, -0.623, -12.992), 'head': (2.28, -0.011), 'right_clavicle': (22.534, 3.69),
+        'right_shoulder': (87.614, 14.925, 13.214), 'right_elbow': (20.65, 24.484),
+        'right_wrist': (5.625, -20.941),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (-0.7406, -19.7475, 3.9565), 'spine_thoracic': (-8.1964, -10.0, 5.3905),
-        'neck': (4.0172, -1.2587, -12.6413), 'head': (4.2489, -0.0229),
-        'right_clavicle': (13.7939, 4.3173), 'right_shoulder': (85.0365, 8.822, 8.0486),
-        'right_elbow': (21.7926, 18.456), 'right_wrist': (2.8633, -25.7811),
+        'spine_lumbar': (-0.741, -19.747, 3.956), 'spine_thoracic': (-8.196, -10.0, 5.39),
+        'neck': (4.017, -1.259, -12.641), 'head': (4.249, -0.023),
+        'right_clavicle': (13.794, 4.317), 'right_shoulder': (85.036, 8.822, 8.049),
+        'right_elbow': (21.793, 18.456), 'right_wrist': (2.863, -25.781),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (2.3472, -17.3368, 8.5148), 'spine_thoracic': (-8.7118, -6.1548, 8.2901),
-        'neck': (2.8099, -0.7654, -16.7539), 'head': (2.9666, -0.0211),
-        'right_clavicle': (2.8867, 7.2376), 'right_shoulder': (88.6299, 6.8415, -3.6838),
-        'right_elbow': (22.5636, 7.5558), 'right_wrist': (-3.0374, -29.965),
+        'spine_lumbar': (2.347, -17.337, 8.515), 'spine_thoracic': (-8.712, -6.155, 8.29),
+        'neck': (2.81, -0.765, -16.754), 'head': (2.967, -0.021), 'right_clavicle': (2.887, 7.238),
+        'right_shoulder': (88.63, 6.841, -3.684), 'right_elbow': (22.564, 7.556),
+        'right_wrist': (-3.037, -29.965),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.0, {
-        'spine_lumbar': (2.3706, -18.4027, 7.4932), 'spine_thoracic': (-8.6187, -7.5916, 7.5133),
-        'neck': (2.8472, -0.7726, -17.0336), 'head': (3.0063, -0.0213),
-        'right_clavicle': (4.4016, 6.4708), 'right_shoulder': (88.1936, 7.7181, -2.1431),
-        'right_elbow': (22.2795, 9.1704), 'right_wrist': (-2.2341, -30.0),
+        'spine_lumbar': (2.371, -18.403, 7.493), 'spine_thoracic': (-8.619, -7.592, 7.513),
+        'neck': (2.847, -0.773, -17.034), 'head': (3.006, -0.021), 'right_clavicle': (4.402, 6.471),
+        'right_shoulder': (88.194, 7.718, -2.143), 'right_elbow': (22.279, 9.17),
+        'right_wrist': (-2.234, -30.0),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (3.1584, -20.0, 5.0646), 'spine_thoracic': (-8.568, -10.0, 5.898),
-        'neck': (2.6166, -0.7075, -16.4053), 'right_clavicle': (10.5351, 4.6842),
-        'right_shoulder': (87.1374, 10.5311, 3.8146), 'right_elbow': (22.1528, 15.1297),
-        'right_wrist': (0.7244, -27.9601),
+        'spine_lumbar': (3.158, -20.0, 5.065), 'spine_thoracic': (-8.568, -10.0, 5.898),
+        'neck': (2.617, -0.708, -16.405), 'right_clavicle': (10.535, 4.684),
+        'right_shoulder': (87.137, 10.531, 3.815), 'right_elbow': (22.153, 15.13),
+        'right_wrist': (0.724, -27.96),
     })
     human.KeyJoints(16.2, {
-        'spine_lumbar': (4.4674, -18.9263, 3.6108), 'spine_thoracic': (-9.6637, -10.0, 5.5879),
-        'neck': (2.3166, -0.6521, -14.0352), 'head': (2.4434, -0.0156),
-        'right_clavicle': (19.4663, 3.9949), 'right_shoulder': (87.3766, 13.763, 10.6049),
-        'right_elbow': (20.5019, 21.9838), 'right_wrist': (4.3351, -22.8918),
+        'spine_lumbar': (4.467, -18.926, 3.611), 'spine_thoracic': (-9.664, -10.0, 5.588),
+        'neck': (2.317, -0.652, -14.035), 'head': (2.443, -0.016),
+        'right_clavicle': (19.466, 3.995), 'right_shoulder': (87.377, 13.763, 10.605),
+        'right_elbow': (20.502, 21.984), 'right_wrist': (4.335, -22.892),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (0.6923, -18.9829, 3.0328), 'spine_thoracic': (-9.1668, -10.0, 5.2382),
-        'neck': (3.749, -1.1975, -11.7612), 'head': (3.9648, -0.0121),
-        'right_clavicle': (20.6025, 3.7866), 'right_shoulder': (85.513, 11.7374, 13.2292),
-        'right_elbow': (21.1977, 23.7224), 'right_wrist': (5.5567, -21.367),
+        'spine_lumbar': (0.692, -18.983, 3.033), 'spine_thoracic': (-9.167, -10.0, 5.238),
+        'neck': (3.749, -1.198, -11.761), 'head': (3.965, -0.012),
+        'right_clavicle': (20.602, 3.787), 'right_shoulder': (85.513, 11.737, 13.229),
+        'right_elbow': (21.198, 23.722), 'right_wrist': (5.557, -21.367),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (-0.0514, -19.1978, 6.3006), 'spine_thoracic': (-8.1378, -8.8418, 6.4824),
-        'neck': (3.7032, -1.0978, -15.3929), 'head': (3.9162, -0.0288),
-        'right_clavicle': (6.275, 5.7702), 'right_shoulder': (86.0446, 7.2083, 0.5754),
-        'right_elbow': (22.3359, 11.3759), 'right_wrist': (-0.9292, -29.1155),
+        'spine_lumbar': (-0.051, -19.198, 6.301), 'spine_thoracic': (-8.138, -8.842, 6.482),
+        'neck': (3.703, -1.098, -15.393), 'head': (3.916, -0.029), 'right_clavicle': (6.275, 5.77),
+        'right_shoulder': (86.045, 7.208, 0.575), 'right_elbow': (22.336, 11.376),
+        'right_wrist': (-0.929, -29.116),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.5, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (2.7558, -19.9004, 6.4822), 'spine_thoracic': (-9.5827, -9.997, 6.6883),
-        'neck': (3.4129, -0.9426, -17.9929), 'head': (3.6089, -0.0269),
-        'right_clavicle': (7.5369, 5.2352), 'right_shoulder': (85.613, 9.9002, 0.5906),
-        'right_elbow': (22.8115, 11.9285), 'right_wrist': (-1.1437, -29.1205),
+        'spine_lumbar': (2.756, -19.9, 6.482), 'spine_thoracic': (-9.583, -9.997, 6.688),
+        'neck': (3.413, -0.943, -17.993), 'head': (3.609, -0.027), 'right_clavicle': (7.537, 5.235),
+        'right_shoulder': (85.613, 9.9, 0.591), 'right_elbow': (22.811, 11.928),
+        'right_wrist': (-1.144, -29.121),
     })
     human.KeyJoints(16.7, {
-        'spine_lumbar': (4.0629, -20.0, 3.9077), 'spine_thoracic': (-8.8528, -10.0, 5.3718),
-        'neck': (2.2535, -0.608, -15.3286), 'head': (2.3756, -0.0157),
-        'right_clavicle': (14.998, 3.9452), 'right_shoulder': (87.1571, 12.3356, 7.73),
-        'right_elbow': (22.109, 19.0529), 'right_wrist': (2.6859, -25.5754),
+        'spine_lumbar': (4.063, -20.0, 3.908), 'spine_thoracic': (-8.853, -10.0, 5.372),
+        'neck': (2.254, -0.608, -15.329), 'head': (2.376, -0.016),
+        'right_clavicle': (14.998, 3.945), 'right_shoulder': (87.157, 12.336, 7.73),
+        'right_elbow': (22.109, 19.053), 'right_wrist': (2.686, -25.575),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (4.0074, -18.5179, 3.0263), 'spine_thoracic': (-9.9066, -10.0, 5.3805),
-        'neck': (2.601, -0.7846, -12.5249), 'head': (2.7469, -0.0124),
-        'right_clavicle': (22.3203, 3.6989), 'right_shoulder': (87.0643, 14.3481, 13.3753),
-        'right_elbow': (20.7629, 24.4247), 'right_wrist': (5.6711, -20.96),
+        'spine_lumbar': (4.007, -18.518, 3.026), 'spine_thoracic': (-9.907, -10.0, 5.38),
+        'neck': (2.601, -0.785, -12.525), 'head': (2.747, -0.012), 'right_clavicle': (22.32, 3.699),
+        'right_shoulder': (87.064, 14.348, 13.375), 'right_elbow': (20.763, 24.425),
+        'right_wrist': (5.671, -20.96),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-0.9956, -19.9307, 4.3983), 'spine_thoracic': (-7.9738, -10.0, 5.4776),
-        'neck': (4.0859, -1.2644, -13.2464), 'head': (4.3217, -0.028),
-        'right_clavicle': (11.3619, 4.5695), 'right_shoulder': (84.9575, 8.0826, 5.9375),
-        'right_elbow': (21.9702, 16.3965), 'right_wrist': (1.7737, -27.2555),
+        'spine_lumbar': (-0.996, -19.931, 4.398), 'spine_thoracic': (-7.974, -10.0, 5.478),
+        'neck': (4.086, -1.264, -13.246), 'head': (4.322, -0.028), 'right_clavicle': (11.362, 4.57),
+        'right_shoulder': (84.957, 8.083, 5.937), 'right_elbow': (21.97, 16.396),
+        'right_wrist': (1.774, -27.255),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.0, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (2.4201, -18.7694, 7.2723), 'spine_thoracic': (-8.743, -8.1924, 7.3206),
-        'neck': (2.9321, -0.7986, -17.1489), 'head': (3.0967, -0.0222),
-        'right_clavicle': (5.1388, 6.1684), 'right_shoulder': (87.6662, 8.2054, -1.4294),
-        'right_elbow': (22.4497, 9.8769), 'right_wrist': (-1.9634, -29.9972),
+        'spine_lumbar': (2.42, -18.769, 7.272), 'spine_thoracic': (-8.743, -8.192, 7.321),
+        'neck': (2.932, -0.799, -17.149), 'head': (3.097, -0.022), 'right_clavicle': (5.139, 6.168),
+        'right_shoulder': (87.666, 8.205, -1.429), 'right_elbow': (22.45, 9.877),
+        'right_wrist': (-1.963, -29.997),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (3.3316, -20.0, 4.7894), 'spine_thoracic': (-8.6459, -10.0, 5.7812),
-        'neck': (2.5533, -0.6919, -16.1157), 'right_clavicle': (11.6816, 4.5224),
-        'right_shoulder': (87.1129, 10.9606, 4.7801), 'right_elbow': (22.0094, 16.0977),
-        'right_wrist': (1.2223, -27.4046),
+        'spine_lumbar': (3.332, -20.0, 4.789), 'spine_thoracic': (-8.646, -10.0, 5.781),
+        'neck': (2.553, -0.692, -16.116), 'right_clavicle': (11.682, 4.522),
+        'right_shoulder': (87.113, 10.961, 4.78), 'right_elbow': (22.009, 16.098),
+        'right_wrist': (1.222, -27.405),
     })
     human.KeyJoints(17.3, {
-        'spine_lumbar': (4.7865, -18.7372, 3.3837), 'spine_thoracic': (-9.8215, -10.0, 5.5481),
-        'neck': (2.2169, -0.6278, -13.7133), 'head': (2.3382, -0.0135),
-        'right_clavicle': (20.6974, 3.8638), 'right_shoulder': (87.499, 14.2563, 11.6157),
-        'right_elbow': (20.4943, 22.9984), 'right_wrist': (4.8428, -22.1479),
+        'spine_lumbar': (4.786, -18.737, 3.384), 'spine_thoracic': (-9.821, -10.0, 5.548),
+        'neck': (2.217, -0.628, -13.713), 'head': (2.338, -0.014),
+        'right_clavicle': (20.697, 3.864), 'right_shoulder': (87.499, 14.256, 11.616),
+        'right_elbow': (20.494, 22.998), 'right_wrist': (4.843, -22.148),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (0.1408, -19.2238, 3.2316), 'spine_thoracic': (-8.8498, -10.0, 5.2679),
-        'neck': (3.8572, -1.2317, -11.9566), 'head': (4.0793, -0.0149),
-        'right_clavicle': (18.8186, 3.9079), 'right_shoulder': (85.323, 10.7758, 12.0333),
-        'right_elbow': (21.3862, 22.444), 'right_wrist': (4.9332, -22.4718),
+        'spine_lumbar': (0.141, -19.224, 3.232), 'spine_thoracic': (-8.85, -10.0, 5.268),
+        'neck': (3.857, -1.232, -11.957), 'head': (4.079, -0.015),
+        'right_clavicle': (18.819, 3.908), 'right_shoulder': (85.323, 10.776, 12.033),
+        'right_elbow': (21.386, 22.444), 'right_wrist': (4.933, -22.472),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (0.8615, -18.4895, 7.1953), 'spine_thoracic': (-8.3563, -7.8191, 7.1833),
-        'neck': (3.4293, -0.9901, -15.9573), 'head': (3.6255, -0.0273),
-        'right_clavicle': (4.8056, 6.3602), 'right_shoulder': (87.0286, 7.0392, -1.2265),
-        'right_elbow': (22.436, 9.7497), 'right_wrist': (-1.8232, -29.5003),
+        'spine_lumbar': (0.862, -18.489, 7.195), 'spine_thoracic': (-8.356, -7.819, 7.183),
+        'neck': (3.429, -0.99, -15.957), 'head': (3.626, -0.027), 'right_clavicle': (4.806, 6.36),
+        'right_shoulder': (87.029, 7.039, -1.227), 'right_elbow': (22.436, 9.75),
+        'right_wrist': (-1.823, -29.5),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.6, {
-        'spine_lumbar': (2.4504, -17.3908, 8.5015), 'spine_thoracic': (-8.734, -6.1927, 8.2894),
-        'neck': (2.7617, -0.747, -16.8741), 'head': (2.9153, -0.0205),
-        'right_clavicle': (2.9264, 7.2127), 'right_shoulder': (88.7051, 6.9354, -3.712),
-        'right_elbow': (22.4872, 7.5614), 'right_wrist': (-3.0473, -30.0),
+        'spine_lumbar': (2.45, -17.391, 8.502), 'spine_thoracic': (-8.734, -6.193, 8.289),
+        'neck': (2.762, -0.747, -16.874), 'head': (2.915, -0.021), 'right_clavicle': (2.926, 7.213),
+        'right_shoulder': (88.705, 6.935, -3.712), 'right_elbow': (22.487, 7.561),
+        'right_wrist': (-3.047, -30.0),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (2.851, -19.9903, 5.7422), 'spine_thoracic': (-8.6604, -9.9998, 6.2313),
-        'neck': (2.8712, -0.777, -17.18), 'head': (3.0319, -0.0216),
-        'right_clavicle': (8.3525, 5.0346), 'right_shoulder': (86.9487, 9.8851, 1.7567),
-        'right_elbow': (22.3552, 13.087), 'right_wrist': (-0.3646, -28.7528),
+        'spine_lumbar': (2.851, -19.99, 5.742), 'spine_thoracic': (-8.66, -10.0, 6.231),
+        'neck': (2.871, -0.777, -17.18), 'head': (3.032, -0.022), 'right_clavicle': (8.353, 5.035),
+        'right_shoulder': (86.949, 9.885, 1.757), 'right_elbow': (22.355, 13.087),
+        'right_wrist': (-0.365, -28.753),
     })
     human.KeyJoints(17.8, {
-        'spine_lumbar': (4.2452, -19.9407, 3.7457), 'spine_thoracic': (-8.9804, -10.0, 5.3283),
-        'neck': (2.2099, -0.5971, -15.0143), 'head': (2.3294, -0.0153),
-        'right_clavicle': (16.2527, 3.864), 'right_shoulder': (87.2085, 12.8121, 8.6912),
-        'right_elbow': (22.0412, 20.0262), 'right_wrist': (3.1944, -24.8073),
+        'spine_lumbar': (4.245, -19.941, 3.746), 'spine_thoracic': (-8.98, -10.0, 5.328),
+        'neck': (2.21, -0.597, -15.014), 'head': (2.329, -0.015), 'right_clavicle': (16.253, 3.864),
+        'right_shoulder': (87.208, 12.812, 8.691), 'right_elbow': (22.041, 20.026),
+        'right_wrist': (3.194, -24.807),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (2.5403, -18.6563, 2.9985), 'spine_thoracic': (-9.6692, -10.0, 5.2896),
-        'neck': (3.0755, -0.9599, -12.0931), 'head': (3.2506, -0.0123),
-        'right_clavicle': (21.947, 3.7154), 'right_shoulder': (86.3264, 13.4745, 13.4773),
-        'right_elbow': (20.8951, 24.3174), 'right_wrist': (5.6986, -20.9947),
+        'spine_lumbar': (2.54, -18.656, 2.999), 'spine_thoracic': (-9.669, -10.0, 5.29),
+        'neck': (3.075, -0.96, -12.093), 'head': (3.251, -0.012), 'right_clavicle': (21.947, 3.715),
+        'right_shoulder': (86.326, 13.474, 13.477), 'right_elbow': (20.895, 24.317),
+        'right_wrist': (5.699, -20.995),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (-1.0851, -19.9999, 4.8432), 'spine_thoracic': (-7.8904, -9.9998, 5.5789),
-        'neck': (4.1143, -1.2665, -13.8968), 'head': (4.352, -0.0305),
-        'right_clavicle': (9.4776, 4.8327), 'right_shoulder': (84.9305, 7.6519, 4.1638),
-        'right_elbow': (22.1076, 14.6912), 'right_wrist': (0.8673, -28.154),
+        'spine_lumbar': (-1.085, -20.0, 4.843), 'spine_thoracic': (-7.89, -10.0, 5.579),
+        'neck': (4.114, -1.266, -13.897), 'head': (4.352, -0.03), 'right_clavicle': (9.478, 4.833),
+        'right_shoulder': (84.93, 7.652, 4.164), 'right_elbow': (22.108, 14.691),
+        'right_wrist': (0.867, -28.154),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.1, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (2.5477, -19.1728, 7.217), 'spine_thoracic': (-9.6695, -8.8268, 7.2494),
-        'neck': (3.4175, -0.9494, -17.7427), 'head': (3.6136, -0.027),
-        'right_clavicle': (6.045, 5.8708), 'right_shoulder': (86.0852, 9.0829, -0.8454),
-        'right_elbow': (22.9162, 10.4554), 'right_wrist': (-1.8353, -29.9634),
+        'spine_lumbar': (2.548, -19.173, 7.217), 'spine_thoracic': (-9.669, -8.827, 7.249),
+        'neck': (3.417, -0.949, -17.743), 'head': (3.614, -0.027), 'right_clavicle': (6.045, 5.871),
+        'right_shoulder': (86.085, 9.083, -0.845), 'right_elbow': (22.916, 10.455),
+        'right_wrist': (-1.835, -29.963),
     })
     human.KeyJoints(18.3, {
-        'spine_lumbar': (3.5308, -20.0, 4.5139), 'spine_thoracic': (-8.7218, -10.0, 5.6604),
-        'neck': (2.4779, -0.6722, -15.8373), 'head': (2.6138, -0.0179),
-        'right_clavicle': (12.8145, 4.3537), 'right_shoulder': (87.1096, 11.4025, 5.7507),
-        'right_elbow': (21.9698, 17.071), 'right_wrist': (1.7162, -26.8135),
+        'spine_lumbar': (3.531, -20.0, 4.514), 'spine_thoracic': (-8.722, -10.0, 5.66),
+        'neck': (2.478, -0.672, -15.837), 'head': (2.614, -0.018),
+        'right_clavicle': (12.814, 4.354), 'right_shoulder': (87.11, 11.403, 5.751),
+        'right_elbow': (21.97, 17.071), 'right_wrist': (1.716, -26.814),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (5.177, -18.4707, 3.1584), 'spine_thoracic': (-10.0412, -10.0, 5.5171),
-        'neck': (2.0976, -0.5966, -13.3893), 'head': (2.2121, -0.0114),
-        'right_clavicle': (22.2508, 3.7186), 'right_shoulder': (87.6718, 14.8888, 12.8009),
-        'right_elbow': (20.5572, 24.2399), 'right_wrist': (5.4515, -21.1453),
+        'spine_lumbar': (5.177, -18.471, 3.158), 'spine_thoracic': (-10.041, -10.0, 5.517),
+        'neck': (2.098, -0.597, -13.389), 'head': (2.212, -0.011),
+        'right_clavicle': (22.251, 3.719), 'right_shoulder': (87.672, 14.889, 12.801),
+        'right_elbow': (20.557, 24.24), 'right_wrist': (5.451, -21.145),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (-0.3461, -19.4931, 3.55), 'spine_thoracic': (-8.51, -10.0, 5.319),
-        'neck': (3.937, -1.2502, -12.2312), 'head': (4.1638, -0.0184),
-        'right_clavicle': (16.437, 4.0888), 'right_shoulder': (85.1622, 9.7698, 10.2123),
-        'right_elbow': (21.5895, 20.5987), 'right_wrist': (3.9857, -24.0499),
+        'spine_lumbar': (-0.346, -19.493, 3.55), 'spine_thoracic': (-8.51, -10.0, 5.319),
+        'neck': (3.937, -1.25, -12.231), 'head': (4.164, -0.018), 'right_clavicle': (16.437, 4.089),
+        'right_shoulder': (85.162, 9.77, 10.212), 'right_elbow': (21.59, 20.599),
+        'right_wrist': (3.986, -24.05),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (1.7348, -17.8119, 7.9858), 'spine_thoracic': (-8.5653, -6.8407, 7.8376),
-        'neck': (3.1056, -0.8713, -16.4121), 'head': (3.2812, -0.0243),
-        'right_clavicle': (3.6261, 6.885), 'right_shoulder': (87.9699, 6.9145, -2.7228),
-        'right_elbow': (22.5149, 8.4107), 'right_wrist': (-2.5632, -29.7911),
+        'spine_lumbar': (1.735, -17.812, 7.986), 'spine_thoracic': (-8.565, -6.841, 7.838),
+        'neck': (3.106, -0.871, -16.412), 'head': (3.281, -0.024), 'right_clavicle': (3.626, 6.885),
+        'right_shoulder': (87.97, 6.915, -2.723), 'right_elbow': (22.515, 8.411),
+        'right_wrist': (-2.563, -29.791),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.7, {
-        'spine_lumbar': (2.3548, -18.0217, 7.9673), 'spine_thoracic': (-8.686, -6.9877, 7.8705),
-        'neck': (2.8412, -0.771, -17.0098), 'head': (2.9999, -0.0213),
-        'right_clavicle': (3.7485, 6.7907), 'right_shoulder': (88.4016, 7.3912, -2.9327),
-        'right_elbow': (22.2365, 8.3788), 'right_wrist': (-2.6495, -30.0),
+        'spine_lumbar': (2.355, -18.022, 7.967), 'spine_thoracic': (-8.686, -6.988, 7.87),
+        'neck': (2.841, -0.771, -17.01), 'head': (3.0, -0.021), 'right_clavicle': (3.749, 6.791),
+        'right_shoulder': (88.402, 7.391, -2.933), 'right_elbow': (22.236, 8.379),
+        'right_wrist': (-2.649, -30.0),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (2.9835, -20.0, 5.3252), 'spine_thoracic': (-8.5049, -10.0, 6.0147),
-        'neck': (2.6778, -0.7227, -16.6917), 'head': (2.8261, -0.0197),
-        'right_clavicle': (9.3536, 4.8547), 'right_shoulder': (87.1884, 10.0285, 2.8237),
-        'right_elbow': (22.2052, 14.1451), 'right_wrist': (0.238, -28.3787),
+        'spine_lumbar': (2.984, -20.0, 5.325), 'spine_thoracic': (-8.505, -10.0, 6.015),
+        'neck': (2.678, -0.723, -16.692), 'head': (2.826, -0.02), 'right_clavicle': (9.354, 4.855),
+        'right_shoulder': (87.188, 10.028, 2.824), 'right_elbow': (22.205, 14.145),
+        'right_wrist': (0.238, -28.379),
     })
     human.KeyJoints(18.9, {
-        'spine_lumbar': (4.2939, -19.248, 3.7254), 'spine_thoracic': (-9.4261, -10.0, 5.5725),
-        'neck': (2.337, -0.6536, -14.4425), 'head': (2.4648, -0.0163),
-        'right_clavicle': (18.0371, 4.0241), 'right_shoulder': (87.2793, 13.279, 9.615),
-        'right_elbow': (20.698, 20.9807), 'right_wrist': (3.7894, -23.7403),
+        'spine_lumbar': (4.294, -19.248, 3.725), 'spine_thoracic': (-9.426, -10.0, 5.572),
+        'neck': (2.337, -0.654, -14.443), 'head': (2.465, -0.016),
+        'right_clavicle': (18.037, 4.024), 'right_shoulder': (87.279, 13.279, 9.615),
+        'right_elbow': (20.698, 20.981), 'right_wrist': (3.789, -23.74),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (1.3263, -18.8102, 2.986), 'spine_thoracic': (-9.4179, -10.0, 5.2349),
-        'neck': (3.5592, -1.1368, -11.7361), 'head': (3.7638, -0.0114),
-        'right_clavicle': (21.462, 3.7379), 'right_shoulder': (85.7513, 12.571, 13.5217),
-        'right_elbow': (21.0382, 24.1704), 'right_wrist': (5.7101, -21.0431),
+        'spine_lumbar': (1.326, -18.81, 2.986), 'spine_thoracic': (-9.418, -10.0, 5.235),
+        'neck': (3.559, -1.137, -11.736), 'head': (3.764, -0.011),
+        'right_clavicle': (21.462, 3.738), 'right_shoulder': (85.751, 12.571, 13.522),
+        'right_elbow': (21.038, 24.17), 'right_wrist': (5.71, -21.043),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (-0.7855, -19.7674, 5.4521), 'spine_thoracic': (-7.9621, -9.6641, 5.8869),
-        'neck': (3.9843, -1.2126, -14.6211), 'head': (4.2142, -0.03),
-        'right_clavicle': (7.9037, 5.2175), 'right_shoulder': (85.2535, 7.4175, 2.4742),
-        'right_elbow': (22.222, 13.1118), 'right_wrist': (0.0176, -28.6533),
+        'spine_lumbar': (-0.785, -19.767, 5.452), 'spine_thoracic': (-7.962, -9.664, 5.887),
+        'neck': (3.984, -1.213, -14.621), 'head': (4.214, -0.03), 'right_clavicle': (7.904, 5.218),
+        'right_shoulder': (85.253, 7.418, 2.474), 'right_elbow': (22.222, 13.112),
+        'right_wrist': (0.018, -28.653),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.2, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (2.6544, -19.6102, 6.9765), 'spine_thoracic': (-9.7124, -9.5893, 7.0424),
-        'neck': (3.449, -0.9581, -17.9625), 'head': (3.6473, -0.0273),
-        'right_clavicle': (6.796, 5.5373), 'right_shoulder': (85.6564, 9.6634, -0.2067),
-        'right_elbow': (22.9212, 11.1098), 'right_wrist': (-1.5824, -29.6621),
+        'spine_lumbar': (2.654, -19.61, 6.976), 'spine_thoracic': (-9.712, -9.589, 7.042),
+        'neck': (3.449, -0.958, -17.963), 'head': (3.647, -0.027), 'right_clavicle': (6.796, 5.537),
+        'right_shoulder': (85.656, 9.663, -0.207), 'right_elbow': (22.921, 11.11),
+        'right_wrist': (-1.582, -29.662),
     })
     human.KeyJoints(19.4, {
-        'spine_lumbar': (3.7645, -20.0, 4.2367), 'spine_thoracic': (-8.7892, -10.0, 5.5316),
-        'neck': (2.382, -0.6451, -15.5687), 'head': (2.512, -0.0169),
-        'right_clavicle': (13.9259, 4.1738), 'right_shoulder': (87.1248, 11.8547, 6.7323),
-        'right_elbow': (22.0052, 18.0537), 'right_wrist': (2.2051, -26.2144),
+        'spine_lumbar': (3.765, -20.0, 4.237), 'spine_thoracic': (-8.789, -10.0, 5.532),
+        'neck': (2.382, -0.645, -15.569), 'head': (2.512, -0.017),
+        'right_clavicle': (13.926, 4.174), 'right_shoulder': (87.125, 11.855, 6.732),
+        'right_elbow': (22.005, 18.054), 'right_wrist': (2.205, -26.214),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (5.0871, -18.4293, 3.0695), 'spine_thoracic': (-10.0628, -10.0, 5.4688),
-        'neck': (2.1566, -0.621, -12.9993), 'head': (2.275, -0.0113),
-        'right_clavicle': (22.5358, 3.6897), 'right_shoulder': (87.6194, 14.9305, 13.2113),
-        'right_elbow': (20.6483, 24.484), 'right_wrist': (5.6246, -20.9412),
+        'spine_lumbar': (5.087, -18.429, 3.069), 'spine_thoracic': (-10.063, -10.0, 5.469),
+        'neck': (2.157, -0.621, -12.999), 'head': (2.275, -0.011), 'right_clavicle': (22.536, 3.69),
+        'right_shoulder': (87.619, 14.93, 13.211), 'right_elbow': (20.648, 24.484),
+        'right_wrist': (5.625, -20.941),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (-0.735, -19.7437, 3.9493), 'spine_thoracic': (-8.201, -10.0, 5.3892),
-        'neck': (4.0159, -1.2586, -12.6324), 'head': (4.2475, -0.0228),
-        'right_clavicle': (13.8373, 4.3133), 'right_shoulder': (85.0382, 8.8365, 8.0851),
-        'right_elbow': (21.7894, 18.4919), 'right_wrist': (2.8822, -25.7534),
+        'spine_lumbar': (-0.735, -19.744, 3.949), 'spine_thoracic': (-8.201, -10.0, 5.389),
+        'neck': (4.016, -1.259, -12.632), 'head': (4.247, -0.023),
+        'right_clavicle': (13.837, 4.313), 'right_shoulder': (85.038, 8.836, 8.085),
+        'right_elbow': (21.789, 18.492), 'right_wrist': (2.882, -25.753),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (2.3406, -17.3419, 8.5092), 'spine_thoracic': (-8.7102, -6.1622, 8.2852),
-        'neck': (2.8133, -0.7666, -16.7501), 'head': (2.9703, -0.0211),
-        'right_clavicle': (2.8942, 7.2338), 'right_shoulder': (88.6228, 6.8422, -3.6738),
-        'right_elbow': (22.5631, 7.5646), 'right_wrist': (-3.0325, -29.9632),
+        'spine_lumbar': (2.341, -17.342, 8.509), 'spine_thoracic': (-8.71, -6.162, 8.285),
+        'neck': (2.813, -0.767, -16.75), 'head': (2.97, -0.021), 'right_clavicle': (2.894, 7.234),
+        'right_shoulder': (88.623, 6.842, -3.674), 'right_elbow': (22.563, 7.565),
+        'right_wrist': (-3.033, -29.963),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.8, {
-        'spine_lumbar': (2.3701, -18.397, 7.5004), 'spine_thoracic': (-8.6198, -7.5818, 7.5187),
-        'neck': (2.8472, -0.7726, -17.0333), 'head': (3.0063, -0.0213),
-        'right_clavicle': (4.3907, 6.476), 'right_shoulder': (88.1972, 7.7125, -2.1567),
-        'right_elbow': (22.278, 9.157), 'right_wrist': (-2.2409, -30.0),
+        'spine_lumbar': (2.37, -18.397, 7.5), 'spine_thoracic': (-8.62, -7.582, 7.519),
+        'neck': (2.847, -0.773, -17.033), 'head': (3.006, -0.021), 'right_clavicle': (4.391, 6.476),
+        'right_shoulder': (88.197, 7.713, -2.157), 'right_elbow': (22.278, 9.157),
+        'right_wrist': (-2.241, -30.0),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (3.1555, -20.0, 5.0693), 'spine_thoracic': (-8.567, -10.0, 5.9),
-        'neck': (2.6177, -0.7078, -16.4103), 'right_clavicle': (10.5161, 4.687),
-        'right_shoulder': (87.1379, 10.5241, 3.7982), 'right_elbow': (22.1542, 15.1132),
-        'right_wrist': (0.716, -27.9681),
+        'spine_lumbar': (3.155, -20.0, 5.069), 'spine_thoracic': (-8.567, -10.0, 5.9),
+        'neck': (2.618, -0.708, -16.41), 'right_clavicle': (10.516, 4.687),
+        'right_shoulder': (87.138, 10.524, 3.798), 'right_elbow': (22.154, 15.113),
+        'right_wrist': (0.716, -27.968),
     })
     human.KeyJoints(20.0, {
-        'spine_lumbar': (4.4624, -18.9295, 3.6145), 'spine_thoracic': (-9.661, -10.0, 5.5885),
-        'neck': (2.3181, -0.6524, -14.0407), 'head': (2.445, -0.0157),
-        'right_clavicle': (19.4456, 3.997), 'right_shoulder': (87.3747, 13.7549, 10.5881),
-        'right_elbow': (20.5023, 21.9669), 'right_wrist': (4.3266, -22.904),
+        'spine_lumbar': (4.462, -18.929, 3.614), 'spine_thoracic': (-9.661, -10.0, 5.589),
+        'neck': (2.318, -0.652, -14.041), 'head': (2.445, -0.016),
+        'right_clavicle': (19.446, 3.997), 'right_shoulder': (87.375, 13.755, 10.588),
+        'right_elbow': (20.502, 21.967), 'right_wrist': (4.327, -22.904),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (0.702, -18.9794, 3.0307), 'spine_thoracic': (-9.1716, -10.0, 5.2379),
-        'neck': (3.7468, -1.1968, -11.759), 'head': (3.9624, -0.012),
-        'right_clavicle': (20.6252, 3.7852), 'right_shoulder': (85.5164, 11.7525, 13.2421),
-        'right_elbow': (21.1948, 23.7373), 'right_wrist': (5.5635, -21.3545),
+        'spine_lumbar': (0.702, -18.979, 3.031), 'spine_thoracic': (-9.172, -10.0, 5.238),
+        'neck': (3.747, -1.197, -11.759), 'head': (3.962, -0.012),
+        'right_clavicle': (20.625, 3.785), 'right_shoulder': (85.516, 11.753, 13.242),
+        'right_elbow': (21.195, 23.737), 'right_wrist': (5.564, -21.354),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (-0.0658, -19.209, 6.2856), 'spine_thoracic': (-8.1343, -8.858, 6.4711),
-        'neck': (3.7082, -1.0999, -15.3812), 'head': (3.9215, -0.0288),
-        'right_clavicle': (6.3014, 5.7603), 'right_shoulder': (86.0291, 7.2115, 0.607),
-        'right_elbow': (22.3341, 11.4045), 'right_wrist': (-0.9135, -29.1084),
+        'spine_lumbar': (-0.066, -19.209, 6.286), 'spine_thoracic': (-8.134, -8.858, 6.471),
+        'neck': (3.708, -1.1, -15.381), 'head': (3.921, -0.029), 'right_clavicle': (6.301, 5.76),
+        'right_shoulder': (86.029, 7.211, 0.607), 'right_elbow': (22.334, 11.405),
+        'right_wrist': (-0.913, -29.108),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.3, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (2.7541, -19.8983, 6.4925), 'spine_thoracic': (-9.5913, -9.9969, 6.6952),
-        'neck': (3.4173, -0.944, -17.9989), 'head': (3.6136, -0.027),
-        'right_clavicle': (7.5238, 5.239), 'right_shoulder': (85.6021, 9.9004, 0.5739),
-        'right_elbow': (22.8161, 11.9117), 'right_wrist': (-1.1539, -29.1272),
+        'spine_lumbar': (2.754, -19.898, 6.493), 'spine_thoracic': (-9.591, -9.997, 6.695),
+        'neck': (3.417, -0.944, -17.999), 'head': (3.614, -0.027), 'right_clavicle': (7.524, 5.239),
+        'right_shoulder': (85.602, 9.9, 0.574), 'right_elbow': (22.816, 11.912),
+        'right_wrist': (-1.154, -29.127),
     })
     human.KeyJoints(20.5, {
-        'spine_lumbar': (4.0578, -20.0, 3.9131), 'spine_thoracic': (-8.8517, -10.0, 5.3745),
-        'neck': (2.2557, -0.6087, -15.3325), 'head': (2.3779, -0.0157),
-        'right_clavicle': (14.9803, 3.949), 'right_shoulder': (87.1563, 12.3275, 7.7135),
-        'right_elbow': (22.1067, 19.0364), 'right_wrist': (2.678, -25.5864),
+        'spine_lumbar': (4.058, -20.0, 3.913), 'spine_thoracic': (-8.852, -10.0, 5.374),
+        'neck': (2.256, -0.609, -15.332), 'head': (2.378, -0.016), 'right_clavicle': (14.98, 3.949),
+        'right_shoulder': (87.156, 12.327, 7.713), 'right_elbow': (22.107, 19.036),
+        'right_wrist': (2.678, -25.586),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (4.0305, -18.5159, 3.0269), 'spine_thoracic': (-9.91, -10.0, 5.3821),
-        'neck': (2.5929, -0.7817, -12.5324), 'head': (2.7383, -0.0124),
-        'right_clavicle': (22.3254, 3.6987), 'right_shoulder': (87.0761, 14.361, 13.3731),
-        'right_elbow': (20.7608, 24.4261), 'right_wrist': (5.6704, -20.9596),
+        'spine_lumbar': (4.03, -18.516, 3.027), 'spine_thoracic': (-9.91, -10.0, 5.382),
+        'neck': (2.593, -0.782, -12.532), 'head': (2.738, -0.012),
+        'right_clavicle': (22.325, 3.699), 'right_shoulder': (87.076, 14.361, 13.373),
+        'right_elbow': (20.761, 24.426), 'right_wrist': (5.67, -20.96),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (-0.9926, -19.9284, 4.3908), 'spine_thoracic': (-7.9765, -10.0, 5.476),
-        'neck': (4.085, -1.2643, -13.2353), 'head': (4.3208, -0.028),
-        'right_clavicle': (11.3994, 4.5651), 'right_shoulder': (84.9584, 8.0928, 5.9711),
-        'right_elbow': (21.9675, 16.4291), 'right_wrist': (1.791, -27.2344),
+        'spine_lumbar': (-0.993, -19.928, 4.391), 'spine_thoracic': (-7.977, -10.0, 5.476),
+        'neck': (4.085, -1.264, -13.235), 'head': (4.321, -0.028),
+        'right_clavicle': (11.399, 4.565), 'right_shoulder': (84.958, 8.093, 5.971),
+        'right_elbow': (21.968, 16.429), 'right_wrist': (1.791, -27.234),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.8, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (2.4184, -18.7627, 7.2735), 'spine_thoracic': (-8.7305, -8.1819, 7.322),
-        'neck': (2.9255, -0.7965, -17.1414), 'head': (3.0897, -0.0221),
-        'right_clavicle': (5.1242, 6.1734), 'right_shoulder': (87.6889, 8.1922, -1.4396),
-        'right_elbow': (22.4426, 9.8668), 'right_wrist': (-1.9658, -29.9975),
+        'spine_lumbar': (2.418, -18.763, 7.273), 'spine_thoracic': (-8.731, -8.182, 7.322),
+        'neck': (2.926, -0.797, -17.141), 'head': (3.09, -0.022), 'right_clavicle': (5.124, 6.173),
+        'right_shoulder': (87.689, 8.192, -1.44), 'right_elbow': (22.443, 9.867),
+        'right_wrist': (-1.966, -29.997),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (3.3285, -20.0, 4.794), 'spine_thoracic': (-8.6445, -10.0, 5.7831),
-        'neck': (2.5544, -0.6922, -16.1204), 'right_clavicle': (11.6623, 4.5252),
-        'right_shoulder': (87.1132, 10.9532, 4.7639), 'right_elbow': (22.0117, 16.0814),
-        'right_wrist': (1.2139, -27.4148),
+        'spine_lumbar': (3.329, -20.0, 4.794), 'spine_thoracic': (-8.644, -10.0, 5.783),
+        'neck': (2.554, -0.692, -16.12), 'right_clavicle': (11.662, 4.525),
+        'right_shoulder': (87.113, 10.953, 4.764), 'right_elbow': (22.012, 16.081),
+        'right_wrist': (1.214, -27.415),
     })
     human.KeyJoints(21.1, {
-        'spine_lumbar': (4.7808, -18.7412, 3.3872), 'spine_thoracic': (-9.8182, -10.0, 5.5486),
-        'neck': (2.2186, -0.6282, -13.7188), 'head': (2.34, -0.0136),
-        'right_clavicle': (20.6737, 3.866), 'right_shoulder': (87.4966, 14.2469, 11.5973),
-        'right_elbow': (20.494, 22.9795), 'right_wrist': (4.8334, -22.1628),
+        'spine_lumbar': (4.781, -18.741, 3.387), 'spine_thoracic': (-9.818, -10.0, 5.549),
+        'neck': (2.219, -0.628, -13.719), 'head': (2.34, -0.014), 'right_clavicle': (20.674, 3.866),
+        'right_shoulder': (87.497, 14.247, 11.597), 'right_elbow': (20.494, 22.98),
+        'right_wrist': (4.833, -22.163),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (0.1497, -19.2194, 3.2272), 'spine_thoracic': (-8.8555, -10.0, 5.2672),
-        'neck': (3.8557, -1.2313, -11.9524), 'head': (4.0777, -0.0149),
-        'right_clavicle': (18.8546, 3.9053), 'right_shoulder': (85.3259, 10.7927, 12.0595),
-        'right_elbow': (21.3828, 22.4711), 'right_wrist': (4.9469, -22.4483),
+        'spine_lumbar': (0.15, -19.219, 3.227), 'spine_thoracic': (-8.856, -10.0, 5.267),
+        'neck': (3.856, -1.231, -11.952), 'head': (4.078, -0.015),
+        'right_clavicle': (18.855, 3.905), 'right_shoulder': (85.326, 10.793, 12.06),
+        'right_elbow': (21.383, 22.471), 'right_wrist': (4.947, -22.448),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (0.8458, -18.5016, 7.1806), 'spine_thoracic': (-8.3525, -7.8366, 7.1714),
-        'neck': (3.4339, -0.9918, -15.9495), 'head': (3.6304, -0.0273),
-        'right_clavicle': (4.8284, 6.3505), 'right_shoulder': (87.0117, 7.0417, -1.1981),
-        'right_elbow': (22.4345, 9.7752), 'right_wrist': (-1.8091, -29.4945),
+        'spine_lumbar': (0.846, -18.502, 7.181), 'spine_thoracic': (-8.353, -7.837, 7.171),
+        'neck': (3.434, -0.992, -15.95), 'head': (3.63, -0.027), 'right_clavicle': (4.828, 6.35),
+        'right_shoulder': (87.012, 7.042, -1.198), 'right_elbow': (22.434, 9.775),
+        'right_wrist': (-1.809, -29.495),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.4, {
-        'spine_lumbar': (2.4522, -17.3818, 8.5088), 'spine_thoracic': (-8.7346, -6.1818, 8.2951),
-        'neck': (2.7602, -0.7466, -16.8718), 'head': (2.9138, -0.0205),
-        'right_clavicle': (2.9153, 7.2185), 'right_shoulder': (88.7091, 6.9293, -3.722),
-        'right_elbow': (22.492, 7.5508), 'right_wrist': (-3.0525, -30.0),
+        'spine_lumbar': (2.452, -17.382, 8.509), 'spine_thoracic': (-8.735, -6.182, 8.295),
+        'neck': (2.76, -0.747, -16.872), 'head': (2.914, -0.02), 'right_clavicle': (2.915, 7.218),
+        'right_shoulder': (88.709, 6.929, -3.722), 'right_elbow': (22.492, 7.551),
+        'right_wrist': (-3.052, -30.0),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (2.8493, -19.9895, 5.7537), 'spine_thoracic': (-8.6738, -9.9997, 6.2379),
-        'neck': (2.88, -0.7797, -17.1948), 'head': (3.0413, -0.0217),
-        'right_clavicle': (8.3378, 5.0377), 'right_shoulder': (86.9287, 9.8853, 1.7364),
-        'right_elbow': (22.3622, 13.067), 'right_wrist': (-0.3779, -28.7588),
+        'spine_lumbar': (2.849, -19.99, 5.754), 'spine_thoracic': (-8.674, -10.0, 6.238),
+        'neck': (2.88, -0.78, -17.195), 'head': (3.041, -0.022), 'right_clavicle': (8.338, 5.038),
+        'right_shoulder': (86.929, 9.885, 1.736), 'right_elbow': (22.362, 13.067),
+        'right_wrist': (-0.378, -28.759),
     })
     human.KeyJoints(21.6, {
-        'spine_lumbar': (4.2441, -19.9474, 3.7462), 'spine_thoracic': (-8.9751, -10.0, 5.3257),
-        'neck': (2.2086, -0.5965, -15.0223), 'head': (2.3279, -0.0153),
-        'right_clavicle': (16.2256, 3.8623), 'right_shoulder': (87.2075, 12.8042, 8.6755),
-        'right_elbow': (22.0556, 20.0101), 'right_wrist': (3.1849, -24.8235),
+        'spine_lumbar': (4.244, -19.947, 3.746), 'spine_thoracic': (-8.975, -10.0, 5.326),
+        'neck': (2.209, -0.597, -15.022), 'head': (2.328, -0.015),
+        'right_clavicle': (16.226, 3.862), 'right_shoulder': (87.207, 12.804, 8.675),
+        'right_elbow': (22.056, 20.01), 'right_wrist': (3.185, -24.824),
     })
     human.KeyJoints(21.7, {
-        'spine_lumbar': (2.5648, -18.6538, 2.9989), 'spine_thoracic': (-9.6735, -10.0, 5.2909),
-        'neck': (3.0664, -0.9565, -12.1008), 'head': (3.2409, -0.0123),
-        'right_clavicle': (21.9544, 3.7151), 'right_shoulder': (86.3385, 13.4902, 13.4761),
-        'right_elbow': (20.8928, 24.3196), 'right_wrist': (5.6983, -20.994),
+        'spine_lumbar': (2.565, -18.654, 2.999), 'spine_thoracic': (-9.674, -10.0, 5.291),
+        'neck': (3.066, -0.957, -12.101), 'head': (3.241, -0.012),
+        'right_clavicle': (21.954, 3.715), 'right_shoulder': (86.338, 13.49, 13.476),
+        'right_elbow': (20.893, 24.32), 'right_wrist': (5.698, -20.994),
     })
     human.KeyJoints(21.8, {
-        'spine_lumbar': (-1.0853, -20.0, 4.8358), 'spine_thoracic': (-7.8903, -10.0, 5.577),
-        'neck': (4.1144, -1.2665, -13.8862), 'head': (4.352, -0.0305),
-        'right_clavicle': (9.503, 4.8282), 'right_shoulder': (84.9303, 7.656, 4.1893),
-        'right_elbow': (22.1057, 14.7155), 'right_wrist': (0.8803, -28.1453),
+        'spine_lumbar': (-1.085, -20.0, 4.836), 'spine_thoracic': (-7.89, -10.0, 5.577),
+        'neck': (4.114, -1.266, -13.886), 'head': (4.352, -0.03), 'right_clavicle': (9.503, 4.828),
+        'right_shoulder': (84.93, 7.656, 4.189), 'right_elbow': (22.106, 14.716),
+        'right_wrist': (0.88, -28.145),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.9, {
-        'spine_lumbar': (2.4834, -17.2311, 8.6294), 'spine_thoracic': (-8.7444, -6.0022, 8.39),
-        'neck': (2.7357, -0.7391, -16.8327), 'head': (2.8876, -0.0203),
-        'right_clavicle': (2.7329, 7.3141), 'right_shoulder': (88.7767, 6.827, -3.8868),
-        'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.0, {
-        'spine_lumbar': (2.5455, -19.166, 7.2184), 'spine_thoracic': (-9.6602, -8.8161, 7.2511),
-        'neck': (3.4126, -0.9479, -17.735), 'head': (3.6085, -0.0269),
-        'right_clavicle': (6.0304, 5.8759), 'right_shoulder': (86.1036, 9.0702, -0.8556),
-        'right_elbow': (22.9118, 10.4451), 'right_wrist': (-1.838, -29.9642),
+        'spine_lumbar': (2.546, -19.166, 7.218), 'spine_thoracic': (-9.66, -8.816, 7.251),
+        'neck': (3.413, -0.948, -17.735), 'head': (3.609, -0.027), 'right_clavicle': (6.03, 5.876),
+        'right_shoulder': (86.104, 9.07, -0.856), 'right_elbow': (22.912, 10.445),
+        'right_wrist': (-1.838, -29.964),
     })
     human.KeyJoints(22.1, {
-        'spine_lumbar': (3.5271, -20.0, 4.5186), 'spine_thoracic': (-8.7207, -10.0, 5.6625),
-        'neck': (2.4794, -0.6726, -15.8419), 'head': (2.6154, -0.0179),
-        'right_clavicle': (12.7956, 4.3566), 'right_shoulder': (87.1095, 11.395, 5.7342),
-        'right_elbow': (21.9695, 17.0545), 'right_wrist': (1.7079, -26.8233),
+        'spine_lumbar': (3.527, -20.0, 4.519), 'spine_thoracic': (-8.721, -10.0, 5.663),
+        'neck': (2.479, -0.673, -15.842), 'head': (2.615, -0.018),
+        'right_clavicle': (12.796, 4.357), 'right_shoulder': (87.109, 11.395, 5.734),
+        'right_elbow': (21.969, 17.054), 'right_wrist': (1.708, -26.823),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (5.1718, -18.4742, 3.1616), 'spine_thoracic': (-10.0384, -10.0, 5.5176),
-        'neck': (2.0992, -0.597, -13.395), 'head': (2.2138, -0.0114),
-        'right_clavicle': (22.2306, 3.7205), 'right_shoulder': (87.6694, 14.8805, 12.7846),
-        'right_elbow': (20.5557, 24.2237), 'right_wrist': (5.4433, -21.1586),
+        'spine_lumbar': (5.172, -18.474, 3.162), 'spine_thoracic': (-10.038, -10.0, 5.518),
+        'neck': (2.099, -0.597, -13.395), 'head': (2.214, -0.011),
+        'right_clavicle': (22.231, 3.721), 'right_shoulder': (87.669, 14.88, 12.785),
+        'right_elbow': (20.556, 24.224), 'right_wrist': (5.443, -21.159),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (-0.3386, -19.4886, 3.523), 'spine_thoracic': (-8.5156, -10.0, 5.3162),
-        'neck': (3.9337, -1.2499, -12.2057), 'head': (4.1603, -0.0182),
-        'right_clavicle': (16.4816, 4.0744), 'right_shoulder': (85.1647, 9.7041, 9.7658),
-        'right_elbow': (21.4406, 20.2818), 'right_wrist': (3.847, -24.0262),
+        'spine_lumbar': (-0.339, -19.489, 3.523), 'spine_thoracic': (-8.516, -10.0, 5.316),
+        'neck': (3.934, -1.25, -12.206), 'head': (4.16, -0.018), 'right_clavicle': (16.482, 4.074),
+        'right_shoulder': (85.165, 9.704, 9.766), 'right_elbow': (21.441, 20.282),
+        'right_wrist': (3.847, -24.026),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (5.3719, -15.1876, 8.7413), 'spine_thoracic': (-8.3168, -5.6253, 8.433),
-        'neck': (1.1887, -0.25, -15.1866), 'head': (1.2446, -0.0055),
-        'right_clavicle': (3.6277, 7.3438), 'right_shoulder': (88.4967, 7.3088, 1.5121),
-        'right_elbow': (30.7347, 11.5076), 'right_wrist': (-1.0726, -29.7587),
+        'spine_lumbar': (5.372, -15.188, 8.741), 'spine_thoracic': (-8.317, -5.625, 8.433),
+        'neck': (1.189, -0.25, -15.187), 'head': (1.245, -0.006), 'right_clavicle': (3.628, 7.344),
+        'right_shoulder': (88.497, 7.309, 1.512), 'right_elbow': (30.735, 11.508),
+        'right_wrist': (-1.073, -29.759),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=22.424264, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 112.0), start=22.496264, duration=0.2628)
     human.KeyJoints(22.5, {
-        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
-        'neck': (0.1764, 0.0841, -14.747), 'head': (0.1565, 0.0049),
-        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (89.4645, 7.2709, 1.1479),
-        'right_elbow': (32.9279, 11.0536), 'right_wrist': (-1.3607, -29.9672),
+        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
+        'neck': (0.176, 0.084, -14.747), 'head': (0.156, 0.005), 'right_clavicle': (2.715, 7.9),
+        'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
+        'right_wrist': (-1.361, -29.967),
     })
-    human.KeyJoints(22.6, {'neck': (12.1571, -1.1026, -23.9089), 'head': (5.2632, -0.0176)})
+    human.KeyJoints(22.6, {'neck': (12.157, -1.103, -23.909), 'head': (5.263, -0.018)})
     human.KeyJoints(22.7, {
-        'neck': (30.5109, -2.9207, -37.9446), 'head': (13.0865, -0.0964),
-        'right_shoulder': (89.4645, 7.2709, 1.1479), 'right_elbow': (32.9279, 11.0536),
-        'right_wrist': (-1.3607, -29.9672),
+        'neck': (30.511, -2.921, -37.945), 'head': (13.087, -0.096),
+        'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
+        'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 112.0), start=22.759064, duration=10.620907)
     human.KeyJoints(22.8, {
-        'neck': (35.0, -2.6492, -41.2166), 'head': (15.0, -0.6381),
-        'right_shoulder': (88.3428, 7.5178, 0.9684), 'right_elbow': (33.0321, 10.9712),
-        'right_wrist': (-1.4182, -29.5192),
+        'neck': (35.0, -2.649, -41.217), 'head': (15.0, -0.638),
+        'right_shoulder': (88.343, 7.518, 0.968), 'right_elbow': (33.032, 10.971),
+        'right_wrist': (-1.418, -29.519),
     })
     human.KeyJoints(22.9, {
-        'right_shoulder': (77.8213, 9.9215, -0.7724), 'right_elbow': (34.0116, 10.1721),
-        'right_wrist': (-1.9727, -25.3167),
+        'right_shoulder': (77.821, 9.921, -0.772), 'right_elbow': (34.012, 10.172),
+        'right_wrist': (-1.973, -25.317),
     })
     human.KeyJoints(23.0, {
-        'right_shoulder': (60.2642, 14.2082, -3.8587), 'right_elbow': (35.6534, 8.7561),
-        'right_wrist': (-2.9442, -18.3041),
+        'right_shoulder': (60.264, 14.208, -3.859), 'right_elbow': (35.653, 8.756),
+        'right_wrist': (-2.944, -18.304),
     })
     human.KeyJoints(23.1, {
-        'right_shoulder': (40.661, 19.5417, -7.6644), 'right_elbow': (37.5007, 7.0112),
-        'right_wrist': (-4.121, -10.4743),
+        'right_shoulder': (40.661, 19.542, -7.664), 'right_elbow': (37.501, 7.011),
+        'right_wrist': (-4.121, -10.474),
     })
     human.KeyJoints(23.2, {
-        'right_shoulder': (24.0011, 25.0855, -11.5636), 'right_elbow': (39.097, 5.2254),
-        'right_wrist': (-5.2909, -3.8201),
+        'right_shoulder': (24.001, 25.086, -11.564), 'right_elbow': (39.097, 5.225),
+        'right_wrist': (-5.291, -3.82),
     })
     human.KeyJoints(23.3, {
-        'right_shoulder': (15.2739, 30.0033, -14.9304), 'right_elbow': (39.9856, 3.6867),
-        'right_wrist': (-6.2421, -0.3343),
+        'right_shoulder': (15.274, 30.003, -14.93), 'right_elbow': (39.986, 3.687),
+        'right_wrist': (-6.242, -0.334),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_left
     human.KeyJoints(23.4, {
-        'right_shoulder': (15.9794, 33.5909, -17.2733), 'right_elbow': (39.7506, 2.6187),
-        'right_wrist': (-6.7993, -0.89),
+        'right_shoulder': (15.979, 33.591, -17.273), 'right_elbow': (39.751, 2.619),
+        'right_wrist': (-6.799, -0.89),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=23.463927, duration=0.072)
     human.KeyJoints(23.5, {
-        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
-        'neck': (35.0, -2.615, -41.2089), 'head': (15.0, -0.6589),
-        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (18.715, 33.7563, -16.6404),
-        'right_elbow': (36.5418, 2.8816), 'right_wrist': (-6.3525, -4.8709),
+        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
+        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.715, 7.9),
+        'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
+        'right_wrist': (-6.353, -4.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(23.6, {
-        'spine_lumbar': (11.5585, -1.5537, 10.7722), 'spine_thoracic': (-9.8519, -2.4851, 10.0568),
-        'neck': (32.4124, -4.602, -42.0314), 'head': (12.4191, -1.0957),
-        'right_clavicle': (6.3583, 8.5278), 'right_shoulder': (20.7017, 39.3639, -12.3809),
-        'right_elbow': (44.4025, 7.7262), 'right_wrist': (-6.0299, 11.5317),
+        'spine_lumbar': (11.558, -1.554, 10.772), 'spine_thoracic': (-9.852, -2.485, 10.057),
+        'neck': (32.412, -4.602, -42.031), 'head': (12.419, -1.096),
+        'right_clavicle': (6.358, 8.528), 'right_shoulder': (20.702, 39.364, -12.381),
+        'right_elbow': (44.402, 7.726), 'right_wrist': (-6.03, 11.532),
     })
     human.KeyJoints(23.7, {
-        'spine_lumbar': (13.1565, -3.7671, 9.9952), 'spine_thoracic': (-7.2966, -6.4239, 9.9362),
-        'neck': (32.699, -4.7171, -43.1791), 'head': (12.5864, -1.1087),
-        'right_clavicle': (10.4897, 8.5269), 'right_shoulder': (16.7912, 43.1677, -8.8974),
-        'right_elbow': (44.2565, 12.5923), 'right_wrist': (-5.9605, 13.2744),
+        'spine_lumbar': (13.157, -3.767, 9.995), 'spine_thoracic': (-7.297, -6.424, 9.936),
+        'neck': (32.699, -4.717, -43.179), 'head': (12.586, -1.109),
+        'right_clavicle': (10.49, 8.527), 'right_shoulder': (16.791, 43.168, -8.897),
+        'right_elbow': (44.256, 12.592), 'right_wrist': (-5.961, 13.274),
     })
     human.KeyJoints(23.8, {
-        'spine_lumbar': (14.4723, -7.6626, 9.0161), 'spine_thoracic': (-4.3932, -10.0, 9.7014),
-        'neck': (33.3697, -4.6349, -44.6634), 'head': (13.181, -1.1149),
-        'right_clavicle': (13.6157, 8.8001), 'right_shoulder': (12.275, 46.8814, -6.1354),
-        'right_elbow': (43.5251, 16.8973), 'right_wrist': (-6.1566, 13.5426),
+        'spine_lumbar': (14.472, -7.663, 9.016), 'spine_thoracic': (-4.393, -10.0, 9.701),
+        'neck': (33.37, -4.635, -44.663), 'head': (13.181, -1.115), 'right_clavicle': (13.616, 8.8),
+        'right_shoulder': (12.275, 46.881, -6.135), 'right_elbow': (43.525, 16.897),
+        'right_wrist': (-6.157, 13.543),
     })
     human.KeyJoints(23.9, {
-        'spine_lumbar': (12.8882, -12.7316, 8.0865), 'spine_thoracic': (-1.7653, -10.0, 9.3358),
-        'neck': (33.7438, -4.3419, -44.688), 'head': (13.5992, -1.084),
-        'right_clavicle': (15.0374, 9.0498), 'right_shoulder': (7.9172, 48.1514, -3.7089),
-        'right_elbow': (42.8777, 20.0766), 'right_wrist': (-6.3808, 13.2888),
+        'spine_lumbar': (12.888, -12.732, 8.086), 'spine_thoracic': (-1.765, -10.0, 9.336),
+        'neck': (33.744, -4.342, -44.688), 'head': (13.599, -1.084),
+        'right_clavicle': (15.037, 9.05), 'right_shoulder': (7.917, 48.151, -3.709),
+        'right_elbow': (42.878, 20.077), 'right_wrist': (-6.381, 13.289),
     })
     human.KeyJoints(24.0, {
-        'spine_lumbar': (10.6176, -5.6704, 9.0633), 'spine_thoracic': (-6.0623, -7.1098, 9.1328),
-        'neck': (32.6034, -4.1052, -41.0566), 'head': (12.825, -1.0632),
-        'right_clavicle': (9.9292, 8.1038), 'right_shoulder': (14.5354, 41.9625, -7.111),
-        'right_elbow': (44.8423, 14.1345), 'right_wrist': (-5.8077, 14.5293),
+        'spine_lumbar': (10.618, -5.67, 9.063), 'spine_thoracic': (-6.062, -7.11, 9.133),
+        'neck': (32.603, -4.105, -41.057), 'head': (12.825, -1.063),
+        'right_clavicle': (9.929, 8.104), 'right_shoulder': (14.535, 41.963, -7.111),
+        'right_elbow': (44.842, 14.134), 'right_wrist': (-5.808, 14.529),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.1, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(24.2, {
-        'spine_lumbar': (12.5164, -2.7093, 10.3332), 'spine_thoracic': (-8.3674, -4.7593, 10.0045),
-        'neck': (32.53, -4.7008, -42.6862), 'head': (12.4579, -1.1047),
-        'right_clavicle': (8.7359, 8.5316), 'right_shoulder': (18.4461, 41.6208, -10.4065),
-        'right_elbow': (44.4189, 10.5206), 'right_wrist': (-5.9802, 12.7004),
+        'spine_lumbar': (12.516, -2.709, 10.333), 'spine_thoracic': (-8.367, -4.759, 10.004),
+        'neck': (32.53, -4.701, -42.686), 'head': (12.458, -1.105),
+        'right_clavicle': (8.736, 8.532), 'right_shoulder': (18.446, 41.621, -10.406),
+        'right_elbow': (44.419, 10.521), 'right_wrist': (-5.98, 12.7),
     })
     human.KeyJoints(24.3, {
-        'spine_lumbar': (13.8516, -5.4837, 9.5261), 'spine_thoracic': (-5.8371, -8.6953, 9.836),
-        'neck': (33.0331, -4.6451, -43.8279), 'head': (12.8971, -1.1094),
-        'right_clavicle': (12.7706, 8.5674), 'right_shoulder': (14.5194, 44.9003, -6.7931),
-        'right_elbow': (43.7503, 15.2923), 'right_wrist': (-5.9654, 13.4834),
+        'spine_lumbar': (13.852, -5.484, 9.526), 'spine_thoracic': (-5.837, -8.695, 9.836),
+        'neck': (33.033, -4.645, -43.828), 'head': (12.897, -1.109),
+        'right_clavicle': (12.771, 8.567), 'right_shoulder': (14.519, 44.9, -6.793),
+        'right_elbow': (43.75, 15.292), 'right_wrist': (-5.965, 13.483),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (14.8586, -11.2414, 8.4754), 'spine_thoracic': (-2.5384, -10.0, 9.6504),
-        'neck': (33.8325, -4.7166, -46.1253), 'head': (13.5139, -1.1314),
-        'right_clavicle': (15.8177, 9.1597), 'right_shoulder': (9.2405, 49.2731, -4.7211),
-        'right_elbow': (42.4824, 19.4853), 'right_wrist': (-6.4525, 12.6965),
+        'spine_lumbar': (14.859, -11.241, 8.475), 'spine_thoracic': (-2.538, -10.0, 9.65),
+        'neck': (33.833, -4.717, -46.125), 'head': (13.514, -1.131),
+        'right_clavicle': (15.818, 9.16), 'right_shoulder': (9.24, 49.273, -4.721),
+        'right_elbow': (42.482, 19.485), 'right_wrist': (-6.453, 12.696),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (11.0632, -10.006, 8.372), 'spine_thoracic': (-3.3034, -9.0435, 9.1569),
-        'neck': (33.2305, -4.1047, -42.426), 'head': (13.2565, -1.0201),
-        'right_clavicle': (12.4155, 8.4709), 'right_shoulder': (10.2521, 44.7537, -4.7692),
-        'right_elbow': (44.1696, 17.9967), 'right_wrist': (-6.0332, 14.2212),
+        'spine_lumbar': (11.063, -10.006, 8.372), 'spine_thoracic': (-3.303, -9.044, 9.157),
+        'neck': (33.23, -4.105, -42.426), 'head': (13.257, -1.02),
+        'right_clavicle': (12.416, 8.471), 'right_shoulder': (10.252, 44.754, -4.769),
+        'right_elbow': (44.17, 17.997), 'right_wrist': (-6.033, 14.221),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (11.2212, -1.9355, 10.569), 'spine_thoracic': (-9.5154, -2.9287, 9.8961),
-        'neck': (32.4193, -4.4815, -41.6965), 'head': (12.4823, -1.087),
-        'right_clavicle': (6.4293, 8.4475), 'right_shoulder': (20.1286, 39.2596, -11.9645),
-        'right_elbow': (44.4537, 8.1249), 'right_wrist': (-6.001, 11.8116),
+        'spine_lumbar': (11.221, -1.935, 10.569), 'spine_thoracic': (-9.515, -2.929, 9.896),
+        'neck': (32.419, -4.481, -41.697), 'head': (12.482, -1.087),
+        'right_clavicle': (6.429, 8.447), 'right_shoulder': (20.129, 39.26, -11.964),
+        'right_elbow': (44.454, 8.125), 'right_wrist': (-6.001, 11.812),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.7, {
-        'spine_lumbar': (11.7886, -1.8453, 10.6512), 'spine_thoracic': (-9.4246, -3.1322, 10.0496),
-        'neck': (32.4313, -4.6302, -42.2103), 'head': (12.4152, -1.098),
-        'right_clavicle': (6.9414, 8.5326), 'right_shoulder': (20.0576, 39.9167, -11.9101),
-        'right_elbow': (44.426, 8.4071), 'right_wrist': (-6.017, 11.8298),
+        'spine_lumbar': (11.789, -1.845, 10.651), 'spine_thoracic': (-9.425, -3.132, 10.05),
+        'neck': (32.431, -4.63, -42.21), 'head': (12.415, -1.098), 'right_clavicle': (6.941, 8.533),
+        'right_shoulder': (20.058, 39.917, -11.91), 'right_elbow': (44.426, 8.407),
+        'right_wrist': (-6.017, 11.83),
     })
     human.KeyJoints(24.8, {
-        'spine_lumbar': (13.3475, -4.1624, 9.8796), 'spine_thoracic': (-6.9362, -6.983, 9.911),
-        'neck': (32.7706, -4.7119, -43.3437), 'head': (12.6483, -1.1094),
-        'right_clavicle': (11.0581, 8.5294), 'right_shoulder': (16.2309, 43.6397, -8.3936),
-        'right_elbow': (44.166, 13.2689), 'right_wrist': (-5.9595, 13.391),
+        'spine_lumbar': (13.347, -4.162, 9.88), 'spine_thoracic': (-6.936, -6.983, 9.911),
+        'neck': (32.771, -4.712, -43.344), 'head': (12.648, -1.109),
+        'right_clavicle': (11.058, 8.529), 'right_shoulder': (16.231, 43.64, -8.394),
+        'right_elbow': (44.166, 13.269), 'right_wrist': (-5.96, 13.391),
     })
     human.KeyJoints(24.9, {
-        'spine_lumbar': (14.5339, -8.3713, 8.8869), 'spine_thoracic': (-4.0686, -10.0, 9.6908),
-        'neck': (33.4544, -4.647, -44.9213), 'head': (13.2449, -1.1175),
-        'right_clavicle': (14.4099, 8.8518), 'right_shoulder': (11.6934, 47.2992, -5.4622),
-        'right_elbow': (43.2418, 17.6636), 'right_wrist': (-6.1818, 13.2845),
+        'spine_lumbar': (14.534, -8.371, 8.887), 'spine_thoracic': (-4.069, -10.0, 9.691),
+        'neck': (33.454, -4.647, -44.921), 'head': (13.245, -1.117),
+        'right_clavicle': (14.41, 8.852), 'right_shoulder': (11.693, 47.299, -5.462),
+        'right_elbow': (43.242, 17.664), 'right_wrist': (-6.182, 13.284),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (12.1445, -12.9073, 8.0316), 'spine_thoracic': (-1.6688, -10.0, 9.2354),
-        'neck': (33.6899, -4.1925, -43.9583), 'head': (13.5997, -1.0456),
-        'right_clavicle': (14.5191, 8.9726), 'right_shoulder': (7.7504, 47.4763, -3.5965),
-        'right_elbow': (43.1226, 20.1244), 'right_wrist': (-6.3373, 13.5766),
+        'spine_lumbar': (12.144, -12.907, 8.032), 'spine_thoracic': (-1.669, -10.0, 9.235),
+        'neck': (33.69, -4.192, -43.958), 'head': (13.6, -1.046), 'right_clavicle': (14.519, 8.973),
+        'right_shoulder': (7.75, 47.476, -3.597), 'right_elbow': (43.123, 20.124),
+        'right_wrist': (-6.337, 13.577),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (10.6966, -4.6552, 9.3841), 'spine_thoracic': (-6.9192, -6.217, 9.2327),
-        'neck': (32.523, -4.1726, -41.1342), 'head': (12.7173, -1.0696),
-        'right_clavicle': (9.0573, 8.1488), 'right_shoulder': (15.908, 41.2225, -8.1597),
-        'right_elbow': (44.7914, 12.728), 'right_wrist': (-5.833, 14.1738),
+        'spine_lumbar': (10.697, -4.655, 9.384), 'spine_thoracic': (-6.919, -6.217, 9.233),
+        'neck': (32.523, -4.173, -41.134), 'head': (12.717, -1.07),
+        'right_clavicle': (9.057, 8.149), 'right_shoulder': (15.908, 41.223, -8.16),
+        'right_elbow': (44.791, 12.728), 'right_wrist': (-5.833, 14.174),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.2, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (12.7389, -3.0379, 10.2231), 'spine_thoracic': (-8.0147, -5.3072, 9.9838),
-        'neck': (32.5782, -4.7135, -42.8485), 'head': (12.4907, -1.1063),
-        'right_clavicle': (9.3228, 8.5286), 'right_shoulder': (17.9031, 42.1527, -9.9077),
-        'right_elbow': (44.3837, 11.2121), 'right_wrist': (-5.9714, 12.926),
+        'spine_lumbar': (12.739, -3.038, 10.223), 'spine_thoracic': (-8.015, -5.307, 9.984),
+        'neck': (32.578, -4.713, -42.848), 'head': (12.491, -1.106),
+        'right_clavicle': (9.323, 8.529), 'right_shoulder': (17.903, 42.153, -9.908),
+        'right_elbow': (44.384, 11.212), 'right_wrist': (-5.971, 12.926),
     })
     human.KeyJoints(25.4, {
-        'spine_lumbar': (14.0078, -5.9945, 9.4005), 'spine_thoracic': (-5.4499, -9.2567, 9.8103),
-        'neck': (33.1363, -4.6165, -43.9974), 'right_clavicle': (13.2477, 8.5961),
-        'right_shoulder': (13.9188, 45.3016, -6.3493), 'right_elbow': (43.6024, 15.9248),
-        'right_wrist': (-5.971, 13.4413),
+        'spine_lumbar': (14.008, -5.995, 9.401), 'spine_thoracic': (-5.45, -9.257, 9.81),
+        'neck': (33.136, -4.617, -43.997), 'right_clavicle': (13.248, 8.596),
+        'right_shoulder': (13.919, 45.302, -6.349), 'right_elbow': (43.602, 15.925),
+        'right_wrist': (-5.971, 13.441),
     })
     human.KeyJoints(25.5, {
-        'spine_lumbar': (14.6695, -11.8166, 8.3444), 'spine_thoracic': (-2.2528, -10.0, 9.6186),
-        'neck': (33.8307, -4.6632, -45.972), 'head': (13.5665, -1.1282),
-        'right_clavicle': (15.8348, 9.1614), 'right_shoulder': (8.7545, 49.2097, -4.303),
-        'right_elbow': (42.4803, 19.7743), 'right_wrist': (-6.4434, 12.6982),
+        'spine_lumbar': (14.669, -11.817, 8.344), 'spine_thoracic': (-2.253, -10.0, 9.619),
+        'neck': (33.831, -4.663, -45.972), 'head': (13.566, -1.128),
+        'right_clavicle': (15.835, 9.161), 'right_shoulder': (8.754, 49.21, -4.303),
+        'right_elbow': (42.48, 19.774), 'right_wrist': (-6.443, 12.698),
     })
     human.KeyJoints(25.6, {
-        'spine_lumbar': (10.8154, -8.356, 8.5918), 'spine_thoracic': (-4.2783, -8.428, 9.1416),
-        'neck': (33.0007, -4.1038, -41.8231), 'head': (13.1103, -1.0304),
-        'right_clavicle': (11.5633, 8.2796), 'right_shoulder': (11.7529, 43.709, -5.5203),
-        'right_elbow': (44.5239, 16.6894), 'right_wrist': (-5.9159, 14.3933),
+        'spine_lumbar': (10.815, -8.356, 8.592), 'spine_thoracic': (-4.278, -8.428, 9.142),
+        'neck': (33.001, -4.104, -41.823), 'head': (13.11, -1.03), 'right_clavicle': (11.563, 8.28),
+        'right_shoulder': (11.753, 43.709, -5.52), 'right_elbow': (44.524, 16.689),
+        'right_wrist': (-5.916, 14.393),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (11.3324, -1.5099, 10.7848), 'spine_thoracic': (-9.9497, -2.3306, 10.0369),
-        'neck': (32.4081, -4.5571, -41.9177), 'head': (12.4347, -1.0923),
-        'right_clavicle': (5.9908, 8.5108), 'right_shoulder': (20.8397, 38.9543, -12.6526),
-        'right_elbow': (44.3821, 7.3267), 'right_wrist': (-6.0366, 11.3105),
+        'spine_lumbar': (11.332, -1.51, 10.785), 'spine_thoracic': (-9.95, -2.331, 10.037),
+        'neck': (32.408, -4.557, -41.918), 'head': (12.435, -1.092),
+        'right_clavicle': (5.991, 8.511), 'right_shoulder': (20.84, 38.954, -12.653),
+        'right_elbow': (44.382, 7.327), 'right_wrist': (-6.037, 11.31),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.8, {
-        'spine_lumbar': (12.0387, -2.1106, 10.5484), 'spine_thoracic': (-9.0749, -3.6672, 10.038),
-        'neck': (32.4565, -4.6593, -42.3653), 'head': (12.421, -1.1005),
-        'right_clavicle': (7.5397, 8.5344), 'right_shoulder': (19.5273, 40.4969, -11.4112),
-        'right_elbow': (44.439, 9.1122), 'right_wrist': (-6.0033, 12.1487),
+        'spine_lumbar': (12.039, -2.111, 10.548), 'spine_thoracic': (-9.075, -3.667, 10.038),
+        'neck': (32.456, -4.659, -42.365), 'head': (12.421, -1.1), 'right_clavicle': (7.54, 8.534),
+        'right_shoulder': (19.527, 40.497, -11.411), 'right_elbow': (44.439, 9.112),
+        'right_wrist': (-6.003, 12.149),
     })
     human.KeyJoints(25.9, {
-        'spine_lumbar': (13.5277, -4.5811, 9.7625), 'spine_thoracic': (-6.5724, -7.5453, 9.8853),
-        'neck': (32.85, -4.698, -43.508), 'head': (12.7203, -1.1097),
-        'right_clavicle': (11.6186, 8.5366), 'right_shoulder': (15.6646, 44.0894, -7.8876),
-        'right_elbow': (44.0557, 13.9399), 'right_wrist': (-5.9593, 13.4633),
+        'spine_lumbar': (13.528, -4.581, 9.762), 'spine_thoracic': (-6.572, -7.545, 9.885),
+        'neck': (32.85, -4.698, -43.508), 'head': (12.72, -1.11), 'right_clavicle': (11.619, 8.537),
+        'right_shoulder': (15.665, 44.089, -7.888), 'right_elbow': (44.056, 13.94),
+        'right_wrist': (-5.959, 13.463),
     })
     human.KeyJoints(26.0, {
-        'spine_lumbar': (14.6832, -9.3716, 8.7541), 'spine_thoracic': (-3.4907, -10.0, 9.6632),
-        'neck': (33.5803, -4.6934, -45.3934), 'head': (13.3264, -1.1238),
-        'right_clavicle': (14.6931, 8.9387), 'right_shoulder': (10.7777, 48.1355, -5.4461),
-        'right_elbow': (43.0614, 18.1736), 'right_wrist': (-6.344, 13.2468),
+        'spine_lumbar': (14.683, -9.372, 8.754), 'spine_thoracic': (-3.491, -10.0, 9.663),
+        'neck': (33.58, -4.693, -45.393), 'head': (13.326, -1.124),
+        'right_clavicle': (14.693, 8.939), 'right_shoulder': (10.778, 48.135, -5.446),
+        'right_elbow': (43.061, 18.174), 'right_wrist': (-6.344, 13.247),
     })
     human.KeyJoints(26.1, {
-        'spine_lumbar': (11.7506, -12.5705, 8.0681), 'spine_thoracic': (-1.8539, -9.8957, 9.2042),
-        'neck': (33.5843, -4.146, -43.4013), 'head': (13.5479, -1.0323),
-        'right_clavicle': (13.9527, 8.8598), 'right_shoulder': (8.0326, 46.7405, -3.7236),
-        'right_elbow': (43.3987, 19.8865), 'right_wrist': (-6.2702, 13.7886),
+        'spine_lumbar': (11.751, -12.571, 8.068), 'spine_thoracic': (-1.854, -9.896, 9.204),
+        'neck': (33.584, -4.146, -43.401), 'head': (13.548, -1.032),
+        'right_clavicle': (13.953, 8.86), 'right_shoulder': (8.033, 46.74, -3.724),
+        'right_elbow': (43.399, 19.886), 'right_wrist': (-6.27, 13.789),
     })
     human.KeyJoints(26.2, {
-        'spine_lumbar': (10.8543, -3.6241, 9.7906), 'spine_thoracic': (-7.864, -5.0881, 9.4322),
-        'neck': (32.4672, -4.2853, -41.2777), 'head': (12.6247, -1.0747),
-        'right_clavicle': (8.0994, 8.2386), 'right_shoulder': (17.4367, 40.4758, -9.4715),
-        'right_elbow': (44.6899, 11.0926), 'right_wrist': (-5.8835, 13.4634),
+        'spine_lumbar': (10.854, -3.624, 9.791), 'spine_thoracic': (-7.864, -5.088, 9.432),
+        'neck': (32.467, -4.285, -41.278), 'head': (12.625, -1.075),
+        'right_clavicle': (8.099, 8.239), 'right_shoulder': (17.437, 40.476, -9.471),
+        'right_elbow': (44.69, 11.093), 'right_wrist': (-5.884, 13.463),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.3, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(26.4, {
-        'spine_lumbar': (12.9512, -3.3881, 10.111), 'spine_thoracic': (-7.6599, -5.859, 9.961),
-        'neck': (32.634, -4.7172, -43.0119), 'head': (12.5329, -1.1076),
-        'right_clavicle': (9.9044, 8.5272), 'right_shoulder': (17.3547, 42.6657, -9.4076),
-        'right_elbow': (44.3306, 11.8989), 'right_wrist': (-5.965, 13.1157),
+        'spine_lumbar': (12.951, -3.388, 10.111), 'spine_thoracic': (-7.66, -5.859, 9.961),
+        'neck': (32.634, -4.717, -43.012), 'head': (12.533, -1.108),
+        'right_clavicle': (9.904, 8.527), 'right_shoulder': (17.355, 42.666, -9.408),
+        'right_elbow': (44.331, 11.899), 'right_wrist': (-5.965, 13.116),
     })
     human.KeyJoints(26.5, {
-        'spine_lumbar': (14.3039, -6.8335, 9.1958), 'spine_thoracic': (-4.8671, -9.8429, 9.7396),
-        'neck': (33.2614, -4.624, -44.3378), 'right_clavicle': (13.3411, 8.7071),
-        'right_shoulder': (13.0422, 46.1822, -6.325), 'right_elbow': (43.5909, 16.3454),
-        'right_wrist': (-6.0803, 13.5513),
+        'spine_lumbar': (14.304, -6.833, 9.196), 'spine_thoracic': (-4.867, -9.843, 9.74),
+        'neck': (33.261, -4.624, -44.338), 'right_clavicle': (13.341, 8.707),
+        'right_shoulder': (13.042, 46.182, -6.325), 'right_elbow': (43.591, 16.345),
+        'right_wrist': (-6.08, 13.551),
     })
     human.KeyJoints(26.6, {
-        'spine_lumbar': (13.8882, -12.3328, 8.2045), 'spine_thoracic': (-1.9808, -10.0, 9.4915),
-        'neck': (33.7863, -4.5115, -45.3665), 'head': (13.5965, -1.1146),
-        'right_clavicle': (15.5179, 9.1179), 'right_shoulder': (8.2882, 48.7867, -3.9659),
-        'right_elbow': (42.6406, 19.9557), 'right_wrist': (-6.4183, 12.9499),
+        'spine_lumbar': (13.888, -12.333, 8.204), 'spine_thoracic': (-1.981, -10.0, 9.491),
+        'neck': (33.786, -4.512, -45.366), 'head': (13.596, -1.115),
+        'right_clavicle': (15.518, 9.118), 'right_shoulder': (8.288, 48.787, -3.966),
+        'right_elbow': (42.641, 19.956), 'right_wrist': (-6.418, 12.95),
     })
     human.KeyJoints(26.7, {
-        'spine_lumbar': (10.6593, -6.8273, 8.8273), 'spine_thoracic': (-5.2375, -7.7689, 9.1325),
-        'neck': (32.7555, -4.1033, -41.2532), 'head': (12.9565, -1.0498),
-        'right_clavicle': (10.7227, 8.1438), 'right_shoulder': (13.2397, 42.7525, -6.3197),
-        'right_elbow': (44.7699, 15.3575), 'right_wrist': (-5.8324, 14.5065),
+        'spine_lumbar': (10.659, -6.827, 8.827), 'spine_thoracic': (-5.237, -7.769, 9.132),
+        'neck': (32.755, -4.103, -41.253), 'head': (12.957, -1.05),
+        'right_clavicle': (10.723, 8.144), 'right_shoulder': (13.24, 42.753, -6.32),
+        'right_elbow': (44.77, 15.358), 'right_wrist': (-5.832, 14.506),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.8, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(26.9, {
-        'spine_lumbar': (12.2801, -2.3965, 10.4429), 'spine_thoracic': (-8.7246, -4.2065, 10.0231),
-        'neck': (32.4888, -4.6826, -42.5231), 'head': (12.4334, -1.1027),
-        'right_clavicle': (8.1347, 8.5341), 'right_shoulder': (18.9933, 41.0621, -10.9129),
-        'right_elbow': (44.4379, 9.8128), 'right_wrist': (-5.991, 12.4374),
+        'spine_lumbar': (12.28, -2.397, 10.443), 'spine_thoracic': (-8.725, -4.207, 10.023),
+        'neck': (32.489, -4.683, -42.523), 'head': (12.433, -1.103),
+        'right_clavicle': (8.135, 8.534), 'right_shoulder': (18.993, 41.062, -10.913),
+        'right_elbow': (44.438, 9.813), 'right_wrist': (-5.991, 12.437),
     })
     human.KeyJoints(27.0, {
-        'spine_lumbar': (13.6973, -5.0241, 9.6439), 'spine_thoracic': (-6.2049, -8.1104, 9.8596),
-        'neck': (32.9373, -4.6775, -43.6716), 'head': (12.8024, -1.1096),
-        'right_clavicle': (12.1703, 8.5496), 'right_shoulder': (15.0921, 44.5163, -7.3789),
-        'right_elbow': (43.9252, 14.6051), 'right_wrist': (-5.962, 13.4989),
+        'spine_lumbar': (13.697, -5.024, 9.644), 'spine_thoracic': (-6.205, -8.11, 9.86),
+        'neck': (32.937, -4.678, -43.672), 'head': (12.802, -1.11), 'right_clavicle': (12.17, 8.55),
+        'right_shoulder': (15.092, 44.516, -7.379), 'right_elbow': (43.925, 14.605),
+        'right_wrist': (-5.962, 13.499),
     })
     human.KeyJoints(27.1, {
-        'spine_lumbar': (14.8073, -10.3874, 8.6191), 'spine_thoracic': (-2.9229, -10.0, 9.6483),
-        'neck': (33.7121, -4.7228, -45.8389), 'head': (13.4165, -1.1292),
-        'right_clavicle': (15.0175, 9.0434), 'right_shoulder': (9.8848, 48.8753, -5.4024),
-        'right_elbow': (42.8508, 18.7049), 'right_wrist': (-6.4555, 13.1752),
+        'spine_lumbar': (14.807, -10.387, 8.619), 'spine_thoracic': (-2.923, -10.0, 9.648),
+        'neck': (33.712, -4.723, -45.839), 'head': (13.416, -1.129),
+        'right_clavicle': (15.017, 9.043), 'right_shoulder': (9.885, 48.875, -5.402),
+        'right_elbow': (42.851, 18.705), 'right_wrist': (-6.455, 13.175),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (11.3861, -11.5215, 8.1878), 'spine_thoracic': (-2.4389, -9.5598, 9.1782),
-        'neck': (33.4183, -4.116, -42.9136), 'head': (13.4087, -1.0234),
-        'right_clavicle': (13.2391, 8.6805), 'right_shoulder': (8.9268, 45.8081, -4.1365),
-        'right_elbow': (43.7674, 19.1307), 'right_wrist': (-6.1613, 14.0095),
+        'spine_lumbar': (11.386, -11.521, 8.188), 'spine_thoracic': (-2.439, -9.56, 9.178),
+        'neck': (33.418, -4.116, -42.914), 'head': (13.409, -1.023),
+        'right_clavicle': (13.239, 8.68), 'right_shoulder': (8.927, 45.808, -4.137),
+        'right_elbow': (43.767, 19.131), 'right_wrist': (-6.161, 14.01),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (11.044, -2.685, 10.2086), 'spine_thoracic': (-8.7687, -3.9282, 9.672),
-        'neck': (32.4382, -4.3809, -41.4387), 'head': (12.5518, -1.0801),
-        'right_clavicle': (7.1839, 8.3466), 'right_shoulder': (18.9089, 39.7985, -10.8123),
-        'right_elbow': (44.5678, 9.4804), 'right_wrist': (-5.9442, 12.6094),
+        'spine_lumbar': (11.044, -2.685, 10.209), 'spine_thoracic': (-8.769, -3.928, 9.672),
+        'neck': (32.438, -4.381, -41.439), 'head': (12.552, -1.08),
+        'right_clavicle': (7.184, 8.347), 'right_shoulder': (18.909, 39.798, -10.812),
+        'right_elbow': (44.568, 9.48), 'right_wrist': (-5.944, 12.609),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.4, {
-        'spine_lumbar': (11.4673, -1.5492, 10.7741), 'spine_thoracic': (-9.8588, -2.4748, 10.0569),
-        'neck': (32.4122, -4.5868, -42.0238), 'head': (12.4224, -1.0945),
-        'right_clavicle': (6.1944, 8.5249), 'right_shoulder': (20.7119, 39.1778, -12.5331),
-        'right_elbow': (44.3888, 7.5244), 'right_wrist': (-6.0354, 11.3944),
+        'spine_lumbar': (11.467, -1.549, 10.774), 'spine_thoracic': (-9.859, -2.475, 10.057),
+        'neck': (32.412, -4.587, -42.024), 'head': (12.422, -1.094),
+        'right_clavicle': (6.194, 8.525), 'right_shoulder': (20.712, 39.178, -12.533),
+        'right_elbow': (44.389, 7.524), 'right_wrist': (-6.035, 11.394),
     })
     human.KeyJoints(27.5, {
-        'spine_lumbar': (13.1532, -3.7606, 9.9971), 'spine_thoracic': (-7.3026, -6.4146, 9.9367),
-        'neck': (32.6979, -4.7171, -43.1763), 'head': (12.5854, -1.1087),
-        'right_clavicle': (10.4801, 8.5269), 'right_shoulder': (16.8006, 43.1595, -8.9059),
-        'right_elbow': (44.2578, 12.5809), 'right_wrist': (-5.9606, 13.2722),
+        'spine_lumbar': (13.153, -3.761, 9.997), 'spine_thoracic': (-7.303, -6.415, 9.937),
+        'neck': (32.698, -4.717, -43.176), 'head': (12.585, -1.109),
+        'right_clavicle': (10.48, 8.527), 'right_shoulder': (16.801, 43.16, -8.906),
+        'right_elbow': (44.258, 12.581), 'right_wrist': (-5.961, 13.272),
     })
     human.KeyJoints(27.6, {
-        'spine_lumbar': (14.4711, -7.651, 9.0185), 'spine_thoracic': (-4.3987, -10.0, 9.7016),
-        'neck': (33.3683, -4.6347, -44.6593), 'head': (13.1799, -1.1148),
-        'right_clavicle': (13.6039, 8.7992), 'right_shoulder': (12.2848, 46.8742, -6.1463),
-        'right_elbow': (43.5287, 16.8848), 'right_wrist': (-6.1561, 13.5465),
+        'spine_lumbar': (14.471, -7.651, 9.018), 'spine_thoracic': (-4.399, -10.0, 9.702),
+        'neck': (33.368, -4.635, -44.659), 'head': (13.18, -1.115),
+        'right_clavicle': (13.604, 8.799), 'right_shoulder': (12.285, 46.874, -6.146),
+        'right_elbow': (43.529, 16.885), 'right_wrist': (-6.156, 13.546),
     })
     human.KeyJoints(27.7, {
-        'spine_lumbar': (12.904, -12.7265, 8.088), 'spine_thoracic': (-1.7681, -10.0, 9.3382),
-        'neck': (33.7446, -4.3451, -44.7008), 'head': (13.5991, -1.0848),
-        'right_clavicle': (15.0461, 9.0511), 'right_shoulder': (7.9219, 48.1628, -3.7121),
-        'right_elbow': (42.8735, 20.0752), 'right_wrist': (-6.3815, 13.2832),
+        'spine_lumbar': (12.904, -12.726, 8.088), 'spine_thoracic': (-1.768, -10.0, 9.338),
+        'neck': (33.745, -4.345, -44.701), 'head': (13.599, -1.085),
+        'right_clavicle': (15.046, 9.051), 'right_shoulder': (7.922, 48.163, -3.712),
+        'right_elbow': (42.873, 20.075), 'right_wrist': (-6.381, 13.283),
     })
     human.KeyJoints(27.8, {
-        'spine_lumbar': (10.6172, -5.6867, 9.059), 'spine_thoracic': (-6.0494, -7.1217, 9.1323),
-        'neck': (32.605, -4.1048, -41.0562), 'head': (12.827, -1.0631),
-        'right_clavicle': (9.9424, 8.1036), 'right_shoulder': (14.5149, 41.9745, -7.0969),
-        'right_elbow': (44.8425, 14.1547), 'right_wrist': (-5.8076, 14.531),
+        'spine_lumbar': (10.617, -5.687, 9.059), 'spine_thoracic': (-6.049, -7.122, 9.132),
+        'neck': (32.605, -4.105, -41.056), 'head': (12.827, -1.063),
+        'right_clavicle': (9.942, 8.104), 'right_shoulder': (14.515, 41.974, -7.097),
+        'right_elbow': (44.843, 14.155), 'right_wrist': (-5.808, 14.531),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.9, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(28.0, {
-        'spine_lumbar': (12.5126, -2.7039, 10.335), 'spine_thoracic': (-8.3734, -4.7501, 10.0048),
-        'neck': (32.5293, -4.7006, -42.6835), 'head': (12.4575, -1.1047),
-        'right_clavicle': (8.726, 8.5317), 'right_shoulder': (18.4552, 41.6117, -10.4149),
-        'right_elbow': (44.4193, 10.5089), 'right_wrist': (-5.9803, 12.6964),
+        'spine_lumbar': (12.513, -2.704, 10.335), 'spine_thoracic': (-8.373, -4.75, 10.005),
+        'neck': (32.529, -4.701, -42.684), 'head': (12.457, -1.105),
+        'right_clavicle': (8.726, 8.532), 'right_shoulder': (18.455, 41.612, -10.415),
+        'right_elbow': (44.419, 10.509), 'right_wrist': (-5.98, 12.696),
     })
     human.KeyJoints(28.1, {
-        'spine_lumbar': (13.8493, -5.4763, 9.528), 'spine_thoracic': (-5.843, -8.6854, 9.8363),
-        'neck': (33.0314, -4.6458, -43.8255), 'head': (12.8954, -1.1094),
-        'right_clavicle': (12.7596, 8.5671), 'right_shoulder': (14.5286, 44.8947, -6.8044),
-        'right_elbow': (43.7539, 15.2806), 'right_wrist': (-5.9653, 13.4843),
+        'spine_lumbar': (13.849, -5.476, 9.528), 'spine_thoracic': (-5.843, -8.685, 9.836),
+        'neck': (33.031, -4.646, -43.826), 'head': (12.895, -1.109),
+        'right_clavicle': (12.76, 8.567), 'right_shoulder': (14.529, 44.895, -6.804),
+        'right_elbow': (43.754, 15.281), 'right_wrist': (-5.965, 13.484),
     })
     human.KeyJoints(28.2, {
-        'spine_lumbar': (14.8581, -11.2296, 8.4776), 'spine_thoracic': (-2.5438, -10.0, 9.6504),
-        'neck': (33.8314, -4.7168, -46.1228), 'head': (13.5126, -1.1314),
-        'right_clavicle': (15.8088, 9.1586), 'right_shoulder': (9.2495, 49.2697, -4.7324),
-        'right_elbow': (42.4863, 19.4755), 'right_wrist': (-6.4526, 12.7023),
+        'spine_lumbar': (14.858, -11.23, 8.478), 'spine_thoracic': (-2.544, -10.0, 9.65),
+        'neck': (33.831, -4.717, -46.123), 'head': (13.513, -1.131),
+        'right_clavicle': (15.809, 9.159), 'right_shoulder': (9.25, 49.27, -4.732),
+        'right_elbow': (42.486, 19.476), 'right_wrist': (-6.453, 12.702),
     })
     human.KeyJoints(28.3, {
-        'spine_lumbar': (11.068, -10.0332, 8.3686), 'spine_thoracic': (-3.2876, -9.0532, 9.1572),
-        'neck': (33.2336, -4.1047, -42.4345), 'head': (13.2587, -1.0201),
-        'right_clavicle': (12.4297, 8.4744), 'right_shoulder': (10.2279, 44.7715, -4.7574),
-        'right_elbow': (44.1631, 18.0176), 'right_wrist': (-6.0353, 14.2179),
+        'spine_lumbar': (11.068, -10.033, 8.369), 'spine_thoracic': (-3.288, -9.053, 9.157),
+        'neck': (33.234, -4.105, -42.434), 'head': (13.259, -1.02),
+        'right_clavicle': (12.43, 8.474), 'right_shoulder': (10.228, 44.772, -4.757),
+        'right_elbow': (44.163, 18.018), 'right_wrist': (-6.035, 14.218),
     })
     human.KeyJoints(28.4, {
-        'spine_lumbar': (11.2186, -1.9456, 10.564), 'spine_thoracic': (-9.5052, -2.9426, 9.8929),
-        'neck': (32.4195, -4.4799, -41.692), 'head': (12.4833, -1.0869),
-        'right_clavicle': (6.4396, 8.446), 'right_shoulder': (20.1119, 39.2669, -11.9485),
-        'right_elbow': (44.4554, 8.1436), 'right_wrist': (-6.0001, 11.823),
+        'spine_lumbar': (11.219, -1.946, 10.564), 'spine_thoracic': (-9.505, -2.943, 9.893),
+        'neck': (32.42, -4.48, -41.692), 'head': (12.483, -1.087), 'right_clavicle': (6.44, 8.446),
+        'right_shoulder': (20.112, 39.267, -11.948), 'right_elbow': (44.455, 8.144),
+        'right_wrist': (-6.0, 11.823),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.5, {
-        'spine_lumbar': (11.7844, -1.841, 10.6529), 'spine_thoracic': (-9.4305, -3.1232, 10.0497),
-        'neck': (32.431, -4.6296, -42.2077), 'head': (12.4152, -1.0979),
-        'right_clavicle': (6.9313, 8.5326), 'right_shoulder': (20.0665, 39.9069, -11.9186),
-        'right_elbow': (44.4257, 8.3951), 'right_wrist': (-6.0172, 11.8242),
+        'spine_lumbar': (11.784, -1.841, 10.653), 'spine_thoracic': (-9.43, -3.123, 10.05),
+        'neck': (32.431, -4.63, -42.208), 'head': (12.415, -1.098),
+        'right_clavicle': (6.931, 8.533), 'right_shoulder': (20.067, 39.907, -11.919),
+        'right_elbow': (44.426, 8.395), 'right_wrist': (-6.017, 11.824),
     })
     human.KeyJoints(28.6, {
-        'spine_lumbar': (13.3443, -4.1555, 9.8816), 'spine_thoracic': (-6.9423, -6.9736, 9.9114),
-        'neck': (32.7693, -4.7121, -43.3409), 'head': (12.6472, -1.1094),
-        'right_clavicle': (11.0486, 8.5293), 'right_shoulder': (16.2404, 43.6319, -8.4021),
-        'right_elbow': (44.1677, 13.2576), 'right_wrist': (-5.9595, 13.3893),
+        'spine_lumbar': (13.344, -4.156, 9.882), 'spine_thoracic': (-6.942, -6.974, 9.911),
+        'neck': (32.769, -4.712, -43.341), 'head': (12.647, -1.109),
+        'right_clavicle': (11.049, 8.529), 'right_shoulder': (16.24, 43.632, -8.402),
+        'right_elbow': (44.168, 13.258), 'right_wrist': (-5.96, 13.389),
     })
     human.KeyJoints(28.7, {
-        'spine_lumbar': (14.5326, -8.3579, 8.889), 'spine_thoracic': (-4.0752, -10.0, 9.691),
-        'neck': (33.4528, -4.6467, -44.916), 'head': (13.2437, -1.1174),
-        'right_clavicle': (14.4003, 8.8508), 'right_shoulder': (11.7048, 47.2906, -5.4671),
-        'right_elbow': (43.246, 17.6524), 'right_wrist': (-6.1811, 13.2869),
+        'spine_lumbar': (14.533, -8.358, 8.889), 'spine_thoracic': (-4.075, -10.0, 9.691),
+        'neck': (33.453, -4.647, -44.916), 'head': (13.244, -1.117),
+        'right_clavicle': (14.4, 8.851), 'right_shoulder': (11.705, 47.291, -5.467),
+        'right_elbow': (43.246, 17.652), 'right_wrist': (-6.181, 13.287),
     })
     human.KeyJoints(28.8, {
-        'spine_lumbar': (12.1526, -12.9067, 8.0318), 'spine_thoracic': (-1.6692, -10.0, 9.2363),
-        'neck': (33.691, -4.1938, -43.9691), 'head': (13.5997, -1.0459),
-        'right_clavicle': (14.5276, 8.9739), 'right_shoulder': (7.7511, 47.4873, -3.597),
-        'right_elbow': (43.1187, 20.1243), 'right_wrist': (-6.3381, 13.5728),
+        'spine_lumbar': (12.153, -12.907, 8.032), 'spine_thoracic': (-1.669, -10.0, 9.236),
+        'neck': (33.691, -4.194, -43.969), 'head': (13.6, -1.046),
+        'right_clavicle': (14.528, 8.974), 'right_shoulder': (7.751, 47.487, -3.597),
+        'right_elbow': (43.119, 20.124), 'right_wrist': (-6.338, 13.573),
     })
     human.KeyJoints(28.9, {
-        'spine_lumbar': (10.6945, -4.6728, 9.3778), 'spine_thoracic': (-6.9037, -6.2346, 9.23),
-        'neck': (32.5241, -4.1709, -41.1321), 'head': (12.719, -1.0695),
-        'right_clavicle': (9.0731, 8.1476), 'right_shoulder': (15.883, 41.2353, -8.1392),
-        'right_elbow': (44.7928, 12.7543), 'right_wrist': (-5.8323, 14.1833),
+        'spine_lumbar': (10.694, -4.673, 9.378), 'spine_thoracic': (-6.904, -6.235, 9.23),
+        'neck': (32.524, -4.171, -41.132), 'head': (12.719, -1.07),
+        'right_clavicle': (9.073, 8.148), 'right_shoulder': (15.883, 41.235, -8.139),
+        'right_elbow': (44.793, 12.754), 'right_wrist': (-5.832, 14.183),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.0, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(29.1, {
-        'spine_lumbar': (12.7353, -3.0322, 10.225), 'spine_thoracic': (-8.0206, -5.2979, 9.9841),
-        'neck': (32.5773, -4.7133, -42.8457), 'head': (12.49, -1.1063),
-        'right_clavicle': (9.313, 8.5287), 'right_shoulder': (17.9123, 42.1439, -9.9161),
-        'right_elbow': (44.3845, 11.2005), 'right_wrist': (-5.9715, 12.9225),
+        'spine_lumbar': (12.735, -3.032, 10.225), 'spine_thoracic': (-8.021, -5.298, 9.984),
+        'neck': (32.577, -4.713, -42.846), 'head': (12.49, -1.106),
+        'right_clavicle': (9.313, 8.529), 'right_shoulder': (17.912, 42.144, -9.916),
+        'right_elbow': (44.385, 11.201), 'right_wrist': (-5.972, 12.922),
     })
     human.KeyJoints(29.2, {
-        'spine_lumbar': (14.0045, -5.9841, 9.4031), 'spine_thoracic': (-5.4575, -9.248, 9.8109),
-        'neck': (33.1344, -4.6165, -43.9937), 'right_clavicle': (13.2448, 8.5954),
-        'right_shoulder': (13.9305, 45.2926, -6.3501), 'right_elbow': (43.6028, 15.916),
-        'right_wrist': (-5.9709, 13.4413),
+        'spine_lumbar': (14.004, -5.984, 9.403), 'spine_thoracic': (-5.458, -9.248, 9.811),
+        'neck': (33.134, -4.617, -43.994), 'right_clavicle': (13.245, 8.595),
+        'right_shoulder': (13.931, 45.293, -6.35), 'right_elbow': (43.603, 15.916),
+        'right_wrist': (-5.971, 13.441),
     })
     human.KeyJoints(29.3, {
-        'spine_lumbar': (14.6784, -11.8073, 8.3468), 'spine_thoracic': (-2.2576, -10.0, 9.6201),
-        'neck': (33.8313, -4.6652, -45.9799), 'head': (13.5658, -1.1283),
-        'right_clavicle': (15.8382, 9.1619), 'right_shoulder': (8.7626, 49.2142, -4.3091),
-        'right_elbow': (42.4786, 19.7707), 'right_wrist': (-6.4437, 12.6953),
+        'spine_lumbar': (14.678, -11.807, 8.347), 'spine_thoracic': (-2.258, -10.0, 9.62),
+        'neck': (33.831, -4.665, -45.98), 'head': (13.566, -1.128),
+        'right_clavicle': (15.838, 9.162), 'right_shoulder': (8.763, 49.214, -4.309),
+        'right_elbow': (42.479, 19.771), 'right_wrist': (-6.444, 12.695),
     })
     human.KeyJoints(29.4, {
-        'spine_lumbar': (10.8189, -8.3836, 8.5879), 'spine_thoracic': (-4.2616, -8.4389, 9.1418),
-        'neck': (33.005, -4.1038, -41.8339), 'head': (13.1129, -1.0301),
-        'right_clavicle': (11.5777, 8.2825), 'right_shoulder': (11.7272, 43.7261, -5.507),
-        'right_elbow': (44.5187, 16.7121), 'right_wrist': (-5.9176, 14.3908),
+        'spine_lumbar': (10.819, -8.384, 8.588), 'spine_thoracic': (-4.262, -8.439, 9.142),
+        'neck': (33.005, -4.104, -41.834), 'head': (13.113, -1.03),
+        'right_clavicle': (11.578, 8.282), 'right_shoulder': (11.727, 43.726, -5.507),
+        'right_elbow': (44.519, 16.712), 'right_wrist': (-5.918, 14.391),
     })
     human.KeyJoints(29.5, {
-        'spine_lumbar': (11.3314, -1.5139, 10.7827), 'spine_thoracic': (-9.9456, -2.3364, 10.0355),
-        'neck': (32.4082, -4.5563, -41.9153), 'head': (12.4352, -1.0922),
-        'right_clavicle': (5.995, 8.5102), 'right_shoulder': (20.8329, 38.9571, -12.646),
-        'right_elbow': (44.3828, 7.3344), 'right_wrist': (-6.0362, 11.3154),
+        'spine_lumbar': (11.331, -1.514, 10.783), 'spine_thoracic': (-9.946, -2.336, 10.035),
+        'neck': (32.408, -4.556, -41.915), 'head': (12.435, -1.092),
+        'right_clavicle': (5.995, 8.51), 'right_shoulder': (20.833, 38.957, -12.646),
+        'right_elbow': (44.383, 7.334), 'right_wrist': (-6.036, 11.315),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.6, {
-        'spine_lumbar': (12.0345, -2.106, 10.5501), 'spine_thoracic': (-9.0808, -3.6581, 10.0383),
-        'neck': (32.456, -4.6588, -42.3626), 'head': (12.4209, -1.1004),
-        'right_clavicle': (7.5297, 8.5344), 'right_shoulder': (19.5362, 40.4873, -11.4195),
-        'right_elbow': (44.4388, 9.1004), 'right_wrist': (-6.0035, 12.1436),
+        'spine_lumbar': (12.035, -2.106, 10.55), 'spine_thoracic': (-9.081, -3.658, 10.038),
+        'neck': (32.456, -4.659, -42.363), 'head': (12.421, -1.1), 'right_clavicle': (7.53, 8.534),
+        'right_shoulder': (19.536, 40.487, -11.42), 'right_elbow': (44.439, 9.1),
+        'right_wrist': (-6.004, 12.144),
     })
     human.KeyJoints(29.7, {
-        'spine_lumbar': (13.5247, -4.5739, 9.7645), 'spine_thoracic': (-6.5786, -7.5358, 9.8857),
-        'neck': (32.8486, -4.6982, -43.5052), 'head': (12.719, -1.1097),
-        'right_clavicle': (11.6092, 8.5364), 'right_shoulder': (15.6741, 44.0821, -7.8961),
-        'right_elbow': (44.0577, 13.9287), 'right_wrist': (-5.9593, 13.4626),
+        'spine_lumbar': (13.525, -4.574, 9.764), 'spine_thoracic': (-6.579, -7.536, 9.886),
+        'neck': (32.849, -4.698, -43.505), 'head': (12.719, -1.11),
+        'right_clavicle': (11.609, 8.536), 'right_shoulder': (15.674, 44.082, -7.896),
+        'right_elbow': (44.058, 13.929), 'right_wrist': (-5.959, 13.463),
     })
     human.KeyJoints(29.8, {
-        'spine_lumbar': (14.6801, -9.3528, 8.7563), 'spine_thoracic': (-3.5023, -10.0, 9.6638),
-        'neck': (33.5779, -4.6923, -45.3839), 'head': (13.3249, -1.1236),
-        'right_clavicle': (14.6898, 8.9369), 'right_shoulder': (10.7954, 48.1185, -5.4459),
-        'right_elbow': (43.0641, 18.1662), 'right_wrist': (-6.34, 13.2471),
+        'spine_lumbar': (14.68, -9.353, 8.756), 'spine_thoracic': (-3.502, -10.0, 9.664),
+        'neck': (33.578, -4.692, -45.384), 'head': (13.325, -1.124),
+        'right_clavicle': (14.69, 8.937), 'right_shoulder': (10.795, 48.118, -5.446),
+        'right_elbow': (43.064, 18.166), 'right_wrist': (-6.34, 13.247),
     })
     human.KeyJoints(29.9, {
-        'spine_lumbar': (11.757, -12.5828, 8.0667), 'spine_thoracic': (-1.8471, -9.8995, 9.2046),
-        'neck': (33.5867, -4.1467, -43.41), 'head': (13.5497, -1.0325),
-        'right_clavicle': (13.9636, 8.8624), 'right_shoulder': (8.0223, 46.7547, -3.7189),
-        'right_elbow': (43.3931, 19.8952), 'right_wrist': (-6.2717, 13.7849),
+        'spine_lumbar': (11.757, -12.583, 8.067), 'spine_thoracic': (-1.847, -9.9, 9.205),
+        'neck': (33.587, -4.147, -43.41), 'head': (13.55, -1.033),
+        'right_clavicle': (13.964, 8.862), 'right_shoulder': (8.022, 46.755, -3.719),
+        'right_elbow': (43.393, 19.895), 'right_wrist': (-6.272, 13.785),
     })
     human.KeyJoints(30.0, {
-        'spine_lumbar': (10.8513, -3.641, 9.7835), 'spine_thoracic': (-7.8481, -5.1079, 9.4283),
-        'neck': (32.4679, -4.2834, -41.275), 'head': (12.6261, -1.0746),
-        'right_clavicle': (8.1155, 8.2369), 'right_shoulder': (17.4109, 40.488, -9.4485),
-        'right_elbow': (44.6918, 11.1206), 'right_wrist': (-5.8825, 13.4771),
+        'spine_lumbar': (10.851, -3.641, 9.783), 'spine_thoracic': (-7.848, -5.108, 9.428),
+        'neck': (32.468, -4.283, -41.275), 'head': (12.626, -1.075),
+        'right_clavicle': (8.116, 8.237), 'right_shoulder': (17.411, 40.488, -9.448),
+        'right_elbow': (44.692, 11.121), 'right_wrist': (-5.883, 13.477),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.1, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(30.2, {
-        'spine_lumbar': (12.9477, -3.382, 10.1129), 'spine_thoracic': (-7.6659, -5.8496, 9.9614),
-        'neck': (32.633, -4.7172, -43.0092), 'head': (12.5321, -1.1076),
-        'right_clavicle': (9.8946, 8.5272), 'right_shoulder': (17.364, 42.6572, -9.416),
-        'right_elbow': (44.3316, 11.8874), 'right_wrist': (-5.9651, 13.1127),
+        'spine_lumbar': (12.948, -3.382, 10.113), 'spine_thoracic': (-7.666, -5.85, 9.961),
+        'neck': (32.633, -4.717, -43.009), 'head': (12.532, -1.108),
+        'right_clavicle': (9.895, 8.527), 'right_shoulder': (17.364, 42.657, -9.416),
+        'right_elbow': (44.332, 11.887), 'right_wrist': (-5.965, 13.113),
     })
     human.KeyJoints(30.3, {
-        'spine_lumbar': (14.2988, -6.8177, 9.1995), 'spine_thoracic': (-4.8774, -9.8347, 9.7409),
-        'neck': (33.2593, -4.6238, -44.3313), 'right_clavicle': (13.3399, 8.7047),
-        'right_shoulder': (13.0578, 46.1656, -6.3253), 'right_elbow': (43.5911, 16.3387),
-        'right_wrist': (-6.0779, 13.549),
+        'spine_lumbar': (14.299, -6.818, 9.2), 'spine_thoracic': (-4.877, -9.835, 9.741),
+        'neck': (33.259, -4.624, -44.331), 'right_clavicle': (13.34, 8.705),
+        'right_shoulder': (13.058, 46.166, -6.325), 'right_elbow': (43.591, 16.339),
+        'right_wrist': (-6.078, 13.549),
     })
     human.KeyJoints(30.4, {
-        'spine_lumbar': (13.9042, -12.3249, 8.2067), 'spine_thoracic': (-1.9851, -10.0, 9.494),
-        'neck': (33.7871, -4.5141, -45.3771), 'head': (13.5963, -1.1149),
-        'right_clavicle': (15.5248, 9.1188), 'right_shoulder': (8.2955, 48.7959, -3.9711),
-        'right_elbow': (42.6372, 19.9532), 'right_wrist': (-6.4189, 12.9447),
+        'spine_lumbar': (13.904, -12.325, 8.207), 'spine_thoracic': (-1.985, -10.0, 9.494),
+        'neck': (33.787, -4.514, -45.377), 'head': (13.596, -1.115),
+        'right_clavicle': (15.525, 9.119), 'right_shoulder': (8.296, 48.796, -3.971),
+        'right_elbow': (42.637, 19.953), 'right_wrist': (-6.419, 12.945),
     })
     human.KeyJoints(30.5, {
-        'spine_lumbar': (10.661, -6.8505, 8.8233), 'spine_thoracic': (-5.2222, -7.78, 9.1326),
-        'neck': (32.7591, -4.1033, -41.2607), 'head': (12.959, -1.0494),
-        'right_clavicle': (10.7365, 8.1454), 'right_shoulder': (13.2159, 42.7674, -6.3062),
-        'right_elbow': (44.767, 15.3793), 'right_wrist': (-5.8334, 14.5052),
+        'spine_lumbar': (10.661, -6.851, 8.823), 'spine_thoracic': (-5.222, -7.78, 9.133),
+        'neck': (32.759, -4.103, -41.261), 'head': (12.959, -1.049),
+        'right_clavicle': (10.737, 8.145), 'right_shoulder': (13.216, 42.767, -6.306),
+        'right_elbow': (44.767, 15.379), 'right_wrist': (-5.833, 14.505),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.6, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(30.7, {
-        'spine_lumbar': (12.2761, -2.3915, 10.4447), 'spine_thoracic': (-8.7305, -4.1974, 10.0234),
-        'neck': (32.4882, -4.6822, -42.5204), 'head': (12.4331, -1.1027),
-        'right_clavicle': (8.1247, 8.5342), 'right_shoulder': (19.0023, 41.0527, -10.9213),
-        'right_elbow': (44.4381, 9.8011), 'right_wrist': (-5.9912, 12.4327),
+        'spine_lumbar': (12.276, -2.392, 10.445), 'spine_thoracic': (-8.73, -4.197, 10.023),
+        'neck': (32.488, -4.682, -42.52), 'head': (12.433, -1.103),
+        'right_clavicle': (8.125, 8.534), 'right_shoulder': (19.002, 41.053, -10.921),
+        'right_elbow': (44.438, 9.801), 'right_wrist': (-5.991, 12.433),
     })
     human.KeyJoints(30.8, {
-        'spine_lumbar': (13.6945, -5.0164, 9.6459), 'spine_thoracic': (-6.2111, -8.1009, 9.86),
-        'neck': (32.9358, -4.6779, -43.6689), 'head': (12.801, -1.1096),
-        'right_clavicle': (12.161, 8.5493), 'right_shoulder': (15.1017, 44.5093, -7.3875),
-        'right_elbow': (43.9275, 14.5939), 'right_wrist': (-5.9619, 13.4985),
+        'spine_lumbar': (13.695, -5.016, 9.646), 'spine_thoracic': (-6.211, -8.101, 9.86),
+        'neck': (32.936, -4.678, -43.669), 'head': (12.801, -1.11),
+        'right_clavicle': (12.161, 8.549), 'right_shoulder': (15.102, 44.509, -7.387),
+        'right_elbow': (43.928, 14.594), 'right_wrist': (-5.962, 13.499),
     })
     human.KeyJoints(30.9, {
-        'spine_lumbar': (14.8061, -10.372, 8.6215), 'spine_thoracic': (-2.9302, -10.0, 9.6482),
-        'neck': (33.7099, -4.7228, -45.833), 'head': (13.4148, -1.1291),
-        'right_clavicle': (15.0062, 9.0414), 'right_shoulder': (9.897, 48.8668, -5.4084),
-        'right_elbow': (42.8565, 18.6926), 'right_wrist': (-6.4555, 13.1805),
+        'spine_lumbar': (14.806, -10.372, 8.621), 'spine_thoracic': (-2.93, -10.0, 9.648),
+        'neck': (33.71, -4.723, -45.833), 'head': (13.415, -1.129),
+        'right_clavicle': (15.006, 9.041), 'right_shoulder': (9.897, 48.867, -5.408),
+        'right_elbow': (42.856, 18.693), 'right_wrist': (-6.455, 13.18),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (11.3919, -11.5435, 8.1853), 'spine_thoracic': (-2.4264, -9.567, 9.1786),
-        'neck': (33.4214, -4.1164, -42.9216), 'head': (13.4113, -1.0235),
-        'right_clavicle': (13.2521, 8.6838), 'right_shoulder': (8.9078, 45.8249, -4.1276),
-        'right_elbow': (43.7608, 19.1468), 'right_wrist': (-6.1633, 14.0058),
+        'spine_lumbar': (11.392, -11.544, 8.185), 'spine_thoracic': (-2.426, -9.567, 9.179),
+        'neck': (33.421, -4.116, -42.922), 'head': (13.411, -1.023),
+        'right_clavicle': (13.252, 8.684), 'right_shoulder': (8.908, 45.825, -4.128),
+        'right_elbow': (43.761, 19.147), 'right_wrist': (-6.163, 14.006),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (11.0408, -2.6994, 10.2019), 'spine_thoracic': (-8.7545, -3.9469, 9.668),
-        'neck': (32.4386, -4.3794, -41.4353), 'head': (12.553, -1.0799),
-        'right_clavicle': (7.1983, 8.3448), 'right_shoulder': (18.8858, 39.8089, -10.7908),
-        'right_elbow': (44.5698, 9.5059), 'right_wrist': (-5.9432, 12.6238),
+        'spine_lumbar': (11.041, -2.699, 10.202), 'spine_thoracic': (-8.754, -3.947, 9.668),
+        'neck': (32.439, -4.379, -41.435), 'head': (12.553, -1.08),
+        'right_clavicle': (7.198, 8.345), 'right_shoulder': (18.886, 39.809, -10.791),
+        'right_elbow': (44.57, 9.506), 'right_wrist': (-5.943, 12.624),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.2, {
-        'spine_lumbar': (11.4622, -1.5447, 10.776), 'spine_thoracic': (-9.8655, -2.4646, 10.057),
-        'neck': (32.4119, -4.5861, -42.021), 'head': (12.4226, -1.0944),
-        'right_clavicle': (6.1828, 8.5247), 'right_shoulder': (20.7221, 39.1662, -12.5428),
-        'right_elbow': (44.388, 7.5107), 'right_wrist': (-6.0357, 11.3874),
+        'spine_lumbar': (11.462, -1.545, 10.776), 'spine_thoracic': (-9.866, -2.465, 10.057),
+        'neck': (32.412, -4.586, -42.021), 'head': (12.423, -1.094),
+        'right_clavicle': (6.183, 8.525), 'right_shoulder': (20.722, 39.166, -12.543),
+        'right_elbow': (44.388, 7.511), 'right_wrist': (-6.036, 11.387),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (13.1499, -3.7541, 9.9991), 'spine_thoracic': (-7.3087, -6.4052, 9.9371),
-        'neck': (32.6968, -4.7171, -43.1736), 'head': (12.5845, -1.1087),
-        'right_clavicle': (10.4705, 8.5269), 'right_shoulder': (16.8099, 43.1514, -8.9144),
-        'right_elbow': (44.2592, 12.5694), 'right_wrist': (-5.9606, 13.2699),
+        'spine_lumbar': (13.15, -3.754, 9.999), 'spine_thoracic': (-7.309, -6.405, 9.937),
+        'neck': (32.697, -4.717, -43.174), 'head': (12.584, -1.109),
+        'right_clavicle': (10.47, 8.527), 'right_shoulder': (16.81, 43.151, -8.914),
+        'right_elbow': (44.259, 12.569), 'right_wrist': (-5.961, 13.27),
     })
     human.KeyJoints(31.4, {
-        'spine_lumbar': (14.47, -7.6393, 9.0208), 'spine_thoracic': (-4.4043, -10.0, 9.7019),
-        'neck': (33.3668, -4.6345, -44.6551), 'head': (13.1788, -1.1148),
-        'right_clavicle': (13.5923, 8.7983), 'right_shoulder': (12.2946, 46.8669, -6.157),
-        'right_elbow': (43.5323, 16.8724), 'right_wrist': (-6.1557, 13.5502),
+        'spine_lumbar': (14.47, -7.639, 9.021), 'spine_thoracic': (-4.404, -10.0, 9.702),
+        'neck': (33.367, -4.635, -44.655), 'head': (13.179, -1.115),
+        'right_clavicle': (13.592, 8.798), 'right_shoulder': (12.295, 46.867, -6.157),
+        'right_elbow': (43.532, 16.872), 'right_wrist': (-6.156, 13.55),
     })
     human.KeyJoints(31.5, {
-        'spine_lumbar': (12.9199, -12.7214, 8.0896), 'spine_thoracic': (-1.7709, -10.0, 9.3406),
-        'neck': (33.7453, -4.3482, -44.7135), 'head': (13.5991, -1.0855),
-        'right_clavicle': (15.0547, 9.0523), 'right_shoulder': (7.9267, 48.1742, -3.7154),
-        'right_elbow': (42.8693, 20.0738), 'right_wrist': (-6.3822, 13.2776),
+        'spine_lumbar': (12.92, -12.721, 8.09), 'spine_thoracic': (-1.771, -10.0, 9.341),
+        'neck': (33.745, -4.348, -44.713), 'head': (13.599, -1.086),
+        'right_clavicle': (15.055, 9.052), 'right_shoulder': (7.927, 48.174, -3.715),
+        'right_elbow': (42.869, 20.074), 'right_wrist': (-6.382, 13.278),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (10.6169, -5.703, 9.0548), 'spine_thoracic': (-6.0365, -7.1334, 9.1319),
-        'neck': (32.6065, -4.1045, -41.0558), 'head': (12.8289, -1.0629),
-        'right_clavicle': (9.9555, 8.1034), 'right_shoulder': (14.4944, 41.9864, -7.083),
-        'right_elbow': (44.8427, 14.1749), 'right_wrist': (-5.8075, 14.5326),
+        'spine_lumbar': (10.617, -5.703, 9.055), 'spine_thoracic': (-6.036, -7.133, 9.132),
+        'neck': (32.607, -4.105, -41.056), 'head': (12.829, -1.063),
+        'right_clavicle': (9.956, 8.103), 'right_shoulder': (14.494, 41.986, -7.083),
+        'right_elbow': (44.843, 14.175), 'right_wrist': (-5.807, 14.533),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.7, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (12.5088, -2.6986, 10.3368), 'spine_thoracic': (-8.3793, -4.7409, 10.0051),
-        'neck': (32.5286, -4.7003, -42.6808), 'head': (12.457, -1.1046),
-        'right_clavicle': (8.7161, 8.5317), 'right_shoulder': (18.4643, 41.6026, -10.4233),
-        'right_elbow': (44.4196, 10.4972), 'right_wrist': (-5.9805, 12.6923),
+        'spine_lumbar': (12.509, -2.699, 10.337), 'spine_thoracic': (-8.379, -4.741, 10.005),
+        'neck': (32.529, -4.7, -42.681), 'head': (12.457, -1.105), 'right_clavicle': (8.716, 8.532),
+        'right_shoulder': (18.464, 41.603, -10.423), 'right_elbow': (44.42, 10.497),
+        'right_wrist': (-5.98, 12.692),
     })
     human.KeyJoints(31.9, {
-        'spine_lumbar': (13.847, -5.4688, 9.5299), 'spine_thoracic': (-5.8489, -8.6756, 9.8367),
-        'neck': (33.0298, -4.6466, -43.8231), 'head': (12.8937, -1.1094),
-        'right_clavicle': (12.7486, 8.5668), 'right_shoulder': (14.5377, 44.8891, -6.8156),
-        'right_elbow': (43.7575, 15.2689), 'right_wrist': (-5.9652, 13.4853),
+        'spine_lumbar': (13.847, -5.469, 9.53), 'spine_thoracic': (-5.849, -8.676, 9.837),
+        'neck': (33.03, -4.647, -43.823), 'head': (12.894, -1.109),
+        'right_clavicle': (12.749, 8.567), 'right_shoulder': (14.538, 44.889, -6.816),
+        'right_elbow': (43.757, 15.269), 'right_wrist': (-5.965, 13.485),
     })
     human.KeyJoints(32.0, {
-        'spine_lumbar': (14.8577, -11.2177, 8.4799), 'spine_thoracic': (-2.5492, -10.0, 9.6503),
-        'neck': (33.8302, -4.7169, -46.1201), 'head': (13.5113, -1.1314),
-        'right_clavicle': (15.7995, 9.1574), 'right_shoulder': (9.2587, 49.2661, -4.7438),
-        'right_elbow': (42.4904, 19.4655), 'right_wrist': (-6.4527, 12.7084),
+        'spine_lumbar': (14.858, -11.218, 8.48), 'spine_thoracic': (-2.549, -10.0, 9.65),
+        'neck': (33.83, -4.717, -46.12), 'head': (13.511, -1.131), 'right_clavicle': (15.8, 9.157),
+        'right_shoulder': (9.259, 49.266, -4.744), 'right_elbow': (42.49, 19.466),
+        'right_wrist': (-6.453, 12.708),
     })
     human.KeyJoints(32.1, {
-        'spine_lumbar': (11.0729, -10.0604, 8.3651), 'spine_thoracic': (-3.2719, -9.0628, 9.1576),
-        'neck': (33.2366, -4.1047, -42.4428), 'head': (13.2609, -1.02),
-        'right_clavicle': (12.4438, 8.4779), 'right_shoulder': (10.2038, 44.7893, -4.7456),
-        'right_elbow': (44.1566, 18.0384), 'right_wrist': (-6.0375, 14.2146),
+        'spine_lumbar': (11.073, -10.06, 8.365), 'spine_thoracic': (-3.272, -9.063, 9.158),
+        'neck': (33.237, -4.105, -42.443), 'head': (13.261, -1.02),
+        'right_clavicle': (12.444, 8.478), 'right_shoulder': (10.204, 44.789, -4.746),
+        'right_elbow': (44.157, 18.038), 'right_wrist': (-6.037, 14.215),
     })
     human.KeyJoints(32.2, {
-        'spine_lumbar': (11.2161, -1.9558, 10.5589), 'spine_thoracic': (-9.4949, -2.9567, 9.8897),
-        'neck': (32.4198, -4.4782, -41.6874), 'head': (12.4844, -1.0868),
-        'right_clavicle': (6.45, 8.4445), 'right_shoulder': (20.095, 39.2742, -11.9323),
-        'right_elbow': (44.457, 8.1624), 'right_wrist': (-5.9993, 11.8345),
+        'spine_lumbar': (11.216, -1.956, 10.559), 'spine_thoracic': (-9.495, -2.957, 9.89),
+        'neck': (32.42, -4.478, -41.687), 'head': (12.484, -1.087), 'right_clavicle': (6.45, 8.445),
+        'right_shoulder': (20.095, 39.274, -11.932), 'right_elbow': (44.457, 8.162),
+        'right_wrist': (-5.999, 11.835),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.3, {
-        'spine_lumbar': (11.7801, -1.8368, 10.6546), 'spine_thoracic': (-9.4364, -3.1143, 10.0499),
-        'neck': (32.4306, -4.6291, -42.2051), 'head': (12.4152, -1.0979),
-        'right_clavicle': (6.9212, 8.5326), 'right_shoulder': (20.0754, 39.897, -11.927),
-        'right_elbow': (44.4254, 8.3832), 'right_wrist': (-6.0175, 11.8186),
+        'spine_lumbar': (11.78, -1.837, 10.655), 'spine_thoracic': (-9.436, -3.114, 10.05),
+        'neck': (32.431, -4.629, -42.205), 'head': (12.415, -1.098),
+        'right_clavicle': (6.921, 8.533), 'right_shoulder': (20.075, 39.897, -11.927),
+        'right_elbow': (44.425, 8.383), 'right_wrist': (-6.017, 11.819),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (13.3412, -4.1487, 9.8835), 'spine_thoracic': (-6.9484, -6.9641, 9.9119),
-        'neck': (32.7681, -4.7123, -43.3381), 'head': (12.6461, -1.1093),
-        'right_clavicle': (11.0391, 8.5292), 'right_shoulder': (16.2499, 43.6241, -8.4106),
-        'right_elbow': (44.1694, 13.2462), 'right_wrist': (-5.9595, 13.3875),
+        'spine_lumbar': (13.341, -4.149, 9.884), 'spine_thoracic': (-6.948, -6.964, 9.912),
+        'neck': (32.768, -4.712, -43.338), 'head': (12.646, -1.109),
+        'right_clavicle': (11.039, 8.529), 'right_shoulder': (16.25, 43.624, -8.411),
+        'right_elbow': (44.169, 13.246), 'right_wrist': (-5.96, 13.388),
     })
     human.KeyJoints(32.5, {
-        'spine_lumbar': (14.5312, -8.3445, 8.8912), 'spine_thoracic': (-4.0817, -10.0, 9.6912),
-        'neck': (33.4512, -4.6464, -44.9109), 'head': (13.2426, -1.1174),
-        'right_clavicle': (14.3904, 8.8498), 'right_shoulder': (11.716, 47.282, -5.4725),
-        'right_elbow': (43.2504, 17.641), 'right_wrist': (-6.1804, 13.2895),
+        'spine_lumbar': (14.531, -8.345, 8.891), 'spine_thoracic': (-4.082, -10.0, 9.691),
+        'neck': (33.451, -4.646, -44.911), 'head': (13.243, -1.117),
+        'right_clavicle': (14.39, 8.85), 'right_shoulder': (11.716, 47.282, -5.472),
+        'right_elbow': (43.25, 17.641), 'right_wrist': (-6.18, 13.29),
     })
     human.KeyJoints(32.6, {
-        'spine_lumbar': (12.161, -12.9059, 8.0321), 'spine_thoracic': (-1.6696, -10.0, 9.2371),
-        'neck': (33.6922, -4.1952, -43.9799), 'head': (13.5997, -1.0463),
-        'right_clavicle': (14.5361, 8.9752), 'right_shoulder': (7.7518, 47.4983, -3.5975),
-        'right_elbow': (43.1148, 20.1241), 'right_wrist': (-6.3388, 13.569),
+        'spine_lumbar': (12.161, -12.906, 8.032), 'spine_thoracic': (-1.67, -10.0, 9.237),
+        'neck': (33.692, -4.195, -43.98), 'head': (13.6, -1.046), 'right_clavicle': (14.536, 8.975),
+        'right_shoulder': (7.752, 47.498, -3.597), 'right_elbow': (43.115, 20.124),
+        'right_wrist': (-6.339, 13.569),
     })
     human.KeyJoints(32.7, {
-        'spine_lumbar': (10.6924, -4.6903, 9.3715), 'spine_thoracic': (-6.8882, -6.2521, 9.2274),
-        'neck': (32.5253, -4.1692, -41.1301), 'head': (12.7207, -1.0694),
-        'right_clavicle': (9.0888, 8.1464), 'right_shoulder': (15.858, 41.248, -8.1188),
-        'right_elbow': (44.7941, 12.7805), 'right_wrist': (-5.8317, 14.1927),
+        'spine_lumbar': (10.692, -4.69, 9.372), 'spine_thoracic': (-6.888, -6.252, 9.227),
+        'neck': (32.525, -4.169, -41.13), 'head': (12.721, -1.069),
+        'right_clavicle': (9.089, 8.146), 'right_shoulder': (15.858, 41.248, -8.119),
+        'right_elbow': (44.794, 12.78), 'right_wrist': (-5.832, 14.193),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.8, {
-        'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
-        'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(32.9, {
-        'spine_lumbar': (12.7316, -3.0265, 10.2268), 'spine_thoracic': (-8.0266, -5.2887, 9.9845),
-        'neck': (32.5764, -4.7131, -42.843), 'head': (12.4894, -1.1063),
-        'right_clavicle': (9.3031, 8.5287), 'right_shoulder': (17.9215, 42.1351, -9.9245),
-        'right_elbow': (44.3853, 11.1889), 'right_wrist': (-5.9717, 12.9189),
+        'spine_lumbar': (12.732, -3.027, 10.227), 'spine_thoracic': (-8.027, -5.289, 9.984),
+        'neck': (32.576, -4.713, -42.843), 'head': (12.489, -1.106),
+        'right_clavicle': (9.303, 8.529), 'right_shoulder': (17.921, 42.135, -9.924),
+        'right_elbow': (44.385, 11.189), 'right_wrist': (-5.972, 12.919),
     })
     human.KeyJoints(33.0, {
-        'spine_lumbar': (14.0012, -5.9737, 9.4056), 'spine_thoracic': (-5.4651, -9.2392, 9.8115),
-        'neck': (33.1326, -4.6166, -43.99), 'right_clavicle': (13.2416, 8.5948),
-        'right_shoulder': (13.9422, 45.2838, -6.3513), 'right_elbow': (43.6033, 15.9071),
-        'right_wrist': (-5.9707, 13.4413),
+        'spine_lumbar': (14.001, -5.974, 9.406), 'spine_thoracic': (-5.465, -9.239, 9.811),
+        'neck': (33.133, -4.617, -43.99), 'right_clavicle': (13.242, 8.595),
+        'right_shoulder': (13.942, 45.284, -6.351), 'right_elbow': (43.603, 15.907),
+        'right_wrist': (-5.971, 13.441),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (14.6871, -11.7981, 8.3491), 'spine_thoracic': (-2.2624, -10.0, 9.6215),
-        'neck': (33.8318, -4.6673, -45.9877), 'head': (13.565, -1.1285),
-        'right_clavicle': (15.8415, 9.1623), 'right_shoulder': (8.7708, 49.2186, -4.3152),
-        'right_elbow': (42.4769, 19.7672), 'right_wrist': (-6.444, 12.6926),
+        'spine_lumbar': (14.687, -11.798, 8.349), 'spine_thoracic': (-2.262, -10.0, 9.622),
+        'neck': (33.832, -4.667, -45.988), 'head': (13.565, -1.128),
+        'right_clavicle': (15.842, 9.162), 'right_shoulder': (8.771, 49.219, -4.315),
+        'right_elbow': (42.477, 19.767), 'right_wrist': (-6.444, 12.693),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (11.1296, -7.6082, 8.6657), 'spine_thoracic': (-4.3954, -8.3342, 9.142),
-        'neck': (32.8862, -4.199, -41.9013), 'head': (12.9969, -1.0537),
-        'right_clavicle': (11.7748, 8.334), 'right_shoulder': (11.8985, 44.1143, -5.3845),
-        'right_elbow': (44.5134, 16.9266), 'right_wrist': (-5.9194, 14.3883),
+        'spine_lumbar': (11.13, -7.608, 8.666), 'spine_thoracic': (-4.395, -8.334, 9.142),
+        'neck': (32.886, -4.199, -41.901), 'head': (12.997, -1.054),
+        'right_clavicle': (11.775, 8.334), 'right_shoulder': (11.898, 44.114, -5.384),
+        'right_elbow': (44.513, 16.927), 'right_wrist': (-5.919, 14.388),
     })
     human.KeyJoints(33.3, {
-        'spine_lumbar': (7.2, -13.6658, 9.5815), 'spine_thoracic': (-8.3925, -4.4892, 9.1575),
-        'neck': (34.9287, -2.6577, -41.1929), 'head': (14.9355, -0.6702),
-        'right_clavicle': (2.8652, 7.9025), 'right_shoulder': (18.6424, 33.9243, -16.4236),
-        'right_elbow': (36.7648, 3.1233), 'right_wrist': (-6.3379, -4.3494),
+        'spine_lumbar': (7.2, -13.666, 9.581), 'spine_thoracic': (-8.392, -4.489, 9.158),
+        'neck': (34.929, -2.658, -41.193), 'head': (14.936, -0.67),
+        'right_clavicle': (2.865, 7.902), 'right_shoulder': (18.642, 33.924, -16.424),
+        'right_elbow': (36.765, 3.123), 'right_wrist': (-6.338, -4.349),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=33.307971, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_right
     human.LookAt((20.0, 105.0, 112.0), start=33.379971, duration=0.2628)
     human.KeyJoints(33.4, {
-        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'neck': (34.8209, -2.5885, -40.6102),
-        'head': (14.8771, -0.6497), 'right_clavicle': (2.7151, 7.8999),
-        'right_shoulder': (18.715, 33.7563, -16.6404), 'right_elbow': (36.5418, 2.8816),
-        'right_wrist': (-6.3525, -4.8709),
+        'spine_lumbar': (7.124, -13.882, 9.591), 'neck': (34.821, -2.589, -40.61),
+        'head': (14.877, -0.65), 'right_clavicle': (2.715, 7.9),
+        'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
+        'right_wrist': (-6.353, -4.871),
     })
-    human.KeyJoints(33.5, {'neck': (30.2875, -1.9175, -25.4546), 'head': (11.7668, -0.417)})
+    human.KeyJoints(33.5, {'neck': (30.287, -1.917, -25.455), 'head': (11.767, -0.417)})
     human.KeyJoints(33.6, {
-        'neck': (24.94, -1.1259, -7.5777), 'head': (8.098, -0.1425),
-        'right_shoulder': (18.715, 33.7563, -16.6404), 'right_elbow': (36.5418, 2.8816),
-        'right_wrist': (-6.3525, -4.8709),
+        'neck': (24.94, -1.126, -7.578), 'head': (8.098, -0.143),
+        'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
+        'right_wrist': (-6.353, -4.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
     human.LookAt((20.0, 105.0, 112.0), start=33.642771, duration=10.521694)
     human.KeyJoints(33.7, {
-        'neck': (24.173, -1.0124, -5.0135), 'head': (7.5718, -0.1032),
-        'right_shoulder': (19.824, 32.3938, -15.4802), 'right_elbow': (36.4064, 3.511),
-        'right_wrist': (-6.1145, -5.4088),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
+        'right_shoulder': (19.824, 32.394, -15.48), 'right_elbow': (36.406, 3.511),
+        'right_wrist': (-6.114, -5.409),
     })
     human.KeyJoints(33.8, {
-        'right_shoulder': (25.9724, 25.0075, -9.191), 'right_elbow': (35.6725, 6.9225),
-        'right_wrist': (-4.8241, -8.3278),
+        'right_shoulder': (25.972, 25.008, -9.191), 'right_elbow': (35.672, 6.922),
+        'right_wrist': (-4.824, -8.328),
     })
     human.KeyJoints(33.9, {
-        'right_shoulder': (35.1594, 14.4512, -0.2025), 'right_elbow': (34.6235, 11.7982),
-        'right_wrist': (-2.98, -12.5094),
+        'right_shoulder': (35.159, 14.451, -0.202), 'right_elbow': (34.624, 11.798),
+        'right_wrist': (-2.98, -12.509),
     })
     human.KeyJoints(34.0, {
-        'right_shoulder': (44.6826, 4.4529, 8.3109), 'right_elbow': (33.63, 16.4162),
-        'right_wrist': (-1.2333, -16.4903),
+        'right_shoulder': (44.683, 4.453, 8.311), 'right_elbow': (33.63, 16.416),
+        'right_wrist': (-1.233, -16.49),
     })
     human.KeyJoints(34.1, {
-        'right_shoulder': (51.8395, -1.2591, 13.1745), 'right_elbow': (33.0625, 19.0544),
-        'right_wrist': (-0.2354, -18.807),
+        'right_shoulder': (51.839, -1.259, 13.175), 'right_elbow': (33.062, 19.054),
+        'right_wrist': (-0.235, -18.807),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.2, {
-        'right_shoulder': (55.0614, 0.6487, 12.0077), 'right_elbow': (33.8285, 18.6255),
-        'right_wrist': (-0.8196, -18.9912),
+        'right_shoulder': (55.061, 0.649, 12.008), 'right_elbow': (33.828, 18.626),
+        'right_wrist': (-0.82, -18.991),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=34.248422, duration=0.072)
     human.KeyJoints(34.3, {
-        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
-        'neck': (24.173, -1.0124, -5.0135), 'head': (7.5718, -0.1032),
-        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (57.1974, 2.088, 10.9299),
-        'right_elbow': (31.9977, 18.3404), 'right_wrist': (-1.0805, -21.1506),
+        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
+        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
+        'right_wrist': (-1.08, -21.151),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.4, {
-        'spine_lumbar': (7.0985, -14.8697, 9.7278), 'spine_thoracic': (-9.4567, -5.5481, 9.4087),
-        'neck': (24.4819, -1.0955, -5.9481), 'head': (8.0711, -0.1162),
-        'right_clavicle': (4.173, 7.9635), 'right_shoulder': (56.3311, 3.6604, 11.8034),
-        'right_elbow': (32.1932, 19.5197), 'right_wrist': (-0.7602, -20.2424),
+        'spine_lumbar': (7.099, -14.87, 9.728), 'spine_thoracic': (-9.457, -5.548, 9.409),
+        'neck': (24.482, -1.096, -5.948), 'head': (8.071, -0.116), 'right_clavicle': (4.173, 7.964),
+        'right_shoulder': (56.331, 3.66, 11.803), 'right_elbow': (32.193, 19.52),
+        'right_wrist': (-0.76, -20.242),
     })
     human.KeyJoints(34.5, {
-        'spine_lumbar': (4.6137, -19.247, 9.0278), 'spine_thoracic': (-10.3648, -9.891, 9.3675),
-        'neck': (25.0806, -1.16, -7.0352), 'head': (9.0711, -0.1445),
-        'right_clavicle': (8.9561, 7.9177), 'right_shoulder': (56.102, 5.4941, 15.0834),
-        'right_elbow': (30.311, 23.1698), 'right_wrist': (0.5741, -23.108),
+        'spine_lumbar': (4.614, -19.247, 9.028), 'spine_thoracic': (-10.365, -9.891, 9.367),
+        'neck': (25.081, -1.16, -7.035), 'head': (9.071, -0.144), 'right_clavicle': (8.956, 7.918),
+        'right_shoulder': (56.102, 5.494, 15.083), 'right_elbow': (30.311, 23.17),
+        'right_wrist': (0.574, -23.108),
     })
     human.KeyJoints(34.6, {
-        'spine_lumbar': (2.4046, -19.998, 9.3021), 'spine_thoracic': (-11.5292, -10.0, 10.8411),
-        'neck': (25.9779, -1.1741, -7.9324), 'head': (10.3125, -0.1686),
-        'right_clavicle': (16.5638, 9.432), 'right_shoulder': (57.0426, 7.49, 20.6696),
-        'right_elbow': (26.5881, 29.0807), 'right_wrist': (3.1652, -26.4598),
+        'spine_lumbar': (2.405, -19.998, 9.302), 'spine_thoracic': (-11.529, -10.0, 10.841),
+        'neck': (25.978, -1.174, -7.932), 'head': (10.312, -0.169),
+        'right_clavicle': (16.564, 9.432), 'right_shoulder': (57.043, 7.49, 20.67),
+        'right_elbow': (26.588, 29.081), 'right_wrist': (3.165, -26.46),
     })
     human.KeyJoints(34.7, {
-        'spine_lumbar': (-3.5601, -20.0, 10.2989), 'spine_thoracic': (-12.1866, -10.0, 12.7724),
-        'neck': (27.7936, -1.0108, -7.9107), 'head': (12.17, -0.1692),
-        'right_clavicle': (20.5889, 11.3847), 'right_shoulder': (55.9029, 5.0745, 21.9561),
-        'right_elbow': (19.5344, 31.0387), 'right_wrist': (4.4817, -24.5737),
+        'spine_lumbar': (-3.56, -20.0, 10.299), 'spine_thoracic': (-12.187, -10.0, 12.772),
+        'neck': (27.794, -1.011, -7.911), 'head': (12.17, -0.169),
+        'right_clavicle': (20.589, 11.385), 'right_shoulder': (55.903, 5.075, 21.956),
+        'right_elbow': (19.534, 31.039), 'right_wrist': (4.482, -24.574),
     })
     human.KeyJoints(34.8, {
-        'spine_lumbar': (1.9298, -18.2373, 8.6792), 'spine_thoracic': (-9.0976, -9.2934, 9.0385),
-        'neck': (25.2273, -0.868, -4.9968), 'head': (9.0876, -0.1331),
-        'right_clavicle': (7.2739, 8.0852), 'right_shoulder': (54.9259, 2.5162, 15.2871),
-        'right_elbow': (31.0215, 22.3254), 'right_wrist': (0.6024, -23.2452),
+        'spine_lumbar': (1.93, -18.237, 8.679), 'spine_thoracic': (-9.098, -9.293, 9.038),
+        'neck': (25.227, -0.868, -4.997), 'head': (9.088, -0.133), 'right_clavicle': (7.274, 8.085),
+        'right_shoulder': (54.926, 2.516, 15.287), 'right_elbow': (31.022, 22.325),
+        'right_wrist': (0.602, -23.245),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.9, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(35.0, {
-        'spine_lumbar': (5.4751, -17.6756, 9.5079), 'spine_thoracic': (-10.4338, -8.1667, 9.4826),
-        'neck': (24.9704, -1.1575, -6.9339), 'head': (8.9162, -0.1413),
-        'right_clavicle': (6.7458, 7.8987), 'right_shoulder': (55.4238, 4.9719, 13.2328),
-        'right_elbow': (31.1089, 21.3269), 'right_wrist': (-0.1567, -21.9018),
+        'spine_lumbar': (5.475, -17.676, 9.508), 'spine_thoracic': (-10.434, -8.167, 9.483),
+        'neck': (24.97, -1.158, -6.934), 'head': (8.916, -0.141), 'right_clavicle': (6.746, 7.899),
+        'right_shoulder': (55.424, 4.972, 13.233), 'right_elbow': (31.109, 21.327),
+        'right_wrist': (-0.157, -21.902),
     })
     human.KeyJoints(35.1, {
-        'spine_lumbar': (3.3676, -19.1783, 9.0843), 'spine_thoracic': (-10.8231, -10.0, 10.0821),
-        'neck': (25.505, -1.121, -7.1246), 'head': (9.6534, -0.155),
-        'right_clavicle': (13.3433, 8.7353), 'right_shoulder': (56.9623, 6.4753, 18.5542),
-        'right_elbow': (28.4346, 26.6962), 'right_wrist': (2.1408, -25.9157),
+        'spine_lumbar': (3.368, -19.178, 9.084), 'spine_thoracic': (-10.823, -10.0, 10.082),
+        'neck': (25.505, -1.121, -7.125), 'head': (9.653, -0.155),
+        'right_clavicle': (13.343, 8.735), 'right_shoulder': (56.962, 6.475, 18.554),
+        'right_elbow': (28.435, 26.696), 'right_wrist': (2.141, -25.916),
     })
     human.KeyJoints(35.2, {
-        'spine_lumbar': (-0.0498, -20.0, 10.2509), 'spine_thoracic': (-12.7036, -10.0, 12.8264),
-        'neck': (27.2366, -1.2491, -9.2894), 'head': (11.6162, -0.1726),
-        'right_clavicle': (21.3603, 11.2626), 'right_shoulder': (57.5839, 7.6112, 21.5349),
-        'right_elbow': (19.0775, 31.3321), 'right_wrist': (4.3411, -24.1896),
+        'spine_lumbar': (-0.05, -20.0, 10.251), 'spine_thoracic': (-12.704, -10.0, 12.826),
+        'neck': (27.237, -1.249, -9.289), 'head': (11.616, -0.173),
+        'right_clavicle': (21.36, 11.263), 'right_shoulder': (57.584, 7.611, 21.535),
+        'right_elbow': (19.077, 31.332), 'right_wrist': (4.341, -24.19),
     })
     human.KeyJoints(35.3, {
-        'spine_lumbar': (-1.334, -19.5544, 8.9059), 'spine_thoracic': (-9.9237, -10.0, 9.814),
-        'neck': (26.2915, -0.8286, -5.4162), 'head': (10.5474, -0.1595),
-        'right_clavicle': (12.6608, 8.8868), 'right_shoulder': (54.7973, 2.8126, 18.6224),
-        'right_elbow': (27.2364, 26.1575), 'right_wrist': (2.3422, -24.2634),
+        'spine_lumbar': (-1.334, -19.554, 8.906), 'spine_thoracic': (-9.924, -10.0, 9.814),
+        'neck': (26.291, -0.829, -5.416), 'head': (10.547, -0.159),
+        'right_clavicle': (12.661, 8.887), 'right_shoulder': (54.797, 2.813, 18.622),
+        'right_elbow': (27.236, 26.158), 'right_wrist': (2.342, -24.263),
     })
     human.KeyJoints(35.4, {
-        'spine_lumbar': (7.8771, -13.6088, 9.8251), 'spine_thoracic': (-8.8352, -4.5067, 9.3897),
-        'neck': (24.1033, -1.0557, -5.3245), 'head': (7.561, -0.1075),
-        'right_clavicle': (3.1453, 8.0108), 'right_shoulder': (56.9113, 3.0022, 11.4151),
-        'right_elbow': (32.7432, 18.889), 'right_wrist': (-0.9546, -19.4088),
+        'spine_lumbar': (7.877, -13.609, 9.825), 'spine_thoracic': (-8.835, -4.507, 9.39),
+        'neck': (24.103, -1.056, -5.325), 'head': (7.561, -0.107), 'right_clavicle': (3.145, 8.011),
+        'right_shoulder': (56.911, 3.002, 11.415), 'right_elbow': (32.743, 18.889),
+        'right_wrist': (-0.955, -19.409),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.5, {
-        'spine_lumbar': (6.6623, -15.5613, 9.628), 'spine_thoracic': (-9.6646, -6.2046, 9.3911),
-        'neck': (24.6469, -1.1102, -6.2023), 'head': (8.2984, -0.1205),
-        'right_clavicle': (4.8021, 7.933), 'right_shoulder': (56.1723, 3.9421, 12.1637),
-        'right_elbow': (31.8856, 19.9655), 'right_wrist': (-0.609, -20.738),
+        'spine_lumbar': (6.662, -15.561, 9.628), 'spine_thoracic': (-9.665, -6.205, 9.391),
+        'neck': (24.647, -1.11, -6.202), 'head': (8.298, -0.12), 'right_clavicle': (4.802, 7.933),
+        'right_shoulder': (56.172, 3.942, 12.164), 'right_elbow': (31.886, 19.965),
+        'right_wrist': (-0.609, -20.738),
     })
     human.KeyJoints(35.6, {
-        'spine_lumbar': (4.3593, -19.3179, 8.7527), 'spine_thoracic': (-10.0225, -10.0, 9.2292),
-        'neck': (24.9954, -1.126, -6.7109), 'head': (8.9131, -0.1392),
-        'right_clavicle': (9.9457, 7.9425), 'right_shoulder': (56.8877, 5.3891, 16.1636),
-        'right_elbow': (29.8619, 24.1127), 'right_wrist': (1.0019, -23.8572),
+        'spine_lumbar': (4.359, -19.318, 8.753), 'spine_thoracic': (-10.022, -10.0, 9.229),
+        'neck': (24.995, -1.126, -6.711), 'head': (8.913, -0.139), 'right_clavicle': (9.946, 7.943),
+        'right_shoulder': (56.888, 5.389, 16.164), 'right_elbow': (29.862, 24.113),
+        'right_wrist': (1.002, -23.857),
     })
     human.KeyJoints(35.7, {
-        'spine_lumbar': (1.7019, -19.7272, 9.6823), 'spine_thoracic': (-11.9765, -10.0, 11.608),
-        'neck': (26.3796, -1.2069, -8.4487), 'head': (10.7373, -0.1703),
-        'right_clavicle': (18.2686, 10.107), 'right_shoulder': (57.3319, 7.506, 20.6762),
-        'right_elbow': (23.5534, 29.7515), 'right_wrist': (3.5038, -25.6129),
+        'spine_lumbar': (1.702, -19.727, 9.682), 'spine_thoracic': (-11.977, -10.0, 11.608),
+        'neck': (26.38, -1.207, -8.449), 'head': (10.737, -0.17),
+        'right_clavicle': (18.269, 10.107), 'right_shoulder': (57.332, 7.506, 20.676),
+        'right_elbow': (23.553, 29.751), 'right_wrist': (3.504, -25.613),
     })
     human.KeyJoints(35.8, {
-        'spine_lumbar': (-3.391, -19.9703, 10.1627), 'spine_thoracic': (-11.8278, -10.0, 12.4649),
-        'neck': (27.6004, -0.9563, -7.3639), 'head': (11.9772, -0.1681),
-        'right_clavicle': (19.6432, 11.1427), 'right_shoulder': (55.5896, 4.4769, 21.6799),
-        'right_elbow': (20.3968, 30.5202), 'right_wrist': (4.2972, -24.5534),
+        'spine_lumbar': (-3.391, -19.97, 10.163), 'spine_thoracic': (-11.828, -10.0, 12.465),
+        'neck': (27.6, -0.956, -7.364), 'head': (11.977, -0.168),
+        'right_clavicle': (19.643, 11.143), 'right_shoulder': (55.59, 4.477, 21.68),
+        'right_elbow': (20.397, 30.52), 'right_wrist': (4.297, -24.553),
     })
     human.KeyJoints(35.9, {
-        'spine_lumbar': (3.6868, -16.9779, 8.9752), 'spine_thoracic': (-8.9984, -8.0571, 9.1292),
-        'neck': (24.967, -0.9645, -5.3826), 'head': (8.6769, -0.1233),
-        'right_clavicle': (5.867, 8.0558), 'right_shoulder': (55.4387, 2.6417, 14.0581),
-        'right_elbow': (31.6491, 21.1848), 'right_wrist': (0.0866, -22.2085),
+        'spine_lumbar': (3.687, -16.978, 8.975), 'spine_thoracic': (-8.998, -8.057, 9.129),
+        'neck': (24.967, -0.964, -5.383), 'head': (8.677, -0.123), 'right_clavicle': (5.867, 8.056),
+        'right_shoulder': (55.439, 2.642, 14.058), 'right_elbow': (31.649, 21.185),
+        'right_wrist': (0.087, -22.208),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.0, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(36.1, {
-        'spine_lumbar': (5.1415, -18.3647, 9.4928), 'spine_thoracic': (-10.6631, -8.8501, 9.5343),
-        'neck': (25.1056, -1.1792, -7.2309), 'head': (9.1322, -0.1471),
-        'right_clavicle': (7.4072, 7.9005), 'right_shoulder': (55.2324, 5.341, 13.6182),
-        'right_elbow': (30.8922, 21.8), 'right_wrist': (0.006, -22.2026),
+        'spine_lumbar': (5.141, -18.365, 9.493), 'spine_thoracic': (-10.663, -8.85, 9.534),
+        'neck': (25.106, -1.179, -7.231), 'head': (9.132, -0.147), 'right_clavicle': (7.407, 7.9),
+        'right_shoulder': (55.232, 5.341, 13.618), 'right_elbow': (30.892, 21.8),
+        'right_wrist': (0.006, -22.203),
     })
     human.KeyJoints(36.2, {
-        'spine_lumbar': (3.0439, -19.3381, 9.1713), 'spine_thoracic': (-11.0656, -10.0, 10.3437),
-        'neck': (25.655, -1.1322, -7.3523), 'head': (9.8883, -0.1611),
-        'right_clavicle': (14.4379, 8.976), 'right_shoulder': (56.9919, 6.8063, 19.2798),
-        'right_elbow': (27.8597, 27.507), 'right_wrist': (2.501, -26.2891),
+        'spine_lumbar': (3.044, -19.338, 9.171), 'spine_thoracic': (-11.066, -10.0, 10.344),
+        'neck': (25.655, -1.132, -7.352), 'head': (9.888, -0.161),
+        'right_clavicle': (14.438, 8.976), 'right_shoulder': (56.992, 6.806, 19.28),
+        'right_elbow': (27.86, 27.507), 'right_wrist': (2.501, -26.289),
     })
     human.KeyJoints(36.3, {
-        'spine_lumbar': (-1.4907, -20.0, 10.2773), 'spine_thoracic': (-12.5839, -10.0, 12.8156),
-        'neck': (27.4855, -1.1405, -8.6781), 'head': (11.8636, -0.1711),
-        'right_clavicle': (21.1971, 11.3293), 'right_shoulder': (57.0541, 6.8472, 21.7454),
-        'right_elbow': (19.1718, 31.2718), 'right_wrist': (4.4166, -24.3356),
+        'spine_lumbar': (-1.491, -20.0, 10.277), 'spine_thoracic': (-12.584, -10.0, 12.816),
+        'neck': (27.486, -1.141, -8.678), 'head': (11.864, -0.171),
+        'right_clavicle': (21.197, 11.329), 'right_shoulder': (57.054, 6.847, 21.745),
+        'right_elbow': (19.172, 31.272), 'right_wrist': (4.417, -24.336),
     })
     human.KeyJoints(36.4, {
-        'spine_lumbar': (-0.4121, -19.3324, 8.5923), 'spine_thoracic': (-9.4364, -10.0, 9.1585),
-        'neck': (25.8722, -0.7992, -4.8265), 'head': (10.0183, -0.1515),
-        'right_clavicle': (10.3666, 8.3052), 'right_shoulder': (54.6649, 2.5171, 17.4362),
-        'right_elbow': (29.2334, 24.6317), 'right_wrist': (1.6442, -24.1063),
+        'spine_lumbar': (-0.412, -19.332, 8.592), 'spine_thoracic': (-9.436, -10.0, 9.159),
+        'neck': (25.872, -0.799, -4.826), 'head': (10.018, -0.152),
+        'right_clavicle': (10.367, 8.305), 'right_shoulder': (54.665, 2.517, 17.436),
+        'right_elbow': (29.233, 24.632), 'right_wrist': (1.644, -24.106),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.5, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(36.6, {
-        'spine_lumbar': (6.249, -16.2554, 9.5568), 'spine_thoracic': (-9.8919, -6.8589, 9.3945),
-        'neck': (24.7459, -1.1224, -6.4098), 'head': (8.4898, -0.1266),
-        'right_clavicle': (5.4392, 7.9135), 'right_shoulder': (55.9798, 4.2501, 12.5246),
-        'right_elbow': (31.6018, 20.4164), 'right_wrist': (-0.4575, -21.1801),
+        'spine_lumbar': (6.249, -16.255, 9.557), 'spine_thoracic': (-9.892, -6.859, 9.394),
+        'neck': (24.746, -1.122, -6.41), 'head': (8.49, -0.127), 'right_clavicle': (5.439, 7.913),
+        'right_shoulder': (55.98, 4.25, 12.525), 'right_elbow': (31.602, 20.416),
+        'right_wrist': (-0.458, -21.18),
     })
     human.KeyJoints(36.7, {
-        'spine_lumbar': (4.0089, -19.2594, 8.8635), 'spine_thoracic': (-10.3069, -10.0, 9.5217),
-        'neck': (25.1802, -1.1206, -6.8301), 'head': (9.1775, -0.1446),
-        'right_clavicle': (11.0764, 8.2141), 'right_shoulder': (56.906, 5.7777, 16.9414),
-        'right_elbow': (29.3687, 24.9686), 'right_wrist': (1.3631, -24.5923),
+        'spine_lumbar': (4.009, -19.259, 8.864), 'spine_thoracic': (-10.307, -10.0, 9.522),
+        'neck': (25.18, -1.121, -6.83), 'head': (9.177, -0.145), 'right_clavicle': (11.076, 8.214),
+        'right_shoulder': (56.906, 5.778, 16.941), 'right_elbow': (29.369, 24.969),
+        'right_wrist': (1.363, -24.592),
     })
     human.KeyJoints(36.8, {
-        'spine_lumbar': (1.0981, -19.6195, 10.0382), 'spine_thoracic': (-12.407, -10.0, 12.3485),
-        'neck': (26.7505, -1.2469, -9.0092), 'head': (11.1173, -0.1718),
-        'right_clavicle': (19.9576, 10.7553), 'right_shoulder': (57.6101, 7.56, 20.7466),
-        'right_elbow': (20.6651, 30.474), 'right_wrist': (3.858, -24.6647),
+        'spine_lumbar': (1.098, -19.62, 10.038), 'spine_thoracic': (-12.407, -10.0, 12.348),
+        'neck': (26.75, -1.247, -9.009), 'head': (11.117, -0.172),
+        'right_clavicle': (19.958, 10.755), 'right_shoulder': (57.61, 7.56, 20.747),
+        'right_elbow': (20.665, 30.474), 'right_wrist': (3.858, -24.665),
     })
     human.KeyJoints(36.9, {
-        'spine_lumbar': (-2.9118, -19.8819, 9.8102), 'spine_thoracic': (-11.2501, -10.0, 11.7141),
-        'neck': (27.1575, -0.9065, -6.715), 'head': (11.5254, -0.1668),
-        'right_clavicle': (17.7382, 10.5145), 'right_shoulder': (55.2857, 3.8601, 20.9237),
-        'right_elbow': (22.2937, 29.3702), 'right_wrist': (3.7992, -24.4923),
+        'spine_lumbar': (-2.912, -19.882, 9.81), 'spine_thoracic': (-11.25, -10.0, 11.714),
+        'neck': (27.157, -0.907, -6.715), 'head': (11.525, -0.167),
+        'right_clavicle': (17.738, 10.514), 'right_shoulder': (55.286, 3.86, 20.924),
+        'right_elbow': (22.294, 29.37), 'right_wrist': (3.799, -24.492),
     })
     human.KeyJoints(37.0, {
-        'spine_lumbar': (5.4817, -15.5799, 9.3215), 'spine_thoracic': (-8.9194, -6.6106, 9.2353),
-        'neck': (24.6913, -1.012, -5.4633), 'head': (8.2913, -0.1167),
-        'right_clavicle': (4.6228, 8.0334), 'right_shoulder': (56.0387, 2.7886, 12.8904),
-        'right_elbow': (32.1675, 20.1489), 'right_wrist': (-0.3828, -21.0496),
+        'spine_lumbar': (5.482, -15.58, 9.321), 'spine_thoracic': (-8.919, -6.611, 9.235),
+        'neck': (24.691, -1.012, -5.463), 'head': (8.291, -0.117), 'right_clavicle': (4.623, 8.033),
+        'right_shoulder': (56.039, 2.789, 12.89), 'right_elbow': (32.167, 20.149),
+        'right_wrist': (-0.383, -21.05),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.1, {
-        'spine_lumbar': (7.6943, -13.9529, 9.8132), 'spine_thoracic': (-9.0509, -4.7656, 9.4026),
-        'neck': (24.2118, -1.0705, -5.5294), 'head': (7.7075, -0.11),
-        'right_clavicle': (3.4241, 7.9959), 'right_shoulder': (56.7224, 3.2261, 11.4833),
-        'right_elbow': (32.5838, 19.0438), 'right_wrist': (-0.9129, -19.6228),
+        'spine_lumbar': (7.694, -13.953, 9.813), 'spine_thoracic': (-9.051, -4.766, 9.403),
+        'neck': (24.212, -1.071, -5.529), 'head': (7.708, -0.11), 'right_clavicle': (3.424, 7.996),
+        'right_shoulder': (56.722, 3.226, 11.483), 'right_elbow': (32.584, 19.044),
+        'right_wrist': (-0.913, -19.623),
     })
     human.KeyJoints(37.2, {
-        'spine_lumbar': (4.8514, -18.9838, 9.4361), 'spine_thoracic': (-10.8187, -9.5358, 9.5676),
-        'neck': (25.2025, -1.1953, -7.449), 'head': (9.2904, -0.1515),
-        'right_clavicle': (8.0938, 7.9132), 'right_shoulder': (55.1444, 5.6532, 14.09),
-        'right_elbow': (30.6735, 22.3241), 'right_wrist': (0.2006, -22.5044),
+        'spine_lumbar': (4.851, -18.984, 9.436), 'spine_thoracic': (-10.819, -9.536, 9.568),
+        'neck': (25.202, -1.195, -7.449), 'head': (9.29, -0.152), 'right_clavicle': (8.094, 7.913),
+        'right_shoulder': (55.144, 5.653, 14.09), 'right_elbow': (30.674, 22.324),
+        'right_wrist': (0.201, -22.504),
     })
     human.KeyJoints(37.3, {
-        'spine_lumbar': (2.7354, -19.6422, 9.2377), 'spine_thoracic': (-11.2923, -10.0, 10.5827),
-        'neck': (25.8049, -1.1495, -7.6147), 'head': (10.0999, -0.1655),
-        'right_clavicle': (15.4804, 9.1957), 'right_shoulder': (57.0165, 7.1701, 20.037),
-        'right_elbow': (27.2825, 28.3006), 'right_wrist': (2.8383, -26.4195),
+        'spine_lumbar': (2.735, -19.642, 9.238), 'spine_thoracic': (-11.292, -10.0, 10.583),
+        'neck': (25.805, -1.15, -7.615), 'head': (10.1, -0.166), 'right_clavicle': (15.48, 9.196),
+        'right_shoulder': (57.016, 7.17, 20.037), 'right_elbow': (27.283, 28.301),
+        'right_wrist': (2.838, -26.419),
     })
     human.KeyJoints(37.4, {
-        'spine_lumbar': (-2.8916, -20.0, 10.2932), 'spine_thoracic': (-12.4028, -10.0, 12.7974),
-        'neck': (27.6808, -1.0709, -8.2948), 'head': (12.0579, -0.1702),
-        'right_clavicle': (20.9336, 11.3701), 'right_shoulder': (56.4054, 5.8835, 21.8956),
-        'right_elbow': (19.3269, 31.1722), 'right_wrist': (4.4643, -24.4944),
+        'spine_lumbar': (-2.892, -20.0, 10.293), 'spine_thoracic': (-12.403, -10.0, 12.797),
+        'neck': (27.681, -1.071, -8.295), 'head': (12.058, -0.17),
+        'right_clavicle': (20.934, 11.37), 'right_shoulder': (56.405, 5.883, 21.896),
+        'right_elbow': (19.327, 31.172), 'right_wrist': (4.464, -24.494),
     })
     human.KeyJoints(37.5, {
-        'spine_lumbar': (0.5216, -19.054, 8.5179), 'spine_thoracic': (-9.2159, -9.9671, 8.989),
-        'neck': (25.5188, -0.7951, -4.6742), 'head': (9.5361, -0.1432),
-        'right_clavicle': (8.7356, 8.1219), 'right_shoulder': (54.6465, 2.4478, 16.4238),
-        'right_elbow': (30.3064, 23.4632), 'right_wrist': (1.1154, -23.9037),
+        'spine_lumbar': (0.522, -19.054, 8.518), 'spine_thoracic': (-9.216, -9.967, 8.989),
+        'neck': (25.519, -0.795, -4.674), 'head': (9.536, -0.143), 'right_clavicle': (8.736, 8.122),
+        'right_shoulder': (54.646, 2.448, 16.424), 'right_elbow': (30.306, 23.463),
+        'right_wrist': (1.115, -23.904),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.6, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(37.7, {
-        'spine_lumbar': (5.8568, -16.954, 9.5153), 'spine_thoracic': (-10.1441, -7.5099, 9.4238),
-        'neck': (24.8221, -1.1344, -6.6078), 'head': (8.6694, -0.1344),
-        'right_clavicle': (6.0841, 7.9025), 'right_shoulder': (55.7417, 4.5898, 12.8808),
-        'right_elbow': (31.3423, 20.8694), 'right_wrist': (-0.307, -21.5691),
+        'spine_lumbar': (5.857, -16.954, 9.515), 'spine_thoracic': (-10.144, -7.51, 9.424),
+        'neck': (24.822, -1.134, -6.608), 'head': (8.669, -0.134), 'right_clavicle': (6.084, 7.903),
+        'right_shoulder': (55.742, 4.59, 12.881), 'right_elbow': (31.342, 20.869),
+        'right_wrist': (-0.307, -21.569),
     })
     human.KeyJoints(37.8, {
-        'spine_lumbar': (3.6846, -19.2061, 8.9763), 'spine_thoracic': (-10.5709, -10.0, 9.8048),
-        'neck': (25.3476, -1.1203, -6.9619), 'head': (9.4202, -0.1498),
-        'right_clavicle': (12.2055, 8.4776), 'right_shoulder': (56.9314, 6.1347, 17.7454),
-        'right_elbow': (28.9104, 25.8305), 'right_wrist': (1.7465, -25.3129),
+        'spine_lumbar': (3.685, -19.206, 8.976), 'spine_thoracic': (-10.571, -10.0, 9.805),
+        'neck': (25.348, -1.12, -6.962), 'head': (9.42, -0.15), 'right_clavicle': (12.206, 8.478),
+        'right_shoulder': (56.931, 6.135, 17.745), 'right_elbow': (28.91, 25.831),
+        'right_wrist': (1.747, -25.313),
     })
     human.KeyJoints(37.9, {
-        'spine_lumbar': (0.7649, -19.9721, 10.2071), 'spine_thoracic': (-12.7171, -10.0, 12.8031),
-        'neck': (26.9753, -1.2917, -9.5116), 'head': (11.352, -0.1731),
-        'right_clavicle': (21.3199, 11.153), 'right_shoulder': (57.734, 7.8144, 21.2637),
-        'right_elbow': (19.1386, 31.2947), 'right_wrist': (4.2228, -24.1717),
+        'spine_lumbar': (0.765, -19.972, 10.207), 'spine_thoracic': (-12.717, -10.0, 12.803),
+        'neck': (26.975, -1.292, -9.512), 'head': (11.352, -0.173),
+        'right_clavicle': (21.32, 11.153), 'right_shoulder': (57.734, 7.814, 21.264),
+        'right_elbow': (19.139, 31.295), 'right_wrist': (4.223, -24.172),
     })
     human.KeyJoints(38.0, {
-        'spine_lumbar': (-2.2042, -19.7421, 9.3554), 'spine_thoracic': (-10.5774, -10.0, 10.7562),
-        'neck': (26.7145, -0.8663, -6.1015), 'head': (11.0478, -0.1648),
-        'right_clavicle': (15.2869, 9.6998), 'right_shoulder': (55.0146, 3.2867, 19.8554),
-        'right_elbow': (24.7268, 27.841), 'right_wrist': (3.1106, -24.3951),
+        'spine_lumbar': (-2.204, -19.742, 9.355), 'spine_thoracic': (-10.577, -10.0, 10.756),
+        'neck': (26.714, -0.866, -6.101), 'head': (11.048, -0.165), 'right_clavicle': (15.287, 9.7),
+        'right_shoulder': (55.015, 3.287, 19.855), 'right_elbow': (24.727, 27.841),
+        'right_wrist': (3.111, -24.395),
     })
     human.KeyJoints(38.1, {
-        'spine_lumbar': (6.9857, -14.3551, 9.6327), 'spine_thoracic': (-8.864, -5.3106, 9.3307),
-        'neck': (24.3539, -1.0393, -5.3951), 'head': (7.8659, -0.1111),
-        'right_clavicle': (3.6731, 8.0183), 'right_shoulder': (56.5779, 2.9206, 11.9541),
-        'right_elbow': (32.5429, 19.3432), 'right_wrist': (-0.7484, -20.0308),
+        'spine_lumbar': (6.986, -14.355, 9.633), 'spine_thoracic': (-8.864, -5.311, 9.331),
+        'neck': (24.354, -1.039, -5.395), 'head': (7.866, -0.111), 'right_clavicle': (3.673, 8.018),
+        'right_shoulder': (56.578, 2.921, 11.954), 'right_elbow': (32.543, 19.343),
+        'right_wrist': (-0.748, -20.031),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.2, {
-        'spine_lumbar': (7.1062, -14.8577, 9.7293), 'spine_thoracic': (-9.4526, -5.5371, 9.4088),
-        'neck': (24.4787, -1.0952, -5.9433), 'head': (8.0669, -0.1161),
-        'right_clavicle': (4.1625, 7.964), 'right_shoulder': (56.3344, 3.6552, 11.7981),
-        'right_elbow': (32.1984, 19.5126), 'right_wrist': (-0.7626, -20.2339),
+        'spine_lumbar': (7.106, -14.858, 9.729), 'spine_thoracic': (-9.453, -5.537, 9.409),
+        'neck': (24.479, -1.095, -5.943), 'head': (8.067, -0.116), 'right_clavicle': (4.163, 7.964),
+        'right_shoulder': (56.334, 3.655, 11.798), 'right_elbow': (32.198, 19.513),
+        'right_wrist': (-0.763, -20.234),
     })
     human.KeyJoints(38.3, {
-        'spine_lumbar': (4.6174, -19.2438, 9.0381), 'spine_thoracic': (-10.3777, -9.8864, 9.3732),
-        'neck': (25.0841, -1.1611, -7.0471), 'head': (9.0775, -0.1447),
-        'right_clavicle': (8.9404, 7.9176), 'right_shoulder': (56.0747, 5.4988, 15.0623),
-        'right_elbow': (30.3182, 23.1531), 'right_wrist': (0.5663, -23.0952),
+        'spine_lumbar': (4.617, -19.244, 9.038), 'spine_thoracic': (-10.378, -9.886, 9.373),
+        'neck': (25.084, -1.161, -7.047), 'head': (9.077, -0.145), 'right_clavicle': (8.94, 7.918),
+        'right_shoulder': (56.075, 5.499, 15.062), 'right_elbow': (30.318, 23.153),
+        'right_wrist': (0.566, -23.095),
     })
     human.KeyJoints(38.4, {
-        'spine_lumbar': (2.4117, -19.9968, 9.3004), 'spine_thoracic': (-11.5243, -10.0, 10.8351),
-        'neck': (25.9741, -1.1737, -7.9262), 'head': (10.308, -0.1685),
-        'right_clavicle': (16.5425, 9.4266), 'right_shoulder': (57.0419, 7.4887, 20.6675),
-        'right_elbow': (26.6052, 29.0685), 'right_wrist': (3.1596, -26.4597),
+        'spine_lumbar': (2.412, -19.997, 9.3), 'spine_thoracic': (-11.524, -10.0, 10.835),
+        'neck': (25.974, -1.174, -7.926), 'head': (10.308, -0.169),
+        'right_clavicle': (16.542, 9.427), 'right_shoulder': (57.042, 7.489, 20.668),
+        'right_elbow': (26.605, 29.069), 'right_wrist': (3.16, -26.46),
     })
     human.KeyJoints(38.5, {
-        'spine_lumbar': (-3.5591, -20.0, 10.2989), 'spine_thoracic': (-12.1902, -10.0, 12.7729),
-        'neck': (27.7935, -1.0118, -7.9182), 'head': (12.1698, -0.1692),
-        'right_clavicle': (20.5951, 11.3847), 'right_shoulder': (55.9084, 5.0845, 21.956),
-        'right_elbow': (19.5306, 31.0411), 'right_wrist': (4.4817, -24.5736),
+        'spine_lumbar': (-3.559, -20.0, 10.299), 'spine_thoracic': (-12.19, -10.0, 12.773),
+        'neck': (27.793, -1.012, -7.918), 'head': (12.17, -0.169),
+        'right_clavicle': (20.595, 11.385), 'right_shoulder': (55.908, 5.084, 21.956),
+        'right_elbow': (19.531, 31.041), 'right_wrist': (4.482, -24.574),
     })
     human.KeyJoints(38.6, {
-        'spine_lumbar': (1.9025, -18.2555, 8.6751), 'spine_thoracic': (-9.0994, -9.3103, 9.0372),
-        'neck': (25.2318, -0.8663, -4.9897), 'head': (9.0948, -0.1333),
-        'right_clavicle': (7.2982, 8.0857), 'right_shoulder': (54.9189, 2.5145, 15.3073),
-        'right_elbow': (31.0102, 22.3448), 'right_wrist': (0.6111, -23.2601),
+        'spine_lumbar': (1.902, -18.255, 8.675), 'spine_thoracic': (-9.099, -9.31, 9.037),
+        'neck': (25.232, -0.866, -4.99), 'head': (9.095, -0.133), 'right_clavicle': (7.298, 8.086),
+        'right_shoulder': (54.919, 2.515, 15.307), 'right_elbow': (31.01, 22.345),
+        'right_wrist': (0.611, -23.26),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.7, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(38.8, {
-        'spine_lumbar': (5.4812, -17.6638, 9.508), 'spine_thoracic': (-10.4291, -8.1558, 9.4814),
-        'neck': (24.9677, -1.1571, -6.9281), 'head': (8.912, -0.1412),
-        'right_clavicle': (6.7347, 7.8988), 'right_shoulder': (55.4289, 4.9655, 13.2268),
-        'right_elbow': (31.1126, 21.3192), 'right_wrist': (-0.1592, -21.8966),
+        'spine_lumbar': (5.481, -17.664, 9.508), 'spine_thoracic': (-10.429, -8.156, 9.481),
+        'neck': (24.968, -1.157, -6.928), 'head': (8.912, -0.141), 'right_clavicle': (6.735, 7.899),
+        'right_shoulder': (55.429, 4.965, 13.227), 'right_elbow': (31.113, 21.319),
+        'right_wrist': (-0.159, -21.897),
     })
     human.KeyJoints(38.9, {
-        'spine_lumbar': (3.373, -19.1777, 9.0828), 'spine_thoracic': (-10.819, -10.0, 10.0776),
-        'neck': (25.5025, -1.121, -7.1214), 'head': (9.6495, -0.1549),
-        'right_clavicle': (13.3247, 8.7312), 'right_shoulder': (56.9618, 6.4697, 18.5416),
-        'right_elbow': (28.4435, 26.6822), 'right_wrist': (2.1346, -25.9085),
+        'spine_lumbar': (3.373, -19.178, 9.083), 'spine_thoracic': (-10.819, -10.0, 10.078),
+        'neck': (25.502, -1.121, -7.121), 'head': (9.649, -0.155),
+        'right_clavicle': (13.325, 8.731), 'right_shoulder': (56.962, 6.47, 18.542),
+        'right_elbow': (28.443, 26.682), 'right_wrist': (2.135, -25.908),
     })
     human.KeyJoints(39.0, {
-        'spine_lumbar': (-0.0292, -20.0, 10.2504), 'spine_thoracic': (-12.7049, -10.0, 12.8265),
-        'neck': (27.232, -1.2508, -9.2989), 'head': (11.6116, -0.1726),
-        'right_clavicle': (21.362, 11.2613), 'right_shoulder': (57.5903, 7.6202, 21.531),
-        'right_elbow': (19.0765, 31.3328), 'right_wrist': (4.3396, -24.1877),
+        'spine_lumbar': (-0.029, -20.0, 10.25), 'spine_thoracic': (-12.705, -10.0, 12.827),
+        'neck': (27.232, -1.251, -9.299), 'head': (11.612, -0.173),
+        'right_clavicle': (21.362, 11.261), 'right_shoulder': (57.59, 7.62, 21.531),
+        'right_elbow': (19.076, 31.333), 'right_wrist': (4.34, -24.188),
     })
     human.KeyJoints(39.1, {
-        'spine_lumbar': (-1.3492, -19.5578, 8.9126), 'spine_thoracic': (-9.9335, -10.0, 9.828),
-        'neck': (26.2987, -0.8292, -5.4278), 'head': (10.5563, -0.1596),
-        'right_clavicle': (12.7031, 8.899), 'right_shoulder': (54.8003, 2.8192, 18.6431),
-        'right_elbow': (27.1974, 26.1851), 'right_wrist': (2.3548, -24.2659),
+        'spine_lumbar': (-1.349, -19.558, 8.913), 'spine_thoracic': (-9.934, -10.0, 9.828),
+        'neck': (26.299, -0.829, -5.428), 'head': (10.556, -0.16),
+        'right_clavicle': (12.703, 8.899), 'right_shoulder': (54.8, 2.819, 18.643),
+        'right_elbow': (27.197, 26.185), 'right_wrist': (2.355, -24.266),
     })
     human.KeyJoints(39.2, {
-        'spine_lumbar': (7.8694, -13.6153, 9.8234), 'spine_thoracic': (-8.8354, -4.5138, 9.3892),
-        'neck': (24.1057, -1.0556, -5.3253), 'head': (7.5638, -0.1075),
-        'right_clavicle': (3.1497, 8.0109), 'right_shoulder': (56.9084, 3.0014, 11.4197),
-        'right_elbow': (32.7416, 18.8928), 'right_wrist': (-0.9529, -19.4142),
+        'spine_lumbar': (7.869, -13.615, 9.823), 'spine_thoracic': (-8.835, -4.514, 9.389),
+        'neck': (24.106, -1.056, -5.325), 'head': (7.564, -0.107), 'right_clavicle': (3.15, 8.011),
+        'right_shoulder': (56.908, 3.001, 11.42), 'right_elbow': (32.742, 18.893),
+        'right_wrist': (-0.953, -19.414),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.3, {
-        'spine_lumbar': (6.6694, -15.5498, 9.6295), 'spine_thoracic': (-9.6612, -6.1935, 9.3914),
-        'neck': (24.6446, -1.11, -6.1984), 'head': (8.2949, -0.1204),
-        'right_clavicle': (4.7914, 7.9335), 'right_shoulder': (56.1749, 3.9374, 12.1574),
-        'right_elbow': (31.8906, 19.9578), 'right_wrist': (-0.6116, -20.73),
+        'spine_lumbar': (6.669, -15.55, 9.63), 'spine_thoracic': (-9.661, -6.194, 9.391),
+        'neck': (24.645, -1.11, -6.198), 'head': (8.295, -0.12), 'right_clavicle': (4.791, 7.933),
+        'right_shoulder': (56.175, 3.937, 12.157), 'right_elbow': (31.891, 19.958),
+        'right_wrist': (-0.612, -20.73),
     })
     human.KeyJoints(39.4, {
-        'spine_lumbar': (4.3646, -19.3184, 8.7518), 'spine_thoracic': (-10.02, -10.0, 9.2267),
-        'neck': (24.9938, -1.1262, -6.7099), 'head': (8.9109, -0.1391),
-        'right_clavicle': (9.9277, 7.9402), 'right_shoulder': (56.8872, 5.3858, 16.1493),
-        'right_elbow': (29.8698, 24.0981), 'right_wrist': (0.9956, -23.8449),
+        'spine_lumbar': (4.365, -19.318, 8.752), 'spine_thoracic': (-10.02, -10.0, 9.227),
+        'neck': (24.994, -1.126, -6.71), 'head': (8.911, -0.139), 'right_clavicle': (9.928, 7.94),
+        'right_shoulder': (56.887, 5.386, 16.149), 'right_elbow': (29.87, 24.098),
+        'right_wrist': (0.996, -23.845),
     })
     human.KeyJoints(39.5, {
-        'spine_lumbar': (1.7159, -19.7339, 9.6735), 'spine_thoracic': (-11.9678, -10.0, 11.5915),
-        'neck': (26.3714, -1.2063, -8.4387), 'head': (10.729, -0.1703),
-        'right_clavicle': (18.2365, 10.0926), 'right_shoulder': (57.3248, 7.5059, 20.6762),
-        'right_elbow': (23.6222, 29.7406), 'right_wrist': (3.4981, -25.6356),
+        'spine_lumbar': (1.716, -19.734, 9.673), 'spine_thoracic': (-11.968, -10.0, 11.592),
+        'neck': (26.371, -1.206, -8.439), 'head': (10.729, -0.17),
+        'right_clavicle': (18.236, 10.093), 'right_shoulder': (57.325, 7.506, 20.676),
+        'right_elbow': (23.622, 29.741), 'right_wrist': (3.498, -25.636),
     })
     human.KeyJoints(39.6, {
-        'spine_lumbar': (-3.3966, -19.9713, 10.1671), 'spine_thoracic': (-11.836, -10.0, 12.4744),
-        'neck': (27.6064, -0.9572, -7.3744), 'head': (11.9833, -0.1681),
-        'right_clavicle': (19.6683, 11.1505), 'right_shoulder': (55.5949, 4.4873, 21.689),
-        'right_elbow': (20.3723, 30.5348), 'right_wrist': (4.3033, -24.5541),
+        'spine_lumbar': (-3.397, -19.971, 10.167), 'spine_thoracic': (-11.836, -10.0, 12.474),
+        'neck': (27.606, -0.957, -7.374), 'head': (11.983, -0.168),
+        'right_clavicle': (19.668, 11.151), 'right_shoulder': (55.595, 4.487, 21.689),
+        'right_elbow': (20.372, 30.535), 'right_wrist': (4.303, -24.554),
     })
     human.KeyJoints(39.7, {
-        'spine_lumbar': (3.6559, -17.0012, 8.9695), 'spine_thoracic': (-8.9999, -8.0806, 9.1275),
-        'neck': (24.9713, -0.9631, -5.3778), 'head': (8.6835, -0.1235),
-        'right_clavicle': (5.8897, 8.0562), 'right_shoulder': (55.4289, 2.6393, 14.0788),
-        'right_elbow': (31.6393, 21.2035), 'right_wrist': (0.095, -22.2277),
+        'spine_lumbar': (3.656, -17.001, 8.97), 'spine_thoracic': (-9.0, -8.081, 9.127),
+        'neck': (24.971, -0.963, -5.378), 'head': (8.684, -0.123), 'right_clavicle': (5.89, 8.056),
+        'right_shoulder': (55.429, 2.639, 14.079), 'right_elbow': (31.639, 21.203),
+        'right_wrist': (0.095, -22.228),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.8, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(39.9, {
-        'spine_lumbar': (5.1467, -18.3525, 9.4934), 'spine_thoracic': (-10.6595, -8.8372, 9.5336),
-        'neck': (25.1034, -1.1789, -7.226), 'head': (9.1286, -0.147),
-        'right_clavicle': (7.3962, 7.9003), 'right_shoulder': (55.2346, 5.3341, 13.6115),
-        'right_elbow': (30.8956, 21.792), 'right_wrist': (0.0032, -22.198),
+        'spine_lumbar': (5.147, -18.353, 9.493), 'spine_thoracic': (-10.66, -8.837, 9.534),
+        'neck': (25.103, -1.179, -7.226), 'head': (9.129, -0.147), 'right_clavicle': (7.396, 7.9),
+        'right_shoulder': (55.235, 5.334, 13.612), 'right_elbow': (30.896, 21.792),
+        'right_wrist': (0.003, -22.198),
     })
     human.KeyJoints(40.0, {
-        'spine_lumbar': (3.0494, -19.3342, 9.17), 'spine_thoracic': (-11.0615, -10.0, 10.3393),
-        'neck': (25.6524, -1.1319, -7.348), 'head': (9.8844, -0.161),
-        'right_clavicle': (14.4196, 8.972), 'right_shoulder': (56.9914, 6.8007, 19.268),
-        'right_elbow': (27.8699, 27.4936), 'right_wrist': (2.4951, -26.2845),
+        'spine_lumbar': (3.049, -19.334, 9.17), 'spine_thoracic': (-11.062, -10.0, 10.339),
+        'neck': (25.652, -1.132, -7.348), 'head': (9.884, -0.161), 'right_clavicle': (14.42, 8.972),
+        'right_shoulder': (56.991, 6.801, 19.268), 'right_elbow': (27.87, 27.494),
+        'right_wrist': (2.495, -26.284),
     })
     human.KeyJoints(40.1, {
-        'spine_lumbar': (-1.4649, -20.0, 10.2769), 'spine_thoracic': (-12.5865, -10.0, 12.8158),
-        'neck': (27.4821, -1.142, -8.6867), 'head': (11.8602, -0.1712),
-        'right_clavicle': (21.2008, 11.3284), 'right_shoulder': (57.0647, 6.8627, 21.7423),
-        'right_elbow': (19.1696, 31.2731), 'right_wrist': (4.4156, -24.3327),
+        'spine_lumbar': (-1.465, -20.0, 10.277), 'spine_thoracic': (-12.587, -10.0, 12.816),
+        'neck': (27.482, -1.142, -8.687), 'head': (11.86, -0.171),
+        'right_clavicle': (21.201, 11.328), 'right_shoulder': (57.065, 6.863, 21.742),
+        'right_elbow': (19.17, 31.273), 'right_wrist': (4.416, -24.333),
     })
     human.KeyJoints(40.2, {
-        'spine_lumbar': (-0.4277, -19.3364, 8.5959), 'spine_thoracic': (-9.4426, -10.0, 9.166),
-        'neck': (25.8789, -0.7995, -4.8337), 'head': (10.027, -0.1516),
-        'right_clavicle': (10.4006, 8.3121), 'right_shoulder': (54.6663, 2.5203, 17.4551),
-        'right_elbow': (29.2064, 24.6549), 'right_wrist': (1.6548, -24.1092),
+        'spine_lumbar': (-0.428, -19.336, 8.596), 'spine_thoracic': (-9.443, -10.0, 9.166),
+        'neck': (25.879, -0.8, -4.834), 'head': (10.027, -0.152), 'right_clavicle': (10.401, 8.312),
+        'right_shoulder': (54.666, 2.52, 17.455), 'right_elbow': (29.206, 24.655),
+        'right_wrist': (1.655, -24.109),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.3, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(40.4, {
-        'spine_lumbar': (6.2558, -16.2436, 9.5578), 'spine_thoracic': (-9.8878, -6.8479, 9.3941),
-        'neck': (24.7448, -1.1222, -6.4068), 'head': (8.4869, -0.1265),
-        'right_clavicle': (5.4285, 7.9138), 'right_shoulder': (55.9835, 4.2446, 12.5186),
-        'right_elbow': (31.6064, 20.4088), 'right_wrist': (-0.46, -21.173),
+        'spine_lumbar': (6.256, -16.244, 9.558), 'spine_thoracic': (-9.888, -6.848, 9.394),
+        'neck': (24.745, -1.122, -6.407), 'head': (8.487, -0.126), 'right_clavicle': (5.428, 7.914),
+        'right_shoulder': (55.983, 4.245, 12.519), 'right_elbow': (31.606, 20.409),
+        'right_wrist': (-0.46, -21.173),
     })
     human.KeyJoints(40.5, {
-        'spine_lumbar': (4.0149, -19.2605, 8.8614), 'spine_thoracic': (-10.3015, -10.0, 9.5161),
-        'neck': (25.1767, -1.1207, -6.8276), 'head': (9.1724, -0.1445),
-        'right_clavicle': (11.057, 8.2089), 'right_shoulder': (56.9057, 5.7703, 16.9286),
-        'right_elbow': (29.377, 24.9543), 'right_wrist': (1.357, -24.5801),
+        'spine_lumbar': (4.015, -19.26, 8.861), 'spine_thoracic': (-10.301, -10.0, 9.516),
+        'neck': (25.177, -1.121, -6.828), 'head': (9.172, -0.144),
+        'right_clavicle': (11.057, 8.209), 'right_shoulder': (56.906, 5.77, 16.929),
+        'right_elbow': (29.377, 24.954), 'right_wrist': (1.357, -24.58),
     })
     human.KeyJoints(40.6, {
-        'spine_lumbar': (1.1042, -19.615, 10.0344), 'spine_thoracic': (-12.4004, -10.0, 12.3386),
-        'neck': (26.7462, -1.2461, -8.9992), 'head': (11.1128, -0.1717),
-        'right_clavicle': (19.9295, 10.7469), 'right_shoulder': (57.6072, 7.5565, 20.7406),
-        'right_elbow': (20.6993, 30.4583), 'right_wrist': (3.8512, -24.6757),
+        'spine_lumbar': (1.104, -19.615, 10.034), 'spine_thoracic': (-12.4, -10.0, 12.339),
+        'neck': (26.746, -1.246, -8.999), 'head': (11.113, -0.172),
+        'right_clavicle': (19.929, 10.747), 'right_shoulder': (57.607, 7.557, 20.741),
+        'right_elbow': (20.699, 30.458), 'right_wrist': (3.851, -24.676),
     })
     human.KeyJoints(40.7, {
-        'spine_lumbar': (-2.922, -19.8839, 9.8173), 'spine_thoracic': (-11.261, -10.0, 11.7291),
-        'neck': (27.1656, -0.9073, -6.726), 'head': (11.5338, -0.1668),
-        'right_clavicle': (17.776, 10.5271), 'right_shoulder': (55.2906, 3.8703, 20.9395),
-        'right_elbow': (22.2559, 29.3934), 'right_wrist': (3.8095, -24.4937),
+        'spine_lumbar': (-2.922, -19.884, 9.817), 'spine_thoracic': (-11.261, -10.0, 11.729),
+        'neck': (27.166, -0.907, -6.726), 'head': (11.534, -0.167),
+        'right_clavicle': (17.776, 10.527), 'right_shoulder': (55.291, 3.87, 20.939),
+        'right_elbow': (22.256, 29.393), 'right_wrist': (3.81, -24.494),
     })
     human.KeyJoints(40.8, {
-        'spine_lumbar': (5.453, -15.6029, 9.3157), 'spine_thoracic': (-8.9205, -6.6347, 9.2336),
-        'neck': (24.6967, -1.0115, -5.464), 'head': (8.2983, -0.1168),
-        'right_clavicle': (4.6417, 8.0337), 'right_shoulder': (56.0286, 2.7861, 12.9086),
-        'right_elbow': (32.1598, 20.1648), 'right_wrist': (-0.3756, -21.0687),
+        'spine_lumbar': (5.453, -15.603, 9.316), 'spine_thoracic': (-8.921, -6.635, 9.234),
+        'neck': (24.697, -1.011, -5.464), 'head': (8.298, -0.117), 'right_clavicle': (4.642, 8.034),
+        'right_shoulder': (56.029, 2.786, 12.909), 'right_elbow': (32.16, 20.165),
+        'right_wrist': (-0.376, -21.069),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.9, {
-        'spine_lumbar': (7.7047, -13.937, 9.8145), 'spine_thoracic': (-9.043, -4.7526, 9.4024),
-        'neck': (24.2067, -1.0701, -5.5216), 'head': (7.7008, -0.1099),
-        'right_clavicle': (3.4116, 7.9964), 'right_shoulder': (56.7305, 3.2183, 11.4785),
-        'right_elbow': (32.5904, 19.0362), 'right_wrist': (-0.9154, -19.6122),
+        'spine_lumbar': (7.705, -13.937, 9.814), 'spine_thoracic': (-9.043, -4.753, 9.402),
+        'neck': (24.207, -1.07, -5.522), 'head': (7.701, -0.11), 'right_clavicle': (3.412, 7.996),
+        'right_shoulder': (56.731, 3.218, 11.478), 'right_elbow': (32.59, 19.036),
+        'right_wrist': (-0.915, -19.612),
     })
     human.KeyJoints(41.0, {
-        'spine_lumbar': (4.8559, -18.9771, 9.4375), 'spine_thoracic': (-10.8178, -9.5277, 9.5674),
-        'neck': (25.2019, -1.1952, -7.4477), 'head': (9.2894, -0.1515),
-        'right_clavicle': (8.0811, 7.9131), 'right_shoulder': (55.1448, 5.6513, 14.0801),
-        'right_elbow': (30.6779, 22.3137), 'right_wrist': (0.1965, -22.498),
+        'spine_lumbar': (4.856, -18.977, 9.437), 'spine_thoracic': (-10.818, -9.528, 9.567),
+        'neck': (25.202, -1.195, -7.448), 'head': (9.289, -0.152), 'right_clavicle': (8.081, 7.913),
+        'right_shoulder': (55.145, 5.651, 14.08), 'right_elbow': (30.678, 22.314),
+        'right_wrist': (0.197, -22.498),
     })
     human.KeyJoints(41.1, {
-        'spine_lumbar': (2.7401, -19.6346, 9.2369), 'spine_thoracic': (-11.2888, -10.0, 10.5793),
-        'neck': (25.8025, -1.1492, -7.6101), 'head': (10.0968, -0.1655),
-        'right_clavicle': (15.4641, 9.1925), 'right_shoulder': (57.0162, 7.1629, 20.0222),
-        'right_elbow': (27.2911, 28.2872), 'right_wrist': (2.8328, -26.4183),
+        'spine_lumbar': (2.74, -19.635, 9.237), 'spine_thoracic': (-11.289, -10.0, 10.579),
+        'neck': (25.803, -1.149, -7.61), 'head': (10.097, -0.165),
+        'right_clavicle': (15.464, 9.192), 'right_shoulder': (57.016, 7.163, 20.022),
+        'right_elbow': (27.291, 28.287), 'right_wrist': (2.833, -26.418),
     })
     human.KeyJoints(41.2, {
-        'spine_lumbar': (-2.8722, -20.0, 10.293), 'spine_thoracic': (-12.4062, -10.0, 12.7978),
-        'neck': (27.6777, -1.072, -8.3006), 'head': (12.0548, -0.1702),
-        'right_clavicle': (20.9387, 11.3696), 'right_shoulder': (56.4158, 5.8994, 21.8937),
-        'right_elbow': (19.3238, 31.1742), 'right_wrist': (4.4637, -24.4922),
+        'spine_lumbar': (-2.872, -20.0, 10.293), 'spine_thoracic': (-12.406, -10.0, 12.798),
+        'neck': (27.678, -1.072, -8.301), 'head': (12.055, -0.17),
+        'right_clavicle': (20.939, 11.37), 'right_shoulder': (56.416, 5.899, 21.894),
+        'right_elbow': (19.324, 31.174), 'right_wrist': (4.464, -24.492),
     })
     human.KeyJoints(41.3, {
-        'spine_lumbar': (0.5034, -19.0617, 8.5169), 'spine_thoracic': (-9.2179, -9.9712, 8.9887),
-        'neck': (25.5241, -0.7946, -4.6719), 'head': (9.5437, -0.1433),
-        'right_clavicle': (8.7593, 8.1226), 'right_shoulder': (54.6448, 2.4474, 16.4407),
-        'right_elbow': (30.2941, 23.4812), 'right_wrist': (1.1234, -23.9097),
+        'spine_lumbar': (0.503, -19.062, 8.517), 'spine_thoracic': (-9.218, -9.971, 8.989),
+        'neck': (25.524, -0.795, -4.672), 'head': (9.544, -0.143), 'right_clavicle': (8.759, 8.123),
+        'right_shoulder': (54.645, 2.447, 16.441), 'right_elbow': (30.294, 23.481),
+        'right_wrist': (1.123, -23.91),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.4, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(41.5, {
-        'spine_lumbar': (5.8632, -16.9422, 9.5155), 'spine_thoracic': (-10.1398, -7.499, 9.4233),
-        'neck': (24.8204, -1.1342, -6.6038), 'head': (8.6659, -0.1343),
-        'right_clavicle': (6.0732, 7.9026), 'right_shoulder': (55.7459, 4.5839, 12.8748),
-        'right_elbow': (31.3464, 20.8617), 'right_wrist': (-0.3095, -21.563),
+        'spine_lumbar': (5.863, -16.942, 9.516), 'spine_thoracic': (-10.14, -7.499, 9.423),
+        'neck': (24.82, -1.134, -6.604), 'head': (8.666, -0.134), 'right_clavicle': (6.073, 7.903),
+        'right_shoulder': (55.746, 4.584, 12.875), 'right_elbow': (31.346, 20.862),
+        'right_wrist': (-0.309, -21.563),
     })
     human.KeyJoints(41.6, {
-        'spine_lumbar': (3.6898, -19.207, 8.9744), 'spine_thoracic': (-10.5667, -10.0, 9.8002),
-        'neck': (25.345, -1.1203, -6.9596), 'head': (9.4163, -0.1497),
-        'right_clavicle': (12.1865, 8.4733), 'right_shoulder': (56.9309, 6.1291, 17.7315),
-        'right_elbow': (28.9178, 25.8159), 'right_wrist': (1.7398, -25.3006),
+        'spine_lumbar': (3.69, -19.207, 8.974), 'spine_thoracic': (-10.567, -10.0, 9.8),
+        'neck': (25.345, -1.12, -6.96), 'head': (9.416, -0.15), 'right_clavicle': (12.187, 8.473),
+        'right_shoulder': (56.931, 6.129, 17.732), 'right_elbow': (28.918, 25.816),
+        'right_wrist': (1.74, -25.301),
     })
     human.KeyJoints(41.7, {
-        'spine_lumbar': (0.7717, -19.9684, 10.2055), 'spine_thoracic': (-12.7146, -10.0, 12.7996),
-        'neck': (26.9715, -1.2913, -9.5075), 'head': (11.3481, -0.1731),
-        'right_clavicle': (21.3088, 11.1491), 'right_shoulder': (57.7331, 7.8118, 21.2562),
-        'right_elbow': (19.1501, 31.2877), 'right_wrist': (4.2188, -24.1755),
+        'spine_lumbar': (0.772, -19.968, 10.206), 'spine_thoracic': (-12.715, -10.0, 12.8),
+        'neck': (26.972, -1.291, -9.507), 'head': (11.348, -0.173),
+        'right_clavicle': (21.309, 11.149), 'right_shoulder': (57.733, 7.812, 21.256),
+        'right_elbow': (19.15, 31.288), 'right_wrist': (4.219, -24.175),
     })
     human.KeyJoints(41.8, {
-        'spine_lumbar': (-2.2176, -19.7448, 9.3633), 'spine_thoracic': (-10.5888, -10.0, 10.7728),
-        'neck': (26.721, -0.8669, -6.1115), 'head': (11.0552, -0.1648),
-        'right_clavicle': (15.3304, 9.714), 'right_shoulder': (55.0188, 3.2956, 19.875),
-        'right_elbow': (24.6842, 27.8685), 'right_wrist': (3.1231, -24.397),
+        'spine_lumbar': (-2.218, -19.745, 9.363), 'spine_thoracic': (-10.589, -10.0, 10.773),
+        'neck': (26.721, -0.867, -6.111), 'head': (11.055, -0.165),
+        'right_clavicle': (15.33, 9.714), 'right_shoulder': (55.019, 3.296, 19.875),
+        'right_elbow': (24.684, 27.869), 'right_wrist': (3.123, -24.397),
     })
     human.KeyJoints(41.9, {
-        'spine_lumbar': (6.9645, -14.3726, 9.6282), 'spine_thoracic': (-8.8647, -5.3293, 9.3294),
-        'neck': (24.3593, -1.0389, -5.3965), 'head': (7.8726, -0.1112),
-        'right_clavicle': (3.6859, 8.0185), 'right_shoulder': (56.5701, 2.9187, 11.967),
-        'right_elbow': (32.538, 19.3541), 'right_wrist': (-0.7434, -20.0454),
+        'spine_lumbar': (6.965, -14.373, 9.628), 'spine_thoracic': (-8.865, -5.329, 9.329),
+        'neck': (24.359, -1.039, -5.397), 'head': (7.873, -0.111), 'right_clavicle': (3.686, 8.019),
+        'right_shoulder': (56.57, 2.919, 11.967), 'right_elbow': (32.538, 19.354),
+        'right_wrist': (-0.743, -20.045),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.0, {
-        'spine_lumbar': (7.1139, -14.8457, 9.7308), 'spine_thoracic': (-9.4484, -5.5262, 9.4089),
-        'neck': (24.4756, -1.095, -5.9386), 'head': (8.0626, -0.116),
-        'right_clavicle': (4.1521, 7.9645), 'right_shoulder': (56.3378, 3.6501, 11.7928),
-        'right_elbow': (32.2037, 19.5055), 'right_wrist': (-0.7649, -20.2255),
+        'spine_lumbar': (7.114, -14.846, 9.731), 'spine_thoracic': (-9.448, -5.526, 9.409),
+        'neck': (24.476, -1.095, -5.939), 'head': (8.063, -0.116), 'right_clavicle': (4.152, 7.965),
+        'right_shoulder': (56.338, 3.65, 11.793), 'right_elbow': (32.204, 19.506),
+        'right_wrist': (-0.765, -20.225),
     })
     human.KeyJoints(42.1, {
-        'spine_lumbar': (4.621, -19.2405, 9.0484), 'spine_thoracic': (-10.3907, -9.8818, 9.3789),
-        'neck': (25.0877, -1.1621, -7.059), 'head': (9.0838, -0.1449),
-        'right_clavicle': (8.9248, 7.9176), 'right_shoulder': (56.0474, 5.5036, 15.0413),
-        'right_elbow': (30.3255, 23.1365), 'right_wrist': (0.5586, -23.0825),
+        'spine_lumbar': (4.621, -19.241, 9.048), 'spine_thoracic': (-10.391, -9.882, 9.379),
+        'neck': (25.088, -1.162, -7.059), 'head': (9.084, -0.145), 'right_clavicle': (8.925, 7.918),
+        'right_shoulder': (56.047, 5.504, 15.041), 'right_elbow': (30.325, 23.137),
+        'right_wrist': (0.559, -23.082),
     })
     human.KeyJoints(42.2, {
-        'spine_lumbar': (2.4187, -19.9954, 9.2988), 'spine_thoracic': (-11.5194, -10.0, 10.8292),
-        'neck': (25.9704, -1.1732, -7.9199), 'head': (10.3036, -0.1685),
-        'right_clavicle': (16.5213, 9.4212), 'right_shoulder': (57.0412, 7.4871, 20.6651),
-        'right_elbow': (26.622, 29.0563), 'right_wrist': (3.1541, -26.4596),
+        'spine_lumbar': (2.419, -19.995, 9.299), 'spine_thoracic': (-11.519, -10.0, 10.829),
+        'neck': (25.97, -1.173, -7.92), 'head': (10.304, -0.168), 'right_clavicle': (16.521, 9.421),
+        'right_shoulder': (57.041, 7.487, 20.665), 'right_elbow': (26.622, 29.056),
+        'right_wrist': (3.154, -26.46),
     })
     human.KeyJoints(42.3, {
-        'spine_lumbar': (-3.5577, -20.0, 10.2988), 'spine_thoracic': (-12.1939, -10.0, 12.7733),
-        'neck': (27.7932, -1.0127, -7.9257), 'head': (12.1696, -0.1692),
-        'right_clavicle': (20.6012, 11.3847), 'right_shoulder': (55.9141, 5.0946, 21.9559),
-        'right_elbow': (19.5268, 31.0435), 'right_wrist': (4.4817, -24.5734),
+        'spine_lumbar': (-3.558, -20.0, 10.299), 'spine_thoracic': (-12.194, -10.0, 12.773),
+        'neck': (27.793, -1.013, -7.926), 'head': (12.17, -0.169),
+        'right_clavicle': (20.601, 11.385), 'right_shoulder': (55.914, 5.095, 21.956),
+        'right_elbow': (19.527, 31.044), 'right_wrist': (4.482, -24.573),
     })
     human.KeyJoints(42.4, {
-        'spine_lumbar': (1.8752, -18.2736, 8.6711), 'spine_thoracic': (-9.1012, -9.3271, 9.036),
-        'neck': (25.2363, -0.8647, -4.9826), 'head': (9.102, -0.1334),
-        'right_clavicle': (7.3226, 8.0863), 'right_shoulder': (54.9119, 2.5128, 15.3275),
-        'right_elbow': (30.9989, 22.3641), 'right_wrist': (0.6199, -23.2749),
+        'spine_lumbar': (1.875, -18.274, 8.671), 'spine_thoracic': (-9.101, -9.327, 9.036),
+        'neck': (25.236, -0.865, -4.983), 'head': (9.102, -0.133), 'right_clavicle': (7.323, 8.086),
+        'right_shoulder': (54.912, 2.513, 15.328), 'right_elbow': (30.999, 22.364),
+        'right_wrist': (0.62, -23.275),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.5, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(42.6, {
-        'spine_lumbar': (5.4873, -17.652, 9.5081), 'spine_thoracic': (-10.4244, -8.1449, 9.4803),
-        'neck': (24.965, -1.1567, -6.9223), 'head': (8.9078, -0.1411),
-        'right_clavicle': (6.7237, 7.8988), 'right_shoulder': (55.434, 4.9591, 13.2209),
-        'right_elbow': (31.1163, 21.3116), 'right_wrist': (-0.1618, -21.8914),
+        'spine_lumbar': (5.487, -17.652, 9.508), 'spine_thoracic': (-10.424, -8.145, 9.48),
+        'neck': (24.965, -1.157, -6.922), 'head': (8.908, -0.141), 'right_clavicle': (6.724, 7.899),
+        'right_shoulder': (55.434, 4.959, 13.221), 'right_elbow': (31.116, 21.312),
+        'right_wrist': (-0.162, -21.891),
     })
     human.KeyJoints(42.7, {
-        'spine_lumbar': (3.3784, -19.1773, 9.0812), 'spine_thoracic': (-10.8149, -10.0, 10.0731),
-        'neck': (25.4999, -1.1209, -7.1182), 'head': (9.6456, -0.1548),
-        'right_clavicle': (13.3061, 8.727), 'right_shoulder': (56.9613, 6.4641, 18.5288),
-        'right_elbow': (28.4523, 26.6683), 'right_wrist': (2.1283, -25.9012),
+        'spine_lumbar': (3.378, -19.177, 9.081), 'spine_thoracic': (-10.815, -10.0, 10.073),
+        'neck': (25.5, -1.121, -7.118), 'head': (9.646, -0.155), 'right_clavicle': (13.306, 8.727),
+        'right_shoulder': (56.961, 6.464, 18.529), 'right_elbow': (28.452, 26.668),
+        'right_wrist': (2.128, -25.901),
     })
     human.KeyJoints(42.8, {
-        'spine_lumbar': (-0.0088, -20.0, 10.2499), 'spine_thoracic': (-12.7062, -10.0, 12.8266),
-        'neck': (27.2274, -1.2525, -9.3083), 'head': (11.6071, -0.1727),
-        'right_clavicle': (21.3637, 11.2599), 'right_shoulder': (57.5965, 7.6291, 21.5271),
-        'right_elbow': (19.0755, 31.3334), 'right_wrist': (4.3381, -24.186),
+        'spine_lumbar': (-0.009, -20.0, 10.25), 'spine_thoracic': (-12.706, -10.0, 12.827),
+        'neck': (27.227, -1.252, -9.308), 'head': (11.607, -0.173),
+        'right_clavicle': (21.364, 11.26), 'right_shoulder': (57.596, 7.629, 21.527),
+        'right_elbow': (19.075, 31.333), 'right_wrist': (4.338, -24.186),
     })
     human.KeyJoints(42.9, {
-        'spine_lumbar': (-1.3643, -19.5613, 8.9193), 'spine_thoracic': (-9.9435, -10.0, 9.8421),
-        'neck': (26.3059, -0.8298, -5.4395), 'head': (10.5651, -0.1597),
-        'right_clavicle': (12.7454, 8.9112), 'right_shoulder': (54.8033, 2.8258, 18.6638),
-        'right_elbow': (27.1582, 26.2126), 'right_wrist': (2.3674, -24.2683),
+        'spine_lumbar': (-1.364, -19.561, 8.919), 'spine_thoracic': (-9.943, -10.0, 9.842),
+        'neck': (26.306, -0.83, -5.44), 'head': (10.565, -0.16), 'right_clavicle': (12.745, 8.911),
+        'right_shoulder': (54.803, 2.826, 18.664), 'right_elbow': (27.158, 26.213),
+        'right_wrist': (2.367, -24.268),
     })
     human.KeyJoints(43.0, {
-        'spine_lumbar': (7.8615, -13.6221, 9.8217), 'spine_thoracic': (-8.8357, -4.5211, 9.3887),
-        'neck': (24.1081, -1.0554, -5.326), 'head': (7.5667, -0.1075),
-        'right_clavicle': (3.1542, 8.0109), 'right_shoulder': (56.9053, 3.0007, 11.4244),
-        'right_elbow': (32.7399, 18.8968), 'right_wrist': (-0.9511, -19.4198),
+        'spine_lumbar': (7.861, -13.622, 9.822), 'spine_thoracic': (-8.836, -4.521, 9.389),
+        'neck': (24.108, -1.055, -5.326), 'head': (7.567, -0.108), 'right_clavicle': (3.154, 8.011),
+        'right_shoulder': (56.905, 3.001, 11.424), 'right_elbow': (32.74, 18.897),
+        'right_wrist': (-0.951, -19.42),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.1, {
-        'spine_lumbar': (6.6765, -15.5383, 9.6311), 'spine_thoracic': (-9.6578, -6.1825, 9.3917),
-        'neck': (24.6422, -1.1098, -6.1945), 'head': (8.2914, -0.1203),
-        'right_clavicle': (4.7808, 7.9339), 'right_shoulder': (56.1774, 3.9327, 12.151),
-        'right_elbow': (31.8956, 19.9501), 'right_wrist': (-0.6142, -20.7219),
+        'spine_lumbar': (6.677, -15.538, 9.631), 'spine_thoracic': (-9.658, -6.182, 9.392),
+        'neck': (24.642, -1.11, -6.194), 'head': (8.291, -0.12), 'right_clavicle': (4.781, 7.934),
+        'right_shoulder': (56.177, 3.933, 12.151), 'right_elbow': (31.896, 19.95),
+        'right_wrist': (-0.614, -20.722),
     })
     human.KeyJoints(43.2, {
-        'spine_lumbar': (4.3699, -19.3189, 8.751), 'spine_thoracic': (-10.0178, -10.0, 9.2244),
-        'neck': (24.9923, -1.1263, -6.709), 'head': (8.9088, -0.1391),
-        'right_clavicle': (9.9098, 7.938), 'right_shoulder': (56.8867, 5.3827, 16.135),
-        'right_elbow': (29.8777, 24.0834), 'right_wrist': (0.9893, -23.8327),
+        'spine_lumbar': (4.37, -19.319, 8.751), 'spine_thoracic': (-10.018, -10.0, 9.224),
+        'neck': (24.992, -1.126, -6.709), 'head': (8.909, -0.139), 'right_clavicle': (9.91, 7.938),
+        'right_shoulder': (56.887, 5.383, 16.135), 'right_elbow': (29.878, 24.083),
+        'right_wrist': (0.989, -23.833),
     })
     human.KeyJoints(43.3, {
-        'spine_lumbar': (1.7299, -19.7406, 9.6646), 'spine_thoracic': (-11.959, -10.0, 11.5751),
-        'neck': (26.3632, -1.2056, -8.4287), 'head': (10.7206, -0.1703),
-        'right_clavicle': (18.2043, 10.0782), 'right_shoulder': (57.3177, 7.5057, 20.6762),
-        'right_elbow': (23.6912, 29.7297), 'right_wrist': (3.4923, -25.6582),
+        'spine_lumbar': (1.73, -19.741, 9.665), 'spine_thoracic': (-11.959, -10.0, 11.575),
+        'neck': (26.363, -1.206, -8.429), 'head': (10.721, -0.17),
+        'right_clavicle': (18.204, 10.078), 'right_shoulder': (57.318, 7.506, 20.676),
+        'right_elbow': (23.691, 29.73), 'right_wrist': (3.492, -25.658),
     })
     human.KeyJoints(43.4, {
-        'spine_lumbar': (-3.4022, -19.9723, 10.1714), 'spine_thoracic': (-11.8441, -10.0, 12.4838),
-        'neck': (27.6124, -0.9581, -7.3848), 'head': (11.9893, -0.1681),
-        'right_clavicle': (19.693, 11.1583), 'right_shoulder': (55.6001, 4.4976, 21.698),
-        'right_elbow': (20.3482, 30.5493), 'right_wrist': (4.3092, -24.5547),
+        'spine_lumbar': (-3.402, -19.972, 10.171), 'spine_thoracic': (-11.844, -10.0, 12.484),
+        'neck': (27.612, -0.958, -7.385), 'head': (11.989, -0.168),
+        'right_clavicle': (19.693, 11.158), 'right_shoulder': (55.6, 4.498, 21.698),
+        'right_elbow': (20.348, 30.549), 'right_wrist': (4.309, -24.555),
     })
     human.KeyJoints(43.5, {
-        'spine_lumbar': (3.6251, -17.0243, 8.9639), 'spine_thoracic': (-9.0014, -8.1041, 9.1257),
-        'neck': (24.9757, -0.9617, -5.373), 'head': (8.6901, -0.1236),
-        'right_clavicle': (5.9124, 8.0566), 'right_shoulder': (55.4192, 2.637, 14.0995),
-        'right_elbow': (31.6295, 21.2222), 'right_wrist': (0.1035, -22.2469),
+        'spine_lumbar': (3.625, -17.024, 8.964), 'spine_thoracic': (-9.001, -8.104, 9.126),
+        'neck': (24.976, -0.962, -5.373), 'head': (8.69, -0.124), 'right_clavicle': (5.912, 8.057),
+        'right_shoulder': (55.419, 2.637, 14.099), 'right_elbow': (31.63, 21.222),
+        'right_wrist': (0.104, -22.247),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.6, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
-        'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(43.7, {
-        'spine_lumbar': (5.152, -18.3403, 9.4939), 'spine_thoracic': (-10.6559, -8.8243, 9.5328),
-        'neck': (25.1012, -1.1785, -7.2211), 'head': (9.125, -0.1469),
-        'right_clavicle': (7.3852, 7.9001), 'right_shoulder': (55.2368, 5.3273, 13.6048),
-        'right_elbow': (30.899, 21.7841), 'right_wrist': (0.0004, -22.1934),
+        'spine_lumbar': (5.152, -18.34, 9.494), 'spine_thoracic': (-10.656, -8.824, 9.533),
+        'neck': (25.101, -1.179, -7.221), 'head': (9.125, -0.147), 'right_clavicle': (7.385, 7.9),
+        'right_shoulder': (55.237, 5.327, 13.605), 'right_elbow': (30.899, 21.784),
+        'right_wrist': (0.0, -22.193),
     })
     human.KeyJoints(43.8, {
-        'spine_lumbar': (3.0549, -19.3302, 9.1686), 'spine_thoracic': (-11.0575, -10.0, 10.335),
-        'neck': (25.6499, -1.1317, -7.3437), 'head': (9.8805, -0.1609),
-        'right_clavicle': (14.4013, 8.9681), 'right_shoulder': (56.9909, 6.7952, 19.2561),
-        'right_elbow': (27.8802, 27.4801), 'right_wrist': (2.4892, -26.2798),
+        'spine_lumbar': (3.055, -19.33, 9.169), 'spine_thoracic': (-11.058, -10.0, 10.335),
+        'neck': (25.65, -1.132, -7.344), 'head': (9.88, -0.161), 'right_clavicle': (14.401, 8.968),
+        'right_shoulder': (56.991, 6.795, 19.256), 'right_elbow': (27.88, 27.48),
+        'right_wrist': (2.489, -26.28),
     })
     human.KeyJoints(43.9, {
-        'spine_lumbar': (-1.439, -20.0, 10.2765), 'spine_thoracic': (-12.5891, -10.0, 12.8161),
-        'neck': (27.4786, -1.1436, -8.6954), 'head': (11.8567, -0.1712),
-        'right_clavicle': (21.2044, 11.3274), 'right_shoulder': (57.0753, 6.8782, 21.7392),
-        'right_elbow': (19.1675, 31.2745), 'right_wrist': (4.4145, -24.3299),
+        'spine_lumbar': (-1.439, -20.0, 10.277), 'spine_thoracic': (-12.589, -10.0, 12.816),
+        'neck': (27.479, -1.144, -8.695), 'head': (11.857, -0.171),
+        'right_clavicle': (21.204, 11.327), 'right_shoulder': (57.075, 6.878, 21.739),
+        'right_elbow': (19.168, 31.274), 'right_wrist': (4.415, -24.33),
     })
     human.KeyJoints(44.0, {
-        'spine_lumbar': (-0.4228, -19.3391, 8.5996), 'spine_thoracic': (-9.5044, -10.0, 9.1737),
-        'neck': (25.8901, -0.7995, -4.8402), 'head': (10.0418, -0.1518),
-        'right_clavicle': (10.4667, 8.3392), 'right_shoulder': (54.6677, 2.5871, 17.4945),
-        'right_elbow': (29.2845, 24.7131), 'right_wrist': (1.6727, -24.1047),
+        'spine_lumbar': (-0.423, -19.339, 8.6), 'spine_thoracic': (-9.504, -10.0, 9.174),
+        'neck': (25.89, -0.8, -4.84), 'head': (10.042, -0.152), 'right_clavicle': (10.467, 8.339),
+        'right_shoulder': (54.668, 2.587, 17.495), 'right_elbow': (29.285, 24.713),
+        'right_wrist': (1.673, -24.105),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.092466, duration=0.072)
     human.KeyJoints(44.1, {
-        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
-        'neck': (24.173, -1.0124, -5.0135), 'head': (7.5718, -0.1032),
-        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (57.1974, 2.088, 10.9299),
-        'right_elbow': (31.9977, 18.3404), 'right_wrist': (-1.0805, -21.1506),
+        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
+        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
+        'right_wrist': (-1.08, -21.151),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.164466, duration=0.2628)
-    human.KeyJoints(44.2, {'neck': (24.1001, -1.1897, -6.4174), 'head': (7.5559, -0.1097)})
-    human.KeyJoints(44.3, {'neck': (23.4082, -2.8729, -19.7429)})
+    human.KeyJoints(44.2, {'neck': (24.1, -1.19, -6.417), 'head': (7.556, -0.11)})
+    human.KeyJoints(44.3, {'neck': (23.408, -2.873, -19.743)})
     human.KeyJoints(44.4, {
-        'neck': (22.7561, -4.4591, -32.2995), 'head': (7.2625, -0.2298),
-        'right_shoulder': (57.1974, 2.088, 10.9299), 'right_elbow': (31.9977, 18.3404),
-        'right_wrist': (-1.0805, -21.1506), 'left_shoulder': (8.5944, 5.7296, 11.4592),
-        'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0),
+        'neck': (22.756, -4.459, -32.299), 'head': (7.262, -0.23),
+        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
+        'right_wrist': (-1.08, -21.151), 'left_shoulder': (8.594, 5.73, 11.459),
+        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.427266, duration=0.867635)
     human.KeyJoints(44.5, {
-        'neck': (22.7122, -4.5659, -33.1451), 'right_shoulder': (56.3701, 2.8672, 10.475),
-        'right_elbow': (33.8103, 18.5408), 'right_wrist': (-1.5428, -21.066),
-        'left_shoulder': (10.6814, 4.7563, 11.5629), 'left_elbow': (33.9559, 17.2166),
-        'left_wrist': (0.0421, -0.1772),
+        'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.37, 2.867, 10.475),
+        'right_elbow': (33.81, 18.541), 'right_wrist': (-1.543, -21.066),
+        'left_shoulder': (10.681, 4.756, 11.563), 'left_elbow': (33.956, 17.217),
+        'left_wrist': (0.042, -0.177),
     })
     human.KeyJoints(44.6, {
-        'right_shoulder': (53.0133, 6.0798, 8.5836), 'right_elbow': (41.165, 19.354),
-        'right_wrist': (-3.4226, -20.7229), 'left_shoulder': (19.209, 0.7433, 11.9917),
-        'left_elbow': (32.2454, 17.3298), 'left_wrist': (0.2164, -0.8963),
+        'right_shoulder': (53.013, 6.08, 8.584), 'right_elbow': (41.165, 19.354),
+        'right_wrist': (-3.423, -20.723), 'left_shoulder': (19.209, 0.743, 11.992),
+        'left_elbow': (32.245, 17.33), 'left_wrist': (0.216, -0.896),
     })
     human.KeyJoints(44.7, {
-        'right_shoulder': (47.9676, 11.0356, 5.6274), 'right_elbow': (52.22, 20.5764),
-        'right_wrist': (-6.258, -20.2072), 'left_shoulder': (32.1738, -5.447, 12.6554),
-        'left_elbow': (29.6743, 17.4999), 'left_wrist': (0.4867, -1.9772),
+        'right_shoulder': (47.968, 11.036, 5.627), 'right_elbow': (52.22, 20.576),
+        'right_wrist': (-6.258, -20.207), 'left_shoulder': (32.174, -5.447, 12.655),
+        'left_elbow': (29.674, 17.5), 'left_wrist': (0.487, -1.977),
     })
     human.KeyJoints(44.8, {
-        'right_shoulder': (42.2019, 16.9247, 2.0473), 'right_elbow': (64.8526, 21.9733),
-        'right_wrist': (-9.5157, -19.6178), 'left_shoulder': (47.2502, -12.8031, 13.4481),
-        'left_elbow': (26.7362, 17.6942),
+        'right_shoulder': (42.202, 16.925, 2.047), 'right_elbow': (64.853, 21.973),
+        'right_wrist': (-9.516, -19.618), 'left_shoulder': (47.25, -12.803, 13.448),
+        'left_elbow': (26.736, 17.694),
     })
     human.KeyJoints(44.9, {
-        'right_shoulder': (36.6849, 22.9373, -1.7156), 'right_elbow': (76.9401, 23.3099),
-        'right_wrist': (-12.6621, -19.0539), 'left_shoulder': (62.1128, -20.3133, 14.2637),
-        'left_elbow': (23.9249, 17.8802), 'left_wrist': (1.1446, -4.3941),
+        'right_shoulder': (36.685, 22.937, -1.716), 'right_elbow': (76.94, 23.31),
+        'right_wrist': (-12.662, -19.054), 'left_shoulder': (62.113, -20.313, 14.264),
+        'left_elbow': (23.925, 17.88), 'left_wrist': (1.145, -4.394),
     })
     human.KeyJoints(45.0, {
-        'right_shoulder': (32.3856, 28.2635, -5.2203), 'right_elbow': (86.3598, 24.3515),
-        'right_wrist': (-15.1639, -18.6145), 'left_shoulder': (74.4361, -26.9661, 14.9963),
-        'left_elbow': (21.7341, 18.0251), 'left_wrist': (1.4469, -5.315),
+        'right_shoulder': (32.386, 28.263, -5.22), 'right_elbow': (86.36, 24.351),
+        'right_wrist': (-15.164, -18.614), 'left_shoulder': (74.436, -26.966, 14.996),
+        'left_elbow': (21.734, 18.025), 'left_wrist': (1.447, -5.315),
     })
     human.KeyJoints(45.1, {
-        'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
-        'neck': (22.7122, -4.5659, -33.1451), 'head': (7.2529, -0.2338),
-        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (30.2729, 32.0934, -8.0258),
-        'right_elbow': (90.9888, 24.8633), 'right_wrist': (-16.4875, -18.3985),
-        'left_clavicle': (0.0, 0.0), 'left_shoulder': (81.8945, -31.7498, 15.5399),
-        'left_elbow': (20.6575, 18.0964), 'left_wrist': (1.6746, -5.7676),
+        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
+        'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234), 'right_clavicle': (2.715, 7.9),
+        'right_shoulder': (30.273, 32.093, -8.026), 'right_elbow': (90.989, 24.863),
+        'right_wrist': (-16.488, -18.398), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (81.895, -31.75, 15.54), 'left_elbow': (20.658, 18.096),
+        'left_wrist': (1.675, -5.768),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
     human.KeyJoints(45.2, {
-        'spine_lumbar': (11.7337, -12.3932, 9.1975), 'spine_thoracic': (-10.9157, -5.1857, 8.6988),
-        'neck': (21.9602, -4.9145, -33.2548), 'right_clavicle': (4.6853, 8.682),
-        'right_shoulder': (32.1228, 34.2192, -9.613), 'right_elbow': (89.5507, 24.778),
-        'right_wrist': (-16.4644, -18.6423), 'left_clavicle': (-0.9778, 1.3858),
-        'left_shoulder': (85.1888, -31.8735, 15.378), 'left_elbow': (21.3373, 18.1179),
-        'left_wrist': (1.4577, -5.5833),
+        'spine_lumbar': (11.734, -12.393, 9.197), 'spine_thoracic': (-10.916, -5.186, 8.699),
+        'neck': (21.96, -4.915, -33.255), 'right_clavicle': (4.685, 8.682),
+        'right_shoulder': (32.123, 34.219, -9.613), 'right_elbow': (89.551, 24.778),
+        'right_wrist': (-16.464, -18.642), 'left_clavicle': (-0.978, 1.386),
+        'left_shoulder': (85.189, -31.873, 15.378), 'left_elbow': (21.337, 18.118),
+        'left_wrist': (1.458, -5.583),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=45.294901, duration=0.072)
@@ -2793,331 +2790,317 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=45.294901, duration=0.072)
     human.KeyRoot(45.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(45.3, {
-        'spine_lumbar': (17.0071, -11.4445, 7.5102), 'spine_thoracic': (-14.6839, -6.4027, 6.8752),
-        'neck': (21.299, -4.9839, -31.4706), 'head': (6.1657, -0.4464),
-        'right_clavicle': (6.9972, 9.7296), 'right_shoulder': (34.5012, 35.235, -9.8523),
-        'right_elbow': (90.6915, 24.8972), 'right_wrist': (-16.5326, -18.2955),
-        'left_clavicle': (-2.4881, 4.0), 'left_shoulder': (89.3018, -29.1524, 14.6435),
-        'left_wrist': (0.8948, -5.4732), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
-        'left_ankle': (1.7189, 0.0),
+        'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
+        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_clavicle': (6.997, 9.73),
+        'right_shoulder': (34.501, 35.235, -9.852), 'right_elbow': (90.691, 24.897),
+        'right_wrist': (-16.533, -18.295), 'left_clavicle': (-2.488, 4.0),
+        'left_shoulder': (89.302, -29.152, 14.643), 'left_wrist': (0.895, -5.473),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
     human.Walk((139.2, 0.0, 19.967), start=45.366901, duration=3.7584)
-    human.KeyRoot(45.4, (-0.457, 72.984, 60.131), (1.2476, 0.0, 0.0))
+    human.KeyRoot(45.4, (-0.457, 72.984, 60.131), (1.248, 0.0, 0.0))
     human.KeyJoints(45.4, {
-        'right_shoulder': (33.6987, 35.0039, -9.897), 'right_elbow': (90.5645, 24.887),
-        'left_shoulder': (88.4385, -29.1667, 14.691), 'left_elbow': (21.8923, 18.1666),
-        'right_hip': (2.912, -0.3239, -1.2657), 'right_knee': (5.2205,),
-        'right_ankle': (2.3182, -0.3877), 'left_hip': (8.6558, 0.2004, 1.3075),
-        'left_knee': (16.2701,), 'left_ankle': (5.4686, 0.3951),
+        'right_shoulder': (33.699, 35.004, -9.897), 'right_elbow': (90.564, 24.887),
+        'left_shoulder': (88.438, -29.167, 14.691), 'left_elbow': (21.892, 18.167),
+        'right_hip': (2.912, -0.324, -1.266), 'right_knee': (5.22,), 'right_ankle': (2.318, -0.388),
+        'left_hip': (8.656, 0.2, 1.307), 'left_knee': (16.27,), 'left_ankle': (5.469, 0.395),
     })
     human.KeyRoot(45.5, (-1.844, 72.931, 60.42), (5.017, 0.0, 0.0))
     human.KeyJoints(45.5, {
-        'right_wrist': (-16.5817, -18.3704), 'right_hip': (2.7361, -1.3116, -5.0832),
-        'right_knee': (6.0773,), 'right_ankle': (3.4638, -1.547),
-        'left_hip': (16.3963, 0.2882, 3.7726), 'left_knee': (32.1458,),
-        'left_ankle': (13.7009, 1.6528),
+        'right_wrist': (-16.582, -18.37), 'right_hip': (2.736, -1.312, -5.083),
+        'right_knee': (6.077,), 'right_ankle': (3.464, -1.547), 'left_hip': (16.396, 0.288, 3.773),
+        'left_knee': (32.146,), 'left_ankle': (13.701, 1.653),
     })
     human.KeyRoot(45.6, (-2.364, 72.867, 60.468), (8.787, 0.0, 0.0))
     human.KeyJoints(45.6, {
-        'right_hip': (2.9976, -1.4943, -8.8722), 'right_knee': (7.38,),
-        'right_ankle': (4.6449, -1.9358), 'left_hip': (21.939, 6.2235, -8.7078),
-        'left_knee': (47.5566,), 'left_ankle': (15.1791, 1.926),
+        'right_hip': (2.998, -1.494, -8.872), 'right_knee': (7.38,), 'right_ankle': (4.645, -1.936),
+        'left_hip': (21.939, 6.224, -8.708), 'left_knee': (47.557,), 'left_ankle': (15.179, 1.926),
     })
-    human.KeyRoot(45.7, (-1.908, 72.803, 59.67), (12.2558, 0.0, 0.0))
+    human.KeyRoot(45.7, (-1.908, 72.803, 59.67), (12.256, 0.0, 0.0))
     human.KeyJoints(45.7, {
-        'right_hip': (7.098, 0.0378, -12.3776), 'right_knee': (15.4467,),
-        'right_ankle': (7.168, -1.4818), 'left_hip': (13.0339, 7.9661, -21.4426),
-        'left_knee': (31.8679,), 'left_ankle': (15.708, 1.3795),
+        'right_hip': (7.098, 0.038, -12.378), 'right_knee': (15.447,),
+        'right_ankle': (7.168, -1.482), 'left_hip': (13.034, 7.966, -21.443),
+        'left_knee': (31.868,), 'left_ankle': (15.708, 1.38),
     })
-    human.KeyRoot(45.8, (-0.912, 72.746, 58.493), (15.9969, 0.0, 0.0))
+    human.KeyRoot(45.8, (-0.912, 72.746, 58.493), (15.997, 0.0, 0.0))
     human.KeyJoints(45.8, {
-        'left_shoulder': (88.7455, -29.1548, 14.6728), 'left_elbow': (21.9573, 18.1681),
-        'right_hip': (12.5265, 3.0394, -15.7671), 'right_knee': (25.9793,),
-        'right_ankle': (8.1434, -0.5244), 'left_hip': (5.3277, 1.7511, -19.3446),
-        'left_knee': (10.8698,), 'left_ankle': (5.2589, -0.1173),
+        'left_shoulder': (88.745, -29.155, 14.673), 'left_elbow': (21.957, 18.168),
+        'right_hip': (12.526, 3.039, -15.767), 'right_knee': (25.979,),
+        'right_ankle': (8.143, -0.524), 'left_hip': (5.328, 1.751, -19.345), 'left_knee': (10.87,),
+        'left_ankle': (5.259, -0.117),
     })
-    human.KeyRoot(45.9, (0.21, 72.697, 58.426), (21.6316, 0.0, 0.0))
+    human.KeyRoot(45.9, (0.21, 72.697, 58.426), (21.632, 0.0, 0.0))
     human.KeyJoints(45.9, {
-        'left_shoulder': (88.7431, -29.1362, 14.6696), 'left_elbow': (22.0659, 18.1688),
-        'right_hip': (12.7242, 6.3696, -20.5582), 'right_knee': (29.2394,),
-        'right_ankle': (8.6082, 0.6979), 'left_hip': (6.1466, 0.3497, -13.8263),
-        'left_ankle': (5.4532, -1.1285),
+        'left_shoulder': (88.743, -29.136, 14.67), 'left_elbow': (22.066, 18.169),
+        'right_hip': (12.724, 6.37, -20.558), 'right_knee': (29.239,),
+        'right_ankle': (8.608, 0.698), 'left_hip': (6.147, 0.35, -13.826),
+        'left_ankle': (5.453, -1.129),
     })
     human.KeyRoot(46.0, (1.607, 72.623, 58.761), (29.638, 0.0, 0.0))
     human.KeyJoints(46.0, {
-        'right_hip': (21.118, 9.3541, -17.45), 'right_knee': (49.3719,),
-        'right_ankle': (17.7307, 1.6732), 'left_hip': (6.5879, -1.4361, -5.9796),
-        'left_ankle': (5.7775, -2.104),
+        'right_hip': (21.118, 9.354, -17.45), 'right_knee': (49.372,),
+        'right_ankle': (17.731, 1.673), 'left_hip': (6.588, -1.436, -5.98),
+        'left_ankle': (5.777, -2.104),
     })
     human.KeyRoot(46.1, (2.463, 72.565, 59.412), (37.558, 0.0, 0.0))
     human.KeyJoints(46.1, {
-        'right_shoulder': (34.3547, 35.2021, -9.8714), 'right_elbow': (90.7199, 24.9007),
-        'right_hip': (26.3187, -5.3644, 14.1933), 'right_knee': (52.8471,),
-        'right_ankle': (18.3652, 1.6649), 'left_hip': (6.7338, -2.6464, 1.8387),
-        'left_knee': (12.8897,), 'left_ankle': (6.0571, -2.4112),
+        'right_shoulder': (34.355, 35.202, -9.871), 'right_elbow': (90.72, 24.901),
+        'right_hip': (26.319, -5.364, 14.193), 'right_knee': (52.847,),
+        'right_ankle': (18.365, 1.665), 'left_hip': (6.734, -2.646, 1.839), 'left_knee': (12.89,),
+        'left_ankle': (6.057, -2.411),
     })
-    human.KeyRoot(46.2, (2.971, 72.499, 61.708), (45.0968, 0.0, 0.0))
+    human.KeyRoot(46.2, (2.971, 72.499, 61.708), (45.097, 0.0, 0.0))
     human.KeyJoints(46.2, {
-        'right_shoulder': (34.5012, 35.235, -9.8523), 'left_shoulder': (89.3018, -29.1524, 14.6435),
-        'left_elbow': (21.618, 18.1688), 'right_hip': (13.5577, -5.5158, 25.1861),
-        'right_knee': (28.5663,), 'right_ankle': (13.9119, 0.8205),
-        'left_hip': (9.7328, -3.1858, 9.2109), 'left_knee': (21.4226,),
-        'left_ankle': (9.0744, -1.5488),
+        'right_shoulder': (34.501, 35.235, -9.852), 'left_shoulder': (89.302, -29.152, 14.643),
+        'left_elbow': (21.618, 18.169), 'right_hip': (13.558, -5.516, 25.186),
+        'right_knee': (28.566,), 'right_ankle': (13.912, 0.82), 'left_hip': (9.733, -3.186, 9.211),
+        'left_knee': (21.423,), 'left_ankle': (9.074, -1.549),
     })
-    human.KeyRoot(46.3, (3.214, 72.487, 63.523), (52.6355, 0.0, 0.0))
+    human.KeyRoot(46.3, (3.214, 72.487, 63.523), (52.636, 0.0, 0.0))
     human.KeyJoints(46.3, {
-        'right_hip': (5.8833, -2.9194, 17.9945), 'right_knee': (14.7503,),
-        'right_ankle': (8.2554, -0.9465), 'left_hip': (12.7427, -4.5058, 16.5865),
-        'left_ankle': (9.9172, -0.6028),
+        'right_hip': (5.883, -2.919, 17.994), 'right_knee': (14.75,),
+        'right_ankle': (8.255, -0.947), 'left_hip': (12.743, -4.506, 16.586),
+        'left_ankle': (9.917, -0.603),
     })
-    human.KeyRoot(46.4, (2.505, 72.487, 63.748), (60.1743, 0.0, 0.0))
+    human.KeyRoot(46.4, (2.505, 72.487, 63.748), (60.174, 0.0, 0.0))
     human.KeyJoints(46.4, {
-        'right_hip': (5.5979, -2.6278, 10.4498), 'right_ankle': (8.4783, -1.5575),
-        'left_hip': (16.7947, -7.2202, 23.7977), 'left_knee': (36.4564,),
-        'left_ankle': (12.0032, 0.3668),
+        'right_hip': (5.598, -2.628, 10.45), 'right_ankle': (8.478, -1.557),
+        'left_hip': (16.795, -7.22, 23.798), 'left_knee': (36.456,), 'left_ankle': (12.003, 0.367),
     })
     human.KeyRoot(46.5, (0.97, 72.487, 63.861), (67.713, 0.0, 0.0))
     human.KeyJoints(46.5, {
-        'right_hip': (6.0302, -2.5097, 2.871), 'right_knee': (14.1789,),
-        'right_ankle': (8.0273, -2.191), 'left_hip': (26.5139, -4.6396, 10.675),
-        'left_knee': (55.9472,), 'left_ankle': (19.2126, 0.7143),
+        'right_hip': (6.03, -2.51, 2.871), 'right_knee': (14.179,), 'right_ankle': (8.027, -2.191),
+        'left_hip': (26.514, -4.64, 10.675), 'left_knee': (55.947,), 'left_ankle': (19.213, 0.714),
     })
-    human.KeyRoot(46.6, (-0.471, 72.487, 63.444), (75.5275, 0.0, 0.0))
+    human.KeyRoot(46.6, (-0.471, 72.487, 63.444), (75.528, 0.0, 0.0))
     human.KeyJoints(46.6, {
-        'right_hip': (6.9669, -1.668, -4.935), 'right_knee': (14.8115,),
-        'right_ankle': (7.8461, -2.2477), 'left_hip': (19.1979, 9.9263, -20.2579),
-        'left_knee': (48.7769,), 'left_ankle': (19.1823, 2.3944),
+        'right_hip': (6.967, -1.668, -4.935), 'right_knee': (14.811,),
+        'right_ankle': (7.846, -2.248), 'left_hip': (19.198, 9.926, -20.258),
+        'left_knee': (48.777,), 'left_ankle': (19.182, 2.394),
     })
-    human.KeyRoot(46.7, (-2.03, 72.487, 61.61), (83.6646, 0.0, 0.0))
+    human.KeyRoot(46.7, (-2.03, 72.487, 61.61), (83.665, 0.0, 0.0))
     human.KeyJoints(46.7, {
-        'right_hip': (10.3182, 1.2791, -12.8427), 'right_knee': (20.275,),
-        'right_ankle': (8.1983, -1.0563), 'left_hip': (8.2472, 4.0413, -22.2395),
-        'left_knee': (19.6661,), 'left_ankle': (10.4264, 0.7109),
+        'right_hip': (10.318, 1.279, -12.843), 'right_knee': (20.275,),
+        'right_ankle': (8.198, -1.056), 'left_hip': (8.247, 4.041, -22.24), 'left_knee': (19.666,),
+        'left_ankle': (10.426, 0.711),
     })
-    human.KeyRoot(46.8, (-2.532, 72.487, 60.108), (89.6767, 0.0, 0.0))
+    human.KeyRoot(46.8, (-2.532, 72.487, 60.108), (89.677, 0.0, 0.0))
     human.KeyJoints(46.8, {
-        'right_hip': (11.6484, 4.1779, -18.3782), 'right_knee': (23.9593,),
-        'right_ankle': (8.4305, 0.2327), 'left_hip': (7.5649, 1.3166, -16.5467),
-        'left_knee': (14.76,), 'left_ankle': (7.1377, -0.8973),
+        'right_hip': (11.648, 4.178, -18.378), 'right_knee': (23.959,),
+        'right_ankle': (8.431, 0.233), 'left_hip': (7.565, 1.317, -16.547), 'left_knee': (14.76,),
+        'left_ankle': (7.138, -0.897),
     })
-    human.KeyRoot(46.9, (-2.017, 72.487, 59.015), (93.5537, 0.0, 0.0))
+    human.KeyRoot(46.9, (-2.017, 72.487, 59.015), (93.554, 0.0, 0.0))
     human.KeyJoints(46.9, {
-        'right_hip': (17.518, 8.3795, -20.3789), 'right_knee': (39.6589,),
-        'right_ankle': (17.1525, 1.4745), 'left_hip': (7.4622, -0.1471, -12.8203),
-        'left_knee': (14.4467,), 'left_ankle': (7.2031, -1.7936),
+        'right_hip': (17.518, 8.38, -20.379), 'right_knee': (39.659,),
+        'right_ankle': (17.153, 1.474), 'left_hip': (7.462, -0.147, -12.82), 'left_knee': (14.447,),
+        'left_ankle': (7.203, -1.794),
     })
-    human.KeyRoot(47.0, (-1.208, 72.487, 58.418), (96.9811, 0.0, 0.0))
+    human.KeyRoot(47.0, (-1.208, 72.487, 58.418), (96.981, 0.0, 0.0))
     human.KeyJoints(47.0, {
-        'right_hip': (26.7527, 5.7645, -6.7126), 'right_knee': (55.7385,),
-        'right_ankle': (19.297, 2.066), 'left_hip': (7.011, -1.0423, -9.4617),
-        'left_knee': (14.2438,), 'left_ankle': (7.4967, -2.1706),
+        'right_hip': (26.753, 5.765, -6.713), 'right_knee': (55.738,),
+        'right_ankle': (19.297, 2.066), 'left_hip': (7.011, -1.042, -9.462), 'left_knee': (14.244,),
+        'left_ankle': (7.497, -2.171),
     })
-    human.KeyRoot(47.1, (-0.445, 72.487, 59.095), (101.5311, 0.0, 0.0))
+    human.KeyRoot(47.1, (-0.445, 72.487, 59.095), (101.531, 0.0, 0.0))
     human.KeyJoints(47.1, {
-        'right_hip': (20.7406, 0.2561, 4.1003), 'right_knee': (41.1712,),
-        'right_ankle': (19.2524, 1.5934), 'left_hip': (13.8809, -0.3244, -5.0802),
-        'left_knee': (27.9012,), 'left_ankle': (9.0432, -1.537),
+        'right_hip': (20.741, 0.256, 4.1), 'right_knee': (41.171,), 'right_ankle': (19.252, 1.593),
+        'left_hip': (13.881, -0.324, -5.08), 'left_knee': (27.901,), 'left_ankle': (9.043, -1.537),
     })
-    human.KeyRoot(47.2, (0.583, 72.492, 60.332), (105.6354, 0.0, 0.0))
+    human.KeyRoot(47.2, (0.583, 72.492, 60.332), (105.635, 0.0, 0.0))
     human.KeyJoints(47.2, {
-        'right_hip': (7.2592, 0.1749, 0.6424), 'right_knee': (14.9444,),
-        'right_ankle': (7.6779, 0.2544), 'left_hip': (27.0172, 0.0791, -0.7821),
-        'left_knee': (50.2367,), 'left_ankle': (0.882, -0.3079),
+        'right_hip': (7.259, 0.175, 0.642), 'right_knee': (14.944,), 'right_ankle': (7.678, 0.254),
+        'left_hip': (27.017, 0.079, -0.782), 'left_knee': (50.237,), 'left_ankle': (0.882, -0.308),
     })
-    human.KeyRoot(47.3, (2.856, 72.289, 60.482), (106.2512, 0.0, 0.0))
+    human.KeyRoot(47.3, (2.856, 72.289, 60.482), (106.251, 0.0, 0.0))
     human.KeyJoints(47.3, {
-        'right_hip': (6.303, -0.4147, -0.0461), 'right_knee': (16.9698,),
-        'right_ankle': (10.6699, -0.4173), 'left_hip': (31.3105, 0.2644, 0.5144),
-        'left_knee': (58.9446,), 'left_ankle': (-4.3341, 0.5784),
+        'right_hip': (6.303, -0.415, -0.046), 'right_knee': (16.97,),
+        'right_ankle': (10.67, -0.417), 'left_hip': (31.311, 0.264, 0.514), 'left_knee': (58.945,),
+        'left_ankle': (-4.334, 0.578),
     })
-    human.KeyRoot(47.4, (8.183, 71.514, 60.068), (106.2512, 0.0, 0.0))
+    human.KeyRoot(47.4, (8.183, 71.514, 60.068), (106.251, 0.0, 0.0))
     human.KeyJoints(47.4, {
-        'right_hip': (3.6556, -1.3723, -0.088), 'right_knee': (20.9859,),
-        'right_ankle': (17.3352, -1.3751), 'left_hip': (36.4771, 0.8227, 1.751),
-        'left_knee': (71.7225,), 'left_ankle': (6.5042, 1.9346),
+        'right_hip': (3.656, -1.372, -0.088), 'right_knee': (20.986,),
+        'right_ankle': (17.335, -1.375), 'left_hip': (36.477, 0.823, 1.751), 'left_knee': (71.722,),
+        'left_ankle': (6.504, 1.935),
     })
-    human.KeyRoot(47.5, (14.237, 69.77, 59.311), (106.2512, 0.0, 0.0))
+    human.KeyRoot(47.5, (14.237, 69.77, 59.311), (106.251, 0.0, 0.0))
     human.KeyJoints(47.5, {
-        'right_hip': (22.9579, -1.6239, -2.3063), 'right_knee': (65.3123,),
-        'right_ankle': (10.4888, -2.8204), 'left_hip': (48.582, 1.516, 2.4654),
-        'left_knee': (57.1654,), 'left_ankle': (-1.5699, 2.894),
+        'right_hip': (22.958, -1.624, -2.306), 'right_knee': (65.312,),
+        'right_ankle': (10.489, -2.82), 'left_hip': (48.582, 1.516, 2.465), 'left_knee': (57.165,),
+        'left_ankle': (-1.57, 2.894),
     })
-    human.KeyRoot(47.6, (20.651, 67.948, 56.62), (106.2512, 0.0, 0.0))
+    human.KeyRoot(47.6, (20.651, 67.948, 56.62), (106.251, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'right_wrist': (-16.5326, -18.2955), 'right_hip': (17.3837, -1.1974, -1.4896),
-        'right_knee': (68.1493,), 'right_ankle': (16.9594, -1.9111),
-        'left_hip': (33.3129, 1.4, 0.9155), 'left_knee': (16.905,),
-        'left_ankle': (-16.5538, 1.6727),
+        'right_wrist': (-16.533, -18.295), 'right_hip': (17.384, -1.197, -1.49),
+        'right_knee': (68.149,), 'right_ankle': (16.959, -1.911), 'left_hip': (33.313, 1.4, 0.915),
+        'left_knee': (16.905,), 'left_ankle': (-16.554, 1.673),
     })
-    human.KeyRoot(47.7, (27.645, 68.214, 52.943), (106.2512, 0.0, 0.0))
+    human.KeyRoot(47.7, (27.645, 68.214, 52.943), (106.251, 0.0, 0.0))
     human.KeyJoints(47.7, {
-        'right_hip': (6.5971, -0.14, -0.1231), 'right_knee': (60.3386,),
-        'right_ankle': (18.9986, -0.1864), 'left_hip': (29.8471, 0.1469, 0.0843),
-        'left_knee': (24.3024,), 'left_ankle': (-5.5462, 0.1694),
+        'right_hip': (6.597, -0.14, -0.123), 'right_knee': (60.339,),
+        'right_ankle': (18.999, -0.186), 'left_hip': (29.847, 0.147, 0.084), 'left_knee': (24.302,),
+        'left_ankle': (-5.546, 0.169),
     })
-    human.KeyRoot(47.8, (34.589, 70.06, 49.663), (106.2512, 0.0, 0.0))
+    human.KeyRoot(47.8, (34.589, 70.06, 49.663), (106.251, 0.0, 0.0))
     human.KeyJoints(47.8, {
-        'right_hip': (-3.5309, 0.7927, 0.5811), 'right_knee': (50.0156,),
-        'right_ankle': (13.2699, 0.9829), 'left_hip': (23.6332, -0.8344, -0.3651),
-        'left_knee': (25.566,), 'left_ankle': (1.9344, -0.9107),
+        'right_hip': (-3.531, 0.793, 0.581), 'right_knee': (50.016,), 'right_ankle': (13.27, 0.983),
+        'left_hip': (23.633, -0.834, -0.365), 'left_knee': (25.566,), 'left_ankle': (1.934, -0.911),
     })
-    human.KeyRoot(47.9, (42.112, 71.481, 46.296), (106.2512, 0.0, 0.0))
+    human.KeyRoot(47.9, (42.112, 71.481, 46.296), (106.251, 0.0, 0.0))
     human.KeyJoints(47.9, {
-        'right_hip': (17.8993, 1.4747, 1.8349), 'right_knee': (70.5887,),
-        'right_ankle': (18.9457, 2.354), 'left_hip': (15.2133, -1.8081, -0.4916),
-        'left_knee': (23.0295,), 'left_ankle': (7.8232, -1.8737),
+        'right_hip': (17.899, 1.475, 1.835), 'right_knee': (70.589,),
+        'right_ankle': (18.946, 2.354), 'left_hip': (15.213, -1.808, -0.492), 'left_knee': (23.03,),
+        'left_ankle': (7.823, -1.874),
     })
-    human.KeyRoot(48.0, (52.871, 68.025, 42.95), (106.2512, 0.0, 0.0))
+    human.KeyRoot(48.0, (52.871, 68.025, 42.95), (106.251, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'right_hip': (48.7252, 1.5015, 2.1169), 'right_knee': (45.1185,),
-        'right_ankle': (-9.9023, 2.5951), 'left_hip': (26.9827, -1.6773, -1.8142),
-        'left_knee': (64.2593,), 'left_ankle': (17.0354, -2.4706),
+        'right_hip': (48.725, 1.501, 2.117), 'right_knee': (45.119,),
+        'right_ankle': (-9.902, 2.595), 'left_hip': (26.983, -1.677, -1.814),
+        'left_knee': (64.259,), 'left_ankle': (17.035, -2.471),
     })
-    human.KeyRoot(48.1, (68.928, 67.07, 39.422), (106.2512, 0.0, 0.0))
+    human.KeyRoot(48.1, (68.928, 67.07, 39.422), (106.251, 0.0, 0.0))
     human.KeyJoints(48.1, {
-        'right_hip': (34.1897, 0.974, 0.6581), 'right_knee': (23.341,),
-        'right_ankle': (-11.0185, 1.1755), 'left_hip': (16.0723, -0.8392, -1.0842),
-        'left_knee': (70.3437,), 'left_ankle': (18.0881, -1.371),
+        'right_hip': (34.19, 0.974, 0.658), 'right_knee': (23.341,),
+        'right_ankle': (-11.019, 1.175), 'left_hip': (16.072, -0.839, -1.084),
+        'left_knee': (70.344,), 'left_ankle': (18.088, -1.371),
     })
-    human.KeyRoot(48.2, (81.333, 69.284, 37.294), (106.2512, 0.0, 0.0))
+    human.KeyRoot(48.2, (81.333, 69.284, 37.294), (106.251, 0.0, 0.0))
     human.KeyJoints(48.2, {
-        'right_hip': (26.3815, -0.1493, -0.0741), 'right_knee': (30.594,),
-        'right_ankle': (4.2112, -0.1667), 'left_hip': (-4.2315, 0.1459, 0.0984),
-        'left_knee': (48.7773,), 'left_ankle': (14.7667, 0.176),
+        'right_hip': (26.382, -0.149, -0.074), 'right_knee': (30.594,),
+        'right_ankle': (4.211, -0.167), 'left_hip': (-4.231, 0.146, 0.098), 'left_knee': (48.777,),
+        'left_ankle': (14.767, 0.176),
     })
-    human.KeyRoot(48.3, (87.873, 70.568, 36.587), (106.2512, 0.0, 0.0))
+    human.KeyRoot(48.3, (87.873, 70.568, 36.587), (106.251, 0.0, 0.0))
     human.KeyJoints(48.3, {
-        'right_hip': (19.7098, -1.1127, -0.3986), 'right_knee': (28.7798,),
-        'right_ankle': (9.0728, -1.1819), 'left_hip': (-12.3982, 1.0452, 0.6737),
-        'left_knee': (40.8921,), 'left_ankle': (13.5181, 1.134),
+        'right_hip': (19.71, -1.113, -0.399), 'right_knee': (28.78,),
+        'right_ankle': (9.073, -1.182), 'left_hip': (-12.398, 1.045, 0.674), 'left_knee': (40.892,),
+        'left_ankle': (13.518, 1.134),
     })
-    human.KeyRoot(48.4, (93.828, 69.645, 35.89), (106.2512, 0.0, 0.0))
+    human.KeyRoot(48.4, (93.828, 69.645, 35.89), (106.251, 0.0, 0.0))
     human.KeyJoints(48.4, {
-        'right_hip': (18.1218, -1.9897, -0.651), 'right_knee': (36.3992,),
-        'right_ankle': (18.2881, -2.0935), 'left_hip': (35.7096, -2.8435, 7.6577),
-        'left_knee': (78.9613,), 'left_ankle': (19.0, 2.3552),
+        'right_hip': (18.122, -1.99, -0.651), 'right_knee': (36.399,),
+        'right_ankle': (18.288, -2.093), 'left_hip': (35.71, -2.844, 7.658), 'left_knee': (78.961,),
+        'left_ankle': (19.0, 2.355),
     })
-    human.KeyRoot(48.5, (103.118, 63.213, 33.365), (106.2512, 0.0, 0.0))
+    human.KeyRoot(48.5, (103.118, 63.213, 33.365), (106.251, 0.0, 0.0))
     human.KeyJoints(48.5, {
-        'right_hip': (35.8334, -1.2722, -2.9904), 'right_knee': (84.5118,),
-        'right_ankle': (17.5705, -3.2495), 'left_hip': (48.8712, -3.1436, 20.2829),
-        'left_knee': (29.7959,), 'left_ankle': (-19.8682, 13.1113),
+        'right_hip': (35.833, -1.272, -2.99), 'right_knee': (84.512,),
+        'right_ankle': (17.57, -3.25), 'left_hip': (48.871, -3.144, 20.283), 'left_knee': (29.796,),
+        'left_ankle': (-19.868, 13.111),
     })
-    human.KeyRoot(48.6, (114.031, 63.502, 28.748), (106.2512, 0.0, 0.0))
+    human.KeyRoot(48.6, (114.031, 63.502, 28.748), (106.251, 0.0, 0.0))
     human.KeyJoints(48.6, {
-        'right_hip': (24.8932, -0.5959, -1.3184), 'right_knee': (84.3598,),
-        'right_ankle': (18.6845, -1.4467), 'left_hip': (40.6848, -3.7301, 18.1217),
-        'left_knee': (28.5939,), 'left_ankle': (-11.5273, 8.9386),
+        'right_hip': (24.893, -0.596, -1.318), 'right_knee': (84.36,),
+        'right_ankle': (18.684, -1.447), 'left_hip': (40.685, -3.73, 18.122),
+        'left_knee': (28.594,), 'left_ankle': (-11.527, 8.939),
     })
-    human.KeyRoot(48.7, (121.201, 66.826, 24.938), (105.7233, 0.0, 0.0))
+    human.KeyRoot(48.7, (121.201, 66.826, 24.938), (105.723, 0.0, 0.0))
     human.KeyJoints(48.7, {
-        'right_hip': (9.673, 0.2804, 0.936), 'right_knee': (67.3258,),
-        'right_ankle': (18.9374, 0.5558), 'left_hip': (33.6786, -4.6804, 15.7908),
-        'left_knee': (29.6596,), 'left_ankle': (-3.9904, 4.9084),
+        'right_hip': (9.673, 0.28, 0.936), 'right_knee': (67.326,), 'right_ankle': (18.937, 0.556),
+        'left_hip': (33.679, -4.68, 15.791), 'left_knee': (29.66,), 'left_ankle': (-3.99, 4.908),
     })
-    human.KeyRoot(48.8, (125.847, 69.518, 21.352), (101.9932, 0.0, 0.0))
+    human.KeyRoot(48.8, (125.847, 69.518, 21.352), (101.993, 0.0, 0.0))
     human.KeyJoints(48.8, {
-        'right_hip': (6.3975, 1.9185, 5.4878), 'right_knee': (64.8773,),
-        'right_ankle': (19.4867, 3.2762), 'left_hip': (25.4121, -3.9473, 11.416),
-        'left_knee': (23.2548,), 'left_ankle': (-2.4075, 1.375),
+        'right_hip': (6.398, 1.919, 5.488), 'right_knee': (64.877,), 'right_ankle': (19.487, 3.276),
+        'left_hip': (25.412, -3.947, 11.416), 'left_knee': (23.255,), 'left_ankle': (-2.408, 1.375),
     })
-    human.KeyRoot(48.9, (130.139, 71.009, 19.848), (97.7936, 0.0, 0.0))
+    human.KeyRoot(48.9, (130.139, 71.009, 19.848), (97.794, 0.0, 0.0))
     human.KeyJoints(48.9, {
-        'right_hip': (27.1536, 3.4714, 1.6881), 'right_knee': (68.7815,),
-        'right_ankle': (19.4218, 4.1793), 'left_hip': (19.3998, -2.6671, 7.3259),
-        'left_knee': (19.7052,), 'left_ankle': (0.1306, -0.0675),
+        'right_hip': (27.154, 3.471, 1.688), 'right_knee': (68.782,),
+        'right_ankle': (19.422, 4.179), 'left_hip': (19.4, -2.667, 7.326), 'left_knee': (19.705,),
+        'left_ankle': (0.131, -0.068),
     })
-    human.KeyRoot(49.0, (134.606, 71.813, 19.864), (94.3344, 0.0, 0.0))
+    human.KeyRoot(49.0, (134.606, 71.813, 19.864), (94.334, 0.0, 0.0))
     human.KeyJoints(49.0, {
-        'right_hip': (22.3632, 1.8105, -3.868), 'right_knee': (37.2143,),
-        'right_ankle': (14.9329, 0.1915), 'left_hip': (14.7028, -1.1962, 4.1675),
-        'left_knee': (18.6736,), 'left_ankle': (3.9064, -0.0982),
+        'right_hip': (22.363, 1.81, -3.868), 'right_knee': (37.214,),
+        'right_ankle': (14.933, 0.191), 'left_hip': (14.703, -1.196, 4.167), 'left_knee': (18.674,),
+        'left_ankle': (3.906, -0.098),
     })
-    human.KeyRoot(49.1, (138.93, 72.483, 19.956), (90.8752, 0.0, 0.0))
+    human.KeyRoot(49.1, (138.93, 72.483, 19.956), (90.875, 0.0, 0.0))
     human.KeyJoints(49.1, {
-        'neck': (21.299, -4.9839, -31.4706), 'head': (6.1657, -0.4464),
-        'right_hip': (8.4367, 0.1666, -0.8601), 'right_knee': (14.6119,),
-        'right_ankle': (6.1847, 0.0386), 'left_hip': (8.6006, -0.1674, 0.8598),
-        'left_knee': (14.5078,), 'left_ankle': (5.9057, -0.037),
+        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446),
+        'right_hip': (8.437, 0.167, -0.86), 'right_knee': (14.612,), 'right_ankle': (6.185, 0.039),
+        'left_hip': (8.601, -0.167, 0.86), 'left_knee': (14.508,), 'left_ankle': (5.906, -0.037),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=49.125301, duration=0.2628)
     human.KeyRoot(49.2, (140.0, 72.991, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(49.2, {
-        'neck': (23.9906, 2.6255, -31.1022), 'head': (7.9012, -2.5688),
-        'right_hip': (3.0262, 0.0, 0.0), 'right_knee': (4.9238,), 'right_ankle': (1.8999, 0.0),
-        'left_hip': (3.0247, 0.0, 0.0), 'left_knee': (4.9207,), 'left_ankle': (1.8983, 0.0),
+        'neck': (23.991, 2.626, -31.102), 'head': (7.901, -2.569), 'right_hip': (3.026, 0.0, 0.0),
+        'right_knee': (4.924,), 'right_ankle': (1.9, 0.0), 'left_hip': (3.025, 0.0, 0.0),
+        'left_knee': (4.921,), 'left_ankle': (1.898, 0.0),
     })
     human.KeyJoints(49.3, {
-        'neck': (31.413, 23.6093, -30.0863), 'head': (12.6871, -8.4216),
-        'right_shoulder': (34.5012, 35.235, -9.8523), 'left_shoulder': (89.3018, -29.1524, 14.6435),
-        'left_elbow': (21.618, 18.1688),
+        'neck': (31.413, 23.609, -30.086), 'head': (12.687, -8.422),
+        'right_shoulder': (34.501, 35.235, -9.852), 'left_shoulder': (89.302, -29.152, 14.643),
+        'left_elbow': (21.618, 18.169),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=49.388101, duration=0.698258)
     human.KeyJoints(49.4, {
-        'neck': (35.0, 33.75, -29.5953), 'head': (15.0, -11.25),
-        'right_shoulder': (34.4259, 35.2046, -9.8428), 'right_elbow': (90.7235, 24.9001),
-        'right_wrist': (-16.5389, -18.2876), 'left_shoulder': (89.1833, -29.1578, 14.6459),
-        'left_elbow': (21.7095, 18.1745), 'left_wrist': (0.8597, -5.4421),
-        'right_hip': (3.0219, 0.0, 0.0), 'right_knee': (4.9148,), 'right_ankle': (1.8952, 0.0),
-        'left_hip': (3.0213, 0.0, 0.0), 'left_knee': (4.9135,), 'left_ankle': (1.8945, 0.0),
+        'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
+        'right_shoulder': (34.426, 35.205, -9.843), 'right_elbow': (90.723, 24.9),
+        'right_wrist': (-16.539, -18.288), 'left_shoulder': (89.183, -29.158, 14.646),
+        'left_elbow': (21.71, 18.174), 'left_wrist': (0.86, -5.442), 'right_hip': (3.022, 0.0, 0.0),
+        'right_knee': (4.915,), 'right_ankle': (1.895, 0.0), 'left_hip': (3.021, 0.0, 0.0),
+        'left_knee': (4.914,), 'left_ankle': (1.895, 0.0),
     })
     human.KeyJoints(49.5, {
-        'right_shoulder': (28.5564, 32.817, -9.0609), 'right_elbow': (93.176, 25.1216),
-        'right_wrist': (-17.023, -17.6859), 'left_shoulder': (79.9709, -29.5676, 14.8324),
-        'left_elbow': (28.7741, 18.6107), 'left_wrist': (-1.8703, -3.0555),
-        'right_hip': (2.8548, 0.0, 0.0), 'right_knee': (4.5782,), 'right_ankle': (1.7513, 0.0),
-        'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
+        'right_shoulder': (28.556, 32.817, -9.061), 'right_elbow': (93.176, 25.122),
+        'right_wrist': (-17.023, -17.686), 'left_shoulder': (79.971, -29.568, 14.832),
+        'left_elbow': (28.774, 18.611), 'left_wrist': (-1.87, -3.056),
+        'right_hip': (2.855, 0.0, 0.0), 'right_knee': (4.578,), 'right_ankle': (1.751, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(49.6, {
-        'right_shoulder': (15.7533, 27.513, -7.1734), 'right_elbow': (98.3737, 25.591),
-        'right_wrist': (-18.049, -16.4105), 'left_shoulder': (59.9865, -30.4362, 15.2275),
-        'left_elbow': (43.9123, 19.5351), 'left_wrist': (-7.8021, 2.0075),
+        'right_shoulder': (15.753, 27.513, -7.173), 'right_elbow': (98.374, 25.591),
+        'right_wrist': (-18.049, -16.411), 'left_shoulder': (59.986, -30.436, 15.228),
+        'left_elbow': (43.912, 19.535), 'left_wrist': (-7.802, 2.008),
     })
     human.KeyJoints(49.7, {
-        'right_shoulder': (-0.549, 20.5604, -4.3931), 'right_elbow': (104.6767, 26.1603),
-        'right_wrist': (-19.2931, -14.864), 'left_shoulder': (34.7688, -31.4895, 15.7067),
-        'left_elbow': (62.6245, 20.6561), 'left_wrist': (-15.307, 8.1584),
+        'right_shoulder': (-0.549, 20.56, -4.393), 'right_elbow': (104.677, 26.16),
+        'right_wrist': (-19.293, -14.864), 'left_shoulder': (34.769, -31.49, 15.707),
+        'left_elbow': (62.625, 20.656), 'left_wrist': (-15.307, 8.158),
     })
     human.KeyJoints(49.8, {
-        'right_shoulder': (-16.9165, 13.2271, -0.9327), 'right_elbow': (110.4452, 26.6813),
-        'right_wrist': (-20.4318, -13.4487), 'left_shoulder': (9.8564, -32.4535, 16.1452),
-        'left_elbow': (80.4113, 21.6821), 'left_wrist': (-22.7564, 13.8083),
+        'right_shoulder': (-16.916, 13.227, -0.933), 'right_elbow': (110.445, 26.681),
+        'right_wrist': (-20.432, -13.449), 'left_shoulder': (9.856, -32.453, 16.145),
+        'left_elbow': (80.411, 21.682), 'left_wrist': (-22.756, 13.808),
     })
     human.KeyJoints(49.9, {
-        'right_shoulder': (-29.9147, 6.7809, 2.9954), 'right_elbow': (114.0394, 27.0059),
-        'right_wrist': (-21.1413, -12.5668), 'left_shoulder': (-9.2118, -33.0541, 16.4184),
-        'left_elbow': (92.7731, 22.3213), 'left_wrist': (-28.5215, 17.3688),
+        'right_shoulder': (-29.915, 6.781, 2.995), 'right_elbow': (114.039, 27.006),
+        'right_wrist': (-21.141, -12.567), 'left_shoulder': (-9.212, -33.054, 16.418),
+        'left_elbow': (92.773, 22.321), 'left_wrist': (-28.522, 17.369),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(50.0, {
-        'right_shoulder': (-36.6541, 2.2991, 8.2505), 'right_elbow': (112.6979, 26.8304),
-        'right_wrist': (-20.4126, -12.5866), 'left_shoulder': (-18.0718, -30.0968, 13.2242),
-        'left_elbow': (96.659, 22.1186), 'left_wrist': (-31.3168, 17.9211),
+        'right_shoulder': (-36.654, 2.299, 8.251), 'right_elbow': (112.698, 26.83),
+        'right_wrist': (-20.413, -12.587), 'left_shoulder': (-18.072, -30.097, 13.224),
+        'left_elbow': (96.659, 22.119), 'left_wrist': (-31.317, 17.921),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=50.086359, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=50.086359, duration=0.072)
     human.KeyJoints(50.1, {
-        'right_shoulder': (-40.2471, -1.5898, 14.4624), 'right_elbow': (110.5049, 26.5332),
-        'right_wrist': (-18.9182, -12.5291), 'left_shoulder': (-26.869, -28.5778, 12.87),
-        'left_elbow': (105.468, 22.9257), 'left_wrist': (-33.9242, 20.0),
+        'right_shoulder': (-40.247, -1.59, 14.462), 'right_elbow': (110.505, 26.533),
+        'right_wrist': (-18.918, -12.529), 'left_shoulder': (-26.869, -28.578, 12.87),
+        'left_elbow': (105.468, 22.926), 'left_wrist': (-33.924, 20.0),
     })
     human.KeyRoot(50.158359, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(50.158359, {
-        'spine_lumbar': (17.0071, -11.4445, 7.5102), 'spine_thoracic': (-14.6839, -6.4027, 6.8752),
-        'neck': (35.0, 33.75, -29.5953), 'head': (15.0, -11.25), 'right_clavicle': (6.9972, 9.7296),
-        'right_shoulder': (-40.2471, -1.5898, 14.4624), 'right_elbow': (110.5049, 26.5332),
-        'right_wrist': (-18.9182, -12.5291), 'left_clavicle': (-2.4881, 4.0),
-        'left_shoulder': (-26.869, -28.5778, 12.87), 'left_elbow': (105.468, 22.9257),
-        'left_wrist': (-33.9242, 20.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
-        'left_ankle': (1.7189, 0.0),
+        'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
+        'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
+        'right_shoulder': (-40.247, -1.59, 14.462), 'right_elbow': (110.505, 26.533),
+        'right_wrist': (-18.918, -12.529), 'left_clavicle': (-2.488, 4.0),
+        'left_shoulder': (-26.869, -28.578, 12.87), 'left_elbow': (105.468, 22.926),
+        'left_wrist': (-33.924, 20.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })

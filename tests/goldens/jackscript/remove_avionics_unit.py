@@ -15,44 +15,42 @@ def remove_avionics_unit():
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
-        'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
-        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.7493, 0.0, 0.0), 'right_knee': (4.6657,),
-        'right_ankle': (1.9163, 0.0), 'left_hip': (2.7493, 0.0, 0.0), 'left_knee': (4.6657,),
-        'left_ankle': (1.9163, 0.0),
+        'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
+        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.749, 0.0, 0.0), 'right_knee': (4.666,),
+        'right_ankle': (1.916, 0.0), 'left_hip': (2.749, 0.0, 0.0), 'left_knee': (4.666,),
+        'left_ankle': (1.916, 0.0),
     })
     human.KeyRoot(0.1, (2.272, 69.839, 9.82), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (47.159, 1.2131, 2.445), 'right_knee': (90.4838,),
-        'right_ankle': (16.4408, 2.7675), 'left_hip': (22.8345, -1.6283, -1.689),
-        'left_knee': (59.9909,), 'left_ankle': (13.9583, -2.3459),
+        'right_hip': (47.159, 1.213, 2.445), 'right_knee': (90.484,),
+        'right_ankle': (16.441, 2.768), 'left_hip': (22.834, -1.628, -1.689),
+        'left_knee': (59.991,), 'left_ankle': (13.958, -2.346),
     })
     human.KeyRoot(0.2, (1.578, 66.025, 19.254), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (44.0855, 1.3176, 0.7658), 'right_knee': (34.2365,),
-        'right_ankle': (-10.1592, 1.4377), 'left_hip': (22.9213, -0.9481, -1.6074),
-        'left_knee': (76.5057,), 'left_ankle': (17.0452, -1.8661),
+        'right_hip': (44.086, 1.318, 0.766), 'right_knee': (34.237,),
+        'right_ankle': (-10.159, 1.438), 'left_hip': (22.921, -0.948, -1.607),
+        'left_knee': (76.506,), 'left_ankle': (17.045, -1.866),
     })
     human.KeyRoot(0.3, (-0.635, 66.756, 28.523), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (34.4847, -0.4918, -0.3379), 'right_knee': (30.4006,),
-        'right_ankle': (-4.0787, -0.5967), 'left_hip': (11.4304, 0.4477, 0.5129),
-        'left_knee': (70.4901,), 'left_ankle': (20.0, 0.6808),
+        'right_hip': (34.485, -0.492, -0.338), 'right_knee': (30.401,),
+        'right_ankle': (-4.079, -0.597), 'left_hip': (11.43, 0.448, 0.513), 'left_knee': (70.49,),
+        'left_ankle': (20.0, 0.681),
     })
     human.KeyRoot(0.4, (-2.429, 69.844, 37.814), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (24.2864, -1.9799, -0.8933), 'right_knee': (27.0291,),
-        'right_ankle': (2.7617, -2.172), 'left_hip': (27.0629, 1.5753, 2.2774),
-        'left_knee': (76.5767,), 'left_ankle': (19.93, 2.7689),
+        'right_hip': (24.286, -1.98, -0.893), 'right_knee': (27.029,),
+        'right_ankle': (2.762, -2.172), 'left_hip': (27.063, 1.575, 2.277), 'left_knee': (76.577,),
+        'left_ankle': (19.93, 2.769),
     })
     human.KeyRoot(0.5, (-1.23, 72.022, 46.606), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.4801, -1.0385, -0.2299),
-        'right_knee': (18.6571,), 'right_ankle': (6.1841, -1.0636),
-        'left_hip': (14.2068, 1.0377, 0.2474), 'left_knee': (22.4253,),
-        'left_ankle': (7.9261, 1.0668),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.48, -1.038, -0.23),
+        'right_knee': (18.657,), 'right_ankle': (6.184, -1.064), 'left_hip': (14.207, 1.038, 0.247),
+        'left_knee': (22.425,), 'left_ankle': (7.926, 1.067),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
     human.LookAt((-22.0, 178.0, 100.0), start=0.54, duration=0.2628)
@@ -60,22 +58,22 @@ def remove_avionics_unit():
     human.LookAt((22.0, 178.0, 100.0), start=0.54, duration=0.2628)
     human.KeyRoot(0.6, (0.0, 72.82, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'neck': (-2.476, 0.0, 0.0), 'head': (-2.0969, 0.0), 'right_hip': (5.1434, 0.0, 0.0),
-        'right_knee': (9.3837,), 'right_ankle': (4.2403, 0.0), 'left_hip': (5.0976, 0.0, 0.0),
-        'left_knee': (9.287,), 'left_ankle': (4.1868, 0.0),
+        'neck': (-2.476, 0.0, 0.0), 'head': (-2.097, 0.0), 'right_hip': (5.143, 0.0, 0.0),
+        'right_knee': (9.384,), 'right_ankle': (4.24, 0.0), 'left_hip': (5.098, 0.0, 0.0),
+        'left_knee': (9.287,), 'left_ankle': (4.187, 0.0),
     })
     human.KeyJoints(0.7, {
-        'neck': (-12.5268, 0.0, 0.0), 'head': (-10.6449, 0.0), 'left_hip': (4.1754, 0.0, 0.0),
-        'left_knee': (7.3445,), 'left_ankle': (3.165, 0.0),
+        'neck': (-12.527, 0.0, 0.0), 'head': (-10.645, 0.0), 'left_hip': (4.175, 0.0, 0.0),
+        'left_knee': (7.344,), 'left_ankle': (3.165, 0.0),
     })
     human.KeyJoints(0.8, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (-19.6637, 0.0, 0.0), 'head': (-16.8425, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
-        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
-        'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0), 'right_hip': (3.4377, 0.0, 0.0),
-        'right_knee': (5.7907,), 'right_ankle': (2.353, 0.0), 'left_hip': (3.402, 0.0, 0.0),
-        'left_knee': (5.7153,), 'left_ankle': (2.3102, 0.0),
+        'neck': (-19.664, 0.0, 0.0), 'head': (-16.842, 0.0), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.594, 5.73, 11.459),
+        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0), 'right_hip': (3.438, 0.0, 0.0),
+        'right_knee': (5.791,), 'right_ankle': (2.353, 0.0), 'left_hip': (3.402, 0.0, 0.0),
+        'left_knee': (5.715,), 'left_ankle': (2.31, 0.0),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
@@ -83,594 +81,583 @@ def remove_avionics_unit():
     human.LookAt((0.0, 178.0, 100.0), start=0.8028, duration=1.836346)
     human.KeyRoot(0.9, (0.0, 72.987, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'spine_lumbar': (0.0844, -0.0909, -0.3271), 'spine_thoracic': (0.2976, 0.0244, -0.6542),
-        'neck': (-20.2553, -0.1825, 0.591), 'right_clavicle': (0.5952, -0.3271),
-        'right_shoulder': (8.5094, 9.4653, 10.2972), 'right_elbow': (33.9093, 17.0012),
-        'right_wrist': (0.0072, -0.0191), 'left_clavicle': (0.6526, 0.2398),
-        'left_shoulder': (11.442, 5.8946, 11.2736), 'left_elbow': (34.3349, 15.1753),
-        'left_wrist': (-0.1521, -0.0457), 'right_hip': (3.1133, 0.0, 0.0), 'right_knee': (5.1074,),
-        'right_ankle': (1.996, 0.0), 'left_hip': (3.1178, 0.0, 0.0), 'left_knee': (5.1168,),
-        'left_ankle': (2.0011, 0.0),
+        'spine_lumbar': (0.084, -0.091, -0.327), 'spine_thoracic': (0.298, 0.024, -0.654),
+        'neck': (-20.255, -0.182, 0.591), 'right_clavicle': (0.595, -0.327),
+        'right_shoulder': (8.509, 9.465, 10.297), 'right_elbow': (33.909, 17.001),
+        'right_wrist': (0.007, -0.019), 'left_clavicle': (0.653, 0.24),
+        'left_shoulder': (11.442, 5.895, 11.274), 'left_elbow': (34.335, 15.175),
+        'left_wrist': (-0.152, -0.046), 'right_hip': (3.113, 0.0, 0.0), 'right_knee': (5.107,),
+        'right_ankle': (1.996, 0.0), 'left_hip': (3.118, 0.0, 0.0), 'left_knee': (5.117,),
+        'left_ankle': (2.001, 0.0),
     })
     human.KeyJoints(1.0, {
-        'spine_lumbar': (0.3466, -0.3502, -1.2601), 'spine_thoracic': (1.1465, 0.0942, -2.5202),
-        'neck': (-20.8972, -0.6299, 2.0396), 'head': (-18.1789, -0.0017),
-        'right_clavicle': (2.3009, -1.2601), 'right_shoulder': (8.267, 20.1218, 6.9827),
-        'right_elbow': (32.5564, 16.4661), 'left_clavicle': (2.5143, 0.9286),
-        'left_shoulder': (19.5967, 6.3688, 10.743), 'left_elbow': (34.2055, 9.4318),
-        'left_wrist': (-0.5872, -0.1759), 'right_hip': (3.0948, 0.0, 0.0), 'right_knee': (5.0685,),
-        'right_ankle': (1.976, 0.0), 'left_hip': (3.0974, 0.0, 0.0), 'left_knee': (5.0738,),
-        'left_ankle': (1.9788, 0.0),
+        'spine_lumbar': (0.347, -0.35, -1.26), 'spine_thoracic': (1.147, 0.094, -2.52),
+        'neck': (-20.897, -0.63, 2.04), 'head': (-18.179, -0.002), 'right_clavicle': (2.301, -1.26),
+        'right_shoulder': (8.267, 20.122, 6.983), 'right_elbow': (32.556, 16.466),
+        'left_clavicle': (2.514, 0.929), 'left_shoulder': (19.597, 6.369, 10.743),
+        'left_elbow': (34.206, 9.432), 'left_wrist': (-0.587, -0.176),
+        'right_hip': (3.095, 0.0, 0.0), 'right_knee': (5.068,), 'right_ankle': (1.976, 0.0),
+        'left_hip': (3.097, 0.0, 0.0), 'left_knee': (5.074,), 'left_ankle': (1.979, 0.0),
     })
     human.KeyJoints(1.1, {
-        'spine_lumbar': (0.7852, -0.7411, -2.6664), 'spine_thoracic': (2.4261, 0.1993, -5.3328),
-        'neck': (-21.9977, -1.2839, 4.1716), 'head': (-19.334, -0.0061),
-        'right_clavicle': (4.8876, -2.6664), 'right_shoulder': (7.9016, 36.1834, 1.987),
-        'right_elbow': (30.482, 15.6596), 'left_clavicle': (5.3208, 1.9763),
-        'left_shoulder': (31.9524, 7.0909, 9.9403), 'left_elbow': (33.9944, 0.775),
-        'left_wrist': (-1.2451, -0.3722), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5865,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8749, 0.0, 0.0), 'left_knee': (4.6129,),
-        'left_ankle': (1.7225, 0.0),
+        'spine_lumbar': (0.785, -0.741, -2.666), 'spine_thoracic': (2.426, 0.199, -5.333),
+        'neck': (-21.998, -1.284, 4.172), 'head': (-19.334, -0.006),
+        'right_clavicle': (4.888, -2.666), 'right_shoulder': (7.902, 36.183, 1.987),
+        'right_elbow': (30.482, 15.66), 'left_clavicle': (5.321, 1.976),
+        'left_shoulder': (31.952, 7.091, 9.94), 'left_elbow': (33.994, 0.775),
+        'left_wrist': (-1.245, -0.372), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.586,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.875, 0.0, 0.0), 'left_knee': (4.613,),
+        'left_ankle': (1.723, 0.0),
     })
     human.KeyJoints(1.2, {
-        'spine_lumbar': (1.3989, -1.2265, -4.413), 'spine_thoracic': (4.0152, 0.3299, -8.826),
-        'neck': (-24.7259, -2.008, 6.503), 'head': (-19.603, -0.0155),
-        'right_clavicle': (8.1253, -4.413), 'right_shoulder': (7.4478, 56.1316, -4.2175),
-        'right_elbow': (27.8498, 14.6578), 'right_wrist': (0.1119, -0.2843),
-        'left_clavicle': (8.8071, 3.2926), 'left_shoulder': (47.4004, 7.9994, 8.9386),
-        'left_elbow': (33.7064, -9.9765), 'left_wrist': (-2.0658, -0.6161),
+        'spine_lumbar': (1.399, -1.226, -4.413), 'spine_thoracic': (4.015, 0.33, -8.826),
+        'neck': (-24.726, -2.008, 6.503), 'head': (-19.603, -0.015),
+        'right_clavicle': (8.125, -4.413), 'right_shoulder': (7.448, 56.132, -4.217),
+        'right_elbow': (27.85, 14.658), 'right_wrist': (0.112, -0.284),
+        'left_clavicle': (8.807, 3.293), 'left_shoulder': (47.4, 7.999, 8.939),
+        'left_elbow': (33.706, -9.976), 'left_wrist': (-2.066, -0.616),
     })
     human.KeyJoints(1.3, {
-        'spine_lumbar': (2.1863, -1.7695, -6.3669), 'spine_thoracic': (5.793, 0.4759, -12.7338),
-        'neck': (-28.6059, -2.6988, 8.6945), 'right_clavicle': (11.784, -6.3669),
-        'right_shoulder': (6.9401, 78.4474, -11.1584), 'right_elbow': (24.8234, 13.537),
-        'left_clavicle': (12.7082, 4.7872), 'left_shoulder': (64.8322, 9.0329, 7.8113),
-        'left_elbow': (33.3467, -22.0041),
+        'spine_lumbar': (2.186, -1.77, -6.367), 'spine_thoracic': (5.793, 0.476, -12.734),
+        'neck': (-28.606, -2.699, 8.694), 'right_clavicle': (11.784, -6.367),
+        'right_shoulder': (6.94, 78.447, -11.158), 'right_elbow': (24.823, 13.537),
+        'left_clavicle': (12.708, 4.787), 'left_shoulder': (64.832, 9.033, 7.811),
+        'left_elbow': (33.347, -22.004),
     })
     human.KeyJoints(1.4, {
-        'spine_lumbar': (3.146, -2.3332, -8.3951), 'spine_thoracic': (7.6384, 0.6275, -16.7902),
-        'neck': (-33.0555, -3.2691, 10.4789), 'right_shoulder': (6.4131, 101.6123, -18.3634),
-        'left_clavicle': (16.7591, 6.3698), 'left_shoulder': (83.1389, 10.1298, 6.6315),
-        'left_elbow': (32.9202, -34.4892),
+        'spine_lumbar': (3.146, -2.333, -8.395), 'spine_thoracic': (7.638, 0.627, -16.79),
+        'neck': (-33.055, -3.269, 10.479), 'right_shoulder': (6.413, 101.612, -18.363),
+        'left_clavicle': (16.759, 6.37), 'left_shoulder': (83.139, 10.13, 6.632),
+        'left_elbow': (32.92, -34.489),
     })
     human.KeyJoints(1.5, {
-        'spine_lumbar': (4.2766, -2.8806, -10.3647), 'spine_thoracic': (9.4304, 0.7747, -20.7294),
-        'neck': (-37.6921, -3.5822, 11.3581), 'head': (-19.1879, -0.1445),
-        'right_clavicle': (19.4442, -10.3647), 'right_shoulder': (5.9014, 124.1073, -25.3601),
-        'right_elbow': (18.2425, 11.243), 'left_clavicle': (20.6949, 7.9501),
-        'left_shoulder': (101.2121, 11.2286, 5.4724), 'left_elbow': (32.4321, -46.6134),
-        'left_wrist': (-4.9028, -1.4469),
+        'spine_lumbar': (4.277, -2.881, -10.365), 'spine_thoracic': (9.43, 0.775, -20.729),
+        'neck': (-37.692, -3.582, 11.358), 'head': (-19.188, -0.145),
+        'right_clavicle': (19.444, -10.365), 'right_shoulder': (5.901, 124.107, -25.36),
+        'right_elbow': (18.243, 11.243), 'left_clavicle': (20.695, 7.95),
+        'left_shoulder': (101.212, 11.229, 5.472), 'left_elbow': (32.432, -46.613),
+        'left_wrist': (-4.903, -1.447),
     })
     human.KeyJoints(1.6, {
-        'spine_lumbar': (5.5768, -3.3747, -12.1427), 'spine_thoracic': (11.0481, 0.9076, -24.2853),
-        'neck': (-42.2412, -3.629, 11.3256), 'head': (-18.9881, -0.2173),
-        'right_clavicle': (22.9857, -12.1427), 'right_shoulder': (5.4394, 144.4138, -31.6761),
-        'right_elbow': (15.0153, 10.2223), 'left_clavicle': (24.2505, 9.4379),
-        'left_shoulder': (117.943, 12.2679, 4.4073), 'left_elbow': (31.8872, -57.558),
-        'left_wrist': (-5.773, -1.6951),
+        'spine_lumbar': (5.577, -3.375, -12.143), 'spine_thoracic': (11.048, 0.908, -24.285),
+        'neck': (-42.241, -3.629, 11.326), 'head': (-18.988, -0.217),
+        'right_clavicle': (22.986, -12.143), 'right_shoulder': (5.439, 144.414, -31.676),
+        'right_elbow': (15.015, 10.222), 'left_clavicle': (24.25, 9.438),
+        'left_shoulder': (117.943, 12.268, 4.407), 'left_elbow': (31.887, -57.558),
+        'left_wrist': (-5.773, -1.695),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (7.0452, -3.7786, -13.596), 'spine_thoracic': (12.3705, 1.0162, -27.192),
-        'neck': (-46.1946, -3.37, 10.4748), 'head': (-18.9367, -0.2295),
-        'right_clavicle': (26.0282, -13.596), 'right_shoulder': (5.0618, 161.0129, -36.8389),
-        'right_elbow': (12.0484, 9.3873), 'right_wrist': (0.5064, -1.1566),
-        'left_clavicle': (27.1609, 10.7429), 'left_shoulder': (132.223, 13.1862, 3.5092),
-        'left_elbow': (31.2907, -66.5045), 'left_wrist': (-6.5052, -1.898),
+        'spine_lumbar': (7.045, -3.779, -13.596), 'spine_thoracic': (12.37, 1.016, -27.192),
+        'neck': (-46.195, -3.37, 10.475), 'head': (-18.937, -0.229),
+        'right_clavicle': (26.028, -13.596), 'right_shoulder': (5.062, 161.013, -36.839),
+        'right_elbow': (12.048, 9.387), 'right_wrist': (0.506, -1.157),
+        'left_clavicle': (27.161, 10.743), 'left_shoulder': (132.223, 13.186, 3.509),
+        'left_elbow': (31.291, -66.504), 'left_wrist': (-6.505, -1.898),
     })
     human.KeyJoints(1.8, {
-        'spine_lumbar': (8.6804, -4.0554, -14.5918), 'spine_thoracic': (13.2765, 1.0907, -29.1836),
-        'neck': (-48.5099, -2.6607, 8.988), 'head': (-19.8511, -0.0428),
-        'right_clavicle': (28.3415, -14.5918), 'right_shoulder': (4.8031, 172.3861, -40.3763),
-        'right_elbow': (9.5055, 8.8143), 'left_clavicle': (29.1613, 11.7747),
-        'left_shoulder': (142.9434, 13.9219, 2.8515), 'left_elbow': (30.6476, -72.6342),
-        'left_wrist': (-7.0392, -2.037),
+        'spine_lumbar': (8.68, -4.055, -14.592), 'spine_thoracic': (13.276, 1.091, -29.184),
+        'neck': (-48.51, -2.661, 8.988), 'head': (-19.851, -0.043),
+        'right_clavicle': (28.342, -14.592), 'right_shoulder': (4.803, 172.386, -40.376),
+        'right_elbow': (9.505, 8.814), 'left_clavicle': (29.161, 11.775),
+        'left_shoulder': (142.943, 13.922, 2.851), 'left_elbow': (30.648, -72.634),
+        'left_wrist': (-7.039, -2.037),
     })
     human.KeyJoints(1.9, {
-        'spine_lumbar': (10.481, -4.168, -14.997), 'spine_thoracic': (13.6452, 1.121, -29.9941),
-        'neck': (-50.8594, -1.8889, 7.2869), 'head': (-19.8536, 0.0076),
-        'right_clavicle': (29.6959, -14.997), 'right_shoulder': (4.6978, 177.0143, -41.8159),
-        'right_elbow': (7.5501, 8.5795), 'right_wrist': (0.7187, -1.554),
-        'left_clavicle': (29.9865, 12.4431), 'left_shoulder': (148.9957, 14.4136, 2.5073),
-        'left_elbow': (29.9629, -75.1287), 'left_wrist': (-7.315, -2.0936),
+        'spine_lumbar': (10.481, -4.168, -14.997), 'spine_thoracic': (13.645, 1.121, -29.994),
+        'neck': (-50.859, -1.889, 7.287), 'head': (-19.854, 0.008),
+        'right_clavicle': (29.696, -14.997), 'right_shoulder': (4.698, 177.014, -41.816),
+        'right_elbow': (7.55, 8.579), 'right_wrist': (0.719, -1.554),
+        'left_clavicle': (29.987, 12.443), 'left_shoulder': (148.996, 14.414, 2.507),
+        'left_elbow': (29.963, -75.129), 'left_wrist': (-7.315, -2.094),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.0, {
-        'spine_lumbar': (14.7091, -3.8016, -15.0), 'spine_thoracic': (11.4041, 1.0753, -30.0),
-        'neck': (-53.5639, -0.9008, 4.2862), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (5.0094, 175.1272, -41.754), 'right_elbow': (5.9799, 8.5763),
-        'left_clavicle': (30.0, 12.9673), 'left_shoulder': (151.7152, 14.3082, 2.4962),
-        'left_elbow': (28.4767, -75.1465), 'left_wrist': (-7.383, -2.1073),
+        'spine_lumbar': (14.709, -3.802, -15.0), 'spine_thoracic': (11.404, 1.075, -30.0),
+        'neck': (-53.564, -0.901, 4.286), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (5.009, 175.127, -41.754), 'right_elbow': (5.98, 8.576),
+        'left_clavicle': (30.0, 12.967), 'left_shoulder': (151.715, 14.308, 2.496),
+        'left_elbow': (28.477, -75.147), 'left_wrist': (-7.383, -2.107),
     })
     human.KeyJoints(2.1, {
-        'spine_lumbar': (21.1165, -2.348, -15.0), 'spine_thoracic': (6.2414, 1.1965, -30.0),
-        'neck': (-57.0672, -0.26, 1.8793), 'head': (-19.5419, 0.003),
-        'right_shoulder': (5.6749, 173.1622, -41.7093), 'right_elbow': (3.7945, 8.5781),
-        'right_wrist': (0.9894, -2.1286), 'left_clavicle': (30.0, 14.8709),
-        'left_shoulder': (157.1251, 11.9403, 2.9659), 'left_elbow': (24.199, -75.1785),
-        'left_wrist': (-7.5061, -2.3915),
+        'spine_lumbar': (21.117, -2.348, -15.0), 'spine_thoracic': (6.241, 1.197, -30.0),
+        'neck': (-57.067, -0.26, 1.879), 'head': (-19.542, 0.003),
+        'right_shoulder': (5.675, 173.162, -41.709), 'right_elbow': (3.794, 8.578),
+        'right_wrist': (0.989, -2.129), 'left_clavicle': (30.0, 14.871),
+        'left_shoulder': (157.125, 11.94, 2.966), 'left_elbow': (24.199, -75.178),
+        'left_wrist': (-7.506, -2.392),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(2.2, {
-        'spine_lumbar': (27.0121, -0.0511, -15.0), 'spine_thoracic': (-0.6836, -0.5472, -30.0),
-        'neck': (-57.958, 0.0814, 0.0515), 'right_shoulder': (6.2003, 171.8684, -41.6984),
-        'right_elbow': (0.8901, 8.5842), 'right_wrist': (0.5937, -1.5593),
-        'left_clavicle': (30.0, 15.0), 'left_shoulder': (168.2071, 8.7303, 3.3465),
-        'left_elbow': (7.8817, -75.1842), 'left_wrist': (-6.5149, -2.1073),
+        'spine_lumbar': (27.012, -0.051, -15.0), 'spine_thoracic': (-0.684, -0.547, -30.0),
+        'neck': (-57.958, 0.081, 0.052), 'right_shoulder': (6.2, 171.868, -41.698),
+        'right_elbow': (0.89, 8.584), 'right_wrist': (0.594, -1.559), 'left_clavicle': (30.0, 15.0),
+        'left_shoulder': (168.207, 8.73, 3.346), 'left_elbow': (7.883, -75.184),
+        'left_wrist': (-6.515, -2.107),
     })
     human.KeyJoints(2.3, {
-        'neck': (-57.9933, 0.0905, -0.0003), 'left_shoulder': (168.7512, 8.6473, 3.3487),
-        'left_elbow': (6.9284, -75.1829), 'left_wrist': (-6.222, -2.0014),
+        'neck': (-57.99, 0.091, -0.006), 'left_shoulder': (168.75, 8.648, 3.349),
+        'left_elbow': (6.932, -75.183), 'left_wrist': (-6.223, -2.002),
     })
     human.KeyJoints(2.4, {
-        'spine_thoracic': (-0.7639, -0.6441, -30.0), 'right_wrist': (0.4778, -1.3174),
-        'left_shoulder': (169.4701, 8.5405, 3.3509), 'left_elbow': (5.6614, -75.1812),
-        'left_wrist': (-5.7372, -1.8306),
+        'spine_thoracic': (-0.764, -0.644, -30.0), 'right_wrist': (0.479, -1.319),
+        'left_shoulder': (169.462, 8.542, 3.351), 'left_elbow': (5.676, -75.181),
+        'left_wrist': (-5.745, -1.833),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (27.2247, 0.1333, -15.0), 'neck': (-58.3625, 0.1027, -0.0685),
-        'right_elbow': (0.452, 8.5853), 'right_wrist': (0.3766, -1.0992),
-        'left_shoulder': (170.3659, 8.4187, 3.3526), 'left_elbow': (4.118, -75.1792),
-        'left_wrist': (-4.9341, -1.5556),
+        'neck': (-58.363, 0.103, -0.068), 'right_shoulder': (6.363, 171.79, -41.698),
+        'left_shoulder': (170.367, 8.419, 3.353), 'left_elbow': (4.117, -75.179),
+        'left_wrist': (-4.933, -1.555),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=2.567146, duration=0.072)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=2.567146, duration=0.072)
     human.KeyJoints(2.6, {
-        'neck': (-58.3625, 0.1027, -0.0685), 'head': (-19.5783, 0.0027),
-        'right_shoulder': (6.3631, 171.7904, -41.6984),
+        'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.563, -0.546, -30.0),
+        'neck': (-58.618, 0.104, -0.076), 'head': (-19.569, 0.003),
+        'right_shoulder': (6.524, 171.769, -41.698), 'right_elbow': (0.292, 8.586),
+        'right_wrist': (0.268, -0.854), 'left_shoulder': (171.167, 8.326, 3.353),
+        'left_elbow': (2.783, -75.178), 'left_wrist': (-3.947, -1.227),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
     human.LookAt((0.0, 172.0, 98.0), start=2.639146, duration=0.2628)
-    human.KeyJoints(2.7, {'neck': (-58.0984, 0.0748, 0.0182)})
-    human.KeyJoints(2.8, {'neck': (-57.0707, -0.0335, 0.3555)})
+    human.KeyJoints(2.7, {'neck': (-58.354, 0.077, 0.01)})
+    human.KeyJoints(2.8, {'neck': (-57.329, -0.031, 0.348)})
     human.KeyJoints(2.9, {
-        'spine_lumbar': (27.2247, 0.1333, -15.0), 'spine_thoracic': (-0.7019, -0.6329, -30.0),
-        'neck': (-56.4211, -0.102, 0.5686), 'head': (-19.3648, -0.0004),
-        'right_shoulder': (6.3631, 171.7904, -41.6984), 'right_elbow': (0.452, 8.5853),
-        'right_wrist': (0.3766, -1.0992), 'left_clavicle': (30.0, 15.0),
-        'left_shoulder': (170.3659, 8.4187, 3.3526), 'left_elbow': (4.118, -75.1792),
-        'left_wrist': (-4.9341, -1.5556),
+        'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.563, -0.546, -30.0),
+        'neck': (-56.681, -0.099, 0.561), 'head': (-19.346, 0.0),
+        'right_shoulder': (6.524, 171.769, -41.698), 'right_elbow': (0.292, 8.586),
+        'right_wrist': (0.268, -0.854), 'left_clavicle': (30.0, 15.0),
+        'left_shoulder': (171.167, 8.326, 3.353), 'left_elbow': (2.783, -75.178),
+        'left_wrist': (-3.947, -1.227),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
     human.LookAt((0.0, 165.0, 75.0), start=2.901946, duration=2.430743)
     human.KeyJoints(3.0, {
-        'spine_lumbar': (25.5971, 0.9206, -11.0556), 'spine_thoracic': (3.8136, -1.7062, -18.8591),
-        'neck': (-59.1916, 0.0374, -0.4879), 'head': (-19.9236, 0.1995),
-        'right_shoulder': (64.3444, 122.5238, -27.9589), 'right_elbow': (1.4948, 5.1668),
-        'right_wrist': (0.4358, -0.8118), 'left_clavicle': (30.0, 5.7292),
-        'left_shoulder': (113.7735, 57.0594, 25.6077), 'left_elbow': (3.4616, -23.8392),
-        'left_wrist': (-3.2055, -1.2765),
+        'spine_lumbar': (25.612, 0.927, -11.056), 'spine_thoracic': (3.907, -1.649, -18.859),
+        'neck': (-59.31, 0.001, -0.48), 'head': (-19.926, 0.23),
+        'right_shoulder': (64.452, 122.509, -27.959), 'right_elbow': (1.388, 5.167),
+        'right_wrist': (0.364, -0.649), 'left_clavicle': (30.0, 5.729),
+        'left_shoulder': (114.307, 56.997, 25.608), 'left_elbow': (2.572, -23.838),
+        'left_wrist': (-2.548, -1.057),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (22.9423, 2.3383, -4.6217), 'spine_thoracic': (11.619, -3.4569, -0.6335),
-        'neck': (-60.0, 20.4624, 13.4815), 'head': (-20.0, -7.1778),
-        'right_clavicle': (30.0, -15.0), 'right_shoulder': (158.9208, 42.1623, -5.5476),
-        'right_elbow': (3.1957, -0.4094), 'right_wrist': (0.5323, -0.3431),
-        'left_clavicle': (30.0, -9.393), 'left_shoulder': (21.422, 136.3998, 61.9091),
-        'left_elbow': (2.3908, 59.9043), 'left_wrist': (-0.3858, -0.8211),
+        'spine_lumbar': (22.945, 2.34, -4.622), 'spine_thoracic': (11.636, -3.446, -0.634),
+        'neck': (-60.0, 20.593, 13.591), 'head': (-20.0, -7.27), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (158.94, 42.16, -5.548), 'right_elbow': (3.176, -0.409),
+        'right_wrist': (0.519, -0.313), 'left_clavicle': (30.0, -9.393),
+        'left_shoulder': (21.519, 136.389, 61.909), 'left_elbow': (2.229, 59.905),
+        'left_wrist': (-0.266, -0.781),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(3.2, {
-        'spine_lumbar': (23.2097, 3.0062, -3.2068), 'spine_thoracic': (14.4746, -3.6898, 3.5481),
-        'neck': (-60.0, 33.6822, 25.8964), 'head': (-20.0, -11.25),
-        'right_clavicle': (30.0, -14.7926), 'right_shoulder': (179.7221, 24.3614, -0.5558),
-        'right_elbow': (3.4057, -1.6517), 'right_wrist': (0.5372, -0.2799),
-        'left_clavicle': (30.0, -12.7289), 'left_shoulder': (0.7411, 154.0714, 69.9993),
-        'left_elbow': (2.1551, 78.5692), 'left_wrist': (0.2403, -0.7227),
+        'spine_lumbar': (23.21, 3.006, -3.207), 'spine_thoracic': (14.475, -3.69, 3.548),
+        'neck': (-60.0, 33.682, 25.897), 'head': (-20.0, -11.25), 'right_clavicle': (30.0, -14.793),
+        'right_shoulder': (179.722, 24.361, -0.556), 'right_elbow': (3.406, -1.652),
+        'right_wrist': (0.537, -0.28), 'left_clavicle': (30.0, -12.729),
+        'left_shoulder': (0.741, 154.071, 69.999), 'left_elbow': (2.155, 78.569),
+        'left_wrist': (0.24, -0.723),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=3.291054, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.291054, duration=0.072)
     human.KeyJoints(3.3, {
-        'spine_lumbar': (25.2115, 1.6706, -3.1542), 'spine_thoracic': (12.8766, -2.6383, 3.7721),
-        'neck': (-60.0, 33.75, 26.1461), 'head': (-20.0, -10.9243), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (180.0, 26.1955, -0.6078), 'right_elbow': (3.2516, -1.6499),
-        'right_wrist': (0.2677, -0.2847), 'left_clavicle': (30.0, -14.4368),
-        'left_shoulder': (2.4581, 153.4396, 70.0), 'left_elbow': (1.7078, 78.5666),
-        'left_wrist': (0.3777, -0.4421),
+        'spine_lumbar': (25.212, 1.671, -3.154), 'spine_thoracic': (12.877, -2.638, 3.772),
+        'neck': (-60.0, 33.75, 26.146), 'head': (-20.0, -10.925), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (180.0, 26.195, -0.608), 'right_elbow': (3.252, -1.65),
+        'right_wrist': (0.268, -0.285), 'left_clavicle': (30.0, -14.437),
+        'left_shoulder': (2.458, 153.44, 70.0), 'left_elbow': (1.708, 78.567),
+        'left_wrist': (0.378, -0.442),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(3.4, {
-        'neck': (-60.0, 33.75, 27.0727), 'head': (-20.0, -10.1367),
-        'right_shoulder': (179.5684, 26.2744, -0.633), 'right_elbow': (4.8343, -1.6087),
-        'right_wrist': (0.3334, 0.0948), 'left_shoulder': (3.6687, 153.9401, 69.401),
-        'left_elbow': (3.3031, 78.4164), 'left_wrist': (-0.2081, -0.8813),
+        'neck': (-60.0, 33.75, 27.073), 'head': (-20.0, -10.137),
+        'right_shoulder': (179.568, 26.274, -0.633), 'right_elbow': (4.834, -1.609),
+        'right_wrist': (0.333, 0.095), 'left_shoulder': (3.669, 153.94, 69.401),
+        'left_elbow': (3.303, 78.416), 'left_wrist': (-0.208, -0.881),
     })
     human.KeyJoints(3.5, {
-        'neck': (-60.0, 33.75, 36.055), 'head': (-20.0, -2.5009),
-        'right_shoulder': (175.2085, 27.12, -0.9118), 'right_elbow': (20.8227, -1.1923),
-        'right_wrist': (0.9973, 3.9283), 'left_shoulder': (15.999, 159.0112, 63.3499),
-        'left_elbow': (19.4195, 76.8891), 'left_wrist': (-6.1266, -5.3178),
+        'neck': (-60.0, 33.75, 36.055), 'head': (-20.0, -2.501),
+        'right_shoulder': (175.209, 27.12, -0.912), 'right_elbow': (20.823, -1.192),
+        'right_wrist': (0.997, 3.928), 'left_shoulder': (15.999, 159.011, 63.35),
+        'left_elbow': (19.42, 76.889), 'left_wrist': (-6.127, -5.318),
     })
     human.KeyJoints(3.6, {
-        'neck': (-60.0, 33.75, 47.3648), 'head': (-20.0, 7.1134),
-        'right_shoulder': (169.0632, 28.4853, -1.3924), 'right_elbow': (43.3589, -0.6054),
-        'right_wrist': (1.9331, 9.3318), 'left_shoulder': (33.7373, 166.2111, 54.8207),
-        'left_elbow': (42.1361, 74.7044), 'left_wrist': (-14.4688, -11.5713),
+        'neck': (-60.0, 33.75, 47.365), 'head': (-20.0, 7.113),
+        'right_shoulder': (169.063, 28.485, -1.392), 'right_elbow': (43.359, -0.605),
+        'right_wrist': (1.933, 9.332), 'left_shoulder': (33.737, 166.211, 54.821),
+        'left_elbow': (42.136, 74.704), 'left_wrist': (-14.469, -11.571),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (25.2115, 1.6706, -3.1542), 'spine_thoracic': (12.8766, -2.6383, 3.7721),
-        'neck': (-60.0, 33.75, 52.076), 'head': (-20.0, 11.1183),
-        'right_shoulder': (164.7735, 29.8594, -1.9407), 'right_elbow': (59.09, -0.1957),
-        'right_wrist': (2.5863, 13.1036), 'left_clavicle': (30.0, -14.4368),
-        'left_shoulder': (46.9904, 171.3636, 48.867), 'left_elbow': (57.9931, 73.1017),
-        'left_wrist': (-20.292, -15.9364),
+        'spine_lumbar': (25.212, 1.671, -3.154), 'spine_thoracic': (12.877, -2.638, 3.772),
+        'neck': (-60.0, 33.75, 52.076), 'head': (-20.0, 11.118),
+        'right_shoulder': (164.773, 29.859, -1.941), 'right_elbow': (59.09, -0.196),
+        'right_wrist': (2.586, 13.104), 'left_clavicle': (30.0, -14.437),
+        'left_shoulder': (46.99, 171.364, 48.867), 'left_elbow': (57.993, 73.102),
+        'left_wrist': (-20.292, -15.936),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(3.8, {
-        'spine_lumbar': (19.8692, 0.5639, -5.1018), 'spine_thoracic': (14.6276, -1.3499, 2.1396),
-        'neck': (-60.0, 33.75, 38.0132), 'head': (-20.0, -11.25),
-        'right_shoulder': (166.2283, 30.3687, -2.2125), 'right_elbow': (48.569, -0.0451),
-        'right_wrist': (2.4028, 9.5725), 'left_clavicle': (30.0, -13.3234),
-        'left_shoulder': (41.0238, 169.3377, 46.4125), 'left_elbow': (48.3349, 71.8038),
-        'left_wrist': (-16.6686, -16.1845),
+        'spine_lumbar': (19.868, 0.564, -5.102), 'spine_thoracic': (14.628, -1.35, 2.139),
+        'neck': (-60.0, 33.75, 38.012), 'head': (-20.0, -11.25),
+        'right_shoulder': (166.229, 30.368, -2.212), 'right_elbow': (48.566, -0.045),
+        'right_wrist': (2.403, 9.571), 'left_clavicle': (30.0, -13.323),
+        'left_shoulder': (41.021, 169.336, 46.412), 'left_elbow': (48.331, 71.803),
+        'left_wrist': (-16.667, -16.184),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(3.9, {
-        'spine_lumbar': (17.7325, -0.1726, -6.3034), 'spine_thoracic': (15.7784, 0.0756, 1.3009),
-        'neck': (-60.0, 33.75, 35.731), 'right_shoulder': (169.7524, 28.5747, -1.3028),
-        'right_elbow': (39.4833, 0.2263), 'right_wrist': (2.4325, 6.4099),
-        'left_clavicle': (30.0, -12.8005), 'left_shoulder': (34.0576, 164.74, 45.3014),
-        'left_elbow': (37.2706, 70.2874), 'left_wrist': (-12.393, -15.2411),
+        'spine_lumbar': (17.729, -0.17, -6.303), 'spine_thoracic': (15.776, 0.077, 1.302),
+        'neck': (-60.0, 33.75, 35.73), 'right_shoulder': (169.761, 28.576, -1.303),
+        'right_elbow': (39.487, 0.228), 'right_wrist': (2.432, 6.411),
+        'left_clavicle': (30.0, -12.802), 'left_shoulder': (34.062, 164.742, 45.297),
+        'left_elbow': (37.274, 70.283), 'left_wrist': (-12.394, -15.242),
     })
     human.KeyJoints(4.0, {
-        'right_shoulder': (171.3988, 28.4113, -1.0954),
-        'left_shoulder': (34.2368, 164.0396, 44.6471),
+        'right_shoulder': (171.418, 28.412, -1.095), 'left_shoulder': (34.241, 164.04, 44.637),
     })
     human.KeyJoints(4.1, {
-        'right_shoulder': (172.8574, 28.2699, -0.9147), 'right_elbow': (38.5154, 0.6314),
-        'right_wrist': (2.381, 5.5557), 'left_shoulder': (34.5456, 163.4323, 44.0408),
-        'left_elbow': (36.7071, 68.7332),
+        'right_shoulder': (172.884, 28.271, -0.914), 'right_elbow': (38.517, 0.636),
+        'right_wrist': (2.381, 5.555), 'left_shoulder': (34.549, 163.432, 44.028),
+        'left_elbow': (36.709, 68.719),
     })
-    human.KeyJoints(4.2, {'right_shoulder': (174.1389, 28.1492, -0.7589)})
+    human.KeyJoints(4.2, {'right_shoulder': (174.17, 28.15, -0.758)})
     human.KeyJoints(4.3, {
-        'right_shoulder': (175.254, 28.0473, -0.6263), 'right_elbow': (37.8101, 0.9836),
-        'right_wrist': (2.284, 4.9268), 'left_shoulder': (35.4626, 162.4703, 42.9714),
-        'left_elbow': (36.2977, 67.4922),
+        'right_shoulder': (175.286, 28.048, -0.626), 'right_elbow': (37.81, 0.989),
+        'right_wrist': (2.284, 4.925), 'left_shoulder': (35.466, 162.469, 42.955),
+        'left_elbow': (36.298, 67.475),
     })
-    human.KeyJoints(4.4, {'right_shoulder': (176.2135, 27.9628, -0.5149)})
+    human.KeyJoints(4.4, {'right_shoulder': (176.246, 27.963, -0.514)})
     human.KeyJoints(4.5, {
-        'right_shoulder': (177.0281, 27.894, -0.423), 'left_shoulder': (36.6308, 161.8011, 42.0925),
-        'left_elbow': (36.0178, 66.5362), 'left_wrist': (-12.0622, -15.4077),
+        'right_shoulder': (177.058, 27.894, -0.422), 'left_shoulder': (36.633, 161.799, 42.077),
+        'left_elbow': (36.018, 66.52), 'left_wrist': (-12.062, -15.408),
     })
     human.KeyJoints(4.6, {
-        'right_shoulder': (177.7084, 27.8393, -0.3487), 'right_elbow': (37.1536, 1.4069),
-        'right_wrist': (2.0948, 4.331),
+        'right_shoulder': (177.735, 27.839, -0.348), 'right_elbow': (37.153, 1.411),
+        'right_wrist': (2.095, 4.33),
     })
     human.KeyJoints(4.7, {
-        'right_shoulder': (178.2652, 27.797, -0.2902),
-        'left_shoulder': (37.8725, 161.3718, 41.4034), 'left_elbow': (35.8428, 65.8369),
+        'right_shoulder': (178.288, 27.797, -0.29), 'left_shoulder': (37.874, 161.37, 41.392),
+        'left_elbow': (35.843, 65.825),
     })
-    human.KeyJoints(4.8, {'right_shoulder': (178.7094, 27.7657, -0.2455)})
+    human.KeyJoints(4.8, {'right_shoulder': (178.727, 27.766, -0.245)})
     human.KeyJoints(4.9, {
-        'right_elbow': (36.8543, 1.6954), 'right_wrist': (1.9091, 4.0488),
-        'left_shoulder': (39.01, 161.1295, 40.9034), 'left_elbow': (35.748, 65.3658),
+        'right_elbow': (36.854, 1.698), 'right_wrist': (1.909, 4.048),
+        'left_shoulder': (39.011, 161.129, 40.897), 'left_elbow': (35.748, 65.359),
     })
-    human.KeyJoints(5.0, {'right_shoulder': (179.3022, 27.7291, -0.1907)})
-    human.KeyJoints(5.1, {'left_shoulder': (39.8654, 161.0213, 40.5917)})
+    human.KeyJoints(5.0, {'right_shoulder': (179.311, 27.729, -0.19)})
+    human.KeyJoints(5.1, {'left_shoulder': (39.866, 161.021, 40.589)})
     human.KeyJoints(5.2, {
-        'right_shoulder': (179.5728, 27.7167, -0.1695),
-        'left_shoulder': (40.1318, 161.001, 40.5062), 'left_elbow': (35.7026, 65.0253),
+        'right_shoulder': (179.574, 27.717, -0.169), 'left_shoulder': (40.132, 161.001, 40.505),
+        'left_elbow': (35.703, 65.024),
     })
     human.KeyRoot(5.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(5.3, {
-        'left_shoulder': (40.2611, 160.9943, 40.4676), 'left_wrist': (-11.9791, -15.6428),
-        'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
-        'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
+        'left_shoulder': (40.261, 160.994, 40.468), 'left_wrist': (-11.979, -15.643),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
     human.Walk((-79.722, 0.0, 40.152), start=5.33269, duration=3.7584)
-    human.KeyRoot(5.4, (1.168, 72.256, 50.317), (-2.0413, 0.0, 0.0))
+    human.KeyRoot(5.4, (1.168, 72.256, 50.317), (-2.041, 0.0, 0.0))
     human.KeyJoints(5.4, {
-        'right_elbow': (36.7687, 1.855), 'right_wrist': (1.776, 3.9596),
-        'right_hip': (15.119, 0.5517, 2.4791), 'right_knee': (29.808,),
-        'right_ankle': (11.6255, 1.0327), 'left_hip': (8.5527, -0.6882, -2.1677),
-        'left_knee': (17.6006,), 'left_ankle': (9.0861, -1.0024),
+        'right_elbow': (36.769, 1.855), 'right_wrist': (1.776, 3.96),
+        'right_hip': (15.119, 0.552, 2.479), 'right_knee': (29.808,),
+        'right_ankle': (11.625, 1.033), 'left_hip': (8.553, -0.688, -2.168), 'left_knee': (17.601,),
+        'left_ankle': (9.086, -1.002),
     })
-    human.KeyRoot(5.5, (2.202, 72.286, 50.518), (-5.0739, 0.0, 0.0))
+    human.KeyRoot(5.5, (2.202, 72.286, 50.518), (-5.074, 0.0, 0.0))
     human.KeyJoints(5.5, {
-        'right_hip': (24.6643, 0.7659, 3.5028), 'right_knee': (49.8193,),
-        'right_ankle': (20.0, 1.9628), 'left_hip': (7.8083, -1.1683, -5.2793),
-        'left_knee': (16.9516,), 'left_ankle': (9.2863, -1.8692),
+        'right_hip': (24.664, 0.766, 3.503), 'right_knee': (49.819,), 'right_ankle': (20.0, 1.963),
+        'left_hip': (7.808, -1.168, -5.279), 'left_knee': (16.952,), 'left_ankle': (9.286, -1.869),
     })
-    human.KeyRoot(5.6, (2.56, 72.317, 50.548), (-8.1068, 0.0, 0.0))
+    human.KeyRoot(5.6, (2.56, 72.317, 50.548), (-8.107, 0.0, 0.0))
     human.KeyJoints(5.6, {
-        'right_hip': (27.921, 6.0968, -7.6089), 'right_knee': (59.9701,),
-        'right_ankle': (20.0, 2.1745), 'left_hip': (7.253, -1.1081, -8.3081),
-        'left_knee': (16.4084,), 'left_ankle': (9.3926, -2.1329),
+        'right_hip': (27.921, 6.097, -7.609), 'right_knee': (59.97,), 'right_ankle': (20.0, 2.175),
+        'left_hip': (7.253, -1.108, -8.308), 'left_knee': (16.408,), 'left_ankle': (9.393, -2.133),
     })
-    human.KeyRoot(5.7, (2.139, 72.347, 49.948), (-10.9064, 0.0, 0.0))
+    human.KeyRoot(5.7, (2.139, 72.347, 49.948), (-10.906, 0.0, 0.0))
     human.KeyJoints(5.7, {
-        'right_hip': (19.7314, 8.1681, -18.871), 'right_knee': (45.619,),
-        'right_ankle': (20.0, 1.7117), 'left_hip': (8.7798, -0.0431, -11.0671),
-        'left_knee': (19.2172,), 'left_ankle': (9.6907, -1.7212),
+        'right_hip': (19.731, 8.168, -18.871), 'right_knee': (45.619,),
+        'right_ankle': (20.0, 1.712), 'left_hip': (8.78, -0.043, -11.067), 'left_knee': (19.217,),
+        'left_ankle': (9.691, -1.721),
     })
-    human.KeyRoot(5.8, (1.22, 72.377, 48.922), (-13.7857, 0.0, 0.0))
+    human.KeyRoot(5.8, (1.22, 72.377, 48.922), (-13.786, 0.0, 0.0))
     human.KeyJoints(5.8, {
-        'right_hip': (9.0496, 2.9024, -18.4481), 'right_knee': (19.3853,),
-        'right_ankle': (9.4999, 0.3961), 'left_hip': (12.6519, 2.2242, -13.6937),
-        'left_knee': (26.3417,), 'left_ankle': (9.6976, -0.8648),
+        'right_hip': (9.05, 2.902, -18.448), 'right_knee': (19.385,), 'right_ankle': (9.5, 0.396),
+        'left_hip': (12.652, 2.224, -13.694), 'left_knee': (26.342,), 'left_ankle': (9.698, -0.865),
     })
-    human.KeyRoot(5.9, (0.249, 72.407, 48.608), (-17.6429, 0.0, 0.0))
+    human.KeyRoot(5.9, (0.249, 72.407, 48.608), (-17.643, 0.0, 0.0))
     human.KeyJoints(5.9, {
-        'right_hip': (8.0141, 1.5103, -14.8589), 'right_knee': (15.8622,),
-        'right_ankle': (7.7357, -0.6031), 'left_hip': (14.1373, 4.5572, -17.0496),
-        'left_knee': (30.4923,), 'left_ankle': (9.608, 0.1181),
+        'right_hip': (8.014, 1.51, -14.859), 'right_knee': (15.862,),
+        'right_ankle': (7.736, -0.603), 'left_hip': (14.137, 4.557, -17.05), 'left_knee': (30.492,),
+        'left_ankle': (9.608, 0.118),
     })
-    human.KeyRoot(6.0, (-1.014, 72.437, 48.789), (-23.4941, 0.0, 0.0))
+    human.KeyRoot(6.0, (-1.014, 72.437, 48.789), (-23.494, 0.0, 0.0))
     human.KeyJoints(6.0, {
-        'right_hip': (7.9431, -0.3232, -9.201), 'right_ankle': (7.3967, -1.5822),
-        'left_hip': (17.5907, 8.5231, -21.2436), 'left_knee': (42.0694,),
-        'left_ankle': (16.4426, 1.4859),
+        'right_hip': (7.943, -0.323, -9.201), 'right_ankle': (7.397, -1.582),
+        'left_hip': (17.591, 8.523, -21.244), 'left_knee': (42.069,), 'left_ankle': (16.443, 1.486),
     })
-    human.KeyRoot(6.1, (-2.107, 72.467, 49.142), (-30.1629, 0.0, 0.0))
+    human.KeyRoot(6.1, (-2.107, 72.467, 49.142), (-30.163, 0.0, 0.0))
     human.KeyJoints(6.1, {
-        'right_hip': (7.5868, -1.9549, -2.6806), 'right_knee': (14.4575,),
-        'right_ankle': (6.968, -2.2897), 'left_hip': (26.6325, 4.7031, -6.0818),
-        'left_knee': (56.8721,), 'left_ankle': (19.4034, 1.4762),
+        'right_hip': (7.587, -1.955, -2.681), 'right_knee': (14.457,),
+        'right_ankle': (6.968, -2.29), 'left_hip': (26.632, 4.703, -6.082), 'left_knee': (56.872,),
+        'left_ankle': (19.403, 1.476),
     })
-    human.KeyRoot(6.2, (-2.514, 72.487, 50.034), (-36.3218, 0.0, 0.0))
+    human.KeyRoot(6.2, (-2.514, 72.487, 50.034), (-36.322, 0.0, 0.0))
     human.KeyJoints(6.2, {
-        'right_hip': (7.5815, -2.6428, 3.428), 'right_knee': (15.0949,),
-        'right_ankle': (7.1259, -2.1644), 'left_hip': (24.5462, -6.9413, 19.3443),
-        'left_knee': (49.7087,), 'left_ankle': (19.1575, 1.8438),
+        'right_hip': (7.581, -2.643, 3.428), 'right_knee': (15.095,),
+        'right_ankle': (7.126, -2.164), 'left_hip': (24.546, -6.941, 19.344),
+        'left_knee': (49.709,), 'left_ankle': (19.158, 1.844),
     })
     human.KeyRoot(6.3, (-2.746, 72.487, 52.151), (-42.387, 0.0, 0.0))
     human.KeyJoints(6.3, {
-        'right_hip': (10.0888, -3.0029, 9.384), 'right_knee': (22.2983,),
-        'right_ankle': (9.3513, -1.2804), 'left_hip': (11.687, -4.2284, 22.3639),
-        'left_knee': (24.5953,), 'left_ankle': (12.1322, 0.4961),
+        'right_hip': (10.089, -3.003, 9.384), 'right_knee': (22.298,),
+        'right_ankle': (9.351, -1.28), 'left_hip': (11.687, -4.228, 22.364), 'left_knee': (24.595,),
+        'left_ankle': (12.132, 0.496),
     })
-    human.KeyRoot(6.4, (-2.843, 72.487, 53.572), (-48.4522, 0.0, 0.0))
+    human.KeyRoot(6.4, (-2.843, 72.487, 53.572), (-48.452, 0.0, 0.0))
     human.KeyJoints(6.4, {
-        'right_hip': (12.5211, -4.051, 15.335), 'right_knee': (28.1788,),
-        'right_ankle': (9.9234, -0.5277), 'left_hip': (5.9877, -2.6531, 16.4915),
-        'left_knee': (14.7809,), 'left_ankle': (8.2895, -0.8326),
+        'right_hip': (12.521, -4.051, 15.335), 'right_knee': (28.179,),
+        'right_ankle': (9.923, -0.528), 'left_hip': (5.988, -2.653, 16.492), 'left_knee': (14.781,),
+        'left_ankle': (8.289, -0.833),
     })
-    human.KeyRoot(6.5, (-2.272, 72.487, 53.729), (-54.5175, 0.0, 0.0))
+    human.KeyRoot(6.5, (-2.272, 72.487, 53.729), (-54.517, 0.0, 0.0))
     human.KeyJoints(6.5, {
-        'right_hip': (15.4777, -5.9188, 21.2245), 'right_knee': (33.3725,),
-        'right_ankle': (11.0606, 0.2187), 'left_hip': (5.7151, -2.4187, 10.4211),
-        'left_ankle': (8.5002, -1.3344),
+        'right_hip': (15.478, -5.919, 21.224), 'right_knee': (33.372,),
+        'right_ankle': (11.061, 0.219), 'left_hip': (5.715, -2.419, 10.421),
+        'left_ankle': (8.5, -1.334),
     })
-    human.KeyRoot(6.6, (-0.977, 72.487, 53.817), (-60.5827, 0.0, 0.0))
+    human.KeyRoot(6.6, (-0.977, 72.487, 53.817), (-60.583, 0.0, 0.0))
     human.KeyJoints(6.6, {
-        'right_hip': (24.9024, -6.7402, 16.1972), 'right_knee': (52.3995,),
-        'right_ankle': (19.2064, 0.8842), 'left_hip': (6.0148, -2.4404, 4.3128),
-        'left_ankle': (8.119, -1.9683),
+        'right_hip': (24.902, -6.74, 16.197), 'right_knee': (52.399,),
+        'right_ankle': (19.206, 0.884), 'left_hip': (6.015, -2.44, 4.313),
+        'left_ankle': (8.119, -1.968),
     })
-    human.KeyRoot(6.7, (0.164, 72.487, 53.767), (-66.6907, 0.0, 0.0))
+    human.KeyRoot(6.7, (0.164, 72.487, 53.767), (-66.691, 0.0, 0.0))
     human.KeyJoints(6.7, {
-        'right_hip': (23.9077, 6.1782, -9.4902), 'right_knee': (54.9495,),
-        'right_ankle': (19.1769, 1.86), 'left_hip': (6.3209, -2.1693, -1.8089),
-        'left_knee': (14.1036,), 'left_ankle': (7.8449, -2.3603),
+        'right_hip': (23.908, 6.178, -9.49), 'right_knee': (54.95,), 'right_ankle': (19.177, 1.86),
+        'left_hip': (6.321, -2.169, -1.809), 'left_knee': (14.104,), 'left_ankle': (7.845, -2.36),
     })
-    human.KeyRoot(6.8, (1.293, 72.487, 52.464), (-73.3421, 0.0, 0.0))
+    human.KeyRoot(6.8, (1.293, 72.487, 52.464), (-73.342, 0.0, 0.0))
     human.KeyJoints(6.8, {
-        'right_hip': (13.5507, 7.8791, -22.8771), 'right_knee': (34.7981,),
-        'right_ankle': (19.1474, 1.925), 'left_hip': (8.503, -0.4633, -8.3925),
-        'left_knee': (17.228,), 'left_ankle': (8.1095, -1.6902),
+        'right_hip': (13.551, 7.879, -22.877), 'right_knee': (34.798,),
+        'right_ankle': (19.147, 1.925), 'left_hip': (8.503, -0.463, -8.392), 'left_knee': (17.228,),
+        'left_ankle': (8.11, -1.69),
     })
-    human.KeyRoot(6.9, (2.132, 72.487, 50.678), (-79.3953, 0.0, 0.0))
+    human.KeyRoot(6.9, (2.132, 72.487, 50.678), (-79.395, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'right_hip': (7.006, 2.3054, -18.1585), 'right_knee': (14.904,),
-        'right_ankle': (7.5336, -0.0043), 'left_hip': (10.9399, 2.3036, -14.1071),
-        'left_knee': (21.6595,), 'left_ankle': (8.262, -0.4576),
+        'right_hip': (7.006, 2.305, -18.159), 'right_knee': (14.904,),
+        'right_ankle': (7.534, -0.004), 'left_hip': (10.94, 2.304, -14.107), 'left_knee': (21.66,),
+        'left_ankle': (8.262, -0.458),
     })
-    human.KeyRoot(7.0, (2.119, 72.487, 49.604), (-83.4841, 0.0, 0.0))
+    human.KeyRoot(7.0, (2.119, 72.487, 49.604), (-83.484, 0.0, 0.0))
     human.KeyJoints(7.0, {
-        'right_hip': (7.6424, 0.8497, -14.2243), 'right_ankle': (7.0803, -1.0564),
-        'left_hip': (11.5306, 4.3399, -17.8458), 'left_knee': (24.106,),
-        'left_ankle': (8.7986, 0.537),
+        'right_hip': (7.642, 0.85, -14.224), 'right_ankle': (7.08, -1.056),
+        'left_hip': (11.531, 4.34, -17.846), 'left_knee': (24.106,), 'left_ankle': (8.799, 0.537),
     })
-    human.KeyRoot(7.1, (1.499, 72.487, 48.737), (-86.4355, 0.0, 0.0))
+    human.KeyRoot(7.1, (1.499, 72.487, 48.737), (-86.435, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'right_hip': (7.4256, -0.3482, -11.3957), 'right_ankle': (7.2148, -1.8019),
-        'left_hip': (19.0416, 8.2525, -18.0157), 'left_knee': (42.5533,),
-        'left_ankle': (19.0471, 1.5901),
+        'right_hip': (7.426, -0.348, -11.396), 'right_ankle': (7.215, -1.802),
+        'left_hip': (19.042, 8.252, -18.016), 'left_knee': (42.553,), 'left_ankle': (19.047, 1.59),
     })
-    human.KeyRoot(7.2, (0.737, 72.487, 48.298), (-89.1984, 0.0, 0.0))
+    human.KeyRoot(7.2, (0.737, 72.487, 48.298), (-89.198, 0.0, 0.0))
     human.KeyJoints(7.2, {
-        'right_hip': (7.0018, -1.1106, -8.6913), 'right_knee': (14.2409,),
-        'right_ankle': (7.4837, -2.1455), 'left_hip': (26.5939, 5.3584, -5.9229),
-        'left_knee': (55.3965,), 'left_ankle': (19.1964, 2.1143),
+        'right_hip': (7.002, -1.111, -8.691), 'right_knee': (14.241,),
+        'right_ankle': (7.484, -2.145), 'left_hip': (26.594, 5.358, -5.923), 'left_knee': (55.397,),
+        'left_ankle': (19.196, 2.114),
     })
-    human.KeyRoot(7.3, (0.15, 72.554, 48.8), (-92.8151, 0.0, 0.0))
+    human.KeyRoot(7.3, (0.15, 72.554, 48.8), (-92.815, 0.0, 0.0))
     human.KeyJoints(7.3, {
-        'right_hip': (11.1223, -0.7358, -5.206), 'right_knee': (22.6585,),
-        'right_ankle': (8.7119, -1.7244), 'left_hip': (21.8794, 0.5232, 3.6865),
-        'left_knee': (43.7906,), 'left_ankle': (19.1654, 1.8102),
+        'right_hip': (11.122, -0.736, -5.206), 'right_knee': (22.658,),
+        'right_ankle': (8.712, -1.724), 'left_hip': (21.879, 0.523, 3.686), 'left_knee': (43.791,),
+        'left_ankle': (19.165, 1.81),
     })
-    human.KeyRoot(7.4, (-0.484, 72.487, 49.987), (-96.4549, 0.0, 0.0))
+    human.KeyRoot(7.4, (-0.484, 72.487, 49.987), (-96.455, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'right_hip': (22.1829, -0.1021, -1.5808), 'right_knee': (42.7909,),
-        'right_ankle': (5.629, -0.7156), 'left_hip': (8.9102, 0.488, 1.3248),
-        'left_knee': (18.0766,), 'left_ankle': (9.1545, 0.6487),
+        'right_hip': (22.183, -0.102, -1.581), 'right_knee': (42.791,),
+        'right_ankle': (5.629, -0.716), 'left_hip': (8.91, 0.488, 1.325), 'left_knee': (18.077,),
+        'left_ankle': (9.154, 0.649),
     })
-    human.KeyRoot(7.5, (-1.555, 72.487, 50.832), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(7.5, (-1.555, 72.487, 50.832), (-97.695, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'right_hip': (28.2018, 0.1481, 0.2007), 'right_knee': (52.934,),
-        'right_ankle': (-0.6412, 0.2494), 'left_hip': (6.4164, -0.1965, -0.0223),
-        'left_knee': (14.8477,), 'left_ankle': (8.4342, -0.1978),
+        'right_hip': (28.202, 0.148, 0.201), 'right_knee': (52.934,),
+        'right_ankle': (-0.641, 0.249), 'left_hip': (6.416, -0.197, -0.022), 'left_knee': (14.848,),
+        'left_ankle': (8.434, -0.198),
     })
-    human.KeyRoot(7.6, (-4.571, 72.148, 51.359), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(7.6, (-4.571, 72.148, 51.359), (-97.695, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'right_hip': (29.2003, 0.725, 1.0531), 'right_knee': (60.2924,),
-        'right_ankle': (4.8418, 1.2785), 'left_hip': (5.2253, -0.9945, -0.0911),
-        'left_knee': (17.6473,), 'left_ankle': (12.425, -0.9987),
+        'right_hip': (29.2, 0.725, 1.053), 'right_knee': (60.292,), 'right_ankle': (4.842, 1.278),
+        'left_hip': (5.225, -0.994, -0.091), 'left_knee': (17.647,), 'left_ankle': (12.425, -0.999),
     })
-    human.KeyRoot(7.7, (-8.96, 71.644, 51.713), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(7.7, (-8.96, 71.644, 51.713), (-97.695, 0.0, 0.0))
     human.KeyJoints(7.7, {
-        'right_hip': (39.2031, 1.2703, 2.0316), 'right_knee': (68.5817,),
-        'right_ankle': (10.6069, 2.3959), 'left_hip': (2.0157, -1.8208, -0.0641),
-        'left_knee': (18.7543,), 'left_ankle': (16.741, -1.822),
+        'right_hip': (39.203, 1.27, 2.032), 'right_knee': (68.582,), 'right_ankle': (10.607, 2.396),
+        'left_hip': (2.016, -1.821, -0.064), 'left_knee': (18.754,), 'left_ankle': (16.741, -1.822),
     })
-    human.KeyRoot(7.8, (-13.436, 70.762, 51.484), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(7.8, (-13.436, 70.762, 51.484), (-97.695, 0.0, 0.0))
     human.KeyJoints(7.8, {
-        'right_hip': (42.1466, 1.7272, 1.833), 'right_knee': (45.7513,),
-        'right_ankle': (-0.9375, 2.5183), 'left_hip': (15.1091, -1.9549, -1.3298),
-        'left_knee': (51.2363,), 'left_ankle': (17.0508, -2.3665),
+        'right_hip': (42.147, 1.727, 1.833), 'right_knee': (45.751,),
+        'right_ankle': (-0.938, 2.518), 'left_hip': (15.109, -1.955, -1.33), 'left_knee': (51.236,),
+        'left_ankle': (17.051, -2.366),
     })
-    human.KeyRoot(7.9, (-18.479, 69.491, 49.817), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(7.9, (-18.479, 69.491, 49.817), (-97.695, 0.0, 0.0))
     human.KeyJoints(7.9, {
-        'right_hip': (28.7975, 1.2002, 0.6597), 'right_knee': (18.4976,),
-        'right_ankle': (-10.293, 1.3695), 'left_hip': (14.5323, -1.137, -0.9694),
-        'left_knee': (58.8721,), 'left_ankle': (18.4272, -1.4941),
+        'right_hip': (28.797, 1.2, 0.66), 'right_knee': (18.498,), 'right_ankle': (-10.293, 1.37),
+        'left_hip': (14.532, -1.137, -0.969), 'left_knee': (58.872,),
+        'left_ankle': (18.427, -1.494),
     })
-    human.KeyRoot(8.0, (-23.869, 69.633, 47.758), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(8.0, (-23.869, 69.633, 47.758), (-97.695, 0.0, 0.0))
     human.KeyJoints(8.0, {
-        'right_hip': (25.1369, 0.1398, 0.0656), 'right_knee': (21.3735,),
-        'right_ankle': (-3.7633, 0.1544), 'left_hip': (11.4469, -0.1241, -0.1269),
-        'left_knee': (60.6176,), 'left_ankle': (14.9888, -0.1775),
+        'right_hip': (25.137, 0.14, 0.066), 'right_knee': (21.374,), 'right_ankle': (-3.763, 0.154),
+        'left_hip': (11.447, -0.124, -0.127), 'left_knee': (60.618,),
+        'left_ankle': (14.989, -0.177),
     })
-    human.KeyRoot(8.1, (-29.282, 70.779, 45.81), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(8.1, (-29.282, 70.779, 45.81), (-97.695, 0.0, 0.0))
     human.KeyJoints(8.1, {
-        'right_hip': (20.562, -0.8528, -0.3199), 'right_knee': (22.2278,),
-        'right_ankle': (1.6709, -0.9108), 'left_hip': (5.8216, 0.7387, 0.7537),
-        'left_knee': (56.7987,), 'left_ankle': (10.744, 1.0553),
+        'right_hip': (20.562, -0.853, -0.32), 'right_knee': (22.228,),
+        'right_ankle': (1.671, -0.911), 'left_hip': (5.822, 0.739, 0.754), 'left_knee': (56.799,),
+        'left_ankle': (10.744, 1.055),
     })
-    human.KeyRoot(8.2, (-34.925, 71.783, 43.777), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(8.2, (-34.925, 71.783, 43.777), (-97.695, 0.0, 0.0))
     human.KeyJoints(8.2, {
-        'right_hip': (14.2226, -1.9283, -0.4886), 'right_knee': (19.7155,),
-        'right_ankle': (5.5034, -1.9893), 'left_hip': (12.2914, 2.0616, 1.0898),
-        'left_knee': (66.145,), 'left_ankle': (18.5475, 2.7427),
+        'right_hip': (14.223, -1.928, -0.489), 'right_knee': (19.715,),
+        'right_ankle': (5.503, -1.989), 'left_hip': (12.291, 2.062, 1.09), 'left_knee': (66.145,),
+        'left_ankle': (18.548, 2.743),
     })
-    human.KeyRoot(8.3, (-41.165, 70.82, 42.901), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(8.3, (-41.165, 70.82, 42.901), (-97.695, 0.0, 0.0))
     human.KeyJoints(8.3, {
-        'right_hip': (13.3114, -1.9925, -0.4713), 'right_knee': (29.3361,),
-        'right_ankle': (16.0351, -2.0475), 'left_hip': (44.169, 4.177, -2.368),
-        'left_knee': (65.7429,), 'left_ankle': (6.9812, 1.3994),
+        'right_hip': (13.311, -1.993, -0.471), 'right_knee': (29.336,),
+        'right_ankle': (16.035, -2.047), 'left_hip': (44.169, 4.177, -2.368),
+        'left_knee': (65.743,), 'left_ankle': (6.981, 1.399),
     })
-    human.KeyRoot(8.4, (-49.047, 67.978, 42.767), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(8.4, (-49.047, 67.978, 42.767), (-97.695, 0.0, 0.0))
     human.KeyJoints(8.4, {
-        'right_hip': (25.4708, -1.004, -1.0841), 'right_knee': (65.1723,),
-        'right_ankle': (17.9798, -1.4776), 'left_hip': (36.4496, 2.5321, -7.6034),
-        'left_knee': (20.3917,), 'left_ankle': (-16.6836, -2.4664),
+        'right_hip': (25.471, -1.004, -1.084), 'right_knee': (65.172,),
+        'right_ankle': (17.98, -1.478), 'left_hip': (36.45, 2.532, -7.603), 'left_knee': (20.392,),
+        'left_ankle': (-16.684, -2.466),
     })
-    human.KeyRoot(8.5, (-56.961, 68.024, 42.695), (-97.6952, 0.0, 0.0))
+    human.KeyRoot(8.5, (-56.961, 68.024, 42.695), (-97.695, 0.0, 0.0))
     human.KeyJoints(8.5, {
-        'right_hip': (19.4519, -0.2953, -0.3255), 'right_knee': (66.5981,),
-        'right_ankle': (18.8102, -0.4395), 'left_hip': (29.4092, 1.6616, -7.8905),
-        'left_knee': (19.568,), 'left_ankle': (-9.9149, -2.413),
+        'right_hip': (19.452, -0.295, -0.326), 'right_knee': (66.598,),
+        'right_ankle': (18.81, -0.44), 'left_hip': (29.409, 1.662, -7.89), 'left_knee': (19.568,),
+        'left_ankle': (-9.915, -2.413),
     })
-    human.KeyRoot(8.6, (-62.415, 69.201, 42.738), (-97.4901, 0.0, 0.0))
+    human.KeyRoot(8.6, (-62.415, 69.201, 42.738), (-97.49, 0.0, 0.0))
     human.KeyJoints(8.6, {
-        'neck': (-60.0, 33.75, 35.731), 'head': (-20.0, -11.25),
-        'right_hip': (10.9789, 0.3146, 0.0286), 'right_knee': (58.8441,),
-        'right_ankle': (19.0017, 0.3589), 'left_hip': (26.747, 1.218, -7.7718),
-        'left_knee': (24.0364,), 'left_ankle': (-2.636, -2.4101),
+        'neck': (-60.0, 33.75, 35.73), 'head': (-20.0, -11.25), 'right_hip': (10.979, 0.315, 0.029),
+        'right_knee': (58.844,), 'right_ankle': (19.002, 0.359),
+        'left_hip': (26.747, 1.218, -7.772), 'left_knee': (24.036,), 'left_ankle': (-2.636, -2.41),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
     human.LookAt((-110.0, 85.0, 40.0), start=8.69109, duration=1.197891)
-    human.KeyRoot(8.7, (-66.275, 70.541, 43.075), (-96.0413, 0.0, 0.0))
+    human.KeyRoot(8.7, (-66.275, 70.541, 43.075), (-96.041, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'neck': (-59.8607, 33.651, 35.6871), 'head': (-19.9487, -11.2209),
-        'right_hip': (7.9986, 1.0667, -0.6991), 'right_knee': (59.2039,),
-        'right_ankle': (19.0217, 1.1329), 'left_hip': (21.5276, -0.2826, -6.6005),
-        'left_knee': (19.9368,), 'left_ankle': (-1.4336, -2.6789),
+        'neck': (-59.861, 33.651, 35.686), 'head': (-19.949, -11.221),
+        'right_hip': (7.999, 1.067, -0.699), 'right_knee': (59.204,),
+        'right_ankle': (19.022, 1.133), 'left_hip': (21.528, -0.283, -6.6), 'left_knee': (19.937,),
+        'left_ankle': (-1.434, -2.679),
     })
     human.KeyRoot(8.8, (-69.721, 71.348, 43.362), (-94.197, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'neck': (-42.7069, 21.4628, 30.2888), 'head': (-13.6289, -7.6438),
-        'right_hip': (23.1091, 1.0379, 0.9614), 'right_knee': (68.6656,),
-        'right_ankle': (19.0117, 1.4861), 'left_hip': (17.5752, -1.5202, -4.8784),
-        'left_knee': (17.5459,), 'left_ankle': (0.142, -2.9164),
+        'neck': (-42.707, 21.463, 30.288), 'head': (-13.629, -7.643),
+        'right_hip': (23.109, 1.038, 0.961), 'right_knee': (68.666,),
+        'right_ankle': (19.012, 1.486), 'left_hip': (17.575, -1.52, -4.878), 'left_knee': (17.546,),
+        'left_ankle': (0.142, -2.916),
     })
-    human.KeyRoot(8.9, (-73.344, 71.884, 43.016), (-92.7387, 0.0, 0.0))
+    human.KeyRoot(8.9, (-73.344, 71.884, 43.016), (-92.739, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'neck': (-9.3278, -2.2539, 19.7844), 'head': (-1.3313, -0.6831),
-        'right_hip': (28.3908, 1.1023, 3.1282), 'right_knee': (50.0692,),
-        'right_ankle': (19.0017, 2.4551), 'left_hip': (14.1959, -1.8568, -3.2917),
-        'left_knee': (16.8148,), 'left_ankle': (2.7344, -2.6045),
+        'neck': (-9.328, -2.254, 19.785), 'head': (-1.331, -0.68),
+        'right_hip': (28.391, 1.102, 3.128), 'right_knee': (50.069,),
+        'right_ankle': (19.002, 2.455), 'left_hip': (14.196, -1.857, -3.292),
+        'left_knee': (16.815,), 'left_ankle': (2.734, -2.605),
     })
-    human.KeyRoot(9.0, (-76.878, 72.153, 41.703), (-91.3055, 0.0, 0.0))
+    human.KeyRoot(9.0, (-76.878, 72.153, 41.703), (-91.306, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'neck': (22.4641, -24.8429, 9.7794), 'head': (10.3815, 5.9466),
-        'right_shoulder': (179.6165, 27.7155, -0.1667),
-        'left_shoulder': (40.2699, 160.994, 40.4651), 'left_elbow': (35.7009, 64.9934),
-        'right_hip': (14.108, 1.1223, 1.626), 'right_knee': (22.1797,),
-        'right_ankle': (8.0008, 1.4829), 'left_hip': (11.5047, -1.179, -1.5718),
-        'left_knee': (17.3789,), 'left_ankle': (5.9071, -1.4684),
+        'neck': (22.464, -24.843, 9.781), 'head': (10.382, 5.951),
+        'right_shoulder': (179.616, 27.716, -0.167), 'left_shoulder': (40.27, 160.994, 40.465),
+        'left_elbow': (35.701, 64.993), 'right_hip': (14.108, 1.122, 1.626), 'right_knee': (22.18,),
+        'right_ankle': (8.001, 1.483), 'left_hip': (11.505, -1.179, -1.572), 'left_knee': (17.379,),
+        'left_ankle': (5.907, -1.468),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(9.1, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'neck': (35.0, -33.75, 5.8343), 'head': (15.0, 8.5607),
-        'right_shoulder': (179.5439, 27.7037, -0.1443), 'right_elbow': (36.7995, 1.8396),
-        'right_wrist': (1.8115, 3.956), 'left_shoulder': (40.2791, 160.9096, 40.4748),
-        'left_elbow': (35.7351, 64.9258), 'left_wrist': (-11.9472, -15.6483),
-        'right_hip': (3.0994, 0.0, 0.0), 'right_knee': (5.0782,), 'right_ankle': (1.981, 0.0),
-        'left_hip': (3.0977, 0.0, 0.0), 'left_knee': (5.0746,), 'left_ankle': (1.9791, 0.0),
+        'neck': (35.0, -33.75, 5.836), 'head': (15.0, 8.566),
+        'right_shoulder': (179.544, 27.704, -0.144), 'right_elbow': (36.8, 1.84),
+        'right_wrist': (1.811, 3.956), 'left_shoulder': (40.279, 160.91, 40.475),
+        'left_elbow': (35.735, 64.926), 'left_wrist': (-11.947, -15.648),
+        'right_hip': (3.099, 0.0, 0.0), 'right_knee': (5.078,), 'right_ankle': (1.981, 0.0),
+        'left_hip': (3.098, 0.0, 0.0), 'left_knee': (5.075,), 'left_ankle': (1.979, 0.0),
     })
     human.KeyJoints(9.2, {
-        'right_shoulder': (169.8598, 26.1206, 2.877), 'right_elbow': (40.8955, -0.1993),
-        'right_wrist': (6.5189, 3.4555), 'left_shoulder': (41.5046, 149.7024, 41.8076),
-        'left_elbow': (40.2722, 55.964), 'left_wrist': (-7.7204, -16.3163),
+        'right_shoulder': (169.86, 26.12, 2.877), 'right_elbow': (40.895, -0.199),
+        'right_wrist': (6.519, 3.456), 'left_shoulder': (41.505, 149.702, 41.807),
+        'left_elbow': (40.272, 55.964), 'left_wrist': (-7.72, -16.316),
     })
     human.KeyJoints(9.3, {
-        'right_shoulder': (147.7433, 22.4514, 9.899), 'right_elbow': (50.1636, -4.8127),
-        'right_wrist': (17.1709, 2.2104), 'left_shoulder': (44.2776, 124.3432, 44.9949),
-        'left_elbow': (50.5385, 35.6855), 'left_wrist': (1.8437, -17.9035),
-        'right_hip': (3.0829, 0.0, 0.0), 'right_knee': (5.0434,), 'right_ankle': (1.963, 0.0),
-        'left_hip': (3.0822, 0.0, 0.0), 'left_knee': (5.042,), 'left_ankle': (1.9623, 0.0),
+        'right_shoulder': (147.745, 22.451, 9.898), 'right_elbow': (50.164, -4.813),
+        'right_wrist': (17.171, 2.21), 'left_shoulder': (44.278, 124.343, 44.994),
+        'left_elbow': (50.539, 35.686), 'left_wrist': (1.844, -17.903),
+        'right_hip': (3.083, 0.0, 0.0), 'right_knee': (5.043,), 'right_ankle': (1.963, 0.0),
+        'left_hip': (3.082, 0.0, 0.0), 'left_knee': (5.042,), 'left_ankle': (1.962, 0.0),
     })
     human.KeyJoints(9.4, {
-        'right_shoulder': (118.7292, 17.5272, 19.3631), 'right_elbow': (62.1438, -10.7761),
-        'right_wrist': (30.9398, 0.3653), 'left_shoulder': (47.862, 91.5632, 49.4733),
-        'left_elbow': (63.8091, 9.473), 'left_wrist': (14.2066, -20.113),
-        'right_hip': (2.872, 0.0, 0.0), 'right_knee': (4.6024,), 'right_ankle': (1.7189, 0.0),
-        'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5883,), 'left_ankle': (1.7189, 0.0),
+        'right_shoulder': (118.733, 17.526, 19.361), 'right_elbow': (62.144, -10.776),
+        'right_wrist': (30.94, 0.365), 'left_shoulder': (47.862, 91.563, 49.472),
+        'left_elbow': (63.809, 9.473), 'left_wrist': (14.207, -20.113),
+        'right_hip': (2.872, 0.0, 0.0), 'right_knee': (4.602,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.588,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(9.5, {
-        'right_shoulder': (88.3524, 12.1787, 29.7108), 'right_elbow': (74.3761, -16.8651),
-        'right_wrist': (44.9985, -1.9349), 'left_shoulder': (51.5218, 58.0935, 54.679),
-        'left_elbow': (77.3589, -17.2911), 'left_wrist': (26.8297, -22.6482),
+        'right_shoulder': (88.357, 12.177, 29.709), 'right_elbow': (74.376, -16.865),
+        'right_wrist': (44.999, -1.935), 'left_shoulder': (51.522, 58.093, 54.678),
+        'left_elbow': (77.359, -17.291), 'left_wrist': (26.83, -22.648),
     })
     human.KeyJoints(9.6, {
-        'right_shoulder': (62.1479, 7.2369, 39.3838), 'right_elbow': (84.4003, -21.8549),
-        'right_wrist': (56.5195, -4.5455), 'left_shoulder': (54.5211, 30.6652, 60.0486),
-        'left_elbow': (88.4629, -39.2241), 'left_wrist': (37.1742, -25.2124),
+        'right_shoulder': (62.151, 7.236, 39.382), 'right_elbow': (84.4, -21.855),
+        'right_wrist': (56.52, -4.545), 'left_shoulder': (54.521, 30.665, 60.048),
+        'left_elbow': (88.463, -39.224), 'left_wrist': (37.174, -25.212),
     })
     human.KeyJoints(9.7, {
-        'right_shoulder': (45.6505, 3.5327, 46.8234), 'right_elbow': (89.7566, -24.5211),
-        'right_wrist': (62.6755, -7.3215), 'left_shoulder': (56.1236, 16.0096, 65.0185),
-        'left_elbow': (94.396, -50.9435), 'left_wrist': (42.7015, -27.5086),
+        'right_shoulder': (45.652, 3.532, 46.823), 'right_elbow': (89.757, -24.521),
+        'right_wrist': (62.676, -7.321), 'left_shoulder': (56.124, 16.01, 65.018),
+        'left_elbow': (94.396, -50.944), 'left_wrist': (42.702, -27.509),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
     human.KeyJoints(9.8, {
-        'right_shoulder': (43.5213, -1.1295, 49.9215), 'right_elbow': (80.4498, -22.2131),
-        'right_wrist': (60.1066, -10.6862), 'left_shoulder': (52.6077, 15.3019, 69.3336),
-        'left_elbow': (88.648, -50.276), 'left_wrist': (41.9823, -29.4932),
+        'right_shoulder': (43.52, -1.13, 49.923), 'right_elbow': (80.448, -22.213),
+        'right_wrist': (60.106, -10.687), 'left_shoulder': (52.606, 15.301, 69.335),
+        'left_elbow': (88.648, -50.276), 'left_wrist': (41.982, -29.493),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.888981, duration=0.072)
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=9.888981, duration=0.072)
     human.KeyJoints(9.9, {
-        'right_shoulder': (47.2686, -8.2156, 49.7532), 'right_elbow': (67.0072, -19.0342),
-        'right_wrist': (54.5398, -13.6962), 'left_shoulder': (53.5772, 7.9902, 69.4788),
-        'left_elbow': (77.394, -48.017), 'left_wrist': (38.0779, -29.9965),
+        'right_shoulder': (47.268, -8.218, 49.754), 'right_elbow': (67.002, -19.033),
+        'right_wrist': (54.538, -13.697), 'left_shoulder': (53.577, 7.982, 69.48),
+        'left_elbow': (77.393, -48.017), 'left_wrist': (38.077, -29.994),
     })
     human.KeyRoot(9.960981, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(9.960981, {
-        'spine_lumbar': (17.7325, -0.1726, -6.3034), 'spine_thoracic': (15.7784, 0.0756, 1.3009),
-        'neck': (35.0, -33.75, 5.8343), 'head': (15.0, 8.5607), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (47.2686, -8.2156, 49.7532), 'right_elbow': (67.0072, -19.0342),
-        'right_wrist': (54.5398, -13.6962), 'left_clavicle': (30.0, -12.8005),
-        'left_shoulder': (53.5772, 7.9902, 69.4788), 'left_elbow': (77.394, -48.017),
-        'left_wrist': (38.0779, -29.9965), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
-        'left_ankle': (1.7189, 0.0),
+        'spine_lumbar': (17.729, -0.17, -6.303), 'spine_thoracic': (15.776, 0.077, 1.302),
+        'neck': (35.0, -33.75, 5.836), 'head': (15.0, 8.566), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (47.268, -8.218, 49.754), 'right_elbow': (67.002, -19.033),
+        'right_wrist': (54.538, -13.697), 'left_clavicle': (30.0, -12.802),
+        'left_shoulder': (53.577, 7.982, 69.48), 'left_elbow': (77.393, -48.017),
+        'left_wrist': (38.077, -29.994), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })

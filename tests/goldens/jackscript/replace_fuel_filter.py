@@ -15,317 +15,308 @@ def replace_fuel_filter():
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
-        'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_elbow': (34.3775, 17.1887),
-        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.7515, 0.0, 0.0), 'right_knee': (4.654,),
-        'right_ankle': (1.9025, 0.0), 'left_hip': (2.7515, 0.0, 0.0), 'left_knee': (4.654,),
-        'left_ankle': (1.9025, 0.0),
+        'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
+        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.752, 0.0, 0.0), 'right_knee': (4.654,),
+        'right_ankle': (1.902, 0.0), 'left_hip': (2.752, 0.0, 0.0), 'left_knee': (4.654,),
+        'left_ankle': (1.902, 0.0),
     })
     human.KeyRoot(0.1, (2.615, 88.183, 10.496), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (45.0432, 2.3832, 0.3728), 'right_knee': (84.8103,),
-        'right_ankle': (15.8685, 2.2307), 'left_hip': (13.1062, -1.7731, -0.6613),
-        'left_knee': (39.798,), 'left_ankle': (19.3575, -1.8924),
+        'right_hip': (45.043, 2.383, 0.373), 'right_knee': (84.81,), 'right_ankle': (15.869, 2.231),
+        'left_hip': (13.106, -1.773, -0.661), 'left_knee': (39.798,),
+        'left_ankle': (19.358, -1.892),
     })
     human.KeyRoot(0.2, (1.766, 84.776, 20.534), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (40.4897, 3.4743, -10.5476), 'right_knee': (35.0569,),
-        'right_ankle': (-5.7264, -3.3671), 'left_hip': (20.8836, -0.9832, -1.1322),
-        'left_knee': (66.6029,), 'left_ankle': (17.5806, -1.4994),
+        'right_hip': (40.49, 3.474, -10.548), 'right_knee': (35.057,),
+        'right_ankle': (-5.726, -3.367), 'left_hip': (20.884, -0.983, -1.132),
+        'left_knee': (66.603,), 'left_ankle': (17.581, -1.499),
     })
-    human.KeyRoot(0.3, (-0.594, 85.319, 30.502), (-0.4582, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.594, 85.319, 30.502), (-0.458, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (29.8018, 1.8668, -10.426), 'right_knee': (26.916,),
-        'right_ankle': (-2.7418, -3.5626), 'left_hip': (12.1392, 0.4432, -0.1322),
-        'left_knee': (63.5803,), 'left_ankle': (20.0, 0.4788),
+        'right_hip': (29.802, 1.867, -10.426), 'right_knee': (26.916,),
+        'right_ankle': (-2.742, -3.563), 'left_hip': (12.139, 0.443, -0.132), 'left_knee': (63.58,),
+        'left_ankle': (20.0, 0.479),
     })
-    human.KeyRoot(0.4, (-2.103, 87.904, 40.795), (-5.0186, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.103, 87.904, 40.795), (-5.019, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (21.9398, -1.0014, -6.2372), 'right_knee': (24.961,),
-        'right_ankle': (3.2322, -3.2509), 'left_hip': (27.6718, 0.5132, 0.9931),
-        'left_knee': (72.6051,), 'left_ankle': (20.0, 0.9917),
+        'right_hip': (21.94, -1.001, -6.237), 'right_knee': (24.961,),
+        'right_ankle': (3.232, -3.251), 'left_hip': (27.672, 0.513, 0.993), 'left_knee': (72.605,),
+        'left_ankle': (20.0, 0.992),
     })
-    human.KeyRoot(0.5, (-1.064, 89.955, 50.959), (-8.8912, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.064, 89.955, 50.959), (-8.891, 0.0, 0.0))
     human.KeyJoints(0.5, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'right_hip': (12.0222, -0.8761, -1.7672), 'right_knee': (18.2667,),
-        'right_ankle': (6.2776, -1.2246), 'left_hip': (13.9765, 0.8518, 1.7842),
-        'left_knee': (21.7176,), 'left_ankle': (7.4656, 1.2322),
+        'right_hip': (12.022, -0.876, -1.767), 'right_knee': (18.267,),
+        'right_ankle': (6.278, -1.225), 'left_hip': (13.976, 0.852, 1.784), 'left_knee': (21.718,),
+        'left_ankle': (7.466, 1.232),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(0.6, (0.605, 90.668, 56.115), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.605, 90.668, 56.115), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'spine_lumbar': (4.9522, -4.9172, 0.0), 'spine_thoracic': (0.8709, -0.9065, 0.0),
-        'right_hip': (6.0471, 0.5422, 0.0575), 'right_knee': (12.4691,),
-        'right_ankle': (6.4266, 0.5453), 'left_hip': (6.027, -0.5423, -0.0573),
-        'left_knee': (12.4278,), 'left_ankle': (6.4022, -0.5453),
+        'spine_lumbar': (4.952, -4.917, 0.0), 'spine_thoracic': (0.871, -0.906, 0.0),
+        'right_hip': (6.047, 0.542, 0.057), 'right_knee': (12.469,), 'right_ankle': (6.427, 0.545),
+        'left_hip': (6.027, -0.542, -0.057), 'left_knee': (12.428,), 'left_ankle': (6.402, -0.545),
     })
-    human.KeyRoot(0.7, (3.766, 90.376, 60.935), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.7, (3.766, 90.376, 60.935), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'spine_lumbar': (15.6638, -15.1594, 0.0), 'spine_thoracic': (2.492, -2.72, 0.0),
-        'right_hip': (3.4986, 3.2715, 0.2001), 'right_knee': (13.0837,),
-        'right_ankle': (9.5946, 3.2775), 'left_hip': (3.4881, -3.2715, -0.1994),
-        'left_knee': (13.0622,), 'left_ankle': (9.5817, -3.2775),
+        'spine_lumbar': (15.664, -15.159, 0.0), 'spine_thoracic': (2.492, -2.72, 0.0),
+        'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.084,), 'right_ankle': (9.595, 3.278),
+        'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.582, -3.278),
     })
-    human.KeyRoot(0.8, (7.078, 90.348, 60.502), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.8, (7.078, 90.348, 60.502), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'spine_lumbar': (23.0118, -9.1535, 0.0), 'spine_thoracic': (3.5803, -1.6235, 0.0),
-        'right_hip': (9.16, 5.416, 0.5171), 'right_knee': (30.7071,), 'right_ankle': (20.0, 5.4313),
-        'left_hip': (3.1202, -5.4414, -0.2962), 'left_knee': (10.8455,),
-        'left_ankle': (7.7394, -5.4495),
+        'spine_lumbar': (23.012, -9.154, 0.0), 'spine_thoracic': (3.58, -1.623, 0.0),
+        'right_hip': (9.16, 5.416, 0.517), 'right_knee': (30.707,), 'right_ankle': (20.0, 5.431),
+        'left_hip': (3.12, -5.441, -0.296), 'left_knee': (10.846,), 'left_ankle': (7.739, -5.449),
     })
-    human.KeyRoot(0.9, (9.457, 90.28, 58.687), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(0.9, (9.457, 90.28, 58.687), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'spine_lumbar': (41.6211, -3.231, 0.0), 'spine_thoracic': (5.5441, -0.5398, 0.0),
-        'right_hip': (-11.416, 7.004, -0.2978), 'right_knee': (21.5153,),
-        'right_ankle': (20.0, 7.103), 'left_hip': (3.9348, -6.8043, -0.459), 'left_knee': (9.3832,),
-        'left_ankle': (5.4721, -6.8186),
+        'spine_lumbar': (41.621, -3.231, 0.0), 'spine_thoracic': (5.544, -0.54, 0.0),
+        'right_hip': (-11.416, 7.004, -0.298), 'right_knee': (21.515,),
+        'right_ankle': (20.0, 7.103), 'left_hip': (3.935, -6.804, -0.459), 'left_knee': (9.383,),
+        'left_ankle': (5.472, -6.819),
     })
-    human.KeyRoot(1.0, (9.133, 89.798, 62.643), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.0, (9.133, 89.798, 62.643), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'spine_lumbar': (25.9738, -1.4101, 0.0), 'spine_thoracic': (3.7576, -0.2465, 0.0),
-        'right_hip': (-12.8713, 4.6897, 7.6327), 'right_knee': (44.1417,),
-        'right_ankle': (-15.3757, 8.3916), 'left_hip': (3.2171, -7.1195, -0.3996),
-        'left_knee': (13.4637,), 'left_ankle': (10.2769, -7.1307),
+        'spine_lumbar': (25.974, -1.41, 0.0), 'spine_thoracic': (3.758, -0.247, 0.0),
+        'right_hip': (-12.871, 4.69, 7.633), 'right_knee': (44.142,),
+        'right_ankle': (-15.376, 8.392), 'left_hip': (3.217, -7.119, -0.4), 'left_knee': (13.464,),
+        'left_ankle': (10.277, -7.131),
     })
-    human.KeyRoot(1.1, (9.029, 89.309, 63.414), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.1, (9.029, 89.309, 63.414), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'spine_lumbar': (21.3551, -0.6062, 0.0), 'spine_thoracic': (3.4513, -0.1136, 0.0),
-        'right_hip': (-13.209, 2.1558, 16.1399), 'right_knee': (35.1156,),
-        'right_ankle': (-48.3611, 7.468), 'left_hip': (4.7709, -7.1728, -0.5974),
-        'left_knee': (17.7509,), 'left_ankle': (13.0219, -7.1975),
+        'spine_lumbar': (21.355, -0.606, 0.0), 'spine_thoracic': (3.451, -0.114, 0.0),
+        'right_hip': (-13.209, 2.156, 16.14), 'right_knee': (35.116,),
+        'right_ankle': (-48.361, 7.468), 'left_hip': (4.771, -7.173, -0.597),
+        'left_knee': (17.751,), 'left_ankle': (13.022, -7.198),
     })
-    human.KeyRoot(1.2, (7.96, 89.734, 59.082), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.2, (7.96, 89.734, 59.082), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (-16.3645, 9.1899, 0.0), 'spine_thoracic': (-3.4117, 1.628, 0.0),
-        'right_hip': (-12.963, 3.0257, 10.5661), 'right_knee': (35.9017,),
-        'right_ankle': (-37.9398, 10.0061), 'left_hip': (7.4298, -5.8583, -0.7628),
-        'left_knee': (17.4531,), 'left_ankle': (10.065, -5.9076),
+        'spine_lumbar': (-16.364, 9.19, 0.0), 'spine_thoracic': (-3.412, 1.628, 0.0),
+        'right_hip': (-12.963, 3.026, 10.566), 'right_knee': (35.902,),
+        'right_ankle': (-37.94, 10.006), 'left_hip': (7.43, -5.858, -0.763), 'left_knee': (17.453,),
+        'left_ankle': (10.065, -5.908),
     })
-    human.KeyRoot(1.3, (6.141, 90.277, 46.568), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.3, (6.141, 90.277, 46.568), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (-30.0, 13.4577, 0.0), 'spine_thoracic': (-9.6864, 2.2241, 0.0),
-        'right_hip': (-8.8711, 2.3904, 3.0412), 'right_knee': (41.0879,),
-        'right_ankle': (-10.7078, 3.9829), 'left_hip': (10.1092, -3.0503, -0.543),
-        'left_knee': (6.23,), 'left_ankle': (-3.8671, -3.098),
+        'spine_lumbar': (-30.0, 13.458, 0.0), 'spine_thoracic': (-9.686, 2.224, 0.0),
+        'right_hip': (-8.871, 2.39, 3.041), 'right_knee': (41.088,),
+        'right_ankle': (-10.708, 3.983), 'left_hip': (10.109, -3.05, -0.543), 'left_knee': (6.23,),
+        'left_ankle': (-3.867, -3.098),
     })
-    human.KeyRoot(1.4, (6.842, 88.29, 37.986), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.4, (6.842, 88.29, 37.986), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (-4.2194, 12.4253, 0.0), 'spine_thoracic': (-1.2498, 2.2053, 0.0),
-        'right_hip': (6.3519, 1.3127, 3.53), 'right_knee': (60.6022,),
-        'right_ankle': (-8.9902, 3.864), 'left_hip': (19.9421, -2.4122, -0.8749),
-        'left_knee': (14.0479,), 'left_ankle': (-5.8758, -2.5659),
+        'spine_lumbar': (-4.219, 12.425, 0.0), 'spine_thoracic': (-1.25, 2.205, 0.0),
+        'right_hip': (6.352, 1.313, 3.53), 'right_knee': (60.602,), 'right_ankle': (-8.99, 3.864),
+        'left_hip': (19.942, -2.412, -0.875), 'left_knee': (14.048,),
+        'left_ankle': (-5.876, -2.566),
     })
-    human.KeyRoot(1.5, (5.73, 76.097, 37.485), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.5, (5.73, 76.097, 37.485), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (-1.5975, 11.3012, 0.0), 'spine_thoracic': (-0.4575, 2.0353, 0.0),
-        'right_hip': (13.2219, 0.7454, 2.6001), 'right_knee': (85.0248,),
-        'right_ankle': (11.0291, 2.7462), 'left_hip': (46.5416, -1.3965, -1.5017),
-        'left_knee': (63.4652,), 'left_ankle': (16.3943, -2.0537),
+        'spine_lumbar': (-1.598, 11.301, 0.0), 'spine_thoracic': (-0.458, 2.035, 0.0),
+        'right_hip': (13.222, 0.745, 2.6), 'right_knee': (85.025,), 'right_ankle': (11.029, 2.746),
+        'left_hip': (46.542, -1.396, -1.502), 'left_knee': (63.465,),
+        'left_ankle': (16.394, -2.054),
     })
-    human.KeyRoot(1.6, (5.43, 59.097, 30.023), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.6, (5.43, 59.097, 30.023), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'spine_lumbar': (26.6137, 9.3164, 0.0), 'spine_thoracic': (4.092, 1.6354, 0.0),
-        'right_hip': (32.1565, -0.3619, 1.6024), 'right_knee': (120.8806,),
-        'right_ankle': (18.0688, 1.9349), 'left_hip': (72.0037, -0.2683, -0.8671),
-        'left_knee': (92.4535,), 'left_ankle': (19.6463, -0.9129),
+        'spine_lumbar': (26.614, 9.316, 0.0), 'spine_thoracic': (4.092, 1.635, 0.0),
+        'right_hip': (32.156, -0.362, 1.602), 'right_knee': (120.881,),
+        'right_ankle': (18.069, 1.935), 'left_hip': (72.004, -0.268, -0.867),
+        'left_knee': (92.454,), 'left_ankle': (19.646, -0.913),
     })
-    human.KeyRoot(1.7, (3.72, 48.492, 34.801), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.7, (3.72, 48.492, 34.801), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'spine_lumbar': (16.5211, 9.3451, 0.0), 'spine_thoracic': (2.5286, 1.665, 0.0),
-        'right_hip': (32.0151, -0.4858, 0.8932), 'right_knee': (134.6558,),
-        'right_ankle': (16.2434, 3.8022), 'left_hip': (89.3705, -0.0046, 0.0039),
-        'left_knee': (117.3828,), 'left_ankle': (14.1348, -0.0039),
+        'spine_lumbar': (16.521, 9.345, 0.0), 'spine_thoracic': (2.529, 1.665, 0.0),
+        'right_hip': (32.015, -0.486, 0.893), 'right_knee': (134.656,),
+        'right_ankle': (16.243, 3.802), 'left_hip': (89.37, -0.005, 0.004), 'left_knee': (117.383,),
+        'left_ankle': (14.135, -0.004),
     })
-    human.KeyRoot(1.8, (2.091, 44.581, 41.754), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.8, (2.091, 44.581, 41.754), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'spine_lumbar': (-1.888, 9.5715, 0.0), 'spine_thoracic': (-0.4889, 1.728, 0.0),
-        'right_hip': (25.459, -0.3703, 0.5536), 'right_knee': (134.8944,),
-        'right_ankle': (11.2427, 5.0901), 'left_hip': (97.1969, -0.6953, 0.9945),
-        'left_knee': (130.857,), 'left_ankle': (5.9532, 1.2244),
+        'spine_lumbar': (-1.888, 9.571, 0.0), 'spine_thoracic': (-0.489, 1.728, 0.0),
+        'right_hip': (25.459, -0.37, 0.554), 'right_knee': (134.894,),
+        'right_ankle': (11.243, 5.09), 'left_hip': (97.197, -0.695, 0.995), 'left_knee': (130.857,),
+        'left_ankle': (5.953, 1.224),
     })
-    human.KeyRoot(1.9, (1.925, 44.02, 42.534), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(1.9, (1.925, 44.02, 42.534), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'spine_lumbar': (-3.7688, 14.6185, 0.0), 'spine_thoracic': (-0.8837, 2.6317, 0.0),
-        'right_hip': (25.0107, -0.4865, 0.6917), 'right_knee': (135.0,),
-        'right_ankle': (9.9087, 5.8057), 'left_hip': (100.0764, -1.172, 1.2955),
-        'left_knee': (132.4846,), 'left_ankle': (0.3532, 1.8193),
+        'spine_lumbar': (-3.769, 14.619, 0.0), 'spine_thoracic': (-0.884, 2.632, 0.0),
+        'right_hip': (25.011, -0.487, 0.692), 'right_knee': (135.0,), 'right_ankle': (9.909, 5.806),
+        'left_hip': (100.076, -1.172, 1.295), 'left_knee': (132.485,), 'left_ankle': (0.353, 1.819),
     })
-    human.KeyRoot(2.0, (1.055, 43.977, 42.322), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.0, (1.055, 43.977, 42.322), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'spine_lumbar': (-2.6924, 20.0, 0.0), 'spine_thoracic': (-2.1214, 10.0, 0.0),
-        'right_hip': (25.0962, -1.675, 2.2794), 'right_ankle': (8.9384, 19.6526),
-        'left_hip': (101.9775, -5.99, 5.4476), 'left_knee': (132.4458,),
-        'left_ankle': (-5.3227, 8.182),
+        'spine_lumbar': (-2.692, 20.0, 0.0), 'spine_thoracic': (-2.121, 10.0, 0.0),
+        'right_hip': (25.096, -1.675, 2.279), 'right_ankle': (8.938, 19.653),
+        'left_hip': (101.977, -5.99, 5.448), 'left_knee': (132.446,), 'left_ankle': (-5.323, 8.182),
     })
-    human.KeyRoot(2.1, (0.357, 43.896, 42.082), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.1, (0.357, 43.896, 42.082), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (-0.6099, 20.0, 0.0), 'spine_thoracic': (-3.3735, 10.0, 0.0),
-        'right_hip': (25.2742, -2.6474, 3.4014), 'right_ankle': (7.4535, 30.5441),
-        'left_hip': (105.4521, -24.9383, 12.7146), 'left_knee': (134.6919,),
-        'left_ankle': (-10.1122, 28.8727),
+        'spine_lumbar': (-0.61, 20.0, 0.0), 'spine_thoracic': (-3.374, 10.0, 0.0),
+        'right_hip': (25.274, -2.647, 3.401), 'right_ankle': (7.453, 30.544),
+        'left_hip': (105.452, -24.938, 12.715), 'left_knee': (134.692,),
+        'left_ankle': (-10.112, 28.873),
     })
-    human.KeyRoot(2.2, (0.077, 43.874, 42.017), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.2, (0.077, 43.874, 42.017), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (0.5436, 20.0, 0.0), 'spine_thoracic': (-9.6079, 10.0, 0.0),
-        'right_hip': (25.3027, -3.0295, 3.8249), 'right_ankle': (6.6702, 35.0),
-        'left_hip': (120.8969, -10.0955, -15.1176), 'left_knee': (131.4286,),
-        'left_ankle': (-35.5564, -23.0569),
+        'spine_lumbar': (0.544, 20.0, 0.0), 'spine_thoracic': (-9.608, 10.0, 0.0),
+        'right_hip': (25.303, -3.029, 3.825), 'right_ankle': (6.67, 35.0),
+        'left_hip': (120.897, -10.096, -15.118), 'left_knee': (131.429,),
+        'left_ankle': (-35.556, -23.057),
     })
-    human.KeyRoot(2.3, (0.114, 43.861, 41.993), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.3, (0.114, 43.861, 41.993), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.2816, 20.0, 0.0), 'right_hip': (25.3465, -2.9876, 3.8132),
-        'right_ankle': (6.7087, 34.7942), 'left_hip': (96.3901, -23.488, 31.0042),
-        'left_knee': (133.3737,), 'left_ankle': (-44.4758, -19.4341),
+        'spine_lumbar': (0.282, 20.0, 0.0), 'right_hip': (25.346, -2.988, 3.813),
+        'right_ankle': (6.709, 34.794), 'left_hip': (96.39, -23.488, 31.004),
+        'left_knee': (133.374,), 'left_ankle': (-44.476, -19.434),
     })
-    human.KeyRoot(2.4, (0.014, 43.856, 41.976), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.4, (0.014, 43.856, 41.976), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'spine_lumbar': (3.1274, 20.0, 0.0), 'spine_thoracic': (-8.4159, 10.0, 0.0),
-        'right_hip': (25.3488, -3.119, 3.7923), 'right_knee': (134.9948,),
-        'right_ankle': (6.6648, 35.0), 'left_hip': (63.9225, -9.0586, 27.5708),
-        'left_knee': (135.0,), 'left_ankle': (-45.7194, -11.197),
+        'spine_lumbar': (3.127, 20.0, 0.0), 'spine_thoracic': (-8.416, 10.0, 0.0),
+        'right_hip': (25.349, -3.119, 3.792), 'right_knee': (134.995,),
+        'right_ankle': (6.665, 35.0), 'left_hip': (63.923, -9.059, 27.571), 'left_knee': (135.0,),
+        'left_ankle': (-45.719, -11.197),
     })
-    human.KeyRoot(2.5, (0.063, 44.827, 44.171), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.5, (0.063, 44.827, 44.171), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'spine_lumbar': (1.9319, 20.0, 0.0), 'spine_thoracic': (-5.1283, 10.0, 0.0),
-        'right_hip': (22.2047, -2.528, 3.6576), 'right_knee': (131.9099,),
-        'right_ankle': (7.2682, 31.65), 'left_hip': (37.4832, -20.9924, -3.0638),
-        'left_knee': (131.7827,), 'left_ankle': (-31.5337, -0.891),
+        'spine_lumbar': (1.932, 20.0, 0.0), 'spine_thoracic': (-5.128, 10.0, 0.0),
+        'right_hip': (22.205, -2.528, 3.658), 'right_knee': (131.91,),
+        'right_ankle': (7.268, 31.65), 'left_hip': (37.483, -20.992, -3.064),
+        'left_knee': (131.783,), 'left_ankle': (-31.534, -0.891),
     })
-    human.KeyRoot(2.6, (-0.118, 45.044, 44.698), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.6, (-0.118, 45.044, 44.698), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.6, {
-        'spine_lumbar': (3.5846, 20.0, 0.0), 'spine_thoracic': (-9.3133, 10.0, 0.0),
-        'right_hip': (21.4165, -2.6362, 3.9871), 'right_knee': (131.0722,),
-        'right_ankle': (6.7756, 34.4219), 'left_hip': (22.4515, -4.3203, -0.225),
-        'left_knee': (135.0,), 'left_ankle': (7.1417, -13.2073),
+        'spine_lumbar': (3.585, 20.0, 0.0), 'spine_thoracic': (-9.313, 10.0, 0.0),
+        'right_hip': (21.416, -2.636, 3.987), 'right_knee': (131.072,),
+        'right_ankle': (6.776, 34.422), 'left_hip': (22.451, -4.32, -0.225), 'left_knee': (135.0,),
+        'left_ankle': (7.142, -13.207),
     })
-    human.KeyRoot(2.7, (0.832, 44.086, 42.529), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.7, (0.832, 44.086, 42.529), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'spine_lumbar': (10.6707, 19.9999, 0.0), 'spine_thoracic': (-4.2647, 10.0, 0.0),
-        'right_hip': (24.7401, -1.9167, 2.657), 'right_knee': (134.5791,),
-        'right_ankle': (8.5568, 22.9407), 'left_hip': (24.712, 1.3481, -2.0164),
-        'left_knee': (134.6344,), 'left_ankle': (8.8802, -20.6823),
+        'spine_lumbar': (10.671, 20.0, 0.0), 'spine_thoracic': (-4.265, 10.0, 0.0),
+        'right_hip': (24.74, -1.917, 2.657), 'right_knee': (134.579,),
+        'right_ankle': (8.557, 22.941), 'left_hip': (24.712, 1.348, -2.016),
+        'left_knee': (134.634,), 'left_ankle': (8.88, -20.682),
     })
-    human.KeyRoot(2.8, (1.372, 44.562, 43.673), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.8, (1.372, 44.562, 43.673), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (7.8219, 19.9999, 0.0), 'spine_thoracic': (-0.2076, 9.5186, 0.0),
-        'right_hip': (23.2335, -0.9351, 1.4081), 'right_ankle': (9.627, 11.6496),
-        'left_hip': (23.2335, 0.9351, -1.4081), 'left_ankle': (9.627, -11.6496),
+        'spine_lumbar': (7.822, 20.0, 0.0), 'spine_thoracic': (-0.208, 9.519, 0.0),
+        'right_hip': (23.233, -0.935, 1.408), 'right_ankle': (9.627, 11.65),
+        'left_hip': (23.233, 0.935, -1.408), 'left_ankle': (9.627, -11.65),
     })
-    human.KeyRoot(2.9, (1.592, 44.995, 44.765), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(2.9, (1.592, 44.995, 44.765), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.9, {
-        'spine_lumbar': (6.0967, 10.5194, 0.0), 'spine_thoracic': (0.8473, 2.2586, 0.0),
-        'right_hip': (21.7423, -0.3836, 0.618), 'right_knee': (131.7343,),
-        'right_ankle': (9.933, 4.992), 'left_hip': (21.7423, 0.3836, -0.618),
-        'left_knee': (131.7343,), 'left_ankle': (9.933, -4.992),
+        'spine_lumbar': (6.097, 10.519, 0.0), 'spine_thoracic': (0.847, 2.259, 0.0),
+        'right_hip': (21.742, -0.384, 0.618), 'right_knee': (131.734,),
+        'right_ankle': (9.933, 4.992), 'left_hip': (21.742, 0.384, -0.618), 'left_knee': (131.734,),
+        'left_ankle': (9.933, -4.992),
     })
-    human.KeyRoot(3.0, (1.612, 45.328, 45.643), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(3.0, (1.612, 45.328, 45.643), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'spine_lumbar': (4.9207, 0.8526, 0.0), 'spine_thoracic': (0.8407, 0.1977, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (20.5146, -0.146, 0.2474),
-        'right_knee': (130.5133,), 'right_ankle': (9.9912, 1.9699),
-        'left_hip': (20.5146, 0.146, -0.2474), 'left_knee': (130.5133,),
-        'left_ankle': (9.9912, -1.9699),
+        'spine_lumbar': (4.921, 0.853, 0.0), 'spine_thoracic': (0.841, 0.198, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (20.515, -0.146, 0.247),
+        'right_knee': (130.513,), 'right_ankle': (9.991, 1.97), 'left_hip': (20.515, 0.146, -0.247),
+        'left_knee': (130.513,), 'left_ankle': (9.991, -1.97),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.0384, duration=0.2628)
-    human.KeyRoot(3.1, (1.6, 45.427, 45.912), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(3.1, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.1, {
-        'spine_lumbar': (4.3429, -0.2254, 0.0), 'spine_thoracic': (0.7578, -0.0224, 0.0),
-        'neck': (4.8675, -4.6937, 3.1099), 'head': (2.0861, 1.5165),
-        'right_hip': (20.1361, -0.0968, 0.1667), 'right_knee': (130.1324,),
-        'right_ankle': (9.9963, 1.3219), 'left_hip': (20.1361, 0.0968, -0.1667),
-        'left_knee': (130.1324,), 'left_ankle': (9.9963, -1.3219),
+        'spine_lumbar': (4.343, -0.225, 0.0), 'spine_thoracic': (0.758, -0.022, 0.0),
+        'neck': (4.867, -4.694, 3.11), 'head': (2.086, 1.516), 'right_hip': (20.136, -0.097, 0.167),
+        'right_knee': (130.132,), 'right_ankle': (9.996, 1.322),
+        'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,), 'left_ankle': (9.996, -1.322),
     })
-    human.KeyJoints(3.2, {'neck': (23.4269, -22.5902, 14.9675), 'head': (10.0401, 7.2986)})
+    human.KeyJoints(3.2, {'neck': (23.427, -22.59, 14.967), 'head': (10.04, 7.299)})
     human.KeyJoints(3.3, {
-        'spine_lumbar': (4.3429, -0.2254, 0.0), 'spine_thoracic': (0.7578, -0.0224, 0.0),
-        'neck': (34.9978, -33.7479, 22.3602), 'head': (14.9991, 10.9036),
-        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
-        'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0),
+        'spine_lumbar': (4.343, -0.225, 0.0), 'spine_thoracic': (0.758, -0.022, 0.0),
+        'neck': (34.998, -33.748, 22.36), 'head': (14.999, 10.904), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.3012, duration=0.873042)
     human.KeyJoints(3.4, {
-        'spine_lumbar': (6.6823, 0.4481, 0.7738), 'spine_thoracic': (0.5183, 0.5036, 1.0755),
-        'neck': (35.0, -33.75, 20.226), 'right_clavicle': (-0.3601, 0.8156),
-        'right_shoulder': (9.867, 6.7223, 11.1119), 'right_elbow': (33.818, 17.1901),
-        'right_wrist': (-0.11, -0.1599),
+        'spine_lumbar': (6.682, 0.448, 0.774), 'spine_thoracic': (0.518, 0.504, 1.076),
+        'neck': (35.0, -33.75, 20.226), 'right_clavicle': (-0.36, 0.816),
+        'right_shoulder': (9.867, 6.722, 11.112), 'right_elbow': (33.818, 17.19),
+        'right_wrist': (-0.11, -0.16),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (12.8164, 2.2397, 2.8116), 'spine_thoracic': (-0.1456, 1.8869, 3.9505),
-        'neck': (35.0, -33.75, 15.3643), 'head': (15.0, 10.8358),
-        'right_clavicle': (-1.3321, 2.954), 'right_shoulder': (13.2446, 9.3254, 10.2014),
-        'right_elbow': (32.351, 17.1937), 'right_wrist': (-0.3984, -0.5792),
+        'spine_lumbar': (12.816, 2.24, 2.812), 'spine_thoracic': (-0.146, 1.887, 3.951),
+        'neck': (35.0, -33.75, 15.364), 'head': (15.0, 10.836), 'right_clavicle': (-1.332, 2.954),
+        'right_shoulder': (13.245, 9.325, 10.201), 'right_elbow': (32.351, 17.194),
+        'right_wrist': (-0.398, -0.579),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (21.2299, 4.7522, 5.626), 'spine_thoracic': (-1.1336, 3.793, 8.0117),
-        'neck': (35.0, -33.75, 9.4159), 'head': (15.0, 10.551), 'right_clavicle': (-2.7251, 5.8871),
-        'right_shoulder': (17.9651, 12.8959, 8.9525), 'right_elbow': (30.3389, 17.199),
+        'spine_lumbar': (21.23, 4.752, 5.626), 'spine_thoracic': (-1.134, 3.793, 8.012),
+        'neck': (35.0, -33.75, 9.416), 'head': (15.0, 10.551), 'right_clavicle': (-2.725, 5.887),
+        'right_shoulder': (17.965, 12.896, 8.953), 'right_elbow': (30.339, 17.199),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (30.4076, 7.5882, 8.7292), 'spine_thoracic': (-2.3456, 5.8873, 12.6455),
-        'neck': (35.0, -33.75, 3.0322), 'head': (15.0, 10.6996),
-        'right_clavicle': (-4.3483, 9.0866), 'right_shoulder': (23.266, 16.7905, 7.5903),
-        'right_elbow': (28.1441, 17.2051),
+        'spine_lumbar': (30.408, 7.588, 8.729), 'spine_thoracic': (-2.346, 5.887, 12.645),
+        'neck': (35.0, -33.75, 3.032), 'head': (15.0, 10.7), 'right_clavicle': (-4.348, 9.087),
+        'right_shoulder': (23.266, 16.791, 7.59), 'right_elbow': (28.144, 17.205),
     })
     human.KeyJoints(3.8, {
-        'spine_lumbar': (38.8338, 10.3504, 11.6337), 'spine_thoracic': (-3.6811, 7.8352, 17.2386),
-        'neck': (35.0, 27.0087, -14.475), 'head': (15.0, -11.25),
-        'right_clavicle': (-6.0106, 12.0241), 'right_shoulder': (28.3851, 20.3663, 6.3395),
-        'right_elbow': (26.129, 17.2114), 'right_wrist': (-1.6217, -2.3575),
+        'spine_lumbar': (38.834, 10.35, 11.634), 'spine_thoracic': (-3.681, 7.835, 17.239),
+        'neck': (35.0, 27.009, -14.475), 'head': (15.0, -11.25), 'right_clavicle': (-6.011, 12.024),
+        'right_shoulder': (28.385, 20.366, 6.34), 'right_elbow': (26.129, 17.211),
+        'right_wrist': (-1.622, -2.358),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (44.9931, 12.6413, 13.8517), 'spine_thoracic': (-5.0398, 9.3021, 21.1775),
-        'neck': (35.0, 19.6692, -17.0688), 'right_clavicle': (-7.521, 14.1713),
-        'right_shoulder': (32.5599, 22.9801, 5.4253), 'right_elbow': (24.656, 17.2171),
-        'right_wrist': (-1.9113, -2.7785),
+        'spine_lumbar': (44.993, 12.641, 13.852), 'spine_thoracic': (-5.04, 9.302, 21.177),
+        'neck': (35.0, 19.669, -17.069), 'right_clavicle': (-7.521, 14.171),
+        'right_shoulder': (32.56, 22.98, 5.425), 'right_elbow': (24.656, 17.217),
+        'right_wrist': (-1.911, -2.779),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.0, {
-        'spine_lumbar': (47.37, 14.0637, 14.8956), 'spine_thoracic': (-6.3214, 9.9535, 23.8487),
-        'neck': (35.0, 19.8396, -19.2714), 'right_clavicle': (-8.6888, 15.0),
-        'right_shoulder': (35.0281, 23.9887, 5.0725), 'right_elbow': (24.0876, 17.2216),
-        'right_wrist': (-2.0231, -2.941),
+        'spine_lumbar': (47.37, 14.064, 14.896), 'spine_thoracic': (-6.321, 9.953, 23.849),
+        'neck': (35.0, 19.84, -19.271), 'right_clavicle': (-8.689, 15.0),
+        'right_shoulder': (35.028, 23.989, 5.072), 'right_elbow': (24.088, 17.222),
+        'right_wrist': (-2.023, -2.941),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (42.7786, 15.9057, 13.7723), 'spine_thoracic': (-6.6593, 9.2979, 23.5919),
-        'neck': (35.0, 26.5867, -20.3575), 'right_clavicle': (-9.3654, 13.6574),
-        'right_shoulder': (33.8069, 21.0638, 5.7512), 'right_elbow': (24.8716, 17.2162),
+        'spine_lumbar': (42.779, 15.906, 13.772), 'spine_thoracic': (-6.659, 9.298, 23.592),
+        'neck': (35.0, 26.587, -20.358), 'right_clavicle': (-9.365, 13.657),
+        'right_shoulder': (33.807, 21.064, 5.751), 'right_elbow': (24.872, 17.216),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.174242, duration=0.2628)
     human.KeyJoints(4.2, {
-        'spine_lumbar': (39.2347, 17.3511, 13.0837), 'spine_thoracic': (-6.3763, 8.883, 22.9099),
-        'neck': (35.0, 30.6695, -20.8579), 'right_clavicle': (-9.8005, 12.8974),
-        'right_shoulder': (32.1868, 18.5776, 6.3534), 'right_elbow': (25.2407, 17.208),
-        'right_wrist': (-1.4764, -2.5653),
+        'spine_lumbar': (39.235, 17.351, 13.084), 'spine_thoracic': (-6.376, 8.883, 22.91),
+        'neck': (35.0, 30.67, -20.858), 'right_clavicle': (-9.801, 12.897),
+        'right_shoulder': (32.187, 18.578, 6.353), 'right_elbow': (25.241, 17.208),
+        'right_wrist': (-1.476, -2.565),
     })
-    human.KeyJoints(4.4, {'right_elbow': (25.2407, 17.208)})
+    human.KeyJoints(4.4, {'right_elbow': (25.241, 17.208)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(4.5, {'right_elbow': (25.2407, 8.3661)})
-    human.KeyJoints(4.6, {'right_elbow': (25.2407, -28.7075)})
-    human.KeyJoints(4.7, {'right_elbow': (25.2407, -67.6601)})
+    human.KeyJoints(4.5, {'right_elbow': (25.241, 8.366)})
+    human.KeyJoints(4.6, {'right_elbow': (25.241, -28.707)})
+    human.KeyJoints(4.7, {'right_elbow': (25.241, -67.66)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=4.775442, duration=0.072)
-    human.KeyJoints(4.8, {'right_elbow': (25.2407, -80.0)})
+    human.KeyJoints(4.8, {'right_elbow': (25.241, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.847442, duration=0.2628)
-    human.KeyJoints(5.1, {'right_elbow': (25.2407, -80.0)})
+    human.KeyJoints(5.1, {'right_elbow': (25.241, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {'right_elbow': (25.2407, -52.2019)})
-    human.KeyJoints(5.3, {'right_elbow': (25.2407, 14.5082)})
-    human.KeyJoints(5.4, {'right_elbow': (25.2407, 71.0327)})
+    human.KeyJoints(5.2, {'right_elbow': (25.241, -52.202)})
+    human.KeyJoints(5.3, {'right_elbow': (25.241, 14.508)})
+    human.KeyJoints(5.4, {'right_elbow': (25.241, 71.033)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.448642, duration=0.072)
     human.KeyJoints(5.5, {
-        'spine_lumbar': (39.2347, 17.3511, 13.0837), 'spine_thoracic': (-6.3763, 8.883, 22.9099),
-        'neck': (35.0, 30.6695, -20.8579), 'right_shoulder': (32.1868, 18.5776, 6.3534),
-        'right_elbow': (25.2407, 80.0), 'right_wrist': (-1.4764, -2.5653),
-        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
+        'spine_lumbar': (39.235, 17.351, 13.084), 'spine_thoracic': (-6.376, 8.883, 22.91),
+        'neck': (35.0, 30.67, -20.858), 'right_shoulder': (32.187, 18.578, 6.353),
+        'right_elbow': (25.241, 80.0), 'right_wrist': (-1.476, -2.565), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.594, 5.73, 11.459),
     })
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=5.520642, duration=0.072)
@@ -333,580 +324,569 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=5.520642, duration=1.618047)
     human.KeyJoints(5.6, {
-        'spine_lumbar': (40.0618, 16.9254, 12.5314), 'spine_thoracic': (-6.6742, 8.7271, 22.4112),
-        'neck': (35.0, 31.18, -19.6702), 'head': (15.0, -11.25),
-        'right_shoulder': (33.1324, 17.4949, 6.6999), 'right_elbow': (24.2053, 79.996),
-        'right_wrist': (-1.224, -2.5304), 'left_clavicle': (-0.3988, 0.5072),
-        'left_shoulder': (9.542, 5.7976, 11.3353), 'left_elbow': (34.4157, 17.1872),
-        'left_wrist': (-0.0387, 0.0002),
+        'spine_lumbar': (40.062, 16.925, 12.531), 'spine_thoracic': (-6.674, 8.727, 22.411),
+        'neck': (35.0, 31.18, -19.67), 'head': (15.0, -11.25),
+        'right_shoulder': (33.132, 17.495, 6.7), 'right_elbow': (24.205, 79.996),
+        'right_wrist': (-1.224, -2.53), 'left_clavicle': (-0.399, 0.507),
+        'left_shoulder': (9.542, 5.798, 11.335), 'left_elbow': (34.416, 17.187),
+        'left_wrist': (-0.039, 0.0),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (42.9882, 15.4194, 10.5773), 'spine_thoracic': (-7.7439, 8.1756, 20.6469),
-        'neck': (35.0, 33.7171, -16.3036), 'head': (15.0, -11.196),
-        'right_shoulder': (36.4782, 13.664, 7.9281), 'right_elbow': (20.5418, 79.9817),
-        'right_wrist': (-0.3312, -2.3905), 'left_clavicle': (-1.8096, 2.3017),
-        'left_shoulder': (12.9387, 6.0495, 10.8897), 'left_elbow': (34.5715, 17.1816),
+        'spine_lumbar': (42.988, 15.419, 10.577), 'spine_thoracic': (-7.744, 8.176, 20.647),
+        'neck': (35.0, 33.717, -16.304), 'head': (15.0, -11.196),
+        'right_shoulder': (36.478, 13.664, 7.928), 'right_elbow': (20.542, 79.982),
+        'right_wrist': (-0.331, -2.391), 'left_clavicle': (-1.81, 2.302),
+        'left_shoulder': (12.939, 6.05, 10.89), 'left_elbow': (34.571, 17.182),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (47.197, 13.2535, 7.7668), 'spine_thoracic': (-9.3199, 7.3823, 18.1093),
-        'neck': (35.0, 33.75, -11.0967), 'head': (15.0, -10.9861),
-        'right_shoulder': (41.2902, 8.1544, 9.6993), 'right_elbow': (15.2728, 79.9611),
-        'right_wrist': (0.9529, -2.15), 'left_clavicle': (-3.8388, 4.8827),
-        'left_shoulder': (17.9291, 6.4394, 10.2313), 'left_elbow': (34.8446, 17.1735),
-        'left_wrist': (-0.3999, 0.0043),
+        'spine_lumbar': (47.197, 13.253, 7.767), 'spine_thoracic': (-9.32, 7.382, 18.109),
+        'neck': (35.0, 33.75, -11.097), 'head': (15.0, -10.986),
+        'right_shoulder': (41.29, 8.154, 9.699), 'right_elbow': (15.273, 79.961),
+        'right_wrist': (0.953, -2.15), 'left_clavicle': (-3.839, 4.883),
+        'left_shoulder': (17.929, 6.439, 10.231), 'left_elbow': (34.845, 17.173),
+        'left_wrist': (-0.4, 0.004),
     })
     human.KeyJoints(5.9, {
-        'spine_lumbar': (51.8091, 10.8799, 4.6871), 'spine_thoracic': (-11.1148, 6.5131, 15.3286),
-        'neck': (35.0, 33.7259, -6.5088), 'head': (15.0, -11.25),
-        'right_shoulder': (46.5634, 2.1169, 11.6488), 'right_elbow': (9.499, 79.9386),
-        'right_wrist': (2.3601, -1.8157), 'left_clavicle': (-6.0624, 7.711),
-        'left_shoulder': (23.5873, 6.9162, 9.4781), 'left_elbow': (35.2325, 17.1647),
+        'spine_lumbar': (51.809, 10.88, 4.687), 'spine_thoracic': (-11.115, 6.513, 15.329),
+        'neck': (35.0, 33.726, -6.509), 'head': (15.0, -11.25),
+        'right_shoulder': (46.563, 2.117, 11.649), 'right_elbow': (9.499, 79.939),
+        'right_wrist': (2.36, -1.816), 'left_clavicle': (-6.062, 7.711),
+        'left_shoulder': (23.587, 6.916, 9.478), 'left_elbow': (35.232, 17.165),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (55.9453, 8.7513, 1.9251), 'spine_thoracic': (-12.8408, 5.7335, 12.8348),
-        'neck': (35.0, 17.6784, 1.6264), 'head': (15.0, -5.9164),
-        'right_shoulder': (51.2925, -3.2978, 13.4118), 'right_elbow': (4.3208, 79.9184),
-        'right_wrist': (3.6221, -1.3941), 'left_clavicle': (-8.0566, 10.2475),
-        'left_shoulder': (28.9873, 7.429, 8.7483), 'left_elbow': (35.7324, 17.1568),
+        'spine_lumbar': (55.945, 8.751, 1.925), 'spine_thoracic': (-12.841, 5.734, 12.835),
+        'neck': (35.0, 17.678, 1.626), 'head': (15.0, -5.916),
+        'right_shoulder': (51.292, -3.298, 13.412), 'right_elbow': (4.321, 79.918),
+        'right_wrist': (3.622, -1.394), 'left_clavicle': (-8.057, 10.247),
+        'left_shoulder': (28.987, 7.429, 8.748), 'left_elbow': (35.732, 17.157),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (58.7266, 7.3199, 0.0678), 'spine_thoracic': (-14.2104, 5.2093, 11.1578),
-        'neck': (35.0, -29.5046, 11.876), 'head': (15.0, 11.25),
-        'right_shoulder': (54.4724, -6.9387, 14.6238), 'right_elbow': (0.8389, 79.9048),
-        'right_wrist': (4.4707, -0.8922), 'left_clavicle': (-9.3976, 11.9531),
-        'left_shoulder': (33.2033, 7.9268, 8.1597), 'left_elbow': (36.3417, 17.1514),
-        'left_wrist': (-1.2025, 0.0293),
+        'spine_lumbar': (58.727, 7.32, 0.068), 'spine_thoracic': (-14.21, 5.209, 11.158),
+        'neck': (35.0, -29.505, 11.876), 'head': (15.0, 11.25),
+        'right_shoulder': (54.472, -6.939, 14.624), 'right_elbow': (0.839, 79.905),
+        'right_wrist': (4.471, -0.892), 'left_clavicle': (-9.398, 11.953),
+        'left_shoulder': (33.203, 7.927, 8.16), 'left_elbow': (36.342, 17.151),
+        'left_wrist': (-1.202, 0.029),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(6.2, {
-        'spine_lumbar': (58.2737, 7.1555, 0.2584), 'spine_thoracic': (-14.9669, 5.5696, 11.3364),
-        'neck': (35.0, -32.2643, 11.7892), 'head': (15.0, 11.189),
-        'right_shoulder': (53.696, -5.9969, 14.9672), 'right_elbow': (0.0, 79.9162),
-        'right_wrist': (1.2921, -0.115), 'left_clavicle': (-9.284, 11.8914),
-        'left_shoulder': (35.405, 8.3953, 7.8173), 'left_wrist': (-1.4311, 0.1157),
+        'spine_lumbar': (58.274, 7.156, 0.258), 'spine_thoracic': (-14.967, 5.57, 11.336),
+        'neck': (35.0, -32.264, 11.789), 'head': (15.0, 11.189),
+        'right_shoulder': (53.696, -5.997, 14.967), 'right_elbow': (0.0, 79.916),
+        'right_wrist': (1.292, -0.115), 'left_clavicle': (-9.284, 11.891),
+        'left_shoulder': (35.405, 8.395, 7.817), 'left_wrist': (-1.431, 0.116),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (52.8436, 8.902, 1.1634), 'spine_thoracic': (-13.9598, 5.6533, 12.163),
-        'neck': (35.0, 33.6196, -2.2677), 'head': (15.0, -11.25),
-        'right_shoulder': (48.1224, -2.2148, 14.9938), 'right_elbow': (3.3565, 79.8797),
-        'right_wrist': (-2.7535, -0.1352), 'left_clavicle': (-9.3903, 10.9139),
-        'left_shoulder': (32.4924, 5.5177, 9.0065), 'left_elbow': (38.1268, 17.1617),
-        'left_wrist': (-1.0799, 0.4568),
+        'spine_lumbar': (52.844, 8.902, 1.163), 'spine_thoracic': (-13.96, 5.653, 12.163),
+        'neck': (35.0, 33.62, -2.268), 'head': (15.0, -11.25),
+        'right_shoulder': (48.122, -2.215, 14.994), 'right_elbow': (3.356, 79.88),
+        'right_wrist': (-2.754, -0.135), 'left_clavicle': (-9.39, 10.914),
+        'left_shoulder': (32.492, 5.518, 9.007), 'left_elbow': (38.127, 17.162),
+        'left_wrist': (-1.08, 0.457),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=6.333722, duration=0.072)
     human.KeyJoints(6.4, {
-        'spine_lumbar': (50.8888, 9.5476, 1.539), 'spine_thoracic': (-13.438, 5.6513, 12.4996),
-        'neck': (35.0, 33.75, -3.2951), 'head': (15.0, -11.25),
-        'right_clavicle': (-9.8005, 12.8974), 'right_shoulder': (49.8467, -1.5945, 15.0108),
-        'right_elbow': (2.2402, 79.6819), 'right_wrist': (13.6169, -1.5354),
-        'left_clavicle': (-9.3827, 10.4787), 'left_shoulder': (31.0865, 4.2745, 9.5412),
-        'left_elbow': (38.3615, 17.1652), 'left_wrist': (-0.9134, 0.5724),
+        'spine_lumbar': (50.889, 9.548, 1.539), 'spine_thoracic': (-13.438, 5.651, 12.5),
+        'neck': (35.0, 33.75, -3.295), 'head': (15.0, -11.25), 'right_clavicle': (-9.801, 12.897),
+        'right_shoulder': (49.847, -1.594, 15.011), 'right_elbow': (2.24, 79.682),
+        'right_wrist': (13.617, -1.535), 'left_clavicle': (-9.383, 10.479),
+        'left_shoulder': (31.087, 4.275, 9.541), 'left_elbow': (38.361, 17.165),
+        'left_wrist': (-0.913, 0.572),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.5, {
-        'spine_lumbar': (51.6544, 10.4259, 1.5701), 'spine_thoracic': (-13.038, 6.0167, 11.816),
-        'neck': (34.4819, 32.6433, -7.1533), 'head': (13.5197, -10.9322),
-        'right_clavicle': (-9.8023, 12.1725), 'right_shoulder': (50.22, 0.1162, 14.8485),
-        'right_elbow': (4.6103, 78.4899), 'right_wrist': (6.6165, -1.1994),
-        'left_shoulder': (31.3446, 4.99, 9.2543), 'left_wrist': (-1.0127, 0.5382),
+        'spine_lumbar': (51.654, 10.426, 1.57), 'spine_thoracic': (-13.038, 6.017, 11.816),
+        'neck': (34.482, 32.643, -7.153), 'head': (13.52, -10.932),
+        'right_clavicle': (-9.802, 12.172), 'right_shoulder': (50.22, 0.116, 14.848),
+        'right_elbow': (4.61, 78.49), 'right_wrist': (6.617, -1.199),
+        'left_shoulder': (31.345, 4.99, 9.254), 'left_wrist': (-1.013, 0.538),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (53.6748, 12.7437, 1.687), 'spine_thoracic': (-11.817, 6.981, 10.012),
-        'neck': (33.0697, 29.8605, -16.2837), 'head': (9.9216, -10.1273),
-        'right_clavicle': (-9.8104, 10.2595), 'right_shoulder': (51.2053, 4.7557, 14.3871),
-        'right_elbow': (10.8646, 75.3052), 'right_wrist': (-11.8565, -0.3126),
-        'left_shoulder': (32.1777, 6.8781, 8.4972),
+        'spine_lumbar': (53.675, 12.744, 1.687), 'spine_thoracic': (-11.817, 6.981, 10.012),
+        'neck': (33.07, 29.86, -16.284), 'head': (9.922, -10.127), 'right_clavicle': (-9.81, 10.26),
+        'right_shoulder': (51.205, 4.756, 14.387), 'right_elbow': (10.865, 75.305),
+        'right_wrist': (-11.856, -0.313), 'left_shoulder': (32.178, 6.878, 8.497),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (56.2137, 15.6563, 1.9153), 'spine_thoracic': (-9.8961, 8.1928, 7.745),
-        'neck': (31.1897, 26.6843, -25.3063), 'head': (6.1191, -9.1952),
-        'right_clavicle': (-9.8283, 7.8557), 'right_shoulder': (52.4433, 10.8774, 13.7305),
-        'right_elbow': (18.724, 71.2119), 'right_wrist': (-35.07, 0.8016),
-        'left_shoulder': (33.5789, 9.2508, 7.5459),
+        'spine_lumbar': (56.214, 15.656, 1.915), 'spine_thoracic': (-9.896, 8.193, 7.745),
+        'neck': (31.19, 26.684, -25.306), 'head': (6.119, -9.195),
+        'right_clavicle': (-9.828, 7.856), 'right_shoulder': (52.443, 10.877, 13.73),
+        'right_elbow': (18.724, 71.212), 'right_wrist': (-35.07, 0.802),
+        'left_shoulder': (33.579, 9.251, 7.546),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (58.5315, 18.3153, 2.2806), 'spine_thoracic': (-7.3985, 9.2991, 5.6755),
-        'neck': (29.2544, 24.4007, -28.7906), 'head': (4.0253, -8.4961),
-        'right_clavicle': (-9.8597, 5.6612), 'right_shoulder': (53.5736, 17.028, 12.9832),
-        'right_elbow': (25.899, 67.2992), 'right_wrist': (-56.2624, 1.8189),
-        'left_shoulder': (35.5406, 11.4168, 6.6774), 'left_wrist': (-1.9048, 0.2307),
+        'spine_lumbar': (58.531, 18.315, 2.281), 'spine_thoracic': (-7.398, 9.299, 5.675),
+        'neck': (29.254, 24.401, -28.791), 'head': (4.025, -8.496),
+        'right_clavicle': (-9.86, 5.661), 'right_shoulder': (53.574, 17.028, 12.983),
+        'right_elbow': (25.899, 67.299), 'right_wrist': (-56.262, 1.819),
+        'left_shoulder': (35.541, 11.417, 6.677), 'left_wrist': (-1.905, 0.231),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (59.8887, 19.8724, 2.8082), 'spine_thoracic': (-4.447, 9.9469, 4.4636),
-        'neck': (27.2907, 23.1646, -26.994), 'head': (3.3123, -8.0784),
-        'right_clavicle': (-9.9082, 4.3761), 'right_shoulder': (54.2355, 21.754, 12.2497),
-        'right_elbow': (30.1005, 64.6562), 'right_wrist': (-68.6721, 2.4146),
-        'left_shoulder': (38.055, 12.6852, 6.1689), 'left_elbow': (38.3928, 17.1464),
-        'left_wrist': (-2.0809, 0.17),
+        'spine_lumbar': (59.889, 19.872, 2.808), 'spine_thoracic': (-4.447, 9.947, 4.464),
+        'neck': (27.291, 23.165, -26.994), 'head': (3.312, -8.078),
+        'right_clavicle': (-9.908, 4.376), 'right_shoulder': (54.235, 21.754, 12.25),
+        'right_elbow': (30.101, 64.656), 'right_wrist': (-68.672, 2.415),
+        'left_shoulder': (38.055, 12.685, 6.169), 'left_elbow': (38.393, 17.146),
+        'left_wrist': (-2.081, 0.17),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.0, {
-        'spine_lumbar': (60.0, 20.0, 5.3095), 'spine_thoracic': (-1.6081, 10.0, 6.2481),
-        'neck': (26.8724, 22.1576, -30.1799), 'head': (1.379, -7.5961),
-        'right_clavicle': (-8.8867, 5.8627), 'right_shoulder': (55.4918, 26.4839, 10.5885),
-        'right_elbow': (26.8361, 63.4901), 'right_wrist': (-67.2426, 1.6275),
-        'left_shoulder': (44.1265, 8.8896, 7.38), 'left_elbow': (33.7831, 17.1192),
-        'left_wrist': (-1.1712, -0.7228),
+        'spine_lumbar': (60.0, 20.0, 5.309), 'spine_thoracic': (-1.608, 10.0, 6.248),
+        'neck': (26.872, 22.158, -30.18), 'head': (1.379, -7.596),
+        'right_clavicle': (-8.887, 5.863), 'right_shoulder': (55.492, 26.484, 10.588),
+        'right_elbow': (26.836, 63.49), 'right_wrist': (-67.243, 1.628),
+        'left_shoulder': (44.127, 8.89, 7.38), 'left_elbow': (33.783, 17.119),
+        'left_wrist': (-1.171, -0.723),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.066689, duration=0.072)
     human.KeyJoints(7.1, {
-        'spine_lumbar': (60.0, 20.0, 6.6936), 'spine_thoracic': (-0.3203, 9.9998, 7.3755),
-        'neck': (26.8916, 21.7318, -32.2391), 'head': (0.4103, -7.3627),
-        'right_clavicle': (-7.4486, 6.7525), 'right_shoulder': (57.0192, 30.453, 9.1923),
-        'right_elbow': (23.9416, 62.7867), 'right_wrist': (-65.0628, 0.8386),
-        'left_shoulder': (47.4083, 6.5079, 8.1244), 'left_elbow': (30.6831, 17.1081),
-        'left_wrist': (-0.6172, -1.3103),
+        'spine_lumbar': (60.0, 20.0, 6.694), 'spine_thoracic': (-0.32, 10.0, 7.375),
+        'neck': (26.892, 21.732, -32.239), 'head': (0.41, -7.363),
+        'right_clavicle': (-7.449, 6.753), 'right_shoulder': (57.019, 30.453, 9.192),
+        'right_elbow': (23.942, 62.787), 'right_wrist': (-65.063, 0.839),
+        'left_shoulder': (47.408, 6.508, 8.124), 'left_elbow': (30.683, 17.108),
+        'left_wrist': (-0.617, -1.31),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.138689, duration=0.2628)
-    human.KeyJoints(7.2, {'neck': (28.0096, 19.2982, -34.2467), 'head': (2.422, -7.8987)})
-    human.KeyJoints(7.3, {'neck': (32.3062, 9.9462, -41.9618), 'head': (10.1529, -9.9585)})
+    human.KeyJoints(7.2, {'neck': (28.01, 19.298, -34.247), 'head': (2.422, -7.899)})
+    human.KeyJoints(7.3, {'neck': (32.306, 9.946, -41.962), 'head': (10.153, -9.959)})
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, 20.0, 6.6936), 'spine_thoracic': (-0.3203, 9.9998, 7.3755),
-        'neck': (34.9992, 4.0844, -46.7976), 'head': (14.9986, -11.2496),
-        'right_shoulder': (57.0192, 30.453, 9.1923), 'right_elbow': (23.9416, 62.7867),
-        'right_wrist': (-65.0628, 0.8386), 'left_clavicle': (-9.3827, 10.4787),
-        'left_shoulder': (47.4083, 6.5079, 8.1244), 'left_elbow': (30.6831, 17.1081),
-        'left_wrist': (-0.6172, -1.3103),
+        'spine_lumbar': (60.0, 20.0, 6.694), 'spine_thoracic': (-0.32, 10.0, 7.375),
+        'neck': (34.999, 4.084, -46.798), 'head': (14.999, -11.25),
+        'right_shoulder': (57.019, 30.453, 9.192), 'right_elbow': (23.942, 62.787),
+        'right_wrist': (-65.063, 0.839), 'left_clavicle': (-9.383, 10.479),
+        'left_shoulder': (47.408, 6.508, 8.124), 'left_elbow': (30.683, 17.108),
+        'left_wrist': (-0.617, -1.31),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=7.401489, duration=2.069192)
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, 20.0, 4.4865), 'spine_thoracic': (-0.3366, 9.0624, 3.9783),
-        'neck': (33.4417, 4.4232, -41.8123), 'head': (14.7504, -11.2305),
-        'right_shoulder': (57.7515, 24.5913, 10.1162), 'right_elbow': (22.8959, 62.9462),
-        'right_wrist': (-60.4896, 0.8065), 'left_clavicle': (-9.464, 11.0893),
-        'left_shoulder': (41.1148, 8.2529, 9.3734), 'left_elbow': (39.5951, 20.6717),
-        'left_wrist': (-9.9671, 2.6338),
+        'spine_lumbar': (60.0, 20.0, 4.487), 'spine_thoracic': (-0.337, 9.062, 3.978),
+        'neck': (33.442, 4.423, -41.812), 'head': (14.75, -11.23),
+        'right_shoulder': (57.751, 24.591, 10.116), 'right_elbow': (22.896, 62.946),
+        'right_wrist': (-60.49, 0.806), 'left_clavicle': (-9.464, 11.089),
+        'left_shoulder': (41.115, 8.253, 9.373), 'left_elbow': (39.595, 20.672),
+        'left_wrist': (-9.967, 2.634),
     })
     human.KeyJoints(7.6, {
-        'spine_thoracic': (-0.3688, 6.9035, -3.7271), 'neck': (30.8894, 5.8211, -31.0626),
-        'head': (14.3936, -11.1638), 'right_shoulder': (59.516, 11.4059, 12.0985),
-        'right_elbow': (20.3231, 63.2629), 'right_wrist': (-49.8006, 0.7171),
-        'left_clavicle': (-9.6285, 12.3978), 'left_shoulder': (28.624, 11.7162, 12.2969),
-        'left_elbow': (57.2832, 28.7663), 'left_wrist': (-29.524, 10.7088),
+        'spine_thoracic': (-0.369, 6.904, -3.727), 'neck': (30.889, 5.821, -31.063),
+        'head': (14.394, -11.164), 'right_shoulder': (59.516, 11.406, 12.099),
+        'right_elbow': (20.323, 63.263), 'right_wrist': (-49.801, 0.717),
+        'left_clavicle': (-9.629, 12.398), 'left_shoulder': (28.624, 11.716, 12.297),
+        'left_elbow': (57.283, 28.766), 'left_wrist': (-29.524, 10.709),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, 20.0, -5.3043), 'spine_thoracic': (-0.3904, 4.604, -11.6423),
-        'neck': (29.2732, 7.7464, -20.2617), 'head': (14.9949, -11.1766),
-        'right_shoulder': (61.5874, -1.864, 13.8524), 'right_elbow': (17.1784, 63.4753),
-        'left_clavicle': (-9.7484, 13.5519), 'left_shoulder': (20.2442, 14.0397, 15.5261),
-        'left_elbow': (69.1497, 37.111), 'left_wrist': (-45.4955, 16.8307),
+        'spine_lumbar': (60.0, 20.0, -5.304), 'spine_thoracic': (-0.39, 4.604, -11.642),
+        'neck': (29.273, 7.746, -20.262), 'head': (14.995, -11.177),
+        'right_shoulder': (61.587, -1.864, 13.852), 'right_elbow': (17.178, 63.475),
+        'left_clavicle': (-9.748, 13.552), 'left_shoulder': (20.244, 14.04, 15.526),
+        'left_elbow': (69.15, 37.111), 'left_wrist': (-45.496, 16.831),
     })
     human.KeyJoints(7.8, {
-        'spine_thoracic': (-0.1085, 2.4904, -18.2514), 'neck': (29.3319, 10.9087, -11.1919),
-        'right_shoulder': (64.0512, -12.3471, 14.7891), 'right_elbow': (12.985, 63.3593),
-        'right_wrist': (-26.2282, 0.3862), 'left_shoulder': (24.119, 13.5927, 18.791),
-        'left_elbow': (63.3853, 44.145), 'left_wrist': (-51.6891, 18.3883),
+        'spine_thoracic': (-0.109, 2.49, -18.251), 'neck': (29.332, 10.909, -11.192),
+        'right_shoulder': (64.051, -12.347, 14.789), 'right_elbow': (12.985, 63.359),
+        'right_wrist': (-26.228, 0.386), 'left_shoulder': (24.119, 13.593, 18.791),
+        'left_elbow': (63.385, 44.145), 'left_wrist': (-51.689, 18.388),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (60.0, 20.0, -12.5553), 'spine_thoracic': (0.8279, 0.1518, -25.1821),
-        'neck': (30.8918, 14.8494, -1.9101), 'right_shoulder': (67.2252, -23.0182, 15.5844),
-        'right_elbow': (7.2044, 63.0252), 'right_wrist': (-12.4935, -0.0457),
-        'left_clavicle': (-9.7832, 14.677), 'left_shoulder': (35.3948, 12.1703, 22.6086),
-        'left_elbow': (46.1178, 51.5595), 'left_wrist': (-56.3732, 19.424),
+        'spine_lumbar': (60.0, 20.0, -12.555), 'spine_thoracic': (0.828, 0.152, -25.182),
+        'neck': (30.892, 14.849, -1.91), 'right_shoulder': (67.225, -23.018, 15.584),
+        'right_elbow': (7.204, 63.025), 'right_wrist': (-12.494, -0.046),
+        'left_clavicle': (-9.783, 14.677), 'left_shoulder': (35.395, 12.17, 22.609),
+        'left_elbow': (46.118, 51.559), 'left_wrist': (-56.373, 19.424),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 20.0, -14.7979), 'spine_thoracic': (2.0931, -1.3706, -29.5976),
-        'neck': (32.3852, 16.6798, 4.18), 'head': (15.0, -11.25),
-        'right_shoulder': (69.4073, -29.7321, 16.0441), 'right_elbow': (3.1449, 62.7551),
-        'right_wrist': (-3.3787, -0.9024), 'left_clavicle': (-9.7897, 14.9742),
-        'left_shoulder': (44.5096, 11.0205, 25.1467), 'left_elbow': (30.5164, 56.2935),
-        'left_wrist': (-58.9273, 19.9567),
+        'spine_lumbar': (60.0, 20.0, -14.798), 'spine_thoracic': (2.093, -1.371, -29.598),
+        'neck': (32.385, 16.68, 4.18), 'head': (15.0, -11.25),
+        'right_shoulder': (69.407, -29.732, 16.044), 'right_elbow': (3.145, 62.755),
+        'right_wrist': (-3.379, -0.902), 'left_clavicle': (-9.79, 14.974),
+        'left_shoulder': (44.51, 11.02, 25.147), 'left_elbow': (30.516, 56.293),
+        'left_wrist': (-58.927, 19.957),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.1058, -1.2299, -30.0),
-        'neck': (31.1596, 16.1613, 5.009), 'right_shoulder': (67.4916, -30.0623, 16.0901),
-        'right_elbow': (8.1429, 62.7864), 'right_wrist': (-5.5025, -1.7115),
-        'left_shoulder': (47.1466, 15.1972, 23.744), 'left_elbow': (24.5774, 56.0601),
-        'left_wrist': (-57.3273, 18.8317),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.106, -1.23, -30.0),
+        'neck': (31.16, 16.161, 5.009), 'right_shoulder': (67.492, -30.062, 16.09),
+        'right_elbow': (8.143, 62.786), 'right_wrist': (-5.503, -1.711),
+        'left_shoulder': (47.147, 15.197, 23.744), 'left_elbow': (24.577, 56.06),
+        'left_wrist': (-57.327, 18.832),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.194677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (13.4742, -6.2044, -30.0), 'neck': (25.8684, 13.9072, 6.3372),
-        'right_shoulder': (66.0791, -30.173, 16.1556), 'right_elbow': (22.6174, 62.8627),
-        'right_wrist': (-13.9832, -3.7998), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (61.4978, 12.1269, 23.2664), 'left_elbow': (12.5623, 55.5337),
-        'left_wrist': (-43.4235, 14.7004),
+        'spine_thoracic': (13.474, -6.204, -30.0), 'neck': (25.868, 13.907, 6.337),
+        'right_shoulder': (66.079, -30.173, 16.156), 'right_elbow': (22.617, 62.863),
+        'right_wrist': (-13.983, -3.8), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (61.498, 12.127, 23.266), 'left_elbow': (12.562, 55.534),
+        'left_wrist': (-43.424, 14.7),
     })
     human.KeyJoints(8.4, {
-        'neck': (25.8684, 13.9072, 6.3372), 'head': (15.0, -11.25),
-        'left_shoulder': (61.4978, 12.1269, 23.2664), 'left_elbow': (12.5623, 55.5337),
-        'left_wrist': (-43.4235, 14.7004),
+        'neck': (25.868, 13.907, 6.337), 'head': (15.0, -11.25),
+        'left_shoulder': (61.498, 12.127, 23.266), 'left_elbow': (12.562, 55.534),
+        'left_wrist': (-43.424, 14.7),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.5, {
-        'neck': (26.1077, 13.2698, 8.0127), 'head': (14.9719, -10.618),
-        'left_shoulder': (60.6038, 12.2428, 22.6471), 'left_elbow': (13.0339, 55.3198),
-        'left_wrist': (-43.5445, 14.6371),
+        'neck': (26.108, 13.27, 8.013), 'head': (14.972, -10.618),
+        'left_shoulder': (60.604, 12.243, 22.647), 'left_elbow': (13.034, 55.32),
+        'left_wrist': (-43.545, 14.637),
     })
     human.KeyJoints(8.6, {
-        'neck': (28.1033, 7.9543, 21.9846), 'head': (14.7377, -5.3483),
-        'left_shoulder': (52.3782, 13.3709, 16.8716), 'left_elbow': (17.4595, 53.3517),
-        'left_wrist': (-44.6795, 14.0553),
+        'neck': (28.103, 7.954, 21.985), 'head': (14.738, -5.348),
+        'left_shoulder': (52.378, 13.371, 16.872), 'left_elbow': (17.459, 53.352),
+        'left_wrist': (-44.679, 14.055),
     })
     human.KeyJoints(8.7, {
-        'neck': (31.0266, 0.168, 42.4514), 'head': (14.3947, 2.3711),
-        'left_shoulder': (37.7667, 15.5594, 6.3769), 'left_elbow': (25.5828, 49.8557),
-        'left_wrist': (-46.7609, 13.0218),
+        'neck': (31.027, 0.168, 42.451), 'head': (14.395, 2.371),
+        'left_shoulder': (37.767, 15.559, 6.377), 'left_elbow': (25.583, 49.856),
+        'left_wrist': (-46.761, 13.022),
     })
     human.KeyJoints(8.8, {
-        'neck': (33.5379, -6.521, 60.0338), 'head': (14.0999, 9.0026),
-        'left_shoulder': (19.4989, 18.6356, -7.1773), 'left_elbow': (36.2209, 45.4849),
-        'left_wrist': (-49.4831, 11.7296),
+        'neck': (33.538, -6.521, 60.034), 'head': (14.1, 9.003),
+        'left_shoulder': (19.499, 18.636, -7.177), 'left_elbow': (36.221, 45.485),
+        'left_wrist': (-49.483, 11.73),
     })
     human.KeyJoints(8.9, {
-        'neck': (34.3502, -8.6847, 65.7213), 'head': (14.0046, 11.1478),
-        'left_shoulder': (0.3042, 22.4266, -22.1313), 'left_elbow': (48.1907, 40.8924),
-        'left_wrist': (-52.5409, 10.3719),
+        'neck': (34.35, -8.685, 65.721), 'head': (14.005, 11.148),
+        'left_shoulder': (0.304, 22.427, -22.131), 'left_elbow': (48.191, 40.892),
+        'left_wrist': (-52.541, 10.372),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (-17.0879, 26.7594, -36.8252), 'left_elbow': (60.3094, 36.7311),
-        'left_wrist': (-55.6285, 9.1417),
+        'left_shoulder': (-17.088, 26.759, -36.825), 'left_elbow': (60.309, 36.731),
+        'left_wrist': (-55.629, 9.142),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (-29.9479, 31.4611, -49.5994), 'left_elbow': (71.394, 33.6542),
-        'left_wrist': (-58.4407, 8.2321),
+        'left_shoulder': (-29.948, 31.461, -49.599), 'left_elbow': (71.394, 33.654),
+        'left_wrist': (-58.441, 8.232),
     })
     human.KeyJoints(9.2, {
-        'left_shoulder': (-35.5465, 36.359, -58.7941), 'left_elbow': (80.2615, 32.3147),
-        'left_wrist': (-60.6718, 7.8361),
+        'left_shoulder': (-35.546, 36.359, -58.794), 'left_elbow': (80.261, 32.315),
+        'left_wrist': (-60.672, 7.836),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'left_shoulder': (-34.8189, 42.8838, -64.7686), 'left_elbow': (86.9815, 32.5134),
-        'left_wrist': (-62.4435, 8.2003),
+        'left_shoulder': (-34.819, 42.884, -64.769), 'left_elbow': (86.981, 32.513),
+        'left_wrist': (-62.444, 8.2),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'left_shoulder': (-34.1561, 40.7569, -74.4287), 'left_elbow': (96.7815, 32.7529),
-        'left_wrist': (-67.1161, 8.7807),
+        'left_shoulder': (-34.156, 40.757, -74.429), 'left_elbow': (96.781, 32.753),
+        'left_wrist': (-67.116, 8.781),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
-    human.KeyJoints(9.5, {'neck': (34.3484, -8.6799, 65.72), 'head': (13.9981, 11.1482)})
+    human.KeyJoints(9.5, {'neck': (34.348, -8.68, 65.72), 'head': (13.998, 11.148)})
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.4742, -6.2044, -30.0),
-        'neck': (34.2441, -8.5529, 65.6045), 'right_clavicle': (-7.4486, 6.7525),
-        'right_shoulder': (66.0791, -30.173, 16.1556), 'right_elbow': (22.6174, 62.8627),
-        'right_wrist': (-13.9832, -3.7998), 'left_shoulder': (-34.1561, 40.7569, -74.4287),
-        'left_elbow': (96.7815, 32.7529), 'left_wrist': (-67.1161, 8.7807),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.474, -6.204, -30.0),
+        'neck': (34.244, -8.553, 65.605), 'right_clavicle': (-7.449, 6.753),
+        'right_shoulder': (66.079, -30.173, 16.156), 'right_elbow': (22.617, 62.863),
+        'right_wrist': (-13.983, -3.8), 'left_shoulder': (-34.156, 40.757, -74.429),
+        'left_elbow': (96.781, 32.753), 'left_wrist': (-67.116, 8.781),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.4793, -14.3826), 'spine_thoracic': (13.3713, -5.9278, -29.3428),
-        'neck': (33.9295, -8.5373, 64.632), 'head': (13.7915, 11.1771),
-        'right_clavicle': (-7.543, 7.0577), 'right_shoulder': (66.232, -30.0176, 16.1397),
-        'right_elbow': (22.0005, 62.7733), 'right_wrist': (-13.5695, -3.7302),
-        'left_shoulder': (-31.7902, 41.2221, -71.1069), 'left_elbow': (96.4938, 33.3737),
-        'left_wrist': (-65.2835, 8.8913),
+        'spine_lumbar': (60.0, 19.479, -14.383), 'spine_thoracic': (13.371, -5.928, -29.343),
+        'neck': (33.929, -8.537, 64.632), 'head': (13.791, 11.177),
+        'right_clavicle': (-7.543, 7.058), 'right_shoulder': (66.232, -30.018, 16.14),
+        'right_elbow': (22.001, 62.773), 'right_wrist': (-13.57, -3.73),
+        'left_shoulder': (-31.79, 41.222, -71.107), 'left_elbow': (96.494, 33.374),
+        'left_wrist': (-65.284, 8.891),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (60.0, 17.1464, -11.5776), 'spine_thoracic': (12.8837, -4.6774, -26.356),
-        'neck': (32.1111, -7.8753, 59.474), 'right_clavicle': (-7.9659, 8.4248),
-        'right_shoulder': (66.9272, -29.3215, 16.0687), 'right_elbow': (19.2369, 62.3728),
-        'right_wrist': (-11.716, -3.4096), 'left_shoulder': (-21.1101, 43.3062, -56.117),
-        'left_elbow': (95.0808, 36.164), 'left_wrist': (-56.9891, 9.3866),
+        'spine_lumbar': (60.0, 17.146, -11.578), 'spine_thoracic': (12.884, -4.677, -26.356),
+        'neck': (32.111, -7.875, 59.474), 'right_clavicle': (-7.966, 8.425),
+        'right_shoulder': (66.927, -29.322, 16.069), 'right_elbow': (19.237, 62.373),
+        'right_wrist': (-11.716, -3.41), 'left_shoulder': (-21.11, 43.306, -56.117),
+        'left_elbow': (95.081, 36.164), 'left_wrist': (-56.989, 9.387),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 13.7392, -7.3771), 'spine_thoracic': (12.1005, -2.8217, -21.881),
-        'neck': (29.5785, -7.2888, 51.2386), 'head': (11.9626, 11.093),
-        'right_clavicle': (-8.5836, 10.4214), 'right_shoulder': (67.9694, -28.3049, 15.965),
-        'right_elbow': (15.2007, 61.7879), 'right_wrist': (-9.0075, -2.9172),
-        'left_shoulder': (-5.2961, 46.3501, -33.9366), 'left_elbow': (92.6859, 40.2634),
+        'spine_lumbar': (60.0, 13.739, -7.377), 'spine_thoracic': (12.1, -2.822, -21.881),
+        'neck': (29.578, -7.289, 51.239), 'head': (11.963, 11.093),
+        'right_clavicle': (-8.584, 10.421), 'right_shoulder': (67.969, -28.305, 15.965),
+        'right_elbow': (15.201, 61.788), 'right_wrist': (-9.007, -2.917),
+        'left_shoulder': (-5.296, 46.35, -33.937), 'left_elbow': (92.686, 40.263),
         'left_wrist': (-44.65, 10.11),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 10.1442, -2.7476), 'spine_thoracic': (11.1392, -0.8073, -16.945),
-        'neck': (26.9709, -6.9405, 41.6499), 'head': (11.7125, 10.9215),
-        'right_clavicle': (-9.2353, 12.5281), 'right_shoulder': (69.12, -27.2322, 15.8556),
-        'right_elbow': (10.9419, 61.1707), 'right_wrist': (-6.1469, -2.352),
-        'left_shoulder': (11.8004, 49.5618, -9.9859), 'left_elbow': (89.5295, 44.6351),
-        'left_wrist': (-31.2026, 10.8733),
+        'spine_lumbar': (60.0, 10.144, -2.748), 'spine_thoracic': (11.139, -0.807, -16.945),
+        'neck': (26.971, -6.941, 41.65), 'head': (11.712, 10.922),
+        'right_clavicle': (-9.235, 12.528), 'right_shoulder': (69.12, -27.232, 15.856),
+        'right_elbow': (10.942, 61.171), 'right_wrist': (-6.147, -2.352),
+        'left_shoulder': (11.8, 49.562, -9.986), 'left_elbow': (89.529, 44.635),
+        'left_wrist': (-31.203, 10.873),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (60.0, 7.2477, 1.3443), 'spine_thoracic': (10.1174, 0.9188, -12.5749),
-        'neck': (24.8669, -7.9806, 33.0568), 'head': (11.7571, 11.0761),
-        'right_clavicle': (-9.7604, 14.2255), 'right_shoulder': (70.1405, -26.368, 15.7674),
-        'right_elbow': (7.5105, 60.6734), 'right_wrist': (-3.8371, -1.8128),
-        'left_shoulder': (26.3278, 52.1495, 10.3148), 'left_elbow': (85.8321, 48.242),
-        'left_wrist': (-19.5833, 11.4883),
+        'spine_lumbar': (60.0, 7.248, 1.344), 'spine_thoracic': (10.117, 0.919, -12.575),
+        'neck': (24.867, -7.981, 33.057), 'head': (11.757, 11.076),
+        'right_clavicle': (-9.76, 14.225), 'right_shoulder': (70.14, -26.368, 15.767),
+        'right_elbow': (7.511, 60.673), 'right_wrist': (-3.837, -1.813),
+        'left_shoulder': (26.328, 52.149, 10.315), 'left_elbow': (85.832, 48.242),
+        'left_wrist': (-19.583, 11.488),
     })
     human.KeyJoints(10.3, {
-        'spine_lumbar': (60.0, 5.9361, 3.9321), 'spine_thoracic': (9.1526, 1.9099, -9.7979),
-        'neck': (23.8869, -9.1545, 27.6912), 'head': (12.1609, 11.1169),
-        'right_clavicle': (-9.9982, 14.9941), 'right_shoulder': (70.7923, -25.9766, 15.7275),
-        'right_elbow': (5.9567, 60.4483), 'right_wrist': (-2.781, -1.3985),
-        'left_shoulder': (34.4344, 53.3212, 21.5453), 'left_elbow': (81.8143, 50.0472),
-        'left_wrist': (-12.7284, 11.7668),
+        'spine_lumbar': (60.0, 5.936, 3.932), 'spine_thoracic': (9.153, 1.91, -9.798),
+        'neck': (23.887, -9.155, 27.691), 'head': (12.161, 11.117),
+        'right_clavicle': (-9.998, 14.994), 'right_shoulder': (70.792, -25.977, 15.727),
+        'right_elbow': (5.957, 60.448), 'right_wrist': (-2.781, -1.399),
+        'left_shoulder': (34.434, 53.321, 21.545), 'left_elbow': (81.814, 50.047),
+        'left_wrist': (-12.728, 11.767),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {
-        'spine_lumbar': (57.1209, 7.1165, 4.0391), 'spine_thoracic': (8.9619, 1.9741, -9.6719),
-        'neck': (23.9735, -9.9614, 26.7145), 'head': (12.8808, 11.1147),
-        'right_clavicle': (-9.1932, 14.4515), 'right_shoulder': (69.7648, -27.6458, 15.84),
-        'right_elbow': (5.7282, 60.4518), 'right_wrist': (-2.6377, -1.2029),
-        'left_shoulder': (34.9463, 51.1833, 23.1616), 'left_elbow': (76.0649, 50.1976),
-        'left_wrist': (-10.9658, 10.8868),
+        'spine_lumbar': (57.121, 7.116, 4.039), 'spine_thoracic': (8.962, 1.974, -9.672),
+        'neck': (23.973, -9.961, 26.714), 'head': (12.881, 11.115),
+        'right_clavicle': (-9.193, 14.452), 'right_shoulder': (69.765, -27.646, 15.84),
+        'right_elbow': (5.728, 60.452), 'right_wrist': (-2.638, -1.203),
+        'left_shoulder': (34.946, 51.183, 23.162), 'left_elbow': (76.065, 50.198),
+        'left_wrist': (-10.966, 10.887),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (55.0845, 8.1203, 3.6918), 'spine_thoracic': (9.254, 1.873, -10.0493),
-        'neck': (24.1492, -10.2465, 26.9133), 'head': (13.2084, 11.1236),
-        'right_clavicle': (-8.3584, 14.0354), 'right_shoulder': (68.5374, -28.5941, 15.9059),
-        'right_elbow': (5.2762, 60.4523), 'right_wrist': (-2.4928, -1.127),
-        'left_shoulder': (34.7912, 50.6328, 23.5584), 'left_elbow': (72.7121, 50.2424),
-        'left_wrist': (-10.1545, 10.3193),
+        'spine_lumbar': (55.084, 8.12, 3.692), 'spine_thoracic': (9.254, 1.873, -10.049),
+        'neck': (24.149, -10.246, 26.913), 'head': (13.208, 11.124),
+        'right_clavicle': (-8.358, 14.035), 'right_shoulder': (68.537, -28.594, 15.906),
+        'right_elbow': (5.276, 60.452), 'right_wrist': (-2.493, -1.127),
+        'left_shoulder': (34.791, 50.633, 23.558), 'left_elbow': (72.712, 50.242),
+        'left_wrist': (-10.155, 10.319),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.6, {'right_elbow': (5.2762, 30.4484)})
-    human.KeyJoints(10.7, {'right_elbow': (5.2762, -27.0952)})
+    human.KeyJoints(10.6, {'right_elbow': (5.276, 30.448)})
+    human.KeyJoints(10.7, {'right_elbow': (5.276, -27.095)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.8, {'right_elbow': (5.2762, 4.1927)})
-    human.KeyJoints(10.9, {'right_elbow': (5.2762, 59.1981)})
+    human.KeyJoints(10.8, {'right_elbow': (5.276, 4.193)})
+    human.KeyJoints(10.9, {'right_elbow': (5.276, 59.198)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.0, {'right_elbow': (5.2762, 22.8998)})
-    human.KeyJoints(11.1, {'right_elbow': (5.2762, -29.1065)})
+    human.KeyJoints(11.0, {'right_elbow': (5.276, 22.9)})
+    human.KeyJoints(11.1, {'right_elbow': (5.276, -29.106)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.2, {'right_elbow': (5.2762, 11.8664)})
-    human.KeyJoints(11.3, {'right_elbow': (5.2762, 60.4125)})
+    human.KeyJoints(11.2, {'right_elbow': (5.276, 11.866)})
+    human.KeyJoints(11.3, {'right_elbow': (5.276, 60.413)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.4, {'right_elbow': (5.2762, 15.1527)})
+    human.KeyJoints(11.4, {'right_elbow': (5.276, 15.153)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.5, {'right_elbow': (5.2762, -29.474)})
-    human.KeyJoints(11.6, {'right_elbow': (5.2762, 19.6354)})
+    human.KeyJoints(11.5, {'right_elbow': (5.276, -29.474)})
+    human.KeyJoints(11.6, {'right_elbow': (5.276, 19.635)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.7, {'right_elbow': (5.2762, 59.9119)})
-    human.KeyJoints(11.8, {'right_elbow': (5.2762, 7.4134)})
+    human.KeyJoints(11.7, {'right_elbow': (5.276, 59.912)})
+    human.KeyJoints(11.8, {'right_elbow': (5.276, 7.413)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.9, {'right_elbow': (5.2762, -28.1334)})
-    human.KeyJoints(12.0, {'right_elbow': (5.2762, 27.2932)})
+    human.KeyJoints(11.9, {'right_elbow': (5.276, -28.133)})
+    human.KeyJoints(12.0, {'right_elbow': (5.276, 27.293)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.079969, duration=0.072)
-    human.KeyJoints(12.1, {'right_elbow': (5.2762, 60.4523)})
+    human.KeyJoints(12.1, {'right_elbow': (5.276, 60.452)})
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.151969, duration=0.2628)
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
     human.KeyJoints(15.4, {
-        'spine_lumbar': (55.0845, 8.1203, 3.6918), 'spine_thoracic': (9.254, 1.873, -10.0493),
-        'right_clavicle': (-8.3584, 14.0354), 'right_shoulder': (68.5374, -28.5941, 15.9059),
-        'right_elbow': (5.2762, 60.4523), 'right_wrist': (-2.4928, -1.127),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.7912, 50.6328, 23.5584),
-        'left_elbow': (72.7121, 50.2424), 'left_wrist': (-10.1545, 10.3193),
+        'spine_lumbar': (55.084, 8.12, 3.692), 'spine_thoracic': (9.254, 1.873, -10.049),
+        'right_clavicle': (-8.358, 14.035), 'right_shoulder': (68.537, -28.594, 15.906),
+        'right_elbow': (5.276, 60.452), 'right_wrist': (-2.493, -1.127),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.791, 50.633, 23.558),
+        'left_elbow': (72.712, 50.242), 'left_wrist': (-10.155, 10.319),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(15.5, {
-        'spine_lumbar': (44.8814, 6.4822, 3.6918), 'spine_thoracic': (7.5863, 1.501, -10.0493),
-        'right_clavicle': (-6.7178, 11.2132), 'right_shoulder': (58.0367, -22.0775, 15.0345),
-        'right_elbow': (8.6376, 51.7342), 'right_wrist': (-1.3128, -1.127),
-        'left_clavicle': (-8.0372, 11.9838), 'left_shoulder': (29.8165, 41.4077, 21.1502),
-        'left_elbow': (64.6488, 43.5971), 'left_wrist': (-8.0717, 8.2103),
+        'spine_lumbar': (44.881, 6.482, 3.692), 'spine_thoracic': (7.586, 1.501, -10.049),
+        'right_clavicle': (-6.718, 11.213), 'right_shoulder': (58.037, -22.077, 15.034),
+        'right_elbow': (8.638, 51.734), 'right_wrist': (-1.313, -1.127),
+        'left_clavicle': (-8.037, 11.984), 'left_shoulder': (29.817, 41.408, 21.15),
+        'left_elbow': (64.649, 43.597), 'left_wrist': (-8.072, 8.21),
     })
     human.KeyJoints(15.6, {
-        'spine_lumbar': (20.7287, 2.5043, 3.6918), 'spine_thoracic': (3.5367, 0.5975, -10.0493),
-        'right_clavicle': (-2.7339, 4.5324), 'right_shoulder': (28.4901, -5.5787, 12.9379),
-        'right_elbow': (24.17, 31.1568), 'right_wrist': (-0.6912, -0.5162),
-        'left_clavicle': (-3.2708, 4.8439), 'left_shoulder': (17.3514, 20.1925, 15.3456),
-        'left_elbow': (46.4189, 27.8603), 'left_wrist': (-3.2766, 3.2894),
+        'spine_lumbar': (20.729, 2.504, 3.692), 'spine_thoracic': (3.537, 0.598, -10.049),
+        'right_clavicle': (-2.734, 4.532), 'right_shoulder': (28.49, -5.579, 12.938),
+        'right_elbow': (24.17, 31.157), 'right_wrist': (-0.691, -0.516),
+        'left_clavicle': (-3.271, 4.844), 'left_shoulder': (17.351, 20.192, 15.346),
+        'left_elbow': (46.419, 27.86), 'left_wrist': (-3.277, 3.289),
     })
-    human.KeyRoot(15.7, (1.6, 45.427, 45.912), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.7, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (4.5212, -0.1668, 3.6918), 'spine_thoracic': (0.8175, -0.0091, -10.0493),
-        'right_clavicle': (-0.0588, 0.0493), 'right_shoulder': (9.1314, 5.4408, 11.5229),
-        'right_elbow': (33.877, 17.3408), 'right_wrist': (0.0231, -0.0924),
-        'left_clavicle': (-0.0703, 0.0527), 'left_shoulder': (8.9284, 5.9372, 11.4697),
-        'left_elbow': (34.2532, 17.3049), 'left_wrist': (-0.0657, 0.0107),
-        'right_hip': (20.1361, -0.0968, 0.1667), 'right_knee': (130.1324,),
-        'right_ankle': (9.9963, 1.3219), 'left_hip': (20.1361, 0.0968, -0.1667),
-        'left_knee': (130.1324,), 'left_ankle': (9.9963, -1.3219),
+        'spine_lumbar': (4.521, -0.167, 3.692), 'spine_thoracic': (0.818, -0.009, -10.049),
+        'right_clavicle': (-0.059, 0.049), 'right_shoulder': (9.131, 5.441, 11.523),
+        'right_elbow': (33.877, 17.341), 'right_wrist': (0.023, -0.092),
+        'left_clavicle': (-0.07, 0.053), 'left_shoulder': (8.928, 5.937, 11.47),
+        'left_elbow': (34.253, 17.305), 'left_wrist': (-0.066, 0.011),
+        'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
+        'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
+        'left_ankle': (9.996, -1.322),
     })
-    human.KeyRoot(15.8, (1.613, 45.179, 45.245), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.8, (1.613, 45.179, 45.245), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (5.3611, 4.5954, 3.6918), 'spine_thoracic': (0.8895, 0.9539, -10.0493),
-        'right_shoulder': (8.6749, 5.6993, 11.4841), 'right_elbow': (34.1537, 17.0643),
-        'left_clavicle': (0.0, -0.0432), 'left_shoulder': (8.7274, 5.635, 11.3997),
-        'left_elbow': (34.0462, 17.0936), 'right_hip': (21.0717, -0.241, 0.399),
-        'right_knee': (131.0683,), 'right_ankle': (9.9737, 3.197),
-        'left_hip': (21.0717, 0.241, -0.399), 'left_knee': (131.0683,),
-        'left_ankle': (9.9737, -3.197),
+        'spine_lumbar': (5.361, 4.595, 3.692), 'spine_thoracic': (0.89, 0.954, -10.049),
+        'right_shoulder': (8.675, 5.699, 11.484), 'right_elbow': (34.154, 17.064),
+        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.727, 5.635, 11.4),
+        'left_elbow': (34.046, 17.094), 'right_hip': (21.072, -0.241, 0.399),
+        'right_knee': (131.068,), 'right_ankle': (9.974, 3.197),
+        'left_hip': (21.072, 0.241, -0.399), 'left_knee': (131.068,), 'left_ankle': (9.974, -3.197),
     })
-    human.KeyRoot(15.9, (1.542, 44.797, 44.263), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(15.9, (1.542, 44.797, 44.263), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'spine_lumbar': (6.6794, 17.0554, 3.6918), 'spine_thoracic': (0.6559, 4.1087, -10.0493),
-        'right_clavicle': (0.0, -0.0314), 'right_hip': (22.4385, -0.5702, 0.8916),
-        'right_knee': (132.4216,), 'right_ankle': (9.8557, 7.2708),
-        'left_hip': (22.4385, 0.5702, -0.8916), 'left_knee': (132.4216,),
-        'left_ankle': (9.8557, -7.2708),
+        'spine_lumbar': (6.679, 17.055, 3.692), 'spine_thoracic': (0.656, 4.109, -10.049),
+        'right_clavicle': (0.0, -0.031), 'right_hip': (22.438, -0.57, 0.892),
+        'right_knee': (132.422,), 'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892),
+        'left_knee': (132.422,), 'left_ankle': (9.856, -7.271),
     })
-    human.KeyRoot(16.0, (1.117, 44.289, 43.012), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.0, (1.117, 44.289, 43.012), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.0, {
-        'spine_lumbar': (9.1006, 19.9999, 3.6918), 'spine_thoracic': (-1.7906, 10.0, -10.0493),
-        'left_wrist': (0.006, -0.0337), 'right_hip': (24.116, -1.4281, 2.049),
-        'right_knee': (134.023,), 'right_ankle': (9.175, 17.3193),
-        'left_hip': (24.116, 1.4281, -2.049), 'left_knee': (134.023,),
-        'left_ankle': (9.175, -17.3193),
+        'spine_lumbar': (9.101, 20.0, 3.692), 'spine_thoracic': (-1.791, 10.0, -10.049),
+        'left_wrist': (0.006, -0.034), 'right_hip': (24.116, -1.428, 2.049),
+        'right_knee': (134.023,), 'right_ankle': (9.175, 17.319),
+        'left_hip': (24.116, 1.428, -2.049), 'left_knee': (134.023,),
+        'left_ankle': (9.175, -17.319),
     })
-    human.KeyRoot(16.1, (-0.056, 44.345, 43.036), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.1, (-0.056, 44.345, 43.036), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.1, {
-        'spine_lumbar': (9.4486, 19.9999, 3.6918), 'spine_thoracic': (-9.0519, 10.0, -10.0493),
-        'right_hip': (23.7986, -2.956, 3.8939), 'right_knee': (133.4459,),
-        'right_ankle': (6.6675, 35.0), 'left_hip': (24.0691, -0.7739, 0.385),
-        'left_knee': (134.9753,), 'left_ankle': (8.3584, -19.1518),
+        'spine_lumbar': (9.449, 20.0, 3.692), 'spine_thoracic': (-9.052, 10.0, -10.049),
+        'right_hip': (23.799, -2.956, 3.894), 'right_knee': (133.446,),
+        'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385), 'left_knee': (134.975,),
+        'left_ankle': (8.358, -19.152),
     })
-    human.KeyRoot(16.2, (-0.125, 45.363, 45.533), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.2, (-0.125, 45.363, 45.533), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.2, {
-        'spine_lumbar': (0.4359, 20.0, 3.6918), 'spine_thoracic': (-6.8176, 10.0, -10.0493),
-        'right_elbow': (34.3868, 17.1749), 'left_elbow': (34.3652, 17.1782),
-        'right_hip': (20.2401, -2.4457, 3.7759), 'right_knee': (129.9365,),
-        'right_ankle': (7.2053, 32.0176), 'left_hip': (25.4756, -20.7792, -4.841),
-        'left_knee': (132.2055,), 'left_ankle': (-1.6193, -1.63),
+        'spine_lumbar': (0.436, 20.0, 3.692), 'spine_thoracic': (-6.818, 10.0, -10.049),
+        'right_elbow': (34.387, 17.175), 'left_elbow': (34.365, 17.178),
+        'right_hip': (20.24, -2.446, 3.776), 'right_knee': (129.937,),
+        'right_ankle': (7.205, 32.018), 'left_hip': (25.476, -20.779, -4.841),
+        'left_knee': (132.206,), 'left_ankle': (-1.619, -1.63),
     })
-    human.KeyRoot(16.3, (0.22, 43.903, 42.087), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.3, (0.22, 43.903, 42.087), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.3, {
-        'spine_lumbar': (7.1974, 19.9999, 3.6918), 'spine_thoracic': (-5.5065, 10.0, -10.0493),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.2339, -2.8254, 3.6222),
-        'right_knee': (134.9226,), 'right_ankle': (7.075, 32.7679),
-        'left_hip': (46.2635, -19.6705, 3.0206), 'left_ankle': (-46.1125, -3.9767),
+        'spine_lumbar': (7.197, 20.0, 3.692), 'spine_thoracic': (-5.507, 10.0, -10.049),
+        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (25.234, -2.825, 3.622),
+        'right_knee': (134.923,), 'right_ankle': (7.075, 32.768),
+        'left_hip': (46.263, -19.671, 3.021), 'left_ankle': (-46.113, -3.977),
     })
-    human.KeyRoot(16.4, (0.037, 43.856, 41.978), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.4, (0.037, 43.856, 41.978), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (1.0426, 20.0, 3.6918), 'spine_thoracic': (-8.777, 10.0, -10.0493),
-        'right_shoulder': (8.5944, 5.7296, 11.4592), 'right_hip': (25.3497, -3.0913, 3.7923),
-        'right_knee': (134.9989,), 'right_ankle': (6.6838, 34.9249),
-        'left_hip': (83.4054, -21.5665, 31.5962), 'left_knee': (134.2358,),
-        'left_ankle': (-44.4749, -16.4177),
+        'spine_lumbar': (1.043, 20.0, 3.692), 'spine_thoracic': (-8.777, 10.0, -10.049),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (25.35, -3.091, 3.792),
+        'right_knee': (134.999,), 'right_ankle': (6.684, 34.925),
+        'left_hip': (83.405, -21.566, 31.596), 'left_knee': (134.236,),
+        'left_ankle': (-44.475, -16.418),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (0.1608, 20.0, 3.6918), 'spine_thoracic': (-9.4483, 10.0, -10.0493),
-        'left_hip': (111.0054, -17.9352, 10.9203), 'left_ankle': (-37.1938, -23.1092),
+        'spine_lumbar': (0.161, 20.0, 3.692), 'spine_thoracic': (-9.448, 10.0, -10.049),
+        'left_hip': (111.005, -17.935, 10.92), 'left_ankle': (-37.194, -23.109),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.2941, 20.0, 3.6918), 'spine_thoracic': (-6.1495, 10.0, -10.0493),
-        'right_ankle': (6.671, 34.9956), 'left_hip': (118.7788, -9.3232, -17.4858),
-        'left_knee': (131.1876,), 'left_ankle': (-30.5164, -24.6699),
+        'spine_lumbar': (-0.294, 20.0, 3.692), 'spine_thoracic': (-6.149, 10.0, -10.049),
+        'right_ankle': (6.671, 34.996), 'left_hip': (118.779, -9.323, -17.486),
+        'left_knee': (131.188,), 'left_ankle': (-30.516, -24.67),
     })
-    human.KeyRoot(16.7, (0.102, 43.861, 41.992), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.7, (0.102, 43.861, 41.992), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-1.1036, 20.0, 3.6918), 'spine_thoracic': (-6.3414, 10.0, -10.0493),
-        'right_wrist': (0.0, 0.0), 'right_hip': (25.3455, -3.0019, 3.7962),
-        'right_ankle': (6.7252, 34.6959), 'left_hip': (100.9455, -9.4376, 9.1421),
-        'left_knee': (132.3865,), 'left_ankle': (-3.9024, 13.1225),
+        'spine_lumbar': (-1.104, 20.0, 3.692), 'spine_thoracic': (-6.341, 10.0, -10.049),
+        'right_wrist': (0.0, 0.0), 'right_hip': (25.346, -3.002, 3.796),
+        'right_ankle': (6.725, 34.696), 'left_hip': (100.946, -9.438, 9.142),
+        'left_knee': (132.386,), 'left_ankle': (-3.902, 13.123),
     })
-    human.KeyRoot(16.8, (1.814, 44.016, 42.509), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.8, (1.814, 44.016, 42.509), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-3.512, 19.6698, 3.6918), 'spine_thoracic': (-1.0222, 3.9841, -10.0493),
-        'right_hip': (25.0182, -0.6376, 0.9042), 'right_ankle': (9.8421, 7.6023),
-        'left_hip': (100.2915, -1.5913, 1.7244), 'left_knee': (132.4902,),
-        'left_ankle': (-0.2121, 2.4351),
+        'spine_lumbar': (-3.512, 19.67, 3.692), 'spine_thoracic': (-1.022, 3.984, -10.049),
+        'right_hip': (25.018, -0.638, 0.904), 'right_ankle': (9.842, 7.602),
+        'left_hip': (100.292, -1.591, 1.724), 'left_knee': (132.49,), 'left_ankle': (-0.212, 2.435),
     })
-    human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-3.8061, 9.8082, 3.6918), 'spine_thoracic': (-0.8213, 1.771, -10.0493),
-        'right_hip': (25.037, -0.3969, 0.5677), 'right_ankle': (10.0635, 4.8329),
-        'left_hip': (98.8707, -0.8115, 0.9994), 'left_knee': (132.2972,),
-        'left_ankle': (3.2206, 1.3348),
+        'spine_lumbar': (-3.806, 9.808, 3.692), 'spine_thoracic': (-0.821, 1.771, -10.049),
+        'right_hip': (25.037, -0.397, 0.568), 'right_ankle': (10.063, 4.833),
+        'left_hip': (98.871, -0.812, 0.999), 'left_knee': (132.297,), 'left_ankle': (3.221, 1.335),
     })
-    human.KeyRoot(17.0, (2.995, 46.839, 37.706), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.0, (2.995, 46.839, 37.706), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (8.7853, 9.365, 3.6918), 'spine_thoracic': (1.3119, 1.6821, -10.0493),
-        'right_hip': (29.2694, -0.4935, 0.8351), 'right_knee': (134.9996,),
-        'right_ankle': (14.452, 5.0404), 'left_hip': (92.4332, -0.1699, 0.4135),
-        'left_knee': (123.2998,), 'left_ankle': (11.6435, 0.4344),
+        'spine_lumbar': (8.785, 9.365, 3.692), 'spine_thoracic': (1.312, 1.682, -10.049),
+        'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,), 'right_ankle': (14.452, 5.04),
+        'left_hip': (92.433, -0.17, 0.413), 'left_knee': (123.3,), 'left_ankle': (11.644, 0.434),
     })
-    human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (28.0974, 9.1749, 3.6918), 'spine_thoracic': (4.2104, 1.6031, -10.0493),
-        'right_hip': (34.6699, -0.4626, 1.2496), 'right_knee': (128.6567,),
-        'right_ankle': (18.3394, 2.0379), 'left_hip': (79.247, -0.0798, -0.6084),
-        'left_knee': (101.5648,), 'left_ankle': (19.0325, -0.6204),
+        'spine_lumbar': (28.097, 9.175, 3.692), 'spine_thoracic': (4.21, 1.603, -10.049),
+        'right_hip': (34.67, -0.463, 1.25), 'right_knee': (128.657,),
+        'right_ankle': (18.339, 2.038), 'left_hip': (79.247, -0.08, -0.608),
+        'left_knee': (101.565,), 'left_ankle': (19.032, -0.62),
     })
-    human.KeyRoot(17.2, (5.498, 71.895, 36.148), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.2, (5.498, 71.895, 36.148), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (3.6925, 10.7966, 3.6918), 'spine_thoracic': (0.524, 1.9456, -10.0493),
-        'right_hip': (17.3038, 0.422, 2.3778), 'right_knee': (94.2054,),
-        'right_ankle': (14.2656, 2.4695), 'left_hip': (52.9399, -1.05, -1.4258),
-        'left_knee': (72.5328,), 'left_ankle': (18.9078, -1.7744),
+        'spine_lumbar': (3.692, 10.797, 3.692), 'spine_thoracic': (0.524, 1.946, -10.049),
+        'right_hip': (17.304, 0.422, 2.378), 'right_knee': (94.205,), 'right_ankle': (14.266, 2.47),
+        'left_hip': (52.94, -1.05, -1.426), 'left_knee': (72.533,), 'left_ankle': (18.908, -1.774),
     })
-    human.KeyRoot(17.3, (6.834, 85.806, 36.181), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.3, (6.834, 85.806, 36.181), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (0.0867, 12.084, 3.6918), 'spine_thoracic': (-0.3018, 2.1603, -10.0493),
-        'right_hip': (10.1432, 1.0684, 3.358), 'right_knee': (67.8135,),
-        'right_ankle': (-4.6864, 3.6721), 'left_hip': (28.72, -2.1085, -1.1549),
-        'left_knee': (28.7198,), 'left_ankle': (0.0213, -2.4039),
+        'spine_lumbar': (0.087, 12.084, 3.692), 'spine_thoracic': (-0.302, 2.16, -10.049),
+        'right_hip': (10.143, 1.068, 3.358), 'right_knee': (67.814,),
+        'right_ankle': (-4.686, 3.672), 'left_hip': (28.72, -2.108, -1.155), 'left_knee': (28.72,),
+        'left_ankle': (0.021, -2.404),
     })
-    human.KeyRoot(17.4, (6.21, 90.189, 45.35), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.4, (6.21, 90.189, 45.35), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-27.2381, 13.4028, 3.6918), 'spine_thoracic': (-7.2316, 2.2707, -10.0493),
-        'right_hip': (-6.1745, 2.175, 3.1919), 'right_knee': (44.5724,),
-        'right_ankle': (-11.1117, 3.8257), 'left_hip': (10.1434, -2.9503, -0.5276),
-        'left_knee': (4.6118,), 'left_ankle': (-5.5179, -2.9971),
+        'spine_lumbar': (-27.238, 13.403, 3.692), 'spine_thoracic': (-7.232, 2.271, -10.049),
+        'right_hip': (-6.175, 2.175, 3.192), 'right_knee': (44.572,),
+        'right_ankle': (-11.112, 3.826), 'left_hip': (10.143, -2.95, -0.528), 'left_knee': (4.612,),
+        'left_ankle': (-5.518, -2.997),
     })
-    human.KeyRoot(17.5, (7.348, 90.212, 55.24), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.5, (7.348, 90.212, 55.24), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-26.0205, 11.8315, 3.6918), 'spine_thoracic': (-7.1367, 2.0216, -10.0493),
-        'right_hip': (-11.8242, 3.1814, 7.2721), 'right_knee': (37.7024,),
-        'right_ankle': (-28.3151, 8.7396), 'left_hip': (8.1653, -4.9382, -0.7076),
-        'left_knee': (13.8221,), 'left_ankle': (5.6874, -4.9887),
+        'spine_lumbar': (-26.02, 11.831, 3.692), 'spine_thoracic': (-7.137, 2.022, -10.049),
+        'right_hip': (-11.824, 3.181, 7.272), 'right_knee': (37.702,),
+        'right_ankle': (-28.315, 8.74), 'left_hip': (8.165, -4.938, -0.708), 'left_knee': (13.822,),
+        'left_ankle': (5.687, -4.989),
     })
-    human.KeyRoot(17.6, (9.086, 89.367, 62.809), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.6, (9.086, 89.367, 62.809), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (19.9925, 0.1363, 3.6918), 'spine_thoracic': (3.1973, 0.0265, -10.0493),
-        'right_hip': (-14.8588, 2.4462, 15.7662), 'right_knee': (32.1432,),
-        'right_ankle': (-48.9201, 8.0278), 'left_hip': (5.1293, -7.1276, -0.6381),
-        'left_knee': (17.6237,), 'left_ankle': (12.5341, -7.156),
+        'spine_lumbar': (19.992, 0.136, 3.692), 'spine_thoracic': (3.197, 0.026, -10.049),
+        'right_hip': (-14.859, 2.446, 15.766), 'right_knee': (32.143,),
+        'right_ankle': (-48.92, 8.028), 'left_hip': (5.129, -7.128, -0.638), 'left_knee': (17.624,),
+        'left_ankle': (12.534, -7.156),
     })
-    human.KeyRoot(17.7, (9.056, 89.807, 63.334), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.7, (9.056, 89.807, 63.334), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (23.0494, -1.1397, 3.6918), 'spine_thoracic': (3.4266, -0.1952, -10.0493),
-        'right_hip': (-14.6151, 3.8998, 10.07), 'right_knee': (39.2594,),
-        'right_ankle': (-28.9032, 7.5229), 'left_hip': (2.3618, -7.1575, -0.2944),
-        'left_knee': (12.6946,), 'left_ankle': (10.3512, -7.1637),
+        'spine_lumbar': (23.049, -1.14, 3.692), 'spine_thoracic': (3.427, -0.195, -10.049),
+        'right_hip': (-14.615, 3.9, 10.07), 'right_knee': (39.259,),
+        'right_ankle': (-28.903, 7.523), 'left_hip': (2.362, -7.158, -0.294),
+        'left_knee': (12.695,), 'left_ankle': (10.351, -7.164),
     })
-    human.KeyRoot(17.8, (9.478, 90.433, 59.387), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.8, (9.478, 90.433, 59.387), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (39.931, -2.8941, 3.6918), 'spine_thoracic': (5.2971, -0.4772, -10.0493),
-        'right_hip': (-13.8826, 6.9803, 1.0333), 'right_knee': (26.0799,),
-        'right_ankle': (18.2502, 7.1578), 'left_hip': (1.6557, -6.9047, -0.1991),
-        'left_knee': (5.7043,), 'left_ankle': (4.0604, -6.9077),
+        'spine_lumbar': (39.931, -2.894, 3.692), 'spine_thoracic': (5.297, -0.477, -10.049),
+        'right_hip': (-13.883, 6.98, 1.033), 'right_knee': (26.08,), 'right_ankle': (18.25, 7.158),
+        'left_hip': (1.656, -6.905, -0.199), 'left_knee': (5.704,), 'left_ankle': (4.06, -6.908),
     })
-    human.KeyRoot(17.9, (7.866, 90.637, 59.089), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(17.9, (7.866, 90.637, 59.089), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (28.0523, -7.7182, 3.6918), 'spine_thoracic': (4.2627, -1.3451, -10.0493),
-        'right_hip': (4.5713, 6.0657, 0.5219), 'right_knee': (24.9366,),
-        'right_ankle': (20.0, 6.2925), 'left_hip': (1.3603, -5.7803, -0.137),
-        'left_knee': (5.1076,), 'left_ankle': (3.7537, -5.7817),
+        'spine_lumbar': (28.052, -7.718, 3.692), 'spine_thoracic': (4.263, -1.345, -10.049),
+        'right_hip': (4.571, 6.066, 0.522), 'right_knee': (24.937,), 'right_ankle': (20.0, 6.293),
+        'left_hip': (1.36, -5.78, -0.137), 'left_knee': (5.108,), 'left_ankle': (3.754, -5.782),
     })
-    human.KeyRoot(18.0, (4.368, 90.602, 61.681), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(18.0, (4.368, 90.602, 61.681), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.0, {
-        'spine_lumbar': (15.545, -15.0788, 3.6918), 'spine_thoracic': (2.4531, -2.691, -10.0493),
-        'right_hip': (0.9287, 3.7642, 0.061), 'right_knee': (8.6842,),
-        'right_ankle': (7.7575, 3.7647), 'left_hip': (0.9287, -3.7642, -0.061),
-        'left_knee': (8.6842,), 'left_ankle': (7.7575, -3.7647),
+        'spine_lumbar': (15.545, -15.079, 3.692), 'spine_thoracic': (2.453, -2.691, -10.049),
+        'right_hip': (0.929, 3.764, 0.061), 'right_knee': (8.684,), 'right_ankle': (7.758, 3.765),
+        'left_hip': (0.929, -3.764, -0.061), 'left_knee': (8.684,), 'left_ankle': (7.758, -3.765),
     })
-    human.KeyRoot(18.1, (0.997, 91.055, 56.584), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(18.1, (0.997, 91.055, 56.584), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.1, {
-        'spine_lumbar': (7.3226, -7.2363, 3.6918), 'spine_thoracic': (1.2426, -1.3089, -10.0493),
-        'right_hip': (2.3997, 0.8622, 0.0361), 'right_knee': (5.5501,),
-        'right_ankle': (3.1506, 0.8629), 'left_hip': (2.3997, -0.8622, -0.0361),
-        'left_knee': (5.5501,), 'left_ankle': (3.1506, -0.8629),
+        'spine_lumbar': (7.323, -7.236, 3.692), 'spine_thoracic': (1.243, -1.309, -10.049),
+        'right_hip': (2.4, 0.862, 0.036), 'right_knee': (5.55,), 'right_ankle': (3.151, 0.863),
+        'left_hip': (2.4, -0.862, -0.036), 'left_knee': (5.55,), 'left_ankle': (3.151, -0.863),
     })
-    human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.4375, 0.0, 0.0))
+    human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.175969, {
-        'spine_lumbar': (0.0, 0.0, 3.6918), 'spine_thoracic': (0.0, 0.0, -10.0493),
-        'neck': (24.2056, -10.2028, 26.9082), 'head': (13.1813, 11.117),
-        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
-        'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
-        'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
-        'left_ankle': (1.7189, 0.0),
+        'spine_lumbar': (0.0, 0.0, 3.692), 'spine_thoracic': (0.0, 0.0, -10.049),
+        'neck': (24.206, -10.203, 26.908), 'head': (13.181, 11.117), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })

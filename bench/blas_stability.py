@@ -9,7 +9,9 @@ only takes effect in a fresh process; the kernel each process really got is prin
     python bench/blas_stability.py                       # examples + bench/blas_tasks, 4 manikins
     python bench/blas_stability.py examples/remove_avionics_unit.mtask --kernels Haswell,Prescott
 
-A structural difference (another number of frames or of numbers) is printed as ``STRUCT``.
+A structural difference (another number of frames or of numbers) is printed as ``STRUCT``. The
+``raw_*`` columns compare the frames before printing (a second process per job runs the passes
+and saves them), so they show differences below the printed precision too.
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_FILES = sorted((ROOT / "examples").glob("*.mtask")) + sorted(
@@ -46,6 +50,26 @@ CORENAME = (
 )
 
 
+RAW = """
+import sys
+from pathlib import Path
+import numpy as np
+from mtlc.cli import _manikin
+from mtlc.frontend import FrontendOptions, run_frontend
+from mtlc.passes import MotionOptions, run_motion
+out, fps, man, files = sys.argv[1], float(sys.argv[2]), _manikin(sys.argv[3]), sys.argv[4:]
+prog = run_frontend([Path(f) for f in files], FrontendOptions(manikin=man))
+arrays = {}
+for tl in prog.timelines:
+    fr = run_motion(tl, prog.sink, MotionOptions(fps=fps)).frames
+    stem = Path(tl.file).stem
+    arrays[stem + "|deg"] = np.degrees(fr.q)
+    arrays[stem + "|m"] = fr.root_position
+    arrays[stem + "|quat"] = fr.root_rotation
+np.savez(out, **arrays)
+"""
+
+
 def env_for(kernel: str) -> dict[str, str]:
     env = dict(os.environ, OPENBLAS_CORETYPE=kernel, PYTHONPATH=str(ROOT / "src"))
     env["OPENBLAS_NUM_THREADS"] = env.get("OPENBLAS_NUM_THREADS", "1")
@@ -66,6 +90,21 @@ def compile_all(files: list[Path], kernel: str, manikin: str, out: Path, fps: fl
     proc = subprocess.run(cmd, env=env_for(kernel), capture_output=True, text=True)
     if proc.returncode != 0:
         raise SystemExit(f"{kernel} {manikin}: compile failed\n{proc.stderr[-2000:]}")
+    raw = [sys.executable, "-c", RAW, str(out / "raw.npz"), str(fps), manikin, *map(str, files)]
+    proc = subprocess.run(raw, env=env_for(kernel), capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"{kernel} {manikin}: raw frames failed\n{proc.stderr[-2000:]}")
+
+
+def raw_diffs(a: Path, b: Path) -> dict[str, float]:
+    """The unprinted frames: joint angles in degrees, root position in metres, root quaternion."""
+    with np.load(a) as fa, np.load(b) as fb:
+        return {
+            k: float(np.max(np.abs(fa[k] - fb[k]), initial=0.0))
+            if fa[k].shape == fb[k].shape
+            else float("inf")
+            for k in fa.files
+        }
 
 
 def bvh_numbers(text: str) -> tuple[list[bool], list[list[float]]]:
@@ -106,6 +145,7 @@ def compare(a: Path, b: Path) -> dict[str, float]:
     for fa in sorted(a.iterdir()):
         fb = b / fa.name
         name = fa.name
+        stem = name.split(".")[0]
         if name.endswith(".bvh"):
             pa, ra = bvh_numbers(fa.read_text())
             pb, rb = bvh_numbers(fb.read_text())
@@ -123,17 +163,20 @@ def compare(a: Path, b: Path) -> dict[str, float]:
                             pos = max(pos, abs(u - v) / 100.0)  # cm -> m
                         else:
                             rot = max(rot, abs(u - v))
-            key = name[: -len(".bvh")]
-            diffs[f"{key}|bvh_deg"] = rot
-            diffs[f"{key}|bvh_m"] = pos
+            diffs[f"{stem}|bvh_deg"] = max(rot, diffs.get(f"{stem}|bvh_deg", 0.0))
+            diffs[f"{stem}|bvh_m"] = max(pos, diffs.get(f"{stem}|bvh_m", 0.0))
         elif name.endswith(".ir.json"):
             na = json_numbers(json.loads(fa.read_text()), [])
             nb = json_numbers(json.loads(fb.read_text()), [])
-            diffs[f"{name[: -len('.ir.json')]}|ir"] = max_diff(na, nb)
+            diffs[f"{stem}|ir"] = max(max_diff(na, nb), diffs.get(f"{stem}|ir", 0.0))
         elif name.endswith(".py"):
             na = [float(x) for x in NUMBER.findall(fa.read_text())]
             nb = [float(x) for x in NUMBER.findall(fb.read_text())]
-            diffs[f"{name[: -len('.py')]}|jack"] = max_diff(na, nb)
+            diffs[f"{stem}|jack"] = max_diff(na, nb)
+        elif name == "raw.npz":
+            for key, d in raw_diffs(fa, fb).items():
+                k = f"{key.split('|')[0]}|raw_{key.split('|')[1]}"
+                diffs[k] = max(d, diffs.get(k, 0.0))
     return diffs
 
 
@@ -175,15 +218,17 @@ def main(argv: list[str] | None = None) -> int:
                     stem, kind = key.split("|")
                     cell = rows.setdefault((stem, m), {})
                     cell[kind] = max(cell.get(kind, 0.0), d)
-    kinds = ("bvh_deg", "bvh_m", "ir", "jack")
+    kinds = ("bvh_deg", "bvh_m", "ir", "jack", "raw_deg", "raw_m", "raw_quat")
     print(f"\nmax |diff| against {kernels[0]} over {', '.join(kernels[1:])} (fps {args.fps:g})")
-    print(f"{'output':48s} {'manikin':24s} " + " ".join(f"{k:>8s}" for k in kinds))
+    print("printed outputs: bvh_deg, bvh_m (BVH rotations, positions), ir and jack (every number);")
+    print("raw_*: the frames before printing (joint angles deg, root position m, root quaternion)")
+    print(f"{'file':28s} {'manikin':24s} " + " ".join(f"{k:>8s}" for k in kinds))
     worst = dict.fromkeys(kinds, 0.0)
     for (stem, m), cell in sorted(rows.items()):
-        print(f"{stem:48s} {m:24s} " + " ".join(f"{fmt(cell.get(k, 0.0)):>8s}" for k in kinds))
+        print(f"{stem:28s} {m:24s} " + " ".join(f"{fmt(cell.get(k, 0.0)):>8s}" for k in kinds))
         for k in kinds:
             worst[k] = max(worst[k], cell.get(k, 0.0))
-    print(f"{'ALL':48s} {'':24s} " + " ".join(f"{fmt(worst[k]):>8s}" for k in kinds))
+    print(f"{'ALL':28s} {'':24s} " + " ".join(f"{fmt(worst[k]):>8s}" for k in kinds))
     return 0
 
 

@@ -141,67 +141,67 @@ def drain_reservoir():
     human.LookAt((-12.0, 20.0, 82.0), start=1.8468, duration=0.832997)
     human.KeyJoints(1.9, {
         'neck': (-1.3734, 0.0, 0.0), 'head': (-1.3734, 0.0),
-        'right_shoulder': (65.5813, 5.452, 11.5338), 'right_elbow': (34.3849, 17.1927),
+        'right_shoulder': (65.5809, 5.4522, 11.5338), 'right_elbow': (34.3849, 17.1927),
         'right_wrist': (0.0209, -0.0126),
     })
-    human.KeyJoints(2.0, {'right_shoulder': (68.1243, 3.6481, 12.0133)})
+    human.KeyJoints(2.0, {'right_shoulder': (68.1214, 3.6494, 12.0132)})
     human.KeyJoints(2.1, {
-        'right_shoulder': (72.4449, 0.6456, 12.7953), 'right_elbow': (34.5586, 17.2604),
+        'right_shoulder': (72.4385, 0.6483, 12.7953), 'right_elbow': (34.5583, 17.2604),
         'right_wrist': (0.3725, -0.2253),
     })
-    human.KeyJoints(2.2, {'right_shoulder': (77.8396, -2.9924, 13.714)})
+    human.KeyJoints(2.2, {'right_shoulder': (77.8301, -2.9885, 13.7139)})
     human.KeyJoints(2.3, {
-        'right_shoulder': (83.6047, -6.703, 14.6033), 'right_elbow': (34.9962, 17.3568),
+        'right_shoulder': (83.594, -6.6986, 14.6032), 'right_elbow': (34.9957, 17.3568),
     })
     human.KeyJoints(2.4, {
-        'right_shoulder': (89.0365, -9.9231, 15.2973), 'right_wrist': (1.0635, -0.6433),
+        'right_shoulder': (89.028, -9.9196, 15.2972), 'right_wrist': (1.0635, -0.6433),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
         'neck': (-1.3734, 0.0, 0.0), 'head': (-1.3734, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (93.4314, -12.0896, 15.6298), 'right_elbow': (35.7424, 17.4101),
+        'right_shoulder': (93.43, -12.0891, 15.6298), 'right_elbow': (35.7424, 17.4101),
         'right_wrist': (1.1505, -0.6959),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(2.6, {
-        'spine_lumbar': (59.9496, -0.5914, 1.0122), 'spine_thoracic': (27.7052, -0.6392, 0.798),
-        'neck': (-0.2562, 0.0665, -2.8565), 'head': (-0.256, 0.0002),
-        'right_clavicle': (0.262, 0.6592), 'right_shoulder': (96.9664, -11.7522, 15.1592),
-        'right_elbow': (36.4999, 17.4103), 'right_wrist': (0.9119, -0.5913),
+        'spine_lumbar': (59.9533, -0.5829, 0.9996), 'spine_thoracic': (27.7014, -0.6313, 0.7879),
+        'neck': (-0.255, 0.0657, -2.8204), 'head': (-0.2547, 0.0002),
+        'right_clavicle': (0.2569, 0.6514), 'right_shoulder': (96.9846, -11.7258, 15.1482),
+        'right_elbow': (36.4928, 17.4104), 'right_wrist': (0.908, -0.5941),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.679797, duration=0.072)
     human.KeyJoints(2.7, {
-        'spine_lumbar': (60.0, -1.9903, 3.7891), 'spine_thoracic': (29.0254, -2.2543, 3.1186),
-        'neck': (-0.7363, 0.2546, -10.9478), 'head': (-0.7349, 0.0019),
-        'right_clavicle': (1.2959, 1.8703), 'right_shoulder': (101.7668, -3.5564, 12.1465),
-        'right_elbow': (32.7835, 17.4377), 'right_wrist': (-0.0476, -1.7372),
+        'spine_lumbar': (60.0, -1.9953, 3.8021), 'spine_thoracic': (29.0373, -2.2615, 3.13),
+        'neck': (-0.7412, 0.2555, -10.9855), 'head': (-0.7398, 0.002),
+        'right_clavicle': (1.3037, 1.8737), 'right_shoulder': (101.7966, -3.4951, 12.1262),
+        'right_elbow': (32.7579, 17.4379), 'right_wrist': (-0.0542, -1.7449),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(2.8, {'right_elbow': (32.7835, 3.5815)})
+    human.KeyJoints(2.8, {'right_elbow': (32.7579, 3.5817)})
     human.KeyJoints(2.9, {
-        'neck': (-0.7363, 0.2546, -10.9478), 'head': (-0.7349, 0.0019),
-        'right_elbow': (32.7835, -59.7303),
+        'neck': (-0.7412, 0.2555, -10.9855), 'head': (-0.7398, 0.002),
+        'right_elbow': (32.7579, -59.7301),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=2.946197, duration=0.2628)
     human.KeyJoints(3.0, {
-        'neck': (-0.5423, 0.2406, -10.3619), 'head': (-0.541, 0.0018),
-        'right_elbow': (32.7835, -72.5623),
+        'neck': (-0.5473, 0.2415, -10.3993), 'head': (-0.546, 0.0018),
+        'right_elbow': (32.7579, -72.5621),
     })
-    human.KeyJoints(3.1, {'neck': (0.8466, 0.1399, -6.1673), 'head': (0.8476, 0.0011)})
-    human.KeyJoints(3.2, {'neck': (3.5679, -0.0573, 2.0512), 'head': (3.5683, -0.0004)})
+    human.KeyJoints(3.1, {'neck': (0.8411, 0.1408, -6.2022), 'head': (0.8422, 0.0011)})
+    human.KeyJoints(3.2, {'neck': (3.5615, -0.0565, 2.0212), 'head': (3.562, -0.0004)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(3.3, {'neck': (3.8778, -0.0797, 2.8866), 'head': (3.8782, -0.0005)})
-    human.KeyJoints(4.8, {'neck': (3.8778, -0.0797, 2.9873)})
-    human.KeyJoints(7.2, {'right_elbow': (32.7835, -72.5623)})
+    human.KeyJoints(3.3, {'neck': (3.8714, -0.079, 2.8571), 'head': (3.8718, -0.0005)})
+    human.KeyJoints(4.8, {'neck': (3.8714, -0.079, 2.9579)})
+    human.KeyJoints(7.2, {'right_elbow': (32.7579, -72.5621)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(7.3, {'right_elbow': (32.7835, -52.7863)})
+    human.KeyJoints(7.3, {'right_elbow': (32.7579, -52.7861)})
     human.KeyRoot(7.4, (7.838, 49.255, 20.832), (-17.9691, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, -1.9903, 3.7891), 'spine_thoracic': (29.0254, -2.2543, 3.1186),
-        'right_shoulder': (101.7668, -3.5564, 12.1465), 'right_elbow': (32.7835, 14.3273),
-        'right_wrist': (-0.0476, -1.7372), 'left_shoulder': (65.1949, 5.7296, 11.4592),
+        'spine_lumbar': (60.0, -1.9953, 3.8021), 'spine_thoracic': (29.0373, -2.2615, 3.13),
+        'right_shoulder': (101.7966, -3.4951, 12.1262), 'right_elbow': (32.7579, 14.3275),
+        'right_wrist': (-0.0542, -1.7449), 'left_shoulder': (65.1949, 5.7296, 11.4592),
         'right_hip': (79.6826, 0.0, 0.0), 'right_knee': (99.6826,), 'right_ankle': (20.0, 0.0),
         'left_hip': (79.6826, 0.0, 0.0), 'left_knee': (99.6826,), 'left_ankle': (20.0, 0.0),
     })
@@ -210,16 +210,16 @@ def drain_reservoir():
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
     human.KeyRoot(7.5, (7.84, 49.586, 20.827), (-17.9691, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, -1.9267, 3.668), 'spine_thoracic': (29.0565, -2.1823, 3.0189),
-        'right_shoulder': (101.9582, -3.5832, 12.1424), 'right_elbow': (32.3545, 17.4367),
+        'spine_lumbar': (60.0, -1.9315, 3.6806), 'spine_thoracic': (29.0681, -2.1892, 3.0299),
+        'right_shoulder': (101.9881, -3.522, 12.1222), 'right_elbow': (32.3285, 17.4369),
         'left_shoulder': (64.8676, 5.7296, 11.4592), 'right_hip': (79.2384, 0.0, 0.0),
         'right_knee': (99.1327,), 'right_ankle': (19.9131, 0.0), 'left_hip': (79.2384, 0.0, 0.0),
         'left_knee': (99.1327,), 'left_ankle': (19.9131, 0.0),
     })
     human.KeyRoot(7.6, (7.802, 54.171, 20.944), (-17.9691, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'spine_lumbar': (60.0, -0.8685, 1.6535), 'spine_thoracic': (29.5747, -0.9838, 1.3609),
-        'right_wrist': (-0.021, -1.8143), 'left_shoulder': (60.2676, 5.7296, 11.4592),
+        'spine_lumbar': (60.0, -0.8707, 1.6592), 'spine_thoracic': (29.5799, -0.9869, 1.3659),
+        'right_wrist': (-0.0276, -1.822), 'left_shoulder': (60.2676, 5.7296, 11.4592),
         'right_hip': (72.9953, 0.0, 0.0), 'right_knee': (91.4038,), 'right_ankle': (18.2842, 0.0),
         'left_hip': (72.9953, 0.0, 0.0), 'left_knee': (91.4038,), 'left_ankle': (18.2842, 0.0),
     })
@@ -249,7 +249,7 @@ def drain_reservoir():
     human.KeyRoot(8.2, (4.35, 78.449, 31.589), (-17.9691, 0.0, 0.0))
     human.KeyJoints(8.2, {
         'spine_lumbar': (21.9523, 0.0, 0.0), 'spine_thoracic': (10.9762, 0.0, 0.0),
-        'right_shoulder': (101.7668, -3.5564, 12.1465), 'right_elbow': (32.7835, 17.4377),
+        'right_shoulder': (101.7966, -3.4951, 12.1262), 'right_elbow': (32.7579, 17.4379),
     })
     human.KeyRoot(8.3, (3.398, 80.803, 34.524), (-17.9691, 0.0, 0.0))
     human.KeyJoints(8.3, {'spine_lumbar': (16.7474, 0.0, 0.0)})
@@ -261,9 +261,9 @@ def drain_reservoir():
     human.KeyRoot(8.623797, (-0.062, 84.763, 45.191), (-17.9691, 0.0, 0.0))
     human.KeyJoints(8.623797, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (3.8778, -0.0797, 2.9873), 'head': (3.8782, -0.0005),
-        'right_clavicle': (1.2959, 1.8703), 'right_shoulder': (101.7668, -3.5564, 12.1465),
-        'right_elbow': (32.7835, 17.4377), 'right_wrist': (-0.0476, -1.7372),
+        'neck': (3.8714, -0.079, 2.9579), 'head': (3.8718, -0.0005),
+        'right_clavicle': (1.3037, 1.8737), 'right_shoulder': (101.7966, -3.4951, 12.1262),
+        'right_elbow': (32.7579, 17.4379), 'right_wrist': (-0.0542, -1.7449),
         'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.5944, 5.7296, 11.4592),
         'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0), 'right_hip': (2.8648, 0.0, 0.0),
         'right_knee': (4.5837,), 'right_ankle': (0.0, 0.0), 'left_hip': (2.8648, 0.0, 0.0),

@@ -790,7 +790,7 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=12.58022, duration=0.072)
     human.KeyJoints(12.6, {
         'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
-        'neck': (0.1555, 0.0862, -14.731), 'head': (0.1476, 0.0049),
+        'neck': (0.1555, 0.0862, -14.731), 'head': (0.1475, 0.0049),
         'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (89.4645, 7.2709, 1.1479),
         'right_elbow': (32.9279, 11.0536), 'right_wrist': (-1.3607, -29.9672),
     })
@@ -817,7 +817,7 @@ def remove_access_panel():
         'spine_lumbar': (3.9841, -18.52, 3.0257), 'spine_thoracic': (-9.9031, -10.0, 5.3788),
         'neck': (2.609, -0.7876, -12.5174), 'head': (2.7554, -0.0124),
         'right_clavicle': (22.3152, 3.6991), 'right_shoulder': (87.0525, 14.3351, 13.3775),
-        'right_elbow': (20.7649, 24.4233), 'right_wrist': (5.6717, -20.9605),
+        'right_elbow': (20.765, 24.4233), 'right_wrist': (5.6717, -20.9605),
     })
     human.KeyJoints(13.1, {
         'spine_lumbar': (-0.9986, -19.9329, 4.4059), 'spine_thoracic': (-7.9711, -10.0, 5.4792),
@@ -907,7 +907,7 @@ def remove_access_panel():
         'right_elbow': (22.9204, 10.4656), 'right_wrist': (-1.8326, -29.9625),
     })
     human.KeyJoints(14.5, {
-        'spine_lumbar': (3.5345, -20.0, 4.5093), 'spine_thoracic': (-8.723, -10.0, 5.6582),
+        'spine_lumbar': (3.5345, -20.0, 4.5093), 'spine_thoracic': (-8.723, -10.0, 5.6583),
         'neck': (2.4764, -0.6718, -15.8327), 'head': (2.6122, -0.0178),
         'right_clavicle': (12.8333, 4.3507), 'right_shoulder': (87.1098, 11.41, 5.7672),
         'right_elbow': (21.9702, 17.0875), 'right_wrist': (1.7244, -26.8037),
@@ -922,7 +922,7 @@ def remove_access_panel():
         'spine_lumbar': (-0.3536, -19.4976, 3.5562), 'spine_thoracic': (-8.5044, -10.0, 5.32),
         'neck': (3.9382, -1.2503, -12.236), 'head': (4.1651, -0.0185),
         'right_clavicle': (16.3939, 4.0923), 'right_shoulder': (85.1598, 9.7532, 10.1781),
-        'right_elbow': (21.5929, 20.5646), 'right_wrist': (3.9679, -24.0785),
+        'right_elbow': (21.593, 20.5646), 'right_wrist': (3.9679, -24.0785),
     })
     human.KeyJoints(14.8, {
         'spine_lumbar': (1.7479, -17.8018, 7.9973), 'spine_thoracic': (-8.5684, -6.8261, 7.8473),
@@ -981,7 +981,7 @@ def remove_access_panel():
         'right_elbow': (22.006, 18.0702), 'right_wrist': (2.2133, -26.204),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (5.0763, -18.4301, 3.0686), 'spine_thoracic': (-10.0613, -10.0, 5.4676),
+        'spine_lumbar': (5.0763, -18.4302, 3.0686), 'spine_thoracic': (-10.0613, -10.0, 5.4676),
         'neck': (2.1618, -0.6229, -12.9916), 'head': (2.2805, -0.0113),
         'right_clavicle': (22.5339, 3.6897), 'right_shoulder': (87.6137, 14.9248, 13.2145),
         'right_elbow': (20.65, 24.4835), 'right_wrist': (5.6255, -20.9414),
@@ -1015,18 +1015,18 @@ def remove_access_panel():
         'spine_lumbar': (4.4674, -18.9263, 3.6108), 'spine_thoracic': (-9.6637, -10.0, 5.5879),
         'neck': (2.3166, -0.6521, -14.0352), 'head': (2.4434, -0.0156),
         'right_clavicle': (19.4663, 3.9949), 'right_shoulder': (87.3766, 13.763, 10.6049),
-        'right_elbow': (20.5019, 21.9838), 'right_wrist': (4.3351, -22.8918),
+        'right_elbow': (20.502, 21.9838), 'right_wrist': (4.3351, -22.8918),
     })
     human.KeyJoints(16.3, {
         'spine_lumbar': (0.6923, -18.9829, 3.0328), 'spine_thoracic': (-9.1668, -10.0, 5.2382),
         'neck': (3.749, -1.1975, -11.7612), 'head': (3.9648, -0.0121),
         'right_clavicle': (20.6025, 3.7866), 'right_shoulder': (85.513, 11.7374, 13.2292),
-        'right_elbow': (21.1977, 23.7224), 'right_wrist': (5.5567, -21.367),
+        'right_elbow': (21.1977, 23.7224), 'right_wrist': (5.5568, -21.367),
     })
     human.KeyJoints(16.4, {
         'spine_lumbar': (-0.0514, -19.1978, 6.3006), 'spine_thoracic': (-8.1378, -8.8418, 6.4824),
         'neck': (3.7032, -1.0978, -15.3929), 'head': (3.9162, -0.0288),
-        'right_clavicle': (6.275, 5.7702), 'right_shoulder': (86.0446, 7.2083, 0.5754),
+        'right_clavicle': (6.275, 5.7702), 'right_shoulder': (86.0446, 7.2083, 0.5755),
         'right_elbow': (22.3359, 11.3759), 'right_wrist': (-0.9292, -29.1155),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
@@ -1089,7 +1089,7 @@ def remove_access_panel():
         'spine_lumbar': (0.1408, -19.2238, 3.2316), 'spine_thoracic': (-8.8498, -10.0, 5.2679),
         'neck': (3.8572, -1.2317, -11.9566), 'head': (4.0793, -0.0149),
         'right_clavicle': (18.8186, 3.9079), 'right_shoulder': (85.323, 10.7758, 12.0333),
-        'right_elbow': (21.3862, 22.444), 'right_wrist': (4.9332, -22.4718),
+        'right_elbow': (21.3862, 22.444), 'right_wrist': (4.9333, -22.4718),
     })
     human.KeyJoints(17.5, {
         'spine_lumbar': (0.8615, -18.4895, 7.1953), 'spine_thoracic': (-8.3563, -7.8191, 7.1833),
@@ -1136,7 +1136,7 @@ def remove_access_panel():
         'right_elbow': (22.5737, 7.3759), 'right_wrist': (-3.1375, -30.0),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (2.5477, -19.1728, 7.217), 'spine_thoracic': (-9.6695, -8.8268, 7.2494),
+        'spine_lumbar': (2.5477, -19.1727, 7.217), 'spine_thoracic': (-9.6695, -8.8268, 7.2494),
         'neck': (3.4175, -0.9494, -17.7427), 'head': (3.6136, -0.027),
         'right_clavicle': (6.045, 5.8708), 'right_shoulder': (86.0852, 9.0829, -0.8454),
         'right_elbow': (22.9162, 10.4554), 'right_wrist': (-1.8353, -29.9634),
@@ -1151,17 +1151,17 @@ def remove_access_panel():
         'spine_lumbar': (5.177, -18.4707, 3.1584), 'spine_thoracic': (-10.0412, -10.0, 5.5171),
         'neck': (2.0976, -0.5966, -13.3893), 'head': (2.2121, -0.0114),
         'right_clavicle': (22.2508, 3.7186), 'right_shoulder': (87.6718, 14.8888, 12.8009),
-        'right_elbow': (20.5572, 24.2399), 'right_wrist': (5.4515, -21.1453),
+        'right_elbow': (20.5573, 24.2399), 'right_wrist': (5.4515, -21.1453),
     })
     human.KeyJoints(18.5, {
         'spine_lumbar': (-0.3461, -19.4931, 3.55), 'spine_thoracic': (-8.51, -10.0, 5.319),
-        'neck': (3.937, -1.2502, -12.2312), 'head': (4.1638, -0.0184),
+        'neck': (3.937, -1.2502, -12.2312), 'head': (4.1637, -0.0184),
         'right_clavicle': (16.437, 4.0888), 'right_shoulder': (85.1622, 9.7698, 10.2123),
         'right_elbow': (21.5895, 20.5987), 'right_wrist': (3.9857, -24.0499),
     })
     human.KeyJoints(18.6, {
         'spine_lumbar': (1.7348, -17.8119, 7.9858), 'spine_thoracic': (-8.5653, -6.8407, 7.8376),
-        'neck': (3.1056, -0.8713, -16.4121), 'head': (3.2812, -0.0243),
+        'neck': (3.1056, -0.8713, -16.412), 'head': (3.2812, -0.0243),
         'right_clavicle': (3.6261, 6.885), 'right_shoulder': (87.9699, 6.9145, -2.7228),
         'right_elbow': (22.5149, 8.4107), 'right_wrist': (-2.5632, -29.7911),
     })
@@ -1185,7 +1185,7 @@ def remove_access_panel():
         'right_elbow': (20.698, 20.9807), 'right_wrist': (3.7894, -23.7403),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (1.3263, -18.8102, 2.986), 'spine_thoracic': (-9.4179, -10.0, 5.2349),
+        'spine_lumbar': (1.3264, -18.8102, 2.986), 'spine_thoracic': (-9.4179, -10.0, 5.2349),
         'neck': (3.5592, -1.1368, -11.7361), 'head': (3.7638, -0.0114),
         'right_clavicle': (21.462, 3.7379), 'right_shoulder': (85.7513, 12.571, 13.5217),
         'right_elbow': (21.0382, 24.1704), 'right_wrist': (5.7101, -21.0431),
@@ -1392,10 +1392,10 @@ def remove_access_panel():
         'spine_lumbar': (-0.3386, -19.4886, 3.523), 'spine_thoracic': (-8.5156, -10.0, 5.3162),
         'neck': (3.9337, -1.2499, -12.2057), 'head': (4.1603, -0.0182),
         'right_clavicle': (16.4816, 4.0744), 'right_shoulder': (85.1647, 9.7041, 9.7658),
-        'right_elbow': (21.4406, 20.2818), 'right_wrist': (3.847, -24.0262),
+        'right_elbow': (21.4407, 20.2818), 'right_wrist': (3.847, -24.0262),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (5.3719, -15.1876, 8.7413), 'spine_thoracic': (-8.3168, -5.6253, 8.433),
+        'spine_lumbar': (5.3719, -15.1876, 8.7413), 'spine_thoracic': (-8.3168, -5.6253, 8.4331),
         'neck': (1.1887, -0.25, -15.1866), 'head': (1.2446, -0.0055),
         'right_clavicle': (3.6277, 7.3438), 'right_shoulder': (88.4967, 7.3088, 1.5121),
         'right_elbow': (30.7347, 11.5076), 'right_wrist': (-1.0726, -29.7587),
@@ -1420,8 +1420,8 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 112.0), start=22.759064, duration=10.620907)
     human.KeyJoints(22.8, {
-        'neck': (35.0, -2.6492, -41.2166), 'head': (15.0, -0.6381),
-        'right_shoulder': (88.3428, 7.5178, 0.9684), 'right_elbow': (33.0321, 10.9712),
+        'neck': (35.0, -2.6492, -41.2166), 'head': (15.0, -0.6382),
+        'right_shoulder': (88.3429, 7.5179, 0.9684), 'right_elbow': (33.0321, 10.9712),
         'right_wrist': (-1.4182, -29.5192),
     })
     human.KeyJoints(22.9, {
@@ -1441,7 +1441,7 @@ def remove_access_panel():
         'right_wrist': (-5.2909, -3.8201),
     })
     human.KeyJoints(23.3, {
-        'right_shoulder': (15.2739, 30.0033, -14.9304), 'right_elbow': (39.9856, 3.6867),
+        'right_shoulder': (15.2739, 30.0034, -14.9304), 'right_elbow': (39.9856, 3.6867),
         'right_wrist': (-6.2421, -0.3343),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_left
@@ -1454,36 +1454,36 @@ def remove_access_panel():
     human.KeyJoints(23.5, {
         'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
         'neck': (35.0, -2.615, -41.2089), 'head': (15.0, -0.6589),
-        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (18.715, 33.7563, -16.6404),
+        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (18.715, 33.7564, -16.6404),
         'right_elbow': (36.5418, 2.8816), 'right_wrist': (-6.3525, -4.8709),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(23.6, {
-        'spine_lumbar': (11.5585, -1.5537, 10.7722), 'spine_thoracic': (-9.8519, -2.4851, 10.0568),
+        'spine_lumbar': (11.5585, -1.5537, 10.7722), 'spine_thoracic': (-9.852, -2.4851, 10.0568),
         'neck': (32.4124, -4.602, -42.0314), 'head': (12.4191, -1.0957),
-        'right_clavicle': (6.3583, 8.5278), 'right_shoulder': (20.7017, 39.3639, -12.3809),
-        'right_elbow': (44.4025, 7.7262), 'right_wrist': (-6.0299, 11.5317),
+        'right_clavicle': (6.3583, 8.5278), 'right_shoulder': (20.7016, 39.3639, -12.3809),
+        'right_elbow': (44.4025, 7.7262), 'right_wrist': (-6.03, 11.5318),
     })
     human.KeyJoints(23.7, {
-        'spine_lumbar': (13.1565, -3.7671, 9.9952), 'spine_thoracic': (-7.2966, -6.4239, 9.9362),
+        'spine_lumbar': (13.1565, -3.7671, 9.9952), 'spine_thoracic': (-7.2966, -6.424, 9.9362),
         'neck': (32.699, -4.7171, -43.1791), 'head': (12.5864, -1.1087),
-        'right_clavicle': (10.4897, 8.5269), 'right_shoulder': (16.7912, 43.1677, -8.8974),
-        'right_elbow': (44.2565, 12.5923), 'right_wrist': (-5.9605, 13.2744),
+        'right_clavicle': (10.4897, 8.5269), 'right_shoulder': (16.7911, 43.1677, -8.8975),
+        'right_elbow': (44.2565, 12.5923), 'right_wrist': (-5.9606, 13.2745),
     })
     human.KeyJoints(23.8, {
-        'spine_lumbar': (14.4723, -7.6626, 9.0161), 'spine_thoracic': (-4.3932, -10.0, 9.7014),
-        'neck': (33.3697, -4.6349, -44.6634), 'head': (13.181, -1.1149),
-        'right_clavicle': (13.6157, 8.8001), 'right_shoulder': (12.275, 46.8814, -6.1354),
+        'spine_lumbar': (14.4723, -7.6627, 9.0161), 'spine_thoracic': (-4.3932, -10.0, 9.7014),
+        'neck': (33.3697, -4.6348, -44.6635), 'head': (13.181, -1.1149),
+        'right_clavicle': (13.6157, 8.8001), 'right_shoulder': (12.2749, 46.8814, -6.1354),
         'right_elbow': (43.5251, 16.8973), 'right_wrist': (-6.1566, 13.5426),
     })
     human.KeyJoints(23.9, {
         'spine_lumbar': (12.8882, -12.7316, 8.0865), 'spine_thoracic': (-1.7653, -10.0, 9.3358),
         'neck': (33.7438, -4.3419, -44.688), 'head': (13.5992, -1.084),
-        'right_clavicle': (15.0374, 9.0498), 'right_shoulder': (7.9172, 48.1514, -3.7089),
+        'right_clavicle': (15.0375, 9.0498), 'right_shoulder': (7.9171, 48.1515, -3.7089),
         'right_elbow': (42.8777, 20.0766), 'right_wrist': (-6.3808, 13.2888),
     })
     human.KeyJoints(24.0, {
-        'spine_lumbar': (10.6176, -5.6704, 9.0633), 'spine_thoracic': (-6.0623, -7.1098, 9.1328),
+        'spine_lumbar': (10.6176, -5.6704, 9.0633), 'spine_thoracic': (-6.0623, -7.1099, 9.1328),
         'neck': (32.6034, -4.1052, -41.0566), 'head': (12.825, -1.0632),
         'right_clavicle': (9.9292, 8.1038), 'right_shoulder': (14.5354, 41.9625, -7.111),
         'right_elbow': (44.8423, 14.1345), 'right_wrist': (-5.8077, 14.5293),
@@ -1491,82 +1491,82 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.1, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(24.2, {
         'spine_lumbar': (12.5164, -2.7093, 10.3332), 'spine_thoracic': (-8.3674, -4.7593, 10.0045),
-        'neck': (32.53, -4.7008, -42.6862), 'head': (12.4579, -1.1047),
-        'right_clavicle': (8.7359, 8.5316), 'right_shoulder': (18.4461, 41.6208, -10.4065),
+        'neck': (32.5301, -4.7008, -42.6863), 'head': (12.4579, -1.1047),
+        'right_clavicle': (8.736, 8.5316), 'right_shoulder': (18.4461, 41.6209, -10.4065),
         'right_elbow': (44.4189, 10.5206), 'right_wrist': (-5.9802, 12.7004),
     })
     human.KeyJoints(24.3, {
         'spine_lumbar': (13.8516, -5.4837, 9.5261), 'spine_thoracic': (-5.8371, -8.6953, 9.836),
         'neck': (33.0331, -4.6451, -43.8279), 'head': (12.8971, -1.1094),
-        'right_clavicle': (12.7706, 8.5674), 'right_shoulder': (14.5194, 44.9003, -6.7931),
+        'right_clavicle': (12.7706, 8.5674), 'right_shoulder': (14.5193, 44.9003, -6.7932),
         'right_elbow': (43.7503, 15.2923), 'right_wrist': (-5.9654, 13.4834),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (14.8586, -11.2414, 8.4754), 'spine_thoracic': (-2.5384, -10.0, 9.6504),
+        'spine_lumbar': (14.8586, -11.2415, 8.4754), 'spine_thoracic': (-2.5385, -10.0, 9.6504),
         'neck': (33.8325, -4.7166, -46.1253), 'head': (13.5139, -1.1314),
-        'right_clavicle': (15.8177, 9.1597), 'right_shoulder': (9.2405, 49.2731, -4.7211),
+        'right_clavicle': (15.8177, 9.1597), 'right_shoulder': (9.2404, 49.2731, -4.7212),
         'right_elbow': (42.4824, 19.4853), 'right_wrist': (-6.4525, 12.6965),
     })
     human.KeyJoints(24.5, {
         'spine_lumbar': (11.0632, -10.006, 8.372), 'spine_thoracic': (-3.3034, -9.0435, 9.1569),
-        'neck': (33.2305, -4.1047, -42.426), 'head': (13.2565, -1.0201),
-        'right_clavicle': (12.4155, 8.4709), 'right_shoulder': (10.2521, 44.7537, -4.7692),
+        'neck': (33.2305, -4.1046, -42.426), 'head': (13.2565, -1.0201),
+        'right_clavicle': (12.4155, 8.4709), 'right_shoulder': (10.252, 44.7537, -4.7692),
         'right_elbow': (44.1696, 17.9967), 'right_wrist': (-6.0332, 14.2212),
     })
     human.KeyJoints(24.6, {
         'spine_lumbar': (11.2212, -1.9355, 10.569), 'spine_thoracic': (-9.5154, -2.9287, 9.8961),
         'neck': (32.4193, -4.4815, -41.6965), 'head': (12.4823, -1.087),
-        'right_clavicle': (6.4293, 8.4475), 'right_shoulder': (20.1286, 39.2596, -11.9645),
+        'right_clavicle': (6.4293, 8.4475), 'right_shoulder': (20.1285, 39.2596, -11.9645),
         'right_elbow': (44.4537, 8.1249), 'right_wrist': (-6.001, 11.8116),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.7, {
         'spine_lumbar': (11.7886, -1.8453, 10.6512), 'spine_thoracic': (-9.4246, -3.1322, 10.0496),
         'neck': (32.4313, -4.6302, -42.2103), 'head': (12.4152, -1.098),
-        'right_clavicle': (6.9414, 8.5326), 'right_shoulder': (20.0576, 39.9167, -11.9101),
-        'right_elbow': (44.426, 8.4071), 'right_wrist': (-6.017, 11.8298),
+        'right_clavicle': (6.9414, 8.5326), 'right_shoulder': (20.0576, 39.9167, -11.9102),
+        'right_elbow': (44.426, 8.407), 'right_wrist': (-6.017, 11.8298),
     })
     human.KeyJoints(24.8, {
         'spine_lumbar': (13.3475, -4.1624, 9.8796), 'spine_thoracic': (-6.9362, -6.983, 9.911),
-        'neck': (32.7706, -4.7119, -43.3437), 'head': (12.6483, -1.1094),
-        'right_clavicle': (11.0581, 8.5294), 'right_shoulder': (16.2309, 43.6397, -8.3936),
-        'right_elbow': (44.166, 13.2689), 'right_wrist': (-5.9595, 13.391),
+        'neck': (32.7706, -4.7118, -43.3437), 'head': (12.6483, -1.1094),
+        'right_clavicle': (11.0581, 8.5294), 'right_shoulder': (16.2308, 43.6397, -8.3937),
+        'right_elbow': (44.166, 13.2689), 'right_wrist': (-5.9595, 13.3911),
     })
     human.KeyJoints(24.9, {
         'spine_lumbar': (14.5339, -8.3713, 8.8869), 'spine_thoracic': (-4.0686, -10.0, 9.6908),
         'neck': (33.4544, -4.647, -44.9213), 'head': (13.2449, -1.1175),
-        'right_clavicle': (14.4099, 8.8518), 'right_shoulder': (11.6934, 47.2992, -5.4622),
+        'right_clavicle': (14.4099, 8.8518), 'right_shoulder': (11.6933, 47.2993, -5.4622),
         'right_elbow': (43.2418, 17.6636), 'right_wrist': (-6.1818, 13.2845),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (12.1445, -12.9073, 8.0316), 'spine_thoracic': (-1.6688, -10.0, 9.2354),
-        'neck': (33.6899, -4.1925, -43.9583), 'head': (13.5997, -1.0456),
-        'right_clavicle': (14.5191, 8.9726), 'right_shoulder': (7.7504, 47.4763, -3.5965),
+        'spine_lumbar': (12.1445, -12.9074, 8.0316), 'spine_thoracic': (-1.6688, -10.0, 9.2354),
+        'neck': (33.6899, -4.1924, -43.9584), 'head': (13.5997, -1.0456),
+        'right_clavicle': (14.5191, 8.9726), 'right_shoulder': (7.7503, 47.4763, -3.5966),
         'right_elbow': (43.1226, 20.1244), 'right_wrist': (-6.3373, 13.5766),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (10.6966, -4.6552, 9.3841), 'spine_thoracic': (-6.9192, -6.217, 9.2327),
+        'spine_lumbar': (10.6966, -4.6553, 9.3841), 'spine_thoracic': (-6.9192, -6.217, 9.2327),
         'neck': (32.523, -4.1726, -41.1342), 'head': (12.7173, -1.0696),
-        'right_clavicle': (9.0573, 8.1488), 'right_shoulder': (15.908, 41.2225, -8.1597),
+        'right_clavicle': (9.0573, 8.1488), 'right_shoulder': (15.9079, 41.2225, -8.1598),
         'right_elbow': (44.7914, 12.728), 'right_wrist': (-5.833, 14.1738),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.2, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (12.7389, -3.0379, 10.2231), 'spine_thoracic': (-8.0147, -5.3072, 9.9838),
+        'spine_lumbar': (12.739, -3.038, 10.2231), 'spine_thoracic': (-8.0147, -5.3072, 9.9838),
         'neck': (32.5782, -4.7135, -42.8485), 'head': (12.4907, -1.1063),
-        'right_clavicle': (9.3228, 8.5286), 'right_shoulder': (17.9031, 42.1527, -9.9077),
+        'right_clavicle': (9.3228, 8.5286), 'right_shoulder': (17.903, 42.1527, -9.9077),
         'right_elbow': (44.3837, 11.2121), 'right_wrist': (-5.9714, 12.926),
     })
     human.KeyJoints(25.4, {
@@ -1577,8 +1577,8 @@ def remove_access_panel():
     })
     human.KeyJoints(25.5, {
         'spine_lumbar': (14.6695, -11.8166, 8.3444), 'spine_thoracic': (-2.2528, -10.0, 9.6186),
-        'neck': (33.8307, -4.6632, -45.972), 'head': (13.5665, -1.1282),
-        'right_clavicle': (15.8348, 9.1614), 'right_shoulder': (8.7545, 49.2097, -4.303),
+        'neck': (33.8307, -4.6631, -45.972), 'head': (13.5665, -1.1282),
+        'right_clavicle': (15.8348, 9.1614), 'right_shoulder': (8.7544, 49.2097, -4.3031),
         'right_elbow': (42.4803, 19.7743), 'right_wrist': (-6.4434, 12.6982),
     })
     human.KeyJoints(25.6, {
@@ -1588,38 +1588,38 @@ def remove_access_panel():
         'right_elbow': (44.5239, 16.6894), 'right_wrist': (-5.9159, 14.3933),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (11.3324, -1.5099, 10.7848), 'spine_thoracic': (-9.9497, -2.3306, 10.0369),
-        'neck': (32.4081, -4.5571, -41.9177), 'head': (12.4347, -1.0923),
-        'right_clavicle': (5.9908, 8.5108), 'right_shoulder': (20.8397, 38.9543, -12.6526),
+        'spine_lumbar': (11.3325, -1.5099, 10.7848), 'spine_thoracic': (-9.9497, -2.3306, 10.0369),
+        'neck': (32.4081, -4.557, -41.9177), 'head': (12.4347, -1.0923),
+        'right_clavicle': (5.9908, 8.5108), 'right_shoulder': (20.8396, 38.9543, -12.6526),
         'right_elbow': (44.3821, 7.3267), 'right_wrist': (-6.0366, 11.3105),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.8, {
         'spine_lumbar': (12.0387, -2.1106, 10.5484), 'spine_thoracic': (-9.0749, -3.6672, 10.038),
-        'neck': (32.4565, -4.6593, -42.3653), 'head': (12.421, -1.1005),
-        'right_clavicle': (7.5397, 8.5344), 'right_shoulder': (19.5273, 40.4969, -11.4112),
+        'neck': (32.4565, -4.6592, -42.3653), 'head': (12.421, -1.1005),
+        'right_clavicle': (7.5398, 8.5344), 'right_shoulder': (19.5272, 40.4969, -11.4112),
         'right_elbow': (44.439, 9.1122), 'right_wrist': (-6.0033, 12.1487),
     })
     human.KeyJoints(25.9, {
-        'spine_lumbar': (13.5277, -4.5811, 9.7625), 'spine_thoracic': (-6.5724, -7.5453, 9.8853),
-        'neck': (32.85, -4.698, -43.508), 'head': (12.7203, -1.1097),
-        'right_clavicle': (11.6186, 8.5366), 'right_shoulder': (15.6646, 44.0894, -7.8876),
-        'right_elbow': (44.0557, 13.9399), 'right_wrist': (-5.9593, 13.4633),
+        'spine_lumbar': (13.5277, -4.5811, 9.7625), 'spine_thoracic': (-6.5725, -7.5453, 9.8853),
+        'neck': (32.85, -4.6979, -43.508), 'head': (12.7203, -1.1097),
+        'right_clavicle': (11.6186, 8.5366), 'right_shoulder': (15.6645, 44.0895, -7.8876),
+        'right_elbow': (44.0557, 13.9399), 'right_wrist': (-5.9593, 13.4634),
     })
     human.KeyJoints(26.0, {
-        'spine_lumbar': (14.6832, -9.3716, 8.7541), 'spine_thoracic': (-3.4907, -10.0, 9.6632),
-        'neck': (33.5803, -4.6934, -45.3934), 'head': (13.3264, -1.1238),
-        'right_clavicle': (14.6931, 8.9387), 'right_shoulder': (10.7777, 48.1355, -5.4461),
+        'spine_lumbar': (14.6832, -9.3717, 8.7541), 'spine_thoracic': (-3.4907, -10.0, 9.6632),
+        'neck': (33.5803, -4.6933, -45.3934), 'head': (13.3264, -1.1238),
+        'right_clavicle': (14.6931, 8.9387), 'right_shoulder': (10.7776, 48.1355, -5.4461),
         'right_elbow': (43.0614, 18.1736), 'right_wrist': (-6.344, 13.2468),
     })
     human.KeyJoints(26.1, {
-        'spine_lumbar': (11.7506, -12.5705, 8.0681), 'spine_thoracic': (-1.8539, -9.8957, 9.2042),
-        'neck': (33.5843, -4.146, -43.4013), 'head': (13.5479, -1.0323),
+        'spine_lumbar': (11.7507, -12.5706, 8.0681), 'spine_thoracic': (-1.8539, -9.8957, 9.2042),
+        'neck': (33.5843, -4.146, -43.4014), 'head': (13.5479, -1.0323),
         'right_clavicle': (13.9527, 8.8598), 'right_shoulder': (8.0326, 46.7405, -3.7236),
         'right_elbow': (43.3987, 19.8865), 'right_wrist': (-6.2702, 13.7886),
     })
     human.KeyJoints(26.2, {
-        'spine_lumbar': (10.8543, -3.6241, 9.7906), 'spine_thoracic': (-7.864, -5.0881, 9.4322),
+        'spine_lumbar': (10.8544, -3.6242, 9.7906), 'spine_thoracic': (-7.864, -5.0881, 9.4322),
         'neck': (32.4672, -4.2853, -41.2777), 'head': (12.6247, -1.0747),
         'right_clavicle': (8.0994, 8.2386), 'right_shoulder': (17.4367, 40.4758, -9.4715),
         'right_elbow': (44.6899, 11.0926), 'right_wrist': (-5.8835, 13.4634),
@@ -1627,318 +1627,318 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.3, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(26.4, {
         'spine_lumbar': (12.9512, -3.3881, 10.111), 'spine_thoracic': (-7.6599, -5.859, 9.961),
-        'neck': (32.634, -4.7172, -43.0119), 'head': (12.5329, -1.1076),
-        'right_clavicle': (9.9044, 8.5272), 'right_shoulder': (17.3547, 42.6657, -9.4076),
+        'neck': (32.634, -4.7172, -43.012), 'head': (12.5329, -1.1077),
+        'right_clavicle': (9.9044, 8.5272), 'right_shoulder': (17.3546, 42.6657, -9.4076),
         'right_elbow': (44.3306, 11.8989), 'right_wrist': (-5.965, 13.1157),
     })
     human.KeyJoints(26.5, {
         'spine_lumbar': (14.3039, -6.8335, 9.1958), 'spine_thoracic': (-4.8671, -9.8429, 9.7396),
-        'neck': (33.2614, -4.624, -44.3378), 'right_clavicle': (13.3411, 8.7071),
-        'right_shoulder': (13.0422, 46.1822, -6.325), 'right_elbow': (43.5909, 16.3454),
+        'neck': (33.2614, -4.624, -44.3379), 'right_clavicle': (13.3411, 8.7071),
+        'right_shoulder': (13.0421, 46.1822, -6.325), 'right_elbow': (43.5909, 16.3454),
         'right_wrist': (-6.0803, 13.5513),
     })
     human.KeyJoints(26.6, {
-        'spine_lumbar': (13.8882, -12.3328, 8.2045), 'spine_thoracic': (-1.9808, -10.0, 9.4915),
+        'spine_lumbar': (13.8882, -12.3329, 8.2045), 'spine_thoracic': (-1.9808, -10.0, 9.4915),
         'neck': (33.7863, -4.5115, -45.3665), 'head': (13.5965, -1.1146),
-        'right_clavicle': (15.5179, 9.1179), 'right_shoulder': (8.2882, 48.7867, -3.9659),
+        'right_clavicle': (15.5179, 9.1179), 'right_shoulder': (8.2882, 48.7867, -3.966),
         'right_elbow': (42.6406, 19.9557), 'right_wrist': (-6.4183, 12.9499),
     })
     human.KeyJoints(26.7, {
         'spine_lumbar': (10.6593, -6.8273, 8.8273), 'spine_thoracic': (-5.2375, -7.7689, 9.1325),
-        'neck': (32.7555, -4.1033, -41.2532), 'head': (12.9565, -1.0498),
-        'right_clavicle': (10.7227, 8.1438), 'right_shoulder': (13.2397, 42.7525, -6.3197),
+        'neck': (32.7555, -4.1032, -41.2533), 'head': (12.9565, -1.0498),
+        'right_clavicle': (10.7228, 8.1438), 'right_shoulder': (13.2396, 42.7525, -6.3197),
         'right_elbow': (44.7699, 15.3575), 'right_wrist': (-5.8324, 14.5065),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.8, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(26.9, {
-        'spine_lumbar': (12.2801, -2.3965, 10.4429), 'spine_thoracic': (-8.7246, -4.2065, 10.0231),
-        'neck': (32.4888, -4.6826, -42.5231), 'head': (12.4334, -1.1027),
-        'right_clavicle': (8.1347, 8.5341), 'right_shoulder': (18.9933, 41.0621, -10.9129),
-        'right_elbow': (44.4379, 9.8128), 'right_wrist': (-5.991, 12.4374),
+        'spine_lumbar': (12.2801, -2.3966, 10.4429), 'spine_thoracic': (-8.7246, -4.2065, 10.0231),
+        'neck': (32.4888, -4.6825, -42.5232), 'head': (12.4334, -1.1027),
+        'right_clavicle': (8.1347, 8.5341), 'right_shoulder': (18.9933, 41.0621, -10.913),
+        'right_elbow': (44.4379, 9.8128), 'right_wrist': (-5.9911, 12.4374),
     })
     human.KeyJoints(27.0, {
         'spine_lumbar': (13.6973, -5.0241, 9.6439), 'spine_thoracic': (-6.2049, -8.1104, 9.8596),
         'neck': (32.9373, -4.6775, -43.6716), 'head': (12.8024, -1.1096),
-        'right_clavicle': (12.1703, 8.5496), 'right_shoulder': (15.0921, 44.5163, -7.3789),
+        'right_clavicle': (12.1703, 8.5496), 'right_shoulder': (15.092, 44.5163, -7.3789),
         'right_elbow': (43.9252, 14.6051), 'right_wrist': (-5.962, 13.4989),
     })
     human.KeyJoints(27.1, {
         'spine_lumbar': (14.8073, -10.3874, 8.6191), 'spine_thoracic': (-2.9229, -10.0, 9.6483),
-        'neck': (33.7121, -4.7228, -45.8389), 'head': (13.4165, -1.1292),
+        'neck': (33.7121, -4.7227, -45.8389), 'head': (13.4165, -1.1292),
         'right_clavicle': (15.0175, 9.0434), 'right_shoulder': (9.8848, 48.8753, -5.4024),
         'right_elbow': (42.8508, 18.7049), 'right_wrist': (-6.4555, 13.1752),
     })
     human.KeyJoints(27.2, {
         'spine_lumbar': (11.3861, -11.5215, 8.1878), 'spine_thoracic': (-2.4389, -9.5598, 9.1782),
         'neck': (33.4183, -4.116, -42.9136), 'head': (13.4087, -1.0234),
-        'right_clavicle': (13.2391, 8.6805), 'right_shoulder': (8.9268, 45.8081, -4.1365),
+        'right_clavicle': (13.2391, 8.6805), 'right_shoulder': (8.9267, 45.8081, -4.1365),
         'right_elbow': (43.7674, 19.1307), 'right_wrist': (-6.1613, 14.0095),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (11.044, -2.685, 10.2086), 'spine_thoracic': (-8.7687, -3.9282, 9.672),
-        'neck': (32.4382, -4.3809, -41.4387), 'head': (12.5518, -1.0801),
+        'spine_lumbar': (11.044, -2.685, 10.2086), 'spine_thoracic': (-8.7687, -3.9283, 9.672),
+        'neck': (32.4382, -4.3809, -41.4388), 'head': (12.5518, -1.0801),
         'right_clavicle': (7.1839, 8.3466), 'right_shoulder': (18.9089, 39.7985, -10.8123),
         'right_elbow': (44.5678, 9.4804), 'right_wrist': (-5.9442, 12.6094),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.4, {
-        'spine_lumbar': (11.4673, -1.5492, 10.7741), 'spine_thoracic': (-9.8588, -2.4748, 10.0569),
+        'spine_lumbar': (11.4673, -1.5492, 10.7742), 'spine_thoracic': (-9.8588, -2.4748, 10.0569),
         'neck': (32.4122, -4.5868, -42.0238), 'head': (12.4224, -1.0945),
-        'right_clavicle': (6.1944, 8.5249), 'right_shoulder': (20.7119, 39.1778, -12.5331),
+        'right_clavicle': (6.1944, 8.5249), 'right_shoulder': (20.7119, 39.1778, -12.5332),
         'right_elbow': (44.3888, 7.5244), 'right_wrist': (-6.0354, 11.3944),
     })
     human.KeyJoints(27.5, {
         'spine_lumbar': (13.1532, -3.7606, 9.9971), 'spine_thoracic': (-7.3026, -6.4146, 9.9367),
-        'neck': (32.6979, -4.7171, -43.1763), 'head': (12.5854, -1.1087),
-        'right_clavicle': (10.4801, 8.5269), 'right_shoulder': (16.8006, 43.1595, -8.9059),
-        'right_elbow': (44.2578, 12.5809), 'right_wrist': (-5.9606, 13.2722),
+        'neck': (32.6979, -4.7171, -43.1764), 'head': (12.5854, -1.1087),
+        'right_clavicle': (10.4801, 8.5269), 'right_shoulder': (16.8005, 43.1595, -8.9059),
+        'right_elbow': (44.2579, 12.5809), 'right_wrist': (-5.9606, 13.2722),
     })
     human.KeyJoints(27.6, {
-        'spine_lumbar': (14.4711, -7.651, 9.0185), 'spine_thoracic': (-4.3987, -10.0, 9.7016),
+        'spine_lumbar': (14.4712, -7.651, 9.0185), 'spine_thoracic': (-4.3987, -10.0, 9.7016),
         'neck': (33.3683, -4.6347, -44.6593), 'head': (13.1799, -1.1148),
-        'right_clavicle': (13.6039, 8.7992), 'right_shoulder': (12.2848, 46.8742, -6.1463),
-        'right_elbow': (43.5287, 16.8848), 'right_wrist': (-6.1561, 13.5465),
+        'right_clavicle': (13.6039, 8.7992), 'right_shoulder': (12.2847, 46.8742, -6.1463),
+        'right_elbow': (43.5287, 16.8848), 'right_wrist': (-6.1562, 13.5465),
     })
     human.KeyJoints(27.7, {
         'spine_lumbar': (12.904, -12.7265, 8.088), 'spine_thoracic': (-1.7681, -10.0, 9.3382),
-        'neck': (33.7446, -4.3451, -44.7008), 'head': (13.5991, -1.0848),
-        'right_clavicle': (15.0461, 9.0511), 'right_shoulder': (7.9219, 48.1628, -3.7121),
+        'neck': (33.7446, -4.345, -44.7008), 'head': (13.5991, -1.0848),
+        'right_clavicle': (15.0461, 9.0511), 'right_shoulder': (7.9219, 48.1628, -3.7122),
         'right_elbow': (42.8735, 20.0752), 'right_wrist': (-6.3815, 13.2832),
     })
     human.KeyJoints(27.8, {
-        'spine_lumbar': (10.6172, -5.6867, 9.059), 'spine_thoracic': (-6.0494, -7.1217, 9.1323),
+        'spine_lumbar': (10.6173, -5.6868, 9.059), 'spine_thoracic': (-6.0494, -7.1217, 9.1323),
         'neck': (32.605, -4.1048, -41.0562), 'head': (12.827, -1.0631),
-        'right_clavicle': (9.9424, 8.1036), 'right_shoulder': (14.5149, 41.9745, -7.0969),
+        'right_clavicle': (9.9424, 8.1036), 'right_shoulder': (14.5148, 41.9745, -7.0969),
         'right_elbow': (44.8425, 14.1547), 'right_wrist': (-5.8076, 14.531),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.9, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(28.0, {
         'spine_lumbar': (12.5126, -2.7039, 10.335), 'spine_thoracic': (-8.3734, -4.7501, 10.0048),
-        'neck': (32.5293, -4.7006, -42.6835), 'head': (12.4575, -1.1047),
-        'right_clavicle': (8.726, 8.5317), 'right_shoulder': (18.4552, 41.6117, -10.4149),
+        'neck': (32.5293, -4.7006, -42.6836), 'head': (12.4575, -1.1047),
+        'right_clavicle': (8.726, 8.5317), 'right_shoulder': (18.4552, 41.6118, -10.4149),
         'right_elbow': (44.4193, 10.5089), 'right_wrist': (-5.9803, 12.6964),
     })
     human.KeyJoints(28.1, {
-        'spine_lumbar': (13.8493, -5.4763, 9.528), 'spine_thoracic': (-5.843, -8.6854, 9.8363),
+        'spine_lumbar': (13.8493, -5.4763, 9.528), 'spine_thoracic': (-5.843, -8.6855, 9.8363),
         'neck': (33.0314, -4.6458, -43.8255), 'head': (12.8954, -1.1094),
-        'right_clavicle': (12.7596, 8.5671), 'right_shoulder': (14.5286, 44.8947, -6.8044),
-        'right_elbow': (43.7539, 15.2806), 'right_wrist': (-5.9653, 13.4843),
+        'right_clavicle': (12.7596, 8.5671), 'right_shoulder': (14.5285, 44.8947, -6.8044),
+        'right_elbow': (43.7539, 15.2806), 'right_wrist': (-5.9653, 13.4844),
     })
     human.KeyJoints(28.2, {
-        'spine_lumbar': (14.8581, -11.2296, 8.4776), 'spine_thoracic': (-2.5438, -10.0, 9.6504),
-        'neck': (33.8314, -4.7168, -46.1228), 'head': (13.5126, -1.1314),
+        'spine_lumbar': (14.8582, -11.2297, 8.4776), 'spine_thoracic': (-2.5438, -10.0, 9.6504),
+        'neck': (33.8314, -4.7167, -46.1228), 'head': (13.5126, -1.1314),
         'right_clavicle': (15.8088, 9.1586), 'right_shoulder': (9.2495, 49.2697, -4.7324),
-        'right_elbow': (42.4863, 19.4755), 'right_wrist': (-6.4526, 12.7023),
+        'right_elbow': (42.4864, 19.4755), 'right_wrist': (-6.4526, 12.7023),
     })
     human.KeyJoints(28.3, {
-        'spine_lumbar': (11.068, -10.0332, 8.3686), 'spine_thoracic': (-3.2876, -9.0532, 9.1572),
+        'spine_lumbar': (11.0681, -10.0332, 8.3686), 'spine_thoracic': (-3.2877, -9.0532, 9.1572),
         'neck': (33.2336, -4.1047, -42.4345), 'head': (13.2587, -1.0201),
-        'right_clavicle': (12.4297, 8.4744), 'right_shoulder': (10.2279, 44.7715, -4.7574),
+        'right_clavicle': (12.4297, 8.4744), 'right_shoulder': (10.2278, 44.7715, -4.7574),
         'right_elbow': (44.1631, 18.0176), 'right_wrist': (-6.0353, 14.2179),
     })
     human.KeyJoints(28.4, {
-        'spine_lumbar': (11.2186, -1.9456, 10.564), 'spine_thoracic': (-9.5052, -2.9426, 9.8929),
-        'neck': (32.4195, -4.4799, -41.692), 'head': (12.4833, -1.0869),
-        'right_clavicle': (6.4396, 8.446), 'right_shoulder': (20.1119, 39.2669, -11.9485),
+        'spine_lumbar': (11.2187, -1.9456, 10.564), 'spine_thoracic': (-9.5052, -2.9426, 9.8929),
+        'neck': (32.4195, -4.4798, -41.692), 'head': (12.4833, -1.0869),
+        'right_clavicle': (6.4396, 8.446), 'right_shoulder': (20.1118, 39.2669, -11.9485),
         'right_elbow': (44.4554, 8.1436), 'right_wrist': (-6.0001, 11.823),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.5, {
-        'spine_lumbar': (11.7844, -1.841, 10.6529), 'spine_thoracic': (-9.4305, -3.1232, 10.0497),
+        'spine_lumbar': (11.7844, -1.8411, 10.6529), 'spine_thoracic': (-9.4305, -3.1232, 10.0497),
         'neck': (32.431, -4.6296, -42.2077), 'head': (12.4152, -1.0979),
         'right_clavicle': (6.9313, 8.5326), 'right_shoulder': (20.0665, 39.9069, -11.9186),
         'right_elbow': (44.4257, 8.3951), 'right_wrist': (-6.0172, 11.8242),
     })
     human.KeyJoints(28.6, {
-        'spine_lumbar': (13.3443, -4.1555, 9.8816), 'spine_thoracic': (-6.9423, -6.9736, 9.9114),
-        'neck': (32.7693, -4.7121, -43.3409), 'head': (12.6472, -1.1094),
-        'right_clavicle': (11.0486, 8.5293), 'right_shoulder': (16.2404, 43.6319, -8.4021),
+        'spine_lumbar': (13.3443, -4.1556, 9.8816), 'spine_thoracic': (-6.9423, -6.9736, 9.9114),
+        'neck': (32.7693, -4.712, -43.3409), 'head': (12.6472, -1.1094),
+        'right_clavicle': (11.0486, 8.5293), 'right_shoulder': (16.2403, 43.6319, -8.4022),
         'right_elbow': (44.1677, 13.2576), 'right_wrist': (-5.9595, 13.3893),
     })
     human.KeyJoints(28.7, {
         'spine_lumbar': (14.5326, -8.3579, 8.889), 'spine_thoracic': (-4.0752, -10.0, 9.691),
-        'neck': (33.4528, -4.6467, -44.916), 'head': (13.2437, -1.1174),
-        'right_clavicle': (14.4003, 8.8508), 'right_shoulder': (11.7048, 47.2906, -5.4671),
+        'neck': (33.4528, -4.6467, -44.9161), 'head': (13.2437, -1.1174),
+        'right_clavicle': (14.4003, 8.8508), 'right_shoulder': (11.7047, 47.2906, -5.4671),
         'right_elbow': (43.246, 17.6524), 'right_wrist': (-6.1811, 13.2869),
     })
     human.KeyJoints(28.8, {
-        'spine_lumbar': (12.1526, -12.9067, 8.0318), 'spine_thoracic': (-1.6692, -10.0, 9.2363),
-        'neck': (33.691, -4.1938, -43.9691), 'head': (13.5997, -1.0459),
-        'right_clavicle': (14.5276, 8.9739), 'right_shoulder': (7.7511, 47.4873, -3.597),
-        'right_elbow': (43.1187, 20.1243), 'right_wrist': (-6.3381, 13.5728),
+        'spine_lumbar': (12.1527, -12.9067, 8.0318), 'spine_thoracic': (-1.6692, -10.0, 9.2363),
+        'neck': (33.6911, -4.1938, -43.9691), 'head': (13.5997, -1.0459),
+        'right_clavicle': (14.5276, 8.9739), 'right_shoulder': (7.751, 47.4873, -3.597),
+        'right_elbow': (43.1187, 20.1242), 'right_wrist': (-6.3381, 13.5728),
     })
     human.KeyJoints(28.9, {
         'spine_lumbar': (10.6945, -4.6728, 9.3778), 'spine_thoracic': (-6.9037, -6.2346, 9.23),
-        'neck': (32.5241, -4.1709, -41.1321), 'head': (12.719, -1.0695),
-        'right_clavicle': (9.0731, 8.1476), 'right_shoulder': (15.883, 41.2353, -8.1392),
+        'neck': (32.5241, -4.1709, -41.1322), 'head': (12.719, -1.0695),
+        'right_clavicle': (9.0731, 8.1476), 'right_shoulder': (15.8829, 41.2353, -8.1393),
         'right_elbow': (44.7928, 12.7543), 'right_wrist': (-5.8323, 14.1833),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.0, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(29.1, {
         'spine_lumbar': (12.7353, -3.0322, 10.225), 'spine_thoracic': (-8.0206, -5.2979, 9.9841),
         'neck': (32.5773, -4.7133, -42.8457), 'head': (12.49, -1.1063),
-        'right_clavicle': (9.313, 8.5287), 'right_shoulder': (17.9123, 42.1439, -9.9161),
-        'right_elbow': (44.3845, 11.2005), 'right_wrist': (-5.9715, 12.9225),
+        'right_clavicle': (9.313, 8.5287), 'right_shoulder': (17.9122, 42.1439, -9.9161),
+        'right_elbow': (44.3845, 11.2005), 'right_wrist': (-5.9716, 12.9225),
     })
     human.KeyJoints(29.2, {
         'spine_lumbar': (14.0045, -5.9841, 9.4031), 'spine_thoracic': (-5.4575, -9.248, 9.8109),
         'neck': (33.1344, -4.6165, -43.9937), 'right_clavicle': (13.2448, 8.5954),
-        'right_shoulder': (13.9305, 45.2926, -6.3501), 'right_elbow': (43.6028, 15.916),
+        'right_shoulder': (13.9305, 45.2927, -6.3502), 'right_elbow': (43.6028, 15.916),
         'right_wrist': (-5.9709, 13.4413),
     })
     human.KeyJoints(29.3, {
-        'spine_lumbar': (14.6784, -11.8073, 8.3468), 'spine_thoracic': (-2.2576, -10.0, 9.6201),
+        'spine_lumbar': (14.6784, -11.8074, 8.3468), 'spine_thoracic': (-2.2576, -10.0, 9.6201),
         'neck': (33.8313, -4.6652, -45.9799), 'head': (13.5658, -1.1283),
         'right_clavicle': (15.8382, 9.1619), 'right_shoulder': (8.7626, 49.2142, -4.3091),
-        'right_elbow': (42.4786, 19.7707), 'right_wrist': (-6.4437, 12.6953),
+        'right_elbow': (42.4786, 19.7707), 'right_wrist': (-6.4437, 12.6954),
     })
     human.KeyJoints(29.4, {
         'spine_lumbar': (10.8189, -8.3836, 8.5879), 'spine_thoracic': (-4.2616, -8.4389, 9.1418),
-        'neck': (33.005, -4.1038, -41.8339), 'head': (13.1129, -1.0301),
-        'right_clavicle': (11.5777, 8.2825), 'right_shoulder': (11.7272, 43.7261, -5.507),
+        'neck': (33.005, -4.1038, -41.834), 'head': (13.1129, -1.0301),
+        'right_clavicle': (11.5777, 8.2825), 'right_shoulder': (11.7271, 43.7261, -5.507),
         'right_elbow': (44.5187, 16.7121), 'right_wrist': (-5.9176, 14.3908),
     })
     human.KeyJoints(29.5, {
         'spine_lumbar': (11.3314, -1.5139, 10.7827), 'spine_thoracic': (-9.9456, -2.3364, 10.0355),
-        'neck': (32.4082, -4.5563, -41.9153), 'head': (12.4352, -1.0922),
+        'neck': (32.4082, -4.5562, -41.9153), 'head': (12.4352, -1.0922),
         'right_clavicle': (5.995, 8.5102), 'right_shoulder': (20.8329, 38.9571, -12.646),
-        'right_elbow': (44.3828, 7.3344), 'right_wrist': (-6.0362, 11.3154),
+        'right_elbow': (44.3828, 7.3344), 'right_wrist': (-6.0362, 11.3155),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.6, {
-        'spine_lumbar': (12.0345, -2.106, 10.5501), 'spine_thoracic': (-9.0808, -3.6581, 10.0383),
+        'spine_lumbar': (12.0345, -2.106, 10.5501), 'spine_thoracic': (-9.0808, -3.6582, 10.0383),
         'neck': (32.456, -4.6588, -42.3626), 'head': (12.4209, -1.1004),
-        'right_clavicle': (7.5297, 8.5344), 'right_shoulder': (19.5362, 40.4873, -11.4195),
-        'right_elbow': (44.4388, 9.1004), 'right_wrist': (-6.0035, 12.1436),
+        'right_clavicle': (7.5297, 8.5344), 'right_shoulder': (19.5362, 40.4873, -11.4196),
+        'right_elbow': (44.4389, 9.1004), 'right_wrist': (-6.0035, 12.1436),
     })
     human.KeyJoints(29.7, {
-        'spine_lumbar': (13.5247, -4.5739, 9.7645), 'spine_thoracic': (-6.5786, -7.5358, 9.8857),
-        'neck': (32.8486, -4.6982, -43.5052), 'head': (12.719, -1.1097),
+        'spine_lumbar': (13.5248, -4.5739, 9.7645), 'spine_thoracic': (-6.5786, -7.5358, 9.8857),
+        'neck': (32.8486, -4.6982, -43.5053), 'head': (12.719, -1.1097),
         'right_clavicle': (11.6092, 8.5364), 'right_shoulder': (15.6741, 44.0821, -7.8961),
-        'right_elbow': (44.0577, 13.9287), 'right_wrist': (-5.9593, 13.4626),
+        'right_elbow': (44.0578, 13.9287), 'right_wrist': (-5.9593, 13.4626),
     })
     human.KeyJoints(29.8, {
         'spine_lumbar': (14.6801, -9.3528, 8.7563), 'spine_thoracic': (-3.5023, -10.0, 9.6638),
         'neck': (33.5779, -4.6923, -45.3839), 'head': (13.3249, -1.1236),
-        'right_clavicle': (14.6898, 8.9369), 'right_shoulder': (10.7954, 48.1185, -5.4459),
+        'right_clavicle': (14.6898, 8.9369), 'right_shoulder': (10.7953, 48.1185, -5.4459),
         'right_elbow': (43.0641, 18.1662), 'right_wrist': (-6.34, 13.2471),
     })
     human.KeyJoints(29.9, {
-        'spine_lumbar': (11.757, -12.5828, 8.0667), 'spine_thoracic': (-1.8471, -9.8995, 9.2046),
+        'spine_lumbar': (11.7571, -12.5829, 8.0667), 'spine_thoracic': (-1.8471, -9.8995, 9.2046),
         'neck': (33.5867, -4.1467, -43.41), 'head': (13.5497, -1.0325),
-        'right_clavicle': (13.9636, 8.8624), 'right_shoulder': (8.0223, 46.7547, -3.7189),
-        'right_elbow': (43.3931, 19.8952), 'right_wrist': (-6.2717, 13.7849),
+        'right_clavicle': (13.9636, 8.8624), 'right_shoulder': (8.0222, 46.7547, -3.7189),
+        'right_elbow': (43.3931, 19.8952), 'right_wrist': (-6.2718, 13.7849),
     })
     human.KeyJoints(30.0, {
-        'spine_lumbar': (10.8513, -3.641, 9.7835), 'spine_thoracic': (-7.8481, -5.1079, 9.4283),
-        'neck': (32.4679, -4.2834, -41.275), 'head': (12.6261, -1.0746),
-        'right_clavicle': (8.1155, 8.2369), 'right_shoulder': (17.4109, 40.488, -9.4485),
+        'spine_lumbar': (10.8513, -3.6411, 9.7835), 'spine_thoracic': (-7.8481, -5.1079, 9.4283),
+        'neck': (32.4679, -4.2834, -41.2751), 'head': (12.6261, -1.0746),
+        'right_clavicle': (8.1155, 8.2369), 'right_shoulder': (17.4108, 40.488, -9.4485),
         'right_elbow': (44.6918, 11.1206), 'right_wrist': (-5.8825, 13.4771),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.1, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(30.2, {
         'spine_lumbar': (12.9477, -3.382, 10.1129), 'spine_thoracic': (-7.6659, -5.8496, 9.9614),
         'neck': (32.633, -4.7172, -43.0092), 'head': (12.5321, -1.1076),
-        'right_clavicle': (9.8946, 8.5272), 'right_shoulder': (17.364, 42.6572, -9.416),
-        'right_elbow': (44.3316, 11.8874), 'right_wrist': (-5.9651, 13.1127),
+        'right_clavicle': (9.8946, 8.5272), 'right_shoulder': (17.3639, 42.6573, -9.416),
+        'right_elbow': (44.3316, 11.8874), 'right_wrist': (-5.9651, 13.1128),
     })
     human.KeyJoints(30.3, {
-        'spine_lumbar': (14.2988, -6.8177, 9.1995), 'spine_thoracic': (-4.8774, -9.8347, 9.7409),
+        'spine_lumbar': (14.2988, -6.8178, 9.1995), 'spine_thoracic': (-4.8774, -9.8347, 9.7409),
         'neck': (33.2593, -4.6238, -44.3313), 'right_clavicle': (13.3399, 8.7047),
-        'right_shoulder': (13.0578, 46.1656, -6.3253), 'right_elbow': (43.5911, 16.3387),
+        'right_shoulder': (13.0577, 46.1656, -6.3253), 'right_elbow': (43.5911, 16.3387),
         'right_wrist': (-6.0779, 13.549),
     })
     human.KeyJoints(30.4, {
-        'spine_lumbar': (13.9042, -12.3249, 8.2067), 'spine_thoracic': (-1.9851, -10.0, 9.494),
+        'spine_lumbar': (13.9043, -12.3249, 8.2067), 'spine_thoracic': (-1.9851, -10.0, 9.494),
         'neck': (33.7871, -4.5141, -45.3771), 'head': (13.5963, -1.1149),
         'right_clavicle': (15.5248, 9.1188), 'right_shoulder': (8.2955, 48.7959, -3.9711),
         'right_elbow': (42.6372, 19.9532), 'right_wrist': (-6.4189, 12.9447),
     })
     human.KeyJoints(30.5, {
-        'spine_lumbar': (10.661, -6.8505, 8.8233), 'spine_thoracic': (-5.2222, -7.78, 9.1326),
-        'neck': (32.7591, -4.1033, -41.2607), 'head': (12.959, -1.0494),
-        'right_clavicle': (10.7365, 8.1454), 'right_shoulder': (13.2159, 42.7674, -6.3062),
-        'right_elbow': (44.767, 15.3793), 'right_wrist': (-5.8334, 14.5052),
+        'spine_lumbar': (10.6611, -6.8505, 8.8233), 'spine_thoracic': (-5.2222, -7.78, 9.1326),
+        'neck': (32.7591, -4.1032, -41.2607), 'head': (12.959, -1.0495),
+        'right_clavicle': (10.7365, 8.1454), 'right_shoulder': (13.2159, 42.7674, -6.3063),
+        'right_elbow': (44.767, 15.3792), 'right_wrist': (-5.8334, 14.5052),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.6, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(30.7, {
-        'spine_lumbar': (12.2761, -2.3915, 10.4447), 'spine_thoracic': (-8.7305, -4.1974, 10.0234),
-        'neck': (32.4882, -4.6822, -42.5204), 'head': (12.4331, -1.1027),
+        'spine_lumbar': (12.2761, -2.3916, 10.4447), 'spine_thoracic': (-8.7305, -4.1974, 10.0234),
+        'neck': (32.4882, -4.6822, -42.5205), 'head': (12.4331, -1.1027),
         'right_clavicle': (8.1247, 8.5342), 'right_shoulder': (19.0023, 41.0527, -10.9213),
-        'right_elbow': (44.4381, 9.8011), 'right_wrist': (-5.9912, 12.4327),
+        'right_elbow': (44.4381, 9.801), 'right_wrist': (-5.9913, 12.4328),
     })
     human.KeyJoints(30.8, {
-        'spine_lumbar': (13.6945, -5.0164, 9.6459), 'spine_thoracic': (-6.2111, -8.1009, 9.86),
+        'spine_lumbar': (13.6945, -5.0165, 9.6459), 'spine_thoracic': (-6.2111, -8.1009, 9.86),
         'neck': (32.9358, -4.6779, -43.6689), 'head': (12.801, -1.1096),
-        'right_clavicle': (12.161, 8.5493), 'right_shoulder': (15.1017, 44.5093, -7.3875),
+        'right_clavicle': (12.1611, 8.5493), 'right_shoulder': (15.1017, 44.5094, -7.3875),
         'right_elbow': (43.9275, 14.5939), 'right_wrist': (-5.9619, 13.4985),
     })
     human.KeyJoints(30.9, {
-        'spine_lumbar': (14.8061, -10.372, 8.6215), 'spine_thoracic': (-2.9302, -10.0, 9.6482),
-        'neck': (33.7099, -4.7228, -45.833), 'head': (13.4148, -1.1291),
-        'right_clavicle': (15.0062, 9.0414), 'right_shoulder': (9.897, 48.8668, -5.4084),
+        'spine_lumbar': (14.8062, -10.372, 8.6215), 'spine_thoracic': (-2.9302, -10.0, 9.6482),
+        'neck': (33.7099, -4.7228, -45.8331), 'head': (13.4148, -1.1291),
+        'right_clavicle': (15.0062, 9.0414), 'right_shoulder': (9.8969, 48.8668, -5.4084),
         'right_elbow': (42.8565, 18.6926), 'right_wrist': (-6.4555, 13.1805),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (11.3919, -11.5435, 8.1853), 'spine_thoracic': (-2.4264, -9.567, 9.1786),
+        'spine_lumbar': (11.3919, -11.5436, 8.1853), 'spine_thoracic': (-2.4265, -9.567, 9.1786),
         'neck': (33.4214, -4.1164, -42.9216), 'head': (13.4113, -1.0235),
-        'right_clavicle': (13.2521, 8.6838), 'right_shoulder': (8.9078, 45.8249, -4.1276),
-        'right_elbow': (43.7608, 19.1468), 'right_wrist': (-6.1633, 14.0058),
+        'right_clavicle': (13.2521, 8.6838), 'right_shoulder': (8.9077, 45.8249, -4.1277),
+        'right_elbow': (43.7608, 19.1468), 'right_wrist': (-6.1633, 14.0059),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (11.0408, -2.6994, 10.2019), 'spine_thoracic': (-8.7545, -3.9469, 9.668),
-        'neck': (32.4386, -4.3794, -41.4353), 'head': (12.553, -1.0799),
-        'right_clavicle': (7.1983, 8.3448), 'right_shoulder': (18.8858, 39.8089, -10.7908),
+        'spine_lumbar': (11.0408, -2.6995, 10.2019), 'spine_thoracic': (-8.7545, -3.9469, 9.668),
+        'neck': (32.4386, -4.3793, -41.4353), 'head': (12.553, -1.08),
+        'right_clavicle': (7.1983, 8.3448), 'right_shoulder': (18.8857, 39.8089, -10.7908),
         'right_elbow': (44.5698, 9.5059), 'right_wrist': (-5.9432, 12.6238),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.2, {
         'spine_lumbar': (11.4622, -1.5447, 10.776), 'spine_thoracic': (-9.8655, -2.4646, 10.057),
-        'neck': (32.4119, -4.5861, -42.021), 'head': (12.4226, -1.0944),
-        'right_clavicle': (6.1828, 8.5247), 'right_shoulder': (20.7221, 39.1662, -12.5428),
+        'neck': (32.4119, -4.586, -42.021), 'head': (12.4226, -1.0944),
+        'right_clavicle': (6.1828, 8.5247), 'right_shoulder': (20.722, 39.1662, -12.5429),
         'right_elbow': (44.388, 7.5107), 'right_wrist': (-6.0357, 11.3874),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (13.1499, -3.7541, 9.9991), 'spine_thoracic': (-7.3087, -6.4052, 9.9371),
+        'spine_lumbar': (13.1499, -3.7542, 9.9991), 'spine_thoracic': (-7.3087, -6.4052, 9.9371),
         'neck': (32.6968, -4.7171, -43.1736), 'head': (12.5845, -1.1087),
         'right_clavicle': (10.4705, 8.5269), 'right_shoulder': (16.8099, 43.1514, -8.9144),
-        'right_elbow': (44.2592, 12.5694), 'right_wrist': (-5.9606, 13.2699),
+        'right_elbow': (44.2592, 12.5694), 'right_wrist': (-5.9606, 13.27),
     })
     human.KeyJoints(31.4, {
         'spine_lumbar': (14.47, -7.6393, 9.0208), 'spine_thoracic': (-4.4043, -10.0, 9.7019),
@@ -1949,50 +1949,50 @@ def remove_access_panel():
     human.KeyJoints(31.5, {
         'spine_lumbar': (12.9199, -12.7214, 8.0896), 'spine_thoracic': (-1.7709, -10.0, 9.3406),
         'neck': (33.7453, -4.3482, -44.7135), 'head': (13.5991, -1.0855),
-        'right_clavicle': (15.0547, 9.0523), 'right_shoulder': (7.9267, 48.1742, -3.7154),
-        'right_elbow': (42.8693, 20.0738), 'right_wrist': (-6.3822, 13.2776),
+        'right_clavicle': (15.0547, 9.0523), 'right_shoulder': (7.9267, 48.1742, -3.7155),
+        'right_elbow': (42.8693, 20.0737), 'right_wrist': (-6.3822, 13.2776),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (10.6169, -5.703, 9.0548), 'spine_thoracic': (-6.0365, -7.1334, 9.1319),
-        'neck': (32.6065, -4.1045, -41.0558), 'head': (12.8289, -1.0629),
+        'spine_lumbar': (10.6169, -5.7031, 9.0548), 'spine_thoracic': (-6.0365, -7.1334, 9.1319),
+        'neck': (32.6065, -4.1045, -41.0559), 'head': (12.8289, -1.0629),
         'right_clavicle': (9.9555, 8.1034), 'right_shoulder': (14.4944, 41.9864, -7.083),
         'right_elbow': (44.8427, 14.1749), 'right_wrist': (-5.8075, 14.5326),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.7, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (12.5088, -2.6986, 10.3368), 'spine_thoracic': (-8.3793, -4.7409, 10.0051),
+        'spine_lumbar': (12.5088, -2.6986, 10.3369), 'spine_thoracic': (-8.3793, -4.7409, 10.0051),
         'neck': (32.5286, -4.7003, -42.6808), 'head': (12.457, -1.1046),
-        'right_clavicle': (8.7161, 8.5317), 'right_shoulder': (18.4643, 41.6026, -10.4233),
+        'right_clavicle': (8.7161, 8.5317), 'right_shoulder': (18.4643, 41.6027, -10.4233),
         'right_elbow': (44.4196, 10.4972), 'right_wrist': (-5.9805, 12.6923),
     })
     human.KeyJoints(31.9, {
         'spine_lumbar': (13.847, -5.4688, 9.5299), 'spine_thoracic': (-5.8489, -8.6756, 9.8367),
-        'neck': (33.0298, -4.6466, -43.8231), 'head': (12.8937, -1.1094),
+        'neck': (33.0298, -4.6465, -43.8231), 'head': (12.8937, -1.1094),
         'right_clavicle': (12.7486, 8.5668), 'right_shoulder': (14.5377, 44.8891, -6.8156),
-        'right_elbow': (43.7575, 15.2689), 'right_wrist': (-5.9652, 13.4853),
+        'right_elbow': (43.7575, 15.2689), 'right_wrist': (-5.9653, 13.4853),
     })
     human.KeyJoints(32.0, {
         'spine_lumbar': (14.8577, -11.2177, 8.4799), 'spine_thoracic': (-2.5492, -10.0, 9.6503),
         'neck': (33.8302, -4.7169, -46.1201), 'head': (13.5113, -1.1314),
-        'right_clavicle': (15.7995, 9.1574), 'right_shoulder': (9.2587, 49.2661, -4.7438),
+        'right_clavicle': (15.7995, 9.1574), 'right_shoulder': (9.2586, 49.2661, -4.7438),
         'right_elbow': (42.4904, 19.4655), 'right_wrist': (-6.4527, 12.7084),
     })
     human.KeyJoints(32.1, {
         'spine_lumbar': (11.0729, -10.0604, 8.3651), 'spine_thoracic': (-3.2719, -9.0628, 9.1576),
-        'neck': (33.2366, -4.1047, -42.4428), 'head': (13.2609, -1.02),
-        'right_clavicle': (12.4438, 8.4779), 'right_shoulder': (10.2038, 44.7893, -4.7456),
+        'neck': (33.2366, -4.1047, -42.4428), 'head': (13.2609, -1.0201),
+        'right_clavicle': (12.4438, 8.4779), 'right_shoulder': (10.2037, 44.7893, -4.7457),
         'right_elbow': (44.1566, 18.0384), 'right_wrist': (-6.0375, 14.2146),
     })
     human.KeyJoints(32.2, {
         'spine_lumbar': (11.2161, -1.9558, 10.5589), 'spine_thoracic': (-9.4949, -2.9567, 9.8897),
-        'neck': (32.4198, -4.4782, -41.6874), 'head': (12.4844, -1.0868),
-        'right_clavicle': (6.45, 8.4445), 'right_shoulder': (20.095, 39.2742, -11.9323),
+        'neck': (32.4198, -4.4782, -41.6875), 'head': (12.4844, -1.0868),
+        'right_clavicle': (6.45, 8.4445), 'right_shoulder': (20.0949, 39.2742, -11.9323),
         'right_elbow': (44.457, 8.1624), 'right_wrist': (-5.9993, 11.8345),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
@@ -2000,68 +2000,68 @@ def remove_access_panel():
         'spine_lumbar': (11.7801, -1.8368, 10.6546), 'spine_thoracic': (-9.4364, -3.1143, 10.0499),
         'neck': (32.4306, -4.6291, -42.2051), 'head': (12.4152, -1.0979),
         'right_clavicle': (6.9212, 8.5326), 'right_shoulder': (20.0754, 39.897, -11.927),
-        'right_elbow': (44.4254, 8.3832), 'right_wrist': (-6.0175, 11.8186),
+        'right_elbow': (44.4255, 8.3832), 'right_wrist': (-6.0175, 11.8187),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (13.3412, -4.1487, 9.8835), 'spine_thoracic': (-6.9484, -6.9641, 9.9119),
-        'neck': (32.7681, -4.7123, -43.3381), 'head': (12.6461, -1.1093),
-        'right_clavicle': (11.0391, 8.5292), 'right_shoulder': (16.2499, 43.6241, -8.4106),
-        'right_elbow': (44.1694, 13.2462), 'right_wrist': (-5.9595, 13.3875),
+        'spine_lumbar': (13.3412, -4.1487, 9.8835), 'spine_thoracic': (-6.9484, -6.9642, 9.9119),
+        'neck': (32.7681, -4.7122, -43.3382), 'head': (12.6461, -1.1094),
+        'right_clavicle': (11.0391, 8.5292), 'right_shoulder': (16.2498, 43.6241, -8.4107),
+        'right_elbow': (44.1694, 13.2462), 'right_wrist': (-5.9596, 13.3876),
     })
     human.KeyJoints(32.5, {
-        'spine_lumbar': (14.5312, -8.3445, 8.8912), 'spine_thoracic': (-4.0817, -10.0, 9.6912),
+        'spine_lumbar': (14.5313, -8.3446, 8.8912), 'spine_thoracic': (-4.0817, -10.0, 9.6912),
         'neck': (33.4512, -4.6464, -44.9109), 'head': (13.2426, -1.1174),
-        'right_clavicle': (14.3904, 8.8498), 'right_shoulder': (11.716, 47.282, -5.4725),
-        'right_elbow': (43.2504, 17.641), 'right_wrist': (-6.1804, 13.2895),
+        'right_clavicle': (14.3904, 8.8498), 'right_shoulder': (11.7159, 47.282, -5.4725),
+        'right_elbow': (43.2504, 17.641), 'right_wrist': (-6.1805, 13.2895),
     })
     human.KeyJoints(32.6, {
         'spine_lumbar': (12.161, -12.9059, 8.0321), 'spine_thoracic': (-1.6696, -10.0, 9.2371),
-        'neck': (33.6922, -4.1952, -43.9799), 'head': (13.5997, -1.0463),
-        'right_clavicle': (14.5361, 8.9752), 'right_shoulder': (7.7518, 47.4983, -3.5975),
-        'right_elbow': (43.1148, 20.1241), 'right_wrist': (-6.3388, 13.569),
+        'neck': (33.6922, -4.1951, -43.98), 'head': (13.5997, -1.0463),
+        'right_clavicle': (14.5361, 8.9752), 'right_shoulder': (7.7517, 47.4983, -3.5975),
+        'right_elbow': (43.1148, 20.124), 'right_wrist': (-6.3388, 13.569),
     })
     human.KeyJoints(32.7, {
         'spine_lumbar': (10.6924, -4.6903, 9.3715), 'spine_thoracic': (-6.8882, -6.2521, 9.2274),
         'neck': (32.5253, -4.1692, -41.1301), 'head': (12.7207, -1.0694),
-        'right_clavicle': (9.0888, 8.1464), 'right_shoulder': (15.858, 41.248, -8.1188),
+        'right_clavicle': (9.0888, 8.1464), 'right_shoulder': (15.858, 41.248, -8.1189),
         'right_elbow': (44.7941, 12.7805), 'right_wrist': (-5.8317, 14.1927),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.8, {
         'spine_lumbar': (11.35, -1.4467, 10.8178), 'spine_thoracic': (-10.0152, -2.2389, 10.059),
-        'neck': (32.4064, -4.57, -41.9574), 'head': (12.4269, -1.0932),
+        'neck': (32.4064, -4.57, -41.9575), 'head': (12.4269, -1.0932),
         'right_clavicle': (5.9247, 8.5208), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2316),
+        'right_elbow': (44.3708, 7.2056), 'right_wrist': (-6.0422, 11.2317),
     })
     human.KeyJoints(32.9, {
         'spine_lumbar': (12.7316, -3.0265, 10.2268), 'spine_thoracic': (-8.0266, -5.2887, 9.9845),
         'neck': (32.5764, -4.7131, -42.843), 'head': (12.4894, -1.1063),
-        'right_clavicle': (9.3031, 8.5287), 'right_shoulder': (17.9215, 42.1351, -9.9245),
+        'right_clavicle': (9.3031, 8.5287), 'right_shoulder': (17.9214, 42.1351, -9.9245),
         'right_elbow': (44.3853, 11.1889), 'right_wrist': (-5.9717, 12.9189),
     })
     human.KeyJoints(33.0, {
-        'spine_lumbar': (14.0012, -5.9737, 9.4056), 'spine_thoracic': (-5.4651, -9.2392, 9.8115),
-        'neck': (33.1326, -4.6166, -43.99), 'right_clavicle': (13.2416, 8.5948),
-        'right_shoulder': (13.9422, 45.2838, -6.3513), 'right_elbow': (43.6033, 15.9071),
+        'spine_lumbar': (14.0013, -5.9737, 9.4056), 'spine_thoracic': (-5.4651, -9.2393, 9.8115),
+        'neck': (33.1326, -4.6165, -43.9901), 'right_clavicle': (13.2416, 8.5948),
+        'right_shoulder': (13.9421, 45.2838, -6.3513), 'right_elbow': (43.6033, 15.9071),
         'right_wrist': (-5.9707, 13.4413),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (14.6871, -11.7981, 8.3491), 'spine_thoracic': (-2.2624, -10.0, 9.6215),
-        'neck': (33.8318, -4.6673, -45.9877), 'head': (13.565, -1.1285),
-        'right_clavicle': (15.8415, 9.1623), 'right_shoulder': (8.7708, 49.2186, -4.3152),
+        'spine_lumbar': (14.6872, -11.7981, 8.3491), 'spine_thoracic': (-2.2624, -10.0, 9.6215),
+        'neck': (33.8318, -4.6672, -45.9877), 'head': (13.565, -1.1285),
+        'right_clavicle': (15.8415, 9.1623), 'right_shoulder': (8.7707, 49.2187, -4.3152),
         'right_elbow': (42.4769, 19.7672), 'right_wrist': (-6.444, 12.6926),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (11.1296, -7.6082, 8.6657), 'spine_thoracic': (-4.3954, -8.3342, 9.142),
+        'spine_lumbar': (11.1297, -7.6082, 8.6657), 'spine_thoracic': (-4.3954, -8.3342, 9.142),
         'neck': (32.8862, -4.199, -41.9013), 'head': (12.9969, -1.0537),
-        'right_clavicle': (11.7748, 8.334), 'right_shoulder': (11.8985, 44.1143, -5.3845),
+        'right_clavicle': (11.7748, 8.334), 'right_shoulder': (11.8984, 44.1143, -5.3845),
         'right_elbow': (44.5134, 16.9266), 'right_wrist': (-5.9194, 14.3883),
     })
     human.KeyJoints(33.3, {
         'spine_lumbar': (7.2, -13.6658, 9.5815), 'spine_thoracic': (-8.3925, -4.4892, 9.1575),
         'neck': (34.9287, -2.6577, -41.1929), 'head': (14.9355, -0.6702),
-        'right_clavicle': (2.8652, 7.9025), 'right_shoulder': (18.6424, 33.9243, -16.4236),
-        'right_elbow': (36.7648, 3.1233), 'right_wrist': (-6.3379, -4.3494),
+        'right_clavicle': (2.8652, 7.9025), 'right_shoulder': (18.6423, 33.9243, -16.4237),
+        'right_elbow': (36.7649, 3.1233), 'right_wrist': (-6.3379, -4.3494),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=33.307971, duration=0.072)
@@ -2069,14 +2069,14 @@ def remove_access_panel():
     human.LookAt((20.0, 105.0, 112.0), start=33.379971, duration=0.2628)
     human.KeyJoints(33.4, {
         'spine_lumbar': (7.1241, -13.8817, 9.5906), 'neck': (34.8209, -2.5885, -40.6102),
-        'head': (14.8771, -0.6497), 'right_clavicle': (2.7151, 7.8999),
-        'right_shoulder': (18.715, 33.7563, -16.6404), 'right_elbow': (36.5418, 2.8816),
+        'head': (14.8771, -0.6498), 'right_clavicle': (2.7151, 7.8999),
+        'right_shoulder': (18.715, 33.7564, -16.6404), 'right_elbow': (36.5418, 2.8816),
         'right_wrist': (-6.3525, -4.8709),
     })
-    human.KeyJoints(33.5, {'neck': (30.2875, -1.9175, -25.4546), 'head': (11.7668, -0.417)})
+    human.KeyJoints(33.5, {'neck': (30.2875, -1.9174, -25.4546), 'head': (11.7668, -0.417)})
     human.KeyJoints(33.6, {
         'neck': (24.94, -1.1259, -7.5777), 'head': (8.098, -0.1425),
-        'right_shoulder': (18.715, 33.7563, -16.6404), 'right_elbow': (36.5418, 2.8816),
+        'right_shoulder': (18.715, 33.7564, -16.6404), 'right_elbow': (36.5418, 2.8816),
         'right_wrist': (-6.3525, -4.8709),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
@@ -2085,11 +2085,11 @@ def remove_access_panel():
     human.KeyJoints(33.7, {
         'neck': (24.173, -1.0124, -5.0135), 'head': (7.5718, -0.1032),
         'right_shoulder': (19.824, 32.3938, -15.4802), 'right_elbow': (36.4064, 3.511),
-        'right_wrist': (-6.1145, -5.4088),
+        'right_wrist': (-6.1145, -5.4087),
     })
     human.KeyJoints(33.8, {
-        'right_shoulder': (25.9724, 25.0075, -9.191), 'right_elbow': (35.6725, 6.9225),
-        'right_wrist': (-4.8241, -8.3278),
+        'right_shoulder': (25.9723, 25.0076, -9.191), 'right_elbow': (35.6725, 6.9225),
+        'right_wrist': (-4.8241, -8.3277),
     })
     human.KeyJoints(33.9, {
         'right_shoulder': (35.1594, 14.4512, -0.2025), 'right_elbow': (34.6235, 11.7982),
@@ -2113,616 +2113,616 @@ def remove_access_panel():
     human.KeyJoints(34.3, {
         'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
         'neck': (24.173, -1.0124, -5.0135), 'head': (7.5718, -0.1032),
-        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (57.1974, 2.088, 10.9299),
-        'right_elbow': (31.9977, 18.3404), 'right_wrist': (-1.0805, -21.1506),
+        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (57.1973, 2.088, 10.9299),
+        'right_elbow': (31.9979, 18.3404), 'right_wrist': (-1.0805, -21.1505),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.4, {
         'spine_lumbar': (7.0985, -14.8697, 9.7278), 'spine_thoracic': (-9.4567, -5.5481, 9.4087),
-        'neck': (24.4819, -1.0955, -5.9481), 'head': (8.0711, -0.1162),
-        'right_clavicle': (4.173, 7.9635), 'right_shoulder': (56.3311, 3.6604, 11.8034),
+        'neck': (24.4819, -1.0955, -5.9482), 'head': (8.0711, -0.1162),
+        'right_clavicle': (4.173, 7.9635), 'right_shoulder': (56.331, 3.6604, 11.8034),
         'right_elbow': (32.1932, 19.5197), 'right_wrist': (-0.7602, -20.2424),
     })
     human.KeyJoints(34.5, {
         'spine_lumbar': (4.6137, -19.247, 9.0278), 'spine_thoracic': (-10.3648, -9.891, 9.3675),
-        'neck': (25.0806, -1.16, -7.0352), 'head': (9.0711, -0.1445),
-        'right_clavicle': (8.9561, 7.9177), 'right_shoulder': (56.102, 5.4941, 15.0834),
+        'neck': (25.0806, -1.16, -7.0353), 'head': (9.0712, -0.1445),
+        'right_clavicle': (8.9561, 7.9177), 'right_shoulder': (56.1019, 5.4941, 15.0834),
         'right_elbow': (30.311, 23.1698), 'right_wrist': (0.5741, -23.108),
     })
     human.KeyJoints(34.6, {
         'spine_lumbar': (2.4046, -19.998, 9.3021), 'spine_thoracic': (-11.5292, -10.0, 10.8411),
-        'neck': (25.9779, -1.1741, -7.9324), 'head': (10.3125, -0.1686),
-        'right_clavicle': (16.5638, 9.432), 'right_shoulder': (57.0426, 7.49, 20.6696),
-        'right_elbow': (26.5881, 29.0807), 'right_wrist': (3.1652, -26.4598),
+        'neck': (25.9779, -1.1741, -7.9325), 'head': (10.3125, -0.1686),
+        'right_clavicle': (16.5638, 9.4321), 'right_shoulder': (57.0425, 7.4901, 20.6696),
+        'right_elbow': (26.5882, 29.0807), 'right_wrist': (3.1651, -26.4599),
     })
     human.KeyJoints(34.7, {
-        'spine_lumbar': (-3.5601, -20.0, 10.2989), 'spine_thoracic': (-12.1866, -10.0, 12.7724),
+        'spine_lumbar': (-3.56, -20.0, 10.2989), 'spine_thoracic': (-12.1866, -10.0, 12.7724),
         'neck': (27.7936, -1.0108, -7.9107), 'head': (12.17, -0.1692),
-        'right_clavicle': (20.5889, 11.3847), 'right_shoulder': (55.9029, 5.0745, 21.9561),
-        'right_elbow': (19.5344, 31.0387), 'right_wrist': (4.4817, -24.5737),
+        'right_clavicle': (20.5889, 11.3847), 'right_shoulder': (55.9028, 5.0746, 21.9561),
+        'right_elbow': (19.5345, 31.0387), 'right_wrist': (4.4817, -24.5738),
     })
     human.KeyJoints(34.8, {
         'spine_lumbar': (1.9298, -18.2373, 8.6792), 'spine_thoracic': (-9.0976, -9.2934, 9.0385),
         'neck': (25.2273, -0.868, -4.9968), 'head': (9.0876, -0.1331),
-        'right_clavicle': (7.2739, 8.0852), 'right_shoulder': (54.9259, 2.5162, 15.2871),
-        'right_elbow': (31.0215, 22.3254), 'right_wrist': (0.6024, -23.2452),
+        'right_clavicle': (7.2739, 8.0852), 'right_shoulder': (54.9259, 2.5163, 15.287),
+        'right_elbow': (31.0216, 22.3253), 'right_wrist': (0.6024, -23.2451),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.9, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(35.0, {
-        'spine_lumbar': (5.4751, -17.6756, 9.5079), 'spine_thoracic': (-10.4338, -8.1667, 9.4826),
+        'spine_lumbar': (5.4751, -17.6757, 9.5079), 'spine_thoracic': (-10.4338, -8.1667, 9.4826),
         'neck': (24.9704, -1.1575, -6.9339), 'head': (8.9162, -0.1413),
-        'right_clavicle': (6.7458, 7.8987), 'right_shoulder': (55.4238, 4.9719, 13.2328),
-        'right_elbow': (31.1089, 21.3269), 'right_wrist': (-0.1567, -21.9018),
+        'right_clavicle': (6.7458, 7.8987), 'right_shoulder': (55.4237, 4.9719, 13.2327),
+        'right_elbow': (31.109, 21.3269), 'right_wrist': (-0.1567, -21.9018),
     })
     human.KeyJoints(35.1, {
         'spine_lumbar': (3.3676, -19.1783, 9.0843), 'spine_thoracic': (-10.8231, -10.0, 10.0821),
         'neck': (25.505, -1.121, -7.1246), 'head': (9.6534, -0.155),
-        'right_clavicle': (13.3433, 8.7353), 'right_shoulder': (56.9623, 6.4753, 18.5542),
-        'right_elbow': (28.4346, 26.6962), 'right_wrist': (2.1408, -25.9157),
+        'right_clavicle': (13.3433, 8.7353), 'right_shoulder': (56.9622, 6.4753, 18.5542),
+        'right_elbow': (28.4347, 26.6962), 'right_wrist': (2.1408, -25.9157),
     })
     human.KeyJoints(35.2, {
         'spine_lumbar': (-0.0498, -20.0, 10.2509), 'spine_thoracic': (-12.7036, -10.0, 12.8264),
         'neck': (27.2366, -1.2491, -9.2894), 'head': (11.6162, -0.1726),
-        'right_clavicle': (21.3603, 11.2626), 'right_shoulder': (57.5839, 7.6112, 21.5349),
-        'right_elbow': (19.0775, 31.3321), 'right_wrist': (4.3411, -24.1896),
+        'right_clavicle': (21.3603, 11.2626), 'right_shoulder': (57.5838, 7.6112, 21.5349),
+        'right_elbow': (19.0776, 31.3322), 'right_wrist': (4.3411, -24.1896),
     })
     human.KeyJoints(35.3, {
         'spine_lumbar': (-1.334, -19.5544, 8.9059), 'spine_thoracic': (-9.9237, -10.0, 9.814),
         'neck': (26.2915, -0.8286, -5.4162), 'head': (10.5474, -0.1595),
-        'right_clavicle': (12.6608, 8.8868), 'right_shoulder': (54.7973, 2.8126, 18.6224),
-        'right_elbow': (27.2364, 26.1575), 'right_wrist': (2.3422, -24.2634),
+        'right_clavicle': (12.6608, 8.8868), 'right_shoulder': (54.7972, 2.8126, 18.6224),
+        'right_elbow': (27.2365, 26.1575), 'right_wrist': (2.3422, -24.2635),
     })
     human.KeyJoints(35.4, {
-        'spine_lumbar': (7.8771, -13.6088, 9.8251), 'spine_thoracic': (-8.8352, -4.5067, 9.3897),
-        'neck': (24.1033, -1.0557, -5.3245), 'head': (7.561, -0.1075),
-        'right_clavicle': (3.1453, 8.0108), 'right_shoulder': (56.9113, 3.0022, 11.4151),
-        'right_elbow': (32.7432, 18.889), 'right_wrist': (-0.9546, -19.4088),
+        'spine_lumbar': (7.8771, -13.6089, 9.8251), 'spine_thoracic': (-8.8352, -4.5067, 9.3897),
+        'neck': (24.1033, -1.0557, -5.3246), 'head': (7.561, -0.1075),
+        'right_clavicle': (3.1453, 8.0108), 'right_shoulder': (56.9112, 3.0022, 11.415),
+        'right_elbow': (32.7433, 18.889), 'right_wrist': (-0.9546, -19.4088),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.5, {
-        'spine_lumbar': (6.6623, -15.5613, 9.628), 'spine_thoracic': (-9.6646, -6.2046, 9.3911),
+        'spine_lumbar': (6.6623, -15.5614, 9.628), 'spine_thoracic': (-9.6646, -6.2047, 9.3911),
         'neck': (24.6469, -1.1102, -6.2023), 'head': (8.2984, -0.1205),
-        'right_clavicle': (4.8021, 7.933), 'right_shoulder': (56.1723, 3.9421, 12.1637),
-        'right_elbow': (31.8856, 19.9655), 'right_wrist': (-0.609, -20.738),
+        'right_clavicle': (4.8021, 7.933), 'right_shoulder': (56.1722, 3.9421, 12.1636),
+        'right_elbow': (31.8857, 19.9654), 'right_wrist': (-0.609, -20.738),
     })
     human.KeyJoints(35.6, {
-        'spine_lumbar': (4.3593, -19.3179, 8.7527), 'spine_thoracic': (-10.0225, -10.0, 9.2292),
-        'neck': (24.9954, -1.126, -6.7109), 'head': (8.9131, -0.1392),
-        'right_clavicle': (9.9457, 7.9425), 'right_shoulder': (56.8877, 5.3891, 16.1636),
-        'right_elbow': (29.8619, 24.1127), 'right_wrist': (1.0019, -23.8572),
+        'spine_lumbar': (4.3593, -19.3179, 8.7528), 'spine_thoracic': (-10.0225, -10.0, 9.2292),
+        'neck': (24.9954, -1.126, -6.7109), 'head': (8.9132, -0.1392),
+        'right_clavicle': (9.9457, 7.9426), 'right_shoulder': (56.8877, 5.3891, 16.1636),
+        'right_elbow': (29.862, 24.1127), 'right_wrist': (1.0018, -23.8572),
     })
     human.KeyJoints(35.7, {
-        'spine_lumbar': (1.7019, -19.7272, 9.6823), 'spine_thoracic': (-11.9765, -10.0, 11.608),
-        'neck': (26.3796, -1.2069, -8.4487), 'head': (10.7373, -0.1703),
+        'spine_lumbar': (1.7019, -19.7272, 9.6823), 'spine_thoracic': (-11.9766, -10.0, 11.608),
+        'neck': (26.3797, -1.2069, -8.4488), 'head': (10.7373, -0.1703),
         'right_clavicle': (18.2686, 10.107), 'right_shoulder': (57.3319, 7.506, 20.6762),
-        'right_elbow': (23.5534, 29.7515), 'right_wrist': (3.5038, -25.6129),
+        'right_elbow': (23.5535, 29.7515), 'right_wrist': (3.5038, -25.6129),
     })
     human.KeyJoints(35.8, {
         'spine_lumbar': (-3.391, -19.9703, 10.1627), 'spine_thoracic': (-11.8278, -10.0, 12.4649),
         'neck': (27.6004, -0.9563, -7.3639), 'head': (11.9772, -0.1681),
-        'right_clavicle': (19.6432, 11.1427), 'right_shoulder': (55.5896, 4.4769, 21.6799),
-        'right_elbow': (20.3968, 30.5202), 'right_wrist': (4.2972, -24.5534),
+        'right_clavicle': (19.6432, 11.1427), 'right_shoulder': (55.5895, 4.4769, 21.6799),
+        'right_elbow': (20.397, 30.5202), 'right_wrist': (4.2972, -24.5534),
     })
     human.KeyJoints(35.9, {
-        'spine_lumbar': (3.6868, -16.9779, 8.9752), 'spine_thoracic': (-8.9984, -8.0571, 9.1292),
+        'spine_lumbar': (3.6868, -16.978, 8.9752), 'spine_thoracic': (-8.9984, -8.0571, 9.1292),
         'neck': (24.967, -0.9645, -5.3826), 'head': (8.6769, -0.1233),
-        'right_clavicle': (5.867, 8.0558), 'right_shoulder': (55.4387, 2.6417, 14.0581),
+        'right_clavicle': (5.867, 8.0558), 'right_shoulder': (55.4386, 2.6418, 14.0581),
         'right_elbow': (31.6491, 21.1848), 'right_wrist': (0.0866, -22.2085),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.0, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(36.1, {
-        'spine_lumbar': (5.1415, -18.3647, 9.4928), 'spine_thoracic': (-10.6631, -8.8501, 9.5343),
+        'spine_lumbar': (5.1415, -18.3648, 9.4928), 'spine_thoracic': (-10.6631, -8.8501, 9.5343),
         'neck': (25.1056, -1.1792, -7.2309), 'head': (9.1322, -0.1471),
-        'right_clavicle': (7.4072, 7.9005), 'right_shoulder': (55.2324, 5.341, 13.6182),
-        'right_elbow': (30.8922, 21.8), 'right_wrist': (0.006, -22.2026),
+        'right_clavicle': (7.4072, 7.9005), 'right_shoulder': (55.2323, 5.341, 13.6182),
+        'right_elbow': (30.8923, 21.8), 'right_wrist': (0.006, -22.2025),
     })
     human.KeyJoints(36.2, {
-        'spine_lumbar': (3.0439, -19.3381, 9.1713), 'spine_thoracic': (-11.0656, -10.0, 10.3437),
+        'spine_lumbar': (3.0439, -19.3382, 9.1713), 'spine_thoracic': (-11.0656, -10.0, 10.3437),
         'neck': (25.655, -1.1322, -7.3523), 'head': (9.8883, -0.1611),
-        'right_clavicle': (14.4379, 8.976), 'right_shoulder': (56.9919, 6.8063, 19.2798),
+        'right_clavicle': (14.4379, 8.976), 'right_shoulder': (56.9918, 6.8063, 19.2798),
         'right_elbow': (27.8597, 27.507), 'right_wrist': (2.501, -26.2891),
     })
     human.KeyJoints(36.3, {
         'spine_lumbar': (-1.4907, -20.0, 10.2773), 'spine_thoracic': (-12.5839, -10.0, 12.8156),
         'neck': (27.4855, -1.1405, -8.6781), 'head': (11.8636, -0.1711),
-        'right_clavicle': (21.1971, 11.3293), 'right_shoulder': (57.0541, 6.8472, 21.7454),
-        'right_elbow': (19.1718, 31.2718), 'right_wrist': (4.4166, -24.3356),
+        'right_clavicle': (21.1971, 11.3293), 'right_shoulder': (57.054, 6.8472, 21.7454),
+        'right_elbow': (19.1719, 31.2718), 'right_wrist': (4.4166, -24.3356),
     })
     human.KeyJoints(36.4, {
         'spine_lumbar': (-0.4121, -19.3324, 8.5923), 'spine_thoracic': (-9.4364, -10.0, 9.1585),
         'neck': (25.8722, -0.7992, -4.8265), 'head': (10.0183, -0.1515),
-        'right_clavicle': (10.3666, 8.3052), 'right_shoulder': (54.6649, 2.5171, 17.4362),
-        'right_elbow': (29.2334, 24.6317), 'right_wrist': (1.6442, -24.1063),
+        'right_clavicle': (10.3666, 8.3052), 'right_shoulder': (54.6648, 2.5171, 17.4362),
+        'right_elbow': (29.2335, 24.6317), 'right_wrist': (1.6442, -24.1063),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.5, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(36.6, {
-        'spine_lumbar': (6.249, -16.2554, 9.5568), 'spine_thoracic': (-9.8919, -6.8589, 9.3945),
-        'neck': (24.7459, -1.1224, -6.4098), 'head': (8.4898, -0.1266),
-        'right_clavicle': (5.4392, 7.9135), 'right_shoulder': (55.9798, 4.2501, 12.5246),
-        'right_elbow': (31.6018, 20.4164), 'right_wrist': (-0.4575, -21.1801),
+        'spine_lumbar': (6.249, -16.2554, 9.5568), 'spine_thoracic': (-9.892, -6.8589, 9.3945),
+        'neck': (24.7459, -1.1224, -6.4099), 'head': (8.4898, -0.1266),
+        'right_clavicle': (5.4393, 7.9135), 'right_shoulder': (55.9797, 4.2501, 12.5245),
+        'right_elbow': (31.6019, 20.4163), 'right_wrist': (-0.4575, -21.18),
     })
     human.KeyJoints(36.7, {
-        'spine_lumbar': (4.0089, -19.2594, 8.8635), 'spine_thoracic': (-10.3069, -10.0, 9.5217),
+        'spine_lumbar': (4.0089, -19.2594, 8.8635), 'spine_thoracic': (-10.3069, -10.0, 9.5218),
         'neck': (25.1802, -1.1206, -6.8301), 'head': (9.1775, -0.1446),
-        'right_clavicle': (11.0764, 8.2141), 'right_shoulder': (56.906, 5.7777, 16.9414),
-        'right_elbow': (29.3687, 24.9686), 'right_wrist': (1.3631, -24.5923),
+        'right_clavicle': (11.0764, 8.2142), 'right_shoulder': (56.9059, 5.7777, 16.9413),
+        'right_elbow': (29.3688, 24.9686), 'right_wrist': (1.3631, -24.5923),
     })
     human.KeyJoints(36.8, {
-        'spine_lumbar': (1.0981, -19.6195, 10.0382), 'spine_thoracic': (-12.407, -10.0, 12.3485),
-        'neck': (26.7505, -1.2469, -9.0092), 'head': (11.1173, -0.1718),
-        'right_clavicle': (19.9576, 10.7553), 'right_shoulder': (57.6101, 7.56, 20.7466),
-        'right_elbow': (20.6651, 30.474), 'right_wrist': (3.858, -24.6647),
+        'spine_lumbar': (1.0981, -19.6196, 10.0382), 'spine_thoracic': (-12.407, -10.0, 12.3485),
+        'neck': (26.7505, -1.2469, -9.0093), 'head': (11.1173, -0.1718),
+        'right_clavicle': (19.9576, 10.7553), 'right_shoulder': (57.61, 7.5601, 20.7466),
+        'right_elbow': (20.6652, 30.4739), 'right_wrist': (3.858, -24.6648),
     })
     human.KeyJoints(36.9, {
-        'spine_lumbar': (-2.9118, -19.8819, 9.8102), 'spine_thoracic': (-11.2501, -10.0, 11.7141),
+        'spine_lumbar': (-2.9118, -19.882, 9.8102), 'spine_thoracic': (-11.2501, -10.0, 11.7141),
         'neck': (27.1575, -0.9065, -6.715), 'head': (11.5254, -0.1668),
-        'right_clavicle': (17.7382, 10.5145), 'right_shoulder': (55.2857, 3.8601, 20.9237),
-        'right_elbow': (22.2937, 29.3702), 'right_wrist': (3.7992, -24.4923),
+        'right_clavicle': (17.7382, 10.5145), 'right_shoulder': (55.2856, 3.8602, 20.9237),
+        'right_elbow': (22.2938, 29.3702), 'right_wrist': (3.7992, -24.4924),
     })
     human.KeyJoints(37.0, {
-        'spine_lumbar': (5.4817, -15.5799, 9.3215), 'spine_thoracic': (-8.9194, -6.6106, 9.2353),
+        'spine_lumbar': (5.4817, -15.58, 9.3215), 'spine_thoracic': (-8.9194, -6.6106, 9.2353),
         'neck': (24.6913, -1.012, -5.4633), 'head': (8.2913, -0.1167),
-        'right_clavicle': (4.6228, 8.0334), 'right_shoulder': (56.0387, 2.7886, 12.8904),
-        'right_elbow': (32.1675, 20.1489), 'right_wrist': (-0.3828, -21.0496),
+        'right_clavicle': (4.6228, 8.0334), 'right_shoulder': (56.0386, 2.7886, 12.8903),
+        'right_elbow': (32.1676, 20.1489), 'right_wrist': (-0.3828, -21.0496),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.1, {
         'spine_lumbar': (7.6943, -13.9529, 9.8132), 'spine_thoracic': (-9.0509, -4.7656, 9.4026),
         'neck': (24.2118, -1.0705, -5.5294), 'head': (7.7075, -0.11),
         'right_clavicle': (3.4241, 7.9959), 'right_shoulder': (56.7224, 3.2261, 11.4833),
-        'right_elbow': (32.5838, 19.0438), 'right_wrist': (-0.9129, -19.6228),
+        'right_elbow': (32.5838, 19.0438), 'right_wrist': (-0.913, -19.6228),
     })
     human.KeyJoints(37.2, {
-        'spine_lumbar': (4.8514, -18.9838, 9.4361), 'spine_thoracic': (-10.8187, -9.5358, 9.5676),
-        'neck': (25.2025, -1.1953, -7.449), 'head': (9.2904, -0.1515),
-        'right_clavicle': (8.0938, 7.9132), 'right_shoulder': (55.1444, 5.6532, 14.09),
-        'right_elbow': (30.6735, 22.3241), 'right_wrist': (0.2006, -22.5044),
+        'spine_lumbar': (4.8514, -18.9839, 9.4361), 'spine_thoracic': (-10.8187, -9.5359, 9.5676),
+        'neck': (25.2025, -1.1953, -7.4491), 'head': (9.2904, -0.1516),
+        'right_clavicle': (8.0938, 7.9132), 'right_shoulder': (55.1443, 5.6533, 14.09),
+        'right_elbow': (30.6736, 22.3241), 'right_wrist': (0.2005, -22.5044),
     })
     human.KeyJoints(37.3, {
-        'spine_lumbar': (2.7354, -19.6422, 9.2377), 'spine_thoracic': (-11.2923, -10.0, 10.5827),
-        'neck': (25.8049, -1.1495, -7.6147), 'head': (10.0999, -0.1655),
-        'right_clavicle': (15.4804, 9.1957), 'right_shoulder': (57.0165, 7.1701, 20.037),
-        'right_elbow': (27.2825, 28.3006), 'right_wrist': (2.8383, -26.4195),
+        'spine_lumbar': (2.7354, -19.6423, 9.2377), 'spine_thoracic': (-11.2923, -10.0, 10.5827),
+        'neck': (25.8049, -1.1495, -7.6147), 'head': (10.0999, -0.1656),
+        'right_clavicle': (15.4805, 9.1957), 'right_shoulder': (57.0164, 7.1701, 20.037),
+        'right_elbow': (27.2826, 28.3006), 'right_wrist': (2.8382, -26.4195),
     })
     human.KeyJoints(37.4, {
         'spine_lumbar': (-2.8916, -20.0, 10.2932), 'spine_thoracic': (-12.4028, -10.0, 12.7974),
         'neck': (27.6808, -1.0709, -8.2948), 'head': (12.0579, -0.1702),
-        'right_clavicle': (20.9336, 11.3701), 'right_shoulder': (56.4054, 5.8835, 21.8956),
-        'right_elbow': (19.3269, 31.1722), 'right_wrist': (4.4643, -24.4944),
+        'right_clavicle': (20.9336, 11.3701), 'right_shoulder': (56.4053, 5.8835, 21.8956),
+        'right_elbow': (19.327, 31.1722), 'right_wrist': (4.4642, -24.4945),
     })
     human.KeyJoints(37.5, {
-        'spine_lumbar': (0.5216, -19.054, 8.5179), 'spine_thoracic': (-9.2159, -9.9671, 8.989),
+        'spine_lumbar': (0.5216, -19.0541, 8.5179), 'spine_thoracic': (-9.2159, -9.9671, 8.989),
         'neck': (25.5188, -0.7951, -4.6742), 'head': (9.5361, -0.1432),
-        'right_clavicle': (8.7356, 8.1219), 'right_shoulder': (54.6465, 2.4478, 16.4238),
-        'right_elbow': (30.3064, 23.4632), 'right_wrist': (1.1154, -23.9037),
+        'right_clavicle': (8.7356, 8.1219), 'right_shoulder': (54.6464, 2.4479, 16.4238),
+        'right_elbow': (30.3065, 23.4632), 'right_wrist': (1.1154, -23.9036),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.6, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(37.7, {
-        'spine_lumbar': (5.8568, -16.954, 9.5153), 'spine_thoracic': (-10.1441, -7.5099, 9.4238),
-        'neck': (24.8221, -1.1344, -6.6078), 'head': (8.6694, -0.1344),
-        'right_clavicle': (6.0841, 7.9025), 'right_shoulder': (55.7417, 4.5898, 12.8808),
-        'right_elbow': (31.3423, 20.8694), 'right_wrist': (-0.307, -21.5691),
+        'spine_lumbar': (5.8568, -16.954, 9.5153), 'spine_thoracic': (-10.1441, -7.5099, 9.4239),
+        'neck': (24.8221, -1.1344, -6.6079), 'head': (8.6694, -0.1344),
+        'right_clavicle': (6.0841, 7.9025), 'right_shoulder': (55.7416, 4.5898, 12.8808),
+        'right_elbow': (31.3423, 20.8694), 'right_wrist': (-0.307, -21.569),
     })
     human.KeyJoints(37.8, {
-        'spine_lumbar': (3.6846, -19.2061, 8.9763), 'spine_thoracic': (-10.5709, -10.0, 9.8048),
+        'spine_lumbar': (3.6846, -19.2061, 8.9763), 'spine_thoracic': (-10.5709, -10.0, 9.8049),
         'neck': (25.3476, -1.1203, -6.9619), 'head': (9.4202, -0.1498),
-        'right_clavicle': (12.2055, 8.4776), 'right_shoulder': (56.9314, 6.1347, 17.7454),
-        'right_elbow': (28.9104, 25.8305), 'right_wrist': (1.7465, -25.3129),
+        'right_clavicle': (12.2056, 8.4777), 'right_shoulder': (56.9313, 6.1348, 17.7454),
+        'right_elbow': (28.9105, 25.8305), 'right_wrist': (1.7465, -25.3129),
     })
     human.KeyJoints(37.9, {
         'spine_lumbar': (0.7649, -19.9721, 10.2071), 'spine_thoracic': (-12.7171, -10.0, 12.8031),
-        'neck': (26.9753, -1.2917, -9.5116), 'head': (11.352, -0.1731),
-        'right_clavicle': (21.3199, 11.153), 'right_shoulder': (57.734, 7.8144, 21.2637),
-        'right_elbow': (19.1386, 31.2947), 'right_wrist': (4.2228, -24.1717),
+        'neck': (26.9753, -1.2917, -9.5117), 'head': (11.352, -0.1731),
+        'right_clavicle': (21.3199, 11.1531), 'right_shoulder': (57.7339, 7.8144, 21.2637),
+        'right_elbow': (19.1387, 31.2947), 'right_wrist': (4.2228, -24.1718),
     })
     human.KeyJoints(38.0, {
         'spine_lumbar': (-2.2042, -19.7421, 9.3554), 'spine_thoracic': (-10.5774, -10.0, 10.7562),
         'neck': (26.7145, -0.8663, -6.1015), 'head': (11.0478, -0.1648),
-        'right_clavicle': (15.2869, 9.6998), 'right_shoulder': (55.0146, 3.2867, 19.8554),
-        'right_elbow': (24.7268, 27.841), 'right_wrist': (3.1106, -24.3951),
+        'right_clavicle': (15.2869, 9.6998), 'right_shoulder': (55.0146, 3.2867, 19.8553),
+        'right_elbow': (24.7269, 27.841), 'right_wrist': (3.1106, -24.3951),
     })
     human.KeyJoints(38.1, {
         'spine_lumbar': (6.9857, -14.3551, 9.6327), 'spine_thoracic': (-8.864, -5.3106, 9.3307),
-        'neck': (24.3539, -1.0393, -5.3951), 'head': (7.8659, -0.1111),
-        'right_clavicle': (3.6731, 8.0183), 'right_shoulder': (56.5779, 2.9206, 11.9541),
-        'right_elbow': (32.5429, 19.3432), 'right_wrist': (-0.7484, -20.0308),
+        'neck': (24.3539, -1.0393, -5.3952), 'head': (7.8659, -0.1111),
+        'right_clavicle': (3.6731, 8.0183), 'right_shoulder': (56.5778, 2.9206, 11.9541),
+        'right_elbow': (32.543, 19.3431), 'right_wrist': (-0.7484, -20.0308),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.2, {
-        'spine_lumbar': (7.1062, -14.8577, 9.7293), 'spine_thoracic': (-9.4526, -5.5371, 9.4088),
-        'neck': (24.4787, -1.0952, -5.9433), 'head': (8.0669, -0.1161),
-        'right_clavicle': (4.1625, 7.964), 'right_shoulder': (56.3344, 3.6552, 11.7981),
-        'right_elbow': (32.1984, 19.5126), 'right_wrist': (-0.7626, -20.2339),
+        'spine_lumbar': (7.1062, -14.8577, 9.7293), 'spine_thoracic': (-9.4526, -5.5372, 9.4088),
+        'neck': (24.4788, -1.0952, -5.9434), 'head': (8.0669, -0.1161),
+        'right_clavicle': (4.1625, 7.964), 'right_shoulder': (56.3344, 3.6553, 11.798),
+        'right_elbow': (32.1985, 19.5126), 'right_wrist': (-0.7626, -20.2339),
     })
     human.KeyJoints(38.3, {
-        'spine_lumbar': (4.6174, -19.2438, 9.0381), 'spine_thoracic': (-10.3777, -9.8864, 9.3732),
-        'neck': (25.0841, -1.1611, -7.0471), 'head': (9.0775, -0.1447),
-        'right_clavicle': (8.9404, 7.9176), 'right_shoulder': (56.0747, 5.4988, 15.0623),
-        'right_elbow': (30.3182, 23.1531), 'right_wrist': (0.5663, -23.0952),
+        'spine_lumbar': (4.6174, -19.2438, 9.0381), 'spine_thoracic': (-10.3778, -9.8864, 9.3732),
+        'neck': (25.0841, -1.161, -7.0472), 'head': (9.0775, -0.1447),
+        'right_clavicle': (8.9404, 7.9176), 'right_shoulder': (56.0746, 5.4989, 15.0623),
+        'right_elbow': (30.3183, 23.1531), 'right_wrist': (0.5663, -23.0952),
     })
     human.KeyJoints(38.4, {
         'spine_lumbar': (2.4117, -19.9968, 9.3004), 'spine_thoracic': (-11.5243, -10.0, 10.8351),
-        'neck': (25.9741, -1.1737, -7.9262), 'head': (10.308, -0.1685),
-        'right_clavicle': (16.5425, 9.4266), 'right_shoulder': (57.0419, 7.4887, 20.6675),
-        'right_elbow': (26.6052, 29.0685), 'right_wrist': (3.1596, -26.4597),
+        'neck': (25.9742, -1.1737, -7.9262), 'head': (10.308, -0.1685),
+        'right_clavicle': (16.5425, 9.4266), 'right_shoulder': (57.0418, 7.4887, 20.6675),
+        'right_elbow': (26.6053, 29.0685), 'right_wrist': (3.1596, -26.4598),
     })
     human.KeyJoints(38.5, {
         'spine_lumbar': (-3.5591, -20.0, 10.2989), 'spine_thoracic': (-12.1902, -10.0, 12.7729),
-        'neck': (27.7935, -1.0118, -7.9182), 'head': (12.1698, -0.1692),
+        'neck': (27.7935, -1.0117, -7.9182), 'head': (12.1698, -0.1692),
         'right_clavicle': (20.5951, 11.3847), 'right_shoulder': (55.9084, 5.0845, 21.956),
-        'right_elbow': (19.5306, 31.0411), 'right_wrist': (4.4817, -24.5736),
+        'right_elbow': (19.5307, 31.0411), 'right_wrist': (4.4817, -24.5736),
     })
     human.KeyJoints(38.6, {
-        'spine_lumbar': (1.9025, -18.2555, 8.6751), 'spine_thoracic': (-9.0994, -9.3103, 9.0372),
+        'spine_lumbar': (1.9025, -18.2556, 8.6751), 'spine_thoracic': (-9.0994, -9.3103, 9.0372),
         'neck': (25.2318, -0.8663, -4.9897), 'head': (9.0948, -0.1333),
-        'right_clavicle': (7.2982, 8.0857), 'right_shoulder': (54.9189, 2.5145, 15.3073),
-        'right_elbow': (31.0102, 22.3448), 'right_wrist': (0.6111, -23.2601),
+        'right_clavicle': (7.2983, 8.0857), 'right_shoulder': (54.9188, 2.5145, 15.3073),
+        'right_elbow': (31.0103, 22.3447), 'right_wrist': (0.6111, -23.26),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.7, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(38.8, {
-        'spine_lumbar': (5.4812, -17.6638, 9.508), 'spine_thoracic': (-10.4291, -8.1558, 9.4814),
+        'spine_lumbar': (5.4812, -17.6639, 9.508), 'spine_thoracic': (-10.4292, -8.1558, 9.4815),
         'neck': (24.9677, -1.1571, -6.9281), 'head': (8.912, -0.1412),
-        'right_clavicle': (6.7347, 7.8988), 'right_shoulder': (55.4289, 4.9655, 13.2268),
-        'right_elbow': (31.1126, 21.3192), 'right_wrist': (-0.1592, -21.8966),
+        'right_clavicle': (6.7347, 7.8988), 'right_shoulder': (55.4288, 4.9655, 13.2268),
+        'right_elbow': (31.1127, 21.3192), 'right_wrist': (-0.1592, -21.8966),
     })
     human.KeyJoints(38.9, {
-        'spine_lumbar': (3.373, -19.1777, 9.0828), 'spine_thoracic': (-10.819, -10.0, 10.0776),
+        'spine_lumbar': (3.373, -19.1778, 9.0828), 'spine_thoracic': (-10.819, -10.0, 10.0776),
         'neck': (25.5025, -1.121, -7.1214), 'head': (9.6495, -0.1549),
-        'right_clavicle': (13.3247, 8.7312), 'right_shoulder': (56.9618, 6.4697, 18.5416),
-        'right_elbow': (28.4435, 26.6822), 'right_wrist': (2.1346, -25.9085),
+        'right_clavicle': (13.3247, 8.7312), 'right_shoulder': (56.9617, 6.4697, 18.5415),
+        'right_elbow': (28.4435, 26.6822), 'right_wrist': (2.1345, -25.9085),
     })
     human.KeyJoints(39.0, {
         'spine_lumbar': (-0.0292, -20.0, 10.2504), 'spine_thoracic': (-12.7049, -10.0, 12.8265),
         'neck': (27.232, -1.2508, -9.2989), 'head': (11.6116, -0.1726),
-        'right_clavicle': (21.362, 11.2613), 'right_shoulder': (57.5903, 7.6202, 21.531),
-        'right_elbow': (19.0765, 31.3328), 'right_wrist': (4.3396, -24.1877),
+        'right_clavicle': (21.362, 11.2613), 'right_shoulder': (57.5902, 7.6203, 21.531),
+        'right_elbow': (19.0766, 31.3328), 'right_wrist': (4.3396, -24.1878),
     })
     human.KeyJoints(39.1, {
-        'spine_lumbar': (-1.3492, -19.5578, 8.9126), 'spine_thoracic': (-9.9335, -10.0, 9.828),
-        'neck': (26.2987, -0.8292, -5.4278), 'head': (10.5563, -0.1596),
-        'right_clavicle': (12.7031, 8.899), 'right_shoulder': (54.8003, 2.8192, 18.6431),
-        'right_elbow': (27.1974, 26.1851), 'right_wrist': (2.3548, -24.2659),
+        'spine_lumbar': (-1.3491, -19.5579, 8.9126), 'spine_thoracic': (-9.9336, -10.0, 9.828),
+        'neck': (26.2987, -0.8292, -5.4279), 'head': (10.5563, -0.1596),
+        'right_clavicle': (12.7031, 8.899), 'right_shoulder': (54.8002, 2.8192, 18.6431),
+        'right_elbow': (27.1975, 26.185), 'right_wrist': (2.3548, -24.2659),
     })
     human.KeyJoints(39.2, {
-        'spine_lumbar': (7.8694, -13.6153, 9.8234), 'spine_thoracic': (-8.8354, -4.5138, 9.3892),
+        'spine_lumbar': (7.8694, -13.6154, 9.8234), 'spine_thoracic': (-8.8354, -4.5138, 9.3892),
         'neck': (24.1057, -1.0556, -5.3253), 'head': (7.5638, -0.1075),
-        'right_clavicle': (3.1497, 8.0109), 'right_shoulder': (56.9084, 3.0014, 11.4197),
+        'right_clavicle': (3.1497, 8.0109), 'right_shoulder': (56.9083, 3.0015, 11.4196),
         'right_elbow': (32.7416, 18.8928), 'right_wrist': (-0.9529, -19.4142),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.3, {
-        'spine_lumbar': (6.6694, -15.5498, 9.6295), 'spine_thoracic': (-9.6612, -6.1935, 9.3914),
+        'spine_lumbar': (6.6694, -15.5499, 9.6295), 'spine_thoracic': (-9.6612, -6.1936, 9.3914),
         'neck': (24.6446, -1.11, -6.1984), 'head': (8.2949, -0.1204),
-        'right_clavicle': (4.7914, 7.9335), 'right_shoulder': (56.1749, 3.9374, 12.1574),
-        'right_elbow': (31.8906, 19.9578), 'right_wrist': (-0.6116, -20.73),
+        'right_clavicle': (4.7914, 7.9335), 'right_shoulder': (56.1748, 3.9374, 12.1573),
+        'right_elbow': (31.8907, 19.9578), 'right_wrist': (-0.6116, -20.73),
     })
     human.KeyJoints(39.4, {
-        'spine_lumbar': (4.3646, -19.3184, 8.7518), 'spine_thoracic': (-10.02, -10.0, 9.2267),
-        'neck': (24.9938, -1.1262, -6.7099), 'head': (8.9109, -0.1391),
+        'spine_lumbar': (4.3646, -19.3184, 8.7518), 'spine_thoracic': (-10.0201, -10.0, 9.2267),
+        'neck': (24.9938, -1.1262, -6.71), 'head': (8.9109, -0.1391),
         'right_clavicle': (9.9277, 7.9402), 'right_shoulder': (56.8872, 5.3858, 16.1493),
-        'right_elbow': (29.8698, 24.0981), 'right_wrist': (0.9956, -23.8449),
+        'right_elbow': (29.8699, 24.0981), 'right_wrist': (0.9956, -23.845),
     })
     human.KeyJoints(39.5, {
         'spine_lumbar': (1.7159, -19.7339, 9.6735), 'spine_thoracic': (-11.9678, -10.0, 11.5915),
         'neck': (26.3714, -1.2063, -8.4387), 'head': (10.729, -0.1703),
-        'right_clavicle': (18.2365, 10.0926), 'right_shoulder': (57.3248, 7.5059, 20.6762),
-        'right_elbow': (23.6222, 29.7406), 'right_wrist': (3.4981, -25.6356),
+        'right_clavicle': (18.2365, 10.0926), 'right_shoulder': (57.3247, 7.5059, 20.6762),
+        'right_elbow': (23.6224, 29.7406), 'right_wrist': (3.498, -25.6356),
     })
     human.KeyJoints(39.6, {
         'spine_lumbar': (-3.3966, -19.9713, 10.1671), 'spine_thoracic': (-11.836, -10.0, 12.4744),
         'neck': (27.6064, -0.9572, -7.3744), 'head': (11.9833, -0.1681),
-        'right_clavicle': (19.6683, 11.1505), 'right_shoulder': (55.5949, 4.4873, 21.689),
-        'right_elbow': (20.3723, 30.5348), 'right_wrist': (4.3033, -24.5541),
+        'right_clavicle': (19.6683, 11.1506), 'right_shoulder': (55.5948, 4.4873, 21.689),
+        'right_elbow': (20.3725, 30.5348), 'right_wrist': (4.3032, -24.5541),
     })
     human.KeyJoints(39.7, {
         'spine_lumbar': (3.6559, -17.0012, 8.9695), 'spine_thoracic': (-8.9999, -8.0806, 9.1275),
-        'neck': (24.9713, -0.9631, -5.3778), 'head': (8.6835, -0.1235),
-        'right_clavicle': (5.8897, 8.0562), 'right_shoulder': (55.4289, 2.6393, 14.0788),
-        'right_elbow': (31.6393, 21.2035), 'right_wrist': (0.095, -22.2277),
+        'neck': (24.9713, -0.9631, -5.3779), 'head': (8.6835, -0.1235),
+        'right_clavicle': (5.8897, 8.0562), 'right_shoulder': (55.4289, 2.6394, 14.0787),
+        'right_elbow': (31.6394, 21.2035), 'right_wrist': (0.095, -22.2277),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.8, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(39.9, {
-        'spine_lumbar': (5.1467, -18.3525, 9.4934), 'spine_thoracic': (-10.6595, -8.8372, 9.5336),
+        'spine_lumbar': (5.1467, -18.3526, 9.4934), 'spine_thoracic': (-10.6595, -8.8372, 9.5336),
         'neck': (25.1034, -1.1789, -7.226), 'head': (9.1286, -0.147),
-        'right_clavicle': (7.3962, 7.9003), 'right_shoulder': (55.2346, 5.3341, 13.6115),
+        'right_clavicle': (7.3962, 7.9003), 'right_shoulder': (55.2345, 5.3341, 13.6115),
         'right_elbow': (30.8956, 21.792), 'right_wrist': (0.0032, -22.198),
     })
     human.KeyJoints(40.0, {
-        'spine_lumbar': (3.0494, -19.3342, 9.17), 'spine_thoracic': (-11.0615, -10.0, 10.3393),
+        'spine_lumbar': (3.0494, -19.3342, 9.17), 'spine_thoracic': (-11.0616, -10.0, 10.3394),
         'neck': (25.6524, -1.1319, -7.348), 'head': (9.8844, -0.161),
-        'right_clavicle': (14.4196, 8.972), 'right_shoulder': (56.9914, 6.8007, 19.268),
-        'right_elbow': (27.8699, 27.4936), 'right_wrist': (2.4951, -26.2845),
+        'right_clavicle': (14.4196, 8.9721), 'right_shoulder': (56.9914, 6.8008, 19.268),
+        'right_elbow': (27.87, 27.4936), 'right_wrist': (2.4951, -26.2845),
     })
     human.KeyJoints(40.1, {
-        'spine_lumbar': (-1.4649, -20.0, 10.2769), 'spine_thoracic': (-12.5865, -10.0, 12.8158),
+        'spine_lumbar': (-1.4649, -20.0, 10.2769), 'spine_thoracic': (-12.5865, -10.0, 12.8159),
         'neck': (27.4821, -1.142, -8.6867), 'head': (11.8602, -0.1712),
-        'right_clavicle': (21.2008, 11.3284), 'right_shoulder': (57.0647, 6.8627, 21.7423),
-        'right_elbow': (19.1696, 31.2731), 'right_wrist': (4.4156, -24.3327),
+        'right_clavicle': (21.2008, 11.3284), 'right_shoulder': (57.0646, 6.8628, 21.7423),
+        'right_elbow': (19.1698, 31.2731), 'right_wrist': (4.4155, -24.3328),
     })
     human.KeyJoints(40.2, {
         'spine_lumbar': (-0.4277, -19.3364, 8.5959), 'spine_thoracic': (-9.4426, -10.0, 9.166),
-        'neck': (25.8789, -0.7995, -4.8337), 'head': (10.027, -0.1516),
-        'right_clavicle': (10.4006, 8.3121), 'right_shoulder': (54.6663, 2.5203, 17.4551),
-        'right_elbow': (29.2064, 24.6549), 'right_wrist': (1.6548, -24.1092),
+        'neck': (25.8789, -0.7995, -4.8338), 'head': (10.027, -0.1516),
+        'right_clavicle': (10.4006, 8.3121), 'right_shoulder': (54.6662, 2.5203, 17.455),
+        'right_elbow': (29.2065, 24.6549), 'right_wrist': (1.6548, -24.1092),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.3, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(40.4, {
-        'spine_lumbar': (6.2558, -16.2436, 9.5578), 'spine_thoracic': (-9.8878, -6.8479, 9.3941),
+        'spine_lumbar': (6.2558, -16.2437, 9.5578), 'spine_thoracic': (-9.8878, -6.8479, 9.3941),
         'neck': (24.7448, -1.1222, -6.4068), 'head': (8.4869, -0.1265),
-        'right_clavicle': (5.4285, 7.9138), 'right_shoulder': (55.9835, 4.2446, 12.5186),
-        'right_elbow': (31.6064, 20.4088), 'right_wrist': (-0.46, -21.173),
+        'right_clavicle': (5.4285, 7.9138), 'right_shoulder': (55.9834, 4.2446, 12.5186),
+        'right_elbow': (31.6065, 20.4087), 'right_wrist': (-0.4601, -21.173),
     })
     human.KeyJoints(40.5, {
         'spine_lumbar': (4.0149, -19.2605, 8.8614), 'spine_thoracic': (-10.3015, -10.0, 9.5161),
-        'neck': (25.1767, -1.1207, -6.8276), 'head': (9.1724, -0.1445),
-        'right_clavicle': (11.057, 8.2089), 'right_shoulder': (56.9057, 5.7703, 16.9286),
-        'right_elbow': (29.377, 24.9543), 'right_wrist': (1.357, -24.5801),
+        'neck': (25.1767, -1.1207, -6.8277), 'head': (9.1724, -0.1445),
+        'right_clavicle': (11.057, 8.2089), 'right_shoulder': (56.9056, 5.7703, 16.9285),
+        'right_elbow': (29.3771, 24.9543), 'right_wrist': (1.357, -24.5801),
     })
     human.KeyJoints(40.6, {
         'spine_lumbar': (1.1042, -19.615, 10.0344), 'spine_thoracic': (-12.4004, -10.0, 12.3386),
         'neck': (26.7462, -1.2461, -8.9992), 'head': (11.1128, -0.1717),
-        'right_clavicle': (19.9295, 10.7469), 'right_shoulder': (57.6072, 7.5565, 20.7406),
-        'right_elbow': (20.6993, 30.4583), 'right_wrist': (3.8512, -24.6757),
+        'right_clavicle': (19.9295, 10.7469), 'right_shoulder': (57.6071, 7.5566, 20.7406),
+        'right_elbow': (20.6994, 30.4583), 'right_wrist': (3.8512, -24.6757),
     })
     human.KeyJoints(40.7, {
         'spine_lumbar': (-2.922, -19.8839, 9.8173), 'spine_thoracic': (-11.261, -10.0, 11.7291),
         'neck': (27.1656, -0.9073, -6.726), 'head': (11.5338, -0.1668),
-        'right_clavicle': (17.776, 10.5271), 'right_shoulder': (55.2906, 3.8703, 20.9395),
-        'right_elbow': (22.2559, 29.3934), 'right_wrist': (3.8095, -24.4937),
+        'right_clavicle': (17.776, 10.5271), 'right_shoulder': (55.2905, 3.8704, 20.9395),
+        'right_elbow': (22.256, 29.3934), 'right_wrist': (3.8095, -24.4937),
     })
     human.KeyJoints(40.8, {
-        'spine_lumbar': (5.453, -15.6029, 9.3157), 'spine_thoracic': (-8.9205, -6.6347, 9.2336),
+        'spine_lumbar': (5.453, -15.603, 9.3157), 'spine_thoracic': (-8.9205, -6.6348, 9.2336),
         'neck': (24.6967, -1.0115, -5.464), 'head': (8.2983, -0.1168),
-        'right_clavicle': (4.6417, 8.0337), 'right_shoulder': (56.0286, 2.7861, 12.9086),
-        'right_elbow': (32.1598, 20.1648), 'right_wrist': (-0.3756, -21.0687),
+        'right_clavicle': (4.6417, 8.0337), 'right_shoulder': (56.0286, 2.7862, 12.9086),
+        'right_elbow': (32.1599, 20.1648), 'right_wrist': (-0.3756, -21.0687),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.9, {
-        'spine_lumbar': (7.7047, -13.937, 9.8145), 'spine_thoracic': (-9.043, -4.7526, 9.4024),
+        'spine_lumbar': (7.7047, -13.9371, 9.8145), 'spine_thoracic': (-9.043, -4.7526, 9.4024),
         'neck': (24.2067, -1.0701, -5.5216), 'head': (7.7008, -0.1099),
-        'right_clavicle': (3.4116, 7.9964), 'right_shoulder': (56.7305, 3.2183, 11.4785),
-        'right_elbow': (32.5904, 19.0362), 'right_wrist': (-0.9154, -19.6122),
+        'right_clavicle': (3.4116, 7.9964), 'right_shoulder': (56.7305, 3.2183, 11.4784),
+        'right_elbow': (32.5905, 19.0362), 'right_wrist': (-0.9154, -19.6122),
     })
     human.KeyJoints(41.0, {
         'spine_lumbar': (4.8559, -18.9771, 9.4375), 'spine_thoracic': (-10.8178, -9.5277, 9.5674),
-        'neck': (25.2019, -1.1952, -7.4477), 'head': (9.2894, -0.1515),
-        'right_clavicle': (8.0811, 7.9131), 'right_shoulder': (55.1448, 5.6513, 14.0801),
-        'right_elbow': (30.6779, 22.3137), 'right_wrist': (0.1965, -22.498),
+        'neck': (25.2019, -1.1952, -7.4478), 'head': (9.2895, -0.1515),
+        'right_clavicle': (8.0811, 7.9131), 'right_shoulder': (55.1448, 5.6514, 14.08),
+        'right_elbow': (30.678, 22.3137), 'right_wrist': (0.1965, -22.498),
     })
     human.KeyJoints(41.1, {
-        'spine_lumbar': (2.7401, -19.6346, 9.2369), 'spine_thoracic': (-11.2888, -10.0, 10.5793),
-        'neck': (25.8025, -1.1492, -7.6101), 'head': (10.0968, -0.1655),
-        'right_clavicle': (15.4641, 9.1925), 'right_shoulder': (57.0162, 7.1629, 20.0222),
-        'right_elbow': (27.2911, 28.2872), 'right_wrist': (2.8328, -26.4183),
+        'spine_lumbar': (2.7401, -19.6347, 9.2369), 'spine_thoracic': (-11.2888, -10.0, 10.5793),
+        'neck': (25.8025, -1.1492, -7.6102), 'head': (10.0968, -0.1655),
+        'right_clavicle': (15.4641, 9.1925), 'right_shoulder': (57.0161, 7.1629, 20.0222),
+        'right_elbow': (27.2911, 28.2872), 'right_wrist': (2.8328, -26.4184),
     })
     human.KeyJoints(41.2, {
         'spine_lumbar': (-2.8722, -20.0, 10.293), 'spine_thoracic': (-12.4062, -10.0, 12.7978),
         'neck': (27.6777, -1.072, -8.3006), 'head': (12.0548, -0.1702),
-        'right_clavicle': (20.9387, 11.3696), 'right_shoulder': (56.4158, 5.8994, 21.8937),
-        'right_elbow': (19.3238, 31.1742), 'right_wrist': (4.4637, -24.4922),
+        'right_clavicle': (20.9387, 11.3697), 'right_shoulder': (56.4157, 5.8994, 21.8937),
+        'right_elbow': (19.324, 31.1742), 'right_wrist': (4.4637, -24.4922),
     })
     human.KeyJoints(41.3, {
-        'spine_lumbar': (0.5034, -19.0617, 8.5169), 'spine_thoracic': (-9.2179, -9.9712, 8.9887),
+        'spine_lumbar': (0.5034, -19.0618, 8.5169), 'spine_thoracic': (-9.218, -9.9712, 8.9887),
         'neck': (25.5241, -0.7946, -4.6719), 'head': (9.5437, -0.1433),
-        'right_clavicle': (8.7593, 8.1226), 'right_shoulder': (54.6448, 2.4474, 16.4407),
-        'right_elbow': (30.2941, 23.4812), 'right_wrist': (1.1234, -23.9097),
+        'right_clavicle': (8.7593, 8.1226), 'right_shoulder': (54.6447, 2.4475, 16.4406),
+        'right_elbow': (30.2942, 23.4811), 'right_wrist': (1.1234, -23.9096),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.4, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(41.5, {
-        'spine_lumbar': (5.8632, -16.9422, 9.5155), 'spine_thoracic': (-10.1398, -7.499, 9.4233),
+        'spine_lumbar': (5.8632, -16.9423, 9.5155), 'spine_thoracic': (-10.1398, -7.499, 9.4233),
         'neck': (24.8204, -1.1342, -6.6038), 'head': (8.6659, -0.1343),
-        'right_clavicle': (6.0732, 7.9026), 'right_shoulder': (55.7459, 4.5839, 12.8748),
-        'right_elbow': (31.3464, 20.8617), 'right_wrist': (-0.3095, -21.563),
+        'right_clavicle': (6.0732, 7.9026), 'right_shoulder': (55.7458, 4.5839, 12.8748),
+        'right_elbow': (31.3465, 20.8617), 'right_wrist': (-0.3095, -21.563),
     })
     human.KeyJoints(41.6, {
         'spine_lumbar': (3.6898, -19.207, 8.9744), 'spine_thoracic': (-10.5667, -10.0, 9.8002),
         'neck': (25.345, -1.1203, -6.9596), 'head': (9.4163, -0.1497),
-        'right_clavicle': (12.1865, 8.4733), 'right_shoulder': (56.9309, 6.1291, 17.7315),
+        'right_clavicle': (12.1866, 8.4733), 'right_shoulder': (56.9308, 6.1291, 17.7315),
         'right_elbow': (28.9178, 25.8159), 'right_wrist': (1.7398, -25.3006),
     })
     human.KeyJoints(41.7, {
         'spine_lumbar': (0.7717, -19.9684, 10.2055), 'spine_thoracic': (-12.7146, -10.0, 12.7996),
         'neck': (26.9715, -1.2913, -9.5075), 'head': (11.3481, -0.1731),
-        'right_clavicle': (21.3088, 11.1491), 'right_shoulder': (57.7331, 7.8118, 21.2562),
-        'right_elbow': (19.1501, 31.2877), 'right_wrist': (4.2188, -24.1755),
+        'right_clavicle': (21.3088, 11.1491), 'right_shoulder': (57.733, 7.8118, 21.2562),
+        'right_elbow': (19.1503, 31.2877), 'right_wrist': (4.2188, -24.1756),
     })
     human.KeyJoints(41.8, {
         'spine_lumbar': (-2.2176, -19.7448, 9.3633), 'spine_thoracic': (-10.5888, -10.0, 10.7728),
-        'neck': (26.721, -0.8669, -6.1115), 'head': (11.0552, -0.1648),
-        'right_clavicle': (15.3304, 9.714), 'right_shoulder': (55.0188, 3.2956, 19.875),
-        'right_elbow': (24.6842, 27.8685), 'right_wrist': (3.1231, -24.397),
+        'neck': (26.721, -0.8669, -6.1115), 'head': (11.0552, -0.1649),
+        'right_clavicle': (15.3304, 9.714), 'right_shoulder': (55.0187, 3.2957, 19.875),
+        'right_elbow': (24.6843, 27.8685), 'right_wrist': (3.1231, -24.397),
     })
     human.KeyJoints(41.9, {
         'spine_lumbar': (6.9645, -14.3726, 9.6282), 'spine_thoracic': (-8.8647, -5.3293, 9.3294),
-        'neck': (24.3593, -1.0389, -5.3965), 'head': (7.8726, -0.1112),
-        'right_clavicle': (3.6859, 8.0185), 'right_shoulder': (56.5701, 2.9187, 11.967),
-        'right_elbow': (32.538, 19.3541), 'right_wrist': (-0.7434, -20.0454),
+        'neck': (24.3593, -1.0389, -5.3966), 'head': (7.8726, -0.1112),
+        'right_clavicle': (3.6859, 8.0185), 'right_shoulder': (56.57, 2.9187, 11.967),
+        'right_elbow': (32.538, 19.3541), 'right_wrist': (-0.7434, -20.0453),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.0, {
         'spine_lumbar': (7.1139, -14.8457, 9.7308), 'spine_thoracic': (-9.4484, -5.5262, 9.4089),
         'neck': (24.4756, -1.095, -5.9386), 'head': (8.0626, -0.116),
-        'right_clavicle': (4.1521, 7.9645), 'right_shoulder': (56.3378, 3.6501, 11.7928),
-        'right_elbow': (32.2037, 19.5055), 'right_wrist': (-0.7649, -20.2255),
+        'right_clavicle': (4.1521, 7.9645), 'right_shoulder': (56.3378, 3.6501, 11.7927),
+        'right_elbow': (32.2038, 19.5055), 'right_wrist': (-0.7649, -20.2255),
     })
     human.KeyJoints(42.1, {
-        'spine_lumbar': (4.621, -19.2405, 9.0484), 'spine_thoracic': (-10.3907, -9.8818, 9.3789),
-        'neck': (25.0877, -1.1621, -7.059), 'head': (9.0838, -0.1449),
-        'right_clavicle': (8.9248, 7.9176), 'right_shoulder': (56.0474, 5.5036, 15.0413),
-        'right_elbow': (30.3255, 23.1365), 'right_wrist': (0.5586, -23.0825),
+        'spine_lumbar': (4.621, -19.2406, 9.0484), 'spine_thoracic': (-10.3908, -9.8818, 9.3789),
+        'neck': (25.0877, -1.1621, -7.0591), 'head': (9.0838, -0.1449),
+        'right_clavicle': (8.9248, 7.9176), 'right_shoulder': (56.0473, 5.5036, 15.0412),
+        'right_elbow': (30.3255, 23.1365), 'right_wrist': (0.5585, -23.0825),
     })
     human.KeyJoints(42.2, {
         'spine_lumbar': (2.4187, -19.9954, 9.2988), 'spine_thoracic': (-11.5194, -10.0, 10.8292),
         'neck': (25.9704, -1.1732, -7.9199), 'head': (10.3036, -0.1685),
-        'right_clavicle': (16.5213, 9.4212), 'right_shoulder': (57.0412, 7.4871, 20.6651),
+        'right_clavicle': (16.5213, 9.4212), 'right_shoulder': (57.0411, 7.4872, 20.6651),
         'right_elbow': (26.622, 29.0563), 'right_wrist': (3.1541, -26.4596),
     })
     human.KeyJoints(42.3, {
         'spine_lumbar': (-3.5577, -20.0, 10.2988), 'spine_thoracic': (-12.1939, -10.0, 12.7733),
         'neck': (27.7932, -1.0127, -7.9257), 'head': (12.1696, -0.1692),
-        'right_clavicle': (20.6012, 11.3847), 'right_shoulder': (55.9141, 5.0946, 21.9559),
-        'right_elbow': (19.5268, 31.0435), 'right_wrist': (4.4817, -24.5734),
+        'right_clavicle': (20.6012, 11.3847), 'right_shoulder': (55.914, 5.0946, 21.9559),
+        'right_elbow': (19.527, 31.0435), 'right_wrist': (4.4816, -24.5735),
     })
     human.KeyJoints(42.4, {
-        'spine_lumbar': (1.8752, -18.2736, 8.6711), 'spine_thoracic': (-9.1012, -9.3271, 9.036),
+        'spine_lumbar': (1.8752, -18.2737, 8.6711), 'spine_thoracic': (-9.1013, -9.3271, 9.036),
         'neck': (25.2363, -0.8647, -4.9826), 'head': (9.102, -0.1334),
-        'right_clavicle': (7.3226, 8.0863), 'right_shoulder': (54.9119, 2.5128, 15.3275),
-        'right_elbow': (30.9989, 22.3641), 'right_wrist': (0.6199, -23.2749),
+        'right_clavicle': (7.3226, 8.0863), 'right_shoulder': (54.9118, 2.5128, 15.3275),
+        'right_elbow': (30.999, 22.3641), 'right_wrist': (0.6199, -23.2748),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.5, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(42.6, {
-        'spine_lumbar': (5.4873, -17.652, 9.5081), 'spine_thoracic': (-10.4244, -8.1449, 9.4803),
+        'spine_lumbar': (5.4873, -17.652, 9.5081), 'spine_thoracic': (-10.4245, -8.1449, 9.4803),
         'neck': (24.965, -1.1567, -6.9223), 'head': (8.9078, -0.1411),
-        'right_clavicle': (6.7237, 7.8988), 'right_shoulder': (55.434, 4.9591, 13.2209),
-        'right_elbow': (31.1163, 21.3116), 'right_wrist': (-0.1618, -21.8914),
+        'right_clavicle': (6.7237, 7.8988), 'right_shoulder': (55.4339, 4.9591, 13.2208),
+        'right_elbow': (31.1164, 21.3115), 'right_wrist': (-0.1618, -21.8914),
     })
     human.KeyJoints(42.7, {
         'spine_lumbar': (3.3784, -19.1773, 9.0812), 'spine_thoracic': (-10.8149, -10.0, 10.0731),
-        'neck': (25.4999, -1.1209, -7.1182), 'head': (9.6456, -0.1548),
-        'right_clavicle': (13.3061, 8.727), 'right_shoulder': (56.9613, 6.4641, 18.5288),
+        'neck': (25.4999, -1.1209, -7.1183), 'head': (9.6456, -0.1548),
+        'right_clavicle': (13.3061, 8.727), 'right_shoulder': (56.9612, 6.4641, 18.5288),
         'right_elbow': (28.4523, 26.6683), 'right_wrist': (2.1283, -25.9012),
     })
     human.KeyJoints(42.8, {
         'spine_lumbar': (-0.0088, -20.0, 10.2499), 'spine_thoracic': (-12.7062, -10.0, 12.8266),
         'neck': (27.2274, -1.2525, -9.3083), 'head': (11.6071, -0.1727),
-        'right_clavicle': (21.3637, 11.2599), 'right_shoulder': (57.5965, 7.6291, 21.5271),
-        'right_elbow': (19.0755, 31.3334), 'right_wrist': (4.3381, -24.186),
+        'right_clavicle': (21.3637, 11.2599), 'right_shoulder': (57.5964, 7.6292, 21.5271),
+        'right_elbow': (19.0756, 31.3334), 'right_wrist': (4.3381, -24.186),
     })
     human.KeyJoints(42.9, {
         'spine_lumbar': (-1.3643, -19.5613, 8.9193), 'spine_thoracic': (-9.9435, -10.0, 9.8421),
-        'neck': (26.3059, -0.8298, -5.4395), 'head': (10.5651, -0.1597),
-        'right_clavicle': (12.7454, 8.9112), 'right_shoulder': (54.8033, 2.8258, 18.6638),
-        'right_elbow': (27.1582, 26.2126), 'right_wrist': (2.3674, -24.2683),
+        'neck': (26.3059, -0.8298, -5.4396), 'head': (10.5651, -0.1597),
+        'right_clavicle': (12.7454, 8.9112), 'right_shoulder': (54.8032, 2.8258, 18.6638),
+        'right_elbow': (27.1583, 26.2126), 'right_wrist': (2.3674, -24.2683),
     })
     human.KeyJoints(43.0, {
         'spine_lumbar': (7.8615, -13.6221, 9.8217), 'spine_thoracic': (-8.8357, -4.5211, 9.3887),
-        'neck': (24.1081, -1.0554, -5.326), 'head': (7.5667, -0.1075),
+        'neck': (24.1081, -1.0554, -5.3261), 'head': (7.5667, -0.1075),
         'right_clavicle': (3.1542, 8.0109), 'right_shoulder': (56.9053, 3.0007, 11.4244),
         'right_elbow': (32.7399, 18.8968), 'right_wrist': (-0.9511, -19.4198),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.1, {
-        'spine_lumbar': (6.6765, -15.5383, 9.6311), 'spine_thoracic': (-9.6578, -6.1825, 9.3917),
+        'spine_lumbar': (6.6765, -15.5384, 9.6311), 'spine_thoracic': (-9.6579, -6.1825, 9.3917),
         'neck': (24.6422, -1.1098, -6.1945), 'head': (8.2914, -0.1203),
         'right_clavicle': (4.7808, 7.9339), 'right_shoulder': (56.1774, 3.9327, 12.151),
-        'right_elbow': (31.8956, 19.9501), 'right_wrist': (-0.6142, -20.7219),
+        'right_elbow': (31.8957, 19.9501), 'right_wrist': (-0.6142, -20.7219),
     })
     human.KeyJoints(43.2, {
         'spine_lumbar': (4.3699, -19.3189, 8.751), 'spine_thoracic': (-10.0178, -10.0, 9.2244),
-        'neck': (24.9923, -1.1263, -6.709), 'head': (8.9088, -0.1391),
-        'right_clavicle': (9.9098, 7.938), 'right_shoulder': (56.8867, 5.3827, 16.135),
-        'right_elbow': (29.8777, 24.0834), 'right_wrist': (0.9893, -23.8327),
+        'neck': (24.9923, -1.1263, -6.7091), 'head': (8.9088, -0.1391),
+        'right_clavicle': (9.9098, 7.938), 'right_shoulder': (56.8866, 5.3827, 16.135),
+        'right_elbow': (29.8778, 24.0834), 'right_wrist': (0.9893, -23.8327),
     })
     human.KeyJoints(43.3, {
         'spine_lumbar': (1.7299, -19.7406, 9.6646), 'spine_thoracic': (-11.959, -10.0, 11.5751),
         'neck': (26.3632, -1.2056, -8.4287), 'head': (10.7206, -0.1703),
-        'right_clavicle': (18.2043, 10.0782), 'right_shoulder': (57.3177, 7.5057, 20.6762),
-        'right_elbow': (23.6912, 29.7297), 'right_wrist': (3.4923, -25.6582),
+        'right_clavicle': (18.2043, 10.0782), 'right_shoulder': (57.3176, 7.5058, 20.6762),
+        'right_elbow': (23.6913, 29.7297), 'right_wrist': (3.4923, -25.6583),
     })
     human.KeyJoints(43.4, {
         'spine_lumbar': (-3.4022, -19.9723, 10.1714), 'spine_thoracic': (-11.8441, -10.0, 12.4838),
         'neck': (27.6124, -0.9581, -7.3848), 'head': (11.9893, -0.1681),
-        'right_clavicle': (19.693, 11.1583), 'right_shoulder': (55.6001, 4.4976, 21.698),
-        'right_elbow': (20.3482, 30.5493), 'right_wrist': (4.3092, -24.5547),
+        'right_clavicle': (19.693, 11.1583), 'right_shoulder': (55.6, 4.4977, 21.698),
+        'right_elbow': (20.3483, 30.5493), 'right_wrist': (4.3092, -24.5548),
     })
     human.KeyJoints(43.5, {
-        'spine_lumbar': (3.6251, -17.0243, 8.9639), 'spine_thoracic': (-9.0014, -8.1041, 9.1257),
+        'spine_lumbar': (3.6251, -17.0244, 8.9639), 'spine_thoracic': (-9.0014, -8.1041, 9.1257),
         'neck': (24.9757, -0.9617, -5.373), 'head': (8.6901, -0.1236),
-        'right_clavicle': (5.9124, 8.0566), 'right_shoulder': (55.4192, 2.637, 14.0995),
-        'right_elbow': (31.6295, 21.2222), 'right_wrist': (0.1035, -22.2469),
+        'right_clavicle': (5.9124, 8.0566), 'right_shoulder': (55.4191, 2.637, 14.0994),
+        'right_elbow': (31.6296, 21.2222), 'right_wrist': (0.1035, -22.2468),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.6, {
-        'spine_lumbar': (7.9771, -13.5238, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
+        'spine_lumbar': (7.9771, -13.5239, 9.8472), 'spine_thoracic': (-8.8322, -4.4144, 9.3965),
         'neck': (24.072, -1.0576, -5.3147), 'head': (7.5234, -0.107),
-        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9496, 3.0115, 11.3556),
-        'right_elbow': (32.7643, 18.8396), 'right_wrist': (-0.9771, -19.3378),
+        'right_clavicle': (3.0883, 8.01), 'right_shoulder': (56.9495, 3.0116, 11.3556),
+        'right_elbow': (32.7643, 18.8395), 'right_wrist': (-0.9771, -19.3378),
     })
     human.KeyJoints(43.7, {
-        'spine_lumbar': (5.152, -18.3403, 9.4939), 'spine_thoracic': (-10.6559, -8.8243, 9.5328),
+        'spine_lumbar': (5.152, -18.3404, 9.4939), 'spine_thoracic': (-10.6559, -8.8244, 9.5328),
         'neck': (25.1012, -1.1785, -7.2211), 'head': (9.125, -0.1469),
-        'right_clavicle': (7.3852, 7.9001), 'right_shoulder': (55.2368, 5.3273, 13.6048),
+        'right_clavicle': (7.3852, 7.9001), 'right_shoulder': (55.2367, 5.3273, 13.6048),
         'right_elbow': (30.899, 21.7841), 'right_wrist': (0.0004, -22.1934),
     })
     human.KeyJoints(43.8, {
         'spine_lumbar': (3.0549, -19.3302, 9.1686), 'spine_thoracic': (-11.0575, -10.0, 10.335),
         'neck': (25.6499, -1.1317, -7.3437), 'head': (9.8805, -0.1609),
-        'right_clavicle': (14.4013, 8.9681), 'right_shoulder': (56.9909, 6.7952, 19.2561),
+        'right_clavicle': (14.4014, 8.9681), 'right_shoulder': (56.9909, 6.7952, 19.2561),
         'right_elbow': (27.8802, 27.4801), 'right_wrist': (2.4892, -26.2798),
     })
     human.KeyJoints(43.9, {
         'spine_lumbar': (-1.439, -20.0, 10.2765), 'spine_thoracic': (-12.5891, -10.0, 12.8161),
         'neck': (27.4786, -1.1436, -8.6954), 'head': (11.8567, -0.1712),
-        'right_clavicle': (21.2044, 11.3274), 'right_shoulder': (57.0753, 6.8782, 21.7392),
-        'right_elbow': (19.1675, 31.2745), 'right_wrist': (4.4145, -24.3299),
+        'right_clavicle': (21.2044, 11.3275), 'right_shoulder': (57.0753, 6.8782, 21.7392),
+        'right_elbow': (19.1677, 31.2745), 'right_wrist': (4.4145, -24.33),
     })
     human.KeyJoints(44.0, {
         'spine_lumbar': (-0.4228, -19.3391, 8.5996), 'spine_thoracic': (-9.5044, -10.0, 9.1737),
         'neck': (25.8901, -0.7995, -4.8402), 'head': (10.0418, -0.1518),
         'right_clavicle': (10.4667, 8.3392), 'right_shoulder': (54.6677, 2.5871, 17.4945),
-        'right_elbow': (29.2845, 24.7131), 'right_wrist': (1.6727, -24.1047),
+        'right_elbow': (29.2846, 24.7131), 'right_wrist': (1.6727, -24.1046),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.092466, duration=0.072)
     human.KeyJoints(44.1, {
         'spine_lumbar': (7.1241, -13.8817, 9.5906), 'spine_thoracic': (-8.4326, -4.4382, 9.1583),
         'neck': (24.173, -1.0124, -5.0135), 'head': (7.5718, -0.1032),
-        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (57.1974, 2.088, 10.9299),
-        'right_elbow': (31.9977, 18.3404), 'right_wrist': (-1.0805, -21.1506),
+        'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (57.1973, 2.088, 10.9299),
+        'right_elbow': (31.9979, 18.3404), 'right_wrist': (-1.0805, -21.1505),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.164466, duration=0.2628)
@@ -2730,8 +2730,8 @@ def remove_access_panel():
     human.KeyJoints(44.3, {'neck': (23.4082, -2.8729, -19.7429)})
     human.KeyJoints(44.4, {
         'neck': (22.7561, -4.4591, -32.2995), 'head': (7.2625, -0.2298),
-        'right_shoulder': (57.1974, 2.088, 10.9299), 'right_elbow': (31.9977, 18.3404),
-        'right_wrist': (-1.0805, -21.1506), 'left_shoulder': (8.5944, 5.7296, 11.4592),
+        'right_shoulder': (57.1973, 2.088, 10.9299), 'right_elbow': (31.9979, 18.3404),
+        'right_wrist': (-1.0805, -21.1505), 'left_shoulder': (8.5944, 5.7296, 11.4592),
         'left_elbow': (34.3775, 17.1887), 'left_wrist': (0.0, 0.0),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
@@ -2739,34 +2739,34 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.427266, duration=0.867635)
     human.KeyJoints(44.5, {
-        'neck': (22.7122, -4.5659, -33.1451), 'right_shoulder': (56.3701, 2.8672, 10.475),
-        'right_elbow': (33.8103, 18.5408), 'right_wrist': (-1.5428, -21.066),
+        'neck': (22.7122, -4.5659, -33.1451), 'right_shoulder': (56.37, 2.8672, 10.475),
+        'right_elbow': (33.8104, 18.5408), 'right_wrist': (-1.5428, -21.0659),
         'left_shoulder': (10.6814, 4.7563, 11.5629), 'left_elbow': (33.9559, 17.2166),
         'left_wrist': (0.0421, -0.1772),
     })
     human.KeyJoints(44.6, {
-        'right_shoulder': (53.0133, 6.0798, 8.5836), 'right_elbow': (41.165, 19.354),
-        'right_wrist': (-3.4226, -20.7229), 'left_shoulder': (19.209, 0.7433, 11.9917),
+        'right_shoulder': (53.0132, 6.0799, 8.5836), 'right_elbow': (41.1651, 19.354),
+        'right_wrist': (-3.4226, -20.7228), 'left_shoulder': (19.2091, 0.7433, 11.9917),
         'left_elbow': (32.2454, 17.3298), 'left_wrist': (0.2164, -0.8963),
     })
     human.KeyJoints(44.7, {
-        'right_shoulder': (47.9676, 11.0356, 5.6274), 'right_elbow': (52.22, 20.5764),
-        'right_wrist': (-6.258, -20.2072), 'left_shoulder': (32.1738, -5.447, 12.6554),
+        'right_shoulder': (47.9676, 11.0357, 5.6274), 'right_elbow': (52.2201, 20.5764),
+        'right_wrist': (-6.258, -20.2071), 'left_shoulder': (32.1738, -5.447, 12.6554),
         'left_elbow': (29.6743, 17.4999), 'left_wrist': (0.4867, -1.9772),
     })
     human.KeyJoints(44.8, {
-        'right_shoulder': (42.2019, 16.9247, 2.0473), 'right_elbow': (64.8526, 21.9733),
+        'right_shoulder': (42.2018, 16.9248, 2.0473), 'right_elbow': (64.8527, 21.9733),
         'right_wrist': (-9.5157, -19.6178), 'left_shoulder': (47.2502, -12.8031, 13.4481),
         'left_elbow': (26.7362, 17.6942),
     })
     human.KeyJoints(44.9, {
-        'right_shoulder': (36.6849, 22.9373, -1.7156), 'right_elbow': (76.9401, 23.3099),
+        'right_shoulder': (36.6849, 22.9374, -1.7156), 'right_elbow': (76.9402, 23.3099),
         'right_wrist': (-12.6621, -19.0539), 'left_shoulder': (62.1128, -20.3133, 14.2637),
         'left_elbow': (23.9249, 17.8802), 'left_wrist': (1.1446, -4.3941),
     })
     human.KeyJoints(45.0, {
         'right_shoulder': (32.3856, 28.2635, -5.2203), 'right_elbow': (86.3598, 24.3515),
-        'right_wrist': (-15.1639, -18.6145), 'left_shoulder': (74.4361, -26.9661, 14.9963),
+        'right_wrist': (-15.1639, -18.6144), 'left_shoulder': (74.4361, -26.9661, 14.9963),
         'left_elbow': (21.7341, 18.0251), 'left_wrist': (1.4469, -5.315),
     })
     human.KeyJoints(45.1, {
@@ -2774,16 +2774,16 @@ def remove_access_panel():
         'neck': (22.7122, -4.5659, -33.1451), 'head': (7.2529, -0.2338),
         'right_clavicle': (2.7151, 7.8999), 'right_shoulder': (30.2729, 32.0934, -8.0258),
         'right_elbow': (90.9888, 24.8633), 'right_wrist': (-16.4875, -18.3985),
-        'left_clavicle': (0.0, 0.0), 'left_shoulder': (81.8945, -31.7498, 15.5399),
+        'left_clavicle': (0.0, 0.0), 'left_shoulder': (81.8946, -31.7498, 15.5399),
         'left_elbow': (20.6575, 18.0964), 'left_wrist': (1.6746, -5.7676),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
     human.KeyJoints(45.2, {
-        'spine_lumbar': (11.7337, -12.3932, 9.1975), 'spine_thoracic': (-10.9157, -5.1857, 8.6988),
-        'neck': (21.9602, -4.9145, -33.2548), 'right_clavicle': (4.6853, 8.682),
-        'right_shoulder': (32.1228, 34.2192, -9.613), 'right_elbow': (89.5507, 24.778),
-        'right_wrist': (-16.4644, -18.6423), 'left_clavicle': (-0.9778, 1.3858),
+        'spine_lumbar': (11.7338, -12.3932, 9.1975), 'spine_thoracic': (-10.9157, -5.1857, 8.6988),
+        'neck': (21.9602, -4.9145, -33.255), 'right_clavicle': (4.6853, 8.682),
+        'right_shoulder': (32.1229, 34.2192, -9.613), 'right_elbow': (89.5507, 24.778),
+        'right_wrist': (-16.4643, -18.6423), 'left_clavicle': (-0.9778, 1.3858),
         'left_shoulder': (85.1888, -31.8735, 15.378), 'left_elbow': (21.3373, 18.1179),
         'left_wrist': (1.4577, -5.5833),
     })
@@ -2793,11 +2793,11 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=45.294901, duration=0.072)
     human.KeyRoot(45.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(45.3, {
-        'spine_lumbar': (17.0071, -11.4445, 7.5102), 'spine_thoracic': (-14.6839, -6.4027, 6.8752),
-        'neck': (21.299, -4.9839, -31.4706), 'head': (6.1657, -0.4464),
+        'spine_lumbar': (17.0071, -11.4445, 7.5103), 'spine_thoracic': (-14.6838, -6.4026, 6.8753),
+        'neck': (21.299, -4.9838, -31.4706), 'head': (6.1657, -0.4464),
         'right_clavicle': (6.9972, 9.7296), 'right_shoulder': (34.5012, 35.235, -9.8523),
-        'right_elbow': (90.6915, 24.8972), 'right_wrist': (-16.5326, -18.2955),
-        'left_clavicle': (-2.4881, 4.0), 'left_shoulder': (89.3018, -29.1524, 14.6435),
+        'right_elbow': (90.6914, 24.8972), 'right_wrist': (-16.5326, -18.2955),
+        'left_clavicle': (-2.488, 3.9999), 'left_shoulder': (89.3018, -29.1525, 14.6435),
         'left_wrist': (0.8948, -5.4732), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
         'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
         'left_ankle': (1.7189, 0.0),
@@ -2806,15 +2806,15 @@ def remove_access_panel():
     human.Walk((139.2, 0.0, 19.967), start=45.366901, duration=3.7584)
     human.KeyRoot(45.4, (-0.457, 72.984, 60.131), (1.2476, 0.0, 0.0))
     human.KeyJoints(45.4, {
-        'right_shoulder': (33.6987, 35.0039, -9.897), 'right_elbow': (90.5645, 24.887),
-        'left_shoulder': (88.4385, -29.1667, 14.691), 'left_elbow': (21.8923, 18.1666),
+        'right_shoulder': (33.6987, 35.0039, -9.897), 'right_elbow': (90.5644, 24.887),
+        'left_shoulder': (88.4384, -29.1668, 14.691), 'left_elbow': (21.8923, 18.1666),
         'right_hip': (2.912, -0.3239, -1.2657), 'right_knee': (5.2205,),
         'right_ankle': (2.3182, -0.3877), 'left_hip': (8.6558, 0.2004, 1.3075),
         'left_knee': (16.2701,), 'left_ankle': (5.4686, 0.3951),
     })
     human.KeyRoot(45.5, (-1.844, 72.931, 60.42), (5.017, 0.0, 0.0))
     human.KeyJoints(45.5, {
-        'right_wrist': (-16.5817, -18.3704), 'right_hip': (2.7361, -1.3116, -5.0832),
+        'right_wrist': (-16.5816, -18.3704), 'right_hip': (2.7361, -1.3116, -5.0832),
         'right_knee': (6.0773,), 'right_ankle': (3.4638, -1.547),
         'left_hip': (16.3963, 0.2882, 3.7726), 'left_knee': (32.1458,),
         'left_ankle': (13.7009, 1.6528),
@@ -2833,14 +2833,14 @@ def remove_access_panel():
     })
     human.KeyRoot(45.8, (-0.912, 72.746, 58.493), (15.9969, 0.0, 0.0))
     human.KeyJoints(45.8, {
-        'left_shoulder': (88.7455, -29.1548, 14.6728), 'left_elbow': (21.9573, 18.1681),
+        'left_shoulder': (88.7454, -29.1549, 14.6729), 'left_elbow': (21.9573, 18.1681),
         'right_hip': (12.5265, 3.0394, -15.7671), 'right_knee': (25.9793,),
         'right_ankle': (8.1434, -0.5244), 'left_hip': (5.3277, 1.7511, -19.3446),
         'left_knee': (10.8698,), 'left_ankle': (5.2589, -0.1173),
     })
     human.KeyRoot(45.9, (0.21, 72.697, 58.426), (21.6316, 0.0, 0.0))
     human.KeyJoints(45.9, {
-        'left_shoulder': (88.7431, -29.1362, 14.6696), 'left_elbow': (22.0659, 18.1688),
+        'left_shoulder': (88.743, -29.1363, 14.6697), 'left_elbow': (22.0659, 18.1688),
         'right_hip': (12.7242, 6.3696, -20.5582), 'right_knee': (29.2394,),
         'right_ankle': (8.6082, 0.6979), 'left_hip': (6.1466, 0.3497, -13.8263),
         'left_ankle': (5.4532, -1.1285),
@@ -2853,14 +2853,14 @@ def remove_access_panel():
     })
     human.KeyRoot(46.1, (2.463, 72.565, 59.412), (37.558, 0.0, 0.0))
     human.KeyJoints(46.1, {
-        'right_shoulder': (34.3547, 35.2021, -9.8714), 'right_elbow': (90.7199, 24.9007),
+        'right_shoulder': (34.3547, 35.2021, -9.8714), 'right_elbow': (90.7198, 24.9007),
         'right_hip': (26.3187, -5.3644, 14.1933), 'right_knee': (52.8471,),
         'right_ankle': (18.3652, 1.6649), 'left_hip': (6.7338, -2.6464, 1.8387),
         'left_knee': (12.8897,), 'left_ankle': (6.0571, -2.4112),
     })
     human.KeyRoot(46.2, (2.971, 72.499, 61.708), (45.0968, 0.0, 0.0))
     human.KeyJoints(46.2, {
-        'right_shoulder': (34.5012, 35.235, -9.8523), 'left_shoulder': (89.3018, -29.1524, 14.6435),
+        'right_shoulder': (34.5012, 35.235, -9.8523), 'left_shoulder': (89.3018, -29.1525, 14.6435),
         'left_elbow': (21.618, 18.1688), 'right_hip': (13.5577, -5.5158, 25.1861),
         'right_knee': (28.5663,), 'right_ankle': (13.9119, 0.8205),
         'left_hip': (9.7328, -3.1858, 9.2109), 'left_knee': (21.4226,),
@@ -3037,7 +3037,7 @@ def remove_access_panel():
     })
     human.KeyRoot(49.1, (138.93, 72.483, 19.956), (90.8752, 0.0, 0.0))
     human.KeyJoints(49.1, {
-        'neck': (21.299, -4.9839, -31.4706), 'head': (6.1657, -0.4464),
+        'neck': (21.299, -4.9838, -31.4706), 'head': (6.1657, -0.4464),
         'right_hip': (8.4367, 0.1666, -0.8601), 'right_knee': (14.6119,),
         'right_ankle': (6.1847, 0.0386), 'left_hip': (8.6006, -0.1674, 0.8598),
         'left_knee': (14.5078,), 'left_ankle': (5.9057, -0.037),
@@ -3052,7 +3052,7 @@ def remove_access_panel():
     })
     human.KeyJoints(49.3, {
         'neck': (31.413, 23.6093, -30.0863), 'head': (12.6871, -8.4216),
-        'right_shoulder': (34.5012, 35.235, -9.8523), 'left_shoulder': (89.3018, -29.1524, 14.6435),
+        'right_shoulder': (34.5012, 35.235, -9.8523), 'left_shoulder': (89.3018, -29.1525, 14.6435),
         'left_elbow': (21.618, 18.1688),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
@@ -3061,62 +3061,62 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=49.388101, duration=0.698258)
     human.KeyJoints(49.4, {
         'neck': (35.0, 33.75, -29.5953), 'head': (15.0, -11.25),
-        'right_shoulder': (34.4259, 35.2046, -9.8428), 'right_elbow': (90.7235, 24.9001),
-        'right_wrist': (-16.5389, -18.2876), 'left_shoulder': (89.1833, -29.1578, 14.6459),
+        'right_shoulder': (34.4259, 35.2047, -9.8429), 'right_elbow': (90.7234, 24.9001),
+        'right_wrist': (-16.5389, -18.2876), 'left_shoulder': (89.1832, -29.1578, 14.6459),
         'left_elbow': (21.7095, 18.1745), 'left_wrist': (0.8597, -5.4421),
         'right_hip': (3.0219, 0.0, 0.0), 'right_knee': (4.9148,), 'right_ankle': (1.8952, 0.0),
         'left_hip': (3.0213, 0.0, 0.0), 'left_knee': (4.9135,), 'left_ankle': (1.8945, 0.0),
     })
     human.KeyJoints(49.5, {
-        'right_shoulder': (28.5564, 32.817, -9.0609), 'right_elbow': (93.176, 25.1216),
-        'right_wrist': (-17.023, -17.6859), 'left_shoulder': (79.9709, -29.5676, 14.8324),
+        'right_shoulder': (28.5564, 32.817, -9.0609), 'right_elbow': (93.1759, 25.1216),
+        'right_wrist': (-17.023, -17.6859), 'left_shoulder': (79.9708, -29.5677, 14.8324),
         'left_elbow': (28.7741, 18.6107), 'left_wrist': (-1.8703, -3.0555),
         'right_hip': (2.8548, 0.0, 0.0), 'right_knee': (4.5782,), 'right_ankle': (1.7513, 0.0),
         'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
     })
     human.KeyJoints(49.6, {
         'right_shoulder': (15.7533, 27.513, -7.1734), 'right_elbow': (98.3737, 25.591),
-        'right_wrist': (-18.049, -16.4105), 'left_shoulder': (59.9865, -30.4362, 15.2275),
+        'right_wrist': (-18.049, -16.4106), 'left_shoulder': (59.9864, -30.4363, 15.2275),
         'left_elbow': (43.9123, 19.5351), 'left_wrist': (-7.8021, 2.0075),
     })
     human.KeyJoints(49.7, {
-        'right_shoulder': (-0.549, 20.5604, -4.3931), 'right_elbow': (104.6767, 26.1603),
-        'right_wrist': (-19.2931, -14.864), 'left_shoulder': (34.7688, -31.4895, 15.7067),
-        'left_elbow': (62.6245, 20.6561), 'left_wrist': (-15.307, 8.1584),
+        'right_shoulder': (-0.549, 20.5604, -4.3932), 'right_elbow': (104.6767, 26.1603),
+        'right_wrist': (-19.2931, -14.864), 'left_shoulder': (34.7687, -31.4895, 15.7067),
+        'left_elbow': (62.6246, 20.6561), 'left_wrist': (-15.307, 8.1584),
     })
     human.KeyJoints(49.8, {
         'right_shoulder': (-16.9165, 13.2271, -0.9327), 'right_elbow': (110.4452, 26.6813),
         'right_wrist': (-20.4318, -13.4487), 'left_shoulder': (9.8564, -32.4535, 16.1452),
-        'left_elbow': (80.4113, 21.6821), 'left_wrist': (-22.7564, 13.8083),
+        'left_elbow': (80.4114, 21.6821), 'left_wrist': (-22.7564, 13.8084),
     })
     human.KeyJoints(49.9, {
-        'right_shoulder': (-29.9147, 6.7809, 2.9954), 'right_elbow': (114.0394, 27.0059),
+        'right_shoulder': (-29.9147, 6.7808, 2.9954), 'right_elbow': (114.0394, 27.0059),
         'right_wrist': (-21.1413, -12.5668), 'left_shoulder': (-9.2118, -33.0541, 16.4184),
-        'left_elbow': (92.7731, 22.3213), 'left_wrist': (-28.5215, 17.3688),
+        'left_elbow': (92.7732, 22.3213), 'left_wrist': (-28.5215, 17.3688),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(50.0, {
         'right_shoulder': (-36.6541, 2.2991, 8.2505), 'right_elbow': (112.6979, 26.8304),
-        'right_wrist': (-20.4126, -12.5866), 'left_shoulder': (-18.0718, -30.0968, 13.2242),
-        'left_elbow': (96.659, 22.1186), 'left_wrist': (-31.3168, 17.9211),
+        'right_wrist': (-20.4126, -12.5866), 'left_shoulder': (-18.0717, -30.0968, 13.2242),
+        'left_elbow': (96.6589, 22.1186), 'left_wrist': (-31.3168, 17.9211),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=50.086359, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=50.086359, duration=0.072)
     human.KeyJoints(50.1, {
-        'right_shoulder': (-40.2471, -1.5898, 14.4624), 'right_elbow': (110.5049, 26.5332),
-        'right_wrist': (-18.9182, -12.5291), 'left_shoulder': (-26.869, -28.5778, 12.87),
-        'left_elbow': (105.468, 22.9257), 'left_wrist': (-33.9242, 20.0),
+        'right_shoulder': (-40.2471, -1.5898, 14.4624), 'right_elbow': (110.5048, 26.5332),
+        'right_wrist': (-18.9182, -12.5291), 'left_shoulder': (-26.8689, -28.5778, 12.87),
+        'left_elbow': (105.4678, 22.9257), 'left_wrist': (-33.9242, 20.0),
     })
     human.KeyRoot(50.158359, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(50.158359, {
-        'spine_lumbar': (17.0071, -11.4445, 7.5102), 'spine_thoracic': (-14.6839, -6.4027, 6.8752),
+        'spine_lumbar': (17.0071, -11.4445, 7.5103), 'spine_thoracic': (-14.6838, -6.4026, 6.8753),
         'neck': (35.0, 33.75, -29.5953), 'head': (15.0, -11.25), 'right_clavicle': (6.9972, 9.7296),
-        'right_shoulder': (-40.2471, -1.5898, 14.4624), 'right_elbow': (110.5049, 26.5332),
-        'right_wrist': (-18.9182, -12.5291), 'left_clavicle': (-2.4881, 4.0),
-        'left_shoulder': (-26.869, -28.5778, 12.87), 'left_elbow': (105.468, 22.9257),
+        'right_shoulder': (-40.2471, -1.5898, 14.4624), 'right_elbow': (110.5048, 26.5332),
+        'right_wrist': (-18.9182, -12.5291), 'left_clavicle': (-2.488, 3.9999),
+        'left_shoulder': (-26.8689, -28.5778, 12.87), 'left_elbow': (105.4678, 22.9257),
         'left_wrist': (-33.9242, 20.0), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
         'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
         'left_ankle': (1.7189, 0.0),

@@ -84,184 +84,182 @@ def remove_avionics_unit():
     human.KeyRoot(0.9, (0.0, 72.987, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.9, {
         'spine_lumbar': (0.0844, -0.0909, -0.3271), 'spine_thoracic': (0.2976, 0.0244, -0.6542),
-        'neck': (-20.2553, -0.1825, 0.591), 'right_clavicle': (0.5952, -0.3271),
-        'right_shoulder': (8.5094, 9.4653, 10.2972), 'right_elbow': (33.9093, 17.0012),
+        'neck': (-20.2553, -0.1825, 0.591), 'right_clavicle': (0.5953, -0.3271),
+        'right_shoulder': (8.5094, 9.4653, 10.2972), 'right_elbow': (33.9092, 17.0012),
         'right_wrist': (0.0072, -0.0191), 'left_clavicle': (0.6526, 0.2398),
-        'left_shoulder': (11.442, 5.8946, 11.2736), 'left_elbow': (34.3349, 15.1753),
+        'left_shoulder': (11.4421, 5.8946, 11.2736), 'left_elbow': (34.3349, 15.1753),
         'left_wrist': (-0.1521, -0.0457), 'right_hip': (3.1133, 0.0, 0.0), 'right_knee': (5.1074,),
         'right_ankle': (1.996, 0.0), 'left_hip': (3.1178, 0.0, 0.0), 'left_knee': (5.1168,),
         'left_ankle': (2.0011, 0.0),
     })
     human.KeyJoints(1.0, {
-        'spine_lumbar': (0.3466, -0.3502, -1.2601), 'spine_thoracic': (1.1465, 0.0942, -2.5202),
-        'neck': (-20.8972, -0.6299, 2.0396), 'head': (-18.1789, -0.0017),
-        'right_clavicle': (2.3009, -1.2601), 'right_shoulder': (8.267, 20.1218, 6.9827),
-        'right_elbow': (32.5564, 16.4661), 'left_clavicle': (2.5143, 0.9286),
-        'left_shoulder': (19.5967, 6.3688, 10.743), 'left_elbow': (34.2055, 9.4318),
+        'spine_lumbar': (0.3467, -0.3502, -1.2601), 'spine_thoracic': (1.1465, 0.0942, -2.5202),
+        'neck': (-20.8972, -0.6299, 2.0396), 'head': (-18.179, -0.0017),
+        'right_clavicle': (2.301, -1.2601), 'right_shoulder': (8.267, 20.1218, 6.9827),
+        'right_elbow': (32.5562, 16.4661), 'left_clavicle': (2.5143, 0.9287),
+        'left_shoulder': (19.5971, 6.3688, 10.743), 'left_elbow': (34.2055, 9.4318),
         'left_wrist': (-0.5872, -0.1759), 'right_hip': (3.0948, 0.0, 0.0), 'right_knee': (5.0685,),
         'right_ankle': (1.976, 0.0), 'left_hip': (3.0974, 0.0, 0.0), 'left_knee': (5.0738,),
         'left_ankle': (1.9788, 0.0),
     })
     human.KeyJoints(1.1, {
-        'spine_lumbar': (0.7852, -0.7411, -2.6664), 'spine_thoracic': (2.4261, 0.1993, -5.3328),
-        'neck': (-21.9977, -1.2839, 4.1716), 'head': (-19.334, -0.0061),
-        'right_clavicle': (4.8876, -2.6664), 'right_shoulder': (7.9016, 36.1834, 1.987),
-        'right_elbow': (30.482, 15.6596), 'left_clavicle': (5.3208, 1.9763),
-        'left_shoulder': (31.9524, 7.0909, 9.9403), 'left_elbow': (33.9944, 0.775),
+        'spine_lumbar': (0.7854, -0.7411, -2.6664), 'spine_thoracic': (2.4261, 0.1993, -5.3328),
+        'neck': (-21.9978, -1.2839, 4.1716), 'head': (-19.3341, -0.0061),
+        'right_clavicle': (4.8878, -2.6664), 'right_shoulder': (7.9016, 36.1834, 1.987),
+        'right_elbow': (30.4817, 15.6596), 'left_clavicle': (5.3209, 1.9764),
+        'left_shoulder': (31.9531, 7.091, 9.9402), 'left_elbow': (33.9943, 0.775),
         'left_wrist': (-1.2451, -0.3722), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5865,),
         'right_ankle': (1.7189, 0.0), 'left_hip': (2.8749, 0.0, 0.0), 'left_knee': (4.6129,),
         'left_ankle': (1.7225, 0.0),
     })
     human.KeyJoints(1.2, {
-        'spine_lumbar': (1.3989, -1.2265, -4.413), 'spine_thoracic': (4.0152, 0.3299, -8.826),
-        'neck': (-24.7259, -2.008, 6.503), 'head': (-19.603, -0.0155),
-        'right_clavicle': (8.1253, -4.413), 'right_shoulder': (7.4478, 56.1316, -4.2175),
-        'right_elbow': (27.8498, 14.6578), 'right_wrist': (0.1119, -0.2843),
-        'left_clavicle': (8.8071, 3.2926), 'left_shoulder': (47.4004, 7.9994, 8.9386),
-        'left_elbow': (33.7064, -9.9765), 'left_wrist': (-2.0658, -0.6161),
+        'spine_lumbar': (1.3992, -1.2265, -4.413), 'spine_thoracic': (4.0152, 0.3299, -8.826),
+        'neck': (-24.7263, -2.008, 6.5029), 'head': (-19.603, -0.0155),
+        'right_clavicle': (8.1256, -4.413), 'right_shoulder': (7.4478, 56.1316, -4.2175),
+        'right_elbow': (27.8493, 14.6578), 'right_wrist': (0.112, -0.2843),
+        'left_clavicle': (8.8071, 3.2927), 'left_shoulder': (47.4016, 7.9996, 8.9386),
+        'left_elbow': (33.7063, -9.9765), 'left_wrist': (-2.0658, -0.6161),
     })
     human.KeyJoints(1.3, {
-        'spine_lumbar': (2.1863, -1.7695, -6.3669), 'spine_thoracic': (5.793, 0.4759, -12.7338),
-        'neck': (-28.6059, -2.6988, 8.6945), 'right_clavicle': (11.784, -6.3669),
-        'right_shoulder': (6.9401, 78.4474, -11.1584), 'right_elbow': (24.8234, 13.537),
-        'left_clavicle': (12.7082, 4.7872), 'left_shoulder': (64.8322, 9.0329, 7.8113),
-        'left_elbow': (33.3467, -22.0041),
+        'spine_lumbar': (2.1867, -1.7695, -6.3669), 'spine_thoracic': (5.793, 0.4759, -12.7338),
+        'neck': (-28.6065, -2.6988, 8.6943), 'right_clavicle': (11.7844, -6.3669),
+        'right_shoulder': (6.9401, 78.4474, -11.1584), 'right_elbow': (24.8227, 13.537),
+        'left_clavicle': (12.7082, 4.7874), 'left_shoulder': (64.8337, 9.0331, 7.8112),
+        'left_elbow': (33.3465, -22.0041),
     })
     human.KeyJoints(1.4, {
-        'spine_lumbar': (3.146, -2.3332, -8.3951), 'spine_thoracic': (7.6384, 0.6275, -16.7902),
-        'neck': (-33.0555, -3.2691, 10.4789), 'right_shoulder': (6.4131, 101.6123, -18.3634),
-        'left_clavicle': (16.7591, 6.3698), 'left_shoulder': (83.1389, 10.1298, 6.6315),
-        'left_elbow': (32.9202, -34.4892),
+        'spine_lumbar': (3.1464, -2.3332, -8.3951), 'spine_thoracic': (7.6384, 0.6275, -16.7902),
+        'neck': (-33.0562, -3.2691, 10.4786), 'right_shoulder': (6.4131, 101.6123, -18.3634),
+        'left_clavicle': (16.7591, 6.37), 'left_shoulder': (83.1408, 10.13, 6.6314),
+        'left_elbow': (32.92, -34.4892),
     })
     human.KeyJoints(1.5, {
-        'spine_lumbar': (4.2766, -2.8806, -10.3647), 'spine_thoracic': (9.4304, 0.7747, -20.7294),
-        'neck': (-37.6921, -3.5822, 11.3581), 'head': (-19.1879, -0.1445),
-        'right_clavicle': (19.4442, -10.3647), 'right_shoulder': (5.9014, 124.1073, -25.3601),
-        'right_elbow': (18.2425, 11.243), 'left_clavicle': (20.6949, 7.9501),
-        'left_shoulder': (101.2121, 11.2286, 5.4724), 'left_elbow': (32.4321, -46.6134),
-        'left_wrist': (-4.9028, -1.4469),
+        'spine_lumbar': (4.2771, -2.8806, -10.3647), 'spine_thoracic': (9.4304, 0.7747, -20.7294),
+        'neck': (-37.6928, -3.582, 11.3577), 'head': (-19.1878, -0.1445),
+        'right_clavicle': (19.4447, -10.3647), 'right_shoulder': (5.9014, 124.1073, -25.3601),
+        'right_elbow': (18.2415, 11.243), 'left_clavicle': (20.6949, 7.9504),
+        'left_shoulder': (101.2142, 11.2288, 5.4723), 'left_elbow': (32.4318, -46.6134),
+        'left_wrist': (-4.9029, -1.4469),
     })
     human.KeyJoints(1.6, {
-        'spine_lumbar': (5.5768, -3.3747, -12.1427), 'spine_thoracic': (11.0481, 0.9076, -24.2853),
-        'neck': (-42.2412, -3.629, 11.3256), 'head': (-18.9881, -0.2173),
-        'right_clavicle': (22.9857, -12.1427), 'right_shoulder': (5.4394, 144.4138, -31.6761),
-        'right_elbow': (15.0153, 10.2223), 'left_clavicle': (24.2505, 9.4379),
-        'left_shoulder': (117.943, 12.2679, 4.4073), 'left_elbow': (31.8872, -57.558),
+        'spine_lumbar': (5.5773, -3.3747, -12.1427), 'spine_thoracic': (11.0481, 0.9076, -24.2853),
+        'neck': (-42.2419, -3.6289, 11.3252), 'head': (-18.988, -0.2173),
+        'right_clavicle': (22.9862, -12.1427), 'right_shoulder': (5.4394, 144.4138, -31.6761),
+        'right_elbow': (15.0143, 10.2223), 'left_clavicle': (24.2505, 9.4382),
+        'left_shoulder': (117.9451, 12.2681, 4.4072), 'left_elbow': (31.887, -57.558),
         'left_wrist': (-5.773, -1.6951),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (7.0452, -3.7786, -13.596), 'spine_thoracic': (12.3705, 1.0162, -27.192),
-        'neck': (-46.1946, -3.37, 10.4748), 'head': (-18.9367, -0.2295),
-        'right_clavicle': (26.0282, -13.596), 'right_shoulder': (5.0618, 161.0129, -36.8389),
-        'right_elbow': (12.0484, 9.3873), 'right_wrist': (0.5064, -1.1566),
-        'left_clavicle': (27.1609, 10.7429), 'left_shoulder': (132.223, 13.1862, 3.5092),
-        'left_elbow': (31.2907, -66.5045), 'left_wrist': (-6.5052, -1.898),
+        'spine_lumbar': (7.0456, -3.7786, -13.596), 'spine_thoracic': (12.3705, 1.0162, -27.192),
+        'neck': (-46.1951, -3.3698, 10.4744), 'head': (-18.9368, -0.2295),
+        'right_clavicle': (26.0286, -13.596), 'right_shoulder': (5.0618, 161.0129, -36.8389),
+        'right_elbow': (12.0476, 9.3873), 'right_wrist': (0.5065, -1.1567),
+        'left_clavicle': (27.1609, 10.7431), 'left_shoulder': (132.2248, 13.1863, 3.5091),
+        'left_elbow': (31.2905, -66.5045), 'left_wrist': (-6.5052, -1.898),
     })
     human.KeyJoints(1.8, {
-        'spine_lumbar': (8.6804, -4.0554, -14.5918), 'spine_thoracic': (13.2765, 1.0907, -29.1836),
-        'neck': (-48.5099, -2.6607, 8.988), 'head': (-19.8511, -0.0428),
-        'right_clavicle': (28.3415, -14.5918), 'right_shoulder': (4.8031, 172.3861, -40.3763),
-        'right_elbow': (9.5055, 8.8143), 'left_clavicle': (29.1613, 11.7747),
-        'left_shoulder': (142.9434, 13.9219, 2.8515), 'left_elbow': (30.6476, -72.6342),
-        'left_wrist': (-7.0392, -2.037),
+        'spine_lumbar': (8.6807, -4.0554, -14.5918), 'spine_thoracic': (13.2765, 1.0907, -29.1836),
+        'neck': (-48.5102, -2.6606, 8.9877), 'head': (-19.8513, -0.0427),
+        'right_clavicle': (28.3418, -14.5918), 'right_shoulder': (4.8031, 172.3861, -40.3763),
+        'right_elbow': (9.5049, 8.8143), 'left_clavicle': (29.1613, 11.7749),
+        'left_shoulder': (142.9446, 13.922, 2.8514), 'left_elbow': (30.6475, -72.6342),
+        'left_wrist': (-7.0393, -2.037),
     })
     human.KeyJoints(1.9, {
-        'spine_lumbar': (10.481, -4.168, -14.997), 'spine_thoracic': (13.6452, 1.121, -29.9941),
+        'spine_lumbar': (10.4811, -4.168, -14.997), 'spine_thoracic': (13.6452, 1.121, -29.9941),
         'neck': (-50.8594, -1.8889, 7.2869), 'head': (-19.8536, 0.0076),
         'right_clavicle': (29.6959, -14.997), 'right_shoulder': (4.6978, 177.0143, -41.8159),
         'right_elbow': (7.5501, 8.5795), 'right_wrist': (0.7187, -1.554),
-        'left_clavicle': (29.9865, 12.4431), 'left_shoulder': (148.9957, 14.4136, 2.5073),
-        'left_elbow': (29.9629, -75.1287), 'left_wrist': (-7.315, -2.0936),
+        'left_clavicle': (29.9865, 12.4431), 'left_shoulder': (148.9958, 14.4136, 2.5073),
+        'left_elbow': (29.9628, -75.1287), 'left_wrist': (-7.315, -2.0936),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.0, {
-        'spine_lumbar': (14.7091, -3.8016, -15.0), 'spine_thoracic': (11.4041, 1.0753, -30.0),
-        'neck': (-53.5639, -0.9008, 4.2862), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (5.0094, 175.1272, -41.754), 'right_elbow': (5.9799, 8.5763),
-        'left_clavicle': (30.0, 12.9673), 'left_shoulder': (151.7152, 14.3082, 2.4962),
-        'left_elbow': (28.4767, -75.1465), 'left_wrist': (-7.383, -2.1073),
+        'spine_lumbar': (14.7068, -3.8019, -15.0), 'spine_thoracic': (11.4061, 1.0752, -30.0),
+        'neck': (-53.5631, -0.9011, 4.2871), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (5.0091, 175.1283, -41.7541), 'right_elbow': (5.9808, 8.5763),
+        'left_clavicle': (30.0, 12.9668), 'left_shoulder': (151.7133, 14.3088, 2.496),
+        'left_elbow': (28.4778, -75.1465), 'left_wrist': (-7.383, -2.1072),
     })
     human.KeyJoints(2.1, {
-        'spine_lumbar': (21.1165, -2.348, -15.0), 'spine_thoracic': (6.2414, 1.1965, -30.0),
-        'neck': (-57.0672, -0.26, 1.8793), 'head': (-19.5419, 0.003),
-        'right_shoulder': (5.6749, 173.1622, -41.7093), 'right_elbow': (3.7945, 8.5781),
-        'right_wrist': (0.9894, -2.1286), 'left_clavicle': (30.0, 14.8709),
-        'left_shoulder': (157.1251, 11.9403, 2.9659), 'left_elbow': (24.199, -75.1785),
-        'left_wrist': (-7.5061, -2.3915),
+        'spine_lumbar': (21.1094, -2.3506, -15.0), 'spine_thoracic': (6.2482, 1.1967, -30.0),
+        'neck': (-57.0628, -0.2603, 1.8804), 'head': (-19.541, 0.003),
+        'right_shoulder': (5.6744, 173.1642, -41.7093), 'right_elbow': (3.797, 8.5781),
+        'right_wrist': (0.9894, -2.1284), 'left_clavicle': (30.0, 14.8692),
+        'left_shoulder': (157.1177, 11.9436, 2.9653), 'left_elbow': (24.2064, -75.1784),
+        'left_wrist': (-7.5059, -2.3912),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(2.2, {
-        'spine_lumbar': (27.0121, -0.0511, -15.0), 'spine_thoracic': (-0.6836, -0.5472, -30.0),
-        'neck': (-57.958, 0.0814, 0.0515), 'right_shoulder': (6.2003, 171.8684, -41.6984),
-        'right_elbow': (0.8901, 8.5842), 'right_wrist': (0.5937, -1.5593),
-        'left_clavicle': (30.0, 15.0), 'left_shoulder': (168.2071, 8.7303, 3.3465),
-        'left_elbow': (7.8817, -75.1842), 'left_wrist': (-6.5149, -2.1073),
+        'spine_lumbar': (27.0096, -0.0467, -15.0), 'spine_thoracic': (-0.6714, -0.5352, -30.0),
+        'neck': (-57.9829, 0.0787, 0.067), 'right_shoulder': (6.1975, 171.87, -41.6984),
+        'right_elbow': (0.9014, 8.5841), 'right_wrist': (0.5981, -1.5675),
+        'left_clavicle': (30.0, 15.0), 'left_shoulder': (168.1537, 8.7376, 3.3463),
+        'left_elbow': (7.9685, -75.1843), 'left_wrist': (-6.54, -2.1165),
     })
     human.KeyJoints(2.3, {
-        'neck': (-57.9933, 0.0905, -0.0003), 'left_shoulder': (168.7512, 8.6473, 3.3487),
-        'left_elbow': (6.9284, -75.1829), 'left_wrist': (-6.222, -2.0014),
+        'left_shoulder': (168.7106, 8.653, 3.3486), 'left_elbow': (6.996, -75.183),
+        'left_wrist': (-6.2444, -2.0095),
     })
     human.KeyJoints(2.4, {
-        'spine_thoracic': (-0.7639, -0.6441, -30.0), 'right_wrist': (0.4778, -1.3174),
-        'left_shoulder': (169.4701, 8.5405, 3.3509), 'left_elbow': (5.6614, -75.1812),
-        'left_wrist': (-5.7372, -1.8306),
+        'spine_thoracic': (-0.7845, -0.6674, -30.0), 'neck': (-58.0292, 0.1033, -0.0734),
+        'left_shoulder': (169.4772, 8.543, 3.3508), 'left_elbow': (5.6771, -75.1812),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (27.2247, 0.1333, -15.0), 'neck': (-58.3625, 0.1027, -0.0685),
-        'right_elbow': (0.452, 8.5853), 'right_wrist': (0.3766, -1.0992),
-        'left_shoulder': (170.3659, 8.4187, 3.3526), 'left_elbow': (4.118, -75.1792),
-        'left_wrist': (-4.9341, -1.5556),
+        'neck': (-58.1668, 0.1067, -0.093), 'right_elbow': (0.5196, 8.5851),
+        'right_wrist': (0.4177, -1.1919), 'left_shoulder': (170.0259, 8.4664, 3.352),
+        'left_elbow': (4.7242, -75.18), 'left_wrist': (-5.2804, -1.6729),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=2.567146, duration=0.072)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=2.567146, duration=0.072)
     human.KeyJoints(2.6, {
-        'neck': (-58.3625, 0.1027, -0.0685), 'head': (-19.5783, 0.0027),
-        'right_shoulder': (6.3631, 171.7904, -41.6984),
+        'spine_lumbar': (27.1879, 0.0803, -15.0), 'neck': (-58.1668, 0.1067, -0.093),
+        'right_shoulder': (6.3265, 171.803, -41.6984),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
     human.LookAt((0.0, 172.0, 98.0), start=2.639146, duration=0.2628)
-    human.KeyJoints(2.7, {'neck': (-58.0984, 0.0748, 0.0182)})
-    human.KeyJoints(2.8, {'neck': (-57.0707, -0.0335, 0.3555)})
+    human.KeyJoints(2.7, {'neck': (-57.902, 0.0788, -0.0065), 'head': (-19.5576, 0.0023)})
+    human.KeyJoints(2.8, {'neck': (-56.8715, -0.0299, 0.33)})
     human.KeyJoints(2.9, {
-        'spine_lumbar': (27.2247, 0.1333, -15.0), 'spine_thoracic': (-0.7019, -0.6329, -30.0),
-        'neck': (-56.4211, -0.102, 0.5686), 'head': (-19.3648, -0.0004),
-        'right_shoulder': (6.3631, 171.7904, -41.6984), 'right_elbow': (0.452, 8.5853),
-        'right_wrist': (0.3766, -1.0992), 'left_clavicle': (30.0, 15.0),
-        'left_shoulder': (170.3659, 8.4187, 3.3526), 'left_elbow': (4.118, -75.1792),
-        'left_wrist': (-4.9341, -1.5556),
+        'spine_lumbar': (27.1879, 0.0803, -15.0), 'spine_thoracic': (-0.7571, -0.6687, -30.0),
+        'neck': (-56.2202, -0.0987, 0.5427), 'head': (-19.3795, -0.0003),
+        'right_shoulder': (6.3265, 171.803, -41.6984), 'right_elbow': (0.5196, 8.5851),
+        'right_wrist': (0.4177, -1.1919), 'left_clavicle': (30.0, 15.0),
+        'left_shoulder': (170.0259, 8.4664, 3.352), 'left_elbow': (4.7242, -75.18),
+        'left_wrist': (-5.2804, -1.6729),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
     human.LookAt((0.0, 165.0, 75.0), start=2.901946, duration=2.430743)
     human.KeyJoints(3.0, {
-        'spine_lumbar': (25.5971, 0.9206, -11.0556), 'spine_thoracic': (3.8136, -1.7062, -18.8591),
-        'neck': (-59.1916, 0.0374, -0.4879), 'head': (-19.9236, 0.1995),
-        'right_shoulder': (64.3444, 122.5238, -27.9589), 'right_elbow': (1.4948, 5.1668),
-        'right_wrist': (0.4358, -0.8118), 'left_clavicle': (30.0, 5.7292),
-        'left_shoulder': (113.7735, 57.0594, 25.6077), 'left_elbow': (3.4616, -23.8392),
-        'left_wrist': (-3.2055, -1.2765),
+        'spine_lumbar': (25.5726, 0.885, -11.0556), 'spine_thoracic': (3.7767, -1.7301, -18.8591),
+        'neck': (-59.1029, 0.0589, -0.5258), 'head': (-19.9216, 0.186),
+        'right_shoulder': (64.32, 122.5322, -27.9589), 'right_elbow': (1.5398, 5.1667),
+        'right_wrist': (0.4632, -0.8736), 'left_clavicle': (30.0, 5.7292),
+        'left_shoulder': (113.547, 57.0911, 25.6073), 'left_elbow': (3.8653, -23.8397),
+        'left_wrist': (-3.4361, -1.3546),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (22.9423, 2.3383, -4.6217), 'spine_thoracic': (11.619, -3.4569, -0.6335),
-        'neck': (-60.0, 20.4624, 13.4815), 'head': (-20.0, -7.1778),
-        'right_clavicle': (30.0, -15.0), 'right_shoulder': (158.9208, 42.1623, -5.5476),
-        'right_elbow': (3.1957, -0.4094), 'right_wrist': (0.5323, -0.3431),
-        'left_clavicle': (30.0, -9.393), 'left_shoulder': (21.422, 136.3998, 61.9091),
-        'left_elbow': (2.3908, 59.9043), 'left_wrist': (-0.3858, -0.8211),
+        'spine_lumbar': (22.9379, 2.3313, -4.6217), 'spine_thoracic': (11.6122, -3.4612, -0.6335),
+        'neck': (-60.0, 20.5282, 13.5992), 'head': (-20.0, -7.0322),
+        'right_clavicle': (30.0, -15.0), 'right_shoulder': (158.9164, 42.1638, -5.5476),
+        'right_elbow': (3.2039, -0.4094), 'right_wrist': (0.5373, -0.3544),
+        'left_clavicle': (30.0, -9.393), 'left_shoulder': (21.3807, 136.4056, 61.9091),
+        'left_elbow': (2.4644, 59.9043), 'left_wrist': (-0.4278, -0.8353),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(3.2, {
-        'spine_lumbar': (23.2097, 3.0062, -3.2068), 'spine_thoracic': (14.4746, -3.6898, 3.5481),
-        'neck': (-60.0, 33.6822, 25.8964), 'head': (-20.0, -11.25),
-        'right_clavicle': (30.0, -14.7926), 'right_shoulder': (179.7221, 24.3614, -0.5558),
-        'right_elbow': (3.4057, -1.6517), 'right_wrist': (0.5372, -0.2799),
-        'left_clavicle': (30.0, -12.7289), 'left_shoulder': (0.7411, 154.0714, 69.9993),
+        'spine_lumbar': (23.2096, 3.0062, -3.2068), 'spine_thoracic': (14.4745, -3.6898, 3.5481),
+        'neck': (-60.0, 33.6817, 25.8904), 'head': (-20.0, -11.25),
+        'right_clavicle': (30.0, -14.7927), 'right_shoulder': (179.7222, 24.3613, -0.5558),
+        'right_elbow': (3.4058, -1.6517), 'right_wrist': (0.5372, -0.2799),
+        'left_clavicle': (30.0, -12.7289), 'left_shoulder': (0.7411, 154.0715, 69.9993),
         'left_elbow': (2.1551, 78.5692), 'left_wrist': (0.2403, -0.7227),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
@@ -270,7 +268,7 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'close', start=3.291054, duration=0.072)
     human.KeyJoints(3.3, {
         'spine_lumbar': (25.2115, 1.6706, -3.1542), 'spine_thoracic': (12.8766, -2.6383, 3.7721),
-        'neck': (-60.0, 33.75, 26.1461), 'head': (-20.0, -10.9243), 'right_clavicle': (30.0, -15.0),
+        'neck': (-60.0, 33.75, 26.1466), 'head': (-20.0, -10.9204), 'right_clavicle': (30.0, -15.0),
         'right_shoulder': (180.0, 26.1955, -0.6078), 'right_elbow': (3.2516, -1.6499),
         'right_wrist': (0.2677, -0.2847), 'left_clavicle': (30.0, -14.4368),
         'left_shoulder': (2.4581, 153.4396, 70.0), 'left_elbow': (1.7078, 78.5666),
@@ -279,19 +277,19 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(3.4, {
-        'neck': (-60.0, 33.75, 27.0727), 'head': (-20.0, -10.1367),
+        'neck': (-60.0, 33.75, 27.0731), 'head': (-20.0, -10.1329),
         'right_shoulder': (179.5684, 26.2744, -0.633), 'right_elbow': (4.8343, -1.6087),
         'right_wrist': (0.3334, 0.0948), 'left_shoulder': (3.6687, 153.9401, 69.401),
         'left_elbow': (3.3031, 78.4164), 'left_wrist': (-0.2081, -0.8813),
     })
     human.KeyJoints(3.5, {
-        'neck': (-60.0, 33.75, 36.055), 'head': (-20.0, -2.5009),
+        'neck': (-60.0, 33.75, 36.0553), 'head': (-20.0, -2.4985),
         'right_shoulder': (175.2085, 27.12, -0.9118), 'right_elbow': (20.8227, -1.1923),
-        'right_wrist': (0.9973, 3.9283), 'left_shoulder': (15.999, 159.0112, 63.3499),
+        'right_wrist': (0.9973, 3.9283), 'left_shoulder': (15.9989, 159.0112, 63.3499),
         'left_elbow': (19.4195, 76.8891), 'left_wrist': (-6.1266, -5.3178),
     })
     human.KeyJoints(3.6, {
-        'neck': (-60.0, 33.75, 47.3648), 'head': (-20.0, 7.1134),
+        'neck': (-60.0, 33.75, 47.3649), 'head': (-20.0, 7.1141),
         'right_shoulder': (169.0632, 28.4853, -1.3924), 'right_elbow': (43.3589, -0.6054),
         'right_wrist': (1.9331, 9.3318), 'left_shoulder': (33.7373, 166.2111, 54.8207),
         'left_elbow': (42.1361, 74.7044), 'left_wrist': (-14.4688, -11.5713),
@@ -307,64 +305,65 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(3.8, {
-        'spine_lumbar': (19.8692, 0.5639, -5.1018), 'spine_thoracic': (14.6276, -1.3499, 2.1396),
-        'neck': (-60.0, 33.75, 38.0132), 'head': (-20.0, -11.25),
-        'right_shoulder': (166.2283, 30.3687, -2.2125), 'right_elbow': (48.569, -0.0451),
-        'right_wrist': (2.4028, 9.5725), 'left_clavicle': (30.0, -13.3234),
-        'left_shoulder': (41.0238, 169.3377, 46.4125), 'left_elbow': (48.3349, 71.8038),
-        'left_wrist': (-16.6686, -16.1845),
+        'spine_lumbar': (19.8343, 0.5715, -5.1051), 'spine_thoracic': (14.6204, -1.3348, 2.14),
+        'neck': (-60.0, 33.75, 37.9837), 'head': (-20.0, -11.25),
+        'right_shoulder': (166.2342, 30.3729, -2.2142), 'right_elbow': (48.5475, -0.045),
+        'right_wrist': (2.4002, 9.5653), 'left_clavicle': (30.0, -13.3262),
+        'left_shoulder': (41.0143, 169.3404, 46.4065), 'left_elbow': (48.312, 71.8013),
+        'left_wrist': (-16.661, -16.1854),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(3.9, {
-        'spine_lumbar': (17.7325, -0.1726, -6.3034), 'spine_thoracic': (15.7784, 0.0756, 1.3009),
-        'neck': (-60.0, 33.75, 35.731), 'right_shoulder': (169.7524, 28.5747, -1.3028),
-        'right_elbow': (39.4833, 0.2263), 'right_wrist': (2.4325, 6.4099),
-        'left_clavicle': (30.0, -12.8005), 'left_shoulder': (34.0576, 164.74, 45.3014),
-        'left_elbow': (37.2706, 70.2874), 'left_wrist': (-12.393, -15.2411),
+        'spine_lumbar': (17.7138, -0.1777, -6.3106), 'spine_thoracic': (15.7965, 0.0802, 1.2968),
+        'neck': (-60.0, 33.75, 35.7175), 'right_shoulder': (169.7394, 28.5814, -1.3012),
+        'right_elbow': (39.4954, 0.2279), 'right_wrist': (2.4336, 6.4124),
+        'left_clavicle': (30.0, -12.789), 'left_shoulder': (34.0646, 164.7465, 45.2884),
+        'left_elbow': (37.2718, 70.2794), 'left_wrist': (-12.3943, -15.2536),
     })
     human.KeyJoints(4.0, {
-        'right_shoulder': (171.3988, 28.4113, -1.0954),
-        'left_shoulder': (34.2368, 164.0396, 44.6471),
+        'right_shoulder': (171.3953, 28.4166, -1.0937),
+        'left_shoulder': (34.2437, 164.0443, 44.6271),
     })
     human.KeyJoints(4.1, {
-        'right_shoulder': (172.8574, 28.2699, -0.9147), 'right_elbow': (38.5154, 0.6314),
-        'right_wrist': (2.381, 5.5557), 'left_shoulder': (34.5456, 163.4323, 44.0408),
-        'left_elbow': (36.7071, 68.7332),
+        'right_shoulder': (172.8609, 28.2742, -0.913), 'right_elbow': (38.5229, 0.6361),
+        'right_wrist': (2.382, 5.5564), 'left_shoulder': (34.5521, 163.4355, 44.016),
+        'left_elbow': (36.7077, 68.7151),
     })
-    human.KeyJoints(4.2, {'right_shoulder': (174.1389, 28.1492, -0.7589)})
+    human.KeyJoints(4.2, {'right_shoulder': (174.1474, 28.1524, -0.7573)})
     human.KeyJoints(4.3, {
-        'right_shoulder': (175.254, 28.0473, -0.6263), 'right_elbow': (37.8101, 0.9836),
-        'right_wrist': (2.284, 4.9268), 'left_shoulder': (35.4626, 162.4703, 42.9714),
-        'left_elbow': (36.2977, 67.4922),
+        'right_shoulder': (175.2657, 28.0498, -0.6248), 'right_elbow': (37.8143, 0.9894),
+        'right_wrist': (2.2849, 4.9266), 'left_shoulder': (35.468, 162.4714, 42.9434),
+        'left_elbow': (36.2979, 67.471),
     })
-    human.KeyJoints(4.4, {'right_shoulder': (176.2135, 27.9628, -0.5149)})
+    human.KeyJoints(4.4, {'right_shoulder': (176.2268, 27.9646, -0.5136)})
     human.KeyJoints(4.5, {
-        'right_shoulder': (177.0281, 27.894, -0.423), 'left_shoulder': (36.6308, 161.8011, 42.0925),
-        'left_elbow': (36.0178, 66.5362), 'left_wrist': (-12.0622, -15.4077),
+        'right_shoulder': (177.0417, 27.8953, -0.4219),
+        'left_shoulder': (36.6349, 161.8011, 42.0674), 'left_elbow': (36.0178, 66.5169),
+        'left_wrist': (-12.0625, -15.415),
     })
     human.KeyJoints(4.6, {
-        'right_shoulder': (177.7084, 27.8393, -0.3487), 'right_elbow': (37.1536, 1.4069),
-        'right_wrist': (2.0948, 4.331),
+        'right_shoulder': (177.7212, 27.8402, -0.3477), 'right_elbow': (37.1549, 1.4116),
+        'right_wrist': (2.0953, 4.3303),
     })
     human.KeyJoints(4.7, {
-        'right_shoulder': (178.2652, 27.797, -0.2902),
-        'left_shoulder': (37.8725, 161.3718, 41.4034), 'left_elbow': (35.8428, 65.8369),
+        'right_shoulder': (178.2766, 27.7976, -0.2894),
+        'left_shoulder': (37.8752, 161.3713, 41.3849), 'left_elbow': (35.8427, 65.8225),
     })
-    human.KeyJoints(4.8, {'right_shoulder': (178.7094, 27.7657, -0.2455)})
+    human.KeyJoints(4.8, {'right_shoulder': (178.7186, 27.766, -0.2449)})
     human.KeyJoints(4.9, {
-        'right_elbow': (36.8543, 1.6954), 'right_wrist': (1.9091, 4.0488),
-        'left_shoulder': (39.01, 161.1295, 40.9034), 'left_elbow': (35.748, 65.3658),
+        'right_elbow': (36.8545, 1.6977), 'right_wrist': (1.9094, 4.0484),
+        'left_shoulder': (39.0114, 161.129, 40.8929), 'left_elbow': (35.748, 65.3576),
     })
-    human.KeyJoints(5.0, {'right_shoulder': (179.3022, 27.7291, -0.1907)})
-    human.KeyJoints(5.1, {'left_shoulder': (39.8654, 161.0213, 40.5917)})
+    human.KeyJoints(5.0, {'right_shoulder': (179.3068, 27.7292, -0.1904)})
+    human.KeyJoints(5.1, {'left_shoulder': (39.8659, 161.0211, 40.5881)})
     human.KeyJoints(5.2, {
-        'right_shoulder': (179.5728, 27.7167, -0.1695),
-        'left_shoulder': (40.1318, 161.001, 40.5062), 'left_elbow': (35.7026, 65.0253),
+        'right_shoulder': (179.5737, 27.7167, -0.1694), 'left_shoulder': (40.132, 161.0009, 40.505),
+        'left_elbow': (35.7026, 65.0243),
     })
     human.KeyRoot(5.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(5.3, {
-        'left_shoulder': (40.2611, 160.9943, 40.4676), 'left_wrist': (-11.9791, -15.6428),
+        'left_shoulder': (40.2611, 160.9943, 40.4675), 'left_wrist': (-11.9791, -15.6428),
         'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,), 'right_ankle': (1.7189, 0.0),
         'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,), 'left_ankle': (1.7189, 0.0),
     })
@@ -565,7 +564,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(8.6, (-62.415, 69.201, 42.738), (-97.4901, 0.0, 0.0))
     human.KeyJoints(8.6, {
-        'neck': (-60.0, 33.75, 35.731), 'head': (-20.0, -11.25),
+        'neck': (-60.0, 33.75, 35.7175), 'head': (-20.0, -11.25),
         'right_hip': (10.9789, 0.3146, 0.0286), 'right_knee': (58.8441,),
         'right_ankle': (19.0017, 0.3589), 'left_hip': (26.747, 1.218, -7.7718),
         'left_knee': (24.0364,), 'left_ankle': (-2.636, -2.4101),
@@ -574,28 +573,28 @@ def remove_avionics_unit():
     human.LookAt((-110.0, 85.0, 40.0), start=8.69109, duration=1.197891)
     human.KeyRoot(8.7, (-66.275, 70.541, 43.075), (-96.0413, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'neck': (-59.8607, 33.651, 35.6871), 'head': (-19.9487, -11.2209),
+        'neck': (-59.8607, 33.651, 35.6737), 'head': (-19.9487, -11.221),
         'right_hip': (7.9986, 1.0667, -0.6991), 'right_knee': (59.2039,),
         'right_ankle': (19.0217, 1.1329), 'left_hip': (21.5276, -0.2826, -6.6005),
         'left_knee': (19.9368,), 'left_ankle': (-1.4336, -2.6789),
     })
     human.KeyRoot(8.8, (-69.721, 71.348, 43.362), (-94.197, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'neck': (-42.7069, 21.4628, 30.2888), 'head': (-13.6289, -7.6438),
+        'neck': (-42.7069, 21.4628, 30.2771), 'head': (-13.6289, -7.6473),
         'right_hip': (23.1091, 1.0379, 0.9614), 'right_knee': (68.6656,),
         'right_ankle': (19.0117, 1.4861), 'left_hip': (17.5752, -1.5202, -4.8784),
         'left_knee': (17.5459,), 'left_ankle': (0.142, -2.9164),
     })
     human.KeyRoot(8.9, (-73.344, 71.884, 43.016), (-92.7387, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'neck': (-9.3278, -2.2539, 19.7844), 'head': (-1.3313, -0.6831),
+        'neck': (-9.3278, -2.2539, 19.7761), 'head': (-1.3313, -0.6934),
         'right_hip': (28.3908, 1.1023, 3.1282), 'right_knee': (50.0692,),
         'right_ankle': (19.0017, 2.4551), 'left_hip': (14.1959, -1.8568, -3.2917),
         'left_knee': (16.8148,), 'left_ankle': (2.7344, -2.6045),
     })
     human.KeyRoot(9.0, (-76.878, 72.153, 41.703), (-91.3055, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'neck': (22.4641, -24.8429, 9.7794), 'head': (10.3815, 5.9466),
+        'neck': (22.4641, -24.8429, 9.7744), 'head': (10.3815, 5.9298),
         'right_shoulder': (179.6165, 27.7155, -0.1667),
         'left_shoulder': (40.2699, 160.994, 40.4651), 'left_elbow': (35.7009, 64.9934),
         'right_hip': (14.108, 1.1223, 1.626), 'right_knee': (22.1797,),
@@ -606,71 +605,71 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(9.1, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'neck': (35.0, -33.75, 5.8343), 'head': (15.0, 8.5607),
-        'right_shoulder': (179.5439, 27.7037, -0.1443), 'right_elbow': (36.7995, 1.8396),
+        'neck': (35.0, -33.75, 5.8306), 'head': (15.0, 8.5414),
+        'right_shoulder': (179.5438, 27.7037, -0.1443), 'right_elbow': (36.7995, 1.8396),
         'right_wrist': (1.8115, 3.956), 'left_shoulder': (40.2791, 160.9096, 40.4748),
         'left_elbow': (35.7351, 64.9258), 'left_wrist': (-11.9472, -15.6483),
         'right_hip': (3.0994, 0.0, 0.0), 'right_knee': (5.0782,), 'right_ankle': (1.981, 0.0),
         'left_hip': (3.0977, 0.0, 0.0), 'left_knee': (5.0746,), 'left_ankle': (1.9791, 0.0),
     })
     human.KeyJoints(9.2, {
-        'right_shoulder': (169.8598, 26.1206, 2.877), 'right_elbow': (40.8955, -0.1993),
-        'right_wrist': (6.5189, 3.4555), 'left_shoulder': (41.5046, 149.7024, 41.8076),
-        'left_elbow': (40.2722, 55.964), 'left_wrist': (-7.7204, -16.3163),
+        'right_shoulder': (169.8567, 26.1221, 2.8783), 'right_elbow': (40.8955, -0.1993),
+        'right_wrist': (6.5189, 3.4559), 'left_shoulder': (41.5046, 149.7024, 41.8087),
+        'left_elbow': (40.2722, 55.964), 'left_wrist': (-7.7204, -16.3164),
     })
     human.KeyJoints(9.3, {
-        'right_shoulder': (147.7433, 22.4514, 9.899), 'right_elbow': (50.1636, -4.8127),
-        'right_wrist': (17.1709, 2.2104), 'left_shoulder': (44.2776, 124.3432, 44.9949),
-        'left_elbow': (50.5385, 35.6855), 'left_wrist': (1.8437, -17.9035),
+        'right_shoulder': (147.7341, 22.4559, 9.9028), 'right_elbow': (50.1636, -4.8127),
+        'right_wrist': (17.1709, 2.2113), 'left_shoulder': (44.2776, 124.3432, 44.9982),
+        'left_elbow': (50.5385, 35.6855), 'left_wrist': (1.8437, -17.9036),
         'right_hip': (3.0829, 0.0, 0.0), 'right_knee': (5.0434,), 'right_ankle': (1.963, 0.0),
         'left_hip': (3.0822, 0.0, 0.0), 'left_knee': (5.042,), 'left_ankle': (1.9623, 0.0),
     })
     human.KeyJoints(9.4, {
-        'right_shoulder': (118.7292, 17.5272, 19.3631), 'right_elbow': (62.1438, -10.7761),
-        'right_wrist': (30.9398, 0.3653), 'left_shoulder': (47.862, 91.5632, 49.4733),
-        'left_elbow': (63.8091, 9.473), 'left_wrist': (14.2066, -20.113),
+        'right_shoulder': (118.7139, 17.5347, 19.3694), 'right_elbow': (62.1438, -10.7761),
+        'right_wrist': (30.9398, 0.3669), 'left_shoulder': (47.862, 91.5632, 49.4787),
+        'left_elbow': (63.8091, 9.473), 'left_wrist': (14.2066, -20.1133),
         'right_hip': (2.872, 0.0, 0.0), 'right_knee': (4.6024,), 'right_ankle': (1.7189, 0.0),
         'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5883,), 'left_ankle': (1.7189, 0.0),
     })
     human.KeyJoints(9.5, {
-        'right_shoulder': (88.3524, 12.1787, 29.7108), 'right_elbow': (74.3761, -16.8651),
-        'right_wrist': (44.9985, -1.9349), 'left_shoulder': (51.5218, 58.0935, 54.679),
-        'left_elbow': (77.3589, -17.2911), 'left_wrist': (26.8297, -22.6482),
+        'right_shoulder': (88.3338, 12.1879, 29.7186), 'right_elbow': (74.3761, -16.8651),
+        'right_wrist': (44.9985, -1.933), 'left_shoulder': (51.5218, 58.0935, 54.6857),
+        'left_elbow': (77.3589, -17.2911), 'left_wrist': (26.8297, -22.6486),
     })
     human.KeyJoints(9.6, {
-        'right_shoulder': (62.1479, 7.2369, 39.3838), 'right_elbow': (84.4003, -21.8549),
-        'right_wrist': (56.5195, -4.5455), 'left_shoulder': (54.5211, 30.6652, 60.0486),
-        'left_elbow': (88.4629, -39.2241), 'left_wrist': (37.1742, -25.2124),
+        'right_shoulder': (62.1316, 7.245, 39.3905), 'right_elbow': (84.4003, -21.8549),
+        'right_wrist': (56.5195, -4.5437), 'left_shoulder': (54.5211, 30.6652, 60.0544),
+        'left_elbow': (88.4629, -39.2241), 'left_wrist': (37.1742, -25.2127),
     })
     human.KeyJoints(9.7, {
-        'right_shoulder': (45.6505, 3.5327, 46.8234), 'right_elbow': (89.7566, -24.5211),
-        'right_wrist': (62.6755, -7.3215), 'left_shoulder': (56.1236, 16.0096, 65.0185),
-        'left_elbow': (94.396, -50.9435), 'left_wrist': (42.7015, -27.5086),
+        'right_shoulder': (45.6452, 3.5354, 46.8256), 'right_elbow': (89.7566, -24.5211),
+        'right_wrist': (62.6755, -7.3209), 'left_shoulder': (56.1236, 16.0096, 65.0204),
+        'left_elbow': (94.396, -50.9435), 'left_wrist': (42.7015, -27.5087),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
     human.KeyJoints(9.8, {
-        'right_shoulder': (43.5213, -1.1295, 49.9215), 'right_elbow': (80.4498, -22.2131),
-        'right_wrist': (60.1066, -10.6862), 'left_shoulder': (52.6077, 15.3019, 69.3336),
-        'left_elbow': (88.648, -50.276), 'left_wrist': (41.9823, -29.4932),
+        'right_shoulder': (43.5323, -1.1374, 49.9161), 'right_elbow': (80.4373, -22.2105),
+        'right_wrist': (60.1, -10.6886), 'left_shoulder': (52.6114, 15.3179, 69.3281),
+        'left_elbow': (88.6477, -50.2762), 'left_wrist': (41.9833, -29.4935),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.888981, duration=0.072)
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=9.888981, duration=0.072)
     human.KeyJoints(9.9, {
-        'right_shoulder': (47.2686, -8.2156, 49.7532), 'right_elbow': (67.0072, -19.0342),
-        'right_wrist': (54.5398, -13.6962), 'left_shoulder': (53.5772, 7.9902, 69.4788),
-        'left_elbow': (77.394, -48.017), 'left_wrist': (38.0779, -29.9965),
+        'right_shoulder': (47.285, -8.2305, 49.7469), 'right_elbow': (66.9792, -19.0282),
+        'right_wrist': (54.5259, -13.7015), 'left_shoulder': (53.5816, 8.0006, 69.4737),
+        'left_elbow': (77.3943, -48.0172), 'left_wrist': (38.0785, -29.9943),
     })
     human.KeyRoot(9.960981, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(9.960981, {
-        'spine_lumbar': (17.7325, -0.1726, -6.3034), 'spine_thoracic': (15.7784, 0.0756, 1.3009),
-        'neck': (35.0, -33.75, 5.8343), 'head': (15.0, 8.5607), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (47.2686, -8.2156, 49.7532), 'right_elbow': (67.0072, -19.0342),
-        'right_wrist': (54.5398, -13.6962), 'left_clavicle': (30.0, -12.8005),
-        'left_shoulder': (53.5772, 7.9902, 69.4788), 'left_elbow': (77.394, -48.017),
-        'left_wrist': (38.0779, -29.9965), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
+        'spine_lumbar': (17.7138, -0.1777, -6.3106), 'spine_thoracic': (15.7965, 0.0802, 1.2968),
+        'neck': (35.0, -33.75, 5.8306), 'head': (15.0, 8.5414), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (47.285, -8.2305, 49.7469), 'right_elbow': (66.9792, -19.0282),
+        'right_wrist': (54.5259, -13.7015), 'left_clavicle': (30.0, -12.789),
+        'left_shoulder': (53.5816, 8.0006, 69.4737), 'left_elbow': (77.3943, -48.0172),
+        'left_wrist': (38.0785, -29.9943), 'right_hip': (2.8648, 0.0, 0.0), 'right_knee': (4.5837,),
         'right_ankle': (1.7189, 0.0), 'left_hip': (2.8648, 0.0, 0.0), 'left_knee': (4.5837,),
         'left_ankle': (1.7189, 0.0),
     })

@@ -497,152 +497,152 @@ def replace_fuel_filter():
         'left_elbow': (69.1497, 37.111), 'left_wrist': (-45.4955, 16.8307),
     })
     human.KeyJoints(7.8, {
-        'spine_thoracic': (-0.1085, 2.4904, -18.2514), 'neck': (29.3319, 10.9087, -11.1919),
+        'spine_thoracic': (-0.1086, 2.4904, -18.2514), 'neck': (29.3319, 10.9087, -11.1919),
         'right_shoulder': (64.0512, -12.3471, 14.7891), 'right_elbow': (12.985, 63.3593),
         'right_wrist': (-26.2282, 0.3862), 'left_shoulder': (24.119, 13.5927, 18.791),
-        'left_elbow': (63.3853, 44.145), 'left_wrist': (-51.6891, 18.3883),
+        'left_elbow': (63.3856, 44.145), 'left_wrist': (-51.6891, 18.3883),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (60.0, 20.0, -12.5553), 'spine_thoracic': (0.8279, 0.1518, -25.1821),
-        'neck': (30.8918, 14.8494, -1.9101), 'right_shoulder': (67.2252, -23.0182, 15.5844),
-        'right_elbow': (7.2044, 63.0252), 'right_wrist': (-12.4935, -0.0457),
+        'spine_lumbar': (60.0, 20.0, -12.5553), 'spine_thoracic': (0.8278, 0.1518, -25.1821),
+        'neck': (30.8919, 14.8494, -1.9101), 'right_shoulder': (67.2252, -23.0182, 15.5844),
+        'right_elbow': (7.2044, 63.0252), 'right_wrist': (-12.4935, -0.0456),
         'left_clavicle': (-9.7832, 14.677), 'left_shoulder': (35.3948, 12.1703, 22.6086),
-        'left_elbow': (46.1178, 51.5595), 'left_wrist': (-56.3732, 19.424),
+        'left_elbow': (46.1184, 51.5595), 'left_wrist': (-56.3732, 19.424),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 20.0, -14.7979), 'spine_thoracic': (2.0931, -1.3706, -29.5976),
+        'spine_lumbar': (60.0, 20.0, -14.7979), 'spine_thoracic': (2.093, -1.3706, -29.5976),
         'neck': (32.3852, 16.6798, 4.18), 'head': (15.0, -11.25),
         'right_shoulder': (69.4073, -29.7321, 16.0441), 'right_elbow': (3.1449, 62.7551),
         'right_wrist': (-3.3787, -0.9024), 'left_clavicle': (-9.7897, 14.9742),
-        'left_shoulder': (44.5096, 11.0205, 25.1467), 'left_elbow': (30.5164, 56.2935),
+        'left_shoulder': (44.5096, 11.0205, 25.1467), 'left_elbow': (30.5168, 56.2935),
         'left_wrist': (-58.9273, 19.9567),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.1058, -1.2299, -30.0),
-        'neck': (31.1596, 16.1613, 5.009), 'right_shoulder': (67.4916, -30.0623, 16.0901),
-        'right_elbow': (8.1429, 62.7864), 'right_wrist': (-5.5025, -1.7115),
-        'left_shoulder': (47.1466, 15.1972, 23.744), 'left_elbow': (24.5774, 56.0601),
-        'left_wrist': (-57.3273, 18.8317),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.1075, -1.2306, -30.0),
+        'neck': (31.1585, 16.1607, 5.0093), 'right_shoulder': (67.4906, -30.0623, 16.0901),
+        'right_elbow': (8.147, 62.7865), 'right_wrist': (-5.5046, -1.7116),
+        'left_shoulder': (47.1494, 15.1987, 23.7433), 'left_elbow': (24.5743, 56.0597),
+        'left_wrist': (-57.3249, 18.8307),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.194677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (13.4742, -6.2044, -30.0), 'neck': (25.8684, 13.9072, 6.3372),
-        'right_shoulder': (66.0791, -30.173, 16.1556), 'right_elbow': (22.6174, 62.8627),
-        'right_wrist': (-13.9832, -3.7998), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (61.4978, 12.1269, 23.2664), 'left_elbow': (12.5623, 55.5337),
-        'left_wrist': (-43.4235, 14.7004),
+        'spine_thoracic': (13.4823, -6.1981, -30.0), 'neck': (25.8598, 13.9024, 6.3367),
+        'right_shoulder': (66.0813, -30.1744, 16.1556), 'right_elbow': (22.6266, 62.8623),
+        'right_wrist': (-13.9896, -3.8028), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (61.5117, 12.1233, 23.2665), 'left_elbow': (12.5577, 55.5337),
+        'left_wrist': (-43.4099, 14.6957),
     })
     human.KeyJoints(8.4, {
-        'neck': (25.8684, 13.9072, 6.3372), 'head': (15.0, -11.25),
-        'left_shoulder': (61.4978, 12.1269, 23.2664), 'left_elbow': (12.5623, 55.5337),
-        'left_wrist': (-43.4235, 14.7004),
+        'neck': (25.8598, 13.9024, 6.3367), 'head': (15.0, -11.25),
+        'left_shoulder': (61.5117, 12.1233, 23.2665), 'left_elbow': (12.5577, 55.5337),
+        'left_wrist': (-43.4099, 14.6957),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.5, {
-        'neck': (26.1077, 13.2698, 8.0127), 'head': (14.9719, -10.618),
-        'left_shoulder': (60.6038, 12.2428, 22.6471), 'left_elbow': (13.0339, 55.3198),
-        'left_wrist': (-43.5445, 14.6371),
+        'neck': (26.0993, 13.2651, 8.0123), 'head': (14.9719, -10.618),
+        'left_shoulder': (60.6175, 12.2392, 22.6473), 'left_elbow': (13.0293, 55.3198),
+        'left_wrist': (-43.531, 14.6325),
     })
     human.KeyJoints(8.6, {
-        'neck': (28.1033, 7.9543, 21.9846), 'head': (14.7377, -5.3483),
-        'left_shoulder': (52.3782, 13.3709, 16.8716), 'left_elbow': (17.4595, 53.3517),
-        'left_wrist': (-44.6795, 14.0553),
+        'neck': (28.0969, 7.9512, 21.9844), 'head': (14.7377, -5.3483),
+        'left_shoulder': (52.3907, 13.3674, 16.8718), 'left_elbow': (17.4551, 53.3517),
+        'left_wrist': (-44.6671, 14.0511),
     })
     human.KeyJoints(8.7, {
-        'neck': (31.0266, 0.168, 42.4514), 'head': (14.3947, 2.3711),
-        'left_shoulder': (37.7667, 15.5594, 6.3769), 'left_elbow': (25.5828, 49.8557),
-        'left_wrist': (-46.7609, 13.0218),
+        'neck': (31.0231, 0.1671, 42.4515), 'head': (14.3947, 2.3711),
+        'left_shoulder': (37.7772, 15.5563, 6.3771), 'left_elbow': (25.579, 49.8558),
+        'left_wrist': (-46.7504, 13.0182),
     })
     human.KeyJoints(8.8, {
-        'neck': (33.5379, -6.521, 60.0338), 'head': (14.0999, 9.0026),
-        'left_shoulder': (19.4989, 18.6356, -7.1773), 'left_elbow': (36.2209, 45.4849),
-        'left_wrist': (-49.4831, 11.7296),
+        'neck': (33.5369, -6.5201, 60.0343), 'head': (14.1, 9.0027),
+        'left_shoulder': (19.5068, 18.633, -7.1771), 'left_elbow': (36.2178, 45.485),
+        'left_wrist': (-49.4751, 11.727),
     })
     human.KeyJoints(8.9, {
-        'neck': (34.3502, -8.6847, 65.7213), 'head': (14.0046, 11.1478),
-        'left_shoulder': (0.3042, 22.4266, -22.1313), 'left_elbow': (48.1907, 40.8924),
-        'left_wrist': (-52.5409, 10.3719),
+        'neck': (34.35, -8.6832, 65.7219), 'head': (14.0047, 11.1478),
+        'left_shoulder': (0.3094, 22.4245, -22.131), 'left_elbow': (48.1885, 40.8924),
+        'left_wrist': (-52.5354, 10.3702),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (-17.0879, 26.7594, -36.8252), 'left_elbow': (60.3094, 36.7311),
-        'left_wrist': (-55.6285, 9.1417),
+        'left_shoulder': (-17.0852, 26.758, -36.825), 'left_elbow': (60.308, 36.7311),
+        'left_wrist': (-55.6255, 9.1408),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (-29.9479, 31.4611, -49.5994), 'left_elbow': (71.394, 33.6542),
-        'left_wrist': (-58.4407, 8.2321),
+        'left_shoulder': (-29.9471, 31.4604, -49.5993), 'left_elbow': (71.3933, 33.6542),
+        'left_wrist': (-58.4396, 8.2318),
     })
     human.KeyJoints(9.2, {
-        'left_shoulder': (-35.5465, 36.359, -58.7941), 'left_elbow': (80.2615, 32.3147),
-        'left_wrist': (-60.6718, 7.8361),
+        'left_shoulder': (-35.5464, 36.3589, -58.7941), 'left_elbow': (80.2614, 32.3147),
+        'left_wrist': (-60.6717, 7.8361),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'left_shoulder': (-34.8189, 42.8838, -64.7686), 'left_elbow': (86.9815, 32.5134),
-        'left_wrist': (-62.4435, 8.2003),
+        'left_shoulder': (-34.8186, 42.8845, -64.7687), 'left_elbow': (86.9818, 32.5134),
+        'left_wrist': (-62.4435, 8.2004),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'left_shoulder': (-34.1561, 40.7569, -74.4287), 'left_elbow': (96.7815, 32.7529),
-        'left_wrist': (-67.1161, 8.7807),
+        'left_shoulder': (-34.1551, 40.759, -74.4298), 'left_elbow': (96.7822, 32.7528),
+        'left_wrist': (-67.116, 8.7806),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
-    human.KeyJoints(9.5, {'neck': (34.3484, -8.6799, 65.72), 'head': (13.9981, 11.1482)})
+    human.KeyJoints(9.5, {'neck': (34.3483, -8.6784, 65.7205), 'head': (13.9982, 11.1483)})
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.4742, -6.2044, -30.0),
-        'neck': (34.2441, -8.5529, 65.6045), 'right_clavicle': (-7.4486, 6.7525),
-        'right_shoulder': (66.0791, -30.173, 16.1556), 'right_elbow': (22.6174, 62.8627),
-        'right_wrist': (-13.9832, -3.7998), 'left_shoulder': (-34.1561, 40.7569, -74.4287),
-        'left_elbow': (96.7815, 32.7529), 'left_wrist': (-67.1161, 8.7807),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.4823, -6.1981, -30.0),
+        'neck': (34.2439, -8.5514, 65.6051), 'right_clavicle': (-7.4486, 6.7525),
+        'right_shoulder': (66.0813, -30.1744, 16.1556), 'right_elbow': (22.6266, 62.8623),
+        'right_wrist': (-13.9896, -3.8028), 'left_shoulder': (-34.1551, 40.759, -74.4298),
+        'left_elbow': (96.7822, 32.7528), 'left_wrist': (-67.116, 8.7806),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.4793, -14.3826), 'spine_thoracic': (13.3713, -5.9278, -29.3428),
-        'neck': (33.9295, -8.5373, 64.632), 'head': (13.7915, 11.1771),
-        'right_clavicle': (-7.543, 7.0577), 'right_shoulder': (66.232, -30.0176, 16.1397),
-        'right_elbow': (22.0005, 62.7733), 'right_wrist': (-13.5695, -3.7302),
-        'left_shoulder': (-31.7902, 41.2221, -71.1069), 'left_elbow': (96.4938, 33.3737),
-        'left_wrist': (-65.2835, 8.8913),
+        'spine_lumbar': (60.0, 19.4793, -14.3826), 'spine_thoracic': (13.3792, -5.9217, -29.3428),
+        'neck': (33.9293, -8.5358, 64.6327), 'head': (13.7915, 11.1771),
+        'right_clavicle': (-7.543, 7.0577), 'right_shoulder': (66.2342, -30.019, 16.1398),
+        'right_elbow': (22.0094, 62.7729), 'right_wrist': (-13.5758, -3.7331),
+        'left_shoulder': (-31.7893, 41.2241, -71.108), 'left_elbow': (96.4946, 33.3736),
+        'left_wrist': (-65.2835, 8.8912),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (60.0, 17.1464, -11.5776), 'spine_thoracic': (12.8837, -4.6774, -26.356),
-        'neck': (32.1111, -7.8753, 59.474), 'right_clavicle': (-7.9659, 8.4248),
-        'right_shoulder': (66.9272, -29.3215, 16.0687), 'right_elbow': (19.2369, 62.3728),
-        'right_wrist': (-11.716, -3.4096), 'left_shoulder': (-21.1101, 43.3062, -56.117),
-        'left_elbow': (95.0808, 36.164), 'left_wrist': (-56.9891, 9.3866),
+        'spine_lumbar': (60.0, 17.1464, -11.5776), 'spine_thoracic': (12.8903, -4.6724, -26.356),
+        'neck': (32.111, -7.8737, 59.4748), 'right_clavicle': (-7.9659, 8.4248),
+        'right_shoulder': (66.9291, -29.3227, 16.0688), 'right_elbow': (19.2442, 62.3725),
+        'right_wrist': (-11.7211, -3.412), 'left_shoulder': (-21.1094, 43.3079, -56.1179),
+        'left_elbow': (95.0815, 36.1639), 'left_wrist': (-56.989, 9.3865),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 13.7392, -7.3771), 'spine_thoracic': (12.1005, -2.8217, -21.881),
-        'neck': (29.5785, -7.2888, 51.2386), 'head': (11.9626, 11.093),
-        'right_clavicle': (-8.5836, 10.4214), 'right_shoulder': (67.9694, -28.3049, 15.965),
-        'right_elbow': (15.2007, 61.7879), 'right_wrist': (-9.0075, -2.9172),
-        'left_shoulder': (-5.2961, 46.3501, -33.9366), 'left_elbow': (92.6859, 40.2634),
-        'left_wrist': (-44.65, 10.11),
+        'spine_lumbar': (60.0, 13.7392, -7.3771), 'spine_thoracic': (12.1054, -2.8181, -21.881),
+        'neck': (29.5784, -7.2871, 51.2394), 'head': (11.9624, 11.093),
+        'right_clavicle': (-8.5836, 10.4214), 'right_shoulder': (67.9707, -28.3057, 15.965),
+        'right_elbow': (15.2058, 61.7877), 'right_wrist': (-9.011, -2.919),
+        'left_shoulder': (-5.2955, 46.3512, -33.9373), 'left_elbow': (92.6864, 40.2634),
+        'left_wrist': (-44.6499, 10.11),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 10.1442, -2.7476), 'spine_thoracic': (11.1392, -0.8073, -16.945),
-        'neck': (26.9709, -6.9405, 41.6499), 'head': (11.7125, 10.9215),
-        'right_clavicle': (-9.2353, 12.5281), 'right_shoulder': (69.12, -27.2322, 15.8556),
-        'right_elbow': (10.9419, 61.1707), 'right_wrist': (-6.1469, -2.352),
-        'left_shoulder': (11.8004, 49.5618, -9.9859), 'left_elbow': (89.5295, 44.6351),
+        'spine_lumbar': (60.0, 10.1442, -2.7476), 'spine_thoracic': (11.1422, -0.8054, -16.945),
+        'neck': (26.9708, -6.939, 41.6505), 'head': (11.7123, 10.9216),
+        'right_clavicle': (-9.2353, 12.5281), 'right_shoulder': (69.1207, -27.2327, 15.8556),
+        'right_elbow': (10.9446, 61.1706), 'right_wrist': (-6.1488, -2.353),
+        'left_shoulder': (11.8007, 49.5624, -9.9863), 'left_elbow': (89.5298, 44.6351),
         'left_wrist': (-31.2026, 10.8733),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (60.0, 7.2477, 1.3443), 'spine_thoracic': (10.1174, 0.9188, -12.5749),
-        'neck': (24.8669, -7.9806, 33.0568), 'head': (11.7571, 11.0761),
-        'right_clavicle': (-9.7604, 14.2255), 'right_shoulder': (70.1405, -26.368, 15.7674),
-        'right_elbow': (7.5105, 60.6734), 'right_wrist': (-3.8371, -1.8128),
-        'left_shoulder': (26.3278, 52.1495, 10.3148), 'left_elbow': (85.8321, 48.242),
+        'spine_lumbar': (60.0, 7.2477, 1.3443), 'spine_thoracic': (10.1186, 0.9194, -12.5749),
+        'neck': (24.8669, -7.9793, 33.0571), 'head': (11.7571, 11.0761),
+        'right_clavicle': (-9.7604, 14.2255), 'right_shoulder': (70.1407, -26.3681, 15.7674),
+        'right_elbow': (7.5114, 60.6734), 'right_wrist': (-3.8377, -1.8132),
+        'left_shoulder': (26.3279, 52.1497, 10.3147), 'left_elbow': (85.8323, 48.242),
         'left_wrist': (-19.5833, 11.4883),
     })
     human.KeyJoints(10.3, {
         'spine_lumbar': (60.0, 5.9361, 3.9321), 'spine_thoracic': (9.1526, 1.9099, -9.7979),
-        'neck': (23.8869, -9.1545, 27.6912), 'head': (12.1609, 11.1169),
+        'neck': (23.8871, -9.1535, 27.6912), 'head': (12.1612, 11.1169),
         'right_clavicle': (-9.9982, 14.9941), 'right_shoulder': (70.7923, -25.9766, 15.7275),
         'right_elbow': (5.9567, 60.4483), 'right_wrist': (-2.781, -1.3985),
         'left_shoulder': (34.4344, 53.3212, 21.5453), 'left_elbow': (81.8143, 50.0472),
@@ -650,8 +650,8 @@ def replace_fuel_filter():
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {
-        'spine_lumbar': (57.1209, 7.1165, 4.0391), 'spine_thoracic': (8.9619, 1.9741, -9.6719),
-        'neck': (23.9735, -9.9614, 26.7145), 'head': (12.8808, 11.1147),
+        'spine_lumbar': (57.1209, 7.1164, 4.0391), 'spine_thoracic': (8.9619, 1.9741, -9.6719),
+        'neck': (23.9736, -9.9604, 26.7145), 'head': (12.8811, 11.1147),
         'right_clavicle': (-9.1932, 14.4515), 'right_shoulder': (69.7648, -27.6458, 15.84),
         'right_elbow': (5.7282, 60.4518), 'right_wrist': (-2.6377, -1.2029),
         'left_shoulder': (34.9463, 51.1833, 23.1616), 'left_elbow': (76.0649, 50.1976),
@@ -661,10 +661,10 @@ def replace_fuel_filter():
     human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
     human.KeyJoints(10.5, {
         'spine_lumbar': (55.0845, 8.1203, 3.6918), 'spine_thoracic': (9.254, 1.873, -10.0493),
-        'neck': (24.1492, -10.2465, 26.9133), 'head': (13.2084, 11.1236),
+        'neck': (24.1493, -10.2455, 26.9133), 'head': (13.2087, 11.1236),
         'right_clavicle': (-8.3584, 14.0354), 'right_shoulder': (68.5374, -28.5941, 15.9059),
         'right_elbow': (5.2762, 60.4523), 'right_wrist': (-2.4928, -1.127),
-        'left_shoulder': (34.7912, 50.6328, 23.5584), 'left_elbow': (72.7121, 50.2424),
+        'left_shoulder': (34.7913, 50.6328, 23.5584), 'left_elbow': (72.7121, 50.2424),
         'left_wrist': (-10.1545, 10.3193),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
@@ -700,7 +700,7 @@ def replace_fuel_filter():
         'spine_lumbar': (55.0845, 8.1203, 3.6918), 'spine_thoracic': (9.254, 1.873, -10.0493),
         'right_clavicle': (-8.3584, 14.0354), 'right_shoulder': (68.5374, -28.5941, 15.9059),
         'right_elbow': (5.2762, 60.4523), 'right_wrist': (-2.4928, -1.127),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.7912, 50.6328, 23.5584),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.7913, 50.6328, 23.5584),
         'left_elbow': (72.7121, 50.2424), 'left_wrist': (-10.1545, 10.3193),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
@@ -902,7 +902,7 @@ def replace_fuel_filter():
     human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.4375, 0.0, 0.0))
     human.KeyJoints(18.175969, {
         'spine_lumbar': (0.0, 0.0, 3.6918), 'spine_thoracic': (0.0, 0.0, -10.0493),
-        'neck': (24.2056, -10.2028, 26.9082), 'head': (13.1813, 11.117),
+        'neck': (24.2058, -10.2018, 26.9082), 'head': (13.1817, 11.117),
         'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.5944, 5.7296, 11.4592),
         'right_elbow': (34.3775, 17.1887), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.5944, 5.7296, 11.4592), 'left_elbow': (34.3775, 17.1887),

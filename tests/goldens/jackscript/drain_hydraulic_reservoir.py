@@ -138,62 +138,62 @@ def drain_reservoir():
         'right_shoulder': (65.581, 5.452, 11.534), 'right_elbow': (34.385, 17.193),
         'right_wrist': (0.021, -0.013),
     })
-    human.KeyJoints(2.0, {'right_shoulder': (68.124, 3.648, 12.013)})
+    human.KeyJoints(2.0, {'right_shoulder': (68.121, 3.649, 12.013)})
     human.KeyJoints(2.1, {
-        'right_shoulder': (72.445, 0.646, 12.795), 'right_elbow': (34.559, 17.26),
+        'right_shoulder': (72.439, 0.648, 12.795), 'right_elbow': (34.558, 17.26),
         'right_wrist': (0.373, -0.225),
     })
-    human.KeyJoints(2.2, {'right_shoulder': (77.84, -2.992, 13.714)})
+    human.KeyJoints(2.2, {'right_shoulder': (77.83, -2.988, 13.714)})
     human.KeyJoints(2.3, {
-        'right_shoulder': (83.605, -6.703, 14.603), 'right_elbow': (34.996, 17.357),
+        'right_shoulder': (83.594, -6.699, 14.603), 'right_elbow': (34.996, 17.357),
     })
     human.KeyJoints(2.4, {
-        'right_shoulder': (89.036, -9.923, 15.297), 'right_wrist': (1.063, -0.643),
+        'right_shoulder': (89.028, -9.92, 15.297), 'right_wrist': (1.063, -0.643),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
         'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (93.431, -12.09, 15.63), 'right_elbow': (35.742, 17.41),
+        'right_shoulder': (93.43, -12.089, 15.63), 'right_elbow': (35.742, 17.41),
         'right_wrist': (1.151, -0.696),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(2.6, {
-        'spine_lumbar': (59.95, -0.591, 1.012), 'spine_thoracic': (27.705, -0.639, 0.798),
-        'neck': (-0.256, 0.066, -2.856), 'head': (-0.256, 0.0), 'right_clavicle': (0.262, 0.659),
-        'right_shoulder': (96.966, -11.752, 15.159), 'right_elbow': (36.5, 17.41),
-        'right_wrist': (0.912, -0.591),
+        'spine_lumbar': (59.953, -0.583, 1.0), 'spine_thoracic': (27.701, -0.631, 0.788),
+        'neck': (-0.255, 0.066, -2.82), 'head': (-0.255, 0.0), 'right_clavicle': (0.257, 0.651),
+        'right_shoulder': (96.985, -11.726, 15.148), 'right_elbow': (36.493, 17.41),
+        'right_wrist': (0.908, -0.594),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.679797, duration=0.072)
     human.KeyJoints(2.7, {
-        'spine_lumbar': (60.0, -1.99, 3.789), 'spine_thoracic': (29.025, -2.254, 3.119),
-        'neck': (-0.736, 0.255, -10.948), 'head': (-0.735, 0.002), 'right_clavicle': (1.296, 1.87),
-        'right_shoulder': (101.767, -3.556, 12.146), 'right_elbow': (32.783, 17.438),
-        'right_wrist': (-0.048, -1.737),
+        'spine_lumbar': (60.0, -1.995, 3.802), 'spine_thoracic': (29.037, -2.261, 3.13),
+        'neck': (-0.741, 0.256, -10.985), 'head': (-0.74, 0.002), 'right_clavicle': (1.304, 1.874),
+        'right_shoulder': (101.797, -3.495, 12.126), 'right_elbow': (32.758, 17.438),
+        'right_wrist': (-0.054, -1.745),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(2.8, {'right_elbow': (32.783, 3.582)})
+    human.KeyJoints(2.8, {'right_elbow': (32.758, 3.582)})
     human.KeyJoints(2.9, {
-        'neck': (-0.736, 0.255, -10.948), 'head': (-0.735, 0.002), 'right_elbow': (32.783, -59.73),
+        'neck': (-0.741, 0.256, -10.985), 'head': (-0.74, 0.002), 'right_elbow': (32.758, -59.73),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=2.946197, duration=0.2628)
     human.KeyJoints(3.0, {
-        'neck': (-0.542, 0.241, -10.362), 'head': (-0.541, 0.002), 'right_elbow': (32.783, -72.562),
+        'neck': (-0.547, 0.241, -10.399), 'head': (-0.546, 0.002), 'right_elbow': (32.758, -72.562),
     })
-    human.KeyJoints(3.1, {'neck': (0.847, 0.14, -6.167), 'head': (0.848, 0.001)})
-    human.KeyJoints(3.2, {'neck': (3.568, -0.057, 2.051), 'head': (3.568, 0.0)})
+    human.KeyJoints(3.1, {'neck': (0.841, 0.141, -6.202), 'head': (0.842, 0.001)})
+    human.KeyJoints(3.2, {'neck': (3.562, -0.056, 2.021), 'head': (3.562, 0.0)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(3.3, {'neck': (3.878, -0.08, 2.887), 'head': (3.878, -0.001)})
-    human.KeyJoints(4.8, {'neck': (3.878, -0.08, 2.987)})
-    human.KeyJoints(7.2, {'right_elbow': (32.783, -72.562)})
+    human.KeyJoints(3.3, {'neck': (3.871, -0.079, 2.857), 'head': (3.872, -0.001)})
+    human.KeyJoints(4.8, {'neck': (3.871, -0.079, 2.958)})
+    human.KeyJoints(7.2, {'right_elbow': (32.758, -72.562)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(7.3, {'right_elbow': (32.783, -52.786)})
+    human.KeyJoints(7.3, {'right_elbow': (32.758, -52.786)})
     human.KeyRoot(7.4, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, -1.99, 3.789), 'spine_thoracic': (29.025, -2.254, 3.119),
-        'right_shoulder': (101.767, -3.556, 12.146), 'right_elbow': (32.783, 14.327),
-        'right_wrist': (-0.048, -1.737), 'left_shoulder': (65.195, 5.73, 11.459),
+        'spine_lumbar': (60.0, -1.995, 3.802), 'spine_thoracic': (29.037, -2.261, 3.13),
+        'right_shoulder': (101.797, -3.495, 12.126), 'right_elbow': (32.758, 14.328),
+        'right_wrist': (-0.054, -1.745), 'left_shoulder': (65.195, 5.73, 11.459),
         'right_hip': (79.683, 0.0, 0.0), 'right_knee': (99.683,), 'right_ankle': (20.0, 0.0),
         'left_hip': (79.683, 0.0, 0.0), 'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
@@ -202,16 +202,16 @@ def drain_reservoir():
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
     human.KeyRoot(7.5, (7.84, 49.586, 20.827), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, -1.927, 3.668), 'spine_thoracic': (29.057, -2.182, 3.019),
-        'right_shoulder': (101.958, -3.583, 12.142), 'right_elbow': (32.354, 17.437),
+        'spine_lumbar': (60.0, -1.932, 3.681), 'spine_thoracic': (29.068, -2.189, 3.03),
+        'right_shoulder': (101.988, -3.522, 12.122), 'right_elbow': (32.328, 17.437),
         'left_shoulder': (64.868, 5.73, 11.459), 'right_hip': (79.238, 0.0, 0.0),
         'right_knee': (99.133,), 'right_ankle': (19.913, 0.0), 'left_hip': (79.238, 0.0, 0.0),
         'left_knee': (99.133,), 'left_ankle': (19.913, 0.0),
     })
     human.KeyRoot(7.6, (7.802, 54.171, 20.944), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'spine_lumbar': (60.0, -0.869, 1.654), 'spine_thoracic': (29.575, -0.984, 1.361),
-        'right_wrist': (-0.021, -1.814), 'left_shoulder': (60.268, 5.73, 11.459),
+        'spine_lumbar': (60.0, -0.871, 1.659), 'spine_thoracic': (29.58, -0.987, 1.366),
+        'right_wrist': (-0.028, -1.822), 'left_shoulder': (60.268, 5.73, 11.459),
         'right_hip': (72.995, 0.0, 0.0), 'right_knee': (91.404,), 'right_ankle': (18.284, 0.0),
         'left_hip': (72.995, 0.0, 0.0), 'left_knee': (91.404,), 'left_ankle': (18.284, 0.0),
     })
@@ -233,7 +233,7 @@ def drain_reservoir():
     human.KeyRoot(8.2, (4.35, 78.449, 31.589), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.2, {
         'spine_lumbar': (21.952, 0.0, 0.0), 'spine_thoracic': (10.976, 0.0, 0.0),
-        'right_shoulder': (101.767, -3.556, 12.146), 'right_elbow': (32.783, 17.438),
+        'right_shoulder': (101.797, -3.495, 12.126), 'right_elbow': (32.758, 17.438),
     })
     human.KeyRoot(8.3, (3.398, 80.803, 34.524), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.3, {'spine_lumbar': (16.747, 0.0, 0.0)})
@@ -245,9 +245,9 @@ def drain_reservoir():
     human.KeyRoot(8.623797, (-0.062, 84.763, 45.191), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.623797, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (3.878, -0.08, 2.987), 'head': (3.878, -0.001), 'right_clavicle': (1.296, 1.87),
-        'right_shoulder': (101.767, -3.556, 12.146), 'right_elbow': (32.783, 17.438),
-        'right_wrist': (-0.048, -1.737), 'left_clavicle': (0.0, 0.0),
+        'neck': (3.871, -0.079, 2.958), 'head': (3.872, -0.001), 'right_clavicle': (1.304, 1.874),
+        'right_shoulder': (101.797, -3.495, 12.126), 'right_elbow': (32.758, 17.438),
+        'right_wrist': (-0.054, -1.745), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (0.0, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),

@@ -778,7 +778,7 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(12.5, {
-        'spine_lumbar': (3.516, -12.235, 8.712), 'spine_thoracic': (-5.954, -3.849, 8.371),
+        'spine_lumbar': (3.516, -12.235, 8.712), 'spine_thoracic': (-5.954, -3.85, 8.371),
         'neck': (0.792, -0.206, -10.759), 'head': (0.833, 0.001), 'right_clavicle': (1.683, 7.778),
         'right_shoulder': (84.932, 3.817, 3.068), 'right_elbow': (34.016, 11.613),
         'right_wrist': (-0.534, -27.906),
@@ -1016,7 +1016,7 @@ def remove_access_panel():
     })
     human.KeyJoints(16.3, {
         'spine_lumbar': (0.692, -18.983, 3.033), 'spine_thoracic': (-9.167, -10.0, 5.238),
-        'neck': (3.749, -1.198, -11.761), 'head': (3.965, -0.012),
+        'neck': (3.749, -1.197, -11.761), 'head': (3.965, -0.012),
         'right_clavicle': (20.602, 3.787), 'right_shoulder': (85.513, 11.737, 13.229),
         'right_elbow': (21.198, 23.722), 'right_wrist': (5.557, -21.367),
     })
@@ -1258,7 +1258,7 @@ def remove_access_panel():
     human.KeyJoints(20.2, {
         'spine_lumbar': (-0.066, -19.209, 6.286), 'spine_thoracic': (-8.134, -8.858, 6.471),
         'neck': (3.708, -1.1, -15.381), 'head': (3.921, -0.029), 'right_clavicle': (6.301, 5.76),
-        'right_shoulder': (86.029, 7.211, 0.607), 'right_elbow': (22.334, 11.405),
+        'right_shoulder': (86.029, 7.212, 0.607), 'right_elbow': (22.334, 11.405),
         'right_wrist': (-0.913, -29.108),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
@@ -1381,9 +1381,9 @@ def remove_access_panel():
     })
     human.KeyJoints(22.2, {
         'spine_lumbar': (5.172, -18.474, 3.162), 'spine_thoracic': (-10.038, -10.0, 5.518),
-        'neck': (2.099, -0.597, -13.395), 'head': (2.214, -0.011),
-        'right_clavicle': (22.231, 3.721), 'right_shoulder': (87.669, 14.88, 12.785),
-        'right_elbow': (20.556, 24.224), 'right_wrist': (5.443, -21.159),
+        'neck': (2.099, -0.597, -13.395), 'head': (2.214, -0.011), 'right_clavicle': (22.231, 3.72),
+        'right_shoulder': (87.669, 14.88, 12.785), 'right_elbow': (20.556, 24.224),
+        'right_wrist': (5.443, -21.159),
     })
     human.KeyJoints(22.3, {
         'spine_lumbar': (-0.339, -19.489, 3.523), 'spine_thoracic': (-8.516, -10.0, 5.316),
@@ -1422,7 +1422,7 @@ def remove_access_panel():
         'right_wrist': (-1.418, -29.519),
     })
     human.KeyJoints(22.9, {
-        'right_shoulder': (77.821, 9.921, -0.772), 'right_elbow': (34.012, 10.172),
+        'right_shoulder': (77.821, 9.922, -0.772), 'right_elbow': (34.012, 10.172),
         'right_wrist': (-1.973, -25.317),
     })
     human.KeyJoints(23.0, {
@@ -1459,7 +1459,7 @@ def remove_access_panel():
         'spine_lumbar': (11.558, -1.554, 10.772), 'spine_thoracic': (-9.852, -2.485, 10.057),
         'neck': (32.412, -4.602, -42.031), 'head': (12.419, -1.096),
         'right_clavicle': (6.358, 8.528), 'right_shoulder': (20.702, 39.364, -12.381),
-        'right_elbow': (44.402, 7.726), 'right_wrist': (-6.03, 11.532),
+        'right_elbow': (44.403, 7.726), 'right_wrist': (-6.03, 11.532),
     })
     human.KeyJoints(23.7, {
         'spine_lumbar': (13.157, -3.767, 9.995), 'spine_thoracic': (-7.297, -6.424, 9.936),
@@ -1495,7 +1495,7 @@ def remove_access_panel():
     human.KeyJoints(24.2, {
         'spine_lumbar': (12.516, -2.709, 10.333), 'spine_thoracic': (-8.367, -4.759, 10.004),
         'neck': (32.53, -4.701, -42.686), 'head': (12.458, -1.105),
-        'right_clavicle': (8.736, 8.532), 'right_shoulder': (18.446, 41.621, -10.406),
+        'right_clavicle': (8.736, 8.532), 'right_shoulder': (18.446, 41.621, -10.407),
         'right_elbow': (44.419, 10.521), 'right_wrist': (-5.98, 12.7),
     })
     human.KeyJoints(24.3, {
@@ -1517,9 +1517,9 @@ def remove_access_panel():
         'right_elbow': (44.17, 17.997), 'right_wrist': (-6.033, 14.221),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (11.221, -1.935, 10.569), 'spine_thoracic': (-9.515, -2.929, 9.896),
+        'spine_lumbar': (11.221, -1.936, 10.569), 'spine_thoracic': (-9.515, -2.929, 9.896),
         'neck': (32.419, -4.481, -41.697), 'head': (12.482, -1.087),
-        'right_clavicle': (6.429, 8.447), 'right_shoulder': (20.129, 39.26, -11.964),
+        'right_clavicle': (6.429, 8.447), 'right_shoulder': (20.129, 39.26, -11.965),
         'right_elbow': (44.454, 8.125), 'right_wrist': (-6.001, 11.812),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
@@ -1542,7 +1542,7 @@ def remove_access_panel():
         'right_elbow': (43.242, 17.664), 'right_wrist': (-6.182, 13.284),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (12.144, -12.907, 8.032), 'spine_thoracic': (-1.669, -10.0, 9.235),
+        'spine_lumbar': (12.145, -12.907, 8.032), 'spine_thoracic': (-1.669, -10.0, 9.235),
         'neck': (33.69, -4.192, -43.958), 'head': (13.6, -1.046), 'right_clavicle': (14.519, 8.973),
         'right_shoulder': (7.75, 47.476, -3.597), 'right_elbow': (43.123, 20.124),
         'right_wrist': (-6.337, 13.577),
@@ -1573,7 +1573,7 @@ def remove_access_panel():
         'right_wrist': (-5.971, 13.441),
     })
     human.KeyJoints(25.5, {
-        'spine_lumbar': (14.669, -11.817, 8.344), 'spine_thoracic': (-2.253, -10.0, 9.619),
+        'spine_lumbar': (14.67, -11.817, 8.344), 'spine_thoracic': (-2.253, -10.0, 9.619),
         'neck': (33.831, -4.663, -45.972), 'head': (13.566, -1.128),
         'right_clavicle': (15.835, 9.161), 'right_shoulder': (8.754, 49.21, -4.303),
         'right_elbow': (42.48, 19.774), 'right_wrist': (-6.443, 12.698),
@@ -1588,7 +1588,7 @@ def remove_access_panel():
         'spine_lumbar': (11.332, -1.51, 10.785), 'spine_thoracic': (-9.95, -2.331, 10.037),
         'neck': (32.408, -4.557, -41.918), 'head': (12.435, -1.092),
         'right_clavicle': (5.991, 8.511), 'right_shoulder': (20.84, 38.954, -12.653),
-        'right_elbow': (44.382, 7.327), 'right_wrist': (-6.037, 11.31),
+        'right_elbow': (44.382, 7.327), 'right_wrist': (-6.037, 11.311),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.8, {
@@ -1600,7 +1600,7 @@ def remove_access_panel():
     human.KeyJoints(25.9, {
         'spine_lumbar': (13.528, -4.581, 9.762), 'spine_thoracic': (-6.572, -7.545, 9.885),
         'neck': (32.85, -4.698, -43.508), 'head': (12.72, -1.11), 'right_clavicle': (11.619, 8.537),
-        'right_shoulder': (15.665, 44.089, -7.888), 'right_elbow': (44.056, 13.94),
+        'right_shoulder': (15.664, 44.089, -7.888), 'right_elbow': (44.056, 13.94),
         'right_wrist': (-5.959, 13.463),
     })
     human.KeyJoints(26.0, {
@@ -1642,7 +1642,7 @@ def remove_access_panel():
     })
     human.KeyJoints(26.6, {
         'spine_lumbar': (13.888, -12.333, 8.204), 'spine_thoracic': (-1.981, -10.0, 9.491),
-        'neck': (33.786, -4.512, -45.366), 'head': (13.596, -1.115),
+        'neck': (33.786, -4.511, -45.366), 'head': (13.596, -1.115),
         'right_clavicle': (15.518, 9.118), 'right_shoulder': (8.288, 48.787, -3.966),
         'right_elbow': (42.641, 19.956), 'right_wrist': (-6.418, 12.95),
     })
@@ -1650,7 +1650,7 @@ def remove_access_panel():
         'spine_lumbar': (10.659, -6.827, 8.827), 'spine_thoracic': (-5.237, -7.769, 9.132),
         'neck': (32.755, -4.103, -41.253), 'head': (12.957, -1.05),
         'right_clavicle': (10.723, 8.144), 'right_shoulder': (13.24, 42.753, -6.32),
-        'right_elbow': (44.77, 15.358), 'right_wrist': (-5.832, 14.506),
+        'right_elbow': (44.77, 15.358), 'right_wrist': (-5.832, 14.507),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.8, {
@@ -1667,7 +1667,7 @@ def remove_access_panel():
     })
     human.KeyJoints(27.0, {
         'spine_lumbar': (13.697, -5.024, 9.644), 'spine_thoracic': (-6.205, -8.11, 9.86),
-        'neck': (32.937, -4.678, -43.672), 'head': (12.802, -1.11), 'right_clavicle': (12.17, 8.55),
+        'neck': (32.937, -4.677, -43.672), 'head': (12.802, -1.11), 'right_clavicle': (12.17, 8.55),
         'right_shoulder': (15.092, 44.516, -7.379), 'right_elbow': (43.925, 14.605),
         'right_wrist': (-5.962, 13.499),
     })
@@ -1678,7 +1678,7 @@ def remove_access_panel():
         'right_elbow': (42.851, 18.705), 'right_wrist': (-6.455, 13.175),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (11.386, -11.521, 8.188), 'spine_thoracic': (-2.439, -9.56, 9.178),
+        'spine_lumbar': (11.386, -11.522, 8.188), 'spine_thoracic': (-2.439, -9.56, 9.178),
         'neck': (33.418, -4.116, -42.914), 'head': (13.409, -1.023),
         'right_clavicle': (13.239, 8.68), 'right_shoulder': (8.927, 45.808, -4.137),
         'right_elbow': (43.767, 19.131), 'right_wrist': (-6.161, 14.01),
@@ -1709,7 +1709,7 @@ def remove_access_panel():
         'right_elbow': (43.529, 16.885), 'right_wrist': (-6.156, 13.546),
     })
     human.KeyJoints(27.7, {
-        'spine_lumbar': (12.904, -12.726, 8.088), 'spine_thoracic': (-1.768, -10.0, 9.338),
+        'spine_lumbar': (12.904, -12.727, 8.088), 'spine_thoracic': (-1.768, -10.0, 9.338),
         'neck': (33.745, -4.345, -44.701), 'head': (13.599, -1.085),
         'right_clavicle': (15.046, 9.051), 'right_shoulder': (7.922, 48.163, -3.712),
         'right_elbow': (42.873, 20.075), 'right_wrist': (-6.381, 13.283),
@@ -1717,7 +1717,7 @@ def remove_access_panel():
     human.KeyJoints(27.8, {
         'spine_lumbar': (10.617, -5.687, 9.059), 'spine_thoracic': (-6.049, -7.122, 9.132),
         'neck': (32.605, -4.105, -41.056), 'head': (12.827, -1.063),
-        'right_clavicle': (9.942, 8.104), 'right_shoulder': (14.515, 41.974, -7.097),
+        'right_clavicle': (9.942, 8.104), 'right_shoulder': (14.515, 41.975, -7.097),
         'right_elbow': (44.843, 14.155), 'right_wrist': (-5.808, 14.531),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
@@ -1736,13 +1736,13 @@ def remove_access_panel():
     human.KeyJoints(28.1, {
         'spine_lumbar': (13.849, -5.476, 9.528), 'spine_thoracic': (-5.843, -8.685, 9.836),
         'neck': (33.031, -4.646, -43.826), 'head': (12.895, -1.109),
-        'right_clavicle': (12.76, 8.567), 'right_shoulder': (14.529, 44.895, -6.804),
+        'right_clavicle': (12.76, 8.567), 'right_shoulder': (14.528, 44.895, -6.804),
         'right_elbow': (43.754, 15.281), 'right_wrist': (-5.965, 13.484),
     })
     human.KeyJoints(28.2, {
         'spine_lumbar': (14.858, -11.23, 8.478), 'spine_thoracic': (-2.544, -10.0, 9.65),
         'neck': (33.831, -4.717, -46.123), 'head': (13.513, -1.131),
-        'right_clavicle': (15.809, 9.159), 'right_shoulder': (9.25, 49.27, -4.732),
+        'right_clavicle': (15.809, 9.159), 'right_shoulder': (9.249, 49.27, -4.732),
         'right_elbow': (42.486, 19.476), 'right_wrist': (-6.453, 12.702),
     })
     human.KeyJoints(28.3, {
@@ -1761,7 +1761,7 @@ def remove_access_panel():
     human.KeyJoints(28.5, {
         'spine_lumbar': (11.784, -1.841, 10.653), 'spine_thoracic': (-9.43, -3.123, 10.05),
         'neck': (32.431, -4.63, -42.208), 'head': (12.415, -1.098),
-        'right_clavicle': (6.931, 8.533), 'right_shoulder': (20.067, 39.907, -11.919),
+        'right_clavicle': (6.931, 8.533), 'right_shoulder': (20.066, 39.907, -11.919),
         'right_elbow': (44.426, 8.395), 'right_wrist': (-6.017, 11.824),
     })
     human.KeyJoints(28.6, {
@@ -1804,7 +1804,7 @@ def remove_access_panel():
     human.KeyJoints(29.2, {
         'spine_lumbar': (14.004, -5.984, 9.403), 'spine_thoracic': (-5.458, -9.248, 9.811),
         'neck': (33.134, -4.617, -43.994), 'right_clavicle': (13.245, 8.595),
-        'right_shoulder': (13.931, 45.293, -6.35), 'right_elbow': (43.603, 15.916),
+        'right_shoulder': (13.93, 45.293, -6.35), 'right_elbow': (43.603, 15.916),
         'right_wrist': (-5.971, 13.441),
     })
     human.KeyJoints(29.3, {
@@ -1853,7 +1853,7 @@ def remove_access_panel():
     human.KeyJoints(30.0, {
         'spine_lumbar': (10.851, -3.641, 9.783), 'spine_thoracic': (-7.848, -5.108, 9.428),
         'neck': (32.468, -4.283, -41.275), 'head': (12.626, -1.075),
-        'right_clavicle': (8.116, 8.237), 'right_shoulder': (17.411, 40.488, -9.448),
+        'right_clavicle': (8.116, 8.237), 'right_shoulder': (17.411, 40.488, -9.449),
         'right_elbow': (44.692, 11.121), 'right_wrist': (-5.883, 13.477),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
@@ -1878,7 +1878,7 @@ def remove_access_panel():
     human.KeyJoints(30.4, {
         'spine_lumbar': (13.904, -12.325, 8.207), 'spine_thoracic': (-1.985, -10.0, 9.494),
         'neck': (33.787, -4.514, -45.377), 'head': (13.596, -1.115),
-        'right_clavicle': (15.525, 9.119), 'right_shoulder': (8.296, 48.796, -3.971),
+        'right_clavicle': (15.525, 9.119), 'right_shoulder': (8.295, 48.796, -3.971),
         'right_elbow': (42.637, 19.953), 'right_wrist': (-6.419, 12.945),
     })
     human.KeyJoints(30.5, {
@@ -1903,14 +1903,14 @@ def remove_access_panel():
     human.KeyJoints(30.8, {
         'spine_lumbar': (13.695, -5.016, 9.646), 'spine_thoracic': (-6.211, -8.101, 9.86),
         'neck': (32.936, -4.678, -43.669), 'head': (12.801, -1.11),
-        'right_clavicle': (12.161, 8.549), 'right_shoulder': (15.102, 44.509, -7.387),
+        'right_clavicle': (12.161, 8.549), 'right_shoulder': (15.102, 44.509, -7.388),
         'right_elbow': (43.928, 14.594), 'right_wrist': (-5.962, 13.499),
     })
     human.KeyJoints(30.9, {
         'spine_lumbar': (14.806, -10.372, 8.621), 'spine_thoracic': (-2.93, -10.0, 9.648),
         'neck': (33.71, -4.723, -45.833), 'head': (13.415, -1.129),
         'right_clavicle': (15.006, 9.041), 'right_shoulder': (9.897, 48.867, -5.408),
-        'right_elbow': (42.856, 18.693), 'right_wrist': (-6.455, 13.18),
+        'right_elbow': (42.856, 18.693), 'right_wrist': (-6.456, 13.18),
     })
     human.KeyJoints(31.0, {
         'spine_lumbar': (11.392, -11.544, 8.185), 'spine_thoracic': (-2.426, -9.567, 9.179),
@@ -1951,9 +1951,9 @@ def remove_access_panel():
     })
     human.KeyJoints(31.6, {
         'spine_lumbar': (10.617, -5.703, 9.055), 'spine_thoracic': (-6.036, -7.133, 9.132),
-        'neck': (32.607, -4.105, -41.056), 'head': (12.829, -1.063),
+        'neck': (32.607, -4.104, -41.056), 'head': (12.829, -1.063),
         'right_clavicle': (9.956, 8.103), 'right_shoulder': (14.494, 41.986, -7.083),
-        'right_elbow': (44.843, 14.175), 'right_wrist': (-5.807, 14.533),
+        'right_elbow': (44.843, 14.175), 'right_wrist': (-5.808, 14.533),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.7, {
@@ -2051,7 +2051,7 @@ def remove_access_panel():
     human.KeyJoints(33.2, {
         'spine_lumbar': (11.13, -7.608, 8.666), 'spine_thoracic': (-4.395, -8.334, 9.142),
         'neck': (32.886, -4.199, -41.901), 'head': (12.997, -1.054),
-        'right_clavicle': (11.775, 8.334), 'right_shoulder': (11.898, 44.114, -5.384),
+        'right_clavicle': (11.775, 8.334), 'right_shoulder': (11.898, 44.114, -5.385),
         'right_elbow': (44.513, 16.927), 'right_wrist': (-5.919, 14.388),
     })
     human.KeyJoints(33.3, {
@@ -2082,7 +2082,7 @@ def remove_access_panel():
     human.KeyJoints(33.7, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (19.824, 32.394, -15.48), 'right_elbow': (36.406, 3.511),
-        'right_wrist': (-6.114, -5.409),
+        'right_wrist': (-6.115, -5.409),
     })
     human.KeyJoints(33.8, {
         'right_shoulder': (25.972, 25.008, -9.191), 'right_elbow': (35.672, 6.922),
@@ -2111,7 +2111,7 @@ def remove_access_panel():
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.151),
+        'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.4, {
@@ -2128,7 +2128,7 @@ def remove_access_panel():
     })
     human.KeyJoints(34.6, {
         'spine_lumbar': (2.405, -19.998, 9.302), 'spine_thoracic': (-11.529, -10.0, 10.841),
-        'neck': (25.978, -1.174, -7.932), 'head': (10.312, -0.169),
+        'neck': (25.978, -1.174, -7.932), 'head': (10.313, -0.169),
         'right_clavicle': (16.564, 9.432), 'right_shoulder': (57.043, 7.49, 20.67),
         'right_elbow': (26.588, 29.081), 'right_wrist': (3.165, -26.46),
     })
@@ -2167,7 +2167,7 @@ def remove_access_panel():
         'spine_lumbar': (-0.05, -20.0, 10.251), 'spine_thoracic': (-12.704, -10.0, 12.826),
         'neck': (27.237, -1.249, -9.289), 'head': (11.616, -0.173),
         'right_clavicle': (21.36, 11.263), 'right_shoulder': (57.584, 7.611, 21.535),
-        'right_elbow': (19.077, 31.332), 'right_wrist': (4.341, -24.19),
+        'right_elbow': (19.078, 31.332), 'right_wrist': (4.341, -24.19),
     })
     human.KeyJoints(35.3, {
         'spine_lumbar': (-1.334, -19.554, 8.906), 'spine_thoracic': (-9.924, -10.0, 9.814),
@@ -2239,9 +2239,9 @@ def remove_access_panel():
     })
     human.KeyJoints(36.4, {
         'spine_lumbar': (-0.412, -19.332, 8.592), 'spine_thoracic': (-9.436, -10.0, 9.159),
-        'neck': (25.872, -0.799, -4.826), 'head': (10.018, -0.152),
+        'neck': (25.872, -0.799, -4.827), 'head': (10.018, -0.152),
         'right_clavicle': (10.367, 8.305), 'right_shoulder': (54.665, 2.517, 17.436),
-        'right_elbow': (29.233, 24.632), 'right_wrist': (1.644, -24.106),
+        'right_elbow': (29.234, 24.632), 'right_wrist': (1.644, -24.106),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.5, {
@@ -2277,7 +2277,7 @@ def remove_access_panel():
     human.KeyJoints(37.0, {
         'spine_lumbar': (5.482, -15.58, 9.321), 'spine_thoracic': (-8.919, -6.611, 9.235),
         'neck': (24.691, -1.012, -5.463), 'head': (8.291, -0.117), 'right_clavicle': (4.623, 8.033),
-        'right_shoulder': (56.039, 2.789, 12.89), 'right_elbow': (32.167, 20.149),
+        'right_shoulder': (56.039, 2.789, 12.89), 'right_elbow': (32.168, 20.149),
         'right_wrist': (-0.383, -21.05),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
@@ -2297,18 +2297,18 @@ def remove_access_panel():
         'spine_lumbar': (2.735, -19.642, 9.238), 'spine_thoracic': (-11.292, -10.0, 10.583),
         'neck': (25.805, -1.15, -7.615), 'head': (10.1, -0.166), 'right_clavicle': (15.48, 9.196),
         'right_shoulder': (57.016, 7.17, 20.037), 'right_elbow': (27.283, 28.301),
-        'right_wrist': (2.838, -26.419),
+        'right_wrist': (2.838, -26.42),
     })
     human.KeyJoints(37.4, {
         'spine_lumbar': (-2.892, -20.0, 10.293), 'spine_thoracic': (-12.403, -10.0, 12.797),
         'neck': (27.681, -1.071, -8.295), 'head': (12.058, -0.17),
-        'right_clavicle': (20.934, 11.37), 'right_shoulder': (56.405, 5.883, 21.896),
+        'right_clavicle': (20.934, 11.37), 'right_shoulder': (56.405, 5.884, 21.896),
         'right_elbow': (19.327, 31.172), 'right_wrist': (4.464, -24.494),
     })
     human.KeyJoints(37.5, {
         'spine_lumbar': (0.522, -19.054, 8.518), 'spine_thoracic': (-9.216, -9.967, 8.989),
         'neck': (25.519, -0.795, -4.674), 'head': (9.536, -0.143), 'right_clavicle': (8.736, 8.122),
-        'right_shoulder': (54.646, 2.448, 16.424), 'right_elbow': (30.306, 23.463),
+        'right_shoulder': (54.646, 2.448, 16.424), 'right_elbow': (30.307, 23.463),
         'right_wrist': (1.115, -23.904),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
@@ -2327,8 +2327,8 @@ def remove_access_panel():
     human.KeyJoints(37.8, {
         'spine_lumbar': (3.685, -19.206, 8.976), 'spine_thoracic': (-10.571, -10.0, 9.805),
         'neck': (25.348, -1.12, -6.962), 'head': (9.42, -0.15), 'right_clavicle': (12.206, 8.478),
-        'right_shoulder': (56.931, 6.135, 17.745), 'right_elbow': (28.91, 25.831),
-        'right_wrist': (1.747, -25.313),
+        'right_shoulder': (56.931, 6.135, 17.745), 'right_elbow': (28.911, 25.831),
+        'right_wrist': (1.746, -25.313),
     })
     human.KeyJoints(37.9, {
         'spine_lumbar': (0.765, -19.972, 10.207), 'spine_thoracic': (-12.717, -10.0, 12.803),
@@ -2338,7 +2338,7 @@ def remove_access_panel():
     })
     human.KeyJoints(38.0, {
         'spine_lumbar': (-2.204, -19.742, 9.355), 'spine_thoracic': (-10.577, -10.0, 10.756),
-        'neck': (26.714, -0.866, -6.101), 'head': (11.048, -0.165), 'right_clavicle': (15.287, 9.7),
+        'neck': (26.714, -0.866, -6.102), 'head': (11.048, -0.165), 'right_clavicle': (15.287, 9.7),
         'right_shoulder': (55.015, 3.287, 19.855), 'right_elbow': (24.727, 27.841),
         'right_wrist': (3.111, -24.395),
     })
@@ -2370,11 +2370,11 @@ def remove_access_panel():
     human.KeyJoints(38.5, {
         'spine_lumbar': (-3.559, -20.0, 10.299), 'spine_thoracic': (-12.19, -10.0, 12.773),
         'neck': (27.793, -1.012, -7.918), 'head': (12.17, -0.169),
-        'right_clavicle': (20.595, 11.385), 'right_shoulder': (55.908, 5.084, 21.956),
+        'right_clavicle': (20.595, 11.385), 'right_shoulder': (55.908, 5.085, 21.956),
         'right_elbow': (19.531, 31.041), 'right_wrist': (4.482, -24.574),
     })
     human.KeyJoints(38.6, {
-        'spine_lumbar': (1.902, -18.255, 8.675), 'spine_thoracic': (-9.099, -9.31, 9.037),
+        'spine_lumbar': (1.902, -18.256, 8.675), 'spine_thoracic': (-9.099, -9.31, 9.037),
         'neck': (25.232, -0.866, -4.99), 'head': (9.095, -0.133), 'right_clavicle': (7.298, 8.086),
         'right_shoulder': (54.919, 2.515, 15.307), 'right_elbow': (31.01, 22.345),
         'right_wrist': (0.611, -23.26),
@@ -2389,20 +2389,20 @@ def remove_access_panel():
     human.KeyJoints(38.8, {
         'spine_lumbar': (5.481, -17.664, 9.508), 'spine_thoracic': (-10.429, -8.156, 9.481),
         'neck': (24.968, -1.157, -6.928), 'head': (8.912, -0.141), 'right_clavicle': (6.735, 7.899),
-        'right_shoulder': (55.429, 4.965, 13.227), 'right_elbow': (31.113, 21.319),
+        'right_shoulder': (55.429, 4.966, 13.227), 'right_elbow': (31.113, 21.319),
         'right_wrist': (-0.159, -21.897),
     })
     human.KeyJoints(38.9, {
         'spine_lumbar': (3.373, -19.178, 9.083), 'spine_thoracic': (-10.819, -10.0, 10.078),
         'neck': (25.502, -1.121, -7.121), 'head': (9.649, -0.155),
         'right_clavicle': (13.325, 8.731), 'right_shoulder': (56.962, 6.47, 18.542),
-        'right_elbow': (28.443, 26.682), 'right_wrist': (2.135, -25.908),
+        'right_elbow': (28.444, 26.682), 'right_wrist': (2.135, -25.908),
     })
     human.KeyJoints(39.0, {
         'spine_lumbar': (-0.029, -20.0, 10.25), 'spine_thoracic': (-12.705, -10.0, 12.827),
         'neck': (27.232, -1.251, -9.299), 'head': (11.612, -0.173),
         'right_clavicle': (21.362, 11.261), 'right_shoulder': (57.59, 7.62, 21.531),
-        'right_elbow': (19.076, 31.333), 'right_wrist': (4.34, -24.188),
+        'right_elbow': (19.077, 31.333), 'right_wrist': (4.34, -24.188),
     })
     human.KeyJoints(39.1, {
         'spine_lumbar': (-1.349, -19.558, 8.913), 'spine_thoracic': (-9.934, -10.0, 9.828),
@@ -2457,7 +2457,7 @@ def remove_access_panel():
     human.KeyJoints(39.9, {
         'spine_lumbar': (5.147, -18.353, 9.493), 'spine_thoracic': (-10.66, -8.837, 9.534),
         'neck': (25.103, -1.179, -7.226), 'head': (9.129, -0.147), 'right_clavicle': (7.396, 7.9),
-        'right_shoulder': (55.235, 5.334, 13.612), 'right_elbow': (30.896, 21.792),
+        'right_shoulder': (55.235, 5.334, 13.611), 'right_elbow': (30.896, 21.792),
         'right_wrist': (0.003, -22.198),
     })
     human.KeyJoints(40.0, {
@@ -2475,7 +2475,7 @@ def remove_access_panel():
     human.KeyJoints(40.2, {
         'spine_lumbar': (-0.428, -19.336, 8.596), 'spine_thoracic': (-9.443, -10.0, 9.166),
         'neck': (25.879, -0.8, -4.834), 'head': (10.027, -0.152), 'right_clavicle': (10.401, 8.312),
-        'right_shoulder': (54.666, 2.52, 17.455), 'right_elbow': (29.206, 24.655),
+        'right_shoulder': (54.666, 2.52, 17.455), 'right_elbow': (29.207, 24.655),
         'right_wrist': (1.655, -24.109),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
@@ -2492,7 +2492,7 @@ def remove_access_panel():
         'right_wrist': (-0.46, -21.173),
     })
     human.KeyJoints(40.5, {
-        'spine_lumbar': (4.015, -19.26, 8.861), 'spine_thoracic': (-10.301, -10.0, 9.516),
+        'spine_lumbar': (4.015, -19.261, 8.861), 'spine_thoracic': (-10.302, -10.0, 9.516),
         'neck': (25.177, -1.121, -6.828), 'head': (9.172, -0.144),
         'right_clavicle': (11.057, 8.209), 'right_shoulder': (56.906, 5.77, 16.929),
         'right_elbow': (29.377, 24.954), 'right_wrist': (1.357, -24.58),
@@ -2506,8 +2506,8 @@ def remove_access_panel():
     human.KeyJoints(40.7, {
         'spine_lumbar': (-2.922, -19.884, 9.817), 'spine_thoracic': (-11.261, -10.0, 11.729),
         'neck': (27.166, -0.907, -6.726), 'head': (11.534, -0.167),
-        'right_clavicle': (17.776, 10.527), 'right_shoulder': (55.291, 3.87, 20.939),
-        'right_elbow': (22.256, 29.393), 'right_wrist': (3.81, -24.494),
+        'right_clavicle': (17.776, 10.527), 'right_shoulder': (55.29, 3.87, 20.939),
+        'right_elbow': (22.256, 29.393), 'right_wrist': (3.809, -24.494),
     })
     human.KeyJoints(40.8, {
         'spine_lumbar': (5.453, -15.603, 9.316), 'spine_thoracic': (-8.921, -6.635, 9.234),
@@ -2519,7 +2519,7 @@ def remove_access_panel():
     human.KeyJoints(40.9, {
         'spine_lumbar': (7.705, -13.937, 9.814), 'spine_thoracic': (-9.043, -4.753, 9.402),
         'neck': (24.207, -1.07, -5.522), 'head': (7.701, -0.11), 'right_clavicle': (3.412, 7.996),
-        'right_shoulder': (56.731, 3.218, 11.478), 'right_elbow': (32.59, 19.036),
+        'right_shoulder': (56.73, 3.218, 11.478), 'right_elbow': (32.591, 19.036),
         'right_wrist': (-0.915, -19.612),
     })
     human.KeyJoints(41.0, {
@@ -2557,7 +2557,7 @@ def remove_access_panel():
         'spine_lumbar': (5.863, -16.942, 9.516), 'spine_thoracic': (-10.14, -7.499, 9.423),
         'neck': (24.82, -1.134, -6.604), 'head': (8.666, -0.134), 'right_clavicle': (6.073, 7.903),
         'right_shoulder': (55.746, 4.584, 12.875), 'right_elbow': (31.346, 20.862),
-        'right_wrist': (-0.309, -21.563),
+        'right_wrist': (-0.31, -21.563),
     })
     human.KeyJoints(41.6, {
         'spine_lumbar': (3.69, -19.207, 8.974), 'spine_thoracic': (-10.567, -10.0, 9.8),
@@ -2569,7 +2569,7 @@ def remove_access_panel():
         'spine_lumbar': (0.772, -19.968, 10.206), 'spine_thoracic': (-12.715, -10.0, 12.8),
         'neck': (26.972, -1.291, -9.507), 'head': (11.348, -0.173),
         'right_clavicle': (21.309, 11.149), 'right_shoulder': (57.733, 7.812, 21.256),
-        'right_elbow': (19.15, 31.288), 'right_wrist': (4.219, -24.175),
+        'right_elbow': (19.15, 31.288), 'right_wrist': (4.219, -24.176),
     })
     human.KeyJoints(41.8, {
         'spine_lumbar': (-2.218, -19.745, 9.363), 'spine_thoracic': (-10.589, -10.0, 10.773),
@@ -2587,18 +2587,18 @@ def remove_access_panel():
     human.KeyJoints(42.0, {
         'spine_lumbar': (7.114, -14.846, 9.731), 'spine_thoracic': (-9.448, -5.526, 9.409),
         'neck': (24.476, -1.095, -5.939), 'head': (8.063, -0.116), 'right_clavicle': (4.152, 7.965),
-        'right_shoulder': (56.338, 3.65, 11.793), 'right_elbow': (32.204, 19.506),
+        'right_shoulder': (56.338, 3.65, 11.793), 'right_elbow': (32.204, 19.505),
         'right_wrist': (-0.765, -20.225),
     })
     human.KeyJoints(42.1, {
         'spine_lumbar': (4.621, -19.241, 9.048), 'spine_thoracic': (-10.391, -9.882, 9.379),
         'neck': (25.088, -1.162, -7.059), 'head': (9.084, -0.145), 'right_clavicle': (8.925, 7.918),
-        'right_shoulder': (56.047, 5.504, 15.041), 'right_elbow': (30.325, 23.137),
+        'right_shoulder': (56.047, 5.504, 15.041), 'right_elbow': (30.326, 23.137),
         'right_wrist': (0.559, -23.082),
     })
     human.KeyJoints(42.2, {
         'spine_lumbar': (2.419, -19.995, 9.299), 'spine_thoracic': (-11.519, -10.0, 10.829),
-        'neck': (25.97, -1.173, -7.92), 'head': (10.304, -0.168), 'right_clavicle': (16.521, 9.421),
+        'neck': (25.97, -1.173, -7.92), 'head': (10.304, -0.169), 'right_clavicle': (16.521, 9.421),
         'right_shoulder': (57.041, 7.487, 20.665), 'right_elbow': (26.622, 29.056),
         'right_wrist': (3.154, -26.46),
     })
@@ -2611,7 +2611,7 @@ def remove_access_panel():
     human.KeyJoints(42.4, {
         'spine_lumbar': (1.875, -18.274, 8.671), 'spine_thoracic': (-9.101, -9.327, 9.036),
         'neck': (25.236, -0.865, -4.983), 'head': (9.102, -0.133), 'right_clavicle': (7.323, 8.086),
-        'right_shoulder': (54.912, 2.513, 15.328), 'right_elbow': (30.999, 22.364),
+        'right_shoulder': (54.912, 2.513, 15.327), 'right_elbow': (30.999, 22.364),
         'right_wrist': (0.62, -23.275),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
@@ -2637,7 +2637,7 @@ def remove_access_panel():
         'spine_lumbar': (-0.009, -20.0, 10.25), 'spine_thoracic': (-12.706, -10.0, 12.827),
         'neck': (27.227, -1.252, -9.308), 'head': (11.607, -0.173),
         'right_clavicle': (21.364, 11.26), 'right_shoulder': (57.596, 7.629, 21.527),
-        'right_elbow': (19.075, 31.333), 'right_wrist': (4.338, -24.186),
+        'right_elbow': (19.076, 31.333), 'right_wrist': (4.338, -24.186),
     })
     human.KeyJoints(42.9, {
         'spine_lumbar': (-1.364, -19.561, 8.919), 'spine_thoracic': (-9.943, -10.0, 9.842),
@@ -2680,7 +2680,7 @@ def remove_access_panel():
         'spine_lumbar': (3.625, -17.024, 8.964), 'spine_thoracic': (-9.001, -8.104, 9.126),
         'neck': (24.976, -0.962, -5.373), 'head': (8.69, -0.124), 'right_clavicle': (5.912, 8.057),
         'right_shoulder': (55.419, 2.637, 14.099), 'right_elbow': (31.63, 21.222),
-        'right_wrist': (0.104, -22.247),
+        'right_wrist': (0.103, -22.247),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.6, {
@@ -2697,7 +2697,7 @@ def remove_access_panel():
     })
     human.KeyJoints(43.8, {
         'spine_lumbar': (3.055, -19.33, 9.169), 'spine_thoracic': (-11.058, -10.0, 10.335),
-        'neck': (25.65, -1.132, -7.344), 'head': (9.88, -0.161), 'right_clavicle': (14.401, 8.968),
+        'neck': (25.65, -1.132, -7.344), 'head': (9.881, -0.161), 'right_clavicle': (14.401, 8.968),
         'right_shoulder': (56.991, 6.795, 19.256), 'right_elbow': (27.88, 27.48),
         'right_wrist': (2.489, -26.28),
     })
@@ -2705,7 +2705,7 @@ def remove_access_panel():
         'spine_lumbar': (-1.439, -20.0, 10.277), 'spine_thoracic': (-12.589, -10.0, 12.816),
         'neck': (27.479, -1.144, -8.695), 'head': (11.857, -0.171),
         'right_clavicle': (21.204, 11.327), 'right_shoulder': (57.075, 6.878, 21.739),
-        'right_elbow': (19.168, 31.274), 'right_wrist': (4.415, -24.33),
+        'right_elbow': (19.168, 31.274), 'right_wrist': (4.414, -24.33),
     })
     human.KeyJoints(44.0, {
         'spine_lumbar': (-0.423, -19.339, 8.6), 'spine_thoracic': (-9.504, -10.0, 9.174),
@@ -2719,7 +2719,7 @@ def remove_access_panel():
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.151),
+        'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.164466, duration=0.2628)
@@ -2728,7 +2728,7 @@ def remove_access_panel():
     human.KeyJoints(44.4, {
         'neck': (22.756, -4.459, -32.299), 'head': (7.262, -0.23),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.151), 'left_shoulder': (8.594, 5.73, 11.459),
+        'right_wrist': (-1.08, -21.15), 'left_shoulder': (8.594, 5.73, 11.459),
         'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
@@ -2762,7 +2762,7 @@ def remove_access_panel():
         'left_elbow': (23.925, 17.88), 'left_wrist': (1.145, -4.394),
     })
     human.KeyJoints(45.0, {
-        'right_shoulder': (32.386, 28.263, -5.22), 'right_elbow': (86.36, 24.351),
+        'right_shoulder': (32.386, 28.264, -5.22), 'right_elbow': (86.36, 24.351),
         'right_wrist': (-15.164, -18.614), 'left_shoulder': (74.436, -26.966, 14.996),
         'left_elbow': (21.734, 18.025), 'left_wrist': (1.447, -5.315),
     })
@@ -2794,7 +2794,7 @@ def remove_access_panel():
         'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (34.501, 35.235, -9.852), 'right_elbow': (90.691, 24.897),
         'right_wrist': (-16.533, -18.295), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (89.302, -29.152, 14.643), 'left_wrist': (0.895, -5.473),
+        'left_shoulder': (89.302, -29.152, 14.644), 'left_wrist': (0.895, -5.473),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
@@ -2853,7 +2853,7 @@ def remove_access_panel():
     })
     human.KeyRoot(46.2, (2.971, 72.499, 61.708), (45.097, 0.0, 0.0))
     human.KeyJoints(46.2, {
-        'right_shoulder': (34.501, 35.235, -9.852), 'left_shoulder': (89.302, -29.152, 14.643),
+        'right_shoulder': (34.501, 35.235, -9.852), 'left_shoulder': (89.302, -29.152, 14.644),
         'left_elbow': (21.618, 18.169), 'right_hip': (13.558, -5.516, 25.186),
         'right_knee': (28.566,), 'right_ankle': (13.912, 0.82), 'left_hip': (9.733, -3.186, 9.211),
         'left_knee': (21.423,), 'left_ankle': (9.074, -1.549),
@@ -3035,7 +3035,7 @@ def remove_access_panel():
     })
     human.KeyJoints(49.3, {
         'neck': (31.413, 23.609, -30.086), 'head': (12.687, -8.422),
-        'right_shoulder': (34.501, 35.235, -9.852), 'left_shoulder': (89.302, -29.152, 14.643),
+        'right_shoulder': (34.501, 35.235, -9.852), 'left_shoulder': (89.302, -29.152, 14.644),
         'left_elbow': (21.618, 18.169),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
@@ -3069,7 +3069,7 @@ def remove_access_panel():
     })
     human.KeyJoints(49.8, {
         'right_shoulder': (-16.916, 13.227, -0.933), 'right_elbow': (110.445, 26.681),
-        'right_wrist': (-20.432, -13.449), 'left_shoulder': (9.856, -32.453, 16.145),
+        'right_wrist': (-20.432, -13.449), 'left_shoulder': (9.856, -32.454, 16.145),
         'left_elbow': (80.411, 21.682), 'left_wrist': (-22.756, 13.808),
     })
     human.KeyJoints(49.9, {

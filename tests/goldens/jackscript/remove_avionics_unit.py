@@ -104,7 +104,7 @@ def remove_avionics_unit():
         'neck': (-21.998, -1.284, 4.172), 'head': (-19.334, -0.006),
         'right_clavicle': (4.888, -2.666), 'right_shoulder': (7.902, 36.183, 1.987),
         'right_elbow': (30.482, 15.66), 'left_clavicle': (5.321, 1.976),
-        'left_shoulder': (31.952, 7.091, 9.94), 'left_elbow': (33.994, 0.775),
+        'left_shoulder': (31.953, 7.091, 9.94), 'left_elbow': (33.994, 0.775),
         'left_wrist': (-1.245, -0.372), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.586,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.875, 0.0, 0.0), 'left_knee': (4.613,),
         'left_ankle': (1.723, 0.0),
@@ -112,54 +112,54 @@ def remove_avionics_unit():
     human.KeyJoints(1.2, {
         'spine_lumbar': (1.399, -1.226, -4.413), 'spine_thoracic': (4.015, 0.33, -8.826),
         'neck': (-24.726, -2.008, 6.503), 'head': (-19.603, -0.015),
-        'right_clavicle': (8.125, -4.413), 'right_shoulder': (7.448, 56.132, -4.217),
-        'right_elbow': (27.85, 14.658), 'right_wrist': (0.112, -0.284),
-        'left_clavicle': (8.807, 3.293), 'left_shoulder': (47.4, 7.999, 8.939),
+        'right_clavicle': (8.126, -4.413), 'right_shoulder': (7.448, 56.132, -4.217),
+        'right_elbow': (27.849, 14.658), 'right_wrist': (0.112, -0.284),
+        'left_clavicle': (8.807, 3.293), 'left_shoulder': (47.402, 8.0, 8.939),
         'left_elbow': (33.706, -9.976), 'left_wrist': (-2.066, -0.616),
     })
     human.KeyJoints(1.3, {
-        'spine_lumbar': (2.186, -1.77, -6.367), 'spine_thoracic': (5.793, 0.476, -12.734),
-        'neck': (-28.606, -2.699, 8.694), 'right_clavicle': (11.784, -6.367),
+        'spine_lumbar': (2.187, -1.77, -6.367), 'spine_thoracic': (5.793, 0.476, -12.734),
+        'neck': (-28.607, -2.699, 8.694), 'right_clavicle': (11.784, -6.367),
         'right_shoulder': (6.94, 78.447, -11.158), 'right_elbow': (24.823, 13.537),
-        'left_clavicle': (12.708, 4.787), 'left_shoulder': (64.832, 9.033, 7.811),
+        'left_clavicle': (12.708, 4.787), 'left_shoulder': (64.834, 9.033, 7.811),
         'left_elbow': (33.347, -22.004),
     })
     human.KeyJoints(1.4, {
         'spine_lumbar': (3.146, -2.333, -8.395), 'spine_thoracic': (7.638, 0.627, -16.79),
-        'neck': (-33.055, -3.269, 10.479), 'right_shoulder': (6.413, 101.612, -18.363),
-        'left_clavicle': (16.759, 6.37), 'left_shoulder': (83.139, 10.13, 6.632),
+        'neck': (-33.056, -3.269, 10.479), 'right_shoulder': (6.413, 101.612, -18.363),
+        'left_clavicle': (16.759, 6.37), 'left_shoulder': (83.141, 10.13, 6.631),
         'left_elbow': (32.92, -34.489),
     })
     human.KeyJoints(1.5, {
         'spine_lumbar': (4.277, -2.881, -10.365), 'spine_thoracic': (9.43, 0.775, -20.729),
-        'neck': (-37.692, -3.582, 11.358), 'head': (-19.188, -0.145),
-        'right_clavicle': (19.444, -10.365), 'right_shoulder': (5.901, 124.107, -25.36),
-        'right_elbow': (18.243, 11.243), 'left_clavicle': (20.695, 7.95),
-        'left_shoulder': (101.212, 11.229, 5.472), 'left_elbow': (32.432, -46.613),
+        'neck': (-37.693, -3.582, 11.358), 'head': (-19.188, -0.145),
+        'right_clavicle': (19.445, -10.365), 'right_shoulder': (5.901, 124.107, -25.36),
+        'right_elbow': (18.242, 11.243), 'left_clavicle': (20.695, 7.95),
+        'left_shoulder': (101.214, 11.229, 5.472), 'left_elbow': (32.432, -46.613),
         'left_wrist': (-4.903, -1.447),
     })
     human.KeyJoints(1.6, {
         'spine_lumbar': (5.577, -3.375, -12.143), 'spine_thoracic': (11.048, 0.908, -24.285),
-        'neck': (-42.241, -3.629, 11.326), 'head': (-18.988, -0.217),
+        'neck': (-42.242, -3.629, 11.325), 'head': (-18.988, -0.217),
         'right_clavicle': (22.986, -12.143), 'right_shoulder': (5.439, 144.414, -31.676),
-        'right_elbow': (15.015, 10.222), 'left_clavicle': (24.25, 9.438),
-        'left_shoulder': (117.943, 12.268, 4.407), 'left_elbow': (31.887, -57.558),
+        'right_elbow': (15.014, 10.222), 'left_clavicle': (24.25, 9.438),
+        'left_shoulder': (117.945, 12.268, 4.407), 'left_elbow': (31.887, -57.558),
         'left_wrist': (-5.773, -1.695),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (7.045, -3.779, -13.596), 'spine_thoracic': (12.37, 1.016, -27.192),
-        'neck': (-46.195, -3.37, 10.475), 'head': (-18.937, -0.229),
-        'right_clavicle': (26.028, -13.596), 'right_shoulder': (5.062, 161.013, -36.839),
+        'spine_lumbar': (7.046, -3.779, -13.596), 'spine_thoracic': (12.37, 1.016, -27.192),
+        'neck': (-46.195, -3.37, 10.474), 'head': (-18.937, -0.229),
+        'right_clavicle': (26.029, -13.596), 'right_shoulder': (5.062, 161.013, -36.839),
         'right_elbow': (12.048, 9.387), 'right_wrist': (0.506, -1.157),
-        'left_clavicle': (27.161, 10.743), 'left_shoulder': (132.223, 13.186, 3.509),
+        'left_clavicle': (27.161, 10.743), 'left_shoulder': (132.225, 13.186, 3.509),
         'left_elbow': (31.291, -66.504), 'left_wrist': (-6.505, -1.898),
     })
     human.KeyJoints(1.8, {
-        'spine_lumbar': (8.68, -4.055, -14.592), 'spine_thoracic': (13.276, 1.091, -29.184),
+        'spine_lumbar': (8.681, -4.055, -14.592), 'spine_thoracic': (13.276, 1.091, -29.184),
         'neck': (-48.51, -2.661, 8.988), 'head': (-19.851, -0.043),
         'right_clavicle': (28.342, -14.592), 'right_shoulder': (4.803, 172.386, -40.376),
         'right_elbow': (9.505, 8.814), 'left_clavicle': (29.161, 11.775),
-        'left_shoulder': (142.943, 13.922, 2.851), 'left_elbow': (30.648, -72.634),
+        'left_shoulder': (142.945, 13.922, 2.851), 'left_elbow': (30.647, -72.634),
         'left_wrist': (-7.039, -2.037),
     })
     human.KeyJoints(1.9, {
@@ -173,91 +173,87 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.0, {
-        'spine_lumbar': (14.709, -3.802, -15.0), 'spine_thoracic': (11.404, 1.075, -30.0),
-        'neck': (-53.564, -0.901, 4.286), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (5.009, 175.127, -41.754), 'right_elbow': (5.98, 8.576),
-        'left_clavicle': (30.0, 12.967), 'left_shoulder': (151.715, 14.308, 2.496),
-        'left_elbow': (28.477, -75.147), 'left_wrist': (-7.383, -2.107),
+        'spine_lumbar': (14.707, -3.802, -15.0), 'spine_thoracic': (11.406, 1.075, -30.0),
+        'neck': (-53.563, -0.901, 4.287), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (5.009, 175.128, -41.754), 'right_elbow': (5.981, 8.576),
+        'left_clavicle': (30.0, 12.967), 'left_shoulder': (151.713, 14.309, 2.496),
+        'left_elbow': (28.478, -75.147), 'left_wrist': (-7.383, -2.107),
     })
     human.KeyJoints(2.1, {
-        'spine_lumbar': (21.117, -2.348, -15.0), 'spine_thoracic': (6.241, 1.197, -30.0),
-        'neck': (-57.067, -0.26, 1.879), 'head': (-19.542, 0.003),
-        'right_shoulder': (5.675, 173.162, -41.709), 'right_elbow': (3.794, 8.578),
-        'right_wrist': (0.989, -2.129), 'left_clavicle': (30.0, 14.871),
-        'left_shoulder': (157.125, 11.94, 2.966), 'left_elbow': (24.199, -75.178),
-        'left_wrist': (-7.506, -2.392),
+        'spine_lumbar': (21.109, -2.351, -15.0), 'spine_thoracic': (6.248, 1.197, -30.0),
+        'neck': (-57.063, -0.26, 1.88), 'head': (-19.541, 0.003),
+        'right_shoulder': (5.674, 173.164, -41.709), 'right_elbow': (3.797, 8.578),
+        'right_wrist': (0.989, -2.128), 'left_clavicle': (30.0, 14.869),
+        'left_shoulder': (157.118, 11.944, 2.965), 'left_elbow': (24.206, -75.178),
+        'left_wrist': (-7.506, -2.391),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(2.2, {
-        'spine_lumbar': (27.012, -0.051, -15.0), 'spine_thoracic': (-0.684, -0.547, -30.0),
-        'neck': (-57.958, 0.081, 0.052), 'right_shoulder': (6.2, 171.868, -41.698),
-        'right_elbow': (0.89, 8.584), 'right_wrist': (0.594, -1.559), 'left_clavicle': (30.0, 15.0),
-        'left_shoulder': (168.207, 8.73, 3.346), 'left_elbow': (7.883, -75.184),
-        'left_wrist': (-6.515, -2.107),
+        'spine_lumbar': (27.01, -0.047, -15.0), 'spine_thoracic': (-0.671, -0.535, -30.0),
+        'neck': (-57.983, 0.079, 0.067), 'right_shoulder': (6.198, 171.87, -41.698),
+        'right_elbow': (0.901, 8.584), 'right_wrist': (0.598, -1.567),
+        'left_clavicle': (30.0, 15.0), 'left_shoulder': (168.154, 8.738, 3.346),
+        'left_elbow': (7.969, -75.184), 'left_wrist': (-6.54, -2.117),
     })
     human.KeyJoints(2.3, {
-        'neck': (-57.99, 0.091, -0.006), 'left_shoulder': (168.75, 8.648, 3.349),
-        'left_elbow': (6.932, -75.183), 'left_wrist': (-6.223, -2.002),
+        'left_shoulder': (168.711, 8.653, 3.349), 'left_elbow': (6.996, -75.183),
+        'left_wrist': (-6.244, -2.009),
     })
     human.KeyJoints(2.4, {
-        'spine_thoracic': (-0.764, -0.644, -30.0), 'right_wrist': (0.479, -1.319),
-        'left_shoulder': (169.462, 8.542, 3.351), 'left_elbow': (5.676, -75.181),
-        'left_wrist': (-5.745, -1.833),
+        'spine_thoracic': (-0.784, -0.667, -30.0), 'neck': (-58.029, 0.103, -0.073),
+        'left_shoulder': (169.477, 8.543, 3.351), 'left_elbow': (5.677, -75.181),
     })
     human.KeyJoints(2.5, {
-        'neck': (-58.363, 0.103, -0.068), 'right_shoulder': (6.363, 171.79, -41.698),
-        'left_shoulder': (170.367, 8.419, 3.353), 'left_elbow': (4.117, -75.179),
-        'left_wrist': (-4.933, -1.555),
+        'neck': (-58.167, 0.107, -0.093), 'right_elbow': (0.52, 8.585),
+        'right_wrist': (0.418, -1.192), 'left_shoulder': (170.026, 8.466, 3.352),
+        'left_elbow': (4.724, -75.18), 'left_wrist': (-5.28, -1.673),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=2.567146, duration=0.072)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=2.567146, duration=0.072)
     human.KeyJoints(2.6, {
-        'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.563, -0.546, -30.0),
-        'neck': (-58.618, 0.104, -0.076), 'head': (-19.569, 0.003),
-        'right_shoulder': (6.524, 171.769, -41.698), 'right_elbow': (0.292, 8.586),
-        'right_wrist': (0.268, -0.854), 'left_shoulder': (171.167, 8.326, 3.353),
-        'left_elbow': (2.783, -75.178), 'left_wrist': (-3.947, -1.227),
+        'spine_lumbar': (27.188, 0.08, -15.0), 'neck': (-58.167, 0.107, -0.093),
+        'right_shoulder': (6.326, 171.803, -41.698),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
     human.LookAt((0.0, 172.0, 98.0), start=2.639146, duration=0.2628)
-    human.KeyJoints(2.7, {'neck': (-58.354, 0.077, 0.01)})
-    human.KeyJoints(2.8, {'neck': (-57.329, -0.031, 0.348)})
+    human.KeyJoints(2.7, {'neck': (-57.902, 0.079, -0.007), 'head': (-19.558, 0.002)})
+    human.KeyJoints(2.8, {'neck': (-56.872, -0.03, 0.33)})
     human.KeyJoints(2.9, {
-        'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.563, -0.546, -30.0),
-        'neck': (-56.681, -0.099, 0.561), 'head': (-19.346, 0.0),
-        'right_shoulder': (6.524, 171.769, -41.698), 'right_elbow': (0.292, 8.586),
-        'right_wrist': (0.268, -0.854), 'left_clavicle': (30.0, 15.0),
-        'left_shoulder': (171.167, 8.326, 3.353), 'left_elbow': (2.783, -75.178),
-        'left_wrist': (-3.947, -1.227),
+        'spine_lumbar': (27.188, 0.08, -15.0), 'spine_thoracic': (-0.757, -0.669, -30.0),
+        'neck': (-56.22, -0.099, 0.543), 'head': (-19.38, 0.0),
+        'right_shoulder': (6.326, 171.803, -41.698), 'right_elbow': (0.52, 8.585),
+        'right_wrist': (0.418, -1.192), 'left_clavicle': (30.0, 15.0),
+        'left_shoulder': (170.026, 8.466, 3.352), 'left_elbow': (4.724, -75.18),
+        'left_wrist': (-5.28, -1.673),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
     human.LookAt((0.0, 165.0, 75.0), start=2.901946, duration=2.430743)
     human.KeyJoints(3.0, {
-        'spine_lumbar': (25.612, 0.927, -11.056), 'spine_thoracic': (3.907, -1.649, -18.859),
-        'neck': (-59.31, 0.001, -0.48), 'head': (-19.926, 0.23),
-        'right_shoulder': (64.452, 122.509, -27.959), 'right_elbow': (1.388, 5.167),
-        'right_wrist': (0.364, -0.649), 'left_clavicle': (30.0, 5.729),
-        'left_shoulder': (114.307, 56.997, 25.608), 'left_elbow': (2.572, -23.838),
-        'left_wrist': (-2.548, -1.057),
+        'spine_lumbar': (25.573, 0.885, -11.056), 'spine_thoracic': (3.777, -1.73, -18.859),
+        'neck': (-59.103, 0.059, -0.526), 'head': (-19.922, 0.186),
+        'right_shoulder': (64.32, 122.532, -27.959), 'right_elbow': (1.54, 5.167),
+        'right_wrist': (0.463, -0.874), 'left_clavicle': (30.0, 5.729),
+        'left_shoulder': (113.547, 57.091, 25.607), 'left_elbow': (3.865, -23.84),
+        'left_wrist': (-3.436, -1.355),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (22.945, 2.34, -4.622), 'spine_thoracic': (11.636, -3.446, -0.634),
-        'neck': (-60.0, 20.593, 13.591), 'head': (-20.0, -7.27), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (158.94, 42.16, -5.548), 'right_elbow': (3.176, -0.409),
-        'right_wrist': (0.519, -0.313), 'left_clavicle': (30.0, -9.393),
-        'left_shoulder': (21.519, 136.389, 61.909), 'left_elbow': (2.229, 59.905),
-        'left_wrist': (-0.266, -0.781),
+        'spine_lumbar': (22.938, 2.331, -4.622), 'spine_thoracic': (11.612, -3.461, -0.634),
+        'neck': (-60.0, 20.528, 13.599), 'head': (-20.0, -7.032), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (158.916, 42.164, -5.548), 'right_elbow': (3.204, -0.409),
+        'right_wrist': (0.537, -0.354), 'left_clavicle': (30.0, -9.393),
+        'left_shoulder': (21.381, 136.406, 61.909), 'left_elbow': (2.464, 59.904),
+        'left_wrist': (-0.428, -0.835),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(3.2, {
         'spine_lumbar': (23.21, 3.006, -3.207), 'spine_thoracic': (14.475, -3.69, 3.548),
-        'neck': (-60.0, 33.682, 25.897), 'head': (-20.0, -11.25), 'right_clavicle': (30.0, -14.793),
+        'neck': (-60.0, 33.682, 25.89), 'head': (-20.0, -11.25), 'right_clavicle': (30.0, -14.793),
         'right_shoulder': (179.722, 24.361, -0.556), 'right_elbow': (3.406, -1.652),
         'right_wrist': (0.537, -0.28), 'left_clavicle': (30.0, -12.729),
         'left_shoulder': (0.741, 154.071, 69.999), 'left_elbow': (2.155, 78.569),
@@ -269,7 +265,7 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'close', start=3.291054, duration=0.072)
     human.KeyJoints(3.3, {
         'spine_lumbar': (25.212, 1.671, -3.154), 'spine_thoracic': (12.877, -2.638, 3.772),
-        'neck': (-60.0, 33.75, 26.146), 'head': (-20.0, -10.925), 'right_clavicle': (30.0, -15.0),
+        'neck': (-60.0, 33.75, 26.147), 'head': (-20.0, -10.92), 'right_clavicle': (30.0, -15.0),
         'right_shoulder': (180.0, 26.195, -0.608), 'right_elbow': (3.252, -1.65),
         'right_wrist': (0.268, -0.285), 'left_clavicle': (30.0, -14.437),
         'left_shoulder': (2.458, 153.44, 70.0), 'left_elbow': (1.708, 78.567),
@@ -278,19 +274,19 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(3.4, {
-        'neck': (-60.0, 33.75, 27.073), 'head': (-20.0, -10.137),
+        'neck': (-60.0, 33.75, 27.073), 'head': (-20.0, -10.133),
         'right_shoulder': (179.568, 26.274, -0.633), 'right_elbow': (4.834, -1.609),
         'right_wrist': (0.333, 0.095), 'left_shoulder': (3.669, 153.94, 69.401),
         'left_elbow': (3.303, 78.416), 'left_wrist': (-0.208, -0.881),
     })
     human.KeyJoints(3.5, {
-        'neck': (-60.0, 33.75, 36.055), 'head': (-20.0, -2.501),
+        'neck': (-60.0, 33.75, 36.055), 'head': (-20.0, -2.498),
         'right_shoulder': (175.209, 27.12, -0.912), 'right_elbow': (20.823, -1.192),
         'right_wrist': (0.997, 3.928), 'left_shoulder': (15.999, 159.011, 63.35),
         'left_elbow': (19.42, 76.889), 'left_wrist': (-6.127, -5.318),
     })
     human.KeyJoints(3.6, {
-        'neck': (-60.0, 33.75, 47.365), 'head': (-20.0, 7.113),
+        'neck': (-60.0, 33.75, 47.365), 'head': (-20.0, 7.114),
         'right_shoulder': (169.063, 28.485, -1.392), 'right_elbow': (43.359, -0.605),
         'right_wrist': (1.933, 9.332), 'left_shoulder': (33.737, 166.211, 54.821),
         'left_elbow': (42.136, 74.704), 'left_wrist': (-14.469, -11.571),
@@ -306,63 +302,63 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(3.8, {
-        'spine_lumbar': (19.868, 0.564, -5.102), 'spine_thoracic': (14.628, -1.35, 2.139),
-        'neck': (-60.0, 33.75, 38.012), 'head': (-20.0, -11.25),
-        'right_shoulder': (166.229, 30.368, -2.212), 'right_elbow': (48.566, -0.045),
-        'right_wrist': (2.403, 9.571), 'left_clavicle': (30.0, -13.323),
-        'left_shoulder': (41.021, 169.336, 46.412), 'left_elbow': (48.331, 71.803),
-        'left_wrist': (-16.667, -16.184),
+        'spine_lumbar': (19.834, 0.571, -5.105), 'spine_thoracic': (14.62, -1.335, 2.14),
+        'neck': (-60.0, 33.75, 37.984), 'head': (-20.0, -11.25),
+        'right_shoulder': (166.234, 30.373, -2.214), 'right_elbow': (48.547, -0.045),
+        'right_wrist': (2.4, 9.565), 'left_clavicle': (30.0, -13.326),
+        'left_shoulder': (41.014, 169.34, 46.406), 'left_elbow': (48.312, 71.801),
+        'left_wrist': (-16.661, -16.185),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(3.9, {
-        'spine_lumbar': (17.729, -0.17, -6.303), 'spine_thoracic': (15.776, 0.077, 1.302),
-        'neck': (-60.0, 33.75, 35.73), 'right_shoulder': (169.761, 28.576, -1.303),
-        'right_elbow': (39.487, 0.228), 'right_wrist': (2.432, 6.411),
-        'left_clavicle': (30.0, -12.802), 'left_shoulder': (34.062, 164.742, 45.297),
-        'left_elbow': (37.274, 70.283), 'left_wrist': (-12.394, -15.242),
+        'spine_lumbar': (17.714, -0.178, -6.311), 'spine_thoracic': (15.797, 0.08, 1.297),
+        'neck': (-60.0, 33.75, 35.718), 'right_shoulder': (169.739, 28.581, -1.301),
+        'right_elbow': (39.495, 0.228), 'right_wrist': (2.434, 6.412),
+        'left_clavicle': (30.0, -12.789), 'left_shoulder': (34.065, 164.747, 45.288),
+        'left_elbow': (37.272, 70.279), 'left_wrist': (-12.394, -15.254),
     })
     human.KeyJoints(4.0, {
-        'right_shoulder': (171.418, 28.412, -1.095), 'left_shoulder': (34.241, 164.04, 44.637),
+        'right_shoulder': (171.395, 28.417, -1.094), 'left_shoulder': (34.244, 164.044, 44.627),
     })
     human.KeyJoints(4.1, {
-        'right_shoulder': (172.884, 28.271, -0.914), 'right_elbow': (38.517, 0.636),
-        'right_wrist': (2.381, 5.555), 'left_shoulder': (34.549, 163.432, 44.028),
-        'left_elbow': (36.709, 68.719),
+        'right_shoulder': (172.861, 28.274, -0.913), 'right_elbow': (38.523, 0.636),
+        'right_wrist': (2.382, 5.556), 'left_shoulder': (34.552, 163.436, 44.016),
+        'left_elbow': (36.708, 68.715),
     })
-    human.KeyJoints(4.2, {'right_shoulder': (174.17, 28.15, -0.758)})
+    human.KeyJoints(4.2, {'right_shoulder': (174.147, 28.152, -0.757)})
     human.KeyJoints(4.3, {
-        'right_shoulder': (175.286, 28.048, -0.626), 'right_elbow': (37.81, 0.989),
-        'right_wrist': (2.284, 4.925), 'left_shoulder': (35.466, 162.469, 42.955),
-        'left_elbow': (36.298, 67.475),
+        'right_shoulder': (175.266, 28.05, -0.625), 'right_elbow': (37.814, 0.989),
+        'right_wrist': (2.285, 4.927), 'left_shoulder': (35.468, 162.471, 42.943),
+        'left_elbow': (36.298, 67.471),
     })
-    human.KeyJoints(4.4, {'right_shoulder': (176.246, 27.963, -0.514)})
+    human.KeyJoints(4.4, {'right_shoulder': (176.227, 27.965, -0.514)})
     human.KeyJoints(4.5, {
-        'right_shoulder': (177.058, 27.894, -0.422), 'left_shoulder': (36.633, 161.799, 42.077),
-        'left_elbow': (36.018, 66.52), 'left_wrist': (-12.062, -15.408),
+        'right_shoulder': (177.042, 27.895, -0.422), 'left_shoulder': (36.635, 161.801, 42.067),
+        'left_elbow': (36.018, 66.517), 'left_wrist': (-12.062, -15.415),
     })
     human.KeyJoints(4.6, {
-        'right_shoulder': (177.735, 27.839, -0.348), 'right_elbow': (37.153, 1.411),
+        'right_shoulder': (177.721, 27.84, -0.348), 'right_elbow': (37.155, 1.412),
         'right_wrist': (2.095, 4.33),
     })
     human.KeyJoints(4.7, {
-        'right_shoulder': (178.288, 27.797, -0.29), 'left_shoulder': (37.874, 161.37, 41.392),
-        'left_elbow': (35.843, 65.825),
+        'right_shoulder': (178.277, 27.798, -0.289), 'left_shoulder': (37.875, 161.371, 41.385),
+        'left_elbow': (35.843, 65.822),
     })
-    human.KeyJoints(4.8, {'right_shoulder': (178.727, 27.766, -0.245)})
+    human.KeyJoints(4.8, {'right_shoulder': (178.719, 27.766, -0.245)})
     human.KeyJoints(4.9, {
-        'right_elbow': (36.854, 1.698), 'right_wrist': (1.909, 4.048),
-        'left_shoulder': (39.011, 161.129, 40.897), 'left_elbow': (35.748, 65.359),
+        'right_elbow': (36.855, 1.698), 'right_wrist': (1.909, 4.048),
+        'left_shoulder': (39.011, 161.129, 40.893), 'left_elbow': (35.748, 65.358),
     })
-    human.KeyJoints(5.0, {'right_shoulder': (179.311, 27.729, -0.19)})
-    human.KeyJoints(5.1, {'left_shoulder': (39.866, 161.021, 40.589)})
+    human.KeyJoints(5.0, {'right_shoulder': (179.307, 27.729, -0.19)})
+    human.KeyJoints(5.1, {'left_shoulder': (39.866, 161.021, 40.588)})
     human.KeyJoints(5.2, {
         'right_shoulder': (179.574, 27.717, -0.169), 'left_shoulder': (40.132, 161.001, 40.505),
         'left_elbow': (35.703, 65.024),
     })
     human.KeyRoot(5.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(5.3, {
-        'left_shoulder': (40.261, 160.994, 40.468), 'left_wrist': (-11.979, -15.643),
+        'left_shoulder': (40.261, 160.994, 40.467), 'left_wrist': (-11.979, -15.643),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
@@ -554,36 +550,37 @@ def remove_avionics_unit():
     })
     human.KeyRoot(8.6, (-62.415, 69.201, 42.738), (-97.49, 0.0, 0.0))
     human.KeyJoints(8.6, {
-        'neck': (-60.0, 33.75, 35.73), 'head': (-20.0, -11.25), 'right_hip': (10.979, 0.315, 0.029),
-        'right_knee': (58.844,), 'right_ankle': (19.002, 0.359),
-        'left_hip': (26.747, 1.218, -7.772), 'left_knee': (24.036,), 'left_ankle': (-2.636, -2.41),
+        'neck': (-60.0, 33.75, 35.718), 'head': (-20.0, -11.25),
+        'right_hip': (10.979, 0.315, 0.029), 'right_knee': (58.844,),
+        'right_ankle': (19.002, 0.359), 'left_hip': (26.747, 1.218, -7.772), 'left_knee': (24.036,),
+        'left_ankle': (-2.636, -2.41),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
     human.LookAt((-110.0, 85.0, 40.0), start=8.69109, duration=1.197891)
     human.KeyRoot(8.7, (-66.275, 70.541, 43.075), (-96.041, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'neck': (-59.861, 33.651, 35.686), 'head': (-19.949, -11.221),
+        'neck': (-59.861, 33.651, 35.674), 'head': (-19.949, -11.221),
         'right_hip': (7.999, 1.067, -0.699), 'right_knee': (59.204,),
         'right_ankle': (19.022, 1.133), 'left_hip': (21.528, -0.283, -6.6), 'left_knee': (19.937,),
         'left_ankle': (-1.434, -2.679),
     })
     human.KeyRoot(8.8, (-69.721, 71.348, 43.362), (-94.197, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'neck': (-42.707, 21.463, 30.288), 'head': (-13.629, -7.643),
+        'neck': (-42.707, 21.463, 30.277), 'head': (-13.629, -7.647),
         'right_hip': (23.109, 1.038, 0.961), 'right_knee': (68.666,),
         'right_ankle': (19.012, 1.486), 'left_hip': (17.575, -1.52, -4.878), 'left_knee': (17.546,),
         'left_ankle': (0.142, -2.916),
     })
     human.KeyRoot(8.9, (-73.344, 71.884, 43.016), (-92.739, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'neck': (-9.328, -2.254, 19.785), 'head': (-1.331, -0.68),
+        'neck': (-9.328, -2.254, 19.776), 'head': (-1.331, -0.693),
         'right_hip': (28.391, 1.102, 3.128), 'right_knee': (50.069,),
         'right_ankle': (19.002, 2.455), 'left_hip': (14.196, -1.857, -3.292),
         'left_knee': (16.815,), 'left_ankle': (2.734, -2.605),
     })
     human.KeyRoot(9.0, (-76.878, 72.153, 41.703), (-91.306, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'neck': (22.464, -24.843, 9.781), 'head': (10.382, 5.951),
+        'neck': (22.464, -24.843, 9.774), 'head': (10.382, 5.93),
         'right_shoulder': (179.616, 27.716, -0.167), 'left_shoulder': (40.27, 160.994, 40.465),
         'left_elbow': (35.701, 64.993), 'right_hip': (14.108, 1.122, 1.626), 'right_knee': (22.18,),
         'right_ankle': (8.001, 1.483), 'left_hip': (11.505, -1.179, -1.572), 'left_knee': (17.379,),
@@ -593,7 +590,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(9.1, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'neck': (35.0, -33.75, 5.836), 'head': (15.0, 8.566),
+        'neck': (35.0, -33.75, 5.831), 'head': (15.0, 8.541),
         'right_shoulder': (179.544, 27.704, -0.144), 'right_elbow': (36.8, 1.84),
         'right_wrist': (1.811, 3.956), 'left_shoulder': (40.279, 160.91, 40.475),
         'left_elbow': (35.735, 64.926), 'left_wrist': (-11.947, -15.648),
@@ -601,63 +598,63 @@ def remove_avionics_unit():
         'left_hip': (3.098, 0.0, 0.0), 'left_knee': (5.075,), 'left_ankle': (1.979, 0.0),
     })
     human.KeyJoints(9.2, {
-        'right_shoulder': (169.86, 26.12, 2.877), 'right_elbow': (40.895, -0.199),
-        'right_wrist': (6.519, 3.456), 'left_shoulder': (41.505, 149.702, 41.807),
+        'right_shoulder': (169.857, 26.122, 2.878), 'right_elbow': (40.895, -0.199),
+        'right_wrist': (6.519, 3.456), 'left_shoulder': (41.505, 149.702, 41.809),
         'left_elbow': (40.272, 55.964), 'left_wrist': (-7.72, -16.316),
     })
     human.KeyJoints(9.3, {
-        'right_shoulder': (147.745, 22.451, 9.898), 'right_elbow': (50.164, -4.813),
-        'right_wrist': (17.171, 2.21), 'left_shoulder': (44.278, 124.343, 44.994),
-        'left_elbow': (50.539, 35.686), 'left_wrist': (1.844, -17.903),
+        'right_shoulder': (147.734, 22.456, 9.903), 'right_elbow': (50.164, -4.813),
+        'right_wrist': (17.171, 2.211), 'left_shoulder': (44.278, 124.343, 44.998),
+        'left_elbow': (50.539, 35.686), 'left_wrist': (1.844, -17.904),
         'right_hip': (3.083, 0.0, 0.0), 'right_knee': (5.043,), 'right_ankle': (1.963, 0.0),
         'left_hip': (3.082, 0.0, 0.0), 'left_knee': (5.042,), 'left_ankle': (1.962, 0.0),
     })
     human.KeyJoints(9.4, {
-        'right_shoulder': (118.733, 17.526, 19.361), 'right_elbow': (62.144, -10.776),
-        'right_wrist': (30.94, 0.365), 'left_shoulder': (47.862, 91.563, 49.472),
+        'right_shoulder': (118.714, 17.535, 19.369), 'right_elbow': (62.144, -10.776),
+        'right_wrist': (30.94, 0.367), 'left_shoulder': (47.862, 91.563, 49.479),
         'left_elbow': (63.809, 9.473), 'left_wrist': (14.207, -20.113),
         'right_hip': (2.872, 0.0, 0.0), 'right_knee': (4.602,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.588,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(9.5, {
-        'right_shoulder': (88.357, 12.177, 29.709), 'right_elbow': (74.376, -16.865),
-        'right_wrist': (44.999, -1.935), 'left_shoulder': (51.522, 58.093, 54.678),
-        'left_elbow': (77.359, -17.291), 'left_wrist': (26.83, -22.648),
+        'right_shoulder': (88.334, 12.188, 29.719), 'right_elbow': (74.376, -16.865),
+        'right_wrist': (44.999, -1.933), 'left_shoulder': (51.522, 58.093, 54.686),
+        'left_elbow': (77.359, -17.291), 'left_wrist': (26.83, -22.649),
     })
     human.KeyJoints(9.6, {
-        'right_shoulder': (62.151, 7.236, 39.382), 'right_elbow': (84.4, -21.855),
-        'right_wrist': (56.52, -4.545), 'left_shoulder': (54.521, 30.665, 60.048),
-        'left_elbow': (88.463, -39.224), 'left_wrist': (37.174, -25.212),
+        'right_shoulder': (62.132, 7.245, 39.391), 'right_elbow': (84.4, -21.855),
+        'right_wrist': (56.52, -4.544), 'left_shoulder': (54.521, 30.665, 60.054),
+        'left_elbow': (88.463, -39.224), 'left_wrist': (37.174, -25.213),
     })
     human.KeyJoints(9.7, {
-        'right_shoulder': (45.652, 3.532, 46.823), 'right_elbow': (89.757, -24.521),
-        'right_wrist': (62.676, -7.321), 'left_shoulder': (56.124, 16.01, 65.018),
+        'right_shoulder': (45.645, 3.535, 46.826), 'right_elbow': (89.757, -24.521),
+        'right_wrist': (62.676, -7.321), 'left_shoulder': (56.124, 16.01, 65.02),
         'left_elbow': (94.396, -50.944), 'left_wrist': (42.702, -27.509),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
     human.KeyJoints(9.8, {
-        'right_shoulder': (43.52, -1.13, 49.923), 'right_elbow': (80.448, -22.213),
-        'right_wrist': (60.106, -10.687), 'left_shoulder': (52.606, 15.301, 69.335),
-        'left_elbow': (88.648, -50.276), 'left_wrist': (41.982, -29.493),
+        'right_shoulder': (43.532, -1.137, 49.916), 'right_elbow': (80.437, -22.21),
+        'right_wrist': (60.1, -10.689), 'left_shoulder': (52.611, 15.318, 69.328),
+        'left_elbow': (88.648, -50.276), 'left_wrist': (41.983, -29.494),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.888981, duration=0.072)
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=9.888981, duration=0.072)
     human.KeyJoints(9.9, {
-        'right_shoulder': (47.268, -8.218, 49.754), 'right_elbow': (67.002, -19.033),
-        'right_wrist': (54.538, -13.697), 'left_shoulder': (53.577, 7.982, 69.48),
-        'left_elbow': (77.393, -48.017), 'left_wrist': (38.077, -29.994),
+        'right_shoulder': (47.285, -8.231, 49.747), 'right_elbow': (66.979, -19.028),
+        'right_wrist': (54.526, -13.702), 'left_shoulder': (53.582, 8.001, 69.474),
+        'left_elbow': (77.394, -48.017), 'left_wrist': (38.079, -29.994),
     })
     human.KeyRoot(9.960981, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(9.960981, {
-        'spine_lumbar': (17.729, -0.17, -6.303), 'spine_thoracic': (15.776, 0.077, 1.302),
-        'neck': (35.0, -33.75, 5.836), 'head': (15.0, 8.566), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (47.268, -8.218, 49.754), 'right_elbow': (67.002, -19.033),
-        'right_wrist': (54.538, -13.697), 'left_clavicle': (30.0, -12.802),
-        'left_shoulder': (53.577, 7.982, 69.48), 'left_elbow': (77.393, -48.017),
-        'left_wrist': (38.077, -29.994), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'spine_lumbar': (17.714, -0.178, -6.311), 'spine_thoracic': (15.797, 0.08, 1.297),
+        'neck': (35.0, -33.75, 5.831), 'head': (15.0, 8.541), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (47.285, -8.231, 49.747), 'right_elbow': (66.979, -19.028),
+        'right_wrist': (54.526, -13.702), 'left_clavicle': (30.0, -12.789),
+        'left_shoulder': (53.582, 8.001, 69.474), 'left_elbow': (77.394, -48.017),
+        'left_wrist': (38.079, -29.994), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })

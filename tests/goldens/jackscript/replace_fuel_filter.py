@@ -490,7 +490,7 @@ def replace_fuel_filter():
         'spine_thoracic': (-0.109, 2.49, -18.251), 'neck': (29.332, 10.909, -11.192),
         'right_shoulder': (64.051, -12.347, 14.789), 'right_elbow': (12.985, 63.359),
         'right_wrist': (-26.228, 0.386), 'left_shoulder': (24.119, 13.593, 18.791),
-        'left_elbow': (63.385, 44.145), 'left_wrist': (-51.689, 18.388),
+        'left_elbow': (63.386, 44.145), 'left_wrist': (-51.689, 18.388),
     })
     human.KeyJoints(7.9, {
         'spine_lumbar': (60.0, 20.0, -12.555), 'spine_thoracic': (0.828, 0.152, -25.182),
@@ -504,64 +504,64 @@ def replace_fuel_filter():
         'neck': (32.385, 16.68, 4.18), 'head': (15.0, -11.25),
         'right_shoulder': (69.407, -29.732, 16.044), 'right_elbow': (3.145, 62.755),
         'right_wrist': (-3.379, -0.902), 'left_clavicle': (-9.79, 14.974),
-        'left_shoulder': (44.51, 11.02, 25.147), 'left_elbow': (30.516, 56.293),
+        'left_shoulder': (44.51, 11.02, 25.147), 'left_elbow': (30.517, 56.293),
         'left_wrist': (-58.927, 19.957),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.106, -1.23, -30.0),
-        'neck': (31.16, 16.161, 5.009), 'right_shoulder': (67.492, -30.062, 16.09),
-        'right_elbow': (8.143, 62.786), 'right_wrist': (-5.503, -1.711),
-        'left_shoulder': (47.147, 15.197, 23.744), 'left_elbow': (24.577, 56.06),
-        'left_wrist': (-57.327, 18.832),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.107, -1.231, -30.0),
+        'neck': (31.158, 16.161, 5.009), 'right_shoulder': (67.491, -30.062, 16.09),
+        'right_elbow': (8.147, 62.786), 'right_wrist': (-5.505, -1.712),
+        'left_shoulder': (47.149, 15.199, 23.743), 'left_elbow': (24.574, 56.06),
+        'left_wrist': (-57.325, 18.831),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.194677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (13.474, -6.204, -30.0), 'neck': (25.868, 13.907, 6.337),
-        'right_shoulder': (66.079, -30.173, 16.156), 'right_elbow': (22.617, 62.863),
-        'right_wrist': (-13.983, -3.8), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (61.498, 12.127, 23.266), 'left_elbow': (12.562, 55.534),
-        'left_wrist': (-43.424, 14.7),
+        'spine_thoracic': (13.482, -6.198, -30.0), 'neck': (25.86, 13.902, 6.337),
+        'right_shoulder': (66.081, -30.174, 16.156), 'right_elbow': (22.627, 62.862),
+        'right_wrist': (-13.99, -3.803), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (61.512, 12.123, 23.267), 'left_elbow': (12.558, 55.534),
+        'left_wrist': (-43.41, 14.696),
     })
     human.KeyJoints(8.4, {
-        'neck': (25.868, 13.907, 6.337), 'head': (15.0, -11.25),
-        'left_shoulder': (61.498, 12.127, 23.266), 'left_elbow': (12.562, 55.534),
-        'left_wrist': (-43.424, 14.7),
+        'neck': (25.86, 13.902, 6.337), 'head': (15.0, -11.25),
+        'left_shoulder': (61.512, 12.123, 23.267), 'left_elbow': (12.558, 55.534),
+        'left_wrist': (-43.41, 14.696),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.5, {
-        'neck': (26.108, 13.27, 8.013), 'head': (14.972, -10.618),
-        'left_shoulder': (60.604, 12.243, 22.647), 'left_elbow': (13.034, 55.32),
-        'left_wrist': (-43.545, 14.637),
+        'neck': (26.099, 13.265, 8.012), 'head': (14.972, -10.618),
+        'left_shoulder': (60.618, 12.239, 22.647), 'left_elbow': (13.029, 55.32),
+        'left_wrist': (-43.531, 14.632),
     })
     human.KeyJoints(8.6, {
-        'neck': (28.103, 7.954, 21.985), 'head': (14.738, -5.348),
-        'left_shoulder': (52.378, 13.371, 16.872), 'left_elbow': (17.459, 53.352),
-        'left_wrist': (-44.679, 14.055),
+        'neck': (28.097, 7.951, 21.984), 'head': (14.738, -5.348),
+        'left_shoulder': (52.391, 13.367, 16.872), 'left_elbow': (17.455, 53.352),
+        'left_wrist': (-44.667, 14.051),
     })
     human.KeyJoints(8.7, {
-        'neck': (31.027, 0.168, 42.451), 'head': (14.395, 2.371),
-        'left_shoulder': (37.767, 15.559, 6.377), 'left_elbow': (25.583, 49.856),
-        'left_wrist': (-46.761, 13.022),
+        'neck': (31.023, 0.167, 42.452), 'head': (14.395, 2.371),
+        'left_shoulder': (37.777, 15.556, 6.377), 'left_elbow': (25.579, 49.856),
+        'left_wrist': (-46.75, 13.018),
     })
     human.KeyJoints(8.8, {
-        'neck': (33.538, -6.521, 60.034), 'head': (14.1, 9.003),
-        'left_shoulder': (19.499, 18.636, -7.177), 'left_elbow': (36.221, 45.485),
-        'left_wrist': (-49.483, 11.73),
+        'neck': (33.537, -6.52, 60.034), 'head': (14.1, 9.003),
+        'left_shoulder': (19.507, 18.633, -7.177), 'left_elbow': (36.218, 45.485),
+        'left_wrist': (-49.475, 11.727),
     })
     human.KeyJoints(8.9, {
-        'neck': (34.35, -8.685, 65.721), 'head': (14.005, 11.148),
-        'left_shoulder': (0.304, 22.427, -22.131), 'left_elbow': (48.191, 40.892),
-        'left_wrist': (-52.541, 10.372),
+        'neck': (34.35, -8.683, 65.722), 'head': (14.005, 11.148),
+        'left_shoulder': (0.309, 22.425, -22.131), 'left_elbow': (48.188, 40.892),
+        'left_wrist': (-52.535, 10.37),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (-17.088, 26.759, -36.825), 'left_elbow': (60.309, 36.731),
-        'left_wrist': (-55.629, 9.142),
+        'left_shoulder': (-17.085, 26.758, -36.825), 'left_elbow': (60.308, 36.731),
+        'left_wrist': (-55.626, 9.141),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (-29.948, 31.461, -49.599), 'left_elbow': (71.394, 33.654),
-        'left_wrist': (-58.441, 8.232),
+        'left_shoulder': (-29.947, 31.46, -49.599), 'left_elbow': (71.393, 33.654),
+        'left_wrist': (-58.44, 8.232),
     })
     human.KeyJoints(9.2, {
         'left_shoulder': (-35.546, 36.359, -58.794), 'left_elbow': (80.261, 32.315),
@@ -569,70 +569,70 @@ def replace_fuel_filter():
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'left_shoulder': (-34.819, 42.884, -64.769), 'left_elbow': (86.981, 32.513),
+        'left_shoulder': (-34.819, 42.885, -64.769), 'left_elbow': (86.982, 32.513),
         'left_wrist': (-62.444, 8.2),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'left_shoulder': (-34.156, 40.757, -74.429), 'left_elbow': (96.781, 32.753),
+        'left_shoulder': (-34.155, 40.759, -74.43), 'left_elbow': (96.782, 32.753),
         'left_wrist': (-67.116, 8.781),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
-    human.KeyJoints(9.5, {'neck': (34.348, -8.68, 65.72), 'head': (13.998, 11.148)})
+    human.KeyJoints(9.5, {'neck': (34.348, -8.678, 65.721), 'head': (13.998, 11.148)})
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.474, -6.204, -30.0),
-        'neck': (34.244, -8.553, 65.605), 'right_clavicle': (-7.449, 6.753),
-        'right_shoulder': (66.079, -30.173, 16.156), 'right_elbow': (22.617, 62.863),
-        'right_wrist': (-13.983, -3.8), 'left_shoulder': (-34.156, 40.757, -74.429),
-        'left_elbow': (96.781, 32.753), 'left_wrist': (-67.116, 8.781),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.482, -6.198, -30.0),
+        'neck': (34.244, -8.551, 65.605), 'right_clavicle': (-7.449, 6.753),
+        'right_shoulder': (66.081, -30.174, 16.156), 'right_elbow': (22.627, 62.862),
+        'right_wrist': (-13.99, -3.803), 'left_shoulder': (-34.155, 40.759, -74.43),
+        'left_elbow': (96.782, 32.753), 'left_wrist': (-67.116, 8.781),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.479, -14.383), 'spine_thoracic': (13.371, -5.928, -29.343),
-        'neck': (33.929, -8.537, 64.632), 'head': (13.791, 11.177),
-        'right_clavicle': (-7.543, 7.058), 'right_shoulder': (66.232, -30.018, 16.14),
-        'right_elbow': (22.001, 62.773), 'right_wrist': (-13.57, -3.73),
-        'left_shoulder': (-31.79, 41.222, -71.107), 'left_elbow': (96.494, 33.374),
-        'left_wrist': (-65.284, 8.891),
+        'spine_lumbar': (60.0, 19.479, -14.383), 'spine_thoracic': (13.379, -5.922, -29.343),
+        'neck': (33.929, -8.536, 64.633), 'head': (13.792, 11.177),
+        'right_clavicle': (-7.543, 7.058), 'right_shoulder': (66.234, -30.019, 16.14),
+        'right_elbow': (22.009, 62.773), 'right_wrist': (-13.576, -3.733),
+        'left_shoulder': (-31.789, 41.224, -71.108), 'left_elbow': (96.495, 33.374),
+        'left_wrist': (-65.283, 8.891),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (60.0, 17.146, -11.578), 'spine_thoracic': (12.884, -4.677, -26.356),
-        'neck': (32.111, -7.875, 59.474), 'right_clavicle': (-7.966, 8.425),
-        'right_shoulder': (66.927, -29.322, 16.069), 'right_elbow': (19.237, 62.373),
-        'right_wrist': (-11.716, -3.41), 'left_shoulder': (-21.11, 43.306, -56.117),
+        'spine_lumbar': (60.0, 17.146, -11.578), 'spine_thoracic': (12.89, -4.672, -26.356),
+        'neck': (32.111, -7.874, 59.475), 'right_clavicle': (-7.966, 8.425),
+        'right_shoulder': (66.929, -29.323, 16.069), 'right_elbow': (19.244, 62.373),
+        'right_wrist': (-11.721, -3.412), 'left_shoulder': (-21.109, 43.308, -56.118),
         'left_elbow': (95.081, 36.164), 'left_wrist': (-56.989, 9.387),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 13.739, -7.377), 'spine_thoracic': (12.1, -2.822, -21.881),
-        'neck': (29.578, -7.289, 51.239), 'head': (11.963, 11.093),
-        'right_clavicle': (-8.584, 10.421), 'right_shoulder': (67.969, -28.305, 15.965),
-        'right_elbow': (15.201, 61.788), 'right_wrist': (-9.007, -2.917),
-        'left_shoulder': (-5.296, 46.35, -33.937), 'left_elbow': (92.686, 40.263),
+        'spine_lumbar': (60.0, 13.739, -7.377), 'spine_thoracic': (12.105, -2.818, -21.881),
+        'neck': (29.578, -7.287, 51.239), 'head': (11.962, 11.093),
+        'right_clavicle': (-8.584, 10.421), 'right_shoulder': (67.971, -28.306, 15.965),
+        'right_elbow': (15.206, 61.788), 'right_wrist': (-9.011, -2.919),
+        'left_shoulder': (-5.296, 46.351, -33.937), 'left_elbow': (92.686, 40.263),
         'left_wrist': (-44.65, 10.11),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 10.144, -2.748), 'spine_thoracic': (11.139, -0.807, -16.945),
-        'neck': (26.971, -6.941, 41.65), 'head': (11.712, 10.922),
-        'right_clavicle': (-9.235, 12.528), 'right_shoulder': (69.12, -27.232, 15.856),
-        'right_elbow': (10.942, 61.171), 'right_wrist': (-6.147, -2.352),
-        'left_shoulder': (11.8, 49.562, -9.986), 'left_elbow': (89.529, 44.635),
+        'spine_lumbar': (60.0, 10.144, -2.748), 'spine_thoracic': (11.142, -0.805, -16.945),
+        'neck': (26.971, -6.939, 41.651), 'head': (11.712, 10.922),
+        'right_clavicle': (-9.235, 12.528), 'right_shoulder': (69.121, -27.233, 15.856),
+        'right_elbow': (10.945, 61.171), 'right_wrist': (-6.149, -2.353),
+        'left_shoulder': (11.801, 49.562, -9.986), 'left_elbow': (89.53, 44.635),
         'left_wrist': (-31.203, 10.873),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (60.0, 7.248, 1.344), 'spine_thoracic': (10.117, 0.919, -12.575),
-        'neck': (24.867, -7.981, 33.057), 'head': (11.757, 11.076),
-        'right_clavicle': (-9.76, 14.225), 'right_shoulder': (70.14, -26.368, 15.767),
-        'right_elbow': (7.511, 60.673), 'right_wrist': (-3.837, -1.813),
-        'left_shoulder': (26.328, 52.149, 10.315), 'left_elbow': (85.832, 48.242),
+        'spine_lumbar': (60.0, 7.248, 1.344), 'spine_thoracic': (10.119, 0.919, -12.575),
+        'neck': (24.867, -7.979, 33.057), 'head': (11.757, 11.076),
+        'right_clavicle': (-9.76, 14.225), 'right_shoulder': (70.141, -26.368, 15.767),
+        'right_elbow': (7.511, 60.673), 'right_wrist': (-3.838, -1.813),
+        'left_shoulder': (26.328, 52.15, 10.315), 'left_elbow': (85.832, 48.242),
         'left_wrist': (-19.583, 11.488),
     })
     human.KeyJoints(10.3, {
         'spine_lumbar': (60.0, 5.936, 3.932), 'spine_thoracic': (9.153, 1.91, -9.798),
-        'neck': (23.887, -9.155, 27.691), 'head': (12.161, 11.117),
+        'neck': (23.887, -9.153, 27.691), 'head': (12.161, 11.117),
         'right_clavicle': (-9.998, 14.994), 'right_shoulder': (70.792, -25.977, 15.727),
         'right_elbow': (5.957, 60.448), 'right_wrist': (-2.781, -1.399),
         'left_shoulder': (34.434, 53.321, 21.545), 'left_elbow': (81.814, 50.047),
@@ -641,7 +641,7 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {
         'spine_lumbar': (57.121, 7.116, 4.039), 'spine_thoracic': (8.962, 1.974, -9.672),
-        'neck': (23.973, -9.961, 26.714), 'head': (12.881, 11.115),
+        'neck': (23.974, -9.96, 26.714), 'head': (12.881, 11.115),
         'right_clavicle': (-9.193, 14.452), 'right_shoulder': (69.765, -27.646, 15.84),
         'right_elbow': (5.728, 60.452), 'right_wrist': (-2.638, -1.203),
         'left_shoulder': (34.946, 51.183, 23.162), 'left_elbow': (76.065, 50.198),
@@ -651,7 +651,7 @@ def replace_fuel_filter():
     human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
     human.KeyJoints(10.5, {
         'spine_lumbar': (55.084, 8.12, 3.692), 'spine_thoracic': (9.254, 1.873, -10.049),
-        'neck': (24.149, -10.246, 26.913), 'head': (13.208, 11.124),
+        'neck': (24.149, -10.245, 26.913), 'head': (13.209, 11.124),
         'right_clavicle': (-8.358, 14.035), 'right_shoulder': (68.537, -28.594, 15.906),
         'right_elbow': (5.276, 60.452), 'right_wrist': (-2.493, -1.127),
         'left_shoulder': (34.791, 50.633, 23.558), 'left_elbow': (72.712, 50.242),
@@ -882,7 +882,7 @@ def replace_fuel_filter():
     human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.175969, {
         'spine_lumbar': (0.0, 0.0, 3.692), 'spine_thoracic': (0.0, 0.0, -10.049),
-        'neck': (24.206, -10.203, 26.908), 'head': (13.181, 11.117), 'right_clavicle': (0.0, 0.0),
+        'neck': (24.206, -10.202, 26.908), 'head': (13.182, 11.117), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),

@@ -12,7 +12,10 @@ bound. This version keeps the idea and fixes the loop:
   monotonically non-increasing along the path by construction;
 * each accepted step is capped at ``max_step`` rad per joint, so consecutive path samples are
   close (a smooth path to animate, not just an end pose);
-* angles are projected into the joint limits, and the iteration count is bounded.
+* angles are projected into the joint limits, and the iteration count is bounded;
+* every iterate is rounded to a 1e-9 rad grid (``PATH_GRID``) and a step that rounds to nothing
+  ends the row: the BB iteration is chaotic, and without the grid the last-bit differences of
+  another BLAS kernel grew into paths (and keyframes) degrees apart (issue 17, docs/passes.md).
 
 It returns the path (every accepted configuration), not only the end pose.
 """
@@ -32,6 +35,17 @@ from .model import ChainModel
 from .result import IKResult, residual
 
 FloatArray = NDArray[np.float64]
+
+# Joint angles of the path live on this grid (radians). The Barzilai-Borwein iteration is
+# chaotic: a 1e-16 difference in one Jacobian (another BLAS kernel) grows to 1e-4 rad within a
+# hundred steps. On the grid two machines follow the same lattice path: a rounding differs only
+# when a value falls within the noise of a half-grid point.
+PATH_GRID = 1e-9
+
+
+def on_grid(q: FloatArray, grid: float = PATH_GRID) -> FloatArray:
+    """``q`` rounded to the path grid (see PATH_GRID)."""
+    return np.round(q / grid) * grid
 
 
 def solve_to(
@@ -87,11 +101,13 @@ def solve_to(
             break
         step = -alpha[:, None] * g
         big = np.max(np.abs(step), axis=-1)
-        step *= np.minimum(1.0, max_step / np.maximum(big, 1e-300))[:, None]
-        trial = np.clip(q + step, lo, hi)
+        # the cap leaves room for the rounding to the grid, so a step stays within max_step
+        step *= np.minimum(1.0, (max_step - PATH_GRID) / np.maximum(big, 1e-300))[:, None]
+        trial = np.clip(on_grid(q + step), lo, hi)
         rt = residual(model, ga, trial, sel)
         iters[rows] += 1
-        ok = rt.cost < f
+        # a step that rounds to nothing is a rejected one (its cost differs from f by noise)
+        ok = (rt.cost < f) & np.any(trial != q, axis=-1)
         # Rejected rows: halve the step; rows whose step vanished have converged as far as
         # the limits allow and stop.
         alpha = np.where(ok, alpha, 0.5 * alpha)

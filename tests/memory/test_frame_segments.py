@@ -37,7 +37,9 @@ def test_equals_the_dense_definition(
 def test_on_a_grid_of_frames() -> None:
     rng = np.random.default_rng(7)
     starts = np.sort(rng.uniform(0, 50, 300))
-    ir = _ir([(a, a + w) for a, w in zip(starts, rng.choice([0.0, 0.5, 1.0, 3.0], 300))])
+    ir = _ir(
+        [(a, a + w) for a, w in zip(starts, rng.choice([0.0, 0.5, 1.0, 3.0], 300), strict=True)]
+    )
     t = np.arange(0, 3200) / 60.0
     assert np.array_equal(frame_segments(ir, t), frame_segments_dense(ir, t))
 

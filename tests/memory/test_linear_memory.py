@@ -7,13 +7,17 @@ what the pass keeps for each frame. Before chunking: interpolate 3.2 KB, balance
 
 from __future__ import annotations
 
+import math
 import tracemalloc
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from mtlc.body import build_manikin, forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
+from mtlc.ir.model import Frames, GoalSpec, MotionIR, Provenance, Segment, SourceRef
 from mtlc.passes import balance, interpolate, run_motion
 from mtlc.passes.context import PassContext
 
@@ -55,8 +59,9 @@ def test_interpolate_and_balance_memory_per_frame(
 
 
 def test_chunks_do_not_change_the_frames(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The kneeling fuel filter (balance corrects and blends frames): frames measured in chunks
-    of 97 are bit for bit the frames measured all at once."""
+    """The kneeling fuel filter: its frames interpolated and balanced in chunks of 97 frames are
+    bit for bit those computed all at once (its balance measures but corrects nothing: the
+    test below covers corrections)."""
     root = Path(__file__).resolve().parents[2]
     (timeline,) = run_frontend([root / "examples" / "replace_fuel_filter.mtask"]).timelines
     runs = []
@@ -71,3 +76,43 @@ def test_chunks_do_not_change_the_frames(monkeypatch: pytest.MonkeyPatch) -> Non
     assert said == said_chunked
     for name in ("time", "q", "root_position", "root_rotation"):
         assert getattr(whole, name).tobytes() == getattr(chunked, name).tobytes(), name
+
+
+def test_chunks_do_not_change_a_correction(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A body that stands on one foot for a while, a hand held on a site: balance moves and
+    blends those frames; measured in chunks of 37 frames, bit for bit the same."""
+    skel = build_manikin("gb10000_1988", "male", 50)
+    ref = SourceRef("synthetic.mtask", 3, 5, 3, 20)
+    n = 240
+
+    def frames() -> Frames:
+        q = np.zeros((n, skel.n_dofs))
+        q[:, skel.dof_index("r_shoulder_flex")] = math.radians(60)
+        q[:, skel.dof_index("r_elbow_flex")] = math.radians(40)
+        q[90:170, skel.dof_index("l_hip_abd")] = math.radians(20)  # on one foot for a while
+        root = np.tile(skel.root_position, (n, 1))
+        rot = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+        return Frames(
+            fps=60.0, time=np.arange(n) / 60.0, root_position=root, root_rotation=rot, q=q
+        )
+
+    first = frames()
+    hand = site_positions(
+        skel, forward(skel, first.q, first.root_position, first.root_rotation), "r_hand"
+    )
+    seg = Segment(
+        "r_arm", "TO", 0.0, 0.1, GoalSpec("r_hand", "bolt", hand[0]), Provenance(("t",), ref, ref)
+    )
+    results = []
+    for chunk in (1 << 30, 37):
+        monkeypatch.setattr(balance, "CHUNK_FRAMES", chunk)
+        f = frames()
+        ir = MotionIR("t", None, "synthetic.mtask", {}, 0.0, [], [seg], skel)
+        ir.frames = f
+        _, after, failed = balance.balance_frames(ir, f)
+        results.append(
+            (f.q.tobytes(), f.root_position.tobytes(), after.tobytes(), failed.tobytes())
+        )
+        moved = np.abs(f.q - frames().q).max(axis=1) > 0
+        assert moved[90:170].all() and not moved[:60].any()  # it did correct those frames
+    assert results[0] == results[1]

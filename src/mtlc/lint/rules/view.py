@@ -101,7 +101,10 @@ def make_view(
     frames = ir.frames
     if frames is None or ir.skeleton is None or len(frames.time) == 0 or not ir.segments:
         return None
-    pose = forward(ir.skeleton, frames.q, frames.root_position, frames.root_rotation)
+    # no dof axes: the rules take no Jacobian (a third of a pose's ~2.8 KB a frame)
+    pose = forward(
+        ir.skeleton, frames.q, frames.root_position, frames.root_rotation, with_axes=False
+    )
     return MotionView(
         ir, manikin, config, frames.time, frames.q, pose, frame_segments(ir, frames.time), timeline
     )

@@ -21,9 +21,9 @@ from mtlc.semantics.timeline import ManikinSpec, Timeline
 from mtlc.syntax import ast
 
 # seconds of motion a task may take (MT0407). The motion passes cost memory and time in
-# proportion to the motion's length (about 20 MB and a few seconds per minute at the default
-# rates, docs/passes.md): the budget stops a task that would take gigabytes before its frames
-# are built. Raised with --motion-budget.
+# proportion to the motion's length (about 10 MB a minute in compile, 15 MB in lint, at the
+# default rates: docs/passes.md, "Memory"): the budget stops a task that would take gigabytes
+# before its frames are built. Raised with --motion-budget.
 DEFAULT_MOTION_BUDGET = 30 * 60.0
 
 

@@ -116,3 +116,30 @@ def test_chunks_do_not_change_a_correction(monkeypatch: pytest.MonkeyPatch) -> N
         moved = np.abs(f.q - frames().q).max(axis=1) > 0
         assert moved[90:170].all() and not moved[:60].any()  # it did correct those frames
     assert results[0] == results[1]
+
+
+def test_gait_and_smoothing_chunks_do_not_change_a_walk(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A 6 m walk with a turn: the gait's height search in chunks of 7 grid times (its feet
+    visiting only the steps that set them) and smoothing in chunks of 5 frames give the same
+    frames, bit for bit, as one chunk (smoothing re-pins in one batch: the solver's last bits
+    depend on its batch)."""
+    from mtlc.passes import locomotion, smooth
+
+    path = tmp_path / "walk.mtask"
+    path.write_text(
+        "use stdlib.actions\nscene s {\n    site far at (400, 0, 450) cm\n"
+        "    site g at (450, 150, 500) cm normal (0, 0, -1)\n}\n"
+        "task t {\n    scene s\n    walk_to(far)\n    inspect(g)\n}\n",
+        encoding="utf-8",
+    )
+    (timeline,) = run_frontend([path]).timelines
+    runs = []
+    for reach, frames in ((1 << 30, 1 << 30), (7, 5)):
+        monkeypatch.setattr(locomotion, "REACH_CHUNK", reach)
+        monkeypatch.setattr(smooth, "CHUNK_FRAMES", frames)
+        ir = run_motion(timeline, DiagnosticSink(), until="smooth")
+        assert ir.frames is not None
+        runs.append((ir.frames.q.tobytes(), ir.frames.root_position.tobytes()))
+    assert runs[0] == runs[1]

@@ -51,7 +51,7 @@ STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
 JUMP_Q = 1e-3  # rad: smaller offsets are the interpolation's own
 JUMP_ROOT = 5e-4  # m
 PIN_TOL = 1e-4  # m: a contact that moved less than this is left alone
-CHUNK_FRAMES = 4096  # changed frames measured and re-pinned at once
+CHUNK_FRAMES = 4096  # changed frames measured at once
 
 
 def blend_weights(n: int) -> np.ndarray:
@@ -143,8 +143,8 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         moved[a : a + CHUNK_FRAMES] = m
         margin_before[a : a + CHUNK_FRAMES] = carried_margin(ir, pose, t[r], stance_all[r])
     fixes = rows[np.flatnonzero(moved)]
-    for a in range(0, fixes.size, CHUNK_FRAMES):  # each frame's fix is its own
-        _repin(ir, frames, fixes[a : a + CHUNK_FRAMES], q0, root0, stance_all, pins)
+    if fixes.size:  # one batch: the solver's last bits depend on the batch it runs in
+        _repin(ir, frames, fixes, q0, root0, stance_all, pins)
     margin_after = np.empty(rows.size)
     for a in range(0, rows.size, CHUNK_FRAMES):
         r = rows[a : a + CHUNK_FRAMES]

@@ -21,8 +21,8 @@ from mtlc.semantics.timeline import ManikinSpec, Timeline
 from mtlc.syntax import ast
 
 # seconds of motion a task may take (MT0407). The motion passes cost memory and time in
-# proportion to the motion's length (about 10 MB a minute in compile, 15 MB in lint, at the
-# default rates: docs/passes.md, "Memory"): the budget stops a task that would take gigabytes
+# proportion to the motion's length (about 8 MB a minute of standing in compile and in lint,
+# more for a walk, at the default rates: docs/passes.md, "Memory"): the budget stops a task that would take gigabytes
 # before its frames are built. Raised with --motion-budget.
 DEFAULT_MOTION_BUDGET = 30 * 60.0
 

@@ -71,7 +71,7 @@ CASES = [
     Case("compile 1 MB of steps", lambda: steps_file(1_000_000), (), "compile", "<= 1 GB"),
     Case("lint 20 KB of steps (8.4 min)", lambda: steps_file(20_000), (), "lint", "<= 1 GB"),
     Case("compile 20 KB of steps (8.4 min)", lambda: steps_file(20_000), (), "compile", "<= 1 GB"),
-    Case("compile walk_to 1 km (12 min)", lambda: walk_file(1), (), "compile", "linear"),
+    Case("compile walk_to 1 km (12 min)", lambda: walk_file(1), (), "compile", "linear, <= 1 GB"),
     Case("compile walk_to 10 km (2 h)", lambda: walk_file(10), (), "compile", "MT0407, fast"),
     Case("compile inspect 60 min", lambda: inspect_file(60), (), "compile", "MT0407, fast"),
     Case(

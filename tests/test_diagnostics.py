@@ -225,7 +225,7 @@ def test_motion_budget_option_takes_a_duration_with_its_unit(tmp_path: Path) -> 
     def budget(*argv: str) -> float:
         return build_parser().parse_args(["check", "f.mtask", *argv]).motion_budget
 
-    assert budget() == 1800.0
+    assert budget() == 900.0
     assert budget("--motion-budget", "2h") == 7200.0
     assert budget("--motion-budget", "45min") == 2700.0
     assert budget("--motion-budget", "1.5 min") == 90.0

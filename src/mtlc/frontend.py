@@ -24,7 +24,7 @@ from mtlc.syntax import ast
 # proportion to the motion's length (about 8 MB a minute of standing in compile and in lint,
 # more for a walk, at the default rates: docs/passes.md, "Memory"): the budget stops a task that would take gigabytes
 # before its frames are built. Raised with --motion-budget.
-DEFAULT_MOTION_BUDGET = 30 * 60.0
+DEFAULT_MOTION_BUDGET = 15 * 60.0
 
 
 DURATION_UNITS = {"s": 1.0, "min": 60.0, "h": 3600.0}

@@ -103,6 +103,10 @@ CASES: dict[str, tuple[dict[str, str | bytes], tuple[str, int, int]]] = {
         ("main.mtask", 9, 5),
     ),
     "MT0402": ({"main.mtask": "task t {\n}\n"}, ("main.mtask", 1, 6)),
+    "MT0407": (
+        {"main.mtask": task("    inspect(a, 10 min)\n    inspect(b, 25 min)\n    inspect(a)\n")},
+        ("main.mtask", 10, 5),
+    ),
     "MT0312": (
         {"main.mtask": task("    for c in [A, C] {\n        reach(right, a, c)\n    }\n")},
         ("main.mtask", 9, 15),
@@ -202,6 +206,33 @@ def test_expansion_budget_is_configurable(tmp_path: Path) -> None:
     assert diagnose(tmp_path, {"main.mtask": text}) == []
     found = diagnose(tmp_path, {"main.mtask": text}, expansion_budget=50)
     assert [c for c, *_ in found] == ["MT0401"]
+
+
+def test_motion_budget_is_configurable_and_names_itself(tmp_path: Path) -> None:
+    """MT0407 at the first line whose step ends past the budget; the task gives no timeline."""
+    text = task("    inspect(a, 50 s)\n    inspect(b, 50 s)\n    inspect(a, 50 s)\n")
+    assert diagnose(tmp_path, {"main.mtask": text}) == []
+    program = run_frontend([tmp_path / "main.mtask"], FrontendOptions(motion_budget=90.0))
+    (diag,) = program.diagnostics
+    assert (diag.code, diag.span.line, diag.span.column) == ("MT0407", 10, 5)
+    assert "more than the motion budget of 1 min 30 s" in diag.message
+    assert "--motion-budget" in (diag.help or "")
+    assert program.timelines == []
+
+
+def test_motion_budget_option_takes_a_duration_with_its_unit(tmp_path: Path) -> None:
+    from mtlc.cli import build_parser
+
+    def budget(*argv: str) -> float:
+        return build_parser().parse_args(["check", "f.mtask", *argv]).motion_budget
+
+    assert budget() == 900.0
+    assert budget("--motion-budget", "2h") == 7200.0
+    assert budget("--motion-budget", "45min") == 2700.0
+    assert budget("--motion-budget", "1.5 min") == 90.0
+    for bad in ("90", "2 days", "inf h", "nan s", "0s", "-1min"):
+        with pytest.raises(SystemExit):
+            budget("--motion-budget", bad)
 
 
 def test_unit_mismatch_in_arithmetic(tmp_path: Path) -> None:

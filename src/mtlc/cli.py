@@ -27,7 +27,7 @@ from mtlc.codegen import (
 from mtlc.diagnostics import CODES, DiagnosticSink, Span
 from mtlc.diagnostics.render import render_json, render_text, terminal_safe, use_color
 from mtlc.fmt.command import add_fmt_parser, run_fmt_command
-from mtlc.frontend import FrontendOptions, Program, run_frontend
+from mtlc.frontend import FrontendOptions, Program, add_motion_budget, run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.lint.command import add_lint_parser, run_lint_command
 from mtlc.metrics import Metrics, compute_metrics, render_metrics
@@ -108,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
             "--expansion-budget", type=_budget, default=DEFAULT_BUDGET, metavar="N",
             help=f"most primitives a task may expand into (default {DEFAULT_BUDGET:,})",
         )  # fmt: skip
+        add_motion_budget(p)
         p.add_argument(
             "--manikin", type=_manikin, metavar="POP:SEX:PCT",
             help="override every task's manikin, e.g. gb10000_1988:female:5",
@@ -202,6 +203,7 @@ def _options(args: argparse.Namespace) -> FrontendOptions:
     return FrontendOptions(
         include_dirs=tuple(args.include),
         expansion_budget=args.expansion_budget,
+        motion_budget=args.motion_budget,
         manikin=args.manikin,
     )
 

@@ -6,6 +6,8 @@ below and nowhere else. The motion passes (IR lowering and after) continue from 
 
 from __future__ import annotations
 
+import argparse
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,11 +20,44 @@ from mtlc.semantics.scopes import Scope, build_scopes
 from mtlc.semantics.timeline import ManikinSpec, Timeline
 from mtlc.syntax import ast
 
+# seconds of motion a task may take (MT0407). The motion passes cost memory and time in
+# proportion to the motion's length (about 8 MB a minute of standing in compile and in lint,
+# more for a walk, at the default rates: docs/passes.md, "Memory"): the budget stops a task that would take gigabytes
+# before its frames are built. Raised with --motion-budget.
+DEFAULT_MOTION_BUDGET = 15 * 60.0
+
+
+DURATION_UNITS = {"s": 1.0, "min": 60.0, "h": 3600.0}
+
+
+def motion_budget(text: str) -> float:
+    """`--motion-budget 45min`: a duration with its unit (s, min or h), as in the language."""
+    number = text.rstrip("minhs ")
+    unit = text[len(number) :].strip()
+    try:
+        value = float(number)
+    except ValueError:
+        value = math.nan
+    if unit not in DURATION_UNITS or not math.isfinite(value):
+        raise argparse.ArgumentTypeError("expected a duration with its unit, e.g. 90s, 45min or 2h")
+    if value <= 0:
+        raise argparse.ArgumentTypeError("must be more than 0")
+    return value * DURATION_UNITS[unit]
+
+
+def add_motion_budget(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--motion-budget", type=motion_budget, default=DEFAULT_MOTION_BUDGET, metavar="DURATION",
+        help="longest motion a task may have, e.g. 45min or 2h "
+        f"(default {DEFAULT_MOTION_BUDGET / 60:g}min; memory grows with it)",
+    )  # fmt: skip
+
 
 @dataclass(frozen=True)
 class FrontendOptions:
     include_dirs: tuple[Path, ...] = ()
     expansion_budget: int = DEFAULT_BUDGET
+    motion_budget: float = DEFAULT_MOTION_BUDGET  # seconds of motion per task
     manikin: ManikinSpec | None = None
     expand: bool = True
     # scene sites at other positions (metres), by name: what `mtlc serve` does when one is dragged
@@ -98,9 +133,48 @@ def expand_tasks(program: Program) -> Program:
         for decl in module.tree.decls:
             if isinstance(decl, ast.Task) and scope.own.get(decl.name) is not None:
                 timeline = expander.expand_task(decl, scope)
-                if timeline is not None:
+                if timeline is not None and within_motion_budget(
+                    timeline, program.options.motion_budget, program.sink
+                ):
                     program.timelines.append(timeline)
     return program
+
+
+def format_duration(seconds: float) -> str:
+    """`45 s`, `12 min 2 s`, `2 h 0 min`: a motion's length as a person reads it."""
+    if seconds < 60:
+        return f"{seconds:.0f} s"
+    minutes, secs = divmod(round(seconds), 60)
+    if minutes < 60:
+        return f"{minutes} min" + (f" {secs} s" if secs else "")
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours} h {minutes} min"
+
+
+def within_motion_budget(timeline: Timeline, budget: float, sink: DiagnosticSink) -> bool:
+    """False (and MT0407 reported) when the task's motion is longer than ``budget`` seconds.
+
+    Checked on the timeline, before any frame exists: the motion passes' memory grows with the
+    motion's length. Reported at the line of the task whose primitive first runs past the
+    budget (the earliest-starting one that ends after it).
+    """
+    if not timeline.duration > budget:
+        return True
+    over = min((p for p in timeline.primitives if p.end > budget), key=lambda p: p.start)
+    limit = format_duration(budget)
+    sink.report(
+        "MT0407",
+        f"task `{timeline.task}` has {format_duration(timeline.duration)} of motion, more than "
+        f"the motion budget of {limit}",
+        over.origin,
+        help="split the task, shorten this step, or raise the limit with --motion-budget "
+        "(e.g. --motion-budget 2h)",
+        notes=(
+            "the motion passes need memory in proportion to the motion's length (docs/passes.md); "
+            f"the default limit is {format_duration(DEFAULT_MOTION_BUDGET)}",
+        ),
+    )
+    return False
 
 
 FRONTEND: list[tuple[str, Callable[[Program], Program]]] = [

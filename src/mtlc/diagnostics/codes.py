@@ -112,6 +112,7 @@ _ALL = [
         Severity.ERROR,
         "two parallel branches move the same body part",
     ),
+    Code("MT0407", "motion-budget", Severity.ERROR, "a task's motion is longer than the budget"),
     # motion passes
     Code("MT0501", "unreachable-site", Severity.WARNING, "a manikin cannot reach a site"),
     Code(

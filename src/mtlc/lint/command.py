@@ -12,6 +12,7 @@ from pathlib import Path
 
 from mtlc.diagnostics import Severity
 from mtlc.diagnostics.render import report_internal_error, use_color
+from mtlc.frontend import add_motion_budget
 from mtlc.lint.config import ConfigError, LintConfig, codes_of, load_config
 from mtlc.lint.engine import lint_paths
 from mtlc.lint.manikins import ManikinError, parse_selection
@@ -42,6 +43,7 @@ def configure_parser(p: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="also look for used modules in DIR",
     )
+    add_motion_budget(p)
     p.add_argument(
         "--manikins",
         metavar="WHICH",
@@ -120,7 +122,11 @@ def with_selection(config: LintConfig, select: str | None, ignore: str | None) -
 
 def _lint(args: argparse.Namespace, config: LintConfig, manikins: tuple) -> int:  # type: ignore[type-arg]
     result = lint_paths(
-        list(args.paths), config, manikins=manikins, include_dirs=tuple(args.include)
+        list(args.paths),
+        config,
+        manikins=manikins,
+        include_dirs=tuple(args.include),
+        motion_budget=args.motion_budget,
     )
     root = Path.cwd()
     to_file = args.output is not None

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mtlc.diagnostics import DiagnosticSink, Severity
-from mtlc.frontend import FrontendOptions, Program, run_frontend
+from mtlc.frontend import DEFAULT_MOTION_BUDGET, FrontendOptions, Program, run_frontend
 from mtlc.lint import suppress
 from mtlc.lint.config import LintConfig
 from mtlc.lint.findings import Finding, from_diagnostic, merge
@@ -81,6 +81,7 @@ def lint_paths(
     manikins: tuple[ManikinSpec, ...] | None = None,
     include_dirs: tuple[Path, ...] = (),
     motion: MotionOptions | None = None,
+    motion_budget: float = DEFAULT_MOTION_BUDGET,
 ) -> LintResult:
     selection = manikins or parse_selection(config.manikins)
     full = envelope(selection)
@@ -89,7 +90,8 @@ def lint_paths(
     sources: dict[str, str] = {}
     roots: list[str] = []
     for path in files:
-        program = run_frontend([path], FrontendOptions(include_dirs=include_dirs))
+        options = FrontendOptions(include_dirs=include_dirs, motion_budget=motion_budget)
+        program = run_frontend([path], options)
         sources.update(program.sources)
         roots.extend(str(m.tree.path) for m in program.roots)
         findings.extend(from_diagnostic(d) for d in program.diagnostics)

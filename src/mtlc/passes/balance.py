@@ -371,6 +371,22 @@ def _active_segment(ir: MotionIR, t: float) -> Segment | None:
     return min(live, key=lambda s: (REPORT_ORDER.get(s.kind, 9), s.start))
 
 
+CHUNK_FRAMES = 4096  # frames whose support is measured at once (~10 KB each while measured)
+
+
+def _support_state(
+    ir: MotionIR, frames: Frames, idx: slice | np.ndarray, stance: BoolArray, resting: BoolArray
+) -> tuple[Pose, BoolArray, FloatArray, BoolArray, FloatArray]:
+    """Pose, touching sole points, support points and which bear weight, and the CoM (with
+    the held tools) of the frames ``idx``, from the frames' stance and resting hands."""
+    skel = ir.skeleton
+    t = frames.time[idx]
+    pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx])
+    contact = contact_mask(foot_points(skel, pose), stance[idx], ir.ground)
+    pts, ok = support(skel, pose, stance[idx], ir.ground, resting[idx])
+    return pose, contact, pts, ok, carried_com(ir, pose, t)
+
+
 def balance_frames(
     ir: MotionIR, frames: Frames, only: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -386,42 +402,50 @@ def balance_frames(
         frames.q[only], frames.root_position[only] = sub.q, sub.root_position
         return out
     t = frames.time
-    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
-    stance = foot_stance(ir, t)
-    contact = contact_mask(foot_points(skel, pose), stance, ir.ground)
-    all_pts, all_ok = support(skel, pose, stance, ir.ground, hand_contacts(ir, t))
-    com = carried_com(ir, pose, t)  # with the tools the hands hold
-    all_hull = grouped_hull(all_pts, all_ok)  # the support stays where it was: one hull serves all
-    before = hull_margin(all_hull, com[:, [0, 2]])
+    # what depends on time only, for every frame (a few booleans a frame)
+    stance, resting, static = foot_stance(ir, t), hand_contacts(ir, t), ~walking(ir, t)
+    # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
+    # and hulls cost ~10 KB a frame, the margins kept 20 bytes (docs/passes.md, memory)
+    before = np.empty(len(t))
+    kneeling = np.zeros(len(t), dtype=bool)
+    hopeless = np.zeros(len(t), dtype=bool)
+    for a in range(0, len(t), CHUNK_FRAMES):
+        c = slice(a, a + CHUNK_FRAMES)
+        _, _, all_pts, all_ok, com = _support_state(ir, frames, c, stance, resting)
+        all_hull = grouped_hull(all_pts, all_ok)
+        before[c] = hull_margin(all_hull, com[:, [0, 2]])
+        kneeling[c] = all_ok[:, KNEE_SLOTS].any(axis=1)  # the pelvis would drag a knee along
+        # a support with no inside (toes only, one edge) or a CoM farther than the pelvis may
+        # move cannot be fixed here: report it without trying
+        centroid = np.einsum("np,npk->nk", all_ok, all_pts) / np.maximum(all_ok.sum(1), 1)[:, None]
+        hopeless[c] = ~(hull_margin(all_hull, centroid) > 0.0) | (before[c] < -MAX_SHIFT)
+        del all_pts, all_ok, com, all_hull, centroid
     after = before.copy()
     failed = np.zeros(len(t), dtype=bool)
     low = ~np.isnan(before) & (before < MARGIN)
-    kneeling = all_ok[:, KNEE_SLOTS].any(axis=1)  # the pelvis would drag a knee along
     failed[low & kneeling & (before < 0)] = True
-    # a support with no inside (toes only, one edge) or a CoM farther than the pelvis may move
-    # cannot be fixed here: report it without trying
-    centroid = np.einsum("np,npk->nk", all_ok, all_pts) / np.maximum(all_ok.sum(1), 1)[:, None]
-    hopeless = ~(hull_margin(all_hull, centroid) > 0.0) | (before < -MAX_SHIFT)
-    static = ~walking(ir, t)  # walking frames are measured, never moved nor reported
     failed[low & hopeless & (before < 0)] = True
-    failed &= static
+    failed &= static  # walking frames are measured, never moved nor reported
     # kneeling frames are balanced by the trunk alone: the pelvis would drag a knee along
     rows = np.flatnonzero(low & static & ~hopeless)
     if rows.size == 0:
         return before, after, failed
-    pts, ok = all_pts[rows], all_ok[rows]  # the support stays where it was
-    hulls = all_hull.take(rows)
-    touching = contact[rows].reshape(rows.size, 2, -1).any(axis=2)  # (B, 2): r, l
+    # the frames to correct, measured again by themselves (the support stays where it was)
+    pose_r, contact_r, pts, ok, _ = _support_state(ir, frames, rows, stance, resting)
+    hulls = grouped_hull(pts, ok)
+    # nothing may go deeper below the ground than it was or than GROUND_SLACK
+    floor = np.minimum(lowest_point(skel, pose_r) - 1e-4, ir.ground - GROUND_SLACK)
+    touching = contact_r.reshape(rows.size, 2, -1).any(axis=2)  # (B, 2): r, l
     feet = {
         name: (
-            site_positions(skel, pose, name)[rows],
-            site_rotation(skel, pose, name)[rows],
+            site_positions(skel, pose_r, name),
+            site_rotation(skel, pose_r, name),
             touching[:, k],
         )
         for k, name in enumerate(FEET_SITES)
     }
     pins = hand_pins(ir, t)
-    hand_pos = {h: site_positions(skel, pose, h)[rows] for h in HANDS}
+    hand_pos = {h: site_positions(skel, pose_r, h) for h in HANDS}
     hands = {h: (pins[h][rows], hand_pos[h]) for h in HANDS}
     q0 = frames.q[rows].copy()
     root0 = frames.root_position[rows].copy()
@@ -432,7 +456,7 @@ def balance_frames(
     # rows whose contacts gave out keep their last good pose and stop; converged rows stop
     active = np.flatnonzero(~kneeling[rows])
     cap = np.full(rows.size, MAX_STEP)
-    p_rows = take_pose(pose, rows)  # the pose of (q, root), kept up to date
+    p_rows = pose_r  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
         c = carried_com(ir, take_pose(p_rows, active), t[rows][active])[:, [0, 2]]
         push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
@@ -458,8 +482,6 @@ def balance_frames(
         active = active[(cap[active] >= MIN_STEP) & ~far]
     p = p_rows
     margin = hull_margin(hulls, carried_com(ir, p, t[rows])[:, [0, 2]])
-    # nothing may go deeper below the ground than it was or than GROUND_SLACK
-    floor = np.minimum(lowest_point(skel, pose)[rows] - 1e-4, ir.ground - GROUND_SLACK)
     good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
     good &= lowest_point(skel, p) >= floor
     keep = good & (margin >= ACCEPT_MARGIN)
@@ -498,19 +520,20 @@ def balance_frames(
         return before, after, failed
     qb = np.clip(frames.q[span] + dq[span], skel.lower, skel.upper)
     rb = frames.root_position[span] + dr[span]
-    pins = hand_pins(ir, t)
+    # the frames the blend reaches, measured by themselves in their original pose
+    pose_s, contact_s, pts_s, ok_s, _ = _support_state(ir, frames, span, stance, resting)
     feet_b = {
-        name: (site_positions(skel, pose, name)[span], site_rotation(skel, pose, name)[span],
-               contact[span].reshape(span.size, 2, -1).any(axis=2)[:, k])
+        name: (site_positions(skel, pose_s, name), site_rotation(skel, pose_s, name),
+               contact_s.reshape(span.size, 2, -1).any(axis=2)[:, k])
         for k, name in enumerate(FEET_SITES)
     }  # fmt: skip
-    hands_b = {h: (pins[h][span], site_positions(skel, pose, h)[span]) for h in HANDS}
+    hands_b = {h: (pins[h][span], site_positions(skel, pose_s, h)) for h in HANDS}
     rot_b = frames.root_rotation[span]
     qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b)
-    floor_b = np.minimum(lowest_point(skel, pose)[span] - 1e-4, ir.ground - GROUND_SLACK)
+    floor_b = np.minimum(lowest_point(skel, pose_s) - 1e-4, ir.ground - GROUND_SLACK)
     fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
     fine &= lowest_point(skel, pb) >= floor_b
-    mb = hull_margin(all_hull.take(span), carried_com(ir, pb, t[span])[:, [0, 2]])
+    mb = hull_margin(grouped_hull(pts_s, ok_s), carried_com(ir, pb, t[span])[:, [0, 2]])
     # a blended frame must keep its contacts and be at least as balanced as its own correction
     own = np.full(len(t), -np.inf)
     own[rows[good]] = margin[good]

@@ -57,6 +57,7 @@ def track(times: ArrayLike, values: ArrayLike, grid: np.ndarray) -> np.ndarray:
     return inside
 
 
+CHUNK_FRAMES = 4096  # frames whose pose is computed at once by the base correction
 HOLD_EPS = 1e-3  # seconds: a held value turns into the next segment's first keyframe this fast
 
 
@@ -274,8 +275,16 @@ def correct_base(ir: MotionIR, frames: Frames) -> np.ndarray:
     walking = walking_mask(ir, frames.time)
     before = frames.root_position[:, 1].copy()
     standing = ~walking & ~keyed_root(ir, frames.time)[0]  # a keyed root is already exact
-    # one forward kinematics for every frame: the foot points relative to the root
-    feet = _feet_in_root_frame(ir.skeleton, frames.q, frames.root_rotation)
+    # forward kinematics for every frame, a chunk at a time (a pose is ~2 KB a frame): the foot
+    # points relative to the root (96 bytes a frame)
+    feet = np.concatenate(
+        [
+            _feet_in_root_frame(ir.skeleton, frames.q[a : a + CHUNK_FRAMES],
+                                frames.root_rotation[a : a + CHUNK_FRAMES])
+            for a in range(0, len(frames.time), CHUNK_FRAMES)
+        ]
+        or [np.zeros((0, len(FOOT_POINTS), 3))]
+    )  # fmt: skip
     if standing.any():
         plan_position, _ = ir.root_plan.at(frames.time[standing])  # type: ignore[union-attr]
         frames.root_position[standing] = _anchor(

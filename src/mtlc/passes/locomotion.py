@@ -52,6 +52,7 @@ DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interp
 SWING_TOL = 5e-3  # m: a swinging foot's
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
+REACH_CHUNK = 1024  # grid times whose 41 candidate heights are solved at once
 MIN_DURATION = 1e-6  # s: a walk with less time (a zero-length MTM walk) takes no steps
 LEGS = ("r", "l")
 LEG_DOFS = ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")
@@ -417,9 +418,7 @@ class WalkMotion:
             pos[:, 1] += lift
             anchor = pos + _ry(head) @ toe
             planted = np.ones(len(t), dtype=bool)
-            for st in self.steps:
-                if st.foot != f:
-                    continue
+            for st in self._steps_touching(f, t):
                 a1, R0, toe_w, toe_end = self._geometry(st)
                 h0 = st.start.heading
                 after = t >= st.t_land
@@ -448,6 +447,25 @@ class WalkMotion:
             out[f] = FootTrack(pos, head, pitch, planted, anchor)
         return out
 
+    def _steps_touching(self, foot: str, t: FloatArray) -> list[Step]:
+        """The foot's steps that set any of ``t`` in :meth:`feet`, in order. A step wholly
+        before every time (landed, lifted) sets them all to its landing and nothing else, so
+        such steps before the last such one are overwritten; a step wholly after every time
+        sets none. Keeps a long walk's chunks linear in time, not each chunk visiting every step.
+        """
+        mine = [st for st in self.steps if st.foot == foot]
+        if not len(t):
+            return mine
+        t_min, t_max = float(np.min(t)), float(np.max(t))
+        before = [t_min >= st.t_land and t_min > st.t_lift for st in mine]
+        last = max((i for i, b in enumerate(before) if b), default=-1)
+        return [
+            st
+            for i, st in enumerate(mine)
+            if not (before[i] and i < last)
+            and not (t_max < st.t_heel_off and t_max < st.t_land and t_max <= st.t_lift)
+        ]
+
     def _reach_height(self, t: FloatArray, xz: FloatArray, heading: FloatArray) -> FloatArray:
         """The highest pelvis from which both legs reach their ankles within their limits.
 
@@ -455,6 +473,12 @@ class WalkMotion:
         the exact leg IK; the highest one where both legs reach (``STANCE_REACH``) and stay
         ``LIMIT_MARGIN`` inside every joint limit wins (else the least violating one).
         """
+        if len(t) > REACH_CHUNK:  # 41 leg solves a time: a long walk's grid a chunk at a time
+            return np.concatenate([
+                self._reach_height(t[a : a + REACH_CHUNK], xz[a : a + REACH_CHUNK],
+                                   heading[a : a + REACH_CHUNK])
+                for a in range(0, len(t), REACH_CHUNK)
+            ])  # fmt: skip
         top = self.ground + self.stand_height
         cand = top - np.linspace(0.0, 0.3 * self.legs.length, 41)
         n, m = len(t), len(cand)

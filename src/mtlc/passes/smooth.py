@@ -43,7 +43,6 @@ from mtlc.passes.balance import (
     grouped_hull,
     hand_pins,
     restore_contacts,
-    take_pose,
 )
 from mtlc.passes.context import PassContext
 from mtlc.passes.tool import carried_com
@@ -52,6 +51,7 @@ STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
 JUMP_Q = 1e-3  # rad: smaller offsets are the interpolation's own
 JUMP_ROOT = 5e-4  # m
 PIN_TOL = 1e-4  # m: a contact that moved less than this is left alone
+CHUNK_FRAMES = 4096  # changed frames measured at once
 
 
 def blend_weights(n: int) -> np.ndarray:
@@ -121,60 +121,84 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     rows = np.flatnonzero(changed)
     if rows.size == 0:
         return ir
-    # contacts before and after, on the changed frames only (forward kinematics is the cost)
-    rot = frames.root_rotation[rows]
-    pose = forward(skel, q0[rows], root0[rows], rot, with_axes=False)
-    after = forward(skel, frames.q[rows], frames.root_position[rows], rot, with_axes=False)
-    contact = contact_mask(foot_points(skel, pose), foot_stance(ir, t[rows]), ir.ground)
-    pins = {h: m[rows] for h, m in hand_pins(ir, t).items()}
-    hands_before = {h: site_positions(skel, pose, h) for h in HANDS}
-    # re-pin only the frames where a touching foot or a pinned hand actually moved
-    soles = np.linalg.norm(foot_points(skel, after) - foot_points(skel, pose), axis=-1)
-    moved = (np.where(contact, soles, 0.0) > PIN_TOL).any(axis=1)
-    for h in HANDS:
-        off = np.linalg.norm(site_positions(skel, after, h) - hands_before[h], axis=-1)
-        moved |= pins[h] & (off > PIN_TOL)
-    sub = np.flatnonzero(moved)
-    stance = foot_stance(ir, t[rows])
-    margin_before = carried_margin(ir, pose, t[rows], stance)
-    if sub.size == 0:
-        _rebalance(ir, frames, rows, margin_before, carried_margin(ir, after, t[rows], stance))
-        return ir
-    touching = contact[sub].reshape(sub.size, 2, -1).any(axis=2)
+    stance_all, pins = foot_stance(ir, t), hand_pins(ir, t)
+    # contacts before and after, on the changed frames only (forward kinematics is the cost),
+    # a chunk of frames at a time: a long walk changes most of its frames (~16 KB each here)
+    moved = np.zeros(rows.size, dtype=bool)
+    margin_before = np.empty(rows.size)
+    for a in range(0, rows.size, CHUNK_FRAMES):
+        r = rows[a : a + CHUNK_FRAMES]
+        rot = frames.root_rotation[r]
+        pose = forward(skel, q0[r], root0[r], rot, with_axes=False)
+        after = forward(skel, frames.q[r], frames.root_position[r], rot, with_axes=False)
+        contact = contact_mask(foot_points(skel, pose), stance_all[r], ir.ground)
+        # re-pin only the frames where a touching foot or a pinned hand actually moved
+        soles = np.linalg.norm(foot_points(skel, after) - foot_points(skel, pose), axis=-1)
+        m = (np.where(contact, soles, 0.0) > PIN_TOL).any(axis=1)
+        for h in HANDS:
+            off = np.linalg.norm(
+                site_positions(skel, after, h) - site_positions(skel, pose, h), axis=-1
+            )
+            m |= pins[h][r] & (off > PIN_TOL)
+        moved[a : a + CHUNK_FRAMES] = m
+        margin_before[a : a + CHUNK_FRAMES] = carried_margin(ir, pose, t[r], stance_all[r])
+    fixes = rows[np.flatnonzero(moved)]
+    if fixes.size:  # one batch: the solver's last bits depend on the batch it runs in
+        _repin(ir, frames, fixes, q0, root0, stance_all, pins)
+    margin_after = np.empty(rows.size)
+    for a in range(0, rows.size, CHUNK_FRAMES):
+        r = rows[a : a + CHUNK_FRAMES]
+        final = forward(skel, frames.q[r], frames.root_position[r], frames.root_rotation[r],
+                        with_axes=False)  # fmt: skip
+        margin_after[a : a + CHUNK_FRAMES] = carried_margin(ir, final, t[r], stance_all[r])
+    _rebalance(ir, frames, rows, margin_before, margin_after)
+    return ir
+
+
+def _repin(
+    ir: MotionIR,
+    frames: Frames,
+    fix: np.ndarray,
+    q0: np.ndarray,
+    root0: np.ndarray,
+    stance: np.ndarray,
+    pins: dict[str, np.ndarray],
+) -> None:
+    """Put the touching feet and pinned hands of the frames ``fix`` back where they were
+    before the blend (``q0``, ``root0``), never sinking anything deeper."""
+    skel = ir.skeleton
+    rot = frames.root_rotation[fix]
+    pose = forward(skel, q0[fix], root0[fix], rot, with_axes=False)
+    after = forward(skel, frames.q[fix], frames.root_position[fix], rot, with_axes=False)
+    contact = contact_mask(foot_points(skel, pose), stance[fix], ir.ground)
+    touching = contact.reshape(fix.size, 2, -1).any(axis=2)
     feet = {
         name: (
-            site_positions(skel, pose, name)[sub],
-            site_rotation(skel, pose, name)[sub],
+            site_positions(skel, pose, name),
+            site_rotation(skel, pose, name),
             touching[:, k],
         )
         for k, name in enumerate(FEET_SITES)
     }
-    hands = {h: (pins[h][sub], hands_before[h][sub]) for h in HANDS}
-    fix = rows[sub]
+    hands = {h: (pins[h][fix], site_positions(skel, pose, h)) for h in HANDS}
     q, root, _ = restore_contacts(
-        ir, frames.q[fix], frames.root_position[fix], frames.root_rotation[fix], feet, hands,
-        take_pose(after, sub),
-    )  # fmt: skip
+        ir, frames.q[fix], frames.root_position[fix], rot, feet, hands, after
+    )
     # smoothing must not sink anything deeper (a swing toe near the ground when the pelvis
     # came down): raise the root by what it added below the ground, h = L − x
-    low_before = lowest_point(skel, pose)[sub]
-    low_after = lowest_point(
-        skel, forward(skel, q, root, frames.root_rotation[fix], with_axes=False)
-    )
+    low_before = lowest_point(skel, pose)
+    low_after = lowest_point(skel, forward(skel, q, root, rot, with_axes=False))
     lift = np.maximum(np.minimum(low_before, ir.ground) - low_after, 0.0)
     root[:, 1] += lift
     up = np.flatnonzero(lift > 0.0)
     if up.size:  # the raise took the standing feet up with it: put them back down, legs bent
         q[up], root[up], _ = restore_contacts(
-            ir, q[up], root[up], frames.root_rotation[fix][up],
+            ir, q[up], root[up], rot[up],
             {n: (p[up], r[up], touch[up]) for n, (p, r, touch) in feet.items()},
             {h: (mask[up], at[up]) for h, (mask, at) in hands.items()},
         )  # fmt: skip
     frames.q[fix] = q
     frames.root_position[fix] = root
-    final = forward(skel, frames.q[rows], frames.root_position[rows], rot, with_axes=False)
-    _rebalance(ir, frames, rows, margin_before, carried_margin(ir, final, t[rows], stance))
-    return ir
 
 
 def carried_margin(ir: MotionIR, pose: Pose, time: np.ndarray, stance: np.ndarray) -> np.ndarray:

@@ -86,6 +86,7 @@ def _options(args: argparse.Namespace) -> FrontendOptions:
     return FrontendOptions(
         include_dirs=tuple(args.include),
         expansion_budget=args.expansion_budget,
+        motion_budget=args.motion_budget,
         manikin=args.manikin,
     )
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from mtlc.diagnostics.render import render_text, report_internal_error, terminal_safe, use_color
-from mtlc.frontend import FrontendOptions, run_frontend
+from mtlc.frontend import FrontendOptions, add_motion_budget, run_frontend
 from mtlc.lint.manikins import ManikinError, parse_selection
 from mtlc.output import write_outputs
 from mtlc.report.analysis import Report, analyse_task
@@ -45,6 +45,7 @@ def configure_parser(p: argparse.ArgumentParser) -> None:
     p.add_argument("files", nargs="+", type=Path, metavar="FILE", help=".mtask files")
     p.add_argument("-I", dest="include", action="append", type=Path, default=[], metavar="DIR",
                    help="also look for used modules in DIR")  # fmt: skip
+    add_motion_budget(p)
     p.add_argument("--task", metavar="NAME", help="only this task (default: every task)")
     p.add_argument("--manikins", metavar="WHICH", default=DEFAULT_MANIKINS,
                    help="'all' (default: the 14 GB 10000-88 manikins), 'extremes' or "
@@ -91,7 +92,8 @@ def run_report_command(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace, selection: tuple, ratio: dict[str, float]) -> int:  # type: ignore[type-arg]
-    program = run_frontend(list(args.files), FrontendOptions(include_dirs=tuple(args.include)))
+    options = FrontendOptions(include_dirs=tuple(args.include), motion_budget=args.motion_budget)
+    program = run_frontend(list(args.files), options)
     if program.diagnostics:
         text = render_text(program.diagnostics, program.sources, color=use_color(sys.stderr))
         sys.stderr.write(text)

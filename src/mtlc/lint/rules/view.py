@@ -49,7 +49,41 @@ class MotionView:
 
 def frame_segments(ir: MotionIR, t: FloatArray) -> NDArray[np.intp]:
     """The most specific (shortest) segment covering each frame; between segments the last one
-    that ended, before the first one the first."""
+    that ended, before the first one the first.
+
+    Memory O(frames + segments), not frames x segments: segments are laid over the frames from
+    the shortest up (ties: the earlier in ``ir.segments``), each frame keeping the first that
+    covers it; the last one ended is a search in the sorted ends. The result is the dense
+    argmin/argmax over (frames, segments) that ``frame_segments_dense`` states."""
+    start = np.array([s.start for s in ir.segments], dtype=float)
+    end = np.array([s.end for s in ir.segments], dtype=float)
+    t = np.asarray(t, dtype=float)
+    order = np.argsort(t, kind="stable")  # frames are in time order; sort if a caller's are not
+    ts = t[order]
+    out = np.full(len(t), -1, dtype=np.intp)
+    chosen = np.full(len(t), -1, dtype=np.intp)
+    # covering: t >= start - 1e-9 and t <= end + 1e-9, the narrowest first, then the lowest index
+    lo = np.searchsorted(ts, start - 1e-9, side="left")
+    hi = np.searchsorted(ts, end + 1e-9, side="right")
+    for j in np.lexsort((np.arange(len(start)), end - start)):
+        a, b = int(lo[j]), int(hi[j])
+        if a < b:
+            window = chosen[a:b]
+            window[window < 0] = j
+    covered = chosen >= 0
+    # otherwise: the first segment (by index) among those with the latest end <= t + 1e-9
+    by_end = np.lexsort((np.arange(len(end)), end))
+    ends = end[by_end]
+    k = np.searchsorted(ends, ts + 1e-9, side="right") - 1
+    first_of = np.searchsorted(ends, ends[np.maximum(k, 0)], side="left")
+    last = np.where(k >= 0, by_end[first_of], int(np.argmin(start)))
+    out[order] = np.where(covered, chosen, last)
+    return out
+
+
+def frame_segments_dense(ir: MotionIR, t: FloatArray) -> NDArray[np.intp]:
+    """``frame_segments`` as a (frames, segments) mask: the definition, for tests on small
+    inputs (a long motion would need gigabytes)."""
     start = np.array([s.start for s in ir.segments])
     end = np.array([s.end for s in ir.segments])
     covers = (t[:, None] >= start - 1e-9) & (t[:, None] <= end + 1e-9)  # (N, S)
@@ -67,7 +101,10 @@ def make_view(
     frames = ir.frames
     if frames is None or ir.skeleton is None or len(frames.time) == 0 or not ir.segments:
         return None
-    pose = forward(ir.skeleton, frames.q, frames.root_position, frames.root_rotation)
+    # no dof axes: the rules take no Jacobian (a third of a pose's ~2.8 KB a frame)
+    pose = forward(
+        ir.skeleton, frames.q, frames.root_position, frames.root_rotation, with_axes=False
+    )
     return MotionView(
         ir, manikin, config, frames.time, frames.q, pose, frame_segments(ir, frames.time), timeline
     )

@@ -47,6 +47,7 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
     tokens: list[Token] = []
     line, line_start = 1, 0
     brackets: list[str] = []  # open ( and [ and {, innermost last
+    still_open = {"(": 0, "[": 0, "{": 0}  # how many of each are in ``brackets`` (no search)
     errors = 0
     for m in _master_regex().finditer(text):
         kind = m.lastgroup
@@ -67,12 +68,14 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
             ttype = punctuation[value]
             if value in "([{":
                 brackets.append(value)
+                still_open[value] += 1
             elif value in ")]}" and brackets:
                 # a `}` also ends any ( or [ left open inside its block
                 opener = {")": "(", "]": "[", "}": "{"}[value]
-                if opener in brackets:
-                    while brackets.pop() != opener:
-                        pass
+                if still_open[opener]:
+                    while (popped := brackets.pop()) != opener:
+                        still_open[popped] -= 1
+                    still_open[opener] -= 1
         elif kind in ("NUMBER", "STRING"):
             ttype = kind
         else:

@@ -230,6 +230,23 @@ def steps_file(target_bytes: int, name: str) -> Callable[[Path, float], Path]:
     return build
 
 
+def trailing_comments(count: int) -> Callable[[Path, float], Path]:
+    """A task of ``count`` steps, each with a trailing `# mtlc: ignore[...]` comment: every
+    comment is placed, and every suppression's coverage checked, by fmt."""
+
+    def build(folder: Path, scale: float) -> Path:
+        n = max(1, int(count * scale))
+        lines = ["use stdlib.actions", "", "scene bay {", "    site bolt at (0, 100, 40) cm", "}"]
+        lines += ["", "# many steps", "task t {", "    scene bay"]
+        lines += [
+            f"    inspect(bolt, {1 + i % 5} s)  # mtlc: ignore[MT0604] step {i}" for i in range(n)
+        ]
+        lines += ["}", ""]
+        return _write(folder, f"comments_{count}.mtask", "\n".join(lines))
+
+    return build
+
+
 CASES: list[Case] = [
     Case("startup (empty file)", ("check",), empty_file, "reference: start-up and imports"),
     Case("100 KB nested ( )", ("check",), nested_parens, "< 1 s, MT0104", 1.0),
@@ -246,6 +263,7 @@ CASES: list[Case] = [
     Case("nested empty for 1000^3", ("check",), nested_empty_for, "diagnostic or instant", 2.0),
     Case("60 nested for over 2", ("check",), deep_for, "diagnostic or instant", 2.0),
     Case("fmt 1.8 MB", ("fmt", "--check"), steps_file(1_800_000, "big.mtask"), "< 2 s", 2.0),
+    Case("fmt 20k trailing comments", ("fmt", "--check"), trailing_comments(20_000), "linear"),
     Case("check 1 MB valid steps", ("check",), steps_file(1_000_000, "steps.mtask"), "linear"),
 ]
 

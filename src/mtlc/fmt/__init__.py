@@ -3,6 +3,7 @@ what a file means (the formatted file parses to the same AST, spans aside, or it
 
 from __future__ import annotations
 
+import bisect
 import json
 from collections import Counter
 from dataclasses import dataclass
@@ -97,12 +98,13 @@ def _coverage(text: str, module: ast.Module, file: str) -> list[tuple[str, froze
     """Each suppression's code, the statements and declarations it covers (by their place in
     the tree, which formatting keeps; lint reports findings on their first lines), its line."""
     starts = [n.span.line for n in nodes(module) if isinstance(n, ANCHORS)]
+    by_line = sorted(range(len(starts)), key=starts.__getitem__)  # found by bisection, not
+    lines = [starts[i] for i in by_line]  # by a scan of every start for every suppression
     out = []
     for mark in suppress.scan(file, text):
-        covered = frozenset(
-            i for i, line in enumerate(starts) if mark.first_line <= line <= mark.last_line
-        )
-        out.append((mark.code, covered, mark.span.line))
+        lo = bisect.bisect_left(lines, mark.first_line)
+        hi = bisect.bisect_right(lines, mark.last_line)
+        out.append((mark.code, frozenset(by_line[lo:hi]), mark.span.line))
     return out
 
 

@@ -9,6 +9,7 @@ statement; it is never dropped.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import re
 from collections.abc import Callable, Iterator
@@ -73,15 +74,26 @@ def format_module(text: str, module: ast.Module, file: str) -> tuple[str, list[C
     return render(doc, LINE_LENGTH), printer.pool.left()
 
 
+_FIELDS: dict[type, tuple[str, ...]] = {}  # each node class's field names, in order
+
+
 def nodes(node: object) -> Iterator[ast.Node]:
-    """Every AST node under ``node``, itself included."""
-    if isinstance(node, ast.Node):
-        yield node
-        for f in dataclasses.fields(node):
-            yield from nodes(getattr(node, f.name))
-    elif isinstance(node, tuple):
-        for x in node:
-            yield from nodes(x)
+    """Every AST node under ``node``, itself included, parents before children in field order.
+
+    Iterative: a chain of nested generators cost time in proportion to the depth for every
+    node, and a deep tree must not reach the recursion limit.
+    """
+    stack = [node]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, ast.Node):
+            yield item
+            names = _FIELDS.get(type(item))
+            if names is None:
+                names = _FIELDS[type(item)] = tuple(f.name for f in dataclasses.fields(item))
+            stack.extend(getattr(item, name) for name in reversed(names))
+        elif isinstance(item, tuple) and not isinstance(item, Span):
+            stack.extend(reversed(item))
 
 
 class _Printer:
@@ -90,15 +102,16 @@ class _Printer:
         self.tree = module
         self.src = SourceTokens(text, file)
         self.pool = CommentPool(text)
+        self.nodes = list(nodes(module))
         self.call_parens = self._call_parens()
         self.anchor_starts = self._anchor_starts()
-        self.blocks_by_end = {n.span.end: n for n in nodes(module) if isinstance(n, ast.Block)}
+        self.blocks_by_end = {n.span.end: n for n in self.nodes if isinstance(n, ast.Block)}
 
     def _anchor_starts(self) -> list[int]:
         """Where line-level things start (statements, declarations, scene members, parameters):
         what a comment on their line is about, and where lint reports findings."""
-        found = [n.span.start for n in nodes(self.tree) if isinstance(n, ANCHORS)]
-        for node in nodes(self.tree):
+        found = [n.span.start for n in self.nodes if isinstance(n, ANCHORS)]
+        for node in self.nodes:
             if isinstance(node, ast.Scene) and node.ground is not None:
                 keyword = self.src.starting_at(node.ground.span.start) - 1
                 found.append(int(self.src.at(keyword).start_pos))
@@ -107,7 +120,7 @@ class _Printer:
     def _call_parens(self) -> set[int]:
         """The `(` of calls and postures: not parentheses the writer put around an argument."""
         found: set[int] = set()
-        for node in nodes(self.tree):
+        for node in self.nodes:
             if isinstance(node, ast.Call | ast.CallExpr):
                 found.add(self.src.match[self.src.ending_at(node.span.end)])
             elif isinstance(node, ast.Posture):
@@ -209,14 +222,19 @@ class _Printer:
         if c is None or c.line != first.line or self._follows_opener(c):
             return []  # one after `{`, `(` or `[` stays there: the bracket prints it
         after = last.end if c.start >= last.end else last.start + 1
-        if any(after <= s < c.start for s in self.anchor_starts):
+        first_after = bisect.bisect_left(self.anchor_starts, after)  # sorted: no scan of all
+        if first_after < len(self.anchor_starts) and self.anchor_starts[first_after] < c.start:
             return []
         self.pool.claim(c)
         return [c]
 
     def _follows_opener(self, comment: Comment) -> bool:
-        before = self.text[: comment.start].rstrip(" \t")
-        return before.endswith(("{", "(", "["))
+        """Whether only spaces stand between an opening bracket and the comment (looked for
+        backwards from the comment: copying the text before it made formatting quadratic)."""
+        i = comment.start
+        while i > 0 and self.text[i - 1] in " \t":
+            i -= 1
+        return i > 0 and self.text[i - 1] in "{(["
 
     def _ends_with_block(self, entry: _Entry) -> bool:
         """Whether the entry ends with a `}` printed on its own line (a block not empty)."""

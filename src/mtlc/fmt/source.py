@@ -107,7 +107,7 @@ class CommentPool:
         return None
 
     def claim(self, comment: Comment) -> None:
-        self._taken[self._starts.index(comment.start)] = True
+        self._taken[bisect.bisect_left(self._starts, comment.start)] = True
 
     def left(self) -> list[Comment]:
         return [c for c, taken in zip(self._items, self._taken, strict=True) if not taken]

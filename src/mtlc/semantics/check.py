@@ -54,6 +54,7 @@ class Checker:
         self.resolved: dict[Span, str] = {}
         self.callees: dict[Span, Symbol] = {}  # each call statement's definition, by callee span
         self._current: ast.Definition | None = None
+        self._site_names: dict[int, frozenset[str]] = {}  # by id of the scene declaration
 
     # ------------------------------------------------------------ declarations
     def check_module(self, scope: Scope) -> None:
@@ -193,6 +194,14 @@ class Checker:
             )
             return None
         return sym
+
+    def site_names(self, scene: ast.Scene) -> frozenset[str]:
+        """The names of a scene's sites, collected once: each name used is then one set lookup,
+        not a walk over the sites (quadratic in a scene of thousands)."""
+        names = self._site_names.get(id(scene))
+        if names is None:
+            names = self._site_names[id(scene)] = frozenset(s.name for s in scene.sites)
+        return names
 
     # ------------------------------------------------------------ statements
     def check_block(self, block: ast.Block, env: Env, *, top: bool = False) -> None:
@@ -604,7 +613,7 @@ class Checker:
         if env.scene is not None:
             scene = env.scene.decl
             assert isinstance(scene, ast.Scene)
-            if any(s.name == name for s in scene.sites):
+            if name in self.site_names(scene):
                 return "site", T.SITE
         sym = env.scope.lookup(name) if name not in env.scope.ambiguous else None
         if sym is not None:
@@ -673,7 +682,7 @@ class Checker:
             sym = env.scope.lookup(expr.obj.name)
             scene = sym.decl if sym else None
             if isinstance(scene, ast.Scene):
-                if any(s.name == expr.name for s in scene.sites):
+                if expr.name in self.site_names(scene):
                     return T.SITE
                 self.sink.report(
                     "MT0201",

@@ -40,9 +40,10 @@ class Timing:
 
 
 class _BudgetExceeded(Exception):
-    def __init__(self, span: Span, needed: int | None) -> None:
+    def __init__(self, span: Span, needed: int | None, idle: int = 0) -> None:
         self.span = span
         self.needed = needed
+        self.idle = idle  # rounds of `for` that produced no primitive, counted in the budget
 
 
 class _Abort(Exception):
@@ -80,6 +81,7 @@ class Expander:
     # ------------------------------------------------------------ entry
     def expand_task(self, task: ast.Task, scope: Scope) -> Timeline | None:
         self.count = 0
+        self.idle = 0  # rounds of `for` that produced nothing (also counted in ``count``)
         self.depth = 0
         self.scenes: dict[int, dict[str, Site]] = {}  # by scene declaration
         self.task_sites: dict[str, Site] = {}
@@ -130,11 +132,16 @@ class Expander:
             timeline.sites = [*self.task_sites.values(), *self.other_sites.values()]
         except _BudgetExceeded as exc:
             needed = f" (it would need about {exc.needed:,})" if exc.needed else ""
+            what, help_ = "primitives", "lower the repeat count"
+            if exc.idle:
+                rounds = f"{exc.idle:,} rounds of `for` move" if exc.idle > 1 else "a round moves"
+                what = f"primitives and empty loop rounds ({rounds} nothing)"
+                help_ = "remove the loops that do nothing"
             self.sink.report(
                 "MT0401",
-                f"task `{task.name}` expands into more than {self.budget:,} primitives{needed}",
+                f"task `{task.name}` expands into more than {self.budget:,} {what}{needed}",
                 exc.span,
-                help="lower the repeat count, or raise the limit with --expansion-budget",
+                help=f"{help_}, or raise the limit with --expansion-budget",
             )
             return None
         except _Abort:
@@ -243,9 +250,16 @@ class Expander:
             case ast.Repeat():
                 return self.repeat(stmt, env, t)
             case ast.ForEach():
-                for value in self.eval(stmt.items, env):
+                items = self.eval(stmt.items, env)
+                if not stmt.body.stmts and self.depth < MAX_NESTING:
+                    self._idle_round(stmt, env, len(items))  # nothing to run: all at once
+                    return t
+                for value in items:
                     inner = _Env(env.scope, {**env.locals, stmt.var: value}, env.trace, env.timing)
+                    before = self.count
                     t = self.block(stmt.body, inner, t)
+                    if self.count == before:
+                        self._idle_round(stmt, env)
                 return t
             case ast.Call():
                 return self.call(stmt, env, t)
@@ -253,6 +267,14 @@ class Expander:
                 return self.primitive(stmt, env, t)
             case _:  # settings and `time`: no motion of their own
                 return t
+
+    def _idle_round(self, stmt: ast.ForEach, env: _Env, rounds: int = 1) -> None:
+        """A round of `for` that produced nothing still took time: it counts against the budget
+        as one primitive would, so nested loops around nothing end (10^9 rounds never did)."""
+        self.idle += rounds
+        self.count += rounds
+        if self.count > self.budget:
+            raise _BudgetExceeded(_user_line(env, stmt), None, self.idle)
 
     def repeat(self, stmt: ast.Repeat, env: _Env, t: float) -> float:
         n = self.eval(stmt.count, env)
@@ -266,7 +288,7 @@ class Expander:
                 if per_round == 0:
                     break  # nothing inside moves: the other rounds would add nothing
                 if self.count + per_round * (n - 1) > self.budget:
-                    raise _BudgetExceeded(_user_line(env, stmt), before + per_round * n)
+                    raise _BudgetExceeded(_user_line(env, stmt), before + per_round * n, self.idle)
         return t
 
     def call(self, call: ast.Call, env: _Env, t: float) -> float:
@@ -546,7 +568,7 @@ class Expander:
     ) -> None:  # fmt: skip
         self.count += 1
         if self.count > self.budget:
-            raise _BudgetExceeded(_user_line(env, stmt), None)
+            raise _BudgetExceeded(_user_line(env, stmt), None, self.idle)
         origin = env.trace[1][1] if len(env.trace) > 1 else stmt.span
         self.out.append(
             Primitive(

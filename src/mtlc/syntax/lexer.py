@@ -149,6 +149,7 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
     tokens: list[Token] = []
     line, line_start = 1, 0
     brackets: list[str] = []  # open ( and [ and {, innermost last
+    still_open = {"(": 0, "[": 0, "{": 0}  # how many of each are in ``brackets`` (no search)
     errors = 0
 
     def error(code: str, message: str, help: str | None = None) -> None:
@@ -209,12 +210,14 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
             ttype = punctuation[value]
             if value in "([{":
                 brackets.append(value)
+                still_open[value] += 1
             elif value in ")]}" and brackets:
                 # a `}` also ends any ( or [ left open inside its block
                 opener = {")": "(", "]": "[", "}": "{"}[value]
-                if opener in brackets:
-                    while brackets.pop() != opener:
-                        pass
+                if still_open[opener]:
+                    while (popped := brackets.pop()) != opener:
+                        still_open[popped] -= 1
+                    still_open[opener] -= 1
         elif kind in ("NUMBER", "STRING"):
             ttype = kind
         elif kind == "SMARTSTRING":

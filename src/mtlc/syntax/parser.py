@@ -93,10 +93,21 @@ def _synthetic(kind: str, after: Token) -> Token:
 
 
 def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterator[list[Token]]:
-    """Yield the token lists of top-level items; close items left open; refuse deep nesting."""
+    """Yield the token lists of top-level items; close items left open; refuse deep nesting.
+
+    Linear in the number of tokens, however deep or unbalanced the brackets: ``open_at`` keeps,
+    for each kind of opener, where it stands on ``stack``, so a closer finds its opener at once
+    instead of searching the stack (which made 100 KB of brackets take minutes).
+    """
     item: list[Token] = []
     stack: list[Token] = []
+    open_at: dict[str, list[int]] = {kind: [] for kind in _OPENERS}  # indices into ``stack``
     too_deep = False
+
+    def pop_down_to(depth: int) -> None:
+        """Forget the brackets open above ``depth``; each one is popped once, so linear overall."""
+        while len(stack) > depth:
+            open_at[stack.pop().type].pop()
 
     def close_down_to(depth: int) -> None:
         """Close the brackets left open above ``depth``, reporting the innermost."""
@@ -109,15 +120,17 @@ def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterat
             help=f"add `{_synthetic(closer, opener).value}` where it should end",
         )
         while len(stack) > depth:
-            item.append(_synthetic(_OPENERS[stack.pop().type], item[-1]))
+            item.append(_synthetic(_OPENERS[stack[-1].type], item[-1]))
+            pop_down_to(len(stack) - 1)
 
     def finish() -> Iterator[list[Token]]:
-        nonlocal item, stack, too_deep
+        nonlocal item, too_deep
         if item and not too_deep:
             if stack:
                 close_down_to(0)
             yield item
-        item, stack, too_deep = [], [], False
+        pop_down_to(0)
+        item, too_deep = [], False
 
     for tok in tokens:
         ttype = tok.type
@@ -127,6 +140,7 @@ def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterat
         if stack and ttype in _RESYNC and tok.column == 1:
             yield from finish()
         if ttype in _OPENERS:
+            open_at[ttype].append(len(stack))
             stack.append(tok)
             if len(stack) > MAX_NESTING and not too_deep:
                 too_deep = True
@@ -137,11 +151,12 @@ def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterat
                     help="split the definition into smaller actions or elements",
                 )
         elif ttype in _CLOSERS and stack:
-            match = [i for i, t in enumerate(stack) if t.type == _CLOSERS[ttype]]
-            if match and match[-1] < len(stack) - 1 and not too_deep:
-                close_down_to(match[-1] + 1)
-            if match:
-                del stack[match[-1] :]
+            found = open_at[_CLOSERS[ttype]]
+            if found:
+                at = found[-1]
+                if at < len(stack) - 1 and not too_deep:
+                    close_down_to(at + 1)
+                pop_down_to(at)
         item.append(tok)
     yield from finish()
 

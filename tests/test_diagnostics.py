@@ -157,6 +157,16 @@ def test_large_file_is_mt0003(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
     assert found == [("MT0003", "main.mtask", 1, 1)]
 
 
+@pytest.mark.parametrize("name", ["a" * 256, ".".join(["abcdefghij"] * 500)])
+def test_a_use_name_too_long_for_the_file_system_is_mt0203(tmp_path: Path, name: str) -> None:
+    """ENAMETOOLONG from the lookup was an internal error (issue 17)."""
+    found = diagnose(tmp_path, {"main.mtask": f"use {name}\ntask t {{\n}}\n"})
+    assert [c for c, *_ in found] == ["MT0203"]
+    program = run_frontend([tmp_path / "main.mtask"])
+    (diag,) = program.diagnostics
+    assert "255 bytes" in (diag.help or "") and len(diag.message) < 200
+
+
 def test_a_folder_is_mt0001_with_help(tmp_path: Path) -> None:
     program = run_frontend([tmp_path])
     (diag,) = program.diagnostics

@@ -263,8 +263,21 @@ class ModuleLoader:
         relpath = Path(*rel[:-1], rel[-1] + ".mtask")
         for root in roots:
             candidate = root / relpath
-            if candidate.is_file():
-                real = candidate.resolve()
+            try:
+                found = candidate.is_file()
+                real = candidate.resolve() if found else candidate
+            except OSError as err:  # a name too long for the file system, a loop of links
+                self.sink.report(
+                    "MT0203",
+                    f"module `{_shortened(dotted)}` cannot be looked up: {err.strerror or err}",
+                    use.module_span,
+                    help="module names are file and folder names: keep each part under 255 "
+                    "bytes and the whole path short"
+                    if err.errno == errno.ENAMETOOLONG
+                    else f"searched in: {display_name(root)}",
+                )
+                return None
+            if found:
                 if not real.is_relative_to(root):
                     self.sink.report(
                         "MT0205",
@@ -284,8 +297,13 @@ class ModuleLoader:
         where = ", ".join(display_name(r) for r in roots)
         self.sink.report(
             "MT0203",
-            f"module `{dotted}` not found",
+            f"module `{_shortened(dotted)}` not found",
             use.module_span,
             help=did_you_mean(dotted, known) or f"searched in: {where}",
         )
         return None
+
+
+def _shortened(name: str, limit: int = 80) -> str:
+    """A name for a message: a very long one is cut in the middle."""
+    return name if len(name) <= limit else f"{name[: limit // 2]}…{name[-limit // 2 :]}"

@@ -22,6 +22,7 @@ from mtlc.fmt.doc import (
     SOFTLINE,
     BreakParent,
     Doc,
+    Flat,
     Group,
     IfBreak,
     LineSuffix,
@@ -189,6 +190,8 @@ class _Printer:
             joined: list[Doc] = [docs[0]]
             for doc in docs[1:]:
                 joined += [Text("; "), doc]
+            if len(docs) > 1:  # kept on one line for an ignore: breaking it would move some
+                joined = [Flat(joined)]  # statement off the comment's line
             suffix = [LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in hosted]
             out.append((blank_before(first.line, first), [*suffix, joined]))
             prev_end, prev_line, prev = last.end, last.end_line, last

@@ -183,6 +183,28 @@ def _unreadable_help(err: OSError) -> str | None:
     return None
 
 
+_PARSED: dict[tuple[str, str], ast.Module] = {}  # (file name, text) -> its clean parse
+_PARSED_MAX = 16
+
+
+def _parse(text: str, display: str, sink: DiagnosticSink) -> ast.Module:
+    """``parse_module``, remembering the last few files that parse without a diagnostic: the
+    standard library is read by almost every program, and a tree is immutable, so programs
+    (a server's recompiles, a test suite, a fuzzer) can share it. Keyed by the text itself."""
+    key = (display, text)
+    tree = _PARSED.get(key)
+    if tree is not None:
+        return tree
+    local = DiagnosticSink()
+    tree = parse_module(text, display, local)
+    sink.items.extend(local.items)
+    if not local.items:
+        if len(_PARSED) >= _PARSED_MAX:
+            _PARSED.pop(next(iter(_PARSED)))
+        _PARSED[key] = tree
+    return tree
+
+
 class ModuleLoader:
     def __init__(self, include_dirs: list[Path], sink: DiagnosticSink) -> None:
         self.include_dirs = [d for d in include_dirs]
@@ -207,7 +229,7 @@ class ModuleLoader:
             )  # fmt: skip
         else:
             self.sources[display] = text
-            tree = parse_module(text, display, self.sink)
+            tree = _parse(text, display, self.sink)
         module = LoadedModule(display, real, tree, is_stdlib=is_stdlib)
         self.modules[real] = module
         self._loading.append(real)

@@ -745,6 +745,9 @@ def run(args: argparse.Namespace) -> dict[str, Tally]:
     t_start = time.perf_counter()
     try:
         for index in range(args.cases):
+            if args.max_seconds and time.perf_counter() - t_start > args.max_seconds:
+                print(f"stopped after {index} cases: --max-seconds", file=sys.stderr)
+                break
             origin, data = make_case(args.seed, index, sources)
             origins[origin] += 1
             case_dir = workdir / f"c{index}"
@@ -843,6 +846,9 @@ def main(argv: list[str] | None = None) -> int:
         "--kill-after", type=float, default=60.0, help="a stage is killed after this (hang)"
     )
     parser.add_argument("--memory-mb", type=int, default=1024, help="the worker's memory cap")
+    parser.add_argument(
+        "--max-seconds", type=float, default=0, help="stop starting cases after this long"
+    )
     parser.add_argument("--save", help="write failing cases and failures.txt into this folder")
     parser.add_argument("--progress", type=int, default=0, help="print progress every N cases")
     args = parser.parse_args(argv)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -161,6 +162,73 @@ def test_large_file_is_mt0003(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
     assert found == [("MT0003", "main.mtask", 1, 1)]
 
 
+@pytest.mark.parametrize("name", ["a" * 256, ".".join(["abcdefghij"] * 500)])
+def test_a_use_name_too_long_for_the_file_system_is_mt0203(tmp_path: Path, name: str) -> None:
+    """ENAMETOOLONG from the lookup was an internal error (issue 17)."""
+    found = diagnose(tmp_path, {"main.mtask": f"use {name}\ntask t {{\n}}\n"})
+    assert [c for c, *_ in found] == ["MT0203"]
+    program = run_frontend([tmp_path / "main.mtask"])
+    (diag,) = program.diagnostics
+    assert "255 bytes" in (diag.help or "") and len(diag.message) < 200
+
+
+def test_a_folder_is_mt0001_with_help(tmp_path: Path) -> None:
+    program = run_frontend([tmp_path])
+    (diag,) = program.diagnostics
+    assert (diag.code, diag.message) == ("MT0001", "cannot read file: it is a folder")
+    assert diag.help is not None
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+def test_a_fifo_is_refused_without_blocking(tmp_path: Path) -> None:
+    """Opening a pipe with no writer would block; reading one would never end."""
+    fifo = tmp_path / "steps.mtask"
+    os.mkfifo(fifo)
+    program = run_frontend([fifo])
+    (diag,) = program.diagnostics
+    assert diag.code == "MT0004" and "a pipe" in diag.message and diag.help
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+def test_dev_zero_is_refused_not_read_forever() -> None:
+    program = run_frontend([Path("/dev/zero")])
+    assert [(d.code, d.span.line) for d in program.diagnostics] == [("MT0004", 1)]
+
+
+def test_a_file_that_grows_past_the_limit_while_read_is_mt0003(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The size is checked before reading and again on what was read."""
+    from mtlc.semantics import modules
+
+    path = tmp_path / "main.mtask"
+    path.write_text("# padding\n" * 20, encoding="utf-8")
+    real_fstat = os.fstat
+    monkeypatch.setattr(modules.os, "fstat", lambda fd: _shrunk(real_fstat(fd)))
+    monkeypatch.setattr(modules, "MAX_FILE_BYTES", 100)
+    program = run_frontend([path])
+    (diag,) = program.diagnostics
+    assert diag.code == "MT0003" and "larger than the limit" in diag.message
+
+
+def _shrunk(info: os.stat_result) -> os.stat_result:
+    fields = list(info)
+    fields[6] = 0  # st_size: as if the file were empty when it was looked at
+    return os.stat_result(fields)
+
+
+def test_fmt_stdin_is_bounded(monkeypatch: pytest.MonkeyPatch, capsys) -> None:  # type: ignore[no-untyped-def]
+    import io
+
+    from mtlc.fmt.__main__ import main as fmt_main
+    from mtlc.semantics import modules
+
+    monkeypatch.setattr(modules, "MAX_FILE_BYTES", 100)
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(b"#" * 1000)))
+    assert fmt_main(["-"]) == 1
+    assert "MT0003" in capsys.readouterr().err
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="symlinks need privileges on Windows")
 def test_use_outside_roots_is_mt0205(tmp_path: Path) -> None:
     outside = tmp_path / "outside"
@@ -182,7 +250,16 @@ def test_too_many_errors_stops_at_mt0106(tmp_path: Path) -> None:
 
 
 def test_every_code_is_tested() -> None:
-    tested = set(CASES) | {"MT0001", "MT0003", "MT0106", "MT0205", "MT0501", "MT0502", "MT0503"}
+    tested = set(CASES) | {
+        "MT0001",
+        "MT0003",
+        "MT0004",
+        "MT0106",
+        "MT0205",
+        "MT0501",
+        "MT0502",
+        "MT0503",
+    }
     tested |= {f"MT060{i}" for i in range(1, 10)}  # lint: tests/lint/, tests/test_analyses.py
     assert set(CODES) - tested == {"MT0900"}  # internal errors have no input that makes them
 

@@ -512,6 +512,28 @@ def test_a_trailing_comment_keeps_covering_the_same_statements(body: str, expect
     assert _coverage(out) == _coverage(text)
 
 
+_LONG = (
+    "inspect(b, 1 min + 30 s + 1 min + 30 s + 1 min + 30 s + 1 min + 30 s + 1 min + 30 s + 20 s)"
+)
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        f"a(); {_LONG} # mtlc: ignore[MT0501]",  # issue 17: the call's brackets break
+        f"a();{_LONG} # mtlc: ignore[MT0501]",
+        "repeat 2 { x() }; a() # mtlc: ignore[MT0501]",  # the `{` line covers to `}; a()`
+        "parallel { a(); b() } # mtlc: ignore[MT0501]",  # the comment moves after the `{`
+    ],
+)
+def test_a_long_joined_line_with_an_ignore_formats_idempotently(body: str) -> None:
+    """Statements an ignore keeps on one line stay together when that line breaks, and
+    formatting the result again changes nothing (it was refused, or moved, before)."""
+    text = f"{_SUP_SCENE}task t {{\n    {body}\n    c()\n}}\n"
+    out = _assert_safe_and_idempotent(text)
+    assert _coverage(out) == _coverage(text)
+
+
 def test_the_review_file_lints_the_same_after_formatting() -> None:
     text = (
         "task t {\n    press(right, a)\n"

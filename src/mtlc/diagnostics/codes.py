@@ -30,6 +30,9 @@ _ALL = [
     Code("MT0001", "unreadable-file", Severity.ERROR, "a file cannot be read"),
     Code("MT0002", "invalid-utf8", Severity.ERROR, "a file is not valid UTF-8"),
     Code("MT0003", "file-too-large", Severity.ERROR, "a file is larger than the input limit"),
+    Code(
+        "MT0004", "not-a-regular-file", Severity.ERROR, "an input is a pipe, a device or a socket"
+    ),
     # syntax
     Code("MT0101", "unexpected-token", Severity.ERROR, "the parser found a token it cannot use"),
     Code("MT0102", "unexpected-character", Severity.ERROR, "a character that no token starts with"),

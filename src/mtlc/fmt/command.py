@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import io
 import os
 import sys
 from dataclasses import dataclass
@@ -18,7 +19,12 @@ from mtlc.diagnostics import Diagnostic, DiagnosticSink
 from mtlc.diagnostics.render import render_json, render_text, use_color
 from mtlc.fmt import format_source
 from mtlc.output import write_outputs
-from mtlc.semantics.modules import read_source
+from mtlc.semantics.modules import (
+    MAX_FILE_BYTES,
+    decode_source,
+    read_bounded_stream,
+    read_source,
+)
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE = 0, 1, 2
 STDIN = "-"
@@ -86,7 +92,7 @@ def _expand(paths: list[str]) -> list[str]:
     found: list[str] = []
     for raw in paths:
         path = Path(raw)
-        if raw != STDIN and path.is_dir():
+        if raw != STDIN and _is_dir(path):
             found.extend(p.as_posix() for p in sorted(path.rglob("*.mtask")) if p.is_file())
         else:
             found.append(raw if raw == STDIN else path.as_posix())
@@ -96,9 +102,26 @@ def _expand(paths: list[str]) -> list[str]:
     return list(by_file.values())
 
 
+def _is_dir(path: Path) -> bool:
+    """Whether ``path`` is a folder; a path the system cannot look at (a name too long) is not:
+    reading it then reports why (MT0001)."""
+    try:
+        return path.is_dir()
+    except OSError:
+        return False
+
+
 def _format_one(raw: str, sink: DiagnosticSink, sources: dict[str, str]) -> _Outcome | None:
     if raw == STDIN:
-        display, text = STDIN_NAME, sys.stdin.read().removeprefix("\ufeff")
+        display = STDIN_NAME
+        stream = getattr(sys.stdin, "buffer", None)  # a text stream has none (tests, embedding)
+        if stream is None:
+            stream = io.BytesIO(sys.stdin.read(MAX_FILE_BYTES + 1).encode("utf-8", "surrogatepass"))
+        data = read_bounded_stream(stream, display, sink)
+        decoded = decode_source(data, display, sink) if data is not None else None
+        if decoded is None:
+            return None
+        text = decoded
     else:
         display = Path(raw).as_posix()
         read = read_source(Path(raw), display, sink)

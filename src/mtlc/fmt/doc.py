@@ -5,7 +5,9 @@ A document is a ``Text``, a ``Line`` (a space or nothing when flat, a new line w
 ``HardLine``, a ``Group`` (printed flat if it fits, else broken), a ``Nest`` (indents the new
 lines inside it), an ``IfBreak`` (text that depends on the enclosing group's mode), a
 ``LineSuffix`` (a trailing comment, held back until the end of the line) or a list of these.
-A group that holds a ``HardLine`` or a ``BreakParent`` anywhere inside it always breaks.
+A group that holds a ``HardLine`` or a ``BreakParent`` anywhere inside it always breaks, even
+inside a ``Flat`` (printed flat whatever its width: statements an ignore comment keeps on one
+line).
 """
 
 from __future__ import annotations
@@ -43,6 +45,13 @@ class Group:
 
 
 @dataclass(frozen=True, slots=True)
+class Flat:
+    """Printed flat whatever its width (its groups do not break); a hard line still breaks."""
+
+    parts: Doc
+
+
+@dataclass(frozen=True, slots=True)
 class Nest:
     parts: Doc
 
@@ -59,7 +68,7 @@ class LineSuffix:
 
 
 Doc: TypeAlias = (
-    Text | Line | HardLine | BreakParent | Group | Nest | IfBreak | LineSuffix | list["Doc"]
+    Text | Line | HardLine | BreakParent | Group | Flat | Nest | IfBreak | LineSuffix | list["Doc"]
 )
 
 SOFTLINE = Line(soft=True)
@@ -83,7 +92,7 @@ def _must_break(doc: Doc, broken: set[int]) -> bool:
         if inner or doc.force_break:
             broken.add(id(doc))
         return inner or doc.force_break
-    if isinstance(doc, Nest):
+    if isinstance(doc, Nest | Flat):
         return _must_break(doc.parts, broken)
     return False
 
@@ -109,6 +118,8 @@ def _fits(first: _Command, rest: list[_Command], width: int, broken: set[int]) -
             width -= len(doc.text)
         elif isinstance(doc, Nest):
             todo.append((indent, mode, doc.parts))
+        elif isinstance(doc, Flat):
+            todo.append((indent, _FLAT, doc.parts))
         elif isinstance(doc, Group):
             todo.append((indent, _BREAK if id(doc) in broken else mode, doc.parts))
         elif isinstance(doc, Line):
@@ -160,10 +171,11 @@ def render(doc: Doc, width: int) -> str:
             column += len(doc.text)
         elif isinstance(doc, Nest):
             stack.append((indent + INDENT, mode, doc.parts))
+        elif isinstance(doc, Flat):
+            stack.append((indent, _FLAT, doc.parts))
         elif isinstance(doc, Group):
-            flat = mode == _FLAT or (
-                id(doc) not in broken
-                and _fits((indent, _FLAT, doc.parts), stack, width - column, broken)
+            flat = id(doc) not in broken and (  # a group with a hard line (or comment) breaks
+                mode == _FLAT or _fits((indent, _FLAT, doc.parts), stack, width - column, broken)
             )
             if flat:
                 stack.append((indent, _FLAT, doc.parts))

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import bisect
 import dataclasses
-import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -24,6 +23,7 @@ from mtlc.fmt.doc import (
     SOFTLINE,
     BreakParent,
     Doc,
+    Flat,
     Group,
     IfBreak,
     LineSuffix,
@@ -32,6 +32,7 @@ from mtlc.fmt.doc import (
     render,
 )
 from mtlc.fmt.source import Comment, CommentPool, SourceTokens
+from mtlc.lint import suppress
 from mtlc.syntax import ast
 
 LINE_LENGTH = 100
@@ -39,7 +40,6 @@ LINE_LENGTH = 100
 ANCHORS = (ast.Call, ast.Repeat, ast.ForEach, ast.Parallel, ast.ManikinSetting, ast.SceneSetting,
            ast.ToolSetting, ast.BudgetSetting, ast.TimeSetting, ast.Goal, ast.Posture, ast.Walk,
            ast.Grip, ast.Gaze, ast.Still, ast.Decl, ast.Use, ast.ToolProperty, ast.Param)  # fmt: skip
-_IGNORE = re.compile(r"mtlc:\s*ignore\[")
 TRAILING_COMMENT_GAP = "  "
 
 # binding strength: a child that binds less tightly than its place needs parentheses
@@ -106,6 +106,13 @@ class _Printer:
         self.call_parens = self._call_parens()
         self.anchor_starts = self._anchor_starts()
         self.blocks_by_end = {n.span.end: n for n in self.nodes if isinstance(n, ast.Block)}
+        # each `# mtlc: ignore[...]`, by its line: where it starts, the last line it covers
+        reach: dict[int, int] = {}
+        for mark in suppress.scan(file, text):
+            reach[mark.first_line] = max(reach.get(mark.first_line, 0), mark.last_line)
+        self.ignores = {
+            c.line: (c.start, reach[c.line]) for c in self.pool.all() if c.line in reach
+        }
 
     def _anchor_starts(self) -> list[int]:
         """Where line-level things start (statements, declarations, scene members, parameters):
@@ -187,7 +194,7 @@ class _Printer:
                     prev_line, prev = c.line, None  # a blank line is forced only once
 
         prev_end = start
-        for group in self._line_groups(entries, join):
+        for group in self._line_groups(entries, join, end):
             first, last = group[0], group[-1]
             place(self.pool.take(prev_end, first.start), first)
             hosted = self._hosted(first, last)
@@ -196,6 +203,8 @@ class _Printer:
             joined: list[Doc] = [docs[0]]
             for doc in docs[1:]:
                 joined += [Text("; "), doc]
+            if len(docs) > 1:  # kept on one line for an ignore: breaking it would move some
+                joined = [Flat(joined)]  # statement off the comment's line
             suffix = [LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in hosted]
             out.append((blank_before(first.line, first), [*suffix, joined]))
             prev_end, prev_line, prev = last.end, last.end_line, last
@@ -241,16 +250,21 @@ class _Printer:
         block = self.blocks_by_end.get(entry.end)
         return block is not None and bool(block.stmts)
 
-    def _line_groups(self, entries: list[_Entry], join: bool) -> list[list[_Entry]]:
+    def _line_groups(self, entries: list[_Entry], join: bool, end: int) -> list[list[_Entry]]:
         """Entries one by one; with ``join``, statements sharing a line that a
         `# mtlc: ignore[...]` ends stay together on it (`a(); b()  # mtlc: ignore[...]`), as
-        that comment covers them all."""
+        that comment covers them all. The comment may sit inside one of them, after a bracket
+        it opens there (`a(); b(  # mtlc: ignore[...]`), and cover a later line through a `{` it
+        follows (`repeat 2 {  # mtlc: ignore[...]` ... `}; b()`): that is how such a line prints
+        when its brackets break, so formatting it again keeps it (idempotence). A comment
+        after the sequence's ``end`` (its `}`) is the enclosing statement's: printed after this
+        block's `{`, it covers the whole block, so the statements here need not stay together."""
         groups: list[list[_Entry]] = []
         for entry in entries:
             group = groups[-1] if groups else []
-            if join and group and group[-1].end_line == entry.line == group[0].line:
-                c = self.pool.next_after(entry.end)
-                if c is not None and c.line == entry.line and _IGNORE.search(c.text):
+            if join and group and group[-1].end_line == entry.line:
+                start, reach = self.ignores.get(group[0].line, (end, 0))
+                if start < end and entry.line <= reach:
                     group.append(entry)
                     continue
             groups.append([entry])

@@ -109,6 +109,9 @@ class CommentPool:
     def claim(self, comment: Comment) -> None:
         self._taken[bisect.bisect_left(self._starts, comment.start)] = True
 
+    def all(self) -> list[Comment]:
+        return list(self._items)
+
     def left(self) -> list[Comment]:
         return [c for c, taken in zip(self._items, self._taken, strict=True) if not taken]
 

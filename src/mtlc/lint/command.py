@@ -99,7 +99,7 @@ def run_lint_command(args: argparse.Namespace) -> int:
     except (ConfigError, ManikinError) as exc:
         sys.stderr.write(f"mtlc lint: {exc}\n")
         return EXIT_USAGE
-    missing = [p for p in args.paths if not p.exists()]
+    missing = [p for p in args.paths if not _exists(p)]
     if missing:
         sys.stderr.write(f"mtlc lint: no such file or folder: {', '.join(map(str, missing))}\n")
         return EXIT_USAGE
@@ -108,6 +108,14 @@ def run_lint_command(args: argparse.Namespace) -> int:
     except Exception as exc:  # a bug: one line and exit 2, never a bare traceback
         report_internal_error("lint", exc)
         return EXIT_USAGE
+
+
+def _exists(path: Path) -> bool:
+    """Whether ``path`` names something; a name the system rejects (too long) does not."""
+    try:
+        return path.exists()
+    except OSError:
+        return False
 
 
 def with_selection(config: LintConfig, select: str | None, ignore: str | None) -> LintConfig:

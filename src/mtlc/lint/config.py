@@ -14,6 +14,9 @@ from typing import Any
 
 from mtlc.diagnostics import CODES, Severity
 from mtlc.ergonomics import niosh, view
+from mtlc.semantics.modules import InputRefused, read_input_bytes
+
+MAX_CONFIG_BYTES = 1024 * 1024
 
 DEFAULT_RULA_THRESHOLD = 5
 DEFAULT_PENETRATION_MM = 1.0
@@ -79,8 +82,8 @@ def find_config(start: Path) -> tuple[Path, dict[str, Any]] | None:
 
 def _table(path: Path, keys: tuple[str, ...]) -> dict[str, Any] | None:
     try:
-        doc: Any = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        doc: Any = tomllib.loads(read_input_bytes(path, MAX_CONFIG_BYTES).decode("utf-8"))
+    except (OSError, InputRefused, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ConfigError(f"{path}: {exc}") from None
     for key in keys:
         if not isinstance(doc, dict) or key not in doc:

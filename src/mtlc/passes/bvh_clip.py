@@ -35,6 +35,9 @@ from mtlc.diagnostics import Span
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.locomotion import DetectedStep, Gait, gait_of, segment_steps
+from mtlc.semantics.modules import InputRefused, read_input_bytes
+
+MAX_CLIP_BYTES = 64 * 1024 * 1024  # a walking clip of minutes of motion capture is a few MB
 
 FloatArray = NDArray[np.float64]
 
@@ -93,9 +96,12 @@ class BvhClip:
 def read_bvh(path: str | Path) -> BvhClip:
     """Parse a BVH file; raises :class:`ClipError` with the offending line."""
     try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
+        data = read_input_bytes(path, MAX_CLIP_BYTES)  # a regular file: not a pipe or a device
+    except InputRefused as exc:
+        raise ClipError(f"cannot read it: {exc}") from None
     except OSError as exc:
         raise ClipError(f"cannot read it: {exc.strerror or exc}") from None
+    text = data.decode("utf-8", errors="replace")
     return parse_bvh(text, str(path))
 
 

@@ -56,9 +56,15 @@ def hand_to_joint(v: Any, side: str) -> FloatArray:
     return np.array([z if side == "r" else -z, -y, x])
 
 
+def tool_tip(tool: dict[str, Any]) -> FloatArray:
+    """A tool's working point in the hand's frame; a tool that declares no `tip` works at its
+    grip (docs/language.md, "Tools"), as the expansion's stroke times take it."""
+    return np.asarray(tool.get("tip", tool.get("grip", (0.0, 0.0, 0.0))), float)
+
+
 def radius(tool: dict[str, Any]) -> float:
     """Distance from the fastener's axis (through the tip, along ``axis``) to the grip (m)."""
-    d = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float) - np.asarray(tool["tip"], float)
+    d = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float) - tool_tip(tool)
     a = np.asarray(tool.get("axis", HAND_FRAME_AXIS), float)
     a = a / np.linalg.norm(a)
     return float(np.linalg.norm(d - (d @ a) * a))
@@ -66,7 +72,7 @@ def radius(tool: dict[str, Any]) -> float:
 
 def axial_offset(tool: dict[str, Any]) -> float:
     """How far the grip sits out along the fastener's axis from the tip (m; a cranked ring)."""
-    d = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float) - np.asarray(tool["tip"], float)
+    d = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float) - tool_tip(tool)
     a = np.asarray(tool.get("axis", HAND_FRAME_AXIS), float)
     return float(d @ (a / np.linalg.norm(a)))
 
@@ -78,7 +84,7 @@ def held_tools(ir: MotionIR) -> dict[str, dict[str, Any]]:
     out: dict[str, dict[str, Any]] = {}
     for seg in ir.segments:
         tool, eff = seg.goal.params.get("tool"), seg.goal.effector
-        if tool is not None and "tip" in tool and _is_tool_site(eff, tool):
+        if isinstance(tool, dict) and _is_tool_site(eff, tool):
             out.setdefault(eff, tool)
     return dict(sorted(out.items()))
 
@@ -96,7 +102,7 @@ def with_tools(skel: Skeleton, tools: dict[str, dict[str, Any]]) -> Skeleton:
         side = name[0]
         hand = skel.site(f"{side}_hand")
         grip = np.asarray(tool.get("grip", (0.0, 0.0, 0.0)), float)
-        tip = np.asarray(hand.offset) + hand_to_joint(np.asarray(tool["tip"], float) - grip, side)
+        tip = np.asarray(hand.offset) + hand_to_joint(tool_tip(tool) - grip, side)
         sites.append(Site(name, hand.joint, tuple(float(c) for c in tip), "effector"))
     return dataclasses.replace(skel, sites=tuple(sites))
 
@@ -107,7 +113,7 @@ def held_spans(ir: MotionIR) -> list[tuple[str, dict[str, Any], float, float]]:
     spans: dict[str, list[Any]] = {}
     for seg in ir.segments:
         tool, side = seg.goal.params.get("tool"), seg.goal.effector[:1]
-        if not isinstance(tool, dict) or "tip" not in tool or side not in ("r", "l"):
+        if not isinstance(tool, dict) or side not in ("r", "l"):
             continue
         span = spans.setdefault(tool_site(f"{side}_hand", tool), [tool, seg.start, seg.end])
         span[1], span[2] = min(span[1], seg.start), max(span[2], seg.end)

@@ -7,12 +7,14 @@ wrong has type UNKNOWN, which is accepted everywhere so that one mistake gives o
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from mtlc.diagnostics import DiagnosticSink, Label, Span
 from mtlc.diagnostics.suggest import did_you_mean, suggest
 from mtlc.semantics import builtins as B
 from mtlc.semantics import types as T
+from mtlc.semantics import values as V
 from mtlc.semantics.mtm import other_codes
 from mtlc.semantics.scopes import Scope, Symbol
 from mtlc.syntax import ast
@@ -28,6 +30,17 @@ TASK_SETTINGS = (ast.ManikinSetting, ast.SceneSetting, ast.ToolSetting, ast.Budg
 POSITION = T.VectorType(T.LENGTH_DIM)
 DIRECTION = T.VectorType(T.NONE_DIM)
 ORIENTATION = T.VectorType(T.ANGLE_DIM)
+TOOL_RANGES = {
+    "length": V.TOOL_LENGTH,
+    "mass": V.TOOL_MASS,
+    "grip": V.TOOL_POINT,
+    "tip": V.TOOL_POINT,
+    "axis": V.TOOL_AXIS,
+}
+INT_HELP = "whole numbers count things (repeats, turns, knees): write a smaller one"
+REPEAT_COUNT = V.Range(
+    "a repeat count", "", 0, None, help="repeat a block 0 or more times; 0 runs nothing"
+)
 
 
 @dataclass
@@ -73,7 +86,7 @@ class Checker:
     def check_scene(self, scene: ast.Scene, scope: Scope) -> None:
         env = Env(scope, "scene")
         if scene.ground is not None:
-            self.expect(scene.ground, T.LENGTH, env)
+            self.expect_in(scene.ground, T.LENGTH, env, V.GROUND)
         seen: dict[str, ast.SiteDecl] = {}
         for site in scene.sites:
             if site.name in seen:
@@ -84,17 +97,12 @@ class Checker:
                     labels=(Label(seen[site.name].name_span, "first defined here"),),
                 )
             seen.setdefault(site.name, site)
-            self.expect_vector(site.position, POSITION, env, "a site's position")
+            self.expect_vector_in(site.position, POSITION, env, "a site's position", V.POSITION)
             if site.normal is not None:
-                self.expect_vector(site.normal, DIRECTION, env, "a normal")
-                if isinstance(site.normal, ast.Vector) and all(
-                    isinstance(i, ast.Number) and i.value == 0 for i in site.normal.items
-                ):
-                    self.sink.report(
-                        "MT0309", "a normal cannot be the zero vector", site.normal.span
-                    )
+                self.expect_vector_in(site.normal, DIRECTION, env, "a normal", V.NORMAL)
             if site.frame is not None:
-                self.expect_vector(site.frame, ORIENTATION, env, "a frame (X, Y, Z rotations)")
+                what = "a frame (X, Y, Z rotations)"
+                self.expect_vector_in(site.frame, ORIENTATION, env, what, V.FRAME)
 
     def check_tool(self, tool: ast.ToolDecl, scope: Scope) -> None:
         env = Env(scope, "tool")
@@ -112,10 +120,12 @@ class Checker:
             if prop.name in seen:
                 self.sink.report("MT0210", f"`{prop.name}` is given twice", prop.span)
             seen.add(prop.name)
+            rule = TOOL_RANGES.get(prop.name)
             if isinstance(expected, T.VectorType):
-                self.expect_vector(prop.value, expected, env, f"a tool's {prop.name} point")
+                what = "axis" if prop.name == "axis" else f"{prop.name} point"
+                self.expect_vector_in(prop.value, expected, env, f"a tool's {what}", rule)
             else:
-                self.expect(prop.value, expected, env)
+                self.expect_in(prop.value, expected, env, rule)
 
     def _params(self, params: tuple[ast.Param, ...], scope: Scope) -> dict[str, T.Type]:
         out: dict[str, T.Type] = {}
@@ -139,7 +149,7 @@ class Checker:
                 )
                 continue
             if p.default is not None:
-                self.expect(p.default, ptype, Env(scope, "default"))
+                self.expect_in(p.default, ptype, Env(scope, "default"), V.for_type(ptype))
             elif any(q.default is not None for q in params[: params.index(p)]):
                 self.sink.report(
                     "MT0313",
@@ -231,7 +241,7 @@ class Checker:
             case ast.Parallel(body=body):
                 self.check_block(body, env)
             case ast.Repeat(count=count, body=body):
-                self.expect(count, T.INT, env)
+                self.expect_in(count, T.INT, env, REPEAT_COUNT)
                 self.check_block(body, env)
             case ast.ForEach():
                 self.check_for(stmt, env)
@@ -243,9 +253,9 @@ class Checker:
                 self.expect(stmt.effector, T.HAND, env)
                 self.expect(stmt.target, T.SITE, env)
                 if stmt.approach is not None:
-                    self.expect(stmt.approach, T.LENGTH, env)
+                    self.expect_in(stmt.approach, T.LENGTH, env, V.APPROACH)
                 if stmt.offset is not None:
-                    self.expect_vector(stmt.offset, POSITION, env, "an offset")
+                    self.expect_vector_in(stmt.offset, POSITION, env, "an offset", V.OFFSET)
                 self.check_over(stmt.over, env)
             case ast.Posture():
                 sig = B.POSTURES.get(stmt.kind)
@@ -257,13 +267,17 @@ class Checker:
                         help=suggest(stmt.kind, B.POSTURES, "postures"),
                     )
                 else:
-                    self.check_args(sig.name, _builtin_params(sig), stmt.args, stmt.span, env)
+                    ranges = {n: r for (k, n), r in V.POSTURE_ARGS.items() if k == sig.name}
+                    self.check_args(
+                        sig.name, _builtin_params(sig), stmt.args, stmt.span, env, ranges
+                    )
                 self.check_over(stmt.over, env)
             case ast.Walk():
                 if stmt.mode == "to":
                     self.expect(stmt.target, T.SITE, env)
                 else:
-                    self.expect_vector(stmt.target, POSITION, env, "a displacement")
+                    what = "a displacement"
+                    self.expect_vector_in(stmt.target, POSITION, env, what, V.DISPLACEMENT)
                 if stmt.facing is not None:
                     self.expect(stmt.facing, T.SITE, env)
                 self.check_over(stmt.over, env)
@@ -293,7 +307,7 @@ class Checker:
             case ast.ToolSetting(tool=tool):
                 self.expect(tool, T.TOOL, env)
             case ast.BudgetSetting(limit=limit):
-                self.expect(limit, T.DURATION, env)
+                self.expect_in(limit, T.DURATION, env, V.BUDGET)
 
     def check_over(self, over: ast.Expr | None, env: Env) -> None:
         if over is not None:
@@ -424,7 +438,10 @@ class Checker:
         args: tuple[ast.Arg, ...],
         call_span: Span,
         env: Env,
+        ranges: dict[str, V.Range] | None = None,
     ) -> None:
+        """Match the arguments to the parameters and check each one's type, and its range when
+        it is a constant (``ranges`` by parameter name, else by the parameter's type)."""
         given: dict[str, ast.Arg] = {}
         names = [p[0] for p in params]
         types = {p[0]: p[1] for p in params}
@@ -475,7 +492,8 @@ class Checker:
                 )
                 continue
             given[pname] = arg
-            self.expect(arg.value, types[pname], env)
+            rule = (ranges or {}).get(pname) or V.for_type(types[pname])
+            self.expect_in(arg.value, types[pname], env, rule)
         missing = [n for n, _, required in params if required and n not in given]
         if missing and not misplaced:
             listed = ", ".join(f"`{m}`" for m in missing)
@@ -513,11 +531,34 @@ class Checker:
         actual = self.infer(expr, env, T.DURATION)
         if actual not in (T.TIMING, T.UNKNOWN) and not T.is_assignable(actual, T.DURATION):
             self.mismatch(expr, actual, T.DURATION)
+        elif actual == T.DURATION:
+            self.check_range(expr, V.DURATION)
 
-    def expect_vector(self, expr: ast.Expr, expected: T.VectorType, env: Env, what: str) -> None:
+    def expect_in(self, expr: ast.Expr, expected: T.Type, env: Env, rule: V.Range | None) -> T.Type:
+        """``expect``, then, for a constant of the right type, its range (MT0309)."""
+        actual = self.expect(expr, expected, env)
+        if rule is not None and actual != T.UNKNOWN and T.is_assignable(actual, expected):
+            self.check_range(expr, rule)
+        return actual
+
+    def expect_vector_in(
+        self, expr: ast.Expr, expected: T.VectorType, env: Env, what: str, rule: V.Range | None
+    ) -> None:
+        if self.expect_vector(expr, expected, env, what) and rule is not None:
+            self.check_range(expr, rule)
+
+    def check_range(self, expr: ast.Expr, rule: V.Range) -> None:
+        """A constant value out of its range is MT0309, at the value; one that names something
+        (a parameter) is checked when the task is expanded."""
+        problem = V.problem(rule, V.fold(expr))
+        if problem is not None:
+            self.sink.report("MT0309", problem, expr.span, help=rule.help)
+
+    def expect_vector(self, expr: ast.Expr, expected: T.VectorType, env: Env, what: str) -> bool:
+        """Whether ``expr`` is a vector of the expected kind and size (reported if not)."""
         actual = self.infer(expr, env, expected)
         if actual == T.UNKNOWN:
-            return
+            return False
         if not isinstance(actual, T.VectorType):
             self.sink.report("MT0301", f"{what} is a vector (x, y, z), found {actual}", expr.span)
         elif actual.dim != expected.dim:
@@ -535,13 +576,28 @@ class Checker:
             self.sink.report(
                 "MT0309", f"{what} has {expected.size} components, not {actual.size}", expr.span
             )
+        else:
+            return True
+        return False
 
     def infer(self, expr: ast.Expr, env: Env, expected: T.Type | None = None) -> T.Type:
         match expr:
             case ast.Number(unit=None, is_int=is_int):
+                if is_int and (problem := V.int_problem(int(expr.value))):
+                    self.sink.report("MT0309", problem, expr.span, help=INT_HELP)
+                    return T.UNKNOWN
                 return T.INT if is_int else T.NUMBER
             case ast.Number(unit=unit):
-                return self.unit_type(unit, expr.unit_span or expr.span, expected)[0]
+                utype, factor = self.unit_type(unit, expr.unit_span or expr.span, expected)
+                if utype != T.UNKNOWN and not math.isfinite(expr.value * factor):
+                    self.sink.report(
+                        "MT0309",
+                        f"`{expr.value:g} {unit}` is too large: it is not a finite number",
+                        expr.span,
+                        help="use a larger unit or a smaller number",
+                    )
+                    return T.UNKNOWN
+                return utype
             case ast.String():
                 return T.STRING
             case ast.Name(name=name):
@@ -719,7 +775,8 @@ class Checker:
                 help=suggest(func.name, B.MTM_FUNCTIONS, "functions"),
             )
             return T.UNKNOWN
-        self.check_args(f"mtm.{sig.name}", _builtin_params(sig), expr.args, expr.span, env)
+        ranges = {n: r for (f, n), r in V.MTM_ARGS.items() if f == sig.name}
+        self.check_args(f"mtm.{sig.name}", _builtin_params(sig), expr.args, expr.span, env, ranges)
         if sig.name == "code":
             for a in expr.args:
                 if isinstance(a.value, ast.String) and a.value.value not in other_codes():

@@ -18,7 +18,8 @@ from mtlc.diagnostics import DiagnosticSink, Label, Span
 from mtlc.semantics import builtins as B
 from mtlc.semantics import mtm, turning
 from mtlc.semantics import types as T
-from mtlc.semantics.check import check_manikin
+from mtlc.semantics import values as V
+from mtlc.semantics.check import TOOL_RANGES, check_manikin
 from mtlc.semantics.scopes import Scope, Symbol
 from mtlc.semantics.timeline import ManikinSpec, Primitive, Site, Timeline, Tool
 from mtlc.syntax import ast
@@ -40,10 +41,13 @@ class Timing:
 
 
 class _BudgetExceeded(Exception):
-    def __init__(self, span: Span, needed: int | None, idle: int = 0) -> None:
+    def __init__(
+        self, span: Span, needed: int | None, idle: int = 0, help: str | None = None
+    ) -> None:
         self.span = span
         self.needed = needed
         self.idle = idle  # rounds of `for` that produced no primitive, counted in the budget
+        self.help = help
 
 
 class _Abort(Exception):
@@ -113,6 +117,7 @@ class Expander:
                     self.tool = self.eval(stmt.tool, env)
                 elif isinstance(stmt, ast.BudgetSetting):
                     budget, budget_span = self.eval(stmt.limit, env), stmt.span
+                    self.check(V.BUDGET, budget, env, stmt.limit)
             self.root = (0.0, ground, 0.0)
             timeline = Timeline(
                 task=task.name,
@@ -141,7 +146,7 @@ class Expander:
                 "MT0401",
                 f"task `{task.name}` expands into more than {self.budget:,} {what}{needed}",
                 exc.span,
-                help=f"{help_}, or raise the limit with --expansion-budget",
+                help=exc.help or f"{help_}, or raise the limit with --expansion-budget",
             )
             return None
         except _Abort:
@@ -165,6 +170,13 @@ class Expander:
         self.sink.report(code, message, where, help=help, labels=labels)
         raise _Abort
 
+    def check(self, rule: V.Range, value: Any, env: _Env, at: ast.Node) -> None:
+        """A value out of its range (docs/language.md, "Limits") is MT0309, at the line of the
+        task that led to it, with the place it was written as a label."""
+        problem = V.problem(rule, value)
+        if problem is not None:
+            self.fail("MT0309", problem, env, at, help=rule.help)
+
     def _scene_scope(self, sym: Symbol) -> Scope:
         return self.scopes[id(sym.module)]
 
@@ -173,7 +185,10 @@ class Expander:
         assert isinstance(scene, ast.Scene)
         if scene.ground is None:
             return 0.0
-        return float(self.eval(scene.ground, _Env(self._scene_scope(sym), {}, ())))
+        env = _Env(self._scene_scope(sym), {}, ())
+        ground = float(self.eval(scene.ground, env))
+        self.check(V.GROUND, ground, env, scene.ground)
+        return ground
 
     def _scene_sites(self, sym: Symbol) -> dict[str, Site]:
         """A scene's sites, evaluated once, in the scope of the module that declares the scene."""
@@ -187,13 +202,13 @@ class Expander:
             if site.name in sites:
                 continue
             position = self.site_overrides.get(site.name) or self.eval(site.position, env)
+            self.check(V.POSITION, tuple(position), env, site.position)
             normal = self.eval(site.normal, env) if site.normal is not None else None
+            if site.normal is not None:
+                self.check(V.NORMAL, normal, env, site.normal)
             frame = self.eval(site.frame, env) if site.frame is not None else None
-            if not all(math.isfinite(c) for c in (*position, *(normal or ()), *(frame or ()))):
-                self.sink.report(
-                    "MT0309", f"site `{site.name}` is not at a finite place", site.span
-                )
-                raise _Abort
+            if site.frame is not None:
+                self.check(V.FRAME, frame, env, site.frame)
             if normal is not None:
                 norm = math.hypot(*normal)
                 normal = tuple(c / norm for c in normal) if norm > 0 else None
@@ -279,7 +294,13 @@ class Expander:
     def repeat(self, stmt: ast.Repeat, env: _Env, t: float) -> float:
         n = self.eval(stmt.count, env)
         if n < 0:
-            self.fail("MT0309", f"cannot repeat a negative number of times ({n})", env, stmt.count)
+            self.fail(
+                "MT0309",
+                f"cannot repeat a negative number of times ({n})",
+                env,
+                stmt.count,
+                help="repeat a block 0 or more times; 0 runs nothing",
+            )
         for i in range(n):
             before = self.count
             t = self.block(stmt.body, env, t)
@@ -298,9 +319,13 @@ class Expander:
         callee_scope = self.scopes[id(sym.module)]
         bound: dict[str, Any] = {}
         params = list(decl.params)
+        types = {p.name: T.TYPE_NAMES.get(p.type_name) for p in params}
         for i, arg in enumerate(call.args):
             name = arg.name if arg.name is not None else params[i].name
             bound[name] = self.eval(arg.value, env)
+            rule = V.for_type(types[name]) if types[name] is not None else None
+            if rule is not None:  # a parameter passed on: checked where it is written
+                self.check(rule, bound[name], env, arg.value)
         for p in params:
             if p.name not in bound and p.default is not None:
                 bound[p.name] = self.eval(p.default, _Env(callee_scope, {}, env.trace))
@@ -357,14 +382,14 @@ class Expander:
         hands = HANDS[self.eval(stmt.effector, env)]
         site: Site = self.eval(stmt.target, env)
         offset = self.eval(stmt.offset, env) if stmt.offset is not None else (0.0, 0.0, 0.0)
+        if stmt.offset is not None:
+            self.check(V.OFFSET, offset, env, stmt.offset)
         target = tuple(p + o for p, o in zip(site.position, offset, strict=True))
         approach = (
             self.eval(stmt.approach, env) if stmt.approach is not None else DEFAULT_APPROACH_M
         )
-        if not (math.isfinite(approach) and approach >= 0):
-            self.fail(
-                "MT0309", f"an approach distance cannot be negative ({approach:g} m)", env, stmt
-            )
+        if stmt.approach is not None:
+            self.check(V.APPROACH, approach, env, stmt.approach)
         distance = max(_dist(self._hand(h), target) for h in hands)
         d = self.duration(timing, Timing("reach", {"case": "B"}), stmt, env, distance)
         if approach == 0:
@@ -394,12 +419,14 @@ class Expander:
     def posture_goal(self, stmt: ast.Posture, env: _Env, t: float, timing: Any) -> float:
         sig = B.POSTURES[stmt.kind]
         values: dict[str, Any] = {p.name: p.default for p in sig.params}
+        written: dict[str, ast.Node] = {}
         for i, arg in enumerate(stmt.args):
-            values[arg.name or sig.params[i].name] = self.eval(arg.value, env)
+            name = arg.name or sig.params[i].name
+            values[name], written[name] = self.eval(arg.value, env), arg.value
         kind = stmt.kind
-        problem = _posture_problem(kind, values)
-        if problem:
-            self.fail("MT0309", problem, env, stmt)
+        for (posture, name), rule in V.POSTURE_ARGS.items():
+            if posture == kind:  # the ranges a body can take
+                self.check(rule, values[name], env, written.get(name, stmt))
         if kind == "twist":
             return self.twist(stmt, env, t, timing, values)
         if kind == "stand" and self.posture == "stand" and timing is None:
@@ -438,9 +465,20 @@ class Expander:
         else:
             load = float(values["load"]) + _tool_mass(tool)
         arc = tool is not None and tool.properties.get("kind") in B.ARC_TOOL_KINDS
-        strokes = _strokes(values["angle"], values["swing"] if arc else math.pi / 2)
+        stroke = values["swing"] if arc else math.pi / 2
         if tool is None and values["tool"] == "none" and abs(values["angle"]) <= math.pi:
             strokes = [values["angle"]]  # a plain twist, as written
+        else:  # counted before they are built: `turns: 1000000000` fails fast, in no memory
+            hands = len(HANDS[values["hand"]])
+            needed = self.count + _stroke_count(values["angle"], stroke) * hands
+            if needed > self.budget:
+                raise _BudgetExceeded(
+                    _user_line(env, stmt),
+                    needed,
+                    help="lower the turns (or widen the swing), or raise the limit with "
+                    "--expansion-budget",
+                )
+            strokes = _strokes(values["angle"], stroke)
         stated = None if timing is None else self.duration(timing, None, stmt, env)
         for h in HANDS[values["hand"]]:
             fastener = self._hold_tool(h, tool, arc, stmt, env)
@@ -495,7 +533,9 @@ class Expander:
             goal = (site.position[0], y, site.position[2])
             name = site.name
         else:
-            dx, _, dz = self.eval(stmt.target, env)
+            displacement = self.eval(stmt.target, env)
+            self.check(V.DISPLACEMENT, displacement, env, stmt.target)
+            dx, _, dz = displacement
             goal, name = (x + dx, y, z + dz), None
         facing = self.eval(stmt.facing, env) if stmt.facing is not None else None
         distance = _dist(self.root, goal)
@@ -533,10 +573,7 @@ class Expander:
         else:
             assert isinstance(rule, Timing), rule
             seconds = self._mtm_tmu(rule, stmt, env, distance) * T.TMU_SECONDS
-        if not (math.isfinite(seconds) and seconds >= 0):
-            self.fail(
-                "MT0309", f"a duration must be finite and not negative ({seconds:g} s)", env, stmt
-            )
+        self.check(V.DURATION, seconds, env, stmt)
         return seconds
 
     def _mtm_tmu(self, rule: Timing, stmt: ast.Stmt, env: _Env, distance: float) -> float:
@@ -593,7 +630,7 @@ class Expander:
             case ast.Number(unit=None, value=v):
                 return v
             case ast.Number(unit=unit, value=v):
-                return v * T.UNITS[unit][1]
+                return self._computed(v * T.UNITS[unit][1], env, expr)
             case ast.String(value=v):
                 return v
             case ast.Name(name=name):
@@ -637,41 +674,57 @@ class Expander:
                 sig = B.MTM_FUNCTIONS[fname]
                 values = {p.name: p.default for p in sig.params}
                 for i, arg in enumerate(args):
-                    values[arg.name or sig.params[i].name] = self.eval(arg.value, env)
+                    name = arg.name or sig.params[i].name
+                    values[name] = self.eval(arg.value, env)
+                    rule = V.MTM_ARGS.get((fname, name))
+                    if rule is not None:
+                        self.check(rule, values[name], env, arg.value)
                 return Timing(fname, values)
             case ast.Unary(operand=operand):
                 v = self.eval(operand, env)
                 return tuple(-c for c in v) if isinstance(v, tuple) else -v
             case ast.Binary(op=op, left=left, right=right):
-                return self._arith(op, self.eval(left, env), self.eval(right, env), expr)
+                return self._arith(op, self.eval(left, env), self.eval(right, env), expr, env)
             case ast.Vector(items=items, unit=unit):
                 factor = T.UNITS[unit][1] if unit is not None else 1.0
-                return tuple(float(self.eval(i, env)) * factor for i in items)
+                value = tuple(float(self.eval(i, env)) * factor for i in items)
+                return self._computed(value, env, expr)
             case ast.ListExpr(items=items):
                 return [self.eval(i, env) for i in items]
         raise AssertionError(f"cannot evaluate {expr!r}")
 
     def _tool(self, decl: ast.ToolDecl, env: _Env) -> Tool:
-        return Tool(decl.name, {p.name: self.eval(p.value, env) for p in decl.properties})
+        properties = {}
+        for p in decl.properties:
+            properties[p.name] = self.eval(p.value, env)
+            rule = TOOL_RANGES.get(p.name)
+            if rule is not None:
+                self.check(rule, properties[p.name], env, p.value)
+        return Tool(decl.name, properties)
 
-    def _arith(self, op: str, a: Any, b: Any, expr: ast.Binary) -> Any:
-        if op in "+-":
-            sign = 1 if op == "+" else -1
-            if isinstance(a, tuple):
-                return tuple(x + sign * y for x, y in zip(a, b, strict=True))
-            return a + sign * b
-        if op == "*":
-            if isinstance(a, tuple):
-                return tuple(x * b for x in a)
-            if isinstance(b, tuple):
-                return tuple(a * y for y in b)
-            return a * b
-        if b == 0:
+    def _arith(self, op: str, a: Any, b: Any, expr: ast.Binary, env: _Env) -> Any:
+        try:
+            value = V.arith(op, a, b)
+        except ZeroDivisionError:
             self.sink.report("MT0403", "division by zero", expr.span)
-            raise _Abort
-        if isinstance(a, tuple):
-            return tuple(x / b for x in a)
-        return a / b
+            raise _Abort from None
+        except OverflowError:  # a whole number too large for a float
+            value = math.inf
+        return self._computed(value, env, expr)
+
+    def _computed(self, value: Any, env: _Env, expr: ast.Expr) -> Any:
+        """An arithmetic result, unless it overflowed (MT0309: no inf, NaN or huge whole number
+        goes on to the motion; a NaN would not even serialise as JSON)."""
+        if V.overflows(value):
+            self.fail(
+                "MT0309",
+                "this value is too large: its arithmetic overflows",
+                env,
+                expr,
+                help=f"keep numbers within the limits of docs/language.md (whole numbers up "
+                f"to {V.MAX_INT:.0e})",
+            )
+        return value
 
 
 def _load(timing: Any) -> dict[str, float]:
@@ -690,10 +743,16 @@ def _tool_dict(tool: Tool) -> dict[str, Any]:
     return {"name": tool.name, **tool.properties}
 
 
+def _stroke_count(angle: float, stroke: float) -> int:
+    """How many strokes of at most ``stroke`` turn ``angle`` (the angle and the stroke are
+    finite, the stroke more than 0: their ranges are checked before)."""
+    return max(1, math.ceil(abs(angle) / stroke - 1e-9))
+
+
 def _strokes(angle: float, stroke: float) -> list[float]:
     """``angle`` in strokes of at most ``stroke``, the last taking the rest: 1080 deg at 60 deg
     is 18 strokes."""
-    n = max(1, math.ceil(abs(angle) / stroke - 1e-9))
+    n = _stroke_count(angle, stroke)
     sign = 1.0 if angle >= 0 else -1.0
     out = [sign * stroke] * (n - 1)
     return [*out, angle - sign * stroke * (n - 1)]
@@ -745,21 +804,6 @@ def _tool_radius(tool: Tool) -> float:
     norm = math.hypot(*axis) or 1.0
     along = sum(c * a / norm for c, a in zip(d, axis, strict=True))
     return math.sqrt(max(0.0, sum(c * c for c in d) - along * along))
-
-
-def _posture_problem(kind: str, values: dict[str, Any]) -> str | None:
-    """What is wrong with a posture's arguments, if anything (ranges a body can take)."""
-    if kind == "twist" and not 0 < values["swing"] <= math.pi:
-        return (
-            f"a wrench's swing is between 0 and 180 deg, not {math.degrees(values['swing']):g} deg"
-        )
-    if kind == "kneel" and values["knees"] not in (1, 2):
-        return f"kneel on 1 or 2 knees, not {values['knees']}"
-    if kind == "squat" and not 0 <= values["depth"] <= 1.0:
-        return f"a squat's depth is between 0 and 1 m, not {values['depth']:g} m"
-    if kind == "bend" and not 0 <= values["angle"] <= math.radians(120):
-        return f"a bend is between 0 and 120 deg, not {math.degrees(values['angle']):g} deg"
-    return None
 
 
 def _part(effector: str) -> str:

@@ -9,8 +9,12 @@ modules are diagnostics.
 from __future__ import annotations
 
 import contextlib
+import errno
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.diagnostics.suggest import did_you_mean
@@ -45,21 +49,71 @@ def display_name(path: Path) -> str:
         return real.as_posix()
 
 
-def read_source(path: Path, display: str, sink: DiagnosticSink) -> str | None:
-    """The file's text, or None after reporting why it cannot be had."""
+class InputRefused(Exception):
+    """An input that is not read: a folder (MT0001), not a regular file (MT0004), too large
+    (MT0003). ``str(exc)`` is the message, ``help`` the fix."""
+
+    def __init__(self, code: str, message: str, help: str) -> None:
+        super().__init__(message)
+        self.code = code
+        self.help = help
+
+
+def read_input_bytes(path: Path | str, limit: int | None = None) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes (default MAX_FILE_BYTES);
+    InputRefused or OSError otherwise.
+
+    The file is opened without blocking (a FIFO with no writer would block the open), checked
+    with fstat on the open descriptor (no race with a rename), and read with a bound even if it
+    grows: `/dev/zero`, a pipe or a socket is refused before a byte is read.
+    """
+    limit = MAX_FILE_BYTES if limit is None else limit
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
     try:
-        size = path.stat().st_size
-        if size > MAX_FILE_BYTES:
-            sink.report(
-                "MT0003",
-                f"file is {size:,} bytes; mtlc reads at most {MAX_FILE_BYTES:,}",
-                Span.whole_file(display),
+        info = os.fstat(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise InputRefused(
+                "MT0001",
+                "cannot read file: it is a folder",
+                "pass the .mtask files inside it, for example `folder/*.mtask`",
             )
-            return None
-        data = path.read_bytes()
-    except OSError as err:
-        sink.report("MT0001", f"cannot read file: {err.strerror or err}", Span.whole_file(display))
+        if not stat.S_ISREG(info.st_mode):
+            raise InputRefused(
+                "MT0004",
+                f"not a regular file ({_file_kind(info.st_mode)}): mtlc reads only files",
+                "save the text to a file and pass that file's name",
+            )
+        if info.st_size > limit:
+            raise _too_large(info.st_size, limit)
+        with os.fdopen(fd, "rb", buffering=0, closefd=False) as f:
+            data = _read_at_most(f, limit + 1)
+        if len(data) > limit:  # it grew while it was read
+            raise _too_large(None, limit)
+        return data
+    finally:
+        os.close(fd)
+
+
+def read_source(path: Path, display: str, sink: DiagnosticSink) -> str | None:
+    """The file's text, or None after reporting why it cannot be had (MT0001-MT0004)."""
+    try:
+        data = read_input_bytes(path)
+    except InputRefused as exc:
+        sink.report(exc.code, str(exc), Span.whole_file(display), help=exc.help)
         return None
+    except OSError as err:
+        sink.report(
+            "MT0001",
+            f"cannot read file: {err.strerror or err}",
+            Span.whole_file(display),
+            help=_unreadable_help(err),
+        )
+        return None
+    return decode_source(data, display, sink)
+
+
+def decode_source(data: bytes, display: str, sink: DiagnosticSink) -> str | None:
+    """A file's bytes as text (a UTF-8 byte-order mark dropped), or None after MT0002."""
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as err:
@@ -74,6 +128,81 @@ def read_source(path: Path, display: str, sink: DiagnosticSink) -> str | None:
         )
         return None
     return text.removeprefix("\ufeff")
+
+
+def _read_at_most(f: BinaryIO, limit: int) -> bytes:
+    chunks: list[bytes] = []
+    size = 0
+    while size < limit:
+        chunk = f.read(min(1 << 20, limit - size))
+        if not chunk:
+            break
+        chunks.append(chunk)
+        size += len(chunk)
+    return b"".join(chunks)
+
+
+def read_bounded_stream(stream: BinaryIO, display: str, sink: DiagnosticSink) -> bytes | None:
+    """At most MAX_FILE_BYTES of a stream (standard input), or None after MT0003."""
+    data = _read_at_most(stream, MAX_FILE_BYTES + 1)
+    if len(data) > MAX_FILE_BYTES:
+        exc = _too_large(None, MAX_FILE_BYTES)
+        sink.report(exc.code, str(exc), Span.whole_file(display), help=exc.help)
+        return None
+    return data
+
+
+def _too_large(size: int | None, limit: int) -> InputRefused:
+    what = f"file is {size:,} bytes" if size is not None else "file is larger than the limit"
+    return InputRefused(
+        "MT0003",
+        f"{what}; mtlc reads at most {limit:,}",
+        "check that this is the right file; split a large procedure into modules joined with `use`",
+    )
+
+
+def _file_kind(mode: int) -> str:
+    if stat.S_ISFIFO(mode):
+        return "a pipe"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "a special file"
+
+
+def _unreadable_help(err: OSError) -> str | None:
+    if err.errno == errno.ENOENT:
+        return "check the path and the current folder"
+    if err.errno in (errno.EACCES, errno.EPERM):
+        return "make the file readable"
+    if err.errno == errno.ENAMETOOLONG:
+        return "use a shorter path"
+    return None
+
+
+_PARSED: dict[tuple[str, str], ast.Module] = {}  # (file name, text) -> its clean parse
+_PARSED_MAX = 16
+
+
+def _parse(text: str, display: str, sink: DiagnosticSink) -> ast.Module:
+    """``parse_module``, remembering the last few files that parse without a diagnostic: the
+    standard library is read by almost every program, and a tree is immutable, so programs
+    (a server's recompiles, a test suite, a fuzzer) can share it. Keyed by the text itself."""
+    key = (display, text)
+    tree = _PARSED.get(key)
+    if tree is not None:
+        return tree
+    local = DiagnosticSink()
+    tree = parse_module(text, display, local)
+    sink.items.extend(local.items)
+    if not local.items:
+        if len(_PARSED) >= _PARSED_MAX:
+            _PARSED.pop(next(iter(_PARSED)))
+        _PARSED[key] = tree
+    return tree
 
 
 class ModuleLoader:
@@ -100,7 +229,7 @@ class ModuleLoader:
             )  # fmt: skip
         else:
             self.sources[display] = text
-            tree = parse_module(text, display, self.sink)
+            tree = _parse(text, display, self.sink)
         module = LoadedModule(display, real, tree, is_stdlib=is_stdlib)
         self.modules[real] = module
         self._loading.append(real)
@@ -156,8 +285,21 @@ class ModuleLoader:
         relpath = Path(*rel[:-1], rel[-1] + ".mtask")
         for root in roots:
             candidate = root / relpath
-            if candidate.is_file():
-                real = candidate.resolve()
+            try:
+                found = candidate.is_file()
+                real = candidate.resolve() if found else candidate
+            except OSError as err:  # a name too long for the file system, a loop of links
+                self.sink.report(
+                    "MT0203",
+                    f"module `{_shortened(dotted)}` cannot be looked up: {err.strerror or err}",
+                    use.module_span,
+                    help="module names are file and folder names: keep each part under 255 "
+                    "bytes and the whole path short"
+                    if err.errno == errno.ENAMETOOLONG
+                    else f"searched in: {display_name(root)}",
+                )
+                return None
+            if found:
                 if not real.is_relative_to(root):
                     self.sink.report(
                         "MT0205",
@@ -177,8 +319,13 @@ class ModuleLoader:
         where = ", ".join(display_name(r) for r in roots)
         self.sink.report(
             "MT0203",
-            f"module `{dotted}` not found",
+            f"module `{_shortened(dotted)}` not found",
             use.module_span,
             help=did_you_mean(dotted, known) or f"searched in: {where}",
         )
         return None
+
+
+def _shortened(name: str, limit: int = 80) -> str:
+    """A name for a message: a very long one is cut in the middle."""
+    return name if len(name) <= limit else f"{name[: limit // 2]}…{name[-limit // 2 :]}"

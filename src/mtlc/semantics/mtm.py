@@ -103,6 +103,10 @@ def code_tmu(code: str) -> float:
 
 
 def walk_tmu(distance_m: float) -> float:
+    """W-P per started pace; an infinite distance takes infinite time (which the duration's
+    range check reports) instead of overflowing `ceil`."""
+    if not math.isfinite(distance_m):
+        return math.inf
     paces = math.ceil(max(0.0, distance_m) / PACE_LENGTH_M - 1e-9)
     return paces * code_tmu("W-P")
 

@@ -358,7 +358,12 @@ class AstBuilder(Transformer):
         except ValueError:  # the pattern only admits valid floats; keep the tree whole anyway
             value = 0.0
         if value == float("inf"):
-            self.sink.report("MT0309", "number is too large", self._sp(num))
+            self.sink.report(
+                "MT0309",
+                "number is too large",
+                self._sp(num),
+                help="a number must be finite: below 1.8e308",
+            )
             return ast.Error(span=self._sp(num))
         return ast.Number(
             span=self._join(num, unit if unit is not None else num),

@@ -1,0 +1,196 @@
+"""Every value is checked where it is written: finite, in range, with a code, a span and a help
+line (issue 17, section 3; docs/language.md, "Limits"). Nothing reaches MT0900."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tracemalloc
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mtlc.diagnostics import DiagnosticSink
+from mtlc.frontend import run_frontend
+from mtlc.semantics import mtm
+from mtlc.semantics import values as V
+from mtlc.semantics.timeline import ManikinSpec
+
+HEADER = "use stdlib.actions\nuse stdlib.elements\n"
+SCENE = "scene s {\n    site a at (0, 100, 50) cm normal (0, 0, -1)\n}\n"
+
+
+def _run(tmp_path: Path, text: str):  # type: ignore[no-untyped-def]
+    path = tmp_path / "main.mtask"
+    path.write_text(text, encoding="utf-8")
+    return run_frontend([path])
+
+
+def _found(tmp_path: Path, text: str) -> list[tuple[str, int, int]]:
+    return [(d.code, d.span.line, d.span.column) for d in _run(tmp_path, text).diagnostics]
+
+
+def _task(body: str, extra: str = "") -> str:
+    return f"{HEADER}{SCENE}{extra}task t {{\n    scene s\n{body}}}\n"
+
+
+# (what, text, line, column of the value): constants are reported where they are written
+CONSTANTS = [
+    ("ground inf", "scene g {\n    ground 1e308 m * 10\n}\n", 2, 12),
+    ("zero normal", "scene g {\n    site p at (0, 1, 0) m normal (0, 0, 0) * 2\n}\n", 2, 34),
+    ("far site", "scene g {\n    site p at (1e300, 0, 0) m\n}\n", 2, 15),
+    ("frame", "scene g {\n    site p at (0, 1, 0) m frame (0, 720, 0) deg\n}\n", 2, 33),
+    ("tool mass", "tool w {\n    mass -0.5 kg\n}\n", 2, 10),
+    ("tool length", "tool w {\n    length 1e308 m * 10\n}\n", 2, 12),
+    ("tool axis", "tool w {\n    axis (0, 0, 0)\n}\n", 2, 10),
+    ("tool tip", "tool w {\n    tip (0, 1e9, 0) m\n}\n", 2, 9),
+    ("budget", _task("    budget -5 min\n    inspect(a)\n"), 8, 12),
+    ("zero budget", _task("    budget 0 s\n    inspect(a)\n"), 8, 12),
+    ("budget inf", _task("    budget 1e308 min\n    inspect(a)\n"), 8, 12),
+    ("load", _task("    unscrew(right, a, load: -1 kg)\n"), 8, 29),
+    ("duration", _task("    inspect(a, -3 s)\n"), 8, 16),
+    ("offset", "element e(x: Site) {\n    goal right at x offset (1e308, 0, 0) m * 10\n}\n", 2, 28),
+    (
+        "walk by nan",
+        "element e() {\n    walk by (1e308, 0, 0) m * 10 - (1e308, 0, 0) m * 10\n}\n",
+        2,
+        13,
+    ),
+    ("walk by far", "element e() {\n    walk by (0, 0, 1e6) m\n}\n", 2, 13),
+    ("twist load", "element e() {\n    posture twist(right, 90 deg, load: -3 kg)\n}\n", 2, 40),
+    (
+        "move load",
+        "element e(x: Site) {\n    goal right at x\n    time mtm.move(load: -2 kg)\n}\n",
+        3,
+        25,
+    ),
+    ("fixed tmu", "element e() {\n    still over mtm.fixed(-1)\n}\n", 2, 26),
+    ("over", "element e() {\n    still over -2 s\n}\n", 2, 16),
+    ("bend", "element e() {\n    posture bend(angle: 200 deg)\n}\n", 2, 25),
+    ("repeat", _task("    repeat -1 {\n        inspect(a)\n    }\n"), 8, 12),
+    ("default", "element e(m: Mass = -1 kg) {\n    still over 1 s\n}\n", 1, 21),
+    ("huge int", _task("    unscrew(right, a, turns: 99999999999999999999)\n"), 8, 30),
+    ("unit overflow", _task("    inspect(a, 1e307 min)\n"), 8, 16),
+]
+
+
+@pytest.mark.parametrize(
+    ("what", "text", "line", "column"), CONSTANTS, ids=[c[0] for c in CONSTANTS]
+)
+def test_a_constant_out_of_range_is_mt0309_where_it_is_written(
+    tmp_path: Path, what: str, text: str, line: int, column: int
+) -> None:
+    program = _run(tmp_path, text)
+    assert [(d.code, d.span.line, d.span.column) for d in program.diagnostics] == [
+        ("MT0309", line, column)
+    ], what
+    assert program.diagnostics[0].help, what
+
+
+def test_values_in_range_are_accepted(tmp_path: Path) -> None:
+    extra = "tool w {\n    mass 0 kg\n    length 10 m\n    axis (0, 1e-6, 0)\n}\n"
+    body = "    budget 24 * 60 min\n    unscrew(right, a, turns: 0, load: 1000 kg, tool: w)\n"
+    assert _found(tmp_path, _task(body, extra)) == []
+
+
+def test_a_value_through_a_parameter_is_reported_at_the_users_line(tmp_path: Path) -> None:
+    extra = "action hold_it(m: Mass) {\n    turn(right, 90 deg, m - 2 kg)\n}\n"
+    program = _run(tmp_path, _task("    hold_it(1 kg)\n", extra))
+    (diag,) = program.diagnostics
+    assert (diag.code, diag.span.line, diag.span.column) == ("MT0309", 11, 5)
+    assert "-1 kg" in diag.message and diag.help
+    assert [label.message for label in diag.labels] == ["from here"]
+
+
+@pytest.mark.parametrize(
+    ("param", "arg", "use"),
+    [
+        ("n: Int", "1000000000000000", "    repeat n * n {\n        look(x)\n    }\n"),
+        ("d: Duration", "1e300 s", "    still over d * 1e300\n"),
+        ("l: Length", "1 m", "    walk by (l, 0 m, 0 m) / 1e-320\n"),
+        ("v: Number", "1e308", "    still over 1 s * (v + v)\n"),
+    ],
+)
+def test_arithmetic_that_overflows_while_expanding_is_mt0309(
+    tmp_path: Path, param: str, arg: str, use: str
+) -> None:
+    extra = f"element big(x: Site, {param}) {{\n{use}}}\n"
+    codes = [code for code, *_ in _found(tmp_path, _task(f"    big(a, {arg})\n", extra))]
+    assert codes == ["MT0309"]
+
+
+def test_a_billion_turns_is_the_expansion_budget_fast_and_small(tmp_path: Path) -> None:
+    """The strokes were built before the budget was checked: MemoryError (issue 17)."""
+    tracemalloc.start()
+    try:
+        program = _run(tmp_path, _task("    unscrew(right, a, turns: 1000000000)\n"))
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    (diag,) = program.diagnostics
+    assert (diag.code, diag.span.line) == ("MT0401", 8)
+    assert "4,000,000,00" in diag.message and "turns" in (diag.help or "")
+    assert peak < 50_000_000
+
+
+def test_a_huge_twist_angle_is_the_expansion_budget_not_an_overflow(tmp_path: Path) -> None:
+    extra = "element spin(a: Angle) {\n    posture twist(right, a, swing: 1e-300 deg)\n}\n"
+    body = "    reach(right, a)\n    spin(1e300 deg)\n"
+    codes = [code for code, *_ in _found(tmp_path, _task(body, extra))]
+    assert codes == ["MT0401"]
+
+
+def test_walk_time_of_an_infinite_distance_does_not_overflow() -> None:
+    assert mtm.walk_tmu(math.inf) == math.inf
+
+
+def test_a_tool_without_a_tip_works_at_its_grip(tmp_path: Path) -> None:
+    """KeyError in the skeleton's site lookup before (issue 17)."""
+    from mtlc.passes import run_motion
+
+    extra = 'tool w {\n    kind "wrench"\n    mass 0.1 kg\n}\n'
+    program = _run(tmp_path, _task("    unscrew(right, a, turns: 1, tool: w)\n", extra))
+    assert program.diagnostics == []
+    (timeline,) = program.timelines
+    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "male", 50))
+    ir = run_motion(timeline, DiagnosticSink(), until="tool")
+    reach = [s for s in ir.segments if s.kind == "TO" and "stroke" not in s.goal.params]
+    assert reach and all(s.goal.effector == "r_tool_w" for s in reach)
+
+
+def test_problem_names_the_range() -> None:
+    assert V.problem(V.LOAD, -1.0) == "a load must be between 0 kg and 1,000 kg, not -1 kg"
+    assert V.problem(V.BUDGET, 0.0) is not None and "more than 0 s" in V.problem(V.BUDGET, 0.0)
+    assert V.problem(V.NORMAL, (0.0, 0.0, 1e-300)) == "a normal cannot be the zero vector"
+    assert V.problem(V.POSITION, (0.0, math.nan, 0.0)) is not None
+    assert V.problem(V.LOAD, 0.5) is None
+
+
+_SLOTS = [
+    ("    inspect(a, {v} s)\n", V.DURATION, 1.0),
+    ("    unscrew(right, a, turns: 1, load: {v} kg)\n", V.MASS, 1.0),
+    ("    budget {v} min\n    inspect(a)\n", V.BUDGET, 60.0),
+]
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    slot=st.sampled_from(_SLOTS),
+    value=st.floats(allow_nan=False, allow_infinity=False, width=64),
+)
+def test_any_written_number_is_accepted_or_mt0309_and_the_timeline_is_finite(
+    tmp_path: Path, slot: tuple[str, V.Range, float], value: float
+) -> None:
+    template, rule, factor = slot
+    program = _run(tmp_path, _task(template.format(v=repr(value))))
+    codes = [d.code for d in program.diagnostics if d.severity == "error"]
+    in_range = V.problem(rule, value * factor) is None
+    assert codes == ([] if in_range else ["MT0309"]), (value, program.diagnostics)
+    for timeline in program.timelines:
+        assert math.isfinite(timeline.duration)
+        for prim in timeline.primitives:
+            assert math.isfinite(prim.start) and math.isfinite(prim.end)

@@ -473,8 +473,9 @@ def stage_fmt(path: Path) -> Outcome:
     once = format_source(text, "case.mtask")
     bad = _has_internal(once.diagnostics)
     if once.text is None:
-        if bad is not None and "the layout cannot keep" in bad.message:
-            return Outcome("refused", bad.message)  # a layout fmt cannot keep: left as it was
+        kept = next((d for d in once.diagnostics if d.code == "MT0109"), None)
+        if bad is None and kept is not None:
+            return Outcome("refused", kept.message)  # a layout fmt cannot keep: left as it was
         return Outcome("internal", bad.message) if bad is not None else Outcome("diagnostics")
     twice = format_source(once.text, "case.mtask")
     if twice.text != once.text:

@@ -15,6 +15,7 @@ from mtlc.frontend import run_frontend
 
 DOCS = ROOT / "docs"
 BLOCK = re.compile(r"^```mtask\n(.*?)^```", re.M | re.S)
+FMT_CODES = {"MT0109"}
 
 
 def _blocks(page: Path) -> list[str]:
@@ -44,7 +45,13 @@ def test_diagnostic_page_example_triggers_its_code(code: str, tmp_path: Path) ->
     text = page.read_text(encoding="utf-8")
     assert text.startswith(f"# {code}")
     for block in _blocks(page):
-        assert code in _codes(tmp_path, block), block
+        if code in FMT_CODES:  # found by `mtlc fmt`, not by checking
+            from mtlc.fmt import format_source
+
+            found = [d.code for d in format_source(block, "example.mtask").diagnostics]
+        else:
+            found = _codes(tmp_path, block)
+        assert code in found, block
 
 
 @pytest.mark.parametrize("name", ["language.md", "tutorial.md", "stdlib.md"])

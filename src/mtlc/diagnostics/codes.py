@@ -44,6 +44,12 @@ _ALL = [
     ),
     Code("MT0107", "invalid-escape", Severity.ERROR, "an unknown escape sequence in a string"),
     Code("MT0108", "invalid-name", Severity.ERROR, "a word that is not a valid name"),
+    Code(
+        "MT0109",
+        "unkeepable-suppression",
+        Severity.ERROR,
+        "fmt cannot lay out an ignore comment so it covers the same statements",
+    ),
     # modules and names
     Code("MT0201", "unknown-name", Severity.ERROR, "a name that is not defined"),
     Code("MT0202", "duplicate-definition", Severity.ERROR, "a name defined twice"),

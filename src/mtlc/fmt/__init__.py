@@ -30,8 +30,9 @@ class FormatResult:
 
 
 def format_source(source: str, file: str) -> FormatResult:
-    """Format one file's text; refuse a file with syntax errors, and refuse (MT0900) any output
-    that would parse differently or lose a comment."""
+    """Format one file's text; refuse a file with syntax errors, a suppression the style cannot
+    keep covering the same statements (MT0109), and (MT0900) any output that would parse
+    differently or lose a comment."""
     sink = DiagnosticSink()
     module = parse_module(source, file, sink)
     if any(d.severity == Severity.ERROR for d in sink.items):
@@ -50,18 +51,21 @@ def format_source(source: str, file: str) -> FormatResult:
 def _refusal(problem: str, file: str) -> list[Diagnostic]:
     sink = DiagnosticSink()
     if problem.startswith(SUPPRESSION_MOVED):  # a layout the style cannot keep, not a bug
-        help_ = (
-            "the file is left as it was; put the comment on the first line of the statement "
-            "it is for, with nothing else starting on that line, then format again"
+        sink.report(
+            "MT0109",
+            f"fmt cannot keep this layout: {problem}",
+            Span.whole_file(file),
+            help=(
+                "the file is left as it was; put the comment on the first line of the statement "
+                "it is for, with nothing else starting on that line, then format again"
+            ),
         )
-    else:
-        help_ = "this is a bug in mtlc fmt; the file is left as it was; please report it"
-    what = "the layout cannot keep" if problem.startswith(SUPPRESSION_MOVED) else "internal error:"
+        return sink.items
     sink.report(
         "MT0900",
-        f"{what} the formatted file would differ from the original: {problem}",
+        f"internal error: the formatted file would differ from the original: {problem}",
         Span.whole_file(file),
-        help=help_,
+        help="this is a bug in mtlc fmt; the file is left as it was; please report it",
     )
     return sink.items
 

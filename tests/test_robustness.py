@@ -158,3 +158,22 @@ def test_huge_repeat_count_is_a_budget_error_quickly() -> None:
 def test_empty_repeat_does_not_loop() -> None:
     text = "use stdlib.elements\nscene s {\n    site a at (0, 1, 0) m\n}\ntask t {\n    scene s\n    look(a)\n    repeat 1000000000000 {\n    }\n}\n"
     assert _check_text(text.encode()) == []
+
+
+def test_paths_too_long_for_the_system_are_missing_files_not_internal_errors(
+    tmp_path: Path, capsys
+) -> None:
+    """A 300-character file name (ENAMETOOLONG) reached report and lint's --config as MT0900."""
+    from mtlc.cli import main
+
+    long_name = str(tmp_path / ("b" * 300 + ".mtask"))
+    for argv in (
+        ["report", long_name],
+        ["lint", str(EXAMPLES[0]), "--config", str(tmp_path / ("c" * 300 + ".toml"))],
+        ["check", long_name],
+    ):
+        status = main(argv)
+        err = capsys.readouterr().err
+        assert "MT0900" not in err and "Traceback" not in err, argv
+        assert status in (1, 2), argv
+        assert "no such" in err or "MT0001" in err, err

@@ -598,3 +598,43 @@ def test_diff_applies_with_patch(text: str, tmp_path: Path) -> None:
     )
     assert done.returncode == 0, done.stderr + done.stdout
     assert path.read_bytes() == expected.encode("utf-8")
+
+
+# ---------------------------------------------------------------- the tree comparison
+
+
+def _module(text: str) -> object:
+    sink = DiagnosticSink()
+    module = parse_module(text, "x.mtask", sink)
+    assert sink.items == []
+    return module
+
+
+_VARIANTS = [
+    "task t {\n    wait(1 s)\n}\n",
+    "task t {\n    wait(1.0 s)\n}\n",
+    "task t {\n    wait(-0.0 s)\n}\n",
+    "task t {\n    wait(0.0 s)\n}\n",
+    "task t {\n    wait(1 ms)\n}\n",
+    "task t {\n    wait((1 s))\n}\n",
+    "task t {\n  wait( 1 s )  # moved\n}\n",
+    'task t "a" {\n    wait(1 s)\n}\n',
+    'task t "b" {\n    wait(1 s)\n}\n',
+    "task t {\n    wait(1 s)\n    wait(1 s)\n}\n",
+    "task u {\n    wait(1 s)\n}\n",
+    "task t {\n    wait(x: 1 s)\n}\n",
+]
+
+
+def test_same_tree_agrees_with_the_fingerprints() -> None:
+    """fmt's safety check walks the trees instead of comparing JSON fingerprints: it must say
+    "same" exactly when the fingerprints are equal (positions aside)."""
+    texts = [p.read_text(encoding="utf-8") for p in EXAMPLES + STDLIB] + _VARIANTS
+    modules = [_module(t) for t in texts]
+    prints = [ast_fingerprint(m) for m in modules]
+    same = 0
+    for i, a in enumerate(modules):
+        for j, b in enumerate(modules):
+            assert fmt.same_tree(a, b) == (prints[i] == prints[j]), (texts[i], texts[j])
+            same += i != j and prints[i] == prints[j]
+    assert same > 0  # the variants hold trees equal apart from layout, so both answers occur

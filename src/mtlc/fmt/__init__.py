@@ -4,19 +4,22 @@ what a file means (the formatted file parses to the same AST, spans aside, or it
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import json
 from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
+from lark import Token
+
 from mtlc.diagnostics import Diagnostic, DiagnosticSink, Severity, Span
 from mtlc.fmt.printer import ANCHORS, format_module, nodes
+from mtlc.fmt.source import lex, remember
 from mtlc.lint import suppress
 from mtlc.syntax import ast, parse_module
 from mtlc.syntax.dump import to_data
-from mtlc.syntax.lexer import comments
 
-__all__ = ["FormatResult", "ast_fingerprint", "format_source"]
+__all__ = ["FormatResult", "ast_fingerprint", "format_source", "same_tree"]
 
 SUPPRESSION_MOVED = "the `# mtlc: ignore`"
 
@@ -33,15 +36,21 @@ def format_source(source: str, file: str) -> FormatResult:
     """Format one file's text; refuse a file with syntax errors, and refuse (MT0900) any output
     that would parse differently or lose a comment."""
     sink = DiagnosticSink()
-    module = parse_module(source, file, sink)
+    tokens, found = lex(source, file, sink)  # one scan for the parser, the printer, the comments
+    module = parse_module(source, file, sink, tokens)
     if any(d.severity == Severity.ERROR for d in sink.items):
         return FormatResult(None, sink.items)
+    remember((source, tokens, found))
     try:
         text, unplaced = format_module(source, module, file)
     except Exception as exc:  # a construct the printer does not know: refuse, never crash
         text, problem = source, f"{type(exc).__name__}: {exc}"
     else:
-        problem = _why_unsafe(source, module, text, file) if not unplaced else "a comment was lost"
+        problem = (
+            _why_unsafe(source, found, module, text, file) if not unplaced else "a comment was lost"
+        )
+    finally:
+        remember(None)
     if problem:
         return FormatResult(None, _refusal(problem, file))
     return FormatResult(text, sink.items)
@@ -66,14 +75,18 @@ def _refusal(problem: str, file: str) -> list[Diagnostic]:
     return sink.items
 
 
-def _why_unsafe(source: str, before: ast.Module, formatted: str, file: str) -> str | None:
+def _why_unsafe(
+    source: str, found: list[Token], before: ast.Module, formatted: str, file: str
+) -> str | None:
+    """The real check: the output is parsed again and compared with the original tree."""
     sink = DiagnosticSink()
-    after = parse_module(formatted, file, sink)
+    tokens, found_after = lex(formatted, file, sink)
+    after = parse_module(formatted, file, sink, tokens)
     if sink.items:
         return f"it does not parse ({sink.items[0].code}: {sink.items[0].message})"
-    if ast_fingerprint(after) != ast_fingerprint(before):
+    if not same_tree(after, before):
         return "its syntax tree is not the same"
-    if Counter(_comment_texts(formatted)) != Counter(_comment_texts(source)):
+    if Counter(_texts(found_after)) != Counter(_texts(found)):
         return "its comments are not the same"
     moved = _moved_suppression(source, before, formatted, after, file)
     if moved:
@@ -108,13 +121,78 @@ def _coverage(text: str, module: ast.Module, file: str) -> list[tuple[str, froze
     return out
 
 
-def _comment_texts(text: str) -> list[str]:
-    return [t.value.rstrip() for t in comments(text)]
+def _texts(found: list[Token]) -> list[str]:
+    return [t.value.rstrip() for t in found]
 
 
 def ast_fingerprint(module: ast.Module) -> str:
     """The AST dump without positions: equal for two files that say the same thing."""
     return json.dumps(_without_spans(to_data(module)), sort_keys=True, ensure_ascii=False)
+
+
+_COMPARED: dict[type, tuple[str, ...]] = {}  # per node class: the fields the dump keeps
+
+
+def _compared(cls: type) -> tuple[str, ...]:
+    names = _COMPARED.get(cls)
+    if names is None:
+        names = _COMPARED[cls] = tuple(
+            f.name
+            for f in dataclasses.fields(cls)
+            if f.name not in ("path", "depth") and not f.name.endswith("span")
+        )
+    return names
+
+
+def _skipped(value: Any) -> bool:
+    """A field value the dump leaves out (as ``to_data`` does)."""
+    return value is None or value == () or value == frozenset()
+
+
+def same_tree(a: Any, b: Any) -> bool:
+    """``ast_fingerprint(a) == ast_fingerprint(b)``, by a direct walk that stops at the first
+    difference (no JSON: the fingerprints cost as much as a parse on a large file).
+
+    Leaves compare as their JSON would: same type, and floats by ``repr`` (-0.0 is not 0.0,
+    NaN is NaN). Iterative, so a deep tree cannot reach the recursion limit.
+    """
+    stack = [(a, b)]
+    while stack:
+        x, y = stack.pop()
+        if isinstance(x, ast.Node):
+            if type(x) is not type(y):
+                return False
+            for name in _compared(type(x)):
+                vx, vy = getattr(x, name), getattr(y, name)
+                if _skipped(vx) or _skipped(vy):
+                    if not (_skipped(vx) and _skipped(vy)):
+                        return False
+                else:
+                    stack.append((vx, vy))
+        elif isinstance(x, tuple | list) and not isinstance(x, Span):
+            if not isinstance(y, tuple | list) or isinstance(y, Span) or len(x) != len(y):
+                return False
+            stack.extend(zip(x, y, strict=True))
+        elif isinstance(x, frozenset):
+            if not isinstance(y, frozenset) or sorted(x) != sorted(y):
+                return False
+        elif not _same_leaf(x, y):
+            return False
+    return True
+
+
+def _same_leaf(x: Any, y: Any) -> bool:
+    """Whether two leaves would print the same JSON (a str subclass such as a lark Token is
+    compared as the str it is)."""
+    if isinstance(x, str):
+        return isinstance(y, str) and str.__eq__(x, y)
+    if isinstance(x, bool) or isinstance(y, bool):
+        return type(x) is type(y) and x == y
+    if isinstance(x, float):
+        return isinstance(y, float) and float.__repr__(x) == float.__repr__(y)
+    if isinstance(x, int):
+        return isinstance(y, int) and not isinstance(y, float) and int(x) == int(y)
+    return type(x) is type(y) and x == y
 
 
 def _without_spans(data: Any) -> Any:

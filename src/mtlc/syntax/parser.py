@@ -39,8 +39,13 @@ def token_span(file: str, tok: Token) -> Span:
     )
 
 
-def parse_module(text: str, file: str, sink: DiagnosticSink) -> ast.Module:
-    tokens = tokenize(text, file, sink)
+def parse_module(
+    text: str, file: str, sink: DiagnosticSink, tokens: list[Token] | None = None
+) -> ast.Module:
+    """``tokens``: what ``tokenize(text, file, sink)`` gave, when the caller already has it
+    (`mtlc fmt` tokenizes once for the parser, the printer and the comments); not mutated."""
+    if tokens is None:
+        tokens = tokenize(text, file, sink)
     uses: list[ast.Use] = []
     decls: list[ast.Decl] = []
     # a word reported as an invalid name (MT0108) is not reported again as an unknown name

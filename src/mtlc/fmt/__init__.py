@@ -18,6 +18,7 @@ from mtlc.fmt.source import lex, remember
 from mtlc.lint import suppress
 from mtlc.syntax import ast, parse_module
 from mtlc.syntax.dump import to_data
+from mtlc.syntax.parser import ItemMemo
 
 __all__ = ["FormatResult", "ast_fingerprint", "format_source", "same_tree"]
 
@@ -37,7 +38,8 @@ def format_source(source: str, file: str) -> FormatResult:
     that would parse differently or lose a comment."""
     sink = DiagnosticSink()
     tokens, found = lex(source, file, sink)  # one scan for the parser, the printer, the comments
-    module = parse_module(source, file, sink, tokens)
+    memo = ItemMemo()
+    module = parse_module(source, file, sink, tokens, memo)
     if any(d.severity == Severity.ERROR for d in sink.items):
         return FormatResult(None, sink.items)
     remember((source, tokens, found))
@@ -47,7 +49,9 @@ def format_source(source: str, file: str) -> FormatResult:
         text, problem = source, f"{type(exc).__name__}: {exc}"
     else:
         problem = (
-            _why_unsafe(source, found, module, text, file) if not unplaced else "a comment was lost"
+            _why_unsafe(source, found, module, text, file, memo)
+            if not unplaced
+            else "a comment was lost"
         )
     finally:
         remember(None)
@@ -76,30 +80,53 @@ def _refusal(problem: str, file: str) -> list[Diagnostic]:
 
 
 def _why_unsafe(
-    source: str, found: list[Token], before: ast.Module, formatted: str, file: str
+    source: str,
+    found: list[Token],
+    before: ast.Module,
+    formatted: str,
+    file: str,
+    memo: ItemMemo | None = None,
 ) -> str | None:
-    """The real check: the output is parsed again and compared with the original tree."""
+    """The real check: the output is lexed and parsed again and compared with the original
+    tree. With ``memo`` (what parsing the original recorded), an item of the output whose
+    tokens are the very kinds and texts of an original item takes that item's node: the parser
+    would build the same tree from them (only the spans would differ, and the comparison
+    ignores spans; the suppression check maps the item's positions, token by token)."""
     sink = DiagnosticSink()
     tokens, found_after = lex(formatted, file, sink)
-    after = parse_module(formatted, file, sink, tokens)
+    if memo is not None:
+        memo.recording = False
+    after = parse_module(formatted, file, sink, tokens, memo)
     if sink.items:
         return f"it does not parse ({sink.items[0].code}: {sink.items[0].message})"
     if not same_tree(after, before):
         return "its syntax tree is not the same"
     if Counter(_texts(found_after)) != Counter(_texts(found)):
         return "its comments are not the same"
-    moved = _moved_suppression(source, before, formatted, after, file)
+    moved = _moved_suppression(source, before, formatted, after, file, memo)
     if moved:
         return moved
     return None
 
 
 def _moved_suppression(
-    source: str, before: ast.Module, formatted: str, after: ast.Module, file: str
+    source: str,
+    before: ast.Module,
+    formatted: str,
+    after: ast.Module,
+    file: str,
+    memo: ItemMemo | None = None,
 ) -> str | None:
     """Why a `# mtlc: ignore[...]` would cover other statements than it did, if it would."""
     was = _coverage(source, before, file)
-    now = Counter((code, covered) for code, covered, _ in _coverage(formatted, after, file))
+    if not was:
+        return None
+    lines = _anchor_lines(after, memo)
+    if lines is None:  # a reused node's part not found among its tokens: look at the real spans
+        after = parse_module(formatted, file, DiagnosticSink())
+        lines = _anchor_lines(after)
+    assert lines is not None
+    now = Counter((code, covered) for code, covered, _ in _coverage(formatted, after, file, lines))
     for code, covered, line in was:
         if now[code, covered] == 0:
             return f"{SUPPRESSION_MOVED} on line {line} (`{code}`) would cover other statements"
@@ -107,10 +134,31 @@ def _moved_suppression(
     return None
 
 
-def _coverage(text: str, module: ast.Module, file: str) -> list[tuple[str, frozenset[int], int]]:
+def _anchor_lines(module: ast.Module, memo: ItemMemo | None = None) -> list[int] | None:
+    """The first line of each statement and declaration (ANCHORS), in tree order. A node that
+    ``memo`` reused keeps the spans of the original text: its line is that of the token in the
+    new text at the same place in the item (None if one is not found there)."""
+    moved: dict[int, int] = {}
+    for node, old, new in memo.reused.values() if memo is not None else ():
+        line_at = {o.start_pos: int(n.line) for o, n in zip(old, new, strict=True)}
+        for part in nodes(node):
+            if isinstance(part, ANCHORS):
+                line = line_at.get(part.span.start)
+                if line is None:
+                    return None
+                moved[id(part)] = line
+    return [moved.get(id(n), n.span.line) for n in nodes(module) if isinstance(n, ANCHORS)]
+
+
+def _coverage(
+    text: str, module: ast.Module, file: str, starts: list[int] | None = None
+) -> list[tuple[str, frozenset[int], int]]:
     """Each suppression's code, the statements and declarations it covers (by their place in
-    the tree, which formatting keeps; lint reports findings on their first lines), its line."""
-    starts = [n.span.line for n in nodes(module) if isinstance(n, ANCHORS)]
+    the tree, which formatting keeps; lint reports findings on their first lines), its line.
+    ``starts``: the ANCHORS' first lines in tree order, when known (``_anchor_lines``)."""
+    if starts is None:
+        starts = _anchor_lines(module)
+        assert starts is not None
     by_line = sorted(range(len(starts)), key=starts.__getitem__)  # found by bisection, not
     lines = [starts[i] for i in by_line]  # by a scan of every start for every suppression
     out = []
@@ -159,6 +207,8 @@ def same_tree(a: Any, b: Any) -> bool:
     stack = [(a, b)]
     while stack:
         x, y = stack.pop()
+        if x is y and isinstance(x, ast.Node):  # an item the re-parse reused (ItemMemo)
+            continue
         if isinstance(x, ast.Node):
             if type(x) is not type(y):
                 return False

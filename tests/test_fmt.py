@@ -638,3 +638,22 @@ def test_same_tree_agrees_with_the_fingerprints() -> None:
             assert fmt.same_tree(a, b) == (prints[i] == prints[j]), (texts[i], texts[j])
             same += i != j and prints[i] == prints[j]
     assert same > 0  # the variants hold trees equal apart from layout, so both answers occur
+
+
+@pytest.mark.parametrize("path", [*EXAMPLES, MESSY], ids=lambda p: p.name)
+def test_reused_items_keep_their_new_lines(path: Path) -> None:
+    """The re-parse of fmt's output reuses the nodes of items with unchanged tokens (ItemMemo);
+    the suppression check must then see each statement on its line in the output, as a full
+    parse of the output gives it."""
+    from mtlc.syntax.parser import ItemMemo
+
+    text = path.read_text(encoding="utf-8")
+    memo = ItemMemo()
+    parse_module(text, "x.mtask", DiagnosticSink(), memo=memo)
+    once = _formatted(text)
+    memo.recording = False
+    after = parse_module(once, "x.mtask", DiagnosticSink(), memo=memo)
+    assert memo.reused  # the check above has something to check
+    plain = parse_module(once, "x.mtask", DiagnosticSink())
+    assert fmt._anchor_lines(after, memo) == fmt._anchor_lines(plain)
+    assert fmt.same_tree(after, plain)

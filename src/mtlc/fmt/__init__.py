@@ -118,10 +118,11 @@ def _moved_suppression(
     memo: ItemMemo | None = None,
 ) -> str | None:
     """Why a `# mtlc: ignore[...]` would cover other statements than it did, if it would."""
-    was = _coverage(source, before, file)
+    anchors: dict[int, list[ast.Node]] = {}
+    was = _coverage(source, before, file, _anchor_lines(before, anchors=anchors))
     if not was:
         return None
-    lines = _anchor_lines(after, memo)
+    lines = _anchor_lines(after, memo, anchors)
     if lines is None:  # a reused node's part not found among its tokens: look at the real spans
         after = parse_module(formatted, file, DiagnosticSink())
         lines = _anchor_lines(after)
@@ -134,20 +135,36 @@ def _moved_suppression(
     return None
 
 
-def _anchor_lines(module: ast.Module, memo: ItemMemo | None = None) -> list[int] | None:
-    """The first line of each statement and declaration (ANCHORS), in tree order. A node that
-    ``memo`` reused keeps the spans of the original text: its line is that of the token in the
-    new text at the same place in the item (None if one is not found there)."""
-    moved: dict[int, int] = {}
-    for node, old, new in memo.reused.values() if memo is not None else ():
-        line_at = {o.start_pos: int(n.line) for o, n in zip(old, new, strict=True)}
-        for part in nodes(node):
-            if isinstance(part, ANCHORS):
-                line = line_at.get(part.span.start)
-                if line is None:
-                    return None
-                moved[id(part)] = line
-    return [moved.get(id(n), n.span.line) for n in nodes(module) if isinstance(n, ANCHORS)]
+def _anchor_lines(
+    module: ast.Module,
+    memo: ItemMemo | None = None,
+    anchors: dict[int, list[ast.Node]] | None = None,
+) -> list[int] | None:
+    """The first line of each statement and declaration (ANCHORS), in tree order (that of
+    ``nodes``: the uses, then the declarations). A top-level item that ``memo`` reused keeps
+    the spans of the original text: the line of each of its parts is that of the token in the
+    new text at the same place in the item (None if a part starts at no token). ``anchors``
+    keeps each item's ANCHORS by ``id``, so an item reused from the original is walked once."""
+    reused = memo.reused if memo is not None else {}
+    if anchors is None:
+        anchors = {}
+    out: list[int] = []
+    for top in (*module.uses, *module.decls):
+        parts = anchors.get(id(top))
+        if parts is None:
+            parts = anchors[id(top)] = [n for n in nodes(top) if isinstance(n, ANCHORS)]
+        hit = reused.get(id(top))
+        if hit is None:
+            out.extend([n.span.line for n in parts])
+            continue
+        _, old, new = hit
+        starts = [t.start_pos for t in old]  # in order: an item's tokens are in source order
+        for n in parts:
+            i = bisect.bisect_left(starts, n.span.start)
+            if i == len(starts) or starts[i] != n.span.start:
+                return None
+            out.append(int(new[i].line))
+    return out
 
 
 def _coverage(

@@ -73,11 +73,14 @@ def _format_source(source: str, file: str) -> FormatResult:
     except Exception as exc:  # a construct the printer does not know: refuse, never crash
         text, problem = source, f"{type(exc).__name__}: {exc}"
     else:
-        problem = (
-            _why_unsafe(source, found, module, text, file, memo)
-            if not unplaced
-            else "a comment was lost"
-        )
+        if unplaced:
+            problem = "a comment was lost"
+        elif text == source and not sink.items:
+            # already canonical: lexing and parsing the same text again would give the same
+            # tokens, tree, comments and suppressions (the original gave no diagnostic either)
+            problem = None
+        else:
+            problem = _why_unsafe(source, found, module, text, file, memo)
     finally:
         remember(None)
     if problem:

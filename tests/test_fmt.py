@@ -639,3 +639,62 @@ def test_ignore_after_a_closing_brace_is_refused_as_input_not_as_a_bug(
     assert fmt_main([str(path)]) == 1
     assert "error[MT0109]" in capsys.readouterr().err
     assert path.read_text(encoding="utf-8") == text
+
+
+# ---------------------------------------------------------------- the tree comparison
+
+
+def _module(text: str) -> object:
+    sink = DiagnosticSink()
+    module = parse_module(text, "x.mtask", sink)
+    assert sink.items == []
+    return module
+
+
+_VARIANTS = [
+    "task t {\n    wait(1 s)\n}\n",
+    "task t {\n    wait(1.0 s)\n}\n",
+    "task t {\n    wait(-0.0 s)\n}\n",
+    "task t {\n    wait(0.0 s)\n}\n",
+    "task t {\n    wait(1 ms)\n}\n",
+    "task t {\n    wait((1 s))\n}\n",
+    "task t {\n  wait( 1 s )  # moved\n}\n",
+    'task t "a" {\n    wait(1 s)\n}\n',
+    'task t "b" {\n    wait(1 s)\n}\n',
+    "task t {\n    wait(1 s)\n    wait(1 s)\n}\n",
+    "task u {\n    wait(1 s)\n}\n",
+    "task t {\n    wait(x: 1 s)\n}\n",
+]
+
+
+def test_same_tree_agrees_with_the_fingerprints() -> None:
+    """fmt's safety check walks the trees instead of comparing JSON fingerprints: it must say
+    "same" exactly when the fingerprints are equal (positions aside)."""
+    texts = [p.read_text(encoding="utf-8") for p in EXAMPLES + STDLIB] + _VARIANTS
+    modules = [_module(t) for t in texts]
+    prints = [ast_fingerprint(m) for m in modules]
+    same = 0
+    for i, a in enumerate(modules):
+        for j, b in enumerate(modules):
+            assert fmt.same_tree(a, b) == (prints[i] == prints[j]), (texts[i], texts[j])
+            same += i != j and prints[i] == prints[j]
+    assert same > 0  # the variants hold trees equal apart from layout, so both answers occur
+
+
+@pytest.mark.parametrize("path", [*EXAMPLES, MESSY], ids=lambda p: p.name)
+def test_reused_items_keep_their_new_lines(path: Path) -> None:
+    """The re-parse of fmt's output reuses the nodes of items with unchanged tokens (ItemMemo);
+    the suppression check must then see each statement on its line in the output, as a full
+    parse of the output gives it."""
+    from mtlc.syntax.parser import ItemMemo
+
+    text = path.read_text(encoding="utf-8")
+    memo = ItemMemo()
+    parse_module(text, "x.mtask", DiagnosticSink(), memo=memo)
+    once = _formatted(text)
+    memo.recording = False
+    after = parse_module(once, "x.mtask", DiagnosticSink(), memo=memo)
+    assert memo.reused  # the check above has something to check
+    plain = parse_module(once, "x.mtask", DiagnosticSink())
+    assert fmt._anchor_lines(after, memo) == fmt._anchor_lines(plain)
+    assert fmt.same_tree(after, plain)

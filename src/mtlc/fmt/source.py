@@ -13,6 +13,28 @@ from mtlc.syntax.lexer import comments, tokenize
 
 _PAIRS = {"LPAR": "RPAR", "LSQB": "RSQB", "LBRACE": "RBRACE"}
 
+# the text being formatted and its tokens and comments: `format_source` lexes the file once and
+# the printer's SourceTokens and CommentPool take them from here instead of scanning it again
+_lexed: tuple[str, list[Token], list[Token]] | None = None
+
+
+def lex(text: str, file: str, sink: DiagnosticSink) -> tuple[list[Token], list[Token]]:
+    """The tokens (diagnostics into ``sink``) and the comments of ``text``, in one scan."""
+    found: list[Token] = []
+    return tokenize(text, file, sink, found), found
+
+
+def remember(lexed: tuple[str, list[Token], list[Token]] | None) -> None:
+    """Hand (text, tokens, comments) to the printer's SourceTokens and CommentPool (None: forget)."""
+    global _lexed
+    _lexed = lexed
+
+
+def _known(text: str, file: str) -> tuple[list[Token], list[Token]]:
+    if _lexed is not None and _lexed[0] is text:
+        return _lexed[1], _lexed[2]
+    return lex(text, file, DiagnosticSink())
+
 
 @dataclass(frozen=True, slots=True)
 class Comment:
@@ -25,7 +47,7 @@ class SourceTokens:
     """The file's tokens, found by offset, with their matching brackets."""
 
     def __init__(self, text: str, file: str) -> None:
-        self.tokens: list[Token] = tokenize(text, file, DiagnosticSink())
+        self.tokens: list[Token] = _known(text, file)[0]
         self._by_start = {t.start_pos: i for i, t in enumerate(self.tokens)}
         self._by_end = {t.end_pos: i for i, t in enumerate(self.tokens)}
         self.match = _match_brackets(self.tokens)
@@ -84,7 +106,8 @@ class CommentPool:
     """The file's comments in order; each is taken by exactly one place in the output."""
 
     def __init__(self, text: str) -> None:
-        self._items = [Comment(t.start_pos, t.line, t.value.rstrip()) for t in comments(text)]
+        found = _lexed[2] if _lexed is not None and _lexed[0] is text else comments(text)
+        self._items = [Comment(t.start_pos, t.line, t.value.rstrip()) for t in found]
         self._starts = [c.start for c in self._items]
         self._taken = [False] * len(self._items)
 

@@ -142,7 +142,11 @@ def _starts_nothing(ch: str, wide: dict[str, str]) -> bool:
     return not _continues_name(ch)
 
 
-def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
+def tokenize(
+    text: str, file: str, sink: DiagnosticSink, comments_out: list[Token] | None = None
+) -> list[Token]:
+    """The tokens the parser reads (comments dropped). With ``comments_out``, the comments are
+    appended to it as ``comments`` finds them, in the same pass (`mtlc fmt` needs both)."""
     lx = lexicon()
     keywords, punctuation = lx.keywords, lx.punctuation
     wide = _wide_forms()
@@ -170,9 +174,17 @@ def tokenize(text: str, file: str, sink: DiagnosticSink) -> list[Token]:
             sink.report(code, message, span, help=help)
 
     for kind, start, end in _scan(text):
-        if kind == "WS" or kind == "COMMENT":
+        if kind == "WS":
             continue
         col = start - line_start + 1
+        if kind == "COMMENT":
+            if comments_out is not None:
+                comments_out.append(
+                    Token(
+                        "COMMENT", text[start:end], start, line, col, line, col + end - start, end
+                    )
+                )
+            continue
         if kind == "NL":
             if (not brackets or brackets[-1] == "{") and tokens and tokens[-1].type != NEWLINE:
                 tokens.append(Token(NEWLINE, "\n", start, line, col, line, col + 1, end))

@@ -39,8 +39,38 @@ def token_span(file: str, tok: Token) -> Span:
     )
 
 
-def parse_module(text: str, file: str, sink: DiagnosticSink) -> ast.Module:
-    tokens = tokenize(text, file, sink)
+class ItemMemo:
+    """Top-level items that parsed without a diagnostic, by the kinds and texts of their tokens.
+
+    The tree of an item is a function of those alone (positions only go into spans), so a later
+    parse given the same memo (`mtlc fmt` parsing its output, which must mean the same) takes
+    the node of an item whose tokens are the same instead of running the LALR parser again.
+    ``reused`` lists, for each node taken so, the tokens it was parsed from and the new ones,
+    in the same order (the new positions of its parts, which its spans do not give).
+    """
+
+    def __init__(self) -> None:
+        self.items: dict[tuple[tuple[str, str], ...], tuple[ast.Node, list[Token]]] = {}
+        self.recording = True
+        self.reused: dict[int, tuple[ast.Node, list[Token], list[Token]]] = {}  # by id(node)
+
+    @staticmethod
+    def key(tokens: list[Token]) -> tuple[tuple[str, str], ...]:
+        return tuple([(t.type, str(t.value)) for t in tokens])
+
+
+def parse_module(
+    text: str,
+    file: str,
+    sink: DiagnosticSink,
+    tokens: list[Token] | None = None,
+    memo: ItemMemo | None = None,
+) -> ast.Module:
+    """``tokens``: what ``tokenize(text, file, sink)`` gave, when the caller already has it
+    (`mtlc fmt` tokenizes once for the parser, the printer and the comments); not mutated.
+    ``memo``: see ItemMemo (recording on a first parse, reusing on the next)."""
+    if tokens is None:
+        tokens = tokenize(text, file, sink)
     uses: list[ast.Use] = []
     decls: list[ast.Decl] = []
     # a word reported as an invalid name (MT0108) is not reported again as an unknown name
@@ -58,7 +88,16 @@ def parse_module(text: str, file: str, sink: DiagnosticSink) -> ast.Module:
             broken.add("*")
             break
         count = len(sink.items)
-        node = _parse_item(item_tokens, file, sink)
+        node = _parse_memo(item_tokens, file, sink, memo) if memo else None
+        if node is None:
+            node = _parse_item(item_tokens, file, sink)
+            if (
+                memo is not None
+                and memo.recording
+                and node is not None
+                and len(sink.items) == count
+            ):
+                memo.items.setdefault(memo.key(item_tokens), (node, item_tokens))
         if node is None or len(sink.items) > count:
             # an item that failed, or parsed only after recovery: its signature is not trusted
             name = _declared_name(item_tokens)
@@ -76,6 +115,19 @@ def parse_module(text: str, file: str, sink: DiagnosticSink) -> ast.Module:
     return ast.Module(
         span=span, path=file, uses=tuple(uses), decls=tuple(decls), broken_names=frozenset(broken)
     )
+
+
+def _parse_memo(
+    item_tokens: list[Token], file: str, sink: DiagnosticSink, memo: ItemMemo
+) -> ast.Node | None:
+    """The node of an item with these very tokens parsed before, once per parse (None: parse)."""
+    if memo.recording:
+        return None
+    found = memo.items.get(memo.key(item_tokens))
+    if found is None or id(found[0]) in memo.reused:
+        return None
+    memo.reused[id(found[0])] = (found[0], found[1], item_tokens)
+    return found[0]
 
 
 def _declared_name(tokens: list[Token]) -> str | None:

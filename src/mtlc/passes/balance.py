@@ -142,17 +142,38 @@ def hand_pins(ir: MotionIR, time: np.ndarray) -> dict[str, np.ndarray]:
     unscrewing, holding or twisting after contact), or the end of the motion.
     """
     t = np.asarray(time, dtype=float)
+    # one pass over the segments for both arms, and each window found in the sorted times by
+    # bisection: called once per reach with a single time, a mask over every frame for every
+    # contact segment made the reach passes quadratic in the number of steps
+    by_track: dict[str, list[Segment]] = {track: [] for track in HANDS.values()}
+    for seg in ir.segments:
+        if seg.track in by_track:
+            by_track[seg.track].append(seg)
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
     pins: dict[str, np.ndarray] = {}
     for hand, track in HANDS.items():
-        mask = np.zeros(len(t), dtype=bool)
-        segs = sorted(ir.on_track(track), key=lambda s: s.start)
+        segs = sorted(by_track[track], key=lambda s: s.start)
         starts = [s.start for s in segs]
+        lo: list[float] = []
+        hi: list[float] = []
         for i, seg in enumerate(segs):
             if seg.kind != "TO":
                 continue
             j = bisect_left(starts, seg.end - 1e-9, lo=i + 1)  # the first later start
             end = starts[j] if j < len(starts) else math.inf
-            mask |= (t >= seg.start - 1e-9) & (t < end - 1e-9)
+            lo.append(seg.start - 1e-9)
+            hi.append(end - 1e-9)
+        # frames with lo <= t < hi, as index ranges of the sorted times; a running count of
+        # the ranges open at each frame marks the union
+        first = np.searchsorted(ts, np.array(lo, dtype=float), side="left")
+        stop = np.searchsorted(ts, np.array(hi, dtype=float), side="left")
+        keep = first < stop
+        count = np.zeros(len(ts) + 1, dtype=np.int64)
+        np.add.at(count, first[keep], 1)
+        np.add.at(count, stop[keep], -1)
+        mask = np.zeros(len(t), dtype=bool)
+        mask[order] = np.cumsum(count[:-1]) > 0
         pins[hand] = mask
     return pins
 

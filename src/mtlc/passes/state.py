@@ -15,7 +15,7 @@ point on the ground, as the base correction does for a body standing still.
 
 from __future__ import annotations
 
-from bisect import bisect_right
+from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Collection
 from typing import Any
 
@@ -191,6 +191,7 @@ def reanchor(
     marks: dict[int, str] = cache.get("passes.state.restate", {})
     state = PoseState(ir)
     ordered = sorted(ir.segments, key=lambda s: s.start)
+    starts = [s.start for s in ordered]
     for seg in ordered:
         kf = seg.keyframes
         how = marks.get(id(seg))
@@ -200,7 +201,13 @@ def reanchor(
             restaters[how](seg, state)
             continue
         # default: the first keyframe holds the pose just before the segment (and its siblings)
-        together = [s for s in ordered if id(s) in marks and abs(s.start - seg.start) <= 1e-9]
+        # the segments that start with this one: a window of the sorted starts (a bisect, not
+        # a scan of every segment per segment), widened a little and then tested exactly
+        lo = bisect_left(starts, seg.start - 2e-9)
+        hi = bisect_right(starts, seg.start + 2e-9, lo=lo)
+        together = [
+            s for s in ordered[lo:hi] if id(s) in marks and abs(s.start - seg.start) <= 1e-9
+        ]
         q = state.q_at(seg.start, skip=together)
         idx = [state.skel.dof_index(n) for n in kf.dofs]
         kf.q[0] = q[idx]

@@ -135,23 +135,15 @@ HANDS = {"r_hand": "r_arm", "l_hand": "l_arm"}
 REPORT_ORDER = {"posture": 0, "TO": 1, "TA": 2, "hold": 3, "grip": 4, "gaze": 5, "locomotion": 6}
 
 
-def hand_pins(ir: MotionIR, time: np.ndarray) -> dict[str, np.ndarray]:
-    """(N,) per hand: frames where the hand is on its site and must stay there.
-
-    From the start of a TO segment until the next segment on the same arm track starts (the
-    unscrewing, holding or twisting after contact), or the end of the motion.
-    """
-    t = np.asarray(time, dtype=float)
-    # one pass over the segments for both arms, and each window found in the sorted times by
-    # bisection: called once per reach with a single time, a mask over every frame for every
-    # contact segment made the reach passes quadratic in the number of steps
+def pin_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per hand, the (lo, hi) bounds of the times it is pinned (``lo <= t < hi``), one pair per
+    TO segment on its arm track: from the segment's start until the next segment on that track
+    starts, or the end of the motion."""
     by_track: dict[str, list[Segment]] = {track: [] for track in HANDS.values()}
-    for seg in ir.segments:
+    for seg in ir.segments:  # one pass over the segments for both arms
         if seg.track in by_track:
             by_track[seg.track].append(seg)
-    order = np.argsort(t, kind="stable")
-    ts = t[order]
-    pins: dict[str, np.ndarray] = {}
+    out = {}
     for hand, track in HANDS.items():
         segs = sorted(by_track[track], key=lambda s: s.start)
         starts = [s.start for s in segs]
@@ -164,10 +156,34 @@ def hand_pins(ir: MotionIR, time: np.ndarray) -> dict[str, np.ndarray]:
             end = starts[j] if j < len(starts) else math.inf
             lo.append(seg.start - 1e-9)
             hi.append(end - 1e-9)
-        # frames with lo <= t < hi, as index ranges of the sorted times; a running count of
-        # the ranges open at each frame marks the union
-        first = np.searchsorted(ts, np.array(lo, dtype=float), side="left")
-        stop = np.searchsorted(ts, np.array(hi, dtype=float), side="left")
+        out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))
+    return out
+
+
+def hand_pins(
+    ir: MotionIR,
+    time: np.ndarray,
+    windows: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+) -> dict[str, np.ndarray]:
+    """(N,) per hand: frames where the hand is on its site and must stay there.
+
+    From the start of a TO segment until the next segment on the same arm track starts (the
+    unscrewing, holding or twisting after contact), or the end of the motion. ``windows``:
+    :func:`pin_windows` of ``ir``, for a caller that asks at many times.
+    """
+    t = np.asarray(time, dtype=float)
+    if windows is None:
+        windows = pin_windows(ir)
+    # each window found in the sorted times by bisection: a mask over every frame for every
+    # contact segment, once per reach, made the reach passes quadratic in the number of steps
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
+    pins: dict[str, np.ndarray] = {}
+    for hand, (lo, hi) in windows.items():
+        # frames with lo <= t < hi as index ranges of the sorted times; a running count of
+        # the ranges open at each frame marks their union
+        first = np.searchsorted(ts, lo, side="left")
+        stop = np.searchsorted(ts, hi, side="left")
         keep = first < stop
         count = np.zeros(len(ts) + 1, dtype=np.int64)
         np.add.at(count, first[keep], 1)

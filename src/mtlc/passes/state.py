@@ -51,6 +51,8 @@ class PoseState:
         self.rest = np.asarray(skel.q_comfort, dtype=float)
         self.stand_y = ir.ground + float(np.asarray(skel.root_position)[1])
         self._blocks: list[_Block] = []
+        # derived from the segments and keyframes, keyed by what they depend on (see root_at)
+        self.memo: dict[Any, Any] = {}
         self._t: list[list[float]] = [[] for _ in range(skel.n_dofs)]
         self._r: list[list[int]] = [[] for _ in range(skel.n_dofs)]
         self._rt: list[float] = []
@@ -140,7 +142,13 @@ class PoseState:
                     rot = gr / np.linalg.norm(gr)
                 return gp, rot
         skipped = _skip_ids(skip)
-        for seg, start, end in keyed_windows(self.ir):  # a stepping kneel places the root
+        # the keyed windows change only with the segments or a keyframe added (``add``):
+        # computed once per such change, not by sorting every segment on every call
+        key = ("keyed_windows", len(self.ir.segments), len(self._blocks))
+        if key not in self.memo:
+            self.memo = {k: v for k, v in self.memo.items() if k[0] != "keyed_windows"}
+            self.memo[key] = keyed_windows(self.ir)
+        for seg, start, end in self.memo[key]:  # a stepping kneel places the root
             kf = seg.keyframes
             if id(seg) in skipped or kf is None or kf.root_position is None:
                 continue

@@ -142,11 +142,15 @@ def pinned_hands(
 ) -> list[Goal]:
     """Goals that keep the other hand where it is, when it rests on a site at the segments'
     start (``balance.hand_pins``): a reach that bends the trunk must not pull it off."""
-    from mtlc.passes.balance import hand_pins
+    from mtlc.passes.balance import hand_pins, pin_windows
 
     t0 = segs[0].start
     mine = {f"{s.goal.effector[0]}_hand" for s in segs}  # a tool's tip moves its hand too
-    pins = hand_pins(state.ir, np.array([t0]))
+    # the windows once per pass (a pass adds no arm segment), not once per reach
+    key = ("pin_windows", len(state.ir.segments))
+    if key not in state.memo:
+        state.memo[key] = pin_windows(state.ir)
+    pins = hand_pins(state.ir, np.array([t0]), state.memo[key])
     return [
         Goal(hand, position=state.site(hand, q0, root))
         for hand, pinned in pins.items()

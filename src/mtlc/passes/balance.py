@@ -135,24 +135,61 @@ HANDS = {"r_hand": "r_arm", "l_hand": "l_arm"}
 REPORT_ORDER = {"posture": 0, "TO": 1, "TA": 2, "hold": 3, "grip": 4, "gaze": 5, "locomotion": 6}
 
 
-def hand_pins(ir: MotionIR, time: np.ndarray) -> dict[str, np.ndarray]:
-    """(N,) per hand: frames where the hand is on its site and must stay there.
-
-    From the start of a TO segment until the next segment on the same arm track starts (the
-    unscrewing, holding or twisting after contact), or the end of the motion.
-    """
-    t = np.asarray(time, dtype=float)
-    pins: dict[str, np.ndarray] = {}
+def pin_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per hand, the (lo, hi) bounds of the times it is pinned (``lo <= t < hi``), one pair per
+    TO segment on its arm track: from the segment's start until the next segment on that track
+    starts, or the end of the motion."""
+    by_track: dict[str, list[Segment]] = {track: [] for track in HANDS.values()}
+    for seg in ir.segments:  # one pass over the segments for both arms
+        if seg.track in by_track:
+            by_track[seg.track].append(seg)
+    out = {}
     for hand, track in HANDS.items():
-        mask = np.zeros(len(t), dtype=bool)
-        segs = sorted(ir.on_track(track), key=lambda s: s.start)
+        segs = sorted(by_track[track], key=lambda s: s.start)
         starts = [s.start for s in segs]
+        lo: list[float] = []
+        hi: list[float] = []
         for i, seg in enumerate(segs):
             if seg.kind != "TO":
                 continue
             j = bisect_left(starts, seg.end - 1e-9, lo=i + 1)  # the first later start
             end = starts[j] if j < len(starts) else math.inf
-            mask |= (t >= seg.start - 1e-9) & (t < end - 1e-9)
+            lo.append(seg.start - 1e-9)
+            hi.append(end - 1e-9)
+        out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))
+    return out
+
+
+def hand_pins(
+    ir: MotionIR,
+    time: np.ndarray,
+    windows: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+) -> dict[str, np.ndarray]:
+    """(N,) per hand: frames where the hand is on its site and must stay there.
+
+    From the start of a TO segment until the next segment on the same arm track starts (the
+    unscrewing, holding or twisting after contact), or the end of the motion. ``windows``:
+    :func:`pin_windows` of ``ir``, for a caller that asks at many times.
+    """
+    t = np.asarray(time, dtype=float)
+    if windows is None:
+        windows = pin_windows(ir)
+    # each window found in the sorted times by bisection: a mask over every frame for every
+    # contact segment, once per reach, made the reach passes quadratic in the number of steps
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
+    pins: dict[str, np.ndarray] = {}
+    for hand, (lo, hi) in windows.items():
+        # frames with lo <= t < hi as index ranges of the sorted times; a running count of
+        # the ranges open at each frame marks their union
+        first = np.searchsorted(ts, lo, side="left")
+        stop = np.searchsorted(ts, hi, side="left")
+        keep = first < stop
+        count = np.zeros(len(ts) + 1, dtype=np.int64)
+        np.add.at(count, first[keep], 1)
+        np.add.at(count, stop[keep], -1)
+        mask = np.zeros(len(t), dtype=bool)
+        mask[order] = np.cumsum(count[:-1]) > 0
         pins[hand] = mask
     return pins
 

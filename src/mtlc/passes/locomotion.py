@@ -411,30 +411,47 @@ class WalkMotion:
         out = {}
         lift = self.ground + self.legs.ankle_height
         toe = self.legs.toe
+        # every step writes index ranges of the sorted times (found by bisection), and its
+        # landing holds only until the foot's next step lands (which overwrites the rest):
+        # masks over every frame per step made a long walk quadratic in its length
+        t = np.asarray(t, dtype=float)
+        order = np.argsort(t, kind="stable")
+        ts = t[order]
+        n = len(ts)
         for f in LEGS:
-            pos = np.tile(self.stance[f].position, (len(t), 1))
-            head = np.full(len(t), self.stance[f].heading)
-            pitch = np.zeros(len(t))
+            pos = np.tile(self.stance[f].position, (n, 1))
+            head = np.full(n, self.stance[f].heading)
+            pitch = np.zeros(n)
             pos[:, 1] += lift
             anchor = pos + _ry(head) @ toe
-            planted = np.ones(len(t), dtype=bool)
-            for st in self._steps_touching(f, t):
+            planted = np.ones(n, dtype=bool)
+            steps = self._steps_touching(f, ts)
+            for k, st in enumerate(steps):
                 a1, R0, toe_w, toe_end = self._geometry(st)
                 h0 = st.start.heading
-                after = t >= st.t_land
+                land = int(np.searchsorted(ts, st.t_land, side="left"))
+                held = (
+                    int(np.searchsorted(ts, steps[k + 1].t_land, side="left"))
+                    if k + 1 < len(steps)
+                    else n
+                )
+                after = slice(land, max(land, held))
                 pos[after] = a1
                 head[after] = st.end.heading
                 pitch[after] = 0.0
                 anchor[after] = toe_end
-                ho = (t >= st.t_heel_off) & (t <= st.t_lift)
-                if ho.any() and st.t_lift > st.t_heel_off:
-                    tau = (t[ho] - st.t_heel_off) / (st.t_lift - st.t_heel_off)
+                ho = slice(
+                    int(np.searchsorted(ts, st.t_heel_off, side="left")),
+                    int(np.searchsorted(ts, st.t_lift, side="right")),
+                )
+                if ho.stop > ho.start and st.t_lift > st.t_heel_off:
+                    tau = (ts[ho] - st.t_heel_off) / (st.t_lift - st.t_heel_off)
                     phi = st.toe_off_pitch * tau * tau * (3 - 2 * tau)
                     pos[ho], head[ho], pitch[ho] = _rolled(R0, toe_w, phi, toe), h0, phi
-                sw = (t > st.t_lift) & (t < st.t_land)
-                if sw.any():
+                sw = slice(int(np.searchsorted(ts, st.t_lift, side="right")), land)
+                if sw.stop > sw.start:
                     start = _rolled(R0, toe_w, np.array([st.toe_off_pitch]), toe)[0]
-                    tau = (t[sw] - st.t_lift) / (st.t_land - st.t_lift)
+                    tau = (ts[sw] - st.t_lift) / (st.t_land - st.t_lift)
                     # the foot rises before it travels and lands straight down: the horizontal
                     # minimum-jerk move takes the middle 75 % of the swing
                     u = np.clip((tau - 0.1) / 0.75, 0.0, 1.0)
@@ -444,7 +461,9 @@ class WalkMotion:
                     head[sw] = h0 + s * wrap(st.end.heading - h0)
                     pitch[sw] = st.toe_off_pitch * (1 - s)
                     planted[sw] = False
-            out[f] = FootTrack(pos, head, pitch, planted, anchor)
+            back = np.empty_like(order)  # the caller's order of ``t``
+            back[order] = np.arange(n)
+            out[f] = FootTrack(pos[back], head[back], pitch[back], planted[back], anchor[back])
         return out
 
     def _steps_touching(self, foot: str, t: FloatArray) -> list[Step]:

@@ -15,7 +15,7 @@ point on the ground, as the base correction does for a body standing still.
 
 from __future__ import annotations
 
-from bisect import bisect_right
+from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Collection
 from typing import Any
 
@@ -51,6 +51,8 @@ class PoseState:
         self.rest = np.asarray(skel.q_comfort, dtype=float)
         self.stand_y = ir.ground + float(np.asarray(skel.root_position)[1])
         self._blocks: list[_Block] = []
+        # derived from the segments and keyframes, keyed by what they depend on (see root_at)
+        self.memo: dict[Any, Any] = {}
         self._t: list[list[float]] = [[] for _ in range(skel.n_dofs)]
         self._r: list[list[int]] = [[] for _ in range(skel.n_dofs)]
         self._rt: list[float] = []
@@ -140,7 +142,13 @@ class PoseState:
                     rot = gr / np.linalg.norm(gr)
                 return gp, rot
         skipped = _skip_ids(skip)
-        for seg, start, end in keyed_windows(self.ir):  # a stepping kneel places the root
+        # the keyed windows change only with the segments or a keyframe added (``add``):
+        # computed once per such change, not by sorting every segment on every call
+        key = ("keyed_windows", len(self.ir.segments), len(self._blocks))
+        if key not in self.memo:
+            self.memo = {k: v for k, v in self.memo.items() if k[0] != "keyed_windows"}
+            self.memo[key] = keyed_windows(self.ir)
+        for seg, start, end in self.memo[key]:  # a stepping kneel places the root
             kf = seg.keyframes
             if id(seg) in skipped or kf is None or kf.root_position is None:
                 continue
@@ -191,6 +199,7 @@ def reanchor(
     marks: dict[int, str] = cache.get("passes.state.restate", {})
     state = PoseState(ir)
     ordered = sorted(ir.segments, key=lambda s: s.start)
+    starts = [s.start for s in ordered]
     for seg in ordered:
         kf = seg.keyframes
         how = marks.get(id(seg))
@@ -200,7 +209,13 @@ def reanchor(
             restaters[how](seg, state)
             continue
         # default: the first keyframe holds the pose just before the segment (and its siblings)
-        together = [s for s in ordered if id(s) in marks and abs(s.start - seg.start) <= 1e-9]
+        # the segments that start with this one: a window of the sorted starts (a bisect, not
+        # a scan of every segment per segment), widened a little and then tested exactly
+        lo = bisect_left(starts, seg.start - 2e-9)
+        hi = bisect_right(starts, seg.start + 2e-9, lo=lo)
+        together = [
+            s for s in ordered[lo:hi] if id(s) in marks and abs(s.start - seg.start) <= 1e-9
+        ]
         q = state.q_at(seg.start, skip=together)
         idx = [state.skel.dof_index(n) for n in kf.dofs]
         kf.q[0] = q[idx]

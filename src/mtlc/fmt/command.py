@@ -22,6 +22,7 @@ from mtlc.output import write_outputs
 from mtlc.semantics.modules import (
     MAX_FILE_BYTES,
     decode_source,
+    probe,
     read_bounded_stream,
     read_source,
 )
@@ -92,7 +93,7 @@ def _expand(paths: list[str]) -> list[str]:
     found: list[str] = []
     for raw in paths:
         path = Path(raw)
-        if raw != STDIN and _is_dir(path):
+        if raw != STDIN and probe(path, Path.is_dir):
             found.extend(p.as_posix() for p in sorted(path.rglob("*.mtask")) if p.is_file())
         else:
             found.append(raw if raw == STDIN else path.as_posix())
@@ -100,15 +101,6 @@ def _expand(paths: list[str]) -> list[str]:
     for name in found:
         by_file.setdefault(name if name == STDIN else os.path.realpath(name), name)
     return list(by_file.values())
-
-
-def _is_dir(path: Path) -> bool:
-    """Whether ``path`` is a folder; a path the system cannot look at (a name too long) is not:
-    reading it then reports why (MT0001)."""
-    try:
-        return path.is_dir()
-    except OSError:
-        return False
 
 
 def _format_one(raw: str, sink: DiagnosticSink, sources: dict[str, str]) -> _Outcome | None:

@@ -18,6 +18,7 @@ from mtlc.lint.engine import lint_paths
 from mtlc.lint.manikins import ManikinError, parse_selection
 from mtlc.lint.output import FORMATS, RENDERERS, render_text
 from mtlc.output import write_outputs
+from mtlc.semantics.modules import probe
 
 EXIT_OK, EXIT_FINDINGS, EXIT_USAGE = 0, 1, 2
 
@@ -99,7 +100,7 @@ def run_lint_command(args: argparse.Namespace) -> int:
     except (ConfigError, ManikinError) as exc:
         sys.stderr.write(f"mtlc lint: {exc}\n")
         return EXIT_USAGE
-    missing = [p for p in args.paths if not _exists(p)]
+    missing = [p for p in args.paths if not probe(p, Path.exists)]
     if missing:
         sys.stderr.write(f"mtlc lint: no such file or folder: {', '.join(map(str, missing))}\n")
         return EXIT_USAGE
@@ -108,14 +109,6 @@ def run_lint_command(args: argparse.Namespace) -> int:
     except Exception as exc:  # a bug: one line and exit 2, never a bare traceback
         report_internal_error("lint", exc)
         return EXIT_USAGE
-
-
-def _exists(path: Path) -> bool:
-    """Whether ``path`` names something; a name the system rejects (too long) does not."""
-    try:
-        return path.exists()
-    except OSError:
-        return False
 
 
 def with_selection(config: LintConfig, select: str | None, ignore: str | None) -> LintConfig:

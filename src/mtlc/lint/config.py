@@ -14,7 +14,7 @@ from typing import Any
 
 from mtlc.diagnostics import CODES, Severity
 from mtlc.ergonomics import niosh, view
-from mtlc.semantics.modules import InputRefused, read_input_bytes
+from mtlc.semantics.modules import InputRefused, probe, read_input_bytes
 
 MAX_CONFIG_BYTES = 1024 * 1024
 
@@ -67,20 +67,12 @@ _KEYS = (
 )
 
 
-def _is_file(path: Path) -> bool:
-    """Whether ``path`` is a file; a path the system cannot look at (a name too long) is not."""
-    try:
-        return path.is_file()
-    except OSError:
-        return False
-
-
 def find_config(start: Path) -> tuple[Path, dict[str, Any]] | None:
     """The nearest configuration table at or above ``start``."""
     for folder in [start, *start.parents]:
         for name, keys in (("mtlc.toml", ("lint",)), ("pyproject.toml", ("tool", "mtlc", "lint"))):
             path = folder / name
-            if not _is_file(path):
+            if not probe(path, Path.is_file):
                 continue
             table = _table(path, keys)
             if table is not None:
@@ -105,7 +97,7 @@ def _table(path: Path, keys: tuple[str, ...]) -> dict[str, Any] | None:
 def load_config(start: Path, explicit: Path | None = None) -> LintConfig:
     if explicit is not None:
         keys = ("lint",) if explicit.name != "pyproject.toml" else ("tool", "mtlc", "lint")
-        if not _is_file(explicit):
+        if not probe(explicit, Path.is_file):
             raise ConfigError(f"{explicit}: no such configuration file")
         table = _table(explicit, keys) or {}
         return parse_config(table, explicit)

@@ -19,6 +19,7 @@ from mtlc.report.analysis import Report, analyse_task
 from mtlc.report.csvout import render_csv
 from mtlc.report.html import render_html
 from mtlc.report.terminal import render_terminal
+from mtlc.semantics.modules import probe
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE = 0, 1, 2
 DEFAULT_MANIKINS = "all"
@@ -80,7 +81,7 @@ def run_report_command(args: argparse.Namespace) -> int:
     except (ManikinError, ReportUsageError) as exc:
         sys.stderr.write(f"mtlc report: {exc}\n")
         return EXIT_USAGE
-    missing = [str(p) for p in args.files if not _is_file(p)]
+    missing = [str(p) for p in args.files if not probe(p, Path.is_file)]
     if missing:
         sys.stderr.write(f"mtlc report: no such file: {terminal_safe(', '.join(missing))}\n")
         return EXIT_USAGE
@@ -89,14 +90,6 @@ def run_report_command(args: argparse.Namespace) -> int:
     except Exception as exc:  # a bug: one line and exit 2, never a bare traceback
         report_internal_error("report", exc)
         return EXIT_USAGE
-
-
-def _is_file(path: Path) -> bool:
-    """Whether ``path`` is a file; a path the system cannot look at (a name too long) is not."""
-    try:
-        return path.is_file()
-    except OSError:
-        return False
 
 
 def _report(args: argparse.Namespace, selection: tuple, ratio: dict[str, float]) -> int:  # type: ignore[type-arg]

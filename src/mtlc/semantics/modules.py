@@ -12,6 +12,7 @@ import contextlib
 import errno
 import os
 import stat
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
@@ -57,6 +58,15 @@ class InputRefused(Exception):
         super().__init__(message)
         self.code = code
         self.help = help
+
+
+def probe(path: Path, test: Callable[[Path], bool]) -> bool:
+    """``test(path)`` (``Path.is_file``, ``is_dir``, ``exists``), False where the system cannot
+    look the path up at all (a name too long for it, ENAMETOOLONG): reading it then says why."""
+    try:
+        return test(path)
+    except OSError:
+        return False
 
 
 def read_input_bytes(path: Path | str, limit: int | None = None) -> bytes:

@@ -131,6 +131,12 @@ _ALL = [
         "the centre of mass leaves the support and cannot be brought back",
     ),
     Code("MT0503", "walking-clip", Severity.ERROR, "a walking clip that cannot be read or used"),
+    # the verify pass: claims checked on the output frames (docs/metrics.md)
+    Code("MT0510", "contact-missed", Severity.WARNING, "a hand is off a site it was said to reach"),
+    Code("MT0511", "grip-slipped", Severity.WARNING, "a hand holding a part moves off it"),
+    Code("MT0512", "below-floor", Severity.WARNING, "a body point goes below the floor"),
+    Code("MT0513", "past-joint-limit", Severity.WARNING, "a joint goes past its limit"),
+    Code("MT0514", "hand-in-body", Severity.WARNING, "a hand or forearm goes into the body"),
     # lint rules (mtlc lint)
     Code("MT0601", "unused-definition", Severity.WARNING, "a definition nothing uses"),
     Code("MT0602", "unused-parameter", Severity.WARNING, "a parameter its body never reads"),

@@ -11,6 +11,7 @@ from mtlc.ir.model import (
     Provenance,
     RootPlan,
     Segment,
+    Verification,
 )
 
 __all__ = [
@@ -24,4 +25,5 @@ __all__ = [
     "Provenance",
     "RootPlan",
     "Segment",
+    "Verification",
 ]

@@ -110,6 +110,39 @@ class Frames:
 
 
 @dataclass
+class Verification:
+    """What the verify pass measured on the output frames (docs/metrics.md): each figure once.
+
+    Metrics, lint, report and preview read these instead of measuring again. Per-frame arrays
+    have one value per output frame; the lists hold one entry per goal, grip or finding.
+    """
+
+    # one per goal (TO segment with a position): effector, site, time (s, the contact frame),
+    # error (m, at that frame), reached (the compiler's claim), shortfall (m, closest approach
+    # over the goal's frames), closest_time, line
+    contacts: list[dict[str, Any]] = field(default_factory=list)
+    # one per held window: hand, start, end (s), drift (m), time of the worst frame, line
+    grips: list[dict[str, Any]] = field(default_factory=list)
+    # deepest point of each class below the floor: class -> {"depth": m, "time": s}
+    penetration: dict[str, dict[str, float]] = field(default_factory=dict)
+    # worst joint-limit excess: count (frame x dof values), excess (rad), dof, time
+    limits: dict[str, Any] = field(default_factory=dict)
+    # deepest hand or forearm axis inside the trunk or a thigh: depth (m), time, limb, part
+    self_intersection: dict[str, Any] = field(default_factory=dict)
+    static_margin: float = float("nan")  # m, minimum over static frames (NaN: none)
+    static_margin_time: float = float("nan")
+    # per output frame
+    penetration_frames: FloatArray = field(default_factory=lambda: np.zeros(0))  # m, all points
+    support_margin: FloatArray = field(default_factory=lambda: np.zeros(0))  # m, NaN airborne
+    static: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    contact_error: FloatArray = field(default_factory=lambda: np.zeros(0))  # m, NaN: no rest
+    intersection_frames: FloatArray = field(default_factory=lambda: np.zeros(0))  # m, >0 inside
+    # what verify reported: code, message, line, column
+    findings: list[dict[str, Any]] = field(default_factory=list)
+    seconds: float = 0.0  # time verify took (not serialised: output stays deterministic)
+
+
+@dataclass
 class MotionIR:
     task: str
     title: str | None
@@ -121,6 +154,7 @@ class MotionIR:
     skeleton: Any = None  # mtlc.body.Skeleton, set by the manikin pass
     root_plan: RootPlan | None = None
     frames: Frames | None = None  # dense frames, set by interpolation, refined by later passes
+    verification: Verification | None = None  # set by the verify pass, on the output frames
 
     def on_track(self, track: str) -> list[Segment]:
         return [s for s in self.segments if s.track == track]

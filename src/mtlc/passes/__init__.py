@@ -23,6 +23,7 @@ from mtlc.passes import (
     sample,
     smooth,
     tool,
+    verify,
 )
 from mtlc.passes.context import MotionOptions, PassContext
 from mtlc.passes.lower import lower
@@ -45,6 +46,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("balance", balance.run),  # 6. centre of mass over the support polygon
     ("smooth", smooth.run),  # 7. blend offsets at segment boundaries
     ("sample", sample.run),  # 8. frames at the output rate
+    ("verify", verify.run),  # every claim checked on the frames the user receives: keep last
 ]
 
 
@@ -62,6 +64,7 @@ def run_motion(
         ir = motion_pass(ir, ctx)
         if name == until:
             break
+    ctx.flush_claims()  # stopped before verify: the passes' own words
     return ir
 
 

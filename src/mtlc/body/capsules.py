@@ -1,0 +1,130 @@
+"""The manikin's body volumes as capsules, and how deep a limb's axis goes inside them.
+
+A capsule is a segment between two points of the body (joint centres) and a radius: every point
+within the radius of the segment is inside. The radii come from the manikin's anthropometry and
+are the inscribed ones (half the smaller breadth of the part), so a capsule stays inside the body
+it stands for and a point found inside one is inside the body for sure. The verify pass uses them
+to check that a hand or a forearm never goes into the trunk or a thigh; issue 20's collision work
+can add parts here (head, upper arms, shanks, the equipment's solids).
+
+Sizes (GB 10000-88 measures, scaled by stature for a population whose table lacks them):
+
+* trunk: from the pelvis joint (the hip centres' mid-point) to the mid-point of the two
+  sternoclavicular joints, radius half the chest depth (men P50: 212 mm, so 106 mm);
+* thigh: from the hip joint centre to the knee joint centre, radius half the sitting thigh
+  clearance (the thigh's thickness; men P50: 130 mm, so 65 mm).
+
+Pure geometry on ``Pose`` arrays: numpy only, vectorised over frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .anthropometry import measure
+from .kinematics import Pose, site_positions
+from .skeleton import Skeleton
+
+FloatArray = NDArray[np.float64]
+
+# GB 10000-88 measures the capsules are sized from, and the stature they go with (mm)
+TRUNK_MEASURE = "chest_depth"
+THIGH_MEASURE = "thigh_clearance_sitting"
+REFERENCE_POPULATION = "gb10000_1988"
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """A body part's volume: the segment between two joints (or joint mid-points), a radius."""
+
+    name: str
+    ends: tuple[tuple[str, ...], tuple[str, ...]]  # joints averaged for each end
+    radius: float  # m
+
+
+@dataclass(frozen=True)
+class Limb:
+    """A part that must stay outside the capsules: the segment between two body points."""
+
+    name: str
+    start: str  # a joint or a site
+    end: str
+
+
+def _measure_m(skel: Skeleton, name: str) -> float:
+    """A GB 10000-88 measure for the manikin (m): its own row when the manikin is built from
+    GB 10000-88, else the same sex and percentile's value scaled by the stature ratio."""
+    sex = skel.sex if skel.sex in ("male", "female") else "male"
+    pct = skel.percentile if skel.percentile in (1, 5, 10, 50, 90, 95, 99) else 50
+    value = measure(REFERENCE_POPULATION, sex, pct, name) / 1000.0
+    if skel.population == REFERENCE_POPULATION or skel.dims is None:
+        return value
+    stature = measure(REFERENCE_POPULATION, sex, pct, "stature") / 1000.0
+    return value * skel.dims.stature / stature
+
+
+def body_capsules(skel: Skeleton) -> tuple[Capsule, ...]:
+    """The trunk and the two thighs, sized from the manikin (see the module docstring)."""
+    trunk = 0.5 * _measure_m(skel, TRUNK_MEASURE)
+    thigh = 0.5 * _measure_m(skel, THIGH_MEASURE)
+    return (
+        Capsule("trunk", (("pelvis",), ("r_clavicle", "l_clavicle")), trunk),
+        Capsule("right thigh", (("r_hip",), ("r_knee",)), thigh),
+        Capsule("left thigh", (("l_hip",), ("l_knee",)), thigh),
+    )
+
+
+# the hands' and forearms' axes: elbow to wrist, wrist to fingertip
+ARM_LIMBS = (
+    Limb("right forearm", "r_elbow", "r_wrist"),
+    Limb("right hand", "r_wrist", "r_fingertip"),
+    Limb("left forearm", "l_elbow", "l_wrist"),
+    Limb("left hand", "l_wrist", "l_fingertip"),
+)
+LIMB_SAMPLES = 6  # points along a limb's axis, ends included (a forearm: every 5 cm or so)
+
+
+def _point(skel: Skeleton, pose: Pose, name: str) -> FloatArray:
+    if name in skel.joint_names:
+        return pose.p[..., skel.joint_index(name), :]
+    return site_positions(skel, pose, name)
+
+
+def _capsule_axis(skel: Skeleton, pose: Pose, cap: Capsule) -> tuple[FloatArray, FloatArray]:
+    a, b = (np.mean([pose.p[..., skel.joint_index(j), :] for j in end], axis=0) for end in cap.ends)
+    return a, b
+
+
+def depth_inside(points: FloatArray, a: FloatArray, b: FloatArray, radius: float) -> FloatArray:
+    """How deep (m, positive inside, negative outside) each point (N, K, 3) is inside the
+    capsule of axis ``a``-``b`` (N, 3) and ``radius``."""
+    d = (b - a)[:, None, :]
+    rel = points - a[:, None, :]
+    length2 = np.maximum(np.einsum("nkc,nkc->nk", d, d), 1e-18)
+    t = np.clip(np.einsum("nkc,nkc->nk", rel, d) / length2, 0.0, 1.0)
+    dist = np.linalg.norm(rel - t[..., None] * d, axis=-1)
+    return radius - dist
+
+
+def self_intersection(
+    skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...] = ARM_LIMBS
+) -> tuple[FloatArray, list[tuple[str, str]]]:
+    """(N, L·C) depth of each limb's axis inside each capsule per frame (m; the deepest point
+    of the limb's axis, negative when it stays outside), and the (limb, capsule) pairs in
+    column order. A limb is never tested against the capsule it is attached to (none of the
+    arms' are)."""
+    caps = body_capsules(skel)
+    frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)
+    cols: list[FloatArray] = []
+    pairs: list[tuple[str, str]] = []
+    axes = [(cap, *_capsule_axis(skel, pose, cap)) for cap in caps]
+    for limb in limbs:
+        p0, p1 = _point(skel, pose, limb.start), _point(skel, pose, limb.end)
+        pts = p0[:, None, :] + frac[None, :, None] * (p1 - p0)[:, None, :]
+        for cap, a, b in axes:
+            cols.append(depth_inside(pts, a, b, cap.radius).max(axis=1))
+            pairs.append((limb.name, cap.name))
+    return np.stack(cols, axis=1), pairs

@@ -1,0 +1,462 @@
+"""Verify, the last pass: every claim the compiler makes, checked on the frames a user receives.
+
+The other passes aim at these claims; this pass measures them on the sampled output frames (the
+frames the generators write, at the output rate) and reports each failure at the task line that
+asked for it. What it measures is stored on the IR (``MotionIR.verification``) so that metrics,
+lint, report and preview read one figure instead of measuring it again (docs/metrics.md defines
+each figure once; ARCHITECTURE.md, "One home for each truth"):
+
+* contact: each goal's effector (hand or tool tip) on its site at the first output frame at or
+  after the goal's end (MT0510 when the solver said it reached it; a goal the solver could not
+  reach is MT0501, with the shortfall measured here: the distance from the site to the closest
+  point the effector comes to over the goal's frames);
+* grips: a closed hand on a part does not move while nothing moves it (MT0511);
+* the floor: no joint centre, sole point, hand, fingertip or tool tip below it (MT0512);
+* joint limits (MT0513);
+* static balance: the centre of mass (with what the hands hold) over the support of the points
+  that touch (MT0502, measured here; the balance pass's own estimate is not reported);
+* hands and forearms outside the trunk and the thighs (``mtlc.body.capsules``; MT0514).
+
+Every finding is a warning: the frames are written and usable, and the finding is about the
+motion, like MT0501 and MT0502 (docs/metrics.md, "Verification"). Figures are vectorised over
+frames (one forward kinematics of the output frames).
+"""
+
+from __future__ import annotations
+
+import math
+import time as clock
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+from mtlc.body import forward, site_positions
+from mtlc.body.capsules import self_intersection
+from mtlc.body.kinematics import Pose
+from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
+from mtlc.metrics import (
+    BoolArray,
+    foot_stance,
+    hand_contacts,
+    support,
+    support_margin,
+    walking,
+)
+from mtlc.passes.balance import grouped_hull
+from mtlc.passes.context import PassContext
+from mtlc.passes.tool import carried_com
+
+TOLERANCE = 1e-3  # m: contact error, grip drift, depth below the floor, depth inside the body
+LIMIT_TOLERANCE = 1e-6  # rad past a joint's limit (rounding, not motion)
+MIN_MARGIN = 0.0  # m: the centre of mass inside the support
+RUN_GAP = 6  # failing frames closer than this belong to one run (one report)
+EPS = 1e-9
+
+HAND_NAMES = {"r": "right hand", "l": "left hand"}
+ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
+HAND_TRACK = {"r": "r_hand", "l": "l_hand"}
+# which active segment a finding is reported at, when no track is preferred: the posture that
+# shapes the body, then the reach that leans it, then anything else (as the balance pass)
+REPORT_ORDER = {"posture": 0, "TO": 1, "TA": 2, "hold": 3, "grip": 4, "locomotion": 5, "gaze": 6}
+POINT_CLASSES = ("joints", "soles", "hands", "fingertips", "tool tips")
+SOLE_SITES = tuple(f"{s}_{p}" for s in ("r", "l") for p in ("heel", "toe", "ball_med", "ball_lat"))
+
+
+def _reachable(result: dict[str, Any]) -> bool:
+    """The solver's verdict on a goal (``reachable``, ``success`` or ``reached``)."""
+    return all(bool(result[key]) for key in ("reachable", "success", "reached") if key in result)
+
+
+def effector_name(effector: str) -> str:
+    """ "right hand", or "wrench_10mm in the right hand" for a tool's tip (``r_tool_...``)."""
+    side, _, rest = effector.partition("_")
+    hand = HAND_NAMES.get(side, effector)
+    return f"{rest[5:]} in the {hand}" if rest.startswith("tool_") else hand
+
+
+def _mm(metres: float) -> str:
+    mm = metres * 1000.0
+    return f"{mm:.0f}" if mm >= 9.5 else f"{mm:.1f}"
+
+
+def runs(failed: BoolArray, gap: int = RUN_GAP) -> list[tuple[int, int]]:
+    """(first, last) frame of each run of failing frames; runs closer than ``gap`` merge."""
+    idx = np.flatnonzero(failed)
+    if idx.size == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(idx) > gap)
+    return list(zip(np.r_[idx[0], idx[cuts + 1]].tolist(), np.r_[idx[cuts], idx[-1]].tolist(),
+                    strict=True))  # fmt: skip
+
+
+class _Verifier:
+    """One verification: the frames, their poses and what has been found."""
+
+    def __init__(self, ir: MotionIR, ctx: PassContext) -> None:
+        assert ir.frames is not None and ir.skeleton is not None
+        self.ir, self.ctx, self.skel = ir, ctx, ir.skeleton
+        f = ir.frames
+        self.t: FloatArray = np.asarray(f.time, dtype=float)
+        self.pose: Pose = forward(self.skel, f.q, f.root_position, f.root_rotation)
+        self.v = Verification()
+        self.reported: set[tuple[Any, ...]] = set()
+        self.claims = [c for c in ctx.claims]
+        ctx.claims.clear()
+        self.segs = sorted(ir.segments, key=lambda s: (s.start, s.end))
+
+    # -- reporting ---------------------------------------------------------------------------
+
+    def report(self, code: str, message: str, ref: SourceRef, key: Any = None) -> None:
+        """One finding, once per ``key`` (default: code, line and message)."""
+        k = (code, ref, message) if key is None else (code, ref, key)
+        if k in self.reported:
+            return
+        self.reported.add(k)
+        self.ctx.emit(code, message, ref)
+        self.v.findings.append(
+            {"code": code, "message": message, "line": ref.line, "column": ref.column}
+        )
+
+    def frame_at(self, time: float) -> int:
+        """The first output frame at or after ``time`` (the last frame past the end)."""
+        return min(int(np.searchsorted(self.t, time - EPS)), len(self.t) - 1)
+
+    def active(self, i: int, tracks: Iterable[str] = ()) -> Segment | None:
+        """The segment a finding at frame ``i`` is reported at: one on ``tracks`` if any is
+        live, else by ``REPORT_ORDER``; between segments the last one that ended."""
+        t = float(self.t[i])
+        live = [s for s in self.segs if s.start - EPS <= t <= s.end + EPS]
+        if not live:
+            ended = [s for s in self.segs if s.end <= t + EPS]
+            live = ended[-1:] or self.segs[:1]
+        if not live:
+            return None
+        pref = set(tracks)
+        return min(
+            live,
+            key=lambda s: (s.track not in pref, REPORT_ORDER.get(s.kind, 9), s.end - s.start),
+        )
+
+    def last_on(self, track: str, i: int) -> Segment | None:
+        """The segment on ``track`` live at frame ``i``, else the last one that ended."""
+        t = float(self.t[i])
+        before = [s for s in self.segs if s.track == track and s.start <= t + EPS]
+        return max(before, key=lambda s: s.start, default=None)
+
+    def where(self, seg: Segment) -> str:
+        return " > ".join(seg.provenance.path)
+
+    # -- contact -----------------------------------------------------------------------------
+
+    def contacts(self) -> None:
+        """Each goal's effector on its site where the goal ends; shortfalls measured here."""
+        n = len(self.t)
+        rest = np.full(n, np.nan)
+        root_starts = sorted(s.start for s in self.ir.on_track("root"))
+        for track in ("r_arm", "l_arm"):
+            segs = sorted(self.ir.on_track(track), key=lambda s: s.start)
+            for k, seg in enumerate(segs):
+                if seg.kind != "TO" or seg.goal.position is None:
+                    continue
+                site = np.asarray(seg.goal.position, dtype=float)
+                i = self.frame_at(seg.end)
+                # the goal's frames: from its TA (the same site, ending where the TO starts)
+                first = seg.start
+                if k and segs[k - 1].kind == "TA" and segs[k - 1].goal.site == seg.goal.site:
+                    first = segs[k - 1].start
+                i0 = min(self.frame_at(first), i)
+                path = site_positions(self.skel, self.pose, seg.goal.effector)
+                dist = np.linalg.norm(path[i0 : i + 1] - site, axis=-1)
+                error = float(dist[-1])
+                j = int(np.argmin(dist))
+                shortfall, closest = float(dist[j]), float(self.t[i0 + j])
+                reached = _reachable(seg.result)
+                self.v.contacts.append(
+                    {
+                        "effector": seg.goal.effector,
+                        "site": seg.goal.site or "",
+                        "time": float(self.t[i]),
+                        "error": error,
+                        "reached": reached,
+                        "shortfall": shortfall,
+                        "closest_time": closest,
+                        "line": seg.provenance.origin.line,
+                    }
+                )
+                if reached:
+                    # resting: until the next segment on the arm or the root moves the body
+                    nxt = segs[k + 1].start if k + 1 < len(segs) else math.inf
+                    root = next((s for s in root_starts if s >= seg.end - EPS), math.inf)
+                    lying = (self.t >= seg.end - EPS) & (self.t <= min(nxt, root) + EPS)
+                    lying[i] = True
+                    err = np.linalg.norm(path[lying] - site, axis=-1)
+                    rest[lying] = np.fmax(rest[lying], err)
+                self._judge_contact(seg, reached, error, shortfall, closest, float(self.t[i]))
+        self.v.contact_error = rest
+
+    def _judge_contact(self, seg: Segment, reached: bool, error: float, shortfall: float,
+                       closest: float, at: float) -> None:  # fmt: skip
+        who, site, ref = effector_name(seg.goal.effector), seg.goal.site, seg.provenance.origin
+        key = (seg.goal.site, seg.track)
+        if reached and error > TOLERANCE:
+            self.report(
+                "MT0510",
+                f"the {who} is {_mm(error)} mm from site `{site}` at {at:.2f} s, where "
+                f"`{self.where(seg)}` ends, though its solver reported the site reached",
+                ref,
+                key,
+            )
+        elif not reached and shortfall > TOLERANCE:
+            self.report(
+                "MT0501",
+                f"the {who} cannot reach site `{site}`: {_mm(shortfall)} mm short "
+                f"(closest at {closest:.2f} s)",
+                ref,
+                key,
+            )
+
+    def pass_claims(self) -> None:
+        """The passes' claims verify did not measure (a screw the wrist cannot turn) go out in
+        the passes' words; reach shortfalls and balance are reported as measured."""
+        for code, message, ref, kw in self.claims:
+            if code == "MT0502" or (code == "MT0501" and "cannot reach site" in message):
+                continue
+            self.ctx.emit(code, message, ref, **kw)
+            self.v.findings.append(
+                {"code": code, "message": message, "line": ref.line, "column": ref.column}
+            )
+
+    # -- grips -------------------------------------------------------------------------------
+
+    def grips(self) -> None:
+        """A closed hand holds still while nothing moves it: no segment on its arm or hand
+        track (a reach or move, a turn), no walk and no whole-body posture (the body carries a
+        held part); grip segments themselves move nothing."""
+        t = self.t
+        moving_root = [s for s in self.ir.on_track("root") if s.kind in ("locomotion", "posture")]
+        for side in ("r", "l"):
+            grips = sorted(
+                (s for s in self.ir.on_track(HAND_TRACK[side]) if s.kind == "grip"),
+                key=lambda s: s.start,
+            )
+            closed = np.zeros(len(t), dtype=bool)
+            held_by: list[tuple[float, float, Segment]] = []
+            for k, g in enumerate(grips):
+                if g.goal.params.get("state") != "closed":
+                    continue
+                opens = [o.start for o in grips[k + 1 :] if o.goal.params.get("state") == "open"]
+                end = min(opens, default=math.inf)
+                closed |= (t >= g.start - EPS) & (t < end - EPS)
+                held_by.append((g.start, end, g))
+            if not closed.any():
+                continue
+            movers = [
+                s
+                for s in (*self.ir.on_track(ARM_TRACK[side]), *self.ir.on_track(HAND_TRACK[side]))
+                if s.kind != "grip"
+            ] + moving_root
+            still = closed.copy()
+            for s in movers:
+                still &= ~((t > s.start + EPS) & (t < s.end - EPS))
+            hand = site_positions(self.skel, self.pose, f"{side}_hand")
+            for first, last in runs(still, gap=1):
+                seg_grip = next(
+                    (g for a, b, g in reversed(held_by) if a - EPS <= t[first] < b), None
+                )
+                if seg_grip is None:
+                    continue
+                drift = np.linalg.norm(hand[first : last + 1] - hand[first], axis=-1)
+                j = int(np.argmax(drift))
+                worst = float(drift[j])
+                self.v.grips.append(
+                    {
+                        "hand": f"{side}_hand",
+                        "start": float(t[first]),
+                        "end": float(t[last]),
+                        "drift": worst,
+                        "time": float(t[first + j]),
+                        "line": seg_grip.provenance.origin.line,
+                    }
+                )
+                if worst > TOLERANCE:
+                    by = self.last_on(ARM_TRACK["l" if side == "r" else "r"], first + j)
+                    by = by or self.active(first + j)
+                    during = f" during `{self.where(by)}`" if by is not None else ""
+                    self.report(
+                        "MT0511",
+                        f"the {HAND_NAMES[side]} holding a part moves {_mm(worst)} mm from "
+                        f"{t[first]:.2f} s to {t[first + j]:.2f} s{during}, though nothing "
+                        "it does moves the part",
+                        seg_grip.provenance.origin,
+                        ("grip", side),
+                    )
+
+    # -- the floor ---------------------------------------------------------------------------
+
+    def floor(self) -> None:
+        """Depth below the floor of each class of body point, per frame."""
+        skel, ground = self.skel, self.ir.ground
+        tools = [s.name for s in skel.sites if "_tool_" in s.name]
+        classes: dict[str, tuple[FloatArray, list[str]]] = {
+            "joints": (self.pose.p[..., 1], list(skel.joint_names)),
+            "soles": (
+                site_positions(self.skel, self.pose, list(SOLE_SITES))[..., 1],
+                list(SOLE_SITES),
+            ),
+            "hands": (
+                site_positions(self.skel, self.pose, ["r_hand", "l_hand"])[..., 1],
+                ["r_hand", "l_hand"],
+            ),
+            "fingertips": (
+                site_positions(self.skel, self.pose, ["r_fingertip", "l_fingertip"])[..., 1],
+                ["r_fingertip", "l_fingertip"],
+            ),
+        }
+        if tools:
+            classes["tool tips"] = (site_positions(self.skel, self.pose, tools)[..., 1], tools)
+        every = np.zeros(len(self.t))
+        for name, (heights, names) in classes.items():
+            depth_pts = np.maximum(ground - heights, 0.0)  # (N, P)
+            depth = depth_pts.max(axis=1)
+            every = np.maximum(every, depth)
+            k = int(np.argmax(depth))
+            self.v.penetration[name] = {"depth": float(depth[k]), "time": float(self.t[k])}
+            for first, last in runs(depth > TOLERANCE):
+                i = first + int(np.argmax(depth[first : last + 1]))
+                point = names[int(np.argmax(depth_pts[i]))]
+                side = point[0] if point[:2] in ("r_", "l_") else ""
+                seg = self.active(i, [ARM_TRACK[side]] if side and name != "soles" else [])
+                if seg is None:
+                    continue
+                self.report(
+                    "MT0512",
+                    f"`{point}` goes {_mm(float(depth[i]))} mm below the floor at "
+                    f"{self.t[i]:.2f} s in `{self.where(seg)}`",
+                    seg.provenance.origin,
+                    ("floor", name),
+                )
+        self.v.penetration_frames = every
+
+    # -- joint limits ------------------------------------------------------------------------
+
+    def limits(self) -> None:
+        skel, q = self.skel, self.ir.frames.q  # type: ignore[union-attr]
+        above, below = q - skel.upper, skel.lower - q
+        over = np.maximum(np.maximum(above, below), 0.0)
+        bad = over > LIMIT_TOLERANCE
+        self.v.limits = {"count": int(np.count_nonzero(bad)), "excess": 0.0, "dof": "",
+                         "time": math.nan}  # fmt: skip
+        if not bad.any():
+            return
+        d = int(np.argmax(over.max(axis=0)))
+        i = int(np.argmax(over[:, d]))
+        self.v.limits.update(excess=float(over[i, d]), dof=skel.dof_names[d],
+                             time=float(self.t[i]))  # fmt: skip
+        for d in np.flatnonzero(bad.any(axis=0)):
+            name = skel.dof_names[d]
+            for first, last in runs(bad[:, d]):
+                i = first + int(np.argmax(over[first : last + 1, d]))
+                side = name[0] if name[:2] in ("r_", "l_") else ""
+                seg = self.active(i, [ARM_TRACK[side]] if side else [])
+                if seg is None:
+                    continue
+                which = "upper" if above[i, d] >= below[i, d] else "lower"
+                self.report(
+                    "MT0513",
+                    f"joint `{name}` is {math.degrees(float(over[i, d])):.2f}° past its "
+                    f"{which} limit at {self.t[i]:.2f} s in `{self.where(seg)}`",
+                    seg.provenance.origin,
+                    ("limit", name),
+                )
+
+    # -- balance -----------------------------------------------------------------------------
+
+    def balance(self) -> None:
+        """Static margin of the centre of mass (with held tools) over the touching points."""
+        ir, t = self.ir, self.t
+        stance = foot_stance(ir, t)
+        pts, ok = support(self.skel, self.pose, stance, ir.ground, hand_contacts(ir, t))
+        com = carried_com(ir, self.pose, t)[:, [0, 2]]
+        margin = support_margin(pts, ok, com, grouped_hull(pts, ok))  # the same hull, faster
+        static = ~walking(ir, t)
+        self.v.support_margin, self.v.static = margin, static
+        sel = np.flatnonzero(static & ~np.isnan(margin))
+        if sel.size:
+            k = sel[int(np.argmin(margin[sel]))]
+            self.v.static_margin, self.v.static_margin_time = float(margin[k]), float(t[k])
+        failed = static & (margin < MIN_MARGIN)
+        for first, last in runs(failed):
+            part = np.where(failed[first : last + 1], margin[first : last + 1], np.inf)
+            i = first + int(np.argmin(part))
+            seg = self.active(first)
+            if seg is None:
+                continue
+            when = f"at {t[first]:.2f} s" if last == first else (
+                f"from {t[first]:.2f} s to {t[last]:.2f} s")  # fmt: skip
+            self.report(
+                "MT0502",
+                f"the manikin loses its balance in `{self.where(seg)}`: {when} the centre of "
+                f"mass is up to {_mm(-float(margin[i]))} mm outside the support of the points "
+                "that touch",
+                seg.provenance.origin,
+                ("balance", id(seg)),
+            )
+
+    # -- the body's own volume ---------------------------------------------------------------
+
+    def body(self) -> None:
+        """Hands and forearms outside the trunk and the thighs (``mtlc.body.capsules``)."""
+        depth, pairs = self_intersection(self.skel, self.pose)
+        per_frame = depth.max(axis=1)
+        self.v.intersection_frames = per_frame
+        k = int(np.argmax(per_frame))
+        c = int(np.argmax(depth[k]))
+        self.v.self_intersection = {
+            "depth": max(float(per_frame[k]), 0.0),
+            "time": float(self.t[k]),
+            "limb": pairs[c][0] if per_frame[k] > 0 else "",
+            "part": pairs[c][1] if per_frame[k] > 0 else "",
+        }
+        worst: dict[SourceRef, tuple[float, int, int, Segment]] = {}  # the deepest per line
+        for c, (limb, _) in enumerate(pairs):
+            for first, last in runs(depth[:, c] > TOLERANCE):
+                i = first + int(np.argmax(depth[first : last + 1, c]))
+                seg = self.active(i, [ARM_TRACK["r" if limb.startswith("right") else "l"]])
+                if seg is None:
+                    continue
+                ref = seg.provenance.origin
+                if ref not in worst or depth[i, c] > worst[ref][0]:
+                    worst[ref] = (float(depth[i, c]), i, c, seg)
+        for ref, (d, i, c, seg) in worst.items():
+            limb, part = pairs[c]
+            self.report(
+                "MT0514",
+                f"the {limb} goes {_mm(d)} mm into the {part} at {self.t[i]:.2f} s in "
+                f"`{self.where(seg)}`",
+                ref,
+                ("body",),
+            )
+
+
+def verify(ir: MotionIR, ctx: PassContext) -> Verification:
+    """Measure every claim on ``ir``'s frames, report each failure, return the figures."""
+    start = clock.perf_counter()
+    v = _Verifier(ir, ctx)
+    v.contacts()
+    v.pass_claims()
+    v.grips()
+    v.floor()
+    v.limits()
+    v.balance()
+    v.body()
+    v.v.seconds = clock.perf_counter() - start
+    return v.v
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    if ir.frames is None or ir.skeleton is None or len(ir.frames.time) == 0:
+        ctx.flush_claims()
+        return ir
+    ir.verification = verify(ir, ctx)
+    return ir

@@ -1,9 +1,12 @@
 """Motion metrics on any sampled motion: what the issue's acceptance numbers are measured with.
 
-Everything here reads plain data (frames, a skeleton, the ground height, which feet stand, the
-goals), so the same functions check mtlc's own output, a hand-made synthetic motion in a test,
-or frames read back from the IR JSON. Units are SI inside (m, m/s, rad); the table shows mm,
-cm/s and degrees.
+The figures a claim rests on (penetration, balance margin, contact error, limits, grip drift,
+hands inside the body) are measured once, by the verify pass, on the output frames, and
+``compute_metrics`` reads them from ``MotionIR.verification`` (docs/metrics.md); foot skating and
+smoothness are measured here. The geometry helpers (support points, hulls, stance) read plain
+data (frames, a skeleton, the ground height, the segments), so the verify pass and the balance
+pass share them. This module imports no pass. Units are SI inside (m, m/s, rad); the table
+shows mm, cm/s and degrees.
 
 Smoothness is the log dimensionless jerk (LDLJ) of a hand's path, velocity-based:
 ``LDLJ = −ln( T³ / v_peak² · ∫ |d³x/dt³|² dt )`` (Balasubramanian, Melendez-Calderon, Roby-Brami
@@ -43,6 +46,8 @@ MAX_PENETRATION = 1e-3  # m
 MAX_SKATING = 0.02  # m/s, feet in stance
 MIN_SUPPORT_MARGIN = 0.0  # m, static postures
 MAX_CONTACT_ERROR = 1e-3  # m, where the site is reachable
+MAX_GRIP_DRIFT = 1e-3  # m, a closed hand on a part nothing moves
+MAX_INSIDE_BODY = 1e-3  # m, a hand's or forearm's axis inside the trunk or a thigh
 
 
 # -- geometry --------------------------------------------------------------------------------
@@ -374,37 +379,28 @@ def ldlj(path: FloatArray, time: FloatArray) -> float:
     return -math.log(duration**3 / vpeak**2 * integral)
 
 
-def limit_violations(skel: Any, q: FloatArray, tol: float = 1e-6) -> tuple[int, float, str]:
-    """(count of frame × dof values outside their limits, worst excess in degrees, its dof)."""
-    over = np.maximum(q - skel.upper, 0.0) + np.maximum(skel.lower - q, 0.0)
-    count = int(np.count_nonzero(over > tol))
-    if count == 0:
-        return 0, 0.0, ""
-    k = int(np.argmax(over.max(axis=0)))
-    return count, math.degrees(float(over[:, k].max())), skel.dof_names[k]
-
-
 @dataclass
 class ContactError:
-    """Hand-to-site distance at the end of one TO segment."""
+    """Effector-to-site distance where one goal ends (``Verification.contacts``)."""
 
     effector: str
     site: str
     time: float
-    error: float  # m
-    reachable: bool
+    error: float  # m, at the first output frame at or after the goal's end
+    reachable: bool  # the solver's claim
+    shortfall: float = 0.0  # m, closest approach over the goal's frames
 
 
 @dataclass
 class Metrics:
-    """What ``compute_metrics`` measures; SI units (m, m/s, degrees only for limits)."""
+    """What ``compute_metrics`` reports; SI units (m, m/s, degrees only for limits)."""
 
     frames: int
     duration: float
     penetration: float  # m, deepest body point below the ground over all frames
     penetration_time: float
     foot_skating: float  # m/s, fastest sliding sole point in contact (NaN: never in contact)
-    support_margin: FloatArray  # (N,) m, signed, NaN where no foot touches
+    support_margin: FloatArray  # (N,) m, signed, NaN where no point touches
     static: BoolArray  # (N,) frames outside walking
     support_margin_static: float  # m, minimum over static frames (NaN: none)
     contact_errors: list[ContactError] = field(default_factory=list)
@@ -412,6 +408,9 @@ class Metrics:
     limit_worst_deg: float = 0.0
     limit_worst_dof: str = ""
     ldlj: dict[str, list[tuple[str, float]]] = field(default_factory=dict)  # hand -> (label, v)
+    grip_drift: float = 0.0  # m, the most a closed hand moves while nothing moves its part
+    inside_body: float = 0.0  # m, deepest hand or forearm axis inside the trunk or a thigh
+    penetration_by_class: dict[str, float] = field(default_factory=dict)  # class -> m
 
     @property
     def contact_error(self) -> float:
@@ -432,6 +431,8 @@ class Metrics:
             "support_margin": not self.support_margin_static < MIN_SUPPORT_MARGIN,
             "contact_error": self.contact_error <= MAX_CONTACT_ERROR,
             "joint_limits": self.limit_count == 0,
+            "grip_drift": self.grip_drift <= MAX_GRIP_DRIFT,
+            "inside_body": self.inside_body <= MAX_INSIDE_BODY,
         }
 
 
@@ -465,65 +466,56 @@ def _reaches(ir: MotionIR) -> list[tuple[str, str, float, float]]:
 
 
 def compute_metrics(ir: MotionIR) -> Metrics:
-    """Every metric on the IR's frames (after sampling or on the dense frames)."""
+    """The metrics of the IR's output frames.
+
+    The claims' figures (penetration, balance margin, contact error, limits, grip drift, hands
+    inside the body) are read from what the verify pass measured (``ir.verification``; one
+    definition, docs/metrics.md); foot skating and smoothness, which no claim rests on, are
+    measured here."""
     frames = ir.frames
     skel = ir.skeleton
     if frames is None or skel is None or len(frames.time) == 0:
         raise ValueError("the IR has no frames: run the motion passes first")
+    v = ir.verification
+    if v is None or len(v.penetration_frames) != len(frames.time):
+        raise ValueError("the IR's frames are not verified: run the verify pass last")
     t = frames.time
     pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
-    pen = penetration(skel, pose, ir.ground)
-    k = int(np.argmax(pen))
+    k = int(np.argmax(v.penetration_frames))
     stance = foot_stance(ir, t)
     feet = foot_points(skel, pose)
     contact = contact_mask(feet, stance, ir.ground)
     planted = contact & ~rolling_points(ir, t)
     skate = foot_skating(feet, planted, t) if len(t) > 1 else np.full((0, 8), np.nan)
     skating = float(np.nanmax(skate)) if np.isfinite(skate).any() else math.nan
-    from mtlc.passes.tool import carried_com  # the passes import the metrics
-
-    com = carried_com(ir, pose, t)  # with the tools the hands hold while they hold them
-    pts, ok = support(skel, pose, stance, ir.ground, hand_contacts(ir, t))
-    margin = support_margin(pts, ok, com[:, [0, 2]])
-    static = ~walking(ir, t)
-    sel = margin[static & ~np.isnan(margin)]
-    contacts: list[ContactError] = []
-    for seg in ir.segments:
-        if seg.kind != "TO" or seg.goal.position is None:
-            continue
-        # contact is the hand resting on the site: the first sampled frame at or after the TO
-        # ends (interpolating with the frame before, where the hand still moves, would blur it)
-        i = min(int(np.searchsorted(t, seg.end - 1e-9)), len(t) - 1)
-        p = forward(skel, frames.q[i : i + 1], frames.root_position[i : i + 1],
-                    frames.root_rotation[i : i + 1])  # fmt: skip
-        hand = site_positions(skel, p, seg.goal.effector)[0]
-        err = float(np.linalg.norm(hand - np.asarray(seg.goal.position, dtype=float)))
-        contacts.append(
-            ContactError(
-                seg.goal.effector, seg.goal.site or "", seg.end, err, _reachable(seg.result)
-            )
-        )
-    count, worst, dof = limit_violations(skel, frames.q)
+    contacts = [
+        ContactError(c["effector"], c["site"], c["time"], c["error"], c["reached"], c["shortfall"])
+        for c in v.contacts
+    ]
     smooth: dict[str, list[tuple[str, float]]] = {}
     hands = site_positions(skel, pose, ["r_hand", "l_hand"])
     for hand, label, t0, t1 in _reaches(ir):
         inside = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
         path = hands[inside, 0 if hand.startswith("r_") else 1]
         smooth.setdefault(hand, []).append((label, ldlj(path, t[inside])))
+    limits = v.limits or {}
     return Metrics(
         frames=len(t),
         duration=float(t[-1] - t[0]),
-        penetration=float(pen[k]),
+        penetration=float(v.penetration_frames[k]),
         penetration_time=float(t[k]),
         foot_skating=skating,
-        support_margin=margin,
-        static=static,
-        support_margin_static=float(sel.min()) if sel.size else math.nan,
+        support_margin=v.support_margin,
+        static=v.static,
+        support_margin_static=v.static_margin,
         contact_errors=contacts,
-        limit_count=count,
-        limit_worst_deg=worst,
-        limit_worst_dof=dof,
+        limit_count=int(limits.get("count", 0)),
+        limit_worst_deg=math.degrees(float(limits.get("excess", 0.0))),
+        limit_worst_dof=str(limits.get("dof", "")),
         ldlj=smooth,
+        grip_drift=max((g["drift"] for g in v.grips), default=0.0),
+        inside_body=float(v.self_intersection.get("depth", 0.0)),
+        penetration_by_class={k: d["depth"] for k, d in v.penetration.items()},
     )
 
 
@@ -541,8 +533,10 @@ def metric_rows(m: Metrics) -> list[tuple[str, str, str, str]]:
     def verdict(key: str) -> str:
         return "ok" if ok[key] else "FAIL"
 
-    unreachable = sum(1 for c in m.contact_errors if not c.reachable)
-    reach_note = f" ({unreachable} unreachable)" if unreachable else ""
+    short = [c.shortfall for c in m.contact_errors if not c.reachable]
+    reach_note = (
+        f" ({len(short)} unreachable, up to {max(short) * 1e3:.0f} mm short)" if short else ""
+    )
     limits = (
         f"{m.limit_count} ({m.limit_worst_deg:.2f}° {m.limit_worst_dof})" if m.limit_count else "0"
     )
@@ -565,6 +559,8 @@ def metric_rows(m: Metrics) -> list[tuple[str, str, str, str]]:
             verdict("contact_error"),
         ),
         ("joint-limit violations", limits, "0", verdict("joint_limits")),
+        ("grip drift (mm)", _fmt(m.grip_drift, 1e3, 2), "≤ 1", verdict("grip_drift")),
+        ("hands inside the body (mm)", _fmt(m.inside_body, 1e3, 1), "≤ 1", verdict("inside_body")),
         ("hand smoothness, worst LDLJ", ldj, "higher is smoother", ""),
     ]
 

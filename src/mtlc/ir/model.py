@@ -121,7 +121,7 @@ class Verification:
     # error (m, at that frame), reached (the compiler's claim), shortfall (m, closest approach
     # over the goal's frames), closest_time, line
     contacts: list[dict[str, Any]] = field(default_factory=list)
-    # one per held window: hand, start, end (s), drift (m), time of the worst frame, line
+    # one per held window: hand, t_start, t_end (s), drift (m), time of the worst frame, line
     grips: list[dict[str, Any]] = field(default_factory=list)
     # deepest point of each class below the floor: class -> {"depth": m, "time": s}
     penetration: dict[str, dict[str, float]] = field(default_factory=dict)

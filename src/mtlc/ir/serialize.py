@@ -9,17 +9,25 @@ input gives the same bytes and the last printed digit is not floating-point nois
 from __future__ import annotations
 
 import json
+import math
 from typing import Any
 
 import numpy as np
 
-from mtlc.ir.model import IR_FORMAT_VERSION, Keyframes, MotionIR, Segment, SourceRef
+from mtlc.ir.model import (
+    IR_FORMAT_VERSION,
+    Keyframes,
+    MotionIR,
+    Segment,
+    SourceRef,
+    Verification,
+)
 from mtlc.output import escape_surrogates
 
 DECIMALS = 5  # lengths to 0.01 mm, angles to 1e-5 rad (0.0006°), masses to 0.01 g
 TIME_DECIMALS = 6  # times to 1 µs, as JackScript writes them: frame times stay on their frames
 # Keys whose numbers are times (s) or rates (1/s); every other number gets DECIMALS.
-TIME_KEYS = frozenset({"time", "t_start", "t_end", "fps"})
+TIME_KEYS = frozenset({"time", "t_start", "t_end", "fps", "closest_time", "static_margin_time"})
 
 
 def _num(v: Any, decimals: int = DECIMALS) -> Any:
@@ -82,6 +90,24 @@ def _segment(s: Segment) -> dict[str, Any]:
     }
 
 
+def _verification(v: Verification | None) -> dict[str, Any] | None:
+    """What verify measured, per goal, grip and point class (docs/ir.md): the figures, not the
+    per-frame series (they are recomputed from the frames by the same pass)."""
+    if v is None:
+        return None
+    finite = lambda x: None if x is None or not math.isfinite(x) else x  # noqa: E731
+    return {
+        "contacts": v.contacts,
+        "grips": v.grips,
+        "penetration": v.penetration,
+        "limits": {**v.limits, "time": finite(v.limits.get("time"))} if v.limits else {},
+        "self_intersection": v.self_intersection,
+        "static_margin": finite(v.static_margin),
+        "static_margin_time": finite(v.static_margin_time),
+        "findings": v.findings,
+    }
+
+
 def to_dict(ir: MotionIR) -> dict[str, Any]:
     skel = ir.skeleton
     manikin = {**ir.manikin, **(skel.to_dict() if skel is not None else {})}
@@ -120,6 +146,7 @@ def to_dict(ir: MotionIR) -> dict[str, Any]:
         "goals": goals,
         "segments": [_segment(s) for s in ir.segments],
         "frames": frames,
+        "verification": _verification(ir.verification),
     }
     return _num(doc)
 

@@ -272,8 +272,8 @@ class _Verifier:
                 self.v.grips.append(
                     {
                         "hand": f"{side}_hand",
-                        "start": float(t[first]),
-                        "end": float(t[last]),
+                        "t_start": float(t[first]),
+                        "t_end": float(t[last]),
                         "drift": worst,
                         "time": float(t[first + j]),
                         "line": seg_grip.provenance.origin.line,

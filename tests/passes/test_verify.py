@@ -1,0 +1,324 @@
+"""The verify pass: a good compile verifies clean, and each corruption of its frames is caught.
+
+The mutation tests (issue 18, item 4) compile a procedure whose frames keep every claim, corrupt
+the frames one way each (a hand off its site, a body sunk into the floor, a held hand dragged, a
+joint past its limit, a hand in the trunk) and run ``verify`` again: each must give its code.
+The unit tests build synthetic frames whose figures are known by hand.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mtlc.body import build_manikin, forward, site_positions
+from mtlc.body.capsules import body_capsules, depth_inside, self_intersection
+from mtlc.diagnostics import DiagnosticSink
+from mtlc.frontend import run_frontend
+from mtlc.ir.model import Frames, GoalSpec, MotionIR, Provenance, Segment, SourceRef
+from mtlc.metrics import compute_metrics
+from mtlc.passes import run_motion, verify
+from mtlc.passes.context import PassContext
+
+GOOD = """use stdlib.actions
+use stdlib.elements
+
+scene bench {
+    site front at (0, 0, 40) cm
+    site handle at (15, 110, 85) cm normal (0, 0, -1)
+    site knob at (-20, 105, 80) cm normal (0, 0, -1)
+}
+
+task service {
+    manikin gb10000_1988 male p50
+    scene bench
+    walk_to(front)
+    reach(right, handle)
+    grasp(right)
+    reach(left, knob)
+    release(left)
+    release(right)
+}
+"""
+REACH_LINE, GRASP_LINE = 14, 15
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory: pytest.TempPathFactory) -> MotionIR:
+    path = tmp_path_factory.mktemp("verify") / "good.mtask"
+    path.write_text(GOOD, encoding="utf-8")
+    program = run_frontend([path])
+    (timeline,) = program.timelines
+    sink = DiagnosticSink()
+    ir = run_motion(timeline, sink)
+    assert [d.code for d in sink.items] == []  # the frames keep every claim
+    return ir
+
+
+def reverify(ir: MotionIR) -> list[tuple[str, int, str]]:
+    sink = DiagnosticSink()
+    verify.run(ir, PassContext(sink))
+    return [(d.code, d.span.line, d.message) for d in sink.sorted()]
+
+
+def corrupt(ir: MotionIR) -> MotionIR:
+    """A copy of ``ir`` with its own frames, for one corruption."""
+    out = copy.copy(ir)
+    out.frames = copy.deepcopy(ir.frames)
+    return out
+
+
+def codes(found: list[tuple[str, int, str]]) -> set[str]:
+    return {c for c, _, _ in found}
+
+
+def test_the_good_compile_stores_its_figures(good: MotionIR) -> None:
+    v = good.verification
+    assert v is not None
+    assert len(v.penetration_frames) == len(good.frames.time)  # type: ignore[union-attr]
+    assert [c["site"] for c in v.contacts] == ["handle", "knob"]
+    assert all(c["reached"] and c["error"] <= verify.TOLERANCE for c in v.contacts)
+    assert v.grips and max(g["drift"] for g in v.grips) <= verify.TOLERANCE
+    assert v.static_margin > 0
+    assert v.findings == []
+    m = compute_metrics(good)  # metrics read these figures, not their own
+    assert m.contact_error == max(c["error"] for c in v.contacts)
+    assert m.support_margin_static == v.static_margin
+    assert all(m.passes().values())
+
+
+def _contact_frame(ir: MotionIR, site: str) -> tuple[Segment, int]:
+    (seg,) = [s for s in ir.segments if s.kind == "TO" and s.goal.site == site]
+    t = ir.frames.time  # type: ignore[union-attr]
+    return seg, int(np.searchsorted(t, seg.end - 1e-9))
+
+
+def test_a_hand_moved_off_its_site_at_a_goal_end_is_mt0510(good: MotionIR) -> None:
+    ir = corrupt(good)
+    _, i = _contact_frame(ir, "knob")
+    ir.frames.q[i, ir.skeleton.dof_index("l_elbow_flex")] += 0.05  # type: ignore[union-attr]
+    found = reverify(ir)
+    assert ("MT0510", 16) in {(c, line) for c, line, _ in found}
+    (c,) = [c for c in ir.verification.contacts if c["site"] == "knob"]  # type: ignore[union-attr]
+    assert c["error"] > 5e-3
+
+
+def test_a_body_sunk_5_mm_is_mt0512(good: MotionIR) -> None:
+    ir = corrupt(good)
+    ir.frames.root_position[10:14, 1] -= 0.005  # type: ignore[union-attr]
+    found = reverify(ir)
+    assert "MT0512" in codes(found)
+    assert ir.verification.penetration["soles"]["depth"] == pytest.approx(  # type: ignore[union-attr]
+        0.005 + good.verification.penetration["soles"]["depth"],
+        abs=2e-4,  # type: ignore[union-attr]
+    )
+
+
+def test_a_fingertip_sunk_5_mm_is_mt0512_naming_it(good: MotionIR) -> None:
+    ir = corrupt(good)
+    f = ir.frames
+    pose = forward(ir.skeleton, f.q, f.root_position, f.root_rotation)  # type: ignore[union-attr]
+    tips = site_positions(ir.skeleton, pose, ["r_fingertip", "l_fingertip"])[..., 1]
+    # the frame-5 body lowered until its lower fingertip is 5 mm under the floor (the rest
+    # deeper): the fingertips' class is measured and reported apart from the soles'
+    ir.frames.root_position[5, 1] -= tips[5].min() - ir.ground + 0.005  # type: ignore[union-attr]
+    found = reverify(ir)
+    assert any(c == "MT0512" and "fingertip goes 5.0 mm below" in m for c, _, m in found), found
+    fingertips = ir.verification.penetration["fingertips"]  # type: ignore[union-attr]
+    assert fingertips["depth"] == pytest.approx(0.005, abs=1e-9)
+
+
+def test_a_held_hand_dragged_5_mm_while_the_part_is_fixed_is_mt0511(good: MotionIR) -> None:
+    ir = corrupt(good)
+    (g,) = ir.verification.grips  # type: ignore[union-attr]
+    t = ir.frames.time  # type: ignore[union-attr]
+    later = (t > g["t_start"] + 0.1) & (t <= g["t_end"])
+    ir.frames.q[later, ir.skeleton.dof_index("r_shoulder_flex")] += 0.01  # ~6 mm at the hand
+    found = reverify(ir)
+    assert ("MT0511", GRASP_LINE) in {(c, line) for c, line, _ in found}
+    (g2,) = ir.verification.grips  # type: ignore[union-attr]
+    assert g2["drift"] > 4e-3
+
+
+def test_a_joint_past_its_limit_is_mt0513(good: MotionIR) -> None:
+    ir = corrupt(good)
+    d = ir.skeleton.dof_index("r_elbow_flex")
+    ir.frames.q[20, d] = ir.skeleton.upper[d] + 0.2  # type: ignore[union-attr]
+    found = reverify(ir)
+    assert any(c == "MT0513" and "`r_elbow_flex` is 11.46° past its upper" in m
+               for c, _, m in found), found  # fmt: skip
+    assert ir.verification.limits["excess"] == pytest.approx(0.2)  # type: ignore[union-attr]
+
+
+def test_a_hand_inside_the_trunk_is_mt0514(good: MotionIR) -> None:
+    ir = corrupt(good)
+    sk = ir.skeleton
+    for name, value in (("r_shoulder_flex", 0.0), ("r_shoulder_abd", -0.79),
+                        ("r_shoulder_rot", -1.5), ("r_elbow_flex", 1.2)):  # fmt: skip
+        ir.frames.q[3:6, sk.dof_index(name)] = value  # type: ignore[union-attr]
+    found = reverify(ir)
+    assert any(c == "MT0514" and "trunk" in m for c, _, m in found), found
+    assert ir.verification.self_intersection["depth"] > 0.05  # type: ignore[union-attr]
+
+
+def test_every_corruption_at_once_gives_every_code(good: MotionIR) -> None:
+    ir = corrupt(good)
+    _, i = _contact_frame(ir, "knob")
+    sk = ir.skeleton
+    ir.frames.q[i, sk.dof_index("l_elbow_flex")] += 0.05  # type: ignore[union-attr]
+    ir.frames.root_position[10:14, 1] -= 0.005  # type: ignore[union-attr]
+    d = sk.dof_index("r_knee_flex")
+    ir.frames.q[20, d] = sk.lower[d] - 0.1  # type: ignore[union-attr]
+    assert {"MT0510", "MT0512", "MT0513"} <= codes(reverify(ir))
+
+
+# -- synthetic frames -------------------------------------------------------------------------
+
+SKEL = build_manikin("gb10000_1988", "male", 50)
+REF = SourceRef("synthetic.mtask", 3, 5, 3, 20)
+PROV = Provenance(("t", "a", "e"), REF, REF)
+
+
+def standing(n: int, fps: float = 30.0) -> Frames:
+    """The neutral pose (soles on the ground), ``n`` frames."""
+    q = np.zeros((n, SKEL.n_dofs))
+    root = np.tile(SKEL.root_position, (n, 1))
+    rot = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    return Frames(fps=fps, time=np.arange(n) / fps, root_position=root, root_rotation=rot, q=q)
+
+
+def make_ir(frames: Frames, segments: list[Segment]) -> MotionIR:
+    ir = MotionIR("t", None, "synthetic.mtask", {}, 0.0, [], segments, SKEL)
+    ir.frames = frames
+    return ir
+
+
+def hand_at(frames: Frames, i: int) -> np.ndarray:
+    pose = forward(SKEL, frames.q[i : i + 1], frames.root_position[i : i + 1],
+                   frames.root_rotation[i : i + 1])  # fmt: skip
+    return site_positions(SKEL, pose, "r_hand")[0]
+
+
+@pytest.mark.parametrize("reached", [True, False])
+def test_contact_error_and_shortfall_are_measured_on_the_frames(reached: bool) -> None:
+    f = standing(30)
+    site = hand_at(f, 15) + np.array([0.0, 0.0, 0.010])  # 10 mm ahead of the resting hand
+    result = {"success": reached, "distance": 0.034}  # the solver's own number is not used
+    seg = Segment("r_arm", "TO", 0.2, 0.5, GoalSpec("r_hand", "bolt", site), PROV, result=result)
+    ir = make_ir(f, [seg])
+    found = reverify(ir)
+    (c,) = ir.verification.contacts  # type: ignore[union-attr]
+    assert c["error"] == pytest.approx(0.010, abs=1e-9)
+    assert c["shortfall"] == pytest.approx(0.010, abs=1e-9)
+    if reached:
+        assert found == [("MT0510", 3, found[0][2])]
+        assert "is 10 mm from site `bolt` at 0.50 s" in found[0][2]
+    else:
+        assert [(code, m) for code, _, m in found] == [
+            ("MT0501", "the right hand cannot reach site `bolt`: 10 mm short (closest at 0.20 s)")
+        ]
+
+
+def test_a_pass_claim_of_a_shortfall_is_replaced_by_the_measured_one() -> None:
+    f = standing(30)
+    site = hand_at(f, 15) + np.array([0.0, 0.0, 0.020])
+    seg = Segment("r_arm", "TO", 0.2, 0.5, GoalSpec("r_hand", "bolt", site), PROV,
+                  result={"success": False})  # fmt: skip
+    sink = DiagnosticSink()
+    ctx = PassContext(sink)
+    ctx.report("MT0501", "the right hand cannot reach site `bolt`: 46 mm short", REF)
+    ctx.report("MT0501", "the pliers in the right hand cannot turn the screw at site `x`", REF)
+    assert sink.items == []  # held for verify
+    verify.run(make_ir(f, [seg]), ctx)
+    assert sorted(d.message for d in sink.items) == [
+        "the pliers in the right hand cannot turn the screw at site `x`",
+        "the right hand cannot reach site `bolt`: 20 mm short (closest at 0.20 s)",
+    ]
+
+
+def test_claims_are_reported_as_worded_when_the_run_stops_before_verify() -> None:
+    sink = DiagnosticSink()
+    ctx = PassContext(sink)
+    ctx.report("MT0502", "lost", REF)
+    ctx.flush_claims()
+    assert [d.message for d in sink.items] == ["lost"]
+
+
+def test_a_held_hand_moved_by_the_root_alone_slips() -> None:
+    f = standing(30)
+    f.root_position[15:, 0] += np.linspace(0.0, 0.005, 15)  # the body shifts 5 mm, no segment
+    grip = Segment("r_hand", "grip", 0.1, 0.2, GoalSpec("r_hand", params={"state": "closed"}),
+                   PROV)  # fmt: skip
+    ir = make_ir(f, [grip])
+    found = reverify(ir)
+    assert [c for c, _, _ in found] == ["MT0511"]
+    assert ir.verification.grips[0]["drift"] == pytest.approx(0.005, abs=1e-6)  # type: ignore[union-attr]
+
+
+def test_a_walk_carries_a_held_part_without_a_slip() -> None:
+    f = standing(30)
+    f.root_position[:, 2] += 0.3 * np.maximum(f.time - 0.1, 0.0)  # walking from 0.1 s on
+    grip = Segment("r_hand", "grip", 0.0, 0.1, GoalSpec("r_hand", params={"state": "closed"}),
+                   PROV)  # fmt: skip
+    walk = Segment("root", "locomotion", 0.1, 1.0, GoalSpec("root"), PROV)
+    assert "MT0511" not in codes(reverify(make_ir(f, [grip, walk])))
+
+
+def test_capsule_depth_on_the_axis_is_the_radius_and_negative_outside() -> None:
+    a, b = np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]])
+    pts = np.array([[[0.0, 0.5, 0.0], [0.3, 0.5, 0.0], [0.0, 1.05, 0.0]]])
+    np.testing.assert_allclose(depth_inside(pts, a, b, 0.1), [[0.1, -0.2, 0.05]], atol=1e-12)
+
+
+@pytest.mark.parametrize(("sex", "pct"), [("female", 5), ("male", 50), ("male", 95)])
+def test_capsules_scale_with_the_manikin_and_leave_the_comfort_pose_clear(
+    sex: str, pct: int
+) -> None:
+    sk = build_manikin("gb10000_1988", sex, pct)
+    trunk, thigh, _ = body_capsules(sk)
+    assert 0.08 < trunk.radius < 0.13 and 0.05 < thigh.radius < 0.08
+    depth, _ = self_intersection(sk, forward(sk, sk.q_comfort[None]))
+    assert depth.max() < -0.05  # arms at rest are well outside the trunk and thighs
+
+
+def test_a_larger_manikin_has_larger_capsules() -> None:
+    small = body_capsules(build_manikin("gb10000_1988", "female", 5))
+    large = body_capsules(build_manikin("gb10000_1988", "male", 95))
+    assert all(s.radius < g.radius for s, g in zip(small, large, strict=True))
+    ansur = body_capsules(build_manikin("ansur2", "male", 50))
+    assert all(math.isfinite(c.radius) and c.radius > 0 for c in ansur)
+
+
+def test_runs_merge_close_failures() -> None:
+    failed = np.zeros(30, dtype=bool)
+    failed[[2, 3, 4, 8, 20]] = True
+    assert verify.runs(failed) == [(2, 8), (20, 20)]
+    assert verify.runs(failed, gap=1) == [(2, 4), (8, 8), (20, 20)]
+
+
+def test_one_shortfall_number_in_compile_and_metrics(tmp_path: Path) -> None:
+    """The avionics handle: the number in MT0501 is the verification's, and the metrics'."""
+    root = Path(__file__).resolve().parents[2]
+    program = run_frontend([root / "examples" / "remove_avionics_unit.mtask"])
+    sink = DiagnosticSink()
+    ir = run_motion(program.timelines[0], sink)
+    v = ir.verification
+    assert v is not None
+    short: dict[tuple[str, str], float] = {}  # the closest over each goal's phases
+    for c in v.contacts:
+        if not c["reached"]:
+            key = (verify.effector_name(c["effector"]), c["site"])
+            short[key] = min(short.get(key, math.inf), c["shortfall"])
+    said = sorted(d.message for d in sink.items if d.code == "MT0501")
+    assert len(said) == len(short) == 4  # both latches and both hands on the handle
+    for (who, site), metres in short.items():
+        assert any(f"the {who} cannot reach site `{site}`: {metres * 1000:.0f} mm short" in m
+                   for m in said), said  # fmt: skip
+    m = compute_metrics(ir)
+    shown = {(c.effector, c.site, c.shortfall) for c in m.contact_errors if not c.reachable}
+    assert shown == {(c["effector"], c["site"], c["shortfall"]) for c in v.contacts
+                     if not c["reached"]}  # fmt: skip

@@ -119,7 +119,7 @@ class Verification:
 
     # one per goal (TO segment with a position): effector, site, time (s, the contact frame),
     # error (m, at that frame), reached (the compiler's claim), shortfall (m, closest approach
-    # over the goal's frames), closest_time, line
+    # over the goal's frames), closest_time, and the task line's file, line and column
     contacts: list[dict[str, Any]] = field(default_factory=list)
     # one per held window: hand, t_start, t_end (s), drift (m), time of the worst frame, line
     grips: list[dict[str, Any]] = field(default_factory=list)
@@ -137,6 +137,8 @@ class Verification:
     static: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     contact_error: FloatArray = field(default_factory=lambda: np.zeros(0))  # m, NaN: no rest
     intersection_frames: FloatArray = field(default_factory=lambda: np.zeros(0))  # m, >0 inside
+    # (N, D) rad past each dof's limit: positive past the upper, negative past the lower, else 0
+    limit_excess: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     # what verify reported: code, message, line, column
     findings: list[dict[str, Any]] = field(default_factory=list)
     seconds: float = 0.0  # time verify took (not serialised: output stays deterministic)

@@ -193,7 +193,9 @@ class _Verifier:
                         "reached": reached,
                         "shortfall": shortfall,
                         "closest_time": closest,
+                        "file": seg.provenance.origin.file,
                         "line": seg.provenance.origin.line,
+                        "column": seg.provenance.origin.column,
                     }
                 )
                 if reached:
@@ -367,6 +369,7 @@ class _Verifier:
         skel, q = self.skel, self.ir.frames.q  # type: ignore[union-attr]
         above, below = q - skel.upper, skel.lower - q
         over = np.maximum(np.maximum(above, below), 0.0)
+        self.v.limit_excess = np.where(above > 0.0, above, np.where(below > 0.0, -below, 0.0))
         bad = over > LIMIT_TOLERANCE
         self.v.limits = {"count": int(np.count_nonzero(bad)), "excess": 0.0, "dof": "",
                          "time": math.nan}  # fmt: skip

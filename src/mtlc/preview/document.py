@@ -2,8 +2,8 @@
 
 The page recomputes the pose from the IR itself (forward kinematics in JavaScript), so the dict
 carries the IR's versioned JSON unchanged; next to it go the figures the page cannot cheaply
-compute (support margin, penetration, contact error, RULA) and the task › action › element
-blocks of the timeline with the source lines they came from.
+compute (support margin, penetration and contact error, as the verify pass measured them; RULA)
+and the task › action › element blocks of the timeline with the source lines they came from.
 """
 
 from __future__ import annotations
@@ -16,15 +16,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mtlc.body import forward, site_positions
-from mtlc.body.kinematics import Pose
+from mtlc.body import forward
 from mtlc.diagnostics.render import source_lines
 from mtlc.ergonomics.rula import task_scores, worst_grand
 from mtlc.ergonomics.view import DEFAULT_HALF_ANGLE_DEG
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.ir.serialize import to_dict
-from mtlc.metrics import foot_stance, penetration, support, support_margin
-from mtlc.passes.tool import carried_com
+from mtlc.metrics import foot_stance
 
 FloatArray = NDArray[np.float64]
 PREVIEW_FORMAT_VERSION = 1
@@ -48,56 +46,29 @@ class Block:
 # -- per-frame figures -------------------------------------------------------------------------
 
 
-def contact_error_per_frame(ir: MotionIR, pose: Pose, time: FloatArray) -> FloatArray:
-    """(N,) worst hand-to-site distance (m) while a hand rests on a site it reached, else NaN.
-
-    Only sites the solver reached count (as in ``mtlc.metrics``). A hand rests from the end of its TO segment until the next segment on its arm's track or on
-    the root's starts (the body moving carries the hand away): that is where the contact error of
-    ``docs/metrics.md`` lives.
-    """
-    out = np.full(len(time), np.nan)
-    root_starts = sorted(s.start for s in ir.on_track("root"))
-    for track in ("r_arm", "l_arm"):
-        segs = sorted(ir.on_track(track), key=lambda s: s.start)
-        for k, seg in enumerate(segs):
-            if seg.kind != "TO" or seg.goal.position is None or not _reached(seg.result):
-                continue
-            next_arm = segs[k + 1].start if k + 1 < len(segs) else math.inf
-            next_root = next((t for t in root_starts if t >= seg.end - 1e-9), math.inf)
-            until = min(next_arm, next_root)
-            resting = (time >= seg.end - 1e-9) & (time <= until + 1e-9)
-            # and the first frame at or after the TO's end, where the metrics measure (a
-            # wrench's stroke is followed at once by the next: no frame lies between)
-            resting[min(int(np.searchsorted(time, seg.end - 1e-9)), len(time) - 1)] = True
-            if not resting.any():
-                continue
-            hand = site_positions(ir.skeleton, pose, seg.goal.effector)[resting]
-            err = np.linalg.norm(hand - np.asarray(seg.goal.position, dtype=float), axis=-1)
-            out[resting] = np.fmax(out[resting], err)
-    return out
-
-
-def _reached(result: Mapping[str, Any]) -> bool:
-    """The solver's verdict; an unreachable site is reported as a diagnostic, not an error."""
-    return all(bool(result[key]) for key in ("reachable", "success", "reached") if key in result)
-
-
 def figures(ir: MotionIR) -> dict[str, FloatArray]:
-    """Per-frame contact error, centre-of-mass margin, penetration and RULA (worst so far)."""
-    frames, skel = ir.frames, ir.skeleton
+    """Per-frame contact error, centre-of-mass margin, penetration and RULA (worst so far).
+
+    The first three are what the verify pass measured on the output frames
+    (``MotionIR.verification``, docs/metrics.md), so the page shows the numbers `compile
+    --metrics`, `lint` and `report` give: the contact error of the hands resting on sites they
+    reached (NaN elsewhere), the margin of the centre of mass (with what the hands hold) over
+    the support of the points that touch, and the depth of the lowest body point (fingertips and
+    tool tips included). RULA is scored here."""
+    frames, skel, v = ir.frames, ir.skeleton, ir.verification
     if frames is None or skel is None:
         raise ValueError("the IR has no frames: run the motion passes first")
+    if v is None:
+        raise ValueError("the motion is not verified: run the verify pass last")
     t = np.asarray(frames.time, dtype=float)
     pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
     stance = foot_stance(ir, t)
-    pts, ok = support(skel, pose, stance, ir.ground)
-    margin = support_margin(pts, ok, carried_com(ir, pose, t)[:, [0, 2]])  # tools held count
     rula = worst_grand(task_scores(ir, pose, frames.q, t, stance.all(axis=1)))
     rula = rula.astype(float)
     return {
-        "contact_error": contact_error_per_frame(ir, pose, t),
-        "com_margin": margin,
-        "penetration": penetration(skel, pose, ir.ground),
+        "contact_error": v.contact_error,
+        "com_margin": v.support_margin,
+        "penetration": v.penetration_frames,
         "rula": rula,
         "rula_worst_so_far": np.maximum.accumulate(rula),
     }

@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mtlc.body import forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.ergonomics import rula as R
 from mtlc.ir.model import MotionIR, Segment
@@ -152,25 +151,26 @@ def _screen(spec: ManikinSpec, irs: dict[ManikinSpec, MotionIR]) -> ManikinResul
 
 
 def contact_distances(ir: MotionIR) -> dict[GoalRef, float]:
-    """Hand-to-site distance (m) at each contact goal of a full compile: the contact pass's
-    own measurement where it left one, else measured on the frame where the contact ends."""
+    """Hand-to-site distance (m) of each contact goal of a full compile, as the verify pass
+    measured it on the output frames (docs/metrics.md): where the solver claimed the site
+    reached, the distance at the first frame at or after the goal's end; where it did not, the
+    shortfall (the closest the hand comes over the goal's frames), the number MT0501 gives."""
+    v = ir.verification
+    if v is None:
+        raise ValueError("the motion is not verified: run the verify pass last")
+    measured: dict[tuple[object, ...], list[dict]] = {}
+    for c in v.contacts:
+        key = (c["file"], c["line"], c["column"], c["site"], c["effector"])
+        measured.setdefault(key, []).append(c)
     out: dict[GoalRef, float] = {}
     for reach in contact_goals(ir):
-        seg = reach.segment
-        d = (seg.result or {}).get("distance")
-        out.setdefault(
-            goal_ref(seg), float(d) if d is not None else _measured(ir, reach.frame, seg)
-        )
+        seg, o = reach.segment, reach.segment.provenance.origin
+        found = measured.get((o.file, o.line, o.column, seg.goal.site or "", seg.goal.effector))
+        if not found:
+            continue
+        short = [c["shortfall"] for c in found if not c["reached"]]
+        out.setdefault(goal_ref(seg), min(short) if short else float(found[0]["error"]))
     return out
-
-
-def _measured(ir: MotionIR, frame: int, seg: Segment) -> float:
-    f = ir.frames
-    assert f is not None and ir.skeleton is not None
-    sl = slice(frame, frame + 1)
-    pose = forward(ir.skeleton, f.q[sl], f.root_position[sl], f.root_rotation[sl])
-    hand = site_positions(ir.skeleton, pose, seg.goal.effector)[0]
-    return float(np.linalg.norm(hand - np.asarray(seg.goal.position, dtype=float)))
 
 
 def worst_rula(ir: MotionIR) -> RulaWorst | None:

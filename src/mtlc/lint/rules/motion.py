@@ -1,5 +1,10 @@
 """Rules over one manikin's compiled frames: MT0603 joint limits, MT0604 ground penetration,
-MT0605 RULA. Each reports once per task line, at the worst frame of that line."""
+MT0605 RULA. Each reports once per task line, at the worst frame of that line.
+
+MT0603 and MT0604 read what the verify pass measured (``MotionIR.verification``: the limit
+excess of every dof and the depth of every body point below the floor, per frame) and apply
+the lint configuration's thresholds (``limit-deg``, ``penetration-mm``) to it; lint then gives
+these findings instead of compile's MT0513 and MT0512 (docs/lint.md)."""
 
 from __future__ import annotations
 
@@ -7,9 +12,10 @@ import math
 
 import numpy as np
 
+from mtlc.ir.model import Verification
 from mtlc.lint.findings import Finding
 from mtlc.lint.rules.view import MotionView
-from mtlc.metrics import foot_stance, penetration
+from mtlc.metrics import foot_stance
 
 
 def _finding(view: MotionView, code: str, message: str, frame: int, help: str) -> Finding:
@@ -23,11 +29,18 @@ def _finding(view: MotionView, code: str, message: str, frame: int, help: str) -
     )
 
 
+def _verified(view: MotionView) -> Verification:
+    v = view.ir.verification
+    if v is None:  # the motion passes always end with verify
+        raise ValueError("the motion is not verified: run the verify pass last")
+    return v
+
+
 def joint_limits(view: MotionView) -> list[Finding]:
     skel = view.ir.skeleton
     tol = math.radians(view.config.limit_deg)
-    above = view.q - skel.upper  # (N, D)
-    below = skel.lower - view.q
+    signed = _verified(view).limit_excess  # (N, D): + past the upper limit, - the lower
+    above, below = np.maximum(signed, 0.0), np.maximum(-signed, 0.0)
     out = []
     for d in np.flatnonzero(((above > tol) | (below > tol)).any(axis=0)):
         excess = np.maximum(above[:, d], below[:, d])
@@ -50,7 +63,7 @@ def joint_limits(view: MotionView) -> list[Finding]:
 
 
 def ground_penetration(view: MotionView) -> list[Finding]:
-    depth = penetration(view.ir.skeleton, view.pose, view.ir.ground)
+    depth = _verified(view).penetration_frames
     bad = depth > view.config.penetration_mm / 1000.0
     out = []
     for i in view.worst_per_line(bad, depth):

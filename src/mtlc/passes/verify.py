@@ -115,6 +115,7 @@ class _Verifier:
         self.claims = [c for c in ctx.claims]
         ctx.claims.clear()
         self.segs = sorted(ir.segments, key=lambda s: (s.start, s.end))
+        self.paths: dict[str, FloatArray] = {}
         self.short: dict[tuple[SourceRef, str | None, str], tuple[float, float]] = {}
 
     # -- reporting ---------------------------------------------------------------------------
@@ -156,6 +157,12 @@ class _Verifier:
         before = [s for s in self.segs if s.track == track and s.start <= t + EPS]
         return max(before, key=lambda s: s.start, default=None)
 
+    def path(self, site: str) -> FloatArray:
+        """(N, 3) a body site's position over the frames, computed once per site."""
+        if site not in self.paths:
+            self.paths[site] = site_positions(self.skel, self.pose, site)
+        return self.paths[site]
+
     def where(self, seg: Segment) -> str:
         return " > ".join(seg.provenance.path)
 
@@ -178,7 +185,7 @@ class _Verifier:
                 if k and segs[k - 1].kind == "TA" and segs[k - 1].goal.site == seg.goal.site:
                     first = segs[k - 1].start
                 i0 = min(self.frame_at(first), i)
-                path = site_positions(self.skel, self.pose, seg.goal.effector)
+                path = self.path(seg.goal.effector)
                 dist = np.linalg.norm(path[i0 : i + 1] - site, axis=-1)
                 error = float(dist[-1])
                 j = int(np.argmin(dist))
@@ -284,7 +291,7 @@ class _Verifier:
             still = closed.copy()
             for s in movers:
                 still &= ~((t > s.start + EPS) & (t < s.end - EPS))
-            hand = site_positions(self.skel, self.pose, f"{side}_hand")
+            hand = self.path(f"{side}_hand")
             for first, last in runs(still, gap=1):
                 seg_grip = next(
                     (g for a, b, g in reversed(held_by) if a - EPS <= t[first] < b), None

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from mtlc.body import build_manikin, forward, site_positions
 from mtlc.body.capsules import body_capsules, depth_inside, self_intersection
@@ -357,3 +359,53 @@ def test_what_verify_reports_on_each_example(name: str) -> None:
     assert [(f["code"], f["line"]) for f in ir.verification.findings] == [  # type: ignore[union-attr]
         (d.code, d.span.line) for d in sink.items
     ]
+
+
+def test_standing_on_one_foot_outside_its_support_is_mt0502() -> None:
+    f = standing(20)  # both feet flat, the centre of mass between them
+    lifted = {"foot": "l", "t_lift": -1.0, "t_land": 5.0}  # the left foot holds no weight
+    seg = Segment("root", "posture", 0.0, 1.0, GoalSpec("body"), PROV, result={"steps": [lifted]})
+    ir = make_ir(f, [seg])
+    found = reverify(ir)
+    assert [c for c, _, _ in found] == ["MT0502"]
+    assert "outside the support of the points that touch" in found[0][2]
+    v = ir.verification
+    assert v is not None and v.static_margin < -0.02  # the CoM is ~half a hip width off
+    assert np.nanmax(v.support_margin) == v.support_margin.max() < 0
+
+
+def test_a_body_that_touches_nothing_is_mt0502_not_silence() -> None:
+    f = standing(10)
+    f.root_position[:, 1] += 0.05  # 5 cm up: no sole point within 1 cm of the floor
+    seg = Segment("root", "hold", 0.0, 0.3, GoalSpec("body"), PROV)
+    found = reverify(make_ir(f, [seg]))
+    assert [(c, m.endswith("no point of the body touches the floor or a site")) for c, _, m in found
+            ] == [("MT0502", True)]  # fmt: skip
+
+
+@settings(
+    max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    frame=st.integers(0, 10_000),
+    dof=st.integers(0, 10_000),
+    past=st.floats(0.01, 1.0),
+    sink_mm=st.floats(1.5, 60.0),
+)
+def test_any_limit_or_floor_corruption_is_caught(
+    good: MotionIR, frame: int, dof: int, past: float, sink_mm: float
+) -> None:
+    """Property: a joint pushed past either limit at any frame, or the body sunk by more than
+    1 mm at any frame, gives its code and the figure it was corrupted by."""
+    n, d = len(good.frames.time), dof % good.skeleton.n_dofs  # type: ignore[union-attr]
+    i = frame % n
+    ir = corrupt(good)
+    sk = ir.skeleton
+    ir.frames.q[i, d] = (sk.upper[d] + past) if dof % 2 else (sk.lower[d] - past)  # type: ignore[union-attr]
+    ir.frames.root_position[(i + n // 2) % n, 1] -= sink_mm / 1000  # type: ignore[union-attr]
+    found = codes(reverify(ir))
+    assert {"MT0512", "MT0513"} <= found
+    v = ir.verification
+    assert v is not None
+    assert v.limits["excess"] >= past - 1e-9
+    assert v.penetration_frames.max() >= sink_mm / 1000 - 2e-3  # the soles start within 2 mm

@@ -418,20 +418,24 @@ class _Verifier:
         if sel.size:
             k = sel[int(np.argmin(margin[sel]))]
             self.v.static_margin, self.v.static_margin_time = float(margin[k]), float(t[k])
-        failed = static & (margin < MIN_MARGIN)
+        # a static frame where no point touches (NaN) has no support at all: it fails too
+        failed = static & ~(margin >= MIN_MARGIN)
         for first, last in runs(failed):
             part = np.where(failed[first : last + 1], margin[first : last + 1], np.inf)
-            i = first + int(np.argmin(part))
             seg = self.active(first)
             if seg is None:
                 continue
             when = f"at {t[first]:.2f} s" if last == first else (
                 f"from {t[first]:.2f} s to {t[last]:.2f} s")  # fmt: skip
+            if np.isnan(part).all():
+                what = "no point of the body touches the floor or a site"
+            else:
+                worst = -float(np.nanmin(part))
+                what = f"the centre of mass is up to {_mm(worst)} mm outside the support of the "
+                what += "points that touch"
             self.report(
                 "MT0502",
-                f"the manikin loses its balance in `{self.where(seg)}`: {when} the centre of "
-                f"mass is up to {_mm(-float(margin[i]))} mm outside the support of the points "
-                "that touch",
+                f"the manikin loses its balance in `{self.where(seg)}`: {when} {what}",
                 seg.provenance.origin,
                 ("balance", id(seg)),
             )

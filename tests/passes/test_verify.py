@@ -332,7 +332,10 @@ def test_one_shortfall_number_in_compile_and_metrics(tmp_path: Path) -> None:
 # fix in the passes removes its line here: the list must only shrink.
 EXAMPLE_FINDINGS = {
     "drain_hydraulic_reservoir": [("MT0514", 25)],  # right forearm into the right thigh
-    "remove_access_panel": [("MT0514", 34)],  # left forearm into the trunk, panel set down
+    "remove_access_panel": [
+        ("MT0511", 32),  # the hands carrying the panel move 36 mm together: it is rigid
+        ("MT0514", 34),  # the left forearm into the trunk as the panel is set down
+    ],
     "remove_avionics_unit": [  # the latches and handle out of reach for the 5th-pct woman
         ("MT0501", 31),
         ("MT0501", 32),
@@ -409,3 +412,30 @@ def test_any_limit_or_floor_corruption_is_caught(
     assert v is not None
     assert v.limits["excess"] >= past - 1e-9
     assert v.penetration_frames.max() >= sink_mm / 1000 - 2e-3  # the soles start within 2 mm
+
+
+def test_two_hands_on_one_part_that_move_apart_are_mt0511() -> None:
+    f = standing(30)
+    r0, l0 = hand_at(f, 0), site_positions(SKEL, forward(SKEL, f.q[:1]), "l_hand")[0]
+    segs = []
+    for track, hand, pos in (("r_arm", "r_hand", r0), ("l_arm", "l_hand", l0)):
+        goal = GoalSpec(hand, "box", pos, params={"two_handed": True})
+        segs.append(Segment(track, "TO", 0.0, 0.1, goal, PROV, result={"success": True}))
+        closed = GoalSpec(hand, params={"state": "closed"})
+        segs.append(Segment(f"{hand[0]}_hand", "grip", 0.1, 0.2, closed, PROV))
+    # both arms move the box (a move of each arm): only the left elbow bends, so the hands
+    # part while the box they hold is rigid
+    for track, hand in (("r_arm", "r_hand"), ("l_arm", "l_hand")):
+        segs.append(Segment(track, "TA", 0.3, 0.9, GoalSpec(hand, "shelf"), PROV))
+    elbow = SKEL.dof_index("l_elbow_flex")
+    f.q[10:26, elbow] = np.linspace(0.0, 0.3, 16)  # inside the moves (0.33 to 0.83 s)
+    f.q[26:, elbow] = 0.3
+    ir = make_ir(f, segs)
+    found = reverify(ir)
+    assert [c for c, _, _ in found] == ["MT0511"]
+    assert "the two hands holding the part at `box` move" in found[0][2]
+    (both,) = [g for g in ir.verification.grips if g["hand"] == "both"]  # type: ignore[union-attr]
+    assert both["drift"] > 0.005
+    # the same with both arms still: the part is carried rigidly, nothing to report
+    g = standing(30)
+    assert reverify(make_ir(g, segs)) == []

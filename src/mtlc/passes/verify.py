@@ -116,6 +116,8 @@ class _Verifier:
         ctx.claims.clear()
         self.segs = sorted(ir.segments, key=lambda s: (s.start, s.end))
         self.paths: dict[str, FloatArray] = {}
+        # per side: the site of the two-handed goal held at each frame, and the closed grips
+        self.held: dict[str, tuple[Any, list[tuple[float, float, Segment]]]] = {}
         self.short: dict[tuple[SourceRef, str | None, str], tuple[float, float]] = {}
 
     # -- reporting ---------------------------------------------------------------------------
@@ -273,14 +275,25 @@ class _Verifier:
                 key=lambda s: s.start,
             )
             closed = np.zeros(len(t), dtype=bool)
+            part = np.full(len(t), "", dtype=object)  # the two-handed goal's site it holds
             held_by: list[tuple[float, float, Segment]] = []
             for k, g in enumerate(grips):
                 if g.goal.params.get("state") != "closed":
                     continue
                 opens = [o.start for o in grips[k + 1 :] if o.goal.params.get("state") == "open"]
                 end = min(opens, default=math.inf)
-                closed |= (t >= g.start - EPS) & (t < end - EPS)
+                window = (t >= g.start - EPS) & (t < end - EPS)
+                closed |= window
                 held_by.append((g.start, end, g))
+                reach = self.last_on(ARM_TRACK[side], self.frame_at(g.start))
+                if (
+                    reach is not None
+                    and reach.goal.params.get("two_handed")
+                    and reach.goal.site
+                    and _reachable(reach.result)  # a hand short of the part holds nothing
+                ):
+                    part[window] = reach.goal.site
+            self.held[side] = (part, held_by)
             if not closed.any():
                 continue
             movers = [
@@ -323,6 +336,49 @@ class _Verifier:
                         seg_grip.provenance.origin,
                         ("grip", side),
                     )
+
+    def both_hands(self) -> None:
+        """A part both hands hold (a two-handed goal, both grips closed on it) is rigid: the
+        distance between the two grip points stays what it was when the second hand closed,
+        whatever moves them (the part is carried by both)."""
+        if set(self.held) != {"r", "l"}:
+            return
+        (right, r_by), (left, _) = self.held["r"], self.held["l"]
+        same = (right != "") & (right == left)
+        if not same.any():
+            return
+        gap = np.linalg.norm(self.path("r_hand") - self.path("l_hand"), axis=-1)
+        t = self.t
+        for first, last in runs(same, gap=1):
+            stretch = np.abs(gap[first : last + 1] - gap[first])
+            j = int(np.argmax(stretch))
+            worst = float(stretch[j])
+            grasp = next((g for a, b, g in reversed(r_by) if a - EPS <= t[first] < b), None)
+            if grasp is None:
+                continue
+            self.v.grips.append(
+                {
+                    "hand": "both",
+                    "t_start": float(t[first]),
+                    "t_end": float(t[last]),
+                    "drift": worst,
+                    "time": float(t[first + j]),
+                    "line": grasp.provenance.origin.line,
+                }
+            )
+            if worst > TOLERANCE:
+                by = self.active(first + j, ("r_arm", "l_arm"))
+                during = f" during `{self.where(by)}`" if by is not None else ""
+                self.report(
+                    "MT0511",
+                    f"the two hands holding the part at `{right[first]}` move "
+                    f"{_mm(worst)} mm {'apart' if gap[first + j] > gap[first] else 'together'} "
+                    f"(from {gap[first] * 1000:.0f} mm at {t[first]:.2f} s to "
+                    f"{gap[first + j] * 1000:.0f} mm at {t[first + j]:.2f} s){during}, though the "
+                    "part is rigid",
+                    grasp.provenance.origin,
+                    ("both", right[first]),
+                )
 
     # -- the floor ---------------------------------------------------------------------------
 
@@ -483,6 +539,7 @@ def verify(ir: MotionIR, ctx: PassContext) -> Verification:
     v.contacts()
     v.pass_claims()
     v.grips()
+    v.both_hands()
     v.floor()
     v.limits()
     v.balance()

@@ -285,7 +285,13 @@ class _Verifier:
                 window = (t >= g.start - EPS) & (t < end - EPS)
                 closed |= window
                 held_by.append((g.start, end, g))
-                reach = self.last_on(ARM_TRACK[side], self.frame_at(g.start))
+                # the goal the hand closes on: the last contact of its arm before the grip
+                reach = max(
+                    (r for r in self.ir.on_track(ARM_TRACK[side])
+                     if r.kind == "TO" and r.end <= g.start + EPS),
+                    key=lambda r: r.end,
+                    default=None,
+                )  # fmt: skip
                 if (
                     reach is not None
                     and reach.goal.params.get("two_handed")

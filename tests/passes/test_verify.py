@@ -221,7 +221,7 @@ def test_contact_error_and_shortfall_are_measured_on_the_frames(reached: bool) -
         assert "is 10 mm from site `bolt` at 0.50 s" in found[0][2]
     else:
         assert [(code, m) for code, _, m in found] == [
-            ("MT0501", "the right hand cannot reach site `bolt`: 10 mm short (closest at 0.20 s)")
+            ("MT0501", "the right hand cannot reach site `bolt`: 10 mm short, closest at 0.20 s")
         ]
 
 
@@ -238,7 +238,7 @@ def test_a_pass_claim_of_a_shortfall_is_replaced_by_the_measured_one() -> None:
     verify.run(make_ir(f, [seg]), ctx)
     assert sorted(d.message for d in sink.items) == [
         "the pliers in the right hand cannot turn the screw at site `x`",
-        "the right hand cannot reach site `bolt`: 20 mm short (closest at 0.20 s)",
+        "the right hand cannot reach site `bolt`: 20 mm short, closest at 0.20 s",
     ]
 
 

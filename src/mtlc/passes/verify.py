@@ -245,7 +245,7 @@ class _Verifier:
                 self.report(
                     "MT0501",
                     f"the {effector_name(effector)} cannot reach site `{site}`: "
-                    f"{_mm(shortfall)} mm short (closest at {closest:.2f} s)",
+                    f"{_mm(shortfall)} mm short, closest at {closest:.2f} s",
                     ref,
                     (site, effector),
                 )

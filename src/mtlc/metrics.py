@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import MotionIR
+from mtlc.loads import carried_com
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -480,9 +481,7 @@ def compute_metrics(ir: MotionIR) -> Metrics:
     planted = contact & ~rolling_points(ir, t)
     skate = foot_skating(feet, planted, t) if len(t) > 1 else np.full((0, 8), np.nan)
     skating = float(np.nanmax(skate)) if np.isfinite(skate).any() else math.nan
-    from mtlc.passes.tool import carried_com  # the passes import the metrics
-
-    com = carried_com(ir, pose, t)  # with the tools the hands hold while they hold them
+    com = carried_com(ir, pose, t)  # with the tools and loads the hands hold while they hold them
     pts, ok = support(skel, pose, stance, ir.ground, hand_contacts(ir, t))
     margin = support_margin(pts, ok, com[:, [0, 2]])
     static = ~walking(ir, t)

@@ -34,6 +34,7 @@ import numpy as np
 from mtlc.body import Pose, com_jacobian, forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import Frames, MotionIR, Segment
+from mtlc.loads import carried_com
 from mtlc.metrics import (
     FOOT_POINT_NAMES,
     KNEE_SLOTS,
@@ -52,7 +53,6 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.context import PassContext
-from mtlc.passes.tool import carried_com
 
 HULL_EPS = 1e-9  # m: as ``mtlc.metrics.hull``
 

@@ -26,6 +26,7 @@ the task that led to the segment active then.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from bisect import bisect_left
 
@@ -33,6 +34,7 @@ import numpy as np
 
 from mtlc.body import Pose, com_jacobian, forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.body.skeleton import Site, Skeleton
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.loads import carried_com
 from mtlc.metrics import (
@@ -129,6 +131,7 @@ PUSH_TOL = 1e-3  # m
 AIM = MARGIN + PUSH_TOL / 2
 COM_GAIN = 0.8  # the legs stay behind: the CoM moves ~80 % of the pelvis (measured 0.75-0.9)
 FEET_SITES = ("r_foot", "l_foot")
+KNEE_SITES = {"r": "r_knee_point", "l": "l_knee_point"}  # see ``knee_skeleton``
 HANDS = {"r_hand": "r_arm", "l_hand": "l_arm"}
 # which segment an MT0502 is reported at when several are active: the posture that bends the
 # body, then the reach that leans it, then anything else
@@ -231,6 +234,128 @@ def lower_for_reach(
     return root
 
 
+Knees = dict[str, tuple[np.ndarray, np.ndarray]]  # side -> (kneeling rows (B,), centres (B, 3))
+
+
+def knee_skeleton(skel: Skeleton) -> Skeleton:
+    """``skel`` with a site at each knee's centre (``r_knee_point``, ``l_knee_point``), so the
+    IK can hold a kneeling knee where it is while the pelvis moves. Made once per skeleton."""
+    made = skel.__dict__.get("_knee_skeleton")
+    if made is None:
+        extra = tuple(Site(KNEE_SITES[s], f"{s}_knee", (0.0, 0.0, 0.0), "effector") for s in "rl")
+        made = dataclasses.replace(skel, sites=(*skel.sites, *extra))
+        skel.__dict__["_knee_skeleton"] = made
+    return made
+
+
+def kneeling_knees(ok: BoolArray, pose: Pose, skel: Skeleton) -> Knees:
+    """Per side, the rows whose knee bears weight (``ok``'s knee slots) and its centre."""
+    slots = ok[:, KNEE_SLOTS].reshape(len(ok), 2, -1).any(axis=2)
+    return {
+        side: (slots[:, k], pose.p[:, skel.joint_index(f"{side}_knee")].copy())
+        for k, side in enumerate("rl")
+    }
+
+
+def kneel_height(skel: Skeleton, pose: Pose, root: np.ndarray, knees: Knees) -> np.ndarray:
+    """Root positions whose height keeps each kneeling hip a thigh's length from its knee.
+
+    A pelvis moved back over kneeling knees goes round them: the thigh is rigid, so the hip
+    stays on a sphere about the knee. ``pose`` is the pose at ``root``; with both knees down
+    the root takes the mean of what each needs (the hips' side dofs absorb the rest).
+    """
+    root = root.copy()
+    need = np.zeros(len(root))
+    count = np.zeros(len(root))
+    for side, (rows, knee) in knees.items():
+        if not rows.any():
+            continue
+        thigh = float(np.linalg.norm(skel.offsets[skel.joint_index(f"{side}_knee")]))
+        hip = pose.p[:, skel.joint_index(f"{side}_hip")]
+        d = hip - knee
+        flat2 = d[:, 0] ** 2 + d[:, 2] ** 2
+        up = np.sqrt(np.maximum(thigh**2 - flat2, 0.0))
+        need += np.where(rows, up - d[:, 1], 0.0)
+        count += rows
+    root[:, 1] += np.where(count > 0, need / np.maximum(count, 1.0), 0.0)
+    return root
+
+
+def hold_knees(
+    skel: Skeleton,
+    q: np.ndarray,
+    root: np.ndarray,
+    rot: np.ndarray,
+    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    knees: Knees,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Legs of kneeling rows re-solved for their feet and their kneeling knees' centres.
+
+    Returns the new q and each row's worst knee distance (0 where no knee kneels)."""
+    q = q.copy()
+    worst = np.zeros(len(q))
+    kskel = knee_skeleton(skel)
+    r_down, l_down = knees["r"][0], knees["l"][0]
+    for r_on, l_on in ((True, True), (True, False), (False, True)):
+        idx = np.flatnonzero((r_down == r_on) & (l_down == l_on) & (r_down | l_down))
+        if idx.size == 0:
+            continue
+        goals = [
+            Goal(name, position=pos[idx], orientation=frot[idx])
+            for name, (pos, frot, _) in feet.items()
+        ]
+        sides = [s for s, down in (("r", r_on), ("l", l_on)) if down]
+        goals += [Goal(KNEE_SITES[s], position=knees[s][1][idx]) for s in sides]
+        model = prepare(kskel, goals, q[idx], root_position=root[idx], root_rotation=rot[idx])
+        res = solve_ta(
+            kskel, goals, q[idx], model=model, restarts=0, null_gain=0.0, tol=1e-4,
+            orientation_tol=math.radians(0.05), max_iter=40,
+        )  # fmt: skip
+        q[idx] = res.q
+        pose = forward(kskel, q[idx], root[idx], rot[idx])
+        for s in sides:
+            at = pose.p[:, skel.joint_index(f"{s}_knee")]
+            worst[idx] = np.maximum(worst[idx], np.linalg.norm(at - knees[s][1][idx], axis=-1))
+    return q, worst
+
+
+def _hands_with_trunk(
+    skel: Skeleton,
+    q: np.ndarray,
+    root: np.ndarray,
+    rot: np.ndarray,
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+    rows: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pinned hands of ``rows`` re-solved together with the trunk (lumbar, thorax, clavicles):
+    a kneeling body whose pelvis goes back over its knees reaches forward with the trunk, as the
+    arms alone cannot follow a hand at arm's length. Returns q, the rows solved and errors."""
+    q = q.copy()
+    solved = np.zeros(len(q), dtype=bool)
+    err = np.zeros(len(q))
+    pinned = {h: m & rows for h, (m, _) in hands.items()}
+    r_pin, l_pin = pinned["r_hand"], pinned["l_hand"]
+    for r_on, l_on in ((True, True), (True, False), (False, True)):
+        idx = np.flatnonzero((r_pin == r_on) & (l_pin == l_on) & (r_pin | l_pin))
+        if idx.size == 0:
+            continue
+        names = [h for h, on in (("r_hand", r_on), ("l_hand", l_on)) if on]
+        goals = [Goal(h, position=hands[h][1][idx]) for h in names]
+        for h in names:
+            elbow = skel.dof_index(f"{h[0]}_elbow_flex")
+            q[idx, elbow] = np.maximum(q[idx, elbow], SEED_FLEX)
+        model = prepare(
+            skel, goals, q[idx], reach="torso", root_position=root[idx], root_rotation=rot[idx]
+        )
+        res = solve_ta(
+            skel, goals, q[idx], model=model, restarts=0, null_gain=0.0, tol=2e-4, max_iter=60
+        )
+        q[idx] = res.q
+        solved[idx] = True
+        err[idx] = res.position_error
+    return q, solved, err
+
+
 def restore_contacts(
     ir: MotionIR,
     q: np.ndarray,
@@ -258,8 +383,9 @@ def restore_contacts_posed(
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
     pose: Pose | None = None,
+    knees: Knees | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
-    """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
+    """Re-solve legs (and pinned arms) of a batch so feet, knees and hands are where they were.
 
     ``feet`` maps r_foot/l_foot to target positions (B, 3), rotations (B, 3, 3) and whether the
     foot touches the ground (B,): a foot in the air keeps its joint angles instead;
@@ -281,7 +407,17 @@ def restore_contacts_posed(
         )
         for name, (pos, rot, touch) in feet.items()
     }
-    root = lower_for_reach(ir, q, root_position, root_rotation, feet, pose)
+    kneel = knees is not None and bool((knees["r"][0] | knees["l"][0]).any())
+    if kneel:  # kneeling rows: the hips go round the knees, the knees stay (``hold_knees``)
+        assert knees is not None
+        down = knees["r"][0] | knees["l"][0]
+        root = np.where(
+            down[:, None],
+            kneel_height(skel, pose, root_position, knees),
+            lower_for_reach(ir, q, root_position, root_rotation, feet, pose),
+        )
+    else:
+        root = lower_for_reach(ir, q, root_position, root_rotation, feet, pose)
     moved = np.abs(root[:, 1] - root_position[:, 1]) > 1e-9
     for side in ("r", "l"):  # a straight knee is singular: start a lowered leg slightly bent
         k = skel.dof_index(f"{side}_knee_flex")
@@ -293,8 +429,12 @@ def restore_contacts_posed(
         orientation_tol=math.radians(0.05), max_iter=40,
     )  # fmt: skip
     q = res.q
+    knee_err = np.zeros(len(q))
+    if kneel:
+        assert knees is not None
+        q, knee_err = hold_knees(skel, q, root, root_rotation, feet, knees)
     pose = forward(skel, q, root, root_rotation)
-    worst = np.zeros(len(q))
+    worst = knee_err
     for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
         soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
         offsets = np.array([skel.site(n).offset for n in soles], dtype=float)
@@ -302,8 +442,12 @@ def restore_contacts_posed(
         err = np.linalg.norm(site_positions(skel, pose, soles) - want, axis=-1).max(axis=1)
         worst = np.maximum(worst, np.where(touch, err, 0.0))
     solved = np.zeros(len(q), dtype=bool)
+    if kneel:  # kneeling: the pelvis goes back, the trunk leans over to keep the hands on
+        assert knees is not None
+        q, solved, err = _hands_with_trunk(skel, q, root, root_rotation, hands, down)
+        worst = np.maximum(worst, err)
     for hand, (rows, target) in hands.items():
-        idx = np.flatnonzero(rows)
+        idx = np.flatnonzero(rows & ~solved)
         if idx.size == 0:
             continue
         solved[idx] = True
@@ -412,15 +556,16 @@ CHUNK_FRAMES = 4096  # frames whose support is measured at once (~10 KB each whi
 
 
 def _support_state(
-    ir: MotionIR, frames: Frames, idx: slice | np.ndarray, stance: BoolArray, resting: BoolArray
+    ir: MotionIR, frames: Frames, idx: slice | np.ndarray, stance: BoolArray
 ) -> tuple[Pose, BoolArray, FloatArray, BoolArray, FloatArray]:
-    """Pose, touching sole points, support points and which bear weight, and the CoM (with
-    the held tools) of the frames ``idx``, from the frames' stance and resting hands."""
+    """Pose, sole points on the ground, support points and which bear weight (the strict
+    support: ``mtlc.metrics.support``, hands within 2 mm of their site), and the CoM (with the
+    held tools and loads) of the frames ``idx``."""
     skel = ir.skeleton
     t = frames.time[idx]
     pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx])
     contact = contact_mask(foot_points(skel, pose), stance[idx], ir.ground)
-    pts, ok = support(skel, pose, stance[idx], ir.ground, resting[idx])
+    pts, ok = support(skel, pose, stance[idx], ir.ground, hand_contacts(ir, t, pose))
     return pose, contact, pts, ok, carried_com(ir, pose, t)
 
 
@@ -440,18 +585,16 @@ def balance_frames(
         return out
     t = frames.time
     # what depends on time only, for every frame (a few booleans a frame)
-    stance, resting, static = foot_stance(ir, t), hand_contacts(ir, t), ~walking(ir, t)
+    stance, static = foot_stance(ir, t), ~walking(ir, t)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
     # and hulls cost ~10 KB a frame, the margins kept 20 bytes (docs/passes.md, memory)
     before = np.empty(len(t))
-    kneeling = np.zeros(len(t), dtype=bool)
     hopeless = np.zeros(len(t), dtype=bool)
     for a in range(0, len(t), CHUNK_FRAMES):
         c = slice(a, a + CHUNK_FRAMES)
-        _, _, all_pts, all_ok, com = _support_state(ir, frames, c, stance, resting)
+        _, _, all_pts, all_ok, com = _support_state(ir, frames, c, stance)
         all_hull = grouped_hull(all_pts, all_ok)
         before[c] = hull_margin(all_hull, com[:, [0, 2]])
-        kneeling[c] = all_ok[:, KNEE_SLOTS].any(axis=1)  # the pelvis would drag a knee along
         # a support with no inside (toes only, one edge) or a CoM farther than the pelvis may
         # move cannot be fixed here: report it without trying
         centroid = np.einsum("np,npk->nk", all_ok, all_pts) / np.maximum(all_ok.sum(1), 1)[:, None]
@@ -460,15 +603,13 @@ def balance_frames(
     after = before.copy()
     failed = np.zeros(len(t), dtype=bool)
     low = ~np.isnan(before) & (before < MARGIN)
-    failed[low & kneeling & (before < 0)] = True
     failed[low & hopeless & (before < 0)] = True
     failed &= static  # walking frames are measured, never moved nor reported
-    # kneeling frames are balanced by the trunk alone: the pelvis would drag a knee along
     rows = np.flatnonzero(low & static & ~hopeless)
     if rows.size == 0:
         return before, after, failed
     # the frames to correct, measured again by themselves (the support stays where it was)
-    pose_r, contact_r, pts, ok, _ = _support_state(ir, frames, rows, stance, resting)
+    pose_r, contact_r, pts, ok, _ = _support_state(ir, frames, rows, stance)
     hulls = grouped_hull(pts, ok)
     # nothing may go deeper below the ground than it was or than GROUND_SLACK
     floor = np.minimum(lowest_point(skel, pose_r) - 1e-4, ir.ground - GROUND_SLACK)
@@ -491,7 +632,8 @@ def balance_frames(
     worst = np.zeros(rows.size)
     margin = before[rows]
     # rows whose contacts gave out keep their last good pose and stop; converged rows stop
-    active = np.flatnonzero(~kneeling[rows])
+    knees = kneeling_knees(ok, pose_r, skel)  # kneeling knees stay where they are
+    active = np.arange(rows.size)
     cap = np.full(rows.size, MAX_STEP)
     p_rows = pose_r  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
@@ -509,8 +651,9 @@ def balance_frames(
         shift = new_root[:, [0, 2]] - root0[active][:, [0, 2]]
         far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
         q_a, root_a, worst_a, p_a = restore_contacts_posed(
-            ir, q[active], new_root, rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
-        )
+            ir, q[active], new_root, rot[active], _sub_feet(feet, active),
+            _sub_hands(hands, active), knees=_sub_hands(knees, active),
+        )  # fmt: skip
         lost = far | ((worst_a > POSITION_TOL) & (worst[active] <= POSITION_TOL))
         ok_rows = active[~lost]
         q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
@@ -551,14 +694,13 @@ def balance_frames(
     # back, so that the smoothing pass finds no balance jump to undo
     size = np.abs(dq).max(axis=1) + 10.0 * np.hypot(*dr.T[[0, 2]]) + 10.0 * np.abs(dr[:, 1])
     dq, dr = blend(dq, size, BLEND_FRAMES), blend(dr, size, BLEND_FRAMES)
-    dr[kneeling] = 0.0  # a neighbour's pelvis correction must not drag a knee
     span = np.flatnonzero(np.abs(dq).max(axis=1) + np.abs(dr).max(axis=1) > 0)
     if span.size == 0:  # the blended corrections cancelled out: nothing to apply
         return before, after, failed
     qb = np.clip(frames.q[span] + dq[span], skel.lower, skel.upper)
     rb = frames.root_position[span] + dr[span]
     # the frames the blend reaches, measured by themselves in their original pose
-    pose_s, contact_s, pts_s, ok_s, _ = _support_state(ir, frames, span, stance, resting)
+    pose_s, contact_s, pts_s, ok_s, _ = _support_state(ir, frames, span, stance)
     feet_b = {
         name: (site_positions(skel, pose_s, name), site_rotation(skel, pose_s, name),
                contact_s.reshape(span.size, 2, -1).any(axis=2)[:, k])
@@ -566,7 +708,8 @@ def balance_frames(
     }  # fmt: skip
     hands_b = {h: (pins[h][span], site_positions(skel, pose_s, h)) for h in HANDS}
     rot_b = frames.root_rotation[span]
-    qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b)
+    knees_b = kneeling_knees(ok_s, pose_s, skel)  # a neighbour's correction keeps the knees
+    qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b, knees=knees_b)
     floor_b = np.minimum(lowest_point(skel, pose_s) - 1e-4, ir.ground - GROUND_SLACK)
     fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
     fine &= lowest_point(skel, pb) >= floor_b

@@ -132,6 +132,19 @@ def balanced_lean(skel: Any, q: FloatArray, margin: float = HEEL_MARGIN) -> Floa
     return leaned(_bisect(ahead, 0.0, top))
 
 
+def flat_feet(skel: Any, q: FloatArray) -> FloatArray:
+    """``q`` with each ankle dorsiflexed by knee − hip flexion, so an upright pelvis stands on
+    level soles. The comfortable pose's knees are 1.7° more bent than its hips: standing up
+    to it raised the heels 7 mm off the floor while the toes stayed on it, and a heel 7 mm up
+    bears no weight (docs/metrics.md, "Support")."""
+    vals = {
+        f"{s}_ankle_dorsi": float(q[skel.dof_index(f"{s}_knee_flex")])
+        - float(q[skel.dof_index(f"{s}_hip_flex")])
+        for s in ("r", "l")
+    }
+    return _deg(skel, vals, q)
+
+
 def _legs_zero(skel: Any, q: FloatArray) -> FloatArray:
     out = q.copy()
     for name in LEG_DOFS:
@@ -152,7 +165,7 @@ def target_posture(
     if kind == "stand":
         for name in (*TRUNK_DOFS, *LEG_DOFS, *free_arms):
             q[skel.dof_index(name)] = skel.q_comfort[skel.dof_index(name)]
-        return q
+        return flat_feet(skel, q)
     if kind == "bend":
         angle = float(params.get("angle", math.radians(45)))
         lum = min(angle * 2.0 / 3.0, skel.upper[skel.dof_index("lumbar_flex")])

@@ -23,7 +23,7 @@ from mtlc.ergonomics.rula import task_scores, worst_grand
 from mtlc.ergonomics.view import DEFAULT_HALF_ANGLE_DEG
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.ir.serialize import to_dict
-from mtlc.metrics import foot_stance, penetration, support, support_margin
+from mtlc.metrics import foot_stance, hand_contacts, penetration, support, support_margin
 from mtlc.passes.tool import carried_com
 
 FloatArray = NDArray[np.float64]
@@ -90,7 +90,7 @@ def figures(ir: MotionIR) -> dict[str, FloatArray]:
     t = np.asarray(frames.time, dtype=float)
     pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
     stance = foot_stance(ir, t)
-    pts, ok = support(skel, pose, stance, ir.ground)
+    pts, ok = support(skel, pose, stance, ir.ground, hand_contacts(ir, t, pose))  # as metrics
     margin = support_margin(pts, ok, carried_com(ir, pose, t)[:, [0, 2]])  # tools held count
     rula = worst_grand(task_scores(ir, pose, frames.q, t, stance.all(axis=1)))
     rula = rula.astype(float)

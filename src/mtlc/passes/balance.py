@@ -3,9 +3,13 @@
 Claim 4 (3.4): if the projection of the body's centre of mass on the ground leaves the support
 surface, adjust the root again while keeping the other joints' goals. On the dense frames:
 
-* the support polygon is the convex hull of the sole points that touch the ground (within 1 cm)
-  on the feet that stand: both feet outside walks, the stance foot during a step
-  (``mtlc.metrics.foot_stance`` reads the locomotion pass's ``result["steps"]``);
+* first, a free hand whose fingertips go under the ground turns its wrist to lift them
+  (``lift_fingertips``; MT0525 where it cannot);
+* the support polygon is the convex hull of the points that touch (``mtlc.metrics.support``:
+  within 2 mm of the floor or of the site they rest on): the sole points on the feet that
+  stand (both feet outside walks, the stance foot during a step: ``mtlc.metrics.foot_stance``
+  reads ``result["steps"]``), kneeling knees and hands on their sites; the centre of mass
+  carries what the hands hold (``mtlc.loads.carried_com``);
 * in *static* frames (outside walks) whose margin is below ``MARGIN`` the pelvis moves
   horizontally until the CoM is ``MARGIN`` inside. Pushing every frame below the target margin
   (not only those outside) makes the correction grow from zero, so it is continuous in time;
@@ -14,7 +18,8 @@ surface, adjust the root again while keeping the other joints' goals. On the den
   of hands in contact (TO windows, and after them until the arm's next segment) toward their
   original hand positions. Where straight legs cannot follow a sideways pelvis, the pelvis
   drops by what the feet lack (the base correction's h = L − x again);
-* a few such rounds converge (the legs and arms move the CoM a little too).
+* a few such rounds converge (the legs and arms move the CoM a little too). Kneeling frames
+  are balanced by the trunk alone: the pelvis would drag the knees along.
 
 Walking frames are measured but not moved: in single support a walking body's CoM is outside
 the stance foot by design (Winter 1995, "Human balance and posture control during standing and
@@ -26,7 +31,6 @@ the task that led to the segment active then.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from bisect import bisect_left
 
@@ -34,7 +38,6 @@ import numpy as np
 
 from mtlc.body import Pose, com_jacobian, forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
-from mtlc.body.skeleton import Site, Skeleton
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.loads import carried_com
 from mtlc.metrics import (
@@ -131,7 +134,6 @@ PUSH_TOL = 1e-3  # m
 AIM = MARGIN + PUSH_TOL / 2
 COM_GAIN = 0.8  # the legs stay behind: the CoM moves ~80 % of the pelvis (measured 0.75-0.9)
 FEET_SITES = ("r_foot", "l_foot")
-KNEE_SITES = {"r": "r_knee_point", "l": "l_knee_point"}  # see ``knee_skeleton``
 HANDS = {"r_hand": "r_arm", "l_hand": "l_arm"}
 # which segment an MT0502 is reported at when several are active: the posture that bends the
 # body, then the reach that leans it, then anything else
@@ -234,128 +236,6 @@ def lower_for_reach(
     return root
 
 
-Knees = dict[str, tuple[np.ndarray, np.ndarray]]  # side -> (kneeling rows (B,), centres (B, 3))
-
-
-def knee_skeleton(skel: Skeleton) -> Skeleton:
-    """``skel`` with a site at each knee's centre (``r_knee_point``, ``l_knee_point``), so the
-    IK can hold a kneeling knee where it is while the pelvis moves. Made once per skeleton."""
-    made = skel.__dict__.get("_knee_skeleton")
-    if made is None:
-        extra = tuple(Site(KNEE_SITES[s], f"{s}_knee", (0.0, 0.0, 0.0), "effector") for s in "rl")
-        made = dataclasses.replace(skel, sites=(*skel.sites, *extra))
-        skel.__dict__["_knee_skeleton"] = made
-    return made
-
-
-def kneeling_knees(ok: BoolArray, pose: Pose, skel: Skeleton) -> Knees:
-    """Per side, the rows whose knee bears weight (``ok``'s knee slots) and its centre."""
-    slots = ok[:, KNEE_SLOTS].reshape(len(ok), 2, -1).any(axis=2)
-    return {
-        side: (slots[:, k], pose.p[:, skel.joint_index(f"{side}_knee")].copy())
-        for k, side in enumerate("rl")
-    }
-
-
-def kneel_height(skel: Skeleton, pose: Pose, root: np.ndarray, knees: Knees) -> np.ndarray:
-    """Root positions whose height keeps each kneeling hip a thigh's length from its knee.
-
-    A pelvis moved back over kneeling knees goes round them: the thigh is rigid, so the hip
-    stays on a sphere about the knee. ``pose`` is the pose at ``root``; with both knees down
-    the root takes the mean of what each needs (the hips' side dofs absorb the rest).
-    """
-    root = root.copy()
-    need = np.zeros(len(root))
-    count = np.zeros(len(root))
-    for side, (rows, knee) in knees.items():
-        if not rows.any():
-            continue
-        thigh = float(np.linalg.norm(skel.offsets[skel.joint_index(f"{side}_knee")]))
-        hip = pose.p[:, skel.joint_index(f"{side}_hip")]
-        d = hip - knee
-        flat2 = d[:, 0] ** 2 + d[:, 2] ** 2
-        up = np.sqrt(np.maximum(thigh**2 - flat2, 0.0))
-        need += np.where(rows, up - d[:, 1], 0.0)
-        count += rows
-    root[:, 1] += np.where(count > 0, need / np.maximum(count, 1.0), 0.0)
-    return root
-
-
-def hold_knees(
-    skel: Skeleton,
-    q: np.ndarray,
-    root: np.ndarray,
-    rot: np.ndarray,
-    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    knees: Knees,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Legs of kneeling rows re-solved for their feet and their kneeling knees' centres.
-
-    Returns the new q and each row's worst knee distance (0 where no knee kneels)."""
-    q = q.copy()
-    worst = np.zeros(len(q))
-    kskel = knee_skeleton(skel)
-    r_down, l_down = knees["r"][0], knees["l"][0]
-    for r_on, l_on in ((True, True), (True, False), (False, True)):
-        idx = np.flatnonzero((r_down == r_on) & (l_down == l_on) & (r_down | l_down))
-        if idx.size == 0:
-            continue
-        goals = [
-            Goal(name, position=pos[idx], orientation=frot[idx])
-            for name, (pos, frot, _) in feet.items()
-        ]
-        sides = [s for s, down in (("r", r_on), ("l", l_on)) if down]
-        goals += [Goal(KNEE_SITES[s], position=knees[s][1][idx]) for s in sides]
-        model = prepare(kskel, goals, q[idx], root_position=root[idx], root_rotation=rot[idx])
-        res = solve_ta(
-            kskel, goals, q[idx], model=model, restarts=0, null_gain=0.0, tol=1e-4,
-            orientation_tol=math.radians(0.05), max_iter=40,
-        )  # fmt: skip
-        q[idx] = res.q
-        pose = forward(kskel, q[idx], root[idx], rot[idx])
-        for s in sides:
-            at = pose.p[:, skel.joint_index(f"{s}_knee")]
-            worst[idx] = np.maximum(worst[idx], np.linalg.norm(at - knees[s][1][idx], axis=-1))
-    return q, worst
-
-
-def _hands_with_trunk(
-    skel: Skeleton,
-    q: np.ndarray,
-    root: np.ndarray,
-    rot: np.ndarray,
-    hands: dict[str, tuple[np.ndarray, np.ndarray]],
-    rows: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pinned hands of ``rows`` re-solved together with the trunk (lumbar, thorax, clavicles):
-    a kneeling body whose pelvis goes back over its knees reaches forward with the trunk, as the
-    arms alone cannot follow a hand at arm's length. Returns q, the rows solved and errors."""
-    q = q.copy()
-    solved = np.zeros(len(q), dtype=bool)
-    err = np.zeros(len(q))
-    pinned = {h: m & rows for h, (m, _) in hands.items()}
-    r_pin, l_pin = pinned["r_hand"], pinned["l_hand"]
-    for r_on, l_on in ((True, True), (True, False), (False, True)):
-        idx = np.flatnonzero((r_pin == r_on) & (l_pin == l_on) & (r_pin | l_pin))
-        if idx.size == 0:
-            continue
-        names = [h for h, on in (("r_hand", r_on), ("l_hand", l_on)) if on]
-        goals = [Goal(h, position=hands[h][1][idx]) for h in names]
-        for h in names:
-            elbow = skel.dof_index(f"{h[0]}_elbow_flex")
-            q[idx, elbow] = np.maximum(q[idx, elbow], SEED_FLEX)
-        model = prepare(
-            skel, goals, q[idx], reach="torso", root_position=root[idx], root_rotation=rot[idx]
-        )
-        res = solve_ta(
-            skel, goals, q[idx], model=model, restarts=0, null_gain=0.0, tol=2e-4, max_iter=60
-        )
-        q[idx] = res.q
-        solved[idx] = True
-        err[idx] = res.position_error
-    return q, solved, err
-
-
 def restore_contacts(
     ir: MotionIR,
     q: np.ndarray,
@@ -383,9 +263,8 @@ def restore_contacts_posed(
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
     pose: Pose | None = None,
-    knees: Knees | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
-    """Re-solve legs (and pinned arms) of a batch so feet, knees and hands are where they were.
+    """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
 
     ``feet`` maps r_foot/l_foot to target positions (B, 3), rotations (B, 3, 3) and whether the
     foot touches the ground (B,): a foot in the air keeps its joint angles instead;
@@ -407,17 +286,7 @@ def restore_contacts_posed(
         )
         for name, (pos, rot, touch) in feet.items()
     }
-    kneel = knees is not None and bool((knees["r"][0] | knees["l"][0]).any())
-    if kneel:  # kneeling rows: the hips go round the knees, the knees stay (``hold_knees``)
-        assert knees is not None
-        down = knees["r"][0] | knees["l"][0]
-        root = np.where(
-            down[:, None],
-            kneel_height(skel, pose, root_position, knees),
-            lower_for_reach(ir, q, root_position, root_rotation, feet, pose),
-        )
-    else:
-        root = lower_for_reach(ir, q, root_position, root_rotation, feet, pose)
+    root = lower_for_reach(ir, q, root_position, root_rotation, feet, pose)
     moved = np.abs(root[:, 1] - root_position[:, 1]) > 1e-9
     for side in ("r", "l"):  # a straight knee is singular: start a lowered leg slightly bent
         k = skel.dof_index(f"{side}_knee_flex")
@@ -429,12 +298,8 @@ def restore_contacts_posed(
         orientation_tol=math.radians(0.05), max_iter=40,
     )  # fmt: skip
     q = res.q
-    knee_err = np.zeros(len(q))
-    if kneel:
-        assert knees is not None
-        q, knee_err = hold_knees(skel, q, root, root_rotation, feet, knees)
     pose = forward(skel, q, root, root_rotation)
-    worst = knee_err
+    worst = np.zeros(len(q))
     for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
         soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
         offsets = np.array([skel.site(n).offset for n in soles], dtype=float)
@@ -442,12 +307,8 @@ def restore_contacts_posed(
         err = np.linalg.norm(site_positions(skel, pose, soles) - want, axis=-1).max(axis=1)
         worst = np.maximum(worst, np.where(touch, err, 0.0))
     solved = np.zeros(len(q), dtype=bool)
-    if kneel:  # kneeling: the pelvis goes back, the trunk leans over to keep the hands on
-        assert knees is not None
-        q, solved, err = _hands_with_trunk(skel, q, root, root_rotation, hands, down)
-        worst = np.maximum(worst, err)
     for hand, (rows, target) in hands.items():
-        idx = np.flatnonzero(rows & ~solved)
+        idx = np.flatnonzero(rows)
         if idx.size == 0:
             continue
         solved[idx] = True
@@ -589,12 +450,14 @@ def balance_frames(
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
     # and hulls cost ~10 KB a frame, the margins kept 20 bytes (docs/passes.md, memory)
     before = np.empty(len(t))
+    kneeling = np.zeros(len(t), dtype=bool)
     hopeless = np.zeros(len(t), dtype=bool)
     for a in range(0, len(t), CHUNK_FRAMES):
         c = slice(a, a + CHUNK_FRAMES)
         _, _, all_pts, all_ok, com = _support_state(ir, frames, c, stance)
         all_hull = grouped_hull(all_pts, all_ok)
         before[c] = hull_margin(all_hull, com[:, [0, 2]])
+        kneeling[c] = all_ok[:, KNEE_SLOTS].any(axis=1)  # the pelvis would drag a knee along
         # a support with no inside (toes only, one edge) or a CoM farther than the pelvis may
         # move cannot be fixed here: report it without trying
         centroid = np.einsum("np,npk->nk", all_ok, all_pts) / np.maximum(all_ok.sum(1), 1)[:, None]
@@ -603,8 +466,10 @@ def balance_frames(
     after = before.copy()
     failed = np.zeros(len(t), dtype=bool)
     low = ~np.isnan(before) & (before < MARGIN)
+    failed[low & kneeling & (before < 0)] = True
     failed[low & hopeless & (before < 0)] = True
     failed &= static  # walking frames are measured, never moved nor reported
+    # kneeling frames are balanced by the trunk alone: the pelvis would drag a knee along
     rows = np.flatnonzero(low & static & ~hopeless)
     if rows.size == 0:
         return before, after, failed
@@ -632,8 +497,7 @@ def balance_frames(
     worst = np.zeros(rows.size)
     margin = before[rows]
     # rows whose contacts gave out keep their last good pose and stop; converged rows stop
-    knees = kneeling_knees(ok, pose_r, skel)  # kneeling knees stay where they are
-    active = np.arange(rows.size)
+    active = np.flatnonzero(~kneeling[rows])
     cap = np.full(rows.size, MAX_STEP)
     p_rows = pose_r  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
@@ -651,9 +515,8 @@ def balance_frames(
         shift = new_root[:, [0, 2]] - root0[active][:, [0, 2]]
         far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
         q_a, root_a, worst_a, p_a = restore_contacts_posed(
-            ir, q[active], new_root, rot[active], _sub_feet(feet, active),
-            _sub_hands(hands, active), knees=_sub_hands(knees, active),
-        )  # fmt: skip
+            ir, q[active], new_root, rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
+        )
         lost = far | ((worst_a > POSITION_TOL) & (worst[active] <= POSITION_TOL))
         ok_rows = active[~lost]
         q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
@@ -694,6 +557,7 @@ def balance_frames(
     # back, so that the smoothing pass finds no balance jump to undo
     size = np.abs(dq).max(axis=1) + 10.0 * np.hypot(*dr.T[[0, 2]]) + 10.0 * np.abs(dr[:, 1])
     dq, dr = blend(dq, size, BLEND_FRAMES), blend(dr, size, BLEND_FRAMES)
+    dr[kneeling] = 0.0  # a neighbour's pelvis correction must not drag a knee
     span = np.flatnonzero(np.abs(dq).max(axis=1) + np.abs(dr).max(axis=1) > 0)
     if span.size == 0:  # the blended corrections cancelled out: nothing to apply
         return before, after, failed
@@ -708,8 +572,7 @@ def balance_frames(
     }  # fmt: skip
     hands_b = {h: (pins[h][span], site_positions(skel, pose_s, h)) for h in HANDS}
     rot_b = frames.root_rotation[span]
-    knees_b = kneeling_knees(ok_s, pose_s, skel)  # a neighbour's correction keeps the knees
-    qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b, knees=knees_b)
+    qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b)
     floor_b = np.minimum(lowest_point(skel, pose_s) - 1e-4, ir.ground - GROUND_SLACK)
     fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
     fine &= lowest_point(skel, pb) >= floor_b
@@ -765,10 +628,132 @@ def failure_runs(failed: np.ndarray, gap: int = 6) -> list[tuple[int, int]]:
     return list(zip(firsts.tolist(), lasts.tolist(), strict=True))
 
 
+TIP_SITES = {"r": "r_fingertip", "l": "l_fingertip"}
+TIP_CLEAR = 0.005  # m: a lifted fingertip ends this far above the ground
+TIP_TOL = 1e-3  # m: a fingertip deeper than this below the ground is reported (MT0525)
+WRIST_GRID = 41  # wrist flexion values tried per frame
+TIP_BLEND = 15  # half-window (frames, 0.25 s at 60 fps): a wrist turns in over half a second
+
+
+def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
+    """Flex the wrist of a free hand whose fingertip goes under the ground, in place.
+
+    A hand swung low on its way to a site (a TA path past the floor) can take its fingertips,
+    18 cm beyond the wrist, through the floor while the hand itself stays above it. Each run of
+    such frames where the hand is not on a site (``hand_pins``) turns the wrist one way, the one
+    that needs the least flexion to lift every frame's fingertip ``TIP_CLEAR`` above the
+    ground; the corrections are blended over ``TIP_BLEND`` frames so nothing jumps, never touch a
+    pinned frame (a hand on its site stays on it), and are repeated while they help. Returns,
+    per side, the depth (m, positive under the ground) of its fingertip at each frame.
+    """
+    skel = ir.skeleton
+    t = frames.time
+    pins = hand_pins(ir, t)
+    out: dict[str, np.ndarray] = {}
+    for side, tip in TIP_SITES.items():
+        depth = np.empty(len(t))
+        for a in range(0, len(t), CHUNK_FRAMES):
+            c = slice(a, a + CHUNK_FRAMES)
+            pose = forward(skel, frames.q[c], frames.root_position[c], frames.root_rotation[c])
+            depth[c] = ir.ground - site_positions(skel, pose, tip)[:, 1]
+        free = ~pins[f"{side}_hand"]
+        k = skel.dof_index(f"{side}_wrist_flex")
+        grid = np.linspace(skel.lower[k], skel.upper[k], WRIST_GRID)
+        for _ in range(3):
+            low = (depth > -TIP_CLEAR + 1e-4) & free
+            if not low.any():
+                break
+            delta = np.zeros((len(t), 1))
+            for first, last in failure_runs(low, BLEND_FRAMES):
+                rows = np.arange(first, last + 1)
+                rows = rows[free[rows]]
+                delta[rows, 0] = _wrist_lift(ir, frames, rows, k, grid, tip)
+            delta = blend(delta, np.abs(delta[:, 0]), TIP_BLEND)
+            delta[~free] = 0.0  # a hand on its site keeps its wrist
+            moved = np.flatnonzero(delta[:, 0] != 0.0)
+            if moved.size == 0:
+                break
+            q_new = np.clip(frames.q[moved, k] + delta[moved, 0], skel.lower[k], skel.upper[k])
+            q = frames.q[moved].copy()
+            q[:, k] = q_new
+            pose = forward(skel, q, frames.root_position[moved], frames.root_rotation[moved])
+            new_depth = ir.ground - site_positions(skel, pose, tip)[:, 1]
+            # a frame takes the change where it does not take the fingertip deeper
+            take = new_depth <= np.maximum(depth[moved], 0.0) + 1e-6
+            frames.q[moved[take], k] = q_new[take]
+            depth[moved[take]] = new_depth[take]
+        out[side] = depth
+    return out
+
+
+def _wrist_lift(
+    ir: MotionIR, frames: Frames, rows: np.ndarray, k: int, grid: np.ndarray, tip: str
+) -> np.ndarray:
+    """The wrist flexion change (rows,) that clears the fingertip of a run of frames, all one
+    way: of flexing and extending, the one whose largest change is the least (where neither
+    clears every frame, each frame's highest fingertip)."""
+    skel = ir.skeleton
+    n = len(grid)
+    q = np.repeat(frames.q[rows], n, axis=0)
+    q[:, k] = np.tile(grid, rows.size)
+    pose = forward(skel, q, np.repeat(frames.root_position[rows], n, axis=0),
+                   np.repeat(frames.root_rotation[rows], n, axis=0))  # fmt: skip
+    height = site_positions(skel, pose, tip)[:, 1].reshape(rows.size, n)
+    change = grid[None, :] - frames.q[rows, k][:, None]
+    clear = height >= ir.ground + TIP_CLEAR
+    best, best_cost = None, np.inf
+    for sign in (1.0, -1.0):
+        ok = clear & (sign * change >= 0.0)
+        if not ok.any(axis=1).all():
+            continue
+        pick = np.argmin(np.where(ok, np.abs(change), np.inf), axis=1)
+        cost = float(np.abs(change[np.arange(rows.size), pick]).max())
+        if cost < best_cost:
+            best, best_cost = pick, cost
+    if best is None:
+        best = np.argmax(height, axis=1)
+    return change[np.arange(rows.size), best]
+
+
+def report_fingertips(ir: MotionIR, ctx: PassContext, depth: dict[str, np.ndarray]) -> None:
+    """MT0525 once per segment in which a fingertip stays more than ``TIP_TOL`` under the
+    ground after ``lift_fingertips`` (a hand on a site at the floor, or a wrist at its stop)."""
+    t = ir.frames.time if ir.frames is not None else np.zeros(0)
+    reported: set[int] = set()
+    for side, d in depth.items():
+        for first, last in failure_runs(d > TIP_TOL):
+            seg = _arm_segment(ir, side, float(t[first])) or _active_segment(ir, float(t[first]))
+            if seg is None or id(seg) in reported:
+                continue
+            reported.add(id(seg))
+            worst = float(d[first : last + 1].max())
+            when = (
+                f"at {t[first]:.2f} s"
+                if last == first
+                else f"from {t[first]:.2f} s to {t[last]:.2f} s"
+            )
+            hand = "right" if side == "r" else "left"
+            ctx.report(
+                "MT0525",
+                f"the {hand} fingertips go through the floor in "
+                f"`{' > '.join(seg.provenance.path)}`: {when} they are up to {_mm(worst)} mm "
+                "under it, and the wrist cannot lift them with the hand where it is",
+                seg.provenance.origin,
+            )
+
+
+def _arm_segment(ir: MotionIR, side: str, time: float) -> Segment | None:
+    """The segment on a hand's arm track at ``time`` (the last one before it, else none)."""
+    segs = [s for s in ir.on_track(f"{side}_arm") if s.start - 1e-9 <= time]
+    return max(segs, key=lambda s: s.start, default=None)
+
+
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     frames = ir.frames
     if frames is None or ir.skeleton is None or len(frames.time) == 0:
         return ir
+    depth = lift_fingertips(ir, frames)
+    report_fingertips(ir, ctx, depth)
     _, after, failed = balance_frames(ir, frames)
     t = frames.time
     reported: set[int] = set()

@@ -295,12 +295,14 @@ def hand_contacts(ir: MotionIR, time: FloatArray, pose: Any = None) -> BoolArray
         for i, seg in enumerate(segs):
             if seg.kind != "TO" or not _reachable(seg.result):  # short of its site: no rest
                 continue
-            if seg.goal.effector != hand or seg.goal.position is None:  # a tool's tip
+            if seg.goal.effector != hand:  # a tool's tip on its fastener: not a support
                 continue
             later = [s.start for s in segs[i + 1 :] if s.start >= seg.end - 1e-9]
             end = min(later, default=math.inf)
             window = (t >= seg.end - 1e-9) & (t < end - 1e-9)
             if pose is not None and skel is not None and window.any():
+                if seg.goal.position is None:  # nowhere to measure it against: no support
+                    continue
                 at = site_positions(skel, pose, hand)[window]
                 gap = np.linalg.norm(at - np.asarray(seg.goal.position, dtype=float), axis=-1)
                 window[np.flatnonzero(window)] = gap <= SUPPORT_TOL

@@ -12,7 +12,8 @@ passes (the layers: passes -> metrics -> ir -> body).
   last `grip closed` of that hand at or before the goal starts, with no `grip open` between)
   until the end of the next `grip open` of that hand after the goal, or the end of the motion;
   with no grasp before the goal, from the goal's start. Its mass is a point at the hand's grip
-  point; a two-handed goal puts half in each hand. Several loaded goals in one grasp carry the
+  point, its weight taken up over ``LOAD_RAMP`` (0.3 s) after the window starts and put down
+  over 0.3 s before it ends; a two-handed goal puts half in each hand. Several loaded goals in one grasp carry the
   same part: the heaviest counts, once (docs/stdlib.md, "Loads").
 """
 
@@ -26,6 +27,10 @@ from mtlc.body import center_of_mass, site_positions
 from mtlc.ir.model import FloatArray, MotionIR
 
 SIDES = ("r", "l")
+# s: a part's weight comes onto the hand over this long after the grasp starts, and off it over
+# this long before the release ends (taking up 40 kg in one 60 fps frame moved the centre of
+# mass 14 cm at once, and the balance correction with it)
+LOAD_RAMP = 0.3
 AXIAL_KINDS = ("screwdriver", "pliers")  # tools turned by the forearm about their own axis
 EPS = 1e-9  # s
 
@@ -95,12 +100,24 @@ def carried_loads(ir: MotionIR) -> list[Load]:
     return sorted(found.values(), key=lambda x: (x.start, x.side))
 
 
+def load_weight(load: Load, time: FloatArray) -> FloatArray:
+    """(T,) share (0..1) of a load's weight on its hand: 0 outside its window, rising over
+    ``LOAD_RAMP`` from its start and falling over ``LOAD_RAMP`` to its end (the whole window
+    when it is shorter)."""
+    t = np.asarray(time, dtype=float)
+    ramp = max(min(LOAD_RAMP, 0.5 * (load.end - load.start)), 1e-6)
+    rise = np.clip((t - load.start) / ramp, 0.0, 1.0)
+    fall = np.clip((load.end - t) / ramp, 0.0, 1.0)
+    return np.minimum(rise, fall) * ((t >= load.start - EPS) & (t <= load.end + EPS))
+
+
 def carried_com(ir: MotionIR, pose: Any, time: Any) -> FloatArray:
     """(T, 3) centre of mass of the body with the tools and loads it holds at ``time`` (T,).
 
     Each held tool is a point mass at the middle of grip and tip during its held window
     (``held_spans``), each carried load a point mass at its hand's grip point during its hold
-    window (``carried_loads``); outside their windows they weigh nothing. The solvers' CoM
+    window (``carried_loads``), taken up and put down over ``LOAD_RAMP`` (``load_weight``);
+    outside their windows they weigh nothing. The solvers' CoM
     Jacobian leaves them out: the balance pass measures with them and iterates.
     """
     skel = ir.skeleton
@@ -119,7 +136,7 @@ def carried_com(ir: MotionIR, pose: Any, time: Any) -> FloatArray:
         moment += held[:, None] * 0.5 * (ends[..., 0, :] + ends[..., 1, :])
         mass += held
     for load in carried_loads(ir):
-        held = load.share * ((t >= load.start - EPS) & (t <= load.end + EPS))
+        held = load.share * load_weight(load, t)
         if not held.any():
             continue
         moment += held[:, None] * np.asarray(site_positions(skel, pose, f"{load.side}_hand"))

@@ -221,3 +221,13 @@ def test_fingertips_that_cannot_be_lifted_are_reported(tmp_path: Path) -> None:
     tips = site_positions(ir.skeleton, pose, ["r_fingertip", "l_fingertip"])[..., 1]
     assert tips.min() < ir.ground - 1e-3  # what it reports is there
     assert math.isfinite(float(tips.min()))
+
+
+def test_a_load_is_taken_up_and_put_down_gradually() -> None:
+    from mtlc.loads import LOAD_RAMP, Load, load_weight
+
+    load = Load("r", 40.0, 40.0, 1.0, 3.0)
+    t = np.array([0.9, 1.0, 1.0 + LOAD_RAMP / 2, 1.0 + LOAD_RAMP, 2.0, 3.0 - LOAD_RAMP / 2, 3.1])
+    np.testing.assert_allclose(load_weight(load, t), [0.0, 0.0, 0.5, 1.0, 1.0, 0.5, 0.0])
+    short = Load("r", 1.0, 1.0, 0.0, 0.2)  # shorter than two ramps: up and down in it
+    assert load_weight(short, np.array([0.1]))[0] == pytest.approx(1.0)

@@ -239,7 +239,10 @@ def forefoot_patch(skel: Any, pose: Any) -> FloatArray:
 
     The model's foot is rigid (no toe joint): when the heel rises its ball points rise with it,
     while a real foot bends at the toes and keeps the metatarsal heads and the toes on the
-    ground (standing on tiptoe, kneeling on tucked toes). See docs/metrics.md.
+    ground (standing on tiptoe, kneeling on tucked toes). The rigid foot does not touch these
+    points, so ``support`` never counts them (issue 18: a point supports only where it
+    touches); they stay for the slot layout and for a foot model with a toe joint. See
+    docs/metrics.md, "Support".
     """
     out = []
     for side in FEET:

@@ -471,17 +471,23 @@ def test_held_load_is_the_tool_while_held_plus_the_load(tmp_path: Path) -> None:
     tooled = [s for s in ir.segments if "tool" in s.goal.params]
     strokes = _strokes_of(ir)
     start, end = min(s.start for s in tooled), max(s.end for s in tooled)
+    # the load is in the hand from the grasp before the turning to the end of the release after
+    (grasp,) = [s for s in ir.segments if s.kind == "grip" and s.goal.params["state"] == "closed"]
+    (release,) = [s for s in ir.segments if s.kind == "grip" and s.goal.params["state"] == "open"]
     t = np.linspace(0.0, max(s.end for s in ir.segments) + 1.0, 400)
     kg = held_load(ir, t)
-    held = (t >= start) & (t <= end)
+    tool = (t >= start) & (t <= end)
+    load = (t >= grasp.start) & (t <= release.end)
     in_stroke = np.any([(t >= s.start) & (t <= s.end) for s in strokes], axis=0)
-    assert np.allclose(kg["r"][~held], 0.0) and np.allclose(kg["l"], 0.0)
-    assert np.allclose(kg["r"][held & ~in_stroke], 0.06)  # the wrench alone, reaching with it
-    assert np.allclose(kg["r"][in_stroke], 3.06)  # and the load while turning
+    assert in_stroke[load].sum() == in_stroke.sum() and (load & ~in_stroke).any()
+    assert np.allclose(kg["r"][~tool & ~load], 0.0) and np.allclose(kg["l"], 0.0)
+    assert np.allclose(kg["r"][tool & ~load], 0.06)  # the wrench alone, reaching with it
+    assert np.allclose(kg["r"][tool & load], 3.06)  # and the load from the grasp on
+    assert np.allclose(kg["r"][load & ~tool], 3.0)  # the load until the hand has opened
     force = force_scores(ir, t)
     # 2-10 kg, under a minute but repeated: 6 strokes in seconds (tests/test_rula.py)
     assert force["r"][in_stroke].tolist() == [2] * int(in_stroke.sum())
-    assert force["r"][~in_stroke].max() == 0 and force["l"].max() == 0
+    assert force["r"][~load].max() == 0 and force["l"].max() == 0
 
 
 def test_score_frames_raises_each_side_by_its_own_force() -> None:

@@ -34,10 +34,14 @@ BoolArray = NDArray[np.bool_]
 
 FEET = ("r", "l")
 FOOT_POINT_NAMES = ("heel", "toe", "ball_med", "ball_lat")
-CONTACT_TOL = 0.01  # a foot point within 1 cm of the ground touches it
-# a kneeling knee bears weight on its front, about half a knee's depth (5 cm, as the posture
-# pass places it) below the joint centre: a knee centre this close to the ground supports
-KNEE_CONTACT = 0.05 + CONTACT_TOL
+CONTACT_TOL = 0.01  # a foot point within 1 cm of the ground is on it (stance, skating)
+# what bears weight, strictly: a point supports only within 2 mm of the floor or of the site
+# it rests on (docs/metrics.md, "Support")
+SUPPORT_TOL = 0.002
+# a kneeling knee bears weight on its front, half a knee's depth (5 cm, as the posture pass
+# places it) below the joint centre: a knee centre this close to the ground supports
+KNEE_DEPTH = 0.05
+KNEE_CONTACT = KNEE_DEPTH + SUPPORT_TOL
 KNEE_HALF_WIDTH = 0.025  # m: half a patella's breadth (about 5 cm in adults)
 HAND_SITES = ("r_hand", "l_hand", "r_fingertip", "l_fingertip")
 
@@ -223,9 +227,12 @@ def foot_points(skel: Any, pose: Any) -> FloatArray:
     return site_positions(skel, pose, names)
 
 
-def contact_mask(feet: FloatArray, stance: BoolArray, ground: float) -> BoolArray:
-    """(N, 8) sole points that touch: their foot stands and they are within 1 cm of the ground."""
-    near = feet[..., 1] - ground <= CONTACT_TOL
+def contact_mask(
+    feet: FloatArray, stance: BoolArray, ground: float, tol: float = CONTACT_TOL
+) -> BoolArray:
+    """(N, 8) sole points on the ground: their foot stands and they are within ``tol`` of it
+    (1 cm: the foot is down, for skating; ``support`` asks ``SUPPORT_TOL``, what bears weight)."""
+    near = feet[..., 1] - ground <= tol
     return near & np.repeat(stance, len(FOOT_POINT_NAMES), axis=1)
 
 
@@ -236,7 +243,10 @@ def forefoot_patch(skel: Any, pose: Any) -> FloatArray:
 
     The model's foot is rigid (no toe joint): when the heel rises its ball points rise with it,
     while a real foot bends at the toes and keeps the metatarsal heads and the toes on the
-    ground (standing on tiptoe, kneeling on tucked toes). See docs/metrics.md.
+    ground (standing on tiptoe, kneeling on tucked toes). The rigid foot does not touch these
+    points, so ``support`` never counts them (issue 18: a point supports only where it
+    touches); they stay for the slot layout and for a foot model with a toe joint. See
+    docs/metrics.md, "Support".
     """
     out = []
     for side in FEET:
@@ -279,19 +289,31 @@ HAND_SLOTS = slice(20, 22)
 ARM_TRACKS = {"r_hand": "r_arm", "l_hand": "l_arm"}
 
 
-def hand_contacts(ir: MotionIR, time: FloatArray) -> BoolArray:
-    """(N, 2) which hands (r, l) rest on a site: from the end of a TO segment (the hand is on
-    its site) until the next segment on the same arm track starts, or the end of the motion."""
+def hand_contacts(ir: MotionIR, time: FloatArray, pose: Any = None) -> BoolArray:
+    """(N, 2) which hands (r, l) rest on a site: from the end of a TO segment of the hand (not
+    of a tool's tip) until the next segment on the same arm track starts, or the end of the
+    motion, and, given the ``pose`` at ``time``, only while the hand is within ``SUPPORT_TOL``
+    of that site (a hand lifted off it, or short of it, bears no weight)."""
     t = np.asarray(time, dtype=float)
     out = np.zeros((len(t), 2), dtype=bool)
-    for k, track in enumerate(ARM_TRACKS.values()):
+    skel = ir.skeleton
+    for k, (hand, track) in enumerate(ARM_TRACKS.items()):
         segs = sorted(ir.on_track(track), key=lambda s: s.start)
         for i, seg in enumerate(segs):
             if seg.kind != "TO" or not _reachable(seg.result):  # short of its site: no rest
                 continue
+            if seg.goal.effector != hand:  # a tool's tip on its fastener: not a support
+                continue
             later = [s.start for s in segs[i + 1 :] if s.start >= seg.end - 1e-9]
             end = min(later, default=math.inf)
-            out[:, k] |= (t >= seg.end - 1e-9) & (t < end - 1e-9)
+            window = (t >= seg.end - 1e-9) & (t < end - 1e-9)
+            if pose is not None and skel is not None and window.any():
+                if seg.goal.position is None:  # nowhere to measure it against: no support
+                    continue
+                at = site_positions(skel, pose, hand)[window]
+                gap = np.linalg.norm(at - np.asarray(seg.goal.position, dtype=float), axis=-1)
+                window[np.flatnonzero(window)] = gap <= SUPPORT_TOL
+            out[:, k] |= window
     return out
 
 
@@ -300,19 +322,18 @@ def support(
 ) -> tuple[FloatArray, BoolArray]:
     """Ground-plane support points (N, 22, 2) and which bear weight (N, 22).
 
-    The eight sole points (touching, on a standing foot); the forefoot of a standing foot on its
-    toe (toe within ``CONTACT_TOL`` of the ground, heel above it: ``forefoot_patch``); each
-    kneeling knee (centre within ``KNEE_CONTACT`` of the ground) over its breadth
-    (``knee_patch``); and, where ``hands`` (N, 2) says so (``hand_contacts``), the grip point
-    of a hand resting on a site. Slots: ``SOLE_SLOTS``, ``FOREFOOT_SLOTS``, ``KNEE_SLOTS``,
+    A point supports only where it touches: within ``SUPPORT_TOL`` (2 mm) of the floor, or of
+    the site it rests on. The eight sole points of a standing foot within ``SUPPORT_TOL`` of
+    the ground (a foot on its toes stands on its toe point alone: the model's foot is rigid);
+    each kneeling knee (its front, ``KNEE_DEPTH`` below the centre, within ``SUPPORT_TOL`` of
+    the ground) over its breadth (``knee_patch``); and, where ``hands`` (N, 2) says so
+    (``hand_contacts`` with the pose: within ``SUPPORT_TOL`` of its site), the grip point of a
+    hand resting on a site. Slots: ``SOLE_SLOTS``, ``FOREFOOT_SLOTS`` (kept for the layout;
+    the virtual forefoot of ``forefoot_patch`` never bears weight), ``KNEE_SLOTS``,
     ``HAND_SLOTS``.
     """
     feet = foot_points(skel, pose)
-    soles = contact_mask(feet, stance, ground)
-    n = len(FOOT_POINT_NAMES)
-    toe, heel = FOOT_POINT_NAMES.index("toe"), FOOT_POINT_NAMES.index("heel")
-    on_toe = stance & (feet[..., toe::n, 1] - ground <= CONTACT_TOL)
-    on_toe &= feet[..., heel::n, 1] - ground > CONTACT_TOL
+    soles = contact_mask(feet, stance, ground, SUPPORT_TOL)
     fore = forefoot_patch(skel, pose)
     knees = pose.p[..., [skel.joint_index("r_knee"), skel.joint_index("l_knee")], :]
     kneeling = knees[..., 1] - ground <= KNEE_CONTACT
@@ -320,7 +341,13 @@ def support(
     resting = np.zeros(kneeling.shape, dtype=bool) if hands is None else np.asarray(hands, bool)
     pts = np.concatenate([feet, fore, knee_patch(skel, pose), grips], axis=-2)
     ok = np.concatenate(
-        [soles, np.repeat(on_toe, 4, axis=-1), np.repeat(kneeling, 2, axis=-1), resting], axis=-1
+        [
+            soles,
+            np.zeros(fore.shape[:-1], dtype=bool),
+            np.repeat(kneeling, 2, axis=-1),
+            resting,
+        ],
+        axis=-1,
     )
     return pts[..., [0, 2]], ok
 

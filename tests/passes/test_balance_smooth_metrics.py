@@ -335,6 +335,9 @@ EXAMPLES = sorted((Path(__file__).parents[2] / "examples").glob("*.mtask"))
 _compiled: dict[Path, list[tuple[str, Metrics]]] = {}
 
 
+_codes: dict[Path, set[str]] = {}
+
+
 def compiled(path: Path) -> list[tuple[str, Metrics]]:
     if path not in _compiled:
         program = run_frontend([path])
@@ -342,6 +345,7 @@ def compiled(path: Path) -> list[tuple[str, Metrics]]:
         _compiled[path] = [
             (t.task, compute_metrics(run_motion(t, program.sink))) for t in program.timelines
         ]
+        _codes[path] = {d.code for d in program.sink.items}
     return _compiled[path]
 
 
@@ -382,8 +386,14 @@ def test_examples_put_the_hands_on_reachable_sites(path: Path) -> None:
 
 @pytest.mark.parametrize("path", [_case(p, "support") for p in EXAMPLES])
 def test_examples_balance_in_static_postures(path: Path) -> None:
+    """Balanced over the points that touch (docs/metrics.md, "Support"), or MT0502 says it is
+    not: the fuel filter's kneel lowers the body on both toe tips (the rigid foot), a support
+    with no inside, and its reaches lean past the knees."""
     for task, m in compiled(path):
-        assert m.support_margin_static >= 0.0, f"{task}: {m.support_margin_static * 1e3:.1f} mm"
+        margin = f"{task}: {m.support_margin_static * 1e3:.1f} mm"
+        assert m.support_margin_static >= 0.0 or "MT0502" in _codes[path], margin
+    if path.stem != "replace_fuel_filter":
+        assert all(m.support_margin_static >= 0.0 for _, m in compiled(path))
 
 
 def test_a_foot_rolling_over_its_toe_is_not_skating() -> None:
@@ -472,7 +482,9 @@ def test_a_trunk_reach_puts_the_resting_hand_back() -> None:
 # -- the stepping kneel and the supports it stands on ------------------------------------------
 
 
-def test_a_foot_on_its_toe_stands_on_its_forefoot() -> None:
+def test_a_foot_on_its_toe_stands_on_its_toe_point_alone() -> None:
+    """The rigid foot touches at its toe tip only: the virtual forefoot patch (still computed,
+    for the slot layout) never bears weight (docs/metrics.md, "Support")."""
     from mtlc.metrics import FOREFOOT_SLOTS, SOLE_SLOTS, forefoot_patch, support
 
     q = np.asarray(SKEL.q_comfort, dtype=float).copy()
@@ -484,13 +496,9 @@ def test_a_foot_on_its_toe_stands_on_its_forefoot() -> None:
     med, lat, toe = site_positions(SKEL, pose, ["r_ball_med", "r_ball_lat", "r_toe"])[0]
     breadth = np.linalg.norm(med - lat)
     assert np.linalg.norm(corners[0] - corners[1]) == pytest.approx(breadth, abs=1e-9)
-    assert np.linalg.norm(corners[0, [0, 2]] + corners[1, [0, 2]] - 2 * toe[[0, 2]]) < 1e-9
-    assert np.linalg.norm(corners[0] - corners[2]) == pytest.approx(
-        np.linalg.norm(toe - 0.5 * (med + lat)), abs=1e-9
-    )
     _, ok = support(SKEL, pose, np.ones((1, 2), dtype=bool), 0.0)
-    assert ok[0, FOREFOOT_SLOTS][:4].all() and not ok[0, FOREFOOT_SLOTS][4:].any()
-    assert ok[0, SOLE_SLOTS][1] and not ok[0, SOLE_SLOTS][0]  # the toe touches, the heel not
+    assert not ok[0, FOREFOOT_SLOTS].any()
+    assert ok[0, SOLE_SLOTS].tolist()[:4] == [False, True, False, False]  # the toe, nothing else
 
 
 def test_a_kneeling_knee_and_a_resting_hand_bear_weight() -> None:
@@ -537,10 +545,15 @@ def test_the_stepping_kneel_keeps_its_balance_and_its_footing(sex: str, pct: int
         k = "rl".index(step["foot"])
         stance[(t > step["t_lift"] + 1e-9) & (t < step["t_land"] - 1e-9), k] = False
     assert not stance[:, 0].all() and not stance[:, 1].all()  # each foot steps once
-    # every frame is balanced over the contacts it has (the kneel is static throughout)
+    # every frame whose support has an inside is balanced over the points that touch (the
+    # kneel is static throughout); the rigid foot lowers the body onto the right knee on both
+    # toe tips, a segment, for 6 of 76 frames (0.2 s): those the balance pass reports (MT0502)
     pts, ok = support(skel, pose, stance, 0.0)
     margin = support_margin(pts, ok, center_of_mass(skel, pose)[:, [0, 2]])
-    assert np.nanmin(margin) >= 0.0 and not np.isnan(margin).any()
+    centre = np.einsum("np,npk->nk", ok, pts) / np.maximum(ok.sum(axis=1), 1)[:, None]
+    area = support_margin(pts, ok, centre) > 1e-3
+    assert not np.isnan(margin).any()
+    assert margin[area].min() >= 0.0 and (~area).sum() <= 6
     # a planted point does not slide (a foot rolling on its toe keeps only its toe planted)
     rolling = np.zeros((len(t), 8), dtype=bool)
     for roll in plan.rolls:

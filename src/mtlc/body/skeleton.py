@@ -276,6 +276,9 @@ COMFORT_POSTURE: dict[str, float] = {
     "wrist_flex": 0.0,
     "hip_flex": 0.05,
     "knee_flex": 0.08,
+    # knee − hip: the soles level under an upright pelvis (0 raised the heels 7 mm, and a heel
+    # off the floor bears no weight: docs/metrics.md, "Support")
+    "ankle_dorsi": 0.03,
 }
 
 

@@ -137,6 +137,12 @@ _ALL = [
     Code("MT0512", "below-floor", Severity.WARNING, "a body point goes below the floor"),
     Code("MT0513", "past-joint-limit", Severity.WARNING, "a joint goes past its limit"),
     Code("MT0514", "hand-in-body", Severity.WARNING, "a hand or forearm goes into the body"),
+    Code(
+        "MT0525",
+        "fingertips-under-floor",
+        Severity.WARNING,
+        "a hand's fingertips go through the floor and cannot be lifted",
+    ),
     # lint rules (mtlc lint)
     Code("MT0601", "unused-definition", Severity.WARNING, "a definition nothing uses"),
     Code("MT0602", "unused-parameter", Severity.WARNING, "a parameter its body never reads"),

@@ -24,7 +24,8 @@ from numpy.typing import NDArray
 from mtlc.body.kinematics import Pose
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import MotionIR
-from mtlc.passes.tool import AXIAL_KINDS  # tools turned by re-gripping
+from mtlc.loads import AXIAL_KINDS  # tools turned by re-gripping
+from mtlc.loads import held_load as held_load  # what each hand holds, per frame
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -137,31 +138,6 @@ def grand_score(
     c = np.clip(np.asarray(score_a) + muscle + force, 1, 8)
     d = np.clip(np.asarray(score_b) + muscle + force, 1, 7)
     return table_c()[c - 1, d - 1]
-
-
-# -- force / load from what the hands hold ----------------------------------------------------
-
-
-def held_load(ir: MotionIR, time: FloatArray) -> dict[str, FloatArray]:
-    """Mass (kg) each hand holds per frame: a tool from the reach made with it to its last turn
-    (docs/tools.md), plus the ``load`` a segment carries (lift, carry, a turn with a load)."""
-    t = np.asarray(time, dtype=float)
-    out = {side: np.zeros(len(t)) for side in SIDES}
-    spans: dict[tuple[str, str], list[Any]] = {}  # (side, tool) -> [start, end, mass]
-    for seg in ir.segments:
-        side, params = seg.goal.effector[:1], seg.goal.params
-        if side not in out:
-            continue
-        inside = (t >= seg.start - 1e-9) & (t <= seg.end + 1e-9)
-        out[side] += np.where(inside, float(params.get("load", 0.0)), 0.0)
-        tool = params.get("tool")
-        if isinstance(tool, dict):
-            span = spans.setdefault((side, str(tool.get("name"))), [seg.start, seg.end, 0.0])
-            span[0], span[1] = min(span[0], seg.start), max(span[1], seg.end)
-            span[2] = float(tool.get("mass", 0.0))
-    for (side, _), (start, end, mass) in spans.items():
-        out[side] += np.where((t >= start - 1e-9) & (t <= end + 1e-9), mass, 0.0)
-    return out
 
 
 # -- repetition: a fastener's strokes or grips -------------------------------------------------

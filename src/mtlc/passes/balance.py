@@ -3,9 +3,13 @@
 Claim 4 (3.4): if the projection of the body's centre of mass on the ground leaves the support
 surface, adjust the root again while keeping the other joints' goals. On the dense frames:
 
-* the support polygon is the convex hull of the sole points that touch the ground (within 1 cm)
-  on the feet that stand: both feet outside walks, the stance foot during a step
-  (``mtlc.metrics.foot_stance`` reads the locomotion pass's ``result["steps"]``);
+* first, a free hand whose fingertips go under the ground turns its wrist to lift them
+  (``lift_fingertips``; MT0525 where it cannot);
+* the support polygon is the convex hull of the points that touch (``mtlc.metrics.support``:
+  within 2 mm of the floor or of the site they rest on): the sole points on the feet that
+  stand (both feet outside walks, the stance foot during a step: ``mtlc.metrics.foot_stance``
+  reads ``result["steps"]``), kneeling knees and hands on their sites; the centre of mass
+  carries what the hands hold (``mtlc.loads.carried_com``);
 * in *static* frames (outside walks) whose margin is below ``MARGIN`` the pelvis moves
   horizontally until the CoM is ``MARGIN`` inside. Pushing every frame below the target margin
   (not only those outside) makes the correction grow from zero, so it is continuous in time;
@@ -14,7 +18,8 @@ surface, adjust the root again while keeping the other joints' goals. On the den
   of hands in contact (TO windows, and after them until the arm's next segment) toward their
   original hand positions. Where straight legs cannot follow a sideways pelvis, the pelvis
   drops by what the feet lack (the base correction's h = L − x again);
-* a few such rounds converge (the legs and arms move the CoM a little too).
+* a few such rounds converge (the legs and arms move the CoM a little too). Kneeling frames
+  are balanced by the trunk alone: the pelvis would drag the knees along.
 
 Walking frames are measured but not moved: in single support a walking body's CoM is outside
 the stance foot by design (Winter 1995, "Human balance and posture control during standing and
@@ -34,6 +39,7 @@ import numpy as np
 from mtlc.body import Pose, com_jacobian, forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import Frames, MotionIR, Segment
+from mtlc.loads import carried_com
 from mtlc.metrics import (
     FOOT_POINT_NAMES,
     KNEE_SLOTS,
@@ -52,7 +58,6 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.context import PassContext
-from mtlc.passes.tool import carried_com
 
 HULL_EPS = 1e-9  # m: as ``mtlc.metrics.hull``
 
@@ -412,15 +417,16 @@ CHUNK_FRAMES = 4096  # frames whose support is measured at once (~10 KB each whi
 
 
 def _support_state(
-    ir: MotionIR, frames: Frames, idx: slice | np.ndarray, stance: BoolArray, resting: BoolArray
+    ir: MotionIR, frames: Frames, idx: slice | np.ndarray, stance: BoolArray
 ) -> tuple[Pose, BoolArray, FloatArray, BoolArray, FloatArray]:
-    """Pose, touching sole points, support points and which bear weight, and the CoM (with
-    the held tools) of the frames ``idx``, from the frames' stance and resting hands."""
+    """Pose, sole points on the ground, support points and which bear weight (the strict
+    support: ``mtlc.metrics.support``, hands within 2 mm of their site), and the CoM (with the
+    held tools and loads) of the frames ``idx``."""
     skel = ir.skeleton
     t = frames.time[idx]
     pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx])
     contact = contact_mask(foot_points(skel, pose), stance[idx], ir.ground)
-    pts, ok = support(skel, pose, stance[idx], ir.ground, resting[idx])
+    pts, ok = support(skel, pose, stance[idx], ir.ground, hand_contacts(ir, t, pose))
     return pose, contact, pts, ok, carried_com(ir, pose, t)
 
 
@@ -440,7 +446,7 @@ def balance_frames(
         return out
     t = frames.time
     # what depends on time only, for every frame (a few booleans a frame)
-    stance, resting, static = foot_stance(ir, t), hand_contacts(ir, t), ~walking(ir, t)
+    stance, static = foot_stance(ir, t), ~walking(ir, t)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
     # and hulls cost ~10 KB a frame, the margins kept 20 bytes (docs/passes.md, memory)
     before = np.empty(len(t))
@@ -448,7 +454,7 @@ def balance_frames(
     hopeless = np.zeros(len(t), dtype=bool)
     for a in range(0, len(t), CHUNK_FRAMES):
         c = slice(a, a + CHUNK_FRAMES)
-        _, _, all_pts, all_ok, com = _support_state(ir, frames, c, stance, resting)
+        _, _, all_pts, all_ok, com = _support_state(ir, frames, c, stance)
         all_hull = grouped_hull(all_pts, all_ok)
         before[c] = hull_margin(all_hull, com[:, [0, 2]])
         kneeling[c] = all_ok[:, KNEE_SLOTS].any(axis=1)  # the pelvis would drag a knee along
@@ -468,7 +474,7 @@ def balance_frames(
     if rows.size == 0:
         return before, after, failed
     # the frames to correct, measured again by themselves (the support stays where it was)
-    pose_r, contact_r, pts, ok, _ = _support_state(ir, frames, rows, stance, resting)
+    pose_r, contact_r, pts, ok, _ = _support_state(ir, frames, rows, stance)
     hulls = grouped_hull(pts, ok)
     # nothing may go deeper below the ground than it was or than GROUND_SLACK
     floor = np.minimum(lowest_point(skel, pose_r) - 1e-4, ir.ground - GROUND_SLACK)
@@ -558,7 +564,7 @@ def balance_frames(
     qb = np.clip(frames.q[span] + dq[span], skel.lower, skel.upper)
     rb = frames.root_position[span] + dr[span]
     # the frames the blend reaches, measured by themselves in their original pose
-    pose_s, contact_s, pts_s, ok_s, _ = _support_state(ir, frames, span, stance, resting)
+    pose_s, contact_s, pts_s, ok_s, _ = _support_state(ir, frames, span, stance)
     feet_b = {
         name: (site_positions(skel, pose_s, name), site_rotation(skel, pose_s, name),
                contact_s.reshape(span.size, 2, -1).any(axis=2)[:, k])
@@ -622,10 +628,132 @@ def failure_runs(failed: np.ndarray, gap: int = 6) -> list[tuple[int, int]]:
     return list(zip(firsts.tolist(), lasts.tolist(), strict=True))
 
 
+TIP_SITES = {"r": "r_fingertip", "l": "l_fingertip"}
+TIP_CLEAR = 0.005  # m: a lifted fingertip ends this far above the ground
+TIP_TOL = 1e-3  # m: a fingertip deeper than this below the ground is reported (MT0525)
+WRIST_GRID = 41  # wrist flexion values tried per frame
+TIP_BLEND = 15  # half-window (frames, 0.25 s at 60 fps): a wrist turns in over half a second
+
+
+def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
+    """Flex the wrist of a free hand whose fingertip goes under the ground, in place.
+
+    A hand swung low on its way to a site (a TA path past the floor) can take its fingertips,
+    18 cm beyond the wrist, through the floor while the hand itself stays above it. Each run of
+    such frames where the hand is not on a site (``hand_pins``) turns the wrist one way, the one
+    that needs the least flexion to lift every frame's fingertip ``TIP_CLEAR`` above the
+    ground; the corrections are blended over ``TIP_BLEND`` frames so nothing jumps, never touch a
+    pinned frame (a hand on its site stays on it), and are repeated while they help. Returns,
+    per side, the depth (m, positive under the ground) of its fingertip at each frame.
+    """
+    skel = ir.skeleton
+    t = frames.time
+    pins = hand_pins(ir, t)
+    out: dict[str, np.ndarray] = {}
+    for side, tip in TIP_SITES.items():
+        depth = np.empty(len(t))
+        for a in range(0, len(t), CHUNK_FRAMES):
+            c = slice(a, a + CHUNK_FRAMES)
+            pose = forward(skel, frames.q[c], frames.root_position[c], frames.root_rotation[c])
+            depth[c] = ir.ground - site_positions(skel, pose, tip)[:, 1]
+        free = ~pins[f"{side}_hand"]
+        k = skel.dof_index(f"{side}_wrist_flex")
+        grid = np.linspace(skel.lower[k], skel.upper[k], WRIST_GRID)
+        for _ in range(3):
+            low = (depth > -TIP_CLEAR + 1e-4) & free
+            if not low.any():
+                break
+            delta = np.zeros((len(t), 1))
+            for first, last in failure_runs(low, BLEND_FRAMES):
+                rows = np.arange(first, last + 1)
+                rows = rows[free[rows]]
+                delta[rows, 0] = _wrist_lift(ir, frames, rows, k, grid, tip)
+            delta = blend(delta, np.abs(delta[:, 0]), TIP_BLEND)
+            delta[~free] = 0.0  # a hand on its site keeps its wrist
+            moved = np.flatnonzero(delta[:, 0] != 0.0)
+            if moved.size == 0:
+                break
+            q_new = np.clip(frames.q[moved, k] + delta[moved, 0], skel.lower[k], skel.upper[k])
+            q = frames.q[moved].copy()
+            q[:, k] = q_new
+            pose = forward(skel, q, frames.root_position[moved], frames.root_rotation[moved])
+            new_depth = ir.ground - site_positions(skel, pose, tip)[:, 1]
+            # a frame takes the change where it does not take the fingertip deeper
+            take = new_depth <= np.maximum(depth[moved], 0.0) + 1e-6
+            frames.q[moved[take], k] = q_new[take]
+            depth[moved[take]] = new_depth[take]
+        out[side] = depth
+    return out
+
+
+def _wrist_lift(
+    ir: MotionIR, frames: Frames, rows: np.ndarray, k: int, grid: np.ndarray, tip: str
+) -> np.ndarray:
+    """The wrist flexion change (rows,) that clears the fingertip of a run of frames, all one
+    way: of flexing and extending, the one whose largest change is the least (where neither
+    clears every frame, each frame's highest fingertip)."""
+    skel = ir.skeleton
+    n = len(grid)
+    q = np.repeat(frames.q[rows], n, axis=0)
+    q[:, k] = np.tile(grid, rows.size)
+    pose = forward(skel, q, np.repeat(frames.root_position[rows], n, axis=0),
+                   np.repeat(frames.root_rotation[rows], n, axis=0))  # fmt: skip
+    height = site_positions(skel, pose, tip)[:, 1].reshape(rows.size, n)
+    change = grid[None, :] - frames.q[rows, k][:, None]
+    clear = height >= ir.ground + TIP_CLEAR
+    best, best_cost = None, np.inf
+    for sign in (1.0, -1.0):
+        ok = clear & (sign * change >= 0.0)
+        if not ok.any(axis=1).all():
+            continue
+        pick = np.argmin(np.where(ok, np.abs(change), np.inf), axis=1)
+        cost = float(np.abs(change[np.arange(rows.size), pick]).max())
+        if cost < best_cost:
+            best, best_cost = pick, cost
+    if best is None:
+        best = np.argmax(height, axis=1)
+    return change[np.arange(rows.size), best]
+
+
+def report_fingertips(ir: MotionIR, ctx: PassContext, depth: dict[str, np.ndarray]) -> None:
+    """MT0525 once per segment in which a fingertip stays more than ``TIP_TOL`` under the
+    ground after ``lift_fingertips`` (a hand on a site at the floor, or a wrist at its stop)."""
+    t = ir.frames.time if ir.frames is not None else np.zeros(0)
+    reported: set[int] = set()
+    for side, d in depth.items():
+        for first, last in failure_runs(d > TIP_TOL):
+            seg = _arm_segment(ir, side, float(t[first])) or _active_segment(ir, float(t[first]))
+            if seg is None or id(seg) in reported:
+                continue
+            reported.add(id(seg))
+            worst = float(d[first : last + 1].max())
+            when = (
+                f"at {t[first]:.2f} s"
+                if last == first
+                else f"from {t[first]:.2f} s to {t[last]:.2f} s"
+            )
+            hand = "right" if side == "r" else "left"
+            ctx.report(
+                "MT0525",
+                f"the {hand} fingertips go through the floor in "
+                f"`{' > '.join(seg.provenance.path)}`: {when} they are up to {_mm(worst)} mm "
+                "under it, and the wrist cannot lift them with the hand where it is",
+                seg.provenance.origin,
+            )
+
+
+def _arm_segment(ir: MotionIR, side: str, time: float) -> Segment | None:
+    """The segment on a hand's arm track at ``time`` (the last one before it, else none)."""
+    segs = [s for s in ir.on_track(f"{side}_arm") if s.start - 1e-9 <= time]
+    return max(segs, key=lambda s: s.start, default=None)
+
+
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     frames = ir.frames
     if frames is None or ir.skeleton is None or len(frames.time) == 0:
         return ir
+    depth = lift_fingertips(ir, frames)
+    report_fingertips(ir, ctx, depth)
     _, after, failed = balance_frames(ir, frames)
     t = frames.time
     reported: set[int] = set()

@@ -53,6 +53,8 @@ SQUAT_ARMS = math.radians(90.0)  # free arms held forward at the deepest squat (
 HEEL_MARGIN = 0.03  # m: a flat-footed posture keeps its CoM this far in front of the heels
 TRANSITION_KEYS = 6  # keyframes of a flat-footed posture change, each one balanced
 ARM_FLEX = ("r_shoulder_flex", "l_shoulder_flex")
+FINGER_CLEARANCE = 0.03  # m: free fingertips stay this far above the ground in a posture
+FINGER_ARM_MAX = math.radians(120.0)  # ...raising the arm forward at most this far
 TWIST_MIN_FRACTION = 0.25  # less than this share of a turn left before the stop: turn back
 
 
@@ -132,6 +134,49 @@ def balanced_lean(skel: Any, q: FloatArray, margin: float = HEEL_MARGIN) -> Floa
     return leaned(_bisect(ahead, 0.0, top))
 
 
+def flat_feet(skel: Any, q: FloatArray) -> FloatArray:
+    """``q`` with each ankle dorsiflexed by knee − hip flexion, so an upright pelvis stands on
+    level soles. The comfortable pose's knees are 1.7° more bent than its hips: standing up
+    to it raised the heels 7 mm off the floor while the toes stayed on it, and a heel 7 mm up
+    bears no weight (docs/metrics.md, "Support")."""
+    vals = {
+        f"{s}_ankle_dorsi": float(q[skel.dof_index(f"{s}_knee_flex")])
+        - float(q[skel.dof_index(f"{s}_hip_flex")])
+        for s in ("r", "l")
+    }
+    return _deg(skel, vals, q)
+
+
+def fingertip_clearance(skel: Any, q: FloatArray, side: str) -> float:
+    """Height (m) of a fingertip of pose ``q`` above the lowest foot point (the ground, once
+    the root is placed by ``root_height``)."""
+    pts = _points(skel, q, [f"{side}_fingertip", *FOOT_POINTS])
+    return float(pts[0, 1] - pts[1:, 1].min())
+
+
+def clear_fingertips(skel: Any, q: FloatArray, free_arms: tuple[str, ...]) -> FloatArray:
+    """``q`` with each free arm raised forward (shoulder flexion, by bisection) until its
+    fingertip is ``FINGER_CLEARANCE`` above the ground: a deep squat lowers the shoulders
+    until hanging fingers would go through the floor (45-112 mm for a squat to a site 18 cm
+    up, before). An arm already clear, or not free, is left as it is."""
+    for dof in free_arms:
+        side, k = dof[0], skel.dof_index(dof)
+        if fingertip_clearance(skel, q, side) >= FINGER_CLEARANCE:
+            continue
+        lo, hi = float(q[k]), max(float(q[k]), min(float(skel.upper[k]), FINGER_ARM_MAX))
+
+        def gap(a: float, k: int = k, side: str = side, q: FloatArray = q) -> float:
+            qq = q.copy()
+            qq[k] = a
+            return fingertip_clearance(skel, qq, side) - FINGER_CLEARANCE
+
+        if gap(hi) <= 0.0:
+            q = _deg(skel, {dof: hi}, q)
+            continue
+        q = _deg(skel, {dof: _bisect(gap, lo, hi)}, q)
+    return q
+
+
 def _legs_zero(skel: Any, q: FloatArray) -> FloatArray:
     out = q.copy()
     for name in LEG_DOFS:
@@ -152,7 +197,7 @@ def target_posture(
     if kind == "stand":
         for name in (*TRUNK_DOFS, *LEG_DOFS, *free_arms):
             q[skel.dof_index(name)] = skel.q_comfort[skel.dof_index(name)]
-        return q
+        return flat_feet(skel, q)
     if kind == "bend":
         angle = float(params.get("angle", math.radians(45)))
         lum = min(angle * 2.0 / 3.0, skel.upper[skel.dof_index("lumbar_flex")])
@@ -168,7 +213,10 @@ def target_posture(
                 lambda s: stand - root_height(skel, _squat_q(skel, q, s), 0.0) - depth, 0, 1
             )
         arms = {a: max(float(q[skel.dof_index(a)]), s * SQUAT_ARMS) for a in free_arms}
-        return balanced_lean(skel, _deg(skel, arms, _squat_q(skel, q, s)))
+        low = balanced_lean(
+            skel, clear_fingertips(skel, _deg(skel, arms, _squat_q(skel, q, s)), free_arms)
+        )
+        return clear_fingertips(skel, low, free_arms)
     if kind == "sit":
         vals = {f"{s}_{d}": math.pi / 2 for s in ("r", "l") for d in ("hip_flex", "knee_flex")}
         return _deg(skel, vals, q)
@@ -213,7 +261,9 @@ def free_arms(ir: MotionIR, seg: Segment) -> tuple[str, ...]:
     return tuple(out)
 
 
-def transition(skel: Any, cur: FloatArray, target: FloatArray, n: int) -> FloatArray:
+def transition(
+    skel: Any, cur: FloatArray, target: FloatArray, n: int, free_arms: tuple[str, ...] = ()
+) -> FloatArray:
     """``n`` poses from ``cur`` to ``target`` (n, D), each leaned until it is balanced.
 
     Interpolating the angles of two balanced flat-footed postures is not balanced on the way:
@@ -222,7 +272,8 @@ def transition(skel: Any, cur: FloatArray, target: FloatArray, n: int) -> FloatA
     """
     f = np.linspace(0.0, 1.0, n)[:, None]
     poses = cur[None] + f * (target - cur)[None]
-    return np.stack([poses[0], *(balanced_lean(skel, p) for p in poses[1:-1]), poses[-1]])
+    mid = (clear_fingertips(skel, balanced_lean(skel, p), free_arms) for p in poses[1:-1])
+    return np.stack([poses[0], *mid, poses[-1]])
 
 
 KNEEL_PLANS = "passes.posture.kneel_plans"  # ctx.cache: id(kneel segment) -> KneelPlan
@@ -329,7 +380,7 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     dofs = TRUNK_DOFS if kind == "bend" else (TRUNK_DOFS + LEG_DOFS + arms if flat else LEG_DOFS)
     idx = [skel.dof_index(n) for n in dofs]
     times = np.linspace(seg.start, seg.end, TRANSITION_KEYS if flat else 2)
-    poses = transition(skel, cur, target, len(times)) if flat else np.stack([cur, target])
+    poses = transition(skel, cur, target, len(times), arms) if flat else np.stack([cur, target])
     kf = Keyframes(time=times, dofs=dofs, q=poses[:, idx])
     if kind != "bend":
         p0, _ = state.root_at(seg.start, skip=seg)

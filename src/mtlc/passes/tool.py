@@ -5,7 +5,7 @@ Two passes (docs/tools.md):
 * ``equip``, after the manikin: every tool a goal is made with becomes a site on that hand, its
   working point (``r_tool_wrench_10mm``), so TA and TO solve for the tip on the site and metrics
   measure the tip. A held tool's mass counts in the centre of mass (balance, metrics) while it
-  is held, a point at the middle of grip and tip (``carried_com``).
+  is held, a point at the middle of grip and tip (``mtlc.loads.carried_com``).
 * ``solve``, after contact: a wrench's strokes (TO segments with a ``stroke`` number). The hand
   holds the handle at the arc's radius ``r`` (the grip's distance from the fastener's axis) and
   swings about the fastener's axis (its site's normal) through the stroke's angle, the tip on the
@@ -27,10 +27,13 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import center_of_mass, forward, site_positions, site_rotation
+from mtlc.body import forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.body.skeleton import Site, Skeleton
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
+from mtlc.loads import AXIAL_KINDS, tool_site
+from mtlc.loads import carried_com as carried_com  # re-exported: it lives below the passes
+from mtlc.loads import held_spans as held_spans
 from mtlc.passes.approach import TOLERANCE, _restaters, chain_names, report_short
 from mtlc.passes.context import PassContext
 from mtlc.passes.state import PoseState, reanchor
@@ -40,12 +43,6 @@ SEAT_SHARE = 0.1  # share of a stroke's time the wrench rests on the fastener be
 SWING_SHARE = 0.6  # share of a stroke's time spent turning; the rest re-positions
 KEY_STEP = math.radians(5.0)  # at most this much arc between keyframes
 HAND_FRAME_AXIS = (0.0, -1.0, 0.0)  # a tool's default `axis`: back along the hand
-AXIAL_KINDS = ("screwdriver", "pliers")  # tools turned by the forearm about their own axis
-
-
-def tool_site(hand_site: str, tool: dict[str, Any]) -> str:
-    """The name of a tool's working point on a hand (``r_hand`` + wrench_10mm -> r_tool_...)."""
-    return f"{hand_site[0]}_tool_{tool['name']}"
 
 
 def hand_to_joint(v: Any, side: str) -> FloatArray:
@@ -96,7 +93,7 @@ def _is_tool_site(effector: str, tool: dict[str, Any]) -> bool:
 
 def with_tools(skel: Skeleton, tools: dict[str, dict[str, Any]]) -> Skeleton:
     """The skeleton with a site at each tool's tip. The tool's mass is not the skeleton's: it
-    counts only while the tool is held (``carried_com``)."""
+    counts only while the tool is held (``mtlc.loads.carried_com``)."""
     sites = list(skel.sites)
     for name, tool in tools.items():
         side = name[0]
@@ -105,43 +102,6 @@ def with_tools(skel: Skeleton, tools: dict[str, dict[str, Any]]) -> Skeleton:
         tip = np.asarray(hand.offset) + hand_to_joint(tool_tip(tool) - grip, side)
         sites.append(Site(name, hand.joint, tuple(float(c) for c in tip), "effector"))
     return dataclasses.replace(skel, sites=tuple(sites))
-
-
-def held_spans(ir: MotionIR) -> list[tuple[str, dict[str, Any], float, float]]:
-    """(tool site, tool, start, end) per tool a hand holds: from the first segment made with it
-    to its last (reach to last stroke or turn), the window RULA's ``held_load`` uses."""
-    spans: dict[str, list[Any]] = {}
-    for seg in ir.segments:
-        tool, side = seg.goal.params.get("tool"), seg.goal.effector[:1]
-        if not isinstance(tool, dict) or side not in ("r", "l"):
-            continue
-        span = spans.setdefault(tool_site(f"{side}_hand", tool), [tool, seg.start, seg.end])
-        span[1], span[2] = min(span[1], seg.start), max(span[2], seg.end)
-    return [(site, tool, start, end) for site, (tool, start, end) in sorted(spans.items())]
-
-
-def carried_com(ir: MotionIR, pose: Any, time: Any) -> FloatArray:
-    """(T, 3) centre of mass of the body and the tools it holds at ``time`` (T,) in ``pose``.
-
-    Each held tool is a point mass at the middle of grip and tip during its held window
-    (``held_spans``); outside the window it weighs nothing. The solvers' CoM Jacobian leaves the
-    tools out (at most 1.2 kg against ~60 kg)."""
-    skel = ir.skeleton
-    assert skel is not None
-    t = np.asarray(time, dtype=float)
-    big_m = float(skel.total_mass)
-    moment = big_m * center_of_mass(skel, pose)
-    mass = np.full(t.shape, big_m)
-    names = {s.name for s in skel.sites}
-    for site, tool, start, end in held_spans(ir):
-        m = float(tool.get("mass", 0.0))
-        if m <= 0.0 or site not in names:
-            continue
-        held = m * ((t >= start - 1e-9) & (t <= end + 1e-9))
-        ends = np.asarray(site_positions(skel, pose, [f"{site[0]}_hand", site]))
-        moment += held[:, None] * 0.5 * (ends[..., 0, :] + ends[..., 1, :])
-        mass += held
-    return moment / mass[:, None]
 
 
 def axis_goals(skel: Skeleton, seg: Segment, tip_target: FloatArray) -> list[Goal]:

@@ -35,6 +35,7 @@ from mtlc.body import forward, site_positions
 from mtlc.body.capsules import self_intersection
 from mtlc.body.kinematics import Pose
 from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
+from mtlc.loads import carried_com
 from mtlc.metrics import (
     BoolArray,
     foot_stance,
@@ -45,7 +46,6 @@ from mtlc.metrics import (
 )
 from mtlc.passes.balance import grouped_hull
 from mtlc.passes.context import PassContext
-from mtlc.passes.tool import carried_com
 
 TOLERANCE = 1e-3  # m: contact error, grip drift, depth below the floor, depth inside the body
 LIMIT_TOLERANCE = 1e-6  # rad past a joint's limit (rounding, not motion)
@@ -471,7 +471,7 @@ class _Verifier:
         """Static margin of the centre of mass (with held tools) over the touching points."""
         ir, t = self.ir, self.t
         stance = foot_stance(ir, t)
-        pts, ok = support(self.skel, self.pose, stance, ir.ground, hand_contacts(ir, t))
+        pts, ok = support(self.skel, self.pose, stance, ir.ground, hand_contacts(ir, t, self.pose))
         com = carried_com(ir, self.pose, t)[:, [0, 2]]
         margin = support_margin(pts, ok, com, grouped_hull(pts, ok))  # the same hull, faster
         static = ~walking(ir, t)

@@ -11,62 +11,62 @@ def remove_access_panel():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
     # examples/remove_access_panel.mtask:28:5 remove_access_panel > walk_to > travel: locomotion on root at panel_front
-    human.Walk((-0.738, 0.0, 57.519), start=0.0, duration=0.54)
+    human.Walk((-0.738, 0.0, 57.527), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.749, 0.0, 0.0), 'right_knee': (4.666,),
-        'right_ankle': (1.916, 0.0), 'left_hip': (2.749, 0.0, 0.0), 'left_knee': (4.666,),
-        'left_ankle': (1.916, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
-    human.KeyRoot(0.1, (2.272, 67.882, 11.671), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.272, 68.003, 11.79), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (52.852, 0.86, 2.941), 'right_knee': (99.531,), 'right_ankle': (14.426, 3.121),
-        'left_hip': (26.698, -1.435, -2.13), 'left_knee': (70.169,), 'left_ankle': (14.152, -2.569),
+        'right_hip': (52.629, 0.867, 2.931), 'right_knee': (99.04,), 'right_ankle': (14.257, 3.114),
+        'left_hip': (26.548, -1.441, -2.116), 'left_knee': (69.738,), 'left_ankle': (14.006, -2.56),
     })
-    human.KeyRoot(0.2, (1.578, 62.836, 22.958), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.578, 62.912, 23.083), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (47.968, 1.38, 0.818), 'right_knee': (30.164,),
-        'right_ankle': (-18.175, 1.451), 'left_hip': (24.944, -0.72, -2.003),
-        'left_knee': (87.056,), 'left_ankle': (16.828, -2.128),
+        'right_hip': (48.122, 1.374, 0.824), 'right_knee': (30.66,),
+        'right_ankle': (-17.833, 1.451), 'left_hip': (24.954, -0.721, -1.999),
+        'left_knee': (86.913,), 'left_ankle': (16.747, -2.125),
     })
-    human.KeyRoot(0.3, (-0.635, 64.164, 34.078), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.635, 64.281, 34.159), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (41.046, -0.47, -0.409), 'right_knee': (34.715,),
-        'right_ankle': (-6.325, -0.623), 'left_hip': (9.497, 0.413, 0.591), 'left_knee': (76.689,),
-        'left_ankle': (20.0, 0.721),
+        'right_hip': (40.74, -0.471, -0.406), 'right_knee': (34.297,),
+        'right_ankle': (-6.438, -0.622), 'left_hip': (9.2, 0.413, 0.59), 'left_knee': (75.865,),
+        'left_ankle': (19.737, 0.721),
     })
-    human.KeyRoot(0.4, (-2.429, 68.569, 45.221), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.429, 68.689, 45.268), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (28.912, -1.94, -1.071), 'right_knee': (31.576,),
-        'right_ankle': (2.685, -2.216), 'left_hip': (27.443, 1.461, 2.508), 'left_knee': (81.098,),
-        'left_ankle': (19.971, 2.903),
+        'right_hip': (28.53, -1.943, -1.056), 'right_knee': (30.907,),
+        'right_ankle': (2.399, -2.212), 'left_hip': (27.115, 1.466, 2.498), 'left_knee': (80.315,),
+        'left_ankle': (19.768, 2.897),
     })
-    human.KeyRoot(0.5, (-1.23, 71.771, 55.866), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.23, 71.813, 55.879), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (14.078, -1.036, -0.26),
-        'right_knee': (20.649,), 'right_ankle': (6.579, -1.068), 'left_hip': (15.741, 1.035, 0.276),
-        'left_knee': (24.27,), 'left_ankle': (8.244, 1.071),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (13.88, -1.036, -0.256),
+        'right_knee': (20.263,), 'right_ankle': (6.39, -1.067), 'left_hip': (15.513, 1.035, 0.275),
+        'left_knee': (23.821,), 'left_ankle': (8.116, 1.071),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 112.0), start=0.54, duration=0.2628)
-    human.KeyRoot(0.6, (0.0, 72.791, 60.0), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.0, 72.79, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'neck': (0.136, -0.001, -2.678), 'head': (0.137, 0.0), 'right_hip': (5.43, 0.0, 0.0),
-        'right_knee': (9.987,), 'right_ankle': (4.557, 0.0), 'left_hip': (5.337, 0.0, 0.0),
-        'left_knee': (9.79,), 'left_ankle': (4.448, 0.0),
+        'neck': (0.136, -0.001, -2.678), 'head': (0.137, 0.0), 'right_hip': (5.432, 0.0, 0.0),
+        'right_knee': (9.991,), 'right_ankle': (4.559, 0.0), 'left_hip': (5.388, 0.0, 0.0),
+        'left_knee': (9.898,), 'left_ankle': (4.508, 0.0),
     })
     human.KeyJoints(0.7, {'neck': (0.685, -0.004, -13.468), 'head': (0.691, 0.0)})
-    human.KeyRoot(0.8, (0.0, 72.955, 60.0), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.8, (0.0, 72.954, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'neck': (1.069, -0.005, -20.844), 'head': (1.076, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'right_hip': (3.504, 0.0, 0.0), 'right_knee': (5.931,),
-        'right_ankle': (2.427, 0.0), 'left_hip': (3.428, 0.0, 0.0), 'left_knee': (5.77,),
-        'left_ankle': (2.339, 0.0),
+        'right_wrist': (0.0, 0.0), 'right_hip': (3.528, 0.0, 0.0), 'right_knee': (5.981,),
+        'right_ankle': (2.453, 0.0), 'left_hip': (3.438, 0.0, 0.0), 'left_knee': (5.792,),
+        'left_ankle': (2.35, 0.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_left
@@ -74,20 +74,20 @@ def remove_access_panel():
     human.KeyJoints(0.9, {
         'neck': (1.089, -0.004, -21.144), 'right_shoulder': (11.855, 5.783, 11.046),
         'right_elbow': (34.372, 16.919), 'right_wrist': (-0.031, -1.238),
-        'right_hip': (3.11, 0.0, 0.0), 'right_knee': (5.1,), 'right_ankle': (1.992, 0.0),
-        'left_hip': (3.113, 0.0, 0.0), 'left_knee': (5.107,), 'left_ankle': (1.996, 0.0),
+        'right_hip': (3.123, 0.0, 0.0), 'right_knee': (5.127,), 'right_ankle': (2.006, 0.0),
+        'left_hip': (3.129, 0.0, 0.0), 'left_knee': (5.14,), 'left_ankle': (2.013, 0.0),
     })
     human.KeyJoints(1.0, {
         'right_shoulder': (20.788, 5.931, 9.914), 'right_elbow': (34.354, 16.18),
-        'right_wrist': (-0.117, -4.629), 'right_hip': (3.093, 0.0, 0.0), 'right_knee': (5.064,),
-        'right_ankle': (1.974, 0.0), 'left_hip': (3.095, 0.0, 0.0), 'left_knee': (5.068,),
-        'left_ankle': (1.976, 0.0),
+        'right_wrist': (-0.117, -4.629), 'right_hip': (3.1, 0.0, 0.0), 'right_knee': (5.08,),
+        'right_ankle': (1.982, 0.0), 'left_hip': (3.104, 0.0, 0.0), 'left_knee': (5.087,),
+        'left_ankle': (1.986, 0.0),
     })
     human.KeyJoints(1.1, {
         'right_shoulder': (33.505, 6.14, 8.302), 'right_elbow': (34.32, 15.129),
-        'right_wrist': (-0.238, -9.456), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.874, 0.0, 0.0), 'left_knee': (4.61,),
-        'left_ankle': (1.721, 0.0),
+        'right_wrist': (-0.238, -9.456), 'right_hip': (2.869, 0.0, 0.0), 'right_knee': (4.592,),
+        'right_ankle': (1.723, 0.0), 'left_hip': (2.877, 0.0, 0.0), 'left_knee': (4.617,),
+        'left_ankle': (1.73, 0.0),
     })
     human.KeyJoints(1.3, {
         'right_shoulder': (62.721, 6.622, 4.599), 'right_elbow': (34.189, 12.713),
@@ -141,6 +141,7 @@ def remove_access_panel():
         'right_clavicle': (11.985, -2.979), 'right_shoulder': (88.253, 19.351, 8.036),
         'right_elbow': (38.018, 18.879), 'right_wrist': (1.777, -15.19),
     })
+    human.KeyRoot(2.2, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(2.2, {
         'spine_lumbar': (17.324, 5.587, -3.349), 'spine_thoracic': (-1.281, -10.0, -3.213),
         'neck': (-5.821, -2.689, -24.52), 'head': (-6.316, -0.082),
@@ -160,7 +161,6 @@ def remove_access_panel():
         'right_elbow': (32.726, 10.36), 'right_wrist': (-1.548, -28.336),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
-    human.KeyRoot(2.5, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(2.5, {
         'spine_lumbar': (7.799, 1.122, 1.233), 'spine_thoracic': (-3.035, -3.017, 1.217),
         'neck': (-0.544, -0.735, -26.457), 'head': (-0.703, -0.002),

@@ -11,69 +11,69 @@ def remove_avionics_unit():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
     # examples/remove_avionics_unit.mtask:29:5 remove_avionics_unit > walk_to > travel: locomotion on root at rack_front
-    human.Walk((-0.738, 0.0, 47.964), start=0.0, duration=0.54)
+    human.Walk((-0.738, 0.0, 47.972), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.749, 0.0, 0.0), 'right_knee': (4.666,),
-        'right_ankle': (1.916, 0.0), 'left_hip': (2.749, 0.0, 0.0), 'left_knee': (4.666,),
-        'left_ankle': (1.916, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
-    human.KeyRoot(0.1, (2.272, 69.839, 9.82), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.272, 69.839, 9.938), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (47.159, 1.213, 2.445), 'right_knee': (90.484,),
-        'right_ankle': (16.441, 2.768), 'left_hip': (22.834, -1.628, -1.689),
-        'left_knee': (59.991,), 'left_ankle': (13.958, -2.346),
+        'right_hip': (47.148, 1.216, 2.44), 'right_knee': (90.433,), 'right_ankle': (16.498, 2.764),
+        'left_hip': (22.831, -1.631, -1.684), 'left_knee': (59.902,),
+        'left_ankle': (14.003, -2.344),
     })
-    human.KeyRoot(0.2, (1.578, 66.025, 19.254), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.578, 66.418, 19.379), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (44.086, 1.318, 0.766), 'right_knee': (34.237,),
-        'right_ankle': (-10.159, 1.438), 'left_hip': (22.921, -0.948, -1.607),
-        'left_knee': (76.506,), 'left_ankle': (17.045, -1.866),
+        'right_hip': (42.56, 1.335, 0.727), 'right_knee': (31.544,),
+        'right_ankle': (-11.325, 1.428), 'left_hip': (22.219, -0.973, -1.558),
+        'left_knee': (75.002,), 'left_ankle': (16.99, -1.837),
     })
-    human.KeyRoot(0.3, (-0.635, 66.756, 28.523), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.635, 67.006, 28.603), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (34.485, -0.492, -0.338), 'right_knee': (30.401,),
-        'right_ankle': (-4.079, -0.597), 'left_hip': (11.43, 0.448, 0.513), 'left_knee': (70.49,),
-        'left_ankle': (20.0, 0.681),
+        'right_hip': (33.689, -0.494, -0.33), 'right_knee': (29.019,),
+        'right_ankle': (-4.665, -0.594), 'left_hip': (10.974, 0.454, 0.499), 'left_knee': (69.38,),
+        'left_ankle': (19.982, 0.674),
     })
-    human.KeyRoot(0.4, (-2.429, 69.844, 37.814), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.429, 69.878, 37.861), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (24.286, -1.98, -0.893), 'right_knee': (27.029,),
-        'right_ankle': (2.762, -2.172), 'left_hip': (27.063, 1.575, 2.277), 'left_knee': (76.577,),
-        'left_ankle': (19.93, 2.769),
+        'right_hip': (24.158, -1.981, -0.888), 'right_knee': (26.856,),
+        'right_ankle': (2.717, -2.171), 'left_hip': (26.912, 1.582, 2.263), 'left_knee': (76.33,),
+        'left_ankle': (19.86, 2.761),
     })
-    human.KeyRoot(0.5, (-1.23, 72.022, 46.606), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.23, 72.022, 46.62), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.48, -1.038, -0.23),
-        'right_knee': (18.657,), 'right_ankle': (6.184, -1.064), 'left_hip': (14.207, 1.038, 0.247),
-        'left_knee': (22.425,), 'left_ankle': (7.926, 1.067),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.473, -1.039, -0.23),
+        'right_knee': (18.666,), 'right_ankle': (6.201, -1.064), 'left_hip': (14.208, 1.038, 0.247),
+        'left_knee': (22.458,), 'left_ankle': (7.881, 1.067),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
     human.LookAt((-22.0, 178.0, 100.0), start=0.54, duration=0.2628)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > look: gaze on head at latch_right
     human.LookAt((22.0, 178.0, 100.0), start=0.54, duration=0.2628)
-    human.KeyRoot(0.6, (0.0, 72.82, 50.0), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.0, 72.819, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'neck': (-2.476, 0.0, 0.0), 'head': (-2.097, 0.0), 'right_hip': (5.143, 0.0, 0.0),
-        'right_knee': (9.384,), 'right_ankle': (4.24, 0.0), 'left_hip': (5.098, 0.0, 0.0),
-        'left_knee': (9.287,), 'left_ankle': (4.187, 0.0),
+        'neck': (-2.476, 0.0, 0.0), 'head': (-2.097, 0.0), 'right_hip': (5.161, 0.0, 0.0),
+        'right_knee': (9.422,), 'right_ankle': (4.26, 0.0), 'left_hip': (5.116, 0.0, 0.0),
+        'left_knee': (9.325,), 'left_ankle': (4.207, 0.0),
     })
     human.KeyJoints(0.7, {
-        'neck': (-12.527, 0.0, 0.0), 'head': (-10.645, 0.0), 'left_hip': (4.175, 0.0, 0.0),
-        'left_knee': (7.344,), 'left_ankle': (3.165, 0.0),
+        'neck': (-12.527, 0.0, 0.0), 'head': (-10.645, 0.0), 'left_hip': (4.188, 0.0, 0.0),
+        'left_knee': (7.372,), 'left_ankle': (3.179, 0.0),
     })
     human.KeyJoints(0.8, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (-19.664, 0.0, 0.0), 'head': (-16.842, 0.0), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
         'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.594, 5.73, 11.459),
-        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0), 'right_hip': (3.438, 0.0, 0.0),
-        'right_knee': (5.791,), 'right_ankle': (2.353, 0.0), 'left_hip': (3.402, 0.0, 0.0),
-        'left_knee': (5.715,), 'left_ankle': (2.31, 0.0),
+        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0), 'right_hip': (3.452, 0.0, 0.0),
+        'right_knee': (5.82,), 'right_ankle': (2.369, 0.0), 'left_hip': (3.406, 0.0, 0.0),
+        'left_knee': (5.725,), 'left_ankle': (2.315, 0.0),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
@@ -86,9 +86,9 @@ def remove_avionics_unit():
         'right_shoulder': (8.509, 9.465, 10.297), 'right_elbow': (33.909, 17.001),
         'right_wrist': (0.007, -0.019), 'left_clavicle': (0.653, 0.24),
         'left_shoulder': (11.442, 5.895, 11.274), 'left_elbow': (34.335, 15.175),
-        'left_wrist': (-0.152, -0.046), 'right_hip': (3.113, 0.0, 0.0), 'right_knee': (5.107,),
-        'right_ankle': (1.996, 0.0), 'left_hip': (3.118, 0.0, 0.0), 'left_knee': (5.117,),
-        'left_ankle': (2.001, 0.0),
+        'left_wrist': (-0.152, -0.046), 'right_hip': (3.116, 0.0, 0.0), 'right_knee': (5.113,),
+        'right_ankle': (1.999, 0.0), 'left_hip': (3.116, 0.0, 0.0), 'left_knee': (5.114,),
+        'left_ankle': (2.0, 0.0),
     })
     human.KeyJoints(1.0, {
         'spine_lumbar': (0.347, -0.35, -1.26), 'spine_thoracic': (1.147, 0.094, -2.52),
@@ -96,8 +96,8 @@ def remove_avionics_unit():
         'right_shoulder': (8.267, 20.122, 6.983), 'right_elbow': (32.556, 16.466),
         'left_clavicle': (2.514, 0.929), 'left_shoulder': (19.597, 6.369, 10.743),
         'left_elbow': (34.206, 9.432), 'left_wrist': (-0.587, -0.176),
-        'right_hip': (3.095, 0.0, 0.0), 'right_knee': (5.068,), 'right_ankle': (1.976, 0.0),
-        'left_hip': (3.097, 0.0, 0.0), 'left_knee': (5.074,), 'left_ankle': (1.979, 0.0),
+        'right_hip': (3.096, 0.0, 0.0), 'right_knee': (5.072,), 'right_ankle': (1.978, 0.0),
+        'left_hip': (3.097, 0.0, 0.0), 'left_knee': (5.072,), 'left_ankle': (1.978, 0.0),
     })
     human.KeyJoints(1.1, {
         'spine_lumbar': (0.785, -0.741, -2.666), 'spine_thoracic': (2.426, 0.199, -5.333),
@@ -105,9 +105,9 @@ def remove_avionics_unit():
         'right_clavicle': (4.888, -2.666), 'right_shoulder': (7.902, 36.183, 1.987),
         'right_elbow': (30.482, 15.66), 'left_clavicle': (5.321, 1.976),
         'left_shoulder': (31.953, 7.091, 9.94), 'left_elbow': (33.994, 0.775),
-        'left_wrist': (-1.245, -0.372), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.586,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.875, 0.0, 0.0), 'left_knee': (4.613,),
-        'left_ankle': (1.723, 0.0),
+        'left_wrist': (-1.245, -0.372), 'right_hip': (2.868, 0.0, 0.0), 'right_knee': (4.589,),
+        'right_ankle': (1.721, 0.0), 'left_hip': (2.875, 0.0, 0.0), 'left_knee': (4.613,),
+        'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.2, {
         'spine_lumbar': (1.399, -1.226, -4.413), 'spine_thoracic': (4.015, 0.33, -8.826),

@@ -11,86 +11,86 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-0.396, 0.0, 53.021), start=0.0, duration=0.54)
+    human.Walk((-0.397, 0.0, 53.03), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.752, 0.0, 0.0), 'right_knee': (4.654,),
-        'right_ankle': (1.902, 0.0), 'left_hip': (2.752, 0.0, 0.0), 'left_knee': (4.654,),
-        'left_ankle': (1.902, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
-    human.KeyRoot(0.1, (2.615, 88.183, 10.496), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.615, 88.219, 10.638), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (45.043, 2.383, 0.373), 'right_knee': (84.81,), 'right_ankle': (15.869, 2.231),
-        'left_hip': (13.106, -1.773, -0.661), 'left_knee': (39.798,),
-        'left_ankle': (19.358, -1.892),
+        'right_hip': (44.983, 2.385, 0.365), 'right_knee': (84.666,),
+        'right_ankle': (15.881, 2.227), 'left_hip': (12.891, -1.776, -0.645),
+        'left_knee': (39.292,), 'left_ankle': (19.342, -1.889),
     })
-    human.KeyRoot(0.2, (1.766, 84.776, 20.534), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.766, 84.818, 20.684), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (40.49, 3.474, -10.548), 'right_knee': (35.057,),
-        'right_ankle': (-5.726, -3.367), 'left_hip': (20.884, -0.983, -1.132),
-        'left_knee': (66.603,), 'left_ankle': (17.581, -1.499),
+        'right_hip': (40.458, 3.486, -10.536), 'right_knee': (35.199,),
+        'right_ankle': (-5.554, -3.344), 'left_hip': (20.841, -0.985, -1.128),
+        'left_knee': (66.436,), 'left_ankle': (17.584, -1.498),
     })
-    human.KeyRoot(0.3, (-0.594, 85.319, 30.502), (-0.458, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.595, 85.361, 30.599), (-0.458, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (29.802, 1.867, -10.426), 'right_knee': (26.916,),
-        'right_ankle': (-2.742, -3.563), 'left_hip': (12.139, 0.443, -0.132), 'left_knee': (63.58,),
+        'right_hip': (29.694, 1.859, -10.423), 'right_knee': (26.843,),
+        'right_ankle': (-2.707, -3.548), 'left_hip': (12.119, 0.444, -0.133), 'left_knee': (63.38,),
         'left_ankle': (20.0, 0.479),
     })
-    human.KeyRoot(0.4, (-2.103, 87.904, 40.795), (-5.019, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.106, 87.929, 40.85), (-5.019, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (21.94, -1.001, -6.237), 'right_knee': (24.961,),
-        'right_ankle': (3.232, -3.251), 'left_hip': (27.672, 0.513, 0.993), 'left_knee': (72.605,),
-        'left_ankle': (20.0, 0.992),
+        'right_hip': (21.853, -1.005, -6.233), 'right_knee': (24.866,),
+        'right_ankle': (3.224, -3.245), 'left_hip': (27.619, 0.517, 0.996), 'left_knee': (72.44,),
+        'left_ankle': (20.0, 0.996),
     })
-    human.KeyRoot(0.5, (-1.064, 89.955, 50.959), (-8.891, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.065, 89.955, 50.974), (-8.891, 0.0, 0.0))
     human.KeyJoints(0.5, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'right_hip': (12.022, -0.876, -1.767), 'right_knee': (18.267,),
-        'right_ankle': (6.278, -1.225), 'left_hip': (13.976, 0.852, 1.784), 'left_knee': (21.718,),
-        'left_ankle': (7.466, 1.232),
+        'right_hip': (12.015, -0.875, -1.767), 'right_knee': (18.274,),
+        'right_ankle': (6.292, -1.224), 'left_hip': (13.929, 0.851, 1.784), 'left_knee': (21.653,),
+        'left_ankle': (7.486, 1.231),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(0.6, (0.605, 90.668, 56.115), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.605, 90.668, 56.114), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.6, {
         'spine_lumbar': (4.952, -4.917, 0.0), 'spine_thoracic': (0.871, -0.906, 0.0),
-        'right_hip': (6.047, 0.542, 0.057), 'right_knee': (12.469,), 'right_ankle': (6.427, 0.545),
-        'left_hip': (6.027, -0.542, -0.057), 'left_knee': (12.428,), 'left_ankle': (6.402, -0.545),
+        'right_hip': (6.047, 0.542, 0.057), 'right_knee': (12.468,), 'right_ankle': (6.425, 0.545),
+        'left_hip': (6.027, -0.542, -0.057), 'left_knee': (12.427,), 'left_ankle': (6.401, -0.545),
     })
-    human.KeyRoot(0.7, (3.766, 90.376, 60.935), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.7, (3.766, 90.376, 60.934), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.7, {
         'spine_lumbar': (15.664, -15.159, 0.0), 'spine_thoracic': (2.492, -2.72, 0.0),
-        'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.084,), 'right_ankle': (9.595, 3.278),
-        'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.582, -3.278),
+        'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.083,), 'right_ankle': (9.594, 3.277),
+        'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.581, -3.277),
     })
-    human.KeyRoot(0.8, (7.078, 90.348, 60.502), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.8, (7.078, 90.351, 60.502), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'spine_lumbar': (23.012, -9.154, 0.0), 'spine_thoracic': (3.58, -1.623, 0.0),
-        'right_hip': (9.16, 5.416, 0.517), 'right_knee': (30.707,), 'right_ankle': (20.0, 5.431),
-        'left_hip': (3.12, -5.441, -0.296), 'left_knee': (10.846,), 'left_ankle': (7.739, -5.449),
+        'right_hip': (9.128, 5.416, 0.516), 'right_knee': (30.638,), 'right_ankle': (20.0, 5.431),
+        'left_hip': (3.099, -5.441, -0.294), 'left_knee': (10.802,), 'left_ankle': (7.717, -5.449),
     })
-    human.KeyRoot(0.9, (9.457, 90.28, 58.687), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.9, (9.457, 90.28, 58.686), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
         'spine_lumbar': (41.621, -3.231, 0.0), 'spine_thoracic': (5.544, -0.54, 0.0),
-        'right_hip': (-11.416, 7.004, -0.298), 'right_knee': (21.515,),
-        'right_ankle': (20.0, 7.103), 'left_hip': (3.935, -6.804, -0.459), 'left_knee': (9.383,),
-        'left_ankle': (5.472, -6.819),
+        'right_hip': (-11.435, 7.004, -0.298), 'right_knee': (21.476,),
+        'right_ankle': (20.0, 7.103), 'left_hip': (3.931, -6.804, -0.458), 'left_knee': (9.374,),
+        'left_ankle': (5.467, -6.819),
     })
     human.KeyRoot(1.0, (9.133, 89.798, 62.643), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.0, {
         'spine_lumbar': (25.974, -1.41, 0.0), 'spine_thoracic': (3.758, -0.247, 0.0),
-        'right_hip': (-12.871, 4.69, 7.633), 'right_knee': (44.142,),
-        'right_ankle': (-15.376, 8.392), 'left_hip': (3.217, -7.119, -0.4), 'left_knee': (13.464,),
-        'left_ankle': (10.277, -7.131),
+        'right_hip': (-12.882, 4.69, 7.633), 'right_knee': (44.119,),
+        'right_ankle': (-15.387, 8.392), 'left_hip': (3.217, -7.119, -0.4), 'left_knee': (13.463,),
+        'left_ankle': (10.276, -7.131),
     })
     human.KeyRoot(1.1, (9.029, 89.309, 63.414), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.1, {
         'spine_lumbar': (21.355, -0.606, 0.0), 'spine_thoracic': (3.451, -0.114, 0.0),
-        'right_hip': (-13.209, 2.156, 16.14), 'right_knee': (35.116,),
-        'right_ankle': (-48.361, 7.468), 'left_hip': (4.771, -7.173, -0.597),
+        'right_hip': (-13.212, 2.156, 16.14), 'right_knee': (35.11,),
+        'right_ankle': (-48.364, 7.468), 'left_hip': (4.771, -7.173, -0.597),
         'left_knee': (17.751,), 'left_ankle': (13.022, -7.198),
     })
     human.KeyRoot(1.2, (7.96, 89.734, 59.082), (-10.437, 0.0, 0.0))
@@ -533,39 +533,39 @@ def replace_fuel_filter():
     human.KeyJoints(8.5, {
         'neck': (26.099, 13.265, 8.012), 'head': (14.972, -10.618),
         'left_shoulder': (60.618, 12.239, 22.647), 'left_elbow': (13.029, 55.32),
-        'left_wrist': (-43.531, 14.632),
+        'left_wrist': (-46.452, 14.632),
     })
     human.KeyJoints(8.6, {
         'neck': (28.097, 7.951, 21.984), 'head': (14.738, -5.348),
         'left_shoulder': (52.391, 13.367, 16.872), 'left_elbow': (17.455, 53.352),
-        'left_wrist': (-44.667, 14.051),
+        'left_wrist': (-48.751, 14.051),
     })
     human.KeyJoints(8.7, {
         'neck': (31.023, 0.167, 42.452), 'head': (14.395, 2.371),
         'left_shoulder': (37.777, 15.556, 6.377), 'left_elbow': (25.579, 49.856),
-        'left_wrist': (-46.75, 13.018),
+        'left_wrist': (-51.998, 13.018),
     })
     human.KeyJoints(8.8, {
         'neck': (33.537, -6.52, 60.034), 'head': (14.1, 9.003),
         'left_shoulder': (19.507, 18.633, -7.177), 'left_elbow': (36.218, 45.485),
-        'left_wrist': (-49.475, 11.727),
+        'left_wrist': (-55.47, 11.727),
     })
     human.KeyJoints(8.9, {
         'neck': (34.35, -8.683, 65.722), 'head': (14.005, 11.148),
         'left_shoulder': (0.309, 22.425, -22.131), 'left_elbow': (48.188, 40.892),
-        'left_wrist': (-52.535, 10.37),
+        'left_wrist': (-57.675, 10.37),
     })
     human.KeyJoints(9.0, {
         'left_shoulder': (-17.085, 26.758, -36.825), 'left_elbow': (60.308, 36.731),
-        'left_wrist': (-55.626, 9.141),
+        'left_wrist': (-59.602, 9.141),
     })
     human.KeyJoints(9.1, {
         'left_shoulder': (-29.947, 31.46, -49.599), 'left_elbow': (71.393, 33.654),
-        'left_wrist': (-58.44, 8.232),
+        'left_wrist': (-61.253, 8.232),
     })
     human.KeyJoints(9.2, {
         'left_shoulder': (-35.546, 36.359, -58.794), 'left_elbow': (80.261, 32.315),
-        'left_wrist': (-60.672, 7.836),
+        'left_wrist': (-62.322, 7.836),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
@@ -592,51 +592,51 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.479, -14.383), 'spine_thoracic': (13.379, -5.922, -29.343),
+        'spine_lumbar': (39.835, 18.455, -14.383), 'spine_thoracic': (19.737, -8.353, -29.343),
         'neck': (33.929, -8.536, 64.633), 'head': (13.792, 11.177),
         'right_clavicle': (-7.543, 7.058), 'right_shoulder': (66.234, -30.019, 16.14),
         'right_elbow': (22.009, 62.773), 'right_wrist': (-13.576, -3.733),
-        'left_shoulder': (-31.789, 41.224, -71.108), 'left_elbow': (96.495, 33.374),
-        'left_wrist': (-65.283, 8.891),
+        'left_shoulder': (-24.838, 53.635, -48.056), 'left_elbow': (73.082, 33.696),
+        'left_wrist': (-50.362, 7.341),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (60.0, 17.146, -11.578), 'spine_thoracic': (12.89, -4.672, -26.356),
+        'spine_lumbar': (38.318, 16.414, -11.578), 'spine_thoracic': (19.133, -7.109, -26.356),
         'neck': (32.111, -7.874, 59.475), 'right_clavicle': (-7.966, 8.425),
         'right_shoulder': (66.929, -29.323, 16.069), 'right_elbow': (19.244, 62.373),
-        'right_wrist': (-11.721, -3.412), 'left_shoulder': (-21.109, 43.308, -56.118),
-        'left_elbow': (95.081, 36.164), 'left_wrist': (-56.989, 9.387),
+        'right_wrist': (-11.721, -3.412), 'left_shoulder': (-3.987, 49.769, -32.499),
+        'left_elbow': (67.615, 36.949), 'left_wrist': (-39.738, 6.828),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (60.0, 13.739, -7.377), 'spine_thoracic': (12.105, -2.818, -21.881),
+        'spine_lumbar': (37.324, 13.476, -7.377), 'spine_thoracic': (17.903, -5.322, -21.881),
         'neck': (29.578, -7.287, 51.239), 'head': (11.962, 11.093),
         'right_clavicle': (-8.584, 10.421), 'right_shoulder': (67.971, -28.306, 15.965),
         'right_elbow': (15.206, 61.788), 'right_wrist': (-9.011, -2.919),
-        'left_shoulder': (-5.296, 46.351, -33.937), 'left_elbow': (92.686, 40.263),
-        'left_wrist': (-44.65, 10.11),
+        'left_shoulder': (17.438, 41.359, -17.522), 'left_elbow': (59.922, 40.741),
+        'left_wrist': (-29.062, 5.341),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (60.0, 10.144, -2.748), 'spine_thoracic': (11.142, -0.805, -16.945),
+        'spine_lumbar': (37.082, 10.394, -2.748), 'spine_thoracic': (16.239, -3.473, -16.945),
         'neck': (26.971, -6.939, 41.651), 'head': (11.712, 10.922),
         'right_clavicle': (-9.235, 12.528), 'right_shoulder': (69.121, -27.233, 15.856),
         'right_elbow': (10.945, 61.171), 'right_wrist': (-6.149, -2.353),
-        'left_shoulder': (11.801, 49.562, -9.986), 'left_elbow': (89.53, 44.635),
-        'left_wrist': (-31.203, 10.873),
+        'left_shoulder': (31.156, 36.179, -1.431), 'left_elbow': (51.952, 44.981),
+        'left_wrist': (-18.87, 4.06),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (60.0, 7.248, 1.344), 'spine_thoracic': (10.119, 0.919, -12.575),
+        'spine_lumbar': (37.082, 7.812, 1.344), 'spine_thoracic': (14.692, -1.911, -12.575),
         'neck': (24.867, -7.979, 33.057), 'head': (11.757, 11.076),
         'right_clavicle': (-9.76, 14.225), 'right_shoulder': (70.141, -26.368, 15.767),
         'right_elbow': (7.511, 60.673), 'right_wrist': (-3.838, -1.813),
-        'left_shoulder': (26.328, 52.15, 10.315), 'left_elbow': (85.832, 48.242),
-        'left_wrist': (-19.583, 11.488),
+        'left_shoulder': (41.306, 34.639, 16.37), 'left_elbow': (44.053, 48.8),
+        'left_wrist': (-8.351, 3.554),
     })
     human.KeyJoints(10.3, {
-        'spine_lumbar': (60.0, 5.936, 3.932), 'spine_thoracic': (9.153, 1.91, -9.798),
+        'spine_lumbar': (37.082, 6.581, 3.932), 'spine_thoracic': (13.558, -0.981, -9.798),
         'neck': (23.887, -9.153, 27.691), 'head': (12.161, 11.117),
         'right_clavicle': (-9.998, 14.994), 'right_shoulder': (70.792, -25.977, 15.727),
         'right_elbow': (5.957, 60.448), 'right_wrist': (-2.781, -1.399),
-        'left_shoulder': (34.434, 53.321, 21.545), 'left_elbow': (81.814, 50.047),
-        'left_wrist': (-12.728, 11.767),
+        'left_shoulder': (48.667, 32.953, 27.861), 'left_elbow': (35.488, 50.729),
+        'left_wrist': (-0.755, 3.098),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {

@@ -12,9 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from mtlc.diagnostics.render import render_text, report_internal_error, terminal_safe, use_color
-from mtlc.executor import parse_jobs
+from mtlc.executor import add_jobs, parse_jobs
 from mtlc.frontend import FrontendOptions, add_motion_budget, run_frontend
-from mtlc.lint.command import add_jobs
 from mtlc.lint.manikins import ManikinError, parse_selection
 from mtlc.output import write_outputs
 from mtlc.report.analysis import Report, analyse_tasks

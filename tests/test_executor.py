@@ -44,6 +44,11 @@ def misbehaving(shared: int, item: int) -> int:
     return shared * item
 
 
+def nested(shared: int, item: int) -> list[int]:
+    """A sweep inside a worker runs in that worker (daemons cannot start processes)."""
+    return [o.value for o in executor.run(scaled, shared, [item, item + 1], jobs=2)]  # type: ignore[union-attr]
+
+
 def sleepy(shared: float, item: int) -> int:
     time.sleep(shared)
     return item
@@ -70,6 +75,10 @@ def test_a_dead_worker_fails_its_item_only() -> None:
 def test_an_exception_is_the_same_outcome_in_process_and_in_a_worker() -> None:
     items = [1, 6, 2]
     assert executor.run(misbehaving, 2, items, 1) == executor.run(misbehaving, 2, items, 2)
+
+
+def test_a_sweep_inside_a_worker_runs_in_that_worker() -> None:
+    assert executor.run(nested, 2, [1, 5], jobs=2) == [Done([2, 4]), Done([10, 12])]
 
 
 def test_ctrl_c_stops_the_workers() -> None:

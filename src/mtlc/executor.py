@@ -33,6 +33,7 @@ R = TypeVar("R")
 
 # how long a stopping worker gets to exit before it is killed (s)
 STOP_GRACE = 2.0
+_IN_WORKER = False  # set in worker processes (daemons may not start processes of their own)
 
 
 @dataclass(frozen=True)
@@ -88,7 +89,7 @@ def run(
     """``fn(shared, item)`` for each item, in ``jobs`` processes (default: the CPUs); one
     outcome per item in order. One job or one item runs in this process."""
     n = default_jobs() if jobs is None else max(1, jobs)
-    if n == 1 or len(items) <= 1:
+    if n == 1 or len(items) <= 1 or _IN_WORKER:  # a worker's own sweeps run in the worker
         return [_call(fn, shared, item) for item in items]
     return _Pool(fn, shared, min(n, len(items))).run(items)
 
@@ -109,6 +110,8 @@ def _context() -> multiprocessing.context.BaseContext:
 
 def _worker(conn: multiprocessing.connection.Connection, parent: int) -> None:
     """A worker's loop: ``fn`` and the shared payload once, then (index, item) until None."""
+    global _IN_WORKER
+    _IN_WORKER = True
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops us on Ctrl-C
     try:
         fn, shared = pickle.loads(conn.recv_bytes())
@@ -155,7 +158,9 @@ class _Pool:
         process = self.ctx.Process(target=_worker, args=(child, os.getpid()), daemon=True)
         process.start()
         child.close()
-        parent.send_bytes(self.payload)
+        # a worker that died at once shows when it is given an item (and fails that one)
+        with contextlib.suppress(OSError):
+            parent.send_bytes(self.payload)
         slot = _Slot(process, parent)
         self.slots.append(slot)
         return slot

@@ -506,21 +506,18 @@ def test_score_frames_raises_each_side_by_its_own_force() -> None:
     assert loaded["r"].grand[2] > bare["r"].grand[2]
 
 
-# ------------------------------------------------------------------ lint: screened reaches
-def test_screened_manikins_reach_with_the_tool(tmp_path: Path) -> None:
-    from mtlc.lint.rules.reach import screen, screen_distances
+# ------------------------------------------------------------------ lint: reaches with a tool
+def test_lint_sweep_reaches_with_the_tool(tmp_path: Path) -> None:
+    """Every manikin of a lint sweep is compiled in full holding the same tool: the tall one's
+    wrench tip lands on a bolt at 1.8 m, the small one's MT0501 names the wrench."""
+    from mtlc.lint import LintConfig, lint_paths
+    from mtlc.lint.manikins import parse_selection
 
     path = tmp_path / "t.mtask"
     high = TASK.replace("(20, 135, 112)", "(20, 180, 100)")  # a bolt at 1.8 m
     path.write_text(high.format(setting="tool wrench_10mm", turns=1, args=""), encoding="utf-8")
-    (timeline,) = run_frontend([path]).timelines
-    tall = ManikinSpec("gb10000_1988", "male", 95)
-    sink = DiagnosticSink()
-    ir = run_motion(dataclasses.replace(timeline, manikin=tall), sink)
-    assert not [d for d in sink.sorted() if d.code == "MT0501"]  # the tall manikin reaches it
-    # the same manikin screened: the wrench's tip lands on the bolt (the hand is 11.5 cm off)
-    ((seg, short),) = screen_distances(ir, tall)
-    assert seg.goal.effector == "r_tool_wrench_10mm" and short <= 1e-3
-    small = screen(ir, ManikinSpec("gb10000_1988", "female", 5))
-    assert [f.code for f in small] == ["MT0501"]
-    assert small[0].message.startswith("the wrench_10mm in the right hand cannot reach")
+    two = parse_selection("gb10000_1988:male:95,gb10000_1988:female:5")
+    result = lint_paths([path], LintConfig(select=frozenset({"MT0501"})), manikins=two, jobs=1)
+    (short,) = [f for f in result.findings if f.code == "MT0501"]
+    assert short.manikins == ("gb10000_1988:female:5",)  # the tall manikin reaches it
+    assert short.message.startswith("the wrench_10mm in the right hand cannot reach")

@@ -16,8 +16,6 @@ from hypothesis import strategies as st
 
 from mtlc.frontend import run_frontend
 from mtlc.lint.manikins import all_manikins, parse_selection
-from mtlc.lint.rules.reach import screen, screen_distances
-from mtlc.passes.approach import TOLERANCE
 from mtlc.report import Report, analyse_task
 from mtlc.report.command import main
 from mtlc.report.csvout import COLUMNS, render_csv
@@ -32,7 +30,7 @@ RATIO = {"male": 1.0, "female": 1.0}
 @pytest.fixture(scope="module")
 def shelf() -> Report:
     (timeline,) = run_frontend([SHELF]).timelines
-    return Report([analyse_task(timeline, all_manikins())], all_manikins(), RATIO, False)
+    return Report([analyse_task(timeline, all_manikins())], all_manikins(), RATIO)
 
 
 def rows(report: Report) -> list[dict[str, str]]:
@@ -83,11 +81,11 @@ def test_shortfalls_shrink_with_stature_within_a_sex(shelf: Report) -> None:
         assert all(a >= b - 0.005 for a, b in itertools.pairwise(gaps)), gaps
 
 
-def test_full_compiles_have_rula_and_screened_ones_do_not(shelf: Report) -> None:
+def test_every_manikin_is_compiled_in_full_with_rula(shelf: Report) -> None:
+    """No manikin's numbers are a guess from a neighbour (issue 18): all 14 have RULA."""
     for m in shelf.tasks[0].manikins:
-        assert (m.rula is not None) == (m.method == "full"), m.label
-        if m.rula is not None:
-            assert 1 <= m.rula.score <= 7 and m.rula.line in (16, 17, 18, 19)
+        assert m.method == "full" and m.rula is not None, m.label
+        assert 1 <= m.rula.score <= 7 and m.rula.line in (16, 17, 18, 19)
 
 
 def test_csv_is_one_flat_table(shelf: Report) -> None:
@@ -146,7 +144,7 @@ def test_command_writes_html_and_csv_byte_identically(tmp_path: Path, capsys) ->
 def test_full_compiles_every_manikin() -> None:
     (timeline,) = run_frontend([SHELF]).timelines
     chosen = parse_selection("gb10000_1988:female:50,gb10000_1988:male:5,gb10000_1988:male:50")
-    task = analyse_task(timeline, chosen, full=True)
+    task = analyse_task(timeline, chosen, jobs=1)
     assert [m.method for m in task.manikins] == ["full"] * 3
     assert all(m.rula is not None for m in task.manikins)
     assert [m.label for m in task.manikins] == [
@@ -193,21 +191,3 @@ def test_python_m_entry_point() -> None:
         check=False,
     )
     assert done.returncode == 2 and "mtlc report:" in done.stderr
-
-
-def test_screen_distances_are_what_screen_reports(shelf: Report) -> None:
-    """lint's screen() is screen_distances() filtered at the passes' tolerance."""
-    import dataclasses
-
-    from mtlc.diagnostics import DiagnosticSink
-    from mtlc.passes import run_motion
-
-    (timeline,) = run_frontend([SHELF]).timelines
-    big, small = parse_selection("gb10000_1988:male:99,gb10000_1988:female:10")
-    ir = run_motion(dataclasses.replace(timeline, manikin=big), DiagnosticSink())
-    short = [(s.goal.site, d) for s, d in screen_distances(ir, small) if d > TOLERANCE]
-    found = screen(ir, small)
-    assert [f.message.split("`")[1] for f in found] == [site for site, _ in short]
-    assert [f"{d * 1000:.0f} mm short" for _, d in short] == [
-        f.message.rsplit(": ", 1)[1] for f in found
-    ]

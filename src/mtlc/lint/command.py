@@ -1,6 +1,7 @@
 """The `mtlc lint` command: argument parsing and the exit code (the only place lint prints).
 
-Exit codes: 0 clean, 1 findings at or above the failing severity, 2 usage or internal error.
+Exit codes: 0 clean, 1 findings at or above the failing severity, 2 usage or internal error,
+130 interrupted (Ctrl-C).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pathlib import Path
 
 from mtlc.diagnostics import Severity
 from mtlc.diagnostics.render import report_internal_error, use_color
+from mtlc.executor import add_jobs, parse_jobs
 from mtlc.frontend import add_motion_budget
 from mtlc.lint.config import ConfigError, LintConfig, codes_of, load_config
 from mtlc.lint.engine import lint_paths
@@ -21,6 +23,7 @@ from mtlc.output import write_outputs
 from mtlc.semantics.modules import probe
 
 EXIT_OK, EXIT_FINDINGS, EXIT_USAGE = 0, 1, 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report Ctrl-C
 
 
 def add_lint_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
@@ -52,6 +55,7 @@ def configure_parser(p: argparse.ArgumentParser) -> None:
         help="'extremes' (default: gb10000_1988:female:5 and :male:95), 'all' (the 14 "
         "GB 10000-88 manikins) or POP:SEX:PCT[,POP:SEX:PCT...]",
     )
+    add_jobs(p)
     p.add_argument(
         "--select",
         metavar="CODES",
@@ -97,7 +101,8 @@ def run_lint_command(args: argparse.Namespace) -> int:
     try:
         config = with_selection(load_config(Path.cwd(), args.config), args.select, args.ignore)
         manikins = parse_selection(args.manikins or config.manikins)
-    except (ConfigError, ManikinError) as exc:
+        jobs = parse_jobs(args.jobs)
+    except (ConfigError, ManikinError, ValueError) as exc:
         sys.stderr.write(f"mtlc lint: {exc}\n")
         return EXIT_USAGE
     missing = [p for p in args.paths if not probe(p, Path.exists)]
@@ -105,7 +110,10 @@ def run_lint_command(args: argparse.Namespace) -> int:
         sys.stderr.write(f"mtlc lint: no such file or folder: {', '.join(map(str, missing))}\n")
         return EXIT_USAGE
     try:
-        return _lint(args, config, manikins)
+        return _lint(args, config, manikins, jobs)
+    except KeyboardInterrupt:  # the workers are stopped by the executor
+        sys.stderr.write("mtlc lint: interrupted\n")
+        return EXIT_INTERRUPTED
     except Exception as exc:  # a bug: one line and exit 2, never a bare traceback
         report_internal_error("lint", exc)
         return EXIT_USAGE
@@ -121,13 +129,14 @@ def with_selection(config: LintConfig, select: str | None, ignore: str | None) -
     return dataclasses.replace(config, select=frozenset(chosen))
 
 
-def _lint(args: argparse.Namespace, config: LintConfig, manikins: tuple) -> int:  # type: ignore[type-arg]
+def _lint(args: argparse.Namespace, config: LintConfig, manikins: tuple, jobs: int) -> int:  # type: ignore[type-arg]
     result = lint_paths(
         list(args.paths),
         config,
         manikins=manikins,
         include_dirs=tuple(args.include),
         motion_budget=args.motion_budget,
+        jobs=jobs,
     )
     root = Path.cwd()
     to_file = args.output is not None

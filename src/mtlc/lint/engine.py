@@ -1,9 +1,12 @@
 """Lint = front end (once per file) + motion passes per manikin + rules over the results.
 
-The sweep: the selection's extremes by stature (all of it when it has two manikins or fewer)
-are compiled in full and every motion rule runs on them; the manikins between are screened for
-reach (MT0501) by one batched IK call per hand (mtlc.lint.rules.reach), which costs a small
-fraction of a compile. Findings for several manikins merge into one that names them all.
+The sweep: every selected manikin is compiled in full (every motion pass) and every motion
+rule runs on it, so a finding for one manikin is exactly what `mtlc compile` and the rules say
+for that manikin, never a guess from a neighbour. The front end runs once per file in this
+process; the (task, manikin) compiles run through mtlc.executor (``jobs`` worker processes,
+the timelines shipped to them once), and their findings come back in a fixed order, so the
+result is the same whatever the number of jobs. Findings for several manikins merge into one
+that names them all.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mtlc import executor
 from mtlc.diagnostics import DiagnosticSink, Severity
 from mtlc.frontend import DEFAULT_MOTION_BUDGET, FrontendOptions, Program, run_frontend
 from mtlc.lint import suppress
@@ -19,7 +23,6 @@ from mtlc.lint.config import LintConfig
 from mtlc.lint.findings import Finding, from_diagnostic, merge
 from mtlc.lint.manikins import label, parse_selection
 from mtlc.lint.rules import RULES
-from mtlc.lint.rules.reach import screen, stature
 from mtlc.lint.rules.view import make_view
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.semantics.timeline import ManikinSpec, Timeline
@@ -53,7 +56,7 @@ class LintResult:
     sources: dict[str, str]
     files: list[Path]
     manikins: tuple[ManikinSpec, ...]
-    full: tuple[ManikinSpec, ...]  # compiled in full; the others were screened for reach
+    full: tuple[ManikinSpec, ...]  # compiled in full: every selected manikin
     rules_run: list[str] = field(default_factory=list)
 
     def failing(self, at: Severity) -> list[Finding]:
@@ -69,19 +72,6 @@ def collect_files(paths: list[Path]) -> list[Path]:
     return out
 
 
-def envelope(manikins: tuple[ManikinSpec, ...]) -> tuple[ManikinSpec, ...]:
-    """The smallest and the largest by stature (in selection order), or all of two or fewer."""
-    if len(manikins) <= 2:
-        return manikins
-    small = min(manikins, key=stature)
-    large = max(manikins, key=stature)
-    return tuple(m for m in manikins if m in (small, large))
-
-
-def nearest(spec: ManikinSpec, full: tuple[ManikinSpec, ...]) -> ManikinSpec:
-    return min(full, key=lambda m: abs(stature(m) - stature(spec)))
-
-
 def lint_paths(
     paths: list[Path],
     config: LintConfig,
@@ -90,13 +80,16 @@ def lint_paths(
     include_dirs: tuple[Path, ...] = (),
     motion: MotionOptions | None = None,
     motion_budget: float = DEFAULT_MOTION_BUDGET,
+    jobs: int | None = None,
 ) -> LintResult:
+    """Lint ``paths`` for each manikin of the selection; ``jobs`` worker processes for the
+    compiles (None: one per CPU; 1: in this process)."""
     selection = manikins or parse_selection(config.manikins)
-    full = envelope(selection)
     files = collect_files(paths)
     findings: list[Finding] = []
     sources: dict[str, str] = {}
     roots: list[str] = []
+    timelines: list[Timeline] = []
     for path in files:
         options = FrontendOptions(include_dirs=include_dirs, motion_budget=motion_budget)
         program = run_frontend([path], options)
@@ -108,8 +101,10 @@ def lint_paths(
         findings.extend(_program_rules(program, config))
         if not any(config.enabled(c) for c in MOTION_CODES):
             continue
-        for timeline in program.timelines:
-            findings.extend(_sweep(timeline, selection, full, config, motion or MotionOptions()))
+        timelines.extend(program.timelines)
+    if timelines:
+        sweep = Sweep(tuple(timelines), config, motion or MotionOptions())
+        findings.extend(run_sweep(sweep, selection, jobs))
     # errors cannot be deselected: code that does not compile is never 'clean'
     findings = [f for f in findings if config.enabled(f.code) or f.severity is Severity.ERROR]
     marks = [s for file in dict.fromkeys(roots) for s in suppress.scan(file, sources.get(file, ""))]
@@ -122,7 +117,7 @@ def lint_paths(
         sources,
         files,
         selection,
-        full,
+        selection,
         [r.code for r in RULES if config.enabled(r.code)],
     )
 
@@ -135,43 +130,56 @@ def _program_rules(program: Program, config: LintConfig) -> list[Finding]:
     return out
 
 
-def _sweep(
-    timeline: Timeline,
-    selection: tuple[ManikinSpec, ...],
-    full: tuple[ManikinSpec, ...],
-    config: LintConfig,
-    options: MotionOptions,
+@dataclass(frozen=True)
+class Sweep:
+    """What every compile of a lint run shares, shipped to each worker once."""
+
+    timelines: tuple[Timeline, ...]
+    config: LintConfig
+    options: MotionOptions
+
+
+def run_sweep(
+    sweep: Sweep, selection: tuple[ManikinSpec, ...], jobs: int | None = None
 ) -> list[Finding]:
+    """Every (task, manikin) compiled in full and its motion rules, through the executor; the
+    findings in task order, then selection order. A compile that raised or whose worker died
+    is one MT0900 finding for that task and manikin; the others go on."""
+    items = [(i, spec) for i in range(len(sweep.timelines)) for spec in selection]
     out: list[Finding] = []
-    compiled = {}
-    for spec in full:
-        sink = DiagnosticSink()
-        try:
-            ir = run_motion(dataclasses.replace(timeline, manikin=spec), sink, options)
-        except Exception as exc:  # a bug in a pass: one finding, and the other tasks go on
-            out.append(_internal_error(timeline, spec, exc))
-            continue
-        compiled[spec] = ir
-        out.extend(
-            from_diagnostic(d, label(spec))
-            for d in sink.sorted()
-            if not config.enabled(SCREENED_BY.get(d.code, ""))
-        )
-        view = make_view(ir, label(spec), config, timeline)
-        if view is None:
-            continue
-        for rule in RULES:
-            if rule.on == "motion" and config.enabled(rule.code):
-                out.extend(rule.check(view))  # type: ignore[arg-type]
-    if config.enabled("MT0501"):
-        for spec in selection:
-            if spec not in full and compiled:
-                out.extend(screen(compiled[nearest(spec, tuple(compiled))], spec))
+    for (i, spec), outcome in zip(items, executor.run(lint_one, sweep, items, jobs), strict=True):
+        if isinstance(outcome, executor.Done):
+            out.extend(outcome.value)
+        else:
+            out.append(_internal_error(sweep.timelines[i], spec, outcome.message))
     return out
 
 
-def _internal_error(timeline: Timeline, spec: ManikinSpec, exc: Exception) -> Finding:
-    message = f"internal error compiling task `{timeline.task}`: {type(exc).__name__}: {exc}"
+def lint_one(sweep: Sweep, item: tuple[int, ManikinSpec]) -> list[Finding]:
+    """One task compiled for one manikin, and the motion rules over it (runs in a worker)."""
+    index, spec = item
+    timeline = sweep.timelines[index]
+    sink = DiagnosticSink()
+    try:
+        ir = run_motion(dataclasses.replace(timeline, manikin=spec), sink, sweep.options)
+    except Exception as exc:  # a bug in a pass: one finding, and the other tasks go on
+        return [_internal_error(timeline, spec, f"{type(exc).__name__}: {exc}")]
+    out = [
+        from_diagnostic(d, label(spec))
+        for d in sink.sorted()
+        if not sweep.config.enabled(SCREENED_BY.get(d.code, ""))  # lint's MT0603/MT0604 instead
+    ]
+    view = make_view(ir, label(spec), sweep.config, timeline)
+    if view is None:
+        return out
+    for rule in RULES:
+        if rule.on == "motion" and sweep.config.enabled(rule.code):
+            out.extend(rule.check(view))  # type: ignore[arg-type]
+    return out
+
+
+def _internal_error(timeline: Timeline, spec: ManikinSpec, why: str) -> Finding:
+    message = f"internal error compiling task `{timeline.task}`: {why}"
     return Finding(
         "MT0900",
         message,

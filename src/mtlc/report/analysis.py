@@ -1,10 +1,9 @@
 """What `mtlc report` measures for a task and a set of manikins.
 
-The sweep is lint's (docs/lint.md): the selection's extremes by stature are compiled in full
-(every motion pass), the others screened for reach with one batched IK call per hand from the
-nearest compiled extreme; ``full=True`` compiles every manikin. For each manikin: how far the
-hand stays from each contact goal's site, and, for the manikins compiled in full, the worst
-RULA grand score with its time and task line. The predicted time does not depend on the
+The sweep is lint's (docs/lint.md): every manikin is compiled in full (every motion pass),
+through mtlc.executor (worker processes; the same numbers whatever their count). For each
+manikin: how far the hand stays from each contact goal's site, and the worst RULA grand score
+with its time and task line. The predicted time does not depend on the
 manikin (MTM-1 distances come from the scene), so it is computed once per task.
 """
 
@@ -15,13 +14,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mtlc import executor
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.ergonomics import rula as R
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.lint.config import LintConfig
-from mtlc.lint.engine import envelope, nearest
 from mtlc.lint.manikins import label
-from mtlc.lint.rules.reach import contact_goals, screen_distances, stature
+from mtlc.lint.rules.reach import contact_goals, stature
 from mtlc.lint.rules.view import make_view
 from mtlc.metrics import foot_stance
 from mtlc.passes import MotionOptions, run_motion
@@ -29,7 +28,7 @@ from mtlc.passes.approach import HAND_NAMES, TOLERANCE
 from mtlc.report.maintenance import TimeSplit, split_time
 from mtlc.semantics.timeline import ManikinSpec, Timeline
 
-FULL, SCREENED, FAILED = "full", "screened", "failed"
+FULL, FAILED = "full", "failed"
 
 
 @dataclass(frozen=True)
@@ -60,7 +59,7 @@ class RulaWorst:
 class ManikinResult:
     spec: ManikinSpec
     stature: float  # m
-    method: str  # FULL, SCREENED or FAILED
+    method: str  # FULL or FAILED
     distance: dict[GoalRef, float] = field(default_factory=dict)  # m, hand to site
     rula: RulaWorst | None = None
     error: str | None = None
@@ -96,57 +95,66 @@ def analyse_task(
     timeline: Timeline,
     selection: tuple[ManikinSpec, ...],
     *,
-    full: bool = False,
     options: MotionOptions | None = None,
+    jobs: int | None = None,
 ) -> TaskResult:
-    """Compile and screen ``timeline`` for each manikin of ``selection`` (in its order)."""
-    compiled_specs = selection if full else envelope(selection)
-    results: dict[ManikinSpec, ManikinResult] = {}
-    irs: dict[ManikinSpec, MotionIR] = {}
-    for spec in compiled_specs:
-        results[spec], ir = _compile(timeline, spec, options or MotionOptions())
-        if ir is not None:
-            irs[spec] = ir
-    for spec in selection:
-        if spec not in results:
-            results[spec] = _screen(spec, irs)
-    ordered = [results[s] for s in selection]
-    # in the order of the motion (a full compile's segments), then any only a screen found
-    by_method = sorted(ordered, key=lambda r: r.method != FULL)
-    goals = list(dict.fromkeys(g for r in by_method for g in r.distance))
-    return TaskResult(
-        timeline.task,
-        timeline.title,
-        timeline.file,
-        timeline.span.line,
-        split_time(timeline),
-        goals,
-        ordered,
-    )
+    """Compile ``timeline`` for each manikin of ``selection`` (in its order)."""
+    return analyse_tasks([timeline], selection, options=options, jobs=jobs)[0]
 
 
-def _compile(
-    timeline: Timeline, spec: ManikinSpec, options: MotionOptions
-) -> tuple[ManikinResult, MotionIR | None]:
+def analyse_tasks(
+    timelines: list[Timeline],
+    selection: tuple[ManikinSpec, ...],
+    *,
+    options: MotionOptions | None = None,
+    jobs: int | None = None,
+) -> list[TaskResult]:
+    """Every (task, manikin) compiled in full, ``jobs`` at a time (None: one per CPU)."""
+    shared = (tuple(timelines), options or MotionOptions())
+    items = [(i, spec) for i in range(len(timelines)) for spec in selection]
+    outcomes = iter(executor.run(measure_one, shared, items, jobs))
+    out = []
+    for timeline in timelines:
+        ordered = []
+        for spec in selection:
+            outcome = next(outcomes)
+            if isinstance(outcome, executor.Done):
+                ordered.append(outcome.value)
+            else:
+                failed = ManikinResult(spec, stature(spec) / 1000.0, FAILED)
+                failed.error = outcome.message
+                ordered.append(failed)
+        # in the order of the motion (the first compile's segments)
+        goals = list(dict.fromkeys(g for r in ordered for g in r.distance))
+        out.append(
+            TaskResult(
+                timeline.task,
+                timeline.title,
+                timeline.file,
+                timeline.span.line,
+                split_time(timeline),
+                goals,
+                ordered,
+            )
+        )
+    return out
+
+
+def measure_one(
+    shared: tuple[tuple[Timeline, ...], MotionOptions], item: tuple[int, ManikinSpec]
+) -> ManikinResult:
+    """One task compiled for one manikin: its distances and worst RULA (runs in a worker)."""
+    timelines, options = shared
+    index, spec = item
     result = ManikinResult(spec, stature(spec) / 1000.0, FULL)
+    sink = DiagnosticSink()
     try:
-        ir = run_motion(dataclasses.replace(timeline, manikin=spec), DiagnosticSink(), options)
+        ir = run_motion(dataclasses.replace(timelines[index], manikin=spec), sink, options)
     except Exception as exc:  # a bug in a pass: this manikin has no numbers, the others go on
         result.method, result.error = FAILED, f"{type(exc).__name__}: {exc}"
-        return result, None
+        return result
     result.distance = contact_distances(ir)
     result.rula = worst_rula(ir)
-    return result, ir
-
-
-def _screen(spec: ManikinSpec, irs: dict[ManikinSpec, MotionIR]) -> ManikinResult:
-    result = ManikinResult(spec, stature(spec) / 1000.0, SCREENED)
-    if not irs:
-        result.method, result.error = FAILED, "no manikin compiled to screen from"
-        return result
-    source = irs[nearest(spec, tuple(irs))]
-    for seg, d in screen_distances(source, spec):
-        result.distance.setdefault(goal_ref(seg), d)
     return result
 
 
@@ -203,4 +211,4 @@ class Report:
     tasks: list[TaskResult]
     selection: tuple[ManikinSpec, ...]
     ratio: dict[str, float]  # sex -> weight in the combined share
-    full: bool  # every manikin compiled in full (else the extremes, the rest screened)
+    full: bool = True  # every manikin compiled in full (the only sweep since issue 18)

@@ -1,7 +1,7 @@
 """The `mtlc report` command (wired into `mtlc` by the CLI, and `python -m mtlc.report`).
 
 Exit codes as everywhere in mtlc: 0 the report was made (unreachable sites are its content,
-not an error), 1 errors in the input, 2 a usage or internal error.
+not an error), 1 errors in the input, 2 a usage or internal error, 130 interrupted (Ctrl-C).
 """
 
 from __future__ import annotations
@@ -12,16 +12,17 @@ from pathlib import Path
 from typing import Any
 
 from mtlc.diagnostics.render import render_text, report_internal_error, terminal_safe, use_color
+from mtlc.executor import add_jobs, parse_jobs
 from mtlc.frontend import FrontendOptions, add_motion_budget, run_frontend
 from mtlc.lint.manikins import ManikinError, parse_selection
 from mtlc.output import write_outputs
-from mtlc.report.analysis import Report, analyse_task
+from mtlc.report.analysis import Report, analyse_tasks
 from mtlc.report.csvout import render_csv
 from mtlc.report.html import render_html
 from mtlc.report.terminal import render_terminal
 from mtlc.semantics.modules import probe
 
-EXIT_OK, EXIT_ERRORS, EXIT_USAGE = 0, 1, 2
+EXIT_OK, EXIT_ERRORS, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 DEFAULT_MANIKINS = "all"
 
 
@@ -52,8 +53,8 @@ def configure_parser(p: argparse.ArgumentParser) -> None:
                    help="'all' (default: the 14 GB 10000-88 manikins), 'extremes' or "
                    "POP:SEX:PCT[,POP:SEX:PCT...], as for mtlc lint")  # fmt: skip
     p.add_argument("--full", action="store_true",
-                   help="compile every manikin in full (RULA for everyone; slower) instead of "
-                   "screening the ones between the extremes for reach")  # fmt: skip
+                   help="kept for old scripts: every manikin is always compiled in full")  # fmt: skip
+    add_jobs(p)
     p.add_argument("--sex-ratio", metavar="MALE:FEMALE", default="1:1",
                    help="weights of men and women in the combined share (default 1:1)")  # fmt: skip
     p.add_argument("-o", "--output", type=Path, metavar="HTML",
@@ -78,7 +79,8 @@ def run_report_command(args: argparse.Namespace) -> int:
     try:
         selection = parse_selection(args.manikins)
         ratio = parse_ratio(args.sex_ratio)
-    except (ManikinError, ReportUsageError) as exc:
+        jobs = parse_jobs(args.jobs)
+    except (ManikinError, ReportUsageError, ValueError) as exc:
         sys.stderr.write(f"mtlc report: {exc}\n")
         return EXIT_USAGE
     missing = [str(p) for p in args.files if not probe(p, Path.is_file)]
@@ -86,13 +88,16 @@ def run_report_command(args: argparse.Namespace) -> int:
         sys.stderr.write(f"mtlc report: no such file: {terminal_safe(', '.join(missing))}\n")
         return EXIT_USAGE
     try:
-        return _report(args, selection, ratio)
+        return _report(args, selection, ratio, jobs)
+    except KeyboardInterrupt:  # the workers are stopped by the executor
+        sys.stderr.write("mtlc report: interrupted\n")
+        return EXIT_INTERRUPTED
     except Exception as exc:  # a bug: one line and exit 2, never a bare traceback
         report_internal_error("report", exc)
         return EXIT_USAGE
 
 
-def _report(args: argparse.Namespace, selection: tuple, ratio: dict[str, float]) -> int:  # type: ignore[type-arg]
+def _report(args: argparse.Namespace, selection: tuple, ratio: dict[str, float], jobs: int) -> int:  # type: ignore[type-arg]
     options = FrontendOptions(include_dirs=tuple(args.include), motion_budget=args.motion_budget)
     program = run_frontend(list(args.files), options)
     if program.diagnostics:
@@ -105,8 +110,8 @@ def _report(args: argparse.Namespace, selection: tuple, ratio: dict[str, float])
         sys.stderr.write(f"mtlc report: no task named {args.task!r}\n" if args.task else
                          "mtlc report: no task in the files\n")  # fmt: skip
         return EXIT_USAGE
-    tasks = [analyse_task(t, selection, full=args.full) for t in timelines]
-    report = Report(tasks, selection, ratio, args.full)
+    tasks = analyse_tasks(timelines, selection, jobs=jobs)
+    report = Report(tasks, selection, ratio)
     files: dict[Path, str | bytes] = {}
     if args.output is not None:
         files[args.output] = render_html(report)

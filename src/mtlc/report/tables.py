@@ -70,8 +70,8 @@ def manikin_table(task: TaskResult) -> Table:
         bad = "bad" if m.method == FAILED or any(m.reached(g) is False for g in task.goals) else ""
         marks.append(("", "", "", bad, bad, _rula_mark(m), "", ""))
     note = (
-        "compiled: full = every motion pass; screened = reach only, one batched IK solve from "
-        "the nearest compiled manikin (no RULA). The MTM-1 time does not depend on the manikin."
+        "compiled: full = every motion pass for this manikin; failed = its compile stopped (the "
+        "reason is printed). The MTM-1 time does not depend on the manikin."
     )
     return Table("Manikins", header, rows, note, marks)
 

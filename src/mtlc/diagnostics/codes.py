@@ -131,6 +131,12 @@ _ALL = [
         "the centre of mass leaves the support and cannot be brought back",
     ),
     Code("MT0503", "walking-clip", Severity.ERROR, "a walking clip that cannot be read or used"),
+    Code(
+        "MT0520",
+        "hold-lost",
+        Severity.WARNING,
+        "a hand cannot stay on the site it holds while the body moves",
+    ),
     # lint rules (mtlc lint)
     Code("MT0601", "unused-definition", Severity.WARNING, "a definition nothing uses"),
     Code("MT0602", "unused-parameter", Severity.WARNING, "a parameter its body never reads"),

@@ -42,6 +42,7 @@ FIX_FROM = 5e-5  # m: frames already this close are left alone
 FADE = 0.25  # s over which a hold's correction fades out after it ends, at least...
 FADE_RATE = 2.0  # rad/s: ...so that no dof fades faster than this
 EPS = 1e-6
+MAX_SWING = 0.15  # rad a hold's correction may change in one dense frame (9 deg at 60 fps)
 
 
 @dataclass
@@ -149,7 +150,10 @@ def keep_hold(
         idx = np.flatnonzero(fix)[better]
         q[idx] = res.q[better]
         dist[idx] = res.position_error[better]
-    lost = np.flatnonzero(dist > REPORT_TOL)
+    # a frame the arm reaches only by a sudden swing (near its limits the nearest pose may
+    # change branch) is one the hand cannot follow smoothly: it is let go there as well
+    swing = np.abs(np.diff(q - frames.q[rows], axis=0)).max(axis=1, initial=0.0)
+    lost = np.union1d(np.flatnonzero(dist > REPORT_TOL), np.flatnonzero(swing > MAX_SWING) + 1)
     if lost.size:
         # out of the arm's reach from frame ``f`` on: the hand holds until then and lets go
         # there, the correction fading out at a bounded rate (a best-effort pose per frame

@@ -14,8 +14,9 @@ A hold (``hold_windows``) runs from the end of a contact (TO) segment until the 
 segment starts, a walk starts (the part is carried from then on: it moves with the hand) or the
 hand lets go for good (its last grip event in that time is a release: the hold ends with it).
 The held point is the site (the segment's goal position) when the contact reached it, else
-where the hand stopped. After a hold the correction fades out over ``FADE`` seconds, so the arm
-does not jump when the hand is free again.
+where the hand stopped. After a hold the correction fades out over ``FADE`` seconds or more, so
+the arm does not jump when the hand is free again; after a hold that a walk ends, the part is
+carried and the correction stays until the hand's next arm motion or release.
 
 Where the arm cannot keep the hand there (the kneel takes the shoulder out of reach), the hand
 stays as close as it can and MT0520 is reported at the line whose motion pulls it away, once per
@@ -187,20 +188,37 @@ def _mover(ir: MotionIR, hold: Hold, t: float) -> Segment:
     return min(active, key=lambda s: (kinds[s.kind], -s.start))
 
 
-def _fade(skel: Any, frames: Frames, hold: Hold, delta: FloatArray, until: float) -> None:
-    """Blend the last frame's correction ``delta`` (n_dofs,) out after the hold ends."""
-    t = frames.time
-    stop = min(hold.end + FADE, until)
-    rows = np.flatnonzero((t >= hold.end - EPS) & (t < stop - EPS))
-    if rows.size == 0 or not np.any(delta):
+def carried_until(ir: MotionIR, hold: Hold) -> float:
+    """When a hold ends because a walk starts, the part is carried: the hand keeps its grip on
+    the body (its arm's correction stays as it was) until the hand's next arm segment or a
+    release; otherwise the hold's end."""
+    if not any(s.kind == "locomotion" and abs(s.start - hold.end) <= EPS for s in ir.segments):
+        return hold.end
+    hand = ARM_HAND.get(hold.seg.track, "")
+    later = [
+        s.start
+        for s in ir.segments
+        if s.start >= hold.end - EPS
+        and (s.track == hold.seg.track or (s.track == hand and _is_open(s)))
+    ]
+    return min(later, default=ir.duration + 1.0)
+
+
+def _fade(
+    skel: Any, frames: Frames, start: float, carry: float, delta: FloatArray, until: float
+) -> None:
+    """Keep the last frame's correction ``delta`` (n_dofs,) from ``start`` until ``carry``
+    (a carried part), then blend it out at a bounded rate, stopping at ``until``."""
+    if not np.any(delta):
         return
+    t = frames.time
     fade = max(FADE, float(np.abs(delta).max()) / FADE_RATE)
-    stop = min(hold.end + fade, until)
-    rows = np.flatnonzero((t >= hold.end - EPS) & (t < stop - EPS))
+    stop = min(carry + fade, until)
+    rows = np.flatnonzero((t >= start - EPS) & (t < stop - EPS))
     if rows.size == 0:
         return
-    w = 1.0 - (t[rows] - hold.end) / fade
-    frames.q[rows] = skel.clip(frames.q[rows] + np.clip(w, 0.0, 1.0)[:, None] * delta[None])
+    w = np.clip(1.0 - (t[rows] - carry) / fade, 0.0, 1.0)
+    frames.q[rows] = skel.clip(frames.q[rows] + w[:, None] * delta[None])
 
 
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
@@ -218,7 +236,8 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         frames.q[rows] = skel.clip(q)
         # the next hold of the same hand takes over where it starts
         nxt = [h.start for h in holds[k + 1 :] if h.seg.track == hold.seg.track]
-        _fade(skel, frames, hold, delta, min(nxt, default=np.inf))
+        carry = carried_until(ir, hold)
+        _fade(skel, frames, hold.end, carry, delta, min(nxt, default=np.inf))
         worst = int(np.argmax(dist))
         if dist[worst] > REPORT_TOL:
             t = float(frames.time[rows[worst]])

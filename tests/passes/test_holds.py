@@ -151,3 +151,43 @@ def test_a_hold_the_kneel_cannot_keep_is_reported_at_the_kneel(tmp_path: Path) -
     assert miss[2] > 0.1  # truly off: the report is not a false alarm
     off_mm = int(lost.message.split(": ")[1].split(" mm")[0])
     assert abs(off_mm - miss[2] * 1000) < 20  # the number it gives is what the frames show
+
+
+CARRY = (
+    HEAD
+    + """scene rack {
+    ground 0 cm
+    site handle at (-20, 105, 45) cm normal (0, 0, -1)
+    site knob at (55, 60, 60) cm normal (0, 1, 0)
+    site exit at (0, 0, -200) cm
+}
+
+task hold_walk "Hold a part by two handles, walk away with it" {
+    manikin gb10000_1988 female p5
+    scene rack
+    reach(right, handle)
+    grasp(right)
+    reach(left, knob)
+    grasp(left)
+    walk_to(exit)
+    release(left)
+    release(right)
+}
+"""
+)
+
+
+def test_a_part_held_in_both_hands_is_carried_whole_through_a_walk(tmp_path: Path) -> None:
+    ir, _ = compile_text(tmp_path, CARRY, "female", 5)
+    assert all(w <= 1e-3 for _, _, w in hold_misses(ir))  # held while standing
+    frames = ir.frames
+    assert frames is not None
+    (walk,) = [s for s in ir.segments if s.kind == "locomotion"]
+    rows = (frames.time >= walk.start) & (frames.time <= walk.end)
+    pose = forward(ir.skeleton, frames.q[rows], frames.root_position[rows],
+                   frames.root_rotation[rows])  # fmt: skip
+    spread = np.linalg.norm(
+        site_positions(ir.skeleton, pose, "r_hand") - site_positions(ir.skeleton, pose, "l_hand"),
+        axis=1,
+    )
+    assert spread.max() - spread.min() <= 1e-3  # the hands do not move on the part

@@ -172,30 +172,37 @@ def drain_reservoir():
         'right_wrist': (-0.054, -1.745),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(2.8, {'right_elbow': (32.758, 3.582)})
+    human.KeyJoints(2.8, {
+        'right_shoulder': (101.828, -3.44, 12.108), 'right_elbow': (32.742, 3.582),
+    })
     human.KeyJoints(2.9, {
-        'neck': (-0.741, 0.256, -10.985), 'head': (-0.74, 0.002), 'right_elbow': (32.758, -59.73),
+        'neck': (-0.741, 0.256, -10.985), 'head': (-0.74, 0.002),
+        'right_shoulder': (101.862, -3.245, 12.047), 'right_elbow': (32.573, -59.73),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=2.946197, duration=0.2628)
     human.KeyJoints(3.0, {
-        'neck': (-0.547, 0.241, -10.399), 'head': (-0.546, 0.002), 'right_elbow': (32.758, -72.562),
+        'neck': (-0.547, 0.241, -10.399), 'head': (-0.546, 0.002), 'right_elbow': (32.5, -72.562),
     })
     human.KeyJoints(3.1, {'neck': (0.841, 0.141, -6.202), 'head': (0.842, 0.001)})
     human.KeyJoints(3.2, {'neck': (3.562, -0.056, 2.021), 'head': (3.562, 0.0)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
     human.KeyJoints(3.3, {'neck': (3.871, -0.079, 2.857), 'head': (3.872, -0.001)})
+    human.KeyJoints(3.7, {'right_wrist': (-0.124, -1.722)})
     human.KeyJoints(4.8, {'neck': (3.871, -0.079, 2.958)})
-    human.KeyJoints(7.2, {'right_elbow': (32.758, -72.562)})
+    human.KeyJoints(7.2, {'right_elbow': (32.5, -72.562)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(7.3, {'right_elbow': (32.758, -52.786)})
+    human.KeyJoints(7.3, {
+        'right_shoulder': (101.861, -3.26, 12.052), 'right_elbow': (32.609, -52.786),
+        'right_wrist': (-0.102, -1.737),
+    })
     human.KeyRoot(7.4, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.4, {
         'spine_lumbar': (60.0, -1.995, 3.802), 'spine_thoracic': (29.037, -2.261, 3.13),
-        'right_shoulder': (101.797, -3.495, 12.126), 'right_elbow': (32.758, 14.328),
-        'right_wrist': (-0.054, -1.745), 'left_shoulder': (65.195, 5.73, 11.459),
-        'right_hip': (79.683, 0.0, 0.0), 'right_knee': (99.683,), 'right_ankle': (20.0, 0.0),
-        'left_hip': (79.683, 0.0, 0.0), 'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
+        'right_shoulder': (101.819, -3.478, 12.12), 'right_elbow': (32.728, 14.328),
+        'left_shoulder': (65.195, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
+        'right_knee': (99.683,), 'right_ankle': (20.0, 0.0), 'left_hip': (79.683, 0.0, 0.0),
+        'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.403397, duration=0.072)

@@ -138,6 +138,12 @@ _ALL = [
     Code("MT0513", "past-joint-limit", Severity.WARNING, "a joint goes past its limit"),
     Code("MT0514", "hand-in-body", Severity.WARNING, "a hand or forearm goes into the body"),
     Code(
+        "MT0520",
+        "hold-lost",
+        Severity.WARNING,
+        "a hand cannot stay on the site it holds while the body moves",
+    ),
+    Code(
         "MT0525",
         "fingertips-under-floor",
         Severity.WARNING,

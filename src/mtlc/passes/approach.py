@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from mtlc.body import forward, site_positions
 from mtlc.body.ik import ChainModel, Goal, default_dofs, prepare, solve_ta
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
@@ -37,6 +38,7 @@ FINGERTIPS = {"r_hand": "r_fingertip", "l_hand": "l_fingertip"}
 GROUND_SLACK = 5e-4  # m a hand point may dip below the ground (half the 1 mm budget)
 FLAT_CLEARANCE = 0.02  # m: a site this close to fingers pointing down at the floor is "low"
 FLAT_NORMAL_UP = 0.5  # a low site is come down on (its normal this far up, or none)
+SWEEP_CLEARANCE = 0.02  # m: an approach path whose hands come this near the floor is lifted
 LIFTS = 3  # re-solves that raise an approach point whose pose puts the fingers in the floor
 
 
@@ -140,22 +142,38 @@ def hand_distance(state: PoseState, effector: str, q: FloatArray, root: Any, p: 
 def pinned_hands(
     state: PoseState, segs: list[Segment], q0: FloatArray, root: tuple[FloatArray, FloatArray]
 ) -> list[Goal]:
-    """Goals that keep the other hand where it is, when it rests on a site at the segments'
-    start (``balance.hand_pins``): a reach that bends the trunk must not pull it off."""
-    from mtlc.passes.balance import hand_pins, pin_windows
+    """Goals that keep the other hand where it is, when it holds a site at the segments'
+    start (``hold.holding``: from its contact until its next arm motion, a walk, or a release
+    it does not take back): a reach that bends the trunk must not pull it off."""
+    from mtlc.passes.hold import ARM_HAND, holding
 
     t0 = segs[0].start
     mine = {f"{s.goal.effector[0]}_hand" for s in segs}  # a tool's tip moves its hand too
-    # the windows once per pass (a pass adds no arm segment), not once per reach
-    key = ("pin_windows", len(state.ir.segments))
-    if key not in state.memo:
-        state.memo[key] = pin_windows(state.ir)
-    pins = hand_pins(state.ir, np.array([t0]), state.memo[key])
+    held = holding(state.ir, t0, state.memo)
     return [
         Goal(hand, position=state.site(hand, q0, root))
-        for hand, pinned in pins.items()
-        if hand not in mine and bool(pinned[0])
+        for track, hand in ARM_HAND.items()
+        if hand not in mine and track in held
     ]
+
+
+def pins_off(
+    state: PoseState, pinned: list[Goal], q: FloatArray, root: tuple[FloatArray, FloatArray]
+) -> float:
+    """How far (m) the pinned hands are from where they rest, the worst over poses ``q``
+    (K, D): a trunk pose that leaves one off its site is a hold let go."""
+    if not pinned or not len(q):
+        return 0.0
+    k = len(q)
+    pose = forward(
+        state.skel, q, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4)),
+        with_axes=False,
+    )  # fmt: skip
+    worst = 0.0
+    for goal in pinned:
+        at = np.asarray(site_positions(state.skel, pose, goal.effector))
+        worst = max(worst, float(np.linalg.norm(at - np.asarray(goal.position), axis=-1).max()))
+    return worst
 
 
 def with_pinned(
@@ -164,7 +182,8 @@ def with_pinned(
     """A torso reach's keyframe dofs plus the arms of the hands it keeps on their sites."""
     if reach != "torso" or not pinned:
         return names
-    extra = chain_names(skel, [g.effector for g in pinned], "arm")
+    # the clavicle too: a solve that moves the trunk around a held hand may move it
+    extra = chain_names(skel, [g.effector for g in pinned], "torso")
     return names + tuple(n for n in extra if n not in names)
 
 
@@ -288,21 +307,56 @@ def _solve_group(
     ]
     if max(dist) <= TOLERANCE:
         return q, "arm", dist
+
+    def torso_pose(goals: list[Goal]) -> FloatArray | None:
+        """The goals solved with the trunk, the pinned hands put back; None when they cannot
+        be (the trunk is then tried moving around them: they join the goals)."""
+        m = model_for(ctx, skel, tuple(g.effector for g in goals), "torso", q0, root)
+        qt = solve_ta(skel, goals, q0, model=m).q[0]
+        if not pinned:
+            return qt
+        qt = repin(ctx, skel, qt[None], pinned, root)[0]
+        if pins_off(state, pinned, qt[None], root) <= TOLERANCE:
+            return qt
+        both = goals + list(pinned)
+        m = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
+        qt = repin(ctx, skel, solve_ta(skel, both, q0, model=m).q[:1], pinned, root)[0]
+        return qt if pins_off(state, pinned, qt[None], root) <= TOLERANCE else None
+
+    def distances(qc: FloatArray) -> list[float]:
+        return [
+            hand_distance(state, s.goal.effector, qc, root, p)
+            for s, p in zip(segs, targets, strict=True)
+        ]
+
+    def score(d: list[float]) -> tuple[int, float]:
+        return sum(x > TOLERANCE for x in d), sum(d)
+
     goals = [
         g for k, (s, p) in enumerate(zip(segs, targets, strict=True)) for g in goals_of(k, s, p)
     ]
-    effs = tuple(g.effector for g in goals)
-    m = model_for(ctx, skel, effs, "torso", q0, root)
-    qt = solve_ta(skel, goals, q0, model=m).q[0]
-    if pinned:
-        qt = repin(ctx, skel, qt[None], pinned, root)[0]
-    dt = [
-        hand_distance(state, s.goal.effector, qt, root, p)
-        for s, p in zip(segs, targets, strict=True)
-    ]
-    if max(dt) < max(dist):
-        return qt, "torso", dt
-    return q, "arm", dist
+    best: tuple[FloatArray, str, list[float]] = (q, "arm", dist)
+    qt = torso_pose(goals)
+    if qt is not None:
+        dt = distances(qt)
+        if max(dt) < max(dist):
+            best = (qt, "torso", dt)
+    if len(segs) > 1 and max(best[2]) > TOLERANCE:
+        # one trunk for both hands that leaves one short: the trunk for one hand alone, the
+        # other arm from there (a reachable site is not given up for an unreachable one)
+        for k in sorted(range(len(segs)), key=lambda i: segs[i].end):
+            qk = torso_pose(goals_of(k, segs[k], targets[k]))
+            if qk is None:
+                continue
+            for j, (seg, p) in enumerate(zip(segs, targets, strict=True)):
+                if j != k:
+                    arm_goals = goals_of(j, seg, p)
+                    m = model_for(ctx, skel, tuple(g.effector for g in arm_goals), "arm", qk, root)
+                    qk = solve_ta(skel, arm_goals, qk, model=m).q[0]
+            dk = distances(qk)
+            if score(dk) < score(best[2]):
+                best = (qk, "torso", dk)
+    return best
 
 
 def lowest_hand_point(
@@ -318,20 +372,111 @@ def chain_names(skel: Any, effectors: list[str], reach: str) -> tuple[str, ...]:
 
 
 def groups(ir: MotionIR, kind: str) -> list[list[Segment]]:
-    """Segments of ``kind`` on the arms, grouped by shared time window, in time order (a
-    wrench's strokes are the tool pass's)."""
-    by: dict[tuple[float, float], list[Segment]] = {}
-    for s in ir.segments:
-        if s.kind == kind and s.track in ARM_TRACKS and "stroke" not in s.goal.params:
-            by.setdefault((round(s.start, 9), round(s.end, 9)), []).append(s)
-    return [sorted(v, key=lambda s: s.track) for _, v in sorted(by.items())]
+    """Segments of ``kind`` on the arms whose time windows overlap, grouped, in time order (a
+    wrench's strokes are the tool pass's). Two hands that move at once share one trunk, so
+    they are solved together whatever their durations: two reaches of different MTM lengths
+    solved one after the other gave the trunk two poses, and the later one pulled the first
+    hand 250-380 mm off its site."""
+    segs = sorted(
+        (s for s in ir.segments
+         if s.kind == kind and s.track in ARM_TRACKS and "stroke" not in s.goal.params),
+        key=lambda s: (s.start, s.end),
+    )  # fmt: skip
+    out: list[list[Segment]] = []
+    end = -np.inf
+    for s in segs:
+        if out and s.start < end - 1e-9 and all(o.track != s.track for o in out[-1]):
+            out[-1].append(s)
+            end = max(end, s.end)
+        else:
+            out.append([s])
+            end = s.end
+    return [sorted(g, key=lambda s: s.track) for g in out]
+
+
+def trunk_carrier(segs: list[Segment]) -> int:
+    """The segment of a group that keys the shared trunk: the one that ends first, so the
+    trunk is still from then on and the hand that arrives first is not moved again."""
+    return min(range(len(segs)), key=lambda k: (segs[k].end, k))
+
+
+def own_names(
+    skel: Any, segs: list[Segment], k: int, reach: str, pinned: list[Goal]
+) -> tuple[str, ...]:
+    """The dofs segment ``k`` of a group keys: its chain (with the pinned arms, for the
+    trunk's carrier), without the trunk dofs the carrier keys."""
+    carrier = trunk_carrier(segs)
+    names = chain_names(skel, [segs[k].goal.effector], reach)
+    if k == carrier:
+        return with_pinned(skel, names, pinned, reach)
+    if abs(segs[k].start - segs[carrier].start) + abs(segs[k].end - segs[carrier].end) < 1e-9:
+        return names  # the same window: the same trunk keyframes, at the same times
+    shared = set(chain_names(skel, [segs[carrier].goal.effector], reach))
+    return tuple(n for n in names if n not in shared)
+
+
+def sweep_mid(
+    ctx: PassContext,
+    state: PoseState,
+    segs: list[Segment],
+    targets: list[FloatArray],
+    q0: FloatArray,
+    q1: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    pinned: list[Goal],
+) -> FloatArray | None:
+    """A pose half-way that lifts the hands over the floor, when the joint-space path from
+    ``q0`` to ``q1`` sweeps a hand or fingertip within ``SWEEP_CLEARANCE`` of it; else None."""
+    fs = np.linspace(0.0, 1.0, 9)[1:-1]
+    lows = [lowest_hand_point(state, segs, q0 + f * (q1 - q0), root) for f in fs]
+    sink = state.ir.ground + SWEEP_CLEARANCE - min(lows)
+    if sink <= 0.0:
+        return None
+    here = [state.site(s.goal.effector, q0, root) for s in segs]
+    mids = [0.5 * (a + b) + np.array([0.0, sink, 0.0]) for a, b in zip(here, targets, strict=True)]
+    mid, _, _ = solve_group(ctx, state, segs, mids, 0.5 * (q0 + q1), root, pinned)
+    return mid
+
+
+def relift(ir: MotionIR, ctx: PassContext) -> None:
+    """``sweep_mid`` again for the approaches, once the contacts before them are solved.
+
+    An approach starts from the pose the body is in, and the contact pass moves that pose
+    (onto the site the hand reached before) after the approach was solved: from a spares box
+    10 cm up, the path to the next site then swept the fingertips 12 mm into the floor.
+    """
+    state = PoseState(ir)
+    skel = ir.skeleton
+    for segs in groups(ir, "TA"):
+        if any(s.keyframes is None or len(s.keyframes.time) != 2 for s in segs):
+            continue
+        t0, t1 = min(s.start for s in segs), max(s.end for s in segs)
+        q0, q1 = state.q_at(t0), state.q_at(t1)
+        root = state.root_at(t1)
+        targets = [
+            np.asarray(s.result.get("approach_point", s.goal.position), dtype=float) for s in segs
+        ]
+        mid = sweep_mid(
+            ctx, state, segs, targets, q0, q1, root, pinned_hands(state, segs, q0, root)
+        )
+        if mid is None:
+            continue
+        for seg in segs:
+            kf = seg.keyframes
+            assert kf is not None
+            idx = [skel.dof_index(n) for n in kf.dofs]
+            seg.keyframes = Keyframes(
+                time=np.array([kf.time[0], 0.5 * (kf.time[0] + kf.time[1]), kf.time[1]]),
+                dofs=kf.dofs,
+                q=np.stack([kf.q[0], mid[idx], kf.q[1]]),
+            )
 
 
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     state = PoseState(ir)
     skel = ir.skeleton
     for segs in groups(ir, "TA"):
-        t0, t1 = segs[0].start, segs[0].end
+        t0, t1 = min(s.start for s in segs), max(s.end for s in segs)
         q0 = state.q_at(t0)
         root = state.root_at(t1)
         targets = []
@@ -348,30 +493,18 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
             # the hand arrives fingers first: raise its approach point by what they sink
             targets = [p + np.array([0.0, sink + GROUND_SLACK, 0.0]) for p in targets]
             q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
-        # the joint-space path from q0 to q1 may sweep the hand through the floor: lift it
-        mid = None
-        fs = np.linspace(0.0, 1.0, 9)[1:-1]
-        lows = [lowest_hand_point(state, segs, q0 + f * (q1 - q0), root) for f in fs]
-        sink = ir.ground + 0.02 - min(lows)
-        if sink > 0.0:
-            here = [state.site(s.goal.effector, q0, root) for s in segs]
-            mids = [
-                0.5 * (a + b) + np.array([0.0, sink, 0.0])
-                for a, b in zip(here, targets, strict=True)
-            ]
-            mid, _, _ = solve_group(ctx, state, segs, mids, 0.5 * (q0 + q1), root, pinned)
+        mid = sweep_mid(ctx, state, segs, targets, q0, q1, root, pinned)
         for k, (seg, p, d) in enumerate(zip(segs, targets, dist, strict=True)):
-            names = chain_names(skel, [seg.goal.effector], reach)
-            if k == 0:  # one segment of the group carries the pinned arms
-                names = with_pinned(skel, names, pinned, reach)
+            names = own_names(skel, segs, k, reach, pinned)
             idx = [skel.dof_index(n) for n in names]
+            s0, s1 = seg.start, seg.end
             if mid is None:
                 seg.keyframes = Keyframes(
-                    time=np.array([t0, t1]), dofs=names, q=np.stack([q0[idx], q1[idx]])
+                    time=np.array([s0, s1]), dofs=names, q=np.stack([q0[idx], q1[idx]])
                 )
             else:
                 seg.keyframes = Keyframes(
-                    time=np.array([t0, 0.5 * (t0 + t1), t1]),
+                    time=np.array([s0, 0.5 * (s0 + s1), s1]),
                     dofs=names,
                     q=np.stack([q0[idx], mid[idx], q1[idx]]),
                 )

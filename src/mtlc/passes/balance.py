@@ -126,7 +126,7 @@ SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight
 POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
 BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections blend
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
-ACCEPT_MARGIN = -1e-4  # m: what still counts as inside after correction
+ACCEPT_MARGIN = 0.0  # m: what still counts as inside after correction
 # the pelvis aims the CoM half a PUSH_TOL deeper than MARGIN and stops within PUSH_TOL of that
 # aim: a CoM 9.5-11.5 mm inside is as balanced as one at 10 mm, and chasing the last tenth of a
 # millimetre costs a round of IK on thousands of frames

@@ -26,15 +26,16 @@ from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.approach import (
     TOLERANCE,
     _restaters,
-    chain_names,
     groups,
     hand_target,
     model_for,
+    own_names,
     pinned_hands,
+    pins_off,
+    relift,
     repin,
     report_short,
     seg_goals,
-    with_pinned,
 )
 from mtlc.passes.context import PassContext
 from mtlc.passes.state import PoseState, reanchor
@@ -143,10 +144,17 @@ def best_path(
     def finished(p: FloatArray, r: str) -> tuple[FloatArray, FloatArray]:
         if r == "torso" and pinned:  # the trunk carried the other arm: put its hand back
             p = repin(ctx, skel, p, pinned, root)
+            if pins_off(state, pinned, p, root) > TOLERANCE:
+                # a trunk the held arm cannot follow lets go of the hold: never chosen
+                p, d = above_ground(state, p, _distances(skel, p, effs, targets, root), effs, root)
+                return p, np.full_like(d, np.inf)
         return above_ground(state, p, _distances(skel, p, effs, targets, root), effs, root)
 
     path = _gradient(ctx, state, goals, q0, root, reach, MAX_ITER // 4 if hopeless else MAX_ITER)
     path, dist = finished(path, reach)
+    if not np.isfinite(dist).all():  # the trunk would let go of a hold: the arm alone
+        reach = "arm"
+        path, dist = finished(_gradient(ctx, state, goals, q0, root, reach, MAX_ITER), reach)
     if hopeless or dist[-1].max() <= TOLERANCE:
         return path, reach, dist
     tries = []
@@ -154,8 +162,13 @@ def best_path(
         tries.append(("torso", _gradient(ctx, state, goals, q0, root, "torso", MAX_ITER)))
     model = model_for(ctx, skel, tuple(g.effector for g in goals), "torso", q0, root)
     q_star = solve_ta(skel, goals, q0, model=model).q[0]
-    line = q0[None] + np.linspace(0.0, 1.0, 2 * MAX_KEYFRAMES)[:, None] * (q_star - q0)[None]
-    tries.append(("torso", line))
+    steps = np.linspace(0.0, 1.0, 2 * MAX_KEYFRAMES)[:, None]
+    tries.append(("torso", q0[None] + steps * (q_star - q0)[None]))
+    if pinned:  # a trunk that moves around the held hands: they are goals of the solve too
+        both = goals + list(pinned)
+        model = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
+        q_held = solve_ta(skel, both, q0, model=model).q[0]
+        tries.append(("torso", q0[None] + steps * (q_held - q0)[None]))
     for r, p in tries:
         p, d = finished(p, r)
         if d[-1].max() < dist[-1].max():
@@ -218,7 +231,7 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     skel = ir.skeleton
     ta_of = _ta_of(ir)
     for segs in groups(ir, "TO"):
-        t0, t1 = segs[0].start, segs[0].end
+        t0, t1 = min(s.start for s in segs), max(s.end for s in segs)
         q0 = state.q_at(t0)
         root = state.root_at(t1)
         targets = []
@@ -244,13 +257,12 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
                 ctx, state, [(segs, targets, "torso", any(hopeless_all))], q0, root, pinned
             )
         for path, psegs, reach, dist, keep, prog in solved:
-            times = t0 + (t1 - t0) * prog
             for h, seg in enumerate(psegs):
-                names = chain_names(skel, [seg.goal.effector], reach)
-                if h == 0:  # one segment of the part carries the pinned arms
-                    names = with_pinned(skel, names, pinned, reach)
+                # each hand keeps its own window; the trunk is keyed by the one ending first
+                names = own_names(skel, psegs, h, reach, pinned)
                 idx = [skel.dof_index(n) for n in names]
-                seg.keyframes = Keyframes(time=times.copy(), dofs=names, q=path[keep][:, idx])
+                times = seg.start + (seg.end - seg.start) * prog
+                seg.keyframes = Keyframes(time=times, dofs=names, q=path[keep][:, idx])
                 d = float(dist[keep[-1], h])
                 ok = d <= TOLERANCE
                 seg.result = {
@@ -264,4 +276,5 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
                     report_short(ctx, seg, d)
                 state.add(seg)
     reanchor(ir, ctx.cache, _restaters())
+    relift(ir, ctx)
     return ir

@@ -119,27 +119,27 @@ def remove_access_panel():
     human.KeyJoints(1.8, {
         'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
         'neck': (-0.615, -0.753, -25.987), 'head': (-0.775, -0.002),
-        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.802, 10.558, -0.344),
-        'right_elbow': (31.97, 10.16), 'right_wrist': (-1.501, -30.0),
+        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.868, 10.559, -0.346),
+        'right_elbow': (31.861, 10.16), 'right_wrist': (-1.494, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(1.9, {
         'spine_lumbar': (6.293, 1.087, 1.626), 'spine_thoracic': (-1.904, -1.599, 1.602),
         'neck': (-0.635, -0.763, -26.079), 'head': (-0.798, -0.002), 'right_clavicle': (2.375, 0.9),
-        'right_shoulder': (91.633, 10.703, -0.38), 'right_elbow': (32.241, 10.149),
-        'right_wrist': (-1.591, -29.455),
+        'right_shoulder': (91.691, 10.704, -0.382), 'right_elbow': (32.146, 10.149),
+        'right_wrist': (-1.584, -29.455),
     })
     human.KeyJoints(2.0, {
         'spine_lumbar': (9.425, 1.179, 0.585), 'spine_thoracic': (-3.421, -4.551, 0.559),
         'neck': (-0.831, -0.85, -26.761), 'head': (-1.014, -0.003),
-        'right_clavicle': (6.654, -0.71), 'right_shoulder': (88.46, 14.673, 3.162),
-        'right_elbow': (34.703, 13.889), 'right_wrist': (-0.249, -23.017),
+        'right_clavicle': (6.654, -0.71), 'right_shoulder': (88.492, 14.673, 3.161),
+        'right_elbow': (34.652, 13.889), 'right_wrist': (-0.245, -23.017),
     })
     human.KeyJoints(2.1, {
         'spine_lumbar': (13.504, 2.65, -0.856), 'spine_thoracic': (-3.586, -7.924, -0.923),
         'neck': (-2.359, -1.435, -27.035), 'head': (-2.655, -0.014),
-        'right_clavicle': (11.985, -2.979), 'right_shoulder': (88.253, 19.351, 8.036),
-        'right_elbow': (38.018, 18.879), 'right_wrist': (1.777, -15.19),
+        'right_clavicle': (11.985, -2.979), 'right_shoulder': (88.258, 19.351, 8.036),
+        'right_elbow': (38.011, 18.879), 'right_wrist': (1.778, -15.19),
     })
     human.KeyRoot(2.2, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(2.2, {
@@ -788,27 +788,27 @@ def remove_access_panel():
     human.KeyJoints(12.6, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
-        'right_wrist': (-1.361, -29.967),
+        'right_shoulder': (89.535, 7.271, 1.146), 'right_elbow': (32.827, 11.054),
+        'right_wrist': (-1.354, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(12.7, {
         'spine_lumbar': (2.716, -16.876, 8.785), 'spine_thoracic': (-8.732, -5.757, 8.513),
         'neck': (2.568, -0.686, -16.678), 'head': (2.709, -0.019), 'right_clavicle': (2.728, 7.417),
-        'right_shoulder': (88.879, 6.845, -3.687), 'right_elbow': (23.11, 7.522),
-        'right_wrist': (-3.067, -29.999),
+        'right_shoulder': (88.937, 6.845, -3.689), 'right_elbow': (23.029, 7.522),
+        'right_wrist': (-3.062, -30.0),
     })
     human.KeyJoints(12.8, {
         'spine_lumbar': (2.757, -19.902, 6.472), 'spine_thoracic': (-9.574, -9.997, 6.681),
         'neck': (3.408, -0.941, -17.987), 'head': (3.604, -0.027), 'right_clavicle': (7.55, 5.231),
-        'right_shoulder': (85.625, 9.9, 0.607), 'right_elbow': (22.807, 11.945),
-        'right_wrist': (-1.133, -29.114),
+        'right_shoulder': (85.654, 9.9, 0.606), 'right_elbow': (22.766, 11.945),
+        'right_wrist': (-1.131, -29.127),
     })
     human.KeyJoints(12.9, {
         'spine_lumbar': (4.068, -20.0, 3.902), 'spine_thoracic': (-8.854, -10.0, 5.369),
         'neck': (2.251, -0.607, -15.325), 'head': (2.373, -0.016),
         'right_clavicle': (15.016, 3.941), 'right_shoulder': (87.158, 12.344, 7.746),
-        'right_elbow': (22.111, 19.069), 'right_wrist': (2.694, -25.564),
+        'right_elbow': (22.11, 19.069), 'right_wrist': (2.694, -25.565),
     })
     human.KeyJoints(13.0, {
         'spine_lumbar': (3.984, -18.52, 3.026), 'spine_thoracic': (-9.903, -10.0, 5.379),
@@ -2110,21 +2110,21 @@ def remove_access_panel():
     human.KeyJoints(34.3, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.15),
+        'right_shoulder': (57.277, 2.066, 10.929), 'right_elbow': (31.936, 18.34),
+        'right_wrist': (-1.075, -21.227),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.4, {
         'spine_lumbar': (7.099, -14.87, 9.728), 'spine_thoracic': (-9.457, -5.548, 9.409),
         'neck': (24.482, -1.096, -5.948), 'head': (8.071, -0.116), 'right_clavicle': (4.173, 7.964),
-        'right_shoulder': (56.331, 3.66, 11.803), 'right_elbow': (32.193, 19.52),
-        'right_wrist': (-0.76, -20.242),
+        'right_shoulder': (56.386, 3.645, 11.803), 'right_elbow': (32.151, 19.52),
+        'right_wrist': (-0.756, -20.294),
     })
     human.KeyJoints(34.5, {
         'spine_lumbar': (4.614, -19.247, 9.028), 'spine_thoracic': (-10.365, -9.891, 9.367),
         'neck': (25.081, -1.16, -7.035), 'head': (9.071, -0.144), 'right_clavicle': (8.956, 7.918),
-        'right_shoulder': (56.102, 5.494, 15.083), 'right_elbow': (30.311, 23.17),
-        'right_wrist': (0.574, -23.108),
+        'right_shoulder': (56.124, 5.488, 15.083), 'right_elbow': (30.294, 23.17),
+        'right_wrist': (0.576, -23.129),
     })
     human.KeyJoints(34.6, {
         'spine_lumbar': (2.405, -19.998, 9.302), 'spine_thoracic': (-11.529, -10.0, 10.841),
@@ -2792,24 +2792,25 @@ def remove_access_panel():
     human.KeyJoints(45.3, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_clavicle': (6.997, 9.73),
-        'right_shoulder': (34.501, 35.235, -9.852), 'right_elbow': (90.691, 24.897),
-        'right_wrist': (-16.533, -18.295), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (89.302, -29.152, 14.644), 'left_wrist': (0.895, -5.473),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
+        'right_wrist': (-16.568, -18.281), 'left_clavicle': (-2.488, 4.0),
+        'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
+        'left_wrist': (0.918, -5.518), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
     human.Walk((139.2, 0.0, 19.967), start=45.366901, duration=3.7584)
     human.KeyRoot(45.4, (-0.457, 72.984, 60.131), (1.248, 0.0, 0.0))
     human.KeyJoints(45.4, {
-        'right_shoulder': (33.699, 35.004, -9.897), 'right_elbow': (90.564, 24.887),
-        'left_shoulder': (88.438, -29.167, 14.691), 'left_elbow': (21.892, 18.167),
+        'right_shoulder': (33.592, 34.988, -9.921), 'right_elbow': (90.715, 24.887),
+        'left_shoulder': (88.706, -29.219, 14.685), 'left_elbow': (21.433, 18.167),
         'right_hip': (2.912, -0.324, -1.266), 'right_knee': (5.22,), 'right_ankle': (2.318, -0.388),
         'left_hip': (8.656, 0.2, 1.307), 'left_knee': (16.27,), 'left_ankle': (5.469, 0.395),
     })
     human.KeyRoot(45.5, (-1.844, 72.931, 60.42), (5.017, 0.0, 0.0))
     human.KeyJoints(45.5, {
-        'right_wrist': (-16.582, -18.37), 'right_hip': (2.736, -1.312, -5.083),
+        'right_wrist': (-16.617, -18.356), 'right_hip': (2.736, -1.312, -5.083),
         'right_knee': (6.077,), 'right_ankle': (3.464, -1.547), 'left_hip': (16.396, 0.288, 3.773),
         'left_knee': (32.146,), 'left_ankle': (13.701, 1.653),
     })
@@ -2826,14 +2827,14 @@ def remove_access_panel():
     })
     human.KeyRoot(45.8, (-0.912, 72.746, 58.493), (15.997, 0.0, 0.0))
     human.KeyJoints(45.8, {
-        'left_shoulder': (88.745, -29.155, 14.673), 'left_elbow': (21.957, 18.168),
+        'left_shoulder': (89.012, -29.207, 14.668), 'left_elbow': (21.5, 18.168),
         'right_hip': (12.526, 3.039, -15.767), 'right_knee': (25.979,),
         'right_ankle': (8.143, -0.524), 'left_hip': (5.328, 1.751, -19.345), 'left_knee': (10.87,),
         'left_ankle': (5.259, -0.117),
     })
     human.KeyRoot(45.9, (0.21, 72.697, 58.426), (21.632, 0.0, 0.0))
     human.KeyJoints(45.9, {
-        'left_shoulder': (88.743, -29.136, 14.67), 'left_elbow': (22.066, 18.169),
+        'left_shoulder': (89.007, -29.188, 14.665), 'left_elbow': (21.614, 18.169),
         'right_hip': (12.724, 6.37, -20.558), 'right_knee': (29.239,),
         'right_ankle': (8.608, 0.698), 'left_hip': (6.147, 0.35, -13.826),
         'left_ankle': (5.453, -1.129),
@@ -2846,15 +2847,15 @@ def remove_access_panel():
     })
     human.KeyRoot(46.1, (2.463, 72.565, 59.412), (37.558, 0.0, 0.0))
     human.KeyJoints(46.1, {
-        'right_shoulder': (34.355, 35.202, -9.871), 'right_elbow': (90.72, 24.901),
+        'right_shoulder': (34.249, 35.187, -9.896), 'right_elbow': (90.871, 24.901),
         'right_hip': (26.319, -5.364, 14.193), 'right_knee': (52.847,),
         'right_ankle': (18.365, 1.665), 'left_hip': (6.734, -2.646, 1.839), 'left_knee': (12.89,),
         'left_ankle': (6.057, -2.411),
     })
     human.KeyRoot(46.2, (2.971, 72.499, 61.708), (45.097, 0.0, 0.0))
     human.KeyJoints(46.2, {
-        'right_shoulder': (34.501, 35.235, -9.852), 'left_shoulder': (89.302, -29.152, 14.644),
-        'left_elbow': (21.618, 18.169), 'right_hip': (13.558, -5.516, 25.186),
+        'right_shoulder': (34.395, 35.22, -9.877), 'left_shoulder': (89.57, -29.205, 14.639),
+        'left_elbow': (21.157, 18.169), 'right_hip': (13.558, -5.516, 25.186),
         'right_knee': (28.566,), 'right_ankle': (13.912, 0.82), 'left_hip': (9.733, -3.186, 9.211),
         'left_knee': (21.423,), 'left_ankle': (9.074, -1.549),
     })
@@ -2934,7 +2935,7 @@ def remove_access_panel():
     })
     human.KeyRoot(47.6, (20.651, 67.948, 56.62), (106.251, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'right_wrist': (-16.533, -18.295), 'right_hip': (17.384, -1.197, -1.49),
+        'right_wrist': (-16.568, -18.281), 'right_hip': (17.384, -1.197, -1.49),
         'right_knee': (68.149,), 'right_ankle': (16.959, -1.911), 'left_hip': (33.313, 1.4, 0.915),
         'left_knee': (16.905,), 'left_ankle': (-16.554, 1.673),
     })
@@ -3035,8 +3036,8 @@ def remove_access_panel():
     })
     human.KeyJoints(49.3, {
         'neck': (31.413, 23.609, -30.086), 'head': (12.687, -8.422),
-        'right_shoulder': (34.501, 35.235, -9.852), 'left_shoulder': (89.302, -29.152, 14.644),
-        'left_elbow': (21.618, 18.169),
+        'right_shoulder': (34.395, 35.22, -9.877), 'left_shoulder': (89.57, -29.205, 14.639),
+        'left_elbow': (21.157, 18.169),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
@@ -3044,23 +3045,23 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=49.388101, duration=0.698258)
     human.KeyJoints(49.4, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (34.426, 35.205, -9.843), 'right_elbow': (90.723, 24.9),
-        'right_wrist': (-16.539, -18.288), 'left_shoulder': (89.183, -29.158, 14.646),
-        'left_elbow': (21.71, 18.174), 'left_wrist': (0.86, -5.442), 'right_hip': (3.022, 0.0, 0.0),
-        'right_knee': (4.915,), 'right_ankle': (1.895, 0.0), 'left_hip': (3.021, 0.0, 0.0),
-        'left_knee': (4.914,), 'left_ankle': (1.895, 0.0),
+        'right_shoulder': (34.325, 35.191, -9.866), 'right_elbow': (90.867, 24.9),
+        'right_wrist': (-16.573, -18.274), 'left_shoulder': (89.439, -29.208, 14.642),
+        'left_elbow': (21.271, 18.174), 'left_wrist': (0.882, -5.485),
+        'right_hip': (3.022, 0.0, 0.0), 'right_knee': (4.915,), 'right_ankle': (1.895, 0.0),
+        'left_hip': (3.021, 0.0, 0.0), 'left_knee': (4.914,), 'left_ankle': (1.895, 0.0),
     })
     human.KeyJoints(49.5, {
-        'right_shoulder': (28.556, 32.817, -9.061), 'right_elbow': (93.176, 25.122),
-        'right_wrist': (-17.023, -17.686), 'left_shoulder': (79.971, -29.568, 14.832),
-        'left_elbow': (28.774, 18.611), 'left_wrist': (-1.87, -3.056),
+        'right_shoulder': (28.498, 32.809, -9.074), 'right_elbow': (93.259, 25.122),
+        'right_wrist': (-17.043, -17.678), 'left_shoulder': (80.119, -29.597, 14.83),
+        'left_elbow': (28.52, 18.611), 'left_wrist': (-1.858, -3.08),
         'right_hip': (2.855, 0.0, 0.0), 'right_knee': (4.578,), 'right_ankle': (1.751, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(49.6, {
-        'right_shoulder': (15.753, 27.513, -7.173), 'right_elbow': (98.374, 25.591),
-        'right_wrist': (-18.049, -16.411), 'left_shoulder': (59.986, -30.436, 15.228),
-        'left_elbow': (43.912, 19.535), 'left_wrist': (-7.802, 2.008),
+        'right_shoulder': (15.737, 27.511, -7.177), 'right_elbow': (98.397, 25.591),
+        'right_wrist': (-18.054, -16.408), 'left_shoulder': (60.027, -30.444, 15.227),
+        'left_elbow': (43.842, 19.535), 'left_wrist': (-7.799, 2.001),
     })
     human.KeyJoints(49.7, {
         'right_shoulder': (-0.549, 20.56, -4.393), 'right_elbow': (104.677, 26.16),
@@ -3089,16 +3090,16 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=50.086359, duration=0.072)
     human.KeyJoints(50.1, {
-        'right_shoulder': (-40.247, -1.59, 14.462), 'right_elbow': (110.505, 26.533),
-        'right_wrist': (-18.918, -12.529), 'left_shoulder': (-26.869, -28.578, 12.87),
+        'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
+        'right_wrist': (-18.939, -12.508), 'left_shoulder': (-26.869, -28.578, 12.87),
         'left_elbow': (105.468, 22.926), 'left_wrist': (-33.924, 20.0),
     })
     human.KeyRoot(50.158359, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(50.158359, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
-        'right_shoulder': (-40.247, -1.59, 14.462), 'right_elbow': (110.505, 26.533),
-        'right_wrist': (-18.918, -12.529), 'left_clavicle': (-2.488, 4.0),
+        'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
+        'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
         'left_shoulder': (-26.869, -28.578, 12.87), 'left_elbow': (105.468, 22.926),
         'left_wrist': (-33.924, 20.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),

@@ -223,7 +223,7 @@ def remove_avionics_unit():
     human.KeyJoints(2.8, {'neck': (-56.872, -0.03, 0.33)})
     human.KeyJoints(2.9, {
         'spine_lumbar': (27.188, 0.08, -15.0), 'spine_thoracic': (-0.757, -0.669, -30.0),
-        'neck': (-56.22, -0.099, 0.543), 'head': (-19.38, 0.0),
+        'neck': (-56.22, -0.099, 0.543), 'head': (-19.38, 0.0), 'right_clavicle': (30.0, -15.0),
         'right_shoulder': (6.326, 171.803, -41.698), 'right_elbow': (0.52, 8.585),
         'right_wrist': (0.418, -1.192), 'left_clavicle': (30.0, 15.0),
         'left_shoulder': (170.026, 8.466, 3.352), 'left_elbow': (4.724, -75.18),
@@ -234,147 +234,127 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
     human.LookAt((0.0, 165.0, 75.0), start=2.901946, duration=2.430743)
     human.KeyJoints(3.0, {
-        'spine_lumbar': (25.573, 0.885, -11.056), 'spine_thoracic': (3.777, -1.73, -18.859),
-        'neck': (-59.103, 0.059, -0.526), 'head': (-19.922, 0.186),
-        'right_shoulder': (64.32, 122.532, -27.959), 'right_elbow': (1.54, 5.167),
-        'right_wrist': (0.463, -0.874), 'left_clavicle': (30.0, 5.729),
-        'left_shoulder': (113.547, 57.091, 25.607), 'left_elbow': (3.865, -23.84),
-        'left_wrist': (-3.436, -1.355),
+        'spine_lumbar': (28.396, -0.299, -14.63), 'spine_thoracic': (6.432, -3.785, -30.0),
+        'neck': (-60.0, -8.609, -15.739), 'head': (-20.0, 9.967), 'right_clavicle': (30.0, -14.612),
+        'right_shoulder': (4.268, 156.349, -41.297), 'right_elbow': (0.346, 8.558),
+        'right_wrist': (1.859, -1.993), 'left_clavicle': (29.998, 14.159),
+        'left_shoulder': (122.555, 65.609, -20.135), 'left_elbow': (7.77, -71.991),
+        'left_wrist': (-0.655, -0.925),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (22.938, 2.331, -4.622), 'spine_thoracic': (11.612, -3.461, -0.634),
-        'neck': (-60.0, 20.528, 13.599), 'head': (-20.0, -7.032), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (158.916, 42.164, -5.548), 'right_elbow': (3.204, -0.409),
-        'right_wrist': (0.537, -0.354), 'left_clavicle': (30.0, -9.393),
-        'left_shoulder': (21.381, 136.406, 61.909), 'left_elbow': (2.464, 59.904),
-        'left_wrist': (-0.428, -0.835),
+        'spine_lumbar': (30.366, -0.918, -14.026), 'spine_thoracic': (18.16, -8.867, -30.0),
+        'neck': (-59.965, -17.987, -43.988), 'head': (-19.137, 11.25),
+        'right_clavicle': (30.0, -13.979), 'right_shoulder': (0.911, 131.141, -40.643),
+        'right_elbow': (0.063, 8.514), 'right_wrist': (4.211, -3.3),
+        'left_clavicle': (29.995, 12.788), 'left_shoulder': (45.121, 158.817, -58.447),
+        'left_elbow': (12.738, -66.79), 'left_wrist': (6.889, 0.294),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(3.2, {
-        'spine_lumbar': (23.21, 3.006, -3.207), 'spine_thoracic': (14.475, -3.69, 3.548),
-        'neck': (-60.0, 33.682, 25.89), 'head': (-20.0, -11.25), 'right_clavicle': (30.0, -14.793),
-        'right_shoulder': (179.722, 24.361, -0.556), 'right_elbow': (3.406, -1.652),
-        'right_wrist': (0.537, -0.28), 'left_clavicle': (30.0, -12.729),
-        'left_shoulder': (0.741, 154.071, 69.999), 'left_elbow': (2.155, 78.569),
-        'left_wrist': (0.24, -0.723),
+        'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
+        'neck': (-59.84, -19.915, -49.579), 'head': (-17.67, 11.123),
+        'right_clavicle': (30.0, -13.838), 'right_shoulder': (0.163, 125.523, -40.497),
+        'right_wrist': (4.735, -3.591), 'left_clavicle': (29.994, 12.482),
+        'left_shoulder': (27.863, 179.592, -66.986), 'left_elbow': (13.845, -65.63),
+        'left_wrist': (8.571, 0.566),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=3.291054, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.291054, duration=0.072)
     human.KeyJoints(3.3, {
-        'spine_lumbar': (25.212, 1.671, -3.154), 'spine_thoracic': (12.877, -2.638, 3.772),
-        'neck': (-60.0, 33.75, 26.147), 'head': (-20.0, -10.92), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (180.0, 26.195, -0.608), 'right_elbow': (3.252, -1.65),
-        'right_wrist': (0.268, -0.285), 'left_clavicle': (30.0, -14.437),
-        'left_shoulder': (2.458, 153.44, 70.0), 'left_elbow': (1.708, 78.567),
-        'left_wrist': (0.378, -0.442),
+        'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
+        'neck': (-59.84, -19.915, -49.579), 'right_clavicle': (30.0, -13.838),
+        'right_shoulder': (0.163, 125.523, -40.497), 'right_elbow': (0.0, 8.504),
+        'right_wrist': (4.735, -3.591), 'left_shoulder': (27.863, 179.592, -66.986),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(3.4, {
-        'neck': (-60.0, 33.75, 27.073), 'head': (-20.0, -10.133),
-        'right_shoulder': (179.568, 26.274, -0.633), 'right_elbow': (4.834, -1.609),
-        'right_wrist': (0.333, 0.095), 'left_shoulder': (3.669, 153.94, 69.401),
-        'left_elbow': (3.303, 78.416), 'left_wrist': (-0.208, -0.881),
+        'spine_lumbar': (30.942, -1.339, -13.869), 'spine_thoracic': (19.88, -9.505, -29.335),
+        'neck': (-59.845, -19.763, -49.141), 'head': (-17.753, 11.127),
+        'right_clavicle': (29.07, -13.87), 'right_shoulder': (0.374, 126.819, -40.505),
+        'right_elbow': (0.271, 8.512), 'right_wrist': (4.965, -3.827),
+        'left_clavicle': (29.994, 12.51), 'left_shoulder': (27.73, 179.48, -66.953),
+        'left_wrist': (8.591, 0.556),
     })
     human.KeyJoints(3.5, {
-        'neck': (-60.0, 33.75, 36.055), 'head': (-20.0, -2.498),
-        'right_shoulder': (175.209, 27.12, -0.912), 'right_elbow': (20.823, -1.192),
-        'right_wrist': (0.997, 3.928), 'left_shoulder': (15.999, 159.011, 63.35),
-        'left_elbow': (19.42, 76.889), 'left_wrist': (-6.127, -5.318),
+        'spine_lumbar': (32.317, -4.2, -13.613), 'spine_thoracic': (10.857, -4.509, -22.521),
+        'neck': (-59.901, -18.29, -44.737), 'head': (-18.56, 11.171),
+        'right_clavicle': (19.675, -14.194), 'right_shoulder': (2.505, 139.914, -40.587),
+        'right_elbow': (3.013, 8.595), 'right_wrist': (7.29, -6.207),
+        'left_clavicle': (29.996, 12.794), 'left_shoulder': (26.381, 178.154, -66.613),
+        'left_wrist': (8.798, 0.438),
     })
     human.KeyJoints(3.6, {
-        'neck': (-60.0, 33.75, 47.365), 'head': (-20.0, 7.114),
-        'right_shoulder': (169.063, 28.485, -1.392), 'right_elbow': (43.359, -0.605),
-        'right_wrist': (1.933, 9.332), 'left_shoulder': (33.737, 166.211, 54.821),
-        'left_elbow': (42.136, 74.704), 'left_wrist': (-14.469, -11.571),
+        'spine_lumbar': (34.255, -8.233, -13.139), 'spine_thoracic': (-1.862, 2.533, -12.58),
+        'neck': (-59.971, -16.436, -38.593), 'head': (-19.577, 11.227),
+        'right_clavicle': (6.433, -14.652), 'right_shoulder': (5.509, 158.372, -40.703),
+        'right_elbow': (6.877, 8.711), 'right_wrist': (10.568, -9.561),
+        'left_clavicle': (29.998, 13.193), 'left_shoulder': (24.48, 175.58, -66.081),
+        'left_elbow': (13.809, -65.543),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (25.212, 1.671, -3.154), 'spine_thoracic': (12.877, -2.638, 3.772),
-        'neck': (-60.0, 33.75, 52.076), 'head': (-20.0, 11.118),
-        'right_shoulder': (164.773, 29.859, -1.941), 'right_elbow': (59.09, -0.196),
-        'right_wrist': (2.586, 13.104), 'left_clavicle': (30.0, -14.437),
-        'left_shoulder': (46.99, 171.364, 48.867), 'left_elbow': (57.993, 73.102),
-        'left_wrist': (-20.292, -15.936),
+        'spine_lumbar': (35.608, -11.049, -12.533), 'spine_thoracic': (-10.74, 7.449, -4.819),
+        'neck': (-59.983, -15.703, -34.496), 'head': (-20.0, 11.248),
+        'right_clavicle': (-2.81, -14.971), 'right_shoulder': (7.606, 171.256, -40.783),
+        'right_elbow': (9.574, 8.792), 'right_wrist': (12.855, -11.902),
+        'left_clavicle': (30.0, 13.472), 'left_shoulder': (23.153, 172.071, -65.583),
+        'left_elbow': (13.746, -65.469), 'left_wrist': (9.293, -0.139),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(3.8, {
-        'spine_lumbar': (19.834, 0.571, -5.105), 'spine_thoracic': (14.62, -1.335, 2.14),
-        'neck': (-60.0, 33.75, 37.984), 'head': (-20.0, -11.25),
-        'right_shoulder': (166.234, 30.373, -2.214), 'right_elbow': (48.547, -0.045),
-        'right_wrist': (2.4, 9.565), 'left_clavicle': (30.0, -13.326),
-        'left_shoulder': (41.014, 169.34, 46.406), 'left_elbow': (48.312, 71.801),
-        'left_wrist': (-16.661, -16.185),
+        'spine_lumbar': (28.634, -6.127, -10.615), 'spine_thoracic': (-7.111, 4.337, -1.785),
+        'neck': (-57.726, -18.267, -25.671), 'right_clavicle': (6.223, -14.221),
+        'right_shoulder': (4.596, 170.333, -40.611), 'right_elbow': (9.116, 8.752),
+        'left_shoulder': (21.821, 164.941, -64.995), 'left_elbow': (9.37, -65.308),
+        'left_wrist': (8.043, -1.065),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(3.9, {
-        'spine_lumbar': (17.714, -0.178, -6.311), 'spine_thoracic': (15.797, 0.08, 1.297),
-        'neck': (-60.0, 33.75, 35.718), 'right_shoulder': (169.739, 28.581, -1.301),
-        'right_elbow': (39.495, 0.228), 'right_wrist': (2.434, 6.412),
-        'left_clavicle': (30.0, -12.789), 'left_shoulder': (34.065, 164.747, 45.288),
-        'left_elbow': (37.272, 70.279), 'left_wrist': (-12.394, -15.254),
+        'spine_lumbar': (25.024, -3.171, -9.688), 'spine_thoracic': (-3.815, 1.004, -0.709),
+        'neck': (-57.584, -19.128, -23.305), 'right_clavicle': (14.193, -13.236),
+        'right_shoulder': (2.303, 165.019, -40.32), 'right_elbow': (7.132, 8.713),
+        'right_wrist': (12.09, -10.831), 'left_clavicle': (29.999, 12.232),
+        'left_shoulder': (20.846, 163.062, -64.826), 'left_elbow': (7.841, -65.257),
+        'left_wrist': (7.531, -1.361),
     })
-    human.KeyJoints(4.0, {
-        'right_shoulder': (171.395, 28.417, -1.094), 'left_shoulder': (34.244, 164.044, 44.627),
-    })
-    human.KeyJoints(4.1, {
-        'right_shoulder': (172.861, 28.274, -0.913), 'right_elbow': (38.523, 0.636),
-        'right_wrist': (2.382, 5.556), 'left_shoulder': (34.552, 163.436, 44.016),
-        'left_elbow': (36.708, 68.715),
-    })
-    human.KeyJoints(4.2, {'right_shoulder': (174.147, 28.152, -0.757)})
-    human.KeyJoints(4.3, {
-        'right_shoulder': (175.266, 28.05, -0.625), 'right_elbow': (37.814, 0.989),
-        'right_wrist': (2.285, 4.927), 'left_shoulder': (35.468, 162.471, 42.943),
-        'left_elbow': (36.298, 67.471),
-    })
-    human.KeyJoints(4.4, {'right_shoulder': (176.227, 27.965, -0.514)})
-    human.KeyJoints(4.5, {
-        'right_shoulder': (177.042, 27.895, -0.422), 'left_shoulder': (36.635, 161.801, 42.067),
-        'left_elbow': (36.018, 66.517), 'left_wrist': (-12.062, -15.415),
-    })
+    human.KeyJoints(4.2, {'spine_thoracic': (-3.502, 0.384, -0.712)})
+    human.KeyJoints(4.3, {'spine_lumbar': (24.666, -2.611, -9.702)})
     human.KeyJoints(4.6, {
-        'right_shoulder': (177.721, 27.84, -0.348), 'right_elbow': (37.155, 1.412),
-        'right_wrist': (2.095, 4.33),
+        'spine_thoracic': (-3.276, -0.069, -0.73), 'right_shoulder': (2.143, 165.346, -40.316),
     })
-    human.KeyJoints(4.7, {
-        'right_shoulder': (178.277, 27.798, -0.289), 'left_shoulder': (37.875, 161.371, 41.385),
-        'left_elbow': (35.843, 65.822),
-    })
-    human.KeyJoints(4.8, {'right_shoulder': (178.719, 27.766, -0.245)})
-    human.KeyJoints(4.9, {
-        'right_elbow': (36.855, 1.698), 'right_wrist': (1.909, 4.048),
-        'left_shoulder': (39.011, 161.129, 40.893), 'left_elbow': (35.748, 65.358),
-    })
-    human.KeyJoints(5.0, {'right_shoulder': (179.307, 27.729, -0.19)})
-    human.KeyJoints(5.1, {'left_shoulder': (39.866, 161.021, 40.588)})
+    human.KeyJoints(4.7, {'right_clavicle': (14.083, -13.345), 'left_clavicle': (29.999, 12.343)})
+    human.KeyJoints(4.8, {'spine_lumbar': (24.477, -2.313, -9.814)})
+    human.KeyJoints(4.9, {'neck': (-57.619, -19.183, -23.219)})
+    human.KeyJoints(5.1, {'spine_thoracic': (-3.191, -0.244, -0.805)})
     human.KeyJoints(5.2, {
-        'right_shoulder': (179.574, 27.717, -0.169), 'left_shoulder': (40.132, 161.001, 40.505),
-        'left_elbow': (35.703, 65.024),
+        'right_clavicle': (13.761, -13.665), 'right_shoulder': (2.118, 165.641, -40.315),
+        'left_clavicle': (30.0, 12.666),
     })
     human.KeyRoot(5.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(5.3, {
-        'left_shoulder': (40.261, 160.994, 40.467), 'left_wrist': (-11.979, -15.643),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'left_shoulder': (21.36, 163.184, -64.813), 'right_hip': (2.865, 0.0, 0.0),
+        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
+        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
     human.Walk((-79.722, 0.0, 40.152), start=5.33269, duration=3.7584)
     human.KeyRoot(5.4, (1.168, 72.256, 50.317), (-2.041, 0.0, 0.0))
     human.KeyJoints(5.4, {
-        'right_elbow': (36.769, 1.855), 'right_wrist': (1.776, 3.96),
-        'right_hip': (15.119, 0.552, 2.479), 'right_knee': (29.808,),
-        'right_ankle': (11.625, 1.033), 'left_hip': (8.553, -0.688, -2.168), 'left_knee': (17.601,),
-        'left_ankle': (9.086, -1.002),
+        'spine_lumbar': (24.445, -2.26, -10.161), 'right_clavicle': (13.623, -13.802),
+        'left_clavicle': (30.0, 12.805), 'right_hip': (15.119, 0.552, 2.479),
+        'right_knee': (29.808,), 'right_ankle': (11.625, 1.033),
+        'left_hip': (8.553, -0.688, -2.168), 'left_knee': (17.601,), 'left_ankle': (9.086, -1.002),
     })
     human.KeyRoot(5.5, (2.202, 72.286, 50.518), (-5.074, 0.0, 0.0))
     human.KeyJoints(5.5, {
-        'right_hip': (24.664, 0.766, 3.503), 'right_knee': (49.819,), 'right_ankle': (20.0, 1.963),
-        'left_hip': (7.808, -1.168, -5.279), 'left_knee': (16.952,), 'left_ankle': (9.286, -1.869),
+        'right_elbow': (7.38, 8.706), 'right_hip': (24.664, 0.766, 3.503), 'right_knee': (49.819,),
+        'right_ankle': (20.0, 1.963), 'left_hip': (7.808, -1.168, -5.279), 'left_knee': (16.952,),
+        'left_ankle': (9.286, -1.869),
     })
     human.KeyRoot(5.6, (2.56, 72.317, 50.548), (-8.107, 0.0, 0.0))
     human.KeyJoints(5.6, {
@@ -383,9 +363,9 @@ def remove_avionics_unit():
     })
     human.KeyRoot(5.7, (2.139, 72.347, 49.948), (-10.906, 0.0, 0.0))
     human.KeyJoints(5.7, {
-        'right_hip': (19.731, 8.168, -18.871), 'right_knee': (45.619,),
-        'right_ankle': (20.0, 1.712), 'left_hip': (8.78, -0.043, -11.067), 'left_knee': (19.217,),
-        'left_ankle': (9.691, -1.721),
+        'left_elbow': (8.013, -65.263), 'right_hip': (19.731, 8.168, -18.871),
+        'right_knee': (45.619,), 'right_ankle': (20.0, 1.712), 'left_hip': (8.78, -0.043, -11.067),
+        'left_knee': (19.217,), 'left_ankle': (9.691, -1.721),
     })
     human.KeyRoot(5.8, (1.22, 72.377, 48.922), (-13.786, 0.0, 0.0))
     human.KeyJoints(5.8, {
@@ -400,8 +380,9 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.0, (-1.014, 72.437, 48.789), (-23.494, 0.0, 0.0))
     human.KeyJoints(6.0, {
-        'right_hip': (7.943, -0.323, -9.201), 'right_ankle': (7.397, -1.582),
-        'left_hip': (17.591, 8.523, -21.244), 'left_knee': (42.069,), 'left_ankle': (16.443, 1.486),
+        'left_wrist': (7.663, -1.329), 'right_hip': (7.943, -0.323, -9.201),
+        'right_ankle': (7.397, -1.582), 'left_hip': (17.591, 8.523, -21.244),
+        'left_knee': (42.069,), 'left_ankle': (16.443, 1.486),
     })
     human.KeyRoot(6.1, (-2.107, 72.467, 49.142), (-30.163, 0.0, 0.0))
     human.KeyJoints(6.1, {
@@ -429,9 +410,9 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.5, (-2.272, 72.487, 53.729), (-54.517, 0.0, 0.0))
     human.KeyJoints(6.5, {
-        'right_hip': (15.478, -5.919, 21.224), 'right_knee': (33.372,),
-        'right_ankle': (11.061, 0.219), 'left_hip': (5.715, -2.419, 10.421),
-        'left_ankle': (8.5, -1.334),
+        'spine_thoracic': (-3.188, -0.252, -0.868), 'right_hip': (15.478, -5.919, 21.224),
+        'right_knee': (33.372,), 'right_ankle': (11.061, 0.219),
+        'left_hip': (5.715, -2.419, 10.421), 'left_ankle': (8.5, -1.334),
     })
     human.KeyRoot(6.6, (-0.977, 72.487, 53.817), (-60.583, 0.0, 0.0))
     human.KeyJoints(6.6, {
@@ -446,9 +427,9 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.8, (1.293, 72.487, 52.464), (-73.342, 0.0, 0.0))
     human.KeyJoints(6.8, {
-        'right_hip': (13.551, 7.879, -22.877), 'right_knee': (34.798,),
-        'right_ankle': (19.147, 1.925), 'left_hip': (8.503, -0.463, -8.392), 'left_knee': (17.228,),
-        'left_ankle': (8.11, -1.69),
+        'neck': (-57.551, -19.117, -23.283), 'right_hip': (13.551, 7.879, -22.877),
+        'right_knee': (34.798,), 'right_ankle': (19.147, 1.925),
+        'left_hip': (8.503, -0.463, -8.392), 'left_knee': (17.228,), 'left_ankle': (8.11, -1.69),
     })
     human.KeyRoot(6.9, (2.132, 72.487, 50.678), (-79.395, 0.0, 0.0))
     human.KeyJoints(6.9, {
@@ -550,7 +531,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(8.6, (-62.415, 69.201, 42.738), (-97.49, 0.0, 0.0))
     human.KeyJoints(8.6, {
-        'neck': (-60.0, 33.75, 35.718), 'head': (-20.0, -11.25),
+        'neck': (-57.551, -19.117, -23.283), 'head': (-20.0, 11.207),
         'right_hip': (10.979, 0.315, 0.029), 'right_knee': (58.844,),
         'right_ankle': (19.002, 0.359), 'left_hip': (26.747, 1.218, -7.772), 'left_knee': (24.036,),
         'left_ankle': (-2.636, -2.41),
@@ -559,30 +540,30 @@ def remove_avionics_unit():
     human.LookAt((-110.0, 85.0, 40.0), start=8.69109, duration=1.197891)
     human.KeyRoot(8.7, (-66.275, 70.541, 43.075), (-96.041, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'neck': (-59.861, 33.651, 35.674), 'head': (-19.949, -11.221),
+        'neck': (-57.415, -19.138, -23.227), 'head': (-19.949, 11.207),
         'right_hip': (7.999, 1.067, -0.699), 'right_knee': (59.204,),
         'right_ankle': (19.022, 1.133), 'left_hip': (21.528, -0.283, -6.6), 'left_knee': (19.937,),
         'left_ankle': (-1.434, -2.679),
     })
     human.KeyRoot(8.8, (-69.721, 71.348, 43.362), (-94.197, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'neck': (-42.707, 21.463, 30.277), 'head': (-13.629, -7.647),
+        'neck': (-40.704, -21.781, -16.312), 'head': (-13.629, 11.212),
         'right_hip': (23.109, 1.038, 0.961), 'right_knee': (68.666,),
         'right_ankle': (19.012, 1.486), 'left_hip': (17.575, -1.52, -4.878), 'left_knee': (17.546,),
         'left_ankle': (0.142, -2.916),
     })
     human.KeyRoot(8.9, (-73.344, 71.884, 43.016), (-92.739, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'neck': (-9.328, -2.254, 19.776), 'head': (-1.331, -0.693),
+        'neck': (-8.185, -26.922, -2.857), 'head': (-1.331, 11.222),
         'right_hip': (28.391, 1.102, 3.128), 'right_knee': (50.069,),
         'right_ankle': (19.002, 2.455), 'left_hip': (14.196, -1.857, -3.292),
         'left_knee': (16.815,), 'left_ankle': (2.734, -2.605),
     })
     human.KeyRoot(9.0, (-76.878, 72.153, 41.703), (-91.306, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'neck': (22.464, -24.843, 9.774), 'head': (10.382, 5.93),
-        'right_shoulder': (179.616, 27.716, -0.167), 'left_shoulder': (40.27, 160.994, 40.465),
-        'left_elbow': (35.701, 64.993), 'right_hip': (14.108, 1.122, 1.626), 'right_knee': (22.18,),
+        'neck': (22.787, -31.819, 9.959), 'head': (10.382, 11.232),
+        'right_shoulder': (2.118, 165.656, -40.315), 'left_shoulder': (21.36, 163.184, -64.813),
+        'left_elbow': (8.013, -65.263), 'right_hip': (14.108, 1.122, 1.626), 'right_knee': (22.18,),
         'right_ankle': (8.001, 1.483), 'left_hip': (11.505, -1.179, -1.572), 'left_knee': (17.379,),
         'left_ankle': (5.907, -1.468),
     })
@@ -590,71 +571,71 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(9.1, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'neck': (35.0, -33.75, 5.831), 'head': (15.0, 8.541),
-        'right_shoulder': (179.544, 27.704, -0.144), 'right_elbow': (36.8, 1.84),
-        'right_wrist': (1.811, 3.956), 'left_shoulder': (40.279, 160.91, 40.475),
-        'left_elbow': (35.735, 64.926), 'left_wrist': (-11.947, -15.648),
+        'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236),
+        'right_shoulder': (2.142, 165.564, -40.262), 'right_elbow': (7.426, 8.674),
+        'right_wrist': (12.095, -10.801), 'left_shoulder': (21.369, 163.11, -64.747),
+        'left_elbow': (8.07, -65.256), 'left_wrist': (7.693, -1.341),
         'right_hip': (3.099, 0.0, 0.0), 'right_knee': (5.078,), 'right_ankle': (1.981, 0.0),
         'left_hip': (3.098, 0.0, 0.0), 'left_knee': (5.075,), 'left_ankle': (1.979, 0.0),
     })
     human.KeyJoints(9.2, {
-        'right_shoulder': (169.857, 26.122, 2.878), 'right_elbow': (40.895, -0.199),
-        'right_wrist': (6.519, 3.456), 'left_shoulder': (41.505, 149.702, 41.809),
-        'left_elbow': (40.272, 55.964), 'left_wrist': (-7.72, -16.316),
+        'right_shoulder': (5.44, 153.36, -33.158), 'right_elbow': (13.514, 4.433),
+        'right_wrist': (14.467, -11.897), 'left_shoulder': (22.513, 153.313, -55.858),
+        'left_elbow': (15.574, -64.203), 'left_wrist': (11.634, -2.86),
     })
     human.KeyJoints(9.3, {
-        'right_shoulder': (147.734, 22.456, 9.903), 'right_elbow': (50.164, -4.813),
-        'right_wrist': (17.171, 2.211), 'left_shoulder': (44.278, 124.343, 44.998),
-        'left_elbow': (50.539, 35.686), 'left_wrist': (1.844, -17.904),
+        'right_shoulder': (12.901, 125.747, -16.866), 'right_elbow': (27.289, -5.164),
+        'right_wrist': (19.834, -14.449), 'left_shoulder': (25.102, 131.135, -35.563),
+        'left_elbow': (32.553, -61.732), 'left_wrist': (20.551, -6.395),
         'right_hip': (3.083, 0.0, 0.0), 'right_knee': (5.043,), 'right_ankle': (1.963, 0.0),
         'left_hip': (3.082, 0.0, 0.0), 'left_knee': (5.042,), 'left_ankle': (1.962, 0.0),
     })
     human.KeyJoints(9.4, {
-        'right_shoulder': (118.714, 17.535, 19.369), 'right_elbow': (62.144, -10.776),
-        'right_wrist': (30.94, 0.367), 'left_shoulder': (47.862, 91.563, 49.479),
-        'left_elbow': (63.809, 9.473), 'left_wrist': (14.207, -20.113),
+        'right_shoulder': (22.545, 90.053, 4.653), 'right_elbow': (45.095, -17.569),
+        'right_wrist': (26.771, -17.896), 'left_shoulder': (28.449, 102.45, -8.948),
+        'left_elbow': (54.502, -58.356), 'left_wrist': (32.077, -11.164),
         'right_hip': (2.872, 0.0, 0.0), 'right_knee': (4.602,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.588,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(9.5, {
-        'right_shoulder': (88.334, 12.188, 29.719), 'right_elbow': (74.376, -16.865),
-        'right_wrist': (44.999, -1.933), 'left_shoulder': (51.522, 58.093, 54.686),
-        'left_elbow': (77.359, -17.291), 'left_wrist': (26.83, -22.649),
+        'right_shoulder': (32.392, 53.608, 27.432), 'right_elbow': (63.276, -30.235),
+        'right_wrist': (33.855, -21.678), 'left_shoulder': (31.866, 73.129, 18.899),
+        'left_elbow': (76.913, -54.585), 'left_wrist': (43.846, -16.389),
     })
     human.KeyJoints(9.6, {
-        'right_shoulder': (62.132, 7.245, 39.391), 'right_elbow': (84.4, -21.855),
-        'right_wrist': (56.52, -4.544), 'left_shoulder': (54.521, 30.665, 60.054),
-        'left_elbow': (88.463, -39.224), 'left_wrist': (37.174, -25.213),
+        'right_shoulder': (40.461, 23.741, 47.509), 'right_elbow': (78.175, -40.615),
+        'right_wrist': (39.66, -25.235), 'left_shoulder': (34.667, 49.046, 42.893),
+        'left_elbow': (95.278, -50.93), 'left_wrist': (53.491, -21.288),
     })
     human.KeyJoints(9.7, {
-        'right_shoulder': (45.645, 3.535, 46.826), 'right_elbow': (89.757, -24.521),
-        'right_wrist': (62.676, -7.321), 'left_shoulder': (56.124, 16.01, 65.02),
-        'left_elbow': (94.396, -50.944), 'left_wrist': (42.702, -27.509),
+        'right_shoulder': (44.773, 7.783, 60.92), 'right_elbow': (86.136, -46.161),
+        'right_wrist': (42.762, -28.005), 'left_shoulder': (36.163, 36.073, 57.947),
+        'left_elbow': (105.091, -47.902), 'left_wrist': (58.645, -25.081),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
     human.KeyJoints(9.8, {
-        'right_shoulder': (43.532, -1.137, 49.916), 'right_elbow': (80.437, -22.21),
-        'right_wrist': (60.1, -10.689), 'left_shoulder': (52.611, 15.318, 69.328),
-        'left_elbow': (88.648, -50.276), 'left_wrist': (41.983, -29.494),
+        'right_shoulder': (42.133, 6.485, 65.458), 'right_elbow': (82.375, -45.557),
+        'right_wrist': (42.232, -29.545), 'left_shoulder': (34.18, 34.211, 61.79),
+        'left_elbow': (100.265, -45.721), 'left_wrist': (57.884, -27.287),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.888981, duration=0.072)
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=9.888981, duration=0.072)
     human.KeyJoints(9.9, {
-        'right_shoulder': (47.285, -8.231, 49.747), 'right_elbow': (66.979, -19.028),
-        'right_wrist': (54.526, -13.702), 'left_shoulder': (53.582, 8.001, 69.474),
-        'left_elbow': (77.394, -48.017), 'left_wrist': (38.079, -29.994),
+        'right_shoulder': (43.291, 1.092, 65.484), 'right_elbow': (73.244, -43.699),
+        'right_wrist': (39.035, -30.0), 'left_shoulder': (34.936, 29.031, 62.041),
+        'left_elbow': (93.029, -43.934), 'left_wrist': (55.336, -28.546),
     })
     human.KeyRoot(9.960981, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(9.960981, {
-        'spine_lumbar': (17.714, -0.178, -6.311), 'spine_thoracic': (15.797, 0.08, 1.297),
-        'neck': (35.0, -33.75, 5.831), 'head': (15.0, 8.541), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (47.285, -8.231, 49.747), 'right_elbow': (66.979, -19.028),
-        'right_wrist': (54.526, -13.702), 'left_clavicle': (30.0, -12.789),
-        'left_shoulder': (53.582, 8.001, 69.474), 'left_elbow': (77.394, -48.017),
-        'left_wrist': (38.079, -29.994), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'spine_lumbar': (24.445, -2.26, -10.161), 'spine_thoracic': (-3.188, -0.252, -0.868),
+        'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236), 'right_clavicle': (13.623, -13.802),
+        'right_shoulder': (43.291, 1.092, 65.484), 'right_elbow': (73.244, -43.699),
+        'right_wrist': (39.035, -30.0), 'left_clavicle': (30.0, 12.805),
+        'left_shoulder': (34.936, 29.031, 62.041), 'left_elbow': (93.029, -43.934),
+        'left_wrist': (55.336, -28.546), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })

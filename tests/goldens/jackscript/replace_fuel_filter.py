@@ -11,86 +11,86 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-0.397, 0.0, 53.03), start=0.0, duration=0.54)
+    human.Walk((-0.396, 0.0, 53.021), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.752, 0.0, 0.0), 'right_knee': (4.654,),
+        'right_ankle': (1.902, 0.0), 'left_hip': (2.752, 0.0, 0.0), 'left_knee': (4.654,),
+        'left_ankle': (1.902, 0.0),
     })
-    human.KeyRoot(0.1, (2.615, 88.219, 10.638), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.615, 88.183, 10.496), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (44.983, 2.385, 0.365), 'right_knee': (84.666,),
-        'right_ankle': (15.881, 2.227), 'left_hip': (12.891, -1.776, -0.645),
-        'left_knee': (39.292,), 'left_ankle': (19.342, -1.889),
+        'right_hip': (45.043, 2.383, 0.373), 'right_knee': (84.81,), 'right_ankle': (15.869, 2.231),
+        'left_hip': (13.106, -1.773, -0.661), 'left_knee': (39.798,),
+        'left_ankle': (19.358, -1.892),
     })
-    human.KeyRoot(0.2, (1.766, 84.818, 20.684), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.766, 84.776, 20.534), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (40.458, 3.486, -10.536), 'right_knee': (35.199,),
-        'right_ankle': (-5.554, -3.344), 'left_hip': (20.841, -0.985, -1.128),
-        'left_knee': (66.436,), 'left_ankle': (17.584, -1.498),
+        'right_hip': (40.49, 3.474, -10.548), 'right_knee': (35.057,),
+        'right_ankle': (-5.726, -3.367), 'left_hip': (20.884, -0.983, -1.132),
+        'left_knee': (66.603,), 'left_ankle': (17.581, -1.499),
     })
-    human.KeyRoot(0.3, (-0.595, 85.361, 30.599), (-0.458, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.594, 85.319, 30.502), (-0.458, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (29.694, 1.859, -10.423), 'right_knee': (26.843,),
-        'right_ankle': (-2.707, -3.548), 'left_hip': (12.119, 0.444, -0.133), 'left_knee': (63.38,),
+        'right_hip': (29.802, 1.867, -10.426), 'right_knee': (26.916,),
+        'right_ankle': (-2.742, -3.563), 'left_hip': (12.139, 0.443, -0.132), 'left_knee': (63.58,),
         'left_ankle': (20.0, 0.479),
     })
-    human.KeyRoot(0.4, (-2.106, 87.929, 40.85), (-5.019, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.103, 87.904, 40.795), (-5.019, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (21.853, -1.005, -6.233), 'right_knee': (24.866,),
-        'right_ankle': (3.224, -3.245), 'left_hip': (27.619, 0.517, 0.996), 'left_knee': (72.44,),
-        'left_ankle': (20.0, 0.996),
+        'right_hip': (21.94, -1.001, -6.237), 'right_knee': (24.961,),
+        'right_ankle': (3.232, -3.251), 'left_hip': (27.672, 0.513, 0.993), 'left_knee': (72.605,),
+        'left_ankle': (20.0, 0.992),
     })
-    human.KeyRoot(0.5, (-1.065, 89.955, 50.974), (-8.891, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.064, 89.955, 50.959), (-8.891, 0.0, 0.0))
     human.KeyJoints(0.5, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'right_hip': (12.015, -0.875, -1.767), 'right_knee': (18.274,),
-        'right_ankle': (6.292, -1.224), 'left_hip': (13.929, 0.851, 1.784), 'left_knee': (21.653,),
-        'left_ankle': (7.486, 1.231),
+        'right_hip': (12.022, -0.876, -1.767), 'right_knee': (18.267,),
+        'right_ankle': (6.278, -1.225), 'left_hip': (13.976, 0.852, 1.784), 'left_knee': (21.718,),
+        'left_ankle': (7.466, 1.232),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(0.6, (0.605, 90.668, 56.114), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.605, 90.668, 56.115), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.6, {
         'spine_lumbar': (4.952, -4.917, 0.0), 'spine_thoracic': (0.871, -0.906, 0.0),
-        'right_hip': (6.047, 0.542, 0.057), 'right_knee': (12.468,), 'right_ankle': (6.425, 0.545),
-        'left_hip': (6.027, -0.542, -0.057), 'left_knee': (12.427,), 'left_ankle': (6.401, -0.545),
+        'right_hip': (6.047, 0.542, 0.057), 'right_knee': (12.469,), 'right_ankle': (6.427, 0.545),
+        'left_hip': (6.027, -0.542, -0.057), 'left_knee': (12.428,), 'left_ankle': (6.402, -0.545),
     })
-    human.KeyRoot(0.7, (3.766, 90.376, 60.934), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.7, (3.766, 90.376, 60.935), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.7, {
         'spine_lumbar': (15.664, -15.159, 0.0), 'spine_thoracic': (2.492, -2.72, 0.0),
-        'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.083,), 'right_ankle': (9.594, 3.277),
-        'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.581, -3.277),
+        'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.084,), 'right_ankle': (9.595, 3.278),
+        'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.582, -3.278),
     })
-    human.KeyRoot(0.8, (7.078, 90.351, 60.502), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.8, (7.078, 90.348, 60.502), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'spine_lumbar': (23.012, -9.154, 0.0), 'spine_thoracic': (3.58, -1.623, 0.0),
-        'right_hip': (9.128, 5.416, 0.516), 'right_knee': (30.638,), 'right_ankle': (20.0, 5.431),
-        'left_hip': (3.099, -5.441, -0.294), 'left_knee': (10.802,), 'left_ankle': (7.717, -5.449),
+        'right_hip': (9.16, 5.416, 0.517), 'right_knee': (30.707,), 'right_ankle': (20.0, 5.431),
+        'left_hip': (3.12, -5.441, -0.296), 'left_knee': (10.846,), 'left_ankle': (7.739, -5.449),
     })
-    human.KeyRoot(0.9, (9.457, 90.28, 58.686), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.9, (9.457, 90.28, 58.687), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
         'spine_lumbar': (41.621, -3.231, 0.0), 'spine_thoracic': (5.544, -0.54, 0.0),
-        'right_hip': (-11.435, 7.004, -0.298), 'right_knee': (21.476,),
-        'right_ankle': (20.0, 7.103), 'left_hip': (3.931, -6.804, -0.458), 'left_knee': (9.374,),
-        'left_ankle': (5.467, -6.819),
+        'right_hip': (-11.416, 7.004, -0.298), 'right_knee': (21.515,),
+        'right_ankle': (20.0, 7.103), 'left_hip': (3.935, -6.804, -0.459), 'left_knee': (9.383,),
+        'left_ankle': (5.472, -6.819),
     })
     human.KeyRoot(1.0, (9.133, 89.798, 62.643), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.0, {
         'spine_lumbar': (25.974, -1.41, 0.0), 'spine_thoracic': (3.758, -0.247, 0.0),
-        'right_hip': (-12.882, 4.69, 7.633), 'right_knee': (44.119,),
-        'right_ankle': (-15.387, 8.392), 'left_hip': (3.217, -7.119, -0.4), 'left_knee': (13.463,),
-        'left_ankle': (10.276, -7.131),
+        'right_hip': (-12.871, 4.69, 7.633), 'right_knee': (44.142,),
+        'right_ankle': (-15.376, 8.392), 'left_hip': (3.217, -7.119, -0.4), 'left_knee': (13.464,),
+        'left_ankle': (10.277, -7.131),
     })
     human.KeyRoot(1.1, (9.029, 89.309, 63.414), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.1, {
         'spine_lumbar': (21.355, -0.606, 0.0), 'spine_thoracic': (3.451, -0.114, 0.0),
-        'right_hip': (-13.212, 2.156, 16.14), 'right_knee': (35.11,),
-        'right_ankle': (-48.364, 7.468), 'left_hip': (4.771, -7.173, -0.597),
+        'right_hip': (-13.209, 2.156, 16.14), 'right_knee': (35.116,),
+        'right_ankle': (-48.361, 7.468), 'left_hip': (4.771, -7.173, -0.597),
         'left_knee': (17.751,), 'left_ankle': (13.022, -7.198),
     })
     human.KeyRoot(1.2, (7.96, 89.734, 59.082), (-10.437, 0.0, 0.0))
@@ -292,31 +292,42 @@ def replace_fuel_filter():
     human.KeyJoints(4.2, {
         'spine_lumbar': (39.235, 17.351, 13.084), 'spine_thoracic': (-6.376, 8.883, 22.91),
         'neck': (35.0, 30.67, -20.858), 'right_clavicle': (-9.801, 12.897),
-        'right_shoulder': (32.187, 18.578, 6.353), 'right_elbow': (25.241, 17.208),
-        'right_wrist': (-1.476, -2.565),
+        'right_shoulder': (32.001, 18.6, 6.352), 'right_elbow': (25.549, 17.208),
+        'right_wrist': (-1.509, -2.514),
     })
-    human.KeyJoints(4.4, {'right_elbow': (25.241, 17.208)})
+    human.KeyJoints(4.4, {'right_elbow': (25.549, 17.208)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(4.5, {'right_elbow': (25.241, 8.366)})
-    human.KeyJoints(4.6, {'right_elbow': (25.241, -28.707)})
-    human.KeyJoints(4.7, {'right_elbow': (25.241, -67.66)})
+    human.KeyJoints(4.5, {'right_shoulder': (32.007, 18.64, 6.343), 'right_elbow': (25.616, 8.366)})
+    human.KeyJoints(4.6, {'right_elbow': (25.76, -28.707)})
+    human.KeyJoints(4.7, {
+        'right_shoulder': (32.049, 19.081, 6.243), 'right_elbow': (25.637, -67.66),
+    })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=4.775442, duration=0.072)
-    human.KeyJoints(4.8, {'right_elbow': (25.241, -80.0)})
+    human.KeyJoints(4.8, {'right_elbow': (25.546, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.847442, duration=0.2628)
-    human.KeyJoints(5.1, {'right_elbow': (25.241, -80.0)})
+    human.KeyJoints(5.1, {'right_shoulder': (32.051, 19.137, 6.23), 'right_elbow': (25.546, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {'right_elbow': (25.241, -52.202)})
-    human.KeyJoints(5.3, {'right_elbow': (25.241, 14.508)})
-    human.KeyJoints(5.4, {'right_elbow': (25.241, 71.033)})
+    human.KeyJoints(5.2, {
+        'right_shoulder': (32.044, 18.997, 6.262), 'right_elbow': (25.718, -52.202),
+        'right_wrist': (-1.433, -2.481),
+    })
+    human.KeyJoints(5.3, {
+        'right_shoulder': (32.003, 18.611, 6.35), 'right_elbow': (25.57, 14.508),
+        'right_wrist': (-1.509, -2.509),
+    })
+    human.KeyJoints(5.4, {
+        'right_shoulder': (31.964, 18.519, 6.372), 'right_elbow': (25.023, 71.033),
+    })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.448642, duration=0.072)
     human.KeyJoints(5.5, {
         'spine_lumbar': (39.235, 17.351, 13.084), 'spine_thoracic': (-6.376, 8.883, 22.91),
-        'neck': (35.0, 30.67, -20.858), 'right_shoulder': (32.187, 18.578, 6.353),
-        'right_elbow': (25.241, 80.0), 'right_wrist': (-1.476, -2.565), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.594, 5.73, 11.459),
+        'neck': (35.0, 30.67, -20.858), 'right_clavicle': (-9.801, 12.897),
+        'right_shoulder': (31.959, 18.535, 6.368), 'right_elbow': (24.936, 80.0),
+        'right_wrist': (-1.401, -2.561), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
     })
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=5.520642, duration=0.072)
@@ -324,565 +335,611 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=5.520642, duration=1.618047)
     human.KeyJoints(5.6, {
-        'spine_lumbar': (40.062, 16.925, 12.531), 'spine_thoracic': (-6.674, 8.727, 22.411),
-        'neck': (35.0, 31.18, -19.67), 'head': (15.0, -11.25),
-        'right_shoulder': (33.132, 17.495, 6.7), 'right_elbow': (24.205, 79.996),
-        'right_wrist': (-1.224, -2.53), 'left_clavicle': (-0.399, 0.507),
-        'left_shoulder': (9.542, 5.798, 11.335), 'left_elbow': (34.416, 17.187),
-        'left_wrist': (-0.039, 0.0),
+        'spine_lumbar': (40.083, 16.824, 12.653), 'spine_thoracic': (-6.717, 8.725, 22.601),
+        'neck': (35.0, 31.081, -19.904), 'right_clavicle': (-9.809, 12.984),
+        'right_shoulder': (31.693, 17.767, 6.554), 'right_elbow': (26.409, 80.0),
+        'right_wrist': (-1.788, -2.451), 'left_clavicle': (-0.399, 0.615),
+        'left_shoulder': (9.844, 5.607, 11.414), 'left_elbow': (34.261, 17.189),
+        'left_wrist': (-0.003, -0.046),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (42.988, 15.419, 10.577), 'spine_thoracic': (-7.744, 8.176, 20.647),
-        'neck': (35.0, 33.717, -16.304), 'head': (15.0, -11.196),
-        'right_shoulder': (36.478, 13.664, 7.928), 'right_elbow': (20.542, 79.982),
-        'right_wrist': (-0.331, -2.391), 'left_clavicle': (-1.81, 2.302),
-        'left_shoulder': (12.939, 6.05, 10.89), 'left_elbow': (34.571, 17.182),
+        'spine_lumbar': (43.086, 14.96, 11.131), 'spine_thoracic': (-7.923, 8.166, 21.507),
+        'neck': (35.0, 33.569, -17.269), 'head': (15.0, -11.25), 'right_clavicle': (-9.838, 13.289),
+        'right_shoulder': (30.697, 15.09, 7.217), 'right_elbow': (31.64, 80.0),
+        'right_wrist': (-3.178, -2.012), 'left_clavicle': (-1.811, 2.792),
+        'left_shoulder': (14.266, 5.173, 11.238), 'left_elbow': (33.85, 17.188),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (47.197, 13.253, 7.767), 'spine_thoracic': (-9.32, 7.382, 18.109),
-        'neck': (35.0, 33.75, -11.097), 'head': (15.0, -10.986),
-        'right_shoulder': (41.29, 8.154, 9.699), 'right_elbow': (15.273, 79.961),
-        'right_wrist': (0.953, -2.15), 'left_clavicle': (-3.839, 4.883),
-        'left_shoulder': (17.929, 6.439, 10.231), 'left_elbow': (34.845, 17.173),
-        'left_wrist': (-0.4, 0.004),
+        'spine_lumbar': (47.404, 12.278, 8.941), 'spine_thoracic': (-9.658, 7.362, 19.935),
+        'neck': (35.0, 33.75, -13.058), 'head': (15.0, -11.108),
+        'right_shoulder': (29.562, 11.263, 8.196), 'right_wrist': (-4.999, -1.28),
+        'left_clavicle': (-3.841, 5.924), 'left_shoulder': (20.626, 4.548, 10.952),
+        'left_wrist': (-0.065, -0.44),
     })
     human.KeyJoints(5.9, {
-        'spine_lumbar': (51.809, 10.88, 4.687), 'spine_thoracic': (-11.115, 6.513, 15.329),
-        'neck': (35.0, 33.726, -6.509), 'head': (15.0, -11.25),
-        'right_shoulder': (46.563, 2.117, 11.649), 'right_elbow': (9.499, 79.939),
-        'right_wrist': (2.36, -1.816), 'left_clavicle': (-6.062, 7.711),
-        'left_shoulder': (23.587, 6.916, 9.478), 'left_elbow': (35.232, 17.165),
+        'spine_lumbar': (52.136, 9.34, 6.541), 'spine_thoracic': (-11.559, 6.481, 18.211),
+        'neck': (35.0, 33.75, -9.742), 'head': (15.0, -11.25),
+        'right_shoulder': (28.517, 7.141, 9.306), 'right_elbow': (45.333, 80.0),
+        'right_wrist': (-6.823, -0.383), 'left_clavicle': (-6.066, 9.355),
+        'left_shoulder': (27.595, 3.864, 10.576),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (55.945, 8.751, 1.925), 'spine_thoracic': (-12.841, 5.734, 12.835),
-        'neck': (35.0, 17.678, 1.626), 'head': (15.0, -5.916),
-        'right_shoulder': (51.292, -3.298, 13.412), 'right_elbow': (4.321, 79.918),
-        'right_wrist': (3.622, -1.394), 'left_clavicle': (-8.057, 10.247),
-        'left_shoulder': (28.987, 7.429, 8.748), 'left_elbow': (35.732, 17.157),
+        'spine_lumbar': (56.38, 6.705, 4.389), 'spine_thoracic': (-13.264, 5.691, 16.666),
+        'neck': (35.0, 33.75, -5.671), 'right_clavicle': (-9.966, 14.64),
+        'right_shoulder': (27.511, 3.571, 10.332), 'right_elbow': (51.402, 80.0),
+        'right_wrist': (-8.436, 0.506), 'left_clavicle': (-8.062, 12.432),
+        'left_shoulder': (33.845, 3.25, 10.132), 'left_elbow': (32.029, 17.185),
+        'left_wrist': (-0.258, -0.923),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (58.727, 7.32, 0.068), 'spine_thoracic': (-14.21, 5.209, 11.158),
-        'neck': (35.0, -29.505, 11.876), 'head': (15.0, 11.25),
-        'right_shoulder': (54.472, -6.939, 14.624), 'right_elbow': (0.839, 79.905),
-        'right_wrist': (4.471, -0.892), 'left_clavicle': (-9.398, 11.953),
-        'left_shoulder': (33.203, 7.927, 8.16), 'left_elbow': (36.342, 17.151),
-        'left_wrist': (-1.202, 0.029),
+        'spine_lumbar': (59.233, 4.933, 2.942), 'spine_thoracic': (-14.41, 5.16, 15.626),
+        'neck': (35.0, 33.399, -2.838), 'right_clavicle': (-9.993, 14.93),
+        'right_shoulder': (26.835, 1.341, 11.186), 'right_elbow': (55.37, 79.999),
+        'right_wrist': (-9.702, 1.232), 'left_clavicle': (-9.404, 14.501),
+        'left_shoulder': (38.048, 2.837, 9.643), 'left_elbow': (31.638, 17.185),
+        'left_wrist': (-0.425, -1.077),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(6.2, {
-        'spine_lumbar': (58.274, 7.156, 0.258), 'spine_thoracic': (-14.967, 5.57, 11.336),
-        'neck': (35.0, -32.264, 11.789), 'head': (15.0, 11.189),
-        'right_shoulder': (53.696, -5.997, 14.967), 'right_elbow': (0.0, 79.916),
-        'right_wrist': (1.292, -0.115), 'left_clavicle': (-9.284, 11.891),
-        'left_shoulder': (35.405, 8.395, 7.817), 'left_wrist': (-1.431, 0.116),
+        'spine_lumbar': (59.921, 4.506, 2.593), 'spine_thoracic': (-14.686, 5.032, 15.376),
+        'neck': (35.0, 33.75, -2.196), 'right_shoulder': (26.668, 0.815, 11.39),
+        'right_elbow': (56.325, 79.999), 'right_wrist': (-10.008, 1.409),
+        'left_clavicle': (-9.727, 15.0), 'left_shoulder': (37.854, 3.481, 9.117),
+        'left_elbow': (38.37, 17.212), 'left_wrist': (-1.198, 0.333),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (52.844, 8.902, 1.163), 'spine_thoracic': (-13.96, 5.653, 12.163),
-        'neck': (35.0, 33.62, -2.268), 'head': (15.0, -11.25),
-        'right_shoulder': (48.122, -2.215, 14.994), 'right_elbow': (3.356, 79.88),
-        'right_wrist': (-2.754, -0.135), 'left_clavicle': (-9.39, 10.914),
-        'left_shoulder': (32.492, 5.518, 9.007), 'left_elbow': (38.127, 17.162),
-        'left_wrist': (-1.08, 0.457),
+        'left_shoulder': (25.552, 5.659, 8.979), 'left_elbow': (58.414, 17.306),
+        'left_wrist': (-3.057, 5.259),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=6.333722, duration=0.072)
     human.KeyJoints(6.4, {
-        'spine_lumbar': (50.889, 9.548, 1.539), 'spine_thoracic': (-13.438, 5.651, 12.5),
-        'neck': (35.0, 33.75, -3.295), 'head': (15.0, -11.25), 'right_clavicle': (-9.801, 12.897),
-        'right_shoulder': (49.847, -1.594, 15.011), 'right_elbow': (2.24, 79.682),
-        'right_wrist': (13.617, -1.535), 'left_clavicle': (-9.383, 10.479),
-        'left_shoulder': (31.087, 4.275, 9.541), 'left_elbow': (38.361, 17.165),
-        'left_wrist': (-0.913, 0.572),
+        'neck': (35.0, 33.75, -2.196), 'head': (15.0, -11.25), 'right_clavicle': (-10.0, 15.0),
+        'right_shoulder': (26.668, 0.815, 11.39), 'right_elbow': (56.325, 79.999),
+        'right_wrist': (-10.008, 1.409), 'left_shoulder': (22.876, 6.288, 8.829),
+        'left_elbow': (63.821, 17.331), 'left_wrist': (-3.609, 6.689),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.5, {
-        'spine_lumbar': (51.654, 10.426, 1.57), 'spine_thoracic': (-13.038, 6.017, 11.816),
-        'neck': (34.482, 32.643, -7.153), 'head': (13.52, -10.932),
-        'right_clavicle': (-9.802, 12.172), 'right_shoulder': (50.22, 0.116, 14.848),
-        'right_elbow': (4.61, 78.49), 'right_wrist': (6.617, -1.199),
-        'left_shoulder': (31.345, 4.99, 9.254), 'left_wrist': (-1.013, 0.538),
+        'neck': (35.0, 32.174, -8.646), 'head': (13.756, -11.136),
+        'right_shoulder': (25.5, 2.907, 1.153), 'right_elbow': (56.159, 66.457),
+        'right_wrist': (7.308, 5.693),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (53.675, 12.744, 1.687), 'spine_thoracic': (-11.817, 6.981, 10.012),
-        'neck': (33.07, 29.86, -16.284), 'head': (9.922, -10.127), 'right_clavicle': (-9.81, 10.26),
-        'right_shoulder': (51.205, 4.756, 14.387), 'right_elbow': (10.865, 75.305),
-        'right_wrist': (-11.856, -0.313), 'left_shoulder': (32.178, 6.878, 8.497),
+        'neck': (35.0, 28.599, -23.28), 'head': (10.932, -10.876),
+        'right_shoulder': (19.559, 7.263, -21.655), 'right_elbow': (63.417, 36.675),
+        'right_wrist': (40.009, 14.382),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (56.214, 15.656, 1.915), 'spine_thoracic': (-9.896, 8.193, 7.745),
-        'neck': (31.19, 26.684, -25.306), 'head': (6.119, -9.195),
-        'right_clavicle': (-9.828, 7.856), 'right_shoulder': (52.443, 10.877, 13.73),
-        'right_elbow': (18.724, 71.212), 'right_wrist': (-35.07, 0.802),
-        'left_shoulder': (33.579, 9.251, 7.546),
+        'neck': (35.0, 25.465, -36.109), 'head': (8.456, -10.648),
+        'right_shoulder': (19.386, 12.408, -43.395), 'right_elbow': (62.043, 11.651),
+        'right_wrist': (60.028, 18.16),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (58.531, 18.315, 2.281), 'spine_thoracic': (-7.398, 9.299, 5.675),
-        'neck': (29.254, 24.401, -28.791), 'head': (4.025, -8.496),
-        'right_clavicle': (-9.86, 5.661), 'right_shoulder': (53.574, 17.028, 12.983),
-        'right_elbow': (25.899, 67.299), 'right_wrist': (-56.262, 1.819),
-        'left_shoulder': (35.541, 11.417, 6.677), 'left_wrist': (-1.905, 0.231),
+        'neck': (35.0, 24.814, -38.775), 'head': (7.942, -10.601),
+        'right_shoulder': (26.444, 21.558, -68.457), 'right_elbow': (44.777, -12.197),
+        'right_wrist': (71.02, 19.344), 'left_elbow': (63.672, 17.331),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (59.889, 19.872, 2.808), 'spine_thoracic': (-4.447, 9.947, 4.464),
-        'neck': (27.291, 23.165, -26.994), 'head': (3.312, -8.078),
-        'right_clavicle': (-9.908, 4.376), 'right_shoulder': (54.235, 21.754, 12.25),
-        'right_elbow': (30.101, 64.656), 'right_wrist': (-68.672, 2.415),
-        'left_shoulder': (38.055, 12.685, 6.169), 'left_elbow': (38.393, 17.146),
-        'left_wrist': (-2.081, 0.17),
+        'spine_lumbar': (59.921, 4.506, 2.593), 'spine_thoracic': (-14.686, 5.032, 15.376),
+        'neck': (35.0, 24.814, -38.775), 'head': (7.942, -10.601), 'right_clavicle': (-10.0, 15.0),
+        'right_shoulder': (33.737, 29.273, -86.888), 'right_elbow': (25.836, -28.609),
+        'right_wrist': (77.553, 19.954),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.0, {
-        'spine_lumbar': (60.0, 20.0, 5.309), 'spine_thoracic': (-1.608, 10.0, 6.248),
-        'neck': (26.872, 22.158, -30.18), 'head': (1.379, -7.596),
-        'right_clavicle': (-8.887, 5.863), 'right_shoulder': (55.492, 26.484, 10.588),
-        'right_elbow': (26.836, 63.49), 'right_wrist': (-67.243, 1.628),
-        'left_shoulder': (44.127, 8.89, 7.38), 'left_elbow': (33.783, 17.119),
-        'left_wrist': (-1.171, -0.723),
+        'spine_lumbar': (60.0, 8.099, 4.553), 'spine_thoracic': (-13.398, 6.677, 16.847),
+        'neck': (34.784, 23.178, -41.297), 'head': (6.689, -9.814),
+        'right_clavicle': (-8.938, 14.999), 'right_shoulder': (35.266, 32.264, -88.495),
+        'right_elbow': (21.968, -29.892), 'right_wrist': (76.194, 19.676),
+        'left_shoulder': (22.973, 6.269, 8.832),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.066689, duration=0.072)
     human.KeyJoints(7.1, {
-        'spine_lumbar': (60.0, 20.0, 6.694), 'spine_thoracic': (-0.32, 10.0, 7.375),
-        'neck': (26.892, 21.732, -32.239), 'head': (0.41, -7.363),
-        'right_clavicle': (-7.449, 6.753), 'right_shoulder': (57.019, 30.453, 9.192),
-        'right_elbow': (23.942, 62.787), 'right_wrist': (-65.063, 0.839),
-        'left_shoulder': (47.408, 6.508, 8.124), 'left_elbow': (30.683, 17.108),
-        'left_wrist': (-0.617, -1.31),
+        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
+        'neck': (34.636, 22.051, -43.434), 'head': (5.54, -9.303), 'right_clavicle': (-7.06, 15.0),
+        'right_shoulder': (36.451, 35.907, -88.428), 'right_elbow': (20.849, -29.745),
+        'right_wrist': (73.81, 19.294),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.138689, duration=0.2628)
-    human.KeyJoints(7.2, {'neck': (28.01, 19.298, -34.247), 'head': (2.422, -7.899)})
-    human.KeyJoints(7.3, {'neck': (32.306, 9.946, -41.962), 'head': (10.153, -9.959)})
+    human.KeyJoints(7.2, {'neck': (34.635, 22.109, -45.117), 'head': (6.824, -9.567)})
+    human.KeyJoints(7.3, {'neck': (34.622, 22.332, -51.582), 'head': (11.777, -10.581)})
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, 20.0, 6.694), 'spine_thoracic': (-0.32, 10.0, 7.375),
-        'neck': (34.999, 4.084, -46.798), 'head': (14.999, -11.25),
-        'right_shoulder': (57.019, 30.453, 9.192), 'right_elbow': (23.942, 62.787),
-        'right_wrist': (-65.063, 0.839), 'left_clavicle': (-9.383, 10.479),
-        'left_shoulder': (47.408, 6.508, 8.124), 'left_elbow': (30.683, 17.108),
-        'left_wrist': (-0.617, -1.31),
+        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
+        'neck': (34.59, 22.471, -55.635), 'head': (14.944, -11.216),
+        'left_shoulder': (22.973, 6.269, 8.832), 'left_elbow': (63.672, 17.331),
+        'left_wrist': (-3.593, 6.649),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=7.401489, duration=2.069192)
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, 20.0, 4.487), 'spine_thoracic': (-0.337, 9.062, 3.978),
-        'neck': (33.442, 4.423, -41.812), 'head': (14.75, -11.23),
-        'right_shoulder': (57.751, 24.591, 10.116), 'right_elbow': (22.896, 62.946),
-        'right_wrist': (-60.49, 0.806), 'left_clavicle': (-9.464, 11.089),
-        'left_shoulder': (41.115, 8.253, 9.373), 'left_elbow': (39.595, 20.672),
-        'left_wrist': (-9.967, 2.634),
+        'spine_lumbar': (60.0, 12.792, 4.961), 'spine_thoracic': (-11.949, 7.023, 15.096),
+        'neck': (32.963, 22.531, -52.413), 'right_shoulder': (36.442, 35.869, -88.427),
+        'right_elbow': (20.919, -29.745), 'right_wrist': (73.886, 19.31),
+        'left_clavicle': (-9.745, 15.0), 'left_shoulder': (24.146, 6.357, 10.043),
+        'left_elbow': (61.298, 19.79), 'left_wrist': (-7.429, 7.514),
     })
     human.KeyJoints(7.6, {
-        'spine_thoracic': (-0.369, 6.904, -3.727), 'neck': (30.889, 5.821, -31.063),
-        'head': (14.394, -11.164), 'right_shoulder': (59.516, 11.406, 12.099),
-        'right_elbow': (20.323, 63.263), 'right_wrist': (-49.801, 0.717),
-        'left_clavicle': (-9.629, 12.398), 'left_shoulder': (28.624, 11.716, 12.297),
-        'left_elbow': (57.283, 28.766), 'left_wrist': (-29.524, 10.709),
+        'spine_lumbar': (56.735, 13.91, 1.384), 'spine_thoracic': (-10.776, 5.043, 7.017),
+        'neck': (30.537, 23.449, -43.568), 'right_shoulder': (34.156, 38.725, -89.585),
+        'right_elbow': (15.303, -29.645), 'right_wrist': (67.464, 18.464),
+        'left_shoulder': (27.176, 6.653, 13.173), 'left_elbow': (55.035, 26.146),
+        'left_wrist': (-17.344, 9.751),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, 20.0, -5.304), 'spine_thoracic': (-0.39, 4.604, -11.642),
-        'neck': (29.273, 7.746, -20.262), 'head': (14.995, -11.177),
-        'right_shoulder': (61.587, -1.864, 13.852), 'right_elbow': (17.178, 63.475),
-        'left_clavicle': (-9.748, 13.552), 'left_shoulder': (20.244, 14.04, 15.526),
-        'left_elbow': (69.15, 37.111), 'left_wrist': (-45.496, 16.831),
+        'spine_lumbar': (52.818, 15.423, -3.382), 'spine_thoracic': (-9.108, 2.311, -3.753),
+        'neck': (29.176, 27.029, -31.069), 'right_shoulder': (33.177, 40.704, -90.0),
+        'right_elbow': (12.329, -29.582), 'right_wrist': (63.802, 17.96),
+        'left_shoulder': (31.215, 7.195, 17.344), 'left_elbow': (46.406, 34.618),
+        'left_wrist': (-30.56, 12.733),
     })
     human.KeyJoints(7.8, {
-        'spine_thoracic': (-0.109, 2.49, -18.251), 'neck': (29.332, 10.909, -11.192),
-        'right_shoulder': (64.051, -12.347, 14.789), 'right_elbow': (12.985, 63.359),
-        'right_wrist': (-26.228, 0.386), 'left_shoulder': (24.119, 13.593, 18.791),
-        'left_elbow': (63.386, 44.145), 'left_wrist': (-51.689, 18.388),
+        'spine_lumbar': (54.124, 17.282, -8.337), 'spine_thoracic': (-7.346, -1.67, -14.947),
+        'neck': (30.715, 33.75, -17.185), 'right_shoulder': (35.481, 38.151, -88.976),
+        'right_elbow': (17.817, -29.64), 'right_wrist': (70.571, 18.941),
+        'left_shoulder': (35.414, 8.019, 21.68), 'left_elbow': (36.938, 43.424),
+        'left_wrist': (-44.298, 15.832),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (60.0, 20.0, -12.555), 'spine_thoracic': (0.828, 0.152, -25.182),
-        'neck': (30.892, 14.849, -1.91), 'right_shoulder': (67.225, -23.018, 15.584),
-        'right_elbow': (7.204, 63.025), 'right_wrist': (-12.494, -0.046),
-        'left_clavicle': (-9.783, 14.677), 'left_shoulder': (35.395, 12.17, 22.609),
-        'left_elbow': (46.118, 51.559), 'left_wrist': (-56.373, 19.424),
+        'spine_lumbar': (58.041, 18.985, -12.478), 'spine_thoracic': (-5.6, -5.597, -24.301),
+        'neck': (35.0, 33.75, -4.605), 'head': (15.0, -11.25),
+        'right_shoulder': (36.579, 36.173, -88.343), 'right_elbow': (21.086, -29.753),
+        'right_wrist': (73.965, 19.339), 'left_shoulder': (38.922, 9.164, 25.303),
+        'left_elbow': (28.155, 50.783), 'left_wrist': (-55.777, 18.422),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 20.0, -14.798), 'spine_thoracic': (2.093, -1.371, -29.598),
-        'neck': (32.385, 16.68, 4.18), 'head': (15.0, -11.25),
-        'right_shoulder': (69.407, -29.732, 16.044), 'right_elbow': (3.145, 62.755),
-        'right_wrist': (-3.379, -0.902), 'left_clavicle': (-9.79, 14.974),
-        'left_shoulder': (44.51, 11.02, 25.147), 'left_elbow': (30.517, 56.293),
-        'left_wrist': (-58.927, 19.957),
+        'spine_lumbar': (60.0, 19.928, -14.801), 'spine_thoracic': (-3.912, -7.75, -29.551),
+        'neck': (35.0, -13.827, 9.011), 'head': (15.0, 11.25),
+        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
+        'left_clavicle': (-9.997, 15.0), 'left_shoulder': (40.891, 10.668, 27.337),
+        'left_elbow': (21.583, 54.913), 'left_wrist': (-62.22, 19.876),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.107, -1.231, -30.0),
-        'neck': (31.158, 16.161, 5.009), 'right_shoulder': (67.491, -30.062, 16.09),
-        'right_elbow': (8.147, 62.786), 'right_wrist': (-5.505, -1.712),
-        'left_shoulder': (47.149, 15.199, 23.743), 'left_elbow': (24.574, 56.06),
-        'left_wrist': (-57.325, 18.831),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (-1.503, -8.19, -30.0),
+        'neck': (35.0, -1.0, 8.919), 'head': (15.0, 11.25), 'right_wrist': (73.886, 19.31),
+        'left_shoulder': (43.088, 15.599, 26.152), 'left_elbow': (16.773, 54.576),
+        'left_wrist': (-60.436, 18.775),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.194677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (13.482, -6.198, -30.0), 'neck': (25.86, 13.902, 6.337),
-        'right_shoulder': (66.081, -30.174, 16.156), 'right_elbow': (22.627, 62.862),
-        'right_wrist': (-13.99, -3.803), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (61.512, 12.123, 23.267), 'left_elbow': (12.558, 55.534),
-        'left_wrist': (-43.41, 14.696),
+        'spine_thoracic': (9.81, -10.0, -30.0), 'neck': (32.699, 33.75, 7.177),
+        'head': (15.0, -11.25), 'left_shoulder': (59.583, 12.212, 25.727),
+        'left_elbow': (6.481, 54.09), 'left_wrist': (-43.195, 14.175),
     })
     human.KeyJoints(8.4, {
-        'neck': (25.86, 13.902, 6.337), 'head': (15.0, -11.25),
-        'left_shoulder': (61.512, 12.123, 23.267), 'left_elbow': (12.558, 55.534),
-        'left_wrist': (-43.41, 14.696),
+        'neck': (32.699, 33.75, 7.177), 'head': (15.0, -11.25),
+        'left_shoulder': (59.583, 12.212, 25.727), 'left_elbow': (6.481, 54.09),
+        'left_wrist': (-43.195, 14.175),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.5, {
-        'neck': (26.099, 13.265, 8.012), 'head': (14.972, -10.618),
-        'left_shoulder': (60.618, 12.239, 22.647), 'left_elbow': (13.029, 55.32),
-        'left_wrist': (-46.452, 14.632),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (9.81, -10.0, -30.0),
+        'neck': (32.764, 32.588, 8.833), 'head': (15.0, -10.615),
+        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
+        'right_wrist': (73.886, 19.31), 'left_shoulder': (58.511, 14.203, 25.86),
+        'left_elbow': (9.414, 54.203), 'left_wrist': (-43.885, 14.227),
     })
     human.KeyJoints(8.6, {
-        'neck': (28.097, 7.951, 21.984), 'head': (14.738, -5.348),
-        'left_shoulder': (52.391, 13.367, 16.872), 'left_elbow': (17.455, 53.352),
-        'left_wrist': (-48.751, 14.051),
+        'spine_lumbar': (56.018, 19.859, -15.0), 'spine_thoracic': (10.814, -9.4, -30.0),
+        'neck': (33.306, 22.894, 22.64), 'head': (15.0, -5.321),
+        'right_shoulder': (37.301, 35.727, -88.031), 'right_elbow': (23.116, -29.844),
+        'right_wrist': (75.878, 19.558), 'left_shoulder': (49.268, 30.935, 27.11),
+        'left_elbow': (32.921, 55.24), 'left_wrist': (-49.219, 14.596),
     })
     human.KeyJoints(8.7, {
-        'neck': (31.023, 0.167, 42.452), 'head': (14.395, 2.371),
-        'left_shoulder': (37.777, 15.556, 6.377), 'left_elbow': (25.579, 49.856),
-        'left_wrist': (-51.998, 13.018),
+        'spine_lumbar': (50.73, 19.711, -15.0), 'spine_thoracic': (12.129, -8.764, -30.0),
+        'neck': (34.098, 8.694, 42.866), 'head': (15.0, 2.433),
+        'right_shoulder': (38.386, 35.529, -87.526), 'right_elbow': (25.868, -29.965),
+        'right_wrist': (78.388, 19.822), 'left_shoulder': (34.32, 56.051, 29.413),
+        'left_elbow': (64.846, 57.066), 'left_wrist': (-56.623, 15.201),
     })
     human.KeyJoints(8.8, {
-        'neck': (33.537, -6.52, 60.034), 'head': (14.1, 9.003),
-        'left_shoulder': (19.507, 18.633, -7.177), 'left_elbow': (36.218, 45.485),
-        'left_wrist': (-55.47, 11.727),
+        'spine_lumbar': (48.002, 19.701, -15.0), 'spine_thoracic': (12.646, -8.762, -30.0),
+        'neck': (34.78, -3.504, 60.241), 'head': (15.0, 9.095),
+        'right_shoulder': (38.614, 35.325, -87.39), 'right_elbow': (27.086, -30.057),
+        'right_wrist': (79.503, 19.94), 'left_shoulder': (18.32, 78.983, 32.442),
+        'left_elbow': (86.699, 59.316), 'left_wrist': (-62.099, 15.87),
     })
     human.KeyJoints(8.9, {
-        'neck': (34.35, -8.683, 65.722), 'head': (14.005, 11.148),
-        'left_shoulder': (0.309, 22.425, -22.131), 'left_elbow': (48.188, 40.892),
-        'left_wrist': (-57.675, 10.37),
+        'spine_lumbar': (47.012, 19.718, -15.0), 'spine_thoracic': (12.661, -8.93, -30.0),
+        'neck': (35.0, -7.45, 65.862), 'head': (15.0, 11.25),
+        'right_shoulder': (38.481, 35.201, -87.421), 'left_shoulder': (2.704, 93.388, 37.838),
+        'left_elbow': (87.466, 62.485), 'left_wrist': (-63.507, 16.648),
     })
     human.KeyJoints(9.0, {
-        'left_shoulder': (-17.085, 26.758, -36.825), 'left_elbow': (60.308, 36.731),
-        'left_wrist': (-59.602, 9.141),
+        'spine_lumbar': (46.158, 19.694, -15.0), 'right_elbow': (27.768, -30.148),
+        'right_wrist': (79.941, 20.0), 'left_shoulder': (-17.163, 106.479, 49.219),
+        'left_elbow': (82.943, 68.018), 'left_wrist': (-64.244, 17.79),
     })
     human.KeyJoints(9.1, {
-        'left_shoulder': (-29.947, 31.46, -49.599), 'left_elbow': (71.393, 33.654),
-        'left_wrist': (-61.253, 8.232),
+        'spine_lumbar': (46.184, 19.682, -15.0), 'spine_thoracic': (12.744, -8.911, -30.0),
+        'right_shoulder': (38.53, 35.137, -87.381), 'right_elbow': (27.749, -30.145),
+        'right_wrist': (79.919, 20.0), 'left_shoulder': (-34.368, 109.083, 51.937),
+        'left_elbow': (69.845, 71.573), 'left_wrist': (-59.384, 15.772),
     })
     human.KeyJoints(9.2, {
-        'left_shoulder': (-35.546, 36.359, -58.794), 'left_elbow': (80.261, 32.315),
-        'left_wrist': (-62.322, 7.836),
+        'spine_lumbar': (47.395, 19.641, -15.0), 'spine_thoracic': (11.962, -8.933, -30.0),
+        'neck': (35.0, -7.45, 65.862), 'right_shoulder': (38.242, 35.28, -87.523),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-42.846, 106.846, 49.183),
+        'left_elbow': (59.368, 72.482), 'left_wrist': (-54.61, 13.362),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'left_shoulder': (-34.819, 42.885, -64.769), 'left_elbow': (86.982, 32.513),
-        'left_wrist': (-62.444, 8.2),
+        'spine_lumbar': (46.565, 19.585, -14.931), 'spine_thoracic': (9.291, -7.346, -29.968),
+        'neck': (35.0, -9.299, 63.588), 'right_shoulder': (37.693, 35.521, -87.813),
+        'right_elbow': (26.3, -30.127), 'right_wrist': (78.719, 19.909),
+        'left_clavicle': (-7.903, 15.0), 'left_shoulder': (-43.461, 107.417, 49.03),
+        'left_elbow': (58.623, 72.485), 'left_wrist': (-54.714, 13.412),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'left_shoulder': (-34.155, 40.759, -74.43), 'left_elbow': (96.782, 32.753),
-        'left_wrist': (-67.116, 8.781),
+        'spine_lumbar': (43.343, 19.59, -15.0), 'spine_thoracic': (5.742, -5.935, -30.0),
+        'neck': (35.0, -12.638, 60.087), 'right_shoulder': (37.304, 35.687, -88.02),
+        'right_elbow': (25.493, -30.109), 'right_wrist': (77.956, 19.872),
+        'left_clavicle': (-8.421, 15.0), 'left_shoulder': (-43.043, 110.766, 49.177),
+        'left_elbow': (63.965, 72.321), 'left_wrist': (-57.452, 13.727),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
-    human.KeyJoints(9.5, {'neck': (34.348, -8.678, 65.721), 'head': (13.998, 11.148)})
+    human.KeyJoints(9.5, {
+        'spine_lumbar': (48.471, 19.792, -15.0), 'right_shoulder': (36.795, 35.776, -88.261),
+        'right_elbow': (23.134, -29.933), 'right_wrist': (75.852, 19.605),
+        'left_shoulder': (-42.803, 119.714, 58.618), 'left_elbow': (71.386, 74.366),
+        'left_wrist': (-62.613, 16.832),
+    })
+    human.KeyJoints(9.6, {
+        'spine_lumbar': (53.268, 19.983, -15.0), 'spine_thoracic': (5.004, -6.862, -30.0),
+        'neck': (34.916, -12.753, 60.075), 'right_shoulder': (36.442, 35.869, -88.427),
+        'right_elbow': (20.919, -29.745), 'right_wrist': (73.886, 19.31),
+        'left_shoulder': (-42.748, 126.57, 65.992), 'left_elbow': (78.12, 75.939),
+        'left_wrist': (-66.946, 19.278),
+    })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (13.482, -6.198, -30.0),
-        'neck': (34.244, -8.551, 65.605), 'right_clavicle': (-7.449, 6.753),
-        'right_shoulder': (66.081, -30.174, 16.156), 'right_elbow': (22.627, 62.862),
-        'right_wrist': (-13.99, -3.803), 'left_shoulder': (-34.155, 40.759, -74.43),
-        'left_elbow': (96.782, 32.753), 'left_wrist': (-67.116, 8.781),
+        'spine_lumbar': (53.268, 19.983, -15.0), 'spine_thoracic': (5.004, -6.862, -30.0),
+        'neck': (34.751, -12.864, 60.04), 'head': (14.956, 11.25), 'right_clavicle': (-7.06, 15.0),
+        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
+        'right_wrist': (73.886, 19.31),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (39.835, 18.455, -14.383), 'spine_thoracic': (19.737, -8.353, -29.343),
-        'neck': (33.929, -8.536, 64.633), 'head': (13.792, 11.177),
-        'right_clavicle': (-7.543, 7.058), 'right_shoulder': (66.234, -30.019, 16.14),
-        'right_elbow': (22.009, 62.773), 'right_wrist': (-13.576, -3.733),
-        'left_shoulder': (-24.838, 53.635, -48.056), 'left_elbow': (73.082, 33.696),
-        'left_wrist': (-50.362, 7.341),
+        'spine_lumbar': (53.517, 18.504, -14.282), 'spine_thoracic': (4.566, -6.515, -29.452),
+        'neck': (34.247, -12.754, 58.979), 'head': (14.808, 11.245),
+        'right_clavicle': (-7.168, 15.0), 'right_shoulder': (37.082, 33.735, -88.133),
+        'right_elbow': (20.525, -29.575), 'right_wrist': (73.268, 19.095),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (38.318, 16.414, -11.578), 'spine_thoracic': (19.133, -7.109, -26.356),
-        'neck': (32.111, -7.874, 59.475), 'right_clavicle': (-7.966, 8.425),
-        'right_shoulder': (66.929, -29.323, 16.069), 'right_elbow': (19.244, 62.373),
-        'right_wrist': (-11.721, -3.412), 'left_shoulder': (-3.987, 49.769, -32.499),
-        'left_elbow': (67.615, 36.949), 'left_wrist': (-39.738, 6.828),
+        'spine_lumbar': (54.633, 11.876, -11.066), 'spine_thoracic': (2.535, -4.954, -27.0),
+        'neck': (32.404, -12.446, 53.871), 'head': (14.402, 11.15),
+        'right_clavicle': (-7.656, 15.0), 'right_shoulder': (39.998, 24.094, -86.8),
+        'right_elbow': (18.743, -28.802), 'right_wrist': (70.498, 18.125),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (37.324, 13.476, -7.377), 'spine_thoracic': (17.903, -5.322, -21.881),
-        'neck': (29.578, -7.287, 51.239), 'head': (11.962, 11.093),
-        'right_clavicle': (-8.584, 10.421), 'right_shoulder': (67.971, -28.306, 15.965),
-        'right_elbow': (15.206, 61.788), 'right_wrist': (-9.011, -2.919),
-        'left_shoulder': (17.438, 41.359, -17.522), 'left_elbow': (59.922, 40.741),
-        'left_wrist': (-29.062, 5.341),
+        'spine_lumbar': (56.263, 2.197, -6.368), 'spine_thoracic': (-0.61, -2.66, -23.417),
+        'neck': (29.745, -12.654, 44.886), 'head': (14.298, 10.993),
+        'right_shoulder': (44.387, 9.807, -84.812), 'right_elbow': (16.091, -27.649),
+        'right_wrist': (66.453, 16.688),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (37.082, 10.394, -2.748), 'spine_thoracic': (16.239, -3.473, -16.945),
-        'neck': (26.971, -6.939, 41.651), 'head': (11.712, 10.922),
-        'right_clavicle': (-9.235, 12.528), 'right_shoulder': (69.121, -27.233, 15.856),
-        'right_elbow': (10.945, 61.171), 'right_wrist': (-6.149, -2.353),
-        'left_shoulder': (31.156, 36.179, -1.431), 'left_elbow': (51.952, 44.981),
-        'left_wrist': (-18.87, 4.06),
+        'spine_lumbar': (57.982, -8.016, -1.412), 'spine_thoracic': (-4.268, -0.214, -19.637),
+        'neck': (27.21, -14.182, 33.614), 'head': (14.909, 11.206),
+        'right_clavicle': (-9.119, 15.0), 'right_shoulder': (49.266, -5.661, -82.637),
+        'right_elbow': (13.203, -26.388), 'right_wrist': (62.185, 15.134),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (37.082, 7.812, 1.344), 'spine_thoracic': (14.692, -1.911, -12.575),
-        'neck': (24.867, -7.979, 33.057), 'head': (11.757, 11.076),
-        'right_clavicle': (-9.76, 14.225), 'right_shoulder': (70.141, -26.368, 15.767),
-        'right_elbow': (7.511, 60.673), 'right_wrist': (-3.838, -1.813),
-        'left_shoulder': (41.306, 34.639, 16.37), 'left_elbow': (44.053, 48.8),
-        'left_wrist': (-8.351, 3.554),
+        'spine_lumbar': (59.368, -16.245, 2.582), 'spine_thoracic': (-7.839, 1.805, -16.592),
+        'neck': (26.822, -19.148, 23.453), 'right_clavicle': (-9.724, 15.0),
+        'right_shoulder': (53.65, -18.845, -80.743), 'right_elbow': (10.709, -25.29),
+        'right_wrist': (58.746, 13.813),
     })
     human.KeyJoints(10.3, {
-        'spine_lumbar': (37.082, 6.581, 3.932), 'spine_thoracic': (13.558, -0.981, -9.798),
-        'neck': (23.887, -9.153, 27.691), 'head': (12.161, 11.117),
-        'right_clavicle': (-9.998, 14.994), 'right_shoulder': (70.792, -25.977, 15.727),
-        'right_elbow': (5.957, 60.448), 'right_wrist': (-2.781, -1.399),
-        'left_shoulder': (48.667, 32.953, 27.861), 'left_elbow': (35.488, 50.729),
-        'left_wrist': (-0.755, 3.098),
+        'spine_lumbar': (59.995, -19.972, 4.39), 'spine_thoracic': (-10.721, 2.817, -15.213),
+        'neck': (28.378, -21.854, 18.293), 'head': (15.0, 11.232), 'right_clavicle': (-9.998, 15.0),
+        'right_shoulder': (56.557, -26.278, -79.597), 'right_elbow': (9.242, -24.626),
+        'right_wrist': (57.188, 13.073),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {
-        'spine_lumbar': (57.121, 7.116, 4.039), 'spine_thoracic': (8.962, 1.974, -9.672),
-        'neck': (23.974, -9.96, 26.714), 'head': (12.881, 11.115),
-        'right_clavicle': (-9.193, 14.452), 'right_shoulder': (69.765, -27.646, 15.84),
-        'right_elbow': (5.728, 60.452), 'right_wrist': (-2.638, -1.203),
-        'left_shoulder': (34.946, 51.183, 23.162), 'left_elbow': (76.065, 50.198),
-        'left_wrist': (-10.966, 10.887),
+        'spine_lumbar': (55.984, -19.274, 4.261), 'spine_thoracic': (-11.151, 2.821, -15.334),
+        'neck': (29.666, -22.842, 19.438), 'right_clavicle': (-9.278, 14.779),
+        'right_shoulder': (55.427, -28.827, -79.489), 'right_elbow': (8.503, -24.513),
+        'right_wrist': (57.83, 13.041),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (55.084, 8.12, 3.692), 'spine_thoracic': (9.254, 1.873, -10.049),
-        'neck': (24.149, -10.245, 26.913), 'head': (13.209, 11.124),
-        'right_clavicle': (-8.358, 14.035), 'right_shoulder': (68.537, -28.594, 15.906),
-        'right_elbow': (5.276, 60.452), 'right_wrist': (-2.493, -1.127),
-        'left_shoulder': (34.791, 50.633, 23.558), 'left_elbow': (72.712, 50.242),
-        'left_wrist': (-10.155, 10.319),
+        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
+        'neck': (29.73, -22.598, 20.516), 'right_clavicle': (-8.549, 14.373),
+        'right_shoulder': (54.105, -29.428, -79.603), 'right_elbow': (8.353, -24.552),
+        'right_wrist': (58.135, 13.135),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.6, {'right_elbow': (5.276, 30.448)})
-    human.KeyJoints(10.7, {'right_elbow': (5.276, -27.095)})
+    human.KeyJoints(10.6, {
+        'right_shoulder': (52.964, -27.134, -79.971), 'right_elbow': (10.01, 5.452),
+        'right_wrist': (59.48, 13.764),
+    })
+    human.KeyJoints(10.7, {
+        'right_shoulder': (55.811, -21.918, -80.195), 'right_elbow': (11.383, 62.995),
+        'right_wrist': (64.335, 15.341),
+    })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(10.8, {'right_elbow': (5.276, 4.193)})
-    human.KeyJoints(10.9, {'right_elbow': (5.276, 59.198)})
+    human.KeyJoints(10.8, {
+        'right_shoulder': (53.435, -24.714, -80.145), 'right_elbow': (11.089, 31.708),
+        'right_wrist': (61.526, 14.451),
+    })
+    human.KeyJoints(10.9, {
+        'right_shoulder': (54.023, -29.356, -79.622), 'right_elbow': (8.433, -23.298),
+        'right_wrist': (58.206, 13.164),
+    })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.0, {'right_elbow': (5.276, 22.9)})
-    human.KeyJoints(11.1, {'right_elbow': (5.276, -29.106)})
+    human.KeyJoints(11.0, {
+        'right_shoulder': (52.946, -26.478, -80.032), 'right_elbow': (10.409, 13.0),
+        'right_wrist': (60.029, 13.957),
+    })
+    human.KeyJoints(11.1, {
+        'right_shoulder': (56.021, -21.773, -80.19), 'right_elbow': (11.382, 65.007),
+        'right_wrist': (64.488, 15.389),
+    })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.2, {'right_elbow': (5.276, 11.866)})
-    human.KeyJoints(11.3, {'right_elbow': (5.276, 60.413)})
+    human.KeyJoints(11.2, {
+        'right_shoulder': (53.149, -25.446, -80.106), 'right_elbow': (10.849, 24.034),
+        'right_wrist': (60.834, 14.232),
+    })
+    human.KeyJoints(11.3, {
+        'right_shoulder': (54.105, -29.428, -79.603), 'right_elbow': (8.353, -24.512),
+        'right_wrist': (58.135, 13.135),
+    })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.4, {'right_elbow': (5.276, 15.153)})
+    human.KeyJoints(11.4, {
+        'right_shoulder': (53.048, -25.774, -80.085), 'right_elbow': (10.767, 20.748),
+        'right_wrist': (60.686, 14.173),
+    })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.5, {'right_elbow': (5.276, -29.474)})
-    human.KeyJoints(11.6, {'right_elbow': (5.276, 19.635)})
+    human.KeyJoints(11.5, {
+        'right_shoulder': (56.06, -21.747, -80.189), 'right_elbow': (11.382, 65.374),
+        'right_wrist': (64.516, 15.397),
+    })
+    human.KeyJoints(11.6, {
+        'right_shoulder': (52.974, -26.185, -80.056), 'right_elbow': (10.568, 16.265),
+        'right_wrist': (60.295, 14.046),
+    })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.7, {'right_elbow': (5.276, 59.912)})
-    human.KeyJoints(11.8, {'right_elbow': (5.276, 7.413)})
+    human.KeyJoints(11.7, {
+        'right_shoulder': (54.067, -29.406, -79.611), 'right_elbow': (8.399, -24.012),
+        'right_wrist': (58.189, 13.152),
+    })
+    human.KeyJoints(11.8, {
+        'right_shoulder': (53.3, -25.023, -80.13), 'right_elbow': (10.998, 28.487),
+        'right_wrist': (61.23, 14.358),
+    })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.9, {'right_elbow': (5.276, -28.133)})
-    human.KeyJoints(12.0, {'right_elbow': (5.276, 27.293)})
+    human.KeyJoints(11.9, {
+        'right_shoulder': (55.919, -21.842, -80.192), 'right_elbow': (11.383, 64.034),
+        'right_wrist': (64.415, 15.366),
+    })
+    human.KeyJoints(12.0, {
+        'right_shoulder': (52.942, -26.864, -79.998), 'right_elbow': (10.181, 8.607),
+        'right_wrist': (59.698, 13.842),
+    })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.079969, duration=0.072)
-    human.KeyJoints(12.1, {'right_elbow': (5.276, 60.452)})
+    human.KeyJoints(12.1, {
+        'right_shoulder': (54.105, -29.428, -79.603), 'right_elbow': (8.353, -24.552),
+        'right_wrist': (58.135, 13.135),
+    })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.151969, duration=0.2628)
+    human.KeyJoints(12.2, {'neck': (29.716, -22.605, 20.493)})
+    human.KeyJoints(12.3, {'neck': (29.592, -22.666, 20.297)})
+    human.KeyJoints(12.4, {'neck': (29.344, -22.79, 19.902)})
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
+    human.KeyJoints(12.6, {'neck': (29.296, -22.813, 19.826)})
     human.KeyJoints(15.4, {
-        'spine_lumbar': (55.084, 8.12, 3.692), 'spine_thoracic': (9.254, 1.873, -10.049),
-        'right_clavicle': (-8.358, 14.035), 'right_shoulder': (68.537, -28.594, 15.906),
-        'right_elbow': (5.276, 60.452), 'right_wrist': (-2.493, -1.127),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (34.791, 50.633, 23.558),
-        'left_elbow': (72.712, 50.242), 'left_wrist': (-10.155, 10.319),
+        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
+        'right_clavicle': (-8.549, 14.373), 'right_shoulder': (54.105, -29.428, -79.603),
+        'right_elbow': (8.353, -24.552), 'right_wrist': (58.135, 13.135),
+        'left_clavicle': (-8.421, 15.0), 'left_shoulder': (-42.748, 126.57, 65.992),
+        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(15.5, {
-        'spine_lumbar': (44.881, 6.482, 3.692), 'spine_thoracic': (7.586, 1.501, -10.049),
-        'right_clavicle': (-6.718, 11.213), 'right_shoulder': (58.037, -22.077, 15.034),
-        'right_elbow': (8.638, 51.734), 'right_wrist': (-1.313, -1.127),
-        'left_clavicle': (-8.037, 11.984), 'left_shoulder': (29.817, 41.408, 21.15),
-        'left_elbow': (64.649, 43.597), 'left_wrist': (-8.072, 8.21),
+        'spine_lumbar': (44.379, -15.593, 3.949), 'spine_thoracic': (-8.333, 2.156, -15.652),
+        'right_clavicle': (-6.871, 11.483), 'right_shoulder': (45.239, -22.241, -61.278),
+        'right_elbow': (12.943, -16.081), 'right_wrist': (45.662, 10.248),
+        'left_clavicle': (-6.768, 11.984), 'left_shoulder': (-32.486, 102.478, 55.165),
+        'left_elbow': (69.259, 64.153), 'left_wrist': (-53.515, 15.442),
     })
     human.KeyJoints(15.6, {
-        'spine_lumbar': (20.729, 2.504, 3.692), 'spine_thoracic': (3.537, 0.598, -10.049),
-        'right_clavicle': (-2.734, 4.532), 'right_shoulder': (28.49, -5.579, 12.938),
-        'right_elbow': (24.17, 31.157), 'right_wrist': (-0.691, -0.516),
-        'left_clavicle': (-3.271, 4.844), 'left_shoulder': (17.351, 20.192, 15.346),
-        'left_elbow': (46.419, 27.86), 'left_wrist': (-3.277, 3.289),
+        'spine_lumbar': (20.525, -7.508, 3.949), 'spine_thoracic': (-2.984, 0.864, -15.652),
+        'right_clavicle': (-2.796, 4.641), 'right_shoulder': (23.683, -5.679, -17.919),
+        'right_elbow': (25.454, 3.749), 'right_wrist': (18.588, 4.078),
+        'left_clavicle': (-2.754, 4.844), 'left_shoulder': (-8.045, 44.901, 29.026),
+        'left_elbow': (48.353, 36.149), 'left_wrist': (-21.602, 6.189),
     })
     human.KeyRoot(15.7, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (4.521, -0.167, 3.692), 'spine_thoracic': (0.818, -0.009, -10.049),
-        'right_clavicle': (-0.059, 0.049), 'right_shoulder': (9.131, 5.441, 11.523),
-        'right_elbow': (33.877, 17.341), 'right_wrist': (0.023, -0.092),
-        'left_clavicle': (-0.07, 0.053), 'left_shoulder': (8.928, 5.937, 11.47),
-        'left_elbow': (34.253, 17.305), 'left_wrist': (-0.066, 0.011),
+        'spine_lumbar': (4.519, -0.688, 3.949), 'spine_thoracic': (0.693, -0.003, -15.652),
+        'right_clavicle': (-0.06, 0.051), 'right_shoulder': (9.005, 5.529, 11.148),
+        'right_elbow': (34.051, 17.042), 'right_wrist': (0.223, -0.005),
+        'left_clavicle': (-0.059, 0.053), 'left_shoulder': (8.439, 6.411, 11.566),
+        'left_elbow': (34.255, 17.395), 'left_wrist': (-0.249, -0.004),
         'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
         'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
         'left_ankle': (9.996, -1.322),
     })
     human.KeyRoot(15.8, (1.613, 45.179, 45.245), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (5.361, 4.595, 3.692), 'spine_thoracic': (0.89, 0.954, -10.049),
-        'right_shoulder': (8.675, 5.699, 11.484), 'right_elbow': (34.154, 17.064),
-        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.727, 5.635, 11.4),
-        'left_elbow': (34.046, 17.094), 'right_hip': (21.072, -0.241, 0.399),
-        'right_knee': (131.068,), 'right_ankle': (9.974, 3.197),
-        'left_hip': (21.072, 0.241, -0.399), 'left_knee': (131.068,), 'left_ankle': (9.974, -3.197),
+        'spine_lumbar': (5.363, 4.641, 3.949), 'spine_thoracic': (0.922, 0.954, -15.652),
+        'right_clavicle': (0.0, -0.041), 'right_shoulder': (8.656, 5.776, 11.726),
+        'right_elbow': (34.276, 17.309), 'right_wrist': (-0.153, -0.076),
+        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.777, 5.587, 11.234),
+        'left_elbow': (34.009, 17.02), 'left_wrist': (0.182, -0.118),
+        'right_hip': (21.072, -0.241, 0.399), 'right_knee': (131.068,),
+        'right_ankle': (9.974, 3.197), 'left_hip': (21.072, 0.241, -0.399), 'left_knee': (131.068,),
+        'left_ankle': (9.974, -3.197),
     })
     human.KeyRoot(15.9, (1.542, 44.797, 44.263), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'spine_lumbar': (6.679, 17.055, 3.692), 'spine_thoracic': (0.656, 4.109, -10.049),
-        'right_clavicle': (0.0, -0.031), 'right_hip': (22.438, -0.57, 0.892),
-        'right_knee': (132.422,), 'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892),
-        'left_knee': (132.422,), 'left_ankle': (9.856, -7.271),
+        'spine_lumbar': (6.681, 17.091, 3.949), 'spine_thoracic': (0.681, 4.109, -15.652),
+        'right_hip': (22.438, -0.57, 0.892), 'right_knee': (132.422,),
+        'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892), 'left_knee': (132.422,),
+        'left_ankle': (9.856, -7.271),
     })
     human.KeyRoot(16.0, (1.117, 44.289, 43.012), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.0, {
-        'spine_lumbar': (9.101, 20.0, 3.692), 'spine_thoracic': (-1.791, 10.0, -10.049),
-        'left_wrist': (0.006, -0.034), 'right_hip': (24.116, -1.428, 2.049),
-        'right_knee': (134.023,), 'right_ankle': (9.175, 17.319),
-        'left_hip': (24.116, 1.428, -2.049), 'left_knee': (134.023,),
-        'left_ankle': (9.175, -17.319),
+        'spine_lumbar': (9.102, 20.0, 3.949), 'spine_thoracic': (-1.773, 10.0, -15.652),
+        'right_hip': (24.116, -1.428, 2.049), 'right_knee': (134.023,),
+        'right_ankle': (9.175, 17.319), 'left_hip': (24.116, 1.428, -2.049),
+        'left_knee': (134.023,), 'left_ankle': (9.175, -17.319),
     })
     human.KeyRoot(16.1, (-0.056, 44.345, 43.036), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.1, {
-        'spine_lumbar': (9.449, 20.0, 3.692), 'spine_thoracic': (-9.052, 10.0, -10.049),
+        'spine_lumbar': (9.449, 20.0, 3.949), 'spine_thoracic': (-9.041, 10.0, -15.652),
         'right_hip': (23.799, -2.956, 3.894), 'right_knee': (133.446,),
         'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385), 'left_knee': (134.975,),
         'left_ankle': (8.358, -19.152),
     })
     human.KeyRoot(16.2, (-0.125, 45.363, 45.533), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.2, {
-        'spine_lumbar': (0.436, 20.0, 3.692), 'spine_thoracic': (-6.818, 10.0, -10.049),
-        'right_elbow': (34.387, 17.175), 'left_elbow': (34.365, 17.178),
+        'spine_lumbar': (0.436, 20.0, 3.949), 'spine_thoracic': (-6.814, 10.0, -15.652),
         'right_hip': (20.24, -2.446, 3.776), 'right_knee': (129.937,),
         'right_ankle': (7.205, 32.018), 'left_hip': (25.476, -20.779, -4.841),
         'left_knee': (132.206,), 'left_ankle': (-1.619, -1.63),
     })
     human.KeyRoot(16.3, (0.22, 43.903, 42.087), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.3, {
-        'spine_lumbar': (7.197, 20.0, 3.692), 'spine_thoracic': (-5.507, 10.0, -10.049),
-        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (25.234, -2.825, 3.622),
+        'spine_lumbar': (7.197, 20.0, 3.949), 'spine_thoracic': (-5.507, 10.0, -15.652),
+        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
+        'left_elbow': (34.377, 17.189), 'right_hip': (25.234, -2.825, 3.622),
         'right_knee': (134.923,), 'right_ankle': (7.075, 32.768),
         'left_hip': (46.263, -19.671, 3.021), 'left_ankle': (-46.113, -3.977),
     })
     human.KeyRoot(16.4, (0.037, 43.856, 41.978), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (1.043, 20.0, 3.692), 'spine_thoracic': (-8.777, 10.0, -10.049),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (25.35, -3.091, 3.792),
-        'right_knee': (134.999,), 'right_ankle': (6.684, 34.925),
-        'left_hip': (83.405, -21.566, 31.596), 'left_knee': (134.236,),
-        'left_ankle': (-44.475, -16.418),
+        'spine_lumbar': (1.043, 20.0, 3.949), 'spine_thoracic': (-8.777, 10.0, -15.652),
+        'right_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
+        'right_hip': (25.35, -3.091, 3.792), 'right_knee': (134.999,),
+        'right_ankle': (6.684, 34.925), 'left_hip': (83.405, -21.566, 31.596),
+        'left_knee': (134.236,), 'left_ankle': (-44.475, -16.418),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (0.161, 20.0, 3.692), 'spine_thoracic': (-9.448, 10.0, -10.049),
-        'left_hip': (111.005, -17.935, 10.92), 'left_ankle': (-37.194, -23.109),
+        'spine_lumbar': (0.161, 20.0, 3.949), 'spine_thoracic': (-9.448, 10.0, -15.652),
+        'right_wrist': (0.0, 0.0), 'left_hip': (111.005, -17.935, 10.92),
+        'left_ankle': (-37.194, -23.109),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.294, 20.0, 3.692), 'spine_thoracic': (-6.149, 10.0, -10.049),
+        'spine_lumbar': (-0.294, 20.0, 3.949), 'spine_thoracic': (-6.149, 10.0, -15.652),
         'right_ankle': (6.671, 34.996), 'left_hip': (118.779, -9.323, -17.486),
         'left_knee': (131.188,), 'left_ankle': (-30.516, -24.67),
     })
     human.KeyRoot(16.7, (0.102, 43.861, 41.992), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-1.104, 20.0, 3.692), 'spine_thoracic': (-6.341, 10.0, -10.049),
-        'right_wrist': (0.0, 0.0), 'right_hip': (25.346, -3.002, 3.796),
-        'right_ankle': (6.725, 34.696), 'left_hip': (100.946, -9.438, 9.142),
-        'left_knee': (132.386,), 'left_ankle': (-3.902, 13.123),
+        'spine_lumbar': (-1.104, 20.0, 3.949), 'spine_thoracic': (-6.341, 10.0, -15.652),
+        'right_hip': (25.346, -3.002, 3.796), 'right_ankle': (6.725, 34.696),
+        'left_hip': (100.946, -9.438, 9.142), 'left_knee': (132.386,),
+        'left_ankle': (-3.902, 13.123),
     })
     human.KeyRoot(16.8, (1.814, 44.016, 42.509), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-3.512, 19.67, 3.692), 'spine_thoracic': (-1.022, 3.984, -10.049),
+        'spine_lumbar': (-3.512, 19.67, 3.949), 'spine_thoracic': (-1.022, 3.984, -15.652),
         'right_hip': (25.018, -0.638, 0.904), 'right_ankle': (9.842, 7.602),
         'left_hip': (100.292, -1.591, 1.724), 'left_knee': (132.49,), 'left_ankle': (-0.212, 2.435),
     })
     human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-3.806, 9.808, 3.692), 'spine_thoracic': (-0.821, 1.771, -10.049),
+        'spine_lumbar': (-3.806, 9.808, 3.949), 'spine_thoracic': (-0.821, 1.771, -15.652),
         'right_hip': (25.037, -0.397, 0.568), 'right_ankle': (10.063, 4.833),
         'left_hip': (98.871, -0.812, 0.999), 'left_knee': (132.297,), 'left_ankle': (3.221, 1.335),
     })
     human.KeyRoot(17.0, (2.995, 46.839, 37.706), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (8.785, 9.365, 3.692), 'spine_thoracic': (1.312, 1.682, -10.049),
+        'spine_lumbar': (8.785, 9.365, 3.949), 'spine_thoracic': (1.312, 1.682, -15.652),
         'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,), 'right_ankle': (14.452, 5.04),
         'left_hip': (92.433, -0.17, 0.413), 'left_knee': (123.3,), 'left_ankle': (11.644, 0.434),
     })
     human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (28.097, 9.175, 3.692), 'spine_thoracic': (4.21, 1.603, -10.049),
+        'spine_lumbar': (28.097, 9.175, 3.949), 'spine_thoracic': (4.21, 1.603, -15.652),
         'right_hip': (34.67, -0.463, 1.25), 'right_knee': (128.657,),
         'right_ankle': (18.339, 2.038), 'left_hip': (79.247, -0.08, -0.608),
         'left_knee': (101.565,), 'left_ankle': (19.032, -0.62),
     })
     human.KeyRoot(17.2, (5.498, 71.895, 36.148), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (3.692, 10.797, 3.692), 'spine_thoracic': (0.524, 1.946, -10.049),
+        'spine_lumbar': (3.692, 10.797, 3.949), 'spine_thoracic': (0.524, 1.946, -15.652),
         'right_hip': (17.304, 0.422, 2.378), 'right_knee': (94.205,), 'right_ankle': (14.266, 2.47),
         'left_hip': (52.94, -1.05, -1.426), 'left_knee': (72.533,), 'left_ankle': (18.908, -1.774),
     })
     human.KeyRoot(17.3, (6.834, 85.806, 36.181), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (0.087, 12.084, 3.692), 'spine_thoracic': (-0.302, 2.16, -10.049),
+        'spine_lumbar': (0.087, 12.084, 3.949), 'spine_thoracic': (-0.302, 2.16, -15.652),
         'right_hip': (10.143, 1.068, 3.358), 'right_knee': (67.814,),
         'right_ankle': (-4.686, 3.672), 'left_hip': (28.72, -2.108, -1.155), 'left_knee': (28.72,),
         'left_ankle': (0.021, -2.404),
     })
     human.KeyRoot(17.4, (6.21, 90.189, 45.35), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-27.238, 13.403, 3.692), 'spine_thoracic': (-7.232, 2.271, -10.049),
+        'spine_lumbar': (-27.238, 13.403, 3.949), 'spine_thoracic': (-7.232, 2.271, -15.652),
         'right_hip': (-6.175, 2.175, 3.192), 'right_knee': (44.572,),
         'right_ankle': (-11.112, 3.826), 'left_hip': (10.143, -2.95, -0.528), 'left_knee': (4.612,),
         'left_ankle': (-5.518, -2.997),
     })
     human.KeyRoot(17.5, (7.348, 90.212, 55.24), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-26.02, 11.831, 3.692), 'spine_thoracic': (-7.137, 2.022, -10.049),
+        'spine_lumbar': (-26.02, 11.831, 3.949), 'spine_thoracic': (-7.137, 2.022, -15.652),
         'right_hip': (-11.824, 3.181, 7.272), 'right_knee': (37.702,),
         'right_ankle': (-28.315, 8.74), 'left_hip': (8.165, -4.938, -0.708), 'left_knee': (13.822,),
         'left_ankle': (5.687, -4.989),
     })
     human.KeyRoot(17.6, (9.086, 89.367, 62.809), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (19.992, 0.136, 3.692), 'spine_thoracic': (3.197, 0.026, -10.049),
+        'spine_lumbar': (19.992, 0.136, 3.949), 'spine_thoracic': (3.197, 0.026, -15.652),
         'right_hip': (-14.859, 2.446, 15.766), 'right_knee': (32.143,),
         'right_ankle': (-48.92, 8.028), 'left_hip': (5.129, -7.128, -0.638), 'left_knee': (17.624,),
         'left_ankle': (12.534, -7.156),
     })
     human.KeyRoot(17.7, (9.056, 89.807, 63.334), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (23.049, -1.14, 3.692), 'spine_thoracic': (3.427, -0.195, -10.049),
+        'spine_lumbar': (23.049, -1.14, 3.949), 'spine_thoracic': (3.427, -0.195, -15.652),
         'right_hip': (-14.615, 3.9, 10.07), 'right_knee': (39.259,),
         'right_ankle': (-28.903, 7.523), 'left_hip': (2.362, -7.158, -0.294),
         'left_knee': (12.695,), 'left_ankle': (10.351, -7.164),
     })
     human.KeyRoot(17.8, (9.478, 90.433, 59.387), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (39.931, -2.894, 3.692), 'spine_thoracic': (5.297, -0.477, -10.049),
+        'spine_lumbar': (39.931, -2.894, 3.949), 'spine_thoracic': (5.297, -0.477, -15.652),
         'right_hip': (-13.883, 6.98, 1.033), 'right_knee': (26.08,), 'right_ankle': (18.25, 7.158),
         'left_hip': (1.656, -6.905, -0.199), 'left_knee': (5.704,), 'left_ankle': (4.06, -6.908),
     })
     human.KeyRoot(17.9, (7.866, 90.637, 59.089), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (28.052, -7.718, 3.692), 'spine_thoracic': (4.263, -1.345, -10.049),
+        'spine_lumbar': (28.052, -7.718, 3.949), 'spine_thoracic': (4.263, -1.345, -15.652),
         'right_hip': (4.571, 6.066, 0.522), 'right_knee': (24.937,), 'right_ankle': (20.0, 6.293),
         'left_hip': (1.36, -5.78, -0.137), 'left_knee': (5.108,), 'left_ankle': (3.754, -5.782),
     })
     human.KeyRoot(18.0, (4.368, 90.602, 61.681), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.0, {
-        'spine_lumbar': (15.545, -15.079, 3.692), 'spine_thoracic': (2.453, -2.691, -10.049),
+        'spine_lumbar': (15.545, -15.079, 3.949), 'spine_thoracic': (2.453, -2.691, -15.652),
         'right_hip': (0.929, 3.764, 0.061), 'right_knee': (8.684,), 'right_ankle': (7.758, 3.765),
         'left_hip': (0.929, -3.764, -0.061), 'left_knee': (8.684,), 'left_ankle': (7.758, -3.765),
     })
     human.KeyRoot(18.1, (0.997, 91.055, 56.584), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.1, {
-        'spine_lumbar': (7.323, -7.236, 3.692), 'spine_thoracic': (1.243, -1.309, -10.049),
+        'spine_lumbar': (7.323, -7.236, 3.949), 'spine_thoracic': (1.243, -1.309, -15.652),
         'right_hip': (2.4, 0.862, 0.036), 'right_knee': (5.55,), 'right_ankle': (3.151, 0.863),
         'left_hip': (2.4, -0.862, -0.036), 'left_knee': (5.55,), 'left_ankle': (3.151, -0.863),
     })
     human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.175969, {
-        'spine_lumbar': (0.0, 0.0, 3.692), 'spine_thoracic': (0.0, 0.0, -10.049),
-        'neck': (24.206, -10.202, 26.908), 'head': (13.182, 11.117), 'right_clavicle': (0.0, 0.0),
+        'spine_lumbar': (0.0, 0.0, 3.949), 'spine_thoracic': (0.0, 0.0, -15.652),
+        'neck': (29.296, -22.813, 19.826), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),

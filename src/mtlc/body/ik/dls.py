@@ -31,7 +31,7 @@ from .batch import SerialBatch, solve_serial_batch
 from .fast import NULL_FADE, SerialChain, solve_one
 from .goals import Goal, GoalArrays, default_dofs, normalise
 from .model import ChainModel
-from .result import IKResult, residual
+from .result import IKResult, residual, returned_errors
 
 FloatArray = NDArray[np.float64]
 
@@ -109,6 +109,7 @@ def solve_ta(
             root_rotation=root_rotation,
         )
     qf, qa = _initial(skel, model, q0, B)
+    model = model.for_start(qf)  # a model prepared for another trunk describes another body
     lo, hi = model.lower, model.upper
     comfort = skel.q_comfort[model.active]
     lam2 = damping * damping
@@ -125,11 +126,12 @@ def solve_ta(
         )  # fmt: skip
         q_out = qf.copy()
         q_out[0, model.active] = qb
+        pos, _ = returned_errors(model, ga, q_out)
         return IKResult(
             q=q_out,
-            position_error=np.array([err]),
+            position_error=pos,
             orientation_error=np.zeros(1),
-            success=np.array([err <= tol]) & skel.within_limits(q_out),
+            success=(pos <= tol) & skel.within_limits(q_out),
             iterations=np.array([it]),
             restarts=np.array([nr]),
             method="dls",
@@ -139,7 +141,7 @@ def solve_ta(
         # One position goal on a serial chain: the component-major batch path.
         target = ga.position[0]
         assert target is not None
-        qb_all, err_all, it_all, nr_all = solve_serial_batch(
+        qb_all, _err, it_all, nr_all = solve_serial_batch(
             _serial_batch(model, tail_chain), np.broadcast_to(target, (B, 3)), qa, lo, hi,
             comfort, tol=tol, max_iter=max_iter, restarts=restarts, patience=patience,
             damping=damping, max_error=max_error, max_step=max_step, null_gain=null_gain,
@@ -147,11 +149,12 @@ def solve_ta(
         )  # fmt: skip
         q_out = qf.copy()
         q_out[:, model.active] = qb_all
+        pos, _ = returned_errors(model, ga, q_out)
         return IKResult(
             q=q_out,
-            position_error=err_all,
+            position_error=pos,
             orientation_error=np.zeros(B),
-            success=(err_all <= tol) & skel.within_limits(q_out),
+            success=(pos <= tol) & skel.within_limits(q_out),
             iterations=it_all,
             restarts=nr_all,
             method="dls",
@@ -248,6 +251,7 @@ def solve_ta(
             attempt_it[rows] += 1
     q_out = qf.copy()
     q_out[:, model.active] = best_q
+    best_pos, best_ori = returned_errors(model, ga, q_out)
     inside = skel.within_limits(q_out)
     success = (best_pos <= tol) & (best_ori <= orientation_tol) & inside
     return IKResult(

@@ -32,7 +32,7 @@ from ..skeleton import Skeleton
 from .dls import _initial, prepare
 from .goals import Goal, normalise
 from .model import ChainModel
-from .result import IKResult, residual
+from .result import IKResult, residual, returned_errors
 
 FloatArray = NDArray[np.float64]
 
@@ -82,6 +82,7 @@ def solve_to(
             root_rotation=root_rotation,
         )
     qf, q_all = _initial(skel, model, q0, B)
+    model = model.for_start(qf)  # a model prepared for another trunk describes another body
     lo, hi = model.lower, model.upper
     r = residual(model, ga, q_all)
     pos, ori = r.pos_err.copy(), r.ori_err.copy()
@@ -141,6 +142,7 @@ def solve_to(
     q = q_all
     q_out = qf.copy()
     q_out[:, model.active] = q
+    pos, ori = returned_errors(model, ga, q_out)
     success = (pos <= tol) & (ori <= orientation_tol) & skel.within_limits(q_out)
     full_path = None
     if record_path:

@@ -45,6 +45,7 @@ class ChainModel:
         qb = np.atleast_2d(np.asarray(q_base, dtype=float))
         self.B = qb.shape[0]
         self.q_base = qb
+        self._root_args = (root_position, root_rotation)
         site_j = [skel.joint_index(skel.site(s).joint) for s in self.sites]
         nj = skel.n_joints
         relevant = sorted({k for j in site_j for k in range(nj) if skel.ancestor[j, k]})
@@ -66,6 +67,20 @@ class ChainModel:
             names = ", ".join(skel.dof_names[d] for d in moved)
             raise ValueError(f"dofs {names} do not move any goal site")
         self.live = live
+        # the dofs whose angles the model bakes in from ``q_base``: every dof on a path from the
+        # root to a site that the solver does not move (``for_start`` checks a start against them)
+        self.baked = np.asarray(
+            [
+                d
+                for j in relevant
+                for d in range(
+                    int(skel.joint_dof_start[j]),
+                    int(skel.joint_dof_start[j] + skel.joint_dof_count[j]),
+                )
+                if d not in act
+            ],
+            dtype=np.intp,
+        )
         # Frozen frames: FK over frozen joints only (their ancestors are frozen too).
         rp, RR = _root_inputs(skel, (self.B,), root_position, root_rotation)
         self.root = rp
@@ -129,6 +144,22 @@ class ChainModel:
         self.upper = skel.upper[self.active]
         self.n = self.active.size
         self._cm = _coordinate_plan(self._axis)
+
+    def for_start(self, q_full: FloatArray) -> ChainModel:
+        """This model if it was built for the start ``q_full`` (B, D) (the same angles of every
+        baked dof), else one built for it. A model evaluates its sites with the angles it was
+        prepared with: reused for a start with another trunk, it would place the hand where
+        that trunk is not, and call a miss of 20 cm a success."""
+        qf = np.atleast_2d(np.asarray(q_full, dtype=float))
+        if self.baked.size == 0:
+            return self
+        base = self.q_base[:, self.baked]
+        if (self.B == 1 or qf.shape[0] == self.B) and np.array_equal(
+            qf[:, self.baked], np.broadcast_to(base, (qf.shape[0], base.shape[1]))
+        ):
+            return self
+        root_position, root_rotation = self._root_args
+        return ChainModel(self.skel, self.sites, self.active, qf, root_position, root_rotation)
 
     def evaluate(
         self, qa: FloatArray, rows: NDArray[np.intp] | None = None

@@ -41,6 +41,17 @@ class IKResult:
         return float(np.mean(self.success))
 
 
+def returned_errors(
+    model: ChainModel, ga: GoalArrays, q_out: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Position and orientation errors (B,) of the configurations a solver returns, from the
+    forward kinematics of ``q_out`` itself (a model built for its baked angles, so a model
+    prepared for another start cannot vouch for a pose it does not describe)."""
+    exact = model.for_start(q_out)
+    r = residual(exact, ga, q_out[:, exact.active])
+    return r.pos_err, r.ori_err
+
+
 @dataclass
 class Residual:
     """Stacked task error ``e`` (b, m), its Jacobian ``J`` (b, m, nA), and error measures."""

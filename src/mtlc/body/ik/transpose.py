@@ -20,7 +20,7 @@ from ..skeleton import Skeleton
 from .dls import _initial, prepare
 from .goals import Goal, normalise
 from .model import ChainModel
-from .result import IKResult, residual
+from .result import IKResult, residual, returned_errors
 
 FloatArray = NDArray[np.float64]
 
@@ -54,6 +54,7 @@ def solve_transpose(
             root_rotation=root_rotation,
         )
     qf, q_all = _initial(skel, model, q0, B)
+    model = model.for_start(qf)  # a model prepared for another trunk describes another body
     lo, hi = model.lower, model.upper
     r = residual(model, ga, q_all)
     pos, ori = r.pos_err.copy(), r.ori_err.copy()
@@ -99,6 +100,7 @@ def solve_transpose(
     q = q_all
     q_out = qf.copy()
     q_out[:, model.active] = q
+    pos, ori = returned_errors(model, ga, q_out)
     success = (pos <= tol) & (ori <= orientation_tol) & skel.within_limits(q_out)
     return IKResult(
         q=q_out,

@@ -1,0 +1,259 @@
+"""Pass 5b: a hand that holds a site stays on it while the rest of the body moves.
+
+The solving passes key each segment's own dofs at its own times; interpolation then blends every
+dof separately. A hand that reached its site and holds it (a bowl it unscrews, a handle it
+steadies) is therefore on the site only at the keyframes: while the other hand's reach bends the
+trunk, or a kneel lowers the body, the held arm keeps its angles and the hand is dragged with
+the shoulder (121 mm off the fuel filter's bowl for a P5 woman, 560 mm for a lever reached
+behind the body before a kneel). Here, on the dense frames, a held hand is an IK goal at every
+frame: its arm (shoulder, elbow flexion, wrist; not the forearm's twist, which a `turn` sets)
+is re-solved from the interpolated pose onto the held point, warm-started frame by frame so the
+motion stays as smooth as the body's.
+
+A hold (``hold_windows``) runs from the end of a contact (TO) segment until the hand's next arm
+segment starts, a walk starts (the part is carried from then on: it moves with the hand) or the
+hand lets go for good (its last grip event in that time is a release: the hold ends with it).
+The held point is the site (the segment's goal position) when the contact reached it, else
+where the hand stopped. After a hold the correction fades out over ``FADE`` seconds or more, so
+the arm does not jump when the hand is free again; after a hold that a walk ends, the part is
+carried and the correction stays until the hand's next arm motion or release.
+
+Where the arm cannot keep the hand there (the kneel takes the shoulder out of reach), the hand
+stays as close as it can and MT0520 is reported at the line whose motion pulls it away, once per
+hold: a miss on the frames is never silent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mtlc.body import forward, site_positions
+from mtlc.body.ik import Goal, default_dofs, prepare, solve_ta
+from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
+from mtlc.passes.context import PassContext
+
+ARM_HAND = {"r_arm": "r_hand", "l_arm": "l_hand"}
+HAND_NAMES = {"r_hand": "right hand", "l_hand": "left hand"}
+SOLVE_TOL = 2e-4  # m: the held point is restored this close
+REPORT_TOL = 1e-3  # m: further than this on a frame is a reported miss
+FIX_FROM = 5e-5  # m: frames already this close are left alone
+FADE = 0.25  # s over which a hold's correction fades out after it ends, at least...
+FADE_RATE = 2.0  # rad/s: ...so that no dof fades faster than this
+EPS = 1e-6
+MAX_SWING = 0.15  # rad a hold's correction may change in one dense frame (9 deg at 60 fps)
+
+
+@dataclass
+class Hold:
+    """One hand holding one point from ``start`` until ``end`` (``seg``: the contact)."""
+
+    seg: Segment
+    effector: str
+    start: float
+    end: float
+    point: FloatArray | None  # None: where the hand is at ``start``
+
+
+def _is_open(seg: Segment) -> bool:
+    return seg.kind == "grip" and seg.goal.params.get("state") == "open"
+
+
+def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
+    """Each contact (TO) segment with the time its hand stops holding: the hand's next arm
+    segment, the next walk, or the end of a release not followed by a new grasp, whichever
+    comes first (the end of the motion when none does)."""
+    by_track: dict[str, list[Segment]] = {}
+    walks: list[float] = []
+    for seg in ir.segments:
+        by_track.setdefault(seg.track, []).append(seg)
+        if seg.kind == "locomotion":
+            walks.append(seg.start)
+    out = []
+    for track, hand in ARM_HAND.items():
+        arm = sorted(by_track.get(track, []), key=lambda s: s.start)
+        grips = sorted(
+            (s for s in by_track.get(hand, []) if s.kind == "grip"), key=lambda s: s.start
+        )
+        for seg in arm:
+            if seg.kind != "TO" or "stroke" in seg.goal.params:
+                continue
+            after = seg.end
+            ends = [s.start for s in arm if s.start >= after - EPS and s is not seg]
+            ends += [t for t in walks if t >= after - EPS]
+            end = min(ends, default=ir.duration)
+            inside = [g for g in grips if after - EPS <= g.start < end - EPS]
+            if inside and _is_open(inside[-1]):  # let go and not taken again: the hold ends
+                end = min(end, inside[-1].end)
+            out.append((seg, end))
+    return out
+
+
+def holding(ir: MotionIR, t: float, memo: dict[Any, Any] | None = None) -> set[str]:
+    """The arm tracks whose hand is on a site at ``t`` (from its contact's start until its
+    hold ends): what a reach of the other hand must not pull away."""
+    key = ("hold_spans", len(ir.segments))
+    if memo is not None and key in memo:
+        spans = memo[key]
+    else:
+        spans = hold_spans(ir)
+        if memo is not None:
+            memo[key] = spans
+    return {seg.track for seg, end in spans if seg.start - EPS <= t < end - EPS}
+
+
+def hold_windows(ir: MotionIR) -> list[Hold]:
+    """Every hold of the motion, in time order (see the module docstring)."""
+    holds = []
+    for seg, end in hold_spans(ir):
+        if seg.goal.position is None or end <= seg.end + EPS:
+            continue
+        reached = float(seg.result.get("distance", np.inf)) <= REPORT_TOL
+        point = np.asarray(seg.goal.position, dtype=float) if reached else None
+        holds.append(Hold(seg, seg.goal.effector, seg.end, end, point))
+    return sorted(holds, key=lambda h: h.start)
+
+
+def _arm_dofs(skel: Any, effector: str) -> list[int]:
+    """The arm chain without the forearm's twist (a `turn` owns that dof)."""
+    return [d for d in default_dofs(skel, [effector], "arm") if "_pro" not in skel.dof_names[d]]
+
+
+def _site(skel: Any, frames: Frames, rows: np.ndarray, effector: str, q: FloatArray) -> FloatArray:
+    pose = forward(skel, q, frames.root_position[rows], frames.root_rotation[rows], with_axes=False)
+    return np.asarray(site_positions(skel, pose, effector))
+
+
+def keep_hold(
+    skel: Any, frames: Frames, hold: Hold
+) -> tuple[np.ndarray, FloatArray, FloatArray] | None:
+    """Re-solve the held arm on the hold's frames: (rows, corrected q, remaining distance)."""
+    t = frames.time
+    rows = np.flatnonzero((t >= hold.start - EPS) & (t < hold.end - EPS))
+    if rows.size == 0:
+        return None
+    q = frames.q[rows].copy()
+    here = _site(skel, frames, rows, hold.effector, q)
+    point = here[0] if hold.point is None else hold.point
+    dist = np.linalg.norm(here - point, axis=1)
+    fix = dist > FIX_FROM
+    if fix.any():
+        sub = rows[fix]
+        model = prepare(
+            skel, [hold.effector], q[fix], dofs=_arm_dofs(skel, hold.effector),
+            root_position=frames.root_position[sub], root_rotation=frames.root_rotation[sub],
+        )  # fmt: skip
+        goal = Goal(hold.effector, position=np.tile(point, (int(fix.sum()), 1)))
+        res = solve_ta(skel, [goal], q[fix], model=model, restarts=0, null_gain=0.0, tol=SOLVE_TOL)
+        better = res.position_error < dist[fix]
+        idx = np.flatnonzero(fix)[better]
+        q[idx] = res.q[better]
+        dist[idx] = res.position_error[better]
+    # a frame the arm reaches only by a sudden swing (near its limits the nearest pose may
+    # change branch) is one the hand cannot follow smoothly: it is let go there as well
+    swing = np.abs(np.diff(q - frames.q[rows], axis=0)).max(axis=1, initial=0.0)
+    lost = np.union1d(np.flatnonzero(dist > REPORT_TOL), np.flatnonzero(swing > MAX_SWING) + 1)
+    if lost.size:
+        # out of the arm's reach from frame ``f`` on: the hand holds until then and lets go
+        # there, the correction fading out at a bounded rate (a best-effort pose per frame
+        # would jump between branches); what the hand then misses is measured and reported
+        f = int(lost[0])
+        delta = q[f - 1] - frames.q[rows[f - 1]] if f > 0 else np.zeros(skel.n_dofs)
+        t = frames.time[rows[f:]]
+        fade = max(FADE, float(np.abs(delta).max()) / FADE_RATE)
+        w = np.clip(1.0 - (t - t[0]) / fade, 0.0, 1.0)
+        q[f:] = frames.q[rows[f:]] + w[:, None] * delta[None]
+        dist[f:] = np.linalg.norm(
+            _site(skel, frames, rows[f:], hold.effector, skel.clip(q[f:])) - point, axis=1
+        )
+    return rows, q, dist
+
+
+def _mover(ir: MotionIR, hold: Hold, t: float) -> Segment:
+    """The segment whose motion pulls a held hand away at ``t``: one active then on another
+    track (a posture, the other arm's reach, a walk), else the hold's own contact."""
+    kinds = {"posture": 0, "locomotion": 1, "TA": 2, "TO": 3, "hold": 4}
+    active = [
+        s
+        for s in ir.segments
+        if s.kind in kinds
+        and s.track != hold.seg.track
+        and s.start - EPS <= t <= s.end + EPS
+        and not (s.kind == "posture" and s.goal.params.get("posture") == "twist")
+    ]
+    if not active:
+        return hold.seg
+    return min(active, key=lambda s: (kinds[s.kind], -s.start))
+
+
+def carried_until(ir: MotionIR, hold: Hold) -> float:
+    """When a hold ends because a walk starts, the part is carried: the hand keeps its grip on
+    the body (its arm's correction stays as it was) until the hand's next arm segment or a
+    release; otherwise the hold's end."""
+    if not any(s.kind == "locomotion" and abs(s.start - hold.end) <= EPS for s in ir.segments):
+        return hold.end
+    hand = ARM_HAND.get(hold.seg.track, "")
+    later = [
+        s.start
+        for s in ir.segments
+        if s.start >= hold.end - EPS
+        and (s.track == hold.seg.track or (s.track == hand and _is_open(s)))
+    ]
+    return min(later, default=ir.duration + 1.0)
+
+
+def _fade(
+    skel: Any, frames: Frames, start: float, carry: float, delta: FloatArray, until: float
+) -> None:
+    """Keep the last frame's correction ``delta`` (n_dofs,) from ``start`` until ``carry``
+    (a carried part), then blend it out at a bounded rate, stopping at ``until``."""
+    if not np.any(delta):
+        return
+    t = frames.time
+    fade = max(FADE, float(np.abs(delta).max()) / FADE_RATE)
+    stop = min(carry + fade, until)
+    rows = np.flatnonzero((t >= start - EPS) & (t < stop - EPS))
+    if rows.size == 0:
+        return
+    w = np.clip(1.0 - (t[rows] - carry) / fade, 0.0, 1.0)
+    frames.q[rows] = skel.clip(frames.q[rows] + w[:, None] * delta[None])
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    frames = ir.frames
+    skel = ir.skeleton
+    if frames is None or not len(frames.time):
+        return ir
+    holds = hold_windows(ir)
+    for k, hold in enumerate(holds):
+        kept = keep_hold(skel, frames, hold)
+        if kept is None:
+            continue
+        rows, q, dist = kept
+        delta = q[-1] - frames.q[rows[-1]]
+        frames.q[rows] = skel.clip(q)
+        # the next hold of the same hand takes over where it starts
+        nxt = [h.start for h in holds[k + 1 :] if h.seg.track == hold.seg.track]
+        carry = carried_until(ir, hold)
+        _fade(skel, frames, hold.end, carry, delta, min(nxt, default=np.inf))
+        worst = int(np.argmax(dist))
+        if dist[worst] > REPORT_TOL:
+            t = float(frames.time[rows[worst]])
+            # the motion going on when the hand first leaves the point is what pulls it off
+            first = float(frames.time[rows[int(np.argmax(dist > REPORT_TOL))]])
+            mover = _mover(ir, hold, first)
+            hand = HAND_NAMES.get(hold.effector, hold.effector)
+            ctx.report(
+                "MT0520",
+                f"the {hand} cannot stay on `{hold.seg.goal.site}` here: "
+                f"{dist[worst] * 1000:.0f} mm off at {t:.2f} s",
+                mover.provenance.origin,
+                notes=(
+                    f"the {hand} holds `{hold.seg.goal.site}` from line "
+                    f"{hold.seg.provenance.origin.line} ({hold.start:.2f} s to "
+                    f"{hold.end:.2f} s); its arm alone cannot follow this motion",
+                ),
+            )
+    return ir

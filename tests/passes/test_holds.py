@@ -1,0 +1,193 @@
+"""A hand that holds a site stays on it on the output frames, or a diagnostic says it cannot.
+
+Issue 18: two parallel reaches of different lengths that both need the trunk pulled the first
+hand 250-380 mm off its site; on the fuel filter the left hand's trunk-assisted reach dragged
+the right hand 75-121 mm off the bowl it holds; a lever held behind the body was left 157 mm
+and more behind by a kneel. All of it silently. Measured here on the sampled frames (the ones
+a user receives), by forward kinematics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mtlc.body import forward, site_positions
+from mtlc.diagnostics import DiagnosticSink
+from mtlc.frontend import run_frontend
+from mtlc.ir.model import MotionIR
+from mtlc.passes import MotionOptions, run_motion
+from mtlc.passes.hold import hold_spans
+from mtlc.semantics.timeline import ManikinSpec
+
+ROOT = Path(__file__).resolve().parents[2]
+HEAD = "use stdlib.actions\nuse stdlib.elements\n\n"
+
+PARALLEL = (
+    HEAD
+    + """scene bench {
+    ground 0 cm
+    site low_left at (45, 45, 55) cm normal (0, 1, 0)
+    site far_right at (-40, 70, 75) cm normal (0, 1, 0)
+}
+
+task par_trunk "Two parallel trunk reaches of different lengths" {
+    manikin gb10000_1988 male p50
+    scene bench
+    parallel {
+        reach(left, low_left, A)
+        reach(right, far_right, C)
+    }
+    parallel {
+        grasp(left)
+        grasp(right)
+    }
+    hold(1 s)
+}
+"""
+)
+
+KNEEL = (
+    HEAD
+    + """scene bay {
+    ground 0 cm
+    site lever at (-20, 90, -30) cm
+}
+
+task behind_kneel "Reach behind, then kneel" {
+    manikin gb10000_1988 male p50
+    scene bay
+    reach(right, lever)
+    grasp(right)
+    kneel(2)
+    hold(1 s)
+}
+"""
+)
+
+
+def compile_text(tmp: Path, text: str, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSink]:
+    path = tmp / "case.mtask"
+    path.write_text(text)
+    return compile_file(path, sex, pct)
+
+
+def compile_file(path: Path, sex: str, pct: int) -> tuple[MotionIR, DiagnosticSink]:
+    program = run_frontend([path])
+    assert not program.sink.has_errors, [d.message for d in program.sink.items]
+    (timeline,) = program.timelines
+    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
+    sink = DiagnosticSink()
+    return run_motion(timeline, sink, MotionOptions()), sink
+
+
+def hold_misses(ir: MotionIR) -> list[tuple[int, str, float]]:
+    """(task line, site, worst distance in m) of every hold over the sampled frames: the hand's
+    distance to its site from the frame at its contact's end until the hold ends."""
+    frames = ir.frames
+    assert frames is not None
+    pose = forward(ir.skeleton, frames.q, frames.root_position, frames.root_rotation)
+    out = []
+    for seg, end in hold_spans(ir):
+        if float(seg.result.get("distance", 1.0)) > 1e-3:
+            continue  # a reach already reported short holds where it stopped
+        rows = (frames.time >= seg.end - 1e-6) & (frames.time < end - 1e-9)
+        if not rows.any():
+            continue
+        at = site_positions(ir.skeleton, pose, seg.goal.effector)[rows]
+        worst = float(np.linalg.norm(at - np.asarray(seg.goal.position), axis=1).max())
+        out.append((seg.provenance.origin.line, str(seg.goal.site), worst))
+    return out
+
+
+def reported_lines(sink: DiagnosticSink) -> set[int]:
+    """Lines a hold miss may be reported at: the MT0520's own line and the hold's line it names,
+    and every MT0501's line."""
+    lines = set()
+    for d in sink.items:
+        if d.code in ("MT0501", "MT0520"):
+            lines.add(d.span.line)
+            for note in d.notes:
+                if "from line " in note:
+                    lines.add(int(note.split("from line ")[1].split()[0]))
+    return lines
+
+
+@pytest.mark.parametrize(("sex", "pct"), [("male", 50), ("female", 5)])
+def test_parallel_trunk_reaches_keep_the_first_hand_on_its_site(
+    tmp_path: Path, sex: str, pct: int
+) -> None:
+    ir, sink = compile_text(tmp_path, PARALLEL, sex, pct)
+    misses = hold_misses(ir)
+    assert 14 in {line for line, _, _ in misses}
+    for line, site, worst in misses:
+        assert worst <= 1e-3 or line in reported_lines(sink), (site, worst * 1000)
+    left = next(w for line, _, w in misses if line == 14)
+    assert left <= 1e-3, f"left hand {left * 1000:.1f} mm off low_left"  # was 1,000 mm
+    # the motion is not jerkier for it: no one-frame step over 20 degrees
+    assert ir.frames is not None
+    assert np.degrees(np.abs(np.diff(ir.frames.q, axis=0))).max() < 20.0
+
+
+@pytest.mark.parametrize(("sex", "pct"), [("female", 5), ("male", 95)])
+def test_fuel_filter_bowl_stays_in_the_right_hand(sex: str, pct: int) -> None:
+    ir, sink = compile_file(ROOT / "examples" / "replace_fuel_filter.mtask", sex, pct)
+    misses = hold_misses(ir)
+    bowl = [w for line, site, w in misses if line == 34 and site == "filter_bowl"]
+    assert bowl and max(bowl) <= 1e-3, f"{max(bowl) * 1000:.1f} mm"  # was 121 / 75 mm
+    for line, site, worst in misses:
+        assert worst <= 1e-3 or line in reported_lines(sink), (line, site, worst * 1000)
+
+
+def test_a_hold_the_kneel_cannot_keep_is_reported_at_the_kneel(tmp_path: Path) -> None:
+    ir, sink = compile_text(tmp_path, KNEEL, "male", 50)
+    (lost,) = [d for d in sink.items if d.code == "MT0520"]
+    assert lost.span.line == 14  # kneel(2), the motion that pulls the hand off
+    assert "lever" in lost.message and "from line 12" in lost.notes[0]
+    (miss,) = hold_misses(ir)
+    assert miss[2] > 0.1  # truly off: the report is not a false alarm
+    off_mm = int(lost.message.split(": ")[1].split(" mm")[0])
+    assert abs(off_mm - miss[2] * 1000) < 20  # the number it gives is what the frames show
+
+
+CARRY = (
+    HEAD
+    + """scene rack {
+    ground 0 cm
+    site handle at (-20, 105, 45) cm normal (0, 0, -1)
+    site knob at (55, 60, 60) cm normal (0, 1, 0)
+    site exit at (0, 0, -200) cm
+}
+
+task hold_walk "Hold a part by two handles, walk away with it" {
+    manikin gb10000_1988 female p5
+    scene rack
+    reach(right, handle)
+    grasp(right)
+    reach(left, knob)
+    grasp(left)
+    walk_to(exit)
+    release(left)
+    release(right)
+}
+"""
+)
+
+
+def test_a_part_held_in_both_hands_is_carried_whole_through_a_walk(tmp_path: Path) -> None:
+    ir, _ = compile_text(tmp_path, CARRY, "female", 5)
+    assert all(w <= 1e-3 for _, _, w in hold_misses(ir))  # held while standing
+    frames = ir.frames
+    assert frames is not None
+    (walk,) = [s for s in ir.segments if s.kind == "locomotion"]
+    rows = (frames.time >= walk.start) & (frames.time <= walk.end)
+    pose = forward(ir.skeleton, frames.q[rows], frames.root_position[rows],
+                   frames.root_rotation[rows])  # fmt: skip
+    spread = np.linalg.norm(
+        site_positions(ir.skeleton, pose, "r_hand") - site_positions(ir.skeleton, pose, "l_hand"),
+        axis=1,
+    )
+    assert spread.max() - spread.min() <= 1e-3  # the hands do not move on the part

@@ -195,7 +195,7 @@ _STATEMENT_KEYWORDS = [
 
 
 def _corner_stmts() -> st.SearchStrategy[str]:
-    """Statements, with every keyword at a statement's start followed by `(`, `.` or its own
+    """Simple statements, with every keyword at a statement's start followed by `(`, `.` or its own
     continuation: the places where LALR's one token of lookahead decides."""
     head = st.one_of(st.sampled_from(_KEYWORDS), st.sampled_from(_STATEMENT_KEYWORDS))
     simple = st.one_of(
@@ -210,31 +210,19 @@ def _corner_stmts() -> st.SearchStrategy[str]:
         st.builds(lambda w: f"manikin {w} {w} {w}", _WORD),
     )
 
-    def extend(inner: st.SearchStrategy[str]) -> st.SearchStrategy[str]:
-        body = st.builds(
-            lambda xs, sep: "{" + sep + sep.join(xs) + sep + "}",
-            st.lists(inner, max_size=3),
-            st.sampled_from(["\n", ";", " ; ;\n"]),
-        )
-        return st.one_of(
-            body,
-            st.builds(lambda e, b: f"repeat {e} {b}", _CE, body),
-            st.builds(lambda w, e, b: f"for {w} in {e} {b}", _WORD, _CE, body),
-            st.builds(lambda b: f"parallel {b}", body),
-        )
-
-    return st.recursive(simple, extend, max_leaves=4)
+    return simple
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.lists(_corner_stmts(), min_size=1, max_size=4))
-def test_statements_at_the_grammars_corners_agree(stmts: list[str]) -> None:
+@given(st.lists(_corner_stmts(), min_size=1, max_size=6), st.sampled_from(_STATEMENT_KEYWORDS))
+def test_statements_at_the_grammars_corners_agree(stmts: list[str], keyword: str) -> None:
     """Each statement in a task of its own (one bad statement would send the whole item to
-    lark), then all of them in one action, and the first as a scene's ground."""
+    lark), then all of them in blocks, and the first as a scene's ground."""
     accepted = 0
     for stmt in stmts:
         accepted += sum(fast for fast, _ in _compare_text(f"task t {{\n{stmt}\n}}"))
-    _compare_text(f"action a(x: y = {stmts[0]},) {{ {'; '.join(stmts)} }}")
+    body = "{\n" + "; ".join(stmts) + "\n}"
+    _compare_text(f"action a(x: y = {stmts[0]},) {{ {keyword} x {body}; parallel {body} }}")
     _compare_text(f"scene b {{ ground {stmts[0]}\nsite a at {stmts[-1]} normal (0, 0, 1) }}")
     _ACCEPTED.append(accepted / len(stmts))
 

@@ -153,6 +153,39 @@ def _fits(parts: Doc, rest: list[_Command], width: int, broken: set[int]) -> boo
     return False
 
 
+def _flat_pieces(doc: Doc, pieces: list[str], held: list[str]) -> tuple[int, int]:
+    """What ``render`` appends for ``doc`` printed flat, for a group that holds nothing that
+    breaks (no hard line, BreakParent or broken group: see _must_break): its texts, spaces and
+    flat IfBreaks into ``pieces``, its line suffixes into ``held``. Returns the index in
+    ``pieces`` of the first non-empty text (where the pending indentation goes; -1: none) and
+    the width, as _fits counts it. One walk instead of _fits's and then render's."""
+    first_text = -1
+    used = 0
+    todo: list[object] = [doc]
+    while todo:
+        part = todo.pop()
+        kind = type(part)
+        if kind is str:
+            if first_text < 0 and part:
+                first_text = len(pieces)
+            pieces.append(part)  # type: ignore[arg-type]
+            used += len(part)  # type: ignore[arg-type]
+        elif kind is list:
+            todo.extend(reversed(part))  # type: ignore[call-overload]
+        elif kind is Line:
+            if not part.soft:  # type: ignore[union-attr]
+                pieces.append(" ")
+                used += 1
+        elif kind is Group or kind is Nest or kind is Flat:
+            todo.append(part.parts)  # type: ignore[union-attr]
+        elif kind is IfBreak:
+            pieces.append(part.flat)  # type: ignore[union-attr]
+            used += len(part.flat)  # type: ignore[union-attr]
+        elif kind is LineSuffix:
+            held.append(part.text)  # type: ignore[union-attr]
+    return first_text, used
+
+
 def render(doc: Doc, width: int) -> str:
     """Lay ``doc`` out in lines of at most ``width`` characters where the groups allow it."""
     broken: set[int] = set()
@@ -183,12 +216,11 @@ def render(doc: Doc, width: int) -> str:
         indent, mode, doc = stack.pop()
         kind = type(doc)
         if kind is str:
-            if doc:
-                if pending_indent is not None:
-                    out.append(" " * pending_indent)
-                    pending_indent = None
-                out.append(doc)  # type: ignore[arg-type]
-                column += len(doc)  # type: ignore[arg-type]
+            if pending_indent is not None and doc:
+                out.append(" " * pending_indent)
+                pending_indent = None
+            out.append(doc)  # type: ignore[arg-type]
+            column += len(doc)  # type: ignore[arg-type]
         elif kind is list:
             stack.extend([(indent, mode, part) for part in reversed(doc)])  # type: ignore[arg-type]
         elif kind is Line:
@@ -199,10 +231,26 @@ def render(doc: Doc, width: int) -> str:
             else:
                 newline(indent)
         elif kind is Group:
-            flat = id(doc) not in broken and (  # a group with a hard line (or comment) breaks
-                mode == _FLAT or _fits(doc.parts, stack, width - column, broken)  # type: ignore[union-attr]
-            )
-            stack.append((indent, _FLAT if flat else _BREAK, doc.parts))  # type: ignore[union-attr]
+            if id(doc) in broken:  # a group with a hard line (or comment) breaks
+                stack.append((indent, _BREAK, doc.parts))  # type: ignore[union-attr]
+                continue
+            # nothing inside breaks: its flat pieces are laid out once, then kept if they fit
+            pieces: list[str] = []
+            held: list[str] = []
+            first_text, used = _flat_pieces(doc.parts, pieces, held)  # type: ignore[union-attr]
+            room = width - column
+            if mode == _FLAT or (used <= room and _fits([], stack, room - used, broken)):
+                if pending_indent is not None and first_text >= 0:
+                    out.extend(pieces[:first_text])
+                    out.append(" " * pending_indent)
+                    pending_indent = None
+                    out.extend(pieces[first_text:])
+                else:
+                    out.extend(pieces)
+                column += used
+                suffixes.extend(held)
+            else:
+                stack.append((indent, _BREAK, doc.parts))  # type: ignore[union-attr]
         elif kind is Nest:
             stack.append((indent + INDENT, mode, doc.parts))  # type: ignore[union-attr]
         elif kind is Flat:

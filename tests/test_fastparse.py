@@ -84,7 +84,7 @@ def test_clean_generated_programs_are_parsed_fast_and_the_same() -> None:
     assert missed == 0
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 10**9))
 def test_fuzz_cases_agree(index: int) -> None:
     """Generated (calm and wild) and byte-mutated cases from bench/fuzz.py."""
@@ -100,7 +100,7 @@ _VOCAB = [  # a new line twice as often
 ]
 
 
-@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     st.sampled_from([p.read_text(encoding="utf-8") for p in EXAMPLES]),
     st.lists(

@@ -1,7 +1,7 @@
 """A small Wadler/prettier-style document printer: the formatter says what may break, this
 module decides what does, so that a bracket list wraps only when its flat form does not fit.
 
-A document is a ``Text``, a ``Line`` (a space or nothing when flat, a new line when broken), a
+A document is a ``Text`` (a plain ``str``: the commonest part, so no object per piece), a ``Line`` (a space or nothing when flat, a new line when broken), a
 ``HardLine``, a ``Group`` (printed flat if it fits, else broken), a ``Nest`` (indents the new
 lines inside it), an ``IfBreak`` (text that depends on the enclosing group's mode), a
 ``LineSuffix`` (a trailing comment, held back until the end of the line) or a list of these.
@@ -18,9 +18,7 @@ from typing import TypeAlias
 INDENT = 4
 
 
-@dataclass(frozen=True, slots=True)
-class Text:
-    text: str
+Text = str  # `Text("x")` reads as a document part; it is the string itself
 
 
 @dataclass(frozen=True, slots=True)
@@ -78,59 +76,114 @@ HARDLINE = HardLine()
 _FLAT, _BREAK = 0, 1
 
 
-def _must_break(doc: Doc, broken: set[int]) -> bool:
-    """Mark every group that holds a hard line; return whether ``doc`` holds one."""
-    if isinstance(doc, list):
-        found = False
-        for part in doc:
-            found = _must_break(part, broken) or found
-        return found
-    if isinstance(doc, HardLine | BreakParent):
-        return True
-    if isinstance(doc, Group):
-        inner = _must_break(doc.parts, broken)
-        if inner or doc.force_break:
-            broken.add(id(doc))
-        return inner or doc.force_break
-    if isinstance(doc, Nest | Flat):
-        return _must_break(doc.parts, broken)
-    return False
+_EXIT = object()  # in _must_break's stack: the group opened below is done
+
+
+def _must_break(doc: Doc, broken: set[int]) -> None:
+    """Mark (by id) every group that holds a hard line, a BreakParent or a forced group.
+
+    Iterative, so a deeply nested document cannot reach the recursion limit. ``path`` holds
+    the groups open around the current part; a mark goes up it and stops at a group already
+    marked (whose enclosing groups were marked with it), so each group is marked once.
+    """
+    path: list[Group] = []
+    todo: list[object] = [doc]
+
+    def mark() -> None:
+        for group in reversed(path):
+            if id(group) in broken:
+                return
+            broken.add(id(group))
+
+    while todo:
+        part = todo.pop()
+        kind = type(part)
+        if kind is str:
+            continue
+        if kind is list:
+            todo.extend(part)  # type: ignore[arg-type]
+        elif part is _EXIT:
+            path.pop()
+        elif kind is Group:
+            path.append(part)  # type: ignore[arg-type]
+            todo.append(_EXIT)
+            if part.force_break:  # type: ignore[union-attr]
+                mark()
+            todo.append(part.parts)  # type: ignore[union-attr]
+        elif kind is HardLine or kind is BreakParent:
+            mark()
+        elif kind is Nest or kind is Flat:
+            todo.append(part.parts)  # type: ignore[union-attr]
 
 
 _Command = tuple[int, int, Doc]  # indent, mode, document
 
 
-def _fits(first: _Command, rest: list[_Command], width: int, broken: set[int]) -> bool:
-    """Whether ``first``, flat, and what follows it up to the next line break fit in ``width``."""
-    todo = [first]
+def _fits(parts: Doc, rest: list[_Command], width: int, broken: set[int]) -> bool:
+    """Whether ``parts``, flat, and what follows it up to the next line break fit in ``width``."""
+    todo: list[tuple[int, Doc]] = [(_FLAT, parts)]
     next_rest = len(rest)
     while width >= 0:
         if not todo:
             if next_rest == 0:
                 return True
             next_rest -= 1
-            todo.append(rest[next_rest])
+            todo.append(rest[next_rest][1:])  # type: ignore[arg-type]
             continue
-        indent, mode, doc = todo.pop()
-        if isinstance(doc, list):
-            todo.extend((indent, mode, part) for part in reversed(doc))
-        elif isinstance(doc, Text):
-            width -= len(doc.text)
-        elif isinstance(doc, Nest):
-            todo.append((indent, mode, doc.parts))
-        elif isinstance(doc, Flat):
-            todo.append((indent, _FLAT, doc.parts))
-        elif isinstance(doc, Group):
-            todo.append((indent, _BREAK if id(doc) in broken else mode, doc.parts))
-        elif isinstance(doc, Line):
+        mode, doc = todo.pop()
+        kind = type(doc)
+        if kind is str:
+            width -= len(doc)  # type: ignore[arg-type]
+        elif kind is list:
+            todo.extend([(mode, part) for part in reversed(doc)])  # type: ignore[arg-type]
+        elif kind is Line:
             if mode == _BREAK:
                 return True
-            width -= 0 if doc.soft else 1
-        elif isinstance(doc, HardLine):
+            width -= 0 if doc.soft else 1  # type: ignore[union-attr]
+        elif kind is Group:
+            todo.append((_BREAK if id(doc) in broken else mode, doc.parts))  # type: ignore[union-attr]
+        elif kind is Nest:
+            todo.append((mode, doc.parts))  # type: ignore[union-attr]
+        elif kind is Flat:
+            todo.append((_FLAT, doc.parts))  # type: ignore[union-attr]
+        elif kind is HardLine:
             return True
-        elif isinstance(doc, IfBreak):
-            width -= len(doc.broken if mode == _BREAK else doc.flat)
+        elif kind is IfBreak:
+            width -= len(doc.broken if mode == _BREAK else doc.flat)  # type: ignore[union-attr]
     return False
+
+
+def _flat_pieces(doc: Doc, pieces: list[str], held: list[str]) -> tuple[int, int]:
+    """What ``render`` appends for ``doc`` printed flat, for a group that holds nothing that
+    breaks (no hard line, BreakParent or broken group: see _must_break): its texts, spaces and
+    flat IfBreaks into ``pieces``, its line suffixes into ``held``. Returns the index in
+    ``pieces`` of the first non-empty text (where the pending indentation goes; -1: none) and
+    the width, as _fits counts it. One walk instead of _fits's and then render's."""
+    first_text = -1
+    used = 0
+    todo: list[object] = [doc]
+    while todo:
+        part = todo.pop()
+        kind = type(part)
+        if kind is str:
+            if first_text < 0 and part:
+                first_text = len(pieces)
+            pieces.append(part)  # type: ignore[arg-type]
+            used += len(part)  # type: ignore[arg-type]
+        elif kind is list:
+            todo.extend(reversed(part))  # type: ignore[call-overload]
+        elif kind is Line:
+            if not part.soft:  # type: ignore[union-attr]
+                pieces.append(" ")
+                used += 1
+        elif kind is Group or kind is Nest or kind is Flat:
+            todo.append(part.parts)  # type: ignore[union-attr]
+        elif kind is IfBreak:
+            pieces.append(part.flat)  # type: ignore[union-attr]
+            used += len(part.flat)  # type: ignore[union-attr]
+        elif kind is LineSuffix:
+            held.append(part.text)  # type: ignore[union-attr]
+    return first_text, used
 
 
 def render(doc: Doc, width: int) -> str:
@@ -161,40 +214,54 @@ def render(doc: Doc, width: int) -> str:
 
     while stack:
         indent, mode, doc = stack.pop()
-        if isinstance(doc, list):
-            stack.extend((indent, mode, part) for part in reversed(doc))
-        elif isinstance(doc, Text):
-            if pending_indent is not None and doc.text:
+        kind = type(doc)
+        if kind is str:
+            if pending_indent is not None and doc:
                 out.append(" " * pending_indent)
                 pending_indent = None
-            out.append(doc.text)
-            column += len(doc.text)
-        elif isinstance(doc, Nest):
-            stack.append((indent + INDENT, mode, doc.parts))
-        elif isinstance(doc, Flat):
-            stack.append((indent, _FLAT, doc.parts))
-        elif isinstance(doc, Group):
-            flat = id(doc) not in broken and (  # a group with a hard line (or comment) breaks
-                mode == _FLAT or _fits((indent, _FLAT, doc.parts), stack, width - column, broken)
-            )
-            if flat:
-                stack.append((indent, _FLAT, doc.parts))
-            else:
-                stack.append((indent, _BREAK, doc.parts))
-        elif isinstance(doc, Line):
+            out.append(doc)  # type: ignore[arg-type]
+            column += len(doc)  # type: ignore[arg-type]
+        elif kind is list:
+            stack.extend([(indent, mode, part) for part in reversed(doc)])  # type: ignore[arg-type]
+        elif kind is Line:
             if mode == _FLAT:
-                if not doc.soft:
+                if not doc.soft:  # type: ignore[union-attr]
                     out.append(" ")
                     column += 1
             else:
                 newline(indent)
-        elif isinstance(doc, HardLine):
+        elif kind is Group:
+            if id(doc) in broken:  # a group with a hard line (or comment) breaks
+                stack.append((indent, _BREAK, doc.parts))  # type: ignore[union-attr]
+                continue
+            # nothing inside breaks: its flat pieces are laid out once, then kept if they fit
+            pieces: list[str] = []
+            held: list[str] = []
+            first_text, used = _flat_pieces(doc.parts, pieces, held)  # type: ignore[union-attr]
+            room = width - column
+            if mode == _FLAT or (used <= room and _fits([], stack, room - used, broken)):
+                if pending_indent is not None and first_text >= 0:
+                    out.extend(pieces[:first_text])
+                    out.append(" " * pending_indent)
+                    pending_indent = None
+                    out.extend(pieces[first_text:])
+                else:
+                    out.extend(pieces)
+                column += used
+                suffixes.extend(held)
+            else:
+                stack.append((indent, _BREAK, doc.parts))  # type: ignore[union-attr]
+        elif kind is Nest:
+            stack.append((indent + INDENT, mode, doc.parts))  # type: ignore[union-attr]
+        elif kind is Flat:
+            stack.append((indent, _FLAT, doc.parts))  # type: ignore[union-attr]
+        elif kind is HardLine:
             newline(indent)
-        elif isinstance(doc, IfBreak):
-            text = doc.broken if mode == _BREAK else doc.flat
+        elif kind is IfBreak:
+            text = doc.broken if mode == _BREAK else doc.flat  # type: ignore[union-attr]
             out.append(text)
             column += len(text)
-        elif isinstance(doc, LineSuffix):
-            suffixes.append(doc.text)
+        elif kind is LineSuffix:
+            suffixes.append(doc.text)  # type: ignore[union-attr]
     flush_suffixes(0)
     return "".join(out)

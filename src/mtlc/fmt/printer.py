@@ -74,7 +74,12 @@ def format_module(text: str, module: ast.Module, file: str) -> tuple[str, list[C
     return render(doc, LINE_LENGTH), printer.pool.left()
 
 
-_FIELDS: dict[type, tuple[str, ...]] = {}  # each node class's field names, in order
+_FIELDS: dict[type, tuple[str, ...]] = {}  # each node class's fields that may hold nodes, reversed
+# field types that never hold a node: not walked (a span is a tuple, but not of nodes)
+_LEAF_TYPES = frozenset(
+    {"Span", "Span | None", "bool", "float", "int", "str", "str | None", "frozenset[str]",
+     "tuple[str, ...]"}
+)  # fmt: skip
 
 
 def nodes(node: object) -> Iterator[ast.Node]:
@@ -90,8 +95,15 @@ def nodes(node: object) -> Iterator[ast.Node]:
             yield item
             names = _FIELDS.get(type(item))
             if names is None:
-                names = _FIELDS[type(item)] = tuple(f.name for f in dataclasses.fields(item))
-            stack.extend(getattr(item, name) for name in reversed(names))
+                names = _FIELDS[type(item)] = tuple(
+                    f.name for f in reversed(dataclasses.fields(item)) if f.type not in _LEAF_TYPES
+                )
+            for name in names:
+                value = getattr(item, name)
+                if type(value) is tuple:
+                    stack.extend(reversed(value))
+                elif value is not None:
+                    stack.append(value)
         elif isinstance(item, tuple) and not isinstance(item, Span):
             stack.extend(reversed(item))
 

@@ -16,6 +16,7 @@ from mtlc.syntax import ast
 from mtlc.syntax.lexer import decode_string
 
 MAX_EXPR_DEPTH = 100
+_new_span = tuple.__new__  # Span(...) without the NamedTuple constructor's extra call
 
 
 class AstBuilder(Transformer):
@@ -35,9 +36,10 @@ class AstBuilder(Transformer):
 
     # ------------------------------------------------------------ helpers
     def _sp(self, x: Any) -> Span:
-        if isinstance(x, Token):
-            return Span(
-                self.file, x.line, x.column, x.end_line, x.end_column, x.start_pos, x.end_pos
+        if isinstance(x, Token):  # (the tuple built directly: a Span per token and node)
+            return _new_span(
+                Span,
+                (self.file, x.line, x.column, x.end_line, x.end_column, x.start_pos, x.end_pos),
             )
         if isinstance(x, ast.Node):
             return x.span
@@ -46,7 +48,8 @@ class AstBuilder(Transformer):
         raise TypeError(f"no span for {x!r}")
 
     def _join(self, first: Any, last: Any) -> Span:
-        return self._sp(first).to(self._sp(last))
+        a, b = self._sp(first), self._sp(last)  # a.to(b), built directly
+        return _new_span(Span, (a[0], a[1], a[2], b[3], b[4], a[5], b[6]))
 
     def _expr(self, node: ast.Expr, *children: ast.Expr) -> ast.Expr:
         depth = 1 + max((c.depth for c in children), default=0)

@@ -23,6 +23,8 @@ from mtlc.syntax.grammar import lexicon
 NEWLINE = "_NL"
 MAX_ERRORS_PER_FILE = 50
 _WORD = re.compile(r"\w*")
+# Token(...) without its check for a deprecated keyword argument: one per lexeme
+_new_token = Token._future_new
 
 
 @cache
@@ -150,6 +152,7 @@ def tokenize(
     lx = lexicon()
     keywords, punctuation = lx.keywords, lx.punctuation
     wide = _wide_forms()
+    new = _new_token
     tokens: list[Token] = []
     line, line_start = 1, 0
     brackets: list[str] = []  # open ( and [ and {, innermost last
@@ -187,7 +190,7 @@ def tokenize(
             continue
         if kind == "NL":
             if (not brackets or brackets[-1] == "{") and tokens and tokens[-1].type != NEWLINE:
-                tokens.append(Token(NEWLINE, "\n", start, line, col, line, col + 1, end))
+                tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
             line += 1
             line_start = end
             continue
@@ -262,7 +265,7 @@ def tokenize(
             continue
         else:
             continue
-        tokens.append(Token(ttype, value, start, line, col, line, col + (end - start), end))
+        tokens.append(new(ttype, value, start, line, col, line, col + (end - start), end))
     return tokens
 
 

@@ -17,6 +17,7 @@ from lark.exceptions import UnexpectedInput, UnexpectedToken
 from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.diagnostics.suggest import did_you_mean
 from mtlc.syntax import ast
+from mtlc.syntax.fastparse import Fallback, fast_parse
 from mtlc.syntax.grammar import builder, lexicon, parser
 from mtlc.syntax.lexer import NEWLINE, tokenize
 
@@ -238,6 +239,20 @@ def _describe_token(tok: Token) -> str:
 
 
 def _parse_item(tokens: list[Token], file: str, sink: DiagnosticSink) -> ast.Node | None:
+    attempt = DiagnosticSink()
+    builder().begin(file, attempt)
+    try:
+        node = fast_parse(builder(), tokens)
+    except Fallback:  # an error, or input the fast parser leaves to lark: lark decides
+        pass
+    else:
+        sink.items.extend(attempt.items)
+        return node
+    return _parse_item_lark(tokens, file, sink)
+
+
+def _parse_item_lark(tokens: list[Token], file: str, sink: DiagnosticSink) -> ast.Node | None:
+    """lark's LALR parser, with recovery: every syntax diagnostic is made here."""
     lark = parser()
     for _attempt in range(MAX_RECOVERIES_PER_ITEM):
         attempt = DiagnosticSink()  # what the builder finds counts only for the parse that succeeds

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 from scipy.interpolate import PchipInterpolator
 
@@ -52,7 +53,9 @@ DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interp
 SWING_TOL = 5e-3  # m: a swinging foot's
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
-REACH_CHUNK = 1024  # grid times whose 41 candidate heights are solved at once
+REACH_CHUNK = 1024  # grid times whose candidate heights are solved at once
+REACH_CANDIDATES = 41  # pelvis heights tried, from standing down to 30 % of the leg lower
+REACH_BLOCKS = (2, 6, 33)  # candidates tried per round, at the times still open: sums to 41
 MIN_DURATION = 1e-6  # s: a walk with less time (a zero-length MTM walk) takes no steps
 LEGS = ("r", "l")
 LEG_DOFS = ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")
@@ -491,46 +494,80 @@ class WalkMotion:
         Candidate heights from standing down to 30 % of the leg length lower are tried with
         the exact leg IK; the highest one where both legs reach (``STANCE_REACH``) and stay
         ``LIMIT_MARGIN`` inside every joint limit wins (else the least violating one).
+
+        The candidates are tried from the top in growing blocks (``REACH_BLOCKS``), each only
+        at the times no higher candidate settled: most times take one of the first few, so a
+        walk solves a few heights a time instead of all 41. The answer is the same as trying
+        all at once (the first that fits; where none does, the first of the least violating).
         """
-        if len(t) > REACH_CHUNK:  # 41 leg solves a time: a long walk's grid a chunk at a time
+        if len(t) > REACH_CHUNK:  # a long walk's grid a chunk at a time: bounded memory
             return np.concatenate([
                 self._reach_height(t[a : a + REACH_CHUNK], xz[a : a + REACH_CHUNK],
                                    heading[a : a + REACH_CHUNK])
                 for a in range(0, len(t), REACH_CHUNK)
             ])  # fmt: skip
         top = self.ground + self.stand_height
-        cand = top - np.linspace(0.0, 0.3 * self.legs.length, 41)
-        n, m = len(t), len(cand)
+        cand = top - np.linspace(0.0, 0.3 * self.legs.length, REACH_CANDIDATES)
+        n = len(t)
+        feet = self.feet(t)
+        choice = np.full(n, -1)  # the candidate settled for each time, -1 while open
+        best = np.full(n, np.inf)  # the least violation so far, where none fits
+        best_j = np.zeros(n, dtype=int)
+        rows = np.arange(n)
+        j0 = 0
+        for width in REACH_BLOCKS:
+            j1 = min(j0 + width, len(cand))
+            if not len(rows) or j0 >= j1:
+                break
+            bad = self._violation(rows, cand[j0:j1], xz, heading, feet)
+            ok = bad <= 1e-12
+            fits = ok.any(axis=1)
+            choice[rows[fits]] = j0 + ok[fits].argmax(axis=1)
+            low = bad.argmin(axis=1)
+            least = bad[np.arange(len(rows)), low]
+            better = least < best[rows]  # strictly: ties keep the higher candidate
+            best[rows[better]] = least[better]
+            best_j[rows[better]] = j0 + low[better]
+            rows = rows[~fits]
+            j0 = j1
+        choice[rows] = best_j[rows]
+        return cand[choice]
+
+    def _violation(
+        self,
+        rows: FloatArray,
+        cand: FloatArray,
+        xz: FloatArray,
+        heading: FloatArray,
+        feet: dict[str, FootTrack],
+    ) -> FloatArray:
+        """How far each candidate pelvis height misses at each time (``rows`` of the times):
+        joint-limit excess of both legs plus 10 × the reach excess, (len(rows), len(cand))."""
+        n, m = len(rows), len(cand)
         y = np.repeat(cand[None, :], n, axis=0).ravel()
-        root = np.stack([np.repeat(xz[:, 0], m), y, np.repeat(xz[:, 1], m)], axis=-1)
-        hh = np.repeat(heading, m)
+        root = np.stack([np.repeat(xz[rows, 0], m), y, np.repeat(xz[rows, 1], m)], axis=-1)
+        hh = np.repeat(heading[rows], m)
         bad = np.zeros(n * m)
         r = STANCE_REACH * self.legs.length
-        for f, ft in self.feet(t).items():
-            a = np.repeat(ft.ankle, m, axis=0)
-            q = leg_ik(self.legs, f, root, hh, a, np.repeat(ft.heading, m),
-                       np.repeat(ft.pitch, m), clip=False)  # fmt: skip
+        for f, ft in feet.items():
+            a = np.repeat(ft.ankle[rows], m, axis=0)
+            q = leg_ik(self.legs, f, root, hh, a, np.repeat(ft.heading[rows], m),
+                       np.repeat(ft.pitch[rows], m), clip=False)  # fmt: skip
             lo, hi = self.legs.lower[f] + LIMIT_MARGIN, self.legs.upper[f] - LIMIT_MARGIN
             over = np.maximum(q - hi, 0.0)
-            over[np.repeat(ft.planted, m), 4] = 0.0  # a planted foot rolls instead (see pose)
+            over[np.repeat(ft.planted[rows], m), 4] = 0.0  # a planted foot rolls instead (pose)
             bad += np.maximum(lo - q, 0.0).sum(axis=1) + over.sum(axis=1)
             hip = root + np.einsum("nij,j->ni", _ry(hh), self.legs.hip[f])
             bad += 10 * np.maximum(np.linalg.norm(hip - a, axis=1) - r, 0.0)
-        bad = bad.reshape(n, m)
-        ok = bad <= 1e-12
-        first_ok = np.where(ok.any(axis=1), ok.argmax(axis=1), bad.argmin(axis=1))
-        return cand[first_ok]
+        return bad.reshape(n, m)
 
     def _pelvis_height(self, grid: FloatArray) -> FloatArray:
         y = self._reach_height(grid, self._xz(grid), self._h(grid))
         y[0] = y[-1] = self.ground + self.stand_height  # meet the standing root at the ends
         # erosion then a box average of the same width (narrowing at the ends, which must
         # stay at the standing height): smooth, and below the reach bound
-        n = len(y)
-        w = np.minimum(int(0.06 * HEIGHT_RATE), np.minimum(np.arange(n), np.arange(n)[::-1]))
-        eroded = np.array([y[i - w[i] : i + w[i] + 1].min() for i in range(n)])
-        smooth = np.array([eroded[i - w[i] : i + w[i] + 1].mean() for i in range(n)])
-        return np.minimum(smooth, y)
+        eroded = _window(y, int(0.06 * HEIGHT_RATE), np.min)
+        return np.minimum(_window(eroded, int(0.06 * HEIGHT_RATE), np.mean), y)
 
     def root(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
         tt = np.clip(t, self.t0, self.t1)
@@ -575,6 +612,20 @@ class WalkMotion:
                                 ft.pitch[sub], clip=False)  # fmt: skip
             legs[f] = np.clip(q, self.legs.lower[f], self.legs.upper[f])
         return pos, head, legs, feet
+
+
+def _window(x: FloatArray, half: int, op: Any) -> FloatArray:
+    """``op`` over the window of ``half`` samples either side of each sample, narrowed at the
+    ends to what fits on both sides. The interior in one sliding-window call (a call per sample
+    was a tenth of a long walk's time); each window is the same slice, so the same numbers."""
+    n = len(x)
+    out = np.empty(n)
+    if n > 2 * half:
+        out[half : n - half] = op(sliding_window_view(x, 2 * half + 1), axis=1)
+    for i in [*range(min(half, n)), *range(max(half, n - half), n)]:
+        w = min(half, i, n - 1 - i)
+        out[i] = op(x[i - w : i + w + 1])
+    return out
 
 
 def leg_fk(

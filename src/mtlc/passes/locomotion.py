@@ -170,6 +170,78 @@ def leg_ik(
     return np.clip(q, legs.lower[side], legs.upper[side]) if clip else q
 
 
+def leg_violation(
+    legs: LegModel,
+    side: str,
+    xz: FloatArray,
+    heading: FloatArray,
+    ankle: FloatArray,
+    foot_heading: FloatArray,
+    foot_pitch: FloatArray,
+    planted: NDArray[np.bool_],
+    heights: FloatArray,
+) -> FloatArray:
+    """How far one leg misses at each of N times (root ``xz`` (N, 2), ``heading``, the foot's
+    ``ankle``, heading and pitch) for each of M pelvis ``heights``: (N, M), the sum of its
+    angles' excess over the joint limits less ``LIMIT_MARGIN`` (a planted foot's dorsiflexion
+    excepted: it rolls instead) plus 10 × the hip–ankle distance's excess over
+    ``STANCE_REACH`` × the leg length.
+
+    The angles are :func:`leg_ik`'s, written out for this case: only the pelvis height
+    differs between the M candidates, and a height moves the hip–ankle vector along the
+    pelvis frame's vertical axis alone, so every rotation is built once a time and the M
+    candidates cost a few element-wise operations each (``leg_ik`` on N × M rows built
+    N × M rotation matrices: half a long walk's time).
+    """
+    sa, sr, si = legs.sign[side]
+    Rroot = _ry(heading)  # (N, 3, 3)
+    F = np.swapaxes(Rroot, -1, -2) @ _ry(foot_heading) @ _rx(foot_pitch)
+    d = ankle - np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], axis=-1)
+    hip = legs.hip[side]
+    # the hip–ankle vector in the pelvis frame: the heading turns about the vertical axis
+    tx = (Rroot[:, 0, 0] * d[:, 0] + Rroot[:, 2, 0] * d[:, 2] - hip[0])[:, None]
+    tz = (Rroot[:, 0, 2] * d[:, 0] + Rroot[:, 2, 2] * d[:, 2] - hip[2])[:, None]
+    ty = (d[:, 1, None] - heights[None, :]) - hip[1]  # (N, M)
+    L1, L2 = legs.thigh, legs.shank
+    dist2 = tx * tx + ty * ty + tz * tz
+    k = np.arccos(np.clip((dist2 - L1 * L1 - L2 * L2) / (2 * L1 * L2), -1.0, 1.0))
+    Fc = [[F[:, j, i, None] for i in range(3)] for j in range(3)]  # Fc[j][i] = F[:, j, i]
+    u = [Fc[0][i] * tx + Fc[1][i] * ty + Fc[2][i] * tz for i in range(3)]  # Fᵀ t
+    eps = np.arctan2(-u[0], -u[1])
+    ce, se = np.cos(eps), np.sin(eps)
+    y1 = u[0] * se + u[1] * ce
+    wy, wz = -L1 * np.cos(k) - L2, L1 * np.sin(k)
+    delta = np.arctan2(wz, wy) - np.arctan2(u[2], y1)
+    delta = (delta + np.pi) % (2 * np.pi) - np.pi
+    b = -delta - k
+    cb, sb = np.cos(b), np.sin(b)
+    # M = F Rz(-eps) Rx(b): the entries the hip's Euler angles need
+    g = [[Fc[r][0] * ce - Fc[r][1] * se, Fc[r][0] * se + Fc[r][1] * ce, Fc[r][2]] for r in range(3)]
+    m00 = g[0][0]
+    m01 = g[0][1] * cb + g[0][2] * sb
+    m02 = g[0][2] * cb - g[0][1] * sb
+    m11 = g[1][1] * cb + g[1][2] * sb
+    m21 = g[2][1] * cb + g[2][2] * sb
+    beta = np.arcsin(np.clip(-m01, -1.0, 1.0))
+    q = [
+        -np.arctan2(m21, m11), sa * beta, sr * np.arctan2(m02, m00), k, -delta, si * eps,
+    ]  # fmt: skip
+    lo, hi = legs.lower[side] + LIMIT_MARGIN, legs.upper[side] - LIMIT_MARGIN
+    bad = np.zeros(ty.shape)
+    for i, qi in enumerate(q):
+        bad += np.maximum(lo[i] - qi, 0.0)
+        over = np.maximum(qi - hi[i], 0.0)
+        if i == 4:
+            over = np.where(planted[:, None], 0.0, over)
+        bad += over
+    # the hip's height above the ankle is the only part of their distance a height changes
+    hx = Rroot[:, 0, 0] * hip[0] + Rroot[:, 0, 2] * hip[2] + xz[:, 0] - ankle[:, 0]
+    hz = Rroot[:, 2, 0] * hip[0] + Rroot[:, 2, 2] * hip[2] + xz[:, 1] - ankle[:, 2]
+    hy = heights[None, :] + hip[1] - ankle[:, 1, None]
+    reach = np.sqrt((hx * hx + hz * hz)[:, None] + hy * hy)
+    return bad + 10 * np.maximum(reach - STANCE_REACH * legs.length, 0.0)
+
+
 # --------------------------------------------------------------------------- gait and footsteps
 
 
@@ -543,23 +615,13 @@ class WalkMotion:
     ) -> FloatArray:
         """How far each candidate pelvis height misses at each time (``rows`` of the times):
         joint-limit excess of both legs plus 10 × the reach excess, (len(rows), len(cand))."""
-        n, m = len(rows), len(cand)
-        y = np.repeat(cand[None, :], n, axis=0).ravel()
-        root = np.stack([np.repeat(xz[rows, 0], m), y, np.repeat(xz[rows, 1], m)], axis=-1)
-        hh = np.repeat(heading[rows], m)
-        bad = np.zeros(n * m)
-        r = STANCE_REACH * self.legs.length
+        bad = np.zeros((len(rows), len(cand)))
         for f, ft in feet.items():
-            a = np.repeat(ft.ankle[rows], m, axis=0)
-            q = leg_ik(self.legs, f, root, hh, a, np.repeat(ft.heading[rows], m),
-                       np.repeat(ft.pitch[rows], m), clip=False)  # fmt: skip
-            lo, hi = self.legs.lower[f] + LIMIT_MARGIN, self.legs.upper[f] - LIMIT_MARGIN
-            over = np.maximum(q - hi, 0.0)
-            over[np.repeat(ft.planted[rows], m), 4] = 0.0  # a planted foot rolls instead (pose)
-            bad += np.maximum(lo - q, 0.0).sum(axis=1) + over.sum(axis=1)
-            hip = root + np.einsum("nij,j->ni", _ry(hh), self.legs.hip[f])
-            bad += 10 * np.maximum(np.linalg.norm(hip - a, axis=1) - r, 0.0)
-        return bad.reshape(n, m)
+            bad += leg_violation(
+                self.legs, f, xz[rows], heading[rows], ft.ankle[rows], ft.heading[rows],
+                ft.pitch[rows], ft.planted[rows], cand,
+            )  # fmt: skip
+        return bad
 
     def _pelvis_height(self, grid: FloatArray) -> FloatArray:
         y = self._reach_height(grid, self._xz(grid), self._h(grid))

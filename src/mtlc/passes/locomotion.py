@@ -708,12 +708,30 @@ def _heading_of(quat: FloatArray) -> FloatArray:
     return 2 * np.arctan2(quat[:, 2], quat[:, 0])
 
 
-def _key_times(motion: WalkMotion) -> FloatArray:
-    """A few keyframes per step, refined until the interpolated feet stay on their paths.
+Pose = tuple[FloatArray, FloatArray, dict[str, FloatArray], dict[str, FootTrack]]
+
+
+def _rows(pose: Pose, idx: Any) -> Pose:
+    """Some rows (times) of a :meth:`WalkMotion.pose`."""
+    pos, head, legq, feet = pose
+    return (
+        pos[idx], head[idx], {f: q[idx] for f, q in legq.items()},
+        {f: FootTrack(ft.ankle[idx], ft.heading[idx], ft.pitch[idx], ft.planted[idx],
+                      ft.anchor[idx]) for f, ft in feet.items()},
+    )  # fmt: skip
+
+
+def _key_times(motion: WalkMotion) -> tuple[FloatArray, Pose]:
+    """A few keyframes per step, refined until the interpolated feet stay on their paths;
+    and the pose at them.
 
     The check interpolates the keyframes as the interpolate pass will (PCHIP of the angles
     and of the root, the root's quaternion normalised) and keys every interpolation frame
     where a foot's ankle or toe strays by more than ``DRIFT_TOL`` from where it should be.
+    The keys are the first few and interpolation frames, so the pose is solved once at all
+    of them and each round picks its rows (a pose is solved time by time: a time's row is
+    the same whatever else is solved with it); a round solved every key again, most of a
+    walk's keyframing time.
     """
     t_end = motion.t1
     ts = [motion.t0, motion.t1]
@@ -724,13 +742,16 @@ def _key_times(motion: WalkMotion) -> FloatArray:
     # the interpolate pass's frames inside the window
     k0, k1 = math.ceil(motion.t0 * INTERNAL_FPS - 1e-9), math.floor(t_end * INTERNAL_FPS + 1e-9)
     dense = np.unique(np.r_[motion.t0, np.arange(k0, k1 + 1) / INTERNAL_FPS, t_end])
-    _, _, _, want = motion.pose(dense)
+    every = np.unique(np.r_[keys, dense])
+    solved = motion.pose(every)
+    _, _, _, want = _rows(solved, np.searchsorted(every, dense))
     want_toe = {}
     for f in LEGS:
         w = want[f]
         want_toe[f] = w.ankle + (_ry(w.heading) @ _rx(w.pitch)) @ motion.legs.toe
     for _ in range(8):
-        pos, head, legq, _ = motion.pose(keys)
+        at_keys = _rows(solved, np.searchsorted(every, keys))
+        pos, head, legq, _ = at_keys
         if motion.cap:
             keys_c = np.append(keys, t_end + CAP)
             pos = np.vstack([pos, pos[-1]])
@@ -752,7 +773,8 @@ def _key_times(motion: WalkMotion) -> FloatArray:
             break
         # key the frames that stray: interpolation is then exact there, and PCHIP is local
         keys = np.unique(np.concatenate([keys, dense[bad]]))
-    return keys
+        at_keys = _rows(solved, np.searchsorted(every, keys))
+    return keys, at_keys
 
 
 # --------------------------------------------------------------------------- step segmentation
@@ -1001,8 +1023,7 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
             h0, h_end, stand, ir.ground, gait, legs, half_width,
         )  # fmt: skip
         motion.cap = not _postures_between(ir, t1, t1 + CAP + 1e-9) and t1 + CAP < next_start
-        keys = _key_times(motion)
-        pos, head, legq, kfeet = motion.pose(keys)
+        keys, (pos, head, legq, kfeet) = _key_times(motion)
         clipped = 0
         for f in LEGS:
             ft = kfeet[f]

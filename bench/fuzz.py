@@ -856,6 +856,18 @@ def table(tallies: dict[str, Tally], limit: float, cpu_limit: float) -> str:
     return "\n".join(lines)
 
 
+def tallies_from_times(path: Path, limit: float) -> dict[str, Tally]:
+    """The table's counts from a ``--times`` file: a run stopped before its end still gives
+    its table."""
+    tallies: dict[str, Tally] = {}
+    lines = path.read_text(encoding="utf-8").splitlines()[1:]
+    for line in lines:
+        stage, _index, _origin, status, cpu, wall, peak_mb = line.split("\t")
+        out = Outcome(status, seconds=float(wall), cpu=float(cpu), peak_kb=int(peak_mb) * 1024)
+        _count(tallies.setdefault(stage, Tally()), out, limit)
+    return tallies
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cases", type=int, default=1000)
@@ -887,7 +899,14 @@ def main(argv: list[str] | None = None) -> int:
         help="with --save, also save lint/compile cases using more CPU seconds than this",
     )
     parser.add_argument("--progress", type=int, default=0, help="print progress every N cases")
+    parser.add_argument(
+        "--table-from", help="print the table of an earlier run's --times file and stop"
+    )
     args = parser.parse_args(argv)
+    if args.table_from:
+        print(table(tallies_from_times(Path(args.table_from), args.timeout), args.kill_after,
+                    args.timeout))  # fmt: skip
+        return 0
     tallies = run(args)
     print(table(tallies, args.kill_after, args.timeout))
     failures = [line for t in tallies.values() for line in t.examples]

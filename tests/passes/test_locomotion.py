@@ -96,7 +96,6 @@ def test_leg_ik_is_exact_against_forward_kinematics() -> None:
         )
 
 
-
 def _violation_by_leg_ik(legs, side, xz, heading, ankle, fh, pitch, planted, heights):  # type: ignore[no-untyped-def]
     """The reference: leg_ik on every (time, height) row, as the height search once ran it."""
     from mtlc.passes.locomotion import LIMIT_MARGIN, STANCE_REACH
@@ -140,6 +139,7 @@ def test_leg_violation_is_leg_ik_on_every_candidate_height(seed: int, sex: str) 
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
         fits.append(want <= 1e-12)
     assert 0.0 < np.mean(fits) < 1.0  # heights that fit and heights that do not, compared
+
 
 # --------------------------------------------------------------------------- footstep plans
 

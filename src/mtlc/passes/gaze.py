@@ -171,7 +171,30 @@ def target_at(reaches: list[Segment], t: float) -> tuple[FloatArray, Segment] | 
     """Where the eyes should be at ``t``: the site of a hand in contact (TO) if any, else of the
     reaching hands; the midpoint when two hands work on different sites. With one of the
     segments that asked for it (for provenance)."""
-    active = [s for s in reaches if s.start - EPS <= t <= s.end + EPS]
+    return _target_of([s for s in reaches if s.start - EPS <= t <= s.end + EPS])
+
+
+def targets_at(
+    reaches: list[Segment], times: FloatArray
+) -> list[tuple[FloatArray, Segment] | None]:
+    """:func:`target_at` at each of ``times``: each set of active reaches is averaged once
+    (a part's samples, 20 a second, see a few such sets; a call per sample was a tenth of a
+    long task's gaze pass)."""
+    starts = np.array([s.start for s in reaches]) - EPS
+    ends = np.array([s.end for s in reaches]) + EPS
+    t = np.asarray(times, dtype=float)[:, None]
+    active = (starts[None, :] <= t) & (t <= ends[None, :])
+    seen: dict[bytes, tuple[FloatArray, Segment] | None] = {}
+    out = []
+    for row in active:
+        key = row.tobytes()
+        if key not in seen:
+            seen[key] = _target_of([s for s, a in zip(reaches, row, strict=True) if a])
+        out.append(seen[key])
+    return out
+
+
+def _target_of(active: list[Segment]) -> tuple[FloatArray, Segment] | None:
     if not active:
         return None
     contact = [s for s in active if s.kind == "TO"]
@@ -283,7 +306,7 @@ def follow_part(
     dofs = default_dofs(skel, ["gaze"], "arm")
     head0 = state.q_at(part.start)[dofs]
     body.q[:, dofs] = head0
-    targets = held_targets([target_at(part.reaches, float(t)) for t in times])
+    targets = held_targets(targets_at(part.reaches, times))
     if targets is None:
         return None
     points = np.array([t[0] for t in targets])

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 from scipy.interpolate import PchipInterpolator
 
@@ -52,7 +53,9 @@ DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interp
 SWING_TOL = 5e-3  # m: a swinging foot's
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
-REACH_CHUNK = 1024  # grid times whose 41 candidate heights are solved at once
+REACH_CHUNK = 1024  # grid times whose candidate heights are solved at once
+REACH_CANDIDATES = 41  # pelvis heights tried, from standing down to 30 % of the leg lower
+REACH_BLOCKS = (2, 6, 33)  # candidates tried per round, at the times still open: sums to 41
 MIN_DURATION = 1e-6  # s: a walk with less time (a zero-length MTM walk) takes no steps
 LEGS = ("r", "l")
 LEG_DOFS = ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")
@@ -165,6 +168,78 @@ def leg_ik(
     alpha = np.arctan2(M[..., 2, 1], M[..., 1, 1])
     q = np.stack([-alpha, sa * beta, sr * gamma, k, -delta, si * eps], axis=-1)
     return np.clip(q, legs.lower[side], legs.upper[side]) if clip else q
+
+
+def leg_violation(
+    legs: LegModel,
+    side: str,
+    xz: FloatArray,
+    heading: FloatArray,
+    ankle: FloatArray,
+    foot_heading: FloatArray,
+    foot_pitch: FloatArray,
+    planted: NDArray[np.bool_],
+    heights: FloatArray,
+) -> FloatArray:
+    """How far one leg misses at each of N times (root ``xz`` (N, 2), ``heading``, the foot's
+    ``ankle``, heading and pitch) for each of M pelvis ``heights``: (N, M), the sum of its
+    angles' excess over the joint limits less ``LIMIT_MARGIN`` (a planted foot's dorsiflexion
+    excepted: it rolls instead) plus 10 × the hip–ankle distance's excess over
+    ``STANCE_REACH`` × the leg length.
+
+    The angles are :func:`leg_ik`'s, written out for this case: only the pelvis height
+    differs between the M candidates, and a height moves the hip–ankle vector along the
+    pelvis frame's vertical axis alone, so every rotation is built once a time and the M
+    candidates cost a few element-wise operations each (``leg_ik`` on N × M rows built
+    N × M rotation matrices: half a long walk's time).
+    """
+    sa, sr, si = legs.sign[side]
+    Rroot = _ry(heading)  # (N, 3, 3)
+    F = np.swapaxes(Rroot, -1, -2) @ _ry(foot_heading) @ _rx(foot_pitch)
+    d = ankle - np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], axis=-1)
+    hip = legs.hip[side]
+    # the hip–ankle vector in the pelvis frame: the heading turns about the vertical axis
+    tx = (Rroot[:, 0, 0] * d[:, 0] + Rroot[:, 2, 0] * d[:, 2] - hip[0])[:, None]
+    tz = (Rroot[:, 0, 2] * d[:, 0] + Rroot[:, 2, 2] * d[:, 2] - hip[2])[:, None]
+    ty = (d[:, 1, None] - heights[None, :]) - hip[1]  # (N, M)
+    L1, L2 = legs.thigh, legs.shank
+    dist2 = tx * tx + ty * ty + tz * tz
+    k = np.arccos(np.clip((dist2 - L1 * L1 - L2 * L2) / (2 * L1 * L2), -1.0, 1.0))
+    Fc = [[F[:, j, i, None] for i in range(3)] for j in range(3)]  # Fc[j][i] = F[:, j, i]
+    u = [Fc[0][i] * tx + Fc[1][i] * ty + Fc[2][i] * tz for i in range(3)]  # Fᵀ t
+    eps = np.arctan2(-u[0], -u[1])
+    ce, se = np.cos(eps), np.sin(eps)
+    y1 = u[0] * se + u[1] * ce
+    wy, wz = -L1 * np.cos(k) - L2, L1 * np.sin(k)
+    delta = np.arctan2(wz, wy) - np.arctan2(u[2], y1)
+    delta = (delta + np.pi) % (2 * np.pi) - np.pi
+    b = -delta - k
+    cb, sb = np.cos(b), np.sin(b)
+    # M = F Rz(-eps) Rx(b): the entries the hip's Euler angles need
+    g = [[Fc[r][0] * ce - Fc[r][1] * se, Fc[r][0] * se + Fc[r][1] * ce, Fc[r][2]] for r in range(3)]
+    m00 = g[0][0]
+    m01 = g[0][1] * cb + g[0][2] * sb
+    m02 = g[0][2] * cb - g[0][1] * sb
+    m11 = g[1][1] * cb + g[1][2] * sb
+    m21 = g[2][1] * cb + g[2][2] * sb
+    beta = np.arcsin(np.clip(-m01, -1.0, 1.0))
+    q = [
+        -np.arctan2(m21, m11), sa * beta, sr * np.arctan2(m02, m00), k, -delta, si * eps,
+    ]  # fmt: skip
+    lo, hi = legs.lower[side] + LIMIT_MARGIN, legs.upper[side] - LIMIT_MARGIN
+    bad = np.zeros(ty.shape)
+    for i, qi in enumerate(q):
+        bad += np.maximum(lo[i] - qi, 0.0)
+        over = np.maximum(qi - hi[i], 0.0)
+        if i == 4:
+            over = np.where(planted[:, None], 0.0, over)
+        bad += over
+    # the hip's height above the ankle is the only part of their distance a height changes
+    hx = Rroot[:, 0, 0] * hip[0] + Rroot[:, 0, 2] * hip[2] + xz[:, 0] - ankle[:, 0]
+    hz = Rroot[:, 2, 0] * hip[0] + Rroot[:, 2, 2] * hip[2] + xz[:, 1] - ankle[:, 2]
+    hy = heights[None, :] + hip[1] - ankle[:, 1, None]
+    reach = np.sqrt((hx * hx + hz * hz)[:, None] + hy * hy)
+    return bad + 10 * np.maximum(reach - STANCE_REACH * legs.length, 0.0)
 
 
 # --------------------------------------------------------------------------- gait and footsteps
@@ -491,46 +566,70 @@ class WalkMotion:
         Candidate heights from standing down to 30 % of the leg length lower are tried with
         the exact leg IK; the highest one where both legs reach (``STANCE_REACH``) and stay
         ``LIMIT_MARGIN`` inside every joint limit wins (else the least violating one).
+
+        The candidates are tried from the top in growing blocks (``REACH_BLOCKS``), each only
+        at the times no higher candidate settled: most times take one of the first few, so a
+        walk solves a few heights a time instead of all 41. The answer is the same as trying
+        all at once (the first that fits; where none does, the first of the least violating).
         """
-        if len(t) > REACH_CHUNK:  # 41 leg solves a time: a long walk's grid a chunk at a time
+        if len(t) > REACH_CHUNK:  # a long walk's grid a chunk at a time: bounded memory
             return np.concatenate([
                 self._reach_height(t[a : a + REACH_CHUNK], xz[a : a + REACH_CHUNK],
                                    heading[a : a + REACH_CHUNK])
                 for a in range(0, len(t), REACH_CHUNK)
             ])  # fmt: skip
         top = self.ground + self.stand_height
-        cand = top - np.linspace(0.0, 0.3 * self.legs.length, 41)
-        n, m = len(t), len(cand)
-        y = np.repeat(cand[None, :], n, axis=0).ravel()
-        root = np.stack([np.repeat(xz[:, 0], m), y, np.repeat(xz[:, 1], m)], axis=-1)
-        hh = np.repeat(heading, m)
-        bad = np.zeros(n * m)
-        r = STANCE_REACH * self.legs.length
-        for f, ft in self.feet(t).items():
-            a = np.repeat(ft.ankle, m, axis=0)
-            q = leg_ik(self.legs, f, root, hh, a, np.repeat(ft.heading, m),
-                       np.repeat(ft.pitch, m), clip=False)  # fmt: skip
-            lo, hi = self.legs.lower[f] + LIMIT_MARGIN, self.legs.upper[f] - LIMIT_MARGIN
-            over = np.maximum(q - hi, 0.0)
-            over[np.repeat(ft.planted, m), 4] = 0.0  # a planted foot rolls instead (see pose)
-            bad += np.maximum(lo - q, 0.0).sum(axis=1) + over.sum(axis=1)
-            hip = root + np.einsum("nij,j->ni", _ry(hh), self.legs.hip[f])
-            bad += 10 * np.maximum(np.linalg.norm(hip - a, axis=1) - r, 0.0)
-        bad = bad.reshape(n, m)
-        ok = bad <= 1e-12
-        first_ok = np.where(ok.any(axis=1), ok.argmax(axis=1), bad.argmin(axis=1))
-        return cand[first_ok]
+        cand = top - np.linspace(0.0, 0.3 * self.legs.length, REACH_CANDIDATES)
+        n = len(t)
+        feet = self.feet(t)
+        choice = np.full(n, -1)  # the candidate settled for each time, -1 while open
+        best = np.full(n, np.inf)  # the least violation so far, where none fits
+        best_j = np.zeros(n, dtype=int)
+        rows = np.arange(n)
+        j0 = 0
+        for width in REACH_BLOCKS:
+            j1 = min(j0 + width, len(cand))
+            if not len(rows) or j0 >= j1:
+                break
+            bad = self._violation(rows, cand[j0:j1], xz, heading, feet)
+            ok = bad <= 1e-12
+            fits = ok.any(axis=1)
+            choice[rows[fits]] = j0 + ok[fits].argmax(axis=1)
+            low = bad.argmin(axis=1)
+            least = bad[np.arange(len(rows)), low]
+            better = least < best[rows]  # strictly: ties keep the higher candidate
+            best[rows[better]] = least[better]
+            best_j[rows[better]] = j0 + low[better]
+            rows = rows[~fits]
+            j0 = j1
+        choice[rows] = best_j[rows]
+        return cand[choice]
+
+    def _violation(
+        self,
+        rows: FloatArray,
+        cand: FloatArray,
+        xz: FloatArray,
+        heading: FloatArray,
+        feet: dict[str, FootTrack],
+    ) -> FloatArray:
+        """How far each candidate pelvis height misses at each time (``rows`` of the times):
+        joint-limit excess of both legs plus 10 × the reach excess, (len(rows), len(cand))."""
+        bad = np.zeros((len(rows), len(cand)))
+        for f, ft in feet.items():
+            bad += leg_violation(
+                self.legs, f, xz[rows], heading[rows], ft.ankle[rows], ft.heading[rows],
+                ft.pitch[rows], ft.planted[rows], cand,
+            )  # fmt: skip
+        return bad
 
     def _pelvis_height(self, grid: FloatArray) -> FloatArray:
         y = self._reach_height(grid, self._xz(grid), self._h(grid))
         y[0] = y[-1] = self.ground + self.stand_height  # meet the standing root at the ends
         # erosion then a box average of the same width (narrowing at the ends, which must
         # stay at the standing height): smooth, and below the reach bound
-        n = len(y)
-        w = np.minimum(int(0.06 * HEIGHT_RATE), np.minimum(np.arange(n), np.arange(n)[::-1]))
-        eroded = np.array([y[i - w[i] : i + w[i] + 1].min() for i in range(n)])
-        smooth = np.array([eroded[i - w[i] : i + w[i] + 1].mean() for i in range(n)])
-        return np.minimum(smooth, y)
+        eroded = _window(y, int(0.06 * HEIGHT_RATE), np.min)
+        return np.minimum(_window(eroded, int(0.06 * HEIGHT_RATE), np.mean), y)
 
     def root(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
         tt = np.clip(t, self.t0, self.t1)
@@ -577,6 +676,20 @@ class WalkMotion:
         return pos, head, legs, feet
 
 
+def _window(x: FloatArray, half: int, op: Any) -> FloatArray:
+    """``op`` over the window of ``half`` samples either side of each sample, narrowed at the
+    ends to what fits on both sides. The interior in one sliding-window call (a call per sample
+    was a tenth of a long walk's time); each window is the same slice, so the same numbers."""
+    n = len(x)
+    out = np.empty(n)
+    if n > 2 * half:
+        out[half : n - half] = op(sliding_window_view(x, 2 * half + 1), axis=1)
+    for i in [*range(min(half, n)), *range(max(half, n - half), n)]:
+        w = min(half, i, n - 1 - i)
+        out[i] = op(x[i - w : i + w + 1])
+    return out
+
+
 def leg_fk(
     legs: LegModel, side: str, root_position: FloatArray, heading: FloatArray, q: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
@@ -595,12 +708,30 @@ def _heading_of(quat: FloatArray) -> FloatArray:
     return 2 * np.arctan2(quat[:, 2], quat[:, 0])
 
 
-def _key_times(motion: WalkMotion) -> FloatArray:
-    """A few keyframes per step, refined until the interpolated feet stay on their paths.
+Pose = tuple[FloatArray, FloatArray, dict[str, FloatArray], dict[str, FootTrack]]
+
+
+def _rows(pose: Pose, idx: Any) -> Pose:
+    """Some rows (times) of a :meth:`WalkMotion.pose`."""
+    pos, head, legq, feet = pose
+    return (
+        pos[idx], head[idx], {f: q[idx] for f, q in legq.items()},
+        {f: FootTrack(ft.ankle[idx], ft.heading[idx], ft.pitch[idx], ft.planted[idx],
+                      ft.anchor[idx]) for f, ft in feet.items()},
+    )  # fmt: skip
+
+
+def _key_times(motion: WalkMotion) -> tuple[FloatArray, Pose]:
+    """A few keyframes per step, refined until the interpolated feet stay on their paths;
+    and the pose at them.
 
     The check interpolates the keyframes as the interpolate pass will (PCHIP of the angles
     and of the root, the root's quaternion normalised) and keys every interpolation frame
     where a foot's ankle or toe strays by more than ``DRIFT_TOL`` from where it should be.
+    The keys are the first few and interpolation frames, so the pose is solved once at all
+    of them and each round picks its rows (a pose is solved time by time: a time's row is
+    the same whatever else is solved with it); a round solved every key again, most of a
+    walk's keyframing time.
     """
     t_end = motion.t1
     ts = [motion.t0, motion.t1]
@@ -611,13 +742,16 @@ def _key_times(motion: WalkMotion) -> FloatArray:
     # the interpolate pass's frames inside the window
     k0, k1 = math.ceil(motion.t0 * INTERNAL_FPS - 1e-9), math.floor(t_end * INTERNAL_FPS + 1e-9)
     dense = np.unique(np.r_[motion.t0, np.arange(k0, k1 + 1) / INTERNAL_FPS, t_end])
-    _, _, _, want = motion.pose(dense)
+    every = np.unique(np.r_[keys, dense])
+    solved = motion.pose(every)
+    _, _, _, want = _rows(solved, np.searchsorted(every, dense))
     want_toe = {}
     for f in LEGS:
         w = want[f]
         want_toe[f] = w.ankle + (_ry(w.heading) @ _rx(w.pitch)) @ motion.legs.toe
     for _ in range(8):
-        pos, head, legq, _ = motion.pose(keys)
+        at_keys = _rows(solved, np.searchsorted(every, keys))
+        pos, head, legq, _ = at_keys
         if motion.cap:
             keys_c = np.append(keys, t_end + CAP)
             pos = np.vstack([pos, pos[-1]])
@@ -639,7 +773,8 @@ def _key_times(motion: WalkMotion) -> FloatArray:
             break
         # key the frames that stray: interpolation is then exact there, and PCHIP is local
         keys = np.unique(np.concatenate([keys, dense[bad]]))
-    return keys
+        at_keys = _rows(solved, np.searchsorted(every, keys))
+    return keys, at_keys
 
 
 # --------------------------------------------------------------------------- step segmentation
@@ -888,8 +1023,7 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
             h0, h_end, stand, ir.ground, gait, legs, half_width,
         )  # fmt: skip
         motion.cap = not _postures_between(ir, t1, t1 + CAP + 1e-9) and t1 + CAP < next_start
-        keys = _key_times(motion)
-        pos, head, legq, kfeet = motion.pose(keys)
+        keys, (pos, head, legq, kfeet) = _key_times(motion)
         clipped = 0
         for f in LEGS:
             ft = kfeet[f]

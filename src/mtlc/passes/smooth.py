@@ -126,6 +126,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     # a chunk of frames at a time: a long walk changes most of its frames (~16 KB each here)
     moved = np.zeros(rows.size, dtype=bool)
     margin_before = np.empty(rows.size)
+    kept: tuple[Pose, Pose] | None = None  # one chunk: its poses serve the re-pin and the end
     for a in range(0, rows.size, CHUNK_FRAMES):
         r = rows[a : a + CHUNK_FRAMES]
         rot = frames.root_rotation[r]
@@ -142,14 +143,25 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             m |= pins[h][r] & (off > PIN_TOL)
         moved[a : a + CHUNK_FRAMES] = m
         margin_before[a : a + CHUNK_FRAMES] = carried_margin(ir, pose, t[r], stance_all[r])
-    fixes = rows[np.flatnonzero(moved)]
+        if rows.size <= CHUNK_FRAMES:
+            kept = (pose, after)
+    at = np.flatnonzero(moved)
+    fixes = rows[at]
     if fixes.size:  # one batch: the solver's last bits depend on the batch it runs in
-        _repin(ir, frames, fixes, q0, root0, stance_all, pins)
+        given = None if kept is None else (_pose_rows(kept[0], at), _pose_rows(kept[1], at))
+        _repin(ir, frames, fixes, q0, root0, stance_all, pins, given)
     margin_after = np.empty(rows.size)
     for a in range(0, rows.size, CHUNK_FRAMES):
         r = rows[a : a + CHUNK_FRAMES]
-        final = forward(skel, frames.q[r], frames.root_position[r], frames.root_rotation[r],
-                        with_axes=False)  # fmt: skip
+        if kept is not None:  # only the re-pinned frames moved since ``after``
+            final = _pose_rows(kept[1], slice(None))
+            if fixes.size:
+                _set_pose_rows(final, at, forward(skel, frames.q[fixes],
+                               frames.root_position[fixes], frames.root_rotation[fixes],
+                               with_axes=False))  # fmt: skip
+        else:
+            final = forward(skel, frames.q[r], frames.root_position[r],
+                            frames.root_rotation[r], with_axes=False)  # fmt: skip
         margin_after[a : a + CHUNK_FRAMES] = carried_margin(ir, final, t[r], stance_all[r])
     _rebalance(ir, frames, rows, margin_before, margin_after)
     return ir
@@ -163,13 +175,18 @@ def _repin(
     root0: np.ndarray,
     stance: np.ndarray,
     pins: dict[str, np.ndarray],
+    given: tuple[Pose, Pose] | None = None,
 ) -> None:
     """Put the touching feet and pinned hands of the frames ``fix`` back where they were
-    before the blend (``q0``, ``root0``), never sinking anything deeper."""
+    before the blend (``q0``, ``root0``), never sinking anything deeper. ``given``: the
+    frames' poses before and after the blend, if the caller has them."""
     skel = ir.skeleton
     rot = frames.root_rotation[fix]
-    pose = forward(skel, q0[fix], root0[fix], rot, with_axes=False)
-    after = forward(skel, frames.q[fix], frames.root_position[fix], rot, with_axes=False)
+    if given is not None:
+        pose, after = given
+    else:
+        pose = forward(skel, q0[fix], root0[fix], rot, with_axes=False)
+        after = forward(skel, frames.q[fix], frames.root_position[fix], rot, with_axes=False)
     contact = contact_mask(foot_points(skel, pose), stance[fix], ir.ground)
     touching = contact.reshape(fix.size, 2, -1).any(axis=2)
     feet = {
@@ -199,6 +216,22 @@ def _repin(
         )  # fmt: skip
     frames.q[fix] = q
     frames.root_position[fix] = root
+
+
+def _pose_rows(pose: Pose, rows: np.ndarray | slice) -> Pose:
+    """Some frames of a batch of poses, copied (forward kinematics solves frame by frame, so
+    they are the numbers ``forward`` gives those frames alone)."""
+    return Pose(R=pose.R[rows].copy(), p=pose.p[rows].copy(), axes=pose.axes[rows].copy(),
+                root=pose.root[rows].copy())  # fmt: skip
+
+
+def _set_pose_rows(pose: Pose, rows: np.ndarray, part: Pose) -> None:
+    pose.R[rows], pose.p[rows], pose.axes[rows], pose.root[rows] = (
+        part.R,
+        part.p,
+        part.axes,
+        part.root,
+    )
 
 
 def carried_margin(ir: MotionIR, pose: Pose, time: np.ndarray, stance: np.ndarray) -> np.ndarray:

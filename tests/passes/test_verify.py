@@ -342,11 +342,14 @@ EXAMPLE_FINDINGS = {
         ("MT0501", 34),
         ("MT0501", 34),
     ],
-    "replace_fuel_filter": [
-        ("MT0511", 36),  # the right hand dragged off the bowl by the left hand's reach
-        ("MT0514", 32),  # kneeling down, a hand into a thigh
-        ("MT0514", 43),  # the left forearm into the left thigh
-        ("MT0514", 47),  # standing up, a hand into a thigh
+    "replace_fuel_filter": [  # the hold pass keeps the right hand on the bowl (was MT0511)
+        ("MT0502", 32),  # the stepping kneel lowers the body on both toe tips (rigid foot)
+        ("MT0502", 40),  # reaches lean the CoM past the knees while kneeling
+        ("MT0502", 42),
+        ("MT0502", 45),
+        ("MT0502", 47),  # standing up
+        ("MT0514", 32),  # kneeling down, the right hand into the right thigh (4 mm)
+        ("MT0514", 47),  # standing up, the right hand into the left thigh
     ],
 }
 

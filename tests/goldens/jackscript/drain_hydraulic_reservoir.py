@@ -11,109 +11,110 @@ def drain_reservoir():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=50, stature=167.8, mass=59.0)
     # examples/drain_hydraulic_reservoir.mtask:22:5 drain_reservoir > walk_to > travel: locomotion on root at skid_side
-    human.Walk((-0.324, 0.0, 42.515), start=0.0, duration=0.54)
+    human.Walk((-0.325, 0.0, 42.523), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 84.188, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.749, 0.0, 0.0), 'right_knee': (4.657,),
-        'right_ankle': (1.907, 0.0), 'left_hip': (2.749, 0.0, 0.0), 'left_knee': (4.657,),
-        'left_ankle': (1.907, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
-    human.KeyRoot(0.1, (2.421, 82.071, 8.421), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.421, 82.071, 8.555), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (42.182, 3.233, -1.076), 'right_knee': (80.693,),
-        'right_ankle': (18.36, 2.045), 'left_hip': (6.004, -1.826, -0.192), 'left_knee': (24.378,),
-        'left_ankle': (18.384, -1.836),
+        'right_hip': (42.162, 3.234, -1.081), 'right_knee': (80.625,),
+        'right_ankle': (18.408, 2.042), 'left_hip': (6.081, -1.825, -0.195), 'left_knee': (24.429,),
+        'left_ankle': (18.357, -1.836),
     })
-    human.KeyRoot(0.2, (1.643, 80.077, 16.391), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.644, 80.077, 16.533), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (36.524, 4.932, -18.226), 'right_knee': (34.688,),
-        'right_ankle': (-1.99, -5.516), 'left_hip': (18.485, -1.076, -0.931),
-        'left_knee': (58.682,), 'left_ankle': (17.843, -1.423),
+        'right_hip': (36.589, 4.982, -18.201), 'right_knee': (35.03,),
+        'right_ankle': (-1.725, -5.481), 'left_hip': (18.518, -1.077, -0.93),
+        'left_knee': (58.661,), 'left_ankle': (17.848, -1.423),
     })
-    human.KeyRoot(0.3, (-0.39, 80.191, 24.402), (-0.789, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.391, 80.269, 24.492), (-0.789, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (25.455, 2.947, -17.614), 'right_knee': (23.882,),
-        'right_ankle': (-1.282, -4.923), 'left_hip': (13.961, 0.422, -0.559), 'left_knee': (61.4,),
-        'left_ankle': (19.473, 0.335),
+        'right_hip': (25.199, 2.89, -17.616), 'right_knee': (23.503,),
+        'right_ankle': (-1.399, -4.897), 'left_hip': (13.95, 0.422, -0.56), 'left_knee': (61.19,),
+        'left_ankle': (19.422, 0.336),
     })
-    human.KeyRoot(0.4, (-1.529, 81.832, 32.968), (-8.64, 0.0, 0.0))
+    human.KeyRoot(0.4, (-1.533, 81.871, 33.02), (-8.64, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (19.359, -0.556, -10.067), 'right_knee': (22.834,),
-        'right_ankle': (3.84, -3.84), 'left_hip': (28.701, -0.087, 0.506), 'left_knee': (72.04,),
-        'left_ankle': (20.0, 0.164),
+        'right_hip': (19.207, -0.573, -10.062), 'right_knee': (22.604,),
+        'right_ankle': (3.763, -3.829), 'left_hip': (28.688, -0.081, 0.513), 'left_knee': (71.942,),
+        'left_ankle': (20.0, 0.174),
     })
-    human.KeyRoot(0.5, (-0.779, 83.259, 41.549), (-15.307, 0.0, 0.0))
+    human.KeyRoot(0.5, (-0.782, 83.259, 41.564), (-15.307, 0.0, 0.0))
     human.KeyJoints(0.5, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
-        'right_hip': (11.158, -0.802, -2.871), 'right_knee': (17.443,),
-        'right_ankle': (6.339, -1.342), 'left_hip': (13.735, 0.76, 2.89), 'left_knee': (21.492,),
-        'left_ankle': (7.428, 1.358),
+        'right_hip': (11.151, -0.801, -2.871), 'right_knee': (17.45,),
+        'right_ankle': (6.353, -1.34), 'left_hip': (13.74, 0.759, 2.89), 'left_knee': (21.525,),
+        'left_ankle': (7.481, 1.357),
     })
     # examples/drain_hydraulic_reservoir.mtask:23:5 drain_reservoir > squat: posture on root
     human.KeyRoot(0.6, (0.36, 83.649, 43.962), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'spine_lumbar': (1.736, 0.0, 0.0), 'spine_thoracic': (0.821, 0.0, 0.0),
-        'right_shoulder': (10.286, 5.73, 11.459), 'left_shoulder': (10.286, 5.73, 11.459),
-        'right_hip': (8.315, 0.016, 0.002), 'right_knee': (14.09,), 'right_ankle': (5.78, 0.016),
-        'left_hip': (8.303, -0.016, -0.002), 'left_knee': (14.065,), 'left_ankle': (5.765, -0.016),
+        'spine_lumbar': (1.758, 0.0, 0.0), 'spine_thoracic': (0.832, 0.0, 0.0),
+        'right_shoulder': (10.572, 5.73, 11.459), 'left_shoulder': (10.572, 5.73, 11.459),
+        'right_hip': (8.316, 0.016, 0.002), 'right_knee': (14.09,), 'right_ankle': (5.78, 0.016),
+        'left_hip': (8.303, -0.016, -0.002), 'left_knee': (14.065,), 'left_ankle': (5.764, -0.016),
     })
     human.KeyRoot(0.7, (1.82, 82.611, 39.451), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'spine_lumbar': (8.647, 0.0, 0.0), 'spine_thoracic': (4.283, 0.0, 0.0),
-        'right_shoulder': (16.874, 5.73, 11.459), 'left_shoulder': (16.874, 5.73, 11.459),
-        'right_hip': (15.459, 0.014, 0.004), 'right_knee': (21.414,), 'right_ankle': (5.958, 0.015),
-        'left_hip': (15.457, -0.014, -0.004), 'left_knee': (21.411,), 'left_ankle': (5.956, -0.015),
+        'spine_lumbar': (8.697, 0.0, 0.0), 'spine_thoracic': (4.307, 0.0, 0.0),
+        'right_shoulder': (18.273, 5.73, 11.459), 'left_shoulder': (18.273, 5.73, 11.459),
+        'right_hip': (15.459, 0.014, 0.004), 'right_knee': (21.414,), 'right_ankle': (5.958, 0.014),
+        'left_hip': (15.458, -0.014, -0.004), 'left_knee': (21.41,), 'left_ankle': (5.955, -0.014),
     })
-    human.KeyRoot(0.8, (3.065, 80.848, 35.603), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.8, (3.065, 80.848, 35.602), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_shoulder': (22.758, 5.73, 11.459), 'left_shoulder': (22.758, 5.73, 11.459),
+        'spine_lumbar': (15.145, 0.0, 0.0), 'spine_thoracic': (7.537, 0.0, 0.0),
+        'right_shoulder': (25.151, 5.73, 11.459), 'left_shoulder': (25.151, 5.73, 11.459),
         'right_hip': (22.816, 0.012, 0.005), 'right_knee': (29.97,), 'right_ankle': (7.167, 0.013),
         'left_hip': (22.815, -0.012, -0.005), 'left_knee': (29.967,), 'left_ankle': (7.165, -0.013),
     })
     human.KeyRoot(0.9, (4.133, 78.551, 32.3), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'spine_lumbar': (21.881, 0.0, 0.0), 'spine_thoracic': (10.912, 0.0, 0.0),
-        'right_hip': (29.846, 0.009, 0.005), 'right_knee': (38.39,), 'right_ankle': (8.551, 0.011),
+        'spine_lumbar': (21.347, 0.0, 0.0), 'spine_thoracic': (10.645, 0.0, 0.0),
+        'right_hip': (29.846, 0.009, 0.005), 'right_knee': (38.389,), 'right_ankle': (8.55, 0.011),
         'left_hip': (29.847, -0.009, -0.005), 'left_knee': (38.391,), 'left_ankle': (8.552, -0.011),
     })
-    human.KeyRoot(1.0, (5.103, 75.629, 29.3), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.0, (5.103, 75.629, 29.299), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'spine_lumbar': (29.464, 0.0, 0.0), 'spine_thoracic': (14.709, 0.0, 0.0),
-        'right_knee': (47.139,), 'left_knee': (47.139,),
+        'spine_lumbar': (28.419, 0.0, 0.0), 'spine_thoracic': (14.186, 0.0, 0.0),
+        'right_knee': (47.138,), 'left_knee': (47.139,),
     })
-    human.KeyRoot(1.1, (5.954, 72.145, 26.667), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.1, (5.954, 72.145, 26.666), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'spine_lumbar': (38.385, 0.0, 0.0), 'right_ankle': (11.727, 0.007),
-        'left_ankle': (11.727, -0.007),
+        'spine_lumbar': (36.635, 0.0, 0.0), 'spine_thoracic': (18.301, 0.0, 0.0),
+        'right_ankle': (11.727, 0.007), 'left_ankle': (11.727, -0.007),
     })
     human.KeyRoot(1.2, (6.667, 68.156, 24.461), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (47.133, 0.0, 0.0), 'spine_thoracic': (23.556, 0.0, 0.0),
+        'spine_lumbar': (45.439, 0.0, 0.0), 'spine_thoracic': (22.708, 0.0, 0.0),
         'right_hip': (51.549, 0.003, 0.004), 'right_knee': (64.932,),
         'left_hip': (51.549, -0.003, -0.004), 'left_knee': (64.932,),
     })
     human.KeyRoot(1.3, (7.223, 63.723, 22.736), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (56.71, 0.0, 0.0), 'spine_thoracic': (28.35, 0.0, 0.0),
-        'right_shoulder': (49.807, 5.73, 11.459), 'left_shoulder': (49.807, 5.73, 11.459),
+        'spine_lumbar': (56.193, 0.0, 0.0), 'spine_thoracic': (28.092, 0.0, 0.0),
+        'right_shoulder': (56.77, 5.73, 11.459), 'left_shoulder': (56.77, 5.73, 11.459),
         'right_hip': (58.842, 0.001, 0.002), 'right_knee': (73.914,),
         'left_hip': (58.842, -0.001, -0.002), 'left_knee': (73.914,),
     })
     human.KeyRoot(1.4, (7.617, 58.777, 21.514), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.4, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'right_shoulder': (55.36, 5.73, 11.459), 'left_shoulder': (55.36, 5.73, 11.459),
+        'right_shoulder': (63.26, 5.73, 11.459), 'left_shoulder': (63.26, 5.73, 11.459),
         'right_hip': (66.335, 0.0, 0.0), 'right_knee': (83.158,), 'right_ankle': (16.823, 0.0),
         'left_hip': (66.335, 0.0, 0.0), 'left_knee': (83.158,), 'left_ankle': (16.823, 0.0),
     })
     human.KeyRoot(1.5, (7.838, 52.163, 20.833), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'right_shoulder': (62.268, 5.73, 11.459), 'left_shoulder': (62.268, 5.73, 11.459),
+        'right_shoulder': (71.335, 5.73, 11.459), 'left_shoulder': (71.335, 5.73, 11.459),
         'right_hip': (75.71, 0.0, 0.0), 'right_knee': (94.764,), 'right_ankle': (19.055, 0.0),
         'left_hip': (75.71, 0.0, 0.0), 'left_knee': (94.764,), 'left_ankle': (19.055, 0.0),
     })
@@ -121,142 +122,141 @@ def drain_reservoir():
     human.LookAt((-12.0, 20.0, 82.0), start=1.584, duration=0.2628)
     human.KeyRoot(1.6, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'neck': (-0.018, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_shoulder': (65.195, 5.73, 11.459),
-        'left_shoulder': (65.195, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
+        'neck': (-0.018, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
+        'left_shoulder': (74.757, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
         'right_knee': (99.683,), 'right_ankle': (20.0, 0.0), 'left_hip': (79.683, 0.0, 0.0),
         'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
     human.KeyJoints(1.7, {'neck': (-0.693, 0.0, 0.0), 'head': (-0.693, 0.0)})
     human.KeyJoints(1.8, {
-        'neck': (-1.54, 0.0, 0.0), 'head': (-1.54, 0.0), 'right_shoulder': (65.195, 5.73, 11.459),
+        'neck': (-1.54, 0.0, 0.0), 'head': (-1.54, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=1.8468, duration=0.832997)
     human.KeyJoints(1.9, {
-        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0),
-        'right_shoulder': (65.581, 5.452, 11.534), 'right_elbow': (34.385, 17.193),
-        'right_wrist': (0.021, -0.013),
+        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_shoulder': (74.99, 5.452, 11.534),
+        'right_wrist': (0.023, -0.01),
     })
-    human.KeyJoints(2.0, {'right_shoulder': (68.121, 3.649, 12.013)})
+    human.KeyJoints(2.0, {
+        'right_shoulder': (76.54, 3.646, 12.013), 'right_elbow': (34.424, 17.214),
+    })
     human.KeyJoints(2.1, {
-        'right_shoulder': (72.439, 0.648, 12.795), 'right_elbow': (34.558, 17.26),
-        'right_wrist': (0.373, -0.225),
+        'right_shoulder': (79.221, 0.641, 12.795), 'right_wrist': (0.418, -0.179),
     })
-    human.KeyJoints(2.2, {'right_shoulder': (77.83, -2.988, 13.714)})
-    human.KeyJoints(2.3, {
-        'right_shoulder': (83.594, -6.699, 14.603), 'right_elbow': (34.996, 17.357),
+    human.KeyJoints(2.2, {
+        'right_shoulder': (82.654, -2.999, 13.713), 'right_elbow': (34.65, 17.293),
     })
+    human.KeyJoints(2.3, {'right_shoulder': (86.457, -6.711, 14.601)})
     human.KeyJoints(2.4, {
-        'right_shoulder': (89.028, -9.92, 15.297), 'right_wrist': (1.063, -0.643),
+        'right_shoulder': (90.25, -9.931, 15.294), 'right_elbow': (35.115, 17.366),
+        'right_wrist': (1.193, -0.51),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
         'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (93.43, -12.089, 15.63), 'right_elbow': (35.742, 17.41),
-        'right_wrist': (1.151, -0.696),
+        'right_shoulder': (93.654, -12.093, 15.625), 'right_elbow': (35.453, 17.38),
+        'right_wrist': (1.291, -0.552),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(2.6, {
-        'spine_lumbar': (59.953, -0.583, 1.0), 'spine_thoracic': (27.701, -0.631, 0.788),
-        'neck': (-0.255, 0.066, -2.82), 'head': (-0.255, 0.0), 'right_clavicle': (0.257, 0.651),
-        'right_shoulder': (96.985, -11.726, 15.148), 'right_elbow': (36.493, 17.41),
-        'right_wrist': (0.908, -0.594),
+        'spine_lumbar': (59.938, -0.586, 1.004), 'spine_thoracic': (27.711, -0.634, 0.791),
+        'neck': (-0.253, 0.066, -2.833), 'head': (-0.253, 0.0), 'right_clavicle': (0.26, 0.654),
+        'right_shoulder': (97.105, -11.767, 15.162), 'right_elbow': (36.209, 17.379),
+        'right_wrist': (1.053, -0.446),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.679797, duration=0.072)
     human.KeyJoints(2.7, {
-        'spine_lumbar': (60.0, -1.995, 3.802), 'spine_thoracic': (29.037, -2.261, 3.13),
-        'neck': (-0.741, 0.256, -10.985), 'head': (-0.74, 0.002), 'right_clavicle': (1.304, 1.874),
-        'right_shoulder': (101.797, -3.495, 12.126), 'right_elbow': (32.758, 17.438),
-        'right_wrist': (-0.054, -1.745),
+        'spine_lumbar': (60.0, -1.981, 3.77), 'spine_thoracic': (29.025, -2.242, 3.104),
+        'neck': (-0.738, 0.253, -10.892), 'head': (-0.737, 0.002), 'right_clavicle': (1.283, 1.862),
+        'right_shoulder': (101.897, -3.581, 12.174), 'right_elbow': (32.536, 17.407),
+        'right_wrist': (0.083, -1.59),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(2.8, {
-        'right_shoulder': (101.828, -3.44, 12.108), 'right_elbow': (32.742, 3.582),
+        'right_shoulder': (101.936, -3.531, 12.157), 'right_elbow': (32.483, 3.551),
     })
     human.KeyJoints(2.9, {
-        'neck': (-0.741, 0.256, -10.985), 'head': (-0.74, 0.002),
-        'right_shoulder': (101.862, -3.245, 12.047), 'right_elbow': (32.573, -59.73),
+        'neck': (-0.738, 0.253, -10.892), 'head': (-0.737, 0.002),
+        'right_shoulder': (101.966, -3.361, 12.104), 'right_elbow': (32.303, -59.761),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=2.946197, duration=0.2628)
     human.KeyJoints(3.0, {
-        'neck': (-0.547, 0.241, -10.399), 'head': (-0.546, 0.002), 'right_elbow': (32.5, -72.562),
+        'neck': (-0.544, 0.239, -10.307), 'head': (-0.543, 0.002), 'right_elbow': (32.234, -72.593),
     })
-    human.KeyJoints(3.1, {'neck': (0.841, 0.141, -6.202), 'head': (0.842, 0.001)})
-    human.KeyJoints(3.2, {'neck': (3.562, -0.056, 2.021), 'head': (3.562, 0.0)})
+    human.KeyJoints(3.1, {'neck': (0.846, 0.139, -6.116), 'head': (0.847, 0.001)})
+    human.KeyJoints(3.2, {'neck': (3.569, -0.058, 2.095), 'head': (3.57, 0.0)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(3.3, {'neck': (3.871, -0.079, 2.857), 'head': (3.872, -0.001)})
-    human.KeyJoints(3.7, {'right_wrist': (-0.124, -1.722)})
-    human.KeyJoints(4.8, {'neck': (3.871, -0.079, 2.958)})
-    human.KeyJoints(7.2, {'right_elbow': (32.5, -72.562)})
+    human.KeyJoints(3.3, {'neck': (3.879, -0.081, 2.93), 'head': (3.88, -0.001)})
+    human.KeyJoints(3.5, {'right_wrist': (0.005, -1.573)})
+    human.KeyJoints(4.8, {'neck': (3.879, -0.081, 3.031)})
+    human.KeyJoints(7.2, {'right_elbow': (32.234, -72.593)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(7.3, {
-        'right_shoulder': (101.861, -3.26, 12.052), 'right_elbow': (32.609, -52.786),
-        'right_wrist': (-0.102, -1.737),
+        'right_shoulder': (101.964, -3.373, 12.108), 'right_elbow': (32.337, -52.817),
+        'right_wrist': (0.028, -1.591),
     })
     human.KeyRoot(7.4, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, -1.995, 3.802), 'spine_thoracic': (29.037, -2.261, 3.13),
-        'right_shoulder': (101.819, -3.478, 12.12), 'right_elbow': (32.728, 14.328),
-        'left_shoulder': (65.195, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
+        'spine_lumbar': (60.0, -1.981, 3.77), 'spine_thoracic': (29.025, -2.242, 3.104),
+        'right_shoulder': (101.929, -3.566, 12.168), 'right_elbow': (32.476, 14.297),
+        'left_shoulder': (74.757, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
         'right_knee': (99.683,), 'right_ankle': (20.0, 0.0), 'left_hip': (79.683, 0.0, 0.0),
         'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.403397, duration=0.072)
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
-    human.KeyRoot(7.5, (7.84, 49.586, 20.827), (-17.969, 0.0, 0.0))
+    human.KeyRoot(7.5, (7.84, 49.585, 20.826), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, -1.932, 3.681), 'spine_thoracic': (29.068, -2.189, 3.03),
-        'right_shoulder': (101.988, -3.522, 12.122), 'right_elbow': (32.328, 17.437),
-        'left_shoulder': (64.868, 5.73, 11.459), 'right_hip': (79.238, 0.0, 0.0),
-        'right_knee': (99.133,), 'right_ankle': (19.913, 0.0), 'left_hip': (79.238, 0.0, 0.0),
-        'left_knee': (99.133,), 'left_ankle': (19.913, 0.0),
+        'spine_lumbar': (59.908, -1.917, 3.649), 'spine_thoracic': (28.998, -2.17, 3.005),
+        'right_shoulder': (102.087, -3.608, 12.17), 'right_elbow': (32.11, 17.406),
+        'left_shoulder': (74.374, 5.73, 11.459), 'right_hip': (79.238, 0.0, 0.0),
+        'right_knee': (99.133,), 'right_ankle': (19.921, 0.0), 'left_hip': (79.238, 0.0, 0.0),
+        'left_knee': (99.133,), 'left_ankle': (19.921, 0.0),
     })
-    human.KeyRoot(7.6, (7.802, 54.171, 20.944), (-17.969, 0.0, 0.0))
+    human.KeyRoot(7.6, (7.807, 54.121, 20.927), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'spine_lumbar': (60.0, -0.871, 1.659), 'spine_thoracic': (29.58, -0.987, 1.366),
-        'right_wrist': (-0.028, -1.822), 'left_shoulder': (60.268, 5.73, 11.459),
-        'right_hip': (72.995, 0.0, 0.0), 'right_knee': (91.404,), 'right_ankle': (18.284, 0.0),
-        'left_hip': (72.995, 0.0, 0.0), 'left_knee': (91.404,), 'left_ankle': (18.284, 0.0),
+        'spine_lumbar': (57.995, -0.864, 1.645), 'spine_thoracic': (28.412, -0.978, 1.354),
+        'right_wrist': (0.108, -1.665), 'left_shoulder': (68.997, 5.73, 11.459),
+        'right_hip': (72.995, 0.0, 0.0), 'right_knee': (91.404,), 'right_ankle': (18.432, 0.0),
+        'left_hip': (72.995, 0.0, 0.0), 'left_knee': (91.404,), 'left_ankle': (18.432, 0.0),
     })
-    human.KeyRoot(7.7, (7.534, 60.084, 21.769), (-17.969, 0.0, 0.0))
+    human.KeyRoot(7.7, (7.546, 59.97, 21.732), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, -0.003, 0.005), 'spine_thoracic': (29.999, -0.003, 0.005),
-        'left_shoulder': (54.069, 5.73, 11.459), 'right_hip': (64.579, 0.0, 0.0),
-        'right_knee': (80.965,), 'right_ankle': (16.051, 0.0), 'left_hip': (64.579, 0.0, 0.0),
-        'left_knee': (80.965,), 'left_ankle': (16.051, 0.0),
+        'spine_lumbar': (54.659, -0.003, 0.005), 'spine_thoracic': (27.303, -0.003, 0.004),
+        'left_shoulder': (61.751, 5.73, 11.459), 'right_hip': (64.58, 0.0, 0.0),
+        'right_knee': (80.966,), 'right_ankle': (16.388, 0.0), 'left_hip': (64.58, 0.0, 0.0),
+        'left_knee': (80.966,), 'left_ankle': (16.388, 0.0),
     })
-    human.KeyRoot(7.8, (7.153, 64.492, 22.946), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.8, {'spine_lumbar': (54.357, 0.0, 0.0), 'spine_thoracic': (27.179, 0.0, 0.0)})
-    human.KeyRoot(7.9, (6.631, 68.579, 24.553), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.9, {'spine_lumbar': (43.174, 0.0, 0.0), 'spine_thoracic': (21.587, 0.0, 0.0)})
-    human.KeyRoot(8.0, (5.982, 72.298, 26.556), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.0, {'spine_lumbar': (35.065, 0.0, 0.0), 'spine_thoracic': (17.532, 0.0, 0.0)})
-    human.KeyRoot(8.1, (5.216, 75.602, 28.916), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.1, {'spine_lumbar': (28.056, 0.0, 0.0), 'spine_thoracic': (14.028, 0.0, 0.0)})
-    human.KeyRoot(8.2, (4.35, 78.449, 31.589), (-17.969, 0.0, 0.0))
+    human.KeyRoot(7.8, (7.17, 64.328, 22.893), (-17.969, 0.0, 0.0))
+    human.KeyJoints(7.8, {'spine_lumbar': (48.841, 0.0, 0.0), 'spine_thoracic': (24.59, 0.0, 0.0)})
+    human.KeyRoot(7.9, (6.654, 68.365, 24.484), (-17.969, 0.0, 0.0))
+    human.KeyJoints(7.9, {'spine_lumbar': (40.841, 0.0, 0.0), 'spine_thoracic': (20.443, 0.0, 0.0)})
+    human.KeyRoot(8.0, (6.01, 72.034, 26.47), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.0, {'spine_lumbar': (34.077, 0.0, 0.0), 'spine_thoracic': (17.039, 0.0, 0.0)})
+    human.KeyRoot(8.1, (5.25, 75.288, 28.814), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.1, {'spine_lumbar': (27.793, 0.0, 0.0), 'spine_thoracic': (13.896, 0.0, 0.0)})
+    human.KeyRoot(8.2, (4.388, 78.085, 31.469), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.2, {
-        'spine_lumbar': (21.952, 0.0, 0.0), 'spine_thoracic': (10.976, 0.0, 0.0),
-        'right_shoulder': (101.797, -3.495, 12.126), 'right_elbow': (32.758, 17.438),
+        'spine_lumbar': (22.024, 0.0, 0.0), 'spine_thoracic': (11.012, 0.0, 0.0),
+        'right_shoulder': (101.897, -3.581, 12.174), 'right_elbow': (32.536, 17.407),
     })
-    human.KeyRoot(8.3, (3.398, 80.803, 34.524), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.3, {'spine_lumbar': (16.747, 0.0, 0.0)})
-    human.KeyRoot(8.4, (2.377, 82.642, 37.671), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.4, {'spine_lumbar': (11.693, 0.0, 0.0)})
-    human.KeyRoot(8.5, (1.306, 83.938, 40.973), (-17.969, 0.0, 0.0))
-    human.KeyRoot(8.6, (0.203, 84.672, 44.374), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.6, {'spine_thoracic': (0.622, 0.0, 0.0)})
-    human.KeyRoot(8.623797, (-0.062, 84.763, 45.191), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.3, (3.442, 80.389, 34.388), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.4, (2.427, 82.179, 37.518), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.5, (1.361, 83.425, 40.803), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.5, {'spine_lumbar': (6.468, 0.0, 0.0)})
+    human.KeyRoot(8.6, (0.264, 84.109, 44.187), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.623797, (0.0, 84.188, 45.0), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.623797, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (3.871, -0.079, 2.958), 'head': (3.872, -0.001), 'right_clavicle': (1.304, 1.874),
-        'right_shoulder': (101.797, -3.495, 12.126), 'right_elbow': (32.758, 17.438),
-        'right_wrist': (-0.054, -1.745), 'left_clavicle': (0.0, 0.0),
+        'neck': (3.879, -0.081, 3.031), 'head': (3.88, -0.001), 'right_clavicle': (1.283, 1.862),
+        'right_shoulder': (101.897, -3.581, 12.174), 'right_elbow': (32.536, 17.407),
+        'right_wrist': (0.083, -1.59), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (0.0, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (0.0, 0.0),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })

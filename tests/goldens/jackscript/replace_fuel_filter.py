@@ -11,86 +11,86 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-0.396, 0.0, 53.021), start=0.0, duration=0.54)
+    human.Walk((-0.397, 0.0, 53.03), start=0.0, duration=0.54)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.752, 0.0, 0.0), 'right_knee': (4.654,),
-        'right_ankle': (1.902, 0.0), 'left_hip': (2.752, 0.0, 0.0), 'left_knee': (4.654,),
-        'left_ankle': (1.902, 0.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
-    human.KeyRoot(0.1, (2.615, 88.183, 10.496), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (2.615, 88.219, 10.638), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (45.043, 2.383, 0.373), 'right_knee': (84.81,), 'right_ankle': (15.869, 2.231),
-        'left_hip': (13.106, -1.773, -0.661), 'left_knee': (39.798,),
-        'left_ankle': (19.358, -1.892),
+        'right_hip': (44.983, 2.385, 0.365), 'right_knee': (84.666,),
+        'right_ankle': (15.881, 2.227), 'left_hip': (12.891, -1.776, -0.645),
+        'left_knee': (39.292,), 'left_ankle': (19.342, -1.889),
     })
-    human.KeyRoot(0.2, (1.766, 84.776, 20.534), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.766, 84.818, 20.684), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (40.49, 3.474, -10.548), 'right_knee': (35.057,),
-        'right_ankle': (-5.726, -3.367), 'left_hip': (20.884, -0.983, -1.132),
-        'left_knee': (66.603,), 'left_ankle': (17.581, -1.499),
+        'right_hip': (40.458, 3.486, -10.536), 'right_knee': (35.199,),
+        'right_ankle': (-5.554, -3.344), 'left_hip': (20.841, -0.985, -1.128),
+        'left_knee': (66.436,), 'left_ankle': (17.584, -1.498),
     })
-    human.KeyRoot(0.3, (-0.594, 85.319, 30.502), (-0.458, 0.0, 0.0))
+    human.KeyRoot(0.3, (-0.595, 85.361, 30.599), (-0.458, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (29.802, 1.867, -10.426), 'right_knee': (26.916,),
-        'right_ankle': (-2.742, -3.563), 'left_hip': (12.139, 0.443, -0.132), 'left_knee': (63.58,),
+        'right_hip': (29.694, 1.859, -10.423), 'right_knee': (26.843,),
+        'right_ankle': (-2.707, -3.548), 'left_hip': (12.119, 0.444, -0.133), 'left_knee': (63.38,),
         'left_ankle': (20.0, 0.479),
     })
-    human.KeyRoot(0.4, (-2.103, 87.904, 40.795), (-5.019, 0.0, 0.0))
+    human.KeyRoot(0.4, (-2.106, 87.929, 40.85), (-5.019, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (21.94, -1.001, -6.237), 'right_knee': (24.961,),
-        'right_ankle': (3.232, -3.251), 'left_hip': (27.672, 0.513, 0.993), 'left_knee': (72.605,),
-        'left_ankle': (20.0, 0.992),
+        'right_hip': (21.853, -1.005, -6.233), 'right_knee': (24.866,),
+        'right_ankle': (3.224, -3.245), 'left_hip': (27.619, 0.517, 0.996), 'left_knee': (72.44,),
+        'left_ankle': (20.0, 0.996),
     })
-    human.KeyRoot(0.5, (-1.064, 89.955, 50.959), (-8.891, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.065, 89.955, 50.974), (-8.891, 0.0, 0.0))
     human.KeyJoints(0.5, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'right_hip': (12.022, -0.876, -1.767), 'right_knee': (18.267,),
-        'right_ankle': (6.278, -1.225), 'left_hip': (13.976, 0.852, 1.784), 'left_knee': (21.718,),
-        'left_ankle': (7.466, 1.232),
+        'right_hip': (12.015, -0.875, -1.767), 'right_knee': (18.274,),
+        'right_ankle': (6.292, -1.224), 'left_hip': (13.929, 0.851, 1.784), 'left_knee': (21.653,),
+        'left_ankle': (7.486, 1.231),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(0.6, (0.605, 90.668, 56.115), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.605, 90.668, 56.114), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.6, {
         'spine_lumbar': (4.952, -4.917, 0.0), 'spine_thoracic': (0.871, -0.906, 0.0),
-        'right_hip': (6.047, 0.542, 0.057), 'right_knee': (12.469,), 'right_ankle': (6.427, 0.545),
-        'left_hip': (6.027, -0.542, -0.057), 'left_knee': (12.428,), 'left_ankle': (6.402, -0.545),
+        'right_hip': (6.047, 0.542, 0.057), 'right_knee': (12.468,), 'right_ankle': (6.425, 0.545),
+        'left_hip': (6.027, -0.542, -0.057), 'left_knee': (12.427,), 'left_ankle': (6.401, -0.545),
     })
-    human.KeyRoot(0.7, (3.766, 90.376, 60.935), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.7, (3.766, 90.376, 60.934), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.7, {
         'spine_lumbar': (15.664, -15.159, 0.0), 'spine_thoracic': (2.492, -2.72, 0.0),
-        'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.084,), 'right_ankle': (9.595, 3.278),
-        'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.582, -3.278),
+        'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.083,), 'right_ankle': (9.594, 3.277),
+        'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.581, -3.277),
     })
-    human.KeyRoot(0.8, (7.078, 90.348, 60.502), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.8, (7.078, 90.351, 60.502), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'spine_lumbar': (23.012, -9.154, 0.0), 'spine_thoracic': (3.58, -1.623, 0.0),
-        'right_hip': (9.16, 5.416, 0.517), 'right_knee': (30.707,), 'right_ankle': (20.0, 5.431),
-        'left_hip': (3.12, -5.441, -0.296), 'left_knee': (10.846,), 'left_ankle': (7.739, -5.449),
+        'right_hip': (9.128, 5.416, 0.516), 'right_knee': (30.638,), 'right_ankle': (20.0, 5.431),
+        'left_hip': (3.099, -5.441, -0.294), 'left_knee': (10.802,), 'left_ankle': (7.717, -5.449),
     })
-    human.KeyRoot(0.9, (9.457, 90.28, 58.687), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.9, (9.457, 90.28, 58.686), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
         'spine_lumbar': (41.621, -3.231, 0.0), 'spine_thoracic': (5.544, -0.54, 0.0),
-        'right_hip': (-11.416, 7.004, -0.298), 'right_knee': (21.515,),
-        'right_ankle': (20.0, 7.103), 'left_hip': (3.935, -6.804, -0.459), 'left_knee': (9.383,),
-        'left_ankle': (5.472, -6.819),
+        'right_hip': (-11.435, 7.004, -0.298), 'right_knee': (21.476,),
+        'right_ankle': (20.0, 7.103), 'left_hip': (3.931, -6.804, -0.458), 'left_knee': (9.374,),
+        'left_ankle': (5.467, -6.819),
     })
     human.KeyRoot(1.0, (9.133, 89.798, 62.643), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.0, {
         'spine_lumbar': (25.974, -1.41, 0.0), 'spine_thoracic': (3.758, -0.247, 0.0),
-        'right_hip': (-12.871, 4.69, 7.633), 'right_knee': (44.142,),
-        'right_ankle': (-15.376, 8.392), 'left_hip': (3.217, -7.119, -0.4), 'left_knee': (13.464,),
-        'left_ankle': (10.277, -7.131),
+        'right_hip': (-12.882, 4.69, 7.633), 'right_knee': (44.119,),
+        'right_ankle': (-15.387, 8.392), 'left_hip': (3.217, -7.119, -0.4), 'left_knee': (13.463,),
+        'left_ankle': (10.276, -7.131),
     })
     human.KeyRoot(1.1, (9.029, 89.309, 63.414), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.1, {
         'spine_lumbar': (21.355, -0.606, 0.0), 'spine_thoracic': (3.451, -0.114, 0.0),
-        'right_hip': (-13.209, 2.156, 16.14), 'right_knee': (35.116,),
-        'right_ankle': (-48.361, 7.468), 'left_hip': (4.771, -7.173, -0.597),
+        'right_hip': (-13.212, 2.156, 16.14), 'right_knee': (35.11,),
+        'right_ankle': (-48.364, 7.468), 'left_hip': (4.771, -7.173, -0.597),
         'left_knee': (17.751,), 'left_ankle': (13.022, -7.198),
     })
     human.KeyRoot(1.2, (7.96, 89.734, 59.082), (-10.437, 0.0, 0.0))
@@ -445,12 +445,19 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.138689, duration=0.2628)
     human.KeyJoints(7.2, {'neck': (34.635, 22.109, -45.117), 'head': (6.824, -9.567)})
-    human.KeyJoints(7.3, {'neck': (34.622, 22.332, -51.582), 'head': (11.777, -10.581)})
-    human.KeyJoints(7.4, {
+    human.KeyJoints(7.3, {
         'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
+        'neck': (34.622, 22.332, -51.582), 'head': (11.777, -10.581),
+        'right_shoulder': (36.446, 35.883, -88.428), 'right_elbow': (20.894, -29.745),
+        'right_wrist': (73.859, 19.304), 'left_shoulder': (22.973, 6.269, 8.832),
+        'left_elbow': (63.672, 17.331), 'left_wrist': (-3.593, 6.649),
+    })
+    human.KeyJoints(7.4, {
+        'spine_lumbar': (58.118, 12.064, 6.344), 'spine_thoracic': (-12.229, 8.25, 18.222),
         'neck': (34.59, 22.471, -55.635), 'head': (14.944, -11.216),
-        'left_shoulder': (22.973, 6.269, 8.832), 'left_elbow': (63.672, 17.331),
-        'left_wrist': (-3.593, 6.649),
+        'right_shoulder': (34.431, 37.147, -88.856), 'right_elbow': (18.41, -29.829),
+        'right_wrist': (67.464, 18.089), 'left_shoulder': (24.211, 5.389, 9.306),
+        'left_elbow': (59.679, 17.324), 'left_wrist': (-3.104, 5.626),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
@@ -463,44 +470,45 @@ def replace_fuel_filter():
         'left_elbow': (61.298, 19.79), 'left_wrist': (-7.429, 7.514),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (56.735, 13.91, 1.384), 'spine_thoracic': (-10.776, 5.043, 7.017),
-        'neck': (30.537, 23.449, -43.568), 'right_shoulder': (34.156, 38.725, -89.585),
-        'right_elbow': (15.303, -29.645), 'right_wrist': (67.464, 18.464),
+        'spine_lumbar': (47.828, 12.608, 1.384), 'spine_thoracic': (-10.176, 5.604, 7.017),
+        'neck': (30.537, 23.449, -43.568), 'right_shoulder': (28.268, 45.128, -89.62),
+        'right_elbow': (5.002, -29.256), 'right_wrist': (28.708, 9.865),
         'left_shoulder': (27.176, 6.653, 13.173), 'left_elbow': (55.035, 26.146),
         'left_wrist': (-17.344, 9.751),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (52.818, 15.423, -3.382), 'spine_thoracic': (-9.108, 2.311, -3.753),
-        'neck': (29.176, 27.029, -31.069), 'right_shoulder': (33.177, 40.704, -90.0),
-        'right_elbow': (12.329, -29.582), 'right_wrist': (63.802, 17.96),
+        'spine_lumbar': (48.281, 14.274, -3.382), 'spine_thoracic': (-8.678, 2.226, -3.753),
+        'neck': (29.176, 27.029, -31.069), 'right_shoulder': (30.061, 42.092, -89.256),
+        'right_elbow': (9.98, -29.315), 'right_wrist': (45.541, 14.719),
         'left_shoulder': (31.215, 7.195, 17.344), 'left_elbow': (46.406, 34.618),
         'left_wrist': (-30.56, 12.733),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (54.124, 17.282, -8.337), 'spine_thoracic': (-7.346, -1.67, -14.947),
-        'neck': (30.715, 33.75, -17.185), 'right_shoulder': (35.481, 38.151, -88.976),
-        'right_elbow': (17.817, -29.64), 'right_wrist': (70.571, 18.941),
+        'spine_lumbar': (52.503, 16.508, -8.337), 'spine_thoracic': (-7.143, -1.789, -14.947),
+        'neck': (30.715, 33.75, -17.185), 'right_shoulder': (33.986, 39.378, -88.58),
+        'right_elbow': (14.842, -29.541), 'right_wrist': (66.793, 18.649),
         'left_shoulder': (35.414, 8.019, 21.68), 'left_elbow': (36.938, 43.424),
         'left_wrist': (-44.298, 15.832),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (58.041, 18.985, -12.478), 'spine_thoracic': (-5.6, -5.597, -24.301),
+        'spine_lumbar': (57.773, 18.723, -12.478), 'spine_thoracic': (-5.573, -5.608, -24.301),
         'neck': (35.0, 33.75, -4.605), 'head': (15.0, -11.25),
-        'right_shoulder': (36.579, 36.173, -88.343), 'right_elbow': (21.086, -29.753),
-        'right_wrist': (73.965, 19.339), 'left_shoulder': (38.922, 9.164, 25.303),
+        'right_shoulder': (36.224, 36.419, -88.263), 'right_elbow': (20.401, -29.758),
+        'right_wrist': (73.166, 19.24), 'left_shoulder': (38.922, 9.164, 25.303),
         'left_elbow': (28.155, 50.783), 'left_wrist': (-55.777, 18.422),
     })
     human.KeyJoints(8.0, {
         'spine_lumbar': (60.0, 19.928, -14.801), 'spine_thoracic': (-3.912, -7.75, -29.551),
         'neck': (35.0, -13.827, 9.011), 'head': (15.0, 11.25),
         'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
-        'left_clavicle': (-9.997, 15.0), 'left_shoulder': (40.891, 10.668, 27.337),
-        'left_elbow': (21.583, 54.913), 'left_wrist': (-62.22, 19.876),
+        'right_wrist': (73.886, 19.31), 'left_clavicle': (-9.997, 15.0),
+        'left_shoulder': (40.891, 10.668, 27.337), 'left_elbow': (21.583, 54.913),
+        'left_wrist': (-62.22, 19.876),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.1, {
         'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (-1.503, -8.19, -30.0),
-        'neck': (35.0, -1.0, 8.919), 'head': (15.0, 11.25), 'right_wrist': (73.886, 19.31),
+        'neck': (35.0, -1.0, 8.919), 'head': (15.0, 11.25),
         'left_shoulder': (43.088, 15.599, 26.152), 'left_elbow': (16.773, 54.576),
         'left_wrist': (-60.436, 18.775),
     })
@@ -525,145 +533,157 @@ def replace_fuel_filter():
         'left_elbow': (9.414, 54.203), 'left_wrist': (-43.885, 14.227),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (56.018, 19.859, -15.0), 'spine_thoracic': (10.814, -9.4, -30.0),
-        'neck': (33.306, 22.894, 22.64), 'head': (15.0, -5.321),
-        'right_shoulder': (37.301, 35.727, -88.031), 'right_elbow': (23.116, -29.844),
-        'right_wrist': (75.878, 19.558), 'left_shoulder': (49.268, 30.935, 27.11),
+        'spine_lumbar': (55.84, 19.371, -15.0), 'spine_thoracic': (10.867, -9.48, -30.0),
+        'neck': (33.306, 22.894, 22.64), 'head': (15.0, -5.321), 'right_elbow': (21.701, -29.754),
+        'right_wrist': (74.509, 19.382), 'left_shoulder': (49.268, 30.935, 27.11),
         'left_elbow': (32.921, 55.24), 'left_wrist': (-49.219, 14.596),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (50.73, 19.711, -15.0), 'spine_thoracic': (12.129, -8.764, -30.0),
+        'spine_lumbar': (50.139, 18.571, -15.0), 'spine_thoracic': (12.213, -9.027, -30.0),
         'neck': (34.098, 8.694, 42.866), 'head': (15.0, 2.433),
-        'right_shoulder': (38.386, 35.529, -87.526), 'right_elbow': (25.868, -29.965),
-        'right_wrist': (78.388, 19.822), 'left_shoulder': (34.32, 56.051, 29.413),
+        'right_shoulder': (37.544, 36.128, -87.976), 'right_elbow': (22.649, -29.772),
+        'right_wrist': (75.304, 19.482), 'left_shoulder': (34.32, 56.051, 29.413),
         'left_elbow': (64.846, 57.066), 'left_wrist': (-56.623, 15.201),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (48.002, 19.701, -15.0), 'spine_thoracic': (12.646, -8.762, -30.0),
+        'spine_lumbar': (47.268, 18.235, -15.0), 'spine_thoracic': (12.709, -9.112, -30.0),
         'neck': (34.78, -3.504, 60.241), 'head': (15.0, 9.095),
-        'right_shoulder': (38.614, 35.325, -87.39), 'right_elbow': (27.086, -30.057),
-        'right_wrist': (79.503, 19.94), 'left_shoulder': (18.32, 78.983, 32.442),
+        'right_shoulder': (37.526, 36.058, -87.974), 'right_elbow': (22.941, -29.804),
+        'right_wrist': (75.583, 19.544), 'left_shoulder': (18.32, 78.983, 32.442),
         'left_elbow': (86.699, 59.316), 'left_wrist': (-62.099, 15.87),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (47.012, 19.718, -15.0), 'spine_thoracic': (12.661, -8.93, -30.0),
+        'spine_lumbar': (46.298, 18.129, -15.0), 'spine_thoracic': (12.716, -9.282, -30.0),
         'neck': (35.0, -7.45, 65.862), 'head': (15.0, 11.25),
-        'right_shoulder': (38.481, 35.201, -87.421), 'left_shoulder': (2.704, 93.388, 37.838),
+        'right_shoulder': (37.336, 36.005, -88.052), 'left_shoulder': (2.704, 93.388, 37.838),
         'left_elbow': (87.466, 62.485), 'left_wrist': (-63.507, 16.648),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (46.158, 19.694, -15.0), 'right_elbow': (27.768, -30.148),
-        'right_wrist': (79.941, 20.0), 'left_shoulder': (-17.163, 106.479, 49.219),
-        'left_elbow': (82.943, 68.018), 'left_wrist': (-64.244, 17.79),
+        'spine_lumbar': (45.49, 18.004, -15.0), 'spine_thoracic': (12.783, -9.303, -30.0),
+        'left_shoulder': (-17.163, 106.479, 49.219), 'left_elbow': (82.943, 68.018),
+        'left_wrist': (-64.244, 17.79),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (46.184, 19.682, -15.0), 'spine_thoracic': (12.744, -8.911, -30.0),
-        'right_shoulder': (38.53, 35.137, -87.381), 'right_elbow': (27.749, -30.145),
-        'right_wrist': (79.919, 20.0), 'left_shoulder': (-34.368, 109.083, 51.937),
-        'left_elbow': (69.845, 71.573), 'left_wrist': (-59.384, 15.772),
+        'spine_lumbar': (45.543, 17.996, -15.0), 'spine_thoracic': (12.739, -9.279, -30.0),
+        'right_shoulder': (37.315, 36.025, -88.062), 'right_elbow': (22.854, -29.827),
+        'right_wrist': (75.517, 19.562), 'left_shoulder': (-34.428, 109.302, 52.064),
+        'left_elbow': (69.922, 71.599), 'left_wrist': (-59.458, 15.811),
     })
     human.KeyJoints(9.2, {
-        'spine_lumbar': (47.395, 19.641, -15.0), 'spine_thoracic': (11.962, -8.933, -30.0),
-        'neck': (35.0, -7.45, 65.862), 'right_shoulder': (38.242, 35.28, -87.523),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-42.846, 106.846, 49.183),
-        'left_elbow': (59.368, 72.482), 'left_wrist': (-54.61, 13.362),
+        'spine_lumbar': (46.734, 18.076, -15.0), 'spine_thoracic': (12.045, -9.274, -30.0),
+        'neck': (35.0, -7.45, 65.862), 'right_shoulder': (37.116, 36.109, -88.154),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-42.859, 107.475, 49.521),
+        'left_elbow': (59.578, 72.553), 'left_wrist': (-54.813, 13.468),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'spine_lumbar': (46.565, 19.585, -14.931), 'spine_thoracic': (9.291, -7.346, -29.968),
-        'neck': (35.0, -9.299, 63.588), 'right_shoulder': (37.693, 35.521, -87.813),
-        'right_elbow': (26.3, -30.127), 'right_wrist': (78.719, 19.909),
-        'left_clavicle': (-7.903, 15.0), 'left_shoulder': (-43.461, 107.417, 49.03),
-        'left_elbow': (58.623, 72.485), 'left_wrist': (-54.714, 13.412),
+        'spine_lumbar': (46.033, 18.125, -14.931), 'spine_thoracic': (9.408, -7.67, -29.968),
+        'neck': (35.0, -9.299, 63.588), 'right_shoulder': (36.558, 36.338, -88.43),
+        'left_clavicle': (-7.903, 15.0), 'left_shoulder': (-43.406, 108.258, 49.466),
+        'left_elbow': (58.973, 72.576), 'left_wrist': (-55.03, 13.562),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'spine_lumbar': (43.343, 19.59, -15.0), 'spine_thoracic': (5.742, -5.935, -30.0),
-        'neck': (35.0, -12.638, 60.087), 'right_shoulder': (37.304, 35.687, -88.02),
-        'right_elbow': (25.493, -30.109), 'right_wrist': (77.956, 19.872),
-        'left_clavicle': (-8.421, 15.0), 'left_shoulder': (-43.043, 110.766, 49.177),
-        'left_elbow': (63.965, 72.321), 'left_wrist': (-57.452, 13.727),
+        'spine_lumbar': (43.023, 18.307, -15.0), 'spine_thoracic': (5.771, -6.222, -30.0),
+        'neck': (35.0, -12.638, 60.087), 'right_shoulder': (36.182, 36.482, -88.618),
+        'right_elbow': (21.773, -29.914), 'right_wrist': (74.36, 19.533),
+        'left_clavicle': (-8.421, 15.0), 'left_shoulder': (-43.001, 111.516, 49.442),
+        'left_elbow': (64.333, 72.374), 'left_wrist': (-57.759, 13.839),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
     human.KeyJoints(9.5, {
-        'spine_lumbar': (48.471, 19.792, -15.0), 'right_shoulder': (36.795, 35.776, -88.261),
-        'right_elbow': (23.134, -29.933), 'right_wrist': (75.852, 19.605),
-        'left_shoulder': (-42.803, 119.714, 58.618), 'left_elbow': (71.386, 74.366),
-        'left_wrist': (-62.613, 16.832),
+        'spine_lumbar': (48.311, 19.165, -15.0), 'spine_thoracic': (5.353, -6.555, -30.0),
+        'right_shoulder': (36.249, 36.204, -88.554), 'right_elbow': (21.274, -29.833),
+        'right_wrist': (74.047, 19.418), 'left_shoulder': (-42.751, 120.101, 58.646),
+        'left_elbow': (71.581, 74.368), 'left_wrist': (-62.77, 16.862),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (53.268, 19.983, -15.0), 'spine_thoracic': (5.004, -6.862, -30.0),
-        'neck': (34.916, -12.753, 60.075), 'right_shoulder': (36.442, 35.869, -88.427),
-        'right_elbow': (20.919, -29.745), 'right_wrist': (73.886, 19.31),
-        'left_shoulder': (-42.748, 126.57, 65.992), 'left_elbow': (78.12, 75.939),
-        'left_wrist': (-66.946, 19.278),
+        'spine_lumbar': (51.216, 19.632, -15.0), 'spine_thoracic': (5.062, -6.752, -30.0),
+        'neck': (34.916, -12.753, 60.075), 'right_shoulder': (36.297, 36.028, -88.511),
+        'right_elbow': (20.998, -29.786), 'right_wrist': (73.883, 19.351),
+        'left_shoulder': (-42.836, 123.99, 62.991), 'left_elbow': (75.423, 75.278),
+        'left_wrist': (-65.248, 18.3),
     })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (53.268, 19.983, -15.0), 'spine_thoracic': (5.004, -6.862, -30.0),
+        'spine_lumbar': (45.965, 18.896, -15.0), 'spine_thoracic': (5.201, -6.533, -30.0),
         'neck': (34.751, -12.864, 60.04), 'head': (14.956, 11.25), 'right_clavicle': (-7.06, 15.0),
-        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
-        'right_wrist': (73.886, 19.31),
+        'right_shoulder': (36.042, 36.243, -88.649), 'right_elbow': (21.648, -29.912),
+        'right_wrist': (74.343, 19.529), 'left_shoulder': (-43.135, 116.163, 54.634),
+        'left_elbow': (68.252, 73.426), 'left_wrist': (-60.41, 15.536),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (53.517, 18.504, -14.282), 'spine_thoracic': (4.566, -6.515, -29.452),
+        'spine_lumbar': (40.615, 17.252, -14.282), 'spine_thoracic': (4.764, -6.185, -29.452),
         'neck': (34.247, -12.754, 58.979), 'head': (14.808, 11.245),
         'right_clavicle': (-7.168, 15.0), 'right_shoulder': (37.082, 33.735, -88.133),
         'right_elbow': (20.525, -29.575), 'right_wrist': (73.268, 19.095),
+        'left_shoulder': (-42.71, 104.899, 44.055), 'left_elbow': (60.299, 71.094),
+        'left_wrist': (-53.611, 11.777),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (54.633, 11.876, -11.066), 'spine_thoracic': (2.535, -4.954, -27.0),
+        'spine_lumbar': (38.583, 11.656, -11.066), 'spine_thoracic': (2.471, -4.985, -27.0),
         'neck': (32.404, -12.446, 53.871), 'head': (14.402, 11.15),
         'right_clavicle': (-7.656, 15.0), 'right_shoulder': (39.998, 24.094, -86.8),
         'right_elbow': (18.743, -28.802), 'right_wrist': (70.498, 18.125),
+        'left_shoulder': (-40.996, 96.696, 39.219), 'left_elbow': (55.601, 70.084),
+        'left_wrist': (-48.633, 9.612),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (56.263, 2.197, -6.368), 'spine_thoracic': (-0.61, -2.66, -23.417),
+        'spine_lumbar': (38.538, 2.878, -6.368), 'spine_thoracic': (-0.893, -2.969, -23.417),
         'neck': (29.745, -12.654, 44.886), 'head': (14.298, 10.993),
         'right_shoulder': (44.387, 9.807, -84.812), 'right_elbow': (16.091, -27.649),
-        'right_wrist': (66.453, 16.688),
+        'right_wrist': (66.453, 16.688), 'left_shoulder': (-41.157, 94.383, 40.157),
+        'left_elbow': (53.785, 70.32), 'left_wrist': (-47.547, 9.647),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (57.982, -8.016, -1.412), 'spine_thoracic': (-4.268, -0.214, -19.637),
+        'spine_lumbar': (40.005, -7.029, -1.412), 'spine_thoracic': (-4.626, -0.617, -19.637),
         'neck': (27.21, -14.182, 33.614), 'head': (14.909, 11.206),
         'right_clavicle': (-9.119, 15.0), 'right_shoulder': (49.266, -5.661, -82.637),
         'right_elbow': (13.203, -26.388), 'right_wrist': (62.185, 15.134),
+        'left_shoulder': (-44.045, 98.753, 45.42), 'left_elbow': (55.921, 71.477),
+        'left_wrist': (-50.79, 11.663),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (59.368, -16.245, 2.582), 'spine_thoracic': (-7.839, 1.805, -16.592),
+        'spine_lumbar': (41.646, -14.644, 2.582), 'spine_thoracic': (-8.4, 1.147, -16.592),
         'neck': (26.822, -19.148, 23.453), 'right_clavicle': (-9.724, 15.0),
         'right_shoulder': (53.65, -18.845, -80.743), 'right_elbow': (10.709, -25.29),
-        'right_wrist': (58.746, 13.813),
+        'right_wrist': (58.746, 13.813), 'left_shoulder': (-45.857, 103.107, 50.718),
+        'left_elbow': (58.757, 72.679), 'left_wrist': (-53.907, 13.652),
     })
     human.KeyJoints(10.3, {
-        'spine_lumbar': (59.995, -19.972, 4.39), 'spine_thoracic': (-10.721, 2.817, -15.213),
+        'spine_lumbar': (43.5, -17.567, 4.39), 'spine_thoracic': (-11.68, 1.745, -15.213),
         'neck': (28.378, -21.854, 18.293), 'head': (15.0, 11.232), 'right_clavicle': (-9.998, 15.0),
         'right_shoulder': (56.557, -26.278, -79.597), 'right_elbow': (9.242, -24.626),
-        'right_wrist': (57.188, 13.073),
+        'right_wrist': (57.188, 13.073), 'left_shoulder': (-45.413, 105.16, 54.131),
+        'left_elbow': (60.485, 73.487), 'left_wrist': (-55.174, 14.721),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {
         'spine_lumbar': (55.984, -19.274, 4.261), 'spine_thoracic': (-11.151, 2.821, -15.334),
         'neck': (29.666, -22.842, 19.438), 'right_clavicle': (-9.278, 14.779),
         'right_shoulder': (55.427, -28.827, -79.489), 'right_elbow': (8.503, -24.513),
-        'right_wrist': (57.83, 13.041),
+        'right_wrist': (57.83, 13.041), 'left_shoulder': (-42.748, 126.57, 65.992),
+        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
+        'spine_lumbar': (53.328, -18.605, 3.949), 'spine_thoracic': (-10.686, 2.587, -15.652),
         'neck': (29.73, -22.598, 20.516), 'right_clavicle': (-8.549, 14.373),
-        'right_shoulder': (54.105, -29.428, -79.603), 'right_elbow': (8.353, -24.552),
-        'right_wrist': (58.135, 13.135),
+        'right_shoulder': (53.842, -27.727, -79.819), 'right_elbow': (5.563, -24.423),
+        'right_wrist': (52.913, 12.214), 'left_shoulder': (-42.89, 125.092, 65.218),
+        'left_elbow': (76.882, 75.783), 'left_wrist': (-66.126, 18.973),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(10.6, {
+        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
         'right_shoulder': (52.964, -27.134, -79.971), 'right_elbow': (10.01, 5.452),
-        'right_wrist': (59.48, 13.764),
+        'right_wrist': (59.48, 13.764), 'left_shoulder': (-42.748, 126.57, 65.992),
+        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
     })
     human.KeyJoints(10.7, {
         'right_shoulder': (55.811, -21.918, -80.195), 'right_elbow': (11.383, 62.995),
@@ -855,38 +875,55 @@ def replace_fuel_filter():
     human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
         'spine_lumbar': (-3.806, 9.808, 3.949), 'spine_thoracic': (-0.821, 1.771, -15.652),
-        'right_hip': (25.037, -0.397, 0.568), 'right_ankle': (10.063, 4.833),
-        'left_hip': (98.871, -0.812, 0.999), 'left_knee': (132.297,), 'left_ankle': (3.221, 1.335),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+        'left_wrist': (0.0, 0.0), 'right_hip': (25.037, -0.397, 0.568),
+        'right_ankle': (10.063, 4.833), 'left_hip': (98.871, -0.812, 0.999),
+        'left_knee': (132.297,), 'left_ankle': (3.221, 1.335),
     })
     human.KeyRoot(17.0, (2.995, 46.839, 37.706), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (8.785, 9.365, 3.949), 'spine_thoracic': (1.312, 1.682, -15.652),
-        'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,), 'right_ankle': (14.452, 5.04),
-        'left_hip': (92.433, -0.17, 0.413), 'left_knee': (123.3,), 'left_ankle': (11.644, 0.434),
+        'spine_lumbar': (9.839, 8.94, 3.949), 'spine_thoracic': (1.47, 1.621, -15.652),
+        'right_shoulder': (8.938, 5.462, 11.523), 'right_elbow': (34.545, 17.189),
+        'left_shoulder': (7.339, 6.419, 11.293), 'left_elbow': (37.574, 17.189),
+        'left_wrist': (-0.293, 0.73), 'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,),
+        'right_ankle': (14.452, 5.04), 'left_hip': (92.433, -0.17, 0.414), 'left_knee': (123.3,),
+        'left_ankle': (11.609, 0.435),
     })
     human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (28.097, 9.175, 3.949), 'spine_thoracic': (4.21, 1.603, -15.652),
-        'right_hip': (34.67, -0.463, 1.25), 'right_knee': (128.657,),
+        'spine_lumbar': (31.259, 7.901, 3.949), 'spine_thoracic': (4.686, 1.42, -15.652),
+        'right_shoulder': (9.77, 4.9, 11.649), 'right_elbow': (34.592, 17.189),
+        'right_wrist': (0.06, 0.07), 'left_shoulder': (5.322, 7.671, 10.974),
+        'left_elbow': (42.994, 17.188), 'left_wrist': (-0.804, 1.966),
+        'right_hip': (34.67, -0.462, 1.249), 'right_knee': (128.657,),
         'right_ankle': (18.339, 2.038), 'left_hip': (79.247, -0.08, -0.608),
-        'left_knee': (101.565,), 'left_ankle': (19.032, -0.62),
+        'left_knee': (101.565,), 'left_ankle': (19.028, -0.62),
     })
     human.KeyRoot(17.2, (5.498, 71.895, 36.148), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (3.692, 10.797, 3.949), 'spine_thoracic': (0.524, 1.946, -15.652),
-        'right_hip': (17.304, 0.422, 2.378), 'right_knee': (94.205,), 'right_ankle': (14.266, 2.47),
-        'left_hip': (52.94, -1.05, -1.426), 'left_knee': (72.533,), 'left_ankle': (18.908, -1.774),
+        'spine_lumbar': (7.556, 9.239, 3.949), 'spine_thoracic': (1.105, 1.722, -15.652),
+        'right_shoulder': (9.754, 4.751, 11.699), 'right_elbow': (35.217, 17.189),
+        'right_wrist': (0.036, 0.216), 'left_shoulder': (4.399, 8.204, 10.838),
+        'left_elbow': (45.288, 17.188), 'left_wrist': (-1.022, 2.495),
+        'right_hip': (17.304, 0.422, 2.378), 'right_knee': (94.205,),
+        'right_ankle': (14.266, 2.469), 'left_hip': (52.94, -1.05, -1.426), 'left_knee': (72.532,),
+        'left_ankle': (18.903, -1.774),
     })
     human.KeyRoot(17.3, (6.834, 85.806, 36.181), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (0.087, 12.084, 3.949), 'spine_thoracic': (-0.302, 2.16, -15.652),
+        'spine_lumbar': (1.843, 11.376, 3.949), 'spine_thoracic': (-0.038, 2.059, -15.652),
+        'right_elbow': (34.711, 17.189), 'left_elbow': (39.743, 17.189),
         'right_hip': (10.143, 1.068, 3.358), 'right_knee': (67.814,),
-        'right_ankle': (-4.686, 3.672), 'left_hip': (28.72, -2.108, -1.155), 'left_knee': (28.72,),
-        'left_ankle': (0.021, -2.404),
+        'right_ankle': (-4.686, 3.672), 'left_hip': (28.72, -2.108, -1.155), 'left_knee': (28.719,),
+        'left_ankle': (0.019, -2.404),
     })
     human.KeyRoot(17.4, (6.21, 90.189, 45.35), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.4, {
         'spine_lumbar': (-27.238, 13.403, 3.949), 'spine_thoracic': (-7.232, 2.271, -15.652),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 5.73, 11.459),
+        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
         'right_hip': (-6.175, 2.175, 3.192), 'right_knee': (44.572,),
         'right_ankle': (-11.112, 3.826), 'left_hip': (10.143, -2.95, -0.528), 'left_knee': (4.612,),
         'left_ankle': (-5.518, -2.997),

@@ -461,6 +461,44 @@ def manikin_option(name: str) -> str:
     return f"gb10000_1988:{sex}:{pct}"
 
 
+def measure_folder(job: Job, out: Path, stdout: str, code: int) -> dict[str, Any]:
+    """The row of one compile from the files it wrote in ``out`` and the JSON it printed."""
+    try:
+        diagnostics = json.loads(stdout)["diagnostics"]
+    except (ValueError, KeyError):
+        diagnostics = [
+            {
+                "code": "MT0900",
+                "severity": "error",
+                "message": stdout[:200],
+                "span": {"file": job.path, "line": 0},
+            }
+        ]
+    result: dict[str, Any] = {
+        "job": job,
+        "exit": code,
+        "codes": [d["code"] for d in diagnostics],
+        "tasks": [],
+    }
+    for ir in sorted(out.glob("*.ir.json")):
+        doc = json.loads(ir.read_text(encoding="utf-8"))
+        result["tasks"].append({"task": doc["source"]["task"], **measure(doc, diagnostics)})
+    return result
+
+
+def remeasure(folder: Path, sources: Path | None) -> list[dict[str, Any]]:
+    """Rows of compiles kept with ``--keep`` (no compile: after a change of this bench)."""
+    rows = []
+    for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
+        stem, manikin = sub.name.rsplit(".", 1)
+        kind = "generated" if stem.startswith("gen_") else "example"
+        base = sources if kind == "generated" and sources else ROOT / "examples"
+        job = Job(kind, str(base / f"{stem}.mtask"), manikin)
+        stdout = (sub / "diagnostics.json").read_text(encoding="utf-8")
+        rows.append(measure_folder(job, sub, stdout, 0))
+    return rows
+
+
 def run_job(job: Job, keep: Path | None = None) -> dict[str, Any]:
     """Compile through the CLI's entry point in this worker, then measure the files it wrote
     (kept in ``keep``/STEM.MANIKIN/ with the diagnostics when given)."""
@@ -487,28 +525,9 @@ def run_job(job: Job, keep: Path | None = None) -> dict[str, Any]:
         ]
         with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(io.StringIO()):
             code = mtlc_main(argv)
-        try:
-            diagnostics = json.loads(buf.getvalue())["diagnostics"]
-        except (ValueError, KeyError):
-            diagnostics = [
-                {
-                    "code": "MT0900",
-                    "severity": "error",
-                    "message": buf.getvalue()[:200],
-                    "span": {"file": job.path, "line": 0},
-                }
-            ]
         if keep is not None:
             (out / "diagnostics.json").write_text(buf.getvalue(), encoding="utf-8")
-        result: dict[str, Any] = {
-            "job": job,
-            "exit": code,
-            "codes": [d["code"] for d in diagnostics],
-            "tasks": [],
-        }
-        for ir in sorted(out.glob("*.ir.json")):
-            doc = json.loads(ir.read_text(encoding="utf-8"))
-            result["tasks"].append({"task": doc["source"]["task"], **measure(doc, diagnostics)})
+        result = measure_folder(job, out, buf.getvalue(), code)
         return result
     except Exception as exc:  # a bench bug or a compile that cannot be read: a row, not a crash
         return {
@@ -654,6 +673,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--keep", type=Path, help="keep each compile's IR JSON and diagnostics here"
     )
+    parser.add_argument(
+        "--remeasure", type=Path, help="measure a --keep folder again instead of compiling"
+    )
     args = parser.parse_args(argv)
 
     folder = args.save or Path(tempfile.mkdtemp(prefix="mtlc-generated-"))
@@ -679,6 +701,8 @@ def main(argv: list[str] | None = None) -> int:
         flush=True,
     )
     rows: list[dict[str, Any]] = []
+    if args.remeasure:
+        rows, jobs = remeasure(args.remeasure, args.save), []
     ctx = multiprocessing.get_context("fork" if sys.platform != "win32" else "spawn")
     with ctx.Pool(args.workers, maxtasksperchild=25) as pool:
         work = functools.partial(run_job, keep=args.keep)

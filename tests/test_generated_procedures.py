@@ -187,9 +187,9 @@ def claims_unnamed(result: dict) -> list[str]:
 
 @pytest.mark.xfail(
     strict=False,
-    reason="issue 18: today's compile leaves held hands dragged, hands inside the body and "
-    "misses without a diagnostic; the verify pass (MT0510-MT0519) and the fixes will name or "
-    "remove them",
+    reason="issue 18: fails on today's compile without a diagnostic (a plain reach: the rest "
+    "stance's heels 6.4 mm above the floor, true static margin -102 mm; the forearm 17 mm into "
+    "the trunk); the verify pass (MT0510-MT0519) and the fixes are to name or remove such claims",
 )
 @settings(
     max_examples=6,

@@ -17,6 +17,8 @@ the diagnostics the compile printed. Definitions (docs/testing.md, "bench/motion
 * contact error: that distance, the largest over the goals of a compile;
 * penetration: how far the lowest body point (every joint, effector, contact point and landmark,
   fingertips included, and a held tool's tip) is below the floor, over all frames;
+* floating: how far the lowest body point is above the floor at the worst frame (walking has no
+  flight phase, so something always touches);
 * grip drift: how far a closed hand moves on a part that stays put, i.e. from its grasp until that
   hand's first reach or move, while neither that hand's own segments nor a walk move it;
 * true static margin: the horizontal distance from the centre of mass (body, held tools, carried
@@ -324,6 +326,9 @@ def measure(doc: dict[str, Any], diagnostics: list[dict[str, Any]]) -> dict[str,
             worst_point = name
         lowest = np.minimum(lowest, y)
     penetration = max(0.0, ground - float(np.min(lowest)))
+    # the body floats when even its lowest point is off the floor (walking has no flight phase)
+    hover = max(0.0, float(np.max(lowest)) - ground)
+    hover_at = float(body.time[int(np.argmax(lowest))])
     # grip drift on parts that stay put
     drift, drift_at = 0.0, None
     loco = [s for s in doc["segments"] if s["kind"] == "locomotion"]
@@ -441,6 +446,8 @@ def measure(doc: dict[str, Any], diagnostics: list[dict[str, Any]]) -> dict[str,
         "contact_mm": contact * 1000,
         "penetration_mm": penetration * 1000,
         "penetration_point": worst_point,
+        "hover_mm": hover * 1000,
+        "hover_at": hover_at,
         "drift_mm": drift * 1000,
         "drift_at": drift_at,
         "margin_mm": worst_margin * 1000 if math.isfinite(worst_margin) else None,
@@ -555,6 +562,7 @@ def run_job(job: Job, keep: Path | None = None) -> dict[str, Any]:
 GOALS = {
     "silent misses": "0",
     "penetration mm": "<= 1 (examples)",
+    "floating mm": "<= 2 (something touches)",
     "grip drift mm": "<= 1 (examples)",
     "contact error mm": "<= 1 or a diagnostic",
     "static margin mm": ">= 0 or MT0502",
@@ -604,6 +612,7 @@ def table(rows: list[dict[str, Any]], label: str) -> list[str]:
 
     row("contact error mm", "contact_mm", 1.0)
     row("penetration mm", "penetration_mm", 1.0)
+    row("floating mm", "hover_mm", 2.0)
     row("grip drift mm", "drift_mm", 1.0)
     row("static margin mm", "margin_mm", 0.0, worse_below=True)
     row("margin (10 mm) mm", "margin_10mm", 0.0, worse_below=True)
@@ -635,6 +644,7 @@ def worst_cases(rows: list[dict[str, Any]], n: int) -> list[str]:
             ),
         ),
         ("penetration", lambda t: t["penetration_mm"], lambda t: t["penetration_point"]),
+        ("floating", lambda t: t["hover_mm"], lambda t: f"at {t['hover_at']:.2f} s"),
         ("grip drift", lambda t: t["drift_mm"], lambda t: str(t["drift_at"])),
         (
             "static margin",

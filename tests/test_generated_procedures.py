@@ -174,6 +174,8 @@ def claims_unnamed(result: dict) -> list[str]:
             continue
         if task["penetration_mm"] > 1.0:
             out.append(f"penetration {task['penetration_mm']:.1f} mm ({task['penetration_point']})")
+        if task["hover_mm"] > 2.0:
+            out.append(f"floating {task['hover_mm']:.1f} mm at {task['hover_at']:.2f} s")
         if task["drift_mm"] > 1.0:
             out.append(f"grip drift {task['drift_mm']:.1f} mm {task['drift_at']}")
         if task["inside_mm"] > 10.0:

@@ -137,6 +137,6 @@ def test_lint_github_annotations_show_escapes() -> None:
     from mtlc.lint.output import render_github
 
     finding = Finding("MT0201", "title \x1b[2J\u202e\nsecond line", Span("t.mtask", 1, 1, 1, 2))
-    result = LintResult([finding], {}, [Path("t.mtask")], (), ())
+    result = LintResult([finding], {}, [Path("t.mtask")], ())
     out = render_github(result, Path.cwd())
     assert out.endswith(r"::title \u{1b}[2J\u{202e}%0Asecond line" + "\n")

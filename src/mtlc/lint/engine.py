@@ -56,8 +56,12 @@ class LintResult:
     sources: dict[str, str]
     files: list[Path]
     manikins: tuple[ManikinSpec, ...]
-    full: tuple[ManikinSpec, ...]  # compiled in full: every selected manikin
     rules_run: list[str] = field(default_factory=list)
+
+    @property
+    def full(self) -> tuple[ManikinSpec, ...]:
+        """The manikins compiled in full: every selected one (the reach screen is gone)."""
+        return self.manikins
 
     def failing(self, at: Severity) -> list[Finding]:
         return [f for f in self.findings if SEVERITY_RANK[f.severity] >= SEVERITY_RANK[at]]
@@ -116,7 +120,6 @@ def lint_paths(
         merge(findings, order),
         sources,
         files,
-        selection,
         selection,
         [r.code for r in RULES if config.enabled(r.code)],
     )

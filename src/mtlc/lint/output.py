@@ -80,13 +80,10 @@ def render_text(result: LintResult, root: Path, *, color: bool = False) -> str:
 def _summary(result: LintResult) -> str:
     counts = _counts(result.findings)
     found = ", ".join(f"{n} {k}{'s' if n != 1 else ''}" for k, n in counts.items() if n)
-    screened = [label(m) for m in result.manikins if m not in result.full]
     line = (
         f"{len(result.files)} file{'s' if len(result.files) != 1 else ''} linted for "
         f"{', '.join(label(m) for m in result.full)}"
     )
-    if screened:
-        line += f" (in full) and {len(screened)} more (reach only)"
     return f"{line}: {found or 'no findings'}\n"
 
 

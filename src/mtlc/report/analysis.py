@@ -211,4 +211,3 @@ class Report:
     tasks: list[TaskResult]
     selection: tuple[ManikinSpec, ...]
     ratio: dict[str, float]  # sex -> weight in the combined share
-    full: bool = True  # every manikin compiled in full (the only sweep since issue 18)

@@ -28,9 +28,7 @@ def escape(text: str) -> str:
 
 
 def render_html(report: Report) -> str:
-    sweep = "every manikin compiled in full" if report.full else (
-        "the extremes by stature compiled in full, the others screened for reach"
-    )  # fmt: skip
+    sweep = "every manikin compiled in full"
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en">',

@@ -33,9 +33,7 @@ def render_terminal(report: Report, *, color: bool, width: int | None = None) ->
         emoji=False,
         soft_wrap=False,
     )
-    sweep = "every manikin compiled in full" if report.full else (
-        "the extremes by stature compiled in full, the others screened for reach"
-    )  # fmt: skip
+    sweep = "every manikin compiled in full"
     console.print(
         Text(
             f"mtlc report: {len(report.selection)} manikins ({sweep}); "

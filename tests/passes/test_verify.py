@@ -298,8 +298,8 @@ def test_a_larger_manikin_has_larger_capsules() -> None:
 def test_runs_merge_close_failures() -> None:
     failed = np.zeros(30, dtype=bool)
     failed[[2, 3, 4, 8, 20]] = True
-    assert verify.runs(failed) == [(2, 8), (20, 20)]
-    assert verify.runs(failed, gap=1) == [(2, 4), (8, 8), (20, 20)]
+    assert verify.failure_runs(failed) == [(2, 8), (20, 20)]
+    assert verify.failure_runs(failed, gap=1) == [(2, 4), (8, 8), (20, 20)]
 
 
 def test_one_shortfall_number_in_compile_and_metrics(tmp_path: Path) -> None:

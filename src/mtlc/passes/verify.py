@@ -37,20 +37,19 @@ from mtlc.body.kinematics import Pose
 from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
 from mtlc.loads import carried_com
 from mtlc.metrics import (
-    BoolArray,
     foot_stance,
     hand_contacts,
     support,
     support_margin,
     walking,
 )
-from mtlc.passes.balance import grouped_hull
+from mtlc.passes.approach import effector_name
+from mtlc.passes.balance import _mm, failure_runs, grouped_hull
 from mtlc.passes.context import PassContext
 
 TOLERANCE = 1e-3  # m: contact error, grip drift, depth below the floor, depth inside the body
 LIMIT_TOLERANCE = 1e-6  # rad past a joint's limit (rounding, not motion)
 MIN_MARGIN = 0.0  # m: the centre of mass inside the support
-RUN_GAP = 6  # failing frames closer than this belong to one run (one report)
 EPS = 1e-9
 
 HAND_NAMES = {"r": "right hand", "l": "left hand"}
@@ -68,13 +67,6 @@ def _reachable(result: dict[str, Any]) -> bool:
     return all(bool(result[key]) for key in ("reachable", "success", "reached") if key in result)
 
 
-def effector_name(effector: str) -> str:
-    """ "right hand", or "wrench_10mm in the right hand" for a tool's tip (``r_tool_...``)."""
-    side, _, rest = effector.partition("_")
-    hand = HAND_NAMES.get(side, effector)
-    return f"{rest[5:]} in the {hand}" if rest.startswith("tool_") else hand
-
-
 def point_name(name: str) -> str:
     """How a message names a body point: "the left fingertip", "the right ball med", "the tip of
     wrench_10mm in the right hand"."""
@@ -84,21 +76,6 @@ def point_name(name: str) -> str:
     if side in ("r", "l"):
         return f"the {'right' if side == 'r' else 'left'} {rest.replace('_', ' ')}"
     return f"the {name.replace('_', ' ')}"
-
-
-def _mm(metres: float) -> str:
-    mm = metres * 1000.0
-    return f"{mm:.0f}" if mm >= 9.5 else f"{mm:.1f}"
-
-
-def runs(failed: BoolArray, gap: int = RUN_GAP) -> list[tuple[int, int]]:
-    """(first, last) frame of each run of failing frames; runs closer than ``gap`` merge."""
-    idx = np.flatnonzero(failed)
-    if idx.size == 0:
-        return []
-    cuts = np.flatnonzero(np.diff(idx) > gap)
-    return list(zip(np.r_[idx[0], idx[cuts + 1]].tolist(), np.r_[idx[cuts], idx[-1]].tolist(),
-                    strict=True))  # fmt: skip
 
 
 class _Verifier:
@@ -311,7 +288,7 @@ class _Verifier:
             for s in movers:
                 still &= ~((t > s.start + EPS) & (t < s.end - EPS))
             hand = self.path(f"{side}_hand")
-            for first, last in runs(still, gap=1):
+            for first, last in failure_runs(still, gap=1):
                 seg_grip = next(
                     (g for a, b, g in reversed(held_by) if a - EPS <= t[first] < b), None
                 )
@@ -355,7 +332,7 @@ class _Verifier:
             return
         gap = np.linalg.norm(self.path("r_hand") - self.path("l_hand"), axis=-1)
         t = self.t
-        for first, last in runs(same, gap=1):
+        for first, last in failure_runs(same, gap=1):
             stretch = np.abs(gap[first : last + 1] - gap[first])
             j = int(np.argmax(stretch))
             worst = float(stretch[j])
@@ -416,7 +393,7 @@ class _Verifier:
             every = np.maximum(every, depth)
             k = int(np.argmax(depth))
             self.v.penetration[name] = {"depth": float(depth[k]), "time": float(self.t[k])}
-            for first, last in runs(depth > TOLERANCE):
+            for first, last in failure_runs(depth > TOLERANCE):
                 i = first + int(np.argmax(depth[first : last + 1]))
                 point = names[int(np.argmax(depth_pts[i]))]
                 side = point[0] if point[:2] in ("r_", "l_") else ""
@@ -450,7 +427,7 @@ class _Verifier:
                              time=float(self.t[i]))  # fmt: skip
         for d in np.flatnonzero(bad.any(axis=0)):
             name = skel.dof_names[d]
-            for first, last in runs(bad[:, d]):
+            for first, last in failure_runs(bad[:, d]):
                 i = first + int(np.argmax(over[first : last + 1, d]))
                 side = name[0] if name[:2] in ("r_", "l_") else ""
                 seg = self.active(i, [ARM_TRACK[side]] if side else [])
@@ -482,7 +459,7 @@ class _Verifier:
             self.v.static_margin, self.v.static_margin_time = float(margin[k]), float(t[k])
         # a static frame where no point touches (NaN) has no support at all: it fails too
         failed = static & ~(margin >= MIN_MARGIN)
-        for first, last in runs(failed):
+        for first, last in failure_runs(failed):
             part = np.where(failed[first : last + 1], margin[first : last + 1], np.inf)
             seg = self.active(first)
             if seg is None:
@@ -519,7 +496,7 @@ class _Verifier:
         }
         worst: dict[SourceRef, tuple[float, int, int, Segment]] = {}  # the deepest per line
         for c, (limb, _) in enumerate(pairs):
-            for first, last in runs(depth[:, c] > TOLERANCE):
+            for first, last in failure_runs(depth[:, c] > TOLERANCE):
                 i = first + int(np.argmax(depth[first : last + 1, c]))
                 seg = self.active(i, [ARM_TRACK["r" if limb.startswith("right") else "l"]])
                 if seg is None:

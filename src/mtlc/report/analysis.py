@@ -143,16 +143,12 @@ def analyse_tasks(
 def measure_one(
     shared: tuple[tuple[Timeline, ...], MotionOptions], item: tuple[int, ManikinSpec]
 ) -> ManikinResult:
-    """One task compiled for one manikin: its distances and worst RULA (runs in a worker)."""
+    """One task compiled for one manikin: its distances and worst RULA (runs in a worker; a
+    bug in a pass is the executor's Failed, a FAILED row, and the others go on)."""
     timelines, options = shared
     index, spec = item
     result = ManikinResult(spec, stature(spec) / 1000.0, FULL)
-    sink = DiagnosticSink()
-    try:
-        ir = run_motion(dataclasses.replace(timelines[index], manikin=spec), sink, options)
-    except Exception as exc:  # a bug in a pass: this manikin has no numbers, the others go on
-        result.method, result.error = FAILED, f"{type(exc).__name__}: {exc}"
-        return result
+    ir = run_motion(dataclasses.replace(timelines[index], manikin=spec), DiagnosticSink(), options)
     result.distance = contact_distances(ir)
     result.rula = worst_rula(ir)
     return result

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time as clock
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -141,6 +141,10 @@ class _Verifier:
         if site not in self.paths:
             self.paths[site] = site_positions(self.skel, self.pose, site)
         return self.paths[site]
+
+    def heights(self, sites: Sequence[str]) -> FloatArray:
+        """(N, P) the sites' heights, from the cached paths (contacts and grips made most)."""
+        return np.stack([self.path(site)[:, 1] for site in sites], axis=1)
 
     def where(self, seg: Segment) -> str:
         return " > ".join(seg.provenance.path)
@@ -371,21 +375,15 @@ class _Verifier:
         tools = [s.name for s in skel.sites if "_tool_" in s.name]
         classes: dict[str, tuple[FloatArray, list[str]]] = {
             "joints": (self.pose.p[..., 1], list(skel.joint_names)),
-            "soles": (
-                site_positions(self.skel, self.pose, list(SOLE_SITES))[..., 1],
-                list(SOLE_SITES),
-            ),
-            "hands": (
-                site_positions(self.skel, self.pose, ["r_hand", "l_hand"])[..., 1],
-                ["r_hand", "l_hand"],
-            ),
+            "soles": (self.heights(SOLE_SITES), list(SOLE_SITES)),
+            "hands": (self.heights(("r_hand", "l_hand")), ["r_hand", "l_hand"]),
             "fingertips": (
-                site_positions(self.skel, self.pose, ["r_fingertip", "l_fingertip"])[..., 1],
+                self.heights(("r_fingertip", "l_fingertip")),
                 ["r_fingertip", "l_fingertip"],
             ),
         }
         if tools:
-            classes["tool tips"] = (site_positions(self.skel, self.pose, tools)[..., 1], tools)
+            classes["tool tips"] = (self.heights(tools), tools)
         every = np.zeros(len(self.t))
         for name, (heights, names) in classes.items():
             depth_pts = np.maximum(ground - heights, 0.0)  # (N, P)

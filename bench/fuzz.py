@@ -495,7 +495,9 @@ def stage_fmt(path: Path) -> Outcome:
 def stage_lint(path: Path) -> Outcome:
     from mtlc.lint import LintConfig, lint_paths
 
-    result = lint_paths([path], LintConfig())
+    # jobs=1: the compiles run in this (daemonic) worker, which may not start processes, and
+    # its CPU time is then the whole lint's
+    result = lint_paths([path], LintConfig(), jobs=1)
     bad = next((f for f in result.findings if f.code == "MT0900"), None)
     return Outcome("internal", bad.message) if bad is not None else Outcome("ok")
 

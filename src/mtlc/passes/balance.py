@@ -36,7 +36,7 @@ from bisect import bisect_left
 
 import numpy as np
 
-from mtlc.body import Pose, com_jacobian, forward, site_positions, site_rotation
+from mtlc.body import Pose, Skeleton, com_jacobian, forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.loads import carried_com
@@ -650,12 +650,13 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
     t = frames.time
     pins = hand_pins(ir, t)
     out: dict[str, np.ndarray] = {}
-    for side, tip in TIP_SITES.items():
-        depth = np.empty(len(t))
-        for a in range(0, len(t), CHUNK_FRAMES):
-            c = slice(a, a + CHUNK_FRAMES)
-            pose = forward(skel, frames.q[c], frames.root_position[c], frames.root_rotation[c])
-            depth[c] = ir.ground - site_positions(skel, pose, tip)[:, 1]
+    start = np.empty((len(t), len(TIP_SITES)))  # one FK of the frames for both sides
+    for a in range(0, len(t), CHUNK_FRAMES):
+        c = slice(a, a + CHUNK_FRAMES)
+        pose = forward(skel, frames.q[c], frames.root_position[c], frames.root_rotation[c])
+        start[c] = ir.ground - site_positions(skel, pose, list(TIP_SITES.values()))[..., 1]
+    for i, (side, tip) in enumerate(TIP_SITES.items()):
+        depth = start[:, i].copy()  # a side's wrist does not move the other side's fingertip
         free = ~pins[f"{side}_hand"]
         k = skel.dof_index(f"{side}_wrist_flex")
         grid = np.linspace(skel.lower[k], skel.upper[k], WRIST_GRID)
@@ -692,14 +693,8 @@ def _wrist_lift(
     """The wrist flexion change (rows,) that clears the fingertip of a run of frames, all one
     way: of flexing and extending, the one whose largest change is the least (where neither
     clears every frame, each frame's highest fingertip)."""
-    skel = ir.skeleton
-    n = len(grid)
-    q = np.repeat(frames.q[rows], n, axis=0)
-    q[:, k] = np.tile(grid, rows.size)
-    pose = forward(skel, q, np.repeat(frames.root_position[rows], n, axis=0),
-                   np.repeat(frames.root_rotation[rows], n, axis=0))  # fmt: skip
-    height = site_positions(skel, pose, tip)[:, 1].reshape(rows.size, n)
     change = grid[None, :] - frames.q[rows, k][:, None]
+    height = tip_heights(ir.skeleton, frames, rows, k, change, tip)
     clear = height >= ir.ground + TIP_CLEAR
     best, best_cost = None, np.inf
     for sign in (1.0, -1.0):
@@ -713,6 +708,26 @@ def _wrist_lift(
     if best is None:
         best = np.argmax(height, axis=1)
     return change[np.arange(rows.size), best]
+
+
+def tip_heights(
+    skel: Skeleton, frames: Frames, rows: np.ndarray, k: int, change: np.ndarray, tip: str
+) -> np.ndarray:
+    """Height (rows, n) of site ``tip`` with dof ``k`` of each row turned by each ``change``.
+
+    One forward kinematics of the rows, not one per change: turning dof ``k`` by Δ turns
+    everything beyond its joint about the dof's world axis through the joint, so the site is the
+    joint plus the joint-to-site vector rotated by Δ (Rodrigues). A run the length of a task
+    took a whole-body FK of rows × 41 postures before: seconds for a long one."""
+    pose = forward(skel, frames.q[rows], frames.root_position[rows], frames.root_rotation[rows])
+    joint = pose.p[:, skel.dof_joint[k]]  # (rows, 3): a joint's place is not moved by its dofs
+    u = site_positions(skel, pose, tip) - joint
+    a = pose.axes[:, k]  # (rows, 3), unit
+    cos, sin = np.cos(change), np.sin(change)
+    along = np.einsum("ri,ri->r", a, u)[:, None]
+    a_cross_u_y = a[:, 2] * u[:, 0] - a[:, 0] * u[:, 2]
+    height = joint[:, 1:2] + u[:, 1:2] * cos + a_cross_u_y[:, None] * sin
+    return height + a[:, 1:2] * along * (1.0 - cos)
 
 
 def report_fingertips(ir: MotionIR, ctx: PassContext, depth: dict[str, np.ndarray]) -> None:

@@ -170,7 +170,7 @@ class _Verifier:
                 # wrench stroke starts on its fastener and claims the tip back on it where it
                 # ends, so its only frame is its end
                 first = seg.start
-                if k and segs[k - 1].kind == "TA" and segs[k - 1].goal.site == seg.goal.site:
+                if k and segs[k - 1].kind == "TA" and _same_goal(segs[k - 1], seg):
                     first = segs[k - 1].start
                 if is_stroke(seg):
                     first = seg.end
@@ -569,4 +569,12 @@ def _is_goal(segs: list[Segment], k: int) -> bool:
     if seg.kind == "TO":
         return True
     nxt = segs[k + 1] if k + 1 < len(segs) else None
-    return not (nxt is not None and nxt.kind == "TO" and nxt.goal.site == seg.goal.site)
+    return not (nxt is not None and nxt.kind == "TO" and _same_goal(seg, nxt))
+
+
+def _same_goal(ta: Segment, to: Segment) -> bool:
+    """A TA and the TO after it are one goal when one task line asked for both on one site: a
+    reach with ``approach 0`` then another reach to the same site (a TO alone: its hand is at
+    the approach point already) are two goals, and the first was left unchecked (2 m short,
+    no diagnostic)."""
+    return ta.goal.site == to.goal.site and ta.provenance.origin == to.provenance.origin

@@ -191,3 +191,47 @@ def test_a_part_held_in_both_hands_is_carried_whole_through_a_walk(tmp_path: Pat
         axis=1,
     )
     assert spread.max() - spread.min() <= 1e-3  # the hands do not move on the part
+
+
+RELEASED_THEN_SQUAT = (
+    HEAD
+    + """scene s {
+    site front at (-8, 132, 44) cm normal (-1, 0, 0)
+}
+
+task t {
+    manikin gb10000_1988 male p95
+    scene s
+    pick(right, front)
+    release(right)
+    squat(70 cm)
+    stand()
+}
+"""
+)
+
+
+def test_a_hand_that_let_go_is_free_and_its_fingertips_stay_above_the_floor(
+    tmp_path: Path,
+) -> None:
+    """After ``release`` the hand holds nothing (``hold.on_site``), though no arm segment
+    follows: the balance pass may turn its wrist to lift the fingertips. It took the hand for
+    one still on its site (``hand_pins`` pins until the arm's next segment), and the squat put
+    the fingertips 74 mm through the floor (generated gen_146, MT0525 and MT0512)."""
+    from mtlc.passes.hold import on_site
+
+    path = tmp_path / "t.mtask"
+    path.write_text(RELEASED_THEN_SQUAT, encoding="utf-8")
+    (timeline,) = run_frontend([path]).timelines
+    sink = DiagnosticSink()
+    ir = run_motion(timeline, sink)
+    assert not {"MT0512", "MT0525"} & {d.code for d in sink.items}, sink.items
+    fr = ir.frames
+    assert fr is not None
+    pose = forward(ir.skeleton, fr.q, fr.root_position, fr.root_rotation)
+    tips = site_positions(ir.skeleton, pose, ["r_fingertip", "l_fingertip"])
+    assert tips[..., 1].min() > ir.ground - 1e-3
+    (to,) = [s for s in ir.on_track("r_arm") if s.kind == "TO"]
+    held = on_site(ir, fr.time)["r_hand"]
+    assert held[(fr.time > to.start) & (fr.time < to.end)].all()
+    assert not held[fr.time > to.end + 1.0].any()  # let go: free for the squat

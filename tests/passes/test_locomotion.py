@@ -741,3 +741,39 @@ def test_walks_of_millimetres_do_not_crash_or_skate(dx: float, dz: float, turn: 
         ir = _compile_short(Path(tmp), body, dx, dz)
     assert len(_walks(ir)) == 2
     _assert_stands_without_skating(ir)
+
+
+# --------------------------------------------------------------------------- a raised floor
+
+RAISED_FLOOR = """use stdlib.actions
+
+scene s {
+    ground 15 cm
+    site spot at (-9, 15, 122) cm
+    site back at (30, 15, 0) cm
+}
+
+task t "walks on a raised floor" {
+    manikin gb10000_1988 male p50
+    scene s
+    walk_to(spot)
+    walk_to(back)
+}
+"""
+
+
+def test_walks_on_a_raised_floor_keep_the_soles_on_it(tmp_path: Path) -> None:
+    """The footprints are on the floor already: adding the ground's height again to the ankle
+    (a generated procedure, ``ground 15 cm``) walked 15 cm above it, the toes first sinking
+    48 mm below it as they left the rest stance. Over every frame something touches the floor
+    and nothing goes through it."""
+    path = tmp_path / "raised.mtask"
+    path.write_text(RAISED_FLOOR, encoding="utf-8")
+    program = run_frontend([path])
+    ir = run_motion(program.timelines[0], program.sink)
+    assert ir.ground == pytest.approx(0.15)
+    lowest = np.minimum(
+        _foot_points(ir, "r")[..., 1].min(axis=1), _foot_points(ir, "l")[..., 1].min(axis=1)
+    )
+    assert lowest.min() > ir.ground - 1e-3
+    assert lowest.max() < ir.ground + 2e-3

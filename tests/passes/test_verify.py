@@ -446,3 +446,81 @@ def test_two_hands_on_one_part_that_move_apart_are_mt0511() -> None:
     # the same with both arms still: the part is carried rigidly, nothing to report
     g = standing(30)
     assert reverify(make_ir(g, segs)) == []
+
+
+# --------------------------------------------------------------------------- goals verify missed
+STROKES = """use stdlib.actions
+use stdlib.tools
+
+scene bench {
+    site bolt at (10, 105, 45) cm normal (0, 0, -1)
+}
+
+task loosen {
+    manikin gb10000_1988 male p50
+    scene bench
+    unscrew(right, bolt, turns: 1, tool: ratchet_3_8)
+}
+"""
+STROKES_LINE = 11
+
+
+def _compile(tmp_path: Path, text: str) -> tuple[MotionIR, list[tuple[str, int, str]]]:
+    path = tmp_path / "task.mtask"
+    path.write_text(text, encoding="utf-8")
+    (timeline,) = run_frontend([path]).timelines
+    sink = DiagnosticSink()
+    ir = run_motion(timeline, sink)
+    return ir, [(d.code, d.span.line, d.message) for d in sink.sorted()]
+
+
+def test_a_stroke_left_off_its_fastener_is_mt0501_though_the_reach_was_on_it(
+    tmp_path: Path,
+) -> None:
+    """Each stroke of a wrench starts on the fastener, so the closest approach over all the
+    strokes' frames is 0 mm (the reach that put the tool on): a ratchet 7-42 mm off its bolt at
+    the end of its strokes gave no diagnostic. Each stroke is judged where it ends."""
+    ir, found = _compile(tmp_path, STROKES)
+    strokes = [s for s in ir.segments if s.kind == "TO" and "stroke" in s.goal.params]
+    assert len(strokes) >= 2 and found == []
+    bad = corrupt(ir)
+    for s in strokes:  # the solver left the strokes short; each ends off the bolt
+        s.result = {**s.result, "success": False}
+        i = int(np.searchsorted(bad.frames.time, s.end - 1e-9))  # type: ignore[union-attr]
+        bad.frames.q[i, bad.skeleton.dof_index("r_elbow_flex")] += 0.05  # type: ignore[union-attr]
+    said = [(c, line, m) for c, line, m in reverify(bad) if c == "MT0501"]
+    assert [(c, line) for c, line, _ in said] == [("MT0501", STROKES_LINE)], said
+    assert "cannot stay on site `bolt` through its strokes" in said[0][2]
+    # report's row is the reach's own (it reached): the strokes are MT0501's, not a shortfall
+    from mtlc.report.analysis import contact_distances
+
+    (reach,) = contact_distances(bad).values()
+    assert reach <= verify.TOLERANCE
+
+
+TWO_REACHES = """use stdlib.actions
+use stdlib.elements
+
+scene bench {
+    site high at (0, 260, 40) cm
+}
+
+task stretch {
+    manikin gb10000_1988 female p5
+    scene bench
+    reach(left, high, approach: 0 cm)
+    reach(left, high, approach: 7 cm)
+}
+"""
+
+
+def test_a_reach_with_no_approach_followed_by_another_to_its_site_is_its_own_goal(
+    tmp_path: Path,
+) -> None:
+    """The first reach is a TA alone (``approach 0``), the second a TO alone (its hand is at the
+    approach point already): they are two goals of two lines. Verify took the TA for the TO's
+    approach and checked neither at the first line (generated gen_179: 2 m short, silent)."""
+    ir, found = _compile(tmp_path, TWO_REACHES)
+    arm = [(s.kind, s.provenance.origin.line) for s in ir.on_track("l_arm")]
+    assert arm[0] == ("TA", 11) and ("TO", 12) in arm
+    assert {(c, line) for c, line, _ in found if c == "MT0501"} == {("MT0501", 11), ("MT0501", 12)}

@@ -58,6 +58,7 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.context import PassContext
+from mtlc.passes.hold import on_site
 
 HULL_EPS = 1e-9  # m: as ``mtlc.metrics.hull``
 
@@ -640,7 +641,8 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
 
     A hand swung low on its way to a site (a TA path past the floor) can take its fingertips,
     18 cm beyond the wrist, through the floor while the hand itself stays above it. Each run of
-    such frames where the hand is not on a site (``hand_pins``) turns the wrist one way, the one
+    such frames where the hand is not on a site (``hold.on_site``: a hand that let go is free,
+    though ``hand_pins`` keeps it pinned until its arm's next segment) turns the wrist one way, the one
     that needs the least flexion to lift every frame's fingertip ``TIP_CLEAR`` above the
     ground; the corrections are blended over ``TIP_BLEND`` frames so nothing jumps, never touch a
     pinned frame (a hand on its site stays on it), and are repeated while they help. Returns,
@@ -648,7 +650,7 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
     """
     skel = ir.skeleton
     t = frames.time
-    pins = hand_pins(ir, t)
+    pins = on_site(ir, t)
     out: dict[str, np.ndarray] = {}
     start = np.empty((len(t), len(TIP_SITES)))  # one FK of the frames for both sides
     for a in range(0, len(t), CHUNK_FRAMES):

@@ -104,6 +104,17 @@ def holding(ir: MotionIR, t: float, memo: dict[Any, Any] | None = None) -> set[s
     return {seg.track for seg, end in spans if seg.start - EPS <= t < end - EPS}
 
 
+def on_site(ir: MotionIR, time: FloatArray) -> dict[str, np.ndarray]:
+    """(N,) per hand (``r_hand``, ``l_hand``): the frames where it is on a site, from the start
+    of a contact until its hold ends (``hold_spans``: its next arm segment, a walk, or a release
+    it does not take back). A hand that has let go is free, though no arm segment follows."""
+    t = np.asarray(time, dtype=float)
+    out = {hand: np.zeros(len(t), dtype=bool) for hand in ARM_HAND.values()}
+    for seg, end in hold_spans(ir):
+        out[ARM_HAND[seg.track]] |= (t >= seg.start - EPS) & (t < end - EPS)
+    return out
+
+
 def hold_windows(ir: MotionIR) -> list[Hold]:
     """Every hold of the motion, in time order (see the module docstring)."""
     holds = []

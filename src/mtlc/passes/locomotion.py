@@ -469,7 +469,7 @@ class WalkMotion:
         """A step's landing ankle, its start's rotation and toe tip, its landing toe tip."""
         key = id(st)
         if key not in self._geo:
-            lift = np.array([0.0, self.ground + self.legs.ankle_height, 0.0])
+            lift = np.array([0.0, self.legs.ankle_height, 0.0])  # footprints are on the ground
             R0 = _ry(st.start.heading)
             a1 = st.end.position + lift
             self._geo[key] = (a1, R0, st.start.position + lift + R0 @ self.legs.toe,
@@ -484,7 +484,7 @@ class WalkMotion:
         with a sin² rise of ``step_height`` and lands flat.
         """
         out = {}
-        lift = self.ground + self.legs.ankle_height
+        lift = self.legs.ankle_height  # the footprints are on the ground already
         toe = self.legs.toe
         # every step writes index ranges of the sorted times (found by bisection), and its
         # landing holds only until the foot's next step lands (which overwrites the rest):

@@ -46,6 +46,7 @@ from mtlc.metrics import (
 from mtlc.passes.approach import effector_name
 from mtlc.passes.balance import _mm, failure_runs, grouped_hull
 from mtlc.passes.context import PassContext
+from mtlc.passes.tool import is_stroke
 
 TOLERANCE = 1e-3  # m: contact error, grip drift, depth below the floor, depth inside the body
 LIMIT_TOLERANCE = 1e-6  # rad past a joint's limit (rounding, not motion)
@@ -96,6 +97,8 @@ class _Verifier:
         # per side: the site of the two-handed goal held at each frame, and the closed grips
         self.held: dict[str, tuple[Any, list[tuple[float, float, Segment]]]] = {}
         self.short: dict[tuple[SourceRef, str | None, str], tuple[float, float]] = {}
+        # a wrench's strokes: the worst tip distance where a stroke the solver left short ends
+        self.stroke_short: dict[tuple[SourceRef, str | None, str], tuple[float, float]] = {}
 
     # -- reporting ---------------------------------------------------------------------------
 
@@ -163,10 +166,14 @@ class _Verifier:
                     continue
                 site = np.asarray(seg.goal.position, dtype=float)
                 i = self.frame_at(seg.end)
-                # the goal's frames: from its TA (the same site, ending where the TO starts)
+                # the goal's frames: from its TA (the same site, ending where the TO starts); a
+                # wrench stroke starts on its fastener and claims the tip back on it where it
+                # ends, so its only frame is its end
                 first = seg.start
-                if k and segs[k - 1].kind == "TA" and segs[k - 1].goal.site == seg.goal.site:
+                if k and segs[k - 1].kind == "TA" and _same_goal(segs[k - 1], seg):
                     first = segs[k - 1].start
+                if is_stroke(seg):
+                    first = seg.end
                 i0 = min(self.frame_at(first), i)
                 path = self.path(seg.goal.effector)
                 dist = np.linalg.norm(path[i0 : i + 1] - site, axis=-1)
@@ -213,6 +220,11 @@ class _Verifier:
                 ref,
                 (site, seg.track),
             )
+        elif not reached and is_stroke(seg):
+            key = (ref, site, seg.goal.effector)
+            worst = self.stroke_short.get(key)
+            if worst is None or error > worst[0]:
+                self.stroke_short[key] = (error, at)
         elif not reached:
             key = (ref, site, seg.goal.effector)
             best = self.short.get(key)
@@ -220,13 +232,23 @@ class _Verifier:
                 self.short[key] = (shortfall, closest)
 
     def report_shortfalls(self) -> None:
-        """MT0501 once per goal, with its closest approach on the frames (over 1 mm)."""
+        """MT0501 once per goal, with its closest approach on the frames (over 1 mm); a
+        wrench's strokes with the worst distance where one of them ends."""
         for (ref, site, effector), (shortfall, closest) in self.short.items():
             if shortfall > TOLERANCE:
                 self.report(
                     "MT0501",
                     f"the {effector_name(effector)} cannot reach site `{site}`: "
                     f"{_mm(shortfall)} mm short, closest at {closest:.2f} s",
+                    ref,
+                    (site, effector),
+                )
+        for (ref, site, effector), (error, at) in self.stroke_short.items():
+            if error > TOLERANCE:
+                self.report(
+                    "MT0501",
+                    f"the {effector_name(effector)} cannot stay on site `{site}` through its "
+                    f"strokes: {_mm(error)} mm off at {at:.2f} s",
                     ref,
                     (site, effector),
                 )
@@ -547,4 +569,12 @@ def _is_goal(segs: list[Segment], k: int) -> bool:
     if seg.kind == "TO":
         return True
     nxt = segs[k + 1] if k + 1 < len(segs) else None
-    return not (nxt is not None and nxt.kind == "TO" and nxt.goal.site == seg.goal.site)
+    return not (nxt is not None and nxt.kind == "TO" and _same_goal(seg, nxt))
+
+
+def _same_goal(ta: Segment, to: Segment) -> bool:
+    """A TA and the TO after it are one goal when one task line asked for both on one site: a
+    reach with ``approach 0`` then another reach to the same site (a TO alone: its hand is at
+    the approach point already) are two goals, and the first was left unchecked (2 m short,
+    no diagnostic)."""
+    return ta.goal.site == to.goal.site and ta.provenance.origin == to.provenance.origin

@@ -25,6 +25,7 @@ from mtlc.lint.rules.view import make_view
 from mtlc.metrics import foot_stance
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.approach import HAND_NAMES, TOLERANCE
+from mtlc.passes.tool import is_stroke
 from mtlc.report.maintenance import TimeSplit, split_time
 from mtlc.semantics.timeline import ManikinSpec, Timeline
 
@@ -167,13 +168,40 @@ def contact_distances(ir: MotionIR) -> dict[GoalRef, float]:
         key = (c["file"], c["line"], c["column"], c["site"], c["effector"])
         measured.setdefault(key, []).append(c)
     out: dict[GoalRef, float] = {}
+    strokes = _stroke_ends(ir)
     for reach in contact_goals(ir):
         seg, o = reach.segment, reach.segment.provenance.origin
-        found = measured.get((o.file, o.line, o.column, seg.goal.site or "", seg.goal.effector))
+        key = (o.file, o.line, o.column, seg.goal.site or "", seg.goal.effector)
+        # the goal's own contacts: a wrench's strokes after it (same line, site and tool) are
+        # judged each where it ends, and MT0501 names them apart ("through its strokes")
+        found = [c for c in measured.get(key, ()) if (*key, round(c["time"], 6)) not in strokes]
         if not found:
             continue
         short = [c["shortfall"] for c in found if not c["reached"]]
         out.setdefault(goal_ref(seg), min(short) if short else float(found[0]["error"]))
+    return out
+
+
+def _stroke_ends(ir: MotionIR) -> set[tuple[object, ...]]:
+    """(file, line, column, site, effector, time) of the output frame where each wrench stroke
+    ends: the key of its entry in ``Verification.contacts``."""
+    t = ir.frames.time if ir.frames is not None else np.zeros(0)
+    out: set[tuple[object, ...]] = set()
+    for seg in ir.segments:
+        if not is_stroke(seg) or not len(t):
+            continue
+        o = seg.provenance.origin
+        i = min(int(np.searchsorted(t, seg.end - 1e-9)), len(t) - 1)
+        out.add(
+            (
+                o.file,
+                o.line,
+                o.column,
+                seg.goal.site or "",
+                seg.goal.effector,
+                round(float(t[i]), 6),
+            )
+        )
     return out
 
 

@@ -48,8 +48,19 @@ class AstBuilder(Transformer):
         raise TypeError(f"no span for {x!r}")
 
     def _join(self, first: Any, last: Any) -> Span:
-        a, b = self._sp(first), self._sp(last)  # a.to(b), built directly
-        return _new_span(Span, (a[0], a[1], a[2], b[3], b[4], a[5], b[6]))
+        """first's span .to(last's), built directly: a token's fields are read where they are
+        (no span is made for either end: there is a join per node)."""
+        if type(first) is Token:
+            file, line, column, start = self.file, first.line, first.column, first.start_pos
+        else:
+            a = self._sp(first)
+            file, line, column, start = a[0], a[1], a[2], a[5]
+        if type(last) is Token:
+            return _new_span(
+                Span, (file, line, column, last.end_line, last.end_column, start, last.end_pos)
+            )
+        b = self._sp(last)
+        return _new_span(Span, (file, line, column, b[3], b[4], start, b[6]))
 
     def _expr(self, node: ast.Expr, *children: ast.Expr) -> ast.Expr:
         depth = 1 + max((c.depth for c in children), default=0)

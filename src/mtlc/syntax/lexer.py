@@ -50,6 +50,31 @@ def _master_regex() -> re.Pattern[str]:
 
 
 @cache
+def _folded_regex() -> re.Pattern[str]:
+    """_master_regex with the spaces before a lexeme folded into its match: half as many
+    matches on indented code. ``WS`` is left only for spaces that end the text."""
+    lx = lexicon()
+    punct = "|".join(re.escape(p) for p in sorted(lx.punctuation, key=len, reverse=True))
+    return re.compile(
+        r"[ \t\f\v]*(?:"
+        + "|".join(
+            [
+                r"(?P<NL>\r\n|\n|\r)",
+                r"(?P<COMMENT>\#[^\r\n]*)",
+                f"(?P<NUMBER>{lx.patterns['NUMBER']})",
+                f"(?P<NAME>{lx.patterns['NAME']})",
+                f"(?P<STRING>{lx.patterns['STRING']})",
+                r'(?P<BADSTRING>"[^\r\n]*)',
+                f"(?P<PUNCT>{punct})",
+                r"(?P<WS>[ \t\f\v]+)",
+                r"(?P<BAD>[\s\S])",
+            ]
+        )
+        + ")"
+    )
+
+
+@cache
 def _wide_forms() -> dict[str, str]:
     """Full-width and other look-alike punctuation -> the ASCII token or space it stands for.
 
@@ -81,6 +106,7 @@ def _continues_name(ch: str) -> bool:
 
 
 _SMART_OPEN = "\u201c\u201e\u201f"  # “ „ ‟
+_OPENER = {")": "(", "]": "[", "}": "{"}
 
 
 def _smart_close(text: str, pos: int) -> int:
@@ -101,30 +127,36 @@ def _scan(text: str) -> Iterator[tuple[str, int, int]]:
     """
     rx = _master_regex()
     wide = _wide_forms()
-    n = len(text)
     matches = rx.finditer(text)
     while (m := next(matches, None)) is not None:
         kind, (pos, end) = m.lastgroup or "BAD", m.span()
-        if kind == "NAME":
-            if end < n and not text[end].isascii() and _continues_name(text[end]):
-                end = _name_end(text, end)
-                matches = rx.finditer(text, end)  # go on after the longer word
-        elif kind == "BAD":
-            if text[pos] in wide:
-                kind = "WIDE"
-            elif text[pos] in _SMART_OPEN and (close := _smart_close(text, pos)) > 0:
-                kind, end = "SMARTSTRING", close
-            elif _continues_name(text[pos]):  # a word that starts with a mark
-                kind, end = "NAME", _name_end(text, end)
-            else:
-                while end < n and (
-                    _starts_nothing(text[end], wide)
-                    or (text[end] in _SMART_OPEN and _smart_close(text, end) < 0)
-                ):
-                    end += 1
+        if kind == "NAME" or kind == "BAD":
+            kind, end = _widen(text, kind, pos, end, wide)
             if end != m.end():
-                matches = rx.finditer(text, end)
+                matches = rx.finditer(text, end)  # go on after the longer lexeme
         yield kind, pos, end
+
+
+def _widen(text: str, kind: str, pos: int, end: int, wide: dict[str, str]) -> tuple[str, int]:
+    """The lexeme that a NAME or BAD match at ``pos``-``end`` starts: a word going on with
+    characters ``\\w`` misses, or a look-alike, typographic string or run of bad characters."""
+    n = len(text)
+    if kind == "NAME":
+        if end < n and not text[end].isascii() and _continues_name(text[end]):
+            end = _name_end(text, end)
+        return kind, end
+    if text[pos] in wide:
+        return "WIDE", end
+    if text[pos] in _SMART_OPEN and (close := _smart_close(text, pos)) > 0:
+        return "SMARTSTRING", close
+    if _continues_name(text[pos]):  # a word that starts with a mark
+        return "NAME", _name_end(text, end)
+    while end < n and (
+        _starts_nothing(text[end], wide)
+        or (text[end] in _SMART_OPEN and _smart_close(text, end) < 0)
+    ):
+        end += 1
+    return kind, end
 
 
 def _name_end(text: str, end: int) -> int:
@@ -176,10 +208,54 @@ def tokenize(
         if errors <= MAX_ERRORS_PER_FILE:
             sink.report(code, message, span, help=help)
 
-    for kind, start, end in _scan(text):
-        if kind == "WS":
-            continue
+    rx = _folded_regex()
+    n = len(text)
+    last_type = ""  # that of tokens[-1]
+    matches = rx.finditer(text)
+    while (m := next(matches, None)) is not None:
+        # the same lexemes as _scan, spaces folded into the next one's match (_folded_regex),
+        # and the commonest ones (ASCII names, punctuation, numbers) turned into tokens at once
+        kind = m.lastgroup
+        end = m.end()
+        start = m.start(kind)  # type: ignore[arg-type]
         col = start - line_start + 1
+        if kind == "PUNCT":
+            value = text[start:end]
+            ttype = punctuation[value]
+            if value in "([{":
+                brackets.append(value)
+                still_open[value] += 1
+            elif value in ")]}" and brackets:
+                opener = _OPENER[value]
+                if still_open[opener]:
+                    while (popped := brackets.pop()) != opener:
+                        still_open[popped] -= 1
+                    still_open[opener] -= 1
+            tokens.append(new(ttype, value, start, line, col, line, col + (end - start), end))
+            last_type = ttype
+            continue
+        if kind == "NAME":
+            if end < n and not text[end].isascii() and _continues_name(text[end]):
+                end = _name_end(text, end)
+                matches = rx.finditer(text, end)  # go on after the longer word
+            value = text[start:end]
+            if value.isascii():
+                ttype = keywords.get(value, "NAME")
+                tokens.append(new(ttype, value, start, line, col, line, col + (end - start), end))
+                last_type = ttype
+                continue
+        elif kind == "NUMBER":
+            tokens.append(
+                new(kind, text[start:end], start, line, col, line, col + end - start, end)
+            )
+            last_type = kind
+            continue
+        elif kind == "WS":
+            continue
+        elif kind == "BAD":
+            kind, end = _widen(text, kind, start, end, wide)  # type: ignore[arg-type]
+            if end != m.end():
+                matches = rx.finditer(text, end)
         if kind == "COMMENT":
             if comments_out is not None:
                 comments_out.append(
@@ -189,8 +265,9 @@ def tokenize(
                 )
             continue
         if kind == "NL":
-            if (not brackets or brackets[-1] == "{") and tokens and tokens[-1].type != NEWLINE:
+            if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
                 tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
+                last_type = NEWLINE
             line += 1
             line_start = end
             continue
@@ -228,7 +305,7 @@ def tokenize(
                 still_open[value] += 1
             elif value in ")]}" and brackets:
                 # a `}` also ends any ( or [ left open inside its block
-                opener = {")": "(", "]": "[", "}": "{"}[value]
+                opener = _OPENER[value]
                 if still_open[opener]:
                     while (popped := brackets.pop()) != opener:
                         still_open[popped] -= 1
@@ -245,6 +322,7 @@ def tokenize(
             body = value[1:-1]
             literal = f'"{body}"' if "\\" not in body else '""'
             tokens.append(Token("STRING", literal, start, line, col, line, col + len(value), end))
+            last_type = "STRING"
             continue
         elif kind == "BADSTRING":
             error(
@@ -254,6 +332,7 @@ def tokenize(
             )
             # a bad string still stands for a value, so the statement around it parses
             tokens.append(Token("STRING", '""', start, line, col, line, col + len(value), end))
+            last_type = "STRING"
             continue
         elif errors <= MAX_ERRORS_PER_FILE:
             shown = value if len(value) <= 20 else value[:20] + "…"
@@ -266,6 +345,7 @@ def tokenize(
         else:
             continue
         tokens.append(new(ttype, value, start, line, col, line, col + (end - start), end))
+        last_type = ttype
     return tokens
 
 

@@ -13,12 +13,14 @@ import bisect
 import dataclasses
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 from lark import Token
 
 from mtlc.diagnostics import Span
 from mtlc.fmt.doc import (
     HARDLINE,
+    INDENT,
     LINE,
     SOFTLINE,
     BreakParent,
@@ -41,6 +43,21 @@ ANCHORS = (ast.Call, ast.Repeat, ast.ForEach, ast.Parallel, ast.ManikinSetting, 
            ast.ToolSetting, ast.BudgetSetting, ast.TimeSetting, ast.Goal, ast.Posture, ast.Walk,
            ast.Grip, ast.Gaze, ast.Still, ast.Decl, ast.Use, ast.ToolProperty, ast.Param)  # fmt: skip
 TRAILING_COMMENT_GAP = "  "
+# statements and scene members that print on one line are printed without a document
+# (_one_line); False: always through the document (the tests compare both)
+ONE_LINE_PATH = True
+_CALLS = frozenset({ast.Call, ast.CallExpr})
+
+
+def _subclasses(cls: type) -> set[type]:
+    found = {cls}
+    for sub in cls.__subclasses__():
+        found |= _subclasses(sub)
+    return found
+
+
+# the node classes that are ANCHORS: a set lookup by type instead of isinstance's walk
+_ANCHOR_TYPES = frozenset(c for c in _subclasses(ast.Node) if issubclass(c, ANCHORS))
 
 # binding strength: a child that binds less tightly than its place needs parentheses
 _SUM, _PRODUCT, _UNARY, _POSTFIX, _PRIMARY = 1, 2, 3, 4, 5
@@ -115,9 +132,9 @@ class _Printer:
         self.src = SourceTokens(text, file)
         self.pool = CommentPool(text)
         self.nodes = list(nodes(module))
-        self.call_parens = self._call_parens()
-        self.anchor_starts = self._anchor_starts()
-        self.blocks_by_end = {n.span.end: n for n in self.nodes if isinstance(n, ast.Block)}
+        self.blocks_by_end: dict[int, ast.Block] = {}
+        self.call_parens, self.anchor_starts = self._survey()
+        self.parenthesized = self.src.parenthesized(self.call_parens)
         # each `# mtlc: ignore[...]`, by its line: where it starts, the last line it covers
         reach: dict[int, int] = {}
         for mark in suppress.scan(file, text):
@@ -125,28 +142,37 @@ class _Printer:
         self.ignores = {
             c.line: (c.start, reach[c.line]) for c in self.pool.all() if c.line in reach
         }
+        self.depth = 0  # how many `{` enclose what is being built: its line starts at 4 * depth
+        self.one_line = ONE_LINE_PATH
 
-    def _anchor_starts(self) -> list[int]:
-        """Where line-level things start (statements, declarations, scene members, parameters):
-        what a comment on their line is about, and where lint reports findings."""
-        found = [n.span.start for n in self.nodes if isinstance(n, ANCHORS)]
-        for node in self.nodes:
-            if isinstance(node, ast.Scene) and node.ground is not None:
-                keyword = self.src.starting_at(node.ground.span.start) - 1
-                found.append(int(self.src.at(keyword).start_pos))
-        return sorted(found)
+    def _survey(self) -> tuple[set[int], list[int]]:
+        """One walk over the nodes (there are hundreds of thousands in a large file) for:
 
-    def _call_parens(self) -> set[int]:
-        """The `(` of calls and postures: not parentheses the writer put around an argument."""
-        found: set[int] = set()
+        - the `(` of calls and postures: not parentheses the writer put around an argument;
+        - where line-level things start (statements, declarations, scene members,
+          parameters): what a comment on their line is about, and where lint reports findings;
+        - the blocks, by where they end (``blocks_by_end``).
+        """
+        parens: set[int] = set()
+        found: list[int] = []
+        src = self.src
         for node in self.nodes:
-            if isinstance(node, ast.Call | ast.CallExpr):
-                found.add(self.src.match[self.src.ending_at(node.span.end)])
-            elif isinstance(node, ast.Posture):
-                after = self.src.ending_at(node.kind_span.end) + 1
-                if self.src.kind(after) == "LPAR":
-                    found.add(after)
-        return found
+            kind = type(node)
+            if kind in _CALLS:
+                parens.add(src.match[src.ending_at(node.span.end)])
+            elif kind is ast.Block:
+                self.blocks_by_end[node.span.end] = node  # type: ignore[assignment]
+                continue
+            elif kind is ast.Scene and node.ground is not None:  # type: ignore[attr-defined]
+                keyword = src.starting_at(node.ground.span.start) - 1  # type: ignore[attr-defined]
+                found.append(int(src.at(keyword).start_pos))
+            if kind in _ANCHOR_TYPES:
+                found.append(node.span.start)
+                if kind is ast.Posture:
+                    after = src.ending_at(node.kind_span.end) + 1  # type: ignore[attr-defined]
+                    if src.kind(after) == "LPAR":
+                        parens.add(after)
+        return parens, sorted(found)
 
     # ------------------------------------------------------------ sequences and blocks
     def module(self) -> Doc:
@@ -285,9 +311,13 @@ class _Printer:
     def _braced(self, open_index: int, close_index: int, entries: list[_Entry]) -> Doc:
         """`{`, one entry per line, `}`."""
         lbrace, rbrace = self.src.at(open_index), self.src.at(close_index)
-        opener, elements = self._sequence(
-            entries, lbrace.end_pos, lbrace.line, rbrace.start_pos, _never, join=True
-        )
+        self.depth += 1  # the entries are built inside _sequence, one level in
+        try:
+            opener, elements = self._sequence(
+                entries, lbrace.end_pos, lbrace.line, rbrace.start_pos, _never, join=True
+            )
+        finally:
+            self.depth -= 1
         head: list[Doc] = [Text("{"), *(LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in opener)]
         if not elements:
             return [*head, HARDLINE, Text("}")] if opener else [*head, Text("}")]
@@ -403,6 +433,9 @@ class _Printer:
 
     def _site(self, site: ast.Node) -> Doc:
         assert isinstance(site, ast.SiteDecl)
+        line = self._one_line(site, self._line_site)
+        if line is not None:
+            return line
         doc: list[Doc] = [Text(f"site {site.name} at "), self._expr(site.position)]
         if site.normal is not None:
             doc += [Text(" normal "), self._expr(site.normal)]
@@ -432,8 +465,153 @@ class _Printer:
             doc += [Text(" = "), self._expr(param.default)]
         return doc
 
+    # ------------------------------------------------------------ one line, without a document
+    def _one_line(self, node: ast.Node, line: Callable[[Any], str]) -> str | None:
+        """The text of a statement or scene member that prints on one line, or None.
+
+        Most of a file is such lines: the document of groups and line breaks would be built,
+        measured and then printed flat. Here the flat text is made at once, and kept when the
+        layout would print it so: when no comment starts inside the node (one ends a line or
+        forces a break), no bracket list has a magic trailing comma (it always breaks), and
+        the text fits in the line at the node's indentation. Then every group in it fits (the
+        layout measures each one with what follows it on the line, at most the whole text),
+        so the layout's output would be this very text. Otherwise (None) the document is
+        built. ``tests/test_fmt.py`` checks both paths give the same output.
+        """
+        if not self.one_line or self.pool.any_in(node.span.start, node.span.end):
+            return None
+        try:
+            text = line(node)
+        except _NotOneLine:
+            return None
+        return text if INDENT * self.depth + len(text) <= LINE_LENGTH else None
+
+    def _line_stmt(self, stmt: ast.Node) -> str:
+        e = self._line_expr
+        match stmt:
+            case ast.Call():
+                rpar = self.src.ending_at(stmt.span.end)
+                return ".".join(stmt.callee) + self._line_args(
+                    self.src.match[rpar], rpar, stmt.args
+                )
+            case ast.ManikinSetting():
+                return f"manikin {stmt.population} {stmt.sex} {stmt.percentile}"
+            case ast.SceneSetting():
+                return f"scene {stmt.name}"
+            case ast.ToolSetting():
+                return "tool " + e(stmt.tool)
+            case ast.BudgetSetting():
+                return "budget " + e(stmt.limit)
+            case ast.TimeSetting():
+                return "time " + e(stmt.duration)
+            case ast.Goal():
+                text = "goal " + e(stmt.effector) + " at " + e(stmt.target)
+                if stmt.approach is not None:
+                    text += " approach " + e(stmt.approach)
+                if stmt.offset is not None:
+                    text += " offset " + e(stmt.offset)
+                if stmt.orient:
+                    text += " orient"
+                return text + self._line_over(stmt.over)
+            case ast.Posture():
+                text = f"posture {stmt.kind}"
+                if stmt.args:
+                    lpar = self.src.ending_at(stmt.kind_span.end) + 1
+                    text += self._line_args(lpar, self.src.match[lpar], stmt.args)
+                return text + self._line_over(stmt.over)
+            case ast.Walk():
+                text = f"walk {stmt.mode} " + e(stmt.target)
+                if stmt.facing is not None:
+                    text += " facing " + e(stmt.facing)
+                return text + self._line_over(stmt.over)
+            case ast.Grip():
+                return "grip " + e(stmt.hand) + f" {stmt.state}" + self._line_over(stmt.over)
+            case ast.Gaze():
+                return "gaze at " + e(stmt.target) + self._line_over(stmt.over)
+            case ast.Still():
+                return "still" + self._line_over(stmt.over)
+        raise _NotOneLine  # a block, or a statement that holds one
+
+    def _line_over(self, over: ast.Expr | None) -> str:
+        return "" if over is None else " over " + self._line_expr(over)
+
+    def _line_site(self, site: ast.SiteDecl) -> str:
+        text = f"site {site.name} at " + self._line_expr(site.position)
+        if site.normal is not None:
+            text += " normal " + self._line_expr(site.normal)
+        if site.frame is not None:
+            text += " frame " + self._line_expr(site.frame)
+        return text
+
+    def _line_args(self, open_index: int, close_index: int, args: tuple[ast.Arg, ...]) -> str:
+        items = [
+            self._line_expr(a.value) if a.name is None else f"{a.name}: " + self._line_expr(a.value)
+            for a in args
+        ]
+        return self._line_list(open_index, close_index, items)
+
+    def _line_list(self, open_index: int, close_index: int, items: list[str]) -> str:
+        """A bracket list flat (_delimited and _empty_brackets, without comments)."""
+        if items and self.src.comma_before(close_index):
+            raise _NotOneLine  # a magic trailing comma: one item per line
+        return self.src.text(open_index) + ", ".join(items) + self.src.text(close_index)
+
+    def _line_expr(self, expr: ast.Expr, needs: int = 0, strict: bool = False) -> str:
+        """_expr, flat."""
+        strength = _strength(expr)
+        text = self._line_bare(expr)
+        bracket = strength < needs or (strict and strength == needs)
+        if bracket or (expr.span.start, expr.span.end) in self.parenthesized:
+            return "(" + text + ")"
+        return text
+
+    def _line_bare(self, expr: ast.Expr) -> str:
+        """_bare, flat."""
+        match expr:
+            case ast.Number():
+                number = self.src.text(self.src.starting_at(expr.span.start))
+                return number if expr.unit is None else f"{number} {expr.unit}"
+            case ast.String():
+                return self.src.text(self.src.starting_at(expr.span.start))
+            case ast.Name():
+                return expr.name
+            case ast.Binary():
+                strength = _strength(expr)
+                return (
+                    self._line_expr(expr.left, strength)
+                    + f" {expr.op} "
+                    + self._line_expr(expr.right, strength, strict=True)
+                )
+            case ast.Unary():
+                return expr.op + self._line_expr(expr.operand, _UNARY)
+            case ast.Attr():
+                return self._line_postfix_object(expr.obj) + f".{expr.name}"
+            case ast.CallExpr():
+                rpar = self.src.ending_at(expr.span.end)
+                return self._line_postfix_object(expr.func) + self._line_args(
+                    self.src.match[rpar], rpar, expr.args
+                )
+            case ast.Vector():
+                open_index = self.src.starting_at(expr.span.start)
+                items = [self._line_expr(x) for x in expr.items]
+                text = self._line_list(open_index, self.src.match[open_index], items)
+                return text if expr.unit is None else f"{text} {expr.unit}"
+            case ast.ListExpr():
+                open_index = self.src.starting_at(expr.span.start)
+                items = [self._line_expr(x) for x in expr.items]
+                return self._line_list(open_index, self.src.match[open_index], items)
+        raise _NotOneLine  # the document path says what is wrong with it
+
+    def _line_postfix_object(self, obj: ast.Expr) -> str:
+        if isinstance(obj, ast.Number):
+            return self._line_expr(obj, _PRIMARY + 1)
+        return self._line_expr(obj, _POSTFIX)
+
     # ------------------------------------------------------------ statements
     def _stmt(self, stmt: ast.Node) -> Doc:
+        line = self._one_line(stmt, self._line_stmt)
+        if line is not None:
+            return line
         match stmt:
             case ast.Block():
                 return self._block(stmt)
@@ -521,7 +699,7 @@ class _Printer:
         strength = _strength(expr)
         doc = self._bare(expr)
         bracket = strength < needs or (strict and strength == needs)
-        if bracket or self.src.wrapped_in_parens(expr.span, self.call_parens):
+        if bracket or (expr.span.start, expr.span.end) in self.parenthesized:
             return [Text("("), doc, Text(")")]
         return doc
 
@@ -570,6 +748,10 @@ class _Printer:
         items = [_Item(x.span.start, x.span.end, self._expr(x)) for x in vector.items]
         doc = self._delimited(open_index, self.src.match[open_index], items)
         return doc if vector.unit is None else [doc, Text(f" {vector.unit}")]
+
+
+class _NotOneLine(Exception):
+    """What is being printed cannot be one flat line: build its document."""
 
 
 def _start(node: ast.Node) -> int:

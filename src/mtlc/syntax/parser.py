@@ -92,9 +92,13 @@ def parse_module(
     uses: list[ast.Use] = []
     decls: list[ast.Decl] = []
     # a word reported as an invalid name (MT0108) is not reported again as an unknown name
-    broken: set[str] = {
-        t.value for t in tokens if t.type == "NAME" and not t.isascii() and not t.isidentifier()
-    }
+    broken: set[str] = (
+        set()
+        if text.isascii()  # then so is every token (no scan of them all)
+        else {
+            t.value for t in tokens if t.type == "NAME" and not t.isascii() and not t.isidentifier()
+        }
+    )
     errors_before = len(sink.items)
     for item_tokens in _split_items(tokens, file, sink):
         if len(sink.items) - errors_before > MAX_SYNTAX_ERRORS:

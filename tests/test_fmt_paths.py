@@ -1,8 +1,9 @@
 """The formatter's fast paths give what the reference paths give, byte for byte.
 
 - ``mtlc.fmt.printer``: a statement or scene member that prints on one line is printed without
-  a document (``_one_line``); with ``ONE_LINE_PATH = False`` every one goes through the
-  document and its layout. Both must give the same text and diagnostics.
+  a document (``_one_line``), and a block with no comment to place has its statements built
+  without placing comments (``_sequence``); with ``FAST_PATHS = False`` every one goes through
+  the general code and the layout. Both must give the same text and diagnostics.
 - ``mtlc.syntax.lexer.tokenize``: spaces folded into the next lexeme's match, and the common
   lexemes turned into tokens at once; ``_reference_tokenize`` below is the tokenizer as it was
   (one lexeme of ``_scan`` at a time). Both must give the same tokens, comments and diagnostics.
@@ -42,13 +43,13 @@ _spec.loader.exec_module(fuzz)
 
 
 @contextmanager
-def _one_line_path(on: bool) -> Iterator[None]:
-    saved = printer.ONE_LINE_PATH
-    printer.ONE_LINE_PATH = on
+def _fast_paths(on: bool) -> Iterator[None]:
+    saved = printer.FAST_PATHS
+    printer.FAST_PATHS = on
     try:
         yield
     finally:
-        printer.ONE_LINE_PATH = saved
+        printer.FAST_PATHS = saved
 
 
 def _result(result: FormatResult) -> tuple[str | None, list[tuple[str, str, Span]]]:
@@ -56,9 +57,9 @@ def _result(result: FormatResult) -> tuple[str | None, list[tuple[str, str, Span
 
 
 def _assert_same_both_ways(text: str) -> None:
-    with _one_line_path(False):
+    with _fast_paths(False):
         reference = _result(format_source(text, "x.mtask"))
-    with _one_line_path(True):
+    with _fast_paths(True):
         fast = _result(format_source(text, "x.mtask"))
     assert fast == reference, text
 
@@ -111,6 +112,19 @@ def test_one_line_path_on_the_docs_examples_and_around_the_width(
     assert any(taken) and not all(taken)
 
 
+def test_quiet_block_path_would_be_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A block taken for one without comments when a comment after its `}` is on an entry's
+    line (the entry hosts it) would lose or move that comment: the comparison sees it."""
+    text = "task t {\n    repeat 2 {\n        a(1, 2) }  # c\n}\n"
+    _assert_same_both_ways(text)
+    monkeypatch.setattr(printer.CommentPool, "quiet", lambda self, start, end, end_line: True)
+    with _fast_paths(False):
+        reference = _result(format_source(text, "x.mtask"))
+    with _fast_paths(True):
+        fast = _result(format_source(text, "x.mtask"))
+    assert fast != reference
+
+
 def test_one_line_path_is_taken_and_would_be_caught(monkeypatch: pytest.MonkeyPatch) -> None:
     """The comparison above can fail: a one-line path that spaced a list differently would
     give another text than the document does."""
@@ -121,9 +135,9 @@ def test_one_line_path_is_taken_and_would_be_caught(monkeypatch: pytest.MonkeyPa
         return original(self, open_index, close_index, items).replace(", ", ",")
 
     monkeypatch.setattr(printer._Printer, "_line_list", tighter)
-    with _one_line_path(False):
+    with _fast_paths(False):
         reference = format_source(text, "x.mtask").text
-    with _one_line_path(True):
+    with _fast_paths(True):
         fast = format_source(text, "x.mtask").text
     assert reference == text and fast != reference
 

@@ -34,8 +34,7 @@ from mtlc.fmt.doc import (
     render,
 )
 from mtlc.fmt.source import Comment, CommentPool, SourceTokens
-from mtlc.lint import suppress
-from mtlc.syntax import ast
+from mtlc.syntax import ast, suppressions
 
 LINE_LENGTH = 100
 # what lint reports findings on (at the first line); a Block is not one, its statements are
@@ -43,9 +42,10 @@ ANCHORS = (ast.Call, ast.Repeat, ast.ForEach, ast.Parallel, ast.ManikinSetting, 
            ast.ToolSetting, ast.BudgetSetting, ast.TimeSetting, ast.Goal, ast.Posture, ast.Walk,
            ast.Grip, ast.Gaze, ast.Still, ast.Decl, ast.Use, ast.ToolProperty, ast.Param)  # fmt: skip
 TRAILING_COMMENT_GAP = "  "
-# statements and scene members that print on one line are printed without a document
-# (_one_line); False: always through the document (the tests compare both)
-ONE_LINE_PATH = True
+# False: every statement and block through the document, as before its two shortcuts (a line
+# printed flat at once, _one_line; a block with no comment to place, _sequence); the tests
+# compare both ways
+FAST_PATHS = True
 _CALLS = frozenset({ast.Call, ast.CallExpr})
 
 
@@ -137,13 +137,13 @@ class _Printer:
         self.parenthesized = self.src.parenthesized(self.call_parens)
         # each `# mtlc: ignore[...]`, by its line: where it starts, the last line it covers
         reach: dict[int, int] = {}
-        for mark in suppress.scan(file, text):
+        for mark in suppressions.scan(file, text):
             reach[mark.first_line] = max(reach.get(mark.first_line, 0), mark.last_line)
         self.ignores = {
             c.line: (c.start, reach[c.line]) for c in self.pool.all() if c.line in reach
         }
         self.depth = 0  # how many `{` enclose what is being built: its line starts at 4 * depth
-        self.one_line = ONE_LINE_PATH
+        self.fast = FAST_PATHS
 
     def _survey(self) -> tuple[set[int], list[int]]:
         """One walk over the nodes (there are hundreds of thousands in a large file) for:
@@ -200,15 +200,32 @@ class _Printer:
         end: int,
         forced_blank: Callable[[_Entry, _Entry], bool],
         join: bool = False,
+        end_line: int | None = None,
     ) -> tuple[list[Comment], list[tuple[bool, Doc]]]:
         """Entries and the comments around them, each with whether a blank line comes before.
 
         Blank lines the writer left are kept (a run becomes one); ``forced_blank`` adds one
         between two entries (and before the comments above the second). Comments on the
         opening line come back apart, for the caller to print after its `{`.
+
+        ``end_line``: the line of the closing `}` at ``end``. When no comment starts from
+        ``start`` to the end of that line (the comments the entries could take: one after the
+        `}` on its line may be hosted by an entry that starts on that line), the entries are
+        just built, with the blank lines between them.
         """
-        opener_comments: list[Comment] = []
         out: list[tuple[bool, Doc]] = []
+        if self.fast and end_line is not None and self.pool.quiet(start, end, end_line):
+            prev_line = start_line
+            previous: _Entry | None = None
+            for entry in entries:
+                blank = bool(out) and (
+                    (previous is not None and forced_blank(previous, entry))
+                    or entry.line - prev_line > 1
+                )
+                out.append((blank, entry.build()))
+                prev_line, previous = entry.end_line, entry
+            return [], out
+        opener_comments: list[Comment] = []
         prev_line = start_line
         prev: _Entry | None = None
         hosted_last = False  # the last entry may be one line, which already ends with a comment
@@ -238,13 +255,16 @@ class _Printer:
             hosted = self._hosted(first, last)
             hosted_last = bool(hosted) and not self._ends_with_block(last)
             docs = [self._built(e) for e in group]
-            joined: list[Doc] = [docs[0]]
-            for doc in docs[1:]:
-                joined += [Text("; "), doc]
+            joined: Doc = docs[0]  # (no list around one part: fewer parts for the layout)
             if len(docs) > 1:  # kept on one line for an ignore: breaking it would move some
-                joined = [Flat(joined)]  # statement off the comment's line
-            suffix = [LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in hosted]
-            out.append((blank_before(first.line, first), [*suffix, joined]))
+                parts: list[Doc] = [docs[0]]  # statement off the comment's line
+                for doc in docs[1:]:
+                    parts += [Text("; "), doc]
+                joined = Flat(parts)
+            if hosted:
+                suffix = [LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in hosted]
+                joined = [*suffix, joined]
+            out.append((blank_before(first.line, first), joined))
             prev_end, prev_line, prev = last.end, last.end_line, last
         place(self.pool.take(prev_end, end), None)
         return opener_comments, out
@@ -253,6 +273,8 @@ class _Printer:
         """The entry, after any comment inside it that no item reached (moved above it)."""
         doc = entry.build()
         stray = self.pool.take(entry.start, entry.end)
+        if not stray:
+            return doc
         lead: list[Doc] = [[Text(c.text), HARDLINE] for c in stray]
         return [*lead, doc]
 
@@ -314,13 +336,28 @@ class _Printer:
         self.depth += 1  # the entries are built inside _sequence, one level in
         try:
             opener, elements = self._sequence(
-                entries, lbrace.end_pos, lbrace.line, rbrace.start_pos, _never, join=True
+                entries,
+                lbrace.end_pos,
+                lbrace.line,
+                rbrace.start_pos,
+                _never,
+                join=True,
+                end_line=rbrace.line,
             )
         finally:
             self.depth -= 1
         head: list[Doc] = [Text("{"), *(LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in opener)]
         if not elements:
             return [*head, HARDLINE, Text("}")] if opener else [*head, Text("}")]
+        if self.fast and not elements[0][0] and all(type(e) is str for _, e in elements):
+            # lines of text only (no comment held for the end of a line): one text with its
+            # new lines and indentation, after a real line break (which prints what a line
+            # suffix before the block holds, after its `{`), as the layout would print it
+            indent = " " * (INDENT * (self.depth + 1))
+            lines = [elements[0][1]]
+            for blank, element in elements[1:]:
+                lines.append(("\n\n" if blank else "\n") + indent + element)  # type: ignore[operator]
+            return [*head, Nest([HARDLINE, "".join(lines)]), HARDLINE, Text("}")]  # type: ignore[arg-type]
         body: list[Doc] = []
         for blank, element in elements:
             body.append([HARDLINE, HARDLINE] if blank else HARDLINE)
@@ -478,7 +515,7 @@ class _Printer:
         so the layout's output would be this very text. Otherwise (None) the document is
         built. ``tests/test_fmt.py`` checks both paths give the same output.
         """
-        if not self.one_line or self.pool.any_in(node.span.start, node.span.end):
+        if not self.fast or self.pool.any_in(node.span.start, node.span.end):
             return None
         try:
             text = line(node)
@@ -558,21 +595,31 @@ class _Printer:
 
     def _line_expr(self, expr: ast.Expr, needs: int = 0, strict: bool = False) -> str:
         """_expr, flat."""
-        strength = _strength(expr)
-        text = self._line_bare(expr)
+        kind = type(expr)
+        if kind is ast.Name:  # the commonest, at once
+            text = expr.name  # type: ignore[attr-defined]
+            strength = _PRIMARY
+        elif kind is ast.Number:
+            number = self.src.text_at(expr.span.start)
+            unit = expr.unit  # type: ignore[attr-defined]
+            text = number if unit is None else f"{number} {unit}"
+            strength = _PRIMARY
+        else:
+            strength = _strength(expr)
+            text = self._line_bare(expr)
         bracket = strength < needs or (strict and strength == needs)
-        if bracket or (expr.span.start, expr.span.end) in self.parenthesized:
+        if bracket or self.parenthesized.get(expr.span.start) == expr.span.end:
             return "(" + text + ")"
         return text
 
     def _line_bare(self, expr: ast.Expr) -> str:
         """_bare, flat."""
         match expr:
-            case ast.Number():
-                number = self.src.text(self.src.starting_at(expr.span.start))
-                return number if expr.unit is None else f"{number} {expr.unit}"
             case ast.String():
-                return self.src.text(self.src.starting_at(expr.span.start))
+                return self.src.text_at(expr.span.start)
+            case ast.Number():
+                number = self.src.text_at(expr.span.start)
+                return number if expr.unit is None else f"{number} {expr.unit}"
             case ast.Name():
                 return expr.name
             case ast.Binary():
@@ -699,7 +746,7 @@ class _Printer:
         strength = _strength(expr)
         doc = self._bare(expr)
         bracket = strength < needs or (strict and strength == needs)
-        if bracket or (expr.span.start, expr.span.end) in self.parenthesized:
+        if bracket or self.parenthesized.get(expr.span.start) == expr.span.end:
             return [Text("("), doc, Text(")")]
         return doc
 
@@ -768,11 +815,10 @@ def _separate_top_level(before: _Entry, after: _Entry) -> bool:
 
 
 def _strength(expr: ast.Expr) -> int:
-    match expr:
-        case ast.Binary():
-            return _SUM if expr.op in "+-" else _PRODUCT
-        case ast.Unary():
-            return _UNARY
-        case ast.Attr() | ast.CallExpr():
-            return _POSTFIX
-    return _PRIMARY
+    kind = type(expr)
+    if kind is ast.Binary:
+        return _SUM if expr.op in "+-" else _PRODUCT  # type: ignore[attr-defined]
+    return _STRENGTHS.get(kind, _PRIMARY)
+
+
+_STRENGTHS: dict[type, int] = {ast.Unary: _UNARY, ast.Attr: _POSTFIX, ast.CallExpr: _POSTFIX}

@@ -91,16 +91,21 @@ class SourceTokens:
     def at(self, index: int) -> Token:
         return self.tokens[index]
 
-    def parenthesized(self, structural: set[int]) -> set[tuple[int, int]]:
-        """(start, end) of the code written inside parentheses of its own (not a call's, not
-        those in ``structural``): an expression whose span is one of them was wrapped so."""
-        found = set()
+    def parenthesized(self, structural: set[int]) -> dict[int, int]:
+        """Where the code written inside parentheses of its own (not a call's, not those in
+        ``structural``) starts -> where it ends: an expression whose span starts and ends so
+        was wrapped. (One such code per start: the `(` just before it tells which.)"""
+        found = {}
         tokens, match = self.tokens, self.match
         for i in [i for i, t in enumerate(self.types) if t == "LPAR"]:
             close = match.get(i)
             if close is not None and close > i + 1 and i not in structural:
-                found.add((tokens[i + 1].start_pos, tokens[close - 1].end_pos))
+                found[tokens[i + 1].start_pos] = tokens[close - 1].end_pos
         return found
+
+    def text_at(self, offset: int) -> str:
+        """The text of the token that starts at ``offset``."""
+        return str(self.tokens[self.starting_at(offset)].value)
 
     def comma_before(self, closer: int) -> bool:
         """Whether the bracket list that ``closer`` ends has a trailing comma."""
@@ -145,6 +150,13 @@ class CommentPool:
         """Whether a comment (taken or not) starts in [start, end)."""
         i = bisect.bisect_left(self._starts, start)
         return i < len(self._starts) and self._starts[i] < end
+
+    def quiet(self, start: int, end: int, end_line: int) -> bool:
+        """Whether no comment (taken or not) starts in [start, end) or after it on ``end_line``."""
+        i = bisect.bisect_left(self._starts, start)
+        return i == len(self._items) or (
+            self._items[i].start >= end and self._items[i].line > end_line
+        )
 
     def next_after(self, offset: int) -> Comment | None:
         """The first comment at or after ``offset``, if it is not taken yet."""

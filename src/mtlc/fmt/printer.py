@@ -63,7 +63,7 @@ _ANCHOR_TYPES = frozenset(c for c in _subclasses(ast.Node) if issubclass(c, ANCH
 _SUM, _PRODUCT, _UNARY, _POSTFIX, _PRIMARY = 1, 2, 3, 4, 5
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)  # not frozen: a frozen one costs an object.__setattr__ per field
 class _Entry:
     """One line-level item of a sequence (a statement, a scene member, a top-level item)."""
 
@@ -99,6 +99,16 @@ _LEAF_TYPES = frozenset(
 )  # fmt: skip
 
 
+def _node_fields(kind: type) -> tuple[str, ...]:
+    """The fields of a node class that may hold nodes (a node, None or a tuple of nodes)."""
+    names = _FIELDS.get(kind)
+    if names is None:
+        names = _FIELDS[kind] = tuple(
+            f.name for f in reversed(dataclasses.fields(kind)) if f.type not in _LEAF_TYPES
+        )
+    return names
+
+
 def nodes(node: object) -> Iterator[ast.Node]:
     """Every AST node under ``node``, itself included, parents before children in field order.
 
@@ -110,12 +120,7 @@ def nodes(node: object) -> Iterator[ast.Node]:
         item = stack.pop()
         if isinstance(item, ast.Node):
             yield item
-            names = _FIELDS.get(type(item))
-            if names is None:
-                names = _FIELDS[type(item)] = tuple(
-                    f.name for f in reversed(dataclasses.fields(item)) if f.type not in _LEAF_TYPES
-                )
-            for name in names:
+            for name in _node_fields(type(item)):
                 value = getattr(item, name)
                 if type(value) is tuple:
                     stack.extend(reversed(value))
@@ -131,7 +136,6 @@ class _Printer:
         self.tree = module
         self.src = SourceTokens(text, file)
         self.pool = CommentPool(text)
-        self.nodes = list(nodes(module))
         self.blocks_by_end: dict[int, ast.Block] = {}
         self.call_parens, self.anchor_starts = self._survey()
         self.parenthesized = self.src.parenthesized(self.call_parens)
@@ -156,8 +160,16 @@ class _Printer:
         parens: set[int] = set()
         found: list[int] = []
         src = self.src
-        for node in self.nodes:
+        stack: list[ast.Node] = [self.tree]  # every node, in no particular order
+        while stack:
+            node = stack.pop()
             kind = type(node)
+            for name in _node_fields(kind):
+                value = getattr(node, name)
+                if type(value) is tuple:
+                    stack.extend(value)
+                elif value is not None:
+                    stack.append(value)
             if kind in _CALLS:
                 parens.add(src.match[src.ending_at(node.span.end)])
             elif kind is ast.Block:
@@ -346,6 +358,10 @@ class _Printer:
             )
         finally:
             self.depth -= 1
+        return self._braces(opener, elements)
+
+    def _braces(self, opener: list[Comment], elements: list[tuple[bool, Doc]]) -> Doc:
+        """`{` with the comments after it, the elements one per line, `}`."""
         head: list[Doc] = [Text("{"), *(LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in opener)]
         if not elements:
             return [*head, HARDLINE, Text("}")] if opener else [*head, Text("}")]
@@ -365,10 +381,28 @@ class _Printer:
         return [*head, Nest(body), HARDLINE, Text("}")]
 
     def _block(self, block: ast.Block) -> Doc:
+        open_index = self.src.starting_at(block.span.start)
+        close_index = self.src.ending_at(block.span.end)
+        if self.fast:
+            lbrace, rbrace = self.src.at(open_index), self.src.at(close_index)
+            if self.pool.quiet(lbrace.end_pos, rbrace.start_pos, rbrace.line):
+                return self._braces([], self._quiet_statements(block, lbrace.line))
         entries = [self._entry(s.span, self._bind(self._stmt, s)) for s in block.stmts]
-        return self._braced(
-            self.src.starting_at(block.span.start), self.src.ending_at(block.span.end), entries
-        )
+        return self._braced(open_index, close_index, entries)
+
+    def _quiet_statements(self, block: ast.Block, open_line: int) -> list[tuple[bool, Doc]]:
+        """What _sequence gives for a block with no comment to place (see there), without
+        making an entry per statement."""
+        out: list[tuple[bool, Doc]] = []
+        prev_line = open_line
+        self.depth += 1
+        try:
+            for stmt in block.stmts:
+                out.append((bool(out) and stmt.span.line - prev_line > 1, self._stmt(stmt)))
+                prev_line = stmt.span.end_line
+        finally:
+            self.depth -= 1
+        return out
 
     @staticmethod
     def _bind(fn: Callable[[ast.Node], Doc], node: ast.Node) -> Callable[[], Doc]:

@@ -138,7 +138,9 @@ class CommentPool:
     def take(self, start: int, end: int) -> list[Comment]:
         """The comments not yet taken that start in [start, end), in source order."""
         lo = bisect.bisect_left(self._starts, start)
-        hi = bisect.bisect_left(self._starts, end)
+        if lo == len(self._starts) or self._starts[lo] >= end:
+            return []  # the usual answer, without a second bisection
+        hi = bisect.bisect_left(self._starts, end, lo)
         found = []
         for i in range(lo, hi):
             if not self._taken[i]:

@@ -212,154 +212,175 @@ def tokenize(
     rx = _folded_regex()
     n = len(text)
     last_type = ""  # that of tokens[-1]
-    matches = rx.finditer(text)
-    while (m := next(matches, None)) is not None:
-        # the same lexemes as _scan, spaces folded into the next one's match (_folded_regex),
-        # and the commonest ones (ASCII names, punctuation, numbers) turned into tokens at once
-        kind = m.lastgroup
-        end = m.end()
-        start = m.start(kind)  # type: ignore[arg-type]
-        col = start - line_start + 1
-        if kind == "PUNCT":
-            value = text[start:end]
-            ttype = punctuation[value]
-            if value in "([{":
-                brackets.append(value)
-                still_open[value] += 1
-            elif value in ")]}" and brackets:
-                opener = _OPENER[value]
-                if still_open[opener]:
-                    while (popped := brackets.pop()) != opener:
-                        still_open[popped] -= 1
-                    still_open[opener] -= 1
-        elif (
-            kind == "NAME"
-            and (end == n or text[end].isascii())  # else the word may go on (_name_end)
-            and (value := text[start:end]).isascii()
-        ):
-            ttype = keywords.get(value, "NAME")
-        elif kind == "NUMBER":
-            value, ttype = text[start:end], kind
-        elif kind == "WS":
-            continue
-        else:
-            if kind == "NAME":
-                if end < n and not text[end].isascii() and _continues_name(text[end]):
-                    end = _name_end(text, end)
-                    matches = rx.finditer(text, end)  # go on after the longer word
-            elif kind == "BAD":
-                kind, end = _widen(text, kind, start, end, wide)  # type: ignore[arg-type]
-                if end != m.end():
-                    matches = rx.finditer(text, end)
-            if kind == "COMMENT":
-                if comments_out is not None:
-                    comments_out.append(
-                        Token(
-                            "COMMENT",
-                            text[start:end],
-                            start,
-                            line,
-                            col,
-                            line,
-                            col + end - start,
-                            end,
-                        )
-                    )
-                continue
-            if kind == "NL":
+    pos = 0
+    restart = -1  # a lexeme ran past its match (a longer word, a run of bad characters)
+    while True:
+        for m in rx.finditer(text, pos):
+            if restart >= 0:  # the match after it: scan again from its end instead
+                break
+            # the same lexemes as _scan, spaces folded into the next one's match (_folded_regex),
+            # and the commonest ones (ASCII names, punctuation, numbers) turned into tokens at once
+            kind = m.lastgroup
+            end = m.end()
+            start = m.start(kind)  # type: ignore[arg-type]
+            col = start - line_start + 1
+            if kind == "PUNCT":
+                value = text[start:end]
+                ttype = punctuation[value]
+                if value in "([{":
+                    brackets.append(value)
+                    still_open[value] += 1
+                elif value in ")]}" and brackets:
+                    opener = _OPENER[value]
+                    if still_open[opener]:
+                        while (popped := brackets.pop()) != opener:
+                            still_open[popped] -= 1
+                        still_open[opener] -= 1
+            elif (
+                kind == "NAME"
+                and (end == n or text[end].isascii())  # else the word may go on (_name_end)
+                and (value := text[start:end]).isascii()
+            ):
+                ttype = keywords.get(value, "NAME")
+            elif kind == "NUMBER":
+                value, ttype = text[start:end], kind
+            elif kind == "NL":
                 if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
                     tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
                     last_type = NEWLINE
                 line += 1
                 line_start = end
                 continue
-            value = text[start:end]
-            if kind == "WIDE":
-                ascii_form = wide[value]
-                shown = "a space" if ascii_form == " " else f"`{ascii_form}`"
-                if errors <= MAX_ERRORS_PER_FILE:  # past it, skip building the message
-                    error(
-                        "MT0102",
-                        f"unexpected character {_describe_char(value)}",
-                        help=f"write {shown} instead (mtlc reads it as one here)",
-                    )
-                if ascii_form == " ":
-                    continue
-                value, kind = ascii_form, "PUNCT"
-            if kind == "NAME" and value.isdecimal():  # non-ASCII digits: ASCII ones are a NUMBER
-                digits = "".join(str(unicodedata.decimal(ch)) for ch in value)
-                error(
-                    "MT0102",
-                    f"unexpected digits `{value}`",
-                    help=f"write numbers with the digits 0-9: `{digits}` (mtlc reads it so here)",
-                )
-                value, kind = digits, "NUMBER"
-            if kind == "NAME":
-                if not value.isascii():
-                    value = unicodedata.normalize("NFC", value)
-                    if not value.isidentifier():
-                        error("MT0108", f"`{value}` is not a valid name", help=_name_help(value))
-                ttype = keywords.get(value, "NAME")
-            elif kind == "PUNCT":
-                ttype = punctuation[value]
-                if value in "([{":
-                    brackets.append(value)
-                    still_open[value] += 1
-                elif value in ")]}" and brackets:
-                    # a `}` also ends any ( or [ left open inside its block
-                    opener = _OPENER[value]
-                    if still_open[opener]:
-                        while (popped := brackets.pop()) != opener:
-                            still_open[popped] -= 1
-                        still_open[opener] -= 1
-            elif kind in ("NUMBER", "STRING"):
-                ttype = kind
-            elif kind == "SMARTSTRING":
-                error(
-                    "MT0102",
-                    "a string in typographic quotes",
-                    help=f'strings use the straight quote `"`: write "{value[1:-1]}" '
-                    "(mtlc reads it as one here)",
-                )
-                body = value[1:-1]
-                literal = f'"{body}"' if "\\" not in body else '""'
-                tokens.append(
-                    Token("STRING", literal, start, line, col, line, col + len(value), end)
-                )
-                last_type = "STRING"
-                continue
-            elif kind == "BADSTRING":
-                error(
-                    "MT0103",
-                    "string is not closed before the end of the line",
-                    help='close it with `"`; a string cannot span lines (write \\n instead)',
-                )
-                # a bad string still stands for a value, so the statement around it parses
-                tokens.append(Token("STRING", '""', start, line, col, line, col + len(value), end))
-                last_type = "STRING"
-                continue
-            elif errors <= MAX_ERRORS_PER_FILE:
-                shown = value if len(value) <= 20 else value[:20] + "…"
-                error(
-                    "MT0102",
-                    f"unexpected character{'s' if len(value) > 1 else ''} {shown!r}",
-                    help=_bad_help(value),
-                )
+            elif kind == "WS":
                 continue
             else:
-                continue
-        # Token(...) as lark's Token._future_new makes it, without its call: one per token
-        tok = _new_str(Token, value)
-        tok.type = ttype
-        tok.start_pos = start
-        tok.value = value
-        tok.line = line
-        tok.column = col
-        tok.end_line = line
-        tok.end_column = col + (end - start)
-        tok.end_pos = end
-        tokens.append(tok)
-        last_type = ttype
+                if kind == "NAME":
+                    if end < n and not text[end].isascii() and _continues_name(text[end]):
+                        end = _name_end(text, end)
+                        restart = end  # go on after the longer word
+                elif kind == "BAD":
+                    kind, end = _widen(text, kind, start, end, wide)  # type: ignore[arg-type]
+                    if end != m.end():
+                        restart = end
+                if kind == "COMMENT":
+                    if comments_out is not None:
+                        comments_out.append(
+                            Token(
+                                "COMMENT",
+                                text[start:end],
+                                start,
+                                line,
+                                col,
+                                line,
+                                col + end - start,
+                                end,
+                            )
+                        )
+                    continue
+                if kind == "NL":
+                    if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
+                        tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
+                        last_type = NEWLINE
+                    line += 1
+                    line_start = end
+                    continue
+                value = text[start:end]
+                if kind == "WIDE":
+                    ascii_form = wide[value]
+                    shown = "a space" if ascii_form == " " else f"`{ascii_form}`"
+                    if errors <= MAX_ERRORS_PER_FILE:  # past it, skip building the message
+                        error(
+                            "MT0102",
+                            f"unexpected character {_describe_char(value)}",
+                            help=f"write {shown} instead (mtlc reads it as one here)",
+                        )
+                    if ascii_form == " ":
+                        continue
+                    value, kind = ascii_form, "PUNCT"
+                if (
+                    kind == "NAME" and value.isdecimal()
+                ):  # non-ASCII digits: ASCII ones are a NUMBER
+                    digits = "".join(str(unicodedata.decimal(ch)) for ch in value)
+                    error(
+                        "MT0102",
+                        f"unexpected digits `{value}`",
+                        help=f"write numbers with the digits 0-9: `{digits}` (mtlc reads it so here)",
+                    )
+                    value, kind = digits, "NUMBER"
+                if kind == "NAME":
+                    if not value.isascii():
+                        value = unicodedata.normalize("NFC", value)
+                        if not value.isidentifier():
+                            error(
+                                "MT0108", f"`{value}` is not a valid name", help=_name_help(value)
+                            )
+                    ttype = keywords.get(value, "NAME")
+                elif kind == "PUNCT":
+                    ttype = punctuation[value]
+                    if value in "([{":
+                        brackets.append(value)
+                        still_open[value] += 1
+                    elif value in ")]}" and brackets:
+                        # a `}` also ends any ( or [ left open inside its block
+                        opener = _OPENER[value]
+                        if still_open[opener]:
+                            while (popped := brackets.pop()) != opener:
+                                still_open[popped] -= 1
+                            still_open[opener] -= 1
+                elif kind in ("NUMBER", "STRING"):
+                    ttype = kind
+                elif kind == "SMARTSTRING":
+                    error(
+                        "MT0102",
+                        "a string in typographic quotes",
+                        help=f'strings use the straight quote `"`: write "{value[1:-1]}" '
+                        "(mtlc reads it as one here)",
+                    )
+                    body = value[1:-1]
+                    literal = f'"{body}"' if "\\" not in body else '""'
+                    tokens.append(
+                        Token("STRING", literal, start, line, col, line, col + len(value), end)
+                    )
+                    last_type = "STRING"
+                    continue
+                elif kind == "BADSTRING":
+                    error(
+                        "MT0103",
+                        "string is not closed before the end of the line",
+                        help='close it with `"`; a string cannot span lines (write \\n instead)',
+                    )
+                    # a bad string still stands for a value, so the statement around it parses
+                    tokens.append(
+                        Token("STRING", '""', start, line, col, line, col + len(value), end)
+                    )
+                    last_type = "STRING"
+                    continue
+                elif errors <= MAX_ERRORS_PER_FILE:
+                    shown = value if len(value) <= 20 else value[:20] + "…"
+                    error(
+                        "MT0102",
+                        f"unexpected character{'s' if len(value) > 1 else ''} {shown!r}",
+                        help=_bad_help(value),
+                    )
+                    continue
+                else:
+                    continue
+            # Token(...) as lark's Token._future_new makes it, without its call: one per token
+            tok = _new_str(Token, value)
+            tok.type = ttype
+            tok.start_pos = start
+            tok.value = value
+            tok.line = line
+            tok.column = col
+            tok.end_line = line
+            tok.end_column = col + (end - start)
+            tok.end_pos = end
+            tokens.append(tok)
+            last_type = ttype
+        else:
+            if restart < 0 or restart >= n:
+                break
+        pos, restart = restart, -1
     return tokens
 
 

@@ -263,6 +263,13 @@ class _Printer:
         prev_end = start
         for group in self._line_groups(entries, join, end):
             first, last = group[0], group[-1]
+            if self.fast and len(group) == 1 and self.pool.quiet(prev_end, last.end, last.end_line):
+                # no comment before it, in it, or after it on its last line: nothing to place
+                # (what place, _hosted and _built would find out, one look-up at a time)
+                hosted_last = False
+                out.append((blank_before(first.line, first), first.build()))
+                prev_end, prev_line, prev = last.end, last.end_line, last
+                continue
             place(self.pool.take(prev_end, first.start), first)
             hosted = self._hosted(first, last)
             hosted_last = bool(hosted) and not self._ends_with_block(last)

@@ -372,19 +372,26 @@ class _Printer:
         head: list[Doc] = [Text("{"), *(LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in opener)]
         if not elements:
             return [*head, HARDLINE, Text("}")] if opener else [*head, Text("}")]
-        if self.fast and not elements[0][0] and all(type(e) is str for _, e in elements):
-            # lines of text only (no comment held for the end of a line): one text with its
-            # new lines and indentation, after a real line break (which prints what a line
-            # suffix before the block holds, after its `{`), as the layout would print it
-            indent = " " * (INDENT * (self.depth + 1))
-            lines = [elements[0][1]]
-            for blank, element in elements[1:]:
-                lines.append(("\n\n" if blank else "\n") + indent + element)  # type: ignore[operator]
-            return [*head, Nest([HARDLINE, "".join(lines)]), HARDLINE, Text("}")]  # type: ignore[arg-type]
         body: list[Doc] = []
+        # a run of lines of plain text is one text with its new lines and indentation, after a
+        # real line break (which prints what a line suffix before it holds, and after which
+        # none is pending), as the layout would print it: fewer parts for the layout to walk
+        indent = " " * (INDENT * (self.depth + 1))
+        run: list[str] = []
         for blank, element in elements:
+            if run and type(element) is str:
+                run.append(("\n\n" if blank else "\n") + indent + element)  # type: ignore[operator]
+                continue
+            if run:
+                body.append("".join(run))
+                run = []
             body.append([HARDLINE, HARDLINE] if blank else HARDLINE)
-            body.append(element)
+            if self.fast and type(element) is str:
+                run = [element]  # type: ignore[list-item]
+            else:
+                body.append(element)
+        if run:
+            body.append("".join(run))
         return [*head, Nest(body), HARDLINE, Text("}")]
 
     def _block(self, block: ast.Block) -> Doc:

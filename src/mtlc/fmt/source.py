@@ -52,14 +52,12 @@ class SourceTokens:
     def __init__(self, text: str, file: str) -> None:
         self.tokens: list[Token] = _known(text, file)[0]
         self.types: list[str] = [t.type for t in self.tokens]
-        # a token by the offset where it starts or ends: lists as long as the text (-1: no
-        # token there), filled by C loops (map, deque); a dict of hundreds of thousands of
-        # offsets cost more to build, and a bisection more to look up
-        size = len(text) + 1
-        self._by_start = [-1] * size
-        self._by_end = [-1] * size
-        deque(map(self._by_start.__setitem__, [t.start_pos for t in self.tokens], count()), 0)
-        deque(map(self._by_end.__setitem__, [t.end_pos for t in self.tokens], count()), 0)
+        # a token by the offset where it starts: a list as long as the text (-1: no token
+        # there), filled by C loops (map, deque); a dict of hundreds of thousands of offsets
+        # cost more to build, and a bisection more to look up
+        self._starts = [t.start_pos for t in self.tokens]
+        self._by_start = [-1] * (len(text) + 1)
+        deque(map(self._by_start.__setitem__, self._starts, count()), 0)
         self.match = _match_brackets(self.types)
 
     def starting_at(self, offset: int) -> int:
@@ -71,9 +69,12 @@ class SourceTokens:
 
     def ending_at(self, offset: int) -> int:
         """The index of the token that ends at ``offset`` (KeyError: none does)."""
-        i = self._by_end[offset] if 0 <= offset < len(self._by_end) else -1
-        if i < 0:
-            raise KeyError(offset)
+        # mostly a `)` or `}`: the token that starts one character before
+        i = self._by_start[offset - 1] if 0 < offset <= len(self._by_start) else -1
+        if i < 0 or self.tokens[i].end_pos != offset:
+            i = bisect.bisect_left(self._starts, offset) - 1  # the last token starting before
+            if i < 0 or self.tokens[i].end_pos != offset:
+                raise KeyError(offset)
         return i
 
     def line_of(self, end: int) -> int:

@@ -16,6 +16,7 @@ from mtlc.syntax import ast
 from mtlc.syntax.lexer import decode_string
 
 MAX_EXPR_DEPTH = 100
+_INF = float("inf")
 _new_span = tuple.__new__  # Span(...) without the NamedTuple constructor's extra call
 # the commonest nodes, built by position (ast.maker: the same nodes, without keyword calls)
 _name = ast.maker(ast.Name, "span", "name")
@@ -97,7 +98,7 @@ class AstBuilder(Transformer):
 
     # ------------------------------------------------------------ modules
     def qualname(self, c: list[Token]) -> tuple[tuple[str, ...], Span]:
-        return tuple(t.value for t in c), self._join(c[0], c[-1])
+        return tuple([t.value for t in c]), self._join(c[0], c[-1])
 
     def use_decl(self, c: list[Any]) -> ast.Use:
         names, span = c[1]
@@ -372,7 +373,7 @@ class AstBuilder(Transformer):
             value = float(text)
         except ValueError:  # the pattern only admits valid floats; keep the tree whole anyway
             value = 0.0
-        if value == float("inf"):
+        if value == _INF:
             self.sink.report(
                 "MT0309",
                 "number is too large",

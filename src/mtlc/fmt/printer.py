@@ -42,9 +42,9 @@ ANCHORS = (ast.Call, ast.Repeat, ast.ForEach, ast.Parallel, ast.ManikinSetting, 
            ast.ToolSetting, ast.BudgetSetting, ast.TimeSetting, ast.Goal, ast.Posture, ast.Walk,
            ast.Grip, ast.Gaze, ast.Still, ast.Decl, ast.Use, ast.ToolProperty, ast.Param)  # fmt: skip
 TRAILING_COMMENT_GAP = "  "
-# False: every statement and block through the document, as before its two shortcuts (a line
-# printed flat at once, _one_line; a block with no comment to place, _sequence); the tests
-# compare both ways
+# False: every statement and block through the general code, without the shortcuts (a line
+# printed flat at once, _one_line; a block or entry with no comment to place, _block and
+# _sequence; a run of plain lines as one text, _braces); tests/test_fmt_paths.py compares both
 FAST_PATHS = True
 _CALLS = frozenset({ast.Call, ast.CallExpr})
 

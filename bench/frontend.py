@@ -10,7 +10,8 @@ and imports included). Target (issue 2): 10,000 lines checked in under 1 s on th
 The second table is about one file of valid steps written as bench/hostile.py writes its
 "fmt 1.8 MB" case (`steps_file`): tokenize + parse in process (best of N, CPU), `mtlc check`
 of a ~20,000-line file and `mtlc fmt --check` of the ~1.8 MB file, each in a fresh process
-(CPU time of the child, start-up and imports included, which ``startup`` shows alone). The
+(CPU time of the child, start-up and imports included, which ``startup`` shows alone: `mtlc
+--help` imports every command's modules, `mtlc fmt --help` only fmt's, as `mtlc fmt` does). The
 goal is printed beside each figure (issues 17 and 21); nothing here is asserted.
 """
 
@@ -111,7 +112,8 @@ def large_file_table(check_lines: int, fmt_mb: float, repeat: int) -> None:
             parse_module(text, small.name, sink)
             parse_s = min(parse_s, time.process_time() - t0)
         assert not sink.items, sink.items[:3]
-        startup, _ = _child_cpu(["--help"])
+        startup, _ = _child_cpu(["--help"])  # every command's imports
+        fmt_startup, _ = _child_cpu(["fmt", "--help"])  # `mtlc fmt` imports only its own
         check_s, check_rc = _child_cpu(["check", str(small)])
         fmt_s, fmt_rc = _child_cpu(["fmt", "--check", str(big)])
         big_mb = big.stat().st_size / 1e6
@@ -120,6 +122,7 @@ def large_file_table(check_lines: int, fmt_mb: float, repeat: int) -> None:
     rows = [
         (f"tokenize + parse, {lines:,} lines (in process)", f"{lines / parse_s:,.0f} lines/s", ""),
         ("startup (`mtlc --help`, CPU)", f"{startup:.2f} s", ""),
+        ("startup of fmt (`mtlc fmt --help`, CPU)", f"{fmt_startup:.2f} s", ""),
         (
             f"`check`, {lines:,} lines (CPU, exit {check_rc})",
             f"{lines / check_s:,.0f} lines/s",
@@ -127,7 +130,7 @@ def large_file_table(check_lines: int, fmt_mb: float, repeat: int) -> None:
         ),
         ("  the same, less startup", f"{lines / work_check:,.0f} lines/s", ">= 50,000 lines/s"),
         (f"`fmt --check`, {big_mb:.1f} MB (CPU, exit {fmt_rc})", f"{fmt_s:.2f} s", "< 2 s"),
-        ("  the same, less startup", f"{fmt_s - startup:.2f} s", "< 2 s"),
+        ("  the same, less fmt's startup", f"{fmt_s - fmt_startup:.2f} s", "< 2 s"),
     ]
     print()
     print(f"{'large file of steps':<44}{'value':>16}   goal")

@@ -61,10 +61,12 @@ class Result:
 
 
 # the child: imports first, then times the command alone (start-up is several seconds on a
-# loaded machine, and is the same for every row)
+# loaded machine, and is the same for every row). mtlc imports a command's modules when it
+# runs; building the whole parser imports every command's, as `from mtlc.cli import main` did
 _DRIVER = """\
 import os, sys, time
-from mtlc.cli import main
+from mtlc.cli import build_parser, main
+build_parser()
 t0, c0 = time.perf_counter(), time.process_time()
 try:
     rc = main(sys.argv[1:])

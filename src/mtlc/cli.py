@@ -13,34 +13,23 @@ import sys
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mtlc import __version__
-from mtlc.codegen import (
-    DEFAULT_TARGET,
-    TA_MODES,
-    TARGET_CHOICES,
-    GenerateOptions,
-    expand_target,
-    generate_file,
-    stem_of,
-)
 from mtlc.diagnostics import CODES, DiagnosticSink, Span
 from mtlc.diagnostics.render import render_json, render_text, terminal_safe, use_color
-from mtlc.fmt.command import add_fmt_parser, run_fmt_command
-from mtlc.frontend import FrontendOptions, Program, add_motion_budget, run_frontend
-from mtlc.ir.model import MotionIR
-from mtlc.lint.command import add_lint_parser, run_lint_command
-from mtlc.metrics import Metrics, compute_metrics, render_metrics
 from mtlc.output import OutputError, safe_file_name, write_outputs
-from mtlc.passes import MotionOptions, run_motion
-from mtlc.passes.context import DEFAULT_FPS
-from mtlc.preview.command import add_preview_parsers, run_preview_command
-from mtlc.report.command import add_report_parser, run_report_command
 from mtlc.resources import resource_dir
-from mtlc.semantics import builtins as B
-from mtlc.semantics.expand import DEFAULT_BUDGET
-from mtlc.semantics.timeline import ManikinSpec
-from mtlc.syntax.dump import dump_module
+
+# Each command's modules are imported when it runs (and, for `mtlc fmt`, only fmt's parser is
+# built): `mtlc fmt` needs the parser and printer, not the motion passes, numpy and scipy that
+# the other commands load (start-up was 1-2 s of every `mtlc fmt`).
+if TYPE_CHECKING:
+    from mtlc.frontend import FrontendOptions, Program
+    from mtlc.ir.model import MotionIR
+    from mtlc.metrics import Metrics
+    from mtlc.passes import MotionOptions
+    from mtlc.semantics.timeline import ManikinSpec
 
 EXIT_OK, EXIT_ERRORS, EXIT_USAGE = 0, 1, 2
 
@@ -57,6 +46,9 @@ def _manikin(text: str) -> ManikinSpec:
             "expected POPULATION:SEX:PERCENTILE, e.g. gb10000_1988:female:5"
         )
     pop, sex, pct = parts
+    from mtlc.semantics import builtins as B
+    from mtlc.semantics.timeline import ManikinSpec
+
     if pop not in B.POPULATIONS:
         raise argparse.ArgumentTypeError(
             f"unknown population {pop!r}; one of {', '.join(B.POPULATIONS)}"
@@ -90,13 +82,27 @@ def _budget(text: str) -> int:
     return value
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The command line; with ``only="fmt"``, the same with no other command (for `mtlc fmt
+    ...`, whose arguments, help and errors are the same: it then imports nothing else)."""
     parser = argparse.ArgumentParser(
         prog="mtlc",
         description="Maintenance Task Language Compiler: maintenance procedures to virtual-human motion.",
     )
     parser.add_argument("--version", action="version", version=f"mtlc {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    from mtlc.fmt.command import add_fmt_parser
+
+    if only == "fmt":
+        add_fmt_parser(sub)
+        return parser
+    from mtlc.codegen import DEFAULT_TARGET, TA_MODES, TARGET_CHOICES
+    from mtlc.frontend import add_motion_budget
+    from mtlc.lint.command import add_lint_parser
+    from mtlc.passes.context import DEFAULT_FPS
+    from mtlc.preview.command import add_preview_parsers
+    from mtlc.report.command import add_report_parser
+    from mtlc.semantics.expand import DEFAULT_BUDGET
 
     def frontend_options(p: argparse.ArgumentParser) -> None:
         p.add_argument("files", nargs="+", type=Path, metavar="FILE", help=".mtask files")
@@ -153,8 +159,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(only="fmt" if words[:1] == ["fmt"] else None)
+    args = parser.parse_args(words)
     if args.command is None:
         parser.print_help(sys.stderr)
         return EXIT_USAGE
@@ -162,12 +169,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "explain":
             return cmd_explain(args.code)
         if args.command == "fmt":
+            from mtlc.fmt.command import run_fmt_command
+
             return run_fmt_command(args)
         if args.command == "lint":
+            from mtlc.lint.command import run_lint_command
+
             return run_lint_command(args)
         if args.command == "report":
+            from mtlc.report.command import run_report_command
+
             return run_report_command(args)
         if args.command in ("preview", "serve"):
+            from mtlc.preview.command import run_preview_command
+
             return run_preview_command(args)
         return cmd_frontend(args)
     except UsageError as exc:
@@ -200,6 +215,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _options(args: argparse.Namespace) -> FrontendOptions:
+    from mtlc.frontend import FrontendOptions
+
     return FrontendOptions(
         include_dirs=tuple(args.include),
         expansion_budget=args.expansion_budget,
@@ -227,6 +244,8 @@ def _summary(program: Program) -> None:
 
 
 def cmd_frontend(args: argparse.Namespace) -> int:
+    from mtlc.frontend import run_frontend
+
     program = run_frontend(list(args.files), _options(args))
     if args.command == "check":
         return cmd_check(args, program)
@@ -239,6 +258,8 @@ def cmd_check(args: argparse.Namespace, program: Program) -> int:
     if args.format == "text" and not failed and not args.dump:
         _summary(program)
     if args.dump == "ast":
+        from mtlc.syntax.dump import dump_module
+
         for module in program.roots:
             sys.stdout.write(dump_module(module.tree))
     elif args.dump == "timeline" and not failed:
@@ -249,6 +270,10 @@ def cmd_check(args: argparse.Namespace, program: Program) -> int:
 
 def cmd_compile(args: argparse.Namespace, program: Program) -> int:
     """Front end, then the motion passes and generators; every output is written, or none."""
+    from mtlc.codegen import GenerateOptions, expand_target, generate_file, stem_of
+    from mtlc.metrics import compute_metrics, render_metrics
+    from mtlc.passes import run_motion
+
     files: dict[Path, str | bytes] = {}
     measured: list[tuple[str, Metrics]] = []
     if not program.sink.has_errors:
@@ -301,6 +326,8 @@ def _claim(
 
 
 def _motion_options(args: argparse.Namespace) -> MotionOptions:
+    from mtlc.passes import MotionOptions
+
     return MotionOptions(fps=args.fps, walk_clip=getattr(args, "walk_clip", None))
 
 

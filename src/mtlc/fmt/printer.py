@@ -13,12 +13,14 @@ import bisect
 import dataclasses
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 from lark import Token
 
 from mtlc.diagnostics import Span
 from mtlc.fmt.doc import (
     HARDLINE,
+    INDENT,
     LINE,
     SOFTLINE,
     BreakParent,
@@ -32,8 +34,7 @@ from mtlc.fmt.doc import (
     render,
 )
 from mtlc.fmt.source import Comment, CommentPool, SourceTokens
-from mtlc.lint import suppress
-from mtlc.syntax import ast
+from mtlc.syntax import ast, suppressions
 
 LINE_LENGTH = 100
 # what lint reports findings on (at the first line); a Block is not one, its statements are
@@ -41,12 +42,28 @@ ANCHORS = (ast.Call, ast.Repeat, ast.ForEach, ast.Parallel, ast.ManikinSetting, 
            ast.ToolSetting, ast.BudgetSetting, ast.TimeSetting, ast.Goal, ast.Posture, ast.Walk,
            ast.Grip, ast.Gaze, ast.Still, ast.Decl, ast.Use, ast.ToolProperty, ast.Param)  # fmt: skip
 TRAILING_COMMENT_GAP = "  "
+# False: every statement and block through the general code, without the shortcuts (a line
+# printed flat at once, _one_line; a block or entry with no comment to place, _block and
+# _sequence; a run of plain lines as one text, _braces); tests/test_fmt_paths.py compares both
+FAST_PATHS = True
+_CALLS = frozenset({ast.Call, ast.CallExpr})
+
+
+def _subclasses(cls: type) -> set[type]:
+    found = {cls}
+    for sub in cls.__subclasses__():
+        found |= _subclasses(sub)
+    return found
+
+
+# the node classes that are ANCHORS: a set lookup by type instead of isinstance's walk
+_ANCHOR_TYPES = frozenset(c for c in _subclasses(ast.Node) if issubclass(c, ANCHORS))
 
 # binding strength: a child that binds less tightly than its place needs parentheses
 _SUM, _PRODUCT, _UNARY, _POSTFIX, _PRIMARY = 1, 2, 3, 4, 5
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)  # not frozen: a frozen one costs an object.__setattr__ per field
 class _Entry:
     """One line-level item of a sequence (a statement, a scene member, a top-level item)."""
 
@@ -82,6 +99,16 @@ _LEAF_TYPES = frozenset(
 )  # fmt: skip
 
 
+def _node_fields(kind: type) -> tuple[str, ...]:
+    """The fields of a node class that may hold nodes (a node, None or a tuple of nodes)."""
+    names = _FIELDS.get(kind)
+    if names is None:
+        names = _FIELDS[kind] = tuple(
+            f.name for f in reversed(dataclasses.fields(kind)) if f.type not in _LEAF_TYPES
+        )
+    return names
+
+
 def nodes(node: object) -> Iterator[ast.Node]:
     """Every AST node under ``node``, itself included, parents before children in field order.
 
@@ -93,12 +120,7 @@ def nodes(node: object) -> Iterator[ast.Node]:
         item = stack.pop()
         if isinstance(item, ast.Node):
             yield item
-            names = _FIELDS.get(type(item))
-            if names is None:
-                names = _FIELDS[type(item)] = tuple(
-                    f.name for f in reversed(dataclasses.fields(item)) if f.type not in _LEAF_TYPES
-                )
-            for name in names:
+            for name in _node_fields(type(item)):
                 value = getattr(item, name)
                 if type(value) is tuple:
                     stack.extend(reversed(value))
@@ -114,39 +136,55 @@ class _Printer:
         self.tree = module
         self.src = SourceTokens(text, file)
         self.pool = CommentPool(text)
-        self.nodes = list(nodes(module))
-        self.call_parens = self._call_parens()
-        self.anchor_starts = self._anchor_starts()
-        self.blocks_by_end = {n.span.end: n for n in self.nodes if isinstance(n, ast.Block)}
+        self.blocks_by_end: dict[int, ast.Block] = {}
+        self.call_parens, self.anchor_starts = self._survey()
+        self.parenthesized = self.src.parenthesized(self.call_parens)
         # each `# mtlc: ignore[...]`, by its line: where it starts, the last line it covers
         reach: dict[int, int] = {}
-        for mark in suppress.scan(file, text):
+        for mark in suppressions.scan(file, text):
             reach[mark.first_line] = max(reach.get(mark.first_line, 0), mark.last_line)
         self.ignores = {
             c.line: (c.start, reach[c.line]) for c in self.pool.all() if c.line in reach
         }
+        self.depth = 0  # how many `{` enclose what is being built: its line starts at 4 * depth
+        self.fast = FAST_PATHS
 
-    def _anchor_starts(self) -> list[int]:
-        """Where line-level things start (statements, declarations, scene members, parameters):
-        what a comment on their line is about, and where lint reports findings."""
-        found = [n.span.start for n in self.nodes if isinstance(n, ANCHORS)]
-        for node in self.nodes:
-            if isinstance(node, ast.Scene) and node.ground is not None:
-                keyword = self.src.starting_at(node.ground.span.start) - 1
-                found.append(int(self.src.at(keyword).start_pos))
-        return sorted(found)
+    def _survey(self) -> tuple[set[int], list[int]]:
+        """One walk over the nodes (there are hundreds of thousands in a large file) for:
 
-    def _call_parens(self) -> set[int]:
-        """The `(` of calls and postures: not parentheses the writer put around an argument."""
-        found: set[int] = set()
-        for node in self.nodes:
-            if isinstance(node, ast.Call | ast.CallExpr):
-                found.add(self.src.match[self.src.ending_at(node.span.end)])
-            elif isinstance(node, ast.Posture):
-                after = self.src.ending_at(node.kind_span.end) + 1
-                if self.src.kind(after) == "LPAR":
-                    found.add(after)
-        return found
+        - the `(` of calls and postures: not parentheses the writer put around an argument;
+        - where line-level things start (statements, declarations, scene members,
+          parameters): what a comment on their line is about, and where lint reports findings;
+        - the blocks, by where they end (``blocks_by_end``).
+        """
+        parens: set[int] = set()
+        found: list[int] = []
+        src = self.src
+        stack: list[ast.Node] = [self.tree]  # every node, in no particular order
+        while stack:
+            node = stack.pop()
+            kind = type(node)
+            for name in _node_fields(kind):
+                value = getattr(node, name)
+                if type(value) is tuple:
+                    stack.extend(value)
+                elif value is not None:
+                    stack.append(value)
+            if kind in _CALLS:
+                parens.add(src.match[src.ending_at(node.span.end)])
+            elif kind is ast.Block:
+                self.blocks_by_end[node.span.end] = node  # type: ignore[assignment]
+                continue
+            elif kind is ast.Scene and node.ground is not None:  # type: ignore[attr-defined]
+                keyword = src.starting_at(node.ground.span.start) - 1  # type: ignore[attr-defined]
+                found.append(int(src.at(keyword).start_pos))
+            if kind in _ANCHOR_TYPES:
+                found.append(node.span.start)
+                if kind is ast.Posture:
+                    after = src.ending_at(node.kind_span.end) + 1  # type: ignore[attr-defined]
+                    if src.kind(after) == "LPAR":
+                        parens.add(after)
+        return parens, sorted(found)
 
     # ------------------------------------------------------------ sequences and blocks
     def module(self) -> Doc:
@@ -174,15 +212,32 @@ class _Printer:
         end: int,
         forced_blank: Callable[[_Entry, _Entry], bool],
         join: bool = False,
+        end_line: int | None = None,
     ) -> tuple[list[Comment], list[tuple[bool, Doc]]]:
         """Entries and the comments around them, each with whether a blank line comes before.
 
         Blank lines the writer left are kept (a run becomes one); ``forced_blank`` adds one
         between two entries (and before the comments above the second). Comments on the
         opening line come back apart, for the caller to print after its `{`.
+
+        ``end_line``: the line of the closing `}` at ``end``. When no comment starts from
+        ``start`` to the end of that line (the comments the entries could take: one after the
+        `}` on its line may be hosted by an entry that starts on that line), the entries are
+        just built, with the blank lines between them.
         """
-        opener_comments: list[Comment] = []
         out: list[tuple[bool, Doc]] = []
+        if self.fast and end_line is not None and self.pool.quiet(start, end, end_line):
+            prev_line = start_line
+            previous: _Entry | None = None
+            for entry in entries:
+                blank = bool(out) and (
+                    (previous is not None and forced_blank(previous, entry))
+                    or entry.line - prev_line > 1
+                )
+                out.append((blank, entry.build()))
+                prev_line, previous = entry.end_line, entry
+            return [], out
+        opener_comments: list[Comment] = []
         prev_line = start_line
         prev: _Entry | None = None
         hosted_last = False  # the last entry may be one line, which already ends with a comment
@@ -208,17 +263,27 @@ class _Printer:
         prev_end = start
         for group in self._line_groups(entries, join, end):
             first, last = group[0], group[-1]
+            if self.fast and len(group) == 1 and self.pool.quiet(prev_end, last.end, last.end_line):
+                # no comment before it, in it, or after it on its last line: nothing to place
+                # (what place, _hosted and _built would find out, one look-up at a time)
+                hosted_last = False
+                out.append((blank_before(first.line, first), first.build()))
+                prev_end, prev_line, prev = last.end, last.end_line, last
+                continue
             place(self.pool.take(prev_end, first.start), first)
             hosted = self._hosted(first, last)
             hosted_last = bool(hosted) and not self._ends_with_block(last)
             docs = [self._built(e) for e in group]
-            joined: list[Doc] = [docs[0]]
-            for doc in docs[1:]:
-                joined += [Text("; "), doc]
+            joined: Doc = docs[0]  # (no list around one part: fewer parts for the layout)
             if len(docs) > 1:  # kept on one line for an ignore: breaking it would move some
-                joined = [Flat(joined)]  # statement off the comment's line
-            suffix = [LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in hosted]
-            out.append((blank_before(first.line, first), [*suffix, joined]))
+                parts: list[Doc] = [docs[0]]  # statement off the comment's line
+                for doc in docs[1:]:
+                    parts += [Text("; "), doc]
+                joined = Flat(parts)
+            if hosted:
+                suffix = [LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in hosted]
+                joined = [*suffix, joined]
+            out.append((blank_before(first.line, first), joined))
             prev_end, prev_line, prev = last.end, last.end_line, last
         place(self.pool.take(prev_end, end), None)
         return opener_comments, out
@@ -227,6 +292,8 @@ class _Printer:
         """The entry, after any comment inside it that no item reached (moved above it)."""
         doc = entry.build()
         stray = self.pool.take(entry.start, entry.end)
+        if not stray:
+            return doc
         lead: list[Doc] = [[Text(c.text), HARDLINE] for c in stray]
         return [*lead, doc]
 
@@ -285,23 +352,71 @@ class _Printer:
     def _braced(self, open_index: int, close_index: int, entries: list[_Entry]) -> Doc:
         """`{`, one entry per line, `}`."""
         lbrace, rbrace = self.src.at(open_index), self.src.at(close_index)
-        opener, elements = self._sequence(
-            entries, lbrace.end_pos, lbrace.line, rbrace.start_pos, _never, join=True
-        )
+        self.depth += 1  # the entries are built inside _sequence, one level in
+        try:
+            opener, elements = self._sequence(
+                entries,
+                lbrace.end_pos,
+                lbrace.line,
+                rbrace.start_pos,
+                _never,
+                join=True,
+                end_line=rbrace.line,
+            )
+        finally:
+            self.depth -= 1
+        return self._braces(opener, elements)
+
+    def _braces(self, opener: list[Comment], elements: list[tuple[bool, Doc]]) -> Doc:
+        """`{` with the comments after it, the elements one per line, `}`."""
         head: list[Doc] = [Text("{"), *(LineSuffix(TRAILING_COMMENT_GAP + c.text) for c in opener)]
         if not elements:
             return [*head, HARDLINE, Text("}")] if opener else [*head, Text("}")]
         body: list[Doc] = []
+        # a run of lines of plain text is one text with its new lines and indentation, after a
+        # real line break (which prints what a line suffix before it holds, and after which
+        # none is pending), as the layout would print it: fewer parts for the layout to walk
+        indent = " " * (INDENT * (self.depth + 1))
+        run: list[str] = []
         for blank, element in elements:
+            if run and type(element) is str:
+                run.append(("\n\n" if blank else "\n") + indent + element)  # type: ignore[operator]
+                continue
+            if run:
+                body.append("".join(run))
+                run = []
             body.append([HARDLINE, HARDLINE] if blank else HARDLINE)
-            body.append(element)
+            if self.fast and type(element) is str:
+                run = [element]  # type: ignore[list-item]
+            else:
+                body.append(element)
+        if run:
+            body.append("".join(run))
         return [*head, Nest(body), HARDLINE, Text("}")]
 
     def _block(self, block: ast.Block) -> Doc:
+        open_index = self.src.starting_at(block.span.start)
+        close_index = self.src.ending_at(block.span.end)
+        if self.fast:
+            lbrace, rbrace = self.src.at(open_index), self.src.at(close_index)
+            if self.pool.quiet(lbrace.end_pos, rbrace.start_pos, rbrace.line):
+                return self._braces([], self._quiet_statements(block, lbrace.line))
         entries = [self._entry(s.span, self._bind(self._stmt, s)) for s in block.stmts]
-        return self._braced(
-            self.src.starting_at(block.span.start), self.src.ending_at(block.span.end), entries
-        )
+        return self._braced(open_index, close_index, entries)
+
+    def _quiet_statements(self, block: ast.Block, open_line: int) -> list[tuple[bool, Doc]]:
+        """What _sequence gives for a block with no comment to place (see there), without
+        making an entry per statement."""
+        out: list[tuple[bool, Doc]] = []
+        prev_line = open_line
+        self.depth += 1
+        try:
+            for stmt in block.stmts:
+                out.append((bool(out) and stmt.span.line - prev_line > 1, self._stmt(stmt)))
+                prev_line = stmt.span.end_line
+        finally:
+            self.depth -= 1
+        return out
 
     @staticmethod
     def _bind(fn: Callable[[ast.Node], Doc], node: ast.Node) -> Callable[[], Doc]:
@@ -403,6 +518,9 @@ class _Printer:
 
     def _site(self, site: ast.Node) -> Doc:
         assert isinstance(site, ast.SiteDecl)
+        line = self._one_line(site, self._line_site)
+        if line is not None:
+            return line
         doc: list[Doc] = [Text(f"site {site.name} at "), self._expr(site.position)]
         if site.normal is not None:
             doc += [Text(" normal "), self._expr(site.normal)]
@@ -432,8 +550,163 @@ class _Printer:
             doc += [Text(" = "), self._expr(param.default)]
         return doc
 
+    # ------------------------------------------------------------ one line, without a document
+    def _one_line(self, node: ast.Node, line: Callable[[Any], str]) -> str | None:
+        """The text of a statement or scene member that prints on one line, or None.
+
+        Most of a file is such lines: the document of groups and line breaks would be built,
+        measured and then printed flat. Here the flat text is made at once, and kept when the
+        layout would print it so: when no comment starts inside the node (one ends a line or
+        forces a break), no bracket list has a magic trailing comma (it always breaks), and
+        the text fits in the line at the node's indentation. Then every group in it fits (the
+        layout measures each one with what follows it on the line, at most the whole text),
+        so the layout's output would be this very text. Otherwise (None) the document is
+        built. ``tests/test_fmt.py`` checks both paths give the same output.
+        """
+        if not self.fast or self.pool.any_in(node.span.start, node.span.end):
+            return None
+        try:
+            text = line(node)
+        except _NotOneLine:
+            return None
+        return text if INDENT * self.depth + len(text) <= LINE_LENGTH else None
+
+    def _line_stmt(self, stmt: ast.Node) -> str:
+        e = self._line_expr
+        match stmt:
+            case ast.Call():
+                rpar = self.src.ending_at(stmt.span.end)
+                return ".".join(stmt.callee) + self._line_args(
+                    self.src.match[rpar], rpar, stmt.args
+                )
+            case ast.ManikinSetting():
+                return f"manikin {stmt.population} {stmt.sex} {stmt.percentile}"
+            case ast.SceneSetting():
+                return f"scene {stmt.name}"
+            case ast.ToolSetting():
+                return "tool " + e(stmt.tool)
+            case ast.BudgetSetting():
+                return "budget " + e(stmt.limit)
+            case ast.TimeSetting():
+                return "time " + e(stmt.duration)
+            case ast.Goal():
+                text = "goal " + e(stmt.effector) + " at " + e(stmt.target)
+                if stmt.approach is not None:
+                    text += " approach " + e(stmt.approach)
+                if stmt.offset is not None:
+                    text += " offset " + e(stmt.offset)
+                if stmt.orient:
+                    text += " orient"
+                return text + self._line_over(stmt.over)
+            case ast.Posture():
+                text = f"posture {stmt.kind}"
+                if stmt.args:
+                    lpar = self.src.ending_at(stmt.kind_span.end) + 1
+                    text += self._line_args(lpar, self.src.match[lpar], stmt.args)
+                return text + self._line_over(stmt.over)
+            case ast.Walk():
+                text = f"walk {stmt.mode} " + e(stmt.target)
+                if stmt.facing is not None:
+                    text += " facing " + e(stmt.facing)
+                return text + self._line_over(stmt.over)
+            case ast.Grip():
+                return "grip " + e(stmt.hand) + f" {stmt.state}" + self._line_over(stmt.over)
+            case ast.Gaze():
+                return "gaze at " + e(stmt.target) + self._line_over(stmt.over)
+            case ast.Still():
+                return "still" + self._line_over(stmt.over)
+        raise _NotOneLine  # a block, or a statement that holds one
+
+    def _line_over(self, over: ast.Expr | None) -> str:
+        return "" if over is None else " over " + self._line_expr(over)
+
+    def _line_site(self, site: ast.SiteDecl) -> str:
+        text = f"site {site.name} at " + self._line_expr(site.position)
+        if site.normal is not None:
+            text += " normal " + self._line_expr(site.normal)
+        if site.frame is not None:
+            text += " frame " + self._line_expr(site.frame)
+        return text
+
+    def _line_args(self, open_index: int, close_index: int, args: tuple[ast.Arg, ...]) -> str:
+        items = [
+            self._line_expr(a.value) if a.name is None else f"{a.name}: " + self._line_expr(a.value)
+            for a in args
+        ]
+        return self._line_list(open_index, close_index, items)
+
+    def _line_list(self, open_index: int, close_index: int, items: list[str]) -> str:
+        """A bracket list flat (_delimited and _empty_brackets, without comments)."""
+        if items and self.src.comma_before(close_index):
+            raise _NotOneLine  # a magic trailing comma: one item per line
+        return self.src.text(open_index) + ", ".join(items) + self.src.text(close_index)
+
+    def _line_expr(self, expr: ast.Expr, needs: int = 0, strict: bool = False) -> str:
+        """_expr, flat."""
+        kind = type(expr)
+        if kind is ast.Name:  # the commonest, at once
+            text = expr.name  # type: ignore[attr-defined]
+            strength = _PRIMARY
+        elif kind is ast.Number:
+            number = self.src.text_at(expr.span.start)
+            unit = expr.unit  # type: ignore[attr-defined]
+            text = number if unit is None else f"{number} {unit}"
+            strength = _PRIMARY
+        else:
+            strength = _strength(expr)
+            text = self._line_bare(expr)
+        bracket = strength < needs or (strict and strength == needs)
+        if bracket or self.parenthesized.get(expr.span.start) == expr.span.end:
+            return "(" + text + ")"
+        return text
+
+    def _line_bare(self, expr: ast.Expr) -> str:
+        """_bare, flat."""
+        match expr:
+            case ast.String():
+                return self.src.text_at(expr.span.start)
+            case ast.Number():
+                number = self.src.text_at(expr.span.start)
+                return number if expr.unit is None else f"{number} {expr.unit}"
+            case ast.Name():
+                return expr.name
+            case ast.Binary():
+                strength = _strength(expr)
+                return (
+                    self._line_expr(expr.left, strength)
+                    + f" {expr.op} "
+                    + self._line_expr(expr.right, strength, strict=True)
+                )
+            case ast.Unary():
+                return expr.op + self._line_expr(expr.operand, _UNARY)
+            case ast.Attr():
+                return self._line_postfix_object(expr.obj) + f".{expr.name}"
+            case ast.CallExpr():
+                rpar = self.src.ending_at(expr.span.end)
+                return self._line_postfix_object(expr.func) + self._line_args(
+                    self.src.match[rpar], rpar, expr.args
+                )
+            case ast.Vector():
+                open_index = self.src.starting_at(expr.span.start)
+                items = [self._line_expr(x) for x in expr.items]
+                text = self._line_list(open_index, self.src.match[open_index], items)
+                return text if expr.unit is None else f"{text} {expr.unit}"
+            case ast.ListExpr():
+                open_index = self.src.starting_at(expr.span.start)
+                items = [self._line_expr(x) for x in expr.items]
+                return self._line_list(open_index, self.src.match[open_index], items)
+        raise _NotOneLine  # the document path says what is wrong with it
+
+    def _line_postfix_object(self, obj: ast.Expr) -> str:
+        if isinstance(obj, ast.Number):
+            return self._line_expr(obj, _PRIMARY + 1)
+        return self._line_expr(obj, _POSTFIX)
+
     # ------------------------------------------------------------ statements
     def _stmt(self, stmt: ast.Node) -> Doc:
+        line = self._one_line(stmt, self._line_stmt)
+        if line is not None:
+            return line
         match stmt:
             case ast.Block():
                 return self._block(stmt)
@@ -521,7 +794,7 @@ class _Printer:
         strength = _strength(expr)
         doc = self._bare(expr)
         bracket = strength < needs or (strict and strength == needs)
-        if bracket or self.src.wrapped_in_parens(expr.span, self.call_parens):
+        if bracket or self.parenthesized.get(expr.span.start) == expr.span.end:
             return [Text("("), doc, Text(")")]
         return doc
 
@@ -572,6 +845,10 @@ class _Printer:
         return doc if vector.unit is None else [doc, Text(f" {vector.unit}")]
 
 
+class _NotOneLine(Exception):
+    """What is being printed cannot be one flat line: build its document."""
+
+
 def _start(node: ast.Node) -> int:
     return node.span.start
 
@@ -586,11 +863,10 @@ def _separate_top_level(before: _Entry, after: _Entry) -> bool:
 
 
 def _strength(expr: ast.Expr) -> int:
-    match expr:
-        case ast.Binary():
-            return _SUM if expr.op in "+-" else _PRODUCT
-        case ast.Unary():
-            return _UNARY
-        case ast.Attr() | ast.CallExpr():
-            return _POSTFIX
-    return _PRIMARY
+    kind = type(expr)
+    if kind is ast.Binary:
+        return _SUM if expr.op in "+-" else _PRODUCT  # type: ignore[attr-defined]
+    return _STRENGTHS.get(kind, _PRIMARY)
+
+
+_STRENGTHS: dict[type, int] = {ast.Unary: _UNARY, ast.Attr: _POSTFIX, ast.CallExpr: _POSTFIX}

@@ -4,14 +4,17 @@ spellings, parentheses, trailing commas) and the comments, each handed out once.
 from __future__ import annotations
 
 import bisect
+from collections import deque
 from dataclasses import dataclass
+from itertools import count
 
 from lark import Token
 
-from mtlc.diagnostics import DiagnosticSink, Span
+from mtlc.diagnostics import DiagnosticSink
 from mtlc.syntax.lexer import comments, tokenize
 
 _PAIRS = {"LPAR": "RPAR", "LSQB": "RSQB", "LBRACE": "RBRACE"}
+_BRACKETS = frozenset({*_PAIRS, *_PAIRS.values()})
 
 # the text being formatted and its tokens and comments: `format_source` lexes the file once and
 # the printer's SourceTokens and CommentPool take them from here instead of scanning it again
@@ -48,23 +51,39 @@ class SourceTokens:
 
     def __init__(self, text: str, file: str) -> None:
         self.tokens: list[Token] = _known(text, file)[0]
-        self._by_start = {t.start_pos: i for i, t in enumerate(self.tokens)}
-        self._by_end = {t.end_pos: i for i, t in enumerate(self.tokens)}
-        self.match = _match_brackets(self.tokens)
+        self.types: list[str] = [t.type for t in self.tokens]
+        # a token by the offset where it starts: a list as long as the text (-1: no token
+        # there), filled by C loops (map, deque); a dict of hundreds of thousands of offsets
+        # cost more to build, and a bisection more to look up
+        self._starts = [t.start_pos for t in self.tokens]
+        self._by_start = [-1] * (len(text) + 1)
+        deque(map(self._by_start.__setitem__, self._starts, count()), 0)
+        self.match = _match_brackets(self.types)
 
     def starting_at(self, offset: int) -> int:
-        return self._by_start[offset]
+        """The index of the token that starts at ``offset`` (KeyError: none does)."""
+        i = self._by_start[offset] if 0 <= offset < len(self._by_start) else -1
+        if i < 0:
+            raise KeyError(offset)
+        return i
 
     def ending_at(self, offset: int) -> int:
-        return self._by_end[offset]
+        """The index of the token that ends at ``offset`` (KeyError: none does)."""
+        # mostly a `)` or `}`: the token that starts one character before
+        i = self._by_start[offset - 1] if 0 < offset <= len(self._by_start) else -1
+        if i < 0 or self.tokens[i].end_pos != offset:
+            i = bisect.bisect_left(self._starts, offset) - 1  # the last token starting before
+            if i < 0 or self.tokens[i].end_pos != offset:
+                raise KeyError(offset)
+        return i
 
     def line_of(self, end: int) -> int:
         """The line on which the token ending at offset ``end`` ends."""
-        return int(self.tokens[self._by_end[end]].end_line)
+        return int(self.tokens[self.ending_at(end)].end_line)
 
     def kind(self, index: int) -> str:
-        if 0 <= index < len(self.tokens):
-            return str(self.tokens[index].type)
+        if 0 <= index < len(self.types):
+            return self.types[index]
         return ""
 
     def text(self, index: int) -> str:
@@ -73,30 +92,36 @@ class SourceTokens:
     def at(self, index: int) -> Token:
         return self.tokens[index]
 
-    def wrapped_in_parens(self, span: Span, structural: set[int]) -> bool:
-        """Whether the code in ``span`` was written inside parentheses of its own (not a call's)."""
-        first, last = self._by_start.get(span.start), self._by_end.get(span.end)
-        if first is None or last is None:
-            return False
-        before, after = first - 1, last + 1
-        return (
-            self.kind(before) == "LPAR"
-            and self.match.get(before) == after
-            and before not in structural
-        )
+    def parenthesized(self, structural: set[int]) -> dict[int, int]:
+        """Where the code written inside parentheses of its own (not a call's, not those in
+        ``structural``) starts -> where it ends: an expression whose span starts and ends so
+        was wrapped. (One such code per start: the `(` just before it tells which.)"""
+        found = {}
+        tokens, match = self.tokens, self.match
+        for i in [i for i, t in enumerate(self.types) if t == "LPAR"]:
+            close = match.get(i)
+            if close is not None and close > i + 1 and i not in structural:
+                found[tokens[i + 1].start_pos] = tokens[close - 1].end_pos
+        return found
+
+    def text_at(self, offset: int) -> str:
+        """The text of the token that starts at ``offset``."""
+        return str(self.tokens[self.starting_at(offset)].value)
 
     def comma_before(self, closer: int) -> bool:
         """Whether the bracket list that ``closer`` ends has a trailing comma."""
         return self.kind(closer - 1) == "COMMA"
 
 
-def _match_brackets(tokens: list[Token]) -> dict[int, int]:
+def _match_brackets(types: list[str]) -> dict[int, int]:
     match: dict[int, int] = {}
     open_: list[int] = []
-    for i, tok in enumerate(tokens):
-        if tok.type in _PAIRS:
+    # only the brackets are visited (found by C-speed comparisons), not every token
+    for i in [i for i, t in enumerate(types) if t in _BRACKETS]:
+        kind = types[i]
+        if kind in _PAIRS:
             open_.append(i)
-        elif tok.type in _PAIRS.values() and open_ and _PAIRS[tokens[open_[-1]].type] == tok.type:
+        elif open_ and _PAIRS[types[open_[-1]]] == kind:
             j = open_.pop()
             match[j], match[i] = i, j
     return match
@@ -114,13 +139,27 @@ class CommentPool:
     def take(self, start: int, end: int) -> list[Comment]:
         """The comments not yet taken that start in [start, end), in source order."""
         lo = bisect.bisect_left(self._starts, start)
-        hi = bisect.bisect_left(self._starts, end)
+        if lo == len(self._starts) or self._starts[lo] >= end:
+            return []  # the usual answer, without a second bisection
+        hi = bisect.bisect_left(self._starts, end, lo)
         found = []
         for i in range(lo, hi):
             if not self._taken[i]:
                 self._taken[i] = True
                 found.append(self._items[i])
         return found
+
+    def any_in(self, start: int, end: int) -> bool:
+        """Whether a comment (taken or not) starts in [start, end)."""
+        i = bisect.bisect_left(self._starts, start)
+        return i < len(self._starts) and self._starts[i] < end
+
+    def quiet(self, start: int, end: int, end_line: int) -> bool:
+        """Whether no comment (taken or not) starts in [start, end) or after it on ``end_line``."""
+        i = bisect.bisect_left(self._starts, start)
+        return i == len(self._items) or (
+            self._items[i].start >= end and self._items[i].line > end_line
+        )
 
     def next_after(self, offset: int) -> Comment | None:
         """The first comment at or after ``offset``, if it is not taken yet."""

@@ -1,102 +1,18 @@
-"""`# mtlc: ignore[MT0501, MT0605]`: suppressions on the line or the enclosing block.
+"""`# mtlc: ignore[MT0501, MT0605]`: applying suppressions to lint's findings.
 
-A comment on a line that opens a block (`task t {`, `for b in [...] {`) covers the whole block
-up to its closing `}`; anywhere else it covers its own line. Comments are read from the source
-text directly (a `#` outside a string starts one, as the tokenizer has it), so suppressions work
-in files that do not parse too.
+Where they are and what they cover is found by ``mtlc.syntax.suppressions`` (``scan``, re-exported
+here), which `mtlc fmt` uses too without loading the lint engine.
 """
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
-from mtlc.diagnostics import CODES, Span
+from mtlc.diagnostics import CODES
 from mtlc.lint.findings import Finding
+from mtlc.syntax.suppressions import Suppression, resolve, scan
 
-_IGNORE = re.compile(r"mtlc:\s*ignore\[([^\]]*)\]")
-_LINE_BREAK = re.compile(r"\r\n|\n|\r")
-
-
-@dataclass
-class Suppression:
-    code: str  # a code, or the name of one, as written
-    span: Span  # the code inside the brackets
-    first_line: int
-    last_line: int
-    used: bool = field(default=False)
-
-    def covers(self, f: Finding) -> bool:
-        return (
-            f.span.file == self.span.file
-            and self.first_line <= f.span.line <= self.last_line
-            and _resolve(self.code) == f.code
-        )
-
-
-def _resolve(word: str) -> str | None:
-    word = word.strip()
-    if word.upper() in CODES:
-        return word.upper()
-    return next((c.code for c in CODES.values() if c.name == word), None)
-
-
-def _comment_start(line: str) -> int | None:
-    """Index of the `#` that starts this line's comment, skipping strings."""
-    in_string = escaped = False
-    for i, ch in enumerate(line):
-        if in_string:
-            if escaped:
-                escaped = False
-            elif ch == "\\":
-                escaped = True
-            elif ch == '"':
-                in_string = False
-        elif ch == '"':
-            in_string = True
-        elif ch == "#":
-            return i
-    return None
-
-
-def _block_end(lines: list[str], start_line: int) -> int:
-    """The line of the `}` closing the block opened at the end of ``start_line`` (0-based)."""
-    depth = 0
-    for n in range(start_line, len(lines)):
-        line = lines[n]
-        cut = _comment_start(line)
-        code = _strip_strings(line if cut is None else line[:cut])
-        for ch in code:
-            if ch == "{":
-                depth += 1
-            elif ch == "}":
-                depth -= 1
-                if depth == 0:
-                    return n
-    return len(lines) - 1  # unclosed: to the end of the file
-
-
-def _strip_strings(code: str) -> str:
-    return re.sub(r'"([^"\\]|\\.)*"?', "", code)
-
-
-def scan(file: str, text: str) -> list[Suppression]:
-    lines = _LINE_BREAK.split(text)
-    out: list[Suppression] = []
-    for n, line in enumerate(lines):
-        cut = _comment_start(line)
-        if cut is None:
-            continue
-        opens_block = _strip_strings(line[:cut]).rstrip().endswith("{")
-        last = _block_end(lines, n) if opens_block else n
-        for m in _IGNORE.finditer(line, cut):
-            inner = m.start(1)
-            for word in re.finditer(r"[^,\s]+", m.group(1)):
-                col = inner + word.start() + 1
-                span = Span(file, n + 1, col, n + 1, col + len(word.group()))
-                out.append(Suppression(word.group(), span, n + 1, last + 1))
-    return out
+__all__ = ["Suppression", "apply", "scan"]
 
 
 def apply(
@@ -117,7 +33,7 @@ def apply(
             kept.append(f)
     if report_unused:
         # an unknown code is always reported; a known one only if its check ran
-        relevant = [s for s in suppressions if _resolve(s.code) in (None, *filter(checked, CODES))]
+        relevant = [s for s in suppressions if resolve(s.code) in (None, *filter(checked, CODES))]
         kept.extend(_unused(relevant))
     return kept
 
@@ -125,7 +41,7 @@ def apply(
 def _unused(suppressions: list[Suppression]) -> list[Finding]:
     out = []
     for s in suppressions:
-        if _resolve(s.code) is None:
+        if resolve(s.code) is None:
             out.append(
                 Finding(
                     "MT0606",
@@ -138,8 +54,7 @@ def _unused(suppressions: list[Suppression]) -> list[Finding]:
             out.append(
                 Finding(
                     "MT0606",
-                    f"nothing here is reported as {_resolve(s.code)}; the "
-                    "suppression hides nothing",
+                    f"nothing here is reported as {resolve(s.code)}; the suppression hides nothing",
                     s.span,
                     help="remove it, or move it to the line or block the finding is on",
                 )

@@ -16,7 +16,18 @@ from mtlc.syntax import ast
 from mtlc.syntax.lexer import decode_string
 
 MAX_EXPR_DEPTH = 100
+_INF = float("inf")
 _new_span = tuple.__new__  # Span(...) without the NamedTuple constructor's extra call
+# the commonest nodes, built by position (ast.maker: the same nodes, without keyword calls)
+_name = ast.maker(ast.Name, "span", "name")
+_string = ast.maker(ast.String, "span", "value")
+_number = ast.maker(ast.Number, "span", "value", "is_int", "unit", "unit_span")
+_arg = ast.maker(ast.Arg, "span", "name", "value")
+_named_arg = ast.maker(ast.Arg, "span", "name", "value", "name_span")
+_call = ast.maker(ast.Call, "span", "callee", "callee_span", "args")
+_binary = ast.maker(ast.Binary, "span", "op", "left", "right")
+_vector = ast.maker(ast.Vector, "span", "items", "unit", "unit_span")
+_block = ast.maker(ast.Block, "span", "stmts")
 
 
 class AstBuilder(Transformer):
@@ -48,8 +59,19 @@ class AstBuilder(Transformer):
         raise TypeError(f"no span for {x!r}")
 
     def _join(self, first: Any, last: Any) -> Span:
-        a, b = self._sp(first), self._sp(last)  # a.to(b), built directly
-        return _new_span(Span, (a[0], a[1], a[2], b[3], b[4], a[5], b[6]))
+        """first's span .to(last's), built directly: a token's fields are read where they are
+        (no span is made for either end: there is a join per node)."""
+        if type(first) is Token:
+            file, line, column, start = self.file, first.line, first.column, first.start_pos
+        else:
+            a = self._sp(first)
+            file, line, column, start = a[0], a[1], a[2], a[5]
+        if type(last) is Token:
+            return _new_span(
+                Span, (file, line, column, last.end_line, last.end_column, start, last.end_pos)
+            )
+        b = self._sp(last)
+        return _new_span(Span, (file, line, column, b[3], b[4], start, b[6]))
 
     def _expr(self, node: ast.Expr, *children: ast.Expr) -> ast.Expr:
         depth = 1 + max((c.depth for c in children), default=0)
@@ -76,7 +98,7 @@ class AstBuilder(Transformer):
 
     # ------------------------------------------------------------ modules
     def qualname(self, c: list[Token]) -> tuple[tuple[str, ...], Span]:
-        return tuple(t.value for t in c), self._join(c[0], c[-1])
+        return tuple([t.value for t in c]), self._join(c[0], c[-1])
 
     def use_decl(self, c: list[Any]) -> ast.Use:
         names, span = c[1]
@@ -177,27 +199,18 @@ class AstBuilder(Transformer):
         )
 
     def block(self, c: list[Any]) -> ast.Block:
-        return ast.Block(span=self._join(c[0], c[-1]), stmts=tuple(self._present(c[1:-1])))
+        return _block(self._join(c[0], c[-1]), tuple(self._present(c[1:-1])))
 
     # ------------------------------------------------------------ statements
     def args(self, c: list[Any]) -> tuple[ast.Arg, ...]:
-        return tuple(
-            a if isinstance(a, ast.Arg) else ast.Arg(span=a.span, name=None, value=a) for a in c
-        )
+        return tuple([a if type(a) is ast.Arg else _arg(a.span, None, a) for a in c])
 
     def named_arg(self, c: list[Any]) -> ast.Arg:
-        return ast.Arg(
-            span=self._join(c[0], c[1]), name=c[0].value, value=c[1], name_span=self._sp(c[0])
-        )
+        return _named_arg(self._join(c[0], c[1]), c[0].value, c[1], self._sp(c[0]))
 
     def call_stmt(self, c: list[Any]) -> ast.Call:
         (names, name_span), args, rpar = c
-        return ast.Call(
-            span=name_span.to(self._sp(rpar)),
-            callee=names,
-            callee_span=name_span,
-            args=self._args(args),
-        )
+        return _call(name_span.to(self._sp(rpar)), names, name_span, self._args(args))
 
     def repeat_stmt(self, c: list[Any]) -> ast.Repeat:
         return ast.Repeat(span=self._join(c[0], c[2]), count=c[1], body=c[2])
@@ -321,7 +334,7 @@ class AstBuilder(Transformer):
     # ------------------------------------------------------------ expressions
     def _binary(self, op: str, c: list[Any]) -> ast.Expr:
         left, right = c
-        node = ast.Binary(span=self._join(left, right), op=op, left=left, right=right)
+        node = _binary(self._join(left, right), op, left, right)
         return self._expr(node, left, right)
 
     def add(self, c: list[Any]) -> ast.Expr:
@@ -360,7 +373,7 @@ class AstBuilder(Transformer):
             value = float(text)
         except ValueError:  # the pattern only admits valid floats; keep the tree whole anyway
             value = 0.0
-        if value == float("inf"):
+        if value == _INF:
             self.sink.report(
                 "MT0309",
                 "number is too large",
@@ -368,27 +381,23 @@ class AstBuilder(Transformer):
                 help="a number must be finite: below 1.8e308",
             )
             return ast.Error(span=self._sp(num))
-        return ast.Number(
-            span=self._join(num, unit if unit is not None else num),
-            value=value,
-            is_int=is_int,
-            unit=unit.value if unit is not None else None,
-            unit_span=self._sp(unit) if unit is not None else None,
-        )
+        if unit is None:
+            return _number(self._sp(num), value, is_int, None, None)
+        return _number(self._join(num, unit), value, is_int, unit.value, self._sp(unit))
 
     def string(self, c: list[Token]) -> ast.Expr:
-        return ast.String(span=self._sp(c[0]), value=decode_string(c[0], self.file, self.sink))
+        return _string(self._sp(c[0]), decode_string(c[0], self.file, self.sink))
 
     def name(self, c: list[Token]) -> ast.Expr:
-        return ast.Name(span=self._sp(c[0]), name=c[0].value)
+        return _name(self._sp(c[0]), c[0].value)
 
     def vector(self, c: list[Any]) -> ast.Expr:
         lpar, *items, rpar, unit = c
-        node = ast.Vector(
-            span=self._join(lpar, unit if unit is not None else rpar),
-            items=tuple(items),
-            unit=unit.value if unit is not None else None,
-            unit_span=self._sp(unit) if unit is not None else None,
+        node = _vector(
+            self._join(lpar, unit if unit is not None else rpar),
+            tuple(items),
+            unit.value if unit is not None else None,
+            self._sp(unit) if unit is not None else None,
         )
         return self._expr(node, *items)
 

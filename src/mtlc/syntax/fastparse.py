@@ -34,6 +34,8 @@ MAX_UNARY = 200  # longer runs of `-` go to lark (which is iterative), not into 
 # the keyword to the name of a call
 _PAREN_STATEMENTS = frozenset({"TOOL", "GOAL", "GRIP", "REPEAT", "BUDGET", "TIME"})
 _SEPARATORS = frozenset({NEWLINE, "SEMICOLON"})
+# what goes on with the expression after a primary (and its unit): `.`, `(`, an operator
+_GOES_ON = frozenset({"DOT", "LPAR", "STAR", "SLASH", "PLUS", "MINUS"})
 
 
 class Fallback(Exception):
@@ -334,6 +336,22 @@ class FastParser:
         """sum and product, left-associative, with a loop each (as lark reduces them)."""
         b = self.b
         types = self.types
+        i = self.i
+        kind = types[i]
+        # a lone name, string or number (with its unit): most expressions, built at once
+        # instead of through product, unary, postfix and primary (the same builder calls)
+        if kind == "NUMBER":
+            end = i + 2 if types[i + 1] == "NAME" else i + 1
+            if types[end] not in _GOES_ON:
+                self.i = end
+                return b.number([self.toks[i], self.toks[i + 1] if end == i + 2 else None])
+        elif types[i + 1] not in _GOES_ON:
+            if kind in self.idents:
+                self.i = i + 1
+                return b.name([self.toks[i]])
+            if kind == "STRING":
+                self.i = i + 1
+                return b.string([self.toks[i]])
         left = self.product()
         while True:
             op = types[self.i]

@@ -25,6 +25,7 @@ MAX_ERRORS_PER_FILE = 50
 _WORD = re.compile(r"\w*")
 # Token(...) without its check for a deprecated keyword argument: one per lexeme
 _new_token = Token._future_new
+_new_str = str.__new__
 
 
 @cache
@@ -46,6 +47,31 @@ def _master_regex() -> re.Pattern[str]:
                 r"(?P<BAD>[\s\S])",
             ]
         )
+    )
+
+
+@cache
+def _folded_regex() -> re.Pattern[str]:
+    """_master_regex with the spaces before a lexeme folded into its match: half as many
+    matches on indented code. ``WS`` is left only for spaces that end the text."""
+    lx = lexicon()
+    punct = "|".join(re.escape(p) for p in sorted(lx.punctuation, key=len, reverse=True))
+    return re.compile(
+        r"[ \t\f\v]*(?:"
+        + "|".join(
+            [
+                r"(?P<NL>\r\n|\n|\r)",
+                r"(?P<COMMENT>\#[^\r\n]*)",
+                f"(?P<NUMBER>{lx.patterns['NUMBER']})",
+                f"(?P<NAME>{lx.patterns['NAME']})",
+                f"(?P<STRING>{lx.patterns['STRING']})",
+                r'(?P<BADSTRING>"[^\r\n]*)',
+                f"(?P<PUNCT>{punct})",
+                r"(?P<WS>[ \t\f\v]+)",
+                r"(?P<BAD>[\s\S])",
+            ]
+        )
+        + ")"
     )
 
 
@@ -81,6 +107,7 @@ def _continues_name(ch: str) -> bool:
 
 
 _SMART_OPEN = "\u201c\u201e\u201f"  # “ „ ‟
+_OPENER = {")": "(", "]": "[", "}": "{"}
 
 
 def _smart_close(text: str, pos: int) -> int:
@@ -101,30 +128,36 @@ def _scan(text: str) -> Iterator[tuple[str, int, int]]:
     """
     rx = _master_regex()
     wide = _wide_forms()
-    n = len(text)
     matches = rx.finditer(text)
     while (m := next(matches, None)) is not None:
         kind, (pos, end) = m.lastgroup or "BAD", m.span()
-        if kind == "NAME":
-            if end < n and not text[end].isascii() and _continues_name(text[end]):
-                end = _name_end(text, end)
-                matches = rx.finditer(text, end)  # go on after the longer word
-        elif kind == "BAD":
-            if text[pos] in wide:
-                kind = "WIDE"
-            elif text[pos] in _SMART_OPEN and (close := _smart_close(text, pos)) > 0:
-                kind, end = "SMARTSTRING", close
-            elif _continues_name(text[pos]):  # a word that starts with a mark
-                kind, end = "NAME", _name_end(text, end)
-            else:
-                while end < n and (
-                    _starts_nothing(text[end], wide)
-                    or (text[end] in _SMART_OPEN and _smart_close(text, end) < 0)
-                ):
-                    end += 1
+        if kind == "NAME" or kind == "BAD":
+            kind, end = _widen(text, kind, pos, end, wide)
             if end != m.end():
-                matches = rx.finditer(text, end)
+                matches = rx.finditer(text, end)  # go on after the longer lexeme
         yield kind, pos, end
+
+
+def _widen(text: str, kind: str, pos: int, end: int, wide: dict[str, str]) -> tuple[str, int]:
+    """The lexeme that a NAME or BAD match at ``pos``-``end`` starts: a word going on with
+    characters ``\\w`` misses, or a look-alike, typographic string or run of bad characters."""
+    n = len(text)
+    if kind == "NAME":
+        if end < n and not text[end].isascii() and _continues_name(text[end]):
+            end = _name_end(text, end)
+        return kind, end
+    if text[pos] in wide:
+        return "WIDE", end
+    if text[pos] in _SMART_OPEN and (close := _smart_close(text, pos)) > 0:
+        return "SMARTSTRING", close
+    if _continues_name(text[pos]):  # a word that starts with a mark
+        return "NAME", _name_end(text, end)
+    while end < n and (
+        _starts_nothing(text[end], wide)
+        or (text[end] in _SMART_OPEN and _smart_close(text, end) < 0)
+    ):
+        end += 1
+    return kind, end
 
 
 def _name_end(text: str, end: int) -> int:
@@ -176,96 +209,178 @@ def tokenize(
         if errors <= MAX_ERRORS_PER_FILE:
             sink.report(code, message, span, help=help)
 
-    for kind, start, end in _scan(text):
-        if kind == "WS":
-            continue
-        col = start - line_start + 1
-        if kind == "COMMENT":
-            if comments_out is not None:
-                comments_out.append(
-                    Token(
-                        "COMMENT", text[start:end], start, line, col, line, col + end - start, end
-                    )
-                )
-            continue
-        if kind == "NL":
-            if (not brackets or brackets[-1] == "{") and tokens and tokens[-1].type != NEWLINE:
-                tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
-            line += 1
-            line_start = end
-            continue
-        value = text[start:end]
-        if kind == "WIDE":
-            ascii_form = wide[value]
-            shown = "a space" if ascii_form == " " else f"`{ascii_form}`"
-            if errors <= MAX_ERRORS_PER_FILE:  # past it, skip building the message
-                error(
-                    "MT0102",
-                    f"unexpected character {_describe_char(value)}",
-                    help=f"write {shown} instead (mtlc reads it as one here)",
-                )
-            if ascii_form == " ":
+    rx = _folded_regex()
+    n = len(text)
+    last_type = ""  # that of tokens[-1]
+    pos = 0
+    restart = -1  # a lexeme ran past its match (a longer word, a run of bad characters)
+    while True:
+        for m in rx.finditer(text, pos):
+            if restart >= 0:  # the match after it: scan again from its end instead
+                break
+            # the same lexemes as _scan, spaces folded into the next one's match (_folded_regex),
+            # and the commonest ones (ASCII names, punctuation, numbers) turned into tokens at once
+            kind = m.lastgroup
+            end = m.end()
+            start = m.start(kind)  # type: ignore[arg-type]
+            col = start - line_start + 1
+            if kind == "PUNCT":
+                value = text[start:end]
+                ttype = punctuation[value]
+                if value in "([{":
+                    brackets.append(value)
+                    still_open[value] += 1
+                elif value in ")]}" and brackets:
+                    opener = _OPENER[value]
+                    if still_open[opener]:
+                        while (popped := brackets.pop()) != opener:
+                            still_open[popped] -= 1
+                        still_open[opener] -= 1
+            elif (
+                kind == "NAME"
+                and (end == n or text[end].isascii())  # else the word may go on (_name_end)
+                and (value := text[start:end]).isascii()
+            ):
+                ttype = keywords.get(value, "NAME")
+            elif kind == "NUMBER":
+                value, ttype = text[start:end], kind
+            elif kind == "NL":
+                if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
+                    tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
+                    last_type = NEWLINE
+                line += 1
+                line_start = end
                 continue
-            value, kind = ascii_form, "PUNCT"
-        if kind == "NAME" and value.isdecimal():  # non-ASCII digits: ASCII ones are a NUMBER
-            digits = "".join(str(unicodedata.decimal(ch)) for ch in value)
-            error(
-                "MT0102",
-                f"unexpected digits `{value}`",
-                help=f"write numbers with the digits 0-9: `{digits}` (mtlc reads it so here)",
-            )
-            value, kind = digits, "NUMBER"
-        if kind == "NAME":
-            if not value.isascii():
-                value = unicodedata.normalize("NFC", value)
-                if not value.isidentifier():
-                    error("MT0108", f"`{value}` is not a valid name", help=_name_help(value))
-            ttype = keywords.get(value, "NAME")
-        elif kind == "PUNCT":
-            ttype = punctuation[value]
-            if value in "([{":
-                brackets.append(value)
-                still_open[value] += 1
-            elif value in ")]}" and brackets:
-                # a `}` also ends any ( or [ left open inside its block
-                opener = {")": "(", "]": "[", "}": "{"}[value]
-                if still_open[opener]:
-                    while (popped := brackets.pop()) != opener:
-                        still_open[popped] -= 1
-                    still_open[opener] -= 1
-        elif kind in ("NUMBER", "STRING"):
-            ttype = kind
-        elif kind == "SMARTSTRING":
-            error(
-                "MT0102",
-                "a string in typographic quotes",
-                help=f'strings use the straight quote `"`: write "{value[1:-1]}" '
-                "(mtlc reads it as one here)",
-            )
-            body = value[1:-1]
-            literal = f'"{body}"' if "\\" not in body else '""'
-            tokens.append(Token("STRING", literal, start, line, col, line, col + len(value), end))
-            continue
-        elif kind == "BADSTRING":
-            error(
-                "MT0103",
-                "string is not closed before the end of the line",
-                help='close it with `"`; a string cannot span lines (write \\n instead)',
-            )
-            # a bad string still stands for a value, so the statement around it parses
-            tokens.append(Token("STRING", '""', start, line, col, line, col + len(value), end))
-            continue
-        elif errors <= MAX_ERRORS_PER_FILE:
-            shown = value if len(value) <= 20 else value[:20] + "…"
-            error(
-                "MT0102",
-                f"unexpected character{'s' if len(value) > 1 else ''} {shown!r}",
-                help=_bad_help(value),
-            )
-            continue
+            elif kind == "WS":
+                continue
+            else:
+                if kind == "NAME":
+                    if end < n and not text[end].isascii() and _continues_name(text[end]):
+                        end = _name_end(text, end)
+                        restart = end  # go on after the longer word
+                elif kind == "BAD":
+                    kind, end = _widen(text, kind, start, end, wide)  # type: ignore[arg-type]
+                    if end != m.end():
+                        restart = end
+                if kind == "COMMENT":
+                    if comments_out is not None:
+                        comments_out.append(
+                            Token(
+                                "COMMENT",
+                                text[start:end],
+                                start,
+                                line,
+                                col,
+                                line,
+                                col + end - start,
+                                end,
+                            )
+                        )
+                    continue
+                if kind == "NL":
+                    if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
+                        tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
+                        last_type = NEWLINE
+                    line += 1
+                    line_start = end
+                    continue
+                value = text[start:end]
+                if kind == "WIDE":
+                    ascii_form = wide[value]
+                    shown = "a space" if ascii_form == " " else f"`{ascii_form}`"
+                    if errors <= MAX_ERRORS_PER_FILE:  # past it, skip building the message
+                        error(
+                            "MT0102",
+                            f"unexpected character {_describe_char(value)}",
+                            help=f"write {shown} instead (mtlc reads it as one here)",
+                        )
+                    if ascii_form == " ":
+                        continue
+                    value, kind = ascii_form, "PUNCT"
+                if (
+                    kind == "NAME" and value.isdecimal()
+                ):  # non-ASCII digits: ASCII ones are a NUMBER
+                    digits = "".join(str(unicodedata.decimal(ch)) for ch in value)
+                    error(
+                        "MT0102",
+                        f"unexpected digits `{value}`",
+                        help=f"write numbers with the digits 0-9: `{digits}` (mtlc reads it so here)",
+                    )
+                    value, kind = digits, "NUMBER"
+                if kind == "NAME":
+                    if not value.isascii():
+                        value = unicodedata.normalize("NFC", value)
+                        if not value.isidentifier():
+                            error(
+                                "MT0108", f"`{value}` is not a valid name", help=_name_help(value)
+                            )
+                    ttype = keywords.get(value, "NAME")
+                elif kind == "PUNCT":
+                    ttype = punctuation[value]
+                    if value in "([{":
+                        brackets.append(value)
+                        still_open[value] += 1
+                    elif value in ")]}" and brackets:
+                        # a `}` also ends any ( or [ left open inside its block
+                        opener = _OPENER[value]
+                        if still_open[opener]:
+                            while (popped := brackets.pop()) != opener:
+                                still_open[popped] -= 1
+                            still_open[opener] -= 1
+                elif kind in ("NUMBER", "STRING"):
+                    ttype = kind
+                elif kind == "SMARTSTRING":
+                    error(
+                        "MT0102",
+                        "a string in typographic quotes",
+                        help=f'strings use the straight quote `"`: write "{value[1:-1]}" '
+                        "(mtlc reads it as one here)",
+                    )
+                    body = value[1:-1]
+                    literal = f'"{body}"' if "\\" not in body else '""'
+                    tokens.append(
+                        Token("STRING", literal, start, line, col, line, col + len(value), end)
+                    )
+                    last_type = "STRING"
+                    continue
+                elif kind == "BADSTRING":
+                    error(
+                        "MT0103",
+                        "string is not closed before the end of the line",
+                        help='close it with `"`; a string cannot span lines (write \\n instead)',
+                    )
+                    # a bad string still stands for a value, so the statement around it parses
+                    tokens.append(
+                        Token("STRING", '""', start, line, col, line, col + len(value), end)
+                    )
+                    last_type = "STRING"
+                    continue
+                elif errors <= MAX_ERRORS_PER_FILE:
+                    shown = value if len(value) <= 20 else value[:20] + "…"
+                    error(
+                        "MT0102",
+                        f"unexpected character{'s' if len(value) > 1 else ''} {shown!r}",
+                        help=_bad_help(value),
+                    )
+                    continue
+                else:
+                    continue
+            # Token(...) as lark's Token._future_new makes it, without its call: one per token
+            tok = _new_str(Token, value)
+            tok.type = ttype
+            tok.start_pos = start
+            tok.value = value
+            tok.line = line
+            tok.column = col
+            tok.end_line = line
+            tok.end_column = col + (end - start)
+            tok.end_pos = end
+            tokens.append(tok)
+            last_type = ttype
         else:
-            continue
-        tokens.append(new(ttype, value, start, line, col, line, col + (end - start), end))
+            if restart < 0 or restart >= n:
+                break
+        pos, restart = restart, -1
     return tokens
 
 

@@ -32,6 +32,7 @@ _OPENERS = {"LBRACE": "RBRACE", "LPAR": "RPAR", "LSQB": "RSQB"}
 _CLOSERS = {v: k for k, v in _OPENERS.items()}
 _STATEMENT_ENDS = {NEWLINE, "SEMICOLON"}
 _PUNCTUATION = {*_OPENERS, *_CLOSERS, NEWLINE, "SEMICOLON", "COMMA", "COLON", "DOT", "EQUAL"}
+_SPLIT_AT = frozenset({NEWLINE, *_OPENERS, *_CLOSERS, *_RESYNC})
 
 
 def token_span(file: str, tok: Token) -> Span:
@@ -51,9 +52,25 @@ class ItemMemo:
     """
 
     def __init__(self) -> None:
-        self.items: dict[tuple[tuple[str, str], ...], tuple[ast.Node, list[Token]]] = {}
+        self._items: dict[tuple[tuple[str, str], ...], tuple[ast.Node, list[Token]]] | None = None
+        self._recorded: list[tuple[ast.Node, list[Token]]] = []
         self.recording = True
         self.reused: dict[int, tuple[ast.Node, list[Token], list[Token]]] = {}  # by id(node)
+
+    def record(self, node: ast.Node, tokens: list[Token]) -> None:
+        """Keep an item that parsed cleanly (keyed only when first looked up: `mtlc fmt` of an
+        already canonical file never parses again, and the keys are a tuple per token)."""
+        self._recorded.append((node, tokens))
+        self._items = None
+
+    @property
+    def items(self) -> dict[tuple[tuple[str, str], ...], tuple[ast.Node, list[Token]]]:
+        """The recorded items by ``key`` (the first of equal ones)."""
+        if self._items is None:
+            self._items = {}
+            for node, tokens in self._recorded:
+                self._items.setdefault(self.key(tokens), (node, tokens))
+        return self._items
 
     @staticmethod
     def key(tokens: list[Token]) -> tuple[tuple[str, str], ...]:
@@ -75,9 +92,13 @@ def parse_module(
     uses: list[ast.Use] = []
     decls: list[ast.Decl] = []
     # a word reported as an invalid name (MT0108) is not reported again as an unknown name
-    broken: set[str] = {
-        t.value for t in tokens if t.type == "NAME" and not t.isascii() and not t.isidentifier()
-    }
+    broken: set[str] = (
+        set()
+        if text.isascii()  # then so is every token (no scan of them all)
+        else {
+            t.value for t in tokens if t.type == "NAME" and not t.isascii() and not t.isidentifier()
+        }
+    )
     errors_before = len(sink.items)
     for item_tokens in _split_items(tokens, file, sink):
         if len(sink.items) - errors_before > MAX_SYNTAX_ERRORS:
@@ -98,7 +119,7 @@ def parse_module(
                 and node is not None
                 and len(sink.items) == count
             ):
-                memo.items.setdefault(memo.key(item_tokens), (node, item_tokens))
+                memo.record(node, item_tokens)
         if node is None or len(sink.items) > count:
             # an item that failed, or parsed only after recovery: its signature is not trusted
             name = _declared_name(item_tokens)
@@ -152,10 +173,16 @@ def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterat
     for each kind of opener, where it stands on ``stack``, so a closer finds its opener at once
     instead of searching the stack (which made 100 KB of brackets take minutes).
     """
-    item: list[Token] = []
+    item: list[Token] = []  # the item's tokens before ``taken`` (and any closer added)
+    taken = 0  # tokens[taken:i] go to the item too: copied by slices, not one by one
     stack: list[Token] = []
     open_at: dict[str, list[int]] = {kind: [] for kind in _OPENERS}  # indices into ``stack``
     too_deep = False
+
+    def take(upto: int) -> None:
+        nonlocal taken
+        item.extend(tokens[taken:upto])
+        taken = upto
 
     def pop_down_to(depth: int) -> None:
         """Forget the brackets open above ``depth``; each one is popped once, so linear overall."""
@@ -176,8 +203,10 @@ def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterat
             item.append(_synthetic(_OPENERS[stack[-1].type], item[-1]))
             pop_down_to(len(stack) - 1)
 
-    def finish() -> Iterator[list[Token]]:
+    def finish(at: int) -> Iterator[list[Token]]:
+        """End the item before ``tokens[at]``."""
         nonlocal item, too_deep
+        take(at)
         if item and not too_deep:
             if stack:
                 close_down_to(0)
@@ -185,13 +214,16 @@ def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterat
         pop_down_to(0)
         item, too_deep = [], False
 
-    for tok in tokens:
+    # only the tokens that end an item or open or close a bracket are looked at one by one
+    for i in [i for i, t in enumerate(tokens) if t.type in _SPLIT_AT]:
+        tok = tokens[i]
         ttype = tok.type
         if ttype == NEWLINE and not stack:
-            yield from finish()
+            yield from finish(i)
+            taken = i + 1  # the new line belongs to no item
             continue
         if stack and ttype in _RESYNC and tok.column == 1:
-            yield from finish()
+            yield from finish(i)
         if ttype in _OPENERS:
             open_at[ttype].append(len(stack))
             stack.append(tok)
@@ -208,10 +240,10 @@ def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterat
             if found:
                 at = found[-1]
                 if at < len(stack) - 1 and not too_deep:
+                    take(i)
                     close_down_to(at + 1)
                 pop_down_to(at)
-        item.append(tok)
-    yield from finish()
+    yield from finish(len(tokens))
 
 
 def _describe(term: str) -> str:

@@ -1,0 +1,336 @@
+"""The formatter's fast paths give what the reference paths give, byte for byte.
+
+- ``mtlc.fmt.printer``: a statement or scene member that prints on one line is printed without
+  a document (``_one_line``), and a block with no comment to place has its statements built
+  without placing comments (``_sequence``); with ``FAST_PATHS = False`` every one goes through
+  the general code and the layout. Both must give the same text and diagnostics.
+- ``mtlc.syntax.lexer.tokenize``: spaces folded into the next lexeme's match, and the common
+  lexemes turned into tokens at once; ``_reference_tokenize`` below is the tokenizer as it was
+  (one lexeme of ``_scan`` at a time). Both must give the same tokens, comments and diagnostics.
+
+The inputs: the shipped files, the docs' examples, the messy golden, lines around the width
+limit at several depths, hypothesis programs (tests/test_fmt.py's) and byte-mutated files
+(bench/fuzz.py's), which reach the error paths.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import random
+import sys
+import unicodedata
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import pytest
+from conftest import EXAMPLES, ROOT, STDLIB
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from lark import Token
+from test_fmt import MESSY, _doc_examples, _program
+
+import mtlc.fmt.printer as printer
+from mtlc.diagnostics import DiagnosticSink, Span
+from mtlc.fmt import FormatResult, format_source
+from mtlc.syntax import lexer
+from mtlc.syntax.grammar import lexicon
+
+_spec = importlib.util.spec_from_file_location("mtlc_bench_fuzz_paths", ROOT / "bench" / "fuzz.py")
+assert _spec is not None and _spec.loader is not None
+fuzz = importlib.util.module_from_spec(_spec)
+sys.modules[_spec.name] = fuzz
+_spec.loader.exec_module(fuzz)
+
+
+@contextmanager
+def _fast_paths(on: bool) -> Iterator[None]:
+    saved = printer.FAST_PATHS
+    printer.FAST_PATHS = on
+    try:
+        yield
+    finally:
+        printer.FAST_PATHS = saved
+
+
+def _result(result: FormatResult) -> tuple[str | None, list[tuple[str, str, Span]]]:
+    return result.text, [(d.code, d.message, d.span) for d in result.diagnostics]
+
+
+def _assert_same_both_ways(text: str) -> None:
+    with _fast_paths(False):
+        reference = _result(format_source(text, "x.mtask"))
+    with _fast_paths(True):
+        fast = _result(format_source(text, "x.mtask"))
+    assert fast == reference, text
+
+
+def _near_the_width() -> list[str]:
+    """Statements and sites whose flat text ends just before, at and after column 100, at
+    depths 1 to 3, with calls, vectors, lists and sums in them."""
+    out = []
+    for width in range(88, 106):
+        for depth in (1, 2, 3):
+            pad = "x" * max(1, width - 4 * depth - 24)
+            stmts = [
+                f"inspect(bolt, {pad}, 1 s)",
+                f"goal right at (1, 2, {pad}) cm approach 3 cm over 1 s",
+                f"f(g(a, [b, {pad}]), h: 1 s + 2 s * -3)",
+                f"walk to {pad}.site facing (0, 1, 0) over (1 s)",
+            ]
+            body = "\n".join(stmts)
+            for _ in range(depth - 1):
+                body = "repeat 2 {\n" + body + "\n}"
+            out.append(
+                f"scene s {{\n    site {pad} at (0, 0, {pad}) cm\n}}\n\ntask t {{\n{body}\n}}\n"
+            )
+    return out
+
+
+@pytest.mark.parametrize("path", [*EXAMPLES, *STDLIB, MESSY], ids=lambda p: p.name)
+def test_one_line_path_on_the_shipped_files(path) -> None:  # type: ignore[no-untyped-def]
+    _assert_same_both_ways(path.read_text(encoding="utf-8"))
+
+
+def test_one_line_path_on_the_docs_examples_and_around_the_width(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    texts = [*_doc_examples(), *_near_the_width()]
+    for text in texts:
+        _assert_same_both_ways(text)
+    # the width cases take both ways: some lines fit in one, others need the document
+    taken: list[bool] = []
+    original = printer._Printer._one_line
+
+    def counted(self, node, line):  # type: ignore[no-untyped-def]
+        text = original(self, node, line)
+        taken.append(text is not None)
+        return text
+
+    monkeypatch.setattr(printer._Printer, "_one_line", counted)
+    for text in _near_the_width():
+        format_source(text, "x.mtask")
+    assert any(taken) and not all(taken)
+
+
+def test_quiet_block_path_would_be_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A block taken for one without comments when a comment after its `}` is on an entry's
+    line (the entry hosts it) would lose or move that comment: the comparison sees it."""
+    text = "task t {\n    repeat 2 {\n        a(1, 2) }  # c\n}\n"
+    _assert_same_both_ways(text)
+    monkeypatch.setattr(printer.CommentPool, "quiet", lambda self, start, end, end_line: True)
+    with _fast_paths(False):
+        reference = _result(format_source(text, "x.mtask"))
+    with _fast_paths(True):
+        fast = _result(format_source(text, "x.mtask"))
+    assert fast != reference
+
+
+def test_one_line_path_is_taken_and_would_be_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The comparison above can fail: a one-line path that spaced a list differently would
+    give another text than the document does."""
+    text = EXAMPLES[0].read_text(encoding="utf-8")
+    original = printer._Printer._line_list
+
+    def tighter(self, open_index, close_index, items):  # type: ignore[no-untyped-def]
+        return original(self, open_index, close_index, items).replace(", ", ",")
+
+    monkeypatch.setattr(printer._Printer, "_line_list", tighter)
+    with _fast_paths(False):
+        reference = format_source(text, "x.mtask").text
+    with _fast_paths(True):
+        fast = format_source(text, "x.mtask").text
+    assert reference == text and fast != reference
+
+
+@settings(
+    max_examples=150,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
+@given(_program())
+def test_one_line_path_on_random_programs(text: str) -> None:
+    _assert_same_both_ways(text)
+
+
+@pytest.mark.parametrize("index", range(40))
+def test_one_line_path_on_mutated_files(index: int) -> None:
+    rng = random.Random(f"paths:{index}")
+    sources = fuzz.example_sources()
+    for _ in range(5):
+        data = fuzz.mutate(rng, sources)
+        _assert_same_both_ways(data.decode("utf-8", "replace"))
+
+
+# ---------------------------------------------------------------- the tokenizer
+
+
+def _reference_tokenize(
+    text: str, file: str, sink: DiagnosticSink, comments_out: list[Token] | None = None
+) -> list[Token]:
+    """The tokenizer before spaces were folded into the regex: one ``_scan`` lexeme at a time."""
+    lx = lexicon()
+    keywords, punctuation = lx.keywords, lx.punctuation
+    wide = lexer._wide_forms()
+    tokens: list[Token] = []
+    line, line_start = 1, 0
+    brackets: list[str] = []
+    still_open = {"(": 0, "[": 0, "{": 0}
+    errors = 0
+    limit = lexer.MAX_ERRORS_PER_FILE
+
+    def error(code: str, message: str, help: str | None = None) -> None:
+        nonlocal errors
+        errors += 1
+        if errors > limit + 1:
+            return
+        span = Span(file, line, col, line, col + (end - start), start, end)
+        if errors == limit + 1:
+            sink.report(
+                "MT0106",
+                f"more than {limit} bad characters or names; the rest are not reported",
+                span,
+            )
+        if errors <= limit:
+            sink.report(code, message, span, help=help)
+
+    for kind, start, end in lexer._scan(text):
+        if kind == "WS":
+            continue
+        col = start - line_start + 1
+        if kind == "COMMENT":
+            if comments_out is not None:
+                comments_out.append(
+                    Token(
+                        "COMMENT", text[start:end], start, line, col, line, col + end - start, end
+                    )
+                )
+            continue
+        if kind == "NL":
+            if (not brackets or brackets[-1] == "{") and tokens and tokens[-1].type != "_NL":
+                tokens.append(Token("_NL", "\n", start, line, col, line, col + 1, end))
+            line += 1
+            line_start = end
+            continue
+        value = text[start:end]
+        if kind == "WIDE":
+            ascii_form = wide[value]
+            shown = "a space" if ascii_form == " " else f"`{ascii_form}`"
+            if errors <= limit:
+                error(
+                    "MT0102",
+                    f"unexpected character {lexer._describe_char(value)}",
+                    help=f"write {shown} instead (mtlc reads it as one here)",
+                )
+            if ascii_form == " ":
+                continue
+            value, kind = ascii_form, "PUNCT"
+        if kind == "NAME" and value.isdecimal():
+            digits = "".join(str(unicodedata.decimal(ch)) for ch in value)
+            error(
+                "MT0102",
+                f"unexpected digits `{value}`",
+                help=f"write numbers with the digits 0-9: `{digits}` (mtlc reads it so here)",
+            )
+            value, kind = digits, "NUMBER"
+        if kind == "NAME":
+            if not value.isascii():
+                value = unicodedata.normalize("NFC", value)
+                if not value.isidentifier():
+                    error("MT0108", f"`{value}` is not a valid name", help=lexer._name_help(value))
+            ttype = keywords.get(value, "NAME")
+        elif kind == "PUNCT":
+            ttype = punctuation[value]
+            if value in "([{":
+                brackets.append(value)
+                still_open[value] += 1
+            elif value in ")]}" and brackets:
+                opener = {")": "(", "]": "[", "}": "{"}[value]
+                if still_open[opener]:
+                    while (popped := brackets.pop()) != opener:
+                        still_open[popped] -= 1
+                    still_open[opener] -= 1
+        elif kind in ("NUMBER", "STRING"):
+            ttype = kind
+        elif kind == "SMARTSTRING":
+            error(
+                "MT0102",
+                "a string in typographic quotes",
+                help=f'strings use the straight quote `"`: write "{value[1:-1]}" '
+                "(mtlc reads it as one here)",
+            )
+            body = value[1:-1]
+            literal = f'"{body}"' if "\\" not in body else '""'
+            tokens.append(Token("STRING", literal, start, line, col, line, col + len(value), end))
+            continue
+        elif kind == "BADSTRING":
+            error(
+                "MT0103",
+                "string is not closed before the end of the line",
+                help='close it with `"`; a string cannot span lines (write \\n instead)',
+            )
+            tokens.append(Token("STRING", '""', start, line, col, line, col + len(value), end))
+            continue
+        elif errors <= limit:
+            shown = value if len(value) <= 20 else value[:20] + "…"
+            error(
+                "MT0102",
+                f"unexpected character{'s' if len(value) > 1 else ''} {shown!r}",
+                help=lexer._bad_help(value),
+            )
+            continue
+        else:
+            continue
+        tokens.append(Token(ttype, value, start, line, col, line, col + (end - start), end))
+    return tokens
+
+
+def _lexed(tokenize, text: str):  # type: ignore[no-untyped-def]
+    sink = DiagnosticSink()
+    found: list[Token] = []
+    tokens = tokenize(text, "x.mtask", sink, found)
+
+    def fields(t: Token) -> tuple[object, ...]:
+        return (t.type, t.value, t.start_pos, t.line, t.column, t.end_line, t.end_column, t.end_pos)
+
+    return (
+        [fields(t) for t in tokens],
+        [fields(t) for t in found],
+        [(d.code, d.message, d.span, d.help) for d in sink.items],
+    )
+
+
+def _assert_same_tokens(text: str) -> None:
+    assert _lexed(lexer.tokenize, text) == _lexed(_reference_tokenize, text), repr(text)
+
+
+_ODD = list(" \t\f\v\n\r#\"\\()[]{},.;:=+-*/e_19é\u0301·一，（：\u3000“”„\u00a0\u2028\x85\x1c$@'")
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.sampled_from([*_ODD, "abc", "12.5e3", "  ", "# c", "\r\n", "1x"]), max_size=40))
+def test_tokenize_equals_the_reference_on_odd_text(parts: list[str]) -> None:
+    _assert_same_tokens("".join(parts))
+
+
+@pytest.mark.parametrize("index", range(40))
+def test_tokenize_equals_the_reference_on_mutated_files(index: int) -> None:
+    rng = random.Random(f"lex:{index}")
+    sources = fuzz.example_sources()
+    for _ in range(5):
+        _assert_same_tokens(fuzz.mutate(rng, sources).decode("utf-8", "replace"))
+
+
+def test_tokenize_equals_the_reference_on_the_shipped_files() -> None:
+    for path in [*EXAMPLES, *STDLIB, MESSY]:
+        _assert_same_tokens(path.read_text(encoding="utf-8"))
+    # and on text with more bad characters than are reported, with spaces at the end
+    _assert_same_tokens("task t {\n" + "$ " * 80 + "}\n   ")
+
+
+def test_tokenize_comparison_can_fail(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A tokenizer that matched `)` with the wrong opener (so kept a new line inside the
+    brackets, or dropped one after them) differs from the reference."""
+    text = "task t {\n    a(1,\n      2)\n    b()\n}\n"
+    assert _lexed(lexer.tokenize, text) == _lexed(_reference_tokenize, text)
+    monkeypatch.setattr(lexer, "_OPENER", {")": "[", "]": "(", "}": "{"})
+    assert _lexed(lexer.tokenize, text) != _lexed(_reference_tokenize, text)

@@ -1,0 +1,144 @@
+"""IK with the body's own volume as a constraint: an arm moved out of the trunk and thighs.
+
+The reach solvers know only where the hand should be. An arm has seven dofs for a hand's six
+(position and orientation), so the same hand pose can be held with the elbow swung in, through
+the thigh of a squatting body or the side of the trunk, or swung out beside it. ``keep_clear``
+solves, per configuration, a small damped (Levenberg-Marquardt) least-squares problem on the
+arm's dofs whose residuals are
+
+* the limb's penetration into each capsule with its clearance (``capsules.clearance``: the
+  forearm's and hand's surface kept ``CLEARANCE_MARGIN`` outside the trunk and thighs), weight 1;
+* the hand's pose (its site, fingertip and wrist frame) where it was, weight ``keep`` per
+  configuration: large where the hand is on a site or holds a part (the elbow swings out, the
+  goal is kept), small where the hand is free (it may move out too); the site weighs ten times
+  its orientation, which yields first when the swivel alone cannot clear;
+* a small pull toward the start configuration, so nothing moves that need not.
+
+Configurations already clear are returned unchanged; the dofs stay within their limits.
+Jacobians are by finite differences of batched forward kinematics (seven dofs, a few hundred
+frames: a handful of forward calls per iteration).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..capsules import clearance, side_limbs
+from ..kinematics import forward, site_positions
+from ..skeleton import Skeleton
+
+FloatArray = NDArray[np.float64]
+
+FRAME_ARM = 0.05  # m: the wrist frame's axes are kept as points this far from the wrist
+REST_WEIGHT = 0.02  # m per rad toward the start configuration
+STEP = 1e-5  # rad, finite-difference step
+MAX_ITER = 30
+MAX_STEP = 0.15  # rad per dof per iteration
+# the hand's site weighs fully; its orientation (the other points) yields first: a forearm
+# twisted to its limit by a `turn` cannot swing the elbow out with the hand's frame held
+POINT_WEIGHT = np.array([1.0, 0.1, 0.1, 0.1, 0.1])
+
+
+def _residuals(
+    skel: Skeleton,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    kept: FloatArray,
+    keep: FloatArray,
+    q0: FloatArray,
+    dofs: Sequence[int],
+) -> FloatArray:
+    """(N, M) residuals of configurations ``q`` (N, D) (see the module docstring)."""
+    pose = forward(skel, q, root[0], root[1], with_axes=False)
+    pen = np.maximum(clearance(skel, pose, side_limbs(side)), 0.0)
+    held = _hand_points(skel, pose, side)
+    off = (held - kept) * (keep[:, None] * POINT_WEIGHT)[..., None]
+    off = off.reshape(len(q), -1)
+    rest = REST_WEIGHT * (q[:, dofs] - q0[:, dofs])
+    return np.concatenate([pen, off, rest], axis=1)
+
+
+def _hand_points(skel: Skeleton, pose: object, side: str) -> FloatArray:
+    """(N, 5, 3) the hand's site, fingertip and three points of the wrist's frame: the hand's
+    whole pose, and with it any tool it holds."""
+    sites = site_positions(skel, pose, [f"{side}_hand", f"{side}_fingertip"])  # type: ignore[arg-type]
+    w = skel.joint_index(f"{side}_wrist")
+    p, r = pose.p[:, w], pose.R[:, w]  # type: ignore[attr-defined]
+    frame = p[:, None, :] + FRAME_ARM * np.swapaxes(r, -1, -2)
+    return np.concatenate([sites, frame], axis=1)
+
+
+def arm_dofs(skel: Skeleton, side: str) -> list[int]:
+    """The arm's own dofs (shoulder, elbow, forearm twist, wrist) of one side."""
+    return [d for d, n in enumerate(skel.dof_names) if n.startswith(f"{side}_") and
+            n.split("_")[1] in ("shoulder", "elbow", "wrist")]  # fmt: skip
+
+
+def penetration(
+    skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], side: str
+) -> FloatArray:
+    """(N,) the deepest point of the side's forearm or hand inside a capsule with clearance."""
+    pose = forward(skel, q, root[0], root[1], with_axes=False)
+    return clearance(skel, pose, side_limbs(side)).max(axis=1)
+
+
+def keep_clear(
+    skel: Skeleton,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    keep: FloatArray,
+    max_iter: int = MAX_ITER,
+) -> FloatArray:
+    """Configurations ``q`` (N, D) with the ``side`` arm moved clear of the trunk and thighs.
+
+    ``root``: (N, 3) positions and (N, 4) rotations; ``keep`` (N,) the weight of the hand's
+    pose against the clearance (see the module docstring). Rows already clear come back as
+    they were; a row that cannot be cleared keeps its best configuration."""
+    q = np.array(q, dtype=float)
+    need = np.flatnonzero(penetration(skel, q, root, side) > 0.0)
+    if need.size == 0:
+        return q
+    dofs = arm_dofs(skel, side)
+    lo, hi = skel.lower[dofs], skel.upper[dofs]
+    sub_root = (root[0][need], root[1][need])
+    q0 = q[need].copy()
+    pose0 = forward(skel, q0, *sub_root, with_axes=False)
+    kept = _hand_points(skel, pose0, side)
+    w = np.asarray(keep, dtype=float)[need]
+    cur = q0.copy()
+
+    def res(qc: FloatArray) -> FloatArray:
+        return _residuals(skel, qc, sub_root, side, kept, w, q0, dofs)
+
+    r = res(cur)
+    cost = np.einsum("nm,nm->n", r, r)
+    mu = np.full(len(need), 1e-4)
+    eye = np.eye(len(dofs))
+    for _ in range(max_iter):
+        active = r[:, : -len(dofs)].max(axis=1) > 1e-6  # still penetrating or off
+        if not active.any():
+            break
+        J = np.empty((len(need), r.shape[1], len(dofs)))
+        for k, d in enumerate(dofs):
+            qs = cur.copy()
+            qs[:, d] += STEP
+            J[:, :, k] = (res(qs) - r) / STEP
+        Jt = np.swapaxes(J, 1, 2)
+        A = Jt @ J + mu[:, None, None] * eye
+        g = np.einsum("nkm,nm->nk", Jt, r)
+        dq = -np.linalg.solve(A, g[..., None])[..., 0]
+        dq *= np.minimum(1.0, MAX_STEP / np.maximum(np.abs(dq).max(axis=1), 1e-12))[:, None]
+        trial = cur.copy()
+        trial[:, dofs] = np.clip(cur[:, dofs] + dq, lo, hi)
+        rt = res(trial)
+        ct = np.einsum("nm,nm->n", rt, rt)
+        better = (ct < cost) & active
+        cur[better], r[better], cost[better] = trial[better], rt[better], ct[better]
+        mu = np.where(better, mu * 0.3, mu * 10.0)
+    q[need] = cur
+    return q

@@ -26,6 +26,7 @@ import numpy as np
 
 from mtlc.body import forward, site_positions
 from mtlc.body.ik import ChainModel, Goal, default_dofs, prepare, solve_ta
+from mtlc.body.ik.clearance import keep_clear, penetration
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.state import PoseState, cached, mark, reanchor
@@ -40,6 +41,10 @@ FLAT_CLEARANCE = 0.02  # m: a site this close to fingers pointing down at the fl
 FLAT_NORMAL_UP = 0.5  # a low site is come down on (its normal this far up, or none)
 SWEEP_CLEARANCE = 0.02  # m: an approach path whose hands come this near the floor is lifted
 LIFTS = 3  # re-solves that raise an approach point whose pose puts the fingers in the floor
+KEEP_GOAL = 30.0  # weight of the hand's pose against the body's volume (ik.clearance): kept
+KEEP_PATH = 0.3  # ...on the way to the goal: the hand may move out of the body's way
+PATH_SAMPLES = 9  # poses checked on each stretch between two keyframes, ends included
+CLEAR_KEYS = 2  # keyframes added at most to keep an approach's arms out of the body
 
 
 def model_for(
@@ -359,6 +364,56 @@ def _solve_group(
     return best
 
 
+def clear_of_body(
+    state: PoseState,
+    segs: list[Segment],
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    keep: float = KEEP_GOAL,
+) -> FloatArray:
+    """Pose ``q`` with each reaching arm swung clear of the trunk and thighs, its hand kept
+    where it is (``mtlc.body.ik.clearance``: the body's volume is a constraint of the arm's
+    IK; the solvers above know only the hand). A squat's forearm went through the thigh, a
+    panel set down at the hip put the forearm through the trunk."""
+    sides = sorted({s.goal.effector[0] for s in segs if s.goal.effector[:2] in ("r_", "l_")})
+    rows = (root[0][None], root[1][None])
+    out = q[None].copy()
+    for side in sides:
+        out = keep_clear(state.skel, out, rows, side, np.array([keep]), swivel=True)
+    return out[0]
+
+
+def clear_path(
+    state: PoseState,
+    segs: list[Segment],
+    poses: list[FloatArray],
+    root: tuple[FloatArray, FloatArray],
+) -> tuple[list[FloatArray], list[float]]:
+    """Keyframes (poses at fractions of the segment) whose joint-space path keeps the arms out
+    of the trunk and thighs: where the straight line between two keyframes passes through
+    (an arm swung down past a squatting knee), the deepest pose on it is cleared, its hand
+    free to move (``KEEP_PATH``), and becomes a keyframe between them (``CLEAR_KEYS`` at most).
+    ``poses`` are evenly spaced; returns the poses and their fractions."""
+    fracs = list(np.linspace(0.0, 1.0, len(poses)))
+    poses = list(poses)
+    sides = sorted({s.goal.effector[0] for s in segs if s.goal.effector[:2] in ("r_", "l_")})
+    steps = np.linspace(0.0, 1.0, PATH_SAMPLES)[1:-1]
+    for _ in range(CLEAR_KEYS):
+        qs = np.array([a + f * (b - a) for a, b in zip(poses, poses[1:]) for f in steps])
+        where = [(k, f) for k in range(len(poses) - 1) for f in steps]
+        n = len(qs)
+        rows = (np.broadcast_to(root[0], (n, 3)), np.broadcast_to(root[1], (n, 4)))
+        depth = np.max([penetration(state.skel, qs, rows, side) for side in sides], axis=0)
+        worst = int(np.argmax(depth))
+        if depth[worst] <= 0.0:
+            break
+        k, f = where[worst]
+        cleared = clear_of_body(state, segs, qs[worst], root, KEEP_PATH)
+        poses.insert(k + 1, cleared)
+        fracs.insert(k + 1, fracs[k] + f * (fracs[k + 1] - fracs[k]))
+    return poses, fracs
+
+
 def lowest_hand_point(
     state: PoseState, segs: list[Segment], q: FloatArray, root: tuple[FloatArray, FloatArray]
 ) -> float:
@@ -493,21 +548,22 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
             # the hand arrives fingers first: raise its approach point by what they sink
             targets = [p + np.array([0.0, sink + GROUND_SLACK, 0.0]) for p in targets]
             q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
+        q1 = clear_of_body(state, segs, q1, root)
+        dist = [
+            hand_distance(state, s.goal.effector, q1, root, p)
+            for s, p in zip(segs, targets, strict=True)
+        ]
         mid = sweep_mid(ctx, state, segs, targets, q0, q1, root, pinned)
+        poses, fracs = clear_path(state, segs, [q0, q1] if mid is None else [q0, mid, q1], root)
         for k, (seg, p, d) in enumerate(zip(segs, targets, dist, strict=True)):
             names = own_names(skel, segs, k, reach, pinned)
             idx = [skel.dof_index(n) for n in names]
             s0, s1 = seg.start, seg.end
-            if mid is None:
-                seg.keyframes = Keyframes(
-                    time=np.array([s0, s1]), dofs=names, q=np.stack([q0[idx], q1[idx]])
-                )
-            else:
-                seg.keyframes = Keyframes(
-                    time=np.array([s0, 0.5 * (s0 + s1), s1]),
-                    dofs=names,
-                    q=np.stack([q0[idx], mid[idx], q1[idx]]),
-                )
+            seg.keyframes = Keyframes(
+                time=s0 + (s1 - s0) * np.asarray(fracs),
+                dofs=names,
+                q=np.stack([pose[idx] for pose in poses]),
+            )
             ok = d <= TOLERANCE
             seg.result = {
                 "distance": d,

@@ -40,6 +40,8 @@ MAX_STEP = 0.15  # rad per dof per iteration
 # the hand's site weighs fully; its orientation (the other points) yields first: a forearm
 # twisted to its limit by a `turn` cannot swing the elbow out with the hand's frame held
 POINT_WEIGHT = np.array([1.0, 0.1, 0.1, 0.1, 0.1])
+SWIVELS = np.radians([-150.0, -100.0, -50.0, 50.0, 100.0, 150.0])  # elbow turns tried
+SWIVEL_FROM = 1e-3  # m: a pose this far inside after the local solve tries the swivels
 
 
 def _residuals(
@@ -86,44 +88,41 @@ def penetration(
     return clearance(skel, pose, side_limbs(side)).max(axis=1)
 
 
-def keep_clear(
+def _lm(
     skel: Skeleton,
-    q: FloatArray,
+    start: FloatArray,
     root: tuple[FloatArray, FloatArray],
     side: str,
+    kept: FloatArray,
     keep: FloatArray,
-    max_iter: int = MAX_ITER,
-) -> FloatArray:
-    """Configurations ``q`` (N, D) with the ``side`` arm moved clear of the trunk and thighs.
-
-    ``root``: (N, 3) positions and (N, 4) rotations; ``keep`` (N,) the weight of the hand's
-    pose against the clearance (see the module docstring). Rows already clear come back as
-    they were; a row that cannot be cleared keeps its best configuration."""
-    q = np.array(q, dtype=float)
-    need = np.flatnonzero(penetration(skel, q, root, side) > 0.0)
-    if need.size == 0:
-        return q
-    dofs = arm_dofs(skel, side)
+    q_rest: FloatArray,
+    dofs: list[int],
+    max_iter: int,
+    elbow: FloatArray | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """Levenberg-Marquardt on the arm's dofs from ``start``: (configurations, final cost).
+    ``elbow`` (N, 3): also pull the elbow there (a swivel seed) instead of clearing."""
     lo, hi = skel.lower[dofs], skel.upper[dofs]
-    sub_root = (root[0][need], root[1][need])
-    q0 = q[need].copy()
-    pose0 = forward(skel, q0, *sub_root, with_axes=False)
-    kept = _hand_points(skel, pose0, side)
-    w = np.asarray(keep, dtype=float)[need]
-    cur = q0.copy()
+    e = skel.joint_index(f"{side}_elbow")
 
     def res(qc: FloatArray) -> FloatArray:
-        return _residuals(skel, qc, sub_root, side, kept, w, q0, dofs)
+        r = _residuals(skel, qc, root, side, kept, keep, q_rest, dofs)
+        if elbow is None:
+            return r
+        pose = forward(skel, qc, root[0], root[1], with_axes=False)
+        return np.concatenate([pose.p[:, e] - elbow, r[:, -len(dofs) - 15 : -len(dofs)]], axis=1)
 
+    cur = np.array(start, dtype=float)
     r = res(cur)
     cost = np.einsum("nm,nm->n", r, r)
-    mu = np.full(len(need), 1e-4)
+    mu = np.full(len(cur), 1e-4)
     eye = np.eye(len(dofs))
+    n_task = r.shape[1] - (0 if elbow is not None else len(dofs))
     for _ in range(max_iter):
-        active = r[:, : -len(dofs)].max(axis=1) > 1e-6  # still penetrating or off
+        active = np.abs(r[:, :n_task]).max(axis=1) > 1e-6  # still penetrating or off
         if not active.any():
             break
-        J = np.empty((len(need), r.shape[1], len(dofs)))
+        J = np.empty((len(cur), r.shape[1], len(dofs)))
         for k, d in enumerate(dofs):
             qs = cur.copy()
             qs[:, d] += STEP
@@ -140,5 +139,62 @@ def keep_clear(
         better = (ct < cost) & active
         cur[better], r[better], cost[better] = trial[better], rt[better], ct[better]
         mu = np.where(better, mu * 0.3, mu * 10.0)
-    q[need] = cur
+    return cur, cost
+
+
+def _swivel_targets(
+    skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], side: str, angle: float
+) -> FloatArray:
+    """(N, 3) the elbow turned by ``angle`` about the line from the shoulder to the wrist: the
+    arm's one free motion when the hand stays where it is."""
+    pose = forward(skel, q, root[0], root[1], with_axes=False)
+    s, e, w = (pose.p[:, skel.joint_index(f"{side}_{j}")] for j in ("shoulder", "elbow", "wrist"))
+    k = w - s
+    k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
+    v = e - s
+    c, sn = np.cos(angle), np.sin(angle)
+    kv = np.einsum("nc,nc->n", k, v)[:, None]
+    return s + v * c + np.cross(k, v) * sn + k * kv * (1.0 - c)
+
+
+def keep_clear(
+    skel: Skeleton,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    keep: FloatArray,
+    max_iter: int = MAX_ITER,
+    swivel: bool = False,
+) -> FloatArray:
+    """Configurations ``q`` (N, D) with the ``side`` arm moved clear of the trunk and thighs.
+
+    ``root``: (N, 3) positions and (N, 4) rotations; ``keep`` (N,) the weight of the hand's
+    pose against the clearance (see the module docstring). Rows already clear come back as
+    they were; a row that cannot be cleared keeps its best configuration. ``swivel``: a row
+    the local solve leaves inside also tries the elbow turned about the shoulder-wrist line by
+    each of ``SWIVELS`` (a pose through the trunk is often a local minimum: the way out is
+    round, not straight), keeping the best; for single poses (keyframes), where no
+    neighbouring frame has to agree."""
+    q = np.array(q, dtype=float)
+    need = np.flatnonzero(penetration(skel, q, root, side) > 0.0)
+    if need.size == 0:
+        return q
+    dofs = arm_dofs(skel, side)
+    sub_root = (root[0][need], root[1][need])
+    q0 = q[need].copy()
+    kept = _hand_points(skel, forward(skel, q0, *sub_root, with_axes=False), side)
+    w = np.asarray(keep, dtype=float)[need]
+    best, cost = _lm(skel, q0, sub_root, side, kept, w, q0, dofs, max_iter)
+    if swivel:
+        left = np.flatnonzero(penetration(skel, best, sub_root, side) > SWIVEL_FROM)
+        if left.size:
+            r2 = (sub_root[0][left], sub_root[1][left])
+            for angle in SWIVELS:
+                target = _swivel_targets(skel, q0[left], r2, side, angle)
+                seed, _ = _lm(skel, q0[left], r2, side, kept[left], w[left], q0[left], dofs,
+                              max_iter, elbow=target)  # fmt: skip
+                cand, c = _lm(skel, seed, r2, side, kept[left], w[left], q0[left], dofs, max_iter)
+                won = c < cost[left]
+                best[left[won]], cost[left[won]] = cand[won], c[won]
+    q[need] = best
     return q

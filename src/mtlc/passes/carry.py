@@ -87,9 +87,7 @@ def carries(ir: MotionIR) -> list[Carry]:
 
 
 def _hands(skel: object, frames: Frames, rows: np.ndarray, q: FloatArray) -> FloatArray:
-    pose = forward(
-        skel, q, frames.root_position[rows], frames.root_rotation[rows], with_axes=False
-    )  # type: ignore[arg-type]
+    pose = forward(skel, q, frames.root_position[rows], frames.root_rotation[rows], with_axes=False)  # type: ignore[arg-type]
     return np.asarray(site_positions(skel, pose, ["r_hand", "l_hand"]))  # type: ignore[arg-type]
 
 

@@ -63,7 +63,7 @@ def pinned_weights(ir: MotionIR, side: str, t: FloatArray) -> FloatArray:
     if not on.any():
         return np.full(len(t), FREE)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    n = max(1, int(round(RAMP / dt)))
+    n = max(1, round(RAMP / dt))
     # distance (in frames) to the nearest pinned frame, then a linear ramp over n frames
     idx = np.flatnonzero(on)
     pos = np.searchsorted(idx, np.arange(len(t)))

@@ -22,6 +22,7 @@ frames: a handful of forward calls per iteration).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,12 +36,14 @@ FloatArray = NDArray[np.float64]
 FRAME_ARM = 0.05  # m: the wrist frame's axes are kept as points this far from the wrist
 REST_WEIGHT = 0.02  # m per rad toward the start configuration
 STEP = 1e-5  # rad, finite-difference step
-MAX_ITER = 30
+MAX_ITER = 25
 MAX_STEP = 0.15  # rad per dof per iteration
 # the hand's site weighs fully; its orientation (the other points) yields first: a forearm
 # twisted to its limit by a `turn` cannot swing the elbow out with the hand's frame held
 POINT_WEIGHT = np.array([1.0, 0.1, 0.1, 0.1, 0.1])
 SWIVELS = np.radians([-150.0, -100.0, -50.0, 50.0, 100.0, 150.0])  # elbow turns tried
+HAND_TOL = 2e-4  # m: a kept hand (weight ``KEPT`` or more) is restored this close
+KEPT = 1.0
 SWIVEL_FROM = 1e-3  # m: a pose this far inside after the local solve tries the swivels
 
 
@@ -88,57 +91,78 @@ def penetration(
     return clearance(skel, pose, side_limbs(side)).max(axis=1)
 
 
+@dataclass(frozen=True)
+class _Problem:
+    """One row per configuration: what its residuals compare against."""
+
+    root: tuple[FloatArray, FloatArray]  # (N, 3), (N, 4)
+    kept: FloatArray  # (N, 5, 3) the hand's points to keep
+    keep: FloatArray  # (N,) their weight
+    rest: FloatArray  # (N, D) the start configurations
+    elbow: FloatArray | None = None  # (N, 3) a swivel seed's elbow target
+
+    def take(self, idx: np.ndarray) -> _Problem:
+        return _Problem(
+            (self.root[0][idx], self.root[1][idx]), self.kept[idx], self.keep[idx],
+            self.rest[idx], None if self.elbow is None else self.elbow[idx],
+        )  # fmt: skip
+
+
+def _res(skel: Skeleton, q: FloatArray, side: str, pb: _Problem, dofs: list[int]) -> FloatArray:
+    """The residuals, or a swivel seed's (the elbow's target and the hand's pose)."""
+    if pb.elbow is None:
+        return _residuals(skel, q, pb.root, side, pb.kept, pb.keep, pb.rest, dofs)
+    pose = forward(skel, q, pb.root[0], pb.root[1], with_axes=False)
+    off = (_hand_points(skel, pose, side) - pb.kept) * (pb.keep[:, None] * POINT_WEIGHT)[..., None]
+    elbow = pose.p[:, skel.joint_index(f"{side}_elbow")] - pb.elbow
+    return np.concatenate([elbow, off.reshape(len(q), -1)], axis=1)
+
+
 def _lm(
-    skel: Skeleton,
-    start: FloatArray,
-    root: tuple[FloatArray, FloatArray],
-    side: str,
-    kept: FloatArray,
-    keep: FloatArray,
-    q_rest: FloatArray,
-    dofs: list[int],
-    max_iter: int,
-    elbow: FloatArray | None = None,
+    skel: Skeleton, start: FloatArray, side: str, pb: _Problem, dofs: list[int], max_iter: int
 ) -> tuple[FloatArray, FloatArray]:
-    """Levenberg-Marquardt on the arm's dofs from ``start``: (configurations, final cost).
-    ``elbow`` (N, 3): also pull the elbow there (a swivel seed) instead of clearing."""
+    """Levenberg-Marquardt on the arm's dofs from ``start``: (configurations, final cost). A
+    row stops once it is clear (a swivel seed: once its elbow is there); the finite-difference
+    Jacobian of every working row is one batched forward kinematics."""
     lo, hi = skel.lower[dofs], skel.upper[dofs]
-    e = skel.joint_index(f"{side}_elbow")
-
-    def res(qc: FloatArray) -> FloatArray:
-        r = _residuals(skel, qc, root, side, kept, keep, q_rest, dofs)
-        if elbow is None:
-            return r
-        pose = forward(skel, qc, root[0], root[1], with_axes=False)
-        return np.concatenate([pose.p[:, e] - elbow, r[:, -len(dofs) - 15 : -len(dofs)]], axis=1)
-
+    n_d = len(dofs)
     cur = np.array(start, dtype=float)
-    r = res(cur)
+    r = _res(skel, cur, side, pb, dofs)
     cost = np.einsum("nm,nm->n", r, r)
-    mu = np.full(len(cur), 1e-4)
-    eye = np.eye(len(dofs))
-    n_task = r.shape[1] - (0 if elbow is not None else len(dofs))
+    mu = np.full(len(cur), 1e-3)
+    eye = np.eye(n_d)
+    n_pen = r.shape[1] - 15 - n_d  # the clearance columns come first
     for _ in range(max_iter):
-        active = np.abs(r[:, :n_task]).max(axis=1) > 1e-6  # still penetrating or off
-        if not active.any():
+        if pb.elbow is None:
+            # at work while inside, or (``HAND_TOL``) while a kept hand is off its pose
+            off = np.abs(r[:, n_pen : n_pen + 3]).max(axis=1) / np.maximum(pb.keep, 1e-12)
+            inside = r[:, :n_pen].max(axis=1, initial=0.0) > 0.0
+            work = np.flatnonzero(inside | ((off > HAND_TOL) & (pb.keep >= KEPT)))
+        else:
+            work = np.flatnonzero(np.abs(r[:, :3]).max(axis=1) > 1e-3)
+        if work.size == 0:
             break
-        J = np.empty((len(cur), r.shape[1], len(dofs)))
-        for k, d in enumerate(dofs):
-            qs = cur.copy()
-            qs[:, d] += STEP
-            J[:, :, k] = (res(qs) - r) / STEP
+        sub = pb.take(work)
+        qw = cur[work]
+        m = len(work)
+        stack = np.repeat(qw[None], n_d, axis=0)  # (n_d, m, D)
+        stack[np.arange(n_d), :, dofs] += STEP
+        big = pb.take(np.tile(work, n_d))
+        rs = _res(skel, stack.reshape(n_d * m, -1), side, big, dofs).reshape(n_d, m, -1)
+        J = np.moveaxis((rs - r[work][None]) / STEP, 0, -1)  # (m, M, n_d)
         Jt = np.swapaxes(J, 1, 2)
-        A = Jt @ J + mu[:, None, None] * eye
-        g = np.einsum("nkm,nm->nk", Jt, r)
+        A = Jt @ J + mu[work, None, None] * eye
+        g = np.einsum("nkm,nm->nk", Jt, r[work])
         dq = -np.linalg.solve(A, g[..., None])[..., 0]
         dq *= np.minimum(1.0, MAX_STEP / np.maximum(np.abs(dq).max(axis=1), 1e-12))[:, None]
-        trial = cur.copy()
-        trial[:, dofs] = np.clip(cur[:, dofs] + dq, lo, hi)
-        rt = res(trial)
+        trial = qw.copy()
+        trial[:, dofs] = np.clip(qw[:, dofs] + dq, lo, hi)
+        rt = _res(skel, trial, side, sub, dofs)
         ct = np.einsum("nm,nm->n", rt, rt)
-        better = (ct < cost) & active
-        cur[better], r[better], cost[better] = trial[better], rt[better], ct[better]
-        mu = np.where(better, mu * 0.3, mu * 10.0)
+        better = ct < cost[work]
+        won = work[better]
+        cur[won], r[won], cost[won] = trial[better], rt[better], ct[better]
+        mu[work] = np.where(better, mu[work] * 0.3, mu[work] * 10.0)
     return cur, cost
 
 
@@ -180,21 +204,30 @@ def keep_clear(
     if need.size == 0:
         return q
     dofs = arm_dofs(skel, side)
-    sub_root = (root[0][need], root[1][need])
+    root_n = (root[0][need], root[1][need])
     q0 = q[need].copy()
-    kept = _hand_points(skel, forward(skel, q0, *sub_root, with_axes=False), side)
-    w = np.asarray(keep, dtype=float)[need]
-    best, cost = _lm(skel, q0, sub_root, side, kept, w, q0, dofs, max_iter)
+    kept = _hand_points(skel, forward(skel, q0, *root_n, with_axes=False), side)
+    pb = _Problem(root_n, kept, np.asarray(keep, dtype=float)[need], q0)
+    best, cost = _lm(skel, q0, side, pb, dofs, max_iter)
     if swivel:
-        left = np.flatnonzero(penetration(skel, best, sub_root, side) > SWIVEL_FROM)
+        left = np.flatnonzero(penetration(skel, best, root_n, side) > SWIVEL_FROM)
         if left.size:
-            r2 = (sub_root[0][left], sub_root[1][left])
-            for angle in SWIVELS:
-                target = _swivel_targets(skel, q0[left], r2, side, angle)
-                seed, _ = _lm(skel, q0[left], r2, side, kept[left], w[left], q0[left], dofs,
-                              max_iter, elbow=target)  # fmt: skip
-                cand, c = _lm(skel, seed, r2, side, kept[left], w[left], q0[left], dofs, max_iter)
-                won = c < cost[left]
-                best[left[won]], cost[left[won]] = cand[won], c[won]
+            # every turn of every row in one batch: rows (turn, row)
+            turns = len(SWIVELS)
+            rows = np.tile(left, turns)
+            root_n_left = (root_n[0][left], root_n[1][left])
+            sub = pb.take(rows)
+            target = np.concatenate(
+                [_swivel_targets(skel, q0[left], root_n_left, side, a)
+                 for a in SWIVELS]
+            )  # fmt: skip
+            seed, _ = _lm(skel, q0[rows], side, replace(sub, elbow=target), dofs, max_iter)
+            cand, c = _lm(skel, seed, side, sub, dofs, max_iter)
+            c = c.reshape(turns, len(left))
+            pick = np.argmin(c, axis=0)
+            c_best = c[pick, np.arange(len(left))]
+            won = c_best < cost[left]
+            chosen = cand.reshape(turns, len(left), -1)[pick, np.arange(len(left))]
+            best[left[won]], cost[left[won]] = chosen[won], c_best[won]
     q[need] = best
     return q

@@ -35,6 +35,8 @@ GOAL_LEAD = 0.15  # s before a reach's end the hand counts as arriving at its go
 ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
 HAND_TRACK = {"r": "r_hand", "l": "l_hand"}
 EPS = 1e-9
+MAX_SWING = 0.6  # rad a corrected dof may move between two dense frames, if the motion did not
+SWING_SMOOTH = 6  # dense frames each side a correction that swings is averaged over
 
 
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
@@ -74,12 +76,46 @@ def pinned_weights(ir: MotionIR, side: str, t: FloatArray) -> FloatArray:
     return FREE + (PINNED - FREE) * share
 
 
+def without_swings(q: FloatArray, correction: FloatArray) -> FloatArray:
+    """The per-frame ``correction`` (N, D) of frames ``q``, where it makes a dof swing between
+    two frames by more than ``MAX_SWING`` and more than the motion did (solved frame by frame,
+    two neighbours can land on opposite sides of the thigh), replaced on that run of corrected
+    frames by its average over ``SWING_SMOOTH`` frames each side, fading to nothing at the
+    run's ends: a jump becomes a ramp. What that gives back of the depth, verify reports."""
+    before = np.abs(np.diff(q, axis=0))
+    after = np.abs(np.diff(q + correction, axis=0))
+    swings = np.flatnonzero((after > np.maximum(before, MAX_SWING)).any(axis=1))
+    out = correction.copy()
+    moved = np.abs(correction).max(axis=1) > 0.0
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], moved.astype(int), [0]])))
+    width = 2 * SWING_SMOOTH + 1
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        run = correction[a:b]
+        if not np.any((swings >= a - 1) & (swings < b)):
+            continue
+        padded = np.pad(run, ((width, width), (0, 0)))
+        kernel = np.ones(width) / width
+        for _ in range(2):  # twice: a triangle, no corners
+            padded = np.apply_along_axis(np.convolve, 0, padded, kernel, mode="same")
+        out[a:b] = padded[width:-width]
+    return out
+
+
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     frames = ir.frames
     if frames is None or not len(frames.time):
         return ir
     root = (frames.root_position, frames.root_rotation)
+    skel = ir.skeleton
     for side in ("r", "l"):
         keep = pinned_weights(ir, side, frames.time)
-        frames.q = keep_clear(ir.skeleton, frames.q, root, side, keep)
+        q = frames.q
+        cleared = keep_clear(skel, q, root, side, keep)
+        smooth = skel.clip(q + without_swings(q, cleared - q))
+        if np.array_equal(smooth, cleared):
+            frames.q = cleared
+            continue
+        # solved again from the ramp: each frame starts where its neighbours' average is
+        again = keep_clear(skel, q, root, side, keep, start=smooth)
+        frames.q = skel.clip(q + without_swings(q, again - q))
     return ir

@@ -35,12 +35,14 @@ FloatArray = NDArray[np.float64]
 
 FRAME_ARM = 0.05  # m: the wrist frame's axes are kept as points this far from the wrist
 REST_WEIGHT = 0.02  # m per rad toward the start configuration
+WRIST_REST = 0.02  # ...for the wrist
 STEP = 1e-5  # rad, finite-difference step
 MAX_ITER = 25
 MAX_STEP = 0.15  # rad per dof per iteration
 # the hand's site weighs fully; its orientation (the other points) yields first: a forearm
 # twisted to its limit by a `turn` cannot swing the elbow out with the hand's frame held
 POINT_WEIGHT = np.array([1.0, 0.1, 0.1, 0.1, 0.1])
+ORIENT_FLOOR = 0.3
 SWIVELS = np.radians([-150.0, -100.0, -50.0, 50.0, 100.0, 150.0])  # elbow turns tried
 HAND_TOL = 2e-4  # m: a kept hand (weight ``KEPT`` or more) is restored this close
 KEPT = 1.0
@@ -61,10 +63,26 @@ def _residuals(
     pose = forward(skel, q, root[0], root[1], with_axes=False)
     pen = np.maximum(clearance(skel, pose, side_limbs(side)), 0.0)
     held = _hand_points(skel, pose, side)
-    off = (held - kept) * (keep[:, None] * POINT_WEIGHT)[..., None]
+    off = (held - kept) * _point_weights(keep)[..., None]
     off = off.reshape(len(q), -1)
-    rest = REST_WEIGHT * (q[:, dofs] - q0[:, dofs])
+    rest = _rest_weights(skel, dofs) * (q[:, dofs] - q0[:, dofs])
     return np.concatenate([pen, off, rest], axis=1)
+
+
+def _rest_weights(skel: Skeleton, dofs: Sequence[int]) -> FloatArray:
+    """The pull toward the start per dof: ``REST_WEIGHT``, ``WRIST_REST`` for the wrist's two
+    dofs (the arm swings out as a whole; a wrist flicked to its limits frame by frame clears a
+    hand no way a person does)."""
+    return np.array([WRIST_REST if "_wrist_" in skel.dof_names[d] else REST_WEIGHT for d in dofs])
+
+
+def _point_weights(keep: FloatArray) -> FloatArray:
+    """(N, 5) the weights of the hand's site and its four orientation points: the site
+    ``keep``, its orientation a tenth of that, but never less than ``ORIENT_FLOOR`` (a free
+    hand may move out of the way; flipping the wrist to its limits frame by frame is no way)."""
+    w = keep[:, None] * POINT_WEIGHT
+    w[:, 1:] = np.maximum(w[:, 1:], ORIENT_FLOOR)
+    return w
 
 
 def _hand_points(skel: Skeleton, pose: object, side: str) -> FloatArray:
@@ -113,7 +131,7 @@ def _res(skel: Skeleton, q: FloatArray, side: str, pb: _Problem, dofs: list[int]
     if pb.elbow is None:
         return _residuals(skel, q, pb.root, side, pb.kept, pb.keep, pb.rest, dofs)
     pose = forward(skel, q, pb.root[0], pb.root[1], with_axes=False)
-    off = (_hand_points(skel, pose, side) - pb.kept) * (pb.keep[:, None] * POINT_WEIGHT)[..., None]
+    off = (_hand_points(skel, pose, side) - pb.kept) * _point_weights(pb.keep)[..., None]
     elbow = pose.p[:, skel.joint_index(f"{side}_elbow")] - pb.elbow
     return np.concatenate([elbow, off.reshape(len(q), -1)], axis=1)
 
@@ -189,6 +207,7 @@ def keep_clear(
     keep: FloatArray,
     max_iter: int = MAX_ITER,
     swivel: bool = False,
+    start: FloatArray | None = None,
 ) -> FloatArray:
     """Configurations ``q`` (N, D) with the ``side`` arm moved clear of the trunk and thighs.
 
@@ -198,17 +217,19 @@ def keep_clear(
     the local solve leaves inside also tries the elbow turned about the shoulder-wrist line by
     each of ``SWIVELS`` (a pose through the trunk is often a local minimum: the way out is
     round, not straight), keeping the best; for single poses (keyframes), where no
-    neighbouring frame has to agree."""
+    neighbouring frame has to agree. ``start``: where to start from instead of ``q`` (the
+    hand's pose and the rest pull stay ``q``'s); a row clear there is returned as it is."""
     q = np.array(q, dtype=float)
-    need = np.flatnonzero(penetration(skel, q, root, side) > 0.0)
+    begin = q if start is None else np.asarray(start, dtype=float)
+    need = np.flatnonzero(penetration(skel, begin, root, side) > 0.0)
     if need.size == 0:
-        return q
+        return np.array(begin, dtype=float)
     dofs = arm_dofs(skel, side)
     root_n = (root[0][need], root[1][need])
     q0 = q[need].copy()
     kept = _hand_points(skel, forward(skel, q0, *root_n, with_axes=False), side)
     pb = _Problem(root_n, kept, np.asarray(keep, dtype=float)[need], q0)
-    best, cost = _lm(skel, q0, side, pb, dofs, max_iter)
+    best, cost = _lm(skel, begin[need], side, pb, dofs, max_iter)
     if swivel:
         left = np.flatnonzero(penetration(skel, best, root_n, side) > SWIVEL_FROM)
         if left.size:
@@ -229,5 +250,6 @@ def keep_clear(
             won = c_best < cost[left]
             chosen = cand.reshape(turns, len(left), -1)[pick, np.arange(len(left))]
             best[left[won]], cost[left[won]] = chosen[won], c_best[won]
-    q[need] = best
-    return q
+    out = np.array(begin, dtype=float)
+    out[need] = best
+    return out

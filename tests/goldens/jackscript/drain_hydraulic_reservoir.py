@@ -162,8 +162,8 @@ def drain_reservoir():
     human.KeyJoints(2.5, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
         'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (104.077, -0.828, 69.999), 'right_elbow': (35.517, -36.896),
-        'right_wrist': (-16.601, 2.287),
+        'right_shoulder': (104.077, -0.828, 70.0), 'right_elbow': (35.517, -36.898),
+        'right_wrist': (-16.601, 2.288),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(2.6, {

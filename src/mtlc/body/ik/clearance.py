@@ -11,7 +11,8 @@ arm's dofs whose residuals are
 * the hand's pose (its site, fingertip and wrist frame) where it was, weight ``keep`` per
   configuration: large where the hand is on a site or holds a part (the elbow swings out, the
   goal is kept), small where the hand is free (it may move out too); the site weighs ten times
-  its orientation, which yields first when the swivel alone cannot clear;
+  its orientation (which yields first when the swivel alone cannot clear), the orientation at
+  least ``ORIENT_FLOOR``;
 * a small pull toward the start configuration, so nothing moves that need not.
 
 Configurations already clear are returned unchanged; the dofs stay within their limits.
@@ -35,14 +36,13 @@ FloatArray = NDArray[np.float64]
 
 FRAME_ARM = 0.05  # m: the wrist frame's axes are kept as points this far from the wrist
 REST_WEIGHT = 0.02  # m per rad toward the start configuration
-WRIST_REST = 0.02  # ...for the wrist
 STEP = 1e-5  # rad, finite-difference step
 MAX_ITER = 25
 MAX_STEP = 0.15  # rad per dof per iteration
 # the hand's site weighs fully; its orientation (the other points) yields first: a forearm
 # twisted to its limit by a `turn` cannot swing the elbow out with the hand's frame held
 POINT_WEIGHT = np.array([1.0, 0.1, 0.1, 0.1, 0.1])
-ORIENT_FLOOR = 0.3
+ORIENT_FLOOR = 0.3  # ...but never below this: a free hand moves out, it does not flick
 SWIVELS = np.radians([-150.0, -100.0, -50.0, 50.0, 100.0, 150.0])  # elbow turns tried
 HAND_TOL = 2e-4  # m: a kept hand (weight ``KEPT`` or more) is restored this close
 KEPT = 1.0
@@ -65,15 +65,8 @@ def _residuals(
     held = _hand_points(skel, pose, side)
     off = (held - kept) * _point_weights(keep)[..., None]
     off = off.reshape(len(q), -1)
-    rest = _rest_weights(skel, dofs) * (q[:, dofs] - q0[:, dofs])
+    rest = REST_WEIGHT * (q[:, dofs] - q0[:, dofs])
     return np.concatenate([pen, off, rest], axis=1)
-
-
-def _rest_weights(skel: Skeleton, dofs: Sequence[int]) -> FloatArray:
-    """The pull toward the start per dof: ``REST_WEIGHT``, ``WRIST_REST`` for the wrist's two
-    dofs (the arm swings out as a whole; a wrist flicked to its limits frame by frame clears a
-    hand no way a person does)."""
-    return np.array([WRIST_REST if "_wrist_" in skel.dof_names[d] else REST_WEIGHT for d in dofs])
 
 
 def _point_weights(keep: FloatArray) -> FloatArray:

@@ -331,11 +331,11 @@ def test_one_shortfall_number_in_compile_and_metrics(tmp_path: Path) -> None:
 # verify made visible (docs/metrics.md has the figures, docs/lint.md#examples the reasons). A
 # fix in the passes removes its line here: the list must only shrink.
 EXAMPLE_FINDINGS = {
-    "drain_hydraulic_reservoir": [("MT0514", 25)],  # right forearm into the right thigh
-    "remove_access_panel": [
-        ("MT0511", 32),  # the hands carrying the panel move 36 mm together: it is rigid
-        ("MT0514", 34),  # the left forearm into the trunk as the panel is set down
-    ],
+    # the clearance pass swings the forearm out of the thigh (was MT0514 at line 25)
+    "drain_hydraulic_reservoir": [],
+    # the carry pass holds the panel rigid (was MT0511 at 32, the hands 36 mm together) and
+    # the approach's IK keeps the left forearm out of the trunk (was MT0514 at 34, 79 mm)
+    "remove_access_panel": [],
     "remove_avionics_unit": [  # the latches and handle out of reach for the 5th-pct woman
         ("MT0501", 31),
         ("MT0501", 32),
@@ -352,8 +352,7 @@ EXAMPLE_FINDINGS = {
         ("MT0502", 42),
         ("MT0502", 45),
         ("MT0502", 47),  # standing up
-        ("MT0514", 32),  # kneeling down, the right hand into the right thigh (4 mm)
-        ("MT0514", 47),  # standing up, the right hand into the left thigh
+        # the right hand out of the thighs kneeling down and standing up (was MT0514 at 32, 47)
     ],
 }
 

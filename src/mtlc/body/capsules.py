@@ -15,6 +15,13 @@ Sizes (GB 10000-88 measures, scaled by stature for a population whose table lack
   clearance (the thigh's thickness; men P50: 130 mm, so 65 mm).
 
 Pure geometry on ``Pose`` arrays: numpy only, vectorised over frames.
+
+The check (``self_intersection``) tests the limbs' axes. Avoiding the capsules (``clearance``,
+used by the clearance pass and ``mtlc.body.ik.clearance``) asks more: the limb's own surface,
+``LIMB_RADIUS`` times the manikin's hand breadth from its axis (GB 10000-88 gives no forearm
+breadth; a forearm near the wrist is about 0.7 of the hand's breadth thick, a hand about half
+as thick as it is broad), stays ``CLEARANCE_MARGIN`` outside every capsule, so what the solver
+leaves is outside the body with room to spare, not on the edge of the check.
 """
 
 from __future__ import annotations
@@ -85,6 +92,10 @@ ARM_LIMBS = (
     Limb("left hand", "l_wrist", "l_fingertip"),
 )
 LIMB_SAMPLES = 6  # points along a limb's axis, ends included (a forearm: every 5 cm or so)
+HAND_BREADTH = "hand_breadth"
+# a limb's radius as a fraction of the hand's breadth (men P50: forearm 30 mm, hand 20 mm)
+LIMB_RADIUS = {"forearm": 0.36, "hand": 0.25}
+CLEARANCE_MARGIN = 0.005  # m the limb's surface keeps outside a capsule when avoiding it
 
 
 def _point(skel: Skeleton, pose: Pose, name: str) -> FloatArray:
@@ -128,3 +139,34 @@ def self_intersection(
             cols.append(depth_inside(pts, a, b, cap.radius).max(axis=1))
             pairs.append((limb.name, cap.name))
     return np.stack(cols, axis=1), pairs
+
+
+def limb_radius(skel: Skeleton, limb: Limb) -> float:
+    """The limb's own radius (m): ``LIMB_RADIUS`` of the manikin's hand breadth."""
+    kind = "hand" if limb.name.endswith("hand") else "forearm"
+    return LIMB_RADIUS[kind] * _measure_m(skel, HAND_BREADTH)
+
+
+def side_limbs(side: str) -> tuple[Limb, ...]:
+    """The forearm and hand of one side ("r" or "l")."""
+    prefix = "right " if side == "r" else "left "
+    return tuple(limb for limb in ARM_LIMBS if limb.name.startswith(prefix))
+
+
+def clearance(
+    skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...], margin: float = CLEARANCE_MARGIN
+) -> FloatArray:
+    """(N, L·C·S) how far (m) each sample point of each limb's surface is inside each capsule
+    grown by ``margin``: positive where the limb must move out, negative where it is clear.
+    The avoidance's residual; ``self_intersection`` stays the check."""
+    caps = body_capsules(skel)
+    frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)
+    axes = [(cap, *_capsule_axis(skel, pose, cap)) for cap in caps]
+    cols: list[FloatArray] = []
+    for limb in limbs:
+        p0, p1 = _point(skel, pose, limb.start), _point(skel, pose, limb.end)
+        pts = p0[:, None, :] + frac[None, :, None] * (p1 - p0)[:, None, :]
+        grow = limb_radius(skel, limb) + margin
+        for cap, a, b in axes:
+            cols.append(depth_inside(pts, a, b, cap.radius + grow))
+    return np.concatenate(cols, axis=1)

@@ -14,6 +14,8 @@ from mtlc.ir.model import MotionIR
 from mtlc.passes import (
     approach,
     balance,
+    carry,
+    clearance,
     contact,
     gaze,
     hold,
@@ -47,6 +49,8 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("hold", hold.run),  # a hand on a site stays there while the body moves (MT0520)
     ("balance", balance.run),  # 6. centre of mass over the support polygon
     ("smooth", smooth.run),  # 7. blend offsets at segment boundaries
+    ("carry", carry.run),  # a part in both hands is rigid: its pose drives both (MT0511)
+    ("clearance", clearance.run),  # forearms and hands out of the trunk and thighs (MT0514)
     ("sample", sample.run),  # 8. frames at the output rate
     ("verify", verify.run),  # every claim checked on the frames the user receives: keep last
 ]

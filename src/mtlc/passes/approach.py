@@ -20,12 +20,15 @@ Keyframes: the pose at the segment's start (held until then) and the solution at
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
 
 from mtlc.body import forward, site_positions
+from mtlc.body.capsules import self_intersection
 from mtlc.body.ik import ChainModel, Goal, default_dofs, prepare, solve_ta
+from mtlc.body.ik.clearance import keep_clear
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.state import PoseState, cached, mark, reanchor
@@ -40,6 +43,11 @@ FLAT_CLEARANCE = 0.02  # m: a site this close to fingers pointing down at the fl
 FLAT_NORMAL_UP = 0.5  # a low site is come down on (its normal this far up, or none)
 SWEEP_CLEARANCE = 0.02  # m: an approach path whose hands come this near the floor is lifted
 LIFTS = 3  # re-solves that raise an approach point whose pose puts the fingers in the floor
+KEEP_GOAL = 30.0  # weight of the hand's pose against the body's volume (ik.clearance): kept
+KEEP_PATH = 0.3  # ...on the way there: the hand may move out of the body's way
+PATH_SAMPLES = 9  # poses checked on each stretch between two keyframes, ends included
+CLEAR_KEYS = 1  # keyframes added at most to keep an approach's arms out of the body
+CLEAR_GAIN = 0.005  # m a cleared keyframe must take off the path's depth to be kept
 
 
 def model_for(
@@ -359,6 +367,73 @@ def _solve_group(
     return best
 
 
+def clear_of_body(
+    state: PoseState,
+    segs: list[Segment],
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    keep: float = KEEP_GOAL,
+    swivel: bool = True,
+) -> FloatArray:
+    """Pose ``q`` with each reaching arm swung clear of the trunk and thighs, its hand kept
+    where it is (``mtlc.body.ik.clearance``: the body's volume is a constraint of the arm's
+    IK; the solvers above know only the hand). A squat's forearm went through the thigh, a
+    panel set down at the hip put the forearm through the trunk."""
+    sides = sorted({s.goal.effector[0] for s in segs if s.goal.effector[:2] in ("r_", "l_")})
+    rows = (root[0][None], root[1][None])
+    out = q[None].copy()
+    for side in sides:
+        out = keep_clear(state.skel, out, rows, side, np.array([keep]), swivel=swivel)
+    return out[0]
+
+
+def clear_path(
+    state: PoseState,
+    segs: list[Segment],
+    poses: list[FloatArray],
+    root: tuple[FloatArray, FloatArray],
+    fracs: list[float],
+) -> tuple[list[FloatArray], list[float]]:
+    """Keyframes (poses at fractions of the segment) whose joint-space path keeps the arms out
+    of the trunk and thighs: where the straight line between two keyframes takes a limb's
+    axis into them (an arm swung down past a squatting knee), the deepest pose on it is cleared, its
+    hand free to move (``KEEP_PATH``), and becomes a keyframe between them if the path is
+    then less deep (``CLEAR_KEYS`` at most). ``fracs``: the poses' fractions of the window;
+    returns the poses and their fractions."""
+    fracs, poses = list(fracs), list(poses)
+    sides = sorted({s.goal.effector[0] for s in segs if s.goal.effector[:2] in ("r_", "l_")})
+    steps = np.linspace(0.0, 1.0, PATH_SAMPLES)[1:-1]
+
+    def deepest(keys: list[FloatArray]) -> tuple[float, FloatArray, int, float]:
+        """The path's deepest sample: (how deep a limb's axis goes in, pose, stretch, fraction
+        in it). Only a path that truly goes in is changed, not one inside the clearance."""
+        qs = np.array([a + f * (b - a) for a, b in itertools.pairwise(keys) for f in steps])
+        pose = forward(
+            state.skel, qs, np.broadcast_to(root[0], (len(qs), 3)),
+            np.broadcast_to(root[1], (len(qs), 4)),
+        )  # fmt: skip
+        depth, pairs = self_intersection(state.skel, pose)
+        mine = [c for c, (limb, _) in enumerate(pairs) if limb.split()[0][0] in sides]
+        deep = depth[:, mine].max(axis=1)
+        i = int(np.argmax(deep))
+        return float(deep[i]), qs[i], i // len(steps), float(steps[i % len(steps)])
+
+    for _ in range(CLEAR_KEYS):
+        depth, pose, k, f = deepest(poses)
+        if depth <= 0.0:
+            break
+        trial = [
+            *poses[: k + 1],
+            clear_of_body(state, segs, pose, root, KEEP_PATH),
+            *poses[k + 1 :],
+        ]
+        if deepest(trial)[0] >= depth - CLEAR_GAIN:
+            break
+        poses = trial
+        fracs.insert(k + 1, fracs[k] + f * (fracs[k + 1] - fracs[k]))
+    return poses, fracs
+
+
 def lowest_hand_point(
     state: PoseState, segs: list[Segment], q: FloatArray, root: tuple[FloatArray, FloatArray]
 ) -> float:
@@ -439,7 +514,8 @@ def sweep_mid(
 
 
 def relift(ir: MotionIR, ctx: PassContext) -> None:
-    """``sweep_mid`` again for the approaches, once the contacts before them are solved.
+    """``sweep_mid`` and ``clear_path`` for the approaches, once the contacts before them are
+    solved (the first keyframe is then the pose the approach truly starts from).
 
     An approach starts from the pose the body is in, and the contact pass moves that pose
     (onto the site the hand reached before) after the approach was solved: from a spares box
@@ -448,28 +524,53 @@ def relift(ir: MotionIR, ctx: PassContext) -> None:
     state = PoseState(ir)
     skel = ir.skeleton
     for segs in groups(ir, "TA"):
-        if any(s.keyframes is None or len(s.keyframes.time) != 2 for s in segs):
+        if any(s.keyframes is None for s in segs):
             continue
         t0, t1 = min(s.start for s in segs), max(s.end for s in segs)
         q0, q1 = state.q_at(t0), state.q_at(t1)
         root = state.root_at(t1)
-        targets = [
-            np.asarray(s.result.get("approach_point", s.goal.position), dtype=float) for s in segs
-        ]
-        mid = sweep_mid(
-            ctx, state, segs, targets, q0, q1, root, pinned_hands(state, segs, q0, root)
-        )
-        if mid is None:
-            continue
-        for seg in segs:
-            kf = seg.keyframes
-            assert kf is not None
-            idx = [skel.dof_index(n) for n in kf.dofs]
-            seg.keyframes = Keyframes(
-                time=np.array([kf.time[0], 0.5 * (kf.time[0] + kf.time[1]), kf.time[1]]),
-                dofs=kf.dofs,
-                q=np.stack([kf.q[0], mid[idx], kf.q[1]]),
+        if all(len(s.keyframes.time) == 2 for s in segs):  # type: ignore[union-attr]
+            targets = [
+                np.asarray(s.result.get("approach_point", s.goal.position), dtype=float)
+                for s in segs
+            ]
+            mid = sweep_mid(
+                ctx, state, segs, targets, q0, q1, root, pinned_hands(state, segs, q0, root)
             )
+            if mid is not None:
+                _rekey(skel, segs, [q0, mid, q1], [0.0, 0.5, 1.0])
+        if any(abs(s.start - t0) + abs(s.end - t1) > 1e-9 for s in segs):
+            continue  # hands of different windows: their keyframes are not one path
+        kf = segs[0].keyframes
+        assert kf is not None
+        fracs = list((kf.time - t0) / max(t1 - t0, 1e-9))
+        poses = [_pose_at(skel, state.q_at(t), segs, k) for k, t in enumerate(kf.time)]
+        poses, new_fracs = clear_path(state, segs, poses, root, fracs)
+        if len(poses) != len(fracs):
+            _rekey(skel, segs, poses, new_fracs)
+
+
+def _pose_at(skel: Any, q: FloatArray, segs: list[Segment], k: int) -> FloatArray:
+    """The whole body at keyframe ``k`` of the segments: ``q`` with their own keyed dofs."""
+    out = q.copy()
+    for seg in segs:
+        kf = seg.keyframes
+        assert kf is not None
+        out[[skel.dof_index(n) for n in kf.dofs]] = kf.q[k]
+    return out
+
+
+def _rekey(skel: Any, segs: list[Segment], poses: list[FloatArray], fracs: list[float]) -> None:
+    """Each segment's keyframes at ``fracs`` of its window, from the whole-body ``poses``."""
+    for seg in segs:
+        kf = seg.keyframes
+        assert kf is not None
+        idx = [skel.dof_index(n) for n in kf.dofs]
+        seg.keyframes = Keyframes(
+            time=seg.start + (seg.end - seg.start) * np.asarray(fracs),
+            dofs=kf.dofs,
+            q=np.stack([pose[idx] for pose in poses]),
+        )
 
 
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
@@ -493,6 +594,11 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
             # the hand arrives fingers first: raise its approach point by what they sink
             targets = [p + np.array([0.0, sink + GROUND_SLACK, 0.0]) for p in targets]
             q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
+        q1 = clear_of_body(state, segs, q1, root)
+        dist = [
+            hand_distance(state, s.goal.effector, q1, root, p)
+            for s, p in zip(segs, targets, strict=True)
+        ]
         mid = sweep_mid(ctx, state, segs, targets, q0, q1, root, pinned)
         for k, (seg, p, d) in enumerate(zip(segs, targets, dist, strict=True)):
             names = own_names(skel, segs, k, reach, pinned)

@@ -130,119 +130,137 @@ def drain_reservoir():
     human.KeyJoints(1.7, {'neck': (-0.693, 0.0, 0.0), 'head': (-0.693, 0.0)})
     human.KeyJoints(1.8, {
         'neck': (-1.54, 0.0, 0.0), 'head': (-1.54, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
+        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=1.8468, duration=0.832997)
     human.KeyJoints(1.9, {
-        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_shoulder': (74.99, 5.452, 11.534),
-        'right_wrist': (0.023, -0.01),
+        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_shoulder': (75.124, 5.629, 12.38),
+        'right_elbow': (34.384, 16.35), 'right_wrist': (-0.255, 0.008),
     })
     human.KeyJoints(2.0, {
-        'right_shoulder': (76.54, 3.646, 12.013), 'right_elbow': (34.424, 17.214),
+        'right_shoulder': (77.547, 4.966, 18.289), 'right_elbow': (34.436, 10.969),
+        'right_wrist': (-1.894, 0.062),
     })
     human.KeyJoints(2.1, {
-        'right_shoulder': (79.221, 0.641, 12.795), 'right_wrist': (0.418, -0.179),
+        'right_shoulder': (81.674, 3.835, 27.912), 'right_elbow': (34.539, 2.205),
+        'right_wrist': (-4.573, 0.161),
     })
     human.KeyJoints(2.2, {
-        'right_shoulder': (82.654, -2.999, 13.713), 'right_elbow': (34.65, 17.293),
+        'right_shoulder': (86.845, 2.419, 39.184), 'right_elbow': (34.695, -8.061),
+        'right_wrist': (-7.726, 0.299),
     })
-    human.KeyJoints(2.3, {'right_shoulder': (86.457, -6.711, 14.601)})
+    human.KeyJoints(2.3, {
+        'right_shoulder': (93.151, 1.494, 53.433), 'right_elbow': (34.914, -21.239),
+        'right_wrist': (-11.837, 0.827),
+    })
     human.KeyJoints(2.4, {
-        'right_shoulder': (90.25, -9.931, 15.294), 'right_elbow': (35.115, 17.366),
-        'right_wrist': (1.193, -0.51),
+        'right_shoulder': (100.392, 0.795, 69.032), 'right_elbow': (35.187, -36.319),
+        'right_wrist': (-16.268, 2.518),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
         'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (93.654, -12.093, 15.625), 'right_elbow': (35.453, 17.38),
-        'right_wrist': (1.291, -0.552),
+        'right_shoulder': (104.077, -0.828, 70.0), 'right_elbow': (35.517, -36.898),
+        'right_wrist': (-16.601, 2.288),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(2.6, {
-        'spine_lumbar': (59.938, -0.586, 1.004), 'spine_thoracic': (27.711, -0.634, 0.791),
-        'neck': (-0.253, 0.066, -2.833), 'head': (-0.253, 0.0), 'right_clavicle': (0.26, 0.654),
-        'right_shoulder': (97.105, -11.767, 15.162), 'right_elbow': (36.209, 17.379),
-        'right_wrist': (1.053, -0.446),
+        'spine_lumbar': (59.797, -0.618, 1.058), 'spine_thoracic': (27.662, -0.666, 0.836),
+        'neck': (-0.168, 0.069, -2.978), 'head': (-0.168, 0.0), 'right_clavicle': (0.285, 0.712),
+        'right_shoulder': (105.977, -1.15, 63.173), 'right_elbow': (35.32, -30.905),
+        'right_wrist': (-15.187, 1.337),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.679797, duration=0.072)
     human.KeyJoints(2.7, {
-        'spine_lumbar': (60.0, -1.981, 3.77), 'spine_thoracic': (29.025, -2.242, 3.104),
-        'neck': (-0.738, 0.253, -10.892), 'head': (-0.737, 0.002), 'right_clavicle': (1.283, 1.862),
-        'right_shoulder': (101.897, -3.581, 12.174), 'right_elbow': (32.536, 17.407),
-        'right_wrist': (0.083, -1.59),
+        'spine_lumbar': (60.0, -1.884, 3.474), 'spine_thoracic': (28.561, -2.067, 2.853),
+        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002), 'right_clavicle': (1.133, 1.946),
+        'right_shoulder': (109.016, 4.279, 59.594), 'right_elbow': (29.989, -29.318),
+        'right_wrist': (-15.251, 0.243),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(2.8, {
-        'right_shoulder': (101.936, -3.531, 12.157), 'right_elbow': (32.483, 3.551),
+        'right_shoulder': (109.124, 4.337, 59.563), 'right_elbow': (30.38, -37.121),
+        'right_wrist': (-15.297, 0.336),
     })
     human.KeyJoints(2.9, {
-        'neck': (-0.738, 0.253, -10.892), 'head': (-0.737, 0.002),
-        'right_shoulder': (101.966, -3.361, 12.104), 'right_elbow': (32.303, -59.761),
+        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002),
+        'right_shoulder': (109.835, 4.869, 59.346), 'right_elbow': (31.839, -72.774),
+        'right_wrist': (-15.302, 0.543),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=2.946197, duration=0.2628)
     human.KeyJoints(3.0, {
-        'neck': (-0.544, 0.239, -10.307), 'head': (-0.543, 0.002), 'right_elbow': (32.234, -72.593),
+        'neck': (-0.333, 0.219, -9.454), 'head': (-0.332, 0.002),
+        'right_shoulder': (110.013, 5.011, 59.293), 'right_elbow': (32.016, -80.0),
     })
-    human.KeyJoints(3.1, {'neck': (0.846, 0.139, -6.116), 'head': (0.847, 0.001)})
-    human.KeyJoints(3.2, {'neck': (3.569, -0.058, 2.095), 'head': (3.57, 0.0)})
+    human.KeyJoints(3.1, {'neck': (1.065, 0.12, -5.324), 'head': (1.066, 0.001)})
+    human.KeyJoints(3.2, {'neck': (3.804, -0.076, 2.767), 'head': (3.804, -0.001)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(3.3, {'neck': (3.879, -0.081, 2.93), 'head': (3.88, -0.001)})
-    human.KeyJoints(3.5, {'right_wrist': (0.005, -1.573)})
-    human.KeyJoints(4.8, {'neck': (3.879, -0.081, 3.031)})
-    human.KeyJoints(7.2, {'right_elbow': (32.234, -72.593)})
+    human.KeyJoints(3.3, {'neck': (4.116, -0.098, 3.589), 'head': (4.116, -0.001)})
+    human.KeyJoints(4.9, {'neck': (4.116, -0.098, 3.688)})
+    human.KeyJoints(7.2, {
+        'right_shoulder': (110.013, 5.011, 59.293), 'right_elbow': (32.016, -80.0),
+    })
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(7.3, {
-        'right_shoulder': (101.964, -3.373, 12.108), 'right_elbow': (32.337, -52.817),
-        'right_wrist': (0.028, -1.591),
+        'right_shoulder': (109.548, 4.642, 59.434), 'right_elbow': (31.418, -60.224),
+        'right_wrist': (-15.33, 0.522),
     })
     human.KeyRoot(7.4, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'spine_lumbar': (60.0, -1.981, 3.77), 'spine_thoracic': (29.025, -2.242, 3.104),
-        'right_shoulder': (101.929, -3.566, 12.168), 'right_elbow': (32.476, 14.297),
-        'left_shoulder': (74.757, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
-        'right_knee': (99.683,), 'right_ankle': (20.0, 0.0), 'left_hip': (79.683, 0.0, 0.0),
-        'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
+        'spine_lumbar': (60.0, -1.884, 3.474), 'spine_thoracic': (28.561, -2.067, 2.853),
+        'right_shoulder': (108.865, 4.239, 59.635), 'right_elbow': (27.998, 6.89),
+        'right_wrist': (-14.744, -0.226), 'left_shoulder': (74.757, 5.73, 11.459),
+        'right_hip': (79.683, 0.0, 0.0), 'right_knee': (99.683,), 'right_ankle': (20.0, 0.0),
+        'left_hip': (79.683, 0.0, 0.0), 'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.403397, duration=0.072)
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
     human.KeyRoot(7.5, (7.84, 49.585, 20.826), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'spine_lumbar': (59.908, -1.917, 3.649), 'spine_thoracic': (28.998, -2.17, 3.005),
-        'right_shoulder': (102.087, -3.608, 12.17), 'right_elbow': (32.11, 17.406),
-        'left_shoulder': (74.374, 5.73, 11.459), 'right_hip': (79.238, 0.0, 0.0),
-        'right_knee': (99.133,), 'right_ankle': (19.921, 0.0), 'left_hip': (79.238, 0.0, 0.0),
-        'left_knee': (99.133,), 'left_ankle': (19.921, 0.0),
+        'spine_lumbar': (59.908, -1.823, 3.363), 'spine_thoracic': (28.542, -2.001, 2.762),
+        'right_shoulder': (108.982, 4.084, 59.635), 'right_elbow': (27.63, 9.975),
+        'right_wrist': (-14.606, -0.301), 'left_shoulder': (74.374, 5.73, 11.459),
+        'right_hip': (79.238, 0.0, 0.0), 'right_knee': (99.133,), 'right_ankle': (19.921, 0.0),
+        'left_hip': (79.238, 0.0, 0.0), 'left_knee': (99.133,), 'left_ankle': (19.921, 0.0),
     })
     human.KeyRoot(7.6, (7.807, 54.121, 20.927), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'spine_lumbar': (57.995, -0.864, 1.645), 'spine_thoracic': (28.412, -0.978, 1.354),
-        'right_wrist': (0.108, -1.665), 'left_shoulder': (68.997, 5.73, 11.459),
-        'right_hip': (72.995, 0.0, 0.0), 'right_knee': (91.404,), 'right_ankle': (18.432, 0.0),
-        'left_hip': (72.995, 0.0, 0.0), 'left_knee': (91.404,), 'left_ankle': (18.432, 0.0),
+        'spine_lumbar': (57.995, -0.822, 1.516), 'spine_thoracic': (28.122, -0.902, 1.245),
+        'left_shoulder': (68.997, 5.73, 11.459), 'right_hip': (72.995, 0.0, 0.0),
+        'right_knee': (91.404,), 'right_ankle': (18.432, 0.0), 'left_hip': (72.995, 0.0, 0.0),
+        'left_knee': (91.404,), 'left_ankle': (18.432, 0.0),
     })
     human.KeyRoot(7.7, (7.546, 59.97, 21.732), (-17.969, 0.0, 0.0))
     human.KeyJoints(7.7, {
-        'spine_lumbar': (54.659, -0.003, 0.005), 'spine_thoracic': (27.303, -0.003, 0.004),
+        'spine_lumbar': (54.659, -0.003, 0.005), 'spine_thoracic': (27.288, -0.003, 0.004),
+        'right_elbow': (29.619, 9.983), 'right_wrist': (-15.125, 0.156),
         'left_shoulder': (61.751, 5.73, 11.459), 'right_hip': (64.58, 0.0, 0.0),
         'right_knee': (80.966,), 'right_ankle': (16.388, 0.0), 'left_hip': (64.58, 0.0, 0.0),
         'left_knee': (80.966,), 'left_ankle': (16.388, 0.0),
     })
     human.KeyRoot(7.8, (7.17, 64.328, 22.893), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.8, {'spine_lumbar': (48.841, 0.0, 0.0), 'spine_thoracic': (24.59, 0.0, 0.0)})
+    human.KeyJoints(7.8, {
+        'spine_lumbar': (48.841, 0.0, 0.0), 'spine_thoracic': (24.682, 0.0, 0.0),
+        'right_elbow': (29.932, 9.987),
+    })
     human.KeyRoot(7.9, (6.654, 68.365, 24.484), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.9, {'spine_lumbar': (40.841, 0.0, 0.0), 'spine_thoracic': (20.443, 0.0, 0.0)})
+    human.KeyJoints(7.9, {'spine_lumbar': (40.841, 0.0, 0.0), 'spine_thoracic': (20.456, 0.0, 0.0)})
     human.KeyRoot(8.0, (6.01, 72.034, 26.47), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.0, {'spine_lumbar': (34.077, 0.0, 0.0), 'spine_thoracic': (17.039, 0.0, 0.0)})
     human.KeyRoot(8.1, (5.25, 75.288, 28.814), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.1, {'spine_lumbar': (27.793, 0.0, 0.0), 'spine_thoracic': (13.896, 0.0, 0.0)})
+    human.KeyJoints(8.1, {
+        'spine_lumbar': (27.793, 0.0, 0.0), 'spine_thoracic': (13.896, 0.0, 0.0),
+        'right_shoulder': (108.956, 4.332, 59.599), 'right_wrist': (-15.266, 0.272),
+    })
     human.KeyRoot(8.2, (4.388, 78.085, 31.469), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.2, {
         'spine_lumbar': (22.024, 0.0, 0.0), 'spine_thoracic': (11.012, 0.0, 0.0),
-        'right_shoulder': (101.897, -3.581, 12.174), 'right_elbow': (32.536, 17.407),
+        'right_elbow': (30.147, 10.0),
     })
     human.KeyRoot(8.3, (3.442, 80.389, 34.388), (-17.969, 0.0, 0.0))
     human.KeyRoot(8.4, (2.427, 82.179, 37.518), (-17.969, 0.0, 0.0))
@@ -252,9 +270,9 @@ def drain_reservoir():
     human.KeyRoot(8.623797, (0.0, 84.188, 45.0), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.623797, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (3.879, -0.081, 3.031), 'head': (3.88, -0.001), 'right_clavicle': (1.283, 1.862),
-        'right_shoulder': (101.897, -3.581, 12.174), 'right_elbow': (32.536, 17.407),
-        'right_wrist': (0.083, -1.59), 'left_clavicle': (0.0, 0.0),
+        'neck': (4.116, -0.098, 3.688), 'head': (4.116, -0.001), 'right_clavicle': (1.133, 1.946),
+        'right_shoulder': (108.967, 4.344, 59.594), 'right_elbow': (30.147, 10.0),
+        'right_wrist': (-15.276, 0.278), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),

@@ -3037,7 +3037,7 @@ def remove_access_panel():
     human.KeyJoints(49.3, {
         'neck': (31.413, 23.609, -30.086), 'head': (12.687, -8.422),
         'right_shoulder': (34.395, 35.22, -9.877), 'left_shoulder': (89.57, -29.205, 14.639),
-        'left_elbow': (21.157, 18.169),
+        'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
@@ -3046,44 +3046,44 @@ def remove_access_panel():
     human.KeyJoints(49.4, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
         'right_shoulder': (34.325, 35.191, -9.866), 'right_elbow': (90.867, 24.9),
-        'right_wrist': (-16.573, -18.274), 'left_shoulder': (89.439, -29.208, 14.642),
-        'left_elbow': (21.271, 18.174), 'left_wrist': (0.882, -5.485),
+        'right_wrist': (-16.573, -18.274), 'left_shoulder': (89.469, -29.187, 14.687),
+        'left_elbow': (21.277, 18.15), 'left_wrist': (0.822, -5.505),
         'right_hip': (3.022, 0.0, 0.0), 'right_knee': (4.915,), 'right_ankle': (1.895, 0.0),
         'left_hip': (3.021, 0.0, 0.0), 'left_knee': (4.914,), 'left_ankle': (1.895, 0.0),
     })
     human.KeyJoints(49.5, {
-        'right_shoulder': (28.498, 32.809, -9.074), 'right_elbow': (93.259, 25.122),
-        'right_wrist': (-17.043, -17.678), 'left_shoulder': (80.119, -29.597, 14.83),
-        'left_elbow': (28.52, 18.611), 'left_wrist': (-1.858, -3.08),
+        'right_shoulder': (28.628, 32.749, -8.952), 'right_elbow': (93.286, 25.122),
+        'right_wrist': (-17.009, -17.65), 'left_shoulder': (82.48, -27.98, 18.355),
+        'left_elbow': (28.822, 16.72), 'left_wrist': (-6.447, -4.632),
         'right_hip': (2.855, 0.0, 0.0), 'right_knee': (4.578,), 'right_ankle': (1.751, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(49.6, {
-        'right_shoulder': (15.737, 27.511, -7.177), 'right_elbow': (98.397, 25.591),
-        'right_wrist': (-18.054, -16.408), 'left_shoulder': (60.027, -30.444, 15.227),
-        'left_elbow': (43.842, 19.535), 'left_wrist': (-7.799, 2.001),
+        'right_shoulder': (16.14, 27.368, -6.857), 'right_elbow': (98.482, 25.591),
+        'right_wrist': (-17.964, -16.333), 'left_shoulder': (67.017, -25.045, 26.184),
+        'left_elbow': (44.854, 13.69), 'left_wrist': (-21.865, -2.777),
     })
     human.KeyJoints(49.7, {
-        'right_shoulder': (-0.549, 20.56, -4.393), 'right_elbow': (104.677, 26.16),
-        'right_wrist': (-19.293, -14.864), 'left_shoulder': (34.769, -31.49, 15.707),
-        'left_elbow': (62.625, 20.656), 'left_wrist': (-15.307, 8.158),
+        'right_shoulder': (-0.233, 20.449, -4.149), 'right_elbow': (104.796, 26.16),
+        'right_wrist': (-19.231, -14.798), 'left_shoulder': (47.22, -20.483, 35.587),
+        'left_elbow': (64.364, 10.015), 'left_wrist': (-40.644, -0.499),
     })
     human.KeyJoints(49.8, {
-        'right_shoulder': (-16.916, 13.227, -0.933), 'right_elbow': (110.445, 26.681),
-        'right_wrist': (-20.432, -13.449), 'left_shoulder': (9.856, -32.454, 16.145),
-        'left_elbow': (80.411, 21.682), 'left_wrist': (-22.756, 13.808),
+        'right_shoulder': (-16.984, 13.261, -0.998), 'right_elbow': (110.406, 26.681),
+        'right_wrist': (-20.447, -13.467), 'left_shoulder': (27.008, -14.73, 43.913),
+        'left_elbow': (82.508, 6.652), 'left_wrist': (-57.924, 1.665),
     })
     human.KeyJoints(49.9, {
-        'right_shoulder': (-29.915, 6.781, 2.995), 'right_elbow': (114.039, 27.006),
-        'right_wrist': (-21.141, -12.567), 'left_shoulder': (-9.212, -33.054, 16.418),
-        'left_elbow': (92.773, 22.321), 'left_wrist': (-28.522, 17.369),
+        'right_shoulder': (-30.228, 7.023, 2.575), 'right_elbow': (113.86, 27.006),
+        'right_wrist': (-21.239, -12.664), 'left_shoulder': (10.478, -7.855, 49.785),
+        'left_elbow': (94.238, 4.082), 'left_wrist': (-69.715, 2.899),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(50.0, {
-        'right_shoulder': (-36.654, 2.299, 8.251), 'right_elbow': (112.698, 26.83),
-        'right_wrist': (-20.413, -12.587), 'left_shoulder': (-18.072, -30.097, 13.224),
-        'left_elbow': (96.659, 22.119), 'left_wrist': (-31.317, 17.921),
+        'right_shoulder': (-36.755, 2.394, 8.109), 'right_elbow': (112.677, 26.83),
+        'right_wrist': (-20.45, -12.611), 'left_shoulder': (-0.951, -0.22, 49.156),
+        'left_elbow': (96.381, 4.319), 'left_wrist': (-70.0, 3.332),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=50.086359, duration=0.072)
@@ -3091,8 +3091,8 @@ def remove_access_panel():
     human.Grasp('right_hand', 'open', start=50.086359, duration=0.072)
     human.KeyJoints(50.1, {
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
-        'right_wrist': (-18.939, -12.508), 'left_shoulder': (-26.869, -28.578, 12.87),
-        'left_elbow': (105.468, 22.926), 'left_wrist': (-33.924, 20.0),
+        'right_wrist': (-18.939, -12.508), 'left_shoulder': (-8.692, 5.665, 48.876),
+        'left_elbow': (106.489, 7.124), 'left_wrist': (-70.0, 6.396),
     })
     human.KeyRoot(50.158359, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(50.158359, {
@@ -3100,8 +3100,8 @@ def remove_access_panel():
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
         'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-26.869, -28.578, 12.87), 'left_elbow': (105.468, 22.926),
-        'left_wrist': (-33.924, 20.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'left_shoulder': (-8.164, 6.427, 49.699), 'left_elbow': (106.552, 7.003),
+        'left_wrist': (-70.0, 6.246), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })

@@ -117,28 +117,33 @@ def replace_fuel_filter():
     human.KeyRoot(1.5, (5.73, 76.097, 37.485), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
         'spine_lumbar': (-1.598, 11.301, 0.0), 'spine_thoracic': (-0.458, 2.035, 0.0),
-        'right_hip': (13.222, 0.745, 2.6), 'right_knee': (85.025,), 'right_ankle': (11.029, 2.746),
-        'left_hip': (46.542, -1.396, -1.502), 'left_knee': (63.465,),
-        'left_ankle': (16.394, -2.054),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'right_hip': (13.222, 0.745, 2.6), 'right_knee': (85.025,),
+        'right_ankle': (11.029, 2.746), 'left_hip': (46.542, -1.396, -1.502),
+        'left_knee': (63.465,), 'left_ankle': (16.394, -2.054),
     })
     human.KeyRoot(1.6, (5.43, 59.097, 30.023), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
         'spine_lumbar': (26.614, 9.316, 0.0), 'spine_thoracic': (4.092, 1.635, 0.0),
-        'right_hip': (32.156, -0.362, 1.602), 'right_knee': (120.881,),
-        'right_ankle': (18.069, 1.935), 'left_hip': (72.004, -0.268, -0.867),
-        'left_knee': (92.454,), 'left_ankle': (19.646, -0.913),
+        'right_shoulder': (8.082, 6.381, 10.779), 'right_elbow': (35.307, 18.128),
+        'right_wrist': (-3.399, -3.326), 'right_hip': (32.156, -0.362, 1.602),
+        'right_knee': (120.881,), 'right_ankle': (18.069, 1.935),
+        'left_hip': (72.004, -0.268, -0.867), 'left_knee': (92.454,),
+        'left_ankle': (19.646, -0.913),
     })
     human.KeyRoot(1.7, (3.72, 48.492, 34.801), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
         'spine_lumbar': (16.521, 9.345, 0.0), 'spine_thoracic': (2.529, 1.665, 0.0),
-        'right_hip': (32.015, -0.486, 0.893), 'right_knee': (134.656,),
-        'right_ankle': (16.243, 3.802), 'left_hip': (89.37, -0.005, 0.004), 'left_knee': (117.383,),
-        'left_ankle': (14.135, -0.004),
+        'right_shoulder': (8.204, 5.765, 10.994), 'right_elbow': (35.248, 17.75),
+        'right_wrist': (-3.344, 0.446), 'right_hip': (32.015, -0.486, 0.893),
+        'right_knee': (134.656,), 'right_ankle': (16.243, 3.802),
+        'left_hip': (89.37, -0.005, 0.004), 'left_knee': (117.383,), 'left_ankle': (14.135, -0.004),
     })
     human.KeyRoot(1.8, (2.091, 44.581, 41.754), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
         'spine_lumbar': (-1.888, 9.571, 0.0), 'spine_thoracic': (-0.489, 1.728, 0.0),
-        'right_hip': (25.459, -0.37, 0.554), 'right_knee': (134.894,),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'right_hip': (25.459, -0.37, 0.554), 'right_knee': (134.894,),
         'right_ankle': (11.243, 5.09), 'left_hip': (97.197, -0.695, 0.995), 'left_knee': (130.857,),
         'left_ankle': (5.953, 1.224),
     })
@@ -170,21 +175,26 @@ def replace_fuel_filter():
     })
     human.KeyRoot(2.3, (0.114, 43.861, 41.993), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.282, 20.0, 0.0), 'right_hip': (25.346, -2.988, 3.813),
-        'right_ankle': (6.709, 34.794), 'left_hip': (96.39, -23.488, 31.004),
-        'left_knee': (133.374,), 'left_ankle': (-44.476, -19.434),
+        'spine_lumbar': (0.282, 20.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
+        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
+        'right_hip': (25.346, -2.988, 3.813), 'right_ankle': (6.709, 34.794),
+        'left_hip': (96.39, -23.488, 31.004), 'left_knee': (133.374,),
+        'left_ankle': (-44.476, -19.434),
     })
     human.KeyRoot(2.4, (0.014, 43.856, 41.976), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.4, {
         'spine_lumbar': (3.127, 20.0, 0.0), 'spine_thoracic': (-8.416, 10.0, 0.0),
-        'right_hip': (25.349, -3.119, 3.792), 'right_knee': (134.995,),
-        'right_ankle': (6.665, 35.0), 'left_hip': (63.923, -9.059, 27.571), 'left_knee': (135.0,),
+        'right_shoulder': (8.228, 5.757, 10.906), 'right_elbow': (35.231, 17.883),
+        'right_wrist': (-4.087, 0.631), 'right_hip': (25.349, -3.119, 3.792),
+        'right_knee': (134.995,), 'right_ankle': (6.665, 35.0),
+        'left_hip': (63.923, -9.059, 27.571), 'left_knee': (135.0,),
         'left_ankle': (-45.719, -11.197),
     })
     human.KeyRoot(2.5, (0.063, 44.827, 44.171), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.5, {
         'spine_lumbar': (1.932, 20.0, 0.0), 'spine_thoracic': (-5.128, 10.0, 0.0),
-        'right_hip': (22.205, -2.528, 3.658), 'right_knee': (131.91,),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'right_hip': (22.205, -2.528, 3.658), 'right_knee': (131.91,),
         'right_ankle': (7.268, 31.65), 'left_hip': (37.483, -20.992, -3.064),
         'left_knee': (131.783,), 'left_ankle': (-31.534, -0.891),
     })
@@ -808,35 +818,42 @@ def replace_fuel_filter():
     human.KeyRoot(15.9, (1.542, 44.797, 44.263), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.9, {
         'spine_lumbar': (6.681, 17.091, 3.949), 'spine_thoracic': (0.681, 4.109, -15.652),
-        'right_hip': (22.438, -0.57, 0.892), 'right_knee': (132.422,),
-        'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892), 'left_knee': (132.422,),
-        'left_ankle': (9.856, -7.271),
+        'right_shoulder': (8.622, 5.781, 11.663), 'right_elbow': (34.323, 17.282),
+        'right_wrist': (-0.122, -0.054), 'right_hip': (22.438, -0.57, 0.892),
+        'right_knee': (132.422,), 'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892),
+        'left_knee': (132.422,), 'left_ankle': (9.856, -7.271),
     })
     human.KeyRoot(16.0, (1.117, 44.289, 43.012), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.0, {
         'spine_lumbar': (9.102, 20.0, 3.949), 'spine_thoracic': (-1.773, 10.0, -15.652),
-        'right_hip': (24.116, -1.428, 2.049), 'right_knee': (134.023,),
-        'right_ankle': (9.175, 17.319), 'left_hip': (24.116, 1.428, -2.049),
-        'left_knee': (134.023,), 'left_ankle': (9.175, -17.319),
+        'right_shoulder': (9.783, 7.67, 16.764), 'right_elbow': (35.374, 19.564),
+        'right_wrist': (1.952, -3.604), 'right_hip': (24.116, -1.428, 2.049),
+        'right_knee': (134.023,), 'right_ankle': (9.175, 17.319),
+        'left_hip': (24.116, 1.428, -2.049), 'left_knee': (134.023,),
+        'left_ankle': (9.175, -17.319),
     })
     human.KeyRoot(16.1, (-0.056, 44.345, 43.036), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.1, {
         'spine_lumbar': (9.449, 20.0, 3.949), 'spine_thoracic': (-9.041, 10.0, -15.652),
-        'right_hip': (23.799, -2.956, 3.894), 'right_knee': (133.446,),
-        'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385), 'left_knee': (134.975,),
-        'left_ankle': (8.358, -19.152),
+        'right_shoulder': (8.623, 5.748, 11.547), 'right_elbow': (34.317, 17.229),
+        'right_wrist': (-0.05, -0.032), 'right_hip': (23.799, -2.956, 3.894),
+        'right_knee': (133.446,), 'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385),
+        'left_knee': (134.975,), 'left_ankle': (8.358, -19.152),
     })
     human.KeyRoot(16.2, (-0.125, 45.363, 45.533), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.2, {
         'spine_lumbar': (0.436, 20.0, 3.949), 'spine_thoracic': (-6.814, 10.0, -15.652),
-        'right_hip': (20.24, -2.446, 3.776), 'right_knee': (129.937,),
-        'right_ankle': (7.205, 32.018), 'left_hip': (25.476, -20.779, -4.841),
-        'left_knee': (132.206,), 'left_ankle': (-1.619, -1.63),
+        'right_shoulder': (8.58, 5.741, 11.488), 'right_elbow': (34.386, 17.202),
+        'right_wrist': (-0.019, -0.004), 'right_hip': (20.24, -2.446, 3.776),
+        'right_knee': (129.937,), 'right_ankle': (7.205, 32.018),
+        'left_hip': (25.476, -20.779, -4.841), 'left_knee': (132.206,),
+        'left_ankle': (-1.619, -1.63),
     })
     human.KeyRoot(16.3, (0.22, 43.903, 42.087), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.3, {
         'spine_lumbar': (7.197, 20.0, 3.949), 'spine_thoracic': (-5.507, 10.0, -15.652),
-        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
+        'right_shoulder': (7.382, 5.899, 10.537), 'right_elbow': (37.289, 18.911),
+        'right_wrist': (-9.506, 5.205), 'left_shoulder': (8.594, 5.73, 11.459),
         'left_elbow': (34.377, 17.189), 'right_hip': (25.234, -2.825, 3.622),
         'right_knee': (134.923,), 'right_ankle': (7.075, 32.768),
         'left_hip': (46.263, -19.671, 3.021), 'left_ankle': (-46.113, -3.977),
@@ -844,15 +861,15 @@ def replace_fuel_filter():
     human.KeyRoot(16.4, (0.037, 43.856, 41.978), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.4, {
         'spine_lumbar': (1.043, 20.0, 3.949), 'spine_thoracic': (-8.777, 10.0, -15.652),
-        'right_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
-        'right_hip': (25.35, -3.091, 3.792), 'right_knee': (134.999,),
-        'right_ankle': (6.684, 34.925), 'left_hip': (83.405, -21.566, 31.596),
-        'left_knee': (134.236,), 'left_ankle': (-44.475, -16.418),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'left_wrist': (0.0, 0.0), 'right_hip': (25.35, -3.091, 3.792),
+        'right_knee': (134.999,), 'right_ankle': (6.684, 34.925),
+        'left_hip': (83.405, -21.566, 31.596), 'left_knee': (134.236,),
+        'left_ankle': (-44.475, -16.418),
     })
     human.KeyJoints(16.5, {
         'spine_lumbar': (0.161, 20.0, 3.949), 'spine_thoracic': (-9.448, 10.0, -15.652),
-        'right_wrist': (0.0, 0.0), 'left_hip': (111.005, -17.935, 10.92),
-        'left_ankle': (-37.194, -23.109),
+        'left_hip': (111.005, -17.935, 10.92), 'left_ankle': (-37.194, -23.109),
     })
     human.KeyJoints(16.6, {
         'spine_lumbar': (-0.294, 20.0, 3.949), 'spine_thoracic': (-6.149, 10.0, -15.652),
@@ -869,15 +886,17 @@ def replace_fuel_filter():
     human.KeyRoot(16.8, (1.814, 44.016, 42.509), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.8, {
         'spine_lumbar': (-3.512, 19.67, 3.949), 'spine_thoracic': (-1.022, 3.984, -15.652),
-        'right_hip': (25.018, -0.638, 0.904), 'right_ankle': (9.842, 7.602),
-        'left_hip': (100.292, -1.591, 1.724), 'left_knee': (132.49,), 'left_ankle': (-0.212, 2.435),
+        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+        'left_wrist': (0.0, 0.0), 'right_hip': (25.018, -0.638, 0.904),
+        'right_ankle': (9.842, 7.602), 'left_hip': (100.292, -1.591, 1.724), 'left_knee': (132.49,),
+        'left_ankle': (-0.212, 2.435),
     })
     human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
         'spine_lumbar': (-3.806, 9.808, 3.949), 'spine_thoracic': (-0.821, 1.771, -15.652),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (25.037, -0.397, 0.568),
+        'left_shoulder': (8.606, 6.527, 12.639), 'left_elbow': (34.294, 18.304),
+        'left_wrist': (0.699, 0.873), 'right_hip': (25.037, -0.397, 0.568),
         'right_ankle': (10.063, 4.833), 'left_hip': (98.871, -0.812, 0.999),
         'left_knee': (132.297,), 'left_ankle': (3.221, 1.335),
     })
@@ -885,17 +904,17 @@ def replace_fuel_filter():
     human.KeyJoints(17.0, {
         'spine_lumbar': (9.839, 8.94, 3.949), 'spine_thoracic': (1.47, 1.621, -15.652),
         'right_shoulder': (8.938, 5.462, 11.523), 'right_elbow': (34.545, 17.189),
-        'left_shoulder': (7.339, 6.419, 11.293), 'left_elbow': (37.574, 17.189),
-        'left_wrist': (-0.293, 0.73), 'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,),
-        'right_ankle': (14.452, 5.04), 'left_hip': (92.433, -0.17, 0.414), 'left_knee': (123.3,),
-        'left_ankle': (11.609, 0.435),
+        'right_wrist': (0.013, 0.045), 'left_shoulder': (7.604, 7.253, 12.596),
+        'left_elbow': (36.845, 18.483), 'left_wrist': (0.141, 2.162),
+        'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,), 'right_ankle': (14.452, 5.04),
+        'left_hip': (92.433, -0.17, 0.414), 'left_knee': (123.3,), 'left_ankle': (11.609, 0.435),
     })
     human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
         'spine_lumbar': (31.259, 7.901, 3.949), 'spine_thoracic': (4.686, 1.42, -15.652),
         'right_shoulder': (9.77, 4.9, 11.649), 'right_elbow': (34.592, 17.189),
-        'right_wrist': (0.06, 0.07), 'left_shoulder': (5.322, 7.671, 10.974),
-        'left_elbow': (42.994, 17.188), 'left_wrist': (-0.804, 1.966),
+        'right_wrist': (0.06, 0.07), 'left_shoulder': (5.396, 8.284, 12.186),
+        'left_elbow': (42.933, 17.229), 'left_wrist': (-0.892, 2.201),
         'right_hip': (34.67, -0.462, 1.249), 'right_knee': (128.657,),
         'right_ankle': (18.339, 2.038), 'left_hip': (79.247, -0.08, -0.608),
         'left_knee': (101.565,), 'left_ankle': (19.028, -0.62),

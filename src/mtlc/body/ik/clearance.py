@@ -1,0 +1,248 @@
+"""IK with the body's own volume as a constraint: an arm moved out of the trunk and thighs.
+
+The reach solvers know only where the hand should be. An arm has seven dofs for a hand's six
+(position and orientation), so the same hand pose can be held with the elbow swung in, through
+the thigh of a squatting body or the side of the trunk, or swung out beside it. ``keep_clear``
+solves, per configuration, a small damped (Levenberg-Marquardt) least-squares problem on the
+arm's dofs whose residuals are
+
+* the limb's penetration into each capsule with its clearance (``capsules.clearance``: the
+  forearm's and hand's surface kept ``CLEARANCE_MARGIN`` outside the trunk and thighs), weight 1;
+* the hand's pose (its site, fingertip and wrist frame) where it was, weight ``keep`` per
+  configuration: large where the hand is on a site or holds a part (the elbow swings out, the
+  goal is kept), small where the hand is free (it may move out too); the site weighs ten times
+  its orientation (which yields first when the swivel alone cannot clear), the orientation at
+  least ``ORIENT_FLOOR``;
+* a small pull toward the start configuration, so nothing moves that need not.
+
+Configurations already clear are returned unchanged; the dofs stay within their limits.
+Jacobians are by finite differences of batched forward kinematics (seven dofs, a few hundred
+frames: a handful of forward calls per iteration).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..capsules import clearance, side_limbs
+from ..kinematics import forward, site_positions
+from ..skeleton import Skeleton
+
+FloatArray = NDArray[np.float64]
+
+FRAME_ARM = 0.05  # m: the wrist frame's axes are kept as points this far from the wrist
+REST_WEIGHT = 0.02  # m per rad toward the start configuration
+STEP = 1e-5  # rad, finite-difference step
+MAX_ITER = 25
+MAX_STEP = 0.15  # rad per dof per iteration
+# the hand's site weighs fully; its orientation (the other points) yields first: a forearm
+# twisted to its limit by a `turn` cannot swing the elbow out with the hand's frame held
+POINT_WEIGHT = np.array([1.0, 0.1, 0.1, 0.1, 0.1])
+ORIENT_FLOOR = 0.3  # ...but never below this: a free hand moves out, it does not flick
+SWIVELS = np.radians([-150.0, -100.0, -50.0, 50.0, 100.0, 150.0])  # elbow turns tried
+HAND_TOL = 2e-4  # m: a kept hand (weight ``KEPT`` or more) is restored this close
+KEPT = 1.0
+SWIVEL_FROM = 1e-3  # m: a pose this far inside after the local solve tries the swivels
+
+
+def _residuals(
+    skel: Skeleton,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    kept: FloatArray,
+    keep: FloatArray,
+    q0: FloatArray,
+    dofs: Sequence[int],
+) -> FloatArray:
+    """(N, M) residuals of configurations ``q`` (N, D) (see the module docstring)."""
+    pose = forward(skel, q, root[0], root[1], with_axes=False)
+    pen = np.maximum(clearance(skel, pose, side_limbs(side)), 0.0)
+    held = _hand_points(skel, pose, side)
+    off = (held - kept) * _point_weights(keep)[..., None]
+    off = off.reshape(len(q), -1)
+    rest = REST_WEIGHT * (q[:, dofs] - q0[:, dofs])
+    return np.concatenate([pen, off, rest], axis=1)
+
+
+def _point_weights(keep: FloatArray) -> FloatArray:
+    """(N, 5) the weights of the hand's site and its four orientation points: the site
+    ``keep``, its orientation a tenth of that, but never less than ``ORIENT_FLOOR`` (a free
+    hand may move out of the way; flipping the wrist to its limits frame by frame is no way)."""
+    w = keep[:, None] * POINT_WEIGHT
+    w[:, 1:] = np.maximum(w[:, 1:], ORIENT_FLOOR)
+    return w
+
+
+def _hand_points(skel: Skeleton, pose: object, side: str) -> FloatArray:
+    """(N, 5, 3) the hand's site, fingertip and three points of the wrist's frame: the hand's
+    whole pose, and with it any tool it holds."""
+    sites = site_positions(skel, pose, [f"{side}_hand", f"{side}_fingertip"])  # type: ignore[arg-type]
+    w = skel.joint_index(f"{side}_wrist")
+    p, r = pose.p[:, w], pose.R[:, w]  # type: ignore[attr-defined]
+    frame = p[:, None, :] + FRAME_ARM * np.swapaxes(r, -1, -2)
+    return np.concatenate([sites, frame], axis=1)
+
+
+def arm_dofs(skel: Skeleton, side: str) -> list[int]:
+    """The arm's own dofs (shoulder, elbow, forearm twist, wrist) of one side."""
+    return [d for d, n in enumerate(skel.dof_names) if n.startswith(f"{side}_") and
+            n.split("_")[1] in ("shoulder", "elbow", "wrist")]  # fmt: skip
+
+
+def penetration(
+    skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], side: str
+) -> FloatArray:
+    """(N,) the deepest point of the side's forearm or hand inside a capsule with clearance."""
+    pose = forward(skel, q, root[0], root[1], with_axes=False)
+    return clearance(skel, pose, side_limbs(side)).max(axis=1)
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """One row per configuration: what its residuals compare against."""
+
+    root: tuple[FloatArray, FloatArray]  # (N, 3), (N, 4)
+    kept: FloatArray  # (N, 5, 3) the hand's points to keep
+    keep: FloatArray  # (N,) their weight
+    rest: FloatArray  # (N, D) the start configurations
+    elbow: FloatArray | None = None  # (N, 3) a swivel seed's elbow target
+
+    def take(self, idx: np.ndarray) -> _Problem:
+        return _Problem(
+            (self.root[0][idx], self.root[1][idx]), self.kept[idx], self.keep[idx],
+            self.rest[idx], None if self.elbow is None else self.elbow[idx],
+        )  # fmt: skip
+
+
+def _res(skel: Skeleton, q: FloatArray, side: str, pb: _Problem, dofs: list[int]) -> FloatArray:
+    """The residuals, or a swivel seed's (the elbow's target and the hand's pose)."""
+    if pb.elbow is None:
+        return _residuals(skel, q, pb.root, side, pb.kept, pb.keep, pb.rest, dofs)
+    pose = forward(skel, q, pb.root[0], pb.root[1], with_axes=False)
+    off = (_hand_points(skel, pose, side) - pb.kept) * _point_weights(pb.keep)[..., None]
+    elbow = pose.p[:, skel.joint_index(f"{side}_elbow")] - pb.elbow
+    return np.concatenate([elbow, off.reshape(len(q), -1)], axis=1)
+
+
+def _lm(
+    skel: Skeleton, start: FloatArray, side: str, pb: _Problem, dofs: list[int], max_iter: int
+) -> tuple[FloatArray, FloatArray]:
+    """Levenberg-Marquardt on the arm's dofs from ``start``: (configurations, final cost). A
+    row stops once it is clear (a swivel seed: once its elbow is there); the finite-difference
+    Jacobian of every working row is one batched forward kinematics."""
+    lo, hi = skel.lower[dofs], skel.upper[dofs]
+    n_d = len(dofs)
+    cur = np.array(start, dtype=float)
+    r = _res(skel, cur, side, pb, dofs)
+    cost = np.einsum("nm,nm->n", r, r)
+    mu = np.full(len(cur), 1e-3)
+    eye = np.eye(n_d)
+    n_pen = r.shape[1] - 15 - n_d  # the clearance columns come first
+    for _ in range(max_iter):
+        if pb.elbow is None:
+            # at work while inside, or (``HAND_TOL``) while a kept hand is off its pose
+            off = np.abs(r[:, n_pen : n_pen + 3]).max(axis=1) / np.maximum(pb.keep, 1e-12)
+            inside = r[:, :n_pen].max(axis=1, initial=0.0) > 0.0
+            work = np.flatnonzero(inside | ((off > HAND_TOL) & (pb.keep >= KEPT)))
+        else:
+            work = np.flatnonzero(np.abs(r[:, :3]).max(axis=1) > 1e-3)
+        if work.size == 0:
+            break
+        sub = pb.take(work)
+        qw = cur[work]
+        m = len(work)
+        stack = np.repeat(qw[None], n_d, axis=0)  # (n_d, m, D)
+        stack[np.arange(n_d), :, dofs] += STEP
+        big = pb.take(np.tile(work, n_d))
+        rs = _res(skel, stack.reshape(n_d * m, -1), side, big, dofs).reshape(n_d, m, -1)
+        J = np.moveaxis((rs - r[work][None]) / STEP, 0, -1)  # (m, M, n_d)
+        Jt = np.swapaxes(J, 1, 2)
+        A = Jt @ J + mu[work, None, None] * eye
+        g = np.einsum("nkm,nm->nk", Jt, r[work])
+        dq = -np.linalg.solve(A, g[..., None])[..., 0]
+        dq *= np.minimum(1.0, MAX_STEP / np.maximum(np.abs(dq).max(axis=1), 1e-12))[:, None]
+        trial = qw.copy()
+        trial[:, dofs] = np.clip(qw[:, dofs] + dq, lo, hi)
+        rt = _res(skel, trial, side, sub, dofs)
+        ct = np.einsum("nm,nm->n", rt, rt)
+        better = ct < cost[work]
+        won = work[better]
+        cur[won], r[won], cost[won] = trial[better], rt[better], ct[better]
+        mu[work] = np.where(better, mu[work] * 0.3, mu[work] * 10.0)
+    return cur, cost
+
+
+def _swivel_targets(
+    skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], side: str, angle: float
+) -> FloatArray:
+    """(N, 3) the elbow turned by ``angle`` about the line from the shoulder to the wrist: the
+    arm's one free motion when the hand stays where it is."""
+    pose = forward(skel, q, root[0], root[1], with_axes=False)
+    s, e, w = (pose.p[:, skel.joint_index(f"{side}_{j}")] for j in ("shoulder", "elbow", "wrist"))
+    k = w - s
+    k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
+    v = e - s
+    c, sn = np.cos(angle), np.sin(angle)
+    kv = np.einsum("nc,nc->n", k, v)[:, None]
+    return s + v * c + np.cross(k, v) * sn + k * kv * (1.0 - c)
+
+
+def keep_clear(
+    skel: Skeleton,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    keep: FloatArray,
+    max_iter: int = MAX_ITER,
+    swivel: bool = False,
+    start: FloatArray | None = None,
+) -> FloatArray:
+    """Configurations ``q`` (N, D) with the ``side`` arm moved clear of the trunk and thighs.
+
+    ``root``: (N, 3) positions and (N, 4) rotations; ``keep`` (N,) the weight of the hand's
+    pose against the clearance (see the module docstring). Rows already clear come back as
+    they were; a row that cannot be cleared keeps its best configuration. ``swivel``: a row
+    the local solve leaves inside also tries the elbow turned about the shoulder-wrist line by
+    each of ``SWIVELS`` (a pose through the trunk is often a local minimum: the way out is
+    round, not straight), keeping the best; for single poses (keyframes), where no
+    neighbouring frame has to agree. ``start``: where to start from instead of ``q`` (the
+    hand's pose and the rest pull stay ``q``'s); a row clear there is returned as it is."""
+    q = np.array(q, dtype=float)
+    begin = q if start is None else np.asarray(start, dtype=float)
+    need = np.flatnonzero(penetration(skel, begin, root, side) > 0.0)
+    if need.size == 0:
+        return np.array(begin, dtype=float)
+    dofs = arm_dofs(skel, side)
+    root_n = (root[0][need], root[1][need])
+    q0 = q[need].copy()
+    kept = _hand_points(skel, forward(skel, q0, *root_n, with_axes=False), side)
+    pb = _Problem(root_n, kept, np.asarray(keep, dtype=float)[need], q0)
+    best, cost = _lm(skel, begin[need], side, pb, dofs, max_iter)
+    if swivel:
+        left = np.flatnonzero(penetration(skel, best, root_n, side) > SWIVEL_FROM)
+        if left.size:
+            # every turn of every row in one batch: rows (turn, row)
+            turns = len(SWIVELS)
+            rows = np.tile(left, turns)
+            root_n_left = (root_n[0][left], root_n[1][left])
+            sub = pb.take(rows)
+            target = np.concatenate(
+                [_swivel_targets(skel, q0[left], root_n_left, side, a)
+                 for a in SWIVELS]
+            )  # fmt: skip
+            seed, _ = _lm(skel, q0[rows], side, replace(sub, elbow=target), dofs, max_iter)
+            cand, c = _lm(skel, seed, side, sub, dofs, max_iter)
+            c = c.reshape(turns, len(left))
+            pick = np.argmin(c, axis=0)
+            c_best = c[pick, np.arange(len(left))]
+            won = c_best < cost[left]
+            chosen = cand.reshape(turns, len(left), -1)[pick, np.arange(len(left))]
+            best[left[won]], cost[left[won]] = chosen[won], c_best[won]
+    out = np.array(begin, dtype=float)
+    out[need] = best
+    return out

@@ -1,0 +1,140 @@
+"""Pass 7a: a part held in both hands is rigid: the part's pose drives both hands (MT0511).
+
+Each hand's reach or move is solved, keyed and interpolated on its own arm, so between the
+keyframes the two hands follow two unrelated joint-space paths: a panel carried to the bench
+was squeezed 11-36 mm and an avionics unit 146-196 mm while the verify pass held it rigid. Here,
+on the dense frames where both hands are closed on one two-handed part (``carries``), the part
+is one body: its centre follows the hands' mid-point and its axis the line between them, as the
+solved motion has them, and its length is what it was when the second hand closed. Each hand's
+goal on every such frame is its end of that part, and each arm (shoulder, elbow, wrist; not the
+forearm's twist) is re-solved onto it, warm-started from the frame's own pose. At the keyframes
+where both hands reach their goals the two agree already and nothing changes.
+
+A frame an arm cannot follow keeps its best pose; verify measures the hands' distance on the
+output frames and reports what is left (MT0511).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mtlc.body import forward, site_positions
+from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
+from mtlc.passes.context import PassContext
+from mtlc.passes.hold import _arm_dofs
+
+ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
+HAND_TRACK = {"r": "r_hand", "l": "l_hand"}
+REACHED = 1e-3  # m: a hand further than this from the part at its grasp does not hold it
+FIX_FROM = 5e-5  # m: frames whose hands are already this close to the part's ends stay
+SOLVE_TOL = 1e-4  # m
+EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class Carry:
+    """Both hands closed on one two-handed part from ``start`` until ``end``."""
+
+    site: str
+    start: float
+    end: float
+
+
+def _grasps(ir: MotionIR, side: str) -> list[tuple[float, float, Segment | None]]:
+    """(closes, opens, the contact the hand closed on) for each closed grip of one hand."""
+    grips = sorted(
+        (s for s in ir.on_track(HAND_TRACK[side]) if s.kind == "grip"), key=lambda s: s.start
+    )
+    out = []
+    for k, g in enumerate(grips):
+        if g.goal.params.get("state") != "closed":
+            continue
+        opens = [o.start for o in grips[k + 1 :] if o.goal.params.get("state") == "open"]
+        reach = max(
+            (r for r in ir.on_track(ARM_TRACK[side]) if r.kind == "TO" and r.end <= g.start + EPS),
+            key=lambda r: r.end,
+            default=None,
+        )
+        out.append((g.start, min(opens, default=ir.duration), reach))
+    return out
+
+
+def _holds_part(reach: Segment | None) -> str:
+    """The two-handed part a contact closes on ("" when none, or the hand fell short of it)."""
+    if reach is None or not reach.goal.params.get("two_handed") or not reach.goal.site:
+        return ""
+    reached = float(reach.result.get("distance", np.inf)) <= REACHED
+    return reach.goal.site if reached else ""
+
+
+def carries(ir: MotionIR) -> list[Carry]:
+    """Every span where both hands hold the same two-handed part (as verify's rigid check)."""
+    out = []
+    for r0, r1, r_reach in _grasps(ir, "r"):
+        site = _holds_part(r_reach)
+        if not site:
+            continue
+        for l0, l1, l_reach in _grasps(ir, "l"):
+            if _holds_part(l_reach) != site:
+                continue
+            start, end = max(r0, l0), min(r1, l1)
+            if end > start + EPS:
+                out.append(Carry(site, start, end))
+    return sorted(out, key=lambda c: c.start)
+
+
+def _hands(skel: object, frames: Frames, rows: np.ndarray, q: FloatArray) -> FloatArray:
+    pose = forward(skel, q, frames.root_position[rows], frames.root_rotation[rows], with_axes=False)  # type: ignore[arg-type]
+    return np.asarray(site_positions(skel, pose, ["r_hand", "l_hand"]))  # type: ignore[arg-type]
+
+
+def part_ends(hands: FloatArray, length: float) -> FloatArray:
+    """(N, 2, 3) where the two hands hold a rigid part of ``length`` whose centre and axis are
+    those of the hands' positions ``hands`` (N, 2, 3): the part's pose drives both goals."""
+    mid = hands.mean(axis=1)
+    axis = hands[:, 0] - hands[:, 1]
+    axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
+    half = 0.5 * length * axis
+    return np.stack([mid + half, mid - half], axis=1)
+
+
+def keep_rigid(skel: object, frames: Frames, carry: Carry) -> None:
+    """Re-solve both arms on the carry's frames so the hands hold the part's two ends."""
+    t = frames.time
+    rows = np.flatnonzero((t >= carry.start - EPS) & (t < carry.end - EPS))
+    if rows.size < 2:
+        return
+    q = frames.q[rows].copy()
+    hands = _hands(skel, frames, rows, q)
+    length = float(np.linalg.norm(hands[0, 0] - hands[0, 1]))
+    goal = part_ends(hands, length)
+    off = np.linalg.norm(hands - goal, axis=-1).max(axis=1)
+    fix = np.flatnonzero(off > FIX_FROM)
+    if fix.size == 0:
+        return
+    sub = rows[fix]
+    for k, hand in enumerate(("r_hand", "l_hand")):
+        model = prepare(
+            skel, [hand], q[fix], dofs=_arm_dofs(skel, hand),  # type: ignore[arg-type]
+            root_position=frames.root_position[sub], root_rotation=frames.root_rotation[sub],
+        )  # fmt: skip
+        res = solve_ta(
+            skel, [Goal(hand, position=goal[fix, k])], q[fix], model=model,  # type: ignore[arg-type]
+            restarts=0, null_gain=0.0, tol=SOLVE_TOL,
+        )  # fmt: skip
+        before = np.linalg.norm(hands[fix, k] - goal[fix, k], axis=1)
+        better = res.position_error < before
+        q[fix[better]] = res.q[better]
+    frames.q[rows] = q
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    frames = ir.frames
+    if frames is None or not len(frames.time):
+        return ir
+    for carry in carries(ir):
+        keep_rigid(ir.skeleton, frames, carry)
+    return ir

@@ -1,0 +1,121 @@
+"""Pass 7b: hands and forearms kept out of the trunk and the thighs (issues 18 and 19).
+
+The reach solvers place the hand; the arm's redundant dof (the elbow's swivel about the line
+from shoulder to wrist) falls where the solver's comfort pull leaves it, and the posture and
+balance passes then move the trunk and thighs under the arm. A squat to a valve 20 cm up put
+the forearm through the thigh for every manikin; two hands setting a panel down on a bench at
+the hip put a 5th-percentile woman's forearm 79 mm into her trunk. Here, on the final dense
+frames, every frame where a forearm or hand comes within its clearance of a capsule is
+re-solved by ``mtlc.body.ik.clearance.keep_clear``: the body's volume is a constraint of that
+arm's IK, the hand's pose is kept where the hand has a goal, and the correction is what the
+constraint needs, no more.
+
+Where the hand is on a site, holds a part, or arrives at a goal (``pinned_weights``), its
+pose keeps a weight ``PINNED`` against the clearance: only the elbow swings out, the goal is
+kept. Elsewhere (a free hand between goals, at rest) the weight is ``FREE`` and the hand may
+move out too. The weight changes over ``RAMP`` seconds so the correction does not jump.
+What the arm cannot clear is measured and reported by verify (MT0514).
+
+It runs after smoothing and the two-handed carry (``carry``), on the frames ``sample`` turns
+into the output: nothing after it moves the arms.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mtlc.body.ik.clearance import keep_clear
+from mtlc.ir.model import FloatArray, MotionIR
+from mtlc.passes.context import PassContext
+
+PINNED = 30.0  # weight of the hand's pose where it has a goal (per metre of the clearance)
+FREE = 0.3  # ...and where it is free
+RAMP = 0.2  # s over which the weight changes between the two
+GOAL_LEAD = 0.15  # s before a reach's end the hand counts as arriving at its goal
+ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
+HAND_TRACK = {"r": "r_hand", "l": "l_hand"}
+EPS = 1e-9
+MAX_SWING = 0.6  # rad a corrected dof may move between two dense frames, if the motion did not
+SWING_SMOOTH = 6  # dense frames each side a correction that swings is averaged over
+
+
+def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
+    """(N,) frames where the ``side`` hand's pose is a goal: the last ``GOAL_LEAD`` seconds of
+    each reach or move and its contact phase (TO), a wrench's strokes, and while its grip is
+    closed (it holds a site or carries a part)."""
+    out = np.zeros(len(t), dtype=bool)
+    for seg in ir.on_track(ARM_TRACK[side]):
+        start = seg.start if seg.kind == "TO" else seg.end - GOAL_LEAD
+        out |= (t >= start - EPS) & (t <= seg.end + EPS)
+    grips = sorted(
+        (s for s in ir.on_track(HAND_TRACK[side]) if s.kind == "grip"), key=lambda s: s.start
+    )
+    for k, g in enumerate(grips):
+        if g.goal.params.get("state") != "closed":
+            continue
+        opens = [o.start for o in grips[k + 1 :] if o.goal.params.get("state") == "open"]
+        out |= (t >= g.start - EPS) & (t < min(opens, default=np.inf) + EPS)
+    return out
+
+
+def pinned_weights(ir: MotionIR, side: str, t: FloatArray) -> FloatArray:
+    """(N,) the hand pose's weight per frame: ``PINNED`` where ``pinned``, ``FREE`` elsewhere,
+    each pinned span widened by ``RAMP`` on both sides and ramped over it."""
+    on = pinned(ir, side, t).astype(float)
+    if not on.any():
+        return np.full(len(t), FREE)
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    n = max(1, round(RAMP / dt))
+    # distance (in frames) to the nearest pinned frame, then a linear ramp over n frames
+    idx = np.flatnonzero(on)
+    pos = np.searchsorted(idx, np.arange(len(t)))
+    left = np.abs(np.arange(len(t)) - idx[np.clip(pos - 1, 0, len(idx) - 1)])
+    right = np.abs(idx[np.clip(pos, 0, len(idx) - 1)] - np.arange(len(t)))
+    gap = np.minimum(left, right)
+    share = np.clip(1.0 - gap / n, 0.0, 1.0)
+    return FREE + (PINNED - FREE) * share
+
+
+def without_swings(q: FloatArray, correction: FloatArray) -> FloatArray:
+    """The per-frame ``correction`` (N, D) of frames ``q``, where it makes a dof swing between
+    two frames by more than ``MAX_SWING`` and more than the motion did (solved frame by frame,
+    two neighbours can land on opposite sides of the thigh), replaced on that run of corrected
+    frames by its average over ``SWING_SMOOTH`` frames each side, fading to nothing at the
+    run's ends: a jump becomes a ramp. What that gives back of the depth, verify reports."""
+    before = np.abs(np.diff(q, axis=0))
+    after = np.abs(np.diff(q + correction, axis=0))
+    swings = np.flatnonzero((after > np.maximum(before, MAX_SWING)).any(axis=1))
+    out = correction.copy()
+    moved = np.abs(correction).max(axis=1) > 0.0
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], moved.astype(int), [0]])))
+    width = 2 * SWING_SMOOTH + 1
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        run = correction[a:b]
+        if not np.any((swings >= a - 1) & (swings < b)):
+            continue
+        padded = np.pad(run, ((width, width), (0, 0)))
+        kernel = np.ones(width) / width
+        for _ in range(2):  # twice: a triangle, no corners
+            padded = np.apply_along_axis(np.convolve, 0, padded, kernel, mode="same")
+        out[a:b] = padded[width:-width]
+    return out
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    frames = ir.frames
+    if frames is None or not len(frames.time):
+        return ir
+    root = (frames.root_position, frames.root_rotation)
+    skel = ir.skeleton
+    for side in ("r", "l"):
+        keep = pinned_weights(ir, side, frames.time)
+        q = frames.q
+        cleared = keep_clear(skel, q, root, side, keep)
+        smooth = skel.clip(q + without_swings(q, cleared - q))
+        if np.array_equal(smooth, cleared):
+            frames.q = cleared
+            continue
+        # solved again from the ramp: each frame starts where its neighbours' average is
+        again = keep_clear(skel, q, root, side, keep, start=smooth)
+        frames.q = skel.clip(q + without_swings(q, again - q))
+    return ir

@@ -14,7 +14,7 @@ from mtlc.body import build_manikin, forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import GoalSpec, Keyframes, Provenance, Segment, SourceRef
-from mtlc.ir.serialize import to_json
+from mtlc.ir.serialize import round_array, to_json
 from mtlc.passes import MotionOptions, lower, run_motion
 from mtlc.passes.interpolate import correct_base, interpolate_naive, lowest_foot_point
 
@@ -164,3 +164,24 @@ def test_base_correction_keeps_a_squat_out_of_the_floor() -> None:
 def test_no_body_point_below_the_ground(path: Path) -> None:
     ir, _ = compile_ir(path)
     assert lowest_foot_point(ir, ir.frames).min() >= ir.ground - 1e-3
+
+
+@pytest.mark.parametrize("decimals", [5, 6])
+def test_round_array_is_python_round_number_for_number(decimals: int) -> None:
+    """The frames are rounded a whole array at once; each number must come out as the
+    ``round(x, decimals)`` (and -0.0 as 0.0) the IR JSON always wrote: the same bytes. Near
+    halves (the decimal ``k.5`` at the last place and its neighbours) are where ``rint`` of a
+    scaled number can pick the other side, and large, tiny and non-finite numbers."""
+    rng = np.random.default_rng(7)
+    scales = [rng.normal(0.0, s, 3000) for s in (1e-7, 1e-4, 1e-2, 1.0, 90.0, 1e5, 1e9, 1e13)]
+    halves = np.array(
+        [float(f"{k}.5e-{decimals}") for k in rng.integers(-(10**9), 10**9, 3000)]
+        + [float(f"{k}5e-{decimals + 1}") for k in rng.integers(-(10**6), 10**6, 3000)]
+    )
+    odd = [0.0, -0.0, -1e-9, 2.5e-6, -2.5e-6, 0.000015, 1.000005, np.nan, np.inf, -np.inf, 1e300]
+    x = np.concatenate(
+        [*scales, halves, np.nextafter(halves, np.inf), np.nextafter(halves, -np.inf), odd]
+    )
+    got = round_array(x, decimals).tolist()
+    want = [0.0 if round(v, decimals) == 0 else round(v, decimals) for v in x.tolist()]
+    assert [repr(v) for v in got] == [repr(v) for v in want]

@@ -12,8 +12,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from mtlc.diagnostics import Span
 from mtlc.lint import LintConfig, lint_paths
 from mtlc.lint.engine import LintResult
+from mtlc.lint.findings import Finding, merge
 from mtlc.lint.output import (
     escape_data,
     escape_property,
@@ -183,3 +185,18 @@ def test_sarif_uris_are_valid_uris(tmp_path: Path) -> None:
         "uri": (tmp_path / "up.mtask").as_uri()
     }
     assert artifact_location("bad\udcffname.mtask", tmp_path)["uri"] == "bad%FFname.mtask"
+
+
+def test_merge_keeps_the_reported_order_of_one_manikins_details() -> None:
+    """Two findings of one manikin that merge (the same reach short at two times) are named in
+    the order reported, not in a set's order, which changes with the process's hash seed."""
+    span = Span("a.mtask", 3, 5, 3, 9)
+    details = [f"the hand cannot reach site `s0`: {n} mm short" for n in (90, 10, 55, 7, 3, 41)]
+    findings = [
+        Finding("MT0501", d, span, manikins=(m,), details=(d,))
+        for m in ("gb:female:5", "gb:male:95")
+        for d in details
+    ]
+    (merged,) = merge(findings, ["gb:female:5", "gb:male:95"])
+    assert merged.manikins == ("gb:female:5",) * 6 + ("gb:male:95",) * 6
+    assert list(merged.details) == details + details

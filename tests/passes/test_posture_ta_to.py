@@ -8,13 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mtlc.body import forward, site_direction, site_positions
+from mtlc.body import build_manikin, forward, site_direction, site_positions
+from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.passes import run_motion
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
 from mtlc.passes.posture import KNEE_HEIGHT, root_height, target_posture
-from mtlc.passes.state import PoseState
+from mtlc.passes.state import PoseState, solved
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
@@ -272,3 +273,32 @@ def test_the_kneeling_reach_to_a_tray_near_the_floor_arrives(
     to = next(s for s in ir.segments if s.kind == "TO" and s.goal.site == "drain_tray")
     assert to.provenance.origin.line not in short_lines(diags)
     assert to.result["distance"] <= MM
+
+
+def test_a_repeated_solve_is_answered_from_the_compile_cache() -> None:
+    """``passes.state.solved``: the same goals from the same start on the same model are solved
+    once per compile (a loop repeating a reach asks again); the answer is the solver's own,
+    a copy each time, and another start is solved anew."""
+    skel = build_manikin("gb10000_1988", "female", 5)
+    calls: list[int] = []
+
+    def counting(*args: object, **kwargs: object) -> object:
+        calls.append(1)
+        return solve_ta(*args, **kwargs)  # type: ignore[arg-type]
+
+    q0 = skel.q_comfort.copy()
+    goals = [Goal("r_hand", position=np.array([0.45, 1.1, 0.25]))]
+    model = prepare(skel, ["r_hand"], q0)
+    cache: dict = {}
+    first = solved(cache, counting, skel, goals, q0, model, tol=2e-4)
+    first.q[:] = 0.0  # a caller's change must not reach the next answer
+    again = solved(cache, counting, skel, goals, q0.copy(), model, tol=2e-4)
+    direct = solve_ta(skel, goals, q0, model=model, tol=2e-4)
+    assert len(calls) == 1
+    np.testing.assert_array_equal(again.q, direct.q)
+    np.testing.assert_array_equal(again.position_error, direct.position_error)
+    q1 = q0.copy()
+    q1[skel.dof_index("r_elbow_flex")] += 0.1
+    solved(cache, counting, skel, goals, q1, model, tol=2e-4)
+    solved(cache, counting, skel, goals, q0, model, tol=1e-3)  # other options: solved anew
+    assert len(calls) == 3

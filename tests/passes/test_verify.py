@@ -523,3 +523,21 @@ def test_a_reach_with_no_approach_followed_by_another_to_its_site_is_its_own_goa
     arm = [(s.kind, s.provenance.origin.line) for s in ir.on_track("l_arm")]
     assert arm[0] == ("TA", 11) and ("TO", 12) in arm
     assert {(c, line) for c, line, _ in found if c == "MT0501"} == {("MT0501", 11), ("MT0501", 12)}
+
+
+def test_the_static_margin_is_the_same_measured_a_chunk_at_a_time(
+    good: MotionIR, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """verify measures the support margin a chunk of frames at a time (an hour of motion at
+    once was 600 MB of hull edges): the margins do not depend on the chunks, and a finding
+    made in one chunk or across two reads the same."""
+    whole = corrupt(good)
+    found = reverify(whole)
+    chunked = corrupt(good)
+    monkeypatch.setattr(verify, "CHUNK_FRAMES", 7)
+    assert reverify(chunked) == found
+    a, b = whole.verification, chunked.verification
+    assert len(good.frames.time) > 7 * 10  # type: ignore[union-attr]
+    np.testing.assert_array_equal(a.support_margin, b.support_margin)  # type: ignore[union-attr]
+    assert a.static_margin == b.static_margin  # type: ignore[union-attr]
+    assert np.isfinite(a.support_margin).any()  # type: ignore[union-attr]

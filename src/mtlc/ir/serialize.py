@@ -16,6 +16,7 @@ import numpy as np
 
 from mtlc.ir.model import (
     IR_FORMAT_VERSION,
+    FloatArray,
     Keyframes,
     MotionIR,
     Segment,
@@ -30,13 +31,44 @@ TIME_DECIMALS = 6  # times to 1 µs, as JackScript writes them: frame times stay
 TIME_KEYS = frozenset({"time", "t_start", "t_end", "fps", "closest_time", "static_margin_time"})
 
 
+# |x| below which x * 10**decimals is an integer-exact double (< 2**53 for 6 decimals) with
+# room to spare: larger numbers are rounded one by one
+EXACT_LIMIT = 1e8
+
+
+def round_array(x: FloatArray, decimals: int) -> FloatArray:
+    """``round(float(v), decimals)`` of every element, -0.0 made 0.0, computed at once.
+
+    Python's ``round`` picks the decimal nearest to the exact binary value and returns the
+    double nearest to it; ``k / 10**decimals`` with an integer-exact ``k`` is that double too
+    (one correctly rounded division). ``rint(x * 10**decimals)`` picks the same ``k`` unless the
+    product lies within its rounding error of a half, or the number is large: those few
+    elements (and NaN and infinities) are rounded by ``round`` itself.
+    """
+    scale = 10.0**decimals
+    y = x * scale
+    k = np.rint(y)
+    with np.errstate(invalid="ignore"):
+        odd = ~(np.abs(x) < EXACT_LIMIT) | (
+            np.abs(np.abs(y - k) - 0.5) <= 4 * np.spacing(np.abs(y))
+        )
+    out = k / scale + 0.0  # + 0.0: -0.0 becomes 0.0
+    for i in np.flatnonzero(odd):
+        r = round(float(x.flat[i]), decimals)
+        out.flat[i] = 0.0 if r == 0 else r
+    return out
+
+
 def _num(v: Any, decimals: int = DECIMALS) -> Any:
     """JSON-able copy of ``v`` with every float rounded, and -0.0 written as 0.0.
 
     The rounding is far coarser than the last bits a different BLAS build changes (about 1e-8
     rad on the examples) and far finer than a reader needs to recompute frames (docs/ir.md).
+    A float array is rounded at once (``round_array``): the frames are most of the numbers.
     """
     if isinstance(v, np.ndarray):
+        if v.dtype.kind == "f":
+            return round_array(v.astype(np.float64), decimals).tolist()
         return _num(v.tolist(), decimals)
     if isinstance(v, float | np.floating):
         r = round(float(v), decimals)

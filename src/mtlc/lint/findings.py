@@ -77,8 +77,11 @@ def merge(findings: list[Finding], order: list[str]) -> list[Finding]:
         groups.setdefault(f.merge_key(), []).append(f)
     out = []
     for group in groups.values():
+        # each (manikin, detail) once, in the order reported: a set's order is the string
+        # hashes', which change from one process to the next (PYTHONHASHSEED), and so did the
+        # note of a finding with two details for one manikin
         pairs = sorted(
-            {(m, d) for f in group for m, d in zip(f.manikins, f.details, strict=True)},
+            dict.fromkeys(p for f in group for p in zip(f.manikins, f.details, strict=True)),
             key=lambda p: (rank.get(p[0], len(rank)), p[0]),
         )
         first = min(group, key=lambda f: rank.get(f.manikins[0], 0) if f.manikins else -1)

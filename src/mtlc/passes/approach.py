@@ -31,7 +31,7 @@ from mtlc.body.ik import ChainModel, Goal, default_dofs, prepare, solve_ta
 from mtlc.body.ik.clearance import keep_clear
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
-from mtlc.passes.state import PoseState, cached, mark, reanchor
+from mtlc.passes.state import PoseState, cached, mark, reanchor, solved
 
 TOLERANCE = 1e-3  # m, the solvers' position tolerance; further than this is "short"
 TWO_HAND_SPREAD = 0.20  # m between the hands on a two-handed site, across the body
@@ -308,7 +308,7 @@ def _solve_group(
     for k, (seg, p) in enumerate(zip(segs, targets, strict=True)):
         arm_goals = goals_of(k, seg, p)
         m = model_for(ctx, skel, tuple(g.effector for g in arm_goals), "arm", q, root)
-        q = solve_ta(skel, arm_goals, q, model=m).q[0]
+        q = solved(ctx.cache, solve_ta, skel, arm_goals, q, m).q[0]
     dist = [
         hand_distance(state, s.goal.effector, q, root, p)
         for s, p in zip(segs, targets, strict=True)
@@ -320,7 +320,7 @@ def _solve_group(
         """The goals solved with the trunk, the pinned hands put back; None when they cannot
         be (the trunk is then tried moving around them: they join the goals)."""
         m = model_for(ctx, skel, tuple(g.effector for g in goals), "torso", q0, root)
-        qt = solve_ta(skel, goals, q0, model=m).q[0]
+        qt = solved(ctx.cache, solve_ta, skel, goals, q0, m).q[0]
         if not pinned:
             return qt
         qt = repin(ctx, skel, qt[None], pinned, root)[0]
@@ -328,7 +328,8 @@ def _solve_group(
             return qt
         both = goals + list(pinned)
         m = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
-        qt = repin(ctx, skel, solve_ta(skel, both, q0, model=m).q[:1], pinned, root)[0]
+        qt = solved(ctx.cache, solve_ta, skel, both, q0, m).q[:1]
+        qt = repin(ctx, skel, qt, pinned, root)[0]
         return qt if pins_off(state, pinned, qt[None], root) <= TOLERANCE else None
 
     def distances(qc: FloatArray) -> list[float]:
@@ -360,7 +361,7 @@ def _solve_group(
                 if j != k:
                     arm_goals = goals_of(j, seg, p)
                     m = model_for(ctx, skel, tuple(g.effector for g in arm_goals), "arm", qk, root)
-                    qk = solve_ta(skel, arm_goals, qk, model=m).q[0]
+                    qk = solved(ctx.cache, solve_ta, skel, arm_goals, qk, m).q[0]
             dk = distances(qk)
             if score(dk) < score(best[2]):
                 best = (qk, "torso", dk)

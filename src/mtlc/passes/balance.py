@@ -278,7 +278,7 @@ def restore_contacts_posed(
     q = q.copy()
     # a foot off the ground keeps its angles: its target is where the moved pelvis takes it
     if pose is None:  # the pose of (q, root_position, root_rotation), when the caller has it
-        pose = forward(skel, q, root_position, root_rotation)
+        pose = forward(skel, q, root_position, root_rotation, with_axes=False)  # no Jacobian
     feet = {
         name: (
             np.where(touch[:, None], pos, site_positions(skel, pose, name)),
@@ -356,8 +356,10 @@ def lean_trunk(
     q, root = q.copy(), root.copy()
     worst = np.zeros(len(q))
     active = np.arange(len(q))
+    p: Pose | None = None  # the active rows' pose, as the last round's contact solve left it
     for _ in range(ROUNDS):
-        p = forward(skel, q[active], root[active], rot[active])
+        if p is None:
+            p = forward(skel, q[active], root[active], rot[active])
         c = carried_com(ir, p, time[active])[:, [0, 2]]
         push = support_push(pts[active], ok[active], c, MARGIN, hulls.take(active))
         moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
@@ -375,7 +377,7 @@ def lean_trunk(
         dq *= np.minimum(1.0, 0.2 / np.maximum(big, 1e-12))  # at most ~11° a round
         qa = q[active]
         qa[:, spine] = np.clip(qa[:, spine] + dq, lo, hi)
-        qa, ra, wa = restore_contacts(
+        qa, ra, wa, p = restore_contacts_posed(
             ir, qa, root[active], rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
         )
         q[active], root[active], worst[active] = qa, ra, wa

@@ -38,7 +38,7 @@ from mtlc.passes.approach import (
     seg_goals,
 )
 from mtlc.passes.context import PassContext
-from mtlc.passes.state import PoseState, reanchor
+from mtlc.passes.state import PoseState, reanchor, solved
 
 MAX_KEYFRAMES = 12
 MAX_ITER = 400
@@ -115,7 +115,9 @@ def _gradient(
     """Seed 000's gradient path (T, n_dofs) for these goals, on one prepared model."""
     effs = tuple(g.effector for g in goals)
     model = model_for(ctx, state.skel, effs, reach, q0, root)
-    res = solve_to(state.skel, goals, q0, model=model, tol=0.5 * TOLERANCE, max_iter=max_iter)
+    res = solved(
+        ctx.cache, solve_to, state.skel, goals, q0, model, tol=0.5 * TOLERANCE, max_iter=max_iter
+    )
     assert res.path is not None
     return np.asarray(res.path[:, 0])
 
@@ -161,13 +163,13 @@ def best_path(
     if reach != "torso":
         tries.append(("torso", _gradient(ctx, state, goals, q0, root, "torso", MAX_ITER)))
     model = model_for(ctx, skel, tuple(g.effector for g in goals), "torso", q0, root)
-    q_star = solve_ta(skel, goals, q0, model=model).q[0]
+    q_star = solved(ctx.cache, solve_ta, skel, goals, q0, model).q[0]
     steps = np.linspace(0.0, 1.0, 2 * MAX_KEYFRAMES)[:, None]
     tries.append(("torso", q0[None] + steps * (q_star - q0)[None]))
     if pinned:  # a trunk that moves around the held hands: they are goals of the solve too
         both = goals + list(pinned)
         model = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
-        q_held = solve_ta(skel, both, q0, model=model).q[0]
+        q_held = solved(ctx.cache, solve_ta, skel, both, q0, model).q[0]
         tries.append(("torso", q0[None] + steps * (q_held - q0)[None]))
     for r, p in tries:
         p, d = finished(p, r)

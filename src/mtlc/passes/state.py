@@ -15,13 +15,15 @@ point on the ground, as the base correction does for a body standing still.
 
 from __future__ import annotations
 
+import copy
 from bisect import bisect_left, bisect_right
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Sequence
 from typing import Any
 
 import numpy as np
 
 from mtlc.body import forward, site_positions
+from mtlc.body.ik import ChainModel, Goal, IKResult
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.passes.interpolate import anchored_root, gait_window, keyed_windows, track
 
@@ -231,3 +233,51 @@ def cached(ctx_cache: dict[str, Any], key: Any, make: Callable[[], Any]) -> Any:
             store.clear()
         store[key] = make()
     return store[key]
+
+
+SOLVES_KEPT = 512  # solver results a compile remembers (a TO path is ~100 KB at most)
+
+
+def _array_key(a: Any) -> Any:
+    if a is None:
+        return None
+    x = np.asarray(a)
+    return (x.dtype.str, x.shape, x.tobytes())
+
+
+def _goal_key(g: Goal) -> tuple[Any, ...]:
+    return (
+        g.effector, _array_key(g.position), _array_key(g.orientation), _array_key(g.aim),
+        g.orientation_weight,
+    )  # fmt: skip
+
+
+def solved(
+    ctx_cache: dict[str, Any],
+    solver: Callable[..., IKResult],
+    skel: Any,
+    goals: Sequence[Goal],
+    q0: FloatArray,
+    model: ChainModel,
+    **options: Any,
+) -> IKResult:
+    """``solver(skel, goals, q0, model=model, **options)``, solved once per compile.
+
+    A procedure that repeats an action (``repeat 3 { reach(...) }``, a loop over the same
+    sites) asks the solvers the same question again from the same pose: the solvers are
+    deterministic (a fixed seed), so the same goals, start, model and options give the same
+    result, which is returned (a copy) instead of solved again. The key is exact: the goals'
+    and the start's bytes, the model's identity (the entry keeps the model alive, so its id
+    stays its own)."""
+    key = (
+        solver.__module__, solver.__name__, id(skel), tuple(_goal_key(g) for g in goals),
+        _array_key(q0), id(model), tuple(sorted(options.items())),
+    )  # fmt: skip
+    store: dict[Any, tuple[IKResult, Any, ChainModel]]
+    store = ctx_cache.setdefault("passes.state.solves", {})
+    hit = store.get(key)
+    if hit is None:
+        if len(store) >= SOLVES_KEPT:
+            store.clear()
+        hit = store[key] = (solver(skel, goals, q0, model=model, **options), skel, model)
+    return copy.deepcopy(hit[0])

@@ -44,7 +44,7 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.approach import effector_name
-from mtlc.passes.balance import _mm, failure_runs, grouped_hull
+from mtlc.passes.balance import CHUNK_FRAMES, _mm, failure_runs, grouped_hull, take_pose
 from mtlc.passes.context import PassContext
 from mtlc.passes.tool import is_stroke
 
@@ -87,7 +87,8 @@ class _Verifier:
         self.ir, self.ctx, self.skel = ir, ctx, ir.skeleton
         f = ir.frames
         self.t: FloatArray = np.asarray(f.time, dtype=float)
-        self.pose: Pose = forward(self.skel, f.q, f.root_position, f.root_rotation)
+        # no Jacobian is taken here: the dof axes (a third of the pose's memory) are left out
+        self.pose: Pose = forward(self.skel, f.q, f.root_position, f.root_rotation, with_axes=False)
         self.v = Verification()
         self.reported: set[tuple[Any, ...]] = set()
         self.claims = [c for c in ctx.claims]
@@ -468,9 +469,16 @@ class _Verifier:
         """Static margin of the centre of mass (with held tools) over the touching points."""
         ir, t = self.ir, self.t
         stance = foot_stance(ir, t)
-        pts, ok = support(self.skel, self.pose, stance, ir.ground, hand_contacts(ir, t, self.pose))
-        com = carried_com(ir, self.pose, t)[:, [0, 2]]
-        margin = support_margin(pts, ok, com, grouped_hull(pts, ok))  # the same hull, faster
+        margin = np.empty(len(t))
+        # a chunk of frames at a time, as the balance pass: the hull's candidate edges cost
+        # ~5 KB a frame while measured (600 MB at once for an hour of motion)
+        for a in range(0, len(t), CHUNK_FRAMES):
+            c = slice(a, a + CHUNK_FRAMES)
+            pose = take_pose(self.pose, c)
+            touch = hand_contacts(ir, t[c], pose)
+            pts, ok = support(self.skel, pose, stance[c], ir.ground, touch)
+            com = carried_com(ir, pose, t[c])[:, [0, 2]]
+            margin[c] = support_margin(pts, ok, com, grouped_hull(pts, ok))  # the same hull
         static = ~walking(ir, t)
         self.v.support_margin, self.v.static = margin, static
         sel = np.flatnonzero(static & ~np.isnan(margin))

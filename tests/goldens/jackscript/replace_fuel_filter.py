@@ -782,65 +782,65 @@ def replace_fuel_filter():
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(15.5, {
-        'spine_lumbar': (44.379, -15.593, 3.949), 'spine_thoracic': (-8.333, 2.156, -15.652),
-        'right_clavicle': (-6.871, 11.483), 'right_shoulder': (45.221, -21.898, -67.598),
-        'right_elbow': (12.939, -16.079), 'right_wrist': (45.682, 10.248),
-        'left_clavicle': (-6.768, 11.984), 'left_shoulder': (-32.528, 102.769, 48.907),
-        'left_elbow': (69.239, 64.166), 'left_wrist': (-53.51, 15.457),
+        'spine_lumbar': (44.379, -15.593, 3.174), 'spine_thoracic': (-8.333, 2.156, -12.505),
+        'right_clavicle': (-6.871, 11.483), 'right_shoulder': (45.2, -21.889, -67.602),
+        'right_elbow': (13.031, -16.09), 'right_wrist': (45.777, 10.281),
+        'left_clavicle': (-6.768, 11.984), 'left_shoulder': (-32.468, 102.737, 48.803),
+        'left_elbow': (69.243, 64.145), 'left_wrist': (-53.492, 15.427),
     })
     human.KeyJoints(15.6, {
-        'spine_lumbar': (20.525, -7.508, 3.949), 'spine_thoracic': (-2.984, 0.864, -15.652),
-        'right_clavicle': (-2.796, 4.641), 'right_shoulder': (23.62, -4.458, -39.199),
-        'right_elbow': (25.511, 3.745), 'right_wrist': (18.632, 4.099),
-        'left_clavicle': (-2.754, 4.844), 'left_shoulder': (-7.869, 45.992, 7.742),
-        'left_elbow': (48.314, 36.149), 'left_wrist': (-21.558, 6.175),
+        'spine_lumbar': (20.525, -7.508, 1.292), 'spine_thoracic': (-2.984, 0.864, -5.055),
+        'right_clavicle': (-2.796, 4.641), 'right_shoulder': (23.588, -4.428, -39.21),
+        'right_elbow': (25.533, 3.744), 'right_wrist': (18.634, 4.105),
+        'left_clavicle': (-2.754, 4.844), 'left_shoulder': (-7.782, 45.96, 7.754),
+        'left_elbow': (48.326, 36.15), 'left_wrist': (-21.545, 6.177),
     })
     human.KeyRoot(15.7, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (4.519, -0.688, 3.949), 'spine_thoracic': (0.693, -0.003, -15.652),
-        'right_clavicle': (-0.06, 0.051), 'right_shoulder': (8.949, 7.292, -20.163),
-        'right_elbow': (34.125, 17.042), 'right_wrist': (0.233, 0.016),
-        'left_clavicle': (-0.059, 0.053), 'left_shoulder': (8.524, 8.258, -19.793),
-        'left_elbow': (34.206, 17.395), 'left_wrist': (-0.249, -0.017),
+        'spine_lumbar': (4.519, -0.688, 0.028), 'spine_thoracic': (0.693, -0.003, -0.055),
+        'right_clavicle': (-0.06, 0.051), 'right_shoulder': (8.935, 7.321, -20.173),
+        'right_elbow': (34.077, 17.042), 'right_wrist': (0.232, 0.004),
+        'left_clavicle': (-0.059, 0.053), 'left_shoulder': (8.556, 8.236, -19.782),
+        'left_elbow': (34.205, 17.395), 'left_wrist': (-0.244, -0.015),
         'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
         'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
         'left_ankle': (9.996, -1.322),
     })
     human.KeyRoot(15.8, (1.613, 45.179, 45.245), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (5.363, 4.641, 3.949), 'spine_thoracic': (0.922, 0.954, -15.652),
-        'right_clavicle': (0.0, -0.041), 'right_shoulder': (8.607, 7.547, -19.793),
-        'right_elbow': (34.336, 17.309), 'right_wrist': (-0.145, -0.059),
-        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.847, 7.436, -20.323),
-        'left_elbow': (33.97, 17.02), 'left_wrist': (0.181, -0.127),
+        'spine_lumbar': (5.363, 4.641, 0.0), 'spine_thoracic': (0.922, 0.954, 0.045),
+        'right_clavicle': (0.0, -0.041), 'right_shoulder': (8.596, 7.57, -19.802),
+        'right_elbow': (34.296, 17.309), 'right_wrist': (-0.145, -0.069),
+        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.873, 7.419, -20.314),
+        'left_elbow': (33.968, 17.02), 'left_wrist': (0.185, -0.127),
         'right_hip': (21.072, -0.241, 0.399), 'right_knee': (131.068,),
         'right_ankle': (9.974, 3.197), 'left_hip': (21.072, 0.241, -0.399), 'left_knee': (131.068,),
         'left_ankle': (9.974, -3.197),
     })
     human.KeyRoot(15.9, (1.542, 44.797, 44.263), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'spine_lumbar': (6.681, 17.091, 3.949), 'spine_thoracic': (0.681, 4.109, -15.652),
+        'spine_lumbar': (6.681, 17.091, 0.0), 'spine_thoracic': (0.681, 4.109, 0.035),
         'right_hip': (22.438, -0.57, 0.892), 'right_knee': (132.422,),
         'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892), 'left_knee': (132.422,),
         'left_ankle': (9.856, -7.271),
     })
     human.KeyRoot(16.0, (1.117, 44.289, 43.012), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.0, {
-        'spine_lumbar': (9.102, 20.0, 3.949), 'spine_thoracic': (-1.773, 10.0, -15.652),
+        'spine_lumbar': (9.102, 20.0, 0.0), 'spine_thoracic': (-1.773, 10.0, 0.025),
         'right_hip': (24.116, -1.428, 2.049), 'right_knee': (134.023,),
         'right_ankle': (9.175, 17.319), 'left_hip': (24.116, 1.428, -2.049),
         'left_knee': (134.023,), 'left_ankle': (9.175, -17.319),
     })
     human.KeyRoot(16.1, (-0.056, 44.345, 43.036), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.1, {
-        'spine_lumbar': (9.449, 20.0, 3.949), 'spine_thoracic': (-9.041, 10.0, -15.652),
-        'right_elbow': (34.325, 17.229), 'right_hip': (23.799, -2.956, 3.894),
-        'right_knee': (133.446,), 'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385),
-        'left_knee': (134.975,), 'left_ankle': (8.358, -19.152),
+        'spine_lumbar': (9.449, 20.0, 0.0), 'spine_thoracic': (-9.041, 10.0, 0.015),
+        'right_hip': (23.799, -2.956, 3.894), 'right_knee': (133.446,),
+        'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385), 'left_knee': (134.975,),
+        'left_ankle': (8.358, -19.152),
     })
     human.KeyRoot(16.2, (-0.125, 45.363, 45.533), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.2, {
-        'spine_lumbar': (0.436, 20.0, 3.949), 'spine_thoracic': (-6.814, 10.0, -15.652),
+        'spine_lumbar': (0.436, 20.0, 0.0), 'spine_thoracic': (-6.814, 10.0, 0.005),
         'left_elbow': (34.336, 17.17), 'right_hip': (20.24, -2.446, 3.776),
         'right_knee': (129.937,), 'right_ankle': (7.205, 32.018),
         'left_hip': (25.476, -20.779, -4.841), 'left_knee': (132.206,),
@@ -848,45 +848,46 @@ def replace_fuel_filter():
     })
     human.KeyRoot(16.3, (0.22, 43.903, 42.087), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.3, {
-        'spine_lumbar': (7.197, 20.0, 3.949), 'spine_thoracic': (-5.507, 10.0, -15.652),
+        'spine_lumbar': (7.197, 20.0, 0.0), 'spine_thoracic': (-5.507, 10.0, 0.0),
         'left_shoulder': (8.594, 7.5, -20.0), 'right_hip': (25.234, -2.825, 3.622),
         'right_knee': (134.923,), 'right_ankle': (7.075, 32.768),
         'left_hip': (46.263, -19.671, 3.021), 'left_ankle': (-46.113, -3.977),
     })
     human.KeyRoot(16.4, (0.037, 43.856, 41.978), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (1.043, 20.0, 3.949), 'spine_thoracic': (-8.777, 10.0, -15.652),
+        'spine_lumbar': (1.043, 20.0, 0.0), 'spine_thoracic': (-8.777, 10.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
         'right_hip': (25.35, -3.091, 3.792), 'right_knee': (134.999,),
         'right_ankle': (6.684, 34.925), 'left_hip': (83.405, -21.566, 31.596),
         'left_knee': (134.236,), 'left_ankle': (-44.475, -16.418),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (0.161, 20.0, 3.949), 'spine_thoracic': (-9.448, 10.0, -15.652),
-        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
-        'left_hip': (111.005, -17.935, 10.92), 'left_ankle': (-37.194, -23.109),
+        'spine_lumbar': (0.161, 20.0, 0.0), 'spine_thoracic': (-9.448, 10.0, 0.0),
+        'right_wrist': (0.0, 0.0), 'left_hip': (111.005, -17.935, 10.92),
+        'left_ankle': (-37.194, -23.109),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.294, 20.0, 3.949), 'spine_thoracic': (-6.149, 10.0, -15.652),
-        'right_ankle': (6.671, 34.996), 'left_hip': (118.779, -9.323, -17.486),
-        'left_knee': (131.188,), 'left_ankle': (-30.516, -24.67),
+        'spine_lumbar': (-0.294, 20.0, 0.0), 'spine_thoracic': (-6.149, 10.0, 0.0),
+        'right_elbow': (34.377, 17.189), 'right_ankle': (6.671, 34.996),
+        'left_hip': (118.779, -9.323, -17.486), 'left_knee': (131.188,),
+        'left_ankle': (-30.516, -24.67),
     })
     human.KeyRoot(16.7, (0.102, 43.861, 41.992), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-1.104, 20.0, 3.949), 'spine_thoracic': (-6.341, 10.0, -15.652),
+        'spine_lumbar': (-1.104, 20.0, 0.0), 'spine_thoracic': (-6.341, 10.0, 0.0),
         'right_hip': (25.346, -3.002, 3.796), 'right_ankle': (6.725, 34.696),
         'left_hip': (100.946, -9.438, 9.142), 'left_knee': (132.386,),
         'left_ankle': (-3.902, 13.123),
     })
     human.KeyRoot(16.8, (1.814, 44.016, 42.509), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-3.512, 19.67, 3.949), 'spine_thoracic': (-1.022, 3.984, -15.652),
+        'spine_lumbar': (-3.512, 19.67, 0.0), 'spine_thoracic': (-1.022, 3.984, 0.0),
         'right_hip': (25.018, -0.638, 0.904), 'right_ankle': (9.842, 7.602),
         'left_hip': (100.292, -1.591, 1.724), 'left_knee': (132.49,), 'left_ankle': (-0.212, 2.435),
     })
     human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-3.806, 9.808, 3.949), 'spine_thoracic': (-0.821, 1.771, -15.652),
+        'spine_lumbar': (-3.806, 9.808, 0.0), 'spine_thoracic': (-0.821, 1.771, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
         'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
@@ -895,44 +896,44 @@ def replace_fuel_filter():
     })
     human.KeyRoot(17.0, (2.995, 46.839, 37.706), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (9.931, 8.902, 3.949), 'spine_thoracic': (1.487, 1.615, -15.652),
-        'right_shoulder': (9.257, 7.278, -19.859), 'right_elbow': (33.941, 17.189),
-        'right_wrist': (0.086, -0.078), 'left_shoulder': (7.049, 7.286, -20.137),
-        'left_elbow': (38.264, 17.189), 'left_wrist': (-0.333, 0.901),
-        'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,), 'right_ankle': (14.452, 5.04),
-        'left_hip': (92.433, -0.17, 0.414), 'left_knee': (123.3,), 'left_ankle': (11.609, 0.435),
+        'spine_lumbar': (10.19, 8.819, 0.0), 'spine_thoracic': (1.504, 1.598, 0.0),
+        'right_shoulder': (8.942, 7.177, -19.855), 'right_elbow': (34.953, 17.189),
+        'left_shoulder': (7.002, 7.234, -20.119), 'left_elbow': (38.54, 17.189),
+        'left_wrist': (-0.346, 0.961), 'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,),
+        'right_ankle': (14.452, 5.04), 'left_hip': (92.433, -0.17, 0.414), 'left_knee': (123.3,),
+        'left_ankle': (11.598, 0.435),
     })
     human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (31.533, 7.787, 3.949), 'spine_thoracic': (4.734, 1.401, -15.652),
-        'right_shoulder': (10.74, 6.89, -19.576), 'right_elbow': (32.744, 17.189),
-        'right_wrist': (0.278, -0.306), 'left_shoulder': (4.586, 7.053, -20.397),
-        'left_elbow': (44.772, 17.188), 'left_wrist': (-0.904, 2.412),
-        'right_hip': (34.67, -0.462, 1.249), 'right_knee': (128.657,),
-        'right_ankle': (18.339, 2.038), 'left_hip': (79.247, -0.08, -0.608),
-        'left_knee': (101.565,), 'left_ankle': (19.028, -0.62),
+        'spine_lumbar': (31.609, 7.81, 0.0), 'spine_thoracic': (4.691, 1.392, 0.0),
+        'right_shoulder': (9.541, 6.719, -19.638), 'right_elbow': (35.657, 17.189),
+        'left_shoulder': (5.093, 6.994, -20.291), 'left_elbow': (43.763, 17.189),
+        'left_wrist': (-0.788, 2.166), 'right_hip': (34.67, -0.462, 1.249),
+        'right_knee': (128.657,), 'right_ankle': (18.339, 2.038),
+        'left_hip': (79.247, -0.08, -0.608), 'left_knee': (101.565,), 'left_ankle': (19.028, -0.62),
     })
-    human.KeyRoot(17.2, (5.498, 71.895, 36.148), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.2, (5.506, 71.895, 36.184), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (7.892, 9.1, 3.949), 'spine_thoracic': (1.164, 1.698, -15.652),
-        'right_shoulder': (10.92, 6.625, -19.474), 'right_elbow': (33.024, 17.188),
-        'right_wrist': (0.302, -0.233), 'left_shoulder': (3.537, 6.979, -20.523),
-        'left_elbow': (47.389, 17.188), 'left_wrist': (-1.142, 3.023),
-        'right_hip': (17.304, 0.422, 2.378), 'right_knee': (94.205,),
-        'right_ankle': (14.266, 2.469), 'left_hip': (52.94, -1.05, -1.426), 'left_knee': (72.532,),
-        'left_ankle': (18.903, -1.774),
+        'spine_lumbar': (7.204, 9.431, 0.0), 'spine_thoracic': (1.004, 1.735, 0.0),
+        'right_shoulder': (9.287, 6.627, -19.637), 'right_elbow': (36.156, 17.188),
+        'right_wrist': (0.019, 0.444), 'left_shoulder': (4.766, 6.946, -20.322),
+        'left_elbow': (44.355, 17.188), 'left_wrist': (-0.843, 2.307),
+        'right_hip': (17.26, 0.426, 2.392), 'right_knee': (94.175,), 'right_ankle': (14.28, 2.485),
+        'left_hip': (52.924, -1.058, -1.435), 'left_knee': (72.555,),
+        'left_ankle': (18.941, -1.787),
     })
-    human.KeyRoot(17.3, (6.834, 85.806, 36.181), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.3, (6.841, 85.806, 36.217), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (1.995, 11.313, 3.949), 'spine_thoracic': (-0.011, 2.048, -15.652),
-        'right_shoulder': (9.704, 7.082, -19.749), 'left_shoulder': (5.981, 7.192, -20.253),
-        'right_hip': (10.143, 1.068, 3.358), 'right_knee': (67.814,),
-        'right_ankle': (-4.686, 3.672), 'left_hip': (28.72, -2.108, -1.155), 'left_knee': (28.719,),
-        'left_ankle': (0.019, -2.404),
+        'spine_lumbar': (1.491, 11.538, 0.0), 'spine_thoracic': (-0.11, 2.076, 0.0),
+        'right_shoulder': (8.863, 7.134, -19.851), 'right_elbow': (35.111, 17.189),
+        'left_shoulder': (6.816, 7.219, -20.138), 'left_elbow': (38.777, 17.189),
+        'left_wrist': (-0.369, 1.014), 'right_hip': (10.102, 1.074, 3.37), 'right_knee': (67.78,),
+        'right_ankle': (-4.677, 3.685), 'left_hip': (28.718, -2.117, -1.16), 'left_knee': (28.761,),
+        'left_ankle': (0.063, -2.414),
     })
     human.KeyRoot(17.4, (6.21, 90.189, 45.35), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-27.238, 13.403, 3.949), 'spine_thoracic': (-7.232, 2.271, -15.652),
+        'spine_lumbar': (-27.238, 13.403, 0.0), 'spine_thoracic': (-7.232, 2.271, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
         'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
@@ -942,52 +943,52 @@ def replace_fuel_filter():
     })
     human.KeyRoot(17.5, (7.348, 90.212, 55.24), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-26.02, 11.831, 3.949), 'spine_thoracic': (-7.137, 2.022, -15.652),
+        'spine_lumbar': (-26.02, 11.831, 0.0), 'spine_thoracic': (-7.137, 2.022, 0.0),
         'right_hip': (-11.824, 3.181, 7.272), 'right_knee': (37.702,),
         'right_ankle': (-28.315, 8.74), 'left_hip': (8.165, -4.938, -0.708), 'left_knee': (13.822,),
         'left_ankle': (5.687, -4.989),
     })
     human.KeyRoot(17.6, (9.086, 89.367, 62.809), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (19.992, 0.136, 3.949), 'spine_thoracic': (3.197, 0.026, -15.652),
+        'spine_lumbar': (19.992, 0.136, 0.0), 'spine_thoracic': (3.197, 0.026, 0.0),
         'right_hip': (-14.859, 2.446, 15.766), 'right_knee': (32.143,),
         'right_ankle': (-48.92, 8.028), 'left_hip': (5.129, -7.128, -0.638), 'left_knee': (17.624,),
         'left_ankle': (12.534, -7.156),
     })
     human.KeyRoot(17.7, (9.056, 89.807, 63.334), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (23.049, -1.14, 3.949), 'spine_thoracic': (3.427, -0.195, -15.652),
+        'spine_lumbar': (23.049, -1.14, 0.0), 'spine_thoracic': (3.427, -0.195, 0.0),
         'right_hip': (-14.615, 3.9, 10.07), 'right_knee': (39.259,),
         'right_ankle': (-28.903, 7.523), 'left_hip': (2.362, -7.158, -0.294),
         'left_knee': (12.695,), 'left_ankle': (10.351, -7.164),
     })
     human.KeyRoot(17.8, (9.478, 90.433, 59.387), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (39.931, -2.894, 3.949), 'spine_thoracic': (5.297, -0.477, -15.652),
+        'spine_lumbar': (39.931, -2.894, 0.0), 'spine_thoracic': (5.297, -0.477, 0.0),
         'right_hip': (-13.883, 6.98, 1.033), 'right_knee': (26.08,), 'right_ankle': (18.25, 7.158),
         'left_hip': (1.656, -6.905, -0.199), 'left_knee': (5.704,), 'left_ankle': (4.06, -6.908),
     })
     human.KeyRoot(17.9, (7.866, 90.637, 59.089), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (28.052, -7.718, 3.949), 'spine_thoracic': (4.263, -1.345, -15.652),
+        'spine_lumbar': (28.052, -7.718, 0.0), 'spine_thoracic': (4.263, -1.345, 0.0),
         'right_hip': (4.571, 6.066, 0.522), 'right_knee': (24.937,), 'right_ankle': (20.0, 6.293),
         'left_hip': (1.36, -5.78, -0.137), 'left_knee': (5.108,), 'left_ankle': (3.754, -5.782),
     })
     human.KeyRoot(18.0, (4.368, 90.602, 61.681), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.0, {
-        'spine_lumbar': (15.545, -15.079, 3.949), 'spine_thoracic': (2.453, -2.691, -15.652),
+        'spine_lumbar': (15.545, -15.079, 0.0), 'spine_thoracic': (2.453, -2.691, 0.0),
         'right_hip': (0.929, 3.764, 0.061), 'right_knee': (8.684,), 'right_ankle': (7.758, 3.765),
         'left_hip': (0.929, -3.764, -0.061), 'left_knee': (8.684,), 'left_ankle': (7.758, -3.765),
     })
     human.KeyRoot(18.1, (0.997, 91.055, 56.584), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.1, {
-        'spine_lumbar': (7.323, -7.236, 3.949), 'spine_thoracic': (1.243, -1.309, -15.652),
+        'spine_lumbar': (7.323, -7.236, 0.0), 'spine_thoracic': (1.243, -1.309, 0.0),
         'right_hip': (2.4, 0.862, 0.036), 'right_knee': (5.55,), 'right_ankle': (3.151, 0.863),
         'left_hip': (2.4, -0.862, -0.036), 'left_knee': (5.55,), 'left_ankle': (3.151, -0.863),
     })
     human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.175969, {
-        'spine_lumbar': (0.0, 0.0, 3.949), 'spine_thoracic': (0.0, 0.0, -15.652),
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (29.296, -22.813, 19.826), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),

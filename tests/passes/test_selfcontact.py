@@ -23,6 +23,7 @@ from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.carry import carries, part_ends
+from mtlc.passes.posture import clear_arms
 from mtlc.semantics.timeline import ManikinSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -140,6 +141,73 @@ def test_the_drain_valve_reach_keeps_the_forearm_out_of_the_thigh() -> None:
     ir, sink = compile_file(ROOT / "examples" / "drain_hydraulic_reservoir.mtask", ("male", 95))
     assert deepest_inside(ir) <= 1e-3  # was 38 mm
     assert [d.code for d in sink.items if d.code.startswith("MT05")] == []
+
+
+LOW_VALVE = (
+    HEAD
+    + """scene cabinet {
+    ground 0 cm
+    site front at (0, 0, 45) cm
+    site valve at (-15, 30, 85) cm normal (0, 0, -1)
+}
+
+task low_valve "Close a low valve kneeling" {
+    manikin gb10000_1988 female p50
+    scene cabinet
+    walk_to(front)
+    kneel(2)
+    reach(left, valve)
+    grasp(left)
+    turn(left, 90 deg)
+    release(left)
+    stand()
+}
+"""
+)
+
+
+def kneel_and_stand(ir: MotionIR) -> list[tuple[float, float]]:
+    """(deepest a forearm or hand goes into the trunk or a thigh (m), the arms' largest step
+    between two output frames (rad)) over each kneel and each stand."""
+    f, sk = ir.frames, ir.skeleton
+    assert f is not None
+    arms = [d for d, n in enumerate(sk.dof_names) if n.split("_")[1] in ("shoulder", "elbow")]
+    out = []
+    for seg in ir.on_track("root"):
+        if seg.kind == "posture" and seg.goal.params.get("posture") in ("kneel", "stand"):
+            rows = np.flatnonzero((f.time >= seg.start) & (f.time <= seg.end))
+            pose = forward(sk, f.q[rows], f.root_position[rows], f.root_rotation[rows])
+            step = np.abs(np.diff(f.q[rows][:, arms], axis=0)).max()
+            out.append((float(self_intersection(sk, pose)[0].max()), float(step)))
+    assert len(out) == 2
+    return out
+
+
+def test_free_arms_stay_out_of_the_thighs_kneeling_and_standing_up(tmp_path: Path) -> None:
+    ir, sink = compile_text(tmp_path, LOW_VALVE)
+    # was 63 mm: the left hand in the comfort pose, forearm forward and in, where the left
+    # thigh comes up as its foot steps forward to stand
+    assert all(depth <= 0.0 for depth, _ in kneel_and_stand(ir))
+    assert not [d for d in sink.items if d.code == "MT0514"]
+
+
+@pytest.mark.parametrize("pct", [1, 5])
+def test_the_fuel_filter_kneel_keeps_the_free_hand_out_of_the_thighs(pct: int) -> None:
+    ir, sink = compile_file(ROOT / "examples" / "replace_fuel_filter.mtask", ("female", pct))
+    (kneel, kneel_step), (stand, _) = kneel_and_stand(ir)
+    # was 50 and 49 mm standing up; kneeling down the clearance pass cleared the right hand
+    # frame by frame, swinging the arm 25-27 deg between two frames
+    assert kneel <= 0.0 and stand <= 0.0
+    assert kneel_step <= np.radians(10.0)
+    assert not [d for d in sink.items if d.code == "MT0514"]
+
+
+def test_clear_arms_leaves_arms_that_are_clear_alone() -> None:
+    skel = build_manikin("gb10000_1988", "female", 5)
+    frames = np.tile(skel.q_comfort, (3, 1))
+    roots = np.tile([0.0, 1.0, 0.0], (3, 1))  # standing upright: the comfort arms are clear
+    arms, depth = clear_arms(skel, frames, roots, ("r", "l"))
+    assert arms == {} and depth <= 0.0
 
 
 def test_part_ends_keep_the_centre_and_axis_and_set_the_length() -> None:

@@ -31,10 +31,11 @@ from typing import Any
 import numpy as np
 
 from mtlc.body import center_of_mass, forward, site_positions
+from mtlc.body.ik.clearance import penetration
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import FOOT_POINTS
-from mtlc.passes.kneel import KneelPlan, plan_kneel, to_world
+from mtlc.passes.kneel import KneelPlan, plan_kneel, smoothstep, to_world
 from mtlc.passes.state import PoseState, mark, reanchor
 
 TRUNK_DOFS = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
@@ -286,13 +287,145 @@ ARM_DOFS = tuple(
 )  # fmt: skip
 
 
+TRUNK_TURN = ("lumbar_rot", "thorax_rot")  # the trunk dofs a kneel's plan holds as they were
+
+
 def _heading(rotation: FloatArray) -> float:
     """Heading about +Y of a yaw-only root rotation (w, x, y, z)."""
     return 2.0 * math.atan2(float(rotation[2]), float(rotation[0]))
 
 
+# Free arms while the body kneels or stands up from a kneel: the comfort pose's arm turned out
+# at the shoulder and abducted by the least of these angles that keeps forearm and hand out of
+# the thighs (and trunk) on every frame of the kneel's plan. The comfort pose's forearm points
+# forward and in, where a thigh comes up as its knee goes forward (issue 18: 49 mm on the fuel
+# filter, female P5); flexion and elbow stay as they are, so the arms' mass stays where the
+# kneel's plan had it balanced
+KNEEL_ARM_ABDUCTIONS = np.radians(np.arange(7.5, 45.0, 2.5))
+KNEEL_ARM_ROTATION = math.radians(-20.0)  # the shoulder turned out: the forearm beside the thigh
+KNEEL_ARM_SPARE = 0.01  # m the chosen pose keeps beyond the clearance on the plan's frames
+KNEEL_ARM_RAMP = 0.3  # s over which a free arm goes to that pose at the kneel's start
+KNEEL_ARM_PARTS = ("clavicle_elev", "clavicle_prot", "shoulder_flex", "shoulder_abd",
+                   "shoulder_rot", "elbow_flex", "wrist_flex", "wrist_dev")  # fmt: skip
+
+
+def hanging_arm(skel: Any, side: str, abduction: float) -> dict[str, float]:
+    """The ``side`` arm as in the comfort pose (the forearm's twist left alone), the shoulder
+    turned out by ``KNEEL_ARM_ROTATION`` and abducted by ``abduction``."""
+    values = {f"{side}_{d}": float(skel.q_comfort[skel.dof_index(f"{side}_{d}")])
+              for d in KNEEL_ARM_PARTS}  # fmt: skip
+    values[f"{side}_shoulder_abd"] = abduction
+    values[f"{side}_shoulder_rot"] = KNEEL_ARM_ROTATION
+    return {n: float(np.clip(v, *_limits(skel, n))) for n, v in values.items()}
+
+
+def _limits(skel: Any, name: str) -> tuple[float, float]:
+    d = skel.dof_index(name)
+    return float(skel.lower[d]), float(skel.upper[d])
+
+
+def clear_arms(
+    skel: Any, frames: FloatArray, roots: FloatArray, sides: tuple[str, ...],
+    share: FloatArray | None = None,
+) -> tuple[dict[str, float], float]:  # fmt: skip
+    """Arm poses for the ``sides`` arms while the body goes through configurations ``frames``
+    (N, D) with root positions ``roots`` (N, 3) (the pelvis upright: the heading does not
+    change what is inside what): nothing when every arm as it is stays clear (they are left
+    alone), else ``hanging_arm`` for each, with the least abduction that keeps them all clear
+    with ``KNEEL_ARM_SPARE`` to spare (the balance pass moves the pelvis a little after the
+    plan; the clearance pass would then flick a wrist to find the millimetres) or, if none does, the one that goes least deep; and how deep (m) they go with it. The same for both arms: one arm held out
+    alone would move the centre of mass sideways over a narrow kneeling support. ``share``
+    (N,): how far each frame has blended from its own arm to that pose (a kneel's start)."""
+    rot = np.tile([1.0, 0.0, 0.0, 0.0], (len(frames), 1))
+
+    def deepest(q: FloatArray) -> float:
+        return max(float(penetration(skel, q, (roots, rot), side).max()) for side in sides)
+
+    if not sides or (depth := deepest(frames)) <= 0.0:
+        return {}, 0.0 if not sides else depth
+    w = np.ones(len(frames)) if share is None else share
+    best: tuple[float, dict[str, float]] | None = None
+    for abduction in KNEEL_ARM_ABDUCTIONS:
+        arms: dict[str, float] = {}
+        for side in sides:
+            arms.update(hanging_arm(skel, side, float(abduction)))
+        q = frames.copy()
+        for name, v in arms.items():
+            d = skel.dof_index(name)
+            q[:, d] += w * (v - q[:, d])
+        depth = deepest(q)
+        if depth <= -KNEEL_ARM_SPARE:
+            return arms, depth
+        if best is None or depth < best[0]:
+            best = (depth, arms)
+    assert best is not None
+    return best[1], best[0]
+
+
+def _plan_frames(plan: KneelPlan, q0: FloatArray, x: FloatArray) -> FloatArray:
+    """(N, D) whole-body configurations of a plan's states ``x``, the rest of the body as in
+    ``q0``."""
+    q = np.tile(q0, (len(x), 1))
+    q[:, plan.body.idx] = x[:, 3:]
+    return q
+
+
+def kneel_arm_share(times: FloatArray, start: float, end: float, back: bool) -> FloatArray:
+    """(N,) how far the free arms are from their own pose toward the kneel's: there over the
+    first ``KNEEL_ARM_RAMP`` seconds, and (``back``) home again over the last ones."""
+    share = smoothstep((times - start) / KNEEL_ARM_RAMP)
+    if back:
+        share = share * smoothstep((end - times) / KNEEL_ARM_RAMP)
+    return np.asarray(share, dtype=float)
+
+
+def _kneel_arms(
+    seg: Segment, plan: KneelPlan, q0: FloatArray, sides: tuple[str, ...], skel: Any
+) -> None:
+    """Free arms (``sides``) to a ``clear_arms`` pose over the kneel's first
+    ``KNEEL_ARM_RAMP`` seconds, keyed on the kneel's own frames. They go back to where they
+    were as the kneel ends if that keeps them clear (the reaches that follow then start from
+    the pose they would have without this), else they stay. ``restate_kneel_arms`` restarts
+    the ramps from wherever the arm really is when later passes have moved it."""
+    kf = seg.keyframes
+    assert kf is not None and kf.root_position is not None
+    x = np.concatenate([np.zeros((len(kf.time), 3)), kf.q], axis=1)
+    frames = _plan_frames(plan, q0, x)
+    arms: dict[str, float] = {}
+    for back in (True, False):
+        share = kneel_arm_share(kf.time, seg.start, seg.end, back)
+        arms, depth = clear_arms(skel, frames, kf.root_position, sides, share)
+        if depth <= 0.0:
+            break
+    if not arms:
+        return
+    names = tuple(arms)
+    idx = [skel.dof_index(n) for n in names]
+    start, target = q0[idx], np.array([arms[n] for n in names])
+    ramp = start[None] + share[:, None] * (target - start)[None]
+    kf.q = np.hstack([kf.q, ramp])
+    kf.dofs = (*kf.dofs, *names)
+
+
+def restate_kneel_arms(seg: Segment, state: PoseState) -> None:
+    """The kneel's arm ramps from the arm's pose just before the kneel (the legs, spine and
+    root are the plan's, which started from the pose the posture pass saw)."""
+    kf = seg.keyframes
+    assert kf is not None
+    arms = [k for k, n in enumerate(kf.dofs) if n.split("_", 1)[1] in KNEEL_ARM_PARTS]
+    if not arms:
+        return
+    back = bool(np.allclose(kf.q[-1, arms], kf.q[0, arms]))
+    share = kneel_arm_share(kf.time, seg.start, seg.end, back)
+    target = kf.q[int(np.argmax(share)), arms]
+    q = state.q_at(seg.start, skip=seg)
+    start = q[[state.skel.dof_index(kf.dofs[k]) for k in arms]]
+    kf.q[:, arms] = start[None] + share[:, None] * (target - start)[None]
+
+
 def _kneel_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
-    """The stepping kneel (``mtlc.passes.kneel``): dense keyframes of legs, spine and root."""
+    """The stepping kneel (``mtlc.passes.kneel``): dense keyframes of legs, spine and root, and
+    of the free arms (``_kneel_arms``)."""
     q0 = state.q_at(seg.start, skip=seg)
     root, rot = state.root_at(seg.start, skip=seg)
     knees = 2 if int(seg.goal.params.get("knees", 2)) == 2 else 1
@@ -300,8 +433,11 @@ def _kneel_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     plan = plan_kneel(state.skel, q0, root, ground, knees, seg.end - seg.start)
     frame = (root.copy(), _heading(rot), ground)
     _keyed(seg, plan, seg.start, frame)
+    sides = tuple(a[0] for a in free_arms(state.ir, seg))
+    _kneel_arms(seg, plan, q0, sides, state.skel)
     ctx.cache.setdefault(KNEEL_PLANS, {})[id(seg)] = (plan, frame)
     state.add(seg)
+    mark(ctx.cache, seg, "kneel_arms")
 
 
 def _keyed(
@@ -345,20 +481,33 @@ def _stand_from_kneel(
     ctx: PassContext,
 ) -> None:  # fmt: skip
     """Rise by the kneel played backwards; first, for ``STAND_SETTLE``, trunk and arms go back
-    to where the kneel left them (the reaches in between leaned and moved them)."""
+    to where the kneel left them (the reaches in between leaned, turned and moved them; the
+    trunk's turn too, which the plan does not key: a trunk left turned by a reach swung the
+    thigh into a hand the plan had clear): the arms to
+    the comfort pose, or where that would pass through a thigh on the way up, beside the body
+    (``clear_arms``)."""
     skel = state.skel
     plan, frame = kneel
     back = plan.reversed(seg.end - seg.start - STAND_SETTLE)
     _keyed(seg, back, seg.start + STAND_SETTLE, frame)
     kf = seg.keyframes
     assert kf is not None and kf.root_position is not None
-    arm_idx = [skel.dof_index(n) for n in ARM_DOFS]
-    arms = np.asarray(skel.q_comfort, dtype=float)[arm_idx]
+    settled = (*ARM_DOFS, *TRUNK_TURN)
+    arm_idx = [skel.dof_index(n) for n in settled]
+    # the body as the kneel's plan had it (its balance was solved so), the arms in the comfort
+    # pose; on the plan's own frames, where a thigh comes up through them, the arms hang
+    # beside it instead (``clear_arms``)
+    standing = plan.body.q_base.copy()
+    standing[arm_idx[: len(ARM_DOFS)]] = np.asarray(skel.q_comfort)[arm_idx[: len(ARM_DOFS)]]
+    frames = _plan_frames(plan, standing, np.concatenate([np.zeros((len(kf.q), 3)), kf.q], 1))
+    for name, v in clear_arms(skel, frames, kf.root_position, ("r", "l"))[0].items():
+        standing[skel.dof_index(name)] = v
+    arms = standing[arm_idx]
     now = state.q_at(seg.start, skip=seg)
     first = np.concatenate([kf.q[0], now[arm_idx]])
     kf.q = np.concatenate([first[None], np.hstack([kf.q, np.tile(arms, (len(kf.time), 1))])])
     kf.time = np.concatenate([[seg.start], kf.time])
-    kf.dofs = (*kf.dofs, *ARM_DOFS)
+    kf.dofs = (*kf.dofs, *settled)
     kf.root_position = np.concatenate([kf.root_position[:1], kf.root_position])
     state.add(seg)
     mark(ctx.cache, seg)  # its first keyframe holds the pose the reaches left
@@ -425,7 +574,7 @@ def _twist_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     mark(ctx.cache, seg, "twist")
 
 
-RESTATERS = {"twist": restate_twist}
+RESTATERS = {"twist": restate_twist, "kneel_arms": restate_kneel_arms}
 
 
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:

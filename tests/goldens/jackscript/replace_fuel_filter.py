@@ -49,6 +49,7 @@ def replace_fuel_filter():
     human.KeyRoot(0.5, (-1.065, 89.955, 50.974), (-8.891, 0.0, 0.0))
     human.KeyJoints(0.5, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (12.015, -0.875, -1.767), 'right_knee': (18.274,),
         'right_ankle': (6.292, -1.224), 'left_hip': (13.929, 0.851, 1.784), 'left_knee': (21.653,),
         'left_ankle': (7.486, 1.231),
@@ -57,24 +58,28 @@ def replace_fuel_filter():
     human.KeyRoot(0.6, (0.605, 90.668, 56.114), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.6, {
         'spine_lumbar': (4.952, -4.917, 0.0), 'spine_thoracic': (0.871, -0.906, 0.0),
+        'right_shoulder': (8.594, 5.914, 8.002), 'left_shoulder': (8.594, 5.914, 8.002),
         'right_hip': (6.047, 0.542, 0.057), 'right_knee': (12.468,), 'right_ankle': (6.425, 0.545),
         'left_hip': (6.027, -0.542, -0.057), 'left_knee': (12.427,), 'left_ankle': (6.401, -0.545),
     })
     human.KeyRoot(0.7, (3.766, 90.376, 60.934), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.7, {
         'spine_lumbar': (15.664, -15.159, 0.0), 'spine_thoracic': (2.492, -2.72, 0.0),
+        'right_shoulder': (8.594, 6.703, -6.003), 'left_shoulder': (8.594, 6.703, -6.003),
         'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.083,), 'right_ankle': (9.594, 3.277),
         'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.581, -3.277),
     })
     human.KeyRoot(0.8, (7.078, 90.351, 60.502), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.8, {
         'spine_lumbar': (23.012, -9.154, 0.0), 'spine_thoracic': (3.58, -1.623, 0.0),
+        'right_shoulder': (8.594, 7.414, -18.609), 'left_shoulder': (8.594, 7.414, -18.609),
         'right_hip': (9.128, 5.416, 0.516), 'right_knee': (30.638,), 'right_ankle': (20.0, 5.431),
         'left_hip': (3.099, -5.441, -0.294), 'left_knee': (10.802,), 'left_ankle': (7.717, -5.449),
     })
     human.KeyRoot(0.9, (9.457, 90.28, 58.686), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
         'spine_lumbar': (41.621, -3.231, 0.0), 'spine_thoracic': (5.544, -0.54, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.114), 'left_shoulder': (8.594, 7.5, -20.114),
         'right_hip': (-11.435, 7.004, -0.298), 'right_knee': (21.476,),
         'right_ankle': (20.0, 7.103), 'left_hip': (3.931, -6.804, -0.458), 'left_knee': (9.374,),
         'left_ankle': (5.467, -6.819),
@@ -117,33 +122,29 @@ def replace_fuel_filter():
     human.KeyRoot(1.5, (5.73, 76.097, 37.485), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
         'spine_lumbar': (-1.598, 11.301, 0.0), 'spine_thoracic': (-0.458, 2.035, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'right_hip': (13.222, 0.745, 2.6), 'right_knee': (85.025,),
-        'right_ankle': (11.029, 2.746), 'left_hip': (46.542, -1.396, -1.502),
-        'left_knee': (63.465,), 'left_ankle': (16.394, -2.054),
+        'right_hip': (13.222, 0.745, 2.6), 'right_knee': (85.025,), 'right_ankle': (11.029, 2.746),
+        'left_hip': (46.542, -1.396, -1.502), 'left_knee': (63.465,),
+        'left_ankle': (16.394, -2.054),
     })
     human.KeyRoot(1.6, (5.43, 59.097, 30.023), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
         'spine_lumbar': (26.614, 9.316, 0.0), 'spine_thoracic': (4.092, 1.635, 0.0),
-        'right_shoulder': (8.082, 6.381, 10.779), 'right_elbow': (35.307, 18.128),
-        'right_wrist': (-3.399, -3.326), 'right_hip': (32.156, -0.362, 1.602),
-        'right_knee': (120.881,), 'right_ankle': (18.069, 1.935),
-        'left_hip': (72.004, -0.268, -0.867), 'left_knee': (92.454,),
-        'left_ankle': (19.646, -0.913),
+        'right_hip': (32.156, -0.362, 1.602), 'right_knee': (120.881,),
+        'right_ankle': (18.069, 1.935), 'left_hip': (72.004, -0.268, -0.867),
+        'left_knee': (92.454,), 'left_ankle': (19.646, -0.913),
     })
     human.KeyRoot(1.7, (3.72, 48.492, 34.801), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
         'spine_lumbar': (16.521, 9.345, 0.0), 'spine_thoracic': (2.529, 1.665, 0.0),
-        'right_shoulder': (8.204, 5.765, 10.994), 'right_elbow': (35.248, 17.75),
-        'right_wrist': (-3.344, 0.446), 'right_hip': (32.015, -0.486, 0.893),
-        'right_knee': (134.656,), 'right_ankle': (16.243, 3.802),
-        'left_hip': (89.37, -0.005, 0.004), 'left_knee': (117.383,), 'left_ankle': (14.135, -0.004),
+        'right_shoulder': (8.594, 7.5, -20.0), 'left_shoulder': (8.594, 7.5, -20.0),
+        'right_hip': (32.015, -0.486, 0.893), 'right_knee': (134.656,),
+        'right_ankle': (16.243, 3.802), 'left_hip': (89.37, -0.005, 0.004), 'left_knee': (117.383,),
+        'left_ankle': (14.135, -0.004),
     })
     human.KeyRoot(1.8, (2.091, 44.581, 41.754), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
         'spine_lumbar': (-1.888, 9.571, 0.0), 'spine_thoracic': (-0.489, 1.728, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'right_hip': (25.459, -0.37, 0.554), 'right_knee': (134.894,),
+        'right_hip': (25.459, -0.37, 0.554), 'right_knee': (134.894,),
         'right_ankle': (11.243, 5.09), 'left_hip': (97.197, -0.695, 0.995), 'left_knee': (130.857,),
         'left_ankle': (5.953, 1.224),
     })
@@ -175,26 +176,21 @@ def replace_fuel_filter():
     })
     human.KeyRoot(2.3, (0.114, 43.861, 41.993), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.282, 20.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
-        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
-        'right_hip': (25.346, -2.988, 3.813), 'right_ankle': (6.709, 34.794),
-        'left_hip': (96.39, -23.488, 31.004), 'left_knee': (133.374,),
-        'left_ankle': (-44.476, -19.434),
+        'spine_lumbar': (0.282, 20.0, 0.0), 'right_hip': (25.346, -2.988, 3.813),
+        'right_ankle': (6.709, 34.794), 'left_hip': (96.39, -23.488, 31.004),
+        'left_knee': (133.374,), 'left_ankle': (-44.476, -19.434),
     })
     human.KeyRoot(2.4, (0.014, 43.856, 41.976), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.4, {
         'spine_lumbar': (3.127, 20.0, 0.0), 'spine_thoracic': (-8.416, 10.0, 0.0),
-        'right_shoulder': (8.228, 5.757, 10.906), 'right_elbow': (35.231, 17.883),
-        'right_wrist': (-4.087, 0.631), 'right_hip': (25.349, -3.119, 3.792),
-        'right_knee': (134.995,), 'right_ankle': (6.665, 35.0),
-        'left_hip': (63.923, -9.059, 27.571), 'left_knee': (135.0,),
+        'right_hip': (25.349, -3.119, 3.792), 'right_knee': (134.995,),
+        'right_ankle': (6.665, 35.0), 'left_hip': (63.923, -9.059, 27.571), 'left_knee': (135.0,),
         'left_ankle': (-45.719, -11.197),
     })
     human.KeyRoot(2.5, (0.063, 44.827, 44.171), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.5, {
         'spine_lumbar': (1.932, 20.0, 0.0), 'spine_thoracic': (-5.128, 10.0, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'right_hip': (22.205, -2.528, 3.658), 'right_knee': (131.91,),
+        'right_hip': (22.205, -2.528, 3.658), 'right_knee': (131.91,),
         'right_ankle': (7.268, 31.65), 'left_hip': (37.483, -20.992, -3.064),
         'left_knee': (131.783,), 'left_ankle': (-31.534, -0.891),
     })
@@ -208,6 +204,7 @@ def replace_fuel_filter():
     human.KeyRoot(2.7, (0.832, 44.086, 42.529), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.7, {
         'spine_lumbar': (10.671, 20.0, 0.0), 'spine_thoracic': (-4.265, 10.0, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.0), 'left_shoulder': (8.594, 7.5, -20.0),
         'right_hip': (24.74, -1.917, 2.657), 'right_knee': (134.579,),
         'right_ankle': (8.557, 22.941), 'left_hip': (24.712, 1.348, -2.016),
         'left_knee': (134.634,), 'left_ankle': (8.88, -20.682),
@@ -215,12 +212,14 @@ def replace_fuel_filter():
     human.KeyRoot(2.8, (1.372, 44.562, 43.673), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.8, {
         'spine_lumbar': (7.822, 20.0, 0.0), 'spine_thoracic': (-0.208, 9.519, 0.0),
+        'right_shoulder': (8.594, 7.307, -16.566), 'left_shoulder': (8.594, 7.307, -16.566),
         'right_hip': (23.233, -0.935, 1.408), 'right_ankle': (9.627, 11.65),
         'left_hip': (23.233, 0.935, -1.408), 'left_ankle': (9.627, -11.65),
     })
     human.KeyRoot(2.9, (1.592, 44.995, 44.765), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.9, {
         'spine_lumbar': (6.097, 10.519, 0.0), 'spine_thoracic': (0.847, 2.259, 0.0),
+        'right_shoulder': (8.594, 6.512, -2.449), 'left_shoulder': (8.594, 6.512, -2.449),
         'right_hip': (21.742, -0.384, 0.618), 'right_knee': (131.734,),
         'right_ankle': (9.933, 4.992), 'left_hip': (21.742, 0.384, -0.618), 'left_knee': (131.734,),
         'left_ankle': (9.933, -4.992),
@@ -228,7 +227,8 @@ def replace_fuel_filter():
     human.KeyRoot(3.0, (1.612, 45.328, 45.643), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.0, {
         'spine_lumbar': (4.921, 0.853, 0.0), 'spine_thoracic': (0.841, 0.198, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (20.515, -0.146, 0.247),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (8.594, 5.809, 10.045),
+        'left_shoulder': (8.594, 5.809, 10.045), 'right_hip': (20.515, -0.146, 0.247),
         'right_knee': (130.513,), 'right_ankle': (9.991, 1.97), 'left_hip': (20.515, 0.146, -0.247),
         'left_knee': (130.513,), 'left_ankle': (9.991, -1.97),
     })
@@ -237,9 +237,11 @@ def replace_fuel_filter():
     human.KeyRoot(3.1, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.1, {
         'spine_lumbar': (4.343, -0.225, 0.0), 'spine_thoracic': (0.758, -0.022, 0.0),
-        'neck': (4.867, -4.694, 3.11), 'head': (2.086, 1.516), 'right_hip': (20.136, -0.097, 0.167),
-        'right_knee': (130.132,), 'right_ankle': (9.996, 1.322),
-        'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,), 'left_ankle': (9.996, -1.322),
+        'neck': (4.867, -4.694, 3.11), 'head': (2.086, 1.516),
+        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
+        'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
+        'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
+        'left_ankle': (9.996, -1.322),
     })
     human.KeyJoints(3.2, {'neck': (23.427, -22.59, 14.967), 'head': (10.04, 7.299)})
     human.KeyJoints(3.3, {
@@ -780,168 +782,160 @@ def replace_fuel_filter():
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(15.5, {
-        'spine_lumbar': (44.379, -15.593, 3.949), 'spine_thoracic': (-8.333, 2.156, -15.652),
-        'right_clavicle': (-6.871, 11.483), 'right_shoulder': (45.239, -22.241, -61.278),
-        'right_elbow': (12.943, -16.081), 'right_wrist': (45.662, 10.248),
-        'left_clavicle': (-6.768, 11.984), 'left_shoulder': (-32.486, 102.478, 55.165),
-        'left_elbow': (69.259, 64.153), 'left_wrist': (-53.515, 15.442),
+        'spine_lumbar': (44.379, -15.593, 3.174), 'spine_thoracic': (-8.333, 2.156, -12.505),
+        'right_clavicle': (-6.871, 11.483), 'right_shoulder': (45.2, -21.889, -67.602),
+        'right_elbow': (13.031, -16.09), 'right_wrist': (45.777, 10.281),
+        'left_clavicle': (-6.768, 11.984), 'left_shoulder': (-32.468, 102.737, 48.803),
+        'left_elbow': (69.243, 64.145), 'left_wrist': (-53.492, 15.427),
     })
     human.KeyJoints(15.6, {
-        'spine_lumbar': (20.525, -7.508, 3.949), 'spine_thoracic': (-2.984, 0.864, -15.652),
-        'right_clavicle': (-2.796, 4.641), 'right_shoulder': (23.683, -5.679, -17.919),
-        'right_elbow': (25.454, 3.749), 'right_wrist': (18.588, 4.078),
-        'left_clavicle': (-2.754, 4.844), 'left_shoulder': (-8.045, 44.901, 29.026),
-        'left_elbow': (48.353, 36.149), 'left_wrist': (-21.602, 6.189),
+        'spine_lumbar': (20.525, -7.508, 1.292), 'spine_thoracic': (-2.984, 0.864, -5.055),
+        'right_clavicle': (-2.796, 4.641), 'right_shoulder': (23.588, -4.428, -39.21),
+        'right_elbow': (25.533, 3.744), 'right_wrist': (18.634, 4.105),
+        'left_clavicle': (-2.754, 4.844), 'left_shoulder': (-7.782, 45.96, 7.754),
+        'left_elbow': (48.326, 36.15), 'left_wrist': (-21.545, 6.177),
     })
     human.KeyRoot(15.7, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (4.519, -0.688, 3.949), 'spine_thoracic': (0.693, -0.003, -15.652),
-        'right_clavicle': (-0.06, 0.051), 'right_shoulder': (9.005, 5.529, 11.148),
-        'right_elbow': (34.051, 17.042), 'right_wrist': (0.223, -0.005),
-        'left_clavicle': (-0.059, 0.053), 'left_shoulder': (8.439, 6.411, 11.566),
-        'left_elbow': (34.255, 17.395), 'left_wrist': (-0.249, -0.004),
+        'spine_lumbar': (4.519, -0.688, 0.028), 'spine_thoracic': (0.693, -0.003, -0.055),
+        'right_clavicle': (-0.06, 0.051), 'right_shoulder': (8.935, 7.321, -20.173),
+        'right_elbow': (34.077, 17.042), 'right_wrist': (0.232, 0.004),
+        'left_clavicle': (-0.059, 0.053), 'left_shoulder': (8.556, 8.236, -19.782),
+        'left_elbow': (34.205, 17.395), 'left_wrist': (-0.244, -0.015),
         'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
         'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
         'left_ankle': (9.996, -1.322),
     })
     human.KeyRoot(15.8, (1.613, 45.179, 45.245), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (5.363, 4.641, 3.949), 'spine_thoracic': (0.922, 0.954, -15.652),
-        'right_clavicle': (0.0, -0.041), 'right_shoulder': (8.656, 5.776, 11.726),
-        'right_elbow': (34.276, 17.309), 'right_wrist': (-0.153, -0.076),
-        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.777, 5.587, 11.234),
-        'left_elbow': (34.009, 17.02), 'left_wrist': (0.182, -0.118),
+        'spine_lumbar': (5.363, 4.641, 0.0), 'spine_thoracic': (0.922, 0.954, 0.045),
+        'right_clavicle': (0.0, -0.041), 'right_shoulder': (8.596, 7.57, -19.802),
+        'right_elbow': (34.296, 17.309), 'right_wrist': (-0.145, -0.069),
+        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.873, 7.419, -20.314),
+        'left_elbow': (33.968, 17.02), 'left_wrist': (0.185, -0.127),
         'right_hip': (21.072, -0.241, 0.399), 'right_knee': (131.068,),
         'right_ankle': (9.974, 3.197), 'left_hip': (21.072, 0.241, -0.399), 'left_knee': (131.068,),
         'left_ankle': (9.974, -3.197),
     })
     human.KeyRoot(15.9, (1.542, 44.797, 44.263), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'spine_lumbar': (6.681, 17.091, 3.949), 'spine_thoracic': (0.681, 4.109, -15.652),
-        'right_shoulder': (8.622, 5.781, 11.663), 'right_elbow': (34.323, 17.282),
-        'right_wrist': (-0.122, -0.054), 'right_hip': (22.438, -0.57, 0.892),
-        'right_knee': (132.422,), 'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892),
-        'left_knee': (132.422,), 'left_ankle': (9.856, -7.271),
+        'spine_lumbar': (6.681, 17.091, 0.0), 'spine_thoracic': (0.681, 4.109, 0.035),
+        'right_hip': (22.438, -0.57, 0.892), 'right_knee': (132.422,),
+        'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892), 'left_knee': (132.422,),
+        'left_ankle': (9.856, -7.271),
     })
     human.KeyRoot(16.0, (1.117, 44.289, 43.012), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.0, {
-        'spine_lumbar': (9.102, 20.0, 3.949), 'spine_thoracic': (-1.773, 10.0, -15.652),
-        'right_shoulder': (9.783, 7.67, 16.764), 'right_elbow': (35.374, 19.564),
-        'right_wrist': (1.952, -3.604), 'right_hip': (24.116, -1.428, 2.049),
-        'right_knee': (134.023,), 'right_ankle': (9.175, 17.319),
-        'left_hip': (24.116, 1.428, -2.049), 'left_knee': (134.023,),
-        'left_ankle': (9.175, -17.319),
+        'spine_lumbar': (9.102, 20.0, 0.0), 'spine_thoracic': (-1.773, 10.0, 0.025),
+        'right_hip': (24.116, -1.428, 2.049), 'right_knee': (134.023,),
+        'right_ankle': (9.175, 17.319), 'left_hip': (24.116, 1.428, -2.049),
+        'left_knee': (134.023,), 'left_ankle': (9.175, -17.319),
     })
     human.KeyRoot(16.1, (-0.056, 44.345, 43.036), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.1, {
-        'spine_lumbar': (9.449, 20.0, 3.949), 'spine_thoracic': (-9.041, 10.0, -15.652),
-        'right_shoulder': (8.623, 5.748, 11.547), 'right_elbow': (34.317, 17.229),
-        'right_wrist': (-0.05, -0.032), 'right_hip': (23.799, -2.956, 3.894),
-        'right_knee': (133.446,), 'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385),
-        'left_knee': (134.975,), 'left_ankle': (8.358, -19.152),
+        'spine_lumbar': (9.449, 20.0, 0.0), 'spine_thoracic': (-9.041, 10.0, 0.015),
+        'right_hip': (23.799, -2.956, 3.894), 'right_knee': (133.446,),
+        'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385), 'left_knee': (134.975,),
+        'left_ankle': (8.358, -19.152),
     })
     human.KeyRoot(16.2, (-0.125, 45.363, 45.533), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.2, {
-        'spine_lumbar': (0.436, 20.0, 3.949), 'spine_thoracic': (-6.814, 10.0, -15.652),
-        'right_shoulder': (8.58, 5.741, 11.488), 'right_elbow': (34.386, 17.202),
-        'right_wrist': (-0.019, -0.004), 'right_hip': (20.24, -2.446, 3.776),
+        'spine_lumbar': (0.436, 20.0, 0.0), 'spine_thoracic': (-6.814, 10.0, 0.005),
+        'left_elbow': (34.336, 17.17), 'right_hip': (20.24, -2.446, 3.776),
         'right_knee': (129.937,), 'right_ankle': (7.205, 32.018),
         'left_hip': (25.476, -20.779, -4.841), 'left_knee': (132.206,),
         'left_ankle': (-1.619, -1.63),
     })
     human.KeyRoot(16.3, (0.22, 43.903, 42.087), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.3, {
-        'spine_lumbar': (7.197, 20.0, 3.949), 'spine_thoracic': (-5.507, 10.0, -15.652),
-        'right_shoulder': (7.382, 5.899, 10.537), 'right_elbow': (37.289, 18.911),
-        'right_wrist': (-9.506, 5.205), 'left_shoulder': (8.594, 5.73, 11.459),
-        'left_elbow': (34.377, 17.189), 'right_hip': (25.234, -2.825, 3.622),
+        'spine_lumbar': (7.197, 20.0, 0.0), 'spine_thoracic': (-5.507, 10.0, 0.0),
+        'left_shoulder': (8.594, 7.5, -20.0), 'right_hip': (25.234, -2.825, 3.622),
         'right_knee': (134.923,), 'right_ankle': (7.075, 32.768),
         'left_hip': (46.263, -19.671, 3.021), 'left_ankle': (-46.113, -3.977),
     })
     human.KeyRoot(16.4, (0.037, 43.856, 41.978), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (1.043, 20.0, 3.949), 'spine_thoracic': (-8.777, 10.0, -15.652),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'left_wrist': (0.0, 0.0), 'right_hip': (25.35, -3.091, 3.792),
-        'right_knee': (134.999,), 'right_ankle': (6.684, 34.925),
-        'left_hip': (83.405, -21.566, 31.596), 'left_knee': (134.236,),
-        'left_ankle': (-44.475, -16.418),
+        'spine_lumbar': (1.043, 20.0, 0.0), 'spine_thoracic': (-8.777, 10.0, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
+        'right_hip': (25.35, -3.091, 3.792), 'right_knee': (134.999,),
+        'right_ankle': (6.684, 34.925), 'left_hip': (83.405, -21.566, 31.596),
+        'left_knee': (134.236,), 'left_ankle': (-44.475, -16.418),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (0.161, 20.0, 3.949), 'spine_thoracic': (-9.448, 10.0, -15.652),
-        'left_hip': (111.005, -17.935, 10.92), 'left_ankle': (-37.194, -23.109),
+        'spine_lumbar': (0.161, 20.0, 0.0), 'spine_thoracic': (-9.448, 10.0, 0.0),
+        'right_wrist': (0.0, 0.0), 'left_hip': (111.005, -17.935, 10.92),
+        'left_ankle': (-37.194, -23.109),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.294, 20.0, 3.949), 'spine_thoracic': (-6.149, 10.0, -15.652),
-        'right_ankle': (6.671, 34.996), 'left_hip': (118.779, -9.323, -17.486),
-        'left_knee': (131.188,), 'left_ankle': (-30.516, -24.67),
+        'spine_lumbar': (-0.294, 20.0, 0.0), 'spine_thoracic': (-6.149, 10.0, 0.0),
+        'right_elbow': (34.377, 17.189), 'right_ankle': (6.671, 34.996),
+        'left_hip': (118.779, -9.323, -17.486), 'left_knee': (131.188,),
+        'left_ankle': (-30.516, -24.67),
     })
     human.KeyRoot(16.7, (0.102, 43.861, 41.992), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-1.104, 20.0, 3.949), 'spine_thoracic': (-6.341, 10.0, -15.652),
+        'spine_lumbar': (-1.104, 20.0, 0.0), 'spine_thoracic': (-6.341, 10.0, 0.0),
         'right_hip': (25.346, -3.002, 3.796), 'right_ankle': (6.725, 34.696),
         'left_hip': (100.946, -9.438, 9.142), 'left_knee': (132.386,),
         'left_ankle': (-3.902, 13.123),
     })
     human.KeyRoot(16.8, (1.814, 44.016, 42.509), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-3.512, 19.67, 3.949), 'spine_thoracic': (-1.022, 3.984, -15.652),
-        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (25.018, -0.638, 0.904),
-        'right_ankle': (9.842, 7.602), 'left_hip': (100.292, -1.591, 1.724), 'left_knee': (132.49,),
-        'left_ankle': (-0.212, 2.435),
+        'spine_lumbar': (-3.512, 19.67, 0.0), 'spine_thoracic': (-1.022, 3.984, 0.0),
+        'right_hip': (25.018, -0.638, 0.904), 'right_ankle': (9.842, 7.602),
+        'left_hip': (100.292, -1.591, 1.724), 'left_knee': (132.49,), 'left_ankle': (-0.212, 2.435),
     })
     human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-3.806, 9.808, 3.949), 'spine_thoracic': (-0.821, 1.771, -15.652),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'left_shoulder': (8.606, 6.527, 12.639), 'left_elbow': (34.294, 18.304),
-        'left_wrist': (0.699, 0.873), 'right_hip': (25.037, -0.397, 0.568),
-        'right_ankle': (10.063, 4.833), 'left_hip': (98.871, -0.812, 0.999),
-        'left_knee': (132.297,), 'left_ankle': (3.221, 1.335),
+        'spine_lumbar': (-3.806, 9.808, 0.0), 'spine_thoracic': (-0.821, 1.771, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
+        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
+        'right_hip': (25.037, -0.397, 0.568), 'right_ankle': (10.063, 4.833),
+        'left_hip': (98.871, -0.812, 0.999), 'left_knee': (132.297,), 'left_ankle': (3.221, 1.335),
     })
     human.KeyRoot(17.0, (2.995, 46.839, 37.706), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (9.839, 8.94, 3.949), 'spine_thoracic': (1.47, 1.621, -15.652),
-        'right_shoulder': (8.938, 5.462, 11.523), 'right_elbow': (34.545, 17.189),
-        'right_wrist': (0.013, 0.045), 'left_shoulder': (7.604, 7.253, 12.596),
-        'left_elbow': (36.845, 18.483), 'left_wrist': (0.141, 2.162),
-        'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,), 'right_ankle': (14.452, 5.04),
-        'left_hip': (92.433, -0.17, 0.414), 'left_knee': (123.3,), 'left_ankle': (11.609, 0.435),
+        'spine_lumbar': (10.19, 8.819, 0.0), 'spine_thoracic': (1.504, 1.598, 0.0),
+        'right_shoulder': (8.942, 7.177, -19.855), 'right_elbow': (34.953, 17.189),
+        'left_shoulder': (7.002, 7.234, -20.119), 'left_elbow': (38.54, 17.189),
+        'left_wrist': (-0.346, 0.961), 'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,),
+        'right_ankle': (14.452, 5.04), 'left_hip': (92.433, -0.17, 0.414), 'left_knee': (123.3,),
+        'left_ankle': (11.598, 0.435),
     })
     human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (31.259, 7.901, 3.949), 'spine_thoracic': (4.686, 1.42, -15.652),
-        'right_shoulder': (9.77, 4.9, 11.649), 'right_elbow': (34.592, 17.189),
-        'right_wrist': (0.06, 0.07), 'left_shoulder': (5.396, 8.284, 12.186),
-        'left_elbow': (42.933, 17.229), 'left_wrist': (-0.892, 2.201),
-        'right_hip': (34.67, -0.462, 1.249), 'right_knee': (128.657,),
-        'right_ankle': (18.339, 2.038), 'left_hip': (79.247, -0.08, -0.608),
-        'left_knee': (101.565,), 'left_ankle': (19.028, -0.62),
+        'spine_lumbar': (31.609, 7.81, 0.0), 'spine_thoracic': (4.691, 1.392, 0.0),
+        'right_shoulder': (9.541, 6.719, -19.638), 'right_elbow': (35.657, 17.189),
+        'left_shoulder': (5.093, 6.994, -20.291), 'left_elbow': (43.763, 17.189),
+        'left_wrist': (-0.788, 2.166), 'right_hip': (34.67, -0.462, 1.249),
+        'right_knee': (128.657,), 'right_ankle': (18.339, 2.038),
+        'left_hip': (79.247, -0.08, -0.608), 'left_knee': (101.565,), 'left_ankle': (19.028, -0.62),
     })
-    human.KeyRoot(17.2, (5.498, 71.895, 36.148), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.2, (5.506, 71.895, 36.184), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (7.556, 9.239, 3.949), 'spine_thoracic': (1.105, 1.722, -15.652),
-        'right_shoulder': (9.754, 4.751, 11.699), 'right_elbow': (35.217, 17.189),
-        'right_wrist': (0.036, 0.216), 'left_shoulder': (4.399, 8.204, 10.838),
-        'left_elbow': (45.288, 17.188), 'left_wrist': (-1.022, 2.495),
-        'right_hip': (17.304, 0.422, 2.378), 'right_knee': (94.205,),
-        'right_ankle': (14.266, 2.469), 'left_hip': (52.94, -1.05, -1.426), 'left_knee': (72.532,),
-        'left_ankle': (18.903, -1.774),
+        'spine_lumbar': (7.204, 9.431, 0.0), 'spine_thoracic': (1.004, 1.735, 0.0),
+        'right_shoulder': (9.287, 6.627, -19.637), 'right_elbow': (36.156, 17.188),
+        'right_wrist': (0.019, 0.444), 'left_shoulder': (4.766, 6.946, -20.322),
+        'left_elbow': (44.355, 17.188), 'left_wrist': (-0.843, 2.307),
+        'right_hip': (17.26, 0.426, 2.392), 'right_knee': (94.175,), 'right_ankle': (14.28, 2.485),
+        'left_hip': (52.924, -1.058, -1.435), 'left_knee': (72.555,),
+        'left_ankle': (18.941, -1.787),
     })
-    human.KeyRoot(17.3, (6.834, 85.806, 36.181), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.3, (6.841, 85.806, 36.217), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (1.843, 11.376, 3.949), 'spine_thoracic': (-0.038, 2.059, -15.652),
-        'right_elbow': (34.711, 17.189), 'left_elbow': (39.743, 17.189),
-        'right_hip': (10.143, 1.068, 3.358), 'right_knee': (67.814,),
-        'right_ankle': (-4.686, 3.672), 'left_hip': (28.72, -2.108, -1.155), 'left_knee': (28.719,),
-        'left_ankle': (0.019, -2.404),
+        'spine_lumbar': (1.491, 11.538, 0.0), 'spine_thoracic': (-0.11, 2.076, 0.0),
+        'right_shoulder': (8.863, 7.134, -19.851), 'right_elbow': (35.111, 17.189),
+        'left_shoulder': (6.816, 7.219, -20.138), 'left_elbow': (38.777, 17.189),
+        'left_wrist': (-0.369, 1.014), 'right_hip': (10.102, 1.074, 3.37), 'right_knee': (67.78,),
+        'right_ankle': (-4.677, 3.685), 'left_hip': (28.718, -2.117, -1.16), 'left_knee': (28.761,),
+        'left_ankle': (0.063, -2.414),
     })
     human.KeyRoot(17.4, (6.21, 90.189, 45.35), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-27.238, 13.403, 3.949), 'spine_thoracic': (-7.232, 2.271, -15.652),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 5.73, 11.459),
+        'spine_lumbar': (-27.238, 13.403, 0.0), 'spine_thoracic': (-7.232, 2.271, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
         'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
         'right_hip': (-6.175, 2.175, 3.192), 'right_knee': (44.572,),
         'right_ankle': (-11.112, 3.826), 'left_hip': (10.143, -2.95, -0.528), 'left_knee': (4.612,),
@@ -949,56 +943,56 @@ def replace_fuel_filter():
     })
     human.KeyRoot(17.5, (7.348, 90.212, 55.24), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-26.02, 11.831, 3.949), 'spine_thoracic': (-7.137, 2.022, -15.652),
+        'spine_lumbar': (-26.02, 11.831, 0.0), 'spine_thoracic': (-7.137, 2.022, 0.0),
         'right_hip': (-11.824, 3.181, 7.272), 'right_knee': (37.702,),
         'right_ankle': (-28.315, 8.74), 'left_hip': (8.165, -4.938, -0.708), 'left_knee': (13.822,),
         'left_ankle': (5.687, -4.989),
     })
     human.KeyRoot(17.6, (9.086, 89.367, 62.809), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (19.992, 0.136, 3.949), 'spine_thoracic': (3.197, 0.026, -15.652),
+        'spine_lumbar': (19.992, 0.136, 0.0), 'spine_thoracic': (3.197, 0.026, 0.0),
         'right_hip': (-14.859, 2.446, 15.766), 'right_knee': (32.143,),
         'right_ankle': (-48.92, 8.028), 'left_hip': (5.129, -7.128, -0.638), 'left_knee': (17.624,),
         'left_ankle': (12.534, -7.156),
     })
     human.KeyRoot(17.7, (9.056, 89.807, 63.334), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (23.049, -1.14, 3.949), 'spine_thoracic': (3.427, -0.195, -15.652),
+        'spine_lumbar': (23.049, -1.14, 0.0), 'spine_thoracic': (3.427, -0.195, 0.0),
         'right_hip': (-14.615, 3.9, 10.07), 'right_knee': (39.259,),
         'right_ankle': (-28.903, 7.523), 'left_hip': (2.362, -7.158, -0.294),
         'left_knee': (12.695,), 'left_ankle': (10.351, -7.164),
     })
     human.KeyRoot(17.8, (9.478, 90.433, 59.387), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (39.931, -2.894, 3.949), 'spine_thoracic': (5.297, -0.477, -15.652),
+        'spine_lumbar': (39.931, -2.894, 0.0), 'spine_thoracic': (5.297, -0.477, 0.0),
         'right_hip': (-13.883, 6.98, 1.033), 'right_knee': (26.08,), 'right_ankle': (18.25, 7.158),
         'left_hip': (1.656, -6.905, -0.199), 'left_knee': (5.704,), 'left_ankle': (4.06, -6.908),
     })
     human.KeyRoot(17.9, (7.866, 90.637, 59.089), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (28.052, -7.718, 3.949), 'spine_thoracic': (4.263, -1.345, -15.652),
+        'spine_lumbar': (28.052, -7.718, 0.0), 'spine_thoracic': (4.263, -1.345, 0.0),
         'right_hip': (4.571, 6.066, 0.522), 'right_knee': (24.937,), 'right_ankle': (20.0, 6.293),
         'left_hip': (1.36, -5.78, -0.137), 'left_knee': (5.108,), 'left_ankle': (3.754, -5.782),
     })
     human.KeyRoot(18.0, (4.368, 90.602, 61.681), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.0, {
-        'spine_lumbar': (15.545, -15.079, 3.949), 'spine_thoracic': (2.453, -2.691, -15.652),
+        'spine_lumbar': (15.545, -15.079, 0.0), 'spine_thoracic': (2.453, -2.691, 0.0),
         'right_hip': (0.929, 3.764, 0.061), 'right_knee': (8.684,), 'right_ankle': (7.758, 3.765),
         'left_hip': (0.929, -3.764, -0.061), 'left_knee': (8.684,), 'left_ankle': (7.758, -3.765),
     })
     human.KeyRoot(18.1, (0.997, 91.055, 56.584), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.1, {
-        'spine_lumbar': (7.323, -7.236, 3.949), 'spine_thoracic': (1.243, -1.309, -15.652),
+        'spine_lumbar': (7.323, -7.236, 0.0), 'spine_thoracic': (1.243, -1.309, 0.0),
         'right_hip': (2.4, 0.862, 0.036), 'right_knee': (5.55,), 'right_ankle': (3.151, 0.863),
         'left_hip': (2.4, -0.862, -0.036), 'left_knee': (5.55,), 'left_ankle': (3.151, -0.863),
     })
     human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.175969, {
-        'spine_lumbar': (0.0, 0.0, 3.949), 'spine_thoracic': (0.0, 0.0, -15.652),
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (29.296, -22.813, 19.826), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+        'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),

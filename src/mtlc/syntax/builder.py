@@ -28,6 +28,7 @@ _call = ast.maker(ast.Call, "span", "callee", "callee_span", "args")
 _binary = ast.maker(ast.Binary, "span", "op", "left", "right")
 _vector = ast.maker(ast.Vector, "span", "items", "unit", "unit_span")
 _block = ast.maker(ast.Block, "span", "stmts")
+_set_depth = ast.Expr.depth.__set__  # type: ignore[attr-defined]
 _site_decl = ast.maker(ast.SiteDecl, "span", "name", "name_span", "position", "normal", "frame")
 _scene = ast.maker(ast.Scene, "span", "name", "name_span", "ground", "sites")
 _param = ast.maker(ast.Param, "span", "name", "type_name", "type_span", "default")
@@ -97,7 +98,10 @@ class AstBuilder(Transformer):
         return _new_span(Span, (file, line, column, b[3], b[4], start, b[6]))
 
     def _expr(self, node: ast.Expr, *children: ast.Expr) -> ast.Expr:
-        depth = 1 + max((c.depth for c in children), default=0)
+        depth = 1  # 1 + the deepest child's (a loop: most nodes have one to three children)
+        for child in children:
+            if child.depth >= depth:
+                depth = child.depth + 1
         if depth > MAX_EXPR_DEPTH:
             if not any(isinstance(c, ast.Error) for c in children):
                 self.sink.report(
@@ -107,7 +111,7 @@ class AstBuilder(Transformer):
                     help="break it into parameters or smaller definitions",
                 )
             node = ast.Error(span=node.span)
-        object.__setattr__(node, "depth", depth)  # frozen: set once, here, before anyone sees it
+        _set_depth(node, depth)  # frozen: set once, here, before anyone sees it (by its slot)
         return node
 
     @staticmethod

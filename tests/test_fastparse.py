@@ -253,3 +253,50 @@ def test_the_conflicts_are_resolved_as_lark_does() -> None:
     ]
     accepted = [fast for text in cases for fast, _ in _compare_text(text)]
     assert accepted == [True] * 7 + [False, True, True]
+
+
+def _split_both(text: str) -> bool:
+    """Split ``text`` by the lexer's item ends and by the parser's own walk; assert the same
+    items and no diagnostic where the lexer gave ends. Whether it gave them."""
+    ends: list[int] = []
+    tokens = tokenize(text, "f.mtask", DiagnosticSink(), None, ends)
+    walked_sink, sliced_sink = DiagnosticSink(), DiagnosticSink()
+    walked = list(_split_items(tokens, "f.mtask", walked_sink))
+    sliced = list(_split_items(tokens, "f.mtask", sliced_sink, ends))
+    if ends:
+        assert [[(t.type, t.start_pos) for t in item] for item in sliced] == [
+            [(t.type, t.start_pos) for t in item] for item in walked
+        ]
+        assert not walked_sink.items and not sliced_sink.items
+    return bool(ends)
+
+
+def test_the_lexers_item_ends_split_as_the_parser_does() -> None:
+    assert all(_split_both(p.read_text(encoding="utf-8")) for p in (*EXAMPLES, *STDLIB))
+    # what it must refuse: an open or crossed bracket, a word starting a line inside one
+    assert not _split_both("task t {\n    a(\n}\n")
+    assert not _split_both("task t {\n    a(]\n}\n")
+    assert not _split_both("task t {\n    a(\ntask u {\n}\n")
+    assert not _split_both("task t {\n" + "(" * 70 + ")" * 70 + "\n}\n")
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    st.sampled_from([p.read_text(encoding="utf-8") for p in (*EXAMPLES, *STDLIB)]),
+    st.lists(
+        st.tuples(
+            st.integers(0, 10**6),
+            st.integers(0, 6),
+            st.sampled_from(["", "(", ")", "[", "]", "{", "}", "\n", "task", "use a", "x", "（"]),
+        ),
+        max_size=4,
+    ),
+)
+def test_the_lexers_item_ends_agree_on_mutated_files(
+    source: str, edits: list[tuple[int, int, str]]
+) -> None:
+    text = source
+    for at, cut, insert in edits:
+        at %= len(text) + 1
+        text = text[:at] + insert + text[at + cut :]
+    _split_both(text)

@@ -64,9 +64,10 @@ def format_source(source: str, file: str) -> FormatResult:
 
 def _format_source(source: str, file: str) -> FormatResult:
     sink = DiagnosticSink()
-    tokens, found = lex(source, file, sink)  # one scan for the parser, the printer, the comments
+    # one scan for the parser, the printer, the comments
+    tokens, found, item_ends = lex(source, file, sink)
     memo = ItemMemo()
-    module = parse_module(source, file, sink, tokens, memo)
+    module = parse_module(source, file, sink, tokens, memo, item_ends)
     if any(d.severity == Severity.ERROR for d in sink.items):
         return FormatResult(None, sink.items)
     remember((source, tokens, found))
@@ -126,10 +127,10 @@ def _why_unsafe(
     would build the same tree from them (only the spans would differ, and the comparison
     ignores spans; the suppression check maps the item's positions, token by token)."""
     sink = DiagnosticSink()
-    tokens, found_after = lex(formatted, file, sink)
+    tokens, found_after, item_ends = lex(formatted, file, sink)
     if memo is not None:
         memo.recording = False
-    after = parse_module(formatted, file, sink, tokens, memo)
+    after = parse_module(formatted, file, sink, tokens, memo, item_ends)
     if sink.items:
         return f"it does not parse ({sink.items[0].code}: {sink.items[0].message})"
     if not same_tree(after, before):

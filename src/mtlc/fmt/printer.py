@@ -59,6 +59,16 @@ def _subclasses(cls: type) -> set[type]:
 # the node classes that are ANCHORS: a set lookup by type instead of isinstance's walk
 _ANCHOR_TYPES = frozenset(c for c in _subclasses(ast.Node) if issubclass(c, ANCHORS))
 
+# what _survey does with a node of each class (no entry: nothing)
+_ANCHOR, _CALL, _BLOCK, _SCENE, _POSTURE = "anchor", "call", "block", "scene", "posture"
+_SURVEY_ROLES: dict[type, str] = {kind: _ANCHOR for kind in _ANCHOR_TYPES}
+_SURVEY_ROLES.update(
+    {ast.Call: _CALL, ast.CallExpr: _CALL, ast.Block: _BLOCK, ast.Scene: _SCENE,
+     ast.Posture: _POSTURE}
+)  # fmt: skip
+assert not issubclass(ast.CallExpr, ANCHORS) and not issubclass(ast.Block, ANCHORS)
+assert all(issubclass(k, ANCHORS) for k in (ast.Call, ast.Scene, ast.Posture))
+
 # binding strength: a child that binds less tightly than its place needs parentheses
 _SUM, _PRODUCT, _UNARY, _POSTFIX, _PRIMARY = 1, 2, 3, 4, 5
 
@@ -160,30 +170,41 @@ class _Printer:
         parens: set[int] = set()
         found: list[int] = []
         src = self.src
+        fields, roles = _FIELDS, _SURVEY_ROLES
         stack: list[ast.Node] = [self.tree]  # every node, in no particular order
         while stack:
             node = stack.pop()
             kind = type(node)
-            for name in _node_fields(kind):
+            names = fields.get(kind)
+            if names is None:
+                names = _node_fields(kind)
+            for name in names:
                 value = getattr(node, name)
                 if type(value) is tuple:
                     stack.extend(value)
                 elif value is not None:
                     stack.append(value)
-            if kind in _CALLS:
-                parens.add(src.match[src.ending_at(node.span.end)])
-            elif kind is ast.Block:
-                self.blocks_by_end[node.span.end] = node  # type: ignore[assignment]
+            role = roles.get(kind)  # one look-up: most nodes (names, numbers, arguments) have none
+            if role is None:
                 continue
-            elif kind is ast.Scene and node.ground is not None:  # type: ignore[attr-defined]
-                keyword = src.starting_at(node.ground.span.start) - 1  # type: ignore[attr-defined]
-                found.append(int(src.at(keyword).start_pos))
-            if kind in _ANCHOR_TYPES:
+            if role is _ANCHOR:
                 found.append(node.span.start)
-                if kind is ast.Posture:
-                    after = src.ending_at(node.kind_span.end) + 1  # type: ignore[attr-defined]
-                    if src.kind(after) == "LPAR":
-                        parens.add(after)
+            elif role is _CALL:
+                parens.add(src.match[src.ending_at(node.span.end)])
+                if kind is ast.Call:
+                    found.append(node.span.start)
+            elif role is _BLOCK:
+                self.blocks_by_end[node.span.end] = node  # type: ignore[assignment]
+            elif role is _SCENE:
+                if node.ground is not None:  # type: ignore[attr-defined]
+                    keyword = src.starting_at(node.ground.span.start) - 1  # type: ignore[attr-defined]
+                    found.append(int(src.at(keyword).start_pos))
+                found.append(node.span.start)
+            elif role is _POSTURE:
+                found.append(node.span.start)
+                after = src.ending_at(node.kind_span.end) + 1  # type: ignore[attr-defined]
+                if src.kind(after) == "LPAR":
+                    parens.add(after)
         return parens, sorted(found)
 
     # ------------------------------------------------------------ sequences and blocks

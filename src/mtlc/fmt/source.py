@@ -21,10 +21,12 @@ _BRACKETS = frozenset({*_PAIRS, *_PAIRS.values()})
 _lexed: tuple[str, list[Token], list[Token]] | None = None
 
 
-def lex(text: str, file: str, sink: DiagnosticSink) -> tuple[list[Token], list[Token]]:
-    """The tokens (diagnostics into ``sink``) and the comments of ``text``, in one scan."""
+def lex(text: str, file: str, sink: DiagnosticSink) -> tuple[list[Token], list[Token], list[int]]:
+    """The tokens (diagnostics into ``sink``), the comments of ``text`` and where its items
+    end (``tokenize``'s ``item_ends_out``, for ``parse_module``), in one scan."""
     found: list[Token] = []
-    return tokenize(text, file, sink, found), found
+    item_ends: list[int] = []
+    return tokenize(text, file, sink, found, item_ends), found, item_ends
 
 
 def remember(lexed: tuple[str, list[Token], list[Token]] | None) -> None:
@@ -36,7 +38,7 @@ def remember(lexed: tuple[str, list[Token], list[Token]] | None) -> None:
 def _known(text: str, file: str) -> tuple[list[Token], list[Token]]:
     if _lexed is not None and _lexed[0] is text:
         return _lexed[1], _lexed[2]
-    return lex(text, file, DiagnosticSink())
+    return lex(text, file, DiagnosticSink())[:2]
 
 
 @dataclass(frozen=True, slots=True)

@@ -28,6 +28,30 @@ _call = ast.maker(ast.Call, "span", "callee", "callee_span", "args")
 _binary = ast.maker(ast.Binary, "span", "op", "left", "right")
 _vector = ast.maker(ast.Vector, "span", "items", "unit", "unit_span")
 _block = ast.maker(ast.Block, "span", "stmts")
+_set_depth = ast.Expr.depth.__set__  # type: ignore[attr-defined]
+_site_decl = ast.maker(ast.SiteDecl, "span", "name", "name_span", "position", "normal", "frame")
+_scene = ast.maker(ast.Scene, "span", "name", "name_span", "ground", "sites")
+_param = ast.maker(ast.Param, "span", "name", "type_name", "type_span", "default")
+_definition = ast.maker(ast.Definition, "span", "name", "name_span", "kind", "params", "body")
+_task = ast.maker(ast.Task, "span", "name", "name_span", "title", "body")
+_repeat = ast.maker(ast.Repeat, "span", "count", "body")
+_parallel = ast.maker(ast.Parallel, "span", "body")
+_manikin_setting = ast.maker(
+    ast.ManikinSetting,
+    "span",
+    "population",
+    "population_span",
+    "sex",
+    "sex_span",
+    "percentile",
+    "percentile_span",
+)
+_scene_setting = ast.maker(ast.SceneSetting, "span", "name", "name_span")
+_time_setting = ast.maker(ast.TimeSetting, "span", "duration")
+_goal = ast.maker(ast.Goal, "span", "effector", "target", "approach", "offset", "orient", "over")
+_unary = ast.maker(ast.Unary, "span", "op", "operand")
+_attr = ast.maker(ast.Attr, "span", "obj", "name", "name_span")
+_call_expr = ast.maker(ast.CallExpr, "span", "func", "args")
 
 
 class AstBuilder(Transformer):
@@ -74,7 +98,10 @@ class AstBuilder(Transformer):
         return _new_span(Span, (file, line, column, b[3], b[4], start, b[6]))
 
     def _expr(self, node: ast.Expr, *children: ast.Expr) -> ast.Expr:
-        depth = 1 + max((c.depth for c in children), default=0)
+        depth = 1  # 1 + the deepest child's (a loop: most nodes have one to three children)
+        for child in children:
+            if child.depth >= depth:
+                depth = child.depth + 1
         if depth > MAX_EXPR_DEPTH:
             if not any(isinstance(c, ast.Error) for c in children):
                 self.sink.report(
@@ -84,7 +111,7 @@ class AstBuilder(Transformer):
                     help="break it into parameters or smaller definitions",
                 )
             node = ast.Error(span=node.span)
-        object.__setattr__(node, "depth", depth)  # frozen: set once, here, before anyone sees it
+        _set_depth(node, depth)  # frozen: set once, here, before anyone sees it (by its slot)
         return node
 
     @staticmethod
@@ -128,13 +155,13 @@ class AstBuilder(Transformer):
                 )
             else:
                 clauses[kind] = expr
-        return ast.SiteDecl(
-            span=self._join(c[0], c[-1]),
-            name=c[1].value,
-            name_span=self._sp(c[1]),
-            position=c[2],
-            normal=clauses.get("normal"),
-            frame=clauses.get("frame"),
+        return _site_decl(
+            self._join(c[0], c[-1]),
+            c[1].value,
+            self._sp(c[1]),
+            c[2],
+            clauses.get("normal"),
+            clauses.get("frame"),
         )
 
     def scene_decl(self, c: list[Any]) -> ast.Scene:
@@ -147,13 +174,7 @@ class AstBuilder(Transformer):
                 self.sink.report("MT0210", "the scene's ground is given twice", member[2])
             else:
                 ground = member[1]
-        return ast.Scene(
-            span=self._join(c[0], c[-1]),
-            name=c[1].value,
-            name_span=self._sp(c[1]),
-            ground=ground,
-            sites=tuple(sites),
-        )
+        return _scene(self._join(c[0], c[-1]), c[1].value, self._sp(c[1]), ground, tuple(sites))
 
     def tool_prop(self, c: list[Any]) -> ast.ToolProperty:
         return ast.ToolProperty(span=self._join(c[0], c[1]), name=c[0].value, value=c[1])
@@ -169,33 +190,33 @@ class AstBuilder(Transformer):
     # ------------------------------------------------------------ definitions
     def param(self, c: list[Any]) -> ast.Param:
         name, type_tok, default = c
-        return ast.Param(
-            span=self._join(name, default if default is not None else type_tok),
-            name=name.value,
-            type_name=type_tok.value,
-            type_span=self._sp(type_tok),
-            default=default,
+        return _param(
+            self._join(name, default if default is not None else type_tok),
+            name.value,
+            type_tok.value,
+            self._sp(type_tok),
+            default,
         )
 
     def definition(self, c: list[Any]) -> ast.Definition:
         kind, name, *params, body = c
-        return ast.Definition(
-            span=self._join(kind, body),
-            name=name.value,
-            name_span=self._sp(name),
-            kind=kind.value,
-            params=tuple(self._present(params)),
-            body=body,
+        return _definition(
+            self._join(kind, body),
+            name.value,
+            self._sp(name),
+            kind.value,
+            tuple(self._present(params)),
+            body,
         )
 
     def task_decl(self, c: list[Any]) -> ast.Task:
         kw, name, title, body = c
-        return ast.Task(
-            span=self._join(kw, body),
-            name=name.value,
-            name_span=self._sp(name),
-            title=decode_string(title, self.file, self.sink) if title is not None else None,
-            body=body,
+        return _task(
+            self._join(kw, body),
+            name.value,
+            self._sp(name),
+            decode_string(title, self.file, self.sink) if title is not None else None,
+            body,
         )
 
     def block(self, c: list[Any]) -> ast.Block:
@@ -213,7 +234,7 @@ class AstBuilder(Transformer):
         return _call(name_span.to(self._sp(rpar)), names, name_span, self._args(args))
 
     def repeat_stmt(self, c: list[Any]) -> ast.Repeat:
-        return ast.Repeat(span=self._join(c[0], c[2]), count=c[1], body=c[2])
+        return _repeat(self._join(c[0], c[2]), c[1], c[2])
 
     def for_stmt(self, c: list[Any]) -> ast.ForEach:
         kw, var, items, body = c
@@ -226,24 +247,22 @@ class AstBuilder(Transformer):
         )
 
     def parallel_stmt(self, c: list[Any]) -> ast.Parallel:
-        return ast.Parallel(span=self._join(c[0], c[1]), body=c[1])
+        return _parallel(self._join(c[0], c[1]), c[1])
 
     def manikin_stmt(self, c: list[Token]) -> ast.ManikinSetting:
         kw, pop, sex, pct = c
-        return ast.ManikinSetting(
-            span=self._join(kw, pct),
-            population=pop.value,
-            population_span=self._sp(pop),
-            sex=sex.value,
-            sex_span=self._sp(sex),
-            percentile=pct.value,
-            percentile_span=self._sp(pct),
+        return _manikin_setting(
+            self._join(kw, pct),
+            pop.value,
+            self._sp(pop),
+            sex.value,
+            self._sp(sex),
+            pct.value,
+            self._sp(pct),
         )
 
     def scene_stmt(self, c: list[Token]) -> ast.SceneSetting:
-        return ast.SceneSetting(
-            span=self._join(c[0], c[1]), name=c[1].value, name_span=self._sp(c[1])
-        )
+        return _scene_setting(self._join(c[0], c[1]), c[1].value, self._sp(c[1]))
 
     def tool_stmt(self, c: list[Any]) -> ast.ToolSetting:
         return ast.ToolSetting(span=self._join(c[0], c[1]), tool=c[1])
@@ -252,7 +271,7 @@ class AstBuilder(Transformer):
         return ast.BudgetSetting(span=self._join(c[0], c[1]), limit=c[1])
 
     def time_stmt(self, c: list[Any]) -> ast.TimeSetting:
-        return ast.TimeSetting(span=self._join(c[0], c[1]), duration=c[1])
+        return _time_setting(self._join(c[0], c[1]), c[1])
 
     def approach_clause(self, c: list[Any]) -> tuple[str, Any, Span]:
         return ("approach", c[0], self._sp(c[0]))
@@ -275,14 +294,14 @@ class AstBuilder(Transformer):
             else:
                 found[kind] = value
         last = clauses[-1] if clauses else target
-        return ast.Goal(
-            span=self._join(kw, last),
-            effector=effector,
-            target=target,
-            approach=found.get("approach"),
-            offset=found.get("offset"),
-            orient=bool(found.get("orient", False)),
-            over=found.get("over"),
+        return _goal(
+            self._join(kw, last),
+            effector,
+            target,
+            found.get("approach"),
+            found.get("offset"),
+            bool(found.get("orient", False)),
+            found.get("over"),
         )
 
     def posture_args(self, c: list[Any]) -> tuple[tuple[ast.Arg, ...], Span]:
@@ -350,19 +369,17 @@ class AstBuilder(Transformer):
         return self._binary("/", c)
 
     def neg(self, c: list[Any]) -> ast.Expr:
-        return self._expr(ast.Unary(span=self._join(c[0], c[1]), op="-", operand=c[1]), c[1])
+        return self._expr(_unary(self._join(c[0], c[1]), "-", c[1]), c[1])
 
     def attr(self, c: list[Any]) -> ast.Expr:
         obj, name = c
-        node = ast.Attr(
-            span=self._join(obj, name), obj=obj, name=name.value, name_span=self._sp(name)
-        )
+        node = _attr(self._join(obj, name), obj, name.value, self._sp(name))
         return self._expr(node, obj)
 
     def call_expr(self, c: list[Any]) -> ast.Expr:
         func, args, rpar = c
         args_t = self._args(args)
-        node = ast.CallExpr(span=self._join(func, rpar), func=func, args=args_t)
+        node = _call_expr(self._join(func, rpar), func, args_t)
         return self._expr(node, func, *(a.value for a in args_t))
 
     def number(self, c: list[Any]) -> ast.Expr:

@@ -21,6 +21,7 @@ from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.syntax.grammar import lexicon
 
 NEWLINE = "_NL"
+MAX_NESTING = 64  # blocks and brackets inside each other (deeper: MT0104, from the parser)
 MAX_ERRORS_PER_FILE = 50
 _WORD = re.compile(r"\w*")
 # Token(...) without its check for a deprecated keyword argument: one per lexeme
@@ -178,10 +179,21 @@ def _starts_nothing(ch: str, wide: dict[str, str]) -> bool:
 
 
 def tokenize(
-    text: str, file: str, sink: DiagnosticSink, comments_out: list[Token] | None = None
+    text: str,
+    file: str,
+    sink: DiagnosticSink,
+    comments_out: list[Token] | None = None,
+    item_ends_out: list[int] | None = None,
 ) -> list[Token]:
     """The tokens the parser reads (comments dropped). With ``comments_out``, the comments are
-    appended to it as ``comments`` finds them, in the same pass (`mtlc fmt` needs both)."""
+    appended to it as ``comments`` finds them, in the same pass (`mtlc fmt` needs both).
+
+    With ``item_ends_out``, when the brackets are plainly nested (each closer closes the
+    innermost opener, none is left open, none nests deeper than MAX_NESTING, no word starts a
+    line inside them), the index of each new line outside every bracket, then the number of
+    tokens, is appended to it: where the parser's items end, found here in passing instead of
+    by the parser's walk over every bracket. Otherwise nothing is (the parser walks them).
+    """
     lx = lexicon()
     keywords, punctuation = lx.keywords, lx.punctuation
     wide = _wide_forms()
@@ -191,6 +203,8 @@ def tokenize(
     brackets: list[str] = []  # open ( and [ and {, innermost last
     still_open = {"(": 0, "[": 0, "{": 0}  # how many of each are in ``brackets`` (no search)
     errors = 0
+    item_ends: list[int] = []  # new lines outside every bracket (see item_ends_out)
+    plain = True  # the brackets are plainly nested so far
 
     def error(code: str, message: str, help: str | None = None) -> None:
         """Report the current lexeme (at most MAX_ERRORS_PER_FILE of them)."""
@@ -230,22 +244,33 @@ def tokenize(
                 if value in "([{":
                     brackets.append(value)
                     still_open[value] += 1
-                elif value in ")]}" and brackets:
+                    if len(brackets) > MAX_NESTING:
+                        plain = False
+                elif value in ")]}":
                     opener = _OPENER[value]
-                    if still_open[opener]:
-                        while (popped := brackets.pop()) != opener:
-                            still_open[popped] -= 1
+                    if brackets and brackets[-1] == opener:
+                        brackets.pop()
                         still_open[opener] -= 1
+                    else:
+                        plain = False
+                        if still_open[opener]:
+                            while (popped := brackets.pop()) != opener:
+                                still_open[popped] -= 1
+                            still_open[opener] -= 1
             elif (
                 kind == "NAME"
                 and (end == n or text[end].isascii())  # else the word may go on (_name_end)
                 and (value := text[start:end]).isascii()
             ):
                 ttype = keywords.get(value, "NAME")
+                if col == 1 and brackets:
+                    plain = False
             elif kind == "NUMBER":
                 value, ttype = text[start:end], kind
             elif kind == "NL":
                 if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
+                    if not brackets:
+                        item_ends.append(len(tokens))
                     tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
                     last_type = NEWLINE
                 line += 1
@@ -279,6 +304,8 @@ def tokenize(
                     continue
                 if kind == "NL":
                     if (not brackets or brackets[-1] == "{") and tokens and last_type != NEWLINE:
+                        if not brackets:
+                            item_ends.append(len(tokens))
                         tokens.append(new(NEWLINE, "\n", start, line, col, line, col + 1, end))
                         last_type = NEWLINE
                     line += 1
@@ -315,8 +342,11 @@ def tokenize(
                                 "MT0108", f"`{value}` is not a valid name", help=_name_help(value)
                             )
                     ttype = keywords.get(value, "NAME")
+                    if col == 1 and brackets:
+                        plain = False
                 elif kind == "PUNCT":
                     ttype = punctuation[value]
+                    plain = False  # a look-alike (reported): the parser walks the brackets
                     if value in "([{":
                         brackets.append(value)
                         still_open[value] += 1
@@ -381,6 +411,9 @@ def tokenize(
             if restart < 0 or restart >= n:
                 break
         pos, restart = restart, -1
+    if item_ends_out is not None and plain and not brackets:
+        item_ends_out += item_ends
+        item_ends_out.append(len(tokens))
     return tokens
 
 

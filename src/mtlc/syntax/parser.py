@@ -19,9 +19,8 @@ from mtlc.diagnostics.suggest import did_you_mean
 from mtlc.syntax import ast
 from mtlc.syntax.fastparse import Fallback, fast_parse
 from mtlc.syntax.grammar import builder, lexicon, parser
-from mtlc.syntax.lexer import NEWLINE, tokenize
+from mtlc.syntax.lexer import MAX_NESTING, NEWLINE, tokenize
 
-MAX_NESTING = 64
 MAX_RECOVERIES_PER_ITEM = 20
 MAX_SYNTAX_ERRORS = 50
 
@@ -83,12 +82,15 @@ def parse_module(
     sink: DiagnosticSink,
     tokens: list[Token] | None = None,
     memo: ItemMemo | None = None,
+    item_ends: list[int] | None = None,
 ) -> ast.Module:
     """``tokens``: what ``tokenize(text, file, sink)`` gave, when the caller already has it
     (`mtlc fmt` tokenizes once for the parser, the printer and the comments); not mutated.
-    ``memo``: see ItemMemo (recording on a first parse, reusing on the next)."""
+    ``memo``: see ItemMemo (recording on a first parse, reusing on the next).
+    ``item_ends``: what ``tokenize`` put in its ``item_ends_out`` for ``tokens``, if known."""
     if tokens is None:
-        tokens = tokenize(text, file, sink)
+        item_ends = []
+        tokens = tokenize(text, file, sink, None, item_ends)
     uses: list[ast.Use] = []
     decls: list[ast.Decl] = []
     # a word reported as an invalid name (MT0108) is not reported again as an unknown name
@@ -100,7 +102,7 @@ def parse_module(
         }
     )
     errors_before = len(sink.items)
-    for item_tokens in _split_items(tokens, file, sink):
+    for item_tokens in _split_items(tokens, file, sink, item_ends):
         if len(sink.items) - errors_before > MAX_SYNTAX_ERRORS:
             sink.report(
                 "MT0106",
@@ -166,13 +168,26 @@ def _synthetic(kind: str, after: Token) -> Token:
     )  # fmt: skip
 
 
-def _split_items(tokens: list[Token], file: str, sink: DiagnosticSink) -> Iterator[list[Token]]:
+def _split_items(
+    tokens: list[Token], file: str, sink: DiagnosticSink, item_ends: list[int] | None = None
+) -> Iterator[list[Token]]:
     """Yield the token lists of top-level items; close items left open; refuse deep nesting.
 
     Linear in the number of tokens, however deep or unbalanced the brackets: ``open_at`` keeps,
     for each kind of opener, where it stands on ``stack``, so a closer finds its opener at once
     instead of searching the stack (which made 100 KB of brackets take minutes).
+
+    ``item_ends`` (see ``tokenize``'s ``item_ends_out``; empty or None: not known): the lexer
+    found the brackets plainly nested, so an item ends at each new line outside them and at
+    the end, with nothing to close or report: the same items, by slices.
     """
+    if item_ends:
+        taken = 0
+        for end in item_ends:
+            if end > taken:
+                yield tokens[taken:end]
+            taken = end + 1  # the new line belongs to no item
+        return
     item: list[Token] = []  # the item's tokens before ``taken`` (and any closer added)
     taken = 0  # tokens[taken:i] go to the item too: copied by slices, not one by one
     stack: list[Token] = []

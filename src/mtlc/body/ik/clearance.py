@@ -46,7 +46,6 @@ ORIENT_FLOOR = 0.3  # ...but never below this: a free hand moves out, it does no
 SWIVELS = np.radians([-150.0, -100.0, -50.0, 50.0, 100.0, 150.0])  # elbow turns tried
 HAND_TOL = 2e-4  # m: a kept hand (weight ``KEPT`` or more) is restored this close
 KEPT = 1.0
-MU_STUCK = 1e3  # damping past which a row has failed to improve ~6 times running: it stops
 SWIVEL_FROM = 1e-3  # m: a pose this far inside after the local solve tries the swivels
 
 
@@ -134,9 +133,7 @@ def _lm(
     skel: Skeleton, start: FloatArray, side: str, pb: _Problem, dofs: list[int], max_iter: int
 ) -> tuple[FloatArray, FloatArray]:
     """Levenberg-Marquardt on the arm's dofs from ``start``: (configurations, final cost). A
-    row stops once it is clear (a swivel seed: once its elbow is there), or once its damping
-    reaches ``MU_STUCK`` (its steps keep failing: it is where it can get; a long carry with the
-    hand in the thigh kept 3,000 such rows for all 25 iterations); the finite-difference
+    row stops once it is clear (a swivel seed: once its elbow is there); the finite-difference
     Jacobian of every working row is one batched forward kinematics."""
     lo, hi = skel.lower[dofs], skel.upper[dofs]
     n_d = len(dofs)
@@ -151,11 +148,9 @@ def _lm(
             # at work while inside, or (``HAND_TOL``) while a kept hand is off its pose
             off = np.abs(r[:, n_pen : n_pen + 3]).max(axis=1) / np.maximum(pb.keep, 1e-12)
             inside = r[:, :n_pen].max(axis=1, initial=0.0) > 0.0
-            work = np.flatnonzero(
-                (inside | ((off > HAND_TOL) & (pb.keep >= KEPT))) & (mu < MU_STUCK)
-            )
+            work = np.flatnonzero(inside | ((off > HAND_TOL) & (pb.keep >= KEPT)))
         else:
-            work = np.flatnonzero((np.abs(r[:, :3]).max(axis=1) > 1e-3) & (mu < MU_STUCK))
+            work = np.flatnonzero(np.abs(r[:, :3]).max(axis=1) > 1e-3)
         if work.size == 0:
             break
         sub = pb.take(work)

@@ -53,7 +53,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "bench"))
 
+import human  # noqa: E402  (issue 19's figures)
 from strategies.procedures import generate  # noqa: E402
 
 EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
@@ -458,6 +460,7 @@ def measure(doc: dict[str, Any], diagnostics: list[dict[str, Any]]) -> dict[str,
         "inside_at": inside_at,
         "step_deg": step,
         "step_dof": step_dof,
+        **human.measure(doc, body),
     }
 
 
@@ -620,7 +623,7 @@ def table(rows: list[dict[str, Any]], label: str) -> list[str]:
     row("joint step deg", "step_deg", 10.0)
     unsup = sum(1 for t in tasks if t["unsupported_frames"])
     lines.append(f"tasks with static frames where nothing touches: {unsup}")
-    return lines
+    return lines + human.table(tasks)
 
 
 def reproducer(job: Job) -> str:
@@ -653,6 +656,7 @@ def worst_cases(rows: list[dict[str, Any]], n: int) -> list[str]:
         ),
         ("hands inside", lambda t: t["inside_mm"], lambda t: str(t["inside_at"])),
         ("joint step", lambda t: t["step_deg"], lambda t: t["step_dof"]),
+        *human.WORST,
     ]
     for name, key, what in specs:
         ranked = sorted(flat, key=lambda jt: -key(jt[1]))[:n]

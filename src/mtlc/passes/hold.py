@@ -11,8 +11,10 @@ is re-solved from the interpolated pose onto the held point, warm-started frame 
 motion stays as smooth as the body's.
 
 A hold (``hold_windows``) runs from the end of a contact (TO) segment until the hand's next arm
-segment starts, a walk starts (the part is carried from then on: it moves with the hand) or the
-hand lets go for good (its last grip event in that time is a release: the hold ends with it).
+segment starts, a walk starts (the part is carried from then on: it moves with the hand), a
+whole-body posture starts while the hand has no grip closed (a hand that only touched a site
+does not stay on it through a squat) or the hand lets go for good (its last grip event in that
+time is a release: the hold ends with it).
 The held point is the site (the segment's goal position) when the contact reached it, else
 where the hand stopped. After a hold the correction fades out over ``FADE`` seconds or more, so
 the arm does not jump when the hand is free again; after a hold that a walk ends, the part is
@@ -43,6 +45,10 @@ FIX_FROM = 5e-5  # m: frames already this close are left alone
 FADE = 0.25  # s over which a hold's correction fades out after it ends, at least...
 FADE_RATE = 2.0  # rad/s: ...so that no dof fades faster than this
 EPS = 1e-6
+# s into a whole-body posture a free hand (no grip closed) stays on the site it touched: the
+# frame a user receives at the end of its contact (the next output frame, up to 1/10 s later)
+# still shows it there, and then the hand goes with the body
+LET_GO = 0.1
 MAX_SWING = 0.15  # rad a hold's correction may change in one dense frame (9 deg at 60 fps)
 
 
@@ -61,16 +67,26 @@ def _is_open(seg: Segment) -> bool:
     return seg.kind == "grip" and seg.goal.params.get("state") == "open"
 
 
+def _closed_at(grips: list[Segment], t: float) -> bool:
+    """Whether the hand's last grip event that starts before ``t`` closed it."""
+    before = [g for g in grips if g.start < t - EPS]
+    return bool(before) and not _is_open(before[-1])
+
+
 def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
     """Each contact (TO) segment with the time its hand stops holding: the hand's next arm
-    segment, the next walk, or the end of a release not followed by a new grasp, whichever
-    comes first (the end of the motion when none does)."""
+    segment, the next walk, a whole-body posture while the hand's grip is open, or the end of
+    a release not followed by a new grasp, whichever comes first (the end of the motion when
+    none does)."""
     by_track: dict[str, list[Segment]] = {}
     walks: list[float] = []
+    postures: list[float] = []
     for seg in ir.segments:
         by_track.setdefault(seg.track, []).append(seg)
         if seg.kind == "locomotion":
             walks.append(seg.start)
+        elif seg.kind == "posture" and seg.goal.params.get("posture") != "twist":
+            postures.append(seg.start)
     out = []
     for track, hand in ARM_HAND.items():
         arm = sorted(by_track.get(track, []), key=lambda s: s.start)
@@ -83,6 +99,10 @@ def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
             after = seg.end
             ends = [s.start for s in arm if s.start >= after - EPS and s is not seg]
             ends += [t for t in walks if t >= after - EPS]
+            # a hand that only touched its site (no grip closed on it) lets go when the body
+            # changes posture: holding an overhead latch through a squat would stretch the arm
+            # to its limit and then drop it, and pin the trunk of the reaches after it
+            ends += [t + LET_GO for t in postures if t >= after - EPS and not _closed_at(grips, t)]
             end = min(ends, default=ir.duration)
             inside = [g for g in grips if after - EPS <= g.start < end - EPS]
             if inside and _is_open(inside[-1]):  # let go and not taken again: the hold ends

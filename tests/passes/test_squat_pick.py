@@ -70,8 +70,9 @@ def test_the_pick_after_the_posture_reaches_the_plug(name: str, sex: str, pct: i
 
 
 def test_a_touched_overhead_latch_is_not_held_through_the_squat() -> None:
-    ir, _ = compile_for("overhead_then_squat.mtask", "male", 95)
+    ir, sink = compile_for("overhead_then_squat.mtask", "male", 95)
     f = ir.frames
     assert f is not None
     flex = np.degrees(f.q[:, ir.skeleton.dof_index("l_shoulder_flex")])
     assert flex.max() < 120.0, f"{flex.max():.0f} deg"  # 180 deg before
+    assert not {"MT0520", "MT0525"} & {d.code for d in sink.items}  # retired codes

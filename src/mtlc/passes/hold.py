@@ -21,8 +21,9 @@ the arm does not jump when the hand is free again; after a hold that a walk ends
 carried and the correction stays until the hand's next arm motion or release.
 
 Where the arm cannot keep the hand there (the kneel takes the shoulder out of reach), the hand
-stays as close as it can and MT0520 is reported at the line whose motion pulls it away, once per
-hold: a miss on the frames is never silent.
+stays as close as it can and lets go. This pass reports nothing: the verify pass measures the
+hand on the output frames and reports it (MT0511 for a closed grip or a hand resting on the site
+it reached; MT0520, which this pass used to raise for the same fault, is retired).
 """
 
 from __future__ import annotations
@@ -38,9 +39,8 @@ from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.context import PassContext
 
 ARM_HAND = {"r_arm": "r_hand", "l_arm": "l_hand"}
-HAND_NAMES = {"r_hand": "right hand", "l_hand": "left hand"}
 SOLVE_TOL = 2e-4  # m: the held point is restored this close
-REPORT_TOL = 1e-3  # m: further than this on a frame is a reported miss
+REPORT_TOL = 1e-3  # m: further than this on a frame, the hand has let go
 FIX_FROM = 5e-5  # m: frames already this close are left alone
 FADE = 0.25  # s over which a hold's correction fades out after it ends, at least...
 FADE_RATE = 2.0  # rad/s: ...so that no dof fades faster than this
@@ -202,23 +202,6 @@ def keep_hold(
     return rows, q, dist
 
 
-def _mover(ir: MotionIR, hold: Hold, t: float) -> Segment:
-    """The segment whose motion pulls a held hand away at ``t``: one active then on another
-    track (a posture, the other arm's reach, a walk), else the hold's own contact."""
-    kinds = {"posture": 0, "locomotion": 1, "TA": 2, "TO": 3, "hold": 4}
-    active = [
-        s
-        for s in ir.segments
-        if s.kind in kinds
-        and s.track != hold.seg.track
-        and s.start - EPS <= t <= s.end + EPS
-        and not (s.kind == "posture" and s.goal.params.get("posture") == "twist")
-    ]
-    if not active:
-        return hold.seg
-    return min(active, key=lambda s: (kinds[s.kind], -s.start))
-
-
 def carried_until(ir: MotionIR, hold: Hold) -> float:
     """When a hold ends because a walk starts, the part is carried: the hand keeps its grip on
     the body (its arm's correction stays as it was) until the hand's next arm segment or a
@@ -262,29 +245,11 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         kept = keep_hold(skel, frames, hold)
         if kept is None:
             continue
-        rows, q, dist = kept
+        rows, q, _ = kept
         delta = q[-1] - frames.q[rows[-1]]
         frames.q[rows] = skel.clip(q)
         # the next hold of the same hand takes over where it starts
         nxt = [h.start for h in holds[k + 1 :] if h.seg.track == hold.seg.track]
         carry = carried_until(ir, hold)
         _fade(skel, frames, hold.end, carry, delta, min(nxt, default=np.inf))
-        worst = int(np.argmax(dist))
-        if dist[worst] > REPORT_TOL:
-            t = float(frames.time[rows[worst]])
-            # the motion going on when the hand first leaves the point is what pulls it off
-            first = float(frames.time[rows[int(np.argmax(dist > REPORT_TOL))]])
-            mover = _mover(ir, hold, first)
-            hand = HAND_NAMES.get(hold.effector, hold.effector)
-            ctx.report(
-                "MT0520",
-                f"the {hand} cannot stay on `{hold.seg.goal.site}` here: "
-                f"{dist[worst] * 1000:.0f} mm off at {t:.2f} s",
-                mover.provenance.origin,
-                notes=(
-                    f"the {hand} holds `{hold.seg.goal.site}` from line "
-                    f"{hold.seg.provenance.origin.line} ({hold.start:.2f} s to "
-                    f"{hold.end:.2f} s); its arm alone cannot follow this motion",
-                ),
-            )
     return ir

@@ -7,7 +7,7 @@ and measured on the sampled frames by forward kinematics: ``miss`` the worst dis
 goal's effector from its site at the first frame at or after the goal's end; ``drift`` the
 worst distance of a hand from the site it holds, from its contact's end until its next arm
 segment or a walk, while its grip is closed (standing frames only); ``(rep)`` when an MT05xx
-diagnostic names that goal's line (an MT0520 counts for the hold its note names); ``jump`` the
+diagnostic names that goal's line (an MT0511 counts for its hand's contact before it); ``jump`` the
 largest one-frame change of any dof and how many frame-dof steps exceed 20 degrees; the MT05xx
 codes raised. A number without ``(rep)`` over 1 mm is a silent miss.
 """
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import re
 from pathlib import Path
 
 import numpy as np
@@ -38,10 +37,16 @@ def measure(ir, sink):
     pts = {e: np.asarray(site_positions(skel, pose, e)) for e in effs}
     diag_lines = {d.span.line for d in sink.items if d.code.startswith("MT05")} if sink else set()
     for d in sink.items:
-        for n in d.notes:
-            m = re.search(r"from line (\d+)", n)
-            if d.code == "MT0520" and m:
-                diag_lines.add(int(m.group(1)))
+        if d.code != "MT0511":
+            continue
+        # verify's MT0511 names the grasp (or the reach) of a hand that slips: it counts for
+        # that hand's last contact up to that line (the hold pass's MT0520 is retired)
+        hand = "r_hand" if "right hand" in d.message else "l_hand"
+        lines = [s.provenance.origin.line for s in ir.segments
+                 if s.kind == "TO" and s.goal.effector == hand
+                 and s.provenance.origin.line <= d.span.line]  # fmt: skip
+        if lines:
+            diag_lines.add(max(lines))
     walking = np.zeros(len(fr.time), bool)
     for s in ir.segments:
         if s.kind == "locomotion":

@@ -116,3 +116,29 @@ def test_a_suppression_of_an_unchecked_code_is_not_unused(capsys) -> None:
     out = capsys.readouterr().out
     assert "MT0502; the suppression" not in out  # balance was not checked
     assert '"line": 11' in out and '"line": 15' in out
+
+
+def test_an_ignore_comment_of_a_retired_code_is_not_unused(tmp_path: Path, capsys) -> None:
+    """MT0520 and MT0525 are retired (verify reports their faults as MT0511 and MT0512): their
+    codes stay in the table, and an old ignore comment naming them is neither unknown nor
+    unused, so a CI lint that passed does not start failing on it."""
+    path = tmp_path / "old.mtask"
+    path.write_text("use stdlib.actions\nscene s {\n    site a at (0, 100, 50) cm\n}\n"
+                    "task t {  # mtlc: ignore[MT0520, fingertips-under-floor, MT0599]\n"
+                    "    scene s\n    inspect(a)\n}\n", encoding="utf-8")  # fmt: skip
+    # MT0606 and the retired codes only: no motion is compiled (fast)
+    main([str(path), "--select", "MT0606,MT0520,MT0525", "--format", "json"])
+    out = capsys.readouterr().out
+    assert "MT0520" not in out and "fingertips-under-floor" not in out, out
+    assert "`MT0599` is not a diagnostic code" in out  # an unknown one still is
+
+
+def test_explain_a_retired_code_names_the_code_that_replaced_it(capsys) -> None:
+    from mtlc.cli import main as mtlc_main
+    from mtlc.diagnostics import CODES, RETIRED
+
+    assert set(RETIRED) == {"MT0520", "MT0525"}
+    for code, now in (("MT0520", "MT0511"), ("MT0525", "MT0512")):
+        assert CODES[code].retired_for == now
+        assert mtlc_main(["explain", code]) == 0
+        assert f"Retired: see [{now}]" in capsys.readouterr().out

@@ -225,6 +225,31 @@ def test_contact_error_and_shortfall_are_measured_on_the_frames(reached: bool) -
         ]
 
 
+@pytest.mark.parametrize("released", [False, True])
+def test_a_hand_pulled_off_the_site_it_rests_on_is_mt0511(released: bool) -> None:
+    """A hand that reached its site (grip open) rests there until its next grip event; pulled
+    off it while it rests is MT0511 (the hold pass's MT0520 for it is retired). After a
+    release it holds nothing and may go."""
+    f = standing(30)
+    site = hand_at(f, 15)  # on the site from the goal's end (0.5 s) on
+    f.q[20:, SKEL.dof_index("r_shoulder_flex")] = 0.3  # then the arm swings off it
+    reach = Segment("r_arm", "TO", 0.2, 0.5, GoalSpec("r_hand", "bolt", site), PROV,
+                    result={"success": True})  # fmt: skip
+    segs = [reach]
+    if released:
+        opened = GoalSpec("r_hand", params={"state": "open"})
+        segs.append(Segment("r_hand", "grip", 0.55, 0.6, opened, PROV))
+    found = reverify(make_ir(f, segs))
+    resting = [m for code, _, m in found if code == "MT0511"]
+    if released:
+        assert resting == []
+    else:
+        (message,) = resting
+        assert "the right hand resting on site `bolt` is" in message
+        off = float(message.split(" is ")[1].split(" mm")[0])
+        assert off == pytest.approx(1000 * float(np.linalg.norm(hand_at(f, 29) - site)), abs=1.0)
+
+
 def test_a_pass_claim_of_a_shortfall_is_replaced_by_the_measured_one() -> None:
     f = standing(30)
     site = hand_at(f, 15) + np.array([0.0, 0.0, 0.020])

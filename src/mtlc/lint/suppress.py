@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from mtlc.diagnostics import CODES
+from mtlc.diagnostics import CODES, RETIRED
 from mtlc.lint.findings import Finding
 from mtlc.syntax.suppressions import Suppression, resolve, scan
 
@@ -32,8 +32,10 @@ def apply(
         if not hits:
             kept.append(f)
     if report_unused:
-        # an unknown code is always reported; a known one only if its check ran
-        relevant = [s for s in suppressions if resolve(s.code) in (None, *filter(checked, CODES))]
+        # an unknown code is always reported; a known one only if its check ran; a retired
+        # code's never runs (an old ignore comment for it is not a new warning)
+        live = tuple(c for c in CODES if c not in RETIRED and checked(c))
+        relevant = [s for s in suppressions if resolve(s.code) in (None, *live)]
         kept.extend(_unused(relevant))
     return kept
 

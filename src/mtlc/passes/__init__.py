@@ -46,7 +46,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("tool", tool.solve),  # a wrench's strokes: arcs about the fastener, the tip held on it
     ("gaze", gaze.solve),  # neck and head aim the eyes at the looked-at site
     ("interpolate", interpolate.run),  # 5. interpolation with base-coordinate correction
-    ("hold", hold.run),  # a hand on a site stays there while the body moves (MT0520)
+    ("hold", hold.run),  # a hand on a site stays there while the body moves (verify: MT0511)
     ("balance", balance.run),  # 6. centre of mass over the support polygon
     ("smooth", smooth.run),  # 7. blend offsets at segment boundaries
     ("carry", carry.run),  # a part in both hands is rigid: its pose drives both (MT0511)

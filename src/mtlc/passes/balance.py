@@ -4,7 +4,7 @@ Claim 4 (3.4): if the projection of the body's centre of mass on the ground leav
 surface, adjust the root again while keeping the other joints' goals. On the dense frames:
 
 * first, a free hand whose fingertips go under the ground turns its wrist to lift them
-  (``lift_fingertips``; MT0525 where it cannot);
+  (``lift_fingertips``; where it cannot, verify reports MT0512 on the output frames);
 * the support polygon is the convex hull of the points that touch (``mtlc.metrics.support``:
   within 2 mm of the floor or of the site they rest on): the sole points on the feet that
   stand (both feet outside walks, the stance foot during a step: ``mtlc.metrics.foot_stance``
@@ -633,7 +633,6 @@ def failure_runs(failed: np.ndarray, gap: int = 6) -> list[tuple[int, int]]:
 
 TIP_SITES = {"r": "r_fingertip", "l": "l_fingertip"}
 TIP_CLEAR = 0.005  # m: a lifted fingertip ends this far above the ground
-TIP_TOL = 1e-3  # m: a fingertip deeper than this below the ground is reported (MT0525)
 WRIST_GRID = 41  # wrist flexion values tried per frame
 TIP_BLEND = 15  # half-window (frames, 0.25 s at 60 fps): a wrist turns in over half a second
 
@@ -734,45 +733,11 @@ def tip_heights(
     return height + a[:, 1:2] * along * (1.0 - cos)
 
 
-def report_fingertips(ir: MotionIR, ctx: PassContext, depth: dict[str, np.ndarray]) -> None:
-    """MT0525 once per segment in which a fingertip stays more than ``TIP_TOL`` under the
-    ground after ``lift_fingertips`` (a hand on a site at the floor, or a wrist at its stop)."""
-    t = ir.frames.time if ir.frames is not None else np.zeros(0)
-    reported: set[int] = set()
-    for side, d in depth.items():
-        for first, last in failure_runs(d > TIP_TOL):
-            seg = _arm_segment(ir, side, float(t[first])) or _active_segment(ir, float(t[first]))
-            if seg is None or id(seg) in reported:
-                continue
-            reported.add(id(seg))
-            worst = float(d[first : last + 1].max())
-            when = (
-                f"at {t[first]:.2f} s"
-                if last == first
-                else f"from {t[first]:.2f} s to {t[last]:.2f} s"
-            )
-            hand = "right" if side == "r" else "left"
-            ctx.report(
-                "MT0525",
-                f"the {hand} fingertips go through the floor in "
-                f"`{' > '.join(seg.provenance.path)}`: {when} they are up to {_mm(worst)} mm "
-                "under it, and the wrist cannot lift them with the hand where it is",
-                seg.provenance.origin,
-            )
-
-
-def _arm_segment(ir: MotionIR, side: str, time: float) -> Segment | None:
-    """The segment on a hand's arm track at ``time`` (the last one before it, else none)."""
-    segs = [s for s in ir.on_track(f"{side}_arm") if s.start - 1e-9 <= time]
-    return max(segs, key=lambda s: s.start, default=None)
-
-
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     frames = ir.frames
     if frames is None or ir.skeleton is None or len(frames.time) == 0:
         return ir
-    depth = lift_fingertips(ir, frames)
-    report_fingertips(ir, ctx, depth)
+    lift_fingertips(ir, frames)  # what stays under the floor is verify's MT0512
     _, after, failed = balance_frames(ir, frames)
     t = frames.time
     reported: set[int] = set()

@@ -11,16 +11,19 @@ is re-solved from the interpolated pose onto the held point, warm-started frame 
 motion stays as smooth as the body's.
 
 A hold (``hold_windows``) runs from the end of a contact (TO) segment until the hand's next arm
-segment starts, a walk starts (the part is carried from then on: it moves with the hand) or the
-hand lets go for good (its last grip event in that time is a release: the hold ends with it).
+segment starts, a walk starts (the part is carried from then on: it moves with the hand), a
+whole-body posture starts while the hand has no grip closed (a hand that only touched a site
+does not stay on it through a squat) or the hand lets go for good (its last grip event in that
+time is a release: the hold ends with it).
 The held point is the site (the segment's goal position) when the contact reached it, else
 where the hand stopped. After a hold the correction fades out over ``FADE`` seconds or more, so
 the arm does not jump when the hand is free again; after a hold that a walk ends, the part is
 carried and the correction stays until the hand's next arm motion or release.
 
 Where the arm cannot keep the hand there (the kneel takes the shoulder out of reach), the hand
-stays as close as it can and MT0520 is reported at the line whose motion pulls it away, once per
-hold: a miss on the frames is never silent.
+stays as close as it can and lets go. This pass reports nothing: the verify pass measures the
+hand on the output frames and reports it (MT0511 for a closed grip or a hand resting on the site
+it reached; MT0520, which this pass used to raise for the same fault, is retired).
 """
 
 from __future__ import annotations
@@ -36,13 +39,16 @@ from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.context import PassContext
 
 ARM_HAND = {"r_arm": "r_hand", "l_arm": "l_hand"}
-HAND_NAMES = {"r_hand": "right hand", "l_hand": "left hand"}
 SOLVE_TOL = 2e-4  # m: the held point is restored this close
-REPORT_TOL = 1e-3  # m: further than this on a frame is a reported miss
+REPORT_TOL = 1e-3  # m: further than this on a frame, the hand has let go
 FIX_FROM = 5e-5  # m: frames already this close are left alone
 FADE = 0.25  # s over which a hold's correction fades out after it ends, at least...
 FADE_RATE = 2.0  # rad/s: ...so that no dof fades faster than this
 EPS = 1e-6
+# s into a whole-body posture a free hand (no grip closed) stays on the site it touched: the
+# frame a user receives at the end of its contact (the next output frame, up to 1/10 s later)
+# still shows it there, and then the hand goes with the body
+LET_GO = 0.1
 MAX_SWING = 0.15  # rad a hold's correction may change in one dense frame (9 deg at 60 fps)
 
 
@@ -61,16 +67,26 @@ def _is_open(seg: Segment) -> bool:
     return seg.kind == "grip" and seg.goal.params.get("state") == "open"
 
 
+def _closed_at(grips: list[Segment], t: float) -> bool:
+    """Whether the hand's last grip event that starts before ``t`` closed it."""
+    before = [g for g in grips if g.start < t - EPS]
+    return bool(before) and not _is_open(before[-1])
+
+
 def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
     """Each contact (TO) segment with the time its hand stops holding: the hand's next arm
-    segment, the next walk, or the end of a release not followed by a new grasp, whichever
-    comes first (the end of the motion when none does)."""
+    segment, the next walk, a whole-body posture while the hand's grip is open, or the end of
+    a release not followed by a new grasp, whichever comes first (the end of the motion when
+    none does)."""
     by_track: dict[str, list[Segment]] = {}
     walks: list[float] = []
+    postures: list[float] = []
     for seg in ir.segments:
         by_track.setdefault(seg.track, []).append(seg)
         if seg.kind == "locomotion":
             walks.append(seg.start)
+        elif seg.kind == "posture" and seg.goal.params.get("posture") != "twist":
+            postures.append(seg.start)
     out = []
     for track, hand in ARM_HAND.items():
         arm = sorted(by_track.get(track, []), key=lambda s: s.start)
@@ -83,6 +99,10 @@ def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
             after = seg.end
             ends = [s.start for s in arm if s.start >= after - EPS and s is not seg]
             ends += [t for t in walks if t >= after - EPS]
+            # a hand that only touched its site (no grip closed on it) lets go when the body
+            # changes posture: holding an overhead latch through a squat would stretch the arm
+            # to its limit and then drop it, and pin the trunk of the reaches after it
+            ends += [t + LET_GO for t in postures if t >= after - EPS and not _closed_at(grips, t)]
             end = min(ends, default=ir.duration)
             inside = [g for g in grips if after - EPS <= g.start < end - EPS]
             if inside and _is_open(inside[-1]):  # let go and not taken again: the hold ends
@@ -182,23 +202,6 @@ def keep_hold(
     return rows, q, dist
 
 
-def _mover(ir: MotionIR, hold: Hold, t: float) -> Segment:
-    """The segment whose motion pulls a held hand away at ``t``: one active then on another
-    track (a posture, the other arm's reach, a walk), else the hold's own contact."""
-    kinds = {"posture": 0, "locomotion": 1, "TA": 2, "TO": 3, "hold": 4}
-    active = [
-        s
-        for s in ir.segments
-        if s.kind in kinds
-        and s.track != hold.seg.track
-        and s.start - EPS <= t <= s.end + EPS
-        and not (s.kind == "posture" and s.goal.params.get("posture") == "twist")
-    ]
-    if not active:
-        return hold.seg
-    return min(active, key=lambda s: (kinds[s.kind], -s.start))
-
-
 def carried_until(ir: MotionIR, hold: Hold) -> float:
     """When a hold ends because a walk starts, the part is carried: the hand keeps its grip on
     the body (its arm's correction stays as it was) until the hand's next arm segment or a
@@ -242,29 +245,11 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         kept = keep_hold(skel, frames, hold)
         if kept is None:
             continue
-        rows, q, dist = kept
+        rows, q, _ = kept
         delta = q[-1] - frames.q[rows[-1]]
         frames.q[rows] = skel.clip(q)
         # the next hold of the same hand takes over where it starts
         nxt = [h.start for h in holds[k + 1 :] if h.seg.track == hold.seg.track]
         carry = carried_until(ir, hold)
         _fade(skel, frames, hold.end, carry, delta, min(nxt, default=np.inf))
-        worst = int(np.argmax(dist))
-        if dist[worst] > REPORT_TOL:
-            t = float(frames.time[rows[worst]])
-            # the motion going on when the hand first leaves the point is what pulls it off
-            first = float(frames.time[rows[int(np.argmax(dist > REPORT_TOL))]])
-            mover = _mover(ir, hold, first)
-            hand = HAND_NAMES.get(hold.effector, hold.effector)
-            ctx.report(
-                "MT0520",
-                f"the {hand} cannot stay on `{hold.seg.goal.site}` here: "
-                f"{dist[worst] * 1000:.0f} mm off at {t:.2f} s",
-                mover.provenance.origin,
-                notes=(
-                    f"the {hand} holds `{hold.seg.goal.site}` from line "
-                    f"{hold.seg.provenance.origin.line} ({hold.start:.2f} s to "
-                    f"{hold.end:.2f} s); its arm alone cannot follow this motion",
-                ),
-            )
     return ir

@@ -134,6 +134,12 @@ class _Verifier:
             key=lambda s: (s.track not in pref, REPORT_ORDER.get(s.kind, 9), s.end - s.start),
         )
 
+    def posture_at(self, i: int) -> Segment | None:
+        """The whole-body posture live at frame ``i`` (it moves every point of the body)."""
+        t = float(self.t[i])
+        live = [s for s in self.ir.on_track("root") if s.kind == "posture"]
+        return next((s for s in live if s.start - EPS <= t <= s.end + EPS), None)
+
     def last_on(self, track: str, i: int) -> Segment | None:
         """The segment on ``track`` live at frame ``i``, else the last one that ended."""
         t = float(self.t[i])
@@ -204,9 +210,69 @@ class _Verifier:
                     lying[i] = True
                     err = np.linalg.norm(path[lying] - site, axis=-1)
                     rest[lying] = np.fmax(rest[lying], err)
+                    if error <= TOLERANCE:  # on the site where the goal ends: then pulled off?
+                        self._judge_rest(seg, lying & (self.t > self.t[i] + EPS), path, site)
                 self._judge_contact(seg, reached, error, shortfall, closest, float(self.t[i]))
         self.v.contact_error = rest
         self.report_shortfalls()
+
+    def _judge_rest(
+        self, seg: Segment, lying: np.ndarray, path: FloatArray, site: FloatArray
+    ) -> None:
+        """MT0511 for a hand that reached its site and is pulled off it while it rests there
+        with its grip open, until its next grip event (a closed grip is ``grips``'s): the other
+        hand's reach bending the trunk, a ``still``. The hold pass keeps it on; where the arm
+        cannot follow, this is the finding (MT0520, the hold pass's own report, is retired)."""
+        side = seg.goal.effector[:1]
+        if side not in HAND_TRACK or seg.goal.effector != f"{side}_hand":
+            return
+        # until the hand's next grip event: a grasp makes it a grip (``grips``), a release
+        # frees it (it then holds nothing)
+        grip_starts = [
+            g.start
+            for g in self.ir.on_track(HAND_TRACK[side])
+            if g.kind == "grip" and g.start >= seg.end - EPS
+        ]
+        until = min(grip_starts, default=math.inf)
+        frames = lying & ~self._closed(side) & (self.t <= until + EPS)
+        if not frames.any():
+            return
+        err = np.linalg.norm(path[frames] - site, axis=-1)
+        j = int(np.argmax(err))
+        if err[j] <= TOLERANCE:
+            return
+        k = int(np.flatnonzero(frames)[int(np.argmax(err > TOLERANCE))])  # first frame off
+        other = ARM_TRACK["l" if side == "r" else "r"]
+        by = self.posture_at(k) or self.last_on(other, k) or self.active(k)
+        during = f" during `{self.where(by)}`" if by is not None else ""
+        self.report(
+            "MT0511",
+            f"the {HAND_NAMES[side]} resting on site `{seg.goal.site}` is {_mm(float(err[j]))} "
+            f"mm off it at {self.t[np.flatnonzero(frames)[j]]:.2f} s{during}, though nothing "
+            "it does moves it",
+            seg.provenance.origin,
+            ("rest", side, seg.goal.site),
+        )
+
+    def _closed(self, side: str) -> np.ndarray:
+        """(N,) frames where the hand's grip is closed (from a grasp until the next release)."""
+        closed = np.zeros(len(self.t), dtype=bool)
+        state = False
+        start = 0.0
+        grips = sorted(
+            (s for s in self.ir.on_track(HAND_TRACK[side]) if s.kind == "grip"),
+            key=lambda s: s.start,
+        )
+        for g in grips:
+            now = g.goal.params.get("state") == "closed"
+            if now and not state:
+                start = g.start
+            elif state and not now:
+                closed |= (self.t >= start - EPS) & (self.t < g.start - EPS)
+            state = now
+        if state:
+            closed |= self.t >= start - EPS
+        return closed
 
     def _judge_contact(self, seg: Segment, reached: bool, error: float, shortfall: float,
                        closest: float, at: float) -> None:  # fmt: skip
@@ -269,10 +335,12 @@ class _Verifier:
 
     def grips(self) -> None:
         """A closed hand holds still while nothing moves it: no segment on its arm or hand
-        track (a reach or move, a turn), no walk and no whole-body posture (the body carries a
-        held part); grip segments themselves move nothing."""
+        track (a reach or move, a turn) and no walk (the part is carried from then on); grip
+        segments themselves move nothing, and neither does a whole-body posture: a squat or a
+        kneel with a hand closed on a part keeps the hand on it (the hold pass), or it has let
+        go (this finding; the hold pass's own MT0520 is retired)."""
         t = self.t
-        moving_root = [s for s in self.ir.on_track("root") if s.kind in ("locomotion", "posture")]
+        moving_root = [s for s in self.ir.on_track("root") if s.kind == "locomotion"]
         for side in ("r", "l"):
             grips = sorted(
                 (s for s in self.ir.on_track(HAND_TRACK[side]) if s.kind == "grip"),
@@ -335,8 +403,10 @@ class _Verifier:
                     }
                 )
                 if worst > TOLERANCE:
-                    by = self.last_on(ARM_TRACK["l" if side == "r" else "r"], first + j)
-                    by = by or self.active(first + j)
+                    # what moves when the hand first leaves is what pulls it off
+                    k = first + int(np.argmax(drift > TOLERANCE))
+                    other = ARM_TRACK["l" if side == "r" else "r"]
+                    by = self.posture_at(k) or self.last_on(other, k) or self.active(k)
                     during = f" during `{self.where(by)}`" if by is not None else ""
                     self.report(
                         "MT0511",

@@ -91,6 +91,7 @@ class Expander:
         self.task_sites: dict[str, Site] = {}
         self.other_sites: dict[str, Site] = {}  # sites of other scenes, named scene.site
         self.hand_pos: dict[str, tuple[float, float, float] | None] = {}
+        self.closed: set[str] = set()  # hands whose last grip closed (they hold a part)
         self.root = (0.0, 0.0, 0.0)
         self.mtm_walks: set[int] = set()  # walks timed by MTM paces, which get turn time too
         self.posture = "stand"
@@ -358,6 +359,10 @@ class Expander:
                 d = self.duration(timing, default, stmt, env)
                 for h in hands:
                     self.emit("grip", h, t, t + d, {"state": stmt.state}, stmt, env)
+                    if stmt.state == "closed":
+                        self.closed.add(h)
+                    else:
+                        self.closed.discard(h)
                 return t + d
             case ast.Gaze():
                 site: Site = self.eval(stmt.target, env)
@@ -450,6 +455,12 @@ class Expander:
         self.emit("posture", "body", t, t + d, params, stmt, env)
         # rising from one knee is MTM-1 AB, from both knees AKBK: remember which
         self.posture = "kneel_one" if kind == "kneel" and values.get("knees") == 1 else kind
+        for h in HAND_REST:
+            if h not in self.closed:
+                # a free hand does not stay on the site it touched while the body squats,
+                # kneels or rises: the next reach travels from the hand's side, not from that
+                # site (a reach back to it would otherwise be timed, and planned, as no move)
+                self.hand_pos[h] = None
         return t + d
 
     def twist(

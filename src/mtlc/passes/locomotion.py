@@ -358,16 +358,14 @@ def plan_footsteps(
         n = max(1, math.ceil(distance / gait.step_length - 1e-9))
         ahead = d / distance
         for k in range(1, n + 1):
-            if k == n:  # half the twist, the closing step the rest: a foot turned the whole
-                # twist alone needed most of the hip's rotation and a low pelvis to land
-                half = walk_heading + twist / 2
-                fp = Footprint(goal + _side(half, foot, half_width), half)
+            if k == n:
+                fp = Footprint(goal + _side(end_heading, foot, half_width), end_heading)
             else:
                 fp = Footprint(centre + ahead * distance * k / n
                                + _side(walk_heading, foot, half_width), walk_heading)  # fmt: skip
             # the pelvis turns with the last walking step's foot: turned alone, that foot
             # needed the hip's whole rotation range and the pelvis sank 25 cm
-            pelvis = walk_heading + (twist / 2 if k == n else 0.0)
+            pelvis = walk_heading + (twist if k == n else 0.0)
             put(foot, fp, pelvis, START if k == 1 else WALK, distance / n)
             foot = _other(foot)
         put(foot, Footprint(goal + _side(end_heading, foot, half_width), end_heading),

@@ -59,6 +59,7 @@ LIMIT_MARGIN = math.radians(1.0)  # the pelvis height keeps the legs this far in
 STANCE_REACH = 0.995  # hip–ankle distance while walking, × thigh + shank length
 DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interpolation's frames
 SWING_TOL = 5e-3  # m: a swinging foot's
+SWING_KEYS = (0.25, 0.5, 0.75, 0.9)  # swing fractions always keyed (0.9: the set-down)
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
 REACH_CHUNK = 1024  # grid times whose candidate heights are solved at once
@@ -399,7 +400,11 @@ def time_steps(steps: list[Step], t0: float, t1: float, gait: Gait) -> None:
     if gait.cadence:
         dts = np.full(len(steps), min(span / len(steps), 1.0 / gait.cadence))
     else:
-        dts = np.array([gait.step_seconds(st.kind, st.length) for st in steps])
+        # the first step starts from standing, whatever it does (as semantics.gait times it)
+        kinds = [START] + [st.kind for st in steps[1:]]
+        dts = np.array(
+            [gait.step_seconds(k, st.length) for k, st in zip(kinds, steps, strict=True)]
+        )
         need = float(dts.sum())
         dts *= span / need if need > span else min(span / need, MAX_STRETCH)
     lead = (span - float(dts.sum())) / 2  # stand still before and after if there is time left
@@ -582,7 +587,11 @@ class WalkMotion:
                     rise = np.where(tau < 0.5, np.sin(np.pi * tau), np.sin(np.pi * tau) ** 2)
                     pos[sw, 1] += self.gait.step_height * rise
                     head[sw] = h0 + s * wrap(st.end.heading - h0)
-                    pitch[sw] = st.toe_off_pitch * (1 - s)
+                    # level from 60 % of the swing on (levelled as it travelled, the toe
+                    # hung low and touched down a fifth of the swing early), smoothly from
+                    # the roll (a kink here is a "jump" the smooth pass blends for 50 frames)
+                    u = np.clip(tau / 0.6, 0.0, 1.0)
+                    pitch[sw] = st.toe_off_pitch * (1 - u * u * (3 - 2 * u))
                     planted[sw] = False
             back = np.empty_like(order)  # the caller's order of ``t``
             back[order] = np.arange(n)
@@ -810,7 +819,7 @@ def _key_times(motion: WalkMotion) -> tuple[FloatArray, Pose]:
     ts = [motion.t0, motion.t1]
     for st in motion.steps:
         sw = st.t_land - st.t_lift
-        ts += [st.t_lift, st.t_land] + [st.t_lift + sw * f for f in (0.25, 0.5, 0.75)]
+        ts += [st.t_lift, st.t_land] + [st.t_lift + sw * f for f in SWING_KEYS]
     keys = np.unique(np.round(np.asarray(ts), 9))
     # the interpolate pass's frames inside the window
     k0, k1 = math.ceil(motion.t0 * INTERNAL_FPS - 1e-9), math.floor(t_end * INTERNAL_FPS + 1e-9)
@@ -841,7 +850,10 @@ def _key_times(motion: WalkMotion) -> tuple[FloatArray, Pose]:
             ankle, toe = leg_fk(motion.legs, f, rp, rh, q)
             da, dt = ankle - want[f].ankle, toe - want_toe[f]
             err = np.maximum(np.linalg.norm(da, axis=1), np.linalg.norm(dt, axis=1))
-            bad |= err > np.where(want[f].planted, DRIFT_TOL, SWING_TOL)
+            # a swinging foot near the ground is held as tight as a planted one: 5 mm let
+            # the interpolated toe through the floor just before it set down
+            near = want_toe[f][:, 1] - motion.ground < 2 * SWING_TOL
+            bad |= err > np.where(want[f].planted | near, DRIFT_TOL, SWING_TOL)
         if not bad.any():
             break
         # key the frames that stray: interpolation is then exact there, and PCHIP is local

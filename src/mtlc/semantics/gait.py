@@ -91,4 +91,6 @@ def walk_seconds(
         steps += walking_steps(distance, full)
     elif not math.isfinite(distance):
         return math.inf
+    if steps:  # whatever it does, the first step starts from standing
+        steps[0] = (START, steps[0][1])
     return steps_seconds(steps, full, stature)

@@ -318,6 +318,7 @@ def plan_footsteps(
     gait: Gait,
     half_width: Any,
     first: str = "r",
+    min_steps: int = 1,
 ) -> list[Step]:
     """Pivot steps to the walking heading, equal steps to the goal, a closing step turned
     toward ``final_heading`` (at most ``MAX_TWIST``), pivot steps for the rest of that turn."""
@@ -356,7 +357,7 @@ def plan_footsteps(
     twist = float(np.clip(wrap(final_heading - walk_heading), -MAX_TWIST, MAX_TWIST))
     end_heading = walk_heading + twist
     if distance >= MIN_DISTANCE:
-        n = max(1, math.ceil(distance / gait.step_length - 1e-9))
+        n = max(min_steps, math.ceil(distance / gait.step_length - 1e-9))
         ahead = d / distance
         for k in range(1, n + 1):
             if k == n:
@@ -1097,6 +1098,15 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
         way = goal - (stance["r"].position + stance["l"].position) / 2
         walk_heading = math.atan2(way[0], way[2]) if math.hypot(way[0], way[2]) > 1e-9 else h0
         steps = plan_footsteps(stance, goal, walk_heading, h1, gait, half_width, next_foot)
+        walking = sum(st.kind in (START, WALK) for st in steps)
+        if walking and _steps_need(steps, gait) * MAX_STRETCH < t1 - t0 and gait.cadence is None:
+            # the front end counted one step more (its distance is the root's, ours the feet's
+            # centre's, which can straddle a multiple of the step length): take it, rather than
+            # stand a third of the walk (62 steps/min on the 1st-percentile woman's 0.6 m)
+            more = plan_footsteps(stance, goal, walk_heading, h1, gait, half_width, next_foot,
+                                  walking + 1)  # fmt: skip
+            if _steps_need(more, gait) <= (t1 - t0) * (1 + 1e-9):
+                steps = more
         time_steps(steps, t0, t1, gait)
         root_end, h_end = np.array([p1[0], 0.0, p1[2]]), h1
         if not _travels(stance, goal):  # the root moves and turns only as the feet in place do
@@ -1155,6 +1165,12 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
     for seg in instant:
         _record_instant_walk(seg)
     return ir
+
+
+def _steps_need(steps: list[Step], gait: Gait) -> float:
+    """Seconds the steps take at the stature's cadence (as :func:`time_steps` times them)."""
+    kinds = [START] + [st.kind for st in steps[1:]]
+    return sum(gait.step_seconds(k, st.length) for k, st in zip(kinds, steps, strict=True))
 
 
 def _travels(stance: dict[str, Footprint], goal: FloatArray) -> bool:

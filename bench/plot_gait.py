@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import human  # noqa: E402
-import motion  # noqa: E402
+import human
+import motion
 
 
 def walk_trace(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, list[tuple[float, float]]]]:

@@ -101,7 +101,10 @@ def test_walk_time_and_root_travel(tmp_path: Path) -> None:
     (walk,) = t.primitives
     assert walk.kind == "locomotion" and walk.effector == "root"
     assert walk.params["distance"] == pytest.approx(3.0)
-    assert walk.duration == pytest.approx(4 * 15.0 * TMU)
+    # 4 MTM-1 paces (2.16 s) are fewer than the gait's steps take (semantics.gait): the walk
+    # lasts its steps' time, recorded as its gait_time
+    assert walk.duration > 4 * 15.0 * TMU
+    assert walk.duration == pytest.approx(walk.params["gait_time"])
 
 
 def test_turns_with_tool_mass_and_units(tmp_path: Path) -> None:

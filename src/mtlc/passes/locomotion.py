@@ -34,27 +34,37 @@ from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 
 # the front end times the turns these thresholds make the gait step (mtlc.semantics.turning)
+from mtlc.semantics import gait as steps_time
+from mtlc.semantics.gait import CLOSE, MAX_TURN_STEP, PIVOT, START, STEP_LENGTH_RATIO, WALK
 from mtlc.semantics.turning import FINAL_TURN, MAX_TWIST, MIN_DISTANCE, TURN_IN_PLACE, wrap
 
 FloatArray = NDArray[np.float64]
 
-# Step length / stature for normal walking: the pedometer rule (women 0.413, men 0.415).
-STEP_LENGTH_RATIO = {"female": 0.413, "male": 0.415}
 STEP_HEIGHT_RATIO = 0.045  # mid-swing ankle rise / stature: ~7 cm for a 1.6 m manikin
 DOUBLE_SUPPORT = 0.2  # share of each step with both feet down (10 % at each end)
+# from standing, the first step's heel rises and the weight shifts for this share of the step
+# before toe-off (gait initiation's anticipatory phase), and the closing step settles the body
+# for this share after its touch-down
+START_SHIFT = 0.29
+START_ROLL = 0.25  # the first step's toe-off pitch, × TOE_OFF_PITCH
+CLOSE_SETTLE = 0.2
 SWAY = 0.3  # lateral pelvis shift toward the stance foot in single support, × half stance width
-MAX_TURN_STEP = math.radians(40)  # heading change per pivot step
-TOE_OFF_PITCH = math.radians(40)  # heel rise at toe-off of a full stride (less for short ones)
-HEEL_OFF = 0.45  # the heel rises this many steps before toe-off (mid-swing of the other foot)
-LEAD = 0.2  # at double support the pelvis is ahead of the feet's mid-point by this × the move
+# heel rise at toe-off of a full step (less for shorter ones): the trailing foot's roll lifts
+# and brings forward its ankle, so the leg behind needs less hip extension (its limit, -15°,
+# set the pelvis's lowest point at 40°, 6.6 cm below standing on the 5th-percentile woman)
+TOE_OFF_PITCH = math.radians(60)
+HEEL_OFF = 0.6  # the heel rises this many steps before toe-off (in the other foot's swing)
+LEAD = 0.3  # at double support the pelvis is ahead of the feet's mid-point by this × the move
 LIMIT_MARGIN = math.radians(1.0)  # the pelvis height keeps the legs this far inside the limits
 STANCE_REACH = 0.995  # hip–ankle distance while walking, × thigh + shank length
 DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interpolation's frames
 SWING_TOL = 5e-3  # m: a swinging foot's
+SWING_KEYS = (0.25, 0.5, 0.75, 0.9)  # swing fractions always keyed (0.9: the set-down)
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
 REACH_CHUNK = 1024  # grid times whose candidate heights are solved at once
 REACH_CANDIDATES = 41  # pelvis heights tried, from standing down to 30 % of the leg lower
+UNCURED_TOL = 0.02  # rad (or 2 mm of reach): a lower pelvis that helps less does not win
 REACH_BLOCKS = (2, 6, 33)  # candidates tried per round, at the times still open: sums to 41
 MIN_DURATION = 1e-6  # s: a walk with less time (a zero-length MTM walk) takes no steps
 LEGS = ("r", "l")
@@ -251,14 +261,19 @@ class Gait:
 
     step_length: float  # m, one foot's touch-down to the other's
     step_height: float  # m, ankle rise at mid-swing
-    cadence: float | None = None  # steps per second, or None to fill the segment's time
+    cadence: float | None = None  # a clip's steps per second; None: from stature (below)
     source: str = "stature"
+    stature: float = 1.7  # m: the cadence (semantics.gait) depends on it
+
+    def step_seconds(self, kind: str, length: float) -> float:
+        """How long one step takes (``semantics.gait``: the front end times walks alike)."""
+        return steps_time.step_seconds(kind, length, self.step_length, self.stature)
 
 
 def default_gait(skel: Any) -> Gait:
     ratio = STEP_LENGTH_RATIO.get(getattr(skel, "sex", ""), 0.414)
     h = float(skel.dims.stature)
-    return Gait(ratio * h, STEP_HEIGHT_RATIO * h)
+    return Gait(ratio * h, STEP_HEIGHT_RATIO * h, stature=h)
 
 
 @dataclass
@@ -277,6 +292,9 @@ class Step:
     t_lift: float = 0.0  # toe-off
     t_land: float = 0.0  # flat on the next footprint
     toe_off_pitch: float = 0.0  # rad, nose down at toe-off
+    kind: str = WALK  # semantics.gait's START, WALK, CLOSE or PIVOT: sets its time
+    length: float = 0.0  # m, the progression of a walking step
+    t_end: float = 0.0  # the step's time ends (the next one's begins)
 
 
 def _side(heading: float, foot: str, offset: Any) -> FloatArray:
@@ -300,6 +318,7 @@ def plan_footsteps(
     gait: Gait,
     half_width: Any,
     first: str = "r",
+    min_steps: int = 1,
 ) -> list[Step]:
     """Pivot steps to the walking heading, equal steps to the goal, a closing step turned
     toward ``final_heading`` (at most ``MAX_TWIST``), pivot steps for the rest of that turn."""
@@ -318,8 +337,8 @@ def plan_footsteps(
         walk_heading = h0
     turn = wrap(walk_heading - h0)
 
-    def put(f: str, fp: Footprint, pelvis: float) -> None:
-        steps.append(Step(f, feet[f], fp, pelvis))
+    def put(f: str, fp: Footprint, pelvis: float, kind: str = PIVOT, length: float = 0.0) -> None:
+        steps.append(Step(f, feet[f], fp, pelvis, kind=kind, length=length))
         feet[f] = fp
 
     def pivot(at: FloatArray, h_from: float, turn: float, foot: str) -> str:
@@ -338,7 +357,7 @@ def plan_footsteps(
     twist = float(np.clip(wrap(final_heading - walk_heading), -MAX_TWIST, MAX_TWIST))
     end_heading = walk_heading + twist
     if distance >= MIN_DISTANCE:
-        n = max(1, math.ceil(distance / gait.step_length - 1e-9))
+        n = max(min_steps, math.ceil(distance / gait.step_length - 1e-9))
         ahead = d / distance
         for k in range(1, n + 1):
             if k == n:
@@ -346,10 +365,13 @@ def plan_footsteps(
             else:
                 fp = Footprint(centre + ahead * distance * k / n
                                + _side(walk_heading, foot, half_width), walk_heading)  # fmt: skip
-            put(foot, fp, walk_heading)
+            # the pelvis turns with the last walking step's foot: turned alone, that foot
+            # needed the hip's whole rotation range and the pelvis sank 25 cm
+            pelvis = walk_heading + (twist if k == n else 0.0)
+            put(foot, fp, pelvis, START if k == 1 else WALK, distance / n)
             foot = _other(foot)
         put(foot, Footprint(goal + _side(end_heading, foot, half_width), end_heading),
-            end_heading)  # fmt: skip
+            end_heading, CLOSE, distance / n)  # fmt: skip
         foot = _other(foot)
         centre, h0 = goal, end_heading
     # the rest of the turn toward the work, stepped in place (the next foot in turn opens)
@@ -363,22 +385,45 @@ def _other(foot: str) -> str:
     return "r" if foot == "l" else "l"
 
 
+MAX_STRETCH = 1.2  # a walk given more time than its steps need slows them this much at most
+
+
 def time_steps(steps: list[Step], t0: float, t1: float, gait: Gait) -> None:
-    """Spread the steps over the segment (or at the clip's cadence, if it fits)."""
+    """Give each step its time: from stature and step length (``semantics.gait``, the same rule
+    the front end gives the walk), or equal shares at a clip's cadence. Steps that do not fit
+    the segment (a walk with a stated, shorter time) are shortened alike; a segment longer than
+    they need slows them by up to ``MAX_STRETCH`` and the body stands the rest, half before and
+    half after. The first step from standing shifts the weight for ``START_SHIFT`` of its time
+    before toe-off; the closing step settles for ``CLOSE_SETTLE`` after touch-down."""
     if not steps:
         return
     span = t1 - t0
-    dt = span / len(steps)
     if gait.cadence:
-        dt = min(dt, 1.0 / gait.cadence)
-    lead = (span - dt * len(steps)) / 2  # stand still before and after if there is time left
-    for i, st in enumerate(steps):
-        b0 = t0 + lead + i * dt
-        st.t_heel_off = max(t0, b0 - HEEL_OFF * dt)
-        st.t_lift = b0 + DOUBLE_SUPPORT * dt / 2
-        st.t_land = b0 + dt - DOUBLE_SUPPORT * dt / 2
+        dts = np.full(len(steps), min(span / len(steps), 1.0 / gait.cadence))
+    else:
+        # the first step starts from standing, whatever it does (as semantics.gait times it)
+        kinds = [START] + [st.kind for st in steps[1:]]
+        dts = np.array(
+            [gait.step_seconds(k, st.length) for k, st in zip(kinds, steps, strict=True)]
+        )
+        need = float(dts.sum())
+        dts *= span / need if need > span else min(span / need, MAX_STRETCH)
+    lead = (span - float(dts.sum())) / 2  # stand still before and after if there is time left
+    b0 = t0 + lead
+    for i, (st, dt) in enumerate(zip(steps, dts, strict=True)):
+        before = START_SHIFT if i == 0 else DOUBLE_SUPPORT / 2
+        after = CLOSE_SETTLE if st.kind == CLOSE or i == len(steps) - 1 else DOUBLE_SUPPORT / 2
+        st.t_heel_off = b0 if i == 0 else max(t0, b0 - HEEL_OFF * dts[i - 1])
+        st.t_lift = b0 + before * dt
+        st.t_land = b0 + dt - after * dt
+        st.t_end = b0 + dt
         travel = float(np.hypot(*(st.end.position - st.start.position)[[0, 2]]))
-        st.toe_off_pitch = TOE_OFF_PITCH * min(1.0, travel / gait.step_length)
+        # a foot behind the other rolls fully over a step's length of travel; the first step
+        # from standing (feet side by side, nothing behind) a quarter as far: rolled 60° in
+        # its weight shift it flexed the knee 20-30° in the first frame
+        share = START_ROLL if i == 0 else 1.0
+        st.toe_off_pitch = share * TOE_OFF_PITCH * min(1.0, travel / gait.step_length)
+        b0 += dt
 
 
 # --------------------------------------------------------------------------- trajectories
@@ -430,7 +475,7 @@ class WalkMotion:
         for st in self.steps:
             stance_foot = "l" if st.foot == "r" else "r"
             mid_t = (st.t_lift + st.t_land) / 2
-            b = st.t_land + (st.t_land - st.t_lift) * DOUBLE_SUPPORT / (1 - DOUBLE_SUPPORT) / 2
+            b = max(st.t_end, st.t_land + 1e-6)
             centre_before = (feet["r"].position + feet["l"].position) / 2
             feet[st.foot] = st.end
             centre_after = (feet["r"].position + feet["l"].position) / 2
@@ -438,9 +483,15 @@ class WalkMotion:
             heading_dir = np.array([math.sin(st.pelvis_heading), 0.0, math.cos(st.pelvis_heading)])
             lateral = lateral - heading_dir * (lateral @ heading_dir)
             mid = (centre_before + centre_after) / 2 + SWAY * lateral
-            arriving = np.linalg.norm((st.end.position - arrive)[[0, 2]]) <= near
-            lead = 0.0 if arriving else LEAD  # no overshoot at the goal
-            ahead = centre_after + lead * (centre_after - centre_before)
+            move = centre_after - centre_before
+            # the first step from standing moves the feet's centre half a step only: the
+            # pelvis leads it by a whole step's share, or the leg in front had to reach
+            ahead = centre_after + LEAD * move * (2.0 if st.kind == START else 1.0)
+            # no overshoot at the goal: the lead stops where it would pass the arrival
+            if np.linalg.norm((st.end.position - arrive)[[0, 2]]) <= near and (
+                float((arrive - ahead)[[0, 2]] @ move[[0, 2]]) < 0
+            ):
+                ahead = centre_after
             ts += [mid_t, b]
             xz += [mid[[0, 2]], ahead[[0, 2]]]
             h = hs[-1] + wrap(st.pelvis_heading - hs[-1])
@@ -527,14 +578,21 @@ class WalkMotion:
                 if sw.stop > sw.start:
                     start = _rolled(R0, toe_w, np.array([st.toe_off_pitch]), toe)[0]
                     tau = (ts[sw] - st.t_lift) / (st.t_land - st.t_lift)
-                    # the foot rises before it travels and lands straight down: the horizontal
-                    # minimum-jerk move takes the middle 75 % of the swing
-                    u = np.clip((tau - 0.1) / 0.75, 0.0, 1.0)
-                    s = u * u * u * (10 - 15 * u + 6 * u * u)
+                    # the foot travels over the whole swing (a smoothstep: at rest at both
+                    # ends, its peak speed 1.5 × the mean), lifts briskly off its toe (sin) and
+                    # sets down softly (sin²). The minimum-jerk move over the middle 75 % of the
+                    # swing reached over the landing point while the pelvis was still half a
+                    # step behind (the pelvis sank up to 25 cm) at up to 8.7 m/s.
+                    s = tau * tau * (3 - 2 * tau)
                     pos[sw] = start + s[:, None] * (a1 - start)
-                    pos[sw, 1] += self.gait.step_height * np.sin(np.pi * tau) ** 2
+                    rise = np.where(tau < 0.5, np.sin(np.pi * tau), np.sin(np.pi * tau) ** 2)
+                    pos[sw, 1] += self.gait.step_height * rise
                     head[sw] = h0 + s * wrap(st.end.heading - h0)
-                    pitch[sw] = st.toe_off_pitch * (1 - s)
+                    # level from 60 % of the swing on (levelled as it travelled, the toe
+                    # hung low and touched down a fifth of the swing early), smoothly from
+                    # the roll (a kink here is a "jump" the smooth pass blends for 50 frames)
+                    u = np.clip(tau / 0.6, 0.0, 1.0)
+                    pitch[sw] = st.toe_off_pitch * (1 - u * u * (3 - 2 * u))
                     planted[sw] = False
             back = np.empty_like(order)  # the caller's order of ``t``
             back[order] = np.arange(n)
@@ -597,7 +655,9 @@ class WalkMotion:
             choice[rows[fits]] = j0 + ok[fits].argmax(axis=1)
             low = bad.argmin(axis=1)
             least = bad[np.arange(len(rows)), low]
-            better = least < best[rows]  # strictly: ties keep the higher candidate
+            # by more than a tolerance: near-ties keep the higher candidate (a limit no height
+            # cures, such as a hip's rotation, sank the pelvis to the lowest candidate)
+            better = least < best[rows] - UNCURED_TOL
             best[rows[better]] = least[better]
             best_j[rows[better]] = j0 + low[better]
             rows = rows[~fits]
@@ -625,11 +685,34 @@ class WalkMotion:
 
     def _pelvis_height(self, grid: FloatArray) -> FloatArray:
         y = self._reach_height(grid, self._xz(grid), self._h(grid))
-        y[0] = y[-1] = self.ground + self.stand_height  # meet the standing root at the ends
+        stand = self.ground + self.stand_height
+        y = np.minimum(y + self._end_allowance(grid, stand - y[0], stand - y[-1]), stand)
+        y[0] = y[-1] = stand  # meet the standing root at the ends
         # erosion then a box average of the same width (narrowing at the ends, which must
         # stay at the standing height): smooth, and below the reach bound
         eroded = _window(y, int(0.06 * HEIGHT_RATE), np.min)
         return np.minimum(_window(eroded, int(0.06 * HEIGHT_RATE), np.mean), y)
+
+    def _end_allowance(self, grid: FloatArray, first: float, last: float) -> FloatArray:
+        """How far above the reach bound the pelvis may be near the walk's ends. The rest pose
+        stands with its legs straighter than ``STANCE_REACH`` allows (the bound is ~5 mm
+        lower): the pelvis sank those millimetres in the first frame (the knees 4.6° → 15° in
+        17 ms). The allowance fades out smoothly from the start to the first toe-off, and in
+        from the last touch-down to the end, while both feet are down."""
+        out = np.zeros(len(grid))
+        if not self.steps:
+            return out
+        for t_a, t_b, amount, rising in (
+            (self.t0, min(st.t_lift for st in self.steps), first, False),
+            (max(st.t_land for st in self.steps), self.t1, last, True),
+        ):
+            if amount <= 0 or t_b <= t_a:
+                continue
+            u = np.clip((grid - t_a) / (t_b - t_a), 0.0, 1.0)
+            w = u * u * (3 - 2 * u)
+            inside = (grid >= t_a) & (grid <= t_b)
+            out[inside] = np.maximum(out[inside], amount * (w if rising else 1 - w)[inside])
+        return out
 
     def root(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
         tt = np.clip(t, self.t0, self.t1)
@@ -737,7 +820,7 @@ def _key_times(motion: WalkMotion) -> tuple[FloatArray, Pose]:
     ts = [motion.t0, motion.t1]
     for st in motion.steps:
         sw = st.t_land - st.t_lift
-        ts += [st.t_lift, st.t_land] + [st.t_lift + sw * f for f in (0.25, 0.5, 0.75)]
+        ts += [st.t_lift, st.t_land] + [st.t_lift + sw * f for f in SWING_KEYS]
     keys = np.unique(np.round(np.asarray(ts), 9))
     # the interpolate pass's frames inside the window
     k0, k1 = math.ceil(motion.t0 * INTERNAL_FPS - 1e-9), math.floor(t_end * INTERNAL_FPS + 1e-9)
@@ -768,7 +851,10 @@ def _key_times(motion: WalkMotion) -> tuple[FloatArray, Pose]:
             ankle, toe = leg_fk(motion.legs, f, rp, rh, q)
             da, dt = ankle - want[f].ankle, toe - want_toe[f]
             err = np.maximum(np.linalg.norm(da, axis=1), np.linalg.norm(dt, axis=1))
-            bad |= err > np.where(want[f].planted, DRIFT_TOL, SWING_TOL)
+            # a swinging foot near the ground is held as tight as a planted one: 5 mm let
+            # the interpolated toe through the floor just before it set down
+            near = want_toe[f][:, 1] - motion.ground < 2 * SWING_TOL
+            bad |= err > np.where(want[f].planted | near, DRIFT_TOL, SWING_TOL)
         if not bad.any():
             break
         # key the frames that stray: interpolation is then exact there, and PCHIP is local
@@ -1012,6 +1098,15 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
         way = goal - (stance["r"].position + stance["l"].position) / 2
         walk_heading = math.atan2(way[0], way[2]) if math.hypot(way[0], way[2]) > 1e-9 else h0
         steps = plan_footsteps(stance, goal, walk_heading, h1, gait, half_width, next_foot)
+        walking = sum(st.kind in (START, WALK) for st in steps)
+        if walking and _steps_need(steps, gait) * MAX_STRETCH < t1 - t0 and gait.cadence is None:
+            # the front end counted one step more (its distance is the root's, ours the feet's
+            # centre's, which can straddle a multiple of the step length): take it, rather than
+            # stand a third of the walk (62 steps/min on the 1st-percentile woman's 0.6 m)
+            more = plan_footsteps(stance, goal, walk_heading, h1, gait, half_width, next_foot,
+                                  walking + 1)  # fmt: skip
+            if _steps_need(more, gait) <= (t1 - t0) * (1 + 1e-9):
+                steps = more
         time_steps(steps, t0, t1, gait)
         root_end, h_end = np.array([p1[0], 0.0, p1[2]]), h1
         if not _travels(stance, goal):  # the root moves and turns only as the feet in place do
@@ -1070,6 +1165,12 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
     for seg in instant:
         _record_instant_walk(seg)
     return ir
+
+
+def _steps_need(steps: list[Step], gait: Gait) -> float:
+    """Seconds the steps take at the stature's cadence (as :func:`time_steps` times them)."""
+    kinds = [START] + [st.kind for st in steps[1:]]
+    return sum(gait.step_seconds(k, st.length) for k, st in zip(kinds, steps, strict=True))
 
 
 def _travels(stance: dict[str, Footprint], goal: FloatArray) -> bool:

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from mtlc.body.anthropometry import dimensions
 from mtlc.diagnostics import DiagnosticSink, Label, Span
 from mtlc.semantics import builtins as B
 from mtlc.semantics import mtm, turning
@@ -134,7 +135,9 @@ class Expander:
             )
             self.out = timeline.primitives
             self.block(task.body, env, 0.0)
-            turning.add_turn_time(timeline.primitives, self.mtm_walks, (0.0, ground, 0.0))
+            turning.add_turn_time(
+                timeline.primitives, self.mtm_walks, (0.0, ground, 0.0), _body(timeline.manikin)
+            )
             timeline.sites = [*self.task_sites.values(), *self.other_sites.values()]
         except _BudgetExceeded as exc:
             needed = f" (it would need about {exc.needed:,})" if exc.needed else ""
@@ -830,3 +833,12 @@ def _user_line(env: _Env, stmt: ast.Node) -> Span:
 
 def _dist(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     return math.dist(a, b)
+
+
+def _body(spec: ManikinSpec) -> tuple[float, str] | None:
+    """Stature (m) and sex of the manikin, which time a walk's steps (``semantics.gait``)."""
+    try:
+        dims = dimensions(spec.population, spec.sex, spec.percentile)
+    except (KeyError, ValueError):
+        return None  # an unknown manikin is reported elsewhere; MTM times its walks
+    return dims.stature, spec.sex

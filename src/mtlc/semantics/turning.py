@@ -17,7 +17,7 @@ from itertools import islice
 
 import numpy as np
 
-from mtlc.semantics import mtm
+from mtlc.semantics import gait, mtm
 from mtlc.semantics import types as T
 from mtlc.semantics.timeline import Primitive
 
@@ -25,6 +25,7 @@ TURN_IN_PLACE = math.radians(30)  # a larger turn toward the way to go is steppe
 MAX_TWIST = math.radians(35)  # the closing steps of a walk land this much turned toward the work
 FINAL_TURN = math.radians(3)  # a smaller turn left after arriving is not stepped
 MIN_DISTANCE = 0.02  # m: shorter walks only turn
+MAX_TURN_STEP = gait.MAX_TURN_STEP  # heading change per pivot step
 WORK_MIN_DISTANCE = 0.1  # m: work closer than this to where a walk ends gives no direction
 TURN_BODY_CODE = "TBC2"  # turn body 45-90°, complete when the lagging leg is down
 TURN_BODY_ANGLE = math.radians(90)  # the most one TBC turns
@@ -96,9 +97,16 @@ def turn_body_seconds(turns: Iterable[float]) -> float:
     return count * mtm.code_tmu(TURN_BODY_CODE) * T.TMU_SECONDS
 
 
-def add_turn_time(prims: list[Primitive], mtm_walks: set[int], ground_start: Point) -> None:
-    """Lengthen each MTM-timed walk by the turn-body time of its stepped turns; what starts at or
-    after the walk's end moves later by as much, so sequences keep their order."""
+def add_turn_time(
+    prims: list[Primitive],
+    mtm_walks: set[int],
+    ground_start: Point,
+    body: tuple[float, str] | None = None,
+) -> None:
+    """Lengthen each MTM-timed walk by the turn-body time of its stepped turns, and further to
+    the time its steps need at a human cadence (``semantics.gait``, for ``body`` = (stature m,
+    sex)) when MTM's is shorter; what starts at or after the walk's end moves later by as much,
+    so sequences keep their order."""
     ordered = sorted(prims, key=lambda p: p.start)
     delays: list[tuple[Primitive, float]] = []  # (walk, seconds added at its end)
     pos: Point = ground_start
@@ -113,8 +121,15 @@ def add_turn_time(prims: list[Primitive], mtm_walks: set[int], ground_start: Poi
             turns = stepped_turns(heading, walking, arrival, walk.params["distance"])
             seconds = turn_body_seconds(turns)
             if seconds > 0:
-                delays.append((walk, seconds))
                 walk.params["turn_time"] = seconds
+            if body is not None:
+                need = gait.walk_seconds(walk.params["distance"], turns, *body, MIN_DISTANCE)
+                mtm_total = walk.end - walk.start + seconds
+                if need > mtm_total + 1e-9:
+                    walk.params["gait_time"] = need  # the steps' time replaces MTM's
+                    seconds = need - (walk.end - walk.start)
+            if seconds > 0:
+                delays.append((walk, seconds))
         pos, heading = goal, arrival
     _apply_delays(ordered, delays)
 

@@ -11,7 +11,7 @@ def drain_reservoir():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=50, stature=167.8, mass=59.0)
     # examples/drain_hydraulic_reservoir.mtask:22:5 drain_reservoir > walk_to > travel: locomotion on root at skid_side
-    human.Walk((-0.325, 0.0, 42.523), start=0.0, duration=0.54)
+    human.Walk((-0.04, 0.0, 44.49), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 84.188, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,253 +22,282 @@ def drain_reservoir():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })
-    human.KeyRoot(0.1, (2.421, 82.071, 8.555), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.683, 83.712, 0.947), (-1.743, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (42.162, 3.234, -1.081), 'right_knee': (80.625,),
-        'right_ankle': (18.408, 2.042), 'left_hip': (6.081, -1.825, -0.195), 'left_knee': (24.429,),
-        'left_ankle': (18.357, -1.836),
+        'right_hip': (13.357, 0.094, 1.856), 'right_knee': (26.257,), 'right_ankle': (8.402, 0.522),
+        'left_hip': (6.331, -0.309, -1.788), 'left_knee': (13.507,), 'left_ankle': (7.189, -0.504),
     })
-    human.KeyRoot(0.2, (1.644, 80.077, 16.533), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.116, 83.605, 3.467), (-3.802, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (36.589, 4.982, -18.201), 'right_knee': (35.03,),
-        'right_ankle': (-1.725, -5.481), 'left_hip': (18.518, -1.077, -0.93),
-        'left_knee': (58.661,), 'left_ankle': (17.848, -1.423),
+        'right_hip': (16.491, -0.279, 4.029), 'right_knee': (35.057,),
+        'right_ankle': (9.472, 0.887), 'left_hip': (4.486, -0.517, -3.854), 'left_knee': (13.969,),
+        'left_ankle': (9.527, -0.815),
     })
-    human.KeyRoot(0.3, (-0.391, 80.269, 24.492), (-0.789, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.346, 83.605, 7.079), (-6.118, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (25.199, 2.89, -17.616), 'right_knee': (23.503,),
-        'right_ankle': (-1.399, -4.897), 'left_hip': (13.95, 0.422, -0.56), 'left_knee': (61.19,),
-        'left_ankle': (19.422, 0.336),
+        'right_hip': (26.503, -0.716, 3.862), 'right_knee': (51.524,),
+        'right_ankle': (18.014, 1.087), 'left_hip': (0.477, -0.919, -6.13), 'left_knee': (11.6,),
+        'left_ankle': (10.967, -0.965),
     })
-    human.KeyRoot(0.4, (-1.533, 81.871, 33.02), (-8.64, 0.0, 0.0))
+    human.KeyRoot(0.4, (1.422, 83.912, 11.3), (-8.636, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (19.207, -0.573, -10.062), 'right_knee': (22.604,),
-        'right_ankle': (3.763, -3.829), 'left_hip': (28.688, -0.081, 0.513), 'left_knee': (71.942,),
-        'left_ankle': (20.0, 0.174),
+        'right_hip': (34.878, -0.294, 0.367), 'right_knee': (53.098,),
+        'right_ankle': (17.062, -0.067), 'left_hip': (3.79, -0.419, -8.798), 'left_knee': (24.408,),
+        'left_ankle': (14.034, -0.999),
     })
-    human.KeyRoot(0.5, (-0.782, 83.259, 41.564), (-15.307, 0.0, 0.0))
+    human.KeyRoot(0.5, (1.226, 83.389, 18.859), (-12.102, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
-        'right_hip': (11.151, -0.801, -2.871), 'right_knee': (17.45,),
-        'right_ankle': (6.353, -1.34), 'left_hip': (13.74, 0.759, 2.89), 'left_knee': (21.525,),
-        'left_ankle': (7.481, 1.357),
+        'right_hip': (31.574, -0.908, -3.056), 'right_knee': (36.699,),
+        'right_ankle': (5.166, -2.428), 'left_hip': (6.184, 0.565, -12.37), 'left_knee': (39.907,),
+        'left_ankle': (15.337, -0.816),
+    })
+    human.KeyRoot(0.6, (0.686, 82.44, 29.614), (-16.153, 0.0, 0.0))
+    human.KeyJoints(0.6, {
+        'right_hip': (17.397, -2.286, -2.458), 'right_knee': (12.341,),
+        'right_ankle': (-4.988, -2.961), 'left_hip': (1.955, 0.318, -16.297),
+        'left_knee': (46.233,), 'left_ankle': (13.404, -0.283),
+    })
+    human.KeyRoot(0.7, (0.094, 82.442, 34.707), (-17.969, 0.0, 0.0))
+    human.KeyJoints(0.7, {
+        'right_hip': (17.0, -2.227, -0.68), 'right_knee': (18.451,), 'right_ankle': (1.462, -2.328),
+        'left_hip': (0.283, 0.312, -17.794), 'left_knee': (48.472,), 'left_ankle': (8.586, 0.273),
+    })
+    human.KeyRoot(0.8, (-0.644, 82.451, 34.282), (-17.969, 0.0, 0.0))
+    human.KeyJoints(0.8, {
+        'right_knee': (17.803,), 'right_ankle': (0.994, -2.956),
+        'left_hip': (5.548, 2.276, -16.833), 'left_knee': (57.934,), 'left_ankle': (14.675, 0.681),
+    })
+    human.KeyRoot(0.9, (-1.359, 82.447, 33.629), (-17.969, 0.0, 0.0))
+    human.KeyJoints(0.9, {
+        'right_hip': (16.618, -3.469, -1.035), 'right_knee': (16.773,),
+        'right_ankle': (0.18, -3.619), 'left_hip': (19.442, 4.545, -12.082), 'left_knee': (70.625,),
+        'left_ankle': (18.79, 0.21),
+    })
+    human.KeyRoot(1.0, (-1.524, 82.509, 33.622), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.0, {
+        'right_hip': (16.246, -3.587, -1.044), 'right_knee': (16.091,),
+        'right_ankle': (-0.125, -3.736), 'left_hip': (29.949, 4.028, -5.127),
+        'left_knee': (66.507,), 'left_ankle': (18.82, 0.956),
+    })
+    human.KeyRoot(1.1, (-1.321, 82.972, 35.819), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.1, {
+        'right_hip': (13.948, -2.972, -0.738), 'right_knee': (14.552,),
+        'right_ankle': (0.623, -3.063), 'left_hip': (22.716, 2.731, -0.484), 'left_knee': (36.649,),
+        'left_ankle': (14.036, 2.33),
+    })
+    human.KeyRoot(1.2, (-0.818, 83.153, 39.953), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.2, {
+        'spine_lumbar': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
+        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (12.455, -1.705, -0.376),
+        'right_knee': (17.279,), 'right_ankle': (4.83, -1.746), 'left_hip': (12.439, 1.705, 0.376),
+        'left_knee': (17.245,), 'left_ankle': (4.808, 1.746),
     })
     # examples/drain_hydraulic_reservoir.mtask:23:5 drain_reservoir > squat: posture on root
-    human.KeyRoot(0.6, (0.36, 83.649, 43.962), (-17.969, 0.0, 0.0))
-    human.KeyJoints(0.6, {
-        'spine_lumbar': (1.758, 0.0, 0.0), 'spine_thoracic': (0.832, 0.0, 0.0),
-        'right_shoulder': (10.572, 5.73, 11.459), 'left_shoulder': (10.572, 5.73, 11.459),
-        'right_hip': (8.316, 0.016, 0.002), 'right_knee': (14.09,), 'right_ankle': (5.78, 0.016),
-        'left_hip': (8.303, -0.016, -0.002), 'left_knee': (14.065,), 'left_ankle': (5.764, -0.016),
-    })
-    human.KeyRoot(0.7, (1.82, 82.611, 39.451), (-17.969, 0.0, 0.0))
-    human.KeyJoints(0.7, {
-        'spine_lumbar': (8.697, 0.0, 0.0), 'spine_thoracic': (4.307, 0.0, 0.0),
-        'right_shoulder': (18.273, 5.73, 11.459), 'left_shoulder': (18.273, 5.73, 11.459),
-        'right_hip': (15.459, 0.014, 0.004), 'right_knee': (21.414,), 'right_ankle': (5.958, 0.014),
-        'left_hip': (15.458, -0.014, -0.004), 'left_knee': (21.41,), 'left_ankle': (5.955, -0.014),
-    })
-    human.KeyRoot(0.8, (3.065, 80.848, 35.602), (-17.969, 0.0, 0.0))
-    human.KeyJoints(0.8, {
-        'spine_lumbar': (15.145, 0.0, 0.0), 'spine_thoracic': (7.537, 0.0, 0.0),
-        'right_shoulder': (25.151, 5.73, 11.459), 'left_shoulder': (25.151, 5.73, 11.459),
-        'right_hip': (22.816, 0.012, 0.005), 'right_knee': (29.97,), 'right_ankle': (7.167, 0.013),
-        'left_hip': (22.815, -0.012, -0.005), 'left_knee': (29.967,), 'left_ankle': (7.165, -0.013),
-    })
-    human.KeyRoot(0.9, (4.133, 78.551, 32.3), (-17.969, 0.0, 0.0))
-    human.KeyJoints(0.9, {
-        'spine_lumbar': (21.347, 0.0, 0.0), 'spine_thoracic': (10.645, 0.0, 0.0),
-        'right_hip': (29.846, 0.009, 0.005), 'right_knee': (38.389,), 'right_ankle': (8.55, 0.011),
-        'left_hip': (29.847, -0.009, -0.005), 'left_knee': (38.391,), 'left_ankle': (8.552, -0.011),
-    })
-    human.KeyRoot(1.0, (5.103, 75.629, 29.299), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.0, {
-        'spine_lumbar': (28.419, 0.0, 0.0), 'spine_thoracic': (14.186, 0.0, 0.0),
-        'right_knee': (47.138,), 'left_knee': (47.139,),
-    })
-    human.KeyRoot(1.1, (5.954, 72.145, 26.666), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.1, {
-        'spine_lumbar': (36.635, 0.0, 0.0), 'spine_thoracic': (18.301, 0.0, 0.0),
-        'right_ankle': (11.727, 0.007), 'left_ankle': (11.727, -0.007),
-    })
-    human.KeyRoot(1.2, (6.667, 68.156, 24.461), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.2, {
-        'spine_lumbar': (45.439, 0.0, 0.0), 'spine_thoracic': (22.708, 0.0, 0.0),
-        'right_hip': (51.549, 0.003, 0.004), 'right_knee': (64.932,),
-        'left_hip': (51.549, -0.003, -0.004), 'left_knee': (64.932,),
-    })
-    human.KeyRoot(1.3, (7.223, 63.723, 22.736), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.003, 84.177, 44.742), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (56.193, 0.0, 0.0), 'spine_thoracic': (28.092, 0.0, 0.0),
-        'right_shoulder': (56.77, 5.73, 11.459), 'left_shoulder': (56.77, 5.73, 11.459),
-        'right_hip': (58.842, 0.001, 0.002), 'right_knee': (73.914,),
-        'left_hip': (58.842, -0.001, -0.002), 'left_knee': (73.914,),
+        'spine_lumbar': (0.115, 0.0, 0.0), 'spine_thoracic': (0.007, 0.0, 0.0),
+        'right_shoulder': (8.724, 5.73, 11.459), 'left_shoulder': (8.724, 5.73, 11.459),
+        'right_hip': (3.32, -0.056, -0.003), 'right_knee': (5.145,), 'right_ankle': (1.827, -0.057),
+        'left_hip': (3.313, 0.056, 0.003), 'left_knee': (5.131,), 'left_ankle': (1.82, 0.057),
     })
-    human.KeyRoot(1.4, (7.617, 58.777, 21.514), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.4, (0.963, 83.74, 41.811), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'right_shoulder': (63.26, 5.73, 11.459), 'left_shoulder': (63.26, 5.73, 11.459),
-        'right_hip': (66.335, 0.0, 0.0), 'right_knee': (83.158,), 'right_ankle': (16.823, 0.0),
-        'left_hip': (66.335, 0.0, 0.0), 'left_knee': (83.158,), 'left_ankle': (16.823, 0.0),
+        'spine_lumbar': (4.578, 0.0, 0.0), 'spine_thoracic': (2.245, 0.0, 0.0),
+        'right_shoulder': (13.725, 5.73, 11.459), 'left_shoulder': (13.725, 5.73, 11.459),
+        'right_hip': (8.836, -0.049, -0.007), 'right_knee': (11.768,),
+        'right_ankle': (2.938, -0.05), 'left_hip': (8.821, 0.049, 0.007), 'left_knee': (11.735,),
+        'left_ankle': (2.919, 0.05),
     })
-    human.KeyRoot(1.5, (7.838, 52.163, 20.833), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.5, (2.447, 82.15, 37.268), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'right_shoulder': (71.335, 5.73, 11.459), 'left_shoulder': (71.335, 5.73, 11.459),
-        'right_hip': (75.71, 0.0, 0.0), 'right_knee': (94.764,), 'right_ankle': (19.055, 0.0),
-        'left_hip': (75.71, 0.0, 0.0), 'left_knee': (94.764,), 'left_ankle': (19.055, 0.0),
+        'spine_lumbar': (11.86, 0.0, 0.0), 'spine_thoracic': (5.892, 0.0, 0.0),
+        'right_shoulder': (21.685, 5.73, 11.459), 'left_shoulder': (21.685, 5.73, 11.459),
+        'right_hip': (18.04, -0.042, -0.013), 'right_knee': (23.157,),
+        'right_ankle': (5.124, -0.044), 'left_hip': (18.037, 0.042, 0.013), 'left_knee': (23.151,),
+        'left_ankle': (5.12, 0.044),
+    })
+    human.KeyRoot(1.6, (3.559, 80.137, 33.867), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.6, {'spine_lumbar': (17.891, 0.0, 0.0), 'spine_thoracic': (8.913, 0.0, 0.0)})
+    human.KeyRoot(1.7, (4.586, 77.497, 30.732), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.7, {'spine_lumbar': (24.391, 0.0, 0.0), 'spine_thoracic': (12.169, 0.0, 0.0)})
+    human.KeyRoot(1.8, (5.505, 74.27, 27.928), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.8, {'spine_lumbar': (32.046, 0.0, 0.0), 'spine_thoracic': (16.003, 0.0, 0.0)})
+    human.KeyRoot(1.9, (6.295, 70.505, 25.521), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.9, {'spine_lumbar': (40.469, 0.0, 0.0), 'spine_thoracic': (20.22, 0.0, 0.0)})
+    human.KeyRoot(2.0, (6.939, 66.262, 23.565), (-17.969, 0.0, 0.0))
+    human.KeyJoints(2.0, {'spine_lumbar': (50.468, 0.0, 0.0), 'spine_thoracic': (25.226, 0.0, 0.0)})
+    human.KeyRoot(2.1, (7.42, 61.606, 22.112), (-17.969, 0.0, 0.0))
+    human.KeyJoints(2.1, {
+        'spine_lumbar': (59.318, 0.0, 0.0), 'spine_thoracic': (29.657, 0.0, 0.0),
+        'right_shoulder': (59.632, 5.73, 11.459), 'left_shoulder': (59.632, 5.73, 11.459),
+        'right_hip': (62.128, -0.003, 0.0), 'right_knee': (77.947,), 'right_ankle': (15.82, -0.003),
+        'left_hip': (62.128, 0.003, 0.0), 'left_knee': (77.947,), 'left_ankle': (15.82, 0.003),
+    })
+    human.KeyRoot(2.2, (7.756, 55.802, 21.085), (-17.969, 0.0, 0.0))
+    human.KeyJoints(2.2, {
+        'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
+        'right_shoulder': (66.954, 5.73, 11.459), 'left_shoulder': (66.954, 5.73, 11.459),
+        'right_hip': (70.624, 0.0, 0.0), 'right_knee': (88.468,), 'left_hip': (70.624, 0.0, 0.0),
+        'left_knee': (88.468,),
+    })
+    human.KeyRoot(2.3, (7.843, 49.962, 20.816), (-17.969, 0.0, 0.0))
+    human.KeyJoints(2.3, {
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (73.93, 5.73, 11.459),
+        'left_shoulder': (73.93, 5.73, 11.459), 'right_hip': (78.723, 0.0, 0.0),
+        'right_knee': (98.495,), 'right_ankle': (19.772, 0.0), 'left_hip': (78.723, 0.0, 0.0),
+        'left_knee': (98.495,), 'left_ankle': (19.772, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:24:5 drain_reservoir > look: gaze on head at drain_valve
-    human.LookAt((-12.0, 20.0, 82.0), start=1.584, duration=0.2628)
-    human.KeyRoot(1.6, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.6, {
-        'neck': (-0.018, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
+    human.LookAt((-12.0, 20.0, 82.0), start=2.338737, duration=0.2628)
+    human.KeyRoot(2.4, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
+    human.KeyJoints(2.4, {
+        'neck': (-0.231, 0.0, 0.0), 'head': (-0.231, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
         'left_shoulder': (74.757, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
         'right_knee': (99.683,), 'right_ankle': (20.0, 0.0), 'left_hip': (79.683, 0.0, 0.0),
         'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
-    human.KeyJoints(1.7, {'neck': (-0.693, 0.0, 0.0), 'head': (-0.693, 0.0)})
-    human.KeyJoints(1.8, {
-        'neck': (-1.54, 0.0, 0.0), 'head': (-1.54, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
+    human.KeyJoints(2.5, {'neck': (-1.122, 0.0, 0.0), 'head': (-1.122, 0.0)})
+    human.KeyJoints(2.6, {
+        'neck': (-1.681, 0.0, 0.0), 'head': (-1.681, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
-    human.LookAt((-12.0, 20.0, 82.0), start=1.8468, duration=0.832997)
-    human.KeyJoints(1.9, {
-        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_shoulder': (75.124, 5.629, 12.38),
-        'right_elbow': (34.384, 16.35), 'right_wrist': (-0.255, 0.008),
+    human.LookAt((-12.0, 20.0, 82.0), start=2.601537, duration=0.832997)
+    human.KeyJoints(2.7, {
+        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0),
+        'right_shoulder': (75.968, 5.398, 14.463), 'right_elbow': (34.401, 14.453),
+        'right_wrist': (-0.832, 0.026),
     })
-    human.KeyJoints(2.0, {
-        'right_shoulder': (77.547, 4.966, 18.289), 'right_elbow': (34.436, 10.969),
-        'right_wrist': (-1.894, 0.062),
+    human.KeyJoints(2.8, {
+        'right_shoulder': (79.243, 4.501, 22.308), 'right_elbow': (34.476, 7.308),
+        'right_wrist': (-3.012, 0.102),
     })
-    human.KeyJoints(2.1, {
-        'right_shoulder': (81.674, 3.835, 27.912), 'right_elbow': (34.539, 2.205),
-        'right_wrist': (-4.573, 0.161),
+    human.KeyJoints(2.9, {
+        'right_shoulder': (83.925, 3.219, 32.933), 'right_elbow': (34.603, -2.368),
+        'right_wrist': (-5.975, 0.219),
     })
-    human.KeyJoints(2.2, {
-        'right_shoulder': (86.845, 2.419, 39.184), 'right_elbow': (34.695, -8.061),
-        'right_wrist': (-7.726, 0.299),
+    human.KeyJoints(3.0, {
+        'right_shoulder': (89.351, 1.732, 44.275), 'right_elbow': (34.783, -12.697),
+        'right_wrist': (-9.159, 0.373),
     })
-    human.KeyJoints(2.3, {
-        'right_shoulder': (93.151, 1.494, 53.433), 'right_elbow': (34.914, -21.239),
-        'right_wrist': (-11.837, 0.827),
+    human.KeyJoints(3.1, {
+        'right_shoulder': (96.742, 1.396, 62.072), 'right_elbow': (35.033, -29.541),
+        'right_wrist': (-14.334, 1.668),
     })
-    human.KeyJoints(2.4, {
-        'right_shoulder': (100.392, 0.795, 69.032), 'right_elbow': (35.187, -36.319),
-        'right_wrist': (-16.268, 2.518),
-    })
-    human.KeyJoints(2.5, {
+    human.KeyJoints(3.2, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
         'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (104.077, -0.828, 70.0), 'right_elbow': (35.517, -36.898),
-        'right_wrist': (-16.601, 2.288),
+        'right_shoulder': (102.195, -0.029, 70.0), 'right_elbow': (35.332, -37.03),
+        'right_wrist': (-16.531, 2.402),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
-    human.KeyJoints(2.6, {
-        'spine_lumbar': (59.797, -0.618, 1.058), 'spine_thoracic': (27.662, -0.666, 0.836),
-        'neck': (-0.168, 0.069, -2.978), 'head': (-0.168, 0.0), 'right_clavicle': (0.285, 0.712),
-        'right_shoulder': (105.977, -1.15, 63.173), 'right_elbow': (35.32, -30.905),
-        'right_wrist': (-15.187, 1.337),
+    human.KeyJoints(3.3, {
+        'spine_lumbar': (59.255, -0.22, 0.37), 'spine_thoracic': (29.136, -0.234, 0.293),
+        'neck': (-0.727, 0.024, -1.029), 'head': (-0.727, 0.0), 'right_clavicle': (0.132, 0.332),
+        'right_shoulder': (105.598, -1.286, 70.0), 'right_elbow': (35.893, -37.052),
+        'right_wrist': (-16.733, 2.491),
+    })
+    human.KeyJoints(3.4, {
+        'spine_lumbar': (60.0, -1.342, 2.382), 'spine_thoracic': (27.943, -1.439, 1.935),
+        'neck': (-0.333, 0.155, -6.702), 'head': (-0.332, 0.001), 'right_clavicle': (0.671, 1.408),
+        'right_shoulder': (107.526, 1.614, 60.365), 'right_elbow': (32.562, -29.223),
+        'right_wrist': (-15.016, 0.636),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=2.679797, duration=0.072)
-    human.KeyJoints(2.7, {
+    human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)
+    human.KeyJoints(3.5, {
         'spine_lumbar': (60.0, -1.884, 3.474), 'spine_thoracic': (28.561, -2.067, 2.853),
         'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002), 'right_clavicle': (1.133, 1.946),
         'right_shoulder': (109.016, 4.279, 59.594), 'right_elbow': (29.989, -29.318),
         'right_wrist': (-15.251, 0.243),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(2.8, {
-        'right_shoulder': (109.124, 4.337, 59.563), 'right_elbow': (30.38, -37.121),
-        'right_wrist': (-15.297, 0.336),
+    human.KeyJoints(3.6, {
+        'right_shoulder': (109.404, 4.531, 59.478), 'right_elbow': (31.13, -53.2),
+        'right_wrist': (-15.335, 0.484),
     })
-    human.KeyJoints(2.9, {
+    human.KeyJoints(3.7, {
         'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002),
-        'right_shoulder': (109.835, 4.869, 59.346), 'right_elbow': (31.839, -72.774),
-        'right_wrist': (-15.302, 0.543),
+        'right_shoulder': (110.013, 5.01, 59.293), 'right_elbow': (32.016, -79.997),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
-    human.LookAt((5.0, 2.0, 75.0), start=2.946197, duration=0.2628)
-    human.KeyJoints(3.0, {
-        'neck': (-0.333, 0.219, -9.454), 'head': (-0.332, 0.002),
-        'right_shoulder': (110.013, 5.011, 59.293), 'right_elbow': (32.016, -80.0),
-    })
-    human.KeyJoints(3.1, {'neck': (1.065, 0.12, -5.324), 'head': (1.066, 0.001)})
-    human.KeyJoints(3.2, {'neck': (3.804, -0.076, 2.767), 'head': (3.804, -0.001)})
+    human.LookAt((5.0, 2.0, 75.0), start=3.700934, duration=0.2628)
+    human.KeyJoints(3.8, {'neck': (0.133, 0.186, -8.077), 'head': (0.134, 0.001)})
+    human.KeyJoints(3.9, {'neck': (2.139, 0.043, -2.152), 'head': (2.14, 0.0)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(3.3, {'neck': (4.116, -0.098, 3.589), 'head': (4.116, -0.001)})
-    human.KeyJoints(4.9, {'neck': (4.116, -0.098, 3.688)})
-    human.KeyJoints(7.2, {
+    human.KeyJoints(4.0, {'neck': (3.921, -0.098, 3.114), 'head': (3.922, -0.001)})
+    human.KeyJoints(4.6, {'right_wrist': (-15.279, 0.53)})
+    human.KeyJoints(4.8, {'neck': (4.116, -0.098, 3.688)})
+    human.KeyJoints(5.0, {'head': (4.116, -0.001)})
+    human.KeyJoints(7.9, {
         'right_shoulder': (110.013, 5.011, 59.293), 'right_elbow': (32.016, -80.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(7.3, {
-        'right_shoulder': (109.548, 4.642, 59.434), 'right_elbow': (31.418, -60.224),
-        'right_wrist': (-15.33, 0.522),
+    human.KeyJoints(8.0, {
+        'right_shoulder': (109.934, 4.948, 59.316), 'right_elbow': (31.945, -76.855),
+        'right_wrist': (-15.289, 0.538),
     })
-    human.KeyRoot(7.4, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.4, {
+    human.KeyJoints(8.1, {
+        'right_shoulder': (109.103, 4.325, 59.569), 'right_elbow': (30.31, -35.712),
+        'right_wrist': (-15.29, 0.32),
+    })
+    # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=8.158134, duration=0.072)
+    human.KeyRoot(8.2, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.2, {
         'spine_lumbar': (60.0, -1.884, 3.474), 'spine_thoracic': (28.561, -2.067, 2.853),
-        'right_shoulder': (108.865, 4.239, 59.635), 'right_elbow': (27.998, 6.89),
-        'right_wrist': (-14.744, -0.226), 'left_shoulder': (74.757, 5.73, 11.459),
+        'right_shoulder': (108.876, 4.257, 59.63), 'right_elbow': (27.839, 10.0),
+        'right_wrist': (-14.685, -0.255), 'left_shoulder': (74.757, 5.73, 11.459),
         'right_hip': (79.683, 0.0, 0.0), 'right_knee': (99.683,), 'right_ankle': (20.0, 0.0),
         'left_hip': (79.683, 0.0, 0.0), 'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
-    # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=7.403397, duration=0.072)
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
-    human.KeyRoot(7.5, (7.84, 49.585, 20.826), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.5, {
-        'spine_lumbar': (59.908, -1.823, 3.363), 'spine_thoracic': (28.542, -2.001, 2.762),
-        'right_shoulder': (108.982, 4.084, 59.635), 'right_elbow': (27.63, 9.975),
-        'right_wrist': (-14.606, -0.301), 'left_shoulder': (74.374, 5.73, 11.459),
-        'right_hip': (79.238, 0.0, 0.0), 'right_knee': (99.133,), 'right_ankle': (19.921, 0.0),
-        'left_hip': (79.238, 0.0, 0.0), 'left_knee': (99.133,), 'left_ankle': (19.921, 0.0),
+    human.KeyRoot(8.3, (7.845, 51.096, 20.812), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.3, {
+        'spine_lumbar': (59.307, -1.467, 2.705), 'spine_thoracic': (28.415, -1.61, 2.222),
+        'right_shoulder': (108.98, 4.13, 59.628), 'right_elbow': (28.123, 9.979),
+        'right_wrist': (-14.737, -0.188), 'left_shoulder': (72.6, 5.73, 11.459),
+        'right_hip': (77.179, 0.0, 0.0), 'right_knee': (96.583,), 'right_ankle': (19.426, 0.0),
+        'left_hip': (77.179, 0.0, 0.0), 'left_knee': (96.583,), 'left_ankle': (19.426, 0.0),
     })
-    human.KeyRoot(7.6, (7.807, 54.121, 20.927), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.6, {
-        'spine_lumbar': (57.995, -0.822, 1.516), 'spine_thoracic': (28.122, -0.902, 1.245),
-        'left_shoulder': (68.997, 5.73, 11.459), 'right_hip': (72.995, 0.0, 0.0),
-        'right_knee': (91.404,), 'right_ankle': (18.432, 0.0), 'left_hip': (72.995, 0.0, 0.0),
-        'left_knee': (91.404,), 'left_ankle': (18.432, 0.0),
+    human.KeyRoot(8.4, (7.714, 56.936, 21.216), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.4, {
+        'spine_lumbar': (56.577, -0.317, 0.584), 'spine_thoracic': (27.785, -0.348, 0.48),
+        'right_elbow': (29.11, 9.982), 'left_shoulder': (65.564, 5.73, 11.459),
+        'right_hip': (69.01, 0.0, 0.0), 'right_knee': (86.47,), 'right_ankle': (17.479, 0.0),
+        'left_hip': (69.01, 0.0, 0.0), 'left_knee': (86.47,), 'left_ankle': (17.479, 0.0),
     })
-    human.KeyRoot(7.7, (7.546, 59.97, 21.732), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.7, {
-        'spine_lumbar': (54.659, -0.003, 0.005), 'spine_thoracic': (27.288, -0.003, 0.004),
-        'right_elbow': (29.619, 9.983), 'right_wrist': (-15.125, 0.156),
-        'left_shoulder': (61.751, 5.73, 11.459), 'right_hip': (64.58, 0.0, 0.0),
-        'right_knee': (80.966,), 'right_ankle': (16.388, 0.0), 'left_hip': (64.58, 0.0, 0.0),
-        'left_knee': (80.966,), 'left_ankle': (16.388, 0.0),
+    human.KeyRoot(8.5, (7.394, 61.975, 22.203), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.5, {
+        'spine_lumbar': (52.572, 0.0, 0.0), 'spine_thoracic': (26.505, 0.0, 0.0),
+        'right_elbow': (29.916, 9.986), 'right_wrist': (-15.205, 0.225),
+        'left_shoulder': (59.15, 5.73, 11.459), 'right_hip': (61.559, 0.0, 0.0),
+        'right_knee': (77.226,), 'right_ankle': (15.668, 0.0), 'left_hip': (61.559, 0.0, 0.0),
+        'left_knee': (77.226,), 'left_ankle': (15.668, 0.0),
     })
-    human.KeyRoot(7.8, (7.17, 64.328, 22.893), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.8, {
-        'spine_lumbar': (48.841, 0.0, 0.0), 'spine_thoracic': (24.682, 0.0, 0.0),
-        'right_elbow': (29.932, 9.987),
+    human.KeyRoot(8.6, (6.953, 66.192, 23.562), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.6, {'spine_lumbar': (45.229, 0.0, 0.0), 'spine_thoracic': (22.785, 0.0, 0.0)})
+    human.KeyRoot(8.7, (6.378, 70.07, 25.336), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.7, {'spine_lumbar': (37.655, 0.0, 0.0), 'spine_thoracic': (18.828, 0.0, 0.0)})
+    human.KeyRoot(8.8, (5.679, 73.558, 27.489), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.8, {'spine_lumbar': (31.183, 0.0, 0.0), 'spine_thoracic': (15.592, 0.0, 0.0)})
+    human.KeyRoot(8.9, (4.871, 76.611, 29.98), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.9, {
+        'spine_lumbar': (25.103, 0.0, 0.0), 'spine_thoracic': (12.551, 0.0, 0.0),
+        'right_shoulder': (108.967, 4.344, 59.594),
     })
-    human.KeyRoot(7.9, (6.654, 68.365, 24.484), (-17.969, 0.0, 0.0))
-    human.KeyJoints(7.9, {'spine_lumbar': (40.841, 0.0, 0.0), 'spine_thoracic': (20.456, 0.0, 0.0)})
-    human.KeyRoot(8.0, (6.01, 72.034, 26.47), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.0, {'spine_lumbar': (34.077, 0.0, 0.0), 'spine_thoracic': (17.039, 0.0, 0.0)})
-    human.KeyRoot(8.1, (5.25, 75.288, 28.814), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.1, {
-        'spine_lumbar': (27.793, 0.0, 0.0), 'spine_thoracic': (13.896, 0.0, 0.0),
-        'right_shoulder': (108.956, 4.332, 59.599), 'right_wrist': (-15.266, 0.272),
-    })
-    human.KeyRoot(8.2, (4.388, 78.085, 31.469), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.2, {
-        'spine_lumbar': (22.024, 0.0, 0.0), 'spine_thoracic': (11.012, 0.0, 0.0),
+    human.KeyRoot(9.0, (3.969, 79.19, 32.761), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.0, {
+        'spine_lumbar': (19.619, 0.0, 0.0), 'spine_thoracic': (9.809, 0.0, 0.0),
         'right_elbow': (30.147, 10.0),
     })
-    human.KeyRoot(8.3, (3.442, 80.389, 34.388), (-17.969, 0.0, 0.0))
-    human.KeyRoot(8.4, (2.427, 82.179, 37.518), (-17.969, 0.0, 0.0))
-    human.KeyRoot(8.5, (1.361, 83.425, 40.803), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.5, {'spine_lumbar': (6.468, 0.0, 0.0)})
-    human.KeyRoot(8.6, (0.264, 84.109, 44.187), (-17.969, 0.0, 0.0))
-    human.KeyRoot(8.623797, (0.0, 84.188, 45.0), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.623797, {
+    human.KeyRoot(9.1, (2.99, 81.265, 35.782), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.2, (1.949, 82.812, 38.989), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.2, {'spine_lumbar': (9.328, 0.0, 0.0)})
+    human.KeyRoot(9.3, (0.867, 83.805, 42.326), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.378534, (0.0, 84.188, 45.0), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.378534, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (4.116, -0.098, 3.688), 'head': (4.116, -0.001), 'right_clavicle': (1.133, 1.946),
         'right_shoulder': (108.967, 4.344, 59.594), 'right_elbow': (30.147, 10.0),

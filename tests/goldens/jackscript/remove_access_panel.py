@@ -11,7 +11,7 @@ def remove_access_panel():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
     # examples/remove_access_panel.mtask:28:5 remove_access_panel > walk_to > travel: locomotion on root at panel_front
-    human.Walk((-0.738, 0.0, 57.527), start=0.0, duration=0.54)
+    human.Walk((-0.067, 0.0, 59.666), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,3086 +22,3187 @@ def remove_access_panel():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })
-    human.KeyRoot(0.1, (2.272, 68.003, 11.79), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (1.195, 72.58, 1.235), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (52.629, 0.867, 2.931), 'right_knee': (99.04,), 'right_ankle': (14.257, 3.114),
-        'left_hip': (26.548, -1.441, -2.116), 'left_knee': (69.738,), 'left_ankle': (14.006, -2.56),
+        'right_hip': (15.294, 0.985, 0.409), 'right_knee': (31.455,), 'right_ankle': (8.903, 1.067),
+        'left_hip': (5.993, -1.019, -0.107), 'left_knee': (13.403,), 'left_ankle': (7.41, -1.025),
     })
-    human.KeyRoot(0.2, (1.578, 62.912, 23.083), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.934, 72.119, 4.545), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (48.122, 1.374, 0.824), 'right_knee': (30.66,),
-        'right_ankle': (-17.833, 1.451), 'left_hip': (24.954, -0.721, -1.999),
-        'left_knee': (86.913,), 'left_ankle': (16.747, -2.125),
+        'right_hip': (19.269, 1.514, 1.019), 'right_knee': (44.066,),
+        'right_ankle': (10.129, 1.825), 'left_hip': (5.17, -1.664, -0.15), 'left_knee': (17.69,),
+        'left_ankle': (12.522, -1.67),
     })
-    human.KeyRoot(0.3, (-0.635, 64.281, 34.159), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (2.315, 72.114, 9.336), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (40.74, -0.471, -0.406), 'right_knee': (34.297,),
-        'right_ankle': (-6.438, -0.622), 'left_hip': (9.2, 0.413, 0.59), 'left_knee': (75.865,),
-        'left_ankle': (19.737, 0.721),
+        'right_hip': (28.966, 1.77, 1.505), 'right_knee': (58.064,), 'right_ankle': (18.099, 2.323),
+        'left_hip': (-0.931, -2.001, 0.02), 'left_knee': (13.429,), 'left_ankle': (13.993, -2.001),
     })
-    human.KeyRoot(0.4, (-2.429, 68.689, 45.268), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (2.435, 72.655, 15.015), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (28.53, -1.943, -1.056), 'right_knee': (30.907,),
-        'right_ankle': (2.399, -2.212), 'left_hip': (27.115, 1.466, 2.498), 'left_knee': (80.315,),
-        'left_ankle': (19.768, 2.897),
+        'right_hip': (39.096, 1.82, 1.599), 'right_knee': (53.634,), 'right_ankle': (12.697, 2.422),
+        'left_hip': (0.908, -2.095, -0.388), 'left_knee': (26.074,), 'left_ankle': (15.59, -2.13),
     })
-    human.KeyRoot(0.5, (-1.23, 71.813, 55.879), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.5, (2.049, 71.002, 25.741), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (13.88, -1.036, -0.256),
-        'right_knee': (20.263,), 'right_ankle': (6.39, -1.067), 'left_hip': (15.513, 1.035, 0.275),
-        'left_knee': (23.821,), 'left_ankle': (8.116, 1.071),
+        'right_hip': (36.631, 1.56, 1.174), 'right_knee': (33.107,), 'right_ankle': (-3.558, 1.953),
+        'left_hip': (2.154, -1.676, -0.91), 'left_knee': (45.649,), 'left_ankle': (17.15, -1.907),
+    })
+    human.KeyRoot(0.6, (1.011, 68.312, 41.366), (0.0, 0.0, 0.0))
+    human.KeyJoints(0.6, {
+        'right_hip': (30.554, 0.799, 0.477), 'right_knee': (28.731,), 'right_ankle': (-1.859, 0.93),
+        'left_hip': (-8.49, -0.785, -0.564), 'left_knee': (47.983,), 'left_ankle': (12.281, -0.967),
+    })
+    human.KeyRoot(0.7, (-0.047, 67.478, 48.806), (0.0, 0.0, 0.0))
+    human.KeyJoints(0.7, {
+        'right_hip': (30.807, -0.038, -0.023), 'right_knee': (41.827,),
+        'right_ankle': (11.004, -0.044), 'left_hip': (-13.225, 0.034, 0.032),
+        'left_knee': (46.681,), 'left_ankle': (3.313, 0.047),
+    })
+    human.KeyRoot(0.8, (-1.168, 69.347, 47.797), (0.0, 0.0, 0.0))
+    human.KeyJoints(0.8, {
+        'right_hip': (26.07, -0.946, -0.463), 'right_knee': (30.594,),
+        'right_ankle': (4.517, -1.053), 'left_hip': (-7.211, 0.824, 0.867), 'left_knee': (53.845,),
+        'left_ankle': (7.644, 1.196),
+    })
+    human.KeyRoot(0.9, (-2.187, 70.981, 46.244), (0.0, 0.0, 0.0))
+    human.KeyJoints(0.9, {
+        'right_hip': (18.735, -1.82, -0.617), 'right_knee': (12.938,),
+        'right_ankle': (-5.793, -1.922), 'left_hip': (12.764, 1.478, 1.921), 'left_knee': (71.106,),
+        'left_ankle': (18.896, 2.423),
+    })
+    human.KeyRoot(1.0, (-2.414, 70.977, 46.016), (0.0, 0.0, 0.0))
+    human.KeyJoints(1.0, {
+        'right_hip': (18.522, -2.011, -0.674), 'right_knee': (12.085,),
+        'right_ankle': (-6.427, -2.121), 'left_hip': (30.472, 1.64, 2.098), 'left_knee': (70.707,),
+        'left_ankle': (18.911, 2.663),
+    })
+    human.KeyRoot(1.1, (-2.08, 71.031, 48.627), (0.0, 0.0, 0.0))
+    human.KeyJoints(1.1, {
+        'right_hip': (19.285, -1.724, -0.603), 'right_knee': (18.356,),
+        'right_ankle': (-0.921, -1.826), 'left_hip': (27.058, 1.701, 0.867), 'left_knee': (40.925,),
+        'left_ankle': (14.077, 1.909),
+    })
+    human.KeyRoot(1.2, (-1.277, 71.667, 53.659), (0.0, 0.0, 0.0))
+    human.KeyJoints(1.2, {
+        'right_hip': (15.523, -1.07, -0.297), 'right_knee': (19.669,),
+        'right_ankle': (4.149, -1.11), 'left_hip': (15.517, 1.07, 0.297), 'left_knee': (19.656,),
+        'left_ankle': (4.14, 1.11),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 112.0), start=0.54, duration=0.2628)
-    human.KeyRoot(0.6, (0.0, 72.79, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(0.6, {
-        'neck': (0.136, -0.001, -2.678), 'head': (0.137, 0.0), 'right_hip': (5.432, 0.0, 0.0),
-        'right_knee': (9.991,), 'right_ankle': (4.559, 0.0), 'left_hip': (5.388, 0.0, 0.0),
-        'left_knee': (9.898,), 'left_ankle': (4.508, 0.0),
+    human.LookAt((-20.0, 135.0, 112.0), start=1.294737, duration=0.2628)
+    human.KeyRoot(1.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(1.3, {
+        'neck': (0.001, 0.0, -0.024), 'head': (0.001, 0.0), 'right_hip': (3.014, 0.0, 0.0),
+        'right_knee': (4.898,), 'right_ankle': (1.886, 0.0), 'left_hip': (3.011, 0.0, 0.0),
+        'left_knee': (4.893,), 'left_ankle': (1.884, 0.0),
     })
-    human.KeyJoints(0.7, {'neck': (0.685, -0.004, -13.468), 'head': (0.691, 0.0)})
-    human.KeyRoot(0.8, (0.0, 72.954, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(0.8, {
-        'neck': (1.069, -0.005, -20.844), 'head': (1.076, 0.0),
+    human.KeyJoints(1.4, {'neck': (0.363, -0.002, -7.15), 'head': (0.366, 0.0)})
+    human.KeyJoints(1.5, {
+        'neck': (0.919, -0.005, -18.013), 'head': (0.926, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'right_hip': (3.528, 0.0, 0.0), 'right_knee': (5.981,),
-        'right_ankle': (2.453, 0.0), 'left_hip': (3.438, 0.0, 0.0), 'left_knee': (5.792,),
-        'left_ankle': (2.35, 0.0),
+        'right_wrist': (0.0, 0.0), 'right_hip': (3.017, 0.0, 0.0), 'right_knee': (4.905,),
+        'right_ankle': (1.89, 0.0), 'left_hip': (3.016, 0.0, 0.0), 'left_knee': (4.903,),
+        'left_ankle': (1.889, 0.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 112.0), start=0.8028, duration=10.90897)
-    human.KeyJoints(0.9, {
-        'neck': (1.089, -0.004, -21.144), 'right_shoulder': (11.855, 5.783, 11.046),
-        'right_elbow': (34.372, 16.919), 'right_wrist': (-0.031, -1.238),
-        'right_hip': (3.123, 0.0, 0.0), 'right_knee': (5.127,), 'right_ankle': (2.006, 0.0),
-        'left_hip': (3.129, 0.0, 0.0), 'left_knee': (5.14,), 'left_ankle': (2.013, 0.0),
-    })
-    human.KeyJoints(1.0, {
-        'right_shoulder': (20.788, 5.931, 9.914), 'right_elbow': (34.354, 16.18),
-        'right_wrist': (-0.117, -4.629), 'right_hip': (3.1, 0.0, 0.0), 'right_knee': (5.08,),
-        'right_ankle': (1.982, 0.0), 'left_hip': (3.104, 0.0, 0.0), 'left_knee': (5.087,),
-        'left_ankle': (1.986, 0.0),
-    })
-    human.KeyJoints(1.1, {
-        'right_shoulder': (33.505, 6.14, 8.302), 'right_elbow': (34.32, 15.129),
-        'right_wrist': (-0.238, -9.456), 'right_hip': (2.869, 0.0, 0.0), 'right_knee': (4.592,),
-        'right_ankle': (1.723, 0.0), 'left_hip': (2.877, 0.0, 0.0), 'left_knee': (4.617,),
-        'left_ankle': (1.73, 0.0),
-    })
-    human.KeyJoints(1.3, {
-        'right_shoulder': (62.721, 6.622, 4.599), 'right_elbow': (34.189, 12.713),
-        'right_wrist': (-0.517, -20.547),
-    })
-    human.KeyJoints(1.4, {
-        'right_shoulder': (75.436, 6.832, 2.987), 'right_elbow': (34.085, 11.661),
-        'right_wrist': (-0.639, -25.374),
-    })
-    human.KeyJoints(1.5, {
-        'right_shoulder': (84.366, 6.979, 1.855), 'right_elbow': (33.952, 10.923),
-        'right_wrist': (-0.724, -28.764),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
+    human.LookAt((-20.0, 135.0, 112.0), start=1.557537, duration=10.90897)
     human.KeyJoints(1.6, {
-        'spine_lumbar': (0.008, 0.0, 0.004), 'spine_thoracic': (0.006, 0.0, 0.004),
-        'neck': (1.08, -0.008, -21.162), 'head': (1.085, 0.0), 'right_clavicle': (0.0, 0.004),
-        'right_shoulder': (87.618, 7.032, 1.443), 'right_elbow': (33.782, 10.654),
-        'right_wrist': (-0.755, -30.0),
+        'neck': (1.089, -0.004, -21.136), 'head': (1.095, 0.0),
+        'right_shoulder': (9.248, 5.74, 11.376), 'right_elbow': (34.377, 17.135),
+        'right_wrist': (-0.006, -0.248), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (3.681, 0.788, 0.584), 'spine_thoracic': (-0.62, -0.64, 0.576),
-        'neck': (-0.189, -0.539, -23.032), 'head': (-0.295, -0.001),
-        'right_clavicle': (1.053, 0.273), 'right_shoulder': (89.634, 9.067, 0.407),
-        'right_elbow': (32.66, 10.372), 'right_wrist': (-1.19, -30.0),
+        'right_shoulder': (15.309, 5.84, 10.608), 'right_elbow': (34.366, 16.633),
+        'right_wrist': (-0.064, -2.549),
+    })
+    human.KeyJoints(1.8, {
+        'right_shoulder': (26.189, 6.02, 9.229), 'right_elbow': (34.341, 15.734),
+        'right_wrist': (-0.168, -6.679),
+    })
+    human.KeyJoints(1.9, {'right_shoulder': (39.996, 6.247, 7.479), 'right_wrist': (-0.3, -11.92)})
+    human.KeyJoints(2.0, {
+        'right_shoulder': (54.838, 6.492, 5.598), 'right_wrist': (-0.442, -17.555),
+    })
+    human.KeyJoints(2.1, {
+        'right_shoulder': (68.824, 6.723, 3.825), 'right_elbow': (34.145, 12.208),
+        'right_wrist': (-0.576, -22.864),
+    })
+    human.KeyJoints(2.2, {
+        'right_shoulder': (80.06, 6.908, 2.401), 'right_elbow': (34.029, 11.279),
+        'right_wrist': (-0.683, -27.129),
+    })
+    human.KeyJoints(2.3, {
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
+        'neck': (1.089, -0.004, -21.144), 'head': (1.095, 0.0), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (86.655, 7.017, 1.565), 'right_elbow': (33.881, 10.733),
+        'right_wrist': (-0.746, -29.633),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
+    human.KeyJoints(2.4, {
+        'spine_lumbar': (1.186, 0.0, 0.459), 'spine_thoracic': (0.664, 0.0, 0.459),
+        'neck': (0.307, -0.335, -22.622), 'head': (0.243, 0.0), 'right_clavicle': (0.0, 0.418),
+        'right_shoulder': (87.15, 6.941, 1.504), 'right_elbow': (33.312, 10.685),
+        'right_wrist': (-0.697, -30.0),
+    })
+    human.KeyJoints(2.5, {
+        'spine_lumbar': (4.3, 0.534, 1.063), 'spine_thoracic': (-0.798, -1.001, 1.056),
+        'neck': (-0.252, -0.593, -24.712), 'head': (-0.376, -0.001),
+        'right_clavicle': (1.425, 0.659), 'right_shoulder': (90.082, 9.154, 0.354),
+        'right_elbow': (32.497, 10.36), 'right_wrist': (-1.202, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=1.795726, duration=0.072)
-    human.KeyJoints(1.8, {
+    human.Grasp('right_hand', 'close', start=2.550462, duration=0.072)
+    human.KeyJoints(2.6, {
         'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
         'neck': (-0.615, -0.753, -25.987), 'head': (-0.775, -0.002),
         'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.868, 10.559, -0.346),
         'right_elbow': (31.861, 10.16), 'right_wrist': (-1.494, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
-    human.KeyJoints(1.9, {
-        'spine_lumbar': (6.293, 1.087, 1.626), 'spine_thoracic': (-1.904, -1.599, 1.602),
-        'neck': (-0.635, -0.763, -26.079), 'head': (-0.798, -0.002), 'right_clavicle': (2.375, 0.9),
-        'right_shoulder': (91.691, 10.704, -0.382), 'right_elbow': (32.146, 10.149),
-        'right_wrist': (-1.584, -29.455),
-    })
-    human.KeyJoints(2.0, {
-        'spine_lumbar': (9.425, 1.179, 0.585), 'spine_thoracic': (-3.421, -4.551, 0.559),
-        'neck': (-0.831, -0.85, -26.761), 'head': (-1.014, -0.003),
-        'right_clavicle': (6.654, -0.71), 'right_shoulder': (88.492, 14.673, 3.161),
-        'right_elbow': (34.652, 13.889), 'right_wrist': (-0.245, -23.017),
-    })
-    human.KeyJoints(2.1, {
-        'spine_lumbar': (13.504, 2.65, -0.856), 'spine_thoracic': (-3.586, -7.924, -0.923),
-        'neck': (-2.359, -1.435, -27.035), 'head': (-2.655, -0.014),
-        'right_clavicle': (11.985, -2.979), 'right_shoulder': (88.258, 19.351, 8.036),
-        'right_elbow': (38.011, 18.879), 'right_wrist': (1.778, -15.19),
-    })
-    human.KeyRoot(2.2, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(2.2, {
-        'spine_lumbar': (17.324, 5.587, -3.349), 'spine_thoracic': (-1.281, -10.0, -3.213),
-        'neck': (-5.821, -2.689, -24.52), 'head': (-6.316, -0.082),
-        'right_clavicle': (16.775, -5.289), 'right_shoulder': (94.503, 22.825, 13.932),
-        'right_elbow': (41.669, 24.112), 'right_wrist': (4.474, -8.676),
-    })
-    human.KeyJoints(2.3, {
-        'spine_lumbar': (9.381, 1.969, -2.263), 'spine_thoracic': (-2.379, -7.652, -2.233),
-        'neck': (-0.994, -0.836, -22.59), 'head': (-1.153, -0.004),
-        'right_clavicle': (11.332, -3.667), 'right_shoulder': (86.377, 17.247, 10.169),
-        'right_elbow': (39.147, 20.089), 'right_wrist': (2.689, -13.755),
-    })
-    human.KeyJoints(2.4, {
-        'spine_lumbar': (6.609, 1.228, 1.645), 'spine_thoracic': (-2.287, -1.731, 1.612),
-        'neck': (-0.612, -0.753, -26.046), 'head': (-0.772, -0.002),
-        'right_clavicle': (2.669, 0.853), 'right_shoulder': (91.058, 11.082, -0.17),
-        'right_elbow': (32.726, 10.36), 'right_wrist': (-1.548, -28.336),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
-    human.KeyJoints(2.5, {
-        'spine_lumbar': (7.799, 1.122, 1.233), 'spine_thoracic': (-3.035, -3.017, 1.217),
-        'neck': (-0.544, -0.735, -26.457), 'head': (-0.703, -0.002),
-        'right_clavicle': (4.449, 0.247), 'right_shoulder': (89.597, 12.706, 1.135),
-        'right_elbow': (33.451, 11.776), 'right_wrist': (-1.091, -26.178),
-    })
-    human.KeyJoints(2.6, {
-        'spine_lumbar': (11.744, 1.804, -0.241), 'spine_thoracic': (-3.569, -6.483, -0.295),
-        'neck': (-1.623, -1.158, -27.087), 'head': (-1.866, -0.008),
-        'right_clavicle': (9.629, -2.003), 'right_shoulder': (88.025, 17.314, 5.935),
-        'right_elbow': (36.576, 16.745),
-    })
     human.KeyJoints(2.7, {
-        'spine_lumbar': (15.831, 4.262, -1.796), 'spine_thoracic': (-3.461, -9.855, -1.821),
-        'neck': (-3.6, -1.894, -26.576), 'head': (-3.977, -0.031),
-        'right_clavicle': (15.216, -4.254), 'right_shoulder': (89.384, 21.988, 10.933),
-        'right_elbow': (39.956, 21.723), 'right_wrist': (2.949, -10.873),
+        'spine_lumbar': (7.371, 1.153, 1.454), 'spine_thoracic': (-3.035, -2.61, 1.43),
+        'neck': (-0.449, -0.698, -26.417), 'head': (-0.6, -0.002), 'right_clavicle': (3.876, 0.507),
+        'right_shoulder': (89.855, 12.229, 0.531), 'right_elbow': (33.049, 11.171),
+        'right_wrist': (-1.345, -26.967),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (12.669, 4.542, -3.539), 'spine_thoracic': (-1.648, -9.895, -3.4),
-        'neck': (-3.065, -1.601, -21.835), 'head': (-3.35, -0.022),
-        'right_clavicle': (15.512, -5.158), 'right_shoulder': (89.309, 20.561, 14.161),
-        'right_elbow': (41.792, 23.864), 'right_wrist': (4.375, -8.343),
+        'spine_lumbar': (11.256, 1.619, -0.05), 'spine_thoracic': (-3.607, -6.103, -0.103),
+        'neck': (-1.372, -1.061, -27.022), 'head': (-1.597, -0.006),
+        'right_clavicle': (9.02, -1.734), 'right_shoulder': (87.979, 16.791, 5.327),
+        'right_elbow': (36.139, 16.138), 'right_wrist': (0.654, -19.478),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (7.25, 1.049, 0.024), 'spine_thoracic': (-2.548, -4.035, -0.03),
-        'neck': (-0.374, -0.636, -24.772), 'head': (-0.505, -0.001),
-        'right_clavicle': (5.752, -1.02), 'right_shoulder': (87.108, 13.235, 3.819),
-        'right_elbow': (35.129, 14.112), 'right_wrist': (0.066, -22.61),
+        'spine_lumbar': (15.3, 3.775, -1.372), 'spine_thoracic': (-3.798, -9.604, -1.468),
+        'neck': (-3.081, -1.706, -26.993), 'head': (-3.427, -0.023),
+        'right_clavicle': (14.761, -4.032), 'right_shoulder': (88.448, 21.788, 10.047),
+        'right_elbow': (39.417, 21.0), 'right_wrist': (2.538, -11.467),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.0, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (13.546, 4.889, -3.596), 'spine_thoracic': (-1.536, -10.0, -3.452),
+        'neck': (-3.722, -1.852, -21.827), 'head': (-4.051, -0.032),
+        'right_clavicle': (15.972, -5.243), 'right_shoulder': (90.15, 21.164, 14.347),
+        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.093),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (9.991, 1.272, 0.435), 'spine_thoracic': (-3.615, -5.085, 0.391),
-        'neck': (-0.89, -0.875, -26.899), 'head': (-1.08, -0.003), 'right_clavicle': (7.44, -1.027),
-        'right_shoulder': (88.053, 15.409, 3.77), 'right_elbow': (35.136, 14.557),
-        'right_wrist': (-0.016, -21.857),
+        'spine_lumbar': (7.529, 1.005, -0.526), 'spine_thoracic': (-2.614, -4.84, -0.578),
+        'neck': (-0.322, -0.606, -24.377), 'head': (-0.445, -0.001),
+        'right_clavicle': (6.882, -1.656), 'right_shoulder': (86.119, 14.039, 5.218),
+        'right_elbow': (35.983, 15.429), 'right_wrist': (0.635, -20.619),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
-        'spine_lumbar': (14.079, 2.985, -1.037), 'spine_thoracic': (-3.628, -8.425, -1.111),
-        'neck': (-2.598, -1.525, -27.016), 'head': (-2.911, -0.017),
-        'right_clavicle': (12.815, -3.305), 'right_shoulder': (88.328, 20.068, 8.7),
-        'right_elbow': (38.479, 19.565), 'right_wrist': (2.038, -14.049),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (16.453, 5.456, -3.47), 'spine_thoracic': (-1.33, -10.0, -3.331),
-        'neck': (-5.303, -2.48, -23.727), 'head': (-5.753, -0.066),
-        'right_clavicle': (16.632, -5.282), 'right_shoulder': (93.448, 22.493, 14.14),
-        'right_elbow': (41.793, 24.104), 'right_wrist': (4.472, -8.393),
+        'spine_lumbar': (9.519, 1.192, 0.563), 'spine_thoracic': (-3.474, -4.644, 0.534),
+        'neck': (-0.838, -0.853, -26.793), 'head': (-1.022, -0.003),
+        'right_clavicle': (6.788, -0.763), 'right_shoulder': (88.36, 14.801, 3.259),
+        'right_elbow': (34.773, 13.998), 'right_wrist': (-0.213, -22.82),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (8.536, 1.274, -1.698), 'spine_thoracic': (-2.571, -6.689, -1.708),
-        'neck': (-0.512, -0.665, -23.19), 'head': (-0.642, -0.002),
-        'right_clavicle': (9.732, -3.015), 'right_shoulder': (85.772, 16.103, 8.462),
-        'right_elbow': (38.03, 18.484), 'right_wrist': (1.974, -16.09),
+        'spine_lumbar': (13.6, 2.704, -0.887), 'spine_thoracic': (-3.591, -8.007, -0.955),
+        'neck': (-2.399, -1.45, -27.032), 'head': (-2.698, -0.015),
+        'right_clavicle': (12.122, -3.034), 'right_shoulder': (88.266, 19.469, 8.148),
+        'right_elbow': (38.096, 18.995), 'right_wrist': (1.822, -15.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.5, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (17.231, 5.574, -3.372), 'spine_thoracic': (-1.286, -10.0, -3.235),
+        'neck': (-5.759, -2.664, -24.398), 'head': (-6.249, -0.08),
+        'right_clavicle': (16.76, -5.288), 'right_shoulder': (94.389, 22.791, 13.972),
+        'right_elbow': (41.692, 24.111), 'right_wrist': (4.474, -8.623),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (8.326, 1.111, 0.969), 'spine_thoracic': (-3.045, -3.495, 0.96),
-        'neck': (-0.683, -0.789, -26.511), 'head': (-0.854, -0.002),
-        'right_clavicle': (5.131, -0.073), 'right_shoulder': (89.35, 13.282, 1.866),
-        'right_elbow': (33.864, 12.508), 'right_wrist': (-0.768, -25.209),
+        'spine_lumbar': (9.225, 1.833, -2.169), 'spine_thoracic': (-2.417, -7.489, -2.146),
+        'neck': (-0.904, -0.804, -22.68), 'head': (-1.058, -0.004),
+        'right_clavicle': (11.057, -3.558), 'right_shoulder': (86.255, 17.049, 9.88),
+        'right_elbow': (38.957, 19.817), 'right_wrist': (2.567, -14.15),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (12.33, 2.054, -0.456), 'spine_thoracic': (-3.559, -6.951, -0.513),
-        'neck': (-1.872, -1.252, -27.075), 'head': (-2.133, -0.01),
-        'right_shoulder': (88.097, 17.968, 6.646), 'right_elbow': (37.06, 17.463),
-        'right_wrist': (1.211, -17.46),
+        'spine_lumbar': (6.597, 1.233, 1.682), 'spine_thoracic': (-2.28, -1.679, 1.65),
+        'neck': (-0.621, -0.758, -26.088), 'head': (-0.783, -0.002),
+        'right_clavicle': (2.602, 0.896), 'right_shoulder': (91.162, 11.036, -0.259),
+        'right_elbow': (32.672, 10.276), 'right_wrist': (-1.584, -28.465),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'spine_lumbar': (16.504, 4.938, -2.604), 'spine_thoracic': (-2.431, -10.0, -2.47),
-        'neck': (-4.627, -2.259, -25.507), 'head': (-5.06, -0.05),
-        'right_clavicle': (15.672, -4.524), 'right_shoulder': (91.983, 22.146, 12.285),
-        'right_elbow': (40.723, 22.722), 'right_wrist': (3.659, -10.279),
+        'spine_lumbar': (7.886, 1.117, 1.185), 'spine_thoracic': (-3.035, -3.094, 1.171),
+        'neck': (-0.573, -0.746, -26.464), 'head': (-0.734, -0.002),
+        'right_clavicle': (4.558, 0.193), 'right_shoulder': (89.565, 12.796, 1.263),
+        'right_elbow': (33.521, 11.901), 'right_wrist': (-1.033, -26.022),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (11.549, 3.804, -3.26), 'spine_thoracic': (-1.863, -9.398, -3.146),
-        'neck': (-2.248, -1.294, -21.988), 'head': (-2.482, -0.013),
-        'right_clavicle': (14.442, -4.823), 'right_shoulder': (88.261, 19.596, 13.275),
-        'right_elbow': (41.201, 23.016), 'right_wrist': (3.997, -9.541),
+        'spine_lumbar': (11.842, 1.842, -0.278), 'spine_thoracic': (-3.567, -6.561, -0.332),
+        'neck': (-1.667, -1.175, -27.087), 'head': (-1.913, -0.009),
+        'right_clavicle': (9.754, -2.057), 'right_shoulder': (88.036, 17.422, 6.054),
+        'right_elbow': (36.657, 16.866), 'right_wrist': (0.962, -18.385),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (6.963, 1.116, 0.687), 'spine_thoracic': (-2.451, -3.083, 0.639),
-        'neck': (-0.439, -0.671, -25.2), 'head': (-0.58, -0.002), 'right_clavicle': (4.457, -0.253),
-        'right_shoulder': (88.581, 12.324, 2.168), 'right_elbow': (34.13, 12.559),
-        'right_wrist': (-0.604, -24.974),
+        'spine_lumbar': (15.946, 4.384, -1.941), 'spine_thoracic': (-3.292, -9.896, -1.934),
+        'neck': (-3.771, -1.954, -26.38), 'head': (-4.157, -0.034),
+        'right_clavicle': (15.285, -4.293), 'right_shoulder': (89.822, 22.009, 11.168),
+        'right_elbow': (40.09, 21.891), 'right_wrist': (3.071, -10.782),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.1, {
-        'spine_lumbar': (6.683, 1.227, 1.705), 'spine_thoracic': (-2.419, -1.741, 1.676),
-        'neck': (-0.601, -0.752, -26.2), 'head': (-0.762, -0.002), 'right_clavicle': (2.69, 0.904),
-        'right_shoulder': (91.069, 11.145, -0.282), 'right_elbow': (32.657, 10.277),
-        'right_wrist': (-1.607, -28.436),
+        'spine_lumbar': (12.486, 4.439, -3.507), 'spine_thoracic': (-1.678, -9.838, -3.371),
+        'neck': (-2.927, -1.549, -21.853), 'head': (-3.203, -0.021),
+        'right_clavicle': (15.369, -5.118), 'right_shoulder': (89.136, 20.416, 14.059),
+        'right_elbow': (41.724, 23.765), 'right_wrist': (4.331, -8.48),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (10.566, 1.407, 0.22), 'spine_thoracic': (-3.629, -5.559, 0.17),
-        'neck': (-1.068, -0.944, -26.935), 'head': (-1.271, -0.004),
-        'right_shoulder': (87.945, 16.049, 4.471), 'right_elbow': (35.601, 15.275),
-        'right_wrist': (0.282, -20.765),
+        'spine_lumbar': (7.198, 1.06, 0.136), 'spine_thoracic': (-2.533, -3.872, 0.084),
+        'neck': (-0.385, -0.642, -24.848), 'head': (-0.518, -0.001),
+        'right_clavicle': (5.528, -0.89), 'right_shoulder': (87.34, 13.077, 3.536),
+        'right_elbow': (34.957, 13.846), 'right_wrist': (-0.049, -23.015),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
-        'spine_lumbar': (14.646, 3.34, -1.203), 'spine_thoracic': (-3.691, -8.944, -1.286),
-        'neck': (-2.83, -1.612, -27.001), 'right_clavicle': (13.677, -3.634),
-        'right_shoulder': (88.394, 20.818, 9.34), 'right_elbow': (38.924, 20.236),
-        'right_wrist': (2.282, -12.89),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (15.11, 5.227, -3.553), 'spine_thoracic': (-1.415, -10.0, -3.411),
-        'neck': (-4.667, -2.225, -22.828), 'head': (-5.067, -0.05),
-        'right_clavicle': (16.376, -5.267), 'right_shoulder': (91.866, 21.936, 14.278),
-        'right_elbow': (41.875, 24.088), 'right_wrist': (4.468, -8.196),
+        'spine_lumbar': (10.086, 1.29, 0.403), 'spine_thoracic': (-3.619, -5.167, 0.357),
+        'neck': (-0.91, -0.884, -26.907), 'head': (-1.102, -0.003),
+        'right_clavicle': (7.564, -1.08), 'right_shoulder': (88.029, 15.52, 3.882),
+        'right_elbow': (35.212, 14.674), 'right_wrist': (0.03, -21.672),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (7.967, 0.979, -1.181), 'spine_thoracic': (-2.652, -5.84, -1.22),
-        'neck': (-0.289, -0.587, -23.787), 'head': (-0.407, -0.001),
-        'right_clavicle': (8.371, -2.417), 'right_shoulder': (85.53, 15.121, 6.965),
-        'right_elbow': (37.069, 17.075), 'right_wrist': (1.352, -18.157),
+        'spine_lumbar': (14.174, 3.044, -1.066), 'spine_thoracic': (-3.637, -8.51, -1.142),
+        'neck': (-2.638, -1.54, -27.013), 'head': (-2.953, -0.017),
+        'right_clavicle': (12.956, -3.36), 'right_shoulder': (88.34, 20.19, 8.809),
+        'right_elbow': (38.555, 19.679), 'right_wrist': (2.08, -13.857),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.6, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (16.249, 5.423, -3.487), 'spine_thoracic': (-1.343, -10.0, -3.347),
+        'neck': (-5.2, -2.438, -23.59), 'head': (-5.642, -0.063), 'right_clavicle': (16.597, -5.28),
+        'right_shoulder': (93.204, 22.412, 14.168), 'right_elbow': (41.809, 24.101),
+        'right_wrist': (4.471, -8.354),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (8.863, 1.13, 0.749), 'spine_thoracic': (-3.176, -4.004, 0.738),
-        'neck': (-0.774, -0.825, -26.606), 'head': (-0.952, -0.003),
-        'right_clavicle': (5.862, -0.39), 'right_shoulder': (88.982, 13.935, 2.539),
-        'right_elbow': (34.277, 13.209), 'right_wrist': (-0.489, -24.166),
+        'spine_lumbar': (8.419, 1.192, -1.607), 'spine_thoracic': (-2.594, -6.536, -1.623),
+        'neck': (-0.451, -0.644, -23.296), 'head': (-0.578, -0.002),
+        'right_clavicle': (9.483, -2.91), 'right_shoulder': (85.704, 15.926, 8.191),
+        'right_elbow': (37.855, 18.23), 'right_wrist': (1.861, -16.462),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
-        'spine_lumbar': (12.914, 2.334, -0.66), 'spine_thoracic': (-3.559, -7.428, -0.722),
-        'neck': (-2.113, -1.343, -27.056), 'head': (-2.391, -0.012),
-        'right_clavicle': (11.167, -2.65), 'right_shoulder': (88.173, 18.643, 7.343),
-        'right_elbow': (37.539, 18.171), 'right_wrist': (1.498, -16.34),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (17.249, 5.477, -3.119), 'spine_thoracic': (-1.508, -10.0, -2.98),
-        'neck': (-5.642, -2.627, -25.071), 'head': (-6.13, -0.077),
-        'right_clavicle': (16.543, -5.114), 'right_shoulder': (94.117, 22.692, 13.449),
-        'right_elbow': (41.389, 23.829), 'right_wrist': (4.313, -9.235),
+        'spine_lumbar': (8.414, 1.112, 0.93), 'spine_thoracic': (-3.058, -3.579, 0.921),
+        'neck': (-0.7, -0.796, -26.524), 'head': (-0.872, -0.002), 'right_clavicle': (5.25, -0.126),
+        'right_shoulder': (89.295, 13.388, 1.981), 'right_elbow': (33.932, 12.627),
+        'right_wrist': (-0.719, -25.04),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (10.428, 2.887, -2.814), 'spine_thoracic': (-2.123, -8.611, -2.739),
-        'neck': (-1.55, -1.036, -22.216), 'head': (-1.742, -0.007),
-        'right_clavicle': (12.99, -4.304), 'right_shoulder': (87.252, 18.461, 11.874),
-        'right_elbow': (40.271, 21.693), 'right_wrist': (3.405, -11.438),
+        'spine_lumbar': (12.428, 2.099, -0.491), 'spine_thoracic': (-3.558, -7.029, -0.549),
+        'neck': (-1.912, -1.267, -27.072), 'head': (-2.175, -0.01),
+        'right_shoulder': (88.109, 18.079, 6.763), 'right_elbow': (37.141, 17.582),
+        'right_wrist': (1.26, -17.274),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (6.743, 1.181, 1.259), 'spine_thoracic': (-2.356, -2.272, 1.22),
-        'neck': (-0.525, -0.713, -25.655), 'head': (-0.676, -0.002),
-        'right_clavicle': (3.378, 0.408), 'right_shoulder': (90.018, 11.573, 0.765),
-        'right_elbow': (33.286, 11.239), 'right_wrist': (-1.171, -26.99),
+        'spine_lumbar': (16.621, 5.03, -2.696), 'spine_thoracic': (-2.285, -10.0, -2.556),
+        'neck': (-4.787, -2.317, -25.416), 'head': (-5.228, -0.054),
+        'right_clavicle': (15.789, -4.599), 'right_shoulder': (92.33, 22.206, 12.48),
+        'right_elbow': (40.835, 22.894), 'right_wrist': (3.765, -10.134),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.2, {
-        'spine_lumbar': (7.274, 1.161, 1.494), 'spine_thoracic': (-3.019, -2.501, 1.469),
-        'neck': (-0.452, -0.699, -26.399), 'head': (-0.604, -0.002),
-        'right_clavicle': (3.726, 0.565), 'right_shoulder': (89.903, 12.096, 0.409),
-        'right_elbow': (33.055, 11.041), 'right_wrist': (-1.393, -27.162),
+        'spine_lumbar': (11.36, 3.658, -3.195), 'spine_thoracic': (-1.905, -9.283, -3.088),
+        'neck': (-2.119, -1.246, -22.022), 'head': (-2.345, -0.012),
+        'right_clavicle': (14.221, -4.747), 'right_shoulder': (88.087, 19.415, 13.07),
+        'right_elbow': (41.065, 22.823), 'right_wrist': (3.91, -9.817),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (11.148, 1.582, -0.007), 'spine_thoracic': (-3.616, -6.02, -0.06),
-        'neck': (-1.316, -1.039, -27.001), 'head': (-1.538, -0.005),
-        'right_clavicle': (8.887, -1.674), 'right_shoulder': (87.947, 16.676, 5.194),
-        'right_elbow': (36.081, 16.004), 'right_wrist': (0.593, -19.678),
+        'spine_lumbar': (6.921, 1.128, 0.791), 'spine_thoracic': (-2.434, -2.934, 0.745),
+        'neck': (-0.451, -0.677, -25.271), 'head': (-0.593, -0.002),
+        'right_clavicle': (4.257, -0.132), 'right_shoulder': (88.833, 12.185, 1.911),
+        'right_elbow': (33.974, 12.317), 'right_wrist': (-0.708, -25.343),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'spine_lumbar': (15.195, 3.698, -1.338), 'spine_thoracic': (-3.788, -9.521, -1.432),
-        'neck': (-3.03, -1.688, -26.995), 'head': (-3.373, -0.022),
-        'right_clavicle': (14.615, -3.973), 'right_shoulder': (88.435, 21.679, 9.919),
-        'right_elbow': (39.331, 20.871), 'right_wrist': (2.489, -11.657),
+        'spine_lumbar': (6.763, 1.217, 1.678), 'spine_thoracic': (-2.526, -1.849, 1.649),
+        'neck': (-0.574, -0.743, -26.232), 'head': (-0.734, -0.002),
+        'right_clavicle': (2.837, 0.859), 'right_shoulder': (90.881, 11.281, -0.191),
+        'right_elbow': (32.709, 10.379), 'right_wrist': (-1.58, -28.259),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (13.758, 4.944, -3.594), 'spine_thoracic': (-1.517, -10.0, -3.45),
-        'neck': (-3.868, -1.909, -21.903), 'head': (-4.208, -0.034),
-        'right_clavicle': (16.04, -5.247), 'right_shoulder': (90.368, 21.284, 14.343),
-        'right_elbow': (41.914, 24.065), 'right_wrist': (4.461, -8.099),
+        'spine_lumbar': (10.663, 1.434, 0.182), 'spine_thoracic': (-3.63, -5.636, 0.132),
+        'neck': (-1.106, -0.958, -26.94), 'head': (-1.312, -0.004),
+        'right_clavicle': (8.284, -1.405), 'right_shoulder': (87.936, 16.153, 4.592),
+        'right_elbow': (35.681, 15.397), 'right_wrist': (0.335, -20.584),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (7.594, 0.997, -0.64), 'spine_thoracic': (-2.625, -5.01, -0.692),
-        'neck': (-0.313, -0.601, -24.287), 'head': (-0.435, -0.001),
-        'right_clavicle': (7.127, -1.789), 'right_shoulder': (85.953, 14.215, 5.514),
-        'right_elbow': (36.166, 15.708), 'right_wrist': (0.756, -20.198),
+        'spine_lumbar': (14.738, 3.398, -1.226), 'spine_thoracic': (-3.706, -9.042, -1.31),
+        'neck': (-2.862, -1.624, -27.0), 'head': (-3.193, -0.02),
+        'right_clavicle': (13.834, -3.691), 'right_shoulder': (88.401, 20.965, 9.436),
+        'right_elbow': (38.992, 20.342), 'right_wrist': (2.316, -12.682),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.7, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (14.872, 5.183, -3.563), 'spine_thoracic': (-1.432, -10.0, -3.421),
+        'neck': (-4.541, -2.175, -22.646), 'head': (-4.931, -0.047),
+        'right_clavicle': (16.324, -5.264), 'right_shoulder': (91.594, 21.831, 14.294),
+        'right_elbow': (41.884, 24.084), 'right_wrist': (4.467, -8.172),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (9.415, 1.178, 0.588), 'spine_thoracic': (-3.415, -4.542, 0.562),
-        'neck': (-0.83, -0.849, -26.758), 'head': (-1.013, -0.003),
-        'right_clavicle': (6.64, -0.705), 'right_shoulder': (88.47, 14.66, 3.152),
-        'right_elbow': (34.696, 13.878), 'right_wrist': (-0.253, -23.037),
+        'spine_lumbar': (7.903, 0.978, -1.103), 'spine_thoracic': (-2.652, -5.716, -1.145),
+        'neck': (-0.289, -0.587, -23.871), 'head': (-0.407, -0.001),
+        'right_clavicle': (8.177, -2.326), 'right_shoulder': (85.536, 14.978, 6.747),
+        'right_elbow': (36.931, 16.87), 'right_wrist': (1.262, -18.462),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
-        'spine_lumbar': (13.494, 2.645, -0.853), 'spine_thoracic': (-3.585, -7.916, -0.92),
-        'neck': (-2.355, -1.434, -27.036), 'head': (-2.65, -0.014),
-        'right_clavicle': (11.971, -2.974), 'right_shoulder': (88.252, 19.339, 8.024),
-        'right_elbow': (38.01, 18.868), 'right_wrist': (1.773, -15.209),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (17.332, 5.588, -3.347), 'spine_thoracic': (-1.28, -10.0, -3.211),
-        'neck': (-5.826, -2.691, -24.532), 'head': (-6.322, -0.082),
-        'right_clavicle': (16.776, -5.289), 'right_shoulder': (94.513, 22.828, 13.928),
-        'right_elbow': (41.666, 24.112), 'right_wrist': (4.474, -8.681),
+        'spine_lumbar': (8.954, 1.135, 0.717), 'spine_thoracic': (-3.204, -4.091, 0.705),
+        'neck': (-0.786, -0.831, -26.625), 'head': (-0.965, -0.003),
+        'right_clavicle': (5.987, -0.443), 'right_shoulder': (88.914, 14.049, 2.647),
+        'right_elbow': (34.347, 13.324), 'right_wrist': (-0.446, -23.985),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (9.397, 1.983, -2.273), 'spine_thoracic': (-2.375, -7.669, -2.242),
-        'neck': (-1.003, -0.84, -22.581), 'head': (-1.163, -0.004),
-        'right_clavicle': (11.359, -3.678), 'right_shoulder': (86.389, 17.267, 10.199),
-        'right_elbow': (39.166, 20.117), 'right_wrist': (2.701, -13.715),
+        'spine_lumbar': (13.011, 2.384, -0.693), 'spine_thoracic': (-3.562, -7.508, -0.755),
+        'neck': (-2.153, -1.358, -27.053), 'head': (-2.434, -0.012),
+        'right_clavicle': (11.299, -2.704), 'right_shoulder': (88.186, 18.758, 7.458),
+        'right_elbow': (37.618, 18.288), 'right_wrist': (1.545, -16.152),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (6.61, 1.228, 1.64), 'spine_thoracic': (-2.287, -1.737, 1.608),
-        'neck': (-0.611, -0.753, -26.042), 'head': (-0.771, -0.002),
-        'right_clavicle': (2.677, 0.848), 'right_shoulder': (91.047, 11.087, -0.16),
-        'right_elbow': (32.732, 10.37), 'right_wrist': (-1.544, -28.322),
+        'spine_lumbar': (17.339, 5.538, -3.183), 'spine_thoracic': (-1.396, -10.0, -3.046),
+        'neck': (-5.766, -2.672, -25.003), 'head': (-6.26, -0.081),
+        'right_clavicle': (16.661, -5.197), 'right_shoulder': (94.37, 22.774, 13.597),
+        'right_elbow': (41.473, 23.965), 'right_wrist': (4.391, -9.078),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.3, {
-        'spine_lumbar': (7.79, 1.122, 1.238), 'spine_thoracic': (-3.035, -3.009, 1.222),
-        'neck': (-0.541, -0.734, -26.457), 'head': (-0.7, -0.002), 'right_clavicle': (4.438, 0.252),
-        'right_shoulder': (89.601, 12.697, 1.122), 'right_elbow': (33.445, 11.763),
-        'right_wrist': (-1.097, -26.194),
+        'spine_lumbar': (10.247, 2.73, -2.728), 'spine_thoracic': (-2.167, -8.461, -2.661),
+        'neck': (-1.456, -1.002, -22.257), 'head': (-1.643, -0.006),
+        'right_clavicle': (12.724, -4.205), 'right_shoulder': (87.095, 18.263, 11.607),
+        'right_elbow': (40.095, 21.442), 'right_wrist': (3.293, -11.8),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (11.734, 1.8, -0.237), 'spine_thoracic': (-3.569, -6.475, -0.291),
-        'neck': (-1.619, -1.156, -27.086), 'head': (-1.861, -0.008),
-        'right_clavicle': (9.617, -1.997), 'right_shoulder': (88.023, 17.304, 5.923),
-        'right_elbow': (36.568, 16.733),
+        'spine_lumbar': (6.715, 1.191, 1.339), 'spine_thoracic': (-2.342, -2.16, 1.301),
+        'neck': (-0.541, -0.72, -25.73), 'head': (-0.694, -0.002), 'right_clavicle': (3.23, 0.5),
+        'right_shoulder': (90.228, 11.47, 0.571), 'right_elbow': (33.169, 11.057),
+        'right_wrist': (-1.249, -27.269),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'spine_lumbar': (15.82, 4.25, -1.781), 'spine_thoracic': (-3.477, -9.851, -1.81),
-        'neck': (-3.583, -1.888, -26.595), 'head': (-3.96, -0.031),
-        'right_clavicle': (15.209, -4.25), 'right_shoulder': (89.343, 21.986, 10.91),
-        'right_elbow': (39.943, 21.706), 'right_wrist': (2.937, -10.882),
+        'spine_lumbar': (7.363, 1.153, 1.458), 'spine_thoracic': (-3.035, -2.6, 1.434),
+        'neck': (-0.448, -0.698, -26.415), 'head': (-0.6, -0.002), 'right_clavicle': (3.863, 0.512),
+        'right_shoulder': (89.815, 12.217, 0.521), 'right_elbow': (33.118, 11.159),
+        'right_wrist': (-1.354, -26.983),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (12.687, 4.551, -3.541), 'spine_thoracic': (-1.645, -9.901, -3.403),
-        'neck': (-3.078, -1.606, -21.834), 'head': (-3.364, -0.023),
-        'right_clavicle': (15.525, -5.161), 'right_shoulder': (89.327, 20.575, 14.17),
-        'right_elbow': (41.798, 23.873), 'right_wrist': (4.379, -8.33),
+        'spine_lumbar': (11.246, 1.616, -0.046), 'spine_thoracic': (-3.607, -6.096, -0.099),
+        'neck': (-1.367, -1.059, -27.02), 'head': (-1.592, -0.006),
+        'right_clavicle': (9.007, -1.728), 'right_shoulder': (87.958, 16.78, 5.316),
+        'right_elbow': (36.162, 16.126), 'right_wrist': (0.646, -19.497),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (7.255, 1.048, 0.012), 'spine_thoracic': (-2.55, -4.051, -0.041),
-        'neck': (-0.373, -0.635, -24.765), 'head': (-0.504, -0.001),
-        'right_clavicle': (5.775, -1.033), 'right_shoulder': (87.085, 13.251, 3.848),
-        'right_elbow': (35.146, 14.139), 'right_wrist': (0.077, -22.57),
+        'spine_lumbar': (15.29, 3.768, -1.369), 'spine_thoracic': (-3.797, -9.597, -1.464),
+        'neck': (-3.076, -1.705, -26.993), 'head': (-3.422, -0.023),
+        'right_clavicle': (14.748, -4.027), 'right_shoulder': (88.447, 21.779, 10.034),
+        'right_elbow': (39.409, 20.988), 'right_wrist': (2.533, -11.484),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.8, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (13.565, 4.894, -3.596), 'spine_thoracic': (-1.534, -10.0, -3.452),
+        'neck': (-3.735, -1.857, -21.832), 'head': (-4.065, -0.032),
+        'right_clavicle': (15.979, -5.243), 'right_shoulder': (90.169, 21.175, 14.346),
+        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.093),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (9.982, 1.27, 0.438), 'spine_thoracic': (-3.615, -5.077, 0.394),
-        'neck': (-0.888, -0.875, -26.898), 'head': (-1.078, -0.003),
-        'right_clavicle': (7.428, -1.021), 'right_shoulder': (88.055, 15.398, 3.759),
-        'right_elbow': (35.128, 14.545), 'right_wrist': (-0.02, -21.876),
+        'spine_lumbar': (7.535, 1.004, -0.536), 'spine_thoracic': (-2.615, -4.855, -0.589),
+        'neck': (-0.321, -0.606, -24.369), 'head': (-0.444, -0.001),
+        'right_clavicle': (6.904, -1.669), 'right_shoulder': (86.103, 14.055, 5.245),
+        'right_elbow': (36.0, 15.455), 'right_wrist': (0.646, -20.58),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
-        'spine_lumbar': (14.069, 2.979, -1.034), 'spine_thoracic': (-3.627, -8.416, -1.108),
-        'neck': (-2.594, -1.524, -27.016), 'head': (-2.907, -0.017),
-        'right_clavicle': (12.801, -3.3), 'right_shoulder': (88.327, 20.056, 8.689),
-        'right_elbow': (38.471, 19.554), 'right_wrist': (2.034, -14.068),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (16.473, 5.459, -3.469), 'spine_thoracic': (-1.329, -10.0, -3.329),
-        'neck': (-5.313, -2.484, -23.741), 'head': (-5.765, -0.067),
-        'right_clavicle': (16.636, -5.282), 'right_shoulder': (93.472, 22.501, 14.137),
-        'right_elbow': (41.791, 24.104), 'right_wrist': (4.472, -8.397),
+        'spine_lumbar': (9.509, 1.191, 0.565), 'spine_thoracic': (-3.468, -4.634, 0.536),
+        'neck': (-0.837, -0.853, -26.79), 'head': (-1.021, -0.003),
+        'right_clavicle': (6.775, -0.757), 'right_shoulder': (88.37, 14.788, 3.249),
+        'right_elbow': (34.766, 13.987), 'right_wrist': (-0.217, -22.84),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (8.548, 1.283, -1.707), 'spine_thoracic': (-2.569, -6.704, -1.717),
-        'neck': (-0.518, -0.668, -23.179), 'head': (-0.649, -0.002),
-        'right_clavicle': (9.758, -3.026), 'right_shoulder': (85.78, 16.122, 8.49),
-        'right_elbow': (38.048, 18.51), 'right_wrist': (1.986, -16.052),
+        'spine_lumbar': (13.591, 2.699, -0.884), 'spine_thoracic': (-3.591, -7.999, -0.952),
+        'neck': (-2.395, -1.449, -27.033), 'head': (-2.693, -0.015),
+        'right_clavicle': (12.108, -3.028), 'right_shoulder': (88.264, 19.457, 8.136),
+        'right_elbow': (38.088, 18.983), 'right_wrist': (1.817, -15.019),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.3, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (17.242, 5.575, -3.37), 'spine_thoracic': (-1.285, -10.0, -3.233),
+        'neck': (-5.766, -2.667, -24.411), 'head': (-6.256, -0.08),
+        'right_clavicle': (16.762, -5.288), 'right_shoulder': (94.402, 22.795, 13.968),
+        'right_elbow': (41.69, 24.111), 'right_wrist': (4.474, -8.628),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (8.317, 1.111, 0.973), 'spine_thoracic': (-3.044, -3.487, 0.964),
-        'neck': (-0.682, -0.789, -26.509), 'head': (-0.852, -0.002),
-        'right_clavicle': (5.119, -0.068), 'right_shoulder': (89.355, 13.272, 1.854),
-        'right_elbow': (33.857, 12.496), 'right_wrist': (-0.773, -25.227),
+        'spine_lumbar': (9.24, 1.846, -2.178), 'spine_thoracic': (-2.413, -7.506, -2.155),
+        'neck': (-0.913, -0.808, -22.671), 'head': (-1.067, -0.004),
+        'right_clavicle': (11.085, -3.569), 'right_shoulder': (86.267, 17.069, 9.909),
+        'right_elbow': (38.976, 19.845), 'right_wrist': (2.58, -14.11),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (12.32, 2.049, -0.453), 'spine_thoracic': (-3.559, -6.943, -0.509),
-        'neck': (-1.868, -1.251, -27.075), 'head': (-2.128, -0.01),
-        'right_shoulder': (88.095, 17.957, 6.634), 'right_elbow': (37.052, 17.451),
-        'right_wrist': (1.206, -17.479),
+        'spine_lumbar': (6.598, 1.233, 1.678), 'spine_thoracic': (-2.28, -1.684, 1.647),
+        'neck': (-0.62, -0.757, -26.084), 'head': (-0.782, -0.002),
+        'right_clavicle': (2.608, 0.892), 'right_shoulder': (91.153, 11.04, -0.251),
+        'right_elbow': (32.677, 10.284), 'right_wrist': (-1.581, -28.454),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'spine_lumbar': (16.493, 4.929, -2.595), 'spine_thoracic': (-2.445, -10.0, -2.461),
-        'neck': (-4.612, -2.254, -25.517), 'head': (-5.044, -0.05),
-        'right_clavicle': (15.662, -4.518), 'right_shoulder': (91.95, 22.141, 12.266),
-        'right_elbow': (40.712, 22.706), 'right_wrist': (3.649, -10.292),
+        'spine_lumbar': (7.877, 1.118, 1.189), 'spine_thoracic': (-3.035, -3.086, 1.175),
+        'neck': (-0.57, -0.745, -26.463), 'head': (-0.731, -0.002),
+        'right_clavicle': (4.547, 0.198), 'right_shoulder': (89.569, 12.787, 1.25),
+        'right_elbow': (33.514, 11.889), 'right_wrist': (-1.039, -26.038),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (11.569, 3.818, -3.266), 'spine_thoracic': (-1.859, -9.409, -3.152),
-        'neck': (-2.261, -1.299, -21.985), 'head': (-2.496, -0.013),
-        'right_clavicle': (14.464, -4.831), 'right_shoulder': (88.279, 19.614, 13.295),
-        'right_elbow': (41.215, 23.035), 'right_wrist': (4.005, -9.514),
+        'spine_lumbar': (11.832, 1.838, -0.274), 'spine_thoracic': (-3.567, -6.553, -0.328),
+        'neck': (-1.663, -1.173, -27.087), 'head': (-1.908, -0.009),
+        'right_clavicle': (9.741, -2.051), 'right_shoulder': (88.035, 17.411, 6.042),
+        'right_elbow': (36.649, 16.853), 'right_wrist': (0.957, -18.403),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (6.967, 1.115, 0.676), 'spine_thoracic': (-2.452, -3.098, 0.628),
-        'neck': (-0.438, -0.671, -25.193), 'head': (-0.579, -0.002),
-        'right_clavicle': (4.477, -0.266), 'right_shoulder': (88.556, 12.339, 2.195),
-        'right_elbow': (34.146, 12.584), 'right_wrist': (-0.593, -24.936),
+        'spine_lumbar': (15.934, 4.372, -1.926), 'spine_thoracic': (-3.31, -9.892, -1.922),
+        'neck': (-3.753, -1.948, -26.4), 'head': (-4.138, -0.034),
+        'right_clavicle': (15.278, -4.289), 'right_shoulder': (89.776, 22.007, 11.144),
+        'right_elbow': (40.077, 21.874), 'right_wrist': (3.058, -10.791),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.9, {
-        'spine_lumbar': (6.675, 1.228, 1.708), 'spine_thoracic': (-2.409, -1.732, 1.678),
-        'neck': (-0.603, -0.753, -26.197), 'head': (-0.764, -0.002),
-        'right_clavicle': (2.677, 0.908), 'right_shoulder': (91.086, 11.132, -0.29),
-        'right_elbow': (32.652, 10.268), 'right_wrist': (-1.609, -28.451),
+        'spine_lumbar': (12.505, 4.45, -3.51), 'spine_thoracic': (-1.675, -9.845, -3.374),
+        'neck': (-2.941, -1.554, -21.851), 'head': (-3.218, -0.021),
+        'right_clavicle': (15.384, -5.123), 'right_shoulder': (89.154, 20.431, 14.071),
+        'right_elbow': (41.732, 23.776), 'right_wrist': (4.336, -8.465),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (10.557, 1.405, 0.224), 'spine_thoracic': (-3.629, -5.552, 0.174),
-        'neck': (-1.064, -0.942, -26.934), 'head': (-1.267, -0.004),
-        'right_shoulder': (87.946, 16.039, 4.459), 'right_elbow': (35.593, 15.263),
-        'right_wrist': (0.277, -20.783),
+        'spine_lumbar': (7.203, 1.059, 0.125), 'spine_thoracic': (-2.534, -3.888, 0.072),
+        'neck': (-0.384, -0.642, -24.84), 'head': (-0.517, -0.001),
+        'right_clavicle': (5.551, -0.903), 'right_shoulder': (87.317, 13.093, 3.565),
+        'right_elbow': (34.975, 13.873), 'right_wrist': (-0.038, -22.974),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
-        'spine_lumbar': (14.637, 3.335, -1.201), 'spine_thoracic': (-3.689, -8.934, -1.284),
-        'neck': (-2.826, -1.611, -27.001), 'right_clavicle': (13.661, -3.629),
-        'right_shoulder': (88.393, 20.803, 9.33), 'right_elbow': (38.917, 20.226),
-        'right_wrist': (2.278, -12.911),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (15.134, 5.232, -3.552), 'spine_thoracic': (-1.414, -10.0, -3.41),
-        'neck': (-4.68, -2.23, -22.846), 'head': (-5.08, -0.051),
-        'right_clavicle': (16.381, -5.268), 'right_shoulder': (91.893, 21.947, 14.276),
-        'right_elbow': (41.874, 24.088), 'right_wrist': (4.468, -8.198),
+        'spine_lumbar': (10.077, 1.289, 0.406), 'spine_thoracic': (-3.618, -5.159, 0.361),
+        'neck': (-0.908, -0.883, -26.907), 'head': (-1.099, -0.003),
+        'right_clavicle': (7.552, -1.075), 'right_shoulder': (88.032, 15.509, 3.871),
+        'right_elbow': (35.204, 14.662), 'right_wrist': (0.026, -21.691),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (7.973, 0.979, -1.189), 'spine_thoracic': (-2.652, -5.853, -1.228),
-        'neck': (-0.29, -0.587, -23.778), 'head': (-0.407, -0.001),
-        'right_clavicle': (8.391, -2.426), 'right_shoulder': (85.531, 15.136, 6.987),
-        'right_elbow': (37.083, 17.096), 'right_wrist': (1.361, -18.126),
+        'spine_lumbar': (14.165, 3.038, -1.063), 'spine_thoracic': (-3.636, -8.501, -1.139),
+        'neck': (-2.634, -1.539, -27.013), 'head': (-2.949, -0.017),
+        'right_clavicle': (12.942, -3.354), 'right_shoulder': (88.339, 20.177, 8.798),
+        'right_elbow': (38.547, 19.667), 'right_wrist': (2.076, -13.877),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.4, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (16.27, 5.427, -3.485), 'spine_thoracic': (-1.341, -10.0, -3.345),
+        'neck': (-5.21, -2.442, -23.603), 'head': (-5.653, -0.064), 'right_clavicle': (16.6, -5.28),
+        'right_shoulder': (93.229, 22.421, 14.165), 'right_elbow': (41.808, 24.102),
+        'right_wrist': (4.472, -8.358),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (8.853, 1.13, 0.752), 'spine_thoracic': (-3.173, -3.995, 0.742),
-        'neck': (-0.773, -0.825, -26.604), 'head': (-0.95, -0.003),
-        'right_clavicle': (5.849, -0.385), 'right_shoulder': (88.989, 13.923, 2.528),
-        'right_elbow': (34.27, 13.197), 'right_wrist': (-0.494, -24.184),
+        'spine_lumbar': (8.431, 1.2, -1.616), 'spine_thoracic': (-2.592, -6.551, -1.631),
+        'neck': (-0.457, -0.646, -23.285), 'head': (-0.584, -0.002),
+        'right_clavicle': (9.508, -2.92), 'right_shoulder': (85.71, 15.943, 8.218),
+        'right_elbow': (37.872, 18.255), 'right_wrist': (1.873, -16.425),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
-        'spine_lumbar': (12.904, 2.329, -0.657), 'spine_thoracic': (-3.559, -7.42, -0.718),
-        'neck': (-2.109, -1.341, -27.056), 'head': (-2.386, -0.012),
-        'right_clavicle': (11.153, -2.644), 'right_shoulder': (88.172, 18.631, 7.331),
-        'right_elbow': (37.531, 18.159), 'right_wrist': (1.493, -16.359),
-    })
-    human.KeyJoints(8.7, {
-        'spine_lumbar': (17.238, 5.47, -3.112), 'spine_thoracic': (-1.521, -10.0, -2.973),
-        'neck': (-5.628, -2.622, -25.077), 'head': (-6.115, -0.077),
-        'right_clavicle': (16.529, -5.105), 'right_shoulder': (94.088, 22.683, 13.432),
-        'right_elbow': (41.379, 23.814), 'right_wrist': (4.304, -9.252),
-    })
-    human.KeyJoints(8.8, {
-        'spine_lumbar': (10.446, 2.903, -2.822), 'spine_thoracic': (-2.119, -8.626, -2.747),
-        'neck': (-1.559, -1.04, -22.211), 'head': (-1.752, -0.007),
-        'right_clavicle': (13.016, -4.314), 'right_shoulder': (87.268, 18.481, 11.9),
-        'right_elbow': (40.289, 21.718), 'right_wrist': (3.416, -11.402),
-    })
-    human.KeyJoints(8.9, {
-        'spine_lumbar': (6.746, 1.18, 1.251), 'spine_thoracic': (-2.357, -2.284, 1.211),
-        'neck': (-0.523, -0.712, -25.647), 'head': (-0.674, -0.002),
-        'right_clavicle': (3.393, 0.399), 'right_shoulder': (89.996, 11.583, 0.785),
-        'right_elbow': (33.298, 11.258), 'right_wrist': (-1.163, -26.961),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
-    human.KeyJoints(9.0, {
-        'spine_lumbar': (7.264, 1.161, 1.498), 'spine_thoracic': (-3.015, -2.49, 1.473),
-        'neck': (-0.453, -0.7, -26.397), 'head': (-0.606, -0.002), 'right_clavicle': (3.71, 0.57),
-        'right_shoulder': (89.916, 12.082, 0.397), 'right_elbow': (33.048, 11.028),
-        'right_wrist': (-1.397, -27.182),
-    })
-    human.KeyJoints(9.1, {
-        'spine_lumbar': (11.138, 1.579, -0.003), 'spine_thoracic': (-3.617, -6.012, -0.056),
-        'neck': (-1.311, -1.037, -26.999), 'head': (-1.533, -0.005),
-        'right_clavicle': (8.875, -1.669), 'right_shoulder': (87.946, 16.665, 5.181),
-        'right_elbow': (36.072, 15.991), 'right_wrist': (0.588, -19.696),
-    })
-    human.KeyJoints(9.2, {
-        'spine_lumbar': (15.185, 3.692, -1.335), 'spine_thoracic': (-3.787, -9.513, -1.429),
-        'neck': (-3.026, -1.686, -26.995), 'head': (-3.369, -0.022),
-        'right_clavicle': (14.601, -3.968), 'right_shoulder': (88.434, 21.668, 9.908),
-        'right_elbow': (39.323, 20.86), 'right_wrist': (2.485, -11.676),
-    })
-    human.KeyJoints(9.3, {
-        'spine_lumbar': (13.779, 4.949, -3.593), 'spine_thoracic': (-1.515, -10.0, -3.45),
-        'neck': (-3.882, -1.914, -21.912), 'head': (-4.222, -0.034),
-        'right_clavicle': (16.046, -5.248), 'right_shoulder': (90.389, 21.295, 14.342),
-        'right_elbow': (41.913, 24.065), 'right_wrist': (4.461, -8.1),
-    })
-    human.KeyJoints(9.4, {
-        'spine_lumbar': (7.6, 0.997, -0.65), 'spine_thoracic': (-2.626, -5.025, -0.702),
-        'neck': (-0.312, -0.601, -24.279), 'head': (-0.434, -0.001),
-        'right_clavicle': (7.149, -1.801), 'right_shoulder': (85.939, 14.231, 5.541),
-        'right_elbow': (36.182, 15.734), 'right_wrist': (0.767, -20.16),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
-    human.KeyJoints(9.5, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
         'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
         'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
-    human.KeyJoints(9.6, {
-        'spine_lumbar': (9.406, 1.176, 0.59), 'spine_thoracic': (-3.41, -4.533, 0.565),
-        'neck': (-0.829, -0.849, -26.755), 'head': (-1.013, -0.003),
-        'right_clavicle': (6.627, -0.7), 'right_shoulder': (88.481, 14.647, 3.142),
-        'right_elbow': (34.689, 13.867), 'right_wrist': (-0.256, -23.057),
+    human.KeyJoints(8.7, {
+        'spine_lumbar': (8.405, 1.112, 0.934), 'spine_thoracic': (-3.057, -3.57, 0.925),
+        'neck': (-0.698, -0.795, -26.523), 'head': (-0.87, -0.002),
+        'right_clavicle': (5.238, -0.121), 'right_shoulder': (89.3, 13.377, 1.969),
+        'right_elbow': (33.925, 12.615), 'right_wrist': (-0.724, -25.057),
     })
+    human.KeyJoints(8.8, {
+        'spine_lumbar': (12.418, 2.094, -0.488), 'spine_thoracic': (-3.558, -7.021, -0.545),
+        'neck': (-1.908, -1.265, -27.072), 'head': (-2.171, -0.01),
+        'right_shoulder': (88.108, 18.068, 6.752), 'right_elbow': (37.132, 17.57),
+        'right_wrist': (1.255, -17.293),
+    })
+    human.KeyJoints(8.9, {
+        'spine_lumbar': (16.608, 5.02, -2.687), 'spine_thoracic': (-2.301, -10.0, -2.547),
+        'neck': (-4.77, -2.311, -25.425), 'head': (-5.21, -0.053),
+        'right_clavicle': (15.776, -4.59), 'right_shoulder': (92.293, 22.199, 12.46),
+        'right_elbow': (40.823, 22.876), 'right_wrist': (3.754, -10.15),
+    })
+    human.KeyJoints(9.0, {
+        'spine_lumbar': (11.379, 3.673, -3.202), 'spine_thoracic': (-1.901, -9.295, -3.094),
+        'neck': (-2.132, -1.251, -22.019), 'head': (-2.359, -0.012),
+        'right_clavicle': (14.244, -4.755), 'right_shoulder': (88.105, 19.434, 13.092),
+        'right_elbow': (41.079, 22.843), 'right_wrist': (3.919, -9.788),
+    })
+    human.KeyJoints(9.1, {
+        'spine_lumbar': (6.925, 1.126, 0.781), 'spine_thoracic': (-2.436, -2.949, 0.734),
+        'neck': (-0.45, -0.676, -25.264), 'head': (-0.592, -0.002),
+        'right_clavicle': (4.277, -0.144), 'right_shoulder': (88.808, 12.199, 1.936),
+        'right_elbow': (33.99, 12.341), 'right_wrist': (-0.697, -25.307),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(9.2, {
+        'spine_lumbar': (6.754, 1.218, 1.681), 'spine_thoracic': (-2.515, -1.838, 1.652),
+        'neck': (-0.577, -0.744, -26.229), 'head': (-0.737, -0.002),
+        'right_clavicle': (2.821, 0.864), 'right_shoulder': (90.901, 11.266, -0.201),
+        'right_elbow': (32.704, 10.368), 'right_wrist': (-1.583, -28.278),
+    })
+    human.KeyJoints(9.3, {
+        'spine_lumbar': (10.653, 1.431, 0.186), 'spine_thoracic': (-3.63, -5.629, 0.135),
+        'neck': (-1.102, -0.957, -26.94), 'head': (-1.308, -0.004),
+        'right_shoulder': (87.937, 16.143, 4.58), 'right_elbow': (35.673, 15.385),
+        'right_wrist': (0.329, -20.602),
+    })
+    human.KeyJoints(9.4, {
+        'spine_lumbar': (14.728, 3.392, -1.223), 'spine_thoracic': (-3.705, -9.032, -1.308),
+        'neck': (-2.859, -1.623, -27.0), 'head': (-3.19, -0.02), 'right_clavicle': (13.818, -3.685),
+        'right_shoulder': (88.4, 20.95, 9.426), 'right_elbow': (38.985, 20.331),
+        'right_wrist': (2.313, -12.703),
+    })
+    human.KeyJoints(9.5, {
+        'spine_lumbar': (14.896, 5.187, -3.562), 'spine_thoracic': (-1.43, -10.0, -3.42),
+        'neck': (-4.554, -2.18, -22.665), 'head': (-4.945, -0.048),
+        'right_clavicle': (16.33, -5.265), 'right_shoulder': (91.621, 21.842, 14.292),
+        'right_elbow': (41.884, 24.085), 'right_wrist': (4.467, -8.175),
+    })
+    human.KeyJoints(9.6, {
+        'spine_lumbar': (7.909, 0.978, -1.111), 'spine_thoracic': (-2.652, -5.728, -1.153),
+        'neck': (-0.289, -0.587, -23.863), 'head': (-0.407, -0.001),
+        'right_clavicle': (8.197, -2.335), 'right_shoulder': (85.535, 14.993, 6.769),
+        'right_elbow': (36.946, 16.891), 'right_wrist': (1.271, -18.43),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
-        'spine_lumbar': (13.485, 2.639, -0.85), 'spine_thoracic': (-3.585, -7.908, -0.917),
-        'neck': (-2.351, -1.432, -27.036), 'head': (-2.646, -0.014),
-        'right_clavicle': (11.958, -2.968), 'right_shoulder': (88.25, 19.327, 8.013),
-        'right_elbow': (38.003, 18.856), 'right_wrist': (1.768, -15.228),
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (17.339, 5.589, -3.345), 'spine_thoracic': (-1.28, -10.0, -3.208),
-        'neck': (-5.832, -2.693, -24.544), 'head': (-6.327, -0.082),
-        'right_clavicle': (16.777, -5.289), 'right_shoulder': (94.522, 22.831, 13.924),
-        'right_elbow': (41.664, 24.112), 'right_wrist': (4.474, -8.687),
+        'spine_lumbar': (8.944, 1.135, 0.72), 'spine_thoracic': (-3.201, -4.082, 0.708),
+        'neck': (-0.785, -0.83, -26.623), 'head': (-0.964, -0.003),
+        'right_clavicle': (5.974, -0.437), 'right_shoulder': (88.921, 14.037, 2.636),
+        'right_elbow': (34.34, 13.312), 'right_wrist': (-0.45, -24.003),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (9.413, 1.997, -2.282), 'spine_thoracic': (-2.371, -7.685, -2.251),
-        'neck': (-1.012, -0.843, -22.572), 'head': (-1.172, -0.004),
-        'right_clavicle': (11.387, -3.689), 'right_shoulder': (86.402, 17.287, 10.228),
-        'right_elbow': (39.185, 20.144), 'right_wrist': (2.713, -13.676),
+        'spine_lumbar': (13.001, 2.379, -0.69), 'spine_thoracic': (-3.562, -7.5, -0.752),
+        'neck': (-2.149, -1.356, -27.053), 'head': (-2.43, -0.012),
+        'right_clavicle': (11.286, -2.698), 'right_shoulder': (88.185, 18.746, 7.446),
+        'right_elbow': (37.61, 18.276), 'right_wrist': (1.54, -16.171),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (6.612, 1.227, 1.636), 'spine_thoracic': (-2.288, -1.743, 1.603),
-        'neck': (-0.609, -0.752, -26.037), 'head': (-0.77, -0.002),
-        'right_clavicle': (2.685, 0.844), 'right_shoulder': (91.035, 11.093, -0.149),
-        'right_elbow': (32.738, 10.379), 'right_wrist': (-1.54, -28.307),
+        'spine_lumbar': (17.331, 5.532, -3.177), 'spine_thoracic': (-1.406, -10.0, -3.04),
+        'neck': (-5.755, -2.668, -25.01), 'head': (-6.249, -0.08), 'right_clavicle': (16.65, -5.19),
+        'right_shoulder': (94.348, 22.767, 13.583), 'right_elbow': (41.465, 23.953),
+        'right_wrist': (4.384, -9.093),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.1, {
-        'spine_lumbar': (7.781, 1.123, 1.243), 'spine_thoracic': (-3.035, -3.001, 1.227),
-        'neck': (-0.538, -0.733, -26.456), 'head': (-0.697, -0.002),
-        'right_clavicle': (4.427, 0.258), 'right_shoulder': (89.604, 12.688, 1.109),
-        'right_elbow': (33.438, 11.751), 'right_wrist': (-1.103, -26.209),
+        'spine_lumbar': (10.265, 2.746, -2.737), 'spine_thoracic': (-2.163, -8.476, -2.669),
+        'neck': (-1.465, -1.005, -22.253), 'head': (-1.652, -0.006),
+        'right_clavicle': (12.751, -4.215), 'right_shoulder': (87.111, 18.283, 11.634),
+        'right_elbow': (40.113, 21.467), 'right_wrist': (3.304, -11.763),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (11.724, 1.796, -0.233), 'spine_thoracic': (-3.57, -6.468, -0.287),
-        'neck': (-1.614, -1.154, -27.086), 'head': (-1.856, -0.008),
-        'right_clavicle': (9.604, -1.992), 'right_shoulder': (88.022, 17.293, 5.911),
-        'right_elbow': (36.56, 16.721), 'right_wrist': (0.902, -18.606),
+        'spine_lumbar': (6.718, 1.19, 1.331), 'spine_thoracic': (-2.343, -2.171, 1.293),
+        'neck': (-0.539, -0.72, -25.722), 'head': (-0.692, -0.002),
+        'right_clavicle': (3.245, 0.491), 'right_shoulder': (90.207, 11.48, 0.59),
+        'right_elbow': (33.181, 11.075), 'right_wrist': (-1.241, -27.241),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'spine_lumbar': (15.808, 4.238, -1.767), 'spine_thoracic': (-3.493, -9.846, -1.799),
-        'neck': (-3.567, -1.882, -26.613), 'head': (-3.942, -0.031),
-        'right_clavicle': (15.201, -4.246), 'right_shoulder': (89.302, 21.984, 10.887),
-        'right_elbow': (39.93, 21.689), 'right_wrist': (2.925, -10.892),
+        'spine_lumbar': (7.354, 1.154, 1.462), 'spine_thoracic': (-3.035, -2.591, 1.437),
+        'neck': (-0.448, -0.698, -26.414), 'head': (-0.6, -0.002), 'right_clavicle': (3.85, 0.517),
+        'right_shoulder': (89.822, 12.206, 0.51), 'right_elbow': (33.111, 11.148),
+        'right_wrist': (-1.358, -27.0),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (12.706, 4.561, -3.544), 'spine_thoracic': (-1.642, -9.906, -3.405),
-        'neck': (-3.092, -1.611, -21.832), 'head': (-3.379, -0.023),
-        'right_clavicle': (15.539, -5.165), 'right_shoulder': (89.344, 20.589, 14.179),
-        'right_elbow': (41.804, 23.882), 'right_wrist': (4.383, -8.318),
+        'spine_lumbar': (11.236, 1.612, -0.042), 'spine_thoracic': (-3.608, -6.088, -0.095),
+        'neck': (-1.362, -1.057, -27.018), 'head': (-1.586, -0.006),
+        'right_clavicle': (8.995, -1.723), 'right_shoulder': (87.957, 16.769, 5.303),
+        'right_elbow': (36.154, 16.113), 'right_wrist': (0.641, -19.515),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (7.261, 1.047, 0.001), 'spine_thoracic': (-2.551, -4.068, -0.052),
-        'neck': (-0.372, -0.635, -24.757), 'head': (-0.503, -0.001),
-        'right_clavicle': (5.798, -1.046), 'right_shoulder': (87.062, 13.268, 3.876),
-        'right_elbow': (35.164, 14.166), 'right_wrist': (0.089, -22.529),
+        'spine_lumbar': (15.281, 3.761, -1.365), 'spine_thoracic': (-3.797, -9.59, -1.461),
+        'neck': (-3.071, -1.703, -26.993), 'head': (-3.417, -0.023),
+        'right_clavicle': (14.735, -4.021), 'right_shoulder': (88.445, 21.771, 10.022),
+        'right_elbow': (39.401, 20.976), 'right_wrist': (2.529, -11.5),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.6, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (13.584, 4.899, -3.596), 'spine_thoracic': (-1.533, -10.0, -3.452),
+        'neck': (-3.748, -1.862, -21.838), 'head': (-4.079, -0.032),
+        'right_clavicle': (15.985, -5.244), 'right_shoulder': (90.188, 21.186, 14.346),
+        'right_elbow': (41.916, 24.061), 'right_wrist': (4.46, -8.094),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (9.972, 1.268, 0.441), 'spine_thoracic': (-3.615, -5.068, 0.398),
-        'neck': (-0.887, -0.874, -26.897), 'head': (-1.076, -0.003),
-        'right_clavicle': (7.415, -1.016), 'right_shoulder': (88.057, 15.386, 3.748),
-        'right_elbow': (35.121, 14.533), 'right_wrist': (-0.025, -21.895),
-    })
-    human.KeyJoints(10.8, {
-        'spine_lumbar': (14.06, 2.974, -1.031), 'spine_thoracic': (-3.626, -8.408, -1.105),
-        'neck': (-2.59, -1.522, -27.017), 'head': (-2.902, -0.017),
-        'right_clavicle': (12.787, -3.294), 'right_shoulder': (88.326, 20.044, 8.678),
-        'right_elbow': (38.464, 19.542), 'right_wrist': (2.03, -14.087),
-    })
-    human.KeyJoints(10.9, {
-        'spine_lumbar': (16.493, 5.462, -3.467), 'spine_thoracic': (-1.328, -10.0, -3.327),
-        'neck': (-5.323, -2.488, -23.755), 'head': (-5.776, -0.067),
-        'right_clavicle': (16.639, -5.282), 'right_shoulder': (93.495, 22.509, 14.134),
-        'right_elbow': (41.789, 24.104), 'right_wrist': (4.472, -8.401),
-    })
-    human.KeyJoints(11.0, {
-        'spine_lumbar': (8.56, 1.292, -1.717), 'spine_thoracic': (-2.566, -6.72, -1.726),
-        'neck': (-0.525, -0.67, -23.168), 'head': (-0.656, -0.002),
-        'right_clavicle': (9.784, -3.037), 'right_shoulder': (85.787, 16.14, 8.517),
-        'right_elbow': (38.066, 18.536), 'right_wrist': (1.997, -16.014),
+        'spine_lumbar': (7.541, 1.003, -0.547), 'spine_thoracic': (-2.616, -4.871, -0.599),
+        'neck': (-0.321, -0.605, -24.361), 'head': (-0.443, -0.001),
+        'right_clavicle': (6.927, -1.681), 'right_shoulder': (86.087, 14.071, 5.273),
+        'right_elbow': (36.017, 15.481), 'right_wrist': (0.657, -20.541),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(10.8, {
+        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+    })
+    human.KeyJoints(10.9, {
+        'spine_lumbar': (9.5, 1.19, 0.568), 'spine_thoracic': (-3.463, -4.625, 0.539),
+        'neck': (-0.836, -0.852, -26.787), 'head': (-1.02, -0.003),
+        'right_clavicle': (6.761, -0.752), 'right_shoulder': (88.38, 14.775, 3.239),
+        'right_elbow': (34.759, 13.976), 'right_wrist': (-0.22, -22.86),
+    })
+    human.KeyJoints(11.0, {
+        'spine_lumbar': (13.581, 2.693, -0.881), 'spine_thoracic': (-3.59, -7.99, -0.949),
+        'neck': (-2.391, -1.447, -27.033), 'head': (-2.689, -0.015),
+        'right_clavicle': (12.094, -3.023), 'right_shoulder': (88.263, 19.445, 8.125),
+        'right_elbow': (38.08, 18.971), 'right_wrist': (1.813, -15.038),
+    })
     human.KeyJoints(11.1, {
+        'spine_lumbar': (17.252, 5.577, -3.367), 'spine_thoracic': (-1.285, -10.0, -3.231),
+        'neck': (-5.773, -2.669, -24.423), 'head': (-6.263, -0.08),
+        'right_clavicle': (16.764, -5.288), 'right_shoulder': (94.415, 22.798, 13.964),
+        'right_elbow': (41.688, 24.111), 'right_wrist': (4.474, -8.634),
+    })
+    human.KeyJoints(11.2, {
+        'spine_lumbar': (9.256, 1.86, -2.188), 'spine_thoracic': (-2.409, -7.522, -2.163),
+        'neck': (-0.922, -0.811, -22.661), 'head': (-1.077, -0.004),
+        'right_clavicle': (11.112, -3.58), 'right_shoulder': (86.279, 17.089, 9.939),
+        'right_elbow': (38.995, 19.872), 'right_wrist': (2.592, -14.07),
+    })
+    human.KeyJoints(11.3, {
+        'spine_lumbar': (6.599, 1.232, 1.675), 'spine_thoracic': (-2.281, -1.689, 1.643),
+        'neck': (-0.62, -0.757, -26.08), 'head': (-0.781, -0.002), 'right_clavicle': (2.614, 0.888),
+        'right_shoulder': (91.143, 11.044, -0.243), 'right_elbow': (32.682, 10.291),
+        'right_wrist': (-1.577, -28.442),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(11.4, {
+        'spine_lumbar': (7.869, 1.118, 1.194), 'spine_thoracic': (-3.035, -3.078, 1.18),
+        'neck': (-0.567, -0.744, -26.462), 'head': (-0.728, -0.002),
+        'right_clavicle': (4.536, 0.204), 'right_shoulder': (89.572, 12.778, 1.237),
+        'right_elbow': (33.507, 11.876), 'right_wrist': (-1.044, -26.054),
+    })
+    human.KeyJoints(11.5, {
+        'spine_lumbar': (11.822, 1.834, -0.27), 'spine_thoracic': (-3.567, -6.545, -0.324),
+        'neck': (-1.659, -1.171, -27.087), 'head': (-1.904, -0.009),
+        'right_clavicle': (9.729, -2.046), 'right_shoulder': (88.034, 17.4, 6.03),
+        'right_elbow': (36.641, 16.841),
+    })
+    human.KeyJoints(11.6, {
+        'spine_lumbar': (15.923, 4.359, -1.911), 'spine_thoracic': (-3.327, -9.888, -1.91),
+        'neck': (-3.735, -1.942, -26.421), 'head': (-4.12, -0.033),
+        'right_clavicle': (15.271, -4.285), 'right_shoulder': (89.73, 22.005, 11.12),
+        'right_elbow': (40.063, 21.857), 'right_wrist': (3.046, -10.8),
+    })
+    human.KeyJoints(11.7, {
+        'spine_lumbar': (12.523, 4.461, -3.514), 'spine_thoracic': (-1.672, -9.851, -3.377),
+        'neck': (-2.955, -1.559, -21.849), 'head': (-3.233, -0.021),
+        'right_clavicle': (15.399, -5.127), 'right_shoulder': (89.171, 20.446, 14.082),
+        'right_elbow': (41.739, 23.787), 'right_wrist': (4.341, -8.45),
+    })
+    human.KeyJoints(11.8, {
+        'spine_lumbar': (7.208, 1.058, 0.114), 'spine_thoracic': (-2.536, -3.905, 0.061),
+        'neck': (-0.383, -0.641, -24.833), 'head': (-0.516, -0.001),
+        'right_clavicle': (5.573, -0.916), 'right_shoulder': (87.293, 13.109, 3.593),
+        'right_elbow': (34.992, 13.9), 'right_wrist': (-0.026, -22.933),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    human.KeyJoints(11.9, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
         'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
         'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
         'right_wrist': (-1.641, -28.669),
     })
-    human.KeyJoints(11.2, {
-        'spine_lumbar': (8.308, 1.11, 0.977), 'spine_thoracic': (-3.043, -3.478, 0.968),
-        'neck': (-0.68, -0.788, -26.508), 'head': (-0.85, -0.002),
-        'right_clavicle': (5.107, -0.063), 'right_shoulder': (89.361, 13.261, 1.842),
-        'right_elbow': (33.85, 12.484), 'right_wrist': (-0.777, -25.244),
+    human.KeyJoints(12.0, {
+        'spine_lumbar': (10.067, 1.287, 0.409), 'spine_thoracic': (-3.618, -5.151, 0.364),
+        'neck': (-0.906, -0.882, -26.906), 'head': (-1.097, -0.003),
+        'right_clavicle': (7.539, -1.069), 'right_shoulder': (88.034, 15.498, 3.859),
+        'right_elbow': (35.196, 14.65), 'right_wrist': (0.021, -21.709),
     })
-    human.KeyJoints(11.3, {
-        'spine_lumbar': (12.31, 2.045, -0.449), 'spine_thoracic': (-3.559, -6.935, -0.506),
-        'neck': (-1.864, -1.249, -27.076), 'head': (-2.124, -0.01),
-        'right_shoulder': (88.094, 17.946, 6.622), 'right_elbow': (37.044, 17.439),
-        'right_wrist': (1.201, -17.498),
+    human.KeyJoints(12.1, {
+        'spine_lumbar': (14.155, 3.032, -1.06), 'spine_thoracic': (-3.635, -8.493, -1.135),
+        'neck': (-2.63, -1.537, -27.013), 'head': (-2.945, -0.017),
+        'right_clavicle': (12.928, -3.349), 'right_shoulder': (88.338, 20.165, 8.787),
+        'right_elbow': (38.54, 19.656), 'right_wrist': (2.072, -13.896),
     })
-    human.KeyJoints(11.4, {
-        'spine_lumbar': (16.482, 4.92, -2.585), 'spine_thoracic': (-2.458, -10.0, -2.453),
-        'neck': (-4.598, -2.249, -25.527), 'head': (-5.029, -0.049),
-        'right_clavicle': (15.652, -4.512), 'right_shoulder': (91.917, 22.137, 12.247),
-        'right_elbow': (40.701, 22.69), 'right_wrist': (3.639, -10.304),
+    human.KeyJoints(12.2, {
+        'spine_lumbar': (16.291, 5.43, -3.484), 'spine_thoracic': (-1.34, -10.0, -3.344),
+        'neck': (-5.22, -2.447, -23.617), 'head': (-5.664, -0.064),
+        'right_clavicle': (16.604, -5.28), 'right_shoulder': (93.254, 22.429, 14.163),
+        'right_elbow': (41.806, 24.102), 'right_wrist': (4.472, -8.361),
     })
-    human.KeyJoints(11.5, {
-        'spine_lumbar': (11.62, 3.851, -3.264), 'spine_thoracic': (-1.855, -9.42, -3.151),
-        'neck': (-2.303, -1.315, -21.996), 'head': (-2.541, -0.013),
-        'right_clavicle': (14.492, -4.834), 'right_shoulder': (88.296, 19.647, 13.313),
-        'right_elbow': (41.246, 23.053), 'right_wrist': (4.009, -9.452),
-    })
-    human.KeyJoints(11.6, {
-        'spine_lumbar': (6.661, 0.855, 0.484), 'spine_thoracic': (-2.134, -3.116, 0.447),
-        'neck': (-0.387, -0.649, -25.072), 'head': (-0.523, -0.001),
-        'right_clavicle': (4.39, -0.38), 'right_shoulder': (88.775, 12.11, 2.254),
-        'right_elbow': (33.803, 12.619), 'right_wrist': (-0.501, -25.661),
+    human.KeyJoints(12.3, {
+        'spine_lumbar': (8.505, 1.243, -1.609), 'spine_thoracic': (-2.59, -6.566, -1.626),
+        'neck': (-0.471, -0.651, -23.297), 'head': (-0.599, -0.002),
+        'right_clavicle': (9.546, -2.922), 'right_shoulder': (85.717, 15.992, 8.242),
+        'right_elbow': (37.926, 18.28), 'right_wrist': (1.875, -16.318),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=11.63977, duration=0.072)
-    human.KeyJoints(11.7, {
+    human.Grasp('right_hand', 'open', start=12.394506, duration=0.072)
+    human.KeyJoints(12.4, {
         'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
         'neck': (-0.615, -0.753, -25.987), 'head': (-0.775, -0.002),
         'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.802, 10.558, -0.344),
         'right_elbow': (31.97, 10.16), 'right_wrist': (-1.501, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 112.0), start=11.71177, duration=0.2628)
-    human.KeyJoints(11.8, {'neck': (-0.78, -0.583, -13.957), 'head': (-0.879, -0.002)})
-    human.KeyJoints(11.9, {
-        'spine_lumbar': (6.11, 0.814, 1.423), 'neck': (-1.12, -0.232, 10.87),
-        'head': (-1.094, -0.003),
+    human.LookAt((20.0, 135.0, 112.0), start=12.466506, duration=0.2628)
+    human.KeyJoints(12.5, {'neck': (-0.643, -0.724, -23.943), 'head': (-0.793, -0.002)})
+    human.KeyJoints(12.6, {'neck': (-0.937, -0.422, -2.522)})
+    human.KeyJoints(12.7, {
+        'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
+        'neck': (-1.222, -0.127, 18.264), 'head': (-1.158, -0.003),
+        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.802, 10.558, -0.344),
+        'right_elbow': (31.97, 10.16), 'right_wrist': (-1.501, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 112.0), start=11.97457, duration=10.521694)
-    human.KeyJoints(12.0, {
-        'spine_lumbar': (6.076, 0.71, 1.482), 'spine_thoracic': (-1.691, -1.621, 1.466),
-        'neck': (-1.228, -0.103, 19.575), 'head': (-1.157, -0.003),
-        'right_clavicle': (2.313, 0.843), 'right_shoulder': (91.77, 10.498, -0.314),
-        'right_elbow': (31.991, 10.173), 'right_wrist': (-1.493, -29.98),
+    human.LookAt((20.0, 135.0, 112.0), start=12.729306, duration=10.521694)
+    human.KeyJoints(12.8, {
+        'spine_lumbar': (5.866, 0.063, 1.854), 'spine_thoracic': (-1.943, -1.738, 1.82),
+        'neck': (-1.145, -0.103, 18.191), 'head': (-1.077, -0.004), 'right_clavicle': (2.304, 1.2),
+        'right_shoulder': (91.567, 10.131, -0.13), 'right_elbow': (32.126, 10.248),
+        'right_wrist': (-1.44, -29.855),
     })
-    human.KeyJoints(12.1, {
-        'spine_lumbar': (5.404, -1.353, 2.667), 'spine_thoracic': (-2.495, -1.993, 2.592),
-        'neck': (-0.915, -0.11, 14.754), 'head': (-0.853, -0.005), 'right_clavicle': (2.28, 1.98),
-        'right_shoulder': (91.105, 9.326, 0.274), 'right_elbow': (32.42, 10.414),
-        'right_wrist': (-1.324, -29.582),
+    human.KeyJoints(12.9, {
+        'spine_lumbar': (4.901, -2.896, 3.553), 'spine_thoracic': (-3.098, -2.272, 3.435),
+        'neck': (-0.626, -0.134, 11.013), 'head': (-0.568, -0.005),
+        'right_clavicle': (2.251, 2.832), 'right_shoulder': (90.575, 8.449, 0.714),
+        'right_elbow': (32.741, 10.594), 'right_wrist': (-1.197, -29.285),
     })
-    human.KeyJoints(12.2, {
-        'spine_lumbar': (4.209, -5.02, 4.773), 'spine_thoracic': (-3.926, -2.655, 4.595),
-        'neck': (-0.169, -0.193, 5.953), 'head': (-0.113, -0.004), 'right_clavicle': (2.205, 4.003),
-        'right_shoulder': (89.794, 7.241, 1.319),
+    human.KeyJoints(13.0, {
+        'spine_lumbar': (3.617, -6.839, 5.817), 'spine_thoracic': (-4.636, -2.983, 5.588),
+        'neck': (0.306, -0.269, 1.484), 'head': (0.365, -0.004), 'right_clavicle': (2.156, 5.006),
+        'right_shoulder': (89.064, 6.208, 1.838),
     })
-    human.KeyJoints(12.3, {
-        'spine_lumbar': (2.939, -8.919, 7.012), 'spine_thoracic': (-5.447, -3.359, 6.724),
-        'neck': (0.909, -0.381, -3.472), 'head': (0.976, -0.004), 'right_clavicle': (2.087, 6.154),
-        'right_shoulder': (88.12, 5.025, 2.431), 'right_elbow': (33.994, 11.298),
-        'right_wrist': (-0.703, -28.124),
+    human.KeyJoints(13.1, {
+        'spine_lumbar': (2.46, -10.391, 7.857), 'spine_thoracic': (-6.021, -3.624, 7.527),
+        'neck': (1.365, -0.475, -6.821), 'head': (1.444, -0.003), 'right_clavicle': (2.02, 6.965),
+        'right_shoulder': (87.32, 4.189, 2.85), 'right_elbow': (34.3, 11.47),
+        'right_wrist': (-0.583, -27.841),
     })
-    human.KeyJoints(12.4, {
-        'spine_lumbar': (2.041, -11.675, 8.594), 'spine_thoracic': (-6.523, -3.856, 8.229),
-        'neck': (1.783, -0.572, -9.74), 'head': (1.884, 0.0), 'right_clavicle': (1.928, 7.674),
-        'right_shoulder': (86.369, 3.458, 3.217), 'right_elbow': (34.568, 11.62),
-        'right_wrist': (-0.477, -27.593),
+    human.KeyJoints(13.2, {
+        'spine_lumbar': (1.877, -12.178, 8.883), 'spine_thoracic': (-6.719, -3.947, 8.503),
+        'neck': (1.954, -0.606, -10.876), 'head': (2.064, -0.002), 'right_clavicle': (1.843, 7.951),
+        'right_shoulder': (85.628, 3.173, 3.36), 'right_elbow': (34.672, 11.679),
+        'right_wrist': (-0.436, -27.496),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
-    human.KeyJoints(12.5, {
-        'spine_lumbar': (3.516, -12.235, 8.712), 'spine_thoracic': (-5.954, -3.85, 8.371),
-        'neck': (0.792, -0.206, -10.759), 'head': (0.833, 0.001), 'right_clavicle': (1.683, 7.778),
-        'right_shoulder': (84.932, 3.817, 3.068), 'right_elbow': (34.016, 11.613),
-        'right_wrist': (-0.534, -27.906),
+    human.KeyJoints(13.3, {
+        'spine_lumbar': (6.057, -13.524, 9.425), 'spine_thoracic': (-7.581, -4.301, 9.027),
+        'neck': (0.329, 0.012, -13.86), 'head': (0.334, 0.003), 'right_clavicle': (2.401, 7.977),
+        'right_shoulder': (87.99, 5.958, 1.841), 'right_elbow': (33.265, 11.256),
+        'right_wrist': (-1.055, -29.33),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=12.58022, duration=0.072)
-    human.KeyJoints(12.6, {
+    human.Grasp('right_hand', 'close', start=13.334957, duration=0.072)
+    human.KeyJoints(13.4, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.535, 7.271, 1.146), 'right_elbow': (32.827, 11.054),
         'right_wrist': (-1.354, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
-    human.KeyJoints(12.7, {
-        'spine_lumbar': (2.716, -16.876, 8.785), 'spine_thoracic': (-8.732, -5.757, 8.513),
-        'neck': (2.568, -0.686, -16.678), 'head': (2.709, -0.019), 'right_clavicle': (2.728, 7.417),
-        'right_shoulder': (88.937, 6.845, -3.689), 'right_elbow': (23.029, 7.522),
-        'right_wrist': (-3.062, -30.0),
-    })
-    human.KeyJoints(12.8, {
-        'spine_lumbar': (2.757, -19.902, 6.472), 'spine_thoracic': (-9.574, -9.997, 6.681),
-        'neck': (3.408, -0.941, -17.987), 'head': (3.604, -0.027), 'right_clavicle': (7.55, 5.231),
-        'right_shoulder': (85.654, 9.9, 0.606), 'right_elbow': (22.766, 11.945),
-        'right_wrist': (-1.131, -29.127),
-    })
-    human.KeyJoints(12.9, {
-        'spine_lumbar': (4.068, -20.0, 3.902), 'spine_thoracic': (-8.854, -10.0, 5.369),
-        'neck': (2.251, -0.607, -15.325), 'head': (2.373, -0.016),
-        'right_clavicle': (15.016, 3.941), 'right_shoulder': (87.158, 12.344, 7.746),
-        'right_elbow': (22.11, 19.069), 'right_wrist': (2.694, -25.565),
-    })
-    human.KeyJoints(13.0, {
-        'spine_lumbar': (3.984, -18.52, 3.026), 'spine_thoracic': (-9.903, -10.0, 5.379),
-        'neck': (2.609, -0.788, -12.517), 'head': (2.755, -0.012),
-        'right_clavicle': (22.315, 3.699), 'right_shoulder': (87.052, 14.335, 13.377),
-        'right_elbow': (20.765, 24.423), 'right_wrist': (5.672, -20.96),
-    })
-    human.KeyJoints(13.1, {
-        'spine_lumbar': (-0.999, -19.933, 4.406), 'spine_thoracic': (-7.971, -10.0, 5.479),
-        'neck': (4.087, -1.264, -13.257), 'head': (4.323, -0.028),
-        'right_clavicle': (11.325, 4.574), 'right_shoulder': (84.957, 8.072, 5.904),
-        'right_elbow': (21.973, 16.364), 'right_wrist': (1.756, -27.276),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
-    human.KeyJoints(13.2, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
-    })
-    human.KeyJoints(13.3, {
-        'spine_lumbar': (2.422, -18.776, 7.271), 'spine_thoracic': (-8.756, -8.203, 7.319),
-        'neck': (2.939, -0.801, -17.157), 'head': (3.104, -0.022), 'right_clavicle': (5.153, 6.163),
-        'right_shoulder': (87.643, 8.219, -1.419), 'right_elbow': (22.457, 9.887),
-        'right_wrist': (-1.961, -29.997),
-    })
-    human.KeyJoints(13.4, {
-        'spine_lumbar': (3.335, -20.0, 4.785), 'spine_thoracic': (-8.647, -10.0, 5.779),
-        'neck': (2.552, -0.692, -16.111), 'right_clavicle': (11.701, 4.52),
-        'right_shoulder': (87.113, 10.968, 4.796), 'right_elbow': (22.007, 16.114),
-        'right_wrist': (1.231, -27.394),
-    })
     human.KeyJoints(13.5, {
-        'spine_lumbar': (4.792, -18.733, 3.38), 'spine_thoracic': (-9.825, -10.0, 5.548),
-        'neck': (2.215, -0.627, -13.708), 'head': (2.336, -0.014),
-        'right_clavicle': (20.721, 3.862), 'right_shoulder': (87.502, 14.266, 11.634),
-        'right_elbow': (20.495, 23.018), 'right_wrist': (4.852, -22.133),
+        'spine_lumbar': (2.377, -18.466, 7.42), 'spine_thoracic': (-8.608, -7.698, 7.457),
+        'neck': (2.848, -0.773, -17.037), 'head': (3.007, -0.021), 'right_clavicle': (4.522, 6.415),
+        'right_shoulder': (88.195, 7.781, -1.998), 'right_elbow': (22.233, 9.315),
+        'right_wrist': (-2.158, -30.0),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (0.132, -19.228, 3.236), 'spine_thoracic': (-8.844, -10.0, 5.269),
-        'neck': (3.859, -1.232, -11.961), 'head': (4.081, -0.015), 'right_clavicle': (18.782, 3.91),
-        'right_shoulder': (85.32, 10.759, 12.007), 'right_elbow': (21.39, 22.417),
-        'right_wrist': (4.92, -22.495),
+        'spine_lumbar': (3.19, -20.0, 5.014), 'spine_thoracic': (-8.58, -10.0, 5.876),
+        'neck': (2.604, -0.705, -16.351), 'right_clavicle': (10.744, 4.654),
+        'right_shoulder': (87.149, 10.608, 3.993), 'right_elbow': (22.111, 15.308),
+        'right_wrist': (0.817, -27.877),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (0.877, -18.477, 7.21), 'spine_thoracic': (-8.36, -7.802, 7.195),
-        'neck': (3.425, -0.988, -15.965), 'head': (3.621, -0.027), 'right_clavicle': (4.783, 6.37),
-        'right_shoulder': (87.046, 7.037, -1.255), 'right_elbow': (22.438, 9.724),
-        'right_wrist': (-1.837, -29.506),
+        'spine_lumbar': (4.524, -18.893, 3.569), 'spine_thoracic': (-9.692, -10.0, 5.58),
+        'neck': (2.299, -0.648, -13.976), 'head': (2.425, -0.015), 'right_clavicle': (19.69, 3.971),
+        'right_shoulder': (87.398, 13.851, 10.789), 'right_elbow': (20.499, 22.168),
+        'right_wrist': (4.428, -22.76),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.8, {
-        'spine_lumbar': (2.449, -17.4, 8.494), 'spine_thoracic': (-8.733, -6.204, 8.284),
-        'neck': (2.763, -0.747, -16.876), 'head': (2.917, -0.021), 'right_clavicle': (2.938, 7.207),
-        'right_shoulder': (88.701, 6.942, -3.702), 'right_elbow': (22.482, 7.572),
-        'right_wrist': (-3.042, -30.0),
+        'spine_lumbar': (0.588, -19.023, 3.059), 'spine_thoracic': (-9.113, -10.0, 5.242),
+        'neck': (3.772, -1.205, -11.788), 'head': (3.99, -0.012), 'right_clavicle': (20.337, 3.804),
+        'right_shoulder': (85.476, 11.569, 13.071), 'right_elbow': (21.23, 23.544),
+        'right_wrist': (5.474, -21.519),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (2.853, -19.991, 5.731), 'spine_thoracic': (-8.647, -10.0, 6.225),
-        'neck': (2.863, -0.774, -17.165), 'head': (3.023, -0.021), 'right_clavicle': (8.367, 5.032),
-        'right_shoulder': (86.968, 9.885, 1.777), 'right_elbow': (22.348, 13.107),
-        'right_wrist': (-0.351, -28.747),
+        'spine_lumbar': (0.109, -19.073, 6.465), 'spine_thoracic': (-8.176, -8.662, 6.607),
+        'neck': (3.649, -1.076, -15.517), 'head': (3.858, -0.029), 'right_clavicle': (5.991, 5.878),
+        'right_shoulder': (86.217, 7.174, 0.232), 'right_elbow': (22.355, 11.065),
+        'right_wrist': (-1.1, -29.192),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
-        'spine_lumbar': (4.246, -19.934, 3.745), 'spine_thoracic': (-8.986, -10.0, 5.331),
-        'neck': (2.211, -0.598, -15.006), 'head': (2.331, -0.015), 'right_clavicle': (16.28, 3.866),
-        'right_shoulder': (87.209, 12.82, 8.707), 'right_elbow': (22.026, 20.042),
-        'right_wrist': (3.204, -24.791),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (2.516, -18.659, 2.998), 'spine_thoracic': (-9.665, -10.0, 5.288),
-        'neck': (3.085, -0.963, -12.085), 'head': (3.26, -0.012), 'right_clavicle': (21.94, 3.716),
-        'right_shoulder': (86.314, 13.459, 13.479), 'right_elbow': (20.897, 24.315),
-        'right_wrist': (5.699, -20.995),
+        'spine_lumbar': (2.773, -19.922, 6.359), 'spine_thoracic': (-9.458, -9.998, 6.608),
+        'neck': (3.346, -0.922, -17.9), 'head': (3.538, -0.026), 'right_clavicle': (7.68, 5.194),
+        'right_shoulder': (85.782, 9.898, 0.783), 'right_elbow': (22.748, 12.121),
+        'right_wrist': (-1.021, -29.049),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (-1.085, -20.0, 4.851), 'spine_thoracic': (-7.89, -9.999, 5.581),
-        'neck': (4.114, -1.266, -13.907), 'head': (4.352, -0.03), 'right_clavicle': (9.452, 4.837),
-        'right_shoulder': (84.931, 7.648, 4.138), 'right_elbow': (22.109, 14.667),
-        'right_wrist': (0.854, -28.163),
+        'spine_lumbar': (4.116, -20.0, 3.852), 'spine_thoracic': (-8.866, -10.0, 5.345),
+        'neck': (2.231, -0.602, -15.285), 'head': (2.352, -0.016),
+        'right_clavicle': (15.195, 3.907), 'right_shoulder': (87.166, 12.424, 7.909),
+        'right_elbow': (22.132, 19.233), 'right_wrist': (2.773, -25.453),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.3, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (3.749, -18.541, 3.02), 'spine_thoracic': (-9.867, -10.0, 5.363),
+        'neck': (2.687, -0.816, -12.445), 'head': (2.838, -0.013),
+        'right_clavicle': (22.262, 3.701), 'right_shoulder': (86.933, 14.202, 13.398),
+        'right_elbow': (20.786, 24.408), 'right_wrist': (5.677, -20.965),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (2.55, -19.179, 7.216), 'spine_thoracic': (-9.678, -8.838, 7.248),
-        'neck': (3.422, -0.951, -17.75), 'head': (3.618, -0.027), 'right_clavicle': (6.059, 5.866),
-        'right_shoulder': (86.067, 9.095, -0.835), 'right_elbow': (22.92, 10.466),
-        'right_wrist': (-1.833, -29.963),
+        'spine_lumbar': (-1.025, -19.953, 4.481), 'spine_thoracic': (-7.946, -10.0, 5.495),
+        'neck': (4.095, -1.265, -13.367), 'head': (4.331, -0.029),
+        'right_clavicle': (10.964, 4.617), 'right_shoulder': (84.948, 7.977, 5.577),
+        'right_elbow': (21.999, 16.048), 'right_wrist': (1.589, -27.474),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
-        'spine_lumbar': (3.534, -20.0, 4.509), 'spine_thoracic': (-8.723, -10.0, 5.658),
-        'neck': (2.476, -0.672, -15.833), 'head': (2.612, -0.018),
-        'right_clavicle': (12.833, 4.351), 'right_shoulder': (87.11, 11.41, 5.767),
-        'right_elbow': (21.97, 17.087), 'right_wrist': (1.724, -26.804),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (5.182, -18.467, 3.155), 'spine_thoracic': (-10.044, -10.0, 5.517),
-        'neck': (2.096, -0.596, -13.384), 'head': (2.21, -0.011), 'right_clavicle': (22.271, 3.717),
-        'right_shoulder': (87.674, 14.897, 12.817), 'right_elbow': (20.559, 24.256),
-        'right_wrist': (5.459, -21.132),
+        'spine_lumbar': (2.44, -18.843, 7.261), 'spine_thoracic': (-8.903, -8.308, 7.307),
+        'neck': (3.016, -0.825, -17.245), 'head': (3.186, -0.023), 'right_clavicle': (5.302, 6.114),
+        'right_shoulder': (87.388, 8.359, -1.32), 'right_elbow': (22.536, 9.985),
+        'right_wrist': (-1.939, -29.994),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (-0.354, -19.498, 3.556), 'spine_thoracic': (-8.504, -10.0, 5.32),
-        'neck': (3.938, -1.25, -12.236), 'head': (4.165, -0.018), 'right_clavicle': (16.394, 4.092),
-        'right_shoulder': (85.16, 9.753, 10.178), 'right_elbow': (21.593, 20.565),
-        'right_wrist': (3.968, -24.078),
+        'spine_lumbar': (3.365, -20.0, 4.739), 'spine_thoracic': (-8.661, -10.0, 5.76),
+        'neck': (2.541, -0.689, -16.064), 'head': (2.681, -0.018),
+        'right_clavicle': (11.892, 4.493), 'right_shoulder': (87.11, 11.041, 4.957),
+        'right_elbow': (21.987, 16.275), 'right_wrist': (1.313, -27.294),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (1.748, -17.802, 7.997), 'spine_thoracic': (-8.568, -6.826, 7.847),
-        'neck': (3.1, -0.869, -16.419), 'head': (3.275, -0.024), 'right_clavicle': (3.61, 6.893),
-        'right_shoulder': (87.984, 6.913, -2.744), 'right_elbow': (22.516, 8.392),
-        'right_wrist': (-2.574, -29.795),
+        'spine_lumbar': (4.854, -18.69, 3.343), 'spine_thoracic': (-9.86, -10.0, 5.542),
+        'neck': (2.196, -0.623, -13.653), 'head': (2.317, -0.013),
+        'right_clavicle': (20.976, 3.838), 'right_shoulder': (87.528, 14.368, 11.829),
+        'right_elbow': (20.499, 23.221), 'right_wrist': (4.953, -21.971),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.9, {
-        'spine_lumbar': (2.354, -18.03, 7.96), 'spine_thoracic': (-8.685, -6.999, 7.865),
-        'neck': (2.842, -0.771, -17.011), 'right_clavicle': (3.76, 6.785),
-        'right_shoulder': (88.397, 7.398, -2.92), 'right_elbow': (22.236, 8.391),
-        'right_wrist': (-2.643, -30.0),
+        'spine_lumbar': (0.046, -19.273, 3.282), 'spine_thoracic': (-8.788, -10.0, 5.276),
+        'neck': (3.873, -1.236, -12.003), 'head': (4.096, -0.016),
+        'right_clavicle': (18.415, 3.937), 'right_shoulder': (85.291, 10.591, 11.736),
+        'right_elbow': (21.423, 22.139), 'right_wrist': (4.779, -22.736),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (2.986, -20.0, 5.321), 'spine_thoracic': (-8.506, -10.0, 6.013),
-        'neck': (2.677, -0.722, -16.687), 'head': (2.825, -0.02), 'right_clavicle': (9.373, 4.852),
-        'right_shoulder': (87.188, 10.036, 2.84), 'right_elbow': (22.204, 14.162),
-        'right_wrist': (0.246, -28.372),
+        'spine_lumbar': (1.032, -18.357, 7.353), 'spine_thoracic': (-8.397, -7.629, 7.312),
+        'neck': (3.377, -0.97, -16.042), 'head': (3.57, -0.027), 'right_clavicle': (4.563, 6.465),
+        'right_shoulder': (87.212, 7.013, -1.531), 'right_elbow': (22.452, 9.476),
+        'right_wrist': (-1.974, -29.561),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
-        'spine_lumbar': (4.295, -19.237, 3.725), 'spine_thoracic': (-9.433, -10.0, 5.575),
-        'neck': (2.339, -0.654, -14.433), 'head': (2.466, -0.016),
-        'right_clavicle': (18.066, 4.026), 'right_shoulder': (87.281, 13.287, 9.631),
-        'right_elbow': (20.681, 20.997), 'right_wrist': (3.799, -23.723),
+        'spine_lumbar': (2.429, -17.5, 8.413), 'spine_thoracic': (-8.727, -6.325, 8.22),
+        'neck': (2.779, -0.752, -16.901), 'head': (2.933, -0.021), 'right_clavicle': (3.061, 7.143),
+        'right_shoulder': (88.655, 7.011, -3.589), 'right_elbow': (22.432, 7.692),
+        'right_wrist': (-2.984, -30.0),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (1.312, -18.813, 2.986), 'spine_thoracic': (-9.414, -10.0, 5.235),
-        'neck': (3.565, -1.139, -11.733), 'head': (3.77, -0.011), 'right_clavicle': (21.453, 3.738),
-        'right_shoulder': (85.745, 12.557, 13.522), 'right_elbow': (21.041, 24.168),
-        'right_wrist': (5.71, -21.044),
+        'spine_lumbar': (2.871, -19.997, 5.627), 'spine_thoracic': (-8.542, -10.0, 6.166),
+        'neck': (2.789, -0.753, -17.033), 'head': (2.944, -0.021), 'right_clavicle': (8.517, 5.001),
+        'right_shoulder': (87.126, 9.883, 1.973), 'right_elbow': (22.29, 13.301),
+        'right_wrist': (-0.226, -28.686),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (-0.776, -19.76, 5.465), 'spine_thoracic': (-7.964, -9.654, 5.895),
-        'neck': (3.98, -1.211, -14.634), 'head': (4.21, -0.03), 'right_clavicle': (7.877, 5.226),
-        'right_shoulder': (85.263, 7.414, 2.444), 'right_elbow': (22.224, 13.083),
-        'right_wrist': (0.002, -28.661),
+        'spine_lumbar': (4.256, -19.847, 3.741), 'spine_thoracic': (-9.048, -10.0, 5.365),
+        'neck': (2.229, -0.606, -14.919), 'head': (2.35, -0.015), 'right_clavicle': (16.561, 3.888),
+        'right_shoulder': (87.22, 12.898, 8.862), 'right_elbow': (21.842, 20.202),
+        'right_wrist': (3.301, -24.622),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.4, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.279, -18.684, 2.995), 'spine_thoracic': (-9.622, -10.0, 5.276),
+        'neck': (3.176, -0.997, -12.01), 'right_clavicle': (21.865, 3.719),
+        'right_shoulder': (86.198, 13.303, 13.49), 'right_elbow': (20.921, 24.293),
+        'right_wrist': (5.702, -21.003),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (2.656, -19.618, 6.969), 'spine_thoracic': (-9.711, -9.603, 7.037),
-        'neck': (3.449, -0.958, -17.965), 'head': (3.647, -0.027), 'right_clavicle': (6.808, 5.531),
-        'right_shoulder': (85.652, 9.672, -0.195), 'right_elbow': (22.92, 11.121),
-        'right_wrist': (-1.577, -29.652),
+        'spine_lumbar': (-1.072, -19.99, 4.931), 'spine_thoracic': (-7.894, -9.985, 5.608),
+        'neck': (4.108, -1.264, -14.017), 'head': (4.346, -0.03), 'right_clavicle': (9.198, 4.886),
+        'right_shoulder': (84.945, 7.607, 3.878), 'right_elbow': (22.128, 14.42),
+        'right_wrist': (0.723, -28.248),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
-        'spine_lumbar': (3.769, -20.0, 4.232), 'spine_thoracic': (-8.79, -10.0, 5.529),
-        'neck': (2.38, -0.645, -15.564), 'head': (2.51, -0.017), 'right_clavicle': (13.945, 4.171),
-        'right_shoulder': (87.125, 11.862, 6.749), 'right_elbow': (22.006, 18.07),
-        'right_wrist': (2.213, -26.204),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (5.076, -18.43, 3.069), 'spine_thoracic': (-10.061, -10.0, 5.468),
-        'neck': (2.162, -0.623, -12.992), 'head': (2.28, -0.011), 'right_clavicle': (22.534, 3.69),
-        'right_shoulder': (87.614, 14.925, 13.214), 'right_elbow': (20.65, 24.484),
-        'right_wrist': (5.625, -20.941),
+        'spine_lumbar': (2.57, -19.246, 7.2), 'spine_thoracic': (-9.732, -8.944, 7.229),
+        'neck': (3.45, -0.959, -17.809), 'head': (3.648, -0.027), 'right_clavicle': (6.199, 5.814),
+        'right_shoulder': (85.934, 9.207, -0.731), 'right_elbow': (22.946, 10.57),
+        'right_wrist': (-1.803, -29.953),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (-0.741, -19.747, 3.956), 'spine_thoracic': (-8.196, -10.0, 5.39),
-        'neck': (4.017, -1.259, -12.641), 'head': (4.249, -0.023),
-        'right_clavicle': (13.794, 4.317), 'right_shoulder': (85.036, 8.822, 8.049),
-        'right_elbow': (21.793, 18.456), 'right_wrist': (2.863, -25.781),
+        'spine_lumbar': (3.572, -20.0, 4.463), 'spine_thoracic': (-8.734, -10.0, 5.637),
+        'neck': (2.461, -0.668, -15.787), 'head': (2.596, -0.018), 'right_clavicle': (13.02, 4.321),
+        'right_shoulder': (87.112, 11.485, 5.931), 'right_elbow': (21.974, 17.251),
+        'right_wrist': (1.806, -26.706),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (2.347, -17.337, 8.515), 'spine_thoracic': (-8.712, -6.155, 8.29),
-        'neck': (2.81, -0.765, -16.754), 'head': (2.967, -0.021), 'right_clavicle': (2.887, 7.238),
-        'right_shoulder': (88.63, 6.841, -3.684), 'right_elbow': (22.564, 7.556),
-        'right_wrist': (-3.037, -29.965),
+        'spine_lumbar': (5.225, -18.439, 3.128), 'spine_thoracic': (-10.068, -10.0, 5.511),
+        'neck': (2.083, -0.593, -13.326), 'head': (2.196, -0.011),
+        'right_clavicle': (22.437, 3.701), 'right_shoulder': (87.693, 14.965, 12.957),
+        'right_elbow': (20.574, 24.389), 'right_wrist': (5.528, -21.024),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.0, {
-        'spine_lumbar': (2.371, -18.403, 7.493), 'spine_thoracic': (-8.619, -7.592, 7.513),
-        'neck': (2.847, -0.773, -17.034), 'head': (3.006, -0.021), 'right_clavicle': (4.402, 6.471),
-        'right_shoulder': (88.194, 7.718, -2.143), 'right_elbow': (22.279, 9.17),
-        'right_wrist': (-2.234, -30.0),
+        'spine_lumbar': (-0.426, -19.542, 3.618), 'spine_thoracic': (-8.449, -10.0, 5.331),
+        'neck': (3.951, -1.252, -12.285), 'head': (4.179, -0.019),
+        'right_clavicle': (15.965, 4.127), 'right_shoulder': (85.136, 9.589, 9.835),
+        'right_elbow': (21.627, 20.222), 'right_wrist': (3.79, -24.364),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (3.158, -20.0, 5.065), 'spine_thoracic': (-8.568, -10.0, 5.898),
-        'neck': (2.617, -0.708, -16.405), 'right_clavicle': (10.535, 4.684),
-        'right_shoulder': (87.137, 10.531, 3.815), 'right_elbow': (22.153, 15.13),
-        'right_wrist': (0.724, -27.96),
+        'spine_lumbar': (1.873, -17.705, 8.107), 'spine_thoracic': (-8.598, -6.686, 7.94),
+        'neck': (3.044, -0.849, -16.488), 'head': (3.215, -0.024), 'right_clavicle': (3.453, 6.965),
+        'right_shoulder': (88.119, 6.897, -2.945), 'right_elbow': (22.526, 8.212),
+        'right_wrist': (-2.673, -29.832),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
-        'spine_lumbar': (4.467, -18.926, 3.611), 'spine_thoracic': (-9.664, -10.0, 5.588),
-        'neck': (2.317, -0.652, -14.035), 'head': (2.443, -0.016),
-        'right_clavicle': (19.466, 3.995), 'right_shoulder': (87.377, 13.763, 10.605),
-        'right_elbow': (20.502, 21.984), 'right_wrist': (4.335, -22.892),
+        'spine_lumbar': (2.354, -18.101, 7.888), 'spine_thoracic': (-8.677, -7.102, 7.809),
+        'neck': (2.843, -0.772, -17.017), 'right_clavicle': (3.871, 6.73),
+        'right_shoulder': (88.358, 7.457, -2.802), 'right_elbow': (22.236, 8.512),
+        'right_wrist': (-2.583, -30.0),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (0.692, -18.983, 3.033), 'spine_thoracic': (-9.167, -10.0, 5.238),
-        'neck': (3.749, -1.197, -11.761), 'head': (3.965, -0.012),
-        'right_clavicle': (20.602, 3.787), 'right_shoulder': (85.513, 11.737, 13.229),
-        'right_elbow': (21.198, 23.722), 'right_wrist': (5.557, -21.367),
+        'spine_lumbar': (3.014, -20.0, 5.277), 'spine_thoracic': (-8.515, -10.0, 5.992),
+        'neck': (2.666, -0.72, -16.638), 'head': (2.813, -0.02), 'right_clavicle': (9.564, 4.823),
+        'right_shoulder': (87.178, 10.114, 3.004), 'right_elbow': (22.197, 14.324),
+        'right_wrist': (0.327, -28.309),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (-0.051, -19.198, 6.301), 'spine_thoracic': (-8.138, -8.842, 6.482),
-        'neck': (3.703, -1.098, -15.393), 'head': (3.916, -0.029), 'right_clavicle': (6.275, 5.77),
-        'right_shoulder': (86.045, 7.208, 0.575), 'right_elbow': (22.336, 11.376),
-        'right_wrist': (-0.929, -29.116),
+        'spine_lumbar': (4.307, -19.144, 3.72), 'spine_thoracic': (-9.494, -10.0, 5.597),
+        'neck': (2.35, -0.659, -14.349), 'head': (2.479, -0.016), 'right_clavicle': (18.34, 4.04),
+        'right_shoulder': (87.295, 13.366, 9.788), 'right_elbow': (20.557, 21.158),
+        'right_wrist': (3.895, -23.559),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.5, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (1.182, -18.837, 2.985), 'spine_thoracic': (-9.376, -10.0, 5.232),
+        'neck': (3.613, -1.155, -11.714), 'head': (3.821, -0.011),
+        'right_clavicle': (21.365, 3.743), 'right_shoulder': (85.691, 12.423, 13.524),
+        'right_elbow': (21.065, 24.14), 'right_wrist': (5.711, -21.053),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (2.756, -19.9, 6.482), 'spine_thoracic': (-9.583, -9.997, 6.688),
-        'neck': (3.413, -0.943, -17.993), 'head': (3.609, -0.027), 'right_clavicle': (7.537, 5.235),
-        'right_shoulder': (85.613, 9.9, 0.591), 'right_elbow': (22.811, 11.928),
-        'right_wrist': (-1.144, -29.121),
+        'spine_lumbar': (-0.678, -19.684, 5.593), 'spine_thoracic': (-7.988, -9.544, 5.978),
+        'neck': (3.94, -1.194, -14.765), 'head': (4.167, -0.03), 'right_clavicle': (7.607, 5.309),
+        'right_shoulder': (85.369, 7.377, 2.137), 'right_elbow': (22.243, 12.802),
+        'right_wrist': (-0.151, -28.741),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
-        'spine_lumbar': (4.063, -20.0, 3.908), 'spine_thoracic': (-8.853, -10.0, 5.372),
-        'neck': (2.254, -0.608, -15.329), 'head': (2.376, -0.016),
-        'right_clavicle': (14.998, 3.945), 'right_shoulder': (87.157, 12.336, 7.73),
-        'right_elbow': (22.109, 19.053), 'right_wrist': (2.686, -25.575),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (4.007, -18.518, 3.026), 'spine_thoracic': (-9.907, -10.0, 5.38),
-        'neck': (2.601, -0.785, -12.525), 'head': (2.747, -0.012), 'right_clavicle': (22.32, 3.699),
-        'right_shoulder': (87.064, 14.348, 13.375), 'right_elbow': (20.763, 24.425),
-        'right_wrist': (5.671, -20.96),
+        'spine_lumbar': (2.673, -19.69, 6.897), 'spine_thoracic': (-9.701, -9.731, 6.983),
+        'neck': (3.448, -0.957, -17.988), 'head': (3.646, -0.027), 'right_clavicle': (6.923, 5.474),
+        'right_shoulder': (85.614, 9.749, -0.082), 'right_elbow': (22.908, 11.239),
+        'right_wrist': (-1.517, -29.552),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-0.996, -19.931, 4.398), 'spine_thoracic': (-7.974, -10.0, 5.478),
-        'neck': (4.086, -1.264, -13.246), 'head': (4.322, -0.028), 'right_clavicle': (11.362, 4.57),
-        'right_shoulder': (84.957, 8.083, 5.937), 'right_elbow': (21.97, 16.396),
-        'right_wrist': (1.774, -27.255),
+        'spine_lumbar': (3.81, -20.0, 4.186), 'spine_thoracic': (-8.802, -10.0, 5.508),
+        'neck': (2.364, -0.64, -15.521), 'head': (2.493, -0.017), 'right_clavicle': (14.129, 4.14),
+        'right_shoulder': (87.128, 11.94, 6.912), 'right_elbow': (22.014, 18.234),
+        'right_wrist': (2.294, -26.099),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.0, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (4.953, -18.44, 3.061), 'spine_thoracic': (-10.044, -10.0, 5.455),
+        'neck': (2.219, -0.644, -12.915), 'head': (2.341, -0.011),
+        'right_clavicle': (22.511, 3.691), 'right_shoulder': (87.55, 14.861, 13.245),
+        'right_elbow': (20.667, 24.477), 'right_wrist': (5.634, -20.943),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (2.42, -18.769, 7.272), 'spine_thoracic': (-8.743, -8.192, 7.321),
-        'neck': (2.932, -0.799, -17.149), 'head': (3.097, -0.022), 'right_clavicle': (5.139, 6.168),
-        'right_shoulder': (87.666, 8.205, -1.429), 'right_elbow': (22.45, 9.877),
-        'right_wrist': (-1.963, -29.997),
+        'spine_lumbar': (-0.793, -19.784, 4.028), 'spine_thoracic': (-8.152, -10.0, 5.404),
+        'neck': (4.03, -1.26, -12.732), 'head': (4.263, -0.024), 'right_clavicle': (13.366, 4.358),
+        'right_shoulder': (85.02, 8.682, 7.686), 'right_elbow': (21.824, 18.101),
+        'right_wrist': (2.676, -26.052),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (3.332, -20.0, 4.789), 'spine_thoracic': (-8.646, -10.0, 5.781),
-        'neck': (2.553, -0.692, -16.116), 'right_clavicle': (11.682, 4.522),
-        'right_shoulder': (87.113, 10.961, 4.78), 'right_elbow': (22.009, 16.098),
-        'right_wrist': (1.222, -27.405),
+        'spine_lumbar': (2.405, -17.292, 8.563), 'spine_thoracic': (-8.726, -6.09, 8.332),
+        'neck': (2.779, -0.754, -16.787), 'head': (2.934, -0.021), 'right_clavicle': (2.821, 7.27),
+        'right_shoulder': (88.692, 6.835, -3.77), 'right_elbow': (22.568, 7.479),
+        'right_wrist': (-3.08, -29.98),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
-        'spine_lumbar': (4.786, -18.737, 3.384), 'spine_thoracic': (-9.821, -10.0, 5.548),
-        'neck': (2.217, -0.628, -13.713), 'head': (2.338, -0.014),
-        'right_clavicle': (20.697, 3.864), 'right_shoulder': (87.499, 14.256, 11.616),
-        'right_elbow': (20.494, 22.998), 'right_wrist': (4.843, -22.148),
+        'spine_lumbar': (2.376, -18.46, 7.426), 'spine_thoracic': (-8.609, -7.689, 7.462),
+        'neck': (2.848, -0.773, -17.037), 'head': (3.007, -0.021), 'right_clavicle': (4.511, 6.42),
+        'right_shoulder': (88.154, 7.775, -2.01), 'right_elbow': (22.295, 9.302),
+        'right_wrist': (-2.169, -30.0),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (0.141, -19.224, 3.232), 'spine_thoracic': (-8.85, -10.0, 5.268),
-        'neck': (3.857, -1.232, -11.957), 'head': (4.079, -0.015),
-        'right_clavicle': (18.819, 3.908), 'right_shoulder': (85.323, 10.776, 12.033),
-        'right_elbow': (21.386, 22.444), 'right_wrist': (4.933, -22.472),
+        'spine_lumbar': (3.187, -20.0, 5.018), 'spine_thoracic': (-8.579, -10.0, 5.878),
+        'neck': (2.605, -0.705, -16.356), 'right_clavicle': (10.725, 4.657),
+        'right_shoulder': (87.133, 10.601, 3.977), 'right_elbow': (22.136, 15.292),
+        'right_wrist': (0.808, -27.878),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (0.862, -18.489, 7.195), 'spine_thoracic': (-8.356, -7.819, 7.183),
-        'neck': (3.429, -0.99, -15.957), 'head': (3.626, -0.027), 'right_clavicle': (4.806, 6.36),
-        'right_shoulder': (87.029, 7.039, -1.227), 'right_elbow': (22.436, 9.75),
-        'right_wrist': (-1.823, -29.5),
+        'spine_lumbar': (4.519, -18.896, 3.573), 'spine_thoracic': (-9.689, -10.0, 5.581),
+        'neck': (2.301, -0.648, -13.981), 'head': (2.426, -0.015), 'right_clavicle': (19.67, 3.973),
+        'right_shoulder': (87.396, 13.843, 10.772), 'right_elbow': (20.499, 22.151),
+        'right_wrist': (4.419, -22.772),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.6, {
-        'spine_lumbar': (2.45, -17.391, 8.502), 'spine_thoracic': (-8.734, -6.193, 8.289),
-        'neck': (2.762, -0.747, -16.874), 'head': (2.915, -0.021), 'right_clavicle': (2.926, 7.213),
-        'right_shoulder': (88.705, 6.935, -3.712), 'right_elbow': (22.487, 7.561),
-        'right_wrist': (-3.047, -30.0),
+        'spine_lumbar': (0.597, -19.019, 3.056), 'spine_thoracic': (-9.118, -10.0, 5.242),
+        'neck': (3.77, -1.204, -11.785), 'head': (3.987, -0.012), 'right_clavicle': (20.363, 3.802),
+        'right_shoulder': (85.48, 11.585, 13.087), 'right_elbow': (21.227, 23.561),
+        'right_wrist': (5.482, -21.504),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (2.851, -19.99, 5.742), 'spine_thoracic': (-8.66, -10.0, 6.231),
-        'neck': (2.871, -0.777, -17.18), 'head': (3.032, -0.022), 'right_clavicle': (8.353, 5.035),
-        'right_shoulder': (86.949, 9.885, 1.757), 'right_elbow': (22.355, 13.087),
-        'right_wrist': (-0.365, -28.753),
+        'spine_lumbar': (0.094, -19.085, 6.45), 'spine_thoracic': (-8.173, -8.679, 6.596),
+        'neck': (3.654, -1.078, -15.506), 'head': (3.864, -0.029), 'right_clavicle': (6.016, 5.868),
+        'right_shoulder': (86.201, 7.177, 0.264), 'right_elbow': (22.354, 11.093),
+        'right_wrist': (-1.084, -29.185),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
-        'spine_lumbar': (4.245, -19.941, 3.746), 'spine_thoracic': (-8.98, -10.0, 5.328),
-        'neck': (2.21, -0.597, -15.014), 'head': (2.329, -0.015), 'right_clavicle': (16.253, 3.864),
-        'right_shoulder': (87.208, 12.812, 8.691), 'right_elbow': (22.041, 20.026),
-        'right_wrist': (3.194, -24.807),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (2.54, -18.656, 2.999), 'spine_thoracic': (-9.669, -10.0, 5.29),
-        'neck': (3.075, -0.96, -12.093), 'head': (3.251, -0.012), 'right_clavicle': (21.947, 3.715),
-        'right_shoulder': (86.326, 13.474, 13.477), 'right_elbow': (20.895, 24.317),
-        'right_wrist': (5.699, -20.995),
+        'spine_lumbar': (2.771, -19.92, 6.371), 'spine_thoracic': (-9.472, -9.998, 6.616),
+        'neck': (3.354, -0.924, -17.91), 'head': (3.546, -0.026), 'right_clavicle': (7.667, 5.198),
+        'right_shoulder': (85.763, 9.899, 0.765), 'right_elbow': (22.754, 12.103),
+        'right_wrist': (-1.033, -29.056),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (-1.085, -20.0, 4.843), 'spine_thoracic': (-7.89, -10.0, 5.579),
-        'neck': (4.114, -1.266, -13.897), 'head': (4.352, -0.03), 'right_clavicle': (9.478, 4.833),
-        'right_shoulder': (84.93, 7.652, 4.164), 'right_elbow': (22.108, 14.691),
-        'right_wrist': (0.867, -28.154),
+        'spine_lumbar': (4.112, -20.0, 3.857), 'spine_thoracic': (-8.864, -10.0, 5.347),
+        'neck': (2.233, -0.602, -15.289), 'head': (2.354, -0.016), 'right_clavicle': (15.177, 3.91),
+        'right_shoulder': (87.165, 12.416, 7.893), 'right_elbow': (22.13, 19.217),
+        'right_wrist': (2.765, -25.464),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.1, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (3.773, -18.538, 3.021), 'spine_thoracic': (-9.871, -10.0, 5.364),
+        'neck': (2.679, -0.813, -12.453), 'head': (2.83, -0.013), 'right_clavicle': (22.268, 3.701),
+        'right_shoulder': (86.945, 14.216, 13.396), 'right_elbow': (20.784, 24.41),
+        'right_wrist': (5.677, -20.965),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (2.548, -19.173, 7.217), 'spine_thoracic': (-9.669, -8.827, 7.249),
-        'neck': (3.417, -0.949, -17.743), 'head': (3.614, -0.027), 'right_clavicle': (6.045, 5.871),
-        'right_shoulder': (86.085, 9.083, -0.845), 'right_elbow': (22.916, 10.455),
-        'right_wrist': (-1.835, -29.963),
+        'spine_lumbar': (-1.023, -19.951, 4.473), 'spine_thoracic': (-7.949, -10.0, 5.494),
+        'neck': (4.094, -1.265, -13.356), 'head': (4.331, -0.029),
+        'right_clavicle': (10.999, 4.613), 'right_shoulder': (84.949, 7.986, 5.61),
+        'right_elbow': (21.996, 16.079), 'right_wrist': (1.605, -27.455),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
-        'spine_lumbar': (3.531, -20.0, 4.514), 'spine_thoracic': (-8.722, -10.0, 5.66),
-        'neck': (2.478, -0.672, -15.837), 'head': (2.614, -0.018),
-        'right_clavicle': (12.814, 4.354), 'right_shoulder': (87.11, 11.403, 5.751),
-        'right_elbow': (21.97, 17.071), 'right_wrist': (1.716, -26.814),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (5.177, -18.471, 3.158), 'spine_thoracic': (-10.041, -10.0, 5.517),
-        'neck': (2.098, -0.597, -13.389), 'head': (2.212, -0.011),
-        'right_clavicle': (22.251, 3.719), 'right_shoulder': (87.672, 14.889, 12.801),
-        'right_elbow': (20.557, 24.24), 'right_wrist': (5.451, -21.145),
+        'spine_lumbar': (2.438, -18.836, 7.262), 'spine_thoracic': (-8.887, -8.297, 7.308),
+        'neck': (3.008, -0.822, -17.236), 'head': (3.177, -0.023), 'right_clavicle': (5.287, 6.119),
+        'right_shoulder': (87.416, 8.345, -1.33), 'right_elbow': (22.528, 9.975),
+        'right_wrist': (-1.941, -29.994),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (-0.346, -19.493, 3.55), 'spine_thoracic': (-8.51, -10.0, 5.319),
-        'neck': (3.937, -1.25, -12.231), 'head': (4.164, -0.018), 'right_clavicle': (16.437, 4.089),
-        'right_shoulder': (85.162, 9.77, 10.212), 'right_elbow': (21.59, 20.599),
-        'right_wrist': (3.986, -24.05),
+        'spine_lumbar': (3.362, -20.0, 4.744), 'spine_thoracic': (-8.66, -10.0, 5.762),
+        'neck': (2.542, -0.689, -16.069), 'head': (2.682, -0.018),
+        'right_clavicle': (11.873, 4.495), 'right_shoulder': (87.11, 11.034, 4.941),
+        'right_elbow': (21.989, 16.259), 'right_wrist': (1.305, -27.304),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (1.735, -17.812, 7.986), 'spine_thoracic': (-8.565, -6.841, 7.838),
-        'neck': (3.106, -0.871, -16.412), 'head': (3.281, -0.024), 'right_clavicle': (3.626, 6.885),
-        'right_shoulder': (87.97, 6.915, -2.723), 'right_elbow': (22.515, 8.411),
-        'right_wrist': (-2.563, -29.791),
+        'spine_lumbar': (4.848, -18.694, 3.347), 'spine_thoracic': (-9.857, -10.0, 5.543),
+        'neck': (2.198, -0.623, -13.659), 'head': (2.319, -0.013),
+        'right_clavicle': (20.949, 3.841), 'right_shoulder': (87.526, 14.357, 11.809),
+        'right_elbow': (20.499, 23.199), 'right_wrist': (4.942, -21.988),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.7, {
-        'spine_lumbar': (2.355, -18.022, 7.967), 'spine_thoracic': (-8.686, -6.988, 7.87),
-        'neck': (2.841, -0.771, -17.01), 'head': (3.0, -0.021), 'right_clavicle': (3.749, 6.791),
-        'right_shoulder': (88.402, 7.391, -2.933), 'right_elbow': (22.236, 8.379),
-        'right_wrist': (-2.649, -30.0),
+        'spine_lumbar': (0.054, -19.268, 3.277), 'spine_thoracic': (-8.793, -10.0, 5.275),
+        'neck': (3.872, -1.236, -11.999), 'head': (4.095, -0.015),
+        'right_clavicle': (18.453, 3.934), 'right_shoulder': (85.294, 10.608, 11.764),
+        'right_elbow': (21.42, 22.167), 'right_wrist': (4.793, -22.712),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (2.984, -20.0, 5.325), 'spine_thoracic': (-8.505, -10.0, 6.015),
-        'neck': (2.678, -0.723, -16.692), 'head': (2.826, -0.02), 'right_clavicle': (9.354, 4.855),
-        'right_shoulder': (87.188, 10.028, 2.824), 'right_elbow': (22.205, 14.145),
-        'right_wrist': (0.238, -28.379),
+        'spine_lumbar': (1.016, -18.37, 7.339), 'spine_thoracic': (-8.393, -7.646, 7.3),
+        'neck': (3.382, -0.972, -16.035), 'head': (3.575, -0.027), 'right_clavicle': (4.584, 6.455),
+        'right_shoulder': (87.195, 7.015, -1.504), 'right_elbow': (22.451, 9.501),
+        'right_wrist': (-1.961, -29.556),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
-        'spine_lumbar': (4.294, -19.248, 3.725), 'spine_thoracic': (-9.426, -10.0, 5.572),
-        'neck': (2.337, -0.654, -14.443), 'head': (2.465, -0.016),
-        'right_clavicle': (18.037, 4.024), 'right_shoulder': (87.279, 13.279, 9.615),
-        'right_elbow': (20.698, 20.981), 'right_wrist': (3.789, -23.74),
+        'spine_lumbar': (2.431, -17.489, 8.422), 'spine_thoracic': (-8.727, -6.312, 8.227),
+        'neck': (2.777, -0.752, -16.899), 'head': (2.931, -0.021), 'right_clavicle': (3.048, 7.149),
+        'right_shoulder': (88.66, 7.003, -3.601), 'right_elbow': (22.437, 7.679),
+        'right_wrist': (-2.99, -30.0),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (1.326, -18.81, 2.986), 'spine_thoracic': (-9.418, -10.0, 5.235),
-        'neck': (3.559, -1.137, -11.736), 'head': (3.764, -0.011),
-        'right_clavicle': (21.462, 3.738), 'right_shoulder': (85.751, 12.571, 13.522),
-        'right_elbow': (21.038, 24.17), 'right_wrist': (5.71, -21.043),
+        'spine_lumbar': (2.869, -19.997, 5.637), 'spine_thoracic': (-8.551, -10.0, 6.171),
+        'neck': (2.795, -0.754, -17.045), 'head': (2.951, -0.021), 'right_clavicle': (8.502, 5.004),
+        'right_shoulder': (87.113, 9.883, 1.953), 'right_elbow': (22.295, 13.282),
+        'right_wrist': (-0.238, -28.692),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (-0.785, -19.767, 5.452), 'spine_thoracic': (-7.962, -9.664, 5.887),
-        'neck': (3.984, -1.213, -14.621), 'head': (4.214, -0.03), 'right_clavicle': (7.904, 5.218),
-        'right_shoulder': (85.253, 7.418, 2.474), 'right_elbow': (22.222, 13.112),
-        'right_wrist': (0.018, -28.653),
+        'spine_lumbar': (4.255, -19.857, 3.741), 'spine_thoracic': (-9.041, -10.0, 5.361),
+        'neck': (2.227, -0.605, -14.929), 'head': (2.347, -0.015),
+        'right_clavicle': (16.532, 3.885), 'right_shoulder': (87.219, 12.89, 8.846),
+        'right_elbow': (21.863, 20.186), 'right_wrist': (3.291, -24.64),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.2, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.303, -18.682, 2.995), 'spine_thoracic': (-9.626, -10.0, 5.277),
+        'neck': (3.166, -0.994, -12.017), 'right_clavicle': (21.873, 3.719),
+        'right_shoulder': (86.21, 13.319, 13.489), 'right_elbow': (20.918, 24.295),
+        'right_wrist': (5.702, -21.002),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (2.654, -19.61, 6.976), 'spine_thoracic': (-9.712, -9.589, 7.042),
-        'neck': (3.449, -0.958, -17.963), 'head': (3.647, -0.027), 'right_clavicle': (6.796, 5.537),
-        'right_shoulder': (85.656, 9.663, -0.207), 'right_elbow': (22.921, 11.11),
-        'right_wrist': (-1.582, -29.662),
+        'spine_lumbar': (-1.074, -19.991, 4.922), 'spine_thoracic': (-7.893, -9.987, 5.604),
+        'neck': (4.109, -1.264, -14.005), 'head': (4.347, -0.03), 'right_clavicle': (9.224, 4.881),
+        'right_shoulder': (84.942, 7.611, 3.904), 'right_elbow': (22.126, 14.445),
+        'right_wrist': (0.736, -28.239),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
-        'spine_lumbar': (3.765, -20.0, 4.237), 'spine_thoracic': (-8.789, -10.0, 5.532),
-        'neck': (2.382, -0.645, -15.569), 'head': (2.512, -0.017),
-        'right_clavicle': (13.926, 4.174), 'right_shoulder': (87.125, 11.855, 6.732),
-        'right_elbow': (22.005, 18.054), 'right_wrist': (2.205, -26.214),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (5.087, -18.429, 3.069), 'spine_thoracic': (-10.063, -10.0, 5.469),
-        'neck': (2.157, -0.621, -12.999), 'head': (2.275, -0.011), 'right_clavicle': (22.536, 3.69),
-        'right_shoulder': (87.619, 14.93, 13.211), 'right_elbow': (20.648, 24.484),
-        'right_wrist': (5.625, -20.941),
+        'spine_lumbar': (2.568, -19.239, 7.201), 'spine_thoracic': (-9.729, -8.933, 7.231),
+        'neck': (3.449, -0.959, -17.804), 'head': (3.647, -0.027), 'right_clavicle': (6.185, 5.82),
+        'right_shoulder': (85.943, 9.197, -0.742), 'right_elbow': (22.945, 10.559),
+        'right_wrist': (-1.806, -29.954),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (-0.735, -19.744, 3.949), 'spine_thoracic': (-8.201, -10.0, 5.389),
-        'neck': (4.016, -1.259, -12.632), 'head': (4.247, -0.023),
-        'right_clavicle': (13.837, 4.313), 'right_shoulder': (85.038, 8.836, 8.085),
-        'right_elbow': (21.789, 18.492), 'right_wrist': (2.882, -25.753),
+        'spine_lumbar': (3.568, -20.0, 4.468), 'spine_thoracic': (-8.733, -10.0, 5.639),
+        'neck': (2.463, -0.668, -15.792), 'head': (2.598, -0.018),
+        'right_clavicle': (13.001, 4.324), 'right_shoulder': (87.111, 11.477, 5.914),
+        'right_elbow': (21.974, 17.235), 'right_wrist': (1.798, -26.716),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (2.341, -17.342, 8.509), 'spine_thoracic': (-8.71, -6.162, 8.285),
-        'neck': (2.813, -0.767, -16.75), 'head': (2.97, -0.021), 'right_clavicle': (2.894, 7.234),
-        'right_shoulder': (88.623, 6.842, -3.674), 'right_elbow': (22.563, 7.565),
-        'right_wrist': (-3.033, -29.963),
+        'spine_lumbar': (5.221, -18.441, 3.13), 'spine_thoracic': (-10.066, -10.0, 5.511),
+        'neck': (2.084, -0.593, -13.332), 'head': (2.198, -0.011),
+        'right_clavicle': (22.423, 3.702), 'right_shoulder': (87.692, 14.96, 12.945),
+        'right_elbow': (20.573, 24.377), 'right_wrist': (5.522, -21.033),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.8, {
-        'spine_lumbar': (2.37, -18.397, 7.5), 'spine_thoracic': (-8.62, -7.582, 7.519),
-        'neck': (2.847, -0.773, -17.033), 'head': (3.006, -0.021), 'right_clavicle': (4.391, 6.476),
-        'right_shoulder': (88.197, 7.713, -2.157), 'right_elbow': (22.278, 9.157),
-        'right_wrist': (-2.241, -30.0),
+        'spine_lumbar': (-0.419, -19.537, 3.612), 'spine_thoracic': (-8.455, -10.0, 5.329),
+        'neck': (3.95, -1.252, -12.28), 'head': (4.177, -0.019), 'right_clavicle': (16.008, 4.124),
+        'right_shoulder': (85.139, 9.606, 9.87), 'right_elbow': (21.624, 20.257),
+        'right_wrist': (3.808, -24.335),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (3.155, -20.0, 5.069), 'spine_thoracic': (-8.567, -10.0, 5.9),
-        'neck': (2.618, -0.708, -16.41), 'right_clavicle': (10.516, 4.687),
-        'right_shoulder': (87.138, 10.524, 3.798), 'right_elbow': (22.154, 15.113),
-        'right_wrist': (0.716, -27.968),
+        'spine_lumbar': (1.861, -17.714, 8.096), 'spine_thoracic': (-8.595, -6.7, 7.931),
+        'neck': (3.049, -0.851, -16.481), 'head': (3.221, -0.024), 'right_clavicle': (3.469, 6.958),
+        'right_shoulder': (88.105, 6.899, -2.926), 'right_elbow': (22.525, 8.23),
+        'right_wrist': (-2.664, -29.829),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
-        'spine_lumbar': (4.462, -18.929, 3.614), 'spine_thoracic': (-9.661, -10.0, 5.589),
-        'neck': (2.318, -0.652, -14.041), 'head': (2.445, -0.016),
-        'right_clavicle': (19.446, 3.997), 'right_shoulder': (87.375, 13.755, 10.588),
-        'right_elbow': (20.502, 21.967), 'right_wrist': (4.327, -22.904),
+        'spine_lumbar': (2.354, -18.094, 7.895), 'spine_thoracic': (-8.678, -7.092, 7.815),
+        'neck': (2.843, -0.772, -17.017), 'right_clavicle': (3.86, 6.736),
+        'right_shoulder': (88.361, 7.451, -2.814), 'right_elbow': (22.235, 8.5),
+        'right_wrist': (-2.589, -30.0),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (0.702, -18.979, 3.031), 'spine_thoracic': (-9.172, -10.0, 5.238),
-        'neck': (3.747, -1.197, -11.759), 'head': (3.962, -0.012),
-        'right_clavicle': (20.625, 3.785), 'right_shoulder': (85.516, 11.753, 13.242),
-        'right_elbow': (21.195, 23.737), 'right_wrist': (5.564, -21.354),
+        'spine_lumbar': (3.011, -20.0, 5.281), 'spine_thoracic': (-8.514, -10.0, 5.994),
+        'neck': (2.667, -0.72, -16.642), 'head': (2.814, -0.02), 'right_clavicle': (9.545, 4.826),
+        'right_shoulder': (87.179, 10.105, 2.988), 'right_elbow': (22.198, 14.308),
+        'right_wrist': (0.319, -28.316),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (-0.066, -19.209, 6.286), 'spine_thoracic': (-8.134, -8.858, 6.471),
-        'neck': (3.708, -1.1, -15.381), 'head': (3.921, -0.029), 'right_clavicle': (6.301, 5.76),
-        'right_shoulder': (86.029, 7.212, 0.607), 'right_elbow': (22.334, 11.405),
-        'right_wrist': (-0.913, -29.108),
+        'spine_lumbar': (4.306, -19.152, 3.72), 'spine_thoracic': (-9.488, -10.0, 5.596),
+        'neck': (2.349, -0.659, -14.357), 'head': (2.478, -0.016),
+        'right_clavicle': (18.314, 4.039), 'right_shoulder': (87.293, 13.358, 9.772),
+        'right_elbow': (20.566, 21.142), 'right_wrist': (3.886, -23.575),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.3, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (1.194, -18.835, 2.985), 'spine_thoracic': (-9.379, -10.0, 5.232),
+        'neck': (3.609, -1.154, -11.715), 'head': (3.816, -0.011),
+        'right_clavicle': (21.374, 3.742), 'right_shoulder': (85.696, 12.436, 13.524),
+        'right_elbow': (21.062, 24.143), 'right_wrist': (5.711, -21.052),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (2.754, -19.898, 6.493), 'spine_thoracic': (-9.591, -9.997, 6.695),
-        'neck': (3.417, -0.944, -17.999), 'head': (3.614, -0.027), 'right_clavicle': (7.524, 5.239),
-        'right_shoulder': (85.602, 9.9, 0.574), 'right_elbow': (22.816, 11.912),
-        'right_wrist': (-1.154, -29.127),
+        'spine_lumbar': (-0.688, -19.692, 5.58), 'spine_thoracic': (-7.985, -9.555, 5.97),
+        'neck': (3.944, -1.196, -14.752), 'head': (4.172, -0.03), 'right_clavicle': (7.634, 5.3),
+        'right_shoulder': (85.358, 7.381, 2.169), 'right_elbow': (22.241, 12.83),
+        'right_wrist': (-0.135, -28.733),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
-        'spine_lumbar': (4.058, -20.0, 3.913), 'spine_thoracic': (-8.852, -10.0, 5.374),
-        'neck': (2.256, -0.609, -15.332), 'head': (2.378, -0.016), 'right_clavicle': (14.98, 3.949),
-        'right_shoulder': (87.156, 12.327, 7.713), 'right_elbow': (22.107, 19.036),
-        'right_wrist': (2.678, -25.586),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (4.03, -18.516, 3.027), 'spine_thoracic': (-9.91, -10.0, 5.382),
-        'neck': (2.593, -0.782, -12.532), 'head': (2.738, -0.012),
-        'right_clavicle': (22.325, 3.699), 'right_shoulder': (87.076, 14.361, 13.373),
-        'right_elbow': (20.761, 24.426), 'right_wrist': (5.67, -20.96),
+        'spine_lumbar': (2.671, -19.683, 6.905), 'spine_thoracic': (-9.702, -9.719, 6.988),
+        'neck': (3.448, -0.957, -17.986), 'head': (3.646, -0.027), 'right_clavicle': (6.911, 5.48),
+        'right_shoulder': (85.617, 9.742, -0.094), 'right_elbow': (22.91, 11.227),
+        'right_wrist': (-1.523, -29.562),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (-0.993, -19.928, 4.391), 'spine_thoracic': (-7.977, -10.0, 5.476),
-        'neck': (4.085, -1.264, -13.235), 'head': (4.321, -0.028),
-        'right_clavicle': (11.399, 4.565), 'right_shoulder': (84.958, 8.093, 5.971),
-        'right_elbow': (21.968, 16.429), 'right_wrist': (1.791, -27.234),
+        'spine_lumbar': (3.805, -20.0, 4.191), 'spine_thoracic': (-8.801, -10.0, 5.51),
+        'neck': (2.365, -0.64, -15.525), 'head': (2.494, -0.017), 'right_clavicle': (14.111, 4.143),
+        'right_shoulder': (87.128, 11.932, 6.896), 'right_elbow': (22.013, 18.217),
+        'right_wrist': (2.286, -26.11),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.8, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (4.967, -18.439, 3.061), 'spine_thoracic': (-10.046, -10.0, 5.456),
+        'neck': (2.213, -0.642, -12.922), 'head': (2.335, -0.011),
+        'right_clavicle': (22.514, 3.691), 'right_shoulder': (87.557, 14.868, 13.242),
+        'right_elbow': (20.665, 24.478), 'right_wrist': (5.634, -20.943),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (2.418, -18.763, 7.273), 'spine_thoracic': (-8.731, -8.182, 7.322),
-        'neck': (2.926, -0.797, -17.141), 'head': (3.09, -0.022), 'right_clavicle': (5.124, 6.173),
-        'right_shoulder': (87.689, 8.192, -1.44), 'right_elbow': (22.443, 9.867),
-        'right_wrist': (-1.966, -29.997),
+        'spine_lumbar': (-0.788, -19.78, 4.021), 'spine_thoracic': (-8.156, -10.0, 5.403),
+        'neck': (4.029, -1.26, -12.723), 'head': (4.261, -0.024), 'right_clavicle': (13.409, 4.354),
+        'right_shoulder': (85.022, 8.696, 7.723), 'right_elbow': (21.821, 18.136),
+        'right_wrist': (2.695, -26.025),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (3.329, -20.0, 4.794), 'spine_thoracic': (-8.644, -10.0, 5.783),
-        'neck': (2.554, -0.692, -16.12), 'right_clavicle': (11.662, 4.525),
-        'right_shoulder': (87.113, 10.953, 4.764), 'right_elbow': (22.012, 16.081),
-        'right_wrist': (1.214, -27.415),
+        'spine_lumbar': (2.4, -17.296, 8.559), 'spine_thoracic': (-8.724, -6.096, 8.329),
+        'neck': (2.782, -0.755, -16.784), 'head': (2.937, -0.021), 'right_clavicle': (2.827, 7.267),
+        'right_shoulder': (88.686, 6.836, -3.763), 'right_elbow': (22.568, 7.486),
+        'right_wrist': (-3.076, -29.979),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
-        'spine_lumbar': (4.781, -18.741, 3.387), 'spine_thoracic': (-9.818, -10.0, 5.549),
-        'neck': (2.219, -0.628, -13.719), 'head': (2.34, -0.014), 'right_clavicle': (20.674, 3.866),
-        'right_shoulder': (87.497, 14.247, 11.597), 'right_elbow': (20.494, 22.98),
-        'right_wrist': (4.833, -22.163),
+        'spine_lumbar': (2.376, -18.454, 7.433), 'spine_thoracic': (-8.61, -7.679, 7.467),
+        'neck': (2.848, -0.773, -17.036), 'head': (3.007, -0.021), 'right_clavicle': (4.5, 6.425),
+        'right_shoulder': (88.159, 7.769, -2.023), 'right_elbow': (22.293, 9.289),
+        'right_wrist': (-2.175, -30.0),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (0.15, -19.219, 3.227), 'spine_thoracic': (-8.856, -10.0, 5.267),
-        'neck': (3.856, -1.231, -11.952), 'head': (4.078, -0.015),
-        'right_clavicle': (18.855, 3.905), 'right_shoulder': (85.326, 10.793, 12.06),
-        'right_elbow': (21.383, 22.471), 'right_wrist': (4.947, -22.448),
+        'spine_lumbar': (3.184, -20.0, 5.023), 'spine_thoracic': (-8.578, -10.0, 5.88),
+        'neck': (2.607, -0.705, -16.361), 'right_clavicle': (10.706, 4.659),
+        'right_shoulder': (87.133, 10.594, 3.961), 'right_elbow': (22.138, 15.276),
+        'right_wrist': (0.799, -27.886),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (0.846, -18.502, 7.181), 'spine_thoracic': (-8.353, -7.837, 7.171),
-        'neck': (3.434, -0.992, -15.95), 'head': (3.63, -0.027), 'right_clavicle': (4.828, 6.35),
-        'right_shoulder': (87.012, 7.042, -1.198), 'right_elbow': (22.434, 9.775),
-        'right_wrist': (-1.809, -29.495),
+        'spine_lumbar': (4.514, -18.899, 3.577), 'spine_thoracic': (-9.687, -10.0, 5.582),
+        'neck': (2.302, -0.649, -13.987), 'head': (2.428, -0.015),
+        'right_clavicle': (19.649, 3.976), 'right_shoulder': (87.394, 13.835, 10.755),
+        'right_elbow': (20.499, 22.135), 'right_wrist': (4.411, -22.784),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.4, {
-        'spine_lumbar': (2.452, -17.382, 8.509), 'spine_thoracic': (-8.735, -6.182, 8.295),
-        'neck': (2.76, -0.747, -16.872), 'head': (2.914, -0.02), 'right_clavicle': (2.915, 7.218),
-        'right_shoulder': (88.709, 6.929, -3.722), 'right_elbow': (22.492, 7.551),
-        'right_wrist': (-3.052, -30.0),
+        'spine_lumbar': (0.607, -19.015, 3.053), 'spine_thoracic': (-9.123, -10.0, 5.241),
+        'neck': (3.768, -1.204, -11.783), 'head': (3.985, -0.012), 'right_clavicle': (20.388, 3.8),
+        'right_shoulder': (85.483, 11.601, 13.102), 'right_elbow': (21.224, 23.579),
+        'right_wrist': (5.491, -21.489),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (2.849, -19.99, 5.754), 'spine_thoracic': (-8.674, -10.0, 6.238),
-        'neck': (2.88, -0.78, -17.195), 'head': (3.041, -0.022), 'right_clavicle': (8.338, 5.038),
-        'right_shoulder': (86.929, 9.885, 1.736), 'right_elbow': (22.362, 13.067),
-        'right_wrist': (-0.378, -28.759),
-    })
-    human.KeyJoints(21.6, {
-        'spine_lumbar': (4.244, -19.947, 3.746), 'spine_thoracic': (-8.975, -10.0, 5.326),
-        'neck': (2.209, -0.597, -15.022), 'head': (2.328, -0.015),
-        'right_clavicle': (16.226, 3.862), 'right_shoulder': (87.207, 12.804, 8.675),
-        'right_elbow': (22.056, 20.01), 'right_wrist': (3.185, -24.824),
-    })
-    human.KeyJoints(21.7, {
-        'spine_lumbar': (2.565, -18.654, 2.999), 'spine_thoracic': (-9.674, -10.0, 5.291),
-        'neck': (3.066, -0.957, -12.101), 'head': (3.241, -0.012),
-        'right_clavicle': (21.954, 3.715), 'right_shoulder': (86.338, 13.49, 13.476),
-        'right_elbow': (20.893, 24.32), 'right_wrist': (5.698, -20.994),
-    })
-    human.KeyJoints(21.8, {
-        'spine_lumbar': (-1.085, -20.0, 4.836), 'spine_thoracic': (-7.89, -10.0, 5.577),
-        'neck': (4.114, -1.266, -13.886), 'head': (4.352, -0.03), 'right_clavicle': (9.503, 4.828),
-        'right_shoulder': (84.93, 7.656, 4.189), 'right_elbow': (22.106, 14.716),
-        'right_wrist': (0.88, -28.145),
+        'spine_lumbar': (0.079, -19.097, 6.435), 'spine_thoracic': (-8.169, -8.696, 6.584),
+        'neck': (3.659, -1.08, -15.495), 'head': (3.869, -0.029), 'right_clavicle': (6.042, 5.859),
+        'right_shoulder': (86.185, 7.18, 0.295), 'right_elbow': (22.352, 11.122),
+        'right_wrist': (-1.068, -29.178),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
-    human.KeyJoints(21.9, {
+    human.KeyJoints(21.6, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
         'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
-    human.KeyJoints(22.0, {
-        'spine_lumbar': (2.546, -19.166, 7.218), 'spine_thoracic': (-9.66, -8.816, 7.251),
-        'neck': (3.413, -0.948, -17.735), 'head': (3.609, -0.027), 'right_clavicle': (6.03, 5.876),
-        'right_shoulder': (86.104, 9.07, -0.856), 'right_elbow': (22.912, 10.445),
-        'right_wrist': (-1.838, -29.964),
+    human.KeyJoints(21.7, {
+        'spine_lumbar': (2.77, -19.918, 6.383), 'spine_thoracic': (-9.485, -9.998, 6.623),
+        'neck': (3.361, -0.926, -17.92), 'head': (3.553, -0.026), 'right_clavicle': (7.654, 5.201),
+        'right_shoulder': (85.745, 9.899, 0.747), 'right_elbow': (22.761, 12.085),
+        'right_wrist': (-1.045, -29.062),
     })
+    human.KeyJoints(21.8, {
+        'spine_lumbar': (4.107, -20.0, 3.862), 'spine_thoracic': (-8.863, -10.0, 5.35),
+        'neck': (2.235, -0.603, -15.293), 'head': (2.356, -0.016),
+        'right_clavicle': (15.158, 3.913), 'right_shoulder': (87.164, 12.408, 7.877),
+        'right_elbow': (22.128, 19.2), 'right_wrist': (2.757, -25.476),
+    })
+    human.KeyJoints(21.9, {
+        'spine_lumbar': (3.797, -18.536, 3.021), 'spine_thoracic': (-9.875, -10.0, 5.366),
+        'neck': (2.671, -0.811, -12.46), 'head': (2.822, -0.013), 'right_clavicle': (22.273, 3.701),
+        'right_shoulder': (86.957, 14.229, 13.394), 'right_elbow': (20.782, 24.411),
+        'right_wrist': (5.676, -20.964),
+    })
+    human.KeyJoints(22.0, {
+        'spine_lumbar': (-1.02, -19.949, 4.466), 'spine_thoracic': (-7.951, -10.0, 5.492),
+        'neck': (4.093, -1.265, -13.345), 'head': (4.33, -0.029), 'right_clavicle': (11.035, 4.609),
+        'right_shoulder': (84.95, 7.995, 5.642), 'right_elbow': (21.994, 16.111),
+        'right_wrist': (1.622, -27.435),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
-        'spine_lumbar': (3.527, -20.0, 4.519), 'spine_thoracic': (-8.721, -10.0, 5.663),
-        'neck': (2.479, -0.673, -15.842), 'head': (2.615, -0.018),
-        'right_clavicle': (12.796, 4.357), 'right_shoulder': (87.109, 11.395, 5.734),
-        'right_elbow': (21.969, 17.054), 'right_wrist': (1.708, -26.823),
+        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
+        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (5.172, -18.474, 3.162), 'spine_thoracic': (-10.038, -10.0, 5.518),
-        'neck': (2.099, -0.597, -13.395), 'head': (2.214, -0.011), 'right_clavicle': (22.231, 3.72),
-        'right_shoulder': (87.669, 14.88, 12.785), 'right_elbow': (20.556, 24.224),
-        'right_wrist': (5.443, -21.159),
+        'spine_lumbar': (2.436, -18.829, 7.263), 'spine_thoracic': (-8.871, -8.286, 7.309),
+        'neck': (3.0, -0.819, -17.226), 'head': (3.168, -0.023), 'right_clavicle': (5.272, 6.124),
+        'right_shoulder': (87.443, 8.33, -1.34), 'right_elbow': (22.519, 9.965),
+        'right_wrist': (-1.943, -29.995),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (-0.339, -19.489, 3.523), 'spine_thoracic': (-8.516, -10.0, 5.316),
-        'neck': (3.934, -1.25, -12.206), 'head': (4.16, -0.018), 'right_clavicle': (16.482, 4.074),
-        'right_shoulder': (85.165, 9.704, 9.766), 'right_elbow': (21.441, 20.282),
-        'right_wrist': (3.847, -24.026),
+        'spine_lumbar': (3.359, -20.0, 4.748), 'spine_thoracic': (-8.658, -10.0, 5.764),
+        'neck': (2.544, -0.689, -16.073), 'head': (2.684, -0.018),
+        'right_clavicle': (11.854, 4.498), 'right_shoulder': (87.111, 11.026, 4.924),
+        'right_elbow': (21.99, 16.243), 'right_wrist': (1.297, -27.314),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (5.372, -15.188, 8.741), 'spine_thoracic': (-8.317, -5.625, 8.433),
-        'neck': (1.189, -0.25, -15.187), 'head': (1.245, -0.006), 'right_clavicle': (3.628, 7.344),
-        'right_shoulder': (88.497, 7.309, 1.512), 'right_elbow': (30.735, 11.508),
-        'right_wrist': (-1.073, -29.759),
+        'spine_lumbar': (4.841, -18.699, 3.351), 'spine_thoracic': (-9.853, -10.0, 5.543),
+        'neck': (2.2, -0.624, -13.664), 'head': (2.321, -0.013), 'right_clavicle': (20.923, 3.843),
+        'right_shoulder': (87.523, 14.347, 11.788), 'right_elbow': (20.498, 23.178),
+        'right_wrist': (4.932, -22.005),
+    })
+    human.KeyJoints(22.5, {
+        'spine_lumbar': (0.063, -19.264, 3.273), 'spine_thoracic': (-8.799, -10.0, 5.274),
+        'neck': (3.87, -1.235, -11.994), 'head': (4.093, -0.015), 'right_clavicle': (18.49, 3.932),
+        'right_shoulder': (85.297, 10.625, 11.792), 'right_elbow': (21.416, 22.196),
+        'right_wrist': (4.808, -22.687),
+    })
+    human.KeyJoints(22.6, {
+        'spine_lumbar': (1.001, -18.382, 7.324), 'spine_thoracic': (-8.39, -7.663, 7.288),
+        'neck': (3.387, -0.974, -16.027), 'head': (3.58, -0.027), 'right_clavicle': (4.606, 6.446),
+        'right_shoulder': (87.179, 7.018, -1.476), 'right_elbow': (22.449, 9.525),
+        'right_wrist': (-1.947, -29.55),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    human.KeyJoints(22.7, {
+        'spine_lumbar': (2.433, -17.479, 8.43), 'spine_thoracic': (-8.728, -6.299, 8.233),
+        'neck': (2.775, -0.751, -16.896), 'head': (2.93, -0.021), 'right_clavicle': (3.035, 7.156),
+        'right_shoulder': (88.665, 6.996, -3.613), 'right_elbow': (22.442, 7.666),
+        'right_wrist': (-2.996, -30.0),
+    })
+    human.KeyJoints(22.8, {
+        'spine_lumbar': (2.867, -19.996, 5.647), 'spine_thoracic': (-8.56, -10.0, 6.177),
+        'neck': (2.802, -0.756, -17.058), 'head': (2.958, -0.021), 'right_clavicle': (8.486, 5.007),
+        'right_shoulder': (87.1, 9.883, 1.934), 'right_elbow': (22.3, 13.262),
+        'right_wrist': (-0.25, -28.698),
+    })
+    human.KeyJoints(22.9, {
+        'spine_lumbar': (4.254, -19.867, 3.742), 'spine_thoracic': (-9.034, -10.0, 5.357),
+        'neck': (2.225, -0.604, -14.938), 'head': (2.345, -0.015),
+        'right_clavicle': (16.503, 3.883), 'right_shoulder': (87.218, 12.882, 8.83),
+        'right_elbow': (21.884, 20.17), 'right_wrist': (3.281, -24.657),
+    })
+    human.KeyJoints(23.0, {
+        'spine_lumbar': (2.326, -18.679, 2.996), 'spine_thoracic': (-9.631, -10.0, 5.278),
+        'neck': (3.157, -0.99, -12.025), 'right_clavicle': (21.88, 3.718),
+        'right_shoulder': (86.221, 13.334, 13.488), 'right_elbow': (20.916, 24.298),
+        'right_wrist': (5.701, -21.001),
+    })
+    human.KeyJoints(23.1, {
+        'spine_lumbar': (-1.064, -19.984, 4.921), 'spine_thoracic': (-7.892, -9.985, 5.604),
+        'neck': (4.101, -1.262, -13.984), 'head': (4.338, -0.03), 'right_clavicle': (9.249, 4.88),
+        'right_shoulder': (84.942, 7.636, 4.059), 'right_elbow': (22.186, 14.564),
+        'right_wrist': (0.792, -28.229),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=22.424264, duration=0.072)
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
-    human.LookAt((-20.0, 105.0, 112.0), start=22.496264, duration=0.2628)
-    human.KeyJoints(22.5, {
+    human.Grasp('right_hand', 'open', start=23.179001, duration=0.072)
+    human.KeyJoints(23.2, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (0.176, 0.084, -14.747), 'head': (0.156, 0.005), 'right_clavicle': (2.715, 7.9),
+        'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
         'right_wrist': (-1.361, -29.967),
     })
-    human.KeyJoints(22.6, {'neck': (12.157, -1.103, -23.909), 'head': (5.263, -0.018)})
-    human.KeyJoints(22.7, {
-        'neck': (30.511, -2.921, -37.945), 'head': (13.087, -0.096),
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
+    human.LookAt((-20.0, 105.0, 112.0), start=23.251001, duration=0.2628)
+    human.KeyJoints(23.3, {'neck': (3.338, -0.229, -17.165), 'head': (1.504, 0.0)})
+    human.KeyJoints(23.4, {'neck': (21.057, -1.984, -30.715), 'head': (9.057, -0.045)})
+    human.KeyJoints(23.5, {
+        'neck': (34.722, -3.338, -41.165), 'head': (14.881, -0.156),
         'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
         'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_left
-    human.LookAt((-20.0, 105.0, 112.0), start=22.759064, duration=10.620907)
-    human.KeyJoints(22.8, {
-        'neck': (35.0, -2.649, -41.217), 'head': (15.0, -0.638),
-        'right_shoulder': (88.343, 7.518, 0.968), 'right_elbow': (33.032, 10.971),
-        'right_wrist': (-1.418, -29.519),
+    human.LookAt((-20.0, 105.0, 112.0), start=23.513801, duration=10.620907)
+    human.KeyJoints(23.6, {
+        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659),
+        'right_shoulder': (84.771, 8.319, 0.387), 'right_elbow': (33.364, 10.704),
+        'right_wrist': (-1.604, -28.092),
     })
-    human.KeyJoints(22.9, {
-        'right_shoulder': (77.821, 9.922, -0.772), 'right_elbow': (34.012, 10.172),
-        'right_wrist': (-1.973, -25.317),
+    human.KeyJoints(23.7, {
+        'right_shoulder': (70.447, 11.679, -2.04), 'right_elbow': (34.7, 9.59),
+        'right_wrist': (-2.373, -22.371),
     })
-    human.KeyJoints(23.0, {
-        'right_shoulder': (60.264, 14.208, -3.859), 'right_elbow': (35.653, 8.756),
-        'right_wrist': (-2.944, -18.304),
+    human.KeyJoints(23.8, {
+        'right_shoulder': (51.345, 16.543, -5.53), 'right_elbow': (36.491, 7.99),
+        'right_wrist': (-3.464, -14.742),
     })
-    human.KeyJoints(23.1, {
-        'right_shoulder': (40.661, 19.542, -7.664), 'right_elbow': (37.501, 7.011),
-        'right_wrist': (-4.121, -10.474),
+    human.KeyJoints(23.9, {
+        'right_shoulder': (32.456, 22.075, -9.455), 'right_elbow': (38.282, 6.191),
+        'right_wrist': (-4.664, -7.197),
     })
-    human.KeyJoints(23.2, {
-        'right_shoulder': (24.001, 25.086, -11.564), 'right_elbow': (39.097, 5.225),
-        'right_wrist': (-5.291, -3.82),
-    })
-    human.KeyJoints(23.3, {
-        'right_shoulder': (15.274, 30.003, -14.93), 'right_elbow': (39.986, 3.687),
-        'right_wrist': (-6.242, -0.334),
+    human.KeyJoints(24.0, {
+        'right_shoulder': (18.769, 27.439, -13.191), 'right_elbow': (39.614, 4.481),
+        'right_wrist': (-5.761, -1.73),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_left
-    human.KeyJoints(23.4, {
-        'right_shoulder': (15.979, 33.591, -17.273), 'right_elbow': (39.751, 2.619),
-        'right_wrist': (-6.799, -0.89),
+    human.KeyJoints(24.1, {
+        'right_shoulder': (15.206, 32.012, -16.242), 'right_elbow': (40.064, 3.091),
+        'right_wrist': (-6.574, -0.234),
+    })
+    human.KeyJoints(24.2, {
+        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
+        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.715, 7.9),
+        'right_shoulder': (17.709, 33.65, -16.83), 'right_elbow': (37.32, 2.802),
+        'right_wrist': (-6.487, -3.748),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=23.463927, duration=0.072)
-    human.KeyJoints(23.5, {
+    human.Grasp('right_hand', 'close', start=24.218664, duration=0.072)
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(24.3, {
+        'spine_lumbar': (7.42, -12.905, 9.687), 'spine_thoracic': (-8.557, -4.265, 9.229),
+        'neck': (34.775, -2.807, -41.405), 'head': (14.779, -0.706),
+        'right_clavicle': (2.903, 7.947), 'right_shoulder': (18.89, 34.088, -16.396),
+        'right_elbow': (37.151, 3.142), 'right_wrist': (-6.33, -3.661),
+    })
+    human.KeyJoints(24.4, {
+        'spine_lumbar': (12.324, -2.451, 10.423), 'spine_thoracic': (-8.66, -4.306, 10.02),
+        'neck': (32.496, -4.686, -42.552), 'head': (12.437, -1.103),
+        'right_clavicle': (8.244, 8.534), 'right_shoulder': (18.895, 41.164, -10.821),
+        'right_elbow': (44.435, 9.941), 'right_wrist': (-5.989, 12.487),
+    })
+    human.KeyJoints(24.5, {
+        'spine_lumbar': (13.727, -5.108, 9.622), 'spine_thoracic': (-6.137, -8.214, 9.855),
+        'neck': (32.954, -4.673, -43.702), 'head': (12.819, -1.11),
+        'right_clavicle': (12.271, 8.553), 'right_shoulder': (14.986, 44.592, -7.285),
+        'right_elbow': (43.899, 14.727), 'right_wrist': (-5.963, 13.502),
+    })
+    human.KeyJoints(24.6, {
+        'spine_lumbar': (14.819, -10.555, 8.593), 'spine_thoracic': (-2.845, -10.0, 9.649),
+        'neck': (33.737, -4.722, -45.902), 'head': (13.435, -1.13),
+        'right_clavicle': (15.156, 9.067), 'right_shoulder': (9.755, 48.966, -5.317),
+        'right_elbow': (42.783, 18.847), 'right_wrist': (-6.455, 13.104),
+    })
+    human.KeyJoints(24.7, {
+        'spine_lumbar': (11.324, -11.273, 8.217), 'spine_thoracic': (-2.579, -9.478, 9.174),
+        'neck': (33.385, -4.112, -42.827), 'head': (13.38, -1.022),
+        'right_clavicle': (13.096, 8.643), 'right_shoulder': (9.141, 45.623, -4.237),
+        'right_elbow': (43.84, 18.948), 'right_wrist': (-6.139, 14.049),
+    })
+    human.KeyJoints(24.8, {
+        'spine_lumbar': (11.079, -2.531, 10.281), 'spine_thoracic': (-8.92, -3.728, 9.716),
+        'neck': (32.434, -4.398, -41.479), 'head': (12.539, -1.081),
+        'right_clavicle': (7.031, 8.366), 'right_shoulder': (19.156, 39.688, -11.043),
+        'right_elbow': (44.546, 9.207), 'right_wrist': (-5.955, 12.454),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(24.9, {
+        'spine_lumbar': (11.526, -1.601, 10.752), 'spine_thoracic': (-9.78, -2.594, 10.056),
+        'neck': (32.415, -4.595, -42.057), 'head': (12.42, -1.095), 'right_clavicle': (6.33, 8.527),
+        'right_shoulder': (20.593, 39.313, -12.42), 'right_elbow': (44.397, 7.685),
+        'right_wrist': (-6.032, 11.476),
+    })
+    human.KeyJoints(25.0, {
+        'spine_lumbar': (13.189, -3.831, 9.976), 'spine_thoracic': (-7.237, -6.517, 9.932),
+        'neck': (32.71, -4.717, -43.207), 'head': (12.596, -1.109),
+        'right_clavicle': (10.585, 8.527), 'right_shoulder': (16.698, 43.248, -8.814),
+        'right_elbow': (44.243, 12.706), 'right_wrist': (-5.96, 13.296),
+    })
+    human.KeyJoints(25.1, {
+        'spine_lumbar': (14.483, -7.777, 8.993), 'spine_thoracic': (-4.34, -10.0, 9.7),
+        'neck': (33.384, -4.636, -44.704), 'head': (13.192, -1.115),
+        'right_clavicle': (13.744, 8.809), 'right_shoulder': (12.18, 46.95, -6.016),
+        'right_elbow': (43.484, 17.025), 'right_wrist': (-6.16, 13.5),
+    })
+    human.KeyJoints(25.2, {
+        'spine_lumbar': (12.736, -12.778, 8.072), 'spine_thoracic': (-1.74, -10.0, 9.313),
+        'neck': (33.736, -4.311, -44.561), 'head': (13.599, -1.076),
+        'right_clavicle': (14.951, 9.037), 'right_shoulder': (7.873, 48.038, -3.679),
+        'right_elbow': (42.919, 20.09), 'right_wrist': (-6.374, 13.343),
+    })
+    human.KeyJoints(25.3, {
+        'spine_lumbar': (10.623, -5.507, 9.108), 'spine_thoracic': (-6.194, -6.986, 9.14),
+        'neck': (32.588, -4.11, -41.062), 'head': (12.806, -1.064),
+        'right_clavicle': (9.795, 8.107), 'right_shoulder': (14.744, 41.843, -7.258),
+        'right_elbow': (44.839, 13.926), 'right_wrist': (-5.81, 14.504),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(25.4, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(25.5, {
+        'spine_lumbar': (12.554, -2.763, 10.315), 'spine_thoracic': (-8.309, -4.85, 10.001),
+        'neck': (32.537, -4.703, -42.713), 'head': (12.462, -1.105),
+        'right_clavicle': (8.834, 8.531), 'right_shoulder': (18.356, 41.711, -10.323),
+        'right_elbow': (44.415, 10.636), 'right_wrist': (-5.979, 12.74),
+    })
+    human.KeyJoints(25.6, {
+        'spine_lumbar': (13.875, -5.559, 9.507), 'spine_thoracic': (-5.778, -8.793, 9.833),
+        'neck': (33.049, -4.638, -43.852), 'head': (12.914, -1.109),
+        'right_clavicle': (12.878, 8.571), 'right_shoulder': (14.428, 44.956, -6.684),
+        'right_elbow': (43.715, 15.408), 'right_wrist': (-5.966, 13.474),
+    })
+    human.KeyJoints(25.7, {
+        'spine_lumbar': (14.862, -11.352, 8.453), 'spine_thoracic': (-2.487, -10.0, 9.651),
+        'neck': (33.841, -4.715, -46.144), 'head': (13.526, -1.132),
+        'right_clavicle': (15.885, 9.168), 'right_shoulder': (9.154, 49.298, -4.621),
+        'right_elbow': (42.453, 19.569), 'right_wrist': (-6.452, 12.652),
+    })
+    human.KeyJoints(25.8, {
+        'spine_lumbar': (11.016, -9.734, 8.407), 'spine_thoracic': (-3.461, -8.947, 9.154),
+        'neck': (33.198, -4.104, -42.338), 'head': (13.234, -1.021),
+        'right_clavicle': (12.275, 8.437), 'right_shoulder': (10.495, 44.577, -4.888),
+        'right_elbow': (44.233, 17.787), 'right_wrist': (-6.012, 14.253),
+    })
+    human.KeyJoints(25.9, {
+        'spine_lumbar': (11.245, -1.84, 10.617), 'spine_thoracic': (-9.612, -2.797, 9.927),
+        'neck': (32.417, -4.497, -41.741), 'head': (12.472, -1.088),
+        'right_clavicle': (6.332, 8.461), 'right_shoulder': (20.287, 39.191, -12.116),
+        'right_elbow': (44.438, 7.948), 'right_wrist': (-6.009, 11.703),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(26.0, {
+        'spine_lumbar': (11.831, -1.888, 10.634), 'spine_thoracic': (-9.366, -3.221, 10.048),
+        'neck': (32.435, -4.635, -42.236), 'head': (12.416, -1.098),
+        'right_clavicle': (7.041, 8.533), 'right_shoulder': (19.969, 40.014, -11.827),
+        'right_elbow': (44.429, 8.525), 'right_wrist': (-6.015, 11.885),
+    })
+    human.KeyJoints(26.1, {
+        'spine_lumbar': (13.378, -4.231, 9.86), 'spine_thoracic': (-6.876, -7.077, 9.907),
+        'neck': (32.783, -4.71, -43.371), 'head': (12.66, -1.109), 'right_clavicle': (11.152, 8.53),
+        'right_shoulder': (16.137, 43.716, -8.309), 'right_elbow': (44.149, 13.381),
+        'right_wrist': (-5.959, 13.408),
+    })
+    human.KeyJoints(26.2, {
+        'spine_lumbar': (14.549, -8.51, 8.865), 'spine_thoracic': (-3.999, -10.0, 9.688),
+        'neck': (33.471, -4.65, -44.976), 'head': (13.257, -1.118),
+        'right_clavicle': (14.487, 8.863), 'right_shoulder': (11.575, 47.392, -5.44),
+        'right_elbow': (43.204, 17.767), 'right_wrist': (-6.189, 13.269),
+    })
+    human.KeyJoints(26.3, {
+        'spine_lumbar': (12.074, -12.909, 8.031), 'spine_thoracic': (-1.668, -10.0, 9.229),
+        'neck': (33.678, -4.182, -43.857), 'head': (13.6, -1.043), 'right_clavicle': (14.436, 8.96),
+        'right_shoulder': (7.749, 47.369, -3.595), 'right_elbow': (43.161, 20.124),
+        'right_wrist': (-6.33, 13.612),
+    })
+    human.KeyJoints(26.4, {
+        'spine_lumbar': (10.719, -4.481, 9.448), 'spine_thoracic': (-7.074, -6.04, 9.261),
+        'neck': (32.512, -4.19, -41.155), 'head': (12.701, -1.071), 'right_clavicle': (8.9, 8.161),
+        'right_shoulder': (16.158, 41.096, -8.367), 'right_elbow': (44.777, 12.464),
+        'right_wrist': (-5.84, 14.074),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(26.5, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(26.6, {
+        'spine_lumbar': (12.775, -3.095, 10.205), 'spine_thoracic': (-7.956, -5.399, 9.98),
+        'neck': (32.587, -4.715, -42.876), 'head': (12.497, -1.107),
+        'right_clavicle': (9.42, 8.528), 'right_shoulder': (17.812, 42.24, -9.824),
+        'right_elbow': (44.376, 11.327), 'right_wrist': (-5.97, 12.961),
+    })
+    human.KeyJoints(26.7, {
+        'spine_lumbar': (14.046, -6.108, 9.373), 'spine_thoracic': (-5.368, -9.349, 9.803),
+        'neck': (33.155, -4.617, -44.04), 'right_clavicle': (13.272, 8.606),
+        'right_shoulder': (13.794, 45.407, -6.342), 'right_elbow': (43.599, 16.007),
+        'right_wrist': (-5.977, 13.447),
+    })
+    human.KeyJoints(26.8, {
+        'spine_lumbar': (14.572, -11.907, 8.321), 'spine_thoracic': (-2.206, -10.0, 9.603),
+        'neck': (33.824, -4.641, -45.887), 'head': (13.573, -1.126),
+        'right_clavicle': (15.797, 9.156), 'right_shoulder': (8.674, 49.159, -4.243),
+        'right_elbow': (42.499, 19.808), 'right_wrist': (-6.44, 12.729),
+    })
+    human.KeyJoints(26.9, {
+        'spine_lumbar': (10.782, -8.085, 8.631), 'spine_thoracic': (-4.443, -8.319, 9.14),
+        'neck': (32.958, -4.104, -41.716), 'head': (13.084, -1.033),
+        'right_clavicle': (11.421, 8.252), 'right_shoulder': (12.008, 43.541, -5.652),
+        'right_elbow': (44.574, 16.464), 'right_wrist': (-5.899, 14.417),
+    })
+    human.KeyJoints(27.0, {
+        'spine_lumbar': (11.342, -1.477, 10.802), 'spine_thoracic': (-9.984, -2.282, 10.048),
+        'neck': (32.407, -4.564, -41.938), 'head': (12.431, -1.093),
+        'right_clavicle': (5.956, 8.516), 'right_shoulder': (20.896, 38.93, -12.708),
+        'right_elbow': (44.376, 7.263), 'right_wrist': (-6.04, 11.269),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(27.1, {
+        'spine_lumbar': (12.08, -2.157, 10.531), 'spine_thoracic': (-9.016, -3.757, 10.036),
+        'neck': (32.461, -4.664, -42.391), 'head': (12.423, -1.101),
+        'right_clavicle': (7.639, 8.535), 'right_shoulder': (19.438, 40.592, -11.328),
+        'right_elbow': (44.44, 9.229), 'right_wrist': (-6.001, 12.199),
+    })
+    human.KeyJoints(27.2, {
+        'spine_lumbar': (13.557, -4.653, 9.743), 'spine_thoracic': (-6.511, -7.639, 9.881),
+        'neck': (32.864, -4.695, -43.535), 'head': (12.733, -1.11),
+        'right_clavicle': (11.711, 8.538), 'right_shoulder': (15.569, 44.162, -7.803),
+        'right_elbow': (44.035, 14.051), 'right_wrist': (-5.96, 13.471),
+    })
+    human.KeyJoints(27.3, {
+        'spine_lumbar': (14.713, -9.558, 8.732), 'spine_thoracic': (-3.377, -10.0, 9.658),
+        'neck': (33.604, -4.704, -45.486), 'head': (13.341, -1.125),
+        'right_clavicle': (14.726, 8.956), 'right_shoulder': (10.604, 48.3, -5.448),
+        'right_elbow': (43.034, 18.248), 'right_wrist': (-6.382, 13.244),
+    })
+    human.KeyJoints(27.4, {
+        'spine_lumbar': (11.688, -12.438, 8.083), 'spine_thoracic': (-1.927, -9.854, 9.2),
+        'neck': (33.56, -4.14, -43.317), 'head': (13.529, -1.031),
+        'right_clavicle': (13.843, 8.833), 'right_shoulder': (8.145, 46.596, -3.775),
+        'right_elbow': (43.455, 19.792), 'right_wrist': (-6.254, 13.825),
+    })
+    human.KeyJoints(27.5, {
+        'spine_lumbar': (10.885, -3.458, 9.862), 'spine_thoracic': (-8.021, -4.891, 9.471),
+        'neck': (32.461, -4.304, -41.304), 'head': (12.611, -1.075),
+        'right_clavicle': (7.94, 8.256), 'right_shoulder': (17.692, 40.356, -9.699),
+        'right_elbow': (44.67, 10.815), 'right_wrist': (-5.893, 13.325),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(27.6, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(27.7, {
+        'spine_lumbar': (12.986, -3.449, 10.092), 'spine_thoracic': (-7.6, -5.951, 9.957),
+        'neck': (32.644, -4.717, -43.039), 'head': (12.541, -1.108),
+        'right_clavicle': (10.001, 8.527), 'right_shoulder': (17.263, 42.75, -9.324),
+        'right_elbow': (44.32, 12.013), 'right_wrist': (-5.964, 13.144),
+    })
+    human.KeyJoints(27.8, {
+        'spine_lumbar': (14.352, -6.988, 9.16), 'spine_thoracic': (-4.767, -9.915, 9.728),
+        'neck': (33.282, -4.626, -44.402), 'right_clavicle': (13.355, 8.729),
+        'right_shoulder': (12.89, 46.342, -6.322), 'right_elbow': (43.589, 16.414),
+        'right_wrist': (-6.103, 13.573),
+    })
+    human.KeyJoints(27.9, {
+        'spine_lumbar': (13.726, -12.41, 8.182), 'spine_thoracic': (-1.94, -10.0, 9.466),
+        'neck': (33.779, -4.487, -45.264), 'head': (13.598, -1.112),
+        'right_clavicle': (15.447, 9.108), 'right_shoulder': (8.218, 48.693, -3.916),
+        'right_elbow': (42.676, 19.98), 'right_wrist': (-6.413, 13.003),
+    })
+    human.KeyJoints(28.0, {
+        'spine_lumbar': (10.644, -6.604, 8.867), 'spine_thoracic': (-5.386, -7.659, 9.132),
+        'neck': (32.721, -4.103, -41.186), 'head': (12.932, -1.053),
+        'right_clavicle': (10.587, 8.129), 'right_shoulder': (13.472, 42.608, -6.452),
+        'right_elbow': (44.796, 15.145), 'right_wrist': (-5.824, 14.518),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(28.1, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(28.2, {
+        'spine_lumbar': (12.32, -2.446, 10.425), 'spine_thoracic': (-8.666, -4.297, 10.02),
+        'neck': (32.495, -4.686, -42.55), 'head': (12.437, -1.103),
+        'right_clavicle': (8.234, 8.534), 'right_shoulder': (18.904, 41.155, -10.83),
+        'right_elbow': (44.436, 9.929), 'right_wrist': (-5.989, 12.483),
+    })
+    human.KeyJoints(28.3, {
+        'spine_lumbar': (13.725, -5.1, 9.624), 'spine_thoracic': (-6.143, -8.205, 9.855),
+        'neck': (32.953, -4.673, -43.699), 'head': (12.817, -1.11),
+        'right_clavicle': (12.261, 8.552), 'right_shoulder': (14.996, 44.585, -7.294),
+        'right_elbow': (43.901, 14.715), 'right_wrist': (-5.963, 13.502),
+    })
+    human.KeyJoints(28.4, {
+        'spine_lumbar': (14.818, -10.54, 8.595), 'spine_thoracic': (-2.852, -10.0, 9.649),
+        'neck': (33.735, -4.722, -45.896), 'head': (13.433, -1.13),
+        'right_clavicle': (15.142, 9.064), 'right_shoulder': (9.767, 48.958, -5.326),
+        'right_elbow': (42.79, 18.834), 'right_wrist': (-6.455, 13.111),
+    })
+    human.KeyJoints(28.5, {
+        'spine_lumbar': (11.329, -11.296, 8.214), 'spine_thoracic': (-2.566, -9.485, 9.174),
+        'neck': (33.388, -4.113, -42.835), 'head': (13.382, -1.022),
+        'right_clavicle': (13.109, 8.647), 'right_shoulder': (9.121, 45.64, -4.228),
+        'right_elbow': (43.833, 18.965), 'right_wrist': (-6.141, 14.046),
+    })
+    human.KeyJoints(28.6, {
+        'spine_lumbar': (11.075, -2.545, 10.274), 'spine_thoracic': (-8.907, -3.746, 9.712),
+        'neck': (32.435, -4.397, -41.475), 'head': (12.54, -1.081),
+        'right_clavicle': (7.044, 8.364), 'right_shoulder': (19.134, 39.698, -11.022),
+        'right_elbow': (44.548, 9.231), 'right_wrist': (-5.954, 12.468),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(28.7, {
+        'spine_lumbar': (11.521, -1.596, 10.754), 'spine_thoracic': (-9.788, -2.582, 10.056),
+        'neck': (32.415, -4.594, -42.054), 'head': (12.421, -1.095),
+        'right_clavicle': (6.317, 8.527), 'right_shoulder': (20.605, 39.3, -12.431),
+        'right_elbow': (44.396, 7.669), 'right_wrist': (-6.032, 11.468),
+    })
+    human.KeyJoints(28.8, {
+        'spine_lumbar': (13.186, -3.825, 9.978), 'spine_thoracic': (-7.243, -6.508, 9.933),
+        'neck': (32.709, -4.717, -43.204), 'head': (12.595, -1.109),
+        'right_clavicle': (10.575, 8.527), 'right_shoulder': (16.708, 43.24, -8.822),
+        'right_elbow': (44.244, 12.694), 'right_wrist': (-5.96, 13.294),
+    })
+    human.KeyJoints(28.9, {
+        'spine_lumbar': (14.482, -7.765, 8.996), 'spine_thoracic': (-4.346, -10.0, 9.7),
+        'neck': (33.382, -4.636, -44.7), 'head': (13.191, -1.115), 'right_clavicle': (13.73, 8.808),
+        'right_shoulder': (12.19, 46.943, -6.029), 'right_elbow': (43.489, 17.012),
+        'right_wrist': (-6.16, 13.505),
+    })
+    human.KeyJoints(29.0, {
+        'spine_lumbar': (12.751, -12.774, 8.073), 'spine_thoracic': (-1.742, -10.0, 9.316),
+        'neck': (33.737, -4.314, -44.574), 'head': (13.599, -1.077),
+        'right_clavicle': (14.96, 9.039), 'right_shoulder': (7.877, 48.05, -3.682),
+        'right_elbow': (42.915, 20.089), 'right_wrist': (-6.375, 13.338),
+    })
+    human.KeyJoints(29.1, {
+        'spine_lumbar': (10.623, -5.523, 9.103), 'spine_thoracic': (-6.18, -6.999, 9.139),
+        'neck': (32.59, -4.11, -41.062), 'head': (12.808, -1.064), 'right_clavicle': (9.809, 8.107),
+        'right_shoulder': (14.723, 41.855, -7.242), 'right_elbow': (44.839, 13.948),
+        'right_wrist': (-5.809, 14.507),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(29.2, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(29.3, {
+        'spine_lumbar': (12.55, -2.757, 10.317), 'spine_thoracic': (-8.315, -4.841, 10.002),
+        'neck': (32.537, -4.703, -42.71), 'head': (12.462, -1.105),
+        'right_clavicle': (8.824, 8.531), 'right_shoulder': (18.365, 41.702, -10.332),
+        'right_elbow': (44.415, 10.625), 'right_wrist': (-5.979, 12.736),
+    })
+    human.KeyJoints(29.4, {
+        'spine_lumbar': (13.872, -5.551, 9.509), 'spine_thoracic': (-5.784, -8.783, 9.833),
+        'neck': (33.048, -4.639, -43.849), 'head': (12.912, -1.109),
+        'right_clavicle': (12.867, 8.571), 'right_shoulder': (14.437, 44.951, -6.695),
+        'right_elbow': (43.719, 15.396), 'right_wrist': (-5.966, 13.475),
+    })
+    human.KeyJoints(29.5, {
+        'spine_lumbar': (14.861, -11.341, 8.456), 'spine_thoracic': (-2.492, -10.0, 9.651),
+        'neck': (33.84, -4.715, -46.143), 'head': (13.525, -1.132),
+        'right_clavicle': (15.88, 9.168), 'right_shoulder': (9.162, 49.297, -4.63),
+        'right_elbow': (42.455, 19.561), 'right_wrist': (-6.452, 12.655),
+    })
+    human.KeyJoints(29.6, {
+        'spine_lumbar': (11.021, -9.762, 8.403), 'spine_thoracic': (-3.445, -8.956, 9.154),
+        'neck': (33.201, -4.104, -42.347), 'head': (13.236, -1.02),
+        'right_clavicle': (12.289, 8.44), 'right_shoulder': (10.47, 44.595, -4.876),
+        'right_elbow': (44.227, 17.809), 'right_wrist': (-6.014, 14.25),
+    })
+    human.KeyJoints(29.7, {
+        'spine_lumbar': (11.243, -1.849, 10.612), 'spine_thoracic': (-9.603, -2.81, 9.924),
+        'neck': (32.417, -4.496, -41.736), 'head': (12.473, -1.088),
+        'right_clavicle': (6.341, 8.46), 'right_shoulder': (20.271, 39.198, -12.102),
+        'right_elbow': (44.44, 7.965), 'right_wrist': (-6.008, 11.713),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(29.8, {
+        'spine_lumbar': (11.827, -1.884, 10.636), 'spine_thoracic': (-9.372, -3.212, 10.048),
+        'neck': (32.434, -4.635, -42.233), 'head': (12.416, -1.098),
+        'right_clavicle': (7.031, 8.533), 'right_shoulder': (19.978, 40.005, -11.835),
+        'right_elbow': (44.428, 8.513), 'right_wrist': (-6.015, 11.879),
+    })
+    human.KeyJoints(29.9, {
+        'spine_lumbar': (13.375, -4.224, 9.862), 'spine_thoracic': (-6.882, -7.067, 9.907),
+        'neck': (32.782, -4.71, -43.368), 'head': (12.659, -1.109),
+        'right_clavicle': (11.143, 8.53), 'right_shoulder': (16.146, 43.709, -8.318),
+        'right_elbow': (44.15, 13.37), 'right_wrist': (-5.959, 13.406),
+    })
+    human.KeyJoints(30.0, {
+        'spine_lumbar': (14.547, -8.495, 8.867), 'spine_thoracic': (-4.006, -10.0, 9.688),
+        'neck': (33.47, -4.65, -44.971), 'head': (13.256, -1.118), 'right_clavicle': (14.48, 8.862),
+        'right_shoulder': (11.587, 47.382, -5.44), 'right_elbow': (43.208, 17.757),
+        'right_wrist': (-6.189, 13.27),
+    })
+    human.KeyJoints(30.1, {
+        'spine_lumbar': (12.08, -12.909, 8.031), 'spine_thoracic': (-1.668, -10.0, 9.23),
+        'neck': (33.679, -4.183, -43.867), 'head': (13.6, -1.043),
+        'right_clavicle': (14.444, 8.961), 'right_shoulder': (7.748, 47.38, -3.595),
+        'right_elbow': (43.157, 20.125), 'right_wrist': (-6.331, 13.608),
+    })
+    human.KeyJoints(30.2, {
+        'spine_lumbar': (10.716, -4.499, 9.441), 'spine_thoracic': (-7.058, -6.058, 9.258),
+        'neck': (32.513, -4.188, -41.153), 'head': (12.702, -1.07), 'right_clavicle': (8.916, 8.16),
+        'right_shoulder': (16.133, 41.109, -8.345), 'right_elbow': (44.779, 12.491),
+        'right_wrist': (-5.839, 14.085),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(30.3, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(30.4, {
+        'spine_lumbar': (12.771, -3.089, 10.206), 'spine_thoracic': (-7.962, -5.39, 9.98),
+        'neck': (32.586, -4.715, -42.873), 'head': (12.497, -1.107),
+        'right_clavicle': (9.41, 8.528), 'right_shoulder': (17.821, 42.231, -9.833),
+        'right_elbow': (44.377, 11.315), 'right_wrist': (-5.97, 12.957),
+    })
+    human.KeyJoints(30.5, {
+        'spine_lumbar': (14.041, -6.095, 9.376), 'spine_thoracic': (-5.377, -9.339, 9.804),
+        'neck': (33.153, -4.617, -44.035), 'right_clavicle': (13.27, 8.605),
+        'right_shoulder': (13.807, 45.395, -6.343), 'right_elbow': (43.599, 15.999),
+        'right_wrist': (-5.976, 13.446),
+    })
+    human.KeyJoints(30.6, {
+        'spine_lumbar': (14.582, -11.898, 8.323), 'spine_thoracic': (-2.21, -10.0, 9.604),
+        'neck': (33.825, -4.643, -45.896), 'head': (13.573, -1.127),
+        'right_clavicle': (15.801, 9.157), 'right_shoulder': (8.682, 49.165, -4.249),
+        'right_elbow': (42.497, 19.805), 'right_wrist': (-6.441, 12.726),
+    })
+    human.KeyJoints(30.7, {
+        'spine_lumbar': (10.786, -8.112, 8.627), 'spine_thoracic': (-4.427, -8.33, 9.14),
+        'neck': (32.962, -4.104, -41.727), 'head': (13.087, -1.033),
+        'right_clavicle': (11.435, 8.255), 'right_shoulder': (11.982, 43.558, -5.639),
+        'right_elbow': (44.569, 16.487), 'right_wrist': (-5.901, 14.415),
+    })
+    human.KeyJoints(30.8, {
+        'spine_lumbar': (11.341, -1.479, 10.801), 'spine_thoracic': (-9.981, -2.287, 10.047),
+        'neck': (32.407, -4.563, -41.936), 'head': (12.431, -1.093),
+        'right_clavicle': (5.959, 8.516), 'right_shoulder': (20.891, 38.932, -12.703),
+        'right_elbow': (44.377, 7.268), 'right_wrist': (-6.039, 11.273),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(30.9, {
+        'spine_lumbar': (12.075, -2.152, 10.533), 'spine_thoracic': (-9.022, -3.748, 10.036),
+        'neck': (32.461, -4.663, -42.389), 'head': (12.422, -1.101),
+        'right_clavicle': (7.629, 8.535), 'right_shoulder': (19.447, 40.583, -11.336),
+        'right_elbow': (44.44, 9.218), 'right_wrist': (-6.001, 12.194),
+    })
+    human.KeyJoints(31.0, {
+        'spine_lumbar': (13.554, -4.646, 9.745), 'spine_thoracic': (-6.518, -7.63, 9.881),
+        'neck': (32.863, -4.695, -43.533), 'head': (12.732, -1.11),
+        'right_clavicle': (11.702, 8.538), 'right_shoulder': (15.579, 44.155, -7.811),
+        'right_elbow': (44.038, 14.04), 'right_wrist': (-5.96, 13.47),
+    })
+    human.KeyJoints(31.1, {
+        'spine_lumbar': (14.71, -9.539, 8.734), 'spine_thoracic': (-3.389, -10.0, 9.658),
+        'neck': (33.602, -4.703, -45.477), 'head': (13.34, -1.125),
+        'right_clavicle': (14.723, 8.954), 'right_shoulder': (10.621, 48.284, -5.448),
+        'right_elbow': (43.037, 18.241), 'right_wrist': (-6.378, 13.244),
+    })
+    human.KeyJoints(31.2, {
+        'spine_lumbar': (11.694, -12.452, 8.081), 'spine_thoracic': (-1.919, -9.859, 9.2),
+        'neck': (33.562, -4.14, -43.325), 'head': (13.531, -1.031),
+        'right_clavicle': (13.854, 8.836), 'right_shoulder': (8.133, 46.611, -3.769),
+        'right_elbow': (43.45, 19.802), 'right_wrist': (-6.256, 13.822),
+    })
+    human.KeyJoints(31.3, {
+        'spine_lumbar': (10.882, -3.475, 9.854), 'spine_thoracic': (-8.005, -4.911, 9.467),
+        'neck': (32.461, -4.302, -41.301), 'head': (12.613, -1.075),
+        'right_clavicle': (7.956, 8.254), 'right_shoulder': (17.666, 40.368, -9.676),
+        'right_elbow': (44.672, 10.843), 'right_wrist': (-5.892, 13.339),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(31.4, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(31.5, {
+        'spine_lumbar': (12.982, -3.443, 10.094), 'spine_thoracic': (-7.606, -5.942, 9.957),
+        'neck': (32.643, -4.717, -43.037), 'head': (12.54, -1.108),
+        'right_clavicle': (9.991, 8.527), 'right_shoulder': (17.272, 42.741, -9.332),
+        'right_elbow': (44.321, 12.002), 'right_wrist': (-5.964, 13.141),
+    })
+    human.KeyJoints(31.6, {
+        'spine_lumbar': (14.347, -6.972, 9.163), 'spine_thoracic': (-4.777, -9.909, 9.729),
+        'neck': (33.28, -4.626, -44.396), 'right_clavicle': (13.353, 8.727),
+        'right_shoulder': (12.905, 46.326, -6.322), 'right_elbow': (43.59, 16.407),
+        'right_wrist': (-6.101, 13.571),
+    })
+    human.KeyJoints(31.7, {
+        'spine_lumbar': (13.743, -12.402, 8.185), 'spine_thoracic': (-1.944, -10.0, 9.468),
+        'neck': (33.78, -4.489, -45.274), 'head': (13.598, -1.112),
+        'right_clavicle': (15.454, 9.109), 'right_shoulder': (8.225, 48.702, -3.921),
+        'right_elbow': (42.672, 19.978), 'right_wrist': (-6.413, 12.998),
+    })
+    human.KeyJoints(31.8, {
+        'spine_lumbar': (10.645, -6.626, 8.863), 'spine_thoracic': (-5.371, -7.67, 9.132),
+        'neck': (32.724, -4.103, -41.192), 'head': (12.935, -1.053),
+        'right_clavicle': (10.601, 8.131), 'right_shoulder': (13.449, 42.623, -6.439),
+        'right_elbow': (44.793, 15.166), 'right_wrist': (-5.824, 14.517),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(31.9, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(32.0, {
+        'spine_lumbar': (12.316, -2.441, 10.427), 'spine_thoracic': (-8.672, -4.288, 10.021),
+        'neck': (32.494, -4.686, -42.547), 'head': (12.436, -1.103),
+        'right_clavicle': (8.224, 8.534), 'right_shoulder': (18.913, 41.146, -10.838),
+        'right_elbow': (44.436, 9.918), 'right_wrist': (-5.989, 12.478),
+    })
+    human.KeyJoints(32.1, {
+        'spine_lumbar': (13.722, -5.093, 9.626), 'spine_thoracic': (-6.149, -8.195, 9.856),
+        'neck': (32.951, -4.674, -43.696), 'head': (12.816, -1.11),
+        'right_clavicle': (12.252, 8.552), 'right_shoulder': (15.006, 44.578, -7.302),
+        'right_elbow': (43.904, 14.704), 'right_wrist': (-5.963, 13.501),
+    })
+    human.KeyJoints(32.2, {
+        'spine_lumbar': (14.817, -10.524, 8.598), 'spine_thoracic': (-2.859, -10.0, 9.648),
+        'neck': (33.732, -4.722, -45.891), 'head': (13.431, -1.13),
+        'right_clavicle': (15.129, 9.062), 'right_shoulder': (9.779, 48.95, -5.335),
+        'right_elbow': (42.796, 18.82), 'right_wrist': (-6.455, 13.119),
+    })
+    human.KeyJoints(32.3, {
+        'spine_lumbar': (11.335, -11.319, 8.212), 'spine_thoracic': (-2.553, -9.493, 9.175),
+        'neck': (33.391, -4.113, -42.843), 'head': (13.385, -1.022),
+        'right_clavicle': (13.122, 8.65), 'right_shoulder': (9.101, 45.657, -4.218),
+        'right_elbow': (43.827, 18.982), 'right_wrist': (-6.143, 14.042),
+    })
+    human.KeyJoints(32.4, {
+        'spine_lumbar': (11.072, -2.559, 10.268), 'spine_thoracic': (-8.893, -3.764, 9.708),
+        'neck': (32.435, -4.395, -41.471), 'head': (12.541, -1.081),
+        'right_clavicle': (7.058, 8.363), 'right_shoulder': (19.112, 39.708, -11.002),
+        'right_elbow': (44.55, 9.256), 'right_wrist': (-5.953, 12.482),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(32.5, {
+        'spine_lumbar': (11.515, -1.591, 10.756), 'spine_thoracic': (-9.795, -2.571, 10.056),
+        'neck': (32.415, -4.594, -42.051), 'head': (12.421, -1.095),
+        'right_clavicle': (6.304, 8.526), 'right_shoulder': (20.616, 39.287, -12.442),
+        'right_elbow': (44.396, 7.654), 'right_wrist': (-6.033, 11.46),
+    })
+    human.KeyJoints(32.6, {
+        'spine_lumbar': (13.183, -3.818, 9.98), 'spine_thoracic': (-7.249, -6.498, 9.933),
+        'neck': (32.708, -4.717, -43.201), 'head': (12.594, -1.109),
+        'right_clavicle': (10.566, 8.527), 'right_shoulder': (16.717, 43.232, -8.83),
+        'right_elbow': (44.246, 12.683), 'right_wrist': (-5.96, 13.292),
+    })
+    human.KeyJoints(32.7, {
+        'spine_lumbar': (14.481, -7.754, 8.998), 'spine_thoracic': (-4.351, -10.0, 9.7),
+        'neck': (33.381, -4.636, -44.696), 'head': (13.19, -1.115),
+        'right_clavicle': (13.717, 8.807), 'right_shoulder': (12.199, 46.936, -6.041),
+        'right_elbow': (43.493, 16.999), 'right_wrist': (-6.16, 13.509),
+    })
+    human.KeyJoints(32.8, {
+        'spine_lumbar': (12.766, -12.769, 8.075), 'spine_thoracic': (-1.745, -10.0, 9.318),
+        'neck': (33.738, -4.317, -44.587), 'head': (13.599, -1.078),
+        'right_clavicle': (14.969, 9.04), 'right_shoulder': (7.881, 48.061, -3.685),
+        'right_elbow': (42.911, 20.087), 'right_wrist': (-6.375, 13.332),
+    })
+    human.KeyJoints(32.9, {
+        'spine_lumbar': (10.622, -5.54, 9.098), 'spine_thoracic': (-6.167, -7.012, 9.138),
+        'neck': (32.591, -4.109, -41.061), 'head': (12.81, -1.064),
+        'right_clavicle': (9.823, 8.106), 'right_shoulder': (14.702, 41.867, -7.227),
+        'right_elbow': (44.84, 13.969), 'right_wrist': (-5.809, 14.51),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(33.0, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(33.1, {
+        'spine_lumbar': (12.547, -2.752, 10.319), 'spine_thoracic': (-8.321, -4.832, 10.002),
+        'neck': (32.536, -4.703, -42.708), 'head': (12.462, -1.105),
+        'right_clavicle': (8.814, 8.531), 'right_shoulder': (18.374, 41.693, -10.34),
+        'right_elbow': (44.416, 10.613), 'right_wrist': (-5.979, 12.732),
+    })
+    human.KeyJoints(33.2, {
+        'spine_lumbar': (13.87, -5.543, 9.511), 'spine_thoracic': (-5.79, -8.773, 9.833),
+        'neck': (33.046, -4.639, -43.847), 'head': (12.911, -1.109),
+        'right_clavicle': (12.856, 8.57), 'right_shoulder': (14.446, 44.945, -6.706),
+        'right_elbow': (43.722, 15.385), 'right_wrist': (-5.966, 13.476),
+    })
+    human.KeyJoints(33.3, {
+        'spine_lumbar': (14.861, -11.331, 8.458), 'spine_thoracic': (-2.497, -10.0, 9.651),
+        'neck': (33.84, -4.715, -46.141), 'head': (13.523, -1.132),
+        'right_clavicle': (15.875, 9.167), 'right_shoulder': (9.171, 49.295, -4.639),
+        'right_elbow': (42.457, 19.554), 'right_wrist': (-6.452, 12.659),
+    })
+    human.KeyJoints(33.4, {
+        'spine_lumbar': (11.026, -9.789, 8.4), 'spine_thoracic': (-3.429, -8.966, 9.155),
+        'neck': (33.205, -4.105, -42.356), 'head': (13.239, -1.02),
+        'right_clavicle': (12.303, 8.444), 'right_shoulder': (10.445, 44.613, -4.864),
+        'right_elbow': (44.221, 17.83), 'right_wrist': (-6.017, 14.247),
+    })
+    human.KeyJoints(33.5, {
+        'spine_lumbar': (11.241, -1.859, 10.607), 'spine_thoracic': (-9.593, -2.823, 9.921),
+        'neck': (32.417, -4.494, -41.732), 'head': (12.474, -1.088),
+        'right_clavicle': (6.351, 8.459), 'right_shoulder': (20.256, 39.204, -12.087),
+        'right_elbow': (44.441, 7.982), 'right_wrist': (-6.007, 11.724),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(33.6, {
+        'spine_lumbar': (11.822, -1.879, 10.638), 'spine_thoracic': (-9.378, -3.203, 10.048),
+        'neck': (32.434, -4.634, -42.231), 'head': (12.415, -1.098),
+        'right_clavicle': (7.021, 8.533), 'right_shoulder': (19.987, 39.995, -11.844),
+        'right_elbow': (44.428, 8.501), 'right_wrist': (-6.015, 11.874),
+    })
+    human.KeyJoints(33.7, {
+        'spine_lumbar': (13.372, -4.217, 9.864), 'spine_thoracic': (-6.888, -7.058, 9.908),
+        'neck': (32.781, -4.71, -43.366), 'head': (12.657, -1.109),
+        'right_clavicle': (11.133, 8.53), 'right_shoulder': (16.156, 43.701, -8.326),
+        'right_elbow': (44.152, 13.359), 'right_wrist': (-5.959, 13.404),
+    })
+    human.KeyJoints(33.8, {
+        'spine_lumbar': (14.546, -8.481, 8.869), 'spine_thoracic': (-4.014, -10.0, 9.689),
+        'neck': (33.468, -4.649, -44.965), 'head': (13.255, -1.118),
+        'right_clavicle': (14.474, 8.861), 'right_shoulder': (11.6, 47.372, -5.44),
+        'right_elbow': (43.211, 17.747), 'right_wrist': (-6.188, 13.271),
+    })
+    human.KeyJoints(33.9, {
+        'spine_lumbar': (12.087, -12.91, 8.031), 'spine_thoracic': (-1.668, -10.0, 9.23),
+        'neck': (33.68, -4.185, -43.877), 'head': (13.6, -1.043), 'right_clavicle': (14.452, 8.962),
+        'right_shoulder': (7.748, 47.391, -3.595), 'right_elbow': (43.153, 20.125),
+        'right_wrist': (-6.331, 13.605),
+    })
+    human.KeyJoints(34.0, {
+        'spine_lumbar': (9.864, -6.926, 9.195), 'spine_thoracic': (-6.692, -6.478, 9.134),
+        'neck': (33.059, -3.793, -41.05), 'head': (13.243, -0.984),
+        'right_clavicle': (8.333, 8.031), 'right_shoulder': (15.626, 40.088, -8.946),
+        'right_elbow': (43.729, 11.761), 'right_wrist': (-5.88, 11.932),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=34.062708, duration=0.072)
+    human.KeyJoints(34.1, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
         'right_wrist': (-6.353, -4.871),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(23.6, {
-        'spine_lumbar': (11.558, -1.554, 10.772), 'spine_thoracic': (-9.852, -2.485, 10.057),
-        'neck': (32.412, -4.602, -42.031), 'head': (12.419, -1.096),
-        'right_clavicle': (6.358, 8.528), 'right_shoulder': (20.702, 39.364, -12.381),
-        'right_elbow': (44.403, 7.726), 'right_wrist': (-6.03, 11.532),
-    })
-    human.KeyJoints(23.7, {
-        'spine_lumbar': (13.157, -3.767, 9.995), 'spine_thoracic': (-7.297, -6.424, 9.936),
-        'neck': (32.699, -4.717, -43.179), 'head': (12.586, -1.109),
-        'right_clavicle': (10.49, 8.527), 'right_shoulder': (16.791, 43.168, -8.897),
-        'right_elbow': (44.256, 12.592), 'right_wrist': (-5.961, 13.274),
-    })
-    human.KeyJoints(23.8, {
-        'spine_lumbar': (14.472, -7.663, 9.016), 'spine_thoracic': (-4.393, -10.0, 9.701),
-        'neck': (33.37, -4.635, -44.663), 'head': (13.181, -1.115), 'right_clavicle': (13.616, 8.8),
-        'right_shoulder': (12.275, 46.881, -6.135), 'right_elbow': (43.525, 16.897),
-        'right_wrist': (-6.157, 13.543),
-    })
-    human.KeyJoints(23.9, {
-        'spine_lumbar': (12.888, -12.732, 8.086), 'spine_thoracic': (-1.765, -10.0, 9.336),
-        'neck': (33.744, -4.342, -44.688), 'head': (13.599, -1.084),
-        'right_clavicle': (15.037, 9.05), 'right_shoulder': (7.917, 48.151, -3.709),
-        'right_elbow': (42.878, 20.077), 'right_wrist': (-6.381, 13.289),
-    })
-    human.KeyJoints(24.0, {
-        'spine_lumbar': (10.618, -5.67, 9.063), 'spine_thoracic': (-6.062, -7.11, 9.133),
-        'neck': (32.603, -4.105, -41.057), 'head': (12.825, -1.063),
-        'right_clavicle': (9.929, 8.104), 'right_shoulder': (14.535, 41.963, -7.111),
-        'right_elbow': (44.842, 14.134), 'right_wrist': (-5.808, 14.529),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(24.1, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(24.2, {
-        'spine_lumbar': (12.516, -2.709, 10.333), 'spine_thoracic': (-8.367, -4.759, 10.004),
-        'neck': (32.53, -4.701, -42.686), 'head': (12.458, -1.105),
-        'right_clavicle': (8.736, 8.532), 'right_shoulder': (18.446, 41.621, -10.407),
-        'right_elbow': (44.419, 10.521), 'right_wrist': (-5.98, 12.7),
-    })
-    human.KeyJoints(24.3, {
-        'spine_lumbar': (13.852, -5.484, 9.526), 'spine_thoracic': (-5.837, -8.695, 9.836),
-        'neck': (33.033, -4.645, -43.828), 'head': (12.897, -1.109),
-        'right_clavicle': (12.771, 8.567), 'right_shoulder': (14.519, 44.9, -6.793),
-        'right_elbow': (43.75, 15.292), 'right_wrist': (-5.965, 13.483),
-    })
-    human.KeyJoints(24.4, {
-        'spine_lumbar': (14.859, -11.241, 8.475), 'spine_thoracic': (-2.538, -10.0, 9.65),
-        'neck': (33.833, -4.717, -46.125), 'head': (13.514, -1.131),
-        'right_clavicle': (15.818, 9.16), 'right_shoulder': (9.24, 49.273, -4.721),
-        'right_elbow': (42.482, 19.485), 'right_wrist': (-6.453, 12.696),
-    })
-    human.KeyJoints(24.5, {
-        'spine_lumbar': (11.063, -10.006, 8.372), 'spine_thoracic': (-3.303, -9.044, 9.157),
-        'neck': (33.23, -4.105, -42.426), 'head': (13.257, -1.02),
-        'right_clavicle': (12.416, 8.471), 'right_shoulder': (10.252, 44.754, -4.769),
-        'right_elbow': (44.17, 17.997), 'right_wrist': (-6.033, 14.221),
-    })
-    human.KeyJoints(24.6, {
-        'spine_lumbar': (11.221, -1.936, 10.569), 'spine_thoracic': (-9.515, -2.929, 9.896),
-        'neck': (32.419, -4.481, -41.697), 'head': (12.482, -1.087),
-        'right_clavicle': (6.429, 8.447), 'right_shoulder': (20.129, 39.26, -11.965),
-        'right_elbow': (44.454, 8.125), 'right_wrist': (-6.001, 11.812),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(24.7, {
-        'spine_lumbar': (11.789, -1.845, 10.651), 'spine_thoracic': (-9.425, -3.132, 10.05),
-        'neck': (32.431, -4.63, -42.21), 'head': (12.415, -1.098), 'right_clavicle': (6.941, 8.533),
-        'right_shoulder': (20.058, 39.917, -11.91), 'right_elbow': (44.426, 8.407),
-        'right_wrist': (-6.017, 11.83),
-    })
-    human.KeyJoints(24.8, {
-        'spine_lumbar': (13.347, -4.162, 9.88), 'spine_thoracic': (-6.936, -6.983, 9.911),
-        'neck': (32.771, -4.712, -43.344), 'head': (12.648, -1.109),
-        'right_clavicle': (11.058, 8.529), 'right_shoulder': (16.231, 43.64, -8.394),
-        'right_elbow': (44.166, 13.269), 'right_wrist': (-5.96, 13.391),
-    })
-    human.KeyJoints(24.9, {
-        'spine_lumbar': (14.534, -8.371, 8.887), 'spine_thoracic': (-4.069, -10.0, 9.691),
-        'neck': (33.454, -4.647, -44.921), 'head': (13.245, -1.117),
-        'right_clavicle': (14.41, 8.852), 'right_shoulder': (11.693, 47.299, -5.462),
-        'right_elbow': (43.242, 17.664), 'right_wrist': (-6.182, 13.284),
-    })
-    human.KeyJoints(25.0, {
-        'spine_lumbar': (12.145, -12.907, 8.032), 'spine_thoracic': (-1.669, -10.0, 9.235),
-        'neck': (33.69, -4.192, -43.958), 'head': (13.6, -1.046), 'right_clavicle': (14.519, 8.973),
-        'right_shoulder': (7.75, 47.476, -3.597), 'right_elbow': (43.123, 20.124),
-        'right_wrist': (-6.337, 13.577),
-    })
-    human.KeyJoints(25.1, {
-        'spine_lumbar': (10.697, -4.655, 9.384), 'spine_thoracic': (-6.919, -6.217, 9.233),
-        'neck': (32.523, -4.173, -41.134), 'head': (12.717, -1.07),
-        'right_clavicle': (9.057, 8.149), 'right_shoulder': (15.908, 41.223, -8.16),
-        'right_elbow': (44.791, 12.728), 'right_wrist': (-5.833, 14.174),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(25.2, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(25.3, {
-        'spine_lumbar': (12.739, -3.038, 10.223), 'spine_thoracic': (-8.015, -5.307, 9.984),
-        'neck': (32.578, -4.713, -42.848), 'head': (12.491, -1.106),
-        'right_clavicle': (9.323, 8.529), 'right_shoulder': (17.903, 42.153, -9.908),
-        'right_elbow': (44.384, 11.212), 'right_wrist': (-5.971, 12.926),
-    })
-    human.KeyJoints(25.4, {
-        'spine_lumbar': (14.008, -5.995, 9.401), 'spine_thoracic': (-5.45, -9.257, 9.81),
-        'neck': (33.136, -4.617, -43.997), 'right_clavicle': (13.248, 8.596),
-        'right_shoulder': (13.919, 45.302, -6.349), 'right_elbow': (43.602, 15.925),
-        'right_wrist': (-5.971, 13.441),
-    })
-    human.KeyJoints(25.5, {
-        'spine_lumbar': (14.67, -11.817, 8.344), 'spine_thoracic': (-2.253, -10.0, 9.619),
-        'neck': (33.831, -4.663, -45.972), 'head': (13.566, -1.128),
-        'right_clavicle': (15.835, 9.161), 'right_shoulder': (8.754, 49.21, -4.303),
-        'right_elbow': (42.48, 19.774), 'right_wrist': (-6.443, 12.698),
-    })
-    human.KeyJoints(25.6, {
-        'spine_lumbar': (10.815, -8.356, 8.592), 'spine_thoracic': (-4.278, -8.428, 9.142),
-        'neck': (33.001, -4.104, -41.823), 'head': (13.11, -1.03), 'right_clavicle': (11.563, 8.28),
-        'right_shoulder': (11.753, 43.709, -5.52), 'right_elbow': (44.524, 16.689),
-        'right_wrist': (-5.916, 14.393),
-    })
-    human.KeyJoints(25.7, {
-        'spine_lumbar': (11.332, -1.51, 10.785), 'spine_thoracic': (-9.95, -2.331, 10.037),
-        'neck': (32.408, -4.557, -41.918), 'head': (12.435, -1.092),
-        'right_clavicle': (5.991, 8.511), 'right_shoulder': (20.84, 38.954, -12.653),
-        'right_elbow': (44.382, 7.327), 'right_wrist': (-6.037, 11.311),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(25.8, {
-        'spine_lumbar': (12.039, -2.111, 10.548), 'spine_thoracic': (-9.075, -3.667, 10.038),
-        'neck': (32.456, -4.659, -42.365), 'head': (12.421, -1.1), 'right_clavicle': (7.54, 8.534),
-        'right_shoulder': (19.527, 40.497, -11.411), 'right_elbow': (44.439, 9.112),
-        'right_wrist': (-6.003, 12.149),
-    })
-    human.KeyJoints(25.9, {
-        'spine_lumbar': (13.528, -4.581, 9.762), 'spine_thoracic': (-6.572, -7.545, 9.885),
-        'neck': (32.85, -4.698, -43.508), 'head': (12.72, -1.11), 'right_clavicle': (11.619, 8.537),
-        'right_shoulder': (15.664, 44.089, -7.888), 'right_elbow': (44.056, 13.94),
-        'right_wrist': (-5.959, 13.463),
-    })
-    human.KeyJoints(26.0, {
-        'spine_lumbar': (14.683, -9.372, 8.754), 'spine_thoracic': (-3.491, -10.0, 9.663),
-        'neck': (33.58, -4.693, -45.393), 'head': (13.326, -1.124),
-        'right_clavicle': (14.693, 8.939), 'right_shoulder': (10.778, 48.135, -5.446),
-        'right_elbow': (43.061, 18.174), 'right_wrist': (-6.344, 13.247),
-    })
-    human.KeyJoints(26.1, {
-        'spine_lumbar': (11.751, -12.571, 8.068), 'spine_thoracic': (-1.854, -9.896, 9.204),
-        'neck': (33.584, -4.146, -43.401), 'head': (13.548, -1.032),
-        'right_clavicle': (13.953, 8.86), 'right_shoulder': (8.033, 46.74, -3.724),
-        'right_elbow': (43.399, 19.886), 'right_wrist': (-6.27, 13.789),
-    })
-    human.KeyJoints(26.2, {
-        'spine_lumbar': (10.854, -3.624, 9.791), 'spine_thoracic': (-7.864, -5.088, 9.432),
-        'neck': (32.467, -4.285, -41.278), 'head': (12.625, -1.075),
-        'right_clavicle': (8.099, 8.239), 'right_shoulder': (17.437, 40.476, -9.471),
-        'right_elbow': (44.69, 11.093), 'right_wrist': (-5.884, 13.463),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(26.3, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(26.4, {
-        'spine_lumbar': (12.951, -3.388, 10.111), 'spine_thoracic': (-7.66, -5.859, 9.961),
-        'neck': (32.634, -4.717, -43.012), 'head': (12.533, -1.108),
-        'right_clavicle': (9.904, 8.527), 'right_shoulder': (17.355, 42.666, -9.408),
-        'right_elbow': (44.331, 11.899), 'right_wrist': (-5.965, 13.116),
-    })
-    human.KeyJoints(26.5, {
-        'spine_lumbar': (14.304, -6.833, 9.196), 'spine_thoracic': (-4.867, -9.843, 9.74),
-        'neck': (33.261, -4.624, -44.338), 'right_clavicle': (13.341, 8.707),
-        'right_shoulder': (13.042, 46.182, -6.325), 'right_elbow': (43.591, 16.345),
-        'right_wrist': (-6.08, 13.551),
-    })
-    human.KeyJoints(26.6, {
-        'spine_lumbar': (13.888, -12.333, 8.204), 'spine_thoracic': (-1.981, -10.0, 9.491),
-        'neck': (33.786, -4.511, -45.366), 'head': (13.596, -1.115),
-        'right_clavicle': (15.518, 9.118), 'right_shoulder': (8.288, 48.787, -3.966),
-        'right_elbow': (42.641, 19.956), 'right_wrist': (-6.418, 12.95),
-    })
-    human.KeyJoints(26.7, {
-        'spine_lumbar': (10.659, -6.827, 8.827), 'spine_thoracic': (-5.237, -7.769, 9.132),
-        'neck': (32.755, -4.103, -41.253), 'head': (12.957, -1.05),
-        'right_clavicle': (10.723, 8.144), 'right_shoulder': (13.24, 42.753, -6.32),
-        'right_elbow': (44.77, 15.358), 'right_wrist': (-5.832, 14.507),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(26.8, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(26.9, {
-        'spine_lumbar': (12.28, -2.397, 10.443), 'spine_thoracic': (-8.725, -4.207, 10.023),
-        'neck': (32.489, -4.683, -42.523), 'head': (12.433, -1.103),
-        'right_clavicle': (8.135, 8.534), 'right_shoulder': (18.993, 41.062, -10.913),
-        'right_elbow': (44.438, 9.813), 'right_wrist': (-5.991, 12.437),
-    })
-    human.KeyJoints(27.0, {
-        'spine_lumbar': (13.697, -5.024, 9.644), 'spine_thoracic': (-6.205, -8.11, 9.86),
-        'neck': (32.937, -4.677, -43.672), 'head': (12.802, -1.11), 'right_clavicle': (12.17, 8.55),
-        'right_shoulder': (15.092, 44.516, -7.379), 'right_elbow': (43.925, 14.605),
-        'right_wrist': (-5.962, 13.499),
-    })
-    human.KeyJoints(27.1, {
-        'spine_lumbar': (14.807, -10.387, 8.619), 'spine_thoracic': (-2.923, -10.0, 9.648),
-        'neck': (33.712, -4.723, -45.839), 'head': (13.416, -1.129),
-        'right_clavicle': (15.017, 9.043), 'right_shoulder': (9.885, 48.875, -5.402),
-        'right_elbow': (42.851, 18.705), 'right_wrist': (-6.455, 13.175),
-    })
-    human.KeyJoints(27.2, {
-        'spine_lumbar': (11.386, -11.522, 8.188), 'spine_thoracic': (-2.439, -9.56, 9.178),
-        'neck': (33.418, -4.116, -42.914), 'head': (13.409, -1.023),
-        'right_clavicle': (13.239, 8.68), 'right_shoulder': (8.927, 45.808, -4.137),
-        'right_elbow': (43.767, 19.131), 'right_wrist': (-6.161, 14.01),
-    })
-    human.KeyJoints(27.3, {
-        'spine_lumbar': (11.044, -2.685, 10.209), 'spine_thoracic': (-8.769, -3.928, 9.672),
-        'neck': (32.438, -4.381, -41.439), 'head': (12.552, -1.08),
-        'right_clavicle': (7.184, 8.347), 'right_shoulder': (18.909, 39.798, -10.812),
-        'right_elbow': (44.568, 9.48), 'right_wrist': (-5.944, 12.609),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(27.4, {
-        'spine_lumbar': (11.467, -1.549, 10.774), 'spine_thoracic': (-9.859, -2.475, 10.057),
-        'neck': (32.412, -4.587, -42.024), 'head': (12.422, -1.094),
-        'right_clavicle': (6.194, 8.525), 'right_shoulder': (20.712, 39.178, -12.533),
-        'right_elbow': (44.389, 7.524), 'right_wrist': (-6.035, 11.394),
-    })
-    human.KeyJoints(27.5, {
-        'spine_lumbar': (13.153, -3.761, 9.997), 'spine_thoracic': (-7.303, -6.415, 9.937),
-        'neck': (32.698, -4.717, -43.176), 'head': (12.585, -1.109),
-        'right_clavicle': (10.48, 8.527), 'right_shoulder': (16.801, 43.16, -8.906),
-        'right_elbow': (44.258, 12.581), 'right_wrist': (-5.961, 13.272),
-    })
-    human.KeyJoints(27.6, {
-        'spine_lumbar': (14.471, -7.651, 9.018), 'spine_thoracic': (-4.399, -10.0, 9.702),
-        'neck': (33.368, -4.635, -44.659), 'head': (13.18, -1.115),
-        'right_clavicle': (13.604, 8.799), 'right_shoulder': (12.285, 46.874, -6.146),
-        'right_elbow': (43.529, 16.885), 'right_wrist': (-6.156, 13.546),
-    })
-    human.KeyJoints(27.7, {
-        'spine_lumbar': (12.904, -12.727, 8.088), 'spine_thoracic': (-1.768, -10.0, 9.338),
-        'neck': (33.745, -4.345, -44.701), 'head': (13.599, -1.085),
-        'right_clavicle': (15.046, 9.051), 'right_shoulder': (7.922, 48.163, -3.712),
-        'right_elbow': (42.873, 20.075), 'right_wrist': (-6.381, 13.283),
-    })
-    human.KeyJoints(27.8, {
-        'spine_lumbar': (10.617, -5.687, 9.059), 'spine_thoracic': (-6.049, -7.122, 9.132),
-        'neck': (32.605, -4.105, -41.056), 'head': (12.827, -1.063),
-        'right_clavicle': (9.942, 8.104), 'right_shoulder': (14.515, 41.975, -7.097),
-        'right_elbow': (44.843, 14.155), 'right_wrist': (-5.808, 14.531),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(27.9, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(28.0, {
-        'spine_lumbar': (12.513, -2.704, 10.335), 'spine_thoracic': (-8.373, -4.75, 10.005),
-        'neck': (32.529, -4.701, -42.684), 'head': (12.457, -1.105),
-        'right_clavicle': (8.726, 8.532), 'right_shoulder': (18.455, 41.612, -10.415),
-        'right_elbow': (44.419, 10.509), 'right_wrist': (-5.98, 12.696),
-    })
-    human.KeyJoints(28.1, {
-        'spine_lumbar': (13.849, -5.476, 9.528), 'spine_thoracic': (-5.843, -8.685, 9.836),
-        'neck': (33.031, -4.646, -43.826), 'head': (12.895, -1.109),
-        'right_clavicle': (12.76, 8.567), 'right_shoulder': (14.528, 44.895, -6.804),
-        'right_elbow': (43.754, 15.281), 'right_wrist': (-5.965, 13.484),
-    })
-    human.KeyJoints(28.2, {
-        'spine_lumbar': (14.858, -11.23, 8.478), 'spine_thoracic': (-2.544, -10.0, 9.65),
-        'neck': (33.831, -4.717, -46.123), 'head': (13.513, -1.131),
-        'right_clavicle': (15.809, 9.159), 'right_shoulder': (9.249, 49.27, -4.732),
-        'right_elbow': (42.486, 19.476), 'right_wrist': (-6.453, 12.702),
-    })
-    human.KeyJoints(28.3, {
-        'spine_lumbar': (11.068, -10.033, 8.369), 'spine_thoracic': (-3.288, -9.053, 9.157),
-        'neck': (33.234, -4.105, -42.434), 'head': (13.259, -1.02),
-        'right_clavicle': (12.43, 8.474), 'right_shoulder': (10.228, 44.772, -4.757),
-        'right_elbow': (44.163, 18.018), 'right_wrist': (-6.035, 14.218),
-    })
-    human.KeyJoints(28.4, {
-        'spine_lumbar': (11.219, -1.946, 10.564), 'spine_thoracic': (-9.505, -2.943, 9.893),
-        'neck': (32.42, -4.48, -41.692), 'head': (12.483, -1.087), 'right_clavicle': (6.44, 8.446),
-        'right_shoulder': (20.112, 39.267, -11.948), 'right_elbow': (44.455, 8.144),
-        'right_wrist': (-6.0, 11.823),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(28.5, {
-        'spine_lumbar': (11.784, -1.841, 10.653), 'spine_thoracic': (-9.43, -3.123, 10.05),
-        'neck': (32.431, -4.63, -42.208), 'head': (12.415, -1.098),
-        'right_clavicle': (6.931, 8.533), 'right_shoulder': (20.066, 39.907, -11.919),
-        'right_elbow': (44.426, 8.395), 'right_wrist': (-6.017, 11.824),
-    })
-    human.KeyJoints(28.6, {
-        'spine_lumbar': (13.344, -4.156, 9.882), 'spine_thoracic': (-6.942, -6.974, 9.911),
-        'neck': (32.769, -4.712, -43.341), 'head': (12.647, -1.109),
-        'right_clavicle': (11.049, 8.529), 'right_shoulder': (16.24, 43.632, -8.402),
-        'right_elbow': (44.168, 13.258), 'right_wrist': (-5.96, 13.389),
-    })
-    human.KeyJoints(28.7, {
-        'spine_lumbar': (14.533, -8.358, 8.889), 'spine_thoracic': (-4.075, -10.0, 9.691),
-        'neck': (33.453, -4.647, -44.916), 'head': (13.244, -1.117),
-        'right_clavicle': (14.4, 8.851), 'right_shoulder': (11.705, 47.291, -5.467),
-        'right_elbow': (43.246, 17.652), 'right_wrist': (-6.181, 13.287),
-    })
-    human.KeyJoints(28.8, {
-        'spine_lumbar': (12.153, -12.907, 8.032), 'spine_thoracic': (-1.669, -10.0, 9.236),
-        'neck': (33.691, -4.194, -43.969), 'head': (13.6, -1.046),
-        'right_clavicle': (14.528, 8.974), 'right_shoulder': (7.751, 47.487, -3.597),
-        'right_elbow': (43.119, 20.124), 'right_wrist': (-6.338, 13.573),
-    })
-    human.KeyJoints(28.9, {
-        'spine_lumbar': (10.694, -4.673, 9.378), 'spine_thoracic': (-6.904, -6.235, 9.23),
-        'neck': (32.524, -4.171, -41.132), 'head': (12.719, -1.07),
-        'right_clavicle': (9.073, 8.148), 'right_shoulder': (15.883, 41.235, -8.139),
-        'right_elbow': (44.793, 12.754), 'right_wrist': (-5.832, 14.183),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(29.0, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(29.1, {
-        'spine_lumbar': (12.735, -3.032, 10.225), 'spine_thoracic': (-8.021, -5.298, 9.984),
-        'neck': (32.577, -4.713, -42.846), 'head': (12.49, -1.106),
-        'right_clavicle': (9.313, 8.529), 'right_shoulder': (17.912, 42.144, -9.916),
-        'right_elbow': (44.385, 11.201), 'right_wrist': (-5.972, 12.922),
-    })
-    human.KeyJoints(29.2, {
-        'spine_lumbar': (14.004, -5.984, 9.403), 'spine_thoracic': (-5.458, -9.248, 9.811),
-        'neck': (33.134, -4.617, -43.994), 'right_clavicle': (13.245, 8.595),
-        'right_shoulder': (13.93, 45.293, -6.35), 'right_elbow': (43.603, 15.916),
-        'right_wrist': (-5.971, 13.441),
-    })
-    human.KeyJoints(29.3, {
-        'spine_lumbar': (14.678, -11.807, 8.347), 'spine_thoracic': (-2.258, -10.0, 9.62),
-        'neck': (33.831, -4.665, -45.98), 'head': (13.566, -1.128),
-        'right_clavicle': (15.838, 9.162), 'right_shoulder': (8.763, 49.214, -4.309),
-        'right_elbow': (42.479, 19.771), 'right_wrist': (-6.444, 12.695),
-    })
-    human.KeyJoints(29.4, {
-        'spine_lumbar': (10.819, -8.384, 8.588), 'spine_thoracic': (-4.262, -8.439, 9.142),
-        'neck': (33.005, -4.104, -41.834), 'head': (13.113, -1.03),
-        'right_clavicle': (11.578, 8.282), 'right_shoulder': (11.727, 43.726, -5.507),
-        'right_elbow': (44.519, 16.712), 'right_wrist': (-5.918, 14.391),
-    })
-    human.KeyJoints(29.5, {
-        'spine_lumbar': (11.331, -1.514, 10.783), 'spine_thoracic': (-9.946, -2.336, 10.035),
-        'neck': (32.408, -4.556, -41.915), 'head': (12.435, -1.092),
-        'right_clavicle': (5.995, 8.51), 'right_shoulder': (20.833, 38.957, -12.646),
-        'right_elbow': (44.383, 7.334), 'right_wrist': (-6.036, 11.315),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(29.6, {
-        'spine_lumbar': (12.035, -2.106, 10.55), 'spine_thoracic': (-9.081, -3.658, 10.038),
-        'neck': (32.456, -4.659, -42.363), 'head': (12.421, -1.1), 'right_clavicle': (7.53, 8.534),
-        'right_shoulder': (19.536, 40.487, -11.42), 'right_elbow': (44.439, 9.1),
-        'right_wrist': (-6.004, 12.144),
-    })
-    human.KeyJoints(29.7, {
-        'spine_lumbar': (13.525, -4.574, 9.764), 'spine_thoracic': (-6.579, -7.536, 9.886),
-        'neck': (32.849, -4.698, -43.505), 'head': (12.719, -1.11),
-        'right_clavicle': (11.609, 8.536), 'right_shoulder': (15.674, 44.082, -7.896),
-        'right_elbow': (44.058, 13.929), 'right_wrist': (-5.959, 13.463),
-    })
-    human.KeyJoints(29.8, {
-        'spine_lumbar': (14.68, -9.353, 8.756), 'spine_thoracic': (-3.502, -10.0, 9.664),
-        'neck': (33.578, -4.692, -45.384), 'head': (13.325, -1.124),
-        'right_clavicle': (14.69, 8.937), 'right_shoulder': (10.795, 48.118, -5.446),
-        'right_elbow': (43.064, 18.166), 'right_wrist': (-6.34, 13.247),
-    })
-    human.KeyJoints(29.9, {
-        'spine_lumbar': (11.757, -12.583, 8.067), 'spine_thoracic': (-1.847, -9.9, 9.205),
-        'neck': (33.587, -4.147, -43.41), 'head': (13.55, -1.033),
-        'right_clavicle': (13.964, 8.862), 'right_shoulder': (8.022, 46.755, -3.719),
-        'right_elbow': (43.393, 19.895), 'right_wrist': (-6.272, 13.785),
-    })
-    human.KeyJoints(30.0, {
-        'spine_lumbar': (10.851, -3.641, 9.783), 'spine_thoracic': (-7.848, -5.108, 9.428),
-        'neck': (32.468, -4.283, -41.275), 'head': (12.626, -1.075),
-        'right_clavicle': (8.116, 8.237), 'right_shoulder': (17.411, 40.488, -9.449),
-        'right_elbow': (44.692, 11.121), 'right_wrist': (-5.883, 13.477),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(30.1, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(30.2, {
-        'spine_lumbar': (12.948, -3.382, 10.113), 'spine_thoracic': (-7.666, -5.85, 9.961),
-        'neck': (32.633, -4.717, -43.009), 'head': (12.532, -1.108),
-        'right_clavicle': (9.895, 8.527), 'right_shoulder': (17.364, 42.657, -9.416),
-        'right_elbow': (44.332, 11.887), 'right_wrist': (-5.965, 13.113),
-    })
-    human.KeyJoints(30.3, {
-        'spine_lumbar': (14.299, -6.818, 9.2), 'spine_thoracic': (-4.877, -9.835, 9.741),
-        'neck': (33.259, -4.624, -44.331), 'right_clavicle': (13.34, 8.705),
-        'right_shoulder': (13.058, 46.166, -6.325), 'right_elbow': (43.591, 16.339),
-        'right_wrist': (-6.078, 13.549),
-    })
-    human.KeyJoints(30.4, {
-        'spine_lumbar': (13.904, -12.325, 8.207), 'spine_thoracic': (-1.985, -10.0, 9.494),
-        'neck': (33.787, -4.514, -45.377), 'head': (13.596, -1.115),
-        'right_clavicle': (15.525, 9.119), 'right_shoulder': (8.295, 48.796, -3.971),
-        'right_elbow': (42.637, 19.953), 'right_wrist': (-6.419, 12.945),
-    })
-    human.KeyJoints(30.5, {
-        'spine_lumbar': (10.661, -6.851, 8.823), 'spine_thoracic': (-5.222, -7.78, 9.133),
-        'neck': (32.759, -4.103, -41.261), 'head': (12.959, -1.049),
-        'right_clavicle': (10.737, 8.145), 'right_shoulder': (13.216, 42.767, -6.306),
-        'right_elbow': (44.767, 15.379), 'right_wrist': (-5.833, 14.505),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(30.6, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(30.7, {
-        'spine_lumbar': (12.276, -2.392, 10.445), 'spine_thoracic': (-8.73, -4.197, 10.023),
-        'neck': (32.488, -4.682, -42.52), 'head': (12.433, -1.103),
-        'right_clavicle': (8.125, 8.534), 'right_shoulder': (19.002, 41.053, -10.921),
-        'right_elbow': (44.438, 9.801), 'right_wrist': (-5.991, 12.433),
-    })
-    human.KeyJoints(30.8, {
-        'spine_lumbar': (13.695, -5.016, 9.646), 'spine_thoracic': (-6.211, -8.101, 9.86),
-        'neck': (32.936, -4.678, -43.669), 'head': (12.801, -1.11),
-        'right_clavicle': (12.161, 8.549), 'right_shoulder': (15.102, 44.509, -7.388),
-        'right_elbow': (43.928, 14.594), 'right_wrist': (-5.962, 13.499),
-    })
-    human.KeyJoints(30.9, {
-        'spine_lumbar': (14.806, -10.372, 8.621), 'spine_thoracic': (-2.93, -10.0, 9.648),
-        'neck': (33.71, -4.723, -45.833), 'head': (13.415, -1.129),
-        'right_clavicle': (15.006, 9.041), 'right_shoulder': (9.897, 48.867, -5.408),
-        'right_elbow': (42.856, 18.693), 'right_wrist': (-6.456, 13.18),
-    })
-    human.KeyJoints(31.0, {
-        'spine_lumbar': (11.392, -11.544, 8.185), 'spine_thoracic': (-2.426, -9.567, 9.179),
-        'neck': (33.421, -4.116, -42.922), 'head': (13.411, -1.023),
-        'right_clavicle': (13.252, 8.684), 'right_shoulder': (8.908, 45.825, -4.128),
-        'right_elbow': (43.761, 19.147), 'right_wrist': (-6.163, 14.006),
-    })
-    human.KeyJoints(31.1, {
-        'spine_lumbar': (11.041, -2.699, 10.202), 'spine_thoracic': (-8.754, -3.947, 9.668),
-        'neck': (32.439, -4.379, -41.435), 'head': (12.553, -1.08),
-        'right_clavicle': (7.198, 8.345), 'right_shoulder': (18.886, 39.809, -10.791),
-        'right_elbow': (44.57, 9.506), 'right_wrist': (-5.943, 12.624),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(31.2, {
-        'spine_lumbar': (11.462, -1.545, 10.776), 'spine_thoracic': (-9.866, -2.465, 10.057),
-        'neck': (32.412, -4.586, -42.021), 'head': (12.423, -1.094),
-        'right_clavicle': (6.183, 8.525), 'right_shoulder': (20.722, 39.166, -12.543),
-        'right_elbow': (44.388, 7.511), 'right_wrist': (-6.036, 11.387),
-    })
-    human.KeyJoints(31.3, {
-        'spine_lumbar': (13.15, -3.754, 9.999), 'spine_thoracic': (-7.309, -6.405, 9.937),
-        'neck': (32.697, -4.717, -43.174), 'head': (12.584, -1.109),
-        'right_clavicle': (10.47, 8.527), 'right_shoulder': (16.81, 43.151, -8.914),
-        'right_elbow': (44.259, 12.569), 'right_wrist': (-5.961, 13.27),
-    })
-    human.KeyJoints(31.4, {
-        'spine_lumbar': (14.47, -7.639, 9.021), 'spine_thoracic': (-4.404, -10.0, 9.702),
-        'neck': (33.367, -4.635, -44.655), 'head': (13.179, -1.115),
-        'right_clavicle': (13.592, 8.798), 'right_shoulder': (12.295, 46.867, -6.157),
-        'right_elbow': (43.532, 16.872), 'right_wrist': (-6.156, 13.55),
-    })
-    human.KeyJoints(31.5, {
-        'spine_lumbar': (12.92, -12.721, 8.09), 'spine_thoracic': (-1.771, -10.0, 9.341),
-        'neck': (33.745, -4.348, -44.713), 'head': (13.599, -1.086),
-        'right_clavicle': (15.055, 9.052), 'right_shoulder': (7.927, 48.174, -3.715),
-        'right_elbow': (42.869, 20.074), 'right_wrist': (-6.382, 13.278),
-    })
-    human.KeyJoints(31.6, {
-        'spine_lumbar': (10.617, -5.703, 9.055), 'spine_thoracic': (-6.036, -7.133, 9.132),
-        'neck': (32.607, -4.104, -41.056), 'head': (12.829, -1.063),
-        'right_clavicle': (9.956, 8.103), 'right_shoulder': (14.494, 41.986, -7.083),
-        'right_elbow': (44.843, 14.175), 'right_wrist': (-5.808, 14.533),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(31.7, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(31.8, {
-        'spine_lumbar': (12.509, -2.699, 10.337), 'spine_thoracic': (-8.379, -4.741, 10.005),
-        'neck': (32.529, -4.7, -42.681), 'head': (12.457, -1.105), 'right_clavicle': (8.716, 8.532),
-        'right_shoulder': (18.464, 41.603, -10.423), 'right_elbow': (44.42, 10.497),
-        'right_wrist': (-5.98, 12.692),
-    })
-    human.KeyJoints(31.9, {
-        'spine_lumbar': (13.847, -5.469, 9.53), 'spine_thoracic': (-5.849, -8.676, 9.837),
-        'neck': (33.03, -4.647, -43.823), 'head': (12.894, -1.109),
-        'right_clavicle': (12.749, 8.567), 'right_shoulder': (14.538, 44.889, -6.816),
-        'right_elbow': (43.757, 15.269), 'right_wrist': (-5.965, 13.485),
-    })
-    human.KeyJoints(32.0, {
-        'spine_lumbar': (14.858, -11.218, 8.48), 'spine_thoracic': (-2.549, -10.0, 9.65),
-        'neck': (33.83, -4.717, -46.12), 'head': (13.511, -1.131), 'right_clavicle': (15.8, 9.157),
-        'right_shoulder': (9.259, 49.266, -4.744), 'right_elbow': (42.49, 19.466),
-        'right_wrist': (-6.453, 12.708),
-    })
-    human.KeyJoints(32.1, {
-        'spine_lumbar': (11.073, -10.06, 8.365), 'spine_thoracic': (-3.272, -9.063, 9.158),
-        'neck': (33.237, -4.105, -42.443), 'head': (13.261, -1.02),
-        'right_clavicle': (12.444, 8.478), 'right_shoulder': (10.204, 44.789, -4.746),
-        'right_elbow': (44.157, 18.038), 'right_wrist': (-6.037, 14.215),
-    })
-    human.KeyJoints(32.2, {
-        'spine_lumbar': (11.216, -1.956, 10.559), 'spine_thoracic': (-9.495, -2.957, 9.89),
-        'neck': (32.42, -4.478, -41.687), 'head': (12.484, -1.087), 'right_clavicle': (6.45, 8.445),
-        'right_shoulder': (20.095, 39.274, -11.932), 'right_elbow': (44.457, 8.162),
-        'right_wrist': (-5.999, 11.835),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(32.3, {
-        'spine_lumbar': (11.78, -1.837, 10.655), 'spine_thoracic': (-9.436, -3.114, 10.05),
-        'neck': (32.431, -4.629, -42.205), 'head': (12.415, -1.098),
-        'right_clavicle': (6.921, 8.533), 'right_shoulder': (20.075, 39.897, -11.927),
-        'right_elbow': (44.425, 8.383), 'right_wrist': (-6.017, 11.819),
-    })
-    human.KeyJoints(32.4, {
-        'spine_lumbar': (13.341, -4.149, 9.884), 'spine_thoracic': (-6.948, -6.964, 9.912),
-        'neck': (32.768, -4.712, -43.338), 'head': (12.646, -1.109),
-        'right_clavicle': (11.039, 8.529), 'right_shoulder': (16.25, 43.624, -8.411),
-        'right_elbow': (44.169, 13.246), 'right_wrist': (-5.96, 13.388),
-    })
-    human.KeyJoints(32.5, {
-        'spine_lumbar': (14.531, -8.345, 8.891), 'spine_thoracic': (-4.082, -10.0, 9.691),
-        'neck': (33.451, -4.646, -44.911), 'head': (13.243, -1.117),
-        'right_clavicle': (14.39, 8.85), 'right_shoulder': (11.716, 47.282, -5.472),
-        'right_elbow': (43.25, 17.641), 'right_wrist': (-6.18, 13.29),
-    })
-    human.KeyJoints(32.6, {
-        'spine_lumbar': (12.161, -12.906, 8.032), 'spine_thoracic': (-1.67, -10.0, 9.237),
-        'neck': (33.692, -4.195, -43.98), 'head': (13.6, -1.046), 'right_clavicle': (14.536, 8.975),
-        'right_shoulder': (7.752, 47.498, -3.597), 'right_elbow': (43.115, 20.124),
-        'right_wrist': (-6.339, 13.569),
-    })
-    human.KeyJoints(32.7, {
-        'spine_lumbar': (10.692, -4.69, 9.372), 'spine_thoracic': (-6.888, -6.252, 9.227),
-        'neck': (32.525, -4.169, -41.13), 'head': (12.721, -1.069),
-        'right_clavicle': (9.089, 8.146), 'right_shoulder': (15.858, 41.248, -8.119),
-        'right_elbow': (44.794, 12.78), 'right_wrist': (-5.832, 14.193),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(32.8, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(32.9, {
-        'spine_lumbar': (12.732, -3.027, 10.227), 'spine_thoracic': (-8.027, -5.289, 9.984),
-        'neck': (32.576, -4.713, -42.843), 'head': (12.489, -1.106),
-        'right_clavicle': (9.303, 8.529), 'right_shoulder': (17.921, 42.135, -9.924),
-        'right_elbow': (44.385, 11.189), 'right_wrist': (-5.972, 12.919),
-    })
-    human.KeyJoints(33.0, {
-        'spine_lumbar': (14.001, -5.974, 9.406), 'spine_thoracic': (-5.465, -9.239, 9.811),
-        'neck': (33.133, -4.617, -43.99), 'right_clavicle': (13.242, 8.595),
-        'right_shoulder': (13.942, 45.284, -6.351), 'right_elbow': (43.603, 15.907),
-        'right_wrist': (-5.971, 13.441),
-    })
-    human.KeyJoints(33.1, {
-        'spine_lumbar': (14.687, -11.798, 8.349), 'spine_thoracic': (-2.262, -10.0, 9.622),
-        'neck': (33.832, -4.667, -45.988), 'head': (13.565, -1.128),
-        'right_clavicle': (15.842, 9.162), 'right_shoulder': (8.771, 49.219, -4.315),
-        'right_elbow': (42.477, 19.767), 'right_wrist': (-6.444, 12.693),
-    })
-    human.KeyJoints(33.2, {
-        'spine_lumbar': (11.13, -7.608, 8.666), 'spine_thoracic': (-4.395, -8.334, 9.142),
-        'neck': (32.886, -4.199, -41.901), 'head': (12.997, -1.054),
-        'right_clavicle': (11.775, 8.334), 'right_shoulder': (11.898, 44.114, -5.385),
-        'right_elbow': (44.513, 16.927), 'right_wrist': (-5.919, 14.388),
-    })
-    human.KeyJoints(33.3, {
-        'spine_lumbar': (7.2, -13.666, 9.581), 'spine_thoracic': (-8.392, -4.489, 9.158),
-        'neck': (34.929, -2.658, -41.193), 'head': (14.936, -0.67),
-        'right_clavicle': (2.865, 7.902), 'right_shoulder': (18.642, 33.924, -16.424),
-        'right_elbow': (36.765, 3.123), 'right_wrist': (-6.338, -4.349),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=33.307971, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=33.379971, duration=0.2628)
-    human.KeyJoints(33.4, {
-        'spine_lumbar': (7.124, -13.882, 9.591), 'neck': (34.821, -2.589, -40.61),
-        'head': (14.877, -0.65), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
-        'right_wrist': (-6.353, -4.871),
-    })
-    human.KeyJoints(33.5, {'neck': (30.287, -1.917, -25.455), 'head': (11.767, -0.417)})
-    human.KeyJoints(33.6, {
-        'neck': (24.94, -1.126, -7.578), 'head': (8.098, -0.143),
-        'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
-        'right_wrist': (-6.353, -4.871),
-    })
+    human.LookAt((20.0, 105.0, 112.0), start=34.134708, duration=0.2628)
+    human.KeyJoints(34.2, {'neck': (33.327, -2.367, -35.616), 'head': (13.852, -0.573)})
+    human.KeyJoints(34.3, {'neck': (27.538, -1.511, -16.265), 'head': (9.881, -0.276)})
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=33.642771, duration=10.521694)
-    human.KeyJoints(33.7, {
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
-        'right_shoulder': (19.824, 32.394, -15.48), 'right_elbow': (36.406, 3.511),
-        'right_wrist': (-6.115, -5.409),
-    })
-    human.KeyJoints(33.8, {
-        'right_shoulder': (25.972, 25.008, -9.191), 'right_elbow': (35.672, 6.922),
-        'right_wrist': (-4.824, -8.328),
-    })
-    human.KeyJoints(33.9, {
-        'right_shoulder': (35.159, 14.451, -0.202), 'right_elbow': (34.624, 11.798),
-        'right_wrist': (-2.98, -12.509),
-    })
-    human.KeyJoints(34.0, {
-        'right_shoulder': (44.683, 4.453, 8.311), 'right_elbow': (33.63, 16.416),
-        'right_wrist': (-1.233, -16.49),
-    })
-    human.KeyJoints(34.1, {
-        'right_shoulder': (51.839, -1.259, 13.175), 'right_elbow': (33.062, 19.054),
-        'right_wrist': (-0.235, -18.807),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
-    human.KeyJoints(34.2, {
-        'right_shoulder': (55.061, 0.649, 12.008), 'right_elbow': (33.828, 18.626),
-        'right_wrist': (-0.82, -18.991),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=34.248422, duration=0.072)
-    human.KeyJoints(34.3, {
-        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (57.277, 2.066, 10.929), 'right_elbow': (31.936, 18.34),
-        'right_wrist': (-1.075, -21.227),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.LookAt((20.0, 105.0, 112.0), start=34.397508, duration=10.521694)
     human.KeyJoints(34.4, {
-        'spine_lumbar': (7.099, -14.87, 9.728), 'spine_thoracic': (-9.457, -5.548, 9.409),
-        'neck': (24.482, -1.096, -5.948), 'head': (8.071, -0.116), 'right_clavicle': (4.173, 7.964),
-        'right_shoulder': (56.386, 3.645, 11.803), 'right_elbow': (32.151, 19.52),
-        'right_wrist': (-0.756, -20.294),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
+        'right_shoulder': (18.717, 33.754, -16.638), 'right_elbow': (36.542, 2.883),
+        'right_wrist': (-6.352, -4.872),
     })
     human.KeyJoints(34.5, {
-        'spine_lumbar': (4.614, -19.247, 9.028), 'spine_thoracic': (-10.365, -9.891, 9.367),
-        'neck': (25.081, -1.16, -7.035), 'head': (9.071, -0.144), 'right_clavicle': (8.956, 7.918),
-        'right_shoulder': (56.124, 5.488, 15.083), 'right_elbow': (30.294, 23.17),
-        'right_wrist': (0.576, -23.129),
+        'right_shoulder': (22.058, 29.681, -13.171), 'right_elbow': (36.137, 4.764),
+        'right_wrist': (-5.641, -6.48),
     })
     human.KeyJoints(34.6, {
-        'spine_lumbar': (2.405, -19.998, 9.302), 'spine_thoracic': (-11.529, -10.0, 10.841),
-        'neck': (25.978, -1.174, -7.932), 'head': (10.313, -0.169),
-        'right_clavicle': (16.564, 9.432), 'right_shoulder': (57.043, 7.49, 20.67),
-        'right_elbow': (26.588, 29.081), 'right_wrist': (3.165, -26.46),
+        'right_shoulder': (29.916, 20.398, -5.266), 'right_elbow': (35.214, 9.051),
+        'right_wrist': (-4.019, -10.152),
     })
     human.KeyJoints(34.7, {
-        'spine_lumbar': (-3.56, -20.0, 10.299), 'spine_thoracic': (-12.187, -10.0, 12.772),
-        'neck': (27.794, -1.011, -7.911), 'head': (12.17, -0.169),
-        'right_clavicle': (20.589, 11.385), 'right_shoulder': (55.903, 5.075, 21.956),
-        'right_elbow': (19.534, 31.039), 'right_wrist': (4.482, -24.574),
+        'right_shoulder': (39.59, 9.633, 3.9), 'right_elbow': (34.145, 14.024),
+        'right_wrist': (-2.138, -14.424),
     })
     human.KeyJoints(34.8, {
-        'spine_lumbar': (1.93, -18.237, 8.679), 'spine_thoracic': (-9.098, -9.293, 9.038),
-        'neck': (25.227, -0.868, -4.997), 'head': (9.088, -0.133), 'right_clavicle': (7.274, 8.085),
-        'right_shoulder': (54.926, 2.516, 15.287), 'right_elbow': (31.022, 22.325),
-        'right_wrist': (0.602, -23.245),
+        'right_shoulder': (48.377, 1.113, 11.155), 'right_elbow': (33.298, 17.959),
+        'right_wrist': (-0.65, -17.833),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.9, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (53.622, -1.397, 13.326), 'right_elbow': (33.126, 19.153),
+        'right_wrist': (-0.235, -18.969),
     })
     human.KeyJoints(35.0, {
-        'spine_lumbar': (5.475, -17.676, 9.508), 'spine_thoracic': (-10.434, -8.167, 9.483),
-        'neck': (24.97, -1.158, -6.934), 'head': (8.916, -0.141), 'right_clavicle': (6.746, 7.899),
-        'right_shoulder': (55.424, 4.972, 13.233), 'right_elbow': (31.109, 21.327),
-        'right_wrist': (-0.157, -21.902),
+        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
+        'right_clavicle': (2.715, 7.9), 'right_shoulder': (57.054, 2.14, 10.929),
+        'right_elbow': (32.212, 18.326), 'right_wrist': (-1.102, -20.927),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=35.003158, duration=0.072)
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'spine_lumbar': (3.368, -19.178, 9.084), 'spine_thoracic': (-10.823, -10.0, 10.082),
-        'neck': (25.505, -1.121, -7.125), 'head': (9.653, -0.155),
-        'right_clavicle': (13.343, 8.735), 'right_shoulder': (56.962, 6.475, 18.554),
-        'right_elbow': (28.435, 26.696), 'right_wrist': (2.141, -25.916),
+        'spine_lumbar': (7.496, -13.725, 9.703), 'spine_thoracic': (-8.531, -4.428, 9.257),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.797, 7.948),
+        'right_shoulder': (57.214, 2.34, 11.045), 'right_elbow': (32.277, 18.468),
+        'right_wrist': (-1.051, -20.428),
     })
     human.KeyJoints(35.2, {
-        'spine_lumbar': (-0.05, -20.0, 10.251), 'spine_thoracic': (-12.704, -10.0, 12.826),
-        'neck': (27.237, -1.249, -9.289), 'head': (11.616, -0.173),
-        'right_clavicle': (21.36, 11.263), 'right_shoulder': (57.584, 7.611, 21.535),
-        'right_elbow': (19.078, 31.332), 'right_wrist': (4.341, -24.19),
+        'spine_lumbar': (5.787, -17.083, 9.513), 'spine_thoracic': (-10.193, -7.629, 9.431),
+        'neck': (24.843, -1.138, -6.657), 'head': (8.709, -0.136), 'right_clavicle': (6.203, 7.902),
+        'right_shoulder': (55.731, 4.644, 12.945), 'right_elbow': (31.267, 20.952),
+        'right_wrist': (-0.277, -21.672),
     })
     human.KeyJoints(35.3, {
-        'spine_lumbar': (-1.334, -19.554, 8.906), 'spine_thoracic': (-9.924, -10.0, 9.814),
-        'neck': (26.291, -0.829, -5.416), 'head': (10.547, -0.159),
-        'right_clavicle': (12.661, 8.887), 'right_shoulder': (54.797, 2.813, 18.622),
-        'right_elbow': (27.236, 26.158), 'right_wrist': (2.342, -24.263),
+        'spine_lumbar': (3.628, -19.197, 8.997), 'spine_thoracic': (-10.617, -10.0, 9.856),
+        'neck': (25.376, -1.12, -6.988), 'head': (9.462, -0.151), 'right_clavicle': (12.413, 8.525),
+        'right_shoulder': (56.945, 6.194, 17.896), 'right_elbow': (28.824, 25.989),
+        'right_wrist': (1.82, -25.452),
     })
     human.KeyJoints(35.4, {
-        'spine_lumbar': (7.877, -13.609, 9.825), 'spine_thoracic': (-8.835, -4.507, 9.39),
-        'neck': (24.103, -1.056, -5.325), 'head': (7.561, -0.107), 'right_clavicle': (3.145, 8.011),
-        'right_shoulder': (56.911, 3.002, 11.415), 'right_elbow': (32.743, 18.889),
-        'right_wrist': (-0.955, -19.409),
+        'spine_lumbar': (0.683, -19.998, 10.221), 'spine_thoracic': (-12.734, -10.0, 12.827),
+        'neck': (27.018, -1.294, -9.54), 'head': (11.396, -0.173),
+        'right_clavicle': (21.396, 11.187), 'right_shoulder': (57.74, 7.833, 21.333),
+        'right_elbow': (19.06, 31.344), 'right_wrist': (4.258, -24.146),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.5, {
-        'spine_lumbar': (6.662, -15.561, 9.628), 'spine_thoracic': (-9.665, -6.205, 9.391),
-        'neck': (24.647, -1.11, -6.202), 'head': (8.298, -0.12), 'right_clavicle': (4.802, 7.933),
-        'right_shoulder': (56.172, 3.942, 12.164), 'right_elbow': (31.886, 19.965),
-        'right_wrist': (-0.609, -20.738),
+        'spine_lumbar': (-2.056, -19.711, 9.27), 'spine_thoracic': (-10.453, -10.0, 10.577),
+        'neck': (26.642, -0.86, -5.988), 'head': (10.964, -0.164), 'right_clavicle': (14.81, 9.546),
+        'right_shoulder': (54.97, 3.191, 19.639), 'right_elbow': (25.193, 27.539),
+        'right_wrist': (2.973, -24.374),
     })
     human.KeyJoints(35.6, {
-        'spine_lumbar': (4.359, -19.318, 8.753), 'spine_thoracic': (-10.022, -10.0, 9.229),
-        'neck': (24.995, -1.126, -6.711), 'head': (8.913, -0.139), 'right_clavicle': (9.946, 7.943),
-        'right_shoulder': (56.888, 5.389, 16.164), 'right_elbow': (29.862, 24.113),
-        'right_wrist': (1.002, -23.857),
+        'spine_lumbar': (7.204, -14.174, 9.679), 'spine_thoracic': (-8.857, -5.116, 9.345),
+        'neck': (24.296, -1.043, -5.38), 'head': (7.795, -0.11), 'right_clavicle': (3.541, 8.016),
+        'right_shoulder': (56.659, 2.94, 11.821), 'right_elbow': (32.594, 19.23),
+        'right_wrist': (-0.8, -19.88),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
-        'spine_lumbar': (1.702, -19.727, 9.682), 'spine_thoracic': (-11.977, -10.0, 11.608),
-        'neck': (26.38, -1.207, -8.449), 'head': (10.737, -0.17),
-        'right_clavicle': (18.269, 10.107), 'right_shoulder': (57.332, 7.506, 20.676),
-        'right_elbow': (23.553, 29.751), 'right_wrist': (3.504, -25.613),
+        'spine_lumbar': (7.023, -14.988, 9.712), 'spine_thoracic': (-9.496, -5.657, 9.407),
+        'neck': (24.512, -1.098, -5.994), 'head': (8.112, -0.117), 'right_clavicle': (4.277, 7.958),
+        'right_shoulder': (56.3, 3.71, 11.858), 'right_elbow': (32.141, 19.591),
+        'right_wrist': (-0.736, -20.326),
     })
     human.KeyJoints(35.8, {
-        'spine_lumbar': (-3.391, -19.97, 10.163), 'spine_thoracic': (-11.828, -10.0, 12.465),
-        'neck': (27.6, -0.956, -7.364), 'head': (11.977, -0.168),
-        'right_clavicle': (19.643, 11.143), 'right_shoulder': (55.59, 4.477, 21.68),
-        'right_elbow': (20.397, 30.52), 'right_wrist': (4.297, -24.553),
+        'spine_lumbar': (4.577, -19.276, 8.93), 'spine_thoracic': (-10.24, -9.932, 9.313),
+        'neck': (25.047, -1.15, -6.921), 'head': (9.01, -0.143), 'right_clavicle': (9.113, 7.918),
+        'right_shoulder': (56.364, 5.448, 15.293), 'right_elbow': (30.238, 23.336),
+        'right_wrist': (0.652, -23.236),
     })
     human.KeyJoints(35.9, {
-        'spine_lumbar': (3.687, -16.978, 8.975), 'spine_thoracic': (-8.998, -8.057, 9.129),
-        'neck': (24.967, -0.964, -5.383), 'head': (8.677, -0.123), 'right_clavicle': (5.867, 8.056),
-        'right_shoulder': (55.439, 2.642, 14.058), 'right_elbow': (31.649, 21.185),
-        'right_wrist': (0.087, -22.208),
+        'spine_lumbar': (2.327, -19.995, 9.325), 'spine_thoracic': (-11.583, -10.0, 10.911),
+        'neck': (26.02, -1.179, -7.999), 'head': (10.362, -0.169),
+        'right_clavicle': (16.789, 9.495), 'right_shoulder': (57.055, 7.496, 20.674),
+        'right_elbow': (26.374, 29.2), 'right_wrist': (3.221, -26.445),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.0, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'spine_lumbar': (-3.557, -19.999, 10.296), 'spine_thoracic': (-12.147, -10.0, 12.762),
+        'neck': (27.789, -1.002, -7.833), 'head': (12.166, -0.169),
+        'right_clavicle': (20.515, 11.379), 'right_shoulder': (55.851, 4.979, 21.95),
+        'right_elbow': (19.586, 31.006), 'right_wrist': (4.478, -24.573),
     })
     human.KeyJoints(36.1, {
-        'spine_lumbar': (5.141, -18.365, 9.493), 'spine_thoracic': (-10.663, -8.85, 9.534),
-        'neck': (25.106, -1.179, -7.231), 'head': (9.132, -0.147), 'right_clavicle': (7.407, 7.9),
-        'right_shoulder': (55.232, 5.341, 13.618), 'right_elbow': (30.892, 21.8),
-        'right_wrist': (0.006, -22.203),
+        'spine_lumbar': (2.206, -18.05, 8.721), 'spine_thoracic': (-9.08, -9.117, 9.051),
+        'neck': (25.183, -0.885, -5.068), 'head': (9.017, -0.131), 'right_clavicle': (7.033, 8.08),
+        'right_shoulder': (54.999, 2.534, 15.085), 'right_elbow': (31.132, 22.133),
+        'right_wrist': (0.516, -23.092),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
-        'spine_lumbar': (3.044, -19.338, 9.171), 'spine_thoracic': (-11.066, -10.0, 10.344),
-        'neck': (25.655, -1.132, -7.352), 'head': (9.888, -0.161),
-        'right_clavicle': (14.438, 8.976), 'right_shoulder': (56.992, 6.806, 19.28),
-        'right_elbow': (27.86, 27.507), 'right_wrist': (2.501, -26.289),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(36.3, {
-        'spine_lumbar': (-1.491, -20.0, 10.277), 'spine_thoracic': (-12.584, -10.0, 12.816),
-        'neck': (27.486, -1.141, -8.678), 'head': (11.864, -0.171),
-        'right_clavicle': (21.197, 11.329), 'right_shoulder': (57.054, 6.847, 21.745),
-        'right_elbow': (19.172, 31.272), 'right_wrist': (4.417, -24.336),
+        'spine_lumbar': (5.416, -17.792, 9.507), 'spine_thoracic': (-10.479, -8.275, 9.493),
+        'neck': (24.996, -1.162, -6.99), 'head': (8.957, -0.142), 'right_clavicle': (6.856, 7.898),
+        'right_shoulder': (55.376, 5.034, 13.293), 'right_elbow': (31.072, 21.404),
+        'right_wrist': (-0.131, -21.953),
     })
     human.KeyJoints(36.4, {
-        'spine_lumbar': (-0.412, -19.332, 8.592), 'spine_thoracic': (-9.436, -10.0, 9.159),
-        'neck': (25.872, -0.799, -4.827), 'head': (10.018, -0.152),
-        'right_clavicle': (10.367, 8.305), 'right_shoulder': (54.665, 2.517, 17.436),
-        'right_elbow': (29.234, 24.632), 'right_wrist': (1.644, -24.106),
+        'spine_lumbar': (3.314, -19.189, 9.1), 'spine_thoracic': (-10.864, -10.0, 10.126),
+        'neck': (25.53, -1.122, -7.158), 'head': (9.692, -0.156), 'right_clavicle': (13.527, 8.776),
+        'right_shoulder': (56.967, 6.531, 18.679), 'right_elbow': (28.345, 26.834),
+        'right_wrist': (2.202, -25.987),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.5, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'spine_lumbar': (-0.264, -20.0, 10.256), 'spine_thoracic': (-12.689, -10.0, 12.825),
+        'neck': (27.282, -1.231, -9.19), 'head': (11.661, -0.172),
+        'right_clavicle': (21.341, 11.276), 'right_shoulder': (57.515, 7.513, 21.573),
+        'right_elbow': (19.089, 31.325), 'right_wrist': (4.356, -24.209),
     })
     human.KeyJoints(36.6, {
-        'spine_lumbar': (6.249, -16.255, 9.557), 'spine_thoracic': (-9.892, -6.859, 9.394),
-        'neck': (24.746, -1.122, -6.41), 'head': (8.49, -0.127), 'right_clavicle': (5.439, 7.913),
-        'right_shoulder': (55.98, 4.25, 12.525), 'right_elbow': (31.602, 20.416),
-        'right_wrist': (-0.458, -21.18),
+        'spine_lumbar': (-1.182, -19.52, 8.842), 'spine_thoracic': (-9.828, -10.0, 9.679),
+        'neck': (26.22, -0.823, -5.302), 'head': (10.459, -0.158),
+        'right_clavicle': (12.247, 8.769), 'right_shoulder': (54.769, 2.75, 18.418),
+        'right_elbow': (27.616, 25.887), 'right_wrist': (2.218, -24.239),
     })
     human.KeyJoints(36.7, {
-        'spine_lumbar': (4.009, -19.259, 8.864), 'spine_thoracic': (-10.307, -10.0, 9.522),
-        'neck': (25.18, -1.121, -6.83), 'head': (9.177, -0.145), 'right_clavicle': (11.076, 8.214),
-        'right_shoulder': (56.906, 5.778, 16.941), 'right_elbow': (29.369, 24.969),
-        'right_wrist': (1.363, -24.592),
+        'spine_lumbar': (7.938, -13.557, 9.839), 'spine_thoracic': (-8.833, -4.45, 9.394),
+        'neck': (24.084, -1.057, -5.319), 'head': (7.538, -0.107), 'right_clavicle': (3.11, 8.01),
+        'right_shoulder': (56.935, 3.008, 11.379), 'right_elbow': (32.756, 18.859),
+        'right_wrist': (-0.968, -19.365),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
-        'spine_lumbar': (1.098, -19.62, 10.038), 'spine_thoracic': (-12.407, -10.0, 12.348),
-        'neck': (26.75, -1.247, -9.009), 'head': (11.117, -0.172),
-        'right_clavicle': (19.958, 10.755), 'right_shoulder': (57.61, 7.56, 20.747),
-        'right_elbow': (20.665, 30.474), 'right_wrist': (3.858, -24.665),
+        'spine_lumbar': (6.592, -15.676, 9.613), 'spine_thoracic': (-9.699, -6.314, 9.389),
+        'neck': (24.669, -1.112, -6.24), 'head': (8.333, -0.121), 'right_clavicle': (4.908, 7.929),
+        'right_shoulder': (56.146, 3.99, 12.226), 'right_elbow': (31.836, 20.041),
+        'right_wrist': (-0.583, -20.816),
     })
     human.KeyJoints(36.9, {
-        'spine_lumbar': (-2.912, -19.882, 9.81), 'spine_thoracic': (-11.25, -10.0, 11.714),
-        'neck': (27.157, -0.907, -6.715), 'head': (11.525, -0.167),
-        'right_clavicle': (17.738, 10.514), 'right_shoulder': (55.286, 3.86, 20.924),
-        'right_elbow': (22.294, 29.37), 'right_wrist': (3.799, -24.492),
+        'spine_lumbar': (4.305, -19.311, 8.765), 'spine_thoracic': (-10.053, -10.0, 9.261),
+        'neck': (25.015, -1.125, -6.723), 'head': (8.942, -0.14), 'right_clavicle': (10.127, 7.972),
+        'right_shoulder': (56.892, 5.431, 16.302), 'right_elbow': (29.782, 24.257),
+        'right_wrist': (1.063, -23.979),
     })
     human.KeyJoints(37.0, {
-        'spine_lumbar': (5.482, -15.58, 9.321), 'spine_thoracic': (-8.919, -6.611, 9.235),
-        'neck': (24.691, -1.012, -5.463), 'head': (8.291, -0.117), 'right_clavicle': (4.623, 8.033),
-        'right_shoulder': (56.039, 2.789, 12.89), 'right_elbow': (32.168, 20.149),
-        'right_wrist': (-0.383, -21.05),
+        'spine_lumbar': (1.566, -19.665, 9.768), 'spine_thoracic': (-12.062, -10.0, 11.768),
+        'neck': (26.46, -1.213, -8.548), 'head': (10.819, -0.171),
+        'right_clavicle': (18.584, 10.247), 'right_shoulder': (57.401, 7.508, 20.677),
+        'right_elbow': (22.886, 29.86), 'right_wrist': (3.561, -25.391),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.1, {
-        'spine_lumbar': (7.694, -13.953, 9.813), 'spine_thoracic': (-9.051, -4.766, 9.403),
-        'neck': (24.212, -1.071, -5.529), 'head': (7.708, -0.11), 'right_clavicle': (3.424, 7.996),
-        'right_shoulder': (56.722, 3.226, 11.483), 'right_elbow': (32.584, 19.044),
-        'right_wrist': (-0.913, -19.623),
+        'spine_lumbar': (-3.33, -19.959, 10.116), 'spine_thoracic': (-11.743, -10.0, 12.364),
+        'neck': (27.537, -0.948, -7.259), 'head': (11.914, -0.168),
+        'right_clavicle': (19.381, 11.059), 'right_shoulder': (55.538, 4.374, 21.583),
+        'right_elbow': (20.655, 30.365), 'right_wrist': (4.233, -24.546),
     })
     human.KeyJoints(37.2, {
-        'spine_lumbar': (4.851, -18.984, 9.436), 'spine_thoracic': (-10.819, -9.536, 9.568),
-        'neck': (25.202, -1.195, -7.449), 'head': (9.29, -0.152), 'right_clavicle': (8.094, 7.913),
-        'right_shoulder': (55.144, 5.653, 14.09), 'right_elbow': (30.674, 22.324),
-        'right_wrist': (0.201, -22.504),
+        'spine_lumbar': (3.992, -16.746, 9.032), 'spine_thoracic': (-8.984, -7.821, 9.147),
+        'neck': (24.924, -0.977, -5.424), 'head': (8.612, -0.122), 'right_clavicle': (5.645, 8.052),
+        'right_shoulder': (55.537, 2.666, 13.854), 'right_elbow': (31.744, 21.001),
+        'right_wrist': (0.003, -22.017),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
-        'spine_lumbar': (2.735, -19.642, 9.238), 'spine_thoracic': (-11.292, -10.0, 10.583),
-        'neck': (25.805, -1.15, -7.615), 'head': (10.1, -0.166), 'right_clavicle': (15.48, 9.196),
-        'right_shoulder': (57.016, 7.17, 20.037), 'right_elbow': (27.283, 28.301),
-        'right_wrist': (2.838, -26.42),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(37.4, {
-        'spine_lumbar': (-2.892, -20.0, 10.293), 'spine_thoracic': (-12.403, -10.0, 12.797),
-        'neck': (27.681, -1.071, -8.295), 'head': (12.058, -0.17),
-        'right_clavicle': (20.934, 11.37), 'right_shoulder': (56.405, 5.884, 21.896),
-        'right_elbow': (19.327, 31.172), 'right_wrist': (4.464, -24.494),
+        'spine_lumbar': (5.09, -18.486, 9.487), 'spine_thoracic': (-10.698, -8.979, 9.542),
+        'neck': (25.127, -1.183, -7.279), 'head': (9.167, -0.148), 'right_clavicle': (7.516, 7.902),
+        'right_shoulder': (55.211, 5.409, 13.685), 'right_elbow': (30.859, 21.879),
+        'right_wrist': (0.034, -22.248),
     })
     human.KeyJoints(37.5, {
-        'spine_lumbar': (0.522, -19.054, 8.518), 'spine_thoracic': (-9.216, -9.967, 8.989),
-        'neck': (25.519, -0.795, -4.674), 'head': (9.536, -0.143), 'right_clavicle': (8.736, 8.122),
-        'right_shoulder': (54.646, 2.448, 16.424), 'right_elbow': (30.307, 23.463),
-        'right_wrist': (1.115, -23.904),
+        'spine_lumbar': (2.99, -19.378, 9.184), 'spine_thoracic': (-11.105, -10.0, 10.387),
+        'neck': (25.68, -1.135, -7.395), 'head': (9.927, -0.162), 'right_clavicle': (14.618, 9.015),
+        'right_shoulder': (56.997, 6.861, 19.397), 'right_elbow': (27.758, 27.64),
+        'right_wrist': (2.559, -26.33),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.6, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'spine_lumbar': (-1.746, -20.0, 10.281), 'spine_thoracic': (-12.557, -10.0, 12.813),
+        'neck': (27.518, -1.127, -8.602), 'head': (11.896, -0.171),
+        'right_clavicle': (21.159, 11.338), 'right_shoulder': (56.947, 6.69, 21.775),
+        'right_elbow': (19.194, 31.258), 'right_wrist': (4.427, -24.364),
     })
     human.KeyJoints(37.7, {
-        'spine_lumbar': (5.857, -16.954, 9.515), 'spine_thoracic': (-10.144, -7.51, 9.424),
-        'neck': (24.822, -1.134, -6.608), 'head': (8.669, -0.134), 'right_clavicle': (6.084, 7.903),
-        'right_shoulder': (55.742, 4.59, 12.881), 'right_elbow': (31.342, 20.869),
-        'right_wrist': (-0.307, -21.569),
+        'spine_lumbar': (-0.258, -19.292, 8.561), 'spine_thoracic': (-9.379, -10.0, 9.092),
+        'neck': (25.807, -0.796, -4.762), 'head': (9.933, -0.15), 'right_clavicle': (10.041, 8.243),
+        'right_shoulder': (54.652, 2.489, 17.253), 'right_elbow': (29.486, 24.408),
+        'right_wrist': (1.542, -24.078),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
-        'spine_lumbar': (3.685, -19.206, 8.976), 'spine_thoracic': (-10.571, -10.0, 9.805),
-        'neck': (25.348, -1.12, -6.962), 'head': (9.42, -0.15), 'right_clavicle': (12.206, 8.478),
-        'right_shoulder': (56.931, 6.135, 17.745), 'right_elbow': (28.911, 25.831),
-        'right_wrist': (1.746, -25.313),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(37.9, {
-        'spine_lumbar': (0.765, -19.972, 10.207), 'spine_thoracic': (-12.717, -10.0, 12.803),
-        'neck': (26.975, -1.292, -9.512), 'head': (11.352, -0.173),
-        'right_clavicle': (21.32, 11.153), 'right_shoulder': (57.734, 7.814, 21.264),
-        'right_elbow': (19.139, 31.295), 'right_wrist': (4.223, -24.172),
+        'spine_lumbar': (6.182, -16.372, 9.547), 'spine_thoracic': (-9.933, -6.968, 9.398),
+        'neck': (24.757, -1.124, -6.44), 'head': (8.518, -0.128), 'right_clavicle': (5.546, 7.911),
+        'right_shoulder': (55.942, 4.305, 12.584), 'right_elbow': (31.557, 20.492),
+        'right_wrist': (-0.432, -21.249),
     })
     human.KeyJoints(38.0, {
-        'spine_lumbar': (-2.204, -19.742, 9.355), 'spine_thoracic': (-10.577, -10.0, 10.756),
-        'neck': (26.714, -0.866, -6.102), 'head': (11.048, -0.165), 'right_clavicle': (15.287, 9.7),
-        'right_shoulder': (55.015, 3.287, 19.855), 'right_elbow': (24.727, 27.841),
-        'right_wrist': (3.111, -24.395),
+        'spine_lumbar': (3.951, -19.249, 8.884), 'spine_thoracic': (-10.358, -10.0, 9.576),
+        'neck': (25.213, -1.12, -6.853), 'head': (9.225, -0.146), 'right_clavicle': (11.267, 8.264),
+        'right_shoulder': (56.909, 5.848, 17.07), 'right_elbow': (29.287, 25.111),
+        'right_wrist': (1.424, -24.712),
     })
     human.KeyJoints(38.1, {
-        'spine_lumbar': (6.986, -14.355, 9.633), 'spine_thoracic': (-8.864, -5.311, 9.331),
-        'neck': (24.354, -1.039, -5.395), 'head': (7.866, -0.111), 'right_clavicle': (3.673, 8.018),
-        'right_shoulder': (56.578, 2.921, 11.954), 'right_elbow': (32.543, 19.343),
-        'right_wrist': (-0.748, -20.031),
+        'spine_lumbar': (1.041, -19.673, 10.074), 'spine_thoracic': (-12.472, -10.0, 12.446),
+        'neck': (26.791, -1.256, -9.11), 'head': (11.16, -0.172),
+        'right_clavicle': (20.238, 10.837), 'right_shoulder': (57.638, 7.6, 20.816),
+        'right_elbow': (20.332, 30.634), 'right_wrist': (3.927, -24.558),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.2, {
-        'spine_lumbar': (7.106, -14.858, 9.729), 'spine_thoracic': (-9.453, -5.537, 9.409),
-        'neck': (24.479, -1.095, -5.943), 'head': (8.067, -0.116), 'right_clavicle': (4.163, 7.964),
-        'right_shoulder': (56.334, 3.655, 11.798), 'right_elbow': (32.198, 19.513),
-        'right_wrist': (-0.763, -20.234),
+        'spine_lumbar': (-2.807, -19.862, 9.738), 'spine_thoracic': (-11.141, -10.0, 11.562),
+        'neck': (27.077, -0.899, -6.607), 'head': (11.441, -0.167),
+        'right_clavicle': (17.356, 10.386), 'right_shoulder': (55.237, 3.76, 20.763),
+        'right_elbow': (22.676, 29.135), 'right_wrist': (3.694, -24.479),
     })
     human.KeyJoints(38.3, {
-        'spine_lumbar': (4.617, -19.244, 9.038), 'spine_thoracic': (-10.378, -9.886, 9.373),
-        'neck': (25.084, -1.161, -7.047), 'head': (9.077, -0.145), 'right_clavicle': (8.94, 7.918),
-        'right_shoulder': (56.075, 5.499, 15.062), 'right_elbow': (30.318, 23.153),
-        'right_wrist': (0.566, -23.095),
+        'spine_lumbar': (5.762, -15.355, 9.378), 'spine_thoracic': (-8.908, -6.374, 9.253),
+        'neck': (24.637, -1.017, -5.455), 'head': (8.221, -0.116), 'right_clavicle': (4.44, 8.03),
+        'right_shoulder': (56.137, 2.813, 12.713), 'right_elbow': (32.241, 19.995),
+        'right_wrist': (-0.453, -20.863),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
-        'spine_lumbar': (2.412, -19.997, 9.3), 'spine_thoracic': (-11.524, -10.0, 10.835),
-        'neck': (25.974, -1.174, -7.926), 'head': (10.308, -0.169),
-        'right_clavicle': (16.542, 9.427), 'right_shoulder': (57.042, 7.489, 20.668),
-        'right_elbow': (26.605, 29.069), 'right_wrist': (3.16, -26.46),
+        'spine_lumbar': (7.587, -14.116, 9.8), 'spine_thoracic': (-9.131, -4.901, 9.405),
+        'neck': (24.264, -1.075, -5.609), 'head': (7.776, -0.111), 'right_clavicle': (3.553, 7.99),
+        'right_shoulder': (56.64, 3.307, 11.534), 'right_elbow': (32.515, 19.123),
+        'right_wrist': (-0.888, -19.732),
     })
     human.KeyJoints(38.5, {
-        'spine_lumbar': (-3.559, -20.0, 10.299), 'spine_thoracic': (-12.19, -10.0, 12.773),
-        'neck': (27.793, -1.012, -7.918), 'head': (12.17, -0.169),
-        'right_clavicle': (20.595, 11.385), 'right_shoulder': (55.908, 5.085, 21.956),
-        'right_elbow': (19.531, 31.041), 'right_wrist': (4.482, -24.574),
+        'spine_lumbar': (4.807, -19.04, 9.422), 'spine_thoracic': (-10.823, -9.606, 9.568),
+        'neck': (25.205, -1.196, -7.455), 'head': (9.295, -0.152), 'right_clavicle': (8.222, 7.915),
+        'right_shoulder': (55.142, 5.662, 14.194), 'right_elbow': (30.628, 22.431),
+        'right_wrist': (0.243, -22.572),
     })
     human.KeyJoints(38.6, {
-        'spine_lumbar': (1.902, -18.256, 8.675), 'spine_thoracic': (-9.099, -9.31, 9.037),
-        'neck': (25.232, -0.866, -4.99), 'head': (9.095, -0.133), 'right_clavicle': (7.298, 8.086),
-        'right_shoulder': (54.919, 2.515, 15.307), 'right_elbow': (31.01, 22.345),
-        'right_wrist': (0.611, -23.26),
+        'spine_lumbar': (2.689, -19.719, 9.246), 'spine_thoracic': (-11.327, -10.0, 10.617),
+        'neck': (25.829, -1.153, -7.66), 'head': (10.13, -0.166), 'right_clavicle': (15.642, 9.227),
+        'right_shoulder': (57.019, 7.242, 20.183), 'right_elbow': (27.197, 28.433),
+        'right_wrist': (2.892, -26.43),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.7, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'spine_lumbar': (-3.073, -20.0, 10.295), 'spine_thoracic': (-12.369, -10.0, 12.794),
+        'neck': (27.71, -1.06, -8.238), 'head': (12.087, -0.17), 'right_clavicle': (20.882, 11.374),
+        'right_shoulder': (56.305, 5.729, 21.913), 'right_elbow': (19.358, 31.152),
+        'right_wrist': (4.469, -24.516),
     })
     human.KeyJoints(38.8, {
-        'spine_lumbar': (5.481, -17.664, 9.508), 'spine_thoracic': (-10.429, -8.156, 9.481),
-        'neck': (24.968, -1.157, -6.928), 'head': (8.912, -0.141), 'right_clavicle': (6.735, 7.899),
-        'right_shoulder': (55.429, 4.966, 13.227), 'right_elbow': (31.113, 21.319),
-        'right_wrist': (-0.159, -21.897),
+        'spine_lumbar': (0.712, -18.966, 8.531), 'spine_thoracic': (-9.195, -9.912, 8.993),
+        'neck': (25.468, -0.802, -4.704), 'head': (9.461, -0.142), 'right_clavicle': (8.499, 8.115),
+        'right_shoulder': (54.669, 2.453, 16.253), 'right_elbow': (30.428, 23.284),
+        'right_wrist': (1.035, -23.834),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
-        'spine_lumbar': (3.373, -19.178, 9.083), 'spine_thoracic': (-10.819, -10.0, 10.078),
-        'neck': (25.502, -1.121, -7.121), 'head': (9.649, -0.155),
-        'right_clavicle': (13.325, 8.731), 'right_shoulder': (56.962, 6.47, 18.542),
-        'right_elbow': (28.444, 26.682), 'right_wrist': (2.135, -25.908),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(39.0, {
-        'spine_lumbar': (-0.029, -20.0, 10.25), 'spine_thoracic': (-12.705, -10.0, 12.827),
-        'neck': (27.232, -1.251, -9.299), 'head': (11.612, -0.173),
-        'right_clavicle': (21.362, 11.261), 'right_shoulder': (57.59, 7.62, 21.531),
-        'right_elbow': (19.077, 31.333), 'right_wrist': (4.34, -24.188),
+        'spine_lumbar': (5.793, -17.071, 9.513), 'spine_thoracic': (-10.189, -7.618, 9.43),
+        'neck': (24.841, -1.137, -6.652), 'head': (8.705, -0.136), 'right_clavicle': (6.192, 7.902),
+        'right_shoulder': (55.696, 4.649, 12.94), 'right_elbow': (31.302, 20.945),
+        'right_wrist': (-0.282, -21.628),
     })
     human.KeyJoints(39.1, {
-        'spine_lumbar': (-1.349, -19.558, 8.913), 'spine_thoracic': (-9.934, -10.0, 9.828),
-        'neck': (26.299, -0.829, -5.428), 'head': (10.556, -0.16),
-        'right_clavicle': (12.703, 8.899), 'right_shoulder': (54.8, 2.819, 18.643),
-        'right_elbow': (27.197, 26.185), 'right_wrist': (2.355, -24.266),
+        'spine_lumbar': (3.633, -19.198, 8.995), 'spine_thoracic': (-10.613, -10.0, 9.851),
+        'neck': (25.374, -1.12, -6.986), 'head': (9.458, -0.151), 'right_clavicle': (12.394, 8.521),
+        'right_shoulder': (56.936, 6.191, 17.882), 'right_elbow': (28.837, 25.975),
+        'right_wrist': (1.813, -25.432),
     })
     human.KeyJoints(39.2, {
-        'spine_lumbar': (7.869, -13.615, 9.823), 'spine_thoracic': (-8.835, -4.514, 9.389),
-        'neck': (24.106, -1.056, -5.325), 'head': (7.564, -0.107), 'right_clavicle': (3.15, 8.011),
-        'right_shoulder': (56.908, 3.001, 11.42), 'right_elbow': (32.742, 18.893),
-        'right_wrist': (-0.953, -19.414),
+        'spine_lumbar': (0.691, -19.997, 10.22), 'spine_thoracic': (-12.733, -10.0, 12.826),
+        'neck': (27.014, -1.294, -9.539), 'head': (11.392, -0.173),
+        'right_clavicle': (21.393, 11.184), 'right_shoulder': (57.74, 7.832, 21.328),
+        'right_elbow': (19.063, 31.341), 'right_wrist': (4.255, -24.147),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.3, {
-        'spine_lumbar': (6.669, -15.55, 9.63), 'spine_thoracic': (-9.661, -6.194, 9.391),
-        'neck': (24.645, -1.11, -6.198), 'head': (8.295, -0.12), 'right_clavicle': (4.791, 7.933),
-        'right_shoulder': (56.175, 3.937, 12.157), 'right_elbow': (31.891, 19.958),
-        'right_wrist': (-0.612, -20.73),
+        'spine_lumbar': (-2.07, -19.714, 9.278), 'spine_thoracic': (-10.465, -10.0, 10.593),
+        'neck': (26.648, -0.86, -5.999), 'head': (10.972, -0.164), 'right_clavicle': (14.854, 9.56),
+        'right_shoulder': (54.974, 3.2, 19.659), 'right_elbow': (25.15, 27.567),
+        'right_wrist': (2.986, -24.376),
     })
     human.KeyJoints(39.4, {
-        'spine_lumbar': (4.365, -19.318, 8.752), 'spine_thoracic': (-10.02, -10.0, 9.227),
-        'neck': (24.994, -1.126, -6.71), 'head': (8.911, -0.139), 'right_clavicle': (9.928, 7.94),
-        'right_shoulder': (56.887, 5.386, 16.149), 'right_elbow': (29.87, 24.098),
-        'right_wrist': (0.996, -23.845),
+        'spine_lumbar': (7.185, -14.19, 9.675), 'spine_thoracic': (-8.857, -5.133, 9.344),
+        'neck': (24.301, -1.043, -5.381), 'head': (7.801, -0.11), 'right_clavicle': (3.553, 8.017),
+        'right_shoulder': (56.651, 2.939, 11.832), 'right_elbow': (32.589, 19.24),
+        'right_wrist': (-0.795, -19.893),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'spine_lumbar': (1.716, -19.734, 9.673), 'spine_thoracic': (-11.968, -10.0, 11.592),
-        'neck': (26.371, -1.206, -8.439), 'head': (10.729, -0.17),
-        'right_clavicle': (18.236, 10.093), 'right_shoulder': (57.325, 7.506, 20.676),
-        'right_elbow': (23.622, 29.741), 'right_wrist': (3.498, -25.636),
+        'spine_lumbar': (7.031, -14.976, 9.714), 'spine_thoracic': (-9.492, -5.646, 9.407),
+        'neck': (24.509, -1.098, -5.99), 'head': (8.108, -0.117), 'right_clavicle': (4.267, 7.959),
+        'right_shoulder': (56.303, 3.705, 11.853), 'right_elbow': (32.146, 19.584),
+        'right_wrist': (-0.739, -20.318),
     })
     human.KeyJoints(39.6, {
-        'spine_lumbar': (-3.397, -19.971, 10.167), 'spine_thoracic': (-11.836, -10.0, 12.474),
-        'neck': (27.606, -0.957, -7.374), 'head': (11.983, -0.168),
-        'right_clavicle': (19.668, 11.151), 'right_shoulder': (55.595, 4.487, 21.689),
-        'right_elbow': (20.372, 30.535), 'right_wrist': (4.303, -24.554),
+        'spine_lumbar': (4.581, -19.273, 8.939), 'spine_thoracic': (-10.252, -9.928, 9.318),
+        'neck': (25.05, -1.151, -6.932), 'head': (9.016, -0.143), 'right_clavicle': (9.097, 7.918),
+        'right_shoulder': (56.339, 5.453, 15.272), 'right_elbow': (30.245, 23.319),
+        'right_wrist': (0.644, -23.223),
     })
     human.KeyJoints(39.7, {
-        'spine_lumbar': (3.656, -17.001, 8.97), 'spine_thoracic': (-9.0, -8.081, 9.127),
-        'neck': (24.971, -0.963, -5.378), 'head': (8.684, -0.123), 'right_clavicle': (5.89, 8.056),
-        'right_shoulder': (55.429, 2.639, 14.079), 'right_elbow': (31.639, 21.203),
-        'right_wrist': (0.095, -22.228),
+        'spine_lumbar': (2.336, -19.996, 9.322), 'spine_thoracic': (-11.577, -10.0, 10.902),
+        'neck': (26.015, -1.178, -7.992), 'head': (10.356, -0.169),
+        'right_clavicle': (16.765, 9.487), 'right_shoulder': (57.052, 7.496, 20.674),
+        'right_elbow': (26.403, 29.188), 'right_wrist': (3.215, -26.45),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.8, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'spine_lumbar': (-3.558, -20.0, 10.297), 'spine_thoracic': (-12.151, -10.0, 12.764),
+        'neck': (27.79, -1.003, -7.841), 'head': (12.167, -0.169),
+        'right_clavicle': (20.524, 11.381), 'right_shoulder': (55.856, 4.988, 21.952),
+        'right_elbow': (19.579, 31.011), 'right_wrist': (4.479, -24.573),
     })
     human.KeyJoints(39.9, {
-        'spine_lumbar': (5.147, -18.353, 9.493), 'spine_thoracic': (-10.66, -8.837, 9.534),
-        'neck': (25.103, -1.179, -7.226), 'head': (9.129, -0.147), 'right_clavicle': (7.396, 7.9),
-        'right_shoulder': (55.235, 5.334, 13.611), 'right_elbow': (30.896, 21.792),
-        'right_wrist': (0.003, -22.198),
+        'spine_lumbar': (2.178, -18.07, 8.717), 'spine_thoracic': (-9.082, -9.135, 9.05),
+        'neck': (25.187, -0.883, -5.061), 'head': (9.024, -0.132), 'right_clavicle': (7.058, 8.08),
+        'right_shoulder': (54.991, 2.532, 15.106), 'right_elbow': (31.121, 22.153),
+        'right_wrist': (0.524, -23.108),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
-        'spine_lumbar': (3.049, -19.334, 9.17), 'spine_thoracic': (-11.062, -10.0, 10.339),
-        'neck': (25.652, -1.132, -7.348), 'head': (9.884, -0.161), 'right_clavicle': (14.42, 8.972),
-        'right_shoulder': (56.991, 6.801, 19.268), 'right_elbow': (27.87, 27.494),
-        'right_wrist': (2.495, -26.284),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(40.1, {
-        'spine_lumbar': (-1.465, -20.0, 10.277), 'spine_thoracic': (-12.587, -10.0, 12.816),
-        'neck': (27.482, -1.142, -8.687), 'head': (11.86, -0.171),
-        'right_clavicle': (21.201, 11.328), 'right_shoulder': (57.065, 6.863, 21.742),
-        'right_elbow': (19.17, 31.273), 'right_wrist': (4.416, -24.333),
+        'spine_lumbar': (5.422, -17.78, 9.507), 'spine_thoracic': (-10.474, -8.264, 9.492),
+        'neck': (24.994, -1.161, -6.985), 'head': (8.953, -0.142), 'right_clavicle': (6.844, 7.898),
+        'right_shoulder': (55.381, 5.028, 13.287), 'right_elbow': (31.076, 21.396),
+        'right_wrist': (-0.134, -21.948),
     })
     human.KeyJoints(40.2, {
-        'spine_lumbar': (-0.428, -19.336, 8.596), 'spine_thoracic': (-9.443, -10.0, 9.166),
-        'neck': (25.879, -0.8, -4.834), 'head': (10.027, -0.152), 'right_clavicle': (10.401, 8.312),
-        'right_shoulder': (54.666, 2.52, 17.455), 'right_elbow': (29.207, 24.655),
-        'right_wrist': (1.655, -24.109),
+        'spine_lumbar': (3.32, -19.187, 9.098), 'spine_thoracic': (-10.86, -10.0, 10.122),
+        'neck': (25.528, -1.122, -7.154), 'head': (9.688, -0.156),
+        'right_clavicle': (13.509, 8.772), 'right_shoulder': (56.967, 6.525, 18.666),
+        'right_elbow': (28.354, 26.82), 'right_wrist': (2.196, -25.98),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.3, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'spine_lumbar': (-0.241, -20.0, 10.256), 'spine_thoracic': (-12.691, -10.0, 12.825),
+        'neck': (27.277, -1.233, -9.2), 'head': (11.657, -0.172),
+        'right_clavicle': (21.343, 11.274), 'right_shoulder': (57.523, 7.524, 21.569),
+        'right_elbow': (19.087, 31.326), 'right_wrist': (4.354, -24.207),
     })
     human.KeyJoints(40.4, {
-        'spine_lumbar': (6.256, -16.244, 9.558), 'spine_thoracic': (-9.888, -6.848, 9.394),
-        'neck': (24.745, -1.122, -6.407), 'head': (8.487, -0.126), 'right_clavicle': (5.428, 7.914),
-        'right_shoulder': (55.983, 4.245, 12.519), 'right_elbow': (31.606, 20.409),
-        'right_wrist': (-0.46, -21.173),
+        'spine_lumbar': (-1.198, -19.523, 8.848), 'spine_thoracic': (-9.838, -10.0, 9.693),
+        'neck': (26.227, -0.823, -5.314), 'head': (10.468, -0.158),
+        'right_clavicle': (12.288, 8.781), 'right_shoulder': (54.772, 2.756, 18.439),
+        'right_elbow': (27.578, 25.914), 'right_wrist': (2.231, -24.242),
     })
     human.KeyJoints(40.5, {
-        'spine_lumbar': (4.015, -19.261, 8.861), 'spine_thoracic': (-10.302, -10.0, 9.516),
-        'neck': (25.177, -1.121, -6.828), 'head': (9.172, -0.144),
-        'right_clavicle': (11.057, 8.209), 'right_shoulder': (56.906, 5.77, 16.929),
-        'right_elbow': (29.377, 24.954), 'right_wrist': (1.357, -24.58),
+        'spine_lumbar': (7.933, -13.561, 9.838), 'spine_thoracic': (-8.834, -4.455, 9.394),
+        'neck': (24.086, -1.057, -5.319), 'head': (7.54, -0.107), 'right_clavicle': (3.113, 8.01),
+        'right_shoulder': (56.933, 3.007, 11.382), 'right_elbow': (32.755, 18.861),
+        'right_wrist': (-0.967, -19.369),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
-        'spine_lumbar': (1.104, -19.615, 10.034), 'spine_thoracic': (-12.4, -10.0, 12.339),
-        'neck': (26.746, -1.246, -8.999), 'head': (11.113, -0.172),
-        'right_clavicle': (19.929, 10.747), 'right_shoulder': (57.607, 7.557, 20.741),
-        'right_elbow': (20.699, 30.458), 'right_wrist': (3.851, -24.676),
+        'spine_lumbar': (6.599, -15.664, 9.615), 'spine_thoracic': (-9.695, -6.303, 9.389),
+        'neck': (24.667, -1.112, -6.237), 'head': (8.329, -0.121), 'right_clavicle': (4.897, 7.929),
+        'right_shoulder': (56.149, 3.985, 12.22), 'right_elbow': (31.841, 20.034),
+        'right_wrist': (-0.586, -20.809),
     })
     human.KeyJoints(40.7, {
-        'spine_lumbar': (-2.922, -19.884, 9.817), 'spine_thoracic': (-11.261, -10.0, 11.729),
-        'neck': (27.166, -0.907, -6.726), 'head': (11.534, -0.167),
-        'right_clavicle': (17.776, 10.527), 'right_shoulder': (55.29, 3.87, 20.939),
-        'right_elbow': (22.256, 29.393), 'right_wrist': (3.809, -24.494),
+        'spine_lumbar': (4.31, -19.312, 8.763), 'spine_thoracic': (-10.05, -10.0, 9.257),
+        'neck': (25.013, -1.125, -6.722), 'head': (8.938, -0.14), 'right_clavicle': (10.108, 7.969),
+        'right_shoulder': (56.892, 5.426, 16.288), 'right_elbow': (29.79, 24.243),
+        'right_wrist': (1.057, -23.967),
     })
     human.KeyJoints(40.8, {
-        'spine_lumbar': (5.453, -15.603, 9.316), 'spine_thoracic': (-8.921, -6.635, 9.234),
-        'neck': (24.697, -1.011, -5.464), 'head': (8.298, -0.117), 'right_clavicle': (4.642, 8.034),
-        'right_shoulder': (56.029, 2.786, 12.909), 'right_elbow': (32.16, 20.165),
-        'right_wrist': (-0.376, -21.069),
+        'spine_lumbar': (1.58, -19.671, 9.76), 'spine_thoracic': (-12.054, -10.0, 11.752),
+        'neck': (26.452, -1.212, -8.538), 'head': (10.811, -0.171),
+        'right_clavicle': (18.552, 10.233), 'right_shoulder': (57.394, 7.507, 20.677),
+        'right_elbow': (22.951, 29.849), 'right_wrist': (3.555, -25.413),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.9, {
-        'spine_lumbar': (7.705, -13.937, 9.814), 'spine_thoracic': (-9.043, -4.753, 9.402),
-        'neck': (24.207, -1.07, -5.522), 'head': (7.701, -0.11), 'right_clavicle': (3.412, 7.996),
-        'right_shoulder': (56.73, 3.218, 11.478), 'right_elbow': (32.591, 19.036),
-        'right_wrist': (-0.915, -19.612),
+        'spine_lumbar': (-3.337, -19.961, 10.121), 'spine_thoracic': (-11.752, -10.0, 12.375),
+        'neck': (27.544, -0.948, -7.27), 'head': (11.92, -0.168),
+        'right_clavicle': (19.409, 11.068), 'right_shoulder': (55.543, 4.384, 21.593),
+        'right_elbow': (20.628, 30.382), 'right_wrist': (4.24, -24.547),
     })
     human.KeyJoints(41.0, {
-        'spine_lumbar': (4.856, -18.977, 9.437), 'spine_thoracic': (-10.818, -9.528, 9.567),
-        'neck': (25.202, -1.195, -7.448), 'head': (9.289, -0.152), 'right_clavicle': (8.081, 7.913),
-        'right_shoulder': (55.145, 5.651, 14.08), 'right_elbow': (30.678, 22.314),
-        'right_wrist': (0.197, -22.498),
+        'spine_lumbar': (3.962, -16.77, 9.026), 'spine_thoracic': (-8.985, -7.845, 9.145),
+        'neck': (24.928, -0.976, -5.42), 'head': (8.619, -0.122), 'right_clavicle': (5.667, 8.052),
+        'right_shoulder': (55.527, 2.663, 13.875), 'right_elbow': (31.735, 21.02),
+        'right_wrist': (0.012, -22.036),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
-        'spine_lumbar': (2.74, -19.635, 9.237), 'spine_thoracic': (-11.289, -10.0, 10.579),
-        'neck': (25.803, -1.149, -7.61), 'head': (10.097, -0.165),
-        'right_clavicle': (15.464, 9.192), 'right_shoulder': (57.016, 7.163, 20.022),
-        'right_elbow': (27.291, 28.287), 'right_wrist': (2.833, -26.418),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(41.2, {
-        'spine_lumbar': (-2.872, -20.0, 10.293), 'spine_thoracic': (-12.406, -10.0, 12.798),
-        'neck': (27.678, -1.072, -8.301), 'head': (12.055, -0.17),
-        'right_clavicle': (20.939, 11.37), 'right_shoulder': (56.416, 5.899, 21.894),
-        'right_elbow': (19.324, 31.174), 'right_wrist': (4.464, -24.492),
+        'spine_lumbar': (5.095, -18.474, 9.487), 'spine_thoracic': (-10.695, -8.966, 9.541),
+        'neck': (25.125, -1.182, -7.274), 'head': (9.164, -0.148), 'right_clavicle': (7.505, 7.902),
+        'right_shoulder': (55.213, 5.402, 13.679), 'right_elbow': (30.862, 21.871),
+        'right_wrist': (0.031, -22.243),
     })
     human.KeyJoints(41.3, {
-        'spine_lumbar': (0.503, -19.062, 8.517), 'spine_thoracic': (-9.218, -9.971, 8.989),
-        'neck': (25.524, -0.795, -4.672), 'head': (9.544, -0.143), 'right_clavicle': (8.759, 8.123),
-        'right_shoulder': (54.645, 2.447, 16.441), 'right_elbow': (30.294, 23.481),
-        'right_wrist': (1.123, -23.91),
+        'spine_lumbar': (2.995, -19.374, 9.183), 'spine_thoracic': (-11.101, -10.0, 10.382),
+        'neck': (25.678, -1.135, -7.391), 'head': (9.923, -0.162), 'right_clavicle': (14.6, 9.011),
+        'right_shoulder': (56.996, 6.856, 19.385), 'right_elbow': (27.768, 27.626),
+        'right_wrist': (2.553, -26.326),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.4, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'spine_lumbar': (-1.72, -20.0, 10.28), 'spine_thoracic': (-12.56, -10.0, 12.813),
+        'neck': (27.515, -1.129, -8.609), 'head': (11.893, -0.171),
+        'right_clavicle': (21.163, 11.337), 'right_shoulder': (56.958, 6.706, 21.773),
+        'right_elbow': (19.192, 31.259), 'right_wrist': (4.426, -24.361),
     })
     human.KeyJoints(41.5, {
-        'spine_lumbar': (5.863, -16.942, 9.516), 'spine_thoracic': (-10.14, -7.499, 9.423),
-        'neck': (24.82, -1.134, -6.604), 'head': (8.666, -0.134), 'right_clavicle': (6.073, 7.903),
-        'right_shoulder': (55.746, 4.584, 12.875), 'right_elbow': (31.346, 20.862),
-        'right_wrist': (-0.31, -21.563),
+        'spine_lumbar': (-0.273, -19.296, 8.563), 'spine_thoracic': (-9.384, -10.0, 9.098),
+        'neck': (25.813, -0.796, -4.768), 'head': (9.941, -0.15), 'right_clavicle': (10.073, 8.249),
+        'right_shoulder': (54.653, 2.491, 17.271), 'right_elbow': (29.462, 24.43),
+        'right_wrist': (1.552, -24.081),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
-        'spine_lumbar': (3.69, -19.207, 8.974), 'spine_thoracic': (-10.567, -10.0, 9.8),
-        'neck': (25.345, -1.12, -6.96), 'head': (9.416, -0.15), 'right_clavicle': (12.187, 8.473),
-        'right_shoulder': (56.931, 6.129, 17.732), 'right_elbow': (28.918, 25.816),
-        'right_wrist': (1.74, -25.301),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(41.7, {
-        'spine_lumbar': (0.772, -19.968, 10.206), 'spine_thoracic': (-12.715, -10.0, 12.8),
-        'neck': (26.972, -1.291, -9.507), 'head': (11.348, -0.173),
-        'right_clavicle': (21.309, 11.149), 'right_shoulder': (57.733, 7.812, 21.256),
-        'right_elbow': (19.15, 31.288), 'right_wrist': (4.219, -24.176),
+        'spine_lumbar': (6.189, -16.36, 9.548), 'spine_thoracic': (-9.929, -6.957, 9.398),
+        'neck': (24.756, -1.124, -6.437), 'head': (8.515, -0.128), 'right_clavicle': (5.535, 7.911),
+        'right_shoulder': (55.946, 4.3, 12.578), 'right_elbow': (31.561, 20.484),
+        'right_wrist': (-0.435, -21.242),
     })
     human.KeyJoints(41.8, {
-        'spine_lumbar': (-2.218, -19.745, 9.363), 'spine_thoracic': (-10.589, -10.0, 10.773),
-        'neck': (26.721, -0.867, -6.111), 'head': (11.055, -0.165),
-        'right_clavicle': (15.33, 9.714), 'right_shoulder': (55.019, 3.296, 19.875),
-        'right_elbow': (24.684, 27.869), 'right_wrist': (3.123, -24.397),
+        'spine_lumbar': (3.957, -19.25, 8.882), 'spine_thoracic': (-10.354, -10.0, 9.57),
+        'neck': (25.21, -1.12, -6.851), 'head': (9.221, -0.145), 'right_clavicle': (11.248, 8.259),
+        'right_shoulder': (56.909, 5.841, 17.057), 'right_elbow': (29.296, 25.097),
+        'right_wrist': (1.418, -24.7),
     })
     human.KeyJoints(41.9, {
-        'spine_lumbar': (6.965, -14.373, 9.628), 'spine_thoracic': (-8.865, -5.329, 9.329),
-        'neck': (24.359, -1.039, -5.397), 'head': (7.873, -0.111), 'right_clavicle': (3.686, 8.019),
-        'right_shoulder': (56.57, 2.919, 11.967), 'right_elbow': (32.538, 19.354),
-        'right_wrist': (-0.743, -20.045),
+        'spine_lumbar': (1.047, -19.667, 10.071), 'spine_thoracic': (-12.465, -10.0, 12.436),
+        'neck': (26.787, -1.255, -9.1), 'head': (11.156, -0.172), 'right_clavicle': (20.21, 10.829),
+        'right_shoulder': (57.635, 7.595, 20.809), 'right_elbow': (20.365, 30.617),
+        'right_wrist': (3.92, -24.568),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.0, {
-        'spine_lumbar': (7.114, -14.846, 9.731), 'spine_thoracic': (-9.448, -5.526, 9.409),
-        'neck': (24.476, -1.095, -5.939), 'head': (8.063, -0.116), 'right_clavicle': (4.152, 7.965),
-        'right_shoulder': (56.338, 3.65, 11.793), 'right_elbow': (32.204, 19.505),
-        'right_wrist': (-0.765, -20.225),
+        'spine_lumbar': (-2.818, -19.864, 9.746), 'spine_thoracic': (-11.152, -10.0, 11.578),
+        'neck': (27.085, -0.9, -6.618), 'head': (11.45, -0.167), 'right_clavicle': (17.395, 10.399),
+        'right_shoulder': (55.242, 3.77, 20.779), 'right_elbow': (22.637, 29.159),
+        'right_wrist': (3.705, -24.48),
     })
     human.KeyJoints(42.1, {
-        'spine_lumbar': (4.621, -19.241, 9.048), 'spine_thoracic': (-10.391, -9.882, 9.379),
-        'neck': (25.088, -1.162, -7.059), 'head': (9.084, -0.145), 'right_clavicle': (8.925, 7.918),
-        'right_shoulder': (56.047, 5.504, 15.041), 'right_elbow': (30.326, 23.137),
-        'right_wrist': (0.559, -23.082),
+        'spine_lumbar': (5.734, -15.378, 9.372), 'spine_thoracic': (-8.909, -6.398, 9.251),
+        'neck': (24.642, -1.017, -5.456), 'head': (8.228, -0.116), 'right_clavicle': (4.458, 8.031),
+        'right_shoulder': (56.127, 2.81, 12.731), 'right_elbow': (32.234, 20.01),
+        'right_wrist': (-0.446, -20.881),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
-        'spine_lumbar': (2.419, -19.995, 9.299), 'spine_thoracic': (-11.519, -10.0, 10.829),
-        'neck': (25.97, -1.173, -7.92), 'head': (10.304, -0.169), 'right_clavicle': (16.521, 9.421),
-        'right_shoulder': (57.041, 7.487, 20.665), 'right_elbow': (26.622, 29.056),
-        'right_wrist': (3.154, -26.46),
+        'spine_lumbar': (7.598, -14.099, 9.801), 'spine_thoracic': (-9.123, -4.887, 9.404),
+        'neck': (24.258, -1.075, -5.601), 'head': (7.769, -0.111), 'right_clavicle': (3.54, 7.991),
+        'right_shoulder': (56.649, 3.298, 11.529), 'right_elbow': (32.522, 19.115),
+        'right_wrist': (-0.89, -19.72),
     })
     human.KeyJoints(42.3, {
-        'spine_lumbar': (-3.558, -20.0, 10.299), 'spine_thoracic': (-12.194, -10.0, 12.773),
-        'neck': (27.793, -1.013, -7.926), 'head': (12.17, -0.169),
-        'right_clavicle': (20.601, 11.385), 'right_shoulder': (55.914, 5.095, 21.956),
-        'right_elbow': (19.527, 31.044), 'right_wrist': (4.482, -24.573),
+        'spine_lumbar': (4.812, -19.035, 9.423), 'spine_thoracic': (-10.823, -9.6, 9.569),
+        'neck': (25.205, -1.196, -7.455), 'head': (9.295, -0.152), 'right_clavicle': (8.209, 7.914),
+        'right_shoulder': (55.142, 5.662, 14.183), 'right_elbow': (30.632, 22.42),
+        'right_wrist': (0.238, -22.565),
     })
     human.KeyJoints(42.4, {
-        'spine_lumbar': (1.875, -18.274, 8.671), 'spine_thoracic': (-9.101, -9.327, 9.036),
-        'neck': (25.236, -0.865, -4.983), 'head': (9.102, -0.133), 'right_clavicle': (7.323, 8.086),
-        'right_shoulder': (54.912, 2.513, 15.327), 'right_elbow': (30.999, 22.364),
-        'right_wrist': (0.62, -23.275),
+        'spine_lumbar': (2.694, -19.711, 9.245), 'spine_thoracic': (-11.323, -10.0, 10.614),
+        'neck': (25.826, -1.153, -7.656), 'head': (10.127, -0.166),
+        'right_clavicle': (15.626, 9.224), 'right_shoulder': (57.019, 7.235, 20.168),
+        'right_elbow': (27.206, 28.419), 'right_wrist': (2.886, -26.429),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.5, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'spine_lumbar': (-3.055, -20.0, 10.295), 'spine_thoracic': (-12.372, -10.0, 12.794),
+        'neck': (27.707, -1.061, -8.243), 'head': (12.084, -0.17),
+        'right_clavicle': (20.887, 11.374), 'right_shoulder': (56.315, 5.744, 21.911),
+        'right_elbow': (19.355, 31.154), 'right_wrist': (4.469, -24.514),
     })
     human.KeyJoints(42.6, {
-        'spine_lumbar': (5.487, -17.652, 9.508), 'spine_thoracic': (-10.424, -8.145, 9.48),
-        'neck': (24.965, -1.157, -6.922), 'head': (8.908, -0.141), 'right_clavicle': (6.724, 7.899),
-        'right_shoulder': (55.434, 4.959, 13.221), 'right_elbow': (31.116, 21.312),
-        'right_wrist': (-0.162, -21.891),
+        'spine_lumbar': (0.692, -18.976, 8.529), 'spine_thoracic': (-9.197, -9.919, 8.993),
+        'neck': (25.473, -0.801, -4.701), 'head': (9.468, -0.142), 'right_clavicle': (8.523, 8.116),
+        'right_shoulder': (54.666, 2.453, 16.27), 'right_elbow': (30.415, 23.302),
+        'right_wrist': (1.043, -23.842),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.7, {
-        'spine_lumbar': (3.378, -19.177, 9.081), 'spine_thoracic': (-10.815, -10.0, 10.073),
-        'neck': (25.5, -1.121, -7.118), 'head': (9.646, -0.155), 'right_clavicle': (13.306, 8.727),
-        'right_shoulder': (56.961, 6.464, 18.529), 'right_elbow': (28.452, 26.668),
-        'right_wrist': (2.128, -25.901),
-    })
-    human.KeyJoints(42.8, {
-        'spine_lumbar': (-0.009, -20.0, 10.25), 'spine_thoracic': (-12.706, -10.0, 12.827),
-        'neck': (27.227, -1.252, -9.308), 'head': (11.607, -0.173),
-        'right_clavicle': (21.364, 11.26), 'right_shoulder': (57.596, 7.629, 21.527),
-        'right_elbow': (19.076, 31.333), 'right_wrist': (4.338, -24.186),
-    })
-    human.KeyJoints(42.9, {
-        'spine_lumbar': (-1.364, -19.561, 8.919), 'spine_thoracic': (-9.943, -10.0, 9.842),
-        'neck': (26.306, -0.83, -5.44), 'head': (10.565, -0.16), 'right_clavicle': (12.745, 8.911),
-        'right_shoulder': (54.803, 2.826, 18.664), 'right_elbow': (27.158, 26.213),
-        'right_wrist': (2.367, -24.268),
-    })
-    human.KeyJoints(43.0, {
-        'spine_lumbar': (7.861, -13.622, 9.822), 'spine_thoracic': (-8.836, -4.521, 9.389),
-        'neck': (24.108, -1.055, -5.326), 'head': (7.567, -0.108), 'right_clavicle': (3.154, 8.011),
-        'right_shoulder': (56.905, 3.001, 11.424), 'right_elbow': (32.74, 18.897),
-        'right_wrist': (-0.951, -19.42),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(43.1, {
-        'spine_lumbar': (6.677, -15.538, 9.631), 'spine_thoracic': (-9.658, -6.182, 9.392),
-        'neck': (24.642, -1.11, -6.194), 'head': (8.291, -0.12), 'right_clavicle': (4.781, 7.934),
-        'right_shoulder': (56.177, 3.933, 12.151), 'right_elbow': (31.896, 19.95),
-        'right_wrist': (-0.614, -20.722),
-    })
-    human.KeyJoints(43.2, {
-        'spine_lumbar': (4.37, -19.319, 8.751), 'spine_thoracic': (-10.018, -10.0, 9.224),
-        'neck': (24.992, -1.126, -6.709), 'head': (8.909, -0.139), 'right_clavicle': (9.91, 7.938),
-        'right_shoulder': (56.887, 5.383, 16.135), 'right_elbow': (29.878, 24.083),
-        'right_wrist': (0.989, -23.833),
-    })
-    human.KeyJoints(43.3, {
-        'spine_lumbar': (1.73, -19.741, 9.665), 'spine_thoracic': (-11.959, -10.0, 11.575),
-        'neck': (26.363, -1.206, -8.429), 'head': (10.721, -0.17),
-        'right_clavicle': (18.204, 10.078), 'right_shoulder': (57.318, 7.506, 20.676),
-        'right_elbow': (23.691, 29.73), 'right_wrist': (3.492, -25.658),
-    })
-    human.KeyJoints(43.4, {
-        'spine_lumbar': (-3.402, -19.972, 10.171), 'spine_thoracic': (-11.844, -10.0, 12.484),
-        'neck': (27.612, -0.958, -7.385), 'head': (11.989, -0.168),
-        'right_clavicle': (19.693, 11.158), 'right_shoulder': (55.6, 4.498, 21.698),
-        'right_elbow': (20.348, 30.549), 'right_wrist': (4.309, -24.555),
-    })
-    human.KeyJoints(43.5, {
-        'spine_lumbar': (3.625, -17.024, 8.964), 'spine_thoracic': (-9.001, -8.104, 9.126),
-        'neck': (24.976, -0.962, -5.373), 'head': (8.69, -0.124), 'right_clavicle': (5.912, 8.057),
-        'right_shoulder': (55.419, 2.637, 14.099), 'right_elbow': (31.63, 21.222),
-        'right_wrist': (0.103, -22.247),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(43.6, {
         'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
         'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
         'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
         'right_wrist': (-0.977, -19.338),
     })
-    human.KeyJoints(43.7, {
-        'spine_lumbar': (5.152, -18.34, 9.494), 'spine_thoracic': (-10.656, -8.824, 9.533),
-        'neck': (25.101, -1.179, -7.221), 'head': (9.125, -0.147), 'right_clavicle': (7.385, 7.9),
-        'right_shoulder': (55.237, 5.327, 13.605), 'right_elbow': (30.899, 21.784),
-        'right_wrist': (0.0, -22.193),
+    human.KeyJoints(42.8, {
+        'spine_lumbar': (5.8, -17.059, 9.513), 'spine_thoracic': (-10.184, -7.607, 9.43),
+        'neck': (24.839, -1.137, -6.647), 'head': (8.702, -0.135), 'right_clavicle': (6.181, 7.902),
+        'right_shoulder': (55.701, 4.643, 12.934), 'right_elbow': (31.306, 20.937),
+        'right_wrist': (-0.285, -21.622),
     })
+    human.KeyJoints(42.9, {
+        'spine_lumbar': (3.638, -19.198, 8.993), 'spine_thoracic': (-10.608, -10.0, 9.846),
+        'neck': (25.371, -1.12, -6.983), 'head': (9.454, -0.151), 'right_clavicle': (12.375, 8.516),
+        'right_shoulder': (56.936, 6.185, 17.868), 'right_elbow': (28.845, 25.96),
+        'right_wrist': (1.806, -25.42),
+    })
+    human.KeyJoints(43.0, {
+        'spine_lumbar': (0.699, -19.995, 10.219), 'spine_thoracic': (-12.732, -10.0, 12.825),
+        'neck': (27.01, -1.294, -9.538), 'head': (11.387, -0.173),
+        'right_clavicle': (21.388, 11.182), 'right_shoulder': (57.74, 7.831, 21.322),
+        'right_elbow': (19.067, 31.339), 'right_wrist': (4.253, -24.149),
+    })
+    human.KeyJoints(43.1, {
+        'spine_lumbar': (-2.083, -19.717, 9.285), 'spine_thoracic': (-10.476, -10.0, 10.609),
+        'neck': (26.655, -0.861, -6.009), 'head': (10.98, -0.164),
+        'right_clavicle': (14.898, 9.574), 'right_shoulder': (54.978, 3.208, 19.679),
+        'right_elbow': (25.107, 27.595), 'right_wrist': (2.999, -24.378),
+    })
+    human.KeyJoints(43.2, {
+        'spine_lumbar': (7.166, -14.206, 9.671), 'spine_thoracic': (-8.858, -5.15, 9.343),
+        'neck': (24.306, -1.043, -5.383), 'head': (7.808, -0.11), 'right_clavicle': (3.564, 8.017),
+        'right_shoulder': (56.644, 2.937, 11.844), 'right_elbow': (32.585, 19.25),
+        'right_wrist': (-0.791, -19.906),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(43.3, {
+        'spine_lumbar': (7.038, -14.964, 9.715), 'spine_thoracic': (-9.488, -5.635, 9.407),
+        'neck': (24.506, -1.098, -5.985), 'head': (8.104, -0.117), 'right_clavicle': (4.256, 7.959),
+        'right_shoulder': (56.306, 3.7, 11.847), 'right_elbow': (32.152, 19.577),
+        'right_wrist': (-0.741, -20.309),
+    })
+    human.KeyJoints(43.4, {
+        'spine_lumbar': (4.585, -19.27, 8.949), 'spine_thoracic': (-10.265, -9.924, 9.324),
+        'neck': (25.053, -1.152, -6.943), 'head': (9.022, -0.143), 'right_clavicle': (9.081, 7.918),
+        'right_shoulder': (56.313, 5.457, 15.25), 'right_elbow': (30.253, 23.302),
+        'right_wrist': (0.636, -23.21),
+    })
+    human.KeyJoints(43.5, {
+        'spine_lumbar': (2.344, -19.998, 9.319), 'spine_thoracic': (-11.571, -10.0, 10.894),
+        'neck': (26.01, -1.178, -7.985), 'head': (10.351, -0.169), 'right_clavicle': (16.741, 9.48),
+        'right_shoulder': (57.051, 7.495, 20.674), 'right_elbow': (26.43, 29.176),
+        'right_wrist': (3.209, -26.453),
+    })
+    human.KeyJoints(43.6, {
+        'spine_lumbar': (-3.559, -20.0, 10.297), 'spine_thoracic': (-12.156, -10.0, 12.765),
+        'neck': (27.791, -1.003, -7.849), 'head': (12.168, -0.169),
+        'right_clavicle': (20.533, 11.382), 'right_shoulder': (55.861, 4.998, 21.953),
+        'right_elbow': (19.572, 31.015), 'right_wrist': (4.48, -24.574),
+    })
+    human.KeyJoints(43.7, {
+        'spine_lumbar': (2.15, -18.089, 8.713), 'spine_thoracic': (-9.083, -9.154, 9.049),
+        'neck': (25.192, -0.881, -5.053), 'head': (9.031, -0.132), 'right_clavicle': (7.082, 8.081),
+        'right_shoulder': (54.984, 2.53, 15.126), 'right_elbow': (31.11, 22.172),
+        'right_wrist': (0.533, -23.124),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
-        'spine_lumbar': (3.055, -19.33, 9.169), 'spine_thoracic': (-11.058, -10.0, 10.335),
-        'neck': (25.65, -1.132, -7.344), 'head': (9.881, -0.161), 'right_clavicle': (14.401, 8.968),
-        'right_shoulder': (56.991, 6.795, 19.256), 'right_elbow': (27.88, 27.48),
-        'right_wrist': (2.489, -26.28),
+        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
+        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(43.9, {
-        'spine_lumbar': (-1.439, -20.0, 10.277), 'spine_thoracic': (-12.589, -10.0, 12.816),
-        'neck': (27.479, -1.144, -8.695), 'head': (11.857, -0.171),
-        'right_clavicle': (21.204, 11.327), 'right_shoulder': (57.075, 6.878, 21.739),
-        'right_elbow': (19.168, 31.274), 'right_wrist': (4.414, -24.33),
+        'spine_lumbar': (5.427, -17.769, 9.507), 'spine_thoracic': (-10.47, -8.253, 9.491),
+        'neck': (24.991, -1.161, -6.979), 'head': (8.949, -0.142), 'right_clavicle': (6.833, 7.898),
+        'right_shoulder': (55.385, 5.022, 13.281), 'right_elbow': (31.08, 21.388),
+        'right_wrist': (-0.136, -21.943),
     })
     human.KeyJoints(44.0, {
-        'spine_lumbar': (-0.423, -19.339, 8.6), 'spine_thoracic': (-9.504, -10.0, 9.174),
-        'neck': (25.89, -0.8, -4.84), 'head': (10.042, -0.152), 'right_clavicle': (10.467, 8.339),
-        'right_shoulder': (54.668, 2.587, 17.495), 'right_elbow': (29.285, 24.713),
-        'right_wrist': (1.673, -24.105),
+        'spine_lumbar': (3.325, -19.186, 9.097), 'spine_thoracic': (-10.856, -10.0, 10.117),
+        'neck': (25.525, -1.122, -7.151), 'head': (9.684, -0.156), 'right_clavicle': (13.49, 8.768),
+        'right_shoulder': (56.966, 6.52, 18.654), 'right_elbow': (28.364, 26.806),
+        'right_wrist': (2.19, -25.973),
+    })
+    human.KeyJoints(44.1, {
+        'spine_lumbar': (-0.219, -20.0, 10.255), 'spine_thoracic': (-12.692, -10.0, 12.825),
+        'neck': (27.273, -1.235, -9.211), 'head': (11.652, -0.172),
+        'right_clavicle': (21.345, 11.273), 'right_shoulder': (57.53, 7.534, 21.565),
+        'right_elbow': (19.086, 31.327), 'right_wrist': (4.353, -24.205),
+    })
+    human.KeyJoints(44.2, {
+        'spine_lumbar': (-1.213, -19.527, 8.854), 'spine_thoracic': (-9.847, -10.0, 9.706),
+        'neck': (26.234, -0.824, -5.325), 'head': (10.477, -0.159),
+        'right_clavicle': (12.33, 8.792), 'right_shoulder': (54.774, 2.762, 18.459),
+        'right_elbow': (27.54, 25.941), 'right_wrist': (2.243, -24.244),
+    })
+    human.KeyJoints(44.3, {
+        'spine_lumbar': (7.928, -13.566, 9.836), 'spine_thoracic': (-8.834, -4.46, 9.393),
+        'neck': (24.087, -1.057, -5.32), 'head': (7.542, -0.107), 'right_clavicle': (3.116, 8.01),
+        'right_shoulder': (56.931, 3.007, 11.385), 'right_elbow': (32.754, 18.864),
+        'right_wrist': (-0.966, -19.373),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(44.4, {
+        'spine_lumbar': (6.606, -15.653, 9.616), 'spine_thoracic': (-9.692, -6.292, 9.389),
+        'neck': (24.665, -1.112, -6.233), 'head': (8.326, -0.121), 'right_clavicle': (4.887, 7.93),
+        'right_shoulder': (56.151, 3.98, 12.214), 'right_elbow': (31.846, 20.026),
+        'right_wrist': (-0.588, -20.801),
+    })
+    human.KeyJoints(44.5, {
+        'spine_lumbar': (4.316, -19.313, 8.762), 'spine_thoracic': (-10.046, -10.0, 9.253),
+        'neck': (25.011, -1.125, -6.72), 'head': (8.935, -0.14), 'right_clavicle': (10.09, 7.965),
+        'right_shoulder': (56.891, 5.421, 16.274), 'right_elbow': (29.798, 24.228),
+        'right_wrist': (1.051, -23.955),
+    })
+    human.KeyJoints(44.6, {
+        'spine_lumbar': (1.593, -19.677, 9.751), 'spine_thoracic': (-12.045, -10.0, 11.736),
+        'neck': (26.444, -1.212, -8.528), 'head': (10.803, -0.171),
+        'right_clavicle': (18.521, 10.219), 'right_shoulder': (57.387, 7.507, 20.677),
+        'right_elbow': (23.017, 29.838), 'right_wrist': (3.549, -25.435),
+    })
+    human.KeyJoints(44.7, {
+        'spine_lumbar': (-3.337, -19.961, 10.126), 'spine_thoracic': (-11.777, -10.0, 12.385),
+        'neck': (27.557, -0.948, -7.278), 'head': (11.933, -0.168),
+        'right_clavicle': (19.445, 11.083), 'right_shoulder': (55.548, 4.413, 21.609),
+        'right_elbow': (20.632, 30.408), 'right_wrist': (4.248, -24.545),
+    })
+    human.KeyJoints(44.8, {
+        'spine_lumbar': (3.577, -16.931, 8.922), 'spine_thoracic': (-8.757, -7.878, 9.052),
+        'neck': (24.927, -0.949, -5.198), 'head': (8.613, -0.122), 'right_clavicle': (5.502, 7.982),
+        'right_shoulder': (55.611, 2.22, 13.704), 'right_elbow': (31.286, 20.799),
+        'right_wrist': (-0.029, -22.757),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=44.092466, duration=0.072)
-    human.KeyJoints(44.1, {
+    human.Grasp('right_hand', 'open', start=44.847203, duration=0.072)
+    human.KeyJoints(44.9, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.15),
+        'right_wrist': (-1.08, -21.151),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=44.164466, duration=0.2628)
-    human.KeyJoints(44.2, {'neck': (24.1, -1.19, -6.417), 'head': (7.556, -0.11)})
-    human.KeyJoints(44.3, {'neck': (23.408, -2.873, -19.743)})
-    human.KeyJoints(44.4, {
-        'neck': (22.756, -4.459, -32.299), 'head': (7.262, -0.23),
-        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.15), 'left_shoulder': (8.594, 5.73, 11.459),
-        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
+    human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.2628)
+    human.KeyJoints(45.0, {'neck': (23.844, -1.814, -11.356), 'head': (7.5, -0.133)})
+    human.KeyJoints(45.1, {
+        'neck': (23.05, -3.744, -26.637), 'right_elbow': (31.998, 18.34),
+        'left_shoulder': (8.594, 5.73, 11.459),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=44.427266, duration=0.867635)
-    human.KeyJoints(44.5, {
-        'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.37, 2.867, 10.475),
-        'right_elbow': (33.81, 18.541), 'right_wrist': (-1.543, -21.066),
-        'left_shoulder': (10.681, 4.756, 11.563), 'left_elbow': (33.956, 17.217),
-        'left_wrist': (0.042, -0.177),
+    human.LookAt((0.0, 120.0, 110.0), start=45.182003, duration=0.867635)
+    human.KeyJoints(45.2, {
+        'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
+        'right_shoulder': (57.144, 2.138, 10.901), 'right_elbow': (32.115, 18.353),
+        'right_wrist': (-1.11, -21.145), 'left_shoulder': (8.729, 5.667, 11.466),
+        'left_elbow': (34.35, 17.191), 'left_wrist': (0.003, -0.011),
     })
-    human.KeyJoints(44.6, {
-        'right_shoulder': (53.013, 6.08, 8.584), 'right_elbow': (41.165, 19.354),
-        'right_wrist': (-3.423, -20.723), 'left_shoulder': (19.209, 0.743, 11.992),
-        'left_elbow': (32.245, 17.33), 'left_wrist': (0.216, -0.896),
+    human.KeyJoints(45.3, {
+        'right_shoulder': (55.122, 4.054, 9.779), 'right_elbow': (36.545, 18.843),
+        'right_wrist': (-2.241, -20.938), 'left_shoulder': (13.843, 3.274, 11.721),
+        'left_elbow': (33.32, 17.259), 'left_wrist': (0.106, -0.445),
     })
-    human.KeyJoints(44.7, {
-        'right_shoulder': (47.968, 11.036, 5.627), 'right_elbow': (52.22, 20.576),
-        'right_wrist': (-6.258, -20.207), 'left_shoulder': (32.174, -5.447, 12.655),
-        'left_elbow': (29.674, 17.5), 'left_wrist': (0.487, -1.977),
+    human.KeyJoints(45.4, {
+        'right_shoulder': (50.881, 8.156, 7.351), 'right_elbow': (45.838, 19.871),
+        'right_wrist': (-4.62, -20.505), 'left_shoulder': (24.667, -1.85, 12.269),
+        'left_elbow': (31.159, 17.402), 'left_wrist': (0.329, -1.353),
     })
-    human.KeyJoints(44.8, {
-        'right_shoulder': (42.202, 16.925, 2.047), 'right_elbow': (64.853, 21.973),
-        'right_wrist': (-9.516, -19.618), 'left_shoulder': (47.25, -12.803, 13.448),
-        'left_elbow': (26.736, 17.694),
+    human.KeyJoints(45.5, {
+        'right_shoulder': (45.389, 13.634, 4.058), 'right_elbow': (57.87, 21.201),
+        'right_wrist': (-7.712, -19.944), 'left_shoulder': (38.876, -8.693, 13.005),
+        'left_elbow': (28.36, 17.587),
     })
-    human.KeyJoints(44.9, {
-        'right_shoulder': (36.685, 22.937, -1.716), 'right_elbow': (76.94, 23.31),
-        'right_wrist': (-12.662, -19.054), 'left_shoulder': (62.113, -20.313, 14.264),
-        'left_elbow': (23.925, 17.88), 'left_wrist': (1.145, -4.394),
+    human.KeyJoints(45.6, {
+        'right_shoulder': (39.616, 19.68, 0.34), 'right_elbow': (70.519, 22.6),
+        'right_wrist': (-10.986, -19.353), 'left_shoulder': (54.143, -16.244, 13.821),
+        'left_elbow': (25.418, 17.781), 'left_wrist': (0.963, -3.766),
     })
-    human.KeyJoints(45.0, {
-        'right_shoulder': (32.386, 28.264, -5.22), 'right_elbow': (86.36, 24.351),
-        'right_wrist': (-15.164, -18.614), 'left_shoulder': (74.436, -26.966, 14.996),
-        'left_elbow': (21.734, 18.025), 'left_wrist': (1.447, -5.315),
+    human.KeyJoints(45.7, {
+        'right_shoulder': (34.53, 25.482, -3.36), 'right_elbow': (81.662, 23.832),
+        'right_wrist': (-13.906, -18.834), 'left_shoulder': (68.145, -23.491, 14.612),
+        'left_elbow': (22.827, 17.953), 'left_wrist': (1.288, -4.856),
     })
-    human.KeyJoints(45.1, {
+    human.KeyJoints(45.8, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (30.273, 32.093, -8.026), 'right_elbow': (90.989, 24.863),
-        'right_wrist': (-16.488, -18.398), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (81.895, -31.75, 15.54), 'left_elbow': (20.658, 18.096),
-        'left_wrist': (1.675, -5.768),
+        'right_shoulder': (31.1, 30.231, -6.603), 'right_elbow': (89.176, 24.663),
+        'right_wrist': (-15.941, -18.483), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (78.554, -29.424, 15.272), 'left_elbow': (21.079, 18.068),
+        'left_wrist': (1.562, -5.59),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
-    human.KeyJoints(45.2, {
-        'spine_lumbar': (11.734, -12.393, 9.197), 'spine_thoracic': (-10.916, -5.186, 8.699),
-        'neck': (21.96, -4.915, -33.255), 'right_clavicle': (4.685, 8.682),
-        'right_shoulder': (32.123, 34.219, -9.613), 'right_elbow': (89.551, 24.778),
-        'right_wrist': (-16.464, -18.642), 'left_clavicle': (-0.978, 1.386),
-        'left_shoulder': (85.189, -31.873, 15.378), 'left_elbow': (21.337, 18.118),
-        'left_wrist': (1.458, -5.583),
+    human.KeyJoints(45.9, {
+        'spine_lumbar': (7.693, -12.71, 8.622), 'spine_thoracic': (-8.904, -4.3, 8.127),
+        'neck': (21.905, -4.498, -30.481), 'head': (6.816, -0.392),
+        'right_clavicle': (3.015, 7.602), 'right_shoulder': (30.428, 33.064, -8.896),
+        'right_elbow': (90.762, 24.862), 'right_wrist': (-16.591, -18.485),
+        'left_clavicle': (-0.156, 0.743), 'left_shoulder': (83.095, -32.92, 15.681),
+        'left_elbow': (20.798, 18.094), 'left_wrist': (1.734, -5.712),
+    })
+    human.KeyJoints(46.0, {
+        'spine_lumbar': (13.438, -11.597, 8.721), 'spine_thoracic': (-12.411, -5.662, 8.171),
+        'neck': (21.788, -4.879, -32.272), 'head': (6.518, -0.369), 'right_clavicle': (5.764, 8.92),
+        'right_shoulder': (33.153, 35.034, -10.152), 'right_elbow': (89.104, 24.759),
+        'right_wrist': (-16.455, -18.695), 'left_clavicle': (-1.454, 2.206),
+        'left_shoulder': (86.501, -31.519, 15.236), 'left_elbow': (21.651, 18.129),
+        'left_wrist': (1.325, -5.491),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=45.294901, duration=0.072)
+    human.Grasp('left_hand', 'close', start=46.049638, duration=0.072)
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=45.294901, duration=0.072)
-    human.KeyRoot(45.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(45.3, {
+    human.Grasp('right_hand', 'close', start=46.049638, duration=0.072)
+    human.KeyRoot(46.1, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(46.1, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_clavicle': (6.997, 9.73),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
+        'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.158, 18.169),
         'left_wrist': (0.918, -5.518), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
-    human.Walk((139.2, 0.0, 19.967), start=45.366901, duration=3.7584)
-    human.KeyRoot(45.4, (-0.457, 72.984, 60.131), (1.248, 0.0, 0.0))
-    human.KeyJoints(45.4, {
-        'right_shoulder': (33.592, 34.988, -9.921), 'right_elbow': (90.715, 24.887),
-        'left_shoulder': (88.706, -29.219, 14.685), 'left_elbow': (21.433, 18.167),
-        'right_hip': (2.912, -0.324, -1.266), 'right_knee': (5.22,), 'right_ankle': (2.318, -0.388),
-        'left_hip': (8.656, 0.2, 1.307), 'left_knee': (16.27,), 'left_ankle': (5.469, 0.395),
-    })
-    human.KeyRoot(45.5, (-1.844, 72.931, 60.42), (5.017, 0.0, 0.0))
-    human.KeyJoints(45.5, {
-        'right_wrist': (-16.617, -18.356), 'right_hip': (2.736, -1.312, -5.083),
-        'right_knee': (6.077,), 'right_ankle': (3.464, -1.547), 'left_hip': (16.396, 0.288, 3.773),
-        'left_knee': (32.146,), 'left_ankle': (13.701, 1.653),
-    })
-    human.KeyRoot(45.6, (-2.364, 72.867, 60.468), (8.787, 0.0, 0.0))
-    human.KeyJoints(45.6, {
-        'right_hip': (2.998, -1.494, -8.872), 'right_knee': (7.38,), 'right_ankle': (4.645, -1.936),
-        'left_hip': (21.939, 6.224, -8.708), 'left_knee': (47.557,), 'left_ankle': (15.179, 1.926),
-    })
-    human.KeyRoot(45.7, (-1.908, 72.803, 59.67), (12.256, 0.0, 0.0))
-    human.KeyJoints(45.7, {
-        'right_hip': (7.098, 0.038, -12.378), 'right_knee': (15.447,),
-        'right_ankle': (7.168, -1.482), 'left_hip': (13.034, 7.966, -21.443),
-        'left_knee': (31.868,), 'left_ankle': (15.708, 1.38),
-    })
-    human.KeyRoot(45.8, (-0.912, 72.746, 58.493), (15.997, 0.0, 0.0))
-    human.KeyJoints(45.8, {
-        'left_shoulder': (89.012, -29.207, 14.668), 'left_elbow': (21.5, 18.168),
-        'right_hip': (12.526, 3.039, -15.767), 'right_knee': (25.979,),
-        'right_ankle': (8.143, -0.524), 'left_hip': (5.328, 1.751, -19.345), 'left_knee': (10.87,),
-        'left_ankle': (5.259, -0.117),
-    })
-    human.KeyRoot(45.9, (0.21, 72.697, 58.426), (21.632, 0.0, 0.0))
-    human.KeyJoints(45.9, {
-        'left_shoulder': (89.007, -29.188, 14.665), 'left_elbow': (21.614, 18.169),
-        'right_hip': (12.724, 6.37, -20.558), 'right_knee': (29.239,),
-        'right_ankle': (8.608, 0.698), 'left_hip': (6.147, 0.35, -13.826),
-        'left_ankle': (5.453, -1.129),
-    })
-    human.KeyRoot(46.0, (1.607, 72.623, 58.761), (29.638, 0.0, 0.0))
-    human.KeyJoints(46.0, {
-        'right_hip': (21.118, 9.354, -17.45), 'right_knee': (49.372,),
-        'right_ankle': (17.731, 1.673), 'left_hip': (6.588, -1.436, -5.98),
-        'left_ankle': (5.777, -2.104),
-    })
-    human.KeyRoot(46.1, (2.463, 72.565, 59.412), (37.558, 0.0, 0.0))
-    human.KeyJoints(46.1, {
-        'right_shoulder': (34.249, 35.187, -9.896), 'right_elbow': (90.871, 24.901),
-        'right_hip': (26.319, -5.364, 14.193), 'right_knee': (52.847,),
-        'right_ankle': (18.365, 1.665), 'left_hip': (6.734, -2.646, 1.839), 'left_knee': (12.89,),
-        'left_ankle': (6.057, -2.411),
-    })
-    human.KeyRoot(46.2, (2.971, 72.499, 61.708), (45.097, 0.0, 0.0))
+    human.Walk((138.904, 0.0, 19.976), start=46.121638, duration=5.147368)
+    human.KeyRoot(46.2, (-0.926, 72.652, 60.238), (1.318, 0.0, 0.0))
     human.KeyJoints(46.2, {
-        'right_shoulder': (34.395, 35.22, -9.877), 'left_shoulder': (89.57, -29.205, 14.639),
-        'left_elbow': (21.157, 18.169), 'right_hip': (13.558, -5.516, 25.186),
-        'right_knee': (28.566,), 'right_ankle': (13.912, 0.82), 'left_hip': (9.733, -3.186, 9.211),
-        'left_knee': (21.423,), 'left_ankle': (9.074, -1.549),
+        'right_hip': (6.229, -0.644, -1.396), 'right_knee': (12.402,),
+        'right_ankle': (6.189, -0.791), 'left_hip': (7.266, 0.623, 1.413), 'left_knee': (13.849,),
+        'left_ankle': (6.258, 0.796),
     })
-    human.KeyRoot(46.3, (3.214, 72.487, 63.523), (52.636, 0.0, 0.0))
+    human.KeyRoot(46.3, (-1.764, 72.489, 60.416), (3.284, 0.0, 0.0))
     human.KeyJoints(46.3, {
-        'right_hip': (5.883, -2.919, 17.994), 'right_knee': (14.75,),
-        'right_ankle': (8.255, -0.947), 'left_hip': (12.743, -4.506, 16.586),
-        'left_ankle': (9.917, -0.603),
+        'right_hip': (6.912, -1.099, -3.44), 'right_knee': (14.541,),
+        'right_ankle': (7.705, -1.503), 'left_hip': (9.392, 0.974, 3.515), 'left_knee': (17.902,),
+        'left_ankle': (7.601, 1.533),
     })
-    human.KeyRoot(46.4, (2.505, 72.487, 63.748), (60.174, 0.0, 0.0))
+    human.KeyRoot(46.4, (-2.263, 72.487, 60.492), (5.517, 0.0, 0.0))
     human.KeyJoints(46.4, {
-        'right_hip': (5.598, -2.628, 10.45), 'right_ankle': (8.478, -1.557),
-        'left_hip': (16.795, -7.22, 23.798), 'left_knee': (36.456,), 'left_ankle': (12.003, 0.367),
+        'right_hip': (6.565, -1.275, -5.697), 'right_knee': (14.351,),
+        'right_ankle': (7.941, -1.911), 'left_hip': (19.975, 1.025, 2.93), 'left_knee': (40.224,),
+        'left_ankle': (18.216, 1.974),
     })
-    human.KeyRoot(46.5, (0.97, 72.487, 63.861), (67.713, 0.0, 0.0))
+    human.KeyRoot(46.5, (-2.473, 72.667, 60.509), (7.96, 0.0, 0.0))
     human.KeyJoints(46.5, {
-        'right_hip': (6.03, -2.51, 2.871), 'right_knee': (14.179,), 'right_ankle': (8.027, -2.191),
-        'left_hip': (26.514, -4.64, 10.675), 'left_knee': (55.947,), 'left_ankle': (19.213, 0.714),
+        'right_hip': (7.236, -1.05, -8.193), 'right_knee': (16.082,), 'right_ankle': (7.948, -2.06),
+        'left_hip': (24.523, 4.05, -3.864), 'left_knee': (51.467,), 'left_ankle': (18.316, 2.031),
     })
-    human.KeyRoot(46.6, (-0.471, 72.487, 63.444), (75.528, 0.0, 0.0))
+    human.KeyRoot(46.6, (-2.328, 72.98, 60.194), (10.582, 0.0, 0.0))
     human.KeyJoints(46.6, {
-        'right_hip': (6.967, -1.668, -4.935), 'right_knee': (14.811,),
-        'right_ankle': (7.846, -2.248), 'left_hip': (19.198, 9.926, -20.258),
-        'left_knee': (48.777,), 'left_ankle': (19.182, 2.394),
+        'right_hip': (9.635, -0.091, -10.87), 'right_knee': (20.783,), 'right_ankle': (7.606, -1.9),
+        'left_hip': (20.283, 7.105, -13.308), 'left_knee': (45.054,), 'left_ankle': (18.416, 1.759),
     })
-    human.KeyRoot(46.7, (-2.03, 72.487, 61.61), (83.665, 0.0, 0.0))
+    human.KeyRoot(46.7, (-1.65, 72.577, 59.046), (13.541, 0.0, 0.0))
     human.KeyJoints(46.7, {
-        'right_hip': (10.318, 1.279, -12.843), 'right_knee': (20.275,),
-        'right_ankle': (8.198, -1.056), 'left_hip': (8.247, 4.041, -22.24), 'left_knee': (19.666,),
-        'left_ankle': (10.426, 0.711),
+        'right_hip': (14.948, 2.341, -13.55), 'right_knee': (30.581,),
+        'right_ankle': (8.733, -1.268), 'left_hip': (9.402, 4.51, -20.287), 'left_knee': (21.265,),
+        'left_ankle': (10.922, 0.747),
     })
-    human.KeyRoot(46.8, (-2.532, 72.487, 60.108), (89.677, 0.0, 0.0))
+    human.KeyRoot(46.8, (-0.8, 72.491, 58.202), (17.063, 0.0, 0.0))
     human.KeyJoints(46.8, {
-        'right_hip': (11.648, 4.178, -18.378), 'right_knee': (23.959,),
-        'right_ankle': (8.431, 0.233), 'left_hip': (7.565, 1.317, -16.547), 'left_knee': (14.76,),
-        'left_ankle': (7.138, -0.897),
+        'right_hip': (17.178, 4.807, -16.462), 'right_knee': (35.056,),
+        'right_ankle': (8.095, -0.402), 'left_hip': (7.437, 2.059, -18.246), 'left_knee': (14.724,),
+        'left_ankle': (7.015, -0.383),
     })
-    human.KeyRoot(46.9, (-2.017, 72.487, 59.015), (93.554, 0.0, 0.0))
+    human.KeyRoot(46.9, (0.09, 72.499, 58.262), (21.676, 0.0, 0.0))
     human.KeyJoints(46.9, {
-        'right_hip': (17.518, 8.38, -20.379), 'right_knee': (39.659,),
-        'right_ankle': (17.153, 1.474), 'left_hip': (7.462, -0.147, -12.82), 'left_knee': (14.447,),
-        'left_ankle': (7.203, -1.794),
+        'right_hip': (18.916, 7.706, -19.698), 'right_knee': (41.432,),
+        'right_ankle': (11.357, 0.59), 'left_hip': (7.689, 0.721, -13.77),
     })
-    human.KeyRoot(47.0, (-1.208, 72.487, 58.418), (96.981, 0.0, 0.0))
+    human.KeyRoot(47.0, (1.15, 72.495, 58.545), (27.492, 0.0, 0.0))
     human.KeyJoints(47.0, {
-        'right_hip': (26.753, 5.765, -6.713), 'right_knee': (55.738,),
-        'right_ankle': (19.297, 2.066), 'left_hip': (7.011, -1.042, -9.462), 'left_knee': (14.244,),
-        'left_ankle': (7.497, -2.171),
+        'right_hip': (25.321, 8.637, -14.777), 'right_knee': (55.368,),
+        'right_ankle': (19.434, 1.247), 'left_hip': (7.675, -0.801, -8.102), 'left_knee': (14.217,),
+        'left_ankle': (6.723, -1.865),
     })
-    human.KeyRoot(47.1, (-0.445, 72.487, 59.095), (101.531, 0.0, 0.0))
+    human.KeyRoot(47.1, (2.061, 72.49, 58.972), (33.566, 0.0, 0.0))
     human.KeyJoints(47.1, {
-        'right_hip': (20.741, 0.256, 4.1), 'right_knee': (41.171,), 'right_ankle': (19.252, 1.593),
-        'left_hip': (13.881, -0.324, -5.08), 'left_knee': (27.901,), 'left_ankle': (9.043, -1.537),
+        'right_hip': (28.76, 3.487, -3.228), 'right_knee': (59.798,),
+        'right_ankle': (19.373, 1.412), 'left_hip': (7.696, -2.085, -2.154), 'left_knee': (14.5,),
+        'left_ankle': (6.749, -2.354),
     })
-    human.KeyRoot(47.2, (0.583, 72.492, 60.332), (105.635, 0.0, 0.0))
+    human.KeyRoot(47.2, (2.651, 72.765, 59.912), (39.221, 0.0, 0.0))
     human.KeyJoints(47.2, {
-        'right_hip': (7.259, 0.175, 0.642), 'right_knee': (14.944,), 'right_ankle': (7.678, 0.254),
-        'left_hip': (27.017, 0.079, -0.782), 'left_knee': (50.237,), 'left_ankle': (0.882, -0.308),
+        'right_hip': (25.366, -3.151, 9.981), 'right_knee': (52.062,), 'right_ankle': (19.313, 1.3),
+        'left_hip': (8.844, -2.847, 3.325), 'left_knee': (17.621,), 'left_ankle': (6.661, -2.298),
     })
-    human.KeyRoot(47.3, (2.856, 72.289, 60.482), (106.251, 0.0, 0.0))
+    human.KeyRoot(47.3, (3.162, 72.714, 61.95), (44.829, 0.0, 0.0))
     human.KeyJoints(47.3, {
-        'right_hip': (6.303, -0.415, -0.046), 'right_knee': (16.97,),
-        'right_ankle': (10.67, -0.417), 'left_hip': (31.311, 0.264, 0.514), 'left_knee': (58.945,),
-        'left_ankle': (-4.334, 0.578),
+        'right_hip': (13.886, -4.662, 20.273), 'right_knee': (30.094,),
+        'right_ankle': (15.453, 0.372), 'left_hip': (11.874, -3.487, 8.743), 'left_knee': (26.009,),
+        'left_ankle': (8.797, -1.585),
     })
-    human.KeyRoot(47.4, (8.183, 71.514, 60.068), (106.251, 0.0, 0.0))
+    human.KeyRoot(47.4, (3.482, 72.487, 63.676), (50.437, 0.0, 0.0))
     human.KeyJoints(47.4, {
-        'right_hip': (3.656, -1.372, -0.088), 'right_knee': (20.986,),
-        'right_ankle': (17.335, -1.375), 'left_hip': (36.477, 0.823, 1.751), 'left_knee': (71.722,),
-        'left_ankle': (6.504, 1.935),
+        'right_hip': (5.794, -3.11, 20.191), 'right_knee': (14.796,),
+        'right_ankle': (8.291, -0.907), 'left_hip': (14.487, -4.606, 14.218),
+        'left_knee': (32.959,), 'left_ankle': (9.993, -0.805),
     })
-    human.KeyRoot(47.5, (14.237, 69.77, 59.311), (106.251, 0.0, 0.0))
+    human.KeyRoot(47.5, (3.372, 72.487, 63.943), (56.044, 0.0, 0.0))
     human.KeyJoints(47.5, {
-        'right_hip': (22.958, -1.624, -2.306), 'right_knee': (65.312,),
-        'right_ankle': (10.489, -2.82), 'left_hip': (48.582, 1.516, 2.465), 'left_knee': (57.165,),
-        'left_ankle': (-1.57, 2.894),
+        'right_hip': (5.197, -2.769, 14.598), 'right_knee': (14.486,),
+        'right_ankle': (8.762, -1.36), 'left_hip': (15.838, -6.221, 19.646), 'left_knee': (35.279,),
+        'left_ankle': (9.054, -0.373),
     })
-    human.KeyRoot(47.6, (20.651, 67.948, 56.62), (106.251, 0.0, 0.0))
+    human.KeyRoot(47.6, (2.437, 72.487, 63.928), (61.652, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'right_wrist': (-16.568, -18.281), 'right_hip': (17.384, -1.197, -1.49),
-        'right_knee': (68.149,), 'right_ankle': (16.959, -1.911), 'left_hip': (33.313, 1.4, 0.915),
-        'left_knee': (16.905,), 'left_ankle': (-16.554, 1.673),
+        'right_hip': (5.396, -2.637, 8.971), 'right_ankle': (8.577, -1.753),
+        'left_hip': (23.615, -8.257, 18.604), 'left_knee': (51.129,), 'left_ankle': (18.867, 0.179),
     })
-    human.KeyRoot(47.7, (27.645, 68.214, 52.943), (106.251, 0.0, 0.0))
+    human.KeyRoot(47.7, (1.143, 72.487, 63.898), (67.26, 0.0, 0.0))
     human.KeyJoints(47.7, {
-        'right_hip': (6.597, -0.14, -0.123), 'right_knee': (60.339,),
-        'right_ankle': (18.999, -0.186), 'left_hip': (29.847, 0.147, 0.084), 'left_knee': (24.302,),
-        'left_ankle': (-5.546, 0.169),
+        'right_hip': (5.911, -2.527, 3.334), 'right_knee': (14.166,),
+        'right_ankle': (8.115, -2.169), 'left_hip': (27.764, -4.051, 8.627), 'left_knee': (58.729,),
+        'left_ankle': (19.253, 0.514),
     })
-    human.KeyRoot(47.8, (34.589, 70.06, 49.663), (106.251, 0.0, 0.0))
+    human.KeyRoot(47.8, (-0.022, 72.527, 63.752), (72.936, 0.0, 0.0))
     human.KeyJoints(47.8, {
-        'right_hip': (-3.531, 0.793, 0.581), 'right_knee': (50.016,), 'right_ankle': (13.27, 0.983),
-        'left_hip': (23.633, -0.834, -0.365), 'left_knee': (25.566,), 'left_ankle': (1.934, -0.911),
+        'right_hip': (7.316, -2.104, -2.414), 'right_knee': (15.91,),
+        'right_ankle': (8.055, -2.393), 'left_hip': (26.001, 3.335, -4.338), 'left_knee': (56.433,),
+        'left_ankle': (19.214, 1.179),
     })
-    human.KeyRoot(47.9, (42.112, 71.481, 46.296), (106.251, 0.0, 0.0))
+    human.KeyRoot(47.9, (-1.404, 72.79, 62.632), (79.1, 0.0, 0.0))
     human.KeyJoints(47.9, {
-        'right_hip': (17.899, 1.475, 1.835), 'right_knee': (70.589,),
-        'right_ankle': (18.946, 2.354), 'left_hip': (15.213, -1.808, -0.492), 'left_knee': (23.03,),
-        'left_ankle': (7.823, -1.874),
+        'right_hip': (9.19, -0.467, -8.512), 'right_knee': (17.958,),
+        'right_ankle': (6.859, -1.811), 'left_hip': (16.502, 6.225, -16.628),
+        'left_knee': (37.598,), 'left_ankle': (19.175, 1.12),
     })
-    human.KeyRoot(48.0, (52.871, 68.025, 42.95), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.0, (-2.605, 72.487, 61.086), (84.915, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'right_hip': (48.725, 1.501, 2.117), 'right_knee': (45.119,),
-        'right_ankle': (-9.902, 2.595), 'left_hip': (26.983, -1.677, -1.814),
-        'left_knee': (64.259,), 'left_ankle': (17.035, -2.471),
+        'right_hip': (13.038, 2.486, -13.934), 'right_knee': (24.987,),
+        'right_ankle': (8.072, -0.764), 'left_hip': (7.447, 2.894, -21.009), 'left_knee': (16.043,),
+        'left_ankle': (8.062, 0.062),
     })
-    human.KeyRoot(48.1, (68.928, 67.07, 39.422), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.1, (-2.972, 72.487, 60.013), (89.284, 0.0, 0.0))
     human.KeyJoints(48.1, {
-        'right_hip': (34.19, 0.974, 0.658), 'right_knee': (23.341,),
-        'right_ankle': (-11.019, 1.175), 'left_hip': (16.072, -0.839, -1.084),
-        'left_knee': (70.344,), 'left_ankle': (18.088, -1.371),
+        'right_hip': (13.763, 4.707, -17.846), 'right_knee': (27.25,),
+        'right_ankle': (7.987, 0.171), 'left_hip': (7.826, 1.275, -16.956), 'left_knee': (14.627,),
+        'left_ankle': (6.774, -1.067),
     })
-    human.KeyRoot(48.2, (81.333, 69.284, 37.294), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.2, (-2.575, 72.487, 59.249), (92.351, 0.0, 0.0))
     human.KeyJoints(48.2, {
-        'right_hip': (26.382, -0.149, -0.074), 'right_knee': (30.594,),
-        'right_ankle': (4.211, -0.167), 'left_hip': (-4.231, 0.146, 0.098), 'left_knee': (48.777,),
-        'left_ankle': (14.767, 0.176),
+        'right_hip': (19.124, 7.905, -18.558), 'right_knee': (40.833,),
+        'right_ankle': (15.762, 1.056), 'left_hip': (7.785, 0.184, -14.002),
+        'left_ankle': (6.807, -1.701),
     })
-    human.KeyRoot(48.3, (87.873, 70.568, 36.587), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.3, (-1.849, 72.487, 58.643), (94.912, 0.0, 0.0))
     human.KeyJoints(48.3, {
-        'right_hip': (19.71, -1.113, -0.399), 'right_knee': (28.78,),
-        'right_ankle': (9.073, -1.182), 'left_hip': (-12.398, 1.045, 0.674), 'left_knee': (40.892,),
-        'left_ankle': (13.518, 1.134),
+        'right_hip': (25.059, 8.432, -13.29), 'right_knee': (53.357,), 'right_ankle': (19.0, 1.812),
+        'left_hip': (7.369, -0.648, -11.522), 'left_knee': (14.272,), 'left_ankle': (7.177, -2.094),
     })
-    human.KeyRoot(48.4, (93.828, 69.645, 35.89), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.4, (-1.088, 72.659, 58.412), (97.53, 0.0, 0.0))
     human.KeyJoints(48.4, {
-        'right_hip': (18.122, -1.99, -0.651), 'right_knee': (36.399,),
-        'right_ankle': (18.288, -2.093), 'left_hip': (35.71, -2.844, 7.658), 'left_knee': (78.961,),
-        'left_ankle': (19.0, 2.355),
+        'right_hip': (26.62, 5.549, -6.268), 'right_knee': (55.454,), 'right_ankle': (19.0, 2.118),
+        'left_hip': (10.676, -0.519, -9.081), 'left_knee': (21.588,), 'left_ankle': (8.182, -2.183),
     })
-    human.KeyRoot(48.5, (103.118, 63.213, 33.365), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.5, (-0.426, 72.955, 58.954), (100.982, 0.0, 0.0))
     human.KeyJoints(48.5, {
-        'right_hip': (35.833, -1.272, -2.99), 'right_knee': (84.512,),
-        'right_ankle': (17.57, -3.25), 'left_hip': (48.871, -3.144, 20.283), 'left_knee': (29.796,),
-        'left_ankle': (-19.868, 13.111),
+        'right_hip': (20.794, 2.164, -1.249), 'right_knee': (42.629,), 'right_ankle': (19.0, 1.561),
+        'left_hip': (21.037, 0.459, -5.959), 'left_knee': (40.47,), 'left_ankle': (4.48, -1.77),
     })
-    human.KeyRoot(48.6, (114.031, 63.502, 28.748), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.6, (0.326, 72.552, 59.926), (104.444, 0.0, 0.0))
     human.KeyJoints(48.6, {
-        'right_hip': (24.893, -0.596, -1.318), 'right_knee': (84.36,),
-        'right_ankle': (18.684, -1.447), 'left_hip': (40.685, -3.73, 18.122),
-        'left_knee': (28.594,), 'left_ankle': (-11.527, 8.939),
+        'right_hip': (10.241, 0.466, 1.045), 'right_knee': (20.867,),
+        'right_ankle': (10.608, 0.638), 'left_hip': (31.649, 0.532, -2.331), 'left_knee': (56.251,),
+        'left_ankle': (-6.045, -0.896),
     })
-    human.KeyRoot(48.7, (121.201, 66.826, 24.938), (105.723, 0.0, 0.0))
+    human.KeyRoot(48.7, (1.376, 72.487, 60.52), (106.23, 0.0, 0.0))
     human.KeyJoints(48.7, {
-        'right_hip': (9.673, 0.28, 0.936), 'right_knee': (67.326,), 'right_ankle': (18.937, 0.556),
-        'left_hip': (33.679, -4.68, 15.791), 'left_knee': (29.66,), 'left_ankle': (-3.99, 4.908),
+        'right_hip': (6.525, -0.094, 0.012), 'right_knee': (14.824,),
+        'right_ankle': (8.299, -0.092), 'left_hip': (37.639, 0.04, 0.153), 'left_knee': (62.92,),
+        'left_ankle': (-18.247, 0.172),
     })
-    human.KeyRoot(48.8, (125.847, 69.518, 21.352), (101.993, 0.0, 0.0))
+    human.KeyRoot(48.8, (3.291, 72.387, 60.453), (106.251, 0.0, 0.0))
     human.KeyJoints(48.8, {
-        'right_hip': (6.398, 1.919, 5.488), 'right_knee': (64.877,), 'right_ankle': (19.487, 3.276),
-        'left_hip': (25.412, -3.947, 11.416), 'left_knee': (23.255,), 'left_ankle': (-2.408, 1.375),
+        'right_hip': (5.277, -0.496, -0.025), 'right_knee': (15.578,),
+        'right_ankle': (10.289, -0.498), 'left_hip': (39.668, 0.064, 1.022), 'left_knee': (67.915,),
+        'left_ankle': (-18.772, 1.024),
     })
-    human.KeyRoot(48.9, (130.139, 71.009, 19.848), (97.794, 0.0, 0.0))
+    human.KeyRoot(48.9, (6.466, 71.983, 60.205), (106.251, 0.0, 0.0))
     human.KeyJoints(48.9, {
-        'right_hip': (27.154, 3.471, 1.688), 'right_knee': (68.782,),
-        'right_ankle': (19.422, 4.179), 'left_hip': (19.4, -2.667, 7.326), 'left_knee': (19.705,),
-        'left_ankle': (0.131, -0.068),
+        'right_hip': (3.712, -1.061, -0.059), 'right_knee': (17.968,),
+        'right_ankle': (14.25, -1.064), 'left_hip': (44.709, 0.373, 1.758), 'left_knee': (74.944,),
+        'left_ankle': (-3.32, 1.797),
     })
-    human.KeyRoot(49.0, (134.606, 71.813, 19.864), (94.334, 0.0, 0.0))
+    human.KeyRoot(49.0, (10.513, 71.983, 59.81), (106.251, 0.0, 0.0))
     human.KeyJoints(49.0, {
-        'right_hip': (22.363, 1.81, -3.868), 'right_knee': (37.214,),
-        'right_ankle': (14.933, 0.191), 'left_hip': (14.703, -1.196, 4.167), 'left_knee': (18.674,),
-        'left_ankle': (3.906, -0.098),
+        'right_hip': (-2.433, -1.714, 0.07), 'right_knee': (12.186,),
+        'right_ankle': (14.524, -1.715), 'left_hip': (47.993, 1.144, 2.029), 'left_knee': (71.402,),
+        'left_ankle': (10.613, 2.33),
     })
-    human.KeyRoot(49.1, (138.93, 72.483, 19.956), (90.875, 0.0, 0.0))
+    human.KeyRoot(49.1, (15.408, 72.286, 59.053), (106.251, 0.0, 0.0))
     human.KeyJoints(49.1, {
+        'right_hip': (0.052, -2.273, -0.327), 'right_knee': (25.116,),
+        'right_ankle': (16.929, -2.297), 'left_hip': (45.534, 1.879, 1.913), 'left_knee': (56.653,),
+        'left_ankle': (10.968, 2.681),
+    })
+    human.KeyRoot(49.2, (23.109, 71.815, 56.393), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.2, {
+        'right_hip': (3.068, -1.822, -0.955), 'right_knee': (43.25,),
+        'right_ankle': (15.609, -2.057), 'left_hip': (34.096, 1.73, 1.162), 'left_knee': (33.437,),
+        'left_ankle': (-0.59, 2.084),
+    })
+    human.KeyRoot(49.3, (31.572, 70.974, 52.804), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.3, {
+        'right_hip': (2.309, -0.821, -0.828), 'right_knee': (53.245,),
+        'right_ankle': (8.019, -1.166), 'left_hip': (20.516, 0.953, 0.354), 'left_knee': (13.224,),
+        'left_ankle': (-7.25, 1.017),
+    })
+    human.KeyRoot(49.4, (37.871, 71.174, 49.823), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.4, {
+        'right_hip': (-0.815, -0.032, -0.047), 'right_knee': (53.16,),
+        'right_ankle': (-2.662, -0.056), 'left_hip': (18.625, 0.042, 0.014), 'left_knee': (20.968,),
+        'left_ankle': (2.345, 0.045),
+    })
+    human.KeyRoot(49.5, (40.907, 71.88, 48.072), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.5, {
+        'right_hip': (-2.499, 0.487, 0.715), 'right_knee': (52.266,),
+        'right_ankle': (-3.299, 0.865), 'left_hip': (14.295, -0.656, -0.167),
+        'left_knee': (18.151,), 'left_ankle': (3.859, -0.677),
+    })
+    human.KeyRoot(49.6, (42.983, 72.216, 46.654), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.6, {
+        'right_hip': (15.259, 1.059, 1.361), 'right_knee': (70.576,), 'right_ankle': (18.62, 1.725),
+        'left_hip': (11.386, -1.32, -0.266), 'left_knee': (16.385,), 'left_ankle': (5.004, -1.347),
+    })
+    human.KeyRoot(49.7, (45.862, 72.552, 45.059), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.7, {
+        'right_hip': (37.217, 1.49, 2.128), 'right_knee': (73.534,), 'right_ankle': (18.673, 2.598),
+        'left_hip': (9.791, -1.938, -0.386), 'left_knee': (18.566,), 'left_ankle': (7.293, -1.976),
+    })
+    human.KeyRoot(49.8, (53.872, 72.33, 42.468), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.8, {
+        'right_hip': (40.945, 1.884, 1.634), 'right_knee': (49.61,), 'right_ankle': (8.806, 2.493),
+        'left_hip': (14.801, -2.042, -1.146), 'left_knee': (41.777,),
+        'left_ankle': (12.488, -2.342),
+    })
+    human.KeyRoot(49.9, (68.77, 70.543, 38.969), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.9, {
+        'right_hip': (28.192, 1.386, 0.743), 'right_knee': (20.142,), 'right_ankle': (-7.95, 1.572),
+        'left_hip': (11.005, -1.242, -1.249), 'left_knee': (58.035,),
+        'left_ankle': (12.889, -1.761),
+    })
+    human.KeyRoot(50.0, (82.029, 70.634, 36.42), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.0, {
+        'right_hip': (21.295, 0.378, 0.147), 'right_knee': (21.988,), 'right_ankle': (0.687, 0.406),
+        'left_hip': (1.183, -0.297, -0.398), 'left_knee': (55.478,), 'left_ankle': (2.201, -0.496),
+    })
+    human.KeyRoot(50.1, (87.298, 71.676, 35.984), (105.676, 0.0, 0.0))
+    human.KeyJoints(50.1, {
+        'right_hip': (15.592, -0.654, 0.415), 'right_knee': (19.463,),
+        'right_ankle': (3.863, -0.518), 'left_hip': (-4.199, 0.331, -0.025), 'left_knee': (48.949,),
+        'left_ankle': (-6.854, 0.664),
+    })
+    human.KeyRoot(50.2, (89.833, 72.012, 35.896), (103.053, 0.0, 0.0))
+    human.KeyJoints(50.2, {
+        'right_hip': (12.976, -1.739, 2.881), 'right_knee': (17.933,),
+        'right_ankle': (4.885, -1.046), 'left_hip': (7.538, 0.568, -1.075), 'left_knee': (64.692,),
+        'left_ankle': (12.366, 0.591),
+    })
+    human.KeyRoot(50.3, (92.475, 72.415, 35.801), (99.687, 0.0, 0.0))
+    human.KeyJoints(50.3, {
+        'right_hip': (9.511, -2.638, 6.21), 'right_knee': (14.774,), 'right_ankle': (4.964, -1.562),
+        'left_hip': (30.814, 1.319, 0.443), 'left_knee': (75.445,), 'left_ankle': (18.49, 1.515),
+    })
+    human.KeyRoot(50.4, (98.649, 72.79, 34.918), (96.77, 0.0, 0.0))
+    human.KeyJoints(50.4, {
+        'right_hip': (11.885, -4.2, 8.503), 'right_knee': (29.399,), 'right_ankle': (9.906, -2.335),
+        'left_hip': (41.401, 3.234, 4.026), 'left_knee': (58.452,), 'left_ankle': (17.248, 5.087),
+    })
+    human.KeyRoot(50.5, (113.894, 71.569, 30.22), (93.409, 0.0, 0.0))
+    human.KeyJoints(50.5, {
+        'right_hip': (7.114, -3.543, 11.711), 'right_knee': (45.618,),
+        'right_ankle': (16.728, -2.146), 'left_hip': (30.666, 4.734, 4.624), 'left_knee': (29.414,),
+        'left_ankle': (-0.914, 6.426),
+    })
+    human.KeyRoot(50.6, (128.848, 71.003, 24.671), (90.691, 0.0, 0.0))
+    human.KeyJoints(50.6, {
+        'right_hip': (-5.521, 0.648, 14.987), 'right_knee': (42.409,),
+        'right_ankle': (12.022, -0.99), 'left_hip': (18.83, 3.648, 1.97), 'left_knee': (17.304,),
+        'left_ankle': (-1.393, 4.089),
+    })
+    human.KeyRoot(50.7, (132.824, 71.706, 21.964), (90.0, 0.0, 0.0))
+    human.KeyJoints(50.7, {
+        'right_hip': (-7.854, 2.637, 16.348), 'right_knee': (40.787,),
+        'right_ankle': (4.301, 0.425), 'left_hip': (15.494, 1.645, 0.456), 'left_knee': (18.098,),
+        'left_ankle': (2.603, 1.707),
+    })
+    human.KeyRoot(50.8, (131.394, 71.899, 20.664), (90.0, 0.0, 0.0))
+    human.KeyJoints(50.8, {
+        'right_hip': (2.717, 1.391, 16.628), 'right_knee': (58.076,),
+        'right_ankle': (19.516, 2.603), 'left_hip': (14.629, 0.557, 0.145), 'left_knee': (13.75,),
+        'left_ankle': (-0.885, 0.576),
+    })
+    human.KeyRoot(50.9, (129.886, 71.492, 19.92), (90.0, 0.0, 0.0))
+    human.KeyJoints(50.9, {
+        'right_hip': (20.597, -0.606, 13.742), 'right_knee': (72.298,),
+        'right_ankle': (19.553, 5.044), 'left_hip': (17.053, -0.066, -0.02), 'left_knee': (16.053,),
+        'left_ankle': (-1.006, -0.069),
+    })
+    human.KeyRoot(51.0, (130.123, 71.541, 19.849), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.0, {
+        'right_hip': (30.0, -0.013, 6.336), 'right_knee': (63.063,), 'right_ankle': (19.465, 3.29),
+        'left_hip': (16.783, -0.126, -0.038), 'left_knee': (15.921,),
+        'left_ankle': (-0.865, -0.132),
+    })
+    human.KeyRoot(51.1, (132.453, 71.944, 19.866), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.1, {
+        'right_hip': (19.611, 0.233, 0.755), 'right_knee': (28.333,), 'right_ankle': (8.864, 0.534),
+        'left_hip': (14.358, -0.113, -0.029), 'left_knee': (15.092,), 'left_ankle': (0.732, -0.116),
+    })
+    human.KeyRoot(51.2, (136.465, 72.24, 19.923), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.2, {
         'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446),
-        'right_hip': (8.437, 0.167, -0.86), 'right_knee': (14.612,), 'right_ankle': (6.185, 0.039),
-        'left_hip': (8.601, -0.167, 0.86), 'left_knee': (14.508,), 'left_ankle': (5.906, -0.037),
+        'right_hip': (11.431, 0.065, 0.013), 'right_knee': (16.215,), 'right_ankle': (4.787, 0.066),
+        'left_hip': (11.419, -0.065, -0.013), 'left_knee': (16.19,), 'left_ankle': (4.771, -0.066),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=49.125301, duration=0.2628)
-    human.KeyRoot(49.2, (140.0, 72.991, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(49.2, {
-        'neck': (23.991, 2.626, -31.102), 'head': (7.901, -2.569), 'right_hip': (3.026, 0.0, 0.0),
-        'right_knee': (4.924,), 'right_ankle': (1.9, 0.0), 'left_hip': (3.025, 0.0, 0.0),
-        'left_knee': (4.921,), 'left_ankle': (1.898, 0.0),
+    human.LookAt((160.0, 90.0, 20.0), start=51.269006, duration=0.2628)
+    human.KeyRoot(51.3, (140.0, 72.985, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.3, {
+        'neck': (21.826, -3.495, -31.398), 'head': (6.505, -0.862), 'right_hip': (3.154, 0.0, 0.0),
+        'right_knee': (5.194,), 'right_ankle': (2.042, 0.0), 'left_hip': (3.126, 0.0, 0.0),
+        'left_knee': (5.134,), 'left_ankle': (2.01, 0.0),
     })
-    human.KeyJoints(49.3, {
-        'neck': (31.413, 23.609, -30.086), 'head': (12.687, -8.422),
-        'right_shoulder': (34.395, 35.22, -9.877), 'left_shoulder': (89.57, -29.205, 14.639),
-        'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
+    human.KeyJoints(51.4, {'neck': (28.118, 14.293, -30.537), 'right_knee': (5.127,)})
+    human.KeyJoints(51.5, {
+        'neck': (34.447, 32.185, -29.671), 'head': (14.643, -10.814),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
+        'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
+        'left_elbow': (21.158, 18.169), 'left_wrist': (0.918, -5.518),
+        'right_hip': (3.042, 0.0, 0.0), 'right_knee': (4.957,), 'right_ankle': (1.917, 0.0),
+        'left_hip': (3.037, 0.0, 0.0), 'left_knee': (4.946,), 'left_ankle': (1.912, 0.0),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=49.388101, duration=0.698258)
-    human.KeyJoints(49.4, {
+    human.LookAt((160.0, 90.0, 20.0), start=51.531806, duration=0.698258)
+    human.KeyJoints(51.6, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (34.325, 35.191, -9.866), 'right_elbow': (90.867, 24.9),
-        'right_wrist': (-16.573, -18.274), 'left_shoulder': (89.469, -29.187, 14.687),
-        'left_elbow': (21.277, 18.15), 'left_wrist': (0.822, -5.505),
-        'right_hip': (3.022, 0.0, 0.0), 'right_knee': (4.915,), 'right_ankle': (1.895, 0.0),
-        'left_hip': (3.021, 0.0, 0.0), 'left_knee': (4.914,), 'left_ankle': (1.895, 0.0),
-    })
-    human.KeyJoints(49.5, {
-        'right_shoulder': (28.628, 32.749, -8.952), 'right_elbow': (93.286, 25.122),
-        'right_wrist': (-17.009, -17.65), 'left_shoulder': (82.48, -27.98, 18.355),
-        'left_elbow': (28.822, 16.72), 'left_wrist': (-6.447, -4.632),
-        'right_hip': (2.855, 0.0, 0.0), 'right_knee': (4.578,), 'right_ankle': (1.751, 0.0),
+        'right_shoulder': (32.145, 34.26, -9.523), 'right_elbow': (91.791, 24.986),
+        'right_wrist': (-16.739, -18.034), 'left_shoulder': (86.79, -28.732, 16.1),
+        'left_elbow': (24.206, 17.598), 'left_wrist': (-1.987, -5.165),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
-    human.KeyJoints(49.6, {
-        'right_shoulder': (16.14, 27.368, -6.857), 'right_elbow': (98.482, 25.591),
-        'right_wrist': (-17.964, -16.333), 'left_shoulder': (67.017, -25.045, 26.184),
-        'left_elbow': (44.854, 13.69), 'left_wrist': (-21.865, -2.777),
+    human.KeyJoints(51.7, {
+        'right_shoulder': (22.241, 29.989, -7.879), 'right_elbow': (95.974, 25.365),
+        'right_wrist': (-17.496, -16.964), 'left_shoulder': (74.57, -26.536, 22.407),
+        'left_elbow': (37.111, 15.15), 'left_wrist': (-14.428, -3.675),
     })
-    human.KeyJoints(49.7, {
-        'right_shoulder': (-0.233, 20.449, -4.149), 'right_elbow': (104.796, 26.16),
-        'right_wrist': (-19.231, -14.798), 'left_shoulder': (47.22, -20.483, 35.587),
-        'left_elbow': (64.364, 10.015), 'left_wrist': (-40.644, -0.499),
+    human.KeyJoints(51.8, {
+        'right_shoulder': (7.205, 23.58, -5.386), 'right_wrist': (-18.657, -15.466),
+        'left_shoulder': (56.125, -22.659, 31.464), 'left_elbow': (55.741, 11.639),
+        'left_wrist': (-32.334, -1.509),
     })
-    human.KeyJoints(49.8, {
-        'right_shoulder': (-16.984, 13.261, -0.998), 'right_elbow': (110.406, 26.681),
-        'right_wrist': (-20.447, -13.467), 'left_shoulder': (27.008, -14.73, 43.913),
-        'left_elbow': (82.508, 6.652), 'left_wrist': (-57.924, 1.665),
+    human.KeyJoints(51.9, {
+        'right_shoulder': (-9.877, 16.356, -2.431), 'right_elbow': (108.144, 26.469),
+        'right_wrist': (-19.948, -14.002), 'left_shoulder': (35.673, -17.349, 40.554),
+        'left_elbow': (75.055, 8.022), 'left_wrist': (-50.872, 0.767),
     })
-    human.KeyJoints(49.9, {
-        'right_shoulder': (-30.228, 7.023, 2.575), 'right_elbow': (113.86, 27.006),
-        'right_wrist': (-21.239, -12.664), 'left_shoulder': (10.478, -7.855, 49.785),
-        'left_elbow': (94.238, 4.082), 'left_wrist': (-69.715, 2.899),
+    human.KeyJoints(52.0, {
+        'right_shoulder': (-25.093, 9.555, 0.969), 'right_elbow': (112.702, 26.898),
+        'right_wrist': (-20.965, -12.929), 'left_shoulder': (16.754, -11.191, 47.298),
+        'left_elbow': (90.24, 5.255), 'left_wrist': (-65.131, 2.616),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
-    human.KeyJoints(50.0, {
-        'right_shoulder': (-36.755, 2.394, 8.109), 'right_elbow': (112.677, 26.83),
-        'right_wrist': (-20.45, -12.611), 'left_shoulder': (-0.951, -0.22, 49.156),
-        'left_elbow': (96.381, 4.319), 'left_wrist': (-70.0, 3.332),
+    human.KeyJoints(52.1, {
+        'right_shoulder': (-34.839, 4.36, 4.847), 'right_elbow': (114.244, 27.034),
+        'right_wrist': (-21.32, -12.569), 'left_shoulder': (3.392, -4.074, 49.943),
+        'left_elbow': (96.141, 4.155), 'left_wrist': (-70.0, 3.236),
+    })
+    human.KeyJoints(52.2, {
+        'right_shoulder': (-39.235, -0.226, 12.278), 'right_elbow': (110.847, 26.59),
+        'right_wrist': (-19.403, -12.606), 'left_shoulder': (-6.09, 3.819, 49.096),
+        'left_elbow': (102.328, 5.967), 'left_wrist': (-70.0, 5.064),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=50.086359, duration=0.072)
+    human.Grasp('left_hand', 'open', start=52.230065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=50.086359, duration=0.072)
-    human.KeyJoints(50.1, {
-        'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
-        'right_wrist': (-18.939, -12.508), 'left_shoulder': (-8.692, 5.665, 48.876),
-        'left_elbow': (106.489, 7.124), 'left_wrist': (-70.0, 6.396),
+    human.Grasp('right_hand', 'open', start=52.230065, duration=0.072)
+    human.KeyJoints(52.3, {
+        'left_shoulder': (-8.112, 6.529, 49.795), 'left_elbow': (106.588, 6.959),
+        'left_wrist': (-70.0, 6.193),
     })
-    human.KeyRoot(50.158359, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(50.158359, {
+    human.KeyRoot(52.302065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.302065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
         'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-8.164, 6.427, 49.699), 'left_elbow': (106.552, 7.003),
-        'left_wrist': (-70.0, 6.246), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'left_shoulder': (-7.844, 6.912, 50.206), 'left_elbow': (106.613, 6.912),
+        'left_wrist': (-70.0, 6.132), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })

@@ -11,7 +11,7 @@ def remove_avionics_unit():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
     # examples/remove_avionics_unit.mtask:29:5 remove_avionics_unit > walk_to > travel: locomotion on root at rack_front
-    human.Walk((-0.738, 0.0, 47.972), start=0.0, duration=0.54)
+    human.Walk((-0.067, 0.0, 49.725), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,614 +22,681 @@ def remove_avionics_unit():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })
-    human.KeyRoot(0.1, (2.272, 69.839, 9.938), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (1.195, 72.58, 1.042), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (47.148, 1.216, 2.44), 'right_knee': (90.433,), 'right_ankle': (16.498, 2.764),
-        'left_hip': (22.831, -1.631, -1.684), 'left_knee': (59.902,),
-        'left_ankle': (14.003, -2.344),
+        'right_hip': (14.287, 0.993, 0.368), 'right_knee': (29.273,), 'right_ankle': (8.937, 1.059),
+        'left_hip': (6.165, -1.019, -0.11), 'left_knee': (13.416,), 'left_ankle': (7.252, -1.025),
     })
-    human.KeyRoot(0.2, (1.578, 66.418, 19.379), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.934, 72.22, 3.833), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (42.56, 1.335, 0.727), 'right_knee': (31.544,),
-        'right_ankle': (-11.325, 1.428), 'left_hip': (22.219, -0.973, -1.558),
-        'left_knee': (75.002,), 'left_ankle': (16.99, -1.837),
+        'right_hip': (17.951, 1.547, 0.9), 'right_knee': (40.637,), 'right_ankle': (10.462, 1.789),
+        'left_hip': (5.44, -1.66, -0.158), 'left_knee': (16.958,), 'left_ankle': (11.52, -1.668),
     })
-    human.KeyRoot(0.3, (-0.635, 67.006, 28.603), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (2.315, 72.148, 7.868), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (33.689, -0.494, -0.33), 'right_knee': (29.019,),
-        'right_ankle': (-4.665, -0.594), 'left_hip': (10.974, 0.454, 0.499), 'left_knee': (69.38,),
-        'left_ankle': (19.982, 0.674),
+        'right_hip': (27.674, 1.797, 1.422), 'right_knee': (55.911,),
+        'right_ankle': (18.063, 2.292), 'left_hip': (1.098, -1.999, -0.049), 'left_knee': (15.067,),
+        'left_ankle': (13.664, -2.0),
     })
-    human.KeyRoot(0.4, (-2.429, 69.878, 37.861), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (2.435, 72.719, 12.642), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (24.158, -1.981, -0.888), 'right_knee': (26.856,),
-        'right_ankle': (2.717, -2.171), 'left_hip': (26.912, 1.582, 2.263), 'left_knee': (76.33,),
-        'left_ankle': (19.86, 2.761),
+        'right_hip': (36.895, 1.868, 1.506), 'right_knee': (53.928,),
+        'right_ankle': (15.502, 2.399), 'left_hip': (2.474, -2.091, -0.386), 'left_knee': (25.323,),
+        'left_ankle': (14.871, -2.127),
     })
-    human.KeyRoot(0.5, (-1.23, 72.022, 46.62), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.5, (2.049, 71.867, 21.601), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.473, -1.039, -0.23),
-        'right_knee': (18.666,), 'right_ankle': (6.201, -1.064), 'left_hip': (14.208, 1.038, 0.247),
-        'left_knee': (22.458,), 'left_ankle': (7.881, 1.067),
+        'right_hip': (33.863, 1.588, 1.081), 'right_knee': (34.774,), 'right_ankle': (0.885, 1.921),
+        'left_hip': (3.816, -1.693, -0.817), 'left_knee': (42.103,), 'left_ankle': (16.334, -1.88),
+    })
+    human.KeyRoot(0.6, (1.011, 70.974, 34.615), (0.0, 0.0, 0.0))
+    human.KeyJoints(0.6, {
+        'right_hip': (19.656, 0.838, 0.305), 'right_knee': (12.619,),
+        'right_ankle': (-7.069, 0.892), 'left_hip': (-5.115, -0.803, -0.496), 'left_knee': (43.3,),
+        'left_ankle': (11.589, -0.944),
+    })
+    human.KeyRoot(0.7, (-0.047, 71.284, 40.807), (0.0, 0.0, 0.0))
+    human.KeyJoints(0.7, {
+        'right_hip': (18.112, -0.039, -0.013), 'right_knee': (19.884,),
+        'right_ankle': (1.772, -0.042), 'left_hip': (-9.458, 0.036, 0.028), 'left_knee': (41.049,),
+        'left_ankle': (3.347, 0.045),
+    })
+    human.KeyRoot(0.8, (-1.168, 71.482, 39.966), (0.0, 0.0, 0.0))
+    human.KeyJoints(0.8, {
+        'right_hip': (17.062, -0.974, -0.299), 'right_knee': (16.208,),
+        'right_ankle': (-0.854, -1.019), 'left_hip': (-2.413, 0.86, 0.787), 'left_knee': (52.756,),
+        'left_ankle': (10.66, 1.166),
+    })
+    human.KeyRoot(0.9, (-2.187, 71.482, 38.672), (0.0, 0.0, 0.0))
+    human.KeyJoints(0.9, {
+        'right_hip': (16.565, -1.828, -0.544), 'right_knee': (12.846,),
+        'right_ankle': (-3.713, -1.907), 'left_hip': (15.466, 1.487, 1.899), 'left_knee': (70.321,),
+        'left_ankle': (18.723, 2.412),
+    })
+    human.KeyRoot(1.0, (-2.414, 71.485, 38.48), (0.0, 0.0, 0.0))
+    human.KeyJoints(1.0, {
+        'right_hip': (16.387, -2.019, -0.594), 'right_knee': (12.127,),
+        'right_ankle': (-4.253, -2.104), 'left_hip': (29.459, 1.69, 1.981), 'left_knee': (68.003,),
+        'left_ankle': (18.763, 2.604),
+    })
+    human.KeyRoot(1.1, (-2.08, 71.482, 40.629), (0.0, 0.0, 0.0))
+    human.KeyJoints(1.1, {
+        'right_hip': (16.96, -1.735, -0.529), 'right_knee': (17.178,),
+        'right_ankle': (0.223, -1.814), 'left_hip': (24.8, 1.718, 0.796), 'left_knee': (38.982,),
+        'left_ankle': (14.359, 1.893),
+    })
+    human.KeyRoot(1.2, (-1.277, 71.884, 44.774), (0.0, 0.0, 0.0))
+    human.KeyJoints(1.2, {
+        'right_hip': (14.045, -1.074, -0.269), 'right_knee': (18.61,),
+        'right_ankle': (4.566, -1.107), 'left_hip': (14.033, 1.074, 0.268), 'left_knee': (18.584,),
+        'left_ankle': (4.549, 1.107),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
-    human.LookAt((-22.0, 178.0, 100.0), start=0.54, duration=0.2628)
+    human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.2628)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > look: gaze on head at latch_right
-    human.LookAt((22.0, 178.0, 100.0), start=0.54, duration=0.2628)
-    human.KeyRoot(0.6, (0.0, 72.819, 50.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(0.6, {
-        'neck': (-2.476, 0.0, 0.0), 'head': (-2.097, 0.0), 'right_hip': (5.161, 0.0, 0.0),
-        'right_knee': (9.422,), 'right_ankle': (4.26, 0.0), 'left_hip': (5.116, 0.0, 0.0),
-        'left_knee': (9.325,), 'left_ankle': (4.207, 0.0),
+    human.LookAt((22.0, 178.0, 100.0), start=1.294737, duration=0.2628)
+    human.KeyRoot(1.3, (0.0, 72.993, 50.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(1.3, {
+        'neck': (-0.022, 0.0, 0.0), 'head': (-0.019, 0.0), 'right_hip': (2.996, 0.0, 0.0),
+        'right_knee': (4.859,), 'right_ankle': (1.866, 0.0), 'left_hip': (2.991, 0.0, 0.0),
+        'left_knee': (4.851,), 'left_ankle': (1.862, 0.0),
     })
-    human.KeyJoints(0.7, {
-        'neck': (-12.527, 0.0, 0.0), 'head': (-10.645, 0.0), 'left_hip': (4.188, 0.0, 0.0),
-        'left_knee': (7.372,), 'left_ankle': (3.179, 0.0),
-    })
-    human.KeyJoints(0.8, {
+    human.KeyJoints(1.4, {'neck': (-6.625, 0.0, 0.0), 'head': (-5.618, 0.0)})
+    human.KeyJoints(1.5, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (-19.664, 0.0, 0.0), 'head': (-16.842, 0.0), 'right_clavicle': (0.0, 0.0),
+        'neck': (-16.832, 0.0, 0.0), 'head': (-14.341, 0.0), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
         'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.594, 5.73, 11.459),
-        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0), 'right_hip': (3.452, 0.0, 0.0),
-        'right_knee': (5.82,), 'right_ankle': (2.369, 0.0), 'left_hip': (3.406, 0.0, 0.0),
-        'left_knee': (5.725,), 'left_ankle': (2.315, 0.0),
+        'left_elbow': (34.377, 17.189), 'right_hip': (3.011, 0.0, 0.0), 'right_knee': (4.892,),
+        'right_ankle': (1.883, 0.0), 'left_hip': (3.01, 0.0, 0.0), 'left_knee': (4.889,),
+        'left_ankle': (1.882, 0.0),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: gaze on head at latch_right
-    human.LookAt((0.0, 178.0, 100.0), start=0.8028, duration=1.836346)
-    human.KeyRoot(0.9, (0.0, 72.987, 50.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(0.9, {
-        'spine_lumbar': (0.084, -0.091, -0.327), 'spine_thoracic': (0.298, 0.024, -0.654),
-        'neck': (-20.255, -0.182, 0.591), 'right_clavicle': (0.595, -0.327),
-        'right_shoulder': (8.509, 9.465, 10.297), 'right_elbow': (33.909, 17.001),
-        'right_wrist': (0.007, -0.019), 'left_clavicle': (0.653, 0.24),
-        'left_shoulder': (11.442, 5.895, 11.274), 'left_elbow': (34.335, 15.175),
-        'left_wrist': (-0.152, -0.046), 'right_hip': (3.116, 0.0, 0.0), 'right_knee': (5.113,),
-        'right_ankle': (1.999, 0.0), 'left_hip': (3.116, 0.0, 0.0), 'left_knee': (5.114,),
-        'left_ankle': (2.0, 0.0),
-    })
-    human.KeyJoints(1.0, {
-        'spine_lumbar': (0.347, -0.35, -1.26), 'spine_thoracic': (1.147, 0.094, -2.52),
-        'neck': (-20.897, -0.63, 2.04), 'head': (-18.179, -0.002), 'right_clavicle': (2.301, -1.26),
-        'right_shoulder': (8.267, 20.122, 6.983), 'right_elbow': (32.556, 16.466),
-        'left_clavicle': (2.514, 0.929), 'left_shoulder': (19.597, 6.369, 10.743),
-        'left_elbow': (34.206, 9.432), 'left_wrist': (-0.587, -0.176),
-        'right_hip': (3.096, 0.0, 0.0), 'right_knee': (5.072,), 'right_ankle': (1.978, 0.0),
-        'left_hip': (3.097, 0.0, 0.0), 'left_knee': (5.072,), 'left_ankle': (1.978, 0.0),
-    })
-    human.KeyJoints(1.1, {
-        'spine_lumbar': (0.785, -0.741, -2.666), 'spine_thoracic': (2.426, 0.199, -5.333),
-        'neck': (-21.998, -1.284, 4.172), 'head': (-19.334, -0.006),
-        'right_clavicle': (4.888, -2.666), 'right_shoulder': (7.902, 36.183, 1.987),
-        'right_elbow': (30.482, 15.66), 'left_clavicle': (5.321, 1.976),
-        'left_shoulder': (31.953, 7.091, 9.94), 'left_elbow': (33.994, 0.775),
-        'left_wrist': (-1.245, -0.372), 'right_hip': (2.868, 0.0, 0.0), 'right_knee': (4.589,),
-        'right_ankle': (1.721, 0.0), 'left_hip': (2.875, 0.0, 0.0), 'left_knee': (4.613,),
-        'left_ankle': (1.719, 0.0),
-    })
-    human.KeyJoints(1.2, {
-        'spine_lumbar': (1.399, -1.226, -4.413), 'spine_thoracic': (4.015, 0.33, -8.826),
-        'neck': (-24.726, -2.008, 6.503), 'head': (-19.603, -0.015),
-        'right_clavicle': (8.126, -4.413), 'right_shoulder': (7.448, 56.132, -4.217),
-        'right_elbow': (27.849, 14.658), 'right_wrist': (0.112, -0.284),
-        'left_clavicle': (8.807, 3.293), 'left_shoulder': (47.402, 8.0, 8.939),
-        'left_elbow': (33.706, -9.976), 'left_wrist': (-2.066, -0.616),
-    })
-    human.KeyJoints(1.3, {
-        'spine_lumbar': (2.187, -1.77, -6.367), 'spine_thoracic': (5.793, 0.476, -12.734),
-        'neck': (-28.607, -2.699, 8.694), 'right_clavicle': (11.784, -6.367),
-        'right_shoulder': (6.94, 78.447, -11.158), 'right_elbow': (24.823, 13.537),
-        'left_clavicle': (12.708, 4.787), 'left_shoulder': (64.834, 9.033, 7.811),
-        'left_elbow': (33.347, -22.004),
-    })
-    human.KeyJoints(1.4, {
-        'spine_lumbar': (3.146, -2.333, -8.395), 'spine_thoracic': (7.638, 0.627, -16.79),
-        'neck': (-33.056, -3.269, 10.479), 'right_shoulder': (6.413, 101.612, -18.363),
-        'left_clavicle': (16.759, 6.37), 'left_shoulder': (83.141, 10.13, 6.631),
-        'left_elbow': (32.92, -34.489),
-    })
-    human.KeyJoints(1.5, {
-        'spine_lumbar': (4.277, -2.881, -10.365), 'spine_thoracic': (9.43, 0.775, -20.729),
-        'neck': (-37.693, -3.582, 11.358), 'head': (-19.188, -0.145),
-        'right_clavicle': (19.445, -10.365), 'right_shoulder': (5.901, 124.107, -25.36),
-        'right_elbow': (18.242, 11.243), 'left_clavicle': (20.695, 7.95),
-        'left_shoulder': (101.214, 11.229, 5.472), 'left_elbow': (32.432, -46.613),
-        'left_wrist': (-4.903, -1.447),
-    })
+    human.LookAt((0.0, 178.0, 100.0), start=1.557537, duration=1.836346)
     human.KeyJoints(1.6, {
-        'spine_lumbar': (5.577, -3.375, -12.143), 'spine_thoracic': (11.048, 0.908, -24.285),
-        'neck': (-42.242, -3.629, 11.325), 'head': (-18.988, -0.217),
-        'right_clavicle': (22.986, -12.143), 'right_shoulder': (5.439, 144.414, -31.676),
-        'right_elbow': (15.014, 10.222), 'left_clavicle': (24.25, 9.438),
-        'left_shoulder': (117.945, 12.268, 4.407), 'left_elbow': (31.887, -57.558),
-        'left_wrist': (-5.773, -1.695),
+        'spine_lumbar': (0.016, -0.018, -0.065), 'spine_thoracic': (0.059, 0.005, -0.129),
+        'neck': (-20.088, -0.039, 0.128), 'head': (-17.287, 0.0), 'right_clavicle': (0.117, -0.065),
+        'right_shoulder': (8.578, 6.468, 11.23), 'right_elbow': (34.285, 17.152),
+        'left_clavicle': (0.129, 0.047), 'left_shoulder': (9.156, 5.762, 11.423),
+        'left_elbow': (34.369, 16.791), 'left_wrist': (-0.03, -0.009),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (7.046, -3.779, -13.596), 'spine_thoracic': (12.37, 1.016, -27.192),
-        'neck': (-46.195, -3.37, 10.474), 'head': (-18.937, -0.229),
-        'right_clavicle': (26.029, -13.596), 'right_shoulder': (5.062, 161.013, -36.839),
-        'right_elbow': (12.048, 9.387), 'right_wrist': (0.506, -1.157),
-        'left_clavicle': (27.161, 10.743), 'left_shoulder': (132.225, 13.186, 3.509),
-        'left_elbow': (31.291, -66.504), 'left_wrist': (-6.505, -1.898),
+        'spine_lumbar': (0.181, -0.19, -0.682), 'spine_thoracic': (0.621, 0.051, -1.365),
+        'neck': (-20.534, -0.386, 1.248), 'head': (-17.771, 0.0), 'right_clavicle': (1.244, -0.682),
+        'right_shoulder': (8.417, 13.522, 9.035), 'right_elbow': (33.397, 16.797),
+        'right_wrist': (0.015, -0.04), 'left_clavicle': (1.361, 0.501),
+        'left_shoulder': (14.542, 6.075, 11.072), 'left_elbow': (34.287, 12.989),
+        'left_wrist': (-0.318, -0.095),
     })
     human.KeyJoints(1.8, {
-        'spine_lumbar': (8.681, -4.055, -14.592), 'spine_thoracic': (13.276, 1.091, -29.184),
-        'neck': (-48.51, -2.661, 8.988), 'head': (-19.851, -0.043),
-        'right_clavicle': (28.342, -14.592), 'right_shoulder': (4.803, 172.386, -40.376),
-        'right_elbow': (9.505, 8.814), 'left_clavicle': (29.161, 11.775),
-        'left_shoulder': (142.945, 13.922, 2.851), 'left_elbow': (30.647, -72.634),
-        'left_wrist': (-7.039, -2.037),
+        'spine_lumbar': (0.523, -0.513, -1.846), 'spine_thoracic': (1.68, 0.138, -3.692),
+        'neck': (-21.336, -0.911, 2.953), 'head': (-18.659, -0.003),
+        'right_clavicle': (3.377, -1.846), 'right_shoulder': (8.115, 26.813, 4.901),
+        'right_elbow': (31.697, 16.13), 'left_clavicle': (3.684, 1.364),
+        'left_shoulder': (24.736, 6.669, 10.409), 'left_elbow': (34.12, 5.825),
+        'left_wrist': (-0.861, -0.258),
     })
     human.KeyJoints(1.9, {
-        'spine_lumbar': (10.481, -4.168, -14.997), 'spine_thoracic': (13.645, 1.121, -29.994),
-        'neck': (-50.859, -1.889, 7.287), 'head': (-19.854, 0.008),
-        'right_clavicle': (29.696, -14.997), 'right_shoulder': (4.698, 177.014, -41.816),
-        'right_elbow': (7.55, 8.579), 'right_wrist': (0.719, -1.554),
-        'left_clavicle': (29.987, 12.443), 'left_shoulder': (148.996, 14.414, 2.507),
-        'left_elbow': (29.963, -75.129), 'left_wrist': (-7.315, -2.094),
+        'spine_lumbar': (1.042, -0.951, -3.423), 'spine_thoracic': (3.114, 0.256, -6.846),
+        'neck': (-22.871, -1.611, 5.231), 'head': (-19.701, -0.009),
+        'right_clavicle': (6.287, -3.423), 'right_shoulder': (7.705, 44.822, -0.7),
+        'right_elbow': (29.349, 15.226), 'left_clavicle': (6.831, 2.544),
+        'left_shoulder': (38.629, 7.483, 9.507), 'left_elbow': (33.873, -3.881),
+        'left_wrist': (-1.6, -0.478),
+    })
+    human.KeyJoints(2.0, {
+        'spine_lumbar': (1.734, -1.467, -5.28), 'spine_thoracic': (4.804, 0.395, -10.559),
+        'neck': (-26.392, -2.325, 7.51), 'head': (-19.519, -0.024),
+        'right_clavicle': (9.743, -5.28), 'right_shoulder': (7.223, 66.03, -7.296),
+        'right_elbow': (26.518, 14.161), 'right_wrist': (0.138, -0.346),
+        'left_clavicle': (10.537, 3.953), 'left_shoulder': (55.113, 8.456, 8.439),
+        'left_elbow': (33.552, -15.312),
+    })
+    human.KeyJoints(2.1, {
+        'spine_lumbar': (2.6, -2.024, -7.284), 'neck': (-30.606, -3.001, 9.662),
+        'head': (-19.459, -0.058), 'right_shoulder': (6.702, 88.918, -14.415),
+        'right_elbow': (23.367, 13.011), 'left_shoulder': (73.078, 9.525, 7.279),
+        'left_wrist': (-3.425, -1.017),
+    })
+    human.KeyJoints(2.2, {
+        'spine_lumbar': (3.637, -2.585, -9.302), 'spine_thoracic': (8.463, 0.695, -18.604),
+        'neck': (-35.144, -3.441, 10.981), 'right_clavicle': (17.378, -9.302),
+        'right_shoulder': (6.178, 111.968, -21.584), 'left_clavicle': (18.571, 7.091),
+        'left_shoulder': (91.417, 10.631, 6.1), 'left_elbow': (32.706, -40.071),
+    })
+    human.KeyJoints(2.3, {
+        'spine_lumbar': (4.845, -3.113, -11.201), 'spine_thoracic': (10.191, 0.837, -22.402),
+        'neck': (-39.783, -3.634, 11.425), 'right_clavicle': (21.095, -11.201),
+        'right_shoulder': (5.684, 133.661, -28.332), 'right_elbow': (16.759, 10.763),
+        'left_clavicle': (22.367, 8.641), 'left_shoulder': (109.02, 11.71, 4.974),
+        'left_elbow': (32.192, -51.762), 'left_wrist': (-5.31, -1.564),
+    })
+    human.KeyJoints(2.4, {
+        'spine_lumbar': (6.221, -3.571, -12.849), 'spine_thoracic': (11.69, 0.96, -25.697),
+        'neck': (-44.208, -3.569, 11.016), 'head': (-18.875, -0.254),
+        'right_clavicle': (24.439, -12.849), 'right_shoulder': (5.256, 152.477, -34.184),
+        'right_elbow': (13.629, 9.817), 'left_clavicle': (25.664, 10.057),
+        'left_shoulder': (124.779, 12.702, 3.976), 'left_elbow': (31.623, -61.904),
+        'left_wrist': (-6.125, -1.794),
+    })
+    human.KeyJoints(2.5, {
+        'spine_lumbar': (7.765, -3.922, -14.111), 'spine_thoracic': (12.839, 1.055, -28.223),
+        'neck': (-47.389, -3.089, 9.932), 'head': (-19.256, -0.132),
+        'right_clavicle': (27.18, -14.111), 'right_shoulder': (4.928, 166.899, -38.67),
+        'right_elbow': (10.834, 9.091), 'left_clavicle': (28.195, 11.249),
+        'left_shoulder': (137.585, 13.546, 3.177), 'left_elbow': (31.005, -69.677),
+        'left_wrist': (-6.775, -1.97),
+    })
+    human.KeyJoints(2.6, {
+        'spine_lumbar': (9.475, -4.129, -14.856), 'spine_thoracic': (13.517, 1.11, -29.713),
+        'neck': (-49.574, -2.324, 8.269), 'head': (-19.909, 0.0),
+        'right_clavicle': (29.087, -14.856), 'right_shoulder': (4.734, 175.408, -41.316),
+        'right_elbow': (8.537, 8.662), 'right_wrist': (0.658, -1.446),
+        'left_clavicle': (29.696, 12.128), 'left_shoulder': (146.328, 14.178, 2.652),
+        'left_elbow': (30.342, -74.263), 'left_wrist': (-7.2, -2.074),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
-    human.KeyJoints(2.0, {
-        'spine_lumbar': (14.707, -3.802, -15.0), 'spine_thoracic': (11.406, 1.075, -30.0),
-        'neck': (-53.563, -0.901, 4.287), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (5.009, 175.128, -41.754), 'right_elbow': (5.981, 8.576),
-        'left_clavicle': (30.0, 12.967), 'left_shoulder': (151.713, 14.309, 2.496),
-        'left_elbow': (28.478, -75.147), 'left_wrist': (-7.383, -2.107),
+    human.KeyJoints(2.7, {
+        'spine_lumbar': (11.994, -4.09, -15.0), 'spine_thoracic': (13.114, 1.061, -30.0),
+        'neck': (-52.072, -1.409, 5.931), 'right_clavicle': (29.979, -15.0),
+        'right_shoulder': (4.763, 176.43, -41.8), 'right_elbow': (6.953, 8.577),
+        'right_wrist': (0.791, -1.656), 'left_clavicle': (30.0, 12.589),
+        'left_shoulder': (149.981, 14.55, 2.455), 'left_elbow': (29.504, -75.144),
+        'left_wrist': (-7.35, -2.08),
     })
-    human.KeyJoints(2.1, {
-        'spine_lumbar': (21.109, -2.351, -15.0), 'spine_thoracic': (6.248, 1.197, -30.0),
-        'neck': (-57.063, -0.26, 1.88), 'head': (-19.541, 0.003),
-        'right_shoulder': (5.674, 173.164, -41.709), 'right_elbow': (3.797, 8.578),
-        'right_wrist': (0.989, -2.128), 'left_clavicle': (30.0, 14.869),
-        'left_shoulder': (157.118, 11.944, 2.965), 'left_elbow': (24.206, -75.178),
-        'left_wrist': (-7.506, -2.391),
+    human.KeyJoints(2.8, {
+        'spine_lumbar': (17.081, -3.415, -15.0), 'spine_thoracic': (9.205, 1.172, -30.0),
+        'neck': (-54.368, -0.668, 3.442), 'right_shoulder': (5.378, 174.127, -41.729),
+        'right_elbow': (5.008, 8.577), 'right_wrist': (0.962, -1.996),
+        'left_clavicle': (30.0, 13.59), 'left_shoulder': (153.805, 13.444, 2.677),
+        'left_elbow': (27.166, -75.159), 'left_wrist': (-7.405, -2.211),
+    })
+    human.KeyJoints(2.9, {
+        'spine_lumbar': (23.872, -1.695, -15.0), 'spine_thoracic': (2.731, 0.648, -30.0),
+        'neck': (-56.848, -0.104, 1.018), 'head': (-19.525, 0.003),
+        'right_shoulder': (6.146, 172.421, -41.703), 'right_elbow': (2.555, 8.581),
+        'right_wrist': (0.939, -2.169), 'left_clavicle': (30.0, 15.0),
+        'left_shoulder': (160.937, 10.446, 3.2), 'left_elbow': (19.861, -75.191),
+        'left_wrist': (-7.584, -2.516),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
-    human.KeyJoints(2.2, {
-        'spine_lumbar': (27.01, -0.047, -15.0), 'spine_thoracic': (-0.671, -0.535, -30.0),
-        'neck': (-57.983, 0.079, 0.067), 'right_shoulder': (6.198, 171.87, -41.698),
-        'right_elbow': (0.901, 8.584), 'right_wrist': (0.598, -1.567),
-        'left_clavicle': (30.0, 15.0), 'left_shoulder': (168.154, 8.738, 3.346),
-        'left_elbow': (7.969, -75.184), 'left_wrist': (-6.54, -2.117),
+    human.KeyJoints(3.0, {
+        'spine_lumbar': (27.052, -0.032, -15.0), 'spine_thoracic': (-0.742, -0.604, -30.0),
+        'neck': (-57.925, 0.09, 0.001), 'right_shoulder': (6.205, 171.855, -41.698),
+        'right_elbow': (0.813, 8.584), 'right_wrist': (0.562, -1.496),
+        'left_shoulder': (168.583, 8.674, 3.348), 'left_elbow': (7.235, -75.183),
+        'left_wrist': (-6.325, -2.038),
     })
-    human.KeyJoints(2.3, {
-        'left_shoulder': (168.711, 8.653, 3.349), 'left_elbow': (6.996, -75.183),
-        'left_wrist': (-6.244, -2.009),
+    human.KeyJoints(3.1, {
+        'neck': (-57.932, 0.101, -0.059), 'right_wrist': (0.518, -1.405),
+        'left_shoulder': (169.071, 8.603, 3.35), 'left_elbow': (6.396, -75.182),
+        'left_wrist': (-6.028, -1.932),
     })
-    human.KeyJoints(2.4, {
-        'spine_thoracic': (-0.784, -0.667, -30.0), 'neck': (-58.029, 0.103, -0.073),
-        'left_shoulder': (169.477, 8.543, 3.351), 'left_elbow': (5.677, -75.181),
+    human.KeyJoints(3.2, {
+        'neck': (-58.149, 0.107, -0.094), 'head': (-19.586, 0.003), 'right_elbow': (0.527, 8.585),
+        'right_wrist': (0.422, -1.2), 'left_shoulder': (169.989, 8.472, 3.352),
+        'left_elbow': (4.792, -75.18), 'left_wrist': (-5.31, -1.683),
     })
-    human.KeyJoints(2.5, {
-        'neck': (-58.167, 0.107, -0.093), 'right_elbow': (0.52, 8.585),
-        'right_wrist': (0.418, -1.192), 'left_shoulder': (170.026, 8.466, 3.352),
-        'left_elbow': (4.724, -75.18), 'left_wrist': (-5.28, -1.673),
+    human.KeyJoints(3.3, {
+        'spine_lumbar': (27.188, 0.079, -15.0), 'right_shoulder': (6.329, 171.803, -41.698),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=2.567146, duration=0.072)
+    human.Grasp('left_hand', 'open', start=3.321883, duration=0.072)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=2.567146, duration=0.072)
-    human.KeyJoints(2.6, {
-        'spine_lumbar': (27.188, 0.08, -15.0), 'neck': (-58.167, 0.107, -0.093),
-        'right_shoulder': (6.326, 171.803, -41.698),
-    })
+    human.Grasp('right_hand', 'open', start=3.321883, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
-    human.LookAt((0.0, 172.0, 98.0), start=2.639146, duration=0.2628)
-    human.KeyJoints(2.7, {'neck': (-57.902, 0.079, -0.007), 'head': (-19.558, 0.002)})
-    human.KeyJoints(2.8, {'neck': (-56.872, -0.03, 0.33)})
-    human.KeyJoints(2.9, {
-        'spine_lumbar': (27.188, 0.08, -15.0), 'spine_thoracic': (-0.757, -0.669, -30.0),
-        'neck': (-56.22, -0.099, 0.543), 'head': (-19.38, 0.0), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (6.326, 171.803, -41.698), 'right_elbow': (0.52, 8.585),
-        'right_wrist': (0.418, -1.192), 'left_clavicle': (30.0, 15.0),
-        'left_shoulder': (170.026, 8.466, 3.352), 'left_elbow': (4.724, -75.18),
-        'left_wrist': (-5.28, -1.673),
+    human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.2628)
+    human.KeyJoints(3.4, {'neck': (-58.162, 0.107, -0.095), 'left_elbow': (4.697, -75.18)})
+    human.KeyJoints(3.5, {'neck': (-57.469, 0.034, 0.132), 'head': (-19.512, 0.002)})
+    human.KeyJoints(3.6, {
+        'spine_lumbar': (27.188, 0.079, -15.0), 'spine_thoracic': (-0.757, -0.67, -30.0),
+        'neck': (-56.451, -0.074, 0.464), 'head': (-19.404, 0.0), 'right_clavicle': (30.0, -15.0),
+        'right_shoulder': (6.329, 171.803, -41.698), 'right_wrist': (0.416, -1.188),
+        'left_clavicle': (30.0, 15.0), 'left_shoulder': (170.043, 8.464, 3.352),
+        'left_elbow': (4.697, -75.18), 'left_wrist': (-5.265, -1.668),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
-    human.LookAt((0.0, 165.0, 75.0), start=2.901946, duration=2.430743)
-    human.KeyJoints(3.0, {
-        'spine_lumbar': (28.396, -0.299, -14.63), 'spine_thoracic': (6.432, -3.785, -30.0),
-        'neck': (-60.0, -8.609, -15.739), 'head': (-20.0, 9.967), 'right_clavicle': (30.0, -14.612),
-        'right_shoulder': (4.268, 156.349, -41.297), 'right_elbow': (0.346, 8.558),
-        'right_wrist': (1.859, -1.993), 'left_clavicle': (29.998, 14.159),
-        'left_shoulder': (122.555, 65.609, -20.135), 'left_elbow': (7.77, -71.991),
-        'left_wrist': (-0.655, -0.925),
+    human.LookAt((0.0, 165.0, 75.0), start=3.656683, duration=2.430743)
+    human.KeyJoints(3.7, {
+        'spine_lumbar': (27.469, -0.009, -14.914), 'spine_thoracic': (0.919, -1.396, -30.0),
+        'neck': (-57.532, 0.646, -1.658), 'head': (-19.928, 0.021),
+        'right_clavicle': (30.0, -14.91), 'right_shoulder': (5.849, 168.2, -41.605),
+        'right_elbow': (0.476, 8.579), 'right_wrist': (0.752, -1.375),
+        'left_clavicle': (30.0, 14.804), 'left_shoulder': (158.976, 21.784, -2.123),
+        'left_elbow': (5.409, -74.437), 'left_wrist': (-4.188, -1.494),
     })
-    human.KeyJoints(3.1, {
-        'spine_lumbar': (30.366, -0.918, -14.026), 'spine_thoracic': (18.16, -8.867, -30.0),
-        'neck': (-59.965, -17.987, -43.988), 'head': (-19.137, 11.25),
-        'right_clavicle': (30.0, -13.979), 'right_shoulder': (0.911, 131.141, -40.643),
-        'right_elbow': (0.063, 8.514), 'right_wrist': (4.211, -3.3),
-        'left_clavicle': (29.995, 12.788), 'left_shoulder': (45.121, 158.817, -58.447),
-        'left_elbow': (12.738, -66.79), 'left_wrist': (6.889, 0.294),
+    human.KeyJoints(3.8, {
+        'spine_lumbar': (29.354, -0.6, -14.336), 'spine_thoracic': (12.134, -6.256, -30.0),
+        'neck': (-60.0, -15.03, -30.751), 'head': (-20.0, 11.25), 'right_clavicle': (30.0, -14.304),
+        'right_shoulder': (2.637, 144.094, -40.979), 'right_wrist': (3.002, -2.627),
+        'left_clavicle': (29.996, 13.493), 'left_shoulder': (84.918, 110.921, -38.76),
+        'left_elbow': (10.174, -69.462), 'left_wrist': (3.019, -0.33),
+    })
+    human.KeyJoints(3.9, {
+        'spine_lumbar': (30.79, -1.05, -13.896), 'spine_thoracic': (20.679, -9.959, -30.0),
+        'neck': (-59.85, -19.807, -49.302), 'head': (-17.761, 11.14),
+        'right_clavicle': (30.0, -13.843), 'right_shoulder': (0.19, 125.725, -40.502),
+        'right_elbow': (0.002, 8.504), 'right_wrist': (4.716, -3.581),
+        'left_clavicle': (29.994, 12.493), 'left_shoulder': (28.487, 178.841, -66.677),
+        'left_elbow': (13.805, -65.672), 'left_wrist': (8.51, 0.556),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
-    human.KeyJoints(3.2, {
-        'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
-        'neck': (-59.84, -19.915, -49.579), 'head': (-17.67, 11.123),
-        'right_clavicle': (30.0, -13.838), 'right_shoulder': (0.163, 125.523, -40.497),
-        'right_wrist': (4.735, -3.591), 'left_clavicle': (29.994, 12.482),
-        'left_shoulder': (27.863, 179.592, -66.986), 'left_elbow': (13.845, -65.63),
-        'left_wrist': (8.571, 0.566),
+    human.KeyJoints(4.0, {
+        'neck': (-59.84, -19.915, -49.579), 'right_shoulder': (0.163, 125.523, -40.497),
+        'left_shoulder': (27.863, 179.592, -66.986),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=3.291054, duration=0.072)
+    human.Grasp('left_hand', 'close', start=4.045791, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=3.291054, duration=0.072)
-    human.KeyJoints(3.3, {
+    human.Grasp('right_hand', 'close', start=4.045791, duration=0.072)
+    human.KeyJoints(4.1, {
         'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
-        'neck': (-59.84, -19.915, -49.579), 'right_clavicle': (30.0, -13.838),
-        'right_shoulder': (0.163, 125.523, -40.497), 'right_elbow': (0.0, 8.504),
-        'right_wrist': (4.735, -3.591), 'left_shoulder': (27.863, 179.592, -66.986),
+        'neck': (-59.84, -19.915, -49.579), 'head': (-17.671, 11.123),
+        'right_clavicle': (30.0, -13.838), 'right_shoulder': (0.163, 125.523, -40.497),
+        'right_elbow': (0.0, 8.504), 'right_wrist': (4.735, -3.591),
+        'left_clavicle': (29.994, 12.482), 'left_shoulder': (27.863, 179.592, -66.986),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
-    human.KeyJoints(3.4, {
-        'spine_lumbar': (30.942, -1.339, -13.869), 'spine_thoracic': (19.88, -9.505, -29.335),
-        'neck': (-59.845, -19.763, -49.141), 'head': (-17.753, 11.127),
-        'right_clavicle': (29.07, -13.87), 'right_shoulder': (0.374, 126.819, -40.505),
-        'right_elbow': (0.271, 8.512), 'right_wrist': (4.965, -3.827),
-        'left_clavicle': (29.994, 12.51), 'left_shoulder': (27.73, 179.48, -66.953),
-        'left_wrist': (8.591, 0.556),
+    human.KeyJoints(4.2, {
+        'spine_lumbar': (31.421, -2.336, -13.786), 'spine_thoracic': (16.735, -7.764, -26.978),
+        'neck': (-59.865, -19.238, -47.603), 'head': (-18.041, 11.143),
+        'right_clavicle': (25.796, -13.983), 'right_shoulder': (1.116, 131.383, -40.534),
+        'right_elbow': (1.227, 8.541), 'right_wrist': (5.776, -4.656),
+        'left_clavicle': (29.995, 12.609), 'left_shoulder': (27.26, 179.054, -66.838),
+        'left_wrist': (8.663, 0.519),
     })
-    human.KeyJoints(3.5, {
-        'spine_lumbar': (32.317, -4.2, -13.613), 'spine_thoracic': (10.857, -4.509, -22.521),
-        'neck': (-59.901, -18.29, -44.737), 'head': (-18.56, 11.171),
-        'right_clavicle': (19.675, -14.194), 'right_shoulder': (2.505, 139.914, -40.587),
-        'right_elbow': (3.013, 8.595), 'right_wrist': (7.29, -6.207),
-        'left_clavicle': (29.996, 12.794), 'left_shoulder': (26.381, 178.154, -66.613),
-        'left_wrist': (8.798, 0.438),
+    human.KeyJoints(4.3, {
+        'spine_lumbar': (33.193, -6.024, -13.421), 'spine_thoracic': (5.106, -1.325, -18.091),
+        'neck': (-59.934, -17.409, -41.947), 'head': (-19.043, 11.198),
+        'right_clavicle': (13.688, -14.401), 'right_shoulder': (3.863, 148.26, -40.639),
+        'left_shoulder': (25.521, 177.125, -66.383), 'left_wrist': (8.93, 0.343),
     })
-    human.KeyJoints(3.6, {
-        'spine_lumbar': (34.255, -8.233, -13.139), 'spine_thoracic': (-1.862, 2.533, -12.58),
-        'neck': (-59.971, -16.436, -38.593), 'head': (-19.577, 11.227),
-        'right_clavicle': (6.433, -14.652), 'right_shoulder': (5.509, 158.372, -40.703),
-        'right_elbow': (6.877, 8.711), 'right_wrist': (10.568, -9.561),
-        'left_clavicle': (29.998, 13.193), 'left_shoulder': (24.48, 175.58, -66.081),
-        'left_elbow': (13.809, -65.543),
-    })
-    human.KeyJoints(3.7, {
-        'spine_lumbar': (35.608, -11.049, -12.533), 'spine_thoracic': (-10.74, 7.449, -4.819),
-        'neck': (-59.983, -15.703, -34.496), 'head': (-20.0, 11.248),
-        'right_clavicle': (-2.81, -14.971), 'right_shoulder': (7.606, 171.256, -40.783),
-        'right_elbow': (9.574, 8.792), 'right_wrist': (12.855, -11.902),
-        'left_clavicle': (30.0, 13.472), 'left_shoulder': (23.153, 172.071, -65.583),
-        'left_elbow': (13.746, -65.469), 'left_wrist': (9.293, -0.139),
+    human.KeyJoints(4.4, {
+        'spine_lumbar': (35.008, -9.802, -12.876), 'spine_thoracic': (-6.808, 5.272, -8.478),
+        'neck': (-59.992, -15.868, -36.249), 'head': (-19.887, 11.244),
+        'right_clavicle': (1.283, -14.83), 'right_shoulder': (6.677, 165.55, -40.748),
+        'right_elbow': (8.379, 8.756), 'right_wrist': (11.842, -10.865),
+        'left_clavicle': (29.999, 13.349), 'left_shoulder': (23.74, 174.089, -65.838),
+        'left_elbow': (13.786, -65.511), 'left_wrist': (9.203, 0.057),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
-    human.KeyJoints(3.8, {
-        'spine_lumbar': (28.634, -6.127, -10.615), 'spine_thoracic': (-7.111, 4.337, -1.785),
-        'neck': (-57.726, -18.267, -25.671), 'right_clavicle': (6.223, -14.221),
-        'right_shoulder': (4.596, 170.333, -40.611), 'right_elbow': (9.116, 8.752),
-        'left_shoulder': (21.821, 164.941, -64.995), 'left_elbow': (9.37, -65.308),
-        'left_wrist': (8.043, -1.065),
+    human.KeyJoints(4.5, {
+        'spine_lumbar': (34.45, -10.774, -12.202), 'spine_thoracic': (-11.452, 7.587, -3.445),
+        'neck': (-58.398, -15.806, -32.425), 'head': (-20.0, 11.241),
+        'right_clavicle': (-2.772, -14.922), 'right_shoulder': (7.511, 172.327, -40.78),
+        'right_elbow': (9.794, 8.795), 'right_wrist': (13.005, -12.043),
+        'left_clavicle': (30.0, 13.367), 'left_shoulder': (23.136, 170.005, -65.428),
+        'left_elbow': (13.14, -65.428), 'left_wrist': (9.139, -0.352),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
-    human.KeyJoints(3.9, {
-        'spine_lumbar': (25.024, -3.171, -9.688), 'spine_thoracic': (-3.815, 1.004, -0.709),
-        'neck': (-57.584, -19.128, -23.305), 'right_clavicle': (14.193, -13.236),
-        'right_shoulder': (2.303, 165.019, -40.32), 'right_elbow': (7.132, 8.713),
-        'right_wrist': (12.09, -10.831), 'left_clavicle': (29.999, 12.232),
-        'left_shoulder': (20.846, 163.062, -64.826), 'left_elbow': (7.841, -65.257),
-        'left_wrist': (7.531, -1.361),
-    })
-    human.KeyJoints(4.2, {'spine_thoracic': (-3.502, 0.384, -0.712)})
-    human.KeyJoints(4.3, {'spine_lumbar': (24.666, -2.611, -9.702)})
     human.KeyJoints(4.6, {
-        'spine_thoracic': (-3.276, -0.069, -0.73), 'right_shoulder': (2.143, 165.346, -40.316),
+        'spine_lumbar': (25.095, -3.28, -9.686), 'spine_thoracic': (-3.892, 1.156, -0.707),
+        'neck': (-57.578, -19.121, -23.315), 'right_clavicle': (14.201, -13.235),
+        'right_shoulder': (2.325, 165.006, -40.322), 'right_elbow': (7.129, 8.713),
+        'right_wrist': (12.091, -10.834), 'left_clavicle': (30.0, 12.229),
+        'left_shoulder': (20.841, 163.061, -64.828), 'left_elbow': (7.839, -65.257),
+        'left_wrist': (7.529, -1.361),
     })
-    human.KeyJoints(4.7, {'right_clavicle': (14.083, -13.345), 'left_clavicle': (29.999, 12.343)})
-    human.KeyJoints(4.8, {'spine_lumbar': (24.477, -2.313, -9.814)})
-    human.KeyJoints(4.9, {'neck': (-57.619, -19.183, -23.219)})
-    human.KeyJoints(5.1, {'spine_thoracic': (-3.191, -0.244, -0.805)})
-    human.KeyJoints(5.2, {
-        'right_clavicle': (13.761, -13.665), 'right_shoulder': (2.118, 165.641, -40.315),
-        'left_clavicle': (30.0, 12.666),
-    })
-    human.KeyRoot(5.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(4.9, {'spine_thoracic': (-3.552, 0.487, -0.709)})
+    human.KeyJoints(5.0, {'spine_lumbar': (24.705, -2.672, -9.696)})
+    human.KeyJoints(5.2, {'right_shoulder': (2.163, 165.242, -40.316)})
     human.KeyJoints(5.3, {
-        'left_shoulder': (21.36, 163.184, -64.813), 'right_hip': (2.865, 0.0, 0.0),
+        'spine_thoracic': (-3.299, -0.02, -0.725), 'left_shoulder': (21.081, 163.118, -64.816),
+    })
+    human.KeyJoints(5.5, {
+        'spine_lumbar': (24.489, -2.332, -9.793), 'right_clavicle': (14.071, -13.362),
+        'left_clavicle': (30.0, 12.359),
+    })
+    human.KeyJoints(5.6, {'neck': (-57.625, -19.189, -23.212)})
+    human.KeyJoints(5.8, {'spine_thoracic': (-3.195, -0.236, -0.792)})
+    human.KeyJoints(5.9, {'right_shoulder': (2.118, 165.628, -40.315)})
+    human.KeyRoot(6.0, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(6.0, {
+        'left_shoulder': (21.355, 163.183, -64.813), 'right_hip': (2.865, 0.0, 0.0),
         'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
         'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
-    human.Walk((-79.722, 0.0, 40.152), start=5.33269, duration=3.7584)
-    human.KeyRoot(5.4, (1.168, 72.256, 50.317), (-2.041, 0.0, 0.0))
-    human.KeyJoints(5.4, {
-        'spine_lumbar': (24.445, -2.26, -10.161), 'right_clavicle': (13.623, -13.802),
-        'left_clavicle': (30.0, 12.805), 'right_hip': (15.119, 0.552, 2.479),
-        'right_knee': (29.808,), 'right_ankle': (11.625, 1.033),
-        'left_hip': (8.553, -0.688, -2.168), 'left_knee': (17.601,), 'left_ankle': (9.086, -1.002),
-    })
-    human.KeyRoot(5.5, (2.202, 72.286, 50.518), (-5.074, 0.0, 0.0))
-    human.KeyJoints(5.5, {
-        'right_elbow': (7.38, 8.706), 'right_hip': (24.664, 0.766, 3.503), 'right_knee': (49.819,),
-        'right_ankle': (20.0, 1.963), 'left_hip': (7.808, -1.168, -5.279), 'left_knee': (16.952,),
-        'left_ankle': (9.286, -1.869),
-    })
-    human.KeyRoot(5.6, (2.56, 72.317, 50.548), (-8.107, 0.0, 0.0))
-    human.KeyJoints(5.6, {
-        'right_hip': (27.921, 6.097, -7.609), 'right_knee': (59.97,), 'right_ankle': (20.0, 2.175),
-        'left_hip': (7.253, -1.108, -8.308), 'left_knee': (16.408,), 'left_ankle': (9.393, -2.133),
-    })
-    human.KeyRoot(5.7, (2.139, 72.347, 49.948), (-10.906, 0.0, 0.0))
-    human.KeyJoints(5.7, {
-        'left_elbow': (8.013, -65.263), 'right_hip': (19.731, 8.168, -18.871),
-        'right_knee': (45.619,), 'right_ankle': (20.0, 1.712), 'left_hip': (8.78, -0.043, -11.067),
-        'left_knee': (19.217,), 'left_ankle': (9.691, -1.721),
-    })
-    human.KeyRoot(5.8, (1.22, 72.377, 48.922), (-13.786, 0.0, 0.0))
-    human.KeyJoints(5.8, {
-        'right_hip': (9.05, 2.902, -18.448), 'right_knee': (19.385,), 'right_ankle': (9.5, 0.396),
-        'left_hip': (12.652, 2.224, -13.694), 'left_knee': (26.342,), 'left_ankle': (9.698, -0.865),
-    })
-    human.KeyRoot(5.9, (0.249, 72.407, 48.608), (-17.643, 0.0, 0.0))
-    human.KeyJoints(5.9, {
-        'right_hip': (8.014, 1.51, -14.859), 'right_knee': (15.862,),
-        'right_ankle': (7.736, -0.603), 'left_hip': (14.137, 4.557, -17.05), 'left_knee': (30.492,),
-        'left_ankle': (9.608, 0.118),
-    })
-    human.KeyRoot(6.0, (-1.014, 72.437, 48.789), (-23.494, 0.0, 0.0))
-    human.KeyJoints(6.0, {
-        'left_wrist': (7.663, -1.329), 'right_hip': (7.943, -0.323, -9.201),
-        'right_ankle': (7.397, -1.582), 'left_hip': (17.591, 8.523, -21.244),
-        'left_knee': (42.069,), 'left_ankle': (16.443, 1.486),
-    })
-    human.KeyRoot(6.1, (-2.107, 72.467, 49.142), (-30.163, 0.0, 0.0))
+    human.Walk((-79.956, 0.0, 40.019), start=6.087427, duration=4.515789)
+    human.KeyRoot(6.1, (0.106, 72.958, 50.048), (-0.181, 0.0, 0.0))
     human.KeyJoints(6.1, {
-        'right_hip': (7.587, -1.955, -2.681), 'right_knee': (14.457,),
-        'right_ankle': (6.968, -2.29), 'left_hip': (26.632, 4.703, -6.082), 'left_knee': (56.872,),
-        'left_ankle': (19.403, 1.476),
+        'spine_lumbar': (24.445, -2.26, -10.161), 'right_clavicle': (13.623, -13.802),
+        'left_clavicle': (30.0, 12.805), 'right_hip': (3.492, 0.079, 0.186), 'right_knee': (5.944,),
+        'right_ankle': (2.441, 0.092), 'left_hip': (3.409, -0.079, -0.186), 'left_knee': (5.864,),
+        'left_ankle': (2.454, -0.092),
     })
-    human.KeyRoot(6.2, (-2.514, 72.487, 50.034), (-36.322, 0.0, 0.0))
+    human.KeyRoot(6.2, (1.206, 72.55, 50.337), (-1.8, 0.0, 0.0))
     human.KeyJoints(6.2, {
-        'right_hip': (7.581, -2.643, 3.428), 'right_knee': (15.095,),
-        'right_ankle': (7.126, -2.164), 'left_hip': (24.546, -6.941, 19.344),
-        'left_knee': (49.709,), 'left_ankle': (19.158, 1.844),
+        'right_hip': (8.228, 0.772, 1.94), 'right_knee': (15.865,), 'right_ankle': (7.122, 1.043),
+        'left_hip': (6.782, -0.813, -1.909), 'left_knee': (13.841,), 'left_ankle': (7.089, -1.034),
     })
-    human.KeyRoot(6.3, (-2.746, 72.487, 52.151), (-42.387, 0.0, 0.0))
+    human.KeyRoot(6.3, (1.924, 72.488, 50.485), (-3.697, 0.0, 0.0))
     human.KeyJoints(6.3, {
-        'right_hip': (10.089, -3.003, 9.384), 'right_knee': (22.298,),
-        'right_ankle': (9.351, -1.28), 'left_hip': (11.687, -4.228, 22.364), 'left_knee': (24.595,),
-        'left_ankle': (12.132, 0.496),
+        'right_elbow': (7.38, 8.706), 'right_hip': (10.75, 1.024, 3.812), 'right_knee': (20.79,),
+        'right_ankle': (9.201, 1.726), 'left_hip': (6.792, -1.192, -3.864), 'left_knee': (14.483,),
+        'left_ankle': (7.784, -1.639),
     })
-    human.KeyRoot(6.4, (-2.843, 72.487, 53.572), (-48.452, 0.0, 0.0))
+    human.KeyRoot(6.4, (2.314, 72.497, 50.54), (-5.822, 0.0, 0.0))
     human.KeyJoints(6.4, {
-        'right_hip': (12.521, -4.051, 15.335), 'right_knee': (28.179,),
-        'right_ankle': (9.923, -0.528), 'left_hip': (5.988, -2.653, 16.492), 'left_knee': (14.781,),
-        'left_ankle': (8.289, -0.833),
+        'right_hip': (22.123, 1.76, 1.124), 'right_knee': (45.295,), 'right_ankle': (17.997, 2.046),
+        'left_hip': (6.713, -1.268, -6.013), 'left_knee': (14.785,), 'left_ankle': (8.08, -1.953),
     })
-    human.KeyRoot(6.5, (-2.272, 72.487, 53.729), (-54.517, 0.0, 0.0))
+    human.KeyRoot(6.5, (2.439, 72.771, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(6.5, {
-        'spine_thoracic': (-3.188, -0.252, -0.868), 'right_hip': (15.478, -5.919, 21.224),
-        'right_knee': (33.372,), 'right_ankle': (11.061, 0.219),
-        'left_hip': (5.715, -2.419, 10.421), 'left_ankle': (8.5, -1.334),
+        'left_elbow': (8.013, -65.263), 'right_hip': (24.055, 5.205, -6.25),
+        'right_knee': (51.364,), 'right_ankle': (18.134, 2.076),
+        'left_hip': (7.717, -0.927, -8.381), 'left_knee': (17.096,), 'left_ankle': (7.818, -2.033),
     })
-    human.KeyRoot(6.6, (-0.977, 72.487, 53.817), (-60.583, 0.0, 0.0))
+    human.KeyRoot(6.6, (2.074, 72.843, 49.938), (-10.614, 0.0, 0.0))
     human.KeyJoints(6.6, {
-        'right_hip': (24.902, -6.74, 16.197), 'right_knee': (52.399,),
-        'right_ankle': (19.206, 0.884), 'left_hip': (6.015, -2.44, 4.313),
-        'left_ankle': (8.119, -1.968),
+        'spine_thoracic': (-3.188, -0.252, -0.868), 'right_hip': (16.945, 6.569, -15.078),
+        'right_knee': (37.878,), 'right_ankle': (18.271, 1.516),
+        'left_hip': (11.338, 0.455, -10.867), 'left_knee': (23.908,), 'left_ankle': (8.222, -1.691),
     })
-    human.KeyRoot(6.7, (0.164, 72.487, 53.767), (-66.691, 0.0, 0.0))
+    human.KeyRoot(6.7, (1.246, 72.519, 48.852), (-13.49, 0.0, 0.0))
     human.KeyJoints(6.7, {
-        'right_hip': (23.908, 6.178, -9.49), 'right_knee': (54.95,), 'right_ankle': (19.177, 1.86),
-        'left_hip': (6.321, -2.169, -1.809), 'left_knee': (14.104,), 'left_ankle': (7.845, -2.36),
+        'right_hip': (6.73, 2.944, -18.841), 'right_knee': (14.452,), 'right_ankle': (7.174, 0.391),
+        'left_hip': (15.631, 2.835, -13.342), 'left_knee': (31.747,), 'left_ankle': (8.687, -0.914),
     })
-    human.KeyRoot(6.8, (1.293, 72.487, 52.464), (-73.342, 0.0, 0.0))
+    human.KeyRoot(6.8, (0.39, 72.492, 48.416), (-16.969, 0.0, 0.0))
     human.KeyJoints(6.8, {
-        'neck': (-57.551, -19.117, -23.283), 'right_hip': (13.551, 7.879, -22.877),
-        'right_knee': (34.798,), 'right_ankle': (19.147, 1.925),
-        'left_hip': (8.503, -0.463, -8.392), 'left_knee': (17.228,), 'left_ankle': (8.11, -1.69),
+        'left_wrist': (7.663, -1.329), 'right_hip': (7.57, 1.523, -15.534), 'right_knee': (14.689,),
+        'right_ankle': (6.985, -0.567), 'left_hip': (16.817, 5.014, -16.238),
+        'left_knee': (34.869,), 'left_ankle': (8.337, -0.033),
     })
-    human.KeyRoot(6.9, (2.132, 72.487, 50.678), (-79.395, 0.0, 0.0))
+    human.KeyRoot(6.9, (-0.609, 72.491, 48.562), (-21.678, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'right_hip': (7.006, 2.305, -18.159), 'right_knee': (14.904,),
-        'right_ankle': (7.534, -0.004), 'left_hip': (10.94, 2.304, -14.107), 'left_knee': (21.66,),
-        'left_ankle': (8.262, -0.458),
+        'right_hip': (7.718, 0.113, -10.969), 'right_knee': (14.498,),
+        'left_hip': (21.101, 8.111, -17.579), 'left_knee': (46.479,), 'left_ankle': (15.546, 0.959),
     })
-    human.KeyRoot(7.0, (2.119, 72.487, 49.604), (-83.484, 0.0, 0.0))
+    human.KeyRoot(7.0, (-1.645, 72.495, 48.882), (-27.206, 0.0, 0.0))
     human.KeyJoints(7.0, {
-        'right_hip': (7.642, 0.85, -14.224), 'right_ankle': (7.08, -1.056),
-        'left_hip': (11.531, 4.34, -17.846), 'left_knee': (24.106,), 'left_ankle': (8.799, 0.537),
+        'right_hip': (7.539, -1.337, -5.58), 'right_knee': (14.126,),
+        'right_ankle': (6.742, -2.051), 'left_hip': (26.692, 6.916, -10.231),
+        'left_knee': (57.217,), 'left_ankle': (19.33, 1.469),
     })
-    human.KeyRoot(7.1, (1.499, 72.487, 48.737), (-86.435, 0.0, 0.0))
+    human.KeyRoot(7.1, (-2.332, 72.499, 49.32), (-32.671, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'right_hip': (7.426, -0.348, -11.396), 'right_ankle': (7.215, -1.802),
-        'left_hip': (19.042, 8.252, -18.016), 'left_knee': (42.553,), 'left_ankle': (19.047, 1.59),
+        'neck': (-57.551, -19.117, -23.283), 'right_hip': (8.248, -2.365, -0.264),
+        'right_knee': (15.796,), 'right_ankle': (7.041, -2.38), 'left_hip': (28.609, 1.129, 1.379),
+        'left_knee': (58.793,), 'left_ankle': (19.282, 1.574),
     })
-    human.KeyRoot(7.2, (0.737, 72.487, 48.298), (-89.198, 0.0, 0.0))
+    human.KeyRoot(7.2, (-2.702, 72.857, 50.678), (-37.827, 0.0, 0.0))
     human.KeyJoints(7.2, {
-        'right_hip': (7.002, -1.111, -8.691), 'right_knee': (14.241,),
-        'right_ankle': (7.484, -2.145), 'left_hip': (26.594, 5.358, -5.923), 'left_knee': (55.397,),
-        'left_ankle': (19.196, 2.114),
+        'right_hip': (9.274, -2.815, 4.773), 'right_knee': (19.087,),
+        'right_ankle': (6.898, -2.002), 'left_hip': (21.828, -3.937, 13.036),
+        'left_knee': (45.218,), 'left_ankle': (19.234, 1.126),
     })
-    human.KeyRoot(7.3, (0.15, 72.554, 48.8), (-92.815, 0.0, 0.0))
+    human.KeyRoot(7.3, (-2.984, 72.579, 52.72), (-42.983, 0.0, 0.0))
     human.KeyJoints(7.3, {
-        'right_hip': (11.122, -0.736, -5.206), 'right_knee': (22.658,),
-        'right_ankle': (8.712, -1.724), 'left_hip': (21.879, 0.523, 3.686), 'left_knee': (43.791,),
-        'left_ankle': (19.165, 1.81),
+        'right_hip': (12.765, -3.475, 9.776), 'right_knee': (28.346,),
+        'right_ankle': (9.604, -1.194), 'left_hip': (9.881, -3.532, 20.102), 'left_knee': (21.885,),
+        'left_ankle': (11.392, 0.012),
     })
-    human.KeyRoot(7.4, (-0.484, 72.487, 49.987), (-96.455, 0.0, 0.0))
+    human.KeyRoot(7.4, (-3.113, 72.487, 53.952), (-48.139, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'right_hip': (22.183, -0.102, -1.581), 'right_knee': (42.791,),
-        'right_ankle': (5.629, -0.716), 'left_hip': (8.91, 0.488, 1.325), 'left_knee': (18.077,),
-        'left_ankle': (9.154, 0.649),
+        'right_hip': (14.698, -4.586, 14.828), 'right_knee': (33.165,),
+        'right_ankle': (9.883, -0.568), 'left_hip': (5.577, -2.761, 16.804), 'left_knee': (14.684,),
+        'left_ankle': (8.551, -1.02),
     })
-    human.KeyRoot(7.5, (-1.555, 72.487, 50.832), (-97.695, 0.0, 0.0))
+    human.KeyRoot(7.5, (-2.716, 72.487, 53.964), (-53.295, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'right_hip': (28.202, 0.148, 0.201), 'right_knee': (52.934,),
-        'right_ankle': (-0.641, 0.249), 'left_hip': (6.416, -0.197, -0.022), 'left_knee': (14.848,),
-        'left_ankle': (8.434, -0.198),
+        'right_hip': (18.145, -6.615, 19.091), 'right_knee': (39.689,),
+        'right_ankle': (11.979, -0.085), 'left_hip': (5.35, -2.47, 11.654),
+        'left_ankle': (8.746, -1.329),
     })
-    human.KeyRoot(7.6, (-4.571, 72.148, 51.359), (-97.695, 0.0, 0.0))
+    human.KeyRoot(7.6, (-1.604, 72.487, 53.926), (-58.451, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'right_hip': (29.2, 0.725, 1.053), 'right_knee': (60.292,), 'right_ankle': (4.842, 1.278),
-        'left_hip': (5.225, -0.994, -0.091), 'left_knee': (17.647,), 'left_ankle': (12.425, -0.999),
+        'right_hip': (25.356, -6.684, 14.694), 'right_knee': (54.045,),
+        'right_ankle': (19.184, 0.426), 'left_hip': (5.682, -2.468, 6.464), 'left_knee': (14.328,),
     })
-    human.KeyRoot(7.7, (-8.96, 71.644, 51.713), (-97.695, 0.0, 0.0))
+    human.KeyRoot(7.7, (-0.38, 72.487, 53.862), (-63.607, 0.0, 0.0))
     human.KeyJoints(7.7, {
-        'right_hip': (39.203, 1.27, 2.032), 'right_knee': (68.582,), 'right_ankle': (10.607, 2.396),
-        'left_hip': (2.016, -1.821, -0.064), 'left_knee': (18.754,), 'left_ankle': (16.741, -1.822),
+        'right_hip': (27.713, -1.21, 4.153), 'right_knee': (58.703,),
+        'left_hip': (6.274, -2.392, 1.265), 'left_knee': (14.425,), 'left_ankle': (8.021, -2.239),
     })
-    human.KeyRoot(7.8, (-13.436, 70.762, 51.484), (-97.695, 0.0, 0.0))
+    human.KeyRoot(7.8, (0.643, 72.661, 53.392), (-68.973, 0.0, 0.0))
     human.KeyJoints(7.8, {
-        'right_hip': (42.147, 1.727, 1.833), 'right_knee': (45.751,),
-        'right_ankle': (-0.938, 2.518), 'left_hip': (15.109, -1.955, -1.33), 'left_knee': (51.236,),
-        'left_ankle': (17.051, -2.366),
+        'right_hip': (23.342, 4.985, -7.998), 'right_knee': (51.307,),
+        'right_ankle': (19.133, 1.44), 'left_hip': (7.425, -1.716, -4.135), 'left_knee': (15.615,),
+        'left_ankle': (7.347, -2.232),
     })
-    human.KeyRoot(7.9, (-18.479, 69.491, 49.817), (-97.695, 0.0, 0.0))
+    human.KeyRoot(7.9, (1.754, 72.717, 51.921), (-74.647, 0.0, 0.0))
     human.KeyJoints(7.9, {
-        'right_hip': (28.797, 1.2, 0.66), 'right_knee': (18.498,), 'right_ankle': (-10.293, 1.37),
-        'left_hip': (14.532, -1.137, -0.969), 'left_knee': (58.872,),
-        'left_ankle': (18.427, -1.494),
+        'right_hip': (12.672, 5.115, -17.85), 'right_knee': (28.851,),
+        'right_ankle': (15.244, 0.933), 'left_hip': (10.251, 0.309, -9.675), 'left_knee': (19.874,),
+        'left_ankle': (7.284, -1.415),
     })
-    human.KeyRoot(8.0, (-23.869, 69.633, 47.758), (-97.695, 0.0, 0.0))
+    human.KeyRoot(8.0, (2.517, 72.487, 50.372), (-79.647, 0.0, 0.0))
     human.KeyJoints(8.0, {
-        'right_hip': (25.137, 0.14, 0.066), 'right_knee': (21.374,), 'right_ankle': (-3.763, 0.154),
-        'left_hip': (11.447, -0.124, -0.127), 'left_knee': (60.618,),
-        'left_ankle': (14.989, -0.177),
+        'right_hip': (7.38, 2.065, -17.938), 'right_knee': (14.82,), 'right_ankle': (7.167, -0.319),
+        'left_hip': (13.117, 3.016, -14.235), 'left_knee': (25.311,), 'left_ankle': (8.06, -0.353),
     })
-    human.KeyRoot(8.1, (-29.282, 70.779, 45.81), (-97.695, 0.0, 0.0))
+    human.KeyRoot(8.1, (2.512, 72.487, 49.515), (-83.144, 0.0, 0.0))
     human.KeyJoints(8.1, {
-        'right_hip': (20.562, -0.853, -0.32), 'right_knee': (22.228,),
-        'right_ankle': (1.671, -0.911), 'left_hip': (5.822, 0.739, 0.754), 'left_knee': (56.799,),
-        'left_ankle': (10.744, 1.055),
+        'right_hip': (7.886, 0.846, -14.575), 'right_ankle': (6.731, -1.168),
+        'left_hip': (13.306, 4.732, -17.37), 'left_knee': (26.749,), 'left_ankle': (8.174, 0.455),
     })
-    human.KeyRoot(8.2, (-34.925, 71.783, 43.777), (-97.695, 0.0, 0.0))
+    human.KeyRoot(8.2, (1.918, 72.487, 48.836), (-85.746, 0.0, 0.0))
     human.KeyJoints(8.2, {
-        'right_hip': (14.223, -1.928, -0.489), 'right_knee': (19.715,),
-        'right_ankle': (5.503, -1.989), 'left_hip': (12.291, 2.062, 1.09), 'left_knee': (66.145,),
-        'left_ankle': (18.548, 2.743),
+        'right_hip': (7.696, -0.153, -12.097), 'right_knee': (14.425,),
+        'right_ankle': (6.932, -1.749), 'left_hip': (21.479, 7.954, -15.854),
+        'left_knee': (45.668,), 'left_ankle': (18.904, 1.319),
     })
-    human.KeyRoot(8.3, (-41.165, 70.82, 42.901), (-97.695, 0.0, 0.0))
+    human.KeyRoot(8.3, (1.108, 72.487, 48.381), (-88.06, 0.0, 0.0))
     human.KeyJoints(8.3, {
-        'right_hip': (13.311, -1.993, -0.471), 'right_knee': (29.336,),
-        'right_ankle': (16.035, -2.047), 'left_hip': (44.169, 4.177, -2.368),
-        'left_knee': (65.743,), 'left_ankle': (6.981, 1.399),
+        'right_hip': (7.211, -0.889, -9.822), 'right_knee': (14.266,),
+        'right_ankle': (7.306, -2.095), 'left_hip': (26.061, 7.195, -9.921), 'left_knee': (54.867,),
+        'left_ankle': (18.917, 1.997),
     })
-    human.KeyRoot(8.4, (-49.047, 67.978, 42.767), (-97.695, 0.0, 0.0))
+    human.KeyRoot(8.4, (0.42, 72.791, 48.376), (-90.665, 0.0, 0.0))
     human.KeyJoints(8.4, {
-        'right_hip': (25.471, -1.004, -1.084), 'right_knee': (65.172,),
-        'right_ankle': (17.98, -1.478), 'left_hip': (36.45, 2.532, -7.603), 'left_knee': (20.392,),
-        'left_ankle': (-16.684, -2.466),
+        'right_hip': (12.835, -0.457, -7.508), 'right_knee': (25.827,),
+        'right_ankle': (7.944, -2.114), 'left_hip': (25.437, 4.135, -3.764), 'left_knee': (52.683,),
+        'left_ankle': (18.93, 2.102),
     })
-    human.KeyRoot(8.5, (-56.961, 68.024, 42.695), (-97.695, 0.0, 0.0))
+    human.KeyRoot(8.5, (-0.135, 72.822, 49.147), (-94.017, 0.0, 0.0))
     human.KeyJoints(8.5, {
-        'right_hip': (19.452, -0.295, -0.326), 'right_knee': (66.598,),
-        'right_ankle': (18.81, -0.44), 'left_hip': (29.409, 1.662, -7.89), 'left_knee': (19.568,),
-        'left_ankle': (-9.915, -2.413),
+        'right_hip': (22.64, 0.208, -4.388), 'right_knee': (43.281,),
+        'right_ankle': (3.844, -1.563), 'left_hip': (17.257, 1.469, -0.055), 'left_knee': (35.371,),
+        'left_ankle': (18.121, 1.374),
     })
-    human.KeyRoot(8.6, (-62.415, 69.201, 42.738), (-97.49, 0.0, 0.0))
+    human.KeyRoot(8.6, (-0.784, 72.487, 50.182), (-96.847, 0.0, 0.0))
     human.KeyJoints(8.6, {
+        'right_hip': (31.082, 0.143, -1.252), 'right_knee': (55.883,),
+        'right_ankle': (-4.829, -0.602), 'left_hip': (7.372, 0.34, 0.86), 'left_knee': (15.405,),
+        'left_ankle': (8.049, 0.444),
+    })
+    human.KeyRoot(8.7, (-1.773, 72.493, 50.836), (-97.695, 0.0, 0.0))
+    human.KeyJoints(8.7, {
+        'right_hip': (34.947, 0.105, 0.349), 'right_knee': (61.01,), 'right_ankle': (-12.27, 0.365),
+        'left_hip': (6.166, -0.225, -0.001), 'left_knee': (14.696,), 'left_ankle': (8.538, -0.226),
+    })
+    human.KeyRoot(8.8, (-3.735, 72.357, 51.253), (-97.695, 0.0, 0.0))
+    human.KeyJoints(8.8, {
+        'right_hip': (37.941, 0.352, 1.258), 'right_knee': (68.354,),
+        'right_ankle': (-6.277, 1.306), 'left_hip': (5.002, -0.806, -0.057), 'left_knee': (15.674,),
+        'left_ankle': (10.677, -0.809),
+    })
+    human.KeyRoot(8.9, (-6.649, 71.984, 51.587), (-97.695, 0.0, 0.0))
+    human.KeyJoints(8.9, {
+        'right_hip': (42.952, 0.87, 1.843), 'right_knee': (73.203,), 'right_ankle': (8.254, 2.038),
+        'left_hip': (3.518, -1.434, -0.084), 'left_knee': (17.744,), 'left_ankle': (14.229, -1.437),
+    })
+    human.KeyRoot(9.0, (-10.204, 72.014, 51.756), (-97.695, 0.0, 0.0))
+    human.KeyJoints(9.0, {
+        'right_hip': (45.218, 1.582, 1.931), 'right_knee': (68.15,), 'right_ankle': (17.309, 2.497),
+        'left_hip': (0.667, -1.998, -0.075), 'left_knee': (17.855,), 'left_ankle': (15.693, -2.0),
+    })
+    human.KeyRoot(9.1, (-15.098, 72.686, 51.273), (-97.695, 0.0, 0.0))
+    human.KeyJoints(9.1, {
+        'right_hip': (39.642, 1.873, 1.54), 'right_knee': (50.67,), 'right_ankle': (11.104, 2.425),
+        'left_hip': (4.581, -2.101, -0.672), 'left_knee': (32.941,), 'left_ankle': (15.222, -2.206),
+    })
+    human.KeyRoot(9.2, (-22.271, 71.893, 49.586), (-97.695, 0.0, 0.0))
+    human.KeyJoints(9.2, {
+        'right_hip': (27.497, 1.423, 0.735), 'right_knee': (27.958,), 'right_ankle': (0.511, 1.601),
+        'left_hip': (8.99, -1.332, -1.116), 'left_knee': (51.59,), 'left_ankle': (11.638, -1.738),
+    })
+    human.KeyRoot(9.3, (-29.291, 71.478, 47.548), (-97.695, 0.0, 0.0))
+    human.KeyJoints(9.3, {
+        'right_hip': (17.092, 0.576, 0.176), 'right_knee': (14.661,), 'right_ankle': (-2.4, 0.602),
+        'left_hip': (9.538, -0.414, -0.663), 'left_knee': (59.926,), 'left_ankle': (1.928, -0.781),
+    })
+    human.KeyRoot(9.4, (-33.707, 71.776, 46.015), (-97.636, 0.0, 0.0))
+    human.KeyJoints(9.4, {
+        'right_hip': (15.033, -0.184, -0.111), 'right_knee': (18.717,),
+        'right_ankle': (3.686, -0.207), 'left_hip': (8.191, 0.108, 0.336), 'left_knee': (60.392,),
+        'left_ankle': (-6.898, 0.301),
+    })
+    human.KeyRoot(9.5, (-35.957, 72.145, 44.781), (-96.682, 0.0, 0.0))
+    human.KeyJoints(9.5, {
+        'right_hip': (12.054, -0.767, -1.199), 'right_knee': (17.04,), 'right_ankle': (5.007, -1.0),
+        'left_hip': (11.513, 0.538, 2.053), 'left_knee': (66.267,), 'left_ankle': (2.039, 1.557),
+    })
+    human.KeyRoot(9.6, (-37.896, 72.487, 43.685), (-95.126, 0.0, 0.0))
+    human.KeyJoints(9.6, {
+        'right_hip': (8.664, -1.294, -2.795), 'right_knee': (13.957,),
+        'right_ankle': (5.365, -1.698), 'left_hip': (27.84, 1.114, 2.769), 'left_knee': (75.711,),
+        'left_ankle': (18.6, 2.619),
+    })
+    human.KeyRoot(9.7, (-41.134, 72.682, 42.818), (-93.689, 0.0, 0.0))
+    human.KeyJoints(9.7, {
+        'right_hip': (9.827, -1.345, -4.415), 'right_knee': (22.076,),
+        'right_ankle': (9.17, -2.078), 'left_hip': (41.108, 1.368, 1.405), 'left_knee': (67.937,),
+        'left_ankle': (18.658, 1.975),
+    })
+    human.KeyRoot(9.8, (-51.54, 72.409, 42.031), (-92.161, 0.0, 0.0))
+    human.KeyJoints(9.8, {
+        'right_hip': (9.372, -0.565, -6.099), 'right_knee': (38.564,),
+        'right_ankle': (14.997, -1.595), 'left_hip': (35.183, 0.456, -0.554),
+        'left_knee': (41.632,), 'left_ankle': (6.531, 0.053),
+    })
+    human.KeyRoot(9.9, (-65.081, 71.478, 41.376), (-90.688, 0.0, 0.0))
+    human.KeyJoints(9.9, {
+        'right_hip': (1.548, -0.278, -7.267), 'right_knee': (44.737,),
+        'right_ankle': (15.322, -0.534), 'left_hip': (19.669, -0.794, -0.869),
+        'left_knee': (14.804,), 'left_ankle': (-4.787, -1.041),
+    })
+    human.KeyRoot(10.0, (-72.092, 71.643, 41.091), (-90.001, 0.0, 0.0))
+    human.KeyJoints(10.0, {
+        'right_hip': (-3.089, -0.343, -7.631), 'right_knee': (44.534,),
+        'right_ankle': (9.353, 0.09), 'left_hip': (16.076, -0.912, -0.264), 'left_knee': (17.995,),
+        'left_ankle': (1.915, -0.949),
+    })
+    human.KeyRoot(10.1, (-71.641, 71.987, 41.761), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.1, {
+        'right_hip': (2.63, 0.812, -7.122), 'right_knee': (54.796,), 'right_ankle': (14.07, 0.619),
+        'left_hip': (13.895, -1.479, -0.366), 'left_knee': (12.666,),
+        'left_ankle': (-1.228, -1.524),
+    })
+    human.KeyRoot(10.2, (-70.819, 71.984, 42.963), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.2, {
         'neck': (-57.551, -19.117, -23.283), 'head': (-20.0, 11.207),
-        'right_hip': (10.979, 0.315, 0.029), 'right_knee': (58.844,),
-        'right_ankle': (19.002, 0.359), 'left_hip': (26.747, 1.218, -7.772), 'left_knee': (24.036,),
-        'left_ankle': (-2.636, -2.41),
+        'right_hip': (16.977, 2.563, -4.52), 'right_knee': (69.766,),
+        'right_ankle': (19.657, 1.333), 'left_hip': (13.289, -2.494, -0.589), 'left_knee': (9.911,),
+        'left_ankle': (-3.367, -2.563),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
-    human.LookAt((-110.0, 85.0, 40.0), start=8.69109, duration=1.197891)
-    human.KeyRoot(8.7, (-66.275, 70.541, 43.075), (-96.041, 0.0, 0.0))
-    human.KeyJoints(8.7, {
-        'neck': (-57.415, -19.138, -23.227), 'head': (-19.949, 11.207),
-        'right_hip': (7.999, 1.067, -0.699), 'right_knee': (59.204,),
-        'right_ankle': (19.022, 1.133), 'left_hip': (21.528, -0.283, -6.6), 'left_knee': (19.937,),
-        'left_ankle': (-1.434, -2.679),
+    human.LookAt((-110.0, 85.0, 40.0), start=10.203216, duration=1.197891)
+    human.KeyRoot(10.3, (-70.618, 71.983, 43.354), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.3, {
+        'neck': (-43.918, -21.272, -17.642), 'head': (-14.844, 11.211),
+        'right_hip': (28.576, 2.784, -1.335), 'right_knee': (67.859,),
+        'right_ankle': (19.554, 1.895), 'left_hip': (12.994, -2.826, -0.652), 'left_knee': (8.929,),
+        'left_ankle': (-4.049, -2.9),
     })
-    human.KeyRoot(8.8, (-69.721, 71.348, 43.362), (-94.197, 0.0, 0.0))
-    human.KeyJoints(8.8, {
-        'neck': (-40.704, -21.781, -16.312), 'head': (-13.629, 11.212),
-        'right_hip': (23.109, 1.038, 0.961), 'right_knee': (68.666,),
-        'right_ankle': (19.012, 1.486), 'left_hip': (17.575, -1.52, -4.878), 'left_knee': (17.546,),
-        'left_ankle': (0.142, -2.916),
+    human.KeyRoot(10.4, (-72.224, 71.983, 42.879), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.4, {
+        'neck': (-12.392, -26.257, -4.597), 'head': (-2.922, 11.221),
+        'right_hip': (23.945, 2.322, 0.142), 'right_knee': (40.617,),
+        'right_ankle': (16.794, 2.151), 'left_hip': (13.702, -2.42, -0.59), 'left_knee': (13.295,),
+        'left_ankle': (-0.394, -2.49),
     })
-    human.KeyRoot(8.9, (-73.344, 71.884, 43.016), (-92.739, 0.0, 0.0))
-    human.KeyJoints(8.9, {
-        'neck': (-8.185, -26.922, -2.857), 'head': (-1.331, 11.222),
-        'right_hip': (28.391, 1.102, 3.128), 'right_knee': (50.069,),
-        'right_ankle': (19.002, 2.455), 'left_hip': (14.196, -1.857, -3.292),
-        'left_knee': (16.815,), 'left_ankle': (2.734, -2.605),
+    human.KeyRoot(10.5, (-75.479, 72.036, 41.784), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.5, {
+        'neck': (19.693, -31.33, 8.679), 'head': (9.211, 11.231),
+        'right_hip': (12.924, 1.503, 0.345), 'right_knee': (17.547,), 'right_ankle': (4.639, 1.542),
+        'left_hip': (12.875, -1.504, -0.344), 'left_knee': (17.443,), 'left_ankle': (4.572, -1.542),
     })
-    human.KeyRoot(9.0, (-76.878, 72.153, 41.703), (-91.306, 0.0, 0.0))
-    human.KeyJoints(9.0, {
-        'neck': (22.787, -31.819, 9.959), 'head': (10.382, 11.232),
-        'right_shoulder': (2.118, 165.656, -40.315), 'left_shoulder': (21.36, 163.184, -64.813),
-        'left_elbow': (8.013, -65.263), 'right_hip': (14.108, 1.122, 1.626), 'right_knee': (22.18,),
-        'right_ankle': (8.001, 1.483), 'left_hip': (11.505, -1.179, -1.572), 'left_knee': (17.379,),
-        'left_ankle': (5.907, -1.468),
+    human.KeyRoot(10.6, (-79.955, 72.977, 40.019), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.6, {
+        'neck': (34.982, -33.747, 15.005), 'head': (14.993, 11.236),
+        'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
+        'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
+        'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
+        'right_hip': (3.314, 0.016, 0.001), 'right_knee': (5.45,), 'right_ankle': (2.133, 0.016),
+        'left_hip': (3.272, -0.016, -0.001), 'left_knee': (5.361,), 'left_ankle': (2.077, -0.016),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
-    human.KeyRoot(9.1, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
-    human.KeyJoints(9.1, {
-        'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236),
-        'right_shoulder': (2.142, 165.564, -40.262), 'right_elbow': (7.426, 8.674),
-        'right_wrist': (12.095, -10.801), 'left_shoulder': (21.369, 163.11, -64.747),
-        'left_elbow': (8.07, -65.256), 'left_wrist': (7.693, -1.341),
-        'right_hip': (3.099, 0.0, 0.0), 'right_knee': (5.078,), 'right_ankle': (1.981, 0.0),
-        'left_hip': (3.098, 0.0, 0.0), 'left_knee': (5.075,), 'left_ankle': (1.979, 0.0),
+    human.KeyRoot(10.7, (-80.0, 72.985, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.7, {
+        'right_shoulder': (4.779, 155.807, -34.588), 'right_elbow': (12.293, 5.283),
+        'right_wrist': (13.991, -11.675), 'left_shoulder': (22.284, 155.277, -57.645),
+        'left_elbow': (14.069, -64.416), 'left_wrist': (10.843, -2.553),
+        'right_hip': (3.144, 0.0, 0.0), 'right_knee': (5.171,), 'left_hip': (3.124, 0.0, 0.0),
+        'left_knee': (5.13,),
     })
-    human.KeyJoints(9.2, {
-        'right_shoulder': (5.44, 153.36, -33.158), 'right_elbow': (13.514, 4.433),
-        'right_wrist': (14.467, -11.897), 'left_shoulder': (22.513, 153.313, -55.858),
-        'left_elbow': (15.574, -64.203), 'left_wrist': (11.634, -2.86),
+    human.KeyJoints(10.8, {
+        'right_shoulder': (11.84, 129.672, -19.199), 'right_elbow': (25.331, -3.8),
+        'right_wrist': (19.071, -14.081), 'left_shoulder': (24.734, 134.288, -38.462),
+        'left_elbow': (30.14, -62.09), 'left_wrist': (19.283, -5.885),
+        'right_hip': (3.107, 0.0, 0.0), 'right_knee': (5.094,), 'right_ankle': (1.989, 0.0),
+        'left_hip': (3.097, 0.0, 0.0), 'left_knee': (5.073,), 'left_ankle': (1.978, 0.0),
     })
-    human.KeyJoints(9.3, {
-        'right_shoulder': (12.901, 125.747, -16.866), 'right_elbow': (27.289, -5.164),
-        'right_wrist': (19.834, -14.449), 'left_shoulder': (25.102, 131.135, -35.563),
-        'left_elbow': (32.553, -61.732), 'left_wrist': (20.551, -6.395),
-        'right_hip': (3.083, 0.0, 0.0), 'right_knee': (5.043,), 'right_ankle': (1.963, 0.0),
-        'left_hip': (3.082, 0.0, 0.0), 'left_knee': (5.042,), 'left_ankle': (1.962, 0.0),
+    human.KeyJoints(10.9, {
+        'right_shoulder': (21.325, 94.567, 1.897), 'right_elbow': (42.843, -16.0),
+        'right_wrist': (25.894, -17.449), 'left_shoulder': (28.026, 106.079, -12.343),
+        'left_elbow': (51.726, -58.797), 'left_wrist': (30.62, -10.546),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
-    human.KeyJoints(9.4, {
-        'right_shoulder': (22.545, 90.053, 4.653), 'right_elbow': (45.095, -17.569),
-        'right_wrist': (26.771, -17.896), 'left_shoulder': (28.449, 102.45, -8.948),
-        'left_elbow': (54.502, -58.356), 'left_wrist': (32.077, -11.164),
-        'right_hip': (2.872, 0.0, 0.0), 'right_knee': (4.602,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.588,), 'left_ankle': (1.719, 0.0),
+    human.KeyJoints(11.0, {
+        'right_shoulder': (31.253, 57.823, 24.735), 'right_elbow': (61.173, -28.77),
+        'right_wrist': (33.036, -21.22), 'left_shoulder': (31.471, 76.523, 15.627),
+        'left_elbow': (74.321, -55.046), 'left_wrist': (42.485, -15.757),
     })
-    human.KeyJoints(9.5, {
-        'right_shoulder': (32.392, 53.608, 27.432), 'right_elbow': (63.276, -30.235),
-        'right_wrist': (33.855, -21.678), 'left_shoulder': (31.866, 73.129, 18.899),
-        'left_elbow': (76.913, -54.585), 'left_wrist': (43.846, -16.389),
+    human.KeyJoints(11.1, {
+        'right_shoulder': (39.644, 26.768, 45.351), 'right_elbow': (76.665, -39.563),
+        'right_wrist': (39.072, -24.834), 'left_shoulder': (34.383, 51.492, 40.359),
+        'left_elbow': (93.417, -51.35), 'left_wrist': (52.514, -20.737),
     })
-    human.KeyJoints(9.6, {
-        'right_shoulder': (40.461, 23.741, 47.509), 'right_elbow': (78.175, -40.615),
-        'right_wrist': (39.66, -25.235), 'left_shoulder': (34.667, 49.046, 42.893),
-        'left_elbow': (95.278, -50.93), 'left_wrist': (53.491, -21.288),
-    })
-    human.KeyJoints(9.7, {
-        'right_shoulder': (44.773, 7.783, 60.92), 'right_elbow': (86.136, -46.161),
-        'right_wrist': (42.762, -28.005), 'left_shoulder': (36.163, 36.073, 57.947),
-        'left_elbow': (105.091, -47.902), 'left_wrist': (58.645, -25.081),
+    human.KeyJoints(11.2, {
+        'right_shoulder': (44.517, 8.732, 59.781), 'right_elbow': (85.662, -45.831),
+        'right_wrist': (42.577, -27.73), 'left_shoulder': (36.074, 36.859, 56.768),
+        'left_elbow': (104.507, -48.219), 'left_wrist': (58.338, -24.706),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
-    human.KeyJoints(9.8, {
-        'right_shoulder': (42.133, 6.485, 65.458), 'right_elbow': (82.375, -45.557),
-        'right_wrist': (42.232, -29.545), 'left_shoulder': (34.18, 34.211, 61.79),
-        'left_elbow': (100.265, -45.721), 'left_wrist': (57.884, -27.287),
+    human.KeyJoints(11.3, {
+        'right_shoulder': (42.173, 7.461, 65.278), 'right_elbow': (83.493, -45.792),
+        'right_wrist': (42.637, -29.433), 'left_shoulder': (34.303, 34.76, 61.632),
+        'left_elbow': (101.377, -46.006), 'left_wrist': (58.206, -27.05),
+    })
+    human.KeyJoints(11.4, {
+        'right_shoulder': (43.246, 1.055, 65.519), 'right_elbow': (73.423, -43.729),
+        'right_wrist': (39.087, -29.98), 'left_shoulder': (34.9, 29.088, 62.058),
+        'left_elbow': (93.107, -43.952), 'left_wrist': (55.367, -28.536),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=9.888981, duration=0.072)
+    human.Grasp('left_hand', 'open', start=11.401107, duration=0.072)
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=9.888981, duration=0.072)
-    human.KeyJoints(9.9, {
-        'right_shoulder': (43.291, 1.092, 65.484), 'right_elbow': (73.244, -43.699),
-        'right_wrist': (39.035, -30.0), 'left_shoulder': (34.936, 29.031, 62.041),
-        'left_elbow': (93.029, -43.934), 'left_wrist': (55.336, -28.546),
-    })
-    human.KeyRoot(9.960981, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
-    human.KeyJoints(9.960981, {
+    human.Grasp('right_hand', 'open', start=11.401107, duration=0.072)
+    human.KeyRoot(11.473107, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.473107, {
         'spine_lumbar': (24.445, -2.26, -10.161), 'spine_thoracic': (-3.188, -0.252, -0.868),
         'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236), 'right_clavicle': (13.623, -13.802),
         'right_shoulder': (43.291, 1.092, 65.484), 'right_elbow': (73.244, -43.699),

@@ -11,7 +11,7 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-0.397, 0.0, 53.03), start=0.0, duration=0.54)
+    human.Walk((-0.032, 0.0, 54.542), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,758 +22,804 @@ def replace_fuel_filter():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })
-    human.KeyRoot(0.1, (2.615, 88.219, 10.638), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.982, 90.571, 1.156), (-1.013, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (44.983, 2.385, 0.365), 'right_knee': (84.666,),
-        'right_ankle': (15.881, 2.227), 'left_hip': (12.891, -1.776, -0.645),
-        'left_knee': (39.292,), 'left_ankle': (19.342, -1.889),
+        'right_hip': (14.085, 0.407, 1.213), 'right_knee': (27.854,), 'right_ankle': (8.413, 0.693),
+        'left_hip': (6.32, -0.556, -1.08), 'left_knee': (13.474,), 'left_ankle': (7.165, -0.672),
     })
-    human.KeyRoot(0.2, (1.766, 84.818, 20.684), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.589, 90.162, 4.239), (-2.208, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (40.458, 3.486, -10.536), 'right_knee': (35.199,),
-        'right_ankle': (-5.554, -3.344), 'left_hip': (20.841, -0.985, -1.128),
-        'left_knee': (66.436,), 'left_ankle': (17.584, -1.498),
+        'right_hip': (17.932, 0.344, 2.663), 'right_knee': (38.562,), 'right_ankle': (9.811, 1.167),
+        'left_hip': (5.703, -0.865, -2.305), 'left_knee': (16.771,), 'left_ankle': (11.107, -1.089),
     })
-    human.KeyRoot(0.3, (-0.595, 85.361, 30.599), (-0.458, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.901, 89.946, 8.673), (-3.554, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (29.694, 1.859, -10.423), 'right_knee': (26.843,),
-        'right_ankle': (-2.707, -3.548), 'left_hip': (12.119, 0.444, -0.133), 'left_knee': (63.38,),
-        'left_ankle': (20.0, 0.479),
+        'right_hip': (27.818, 0.166, 2.744), 'right_knee': (54.206,),
+        'right_ankle': (18.101, 1.467), 'left_hip': (2.47, -1.148, -3.612), 'left_knee': (16.592,),
+        'left_ankle': (13.909, -1.3),
     })
-    human.KeyRoot(0.4, (-2.106, 87.929, 40.85), (-5.019, 0.0, 0.0))
+    human.KeyRoot(0.4, (1.998, 90.74, 13.884), (-5.016, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (21.853, -1.005, -6.233), 'right_knee': (24.866,),
-        'right_ankle': (3.224, -3.245), 'left_hip': (27.619, 0.517, 0.996), 'left_knee': (72.44,),
-        'left_ankle': (20.0, 0.996),
+        'right_hip': (35.969, 0.425, 0.698), 'right_knee': (53.033,), 'right_ankle': (15.69, 0.756),
+        'left_hip': (3.59, -1.034, -5.269), 'left_knee': (25.322,), 'left_ankle': (14.308, -1.369),
     })
-    human.KeyRoot(0.5, (-1.065, 89.955, 50.974), (-8.891, 0.0, 0.0))
+    human.KeyRoot(0.5, (1.683, 89.889, 23.402), (-7.029, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
-        'right_hip': (12.015, -0.875, -1.767), 'right_knee': (18.274,),
-        'right_ankle': (6.292, -1.224), 'left_hip': (13.929, 0.851, 1.784), 'left_knee': (21.653,),
-        'left_ankle': (7.486, 1.231),
+        'right_hip': (32.918, -0.128, -1.535), 'right_knee': (35.837,),
+        'right_ankle': (2.894, -0.95), 'left_hip': (5.897, -0.339, -7.521), 'left_knee': (41.822,),
+        'left_ankle': (15.297, -1.181),
+    })
+    human.KeyRoot(0.6, (0.831, 88.559, 37.064), (-9.383, 0.0, 0.0))
+    human.KeyJoints(0.6, {
+        'right_hip': (20.396, -1.18, -1.461), 'right_knee': (15.994,),
+        'right_ankle': (-4.404, -1.621), 'left_hip': (0.149, -0.421, -9.689),
+        'left_knee': (47.081,), 'left_ankle': (12.266, -0.535),
+    })
+    human.KeyRoot(0.7, (-0.049, 88.986, 43.547), (-10.437, 0.0, 0.0))
+    human.KeyJoints(0.7, {
+        'right_hip': (18.098, -1.409, -0.46), 'right_knee': (19.762,),
+        'right_ankle': (1.67, -1.482), 'left_hip': (-2.838, -0.401, -10.319),
+        'left_knee': (46.873,), 'left_ankle': (5.256, 0.16),
+    })
+    human.KeyRoot(0.8, (-1.01, 89.205, 42.81), (-10.437, 0.0, 0.0))
+    human.KeyJoints(0.8, {
+        'right_hip': (17.078, -2.131, -0.654), 'right_knee': (16.945,),
+        'right_ankle': (-0.135, -2.229), 'left_hip': (2.994, 1.112, -9.522), 'left_knee': (56.439,),
+        'left_ankle': (11.319, 0.791),
+    })
+    human.KeyRoot(0.9, (-1.894, 89.202, 41.676), (-10.437, 0.0, 0.0))
+    human.KeyJoints(0.9, {
+        'right_hip': (16.786, -2.849, -0.859), 'right_knee': (15.014,),
+        'right_ankle': (-1.759, -2.976), 'left_hip': (18.481, 2.973, -6.455),
+        'left_knee': (70.475,), 'left_ankle': (18.778, 0.895),
+    })
+    human.KeyRoot(1.0, (-2.092, 89.197, 41.562), (-10.437, 0.0, 0.0))
+    human.KeyJoints(1.0, {
+        'right_hip': (16.734, -2.993, -0.899), 'right_knee': (14.799,),
+        'right_ankle': (-1.915, -3.125), 'left_hip': (30.252, 2.956, -2.286),
+        'left_knee': (66.852,), 'left_ankle': (18.809, 1.466),
+    })
+    human.KeyRoot(1.1, (-1.802, 89.265, 44.113), (-10.437, 0.0, 0.0))
+    human.KeyJoints(1.1, {
+        'right_hip': (16.629, -2.495, -0.745), 'right_knee': (18.023,),
+        'right_ankle': (1.408, -2.604), 'left_hip': (24.387, 2.319, 0.095), 'left_knee': (38.461,),
+        'left_ankle': (14.217, 2.15),
+    })
+    human.KeyRoot(1.2, (-1.106, 89.865, 48.973), (-10.437, 0.0, 0.0))
+    human.KeyJoints(1.2, {
+        'spine_lumbar': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
+        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (13.236, -1.465, -0.345),
+        'right_knee': (17.705,), 'right_ankle': (4.472, -1.505), 'left_hip': (13.228, 1.465, 0.344),
+        'left_knee': (17.688,), 'left_ankle': (4.46, 1.505),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(0.6, (0.605, 90.668, 56.114), (-10.437, 0.0, 0.0))
-    human.KeyJoints(0.6, {
-        'spine_lumbar': (4.952, -4.917, 0.0), 'spine_thoracic': (0.871, -0.906, 0.0),
-        'right_shoulder': (8.594, 5.914, 8.002), 'left_shoulder': (8.594, 5.914, 8.002),
-        'right_hip': (6.047, 0.542, 0.057), 'right_knee': (12.468,), 'right_ankle': (6.425, 0.545),
-        'left_hip': (6.027, -0.542, -0.057), 'left_knee': (12.427,), 'left_ankle': (6.401, -0.545),
-    })
-    human.KeyRoot(0.7, (3.766, 90.376, 60.934), (-10.437, 0.0, 0.0))
-    human.KeyJoints(0.7, {
-        'spine_lumbar': (15.664, -15.159, 0.0), 'spine_thoracic': (2.492, -2.72, 0.0),
-        'right_shoulder': (8.594, 6.703, -6.003), 'left_shoulder': (8.594, 6.703, -6.003),
-        'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.083,), 'right_ankle': (9.594, 3.277),
-        'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.581, -3.277),
-    })
-    human.KeyRoot(0.8, (7.078, 90.351, 60.502), (-10.437, 0.0, 0.0))
-    human.KeyJoints(0.8, {
-        'spine_lumbar': (23.012, -9.154, 0.0), 'spine_thoracic': (3.58, -1.623, 0.0),
-        'right_shoulder': (8.594, 7.414, -18.609), 'left_shoulder': (8.594, 7.414, -18.609),
-        'right_hip': (9.128, 5.416, 0.516), 'right_knee': (30.638,), 'right_ankle': (20.0, 5.431),
-        'left_hip': (3.099, -5.441, -0.294), 'left_knee': (10.802,), 'left_ankle': (7.717, -5.449),
-    })
-    human.KeyRoot(0.9, (9.457, 90.28, 58.686), (-10.437, 0.0, 0.0))
-    human.KeyJoints(0.9, {
-        'spine_lumbar': (41.621, -3.231, 0.0), 'spine_thoracic': (5.544, -0.54, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.114), 'left_shoulder': (8.594, 7.5, -20.114),
-        'right_hip': (-11.435, 7.004, -0.298), 'right_knee': (21.476,),
-        'right_ankle': (20.0, 7.103), 'left_hip': (3.931, -6.804, -0.458), 'left_knee': (9.374,),
-        'left_ankle': (5.467, -6.819),
-    })
-    human.KeyRoot(1.0, (9.133, 89.798, 62.643), (-10.437, 0.0, 0.0))
-    human.KeyJoints(1.0, {
-        'spine_lumbar': (25.974, -1.41, 0.0), 'spine_thoracic': (3.758, -0.247, 0.0),
-        'right_hip': (-12.882, 4.69, 7.633), 'right_knee': (44.119,),
-        'right_ankle': (-15.387, 8.392), 'left_hip': (3.217, -7.119, -0.4), 'left_knee': (13.463,),
-        'left_ankle': (10.276, -7.131),
-    })
-    human.KeyRoot(1.1, (9.029, 89.309, 63.414), (-10.437, 0.0, 0.0))
-    human.KeyJoints(1.1, {
-        'spine_lumbar': (21.355, -0.606, 0.0), 'spine_thoracic': (3.451, -0.114, 0.0),
-        'right_hip': (-13.212, 2.156, 16.14), 'right_knee': (35.11,),
-        'right_ankle': (-48.364, 7.468), 'left_hip': (4.771, -7.173, -0.597),
-        'left_knee': (17.751,), 'left_ankle': (13.022, -7.198),
-    })
-    human.KeyRoot(1.2, (7.96, 89.734, 59.082), (-10.437, 0.0, 0.0))
-    human.KeyJoints(1.2, {
-        'spine_lumbar': (-16.364, 9.19, 0.0), 'spine_thoracic': (-3.412, 1.628, 0.0),
-        'right_hip': (-12.963, 3.026, 10.566), 'right_knee': (35.902,),
-        'right_ankle': (-37.94, 10.006), 'left_hip': (7.43, -5.858, -0.763), 'left_knee': (17.453,),
-        'left_ankle': (10.065, -5.908),
-    })
-    human.KeyRoot(1.3, (6.141, 90.277, 46.568), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.028, 91.103, 54.852), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (-30.0, 13.458, 0.0), 'spine_thoracic': (-9.686, 2.224, 0.0),
-        'right_hip': (-8.871, 2.39, 3.041), 'right_knee': (41.088,),
-        'right_ankle': (-10.708, 3.983), 'left_hip': (10.109, -3.05, -0.543), 'left_knee': (6.23,),
-        'left_ankle': (-3.867, -3.098),
+        'spine_lumbar': (0.441, -0.44, 0.0), 'spine_thoracic': (0.05, -0.05, 0.0),
+        'right_shoulder': (8.594, 5.731, 11.234), 'left_shoulder': (8.594, 5.731, 11.234),
+        'right_hip': (2.852, 0.0, 0.0), 'right_knee': (4.347,), 'right_ankle': (1.497, 0.0),
+        'left_hip': (2.85, 0.0, 0.0), 'left_knee': (4.343,), 'left_ankle': (1.496, 0.0),
     })
-    human.KeyRoot(1.4, (6.842, 88.29, 37.986), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.4, (1.803, 91.013, 57.667), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (-4.219, 12.425, 0.0), 'spine_thoracic': (-1.25, 2.205, 0.0),
-        'right_hip': (6.352, 1.313, 3.53), 'right_knee': (60.602,), 'right_ankle': (-8.99, 3.864),
-        'left_hip': (19.942, -2.412, -0.875), 'left_knee': (14.048,),
-        'left_ankle': (-5.876, -2.566),
+        'spine_lumbar': (11.288, -11.071, 0.0), 'spine_thoracic': (1.841, -1.969, 0.0),
+        'right_shoulder': (8.594, 6.231, 2.385), 'left_shoulder': (8.594, 6.231, 2.385),
+        'right_hip': (1.925, 1.536, 0.052), 'right_knee': (5.858,), 'right_ankle': (3.934, 1.538),
+        'left_hip': (1.904, -1.536, -0.051), 'left_knee': (5.815,), 'left_ankle': (3.911, -1.538),
     })
-    human.KeyRoot(1.5, (5.73, 76.097, 37.485), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.5, (5.124, 90.506, 62.568), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (-1.598, 11.301, 0.0), 'spine_thoracic': (-0.458, 2.035, 0.0),
-        'right_hip': (13.222, 0.745, 2.6), 'right_knee': (85.025,), 'right_ankle': (11.029, 2.746),
-        'left_hip': (46.542, -1.396, -1.502), 'left_knee': (63.465,),
-        'left_ankle': (16.394, -2.054),
+        'spine_lumbar': (14.198, -13.946, 0.0), 'spine_thoracic': (2.224, -2.469, 0.0),
+        'right_shoulder': (8.594, 7.082, -12.719), 'left_shoulder': (8.594, 7.082, -12.719),
+        'right_hip': (1.318, 4.393, 0.102), 'right_knee': (10.975,), 'right_ankle': (9.836, 4.439),
+        'left_hip': (0.299, -4.386, -0.023), 'left_knee': (8.427,), 'left_ankle': (8.129, -4.387),
     })
-    human.KeyRoot(1.6, (5.43, 59.097, 30.023), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.6, (8.521, 90.594, 59.029), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'spine_lumbar': (26.614, 9.316, 0.0), 'spine_thoracic': (4.092, 1.635, 0.0),
-        'right_hip': (32.156, -0.362, 1.602), 'right_knee': (120.881,),
-        'right_ankle': (18.069, 1.935), 'left_hip': (72.004, -0.268, -0.867),
-        'left_knee': (92.454,), 'left_ankle': (19.646, -0.913),
+        'spine_lumbar': (32.344, -6.065, 0.0), 'spine_thoracic': (4.735, -1.024, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.126), 'left_shoulder': (8.594, 7.5, -20.126),
+        'right_hip': (-1.8, 6.879, 0.089), 'right_knee': (20.654,), 'right_ankle': (19.911, 7.42),
+        'left_hip': (1.286, -6.213, -0.14), 'left_knee': (4.707,), 'left_ankle': (3.43, -6.214),
     })
-    human.KeyRoot(1.7, (3.72, 48.492, 34.801), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.7, (9.414, 90.334, 59.953), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'spine_lumbar': (16.521, 9.345, 0.0), 'spine_thoracic': (2.529, 1.665, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'right_hip': (32.015, -0.486, 0.893), 'right_knee': (134.656,),
-        'right_ankle': (16.243, 3.802), 'left_hip': (89.37, -0.005, 0.004), 'left_knee': (117.383,),
-        'left_ankle': (14.135, -0.004),
+        'spine_lumbar': (35.847, -2.577, 0.0), 'spine_thoracic': (4.822, -0.416, 0.0),
+        'right_hip': (-13.948, 6.615, 2.856), 'right_knee': (34.81,),
+        'right_ankle': (11.826, 7.202), 'left_hip': (2.2, -6.937, -0.266), 'left_knee': (7.605,),
+        'left_ankle': (5.421, -6.943),
     })
-    human.KeyRoot(1.8, (2.091, 44.581, 41.754), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.8, (8.961, 89.683, 63.782), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'spine_lumbar': (-1.888, 9.571, 0.0), 'spine_thoracic': (-0.489, 1.728, 0.0),
-        'right_hip': (25.459, -0.37, 0.554), 'right_knee': (134.894,),
-        'right_ankle': (11.243, 5.09), 'left_hip': (97.197, -0.695, 0.995), 'left_knee': (130.857,),
-        'left_ankle': (5.953, 1.224),
+        'spine_lumbar': (20.549, -0.95, 0.0), 'spine_thoracic': (3.166, -0.153, 0.0),
+        'right_hip': (-14.425, 3.095, 12.804), 'right_knee': (37.052,),
+        'right_ankle': (-39.029, 6.737), 'left_hip': (2.582, -7.159, -0.322),
+        'left_knee': (13.796,), 'left_ankle': (11.235, -7.166),
     })
-    human.KeyRoot(1.9, (1.925, 44.02, 42.534), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.9, (9.012, 89.361, 62.334), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'spine_lumbar': (-3.769, 14.619, 0.0), 'spine_thoracic': (-0.884, 2.632, 0.0),
-        'right_hip': (25.011, -0.487, 0.692), 'right_knee': (135.0,), 'right_ankle': (9.909, 5.806),
-        'left_hip': (100.076, -1.172, 1.295), 'left_knee': (132.485,), 'left_ankle': (0.353, 1.819),
+        'spine_lumbar': (15.022, 1.488, 0.0), 'spine_thoracic': (2.363, 0.28, 0.0),
+        'right_hip': (-14.818, 2.66, 15.148), 'right_knee': (32.397,),
+        'right_ankle': (-47.512, 8.547), 'left_hip': (5.668, -7.014, -0.695),
+        'left_knee': (18.085,), 'left_ankle': (12.46, -7.048),
     })
-    human.KeyRoot(2.0, (1.055, 43.977, 42.322), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.0, (6.856, 90.367, 52.032), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'spine_lumbar': (-2.692, 20.0, 0.0), 'spine_thoracic': (-2.121, 10.0, 0.0),
-        'right_hip': (25.096, -1.675, 2.279), 'right_ankle': (8.938, 19.653),
-        'left_hip': (101.977, -5.99, 5.448), 'left_knee': (132.446,), 'left_ankle': (-5.323, 8.182),
+        'spine_lumbar': (-29.974, 13.042, 0.0), 'spine_thoracic': (-9.511, 2.18, 0.0),
+        'right_hip': (-11.109, 3.062, 5.231), 'right_knee': (38.661,),
+        'right_ankle': (-20.847, 7.313), 'left_hip': (9.053, -4.2, -0.669), 'left_knee': (11.365,),
+        'left_ankle': (2.337, -4.253),
     })
-    human.KeyRoot(2.1, (0.357, 43.896, 42.082), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.1, (6.328, 90.003, 44.157), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (-0.61, 20.0, 0.0), 'spine_thoracic': (-3.374, 10.0, 0.0),
-        'right_hip': (25.274, -2.647, 3.401), 'right_ankle': (7.453, 30.544),
-        'left_hip': (105.452, -24.938, 12.715), 'left_knee': (134.692,),
-        'left_ankle': (-10.112, 28.873),
+        'spine_lumbar': (-23.598, 13.273, 0.0), 'spine_thoracic': (-5.591, 2.285, 0.0),
+        'right_hip': (-3.853, 2.017, 3.32), 'right_knee': (47.571,),
+        'right_ankle': (-11.088, 3.821), 'left_hip': (11.243, -2.879, -0.573),
+        'left_knee': (5.175,), 'left_ankle': (-6.054, -2.936),
     })
-    human.KeyRoot(2.2, (0.077, 43.874, 42.017), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.2, (6.694, 83.841, 36.262), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (0.544, 20.0, 0.0), 'spine_thoracic': (-9.608, 10.0, 0.0),
-        'right_hip': (25.303, -3.029, 3.825), 'right_ankle': (6.67, 35.0),
-        'left_hip': (120.897, -10.096, -15.118), 'left_knee': (131.429,),
-        'left_ankle': (-35.556, -23.057),
+        'spine_lumbar': (3.875, 10.618, 0.0), 'spine_thoracic': (0.315, 1.889, 0.0),
+        'right_hip': (11.043, 1.018, 3.242), 'right_knee': (71.62,), 'right_ankle': (-0.961, 3.547),
+        'left_hip': (33.479, -1.98, -1.311), 'left_knee': (37.886,), 'left_ankle': (4.43, -2.375),
     })
-    human.KeyRoot(2.3, (0.114, 43.861, 41.993), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.3, (5.488, 69.609, 35.163), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.282, 20.0, 0.0), 'right_hip': (25.346, -2.988, 3.813),
-        'right_ankle': (6.709, 34.794), 'left_hip': (96.39, -23.488, 31.004),
-        'left_knee': (133.374,), 'left_ankle': (-44.476, -19.434),
+        'spine_lumbar': (17.458, 6.636, 0.0), 'spine_thoracic': (2.603, 1.154, 0.0),
+        'right_hip': (19.803, 0.256, 2.326), 'right_knee': (99.212,),
+        'right_ankle': (15.578, 2.405), 'left_hip': (56.375, -0.902, -1.399),
+        'left_knee': (76.751,), 'left_ankle': (19.645, -1.668),
     })
-    human.KeyRoot(2.4, (0.014, 43.856, 41.976), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.4, (4.834, 52.769, 30.815), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'spine_lumbar': (3.127, 20.0, 0.0), 'spine_thoracic': (-8.416, 10.0, 0.0),
-        'right_hip': (25.349, -3.119, 3.792), 'right_knee': (134.995,),
-        'right_ankle': (6.665, 35.0), 'left_hip': (63.923, -9.059, 27.571), 'left_knee': (135.0,),
-        'left_ankle': (-45.719, -11.197),
+        'spine_lumbar': (38.697, 4.473, 0.0), 'spine_thoracic': (5.69, 0.712, 0.0),
+        'right_hip': (34.669, -0.471, 1.141), 'right_knee': (130.586,),
+        'right_ankle': (18.219, 2.2), 'left_hip': (81.586, -0.033, -0.51), 'left_knee': (104.974,),
+        'left_ankle': (18.449, -0.519),
     })
-    human.KeyRoot(2.5, (0.063, 44.827, 44.171), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.5, (2.778, 46.356, 38.621), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'spine_lumbar': (1.932, 20.0, 0.0), 'spine_thoracic': (-5.128, 10.0, 0.0),
-        'right_hip': (22.205, -2.528, 3.658), 'right_knee': (131.91,),
-        'right_ankle': (7.268, 31.65), 'left_hip': (37.483, -20.992, -3.064),
-        'left_knee': (131.783,), 'left_ankle': (-31.534, -0.891),
-    })
-    human.KeyRoot(2.6, (-0.118, 45.044, 44.698), (-10.437, 0.0, 0.0))
-    human.KeyJoints(2.6, {
-        'spine_lumbar': (3.585, 20.0, 0.0), 'spine_thoracic': (-9.313, 10.0, 0.0),
-        'right_hip': (21.416, -2.636, 3.987), 'right_knee': (131.072,),
-        'right_ankle': (6.776, 34.422), 'left_hip': (22.451, -4.32, -0.225), 'left_knee': (135.0,),
-        'left_ankle': (7.142, -13.207),
-    })
-    human.KeyRoot(2.7, (0.832, 44.086, 42.529), (-10.437, 0.0, 0.0))
-    human.KeyJoints(2.7, {
-        'spine_lumbar': (10.671, 20.0, 0.0), 'spine_thoracic': (-4.265, 10.0, 0.0),
+        'spine_lumbar': (11.707, 7.241, 0.0), 'spine_thoracic': (1.672, 1.281, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'right_hip': (24.74, -1.917, 2.657), 'right_knee': (134.579,),
-        'right_ankle': (8.557, 22.941), 'left_hip': (24.712, 1.348, -2.016),
-        'left_knee': (134.634,), 'left_ankle': (8.88, -20.682),
+        'right_hip': (28.38, -0.488, 0.802), 'right_knee': (134.988,),
+        'right_ankle': (13.833, 5.278), 'left_hip': (93.351, -0.248, 0.543),
+        'left_knee': (125.028,), 'left_ankle': (10.733, 0.587),
     })
-    human.KeyRoot(2.8, (1.372, 44.562, 43.673), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.6, (1.983, 44.021, 42.547), (-10.437, 0.0, 0.0))
+    human.KeyJoints(2.6, {
+        'spine_lumbar': (-3.965, 10.121, 0.0), 'spine_thoracic': (-0.851, 1.827, 0.0),
+        'right_hip': (25.007, -0.407, 0.579), 'right_ankle': (9.937, 4.854),
+        'left_hip': (99.201, -0.851, 1.017), 'left_knee': (132.436,), 'left_ankle': (2.534, 1.38),
+    })
+    human.KeyRoot(2.7, (1.728, 44.013, 42.489), (-10.437, 0.0, 0.0))
+    human.KeyJoints(2.7, {
+        'spine_lumbar': (-3.408, 20.0, 0.0), 'spine_thoracic': (-1.148, 5.172, 0.0),
+        'right_hip': (25.025, -0.754, 1.064), 'right_ankle': (9.78, 8.965),
+        'left_hip': (100.389, -1.921, 2.059), 'left_ankle': (-0.484, 2.909),
+    })
+    human.KeyRoot(2.8, (0.212, 43.871, 42.018), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (7.822, 20.0, 0.0), 'spine_thoracic': (-0.208, 9.519, 0.0),
-        'right_shoulder': (8.594, 7.307, -16.566), 'left_shoulder': (8.594, 7.307, -16.566),
-        'right_hip': (23.233, -0.935, 1.408), 'right_ankle': (9.627, 11.65),
-        'left_hip': (23.233, 0.935, -1.408), 'left_ankle': (9.627, -11.65),
+        'spine_lumbar': (-0.974, 20.0, 0.0), 'spine_thoracic': (-6.025, 10.0, 0.0),
+        'right_hip': (25.333, -2.852, 3.767), 'right_ankle': (6.849, 34.022),
+        'left_hip': (101.253, -12.403, 8.737), 'left_knee': (132.628,),
+        'left_ankle': (-4.014, 13.648),
     })
-    human.KeyRoot(2.9, (1.592, 44.995, 44.765), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.9, {
-        'spine_lumbar': (6.097, 10.519, 0.0), 'spine_thoracic': (0.847, 2.259, 0.0),
-        'right_shoulder': (8.594, 6.512, -2.449), 'left_shoulder': (8.594, 6.512, -2.449),
-        'right_hip': (21.742, -0.384, 0.618), 'right_knee': (131.734,),
-        'right_ankle': (9.933, 4.992), 'left_hip': (21.742, 0.384, -0.618), 'left_knee': (131.734,),
-        'left_ankle': (9.933, -4.992),
+        'spine_lumbar': (-0.162, 20.0, 0.0), 'spine_thoracic': (-6.797, 10.0, 0.0),
+        'right_knee': (134.982,), 'right_ankle': (6.674, 34.981),
+        'left_hip': (119.266, -8.615, -18.589), 'left_knee': (131.003,),
+        'left_ankle': (-32.204, -24.868),
     })
-    human.KeyRoot(3.0, (1.612, 45.328, 45.643), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.0, (0.014, 43.886, 42.039), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'spine_lumbar': (4.921, 0.853, 0.0), 'spine_thoracic': (0.841, 0.198, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (8.594, 5.809, 10.045),
-        'left_shoulder': (8.594, 5.809, 10.045), 'right_hip': (20.515, -0.146, 0.247),
-        'right_knee': (130.513,), 'right_ankle': (9.991, 1.97), 'left_hip': (20.515, 0.146, -0.247),
-        'left_knee': (130.513,), 'left_ankle': (9.991, -1.97),
+        'spine_lumbar': (0.159, 20.0, 0.0), 'spine_thoracic': (-9.411, 10.0, 0.0),
+        'right_hip': (25.256, -3.107, 3.799), 'right_knee': (134.904,),
+        'left_hip': (110.282, -18.51, 12.816), 'left_knee': (132.98,),
+        'left_ankle': (-37.551, -23.198),
+    })
+    human.KeyRoot(3.1, (0.005, 43.854, 41.971), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.1, {
+        'spine_lumbar': (1.099, 20.0, 0.0), 'spine_thoracic': (-8.742, 10.0, 0.0),
+        'right_hip': (25.352, -3.135, 3.785), 'right_knee': (135.0,),
+        'right_ankle': (6.671, 34.992), 'left_hip': (82.724, -20.228, 31.365),
+        'left_knee': (134.646,), 'left_ankle': (-44.21, -16.36),
+    })
+    human.KeyRoot(3.2, (0.221, 43.907, 42.096), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.2, {
+        'spine_lumbar': (7.203, 20.0, 0.0), 'spine_thoracic': (-5.471, 10.0, 0.0),
+        'right_hip': (25.221, -2.823, 3.62), 'right_knee': (134.911,),
+        'right_ankle': (7.08, 32.737), 'left_hip': (46.162, -19.671, 2.844),
+        'left_knee': (133.176,), 'left_ankle': (-45.996, -3.885),
+    })
+    human.KeyRoot(3.3, (-0.124, 45.364, 45.535), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.3, {
+        'spine_lumbar': (0.431, 20.0, 0.0), 'spine_thoracic': (-6.811, 10.0, 0.0),
+        'right_hip': (20.237, -2.445, 3.776), 'right_knee': (129.934,),
+        'right_ankle': (7.206, 32.015), 'left_hip': (25.548, -20.789, -4.822),
+        'left_knee': (132.205,), 'left_ankle': (-1.808, -1.577),
+    })
+    human.KeyRoot(3.4, (-0.06, 44.375, 43.102), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.4, {
+        'spine_lumbar': (9.289, 20.0, 0.0), 'spine_thoracic': (-9.078, 10.0, 0.0),
+        'right_hip': (23.702, -2.945, 3.9), 'right_knee': (133.349,), 'right_ankle': (6.668, 35.0),
+        'left_hip': (24.01, -0.797, 0.413), 'left_knee': (134.974,), 'left_ankle': (8.309, -18.967),
+    })
+    human.KeyRoot(3.5, (1.102, 44.27, 42.968), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.5, {
+        'spine_lumbar': (9.279, 20.0, 0.0), 'spine_thoracic': (-1.902, 10.0, 0.0),
+        'right_shoulder': (8.594, 7.497, -19.951), 'left_shoulder': (8.594, 7.497, -19.951),
+        'right_hip': (24.175, -1.459, 2.086), 'right_knee': (134.079,),
+        'right_ankle': (9.142, 17.658), 'left_hip': (24.175, 1.459, -2.086),
+        'left_knee': (134.079,), 'left_ankle': (9.142, -17.658),
+    })
+    human.KeyRoot(3.6, (1.536, 44.776, 44.21), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.6, {
+        'spine_lumbar': (6.874, 17.733, 0.0), 'spine_thoracic': (0.629, 4.328, 0.0),
+        'right_shoulder': (8.594, 6.986, -10.869), 'left_shoulder': (8.594, 6.986, -10.869),
+        'right_hip': (22.512, -0.592, 0.922), 'right_knee': (132.494,),
+        'right_ankle': (9.845, 7.529), 'left_hip': (22.512, 0.592, -0.922), 'left_knee': (132.494,),
+        'left_ankle': (9.845, -7.529),
+    })
+    human.KeyRoot(3.7, (1.612, 45.157, 45.187), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.7, {
+        'spine_lumbar': (5.582, 5.234, 0.0), 'spine_thoracic': (0.892, 1.085, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 6.136, 4.245),
+        'left_shoulder': (8.594, 6.136, 4.245), 'right_hip': (21.153, -0.256, 0.423),
+        'right_knee': (131.149,), 'right_ankle': (9.97, 3.391), 'left_hip': (21.153, 0.256, -0.423),
+        'left_knee': (131.149,), 'left_ankle': (9.97, -3.391),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=3.0384, duration=0.2628)
-    human.KeyRoot(3.1, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.1, {
+    human.LookAt((10.0, 25.0, 95.0), start=3.793137, duration=0.2628)
+    human.KeyRoot(3.8, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.8, {
         'spine_lumbar': (4.343, -0.225, 0.0), 'spine_thoracic': (0.758, -0.022, 0.0),
-        'neck': (4.867, -4.694, 3.11), 'head': (2.086, 1.516),
+        'neck': (0.07, -0.068, 0.045), 'head': (0.03, 0.022),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
         'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
         'left_ankle': (9.996, -1.322),
     })
-    human.KeyJoints(3.2, {'neck': (23.427, -22.59, 14.967), 'head': (10.04, 7.299)})
-    human.KeyJoints(3.3, {
+    human.KeyJoints(3.9, {'neck': (12.655, -12.203, 8.085), 'head': (5.424, 3.943)})
+    human.KeyJoints(4.0, {
         'spine_lumbar': (4.343, -0.225, 0.0), 'spine_thoracic': (0.758, -0.022, 0.0),
-        'neck': (34.998, -33.748, 22.36), 'head': (14.999, 10.904), 'right_clavicle': (0.0, 0.0),
+        'neck': (30.918, -29.814, 19.754), 'head': (13.251, 9.632), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=3.3012, duration=0.873042)
-    human.KeyJoints(3.4, {
-        'spine_lumbar': (6.682, 0.448, 0.774), 'spine_thoracic': (0.518, 0.504, 1.076),
-        'neck': (35.0, -33.75, 20.226), 'right_clavicle': (-0.36, 0.816),
-        'right_shoulder': (9.867, 6.722, 11.112), 'right_elbow': (33.818, 17.19),
-        'right_wrist': (-0.11, -0.16),
+    human.LookAt((10.0, 25.0, 95.0), start=4.055937, duration=0.873042)
+    human.KeyJoints(4.1, {
+        'spine_lumbar': (4.835, -0.084, 0.163), 'spine_thoracic': (0.708, 0.088, 0.225),
+        'neck': (35.0, -33.75, 21.892), 'head': (15.0, 10.901), 'right_clavicle': (-0.075, 0.172),
+        'right_shoulder': (8.861, 5.938, 11.386), 'right_elbow': (34.26, 17.189),
+        'right_wrist': (-0.023, -0.034),
     })
-    human.KeyJoints(3.5, {
-        'spine_lumbar': (12.816, 2.24, 2.812), 'spine_thoracic': (-0.146, 1.887, 3.951),
-        'neck': (35.0, -33.75, 15.364), 'head': (15.0, 10.836), 'right_clavicle': (-1.332, 2.954),
-        'right_shoulder': (13.245, 9.325, 10.201), 'right_elbow': (32.351, 17.194),
-        'right_wrist': (-0.398, -0.579),
+    human.KeyJoints(4.2, {
+        'spine_lumbar': (9.08, 1.144, 1.569), 'spine_thoracic': (0.264, 1.044, 2.191),
+        'neck': (35.0, -33.75, 18.213), 'right_clavicle': (-0.736, 1.651),
+        'right_shoulder': (11.181, 7.74, 10.756), 'right_elbow': (33.245, 17.192),
+        'right_wrist': (-0.223, -0.324),
     })
-    human.KeyJoints(3.6, {
-        'spine_lumbar': (21.23, 4.752, 5.626), 'spine_thoracic': (-1.134, 3.793, 8.012),
-        'neck': (35.0, -33.75, 9.416), 'head': (15.0, 10.551), 'right_clavicle': (-2.725, 5.887),
-        'right_shoulder': (17.965, 12.896, 8.953), 'right_elbow': (30.339, 17.199),
+    human.KeyJoints(4.3, {
+        'spine_lumbar': (16.433, 3.311, 4.019), 'spine_thoracic': (-0.559, 2.705, 5.679),
+        'neck': (35.0, -33.75, 12.94), 'right_clavicle': (-1.922, 4.215),
+        'right_shoulder': (15.261, 10.86, 9.665), 'right_elbow': (31.486, 17.196),
+        'right_wrist': (-0.568, -0.826),
     })
-    human.KeyJoints(3.7, {
-        'spine_lumbar': (30.408, 7.588, 8.729), 'spine_thoracic': (-2.346, 5.887, 12.645),
-        'neck': (35.0, -33.75, 3.032), 'head': (15.0, 10.7), 'right_clavicle': (-4.348, 9.087),
-        'right_shoulder': (23.266, 16.791, 7.59), 'right_elbow': (28.144, 17.205),
+    human.KeyJoints(4.4, {
+        'spine_lumbar': (25.38, 6.02, 7.024), 'spine_thoracic': (-1.66, 4.738, 10.075),
+        'neck': (35.0, -33.75, 6.474), 'head': (15.0, 10.71), 'right_clavicle': (-3.443, 7.334),
+        'right_shoulder': (20.338, 14.657, 8.336),
     })
-    human.KeyJoints(3.8, {
-        'spine_lumbar': (38.834, 10.35, 11.634), 'spine_thoracic': (-3.681, 7.835, 17.239),
-        'neck': (35.0, 27.009, -14.475), 'head': (15.0, -11.25), 'right_clavicle': (-6.011, 12.024),
-        'right_shoulder': (28.385, 20.366, 6.34), 'right_elbow': (26.129, 17.211),
-        'right_wrist': (-1.622, -2.358),
+    human.KeyJoints(4.5, {
+        'spine_lumbar': (34.406, 8.871, 10.098), 'spine_thoracic': (-2.941, 6.807, 14.766),
+        'neck': (35.0, 31.903, -12.688), 'head': (15.0, -10.594), 'right_clavicle': (-5.107, 10.48),
+        'right_shoulder': (25.651, 18.487, 6.997), 'right_elbow': (27.188, 17.208),
+        'right_wrist': (-1.414, -2.055),
     })
-    human.KeyJoints(3.9, {
-        'spine_lumbar': (44.993, 12.641, 13.852), 'spine_thoracic': (-5.04, 9.302, 21.177),
-        'neck': (35.0, 19.669, -17.069), 'right_clavicle': (-7.521, 14.171),
-        'right_shoulder': (32.56, 22.98, 5.425), 'right_elbow': (24.656, 17.217),
-        'right_wrist': (-1.911, -2.779),
+    human.KeyJoints(4.6, {
+        'spine_lumbar': (41.993, 11.47, 12.752), 'spine_thoracic': (-4.299, 8.579, 19.139),
+        'neck': (35.0, 22.633, -15.629), 'head': (15.0, -11.25), 'right_clavicle': (-6.725, 13.126),
+        'right_shoulder': (30.437, 21.707, 5.871), 'right_elbow': (25.373, 17.214),
+        'right_wrist': (-1.77, -2.573),
+    })
+    human.KeyJoints(4.7, {
+        'spine_lumbar': (46.628, 13.417, 14.499), 'spine_thoracic': (-5.635, 9.718, 22.58),
+        'neck': (35.0, 19.137, -18.131), 'right_clavicle': (-8.104, 14.741),
+        'right_shoulder': (33.934, 23.674, 5.183), 'right_elbow': (24.265, 17.219),
+        'right_wrist': (-1.988, -2.89),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
-    human.KeyJoints(4.0, {
-        'spine_lumbar': (47.37, 14.064, 14.896), 'spine_thoracic': (-6.321, 9.953, 23.849),
-        'neck': (35.0, 19.84, -19.271), 'right_clavicle': (-8.689, 15.0),
-        'right_shoulder': (35.028, 23.989, 5.072), 'right_elbow': (24.088, 17.222),
-        'right_wrist': (-2.023, -2.941),
+    human.KeyJoints(4.8, {
+        'spine_lumbar': (46.253, 14.338, 14.998), 'spine_thoracic': (-6.938, 9.999, 24.518),
+        'neck': (35.0, 22.157, -20.482), 'right_clavicle': (-9.046, 15.0),
+        'right_shoulder': (35.536, 23.195, 5.24), 'right_elbow': (24.544, 17.223),
+        'right_wrist': (-1.967, -2.816),
     })
-    human.KeyJoints(4.1, {
-        'spine_lumbar': (42.779, 15.906, 13.772), 'spine_thoracic': (-6.659, 9.298, 23.592),
-        'neck': (35.0, 26.587, -20.358), 'right_clavicle': (-9.365, 13.657),
-        'right_shoulder': (33.807, 21.064, 5.751), 'right_elbow': (24.872, 17.216),
+    human.KeyJoints(4.9, {
+        'spine_lumbar': (40.862, 16.651, 13.606), 'spine_thoracic': (-6.576, 9.196, 23.425),
+        'neck': (35.0, 28.406, -20.966), 'right_clavicle': (-9.703, 13.462),
+        'right_shoulder': (33.089, 19.628, 6.093), 'right_elbow': (25.111, 17.212),
+        'right_wrist': (-1.593, -2.615),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=4.174242, duration=0.2628)
-    human.KeyJoints(4.2, {
+    human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
+    human.KeyJoints(5.0, {
         'spine_lumbar': (39.235, 17.351, 13.084), 'spine_thoracic': (-6.376, 8.883, 22.91),
         'neck': (35.0, 30.67, -20.858), 'right_clavicle': (-9.801, 12.897),
         'right_shoulder': (32.001, 18.6, 6.352), 'right_elbow': (25.549, 17.208),
         'right_wrist': (-1.509, -2.514),
     })
-    human.KeyJoints(4.4, {'right_elbow': (25.549, 17.208)})
+    human.KeyJoints(5.1, {'right_elbow': (25.549, 17.208)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(4.5, {'right_shoulder': (32.007, 18.64, 6.343), 'right_elbow': (25.616, 8.366)})
-    human.KeyJoints(4.6, {'right_elbow': (25.76, -28.707)})
-    human.KeyJoints(4.7, {
-        'right_shoulder': (32.049, 19.081, 6.243), 'right_elbow': (25.637, -67.66),
-    })
-    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=4.775442, duration=0.072)
-    human.KeyJoints(4.8, {'right_elbow': (25.546, -80.0)})
-    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=4.847442, duration=0.2628)
-    human.KeyJoints(5.1, {'right_shoulder': (32.051, 19.137, 6.23), 'right_elbow': (25.546, -80.0)})
-    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {
-        'right_shoulder': (32.044, 18.997, 6.262), 'right_elbow': (25.718, -52.202),
-        'right_wrist': (-1.433, -2.481),
-    })
+    human.KeyJoints(5.2, {'right_shoulder': (32.001, 18.6, 6.352), 'right_elbow': (25.55, 17.039)})
     human.KeyJoints(5.3, {
-        'right_shoulder': (32.003, 18.611, 6.35), 'right_elbow': (25.57, 14.508),
-        'right_wrist': (-1.509, -2.509),
+        'right_shoulder': (32.017, 18.717, 6.326), 'right_elbow': (25.701, -6.258),
     })
-    human.KeyJoints(5.4, {
-        'right_shoulder': (31.964, 18.519, 6.372), 'right_elbow': (25.023, 71.033),
+    human.KeyJoints(5.4, {'right_elbow': (25.734, -47.911)})
+    human.KeyJoints(5.5, {
+        'right_shoulder': (32.051, 19.128, 6.232), 'right_elbow': (25.564, -77.818),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=5.448642, duration=0.072)
-    human.KeyJoints(5.5, {
-        'spine_lumbar': (39.235, 17.351, 13.084), 'spine_thoracic': (-6.376, 8.883, 22.91),
-        'neck': (35.0, 30.67, -20.858), 'right_clavicle': (-9.801, 12.897),
-        'right_shoulder': (31.959, 18.535, 6.368), 'right_elbow': (24.936, 80.0),
-        'right_wrist': (-1.401, -2.561), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
+    human.Grasp('right_hand', 'open', start=5.530179, duration=0.072)
+    human.KeyJoints(5.6, {'right_elbow': (25.546, -80.0)})
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=5.602179, duration=0.2628)
+    human.KeyJoints(5.8, {'right_elbow': (25.546, -80.0)})
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
+    human.KeyJoints(5.9, {
+        'right_shoulder': (32.05, 19.116, 6.234), 'right_elbow': (25.584, -75.214),
+        'right_wrist': (-1.426, -2.501),
     })
+    human.KeyJoints(6.0, {'right_elbow': (25.755, -23.911), 'right_wrist': (-1.469, -2.469)})
+    human.KeyJoints(6.1, {
+        'right_shoulder': (31.981, 18.521, 6.371), 'right_elbow': (25.296, 44.327),
+    })
+    human.KeyJoints(6.2, {
+        'spine_lumbar': (39.235, 17.351, 13.084), 'neck': (35.0, 30.67, -20.858),
+        'right_elbow': (24.937, 79.952), 'right_wrist': (-1.401, -2.561),
+        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.594, 5.73, 11.459),
+    })
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=6.203379, duration=0.072)
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=5.520642, duration=0.072)
+    human.Grasp('right_hand', 'close', start=6.275379, duration=0.072)
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TA on l_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
-    human.LookAt((-35.0, 5.0, 80.0), start=5.520642, duration=1.618047)
-    human.KeyJoints(5.6, {
-        'spine_lumbar': (40.083, 16.824, 12.653), 'spine_thoracic': (-6.717, 8.725, 22.601),
-        'neck': (35.0, 31.081, -19.904), 'right_clavicle': (-9.809, 12.984),
-        'right_shoulder': (31.693, 17.767, 6.554), 'right_elbow': (26.409, 80.0),
-        'right_wrist': (-1.788, -2.451), 'left_clavicle': (-0.399, 0.615),
-        'left_shoulder': (9.844, 5.607, 11.414), 'left_elbow': (34.261, 17.189),
-        'left_wrist': (-0.003, -0.046),
-    })
-    human.KeyJoints(5.7, {
-        'spine_lumbar': (43.086, 14.96, 11.131), 'spine_thoracic': (-7.923, 8.166, 21.507),
-        'neck': (35.0, 33.569, -17.269), 'head': (15.0, -11.25), 'right_clavicle': (-9.838, 13.289),
-        'right_shoulder': (30.697, 15.09, 7.217), 'right_elbow': (31.64, 80.0),
-        'right_wrist': (-3.178, -2.012), 'left_clavicle': (-1.811, 2.792),
-        'left_shoulder': (14.266, 5.173, 11.238), 'left_elbow': (33.85, 17.188),
-    })
-    human.KeyJoints(5.8, {
-        'spine_lumbar': (47.404, 12.278, 8.941), 'spine_thoracic': (-9.658, 7.362, 19.935),
-        'neck': (35.0, 33.75, -13.058), 'head': (15.0, -11.108),
-        'right_shoulder': (29.562, 11.263, 8.196), 'right_wrist': (-4.999, -1.28),
-        'left_clavicle': (-3.841, 5.924), 'left_shoulder': (20.626, 4.548, 10.952),
-        'left_wrist': (-0.065, -0.44),
-    })
-    human.KeyJoints(5.9, {
-        'spine_lumbar': (52.136, 9.34, 6.541), 'spine_thoracic': (-11.559, 6.481, 18.211),
-        'neck': (35.0, 33.75, -9.742), 'head': (15.0, -11.25),
-        'right_shoulder': (28.517, 7.141, 9.306), 'right_elbow': (45.333, 80.0),
-        'right_wrist': (-6.823, -0.383), 'left_clavicle': (-6.066, 9.355),
-        'left_shoulder': (27.595, 3.864, 10.576),
-    })
-    human.KeyJoints(6.0, {
-        'spine_lumbar': (56.38, 6.705, 4.389), 'spine_thoracic': (-13.264, 5.691, 16.666),
-        'neck': (35.0, 33.75, -5.671), 'right_clavicle': (-9.966, 14.64),
-        'right_shoulder': (27.511, 3.571, 10.332), 'right_elbow': (51.402, 80.0),
-        'right_wrist': (-8.436, 0.506), 'left_clavicle': (-8.062, 12.432),
-        'left_shoulder': (33.845, 3.25, 10.132), 'left_elbow': (32.029, 17.185),
-        'left_wrist': (-0.258, -0.923),
-    })
-    human.KeyJoints(6.1, {
-        'spine_lumbar': (59.233, 4.933, 2.942), 'spine_thoracic': (-14.41, 5.16, 15.626),
-        'neck': (35.0, 33.399, -2.838), 'right_clavicle': (-9.993, 14.93),
-        'right_shoulder': (26.835, 1.341, 11.186), 'right_elbow': (55.37, 79.999),
-        'right_wrist': (-9.702, 1.232), 'left_clavicle': (-9.404, 14.501),
-        'left_shoulder': (38.048, 2.837, 9.643), 'left_elbow': (31.638, 17.185),
-        'left_wrist': (-0.425, -1.077),
-    })
-    # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
-    human.KeyJoints(6.2, {
-        'spine_lumbar': (59.921, 4.506, 2.593), 'spine_thoracic': (-14.686, 5.032, 15.376),
-        'neck': (35.0, 33.75, -2.196), 'right_shoulder': (26.668, 0.815, 11.39),
-        'right_elbow': (56.325, 79.999), 'right_wrist': (-10.008, 1.409),
-        'left_clavicle': (-9.727, 15.0), 'left_shoulder': (37.854, 3.481, 9.117),
-        'left_elbow': (38.37, 17.212), 'left_wrist': (-1.198, 0.333),
-    })
+    human.LookAt((-35.0, 5.0, 80.0), start=6.275379, duration=1.618047)
     human.KeyJoints(6.3, {
-        'left_shoulder': (25.552, 5.659, 8.979), 'left_elbow': (58.414, 17.306),
-        'left_wrist': (-3.057, 5.259),
+        'spine_lumbar': (39.321, 17.297, 13.04), 'spine_thoracic': (-6.411, 8.867, 22.878),
+        'neck': (35.0, 30.734, -20.719), 'right_clavicle': (-9.801, 12.906),
+        'right_shoulder': (31.933, 18.457, 6.387), 'right_elbow': (25.086, 80.0),
+        'right_wrist': (-1.44, -2.55), 'left_clavicle': (-0.041, 0.063),
+        'left_shoulder': (8.722, 5.717, 11.455), 'left_elbow': (34.366, 17.189),
+        'left_wrist': (0.0, -0.005),
     })
-    # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=6.333722, duration=0.072)
     human.KeyJoints(6.4, {
-        'neck': (35.0, 33.75, -2.196), 'head': (15.0, -11.25), 'right_clavicle': (-10.0, 15.0),
-        'right_shoulder': (26.668, 0.815, 11.39), 'right_elbow': (56.325, 79.999),
-        'right_wrist': (-10.008, 1.409), 'left_shoulder': (22.876, 6.288, 8.829),
-        'left_elbow': (63.821, 17.331), 'left_wrist': (-3.609, 6.689),
+        'spine_lumbar': (41.222, 16.117, 12.076), 'spine_thoracic': (-7.174, 8.513, 22.186),
+        'neck': (35.0, 31.818, -18.952), 'head': (15.0, -11.25), 'right_clavicle': (-9.82, 13.099),
+        'right_shoulder': (31.306, 16.746, 6.805), 'right_elbow': (28.417, 80.0),
+        'right_wrist': (-2.319, -2.293), 'left_clavicle': (-0.934, 1.441),
+        'left_shoulder': (11.521, 5.442, 11.349), 'left_elbow': (34.105, 17.188),
     })
-    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.5, {
-        'neck': (35.0, 32.174, -8.646), 'head': (13.756, -11.136),
-        'right_shoulder': (25.5, 2.907, 1.153), 'right_elbow': (56.159, 66.457),
-        'right_wrist': (7.308, 5.693),
+        'spine_lumbar': (44.931, 13.814, 10.195), 'spine_thoracic': (-8.665, 7.822, 20.835),
+        'neck': (35.0, 33.747, -15.433), 'right_shoulder': (30.193, 13.447, 7.632),
+        'right_elbow': (34.617, 80.0), 'right_wrist': (-3.973, -1.711),
+        'left_clavicle': (-2.679, 4.131), 'left_shoulder': (16.984, 4.906, 11.121),
+        'left_elbow': (33.597, 17.188), 'left_wrist': (-0.038, -0.307),
     })
     human.KeyJoints(6.6, {
-        'neck': (35.0, 28.599, -23.28), 'head': (10.932, -10.876),
-        'right_shoulder': (19.559, 7.263, -21.655), 'right_elbow': (63.417, 36.675),
-        'right_wrist': (40.009, 14.382),
+        'neck': (35.0, 33.75, -11.029), 'head': (15.0, -11.044),
+        'right_shoulder': (29.114, 9.375, 8.695), 'right_elbow': (41.565, 80.0),
     })
     human.KeyJoints(6.7, {
-        'neck': (35.0, 25.465, -36.109), 'head': (8.456, -10.648),
-        'right_shoulder': (19.386, 12.408, -43.395), 'right_elbow': (62.043, 11.651),
-        'right_wrist': (60.028, 18.16),
+        'spine_lumbar': (54.171, 8.076, 5.509), 'spine_thoracic': (-12.376, 6.102, 17.47),
+        'neck': (35.0, 33.75, -7.56), 'head': (15.0, -11.25),
+        'right_shoulder': (28.04, 5.412, 9.794), 'right_elbow': (48.256, 80.0),
+        'right_wrist': (-7.599, 0.033), 'left_clavicle': (-7.023, 10.831),
+        'left_shoulder': (30.593, 3.57, 10.382), 'left_elbow': (32.331, 17.186),
     })
     human.KeyJoints(6.8, {
-        'neck': (35.0, 24.814, -38.775), 'head': (7.942, -10.601),
-        'right_shoulder': (26.444, 21.558, -68.457), 'right_elbow': (44.777, -12.197),
-        'right_wrist': (71.02, 19.344), 'left_elbow': (63.672, 17.331),
+        'spine_lumbar': (57.898, 5.762, 3.619), 'spine_thoracic': (-13.873, 5.409, 16.113),
+        'neck': (35.0, 33.618, -4.053), 'right_clavicle': (-9.98, 14.794),
+        'right_shoulder': (27.155, 2.376, 10.787), 'right_elbow': (53.514, 80.0),
+        'right_wrist': (-9.108, 0.89), 'left_clavicle': (-8.776, 13.533),
+        'left_shoulder': (36.081, 3.031, 9.915), 'left_elbow': (31.821, 17.185),
+        'left_wrist': (-0.327, -1.005),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (59.921, 4.506, 2.593), 'spine_thoracic': (-14.686, 5.032, 15.376),
-        'neck': (35.0, 24.814, -38.775), 'head': (7.942, -10.601), 'right_clavicle': (-10.0, 15.0),
-        'right_shoulder': (33.737, 29.273, -86.888), 'right_elbow': (25.836, -28.609),
-        'right_wrist': (77.553, 19.954),
+        'spine_lumbar': (59.825, 4.565, 2.642), 'spine_thoracic': (-14.648, 5.05, 15.411),
+        'neck': (35.0, 33.75, -2.365), 'right_clavicle': (-9.999, 14.99),
+        'right_shoulder': (26.691, 0.888, 11.362), 'right_elbow': (56.192, 79.999),
+        'right_wrist': (-9.966, 1.384), 'left_clavicle': (-9.682, 14.931),
+        'left_shoulder': (38.92, 2.752, 9.413), 'left_elbow': (31.556, 17.184),
+        'left_wrist': (-0.52, -1.109),
     })
-    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
+    # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.0, {
-        'spine_lumbar': (60.0, 8.099, 4.553), 'spine_thoracic': (-13.398, 6.677, 16.847),
-        'neck': (34.784, 23.178, -41.297), 'head': (6.689, -9.814),
-        'right_clavicle': (-8.938, 14.999), 'right_shoulder': (35.266, 32.264, -88.495),
-        'right_elbow': (21.968, -29.892), 'right_wrist': (76.194, 19.676),
-        'left_shoulder': (22.973, 6.269, 8.832),
+        'neck': (35.0, 33.75, -2.196), 'right_elbow': (56.325, 79.999),
+        'left_shoulder': (31.636, 4.935, 8.889), 'left_elbow': (48.558, 17.254),
+        'left_wrist': (-2.161, 2.715),
     })
-    # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=7.066689, duration=0.072)
+    # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
+    human.Grasp('left_hand', 'open', start=7.088459, duration=0.072)
     human.KeyJoints(7.1, {
-        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
-        'neck': (34.636, 22.051, -43.434), 'head': (5.54, -9.303), 'right_clavicle': (-7.06, 15.0),
-        'right_shoulder': (36.451, 35.907, -88.428), 'right_elbow': (20.849, -29.745),
-        'right_wrist': (73.81, 19.294),
+        'spine_lumbar': (59.921, 4.506, 2.593), 'neck': (35.0, 33.75, -2.196),
+        'head': (15.0, -11.25), 'right_shoulder': (26.668, 0.815, 11.39),
+        'right_elbow': (56.325, 79.999), 'right_wrist': (-10.008, 1.409),
+        'left_shoulder': (22.876, 6.288, 8.829), 'left_elbow': (63.821, 17.331),
+        'left_wrist': (-3.609, 6.689),
     })
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
-    human.LookAt((-40.0, 10.0, 60.0), start=7.138689, duration=0.2628)
-    human.KeyJoints(7.2, {'neck': (34.635, 22.109, -45.117), 'head': (6.824, -9.567)})
+    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
+    human.KeyJoints(7.2, {
+        'neck': (35.0, 33.438, -3.474), 'head': (14.754, -11.227),
+        'right_shoulder': (27.452, 1.367, 9.245), 'right_elbow': (54.241, 77.296),
+        'right_wrist': (-5.925, 2.172), 'left_clavicle': (-9.727, 15.0),
+    })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
-        'neck': (34.622, 22.332, -51.582), 'head': (11.777, -10.581),
-        'right_shoulder': (36.446, 35.883, -88.428), 'right_elbow': (20.894, -29.745),
-        'right_wrist': (73.859, 19.304), 'left_shoulder': (22.973, 6.269, 8.832),
-        'left_elbow': (63.672, 17.331), 'left_wrist': (-3.593, 6.649),
+        'neck': (35.0, 30.658, -14.853), 'head': (12.558, -11.025),
+        'right_shoulder': (22.636, 4.696, -8.49), 'right_elbow': (59.721, 53.644),
+        'right_wrist': (21.916, 9.687),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (58.118, 12.064, 6.344), 'spine_thoracic': (-12.229, 8.25, 18.222),
-        'neck': (34.59, 22.471, -55.635), 'head': (14.944, -11.216),
-        'right_shoulder': (34.431, 37.147, -88.856), 'right_elbow': (18.41, -29.829),
-        'right_wrist': (67.464, 18.089), 'left_shoulder': (24.211, 5.389, 9.306),
-        'left_elbow': (59.679, 17.324), 'left_wrist': (-3.104, 5.626),
+        'neck': (35.0, 26.979, -29.912), 'head': (9.652, -10.758),
+        'right_shoulder': (18.807, 9.548, -32.18), 'right_elbow': (63.64, 23.896),
+        'right_wrist': (52.217, 17.028),
+    })
+    human.KeyJoints(7.5, {
+        'neck': (35.0, 24.849, -38.63), 'head': (7.97, -10.603),
+        'right_shoulder': (21.903, 16.164, -54.449), 'right_elbow': (55.939, 0.812),
+        'right_wrist': (65.316, 18.757), 'left_elbow': (63.672, 17.331),
+    })
+    human.KeyJoints(7.6, {
+        'spine_lumbar': (59.921, 4.506, 2.593), 'spine_thoracic': (-14.686, 5.032, 15.376),
+        'neck': (35.0, 24.814, -38.775), 'head': (7.942, -10.601),
+        'right_shoulder': (30.325, 25.756, -78.664), 'right_elbow': (35.0, -21.371),
+        'right_wrist': (74.754, 19.701),
+    })
+    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
+    human.KeyJoints(7.7, {
+        'spine_lumbar': (59.982, 4.707, 2.942), 'spine_thoracic': (-14.441, 5.337, 15.634),
+        'neck': (34.954, 24.481, -39.316), 'head': (7.663, -10.444),
+        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (34.432, 29.814, -88.547),
+        'right_elbow': (22.94, -30.029), 'right_wrist': (77.999, 19.966),
+        'left_shoulder': (22.973, 6.269, 8.832),
+    })
+    human.KeyJoints(7.8, {
+        'spine_lumbar': (60.0, 10.903, 5.78), 'spine_thoracic': (-12.696, 7.617, 17.794),
+        'neck': (34.675, 22.33, -42.783), 'head': (5.967, -9.406), 'right_clavicle': (-7.706, 15.0),
+        'right_shoulder': (36.067, 34.682, -88.445), 'right_elbow': (21.251, -29.789),
+        'right_wrist': (74.653, 19.43),
+    })
+    # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=7.821426, duration=0.072)
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
+    human.LookAt((-40.0, 10.0, 60.0), start=7.893426, duration=0.2628)
+    human.KeyJoints(7.9, {
+        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
+        'neck': (34.636, 22.052, -43.457), 'head': (5.557, -9.307), 'right_clavicle': (-7.06, 15.0),
+        'right_shoulder': (36.451, 35.906, -88.428), 'right_elbow': (20.851, -29.745),
+        'right_wrist': (73.812, 19.294),
+    })
+    human.KeyJoints(8.0, {'neck': (34.631, 22.202, -47.827), 'head': (8.896, -9.992)})
+    human.KeyJoints(8.1, {
+        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
+        'neck': (34.611, 22.422, -54.199), 'head': (13.798, -10.991),
+        'right_shoulder': (36.444, 35.876, -88.427), 'right_elbow': (20.907, -29.745),
+        'right_wrist': (73.873, 19.307), 'left_shoulder': (22.973, 6.269, 8.832),
+        'left_elbow': (63.672, 17.331), 'left_wrist': (-3.593, 6.649),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=7.401489, duration=2.069192)
-    human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, 12.792, 4.961), 'spine_thoracic': (-11.949, 7.023, 15.096),
-        'neck': (32.963, 22.531, -52.413), 'right_shoulder': (36.442, 35.869, -88.427),
+    human.LookAt((10.0, 25.0, 95.0), start=8.156226, duration=2.069192)
+    human.KeyJoints(8.2, {
+        'spine_lumbar': (55.264, 11.828, 6.053), 'spine_thoracic': (-11.986, 8.312, 17.565),
+        'neck': (34.284, 22.414, -54.915), 'head': (14.98, -11.194),
+        'right_shoulder': (31.659, 39.334, -89.32), 'right_elbow': (14.283, -29.853),
+        'right_wrist': (57.171, 16.073), 'left_shoulder': (23.22, 6.286, 9.087),
+        'left_elbow': (63.177, 17.848), 'left_wrist': (-4.399, 6.831),
+    })
+    human.KeyJoints(8.3, {
+        'spine_lumbar': (60.0, 13.3, 3.553), 'spine_thoracic': (-11.54, 5.971, 11.917),
+        'neck': (31.529, 23.062, -49.213), 'right_shoulder': (36.442, 35.869, -88.427),
         'right_elbow': (20.919, -29.745), 'right_wrist': (73.886, 19.31),
-        'left_clavicle': (-9.745, 15.0), 'left_shoulder': (24.146, 6.357, 10.043),
-        'left_elbow': (61.298, 19.79), 'left_wrist': (-7.429, 7.514),
+        'left_clavicle': (-9.763, 15.0), 'left_shoulder': (25.338, 6.463, 11.275),
+        'left_elbow': (58.854, 22.291), 'left_wrist': (-11.331, 8.394),
     })
-    human.KeyJoints(7.6, {
-        'spine_lumbar': (47.828, 12.608, 1.384), 'spine_thoracic': (-10.176, 5.604, 7.017),
-        'neck': (30.537, 23.449, -43.568), 'right_shoulder': (28.268, 45.128, -89.62),
-        'right_elbow': (5.002, -29.256), 'right_wrist': (28.708, 9.865),
-        'left_shoulder': (27.176, 6.653, 13.173), 'left_elbow': (55.035, 26.146),
-        'left_wrist': (-17.344, 9.751),
+    human.KeyJoints(8.4, {
+        'spine_lumbar': (47.95, 13.352, -0.686), 'spine_thoracic': (-9.531, 4.093, 2.339),
+        'neck': (29.594, 24.719, -38.226), 'right_shoulder': (28.937, 43.335, -89.439),
+        'right_elbow': (7.928, -29.316), 'right_wrist': (35.496, 12.042),
+        'left_shoulder': (28.93, 6.866, 14.984), 'left_elbow': (51.331, 29.825),
+        'left_wrist': (-23.084, 11.046),
     })
-    human.KeyJoints(7.7, {
-        'spine_lumbar': (48.281, 14.274, -3.382), 'spine_thoracic': (-8.678, 2.226, -3.753),
-        'neck': (29.176, 27.029, -31.069), 'right_shoulder': (30.061, 42.092, -89.256),
-        'right_elbow': (9.98, -29.315), 'right_wrist': (45.541, 14.719),
-        'left_shoulder': (31.215, 7.195, 17.344), 'left_elbow': (46.406, 34.618),
-        'left_wrist': (-30.56, 12.733),
+    human.KeyJoints(8.5, {
+        'spine_lumbar': (49.593, 15.203, -5.662), 'spine_thoracic': (-7.981, 0.485, -8.903),
+        'neck': (29.388, 29.852, -24.839), 'right_shoulder': (31.645, 41.036, -89.034),
+        'right_elbow': (11.751, -29.36), 'right_wrist': (55.968, 16.888),
+        'left_shoulder': (33.147, 7.531, 19.339), 'left_elbow': (42.133, 38.669),
+        'left_wrist': (-36.88, 14.159),
     })
-    human.KeyJoints(7.8, {
-        'spine_lumbar': (52.503, 16.508, -8.337), 'spine_thoracic': (-7.143, -1.789, -14.947),
-        'neck': (30.715, 33.75, -17.185), 'right_shoulder': (33.986, 39.378, -88.58),
-        'right_elbow': (14.842, -29.541), 'right_wrist': (66.793, 18.649),
-        'left_shoulder': (35.414, 8.019, 21.68), 'left_elbow': (36.938, 43.424),
-        'left_wrist': (-44.298, 15.832),
+    human.KeyJoints(8.6, {
+        'spine_lumbar': (55.079, 17.579, -10.372), 'spine_thoracic': (-6.446, -3.637, -19.545),
+        'neck': (33.756, 33.75, -10.372), 'head': (15.0, -11.25),
+        'right_shoulder': (35.378, 37.636, -88.254), 'right_elbow': (18.29, -29.71),
+        'right_wrist': (70.887, 19.042), 'left_shoulder': (37.138, 8.495, 23.461),
+        'left_elbow': (32.786, 47.041), 'left_wrist': (-49.94, 17.105),
     })
-    human.KeyJoints(7.9, {
-        'spine_lumbar': (57.773, 18.723, -12.478), 'spine_thoracic': (-5.573, -5.608, -24.301),
-        'neck': (35.0, 33.75, -4.605), 'head': (15.0, -11.25),
-        'right_shoulder': (36.224, 36.419, -88.263), 'right_elbow': (20.401, -29.758),
-        'right_wrist': (73.166, 19.24), 'left_shoulder': (38.922, 9.164, 25.303),
-        'left_elbow': (28.155, 50.783), 'left_wrist': (-55.777, 18.422),
-    })
-    human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 19.928, -14.801), 'spine_thoracic': (-3.912, -7.75, -29.551),
-        'neck': (35.0, -13.827, 9.011), 'head': (15.0, 11.25),
+    human.KeyJoints(8.7, {
+        'spine_lumbar': (60.0, 19.572, -13.815), 'spine_thoracic': (-4.845, -7.012, -27.322),
+        'neck': (35.0, 31.175, -0.284), 'head': (15.0, -10.046),
         'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
-        'right_wrist': (73.886, 19.31), 'left_clavicle': (-9.997, 15.0),
-        'left_shoulder': (40.891, 10.668, 27.337), 'left_elbow': (21.583, 54.913),
-        'left_wrist': (-62.22, 19.876),
+        'right_wrist': (73.886, 19.31), 'left_clavicle': (-9.985, 15.0),
+        'left_shoulder': (40.055, 9.798, 26.473), 'left_elbow': (24.815, 53.159),
+        'left_wrist': (-59.484, 19.258),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
-    human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (-1.503, -8.19, -30.0),
-        'neck': (35.0, -1.0, 8.919), 'head': (15.0, 11.25),
-        'left_shoulder': (43.088, 15.599, 26.152), 'left_elbow': (16.773, 54.576),
-        'left_wrist': (-60.436, 18.775),
+    human.KeyJoints(8.8, {
+        'spine_lumbar': (60.0, 20.0, -14.728), 'spine_thoracic': (-3.21, -7.742, -29.723),
+        'neck': (35.0, -9.271, 8.857), 'head': (15.0, 11.25), 'left_clavicle': (-9.804, 14.705),
+        'left_shoulder': (41.01, 11.824, 27.402), 'left_elbow': (19.758, 55.216),
+        'left_wrist': (-62.745, 19.944),
+    })
+    human.KeyJoints(8.9, {
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (3.186, -10.0, -30.0),
+        'neck': (35.0, 18.271, 8.167), 'head': (15.0, 3.587), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (49.82, 14.502, 25.872), 'left_elbow': (11.894, 54.295),
+        'left_wrist': (-53.429, 16.985),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=8.194677, duration=0.2628)
-    human.KeyJoints(8.2, {
+    human.Grasp('left_hand', 'close', start=8.949414, duration=0.2628)
+    human.KeyJoints(9.0, {
         'spine_thoracic': (9.81, -10.0, -30.0), 'neck': (32.699, 33.75, 7.177),
         'head': (15.0, -11.25), 'left_shoulder': (59.583, 12.212, 25.727),
         'left_elbow': (6.481, 54.09), 'left_wrist': (-43.195, 14.175),
     })
-    human.KeyJoints(8.4, {
+    human.KeyJoints(9.2, {
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (9.81, -10.0, -30.0),
         'neck': (32.699, 33.75, 7.177), 'head': (15.0, -11.25),
-        'left_shoulder': (59.583, 12.212, 25.727), 'left_elbow': (6.481, 54.09),
-        'left_wrist': (-43.195, 14.175),
+        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
+        'right_wrist': (73.886, 19.31), 'left_shoulder': (59.583, 12.212, 25.727),
+        'left_elbow': (6.481, 54.09), 'left_wrist': (-43.195, 14.175),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
-    human.KeyJoints(8.5, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (9.81, -10.0, -30.0),
-        'neck': (32.764, 32.588, 8.833), 'head': (15.0, -10.615),
-        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
-        'right_wrist': (73.886, 19.31), 'left_shoulder': (58.511, 14.203, 25.86),
-        'left_elbow': (9.414, 54.203), 'left_wrist': (-43.885, 14.227),
-    })
-    human.KeyJoints(8.6, {
-        'spine_lumbar': (55.84, 19.371, -15.0), 'spine_thoracic': (10.867, -9.48, -30.0),
-        'neck': (33.306, 22.894, 22.64), 'head': (15.0, -5.321), 'right_elbow': (21.701, -29.754),
-        'right_wrist': (74.509, 19.382), 'left_shoulder': (49.268, 30.935, 27.11),
-        'left_elbow': (32.921, 55.24), 'left_wrist': (-49.219, 14.596),
-    })
-    human.KeyJoints(8.7, {
-        'spine_lumbar': (50.139, 18.571, -15.0), 'spine_thoracic': (12.213, -9.027, -30.0),
-        'neck': (34.098, 8.694, 42.866), 'head': (15.0, 2.433),
-        'right_shoulder': (37.544, 36.128, -87.976), 'right_elbow': (22.649, -29.772),
-        'right_wrist': (75.304, 19.482), 'left_shoulder': (34.32, 56.051, 29.413),
-        'left_elbow': (64.846, 57.066), 'left_wrist': (-56.623, 15.201),
-    })
-    human.KeyJoints(8.8, {
-        'spine_lumbar': (47.268, 18.235, -15.0), 'spine_thoracic': (12.709, -9.112, -30.0),
-        'neck': (34.78, -3.504, 60.241), 'head': (15.0, 9.095),
-        'right_shoulder': (37.526, 36.058, -87.974), 'right_elbow': (22.941, -29.804),
-        'right_wrist': (75.583, 19.544), 'left_shoulder': (18.32, 78.983, 32.442),
-        'left_elbow': (86.699, 59.316), 'left_wrist': (-62.099, 15.87),
-    })
-    human.KeyJoints(8.9, {
-        'spine_lumbar': (46.298, 18.129, -15.0), 'spine_thoracic': (12.716, -9.282, -30.0),
-        'neck': (35.0, -7.45, 65.862), 'head': (15.0, 11.25),
-        'right_shoulder': (37.336, 36.005, -88.052), 'left_shoulder': (2.704, 93.388, 37.838),
-        'left_elbow': (87.466, 62.485), 'left_wrist': (-63.507, 16.648),
-    })
-    human.KeyJoints(9.0, {
-        'spine_lumbar': (45.49, 18.004, -15.0), 'spine_thoracic': (12.783, -9.303, -30.0),
-        'left_shoulder': (-17.163, 106.479, 49.219), 'left_elbow': (82.943, 68.018),
-        'left_wrist': (-64.244, 17.79),
-    })
-    human.KeyJoints(9.1, {
-        'spine_lumbar': (45.543, 17.996, -15.0), 'spine_thoracic': (12.739, -9.279, -30.0),
-        'right_shoulder': (37.315, 36.025, -88.062), 'right_elbow': (22.854, -29.827),
-        'right_wrist': (75.517, 19.562), 'left_shoulder': (-34.428, 109.302, 52.064),
-        'left_elbow': (69.922, 71.599), 'left_wrist': (-59.458, 15.811),
-    })
-    human.KeyJoints(9.2, {
-        'spine_lumbar': (46.734, 18.076, -15.0), 'spine_thoracic': (12.045, -9.274, -30.0),
-        'neck': (35.0, -7.45, 65.862), 'right_shoulder': (37.116, 36.109, -88.154),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-42.859, 107.475, 49.521),
-        'left_elbow': (59.578, 72.553), 'left_wrist': (-54.813, 13.468),
-    })
-    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'spine_lumbar': (46.033, 18.125, -14.931), 'spine_thoracic': (9.408, -7.67, -29.968),
-        'neck': (35.0, -9.299, 63.588), 'right_shoulder': (36.558, 36.338, -88.43),
-        'left_clavicle': (-7.903, 15.0), 'left_shoulder': (-43.406, 108.258, 49.466),
-        'left_elbow': (58.973, 72.576), 'left_wrist': (-55.03, 13.562),
+        'spine_lumbar': (59.21, 19.876, -15.0), 'spine_thoracic': (10.013, -9.888, -30.0),
+        'neck': (32.955, 29.174, 13.695), 'head': (15.0, -8.751),
+        'right_shoulder': (36.566, 35.902, -88.377), 'right_elbow': (21.071, -29.743),
+        'right_wrist': (74.007, 19.32), 'left_shoulder': (55.329, 20.064, 26.275),
+        'left_elbow': (17.834, 54.552), 'left_wrist': (-45.795, 14.356),
     })
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'spine_lumbar': (43.023, 18.307, -15.0), 'spine_thoracic': (5.771, -6.222, -30.0),
-        'neck': (35.0, -12.638, 60.087), 'right_shoulder': (36.182, 36.482, -88.618),
-        'right_elbow': (21.773, -29.914), 'right_wrist': (74.36, 19.533),
-        'left_clavicle': (-8.421, 15.0), 'left_shoulder': (-43.001, 111.516, 49.442),
-        'left_elbow': (64.333, 72.374), 'left_wrist': (-57.759, 13.839),
+        'spine_lumbar': (53.92, 19.105, -15.0), 'spine_thoracic': (11.333, -9.325, -30.0),
+        'neck': (33.655, 16.635, 31.556), 'head': (15.0, -1.903),
+        'right_shoulder': (37.158, 36.069, -88.139), 'left_shoulder': (42.933, 41.898, 28.042),
+        'left_elbow': (47.433, 55.991), 'left_wrist': (-52.547, 14.85),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
     human.KeyJoints(9.5, {
-        'spine_lumbar': (48.311, 19.165, -15.0), 'spine_thoracic': (5.353, -6.555, -30.0),
-        'right_shoulder': (36.249, 36.204, -88.554), 'right_elbow': (21.274, -29.833),
-        'right_wrist': (74.047, 19.418), 'left_shoulder': (-42.751, 120.101, 58.646),
-        'left_elbow': (71.581, 74.368), 'left_wrist': (-62.77, 16.862),
+        'spine_lumbar': (47.988, 18.287, -15.0), 'spine_thoracic': (12.676, -8.933, -30.0),
+        'neck': (34.442, 2.535, 51.639), 'head': (15.0, 5.797),
+        'right_shoulder': (37.708, 36.125, -87.903), 'right_elbow': (22.967, -29.78),
+        'right_wrist': (75.584, 19.519), 'left_shoulder': (26.936, 67.332, 30.714),
+        'left_elbow': (77.084, 58.053), 'left_wrist': (-59.564, 15.502),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (51.216, 19.632, -15.0), 'spine_thoracic': (5.062, -6.752, -30.0),
-        'neck': (34.916, -12.753, 60.075), 'right_shoulder': (36.297, 36.028, -88.511),
-        'right_elbow': (20.998, -29.786), 'right_wrist': (73.883, 19.351),
-        'left_shoulder': (-42.836, 123.99, 62.991), 'left_elbow': (75.423, 75.278),
-        'left_wrist': (-65.248, 18.3),
+        'spine_lumbar': (46.78, 18.187, -15.0), 'spine_thoracic': (12.712, -9.212, -30.0),
+        'neck': (34.954, -6.619, 64.677), 'head': (15.0, 10.796),
+        'right_shoulder': (37.416, 36.026, -88.019), 'left_shoulder': (11.863, 85.929, 34.028),
+        'left_elbow': (88.542, 60.405), 'left_wrist': (-62.977, 16.17),
     })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (45.965, 18.896, -15.0), 'spine_thoracic': (5.201, -6.533, -30.0),
-        'neck': (34.751, -12.864, 60.04), 'head': (14.956, 11.25), 'right_clavicle': (-7.06, 15.0),
-        'right_shoulder': (36.042, 36.243, -88.649), 'right_elbow': (21.648, -29.912),
-        'right_wrist': (74.343, 19.529), 'left_shoulder': (-43.135, 116.163, 54.634),
-        'left_elbow': (68.252, 73.426), 'left_wrist': (-60.41, 15.536),
+        'spine_lumbar': (45.911, 18.074, -15.0), 'spine_thoracic': (12.739, -9.306, -30.0),
+        'neck': (35.0, -7.45, 65.862), 'head': (15.0, 11.25),
+        'right_shoulder': (37.306, 36.0, -88.064), 'left_shoulder': (-6.082, 99.488, 42.528),
+        'left_elbow': (85.702, 64.82), 'left_wrist': (-63.874, 17.139),
+    })
+    human.KeyJoints(9.8, {
+        'spine_lumbar': (45.452, 17.995, -15.0), 'spine_thoracic': (12.792, -9.295, -30.0),
+        'right_elbow': (22.883, -29.831), 'right_wrist': (75.547, 19.569),
+        'left_shoulder': (-25.607, 107.837, 50.365), 'left_elbow': (76.581, 69.704),
+        'left_wrist': (-61.844, 16.775),
+    })
+    human.KeyJoints(9.9, {
+        'spine_lumbar': (45.882, 18.025, -15.0), 'spine_thoracic': (12.58, -9.273, -30.0),
+        'neck': (35.0, -7.45, 65.862), 'right_elbow': (22.775, -29.825),
+        'right_wrist': (75.44, 19.552), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (-39.699, 108.827, 51.524), 'left_elbow': (64.322, 72.425),
+        'left_wrist': (-57.059, 14.671),
+    })
+    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
+    human.KeyJoints(10.0, {
+        'spine_lumbar': (45.693, 18.066, -14.982), 'spine_thoracic': (12.28, -8.965, -29.992),
+        'neck': (34.993, -7.803, 65.309), 'right_shoulder': (37.238, 36.049, -88.101),
+        'right_elbow': (22.839, -29.84), 'right_wrist': (75.491, 19.572),
+        'left_clavicle': (-9.58, 15.0), 'left_shoulder': (-42.542, 106.984, 48.428),
+        'left_elbow': (57.806, 72.359), 'left_wrist': (-53.788, 12.998),
+    })
+    human.KeyJoints(10.1, {
+        'spine_lumbar': (44.526, 18.166, -14.992), 'spine_thoracic': (7.406, -6.144, -29.996),
+        'neck': (35.0, -11.294, 61.814), 'right_shoulder': (36.249, 36.446, -88.584),
+        'right_elbow': (22.172, -29.946), 'right_wrist': (74.715, 19.603),
+        'left_clavicle': (-6.198, 15.0), 'left_shoulder': (-43.234, 108.812, 48.818),
+        'left_elbow': (59.147, 72.417), 'left_wrist': (-55.12, 13.415),
+    })
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
+    human.Grasp('left_hand', 'open', start=10.153418, duration=0.072)
+    human.KeyJoints(10.2, {
+        'spine_lumbar': (44.999, 18.632, -15.0), 'spine_thoracic': (5.637, -6.346, -30.0),
+        'neck': (35.0, -12.638, 60.087), 'right_shoulder': (36.204, 36.381, -88.596),
+        'right_wrist': (74.247, 19.492), 'left_clavicle': (-8.421, 15.0),
+        'left_shoulder': (-42.883, 114.997, 53.142), 'left_elbow': (67.066, 73.176),
+        'left_wrist': (-59.738, 15.055),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=10.225418, duration=0.2628)
+    human.KeyJoints(10.3, {
+        'spine_lumbar': (50.288, 19.478, -15.0), 'spine_thoracic': (5.178, -6.682, -30.0),
+        'right_shoulder': (36.29, 36.089, -88.522), 'right_elbow': (21.081, -29.799),
+        'right_wrist': (73.929, 19.37), 'left_shoulder': (-42.752, 122.815, 61.651),
+        'left_elbow': (74.215, 75.006), 'left_wrist': (-64.484, 17.857),
+    })
+    human.KeyJoints(10.4, {
+        'spine_lumbar': (48.764, 19.255, -15.0), 'spine_thoracic': (5.13, -6.637, -30.0),
+        'neck': (34.851, -12.813, 60.063), 'right_shoulder': (36.157, 36.166, -88.589),
+        'right_elbow': (21.213, -29.84), 'right_wrist': (74.005, 19.42),
+        'left_shoulder': (-42.97, 120.572, 59.243), 'left_elbow': (72.122, 74.449),
+        'left_wrist': (-63.09, 17.069),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
-    human.KeyJoints(9.8, {
-        'spine_lumbar': (40.615, 17.252, -14.282), 'spine_thoracic': (4.764, -6.185, -29.452),
-        'neck': (34.247, -12.754, 58.979), 'head': (14.808, 11.245),
-        'right_clavicle': (-7.168, 15.0), 'right_shoulder': (37.082, 33.735, -88.133),
-        'right_elbow': (20.525, -29.575), 'right_wrist': (73.268, 19.095),
-        'left_shoulder': (-42.71, 104.899, 44.055), 'left_elbow': (60.299, 71.094),
-        'left_wrist': (-53.611, 11.777),
-    })
-    human.KeyJoints(9.9, {
-        'spine_lumbar': (38.583, 11.656, -11.066), 'spine_thoracic': (2.471, -4.985, -27.0),
-        'neck': (32.404, -12.446, 53.871), 'head': (14.402, 11.15),
-        'right_clavicle': (-7.656, 15.0), 'right_shoulder': (39.998, 24.094, -86.8),
-        'right_elbow': (18.743, -28.802), 'right_wrist': (70.498, 18.125),
-        'left_shoulder': (-40.996, 96.696, 39.219), 'left_elbow': (55.601, 70.084),
-        'left_wrist': (-48.633, 9.612),
-    })
-    human.KeyJoints(10.0, {
-        'spine_lumbar': (38.538, 2.878, -6.368), 'spine_thoracic': (-0.893, -2.969, -23.417),
-        'neck': (29.745, -12.654, 44.886), 'head': (14.298, 10.993),
-        'right_shoulder': (44.387, 9.807, -84.812), 'right_elbow': (16.091, -27.649),
-        'right_wrist': (66.453, 16.688), 'left_shoulder': (-41.157, 94.383, 40.157),
-        'left_elbow': (53.785, 70.32), 'left_wrist': (-47.547, 9.647),
-    })
-    human.KeyJoints(10.1, {
-        'spine_lumbar': (40.005, -7.029, -1.412), 'spine_thoracic': (-4.626, -0.617, -19.637),
-        'neck': (27.21, -14.182, 33.614), 'head': (14.909, 11.206),
-        'right_clavicle': (-9.119, 15.0), 'right_shoulder': (49.266, -5.661, -82.637),
-        'right_elbow': (13.203, -26.388), 'right_wrist': (62.185, 15.134),
-        'left_shoulder': (-44.045, 98.753, 45.42), 'left_elbow': (55.921, 71.477),
-        'left_wrist': (-50.79, 11.663),
-    })
-    human.KeyJoints(10.2, {
-        'spine_lumbar': (41.646, -14.644, 2.582), 'spine_thoracic': (-8.4, 1.147, -16.592),
-        'neck': (26.822, -19.148, 23.453), 'right_clavicle': (-9.724, 15.0),
-        'right_shoulder': (53.65, -18.845, -80.743), 'right_elbow': (10.709, -25.29),
-        'right_wrist': (58.746, 13.813), 'left_shoulder': (-45.857, 103.107, 50.718),
-        'left_elbow': (58.757, 72.679), 'left_wrist': (-53.907, 13.652),
-    })
-    human.KeyJoints(10.3, {
-        'spine_lumbar': (43.5, -17.567, 4.39), 'spine_thoracic': (-11.68, 1.745, -15.213),
-        'neck': (28.378, -21.854, 18.293), 'head': (15.0, 11.232), 'right_clavicle': (-9.998, 15.0),
-        'right_shoulder': (56.557, -26.278, -79.597), 'right_elbow': (9.242, -24.626),
-        'right_wrist': (57.188, 13.073), 'left_shoulder': (-45.413, 105.16, 54.131),
-        'left_elbow': (60.485, 73.487), 'left_wrist': (-55.174, 14.721),
-    })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
-    human.KeyJoints(10.4, {
-        'spine_lumbar': (55.984, -19.274, 4.261), 'spine_thoracic': (-11.151, 2.821, -15.334),
-        'neck': (29.666, -22.842, 19.438), 'right_clavicle': (-9.278, 14.779),
-        'right_shoulder': (55.427, -28.827, -79.489), 'right_elbow': (8.503, -24.513),
-        'right_wrist': (57.83, 13.041), 'left_shoulder': (-42.748, 126.57, 65.992),
-        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
-    })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
+    human.LookAt((10.0, 25.0, 95.0), start=10.488218, duration=0.719288)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (53.328, -18.605, 3.949), 'spine_thoracic': (-10.686, 2.587, -15.652),
-        'neck': (29.73, -22.598, 20.516), 'right_clavicle': (-8.549, 14.373),
-        'right_shoulder': (53.842, -27.727, -79.819), 'right_elbow': (5.563, -24.423),
-        'right_wrist': (52.913, 12.214), 'left_shoulder': (-42.89, 125.092, 65.218),
-        'left_elbow': (76.882, 75.783), 'left_wrist': (-66.126, 18.973),
+        'spine_lumbar': (42.878, 18.568, -14.976), 'spine_thoracic': (5.226, -6.456, -29.982),
+        'neck': (34.647, -12.869, 59.972), 'head': (14.933, 11.25),
+        'right_clavicle': (-7.063, 15.0), 'right_shoulder': (36.464, 35.798, -88.417),
+        'right_elbow': (20.906, -29.739), 'right_wrist': (73.865, 19.303),
+        'left_shoulder': (-43.155, 110.477, 48.951), 'left_elbow': (63.898, 72.166),
+        'left_wrist': (-57.001, 13.587),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(10.6, {
-        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
-        'right_shoulder': (52.964, -27.134, -79.971), 'right_elbow': (10.01, 5.452),
-        'right_wrist': (59.48, 13.764), 'left_shoulder': (-42.748, 126.57, 65.992),
-        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
+        'spine_lumbar': (39.508, 15.181, -13.088), 'spine_thoracic': (3.924, -5.748, -28.542),
+        'neck': (33.501, -12.546, 57.083), 'head': (14.655, 11.218),
+        'right_clavicle': (-7.349, 15.0), 'right_shoulder': (38.157, 30.168, -87.641),
+        'right_elbow': (19.866, -29.289), 'right_wrist': (72.239, 18.736),
+        'left_shoulder': (-42.012, 100.987, 41.38), 'left_elbow': (58.044, 70.525),
+        'left_wrist': (-51.215, 10.656),
     })
     human.KeyJoints(10.7, {
-        'right_shoulder': (55.811, -21.918, -80.195), 'right_elbow': (11.383, 62.995),
-        'right_wrist': (64.335, 15.341),
+        'spine_lumbar': (38.303, 7.928, -9.049), 'spine_thoracic': (1.042, -4.138, -25.462),
+        'neck': (31.261, -12.534, 50.198), 'head': (14.204, 11.116),
+        'right_clavicle': (-7.961, 15.0), 'right_shoulder': (41.861, 17.995, -85.953),
+        'right_elbow': (17.612, -28.311), 'right_wrist': (68.762, 17.511),
+        'left_shoulder': (-40.68, 94.686, 38.86), 'left_elbow': (54.301, 70.022),
+        'left_wrist': (-47.509, 9.305),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(10.8, {
-        'right_shoulder': (53.435, -24.714, -80.145), 'right_elbow': (11.089, 31.708),
-        'right_wrist': (61.526, 14.451),
+        'spine_lumbar': (39.167, -1.704, -4.083), 'spine_thoracic': (-2.551, -1.882, -21.675),
+        'neck': (28.283, -13.007, 39.926), 'head': (14.712, 11.026),
+        'right_shoulder': (46.594, 2.744, -83.822), 'right_wrist': (64.485, 15.978),
+        'left_shoulder': (-42.449, 96.155, 42.418), 'left_elbow': (54.565, 70.814),
+        'left_wrist': (-48.877, 10.5),
     })
     human.KeyJoints(10.9, {
-        'right_shoulder': (54.023, -29.356, -79.622), 'right_elbow': (8.433, -23.298),
-        'right_wrist': (58.206, 13.164),
+        'spine_lumbar': (40.744, -10.983, 0.589), 'spine_thoracic': (-6.341, 0.318, -18.112),
+        'neck': (26.782, -16.125, 28.642), 'head': (14.949, 11.211),
+        'right_clavicle': (-9.422, 15.0), 'right_shoulder': (51.37, -12.12, -81.717),
+        'right_elbow': (11.987, -25.855), 'right_wrist': (60.462, 14.486),
+        'left_shoulder': (-45.223, 101.063, 47.951), 'left_elbow': (57.352, 72.042),
+        'left_wrist': (-52.479, 12.658),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.0, {
-        'right_shoulder': (52.946, -26.478, -80.032), 'right_elbow': (10.409, 13.0),
-        'right_wrist': (60.029, 13.957),
+        'spine_lumbar': (42.499, -16.68, 3.744), 'spine_thoracic': (-9.983, 1.585, -15.705),
+        'neck': (27.509, -20.581, 20.157), 'right_clavicle': (-9.9, 15.0),
+        'right_shoulder': (55.208, -23.13, -80.104), 'right_elbow': (9.88, -24.92),
+        'right_wrist': (57.745, 13.385), 'left_shoulder': (-45.884, 104.444, 52.659),
+        'left_elbow': (59.802, 73.131), 'left_wrist': (-54.76, 14.302),
     })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(11.1, {
-        'right_shoulder': (56.021, -21.773, -80.19), 'right_elbow': (11.382, 65.007),
-        'right_wrist': (64.488, 15.389),
+        'spine_lumbar': (58.567, -19.752, 4.357), 'spine_thoracic': (-11.756, 2.887, -15.225),
+        'neck': (29.399, -22.823, 18.578), 'right_clavicle': (-10.0, 15.0),
+        'right_shoulder': (57.232, -27.218, -79.394), 'right_elbow': (9.026, -24.508),
+        'right_wrist': (57.363, 12.975), 'left_shoulder': (-42.748, 126.57, 65.992),
+        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.2, {
-        'right_shoulder': (53.149, -25.446, -80.106), 'right_elbow': (10.849, 24.034),
-        'right_wrist': (60.834, 14.232),
+        'spine_lumbar': (49.888, -17.974, 3.921), 'spine_thoracic': (-10.947, 2.275, -15.68),
+        'neck': (29.692, -22.552, 20.559), 'right_clavicle': (-8.532, 14.343),
+        'right_shoulder': (53.947, -23.215, -80.398), 'right_elbow': (0.0, -24.0),
+        'right_wrist': (27.499, 7.189), 'left_shoulder': (-43.33, 120.445, 62.79),
+        'left_elbow': (73.002, 75.293), 'left_wrist': (-63.543, 18.012),
     })
-    human.KeyJoints(11.3, {
-        'right_shoulder': (54.105, -29.428, -79.603), 'right_elbow': (8.353, -24.512),
-        'right_wrist': (58.135, 13.135),
-    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=11.207505, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(11.3, {
+        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
+        'right_shoulder': (53.93, -29.25, -79.646), 'right_elbow': (8.508, -21.762),
+        'right_wrist': (58.248, 13.192), 'left_shoulder': (-42.748, 126.57, 65.992),
+        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
+    })
     human.KeyJoints(11.4, {
-        'right_shoulder': (53.048, -25.774, -80.085), 'right_elbow': (10.767, 20.748),
-        'right_wrist': (60.686, 14.173),
+        'right_shoulder': (53.667, -24.271, -80.165), 'right_elbow': (11.194, 36.315),
+        'right_wrist': (61.958, 14.587),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.5, {
-        'right_shoulder': (56.06, -21.747, -80.189), 'right_elbow': (11.382, 65.374),
-        'right_wrist': (64.516, 15.397),
+        'right_shoulder': (55.61, -22.067, -80.198), 'right_elbow': (11.384, 61.018),
+        'right_wrist': (64.18, 15.292),
     })
     human.KeyJoints(11.6, {
-        'right_shoulder': (52.974, -26.185, -80.056), 'right_elbow': (10.568, 16.265),
-        'right_wrist': (60.295, 14.046),
+        'right_shoulder': (53.029, -27.509, -79.929), 'right_elbow': (9.758, 0.973),
+        'right_wrist': (59.2, 13.657),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.7, {
-        'right_shoulder': (54.067, -29.406, -79.611), 'right_elbow': (8.399, -24.012),
-        'right_wrist': (58.189, 13.152),
+        'right_shoulder': (53.724, -28.998, -79.699), 'right_elbow': (8.699, -18.155),
+        'right_wrist': (58.368, 13.262),
     })
     human.KeyJoints(11.8, {
-        'right_shoulder': (53.3, -25.023, -80.13), 'right_elbow': (10.998, 28.487),
-        'right_wrist': (61.23, 14.358),
+        'right_shoulder': (54.107, -23.597, -80.187), 'right_elbow': (11.305, 43.397),
+        'right_wrist': (62.627, 14.798),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.9, {
-        'right_shoulder': (55.919, -21.842, -80.192), 'right_elbow': (11.383, 64.034),
-        'right_wrist': (64.415, 15.366),
+        'right_shoulder': (55.2, -22.404, -80.203), 'right_elbow': (11.382, 56.782),
+        'right_wrist': (63.832, 15.181),
     })
     human.KeyJoints(12.0, {
-        'right_shoulder': (52.942, -26.864, -79.998), 'right_elbow': (10.181, 8.607),
-        'right_wrist': (59.698, 13.842),
+        'right_shoulder': (53.201, -28.058, -79.858), 'right_elbow': (9.371, -5.816),
+        'right_wrist': (58.838, 13.506),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(12.1, {
+        'right_shoulder': (53.479, -28.658, -79.764), 'right_elbow': (8.979, -13.34),
+        'right_wrist': (58.582, 13.365),
+    })
+    human.KeyJoints(12.2, {
+        'right_shoulder': (54.593, -23.003, -80.2), 'right_elbow': (11.359, 49.843),
+        'right_wrist': (63.223, 14.986),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(12.3, {
+        'right_shoulder': (54.725, -22.861, -80.201), 'right_elbow': (11.367, 51.44),
+        'right_wrist': (63.367, 15.032),
+    })
+    human.KeyJoints(12.4, {
+        'right_shoulder': (53.41, -28.553, -79.783), 'right_elbow': (9.07, -11.867),
+        'right_wrist': (58.661, 13.399),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(12.5, {
+        'right_shoulder': (53.257, -28.192, -79.838), 'right_elbow': (9.273, -7.524),
+        'right_wrist': (58.759, 13.47),
+    })
+    human.KeyJoints(12.6, {
+        'right_shoulder': (55.077, -22.515, -80.203), 'right_elbow': (11.379, 55.446),
+        'right_wrist': (63.718, 15.144),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(12.7, {
+        'right_shoulder': (54.235, -23.428, -80.192), 'right_elbow': (11.324, 45.201),
+        'right_wrist': (62.796, 14.851),
+    })
+    human.KeyJoints(12.8, {
+        'right_shoulder': (53.661, -28.915, -79.715), 'right_elbow': (8.765, -16.971),
+        'right_wrist': (58.415, 13.286),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=12.079969, duration=0.072)
-    human.KeyJoints(12.1, {
-        'right_shoulder': (54.105, -29.428, -79.603), 'right_elbow': (8.353, -24.552),
-        'right_wrist': (58.135, 13.135),
+    human.Grasp('right_hand', 'open', start=12.834705, duration=0.072)
+    human.KeyJoints(12.9, {
+        'neck': (29.73, -22.598, 20.516), 'right_shoulder': (54.105, -29.428, -79.603),
+        'right_elbow': (8.353, -24.552), 'right_wrist': (58.135, 13.135),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=12.151969, duration=0.2628)
-    human.KeyJoints(12.2, {'neck': (29.716, -22.605, 20.493)})
-    human.KeyJoints(12.3, {'neck': (29.592, -22.666, 20.297)})
-    human.KeyJoints(12.4, {'neck': (29.344, -22.79, 19.902)})
+    human.LookAt((10.0, 25.0, 95.0), start=12.906705, duration=0.2628)
+    human.KeyJoints(13.0, {'neck': (29.675, -22.625, 20.429)})
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(12.6, {'neck': (29.296, -22.813, 19.826)})
-    human.KeyJoints(15.4, {
+    human.KeyJoints(13.2, {'neck': (29.296, -22.813, 19.826)})
+    human.KeyJoints(14.4, {'head': (15.0, 11.25)})
+    human.KeyJoints(16.1, {
         'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
         'right_clavicle': (-8.549, 14.373), 'right_shoulder': (54.105, -29.428, -79.603),
         'right_elbow': (8.353, -24.552), 'right_wrist': (58.135, 13.135),
@@ -781,213 +827,204 @@ def replace_fuel_filter():
         'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
-    human.KeyJoints(15.5, {
-        'spine_lumbar': (44.379, -15.593, 3.174), 'spine_thoracic': (-8.333, 2.156, -12.505),
-        'right_clavicle': (-6.871, 11.483), 'right_shoulder': (45.2, -21.889, -67.602),
-        'right_elbow': (13.031, -16.09), 'right_wrist': (45.777, 10.281),
-        'left_clavicle': (-6.768, 11.984), 'left_shoulder': (-32.468, 102.737, 48.803),
-        'left_elbow': (69.243, 64.145), 'left_wrist': (-53.492, 15.427),
+    human.KeyJoints(16.2, {
+        'spine_lumbar': (52.753, -18.278, 3.835), 'spine_thoracic': (-10.261, 2.61, -15.12),
+        'right_clavicle': (-8.302, 13.885), 'right_shoulder': (52.68, -28.033, -77.577),
+        'right_elbow': (8.686, -23.082), 'right_wrist': (55.306, 12.497),
+        'left_clavicle': (-8.177, 14.49), 'left_shoulder': (-40.982, 122.727, 63.192),
+        'left_elbow': (76.538, 73.974), 'left_wrist': (-64.691, 18.66),
     })
-    human.KeyJoints(15.6, {
-        'spine_lumbar': (20.525, -7.508, 1.292), 'spine_thoracic': (-2.984, 0.864, -5.055),
-        'right_clavicle': (-2.796, 4.641), 'right_shoulder': (23.588, -4.428, -39.21),
-        'right_elbow': (25.533, 3.744), 'right_wrist': (18.634, 4.105),
-        'left_clavicle': (-2.754, 4.844), 'left_shoulder': (-7.782, 45.96, 7.754),
-        'left_elbow': (48.326, 36.15), 'left_wrist': (-21.545, 6.177),
+    human.KeyJoints(16.3, {
+        'spine_lumbar': (34.035, -12.191, 2.358), 'spine_thoracic': (-6.116, 1.596, -9.274),
+        'right_clavicle': (-5.103, 8.516), 'right_shoulder': (35.835, -14.289, -55.297),
+        'right_elbow': (18.38, -7.475), 'right_wrist': (33.986, 7.57),
+        'left_clavicle': (-5.027, 8.888), 'left_shoulder': (-21.772, 77.921, 30.95),
+        'left_elbow': (60.183, 51.993), 'left_wrist': (-39.586, 11.393),
     })
-    human.KeyRoot(15.7, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
-    human.KeyJoints(15.7, {
-        'spine_lumbar': (4.519, -0.688, 0.028), 'spine_thoracic': (0.693, -0.003, -0.055),
-        'right_clavicle': (-0.06, 0.051), 'right_shoulder': (8.935, 7.321, -20.173),
-        'right_elbow': (34.077, 17.042), 'right_wrist': (0.232, 0.004),
-        'left_clavicle': (-0.059, 0.053), 'left_shoulder': (8.556, 8.236, -19.782),
-        'left_elbow': (34.205, 17.395), 'left_wrist': (-0.244, -0.015),
+    human.KeyRoot(16.4, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
+    human.KeyJoints(16.4, {
+        'spine_lumbar': (10.974, -3.897, 0.538), 'spine_thoracic': (-0.921, 0.347, -2.071),
+        'right_clavicle': (-1.164, 1.902), 'right_shoulder': (14.828, 2.575, -27.851),
+        'right_elbow': (30.608, 11.676), 'right_wrist': (7.681, 1.657),
+        'left_clavicle': (-1.147, 1.985), 'left_shoulder': (1.952, 23.453, -8.689),
+        'left_elbow': (39.883, 24.953), 'left_wrist': (-8.821, 2.473),
         'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
         'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
         'left_ankle': (9.996, -1.322),
     })
-    human.KeyRoot(15.8, (1.613, 45.179, 45.245), (-10.437, 0.0, 0.0))
-    human.KeyJoints(15.8, {
-        'spine_lumbar': (5.363, 4.641, 0.0), 'spine_thoracic': (0.922, 0.954, 0.045),
-        'right_clavicle': (0.0, -0.041), 'right_shoulder': (8.596, 7.57, -19.802),
-        'right_elbow': (34.296, 17.309), 'right_wrist': (-0.145, -0.069),
-        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.873, 7.419, -20.314),
-        'left_elbow': (33.968, 17.02), 'left_wrist': (0.185, -0.127),
-        'right_hip': (21.072, -0.241, 0.399), 'right_knee': (131.068,),
-        'right_ankle': (9.974, 3.197), 'left_hip': (21.072, 0.241, -0.399), 'left_knee': (131.068,),
-        'left_ankle': (9.974, -3.197),
-    })
-    human.KeyRoot(15.9, (1.542, 44.797, 44.263), (-10.437, 0.0, 0.0))
-    human.KeyJoints(15.9, {
-        'spine_lumbar': (6.681, 17.091, 0.0), 'spine_thoracic': (0.681, 4.109, 0.035),
-        'right_hip': (22.438, -0.57, 0.892), 'right_knee': (132.422,),
-        'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892), 'left_knee': (132.422,),
-        'left_ankle': (9.856, -7.271),
-    })
-    human.KeyRoot(16.0, (1.117, 44.289, 43.012), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.0, {
-        'spine_lumbar': (9.102, 20.0, 0.0), 'spine_thoracic': (-1.773, 10.0, 0.025),
-        'right_hip': (24.116, -1.428, 2.049), 'right_knee': (134.023,),
-        'right_ankle': (9.175, 17.319), 'left_hip': (24.116, 1.428, -2.049),
-        'left_knee': (134.023,), 'left_ankle': (9.175, -17.319),
-    })
-    human.KeyRoot(16.1, (-0.056, 44.345, 43.036), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.1, {
-        'spine_lumbar': (9.449, 20.0, 0.0), 'spine_thoracic': (-9.041, 10.0, 0.015),
-        'right_hip': (23.799, -2.956, 3.894), 'right_knee': (133.446,),
-        'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385), 'left_knee': (134.975,),
-        'left_ankle': (8.358, -19.152),
-    })
-    human.KeyRoot(16.2, (-0.125, 45.363, 45.533), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.2, {
-        'spine_lumbar': (0.436, 20.0, 0.0), 'spine_thoracic': (-6.814, 10.0, 0.005),
-        'left_elbow': (34.336, 17.17), 'right_hip': (20.24, -2.446, 3.776),
-        'right_knee': (129.937,), 'right_ankle': (7.205, 32.018),
-        'left_hip': (25.476, -20.779, -4.841), 'left_knee': (132.206,),
-        'left_ankle': (-1.619, -1.63),
-    })
-    human.KeyRoot(16.3, (0.22, 43.903, 42.087), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.3, {
-        'spine_lumbar': (7.197, 20.0, 0.0), 'spine_thoracic': (-5.507, 10.0, 0.0),
-        'left_shoulder': (8.594, 7.5, -20.0), 'right_hip': (25.234, -2.825, 3.622),
-        'right_knee': (134.923,), 'right_ankle': (7.075, 32.768),
-        'left_hip': (46.263, -19.671, 3.021), 'left_ankle': (-46.113, -3.977),
-    })
-    human.KeyRoot(16.4, (0.037, 43.856, 41.978), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.4, {
-        'spine_lumbar': (1.043, 20.0, 0.0), 'spine_thoracic': (-8.777, 10.0, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
-        'right_hip': (25.35, -3.091, 3.792), 'right_knee': (134.999,),
-        'right_ankle': (6.684, 34.925), 'left_hip': (83.405, -21.566, 31.596),
-        'left_knee': (134.236,), 'left_ankle': (-44.475, -16.418),
-    })
+    human.KeyRoot(16.5, (1.611, 45.349, 45.7), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.5, {
-        'spine_lumbar': (0.161, 20.0, 0.0), 'spine_thoracic': (-9.448, 10.0, 0.0),
-        'right_wrist': (0.0, 0.0), 'left_hip': (111.005, -17.935, 10.92),
-        'left_ankle': (-37.194, -23.109),
+        'spine_lumbar': (4.658, 0.522, 0.0), 'spine_thoracic': (0.828, 0.121, 0.05),
+        'right_clavicle': (0.0, -0.046), 'right_shoulder': (8.588, 7.575, -19.779),
+        'right_elbow': (34.26, 17.323), 'right_wrist': (-0.16, -0.083),
+        'left_clavicle': (0.0, -0.048), 'left_shoulder': (8.872, 7.414, -20.356),
+        'left_elbow': (33.913, 17.0), 'left_wrist': (0.204, -0.144),
+        'right_hip': (20.435, -0.134, 0.228), 'right_knee': (130.434,),
+        'right_ankle': (9.993, 1.816), 'left_hip': (20.435, 0.134, -0.228), 'left_knee': (130.434,),
+        'left_ankle': (9.993, -1.816),
     })
+    human.KeyRoot(16.6, (1.597, 45.017, 44.823), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.294, 20.0, 0.0), 'spine_thoracic': (-6.149, 10.0, 0.0),
-        'right_elbow': (34.377, 17.189), 'right_ankle': (6.671, 34.996),
-        'left_hip': (118.779, -9.323, -17.486), 'left_knee': (131.188,),
-        'left_ankle': (-30.516, -24.67),
+        'spine_lumbar': (5.893, 9.793, 0.0), 'spine_thoracic': (0.862, 2.068, 0.041),
+        'right_hip': (21.661, -0.364, 0.588), 'right_knee': (131.654,),
+        'right_ankle': (9.94, 4.746), 'left_hip': (21.661, 0.364, -0.588), 'left_knee': (131.654,),
+        'left_ankle': (9.94, -4.746),
     })
-    human.KeyRoot(16.7, (0.102, 43.861, 41.992), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.7, (1.396, 44.586, 43.733), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-1.104, 20.0, 0.0), 'spine_thoracic': (-6.341, 10.0, 0.0),
-        'right_hip': (25.346, -3.002, 3.796), 'right_ankle': (6.725, 34.696),
-        'left_hip': (100.946, -9.438, 9.142), 'left_knee': (132.386,),
-        'left_ankle': (-3.902, 13.123),
+        'spine_lumbar': (7.607, 20.0, 0.0), 'spine_thoracic': (-0.071, 9.443, 0.031),
+        'right_hip': (23.155, -0.889, 1.344), 'right_ankle': (9.662, 11.097),
+        'left_hip': (23.155, 0.889, -1.344), 'left_ankle': (9.662, -11.097),
     })
-    human.KeyRoot(16.8, (1.814, 44.016, 42.509), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.8, (0.909, 44.084, 42.534), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-3.512, 19.67, 0.0), 'spine_thoracic': (-1.022, 3.984, 0.0),
-        'right_hip': (25.018, -0.638, 0.904), 'right_ankle': (9.842, 7.602),
-        'left_hip': (100.292, -1.591, 1.724), 'left_knee': (132.49,), 'left_ankle': (-0.212, 2.435),
+        'spine_lumbar': (10.469, 20.0, 0.0), 'spine_thoracic': (-3.799, 10.0, 0.021),
+        'right_elbow': (34.299, 17.245), 'left_elbow': (34.205, 17.11),
+        'right_hip': (24.753, -1.816, 2.512), 'right_knee': (134.609,),
+        'right_ankle': (8.715, 21.633), 'left_hip': (24.74, 1.56, -2.224), 'left_knee': (134.633,),
+        'left_ankle': (8.858, -20.619),
     })
-    human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.9, (-0.147, 45.044, 44.695), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-3.806, 9.808, 0.0), 'spine_thoracic': (-0.821, 1.771, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
-        'right_hip': (25.037, -0.397, 0.568), 'right_ankle': (10.063, 4.833),
-        'left_hip': (98.871, -0.812, 0.999), 'left_knee': (132.297,), 'left_ankle': (3.221, 1.335),
+        'spine_lumbar': (3.657, 20.0, 0.0), 'spine_thoracic': (-9.422, 10.0, 0.011),
+        'right_elbow': (34.396, 17.219), 'right_hip': (21.413, -2.675, 3.995),
+        'right_knee': (131.066,), 'right_ankle': (6.746, 34.58), 'left_hip': (22.45, -3.498, 0.1),
+        'left_knee': (134.995,), 'left_ankle': (7.175, -13.717),
     })
-    human.KeyRoot(17.0, (2.995, 46.839, 37.706), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.0, (0.064, 44.823, 44.162), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (10.19, 8.819, 0.0), 'spine_thoracic': (1.504, 1.598, 0.0),
-        'right_shoulder': (8.942, 7.177, -19.855), 'right_elbow': (34.953, 17.189),
-        'left_shoulder': (7.002, 7.234, -20.119), 'left_elbow': (38.54, 17.189),
-        'left_wrist': (-0.346, 0.961), 'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,),
-        'right_ankle': (14.452, 5.04), 'left_hip': (92.433, -0.17, 0.414), 'left_knee': (123.3,),
-        'left_ankle': (11.598, 0.435),
+        'spine_lumbar': (1.949, 20.0, 0.0), 'spine_thoracic': (-5.126, 10.0, 0.002),
+        'left_shoulder': (8.6, 7.488, -20.009), 'left_elbow': (34.373, 17.183),
+        'right_hip': (22.217, -2.529, 3.657), 'right_knee': (131.923,),
+        'right_ankle': (7.268, 31.651), 'left_hip': (37.509, -20.987, -3.061),
+        'left_knee': (131.788,), 'left_ankle': (-31.579, -0.893),
     })
-    human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.1, (0.0, 43.855, 41.972), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (31.609, 7.81, 0.0), 'spine_thoracic': (4.691, 1.392, 0.0),
-        'right_shoulder': (9.541, 6.719, -19.638), 'right_elbow': (35.657, 17.189),
-        'left_shoulder': (5.093, 6.994, -20.291), 'left_elbow': (43.763, 17.189),
-        'left_wrist': (-0.788, 2.166), 'right_hip': (34.67, -0.462, 1.249),
-        'right_knee': (128.657,), 'right_ankle': (18.339, 2.038),
-        'left_hip': (79.247, -0.08, -0.608), 'left_knee': (101.565,), 'left_ankle': (19.028, -0.62),
+        'spine_lumbar': (3.045, 20.0, 0.0), 'spine_thoracic': (-8.412, 10.0, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
+        'right_hip': (25.351, -3.138, 3.785), 'right_knee': (134.997,),
+        'right_ankle': (6.665, 35.0), 'left_hip': (64.476, -8.755, 27.704), 'left_knee': (135.0,),
+        'left_ankle': (-45.789, -11.33),
     })
-    human.KeyRoot(17.2, (5.506, 71.895, 36.184), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.2, (0.118, 43.861, 41.993), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (7.204, 9.431, 0.0), 'spine_thoracic': (1.004, 1.735, 0.0),
-        'right_shoulder': (9.287, 6.627, -19.637), 'right_elbow': (36.156, 17.188),
-        'right_wrist': (0.019, 0.444), 'left_shoulder': (4.766, 6.946, -20.322),
-        'left_elbow': (44.355, 17.188), 'left_wrist': (-0.843, 2.307),
-        'right_hip': (17.26, 0.426, 2.392), 'right_knee': (94.175,), 'right_ankle': (14.28, 2.485),
-        'left_hip': (52.924, -1.058, -1.435), 'left_knee': (72.555,),
-        'left_ankle': (18.941, -1.787),
+        'spine_lumbar': (0.266, 20.0, 0.0), 'right_wrist': (0.0, 0.0),
+        'right_hip': (25.347, -2.982, 3.817), 'right_ankle': (6.706, 34.806),
+        'left_hip': (97.279, -23.384, 30.496), 'left_knee': (133.388,),
+        'left_ankle': (-44.238, -19.649),
     })
-    human.KeyRoot(17.3, (6.841, 85.806, 36.217), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.3, (0.072, 43.882, 42.034), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (1.491, 11.538, 0.0), 'spine_thoracic': (-0.11, 2.076, 0.0),
-        'right_shoulder': (8.863, 7.134, -19.851), 'right_elbow': (35.111, 17.189),
-        'left_shoulder': (6.816, 7.219, -20.138), 'left_elbow': (38.777, 17.189),
-        'left_wrist': (-0.369, 1.014), 'right_hip': (10.102, 1.074, 3.37), 'right_knee': (67.78,),
-        'right_ankle': (-4.677, 3.685), 'left_hip': (28.718, -2.117, -1.16), 'left_knee': (28.761,),
-        'left_ankle': (0.063, -2.414),
+        'spine_lumbar': (0.535, 20.0, 0.0), 'spine_thoracic': (-9.672, 10.0, 0.0),
+        'right_hip': (25.276, -3.032, 3.825), 'right_knee': (134.925,), 'right_ankle': (6.67, 35.0),
+        'left_hip': (121.052, -9.241, -16.605), 'left_knee': (131.23,),
+        'left_ankle': (-36.336, -23.545),
     })
-    human.KeyRoot(17.4, (6.21, 90.189, 45.35), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.4, (0.354, 43.897, 42.084), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-27.238, 13.403, 0.0), 'spine_thoracic': (-7.232, 2.271, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
-        'right_hip': (-6.175, 2.175, 3.192), 'right_knee': (44.572,),
-        'right_ankle': (-11.112, 3.826), 'left_hip': (10.143, -2.95, -0.528), 'left_knee': (4.612,),
-        'left_ankle': (-5.518, -2.997),
+        'spine_lumbar': (-0.599, 20.0, 0.0), 'spine_thoracic': (-3.563, 10.0, 0.0),
+        'right_hip': (25.271, -2.651, 3.376), 'right_ankle': (7.484, 30.359),
+        'left_hip': (104.975, -24.872, 11.404), 'left_knee': (134.335,),
+        'left_ankle': (-8.743, 26.077),
     })
-    human.KeyRoot(17.5, (7.348, 90.212, 55.24), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-26.02, 11.831, 0.0), 'spine_thoracic': (-7.137, 2.022, 0.0),
-        'right_hip': (-11.824, 3.181, 7.272), 'right_knee': (37.702,),
-        'right_ankle': (-28.315, 8.74), 'left_hip': (8.165, -4.938, -0.708), 'left_knee': (13.822,),
-        'left_ankle': (5.687, -4.989),
+        'spine_lumbar': (-2.784, 20.0, 0.0), 'spine_thoracic': (-1.993, 10.0, 0.0),
+        'right_hip': (25.095, -1.56, 2.118), 'right_ankle': (9.087, 18.216),
+        'left_hip': (101.65, -5.216, 4.899), 'left_knee': (132.464,), 'left_ankle': (-4.257, 7.273),
     })
-    human.KeyRoot(17.6, (9.086, 89.367, 62.809), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.6, (1.94, 44.02, 42.537), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (19.992, 0.136, 0.0), 'spine_thoracic': (3.197, 0.026, 0.0),
-        'right_hip': (-14.859, 2.446, 15.766), 'right_knee': (32.143,),
-        'right_ankle': (-48.92, 8.028), 'left_hip': (5.129, -7.128, -0.638), 'left_knee': (17.624,),
-        'left_ankle': (12.534, -7.156),
+        'spine_lumbar': (-3.818, 13.541, 0.0), 'spine_thoracic': (-0.873, 2.439, 0.0),
+        'right_hip': (25.01, -0.465, 0.662), 'right_knee': (135.0,), 'right_ankle': (9.917, 5.554),
+        'left_hip': (100.02, -1.111, 1.234), 'left_knee': (132.483,), 'left_ankle': (0.496, 1.73),
     })
-    human.KeyRoot(17.7, (9.056, 89.807, 63.334), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.7, (2.187, 44.865, 41.295), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (23.049, -1.14, 0.0), 'spine_thoracic': (3.427, -0.195, 0.0),
-        'right_hip': (-14.615, 3.9, 10.07), 'right_knee': (39.259,),
-        'right_ankle': (-28.903, 7.523), 'left_hip': (2.362, -7.158, -0.294),
-        'left_knee': (12.695,), 'left_ankle': (10.351, -7.164),
+        'spine_lumbar': (-0.711, 9.533, 0.0), 'spine_thoracic': (-0.285, 1.721, 0.0),
+        'right_hip': (25.864, -0.401, 0.608), 'right_knee': (134.897,),
+        'right_ankle': (11.689, 5.23), 'left_hip': (96.512, -0.606, 0.925), 'left_knee': (129.999,),
+        'left_ankle': (6.903, 1.112),
     })
-    human.KeyRoot(17.8, (9.478, 90.433, 59.387), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.8, (3.969, 49.362, 33.895), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (39.931, -2.894, 0.0), 'spine_thoracic': (5.297, -0.477, 0.0),
-        'right_hip': (-13.883, 6.98, 1.033), 'right_knee': (26.08,), 'right_ankle': (18.25, 7.158),
-        'left_hip': (1.656, -6.905, -0.199), 'left_knee': (5.704,), 'left_ankle': (4.06, -6.908),
+        'spine_lumbar': (18.845, 9.335, 0.0), 'spine_thoracic': (2.867, 1.657, 0.0),
+        'right_hip': (32.668, -0.481, 0.931), 'right_knee': (133.955,),
+        'right_ankle': (16.862, 3.355), 'left_hip': (87.758, 0.016, -0.132),
+        'left_knee': (114.868,), 'left_ankle': (15.217, -0.14),
     })
-    human.KeyRoot(17.9, (7.866, 90.637, 59.089), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.9, (5.464, 61.848, 31.009), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (28.052, -7.718, 0.0), 'spine_thoracic': (4.263, -1.345, 0.0),
-        'right_hip': (4.571, 6.066, 0.522), 'right_knee': (24.937,), 'right_ankle': (20.0, 6.293),
-        'left_hip': (1.36, -5.78, -0.137), 'left_knee': (5.108,), 'left_ankle': (3.754, -5.782),
+        'spine_lumbar': (22.33, 9.58, 0.0), 'spine_thoracic': (3.504, 1.695, 0.0),
+        'right_hip': (29.343, -0.246, 1.79), 'right_knee': (115.704,),
+        'right_ankle': (17.759, 2.007), 'left_hip': (68.112, -0.391, -1.012),
+        'left_knee': (88.512,), 'left_ankle': (19.62, -1.09),
     })
-    human.KeyRoot(18.0, (4.368, 90.602, 61.681), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.0, (5.975, 77.897, 37.201), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.0, {
-        'spine_lumbar': (15.545, -15.079, 0.0), 'spine_thoracic': (2.453, -2.691, 0.0),
-        'right_hip': (0.929, 3.764, 0.061), 'right_knee': (8.684,), 'right_ankle': (7.758, 3.765),
-        'left_hip': (0.929, -3.764, -0.061), 'left_knee': (8.684,), 'left_ankle': (7.758, -3.765),
+        'spine_lumbar': (-1.442, 11.456, 0.0), 'spine_thoracic': (-0.449, 2.061, 0.0),
+        'right_hip': (12.583, 0.84, 2.73), 'right_knee': (81.83,), 'right_ankle': (8.949, 2.913),
+        'left_hip': (43.852, -1.541, -1.492), 'left_knee': (58.3,), 'left_ankle': (14.229, -2.146),
     })
-    human.KeyRoot(18.1, (0.997, 91.055, 56.584), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.1, (6.707, 88.973, 39.793), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.1, {
-        'spine_lumbar': (7.323, -7.236, 0.0), 'spine_thoracic': (1.243, -1.309, 0.0),
-        'right_hip': (2.4, 0.862, 0.036), 'right_knee': (5.55,), 'right_ankle': (3.151, 0.863),
-        'left_hip': (2.4, -0.862, -0.036), 'left_knee': (5.55,), 'left_ankle': (3.151, -0.863),
+        'spine_lumbar': (-9.927, 12.685, 0.0), 'spine_thoracic': (-2.463, 2.236, 0.0),
+        'right_hip': (3.327, 1.529, 3.488), 'right_knee': (56.692,), 'right_ankle': (-9.63, 3.845),
+        'left_hip': (16.83, -2.566, -0.776), 'left_knee': (10.353,), 'left_ankle': (-6.46, -2.68),
     })
-    human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.175969, {
+    human.KeyRoot(18.2, (6.189, 90.314, 47.202), (-10.437, 0.0, 0.0))
+    human.KeyJoints(18.2, {
+        'spine_lumbar': (-30.0, 13.412, 0.0), 'spine_thoracic': (-10.771, 2.197, 0.0),
+        'right_hip': (-10.151, 2.544, 3.055), 'right_knee': (39.379,),
+        'right_ankle': (-10.802, 4.313), 'left_hip': (10.073, -3.159, -0.561),
+        'left_knee': (7.014,), 'left_ankle': (-3.044, -3.208),
+    })
+    human.KeyRoot(18.3, (8.426, 89.556, 60.814), (-10.437, 0.0, 0.0))
+    human.KeyJoints(18.3, {
+        'spine_lumbar': (-4.51, 6.271, 0.0), 'spine_thoracic': (-1.088, 1.129, 0.0),
+        'right_hip': (-13.932, 2.895, 12.563), 'right_knee': (34.153,),
+        'right_ankle': (-42.674, 9.331), 'left_hip': (6.507, -6.408, -0.729),
+        'left_knee': (17.844,), 'left_ankle': (11.378, -6.45),
+    })
+    human.KeyRoot(18.4, (8.887, 89.448, 64.226), (-10.437, 0.0, 0.0))
+    human.KeyJoints(18.4, {
+        'spine_lumbar': (18.068, -0.548, 0.0), 'spine_thoracic': (3.044, -0.098, 0.0),
+        'right_hip': (-13.412, 1.974, 16.251), 'right_knee': (34.043,),
+        'right_ankle': (-48.941, 7.254), 'left_hip': (3.281, -7.179, -0.41), 'left_knee': (15.868,),
+        'left_ankle': (12.612, -7.191),
+    })
+    human.KeyRoot(18.5, (9.246, 90.122, 61.561), (-10.437, 0.0, 0.0))
+    human.KeyJoints(18.5, {
+        'spine_lumbar': (29.713, -1.899, 0.0), 'right_hip': (-14.279, 5.673, 5.63),
+        'right_knee': (40.415,), 'right_ankle': (-4.063, 7.892), 'left_hip': (2.277, -7.04, -0.279),
+        'left_knee': (10.017,), 'left_ankle': (7.758, -7.045),
+    })
+    human.KeyRoot(18.6, (9.231, 90.507, 58.868), (-10.437, 0.0, 0.0))
+    human.KeyJoints(18.6, {
+        'spine_lumbar': (38.395, -3.795, 0.0), 'spine_thoracic': (5.335, -0.631, 0.0),
+        'right_hip': (-13.424, 6.96, -1.414), 'right_knee': (8.585,), 'right_ankle': (20.0, 7.157),
+        'left_hip': (1.608, -6.671, -0.187), 'left_knee': (4.96,), 'left_ankle': (3.363, -6.674),
+    })
+    human.KeyRoot(18.7, (5.752, 90.468, 63.489), (-10.437, 0.0, 0.0))
+    human.KeyJoints(18.7, {
+        'spine_lumbar': (11.702, -11.459, 0.0), 'spine_thoracic': (1.86, -2.051, 0.0),
+        'right_hip': (4.177, 4.823, 0.325), 'right_knee': (20.309,), 'right_ankle': (16.455, 4.841),
+        'left_hip': (-1.08, -4.921, 0.093), 'left_knee': (6.714,), 'left_ankle': (7.79, -4.922),
+    })
+    human.KeyRoot(18.8, (2.764, 90.877, 59.31), (-10.437, 0.0, 0.0))
+    human.KeyJoints(18.8, {
+        'spine_lumbar': (14.304, -13.901, 0.0), 'spine_thoracic': (2.303, -2.492, 0.0),
+        'right_hip': (1.61, 2.386, 0.067), 'right_knee': (7.225,), 'right_ankle': (5.616, 2.386),
+        'left_hip': (1.61, -2.386, -0.067), 'left_knee': (7.225,), 'left_ankle': (5.616, -2.386),
+    })
+    human.KeyRoot(18.9, (0.163, 91.09, 55.266), (-10.437, 0.0, 0.0))
+    human.KeyJoints(18.9, {
+        'spine_lumbar': (1.65, -1.646, 0.0), 'spine_thoracic': (0.294, -0.299, 0.0),
+        'right_hip': (2.786, 0.142, 0.007), 'right_knee': (4.745,), 'right_ankle': (1.959, 0.142),
+        'left_hip': (2.786, -0.142, -0.007), 'left_knee': (4.745,), 'left_ankle': (1.959, -0.142),
+    })
+    human.KeyRoot(18.930705, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
+    human.KeyJoints(18.930705, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (29.296, -22.813, 19.826), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),

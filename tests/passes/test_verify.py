@@ -347,11 +347,10 @@ EXAMPLE_FINDINGS = {
         ("MT0510", 35),
     ],
     "replace_fuel_filter": [  # the hold pass keeps the right hand on the bowl (was MT0511)
-        ("MT0502", 32),  # the stepping kneel lowers the body on both toe tips (rigid foot)
-        ("MT0502", 40),  # reaches lean the CoM past the knees while kneeling
-        ("MT0502", 42),
-        ("MT0502", 45),
-        ("MT0502", 47),  # standing up
+        # standing up, the left leg's swing takes the CoM 6 mm out of the one kneeling leg's
+        # triangle (knee, balls, toe); the toes' joint (issue 18) removed the kneel's on both
+        # toe tips at 32 and, with the kneeling pose it gives, the leaning reaches at 40-45
+        ("MT0502", 47),
         # the right hand out of the thighs kneeling down and standing up (was MT0514 at 32, 47)
     ],
 }

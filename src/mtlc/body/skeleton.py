@@ -108,8 +108,16 @@ JOINT_TABLE: tuple[tuple[str, str | None, str], ...] = (
     ("l_knee", "l_hip", "left knee joint centre; carries the shank"),
     ("l_ankle", "l_knee", "left ankle joint centre (talocrural + subtalar); carries the foot"),
     # last, so that the older joints keep their dof columns (the toes came with issue 18)
-    ("r_toes", "r_ankle", "right metatarsophalangeal joints, mid-ball; the toes (no mass of their own)"),
-    ("l_toes", "l_ankle", "left metatarsophalangeal joints, mid-ball; the toes (no mass of their own)"),
+    (
+        "r_toes",
+        "r_ankle",
+        "right metatarsophalangeal joints, mid-ball; the toes (no mass of their own)",
+    ),
+    (
+        "l_toes",
+        "l_ankle",
+        "left metatarsophalangeal joints, mid-ball; the toes (no mass of their own)",
+    ),
 )
 
 # Degrees of freedom per joint (right side and axial); each entry is

@@ -7,11 +7,13 @@ toes, the body lowers onto the right knee (a half kneel: left foot in front, rig
 down), then the weight goes onto the right leg and the left leg swings back, folded, so that its
 knee lands beside the right one. Rising is the same motion in reverse. Each phase (``PHASES``)
 keeps the centre of mass over the support of the contacts it has (``mtlc.metrics.support``:
-soles, the forefoot of a foot on its toes, kneeling knees), and a planted foot never slides: it
-steps (lifts, moves, lands) or rolls on its toe.
+soles, kneeling knees), and a planted foot never slides: it steps (lifts, moves, lands) or
+rolls on its balls. A foot with its heel up stands on its balls and toe tip, the toes bent up
+at the balls (``TOE_VARS``): on the tip of a rigid foot it was a point, and a knee with its
+toe, or two toe tips, a segment with no inside (issue 18).
 
 The motion is solved frame by frame at ``FPS`` by a whole-body inverse kinematics (``track``):
-root position, both legs and the spine (flexion and lateral flexion) by damped Gauss-Newton with
+root position, both legs with their toes and the spine (flexion and lateral flexion) by damped Gauss-Newton with
 an analytic Jacobian, started from the previous frame moved on by its last change. Planted
 contacts weigh most, the centre of mass's target next, and a pull toward the previous frame
 keeps the solution smooth; all frames are then polished at once on their planted contacts
@@ -49,7 +51,7 @@ PREDICT = 1.0  # a frame starts from the last one moved on by this share of its 
 STEP_TOL = 1e-5  # rad or m: a frame whose last step was this small has converged
 PLANT_W = 1000.0  # residual weights (per metre, per radian)
 KNEE_W = 60.0
-ONE_KNEE_COM_W = 6 * 20.0  # the CoM on one kneeling leg (its support is a narrow triangle)
+ONE_KNEE_COM_W = 3 * 20.0  # the CoM on one kneeling leg (its support is a narrow triangle)
 HEEL_W = 20.0  # a kneeling heel's guide
 LAND_HEEL_W = 20.0  # and a landing one's
 SWING_W = 40.0
@@ -83,14 +85,15 @@ LEG_VARS = tuple(
 SPINE_VARS = ("lumbar_flex", "lumbar_lat", "thorax_flex", "thorax_lat")
 TOE_VARS = ("r_toes_dorsi", "l_toes_dorsi")  # last: the legs' and spine's columns stay put
 SOLE = ("toe", "heel", "ball_med", "ball_lat")
-LEFT_COLS = np.arange(3 + 6, 3 + 12)  # the left leg's columns in a state vector
+LEFT_COLS = np.r_[3 + 6 : 3 + 12, 3 + 12 + 4 + 1]  # the left leg's columns in a state vector
+# (its six, then its toes': they swing with it from bent on the ground to bent on the ground)
 KNEE_COL, HIP_COL, ANKLE_COL = 3, 0, 4  # knee, hip and ankle flexion among a leg's dofs
 PELVIS_W = 20.0
 # mid-swing of the second knee's leg (hip flex, abd, rot, knee, ankle dorsi, inversion; NaN:
 # as the path has it): the knee folded, the thigh turned out and abducted and the foot pointed,
 # so the lower leg comes round the side; straight back under the hip it would pass 4-7 cm
 # below the ground (knee flexion stops at 135°, the kneeling pelvis is 0.48 m up)
-SWING_LEG = np.radians([np.nan, 5.0, 38.0, 133.0, -45.0, np.nan])
+SWING_LEG = np.radians([np.nan, 5.0, 38.0, 133.0, -45.0, np.nan, np.nan])
 LIFT_END = 0.2  # share of the second knee's phase in which its toe rises straight up
 LIFT_HIP = math.radians(15.0)  # and extra hip flexion: the thigh rises first
 LIFT_FLEX = math.radians(30.0)  # extra knee flexion at mid-swing: the foot clears the ground
@@ -506,7 +509,9 @@ def rigid_kneeling_reach(skel: Any, side: str = "r") -> float:
         qq[k_dof] = k
         pose = forward(skel, qq[None])
         pts = site_positions(skel, pose, names)[0]
-        return float(pose.p[0, knee, 1] - pts[:, 1].min() - KNEE_HEIGHT), float(pose.p[0, knee, 2] - pts[0, 2])
+        return float(pose.p[0, knee, 1] - pts[:, 1].min() - KNEE_HEIGHT), float(
+            pose.p[0, knee, 2] - pts[0, 2]
+        )
 
     return shape(_bisect(lambda k: shape(k)[0], math.radians(45), float(skel.upper[k_dof])))[1]
 
@@ -545,7 +550,9 @@ def tucked_foot(skel: Any, side: str = "r") -> tuple[float, FloatArray]:
 
     pose, pts = pose_at(_bisect(height, math.radians(45), float(skel.upper[k_dof])))
     heel = site_positions(skel, pose, f"{side}_heel")[0]
-    return float(pose.p[0, knee, 2] - pts[2, 2]), np.array([0.0, heel[1] - pts[2, 1], heel[2] - pts[2, 2]])
+    return float(pose.p[0, knee, 2] - pts[2, 2]), np.array(
+        [0.0, heel[1] - pts[2, 1], heel[2] - pts[2, 2]]
+    )
 
 
 def _rx(a: float) -> FloatArray:
@@ -577,9 +584,6 @@ class Geometry:
         balls = 0.5 * (pts[2] + pts[3])
         pts[1] = balls + _rx(pitch) @ (pts[1] - balls)
         return pts
-
-
-
 
 
 def geometry(body: Body, x0: FloatArray) -> Geometry:
@@ -688,7 +692,9 @@ def kneel_targets(
         elif k == 1:
             # the right foot steps back, every sole point led: it lifts level and lands on its
             # balls and toes, the heel up by ``LAND_PITCH`` (the toes bent)
-            tg.points = flat("l", geo.left0) + swing("r", geo.toe0["r"], toe["r"], 0.0, LAND_PITCH, s)
+            tg.points = flat("l", geo.left0) + swing(
+                "r", geo.toe0["r"], toe["r"], 0.0, LAND_PITCH, s
+            )
             tg.level = ["r"]
             tg.com = geo.com_left
         elif k == 2:
@@ -745,8 +751,11 @@ def kneel_targets(
                     hover = np.array(
                         [0.0, 0.04 * (1.0 - float(smoothstep((v - 0.75) / 0.25))), 0.0]
                     )
-                    tg.points += [(f"l_{p}", toe["l"] + r + hover, PLANT_W * land)
-                                  for p, r in zip(SOLE, geo.rel["l"], strict=True) if p != "heel"]
+                    tg.points += [
+                        (f"l_{p}", toe["l"] + r + hover, PLANT_W * land)
+                        for p, r in zip(SOLE, geo.rel["l"], strict=True)
+                        if p != "heel"
+                    ]
                     tg.points += [("joint:l_knee", geo.knees["l"] + hover, SWING_W * land)]  # fmt: skip
             tg.level = ["r"]
             tg.com = geo.com_one

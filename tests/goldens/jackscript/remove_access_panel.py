@@ -20,7 +20,7 @@ def remove_access_panel():
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
     human.KeyRoot(0.1, (2.272, 68.003, 11.79), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
@@ -3103,5 +3103,5 @@ def remove_access_panel():
         'left_shoulder': (-8.164, 6.427, 49.699), 'left_elbow': (106.552, 7.003),
         'left_wrist': (-70.0, 6.246), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

@@ -20,7 +20,7 @@ def replace_fuel_filter():
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
     human.KeyRoot(0.1, (2.615, 88.219, 10.638), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
@@ -68,185 +68,191 @@ def replace_fuel_filter():
         'right_shoulder': (8.594, 6.703, -6.003), 'left_shoulder': (8.594, 6.703, -6.003),
         'right_hip': (3.499, 3.271, 0.2), 'right_knee': (13.083,), 'right_ankle': (9.594, 3.277),
         'left_hip': (3.488, -3.271, -0.199), 'left_knee': (13.062,), 'left_ankle': (9.581, -3.277),
+        'right_toes': (0.0,),
     })
-    human.KeyRoot(0.8, (7.078, 90.351, 60.502), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.8, (6.143, 90.137, 64.301), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'spine_lumbar': (23.012, -9.154, 0.0), 'spine_thoracic': (3.58, -1.623, 0.0),
+        'spine_lumbar': (9.031, -9.858, 0.0), 'spine_thoracic': (1.462, -1.781, 0.0),
         'right_shoulder': (8.594, 7.414, -18.609), 'left_shoulder': (8.594, 7.414, -18.609),
-        'right_hip': (9.128, 5.416, 0.516), 'right_knee': (30.638,), 'right_ankle': (20.0, 5.431),
-        'left_hip': (3.099, -5.441, -0.294), 'left_knee': (10.802,), 'left_ankle': (7.717, -5.449),
+        'right_hip': (10.214, 5.193, 1.267), 'right_knee': (38.286,), 'right_ankle': (20.0, 5.357),
+        'left_hip': (0.36, -5.305, -0.026), 'left_knee': (10.693,), 'left_ankle': (10.331, -5.304),
+        'right_toes': (5.464,),
     })
-    human.KeyRoot(0.9, (9.457, 90.28, 58.686), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.9, (7.301, 89.924, 65.714), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'spine_lumbar': (41.621, -3.231, 0.0), 'spine_thoracic': (5.544, -0.54, 0.0),
+        'spine_lumbar': (11.039, -5.6, 0.0), 'spine_thoracic': (1.868, -1.018, 0.0),
         'right_shoulder': (8.594, 7.5, -20.114), 'left_shoulder': (8.594, 7.5, -20.114),
-        'right_hip': (-11.435, 7.004, -0.298), 'right_knee': (21.476,),
-        'right_ankle': (20.0, 7.103), 'left_hip': (3.931, -6.804, -0.458), 'left_knee': (9.374,),
-        'left_ankle': (5.467, -6.819),
+        'right_hip': (-4.27, 6.032, 2.351), 'right_knee': (41.454,), 'right_ankle': (18.677, 6.502),
+        'left_hip': (-0.725, -6.271, 0.086), 'left_knee': (10.136,), 'left_ankle': (10.853, -6.271),
+        'right_toes': (4.497,),
     })
-    human.KeyRoot(1.0, (9.133, 89.798, 62.643), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.0, (9.499, 90.054, 56.552), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'spine_lumbar': (25.974, -1.41, 0.0), 'spine_thoracic': (3.758, -0.247, 0.0),
-        'right_hip': (-12.882, 4.69, 7.633), 'right_knee': (44.119,),
-        'right_ankle': (-15.387, 8.392), 'left_hip': (3.217, -7.119, -0.4), 'left_knee': (13.463,),
-        'left_ankle': (10.276, -7.131),
+        'spine_lumbar': (45.086, -3.614, 0.0), 'spine_thoracic': (6.783, -0.701, 0.0),
+        'right_hip': (-11.882, 5.918, 3.928), 'right_knee': (33.809,),
+        'right_ankle': (-1.06, 6.953), 'left_hip': (7.233, -6.551, -0.83), 'left_knee': (13.143,),
+        'left_ankle': (5.962, -6.604), 'right_toes': (7.809,),
     })
-    human.KeyRoot(1.1, (9.029, 89.309, 63.414), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.1, (10.645, 88.266, 52.39), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'spine_lumbar': (21.355, -0.606, 0.0), 'spine_thoracic': (3.451, -0.114, 0.0),
-        'right_hip': (-13.212, 2.156, 16.14), 'right_knee': (35.11,),
-        'right_ankle': (-48.364, 7.468), 'left_hip': (4.771, -7.173, -0.597),
-        'left_knee': (17.751,), 'left_ankle': (13.022, -7.198),
+        'spine_lumbar': (59.374, -2.329, 0.0), 'spine_thoracic': (5.921, -0.407, 0.0),
+        'right_hip': (-12.854, 5.886, 5.876), 'right_knee': (27.015,),
+        'right_ankle': (-18.863, 8.286), 'left_hip': (16.457, -6.722, -1.981),
+        'left_knee': (25.709,), 'left_ankle': (9.374, -7.007), 'right_toes': (59.417,),
     })
-    human.KeyRoot(1.2, (7.96, 89.734, 59.082), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.2, (10.696, 83.299, 44.732), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (-16.364, 9.19, 0.0), 'spine_thoracic': (-3.412, 1.628, 0.0),
-        'right_hip': (-12.963, 3.026, 10.566), 'right_knee': (35.902,),
-        'right_ankle': (-37.94, 10.006), 'left_hip': (7.43, -5.858, -0.763), 'left_knee': (17.453,),
-        'left_ankle': (10.065, -5.908),
+        'spine_lumbar': (40.338, 8.917, 0.0), 'spine_thoracic': (3.685, 1.573, 0.0),
+        'right_hip': (-14.725, 6.038, 0.85), 'right_knee': (27.25,), 'right_ankle': (19.27, 6.097),
+        'left_hip': (31.498, -5.522, -3.374), 'left_knee': (44.588,),
+        'left_ankle': (13.254, -6.468), 'right_toes': (22.751,),
     })
-    human.KeyRoot(1.3, (6.141, 90.277, 46.568), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.3, (7.676, 84.189, 41.972), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (-30.0, 13.458, 0.0), 'spine_thoracic': (-9.686, 2.224, 0.0),
-        'right_hip': (-8.871, 2.39, 3.041), 'right_knee': (41.088,),
-        'right_ankle': (-10.708, 3.983), 'left_hip': (10.109, -3.05, -0.543), 'left_knee': (6.23,),
-        'left_ankle': (-3.867, -3.098),
+        'spine_lumbar': (-1.866, 15.562, 0.0), 'spine_thoracic': (-1.058, 2.794, 0.0),
+        'right_hip': (-13.658, 3.628, 0.415), 'right_knee': (26.534,), 'right_ankle': (20.0, 3.652),
+        'left_hip': (31.143, -3.29, -1.986), 'left_knee': (41.033,), 'left_ankle': (9.948, -3.842),
+        'right_toes': (20.183,),
     })
-    human.KeyRoot(1.4, (6.842, 88.29, 37.986), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.4, (8.011, 83.319, 42.173), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (-4.219, 12.425, 0.0), 'spine_thoracic': (-1.25, 2.205, 0.0),
-        'right_hip': (6.352, 1.313, 3.53), 'right_knee': (60.602,), 'right_ankle': (-8.99, 3.864),
-        'left_hip': (19.942, -2.412, -0.875), 'left_knee': (14.048,),
-        'left_ankle': (-5.876, -2.566),
+        'spine_lumbar': (-3.225, 16.872, 0.0), 'spine_thoracic': (-0.931, 3.023, 0.0),
+        'right_hip': (-9.126, 3.825, 1.085), 'right_knee': (35.814,), 'right_ankle': (20.0, 3.975),
+        'left_hip': (32.73, -3.5, -2.247), 'left_knee': (44.226,), 'left_ankle': (11.565, -4.159),
+        'right_toes': (24.976,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(1.5, (5.73, 76.097, 37.485), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.5, (6.925, 79.555, 43.688), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (-1.598, 11.301, 0.0), 'spine_thoracic': (-0.458, 2.035, 0.0),
-        'right_hip': (13.222, 0.745, 2.6), 'right_knee': (85.025,), 'right_ankle': (11.029, 2.746),
-        'left_hip': (46.542, -1.396, -1.502), 'left_knee': (63.465,),
-        'left_ankle': (16.394, -2.054),
+        'spine_lumbar': (-9.638, 14.46, 0.0), 'spine_thoracic': (-2.065, 2.585, 0.0),
+        'right_hip': (-1.837, 3.049, 2.027), 'right_knee': (53.58,), 'right_ankle': (20.0, 3.661),
+        'left_hip': (38.373, -2.937, -2.342), 'left_knee': (57.263,),
+        'left_ankle': (18.727, -3.756), 'right_toes': (35.472,),
     })
-    human.KeyRoot(1.6, (5.43, 59.097, 30.023), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.6, (5.705, 60.167, 27.652), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'spine_lumbar': (26.614, 9.316, 0.0), 'spine_thoracic': (4.092, 1.635, 0.0),
-        'right_hip': (32.156, -0.362, 1.602), 'right_knee': (120.881,),
-        'right_ankle': (18.069, 1.935), 'left_hip': (72.004, -0.268, -0.867),
-        'left_knee': (92.454,), 'left_ankle': (19.646, -0.913),
+        'spine_lumbar': (34.605, 2.221, 0.0), 'spine_thoracic': (4.975, 0.375, 0.0),
+        'right_hip': (35.779, -0.028, 0.999), 'right_knee': (111.119,),
+        'right_ankle': (19.502, 0.999), 'left_hip': (71.412, -0.221, -0.675),
+        'left_knee': (88.228,), 'left_ankle': (16.384, -0.71), 'right_toes': (55.837,),
+        'left_toes': (0.433,),
     })
-    human.KeyRoot(1.7, (3.72, 48.492, 34.801), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.7, (5.116, 44.926, 28.585), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'spine_lumbar': (16.521, 9.345, 0.0), 'spine_thoracic': (2.529, 1.665, 0.0),
+        'spine_lumbar': (30.892, 0.891, 0.0), 'spine_thoracic': (4.266, 0.148, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'right_hip': (32.015, -0.486, 0.893), 'right_knee': (134.656,),
-        'right_ankle': (16.243, 3.802), 'left_hip': (89.37, -0.005, 0.004), 'left_knee': (117.383,),
-        'left_ankle': (14.135, -0.004),
+        'right_hip': (43.354, -0.289, 0.622), 'right_knee': (134.885,),
+        'right_ankle': (19.95, 0.686), 'left_hip': (92.58, 0.063, -0.417), 'left_knee': (113.033,),
+        'left_ankle': (14.391, -0.422), 'right_toes': (71.58,), 'left_toes': (6.061,),
     })
-    human.KeyRoot(1.8, (2.091, 44.581, 41.754), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.8, (3.808, 42.719, 34.457), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'spine_lumbar': (-1.888, 9.571, 0.0), 'spine_thoracic': (-0.489, 1.728, 0.0),
-        'right_hip': (25.459, -0.37, 0.554), 'right_knee': (134.894,),
-        'right_ankle': (11.243, 5.09), 'left_hip': (97.197, -0.695, 0.995), 'left_knee': (130.857,),
-        'left_ankle': (5.953, 1.224),
+        'spine_lumbar': (11.496, 0.085, 0.0), 'spine_thoracic': (1.812, 0.014, 0.0),
+        'right_hip': (35.447, -0.027, 0.058), 'right_knee': (134.704,),
+        'right_ankle': (20.0, 0.064), 'left_hip': (92.937, 0.009, -0.043), 'left_knee': (121.917,),
+        'left_ankle': (20.0, -0.044), 'left_toes': (8.979,),
     })
-    human.KeyRoot(1.9, (1.925, 44.02, 42.534), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.9, (3.058, 41.729, 38.401), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'spine_lumbar': (-3.769, 14.619, 0.0), 'spine_thoracic': (-0.884, 2.632, 0.0),
-        'right_hip': (25.011, -0.487, 0.692), 'right_knee': (135.0,), 'right_ankle': (9.909, 5.806),
-        'left_hip': (100.076, -1.172, 1.295), 'left_knee': (132.485,), 'left_ankle': (0.353, 1.819),
+        'spine_lumbar': (-5.683, 7.435, 0.0), 'spine_thoracic': (-1.147, 1.343, 0.0),
+        'right_hip': (31.462, 0.0, 0.0), 'right_knee': (133.448,), 'right_ankle': (15.003, 0.0),
+        'left_hip': (93.076, 0.0, 0.0), 'left_knee': (127.204,), 'left_ankle': (19.939, 0.0),
+        'right_toes': (86.984,), 'left_toes': (14.189,),
     })
-    human.KeyRoot(2.0, (1.055, 43.977, 42.322), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.0, (3.232, 41.107, 37.431), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'spine_lumbar': (-2.692, 20.0, 0.0), 'spine_thoracic': (-2.121, 10.0, 0.0),
-        'right_hip': (25.096, -1.675, 2.279), 'right_ankle': (8.938, 19.653),
-        'left_hip': (101.977, -5.99, 5.448), 'left_knee': (132.446,), 'left_ankle': (-5.323, 8.182),
+        'spine_lumbar': (-16.294, 20.0, 0.0), 'spine_thoracic': (-5.345, 10.0, 0.0),
+        'right_hip': (33.012, -0.005, -0.002), 'right_knee': (134.999,),
+        'left_hip': (94.246, -0.004, 0.01), 'left_knee': (127.036,), 'left_ankle': (19.999, 0.011),
+        'left_toes': (12.791,),
     })
-    human.KeyRoot(2.1, (0.357, 43.896, 42.082), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.1, (3.116, 41.47, 37.988), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (-0.61, 20.0, 0.0), 'spine_thoracic': (-3.374, 10.0, 0.0),
-        'right_hip': (25.274, -2.647, 3.401), 'right_ankle': (7.453, 30.544),
-        'left_hip': (105.452, -24.938, 12.715), 'left_knee': (134.692,),
-        'left_ankle': (-10.112, 28.873),
+        'spine_lumbar': (-18.165, 20.0, 0.0), 'spine_thoracic': (-12.628, 10.0, 0.0),
+        'right_hip': (32.115, -0.021, -0.008), 'right_knee': (134.102,),
+        'left_hip': (100.013, -25.0, -24.345), 'left_knee': (115.605,),
+        'left_ankle': (19.878, 1.155), 'left_toes': (12.409,),
     })
-    human.KeyRoot(2.2, (0.077, 43.874, 42.017), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.2, (3.213, 41.127, 37.458), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (0.544, 20.0, 0.0), 'spine_thoracic': (-9.608, 10.0, 0.0),
-        'right_hip': (25.303, -3.029, 3.825), 'right_ankle': (6.67, 35.0),
-        'left_hip': (120.897, -10.096, -15.118), 'left_knee': (131.429,),
-        'left_ankle': (-35.556, -23.057),
+        'spine_lumbar': (-20.856, 20.0, 0.0), 'spine_thoracic': (-13.616, 10.0, 0.0),
+        'right_hip': (32.965, -0.021, -0.008), 'right_knee': (134.952,),
+        'right_ankle': (15.003, 0.036), 'left_hip': (110.056, -25.0, -22.844),
+        'left_knee': (117.115,), 'left_ankle': (6.177, 5.955), 'right_toes': (86.983,),
+        'left_toes': (23.009,),
     })
-    human.KeyRoot(2.3, (0.114, 43.861, 41.993), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.3, (2.988, 41.696, 38.299), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.282, 20.0, 0.0), 'right_hip': (25.346, -2.988, 3.813),
-        'right_ankle': (6.709, 34.794), 'left_hip': (96.39, -23.488, 31.004),
-        'left_knee': (133.374,), 'left_ankle': (-44.476, -19.434),
+        'spine_lumbar': (-29.93, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (31.559, -0.105, -0.041), 'right_knee': (133.579,),
+        'right_ankle': (15.158, 0.145), 'left_hip': (88.984, -4.348, 30.749), 'left_knee': (135.0,),
+        'left_ankle': (-44.685, 1.326), 'right_toes': (86.644,), 'left_toes': (37.301,),
     })
-    human.KeyRoot(2.4, (0.014, 43.856, 41.976), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.4, (2.938, 41.86, 38.563), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'spine_lumbar': (3.127, 20.0, 0.0), 'spine_thoracic': (-8.416, 10.0, 0.0),
-        'right_hip': (25.349, -3.119, 3.792), 'right_knee': (134.995,),
-        'right_ankle': (6.665, 35.0), 'left_hip': (63.923, -9.059, 27.571), 'left_knee': (135.0,),
-        'left_ankle': (-45.719, -11.197),
+        'spine_lumbar': (-30.0, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (31.14, -0.107, -0.041), 'right_knee': (133.163,),
+        'right_ankle': (15.16, 0.146), 'left_hip': (62.307, -1.846, 31.004), 'left_knee': (135.0,),
+        'left_ankle': (-45.582, 1.073), 'right_toes': (86.598,), 'left_toes': (58.776,),
     })
-    human.KeyRoot(2.5, (0.063, 44.827, 44.171), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.5, (2.452, 43.481, 41.492), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'spine_lumbar': (1.932, 20.0, 0.0), 'spine_thoracic': (-5.128, 10.0, 0.0),
-        'right_hip': (22.205, -2.528, 3.658), 'right_knee': (131.91,),
-        'right_ankle': (7.268, 31.65), 'left_hip': (37.483, -20.992, -3.064),
-        'left_knee': (131.783,), 'left_ankle': (-31.534, -0.891),
+        'spine_lumbar': (-23.518, 20.0, 0.0), 'spine_thoracic': (-14.325, 10.0, 0.0),
+        'right_hip': (26.665, -0.043, -0.012), 'right_knee': (128.652,),
+        'right_ankle': (15.007, 0.066), 'left_hip': (31.049, -24.999, -20.699),
+        'left_knee': (120.328,), 'left_ankle': (4.401, 5.495), 'right_toes': (86.974,),
+        'left_toes': (90.0,),
     })
-    human.KeyRoot(2.6, (-0.118, 45.044, 44.698), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.6, (1.742, 45.17, 45.239), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.6, {
-        'spine_lumbar': (3.585, 20.0, 0.0), 'spine_thoracic': (-9.313, 10.0, 0.0),
-        'right_hip': (21.416, -2.636, 3.987), 'right_knee': (131.072,),
-        'right_ankle': (6.776, 34.422), 'left_hip': (22.451, -4.32, -0.225), 'left_knee': (135.0,),
-        'left_ankle': (7.142, -13.207),
+        'spine_lumbar': (-29.643, 20.0, 0.0), 'spine_thoracic': (-14.926, 10.0, 0.0),
+        'right_hip': (21.113, -0.064, -0.015), 'right_knee': (123.1,),
+        'left_hip': (20.238, -4.016, -4.27), 'left_knee': (126.055,), 'left_ankle': (19.494, 0.285),
+        'left_toes': (88.553,),
     })
-    human.KeyRoot(2.7, (0.832, 44.086, 42.529), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.7, (1.843, 45.042, 44.927), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'spine_lumbar': (10.671, 20.0, 0.0), 'spine_thoracic': (-4.265, 10.0, 0.0),
+        'spine_lumbar': (-29.307, 20.0, 0.0), 'spine_thoracic': (-12.174, 10.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'right_hip': (24.74, -1.917, 2.657), 'right_knee': (134.579,),
-        'right_ankle': (8.557, 22.941), 'left_hip': (24.712, 1.348, -2.016),
-        'left_knee': (134.634,), 'left_ankle': (8.88, -20.682),
+        'right_hip': (21.578, -0.015, -0.004), 'right_knee': (123.565,),
+        'left_hip': (21.48, -0.019, 0.035), 'left_knee': (123.575,), 'left_ankle': (15.332, 0.036),
+        'left_toes': (86.763,),
     })
-    human.KeyRoot(2.8, (1.372, 44.562, 43.673), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.8, (2.313, 43.943, 42.435), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (7.822, 20.0, 0.0), 'spine_thoracic': (-0.208, 9.519, 0.0),
+        'spine_lumbar': (-13.106, 20.0, 0.0), 'spine_thoracic': (-4.731, 10.0, 0.0),
         'right_shoulder': (8.594, 7.307, -16.566), 'left_shoulder': (8.594, 7.307, -16.566),
-        'right_hip': (23.233, -0.935, 1.408), 'right_ankle': (9.627, 11.65),
-        'left_hip': (23.233, 0.935, -1.408), 'left_ankle': (9.627, -11.65),
+        'right_hip': (25.256, -0.001, 0.0), 'right_knee': (127.243,),
+        'left_hip': (25.256, 0.001, 0.0), 'left_knee': (127.243,), 'left_ankle': (15.003, -0.002),
+        'left_toes': (86.984,),
     })
-    human.KeyRoot(2.9, (1.592, 44.995, 44.765), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.9, (2.322, 43.925, 42.397), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.9, {
-        'spine_lumbar': (6.097, 10.519, 0.0), 'spine_thoracic': (0.847, 2.259, 0.0),
+        'spine_lumbar': (2.143, 11.381, 0.0), 'spine_thoracic': (0.054, 2.714, 0.0),
         'right_shoulder': (8.594, 6.512, -2.449), 'left_shoulder': (8.594, 6.512, -2.449),
-        'right_hip': (21.742, -0.384, 0.618), 'right_knee': (131.734,),
-        'right_ankle': (9.933, 4.992), 'left_hip': (21.742, 0.384, -0.618), 'left_knee': (131.734,),
-        'left_ankle': (9.933, -4.992),
+        'right_hip': (25.313, 0.0, 0.0), 'right_knee': (127.3,), 'left_hip': (25.313, 0.0, 0.0),
+        'left_knee': (127.3,),
     })
-    human.KeyRoot(3.0, (1.612, 45.328, 45.643), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.0, (2.056, 44.585, 43.84), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'spine_lumbar': (4.921, 0.853, 0.0), 'spine_thoracic': (0.841, 0.198, 0.0),
+        'spine_lumbar': (9.132, 1.192, 0.0), 'spine_thoracic': (1.546, 0.295, 0.0),
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (8.594, 5.809, 10.045),
-        'left_shoulder': (8.594, 5.809, 10.045), 'right_hip': (20.515, -0.146, 0.247),
-        'right_knee': (130.513,), 'right_ankle': (9.991, 1.97), 'left_hip': (20.515, 0.146, -0.247),
-        'left_knee': (130.513,), 'left_ankle': (9.991, -1.97),
+        'left_shoulder': (8.594, 5.809, 10.045), 'right_hip': (23.172, 0.0, 0.0),
+        'right_knee': (125.159,), 'left_hip': (23.172, 0.0, 0.0), 'left_knee': (125.159,),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.0384, duration=0.2628)
-    human.KeyRoot(3.1, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.1, (1.949, 44.833, 44.42), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.1, {
-        'spine_lumbar': (4.343, -0.225, 0.0), 'spine_thoracic': (0.758, -0.022, 0.0),
-        'neck': (4.867, -4.694, 3.11), 'head': (2.086, 1.516),
+        'spine_lumbar': (8.806, 0.001, 0.0), 'spine_thoracic': (1.512, 0.034, 0.0),
+        'neck': (4.867, -4.694, 2.787), 'head': (2.086, 1.517),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
-        'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
-        'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
-        'left_ankle': (9.996, -1.322),
+        'right_hip': (22.321, 0.0, 0.0), 'right_knee': (124.304,), 'left_hip': (22.321, 0.0, 0.0),
+        'left_knee': (124.304,),
     })
-    human.KeyJoints(3.2, {'neck': (23.427, -22.59, 14.967), 'head': (10.04, 7.299)})
+    human.KeyJoints(3.2, {'neck': (23.427, -22.59, 13.414), 'head': (10.04, 7.299)})
     human.KeyJoints(3.3, {
-        'spine_lumbar': (4.343, -0.225, 0.0), 'spine_thoracic': (0.758, -0.022, 0.0),
-        'neck': (34.998, -33.748, 22.36), 'head': (14.999, 10.904), 'right_clavicle': (0.0, 0.0),
+        'spine_lumbar': (8.806, 0.001, 0.0), 'spine_thoracic': (1.512, 0.034, 0.0),
+        'neck': (34.998, -33.748, 20.039), 'head': (14.999, 10.904), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0),
     })
@@ -254,91 +260,91 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.3012, duration=0.873042)
     human.KeyJoints(3.4, {
-        'spine_lumbar': (6.682, 0.448, 0.774), 'spine_thoracic': (0.518, 0.504, 1.076),
-        'neck': (35.0, -33.75, 20.226), 'right_clavicle': (-0.36, 0.816),
-        'right_shoulder': (9.867, 6.722, 11.112), 'right_elbow': (33.818, 17.19),
-        'right_wrist': (-0.11, -0.16),
+        'spine_lumbar': (10.937, 0.603, 0.816), 'spine_thoracic': (1.191, 0.575, 1.01),
+        'neck': (35.0, -33.75, 18.061), 'right_clavicle': (-0.362, 0.816),
+        'right_shoulder': (9.91, 6.66, 11.109), 'right_elbow': (33.905, 17.189),
+        'right_wrist': (-0.112, -0.144),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (12.816, 2.24, 2.812), 'spine_thoracic': (-0.146, 1.887, 3.951),
-        'neck': (35.0, -33.75, 15.364), 'head': (15.0, 10.836), 'right_clavicle': (-1.332, 2.954),
-        'right_shoulder': (13.245, 9.325, 10.201), 'right_elbow': (32.351, 17.194),
-        'right_wrist': (-0.398, -0.579),
+        'spine_lumbar': (16.522, 2.207, 2.954), 'spine_thoracic': (0.309, 1.992, 3.709),
+        'neck': (35.0, -33.75, 13.531), 'head': (15.0, 10.837), 'right_clavicle': (-1.338, 2.954),
+        'right_shoulder': (13.4, 9.099, 10.191), 'right_elbow': (32.665, 17.191),
+        'right_wrist': (-0.405, -0.521),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (21.23, 4.752, 5.626), 'spine_thoracic': (-1.134, 3.793, 8.012),
-        'neck': (35.0, -33.75, 9.416), 'head': (15.0, 10.551), 'right_clavicle': (-2.725, 5.887),
-        'right_shoulder': (17.965, 12.896, 8.953), 'right_elbow': (30.339, 17.199),
+        'spine_lumbar': (24.183, 4.459, 5.887), 'spine_thoracic': (-0.987, 3.938, 7.525),
+        'head': (15.0, 10.016), 'right_clavicle': (-2.731, 5.887),
+        'right_shoulder': (18.276, 12.444, 8.931), 'right_elbow': (30.964, 17.194),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (30.408, 7.588, 8.729), 'spine_thoracic': (-2.346, 5.887, 12.645),
-        'neck': (35.0, -33.75, 3.032), 'head': (15.0, 10.7), 'right_clavicle': (-4.348, 9.087),
-        'right_shoulder': (23.266, 16.791, 7.59), 'right_elbow': (28.144, 17.205),
+        'spine_lumbar': (32.539, 7.006, 9.087), 'spine_thoracic': (-2.551, 6.06, 11.884),
+        'neck': (35.0, -33.75, 2.304), 'head': (15.0, 10.11), 'right_clavicle': (-4.348, 9.087),
+        'right_shoulder': (23.749, 16.094, 7.558), 'right_elbow': (29.108, 17.198),
     })
     human.KeyJoints(3.8, {
-        'spine_lumbar': (38.834, 10.35, 11.634), 'spine_thoracic': (-3.681, 7.835, 17.239),
-        'neck': (35.0, 27.009, -14.475), 'head': (15.0, -11.25), 'right_clavicle': (-6.011, 12.024),
-        'right_shoulder': (28.385, 20.366, 6.34), 'right_elbow': (26.129, 17.211),
-        'right_wrist': (-1.622, -2.358),
+        'spine_lumbar': (40.212, 9.495, 12.024), 'spine_thoracic': (-4.237, 8.011, 16.211),
+        'neck': (35.0, 21.675, -12.942), 'head': (15.0, -11.25), 'right_clavicle': (-5.992, 12.024),
+        'right_shoulder': (29.03, 19.444, 6.296), 'right_elbow': (27.405, 17.202),
+        'right_wrist': (-1.649, -2.12), 'right_ankle': (15.002, 0.0),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (44.993, 12.641, 13.852), 'spine_thoracic': (-5.04, 9.302, 21.177),
-        'neck': (35.0, 19.669, -17.069), 'right_clavicle': (-7.521, 14.171),
-        'right_shoulder': (32.56, 22.98, 5.425), 'right_elbow': (24.656, 17.217),
-        'right_wrist': (-1.911, -2.779),
+        'spine_lumbar': (45.82, 11.574, 14.171), 'spine_thoracic': (-5.898, 9.44, 19.933),
+        'neck': (35.0, 16.255, -15.774), 'right_clavicle': (-7.469, 14.171),
+        'right_shoulder': (33.33, 21.893, 5.374), 'right_elbow': (26.16, 17.206),
+        'right_wrist': (-1.944, -2.499),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.0, {
-        'spine_lumbar': (47.37, 14.064, 14.896), 'spine_thoracic': (-6.321, 9.953, 23.849),
-        'neck': (35.0, 19.84, -19.271), 'right_clavicle': (-8.689, 15.0),
-        'right_shoulder': (35.028, 23.989, 5.072), 'right_elbow': (24.088, 17.222),
-        'right_wrist': (-2.023, -2.941),
+        'spine_lumbar': (47.984, 12.888, 15.0), 'spine_thoracic': (-7.387, 9.997, 22.476),
+        'neck': (35.0, 17.207, -17.916), 'right_clavicle': (-8.583, 15.0),
+        'right_shoulder': (35.86, 22.838, 5.019), 'right_elbow': (25.68, 17.21),
+        'right_wrist': (-2.057, -2.645),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (42.779, 15.906, 13.772), 'spine_thoracic': (-6.659, 9.298, 23.592),
-        'neck': (35.0, 26.587, -20.358), 'right_clavicle': (-9.365, 13.657),
-        'right_shoulder': (33.807, 21.064, 5.751), 'right_elbow': (24.872, 17.216),
+        'spine_lumbar': (43.929, 14.433, 14.087), 'spine_thoracic': (-7.825, 9.5, 22.553),
+        'neck': (35.0, 24.147, -19.135), 'right_clavicle': (-9.271, 13.98),
+        'right_shoulder': (35.026, 20.195, 5.671), 'right_elbow': (26.493, 17.208),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.174242, duration=0.2628)
     human.KeyJoints(4.2, {
-        'spine_lumbar': (39.235, 17.351, 13.084), 'spine_thoracic': (-6.376, 8.883, 22.91),
-        'neck': (35.0, 30.67, -20.858), 'right_clavicle': (-9.801, 12.897),
-        'right_shoulder': (32.001, 18.6, 6.352), 'right_elbow': (25.549, 17.208),
-        'right_wrist': (-1.509, -2.514),
+        'spine_lumbar': (40.062, 16.093, 13.2), 'spine_thoracic': (-7.362, 8.988, 21.663),
+        'neck': (35.0, 28.781, -19.389), 'right_clavicle': (-9.664, 12.99),
+        'right_shoulder': (32.85, 17.606, 6.353), 'right_elbow': (27.176, 17.201),
+        'right_wrist': (-1.557, -2.196),
     })
-    human.KeyJoints(4.4, {'right_elbow': (25.549, 17.208)})
+    human.KeyJoints(4.4, {'right_elbow': (27.176, 17.201)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(4.5, {'right_shoulder': (32.007, 18.64, 6.343), 'right_elbow': (25.616, 8.366)})
-    human.KeyJoints(4.6, {'right_elbow': (25.76, -28.707)})
+    human.KeyJoints(4.5, {'right_shoulder': (32.855, 17.64, 6.345), 'right_elbow': (27.242, 8.359)})
+    human.KeyJoints(4.6, {'right_elbow': (27.399, -28.711)})
     human.KeyJoints(4.7, {
-        'right_shoulder': (32.049, 19.081, 6.243), 'right_elbow': (25.637, -67.66),
+        'right_shoulder': (32.896, 18.044, 6.247), 'right_elbow': (27.312, -67.661),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=4.775442, duration=0.072)
-    human.KeyJoints(4.8, {'right_elbow': (25.546, -80.0)})
+    human.KeyJoints(4.8, {'right_elbow': (27.235, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.847442, duration=0.2628)
-    human.KeyJoints(5.1, {'right_shoulder': (32.051, 19.137, 6.23), 'right_elbow': (25.546, -80.0)})
+    human.KeyJoints(5.1, {
+        'right_shoulder': (32.899, 18.098, 6.233), 'right_elbow': (27.235, -80.0),
+        'right_wrist': (-1.465, -2.191),
+    })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
     human.KeyJoints(5.2, {
-        'right_shoulder': (32.044, 18.997, 6.262), 'right_elbow': (25.718, -52.202),
-        'right_wrist': (-1.433, -2.481),
+        'right_shoulder': (32.89, 17.964, 6.266), 'right_elbow': (27.378, -52.202),
     })
     human.KeyJoints(5.3, {
-        'right_shoulder': (32.003, 18.611, 6.35), 'right_elbow': (25.57, 14.508),
-        'right_wrist': (-1.509, -2.509),
+        'right_shoulder': (32.852, 17.616, 6.351), 'right_elbow': (27.197, 14.508),
+        'right_wrist': (-1.557, -2.192),
     })
-    human.KeyJoints(5.4, {
-        'right_shoulder': (31.964, 18.519, 6.372), 'right_elbow': (25.023, 71.033),
-    })
+    human.KeyJoints(5.4, {'right_elbow': (26.679, 71.033)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.448642, duration=0.072)
     human.KeyJoints(5.5, {
-        'spine_lumbar': (39.235, 17.351, 13.084), 'spine_thoracic': (-6.376, 8.883, 22.91),
-        'neck': (35.0, 30.67, -20.858), 'right_clavicle': (-9.801, 12.897),
-        'right_shoulder': (31.959, 18.535, 6.368), 'right_elbow': (24.936, 80.0),
-        'right_wrist': (-1.401, -2.561), 'left_clavicle': (0.0, 0.0),
+        'spine_lumbar': (40.062, 16.093, 13.2), 'spine_thoracic': (-7.362, 8.988, 21.663),
+        'neck': (35.0, 28.781, -19.389), 'right_clavicle': (-9.664, 12.99),
+        'right_shoulder': (32.818, 17.571, 6.363), 'right_elbow': (26.6, 80.0),
+        'right_wrist': (-1.46, -2.251), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
     })
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
@@ -347,638 +353,579 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=5.520642, duration=1.618047)
     human.KeyJoints(5.6, {
-        'spine_lumbar': (40.083, 16.824, 12.653), 'spine_thoracic': (-6.717, 8.725, 22.601),
-        'neck': (35.0, 31.081, -19.904), 'right_clavicle': (-9.809, 12.984),
-        'right_shoulder': (31.693, 17.767, 6.554), 'right_elbow': (26.409, 80.0),
-        'right_wrist': (-1.788, -2.451), 'left_clavicle': (-0.399, 0.615),
-        'left_shoulder': (9.844, 5.607, 11.414), 'left_elbow': (34.261, 17.189),
-        'left_wrist': (-0.003, -0.046),
+        'spine_lumbar': (40.88, 15.621, 12.793), 'spine_thoracic': (-7.676, 8.85, 21.371),
+        'neck': (35.0, 29.186, -18.437), 'right_clavicle': (-9.669, 13.073),
+        'right_shoulder': (32.549, 16.849, 6.549), 'right_elbow': (28.03, 80.0),
+        'right_wrist': (-1.835, -2.135), 'left_clavicle': (-0.401, 0.615),
+        'left_shoulder': (9.868, 5.605, 11.411), 'left_elbow': (34.304, 17.188),
+        'left_wrist': (-0.004, -0.037),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (43.086, 14.96, 11.131), 'spine_thoracic': (-7.923, 8.166, 21.507),
-        'neck': (35.0, 33.569, -17.269), 'head': (15.0, -11.25), 'right_clavicle': (-9.838, 13.289),
-        'right_shoulder': (30.697, 15.09, 7.217), 'right_elbow': (31.64, 80.0),
-        'right_wrist': (-3.178, -2.012), 'left_clavicle': (-1.811, 2.792),
-        'left_shoulder': (14.266, 5.173, 11.238), 'left_elbow': (33.85, 17.188),
+        'spine_lumbar': (43.774, 13.949, 11.352), 'spine_thoracic': (-8.784, 8.36, 20.339),
+        'neck': (35.0, 31.249, -15.918), 'right_clavicle': (-9.686, 13.364),
+        'right_shoulder': (31.571, 14.325, 7.214), 'right_elbow': (33.076, 80.0),
+        'right_wrist': (-3.173, -1.687), 'left_clavicle': (-1.82, 2.792),
+        'left_shoulder': (14.373, 5.165, 11.224), 'left_elbow': (34.046, 17.186),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (47.404, 12.278, 8.941), 'spine_thoracic': (-9.658, 7.362, 19.935),
-        'neck': (35.0, 33.75, -13.058), 'head': (15.0, -11.108),
-        'right_shoulder': (29.562, 11.263, 8.196), 'right_wrist': (-4.999, -1.28),
-        'left_clavicle': (-3.841, 5.924), 'left_shoulder': (20.626, 4.548, 10.952),
-        'left_wrist': (-0.065, -0.44),
+        'spine_lumbar': (47.936, 11.545, 9.28), 'spine_thoracic': (-10.378, 7.655, 18.854),
+        'neck': (35.0, 33.75, -12.057), 'right_shoulder': (30.468, 10.706, 8.196),
+        'right_wrist': (-4.924, -0.959), 'left_clavicle': (-3.86, 5.924),
+        'left_shoulder': (20.852, 4.531, 10.919),
     })
     human.KeyJoints(5.9, {
-        'spine_lumbar': (52.136, 9.34, 6.541), 'spine_thoracic': (-11.559, 6.481, 18.211),
-        'neck': (35.0, 33.75, -9.742), 'head': (15.0, -11.25),
-        'right_shoulder': (28.517, 7.141, 9.306), 'right_elbow': (45.333, 80.0),
-        'right_wrist': (-6.823, -0.383), 'left_clavicle': (-6.066, 9.355),
-        'left_shoulder': (27.595, 3.864, 10.576),
+        'spine_lumbar': (52.497, 8.91, 7.009), 'spine_thoracic': (-12.126, 6.883, 17.227),
+        'neck': (35.0, 33.75, -8.586), 'right_shoulder': (29.48, 6.788, 9.309),
+        'right_elbow': (46.245, 80.0), 'right_wrist': (-6.671, -0.083),
+        'left_clavicle': (-6.096, 9.355), 'left_shoulder': (27.952, 3.837, 10.519),
+        'left_wrist': (-0.16, -0.561),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (56.38, 6.705, 4.389), 'spine_thoracic': (-13.264, 5.691, 16.666),
-        'neck': (35.0, 33.75, -5.671), 'right_clavicle': (-9.966, 14.64),
-        'right_shoulder': (27.511, 3.571, 10.332), 'right_elbow': (51.402, 80.0),
-        'right_wrist': (-8.436, 0.506), 'left_clavicle': (-8.062, 12.432),
-        'left_shoulder': (33.845, 3.25, 10.132), 'left_elbow': (32.029, 17.185),
-        'left_wrist': (-0.258, -0.923),
+        'spine_lumbar': (56.587, 6.548, 4.972), 'spine_thoracic': (-13.693, 6.19, 15.768),
+        'neck': (35.0, 33.75, -4.797), 'right_clavicle': (-9.761, 14.656),
+        'right_shoulder': (28.567, 3.372, 10.338), 'right_elbow': (52.028, 80.0),
+        'right_wrist': (-8.202, 0.776), 'left_clavicle': (-8.102, 12.432),
+        'left_shoulder': (34.319, 3.215, 10.046), 'left_elbow': (32.902, 17.175),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (59.233, 4.933, 2.942), 'spine_thoracic': (-14.41, 5.16, 15.626),
-        'neck': (35.0, 33.399, -2.838), 'right_clavicle': (-9.993, 14.93),
-        'right_shoulder': (26.835, 1.341, 11.186), 'right_elbow': (55.37, 79.999),
-        'right_wrist': (-9.702, 1.232), 'left_clavicle': (-9.404, 14.501),
-        'left_shoulder': (38.048, 2.837, 9.643), 'left_elbow': (31.638, 17.185),
-        'left_wrist': (-0.425, -1.077),
+        'spine_lumbar': (59.337, 4.959, 3.602), 'spine_thoracic': (-14.746, 5.725, 14.787),
+        'neck': (35.0, 33.681, -2.209), 'right_clavicle': (-9.777, 14.933),
+        'right_shoulder': (27.964, 1.21, 11.165), 'right_elbow': (55.807, 80.0),
+        'right_wrist': (-9.359, 1.449), 'left_clavicle': (-9.45, 14.501),
+        'left_shoulder': (38.601, 2.796, 9.524), 'left_elbow': (32.657, 17.172),
+        'left_wrist': (-0.475, -0.869),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(6.2, {
-        'spine_lumbar': (59.921, 4.506, 2.593), 'spine_thoracic': (-14.686, 5.032, 15.376),
-        'neck': (35.0, 33.75, -2.196), 'right_shoulder': (26.668, 0.815, 11.39),
-        'right_elbow': (56.325, 79.999), 'right_wrist': (-10.008, 1.409),
-        'left_clavicle': (-9.727, 15.0), 'left_shoulder': (37.854, 3.481, 9.117),
-        'left_elbow': (38.37, 17.212), 'left_wrist': (-1.198, 0.333),
+        'spine_lumbar': (60.0, 4.576, 3.272), 'spine_thoracic': (-15.0, 5.612, 14.55),
+        'neck': (35.0, 32.992, -1.394), 'right_shoulder': (27.817, 0.702, 11.372),
+        'right_elbow': (56.711, 80.0), 'right_wrist': (-9.647, 1.618),
+        'left_clavicle': (-9.775, 15.0), 'left_shoulder': (38.896, 3.442, 8.945),
+        'left_elbow': (38.99, 17.197), 'left_wrist': (-1.238, 0.468),
     })
     human.KeyJoints(6.3, {
-        'left_shoulder': (25.552, 5.659, 8.979), 'left_elbow': (58.414, 17.306),
-        'left_wrist': (-3.057, 5.259),
+        'left_shoulder': (27.151, 5.518, 8.786), 'left_elbow': (58.755, 17.288),
+        'left_wrist': (-3.073, 5.338),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=6.333722, duration=0.072)
     human.KeyJoints(6.4, {
-        'neck': (35.0, 33.75, -2.196), 'head': (15.0, -11.25), 'right_clavicle': (-10.0, 15.0),
-        'right_shoulder': (26.668, 0.815, 11.39), 'right_elbow': (56.325, 79.999),
-        'right_wrist': (-10.008, 1.409), 'left_shoulder': (22.876, 6.288, 8.829),
-        'left_elbow': (63.821, 17.331), 'left_wrist': (-3.609, 6.689),
+        'neck': (35.0, 32.992, -1.394), 'head': (15.0, -11.222), 'right_clavicle': (-9.781, 15.0),
+        'right_shoulder': (27.817, 0.702, 11.372), 'right_elbow': (56.711, 80.0),
+        'right_wrist': (-9.647, 1.618), 'left_shoulder': (24.008, 6.165, 8.671),
+        'left_elbow': (64.172, 17.314), 'left_wrist': (-3.622, 6.782),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(6.5, {
-        'neck': (35.0, 32.174, -8.646), 'head': (13.756, -11.136),
-        'right_shoulder': (25.5, 2.907, 1.153), 'right_elbow': (56.159, 66.457),
-        'right_wrist': (7.308, 5.693),
+        'neck': (35.0, 31.522, -6.729), 'head': (14.012, -11.15),
+        'right_shoulder': (26.128, 4.289, 6.342), 'right_elbow': (53.407, 75.213),
+        'right_wrist': (-17.306, 3.929),
     })
     human.KeyJoints(6.6, {
-        'neck': (35.0, 28.599, -23.28), 'head': (10.932, -10.876),
-        'right_shoulder': (19.559, 7.263, -21.655), 'right_elbow': (63.417, 36.675),
-        'right_wrist': (40.009, 14.382),
+        'neck': (35.0, 27.999, -19.521), 'right_shoulder': (19.397, 11.74, -4.533),
+        'right_elbow': (54.676, 65.046), 'right_wrist': (-36.08, 9.465),
     })
     human.KeyJoints(6.7, {
-        'neck': (35.0, 25.465, -36.109), 'head': (8.456, -10.648),
-        'right_shoulder': (19.386, 12.408, -43.395), 'right_elbow': (62.043, 11.651),
-        'right_wrist': (60.028, 18.16),
+        'neck': (35.0, 24.396, -32.602), 'head': (9.22, -10.799),
+        'right_shoulder': (18.465, 18.864, -14.827), 'right_elbow': (52.077, 57.514),
+        'right_wrist': (-50.069, 13.719),
     })
     human.KeyJoints(6.8, {
-        'neck': (35.0, 24.814, -38.775), 'head': (7.942, -10.601),
-        'right_shoulder': (26.444, 21.558, -68.457), 'right_elbow': (44.777, -12.197),
-        'right_wrist': (71.02, 19.344), 'left_elbow': (63.672, 17.331),
+        'neck': (35.0, 22.694, -38.778), 'head': (8.076, -10.716),
+        'right_shoulder': (19.805, 27.187, -26.592), 'right_elbow': (43.086, 51.568),
+        'right_wrist': (-61.832, 17.4),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (59.921, 4.506, 2.593), 'spine_thoracic': (-14.686, 5.032, 15.376),
-        'neck': (35.0, 24.814, -38.775), 'head': (7.942, -10.601), 'right_clavicle': (-10.0, 15.0),
-        'right_shoulder': (33.737, 29.273, -86.888), 'right_elbow': (25.836, -28.609),
-        'right_wrist': (77.553, 19.954),
+        'spine_lumbar': (60.0, 4.576, 3.272), 'spine_thoracic': (-15.0, 5.612, 14.55),
+        'neck': (35.0, 22.693, -38.782), 'head': (8.076, -10.716), 'right_clavicle': (-9.781, 15.0),
+        'right_shoulder': (21.189, 33.42, -35.267), 'right_elbow': (32.637, 47.706),
+        'right_wrist': (-69.357, 19.794),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.0, {
-        'spine_lumbar': (60.0, 8.099, 4.553), 'spine_thoracic': (-13.398, 6.677, 16.847),
-        'neck': (34.784, 23.178, -41.297), 'head': (6.689, -9.814),
-        'right_clavicle': (-8.938, 14.999), 'right_shoulder': (35.266, 32.264, -88.495),
-        'right_elbow': (21.968, -29.892), 'right_wrist': (76.194, 19.676),
-        'left_shoulder': (22.973, 6.269, 8.832),
+        'spine_lumbar': (60.0, 8.035, 5.104), 'spine_thoracic': (-13.979, 7.025, 15.961),
+        'neck': (34.778, 21.272, -41.144), 'head': (6.97, -10.076),
+        'right_clavicle': (-8.589, 14.848), 'right_shoulder': (22.247, 36.525, -36.565),
+        'right_elbow': (28.886, 47.055), 'right_wrist': (-68.198, 19.426),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.066689, duration=0.072)
     human.KeyJoints(7.1, {
-        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
-        'neck': (34.636, 22.051, -43.434), 'head': (5.54, -9.303), 'right_clavicle': (-7.06, 15.0),
-        'right_shoulder': (36.451, 35.907, -88.428), 'right_elbow': (20.849, -29.745),
-        'right_wrist': (73.81, 19.294),
+        'spine_lumbar': (60.0, 11.634, 7.118), 'spine_thoracic': (-13.093, 8.411, 17.563),
+        'neck': (34.855, 20.164, -43.678), 'head': (6.042, -9.535),
+        'right_clavicle': (-7.087, 15.0), 'right_shoulder': (23.44, 39.557, -37.081),
+        'right_elbow': (26.907, 46.747), 'right_wrist': (-66.109, 18.788),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.138689, duration=0.2628)
-    human.KeyJoints(7.2, {'neck': (34.635, 22.109, -45.117), 'head': (6.824, -9.567)})
-    human.KeyJoints(7.3, {
-        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
-        'neck': (34.622, 22.332, -51.582), 'head': (11.777, -10.581),
-        'right_shoulder': (36.446, 35.883, -88.428), 'right_elbow': (20.894, -29.745),
-        'right_wrist': (73.859, 19.304), 'left_shoulder': (22.973, 6.269, 8.832),
-        'left_elbow': (63.672, 17.331), 'left_wrist': (-3.593, 6.649),
-    })
+    human.KeyJoints(7.2, {'neck': (34.842, 20.391, -45.354), 'head': (7.262, -9.767)})
+    human.KeyJoints(7.3, {'neck': (34.759, 21.263, -51.797), 'head': (11.965, -10.661)})
     human.KeyJoints(7.4, {
-        'spine_lumbar': (58.118, 12.064, 6.344), 'spine_thoracic': (-12.229, 8.25, 18.222),
-        'neck': (34.59, 22.471, -55.635), 'head': (14.944, -11.216),
-        'right_shoulder': (34.431, 37.147, -88.856), 'right_elbow': (18.41, -29.829),
-        'right_wrist': (67.464, 18.089), 'left_shoulder': (24.211, 5.389, 9.306),
-        'left_elbow': (59.679, 17.324), 'left_wrist': (-3.104, 5.626),
+        'spine_lumbar': (60.0, 11.634, 7.118), 'spine_thoracic': (-13.093, 8.411, 17.563),
+        'neck': (34.591, 21.81, -55.834), 'head': (14.966, -11.221),
+        'left_shoulder': (23.994, 6.184, 8.659), 'left_elbow': (64.165, 17.314),
+        'left_wrist': (-3.625, 6.78),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=7.401489, duration=2.069192)
     human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, 12.792, 4.961), 'spine_thoracic': (-11.949, 7.023, 15.096),
-        'neck': (32.963, 22.531, -52.413), 'right_shoulder': (36.442, 35.869, -88.427),
-        'right_elbow': (20.919, -29.745), 'right_wrist': (73.886, 19.31),
-        'left_clavicle': (-9.745, 15.0), 'left_shoulder': (24.146, 6.357, 10.043),
-        'left_elbow': (61.298, 19.79), 'left_wrist': (-7.429, 7.514),
+        'spine_lumbar': (60.0, 12.176, 5.684), 'spine_thoracic': (-12.758, 7.429, 14.48),
+        'neck': (32.975, 21.873, -52.581), 'left_clavicle': (-9.752, 15.0),
+        'left_shoulder': (25.052, 6.236, 9.728), 'left_elbow': (61.935, 19.659),
+        'left_wrist': (-7.439, 7.637),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (47.828, 12.608, 1.384), 'spine_thoracic': (-10.176, 5.604, 7.017),
-        'neck': (30.537, 23.449, -43.568), 'right_shoulder': (28.268, 45.128, -89.62),
-        'right_elbow': (5.002, -29.256), 'right_wrist': (28.708, 9.865),
-        'left_shoulder': (27.176, 6.653, 13.173), 'left_elbow': (55.035, 26.146),
-        'left_wrist': (-17.344, 9.751),
+        'spine_lumbar': (60.0, 13.578, 1.978), 'spine_thoracic': (-11.833, 4.892, 6.511),
+        'neck': (30.524, 22.787, -43.69), 'right_elbow': (27.022, 46.747),
+        'right_wrist': (-66.223, 18.806), 'left_shoulder': (27.787, 6.418, 12.49),
+        'left_elbow': (56.036, 25.721), 'left_wrist': (-17.297, 9.852),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (48.281, 14.274, -3.382), 'spine_thoracic': (-8.678, 2.226, -3.753),
-        'neck': (29.176, 27.029, -31.069), 'right_shoulder': (30.061, 42.092, -89.256),
-        'right_elbow': (9.98, -29.315), 'right_wrist': (45.541, 14.719),
-        'left_shoulder': (31.215, 7.195, 17.344), 'left_elbow': (46.406, 34.618),
-        'left_wrist': (-30.56, 12.733),
+        'spine_lumbar': (60.0, 15.446, -2.961), 'spine_thoracic': (-10.471, 1.51, -4.111),
+        'neck': (29.143, 26.309, -31.119), 'left_clavicle': (-9.516, 15.0),
+        'left_shoulder': (31.432, 6.771, 16.171), 'left_elbow': (47.879, 33.8),
+        'left_wrist': (-30.438, 12.804),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (52.503, 16.508, -8.337), 'spine_thoracic': (-7.143, -1.789, -14.947),
-        'neck': (30.715, 33.75, -17.185), 'right_shoulder': (33.986, 39.378, -88.58),
-        'right_elbow': (14.842, -29.541), 'right_wrist': (66.793, 18.649),
-        'left_shoulder': (35.414, 8.019, 21.68), 'left_elbow': (36.938, 43.424),
-        'left_wrist': (-44.298, 15.832),
+        'spine_lumbar': (60.0, 17.388, -8.096), 'spine_thoracic': (-8.825, -2.005, -15.153),
+        'neck': (30.588, 33.288, -17.212), 'left_clavicle': (-9.271, 15.0),
+        'left_shoulder': (35.222, 7.333, 19.998), 'left_elbow': (38.877, 42.198),
+        'left_wrist': (-44.097, 15.873),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (57.773, 18.723, -12.478), 'spine_thoracic': (-5.573, -5.608, -24.301),
-        'neck': (35.0, 33.75, -4.605), 'head': (15.0, -11.25),
-        'right_shoulder': (36.224, 36.419, -88.263), 'right_elbow': (20.401, -29.758),
-        'right_wrist': (73.166, 19.24), 'left_shoulder': (38.922, 9.164, 25.303),
-        'left_elbow': (28.155, 50.783), 'left_wrist': (-55.777, 18.422),
+        'spine_lumbar': (60.0, 19.011, -12.386), 'spine_thoracic': (-7.048, -4.942, -24.379),
+        'neck': (35.0, 33.75, -4.515), 'head': (15.0, -11.25), 'left_clavicle': (-8.919, 15.0),
+        'left_shoulder': (38.388, 8.142, 23.196), 'left_elbow': (30.441, 49.216),
+        'left_wrist': (-55.511, 18.438),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (60.0, 19.928, -14.801), 'spine_thoracic': (-3.912, -7.75, -29.551),
-        'neck': (35.0, -13.827, 9.011), 'head': (15.0, 11.25),
-        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
-        'right_wrist': (73.886, 19.31), 'left_clavicle': (-9.997, 15.0),
-        'left_shoulder': (40.891, 10.668, 27.337), 'left_elbow': (21.583, 54.913),
-        'left_wrist': (-62.22, 19.876),
+        'spine_lumbar': (60.0, 19.922, -14.794), 'spine_thoracic': (-5.293, -6.591, -29.557),
+        'neck': (35.0, -12.877, 8.823), 'head': (15.0, 11.25),
+        'right_shoulder': (23.367, 39.516, -37.099), 'left_clavicle': (-8.443, 15.0),
+        'left_shoulder': (40.165, 9.238, 24.991), 'left_elbow': (23.983, 53.154),
+        'left_wrist': (-61.917, 19.877),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (-1.503, -8.19, -30.0),
-        'neck': (35.0, -1.0, 8.919), 'head': (15.0, 11.25),
-        'left_shoulder': (43.088, 15.599, 26.152), 'left_elbow': (16.773, 54.576),
-        'left_wrist': (-60.436, 18.775),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (-2.878, -6.654, -30.0),
+        'neck': (35.0, 1.271, 8.685), 'head': (15.0, 11.25), 'left_clavicle': (-8.577, 15.0),
+        'left_shoulder': (41.828, 14.076, 23.73), 'left_elbow': (19.29, 52.805),
+        'left_wrist': (-60.5, 18.849),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.194677, duration=0.2628)
     human.KeyJoints(8.2, {
-        'spine_thoracic': (9.81, -10.0, -30.0), 'neck': (32.699, 33.75, 7.177),
-        'head': (15.0, -11.25), 'left_shoulder': (59.583, 12.212, 25.727),
-        'left_elbow': (6.481, 54.09), 'left_wrist': (-43.195, 14.175),
+        'spine_thoracic': (6.779, -10.0, -30.0), 'neck': (34.247, 33.75, 7.538),
+        'head': (15.0, -11.25), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (56.532, 12.588, 23.086), 'left_elbow': (8.871, 52.173),
+        'left_wrist': (-45.466, 14.692),
     })
     human.KeyJoints(8.4, {
-        'neck': (32.699, 33.75, 7.177), 'head': (15.0, -11.25),
-        'left_shoulder': (59.583, 12.212, 25.727), 'left_elbow': (6.481, 54.09),
-        'left_wrist': (-43.195, 14.175),
+        'neck': (34.247, 33.75, 7.538), 'head': (15.0, -11.25),
+        'left_shoulder': (56.532, 12.588, 23.086), 'left_elbow': (8.871, 52.173),
+        'left_wrist': (-45.466, 14.692),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(8.5, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (9.81, -10.0, -30.0),
-        'neck': (32.764, 32.588, 8.833), 'head': (15.0, -10.615),
-        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
-        'right_wrist': (73.886, 19.31), 'left_shoulder': (58.511, 14.203, 25.86),
-        'left_elbow': (9.414, 54.203), 'left_wrist': (-43.885, 14.227),
+        'neck': (34.268, 32.57, 9.194), 'head': (15.0, -10.615),
+        'left_shoulder': (55.257, 13.037, 22.033), 'left_elbow': (11.817, 51.964),
+        'left_wrist': (-45.991, 14.767),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (55.84, 19.371, -15.0), 'spine_thoracic': (10.867, -9.48, -30.0),
-        'neck': (33.306, 22.894, 22.64), 'head': (15.0, -5.321), 'right_elbow': (21.701, -29.754),
-        'right_wrist': (74.509, 19.382), 'left_shoulder': (49.268, 30.935, 27.11),
-        'left_elbow': (32.921, 55.24), 'left_wrist': (-49.219, 14.596),
+        'neck': (34.445, 22.729, 23.004), 'head': (15.0, -5.321),
+        'left_shoulder': (44.375, 16.763, 12.966), 'left_elbow': (35.445, 50.129),
+        'left_wrist': (-50.026, 15.302),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (50.139, 18.571, -15.0), 'spine_thoracic': (12.213, -9.027, -30.0),
-        'neck': (34.098, 8.694, 42.866), 'head': (15.0, 2.433),
-        'right_shoulder': (37.544, 36.128, -87.976), 'right_elbow': (22.649, -29.772),
-        'right_wrist': (75.304, 19.482), 'left_shoulder': (34.32, 56.051, 29.413),
-        'left_elbow': (64.846, 57.066), 'left_wrist': (-56.623, 15.201),
+        'neck': (34.705, 8.313, 43.234), 'head': (15.0, 2.433),
+        'left_shoulder': (27.275, 22.282, -1.275), 'left_elbow': (67.538, 47.144),
+        'left_wrist': (-55.595, 16.02),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (47.268, 18.235, -15.0), 'spine_thoracic': (12.709, -9.112, -30.0),
-        'neck': (34.78, -3.504, 60.241), 'head': (15.0, 9.095),
-        'right_shoulder': (37.526, 36.058, -87.974), 'right_elbow': (22.941, -29.804),
-        'right_wrist': (75.583, 19.544), 'left_shoulder': (18.32, 78.983, 32.442),
-        'left_elbow': (86.699, 59.316), 'left_wrist': (-62.099, 15.87),
+        'neck': (34.928, -4.072, 60.613), 'head': (15.0, 9.095),
+        'left_shoulder': (9.986, 27.168, -15.649), 'left_elbow': (89.511, 43.915),
+        'left_wrist': (-59.639, 16.496),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (46.298, 18.129, -15.0), 'spine_thoracic': (12.716, -9.282, -30.0),
-        'neck': (35.0, -7.45, 65.862), 'head': (15.0, 11.25),
-        'right_shoulder': (37.336, 36.005, -88.052), 'left_shoulder': (2.704, 93.388, 37.838),
-        'left_elbow': (87.466, 62.485), 'left_wrist': (-63.507, 16.648),
+        'neck': (35.0, -8.078, 66.235), 'head': (15.0, 11.25),
+        'left_shoulder': (-4.632, 29.668, -27.025), 'left_elbow': (90.491, 40.704),
+        'left_wrist': (-60.501, 15.895),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (45.49, 18.004, -15.0), 'spine_thoracic': (12.783, -9.303, -30.0),
-        'left_shoulder': (-17.163, 106.479, 49.219), 'left_elbow': (82.943, 68.018),
-        'left_wrist': (-64.244, 17.79),
+        'left_shoulder': (-21.248, 31.085, -38.44), 'left_elbow': (86.803, 36.557),
+        'left_wrist': (-60.775, 13.291),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (45.543, 17.996, -15.0), 'spine_thoracic': (12.739, -9.279, -30.0),
-        'right_shoulder': (37.315, 36.025, -88.062), 'right_elbow': (22.854, -29.827),
-        'right_wrist': (75.517, 19.562), 'left_shoulder': (-34.428, 109.302, 52.064),
-        'left_elbow': (69.922, 71.599), 'left_wrist': (-59.458, 15.811),
+        'left_shoulder': (-35.524, 32.538, -49.088), 'left_elbow': (82.558, 32.809),
+        'left_wrist': (-61.002, 10.293),
     })
     human.KeyJoints(9.2, {
-        'spine_lumbar': (46.734, 18.076, -15.0), 'spine_thoracic': (12.045, -9.274, -30.0),
-        'neck': (35.0, -7.45, 65.862), 'right_shoulder': (37.116, 36.109, -88.154),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-42.859, 107.475, 49.521),
-        'left_elbow': (59.578, 72.553), 'left_wrist': (-54.813, 13.468),
+        'left_shoulder': (-42.321, 35.039, -57.732), 'left_elbow': (80.266, 30.978),
+        'left_wrist': (-61.461, 8.675),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'spine_lumbar': (46.033, 18.125, -14.931), 'spine_thoracic': (9.408, -7.67, -29.968),
-        'neck': (35.0, -9.299, 63.588), 'right_shoulder': (36.558, 36.338, -88.43),
-        'left_clavicle': (-7.903, 15.0), 'left_shoulder': (-43.406, 108.258, 49.466),
-        'left_elbow': (58.973, 72.576), 'left_wrist': (-55.03, 13.562),
+        'left_shoulder': (-41.78, 41.865, -64.491), 'left_elbow': (86.367, 31.103),
+        'left_wrist': (-63.231, 8.962),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)
     human.KeyJoints(9.4, {
-        'spine_lumbar': (43.023, 18.307, -15.0), 'spine_thoracic': (5.771, -6.222, -30.0),
-        'neck': (35.0, -12.638, 60.087), 'right_shoulder': (36.182, 36.482, -88.618),
-        'right_elbow': (21.773, -29.914), 'right_wrist': (74.36, 19.533),
-        'left_clavicle': (-8.421, 15.0), 'left_shoulder': (-43.001, 111.516, 49.442),
-        'left_elbow': (64.333, 72.374), 'left_wrist': (-57.759, 13.839),
+        'left_shoulder': (-41.263, 40.013, -75.428), 'left_elbow': (96.112, 31.177),
+        'left_wrist': (-68.022, 9.381),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.470681, duration=0.2628)
-    human.KeyJoints(9.5, {
-        'spine_lumbar': (48.311, 19.165, -15.0), 'spine_thoracic': (5.353, -6.555, -30.0),
-        'right_shoulder': (36.249, 36.204, -88.554), 'right_elbow': (21.274, -29.833),
-        'right_wrist': (74.047, 19.418), 'left_shoulder': (-42.751, 120.101, 58.646),
-        'left_elbow': (71.581, 74.368), 'left_wrist': (-62.77, 16.862),
-    })
-    human.KeyJoints(9.6, {
-        'spine_lumbar': (51.216, 19.632, -15.0), 'spine_thoracic': (5.062, -6.752, -30.0),
-        'neck': (34.916, -12.753, 60.075), 'right_shoulder': (36.297, 36.028, -88.511),
-        'right_elbow': (20.998, -29.786), 'right_wrist': (73.883, 19.351),
-        'left_shoulder': (-42.836, 123.99, 62.991), 'left_elbow': (75.423, 75.278),
-        'left_wrist': (-65.248, 18.3),
-    })
+    human.KeyJoints(9.5, {'neck': (35.0, -8.05, 66.233)})
     human.KeyJoints(9.7, {
-        'spine_lumbar': (45.965, 18.896, -15.0), 'spine_thoracic': (5.201, -6.533, -30.0),
-        'neck': (34.751, -12.864, 60.04), 'head': (14.956, 11.25), 'right_clavicle': (-7.06, 15.0),
-        'right_shoulder': (36.042, 36.243, -88.649), 'right_elbow': (21.648, -29.912),
-        'right_wrist': (74.343, 19.529), 'left_shoulder': (-43.135, 116.163, 54.634),
-        'left_elbow': (68.252, 73.426), 'left_wrist': (-60.41, 15.536),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (6.779, -10.0, -30.0),
+        'neck': (35.0, -7.313, 66.074), 'head': (15.0, 11.25), 'right_clavicle': (-7.087, 15.0),
+        'right_shoulder': (23.367, 39.516, -37.099), 'right_elbow': (27.022, 46.747),
+        'right_wrist': (-66.223, 18.806),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.733481, duration=0.719288)
     human.KeyJoints(9.8, {
-        'spine_lumbar': (40.615, 17.252, -14.282), 'spine_thoracic': (4.764, -6.185, -29.452),
-        'neck': (34.247, -12.754, 58.979), 'head': (14.808, 11.245),
-        'right_clavicle': (-7.168, 15.0), 'right_shoulder': (37.082, 33.735, -88.133),
-        'right_elbow': (20.525, -29.575), 'right_wrist': (73.268, 19.095),
-        'left_shoulder': (-42.71, 104.899, 44.055), 'left_elbow': (60.299, 71.094),
-        'left_wrist': (-53.611, 11.777),
+        'spine_lumbar': (60.0, 18.52, -14.235), 'spine_thoracic': (6.192, -9.277, -29.321),
+        'neck': (34.812, -7.794, 64.451), 'head': (14.943, 11.245),
+        'right_clavicle': (-7.194, 15.0), 'right_shoulder': (24.05, 37.463, -36.355),
+        'right_elbow': (27.038, 46.996), 'right_wrist': (-65.598, 18.687),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (38.583, 11.656, -11.066), 'spine_thoracic': (2.471, -4.985, -27.0),
-        'neck': (32.404, -12.446, 53.871), 'head': (14.402, 11.15),
-        'right_clavicle': (-7.656, 15.0), 'right_shoulder': (39.998, 24.094, -86.8),
-        'right_elbow': (18.743, -28.802), 'right_wrist': (70.498, 18.125),
-        'left_shoulder': (-40.996, 96.696, 39.219), 'left_elbow': (55.601, 70.084),
-        'left_wrist': (-48.633, 9.612),
+        'spine_lumbar': (60.0, 11.89, -10.808), 'spine_thoracic': (3.494, -6.034, -26.274),
+        'neck': (32.434, -7.796, 56.695), 'head': (14.506, 11.162),
+        'right_clavicle': (-7.677, 15.0), 'right_shoulder': (27.159, 28.194, -32.994),
+        'right_elbow': (27.121, 48.121), 'right_wrist': (-62.798, 18.149),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (38.538, 2.878, -6.368), 'spine_thoracic': (-0.893, -2.969, -23.417),
-        'neck': (29.745, -12.654, 44.886), 'head': (14.298, 10.993),
-        'right_shoulder': (44.387, 9.807, -84.812), 'right_elbow': (16.091, -27.649),
-        'right_wrist': (66.453, 16.688), 'left_shoulder': (-41.157, 94.383, 40.157),
-        'left_elbow': (53.785, 70.32), 'left_wrist': (-47.547, 9.647),
+        'spine_lumbar': (60.0, 2.206, -5.804), 'spine_thoracic': (-0.624, -1.295, -21.808),
+        'neck': (29.239, -8.558, 44.249), 'head': (14.812, 11.086),
+        'right_shoulder': (31.824, 14.467, -28.007), 'right_elbow': (27.276, 49.791),
+        'right_wrist': (-58.708, 17.365),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (40.005, -7.029, -1.412), 'spine_thoracic': (-4.626, -0.617, -19.637),
-        'neck': (27.21, -14.182, 33.614), 'head': (14.909, 11.206),
-        'right_clavicle': (-9.119, 15.0), 'right_shoulder': (49.266, -5.661, -82.637),
-        'right_elbow': (13.203, -26.388), 'right_wrist': (62.185, 15.134),
-        'left_shoulder': (-44.045, 98.753, 45.42), 'left_elbow': (55.921, 71.477),
-        'left_wrist': (-50.79, 11.663),
+        'spine_lumbar': (60.0, -8.011, -0.523), 'spine_thoracic': (-5.307, 3.713, -17.067),
+        'neck': (27.261, -12.416, 30.078), 'head': (15.0, 11.228), 'right_clavicle': (-9.127, 15.0),
+        'right_shoulder': (36.984, -0.379, -22.595), 'right_elbow': (27.502, 51.606),
+        'right_wrist': (-54.392, 16.537),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (41.646, -14.644, 2.582), 'spine_thoracic': (-8.4, 1.147, -16.592),
-        'neck': (26.822, -19.148, 23.453), 'right_clavicle': (-9.724, 15.0),
-        'right_shoulder': (53.65, -18.845, -80.743), 'right_elbow': (10.709, -25.29),
-        'right_wrist': (58.746, 13.813), 'left_shoulder': (-45.857, 103.107, 50.718),
-        'left_elbow': (58.757, 72.679), 'left_wrist': (-53.907, 13.652),
+        'spine_lumbar': (60.0, -16.244, 3.731), 'spine_thoracic': (-9.702, 7.762, -13.194),
+        'neck': (28.042, -18.054, 17.875), 'right_clavicle': (-9.726, 15.0),
+        'right_shoulder': (41.579, -13.006, -17.959), 'right_elbow': (27.8, 53.165),
+        'right_wrist': (-50.915, 15.869),
     })
     human.KeyJoints(10.3, {
-        'spine_lumbar': (43.5, -17.567, 4.39), 'spine_thoracic': (-11.68, 1.745, -15.213),
-        'neck': (28.378, -21.854, 18.293), 'head': (15.0, 11.232), 'right_clavicle': (-9.998, 15.0),
-        'right_shoulder': (56.557, -26.278, -79.597), 'right_elbow': (9.242, -24.626),
-        'right_wrist': (57.188, 13.073), 'left_shoulder': (-45.413, 105.16, 54.131),
-        'left_elbow': (60.485, 73.487), 'left_wrist': (-55.174, 14.721),
+        'spine_lumbar': (60.0, -19.972, 5.658), 'spine_thoracic': (-12.954, 9.624, -11.333),
+        'neck': (30.093, -21.962, 11.739), 'right_clavicle': (-9.998, 15.0),
+        'right_shoulder': (44.546, -20.073, -15.302), 'right_elbow': (28.169, 54.066),
+        'right_wrist': (-49.34, 15.567),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(10.4, {
-        'spine_lumbar': (55.984, -19.274, 4.261), 'spine_thoracic': (-11.151, 2.821, -15.334),
-        'neck': (29.666, -22.842, 19.438), 'right_clavicle': (-9.278, 14.779),
-        'right_shoulder': (55.427, -28.827, -79.489), 'right_elbow': (8.503, -24.513),
-        'right_wrist': (57.83, 13.041), 'left_shoulder': (-42.748, 126.57, 65.992),
-        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
+        'spine_lumbar': (56.608, -19.376, 5.473), 'spine_thoracic': (-13.323, 9.602, -11.476),
+        'neck': (31.34, -23.174, 12.656), 'right_shoulder': (43.609, -22.056, -14.767),
+        'right_elbow': (28.439, 54.239), 'right_wrist': (-49.841, 15.872),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=10.452769, duration=0.072)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (53.328, -18.605, 3.949), 'spine_thoracic': (-10.686, 2.587, -15.652),
-        'neck': (29.73, -22.598, 20.516), 'right_clavicle': (-8.549, 14.373),
-        'right_shoulder': (53.842, -27.727, -79.819), 'right_elbow': (5.563, -24.423),
-        'right_wrist': (52.913, 12.214), 'left_shoulder': (-42.89, 125.092, 65.218),
-        'left_elbow': (76.882, 75.783), 'left_wrist': (-66.126, 18.973),
+        'spine_lumbar': (54.492, -18.96, 5.347), 'spine_thoracic': (-12.623, 9.532, -11.697),
+        'neck': (31.637, -23.217, 13.63), 'right_clavicle': (-8.97, 14.299),
+        'right_shoulder': (41.754, -23.245, -14.605), 'right_elbow': (28.358, 54.28),
+        'right_wrist': (-50.348, 16.052),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(10.6, {
-        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
-        'right_shoulder': (52.964, -27.134, -79.971), 'right_elbow': (10.01, 5.452),
-        'right_wrist': (59.48, 13.764), 'left_shoulder': (-42.748, 126.57, 65.992),
-        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
+        'right_shoulder': (41.438, -22.497, -14.892), 'right_elbow': (28.215, 62.854),
     })
     human.KeyJoints(10.7, {
-        'right_shoulder': (55.811, -21.918, -80.195), 'right_elbow': (11.383, 62.995),
-        'right_wrist': (64.335, 15.341),
+        'right_shoulder': (41.005, -20.967, -15.458), 'right_elbow': (28.271, 79.299),
+        'right_wrist': (-50.3, 15.695),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(10.8, {
-        'right_shoulder': (53.435, -24.714, -80.145), 'right_elbow': (11.089, 31.708),
-        'right_wrist': (61.526, 14.451),
+        'right_shoulder': (42.059, -23.916, -14.35), 'right_elbow': (28.668, 46.26),
+        'right_wrist': (-50.48, 16.207),
     })
     human.KeyJoints(10.9, {
-        'right_shoulder': (54.023, -29.356, -79.622), 'right_elbow': (8.433, -23.298),
-        'right_wrist': (58.206, 13.164),
+        'right_shoulder': (44.622, -26.75, -13.322), 'right_elbow': (33.671, -8.746),
+        'right_wrist': (-52.991, 18.096),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.0, {
-        'right_shoulder': (52.946, -26.478, -80.032), 'right_elbow': (10.409, 13.0),
-        'right_wrist': (60.029, 13.957),
+        'right_shoulder': (42.895, -25.267, -13.839), 'right_elbow': (29.818, 27.552),
+        'right_wrist': (-50.958, 16.654),
     })
     human.KeyJoints(11.1, {
-        'right_shoulder': (56.021, -21.773, -80.19), 'right_elbow': (11.382, 65.007),
-        'right_wrist': (64.488, 15.389),
+        'right_shoulder': (40.999, -20.942, -15.467), 'right_elbow': (28.277, 79.559),
+        'right_wrist': (-50.302, 15.692),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.2, {
-        'right_shoulder': (53.149, -25.446, -80.106), 'right_elbow': (10.849, 24.034),
-        'right_wrist': (60.834, 14.232),
+        'right_shoulder': (42.394, -24.507, -14.124), 'right_elbow': (29.051, 38.586),
+        'right_wrist': (-50.632, 16.369),
     })
     human.KeyJoints(11.3, {
-        'right_shoulder': (54.105, -29.428, -79.603), 'right_elbow': (8.353, -24.512),
-        'right_wrist': (58.135, 13.135),
+        'right_shoulder': (44.677, -26.769, -13.316), 'right_elbow': (33.827, -9.96),
+        'right_wrist': (-53.092, 18.16),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.4, {
-        'right_shoulder': (53.048, -25.774, -80.085), 'right_elbow': (10.767, 20.748),
-        'right_wrist': (60.686, 14.173),
+        'right_shoulder': (42.54, -24.746, -14.034), 'right_elbow': (29.256, 35.3),
+        'right_wrist': (-50.717, 16.448),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.5, {
-        'right_shoulder': (56.06, -21.747, -80.189), 'right_elbow': (11.382, 65.374),
-        'right_wrist': (64.516, 15.397),
+        'right_shoulder': (40.991, -20.908, -15.479), 'right_elbow': (28.285, 79.926),
+        'right_wrist': (-50.305, 15.688),
     })
     human.KeyJoints(11.6, {
-        'right_shoulder': (52.974, -26.185, -80.056), 'right_elbow': (10.568, 16.265),
-        'right_wrist': (60.295, 14.046),
+        'right_shoulder': (42.744, -25.055, -13.918), 'right_elbow': (29.568, 30.817),
+        'right_wrist': (-50.849, 16.563),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.7, {
-        'right_shoulder': (54.067, -29.406, -79.611), 'right_elbow': (8.399, -24.012),
-        'right_wrist': (58.189, 13.152),
+        'right_shoulder': (44.655, -26.762, -13.318), 'right_elbow': (33.763, -9.46),
+        'right_wrist': (-53.05, 18.133),
     })
     human.KeyJoints(11.8, {
-        'right_shoulder': (53.3, -25.023, -80.13), 'right_elbow': (10.998, 28.487),
-        'right_wrist': (61.23, 14.358),
+        'right_shoulder': (42.182, -24.175, -14.253), 'right_elbow': (28.84, 43.039),
+        'right_wrist': (-50.557, 16.279),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.9, {
-        'right_shoulder': (55.919, -21.842, -80.192), 'right_elbow': (11.383, 64.034),
-        'right_wrist': (64.415, 15.366),
+        'right_shoulder': (41.02, -21.034, -15.434), 'right_elbow': (28.257, 78.586),
+        'right_wrist': (-50.295, 15.703),
     })
     human.KeyJoints(12.0, {
-        'right_shoulder': (52.942, -26.864, -79.998), 'right_elbow': (10.181, 8.607),
-        'right_wrist': (59.698, 13.842),
+        'right_shoulder': (43.101, -25.535, -13.741), 'right_elbow': (30.185, 23.159),
+        'right_wrist': (-51.122, 16.785),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.079969, duration=0.072)
     human.KeyJoints(12.1, {
-        'right_shoulder': (54.105, -29.428, -79.603), 'right_elbow': (8.353, -24.552),
-        'right_wrist': (58.135, 13.135),
+        'right_shoulder': (44.679, -26.77, -13.316), 'right_elbow': (33.833, -10.0),
+        'right_wrist': (-53.096, 18.162),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.151969, duration=0.2628)
-    human.KeyJoints(12.2, {'neck': (29.716, -22.605, 20.493)})
-    human.KeyJoints(12.3, {'neck': (29.592, -22.666, 20.297)})
-    human.KeyJoints(12.4, {'neck': (29.344, -22.79, 19.902)})
+    human.KeyJoints(12.2, {
+        'right_shoulder': (44.131, -26.087, -13.564), 'right_elbow': (32.76, -10.0),
+        'right_wrist': (-52.551, 17.752),
+    })
+    human.KeyJoints(12.3, {'neck': (31.65, -23.171, 13.626)})
+    human.KeyJoints(12.4, {
+        'right_shoulder': (41.848, -23.243, -14.596), 'right_elbow': (28.294, -10.0),
+        'right_wrist': (-50.284, 16.042),
+    })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(12.6, {'neck': (29.296, -22.813, 19.826)})
+    human.KeyJoints(12.6, {'neck': (31.679, -23.075, 13.62)})
+    human.KeyJoints(12.8, {'right_elbow': (28.24, -9.986)})
     human.KeyJoints(15.4, {
-        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
-        'right_clavicle': (-8.549, 14.373), 'right_shoulder': (54.105, -29.428, -79.603),
-        'right_elbow': (8.353, -24.552), 'right_wrist': (58.135, 13.135),
-        'left_clavicle': (-8.421, 15.0), 'left_shoulder': (-42.748, 126.57, 65.992),
-        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
+        'spine_lumbar': (54.492, -18.96, 5.347), 'spine_thoracic': (-12.623, 9.532, -11.697),
+        'right_clavicle': (-8.97, 14.299), 'right_shoulder': (41.826, -23.215, -14.606),
+        'right_elbow': (28.25, -10.0), 'right_wrist': (-50.262, 16.025),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-41.263, 40.013, -75.428),
+        'left_elbow': (96.112, 31.177), 'left_wrist': (-68.022, 9.381),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(15.5, {
-        'spine_lumbar': (44.379, -15.593, 3.174), 'spine_thoracic': (-8.333, 2.156, -12.505),
-        'right_clavicle': (-6.871, 11.483), 'right_shoulder': (45.2, -21.889, -67.602),
-        'right_elbow': (13.031, -16.09), 'right_wrist': (45.777, 10.281),
-        'left_clavicle': (-6.768, 11.984), 'left_shoulder': (-32.468, 102.737, 48.803),
-        'left_elbow': (69.243, 64.145), 'left_wrist': (-53.492, 15.427),
+        'spine_lumbar': (45.306, -15.718, 4.297), 'spine_thoracic': (-9.799, 7.668, -9.345),
+        'right_clavicle': (-7.209, 11.424), 'right_shoulder': (35.444, -17.039, -15.615),
+        'right_elbow': (28.977, -4.6), 'right_wrist': (-39.828, 12.611),
+        'left_clavicle': (-8.037, 11.984), 'left_shoulder': (-31.195, 33.68, -64.308),
+        'left_elbow': (83.799, 28.378), 'left_wrist': (-54.339, 7.556),
     })
     human.KeyJoints(15.6, {
-        'spine_lumbar': (20.525, -7.508, 1.292), 'spine_thoracic': (-2.984, 0.864, -5.055),
-        'right_clavicle': (-2.796, 4.641), 'right_shoulder': (23.588, -4.428, -39.21),
-        'right_elbow': (25.533, 3.744), 'right_wrist': (18.634, 4.105),
-        'left_clavicle': (-2.754, 4.844), 'left_shoulder': (-7.782, 45.96, 7.754),
-        'left_elbow': (48.326, 36.15), 'left_wrist': (-21.545, 6.177),
+        'spine_lumbar': (23.56, -7.537, 1.749), 'spine_thoracic': (-3.099, 3.141, -3.777),
+        'right_clavicle': (-2.934, 4.618), 'right_shoulder': (19.578, -2.455, -18.191),
+        'right_elbow': (32.099, 8.395), 'right_wrist': (-16.127, 5.093),
+        'left_clavicle': (-3.271, 4.844), 'left_shoulder': (-7.527, 18.202, -38.008),
+        'left_elbow': (54.27, 21.697), 'left_wrist': (-21.975, 3.046),
     })
-    human.KeyRoot(15.7, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
+    human.KeyRoot(15.7, (1.949, 44.833, 44.42), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.7, {
-        'spine_lumbar': (4.519, -0.688, 0.028), 'spine_thoracic': (0.693, -0.003, -0.055),
-        'right_clavicle': (-0.06, 0.051), 'right_shoulder': (8.935, 7.321, -20.173),
-        'right_elbow': (34.077, 17.042), 'right_wrist': (0.232, 0.004),
-        'left_clavicle': (-0.059, 0.053), 'left_shoulder': (8.556, 8.236, -19.782),
-        'left_elbow': (34.205, 17.395), 'left_wrist': (-0.244, -0.015),
-        'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
-        'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
-        'left_ankle': (9.996, -1.322),
+        'spine_lumbar': (8.967, -0.504, 0.038), 'spine_thoracic': (1.448, 0.101, -0.041),
+        'right_clavicle': (-0.063, 0.05), 'right_shoulder': (8.866, 7.337, -19.927),
+        'right_elbow': (34.26, 17.093), 'right_wrist': (-0.157, 0.044),
+        'left_clavicle': (-0.07, 0.053), 'left_shoulder': (8.486, 7.805, -20.247),
+        'left_elbow': (34.355, 17.238), 'left_wrist': (-0.242, 0.006),
+        'right_hip': (22.321, 0.0, 0.0), 'right_knee': (124.304,), 'left_hip': (22.321, 0.0, 0.0),
+        'left_knee': (124.304,),
     })
-    human.KeyRoot(15.8, (1.613, 45.179, 45.245), (-10.437, 0.0, 0.0))
+    human.KeyRoot(15.8, (2.199, 44.238, 43.065), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.8, {
-        'spine_lumbar': (5.363, 4.641, 0.0), 'spine_thoracic': (0.922, 0.954, 0.045),
-        'right_clavicle': (0.0, -0.041), 'right_shoulder': (8.596, 7.57, -19.802),
-        'right_elbow': (34.296, 17.309), 'right_wrist': (-0.145, -0.069),
-        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.873, 7.419, -20.314),
-        'left_elbow': (33.968, 17.02), 'left_wrist': (0.185, -0.127),
-        'right_hip': (21.072, -0.241, 0.399), 'right_knee': (131.068,),
-        'right_ankle': (9.974, 3.197), 'left_hip': (21.072, 0.241, -0.399), 'left_knee': (131.068,),
-        'left_ankle': (9.974, -3.197),
+        'spine_lumbar': (6.871, 5.194, 0.0), 'spine_thoracic': (1.154, 1.156, 0.034),
+        'right_clavicle': (0.0, -0.041), 'right_shoulder': (8.612, 7.547, -19.974),
+        'right_elbow': (34.327, 17.267), 'right_wrist': (0.158, -0.054),
+        'left_clavicle': (0.0, -0.043), 'left_shoulder': (8.811, 7.559, -19.88),
+        'left_elbow': (33.983, 17.149), 'left_wrist': (0.194, -0.053),
+        'right_hip': (24.318, 0.0, 0.0), 'right_knee': (126.305,), 'left_hip': (24.318, 0.0, 0.0),
+        'left_knee': (126.305,),
     })
-    human.KeyRoot(15.9, (1.542, 44.797, 44.263), (-10.437, 0.0, 0.0))
+    human.KeyRoot(15.9, (2.368, 43.802, 42.145), (-10.437, 0.0, 0.0))
     human.KeyJoints(15.9, {
-        'spine_lumbar': (6.681, 17.091, 0.0), 'spine_thoracic': (0.681, 4.109, 0.035),
-        'right_hip': (22.438, -0.57, 0.892), 'right_knee': (132.422,),
-        'right_ankle': (9.856, 7.271), 'left_hip': (22.438, 0.57, -0.892), 'left_knee': (132.422,),
-        'left_ankle': (9.856, -7.271),
+        'spine_lumbar': (-4.878, 18.31, 0.0), 'spine_thoracic': (-1.656, 5.187, 0.026),
+        'right_hip': (25.691, 0.0, 0.0), 'right_knee': (127.678,), 'left_hip': (25.691, 0.0, 0.0),
+        'left_knee': (127.678,),
     })
-    human.KeyRoot(16.0, (1.117, 44.289, 43.012), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.0, (2.119, 44.428, 43.482), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.0, {
-        'spine_lumbar': (9.102, 20.0, 0.0), 'spine_thoracic': (-1.773, 10.0, 0.025),
-        'right_hip': (24.116, -1.428, 2.049), 'right_knee': (134.023,),
-        'right_ankle': (9.175, 17.319), 'left_hip': (24.116, 1.428, -2.049),
-        'left_knee': (134.023,), 'left_ankle': (9.175, -17.319),
+        'spine_lumbar': (-22.186, 20.0, 0.0), 'spine_thoracic': (-8.201, 10.0, 0.019),
+        'right_elbow': (34.294, 17.232), 'left_elbow': (34.182, 17.166),
+        'right_hip': (23.699, -0.003, -0.001), 'right_knee': (125.686,),
+        'right_ankle': (15.003, 0.004), 'left_hip': (23.699, 0.003, 0.001), 'left_knee': (125.686,),
+        'left_ankle': (15.003, -0.004), 'left_toes': (86.984,),
     })
-    human.KeyRoot(16.1, (-0.056, 44.345, 43.036), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.1, (1.744, 45.155, 45.203), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.1, {
-        'spine_lumbar': (9.449, 20.0, 0.0), 'spine_thoracic': (-9.041, 10.0, 0.015),
-        'right_hip': (23.799, -2.956, 3.894), 'right_knee': (133.446,),
-        'right_ankle': (6.667, 35.0), 'left_hip': (24.069, -0.774, 0.385), 'left_knee': (134.975,),
-        'left_ankle': (8.358, -19.152),
+        'spine_lumbar': (-30.0, 20.0, 0.0), 'spine_thoracic': (-14.987, 10.0, 0.011),
+        'right_elbow': (34.388, 17.215), 'left_elbow': (34.364, 17.175),
+        'right_hip': (21.165, -0.069, -0.017), 'right_knee': (123.153,),
+        'right_ankle': (15.004, 0.102), 'left_hip': (20.548, -0.153, 0.222),
+        'left_knee': (124.317,), 'left_ankle': (17.404, 0.271), 'left_toes': (86.362,),
     })
-    human.KeyRoot(16.2, (-0.125, 45.363, 45.533), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.2, (2.526, 43.315, 41.176), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.2, {
-        'spine_lumbar': (0.436, 20.0, 0.0), 'spine_thoracic': (-6.814, 10.0, 0.005),
-        'left_elbow': (34.336, 17.17), 'right_hip': (20.24, -2.446, 3.776),
-        'right_knee': (129.937,), 'right_ankle': (7.205, 32.018),
-        'left_hip': (25.476, -20.779, -4.841), 'left_knee': (132.206,),
-        'left_ankle': (-1.619, -1.63),
+        'spine_lumbar': (-16.216, 20.0, 0.0), 'spine_thoracic': (-12.978, 10.0, 0.004),
+        'left_shoulder': (8.61, 7.49, -19.982), 'right_hip': (27.149, -0.024, -0.008),
+        'right_knee': (129.137,), 'right_ankle': (15.003, 0.038),
+        'left_hip': (26.486, -25.0, -23.718), 'left_knee': (118.034,),
+        'left_ankle': (18.985, 1.515), 'right_toes': (86.982,), 'left_toes': (88.236,),
     })
-    human.KeyRoot(16.3, (0.22, 43.903, 42.087), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.3, (2.659, 42.476, 39.607), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.3, {
-        'spine_lumbar': (7.197, 20.0, 0.0), 'spine_thoracic': (-5.507, 10.0, 0.0),
-        'left_shoulder': (8.594, 7.5, -20.0), 'right_hip': (25.234, -2.825, 3.622),
-        'right_knee': (134.923,), 'right_ankle': (7.075, 32.768),
-        'left_hip': (46.263, -19.671, 3.021), 'left_ankle': (-46.113, -3.977),
+        'spine_lumbar': (-15.206, 20.0, 0.0), 'spine_thoracic': (-13.467, 10.0, 0.0),
+        'right_hip': (29.513, -0.217, -0.067), 'right_knee': (131.508,),
+        'right_ankle': (15.027, 0.327), 'left_hip': (46.448, -25.0, -2.6), 'left_knee': (132.815,),
+        'left_ankle': (-43.609, 7.906), 'right_toes': (86.896,), 'left_toes': (77.789,),
     })
-    human.KeyRoot(16.4, (0.037, 43.856, 41.978), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.4, (2.964, 41.772, 38.421), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (1.043, 20.0, 0.0), 'spine_thoracic': (-8.777, 10.0, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
-        'right_hip': (25.35, -3.091, 3.792), 'right_knee': (134.999,),
-        'right_ankle': (6.684, 34.925), 'left_hip': (83.405, -21.566, 31.596),
-        'left_knee': (134.236,), 'left_ankle': (-44.475, -16.418),
+        'spine_lumbar': (-18.525, 20.0, 0.0), 'spine_thoracic': (-12.239, 10.0, 0.0),
+        'right_wrist': (0.0, 0.0), 'left_wrist': (0.0, 0.0), 'right_hip': (31.365, -0.107, -0.041),
+        'right_knee': (133.387,), 'right_ankle': (15.16, 0.146),
+        'left_hip': (78.024, -0.676, 32.47), 'left_knee': (135.0,), 'left_ankle': (-45.525, 1.335),
+        'right_toes': (86.595,), 'left_toes': (45.853,),
     })
+    human.KeyRoot(16.5, (3.06, 41.476, 37.951), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.5, {
-        'spine_lumbar': (0.161, 20.0, 0.0), 'spine_thoracic': (-9.448, 10.0, 0.0),
-        'right_wrist': (0.0, 0.0), 'left_hip': (111.005, -17.935, 10.92),
-        'left_ankle': (-37.194, -23.109),
+        'spine_lumbar': (-18.49, 20.0, 0.0), 'spine_thoracic': (-11.696, 10.0, 0.0),
+        'right_hip': (32.116, -0.096, -0.038), 'right_knee': (134.139,),
+        'right_ankle': (15.16, 0.132), 'left_hip': (100.976, -0.604, 19.402),
+        'left_knee': (134.97,), 'left_ankle': (-20.353, 2.004), 'right_toes': (86.593,),
+        'left_toes': (27.006,),
     })
+    human.KeyRoot(16.6, (3.219, 41.107, 37.428), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.294, 20.0, 0.0), 'spine_thoracic': (-6.149, 10.0, 0.0),
-        'right_elbow': (34.377, 17.189), 'right_ankle': (6.671, 34.996),
-        'left_hip': (118.779, -9.323, -17.486), 'left_knee': (131.188,),
-        'left_ankle': (-30.516, -24.67),
+        'spine_lumbar': (-16.022, 20.0, 0.0), 'spine_thoracic': (-12.596, 10.0, 0.0),
+        'right_hip': (33.013, -0.021, -0.009), 'right_knee': (135.0,),
+        'right_ankle': (15.003, 0.035), 'left_hip': (107.187, -25.0, -24.109),
+        'left_knee': (117.319,), 'left_ankle': (13.341, 2.965), 'right_toes': (86.983,),
+        'left_toes': (22.232,),
     })
-    human.KeyRoot(16.7, (0.102, 43.861, 41.992), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.7, (3.181, 41.119, 37.44), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-1.104, 20.0, 0.0), 'spine_thoracic': (-6.341, 10.0, 0.0),
-        'right_hip': (25.346, -3.002, 3.796), 'right_ankle': (6.725, 34.696),
-        'left_hip': (100.946, -9.438, 9.142), 'left_knee': (132.386,),
-        'left_ankle': (-3.902, 13.123),
+        'spine_lumbar': (-17.179, 20.0, 0.0), 'spine_thoracic': (-13.889, 10.0, 0.0),
+        'right_hip': (32.984, -0.063, -0.025), 'right_knee': (134.972,),
+        'right_ankle': (15.003, 0.104), 'left_hip': (94.23, -0.047, 0.122), 'left_knee': (127.044,),
+        'left_ankle': (20.0, 0.133), 'left_toes': (12.774,),
     })
-    human.KeyRoot(16.8, (1.814, 44.016, 42.509), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.8, (3.156, 41.392, 37.869), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-3.512, 19.67, 0.0), 'spine_thoracic': (-1.022, 3.984, 0.0),
-        'right_hip': (25.018, -0.638, 0.904), 'right_ankle': (9.842, 7.602),
-        'left_hip': (100.292, -1.591, 1.724), 'left_knee': (132.49,), 'left_ankle': (-0.212, 2.435),
+        'spine_lumbar': (-9.264, 15.991, 0.0), 'spine_thoracic': (-1.988, 2.864, 0.0),
+        'right_hip': (32.309, 0.0, 0.0), 'right_knee': (134.296,), 'right_ankle': (15.003, 0.0),
+        'left_hip': (93.706, 0.0, 0.0), 'left_knee': (127.109,), 'left_ankle': (20.0, 0.0),
+        'right_toes': (86.984,), 'left_toes': (13.403,),
     })
-    human.KeyRoot(16.9, (1.993, 44.068, 42.482), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.9, (3.298, 41.286, 37.106), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-3.806, 9.808, 0.0), 'spine_thoracic': (-0.821, 1.771, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
-        'right_hip': (25.037, -0.397, 0.568), 'right_ankle': (10.063, 4.833),
-        'left_hip': (98.871, -0.812, 0.999), 'left_knee': (132.297,), 'left_ankle': (3.221, 1.335),
+        'spine_lumbar': (2.845, 0.007, 0.0), 'spine_thoracic': (0.387, 0.0, 0.0),
+        'right_hip': (33.269, -0.002, 0.004), 'right_knee': (134.986,),
+        'right_ankle': (15.619, 0.005), 'left_hip': (94.113, 0.001, -0.003),
+        'left_knee': (126.483,), 'left_ankle': (20.0, -0.003), 'right_toes': (86.098,),
+        'left_toes': (12.37,),
     })
-    human.KeyRoot(17.0, (2.995, 46.839, 37.706), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.0, (4.531, 43.947, 31.209), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (10.19, 8.819, 0.0), 'spine_thoracic': (1.504, 1.598, 0.0),
-        'right_shoulder': (8.942, 7.177, -19.855), 'right_elbow': (34.953, 17.189),
-        'left_shoulder': (7.002, 7.234, -20.119), 'left_elbow': (38.54, 17.189),
-        'left_wrist': (-0.346, 0.961), 'right_hip': (29.269, -0.493, 0.835), 'right_knee': (135.0,),
-        'right_ankle': (14.452, 5.04), 'left_hip': (92.433, -0.17, 0.414), 'left_knee': (123.3,),
-        'left_ankle': (11.598, 0.435),
+        'spine_lumbar': (21.836, 0.527, 0.0), 'spine_thoracic': (3.156, 0.088, 0.0),
+        'right_hip': (39.895, -0.172, 0.369), 'right_knee': (134.957,),
+        'right_ankle': (19.999, 0.407), 'left_hip': (92.269, 0.035, -0.251), 'left_knee': (116.86,),
+        'left_ankle': (18.875, -0.253), 'right_toes': (75.062,), 'left_toes': (5.716,),
     })
-    human.KeyRoot(17.1, (5.055, 54.222, 30.188), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.1, (5.938, 51.912, 25.871), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (31.609, 7.81, 0.0), 'spine_thoracic': (4.691, 1.392, 0.0),
-        'right_shoulder': (9.541, 6.719, -19.638), 'right_elbow': (35.657, 17.189),
-        'left_shoulder': (5.093, 6.994, -20.291), 'left_elbow': (43.763, 17.189),
-        'left_wrist': (-0.788, 2.166), 'right_hip': (34.67, -0.462, 1.249),
-        'right_knee': (128.657,), 'right_ankle': (18.339, 2.038),
-        'left_hip': (79.247, -0.08, -0.608), 'left_knee': (101.565,), 'left_ankle': (19.028, -0.62),
+        'spine_lumbar': (40.627, 1.875, 0.0), 'spine_thoracic': (5.477, 0.311, 0.0),
+        'right_hip': (43.386, -0.321, 1.144), 'right_knee': (125.415,),
+        'right_ankle': (19.756, 1.188), 'left_hip': (82.924, -0.075, -0.727),
+        'left_knee': (99.784,), 'left_ankle': (15.659, -0.731), 'right_toes': (62.269,),
+        'left_toes': (1.202,),
     })
-    human.KeyRoot(17.2, (5.506, 71.895, 36.184), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.2, (6.316, 75.404, 39.827), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (7.204, 9.431, 0.0), 'spine_thoracic': (1.004, 1.735, 0.0),
-        'right_shoulder': (9.287, 6.627, -19.637), 'right_elbow': (36.156, 17.188),
-        'right_wrist': (0.019, 0.444), 'left_shoulder': (4.766, 6.946, -20.322),
-        'left_elbow': (44.355, 17.188), 'left_wrist': (-0.843, 2.307),
-        'right_hip': (17.26, 0.426, 2.392), 'right_knee': (94.175,), 'right_ankle': (14.28, 2.485),
-        'left_hip': (52.924, -1.058, -1.435), 'left_knee': (72.555,),
-        'left_ankle': (18.941, -1.787),
+        'spine_lumbar': (-0.106, 10.624, 0.0), 'spine_thoracic': (-0.224, 1.903, 0.0),
+        'right_hip': (8.967, 1.883, 2.379), 'right_knee': (71.622,), 'right_ankle': (20.0, 3.034),
+        'left_hip': (46.26, -1.995, -2.107), 'left_knee': (66.202,), 'left_ankle': (19.658, -2.902),
+        'right_toes': (42.694,), 'left_toes': (0.321,),
     })
-    human.KeyRoot(17.3, (6.841, 85.806, 36.217), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.3, (7.759, 82.513, 42.573), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (1.491, 11.538, 0.0), 'spine_thoracic': (-0.11, 2.076, 0.0),
-        'right_shoulder': (8.863, 7.134, -19.851), 'right_elbow': (35.111, 17.189),
-        'left_shoulder': (6.816, 7.219, -20.138), 'left_elbow': (38.777, 17.189),
-        'left_wrist': (-0.369, 1.014), 'right_hip': (10.102, 1.074, 3.37), 'right_knee': (67.78,),
-        'right_ankle': (-4.677, 3.685), 'left_hip': (28.718, -2.117, -1.16), 'left_knee': (28.761,),
-        'left_ankle': (0.063, -2.414),
+        'spine_lumbar': (-4.926, 16.332, 0.0), 'spine_thoracic': (-1.218, 2.925, 0.0),
+        'right_hip': (-7.028, 3.653, 1.384), 'right_knee': (40.732,), 'right_ankle': (20.0, 3.906),
+        'left_hip': (34.032, -3.375, -2.277), 'left_knee': (47.321,), 'left_ankle': (13.356, -4.07),
+        'right_toes': (27.804,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(17.4, (6.21, 90.189, 45.35), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.4, (7.815, 84.174, 41.774), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-27.238, 13.403, 0.0), 'spine_thoracic': (-7.232, 2.271, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
-        'right_hip': (-6.175, 2.175, 3.192), 'right_knee': (44.572,),
-        'right_ankle': (-11.112, 3.826), 'left_hip': (10.143, -2.95, -0.528), 'left_knee': (4.612,),
-        'left_ankle': (-5.518, -2.997),
+        'spine_lumbar': (-1.718, 16.033, 0.0), 'spine_thoracic': (-0.828, 2.879, 0.0),
+        'right_hip': (-12.787, 3.693, 0.517), 'right_knee': (27.96,), 'right_ankle': (20.0, 3.729),
+        'left_hip': (31.237, -3.351, -2.03), 'left_knee': (40.897,), 'left_ankle': (9.719, -3.917),
+        'right_toes': (20.764,),
     })
-    human.KeyRoot(17.5, (7.348, 90.212, 55.24), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.5, (9.873, 83.443, 44.056), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-26.02, 11.831, 0.0), 'spine_thoracic': (-7.137, 2.022, 0.0),
-        'right_hip': (-11.824, 3.181, 7.272), 'right_knee': (37.702,),
-        'right_ankle': (-28.315, 8.74), 'left_hip': (8.165, -4.938, -0.708), 'left_knee': (13.822,),
-        'left_ankle': (5.687, -4.989),
+        'spine_lumbar': (21.202, 13.203, 0.0), 'spine_thoracic': (1.41, 2.371, 0.0),
+        'right_hip': (-14.745, 5.405, 0.637), 'right_knee': (26.665,),
+        'right_ankle': (19.963, 5.442), 'left_hip': (31.603, -4.916, -3.018),
+        'left_knee': (44.116,), 'left_ankle': (12.643, -5.766), 'right_toes': (21.477,),
     })
-    human.KeyRoot(17.6, (9.086, 89.367, 62.809), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.6, (10.989, 87.155, 49.611), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (19.992, 0.136, 0.0), 'spine_thoracic': (3.197, 0.026, 0.0),
-        'right_hip': (-14.859, 2.446, 15.766), 'right_knee': (32.143,),
-        'right_ankle': (-48.92, 8.028), 'left_hip': (5.129, -7.128, -0.638), 'left_knee': (17.624,),
-        'left_ankle': (12.534, -7.156),
+        'spine_lumbar': (60.0, -1.995, 0.0), 'spine_thoracic': (7.07, -0.265, 0.0),
+        'right_hip': (-14.658, 6.169, 3.958), 'right_knee': (25.132,),
+        'right_ankle': (-7.441, 7.322), 'left_hip': (20.918, -6.53, -2.489), 'left_knee': (30.656,),
+        'left_ankle': (9.88, -6.986), 'right_toes': (47.543,),
     })
-    human.KeyRoot(17.7, (9.056, 89.807, 63.334), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.7, (9.944, 90.002, 54.56), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (23.049, -1.14, 0.0), 'spine_thoracic': (3.427, -0.195, 0.0),
-        'right_hip': (-14.615, 3.9, 10.07), 'right_knee': (39.259,),
-        'right_ankle': (-28.903, 7.523), 'left_hip': (2.362, -7.158, -0.294),
-        'left_knee': (12.695,), 'left_ankle': (10.351, -7.164),
+        'spine_lumbar': (52.592, -3.248, 0.0), 'spine_thoracic': (6.992, -0.628, 0.0),
+        'right_hip': (-12.558, 5.867, 4.623), 'right_knee': (29.25,),
+        'right_ankle': (-8.911, 7.399), 'left_hip': (8.559, -6.586, -0.989), 'left_knee': (12.979,),
+        'left_ankle': (4.476, -6.659), 'right_toes': (25.504,),
     })
-    human.KeyRoot(17.8, (9.478, 90.433, 59.387), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.8, (7.53, 90.149, 65.388), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (39.931, -2.894, 0.0), 'spine_thoracic': (5.297, -0.477, 0.0),
-        'right_hip': (-13.883, 6.98, 1.033), 'right_knee': (26.08,), 'right_ankle': (18.25, 7.158),
-        'left_hip': (1.656, -6.905, -0.199), 'left_knee': (5.704,), 'left_ankle': (4.06, -6.908),
+        'spine_lumbar': (13.845, -5.075, 0.0), 'spine_thoracic': (2.31, -0.912, 0.0),
+        'right_hip': (-11.057, 6.061, 2.384), 'right_knee': (33.173,),
+        'right_ankle': (11.85, 6.547), 'left_hip': (-2.385, -6.362, 0.264), 'left_knee': (6.225,),
+        'left_ankle': (8.595, -6.367), 'right_toes': (5.352,),
     })
-    human.KeyRoot(17.9, (7.866, 90.637, 59.089), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.9, (6.485, 90.407, 64.299), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (28.052, -7.718, 0.0), 'spine_thoracic': (4.263, -1.345, 0.0),
-        'right_hip': (4.571, 6.066, 0.522), 'right_knee': (24.937,), 'right_ankle': (20.0, 6.293),
-        'left_hip': (1.36, -5.78, -0.137), 'left_knee': (5.108,), 'left_ankle': (3.754, -5.782),
+        'spine_lumbar': (9.363, -8.854, 0.0), 'spine_thoracic': (1.531, -1.592, 0.0),
+        'right_hip': (6.954, 5.443, 1.658), 'right_knee': (36.557,), 'right_ankle': (19.822, 5.732),
+        'left_hip': (-2.482, -5.512, 0.239), 'left_knee': (4.78,), 'left_ankle': (7.251, -5.517),
+        'right_toes': (4.997,),
     })
     human.KeyRoot(18.0, (4.368, 90.602, 61.681), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.0, {
         'spine_lumbar': (15.545, -15.079, 0.0), 'spine_thoracic': (2.453, -2.691, 0.0),
         'right_hip': (0.929, 3.764, 0.061), 'right_knee': (8.684,), 'right_ankle': (7.758, 3.765),
         'left_hip': (0.929, -3.764, -0.061), 'left_knee': (8.684,), 'left_ankle': (7.758, -3.765),
+        'right_toes': (0.0,),
     })
     human.KeyRoot(18.1, (0.997, 91.055, 56.584), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.1, {
@@ -989,11 +936,11 @@ def replace_fuel_filter():
     human.KeyRoot(18.175969, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.175969, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (29.296, -22.813, 19.826), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
+        'neck': (31.679, -23.075, 13.62), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

@@ -241,12 +241,10 @@ def forefoot_patch(skel: Any, pose: Any) -> FloatArray:
     (right, then left), the toe tip ± half the ball's breadth across the foot and the same
     points the ball-to-toe length behind it, flat on the ground along the foot's heading.
 
-    The model's foot is rigid (no toe joint): when the heel rises its ball points rise with it,
-    while a real foot bends at the toes and keeps the metatarsal heads and the toes on the
-    ground (standing on tiptoe, kneeling on tucked toes). The rigid foot does not touch these
-    points, so ``support`` never counts them (issue 18: a point supports only where it
-    touches); they stay for the slot layout and for a foot model with a toe joint. See
-    docs/metrics.md, "Support".
+    A point supports only where it touches (issue 18): these virtual corners never count. The
+    foot now has a toe joint, and a heel-up foot that bends its toes puts its real ball points
+    and toe tip down, which ``support`` counts as sole points; the corners stay for the slot
+    layout. See docs/metrics.md, "Support".
     """
     out = []
     for side in FEET:
@@ -324,7 +322,7 @@ def support(
 
     A point supports only where it touches: within ``SUPPORT_TOL`` (2 mm) of the floor, or of
     the site it rests on. The eight sole points of a standing foot within ``SUPPORT_TOL`` of
-    the ground (a foot on its toes stands on its toe point alone: the model's foot is rigid);
+    the ground (a foot on its toes stands on the balls and toe tip that touch: the toes bend);
     each kneeling knee (its front, ``KNEE_DEPTH`` below the centre, within ``SUPPORT_TOL`` of
     the ground) over its breadth (``knee_patch``); and, where ``hands`` (N, 2) says so
     (``hand_contacts`` with the pose: within ``SUPPORT_TOL`` of its site), the grip point of a

@@ -392,8 +392,9 @@ def test_examples_put_the_hands_on_reachable_sites(path: Path) -> None:
 @pytest.mark.parametrize("path", [_case(p, "support") for p in EXAMPLES])
 def test_examples_balance_in_static_postures(path: Path) -> None:
     """Balanced over the points that touch (docs/metrics.md, "Support"), or MT0502 says it is
-    not: the fuel filter's kneel lowers the body on both toe tips (the rigid foot), a support
-    with no inside, and its reaches lean past the knees."""
+    not: in the fuel filter's kneel the swing of the second knee's leg takes the centre of mass
+    out of the narrow triangle of one kneeling leg (knee, balls, toe) for a few frames, and
+    some reaches lean past the knees."""
     for task, m in compiled(path):
         margin = f"{task}: {m.support_margin_static * 1e3:.1f} mm"
         assert m.support_margin_static >= 0.0 or "MT0502" in _codes[path], margin
@@ -550,15 +551,18 @@ def test_the_stepping_kneel_keeps_its_balance_and_its_footing(sex: str, pct: int
         k = "rl".index(step["foot"])
         stance[(t > step["t_lift"] + 1e-9) & (t < step["t_land"] - 1e-9), k] = False
     assert not stance[:, 0].all() and not stance[:, 1].all()  # each foot steps once
-    # every frame whose support has an inside is balanced over the points that touch (the
-    # kneel is static throughout); the rigid foot lowers the body onto the right knee on both
-    # toe tips, a segment, for 6 of 76 frames (0.2 s): those the balance pass reports (MT0502)
+    # the support always has an inside: a heel-up foot stands on its balls and toes (the toes
+    # bend), not on the tip of a rigid foot (with it, the body went down onto the right knee
+    # on both toe tips, a segment, for 6 of 76 frames); the centre of mass stays over it but
+    # for the swing of the second knee's leg, where it is up to 2 mm out (issue 18)
     pts, ok = support(skel, pose, stance, 0.0)
     margin = support_margin(pts, ok, center_of_mass(skel, pose)[:, [0, 2]])
     centre = np.einsum("np,npk->nk", ok, pts) / np.maximum(ok.sum(axis=1), 1)[:, None]
     area = support_margin(pts, ok, centre) > 1e-3
     assert not np.isnan(margin).any()
-    assert margin[area].min() >= 0.0 and (~area).sum() <= 6
+    assert area.all() and margin.min() >= -2.5e-3
+    swing = (t > plan.steps[-1]["t_lift"]) & (t < plan.steps[-1]["t_land"])
+    assert margin[~swing].min() >= 0.0
     # a planted point does not slide (a foot rolling on its toe keeps only its toe planted)
     rolling = np.zeros((len(t), 8), dtype=bool)
     for roll in plan.rolls:
@@ -576,3 +580,7 @@ def test_the_stepping_kneel_keeps_its_balance_and_its_footing(sex: str, pct: int
     np.testing.assert_allclose(knees[:, 1], 0.05, atol=2e-3)
     assert abs(knees[0, 2] - knees[1, 2]) < 5e-3
     np.testing.assert_allclose(feet[-1, [0, 4], 1], 0.0, atol=1e-3)  # r_toe, l_toe
+    # on tucked toes: balls and toe tips on the ground, the toes bent up at the balls
+    np.testing.assert_allclose(feet[-1, [0, 2, 3, 4, 6, 7], 1], 0.0, atol=2e-3)
+    toes = plan.body.q_of(plan.x[-1:])[0, [skel.dof_index(f"{s}_toes_dorsi") for s in "rl"]]
+    assert (toes > math.radians(60)).all()

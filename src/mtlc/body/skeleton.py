@@ -107,6 +107,17 @@ JOINT_TABLE: tuple[tuple[str, str | None, str], ...] = (
     ("l_hip", "pelvis", "left hip joint centre; carries the thigh"),
     ("l_knee", "l_hip", "left knee joint centre; carries the shank"),
     ("l_ankle", "l_knee", "left ankle joint centre (talocrural + subtalar); carries the foot"),
+    # last, so that the older joints keep their dof columns (the toes came with issue 18)
+    (
+        "r_toes",
+        "r_ankle",
+        "right metatarsophalangeal joints, mid-ball; the toes (no mass of their own)",
+    ),
+    (
+        "l_toes",
+        "l_ankle",
+        "left metatarsophalangeal joints, mid-ball; the toes (no mass of their own)",
+    ),
 )
 
 # Degrees of freedom per joint (right side and axial); each entry is
@@ -261,6 +272,16 @@ _DOF_TABLE: dict[str, tuple[tuple[str, Vec3, _LimitSpec, _LimitSpec], ...]] = {
             (0.0, 0.0, 1.0),
             ("foot (subtalar)", "eversion", 1.0),
             ("foot (subtalar)", "inversion", 1.0),
+        ),
+    ),
+    # the toes bend at the balls: a heel-up foot (kneeling on tucked toes, a lunge) rests on
+    # its balls and toes, as a person's does, not on the tip of a rigid foot
+    "toes": (
+        (
+            "dorsi",
+            (-1.0, 0.0, 0.0),
+            ("toes (MTP)", "flexion", 1.0),
+            ("toes (MTP)", "extension", 1.0),
         ),
     ),
 }
@@ -707,6 +728,15 @@ def skeleton_from_dimensions(d: Dimensions) -> Skeleton:
                 (0.0, -0.5 * y_an, (ft_c - HEEL_BEHIND_ANKLE_OF_FOOT) * lf),
                 desc[f"{side}_ankle"],
             ),
+            Joint(
+                f"{side}_toes",
+                f"{side}_ankle",
+                (0.0, -y_an, (BALL_FROM_HEEL_OF_FOOT - HEEL_BEHIND_ANKLE_OF_FOOT) * lf),
+                _dofs_for("", "toes", side),
+                0.0,
+                (0.0, 0.0, 0.0),
+                desc[f"{side}_toes"],
+            ),
         ]
     # de Leva's rounded fractions sum to 0.9999 for women: rescale to the table's body mass.
     scale = m / sum(j.mass for j in joints)
@@ -740,7 +770,12 @@ def skeleton_from_dimensions(d: Dimensions) -> Skeleton:
         ball_z = heel_z + BALL_FROM_HEEL_OF_FOOT * lf
         sites += [
             Site(f"{side}_heel", f"{side}_ankle", (0.0, -y_an, heel_z), "contact"),
-            Site(f"{side}_toe", f"{side}_ankle", (0.0, -y_an, heel_z + lf), "contact"),
+            Site(
+                f"{side}_toe",
+                f"{side}_toes",
+                (0.0, 0.0, (1.0 - BALL_FROM_HEEL_OF_FOOT) * lf),
+                "contact",
+            ),
             Site(
                 f"{side}_ball_med",
                 f"{side}_ankle",

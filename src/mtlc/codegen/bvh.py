@@ -36,7 +36,7 @@ AXIS_LETTERS = "XYZ"
 # configuration is a pelvis pitched by 90 degrees.
 ROOT_ORDER = (1, 0, 2)
 # Which site ends each leaf joint's bone (the hand's grip point, the toe, the top of the head).
-END_SITE_BY_JOINT = {"wrist": "hand", "ankle": "toe", "head": "vertex"}
+END_SITE_BY_JOINT = {"wrist": "hand", "toes": "toe", "head": "vertex"}
 GIMBAL_COS = 1e-9
 
 

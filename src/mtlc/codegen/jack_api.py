@@ -131,6 +131,8 @@ DOF_MAP: tuple[DofMapping, ...] = (
     ("l_knee_flex", "left_knee", 0, 1),
     ("l_ankle_dorsi", "left_ankle", 0, 1),
     ("l_ankle_inv", "left_ankle", 1, 1),
+    ("r_toes_dorsi", "right_toes", 0, 1),
+    ("l_toes_dorsi", "left_toes", 0, 1),
 )
 
 

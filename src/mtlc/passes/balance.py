@@ -287,6 +287,13 @@ def restore_contacts_posed(
         )
         for name, (pos, rot, touch) in feet.items()
     }
+    # the sole points in their foot's frame as they are (a toe tip rides on the toes' joint,
+    # which the legs' solve does not turn)
+    soles_in_foot = {}
+    for name in feet:
+        soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
+        rel = site_positions(skel, pose, soles) - site_positions(skel, pose, name)[:, None, :]
+        soles_in_foot[name] = np.einsum("bji,bsj->bsi", site_rotation(skel, pose, name), rel)
     root = lower_for_reach(ir, q, root_position, root_rotation, feet, pose)
     moved = np.abs(root[:, 1] - root_position[:, 1]) > 1e-9
     for side in ("r", "l"):  # a straight knee is singular: start a lowered leg slightly bent
@@ -303,8 +310,7 @@ def restore_contacts_posed(
     worst = np.zeros(len(q))
     for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
         soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
-        offsets = np.array([skel.site(n).offset for n in soles], dtype=float)
-        want = pos[:, None, :] + np.einsum("bij,sj->bsi", rot, offsets)
+        want = pos[:, None, :] + np.einsum("bij,bsj->bsi", rot, soles_in_foot[name])
         err = np.linalg.norm(site_positions(skel, pose, soles) - want, axis=-1).max(axis=1)
         worst = np.maximum(worst, np.where(touch, err, 0.0))
     solved = np.zeros(len(q), dtype=bool)

@@ -7,11 +7,13 @@ toes, the body lowers onto the right knee (a half kneel: left foot in front, rig
 down), then the weight goes onto the right leg and the left leg swings back, folded, so that its
 knee lands beside the right one. Rising is the same motion in reverse. Each phase (``PHASES``)
 keeps the centre of mass over the support of the contacts it has (``mtlc.metrics.support``:
-soles, the forefoot of a foot on its toes, kneeling knees), and a planted foot never slides: it
-steps (lifts, moves, lands) or rolls on its toe.
+soles, kneeling knees), and a planted foot never slides: it steps (lifts, moves, lands) or
+rolls on its balls. A foot with its heel up stands on its balls and toe tip, the toes bent up
+at the balls (``TOE_VARS``): on the tip of a rigid foot it was a point, and a knee with its
+toe, or two toe tips, a segment with no inside (issue 18).
 
 The motion is solved frame by frame at ``FPS`` by a whole-body inverse kinematics (``track``):
-root position, both legs and the spine (flexion and lateral flexion) by damped Gauss-Newton with
+root position, both legs with their toes and the spine (flexion and lateral flexion) by damped Gauss-Newton with
 an analytic Jacobian, started from the previous frame moved on by its last change. Planted
 contacts weigh most, the centre of mass's target next, and a pull toward the previous frame
 keeps the solution smooth; all frames are then polished at once on their planted contacts
@@ -37,18 +39,21 @@ from mtlc.ir.model import FloatArray
 from mtlc.metrics import CONTACT_TOL
 
 KNEE_HEIGHT = 0.05  # m: knee centre above the ground when kneeling (as the kneel posture)
-TUCK_ANKLE = math.radians(10.0)  # kneeling ankles: toes tucked under, the foot near vertical
+TUCK_ANKLE = math.radians(15.0)  # kneeling ankles: toes tucked under, the foot near vertical
 SPLIT = 0.65  # m: the right toe this far behind the left toe when it lands (a half kneel)
 STEP_LIFT = 0.05  # m: a stepping foot's clearance at mid-swing
-LAND_PITCH = math.radians(25.0)  # the back foot lands on its toe, heel up by this much
+LAND_PITCH = math.radians(60.0)  # the back foot lands on its balls and toes, heel up this much
 KNEEL_COM_BEHIND = 0.12  # m: the kneeling CoM's target behind the knees
-SINGLE_KNEE_AT = 0.25  # share of the knee-to-toe distance: the CoM target on one kneeling leg
+SINGLE_KNEE_AT = 0.5  # share of the knee-to-toe distance: the CoM target on one kneeling leg
 FPS = 30.0
 ITERATIONS = 8  # Gauss-Newton iterations a frame (it does not converge: see docs/passes.md)
 PREDICT = 1.0  # a frame starts from the last one moved on by this share of its last change
 STEP_TOL = 1e-5  # rad or m: a frame whose last step was this small has converged
 PLANT_W = 1000.0  # residual weights (per metre, per radian)
 KNEE_W = 60.0
+ONE_KNEE_COM_W = 3 * 20.0  # the CoM on one kneeling leg (its support is a narrow triangle)
+HEEL_W = 20.0  # a kneeling heel's guide
+LAND_HEEL_W = 20.0  # and a landing one's
 SWING_W = 40.0
 COM_W = 20.0
 SMOOTH_W = 1.0
@@ -58,6 +63,7 @@ POLISH_ITERATIONS = 8
 LEVEL_W = 40.0
 NOMINAL_W = 0.1
 SPINE_W = 1.0
+TOE_NOMINAL_W = 5.0
 GROUND_EPS = 2e-4  # m: the ground's barrier is smooth over this much
 
 # (name, share of the motion): the phases of kneeling on both knees, in order
@@ -77,15 +83,17 @@ LEG_VARS = tuple(
     for d in ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")
 )
 SPINE_VARS = ("lumbar_flex", "lumbar_lat", "thorax_flex", "thorax_lat")
+TOE_VARS = ("r_toes_dorsi", "l_toes_dorsi")  # last: the legs' and spine's columns stay put
 SOLE = ("toe", "heel", "ball_med", "ball_lat")
-LEFT_COLS = np.arange(3 + 6, 3 + 12)  # the left leg's columns in a state vector
+LEFT_COLS = np.r_[3 + 6 : 3 + 12, 3 + 12 + 4 + 1]  # the left leg's columns in a state vector
+# (its six, then its toes': they swing with it from bent on the ground to bent on the ground)
 KNEE_COL, HIP_COL, ANKLE_COL = 3, 0, 4  # knee, hip and ankle flexion among a leg's dofs
 PELVIS_W = 20.0
 # mid-swing of the second knee's leg (hip flex, abd, rot, knee, ankle dorsi, inversion; NaN:
 # as the path has it): the knee folded, the thigh turned out and abducted and the foot pointed,
 # so the lower leg comes round the side; straight back under the hip it would pass 4-7 cm
 # below the ground (knee flexion stops at 135°, the kneeling pelvis is 0.48 m up)
-SWING_LEG = np.radians([np.nan, 5.0, 38.0, 133.0, -45.0, np.nan])
+SWING_LEG = np.radians([np.nan, 5.0, 38.0, 133.0, -45.0, np.nan, np.nan])
 LIFT_END = 0.2  # share of the second knee's phase in which its toe rises straight up
 LIFT_HIP = math.radians(15.0)  # and extra hip flexion: the thigh rises first
 LIFT_FLEX = math.radians(30.0)  # extra knee flexion at mid-swing: the foot clears the ground
@@ -123,7 +131,7 @@ class Targets:
 
 
 LOWER_JOINTS = ("pelvis", "lumbar", "thorax", "r_hip", "r_knee", "r_ankle", "l_hip", "l_knee",
-                "l_ankle")  # fmt: skip
+                "l_ankle", "r_toes", "l_toes")  # fmt: skip
 
 
 def lower_body(skel: Skeleton, q_base: FloatArray) -> Skeleton:
@@ -162,7 +170,7 @@ class Body:
     def __init__(self, skel: Any, q_base: FloatArray) -> None:
         self.skel = skel
         self.q_base = np.asarray(q_base, dtype=float).copy()
-        self.idx = np.array([skel.dof_index(n) for n in (*LEG_VARS, *SPINE_VARS)])
+        self.idx = np.array([skel.dof_index(n) for n in (*LEG_VARS, *SPINE_VARS, *TOE_VARS)])
         self.lo, self.hi = skel.lower[self.idx].copy(), skel.upper[self.idx].copy()
         # a straight knee is singular (the hip cannot go down to first order): keep them bent
         for col in (KNEE_COL, 6 + KNEE_COL):
@@ -483,11 +491,16 @@ def _bisect(f: Callable[[float], float], lo: float, hi: float, n: int = 40) -> f
 
 
 def kneeling_reach(skel: Any, side: str = "r") -> float:
-    """Horizontal distance (m) from a kneeling knee to its toe tip, toes tucked (``TUCK_ANKLE``):
-    the thigh vertical, the knee ``KNEE_HEIGHT`` above the ground, the toe on it."""
+    return tucked_foot(skel, side)[0]
+
+
+def rigid_kneeling_reach(skel: Any, side: str = "r") -> float:
+    """The knee-to-toe distance of the kneel before the toes bent (a rigid foot on its toe tip,
+    ankle 10° dorsiflexed): the kneel keeps its knees where that one put them (the place the
+    tasks were written for), so its toes land this less ``kneeling_reach`` further forward."""
     q = np.asarray(skel.q_comfort, dtype=float).copy()
     q[skel.dof_index(f"{side}_hip_flex")] = 0.0
-    q[skel.dof_index(f"{side}_ankle_dorsi")] = TUCK_ANKLE
+    q[skel.dof_index(f"{side}_ankle_dorsi")] = math.radians(10.0)
     names = [f"{side}_{n}" for n in SOLE]
     k_dof, knee = skel.dof_index(f"{side}_knee_flex"), skel.joint_index(f"{side}_knee")
 
@@ -496,11 +509,50 @@ def kneeling_reach(skel: Any, side: str = "r") -> float:
         qq[k_dof] = k
         pose = forward(skel, qq[None])
         pts = site_positions(skel, pose, names)[0]
-        low = pts[:, 1].min()
-        return float(pose.p[0, knee, 1] - low - KNEE_HEIGHT), float(pose.p[0, knee, 2] - pts[0, 2])
+        return float(pose.p[0, knee, 1] - pts[:, 1].min() - KNEE_HEIGHT), float(
+            pose.p[0, knee, 2] - pts[0, 2]
+        )
 
-    k = _bisect(lambda k: shape(k)[0], math.radians(45), float(skel.upper[k_dof]))
-    return shape(k)[1]
+    return shape(_bisect(lambda k: shape(k)[0], math.radians(45), float(skel.upper[k_dof])))[1]
+
+
+def tucked_foot(skel: Any, side: str = "r") -> tuple[float, FloatArray]:
+    """Horizontal distance (m) from a kneeling knee to its toe tip, toes tucked: the thigh
+    vertical, the ankle at ``TUCK_ANKLE``, the foot near vertical on its balls
+    ``KNEE_HEIGHT`` below the knee and the toes bent up at the balls to lie flat, pointing
+    toward the knee (a rigid foot stood on its toe tip, balls 7 cm up: issue 18). Also where
+    the heel is then, from the toe tip (y, z): the knee, toe and balls alone leave the ankle
+    free to swing up the shank's circle, the foot past vertical and the toes past their
+    90°."""
+    q = np.asarray(skel.q_comfort, dtype=float).copy()
+    q[skel.dof_index(f"{side}_hip_flex")] = 0.0
+    q[skel.dof_index(f"{side}_ankle_dorsi")] = TUCK_ANKLE
+    names = [f"{side}_{n}" for n in ("ball_med", "ball_lat", "toe")]
+    k_dof, knee = skel.dof_index(f"{side}_knee_flex"), skel.joint_index(f"{side}_knee")
+    t_dof = skel.dof_index(f"{side}_toes_dorsi")
+
+    def pose_at(k: float) -> tuple[Any, FloatArray]:
+        qq = q.copy()
+        qq[k_dof] = k
+
+        def toe_above_balls(t: float) -> float:
+            qq[t_dof] = t
+            pts = site_positions(skel, forward(skel, qq[None]), names)[0]
+            return float(pts[2, 1] - pts[:2, 1].mean())
+
+        qq[t_dof] = _bisect(toe_above_balls, 0.0, float(skel.upper[t_dof]))
+        pose = forward(skel, qq[None])
+        return pose, site_positions(skel, pose, names)[0]
+
+    def height(k: float) -> float:
+        pose, pts = pose_at(k)
+        return float(pose.p[0, knee, 1] - pts[:2, 1].min() - KNEE_HEIGHT)
+
+    pose, pts = pose_at(_bisect(height, math.radians(45), float(skel.upper[k_dof])))
+    heel = site_positions(skel, pose, f"{side}_heel")[0]
+    return float(pose.p[0, knee, 2] - pts[2, 2]), np.array(
+        [0.0, heel[1] - pts[2, 1], heel[2] - pts[2, 2]]
+    )
 
 
 def _rx(a: float) -> FloatArray:
@@ -517,19 +569,21 @@ class Geometry:
     left0: FloatArray  # the left toe, where it stands until its knee goes down
     toe: dict[str, FloatArray]  # kneeling toes (the right one lands there from its step)
     knees: dict[str, FloatArray]  # kneeling knee centres
+    heels: dict[str, FloatArray]  # kneeling heels (toes tucked), a weak guide
     com_right: FloatArray  # (2,) CoM targets: over the right foot...
     com_left: FloatArray  # ...over the left foot stepped forward...
     com_split: FloatArray  # ...between the left foot and the right forefoot...
-    com_half: FloatArray  # ...on the right knee and both forefeet...
+    com_half: FloatArray  # ...between both forefeet as the right knee goes down...
     com_one: FloatArray  # ...over the right kneeling leg...
     com_kneel: FloatArray  # ...and kneeling on both knees
 
     def foot(self, side: str, toe: FloatArray, pitch: float) -> list[FloatArray]:
-        """Sole points of a rigid foot with its toe at ``toe``, heel raised by ``pitch``."""
-        return [toe + _rx(pitch) @ r for r in self.rel[side]]
-
-
-FOREFOOT_CENTRE = 0.037  # m behind the toe tip: the middle of the forefoot a toe stands on
+        """Sole points of a foot with its toe at ``toe`` and its heel raised by ``pitch`` about
+        the balls, the toes flat (they bend at the balls)."""
+        pts = [toe + r for r in self.rel[side]]
+        balls = 0.5 * (pts[2] + pts[3])
+        pts[1] = balls + _rx(pitch) @ (pts[1] - balls)
+        return pts
 
 
 def geometry(body: Body, x0: FloatArray) -> Geometry:
@@ -542,18 +596,20 @@ def geometry(body: Body, x0: FloatArray) -> Geometry:
         rel[side] = pts - pts[0]
         rel[side][:, 1] = pts[:, 1] - pts[:, 1].min()  # soles level, on the ground
         centre[side] = pts[:, [0, 2]].mean(axis=0)
-    reach = kneeling_reach(skel)
+    reach, heel = tucked_foot(skel)
     left0 = toe0["l"]
-    right = np.array([toe0["r"][0], 0.0, left0[2] - SPLIT])
+    right = np.array([toe0["r"][0], 0.0, left0[2] - SPLIT + rigid_kneeling_reach(skel) - reach])
     toe = {"r": right, "l": np.array([toe0["l"][0], 0.0, right[2]])}
     knees = {s: toe[s] + np.array([0.0, KNEE_HEIGHT, reach]) for s in ("r", "l")}
-    back = np.array([0.0, FOREFOOT_CENTRE])
-    fore_r, fore_l = toe["r"][[0, 2]] - back, left0[[0, 2]] - back
+    heels = {s: toe[s] + heel for s in ("r", "l")}
+    # the middle of the forefoot a heel-up foot stands on: toe tip and both balls
+    fore_r, fore_l = (p[[0, 2]] + rel[s][[0, 2, 3]][:, [0, 2]].mean(axis=0)
+                      for s, p in (("r", toe["r"]), ("l", left0)))  # fmt: skip
     kr = knees["r"][[0, 2]]
     left_c = centre["l"]
     return Geometry(
-        rel, toe0, left0, toe, knees, centre["r"], left_c, 0.5 * (left_c + fore_r),
-        (kr + fore_r + fore_l) / 3.0, kr + SINGLE_KNEE_AT * (fore_r - kr),
+        rel, toe0, left0, toe, knees, heels, centre["r"], left_c, 0.5 * (left_c + fore_r),
+        0.5 * (fore_r + fore_l), kr + SINGLE_KNEE_AT * (fore_r - kr),
         0.5 * (knees["r"] + knees["l"])[[0, 2]] - np.array([0.0, KNEEL_COM_BEHIND]),
     )  # fmt: skip
 
@@ -580,9 +636,11 @@ def kneel_targets(
     # joints pulled weakly toward where they started: the spine most (a person shifts the
     # pelvis over the feet rather than folding the trunk), the hips' and ankles' side turns less
     weights = np.zeros(len(body.idx))
-    for i, n in enumerate((*LEG_VARS, *SPINE_VARS)):
+    for i, n in enumerate((*LEG_VARS, *SPINE_VARS, *TOE_VARS)):
         if n in SPINE_VARS:
             weights[i] = SPINE_W
+        elif n in TOE_VARS:  # straight unless the balls and toe tip are held on the ground:
+            weights[i] = TOE_NOMINAL_W  # a free toe would reach a stepping foot's target itself
         elif n.endswith(("hip_rot", "ankle_inv", "hip_abd")):
             weights[i] = NOMINAL_W
     nominal = np.where(weights > 0, x0[3:], np.nan)
@@ -615,12 +673,13 @@ def kneel_targets(
         out = []
         for n in names:
             side, what = n.split("_", 1)
-            if what == "toe0":  # the left toe where it stands
-                out.append((f"{side}_toe", geo.left0, PLANT_W))
-            elif what == "toe":
-                out.append((n, toe[side], PLANT_W))
-            else:
+            if what in ("toe0", "toe"):  # a foot on its toes: toe tip and balls, toes flat
+                at = geo.left0 if what == "toe0" else toe[side]
+                out += [(f"{side}_{p}", at + r, PLANT_W)
+                        for p, r in zip(SOLE, geo.rel[side], strict=True) if p != "heel"]  # fmt: skip
+            else:  # a kneeling knee, and its heel guided to where the toes stay flat
                 out.append((f"joint:{n}", geo.knees[side], PLANT_W))
+                out.append((f"{side}_heel", geo.heels[side], HEEL_W))
         return out
 
     def targets(u: float, x: FloatArray) -> Targets:
@@ -631,18 +690,16 @@ def kneel_targets(
             tg.points = flat("r", geo.toe0["r"]) + flat("l", geo.left0)
             tg.com = com_path(com0, geo.com_left, s)
         elif k == 1:
-            # the right foot steps back: it lifts level (every sole point led), then only its
-            # toe is led (back, down) with the foot kept pointing ahead, its pitch left free
-            # (it lands on its toe)
-            path = swing("r", geo.toe0["r"], toe["r"], 0.0, 0.0, s)
-            lead = 1.0 - float(smoothstep((s - 0.2) / 0.4))
-            tg.points = (
-                flat("l", geo.left0) + [path[0]] + [(n, p, w * lead + 1e-3) for n, p, w in path[1:]]
+            # the right foot steps back, every sole point led: it lifts level and lands on its
+            # balls and toes, the heel up by ``LAND_PITCH`` (the toes bent)
+            tg.points = flat("l", geo.left0) + swing(
+                "r", geo.toe0["r"], toe["r"], 0.0, LAND_PITCH, s
             )
             tg.level = ["r"]
             tg.com = geo.com_left
         elif k == 2:
-            tg.points = flat("l", geo.left0) + planted("r_toe")
+            heel = geo.foot("r", toe["r"], LAND_PITCH)[1]  # the heel stays up
+            tg.points = flat("l", geo.left0) + planted("r_toe") + [("r_heel", heel, LAND_HEEL_W)]
             tg.level = ["r"]
             tg.com = com_path(geo.com_left, geo.com_split, s)
         elif k == 3:
@@ -651,7 +708,7 @@ def kneel_targets(
             knee = k0 + float(smoothstep(s)) * (geo.knees["r"] - k0)
             give = 1.0 - float(smoothstep((s - HEEL_DOWN + 0.15) / 0.3))  # the heel may rise
             left = [
-                (n, p, w if n == "l_toe" else w * give + 1e-3) for n, p, w in flat("l", geo.left0)
+                (n, p, w * give + 1e-3 if n == "l_heel" else w) for n, p, w in flat("l", geo.left0)
             ]
             tg.points = left + planted("r_toe") + [("joint:r_knee", knee, KNEE_W)]
             tg.level = ["r", "l"]
@@ -694,11 +751,15 @@ def kneel_targets(
                     hover = np.array(
                         [0.0, 0.04 * (1.0 - float(smoothstep((v - 0.75) / 0.25))), 0.0]
                     )
-                    tg.points += [("l_toe", toe["l"] + hover, PLANT_W * land),
-                                  ("joint:l_knee", geo.knees["l"] + hover, SWING_W * land)]  # fmt: skip
+                    tg.points += [
+                        (f"l_{p}", toe["l"] + r + hover, PLANT_W * land)
+                        for p, r in zip(SOLE, geo.rel["l"], strict=True)
+                        if p != "heel"
+                    ]
+                    tg.points += [("joint:l_knee", geo.knees["l"] + hover, SWING_W * land)]  # fmt: skip
             tg.level = ["r"]
             tg.com = geo.com_one
-            tg.com_w = 3 * COM_W
+            tg.com_w = ONE_KNEE_COM_W
             tg.root_y = (start[4][1], PELVIS_W)
         else:
             tg.points = planted("r_toe", "l_toe", "r_knee", "l_knee")
@@ -731,7 +792,7 @@ class KneelPlan:
 
     @property
     def dofs(self) -> tuple[str, ...]:
-        return (*LEG_VARS, *SPINE_VARS)
+        return (*LEG_VARS, *SPINE_VARS, *TOE_VARS)
 
     def reversed(self, duration: float) -> KneelPlan:
         """The same motion backwards (standing up from the kneel), lasting ``duration``."""

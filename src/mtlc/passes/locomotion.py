@@ -107,7 +107,9 @@ def leg_model(skel: Any) -> LegModel:
     knee = skel.joints[skel.joint_index("r_knee")].offset
     ankle = skel.joints[skel.joint_index("r_ankle")].offset
     heel = np.asarray(skel.site("r_heel").offset, dtype=float)
-    toe = np.asarray(skel.site("r_toe").offset, dtype=float)
+    # the toe tip rides on the toes' joint; the gait keeps the toes straight (their angle 0)
+    toes = skel.joints[skel.joint_index("r_toes")].offset
+    toe = np.add(toes, skel.site("r_toe").offset, dtype=float)
     return LegModel(
         hip, -float(knee[1]), -float(ankle[1]), -float(heel[1]), toe, heel, dofs, sign, lower,
         upper,

@@ -20,7 +20,7 @@ def remove_avionics_unit():
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
     human.KeyRoot(0.1, (1.195, 72.58, 1.042), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
@@ -704,5 +704,5 @@ def remove_avionics_unit():
         'left_shoulder': (34.936, 29.031, 62.041), 'left_elbow': (93.029, -43.934),
         'left_wrist': (55.336, -28.546), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

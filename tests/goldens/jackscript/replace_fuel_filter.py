@@ -20,7 +20,7 @@ def replace_fuel_filter():
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
     human.KeyRoot(0.1, (0.982, 90.571, 1.156), (-1.013, 0.0, 0.0))
     human.KeyJoints(0.1, {
@@ -106,278 +106,288 @@ def replace_fuel_filter():
         'right_shoulder': (8.594, 6.231, 2.385), 'left_shoulder': (8.594, 6.231, 2.385),
         'right_hip': (1.925, 1.536, 0.052), 'right_knee': (5.858,), 'right_ankle': (3.934, 1.538),
         'left_hip': (1.904, -1.536, -0.051), 'left_knee': (5.815,), 'left_ankle': (3.911, -1.538),
+        'right_toes': (0.0,),
     })
-    human.KeyRoot(1.5, (5.124, 90.506, 62.568), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.5, (5.135, 90.513, 62.534), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (14.198, -13.946, 0.0), 'spine_thoracic': (2.224, -2.469, 0.0),
+        'spine_lumbar': (14.11, -13.944, 0.0), 'spine_thoracic': (2.209, -2.469, 0.0),
         'right_shoulder': (8.594, 7.082, -12.719), 'left_shoulder': (8.594, 7.082, -12.719),
-        'right_hip': (1.318, 4.393, 0.102), 'right_knee': (10.975,), 'right_ankle': (9.836, 4.439),
-        'left_hip': (0.299, -4.386, -0.023), 'left_knee': (8.427,), 'left_ankle': (8.129, -4.387),
+        'right_hip': (1.718, 4.399, 0.155), 'right_knee': (11.644,), 'right_ankle': (9.881, 4.467),
+        'left_hip': (0.278, -4.389, -0.021), 'left_knee': (8.333,), 'left_ankle': (8.056, -4.389),
+        'right_toes': (0.199,),
     })
-    human.KeyRoot(1.6, (8.521, 90.594, 59.029), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.6, (6.878, 90.392, 64.178), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'spine_lumbar': (32.344, -6.065, 0.0), 'spine_thoracic': (4.735, -1.024, 0.0),
+        'spine_lumbar': (10.434, -7.765, 0.0), 'spine_thoracic': (1.718, -1.378, 0.0),
         'right_shoulder': (8.594, 7.5, -20.126), 'left_shoulder': (8.594, 7.5, -20.126),
-        'right_hip': (-1.8, 6.879, 0.089), 'right_knee': (20.654,), 'right_ankle': (19.911, 7.42),
-        'left_hip': (1.286, -6.213, -0.14), 'left_knee': (4.707,), 'left_ankle': (3.43, -6.214),
+        'right_hip': (5.288, 5.696, 2.14), 'right_knee': (40.273,), 'right_ankle': (19.829, 6.147),
+        'left_hip': (-2.32, -5.76, 0.233), 'left_knee': (4.846,), 'left_ankle': (7.157, -5.765),
+        'right_toes': (3.509,),
     })
-    human.KeyRoot(1.7, (9.414, 90.334, 59.953), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.7, (7.971, 90.231, 63.771), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'spine_lumbar': (35.847, -2.577, 0.0), 'spine_thoracic': (4.822, -0.416, 0.0),
-        'right_hip': (-13.948, 6.615, 2.856), 'right_knee': (34.81,),
-        'right_ankle': (11.826, 7.202), 'left_hip': (2.2, -6.937, -0.266), 'left_knee': (7.605,),
-        'left_ankle': (5.421, -6.943),
+        'spine_lumbar': (19.647, -4.644, 0.0), 'spine_thoracic': (3.144, -0.813, 0.0),
+        'right_hip': (-14.208, 6.015, 2.661), 'right_knee': (29.893,),
+        'right_ankle': (6.159, 6.573), 'left_hip': (-0.736, -6.456, 0.083), 'left_knee': (7.247,),
+        'left_ankle': (7.978, -6.458), 'right_toes': (6.246,),
     })
-    human.KeyRoot(1.8, (8.961, 89.683, 63.782), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.8, (10.285, 89.729, 53.233), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'spine_lumbar': (20.549, -0.95, 0.0), 'spine_thoracic': (3.166, -0.153, 0.0),
-        'right_hip': (-14.425, 3.095, 12.804), 'right_knee': (37.052,),
-        'right_ankle': (-39.029, 6.737), 'left_hip': (2.582, -7.159, -0.322),
-        'left_knee': (13.796,), 'left_ankle': (11.235, -7.166),
+        'spine_lumbar': (57.108, -2.941, 0.0), 'spine_thoracic': (6.563, -0.531, 0.0),
+        'right_hip': (-11.724, 5.815, 5.29), 'right_knee': (27.241,),
+        'right_ankle': (-14.916, 7.832), 'left_hip': (10.603, -6.632, -1.239), 'left_knee': (15.2,),
+        'left_ankle': (4.67, -6.747), 'right_toes': (44.321,),
     })
-    human.KeyRoot(1.9, (9.012, 89.361, 62.334), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.9, (11.194, 85.826, 46.963), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'spine_lumbar': (15.022, 1.488, 0.0), 'spine_thoracic': (2.363, 0.28, 0.0),
-        'right_hip': (-14.818, 2.66, 15.148), 'right_knee': (32.397,),
-        'right_ankle': (-47.512, 8.547), 'left_hip': (5.668, -7.014, -0.695),
-        'left_knee': (18.085,), 'left_ankle': (12.46, -7.048),
+        'spine_lumbar': (60.0, -0.966, 0.0), 'spine_thoracic': (7.653, -0.045, 0.0),
+        'right_hip': (-14.893, 6.301, 2.434), 'right_knee': (25.459,),
+        'right_ankle': (4.414, 6.751), 'left_hip': (25.319, -6.246, -2.947), 'left_knee': (35.589,),
+        'left_ankle': (10.43, -6.904), 'right_toes': (36.068,),
     })
-    human.KeyRoot(2.0, (6.856, 90.367, 52.032), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.0, (9.158, 83.665, 43.505), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'spine_lumbar': (-29.974, 13.042, 0.0), 'spine_thoracic': (-9.511, 2.18, 0.0),
-        'right_hip': (-11.109, 3.062, 5.231), 'right_knee': (38.661,),
-        'right_ankle': (-20.847, 7.313), 'left_hip': (9.053, -4.2, -0.669), 'left_knee': (11.365,),
-        'left_ankle': (2.337, -4.253),
+        'spine_lumbar': (9.163, 15.331, 0.0), 'spine_thoracic': (-0.013, 2.764, 0.0),
+        'right_hip': (-14.576, 4.843, 0.548), 'right_knee': (26.422,),
+        'right_ankle': (19.982, 4.874), 'left_hip': (31.472, -4.4, -2.689), 'left_knee': (43.33,),
+        'left_ankle': (11.96, -5.156), 'right_toes': (21.038,),
     })
-    human.KeyRoot(2.1, (6.328, 90.003, 44.157), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.1, (7.987, 84.105, 41.731), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (-23.598, 13.273, 0.0), 'spine_thoracic': (-5.591, 2.285, 0.0),
-        'right_hip': (-3.853, 2.017, 3.32), 'right_knee': (47.571,),
-        'right_ankle': (-11.088, 3.821), 'left_hip': (11.243, -2.879, -0.573),
-        'left_knee': (5.175,), 'left_ankle': (-6.054, -2.936),
+        'spine_lumbar': (-1.556, 16.535, 0.0), 'spine_thoracic': (-0.719, 2.969, 0.0),
+        'right_hip': (-12.149, 3.801, 0.613), 'right_knee': (29.134,),
+        'right_ankle': (19.986, 3.85), 'left_hip': (31.381, -3.452, -2.103), 'left_knee': (41.06,),
+        'left_ankle': (9.743, -4.042), 'right_toes': (21.318,),
     })
-    human.KeyRoot(2.2, (6.694, 83.841, 36.262), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.2, (7.617, 82.008, 42.761), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (3.875, 10.618, 0.0), 'spine_thoracic': (0.315, 1.889, 0.0),
-        'right_hip': (11.043, 1.018, 3.242), 'right_knee': (71.62,), 'right_ankle': (-0.961, 3.547),
-        'left_hip': (33.479, -1.98, -1.311), 'left_knee': (37.886,), 'left_ankle': (4.43, -2.375),
+        'spine_lumbar': (-5.766, 16.013, 0.0), 'spine_thoracic': (-1.362, 2.867, 0.0),
+        'right_hip': (-5.877, 3.547, 1.539), 'right_knee': (43.426,), 'right_ankle': (20.0, 3.867),
+        'left_hip': (34.827, -3.3, -2.293), 'left_knee': (49.128,), 'left_ankle': (14.367, -4.018),
+        'right_toes': (29.351,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(2.3, (5.488, 69.609, 35.163), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.3, (6.086, 72.577, 37.202), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (17.458, 6.636, 0.0), 'spine_thoracic': (2.603, 1.154, 0.0),
-        'right_hip': (19.803, 0.256, 2.326), 'right_knee': (99.212,),
-        'right_ankle': (15.578, 2.405), 'left_hip': (56.375, -0.902, -1.399),
-        'left_knee': (76.751,), 'left_ankle': (19.645, -1.668),
+        'spine_lumbar': (6.288, 8.587, 0.0), 'spine_thoracic': (0.932, 1.537, 0.0),
+        'right_hip': (15.029, 1.282, 2.331), 'right_knee': (81.065,),
+        'right_ankle': (19.889, 2.661), 'left_hip': (51.33, -1.499, -1.895), 'left_knee': (71.245,),
+        'left_ankle': (19.6, -2.416), 'right_toes': (46.173,), 'left_toes': (0.34,),
     })
-    human.KeyRoot(2.4, (4.834, 52.769, 30.815), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.4, (5.899, 49.371, 25.878), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'spine_lumbar': (38.697, 4.473, 0.0), 'spine_thoracic': (5.69, 0.712, 0.0),
-        'right_hip': (34.669, -0.471, 1.141), 'right_knee': (130.586,),
-        'right_ankle': (18.219, 2.2), 'left_hip': (81.586, -0.033, -0.51), 'left_knee': (104.974,),
-        'left_ankle': (18.449, -0.519),
+        'spine_lumbar': (40.955, 1.821, 0.0), 'spine_thoracic': (5.452, 0.302, 0.0),
+        'right_hip': (44.917, -0.416, 1.167), 'right_knee': (129.367,),
+        'right_ankle': (19.736, 1.239), 'left_hip': (86.382, -0.025, -0.731),
+        'left_knee': (103.529,), 'left_ankle': (15.479, -0.731), 'right_toes': (64.709,),
+        'left_toes': (1.668,),
     })
-    human.KeyRoot(2.5, (2.778, 46.356, 38.621), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.5, (4.36, 43.672, 31.976), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'spine_lumbar': (11.707, 7.241, 0.0), 'spine_thoracic': (1.672, 1.281, 0.0),
+        'spine_lumbar': (19.299, 0.425, 0.0), 'spine_thoracic': (2.834, 0.071, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'right_hip': (28.38, -0.488, 0.802), 'right_knee': (134.988,),
-        'right_ankle': (13.833, 5.278), 'left_hip': (93.351, -0.248, 0.543),
-        'left_knee': (125.028,), 'left_ankle': (10.733, 0.587),
+        'right_hip': (38.86, -0.138, 0.296), 'right_knee': (134.913,),
+        'right_ankle': (19.996, 0.327), 'left_hip': (92.226, 0.029, -0.204),
+        'left_knee': (117.977,), 'left_ankle': (19.816, -0.206), 'right_toes': (76.057,),
+        'left_toes': (5.935,),
     })
-    human.KeyRoot(2.6, (1.983, 44.021, 42.547), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.6, (3.217, 41.175, 37.534), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.6, {
-        'spine_lumbar': (-3.965, 10.121, 0.0), 'spine_thoracic': (-0.851, 1.827, 0.0),
-        'right_hip': (25.007, -0.407, 0.579), 'right_ankle': (9.937, 4.854),
-        'left_hip': (99.201, -0.851, 1.017), 'left_knee': (132.436,), 'left_ankle': (2.534, 1.38),
+        'spine_lumbar': (1.183, 0.443, 0.0), 'spine_thoracic': (0.11, 0.08, 0.0),
+        'right_hip': (32.847, 0.0, 0.0), 'right_knee': (134.834,), 'right_ankle': (15.003, 0.0),
+        'left_hip': (94.14, 0.0, 0.0), 'left_knee': (127.058,), 'left_ankle': (19.936, 0.0),
+        'right_toes': (86.984,), 'left_toes': (12.982,),
     })
-    human.KeyRoot(2.7, (1.728, 44.013, 42.489), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.7, (3.177, 41.316, 37.75), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'spine_lumbar': (-3.408, 20.0, 0.0), 'spine_thoracic': (-1.148, 5.172, 0.0),
-        'right_hip': (25.025, -0.754, 1.064), 'right_ankle': (9.78, 8.965),
-        'left_hip': (100.389, -1.921, 2.059), 'left_ankle': (-0.484, 2.909),
+        'spine_lumbar': (-10.168, 17.194, 0.0), 'spine_thoracic': (-2.346, 4.266, 0.0),
+        'right_hip': (32.5, -0.001, 0.0), 'right_knee': (134.487,),
+        'left_hip': (93.853, 0.0, 0.001), 'left_knee': (127.089,), 'left_ankle': (20.0, 0.001),
+        'left_toes': (13.236,),
     })
-    human.KeyRoot(2.8, (0.212, 43.871, 42.018), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.8, (3.185, 41.113, 37.43), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (-0.974, 20.0, 0.0), 'spine_thoracic': (-6.025, 10.0, 0.0),
-        'right_hip': (25.333, -2.852, 3.767), 'right_ankle': (6.849, 34.022),
-        'left_hip': (101.253, -12.403, 8.737), 'left_knee': (132.628,),
-        'left_ankle': (-4.014, 13.648),
+        'spine_lumbar': (-17.149, 20.0, 0.0), 'spine_thoracic': (-13.744, 10.0, 0.0),
+        'right_hip': (32.999, -0.06, -0.025), 'right_knee': (134.987,),
+        'right_ankle': (15.006, 0.094), 'left_hip': (94.759, -4.476, -5.559),
+        'left_knee': (126.647,), 'left_ankle': (20.0, -1.089), 'left_toes': (16.318,),
     })
+    human.KeyRoot(2.9, (3.218, 41.109, 37.432), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.9, {
-        'spine_lumbar': (-0.162, 20.0, 0.0), 'spine_thoracic': (-6.797, 10.0, 0.0),
-        'right_knee': (134.982,), 'right_ankle': (6.674, 34.981),
-        'left_hip': (119.266, -8.615, -18.589), 'left_knee': (131.003,),
-        'left_ankle': (-32.204, -24.868),
+        'spine_lumbar': (-17.795, 20.0, 0.0), 'spine_thoracic': (-12.987, 10.0, 0.0),
+        'right_hip': (33.007, -0.021, -0.009), 'right_knee': (134.994,),
+        'right_ankle': (15.003, 0.036), 'left_hip': (107.46, -24.993, -23.543),
+        'left_knee': (117.317,), 'left_ankle': (12.842, 5.307), 'right_toes': (86.983,),
     })
-    human.KeyRoot(3.0, (0.014, 43.886, 42.039), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.0, (3.043, 41.516, 38.013), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'spine_lumbar': (0.159, 20.0, 0.0), 'spine_thoracic': (-9.411, 10.0, 0.0),
-        'right_hip': (25.256, -3.107, 3.799), 'right_knee': (134.904,),
-        'left_hip': (110.282, -18.51, 12.816), 'left_knee': (132.98,),
-        'left_ankle': (-37.551, -23.198),
+        'spine_lumbar': (-26.224, 20.0, 0.0), 'spine_thoracic': (-13.598, 10.0, 0.0),
+        'right_hip': (32.015, -0.103, -0.041), 'right_knee': (134.037,),
+        'right_ankle': (15.161, 0.134), 'left_hip': (100.343, -0.917, 20.606),
+        'left_knee': (135.0,), 'left_ankle': (-23.427, 2.269), 'right_toes': (86.598,),
+        'left_toes': (29.812,),
     })
-    human.KeyRoot(3.1, (0.005, 43.854, 41.971), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.1, (2.964, 41.77, 38.418), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.1, {
-        'spine_lumbar': (1.099, 20.0, 0.0), 'spine_thoracic': (-8.742, 10.0, 0.0),
-        'right_hip': (25.352, -3.135, 3.785), 'right_knee': (135.0,),
-        'right_ankle': (6.671, 34.992), 'left_hip': (82.724, -20.228, 31.365),
-        'left_knee': (134.646,), 'left_ankle': (-44.21, -16.36),
+        'spine_lumbar': (-30.0, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (31.37, -0.107, -0.042), 'right_knee': (133.393,),
+        'right_ankle': (15.16, 0.146), 'left_hip': (77.377, -0.683, 32.459), 'left_knee': (135.0,),
+        'left_ankle': (-45.627, 1.29), 'right_toes': (86.595,), 'left_toes': (46.595,),
     })
-    human.KeyRoot(3.2, (0.221, 43.907, 42.096), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.2, (2.652, 42.505, 39.657), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.2, {
-        'spine_lumbar': (7.203, 20.0, 0.0), 'spine_thoracic': (-5.471, 10.0, 0.0),
-        'right_hip': (25.221, -2.823, 3.62), 'right_knee': (134.911,),
-        'right_ankle': (7.08, 32.737), 'left_hip': (46.162, -19.671, 2.844),
-        'left_knee': (133.176,), 'left_ankle': (-45.996, -3.885),
+        'spine_lumbar': (-25.337, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (29.435, -0.214, -0.065), 'right_knee': (131.43,),
+        'right_ankle': (15.027, 0.322), 'left_hip': (46.263, -25.0, -3.006),
+        'left_knee': (132.616,), 'left_ankle': (-43.027, 8.127), 'right_toes': (86.897,),
+        'left_toes': (78.492,),
     })
-    human.KeyRoot(3.3, (-0.124, 45.364, 45.535), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.3, (2.53, 43.302, 41.153), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.3, {
-        'spine_lumbar': (0.431, 20.0, 0.0), 'spine_thoracic': (-6.811, 10.0, 0.0),
-        'right_hip': (20.237, -2.445, 3.776), 'right_knee': (129.934,),
-        'right_ankle': (7.206, 32.015), 'left_hip': (25.548, -20.789, -4.822),
-        'left_knee': (132.205,), 'left_ankle': (-1.808, -1.577),
+        'spine_lumbar': (-20.12, 20.0, 0.0), 'spine_thoracic': (-13.869, 10.0, 0.0),
+        'right_hip': (27.185, -0.024, -0.008), 'right_knee': (129.172,),
+        'right_ankle': (15.003, 0.038), 'left_hip': (26.524, -25.0, -23.697),
+        'left_knee': (118.088,), 'left_ankle': (18.979, 1.521), 'left_toes': (88.25,),
     })
-    human.KeyRoot(3.4, (-0.06, 44.375, 43.102), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.4, (1.744, 45.154, 45.202), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.4, {
-        'spine_lumbar': (9.289, 20.0, 0.0), 'spine_thoracic': (-9.078, 10.0, 0.0),
-        'right_hip': (23.702, -2.945, 3.9), 'right_knee': (133.349,), 'right_ankle': (6.668, 35.0),
-        'left_hip': (24.01, -0.797, 0.413), 'left_knee': (134.974,), 'left_ankle': (8.309, -18.967),
+        'spine_lumbar': (-30.0, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (21.165, -0.069, -0.017), 'right_knee': (123.153,),
+        'right_ankle': (15.004, 0.102), 'left_hip': (20.549, -0.154, 0.223), 'left_knee': (124.41,),
+        'left_ankle': (17.429, 0.271), 'right_toes': (86.975,), 'left_toes': (86.429,),
     })
-    human.KeyRoot(3.5, (1.102, 44.27, 42.968), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.5, (2.102, 44.469, 43.575), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.5, {
-        'spine_lumbar': (9.279, 20.0, 0.0), 'spine_thoracic': (-1.902, 10.0, 0.0),
+        'spine_lumbar': (-22.747, 20.0, 0.0), 'spine_thoracic': (-8.471, 10.0, 0.0),
         'right_shoulder': (8.594, 7.497, -19.951), 'left_shoulder': (8.594, 7.497, -19.951),
-        'right_hip': (24.175, -1.459, 2.086), 'right_knee': (134.079,),
-        'right_ankle': (9.142, 17.658), 'left_hip': (24.175, 1.459, -2.086),
-        'left_knee': (134.079,), 'left_ankle': (9.142, -17.658),
+        'right_hip': (23.562, -0.003, -0.001), 'right_knee': (125.549,),
+        'left_hip': (23.562, 0.003, 0.001), 'left_knee': (125.549,), 'left_ankle': (15.003, -0.004),
+        'left_toes': (86.984,),
     })
-    human.KeyRoot(3.6, (1.536, 44.776, 44.21), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.6, (2.369, 43.799, 42.138), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.6, {
-        'spine_lumbar': (6.874, 17.733, 0.0), 'spine_thoracic': (0.629, 4.328, 0.0),
+        'spine_lumbar': (-5.565, 18.989, 0.0), 'spine_thoracic': (-1.897, 5.493, 0.0),
         'right_shoulder': (8.594, 6.986, -10.869), 'left_shoulder': (8.594, 6.986, -10.869),
-        'right_hip': (22.512, -0.592, 0.922), 'right_knee': (132.494,),
-        'right_ankle': (9.845, 7.529), 'left_hip': (22.512, 0.592, -0.922), 'left_knee': (132.494,),
-        'left_ankle': (9.845, -7.529),
+        'right_hip': (25.701, 0.0, 0.0), 'right_knee': (127.688,), 'right_ankle': (15.003, 0.0),
+        'left_hip': (25.701, 0.0, 0.0), 'left_knee': (127.688,),
     })
-    human.KeyRoot(3.7, (1.612, 45.157, 45.187), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.7, (2.218, 44.191, 42.962), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.7, {
-        'spine_lumbar': (5.582, 5.234, 0.0), 'spine_thoracic': (0.892, 1.085, 0.0),
+        'spine_lumbar': (6.562, 5.821, 0.0), 'spine_thoracic': (1.024, 1.306, 0.0),
         'neck': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 6.136, 4.245),
-        'left_shoulder': (8.594, 6.136, 4.245), 'right_hip': (21.153, -0.256, 0.423),
-        'right_knee': (131.149,), 'right_ankle': (9.97, 3.391), 'left_hip': (21.153, 0.256, -0.423),
-        'left_knee': (131.149,), 'left_ankle': (9.97, -3.391),
+        'left_shoulder': (8.594, 6.136, 4.245), 'right_hip': (24.471, 0.0, 0.0),
+        'right_knee': (126.458,), 'left_hip': (24.471, 0.0, 0.0), 'left_knee': (126.458,),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.793137, duration=0.2628)
-    human.KeyRoot(3.8, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.8, (1.949, 44.833, 44.42), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.8, {
-        'spine_lumbar': (4.343, -0.225, 0.0), 'spine_thoracic': (0.758, -0.022, 0.0),
-        'neck': (0.07, -0.068, 0.045), 'head': (0.03, 0.022),
+        'spine_lumbar': (8.806, 0.001, 0.0), 'spine_thoracic': (1.512, 0.034, 0.0),
+        'neck': (0.07, -0.068, 0.04), 'head': (0.03, 0.022),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
-        'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
-        'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
-        'left_ankle': (9.996, -1.322),
+        'right_hip': (22.321, 0.0, 0.0), 'right_knee': (124.304,), 'left_hip': (22.321, 0.0, 0.0),
+        'left_knee': (124.304,),
     })
-    human.KeyJoints(3.9, {'neck': (12.655, -12.203, 8.085), 'head': (5.424, 3.943)})
+    human.KeyJoints(3.9, {'neck': (12.655, -12.203, 7.246), 'head': (5.424, 3.943)})
     human.KeyJoints(4.0, {
-        'spine_lumbar': (4.343, -0.225, 0.0), 'spine_thoracic': (0.758, -0.022, 0.0),
-        'neck': (30.918, -29.814, 19.754), 'head': (13.251, 9.632), 'right_clavicle': (0.0, 0.0),
+        'spine_lumbar': (8.806, 0.001, 0.0), 'spine_thoracic': (1.512, 0.034, 0.0),
+        'neck': (30.918, -29.814, 17.703), 'head': (13.251, 9.633), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=4.055937, duration=0.873042)
     human.KeyJoints(4.1, {
-        'spine_lumbar': (4.835, -0.084, 0.163), 'spine_thoracic': (0.708, 0.088, 0.225),
-        'neck': (35.0, -33.75, 21.892), 'head': (15.0, 10.901), 'right_clavicle': (-0.075, 0.172),
-        'right_shoulder': (8.861, 5.938, 11.386), 'right_elbow': (34.26, 17.189),
-        'right_wrist': (-0.023, -0.034),
+        'spine_lumbar': (9.255, 0.127, 0.172), 'spine_thoracic': (1.445, 0.148, 0.211),
+        'neck': (35.0, -33.75, 19.606), 'head': (15.0, 10.902), 'right_clavicle': (-0.075, 0.172),
+        'right_shoulder': (8.87, 5.925, 11.385), 'right_elbow': (34.278, 17.189),
+        'right_wrist': (-0.024, -0.03),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (9.08, 1.144, 1.569), 'spine_thoracic': (0.264, 1.044, 2.191),
-        'neck': (35.0, -33.75, 18.213), 'right_clavicle': (-0.736, 1.651),
-        'right_shoulder': (11.181, 7.74, 10.756), 'right_elbow': (33.245, 17.192),
-        'right_wrist': (-0.223, -0.324),
+        'spine_lumbar': (13.119, 1.226, 1.651), 'spine_thoracic': (0.852, 1.129, 2.057),
+        'neck': (35.0, -33.75, 16.19), 'right_clavicle': (-0.739, 1.651),
+        'right_shoulder': (11.267, 7.613, 10.75), 'right_elbow': (33.42, 17.19),
+        'right_wrist': (-0.226, -0.291),
     })
     human.KeyJoints(4.3, {
-        'spine_lumbar': (16.433, 3.311, 4.019), 'spine_thoracic': (-0.559, 2.705, 5.679),
-        'neck': (35.0, -33.75, 12.94), 'right_clavicle': (-1.922, 4.215),
-        'right_shoulder': (15.261, 10.86, 9.665), 'right_elbow': (31.486, 17.196),
-        'right_wrist': (-0.568, -0.826),
+        'spine_lumbar': (19.815, 3.167, 4.215), 'spine_thoracic': (-0.235, 2.828, 5.333),
+        'neck': (35.0, -33.75, 11.256), 'head': (15.0, 10.793), 'right_clavicle': (-1.928, 4.215),
+        'right_shoulder': (15.482, 10.537, 9.649), 'right_elbow': (31.933, 17.193),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (25.38, 6.02, 7.024), 'spine_thoracic': (-1.66, 4.738, 10.075),
-        'neck': (35.0, -33.75, 6.474), 'head': (15.0, 10.71), 'right_clavicle': (-3.443, 7.334),
-        'right_shoulder': (20.338, 14.657, 8.336),
+        'spine_lumbar': (27.962, 5.597, 7.334), 'spine_thoracic': (-1.671, 4.897, 9.466),
+        'neck': (35.0, -33.75, 4.921), 'head': (15.0, 9.22), 'right_clavicle': (-3.447, 7.334),
+        'right_shoulder': (20.726, 14.095, 8.31), 'right_wrist': (-1.006, -1.293),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (34.406, 8.871, 10.098), 'spine_thoracic': (-2.941, 6.807, 14.766),
-        'neck': (35.0, 31.903, -12.688), 'head': (15.0, -10.594), 'right_clavicle': (-5.107, 10.48),
-        'right_shoulder': (25.651, 18.487, 6.997), 'right_elbow': (27.188, 17.208),
-        'right_wrist': (-1.414, -2.055),
+        'spine_lumbar': (36.179, 8.161, 10.48), 'spine_thoracic': (-3.308, 6.986, 13.881),
+        'neck': (35.0, 26.762, -11.074), 'head': (15.0, -10.665), 'right_clavicle': (-5.101, 10.48),
+        'right_shoulder': (26.21, 17.683, 6.959), 'right_elbow': (28.3, 17.2),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (41.993, 11.47, 12.752), 'spine_thoracic': (-4.299, 8.579, 19.139),
-        'neck': (35.0, 22.633, -15.629), 'head': (15.0, -11.25), 'right_clavicle': (-6.725, 13.126),
-        'right_shoulder': (30.437, 21.707, 5.871), 'right_elbow': (25.373, 17.214),
-        'right_wrist': (-1.77, -2.573),
+        'spine_lumbar': (43.088, 10.508, 13.126), 'spine_thoracic': (-5.0, 8.743, 18.005),
+        'neck': (35.0, 17.996, -14.277), 'head': (15.0, -11.25), 'right_clavicle': (-6.693, 13.126),
+        'right_shoulder': (31.145, 20.701, 5.823), 'right_elbow': (26.766, 17.204),
+        'right_wrist': (-1.8, -2.315),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (46.628, 13.417, 14.499), 'spine_thoracic': (-5.635, 9.718, 22.58),
-        'neck': (35.0, 19.137, -18.131), 'right_clavicle': (-8.104, 14.741),
-        'right_shoulder': (33.934, 23.674, 5.183), 'right_elbow': (24.265, 17.219),
-        'right_wrist': (-1.988, -2.89),
+        'spine_lumbar': (47.309, 12.284, 14.741), 'spine_thoracic': (-6.602, 9.821, 21.264),
+        'neck': (35.0, 15.94, -16.879), 'right_clavicle': (-8.03, 14.741),
+        'right_shoulder': (34.741, 22.544, 5.13), 'right_elbow': (25.829, 17.208),
+        'right_wrist': (-2.022, -2.6),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
-        'spine_lumbar': (46.253, 14.338, 14.998), 'spine_thoracic': (-6.938, 9.999, 24.518),
-        'neck': (35.0, 22.157, -20.482), 'right_clavicle': (-9.046, 15.0),
-        'right_shoulder': (35.536, 23.195, 5.24), 'right_elbow': (24.544, 17.223),
-        'right_wrist': (-1.967, -2.816),
+        'spine_lumbar': (46.879, 13.148, 15.0), 'spine_thoracic': (-8.031, 10.0, 23.118),
+        'neck': (35.0, 19.928, -19.026), 'right_clavicle': (-8.903, 15.0),
+        'right_shoulder': (36.385, 22.09, 5.188), 'right_elbow': (26.133, 17.212),
+        'right_wrist': (-2.005, -2.522),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (40.862, 16.651, 13.606), 'spine_thoracic': (-6.576, 9.196, 23.425),
-        'neck': (35.0, 28.406, -20.966), 'right_clavicle': (-9.703, 13.462),
-        'right_shoulder': (33.089, 19.628, 6.093), 'right_elbow': (25.111, 17.212),
-        'right_wrist': (-1.593, -2.615),
+        'spine_lumbar': (41.672, 15.35, 13.795), 'spine_thoracic': (-7.639, 9.33, 22.255),
+        'neck': (35.0, 26.714, -19.485), 'right_clavicle': (-9.615, 13.641),
+        'right_shoulder': (34.043, 18.573, 6.089), 'right_elbow': (26.752, 17.204),
+        'right_wrist': (-1.637, -2.299),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
     human.KeyJoints(5.0, {
-        'spine_lumbar': (39.235, 17.351, 13.084), 'spine_thoracic': (-6.376, 8.883, 22.91),
-        'neck': (35.0, 30.67, -20.858), 'right_clavicle': (-9.801, 12.897),
-        'right_shoulder': (32.001, 18.6, 6.352), 'right_elbow': (25.549, 17.208),
-        'right_wrist': (-1.509, -2.514),
+        'spine_lumbar': (40.062, 16.093, 13.2), 'spine_thoracic': (-7.362, 8.988, 21.663),
+        'neck': (35.0, 28.781, -19.389), 'right_clavicle': (-9.664, 12.99),
+        'right_shoulder': (32.85, 17.606, 6.353), 'right_elbow': (27.176, 17.201),
+        'right_wrist': (-1.557, -2.196),
     })
-    human.KeyJoints(5.1, {'right_elbow': (25.549, 17.208)})
+    human.KeyJoints(5.1, {'right_elbow': (27.176, 17.201)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {'right_shoulder': (32.001, 18.6, 6.352), 'right_elbow': (25.55, 17.039)})
-    human.KeyJoints(5.3, {
-        'right_shoulder': (32.017, 18.717, 6.326), 'right_elbow': (25.701, -6.258),
+    human.KeyJoints(5.2, {
+        'right_shoulder': (32.85, 17.607, 6.353), 'right_elbow': (27.177, 17.031),
     })
-    human.KeyJoints(5.4, {'right_elbow': (25.734, -47.911)})
+    human.KeyJoints(5.3, {
+        'right_shoulder': (32.864, 17.708, 6.329), 'right_elbow': (27.329, -6.264),
+    })
+    human.KeyJoints(5.4, {'right_elbow': (27.389, -47.914)})
     human.KeyJoints(5.5, {
-        'right_shoulder': (32.051, 19.128, 6.232), 'right_elbow': (25.564, -77.818),
+        'right_shoulder': (32.898, 18.089, 6.235), 'right_elbow': (27.25, -77.819),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.530179, duration=0.072)
-    human.KeyJoints(5.6, {'right_elbow': (25.546, -80.0)})
+    human.KeyJoints(5.6, {'right_elbow': (27.235, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=5.602179, duration=0.2628)
-    human.KeyJoints(5.8, {'right_elbow': (25.546, -80.0)})
+    human.KeyJoints(5.8, {'right_elbow': (27.235, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
     human.KeyJoints(5.9, {
-        'right_shoulder': (32.05, 19.116, 6.234), 'right_elbow': (25.584, -75.214),
-        'right_wrist': (-1.426, -2.501),
+        'right_shoulder': (32.898, 18.078, 6.238), 'right_elbow': (27.267, -75.214),
+        'right_wrist': (-1.464, -2.187),
     })
-    human.KeyJoints(6.0, {'right_elbow': (25.755, -23.911), 'right_wrist': (-1.469, -2.469)})
+    human.KeyJoints(6.0, {'right_elbow': (27.392, -23.911), 'right_wrist': (-1.515, -2.15)})
     human.KeyJoints(6.1, {
-        'right_shoulder': (31.981, 18.521, 6.371), 'right_elbow': (25.296, 44.327),
+        'right_shoulder': (32.834, 17.544, 6.369), 'right_elbow': (26.933, 44.327),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (39.235, 17.351, 13.084), 'neck': (35.0, 30.67, -20.858),
-        'right_elbow': (24.937, 79.952), 'right_wrist': (-1.401, -2.561),
-        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.594, 5.73, 11.459),
+        'spine_lumbar': (40.062, 16.093, 13.2), 'neck': (35.0, 28.781, -19.389),
+        'right_shoulder': (32.818, 17.571, 6.363), 'right_elbow': (26.601, 79.952),
+        'right_wrist': (-1.46, -2.251), 'left_clavicle': (0.0, 0.0),
+        'left_shoulder': (8.594, 5.73, 11.459),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=6.203379, duration=0.072)
@@ -387,635 +397,597 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=6.275379, duration=1.618047)
     human.KeyJoints(6.3, {
-        'spine_lumbar': (39.321, 17.297, 13.04), 'spine_thoracic': (-6.411, 8.867, 22.878),
-        'neck': (35.0, 30.734, -20.719), 'right_clavicle': (-9.801, 12.906),
-        'right_shoulder': (31.933, 18.457, 6.387), 'right_elbow': (25.086, 80.0),
-        'right_wrist': (-1.44, -2.55), 'left_clavicle': (-0.041, 0.063),
-        'left_shoulder': (8.722, 5.717, 11.455), 'left_elbow': (34.366, 17.189),
-        'left_wrist': (0.0, -0.005),
+        'spine_lumbar': (40.146, 16.045, 13.159), 'spine_thoracic': (-7.394, 8.974, 21.633),
+        'neck': (35.0, 28.852, -19.236), 'right_clavicle': (-9.664, 12.999),
+        'right_shoulder': (32.791, 17.497, 6.382), 'right_elbow': (26.745, 80.0),
+        'right_wrist': (-1.498, -2.239), 'left_clavicle': (-0.041, 0.063),
+        'left_shoulder': (8.724, 5.717, 11.454), 'left_elbow': (34.37, 17.189),
+        'left_wrist': (0.0, -0.004),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (41.222, 16.117, 12.076), 'spine_thoracic': (-7.174, 8.513, 22.186),
-        'neck': (35.0, 31.818, -18.952), 'head': (15.0, -11.25), 'right_clavicle': (-9.82, 13.099),
-        'right_shoulder': (31.306, 16.746, 6.805), 'right_elbow': (28.417, 80.0),
-        'right_wrist': (-2.319, -2.293), 'left_clavicle': (-0.934, 1.441),
-        'left_shoulder': (11.521, 5.442, 11.349), 'left_elbow': (34.105, 17.188),
+        'spine_lumbar': (41.977, 14.987, 12.247), 'spine_thoracic': (-8.096, 8.664, 20.98),
+        'neck': (35.0, 29.849, -17.54), 'right_clavicle': (-9.675, 13.183),
+        'right_shoulder': (32.165, 15.888, 6.8), 'right_elbow': (29.973, 80.0),
+        'right_wrist': (-2.348, -1.972), 'left_clavicle': (-0.939, 1.441),
+        'left_shoulder': (11.576, 5.438, 11.342), 'left_elbow': (34.207, 17.187),
     })
     human.KeyJoints(6.5, {
-        'spine_lumbar': (44.931, 13.814, 10.195), 'spine_thoracic': (-8.665, 7.822, 20.835),
-        'neck': (35.0, 33.747, -15.433), 'right_shoulder': (30.193, 13.447, 7.632),
-        'right_elbow': (34.617, 80.0), 'right_wrist': (-3.973, -1.711),
-        'left_clavicle': (-2.679, 4.131), 'left_shoulder': (16.984, 4.906, 11.121),
-        'left_elbow': (33.597, 17.188), 'left_wrist': (-0.038, -0.307),
+        'spine_lumbar': (45.553, 12.921, 10.466), 'spine_thoracic': (-9.466, 8.059, 19.704),
+        'neck': (35.0, 32.652, -14.349), 'head': (15.0, -11.25),
+        'right_shoulder': (31.077, 12.774, 7.63), 'right_elbow': (35.947, 80.0),
+        'right_wrist': (-3.938, -1.386), 'left_clavicle': (-2.692, 4.131),
+        'left_shoulder': (17.142, 4.894, 11.1), 'left_wrist': (-0.044, -0.248),
     })
     human.KeyJoints(6.6, {
-        'neck': (35.0, 33.75, -11.029), 'head': (15.0, -11.044),
-        'right_shoulder': (29.114, 9.375, 8.695), 'right_elbow': (41.565, 80.0),
+        'neck': (35.0, 33.75, -10.117), 'head': (15.0, -11.115), 'right_elbow': (42.637, 80.0),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (54.171, 8.076, 5.509), 'spine_thoracic': (-12.376, 6.102, 17.47),
-        'neck': (35.0, 33.75, -7.56), 'head': (15.0, -11.25),
-        'right_shoulder': (28.04, 5.412, 9.794), 'right_elbow': (48.256, 80.0),
-        'right_wrist': (-7.599, 0.033), 'left_clavicle': (-7.023, 10.831),
-        'left_shoulder': (30.593, 3.57, 10.382), 'left_elbow': (32.331, 17.186),
+        'spine_lumbar': (54.458, 7.777, 6.032), 'spine_thoracic': (-12.877, 6.551, 16.527),
+        'neck': (35.0, 33.75, -6.833), 'head': (15.0, -11.25),
+        'right_shoulder': (29.044, 5.137, 9.799), 'right_elbow': (49.035, 80.0),
+        'right_wrist': (-7.41, 0.321), 'left_clavicle': (-7.058, 10.831),
+        'left_shoulder': (31.006, 3.539, 10.313),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (57.898, 5.762, 3.619), 'spine_thoracic': (-13.873, 5.409, 16.113),
-        'neck': (35.0, 33.618, -4.053), 'right_clavicle': (-9.98, 14.794),
-        'right_shoulder': (27.155, 2.376, 10.787), 'right_elbow': (53.514, 80.0),
-        'right_wrist': (-9.108, 0.89), 'left_clavicle': (-8.776, 13.533),
-        'left_shoulder': (36.081, 3.031, 9.915), 'left_elbow': (31.821, 17.185),
-        'left_wrist': (-0.327, -1.005),
+        'spine_lumbar': (58.05, 5.703, 4.243), 'spine_thoracic': (-14.253, 5.943, 15.246),
+        'neck': (35.0, 33.75, -3.384), 'right_clavicle': (-9.77, 14.803),
+        'right_shoulder': (28.245, 2.205, 10.763), 'right_elbow': (54.049, 80.0),
+        'right_wrist': (-8.8, 1.124), 'left_clavicle': (-8.819, 13.533),
+        'left_shoulder': (36.597, 2.992, 9.815), 'left_elbow': (32.772, 17.173),
+        'left_wrist': (-0.367, -0.811),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (59.825, 4.565, 2.642), 'spine_thoracic': (-14.648, 5.05, 15.411),
-        'neck': (35.0, 33.75, -2.365), 'right_clavicle': (-9.999, 14.99),
-        'right_shoulder': (26.691, 0.888, 11.362), 'right_elbow': (56.192, 79.999),
-        'right_wrist': (-9.966, 1.384), 'left_clavicle': (-9.682, 14.931),
-        'left_shoulder': (38.92, 2.752, 9.413), 'left_elbow': (31.556, 17.184),
-        'left_wrist': (-0.52, -1.109),
+        'spine_lumbar': (59.908, 4.629, 3.318), 'spine_thoracic': (-14.965, 5.628, 14.583),
+        'neck': (35.0, 33.252, -1.531), 'right_clavicle': (-9.781, 14.991),
+        'right_shoulder': (27.838, 0.772, 11.343), 'right_elbow': (56.586, 80.0),
+        'right_wrist': (-9.607, 1.594), 'left_clavicle': (-9.73, 14.931),
+        'left_shoulder': (39.489, 2.709, 9.278), 'left_elbow': (32.606, 17.172),
+        'left_wrist': (-0.579, -0.895),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.0, {
-        'neck': (35.0, 33.75, -2.196), 'right_elbow': (56.325, 79.999),
-        'left_shoulder': (31.636, 4.935, 8.889), 'left_elbow': (48.558, 17.254),
-        'left_wrist': (-2.161, 2.715),
+        'neck': (35.0, 32.992, -1.394), 'right_elbow': (56.711, 80.0),
+        'left_shoulder': (33.471, 4.102, 9.028), 'left_elbow': (51.456, 17.257),
+        'left_wrist': (-2.291, 3.433),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.088459, duration=0.072)
     human.KeyJoints(7.1, {
-        'spine_lumbar': (59.921, 4.506, 2.593), 'neck': (35.0, 33.75, -2.196),
-        'head': (15.0, -11.25), 'right_shoulder': (26.668, 0.815, 11.39),
-        'right_elbow': (56.325, 79.999), 'right_wrist': (-10.008, 1.409),
-        'left_shoulder': (22.876, 6.288, 8.829), 'left_elbow': (63.821, 17.331),
-        'left_wrist': (-3.609, 6.689),
+        'spine_lumbar': (60.0, 4.576, 3.272), 'neck': (35.0, 32.992, -1.394),
+        'head': (15.0, -11.222), 'right_shoulder': (27.817, 0.702, 11.372),
+        'right_elbow': (56.711, 80.0), 'right_wrist': (-9.647, 1.618),
+        'left_shoulder': (24.008, 6.165, 8.671), 'left_elbow': (64.172, 17.314),
+        'left_wrist': (-3.622, 6.782),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(7.2, {
-        'neck': (35.0, 33.438, -3.474), 'head': (14.754, -11.227),
-        'right_shoulder': (27.452, 1.367, 9.245), 'right_elbow': (54.241, 77.296),
-        'right_wrist': (-5.925, 2.172), 'left_clavicle': (-9.727, 15.0),
+        'neck': (35.0, 32.705, -2.435), 'head': (14.807, -11.208),
+        'right_shoulder': (28.447, 1.564, 10.255), 'right_elbow': (54.032, 79.036),
+        'right_wrist': (-10.65, 1.957), 'left_clavicle': (-9.775, 15.0),
     })
     human.KeyJoints(7.3, {
-        'neck': (35.0, 30.658, -14.853), 'head': (12.558, -11.025),
-        'right_shoulder': (22.636, 4.696, -8.49), 'right_elbow': (59.721, 53.644),
-        'right_wrist': (21.916, 9.687),
+        'neck': (35.0, 30.064, -12.023), 'head': (13.031, -11.078),
+        'right_shoulder': (22.898, 7.44, 1.738), 'right_elbow': (54.159, 70.768),
+        'right_wrist': (-25.502, 6.337),
     })
     human.KeyJoints(7.4, {
-        'neck': (35.0, 26.979, -29.912), 'head': (9.652, -10.758),
-        'right_shoulder': (18.807, 9.548, -32.18), 'right_elbow': (63.64, 23.896),
-        'right_wrist': (52.217, 17.028),
+        'neck': (35.0, 26.259, -25.837), 'head': (10.473, -10.891),
+        'right_shoulder': (18.386, 15.235, -9.562), 'right_elbow': (53.284, 60.963),
+        'right_wrist': (-43.369, 11.668),
     })
     human.KeyJoints(7.5, {
-        'neck': (35.0, 24.849, -38.63), 'head': (7.97, -10.603),
-        'right_shoulder': (21.903, 16.164, -54.449), 'right_elbow': (55.939, 0.812),
-        'right_wrist': (65.316, 18.757), 'left_elbow': (63.672, 17.331),
+        'neck': (35.0, 23.271, -36.684), 'head': (8.464, -10.744),
+        'right_shoulder': (18.943, 22.503, -20.009), 'right_elbow': (48.926, 54.743),
+        'right_wrist': (-55.577, 15.431),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (59.921, 4.506, 2.593), 'spine_thoracic': (-14.686, 5.032, 15.376),
-        'neck': (35.0, 24.814, -38.775), 'head': (7.942, -10.601),
-        'right_shoulder': (30.325, 25.756, -78.664), 'right_elbow': (35.0, -21.371),
-        'right_wrist': (74.754, 19.701),
+        'spine_lumbar': (60.0, 4.576, 3.272), 'spine_thoracic': (-15.0, 5.612, 14.55),
+        'neck': (35.0, 22.693, -38.782), 'head': (8.076, -10.716), 'right_clavicle': (-9.781, 15.0),
+        'right_shoulder': (20.541, 30.63, -31.394), 'right_elbow': (37.844, 49.394),
+        'right_wrist': (-66.084, 18.749),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.7, {
-        'spine_lumbar': (59.982, 4.707, 2.942), 'spine_thoracic': (-14.441, 5.337, 15.634),
-        'neck': (34.954, 24.481, -39.316), 'head': (7.663, -10.444),
-        'right_clavicle': (-10.0, 15.0), 'right_shoulder': (34.432, 29.814, -88.547),
-        'right_elbow': (22.94, -30.029), 'right_wrist': (77.999, 19.966),
-        'left_shoulder': (22.973, 6.269, 8.832),
+        'spine_lumbar': (60.0, 4.785, 3.626), 'spine_thoracic': (-14.714, 5.935, 14.801),
+        'neck': (34.94, 22.359, -39.337), 'head': (7.796, -10.57), 'right_clavicle': (-9.949, 15.0),
+        'right_shoulder': (21.266, 33.787, -36.006), 'right_elbow': (30.536, 47.36),
+        'right_wrist': (-69.899, 19.985),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (60.0, 10.903, 5.78), 'spine_thoracic': (-12.696, 7.617, 17.794),
-        'neck': (34.675, 22.33, -42.783), 'head': (5.967, -9.406), 'right_clavicle': (-7.706, 15.0),
-        'right_shoulder': (36.067, 34.682, -88.445), 'right_elbow': (21.251, -29.789),
-        'right_wrist': (74.653, 19.43),
+        'spine_lumbar': (60.0, 10.737, 6.618), 'spine_thoracic': (-13.313, 8.071, 17.167),
+        'neck': (34.854, 20.364, -43.064), 'head': (6.343, -9.616),
+        'right_clavicle': (-7.522, 14.879), 'right_shoulder': (23.081, 38.726, -36.95),
+        'right_elbow': (27.482, 46.829), 'right_wrist': (-66.725, 18.967),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.821426, duration=0.072)
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.893426, duration=0.2628)
     human.KeyJoints(7.9, {
-        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
-        'neck': (34.636, 22.052, -43.457), 'head': (5.557, -9.307), 'right_clavicle': (-7.06, 15.0),
-        'right_shoulder': (36.451, 35.906, -88.428), 'right_elbow': (20.851, -29.745),
-        'right_wrist': (73.812, 19.294),
+        'spine_lumbar': (60.0, 11.634, 7.118), 'spine_thoracic': (-13.093, 8.411, 17.563),
+        'neck': (34.855, 20.167, -43.7), 'head': (6.059, -9.538), 'right_clavicle': (-7.087, 15.0),
+        'right_shoulder': (23.438, 39.555, -37.081), 'right_elbow': (26.91, 46.747),
+        'right_wrist': (-66.112, 18.788),
     })
-    human.KeyJoints(8.0, {'neck': (34.631, 22.202, -47.827), 'head': (8.896, -9.992)})
+    human.KeyJoints(8.0, {'neck': (34.814, 20.757, -48.054), 'head': (9.23, -10.142)})
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 12.292, 6.344), 'spine_thoracic': (-12.338, 8.058, 18.222),
-        'neck': (34.611, 22.422, -54.199), 'head': (13.798, -10.991),
-        'right_shoulder': (36.444, 35.876, -88.427), 'right_elbow': (20.907, -29.745),
-        'right_wrist': (73.873, 19.307), 'left_shoulder': (22.973, 6.269, 8.832),
-        'left_elbow': (63.672, 17.331), 'left_wrist': (-3.593, 6.649),
+        'spine_lumbar': (60.0, 11.634, 7.118), 'spine_thoracic': (-13.093, 8.411, 17.563),
+        'neck': (34.695, 21.617, -54.404), 'head': (13.883, -11.023),
+        'left_shoulder': (23.994, 6.184, 8.659), 'left_elbow': (64.165, 17.314),
+        'left_wrist': (-3.625, 6.78),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=8.156226, duration=2.069192)
     human.KeyJoints(8.2, {
-        'spine_lumbar': (55.264, 11.828, 6.053), 'spine_thoracic': (-11.986, 8.312, 17.565),
-        'neck': (34.284, 22.414, -54.915), 'head': (14.98, -11.194),
-        'right_shoulder': (31.659, 39.334, -89.32), 'right_elbow': (14.283, -29.853),
-        'right_wrist': (57.171, 16.073), 'left_shoulder': (23.22, 6.286, 9.087),
-        'left_elbow': (63.177, 17.848), 'left_wrist': (-4.399, 6.831),
+        'spine_lumbar': (60.0, 11.748, 6.817), 'spine_thoracic': (-13.024, 8.204, 16.915),
+        'neck': (34.282, 21.754, -55.111), 'head': (14.997, -11.201),
+        'left_shoulder': (24.216, 6.194, 8.884), 'left_elbow': (63.7, 17.807),
+        'left_wrist': (-4.426, 6.96),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (60.0, 13.3, 3.553), 'spine_thoracic': (-11.54, 5.971, 11.917),
-        'neck': (31.529, 23.062, -49.213), 'right_shoulder': (36.442, 35.869, -88.427),
-        'right_elbow': (20.919, -29.745), 'right_wrist': (73.886, 19.31),
-        'left_clavicle': (-9.763, 15.0), 'left_shoulder': (25.338, 6.463, 11.275),
-        'left_elbow': (58.854, 22.291), 'left_wrist': (-11.331, 8.394),
+        'spine_lumbar': (60.0, 12.728, 4.226), 'spine_thoracic': (-12.403, 6.431, 11.344),
+        'neck': (31.992, 22.02, -49.154), 'left_clavicle': (-9.724, 15.0),
+        'left_shoulder': (26.128, 6.3, 10.814), 'left_elbow': (59.635, 22.044),
+        'left_wrist': (-11.318, 8.509),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (47.95, 13.352, -0.686), 'spine_thoracic': (-9.531, 4.093, 2.339),
-        'neck': (29.594, 24.719, -38.226), 'right_shoulder': (28.937, 43.335, -89.439),
-        'right_elbow': (7.928, -29.316), 'right_wrist': (35.496, 12.042),
-        'left_shoulder': (28.93, 6.866, 14.984), 'left_elbow': (51.331, 29.825),
-        'left_wrist': (-23.084, 11.046),
+        'spine_lumbar': (60.0, 14.39, -0.167), 'spine_thoracic': (-11.262, 3.423, 1.898),
+        'neck': (29.581, 24.018, -38.311), 'right_elbow': (27.022, 46.747),
+        'right_wrist': (-66.223, 18.806), 'left_shoulder': (29.37, 6.555, 14.089),
+        'left_elbow': (52.539, 29.23), 'left_wrist': (-23.004, 11.134),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (49.593, 15.203, -5.662), 'spine_thoracic': (-7.981, 0.485, -8.903),
-        'neck': (29.388, 29.852, -24.839), 'right_shoulder': (31.645, 41.036, -89.034),
-        'right_elbow': (11.751, -29.36), 'right_wrist': (55.968, 16.888),
-        'left_shoulder': (33.147, 7.531, 19.339), 'left_elbow': (42.133, 38.669),
-        'left_wrist': (-36.88, 14.159),
+        'spine_lumbar': (60.0, 16.34, -5.323), 'spine_thoracic': (-9.752, -0.107, -9.191),
+        'neck': (29.307, 29.145, -24.863), 'left_clavicle': (-9.417, 15.0),
+        'left_shoulder': (33.176, 6.997, 17.932), 'left_elbow': (43.824, 37.664),
+        'left_wrist': (-36.722, 14.216),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (55.079, 17.579, -10.372), 'spine_thoracic': (-6.446, -3.637, -19.545),
-        'neck': (33.756, 33.75, -10.372), 'head': (15.0, -11.25),
-        'right_shoulder': (35.378, 37.636, -88.254), 'right_elbow': (18.29, -29.71),
-        'right_wrist': (70.887, 19.042), 'left_shoulder': (37.138, 8.495, 23.461),
-        'left_elbow': (32.786, 47.041), 'left_wrist': (-49.94, 17.105),
+        'spine_lumbar': (60.0, 18.186, -10.204), 'spine_thoracic': (-8.028, -3.449, -19.688),
+        'neck': (33.49, 33.75, -10.497), 'head': (15.0, -11.25), 'left_clavicle': (-9.126, 15.0),
+        'left_shoulder': (36.778, 7.666, 21.57), 'left_elbow': (34.904, 45.647),
+        'left_wrist': (-49.707, 17.134),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (60.0, 19.572, -13.815), 'spine_thoracic': (-4.845, -7.012, -27.322),
-        'neck': (35.0, 31.175, -0.284), 'head': (15.0, -10.046),
-        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
-        'right_wrist': (73.886, 19.31), 'left_clavicle': (-9.985, 15.0),
-        'left_shoulder': (40.055, 9.798, 26.473), 'left_elbow': (24.815, 53.159),
-        'left_wrist': (-59.484, 19.258),
+        'spine_lumbar': (60.0, 19.535, -13.772), 'spine_thoracic': (-6.242, -5.891, -27.358),
+        'neck': (35.0, 31.226, -0.246), 'head': (15.0, -10.046), 'left_clavicle': (-8.72, 15.0),
+        'left_shoulder': (39.41, 8.601, 24.228), 'left_elbow': (27.188, 51.482),
+        'left_wrist': (-59.197, 19.266),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.8, {
-        'spine_lumbar': (60.0, 20.0, -14.728), 'spine_thoracic': (-3.21, -7.742, -29.723),
-        'neck': (35.0, -9.271, 8.857), 'head': (15.0, 11.25), 'left_clavicle': (-9.804, 14.705),
-        'left_shoulder': (41.01, 11.824, 27.402), 'left_elbow': (19.758, 55.216),
-        'left_wrist': (-62.745, 19.944),
+        'spine_lumbar': (60.0, 20.0, -14.721), 'spine_thoracic': (-4.536, -6.566, -29.72),
+        'neck': (35.0, -7.414, 8.651), 'head': (15.0, 11.25), 'left_clavicle': (-8.023, 14.697),
+        'left_shoulder': (40.235, 10.226, 25.022), 'left_elbow': (22.102, 53.437),
+        'left_wrist': (-62.437, 19.939),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (3.186, -10.0, -30.0),
-        'neck': (35.0, 18.271, 8.167), 'head': (15.0, 3.587), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (49.82, 14.502, 25.872), 'left_elbow': (11.894, 54.295),
-        'left_wrist': (-53.429, 16.985),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (0.868, -9.909, -30.0),
+        'neck': (35.0, 12.348, 9.066), 'head': (15.0, 9.18),
+        'right_shoulder': (23.367, 39.516, -37.099), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (47.25, 14.619, 23.177), 'left_elbow': (14.756, 52.398),
+        'left_wrist': (-55.065, 17.264),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.949414, duration=0.2628)
     human.KeyJoints(9.0, {
-        'spine_thoracic': (9.81, -10.0, -30.0), 'neck': (32.699, 33.75, 7.177),
-        'head': (15.0, -11.25), 'left_shoulder': (59.583, 12.212, 25.727),
-        'left_elbow': (6.481, 54.09), 'left_wrist': (-43.195, 14.175),
+        'spine_thoracic': (6.779, -10.0, -30.0), 'neck': (34.247, 33.75, 7.538),
+        'head': (15.0, -11.25), 'left_shoulder': (56.532, 12.588, 23.086),
+        'left_elbow': (8.871, 52.173), 'left_wrist': (-45.466, 14.692),
     })
     human.KeyJoints(9.2, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (9.81, -10.0, -30.0),
-        'neck': (32.699, 33.75, 7.177), 'head': (15.0, -11.25),
-        'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
-        'right_wrist': (73.886, 19.31), 'left_shoulder': (59.583, 12.212, 25.727),
-        'left_elbow': (6.481, 54.09), 'left_wrist': (-43.195, 14.175),
+        'neck': (34.247, 33.75, 7.538), 'head': (15.0, -11.25),
+        'left_shoulder': (56.532, 12.588, 23.086), 'left_elbow': (8.871, 52.173),
+        'left_wrist': (-45.466, 14.692),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'spine_lumbar': (59.21, 19.876, -15.0), 'spine_thoracic': (10.013, -9.888, -30.0),
-        'neck': (32.955, 29.174, 13.695), 'head': (15.0, -8.751),
-        'right_shoulder': (36.566, 35.902, -88.377), 'right_elbow': (21.071, -29.743),
-        'right_wrist': (74.007, 19.32), 'left_shoulder': (55.329, 20.064, 26.275),
-        'left_elbow': (17.834, 54.552), 'left_wrist': (-45.795, 14.356),
+        'neck': (34.33, 29.104, 14.057), 'head': (15.0, -8.751),
+        'left_shoulder': (51.484, 14.347, 18.892), 'left_elbow': (20.28, 51.334),
+        'left_wrist': (-47.438, 14.961),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (53.92, 19.105, -15.0), 'spine_thoracic': (11.333, -9.325, -30.0),
-        'neck': (33.655, 16.635, 31.556), 'head': (15.0, -1.903),
-        'right_shoulder': (37.158, 36.069, -88.139), 'left_shoulder': (42.933, 41.898, 28.042),
-        'left_elbow': (47.433, 55.991), 'left_wrist': (-52.547, 14.85),
+        'neck': (34.56, 16.374, 31.922), 'head': (15.0, -1.903),
+        'left_shoulder': (37.046, 19.183, 6.859), 'left_elbow': (50.033, 48.866),
+        'left_wrist': (-52.535, 15.629),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (47.988, 18.287, -15.0), 'spine_thoracic': (12.676, -8.933, -30.0),
-        'neck': (34.442, 2.535, 51.639), 'head': (15.0, 5.797),
-        'right_shoulder': (37.708, 36.125, -87.903), 'right_elbow': (22.967, -29.78),
-        'right_wrist': (75.584, 19.519), 'left_shoulder': (26.936, 67.332, 30.714),
-        'left_elbow': (77.084, 58.053), 'left_wrist': (-59.564, 15.502),
+        'neck': (34.817, 2.059, 52.01), 'head': (15.0, 5.797),
+        'left_shoulder': (19.117, 24.716, -8.067), 'left_elbow': (79.843, 45.658),
+        'left_wrist': (-57.785, 16.288),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (46.78, 18.187, -15.0), 'spine_thoracic': (12.712, -9.212, -30.0),
-        'neck': (34.954, -6.619, 64.677), 'head': (15.0, 10.796),
-        'right_shoulder': (37.416, 36.026, -88.019), 'left_shoulder': (11.863, 85.929, 34.028),
-        'left_elbow': (88.542, 60.405), 'left_wrist': (-62.977, 16.17),
+        'neck': (34.985, -7.234, 65.051), 'head': (15.0, 10.796),
+        'left_shoulder': (3.606, 28.543, -20.897), 'left_elbow': (91.371, 42.597),
+        'left_wrist': (-60.23, 16.516),
     })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (45.911, 18.074, -15.0), 'spine_thoracic': (12.739, -9.306, -30.0),
-        'neck': (35.0, -7.45, 65.862), 'head': (15.0, 11.25),
-        'right_shoulder': (37.306, 36.0, -88.064), 'left_shoulder': (-6.082, 99.488, 42.528),
-        'left_elbow': (85.702, 64.82), 'left_wrist': (-63.874, 17.139),
+        'neck': (35.0, -8.078, 66.235), 'head': (15.0, 11.25),
+        'left_shoulder': (-12.114, 30.37, -32.208), 'left_elbow': (89.051, 38.874),
+        'left_wrist': (-60.648, 14.878),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (45.452, 17.995, -15.0), 'spine_thoracic': (12.792, -9.295, -30.0),
-        'right_elbow': (22.883, -29.831), 'right_wrist': (75.547, 19.569),
-        'left_shoulder': (-25.607, 107.837, 50.365), 'left_elbow': (76.581, 69.704),
-        'left_wrist': (-61.844, 16.775),
+        'left_shoulder': (-28.308, 31.678, -43.429), 'left_elbow': (84.8, 34.72),
+        'left_wrist': (-60.867, 11.877),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (45.882, 18.025, -15.0), 'spine_thoracic': (12.58, -9.273, -30.0),
-        'neck': (35.0, -7.45, 65.862), 'right_elbow': (22.775, -29.825),
-        'right_wrist': (75.44, 19.552), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (-39.699, 108.827, 51.524), 'left_elbow': (64.322, 72.425),
-        'left_wrist': (-57.059, 14.671),
+        'left_shoulder': (-39.835, 33.48, -53.323), 'left_elbow': (81.128, 31.652),
+        'left_wrist': (-61.165, 9.284),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.0, {
-        'spine_lumbar': (45.693, 18.066, -14.982), 'spine_thoracic': (12.28, -8.965, -29.992),
-        'neck': (34.993, -7.803, 65.309), 'right_shoulder': (37.238, 36.049, -88.101),
-        'right_elbow': (22.839, -29.84), 'right_wrist': (75.491, 19.572),
-        'left_clavicle': (-9.58, 15.0), 'left_shoulder': (-42.542, 106.984, 48.428),
-        'left_elbow': (57.806, 72.359), 'left_wrist': (-53.788, 12.998),
+        'left_shoulder': (-42.175, 37.938, -60.466), 'left_elbow': (82.439, 31.042),
+        'left_wrist': (-62.097, 8.797),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (44.526, 18.166, -14.992), 'spine_thoracic': (7.406, -6.144, -29.996),
-        'neck': (35.0, -11.294, 61.814), 'right_shoulder': (36.249, 36.446, -88.584),
-        'right_elbow': (22.172, -29.946), 'right_wrist': (74.715, 19.603),
-        'left_clavicle': (-6.198, 15.0), 'left_shoulder': (-43.234, 108.812, 48.818),
-        'left_elbow': (59.147, 72.417), 'left_wrist': (-55.12, 13.415),
+        'left_shoulder': (-41.403, 43.745, -69.749), 'left_elbow': (90.216, 30.974),
+        'left_wrist': (-64.827, 8.94),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=10.153418, duration=0.072)
     human.KeyJoints(10.2, {
-        'spine_lumbar': (44.999, 18.632, -15.0), 'spine_thoracic': (5.637, -6.346, -30.0),
-        'neck': (35.0, -12.638, 60.087), 'right_shoulder': (36.204, 36.381, -88.596),
-        'right_wrist': (74.247, 19.492), 'left_clavicle': (-8.421, 15.0),
-        'left_shoulder': (-42.883, 114.997, 53.142), 'left_elbow': (67.066, 73.176),
-        'left_wrist': (-59.738, 15.055),
+        'neck': (35.0, -8.078, 66.235), 'left_shoulder': (-41.263, 40.013, -75.428),
+        'left_elbow': (96.112, 31.177), 'left_wrist': (-68.022, 9.381),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=10.225418, duration=0.2628)
-    human.KeyJoints(10.3, {
-        'spine_lumbar': (50.288, 19.478, -15.0), 'spine_thoracic': (5.178, -6.682, -30.0),
-        'right_shoulder': (36.29, 36.089, -88.522), 'right_elbow': (21.081, -29.799),
-        'right_wrist': (73.929, 19.37), 'left_shoulder': (-42.752, 122.815, 61.651),
-        'left_elbow': (74.215, 75.006), 'left_wrist': (-64.484, 17.857),
-    })
+    human.KeyJoints(10.3, {'neck': (35.0, -7.921, 66.222)})
     human.KeyJoints(10.4, {
-        'spine_lumbar': (48.764, 19.255, -15.0), 'spine_thoracic': (5.13, -6.637, -30.0),
-        'neck': (34.851, -12.813, 60.063), 'right_shoulder': (36.157, 36.166, -88.589),
-        'right_elbow': (21.213, -29.84), 'right_wrist': (74.005, 19.42),
-        'left_shoulder': (-42.97, 120.572, 59.243), 'left_elbow': (72.122, 74.449),
-        'left_wrist': (-63.09, 17.069),
+        'neck': (35.0, -7.487, 66.15), 'right_shoulder': (23.367, 39.516, -37.099),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=10.488218, duration=0.719288)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (42.878, 18.568, -14.976), 'spine_thoracic': (5.226, -6.456, -29.982),
-        'neck': (34.647, -12.869, 59.972), 'head': (14.933, 11.25),
-        'right_clavicle': (-7.063, 15.0), 'right_shoulder': (36.464, 35.798, -88.417),
-        'right_elbow': (20.906, -29.739), 'right_wrist': (73.865, 19.303),
-        'left_shoulder': (-43.155, 110.477, 48.951), 'left_elbow': (63.898, 72.166),
-        'left_wrist': (-57.001, 13.587),
+        'spine_lumbar': (60.0, 19.95, -14.974), 'spine_thoracic': (6.76, -9.976, -29.977),
+        'neck': (34.999, -7.359, 65.926), 'head': (15.0, 11.25), 'right_clavicle': (-7.09, 15.0),
+        'right_shoulder': (23.39, 39.447, -37.074), 'right_elbow': (27.023, 46.755),
+        'right_wrist': (-66.202, 18.802),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (39.508, 15.181, -13.088), 'spine_thoracic': (3.924, -5.748, -28.542),
-        'neck': (33.501, -12.546, 57.083), 'head': (14.655, 11.218),
-        'right_clavicle': (-7.349, 15.0), 'right_shoulder': (38.157, 30.168, -87.641),
-        'right_elbow': (19.866, -29.289), 'right_wrist': (72.239, 18.736),
-        'left_shoulder': (-42.012, 100.987, 41.38), 'left_elbow': (58.044, 70.525),
-        'left_wrist': (-51.215, 10.656),
+        'spine_lumbar': (60.0, 16.058, -12.963), 'spine_thoracic': (5.201, -8.073, -28.191),
+        'neck': (33.889, -7.75, 61.674), 'head': (14.688, 11.217), 'right_clavicle': (-7.374, 15.0),
+        'right_shoulder': (25.197, 34.033, -35.112), 'right_elbow': (27.067, 47.412),
+        'right_wrist': (-64.558, 18.487),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (38.303, 7.928, -9.049), 'spine_thoracic': (1.042, -4.138, -25.462),
-        'neck': (31.261, -12.534, 50.198), 'head': (14.204, 11.116),
-        'right_clavicle': (-7.961, 15.0), 'right_shoulder': (41.861, 17.995, -85.953),
-        'right_elbow': (17.612, -28.311), 'right_wrist': (68.762, 17.511),
-        'left_shoulder': (-40.68, 94.686, 38.86), 'left_elbow': (54.301, 70.022),
-        'left_wrist': (-47.509, 9.305),
+        'spine_lumbar': (60.0, 7.734, -8.661), 'spine_thoracic': (1.755, -4.001, -24.36),
+        'neck': (31.049, -7.989, 51.53), 'head': (14.535, 11.083), 'right_clavicle': (-7.98, 15.0),
+        'right_shoulder': (29.141, 22.333, -30.866), 'right_elbow': (27.182, 48.833),
+        'right_wrist': (-61.042, 17.812),
     })
     human.KeyJoints(10.8, {
-        'spine_lumbar': (39.167, -1.704, -4.083), 'spine_thoracic': (-2.551, -1.882, -21.675),
-        'neck': (28.283, -13.007, 39.926), 'head': (14.712, 11.026),
-        'right_shoulder': (46.594, 2.744, -83.822), 'right_wrist': (64.485, 15.978),
-        'left_shoulder': (-42.449, 96.155, 42.418), 'left_elbow': (54.565, 70.814),
-        'left_wrist': (-48.877, 10.5),
+        'spine_lumbar': (60.0, -2.504, -3.37), 'spine_thoracic': (-2.725, 1.012, -19.628),
+        'neck': (28.016, -9.867, 37.719), 'head': (14.967, 11.212),
+        'right_shoulder': (34.162, 7.685, -25.538), 'right_wrist': (-56.718, 16.983),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (40.744, -10.983, 0.589), 'spine_thoracic': (-6.341, 0.318, -18.112),
-        'neck': (26.782, -16.125, 28.642), 'head': (14.949, 11.211),
-        'right_clavicle': (-9.422, 15.0), 'right_shoulder': (51.37, -12.12, -81.717),
-        'right_elbow': (11.987, -25.855), 'right_wrist': (60.462, 14.486),
-        'left_shoulder': (-45.223, 101.063, 47.951), 'left_elbow': (57.352, 72.042),
-        'left_wrist': (-52.479, 12.658),
+        'spine_lumbar': (60.0, -12.135, 1.608), 'spine_thoracic': (-7.384, 5.738, -15.138),
+        'neck': (27.325, -14.903, 24.21), 'right_clavicle': (-9.427, 15.0),
+        'right_shoulder': (39.197, -6.57, -20.328), 'right_elbow': (27.628, 52.367),
+        'right_wrist': (-52.65, 16.202),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (42.499, -16.68, 3.744), 'spine_thoracic': (-9.983, 1.585, -15.705),
-        'neck': (27.509, -20.581, 20.157), 'right_clavicle': (-9.9, 15.0),
-        'right_shoulder': (55.208, -23.13, -80.104), 'right_elbow': (9.88, -24.92),
-        'right_wrist': (57.745, 13.385), 'left_shoulder': (-45.884, 104.444, 52.659),
-        'left_elbow': (59.802, 73.131), 'left_wrist': (-54.76, 14.302),
+        'spine_lumbar': (60.0, -18.64, 4.97), 'spine_thoracic': (-11.367, 8.95, -12.034),
+        'neck': (29.022, -20.269, 14.009), 'right_clavicle': (-9.901, 15.0),
+        'right_shoulder': (43.187, -17.094, -16.439), 'right_elbow': (27.958, 53.678),
+        'right_wrist': (-49.903, 15.675),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(11.1, {
-        'spine_lumbar': (58.567, -19.752, 4.357), 'spine_thoracic': (-11.756, 2.887, -15.225),
-        'neck': (29.399, -22.823, 18.578), 'right_clavicle': (-10.0, 15.0),
-        'right_shoulder': (57.232, -27.218, -79.394), 'right_elbow': (9.026, -24.508),
-        'right_wrist': (57.363, 12.975), 'left_shoulder': (-42.748, 126.57, 65.992),
-        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
+        'spine_lumbar': (58.742, -19.783, 5.612), 'spine_thoracic': (-13.931, 9.656, -11.251),
+        'neck': (31.183, -23.156, 11.811), 'right_clavicle': (-10.0, 15.0),
+        'right_shoulder': (45.19, -20.921, -14.923), 'right_elbow': (28.585, 54.201),
+        'right_wrist': (-49.433, 15.712),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (49.888, -17.974, 3.921), 'spine_thoracic': (-10.947, 2.275, -15.68),
-        'neck': (29.692, -22.552, 20.559), 'right_clavicle': (-8.532, 14.343),
-        'right_shoulder': (53.947, -23.215, -80.398), 'right_elbow': (0.0, -24.0),
-        'right_wrist': (27.499, 7.189), 'left_shoulder': (-43.33, 120.445, 62.79),
-        'left_elbow': (73.002, 75.293), 'left_wrist': (-63.543, 18.012),
+        'spine_lumbar': (54.682, -19.016, 5.393), 'spine_thoracic': (-12.708, 9.55, -11.639),
+        'neck': (31.643, -23.254, 13.513), 'right_clavicle': (-9.046, 14.366),
+        'right_shoulder': (42.005, -23.141, -14.609), 'right_elbow': (28.266, 54.28),
+        'right_wrist': (-50.219, 16.015),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=11.207505, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.3, {
-        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
-        'right_shoulder': (53.93, -29.25, -79.646), 'right_elbow': (8.508, -21.762),
-        'right_wrist': (58.248, 13.192), 'left_shoulder': (-42.748, 126.57, 65.992),
-        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
+        'spine_lumbar': (54.492, -18.96, 5.347), 'neck': (31.637, -23.217, 13.63),
+        'right_shoulder': (41.724, -23.177, -14.631), 'right_elbow': (28.336, 55.077),
+        'right_wrist': (-50.34, 16.038),
     })
     human.KeyJoints(11.4, {
-        'right_shoulder': (53.667, -24.271, -80.165), 'right_elbow': (11.194, 36.315),
-        'right_wrist': (61.958, 14.587),
+        'spine_thoracic': (-12.623, 9.532, -11.697), 'right_clavicle': (-8.97, 14.299),
+        'right_shoulder': (41.19, -21.681, -15.197), 'right_elbow': (28.166, 71.674),
+        'right_wrist': (-50.264, 15.789),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.5, {
-        'right_shoulder': (55.61, -22.067, -80.198), 'right_elbow': (11.384, 61.018),
-        'right_wrist': (64.18, 15.292),
+        'right_shoulder': (41.09, -21.317, -15.331), 'right_elbow': (28.205, 75.57),
+        'right_wrist': (-50.277, 15.739),
     })
     human.KeyJoints(11.6, {
-        'right_shoulder': (53.029, -27.509, -79.929), 'right_elbow': (9.758, 0.973),
-        'right_wrist': (59.2, 13.657),
+        'right_shoulder': (43.462, -25.948, -13.593), 'right_elbow': (30.901, 15.525),
+        'right_wrist': (-51.458, 17.041),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.7, {
-        'right_shoulder': (53.724, -28.998, -79.699), 'right_elbow': (8.699, -18.155),
-        'right_wrist': (58.368, 13.262),
+        'right_shoulder': (44.352, -26.663, -13.356), 'right_elbow': (33.085, -3.603),
+        'right_wrist': (-52.636, 17.861),
     })
     human.KeyJoints(11.8, {
-        'right_shoulder': (54.107, -23.597, -80.187), 'right_elbow': (11.305, 43.397),
-        'right_wrist': (62.627, 14.798),
+        'right_shoulder': (41.617, -22.929, -14.727), 'right_elbow': (28.273, 57.949),
+        'right_wrist': (-50.316, 15.991),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.9, {
-        'right_shoulder': (55.2, -22.404, -80.203), 'right_elbow': (11.382, 56.782),
-        'right_wrist': (63.832, 15.181),
+        'right_shoulder': (41.199, -21.713, -15.185), 'right_elbow': (28.164, 71.334),
+        'right_wrist': (-50.264, 15.793),
     })
     human.KeyJoints(12.0, {
-        'right_shoulder': (53.201, -28.058, -79.858), 'right_elbow': (9.371, -5.816),
-        'right_wrist': (58.838, 13.506),
+        'right_shoulder': (43.783, -26.257, -13.486), 'right_elbow': (31.617, 8.736),
+        'right_wrist': (-51.817, 17.301),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.1, {
-        'right_shoulder': (53.479, -28.658, -79.764), 'right_elbow': (8.979, -13.34),
-        'right_wrist': (58.582, 13.365),
+        'right_shoulder': (44.133, -26.529, -13.397), 'right_elbow': (32.489, 1.212),
+        'right_wrist': (-52.289, 17.628),
     })
     human.KeyJoints(12.2, {
-        'right_shoulder': (54.593, -23.003, -80.2), 'right_elbow': (11.359, 49.843),
-        'right_wrist': (63.223, 14.986),
+        'right_shoulder': (41.383, -22.36, -14.945), 'right_elbow': (28.211, 64.395),
+        'right_wrist': (-50.301, 15.898),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.3, {
-        'right_shoulder': (54.725, -22.861, -80.201), 'right_elbow': (11.367, 51.44),
-        'right_wrist': (63.367, 15.032),
+        'right_shoulder': (41.326, -22.218, -14.999), 'right_elbow': (28.212, 65.992),
+        'right_wrist': (-50.305, 15.877),
     })
     human.KeyJoints(12.4, {
-        'right_shoulder': (53.41, -28.553, -79.783), 'right_elbow': (9.07, -11.867),
-        'right_wrist': (58.661, 13.399),
+        'right_shoulder': (44.065, -26.482, -13.412), 'right_elbow': (32.312, 2.685),
+        'right_wrist': (-52.19, 17.561),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.5, {
-        'right_shoulder': (53.257, -28.192, -79.838), 'right_elbow': (9.273, -7.524),
-        'right_wrist': (58.759, 13.47),
+        'right_shoulder': (43.863, -26.325, -13.463), 'right_elbow': (31.808, 7.028),
+        'right_wrist': (-51.917, 17.371),
     })
     human.KeyJoints(12.6, {
-        'right_shoulder': (55.077, -22.515, -80.203), 'right_elbow': (11.379, 55.446),
-        'right_wrist': (63.718, 15.144),
+        'right_shoulder': (41.236, -21.837, -15.139), 'right_elbow': (28.159, 69.998),
+        'right_wrist': (-50.263, 15.811),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.7, {
-        'right_shoulder': (54.235, -23.428, -80.192), 'right_elbow': (11.324, 45.201),
-        'right_wrist': (62.796, 14.851),
+        'right_shoulder': (41.551, -22.771, -14.787), 'right_elbow': (28.244, 59.753),
+        'right_wrist': (-50.306, 15.964),
     })
     human.KeyJoints(12.8, {
-        'right_shoulder': (53.661, -28.915, -79.715), 'right_elbow': (8.765, -16.971),
-        'right_wrist': (58.415, 13.286),
+        'right_shoulder': (44.298, -26.633, -13.365), 'right_elbow': (32.936, -2.419),
+        'right_wrist': (-52.547, 17.802),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.834705, duration=0.072)
     human.KeyJoints(12.9, {
-        'neck': (29.73, -22.598, 20.516), 'right_shoulder': (54.105, -29.428, -79.603),
-        'right_elbow': (8.353, -24.552), 'right_wrist': (58.135, 13.135),
+        'right_shoulder': (44.679, -26.77, -13.316), 'right_elbow': (33.833, -10.0),
+        'right_wrist': (-53.096, 18.162),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.906705, duration=0.2628)
-    human.KeyJoints(13.0, {'neck': (29.675, -22.625, 20.429)})
+    human.KeyJoints(13.0, {'neck': (31.642, -23.199, 13.628), 'right_elbow': (31.749, -10.0)})
+    human.KeyJoints(13.1, {
+        'right_shoulder': (42.473, -24.022, -14.314), 'right_elbow': (29.516, -10.0),
+        'right_wrist': (-50.905, 16.51),
+    })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(13.2, {'neck': (29.296, -22.813, 19.826)})
-    human.KeyJoints(14.4, {'head': (15.0, 11.25)})
+    human.KeyJoints(13.2, {
+        'right_shoulder': (41.837, -23.213, -14.605), 'right_elbow': (28.224, -9.991),
+        'right_wrist': (-50.287, 16.043),
+    })
+    human.KeyJoints(13.3, {'neck': (31.679, -23.075, 13.62)})
     human.KeyJoints(16.1, {
-        'spine_lumbar': (54.455, -18.815, 3.949), 'spine_thoracic': (-10.58, 2.689, -15.652),
-        'right_clavicle': (-8.549, 14.373), 'right_shoulder': (54.105, -29.428, -79.603),
-        'right_elbow': (8.353, -24.552), 'right_wrist': (58.135, 13.135),
-        'left_clavicle': (-8.421, 15.0), 'left_shoulder': (-42.748, 126.57, 65.992),
-        'left_elbow': (78.12, 75.939), 'left_wrist': (-66.946, 19.278),
+        'spine_lumbar': (54.492, -18.96, 5.347), 'spine_thoracic': (-12.623, 9.532, -11.697),
+        'right_clavicle': (-8.97, 14.299), 'right_shoulder': (41.826, -23.215, -14.606),
+        'right_elbow': (28.25, -10.0), 'right_wrist': (-50.262, 16.025),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-41.263, 40.013, -75.428),
+        'left_elbow': (96.112, 31.177), 'left_wrist': (-68.022, 9.381),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(16.2, {
-        'spine_lumbar': (52.753, -18.278, 3.835), 'spine_thoracic': (-10.261, 2.61, -15.12),
-        'right_clavicle': (-8.302, 13.885), 'right_shoulder': (52.68, -28.033, -77.577),
-        'right_elbow': (8.686, -23.082), 'right_wrist': (55.306, 12.497),
-        'left_clavicle': (-8.177, 14.49), 'left_shoulder': (-40.982, 122.727, 63.192),
-        'left_elbow': (76.538, 73.974), 'left_wrist': (-64.691, 18.66),
+        'spine_lumbar': (52.94, -18.421, 5.192), 'spine_thoracic': (-12.152, 9.258, -11.3),
+        'right_clavicle': (-8.711, 13.813), 'right_shoulder': (40.992, -22.167, -14.712),
+        'right_elbow': (27.916, -9.164), 'right_wrist': (-48.138, 15.262),
+        'left_clavicle': (-9.711, 14.49), 'left_shoulder': (-39.553, 39.128, -73.48),
+        'left_elbow': (94.144, 30.737), 'left_wrist': (-65.688, 9.147),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (34.035, -12.191, 2.358), 'spine_thoracic': (-6.116, 1.596, -9.274),
-        'right_clavicle': (-5.103, 8.516), 'right_shoulder': (35.835, -14.289, -55.297),
-        'right_elbow': (18.38, -7.475), 'right_wrist': (33.986, 7.57),
-        'left_clavicle': (-5.027, 8.888), 'left_shoulder': (-21.772, 77.921, 30.95),
-        'left_elbow': (60.183, 51.993), 'left_wrist': (-39.586, 11.393),
+        'spine_lumbar': (35.876, -12.285, 3.192), 'spine_thoracic': (-6.953, 5.704, -6.931),
+        'right_clavicle': (-5.355, 8.473), 'right_shoulder': (28.573, -10.712, -16.733),
+        'right_elbow': (30.317, 1.038), 'right_wrist': (-29.561, 9.35),
+        'left_clavicle': (-5.97, 8.888), 'left_shoulder': (-20.933, 26.952, -52.945),
+        'left_elbow': (71.005, 25.474), 'left_wrist': (-40.317, 5.597),
     })
-    human.KeyRoot(16.4, (1.6, 45.427, 45.912), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.4, (1.949, 44.833, 44.42), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (10.974, -3.897, 0.538), 'spine_thoracic': (-0.921, 0.347, -2.071),
-        'right_clavicle': (-1.164, 1.902), 'right_shoulder': (14.828, 2.575, -27.851),
-        'right_elbow': (30.608, 11.676), 'right_wrist': (7.681, 1.657),
-        'left_clavicle': (-1.147, 1.985), 'left_shoulder': (1.952, 23.453, -8.689),
-        'left_elbow': (39.883, 24.953), 'left_wrist': (-8.821, 2.473),
-        'right_hip': (20.136, -0.097, 0.167), 'right_knee': (130.132,),
-        'right_ankle': (9.996, 1.322), 'left_hip': (20.136, 0.097, -0.167), 'left_knee': (130.132,),
-        'left_ankle': (9.996, -1.322),
+        'spine_lumbar': (14.852, -3.847, 0.728), 'spine_thoracic': (-0.473, 1.327, -1.548),
+        'right_clavicle': (-1.221, 1.892), 'right_shoulder': (13.193, 3.385, -19.225),
+        'right_elbow': (33.385, 13.588), 'right_wrist': (-6.606, 2.083),
+        'left_clavicle': (-1.362, 1.985), 'left_shoulder': (2.01, 12.009, -27.412),
+        'left_elbow': (42.4, 19.033), 'left_wrist': (-8.998, 1.235),
+        'right_hip': (22.321, 0.0, 0.0), 'right_knee': (124.304,), 'left_hip': (22.321, 0.0, 0.0),
+        'left_knee': (124.304,),
     })
-    human.KeyRoot(16.5, (1.611, 45.349, 45.7), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.5, (2.034, 44.637, 43.959), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.5, {
-        'spine_lumbar': (4.658, 0.522, 0.0), 'spine_thoracic': (0.828, 0.121, 0.05),
-        'right_clavicle': (0.0, -0.046), 'right_shoulder': (8.588, 7.575, -19.779),
-        'right_elbow': (34.26, 17.323), 'right_wrist': (-0.16, -0.083),
-        'left_clavicle': (0.0, -0.048), 'left_shoulder': (8.872, 7.414, -20.356),
-        'left_elbow': (33.913, 17.0), 'left_wrist': (0.204, -0.144),
-        'right_hip': (20.435, -0.134, 0.228), 'right_knee': (130.434,),
-        'right_ankle': (9.993, 1.816), 'left_hip': (20.435, 0.134, -0.228), 'left_knee': (130.434,),
-        'left_ankle': (9.993, -1.816),
+        'spine_lumbar': (9.097, 0.835, 0.0), 'spine_thoracic': (1.615, 0.208, 0.038),
+        'right_clavicle': (0.0, -0.046), 'right_shoulder': (8.624, 7.549, -19.969),
+        'right_elbow': (34.317, 17.276), 'right_wrist': (0.178, -0.061),
+        'left_clavicle': (0.0, -0.048), 'left_shoulder': (8.823, 7.569, -19.868),
+        'left_elbow': (33.95, 17.144), 'left_wrist': (0.215, -0.057),
+        'right_hip': (22.996, 0.0, 0.0), 'right_knee': (124.983,), 'left_hip': (22.996, 0.0, 0.0),
+        'left_knee': (124.983,),
     })
-    human.KeyRoot(16.6, (1.597, 45.017, 44.823), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.6, (2.312, 43.949, 42.448), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.6, {
-        'spine_lumbar': (5.893, 9.793, 0.0), 'spine_thoracic': (0.862, 2.068, 0.041),
-        'right_hip': (21.661, -0.364, 0.588), 'right_knee': (131.654,),
-        'right_ankle': (9.94, 4.746), 'left_hip': (21.661, 0.364, -0.588), 'left_knee': (131.654,),
-        'left_ankle': (9.94, -4.746),
+        'spine_lumbar': (2.76, 10.613, 0.0), 'spine_thoracic': (0.264, 2.473, 0.03),
+        'right_hip': (25.237, 0.0, 0.0), 'right_knee': (127.224,), 'left_hip': (25.237, 0.0, 0.0),
+        'left_knee': (127.224,),
     })
-    human.KeyRoot(16.7, (1.396, 44.586, 43.733), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.7, (2.327, 43.909, 42.364), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (7.607, 20.0, 0.0), 'spine_thoracic': (-0.071, 9.443, 0.031),
-        'right_hip': (23.155, -0.889, 1.344), 'right_ankle': (9.662, 11.097),
-        'left_hip': (23.155, 0.889, -1.344), 'left_ankle': (9.662, -11.097),
+        'spine_lumbar': (-12.418, 20.0, 0.0), 'spine_thoracic': (-4.404, 10.0, 0.023),
+        'right_hip': (25.362, -0.001, 0.0), 'right_knee': (127.349,),
+        'left_hip': (25.362, 0.001, 0.0), 'left_knee': (127.349,), 'left_ankle': (15.003, -0.002),
+        'left_toes': (86.984,),
     })
-    human.KeyRoot(16.8, (0.909, 44.084, 42.534), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.8, (1.853, 45.029, 44.898), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (10.469, 20.0, 0.0), 'spine_thoracic': (-3.799, 10.0, 0.021),
-        'right_elbow': (34.299, 17.245), 'left_elbow': (34.205, 17.11),
-        'right_hip': (24.753, -1.816, 2.512), 'right_knee': (134.609,),
-        'right_ankle': (8.715, 21.633), 'left_hip': (24.74, 1.56, -2.224), 'left_knee': (134.633,),
-        'left_ankle': (8.858, -20.619),
+        'spine_lumbar': (-29.296, 20.0, 0.0), 'spine_thoracic': (-11.862, 10.0, 0.016),
+        'right_elbow': (34.301, 17.225), 'right_hip': (21.622, -0.009, -0.002),
+        'right_knee': (123.609,), 'right_ankle': (15.003, 0.012),
+        'left_hip': (21.578, -0.007, 0.016), 'left_knee': (123.613,), 'left_ankle': (15.151, 0.013),
+        'left_toes': (86.884,),
     })
-    human.KeyRoot(16.9, (-0.147, 45.044, 44.695), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.9, (1.748, 45.153, 45.196), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (3.657, 20.0, 0.0), 'spine_thoracic': (-9.422, 10.0, 0.011),
-        'right_elbow': (34.396, 17.219), 'right_hip': (21.413, -2.675, 3.995),
-        'right_knee': (131.066,), 'right_ankle': (6.746, 34.58), 'left_hip': (22.45, -3.498, 0.1),
-        'left_knee': (134.995,), 'left_ankle': (7.175, -13.717),
+        'spine_lumbar': (-29.015, 20.0, 0.0), 'spine_thoracic': (-14.77, 10.0, 0.008),
+        'right_hip': (21.174, -0.066, -0.016), 'right_knee': (123.161,),
+        'right_ankle': (15.005, 0.095), 'left_hip': (20.38, -2.996, -3.112),
+        'left_knee': (126.331,), 'left_ankle': (19.066, 0.295), 'left_toes': (88.519,),
     })
-    human.KeyRoot(17.0, (0.064, 44.823, 44.162), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.0, (2.451, 43.484, 41.498), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (1.949, 20.0, 0.0), 'spine_thoracic': (-5.126, 10.0, 0.002),
-        'left_shoulder': (8.6, 7.488, -20.009), 'left_elbow': (34.373, 17.183),
-        'right_hip': (22.217, -2.529, 3.657), 'right_knee': (131.923,),
-        'right_ankle': (7.268, 31.651), 'left_hip': (37.509, -20.987, -3.061),
-        'left_knee': (131.788,), 'left_ankle': (-31.579, -0.893),
+        'spine_lumbar': (-16.37, 20.0, 0.0), 'spine_thoracic': (-12.755, 10.0, 0.001),
+        'right_elbow': (34.377, 17.192), 'left_elbow': (34.371, 17.187),
+        'right_hip': (26.655, -0.044, -0.012), 'right_knee': (128.642,),
+        'right_ankle': (15.007, 0.067), 'left_hip': (31.075, -24.999, -20.664),
+        'left_knee': (120.347,), 'left_ankle': (4.3, 5.514), 'right_toes': (86.974,),
+        'left_toes': (90.0,),
     })
-    human.KeyRoot(17.1, (0.0, 43.855, 41.972), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.1, (2.939, 41.855, 38.556), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (3.045, 20.0, 0.0), 'spine_thoracic': (-8.412, 10.0, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
-        'right_hip': (25.351, -3.138, 3.785), 'right_knee': (134.997,),
-        'right_ankle': (6.665, 35.0), 'left_hip': (64.476, -8.755, 27.704), 'left_knee': (135.0,),
-        'left_ankle': (-45.789, -11.33),
+        'spine_lumbar': (-16.776, 20.0, 0.0), 'spine_thoracic': (-12.101, 10.0, 0.0),
+        'left_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
+        'right_hip': (31.152, -0.108, -0.041), 'right_knee': (133.175,),
+        'right_ankle': (15.16, 0.146), 'left_hip': (62.762, -1.779, 31.08), 'left_knee': (135.0,),
+        'left_ankle': (-45.639, 1.069), 'right_toes': (86.598,), 'left_toes': (58.516,),
     })
-    human.KeyRoot(17.2, (0.118, 43.861, 41.993), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.2, (2.991, 41.685, 38.282), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (0.266, 20.0, 0.0), 'right_wrist': (0.0, 0.0),
-        'right_hip': (25.347, -2.982, 3.817), 'right_ankle': (6.706, 34.806),
-        'left_hip': (97.279, -23.384, 30.496), 'left_knee': (133.388,),
-        'left_ankle': (-44.238, -19.649),
+        'spine_lumbar': (-19.105, 20.0, 0.0), 'spine_thoracic': (-13.189, 10.0, 0.0),
+        'right_wrist': (0.0, 0.0), 'right_hip': (31.586, -0.105, -0.041), 'right_knee': (133.607,),
+        'right_ankle': (15.158, 0.144), 'left_hip': (89.723, -4.179, 30.485), 'left_knee': (135.0,),
+        'left_ankle': (-44.148, 1.381), 'right_toes': (86.644,), 'left_toes': (36.969,),
     })
-    human.KeyRoot(17.3, (0.072, 43.882, 42.034), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.3, (3.214, 41.125, 37.456), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (0.535, 20.0, 0.0), 'spine_thoracic': (-9.672, 10.0, 0.0),
-        'right_hip': (25.276, -3.032, 3.825), 'right_knee': (134.925,), 'right_ankle': (6.67, 35.0),
-        'left_hip': (121.052, -9.241, -16.605), 'left_knee': (131.23,),
-        'left_ankle': (-36.336, -23.545),
+        'spine_lumbar': (-16.166, 20.0, 0.0), 'spine_thoracic': (-12.541, 10.0, 0.0),
+        'right_hip': (32.969, -0.021, -0.008), 'right_knee': (134.956,),
+        'right_ankle': (15.003, 0.036), 'left_hip': (109.84, -25.0, -22.503),
+        'left_knee': (117.142,), 'left_ankle': (6.861, 7.735), 'right_toes': (86.983,),
+        'left_toes': (23.696,),
     })
-    human.KeyRoot(17.4, (0.354, 43.897, 42.084), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.4, (3.132, 41.414, 37.899), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-0.599, 20.0, 0.0), 'spine_thoracic': (-3.563, 10.0, 0.0),
-        'right_hip': (25.271, -2.651, 3.376), 'right_ankle': (7.484, 30.359),
-        'left_hip': (104.975, -24.872, 11.404), 'left_knee': (134.335,),
-        'left_ankle': (-8.743, 26.077),
+        'spine_lumbar': (-17.904, 20.0, 0.0), 'spine_thoracic': (-12.549, 10.0, 0.0),
+        'right_hip': (32.256, -0.02, -0.008), 'right_knee': (134.243,),
+        'left_hip': (99.205, -25.0, -24.308), 'left_knee': (114.98,), 'left_ankle': (19.872, 1.137),
+        'left_toes': (12.447,),
     })
+    human.KeyRoot(17.5, (3.232, 41.107, 37.431), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-2.784, 20.0, 0.0), 'spine_thoracic': (-1.993, 10.0, 0.0),
-        'right_hip': (25.095, -1.56, 2.118), 'right_ankle': (9.087, 18.216),
-        'left_hip': (101.65, -5.216, 4.899), 'left_knee': (132.464,), 'left_ankle': (-4.257, 7.273),
+        'spine_lumbar': (-15.451, 20.0, 0.0), 'spine_thoracic': (-4.888, 10.0, 0.0),
+        'right_hip': (33.012, -0.005, -0.002), 'right_knee': (134.999,),
+        'left_hip': (94.246, -0.003, 0.009), 'left_knee': (127.036,), 'left_ankle': (20.0, 0.01),
+        'left_toes': (12.79,),
     })
-    human.KeyRoot(17.6, (1.94, 44.02, 42.537), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.6, (3.082, 41.645, 38.266), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (-3.818, 13.541, 0.0), 'spine_thoracic': (-0.873, 2.439, 0.0),
-        'right_hip': (25.01, -0.465, 0.662), 'right_knee': (135.0,), 'right_ankle': (9.917, 5.554),
-        'left_hip': (100.02, -1.111, 1.234), 'left_knee': (132.483,), 'left_ankle': (0.496, 1.73),
+        'spine_lumbar': (-4.274, 5.76, 0.0), 'spine_thoracic': (-0.874, 1.041, 0.0),
+        'right_hip': (31.676, 0.0, 0.0), 'right_knee': (133.663,), 'right_ankle': (15.003, 0.0),
+        'left_hip': (93.277, 0.0, 0.0), 'left_knee': (127.19,), 'left_ankle': (19.826, 0.0),
+        'right_toes': (86.984,), 'left_toes': (14.087,),
     })
-    human.KeyRoot(17.7, (2.187, 44.865, 41.295), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.7, (3.888, 42.894, 34.099), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.7, {
-        'spine_lumbar': (-0.711, 9.533, 0.0), 'spine_thoracic': (-0.285, 1.721, 0.0),
-        'right_hip': (25.864, -0.401, 0.608), 'right_knee': (134.897,),
-        'right_ankle': (11.689, 5.23), 'left_hip': (96.512, -0.606, 0.925), 'left_knee': (129.999,),
-        'left_ankle': (6.903, 1.112),
+        'spine_lumbar': (12.596, 0.137, 0.0), 'spine_thoracic': (1.957, 0.022, 0.0),
+        'right_hip': (35.937, -0.043, 0.093), 'right_knee': (134.697,),
+        'right_ankle': (20.0, 0.103), 'left_hip': (92.788, 0.014, -0.069), 'left_knee': (121.307,),
+        'left_ankle': (20.0, -0.07), 'right_toes': (78.76,), 'left_toes': (8.519,),
     })
-    human.KeyRoot(17.8, (3.969, 49.362, 33.895), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.8, (5.342, 45.281, 27.606), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.8, {
-        'spine_lumbar': (18.845, 9.335, 0.0), 'spine_thoracic': (2.867, 1.657, 0.0),
-        'right_hip': (32.668, -0.481, 0.931), 'right_knee': (133.955,),
-        'right_ankle': (16.862, 3.355), 'left_hip': (87.758, 0.016, -0.132),
-        'left_knee': (114.868,), 'left_ankle': (15.217, -0.14),
+        'spine_lumbar': (34.545, 1.048, 0.0), 'spine_thoracic': (4.689, 0.172, 0.0),
+        'right_hip': (44.62, -0.341, 0.735), 'right_knee': (134.807,), 'right_ankle': (19.9, 0.81),
+        'left_hip': (92.067, 0.056, -0.475), 'left_knee': (111.359,),
+        'left_ankle': (14.668, -0.479), 'right_toes': (70.285,), 'left_toes': (4.624,),
     })
-    human.KeyRoot(17.9, (5.464, 61.848, 31.009), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.9, (5.737, 63.559, 29.871), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.9, {
-        'spine_lumbar': (22.33, 9.58, 0.0), 'spine_thoracic': (3.504, 1.695, 0.0),
-        'right_hip': (29.343, -0.246, 1.79), 'right_knee': (115.704,),
-        'right_ankle': (17.759, 2.007), 'left_hip': (68.112, -0.391, -1.012),
-        'left_knee': (88.512,), 'left_ankle': (19.62, -1.09),
+        'spine_lumbar': (27.058, 3.623, 0.0), 'spine_thoracic': (4.051, 0.631, 0.0),
+        'right_hip': (30.861, 0.134, 1.453), 'right_knee': (104.128,),
+        'right_ankle': (19.377, 1.46), 'left_hip': (66.207, -0.44, -1.017), 'left_knee': (84.139,),
+        'left_ankle': (17.542, -1.108), 'right_toes': (53.892,), 'left_toes': (0.394,),
     })
-    human.KeyRoot(18.0, (5.975, 77.897, 37.201), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.0, (7.172, 80.398, 43.353), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.0, {
-        'spine_lumbar': (-1.442, 11.456, 0.0), 'spine_thoracic': (-0.449, 2.061, 0.0),
-        'right_hip': (12.583, 0.84, 2.73), 'right_knee': (81.83,), 'right_ankle': (8.949, 2.913),
-        'left_hip': (43.852, -1.541, -1.492), 'left_knee': (58.3,), 'left_ankle': (14.229, -2.146),
+        'spine_lumbar': (-8.229, 15.007, 0.0), 'spine_thoracic': (-1.804, 2.685, 0.0),
+        'right_hip': (-2.996, 3.222, 1.9), 'right_knee': (50.502,), 'right_ankle': (20.0, 3.74),
+        'left_hip': (37.208, -3.066, -2.333), 'left_knee': (54.554,),
+        'left_ankle': (17.314, -3.852), 'right_toes': (33.551,), 'left_toes': (0.095,),
     })
-    human.KeyRoot(18.1, (6.707, 88.973, 39.793), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.1, (8.151, 83.731, 41.885), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.1, {
-        'spine_lumbar': (-9.927, 12.685, 0.0), 'spine_thoracic': (-2.463, 2.236, 0.0),
-        'right_hip': (3.327, 1.529, 3.488), 'right_knee': (56.692,), 'right_ankle': (-9.63, 3.845),
-        'left_hip': (16.83, -2.566, -0.776), 'left_knee': (10.353,), 'left_ankle': (-6.46, -2.68),
+        'spine_lumbar': (-1.991, 17.13, 0.0), 'spine_thoracic': (-0.721, 3.071, 0.0),
+        'right_hip': (-10.357, 3.908, 0.896), 'right_knee': (32.894,), 'right_ankle': (20.0, 4.009),
+        'left_hip': (32.052, -3.561, -2.227), 'left_knee': (42.498,), 'left_ankle': (10.515, -4.2),
+        'right_toes': (23.282,),
     })
-    human.KeyRoot(18.2, (6.189, 90.314, 47.202), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.2, (7.906, 84.063, 42.399), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.2, {
-        'spine_lumbar': (-30.0, 13.412, 0.0), 'spine_thoracic': (-10.771, 2.197, 0.0),
-        'right_hip': (-10.151, 2.544, 3.055), 'right_knee': (39.379,),
-        'right_ankle': (-10.802, 4.313), 'left_hip': (10.073, -3.159, -0.561),
-        'left_knee': (7.014,), 'left_ankle': (-3.044, -3.208),
+        'spine_lumbar': (-1.819, 16.027, 0.0), 'spine_thoracic': (-1.297, 2.877, 0.0),
+        'right_hip': (-13.953, 3.841, 0.437), 'right_knee': (26.454,),
+        'right_ankle': (19.978, 3.865), 'left_hip': (31.221, -3.485, -2.11), 'left_knee': (41.702,),
+        'left_ankle': (10.546, -4.073), 'right_toes': (20.444,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(18.3, (8.426, 89.556, 60.814), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.3, (11.038, 83.836, 45.173), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.3, {
-        'spine_lumbar': (-4.51, 6.271, 0.0), 'spine_thoracic': (-1.088, 1.129, 0.0),
-        'right_hip': (-13.932, 2.895, 12.563), 'right_knee': (34.153,),
-        'right_ankle': (-42.674, 9.331), 'left_hip': (6.507, -6.408, -0.729),
-        'left_knee': (17.844,), 'left_ankle': (11.378, -6.45),
+        'spine_lumbar': (54.696, 4.562, 0.0), 'spine_thoracic': (5.537, 0.75, 0.0),
+        'right_hip': (-14.948, 6.264, 1.125), 'right_knee': (26.537,),
+        'right_ankle': (16.402, 6.362), 'left_hip': (30.257, -5.82, -3.385), 'left_knee': (42.714,),
+        'left_ankle': (12.629, -6.73), 'right_toes': (25.144,),
     })
-    human.KeyRoot(18.4, (8.887, 89.448, 64.226), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.4, (10.576, 89.064, 52.516), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.4, {
-        'spine_lumbar': (18.068, -0.548, 0.0), 'spine_thoracic': (3.044, -0.098, 0.0),
-        'right_hip': (-13.412, 1.974, 16.251), 'right_knee': (34.043,),
-        'right_ankle': (-48.941, 7.254), 'left_hip': (3.281, -7.179, -0.41), 'left_knee': (15.868,),
-        'left_ankle': (12.612, -7.191),
+        'spine_lumbar': (57.392, -2.416, 0.0), 'spine_thoracic': (5.678, -0.388, 0.0),
+        'right_hip': (-12.892, 5.849, 5.819), 'right_knee': (25.132,),
+        'right_ankle': (-19.579, 8.24), 'left_hip': (13.721, -6.712, -1.635),
+        'left_knee': (20.415,), 'left_ankle': (6.79, -6.908), 'right_toes': (58.825,),
     })
-    human.KeyRoot(18.5, (9.246, 90.122, 61.561), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.5, (8.856, 90.301, 59.679), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.5, {
-        'spine_lumbar': (29.713, -1.899, 0.0), 'right_hip': (-14.279, 5.673, 5.63),
-        'right_knee': (40.415,), 'right_ankle': (-4.063, 7.892), 'left_hip': (2.277, -7.04, -0.279),
-        'left_knee': (10.017,), 'left_ankle': (7.758, -7.045),
+        'spine_lumbar': (34.754, -4.082, 0.0), 'spine_thoracic': (5.169, -0.717, 0.0),
+        'right_hip': (-13.35, 5.804, 3.435), 'right_knee': (30.592,), 'right_ankle': (0.065, 6.712),
+        'left_hip': (3.268, -6.529, -0.372), 'left_knee': (9.549,), 'left_ankle': (6.301, -6.539),
+        'right_toes': (7.214,),
     })
-    human.KeyRoot(18.6, (9.231, 90.507, 58.868), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.6, (7.134, 90.252, 65.088), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.6, {
-        'spine_lumbar': (38.395, -3.795, 0.0), 'spine_thoracic': (5.335, -0.631, 0.0),
-        'right_hip': (-13.424, 6.96, -1.414), 'right_knee': (8.585,), 'right_ankle': (20.0, 7.157),
-        'left_hip': (1.608, -6.671, -0.187), 'left_knee': (4.96,), 'left_ankle': (3.363, -6.674),
+        'spine_lumbar': (10.457, -6.446, 0.0), 'spine_thoracic': (1.754, -1.161, 0.0),
+        'right_hip': (-0.486, 5.912, 2.231), 'right_knee': (40.309,),
+        'right_ankle': (19.735, 6.341), 'left_hip': (-2.675, -6.052, 0.282), 'left_knee': (5.315,),
+        'left_ankle': (7.975, -6.058), 'right_toes': (3.599,),
     })
-    human.KeyRoot(18.7, (5.752, 90.468, 63.489), (-10.437, 0.0, 0.0))
+    human.KeyRoot(18.7, (5.719, 90.485, 63.638), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.7, {
-        'spine_lumbar': (11.702, -11.459, 0.0), 'spine_thoracic': (1.86, -2.051, 0.0),
-        'right_hip': (4.177, 4.823, 0.325), 'right_knee': (20.309,), 'right_ankle': (16.455, 4.841),
-        'left_hip': (-1.08, -4.921, 0.093), 'left_knee': (6.714,), 'left_ankle': (7.79, -4.922),
+        'spine_lumbar': (10.65, -11.473, 0.0), 'spine_thoracic': (1.693, -2.056, 0.0),
+        'right_hip': (6.239, 4.798, 0.691), 'right_knee': (24.052,), 'right_ankle': (15.902, 4.86),
+        'left_hip': (-1.521, -4.916, 0.13), 'left_knee': (6.025,), 'left_ankle': (7.54, -4.918),
+        'right_toes': (2.136,),
     })
     human.KeyRoot(18.8, (2.764, 90.877, 59.31), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.8, {
         'spine_lumbar': (14.304, -13.901, 0.0), 'spine_thoracic': (2.303, -2.492, 0.0),
         'right_hip': (1.61, 2.386, 0.067), 'right_knee': (7.225,), 'right_ankle': (5.616, 2.386),
         'left_hip': (1.61, -2.386, -0.067), 'left_knee': (7.225,), 'left_ankle': (5.616, -2.386),
+        'right_toes': (0.0,),
     })
     human.KeyRoot(18.9, (0.163, 91.09, 55.266), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.9, {
@@ -1026,11 +998,11 @@ def replace_fuel_filter():
     human.KeyRoot(18.930705, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.930705, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (29.296, -22.813, 19.826), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
+        'neck': (31.679, -23.075, 13.62), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

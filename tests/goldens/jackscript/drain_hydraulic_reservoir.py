@@ -152,25 +152,25 @@ def drain_reservoir():
         'right_wrist': (-7.726, 0.299),
     })
     human.KeyJoints(2.3, {
-        'right_shoulder': (93.151, 1.494, 53.433), 'right_elbow': (34.914, -21.239),
-        'right_wrist': (-11.837, 0.827),
+        'right_shoulder': (93.77, 1.933, 56.115), 'right_elbow': (34.916, -23.849),
+        'right_wrist': (-12.641, 1.153),
     })
     human.KeyJoints(2.4, {
-        'right_shoulder': (100.392, 0.795, 69.032), 'right_elbow': (35.187, -36.319),
-        'right_wrist': (-16.268, 2.518),
+        'right_shoulder': (100.728, 1.06, 70.0), 'right_elbow': (35.276, -36.336),
+        'right_wrist': (-15.401, 2.33),
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
         'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (104.077, -0.828, 70.0), 'right_elbow': (35.517, -36.898),
-        'right_wrist': (-16.601, 2.288),
+        'right_shoulder': (104.078, -0.827, 70.0), 'right_elbow': (35.518, -36.899),
+        'right_wrist': (-16.594, 2.286),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(2.6, {
         'spine_lumbar': (59.797, -0.618, 1.058), 'spine_thoracic': (27.662, -0.666, 0.836),
         'neck': (-0.168, 0.069, -2.978), 'head': (-0.168, 0.0), 'right_clavicle': (0.285, 0.712),
-        'right_shoulder': (105.977, -1.15, 63.173), 'right_elbow': (35.32, -30.905),
-        'right_wrist': (-15.187, 1.337),
+        'right_shoulder': (106.051, -1.112, 63.461), 'right_elbow': (35.32, -31.2),
+        'right_wrist': (-15.272, 1.389),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.679797, duration=0.072)

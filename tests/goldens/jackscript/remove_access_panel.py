@@ -3075,15 +3075,15 @@ def remove_access_panel():
     })
     human.KeyJoints(49.9, {
         'right_shoulder': (-30.228, 7.023, 2.575), 'right_elbow': (113.86, 27.006),
-        'right_wrist': (-21.239, -12.664), 'left_shoulder': (10.478, -7.855, 49.785),
-        'left_elbow': (94.238, 4.082), 'left_wrist': (-69.715, 2.899),
+        'right_wrist': (-21.239, -12.664), 'left_shoulder': (10.495, -7.841, 49.809),
+        'left_elbow': (94.238, 4.069), 'left_wrist': (-69.743, 2.891),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(50.0, {
         'right_shoulder': (-36.755, 2.394, 8.109), 'right_elbow': (112.677, 26.83),
-        'right_wrist': (-20.45, -12.611), 'left_shoulder': (-0.951, -0.22, 49.156),
-        'left_elbow': (96.381, 4.319), 'left_wrist': (-70.0, 3.332),
+        'right_wrist': (-20.45, -12.611), 'left_shoulder': (2.269, 4.184, 54.627),
+        'left_elbow': (96.978, 3.406), 'left_wrist': (-70.0, 2.204),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=50.086359, duration=0.072)
@@ -3091,8 +3091,8 @@ def remove_access_panel():
     human.Grasp('right_hand', 'open', start=50.086359, duration=0.072)
     human.KeyJoints(50.1, {
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
-        'right_wrist': (-18.939, -12.508), 'left_shoulder': (-8.692, 5.665, 48.876),
-        'left_elbow': (106.489, 7.124), 'left_wrist': (-70.0, 6.396),
+        'right_wrist': (-18.939, -12.508), 'left_shoulder': (-1.55, 14.645, 59.312),
+        'left_elbow': (105.866, 8.297), 'left_wrist': (-70.0, 7.423),
     })
     human.KeyRoot(50.158359, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(50.158359, {
@@ -3100,8 +3100,8 @@ def remove_access_panel():
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
         'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-8.164, 6.427, 49.699), 'left_elbow': (106.552, 7.003),
-        'left_wrist': (-70.0, 6.246), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'left_shoulder': (-0.996, 15.195, 59.982), 'left_elbow': (105.536, 8.908),
+        'left_wrist': (-70.0, 7.97), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })

@@ -541,58 +541,57 @@ def replace_fuel_filter():
         'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (9.81, -10.0, -30.0),
         'neck': (32.764, 32.588, 8.833), 'head': (15.0, -10.615),
         'right_shoulder': (36.442, 35.869, -88.427), 'right_elbow': (20.919, -29.745),
-        'right_wrist': (73.886, 19.31), 'left_shoulder': (58.511, 14.203, 25.86),
-        'left_elbow': (9.414, 54.203), 'left_wrist': (-43.885, 14.227),
+        'right_wrist': (73.886, 19.31), 'left_shoulder': (58.514, 14.208, 25.852),
+        'left_elbow': (9.414, 54.201), 'left_wrist': (-43.818, 14.226),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (55.84, 19.371, -15.0), 'spine_thoracic': (10.867, -9.48, -30.0),
-        'neck': (33.306, 22.894, 22.64), 'head': (15.0, -5.321), 'right_elbow': (21.701, -29.754),
-        'right_wrist': (74.509, 19.382), 'left_shoulder': (49.268, 30.935, 27.11),
-        'left_elbow': (32.921, 55.24), 'left_wrist': (-49.219, 14.596),
+        'spine_lumbar': (55.835, 19.37, -15.0), 'spine_thoracic': (10.869, -9.48, -30.0),
+        'neck': (33.306, 22.894, 22.64), 'head': (15.0, -5.321), 'right_elbow': (21.703, -29.754),
+        'right_wrist': (74.51, 19.383), 'left_shoulder': (49.291, 30.979, 27.047),
+        'left_elbow': (32.921, 55.22), 'left_wrist': (-48.693, 14.593),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (50.139, 18.571, -15.0), 'spine_thoracic': (12.213, -9.027, -30.0),
+        'spine_lumbar': (50.147, 18.572, -15.0), 'spine_thoracic': (12.216, -9.025, -30.0),
         'neck': (34.098, 8.694, 42.866), 'head': (15.0, 2.433),
-        'right_shoulder': (37.544, 36.128, -87.976), 'right_elbow': (22.649, -29.772),
-        'right_wrist': (75.304, 19.482), 'left_shoulder': (34.32, 56.051, 29.413),
-        'left_elbow': (64.846, 57.066), 'left_wrist': (-56.623, 15.201),
+        'right_shoulder': (37.547, 36.129, -87.975), 'right_elbow': (22.651, -29.771),
+        'right_wrist': (75.306, 19.482), 'left_shoulder': (34.357, 56.123, 29.309),
+        'left_elbow': (64.846, 57.032), 'left_wrist': (-55.751, 15.195),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (47.268, 18.235, -15.0), 'spine_thoracic': (12.709, -9.112, -30.0),
+        'spine_lumbar': (47.399, 18.255, -15.0), 'spine_thoracic': (12.71, -9.104, -30.0),
         'neck': (34.78, -3.504, 60.241), 'head': (15.0, 9.095),
-        'right_shoulder': (37.526, 36.058, -87.974), 'right_elbow': (22.941, -29.804),
-        'right_wrist': (75.583, 19.544), 'left_shoulder': (18.32, 78.983, 32.442),
-        'left_elbow': (86.699, 59.316), 'left_wrist': (-62.099, 15.87),
+        'right_shoulder': (37.539, 36.059, -87.969), 'right_elbow': (22.946, -29.803),
+        'right_wrist': (75.588, 19.543), 'left_shoulder': (18.339, 79.019, 32.389),
+        'left_elbow': (86.699, 59.299), 'left_wrist': (-61.658, 15.867),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (46.298, 18.129, -15.0), 'spine_thoracic': (12.716, -9.282, -30.0),
-        'neck': (35.0, -7.45, 65.862), 'head': (15.0, 11.25),
-        'right_shoulder': (37.336, 36.005, -88.052), 'left_shoulder': (2.704, 93.388, 37.838),
-        'left_elbow': (87.466, 62.485), 'left_wrist': (-63.507, 16.648),
+        'spine_thoracic': (12.697, -9.289, -30.0), 'neck': (35.0, -7.45, 65.862),
+        'head': (15.0, 11.25), 'right_shoulder': (37.335, 35.997, -88.051),
+        'left_shoulder': (4.011, 92.334, 37.824), 'left_elbow': (87.437, 62.252),
+        'left_wrist': (-64.626, 16.611),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (45.49, 18.004, -15.0), 'spine_thoracic': (12.783, -9.303, -30.0),
-        'left_shoulder': (-17.163, 106.479, 49.219), 'left_elbow': (82.943, 68.018),
-        'left_wrist': (-64.244, 17.79),
+        'spine_lumbar': (45.769, 18.06, -15.0), 'left_shoulder': (-11.351, 102.363, 48.388),
+        'left_elbow': (83.123, 66.788), 'left_wrist': (-66.769, 17.593),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (45.543, 17.996, -15.0), 'spine_thoracic': (12.739, -9.279, -30.0),
-        'right_shoulder': (37.315, 36.025, -88.062), 'right_elbow': (22.854, -29.827),
-        'right_wrist': (75.517, 19.562), 'left_shoulder': (-34.428, 109.302, 52.064),
-        'left_elbow': (69.922, 71.599), 'left_wrist': (-59.458, 15.811),
+        'spine_lumbar': (45.628, 18.016, -15.0), 'spine_thoracic': (12.72, -9.297, -30.0),
+        'right_shoulder': (37.296, 36.016, -88.07), 'right_elbow': (22.849, -29.83),
+        'right_wrist': (75.516, 19.564), 'left_shoulder': (-27.008, 104.897, 49.59),
+        'left_elbow': (70.948, 69.689), 'left_wrist': (-61.754, 15.501),
     })
     human.KeyJoints(9.2, {
-        'spine_lumbar': (46.734, 18.076, -15.0), 'spine_thoracic': (12.045, -9.274, -30.0),
+        'spine_lumbar': (46.733, 18.076, -15.0), 'spine_thoracic': (12.045, -9.274, -30.0),
         'neck': (35.0, -7.45, 65.862), 'right_shoulder': (37.116, 36.109, -88.154),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-42.859, 107.475, 49.521),
-        'left_elbow': (59.578, 72.553), 'left_wrist': (-54.813, 13.468),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-42.73, 107.373, 49.444),
+        'left_elbow': (59.598, 72.512), 'left_wrist': (-54.881, 13.453),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'spine_lumbar': (46.033, 18.125, -14.931), 'spine_thoracic': (9.408, -7.67, -29.968),
-        'neck': (35.0, -9.299, 63.588), 'right_shoulder': (36.558, 36.338, -88.43),
-        'left_clavicle': (-7.903, 15.0), 'left_shoulder': (-43.406, 108.258, 49.466),
-        'left_elbow': (58.973, 72.576), 'left_wrist': (-55.03, 13.562),
+        'spine_lumbar': (46.032, 18.125, -14.931), 'spine_thoracic': (9.408, -7.67, -29.968),
+        'neck': (35.0, -9.299, 63.588), 'right_shoulder': (36.559, 36.338, -88.43),
+        'left_clavicle': (-7.903, 15.0), 'left_shoulder': (-43.409, 108.264, 49.465),
+        'left_elbow': (58.97, 72.577), 'left_wrist': (-55.016, 13.561),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=9.398681, duration=0.072)

@@ -15,10 +15,10 @@ arm's dofs whose residuals are
   least ``ORIENT_FLOOR``;
 * a small pull toward the start configuration, so nothing moves that need not.
 
-With ``firm``, a configuration the solve leaves inside is solved again with the clearance and
-the hand's site weighing ``firm`` times more (its orientation, not: it yields sooner), and
-takes that if it is less deep, a kept hand moved at most ``FIRM_HAND_TOL`` and no dof more
-than ``FIRM_TURN``. Configurations already clear are returned unchanged; the dofs stay within
+With ``firm``, a configuration of a kept hand the solve leaves inside is solved again with the
+clearance and the hand's site weighing ``firm`` times more (its orientation, not: it yields
+sooner), and takes that if it is less deep, the hand moved at most ``FIRM_HAND_TOL`` and no
+dof more than ``FIRM_TURN``. Configurations already clear are returned unchanged; the dofs stay within
 their limits.
 Jacobians are by finite differences of batched forward kinematics (seven dofs, a few hundred
 frames: a handful of forward calls per iteration).
@@ -276,12 +276,14 @@ def _firm(
     max_iter: int,
     weight: float,
 ) -> FloatArray:
-    """``best`` with the rows still inside the clearance solved again from there with the
-    clearance weighing ``weight``: taken where less deep and a kept hand's site stays within
-    ``FIRM_HAND_TOL`` (a grip on a valve can turn a few degrees; a forearm cannot be in a thigh)."""
+    """``best`` with the rows of a kept hand (weight ``KEPT`` or more) still inside the
+    clearance solved again from there with the clearance and the hand's site weighing
+    ``weight`` times more, its orientation not (a grip on a valve can turn a few degrees; a
+    forearm cannot be in a thigh): taken where less deep, the site within ``FIRM_HAND_TOL``
+    and no dof turned more than ``FIRM_TURN``. A free hand is not: it may move out already."""
     root = pb.root
     depth = penetration(skel, best, root, side)
-    left = np.flatnonzero(depth > 0.0)
+    left = np.flatnonzero((depth > 0.0) & (pb.keep >= KEPT))
     if left.size == 0:
         return best
     sub = pb.take(left)
@@ -290,7 +292,7 @@ def _firm(
     pose = forward(skel, cand, *root_left, with_axes=False)
     moved = np.linalg.norm(_hand_points(skel, pose, side)[:, 0] - sub.kept[:, 0], axis=1)
     ok = penetration(skel, cand, root_left, side) < depth[left]
-    ok &= (moved <= FIRM_HAND_TOL) | (sub.keep < KEPT)
+    ok &= moved <= FIRM_HAND_TOL
     ok &= np.abs(cand - best[left]).max(axis=1) <= FIRM_TURN
     out = best.copy()
     out[left[ok]] = cand[ok]

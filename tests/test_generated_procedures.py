@@ -18,12 +18,14 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import pytest
 from conftest import ROOT
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from strategies.procedures import Procedure, generate, procedures
 
 from mtlc.body import forward, site_positions
+from mtlc.body.capsules import self_intersection
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.serialize import to_json
@@ -162,13 +164,38 @@ def test_bench_measures_catch_a_corrupted_frame(tmp_path: Path) -> None:
     assert bench.measure(doc, named)["misses"] == []  # type: ignore[attr-defined]
 
 
+def test_bench_hands_inside_is_verify_s_definition(tmp_path: Path) -> None:
+    """bench/motion.py measures docs/metrics.md's "hands inside the body" on its own (radii from
+    the GB 10000-88 table, its own kinematics and segment distance) and finds verify's figure
+    (``mtlc.body.capsules``) on the same frames: on a clean compile, and with the right arm
+    bent into the trunk on a few frames."""
+    bench = _bench()
+    path = tmp_path / "fk.mtask"
+    path.write_text(FK_TASK, encoding="utf-8")
+    (timeline,) = run_frontend([path]).timelines
+    ir = run_motion(timeline, DiagnosticSink())
+    sk = ir.skeleton
+    for bent in (False, True):
+        if bent:
+            for name, value in (("r_shoulder_flex", 0.0), ("r_shoulder_abd", -0.79),
+                                ("r_shoulder_rot", -1.5), ("r_elbow_flex", 1.2)):  # fmt: skip
+                ir.frames.q[3:6, sk.dof_index(name)] = value
+        doc = json.loads(to_json(ir))
+        doc["manikin"] = {**doc["manikin"], **sk.to_dict()}  # the exact offsets
+        f = ir.frames
+        depth, _ = self_intersection(sk, forward(sk, f.q, f.root_position, f.root_rotation))
+        theirs, at, _ = bench.body_inside(bench.Body.of(doc), [])  # type: ignore[attr-defined]
+        assert theirs == pytest.approx(max(float(depth.max()), 0.0), abs=1e-6)
+        if bent:
+            assert theirs > 0.05 and at["what"].endswith("trunk")
+
+
 # ------------------------------------------------------------------ the property (issue 18)
 # each figure of bench/motion.py and the codes that name it when it fails (docs/metrics.md,
 # "Verification"): a held hand that lets go is MT0511 (the hold pass's MT0520 is retired), a
 # fingertip under the floor MT0512 (the balance pass's MT0525 is retired). Hands inside the
-# body are left out for now: the bench's capsules (shoulder-width trunk, limbs with a radius)
-# are larger than verify's inscribed ones (mtlc.body.capsules), so a plain reach's forearm is
-# 17 mm into the bench's trunk and outside verify's; that work (MT0514) is on its own branch.
+# body (over 1 mm, docs/metrics.md) need an MT0514 at a task line live at the deepest frame
+# (the bench's ``inside_silent``): verify and the bench measure one definition.
 NAMED_BY = {
     "penetration": ("MT0512",),
     "grip drift": ("MT0511",),
@@ -201,6 +228,8 @@ def claims_unnamed(result: dict) -> list[str]:
             for name, what in failed.items()
             if what and not codes & set(NAMED_BY[name])
         ]
+        if task["inside_silent"]:
+            out.append(f"hands inside {task['inside_mm']:.1f} mm {task['inside_at']}")
     if "MT0900" in result["codes"] or result.get("error"):
         out.append(f"internal error {result.get('error', '')}")
     return out

@@ -18,7 +18,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mtlc.body import build_manikin, forward, site_positions
-from mtlc.body.capsules import body_capsules, depth_inside, self_intersection
+from mtlc.body.capsules import (
+    ARM_LIMBS,
+    body_capsules,
+    depth_inside,
+    limb_axis,
+    limb_radius,
+    segment_distance,
+    self_intersection,
+)
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import Frames, GoalSpec, MotionIR, Provenance, Segment, SourceRef
@@ -299,6 +307,42 @@ def test_capsule_depth_on_the_axis_is_the_radius_and_negative_outside() -> None:
     a, b = np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]])
     pts = np.array([[[0.0, 0.5, 0.0], [0.3, 0.5, 0.0], [0.0, 1.05, 0.0]]])
     np.testing.assert_allclose(depth_inside(pts, a, b, 0.1), [[0.1, -0.2, 0.05]], atol=1e-12)
+
+
+def test_segment_distance_is_the_closest_points_distance() -> None:
+    rng = np.random.default_rng(7)
+    p = rng.normal(size=(50, 4, 3))
+    exact = segment_distance(p[:, 0], p[:, 1], p[:, 2], p[:, 3])
+    s = np.linspace(0.0, 1.0, 801)
+    a = p[:, None, 0] + s[None, :, None] * (p[:, 1] - p[:, 0])[:, None]
+    b = p[:, None, 2] + s[None, :, None] * (p[:, 3] - p[:, 2])[:, None]
+    sampled = np.linalg.norm(a[:, :, None] - b[:, None, :], axis=-1).min(axis=(1, 2))
+    assert np.all(exact <= sampled + 1e-12) and np.all(sampled - exact < 5e-3)
+
+
+def test_a_limb_is_inside_by_its_surface_and_a_hand_ends_at_its_fingertip() -> None:
+    """docs/metrics.md: the depth is the limb's radius plus the capsule's minus the distance
+    between their axes (not the axis alone), radii from GB 10000-88 (men P50: forearm 0.36 and
+    hand 0.25 of the 82 mm hand breadth, thigh half of 130 mm, trunk half of 212 mm); the hand's
+    axis stops one radius short of the fingertip, where its surface ends."""
+    sk = build_manikin("gb10000_1988", "male", 50)
+    pose = forward(sk, sk.q_comfort[None])
+    caps = {c.name: c for c in body_capsules(sk)}
+    assert caps["trunk"].radius == pytest.approx(0.106)
+    assert caps["right thigh"].radius == pytest.approx(0.065)
+    limbs = {limb.name: limb for limb in ARM_LIMBS}
+    assert limb_radius(sk, limbs["right forearm"]) == pytest.approx(0.36 * 0.082)
+    assert limb_radius(sk, limbs["right hand"]) == pytest.approx(0.25 * 0.082)
+    depth, pairs = self_intersection(sk, pose)
+    for c, (limb_name, cap_name) in enumerate(pairs):
+        limb, cap = limbs[limb_name], caps[cap_name]
+        a, b = limb_axis(sk, pose, limb)
+        ends = [np.mean([pose.p[:, sk.joint_index(j)] for j in end], axis=0) for end in cap.ends]
+        gap = segment_distance(a, b, *ends)
+        assert depth[0, c] == pytest.approx(limb_radius(sk, limb) + cap.radius - gap[0])
+    a, b = limb_axis(sk, pose, limbs["right hand"])
+    tip = site_positions(sk, pose, "r_fingertip")
+    assert np.linalg.norm(tip - b) == pytest.approx(limb_radius(sk, limbs["right hand"]))
 
 
 @pytest.mark.parametrize(("sex", "pct"), [("female", 5), ("male", 50), ("male", 95)])

@@ -1,27 +1,30 @@
-"""The manikin's body volumes as capsules, and how deep a limb's axis goes inside them.
+"""The manikin's body volumes as capsules, and how deep a hand or forearm goes inside them.
 
 A capsule is a segment between two points of the body (joint centres) and a radius: every point
-within the radius of the segment is inside. The radii come from the manikin's anthropometry and
-are the inscribed ones (half the smaller breadth of the part), so a capsule stays inside the body
-it stands for and a point found inside one is inside the body for sure. The verify pass uses them
-to check that a hand or a forearm never goes into the trunk or a thigh; issue 20's collision work
-can add parts here (head, upper arms, shanks, the equipment's solids).
+within the radius of the segment is inside. The body's capsules (trunk, thighs) are the inscribed
+ones (half the smaller breadth of the part), so a capsule stays inside the body it stands for;
+the limbs tested against them (forearms, hands) are capsules too, with their own radius, so what
+is tested is the limb's surface, not its axis. The definition, its sizes and why are in
+docs/metrics.md ("hands inside the body"): one definition, which the verify pass reports
+(MT0514), the approach and clearance passes avoid, and bench/motion.py measures on its own.
 
 Sizes (GB 10000-88 measures, scaled by stature for a population whose table lacks them):
 
 * trunk: from the pelvis joint (the hip centres' mid-point) to the mid-point of the two
   sternoclavicular joints, radius half the chest depth (men P50: 212 mm, so 106 mm);
 * thigh: from the hip joint centre to the knee joint centre, radius half the sitting thigh
-  clearance (the thigh's thickness; men P50: 130 mm, so 65 mm).
+  clearance (the thigh's thickness; men P50: 130 mm, so 65 mm);
+* forearm: elbow to wrist, radius ``LIMB_RADIUS["forearm"]`` (0.36) of the hand breadth (men
+  P50: 30 mm); hand: wrist to fingertip, radius 0.25 of the hand breadth (20 mm), its axis
+  ending one radius short of the fingertip so that its surface ends at the fingertip.
 
 Pure geometry on ``Pose`` arrays: numpy only, vectorised over frames.
 
-The check (``self_intersection``) tests the limbs' axes. Avoiding the capsules (``clearance``,
-used by the clearance pass and ``mtlc.body.ik.clearance``) asks more: the limb's own surface,
-``LIMB_RADIUS`` times the manikin's hand breadth from its axis (GB 10000-88 gives no forearm
-breadth; a forearm near the wrist is about 0.7 of the hand's breadth thick, a hand about half
-as thick as it is broad), stays ``CLEARANCE_MARGIN`` outside every capsule, so what the solver
-leaves is outside the body with room to spare, not on the edge of the check.
+``self_intersection`` is the check: the depth of the limb's surface in each capsule (the sum of
+the radii minus the distance between the two axes). Avoiding the capsules (``clearance``, used
+by the clearance pass and ``mtlc.body.ik.clearance``) asks ``CLEARANCE_MARGIN`` more, at
+``LIMB_SAMPLES`` points along each limb, so what the solver leaves is outside with room to
+spare, not on the edge of the check.
 """
 
 from __future__ import annotations
@@ -109,6 +112,35 @@ def _capsule_axis(skel: Skeleton, pose: Pose, cap: Capsule) -> tuple[FloatArray,
     return a, b
 
 
+def limb_axis(skel: Skeleton, pose: Pose, limb: Limb) -> tuple[FloatArray, FloatArray]:
+    """The limb's axis (N, 3) ends: a hand's ends one radius short of its fingertip, where the
+    hand's surface ends (the fingertip landmark is on the surface: GB 10000-88's hand length)."""
+    p0, p1 = _point(skel, pose, limb.start), _point(skel, pose, limb.end)
+    if limb.end.endswith("fingertip"):
+        d = p1 - p0
+        length = np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
+        p1 = p1 - d / length * np.minimum(limb_radius(skel, limb), 0.5 * length)
+    return p0, p1
+
+
+def segment_distance(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray) -> FloatArray:
+    """(N,) the closest distance between segments ``p1``-``q1`` and ``p2``-``q2`` (each (N, 3)):
+    the closest points' parameters clamped to the segments (Ericson, Real-Time Collision
+    Detection, 5.1.9)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = np.maximum(np.einsum("nc,nc->n", d1, d1), 1e-18)
+    e = np.maximum(np.einsum("nc,nc->n", d2, d2), 1e-18)
+    b, c, f = (np.einsum("nc,nc->n", x, y) for x, y in ((d1, d2), (d1, r), (d2, r)))
+    denom = a * e - b * b
+    s = np.where(denom > 1e-18, np.clip((b * f - c * e) / np.maximum(denom, 1e-18), 0.0, 1.0), 0.0)
+    t = (b * s + f) / e
+    s = np.where(
+        t < 0.0, np.clip(-c / a, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a, 0.0, 1.0), s)
+    )
+    t = np.clip(t, 0.0, 1.0)
+    return np.linalg.norm(p1 + s[:, None] * d1 - p2 - t[:, None] * d2, axis=-1)
+
+
 def depth_inside(points: FloatArray, a: FloatArray, b: FloatArray, radius: float) -> FloatArray:
     """How deep (m, positive inside, negative outside) each point (N, K, 3) is inside the
     capsule of axis ``a``-``b`` (N, 3) and ``radius``."""
@@ -123,20 +155,24 @@ def depth_inside(points: FloatArray, a: FloatArray, b: FloatArray, radius: float
 def self_intersection(
     skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...] = ARM_LIMBS
 ) -> tuple[FloatArray, list[tuple[str, str]]]:
-    """(N, L·C) depth of each limb's axis inside each capsule per frame (m; the deepest point
-    of the limb's axis, negative when it stays outside), and the (limb, capsule) pairs in
-    column order. A limb is never tested against the capsule it is attached to (none of the
-    arms' are)."""
+    """(N, L·C) depth of each limb's surface inside each capsule per frame (m: the limb's radius
+    plus the capsule's minus the distance between their axes; negative when it stays outside),
+    and the (limb, capsule) pairs in column order. A limb is never tested against the capsule
+    it is attached to (none of the arms' are)."""
     caps = body_capsules(skel)
-    frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)
     cols: list[FloatArray] = []
     pairs: list[tuple[str, str]] = []
     axes = [(cap, *_capsule_axis(skel, pose, cap)) for cap in caps]
     for limb in limbs:
-        p0, p1 = _point(skel, pose, limb.start), _point(skel, pose, limb.end)
-        pts = p0[:, None, :] + frac[None, :, None] * (p1 - p0)[:, None, :]
+        p0, p1 = limb_axis(skel, pose, limb)
+        p0, p1 = np.reshape(p0, (-1, 3)), np.reshape(p1, (-1, 3))
+        r = limb_radius(skel, limb)
         for cap, a, b in axes:
-            cols.append(depth_inside(pts, a, b, cap.radius).max(axis=1))
+            a, b = (
+                np.broadcast_to(np.reshape(a, (-1, 3)), p0.shape),
+                np.broadcast_to(np.reshape(b, (-1, 3)), p0.shape),
+            )
+            cols.append(r + cap.radius - segment_distance(p0, p1, a, b))
             pairs.append((limb.name, cap.name))
     return np.stack(cols, axis=1), pairs
 
@@ -158,13 +194,13 @@ def clearance(
 ) -> FloatArray:
     """(N, L·C·S) how far (m) each sample point of each limb's surface is inside each capsule
     grown by ``margin``: positive where the limb must move out, negative where it is clear.
-    The avoidance's residual; ``self_intersection`` stays the check."""
+    The avoidance's residual; ``self_intersection`` is the check (the same surfaces, exact)."""
     caps = body_capsules(skel)
     frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)
     axes = [(cap, *_capsule_axis(skel, pose, cap)) for cap in caps]
     cols: list[FloatArray] = []
     for limb in limbs:
-        p0, p1 = _point(skel, pose, limb.start), _point(skel, pose, limb.end)
+        p0, p1 = limb_axis(skel, pose, limb)
         pts = p0[:, None, :] + frac[None, :, None] * (p1 - p0)[:, None, :]
         grow = limb_radius(skel, limb) + margin
         for cap, a, b in axes:

@@ -397,7 +397,7 @@ def clear_path(
 ) -> tuple[list[FloatArray], list[float]]:
     """Keyframes (poses at fractions of the segment) whose joint-space path keeps the arms out
     of the trunk and thighs: where the straight line between two keyframes takes a limb's
-    axis into them (an arm swung down past a squatting knee), the deepest pose on it is cleared, its
+    surface into them (an arm swung down past a squatting knee), the deepest pose on it is cleared, its
     hand free to move (``KEEP_PATH``), and becomes a keyframe between them if the path is
     then less deep (``CLEAR_KEYS`` at most). ``fracs``: the poses' fractions of the window;
     returns the poses and their fractions."""
@@ -406,7 +406,7 @@ def clear_path(
     steps = np.linspace(0.0, 1.0, PATH_SAMPLES)[1:-1]
 
     def deepest(keys: list[FloatArray]) -> tuple[float, FloatArray, int, float]:
-        """The path's deepest sample: (how deep a limb's axis goes in, pose, stretch, fraction
+        """The path's deepest sample: (how deep a limb's surface goes in, pose, stretch, fraction
         in it). Only a path that truly goes in is changed, not one inside the clearance."""
         qs = np.array([a + f * (b - a) for a, b in itertools.pairwise(keys) for f in steps])
         pose = forward(

@@ -14,7 +14,10 @@ Where the hand is on a site, holds a part, or arrives at a goal (``pinned_weight
 pose keeps a weight ``PINNED`` against the clearance: only the elbow swings out, the goal is
 kept. Elsewhere (a free hand between goals, at rest) the weight is ``FREE`` and the hand may
 move out too. The weight changes over ``RAMP`` seconds so the correction does not jump.
-What the arm cannot clear is measured and reported by verify (MT0514).
+A row the first solve leaves inside is solved again with the clearance weighing ``FIRM``
+(``keep_clear``'s ``firm``: the hand's orientation yields sooner, its site does not), kept
+where a held hand stays put and no dof swings. What the arm cannot clear is measured and
+reported by verify (MT0514; the definition: docs/metrics.md, "Hands inside the body").
 
 It runs after smoothing and the two-handed carry (``carry``), on the frames ``sample`` turns
 into the output: nothing after it moves the arms.
@@ -36,6 +39,7 @@ ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
 HAND_TRACK = {"r": "r_hand", "l": "l_hand"}
 EPS = 1e-9
 MAX_SWING = 0.6  # rad a corrected dof may move between two dense frames, if the motion did not
+FIRM = 30.0  # the clearance's weight where the first solve leaves an arm inside (keep_clear)
 SWING_SMOOTH = 6  # dense frames each side a correction that swings is averaged over
 
 
@@ -110,12 +114,12 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     for side in ("r", "l"):
         keep = pinned_weights(ir, side, frames.time)
         q = frames.q
-        cleared = keep_clear(skel, q, root, side, keep)
+        cleared = keep_clear(skel, q, root, side, keep, firm=FIRM)
         smooth = skel.clip(q + without_swings(q, cleared - q))
         if np.array_equal(smooth, cleared):
             frames.q = cleared
             continue
         # solved again from the ramp: each frame starts where its neighbours' average is
-        again = keep_clear(skel, q, root, side, keep, start=smooth)
+        again = keep_clear(skel, q, root, side, keep, start=smooth, firm=FIRM)
         frames.q = skel.clip(q + without_swings(q, again - q))
     return ir

@@ -182,21 +182,21 @@ def drain_reservoir():
         'right_wrist': (-9.159, 0.373),
     })
     human.KeyJoints(3.1, {
-        'right_shoulder': (96.742, 1.396, 62.072), 'right_elbow': (35.033, -29.541),
-        'right_wrist': (-14.334, 1.668),
+        'right_shoulder': (98.149, 2.129, 67.375), 'right_elbow': (35.145, -33.062),
+        'right_wrist': (-15.359, 1.794),
     })
     human.KeyJoints(3.2, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
         'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (102.195, -0.029, 70.0), 'right_elbow': (35.332, -37.03),
-        'right_wrist': (-16.531, 2.402),
+        'right_shoulder': (102.196, -0.028, 70.0), 'right_elbow': (35.333, -37.031),
+        'right_wrist': (-16.523, 2.4),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(3.3, {
         'spine_lumbar': (59.255, -0.22, 0.37), 'spine_thoracic': (29.136, -0.234, 0.293),
         'neck': (-0.727, 0.024, -1.029), 'head': (-0.727, 0.0), 'right_clavicle': (0.132, 0.332),
-        'right_shoulder': (105.598, -1.286, 70.0), 'right_elbow': (35.893, -37.052),
-        'right_wrist': (-16.733, 2.491),
+        'right_shoulder': (105.598, -1.285, 70.0), 'right_elbow': (35.893, -37.053),
+        'right_wrist': (-16.728, 2.489),
     })
     human.KeyJoints(3.4, {
         'spine_lumbar': (60.0, -1.342, 2.382), 'spine_thoracic': (27.943, -1.439, 1.935),

@@ -3179,21 +3179,21 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(52.1, {
         'right_shoulder': (-34.839, 4.36, 4.847), 'right_elbow': (114.244, 27.034),
-        'right_wrist': (-21.32, -12.569), 'left_shoulder': (3.392, -4.074, 49.943),
-        'left_elbow': (96.141, 4.155), 'left_wrist': (-70.0, 3.236),
+        'right_wrist': (-21.32, -12.569), 'left_shoulder': (5.582, -1.064, 53.512),
+        'left_elbow': (96.505, 3.594), 'left_wrist': (-70.0, 2.555),
     })
     human.KeyJoints(52.2, {
         'right_shoulder': (-39.235, -0.226, 12.278), 'right_elbow': (110.847, 26.59),
-        'right_wrist': (-19.403, -12.606), 'left_shoulder': (-6.09, 3.819, 49.096),
-        'left_elbow': (102.328, 5.967), 'left_wrist': (-70.0, 5.064),
+        'right_wrist': (-19.403, -12.606), 'left_shoulder': (-0.555, 10.971, 57.771),
+        'left_elbow': (102.593, 5.64), 'left_wrist': (-70.0, 4.5),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=52.230065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=52.230065, duration=0.072)
     human.KeyJoints(52.3, {
-        'left_shoulder': (-8.112, 6.529, 49.795), 'left_elbow': (106.588, 6.959),
-        'left_wrist': (-70.0, 6.193),
+        'left_shoulder': (-0.996, 15.195, 59.982), 'left_elbow': (105.536, 8.908),
+        'left_wrist': (-70.0, 7.97),
     })
     human.KeyRoot(52.302065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(52.302065, {
@@ -3201,8 +3201,8 @@ def remove_access_panel():
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
         'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-7.844, 6.912, 50.206), 'left_elbow': (106.613, 6.912),
-        'left_wrist': (-70.0, 6.132), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'left_shoulder': (-0.856, 15.331, 60.151), 'left_elbow': (105.457, 9.045),
+        'left_wrist': (-70.0, 8.11), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

@@ -15,7 +15,11 @@ arm's dofs whose residuals are
   least ``ORIENT_FLOOR``;
 * a small pull toward the start configuration, so nothing moves that need not.
 
-Configurations already clear are returned unchanged; the dofs stay within their limits.
+With ``firm``, a configuration of a kept hand the solve leaves inside is solved again with the
+clearance and the hand's site weighing ``firm`` times more (its orientation, not: it yields
+sooner), and takes that if it is less deep, the hand moved at most ``FIRM_HAND_TOL`` and no
+dof more than ``FIRM_TURN``. Configurations already clear are returned unchanged; the dofs stay within
+their limits.
 Jacobians are by finite differences of batched forward kinematics (seven dofs, a few hundred
 frames: a handful of forward calls per iteration).
 """
@@ -48,6 +52,8 @@ HAND_TOL = 2e-4  # m: a kept hand (weight ``KEPT`` or more) is restored this clo
 KEPT = 1.0
 MAX_ROWS = 600  # rows solved at most in one call (10 s of 60 fps frames); more: every k-th
 SWIVEL_FROM = 1e-3  # m: a pose this far inside after the local solve tries the swivels
+FIRM_HAND_TOL = 5e-4  # m: a kept hand the firm solve may move (contact and grip: 1 mm)
+FIRM_TURN = 0.35  # rad a dof may turn in the firm solve: more swings between frames
 
 
 def _residuals(
@@ -59,12 +65,15 @@ def _residuals(
     keep: FloatArray,
     q0: FloatArray,
     dofs: Sequence[int],
+    clear_weight: float = 1.0,
 ) -> FloatArray:
     """(N, M) residuals of configurations ``q`` (N, D) (see the module docstring)."""
     pose = forward(skel, q, root[0], root[1], with_axes=False)
-    pen = np.maximum(clearance(skel, pose, side_limbs(side)), 0.0)
+    pen = clear_weight * np.maximum(clearance(skel, pose, side_limbs(side)), 0.0)
     held = _hand_points(skel, pose, side)
-    off = (held - kept) * _point_weights(keep)[..., None]
+    weights = _point_weights(keep)
+    weights[:, 0] *= clear_weight  # the site weighs against the clearance as before
+    off = (held - kept) * weights[..., None]
     off = off.reshape(len(q), -1)
     rest = REST_WEIGHT * (q[:, dofs] - q0[:, dofs])
     return np.concatenate([pen, off, rest], axis=1)
@@ -112,18 +121,19 @@ class _Problem:
     keep: FloatArray  # (N,) their weight
     rest: FloatArray  # (N, D) the start configurations
     elbow: FloatArray | None = None  # (N, 3) a swivel seed's elbow target
+    clear_weight: float = 1.0  # the clearance residuals' weight
 
     def take(self, idx: np.ndarray) -> _Problem:
         return _Problem(
             (self.root[0][idx], self.root[1][idx]), self.kept[idx], self.keep[idx],
-            self.rest[idx], None if self.elbow is None else self.elbow[idx],
+            self.rest[idx], None if self.elbow is None else self.elbow[idx], self.clear_weight,
         )  # fmt: skip
 
 
 def _res(skel: Skeleton, q: FloatArray, side: str, pb: _Problem, dofs: list[int]) -> FloatArray:
     """The residuals, or a swivel seed's (the elbow's target and the hand's pose)."""
     if pb.elbow is None:
-        return _residuals(skel, q, pb.root, side, pb.kept, pb.keep, pb.rest, dofs)
+        return _residuals(skel, q, pb.root, side, pb.kept, pb.keep, pb.rest, dofs, pb.clear_weight)
     pose = forward(skel, q, pb.root[0], pb.root[1], with_axes=False)
     off = (_hand_points(skel, pose, side) - pb.kept) * _point_weights(pb.keep)[..., None]
     elbow = pose.p[:, skel.joint_index(f"{side}_elbow")] - pb.elbow
@@ -202,6 +212,7 @@ def keep_clear(
     max_iter: int = MAX_ITER,
     swivel: bool = False,
     start: FloatArray | None = None,
+    firm: float = 0.0,
 ) -> FloatArray:
     """Configurations ``q`` (N, D) with the ``side`` arm moved clear of the trunk and thighs.
 
@@ -212,14 +223,17 @@ def keep_clear(
     each of ``SWIVELS`` (a pose through the trunk is often a local minimum: the way out is
     round, not straight), keeping the best; for single poses (keyframes), where no
     neighbouring frame has to agree. ``start``: where to start from instead of ``q`` (the
-    hand's pose and the rest pull stay ``q``'s); a row clear there is returned as it is."""
+    hand's pose and the rest pull stay ``q``'s); a row clear there is returned as it is.
+    ``firm``: a row the solve leaves inside the clearance is solved again with the clearance
+    weighing ``firm`` (its orientation then yields ``firm`` times sooner), and takes that if it
+    is less deep and a kept hand stays within ``FIRM_HAND_TOL`` of its pose."""
     q = np.array(q, dtype=float)
     begin = q if start is None else np.asarray(start, dtype=float)
     need = np.flatnonzero(penetration(skel, begin, root, side) > 0.0)
     if need.size == 0:
         return np.array(begin, dtype=float)
     if need.size > MAX_ROWS:
-        return _keep_clear_sparse(skel, q, root, side, keep, need, begin, max_iter, swivel)
+        return _keep_clear_sparse(skel, q, root, side, keep, need, begin, max_iter, swivel, firm)
     dofs = arm_dofs(skel, side)
     root_n = (root[0][need], root[1][need])
     q0 = q[need].copy()
@@ -246,8 +260,42 @@ def keep_clear(
             won = c_best < cost[left]
             chosen = cand.reshape(turns, len(left), -1)[pick, np.arange(len(left))]
             best[left[won]], cost[left[won]] = chosen[won], c_best[won]
+    if firm > 0.0:
+        best = _firm(skel, best, side, pb, dofs, max_iter, firm)
     out = np.array(begin, dtype=float)
     out[need] = best
+    return out
+
+
+def _firm(
+    skel: Skeleton,
+    best: FloatArray,
+    side: str,
+    pb: _Problem,
+    dofs: list[int],
+    max_iter: int,
+    weight: float,
+) -> FloatArray:
+    """``best`` with the rows of a kept hand (weight ``KEPT`` or more) still inside the
+    clearance solved again from there with the clearance and the hand's site weighing
+    ``weight`` times more, its orientation not (a grip on a valve can turn a few degrees; a
+    forearm cannot be in a thigh): taken where less deep, the site within ``FIRM_HAND_TOL``
+    and no dof turned more than ``FIRM_TURN``. A free hand is not: it may move out already."""
+    root = pb.root
+    depth = penetration(skel, best, root, side)
+    left = np.flatnonzero((depth > 0.0) & (pb.keep >= KEPT))
+    if left.size == 0:
+        return best
+    sub = pb.take(left)
+    cand, _ = _lm(skel, best[left], side, replace(sub, clear_weight=weight), dofs, max_iter)
+    root_left = (root[0][left], root[1][left])
+    pose = forward(skel, cand, *root_left, with_axes=False)
+    moved = np.linalg.norm(_hand_points(skel, pose, side)[:, 0] - sub.kept[:, 0], axis=1)
+    ok = penetration(skel, cand, root_left, side) < depth[left]
+    ok &= moved <= FIRM_HAND_TOL
+    ok &= np.abs(cand - best[left]).max(axis=1) <= FIRM_TURN
+    out = best.copy()
+    out[left[ok]] = cand[ok]
     return out
 
 
@@ -261,6 +309,7 @@ def _keep_clear_sparse(
     begin: FloatArray,
     max_iter: int,
     swivel: bool,
+    firm: float = 0.0,
 ) -> FloatArray:
     """``keep_clear`` of more than ``MAX_ROWS`` rows: every k-th of them solved, the others'
     corrections interpolated between their solved neighbours (dof by dof). Every row solved
@@ -271,7 +320,7 @@ def _keep_clear_sparse(
     picked = np.unique(np.concatenate([need[::step], need[-1:]]))
     solved = keep_clear(
         skel, q[picked], (root[0][picked], root[1][picked]), side,
-        np.asarray(keep, dtype=float)[picked], max_iter, swivel, begin[picked],
+        np.asarray(keep, dtype=float)[picked], max_iter, swivel, begin[picked], firm,
     )  # fmt: skip
     correction = solved - begin[picked]
     out = np.array(begin, dtype=float)

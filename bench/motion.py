@@ -65,6 +65,7 @@ MANIKINS = tuple(
     f"{sex}-p{pct}" for sex in ("female", "male") for pct in (1, 5, 10, 50, 90, 95, 99)
 )
 KNEE_DEPTH = 0.05  # m: half a knee's depth; a kneeling knee bears this far below its centre
+KNEE_HALF_WIDTH = 0.025  # m: half a patella's breadth; the knee bears over this either side
 MISS_TOL = 1e-3  # m: a goal further than this from its effector is a miss
 TOUCH_TOL = 2e-3  # m: a point supports only this close to the floor or to its site
 LOOSE_TOL = 1e-2  # m: mtlc's own contact tolerance (docs/metrics.md), for comparison
@@ -460,11 +461,22 @@ def measure(doc: dict[str, Any], diagnostics: list[dict[str, Any]]) -> dict[str,
     for g in doc["goals"]:
         if g["effector"] in goals_of:
             goals_of[g["effector"]].append(np.asarray(g["position"], float))
-    # a kneeling knee bears on its front: the lowest point of a sphere of half a knee's depth
-    # about the knee's centre (the IR has no point there)
+    # a kneeling knee bears on its front, the lowest point of a sphere of half a knee's depth
+    # about the knee's centre, over a patella's breadth across (docs/metrics.md, "Static
+    # balance": ± KNEE_HALF_WIDTH along the knee's flexion axis; the IR has no point there)
     support_points = dict(body.points)
+    knee_axis = {
+        j["name"]: np.asarray(d["axis"], float)
+        for j in doc["manikin"]["joints"]
+        for d in j["dofs"]
+        if d["name"].endswith("_knee_flex")
+    }
     for side in ("r", "l"):
-        support_points[f"{side}_knee_front"] = body.points[f"{side}_knee"] - [0.0, KNEE_DEPTH, 0.0]
+        R, p = body.world[f"{side}_knee"]
+        front = p - [0.0, KNEE_DEPTH, 0.0]
+        across = R @ knee_axis[f"{side}_knee"]
+        for sign, tag in ((1.0, "a"), (-1.0, "b")):
+            support_points[f"{side}_knee_front_{tag}"] = front + sign * KNEE_HALF_WIDTH * across
     names = list(support_points)
     ys = np.stack([support_points[n][:, 1] for n in names], 1)  # (T, N)
     xz = np.stack([support_points[n][:, [0, 2]] for n in names], 1)  # (T, N, 2)

@@ -265,6 +265,7 @@ def _homogeneous(R: FloatArray, p: FloatArray) -> FloatArray:
 
 
 CHAIN_BATCH = 8  # configurations up to which joints are placed by their paths, not by levels
+BRANCH_CHUNK = 4096
 FK_CHUNK = 48  # configurations a chunk: temporaries stay small (fresh large ones page-fault)
 
 
@@ -339,6 +340,81 @@ def _forward_flat(
         W[..., :3, :3].transpose(1, 0, 2, 3), W[..., :3, 3].transpose(1, 0, 2),
         axes.transpose(1, 0, 2),
     )  # fmt: skip
+
+
+def forward_below(skel: Skeleton, q: ArrayLike, base: Pose, top: int) -> Pose:
+    """``forward(skel, q, ...)`` (``with_axes=False``) of configurations ``q`` (n, D) that
+    differ from ``base``'s (n rows, the same root) only in the dofs of joint ``top`` and the
+    joints below it: those joints placed from their parent's frame in ``base``, every other
+    joint copied. The same products in the same order as ``forward``, so the same numbers; an
+    arm's solver that moves only the arm pays for three joints, not nineteen."""
+    if skel.parent[top] < 0:
+        raise ValueError("forward_below needs a joint below the root (the root: forward)")
+    qa = np.asarray(q, dtype=float)
+    branch = _branch(skel, top)
+    n = len(qa)
+    R, p = base.R.reshape(n, skel.n_joints, 3, 3).copy(), base.p.reshape(n, -1, 3).copy()
+    above = int(skel.parent[top])
+    for a in range(0, n, BRANCH_CHUNK):
+        c = slice(a, a + BRANCH_CHUNK)
+        start = _homogeneous(R[c, above], p[c, above])
+        R[c, branch.joints], p[c, branch.joints] = _forward_branch(skel, branch, qa[c], start)
+    return Pose(R=R, p=p, axes=np.empty((n, 0, 3)), root=np.array(base.root))
+
+
+@dataclass(frozen=True)
+class _Branch:
+    """A joint and the joints below it, in depth order: their dofs, each joint's first,
+    second and third dof among them (``len(dofs)``: none) and its parent among them (-1: the
+    branch's fixed parent)."""
+
+    joints: NDArray[np.intp]
+    dofs: NDArray[np.intp]
+    slot: NDArray[np.intp]  # (3, B)
+    parent: NDArray[np.intp]  # (B,)
+
+
+def _branch(skel: Skeleton, top: int) -> _Branch:
+    cache: dict[int, _Branch] = skel.__dict__.setdefault("_fk_branches", {})
+    found = cache.get(top)
+    if found is not None:
+        return found
+    plan = _plan(skel)
+    joints = np.flatnonzero(skel.ancestor[:, top])
+    depth = [int(skel.ancestor[j].sum()) for j in joints]
+    joints = joints[np.argsort(depth, kind="stable")]
+    dofs = np.concatenate([np.flatnonzero(skel.dof_joint == j) for j in joints]).astype(np.intp)
+    local = {int(d): k for k, d in enumerate(dofs)}
+    slot = np.array(
+        [[local.get(int(plan.slot_dof[s, j]), len(dofs)) for j in joints] for s in range(3)],
+        dtype=np.intp,
+    )
+    where = {int(j): k for k, j in enumerate(joints)}
+    parent = np.array([where.get(int(skel.parent[j]), -1) for j in joints], dtype=np.intp)
+    found = cache[top] = _Branch(joints, dofs, slot, parent)
+    return found
+
+
+def _forward_branch(
+    skel: Skeleton, branch: _Branch, q: FloatArray, start: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """World rotations (n, B, 3, 3) and positions (n, B, 3) of a branch's joints from the
+    world frame ``start`` (n, 4, 4) of its parent: ``_forward_flat``'s arithmetic on the
+    branch's joints alone."""
+    plan = _plan(skel)
+    n = len(q)
+    qt = np.concatenate([q[:, branch.dofs].T, np.zeros((1, n))])
+    coef = np.stack([np.ones_like(qt), np.sin(qt), -np.cos(qt)], axis=-1)
+    basis = plan.basis[np.append(branch.dofs, skel.n_dofs)]
+    Rd = (coef @ basis).reshape(-1, n, 3, 3)
+    G = Rd[branch.slot]
+    W = np.empty((len(branch.joints), n, 4, 4))
+    W[..., :3, :3] = (G[0] @ G[1]) @ G[2]
+    W[..., :3, 3] = skel.offsets[branch.joints][:, None]
+    W[..., 3, :] = (0.0, 0.0, 0.0, 1.0)
+    for k, up in enumerate(branch.parent):
+        W[k] = (W[up] if up >= 0 else start) @ W[k]
+    return W[..., :3, :3].transpose(1, 0, 2, 3), W[..., :3, 3].transpose(1, 0, 2)
 
 
 def site_positions(skel: Skeleton, pose: Pose, names: Sequence[str] | str) -> FloatArray:

@@ -24,7 +24,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from mtlc.body.ik.clearance import keep_clear
+from mtlc.body.capsules import clearance, side_limbs
+from mtlc.body.ik.clearance import arm_dofs, keep_clear, penetration
+from mtlc.body.kinematics import forward
+from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.context import PassContext
 
@@ -107,15 +110,53 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         return ir
     root = (frames.root_position, frames.root_rotation)
     skel = ir.skeleton
-    for side in ("r", "l"):
+    # how deep each arm starts inside, both from one whole-body pose of every frame; after
+    # that only the frames a correction changed are posed again
+    sides = ("r", "l")
+    inside = penetrations(skel, frames.q, root, sides)
+    for k, side in enumerate(sides):
         keep = pinned_weights(ir, side, frames.time)
         q = frames.q
-        cleared = keep_clear(skel, q, root, side, keep)
+        cleared = keep_clear(skel, q, root, side, keep, inside=inside[side])
         smooth = skel.clip(q + without_swings(q, cleared - q))
         if np.array_equal(smooth, cleared):
-            frames.q = cleared
-            continue
-        # solved again from the ramp: each frame starts where its neighbours' average is
-        again = keep_clear(skel, q, root, side, keep, start=smooth)
-        frames.q = skel.clip(q + without_swings(q, again - q))
+            result = cleared
+        else:
+            # solved again from the ramp: each frame starts where its neighbours' average is
+            from_smooth = depth_after(skel, inside[side], q, smooth, root, side, frozen=())
+            again = keep_clear(skel, q, root, side, keep, start=smooth, inside=from_smooth)
+            result = skel.clip(q + without_swings(q, again - q))
+        frames.q = result
+        for other in sides[k + 1 :]:  # the other arm, trunk and thighs: unmoved, but clipped
+            frozen = tuple(arm_dofs(skel, side))
+            inside[other] = depth_after(skel, inside[other], q, result, root, other, frozen)
     return ir
+
+
+def penetrations(
+    skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], sides: tuple[str, ...]
+) -> dict[str, FloatArray]:
+    """``penetration`` of each side's arm (N,) for frames ``q``, from one forward kinematics."""
+    pose = forward(skel, q, root[0], root[1], with_axes=False)
+    return {side: clearance(skel, pose, side_limbs(side)).max(axis=1) for side in sides}
+
+
+def depth_after(
+    skel: Skeleton,
+    depth: FloatArray,
+    q: FloatArray,
+    moved: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    frozen: tuple[int, ...],
+) -> FloatArray:
+    """``penetration`` (N,) of the ``side`` arm at frames ``moved``, given its ``depth`` at
+    ``q``: measured again only where a dof other than the ``frozen`` ones (which move
+    neither that arm nor the trunk and thighs: the other arm's) changed."""
+    free = np.ones(skel.n_dofs, dtype=bool)
+    free[list(frozen)] = False
+    rows = np.flatnonzero((moved != q)[:, free].any(axis=1))
+    out = depth.copy()
+    if rows.size:
+        out[rows] = penetration(skel, moved[rows], (root[0][rows], root[1][rows]), side)
+    return out

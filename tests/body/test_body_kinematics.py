@@ -21,7 +21,7 @@ from mtlc.body import (
     site_positions,
     site_rotation,
 )
-from mtlc.body.kinematics import axis_angle, cross, forward_below
+from mtlc.body.kinematics import axis_angle, cross, forward_below, rotate_about
 
 SK = build_manikin("gb10000_1988", "male", 50)
 
@@ -253,3 +253,20 @@ def test_forward_below_refuses_the_root() -> None:
     base = forward(SK, np.zeros(SK.n_dofs), with_axes=False)
     with pytest.raises(ValueError, match="below the root"):
         forward_below(SK, np.zeros((1, SK.n_dofs)), base, 0)
+
+
+def test_rotate_about_is_the_axis_angle_matrix_on_a_point() -> None:
+    """The vector Rodrigues (balance's fingertip heights, the clearance swivel's elbow) turns a
+    point as ``axis_angle``'s matrix does, angles broadcast against points."""
+    rng = np.random.default_rng(3)
+    axis = rng.normal(size=(20, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    origin, v = rng.normal(size=(20, 3)), rng.normal(size=(20, 3))
+    angles = np.array([-2.5, -0.3, 0.0, 1.0, math.pi])
+    turned = rotate_about(
+        origin[:, None], axis[:, None], v[:, None], np.cos(angles)[:, None], np.sin(angles)[:, None]
+    )
+    R = axis_angle(axis[:, None], angles[None, :])  # (20, 5, 3, 3)
+    expected = origin[:, None] + np.einsum("rnab,rb->rna", R, v)
+    np.testing.assert_allclose(turned, expected, atol=1e-12)
+    np.testing.assert_array_equal(turned[:, 2], origin + v)  # no turn: the point itself

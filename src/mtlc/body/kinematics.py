@@ -15,6 +15,8 @@ about the root position.
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -124,6 +126,16 @@ def axis_angle(axes: ArrayLike, angles: ArrayLike) -> FloatArray:
     return _rodrigues(K, K @ K, s, c)
 
 
+def rotate_about(
+    origin: FloatArray, axis: FloatArray, v: FloatArray, cos: ArrayLike, sin: ArrayLike
+) -> FloatArray:
+    """``origin`` plus the vectors ``v`` (..., 3) turned about unit ``axis`` (..., 3) by the
+    angle whose cosine and sine are given (Rodrigues' formula on vectors, broadcast): a
+    point turned about a line without a matrix per angle."""
+    along = np.einsum("...i,...i->...", axis, v)[..., None]
+    return origin + v * cos + cross(axis, v) * sin + axis * along * (1.0 - np.asarray(cos))
+
+
 def _rodrigues(K: FloatArray, KK: FloatArray, s: FloatArray, c: FloatArray) -> FloatArray:
     return np.eye(3) + s * K + (1 - c) * KK
 
@@ -186,7 +198,7 @@ def _root_inputs(
     if rp.shape[:-1] != batch:  # (a broadcast costs a solver's small batch more than its FK)
         rp = np.broadcast_to(rp, (*batch, 3))
     if root_rotation is None:
-        RR = np.broadcast_to(_EYE3, (*batch, 3, 3))
+        RR = _identities(batch)
     else:
         rr = np.asarray(root_rotation, dtype=float)
         RR = quat_to_matrix(rr) if rr.shape[-1] == 4 else rr
@@ -198,6 +210,13 @@ def _root_inputs(
 _EYE3, _EYE4 = np.eye(3), np.eye(4)
 _EYE3.setflags(write=False)
 _EYE4.setflags(write=False)
+
+
+@functools.lru_cache(maxsize=64)
+def _identities(batch: tuple[int, ...]) -> FloatArray:
+    """A read-only (*batch, 3, 3) view of the identity: no root rotation (a solver's frame-by-
+    frame forward kinematics asked ``np.broadcast_to`` for the same view thousands of times)."""
+    return np.broadcast_to(_EYE3, (*batch, 3, 3))
 
 
 @dataclass(frozen=True)
@@ -289,7 +308,7 @@ def forward(
         raise ValueError(f"q has {qa.shape[-1]} angles, the skeleton has {skel.n_dofs}")
     batch = qa.shape[:-1]
     rp, RR = _root_inputs(skel, batch, root_position, root_rotation)
-    n, nj = int(np.prod(batch)), skel.n_joints
+    n, nj = math.prod(batch), skel.n_joints  # (np.prod of a tuple: 3 µs a call)
     qf, rpf, RRf = qa.reshape(n, -1), rp.reshape(n, 3), RR.reshape(n, 3, 3)
     nd = skel.n_dofs if with_axes else 0
     R, p, axes = np.empty((n, nj, 3, 3)), np.empty((n, nj, 3)), np.empty((n, nd, 3))
@@ -312,7 +331,7 @@ def _forward_flat(
     plan = _plan(skel)
     n = len(q)
     qt = np.concatenate([q.T, np.zeros((1, n))])  # (D + 1, n): a 0 for "no dof"
-    coef = np.stack([np.ones_like(qt), np.sin(qt), -np.cos(qt)], axis=-1)
+    coef = _rodrigues_coefficients(qt)
     Rd = (coef @ plan.basis).reshape(-1, n, 3, 3)  # Rodrigues: I + K² + sin·K − cos·K²
     G = Rd[plan.slot_dof]  # (3, J, n, 3, 3): each joint's first, second and third dof
     P2 = G[0] @ G[1]
@@ -404,7 +423,7 @@ def _forward_branch(
     plan = _plan(skel)
     n = len(q)
     qt = np.concatenate([q[:, branch.dofs].T, np.zeros((1, n))])
-    coef = np.stack([np.ones_like(qt), np.sin(qt), -np.cos(qt)], axis=-1)
+    coef = _rodrigues_coefficients(qt)
     basis = plan.basis[np.append(branch.dofs, skel.n_dofs)]
     Rd = (coef @ basis).reshape(-1, n, 3, 3)
     G = Rd[branch.slot]
@@ -415,6 +434,16 @@ def _forward_branch(
     for k, up in enumerate(branch.parent):
         W[k] = (W[up] if up >= 0 else start) @ W[k]
     return W[..., :3, :3].transpose(1, 0, 2, 3), W[..., :3, 3].transpose(1, 0, 2)
+
+
+def _rodrigues_coefficients(angles: FloatArray) -> FloatArray:
+    """(..., 3): 1, sin and −cos of each angle, the weights of a dof's I + K², K and K² (filled
+    in place: ``np.stack`` of the three was a sixth of a one-frame forward kinematics)."""
+    out = np.empty((*angles.shape, 3))
+    out[..., 0] = 1.0
+    out[..., 1] = np.sin(angles)
+    out[..., 2] = -np.cos(angles)
+    return out
 
 
 def site_positions(skel: Skeleton, pose: Pose, names: Sequence[str] | str) -> FloatArray:

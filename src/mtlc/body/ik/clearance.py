@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..capsules import clearance, side_limbs
-from ..kinematics import Pose, forward, forward_below, site_positions
+from ..kinematics import Pose, forward, forward_below, rotate_about, site_positions
 from ..skeleton import Skeleton
 
 FloatArray = NDArray[np.float64]
@@ -222,10 +222,7 @@ def _swivel_targets(
     s, e, w = (pose.p[:, skel.joint_index(f"{side}_{j}")] for j in ("shoulder", "elbow", "wrist"))
     k = w - s
     k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
-    v = e - s
-    c, sn = np.cos(angle), np.sin(angle)
-    kv = np.einsum("nc,nc->n", k, v)[:, None]
-    return s + v * c + np.cross(k, v) * sn + k * kv * (1.0 - c)
+    return rotate_about(s, k, e - s, np.cos(angle), np.sin(angle))
 
 
 def keep_clear(

@@ -24,9 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mtlc.body.capsules import clearance, side_limbs
-from mtlc.body.ik.clearance import arm_dofs, keep_clear, penetration
-from mtlc.body.kinematics import forward
+from mtlc.body.ik.clearance import keep_clear, penetration, penetration_dofs, penetrations
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.context import PassContext
@@ -123,22 +121,13 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             result = cleared
         else:
             # solved again from the ramp: each frame starts where its neighbours' average is
-            from_smooth = depth_after(skel, inside[side], q, smooth, root, side, frozen=())
+            from_smooth = depth_after(skel, inside[side], q, smooth, root, side)
             again = keep_clear(skel, q, root, side, keep, start=smooth, inside=from_smooth)
             result = skel.clip(q + without_swings(q, again - q))
         frames.q = result
-        for other in sides[k + 1 :]:  # the other arm, trunk and thighs: unmoved, but clipped
-            frozen = tuple(arm_dofs(skel, side))
-            inside[other] = depth_after(skel, inside[other], q, result, root, other, frozen)
+        for other in sides[k + 1 :]:
+            inside[other] = depth_after(skel, inside[other], q, result, root, other)
     return ir
-
-
-def penetrations(
-    skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], sides: tuple[str, ...]
-) -> dict[str, FloatArray]:
-    """``penetration`` of each side's arm (N,) for frames ``q``, from one forward kinematics."""
-    pose = forward(skel, q, root[0], root[1], with_axes=False)
-    return {side: clearance(skel, pose, side_limbs(side)).max(axis=1) for side in sides}
 
 
 def depth_after(
@@ -148,14 +137,11 @@ def depth_after(
     moved: FloatArray,
     root: tuple[FloatArray, FloatArray],
     side: str,
-    frozen: tuple[int, ...],
 ) -> FloatArray:
     """``penetration`` (N,) of the ``side`` arm at frames ``moved``, given its ``depth`` at
-    ``q``: measured again only where a dof other than the ``frozen`` ones (which move
-    neither that arm nor the trunk and thighs: the other arm's) changed."""
-    free = np.ones(skel.n_dofs, dtype=bool)
-    free[list(frozen)] = False
-    rows = np.flatnonzero((moved != q)[:, free].any(axis=1))
+    frames ``q``: measured again only where a dof it depends on changed (the other arm's
+    correction moves neither this arm nor the trunk and thighs)."""
+    rows = np.flatnonzero((moved != q)[:, penetration_dofs(skel, side)].any(axis=1))
     out = depth.copy()
     if rows.size:
         out[rows] = penetration(skel, moved[rows], (root[0][rows], root[1][rows]), side)

@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..capsules import clearance, side_limbs
+from ..capsules import body_capsules, clearance, side_limbs
 from ..kinematics import Pose, forward, forward_below, rotate_about, site_positions
 from ..skeleton import Skeleton
 
@@ -99,8 +99,28 @@ def penetration(
     skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], side: str
 ) -> FloatArray:
     """(N,) the deepest point of the side's forearm or hand inside a capsule with clearance."""
+    return penetrations(skel, q, root, (side,))[side]
+
+
+def penetrations(
+    skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], sides: tuple[str, ...]
+) -> dict[str, FloatArray]:
+    """``penetration`` of each of ``sides`` (N,), from one forward kinematics of ``q``."""
     pose = forward(skel, q, root[0], root[1], with_axes=False)
-    return clearance(skel, pose, side_limbs(side)).max(axis=1)
+    return {side: clearance(skel, pose, side_limbs(side)).max(axis=1) for side in sides}
+
+
+def penetration_dofs(skel: Skeleton, side: str) -> NDArray[np.bool_]:
+    """(D,) the dofs ``penetration`` of ``side`` can depend on: those of the joints that place
+    a capsule's ends or the side's limbs, and of their ancestors (a frame whose other dofs
+    changed is as deep as it was)."""
+    names = [n for cap in body_capsules(skel) for end in cap.ends for n in end]
+    for limb in side_limbs(side):
+        names += [
+            n if n in skel.joint_names else skel.site(n).joint for n in (limb.start, limb.end)
+        ]
+    used = skel.ancestor[[skel.joint_index(n) for n in names]].any(axis=0)  # (J,)
+    return used[skel.dof_joint]
 
 
 @dataclass(frozen=True)

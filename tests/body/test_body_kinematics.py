@@ -21,7 +21,7 @@ from mtlc.body import (
     site_positions,
     site_rotation,
 )
-from mtlc.body.kinematics import axis_angle, cross
+from mtlc.body.kinematics import axis_angle, cross, forward_below, rotate_about
 
 SK = build_manikin("gb10000_1988", "male", 50)
 
@@ -223,3 +223,50 @@ def test_cross_is_numpys_cross_to_the_bit(
     b = rng.normal(size=(*lead_b, 3))
     assert np.array_equal(cross(a, b), np.cross(a, b))
     assert np.array_equal(cross(b, a), np.cross(b, a))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    rows=st.integers(1, 120),
+    joint=st.sampled_from(["r_shoulder", "l_shoulder", "r_elbow", "l_wrist", "r_hip", "neck"]),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_forward_below_is_whole_body_forward_to_the_bit(rows: int, joint: str, seed: int) -> None:
+    """The clearance LM poses only the arm (``forward_below``) from the body's pose at its
+    start: every joint, moved or not, equals whole-body forward kinematics of the new angles,
+    bit for bit, whatever the batch (the level-by-level and the chain-wise products)."""
+    rng = np.random.default_rng(seed)
+    top = SK.joint_index(joint)
+    moving = np.flatnonzero(SK.ancestor[SK.dof_joint, top])
+    q = rng.uniform(SK.lower, SK.upper, size=(rows, SK.n_dofs))
+    root = rng.normal(size=(rows, 3)), rng.normal(size=(rows, 4))
+    base = forward(SK, q, *root, with_axes=False)
+    q[:, moving] = rng.uniform(SK.lower[moving], SK.upper[moving], size=(rows, moving.size))
+    whole = forward(SK, q, *root, with_axes=False)
+    branch = forward_below(SK, q, base, top)
+    assert np.array_equal(branch.p, whole.p)
+    assert np.array_equal(branch.R, whole.R)
+    assert not np.array_equal(branch.R[:, top], base.R[:, top])  # the branch did move
+
+
+def test_forward_below_refuses_the_root() -> None:
+    base = forward(SK, np.zeros(SK.n_dofs), with_axes=False)
+    with pytest.raises(ValueError, match="below the root"):
+        forward_below(SK, np.zeros((1, SK.n_dofs)), base, 0)
+
+
+def test_rotate_about_is_the_axis_angle_matrix_on_a_point() -> None:
+    """The vector Rodrigues (balance's fingertip heights, the clearance swivel's elbow) turns a
+    point as ``axis_angle``'s matrix does, angles broadcast against points."""
+    rng = np.random.default_rng(3)
+    axis = rng.normal(size=(20, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    origin, v = rng.normal(size=(20, 3)), rng.normal(size=(20, 3))
+    angles = np.array([-2.5, -0.3, 0.0, 1.0, math.pi])
+    turned = rotate_about(
+        origin[:, None], axis[:, None], v[:, None], np.cos(angles)[:, None], np.sin(angles)[:, None]
+    )
+    R = axis_angle(axis[:, None], angles[None, :])  # (20, 5, 3, 3)
+    expected = origin[:, None] + np.einsum("rnab,rb->rna", R, v)
+    np.testing.assert_allclose(turned, expected, atol=1e-12)
+    np.testing.assert_array_equal(turned[:, 2], origin + v)  # no turn: the point itself

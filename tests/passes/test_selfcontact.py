@@ -293,3 +293,30 @@ def test_keep_clear_of_many_rows_solves_every_kth_and_interpolates(
         want = q[need, d] + np.interp(need, picked, alone[:, d] - q[picked, d])
         np.testing.assert_allclose(out[need, d], np.clip(want, sk.lower[d], sk.upper[d]))
     assert np.abs(out - q).max() > 0.01  # something was cleared
+
+
+def test_the_clearance_pass_measures_again_only_what_a_correction_can_move() -> None:
+    """``depth_after``: the left arm's depth after the right arm moved is the one measured
+    before (the right arm's dofs do not place the left arm, the trunk or the thighs), and a
+    frame whose trunk moved is measured again: equal to ``penetration`` of the new frames."""
+    from mtlc.passes.clearance import depth_after
+
+    sk = build_manikin("gb10000_1988", "female", 5)
+    rng = np.random.default_rng(7)
+    n = 40
+    q = rng.uniform(sk.lower, sk.upper, size=(n, sk.n_dofs)) * 0.6
+    root = (np.tile([0.0, 0.9, 0.0], (n, 1)), np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)))
+    before = penetration(sk, q, root, "l")
+    moved = q.copy()
+    right = arm_dofs(sk, "r")
+    moved[:, right] = rng.uniform(sk.lower[right], sk.upper[right], size=(n, len(right)))
+    lumbar = sk.dof_index("lumbar_flex")
+    moved[::5, lumbar] += 0.3  # every fifth frame bends: the trunk moved
+    fresh = penetration(sk, moved, root, "l")
+    assert not np.array_equal(fresh[::5], before[::5])
+    np.testing.assert_array_equal(depth_after(sk, before, q, moved, root, "l"), fresh)
+    # the right arm's own depth is measured again wherever it moved
+    np.testing.assert_array_equal(
+        depth_after(sk, penetration(sk, q, root, "r"), q, moved, root, "r"),
+        penetration(sk, moved, root, "r"),
+    )

@@ -15,6 +15,8 @@ about the root position.
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -124,6 +126,16 @@ def axis_angle(axes: ArrayLike, angles: ArrayLike) -> FloatArray:
     return _rodrigues(K, K @ K, s, c)
 
 
+def rotate_about(
+    origin: FloatArray, axis: FloatArray, v: FloatArray, cos: ArrayLike, sin: ArrayLike
+) -> FloatArray:
+    """``origin`` plus the vectors ``v`` (..., 3) turned about unit ``axis`` (..., 3) by the
+    angle whose cosine and sine are given (Rodrigues' formula on vectors, broadcast): a
+    point turned about a line without a matrix per angle."""
+    along = np.einsum("...i,...i->...", axis, v)[..., None]
+    return origin + v * cos + cross(axis, v) * sin + axis * along * (1.0 - np.asarray(cos))
+
+
 def _rodrigues(K: FloatArray, KK: FloatArray, s: FloatArray, c: FloatArray) -> FloatArray:
     return np.eye(3) + s * K + (1 - c) * KK
 
@@ -186,7 +198,7 @@ def _root_inputs(
     if rp.shape[:-1] != batch:  # (a broadcast costs a solver's small batch more than its FK)
         rp = np.broadcast_to(rp, (*batch, 3))
     if root_rotation is None:
-        RR = np.broadcast_to(_EYE3, (*batch, 3, 3))
+        RR = _identities(batch)
     else:
         rr = np.asarray(root_rotation, dtype=float)
         RR = quat_to_matrix(rr) if rr.shape[-1] == 4 else rr
@@ -198,6 +210,13 @@ def _root_inputs(
 _EYE3, _EYE4 = np.eye(3), np.eye(4)
 _EYE3.setflags(write=False)
 _EYE4.setflags(write=False)
+
+
+@functools.lru_cache(maxsize=64)
+def _identities(batch: tuple[int, ...]) -> FloatArray:
+    """A read-only (*batch, 3, 3) view of the identity: no root rotation (a solver's frame-by-
+    frame forward kinematics asked ``np.broadcast_to`` for the same view thousands of times)."""
+    return np.broadcast_to(_EYE3, (*batch, 3, 3))
 
 
 @dataclass(frozen=True)
@@ -265,6 +284,7 @@ def _homogeneous(R: FloatArray, p: FloatArray) -> FloatArray:
 
 
 CHAIN_BATCH = 8  # configurations up to which joints are placed by their paths, not by levels
+BRANCH_CHUNK = 4096
 FK_CHUNK = 48  # configurations a chunk: temporaries stay small (fresh large ones page-fault)
 
 
@@ -288,7 +308,7 @@ def forward(
         raise ValueError(f"q has {qa.shape[-1]} angles, the skeleton has {skel.n_dofs}")
     batch = qa.shape[:-1]
     rp, RR = _root_inputs(skel, batch, root_position, root_rotation)
-    n, nj = int(np.prod(batch)), skel.n_joints
+    n, nj = math.prod(batch), skel.n_joints  # (np.prod of a tuple: 3 µs a call)
     qf, rpf, RRf = qa.reshape(n, -1), rp.reshape(n, 3), RR.reshape(n, 3, 3)
     nd = skel.n_dofs if with_axes else 0
     R, p, axes = np.empty((n, nj, 3, 3)), np.empty((n, nj, 3)), np.empty((n, nd, 3))
@@ -311,7 +331,7 @@ def _forward_flat(
     plan = _plan(skel)
     n = len(q)
     qt = np.concatenate([q.T, np.zeros((1, n))])  # (D + 1, n): a 0 for "no dof"
-    coef = np.stack([np.ones_like(qt), np.sin(qt), -np.cos(qt)], axis=-1)
+    coef = _rodrigues_coefficients(qt)
     Rd = (coef @ plan.basis).reshape(-1, n, 3, 3)  # Rodrigues: I + K² + sin·K − cos·K²
     G = Rd[plan.slot_dof]  # (3, J, n, 3, 3): each joint's first, second and third dof
     P2 = G[0] @ G[1]
@@ -339,6 +359,91 @@ def _forward_flat(
         W[..., :3, :3].transpose(1, 0, 2, 3), W[..., :3, 3].transpose(1, 0, 2),
         axes.transpose(1, 0, 2),
     )  # fmt: skip
+
+
+def forward_below(skel: Skeleton, q: ArrayLike, base: Pose, top: int) -> Pose:
+    """``forward(skel, q, ...)`` (``with_axes=False``) of configurations ``q`` (n, D) that
+    differ from ``base``'s (n rows, the same root) only in the dofs of joint ``top`` and the
+    joints below it: those joints placed from their parent's frame in ``base``, every other
+    joint copied. The same products in the same order as ``forward``, so the same numbers; an
+    arm's solver that moves only the arm pays for three joints, not nineteen."""
+    if skel.parent[top] < 0:
+        raise ValueError("forward_below needs a joint below the root (the root: forward)")
+    qa = np.asarray(q, dtype=float)
+    branch = _branch(skel, top)
+    n = len(qa)
+    R, p = base.R.reshape(n, skel.n_joints, 3, 3).copy(), base.p.reshape(n, -1, 3).copy()
+    above = int(skel.parent[top])
+    for a in range(0, n, BRANCH_CHUNK):
+        c = slice(a, a + BRANCH_CHUNK)
+        start = _homogeneous(R[c, above], p[c, above])
+        R[c, branch.joints], p[c, branch.joints] = _forward_branch(skel, branch, qa[c], start)
+    return Pose(R=R, p=p, axes=np.empty((n, 0, 3)), root=np.array(base.root))
+
+
+@dataclass(frozen=True)
+class _Branch:
+    """A joint and the joints below it, in depth order: their dofs, each joint's first,
+    second and third dof among them (``len(dofs)``: none) and its parent among them (-1: the
+    branch's fixed parent)."""
+
+    joints: NDArray[np.intp]
+    dofs: NDArray[np.intp]
+    slot: NDArray[np.intp]  # (3, B)
+    parent: NDArray[np.intp]  # (B,)
+
+
+def _branch(skel: Skeleton, top: int) -> _Branch:
+    cache: dict[int, _Branch] = skel.__dict__.setdefault("_fk_branches", {})
+    found = cache.get(top)
+    if found is not None:
+        return found
+    plan = _plan(skel)
+    joints = np.flatnonzero(skel.ancestor[:, top])
+    depth = [int(skel.ancestor[j].sum()) for j in joints]
+    joints = joints[np.argsort(depth, kind="stable")]
+    dofs = np.concatenate([np.flatnonzero(skel.dof_joint == j) for j in joints]).astype(np.intp)
+    local = {int(d): k for k, d in enumerate(dofs)}
+    slot = np.array(
+        [[local.get(int(plan.slot_dof[s, j]), len(dofs)) for j in joints] for s in range(3)],
+        dtype=np.intp,
+    )
+    where = {int(j): k for k, j in enumerate(joints)}
+    parent = np.array([where.get(int(skel.parent[j]), -1) for j in joints], dtype=np.intp)
+    found = cache[top] = _Branch(joints, dofs, slot, parent)
+    return found
+
+
+def _forward_branch(
+    skel: Skeleton, branch: _Branch, q: FloatArray, start: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """World rotations (n, B, 3, 3) and positions (n, B, 3) of a branch's joints from the
+    world frame ``start`` (n, 4, 4) of its parent: ``_forward_flat``'s arithmetic on the
+    branch's joints alone."""
+    plan = _plan(skel)
+    n = len(q)
+    qt = np.concatenate([q[:, branch.dofs].T, np.zeros((1, n))])
+    coef = _rodrigues_coefficients(qt)
+    basis = plan.basis[np.append(branch.dofs, skel.n_dofs)]
+    Rd = (coef @ basis).reshape(-1, n, 3, 3)
+    G = Rd[branch.slot]
+    W = np.empty((len(branch.joints), n, 4, 4))
+    W[..., :3, :3] = (G[0] @ G[1]) @ G[2]
+    W[..., :3, 3] = skel.offsets[branch.joints][:, None]
+    W[..., 3, :] = (0.0, 0.0, 0.0, 1.0)
+    for k, up in enumerate(branch.parent):
+        W[k] = (W[up] if up >= 0 else start) @ W[k]
+    return W[..., :3, :3].transpose(1, 0, 2, 3), W[..., :3, 3].transpose(1, 0, 2)
+
+
+def _rodrigues_coefficients(angles: FloatArray) -> FloatArray:
+    """(..., 3): 1, sin and −cos of each angle, the weights of a dof's I + K², K and K² (filled
+    in place: ``np.stack`` of the three was a sixth of a one-frame forward kinematics)."""
+    out = np.empty((*angles.shape, 3))
+    out[..., 0] = 1.0
+    out[..., 1] = np.sin(angles)
+    out[..., 2] = -np.cos(angles)
+    return out
 
 
 def site_positions(skel: Skeleton, pose: Pose, names: Sequence[str] | str) -> FloatArray:

@@ -38,6 +38,7 @@ import numpy as np
 
 from mtlc.body import Pose, Skeleton, com_jacobian, forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.body.kinematics import rotate_about
 from mtlc.ir.model import Frames, MotionIR, Segment
 from mtlc.loads import carried_com
 from mtlc.metrics import (
@@ -732,11 +733,9 @@ def tip_heights(
     joint = pose.p[:, skel.dof_joint[k]]  # (rows, 3): a joint's place is not moved by its dofs
     u = site_positions(skel, pose, tip) - joint
     a = pose.axes[:, k]  # (rows, 3), unit
-    cos, sin = np.cos(change), np.sin(change)
-    along = np.einsum("ri,ri->r", a, u)[:, None]
-    a_cross_u_y = a[:, 2] * u[:, 0] - a[:, 0] * u[:, 2]
-    height = joint[:, 1:2] + u[:, 1:2] * cos + a_cross_u_y[:, None] * sin
-    return height + a[:, 1:2] * along * (1.0 - cos)
+    turns = np.asarray(change)[..., None]  # (n, 1) against the points' (rows, 1, 3)
+    tips = rotate_about(joint[:, None], a[:, None], u[:, None], np.cos(turns), np.sin(turns))
+    return tips[..., 1]
 
 
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:

@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mtlc.body.ik.clearance import keep_clear
+from mtlc.body.ik.clearance import keep_clear, penetration, penetration_dofs, penetrations
+from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.context import PassContext
 
@@ -111,15 +112,43 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         return ir
     root = (frames.root_position, frames.root_rotation)
     skel = ir.skeleton
-    for side in ("r", "l"):
+    # how deep each arm starts inside, both from one whole-body pose of every frame; after
+    # that only the frames a correction changed are posed again
+    sides = ("r", "l")
+    inside = penetrations(skel, frames.q, root, sides)
+    for k, side in enumerate(sides):
         keep = pinned_weights(ir, side, frames.time)
         q = frames.q
-        cleared = keep_clear(skel, q, root, side, keep, firm=FIRM)
+        cleared = keep_clear(skel, q, root, side, keep, firm=FIRM, inside=inside[side])
         smooth = skel.clip(q + without_swings(q, cleared - q))
         if np.array_equal(smooth, cleared):
-            frames.q = cleared
-            continue
-        # solved again from the ramp: each frame starts where its neighbours' average is
-        again = keep_clear(skel, q, root, side, keep, start=smooth, firm=FIRM)
-        frames.q = skel.clip(q + without_swings(q, again - q))
+            result = cleared
+        else:
+            # solved again from the ramp: each frame starts where its neighbours' average is
+            from_smooth = depth_after(skel, inside[side], q, smooth, root, side)
+            again = keep_clear(
+                skel, q, root, side, keep, start=smooth, firm=FIRM, inside=from_smooth
+            )
+            result = skel.clip(q + without_swings(q, again - q))
+        frames.q = result
+        for other in sides[k + 1 :]:
+            inside[other] = depth_after(skel, inside[other], q, result, root, other)
     return ir
+
+
+def depth_after(
+    skel: Skeleton,
+    depth: FloatArray,
+    q: FloatArray,
+    moved: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+) -> FloatArray:
+    """``penetration`` (N,) of the ``side`` arm at frames ``moved``, given its ``depth`` at
+    frames ``q``: measured again only where a dof it depends on changed (the other arm's
+    correction moves neither this arm nor the trunk and thighs)."""
+    rows = np.flatnonzero((moved != q)[:, penetration_dofs(skel, side)].any(axis=1))
+    out = depth.copy()
+    if rows.size:
+        out[rows] = penetration(skel, moved[rows], (root[0][rows], root[1][rows]), side)
+    return out

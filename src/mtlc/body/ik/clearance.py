@@ -32,8 +32,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..capsules import clearance, side_limbs
-from ..kinematics import forward, site_positions
+from ..capsules import body_capsules, clearance, side_limbs
+from ..kinematics import Pose, forward, forward_below, rotate_about, site_positions
 from ..skeleton import Skeleton
 
 FloatArray = NDArray[np.float64]
@@ -59,7 +59,7 @@ FIRM_TURN = 0.35  # rad a dof may turn in the firm solve: more swings between fr
 def _residuals(
     skel: Skeleton,
     q: FloatArray,
-    root: tuple[FloatArray, FloatArray],
+    pose: Pose,
     side: str,
     kept: FloatArray,
     keep: FloatArray,
@@ -67,8 +67,8 @@ def _residuals(
     dofs: Sequence[int],
     clear_weight: float = 1.0,
 ) -> FloatArray:
-    """(N, M) residuals of configurations ``q`` (N, D) (see the module docstring)."""
-    pose = forward(skel, q, root[0], root[1], with_axes=False)
+    """(N, M) residuals of configurations ``q`` (N, D) posed as ``pose`` (see the module
+    docstring)."""
     pen = clear_weight * np.maximum(clearance(skel, pose, side_limbs(side)), 0.0)
     held = _hand_points(skel, pose, side)
     weights = _point_weights(keep)
@@ -108,8 +108,28 @@ def penetration(
     skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], side: str
 ) -> FloatArray:
     """(N,) the deepest point of the side's forearm or hand inside a capsule with clearance."""
+    return penetrations(skel, q, root, (side,))[side]
+
+
+def penetrations(
+    skel: Skeleton, q: FloatArray, root: tuple[FloatArray, FloatArray], sides: tuple[str, ...]
+) -> dict[str, FloatArray]:
+    """``penetration`` of each of ``sides`` (N,), from one forward kinematics of ``q``."""
     pose = forward(skel, q, root[0], root[1], with_axes=False)
-    return clearance(skel, pose, side_limbs(side)).max(axis=1)
+    return {side: clearance(skel, pose, side_limbs(side)).max(axis=1) for side in sides}
+
+
+def penetration_dofs(skel: Skeleton, side: str) -> NDArray[np.bool_]:
+    """(D,) the dofs ``penetration`` of ``side`` can depend on: those of the joints that place
+    a capsule's ends or the side's limbs, and of their ancestors (a frame whose other dofs
+    changed is as deep as it was)."""
+    names = [n for cap in body_capsules(skel) for end in cap.ends for n in end]
+    for limb in side_limbs(side):
+        names += [
+            n if n in skel.joint_names else skel.site(n).joint for n in (limb.start, limb.end)
+        ]
+    used = skel.ancestor[[skel.joint_index(n) for n in names]].any(axis=0)  # (J,)
+    return used[skel.dof_joint]
 
 
 @dataclass(frozen=True)
@@ -122,34 +142,69 @@ class _Problem:
     rest: FloatArray  # (N, D) the start configurations
     elbow: FloatArray | None = None  # (N, 3) a swivel seed's elbow target
     clear_weight: float = 1.0  # the clearance residuals' weight
+    # (N rows) the whole body at the LM's start: the arm's dofs are all the LM moves, so the
+    # trunk, thighs and the arm's parent frame stay these and only the arm is posed again
+    base: Pose | None = None
 
     def take(self, idx: np.ndarray) -> _Problem:
         return _Problem(
             (self.root[0][idx], self.root[1][idx]), self.kept[idx], self.keep[idx],
             self.rest[idx], None if self.elbow is None else self.elbow[idx], self.clear_weight,
+            None if self.base is None else _take_pose(self.base, idx),
         )  # fmt: skip
 
 
-def _res(skel: Skeleton, q: FloatArray, side: str, pb: _Problem, dofs: list[int]) -> FloatArray:
-    """The residuals, or a swivel seed's (the elbow's target and the hand's pose)."""
+def _take_pose(pose: Pose, idx: np.ndarray) -> Pose:
+    return Pose(R=pose.R[idx], p=pose.p[idx], axes=pose.axes[idx], root=pose.root[idx])
+
+
+def _pose(skel: Skeleton, q: FloatArray, side: str, pb: _Problem) -> Pose:
+    """The whole body's pose at ``q``: only the arm placed again from ``pb.base`` (the same
+    numbers as whole-body forward kinematics, a fraction of the work), else all of it."""
+    if pb.base is None:
+        return forward(skel, q, pb.root[0], pb.root[1], with_axes=False)
+    return forward_below(skel, q, pb.base, skel.joint_index(f"{side}_shoulder"))
+
+
+def _res(
+    skel: Skeleton,
+    q: FloatArray,
+    side: str,
+    pb: _Problem,
+    dofs: list[int],
+    pose: Pose | None = None,
+) -> FloatArray:
+    """The residuals, or a swivel seed's (the elbow's target and the hand's pose); ``pose``:
+    ``q``'s, if already known."""
+    pose = _pose(skel, q, side, pb) if pose is None else pose
     if pb.elbow is None:
-        return _residuals(skel, q, pb.root, side, pb.kept, pb.keep, pb.rest, dofs, pb.clear_weight)
-    pose = forward(skel, q, pb.root[0], pb.root[1], with_axes=False)
+        return _residuals(skel, q, pose, side, pb.kept, pb.keep, pb.rest, dofs, pb.clear_weight)
     off = (_hand_points(skel, pose, side) - pb.kept) * _point_weights(pb.keep)[..., None]
     elbow = pose.p[:, skel.joint_index(f"{side}_elbow")] - pb.elbow
     return np.concatenate([elbow, off.reshape(len(q), -1)], axis=1)
 
 
 def _lm(
-    skel: Skeleton, start: FloatArray, side: str, pb: _Problem, dofs: list[int], max_iter: int
+    skel: Skeleton,
+    start: FloatArray,
+    side: str,
+    pb: _Problem,
+    dofs: list[int],
+    max_iter: int,
+    base: Pose | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Levenberg-Marquardt on the arm's dofs from ``start``: (configurations, final cost). A
     row stops once it is clear (a swivel seed: once its elbow is there); the finite-difference
-    Jacobian of every working row is one batched forward kinematics."""
+    Jacobian of every working row is one batched forward kinematics of the arm alone (the
+    body's other dofs stay ``start``'s: ``forward_below``); ``base``: ``start``'s pose, if
+    known."""
     lo, hi = skel.lower[dofs], skel.upper[dofs]
     n_d = len(dofs)
     cur = np.array(start, dtype=float)
-    r = _res(skel, cur, side, pb, dofs)
+    if base is None:
+        base = forward(skel, cur, pb.root[0], pb.root[1], with_axes=False)
+    pb = replace(pb, base=base)
+    r = _res(skel, cur, side, pb, dofs, base)
     cost = np.einsum("nm,nm->n", r, r)
     mu = np.full(len(cur), 1e-3)
     eye = np.eye(n_d)
@@ -197,10 +252,7 @@ def _swivel_targets(
     s, e, w = (pose.p[:, skel.joint_index(f"{side}_{j}")] for j in ("shoulder", "elbow", "wrist"))
     k = w - s
     k /= np.maximum(np.linalg.norm(k, axis=1, keepdims=True), 1e-12)
-    v = e - s
-    c, sn = np.cos(angle), np.sin(angle)
-    kv = np.einsum("nc,nc->n", k, v)[:, None]
-    return s + v * c + np.cross(k, v) * sn + k * kv * (1.0 - c)
+    return rotate_about(s, k, e - s, np.cos(angle), np.sin(angle))
 
 
 def keep_clear(
@@ -213,6 +265,7 @@ def keep_clear(
     swivel: bool = False,
     start: FloatArray | None = None,
     firm: float = 0.0,
+    inside: FloatArray | None = None,
 ) -> FloatArray:
     """Configurations ``q`` (N, D) with the ``side`` arm moved clear of the trunk and thighs.
 
@@ -226,20 +279,29 @@ def keep_clear(
     hand's pose and the rest pull stay ``q``'s); a row clear there is returned as it is.
     ``firm``: a row the solve leaves inside the clearance is solved again with the clearance
     weighing ``firm`` (its orientation then yields ``firm`` times sooner), and takes that if it
-    is less deep and a kept hand stays within ``FIRM_HAND_TOL`` of its pose."""
+    is less deep and a kept hand stays within ``FIRM_HAND_TOL`` of its pose. ``inside``: (N,)
+    ``penetration`` of the rows where they start, if the caller has it (the clearance pass
+    poses every frame once for both arms)."""
     q = np.array(q, dtype=float)
     begin = q if start is None else np.asarray(start, dtype=float)
-    need = np.flatnonzero(penetration(skel, begin, root, side) > 0.0)
+    if inside is None:
+        inside = penetration(skel, begin, root, side)
+    need = np.flatnonzero(inside > 0.0)
     if need.size == 0:
         return np.array(begin, dtype=float)
     if need.size > MAX_ROWS:
-        return _keep_clear_sparse(skel, q, root, side, keep, need, begin, max_iter, swivel, firm)
+        return _keep_clear_sparse(
+            skel, q, root, side, keep, need, begin, max_iter, swivel, inside, firm
+        )
     dofs = arm_dofs(skel, side)
     root_n = (root[0][need], root[1][need])
     q0 = q[need].copy()
-    kept = _hand_points(skel, forward(skel, q0, *root_n, with_axes=False), side)
+    posed = forward(skel, q0, *root_n, with_axes=False)
+    kept = _hand_points(skel, posed, side)
     pb = _Problem(root_n, kept, np.asarray(keep, dtype=float)[need], q0)
-    best, cost = _lm(skel, begin[need], side, pb, dofs, max_iter)
+    # started from ``q`` itself (or the same numbers), its pose is the LM's start: posed once
+    same = start is None or np.array_equal(begin[need], q0)
+    best, cost = _lm(skel, begin[need], side, pb, dofs, max_iter, posed if same else None)
     if swivel:
         left = np.flatnonzero(penetration(skel, best, root_n, side) > SWIVEL_FROM)
         if left.size:
@@ -309,6 +371,7 @@ def _keep_clear_sparse(
     begin: FloatArray,
     max_iter: int,
     swivel: bool,
+    inside: FloatArray,
     firm: float = 0.0,
 ) -> FloatArray:
     """``keep_clear`` of more than ``MAX_ROWS`` rows: every k-th of them solved, the others'
@@ -321,6 +384,7 @@ def _keep_clear_sparse(
     solved = keep_clear(
         skel, q[picked], (root[0][picked], root[1][picked]), side,
         np.asarray(keep, dtype=float)[picked], max_iter, swivel, begin[picked], firm,
+        inside[picked],
     )  # fmt: skip
     correction = solved - begin[picked]
     out = np.array(begin, dtype=float)

@@ -416,6 +416,9 @@ EXAMPLE_FINDINGS = {
         ("MT0510", 35),
     ],
     "replace_fuel_filter": [  # the hold pass keeps the right hand on the bowl (was MT0511)
+        # kneeling down, the second leg's swing takes the CoM just outside the kneeling leg's
+        # triangle (0.02 mm, female P50; since the walks take their steps' time, issue 19)
+        ("MT0502", 32),
         # standing up, the left leg's swing takes the CoM 6 mm out of the one kneeling leg's
         # triangle (knee, balls, toe); the toes' joint (issue 18) removed the kneel's on both
         # toe tips at 32 and, with the kneeling pose it gives, the leaning reaches at 40-45

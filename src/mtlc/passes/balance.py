@@ -623,8 +623,12 @@ def blend(delta: np.ndarray, norm: np.ndarray, half: int) -> np.ndarray:
 
 
 def _mm(metres: float) -> str:
+    """Millimetres to print: whole from 1 cm, tenths from 1 mm, hundredths below (a shortfall
+    of 0.04 mm does not read "0.0 mm")."""
     mm = metres * 1000
-    return f"{mm:.0f}" if mm >= 9.5 else f"{mm:.1f}"
+    if mm >= 9.5:
+        return f"{mm:.0f}"
+    return f"{mm:.1f}" if mm >= 0.95 else f"{mm:.2f}"
 
 
 def failure_runs(failed: np.ndarray, gap: int = 6) -> list[tuple[int, int]]:

@@ -444,7 +444,7 @@ def _kneel_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     knees = _knees_of(seg)
     before = _last_posture(state.ir, seg)
     kneel = _kneel_before(state.ir, seg, ctx)
-    if before is not None and kneel is not None and _knees_down(state, seg, _knees_of(before)):
+    if before is not None and kneel is not None and _knees_down(state, seg, before):
         _kneel_from_kneel(seg, kneel, _knees_of(before), knees, state, ctx)
         return
     q0 = state.q_at(seg.start, skip=seg)
@@ -460,19 +460,27 @@ def _kneel_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     mark(ctx.cache, seg, "kneel_arms")
 
 
-KNEELING_TOL = 0.02  # m: a knee this far above where a kneel puts it still kneels
+KNEELING_TOL = 0.02  # m: knees this close to where the last kneel left them are still there
+KNEELING_HIGH = 0.05  # m: and a knee this far above ``KNEE_HEIGHT`` does not kneel at all
 
 
-def _knees_down(state: PoseState, seg: Segment, knees: int) -> bool:
-    """Whether the body, as ``seg`` starts, kneels on ``knees`` (1: the right, 2: both): each
-    such knee's centre within ``KNEELING_TOL`` of ``KNEE_HEIGHT`` above the ground."""
+def _knees_down(state: PoseState, seg: Segment, last: Segment) -> bool:
+    """Whether the body, as ``seg`` starts, still kneels as the kneel ``last`` left it: each of
+    its kneeling knees (the right; both for two) within ``KNEELING_TOL`` of where it was as
+    ``last`` ended, and not ``KNEELING_HIGH`` above ``KNEE_HEIGHT`` (the plan of a large
+    manikin's half kneel leaves its knee 3.6 cm above it, male P95)."""
     skel = state.skel
-    q = state.q_at(seg.start, skip=seg)
-    root, rot = state.root_at(seg.start, skip=seg)
-    pose = forward(skel, q[None], root[None], rot[None], with_axes=False)
-    sides = ("r", "l")[:knees]
-    heights = [float(pose.p[0, skel.joint_index(f"{s}_knee"), 1]) for s in sides]
-    return max(heights) - state.ir.ground <= KNEE_HEIGHT + KNEELING_TOL
+    sides = ("r", "l")[: _knees_of(last)]
+
+    def heights(t: float) -> np.ndarray:
+        q = state.q_at(t, skip=seg)
+        root, rot = state.root_at(t, skip=seg)
+        pose = forward(skel, q[None], root[None], rot[None], with_axes=False)
+        return np.array([pose.p[0, skel.joint_index(f"{s}_knee"), 1] for s in sides])
+
+    now, then = heights(seg.start), heights(last.end)
+    return bool(np.all(np.abs(now - then) <= KNEELING_TOL)
+                and np.all(now - state.ir.ground <= KNEE_HEIGHT + KNEELING_HIGH))  # fmt: skip
 
 
 def _kneel_from_kneel(
@@ -490,13 +498,15 @@ def _kneel_from_kneel(
     plan, frame = kneel
     duration = seg.end - seg.start
     half = float(phase_edges()[HALF_KNEEL_PHASES])  # share of kneel(2) that is kneel(1)
-    if knees == 2:  # the whole two-knee kneel from the same standing start, its tail played
-        full_time = duration / (1.0 - half)
+    if knees == 2:  # the whole two-knee kneel from the same standing start, its tail played;
+        # its first four phases timed as the one-knee kneel's, so both reach the same half kneel
+        full_time = float(plan.time[-1]) / half
         root = np.array([0.0, frame[2] + float(plan.x[0, 1]), 0.0])
         full = plan_kneel(state.skel, plan.body.q_base, root, frame[2], 2, full_time)
         piece = full.window(half * full_time, full_time, duration)
         # from where the one-knee kneel really left the body: the two solves' half kneels
-        # differ by their timing (millimetres), the difference fades over the first phase
+        # differ a little (their frames are not at the same instants), which fades out over
+        # the first phase
         fade = 1.0 - smoothstep(piece.time / max(float(piece.phases[0]["end"]), 1e-9))
         piece.x = piece.x + fade[:, None] * (plan.x[-1] - piece.x[0])[None]
         standing = full

@@ -848,7 +848,7 @@ class KneelPlan:
         out[exact] = np.where((f[exact] < 0.5)[:, None], self.x[k[exact]], self.x[k[exact] + 1])
         blended = np.flatnonzero(~exact)
         if blended.size:
-            a, b = (_contact_points(self.body, self.x[k[blended] + i]) for i in (0, 1))
+            a, b = (contact_points(self.body, self.x[k[blended] + i]) for i in (0, 1))
             low = np.full(a.shape[1], CONTACT_TOL)
             low[len(CONTACT_SITES) :] += KNEE_HEIGHT
             down = (a[..., 1] < low) & (b[..., 1] < low)  # on the ground in both: firm
@@ -858,7 +858,7 @@ class KneelPlan:
         return times, out
 
 
-def _contact_points(body: Body, x: FloatArray) -> FloatArray:
+def contact_points(body: Body, x: FloatArray) -> FloatArray:
     """Sole sites and knee centres (F, P, 3) of states ``x`` (F, 3 + V)."""
     pose = body.pose(x)
     sites = site_positions(body.skel, pose, CONTACT_SITES)

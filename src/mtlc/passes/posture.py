@@ -37,11 +37,14 @@ from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import FOOT_POINTS
 from mtlc.passes.kneel import (
     HALF_KNEEL_PHASES,
+    PLANT_W,
     SPINE_VARS,
     TOE_VARS,
     KneelPlan,
+    contact_points,
     phase_edges,
     plan_kneel,
+    polish_frames,
     smoothstep,
     to_world,
 )
@@ -507,8 +510,7 @@ def _kneel_from_kneel(
         # from where the one-knee kneel really left the body: the two solves' half kneels
         # differ a little (their frames are not at the same instants), which fades out over
         # the first phase
-        fade = 1.0 - smoothstep(piece.time / max(float(piece.phases[0]["end"]), 1e-9))
-        piece.x = piece.x + fade[:, None] * (plan.x[-1] - piece.x[0])[None]
+        piece.x = _faded_in(piece, plan.x[-1])
         standing = full
     else:  # the left knee comes up: the two-knee kneel's last phases backwards
         whole = float(plan.time[-1])
@@ -522,6 +524,23 @@ def _kneel_from_kneel(
     ctx.cache.setdefault(KNEEL_PLANS, {})[id(seg)] = (standing, frame)
     state.add(seg)
     mark(ctx.cache, seg, "kneel_on")
+
+
+def _faded_in(piece: KneelPlan, start: FloatArray) -> FloatArray:
+    """States of ``piece`` that start at ``start`` instead of its own first state, the
+    difference fading out over its first phase; the faded frames are polished so that soles
+    and knees go straight from where ``start`` has them to where the piece does (blending the
+    angles of two poses put the front toe 34 mm into the floor, male P95)."""
+    fade = 1.0 - smoothstep(piece.time / max(float(piece.phases[0]["end"]), 1e-9))
+    x = piece.x + fade[:, None] * (start - piece.x[0])[None]
+    rows = np.flatnonzero((fade > 1e-9) & (fade < 1.0 - 1e-9))
+    if rows.size:
+        a = contact_points(piece.body, start[None])
+        b = contact_points(piece.body, piece.x[rows])
+        target = b + fade[rows, None, None] * (a - b)
+        weight = np.full(target.shape[:2], PLANT_W)
+        x[rows] = polish_frames(piece.body, x[rows], target, weight)
+    return x
 
 
 def _hold_kneel(

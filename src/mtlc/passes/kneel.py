@@ -807,6 +807,26 @@ class KneelPlan:
              for x in self.rolls],
         )  # fmt: skip
 
+    def window(self, start: float, end: float, duration: float | None = None) -> KneelPlan:
+        """The part of the motion from ``start`` to ``end`` (s; cut at the solved frames there),
+        its times from 0 and stretched to last ``duration`` (default: as long as it was), with
+        the phases, steps and rolls that overlap it, clipped to it: a kneel taken up or undone
+        part of the way (kneel(2) from kneeling on one knee and back, ``passes.posture``)."""
+        a = int(np.searchsorted(self.time, start - 1e-9))
+        b = int(np.searchsorted(self.time, end + 1e-9))
+        time = self.time[a:b]
+        t0, t1 = float(time[0]), float(time[-1])
+        k = (t1 - t0 if duration is None else duration) / (t1 - t0)
+
+        def clipped(items: list[dict[str, Any]], lo: str, hi: str) -> list[dict[str, Any]]:
+            return [{**x, lo: (max(x[lo], t0) - t0) * k, hi: (min(x[hi], t1) - t0) * k}
+                    for x in items if x[hi] > t0 + 1e-9 and x[lo] < t1 - 1e-9]  # fmt: skip
+
+        return KneelPlan(
+            self.body, (time - t0) * k, self.x[a:b].copy(), clipped(self.phases, "start", "end"),
+            clipped(self.steps, "t_lift", "t_land"), clipped(self.rolls, "from", "to"),
+        )  # fmt: skip
+
     def on_grid(self, t0: float, fps: float) -> tuple[FloatArray, FloatArray]:
         """(times, states) at ``t0`` and then at the interpolation grid's instants (multiples of
         1/fps): the frames the motion is made of are then solved poses, not blends of two.
@@ -828,7 +848,7 @@ class KneelPlan:
         out[exact] = np.where((f[exact] < 0.5)[:, None], self.x[k[exact]], self.x[k[exact] + 1])
         blended = np.flatnonzero(~exact)
         if blended.size:
-            a, b = (_contact_points(self.body, self.x[k[blended] + i]) for i in (0, 1))
+            a, b = (contact_points(self.body, self.x[k[blended] + i]) for i in (0, 1))
             low = np.full(a.shape[1], CONTACT_TOL)
             low[len(CONTACT_SITES) :] += KNEE_HEIGHT
             down = (a[..., 1] < low) & (b[..., 1] < low)  # on the ground in both: firm
@@ -838,7 +858,7 @@ class KneelPlan:
         return times, out
 
 
-def _contact_points(body: Body, x: FloatArray) -> FloatArray:
+def contact_points(body: Body, x: FloatArray) -> FloatArray:
     """Sole sites and knee centres (F, P, 3) of states ``x`` (F, 3 + V)."""
     pose = body.pose(x)
     sites = site_positions(body.skel, pose, CONTACT_SITES)

@@ -35,7 +35,19 @@ from mtlc.body.ik.clearance import penetration
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import FOOT_POINTS
-from mtlc.passes.kneel import KneelPlan, plan_kneel, smoothstep, to_world
+from mtlc.passes.kneel import (
+    HALF_KNEEL_PHASES,
+    PLANT_W,
+    SPINE_VARS,
+    TOE_VARS,
+    KneelPlan,
+    contact_points,
+    phase_edges,
+    plan_kneel,
+    polish_frames,
+    smoothstep,
+    to_world,
+)
 from mtlc.passes.state import PoseState, mark, reanchor
 
 TRUNK_DOFS = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
@@ -423,12 +435,23 @@ def restate_kneel_arms(seg: Segment, state: PoseState) -> None:
     kf.q[:, arms] = start[None] + share[:, None] * (target - start)[None]
 
 
+def _knees_of(seg: Segment) -> int:
+    return 2 if int(seg.goal.params.get("knees", 2)) == 2 else 1
+
+
 def _kneel_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     """The stepping kneel (``mtlc.passes.kneel``): dense keyframes of legs, spine and root, and
-    of the free arms (``_kneel_arms``)."""
+    of the free arms (``_kneel_arms``). A kneel while the body kneels already does not start
+    from standing: it holds that kneel or goes on to (or back from) the other one
+    (``_kneel_from_kneel``)."""
+    knees = _knees_of(seg)
+    before = _last_posture(state.ir, seg)
+    kneel = _kneel_before(state.ir, seg, ctx)
+    if before is not None and kneel is not None and _knees_down(state, seg, before):
+        _kneel_from_kneel(seg, kneel, _knees_of(before), knees, state, ctx)
+        return
     q0 = state.q_at(seg.start, skip=seg)
     root, rot = state.root_at(seg.start, skip=seg)
-    knees = 2 if int(seg.goal.params.get("knees", 2)) == 2 else 1
     ground = state.ir.ground
     plan = plan_kneel(state.skel, q0, root, ground, knees, seg.end - seg.start)
     frame = (root.copy(), _heading(rot), ground)
@@ -438,6 +461,113 @@ def _kneel_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     ctx.cache.setdefault(KNEEL_PLANS, {})[id(seg)] = (plan, frame)
     state.add(seg)
     mark(ctx.cache, seg, "kneel_arms")
+
+
+KNEELING_TOL = 0.02  # m: knees this close to where the last kneel left them are still there
+KNEELING_HIGH = 0.05  # m: and a knee this far above ``KNEE_HEIGHT`` does not kneel at all
+
+
+def _knees_down(state: PoseState, seg: Segment, last: Segment) -> bool:
+    """Whether the body, as ``seg`` starts, still kneels as the kneel ``last`` left it: each of
+    its kneeling knees (the right; both for two) within ``KNEELING_TOL`` of where it was as
+    ``last`` ended, and not ``KNEELING_HIGH`` above ``KNEE_HEIGHT`` (the plan of a large
+    manikin's half kneel leaves its knee 3.6 cm above it, male P95)."""
+    skel = state.skel
+    sides = ("r", "l")[: _knees_of(last)]
+
+    def heights(t: float) -> np.ndarray:
+        q = state.q_at(t, skip=seg)
+        root, rot = state.root_at(t, skip=seg)
+        pose = forward(skel, q[None], root[None], rot[None], with_axes=False)
+        return np.array([pose.p[0, skel.joint_index(f"{s}_knee"), 1] for s in sides])
+
+    now, then = heights(seg.start), heights(last.end)
+    return bool(np.all(np.abs(now - then) <= KNEELING_TOL)
+                and np.all(now - state.ir.ground <= KNEE_HEIGHT + KNEELING_HIGH))  # fmt: skip
+
+
+def _kneel_from_kneel(
+    seg: Segment, kneel: tuple[KneelPlan, tuple[FloatArray, float, float]], had: int,
+    knees: int, state: PoseState, ctx: PassContext,
+) -> None:  # fmt: skip
+    """A kneel on ``knees`` while the body kneels on ``had`` by the plan ``kneel`` (from
+    standing): the same knees hold the kneel (``_hold_kneel``); both from the right knee go
+    on with the two-knee kneel's last phases, the right knee from both undo them
+    (``_kneel_between``). The plan recorded for a stand after it is always one from standing
+    to where this segment leaves the body."""
+    if knees == had:
+        _hold_kneel(seg, kneel, state, ctx)
+        return
+    plan, frame = kneel
+    duration = seg.end - seg.start
+    half = float(phase_edges()[HALF_KNEEL_PHASES])  # share of kneel(2) that is kneel(1)
+    if knees == 2:  # the whole two-knee kneel from the same standing start, its tail played;
+        # its first four phases timed as the one-knee kneel's, so both reach the same half kneel
+        full_time = float(plan.time[-1]) / half
+        root = np.array([0.0, frame[2] + float(plan.x[0, 1]), 0.0])
+        full = plan_kneel(state.skel, plan.body.q_base, root, frame[2], 2, full_time)
+        piece = full.window(half * full_time, full_time, duration)
+        # from where the one-knee kneel really left the body: the two solves' half kneels
+        # differ a little (their frames are not at the same instants), which fades out over
+        # the first phase
+        piece.x = _faded_in(piece, plan.x[-1])
+        standing = full
+    else:  # the left knee comes up: the two-knee kneel's last phases backwards
+        whole = float(plan.time[-1])
+        cut = float(plan.time[np.searchsorted(plan.time, half * whole - 1e-9)])  # a solved frame
+        piece = plan.window(cut, whole).reversed(duration)
+        standing = plan.window(0.0, cut)
+    q0 = state.q_at(seg.start, skip=seg)
+    _keyed(seg, piece, seg.start, frame)
+    sides = tuple(a[0] for a in free_arms(state.ir, seg))
+    _kneel_arms(seg, piece, q0, sides, state.skel)
+    ctx.cache.setdefault(KNEEL_PLANS, {})[id(seg)] = (standing, frame)
+    state.add(seg)
+    mark(ctx.cache, seg, "kneel_on")
+
+
+def _faded_in(piece: KneelPlan, start: FloatArray) -> FloatArray:
+    """States of ``piece`` that start at ``start`` instead of its own first state, the
+    difference fading out over its first phase; the faded frames are polished so that soles
+    and knees go straight from where ``start`` has them to where the piece does (blending the
+    angles of two poses put the front toe 34 mm into the floor, male P95)."""
+    fade = 1.0 - smoothstep(piece.time / max(float(piece.phases[0]["end"]), 1e-9))
+    x = piece.x + fade[:, None] * (start - piece.x[0])[None]
+    rows = np.flatnonzero((fade > 1e-9) & (fade < 1.0 - 1e-9))
+    if rows.size:
+        a = contact_points(piece.body, start[None])
+        b = contact_points(piece.body, piece.x[rows])
+        target = b + fade[rows, None, None] * (a - b)
+        weight = np.full(target.shape[:2], PLANT_W)
+        x[rows] = polish_frames(piece.body, x[rows], target, weight)
+    return x
+
+
+def _hold_kneel(
+    seg: Segment, kneel: tuple[KneelPlan, tuple[FloatArray, float, float]], state: PoseState,
+    ctx: PassContext,
+) -> None:  # fmt: skip
+    """The body kneels as the last kneel left it: legs, toes and root keyed where its plan
+    ended, for the whole segment; the spine and arms are left to the reaches around it (kneel,
+    pick, kneel, place: the author restates the posture, nothing steps)."""
+    plan, frame = kneel
+    held = (*LEG_DOFS, *TOE_VARS)
+    cols = [plan.dofs.index(n) for n in held]
+    last = plan.x[-1]
+    root = to_world(last[None], *frame)[0]
+    seg.keyframes = Keyframes(
+        time=np.array([seg.start, seg.end]), dofs=held,
+        q=np.tile(last[3:][cols], (2, 1)), root_position=np.stack([root, root]),
+    )  # fmt: skip
+    seg.result = {
+        "root": "keyed",
+        "root_height": float(last[1]),
+        "phases": [{"name": "hold the kneel", "start": seg.start, "end": seg.end}],
+        "steps": [],
+        "rolls": [],
+    }
+    ctx.cache.setdefault(KNEEL_PLANS, {})[id(seg)] = kneel
+    state.add(seg)
 
 
 def _keyed(
@@ -462,13 +592,18 @@ def _keyed(
     }
 
 
+def _last_posture(ir: MotionIR, seg: Segment) -> Segment | None:
+    """The last whole-body posture that ended by the time ``seg`` starts."""
+    before = [s for s in ir.on_track("root") if s.kind == "posture" and s.end <= seg.start + 1e-9]
+    return max(before, key=lambda s: s.end, default=None)
+
+
 def _kneel_before(
     ir: MotionIR, seg: Segment, ctx: PassContext
 ) -> tuple[KneelPlan, tuple[FloatArray, float, float]] | None:
     """The plan of the kneel the body is in when ``seg`` starts (the last whole-body posture
     before it was a kneel), else None."""
-    before = [s for s in ir.on_track("root") if s.kind == "posture" and s.end <= seg.start + 1e-9]
-    last = max(before, key=lambda s: s.end, default=None)
+    last = _last_posture(ir, seg)
     if last is None or last.goal.params.get("posture") != "kneel":
         return None
     found: tuple[KneelPlan, tuple[FloatArray, float, float]] | None
@@ -574,7 +709,30 @@ def _twist_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     mark(ctx.cache, seg, "twist")
 
 
-RESTATERS = {"twist": restate_twist, "kneel_arms": restate_kneel_arms}
+def restate_kneel_on(seg: Segment, state: PoseState) -> None:
+    """A kneel that goes on from (or back to) another kneel: its arm ramps as any kneel's, and
+    its spine starts where the reaches since that kneel left it and goes to the plan's over the
+    first phase, before a knee moves (within the limits), instead of jumping to where that kneel's plan left it (a
+    trunk leaning to a part on the floor stood up in one frame and tore the held hand off it:
+    1.2 m); the plan's own trunk keeps the swing balanced as it ends."""
+    restate_kneel_arms(seg, state)
+    kf = seg.keyframes
+    assert kf is not None
+    skel = state.skel
+    cols = [kf.dofs.index(n) for n in SPINE_VARS]
+    dofs = [skel.dof_index(n) for n in SPINE_VARS]
+    q = state.q_at(seg.start, skip=seg)
+    settled = float(seg.result["phases"][0]["end"])
+    fade = 1.0 - smoothstep((kf.time - seg.start) / max(settled - seg.start, 1e-9))
+    shifted = kf.q[:, cols] + fade[:, None] * (q[dofs] - kf.q[0, cols])[None]
+    kf.q[:, cols] = np.clip(shifted, skel.lower[dofs], skel.upper[dofs])
+
+
+RESTATERS = {
+    "twist": restate_twist,
+    "kneel_arms": restate_kneel_arms,
+    "kneel_on": restate_kneel_on,
+}
 
 
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:

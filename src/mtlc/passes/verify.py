@@ -159,6 +159,13 @@ class _Verifier:
     def where(self, seg: Segment) -> str:
         return " > ".join(seg.provenance.path)
 
+    def pulled_during(self, k: int, side: str) -> str:
+        """The words " during `...`" naming what moves at frame ``k`` when a ``side`` hand leaves
+        what it rests on or holds: a posture, else the other arm's last segment, else anything."""
+        other = ARM_TRACK["l" if side == "r" else "r"]
+        by = self.posture_at(k) or self.last_on(other, k) or self.active(k)
+        return f" during `{self.where(by)}`" if by is not None else ""
+
     # -- contact -----------------------------------------------------------------------------
 
     def contacts(self) -> None:
@@ -242,9 +249,7 @@ class _Verifier:
         if err[j] <= TOLERANCE:
             return
         k = int(np.flatnonzero(frames)[int(np.argmax(err > TOLERANCE))])  # first frame off
-        other = ARM_TRACK["l" if side == "r" else "r"]
-        by = self.posture_at(k) or self.last_on(other, k) or self.active(k)
-        during = f" during `{self.where(by)}`" if by is not None else ""
+        during = self.pulled_during(k, side)
         self.report(
             "MT0511",
             f"the {HAND_NAMES[side]} resting on site `{seg.goal.site}` is {_mm(float(err[j]))} "
@@ -405,9 +410,7 @@ class _Verifier:
                 if worst > TOLERANCE:
                     # what moves when the hand first leaves is what pulls it off
                     k = first + int(np.argmax(drift > TOLERANCE))
-                    other = ARM_TRACK["l" if side == "r" else "r"]
-                    by = self.posture_at(k) or self.last_on(other, k) or self.active(k)
-                    during = f" during `{self.where(by)}`" if by is not None else ""
+                    during = self.pulled_during(k, side)
                     self.report(
                         "MT0511",
                         f"the {HAND_NAMES[side]} holding a part moves {_mm(worst)} mm from "

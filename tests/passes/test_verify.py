@@ -416,13 +416,10 @@ EXAMPLE_FINDINGS = {
         ("MT0510", 35),
     ],
     "replace_fuel_filter": [  # the hold pass keeps the right hand on the bowl (was MT0511)
-        # kneeling down, the second leg's swing takes the CoM just outside the kneeling leg's
-        # triangle (0.02 mm, female P50; since the walks take their steps' time, issue 19)
-        ("MT0502", 32),
-        # standing up, the left leg's swing takes the CoM 6 mm out of the one kneeling leg's
-        # triangle (knee, balls, toe); the toes' joint (issue 18) removed the kneel's on both
-        # toe tips at 32 and, with the kneeling pose it gives, the leaning reaches at 40-45
-        ("MT0502", 47),
+        # the second leg's swing kept the CoM just outside the kneeling leg's triangle (knee,
+        # balls, toe) kneeling down (MT0502 at 32) and 6 mm out standing up (at 47): the
+        # kneel's CoM pull on one knee now outweighs the swinging leg and its frame polish no
+        # longer pulls the CoM harder than the swing foot's own targets (issue 18)
         # the right hand out of the thighs kneeling down and standing up (was MT0514 at 32, 47)
     ],
 }

@@ -51,7 +51,12 @@ PREDICT = 1.0  # a frame starts from the last one moved on by this share of its 
 STEP_TOL = 1e-5  # rad or m: a frame whose last step was this small has converged
 PLANT_W = 1000.0  # residual weights (per metre, per radian)
 KNEE_W = 60.0
-ONE_KNEE_COM_W = 3 * 20.0  # the CoM on one kneeling leg (its support is a narrow triangle)
+# the CoM on one kneeling leg (its support is a narrow triangle): strong enough to hold it
+# there against the swinging leg (at 60 it sat 17-40 mm off the leg's axis; issue 18)
+ONE_KNEE_COM_W = 250.0
+# the kneeling leg's planted points during the swing, × PLANT_W: at 1 that CoM pull slid the
+# right toe tip 2-3 cm/s for men P90-P99 and women P99
+KNEEL_LEG_FIRM = 2.0
 HEEL_W = 20.0  # a kneeling heel's guide
 LAND_HEEL_W = 20.0  # and a landing one's
 SWING_W = 40.0
@@ -287,9 +292,12 @@ class Body:
     def polish(self, x: FloatArray, tgs: list[Targets]) -> FloatArray:
         """A few steps on the planted contacts (weight ``PLANT_W``), levels and CoM alone, for
         states ``x`` (F, n) at once: they put planted points back within microns (a planted
-        point that drifts by a fraction of a millimetre a frame skates centimetres a second)."""
+        point that drifts by a fraction of a millimetre a frame skates centimetres a second).
+        The CoM is pulled at most at ``COM_W`` here: the polish drops a swinging foot's
+        targets, and a frame's stronger pull (``ONE_KNEE_COM_W``) then flung that leg 25 cm
+        up in one frame and back, the centre of mass with it (issue 18)."""
         hard = [Targets(points=[p for p in tg.points if p[2] >= PLANT_W], level=tg.level,
-                        com=tg.com, com_w=tg.com_w) for tg in tgs]  # fmt: skip
+                        com=tg.com, com_w=min(tg.com_w, COM_W)) for tg in tgs]  # fmt: skip
         rows = [i for i, tg in enumerate(hard) if tg.points]
         out = x.copy()
         if rows:
@@ -717,6 +725,9 @@ def kneel_targets(
             tg.points = planted("l_toe0", "r_toe", "r_knee")
             tg.level = ["r", "l"]
             tg.com = com_path(geo.com_half, geo.com_one, s)
+            # the weight goes onto the kneeling leg before the other lifts: the CoM's pull
+            # grows to the swing's, so the swing starts from the CoM over its support
+            tg.com_w = COM_W + (ONE_KNEE_COM_W - COM_W) * float(smoothstep(s))
             tg.root_y = (start[k][1], PELVIS_W * float(smoothstep(s)))
         elif k == 5:
             # the left leg swings in joint space from where it was to its kneeling angles: the
@@ -725,7 +736,9 @@ def kneel_targets(
             if "final" not in start:
                 start["final"] = body.solve(x, final_targets(x), iterations=80)
             x_final = start["final"]
-            tg.points = planted("r_toe", "r_knee")
+            # the kneeling leg held firmer than elsewhere: the CoM's pull on it is stronger
+            tg.points = [(n, p, w * KNEEL_LEG_FIRM if w >= PLANT_W else w)
+                         for n, p, w in planted("r_toe", "r_knee")]  # fmt: skip
             if "foot" not in start:
                 pose = body.pose(start[k][None])
                 start["foot"] = site_positions(skel, pose, [f"l_{n}" for n in SOLE])[0]

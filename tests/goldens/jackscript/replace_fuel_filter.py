@@ -190,203 +190,199 @@ def replace_fuel_filter():
         'left_knee': (117.977,), 'left_ankle': (19.816, -0.206), 'right_toes': (76.057,),
         'left_toes': (5.935,),
     })
-    human.KeyRoot(2.6, (3.217, 41.175, 37.534), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.6, (3.217, 41.176, 37.536), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.6, {
-        'spine_lumbar': (1.183, 0.443, 0.0), 'spine_thoracic': (0.11, 0.08, 0.0),
-        'right_hip': (32.847, 0.0, 0.0), 'right_knee': (134.834,), 'right_ankle': (15.003, 0.0),
-        'left_hip': (94.14, 0.0, 0.0), 'left_knee': (127.058,), 'left_ankle': (19.936, 0.0),
-        'right_toes': (86.984,), 'left_toes': (12.982,),
+        'spine_lumbar': (1.173, 0.447, 0.0), 'spine_thoracic': (0.108, 0.08, 0.0),
+        'right_hip': (32.844, 0.0, 0.0), 'right_knee': (134.831,), 'right_ankle': (15.003, 0.0),
+        'left_hip': (94.138, 0.0, 0.0), 'left_knee': (127.059,), 'left_ankle': (19.936, 0.0),
+        'right_toes': (86.984,), 'left_toes': (12.985,),
     })
-    human.KeyRoot(2.7, (3.177, 41.316, 37.75), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.7, (3.173, 41.332, 37.775), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'spine_lumbar': (-10.168, 17.194, 0.0), 'spine_thoracic': (-2.346, 4.266, 0.0),
-        'right_hip': (32.5, -0.001, 0.0), 'right_knee': (134.487,),
-        'left_hip': (93.853, 0.0, 0.001), 'left_knee': (127.089,), 'left_ankle': (20.0, 0.001),
-        'left_toes': (13.236,),
+        'spine_lumbar': (-10.056, 17.379, 0.0), 'spine_thoracic': (-3.979, 4.291, 0.0),
+        'right_hip': (32.46, 0.0, 0.0), 'right_knee': (134.447,), 'left_hip': (93.822, 0.0, 0.001),
+        'left_knee': (127.093,), 'left_ankle': (20.0, 0.001), 'left_toes': (13.271,),
     })
-    human.KeyRoot(2.8, (3.185, 41.113, 37.43), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.8, (3.234, 41.107, 37.43), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (-17.149, 20.0, 0.0), 'spine_thoracic': (-13.744, 10.0, 0.0),
-        'right_hip': (32.999, -0.06, -0.025), 'right_knee': (134.987,),
-        'right_ankle': (15.006, 0.094), 'left_hip': (94.759, -4.476, -5.559),
-        'left_knee': (126.647,), 'left_ankle': (20.0, -1.089), 'left_toes': (16.318,),
+        'spine_lumbar': (-16.844, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (33.014, -0.003, -0.001), 'right_knee': (134.998,),
+        'left_hip': (94.53, -3.601, -0.677), 'left_knee': (127.403,), 'left_ankle': (19.952, 0.314),
+        'left_toes': (13.173,),
     })
-    human.KeyRoot(2.9, (3.218, 41.109, 37.432), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.9, (3.233, 41.113, 37.44), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.9, {
-        'spine_lumbar': (-17.795, 20.0, 0.0), 'spine_thoracic': (-12.987, 10.0, 0.0),
-        'right_hip': (33.007, -0.021, -0.009), 'right_knee': (134.994,),
-        'right_ankle': (15.003, 0.036), 'left_hip': (107.46, -24.993, -23.543),
-        'left_knee': (117.317,), 'left_ankle': (12.842, 5.307), 'right_toes': (86.983,),
+        'spine_lumbar': (-15.34, 20.0, 0.0), 'right_hip': (32.999, -0.003, -0.001),
+        'right_knee': (134.983,), 'left_hip': (106.385, -24.866, 5.711), 'left_knee': (133.424,),
+        'left_ankle': (11.961, 22.061), 'left_toes': (26.017,),
     })
-    human.KeyRoot(3.0, (3.043, 41.516, 38.013), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.0, (3.2, 41.229, 37.617), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'spine_lumbar': (-26.224, 20.0, 0.0), 'spine_thoracic': (-13.598, 10.0, 0.0),
-        'right_hip': (32.015, -0.103, -0.041), 'right_knee': (134.037,),
-        'right_ankle': (15.161, 0.134), 'left_hip': (100.343, -0.917, 20.606),
-        'left_knee': (135.0,), 'left_ankle': (-23.427, 2.269), 'right_toes': (86.598,),
-        'left_toes': (29.812,),
+        'spine_lumbar': (-15.972, 20.0, 0.0), 'right_hip': (32.714, -0.003, -0.001),
+        'right_knee': (134.698,), 'right_ankle': (15.002, 0.002),
+        'left_hip': (99.895, -24.423, 20.778), 'left_knee': (133.932,),
+        'left_ankle': (-22.564, 17.533), 'right_toes': (86.982,), 'left_toes': (30.877,),
     })
-    human.KeyRoot(3.1, (2.964, 41.77, 38.418), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.1, (2.627, 41.619, 38.137), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.1, {
-        'spine_lumbar': (-30.0, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (31.37, -0.107, -0.042), 'right_knee': (133.393,),
-        'right_ankle': (15.16, 0.146), 'left_hip': (77.377, -0.683, 32.459), 'left_knee': (135.0,),
-        'left_ankle': (-45.627, 1.29), 'right_toes': (86.595,), 'left_toes': (46.595,),
+        'spine_lumbar': (-17.403, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (31.738, -0.595, -0.262), 'right_knee': (133.755,),
+        'right_ankle': (15.049, 0.406), 'left_hip': (76.886, -7.168, 34.777), 'left_knee': (135.0,),
+        'left_ankle': (-45.65, 11.589), 'right_toes': (86.746,), 'left_toes': (48.434,),
     })
-    human.KeyRoot(3.2, (2.652, 42.505, 39.657), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.2, (2.644, 42.46, 39.586), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.2, {
-        'spine_lumbar': (-25.337, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (29.435, -0.214, -0.065), 'right_knee': (131.43,),
-        'right_ankle': (15.027, 0.322), 'left_hip': (46.263, -25.0, -3.006),
-        'left_knee': (132.616,), 'left_ankle': (-43.027, 8.127), 'right_toes': (86.897,),
-        'left_toes': (78.492,),
+        'spine_lumbar': (-15.347, 20.0, 0.0), 'spine_thoracic': (-14.905, 10.0, 0.0),
+        'right_hip': (29.546, -0.247, -0.094), 'right_knee': (131.539,),
+        'left_hip': (45.385, -22.122, 2.425), 'left_knee': (134.31,),
+        'left_ankle': (-41.711, 9.374), 'right_toes': (86.931,), 'left_toes': (75.571,),
     })
-    human.KeyRoot(3.3, (2.53, 43.302, 41.153), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.3, (2.385, 43.753, 42.045), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.3, {
-        'spine_lumbar': (-20.12, 20.0, 0.0), 'spine_thoracic': (-13.869, 10.0, 0.0),
-        'right_hip': (27.185, -0.024, -0.008), 'right_knee': (129.172,),
-        'right_ankle': (15.003, 0.038), 'left_hip': (26.524, -25.0, -23.697),
-        'left_knee': (118.088,), 'left_ankle': (18.979, 1.521), 'left_toes': (88.25,),
+        'spine_lumbar': (-19.087, 20.0, 0.0), 'right_hip': (25.841, -0.002, -0.001),
+        'right_knee': (127.826,), 'right_ankle': (15.002, 0.002),
+        'left_hip': (25.151, -20.396, -1.978), 'left_knee': (130.92,),
+        'left_ankle': (18.487, 3.853), 'left_toes': (88.565,),
     })
-    human.KeyRoot(3.4, (1.744, 45.154, 45.202), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.4, (1.846, 45.054, 44.96), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.4, {
-        'spine_lumbar': (-30.0, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (21.165, -0.069, -0.017), 'right_knee': (123.153,),
-        'right_ankle': (15.004, 0.102), 'left_hip': (20.549, -0.154, 0.223), 'left_knee': (124.41,),
-        'left_ankle': (17.429, 0.271), 'right_toes': (86.975,), 'left_toes': (86.429,),
+        'spine_lumbar': (-29.227, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (21.533, -0.004, -0.001), 'right_knee': (123.517,),
+        'left_hip': (20.961, -0.017, 0.02), 'left_knee': (124.791,), 'left_ankle': (17.285, 0.025),
+        'left_toes': (86.543,),
     })
-    human.KeyRoot(3.5, (2.102, 44.469, 43.575), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.5, (2.158, 44.334, 43.274), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.5, {
-        'spine_lumbar': (-22.747, 20.0, 0.0), 'spine_thoracic': (-8.471, 10.0, 0.0),
+        'spine_lumbar': (-21.804, 20.0, 0.0), 'spine_thoracic': (-8.307, 10.0, 0.0),
         'right_shoulder': (8.594, 7.497, -19.951), 'left_shoulder': (8.594, 7.497, -19.951),
-        'right_hip': (23.562, -0.003, -0.001), 'right_knee': (125.549,),
-        'left_hip': (23.562, 0.003, 0.001), 'left_knee': (125.549,), 'left_ankle': (15.003, -0.004),
+        'right_hip': (24.007, -0.003, -0.001), 'right_knee': (125.993,),
+        'left_hip': (24.007, 0.003, 0.001), 'left_knee': (125.993,), 'left_ankle': (15.003, -0.004),
         'left_toes': (86.984,),
     })
-    human.KeyRoot(3.6, (2.369, 43.799, 42.138), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.6, (2.401, 43.715, 41.968), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.6, {
-        'spine_lumbar': (-5.565, 18.989, 0.0), 'spine_thoracic': (-1.897, 5.493, 0.0),
+        'spine_lumbar': (-5.069, 18.99, 0.0), 'spine_thoracic': (-1.802, 5.497, 0.0),
         'right_shoulder': (8.594, 6.986, -10.869), 'left_shoulder': (8.594, 6.986, -10.869),
-        'right_hip': (25.701, 0.0, 0.0), 'right_knee': (127.688,), 'right_ankle': (15.003, 0.0),
-        'left_hip': (25.701, 0.0, 0.0), 'left_knee': (127.688,),
+        'right_hip': (25.958, 0.0, 0.0), 'right_knee': (127.944,), 'left_hip': (25.958, 0.0, 0.0),
+        'left_knee': (127.944,),
     })
-    human.KeyRoot(3.7, (2.218, 44.191, 42.962), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.7, (2.239, 44.137, 42.847), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.562, 5.821, 0.0), 'spine_thoracic': (1.024, 1.306, 0.0),
+        'spine_lumbar': (6.887, 5.821, 0.0), 'spine_thoracic': (1.081, 1.306, 0.0),
         'neck': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 6.136, 4.245),
-        'left_shoulder': (8.594, 6.136, 4.245), 'right_hip': (24.471, 0.0, 0.0),
-        'right_knee': (126.458,), 'left_hip': (24.471, 0.0, 0.0), 'left_knee': (126.458,),
+        'left_shoulder': (8.594, 6.136, 4.245), 'right_hip': (24.642, 0.0, 0.0),
+        'right_knee': (126.629,), 'left_hip': (24.642, 0.0, 0.0), 'left_knee': (126.629,),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.793137, duration=0.2628)
-    human.KeyRoot(3.8, (1.949, 44.833, 44.42), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.8, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.8, {
-        'spine_lumbar': (8.806, 0.001, 0.0), 'spine_thoracic': (1.512, 0.034, 0.0),
+        'spine_lumbar': (9.033, 0.001, 0.0), 'spine_thoracic': (1.549, 0.034, 0.0),
         'neck': (0.07, -0.068, 0.04), 'head': (0.03, 0.022),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
-        'right_hip': (22.321, 0.0, 0.0), 'right_knee': (124.304,), 'left_hip': (22.321, 0.0, 0.0),
-        'left_knee': (124.304,),
+        'right_hip': (22.438, 0.0, 0.0), 'right_knee': (124.422,), 'left_hip': (22.438, 0.0, 0.0),
+        'left_knee': (124.422,),
     })
-    human.KeyJoints(3.9, {'neck': (12.655, -12.203, 7.246), 'head': (5.424, 3.943)})
+    human.KeyJoints(3.9, {'neck': (12.655, -12.203, 7.208), 'head': (5.424, 3.949)})
     human.KeyJoints(4.0, {
-        'spine_lumbar': (8.806, 0.001, 0.0), 'spine_thoracic': (1.512, 0.034, 0.0),
-        'neck': (30.918, -29.814, 17.703), 'head': (13.251, 9.633), 'right_clavicle': (0.0, 0.0),
+        'spine_lumbar': (9.033, 0.001, 0.0), 'spine_thoracic': (1.549, 0.034, 0.0),
+        'neck': (30.918, -29.814, 17.609), 'head': (13.251, 9.647), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=4.055937, duration=0.873042)
     human.KeyJoints(4.1, {
-        'spine_lumbar': (9.255, 0.127, 0.172), 'spine_thoracic': (1.445, 0.148, 0.211),
-        'neck': (35.0, -33.75, 19.606), 'head': (15.0, 10.902), 'right_clavicle': (-0.075, 0.172),
-        'right_shoulder': (8.87, 5.925, 11.385), 'right_elbow': (34.278, 17.189),
+        'spine_lumbar': (9.479, 0.126, 0.172), 'spine_thoracic': (1.482, 0.148, 0.21),
+        'neck': (35.0, -33.75, 19.502), 'head': (15.0, 10.919), 'right_clavicle': (-0.076, 0.172),
+        'right_shoulder': (8.87, 5.925, 11.385), 'right_elbow': (34.279, 17.189),
         'right_wrist': (-0.024, -0.03),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (13.119, 1.226, 1.651), 'spine_thoracic': (0.852, 1.129, 2.057),
-        'neck': (35.0, -33.75, 16.19), 'right_clavicle': (-0.739, 1.651),
-        'right_shoulder': (11.267, 7.613, 10.75), 'right_elbow': (33.42, 17.19),
-        'right_wrist': (-0.226, -0.291),
+        'spine_lumbar': (13.324, 1.218, 1.651), 'spine_thoracic': (0.881, 1.131, 2.049),
+        'neck': (35.0, -33.75, 16.102), 'right_clavicle': (-0.741, 1.651),
+        'right_shoulder': (11.272, 7.607, 10.75), 'right_elbow': (33.43, 17.19),
+        'right_wrist': (-0.227, -0.289),
     })
     human.KeyJoints(4.3, {
-        'spine_lumbar': (19.815, 3.167, 4.215), 'spine_thoracic': (-0.235, 2.828, 5.333),
-        'neck': (35.0, -33.75, 11.256), 'head': (15.0, 10.793), 'right_clavicle': (-1.928, 4.215),
-        'right_shoulder': (15.482, 10.537, 9.649), 'right_elbow': (31.933, 17.193),
+        'spine_lumbar': (19.986, 3.146, 4.215), 'spine_thoracic': (-0.221, 2.834, 5.313),
+        'neck': (35.0, -33.75, 11.188), 'head': (15.0, 10.821), 'right_clavicle': (-1.933, 4.215),
+        'right_shoulder': (15.495, 10.52, 9.648), 'right_elbow': (31.958, 17.192),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (27.962, 5.597, 7.334), 'spine_thoracic': (-1.671, 4.897, 9.466),
-        'neck': (35.0, -33.75, 4.921), 'head': (15.0, 9.22), 'right_clavicle': (-3.447, 7.334),
-        'right_shoulder': (20.726, 14.095, 8.31), 'right_wrist': (-1.006, -1.293),
+        'spine_lumbar': (28.092, 5.559, 7.334), 'spine_thoracic': (-1.674, 4.907, 9.431),
+        'neck': (35.0, -33.75, 4.869), 'head': (15.0, 9.252), 'right_clavicle': (-3.455, 7.334),
+        'right_shoulder': (20.749, 14.066, 8.308), 'right_wrist': (-1.007, -1.285),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (36.179, 8.161, 10.48), 'spine_thoracic': (-3.308, 6.986, 13.881),
-        'neck': (35.0, 26.762, -11.074), 'head': (15.0, -10.665), 'right_clavicle': (-5.101, 10.48),
-        'right_shoulder': (26.21, 17.683, 6.959), 'right_elbow': (28.3, 17.2),
+        'spine_lumbar': (36.268, 8.106, 10.48), 'spine_thoracic': (-3.33, 6.997, 13.831),
+        'neck': (35.0, 26.364, -10.966), 'head': (15.0, -10.661), 'right_clavicle': (-5.111, 10.48),
+        'right_shoulder': (26.242, 17.642, 6.956), 'right_elbow': (28.361, 17.199),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (43.088, 10.508, 13.126), 'spine_thoracic': (-5.0, 8.743, 18.005),
-        'neck': (35.0, 17.996, -14.277), 'head': (15.0, -11.25), 'right_clavicle': (-6.693, 13.126),
-        'right_shoulder': (31.145, 20.701, 5.823), 'right_elbow': (26.766, 17.204),
-        'right_wrist': (-1.8, -2.315),
+        'spine_lumbar': (43.142, 10.439, 13.126), 'spine_thoracic': (-5.041, 8.755, 17.942),
+        'neck': (35.0, 17.722, -14.194), 'head': (15.0, -11.25), 'right_clavicle': (-6.705, 13.126),
+        'right_shoulder': (31.186, 20.649, 5.82), 'right_elbow': (26.843, 17.203),
+        'right_wrist': (-1.803, -2.3),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (47.309, 12.284, 14.741), 'spine_thoracic': (-6.602, 9.821, 21.264),
-        'neck': (35.0, 15.94, -16.879), 'right_clavicle': (-8.03, 14.741),
-        'right_shoulder': (34.741, 22.544, 5.13), 'right_elbow': (25.829, 17.208),
-        'right_wrist': (-2.022, -2.6),
+        'spine_lumbar': (47.341, 12.205, 14.741), 'spine_thoracic': (-6.656, 9.828, 21.19),
+        'neck': (35.0, 15.756, -16.803), 'right_clavicle': (-8.042, 14.741),
+        'right_shoulder': (34.788, 22.486, 5.126), 'right_elbow': (25.915, 17.207),
+        'right_wrist': (-2.025, -2.583),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
-        'spine_lumbar': (46.879, 13.148, 15.0), 'spine_thoracic': (-8.031, 10.0, 23.118),
-        'neck': (35.0, 19.928, -19.026), 'right_clavicle': (-8.903, 15.0),
-        'right_shoulder': (36.385, 22.09, 5.188), 'right_elbow': (26.133, 17.212),
-        'right_wrist': (-2.005, -2.522),
+        'spine_lumbar': (46.909, 13.066, 15.0), 'spine_thoracic': (-8.091, 10.0, 23.039),
+        'neck': (35.0, 19.82, -18.942), 'right_clavicle': (-8.911, 15.0),
+        'right_shoulder': (36.434, 22.034, 5.184), 'right_elbow': (26.22, 17.212),
+        'right_wrist': (-2.008, -2.505),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (41.672, 15.35, 13.795), 'spine_thoracic': (-7.639, 9.33, 22.255),
-        'neck': (35.0, 26.714, -19.485), 'right_clavicle': (-9.615, 13.641),
-        'right_shoulder': (34.043, 18.573, 6.089), 'right_elbow': (26.752, 17.204),
-        'right_wrist': (-1.637, -2.299),
+        'spine_lumbar': (41.709, 15.264, 13.8), 'spine_thoracic': (-7.696, 9.333, 22.18),
+        'neck': (35.0, 26.607, -19.404), 'right_clavicle': (-9.621, 13.644),
+        'right_shoulder': (34.091, 18.523, 6.087), 'right_elbow': (26.841, 17.203),
+        'right_wrist': (-1.64, -2.282),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
     human.KeyJoints(5.0, {
-        'spine_lumbar': (40.062, 16.093, 13.2), 'spine_thoracic': (-7.362, 8.988, 21.663),
-        'neck': (35.0, 28.781, -19.389), 'right_clavicle': (-9.664, 12.99),
-        'right_shoulder': (32.85, 17.606, 6.353), 'right_elbow': (27.176, 17.201),
-        'right_wrist': (-1.557, -2.196),
+        'spine_lumbar': (40.1, 16.008, 13.207), 'spine_thoracic': (-7.417, 8.994, 21.59),
+        'neck': (35.0, 28.675, -19.308), 'right_clavicle': (-9.671, 12.994),
+        'right_shoulder': (32.897, 17.558, 6.352), 'right_elbow': (27.263, 17.2),
+        'right_wrist': (-1.561, -2.179),
     })
-    human.KeyJoints(5.1, {'right_elbow': (27.176, 17.201)})
+    human.KeyJoints(5.1, {'right_elbow': (27.263, 17.2)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
     human.KeyJoints(5.2, {
-        'right_shoulder': (32.85, 17.607, 6.353), 'right_elbow': (27.177, 17.031),
+        'right_shoulder': (32.897, 17.559, 6.352), 'right_elbow': (27.264, 17.031),
     })
     human.KeyJoints(5.3, {
-        'right_shoulder': (32.864, 17.708, 6.329), 'right_elbow': (27.329, -6.264),
+        'right_shoulder': (32.911, 17.659, 6.327), 'right_elbow': (27.417, -6.264),
     })
-    human.KeyJoints(5.4, {'right_elbow': (27.389, -47.914)})
+    human.KeyJoints(5.4, {'right_elbow': (27.478, -47.914)})
     human.KeyJoints(5.5, {
-        'right_shoulder': (32.898, 18.089, 6.235), 'right_elbow': (27.25, -77.819),
+        'right_shoulder': (32.945, 18.039, 6.234), 'right_elbow': (27.341, -77.819),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.530179, duration=0.072)
-    human.KeyJoints(5.6, {'right_elbow': (27.235, -80.0)})
+    human.KeyJoints(5.6, {'right_elbow': (27.326, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=5.602179, duration=0.2628)
-    human.KeyJoints(5.8, {'right_elbow': (27.235, -80.0)})
+    human.KeyJoints(5.8, {'right_elbow': (27.326, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
     human.KeyJoints(5.9, {
-        'right_shoulder': (32.898, 18.078, 6.238), 'right_elbow': (27.267, -75.214),
-        'right_wrist': (-1.464, -2.187),
+        'right_shoulder': (32.945, 18.028, 6.236), 'right_elbow': (27.358, -75.214),
+        'right_wrist': (-1.467, -2.169),
     })
-    human.KeyJoints(6.0, {'right_elbow': (27.392, -23.911), 'right_wrist': (-1.515, -2.15)})
+    human.KeyJoints(6.0, {'right_elbow': (27.48, -23.911), 'right_wrist': (-1.518, -2.133)})
     human.KeyJoints(6.1, {
-        'right_shoulder': (32.834, 17.544, 6.369), 'right_elbow': (26.933, 44.327),
+        'right_shoulder': (32.882, 17.497, 6.367), 'right_elbow': (27.021, 44.327),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (40.062, 16.093, 13.2), 'neck': (35.0, 28.781, -19.389),
-        'right_shoulder': (32.818, 17.571, 6.363), 'right_elbow': (26.601, 79.952),
-        'right_wrist': (-1.46, -2.251), 'left_clavicle': (0.0, 0.0),
+        'spine_lumbar': (40.1, 16.008, 13.207), 'neck': (35.0, 28.675, -19.308),
+        'right_shoulder': (32.865, 17.524, 6.361), 'right_elbow': (26.69, 79.952),
+        'right_wrist': (-1.464, -2.234), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
@@ -397,513 +393,509 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=6.275379, duration=1.618047)
     human.KeyJoints(6.3, {
-        'spine_lumbar': (40.146, 16.045, 13.159), 'spine_thoracic': (-7.394, 8.974, 21.633),
-        'neck': (35.0, 28.852, -19.236), 'right_clavicle': (-9.664, 12.999),
-        'right_shoulder': (32.791, 17.497, 6.382), 'right_elbow': (26.745, 80.0),
-        'right_wrist': (-1.498, -2.239), 'left_clavicle': (-0.041, 0.063),
-        'left_shoulder': (8.724, 5.717, 11.454), 'left_elbow': (34.37, 17.189),
+        'spine_lumbar': (40.183, 15.96, 13.166), 'spine_thoracic': (-7.448, 8.98, 21.56),
+        'neck': (35.0, 28.747, -19.153), 'right_clavicle': (-9.672, 13.003),
+        'right_shoulder': (32.839, 17.451, 6.38), 'right_elbow': (26.835, 80.0),
+        'right_wrist': (-1.502, -2.222), 'left_clavicle': (-0.041, 0.063),
+        'left_shoulder': (8.725, 5.717, 11.454), 'left_elbow': (34.37, 17.189),
         'left_wrist': (0.0, -0.004),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (41.977, 14.987, 12.247), 'spine_thoracic': (-8.096, 8.664, 20.98),
-        'neck': (35.0, 29.849, -17.54), 'right_clavicle': (-9.675, 13.183),
-        'right_shoulder': (32.165, 15.888, 6.8), 'right_elbow': (29.973, 80.0),
-        'right_wrist': (-2.348, -1.972), 'left_clavicle': (-0.939, 1.441),
-        'left_shoulder': (11.576, 5.438, 11.342), 'left_elbow': (34.207, 17.187),
+        'spine_lumbar': (42.011, 14.909, 12.256), 'spine_thoracic': (-8.145, 8.672, 20.909),
+        'neck': (35.0, 29.738, -17.461), 'right_clavicle': (-9.682, 13.187),
+        'right_shoulder': (32.213, 15.847, 6.798), 'right_elbow': (30.059, 80.0),
+        'right_wrist': (-2.351, -1.955), 'left_clavicle': (-0.939, 1.441),
+        'left_shoulder': (11.579, 5.438, 11.342), 'left_elbow': (34.213, 17.187),
     })
     human.KeyJoints(6.5, {
-        'spine_lumbar': (45.553, 12.921, 10.466), 'spine_thoracic': (-9.466, 8.059, 19.704),
-        'neck': (35.0, 32.652, -14.349), 'head': (15.0, -11.25),
-        'right_shoulder': (31.077, 12.774, 7.63), 'right_elbow': (35.947, 80.0),
-        'right_wrist': (-3.938, -1.386), 'left_clavicle': (-2.692, 4.131),
-        'left_shoulder': (17.142, 4.894, 11.1), 'left_wrist': (-0.044, -0.248),
+        'spine_lumbar': (45.58, 12.859, 10.481), 'spine_thoracic': (-9.505, 8.072, 19.639),
+        'neck': (35.0, 32.494, -14.275), 'head': (15.0, -11.25),
+        'right_shoulder': (31.127, 12.744, 7.627), 'right_elbow': (36.023, 80.0),
+        'right_wrist': (-3.938, -1.368), 'left_clavicle': (-2.693, 4.131),
+        'left_shoulder': (17.152, 4.895, 11.098), 'left_wrist': (-0.045, -0.244),
     })
     human.KeyJoints(6.6, {
-        'neck': (35.0, 33.75, -10.117), 'head': (15.0, -11.115), 'right_elbow': (42.637, 80.0),
+        'neck': (35.0, 33.75, -10.064), 'head': (15.0, -11.12), 'right_elbow': (42.699, 80.0),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (54.458, 7.777, 6.032), 'spine_thoracic': (-12.877, 6.551, 16.527),
-        'neck': (35.0, 33.75, -6.833), 'head': (15.0, -11.25),
-        'right_shoulder': (29.044, 5.137, 9.799), 'right_elbow': (49.035, 80.0),
-        'right_wrist': (-7.41, 0.321), 'left_clavicle': (-7.058, 10.831),
-        'left_shoulder': (31.006, 3.539, 10.313),
+        'spine_lumbar': (54.469, 7.752, 6.058), 'spine_thoracic': (-12.892, 6.578, 16.474),
+        'neck': (35.0, 33.75, -6.769), 'head': (15.0, -11.25),
+        'right_shoulder': (29.104, 5.127, 9.796), 'right_elbow': (49.081, 80.0),
+        'right_wrist': (-7.402, 0.336), 'left_clavicle': (-7.06, 10.831),
+        'left_shoulder': (31.033, 3.54, 10.307),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (58.05, 5.703, 4.243), 'spine_thoracic': (-14.253, 5.943, 15.246),
-        'neck': (35.0, 33.75, -3.384), 'right_clavicle': (-9.77, 14.803),
-        'right_shoulder': (28.245, 2.205, 10.763), 'right_elbow': (54.049, 80.0),
-        'right_wrist': (-8.8, 1.124), 'left_clavicle': (-8.819, 13.533),
-        'left_shoulder': (36.597, 2.992, 9.815), 'left_elbow': (32.772, 17.173),
-        'left_wrist': (-0.367, -0.811),
+        'spine_lumbar': (58.054, 5.692, 4.274), 'spine_thoracic': (-14.258, 5.975, 15.197),
+        'neck': (35.0, 33.75, -3.33), 'right_clavicle': (-9.772, 14.804),
+        'right_shoulder': (28.312, 2.199, 10.759), 'right_elbow': (54.081, 80.0),
+        'right_wrist': (-8.785, 1.137), 'left_clavicle': (-8.821, 13.533),
+        'left_shoulder': (36.631, 2.994, 9.808), 'left_elbow': (32.831, 17.173),
+        'left_wrist': (-0.37, -0.799),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (59.908, 4.629, 3.318), 'spine_thoracic': (-14.965, 5.628, 14.583),
-        'neck': (35.0, 33.252, -1.531), 'right_clavicle': (-9.781, 14.991),
-        'right_shoulder': (27.838, 0.772, 11.343), 'right_elbow': (56.586, 80.0),
-        'right_wrist': (-9.607, 1.594), 'left_clavicle': (-9.73, 14.931),
-        'left_shoulder': (39.489, 2.709, 9.278), 'left_elbow': (32.606, 17.172),
-        'left_wrist': (-0.579, -0.895),
+        'spine_lumbar': (59.908, 4.627, 3.352), 'spine_thoracic': (-14.965, 5.664, 14.537),
+        'neck': (35.0, 33.191, -1.477), 'right_clavicle': (-9.782, 14.991),
+        'right_shoulder': (27.909, 0.768, 11.34), 'right_elbow': (56.61, 80.0),
+        'right_wrist': (-9.59, 1.606), 'left_clavicle': (-9.733, 14.931),
+        'left_shoulder': (39.528, 2.711, 9.269), 'left_elbow': (32.671, 17.171),
+        'left_wrist': (-0.583, -0.881),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.0, {
-        'neck': (35.0, 32.992, -1.394), 'right_elbow': (56.711, 80.0),
-        'left_shoulder': (33.471, 4.102, 9.028), 'left_elbow': (51.456, 17.257),
-        'left_wrist': (-2.291, 3.433),
+        'neck': (35.0, 32.941, -1.342), 'right_elbow': (56.735, 80.0),
+        'left_shoulder': (33.561, 4.105, 9.013), 'left_elbow': (51.44, 17.256),
+        'left_wrist': (-2.29, 3.429),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.088459, duration=0.072)
     human.KeyJoints(7.1, {
-        'spine_lumbar': (60.0, 4.576, 3.272), 'neck': (35.0, 32.992, -1.394),
-        'head': (15.0, -11.222), 'right_shoulder': (27.817, 0.702, 11.372),
-        'right_elbow': (56.711, 80.0), 'right_wrist': (-9.647, 1.618),
-        'left_shoulder': (24.008, 6.165, 8.671), 'left_elbow': (64.172, 17.314),
-        'left_wrist': (-3.622, 6.782),
+        'spine_lumbar': (60.0, 4.574, 3.306), 'neck': (35.0, 32.941, -1.342),
+        'head': (15.0, -11.167), 'right_shoulder': (27.889, 0.698, 11.368),
+        'right_elbow': (56.735, 80.0), 'right_wrist': (-9.629, 1.629),
+        'left_shoulder': (24.08, 6.162, 8.66), 'left_elbow': (64.193, 17.313),
+        'left_wrist': (-3.624, 6.788),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(7.2, {
-        'neck': (35.0, 32.705, -2.435), 'head': (14.807, -11.208),
-        'right_shoulder': (28.447, 1.564, 10.255), 'right_elbow': (54.032, 79.036),
-        'right_wrist': (-10.65, 1.957), 'left_clavicle': (-9.775, 15.0),
+        'neck': (35.0, 32.653, -2.384), 'head': (14.807, -11.155),
+        'right_shoulder': (28.507, 1.585, 10.287), 'right_elbow': (54.066, 78.997),
+        'right_wrist': (-10.626, 1.972), 'left_clavicle': (-9.778, 15.0),
     })
     human.KeyJoints(7.3, {
-        'neck': (35.0, 30.064, -12.023), 'head': (13.031, -11.078),
-        'right_shoulder': (22.898, 7.44, 1.738), 'right_elbow': (54.159, 70.768),
-        'right_wrist': (-25.502, 6.337),
+        'neck': (35.0, 29.994, -11.984), 'head': (13.032, -11.04),
+        'right_shoulder': (22.895, 7.663, 2.096), 'right_elbow': (54.244, 70.365),
+        'right_wrist': (-25.419, 6.377),
     })
     human.KeyJoints(7.4, {
-        'neck': (35.0, 26.259, -25.837), 'head': (10.473, -10.891),
-        'right_shoulder': (18.386, 15.235, -9.562), 'right_elbow': (53.284, 60.963),
-        'right_wrist': (-43.369, 11.668),
+        'neck': (35.0, 26.164, -25.816), 'head': (10.474, -10.876),
+        'right_shoulder': (18.326, 15.683, -8.748), 'right_elbow': (53.415, 60.008),
+        'right_wrist': (-43.245, 11.726),
     })
     human.KeyJoints(7.5, {
-        'neck': (35.0, 23.271, -36.684), 'head': (8.464, -10.744),
-        'right_shoulder': (18.943, 22.503, -20.009), 'right_elbow': (48.926, 54.743),
-        'right_wrist': (-55.577, 15.431),
+        'neck': (35.0, 23.156, -36.676), 'head': (8.466, -10.746),
+        'right_shoulder': (18.798, 23.023, -18.701), 'right_elbow': (49.099, 53.163),
+        'right_wrist': (-55.49, 15.472), 'left_elbow': (64.051, 17.313),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (60.0, 4.576, 3.272), 'spine_thoracic': (-15.0, 5.612, 14.55),
-        'neck': (35.0, 22.693, -38.782), 'head': (8.076, -10.716), 'right_clavicle': (-9.781, 15.0),
-        'right_shoulder': (20.541, 30.63, -31.394), 'right_elbow': (37.844, 49.394),
-        'right_wrist': (-66.084, 18.749),
+        'spine_lumbar': (60.0, 4.574, 3.306), 'spine_thoracic': (-15.0, 5.648, 14.504),
+        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721), 'right_clavicle': (-9.783, 15.0),
+        'right_shoulder': (20.174, 31.127, -29.51), 'right_elbow': (38.125, 47.148),
+        'right_wrist': (-66.057, 18.762),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, 4.785, 3.626), 'spine_thoracic': (-14.714, 5.935, 14.801),
-        'neck': (34.94, 22.359, -39.337), 'head': (7.796, -10.57), 'right_clavicle': (-9.949, 15.0),
-        'right_shoulder': (21.266, 33.787, -36.006), 'right_elbow': (30.536, 47.36),
-        'right_wrist': (-69.899, 19.985),
+        'spine_lumbar': (60.0, 4.782, 3.657), 'spine_thoracic': (-14.714, 5.969, 14.753),
+        'neck': (34.939, 22.242, -39.329), 'head': (7.799, -10.577),
+        'right_clavicle': (-9.949, 15.0), 'right_shoulder': (20.788, 34.261, -33.88),
+        'right_elbow': (30.89, 44.831), 'right_wrist': (-69.9, 19.984),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (60.0, 10.737, 6.618), 'spine_thoracic': (-13.313, 8.071, 17.167),
-        'neck': (34.854, 20.364, -43.064), 'head': (6.343, -9.616),
-        'right_clavicle': (-7.522, 14.879), 'right_shoulder': (23.081, 38.726, -36.95),
-        'right_elbow': (27.482, 46.829), 'right_wrist': (-66.725, 18.967),
+        'spine_lumbar': (60.0, 10.416, 6.612), 'spine_thoracic': (-13.352, 8.067, 17.092),
+        'neck': (34.862, 20.294, -43.042), 'head': (6.389, -9.638),
+        'right_clavicle': (-7.717, 15.0), 'right_shoulder': (22.511, 38.869, -34.812),
+        'right_elbow': (27.891, 44.291), 'right_wrist': (-66.893, 18.984),
+        'left_shoulder': (24.17, 6.143, 8.665),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.821426, duration=0.072)
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.893426, duration=0.2628)
     human.KeyJoints(7.9, {
-        'spine_lumbar': (60.0, 11.634, 7.118), 'spine_thoracic': (-13.093, 8.411, 17.563),
-        'neck': (34.855, 20.167, -43.7), 'head': (6.059, -9.538), 'right_clavicle': (-7.087, 15.0),
-        'right_shoulder': (23.438, 39.555, -37.081), 'right_elbow': (26.91, 46.747),
-        'right_wrist': (-66.112, 18.788),
+        'spine_lumbar': (60.0, 11.591, 7.168), 'spine_thoracic': (-13.102, 8.444, 17.534),
+        'neck': (34.866, 20.055, -43.728), 'head': (6.071, -9.547),
+        'right_clavicle': (-7.103, 15.0), 'right_shoulder': (22.945, 39.994, -35.009),
+        'right_elbow': (27.218, 44.176), 'right_wrist': (-66.161, 18.747), 'right_toes': (86.982,),
     })
-    human.KeyJoints(8.0, {'neck': (34.814, 20.757, -48.054), 'head': (9.23, -10.142)})
+    human.KeyJoints(8.0, {'neck': (34.823, 20.664, -48.08), 'head': (9.239, -10.148)})
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 11.634, 7.118), 'spine_thoracic': (-13.093, 8.411, 17.563),
-        'neck': (34.695, 21.617, -54.404), 'head': (13.883, -11.023),
-        'left_shoulder': (23.994, 6.184, 8.659), 'left_elbow': (64.165, 17.314),
-        'left_wrist': (-3.625, 6.78),
+        'spine_lumbar': (60.0, 11.591, 7.168), 'spine_thoracic': (-13.102, 8.444, 17.534),
+        'neck': (34.699, 21.552, -54.426), 'head': (13.886, -11.024),
+        'left_shoulder': (24.17, 6.143, 8.665), 'left_elbow': (64.051, 17.313),
+        'left_wrist': (-3.609, 6.749),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=8.156226, duration=2.069192)
     human.KeyJoints(8.2, {
-        'spine_lumbar': (60.0, 11.748, 6.817), 'spine_thoracic': (-13.024, 8.204, 16.915),
-        'neck': (34.282, 21.754, -55.111), 'head': (14.997, -11.201),
-        'left_shoulder': (24.216, 6.194, 8.884), 'left_elbow': (63.7, 17.807),
-        'left_wrist': (-4.426, 6.96),
+        'spine_lumbar': (60.0, 11.705, 6.866), 'spine_thoracic': (-13.034, 8.238, 16.886),
+        'neck': (34.282, 21.695, -55.132), 'head': (14.998, -11.201),
+        'left_shoulder': (24.389, 6.152, 8.887), 'left_elbow': (63.589, 17.805),
+        'left_wrist': (-4.41, 6.93),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (60.0, 12.728, 4.226), 'spine_thoracic': (-12.403, 6.431, 11.344),
-        'neck': (31.992, 22.02, -49.154), 'left_clavicle': (-9.724, 15.0),
-        'left_shoulder': (26.128, 6.3, 10.814), 'left_elbow': (59.635, 22.044),
-        'left_wrist': (-11.318, 8.509),
+        'spine_lumbar': (60.0, 12.69, 4.27), 'spine_thoracic': (-12.417, 6.466, 11.319),
+        'neck': (31.991, 21.96, -49.168), 'left_clavicle': (-9.72, 15.0),
+        'left_shoulder': (26.277, 6.256, 10.803), 'left_elbow': (59.555, 22.031),
+        'left_wrist': (-11.3, 8.482),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (60.0, 14.39, -0.167), 'spine_thoracic': (-11.262, 3.423, 1.898),
-        'neck': (29.581, 24.018, -38.311), 'right_elbow': (27.022, 46.747),
-        'right_wrist': (-66.223, 18.806), 'left_shoulder': (29.37, 6.555, 14.089),
-        'left_elbow': (52.539, 29.23), 'left_wrist': (-23.004, 11.134),
+        'spine_lumbar': (60.0, 14.36, -0.133), 'spine_thoracic': (-11.282, 3.461, 1.878),
+        'neck': (29.577, 23.954, -38.316), 'left_shoulder': (29.478, 6.506, 14.051),
+        'left_elbow': (52.511, 29.199), 'left_wrist': (-22.984, 11.114),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (60.0, 16.34, -5.323), 'spine_thoracic': (-9.752, -0.107, -9.191),
-        'neck': (29.307, 29.145, -24.863), 'left_clavicle': (-9.417, 15.0),
-        'left_shoulder': (33.176, 6.997, 17.932), 'left_elbow': (43.824, 37.664),
-        'left_wrist': (-36.722, 14.216),
+        'spine_lumbar': (60.0, 16.321, -5.301), 'spine_thoracic': (-9.781, -0.066, -9.204),
+        'neck': (29.294, 29.082, -24.857), 'right_wrist': (-66.252, 18.764),
+        'left_clavicle': (-9.384, 15.0), 'left_shoulder': (33.235, 6.942, 17.864),
+        'left_elbow': (43.858, 37.612), 'left_wrist': (-36.698, 14.203),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (60.0, 18.186, -10.204), 'spine_thoracic': (-8.028, -3.449, -19.688),
-        'neck': (33.49, 33.75, -10.497), 'head': (15.0, -11.25), 'left_clavicle': (-9.126, 15.0),
-        'left_shoulder': (36.778, 7.666, 21.57), 'left_elbow': (34.904, 45.647),
-        'left_wrist': (-49.707, 17.134),
+        'spine_lumbar': (60.0, 18.177, -10.194), 'spine_thoracic': (-8.064, -3.405, -19.694),
+        'neck': (33.461, 33.75, -10.496), 'head': (15.0, -11.25), 'right_elbow': (27.304, 44.176),
+        'left_clavicle': (-9.069, 15.0), 'left_shoulder': (36.792, 7.602, 21.474),
+        'left_elbow': (34.996, 45.576), 'left_wrist': (-49.68, 17.127),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (60.0, 19.535, -13.772), 'spine_thoracic': (-6.242, -5.891, -27.358),
-        'neck': (35.0, 31.226, -0.246), 'head': (15.0, -10.046), 'left_clavicle': (-8.72, 15.0),
-        'left_shoulder': (39.41, 8.601, 24.228), 'left_elbow': (27.188, 51.482),
-        'left_wrist': (-59.197, 19.266),
+        'spine_lumbar': (60.0, 19.533, -13.769), 'spine_thoracic': (-6.282, -5.845, -27.36),
+        'neck': (35.0, 31.236, -0.225), 'head': (15.0, -10.046), 'left_clavicle': (-8.632, 15.0),
+        'left_shoulder': (39.391, 8.524, 24.112), 'left_elbow': (27.323, 51.395),
+        'left_wrist': (-59.168, 19.264),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.8, {
-        'spine_lumbar': (60.0, 20.0, -14.721), 'spine_thoracic': (-4.536, -6.566, -29.72),
-        'neck': (35.0, -7.414, 8.651), 'head': (15.0, 11.25), 'left_clavicle': (-8.023, 14.697),
-        'left_shoulder': (40.235, 10.226, 25.022), 'left_elbow': (22.102, 53.437),
-        'left_wrist': (-62.437, 19.939),
+        'spine_lumbar': (60.0, 20.0, -14.722), 'spine_thoracic': (-4.576, -6.52, -29.72),
+        'neck': (35.0, -7.194, 8.642), 'head': (15.0, 11.25), 'left_clavicle': (-7.901, 14.697),
+        'left_shoulder': (40.203, 10.135, 24.897), 'left_elbow': (22.25, 53.346),
+        'left_wrist': (-62.408, 19.939),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (0.868, -9.909, -30.0),
-        'neck': (35.0, 12.348, 9.066), 'head': (15.0, 9.18),
-        'right_shoulder': (23.367, 39.516, -37.099), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (47.25, 14.619, 23.177), 'left_elbow': (14.756, 52.398),
-        'left_wrist': (-55.065, 17.264),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (0.755, -9.849, -30.0),
+        'neck': (35.0, 12.243, 9.077), 'head': (15.0, 9.519), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (47.121, 14.616, 23.032), 'left_elbow': (14.956, 52.3),
+        'left_wrist': (-55.158, 17.281),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.949414, duration=0.2628)
     human.KeyJoints(9.0, {
-        'spine_thoracic': (6.779, -10.0, -30.0), 'neck': (34.247, 33.75, 7.538),
-        'head': (15.0, -11.25), 'left_shoulder': (56.532, 12.588, 23.086),
-        'left_elbow': (8.871, 52.173), 'left_wrist': (-45.466, 14.692),
+        'spine_thoracic': (6.618, -10.0, -30.0), 'neck': (34.331, 33.75, 7.559),
+        'head': (15.0, -11.25), 'left_shoulder': (56.358, 12.609, 22.942),
+        'left_elbow': (9.02, 52.073), 'left_wrist': (-45.588, 14.719),
     })
     human.KeyJoints(9.2, {
-        'neck': (34.247, 33.75, 7.538), 'head': (15.0, -11.25),
-        'left_shoulder': (56.532, 12.588, 23.086), 'left_elbow': (8.871, 52.173),
-        'left_wrist': (-45.466, 14.692),
+        'neck': (34.331, 33.75, 7.559), 'head': (15.0, -11.25),
+        'left_shoulder': (56.358, 12.609, 22.942), 'left_elbow': (9.02, 52.073),
+        'left_wrist': (-45.588, 14.719),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(9.3, {
-        'neck': (34.33, 29.104, 14.057), 'head': (15.0, -8.751),
-        'left_shoulder': (51.484, 14.347, 18.892), 'left_elbow': (20.28, 51.334),
-        'left_wrist': (-47.438, 14.961),
+        'neck': (34.405, 29.1, 14.079), 'head': (15.0, -8.751),
+        'left_shoulder': (51.312, 14.356, 18.75), 'left_elbow': (20.418, 51.239),
+        'left_wrist': (-47.559, 14.984),
     })
     human.KeyJoints(9.4, {
-        'neck': (34.56, 16.374, 31.922), 'head': (15.0, -1.903),
-        'left_shoulder': (37.046, 19.183, 6.859), 'left_elbow': (50.033, 48.866),
-        'left_wrist': (-52.535, 15.629),
+        'neck': (34.609, 16.36, 31.944), 'head': (15.0, -1.903),
+        'left_shoulder': (36.887, 19.157, 6.724), 'left_elbow': (50.136, 48.787),
+        'left_wrist': (-52.64, 15.638),
     })
     human.KeyJoints(9.5, {
-        'neck': (34.817, 2.059, 52.01), 'head': (15.0, 5.797),
-        'left_shoulder': (19.117, 24.716, -8.067), 'left_elbow': (79.843, 45.658),
-        'left_wrist': (-57.785, 16.288),
+        'neck': (34.838, 2.034, 52.032), 'head': (15.0, 5.797),
+        'right_shoulder': (22.884, 39.943, -35.018), 'left_shoulder': (18.989, 24.647, -8.188),
+        'left_elbow': (79.906, 45.599), 'left_wrist': (-57.866, 16.282),
     })
     human.KeyJoints(9.6, {
-        'neck': (34.985, -7.234, 65.051), 'head': (15.0, 10.796),
-        'left_shoulder': (3.606, 28.543, -20.897), 'left_elbow': (91.371, 42.597),
-        'left_wrist': (-60.23, 16.516),
+        'neck': (34.987, -7.267, 65.074), 'head': (15.0, 10.796),
+        'left_shoulder': (3.533, 28.443, -20.994), 'left_elbow': (91.417, 42.553),
+        'left_wrist': (-60.286, 16.505),
     })
     human.KeyJoints(9.7, {
-        'neck': (35.0, -8.078, 66.235), 'head': (15.0, 11.25),
-        'left_shoulder': (-12.114, 30.37, -32.208), 'left_elbow': (89.051, 38.874),
-        'left_wrist': (-60.648, 14.878),
+        'neck': (35.0, -8.111, 66.258), 'head': (15.0, 11.25),
+        'left_shoulder': (-12.081, 30.251, -32.262), 'left_elbow': (89.085, 38.843),
+        'left_wrist': (-60.688, 14.86),
     })
     human.KeyJoints(9.8, {
-        'left_shoulder': (-28.308, 31.678, -43.429), 'left_elbow': (84.8, 34.72),
-        'left_wrist': (-60.867, 11.877),
+        'left_shoulder': (-28.142, 31.543, -43.431), 'left_elbow': (84.812, 34.7),
+        'left_wrist': (-60.897, 11.847),
     })
     human.KeyJoints(9.9, {
-        'left_shoulder': (-39.835, 33.48, -53.323), 'left_elbow': (81.128, 31.652),
-        'left_wrist': (-61.165, 9.284),
+        'left_shoulder': (-39.567, 33.329, -53.284), 'left_elbow': (81.121, 31.639),
+        'left_wrist': (-61.184, 9.244),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.0, {
-        'left_shoulder': (-42.175, 37.938, -60.466), 'left_elbow': (82.439, 31.042),
-        'left_wrist': (-62.097, 8.797),
+        'left_shoulder': (-41.887, 37.788, -60.42), 'left_elbow': (82.43, 31.031),
+        'left_wrist': (-62.106, 8.755),
     })
     human.KeyJoints(10.1, {
-        'left_shoulder': (-41.403, 43.745, -69.749), 'left_elbow': (90.216, 30.974),
-        'left_wrist': (-64.827, 8.94),
+        'left_shoulder': (-41.13, 43.646, -69.704), 'left_elbow': (90.198, 30.964),
+        'left_wrist': (-64.823, 8.898),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=10.153418, duration=0.072)
     human.KeyJoints(10.2, {
-        'neck': (35.0, -8.078, 66.235), 'left_shoulder': (-41.263, 40.013, -75.428),
-        'left_elbow': (96.112, 31.177), 'left_wrist': (-68.022, 9.381),
+        'neck': (35.0, -8.111, 66.258), 'left_shoulder': (-40.997, 39.949, -75.438),
+        'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=10.225418, duration=0.2628)
-    human.KeyJoints(10.3, {'neck': (35.0, -7.921, 66.222)})
+    human.KeyJoints(10.3, {'neck': (35.0, -7.954, 66.245)})
     human.KeyJoints(10.4, {
-        'neck': (35.0, -7.487, 66.15), 'right_shoulder': (23.367, 39.516, -37.099),
+        'neck': (35.0, -7.52, 66.173), 'right_shoulder': (22.884, 39.943, -35.018),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=10.488218, duration=0.719288)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (60.0, 19.95, -14.974), 'spine_thoracic': (6.76, -9.976, -29.977),
-        'neck': (34.999, -7.359, 65.926), 'head': (15.0, 11.25), 'right_clavicle': (-7.09, 15.0),
-        'right_shoulder': (23.39, 39.447, -37.074), 'right_elbow': (27.023, 46.755),
-        'right_wrist': (-66.202, 18.802),
+        'spine_lumbar': (60.0, 19.95, -14.974), 'spine_thoracic': (6.598, -9.975, -29.977),
+        'neck': (34.999, -7.392, 65.948), 'head': (15.0, 11.25), 'right_clavicle': (-7.107, 15.0),
+        'right_shoulder': (22.907, 39.874, -34.993), 'right_elbow': (27.305, 44.184),
+        'right_wrist': (-66.231, 18.76),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (60.0, 16.058, -12.963), 'spine_thoracic': (5.201, -8.073, -28.191),
-        'neck': (33.889, -7.75, 61.674), 'head': (14.688, 11.217), 'right_clavicle': (-7.374, 15.0),
-        'right_shoulder': (25.197, 34.033, -35.112), 'right_elbow': (27.067, 47.412),
-        'right_wrist': (-64.558, 18.487),
+        'spine_lumbar': (60.0, 16.058, -12.956), 'spine_thoracic': (5.043, -8.029, -28.171),
+        'neck': (33.88, -7.788, 61.658), 'head': (14.692, 11.217), 'right_clavicle': (-7.389, 15.0),
+        'right_shoulder': (24.723, 34.481, -33.02), 'right_elbow': (27.376, 44.836),
+        'right_wrist': (-64.595, 18.413),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (60.0, 7.734, -8.661), 'spine_thoracic': (1.755, -4.001, -24.36),
-        'neck': (31.049, -7.989, 51.53), 'head': (14.535, 11.083), 'right_clavicle': (-7.98, 15.0),
-        'right_shoulder': (29.141, 22.333, -30.866), 'right_elbow': (27.182, 48.833),
-        'right_wrist': (-61.042, 17.812),
+        'spine_lumbar': (60.0, 7.734, -8.638), 'spine_thoracic': (1.603, -3.867, -24.297),
+        'neck': (31.025, -8.04, 51.441), 'head': (14.554, 11.081), 'right_clavicle': (-7.992, 15.0),
+        'right_shoulder': (28.686, 22.825, -28.752), 'right_elbow': (27.556, 46.249),
+        'right_wrist': (-61.095, 17.67),
     })
     human.KeyJoints(10.8, {
-        'spine_lumbar': (60.0, -2.504, -3.37), 'spine_thoracic': (-2.725, 1.012, -19.628),
-        'neck': (28.016, -9.867, 37.719), 'head': (14.967, 11.212),
-        'right_shoulder': (34.162, 7.685, -25.538), 'right_wrist': (-56.718, 16.983),
+        'spine_lumbar': (60.0, -2.504, -3.329), 'spine_thoracic': (-2.867, 1.252, -19.51),
+        'neck': (27.995, -9.971, 37.537), 'head': (14.967, 11.212),
+        'right_shoulder': (33.729, 8.235, -23.395), 'right_wrist': (-56.79, 16.757),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (60.0, -12.135, 1.608), 'spine_thoracic': (-7.384, 5.738, -15.138),
-        'neck': (27.325, -14.903, 24.21), 'right_clavicle': (-9.427, 15.0),
-        'right_shoulder': (39.197, -6.57, -20.328), 'right_elbow': (27.628, 52.367),
-        'right_wrist': (-52.65, 16.202),
+        'spine_lumbar': (60.0, -12.135, 1.666), 'spine_thoracic': (-7.513, 6.067, -14.967),
+        'neck': (27.329, -15.054, 23.96), 'right_clavicle': (-9.43, 15.0),
+        'right_shoulder': (38.783, -5.961, -18.159), 'right_elbow': (28.2, 49.763),
+        'right_wrist': (-52.741, 15.898),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (60.0, -18.64, 4.97), 'spine_thoracic': (-11.367, 8.95, -12.034),
-        'neck': (29.022, -20.269, 14.009), 'right_clavicle': (-9.901, 15.0),
-        'right_shoulder': (43.187, -17.094, -16.439), 'right_elbow': (27.958, 53.678),
-        'right_wrist': (-49.903, 15.675),
+        'spine_lumbar': (60.0, -18.64, 5.04), 'spine_thoracic': (-11.483, 9.32, -11.821),
+        'neck': (29.064, -20.441, 13.683), 'right_clavicle': (-9.902, 15.0),
+        'right_shoulder': (42.783, -16.436, -14.251), 'right_elbow': (28.646, 51.069),
+        'right_wrist': (-50.006, 15.317),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(11.1, {
-        'spine_lumbar': (58.742, -19.783, 5.612), 'spine_thoracic': (-13.931, 9.656, -11.251),
-        'neck': (31.183, -23.156, 11.811), 'right_clavicle': (-10.0, 15.0),
-        'right_shoulder': (45.19, -20.921, -14.923), 'right_elbow': (28.585, 54.201),
-        'right_wrist': (-49.433, 15.712),
+        'spine_lumbar': (58.759, -19.786, 5.683), 'spine_thoracic': (-14.035, 10.0, -11.02),
+        'neck': (31.241, -23.332, 11.454), 'right_clavicle': (-10.0, 15.0),
+        'right_shoulder': (44.783, -20.234, -12.731), 'right_elbow': (29.362, 51.594),
+        'right_wrist': (-49.535, 15.343),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (54.682, -19.016, 5.393), 'spine_thoracic': (-12.708, 9.55, -11.639),
-        'neck': (31.643, -23.254, 13.513), 'right_clavicle': (-9.046, 14.366),
-        'right_shoulder': (42.005, -23.141, -14.609), 'right_elbow': (28.266, 54.28),
-        'right_wrist': (-50.219, 16.015),
+        'spine_lumbar': (54.705, -19.026, 5.472), 'spine_thoracic': (-12.808, 9.897, -11.408),
+        'neck': (31.618, -23.425, 13.008), 'right_clavicle': (-9.072, 14.364),
+        'right_shoulder': (41.599, -22.453, -12.373), 'right_elbow': (29.091, 51.683),
+        'right_wrist': (-50.321, 15.654),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=11.207505, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.3, {
-        'spine_lumbar': (54.492, -18.96, 5.347), 'neck': (31.637, -23.217, 13.63),
-        'right_shoulder': (41.724, -23.177, -14.631), 'right_elbow': (28.336, 55.077),
-        'right_wrist': (-50.34, 16.038),
+        'spine_lumbar': (54.52, -18.971, 5.425), 'neck': (31.689, -23.388, 13.263),
+        'right_shoulder': (41.289, -22.49, -12.396), 'right_elbow': (29.193, 52.561),
+        'right_wrist': (-50.469, 15.684),
     })
     human.KeyJoints(11.4, {
-        'spine_thoracic': (-12.623, 9.532, -11.697), 'right_clavicle': (-8.97, 14.299),
-        'right_shoulder': (41.19, -21.681, -15.197), 'right_elbow': (28.166, 71.674),
-        'right_wrist': (-50.264, 15.789),
+        'spine_thoracic': (-12.72, 9.879, -11.469), 'right_clavicle': (-8.996, 14.294),
+        'right_shoulder': (40.743, -20.833, -13.031), 'right_elbow': (28.927, 70.834),
+        'right_wrist': (-50.347, 15.398),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.5, {
-        'right_shoulder': (41.09, -21.317, -15.331), 'right_elbow': (28.205, 75.57),
-        'right_wrist': (-50.277, 15.739),
+        'right_shoulder': (40.636, -20.385, -13.199), 'right_elbow': (28.968, 75.57),
+        'right_wrist': (-50.357, 15.337),
     })
     human.KeyJoints(11.6, {
-        'right_shoulder': (43.462, -25.948, -13.593), 'right_elbow': (30.901, 15.525),
-        'right_wrist': (-51.458, 17.041),
+        'right_shoulder': (42.817, -25.1, -11.415), 'right_elbow': (31.744, 15.525),
+        'right_wrist': (-51.581, 16.662),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.7, {
-        'right_shoulder': (44.352, -26.663, -13.356), 'right_elbow': (33.085, -3.603),
-        'right_wrist': (-52.636, 17.861),
+        'right_shoulder': (43.657, -25.84, -11.172), 'right_elbow': (33.97, -3.603),
+        'right_wrist': (-52.754, 17.493),
     })
     human.KeyJoints(11.8, {
-        'right_shoulder': (41.617, -22.929, -14.727), 'right_elbow': (28.273, 57.949),
-        'right_wrist': (-50.316, 15.991),
+        'right_shoulder': (41.099, -22.021, -12.578), 'right_elbow': (29.06, 57.949),
+        'right_wrist': (-50.418, 15.594),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.9, {
-        'right_shoulder': (41.199, -21.713, -15.185), 'right_elbow': (28.164, 71.334),
-        'right_wrist': (-50.264, 15.793),
+        'right_shoulder': (40.731, -20.786, -13.049), 'right_elbow': (28.929, 71.334),
+        'right_wrist': (-50.347, 15.391),
     })
     human.KeyJoints(12.0, {
-        'right_shoulder': (43.783, -26.257, -13.486), 'right_elbow': (31.617, 8.736),
-        'right_wrist': (-51.817, 17.301),
+        'right_shoulder': (43.119, -25.418, -11.306), 'right_elbow': (32.474, 8.736),
+        'right_wrist': (-51.94, 16.926),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.1, {
-        'right_shoulder': (44.133, -26.529, -13.397), 'right_elbow': (32.489, 1.212),
-        'right_wrist': (-52.289, 17.628),
+        'right_shoulder': (43.45, -25.7, -11.214), 'right_elbow': (33.362, 1.212),
+        'right_wrist': (-52.41, 17.258),
     })
     human.KeyJoints(12.2, {
-        'right_shoulder': (41.383, -22.36, -14.945), 'right_elbow': (28.211, 64.395),
-        'right_wrist': (-50.301, 15.898),
+        'right_shoulder': (40.88, -21.446, -12.802), 'right_elbow': (29.003, 64.395),
+        'right_wrist': (-50.406, 15.501),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.3, {
-        'right_shoulder': (41.326, -22.218, -14.999), 'right_elbow': (28.212, 65.992),
-        'right_wrist': (-50.305, 15.877),
+        'right_shoulder': (40.868, -21.285, -12.86), 'right_elbow': (28.933, 65.992),
+        'right_wrist': (-50.355, 15.466),
     })
     human.KeyJoints(12.4, {
-        'right_shoulder': (44.065, -26.482, -13.412), 'right_elbow': (32.312, 2.685),
-        'right_wrist': (-52.19, 17.561),
+        'right_shoulder': (43.386, -25.651, -11.23), 'right_elbow': (33.182, 2.685),
+        'right_wrist': (-52.312, 17.19),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.5, {
-        'right_shoulder': (43.863, -26.325, -13.463), 'right_elbow': (31.808, 7.028),
-        'right_wrist': (-51.917, 17.371),
+        'right_shoulder': (43.195, -25.489, -11.282), 'right_elbow': (32.668, 7.028),
+        'right_wrist': (-52.04, 16.998),
     })
     human.KeyJoints(12.6, {
-        'right_shoulder': (41.236, -21.837, -15.139), 'right_elbow': (28.159, 69.998),
-        'right_wrist': (-50.263, 15.811),
+        'right_shoulder': (40.763, -20.911, -13.002), 'right_elbow': (28.925, 69.998),
+        'right_wrist': (-50.347, 15.409),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.7, {
-        'right_shoulder': (41.551, -22.771, -14.787), 'right_elbow': (28.244, 59.753),
-        'right_wrist': (-50.306, 15.964),
+        'right_shoulder': (41.037, -21.862, -12.64), 'right_elbow': (29.033, 59.753),
+        'right_wrist': (-50.409, 15.566),
     })
     human.KeyJoints(12.8, {
-        'right_shoulder': (44.298, -26.633, -13.365), 'right_elbow': (32.936, -2.419),
-        'right_wrist': (-52.547, 17.802),
+        'right_shoulder': (43.607, -25.809, -11.181), 'right_elbow': (33.818, -2.419),
+        'right_wrist': (-52.666, 17.434),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.834705, duration=0.072)
     human.KeyJoints(12.9, {
-        'right_shoulder': (44.679, -26.77, -13.316), 'right_elbow': (33.833, -10.0),
-        'right_wrist': (-53.096, 18.162),
+        'right_shoulder': (43.966, -25.957, -11.132), 'right_elbow': (34.742, -10.0),
+        'right_wrist': (-53.215, 17.801),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=12.906705, duration=0.2628)
-    human.KeyJoints(13.0, {'neck': (31.642, -23.199, 13.628), 'right_elbow': (31.749, -10.0)})
+    human.KeyJoints(13.0, {'neck': (31.694, -23.37, 13.262), 'right_elbow': (32.628, -10.0)})
     human.KeyJoints(13.1, {
-        'right_shoulder': (42.473, -24.022, -14.314), 'right_elbow': (29.516, -10.0),
-        'right_wrist': (-50.905, 16.51),
+        'right_shoulder': (41.997, -23.303, -12.088), 'right_elbow': (30.361, -10.0),
+        'right_wrist': (-51.011, 16.148),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
     human.KeyJoints(13.2, {
-        'right_shoulder': (41.837, -23.213, -14.605), 'right_elbow': (28.224, -9.991),
-        'right_wrist': (-50.287, 16.043),
+        'right_shoulder': (41.43, -22.522, -12.368), 'right_elbow': (29.049, -9.991),
+        'right_wrist': (-50.39, 15.681),
     })
-    human.KeyJoints(13.3, {'neck': (31.679, -23.075, 13.62)})
+    human.KeyJoints(13.3, {'neck': (31.731, -23.243, 13.254)})
     human.KeyJoints(16.1, {
-        'spine_lumbar': (54.492, -18.96, 5.347), 'spine_thoracic': (-12.623, 9.532, -11.697),
-        'right_clavicle': (-8.97, 14.299), 'right_shoulder': (41.826, -23.215, -14.606),
-        'right_elbow': (28.25, -10.0), 'right_wrist': (-50.262, 16.025),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-41.263, 40.013, -75.428),
-        'left_elbow': (96.112, 31.177), 'left_wrist': (-68.022, 9.381),
+        'spine_lumbar': (54.52, -18.971, 5.425), 'spine_thoracic': (-12.72, 9.879, -11.469),
+        'right_clavicle': (-8.996, 14.294), 'right_shoulder': (41.419, -22.524, -12.369),
+        'right_elbow': (29.076, -10.0), 'right_wrist': (-50.365, 15.664),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-40.997, 39.949, -75.438),
+        'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     human.KeyJoints(16.2, {
-        'spine_lumbar': (52.94, -18.421, 5.192), 'spine_thoracic': (-12.152, 9.258, -11.3),
-        'right_clavicle': (-8.711, 13.813), 'right_shoulder': (40.992, -22.167, -14.712),
-        'right_elbow': (27.916, -9.164), 'right_wrist': (-48.138, 15.262),
-        'left_clavicle': (-9.711, 14.49), 'left_shoulder': (-39.553, 39.128, -73.48),
-        'left_elbow': (94.144, 30.737), 'left_wrist': (-65.688, 9.147),
+        'spine_lumbar': (52.974, -18.432, 5.268), 'spine_thoracic': (-12.245, 9.595, -11.079),
+        'right_clavicle': (-8.736, 13.808), 'right_shoulder': (40.6, -21.506, -12.54),
+        'right_elbow': (28.72, -9.165), 'right_wrist': (-48.247, 14.917),
+        'left_clavicle': (-9.711, 14.49), 'left_shoulder': (-39.295, 39.065, -73.492),
+        'left_elbow': (94.12, 30.719), 'left_wrist': (-65.686, 9.096),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (35.876, -12.285, 3.192), 'spine_thoracic': (-6.953, 5.704, -6.931),
-        'right_clavicle': (-5.355, 8.473), 'right_shoulder': (28.573, -10.712, -16.733),
-        'right_elbow': (30.317, 1.038), 'right_wrist': (-29.561, 9.35),
-        'left_clavicle': (-5.97, 8.888), 'left_shoulder': (-20.933, 26.952, -52.945),
-        'left_elbow': (71.005, 25.474), 'left_wrist': (-40.317, 5.597),
+        'spine_lumbar': (35.985, -12.291, 3.238), 'spine_thoracic': (-7.004, 5.911, -6.796),
+        'right_clavicle': (-5.37, 8.469), 'right_shoulder': (28.333, -10.305, -15.398),
+        'right_elbow': (30.812, 1.038), 'right_wrist': (-29.625, 9.137),
+        'left_clavicle': (-5.97, 8.888), 'left_shoulder': (-20.776, 26.914, -52.952),
+        'left_elbow': (70.99, 25.463), 'left_wrist': (-40.316, 5.565),
     })
-    human.KeyRoot(16.4, (1.949, 44.833, 44.42), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.4, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.4, {
-        'spine_lumbar': (14.852, -3.847, 0.728), 'spine_thoracic': (-0.473, 1.327, -1.548),
-        'right_clavicle': (-1.221, 1.892), 'right_shoulder': (13.193, 3.385, -19.225),
-        'right_elbow': (33.385, 13.588), 'right_wrist': (-6.606, 2.083),
-        'left_clavicle': (-1.362, 1.985), 'left_shoulder': (2.01, 12.009, -27.412),
-        'left_elbow': (42.4, 19.033), 'left_wrist': (-8.998, 1.235),
-        'right_hip': (22.321, 0.0, 0.0), 'right_knee': (124.304,), 'left_hip': (22.321, 0.0, 0.0),
-        'left_knee': (124.304,),
+        'spine_lumbar': (15.052, -3.848, 0.739), 'spine_thoracic': (-0.464, 1.375, -1.518),
+        'right_clavicle': (-1.225, 1.891), 'right_shoulder': (13.138, 3.478, -18.921),
+        'right_elbow': (33.498, 13.588), 'right_wrist': (-6.62, 2.036),
+        'left_clavicle': (-1.362, 1.985), 'left_shoulder': (2.045, 12.0, -27.413),
+        'left_elbow': (42.398, 19.031), 'left_wrist': (-8.998, 1.228),
+        'right_hip': (22.438, 0.0, 0.0), 'right_knee': (124.422,), 'left_hip': (22.438, 0.0, 0.0),
+        'left_knee': (124.422,),
     })
-    human.KeyRoot(16.5, (2.034, 44.637, 43.959), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.5, (2.05, 44.598, 43.869), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.5, {
-        'spine_lumbar': (9.097, 0.835, 0.0), 'spine_thoracic': (1.615, 0.208, 0.038),
-        'right_clavicle': (0.0, -0.046), 'right_shoulder': (8.624, 7.549, -19.969),
-        'right_elbow': (34.317, 17.276), 'right_wrist': (0.178, -0.061),
-        'left_clavicle': (0.0, -0.048), 'left_shoulder': (8.823, 7.569, -19.868),
-        'left_elbow': (33.95, 17.144), 'left_wrist': (0.215, -0.057),
-        'right_hip': (22.996, 0.0, 0.0), 'right_knee': (124.983,), 'left_hip': (22.996, 0.0, 0.0),
-        'left_knee': (124.983,),
+        'spine_lumbar': (9.354, 0.835, 0.0), 'spine_thoracic': (1.658, 0.208, 0.037),
+        'right_clavicle': (0.0, -0.046), 'right_shoulder': (8.624, 7.548, -19.969),
+        'right_elbow': (34.317, 17.276), 'right_wrist': (0.178, -0.06),
+        'left_clavicle': (0.0, -0.048), 'left_shoulder': (8.822, 7.569, -19.868),
+        'left_elbow': (33.952, 17.144), 'left_wrist': (0.215, -0.056),
+        'right_hip': (23.13, 0.0, 0.0), 'right_knee': (125.116,), 'left_hip': (23.13, 0.0, 0.0),
+        'left_knee': (125.116,),
     })
-    human.KeyRoot(16.6, (2.312, 43.949, 42.448), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.6, (2.337, 43.885, 42.314), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.6, {
-        'spine_lumbar': (2.76, 10.613, 0.0), 'spine_thoracic': (0.264, 2.473, 0.03),
-        'right_hip': (25.237, 0.0, 0.0), 'right_knee': (127.224,), 'left_hip': (25.237, 0.0, 0.0),
-        'left_knee': (127.224,),
+        'spine_lumbar': (3.137, 10.614, 0.0), 'spine_thoracic': (0.333, 2.474, 0.03),
+        'right_hip': (25.437, 0.0, 0.0), 'right_knee': (127.424,), 'left_hip': (25.437, 0.0, 0.0),
+        'left_knee': (127.424,),
     })
-    human.KeyRoot(16.7, (2.327, 43.909, 42.364), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.7, (2.365, 43.809, 42.159), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.7, {
-        'spine_lumbar': (-12.418, 20.0, 0.0), 'spine_thoracic': (-4.404, 10.0, 0.023),
-        'right_hip': (25.362, -0.001, 0.0), 'right_knee': (127.349,),
-        'left_hip': (25.362, 0.001, 0.0), 'left_knee': (127.349,), 'left_ankle': (15.003, -0.002),
+        'spine_lumbar': (-11.806, 20.0, 0.0), 'spine_thoracic': (-4.29, 10.0, 0.023),
+        'right_hip': (25.67, -0.001, 0.0), 'right_knee': (127.657,),
+        'left_hip': (25.67, 0.001, 0.0), 'left_knee': (127.657,), 'left_ankle': (15.003, -0.002),
         'left_toes': (86.984,),
     })
-    human.KeyRoot(16.8, (1.853, 45.029, 44.898), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.8, (1.932, 44.864, 44.493), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.8, {
-        'spine_lumbar': (-29.296, 20.0, 0.0), 'spine_thoracic': (-11.862, 10.0, 0.016),
-        'right_elbow': (34.301, 17.225), 'right_hip': (21.622, -0.009, -0.002),
-        'right_knee': (123.609,), 'right_ankle': (15.003, 0.012),
-        'left_hip': (21.578, -0.007, 0.016), 'left_knee': (123.613,), 'left_ankle': (15.151, 0.013),
-        'left_toes': (86.884,),
+        'spine_lumbar': (-27.985, 20.0, 0.0), 'spine_thoracic': (-11.636, 10.0, 0.015),
+        'right_elbow': (34.301, 17.225), 'right_hip': (22.213, -0.004, -0.001),
+        'right_knee': (124.2,), 'left_hip': (22.171, 0.002, 0.002), 'left_knee': (124.204,),
+        'left_ankle': (15.144, -0.003), 'left_toes': (86.889,),
     })
-    human.KeyRoot(16.9, (1.748, 45.153, 45.196), (-10.437, 0.0, 0.0))
+    human.KeyRoot(16.9, (2.045, 44.604, 43.881), (-10.437, 0.0, 0.0))
     human.KeyJoints(16.9, {
-        'spine_lumbar': (-29.015, 20.0, 0.0), 'spine_thoracic': (-14.77, 10.0, 0.008),
-        'right_hip': (21.174, -0.066, -0.016), 'right_knee': (123.161,),
-        'right_ankle': (15.005, 0.095), 'left_hip': (20.38, -2.996, -3.112),
-        'left_knee': (126.331,), 'left_ankle': (19.066, 0.295), 'left_toes': (88.519,),
+        'spine_lumbar': (-25.223, 20.0, 0.0), 'spine_thoracic': (-14.99, 10.0, 0.008),
+        'right_hip': (23.11, -0.003, -0.001), 'right_knee': (125.094,),
+        'left_hip': (22.48, -2.354, -0.231), 'left_knee': (128.694,), 'left_ankle': (17.628, 0.397),
+        'left_toes': (89.07,),
     })
-    human.KeyRoot(17.0, (2.451, 43.484, 41.498), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.0, (2.617, 43.103, 40.779), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.0, {
-        'spine_lumbar': (-16.37, 20.0, 0.0), 'spine_thoracic': (-12.755, 10.0, 0.001),
-        'right_elbow': (34.377, 17.192), 'left_elbow': (34.371, 17.187),
-        'right_hip': (26.655, -0.044, -0.012), 'right_knee': (128.642,),
-        'right_ankle': (15.007, 0.067), 'left_hip': (31.075, -24.999, -20.664),
-        'left_knee': (120.347,), 'left_ankle': (4.3, 5.514), 'right_toes': (86.974,),
+        'spine_lumbar': (-16.343, 20.0, 0.0), 'right_elbow': (34.377, 17.192),
+        'left_elbow': (34.371, 17.187), 'right_hip': (27.759, -0.003, -0.001),
+        'right_knee': (129.743,), 'right_ankle': (15.002, 0.002), 'left_hip': (31.85, -23.439, 1.0),
+        'left_knee': (133.585,), 'left_ankle': (3.204, 8.849), 'right_toes': (86.982,),
         'left_toes': (90.0,),
     })
-    human.KeyRoot(17.1, (2.939, 41.855, 38.556), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.1, (2.513, 42.01, 38.772), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.1, {
-        'spine_lumbar': (-16.776, 20.0, 0.0), 'spine_thoracic': (-12.101, 10.0, 0.0),
-        'left_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
-        'right_hip': (31.152, -0.108, -0.041), 'right_knee': (133.175,),
-        'right_ankle': (15.16, 0.146), 'left_hip': (62.762, -1.779, 31.08), 'left_knee': (135.0,),
-        'left_ankle': (-45.639, 1.069), 'right_toes': (86.598,), 'left_toes': (58.516,),
+        'spine_lumbar': (-17.485, 20.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
+        'left_wrist': (0.0, 0.0), 'right_hip': (30.735, -0.594, -0.248), 'right_knee': (132.751,),
+        'right_ankle': (15.047, 0.395), 'left_hip': (62.255, -10.259, 34.129),
+        'left_knee': (135.0,), 'left_ankle': (-45.731, 8.145), 'right_toes': (86.768,),
+        'left_toes': (59.888,),
     })
-    human.KeyRoot(17.2, (2.991, 41.685, 38.282), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.2, (2.896, 41.376, 37.795), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.2, {
-        'spine_lumbar': (-19.105, 20.0, 0.0), 'spine_thoracic': (-13.189, 10.0, 0.0),
-        'right_wrist': (0.0, 0.0), 'right_hip': (31.586, -0.105, -0.041), 'right_knee': (133.607,),
-        'right_ankle': (15.158, 0.144), 'left_hip': (89.723, -4.179, 30.485), 'left_knee': (135.0,),
-        'left_ankle': (-44.148, 1.381), 'right_toes': (86.644,), 'left_toes': (36.969,),
+        'spine_lumbar': (-16.755, 20.0, 0.0), 'right_wrist': (0.0, 0.0),
+        'right_hip': (32.349, -0.346, -0.15), 'right_knee': (134.348,),
+        'left_hip': (89.364, -20.23, 31.99), 'left_knee': (135.0,), 'left_ankle': (-43.879, 14.355),
+        'left_toes': (39.069,),
     })
-    human.KeyRoot(17.3, (3.214, 41.125, 37.456), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.3, (3.232, 41.116, 37.445), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.3, {
-        'spine_lumbar': (-16.166, 20.0, 0.0), 'spine_thoracic': (-12.541, 10.0, 0.0),
-        'right_hip': (32.969, -0.021, -0.008), 'right_knee': (134.956,),
-        'right_ankle': (15.003, 0.036), 'left_hip': (109.84, -25.0, -22.503),
-        'left_knee': (117.142,), 'left_ankle': (6.861, 7.735), 'right_toes': (86.983,),
-        'left_toes': (23.696,),
+        'spine_lumbar': (-15.368, 20.0, 0.0), 'right_hip': (32.99, -0.002, -0.001),
+        'right_knee': (134.974,), 'right_ankle': (15.002, 0.002),
+        'left_hip': (108.148, -25.0, 9.196), 'left_knee': (133.596,), 'left_ankle': (4.985, 24.675),
+        'right_toes': (86.982,), 'left_toes': (26.325,),
     })
-    human.KeyRoot(17.4, (3.132, 41.414, 37.899), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.4, (3.191, 41.261, 37.665), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.4, {
-        'spine_lumbar': (-17.904, 20.0, 0.0), 'spine_thoracic': (-12.549, 10.0, 0.0),
-        'right_hip': (32.256, -0.02, -0.008), 'right_knee': (134.243,),
-        'left_hip': (99.205, -25.0, -24.308), 'left_knee': (114.98,), 'left_ankle': (19.872, 1.137),
-        'left_toes': (12.447,),
+        'spine_lumbar': (-16.89, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (32.636, -0.002, -0.001), 'right_knee': (134.62,),
+        'left_hip': (99.556, -19.406, -3.226), 'left_knee': (129.906,),
+        'left_ankle': (19.683, 2.524), 'left_toes': (12.481,),
     })
-    human.KeyRoot(17.5, (3.232, 41.107, 37.431), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.5, (3.23, 41.116, 37.445), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.5, {
-        'spine_lumbar': (-15.451, 20.0, 0.0), 'spine_thoracic': (-4.888, 10.0, 0.0),
-        'right_hip': (33.012, -0.005, -0.002), 'right_knee': (134.999,),
-        'left_hip': (94.246, -0.003, 0.009), 'left_knee': (127.036,), 'left_ankle': (20.0, 0.01),
-        'left_toes': (12.79,),
+        'spine_lumbar': (-13.871, 20.0, 0.0), 'spine_thoracic': (-13.88, 10.0, 0.0),
+        'right_hip': (32.99, -0.005, -0.002), 'right_knee': (134.977,),
+        'left_hip': (94.229, -0.003, 0.009), 'left_knee': (127.038,), 'left_ankle': (20.0, 0.01),
+        'left_toes': (12.809,),
     })
-    human.KeyRoot(17.6, (3.082, 41.645, 38.266), (-10.437, 0.0, 0.0))
+    human.KeyRoot(17.6, (3.078, 41.659, 38.289), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.6, {
-        'spine_lumbar': (-4.274, 5.76, 0.0), 'spine_thoracic': (-0.874, 1.041, 0.0),
-        'right_hip': (31.676, 0.0, 0.0), 'right_knee': (133.663,), 'right_ankle': (15.003, 0.0),
-        'left_hip': (93.277, 0.0, 0.0), 'left_knee': (127.19,), 'left_ankle': (19.826, 0.0),
-        'right_toes': (86.984,), 'left_toes': (14.087,),
+        'spine_lumbar': (-4.399, 5.832, 0.0), 'spine_thoracic': (-0.902, 1.053, 0.0),
+        'right_hip': (31.64, 0.0, 0.0), 'right_knee': (133.627,), 'right_ankle': (15.003, 0.0),
+        'left_hip': (93.25, 0.0, 0.0), 'left_knee': (127.194,), 'left_ankle': (19.825, 0.0),
+        'right_toes': (86.984,), 'left_toes': (14.12,),
     })
     human.KeyRoot(17.7, (3.888, 42.894, 34.099), (-10.437, 0.0, 0.0))
     human.KeyJoints(17.7, {
@@ -998,7 +990,7 @@ def replace_fuel_filter():
     human.KeyRoot(18.930705, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(18.930705, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (31.679, -23.075, 13.62), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
+        'neck': (31.731, -23.243, 13.254), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
         'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),

@@ -65,6 +65,7 @@ MANIKINS = tuple(
     f"{sex}-p{pct}" for sex in ("female", "male") for pct in (1, 5, 10, 50, 90, 95, 99)
 )
 KNEE_DEPTH = 0.05  # m: half a knee's depth; a kneeling knee bears this far below its centre
+LOAD_RAMP = 0.3  # s: a carried load is taken up and put down over this (docs/metrics.md)
 KNEE_HALF_WIDTH = 0.025  # m: half a patella's breadth; the knee bears over this either side
 MISS_TOL = 1e-3  # m: a goal further than this from its effector is a miss
 TOUCH_TOL = 2e-3  # m: a point supports only this close to the floor or to its site
@@ -193,7 +194,14 @@ class Body:
             total += float(tool.get("mass", 0.0)) * held[:, None] * middle
             mass += float(tool.get("mass", 0.0)) * held
         for hand, load, start, end in carried_loads(self.doc):
-            held = (self.time >= start) & (self.time <= end)
+            # taken up over LOAD_RAMP from the start and put down over it to the end (the whole
+            # window when shorter), as docs/metrics.md defines the carried centre of mass
+            ramp = max(min(LOAD_RAMP, 0.5 * (end - start)), 1e-6)
+            share = np.minimum(
+                np.clip((self.time - start) / ramp, 0.0, 1.0),
+                np.clip((end - self.time) / ramp, 0.0, 1.0),
+            )
+            held = share * ((self.time >= start) & (self.time <= end))
             total += load * held[:, None] * self.points[hand]
             mass += load * held
         return total / mass[:, None]

@@ -418,6 +418,9 @@ def test_explicit_tool_argument_overrides_the_task(tmp_path: Path) -> None:
 def test_unknown_tool_and_bad_swing_are_diagnosed(tmp_path: Path) -> None:
     assert _diagnostics(tmp_path, "", ", tool: wrench_11mm") == ["MT0201"]  # unknown name
     assert "MT0309" in _diagnostics(tmp_path, "tool wrench_10mm", ", swing: 200 deg")
+    # under a 120-position ratchet's click: 0.5 deg made 2,160 strokes of three turns (fuzz)
+    assert "MT0309" in _diagnostics(tmp_path, "tool wrench_10mm", ", swing: 0.5 deg")
+    assert "MT0309" not in _diagnostics(tmp_path, "tool wrench_10mm", ", swing: 3 deg")
     assert _diagnostics(tmp_path, "tool wrench_10mm", ", swing: 3 cm") == ["MT0302"]  # not an angle
 
 

@@ -136,7 +136,7 @@ def test_a_billion_turns_is_the_expansion_budget_fast_and_small(tmp_path: Path) 
 
 
 def test_a_huge_twist_angle_is_the_expansion_budget_not_an_overflow(tmp_path: Path) -> None:
-    extra = "element spin(a: Angle) {\n    posture twist(right, a, swing: 1e-300 deg)\n}\n"
+    extra = "element spin(a: Angle) {\n    posture twist(right, a, swing: 3 deg)\n}\n"
     body = "    reach(right, a)\n    spin(1e300 deg)\n"
     codes = [code for code, *_ in _found(tmp_path, _task(body, extra))]
     assert codes == ["MT0401"]

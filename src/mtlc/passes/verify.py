@@ -37,6 +37,7 @@ from mtlc.body.kinematics import Pose
 from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
 from mtlc.loads import carried_com
 from mtlc.metrics import (
+    foot_stance,
     hand_contacts,
     support,
     support_margin,
@@ -540,9 +541,7 @@ class _Verifier:
     def balance(self) -> None:
         """Static margin of the centre of mass (with held tools) over the touching points."""
         ir, t = self.ir, self.t
-        # every foot may bear weight: a sole point supports where it touches (within 2 mm), a
-        # foot's step records do not decide it (docs/metrics.md: one definition, the points)
-        stance = np.ones((len(t), 2), dtype=bool)
+        stance = foot_stance(ir, t)
         margin = np.empty(len(t))
         # a chunk of frames at a time, as the balance pass: the hull's candidate edges cost
         # ~5 KB a frame while measured (600 MB at once for an hour of motion)

@@ -455,12 +455,7 @@ def _kneel_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     ground = state.ir.ground
     plan = plan_kneel(state.skel, q0, root, ground, knees, seg.end - seg.start)
     frame = (root.copy(), _heading(rot), ground)
-    _keyed(seg, plan, seg.start, frame)
-    sides = tuple(a[0] for a in free_arms(state.ir, seg))
-    _kneel_arms(seg, plan, q0, sides, state.skel)
-    ctx.cache.setdefault(KNEEL_PLANS, {})[id(seg)] = (plan, frame)
-    state.add(seg)
-    mark(ctx.cache, seg, "kneel_arms")
+    _key_kneel(seg, plan, q0, frame, plan, state, ctx, "kneel_arms")
 
 
 KNEELING_TOL = 0.02  # m: knees this close to where the last kneel left them are still there
@@ -518,12 +513,22 @@ def _kneel_from_kneel(
         piece = plan.window(cut, whole).reversed(duration)
         standing = plan.window(0.0, cut)
     q0 = state.q_at(seg.start, skip=seg)
-    _keyed(seg, piece, seg.start, frame)
+    _key_kneel(seg, piece, q0, frame, standing, state, ctx, "kneel_on")
+
+
+def _key_kneel(
+    seg: Segment, played: KneelPlan, q0: FloatArray, frame: tuple[FloatArray, float, float],
+    standing: KneelPlan, state: PoseState, ctx: PassContext, marker: str,
+) -> None:  # fmt: skip
+    """Key the ``played`` plan and the free arms on ``seg``, and record ``standing`` (the plan
+    from standing to where ``seg`` leaves the body, for a later stand or kneel) under
+    ``marker``'s restater."""
+    _keyed(seg, played, seg.start, frame)
     sides = tuple(a[0] for a in free_arms(state.ir, seg))
-    _kneel_arms(seg, piece, q0, sides, state.skel)
+    _kneel_arms(seg, played, q0, sides, state.skel)
     ctx.cache.setdefault(KNEEL_PLANS, {})[id(seg)] = (standing, frame)
     state.add(seg)
-    mark(ctx.cache, seg, "kneel_on")
+    mark(ctx.cache, seg, marker)
 
 
 def _faded_in(piece: KneelPlan, start: FloatArray) -> FloatArray:

@@ -35,7 +35,7 @@ from mtlc.passes.context import INTERNAL_FPS, PassContext
 
 # the front end times the turns these thresholds make the gait step (mtlc.semantics.turning)
 from mtlc.semantics import gait as steps_time
-from mtlc.semantics.gait import CLOSE, MAX_TURN_STEP, PIVOT, START, STEP_LENGTH_RATIO, WALK
+from mtlc.semantics.gait import CLOSE, MAX_TURN_STEP, PIVOT, START, WALK
 from mtlc.semantics.turning import FINAL_TURN, MAX_TWIST, MIN_DISTANCE, TURN_IN_PLACE, wrap
 
 FloatArray = NDArray[np.float64]
@@ -273,9 +273,10 @@ class Gait:
 
 
 def default_gait(skel: Any) -> Gait:
-    ratio = STEP_LENGTH_RATIO.get(getattr(skel, "sex", ""), 0.414)
     h = float(skel.dims.stature)
-    return Gait(ratio * h, STEP_HEIGHT_RATIO * h, stature=h)
+    return Gait(
+        steps_time.step_length(h, getattr(skel, "sex", "")), STEP_HEIGHT_RATIO * h, stature=h
+    )
 
 
 @dataclass

@@ -24,7 +24,6 @@ from mtlc.passes.locomotion import (
     MAX_TURN_STEP,
     MAX_TWIST,
     MIN_DISTANCE,
-    STEP_LENGTH_RATIO,
     Gait,
     _ry,
     default_gait,
@@ -36,6 +35,7 @@ from mtlc.passes.locomotion import (
 )
 from mtlc.passes.lower import plan_root
 from mtlc.passes.state import PoseState
+from mtlc.semantics.gait import STEP_LENGTH_RATIO
 
 ROOT = Path(__file__).resolve().parents[2]
 WALKING_EXAMPLES = ["remove_access_panel", "remove_avionics_unit"]

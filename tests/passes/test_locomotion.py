@@ -21,7 +21,6 @@ from mtlc.passes.interpolate import anchored_root
 from mtlc.passes.locomotion import (
     LEG_DOFS,
     LEGS,
-    MAX_TURN_STEP,
     MAX_TWIST,
     MIN_DISTANCE,
     Gait,
@@ -35,7 +34,7 @@ from mtlc.passes.locomotion import (
 )
 from mtlc.passes.lower import plan_root
 from mtlc.passes.state import PoseState
-from mtlc.semantics.gait import STEP_LENGTH_RATIO
+from mtlc.semantics.gait import MAX_TURN_STEP, STEP_LENGTH_RATIO
 
 ROOT = Path(__file__).resolve().parents[2]
 WALKING_EXAMPLES = ["remove_access_panel", "remove_avionics_unit"]

@@ -35,7 +35,7 @@ from mtlc.passes.context import INTERNAL_FPS, PassContext
 
 # the front end times the turns these thresholds make the gait step (mtlc.semantics.turning)
 from mtlc.semantics import gait as steps_time
-from mtlc.semantics.gait import CLOSE, MAX_TURN_STEP, PIVOT, START, WALK
+from mtlc.semantics.gait import CLOSE, PIVOT, START, WALK, pivots
 from mtlc.semantics.turning import FINAL_TURN, MAX_TWIST, MIN_DISTANCE, TURN_IN_PLACE, wrap
 
 FloatArray = NDArray[np.float64]
@@ -346,7 +346,7 @@ def plan_footsteps(
 
     def pivot(at: FloatArray, h_from: float, turn: float, foot: str) -> str:
         """Turn in place about ``at``: steps of at most MAX_TURN_STEP, then a closing step."""
-        m = math.ceil(abs(turn) / MAX_TURN_STEP)
+        m = pivots(turn)  # the count semantics.gait timed the walk with
         for j in range(1, m + 1):
             h = h_from + turn * j / m
             put(foot, Footprint(at + _side(h, foot, half_width), h), h_from + turn * (j - 0.5) / m)

@@ -61,9 +61,14 @@ def step_seconds(kind: str, length: float, full_length: float, stature: float) -
     return 60.0 / cadence
 
 
+def pivots(turn: float) -> int:
+    """Pivot steps of at most ``MAX_TURN_STEP`` that turn the body by ``turn`` (rad) in place."""
+    return math.ceil(abs(turn) / MAX_TURN_STEP - 1e-9)
+
+
 def pivot_steps(turn: float) -> int:
-    """Steps a turn in place takes: pivots of at most ``MAX_TURN_STEP``, then a closing step."""
-    return math.ceil(abs(turn) / MAX_TURN_STEP - 1e-9) + 1
+    """Steps a turn in place takes: its pivots, then a closing step."""
+    return pivots(turn) + 1
 
 
 def walking_steps(distance: float, full_length: float) -> list[tuple[str, float]]:

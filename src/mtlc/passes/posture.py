@@ -208,7 +208,7 @@ def target_posture(
     kind = params.get("posture", "stand")
     q = current.copy()
     if kind == "stand":
-        for name in (*TRUNK_DOFS, *LEG_DOFS, *free_arms):
+        for name in (*TRUNK_DOFS, *LEG_DOFS, *standing_arm_dofs(free_arms)):
             q[skel.dof_index(name)] = skel.q_comfort[skel.dof_index(name)]
         return flat_feet(skel, q)
     if kind == "bend":
@@ -259,32 +259,84 @@ def target_posture(
     raise ValueError(f"unknown posture {kind!r}")
 
 
+def standing_arm_dofs(free_arms: tuple[str, ...]) -> tuple[str, ...]:
+    """The dofs a stand lets down to the comfort pose for each free arm (named by its shoulder
+    flexion dof): the whole arm but the forearm's twist, which a `turn` owns. Only the shoulder's
+    flexion went down before, and an arm that had reached down and out of a squat stood up with
+    its shoulder turned and its elbow bent as it left the site."""
+    return tuple(f"{dof[0]}_{part}" for dof in free_arms for part in KNEEL_ARM_PARTS)
+
+
 def free_arms(ir: MotionIR, seg: Segment) -> tuple[str, ...]:
     """Shoulder flexion dofs of the arms free during ``seg``: no segment on the arm's track
     overlaps it, and the arm's last segment before it is not a contact (a hand that reached a
-    site stays on it until its arm's next segment, see ``balance.hand_pins``)."""
+    site stays on it until its arm's next segment, see ``balance.hand_pins``) unless the hand
+    opened its grip since (``released_arms``)."""
+    return tuple(f"{side}_shoulder_flex" for side, how in _arm_states(ir, seg) if how != "held")
+
+
+def released_arms(ir: MotionIR, seg: Segment) -> tuple[str, ...]:
+    """Shoulder flexion dofs of the free arms whose hand let go of its site since its last
+    contact: a released valve or a part set down leaves the hand free (the drain task stood up
+    with the hand that had let go of the valve raised above the head)."""
+    return tuple(f"{side}_shoulder_flex" for side, how in _arm_states(ir, seg) if how == "released")
+
+
+def _arm_states(ir: MotionIR, seg: Segment) -> list[tuple[str, str]]:
+    """(side, state) of each arm not busy during ``seg``: "free", "released" or "held"."""
     out = []
     for side in ("r", "l"):
         segs = ir.on_track(f"{side}_arm")
-        busy = any(s.start < seg.end - 1e-9 and s.end > seg.start + 1e-9 for s in segs)
+        if any(s.start < seg.end - 1e-9 and s.end > seg.start + 1e-9 for s in segs):
+            continue
         before = [s for s in segs if s.end <= seg.start + 1e-9]
         last = max(before, key=lambda s: s.end, default=None)
-        if not busy and (last is None or last.kind != "TO"):
-            out.append(f"{side}_shoulder_flex")
-    return tuple(out)
+        if last is None or last.kind != "TO":
+            out.append((side, "free"))
+        else:
+            out.append((side, "released" if _let_go(ir, side, last.end, seg.start) else "held"))
+    return out
+
+
+LATE_START = 0.4  # share of a stand after which a released arm starts down (``late_share``)
+
+
+def late_share(f: FloatArray) -> FloatArray:
+    """How far a released arm has gone toward the stand's pose at share ``f`` of the stand: not
+    at all until ``LATE_START``, then a smoothstep. Let down with the body, an arm that had
+    reached low in a squat swept through the thigh while the thighs were still level."""
+    x = np.clip((f - LATE_START) / (1.0 - LATE_START), 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _let_go(ir: MotionIR, side: str, after: float, before: float) -> bool:
+    """Whether the hand's last grip event between ``after`` and ``before`` opened it."""
+    grips = [s for s in ir.on_track(f"{side}_hand") if s.kind == "grip"]
+    inside = [g for g in grips if after - 1e-9 <= g.start and g.end <= before + 1e-9]
+    last = max(inside, key=lambda g: g.start, default=None)
+    return last is not None and last.goal.params.get("state") == "open"
 
 
 def transition(
-    skel: Any, cur: FloatArray, target: FloatArray, n: int, free_arms: tuple[str, ...] = ()
+    skel: Any,
+    cur: FloatArray,
+    target: FloatArray,
+    n: int,
+    free_arms: tuple[str, ...] = (),
+    late: tuple[str, ...] = (),
 ) -> FloatArray:
     """``n`` poses from ``cur`` to ``target`` (n, D), each leaned until it is balanced.
 
     Interpolating the angles of two balanced flat-footed postures is not balanced on the way:
     half-way down a squat the hips are already back but the trunk only half leaned, so the CoM
     passes behind the heels. Each intermediate pose gets the lean it needs (``balanced_lean``).
+    The ``late`` dofs move over the last ``1 - LATE_START`` of the change only (``late_share``).
     """
     f = np.linspace(0.0, 1.0, n)[:, None]
-    poses = cur[None] + f * (target - cur)[None]
+    share = np.repeat(f, len(cur), axis=1)
+    if late:
+        share[:, [skel.dof_index(name) for name in late]] = late_share(f)
+    poses = cur[None] + share * (target - cur)[None]
     mid = (clear_fingertips(skel, balanced_lean(skel, p), free_arms) for p in poses[1:-1])
     return np.stack([poses[0], *mid, poses[-1]])
 
@@ -666,10 +718,17 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     flat = kind in ("stand", "squat")
     arms = free_arms(ir, seg) if flat else ()
     target = target_posture(skel, cur, seg.goal.params, arms)
-    dofs = TRUNK_DOFS if kind == "bend" else (TRUNK_DOFS + LEG_DOFS + arms if flat else LEG_DOFS)
+    moved_arms = standing_arm_dofs(arms) if kind == "stand" else arms
+    dofs = (
+        TRUNK_DOFS if kind == "bend" else (TRUNK_DOFS + LEG_DOFS + moved_arms if flat else LEG_DOFS)
+    )
     idx = [skel.dof_index(n) for n in dofs]
     times = np.linspace(seg.start, seg.end, TRANSITION_KEYS if flat else 2)
-    poses = transition(skel, cur, target, len(times), arms) if flat else np.stack([cur, target])
+    late = standing_arm_dofs(released_arms(ir, seg)) if kind == "stand" else ()
+    if flat:
+        poses = transition(skel, cur, target, len(times), arms, late)
+    else:
+        poses = np.stack([cur, target])
     kf = Keyframes(time=times, dofs=dofs, q=poses[:, idx])
     if kind != "bend":
         p0, _ = state.root_at(seg.start, skip=seg)
@@ -681,7 +740,26 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
         seg.result = {"root_height": float(rows[-1][1] - ir.ground)}
     seg.keyframes = kf
     state.add(seg)
-    mark(ctx.cache, seg)
+    if late:
+        seg.result["arms_let_down"] = list(late)
+        mark(ctx.cache, seg, "stand_arms")
+    else:
+        mark(ctx.cache, seg)
+
+
+def restate_stand_arms(seg: Segment, state: PoseState) -> None:
+    """A stand that lets released arms down: its first keyframe from the pose before it (as any
+    posture's) and the arms' ramps (``late_share``) from where the reach left them, which the
+    posture pass, solved before the reaches, could not know."""
+    kf = seg.keyframes
+    assert kf is not None and kf.root_position is not None
+    q = state.q_at(seg.start, skip=seg)
+    kf.q[0] = q[[state.skel.dof_index(n) for n in kf.dofs]]
+    kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)
+    cols = [kf.dofs.index(n) for n in seg.result["arms_let_down"]]
+    share = late_share((kf.time - seg.start) / max(seg.end - seg.start, 1e-9))
+    start, target = kf.q[0, cols], kf.q[-1, cols]
+    kf.q[:, cols] = start[None] + share[:, None] * (target - start)[None]
 
 
 def twist_target(skel: Any, dof: str, current: float, angle: float) -> float:
@@ -737,6 +815,7 @@ RESTATERS = {
     "twist": restate_twist,
     "kneel_arms": restate_kneel_arms,
     "kneel_on": restate_kneel_on,
+    "stand_arms": restate_stand_arms,
 }
 
 

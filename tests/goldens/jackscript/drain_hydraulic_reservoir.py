@@ -277,31 +277,55 @@ def drain_reservoir():
         'left_knee': (77.226,), 'left_ankle': (15.668, 0.0),
     })
     human.KeyRoot(8.6, (6.953, 66.192, 23.562), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.6, {'spine_lumbar': (45.229, 0.0, 0.0), 'spine_thoracic': (22.785, 0.0, 0.0)})
+    human.KeyJoints(8.6, {
+        'spine_lumbar': (45.229, 0.0, 0.0), 'spine_thoracic': (22.785, 0.0, 0.0),
+        'right_shoulder': (108.985, 4.278, 59.602),
+    })
     human.KeyRoot(8.7, (6.378, 70.07, 25.336), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.7, {'spine_lumbar': (37.655, 0.0, 0.0), 'spine_thoracic': (18.828, 0.0, 0.0)})
+    human.KeyJoints(8.7, {
+        'spine_lumbar': (37.655, 0.0, 0.0), 'spine_thoracic': (18.828, 0.0, 0.0),
+        'right_clavicle': (1.132, 1.945), 'right_shoulder': (108.877, 4.307, 59.557),
+        'right_elbow': (30.06, 9.995), 'right_wrist': (-15.233, 0.257),
+    })
     human.KeyRoot(8.8, (5.679, 73.558, 27.489), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.8, {'spine_lumbar': (31.183, 0.0, 0.0), 'spine_thoracic': (15.592, 0.0, 0.0)})
+    human.KeyJoints(8.8, {
+        'spine_lumbar': (31.183, 0.0, 0.0), 'spine_thoracic': (15.592, 0.0, 0.0),
+        'right_clavicle': (1.041, 1.787), 'right_shoulder': (100.755, 4.433, 55.661),
+        'right_elbow': (30.432, 9.997), 'right_wrist': (-14.008, 0.241),
+    })
     human.KeyRoot(8.9, (4.871, 76.611, 29.98), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.9, {
         'spine_lumbar': (25.103, 0.0, 0.0), 'spine_thoracic': (12.551, 0.0, 0.0),
-        'right_shoulder': (108.967, 4.344, 59.594),
+        'right_shoulder': (85.831, 4.663, 48.499), 'right_elbow': (31.122, 10.0),
+        'right_wrist': (-11.755, 0.214),
     })
     human.KeyRoot(9.0, (3.969, 79.19, 32.761), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.0, {
         'spine_lumbar': (19.619, 0.0, 0.0), 'spine_thoracic': (9.809, 0.0, 0.0),
-        'right_elbow': (30.147, 10.0),
+        'right_clavicle': (0.659, 1.131), 'right_shoulder': (66.917, 4.924, 39.429),
+        'right_elbow': (31.919, 10.0), 'right_wrist': (-8.876, 0.162),
     })
     human.KeyRoot(9.1, (2.99, 81.265, 35.782), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.1, {
+        'right_clavicle': (0.394, 0.677), 'right_shoulder': (43.501, 5.248, 28.199),
+        'right_elbow': (32.906, 10.0), 'right_wrist': (-5.313, 0.097),
+    })
     human.KeyRoot(9.2, (1.949, 82.812, 38.989), (-17.969, 0.0, 0.0))
-    human.KeyJoints(9.2, {'spine_lumbar': (9.328, 0.0, 0.0)})
+    human.KeyJoints(9.2, {
+        'spine_lumbar': (9.328, 0.0, 0.0), 'right_shoulder': (27.342, 5.471, 20.45),
+        'right_elbow': (33.587, 10.0), 'right_wrist': (-2.853, 0.052),
+    })
     human.KeyRoot(9.3, (0.867, 83.805, 42.326), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.3, {
+        'right_clavicle': (0.075, 0.129), 'right_shoulder': (15.24, 5.638, 14.646),
+        'right_elbow': (34.097, 10.0), 'right_wrist': (-1.011, 0.018),
+    })
     human.KeyRoot(9.378534, (0.0, 84.188, 45.0), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.378534, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (4.116, -0.098, 3.688), 'head': (4.116, -0.001), 'right_clavicle': (1.133, 1.946),
-        'right_shoulder': (108.967, 4.344, 59.594), 'right_elbow': (30.147, 10.0),
-        'right_wrist': (-15.276, 0.278), 'left_clavicle': (0.0, 0.0),
+        'neck': (4.116, -0.098, 3.688), 'head': (4.116, -0.001), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 10.0),
+        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),

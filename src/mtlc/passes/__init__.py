@@ -22,6 +22,7 @@ from mtlc.passes import (
     interpolate,
     locomotion,
     manikin,
+    pace,
     posture,
     sample,
     smooth,
@@ -45,6 +46,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("contact", contact.solve),  # 3. TO: gradient path onto the site, kept as keyframes
     ("tool", tool.solve),  # a wrench's strokes: arcs about the fastener, the tip held on it
     ("gaze", gaze.solve),  # neck and head aim the eyes at the looked-at site
+    ("pace", pace.run),  # each reach re-timed as one minimum-jerk movement (Flash & Hogan 1985)
     ("interpolate", interpolate.run),  # 5. interpolation with base-coordinate correction
     ("hold", hold.run),  # a hand on a site stays there while the body moves (verify: MT0511)
     ("balance", balance.run),  # 6. centre of mass over the support polygon

@@ -166,49 +166,50 @@ def drain_reservoir():
     human.LookAt((-12.0, 20.0, 82.0), start=2.601537, duration=0.832997)
     human.KeyJoints(2.7, {
         'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0),
-        'right_shoulder': (75.968, 5.398, 14.463), 'right_elbow': (34.401, 14.453),
-        'right_wrist': (-0.832, 0.026),
+        'right_shoulder': (75.151, 5.622, 12.404), 'right_elbow': (34.386, 16.328),
+        'right_wrist': (-0.263, 0.009),
     })
     human.KeyJoints(2.8, {
-        'right_shoulder': (79.243, 4.501, 22.308), 'right_elbow': (34.476, 7.308),
-        'right_wrist': (-3.012, 0.102),
+        'right_shoulder': (77.438, 4.995, 17.861), 'right_elbow': (34.439, 11.358),
+        'right_wrist': (-1.779, 0.062),
     })
     human.KeyJoints(2.9, {
-        'right_shoulder': (83.925, 3.219, 32.933), 'right_elbow': (34.603, -2.368),
-        'right_wrist': (-5.975, 0.219),
+        'right_shoulder': (82.395, 3.638, 29.271), 'right_elbow': (34.568, 0.967),
+        'right_wrist': (-4.958, 0.184),
     })
     human.KeyJoints(3.0, {
-        'right_shoulder': (89.351, 1.732, 44.275), 'right_elbow': (34.783, -12.697),
-        'right_wrist': (-9.159, 0.373),
+        'spine_lumbar': (59.998, 0.0, 0.001), 'spine_thoracic': (29.998, 0.0, 0.001),
+        'right_clavicle': (0.0, 0.001), 'right_shoulder': (90.082, 1.531, 45.078),
+        'right_elbow': (34.833, -13.428), 'right_wrist': (-9.401, 0.406),
     })
     human.KeyJoints(3.1, {
-        'right_shoulder': (98.149, 2.129, 67.375), 'right_elbow': (35.145, -33.062),
-        'right_wrist': (-15.359, 1.794),
+        'spine_lumbar': (59.865, -0.05, 0.085), 'spine_thoracic': (29.808, -0.054, 0.067),
+        'right_clavicle': (0.028, 0.071), 'right_shoulder': (101.884, 0.619, 70.0),
+        'right_elbow': (35.363, -37.145), 'right_wrist': (-16.432, 2.723),
     })
     human.KeyJoints(3.2, {
-        'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (102.196, -0.028, 70.0), 'right_elbow': (35.333, -37.031),
-        'right_wrist': (-16.523, 2.4),
+        'spine_lumbar': (59.509, -0.481, 0.83), 'spine_thoracic': (28.582, -0.514, 0.664),
+        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.246, 0.579),
+        'right_shoulder': (106.225, -0.543, 69.091), 'right_elbow': (35.295, -36.67),
+        'right_wrist': (-16.689, 2.371),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(3.3, {
-        'spine_lumbar': (59.255, -0.22, 0.37), 'spine_thoracic': (29.136, -0.234, 0.293),
-        'neck': (-0.727, 0.024, -1.029), 'head': (-0.727, 0.0), 'right_clavicle': (0.132, 0.332),
-        'right_shoulder': (105.598, -1.285, 70.0), 'right_elbow': (35.893, -37.053),
-        'right_wrist': (-16.728, 2.489),
+        'spine_lumbar': (59.914, -1.498, 2.726), 'spine_thoracic': (28.274, -1.634, 2.229),
+        'neck': (-0.727, 0.024, -1.029), 'head': (-0.727, 0.0), 'right_clavicle': (0.86, 1.575),
+        'right_shoulder': (107.868, 2.503, 60.172), 'right_elbow': (31.789, -29.254),
+        'right_wrist': (-15.083, 0.517),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (60.0, -1.342, 2.382), 'spine_thoracic': (27.943, -1.439, 1.935),
-        'neck': (-0.333, 0.155, -6.702), 'head': (-0.332, 0.001), 'right_clavicle': (0.671, 1.408),
-        'right_shoulder': (107.526, 1.614, 60.365), 'right_elbow': (32.562, -29.223),
-        'right_wrist': (-15.016, 0.636),
+        'spine_lumbar': (59.998, -1.876, 3.458), 'spine_thoracic': (28.555, -2.058, 2.84),
+        'neck': (-0.333, 0.155, -6.702), 'head': (-0.332, 0.001), 'right_clavicle': (1.128, 1.939),
+        'right_shoulder': (108.945, 4.305, 59.606), 'right_elbow': (30.181, -29.317),
+        'right_wrist': (-15.272, 0.283),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)
     human.KeyJoints(3.5, {
-        'spine_lumbar': (60.0, -1.884, 3.474), 'spine_thoracic': (28.561, -2.067, 2.853),
-        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002), 'right_clavicle': (1.133, 1.946),
+        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002),
         'right_shoulder': (109.016, 4.279, 59.594), 'right_elbow': (29.989, -29.318),
         'right_wrist': (-15.251, 0.243),
     })

@@ -100,59 +100,61 @@ def remove_access_panel():
     human.KeyJoints(1.4, {'neck': (0.363, -0.002, -7.15), 'head': (0.366, 0.0)})
     human.KeyJoints(1.5, {
         'neck': (0.919, -0.005, -18.013), 'head': (0.926, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'right_hip': (3.017, 0.0, 0.0), 'right_knee': (4.905,),
-        'right_ankle': (1.89, 0.0), 'left_hip': (3.016, 0.0, 0.0), 'left_knee': (4.903,),
-        'left_ankle': (1.889, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (3.017, 0.0, 0.0),
+        'right_knee': (4.905,), 'right_ankle': (1.89, 0.0), 'left_hip': (3.016, 0.0, 0.0),
+        'left_knee': (4.903,), 'left_ankle': (1.889, 0.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 112.0), start=1.557537, duration=10.90897)
     human.KeyJoints(1.6, {
         'neck': (1.089, -0.004, -21.136), 'head': (1.095, 0.0),
-        'right_shoulder': (9.248, 5.74, 11.376), 'right_elbow': (34.377, 17.135),
-        'right_wrist': (-0.006, -0.248), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_shoulder': (8.654, 5.731, 11.452), 'right_elbow': (34.377, 17.184),
+        'right_wrist': (-0.001, -0.023), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'right_shoulder': (15.309, 5.84, 10.608), 'right_elbow': (34.366, 16.633),
-        'right_wrist': (-0.064, -2.549),
+        'right_shoulder': (10.524, 5.761, 11.215), 'right_elbow': (34.374, 17.029),
+        'right_wrist': (-0.018, -0.732),
     })
     human.KeyJoints(1.8, {
-        'right_shoulder': (26.189, 6.02, 9.229), 'right_elbow': (34.341, 15.734),
-        'right_wrist': (-0.168, -6.679),
+        'right_shoulder': (16.561, 5.861, 10.449), 'right_elbow': (34.361, 16.53),
+        'right_wrist': (-0.076, -3.024),
     })
-    human.KeyJoints(1.9, {'right_shoulder': (39.996, 6.247, 7.479), 'right_wrist': (-0.3, -11.92)})
+    human.KeyJoints(1.9, {
+        'right_shoulder': (27.09, 6.035, 9.115), 'right_elbow': (34.336, 15.659),
+        'right_wrist': (-0.177, -7.021),
+    })
     human.KeyJoints(2.0, {
-        'right_shoulder': (54.838, 6.492, 5.598), 'right_wrist': (-0.442, -17.555),
+        'right_shoulder': (40.883, 6.262, 7.367), 'right_wrist': (-0.309, -12.257),
     })
     human.KeyJoints(2.1, {
-        'right_shoulder': (68.824, 6.723, 3.825), 'right_elbow': (34.145, 12.208),
-        'right_wrist': (-0.576, -22.864),
+        'right_shoulder': (55.844, 6.509, 5.47), 'right_wrist': (-0.452, -17.937),
     })
     human.KeyJoints(2.2, {
-        'right_shoulder': (80.06, 6.908, 2.401), 'right_elbow': (34.029, 11.279),
-        'right_wrist': (-0.683, -27.129),
+        'spine_lumbar': (0.031, 0.003, 0.009), 'spine_thoracic': (0.004, -0.004, 0.009),
+        'right_clavicle': (0.006, 0.007), 'right_shoulder': (69.677, 6.746, 3.713),
+        'right_elbow': (34.11, 12.137), 'right_wrist': (-0.585, -23.185),
     })
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (1.089, -0.004, -21.144), 'head': (1.095, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (86.655, 7.017, 1.565), 'right_elbow': (33.881, 10.733),
-        'right_wrist': (-0.746, -29.633),
+        'spine_lumbar': (0.646, 0.08, 0.163), 'spine_thoracic': (-0.052, -0.122, 0.162),
+        'neck': (1.089, -0.004, -21.144), 'head': (1.095, 0.0), 'right_clavicle': (0.181, 0.108),
+        'right_shoulder': (80.931, 7.202, 2.183), 'right_elbow': (33.76, 11.192),
+        'right_wrist': (-0.745, -27.353),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.4, {
-        'spine_lumbar': (1.186, 0.0, 0.459), 'spine_thoracic': (0.664, 0.0, 0.459),
-        'neck': (0.307, -0.335, -22.622), 'head': (0.243, 0.0), 'right_clavicle': (0.0, 0.418),
-        'right_shoulder': (87.15, 6.941, 1.504), 'right_elbow': (33.312, 10.685),
-        'right_wrist': (-0.697, -30.0),
+        'spine_lumbar': (3.907, 0.517, 0.919), 'spine_thoracic': (-0.917, -0.968, 0.911),
+        'neck': (0.307, -0.335, -22.622), 'head': (0.243, 0.0), 'right_clavicle': (1.406, 0.527),
+        'right_shoulder': (89.087, 9.172, 0.48), 'right_elbow': (32.644, 10.439),
+        'right_wrist': (-1.198, -29.61),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (4.3, 0.534, 1.063), 'spine_thoracic': (-0.798, -1.001, 1.056),
+        'spine_lumbar': (6.009, 0.8, 1.4), 'spine_thoracic': (-1.616, -1.573, 1.387),
         'neck': (-0.252, -0.593, -24.712), 'head': (-0.376, -0.001),
-        'right_clavicle': (1.425, 0.659), 'right_shoulder': (90.082, 9.154, 0.354),
-        'right_elbow': (32.497, 10.36), 'right_wrist': (-1.202, -30.0),
+        'right_clavicle': (2.273, 0.774), 'right_shoulder': (91.683, 10.494, -0.307),
+        'right_elbow': (32.0, 10.173), 'right_wrist': (-1.488, -29.985),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.550462, duration=0.072)
@@ -778,46 +780,46 @@ def remove_access_panel():
         'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
         'neck': (-1.222, -0.127, 18.264), 'head': (-1.158, -0.003),
         'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.802, 10.558, -0.344),
-        'right_elbow': (31.97, 10.16), 'right_wrist': (-1.501, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_right
     human.LookAt((20.0, 135.0, 112.0), start=12.729306, duration=10.521694)
     human.KeyJoints(12.8, {
-        'spine_lumbar': (5.866, 0.063, 1.854), 'spine_thoracic': (-1.943, -1.738, 1.82),
-        'neck': (-1.145, -0.103, 18.191), 'head': (-1.077, -0.004), 'right_clavicle': (2.304, 1.2),
-        'right_shoulder': (91.567, 10.131, -0.13), 'right_elbow': (32.126, 10.248),
-        'right_wrist': (-1.44, -29.855),
+        'spine_lumbar': (6.052, 0.634, 1.526), 'spine_thoracic': (-1.72, -1.634, 1.508),
+        'neck': (-1.145, -0.103, 18.191), 'head': (-1.077, -0.004),
+        'right_clavicle': (2.312, 0.884), 'right_shoulder': (91.744, 10.455, -0.293),
+        'right_elbow': (32.007, 10.181), 'right_wrist': (-1.487, -29.965),
     })
     human.KeyJoints(12.9, {
-        'spine_lumbar': (4.901, -2.896, 3.553), 'spine_thoracic': (-3.098, -2.272, 3.435),
+        'spine_lumbar': (5.492, -1.084, 2.512), 'spine_thoracic': (-2.39, -1.944, 2.446),
         'neck': (-0.626, -0.134, 11.013), 'head': (-0.568, -0.005),
-        'right_clavicle': (2.251, 2.832), 'right_shoulder': (90.575, 8.449, 0.714),
-        'right_elbow': (32.741, 10.594), 'right_wrist': (-1.197, -29.285),
+        'right_clavicle': (2.283, 1.832), 'right_shoulder': (91.182, 9.479, 0.197),
+        'right_elbow': (32.364, 10.382), 'right_wrist': (-1.346, -29.634),
     })
     human.KeyJoints(13.0, {
-        'spine_lumbar': (3.617, -6.839, 5.817), 'spine_thoracic': (-4.636, -2.983, 5.588),
-        'neck': (0.306, -0.269, 1.484), 'head': (0.365, -0.004), 'right_clavicle': (2.156, 5.006),
-        'right_shoulder': (89.064, 6.208, 1.838),
+        'spine_lumbar': (4.333, -4.642, 4.555), 'spine_thoracic': (-3.778, -2.587, 4.388),
+        'neck': (0.306, -0.269, 1.484), 'head': (0.365, -0.004), 'right_clavicle': (2.211, 3.794),
+        'right_shoulder': (89.917, 7.456, 1.211), 'right_elbow': (33.104, 10.798),
+        'right_wrist': (-1.054, -28.949),
     })
     human.KeyJoints(13.1, {
-        'spine_lumbar': (2.46, -10.391, 7.857), 'spine_thoracic': (-6.021, -3.624, 7.527),
-        'neck': (1.365, -0.475, -6.821), 'head': (1.444, -0.003), 'right_clavicle': (2.02, 6.965),
-        'right_shoulder': (87.32, 4.189, 2.85), 'right_elbow': (34.3, 11.47),
-        'right_wrist': (-0.583, -27.841),
+        'spine_lumbar': (2.99, -8.798, 6.941), 'spine_thoracic': (-5.395, -3.336, 6.656),
+        'neck': (1.365, -0.475, -6.821), 'head': (1.444, -0.003), 'right_clavicle': (2.08, 6.085),
+        'right_shoulder': (88.095, 5.099, 2.394), 'right_elbow': (33.965, 11.283),
+        'right_wrist': (-0.714, -28.151),
     })
     human.KeyJoints(13.2, {
-        'spine_lumbar': (1.877, -12.178, 8.883), 'spine_thoracic': (-6.719, -3.947, 8.503),
-        'neck': (1.954, -0.606, -10.876), 'head': (2.064, -0.002), 'right_clavicle': (1.843, 7.951),
-        'right_shoulder': (85.628, 3.173, 3.36), 'right_elbow': (34.672, 11.679),
-        'right_wrist': (-0.436, -27.496),
+        'spine_lumbar': (3.709, -12.305, 8.832), 'spine_thoracic': (-6.808, -3.987, 8.459),
+        'neck': (1.954, -0.606, -10.876), 'head': (2.064, -0.002), 'right_clavicle': (2.051, 7.715),
+        'right_shoulder': (86.716, 4.529, 2.645), 'right_elbow': (34.001, 11.468),
+        'right_wrist': (-0.717, -28.279),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.3, {
-        'spine_lumbar': (6.057, -13.524, 9.425), 'spine_thoracic': (-7.581, -4.301, 9.027),
-        'neck': (0.329, 0.012, -13.86), 'head': (0.334, 0.003), 'right_clavicle': (2.401, 7.977),
-        'right_shoulder': (87.99, 5.958, 1.841), 'right_elbow': (33.265, 11.256),
-        'right_wrist': (-1.055, -29.33),
+        'spine_lumbar': (7.039, -13.847, 9.574), 'spine_thoracic': (-8.39, -4.427, 9.143),
+        'neck': (0.329, 0.012, -13.86), 'head': (0.334, 0.003), 'right_clavicle': (2.697, 7.898),
+        'right_shoulder': (89.386, 7.199, 1.187), 'right_elbow': (32.955, 11.065),
+        'right_wrist': (-1.344, -29.924),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=13.334957, duration=0.072)
@@ -1449,35 +1451,35 @@ def remove_access_panel():
     human.LookAt((-20.0, 105.0, 112.0), start=23.513801, duration=10.620907)
     human.KeyJoints(23.6, {
         'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659),
-        'right_shoulder': (84.771, 8.319, 0.387), 'right_elbow': (33.364, 10.704),
-        'right_wrist': (-1.604, -28.092),
+        'right_shoulder': (88.391, 7.516, 0.971), 'right_elbow': (33.028, 10.972),
+        'right_wrist': (-1.417, -29.538),
     })
     human.KeyJoints(23.7, {
-        'right_shoulder': (70.447, 11.679, -2.04), 'right_elbow': (34.7, 9.59),
-        'right_wrist': (-2.373, -22.371),
+        'right_shoulder': (80.945, 9.225, -0.267), 'right_elbow': (33.721, 10.404),
+        'right_wrist': (-1.811, -26.564),
     })
     human.KeyJoints(23.8, {
-        'right_shoulder': (51.345, 16.543, -5.53), 'right_elbow': (36.491, 7.99),
-        'right_wrist': (-3.464, -14.742),
+        'right_shoulder': (65.635, 12.899, -2.916), 'right_elbow': (35.151, 9.189),
+        'right_wrist': (-2.647, -20.449),
     })
     human.KeyJoints(23.9, {
-        'right_shoulder': (32.456, 22.075, -9.455), 'right_elbow': (38.282, 6.191),
-        'right_wrist': (-4.664, -7.197),
+        'right_shoulder': (45.592, 18.22, -6.72), 'right_elbow': (37.037, 7.444),
+        'right_wrist': (-3.828, -12.444),
     })
     human.KeyJoints(24.0, {
-        'right_shoulder': (18.769, 27.439, -13.191), 'right_elbow': (39.614, 4.481),
-        'right_wrist': (-5.761, -1.73),
+        'right_shoulder': (26.687, 24.746, -11.284), 'right_elbow': (38.782, 5.354),
+        'right_wrist': (-5.185, -4.96),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.1, {
-        'right_shoulder': (15.206, 32.012, -16.242), 'right_elbow': (40.064, 3.091),
-        'right_wrist': (-6.574, -0.234),
+        'right_shoulder': (18.712, 31.67, -15.565), 'right_elbow': (37.844, 3.383),
+        'right_wrist': (-6.199, -3.54),
     })
     human.KeyJoints(24.2, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (17.709, 33.65, -16.83), 'right_elbow': (37.32, 2.802),
-        'right_wrist': (-6.487, -3.748),
+        'right_shoulder': (18.714, 33.746, -16.635), 'right_elbow': (36.549, 2.884),
+        'right_wrist': (-6.352, -4.864),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.218664, duration=0.072)
@@ -2104,34 +2106,34 @@ def remove_access_panel():
     human.LookAt((20.0, 105.0, 112.0), start=34.397508, duration=10.521694)
     human.KeyJoints(34.4, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
-        'right_shoulder': (18.717, 33.754, -16.638), 'right_elbow': (36.542, 2.883),
-        'right_wrist': (-6.352, -4.872),
+        'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
+        'right_wrist': (-6.353, -4.871),
     })
     human.KeyJoints(34.5, {
-        'right_shoulder': (22.058, 29.681, -13.171), 'right_elbow': (36.137, 4.764),
-        'right_wrist': (-5.641, -6.48),
+        'right_shoulder': (20.012, 32.188, -15.305), 'right_elbow': (36.386, 3.606),
+        'right_wrist': (-6.079, -5.491),
     })
     human.KeyJoints(34.6, {
-        'right_shoulder': (29.916, 20.398, -5.266), 'right_elbow': (35.214, 9.051),
-        'right_wrist': (-4.019, -10.152),
+        'right_shoulder': (25.993, 25.029, -9.209), 'right_elbow': (35.675, 6.913),
+        'right_wrist': (-4.828, -8.32),
     })
     human.KeyJoints(34.7, {
-        'right_shoulder': (39.59, 9.633, 3.9), 'right_elbow': (34.145, 14.024),
-        'right_wrist': (-2.138, -14.424),
+        'right_shoulder': (35.681, 13.945, 0.228), 'right_elbow': (34.573, 12.032),
+        'right_wrist': (-2.892, -12.712),
     })
     human.KeyJoints(34.8, {
-        'right_shoulder': (48.377, 1.113, 11.155), 'right_elbow': (33.298, 17.959),
-        'right_wrist': (-0.65, -17.833),
+        'right_shoulder': (45.946, 3.726, 8.945), 'right_elbow': (33.565, 16.768),
+        'right_wrist': (-1.114, -16.835),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.9, {
-        'right_shoulder': (53.622, -1.397, 13.326), 'right_elbow': (33.126, 19.153),
-        'right_wrist': (-0.235, -18.969),
+        'right_shoulder': (55.204, 1.277, 11.442), 'right_elbow': (32.538, 18.445),
+        'right_wrist': (-0.867, -20.144),
     })
     human.KeyJoints(35.0, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'right_clavicle': (2.715, 7.9), 'right_shoulder': (57.054, 2.14, 10.929),
-        'right_elbow': (32.212, 18.326), 'right_wrist': (-1.102, -20.927),
+        'right_clavicle': (2.715, 7.9), 'right_shoulder': (57.197, 2.088, 10.93),
+        'right_elbow': (31.998, 18.34), 'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=35.003158, duration=0.072)
@@ -2752,70 +2754,68 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.2628)
     human.KeyJoints(45.0, {'neck': (23.844, -1.814, -11.356), 'head': (7.5, -0.133)})
-    human.KeyJoints(45.1, {
-        'neck': (23.05, -3.744, -26.637), 'right_elbow': (31.998, 18.34),
-        'left_shoulder': (8.594, 5.73, 11.459),
-    })
+    human.KeyJoints(45.1, {'neck': (23.05, -3.744, -26.637)})
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=45.182003, duration=0.867635)
     human.KeyJoints(45.2, {
         'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
-        'right_shoulder': (57.144, 2.138, 10.901), 'right_elbow': (32.115, 18.353),
-        'right_wrist': (-1.11, -21.145), 'left_shoulder': (8.729, 5.667, 11.466),
-        'left_elbow': (34.35, 17.191), 'left_wrist': (0.003, -0.011),
+        'right_shoulder': (57.194, 2.091, 10.928), 'right_elbow': (32.004, 18.341),
+        'right_wrist': (-1.082, -21.15), 'left_shoulder': (8.602, 5.726, 11.46),
+        'left_elbow': (34.376, 17.189), 'left_wrist': (0.0, -0.001),
     })
     human.KeyJoints(45.3, {
-        'right_shoulder': (55.122, 4.054, 9.779), 'right_elbow': (36.545, 18.843),
-        'right_wrist': (-2.241, -20.938), 'left_shoulder': (13.843, 3.274, 11.721),
-        'left_elbow': (33.32, 17.259), 'left_wrist': (0.106, -0.445),
+        'right_shoulder': (56.497, 2.761, 10.533), 'right_elbow': (33.533, 18.51),
+        'right_wrist': (-1.473, -21.079), 'left_shoulder': (10.378, 4.889, 11.549),
+        'left_elbow': (34.02, 17.212), 'left_wrist': (0.037, -0.15),
     })
     human.KeyJoints(45.4, {
-        'right_shoulder': (50.881, 8.156, 7.351), 'right_elbow': (45.838, 19.871),
-        'right_wrist': (-4.62, -20.505), 'left_shoulder': (24.667, -1.85, 12.269),
-        'left_elbow': (31.159, 17.402), 'left_wrist': (0.329, -1.353),
+        'right_shoulder': (53.622, 5.532, 8.896), 'right_elbow': (39.832, 19.207),
+        'right_wrist': (-3.085, -20.785), 'left_shoulder': (17.703, 1.428, 11.919),
+        'left_elbow': (32.555, 17.309), 'left_wrist': (0.187, -0.766),
     })
     human.KeyJoints(45.5, {
-        'right_shoulder': (45.389, 13.634, 4.058), 'right_elbow': (57.87, 21.201),
-        'right_wrist': (-7.712, -19.944), 'left_shoulder': (38.876, -8.693, 13.005),
-        'left_elbow': (28.36, 17.587),
+        'right_shoulder': (48.477, 10.579, 5.887), 'right_elbow': (51.105, 20.453),
+        'right_wrist': (-5.975, -20.259), 'left_shoulder': (30.916, -4.877, 12.595),
+        'left_elbow': (29.934, 17.483), 'left_wrist': (0.462, -1.868),
     })
     human.KeyJoints(45.6, {
-        'right_shoulder': (39.616, 19.68, 0.34), 'right_elbow': (70.519, 22.6),
-        'right_wrist': (-10.986, -19.353), 'left_shoulder': (54.143, -16.244, 13.821),
-        'left_elbow': (25.418, 17.781), 'left_wrist': (0.963, -3.766),
+        'right_shoulder': (42.046, 17.173, 1.871), 'right_elbow': (65.193, 22.011),
+        'left_shoulder': (47.76, -13.113, 13.483),
     })
     human.KeyJoints(45.7, {
-        'right_shoulder': (34.53, 25.482, -3.36), 'right_elbow': (81.662, 23.832),
-        'right_wrist': (-13.906, -18.834), 'left_shoulder': (68.145, -23.491, 14.612),
-        'left_elbow': (22.827, 17.953), 'left_wrist': (1.288, -4.856),
+        'spine_lumbar': (7.14, -13.863, 9.577), 'spine_thoracic': (-8.443, -4.438, 9.144),
+        'right_clavicle': (2.723, 7.898), 'right_shoulder': (35.801, 24.236, -2.616),
+        'right_elbow': (78.883, 23.525), 'right_wrist': (-13.195, -18.965),
+        'left_clavicle': (-0.004, 0.013), 'left_shoulder': (64.892, -21.93, 14.444),
+        'left_elbow': (23.475, 17.91), 'left_wrist': (1.219, -4.584),
     })
     human.KeyJoints(45.8, {
-        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (31.1, 30.231, -6.603), 'right_elbow': (89.176, 24.663),
-        'right_wrist': (-15.941, -18.483), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (78.554, -29.424, 15.272), 'left_elbow': (21.079, 18.068),
-        'left_wrist': (1.562, -5.59),
+        'spine_lumbar': (7.856, -13.456, 9.337), 'spine_thoracic': (-8.868, -4.521, 8.883),
+        'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
+        'right_clavicle': (3.037, 7.956), 'right_shoulder': (31.776, 30.56, -6.969),
+        'right_elbow': (88.108, 24.558), 'right_wrist': (-15.757, -18.565),
+        'left_clavicle': (-0.166, 0.346), 'left_shoulder': (78.52, -29.472, 15.257),
+        'left_elbow': (21.393, 18.058), 'left_wrist': (1.535, -5.471),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
     human.KeyJoints(45.9, {
-        'spine_lumbar': (7.693, -12.71, 8.622), 'spine_thoracic': (-8.904, -4.3, 8.127),
+        'spine_lumbar': (13.473, -12.038, 8.285), 'spine_thoracic': (-12.363, -5.628, 7.722),
         'neck': (21.905, -4.498, -30.481), 'head': (6.816, -0.392),
-        'right_clavicle': (3.015, 7.602), 'right_shoulder': (30.428, 33.064, -8.896),
-        'right_elbow': (90.762, 24.862), 'right_wrist': (-16.591, -18.485),
-        'left_clavicle': (-0.156, 0.743), 'left_shoulder': (83.095, -32.92, 15.681),
-        'left_elbow': (20.798, 18.094), 'left_wrist': (1.734, -5.712),
+        'right_clavicle': (5.483, 8.997), 'right_shoulder': (32.99, 34.377, -9.496),
+        'right_elbow': (90.308, 24.847), 'right_wrist': (-16.497, -18.435),
+        'left_clavicle': (-1.55, 2.518), 'left_shoulder': (86.615, -30.594, 15.057),
+        'left_elbow': (21.377, 18.137), 'left_wrist': (1.227, -5.55),
     })
     human.KeyJoints(46.0, {
-        'spine_lumbar': (13.438, -11.597, 8.721), 'spine_thoracic': (-12.411, -5.662, 8.171),
-        'neck': (21.788, -4.879, -32.272), 'head': (6.518, -0.369), 'right_clavicle': (5.764, 8.92),
-        'right_shoulder': (33.153, 35.034, -10.152), 'right_elbow': (89.104, 24.759),
-        'right_wrist': (-16.455, -18.695), 'left_clavicle': (-1.454, 2.206),
-        'left_shoulder': (86.501, -31.519, 15.236), 'left_elbow': (21.651, 18.129),
-        'left_wrist': (1.325, -5.491),
+        'spine_lumbar': (16.846, -11.471, 7.547), 'spine_thoracic': (-14.578, -6.367, 6.915),
+        'neck': (21.788, -4.879, -32.272), 'head': (6.518, -0.369),
+        'right_clavicle': (6.928, 9.696), 'right_shoulder': (34.432, 35.198, -9.838),
+        'right_elbow': (90.673, 24.895), 'right_wrist': (-16.531, -18.302),
+        'left_clavicle': (-2.445, 3.932), 'left_shoulder': (89.181, -29.222, 14.663),
+        'left_elbow': (21.607, 18.167), 'left_wrist': (0.91, -5.477),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=46.049638, duration=0.072)
@@ -2824,13 +2824,10 @@ def remove_access_panel():
     human.KeyRoot(46.1, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(46.1, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
-        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_clavicle': (6.997, 9.73),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
-        'right_wrist': (-16.568, -18.281), 'left_clavicle': (-2.488, 4.0),
+        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.843, 24.897),
         'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.158, 18.169),
-        'left_wrist': (0.918, -5.518), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
     human.Walk((138.904, 0.0, 19.976), start=46.121638, duration=5.147368)
@@ -2842,6 +2839,7 @@ def remove_access_panel():
     })
     human.KeyRoot(46.3, (-1.764, 72.489, 60.416), (3.284, 0.0, 0.0))
     human.KeyJoints(46.3, {
+        'right_clavicle': (6.997, 9.73), 'left_clavicle': (-2.488, 4.0),
         'right_hip': (6.912, -1.099, -3.44), 'right_knee': (14.541,),
         'right_ankle': (7.705, -1.503), 'left_hip': (9.392, 0.974, 3.515), 'left_knee': (17.902,),
         'left_ankle': (7.601, 1.533),
@@ -3149,43 +3147,43 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=51.531806, duration=0.698258)
     human.KeyJoints(51.6, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (32.145, 34.26, -9.523), 'right_elbow': (91.791, 24.986),
-        'right_wrist': (-16.739, -18.034), 'left_shoulder': (86.79, -28.732, 16.1),
-        'left_elbow': (24.206, 17.598), 'left_wrist': (-1.987, -5.165),
+        'right_shoulder': (33.677, 34.899, -9.742), 'right_elbow': (91.123, 24.926),
+        'right_wrist': (-16.615, -18.203), 'left_shoulder': (88.603, -29.033, 15.112),
+        'left_elbow': (22.215, 17.985), 'left_wrist': (-0.024, -5.397),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(51.7, {
-        'right_shoulder': (22.241, 29.989, -7.879), 'right_elbow': (95.974, 25.365),
-        'right_wrist': (-17.496, -16.964), 'left_shoulder': (74.57, -26.536, 22.407),
-        'left_elbow': (37.111, 15.15), 'left_wrist': (-14.428, -3.675),
+        'right_shoulder': (25.795, 31.478, -8.402), 'right_elbow': (94.436, 25.227),
+        'right_wrist': (-17.21, -17.35), 'left_shoulder': (78.87, -27.274, 20.116),
+        'left_elbow': (32.462, 16.039), 'left_wrist': (-9.906, -4.213),
     })
     human.KeyJoints(51.8, {
-        'right_shoulder': (7.205, 23.58, -5.386), 'right_wrist': (-18.657, -15.466),
-        'left_shoulder': (56.125, -22.659, 31.464), 'left_elbow': (55.741, 11.639),
-        'left_wrist': (-32.334, -1.509),
+        'right_shoulder': (8.839, 24.225, -5.577), 'right_elbow': (101.327, 25.847),
+        'right_wrist': (-18.517, -15.631), 'left_shoulder': (58.022, -23.017, 30.45),
+        'left_elbow': (53.652, 12.036), 'left_wrist': (-30.304, -1.752),
     })
     human.KeyJoints(51.9, {
-        'right_shoulder': (-9.877, 16.356, -2.431), 'right_elbow': (108.144, 26.469),
-        'right_wrist': (-19.948, -14.002), 'left_shoulder': (35.673, -17.349, 40.554),
-        'left_elbow': (75.055, 8.022), 'left_wrist': (-50.872, 0.767),
+        'right_shoulder': (-12.397, 15.197, -1.803), 'right_elbow': (108.841, 26.535),
+        'right_wrist': (-20.104, -13.838), 'left_shoulder': (32.507, -16.24, 41.592),
+        'left_elbow': (77.402, 7.596), 'left_wrist': (-53.066, 1.053),
     })
     human.KeyJoints(52.0, {
-        'right_shoulder': (-25.093, 9.555, 0.969), 'right_elbow': (112.702, 26.898),
-        'right_wrist': (-20.965, -12.929), 'left_shoulder': (16.754, -11.191, 47.298),
-        'left_elbow': (90.24, 5.255), 'left_wrist': (-65.131, 2.616),
+        'right_shoulder': (-30.316, 6.478, 3.802), 'right_elbow': (113.008, 26.906),
+        'right_wrist': (-20.881, -12.762), 'left_shoulder': (9.316, -6.61, 48.693),
+        'left_elbow': (93.531, 4.64), 'left_wrist': (-68.139, 2.984),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(52.1, {
-        'right_shoulder': (-34.839, 4.36, 4.847), 'right_elbow': (114.244, 27.034),
-        'right_wrist': (-21.32, -12.569), 'left_shoulder': (5.582, -1.064, 53.512),
-        'left_elbow': (96.505, 3.594), 'left_wrist': (-70.0, 2.555),
+        'right_shoulder': (-38.284, 0.354, 11.519), 'right_elbow': (111.486, 26.667),
+        'right_wrist': (-19.587, -12.557), 'left_shoulder': (0.502, 9.421, 57.233),
+        'left_elbow': (103.375, 4.834), 'left_wrist': (-70.0, 3.647),
     })
     human.KeyJoints(52.2, {
-        'right_shoulder': (-39.235, -0.226, 12.278), 'right_elbow': (110.847, 26.59),
-        'right_wrist': (-19.403, -12.606), 'left_shoulder': (-0.555, 10.971, 57.771),
-        'left_elbow': (102.593, 5.64), 'left_wrist': (-70.0, 4.5),
+        'right_shoulder': (-40.216, -1.56, 14.417), 'right_elbow': (110.521, 26.535),
+        'right_wrist': (-18.929, -12.529), 'left_shoulder': (-1.591, 14.497, 59.192),
+        'left_elbow': (105.863, 8.17), 'left_wrist': (-69.982, 7.315),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=52.230065, duration=0.072)

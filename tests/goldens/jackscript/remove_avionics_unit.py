@@ -103,148 +103,144 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.4, {'neck': (-6.625, 0.0, 0.0), 'head': (-5.618, 0.0)})
     human.KeyJoints(1.5, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (-16.832, 0.0, 0.0), 'head': (-14.341, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-        'left_clavicle': (0.0, 0.0), 'left_shoulder': (8.594, 5.73, 11.459),
-        'left_elbow': (34.377, 17.189), 'right_hip': (3.011, 0.0, 0.0), 'right_knee': (4.892,),
-        'right_ankle': (1.883, 0.0), 'left_hip': (3.01, 0.0, 0.0), 'left_knee': (4.889,),
-        'left_ankle': (1.882, 0.0),
+        'neck': (-16.832, 0.0, 0.0), 'head': (-14.341, 0.0), 'right_hip': (3.011, 0.0, 0.0),
+        'right_knee': (4.892,), 'right_ankle': (1.883, 0.0), 'left_hip': (3.01, 0.0, 0.0),
+        'left_knee': (4.889,), 'left_ankle': (1.882, 0.0),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: gaze on head at latch_right
     human.LookAt((0.0, 178.0, 100.0), start=1.557537, duration=1.836346)
     human.KeyJoints(1.6, {
-        'spine_lumbar': (0.016, -0.018, -0.065), 'spine_thoracic': (0.059, 0.005, -0.129),
-        'neck': (-20.088, -0.039, 0.128), 'head': (-17.287, 0.0), 'right_clavicle': (0.117, -0.065),
-        'right_shoulder': (8.578, 6.468, 11.23), 'right_elbow': (34.285, 17.152),
-        'left_clavicle': (0.129, 0.047), 'left_shoulder': (9.156, 5.762, 11.423),
-        'left_elbow': (34.369, 16.791), 'left_wrist': (-0.03, -0.009),
+        'spine_lumbar': (0.001, -0.001, -0.004), 'spine_thoracic': (0.004, 0.0, -0.008),
+        'neck': (-20.088, -0.039, 0.128), 'head': (-17.287, 0.0), 'right_clavicle': (0.008, -0.004),
+        'right_shoulder': (8.593, 5.778, 11.444), 'right_elbow': (34.371, 17.186),
+        'left_clavicle': (0.008, 0.003), 'left_shoulder': (8.631, 5.732, 11.457),
+        'left_elbow': (34.377, 17.163), 'left_wrist': (-0.002, -0.001),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (0.181, -0.19, -0.682), 'spine_thoracic': (0.621, 0.051, -1.365),
-        'neck': (-20.534, -0.386, 1.248), 'head': (-17.771, 0.0), 'right_clavicle': (1.244, -0.682),
-        'right_shoulder': (8.417, 13.522, 9.035), 'right_elbow': (33.397, 16.797),
-        'right_wrist': (0.015, -0.04), 'left_clavicle': (1.361, 0.501),
-        'left_shoulder': (14.542, 6.075, 11.072), 'left_elbow': (34.287, 12.989),
-        'left_wrist': (-0.318, -0.095),
+        'spine_lumbar': (0.042, -0.04, -0.142), 'spine_thoracic': (0.129, 0.011, -0.284),
+        'neck': (-20.534, -0.386, 1.248), 'head': (-17.771, 0.0), 'right_clavicle': (0.261, -0.142),
+        'right_shoulder': (8.557, 7.354, 10.954), 'right_elbow': (34.17, 17.107),
+        'left_clavicle': (0.284, 0.105), 'left_shoulder': (9.839, 5.802, 11.378),
+        'left_elbow': (34.357, 16.313), 'left_wrist': (-0.066, -0.02),
     })
     human.KeyJoints(1.8, {
-        'spine_lumbar': (0.523, -0.513, -1.846), 'spine_thoracic': (1.68, 0.138, -3.692),
+        'spine_lumbar': (0.182, -0.172, -0.62), 'spine_thoracic': (0.564, 0.046, -1.24),
         'neck': (-21.336, -0.911, 2.953), 'head': (-18.659, -0.003),
-        'right_clavicle': (3.377, -1.846), 'right_shoulder': (8.115, 26.813, 4.901),
-        'right_elbow': (31.697, 16.13), 'left_clavicle': (3.684, 1.364),
-        'left_shoulder': (24.736, 6.669, 10.409), 'left_elbow': (34.12, 5.825),
-        'left_wrist': (-0.861, -0.258),
+        'right_clavicle': (1.136, -0.62), 'right_shoulder': (8.433, 12.813, 9.256),
+        'right_elbow': (33.472, 16.833), 'right_wrist': (0.015, -0.038),
+        'left_clavicle': (1.238, 0.459), 'left_shoulder': (14.026, 6.046, 11.106),
+        'left_elbow': (34.289, 13.371), 'left_wrist': (-0.29, -0.087),
     })
     human.KeyJoints(1.9, {
-        'spine_lumbar': (1.042, -0.951, -3.423), 'spine_thoracic': (3.114, 0.256, -6.846),
+        'spine_lumbar': (0.455, -0.426, -1.532), 'spine_thoracic': (1.394, 0.115, -3.064),
         'neck': (-22.871, -1.611, 5.231), 'head': (-19.701, -0.009),
-        'right_clavicle': (6.287, -3.423), 'right_shoulder': (7.705, 44.822, -0.7),
-        'right_elbow': (29.349, 15.226), 'left_clavicle': (6.831, 2.544),
-        'left_shoulder': (38.629, 7.483, 9.507), 'left_elbow': (33.873, -3.881),
-        'left_wrist': (-1.6, -0.478),
+        'right_clavicle': (2.81, -1.532), 'right_shoulder': (8.196, 23.229, 6.016),
+        'right_elbow': (32.136, 16.31), 'left_clavicle': (3.057, 1.136),
+        'left_shoulder': (22.022, 6.512, 10.586), 'left_elbow': (34.156, 7.757),
+        'left_wrist': (-0.716, -0.214),
     })
     human.KeyJoints(2.0, {
-        'spine_lumbar': (1.734, -1.467, -5.28), 'spine_thoracic': (4.804, 0.395, -10.559),
+        'spine_lumbar': (0.883, -0.798, -2.87), 'spine_thoracic': (2.611, 0.215, -5.74),
         'neck': (-26.392, -2.325, 7.51), 'head': (-19.519, -0.024),
-        'right_clavicle': (9.743, -5.28), 'right_shoulder': (7.223, 66.03, -7.296),
-        'right_elbow': (26.518, 14.161), 'right_wrist': (0.138, -0.346),
-        'left_clavicle': (10.537, 3.953), 'left_shoulder': (55.113, 8.456, 8.439),
-        'left_elbow': (33.552, -15.312),
+        'right_clavicle': (5.275, -2.87), 'right_shoulder': (7.849, 38.507, 1.264),
+        'right_elbow': (30.154, 15.543), 'left_clavicle': (5.727, 2.136),
+        'left_shoulder': (33.792, 7.201, 9.822), 'left_elbow': (33.951, -0.478),
+        'left_wrist': (-1.342, -0.401),
     })
     human.KeyJoints(2.1, {
-        'spine_lumbar': (2.6, -2.024, -7.284), 'neck': (-30.606, -3.001, 9.662),
-        'head': (-19.459, -0.058), 'right_shoulder': (6.702, 88.918, -14.415),
-        'right_elbow': (23.367, 13.011), 'left_shoulder': (73.078, 9.525, 7.279),
-        'left_wrist': (-3.425, -1.017),
+        'spine_lumbar': (1.486, -1.266, -4.554), 'spine_thoracic': (4.143, 0.34, -9.108),
+        'neck': (-30.606, -3.001, 9.662), 'head': (-19.459, -0.058),
+        'right_clavicle': (8.4, -4.554), 'right_shoulder': (7.411, 57.741, -4.718),
+        'right_elbow': (27.607, 14.577), 'right_wrist': (0.118, -0.298),
+        'left_clavicle': (9.089, 3.407), 'left_shoulder': (48.703, 8.079, 8.855),
+        'left_elbow': (33.669, -10.844), 'left_wrist': (-2.134, -0.636),
     })
     human.KeyJoints(2.2, {
-        'spine_lumbar': (3.637, -2.585, -9.302), 'spine_thoracic': (8.463, 0.695, -18.604),
-        'neck': (-35.144, -3.441, 10.981), 'right_clavicle': (17.378, -9.302),
-        'right_shoulder': (6.178, 111.968, -21.584), 'left_clavicle': (18.571, 7.091),
-        'left_shoulder': (91.417, 10.631, 6.1), 'left_elbow': (32.706, -40.071),
+        'spine_lumbar': (2.274, -1.798, -6.469), 'spine_thoracic': (5.885, 0.483, -12.937),
+        'neck': (-35.144, -3.441, 10.981), 'right_clavicle': (11.992, -6.469),
+        'right_shoulder': (6.914, 79.608, -11.519), 'right_elbow': (24.627, 13.479),
+        'left_clavicle': (12.912, 4.875), 'left_shoulder': (65.81, 9.095, 7.749),
+        'left_elbow': (33.31, -22.63),
     })
     human.KeyJoints(2.3, {
-        'spine_lumbar': (4.845, -3.113, -11.201), 'spine_thoracic': (10.191, 0.837, -22.402),
-        'neck': (-39.783, -3.634, 11.425), 'right_clavicle': (21.095, -11.201),
-        'right_shoulder': (5.684, 133.661, -28.332), 'right_elbow': (16.759, 10.763),
-        'left_clavicle': (22.367, 8.641), 'left_shoulder': (109.02, 11.71, 4.974),
-        'left_elbow': (32.192, -51.762), 'left_wrist': (-5.31, -1.564),
+        'spine_lumbar': (3.259, -2.358, -8.484), 'neck': (-39.783, -3.634, 11.425),
+        'right_shoulder': (6.39, 102.626, -18.679), 'right_elbow': (21.366, 12.322),
+        'left_elbow': (32.875, -35.036),
     })
     human.KeyJoints(2.4, {
-        'spine_lumbar': (6.221, -3.571, -12.849), 'spine_thoracic': (11.69, 0.96, -25.697),
+        'spine_lumbar': (4.487, -2.901, -10.456), 'spine_thoracic': (9.497, 0.78, -20.912),
         'neck': (-44.208, -3.569, 11.016), 'head': (-18.875, -0.254),
-        'right_clavicle': (24.439, -12.849), 'right_shoulder': (5.256, 152.477, -34.184),
-        'right_elbow': (13.629, 9.817), 'left_clavicle': (25.664, 10.057),
-        'left_shoulder': (124.779, 12.702, 3.976), 'left_elbow': (31.623, -61.904),
-        'left_wrist': (-6.125, -1.794),
+        'right_clavicle': (19.672, -10.456), 'right_shoulder': (5.88, 125.143, -25.684),
+        'right_elbow': (17.968, 11.19), 'left_clavicle': (20.879, 8.057),
+        'left_shoulder': (102.278, 11.297, 5.41), 'left_elbow': (32.336, -47.176),
+        'left_wrist': (-4.953, -1.46),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (7.765, -3.922, -14.111), 'spine_thoracic': (12.839, 1.055, -28.223),
+        'spine_lumbar': (6.509, -3.27, -12.22), 'spine_thoracic': (10.666, 0.867, -24.441),
         'neck': (-47.389, -3.089, 9.932), 'head': (-19.256, -0.132),
-        'right_clavicle': (27.18, -14.111), 'right_shoulder': (4.928, 166.899, -38.67),
-        'right_elbow': (10.834, 9.091), 'left_clavicle': (28.195, 11.249),
-        'left_shoulder': (137.585, 13.546, 3.177), 'left_elbow': (31.005, -69.677),
-        'left_wrist': (-6.775, -1.97),
+        'right_clavicle': (23.274, -12.22), 'right_shoulder': (5.468, 145.125, -31.948),
+        'right_elbow': (14.389, 10.177), 'right_wrist': (0.433, -1.008),
+        'left_clavicle': (24.409, 9.662), 'left_shoulder': (119.762, 12.199, 4.364),
+        'left_elbow': (31.09, -58.038), 'left_wrist': (-5.81, -1.709),
     })
     human.KeyJoints(2.6, {
-        'spine_lumbar': (9.475, -4.129, -14.856), 'spine_thoracic': (13.517, 1.11, -29.713),
+        'spine_lumbar': (11.434, -2.883, -13.602), 'spine_thoracic': (9.22, 0.672, -27.204),
         'neck': (-49.574, -2.324, 8.269), 'head': (-19.909, 0.0),
-        'right_clavicle': (29.087, -14.856), 'right_shoulder': (4.734, 175.408, -41.316),
-        'right_elbow': (8.537, 8.662), 'right_wrist': (0.658, -1.446),
-        'left_clavicle': (29.696, 12.128), 'left_shoulder': (146.328, 14.178, 2.652),
-        'left_elbow': (30.342, -74.263), 'left_wrist': (-7.2, -2.074),
+        'right_clavicle': (26.363, -13.602), 'right_shoulder': (5.396, 159.902, -36.83),
+        'right_elbow': (10.008, 9.384), 'left_clavicle': (27.181, 11.476),
+        'left_shoulder': (137.458, 12.078, 3.643), 'left_elbow': (26.348, -66.549),
+        'left_wrist': (-6.399, -1.914),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.7, {
-        'spine_lumbar': (11.994, -4.09, -15.0), 'spine_thoracic': (13.114, 1.061, -30.0),
-        'neck': (-52.072, -1.409, 5.931), 'right_clavicle': (29.979, -15.0),
-        'right_shoulder': (4.763, 176.43, -41.8), 'right_elbow': (6.953, 8.577),
-        'right_wrist': (0.791, -1.656), 'left_clavicle': (30.0, 12.589),
-        'left_shoulder': (149.981, 14.55, 2.455), 'left_elbow': (29.504, -75.144),
-        'left_wrist': (-7.35, -2.08),
+        'spine_lumbar': (19.499, -1.507, -14.476), 'spine_thoracic': (4.405, 0.094, -28.952),
+        'neck': (-52.072, -1.409, 5.931), 'right_clavicle': (28.567, -14.476),
+        'right_shoulder': (5.755, 167.86, -39.884), 'right_elbow': (5.055, 8.884),
+        'right_wrist': (0.587, -1.453), 'left_clavicle': (28.941, 13.417),
+        'left_shoulder': (154.557, 10.527, 3.385), 'left_elbow': (17.176, -71.943),
+        'left_wrist': (-6.598, -2.054),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (17.081, -3.415, -15.0), 'spine_thoracic': (9.205, 1.172, -30.0),
-        'neck': (-54.368, -0.668, 3.442), 'right_shoulder': (5.378, 174.127, -41.729),
-        'right_elbow': (5.008, 8.577), 'right_wrist': (0.962, -1.996),
-        'left_clavicle': (30.0, 13.59), 'left_shoulder': (153.805, 13.444, 2.677),
-        'left_elbow': (27.166, -75.159), 'left_wrist': (-7.405, -2.211),
+        'spine_lumbar': (25.277, -0.39, -14.887), 'spine_thoracic': (0.528, -0.368, -29.774),
+        'neck': (-54.368, -0.668, 3.442), 'right_clavicle': (29.687, -14.887),
+        'right_shoulder': (6.09, 171.036, -41.307), 'right_elbow': (1.867, 8.649),
+        'left_clavicle': (29.771, 14.643), 'left_shoulder': (164.972, 9.174, 3.35),
+        'left_elbow': (10.304, -74.484),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (23.872, -1.695, -15.0), 'spine_thoracic': (2.731, 0.648, -30.0),
+        'spine_lumbar': (26.946, -0.061, -14.997), 'spine_thoracic': (-0.61, -0.504, -29.994),
         'neck': (-56.848, -0.104, 1.018), 'head': (-19.525, 0.003),
-        'right_shoulder': (6.146, 172.421, -41.703), 'right_elbow': (2.555, 8.581),
-        'right_wrist': (0.939, -2.169), 'left_clavicle': (30.0, 15.0),
-        'left_shoulder': (160.937, 10.446, 3.2), 'left_elbow': (19.861, -75.191),
-        'left_wrist': (-7.584, -2.516),
+        'right_clavicle': (29.992, -14.997), 'right_shoulder': (6.19, 171.854, -41.688),
+        'right_elbow': (0.96, 8.586), 'right_wrist': (0.611, -1.593),
+        'left_clavicle': (29.994, 14.991), 'left_shoulder': (167.909, 8.773, 3.346),
+        'left_elbow': (8.305, -75.166),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(3.0, {
-        'spine_lumbar': (27.052, -0.032, -15.0), 'spine_thoracic': (-0.742, -0.604, -30.0),
-        'neck': (-57.925, 0.09, 0.001), 'right_shoulder': (6.205, 171.855, -41.698),
-        'right_elbow': (0.813, 8.584), 'right_wrist': (0.562, -1.496),
-        'left_shoulder': (168.583, 8.674, 3.348), 'left_elbow': (7.235, -75.183),
-        'left_wrist': (-6.325, -2.038),
+        'neck': (-57.925, 0.09, 0.001), 'left_shoulder': (168.028, 8.757, 3.346),
+        'left_elbow': (8.183, -75.185), 'left_wrist': (-6.596, -2.137),
     })
     human.KeyJoints(3.1, {
-        'neck': (-57.932, 0.101, -0.059), 'right_wrist': (0.518, -1.405),
-        'left_shoulder': (169.071, 8.603, 3.35), 'left_elbow': (6.396, -75.182),
-        'left_wrist': (-6.028, -1.932),
+        'neck': (-57.932, 0.101, -0.059), 'right_elbow': (0.846, 8.584),
+        'right_wrist': (0.575, -1.522), 'left_shoulder': (168.422, 8.698, 3.347),
+        'left_elbow': (7.51, -75.184), 'left_wrist': (-6.404, -2.067),
     })
     human.KeyJoints(3.2, {
-        'neck': (-58.149, 0.107, -0.094), 'head': (-19.586, 0.003), 'right_elbow': (0.527, 8.585),
-        'right_wrist': (0.422, -1.2), 'left_shoulder': (169.989, 8.472, 3.352),
-        'left_elbow': (4.792, -75.18), 'left_wrist': (-5.31, -1.683),
+        'spine_thoracic': (-0.771, -0.656, -30.0), 'neck': (-58.149, 0.107, -0.094),
+        'head': (-19.586, 0.003), 'right_shoulder': (6.275, 171.826, -41.698),
+        'left_shoulder': (169.384, 8.559, 3.35), 'left_elbow': (5.849, -75.181),
+        'left_wrist': (-5.784, -1.848),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (27.188, 0.079, -15.0), 'right_shoulder': (6.329, 171.803, -41.698),
+        'right_elbow': (0.517, 8.585), 'right_wrist': (0.416, -1.189),
+        'left_shoulder': (170.037, 8.465, 3.352), 'left_elbow': (4.706, -75.18),
+        'left_wrist': (-5.269, -1.669),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=3.321883, duration=0.072)
@@ -252,47 +248,51 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'open', start=3.321883, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
     human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.2628)
-    human.KeyJoints(3.4, {'neck': (-58.162, 0.107, -0.095), 'left_elbow': (4.697, -75.18)})
+    human.KeyJoints(3.4, {'spine_lumbar': (27.188, 0.079, -15.0), 'neck': (-58.162, 0.107, -0.095)})
     human.KeyJoints(3.5, {'neck': (-57.469, 0.034, 0.132), 'head': (-19.512, 0.002)})
     human.KeyJoints(3.6, {
-        'spine_lumbar': (27.188, 0.079, -15.0), 'spine_thoracic': (-0.757, -0.67, -30.0),
-        'neck': (-56.451, -0.074, 0.464), 'head': (-19.404, 0.0), 'right_clavicle': (30.0, -15.0),
-        'right_shoulder': (6.329, 171.803, -41.698), 'right_wrist': (0.416, -1.188),
-        'left_clavicle': (30.0, 15.0), 'left_shoulder': (170.043, 8.464, 3.352),
-        'left_elbow': (4.697, -75.18), 'left_wrist': (-5.265, -1.668),
+        'spine_thoracic': (-0.757, -0.67, -30.0), 'neck': (-56.451, -0.074, 0.464),
+        'head': (-19.404, 0.0), 'right_shoulder': (6.329, 171.803, -41.698),
+        'left_shoulder': (170.043, 8.464, 3.352), 'left_elbow': (4.697, -75.18),
+        'left_wrist': (-5.265, -1.668),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
     human.LookAt((0.0, 165.0, 75.0), start=3.656683, duration=2.430743)
     human.KeyJoints(3.7, {
-        'spine_lumbar': (27.469, -0.009, -14.914), 'spine_thoracic': (0.919, -1.396, -30.0),
+        'spine_lumbar': (27.222, 0.068, -14.989), 'spine_thoracic': (-0.552, -0.758, -30.0),
         'neck': (-57.532, 0.646, -1.658), 'head': (-19.928, 0.021),
-        'right_clavicle': (30.0, -14.91), 'right_shoulder': (5.849, 168.2, -41.605),
-        'right_elbow': (0.476, 8.579), 'right_wrist': (0.752, -1.375),
-        'left_clavicle': (30.0, 14.804), 'left_shoulder': (158.976, 21.784, -2.123),
-        'left_elbow': (5.409, -74.437), 'left_wrist': (-4.188, -1.494),
+        'right_clavicle': (30.0, -14.989), 'right_shoulder': (6.271, 171.363, -41.687),
+        'right_elbow': (0.511, 8.584), 'right_wrist': (0.457, -1.211),
+        'left_clavicle': (30.0, 14.976), 'left_shoulder': (168.692, 10.089, 2.684),
+        'left_elbow': (4.784, -75.089), 'left_wrist': (-5.134, -1.646),
     })
     human.KeyJoints(3.8, {
-        'spine_lumbar': (29.354, -0.6, -14.336), 'spine_thoracic': (12.134, -6.256, -30.0),
-        'neck': (-60.0, -15.03, -30.751), 'head': (-20.0, 11.25), 'right_clavicle': (30.0, -14.304),
-        'right_shoulder': (2.637, 144.094, -40.979), 'right_wrist': (3.002, -2.627),
-        'left_clavicle': (29.996, 13.493), 'left_shoulder': (84.918, 110.921, -38.76),
-        'left_elbow': (10.174, -69.462), 'left_wrist': (3.019, -0.33),
+        'spine_lumbar': (27.992, -0.173, -14.754), 'spine_thoracic': (4.027, -2.743, -30.0),
+        'neck': (-60.0, -15.03, -30.751), 'head': (-20.0, 11.25), 'right_clavicle': (30.0, -14.742),
+        'right_shoulder': (4.959, 161.52, -41.431), 'right_elbow': (0.401, 8.567),
+        'right_wrist': (1.375, -1.722), 'left_clavicle': (29.999, 14.441),
+        'left_shoulder': (138.452, 46.487, -12.276), 'left_elbow': (6.73, -73.058),
+        'left_wrist': (-2.191, -1.171),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (30.79, -1.05, -13.896), 'spine_thoracic': (20.679, -9.959, -30.0),
+        'spine_lumbar': (29.788, -0.736, -14.203), 'spine_thoracic': (14.719, -7.376, -30.0),
         'neck': (-59.85, -19.807, -49.302), 'head': (-17.761, 11.14),
-        'right_clavicle': (30.0, -13.843), 'right_shoulder': (0.19, 125.725, -40.502),
-        'right_elbow': (0.002, 8.504), 'right_wrist': (4.716, -3.581),
-        'left_clavicle': (29.994, 12.493), 'left_shoulder': (28.487, 178.841, -66.677),
-        'left_elbow': (13.805, -65.672), 'left_wrist': (8.51, 0.556),
+        'right_clavicle': (30.0, -14.165), 'right_shoulder': (1.897, 138.536, -40.835),
+        'right_elbow': (0.145, 8.527), 'right_wrist': (3.521, -2.916),
+        'left_clavicle': (29.996, 13.19), 'left_shoulder': (67.843, 131.472, -47.207),
+        'left_elbow': (11.273, -68.316), 'left_wrist': (4.68, -0.062),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(4.0, {
-        'neck': (-59.84, -19.915, -49.579), 'right_shoulder': (0.163, 125.523, -40.497),
-        'left_shoulder': (27.863, 179.592, -66.986),
+        'spine_lumbar': (30.758, -1.041, -13.906), 'spine_thoracic': (20.492, -9.878, -30.0),
+        'neck': (-59.84, -19.915, -49.579), 'right_clavicle': (30.0, -13.853),
+        'right_shoulder': (0.243, 126.128, -40.512), 'right_elbow': (0.007, 8.505),
+        'right_wrist': (4.679, -3.56), 'left_clavicle': (29.994, 12.515),
+        'left_shoulder': (29.723, 177.354, -66.066), 'left_elbow': (13.726, -65.755),
+        'left_wrist': (8.39, 0.537),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=4.045791, duration=0.072)
@@ -303,90 +303,100 @@ def remove_avionics_unit():
         'neck': (-59.84, -19.915, -49.579), 'head': (-17.671, 11.123),
         'right_clavicle': (30.0, -13.838), 'right_shoulder': (0.163, 125.523, -40.497),
         'right_elbow': (0.0, 8.504), 'right_wrist': (4.735, -3.591),
-        'left_clavicle': (29.994, 12.482), 'left_shoulder': (27.863, 179.592, -66.986),
+        'left_shoulder': (27.863, 179.592, -66.986), 'left_elbow': (13.845, -65.63),
+        'left_wrist': (8.571, 0.566),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(4.2, {
-        'spine_lumbar': (31.421, -2.336, -13.786), 'spine_thoracic': (16.735, -7.764, -26.978),
+        'spine_lumbar': (31.012, -1.485, -13.855), 'spine_thoracic': (19.418, -9.249, -28.982),
         'neck': (-59.865, -19.238, -47.603), 'head': (-18.041, 11.143),
-        'right_clavicle': (25.796, -13.983), 'right_shoulder': (1.116, 131.383, -40.534),
-        'right_elbow': (1.227, 8.541), 'right_wrist': (5.776, -4.656),
-        'left_clavicle': (29.995, 12.609), 'left_shoulder': (27.26, 179.054, -66.838),
-        'left_wrist': (8.663, 0.519),
+        'right_clavicle': (28.589, -13.887), 'right_shoulder': (0.483, 127.49, -40.509),
+        'right_elbow': (0.412, 8.516), 'right_wrist': (5.084, -3.949),
+        'left_clavicle': (29.994, 12.525), 'left_shoulder': (27.661, 179.405, -66.935),
+        'left_wrist': (8.602, 0.55),
     })
     human.KeyJoints(4.3, {
-        'spine_lumbar': (33.193, -6.024, -13.421), 'spine_thoracic': (5.106, -1.325, -18.091),
+        'spine_lumbar': (32.346, -4.261, -13.601), 'spine_thoracic': (10.665, -4.403, -22.357),
         'neck': (-59.934, -17.409, -41.947), 'head': (-19.043, 11.198),
-        'right_clavicle': (13.688, -14.401), 'right_shoulder': (3.863, 148.26, -40.639),
-        'left_shoulder': (25.521, 177.125, -66.383), 'left_wrist': (8.93, 0.343),
+        'right_clavicle': (19.475, -14.201), 'right_shoulder': (2.55, 140.192, -40.589),
+        'right_elbow': (3.071, 8.596), 'right_wrist': (7.34, -6.257),
+        'left_clavicle': (29.996, 12.8), 'left_shoulder': (26.352, 178.085, -66.603),
+        'left_elbow': (13.836, -65.597), 'left_wrist': (8.802, 0.431),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (35.008, -9.802, -12.876), 'spine_thoracic': (-6.808, 5.272, -8.478),
+        'spine_lumbar': (34.49, -8.841, -12.976), 'spine_thoracic': (-3.895, 3.647, -10.736),
         'neck': (-59.992, -15.868, -36.249), 'head': (-19.887, 11.244),
-        'right_clavicle': (1.283, -14.83), 'right_shoulder': (6.677, 165.55, -40.748),
-        'right_elbow': (8.379, 8.756), 'right_wrist': (11.842, -10.865),
-        'left_clavicle': (29.999, 13.349), 'left_shoulder': (23.74, 174.089, -65.838),
-        'left_elbow': (13.786, -65.511), 'left_wrist': (9.203, 0.057),
+        'right_clavicle': (4.366, -14.72), 'right_shoulder': (5.969, 161.354, -40.72),
+        'right_elbow': (7.501, 8.729), 'right_wrist': (11.094, -10.098),
+        'left_clavicle': (29.999, 13.251), 'left_shoulder': (24.168, 174.656, -65.958),
+        'left_elbow': (13.75, -65.523), 'left_wrist': (9.124, 0.108),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(4.5, {
-        'spine_lumbar': (34.45, -10.774, -12.202), 'spine_thoracic': (-11.452, 7.587, -3.445),
+        'spine_lumbar': (27.676, -5.301, -10.36), 'spine_thoracic': (-5.97, 3.09, -1.514),
         'neck': (-58.398, -15.806, -32.425), 'head': (-20.0, 11.241),
-        'right_clavicle': (-2.772, -14.922), 'right_shoulder': (7.511, 172.327, -40.78),
-        'right_elbow': (9.794, 8.795), 'right_wrist': (13.005, -12.043),
-        'left_clavicle': (30.0, 13.367), 'left_shoulder': (23.136, 170.005, -65.428),
-        'left_elbow': (13.14, -65.428), 'left_wrist': (9.139, -0.352),
+        'right_clavicle': (9.253, -13.775), 'right_shoulder': (3.795, 167.551, -40.475),
+        'right_elbow': (8.085, 8.737), 'right_wrist': (12.334, -11.163),
+        'left_clavicle': (30.0, 12.592), 'left_shoulder': (21.486, 164.821, -64.979),
+        'left_elbow': (9.17, -65.301), 'left_wrist': (7.944, -1.104),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(4.6, {
-        'spine_lumbar': (25.095, -3.28, -9.686), 'spine_thoracic': (-3.892, 1.156, -0.707),
+        'spine_lumbar': (25.111, -3.306, -9.686), 'spine_thoracic': (-3.91, 1.19, -0.707),
         'neck': (-57.578, -19.121, -23.315), 'right_clavicle': (14.201, -13.235),
-        'right_shoulder': (2.325, 165.006, -40.322), 'right_elbow': (7.129, 8.713),
-        'right_wrist': (12.091, -10.834), 'left_clavicle': (30.0, 12.229),
+        'right_shoulder': (2.33, 165.006, -40.322), 'right_elbow': (7.129, 8.714),
+        'right_wrist': (12.092, -10.835), 'left_clavicle': (30.0, 12.229),
         'left_shoulder': (20.841, 163.061, -64.828), 'left_elbow': (7.839, -65.257),
         'left_wrist': (7.529, -1.361),
     })
-    human.KeyJoints(4.9, {'spine_thoracic': (-3.552, 0.487, -0.709)})
-    human.KeyJoints(5.0, {'spine_lumbar': (24.705, -2.672, -9.696)})
-    human.KeyJoints(5.2, {'right_shoulder': (2.163, 165.242, -40.316)})
+    human.KeyJoints(4.8, {'spine_thoracic': (-3.875, 1.123, -0.707)})
+    human.KeyJoints(4.9, {'spine_lumbar': (25.022, -3.166, -9.687)})
+    human.KeyJoints(5.0, {'spine_thoracic': (-3.711, 0.8, -0.708)})
+    human.KeyJoints(5.1, {
+        'right_shoulder': (2.232, 165.087, -40.319), 'left_shoulder': (20.906, 163.076, -64.821),
+    })
     human.KeyJoints(5.3, {
-        'spine_thoracic': (-3.299, -0.02, -0.725), 'left_shoulder': (21.081, 163.118, -64.816),
+        'spine_lumbar': (24.574, -2.465, -9.743), 'spine_thoracic': (-3.328, 0.038, -0.726),
+        'right_clavicle': (14.132, -13.302), 'right_elbow': (7.24, 8.707),
+        'left_clavicle': (30.0, 12.298), 'left_elbow': (7.915, -65.26),
     })
+    human.KeyJoints(5.4, {'spine_thoracic': (-3.235, -0.151, -0.759)})
     human.KeyJoints(5.5, {
-        'spine_lumbar': (24.489, -2.332, -9.793), 'right_clavicle': (14.071, -13.362),
-        'left_clavicle': (30.0, 12.359),
+        'spine_lumbar': (24.454, -2.275, -9.963), 'right_shoulder': (2.12, 165.591, -40.315),
+        'left_shoulder': (21.309, 163.172, -64.813),
     })
-    human.KeyJoints(5.6, {'neck': (-57.625, -19.189, -23.212)})
-    human.KeyJoints(5.8, {'spine_thoracic': (-3.195, -0.236, -0.792)})
-    human.KeyJoints(5.9, {'right_shoulder': (2.118, 165.628, -40.315)})
+    human.KeyJoints(5.6, {
+        'neck': (-57.625, -19.189, -23.212), 'right_clavicle': (13.767, -13.661),
+        'left_clavicle': (30.0, 12.662),
+    })
+    human.KeyJoints(5.7, {'spine_thoracic': (-3.189, -0.25, -0.846), 'right_elbow': (7.377, 8.706)})
+    human.KeyJoints(5.9, {'spine_lumbar': (24.445, -2.26, -10.152), 'left_elbow': (8.013, -65.263)})
     human.KeyRoot(6.0, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(6.0, {
-        'left_shoulder': (21.355, 163.183, -64.813), 'right_hip': (2.865, 0.0, 0.0),
-        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
-        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'right_clavicle': (13.624, -13.801), 'left_clavicle': (30.0, 12.804),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
     human.Walk((-79.956, 0.0, 40.019), start=6.087427, duration=4.515789)
     human.KeyRoot(6.1, (0.106, 72.958, 50.048), (-0.181, 0.0, 0.0))
     human.KeyJoints(6.1, {
-        'spine_lumbar': (24.445, -2.26, -10.161), 'right_clavicle': (13.623, -13.802),
-        'left_clavicle': (30.0, 12.805), 'right_hip': (3.492, 0.079, 0.186), 'right_knee': (5.944,),
-        'right_ankle': (2.441, 0.092), 'left_hip': (3.409, -0.079, -0.186), 'left_knee': (5.864,),
-        'left_ankle': (2.454, -0.092),
+        'right_hip': (3.492, 0.079, 0.186), 'right_knee': (5.944,), 'right_ankle': (2.441, 0.092),
+        'left_hip': (3.409, -0.079, -0.186), 'left_knee': (5.864,), 'left_ankle': (2.454, -0.092),
     })
     human.KeyRoot(6.2, (1.206, 72.55, 50.337), (-1.8, 0.0, 0.0))
     human.KeyJoints(6.2, {
-        'right_hip': (8.228, 0.772, 1.94), 'right_knee': (15.865,), 'right_ankle': (7.122, 1.043),
-        'left_hip': (6.782, -0.813, -1.909), 'left_knee': (13.841,), 'left_ankle': (7.089, -1.034),
+        'left_wrist': (7.663, -1.329), 'right_hip': (8.228, 0.772, 1.94), 'right_knee': (15.865,),
+        'right_ankle': (7.122, 1.043), 'left_hip': (6.782, -0.813, -1.909), 'left_knee': (13.841,),
+        'left_ankle': (7.089, -1.034),
     })
     human.KeyRoot(6.3, (1.924, 72.488, 50.485), (-3.697, 0.0, 0.0))
     human.KeyJoints(6.3, {
-        'right_elbow': (7.38, 8.706), 'right_hip': (10.75, 1.024, 3.812), 'right_knee': (20.79,),
-        'right_ankle': (9.201, 1.726), 'left_hip': (6.792, -1.192, -3.864), 'left_knee': (14.483,),
-        'left_ankle': (7.784, -1.639),
+        'right_hip': (10.75, 1.024, 3.812), 'right_knee': (20.79,), 'right_ankle': (9.201, 1.726),
+        'left_hip': (6.792, -1.192, -3.864), 'left_knee': (14.483,), 'left_ankle': (7.784, -1.639),
     })
     human.KeyRoot(6.4, (2.314, 72.497, 50.54), (-5.822, 0.0, 0.0))
     human.KeyJoints(6.4, {
@@ -395,15 +405,15 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.5, (2.439, 72.771, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(6.5, {
-        'left_elbow': (8.013, -65.263), 'right_hip': (24.055, 5.205, -6.25),
-        'right_knee': (51.364,), 'right_ankle': (18.134, 2.076),
-        'left_hip': (7.717, -0.927, -8.381), 'left_knee': (17.096,), 'left_ankle': (7.818, -2.033),
+        'right_hip': (24.055, 5.205, -6.25), 'right_knee': (51.364,),
+        'right_ankle': (18.134, 2.076), 'left_hip': (7.717, -0.927, -8.381), 'left_knee': (17.096,),
+        'left_ankle': (7.818, -2.033),
     })
     human.KeyRoot(6.6, (2.074, 72.843, 49.938), (-10.614, 0.0, 0.0))
     human.KeyJoints(6.6, {
-        'spine_thoracic': (-3.188, -0.252, -0.868), 'right_hip': (16.945, 6.569, -15.078),
-        'right_knee': (37.878,), 'right_ankle': (18.271, 1.516),
-        'left_hip': (11.338, 0.455, -10.867), 'left_knee': (23.908,), 'left_ankle': (8.222, -1.691),
+        'right_hip': (16.945, 6.569, -15.078), 'right_knee': (37.878,),
+        'right_ankle': (18.271, 1.516), 'left_hip': (11.338, 0.455, -10.867),
+        'left_knee': (23.908,), 'left_ankle': (8.222, -1.691),
     })
     human.KeyRoot(6.7, (1.246, 72.519, 48.852), (-13.49, 0.0, 0.0))
     human.KeyJoints(6.7, {
@@ -412,7 +422,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.8, (0.39, 72.492, 48.416), (-16.969, 0.0, 0.0))
     human.KeyJoints(6.8, {
-        'left_wrist': (7.663, -1.329), 'right_hip': (7.57, 1.523, -15.534), 'right_knee': (14.689,),
+        'right_hip': (7.57, 1.523, -15.534), 'right_knee': (14.689,),
         'right_ankle': (6.985, -0.567), 'left_hip': (16.817, 5.014, -16.238),
         'left_knee': (34.869,), 'left_ankle': (8.337, -0.033),
     })
@@ -441,9 +451,9 @@ def remove_avionics_unit():
     })
     human.KeyRoot(7.3, (-2.984, 72.579, 52.72), (-42.983, 0.0, 0.0))
     human.KeyJoints(7.3, {
-        'right_hip': (12.765, -3.475, 9.776), 'right_knee': (28.346,),
-        'right_ankle': (9.604, -1.194), 'left_hip': (9.881, -3.532, 20.102), 'left_knee': (21.885,),
-        'left_ankle': (11.392, 0.012),
+        'right_shoulder': (2.118, 165.656, -40.315), 'right_hip': (12.765, -3.475, 9.776),
+        'right_knee': (28.346,), 'right_ankle': (9.604, -1.194),
+        'left_hip': (9.881, -3.532, 20.102), 'left_knee': (21.885,), 'left_ankle': (11.392, 0.012),
     })
     human.KeyRoot(7.4, (-3.113, 72.487, 53.952), (-48.139, 0.0, 0.0))
     human.KeyJoints(7.4, {
@@ -644,52 +654,52 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(10.7, (-80.0, 72.985, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.7, {
-        'right_shoulder': (4.779, 155.807, -34.588), 'right_elbow': (12.293, 5.283),
-        'right_wrist': (13.991, -11.675), 'left_shoulder': (22.284, 155.277, -57.645),
-        'left_elbow': (14.069, -64.416), 'left_wrist': (10.843, -2.553),
+        'right_shoulder': (2.935, 162.629, -38.542), 'right_elbow': (8.89, 7.654),
+        'right_wrist': (12.665, -11.068), 'left_shoulder': (21.644, 160.754, -62.6),
+        'left_elbow': (9.874, -64.998), 'left_wrist': (8.64, -1.711),
         'right_hip': (3.144, 0.0, 0.0), 'right_knee': (5.171,), 'left_hip': (3.124, 0.0, 0.0),
         'left_knee': (5.13,),
     })
     human.KeyJoints(10.8, {
-        'right_shoulder': (11.84, 129.672, -19.199), 'right_elbow': (25.331, -3.8),
-        'right_wrist': (19.071, -14.081), 'left_shoulder': (24.734, 134.288, -38.462),
-        'left_elbow': (30.14, -62.09), 'left_wrist': (19.283, -5.885),
+        'right_shoulder': (7.371, 146.213, -28.91), 'right_elbow': (17.079, 1.949),
+        'right_wrist': (15.856, -12.568), 'left_shoulder': (23.183, 147.571, -50.579),
+        'left_elbow': (19.969, -63.551), 'left_wrist': (13.942, -3.789),
         'right_hip': (3.107, 0.0, 0.0), 'right_knee': (5.094,), 'right_ankle': (1.989, 0.0),
         'left_hip': (3.097, 0.0, 0.0), 'left_knee': (5.073,), 'left_ankle': (1.978, 0.0),
     })
     human.KeyJoints(10.9, {
-        'right_shoulder': (21.325, 94.567, 1.897), 'right_elbow': (42.843, -16.0),
-        'right_wrist': (25.894, -17.449), 'left_shoulder': (28.026, 106.079, -12.343),
-        'left_elbow': (51.726, -58.797), 'left_wrist': (30.62, -10.546),
+        'right_shoulder': (15.201, 117.233, -11.724), 'right_elbow': (31.536, -8.123),
+        'right_wrist': (21.488, -15.274), 'left_shoulder': (25.901, 124.293, -29.207),
+        'left_elbow': (37.788, -60.923), 'left_wrist': (23.3, -7.537),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(11.0, {
-        'right_shoulder': (31.253, 57.823, 24.735), 'right_elbow': (61.173, -28.77),
-        'right_wrist': (33.036, -21.22), 'left_shoulder': (31.471, 76.523, 15.627),
-        'left_elbow': (74.321, -55.046), 'left_wrist': (42.485, -15.757),
+        'right_shoulder': (24.557, 82.605, 9.309), 'right_elbow': (48.81, -20.157),
+        'right_wrist': (28.219, -18.67), 'left_shoulder': (29.147, 96.458, -3.256),
+        'left_elbow': (59.082, -57.585), 'left_wrist': (34.482, -12.233),
     })
     human.KeyJoints(11.1, {
-        'right_shoulder': (39.644, 26.768, 45.351), 'right_elbow': (76.665, -39.563),
-        'right_wrist': (39.072, -24.834), 'left_shoulder': (34.383, 51.492, 40.359),
-        'left_elbow': (93.417, -51.35), 'left_wrist': (52.514, -20.737),
+        'right_shoulder': (33.664, 48.856, 30.738), 'right_elbow': (65.608, -31.876),
+        'right_wrist': (34.768, -22.283), 'left_shoulder': (32.305, 69.289, 22.807),
+        'left_elbow': (79.795, -53.951), 'left_wrist': (45.369, -17.222),
     })
     human.KeyJoints(11.2, {
-        'right_shoulder': (44.517, 8.732, 59.781), 'right_elbow': (85.662, -45.831),
-        'right_wrist': (42.577, -27.73), 'left_shoulder': (36.074, 36.859, 56.768),
-        'left_elbow': (104.507, -48.219), 'left_wrist': (58.338, -24.706),
+        'right_shoulder': (40.412, 21.478, 50.014), 'right_elbow': (76.394, -40.549),
+        'right_wrist': (39.215, -26.03), 'left_shoulder': (34.495, 46.881, 45.289),
+        'left_elbow': (93.728, -49.71), 'left_wrist': (53.249, -22.5),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
     human.KeyJoints(11.3, {
-        'right_shoulder': (42.173, 7.461, 65.278), 'right_elbow': (83.493, -45.792),
-        'right_wrist': (42.637, -29.433), 'left_shoulder': (34.303, 34.76, 61.632),
-        'left_elbow': (101.377, -46.006), 'left_wrist': (58.206, -27.05),
+        'right_shoulder': (42.919, 4.511, 62.884), 'right_elbow': (74.534, -43.385),
+        'right_wrist': (39.304, -29.272), 'left_shoulder': (34.932, 32.122, 59.268),
+        'left_elbow': (93.871, -45.055), 'left_wrist': (55.233, -27.415),
     })
     human.KeyJoints(11.4, {
-        'right_shoulder': (43.246, 1.055, 65.519), 'right_elbow': (73.423, -43.729),
-        'right_wrist': (39.087, -29.98), 'left_shoulder': (34.9, 29.088, 62.058),
-        'left_elbow': (93.107, -43.952), 'left_wrist': (55.367, -28.536),
+        'right_shoulder': (43.268, 1.055, 65.506), 'right_elbow': (73.272, -43.699),
+        'right_wrist': (39.044, -29.997), 'left_shoulder': (34.936, 29.031, 62.041),
+        'left_elbow': (93.029, -43.934), 'left_wrist': (55.336, -28.546),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.401107, duration=0.072)

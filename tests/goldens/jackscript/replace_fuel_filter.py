@@ -284,73 +284,68 @@ def replace_fuel_filter():
         'left_knee': (124.422,),
     })
     human.KeyJoints(3.9, {'neck': (12.655, -12.203, 7.208), 'head': (5.424, 3.949)})
-    human.KeyJoints(4.0, {
-        'spine_lumbar': (9.033, 0.001, 0.0), 'spine_thoracic': (1.549, 0.034, 0.0),
-        'neck': (30.918, -29.814, 17.609), 'head': (13.251, 9.647), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 17.189),
-    })
+    human.KeyJoints(4.0, {'neck': (30.918, -29.814, 17.609), 'head': (13.251, 9.647)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=4.055937, duration=0.873042)
     human.KeyJoints(4.1, {
-        'spine_lumbar': (9.479, 0.126, 0.172), 'spine_thoracic': (1.482, 0.148, 0.21),
-        'neck': (35.0, -33.75, 19.502), 'head': (15.0, 10.919), 'right_clavicle': (-0.076, 0.172),
-        'right_shoulder': (8.87, 5.925, 11.385), 'right_elbow': (34.279, 17.189),
-        'right_wrist': (-0.024, -0.03),
+        'spine_lumbar': (9.097, 0.019, 0.024), 'spine_thoracic': (1.539, 0.05, 0.031),
+        'neck': (35.0, -33.75, 19.502), 'head': (15.0, 10.919), 'right_clavicle': (-0.011, 0.024),
+        'right_shoulder': (8.634, 5.757, 11.449), 'right_elbow': (34.363, 17.189),
+        'right_wrist': (-0.003, -0.004),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (13.324, 1.218, 1.651), 'spine_thoracic': (0.881, 1.131, 2.049),
-        'neck': (35.0, -33.75, 16.102), 'right_clavicle': (-0.741, 1.651),
-        'right_shoulder': (11.272, 7.607, 10.75), 'right_elbow': (33.43, 17.19),
-        'right_wrist': (-0.227, -0.289),
+        'spine_lumbar': (10.861, 0.524, 0.704), 'spine_thoracic': (1.256, 0.501, 0.883),
+        'neck': (35.0, -33.75, 16.102), 'right_clavicle': (-0.321, 0.704),
+        'right_shoulder': (9.743, 6.529, 11.157), 'right_elbow': (33.974, 17.189),
+        'right_wrist': (-0.097, -0.123),
     })
     human.KeyJoints(4.3, {
-        'spine_lumbar': (19.986, 3.146, 4.215), 'spine_thoracic': (-0.221, 2.834, 5.313),
-        'neck': (35.0, -33.75, 11.188), 'head': (15.0, 10.821), 'right_clavicle': (-1.933, 4.215),
-        'right_shoulder': (15.495, 10.52, 9.648), 'right_elbow': (31.958, 17.192),
+        'spine_lumbar': (16.071, 2.022, 2.708), 'spine_thoracic': (0.411, 1.833, 3.416),
+        'neck': (35.0, -33.75, 11.188), 'head': (15.0, 10.821), 'right_clavicle': (-1.243, 2.708),
+        'right_shoulder': (13.03, 8.808, 10.296), 'right_elbow': (32.823, 17.191),
+        'right_wrist': (-0.372, -0.475),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (28.092, 5.559, 7.334), 'spine_thoracic': (-1.674, 4.907, 9.431),
-        'neck': (35.0, -33.75, 4.869), 'head': (15.0, 9.252), 'right_clavicle': (-3.455, 7.334),
-        'right_shoulder': (20.749, 14.066, 8.308), 'right_wrist': (-1.007, -1.285),
+        'spine_lumbar': (24.147, 4.392, 5.816), 'spine_thoracic': (-0.98, 3.898, 7.444),
+        'neck': (35.0, -33.75, 4.869), 'head': (15.0, 9.252), 'right_clavicle': (-2.723, 5.816),
+        'right_shoulder': (18.205, 12.341, 8.96), 'right_elbow': (31.039, 17.194),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (36.268, 8.106, 10.48), 'spine_thoracic': (-3.33, 6.997, 13.831),
-        'neck': (35.0, 26.364, -10.966), 'head': (15.0, -10.661), 'right_clavicle': (-5.111, 10.48),
-        'right_shoulder': (26.242, 17.642, 6.956), 'right_elbow': (28.361, 17.199),
+        'spine_lumbar': (33.468, 7.251, 9.403), 'spine_thoracic': (-2.792, 6.281, 12.362),
+        'neck': (35.0, 26.364, -10.966), 'head': (15.0, -10.661), 'right_clavicle': (-4.562, 9.403),
+        'right_shoulder': (24.39, 16.417, 7.419), 'right_elbow': (28.98, 17.198),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (43.142, 10.439, 13.126), 'spine_thoracic': (-5.041, 8.755, 17.942),
-        'neck': (35.0, 17.722, -14.194), 'head': (15.0, -11.25), 'right_clavicle': (-6.705, 13.126),
-        'right_shoulder': (31.186, 20.649, 5.82), 'right_elbow': (26.843, 17.203),
-        'right_wrist': (-1.803, -2.3),
+        'spine_lumbar': (42.012, 10.198, 12.711), 'spine_thoracic': (-4.974, 8.48, 17.552),
+        'neck': (35.0, 17.722, -14.194), 'head': (15.0, -11.25), 'right_clavicle': (-6.584, 12.711),
+        'right_shoulder': (30.609, 20.139, 6.006), 'right_elbow': (27.1, 17.203),
+        'right_wrist': (-1.743, -2.222),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (47.341, 12.205, 14.741), 'spine_thoracic': (-6.656, 9.828, 21.19),
-        'neck': (35.0, 15.756, -16.803), 'right_clavicle': (-8.042, 14.741),
-        'right_shoulder': (34.788, 22.486, 5.126), 'right_elbow': (25.915, 17.207),
-        'right_wrist': (-2.025, -2.583),
+        'spine_lumbar': (45.555, 12.859, 14.418), 'spine_thoracic': (-7.192, 9.639, 21.646),
+        'neck': (35.0, 15.756, -16.803), 'right_clavicle': (-8.488, 14.39),
+        'right_shoulder': (34.79, 21.341, 5.42), 'right_elbow': (26.33, 17.208),
+        'right_wrist': (-1.918, -2.459),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
-        'spine_lumbar': (46.909, 13.066, 15.0), 'spine_thoracic': (-8.091, 10.0, 23.039),
-        'neck': (35.0, 19.82, -18.942), 'right_clavicle': (-8.911, 15.0),
-        'right_shoulder': (36.434, 22.034, 5.184), 'right_elbow': (26.22, 17.212),
-        'right_wrist': (-2.008, -2.505),
+        'spine_lumbar': (41.746, 15.251, 13.636), 'spine_thoracic': (-7.545, 9.234, 21.897),
+        'neck': (35.0, 19.82, -18.942), 'right_clavicle': (-9.467, 13.475),
+        'right_shoulder': (33.847, 18.632, 6.07), 'right_elbow': (26.785, 17.203),
+        'right_wrist': (-1.646, -2.298),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (41.709, 15.264, 13.8), 'spine_thoracic': (-7.696, 9.333, 22.18),
-        'neck': (35.0, 26.607, -19.404), 'right_clavicle': (-9.621, 13.644),
-        'right_shoulder': (34.091, 18.523, 6.087), 'right_elbow': (26.841, 17.203),
-        'right_wrist': (-1.64, -2.282),
+        'spine_lumbar': (40.122, 15.997, 13.213), 'spine_thoracic': (-7.419, 8.997, 21.594),
+        'neck': (35.0, 26.607, -19.404), 'right_clavicle': (-9.668, 13.001),
+        'right_shoulder': (33.089, 17.555, 6.348), 'right_elbow': (26.959, 17.2),
+        'right_wrist': (-1.532, -2.234),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
     human.KeyJoints(5.0, {
-        'spine_lumbar': (40.1, 16.008, 13.207), 'spine_thoracic': (-7.417, 8.994, 21.59),
-        'neck': (35.0, 28.675, -19.308), 'right_clavicle': (-9.671, 12.994),
-        'right_shoulder': (32.897, 17.558, 6.352), 'right_elbow': (27.263, 17.2),
-        'right_wrist': (-1.561, -2.179),
+        'neck': (35.0, 28.675, -19.308), 'right_shoulder': (32.897, 17.558, 6.352),
+        'right_elbow': (27.263, 17.2),
     })
     human.KeyJoints(5.1, {'right_elbow': (27.263, 17.2)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
@@ -359,6 +354,7 @@ def replace_fuel_filter():
     })
     human.KeyJoints(5.3, {
         'right_shoulder': (32.911, 17.659, 6.327), 'right_elbow': (27.417, -6.264),
+        'right_wrist': (-1.545, -2.144),
     })
     human.KeyJoints(5.4, {'right_elbow': (27.478, -47.914)})
     human.KeyJoints(5.5, {
@@ -369,21 +365,18 @@ def replace_fuel_filter():
     human.KeyJoints(5.6, {'right_elbow': (27.326, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=5.602179, duration=0.2628)
-    human.KeyJoints(5.8, {'right_elbow': (27.326, -80.0)})
+    human.KeyJoints(5.8, {'right_elbow': (27.326, -80.0), 'right_wrist': (-1.468, -2.173)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
     human.KeyJoints(5.9, {
         'right_shoulder': (32.945, 18.028, 6.236), 'right_elbow': (27.358, -75.214),
-        'right_wrist': (-1.467, -2.169),
     })
     human.KeyJoints(6.0, {'right_elbow': (27.48, -23.911), 'right_wrist': (-1.518, -2.133)})
     human.KeyJoints(6.1, {
         'right_shoulder': (32.882, 17.497, 6.367), 'right_elbow': (27.021, 44.327),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (40.1, 16.008, 13.207), 'neck': (35.0, 28.675, -19.308),
-        'right_shoulder': (32.865, 17.524, 6.361), 'right_elbow': (26.69, 79.952),
-        'right_wrist': (-1.464, -2.234), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.594, 5.73, 11.459),
+        'neck': (35.0, 28.675, -19.308), 'right_elbow': (26.69, 79.952),
+        'right_wrist': (-1.464, -2.234),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=6.203379, duration=0.072)
@@ -393,107 +386,112 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=6.275379, duration=1.618047)
     human.KeyJoints(6.3, {
-        'spine_lumbar': (40.183, 15.96, 13.166), 'spine_thoracic': (-7.448, 8.98, 21.56),
-        'neck': (35.0, 28.747, -19.153), 'right_clavicle': (-9.672, 13.003),
-        'right_shoulder': (32.839, 17.451, 6.38), 'right_elbow': (26.835, 80.0),
-        'right_wrist': (-1.502, -2.222), 'left_clavicle': (-0.041, 0.063),
-        'left_shoulder': (8.725, 5.717, 11.454), 'left_elbow': (34.37, 17.189),
-        'left_wrist': (0.0, -0.004),
+        'spine_lumbar': (40.105, 16.004, 13.204), 'spine_thoracic': (-7.419, 8.993, 21.588),
+        'neck': (35.0, 28.747, -19.153), 'right_clavicle': (-9.671, 12.995),
+        'right_shoulder': (32.864, 17.52, 6.362), 'right_elbow': (26.699, 80.0),
+        'right_wrist': (-1.466, -2.233), 'left_clavicle': (-0.003, 0.004),
+        'left_shoulder': (8.603, 5.729, 11.459),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (42.011, 14.909, 12.256), 'spine_thoracic': (-8.145, 8.672, 20.909),
-        'neck': (35.0, 29.738, -17.461), 'right_clavicle': (-9.682, 13.187),
-        'right_shoulder': (32.213, 15.847, 6.798), 'right_elbow': (30.059, 80.0),
-        'right_wrist': (-2.351, -1.955), 'left_clavicle': (-0.939, 1.441),
-        'left_shoulder': (11.579, 5.438, 11.342), 'left_elbow': (34.213, 17.187),
+        'spine_lumbar': (40.687, 15.67, 12.915), 'spine_thoracic': (-7.64, 8.895, 21.381),
+        'neck': (35.0, 29.738, -17.461), 'right_clavicle': (-9.674, 13.054),
+        'right_shoulder': (32.674, 17.006, 6.495), 'right_elbow': (27.715, 80.0),
+        'right_wrist': (-1.732, -2.151), 'left_clavicle': (-0.288, 0.442),
+        'left_shoulder': (9.511, 5.64, 11.422), 'left_elbow': (34.327, 17.188),
+        'left_wrist': (-0.004, -0.026),
     })
     human.KeyJoints(6.5, {
-        'spine_lumbar': (45.58, 12.859, 10.481), 'spine_thoracic': (-9.505, 8.072, 19.639),
-        'neck': (35.0, 32.494, -14.275), 'head': (15.0, -11.25),
-        'right_shoulder': (31.127, 12.744, 7.627), 'right_elbow': (36.023, 80.0),
-        'right_wrist': (-3.938, -1.368), 'left_clavicle': (-2.693, 4.131),
-        'left_shoulder': (17.152, 4.895, 11.098), 'left_wrist': (-0.045, -0.244),
+        'spine_lumbar': (42.868, 14.417, 11.83), 'spine_thoracic': (-8.472, 8.528, 20.604),
+        'neck': (35.0, 32.494, -14.275), 'head': (15.0, -11.25), 'right_clavicle': (-9.687, 13.273),
+        'right_shoulder': (31.895, 15.105, 6.995), 'right_elbow': (31.598, 80.0),
+        'right_wrist': (-2.76, -1.82), 'left_clavicle': (-1.36, 2.087),
+        'left_shoulder': (12.918, 5.308, 11.28), 'left_elbow': (34.139, 17.186),
     })
     human.KeyJoints(6.6, {
-        'neck': (35.0, 33.75, -10.064), 'head': (15.0, -11.12), 'right_elbow': (42.699, 80.0),
+        'spine_lumbar': (46.694, 12.219, 9.926), 'spine_thoracic': (-9.929, 7.885, 19.242),
+        'neck': (35.0, 33.75, -10.064), 'head': (15.0, -11.12),
+        'right_shoulder': (30.837, 11.776, 7.891), 'right_elbow': (37.769, 80.0),
+        'right_wrist': (-4.404, -1.172), 'left_clavicle': (-3.24, 4.97),
+        'left_shoulder': (18.892, 4.725, 11.006), 'left_wrist': (-0.062, -0.293),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (54.469, 7.752, 6.058), 'spine_thoracic': (-12.892, 6.578, 16.474),
-        'neck': (35.0, 33.75, -6.769), 'head': (15.0, -11.25),
-        'right_shoulder': (29.104, 5.127, 9.796), 'right_elbow': (49.081, 80.0),
-        'right_wrist': (-7.402, 0.336), 'left_clavicle': (-7.06, 10.831),
-        'left_shoulder': (31.033, 3.54, 10.307),
+        'neck': (35.0, 33.75, -6.769), 'head': (15.0, -11.25), 'right_clavicle': (-9.735, 14.143),
+        'right_shoulder': (29.761, 7.633, 9.056), 'right_elbow': (44.846, 80.0),
+        'left_shoulder': (26.396, 3.993, 10.594), 'left_elbow': (33.397, 17.179),
+        'left_wrist': (-0.147, -0.507),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (58.054, 5.692, 4.274), 'spine_thoracic': (-14.258, 5.975, 15.197),
-        'neck': (35.0, 33.75, -3.33), 'right_clavicle': (-9.772, 14.804),
-        'right_shoulder': (28.312, 2.199, 10.759), 'right_elbow': (54.081, 80.0),
-        'right_wrist': (-8.785, 1.137), 'left_clavicle': (-8.821, 13.533),
-        'left_shoulder': (36.631, 2.994, 9.808), 'left_elbow': (32.831, 17.173),
-        'left_wrist': (-0.37, -0.799),
+        'spine_lumbar': (56.291, 6.705, 5.151), 'spine_thoracic': (-13.587, 6.272, 15.825),
+        'neck': (35.0, 33.75, -3.33), 'right_clavicle': (-9.762, 14.626),
+        'right_shoulder': (28.699, 3.614, 10.259), 'right_elbow': (51.643, 80.0),
+        'right_wrist': (-8.08, 0.724), 'left_clavicle': (-7.955, 12.204),
+        'left_shoulder': (33.708, 3.328, 9.987), 'left_elbow': (33.601, 17.177),
+        'left_wrist': (-0.375, -0.583),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (59.908, 4.627, 3.352), 'spine_thoracic': (-14.965, 5.664, 14.537),
-        'neck': (35.0, 33.191, -1.477), 'right_clavicle': (-9.782, 14.991),
-        'right_shoulder': (27.909, 0.768, 11.34), 'right_elbow': (56.61, 80.0),
-        'right_wrist': (-9.59, 1.606), 'left_clavicle': (-9.733, 14.931),
-        'left_shoulder': (39.528, 2.711, 9.269), 'left_elbow': (32.671, 17.171),
-        'left_wrist': (-0.583, -0.881),
+        'spine_lumbar': (59.675, 4.76, 3.467), 'spine_thoracic': (-14.876, 5.703, 14.62),
+        'neck': (35.0, 33.191, -1.477), 'right_clavicle': (-9.781, 14.967),
+        'right_shoulder': (27.96, 0.946, 11.267), 'right_elbow': (56.293, 80.0),
+        'right_wrist': (-9.489, 1.547), 'left_clavicle': (-9.618, 14.755),
+        'left_shoulder': (33.153, 4.231, 9.03), 'left_elbow': (46.98, 17.235),
+        'left_wrist': (-1.923, 2.496),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.0, {
-        'neck': (35.0, 32.941, -1.342), 'right_elbow': (56.735, 80.0),
-        'left_shoulder': (33.561, 4.105, 9.013), 'left_elbow': (51.44, 17.256),
-        'left_wrist': (-2.29, 3.429),
+        'spine_lumbar': (59.985, 4.582, 3.313), 'spine_thoracic': (-14.994, 5.651, 14.51),
+        'neck': (35.0, 32.941, -1.342), 'right_shoulder': (27.892, 0.709, 11.364),
+        'right_elbow': (56.714, 80.0), 'right_wrist': (-9.623, 1.625),
+        'left_clavicle': (-9.77, 14.989), 'left_shoulder': (25.249, 5.921, 8.7),
+        'left_elbow': (62.156, 17.304), 'left_wrist': (-3.423, 6.271),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.088459, duration=0.072)
     human.KeyJoints(7.1, {
-        'spine_lumbar': (60.0, 4.574, 3.306), 'neck': (35.0, 32.941, -1.342),
-        'head': (15.0, -11.167), 'right_shoulder': (27.889, 0.698, 11.368),
-        'right_elbow': (56.735, 80.0), 'right_wrist': (-9.629, 1.629),
-        'left_shoulder': (24.08, 6.162, 8.66), 'left_elbow': (64.193, 17.313),
-        'left_wrist': (-3.624, 6.788),
+        'neck': (35.0, 32.941, -1.342), 'head': (15.0, -11.167),
+        'right_shoulder': (27.889, 0.698, 11.368), 'right_elbow': (56.735, 80.0),
+        'right_wrist': (-9.629, 1.629), 'left_shoulder': (24.08, 6.162, 8.66),
+        'left_elbow': (64.193, 17.313), 'left_wrist': (-3.624, 6.788),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(7.2, {
         'neck': (35.0, 32.653, -2.384), 'head': (14.807, -11.155),
-        'right_shoulder': (28.507, 1.585, 10.287), 'right_elbow': (54.066, 78.997),
-        'right_wrist': (-10.626, 1.972), 'left_clavicle': (-9.778, 15.0),
+        'right_shoulder': (29.684, 1.064, 11.033), 'right_elbow': (52.93, 79.884),
+        'right_wrist': (-8.822, 1.455),
     })
     human.KeyJoints(7.3, {
         'neck': (35.0, 29.994, -11.984), 'head': (13.032, -11.04),
-        'right_shoulder': (22.895, 7.663, 2.096), 'right_elbow': (54.244, 70.365),
-        'right_wrist': (-25.419, 6.377),
+        'right_shoulder': (30.14, 4.046, 7.253), 'right_elbow': (47.251, 76.254),
+        'right_wrist': (-13.521, 2.954),
     })
     human.KeyJoints(7.4, {
         'neck': (35.0, 26.164, -25.816), 'head': (10.474, -10.876),
-        'right_shoulder': (18.326, 15.683, -8.748), 'right_elbow': (53.415, 60.008),
-        'right_wrist': (-43.245, 11.726),
+        'right_shoulder': (24.971, 10.555, -1.521), 'right_elbow': (46.989, 67.304),
+        'right_wrist': (-28.837, 7.528),
     })
     human.KeyJoints(7.5, {
+        'spine_lumbar': (60.0, 4.574, 3.306), 'spine_thoracic': (-15.0, 5.648, 14.504),
         'neck': (35.0, 23.156, -36.676), 'head': (8.466, -10.746),
-        'right_shoulder': (18.798, 23.023, -18.701), 'right_elbow': (49.099, 53.163),
-        'right_wrist': (-55.49, 15.472), 'left_elbow': (64.051, 17.313),
+        'right_shoulder': (18.991, 19.098, -13.355), 'right_elbow': (50.816, 56.886),
+        'right_wrist': (-48.661, 13.397), 'left_elbow': (64.051, 17.313),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (60.0, 4.574, 3.306), 'spine_thoracic': (-15.0, 5.648, 14.504),
-        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721), 'right_clavicle': (-9.783, 15.0),
-        'right_shoulder': (20.174, 31.127, -29.51), 'right_elbow': (38.125, 47.148),
-        'right_wrist': (-66.057, 18.762),
+        'spine_lumbar': (60.0, 4.686, 3.381), 'spine_thoracic': (-14.955, 5.708, 14.561),
+        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721),
+        'right_clavicle': (-9.757, 14.999), 'right_shoulder': (19.747, 28.515, -25.954),
+        'right_elbow': (41.519, 49.125), 'right_wrist': (-62.502, 17.655),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, 4.782, 3.657), 'spine_thoracic': (-14.714, 5.969, 14.753),
+        'spine_lumbar': (60.0, 8.441, 5.486), 'spine_thoracic': (-13.892, 7.252, 16.205),
         'neck': (34.939, 22.242, -39.329), 'head': (7.799, -10.577),
-        'right_clavicle': (-9.949, 15.0), 'right_shoulder': (20.788, 34.261, -33.88),
-        'right_elbow': (30.89, 44.831), 'right_wrist': (-69.9, 19.984),
+        'right_clavicle': (-8.384, 14.991), 'right_shoulder': (21.835, 36.886, -33.864),
+        'right_elbow': (30.025, 44.817), 'right_wrist': (-67.363, 19.144),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (60.0, 10.416, 6.612), 'spine_thoracic': (-13.352, 8.067, 17.092),
+        'spine_lumbar': (60.0, 11.567, 7.156), 'spine_thoracic': (-13.108, 8.435, 17.524),
         'neck': (34.862, 20.294, -43.042), 'head': (6.389, -9.638),
-        'right_clavicle': (-7.717, 15.0), 'right_shoulder': (22.511, 38.869, -34.812),
-        'right_elbow': (27.891, 44.291), 'right_wrist': (-66.893, 18.984),
+        'right_clavicle': (-7.113, 15.0), 'right_shoulder': (22.877, 39.921, -35.01),
+        'right_elbow': (27.322, 44.18), 'right_wrist': (-66.261, 18.768),
         'left_shoulder': (24.17, 6.143, 8.665),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
@@ -501,68 +499,67 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=7.893426, duration=0.2628)
     human.KeyJoints(7.9, {
-        'spine_lumbar': (60.0, 11.591, 7.168), 'spine_thoracic': (-13.102, 8.444, 17.534),
-        'neck': (34.866, 20.055, -43.728), 'head': (6.071, -9.547),
-        'right_clavicle': (-7.103, 15.0), 'right_shoulder': (22.945, 39.994, -35.009),
-        'right_elbow': (27.218, 44.176), 'right_wrist': (-66.161, 18.747), 'right_toes': (86.982,),
+        'neck': (34.866, 20.055, -43.728), 'head': (6.071, -9.547), 'right_elbow': (27.218, 44.176),
+        'right_wrist': (-66.161, 18.747), 'right_toes': (86.982,),
     })
-    human.KeyJoints(8.0, {'neck': (34.823, 20.664, -48.08), 'head': (9.239, -10.148)})
+    human.KeyJoints(8.0, {
+        'neck': (34.823, 20.664, -48.08), 'head': (9.239, -10.148),
+        'right_shoulder': (22.92, 39.973, -35.012),
+    })
     human.KeyJoints(8.1, {
-        'spine_lumbar': (60.0, 11.591, 7.168), 'spine_thoracic': (-13.102, 8.444, 17.534),
-        'neck': (34.699, 21.552, -54.426), 'head': (13.886, -11.024),
-        'left_shoulder': (24.17, 6.143, 8.665), 'left_elbow': (64.051, 17.313),
-        'left_wrist': (-3.609, 6.749),
+        'spine_thoracic': (-13.102, 8.444, 17.534), 'neck': (34.699, 21.552, -54.426),
+        'head': (13.886, -11.024), 'left_elbow': (64.051, 17.313), 'left_wrist': (-3.609, 6.749),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=8.156226, duration=2.069192)
     human.KeyJoints(8.2, {
-        'spine_lumbar': (60.0, 11.705, 6.866), 'spine_thoracic': (-13.034, 8.238, 16.886),
+        'spine_lumbar': (60.0, 11.604, 7.132), 'spine_thoracic': (-13.093, 8.419, 17.456),
         'neck': (34.282, 21.695, -55.132), 'head': (14.998, -11.201),
-        'left_shoulder': (24.389, 6.152, 8.887), 'left_elbow': (63.589, 17.805),
-        'left_wrist': (-4.41, 6.93),
+        'left_shoulder': (24.196, 6.144, 8.691), 'left_elbow': (63.994, 17.372),
+        'left_wrist': (-3.704, 6.771),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (60.0, 12.69, 4.27), 'spine_thoracic': (-12.417, 6.466, 11.319),
-        'neck': (31.991, 21.96, -49.168), 'left_clavicle': (-9.72, 15.0),
-        'left_shoulder': (26.277, 6.256, 10.803), 'left_elbow': (59.555, 22.031),
-        'left_wrist': (-11.3, 8.482),
+        'spine_lumbar': (60.0, 11.984, 6.13), 'spine_thoracic': (-12.852, 7.735, 15.308),
+        'neck': (31.991, 21.96, -49.168), 'left_clavicle': (-9.755, 15.0),
+        'left_shoulder': (24.924, 6.187, 9.43), 'left_elbow': (62.43, 19.003),
+        'left_wrist': (-6.363, 7.37),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (60.0, 14.36, -0.133), 'spine_thoracic': (-11.282, 3.461, 1.878),
-        'neck': (29.577, 23.954, -38.316), 'left_shoulder': (29.478, 6.506, 14.051),
-        'left_elbow': (52.511, 29.199), 'left_wrist': (-22.984, 11.114),
+        'spine_lumbar': (60.0, 13.111, 3.16), 'spine_thoracic': (-12.121, 5.708, 8.939),
+        'neck': (29.577, 23.954, -38.316), 'left_shoulder': (27.084, 6.327, 11.622),
+        'left_elbow': (57.757, 23.838), 'left_wrist': (-14.245, 9.145),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (60.0, 16.321, -5.301), 'spine_thoracic': (-9.781, -0.066, -9.204),
+        'spine_lumbar': (60.0, 14.882, -1.51), 'spine_thoracic': (-10.876, 2.522, -1.073),
         'neck': (29.294, 29.082, -24.857), 'right_wrist': (-66.252, 18.764),
-        'left_clavicle': (-9.384, 15.0), 'left_shoulder': (33.235, 6.942, 17.864),
-        'left_elbow': (43.858, 37.612), 'left_wrist': (-36.698, 14.203),
+        'left_clavicle': (-9.537, 15.0), 'left_shoulder': (30.478, 6.627, 15.067),
+        'left_elbow': (50.193, 31.439), 'left_wrist': (-26.636, 11.936),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (60.0, 18.177, -10.194), 'spine_thoracic': (-8.064, -3.405, -19.694),
+        'spine_lumbar': (60.0, 16.916, -6.87), 'spine_thoracic': (-9.212, -1.137, -12.568),
         'neck': (33.461, 33.75, -10.496), 'head': (15.0, -11.25), 'right_elbow': (27.304, 44.176),
-        'left_clavicle': (-9.069, 15.0), 'left_shoulder': (36.792, 7.602, 21.474),
-        'left_elbow': (34.996, 45.576), 'left_wrist': (-49.68, 17.127),
+        'left_clavicle': (-9.276, 14.999), 'left_shoulder': (34.376, 7.17, 19.022),
+        'left_elbow': (40.974, 40.166), 'left_wrist': (-40.862, 15.141),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (60.0, 19.533, -13.769), 'spine_thoracic': (-6.282, -5.845, -27.36),
-        'neck': (35.0, 31.236, -0.225), 'head': (15.0, -10.046), 'left_clavicle': (-8.632, 15.0),
-        'left_shoulder': (39.391, 8.524, 24.112), 'left_elbow': (27.323, 51.395),
-        'left_wrist': (-59.168, 19.264),
+        'spine_lumbar': (60.0, 18.809, -11.81), 'spine_thoracic': (-6.914, -4.538, -23.218),
+        'neck': (35.0, 31.236, -0.225), 'head': (15.0, -10.046), 'left_clavicle': (-8.779, 14.943),
+        'left_shoulder': (38.114, 8.386, 22.638), 'left_elbow': (30.805, 48.257),
+        'left_wrist': (-53.957, 18.055),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(8.8, {
-        'spine_lumbar': (60.0, 20.0, -14.722), 'spine_thoracic': (-4.576, -6.52, -29.72),
-        'neck': (35.0, -7.194, 8.642), 'head': (15.0, 11.25), 'left_clavicle': (-7.901, 14.697),
-        'left_shoulder': (40.203, 10.135, 24.897), 'left_elbow': (22.25, 53.346),
-        'left_wrist': (-62.408, 19.939),
+        'spine_lumbar': (60.0, 19.928, -14.681), 'spine_thoracic': (0.867, -8.148, -29.46),
+        'neck': (35.0, -7.194, 8.642), 'head': (15.0, 11.25), 'left_clavicle': (-9.103, 14.855),
+        'left_shoulder': (47.984, 11.833, 23.603), 'left_elbow': (16.206, 52.318),
+        'left_wrist': (-53.656, 17.182),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (0.755, -9.849, -30.0),
-        'neck': (35.0, 12.243, 9.077), 'head': (15.0, 9.519), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (47.121, 14.616, 23.032), 'left_elbow': (14.956, 52.3),
-        'left_wrist': (-55.158, 17.281),
+        'spine_lumbar': (60.0, 19.998, -14.988), 'spine_thoracic': (6.352, -9.916, -29.981),
+        'neck': (35.0, 12.243, 9.077), 'head': (15.0, 9.519), 'left_clavicle': (-9.958, 14.993),
+        'left_shoulder': (55.859, 12.624, 22.97), 'left_elbow': (9.538, 52.088),
+        'left_wrist': (-46.228, 14.906),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=8.949414, duration=0.2628)
@@ -579,119 +576,116 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(9.3, {
         'neck': (34.405, 29.1, 14.079), 'head': (15.0, -8.751),
-        'left_shoulder': (51.312, 14.356, 18.75), 'left_elbow': (20.418, 51.239),
-        'left_wrist': (-47.559, 14.984),
+        'left_shoulder': (54.672, 13.175, 21.564), 'left_elbow': (12.524, 51.793),
+        'left_wrist': (-46.257, 14.818),
     })
     human.KeyJoints(9.4, {
         'neck': (34.609, 16.36, 31.944), 'head': (15.0, -1.903),
-        'left_shoulder': (36.887, 19.157, 6.724), 'left_elbow': (50.136, 48.787),
-        'left_wrist': (-52.64, 15.638),
+        'left_shoulder': (46.25, 15.982, 14.558), 'left_elbow': (29.911, 50.365),
+        'left_wrist': (-49.268, 15.212),
     })
     human.KeyJoints(9.5, {
         'neck': (34.838, 2.034, 52.032), 'head': (15.0, 5.797),
-        'right_shoulder': (22.884, 39.943, -35.018), 'left_shoulder': (18.989, 24.647, -8.188),
-        'left_elbow': (79.906, 45.599), 'left_wrist': (-57.866, 16.282),
+        'left_shoulder': (33.467, 20.122, 3.902), 'left_elbow': (54.542, 48.156),
+        'left_wrist': (-53.501, 15.746),
     })
     human.KeyJoints(9.6, {
         'neck': (34.987, -7.267, 65.074), 'head': (15.0, 10.796),
-        'left_shoulder': (3.533, 28.443, -20.994), 'left_elbow': (91.417, 42.553),
-        'left_wrist': (-60.286, 16.505),
+        'left_shoulder': (16.032, 25.105, -10.526), 'left_elbow': (79.037, 44.934),
+        'left_wrist': (-57.885, 16.166),
     })
     human.KeyJoints(9.7, {
         'neck': (35.0, -8.111, 66.258), 'head': (15.0, 11.25),
-        'left_shoulder': (-12.081, 30.251, -32.262), 'left_elbow': (89.085, 38.843),
-        'left_wrist': (-60.688, 14.86),
+        'left_shoulder': (-8.002, 29.563, -29.166), 'left_elbow': (88.444, 39.713),
+        'left_wrist': (-60.416, 14.933),
     })
     human.KeyJoints(9.8, {
-        'left_shoulder': (-28.142, 31.543, -43.431), 'left_elbow': (84.812, 34.7),
-        'left_wrist': (-60.897, 11.847),
+        'left_shoulder': (-29.616, 32.604, -46.043), 'left_elbow': (84.488, 34.269),
+        'left_wrist': (-61.12, 11.376),
     })
     human.KeyJoints(9.9, {
-        'left_shoulder': (-39.567, 33.329, -53.284), 'left_elbow': (81.121, 31.639),
-        'left_wrist': (-61.184, 9.244),
+        'left_shoulder': (-40.253, 38.22, -62.278), 'left_elbow': (86.106, 31.402),
+        'left_wrist': (-63.339, 9.178),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.0, {
-        'left_shoulder': (-41.887, 37.788, -60.42), 'left_elbow': (82.43, 31.031),
-        'left_wrist': (-62.106, 8.755),
+        'left_shoulder': (-41.039, 39.913, -71.875), 'left_elbow': (93.016, 31.152),
+        'left_wrist': (-66.583, 9.211),
     })
     human.KeyJoints(10.1, {
-        'left_shoulder': (-41.13, 43.646, -69.704), 'left_elbow': (90.198, 30.964),
-        'left_wrist': (-64.823, 8.898),
+        'left_shoulder': (-41.0, 39.949, -75.259), 'left_elbow': (95.93, 31.158),
+        'left_wrist': (-67.946, 9.322),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=10.153418, duration=0.072)
     human.KeyJoints(10.2, {
         'neck': (35.0, -8.111, 66.258), 'left_shoulder': (-40.997, 39.949, -75.438),
-        'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
+        'left_elbow': (96.085, 31.159),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=10.225418, duration=0.2628)
     human.KeyJoints(10.3, {'neck': (35.0, -7.954, 66.245)})
-    human.KeyJoints(10.4, {
-        'neck': (35.0, -7.52, 66.173), 'right_shoulder': (22.884, 39.943, -35.018),
-    })
+    human.KeyJoints(10.4, {'neck': (35.0, -7.52, 66.173), 'left_wrist': (-68.019, 9.328)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=10.488218, duration=0.719288)
     human.KeyJoints(10.5, {
-        'spine_lumbar': (60.0, 19.95, -14.974), 'spine_thoracic': (6.598, -9.975, -29.977),
-        'neck': (34.999, -7.392, 65.948), 'head': (15.0, 11.25), 'right_clavicle': (-7.107, 15.0),
-        'right_shoulder': (22.907, 39.874, -34.993), 'right_elbow': (27.305, 44.184),
-        'right_wrist': (-66.231, 18.76),
+        'spine_lumbar': (60.0, 19.998, -14.999), 'spine_thoracic': (6.617, -9.999, -29.999),
+        'neck': (34.999, -7.392, 65.948), 'head': (15.0, 11.25), 'right_clavicle': (-7.103, 15.0),
+        'right_shoulder': (22.885, 39.939, -35.016), 'right_elbow': (27.304, 44.177),
+        'right_wrist': (-66.251, 18.764),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (60.0, 16.058, -12.956), 'spine_thoracic': (5.043, -8.029, -28.171),
-        'neck': (33.88, -7.788, 61.658), 'head': (14.692, 11.217), 'right_clavicle': (-7.389, 15.0),
-        'right_shoulder': (24.723, 34.481, -33.02), 'right_elbow': (27.376, 44.836),
-        'right_wrist': (-64.595, 18.413),
+        'spine_lumbar': (60.0, 18.461, -14.202), 'spine_thoracic': (5.995, -9.231, -29.285),
+        'neck': (33.88, -7.788, 61.658), 'head': (14.692, 11.217), 'right_clavicle': (-7.215, 15.0),
+        'right_shoulder': (23.607, 37.802, -34.235), 'right_elbow': (27.334, 44.435),
+        'right_wrist': (-65.605, 18.627),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (60.0, 7.734, -8.638), 'spine_thoracic': (1.603, -3.867, -24.297),
-        'neck': (31.025, -8.04, 51.441), 'head': (14.554, 11.081), 'right_clavicle': (-7.992, 15.0),
-        'right_shoulder': (28.686, 22.825, -28.752), 'right_elbow': (27.556, 46.249),
-        'right_wrist': (-61.095, 17.67),
+        'spine_lumbar': (60.0, 12.274, -10.993), 'spine_thoracic': (3.473, -6.137, -26.409),
+        'neck': (31.025, -8.04, 51.441), 'head': (14.554, 11.081), 'right_clavicle': (-7.663, 15.0),
+        'right_shoulder': (26.529, 29.175, -31.077), 'right_elbow': (27.459, 45.48),
+        'right_wrist': (-63.003, 18.075),
     })
     human.KeyJoints(10.8, {
-        'spine_lumbar': (60.0, -2.504, -3.329), 'spine_thoracic': (-2.867, 1.252, -19.51),
+        'spine_lumbar': (60.0, 2.6, -5.976), 'spine_thoracic': (-0.628, -1.3, -21.897),
         'neck': (27.995, -9.971, 37.537), 'head': (14.967, 11.212),
-        'right_shoulder': (33.729, 8.235, -23.395), 'right_wrist': (-56.79, 16.757),
+        'right_shoulder': (31.207, 15.519, -26.07), 'right_elbow': (27.693, 47.137),
+        'right_wrist': (-58.936, 17.212),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (60.0, -12.135, 1.666), 'spine_thoracic': (-7.513, 6.067, -14.967),
-        'neck': (27.329, -15.054, 23.96), 'right_clavicle': (-9.43, 15.0),
-        'right_shoulder': (38.783, -5.961, -18.159), 'right_elbow': (28.2, 49.763),
-        'right_wrist': (-52.741, 15.898),
+        'spine_lumbar': (59.999, -7.688, -0.64), 'spine_thoracic': (-5.35, 3.844, -17.066),
+        'neck': (27.329, -15.054, 23.96), 'right_clavicle': (-9.108, 15.0),
+        'right_shoulder': (36.437, 0.612, -20.585), 'right_elbow': (28.027, 48.957),
+        'right_wrist': (-54.611, 16.295),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (60.0, -18.64, 5.04), 'spine_thoracic': (-11.483, 9.32, -11.821),
-        'neck': (29.064, -20.441, 13.683), 'right_clavicle': (-9.902, 15.0),
-        'right_shoulder': (42.783, -16.436, -14.251), 'right_elbow': (28.646, 51.069),
-        'right_wrist': (-50.006, 15.317),
+        'spine_lumbar': (59.544, -15.625, 3.494), 'spine_thoracic': (-9.768, 7.846, -13.259),
+        'neck': (29.064, -20.441, 13.683), 'right_clavicle': (-9.611, 14.945),
+        'right_shoulder': (40.838, -12.06, -15.911), 'right_elbow': (28.487, 50.513),
+        'right_wrist': (-51.313, 15.619),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(11.1, {
-        'spine_lumbar': (58.759, -19.786, 5.683), 'spine_thoracic': (-14.035, 10.0, -11.02),
-        'neck': (31.241, -23.332, 11.454), 'right_clavicle': (-10.0, 15.0),
-        'right_shoulder': (44.783, -20.234, -12.731), 'right_elbow': (29.362, 51.594),
-        'right_wrist': (-49.535, 15.343),
+        'spine_lumbar': (55.972, -18.607, 5.179), 'spine_thoracic': (-12.274, 9.593, -11.69),
+        'neck': (31.241, -23.332, 11.454), 'right_clavicle': (-9.221, 14.484),
+        'right_shoulder': (41.657, -20.499, -13.016), 'right_elbow': (28.958, 51.471),
+        'right_wrist': (-50.384, 15.597),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (54.705, -19.026, 5.472), 'spine_thoracic': (-12.808, 9.897, -11.408),
-        'neck': (31.618, -23.425, 13.008), 'right_clavicle': (-9.072, 14.364),
-        'right_shoulder': (41.599, -22.453, -12.373), 'right_elbow': (29.091, 51.683),
-        'right_wrist': (-50.321, 15.654),
+        'spine_lumbar': (54.52, -18.971, 5.424), 'spine_thoracic': (-12.72, 9.879, -11.469),
+        'neck': (31.618, -23.425, 13.008), 'right_clavicle': (-8.996, 14.294),
+        'right_shoulder': (41.419, -22.523, -12.369), 'right_elbow': (29.076, 51.683),
+        'right_wrist': (-50.365, 15.664),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=11.207505, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.3, {
-        'spine_lumbar': (54.52, -18.971, 5.425), 'neck': (31.689, -23.388, 13.263),
-        'right_shoulder': (41.289, -22.49, -12.396), 'right_elbow': (29.193, 52.561),
-        'right_wrist': (-50.469, 15.684),
+        'neck': (31.689, -23.388, 13.263), 'right_shoulder': (41.289, -22.49, -12.396),
+        'right_elbow': (29.193, 52.561), 'right_wrist': (-50.469, 15.684),
     })
     human.KeyJoints(11.4, {
-        'spine_thoracic': (-12.72, 9.879, -11.469), 'right_clavicle': (-8.996, 14.294),
         'right_shoulder': (40.743, -20.833, -13.031), 'right_elbow': (28.927, 70.834),
         'right_wrist': (-50.347, 15.398),
     })

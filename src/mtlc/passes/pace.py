@@ -1,0 +1,228 @@
+"""Reaches paced like a person's: one bell of hand speed from the start of the approach to contact.
+
+A point-to-point hand movement minimises the integrated squared jerk (Flash & Hogan 1985, "The
+coordination of arm movements: an experimentally confirmed mathematical model", J Neurosci
+5(7):1688-1703): along its path the hand's progress follows ``s(tau) = 10 tau^3 - 15 tau^4 +
+6 tau^5``, one bell of speed that starts and ends at rest. The solving passes key a reach in two
+phases (TA: its start pose, the approach pose and maybe a middle key; TO: up to 12 keys at a
+steady pace of progress onto the site), and interpolating those keys in time made two
+movements: the hand sped up and slowed down to the approach pose, then crept onto the site.
+
+This pass keeps each reach's path (the poses interpolation makes between the keys, so contact,
+the floor and the body clearance keep their meaning) and re-times it as one movement: the TA and
+the TO that continues it (same goal, adjacent windows), or a TA or TO alone. Progress is the
+effector's arc length plus ``JOINT_WEIGHT`` times the joints' own path length (so a turn of the
+wrist with the hand in place still takes time); it follows the minimum-jerk profile over the
+movement's whole window, and the reach's keys become dense keys on the internal frame grid, so
+interpolation cannot put a plateau back. Movements of the two hands in one window share one
+timing (their trunk is one). The TO's last stretch is the slow end of the bell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+from scipy.ndimage import gaussian_filter1d
+
+from mtlc.body import forward, site_positions
+from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
+from mtlc.passes.context import INTERNAL_FPS, PassContext
+from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
+from mtlc.passes.tool import is_stroke
+
+JOINT_WEIGHT = 0.02  # m of progress per radian of the movement's joints (L2 over its dofs)
+PATH_SAMPLES_PER_S = 480.0  # the old motion is measured this densely to find its arc length
+MIN_PATH_SAMPLES = 64
+EPS = 1e-6
+PATH_POINTS = 241  # the path, resampled at even steps of progress before it is smoothed
+SMOOTH_SIGMA = 0.1  # of the path's progress: the Gaussian that smooths it
+
+
+def minimum_jerk(tau: FloatArray) -> FloatArray:
+    """Flash & Hogan's progress of a point-to-point movement at normalised time ``tau``."""
+    t = np.clip(tau, 0.0, 1.0)
+    return t**3 * (10.0 - 15.0 * t + 6.0 * t**2)
+
+
+@dataclass
+class Movement:
+    """The segments one effector's reach is made of, or several reaches in one window."""
+
+    segments: list[Segment]
+    start: float
+    end: float
+
+    @property
+    def effectors(self) -> list[str]:
+        return sorted({s.goal.effector for s in self.segments})
+
+    @property
+    def dofs(self) -> list[str]:
+        names: list[str] = []
+        for s in self.segments:
+            for n in s.keyframes.dofs if s.keyframes is not None else ():
+                if n not in names:
+                    names.append(n)
+        return names
+
+
+def _paced(seg: Segment, sites: set[str]) -> bool:
+    kf = seg.keyframes
+    return (
+        seg.kind in ("TA", "TO")
+        and not is_stroke(seg)
+        and seg.goal.effector in sites
+        and kf is not None
+        and len(kf.dofs) > 0
+        and len(kf.time) >= 2
+        and seg.end - seg.start > EPS
+    )
+
+
+def movements(ir: MotionIR) -> list[Movement]:
+    """Each reach (a TA and the TO that continues it, or either alone), reaches of one window
+    together."""
+    sites = {s.name for s in ir.skeleton.sites}
+    segs = sorted((s for s in ir.segments if _paced(s, sites)), key=lambda s: s.start)
+    chains: list[list[Segment]] = []
+    taken: set[int] = set()
+    for seg in segs:
+        if id(seg) in taken:
+            continue
+        chain = [seg]
+        taken.add(id(seg))
+        if seg.kind == "TA":
+            for nxt in segs:
+                if (
+                    id(nxt) not in taken
+                    and nxt.kind == "TO"
+                    and nxt.track == seg.track
+                    and nxt.goal.effector == seg.goal.effector
+                    and nxt.goal.site == seg.goal.site
+                    and nxt.provenance.origin == seg.provenance.origin
+                    and abs(nxt.start - seg.end) < EPS
+                ):
+                    chain.append(nxt)
+                    taken.add(id(nxt))
+                    break
+        chains.append(chain)
+    windows: dict[tuple[float, float], Movement] = {}
+    for chain in chains:
+        key = (round(chain[0].start, 6), round(chain[-1].end, 6))
+        m = windows.setdefault(key, Movement([], chain[0].start, chain[-1].end))
+        m.segments += chain
+    out = [m for m in windows.values() if not _shares_dofs(ir, m)]
+    return sorted(out, key=lambda m: m.start)
+
+
+def _shares_dofs(ir: MotionIR, m: Movement) -> bool:
+    """Another segment keys one of the movement's dofs inside its window: re-timing one of the
+    two would tear the curve they make together, so the movement keeps its timing."""
+    mine = set(m.dofs)
+    for s in ir.segments:
+        kf = s.keyframes
+        if any(s is x for x in m.segments) or kf is None or not mine.intersection(kf.dofs):
+            continue
+        if np.any((kf.time > m.start + EPS) & (kf.time < m.end - EPS)):
+            return True
+    return False
+
+
+def _body(ir: MotionIR, times: FloatArray) -> tuple[FloatArray, Frames]:
+    """Joint angles and whole-body frames at ``times`` as interpolation makes them."""
+    position, rotation = interpolate_root(ir, times)
+    q = interpolate_joints(ir, times)
+    frames = Frames(0.0, times, position, rotation, q)
+    correct_base(ir, frames)
+    return q, frames
+
+
+def new_times(m: Movement) -> FloatArray:
+    """The internal frame grid inside the movement's window, and its segments' ends."""
+    k0 = int(np.ceil(m.start * INTERNAL_FPS - 1e-9))
+    k1 = int(np.floor(m.end * INTERNAL_FPS + 1e-9))
+    ends = [t for s in m.segments for t in (s.start, s.end)]
+    return np.unique(np.round(np.r_[ends, np.arange(k0, k1 + 1) / INTERNAL_FPS], 9))
+
+
+def _frames_at(frames: Frames, times: FloatArray, q: FloatArray | None = None) -> Frames:
+    """The body at ``times`` inside ``frames`` (linear between its samples)."""
+
+    def at(v: FloatArray) -> FloatArray:
+        return np.stack([np.interp(times, frames.time, v[:, i]) for i in range(v.shape[1])], 1)
+
+    rotation = at(frames.root_rotation)
+    rotation /= np.linalg.norm(rotation, axis=1, keepdims=True)
+    return Frames(0.0, times, at(frames.root_position), rotation, at(frames.q) if q is None else q)
+
+
+def progress(ir: MotionIR, m: Movement, frames: Frames) -> tuple[FloatArray, float]:
+    """Each sample's share of the movement's progress (rising from 0 to 1) and its length: the
+    effectors' arc length plus ``JOINT_WEIGHT`` times the movement's joint path."""
+    skel = ir.skeleton
+    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation, with_axes=False)
+    p = site_positions(skel, pose, m.effectors).reshape(len(frames.time), -1, 3)
+    idx = [skel.dof_index(n) for n in m.dofs]
+    step = np.linalg.norm(np.diff(p, axis=0), axis=-1).sum(axis=1)
+    step += JOINT_WEIGHT * np.linalg.norm(np.diff(frames.q[:, idx], axis=0), axis=1)
+    total = float(np.sum(step))
+    u = np.concatenate([[0.0], np.cumsum(step)]) + np.arange(len(step) + 1) * 1e-12 * total
+    return u / u[-1] if u[-1] > 0 else u, total
+
+
+def smooth_path(q: FloatArray, sigma: float) -> FloatArray:
+    """A Gaussian low-pass of a (N, D) path along its samples, both ends kept exactly (odd
+    reflection about each end): the gradient path's zig-zag and the corner at the approach
+    point would each cost a jerk that no timing removes."""
+    if sigma <= 0.0 or len(q) < 3:
+        return q
+    n = min(len(q) - 1, int(np.ceil(4 * sigma)))
+    padded = np.concatenate([2 * q[0] - q[n:0:-1], q, 2 * q[-1] - q[-2 : -n - 2 : -1]])
+    return gaussian_filter1d(padded, sigma, axis=0, mode="nearest")[n : n + len(q)]
+
+
+def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> FloatArray | None:
+    """The movement's dofs at ``t_new``: its path, smoothed, with minimum-jerk progress (None
+    when nothing moves)."""
+    idx = [ir.skeleton.dof_index(n) for n in m.dofs]
+    u, total = progress(ir, m, frames)
+    if total <= 1e-6:
+        return None
+    even = np.linspace(0.0, 1.0, PATH_POINTS)
+    at_even = np.interp(even, u, frames.time)
+    body = _frames_at(frames, at_even)
+    body.q[:, idx] = smooth_path(body.q[:, idx], SMOOTH_SIGMA * (PATH_POINTS - 1))
+    u2, _ = progress(ir, m, body)
+    s = minimum_jerk((t_new - m.start) / (m.end - m.start))
+    return PchipInterpolator(u2, body.q[:, idx], axis=0)(s)
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    if ir.skeleton is None:
+        return ir
+    moves = movements(ir)
+    if not moves:
+        return ir
+    # the old motion first, for every movement at once (the keys are replaced afterwards)
+    grids = []
+    for m in moves:
+        n = max(MIN_PATH_SAMPLES, int(np.ceil((m.end - m.start) * PATH_SAMPLES_PER_S)))
+        grids.append(np.linspace(m.start, m.end, n + 1))
+    _, frames_all = _body(ir, np.concatenate(grids))
+    a = 0
+    for m, grid in zip(moves, grids, strict=True):
+        b = a + len(grid)
+        part = Frames(0.0, grid, frames_all.root_position[a:b], frames_all.root_rotation[a:b],
+                      frames_all.q[a:b])  # fmt: skip
+        a = b
+        t_new = new_times(m)
+        values = paced(ir, m, part, t_new)
+        if values is None:
+            continue
+        for seg in m.segments:
+            inside = (t_new >= seg.start - EPS) & (t_new <= seg.end + EPS)
+            seg.keyframes = Keyframes(time=t_new[inside], dofs=tuple(m.dofs), q=values[inside])
+            seg.result = {**seg.result, "paced": "minimum_jerk"}
+    return ir

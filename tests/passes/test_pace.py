@@ -1,0 +1,92 @@
+"""The pace pass: a reach is one minimum-jerk movement (Flash & Hogan 1985) from the start of its
+approach to contact, measured on the frames a user receives (issue 19)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.signal import find_peaks
+
+from mtlc.body import forward, site_positions
+from mtlc.diagnostics import DiagnosticSink
+from mtlc.frontend import run_frontend
+from mtlc.ir.model import MotionIR
+from mtlc.passes import MotionOptions, run_motion
+from mtlc.passes.pace import minimum_jerk, movements, smooth_path
+from mtlc.semantics.timeline import ManikinSpec
+
+REACH = """use stdlib.actions
+use stdlib.elements
+
+scene bench {
+    ground 0 cm
+    site valve at (-12, 100, 45) cm normal (0, 1, 0)
+    site knob at (25, 120, 40) cm normal (0, 0, -1)
+}
+
+task two_reaches "Reach a valve from above, then a knob from the front" {
+    manikin gb10000_1988 male p50
+    scene bench
+    reach(right, valve)
+    grasp(right)
+    release(right)
+    reach(left, knob)
+    hold(1 s)
+}
+"""
+
+
+def test_minimum_jerk_profile() -> None:
+    tau = np.linspace(0.0, 1.0, 101)
+    s = minimum_jerk(tau)
+    assert s[0] == 0.0 and s[-1] == 1.0 and s[50] == pytest.approx(0.5)
+    v = np.gradient(s, tau)
+    assert np.all(np.diff(s) >= 0.0)
+    assert v[0] == pytest.approx(0.0, abs=1e-3) and v[-1] == pytest.approx(0.0, abs=1e-3)
+    assert v.max() == pytest.approx(1.875, abs=1e-3)  # Flash & Hogan's peak, 1.875 x mean
+
+
+def test_smooth_path_keeps_its_ends_and_removes_a_zigzag() -> None:
+    n = np.arange(101, dtype=float)
+    line = np.stack([n / 100.0, -n / 50.0], axis=1)
+    zigzag = line + 0.02 * np.where(n % 2 == 0, 1.0, -1.0)[:, None] * (n > 60)[:, None]
+    out = smooth_path(zigzag, 3.0)
+    assert np.allclose(out[0], zigzag[0], atol=1e-12)
+    assert np.allclose(out[-1], zigzag[-1], atol=1e-12)
+    assert np.abs(out - line)[:90].max() < 0.002  # the zig-zag is gone, the line kept
+
+
+@pytest.fixture(scope="module")
+def compiled(tmp_path_factory: pytest.TempPathFactory) -> MotionIR:
+    path = tmp_path_factory.mktemp("pace") / "reaches.mtask"
+    path.write_text(REACH)
+    program = run_frontend([path])
+    assert not program.sink.has_errors, [d.message for d in program.sink.items]
+    (timeline,) = program.timelines
+    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "male", 50))
+    return run_motion(timeline, DiagnosticSink(), MotionOptions())
+
+
+def test_each_reach_is_one_bell_and_slow_at_contact(compiled: MotionIR) -> None:
+    ir = compiled
+    frames = ir.frames
+    assert frames is not None
+    dt = 1.0 / frames.fps
+    pose = forward(ir.skeleton, frames.q, frames.root_position, frames.root_rotation)
+    moves = movements(ir)
+    assert len(moves) == 2 and all(len(m.segments) == 2 for m in moves)  # TA + TO each
+    for m in moves:
+        (effector,) = m.effectors
+        assert [s.result.get("paced") for s in m.segments] == ["minimum_jerk"] * 2
+        a = int(np.searchsorted(frames.time, m.start - 1e-9))
+        b = int(np.searchsorted(frames.time, m.end - 1e-9))
+        p = site_positions(ir.skeleton, pose, effector)[a : b + 1]
+        speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / dt
+        padded = np.concatenate([[0.0], speed, [0.0]])
+        peaks, _ = find_peaks(padded, prominence=0.1 * speed.max())
+        assert len(peaks) == 1, np.round(speed * 100, 1)
+        assert speed[-1] <= 0.05  # m/s in the frame where contact is made
+        site = m.segments[-1].goal.position
+        assert np.linalg.norm(p[-1] - site) <= 1e-3  # still on the site

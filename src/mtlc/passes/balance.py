@@ -88,10 +88,19 @@ HANDS = {"r_hand": "r_arm", "l_hand": "l_arm"}
 REPORT_ORDER = {"posture": 0, "TO": 1, "TA": 2, "hold": 3, "grip": 4, "gaze": 5, "locomotion": 6}
 
 
+def ends_on_site(seg: Segment) -> bool:
+    """A TA segment with no approach distance (``goal both at X approach 0 cm``): no TO comes
+    after it, so it is the goal's last phase and ends with the hand on the site, as a TO does.
+    Left free, the pelvis's balance shift under a carried load took the hands of such a goal
+    12 mm off their site (a 4 kg box held out, female P5)."""
+    return seg.kind == "TA" and not seg.goal.approach
+
+
 def pin_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per hand, the (lo, hi) bounds of the times it is pinned (``lo <= t < hi``), one pair per
-    TO segment on its arm track: from the segment's start until the next segment on that track
-    starts, or the end of the motion."""
+    TO segment on its arm track, or TA segment that ends on its site (``ends_on_site``): from
+    the segment's start until the next segment on that track starts, or the end of the
+    motion."""
     by_track: dict[str, list[Segment]] = {track: [] for track in HANDS.values()}
     for seg in ir.segments:  # one pass over the segments for both arms
         if seg.track in by_track:
@@ -103,7 +112,7 @@ def pin_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         lo: list[float] = []
         hi: list[float] = []
         for i, seg in enumerate(segs):
-            if seg.kind != "TO":
+            if seg.kind != "TO" and not ends_on_site(seg):
                 continue
             j = bisect_left(starts, seg.end - 1e-9, lo=i + 1)  # the first later start
             end = starts[j] if j < len(starts) else math.inf

@@ -1,8 +1,10 @@
 """The held tool's mass in every centre of mass that judges balance (issue 8).
 
-The smoothing pass's balance check and the preview's margin use ``carried_com`` like the balance
-pass and the metrics: with the 1.2 kg torque wrench in the hand they agree frame for frame, and
-differ from the bare body's margin by the tool's hand-computed pull on the centre of mass.
+The smoothing pass's balance check, verify (whose figure the metrics and the preview read) and
+the balance pass use ``carried_com``; the first two share one function, ``balance_margin`` over
+the points that touch (``touching_support``, docs/metrics.md), so with the 1.2 kg torque wrench
+in the hand they agree frame for frame, and differ from the bare body's margin by the tool's
+hand-computed pull on the centre of mass.
 """
 
 from __future__ import annotations
@@ -16,9 +18,8 @@ from mtlc.body import center_of_mass, forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
 from mtlc.frontend import run_frontend
 from mtlc.ir.model import MotionIR
-from mtlc.metrics import compute_metrics, foot_stance, hand_contacts, support, support_margin
+from mtlc.metrics import balance_margin, compute_metrics, support_margin, touching_support
 from mtlc.passes import run_motion
-from mtlc.passes.smooth import carried_margin
 from mtlc.passes.tool import held_spans
 from mtlc.preview.document import figures
 from mtlc.semantics.timeline import ManikinSpec
@@ -63,16 +64,14 @@ def test_smoothing_preview_and_metrics_margins_agree(torque_ir: MotionIR) -> Non
     assert frames is not None and skel is not None
     t = frames.time
     pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
-    smoothing = carried_margin(torque_ir, pose, t, foot_stance(torque_ir, t))
+    smoothing = balance_margin(torque_ir, pose, t)  # what the smoothing pass checks
     preview = figures(torque_ir)["com_margin"]
     metrics = compute_metrics(torque_ir).support_margin
-    # the metrics also count a hand resting on its site as support; the smoothing's check and
-    # the preview stand on the feet only, so they are compared where no hand rests
-    feet_only = ~hand_contacts(torque_ir, t).any(axis=1)
     held = _held(torque_ir, t)
-    assert (held & feet_only).sum() >= 0.9 * held.sum()  # nearly the whole held window
+    assert held.sum() > 0.3 * len(t)  # the wrench is in the hand for a good part of the task
+    # one definition, every frame: walking, standing and the hand resting on the bolt alike
     np.testing.assert_allclose(preview, smoothing, atol=1e-12, equal_nan=True)
-    np.testing.assert_allclose(metrics[feet_only], smoothing[feet_only], atol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(metrics, smoothing, atol=1e-12, equal_nan=True)
 
 
 def test_margin_moves_by_the_hand_computed_com_shift(torque_ir: MotionIR) -> None:
@@ -80,8 +79,7 @@ def test_margin_moves_by_the_hand_computed_com_shift(torque_ir: MotionIR) -> Non
     assert frames is not None and skel is not None
     t = frames.time
     pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
-    stance = foot_stance(torque_ir, t)
-    pts, ok = support(skel, pose, stance, torque_ir.ground)
+    pts, ok = touching_support(torque_ir, pose, t)
     bare_com = center_of_mass(skel, pose)
     bare = support_margin(pts, ok, bare_com[:, [0, 2]])
     # by hand: a 1.2 kg point at the middle of grip and tip, weighted against the body's mass
@@ -92,7 +90,7 @@ def test_margin_moves_by_the_hand_computed_com_shift(torque_ir: MotionIR) -> Non
     held = _held(torque_ir, t)
     shift = np.where(held[:, None], TORQUE_KG / (big_m + TORQUE_KG) * (middle - bare_com), 0.0)
     by_hand = support_margin(pts, ok, (bare_com + shift)[:, [0, 2]])
-    carried = carried_margin(torque_ir, pose, t, stance)
+    carried = balance_margin(torque_ir, pose, t)
     np.testing.assert_allclose(carried, by_hand, atol=1e-12, equal_nan=True)
     assert np.array_equal(carried[~held], bare[~held], equal_nan=True)  # nothing outside
     moved = np.abs(carried - bare)[held]

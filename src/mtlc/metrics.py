@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import MotionIR
+from mtlc.loads import carried_com
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -99,6 +100,63 @@ def hull(points: FloatArray, valid: BoolArray) -> Hull:
     edge = pair_ok & ~(pos & neg)
     orient = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
     return Hull(a, d, safe, edge, orient, pts, ok)
+
+
+HULL_EPS = 1e-9  # m: as ``hull``
+
+
+def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
+    """``hull``, the same edges, computed per set of touching points: frames with
+    the same contacts share which pairs to try, and each pair is tested against the touching
+    points only (8 of 22 candidates when standing), not every pair against every point.
+    Each frame keeps only its edges (first, padded with non-edges to the most edges a frame
+    has): ``hull_margin`` reads nothing else, and a hull has a few of the pairs."""
+    pts = np.asarray(points, dtype=float)
+    ok = np.asarray(valid, dtype=bool)
+    used = ok.any(axis=0)
+    if used.sum() >= 3 and not used.all():
+        pts, ok = pts[:, used], ok[:, used]
+    ii, jj = np.triu_indices(ok.shape[1], 1)
+    a, d = pts[:, ii], pts[:, jj] - pts[:, ii]
+    length = np.hypot(d[..., 0], d[..., 1])
+    pair_ok = ok[:, ii] & ok[:, jj] & (length > 1e-9)
+    safe = np.where(length > 1e-9, length, 1.0)
+    edge = np.zeros(pair_ok.shape, dtype=bool)
+    orient = np.zeros(pair_ok.shape)
+    # frames grouped by their set of touching points, a bit each in one int (``np.unique`` of
+    # the rows themselves sorts them as byte strings, a tenth of the whole): with 64 points or
+    # more, by the rows
+    if ok.shape[1] < 64:
+        keys = ok.astype(np.int64) @ (np.int64(1) << np.arange(ok.shape[1], dtype=np.int64))
+        _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    else:
+        _, first, inverse = np.unique(ok, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    for m, mask in enumerate(ok[first]):
+        rows = np.flatnonzero(inverse == m)
+        cols = np.flatnonzero(mask)
+        pairs = np.flatnonzero(mask[ii] & mask[jj])
+        if pairs.size == 0:
+            continue
+        sub = np.ix_(rows, pairs)
+        dd, aa = d[sub], a[sub]
+        # the side of every point to every pair's line: d × (p − a) = d × p − d × a
+        normal = np.stack([-dd[..., 1], dd[..., 0]], axis=-1)  # (R, E, 2)
+        side = normal @ np.swapaxes(pts[np.ix_(rows, cols)], 1, 2)  # (R, E, K)
+        side -= (dd[..., 0] * aa[..., 1] - dd[..., 1] * aa[..., 0])[..., None]
+        tol = (HULL_EPS * safe[sub])[..., None]  # HULL_EPS metres from the line
+        pos, neg = (side > tol).any(axis=-1), (side < -tol).any(axis=-1)
+        edge[sub] = pair_ok[sub] & ~(pos & neg)
+        orient[sub] = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
+    # only the edges are kept, first in each frame (a frame's hull has a few of the pairs):
+    # what reads a hull (``hull_margin``) then works on those
+    keep = max(int(edge.sum(axis=1).max(initial=0)), 1)
+    order = np.argsort(~edge, axis=1, kind="stable")[:, :keep]
+
+    def edges(x: np.ndarray) -> np.ndarray:
+        return np.take_along_axis(x, order if x.ndim == 2 else order[..., None], axis=1)
+
+    return Hull(edges(a), edges(d), edges(safe), edges(edge), edges(orient), pts, ok)
 
 
 def hull_margin(h: Hull, com: FloatArray) -> FloatArray:
@@ -348,6 +406,28 @@ def support(
         axis=-1,
     )
     return pts[..., [0, 2]], ok
+
+
+def touching_support(ir: MotionIR, pose: Any, time: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """Which points support in each frame: the one definition (docs/metrics.md, "Support").
+
+    ``support`` of every foot (a sole point bears weight where it is within ``SUPPORT_TOL`` of
+    the floor, whatever the steps' records say: the frames decide, as a check of the output
+    files would), the kneeling knees, and the hands within ``SUPPORT_TOL`` of the site they rest
+    on (``hand_contacts`` with the pose). verify measures balance on it, and the smoothing
+    pass's check and the preview, ``--metrics``, ``lint`` and ``report`` read the same figure.
+    """
+    t = np.asarray(time, dtype=float)
+    every_foot = np.ones((len(t), len(FEET)), dtype=bool)
+    return support(ir.skeleton, pose, every_foot, ir.ground, hand_contacts(ir, t, pose))
+
+
+def balance_margin(ir: MotionIR, pose: Any, time: FloatArray) -> FloatArray:
+    """(N,) margin of the centre of mass (the body's, with what the hands hold and carry:
+    ``carried_com``) over the hull of ``touching_support``; negative outside, NaN where
+    nothing touches. The figure verify stores as ``Verification.support_margin``."""
+    pts, ok = touching_support(ir, pose, time)
+    return hull_margin(grouped_hull(pts, ok), carried_com(ir, pose, time)[:, [0, 2]])
 
 
 # -- the metrics -----------------------------------------------------------------------------

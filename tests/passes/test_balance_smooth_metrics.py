@@ -100,11 +100,11 @@ def test_support_margin_of_a_known_square() -> None:
 def test_the_grouped_hull_gives_the_margins_of_the_plain_one(
     seed: int, collinear: bool, count: int
 ) -> None:
-    """``balance.grouped_hull`` (frames grouped by their contacts, edges only) against
-    ``metrics.hull`` (every pair of every frame), CoMs inside and outside; frames share a few
+    """``grouped_hull`` (frames grouped by their contacts, edges only) against
+    ``hull`` (every pair of every frame), CoMs inside and outside; frames share a few
     contact sets, as a motion's do, and points on one line test the side tolerance. 70 points
     take the grouping by rows (a contact set of 64 or more does not fit one int's bits)."""
-    from mtlc.metrics import hull, hull_margin
+    from mtlc.metrics import grouped_hull, hull, hull_margin
 
     rng = np.random.default_rng(seed)
     pts = rng.uniform(-0.3, 0.3, (40, count, 2))
@@ -120,7 +120,7 @@ def test_the_grouped_hull_gives_the_margins_of_the_plain_one(
     ok = ok[rng.integers(0, 5, 40)]
     com = rng.uniform(-0.4, 0.4, (40, 2))
     want = hull_margin(hull(pts, ok), com)
-    got = hull_margin(balance.grouped_hull(pts, ok), com)
+    got = hull_margin(grouped_hull(pts, ok), com)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
     assert np.array_equal(np.isnan(got), np.isnan(want))
 
@@ -256,6 +256,23 @@ def test_balance_keeps_the_hand_on_its_site_and_leaves_balanced_frames() -> None
     pose = forward(SKEL, f.q, f.root_position, f.root_rotation)
     assert np.abs(site_positions(SKEL, pose, "r_hand") - hand).max() < 1e-3
     assert compute_metrics(ir).support_margin[15:].min() > 0.0
+
+
+def test_balancing_some_frames_blends_each_run_of_frames_by_itself() -> None:
+    """``balance_frames(only=...)`` (the smoothing pass's re-balance): frames far apart in time
+    are no neighbours. A balanced frame 1 s before a corrected run kept its pose; it took the
+    run's pelvis shift when the frames were blended as one array (fuel filter, a walking frame
+    at 1.17 s and the kneel at 1.87 s)."""
+    f = standing(40)
+    f.q[30:, SKEL.dof_index("l_hip_abd")] = math.radians(20)  # from frame 30 on one foot
+    ir = make_ir(f)
+    q0, root0 = f.q.copy(), f.root_position.copy()
+    before, after, failed = balance.balance_frames(ir, f, np.array([2, 3, *range(30, 36)]))
+    assert before.shape == after.shape == failed.shape == (8,)
+    np.testing.assert_array_equal(f.q[:30], q0[:30])  # the standing frames: untouched
+    np.testing.assert_array_equal(f.root_position[:30], root0[:30])
+    assert np.all(f.root_position[30:36, 0] < root0[30:36, 0] - 0.02)  # the run: corrected
+    assert np.all(after[2:] >= balance.ACCEPT_MARGIN) and not failed.any()
 
 
 def test_balance_lost_reports_mt0502_once_per_segment() -> None:

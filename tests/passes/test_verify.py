@@ -440,8 +440,12 @@ def test_what_verify_reports_on_each_example(name: str) -> None:
 
 def test_standing_on_one_foot_outside_its_support_is_mt0502() -> None:
     f = standing(20)  # both feet flat, the centre of mass between them
-    lifted = {"foot": "l", "t_lift": -1.0, "t_land": 5.0}  # the left foot holds no weight
+    lifted = {"foot": "l", "t_lift": -1.0, "t_land": 5.0}  # a step record of the left foot
     seg = Segment("root", "posture", 0.0, 1.0, GoalSpec("body"), PROV, result={"steps": [lifted]})
+    # the frames decide, not the record: with both soles on the floor the body stands
+    assert reverify(make_ir(standing(20), [seg])) == []
+    f.q[:, SKEL.dof_index("l_hip_flex")] = 0.6  # the left foot lifted off the floor
+    f.q[:, SKEL.dof_index("l_knee_flex")] = 1.2
     ir = make_ir(f, [seg])
     found = reverify(ir)
     assert [c for c, _, _ in found] == ["MT0502"]

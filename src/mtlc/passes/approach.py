@@ -576,58 +576,84 @@ def _rekey(skel: Any, segs: list[Segment], poses: list[FloatArray], fracs: list[
 
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     state = PoseState(ir)
-    skel = ir.skeleton
     for segs in groups(ir, "TA"):
-        t0, t1 = min(s.start for s in segs), max(s.end for s in segs)
-        q0 = state.q_at(t0)
-        root = state.root_at(t1)
-        targets = []
+        solve_ta_group(ctx, state, segs)
         for seg in segs:
-            seg.goal.position = hand_target(ir, seg, root[1])
-            targets.append(approach_point(state, seg, seg.goal.position, q0, root))
-        pinned = pinned_hands(state, segs, q0, root)
-        flat = [flat_hand(state, seg, root) for seg in segs]
-        q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
-        for _ in range(LIFTS):
-            sink = ir.ground - GROUND_SLACK - lowest_hand_point(state, segs, q1, root)
-            if sink <= 0.0:
-                break
-            # the hand arrives fingers first: raise its approach point by what they sink
-            targets = [p + np.array([0.0, sink + GROUND_SLACK, 0.0]) for p in targets]
-            q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
-        q1 = clear_of_body(state, segs, q1, root)
-        dist = [
-            hand_distance(state, s.goal.effector, q1, root, p)
-            for s, p in zip(segs, targets, strict=True)
-        ]
-        mid = sweep_mid(ctx, state, segs, targets, q0, q1, root, pinned)
-        for k, (seg, p, d) in enumerate(zip(segs, targets, dist, strict=True)):
-            names = own_names(skel, segs, k, reach, pinned)
-            idx = [skel.dof_index(n) for n in names]
-            s0, s1 = seg.start, seg.end
-            if mid is None:
-                seg.keyframes = Keyframes(
-                    time=np.array([s0, s1]), dofs=names, q=np.stack([q0[idx], q1[idx]])
-                )
-            else:
-                seg.keyframes = Keyframes(
-                    time=np.array([s0, 0.5 * (s0 + s1), s1]),
-                    dofs=names,
-                    q=np.stack([q0[idx], mid[idx], q1[idx]]),
-                )
-            ok = d <= TOLERANCE
-            seg.result = {
-                "distance": d,
-                "success": bool(ok and skel.within_limits(q1)),
-                "reach": reach,
-                "approach_point": [float(v) for v in p],
-            }
-            if not ok:
-                report_short(ctx, seg, d)
             state.add(seg)
             mark(ctx.cache, seg)
     reanchor(ir, ctx.cache, _restaters())
     return ir
+
+
+def solve_ta_group(
+    ctx: PassContext, state: PoseState, segs: list[Segment], skip: list[Segment] | None = None
+) -> None:
+    """Key one group of TA segments: from the body at the group's start (``skip``: segments
+    whose keyframes there are not evidence of it, the group's own when solved again) to the
+    approach points, with the root where the plan puts it at the group's end."""
+    ir, skel = state.ir, state.skel
+    t0, t1 = min(s.start for s in segs), max(s.end for s in segs)
+    q0 = state.q_at(t0, skip=skip)
+    root = state.root_at(t1)
+    targets = []
+    for seg in segs:
+        seg.goal.position = hand_target(ir, seg, root[1])
+        targets.append(approach_point(state, seg, seg.goal.position, q0, root))
+    pinned = pinned_hands(state, segs, q0, root)
+    flat = [flat_hand(state, seg, root) for seg in segs]
+    q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
+    for _ in range(LIFTS):
+        sink = ir.ground - GROUND_SLACK - lowest_hand_point(state, segs, q1, root)
+        if sink <= 0.0:
+            break
+        # the hand arrives fingers first: raise its approach point by what they sink
+        targets = [p + np.array([0.0, sink + GROUND_SLACK, 0.0]) for p in targets]
+        q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
+    q1 = clear_of_body(state, segs, q1, root)
+    dist = [
+        hand_distance(state, s.goal.effector, q1, root, p)
+        for s, p in zip(segs, targets, strict=True)
+    ]
+    mid = sweep_mid(ctx, state, segs, targets, q0, q1, root, pinned)
+    for k, (seg, p, d) in enumerate(zip(segs, targets, dist, strict=True)):
+        names = own_names(skel, segs, k, reach, pinned)
+        idx = [skel.dof_index(n) for n in names]
+        s0, s1 = seg.start, seg.end
+        if mid is None:
+            seg.keyframes = Keyframes(
+                time=np.array([s0, s1]), dofs=names, q=np.stack([q0[idx], q1[idx]])
+            )
+        else:
+            seg.keyframes = Keyframes(
+                time=np.array([s0, 0.5 * (s0 + s1), s1]),
+                dofs=names,
+                q=np.stack([q0[idx], mid[idx], q1[idx]]),
+            )
+        ok = d <= TOLERANCE
+        seg.result = {
+            "distance": d,
+            "success": bool(ok and skel.within_limits(q1)),
+            "reach": reach,
+            "approach_point": [float(v) for v in p],
+        }
+        if not ok:
+            report_short(ctx, seg, d)
+
+
+def stale_approach(state: PoseState, segs: list[Segment]) -> bool:
+    """A hand of the group that its solver put on its approach point is no longer there at
+    the segment's end, in the body as keyed now: the approaches are solved before the
+    contacts, and a contact before this approach that bent the trunk (a torso reach) moved the
+    shoulders under the arm's solved angles (the avionics unit's slide: 157 and 208 mm)."""
+    skel = state.skel
+    for seg in segs:
+        point = seg.result.get("approach_point")
+        if point is None or seg.keyframes is None or seg.result.get("distance", 1.0) > TOLERANCE:
+            continue
+        q = _pose_at(skel, state.q_at(seg.end), segs, -1)
+        if hand_distance(state, seg.goal.effector, q, state.root_at(seg.end), point) > TOLERANCE:
+            return True
+    return False
 
 
 def _restaters() -> dict[str, Any]:

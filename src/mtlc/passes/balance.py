@@ -9,7 +9,10 @@ surface, adjust the root again while keeping the other joints' goals. On the den
   within 2 mm of the floor or of the site they rest on): the sole points on the feet that
   stand (both feet outside walks, the stance foot during a step: ``mtlc.metrics.foot_stance``
   reads ``result["steps"]``), kneeling knees and hands on their sites; the centre of mass
-  carries what the hands hold (``mtlc.loads.carried_com``);
+  carries what the hands hold (``mtlc.loads.carried_com``). The step records only narrow the
+  support verify measures (``mtlc.metrics.touching_support``: every foot's touching points): a
+  foot about to lift must not carry the correction, and a margin over fewer points is never
+  larger, so what this pass balances verify finds balanced;
 * in *static* frames (outside walks) whose margin is below ``MARGIN`` the pelvis moves
   horizontally until the CoM is ``MARGIN`` inside. Pushing every frame below the target margin
   (not only those outside) makes the correction grow from zero, so it is continuous in time;
@@ -46,10 +49,10 @@ from mtlc.metrics import (
     KNEE_SLOTS,
     BoolArray,
     FloatArray,
-    Hull,
     contact_mask,
     foot_points,
     foot_stance,
+    grouped_hull,
     hand_contacts,
     hull_margin,
     lowest_point,
@@ -60,63 +63,6 @@ from mtlc.metrics import (
 )
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import on_site
-
-HULL_EPS = 1e-9  # m: as ``mtlc.metrics.hull``
-
-
-def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
-    """``mtlc.metrics.hull``, the same edges, computed per set of touching points: frames with
-    the same contacts share which pairs to try, and each pair is tested against the touching
-    points only (8 of 22 candidates when standing), not every pair against every point.
-    Each frame keeps only its edges (first, padded with non-edges to the most edges a frame
-    has): ``hull_margin`` reads nothing else, and a hull has a few of the pairs."""
-    pts = np.asarray(points, dtype=float)
-    ok = np.asarray(valid, dtype=bool)
-    used = ok.any(axis=0)
-    if used.sum() >= 3 and not used.all():
-        pts, ok = pts[:, used], ok[:, used]
-    ii, jj = np.triu_indices(ok.shape[1], 1)
-    a, d = pts[:, ii], pts[:, jj] - pts[:, ii]
-    length = np.hypot(d[..., 0], d[..., 1])
-    pair_ok = ok[:, ii] & ok[:, jj] & (length > 1e-9)
-    safe = np.where(length > 1e-9, length, 1.0)
-    edge = np.zeros(pair_ok.shape, dtype=bool)
-    orient = np.zeros(pair_ok.shape)
-    # frames grouped by their set of touching points, a bit each in one int (``np.unique`` of
-    # the rows themselves sorts them as byte strings, a tenth of the whole): with 64 points or
-    # more, by the rows
-    if ok.shape[1] < 64:
-        keys = ok.astype(np.int64) @ (np.int64(1) << np.arange(ok.shape[1], dtype=np.int64))
-        _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
-    else:
-        _, first, inverse = np.unique(ok, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.ravel()
-    for m, mask in enumerate(ok[first]):
-        rows = np.flatnonzero(inverse == m)
-        cols = np.flatnonzero(mask)
-        pairs = np.flatnonzero(mask[ii] & mask[jj])
-        if pairs.size == 0:
-            continue
-        sub = np.ix_(rows, pairs)
-        dd, aa = d[sub], a[sub]
-        # the side of every point to every pair's line: d × (p − a) = d × p − d × a
-        normal = np.stack([-dd[..., 1], dd[..., 0]], axis=-1)  # (R, E, 2)
-        side = normal @ np.swapaxes(pts[np.ix_(rows, cols)], 1, 2)  # (R, E, K)
-        side -= (dd[..., 0] * aa[..., 1] - dd[..., 1] * aa[..., 0])[..., None]
-        tol = (HULL_EPS * safe[sub])[..., None]  # HULL_EPS metres from the line
-        pos, neg = (side > tol).any(axis=-1), (side < -tol).any(axis=-1)
-        edge[sub] = pair_ok[sub] & ~(pos & neg)
-        orient[sub] = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
-    # only the edges are kept, first in each frame (a frame's hull has a few of the pairs):
-    # what reads a hull (``hull_margin``) then works on those
-    keep = max(int(edge.sum(axis=1).max(initial=0)), 1)
-    order = np.argsort(~edge, axis=1, kind="stable")[:, :keep]
-
-    def edges(x: np.ndarray) -> np.ndarray:
-        return np.take_along_axis(x, order if x.ndim == 2 else order[..., None], axis=1)
-
-    return Hull(edges(a), edges(d), edges(safe), edges(edge), edges(orient), pts, ok)
-
 
 MARGIN = 0.01  # m: how far inside the support a corrected CoM ends
 ROUNDS = 6
@@ -142,10 +88,19 @@ HANDS = {"r_hand": "r_arm", "l_hand": "l_arm"}
 REPORT_ORDER = {"posture": 0, "TO": 1, "TA": 2, "hold": 3, "grip": 4, "gaze": 5, "locomotion": 6}
 
 
+def ends_on_site(seg: Segment) -> bool:
+    """A TA segment with no approach distance (``goal both at X approach 0 cm``): no TO comes
+    after it, so it is the goal's last phase and ends with the hand on the site, as a TO does.
+    Left free, the pelvis's balance shift under a carried load took the hands of such a goal
+    12 mm off their site (a 4 kg box held out, female P5)."""
+    return seg.kind == "TA" and not seg.goal.approach
+
+
 def pin_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per hand, the (lo, hi) bounds of the times it is pinned (``lo <= t < hi``), one pair per
-    TO segment on its arm track: from the segment's start until the next segment on that track
-    starts, or the end of the motion."""
+    TO segment on its arm track, or TA segment that ends on its site (``ends_on_site``): from
+    the segment's start until the next segment on that track starts, or the end of the
+    motion."""
     by_track: dict[str, list[Segment]] = {track: [] for track in HANDS.values()}
     for seg in ir.segments:  # one pass over the segments for both arms
         if seg.track in by_track:
@@ -157,7 +112,7 @@ def pin_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         lo: list[float] = []
         hi: list[float] = []
         for i, seg in enumerate(segs):
-            if seg.kind != "TO":
+            if seg.kind != "TO" and not ends_on_site(seg):
                 continue
             j = bisect_left(starts, seg.end - 1e-9, lo=i + 1)  # the first later start
             end = starts[j] if j < len(starts) else math.inf
@@ -445,15 +400,25 @@ def balance_frames(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Correct ``frames`` in place; returns (margin before, margin after, failed frame mask).
 
-    ``only``: indices of the frames to look at (default all); the returned arrays cover them.
+    ``only``: indices of the frames to look at, ascending (default all); the returned arrays
+    cover them. Each run of consecutive frames is balanced by itself: the corrections are
+    blended over neighbouring frames, and two frames far apart in time are no neighbours (the
+    smoothing pass's frames 1.17 s and 1.87 s of the fuel filter were, and a walking frame took
+    a kneeling frame's pelvis shift).
     """
     skel = ir.skeleton
     if only is not None:
-        sub = Frames(frames.fps, frames.time[only], frames.root_position[only],
-                     frames.root_rotation[only], frames.q[only])  # fmt: skip
-        out = balance_frames(ir, sub)
-        frames.q[only], frames.root_position[only] = sub.q, sub.root_position
-        return out
+        rows = np.asarray(only, dtype=np.intp)
+        if rows.size == 0:
+            return np.empty(0), np.empty(0), np.zeros(0, dtype=bool)
+        parts = []
+        for run in np.split(rows, np.flatnonzero(np.diff(rows) != 1) + 1):
+            sub = Frames(frames.fps, frames.time[run], frames.root_position[run],
+                         frames.root_rotation[run], frames.q[run])  # fmt: skip
+            parts.append(balance_frames(ir, sub))
+            frames.q[run], frames.root_position[run] = sub.q, sub.root_position
+        before, after, failed = (np.concatenate(x) for x in zip(*parts, strict=True))
+        return before, after, failed
     t = frames.time
     # what depends on time only, for every frame (a few booleans a frame)
     stance, static = foot_stance(ir, t), ~walking(ir, t)

@@ -36,6 +36,8 @@ from mtlc.passes.approach import (
     repin,
     report_short,
     seg_goals,
+    solve_ta_group,
+    stale_approach,
 )
 from mtlc.passes.context import PassContext
 from mtlc.passes.state import PoseState, reanchor, solved
@@ -228,12 +230,34 @@ def _solve_parts(
     return out
 
 
+def _approach_again(
+    ctx: PassContext, state: PoseState, segs: list[Segment], followed: set[int]
+) -> PoseState:
+    """Solve a group of approaches again when it ends its goal (no contact phase follows it:
+    ``goal ... approach 0 cm``, so the frames' claim rests on it) and the contacts solved
+    since (before it in time) moved the body under it (``approach.stale_approach``); the
+    state, indexed again if so. An approach that a contact phase follows is left as it is:
+    that phase is solved from the body as it is and makes the claim."""
+    if all(id(s) in followed for s in segs) or not stale_approach(state, segs):
+        return state
+    solve_ta_group(ctx, state, segs, skip=segs)
+    return PoseState(state.ir)  # the group's keyframes were replaced
+
+
 def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     state = PoseState(ir)
     skel = ir.skeleton
     ta_of = _ta_of(ir)
-    for segs in groups(ir, "TO"):
+    # the approaches were solved before any contact: each is checked, in time order, once the
+    # contacts before it are solved, and before the contact that starts where it ends
+    approaches, checked = groups(ir, "TA"), 0
+    contacts = groups(ir, "TO")
+    followed = {id(ta) for segs in contacts for s in segs if (ta := _ta_for(ta_of, s)) is not None}
+    for segs in contacts:
         t0, t1 = min(s.start for s in segs), max(s.end for s in segs)
+        while checked < len(approaches) and (min(s.end for s in approaches[checked]) <= t0 + 1e-9):
+            state = _approach_again(ctx, state, approaches[checked], followed)
+            checked += 1
         q0 = state.q_at(t0)
         root = state.root_at(t1)
         targets = []
@@ -277,6 +301,8 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
                 if not ok:
                     report_short(ctx, seg, d)
                 state.add(seg)
+    for segs in approaches[checked:]:
+        state = _approach_again(ctx, state, segs, followed)
     reanchor(ir, ctx.cache, _restaters())
     relift(ir, ctx)
     return ir

@@ -28,24 +28,21 @@ import numpy as np
 from mtlc.body import Pose, forward, site_positions, site_rotation
 from mtlc.ir.model import Frames, MotionIR
 from mtlc.metrics import (
+    balance_margin,
     contact_mask,
     foot_points,
     foot_stance,
     lowest_point,
-    support,
-    support_margin,
 )
 from mtlc.passes.balance import (
     FEET_SITES,
     HANDS,
     MARGIN,
     balance_frames,
-    grouped_hull,
     hand_pins,
     restore_contacts,
 )
 from mtlc.passes.context import PassContext
-from mtlc.passes.tool import carried_com
 
 STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
 JUMP_Q = 1e-3  # rad: smaller offsets are the interpolation's own
@@ -145,7 +142,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             )
             m |= pins[h][r] & (off > PIN_TOL)
         moved[a : a + CHUNK_FRAMES] = m
-        margin_before[a : a + CHUNK_FRAMES] = carried_margin(ir, pose, t[r], stance_all[r])
+        margin_before[a : a + CHUNK_FRAMES] = balance_margin(ir, pose, t[r])
         if rows.size <= CHUNK_FRAMES:
             kept = (pose, after)
     at = np.flatnonzero(moved)
@@ -165,7 +162,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         else:
             final = forward(skel, frames.q[r], frames.root_position[r],
                             frames.root_rotation[r], with_axes=False)  # fmt: skip
-        margin_after[a : a + CHUNK_FRAMES] = carried_margin(ir, final, t[r], stance_all[r])
+        margin_after[a : a + CHUNK_FRAMES] = balance_margin(ir, final, t[r])
     _rebalance(ir, frames, rows, margin_before, margin_after)
     return ir
 
@@ -235,14 +232,6 @@ def _set_pose_rows(pose: Pose, rows: np.ndarray, part: Pose) -> None:
         part.axes,
         part.root,
     )
-
-
-def carried_margin(ir: MotionIR, pose: Pose, time: np.ndarray, stance: np.ndarray) -> np.ndarray:
-    """(N,) support margin of ``pose`` at ``time``, the centre of mass counting the tools the
-    hands hold (``carried_com``), so this check judges balance as the balance pass and the
-    metrics do; the feet (and knees) are the support, as before."""
-    pts, ok = support(ir.skeleton, pose, stance, ir.ground)
-    return support_margin(pts, ok, carried_com(ir, pose, time)[:, [0, 2]], grouped_hull(pts, ok))
 
 
 def _rebalance(

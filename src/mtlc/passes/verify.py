@@ -35,16 +35,9 @@ from mtlc.body import forward, site_positions
 from mtlc.body.capsules import self_intersection
 from mtlc.body.kinematics import Pose
 from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
-from mtlc.loads import carried_com
-from mtlc.metrics import (
-    foot_stance,
-    hand_contacts,
-    support,
-    support_margin,
-    walking,
-)
+from mtlc.metrics import balance_margin, walking
 from mtlc.passes.approach import effector_name
-from mtlc.passes.balance import CHUNK_FRAMES, _mm, failure_runs, grouped_hull, take_pose
+from mtlc.passes.balance import CHUNK_FRAMES, _mm, failure_runs, take_pose
 from mtlc.passes.context import PassContext
 from mtlc.passes.tool import is_stroke
 
@@ -541,17 +534,13 @@ class _Verifier:
     def balance(self) -> None:
         """Static margin of the centre of mass (with held tools) over the touching points."""
         ir, t = self.ir, self.t
-        stance = foot_stance(ir, t)
         margin = np.empty(len(t))
         # a chunk of frames at a time, as the balance pass: the hull's candidate edges cost
-        # ~5 KB a frame while measured (600 MB at once for an hour of motion)
+        # ~5 KB a frame while measured (600 MB at once for an hour of motion). The support is
+        # the points that touch, whatever the steps' records say (``touching_support``)
         for a in range(0, len(t), CHUNK_FRAMES):
             c = slice(a, a + CHUNK_FRAMES)
-            pose = take_pose(self.pose, c)
-            touch = hand_contacts(ir, t[c], pose)
-            pts, ok = support(self.skel, pose, stance[c], ir.ground, touch)
-            com = carried_com(ir, pose, t[c])[:, [0, 2]]
-            margin[c] = support_margin(pts, ok, com, grouped_hull(pts, ok))  # the same hull
+            margin[c] = balance_margin(ir, take_pose(self.pose, c), t[c])
         static = ~walking(ir, t)
         self.v.support_margin, self.v.static = margin, static
         sel = np.flatnonzero(static & ~np.isnan(margin))

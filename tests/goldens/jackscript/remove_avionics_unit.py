@@ -373,7 +373,7 @@ def remove_avionics_unit():
         'left_clavicle': (30.0, 12.662),
     })
     human.KeyJoints(5.7, {'spine_thoracic': (-3.189, -0.25, -0.846), 'right_elbow': (7.377, 8.706)})
-    human.KeyJoints(5.9, {'spine_lumbar': (24.445, -2.26, -10.152), 'left_elbow': (8.013, -65.263)})
+    human.KeyJoints(5.9, {'spine_lumbar': (24.445, -2.26, -10.152)})
     human.KeyRoot(6.0, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(6.0, {
         'right_clavicle': (13.624, -13.801), 'left_clavicle': (30.0, 12.804),
@@ -389,17 +389,19 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.2, (1.206, 72.55, 50.337), (-1.8, 0.0, 0.0))
     human.KeyJoints(6.2, {
-        'left_wrist': (7.663, -1.329), 'right_hip': (8.228, 0.772, 1.94), 'right_knee': (15.865,),
+        'left_elbow': (8.068, -65.264), 'right_hip': (8.228, 0.772, 1.94), 'right_knee': (15.865,),
         'right_ankle': (7.122, 1.043), 'left_hip': (6.782, -0.813, -1.909), 'left_knee': (13.841,),
         'left_ankle': (7.089, -1.034),
     })
     human.KeyRoot(6.3, (1.924, 72.488, 50.485), (-3.697, 0.0, 0.0))
     human.KeyJoints(6.3, {
-        'right_hip': (10.75, 1.024, 3.812), 'right_knee': (20.79,), 'right_ankle': (9.201, 1.726),
-        'left_hip': (6.792, -1.192, -3.864), 'left_knee': (14.483,), 'left_ankle': (7.784, -1.639),
+        'right_shoulder': (2.139, 165.703, -40.317), 'right_hip': (10.75, 1.024, 3.812),
+        'right_knee': (20.79,), 'right_ankle': (9.201, 1.726), 'left_hip': (6.792, -1.192, -3.864),
+        'left_knee': (14.483,), 'left_ankle': (7.784, -1.639),
     })
     human.KeyRoot(6.4, (2.314, 72.497, 50.54), (-5.822, 0.0, 0.0))
     human.KeyJoints(6.4, {
+        'left_shoulder': (21.401, 163.125, -64.814), 'left_wrist': (7.697, -1.33),
         'right_hip': (22.123, 1.76, 1.124), 'right_knee': (45.295,), 'right_ankle': (17.997, 2.046),
         'left_hip': (6.713, -1.268, -6.013), 'left_knee': (14.785,), 'left_ankle': (8.08, -1.953),
     })
@@ -411,25 +413,34 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.6, (2.074, 72.843, 49.938), (-10.614, 0.0, 0.0))
     human.KeyJoints(6.6, {
+        'right_shoulder': (2.134, 165.678, -40.316), 'right_elbow': (7.381, 8.707),
+        'right_wrist': (12.073, -10.793), 'left_shoulder': (21.388, 163.148, -64.814),
+        'left_elbow': (8.041, -65.264), 'left_wrist': (7.685, -1.329),
         'right_hip': (16.945, 6.569, -15.078), 'right_knee': (37.878,),
         'right_ankle': (18.271, 1.516), 'left_hip': (11.338, 0.455, -10.867),
         'left_knee': (23.908,), 'left_ankle': (8.222, -1.691),
     })
     human.KeyRoot(6.7, (1.246, 72.519, 48.852), (-13.49, 0.0, 0.0))
     human.KeyJoints(6.7, {
+        'right_shoulder': (2.205, 165.648, -40.315), 'right_elbow': (7.596, 8.69),
+        'right_wrist': (12.366, -10.974), 'left_shoulder': (21.472, 162.988, -64.813),
+        'left_elbow': (8.37, -65.269), 'left_wrist': (7.891, -1.327),
         'right_hip': (6.73, 2.944, -18.841), 'right_knee': (14.452,), 'right_ankle': (7.174, 0.391),
         'left_hip': (15.631, 2.835, -13.342), 'left_knee': (31.747,), 'left_ankle': (8.687, -0.914),
     })
     human.KeyRoot(6.8, (0.39, 72.492, 48.416), (-16.969, 0.0, 0.0))
     human.KeyJoints(6.8, {
-        'right_hip': (7.57, 1.523, -15.534), 'right_knee': (14.689,),
+        'right_elbow': (7.38, 8.706), 'right_wrist': (12.077, -10.792),
+        'left_shoulder': (21.36, 163.184, -64.813), 'left_elbow': (8.013, -65.263),
+        'left_wrist': (7.663, -1.329), 'right_hip': (7.57, 1.523, -15.534), 'right_knee': (14.689,),
         'right_ankle': (6.985, -0.567), 'left_hip': (16.817, 5.014, -16.238),
         'left_knee': (34.869,), 'left_ankle': (8.337, -0.033),
     })
     human.KeyRoot(6.9, (-0.609, 72.491, 48.562), (-21.678, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'right_hip': (7.718, 0.113, -10.969), 'right_knee': (14.498,),
-        'left_hip': (21.101, 8.111, -17.579), 'left_knee': (46.479,), 'left_ankle': (15.546, 0.959),
+        'right_shoulder': (2.118, 165.656, -40.315), 'right_hip': (7.718, 0.113, -10.969),
+        'right_knee': (14.498,), 'left_hip': (21.101, 8.111, -17.579), 'left_knee': (46.479,),
+        'left_ankle': (15.546, 0.959),
     })
     human.KeyRoot(7.0, (-1.645, 72.495, 48.882), (-27.206, 0.0, 0.0))
     human.KeyJoints(7.0, {
@@ -451,9 +462,9 @@ def remove_avionics_unit():
     })
     human.KeyRoot(7.3, (-2.984, 72.579, 52.72), (-42.983, 0.0, 0.0))
     human.KeyJoints(7.3, {
-        'right_shoulder': (2.118, 165.656, -40.315), 'right_hip': (12.765, -3.475, 9.776),
-        'right_knee': (28.346,), 'right_ankle': (9.604, -1.194),
-        'left_hip': (9.881, -3.532, 20.102), 'left_knee': (21.885,), 'left_ankle': (11.392, 0.012),
+        'right_hip': (12.765, -3.475, 9.776), 'right_knee': (28.346,),
+        'right_ankle': (9.604, -1.194), 'left_hip': (9.881, -3.532, 20.102), 'left_knee': (21.885,),
+        'left_ankle': (11.392, 0.012),
     })
     human.KeyRoot(7.4, (-3.113, 72.487, 53.952), (-48.139, 0.0, 0.0))
     human.KeyJoints(7.4, {

@@ -275,14 +275,14 @@ def remove_avionics_unit():
     })
     human.KeyJoints(3.8, {
         'spine_lumbar': (29.354, -0.6, -14.336), 'spine_thoracic': (12.134, -6.256, -30.0),
-        'neck': (-60.0, -15.03, -30.751), 'head': (-20.0, 11.25), 'right_clavicle': (30.0, -14.304),
+        'neck': (-60.0, -15.1, -30.842), 'head': (-20.0, 11.25), 'right_clavicle': (30.0, -14.304),
         'right_shoulder': (2.637, 144.094, -40.979), 'right_wrist': (3.002, -2.627),
         'left_clavicle': (29.996, 13.493), 'left_shoulder': (84.918, 110.921, -38.76),
         'left_elbow': (10.174, -69.462), 'left_wrist': (3.019, -0.33),
     })
     human.KeyJoints(3.9, {
         'spine_lumbar': (30.79, -1.05, -13.896), 'spine_thoracic': (20.679, -9.959, -30.0),
-        'neck': (-59.85, -19.807, -49.302), 'head': (-17.761, 11.14),
+        'neck': (-59.85, -19.806, -49.302), 'head': (-17.761, 11.14),
         'right_clavicle': (30.0, -13.843), 'right_shoulder': (0.19, 125.725, -40.502),
         'right_elbow': (0.002, 8.504), 'right_wrist': (4.716, -3.581),
         'left_clavicle': (29.994, 12.493), 'left_shoulder': (28.487, 178.841, -66.677),
@@ -349,21 +349,20 @@ def remove_avionics_unit():
         'left_shoulder': (20.841, 163.061, -64.828), 'left_elbow': (7.839, -65.257),
         'left_wrist': (7.529, -1.361),
     })
-    human.KeyJoints(4.9, {'spine_thoracic': (-3.552, 0.487, -0.709)})
-    human.KeyJoints(5.0, {'spine_lumbar': (24.705, -2.672, -9.696)})
+    human.KeyJoints(4.9, {'spine_thoracic': (-3.552, 0.487, -0.725)})
+    human.KeyJoints(5.0, {'spine_lumbar': (24.705, -2.672, -9.774)})
     human.KeyJoints(5.2, {'right_shoulder': (2.163, 165.242, -40.316)})
     human.KeyJoints(5.3, {
-        'spine_thoracic': (-3.299, -0.02, -0.725), 'left_shoulder': (21.081, 163.118, -64.816),
+        'spine_thoracic': (-3.299, -0.02, -0.782), 'right_clavicle': (13.934, -13.497),
+        'left_clavicle': (30.0, 12.495), 'left_shoulder': (21.081, 163.118, -64.816),
     })
-    human.KeyJoints(5.5, {
-        'spine_lumbar': (24.489, -2.332, -9.793), 'right_clavicle': (14.071, -13.362),
-        'left_clavicle': (30.0, 12.359),
-    })
-    human.KeyJoints(5.6, {'neck': (-57.625, -19.189, -23.212)})
-    human.KeyJoints(5.8, {'spine_thoracic': (-3.195, -0.236, -0.792)})
+    human.KeyJoints(5.5, {'spine_lumbar': (24.489, -2.332, -9.999)})
+    human.KeyJoints(5.6, {'neck': (-57.575, -19.141, -23.258)})
+    human.KeyJoints(5.8, {'spine_thoracic': (-3.195, -0.236, -0.853)})
     human.KeyJoints(5.9, {'right_shoulder': (2.118, 165.628, -40.315)})
     human.KeyRoot(6.0, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(6.0, {
+        'right_clavicle': (13.629, -13.797), 'left_clavicle': (30.0, 12.799),
         'left_shoulder': (21.355, 163.183, -64.813), 'right_hip': (2.865, 0.0, 0.0),
         'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
         'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
@@ -372,15 +371,14 @@ def remove_avionics_unit():
     human.Walk((-79.956, 0.0, 40.019), start=6.087427, duration=4.515789)
     human.KeyRoot(6.1, (0.106, 72.958, 50.048), (-0.181, 0.0, 0.0))
     human.KeyJoints(6.1, {
-        'spine_lumbar': (24.445, -2.26, -10.161), 'right_clavicle': (13.623, -13.802),
-        'left_clavicle': (30.0, 12.805), 'right_hip': (3.492, 0.079, 0.186), 'right_knee': (5.944,),
-        'right_ankle': (2.441, 0.092), 'left_hip': (3.409, -0.079, -0.186), 'left_knee': (5.864,),
-        'left_ankle': (2.454, -0.092),
+        'right_hip': (3.492, 0.079, 0.186), 'right_knee': (5.944,), 'right_ankle': (2.441, 0.092),
+        'left_hip': (3.409, -0.079, -0.186), 'left_knee': (5.864,), 'left_ankle': (2.454, -0.092),
     })
     human.KeyRoot(6.2, (1.206, 72.55, 50.337), (-1.8, 0.0, 0.0))
     human.KeyJoints(6.2, {
-        'right_hip': (8.228, 0.772, 1.94), 'right_knee': (15.865,), 'right_ankle': (7.122, 1.043),
-        'left_hip': (6.782, -0.813, -1.909), 'left_knee': (13.841,), 'left_ankle': (7.089, -1.034),
+        'spine_lumbar': (24.445, -2.26, -10.161), 'right_hip': (8.228, 0.772, 1.94),
+        'right_knee': (15.865,), 'right_ankle': (7.122, 1.043), 'left_hip': (6.782, -0.813, -1.909),
+        'left_knee': (13.841,), 'left_ankle': (7.089, -1.034),
     })
     human.KeyRoot(6.3, (1.924, 72.488, 50.485), (-3.697, 0.0, 0.0))
     human.KeyJoints(6.3, {
@@ -401,9 +399,9 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.6, (2.074, 72.843, 49.938), (-10.614, 0.0, 0.0))
     human.KeyJoints(6.6, {
-        'spine_thoracic': (-3.188, -0.252, -0.868), 'right_hip': (16.945, 6.569, -15.078),
-        'right_knee': (37.878,), 'right_ankle': (18.271, 1.516),
-        'left_hip': (11.338, 0.455, -10.867), 'left_knee': (23.908,), 'left_ankle': (8.222, -1.691),
+        'right_hip': (16.945, 6.569, -15.078), 'right_knee': (37.878,),
+        'right_ankle': (18.271, 1.516), 'left_hip': (11.338, 0.455, -10.867),
+        'left_knee': (23.908,), 'left_ankle': (8.222, -1.691),
     })
     human.KeyRoot(6.7, (1.246, 72.519, 48.852), (-13.49, 0.0, 0.0))
     human.KeyJoints(6.7, {
@@ -429,9 +427,9 @@ def remove_avionics_unit():
     })
     human.KeyRoot(7.1, (-2.332, 72.499, 49.32), (-32.671, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'neck': (-57.551, -19.117, -23.283), 'right_hip': (8.248, -2.365, -0.264),
-        'right_knee': (15.796,), 'right_ankle': (7.041, -2.38), 'left_hip': (28.609, 1.129, 1.379),
-        'left_knee': (58.793,), 'left_ankle': (19.282, 1.574),
+        'right_hip': (8.248, -2.365, -0.264), 'right_knee': (15.796,),
+        'right_ankle': (7.041, -2.38), 'left_hip': (28.609, 1.129, 1.379), 'left_knee': (58.793,),
+        'left_ankle': (19.282, 1.574),
     })
     human.KeyRoot(7.2, (-2.702, 72.857, 50.678), (-37.827, 0.0, 0.0))
     human.KeyJoints(7.2, {
@@ -687,9 +685,9 @@ def remove_avionics_unit():
         'left_elbow': (101.377, -46.006), 'left_wrist': (58.206, -27.05),
     })
     human.KeyJoints(11.4, {
-        'right_shoulder': (43.246, 1.055, 65.519), 'right_elbow': (73.423, -43.729),
-        'right_wrist': (39.087, -29.98), 'left_shoulder': (34.9, 29.088, 62.058),
-        'left_elbow': (93.107, -43.952), 'left_wrist': (55.367, -28.536),
+        'right_shoulder': (43.265, 1.055, 65.507), 'right_elbow': (73.301, -43.704),
+        'right_wrist': (39.052, -29.994), 'left_shoulder': (34.927, 29.046, 62.045),
+        'left_elbow': (93.049, -43.939), 'left_wrist': (55.344, -28.543),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.401107, duration=0.072)

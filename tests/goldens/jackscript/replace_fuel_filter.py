@@ -316,7 +316,7 @@ def replace_fuel_filter():
     })
     human.KeyJoints(4.5, {
         'spine_lumbar': (36.268, 8.106, 10.48), 'spine_thoracic': (-3.33, 6.997, 13.831),
-        'neck': (35.0, 26.364, -10.966), 'head': (15.0, -10.661), 'right_clavicle': (-5.111, 10.48),
+        'neck': (35.0, 26.609, -10.963), 'head': (15.0, -10.661), 'right_clavicle': (-5.111, 10.48),
         'right_shoulder': (26.242, 17.642, 6.956), 'right_elbow': (28.361, 17.199),
     })
     human.KeyJoints(4.6, {
@@ -352,432 +352,493 @@ def replace_fuel_filter():
         'right_shoulder': (32.897, 17.558, 6.352), 'right_elbow': (27.263, 17.2),
         'right_wrist': (-1.561, -2.179),
     })
-    human.KeyJoints(5.1, {'right_elbow': (27.263, 17.2)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {
-        'right_shoulder': (32.897, 17.559, 6.352), 'right_elbow': (27.264, 17.031),
+    human.KeyJoints(5.2, {'right_elbow': (27.263, 17.169)})
+    human.KeyJoints(5.3, {'right_elbow': (27.301, 12.277)})
+    human.KeyJoints(5.4, {
+        'right_shoulder': (32.907, 17.625, 6.335), 'right_elbow': (27.379, 0.657),
     })
-    human.KeyJoints(5.3, {
-        'right_shoulder': (32.911, 17.659, 6.327), 'right_elbow': (27.417, -6.264),
-    })
-    human.KeyJoints(5.4, {'right_elbow': (27.478, -47.914)})
-    human.KeyJoints(5.5, {
-        'right_shoulder': (32.945, 18.039, 6.234), 'right_elbow': (27.341, -77.819),
-    })
-    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=5.530179, duration=0.072)
-    human.KeyJoints(5.6, {'right_elbow': (27.326, -80.0)})
-    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=5.602179, duration=0.2628)
-    human.KeyJoints(5.8, {'right_elbow': (27.326, -80.0)})
-    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
+    human.KeyJoints(5.5, {'right_elbow': (27.456, -15.361)})
+    human.KeyJoints(5.6, {'right_elbow': (27.491, -33.449)})
+    human.KeyJoints(5.7, {'right_elbow': (27.47, -51.276)})
+    human.KeyJoints(5.8, {'right_elbow': (27.409, -66.514)})
     human.KeyJoints(5.9, {
-        'right_shoulder': (32.945, 18.028, 6.236), 'right_elbow': (27.358, -75.214),
-        'right_wrist': (-1.467, -2.169),
-    })
-    human.KeyJoints(6.0, {'right_elbow': (27.48, -23.911), 'right_wrist': (-1.518, -2.133)})
-    human.KeyJoints(6.1, {
-        'right_shoulder': (32.882, 17.497, 6.367), 'right_elbow': (27.021, 44.327),
-    })
-    human.KeyJoints(6.2, {
-        'spine_lumbar': (40.1, 16.008, 13.207), 'neck': (35.0, 28.675, -19.308),
-        'right_shoulder': (32.865, 17.524, 6.361), 'right_elbow': (26.69, 79.952),
-        'right_wrist': (-1.464, -2.234), 'left_clavicle': (0.0, 0.0),
-        'left_shoulder': (8.594, 5.73, 11.459),
+        'right_shoulder': (32.945, 18.035, 6.235), 'right_elbow': (27.348, -76.834),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=6.203379, duration=0.072)
+    human.Grasp('right_hand', 'open', start=5.985897, duration=0.072)
+    human.KeyJoints(6.0, {'right_elbow': (27.326, -80.0)})
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=6.057897, duration=0.2628)
+    human.KeyJoints(6.3, {'right_elbow': (27.326, -80.0)})
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
+    human.KeyJoints(6.4, {
+        'right_shoulder': (32.945, 18.029, 6.236), 'right_elbow': (27.356, -75.532),
+    })
+    human.KeyJoints(6.5, {'right_elbow': (27.443, -59.213), 'right_wrist': (-1.472, -2.153)})
+    human.KeyJoints(6.6, {'right_elbow': (27.492, -34.545)})
+    human.KeyJoints(6.7, {'right_elbow': (27.412, -5.363)})
+    human.KeyJoints(6.8, {
+        'right_shoulder': (32.893, 17.535, 6.358), 'right_elbow': (27.203, 24.501),
+    })
+    human.KeyJoints(6.9, {'right_elbow': (26.955, 51.211), 'right_wrist': (-1.526, -2.231)})
+    human.KeyJoints(7.0, {'right_elbow': (26.769, 70.933)})
+    human.KeyJoints(7.1, {'right_elbow': (26.691, 79.835)})
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=6.275379, duration=0.072)
+    human.Grasp('right_hand', 'close', start=7.186814, duration=0.072)
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TA on l_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
-    human.LookAt((-35.0, 5.0, 80.0), start=6.275379, duration=1.618047)
-    human.KeyJoints(6.3, {
-        'spine_lumbar': (40.183, 15.96, 13.166), 'spine_thoracic': (-7.448, 8.98, 21.56),
-        'neck': (35.0, 28.747, -19.153), 'right_clavicle': (-9.672, 13.003),
-        'right_shoulder': (32.839, 17.451, 6.38), 'right_elbow': (26.835, 80.0),
-        'right_wrist': (-1.502, -2.222), 'left_clavicle': (-0.041, 0.063),
-        'left_shoulder': (8.725, 5.717, 11.454), 'left_elbow': (34.37, 17.189),
-        'left_wrist': (0.0, -0.004),
-    })
-    human.KeyJoints(6.4, {
-        'spine_lumbar': (42.011, 14.909, 12.256), 'spine_thoracic': (-8.145, 8.672, 20.909),
-        'neck': (35.0, 29.738, -17.461), 'right_clavicle': (-9.682, 13.187),
-        'right_shoulder': (32.213, 15.847, 6.798), 'right_elbow': (30.059, 80.0),
-        'right_wrist': (-2.351, -1.955), 'left_clavicle': (-0.939, 1.441),
-        'left_shoulder': (11.579, 5.438, 11.342), 'left_elbow': (34.213, 17.187),
-    })
-    human.KeyJoints(6.5, {
-        'spine_lumbar': (45.58, 12.859, 10.481), 'spine_thoracic': (-9.505, 8.072, 19.639),
-        'neck': (35.0, 32.494, -14.275), 'head': (15.0, -11.25),
-        'right_shoulder': (31.127, 12.744, 7.627), 'right_elbow': (36.023, 80.0),
-        'right_wrist': (-3.938, -1.368), 'left_clavicle': (-2.693, 4.131),
-        'left_shoulder': (17.152, 4.895, 11.098), 'left_wrist': (-0.045, -0.244),
-    })
-    human.KeyJoints(6.6, {
-        'neck': (35.0, 33.75, -10.064), 'head': (15.0, -11.12), 'right_elbow': (42.699, 80.0),
-    })
-    human.KeyJoints(6.7, {
-        'spine_lumbar': (54.469, 7.752, 6.058), 'spine_thoracic': (-12.892, 6.578, 16.474),
-        'neck': (35.0, 33.75, -6.769), 'head': (15.0, -11.25),
-        'right_shoulder': (29.104, 5.127, 9.796), 'right_elbow': (49.081, 80.0),
-        'right_wrist': (-7.402, 0.336), 'left_clavicle': (-7.06, 10.831),
-        'left_shoulder': (31.033, 3.54, 10.307),
-    })
-    human.KeyJoints(6.8, {
-        'spine_lumbar': (58.054, 5.692, 4.274), 'spine_thoracic': (-14.258, 5.975, 15.197),
-        'neck': (35.0, 33.75, -3.33), 'right_clavicle': (-9.772, 14.804),
-        'right_shoulder': (28.312, 2.199, 10.759), 'right_elbow': (54.081, 80.0),
-        'right_wrist': (-8.785, 1.137), 'left_clavicle': (-8.821, 13.533),
-        'left_shoulder': (36.631, 2.994, 9.808), 'left_elbow': (32.831, 17.173),
-        'left_wrist': (-0.37, -0.799),
-    })
-    human.KeyJoints(6.9, {
-        'spine_lumbar': (59.908, 4.627, 3.352), 'spine_thoracic': (-14.965, 5.664, 14.537),
-        'neck': (35.0, 33.191, -1.477), 'right_clavicle': (-9.782, 14.991),
-        'right_shoulder': (27.909, 0.768, 11.34), 'right_elbow': (56.61, 80.0),
-        'right_wrist': (-9.59, 1.606), 'left_clavicle': (-9.733, 14.931),
-        'left_shoulder': (39.528, 2.711, 9.269), 'left_elbow': (32.671, 17.171),
-        'left_wrist': (-0.583, -0.881),
-    })
-    # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
-    human.KeyJoints(7.0, {
-        'neck': (35.0, 32.941, -1.342), 'right_elbow': (56.735, 80.0),
-        'left_shoulder': (33.561, 4.105, 9.013), 'left_elbow': (51.44, 17.256),
-        'left_wrist': (-2.29, 3.429),
-    })
-    # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=7.088459, duration=0.072)
-    human.KeyJoints(7.1, {
-        'spine_lumbar': (60.0, 4.574, 3.306), 'neck': (35.0, 32.941, -1.342),
-        'head': (15.0, -11.167), 'right_shoulder': (27.889, 0.698, 11.368),
-        'right_elbow': (56.735, 80.0), 'right_wrist': (-9.629, 1.629),
-        'left_shoulder': (24.08, 6.162, 8.66), 'left_elbow': (64.193, 17.313),
-        'left_wrist': (-3.624, 6.788),
-    })
-    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
+    human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
     human.KeyJoints(7.2, {
-        'neck': (35.0, 32.653, -2.384), 'head': (14.807, -11.155),
-        'right_shoulder': (28.507, 1.585, 10.287), 'right_elbow': (54.066, 78.997),
-        'right_wrist': (-10.626, 1.972), 'left_clavicle': (-9.778, 15.0),
+        'spine_lumbar': (40.124, 15.994, 13.195), 'spine_thoracic': (-7.426, 8.99, 21.581),
+        'neck': (35.0, 28.698, -19.258), 'right_clavicle': (-9.671, 12.997),
+        'right_shoulder': (32.858, 17.503, 6.367), 'right_elbow': (26.732, 80.0),
+        'right_wrist': (-1.475, -2.231), 'left_clavicle': (-0.012, 0.018),
+        'left_shoulder': (8.632, 5.726, 11.458), 'left_elbow': (34.375, 17.189),
+        'left_wrist': (0.0, -0.001),
     })
     human.KeyJoints(7.3, {
-        'neck': (35.0, 29.994, -11.984), 'head': (13.032, -11.04),
-        'right_shoulder': (22.895, 7.663, 2.096), 'right_elbow': (54.244, 70.365),
-        'right_wrist': (-25.419, 6.377),
+        'spine_lumbar': (41.698, 15.089, 12.412), 'spine_thoracic': (-8.026, 8.725, 21.021),
+        'neck': (35.0, 29.51, -17.702), 'right_clavicle': (-9.68, 13.155),
+        'right_shoulder': (32.326, 16.12, 6.726), 'right_elbow': (29.5, 80.0),
+        'right_wrist': (-2.203, -2.003), 'left_clavicle': (-0.785, 1.204),
+        'left_shoulder': (11.09, 5.486, 11.362), 'left_elbow': (34.24, 17.187),
     })
     human.KeyJoints(7.4, {
-        'neck': (35.0, 26.164, -25.816), 'head': (10.474, -10.876),
-        'right_shoulder': (18.326, 15.683, -8.748), 'right_elbow': (53.415, 60.008),
-        'right_wrist': (-43.245, 11.726),
+        'spine_lumbar': (45.111, 13.128, 10.714), 'spine_thoracic': (-9.326, 8.151, 19.805),
+        'neck': (35.0, 32.15, -14.688), 'head': (15.0, -11.25),
+        'right_shoulder': (31.253, 13.151, 7.517), 'right_elbow': (35.277, 80.0),
+        'right_wrist': (-3.74, -1.449), 'left_clavicle': (-2.462, 3.778),
+        'left_shoulder': (16.421, 4.966, 11.132), 'left_wrist': (-0.039, -0.223),
     })
     human.KeyJoints(7.5, {
-        'neck': (35.0, 23.156, -36.676), 'head': (8.466, -10.746),
-        'right_shoulder': (18.798, 23.023, -18.701), 'right_elbow': (49.099, 53.163),
-        'right_wrist': (-55.49, 15.472), 'left_elbow': (64.051, 17.313),
+        'spine_lumbar': (49.497, 10.608, 8.531), 'neck': (35.0, 33.75, -10.495),
+        'head': (15.0, -11.129), 'right_clavicle': (-9.724, 13.941), 'right_elbow': (41.929, 80.0),
+        'left_shoulder': (23.27, 4.298, 10.79), 'left_elbow': (33.568, 17.18),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (60.0, 4.574, 3.306), 'spine_thoracic': (-15.0, 5.648, 14.504),
-        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721), 'right_clavicle': (-9.783, 15.0),
-        'right_shoulder': (20.174, 31.127, -29.51), 'right_elbow': (38.125, 47.148),
-        'right_wrist': (-66.057, 18.762),
+        'spine_lumbar': (53.988, 8.028, 6.297), 'spine_thoracic': (-12.709, 6.659, 16.645),
+        'neck': (35.0, 33.75, -7.2), 'head': (15.0, -11.25),
+        'right_shoulder': (29.211, 5.53, 9.675), 'right_elbow': (48.401, 80.0),
+        'right_wrist': (-7.222, 0.236), 'left_clavicle': (-6.824, 10.468),
+        'left_shoulder': (30.282, 3.613, 10.361),
     })
-    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, 4.782, 3.657), 'spine_thoracic': (-14.714, 5.969, 14.753),
-        'neck': (34.939, 22.242, -39.329), 'head': (7.799, -10.577),
-        'right_clavicle': (-9.949, 15.0), 'right_shoulder': (20.788, 34.261, -33.88),
-        'right_elbow': (30.89, 44.831), 'right_wrist': (-69.9, 19.984),
+        'spine_lumbar': (57.715, 5.887, 4.443), 'spine_thoracic': (-14.129, 6.032, 15.318),
+        'neck': (35.0, 33.75, -3.603), 'right_clavicle': (-9.77, 14.77),
+        'right_shoulder': (28.384, 2.463, 10.653), 'right_elbow': (53.618, 80.0),
+        'right_wrist': (-8.638, 1.052), 'left_clavicle': (-8.655, 13.278),
+        'left_shoulder': (36.103, 3.046, 9.867), 'left_elbow': (32.86, 17.173),
+        'left_wrist': (-0.349, -0.784),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (60.0, 10.416, 6.612), 'spine_thoracic': (-13.352, 8.067, 17.092),
-        'neck': (34.862, 20.294, -43.042), 'head': (6.389, -9.638),
-        'right_clavicle': (-7.717, 15.0), 'right_shoulder': (22.511, 38.869, -34.812),
-        'right_elbow': (27.891, 44.291), 'right_wrist': (-66.893, 18.984),
-        'left_shoulder': (24.17, 6.143, 8.665),
+        'spine_lumbar': (59.811, 4.682, 3.4), 'spine_thoracic': (-14.928, 5.68, 14.571),
+        'neck': (35.0, 33.356, -1.593), 'right_clavicle': (-9.782, 14.981),
+        'right_shoulder': (27.93, 0.842, 11.309), 'right_elbow': (56.478, 80.0),
+        'right_wrist': (-9.548, 1.581), 'left_clavicle': (-9.685, 14.858),
+        'left_shoulder': (39.376, 2.726, 9.332), 'left_elbow': (32.68, 17.171),
+        'left_wrist': (-0.556, -0.877),
+    })
+    # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
+    human.KeyJoints(7.9, {
+        'spine_lumbar': (60.0, 4.574, 3.306), 'neck': (35.0, 32.941, -1.342),
+        'right_shoulder': (27.889, 0.698, 11.368), 'right_elbow': (56.735, 80.0),
+        'left_clavicle': (-9.778, 15.0), 'left_shoulder': (34.699, 3.981, 8.97),
+        'left_elbow': (47.036, 17.232), 'left_wrist': (-1.923, 2.354), 'right_toes': (86.982,),
+    })
+    # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
+    human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
+    human.KeyJoints(8.0, {
+        'neck': (35.0, 32.941, -1.342), 'head': (15.0, -11.167),
+        'right_shoulder': (27.889, 0.698, 11.368), 'right_elbow': (56.735, 80.0),
+        'right_wrist': (-9.629, 1.629), 'left_shoulder': (24.08, 6.162, 8.66),
+        'left_elbow': (64.193, 17.313), 'left_wrist': (-3.624, 6.788),
+    })
+    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
+    human.KeyJoints(8.1, {
+        'spine_thoracic': (-15.0, 5.648, 14.504), 'neck': (35.0, 32.792, -1.879),
+        'head': (14.901, -11.161), 'right_shoulder': (28.578, 1.213, 10.764),
+        'right_elbow': (54.597, 79.48), 'right_wrist': (-9.946, 1.761),
+    })
+    human.KeyJoints(8.2, {
+        'neck': (35.0, 30.395, -10.537), 'head': (13.3, -11.058),
+        'right_shoulder': (23.751, 6.786, 3.288), 'right_elbow': (54.017, 71.605),
+        'right_wrist': (-23.231, 5.729),
+    })
+    human.KeyJoints(8.3, {
+        'neck': (35.0, 26.598, -24.249), 'head': (10.764, -10.894),
+        'right_shoulder': (18.344, 14.809, -7.58), 'right_elbow': (53.997, 61.001),
+        'right_wrist': (-41.633, 11.231),
+    })
+    human.KeyJoints(8.4, {
+        'neck': (35.0, 23.395, -35.814), 'head': (8.625, -10.756),
+        'right_shoulder': (18.67, 22.057, -17.402), 'right_elbow': (50.078, 53.944),
+        'right_wrist': (-54.098, 15.042),
+    })
+    human.KeyJoints(8.5, {
+        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721),
+        'right_shoulder': (20.022, 30.333, -28.455), 'right_elbow': (39.406, 47.708),
+        'right_wrist': (-65.086, 18.458), 'left_elbow': (64.051, 17.313),
+    })
+    human.KeyJoints(8.6, {
+        'spine_lumbar': (60.0, 4.574, 3.306), 'spine_thoracic': (-15.0, 5.648, 14.504),
+        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721), 'right_clavicle': (-9.783, 15.0),
+        'right_shoulder': (20.851, 34.461, -33.928), 'right_elbow': (31.164, 44.836),
+        'right_wrist': (-70.0, 20.0),
+    })
+    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
+    human.KeyJoints(8.7, {
+        'spine_lumbar': (60.0, 9.738, 6.239), 'spine_thoracic': (-13.508, 7.819, 16.792),
+        'neck': (34.849, 20.482, -42.571), 'head': (6.576, -9.726),
+        'right_clavicle': (-8.027, 15.0), 'right_shoulder': (22.291, 38.285, -34.704),
+        'right_elbow': (28.244, 44.354), 'right_wrist': (-67.266, 19.107),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=7.821426, duration=0.072)
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
-    human.LookAt((-40.0, 10.0, 60.0), start=7.893426, duration=0.2628)
-    human.KeyJoints(7.9, {
+    human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
+    human.KeyJoints(8.8, {
         'spine_lumbar': (60.0, 11.591, 7.168), 'spine_thoracic': (-13.102, 8.444, 17.534),
-        'neck': (34.866, 20.055, -43.728), 'head': (6.071, -9.547),
-        'right_clavicle': (-7.103, 15.0), 'right_shoulder': (22.945, 39.994, -35.009),
-        'right_elbow': (27.218, 44.176), 'right_wrist': (-66.161, 18.747), 'right_toes': (86.982,),
+        'neck': (34.866, 20.052, -43.706), 'head': (6.054, -9.544),
+        'right_clavicle': (-7.103, 15.0), 'right_shoulder': (22.947, 39.995, -35.008),
+        'right_elbow': (27.216, 44.176), 'right_wrist': (-66.159, 18.747),
+        'left_shoulder': (24.17, 6.143, 8.665),
     })
-    human.KeyJoints(8.0, {'neck': (34.823, 20.664, -48.08), 'head': (9.239, -10.148)})
-    human.KeyJoints(8.1, {
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
+    human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.2628)
+    human.KeyJoints(8.9, {'neck': (34.832, 20.559, -47.33), 'head': (8.692, -10.045)})
+    human.KeyJoints(9.0, {
         'spine_lumbar': (60.0, 11.591, 7.168), 'spine_thoracic': (-13.102, 8.444, 17.534),
-        'neck': (34.699, 21.552, -54.426), 'head': (13.886, -11.024),
+        'neck': (34.717, 21.472, -53.855), 'head': (13.465, -10.945),
         'left_shoulder': (24.17, 6.143, 8.665), 'left_elbow': (64.051, 17.313),
         'left_wrist': (-3.609, 6.749),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=8.156226, duration=2.069192)
-    human.KeyJoints(8.2, {
-        'spine_lumbar': (60.0, 11.705, 6.866), 'spine_thoracic': (-13.034, 8.238, 16.886),
-        'neck': (34.282, 21.695, -55.132), 'head': (14.998, -11.201),
-        'left_shoulder': (24.389, 6.152, 8.887), 'left_elbow': (63.589, 17.805),
-        'left_wrist': (-4.41, 6.93),
-    })
-    human.KeyJoints(8.3, {
-        'spine_lumbar': (60.0, 12.69, 4.27), 'spine_thoracic': (-12.417, 6.466, 11.319),
-        'neck': (31.991, 21.96, -49.168), 'left_clavicle': (-9.72, 15.0),
-        'left_shoulder': (26.277, 6.256, 10.803), 'left_elbow': (59.555, 22.031),
-        'left_wrist': (-11.3, 8.482),
-    })
-    human.KeyJoints(8.4, {
-        'spine_lumbar': (60.0, 14.36, -0.133), 'spine_thoracic': (-11.282, 3.461, 1.878),
-        'neck': (29.577, 23.954, -38.316), 'left_shoulder': (29.478, 6.506, 14.051),
-        'left_elbow': (52.511, 29.199), 'left_wrist': (-22.984, 11.114),
-    })
-    human.KeyJoints(8.5, {
-        'spine_lumbar': (60.0, 16.321, -5.301), 'spine_thoracic': (-9.781, -0.066, -9.204),
-        'neck': (29.294, 29.082, -24.857), 'right_wrist': (-66.252, 18.764),
-        'left_clavicle': (-9.384, 15.0), 'left_shoulder': (33.235, 6.942, 17.864),
-        'left_elbow': (43.858, 37.612), 'left_wrist': (-36.698, 14.203),
-    })
-    human.KeyJoints(8.6, {
-        'spine_lumbar': (60.0, 18.177, -10.194), 'spine_thoracic': (-8.064, -3.405, -19.694),
-        'neck': (33.461, 33.75, -10.496), 'head': (15.0, -11.25), 'right_elbow': (27.304, 44.176),
-        'left_clavicle': (-9.069, 15.0), 'left_shoulder': (36.792, 7.602, 21.474),
-        'left_elbow': (34.996, 45.576), 'left_wrist': (-49.68, 17.127),
-    })
-    human.KeyJoints(8.7, {
-        'spine_lumbar': (60.0, 19.533, -13.769), 'spine_thoracic': (-6.282, -5.845, -27.36),
-        'neck': (35.0, 31.236, -0.225), 'head': (15.0, -10.046), 'left_clavicle': (-8.632, 15.0),
-        'left_shoulder': (39.391, 8.524, 24.112), 'left_elbow': (27.323, 51.395),
-        'left_wrist': (-59.168, 19.264),
-    })
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
-    human.KeyJoints(8.8, {
-        'spine_lumbar': (60.0, 20.0, -14.722), 'spine_thoracic': (-4.576, -6.52, -29.72),
-        'neck': (35.0, -7.194, 8.642), 'head': (15.0, 11.25), 'left_clavicle': (-7.901, 14.697),
-        'left_shoulder': (40.203, 10.135, 24.897), 'left_elbow': (22.25, 53.346),
-        'left_wrist': (-62.408, 19.939),
-    })
-    human.KeyJoints(8.9, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (0.755, -9.849, -30.0),
-        'neck': (35.0, 12.243, 9.077), 'head': (15.0, 9.519), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (47.121, 14.616, 23.032), 'left_elbow': (14.956, 52.3),
-        'left_wrist': (-55.158, 17.281),
-    })
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=8.949414, duration=0.2628)
-    human.KeyJoints(9.0, {
-        'spine_thoracic': (6.618, -10.0, -30.0), 'neck': (34.331, 33.75, 7.559),
-        'head': (15.0, -11.25), 'left_shoulder': (56.358, 12.609, 22.942),
-        'left_elbow': (9.02, 52.073), 'left_wrist': (-45.588, 14.719),
+    human.LookAt((10.0, 25.0, 95.0), start=9.067661, duration=2.069192)
+    human.KeyJoints(9.1, {
+        'spine_lumbar': (60.0, 11.654, 7.001), 'spine_thoracic': (-13.064, 8.33, 17.176),
+        'neck': (34.397, 21.709, -55.414), 'head': (14.994, -11.206),
+        'left_shoulder': (24.291, 6.148, 8.788), 'left_elbow': (63.796, 17.585),
+        'left_wrist': (-4.051, 6.849),
     })
     human.KeyJoints(9.2, {
-        'neck': (34.331, 33.75, 7.559), 'head': (15.0, -11.25),
+        'spine_lumbar': (60.0, 12.535, 4.678), 'spine_thoracic': (-12.517, 6.744, 12.194),
+        'neck': (32.248, 21.911, -50.134), 'left_clavicle': (-9.729, 15.0),
+        'left_shoulder': (25.98, 6.237, 10.502), 'left_elbow': (60.195, 21.367),
+        'left_wrist': (-10.217, 8.238),
+    })
+    human.KeyJoints(9.3, {
+        'spine_lumbar': (60.0, 14.147, 0.429), 'spine_thoracic': (-11.434, 3.844, 3.083),
+        'neck': (29.757, 23.595, -39.729), 'left_shoulder': (29.069, 6.469, 13.637),
+        'left_elbow': (53.424, 28.284), 'left_wrist': (-21.493, 10.778),
+    })
+    human.KeyJoints(9.4, {
+        'spine_lumbar': (60.0, 16.095, -4.705), 'spine_thoracic': (-9.966, 0.341, -7.924),
+        'neck': (29.235, 28.28, -26.441), 'right_elbow': (27.304, 44.176),
+        'right_wrist': (-66.252, 18.764), 'left_clavicle': (-9.414, 15.0),
+        'left_shoulder': (32.801, 6.882, 17.424), 'left_elbow': (44.885, 36.641),
+        'left_wrist': (-35.115, 13.846),
+    })
+    human.KeyJoints(9.5, {
+        'spine_lumbar': (60.0, 17.982, -9.681), 'spine_thoracic': (-8.266, -3.055, -18.595),
+        'neck': (32.88, 33.732, -12.032), 'left_clavicle': (-9.11, 15.0),
+        'left_shoulder': (36.419, 7.514, 21.096), 'left_elbow': (35.975, 44.742),
+        'left_wrist': (-48.321, 16.821),
+    })
+    human.KeyJoints(9.6, {
+        'spine_lumbar': (60.0, 19.416, -13.46), 'spine_thoracic': (-6.484, -5.634, -26.697),
+        'neck': (35.0, 33.75, -1.832), 'head': (15.0, -11.25), 'left_clavicle': (-8.689, 15.0),
+        'left_shoulder': (39.166, 8.404, 23.884), 'left_elbow': (28.095, 50.892),
+        'left_wrist': (-58.348, 19.079),
+    })
+    human.KeyJoints(9.7, {
+        'spine_lumbar': (60.0, 20.0, -14.999), 'spine_thoracic': (-4.771, -6.685, -29.998),
+        'neck': (35.0, -8.611, 9.192), 'head': (15.0, 11.25), 'left_clavicle': (-8.131, 15.0),
+        'left_shoulder': (40.285, 9.591, 25.019), 'left_elbow': (22.645, 53.398),
+        'left_wrist': (-62.433, 20.0),
+    })
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
+    human.KeyJoints(9.8, {
+        'spine_thoracic': (-0.329, -9.259, -30.0), 'neck': (34.309, -0.41, 9.576),
+        'head': (14.513, 11.185), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (45.444, 14.696, 23.119), 'left_elbow': (16.246, 52.387),
+        'left_wrist': (-56.858, 17.748),
+    })
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
+    human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
+    human.KeyJoints(9.9, {
+        'spine_thoracic': (6.618, -10.0, -30.0), 'neck': (31.613, 0.298, 9.832),
+        'head': (12.542, 11.006), 'left_shoulder': (56.358, 12.609, 22.942),
+        'left_elbow': (9.02, 52.073), 'left_wrist': (-45.588, 14.719),
+    })
+    human.KeyJoints(10.1, {
+        'neck': (31.613, 0.298, 9.832), 'head': (12.542, 11.006),
         'left_shoulder': (56.358, 12.609, 22.942), 'left_elbow': (9.02, 52.073),
         'left_wrist': (-45.588, 14.719),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
-    human.KeyJoints(9.3, {
-        'neck': (34.405, 29.1, 14.079), 'head': (15.0, -8.751),
-        'left_shoulder': (51.312, 14.356, 18.75), 'left_elbow': (20.418, 51.239),
-        'left_wrist': (-47.559, 14.984),
+    human.KeyJoints(10.2, {
+        'neck': (31.903, -0.423, 14.672), 'head': (12.753, 11.027),
+        'right_shoulder': (22.884, 39.943, -35.018), 'left_shoulder': (52.47, 13.959, 19.714),
+        'left_elbow': (17.855, 51.432), 'left_wrist': (-47.122, 14.927),
     })
-    human.KeyJoints(9.4, {
-        'neck': (34.609, 16.36, 31.944), 'head': (15.0, -1.903),
-        'left_shoulder': (36.887, 19.157, 6.724), 'left_elbow': (50.136, 48.787),
-        'left_wrist': (-52.64, 15.638),
+    human.KeyJoints(10.3, {
+        'neck': (32.885, -2.861, 31.033), 'head': (13.466, 11.098),
+        'left_shoulder': (38.826, 18.527, 8.34), 'left_elbow': (46.385, 49.122),
+        'left_wrist': (-51.994, 15.556),
     })
-    human.KeyJoints(9.5, {
-        'neck': (34.838, 2.034, 52.032), 'head': (15.0, 5.797),
-        'right_shoulder': (22.884, 39.943, -35.018), 'left_shoulder': (18.989, 24.647, -8.188),
-        'left_elbow': (79.906, 45.599), 'left_wrist': (-57.866, 16.282),
+    human.KeyJoints(10.4, {
+        'neck': (34.057, -5.77, 50.55), 'head': (14.316, 11.182),
+        'left_shoulder': (21.018, 24.061, -6.497), 'left_elbow': (77.092, 45.972),
+        'left_wrist': (-57.36, 16.223),
     })
-    human.KeyJoints(9.6, {
-        'neck': (34.987, -7.267, 65.074), 'head': (15.0, 10.796),
-        'left_shoulder': (3.533, 28.443, -20.994), 'left_elbow': (91.417, 42.553),
-        'left_wrist': (-60.286, 16.505),
+    human.KeyJoints(10.5, {
+        'neck': (34.883, -7.821, 64.313), 'head': (14.915, 11.242),
+        'left_shoulder': (5.062, 28.158, -19.754), 'left_elbow': (91.447, 42.882),
+        'left_wrist': (-60.215, 16.526),
     })
-    human.KeyJoints(9.7, {
-        'neck': (35.0, -8.111, 66.258), 'head': (15.0, 11.25),
-        'left_shoulder': (-12.081, 30.251, -32.262), 'left_elbow': (89.085, 38.843),
-        'left_wrist': (-60.688, 14.86),
+    human.KeyJoints(10.6, {
+        'neck': (35.0, -8.111, 66.258), 'left_shoulder': (-10.177, 30.089, -30.956),
+        'left_elbow': (89.498, 39.318), 'left_wrist': (-60.657, 15.151),
     })
-    human.KeyJoints(9.8, {
-        'left_shoulder': (-28.142, 31.543, -43.431), 'left_elbow': (84.812, 34.7),
-        'left_wrist': (-60.897, 11.847),
+    human.KeyJoints(10.7, {
+        'head': (15.0, 11.25), 'left_shoulder': (-26.444, 31.389, -42.197),
+        'left_elbow': (85.319, 35.148), 'left_wrist': (-60.874, 12.204),
     })
-    human.KeyJoints(9.9, {
-        'left_shoulder': (-39.567, 33.329, -53.284), 'left_elbow': (81.121, 31.639),
-        'left_wrist': (-61.184, 9.244),
+    human.KeyJoints(10.8, {
+        'left_shoulder': (-38.657, 33.068, -52.263), 'left_elbow': (81.433, 31.886),
+        'left_wrist': (-61.139, 9.464),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
-    human.KeyJoints(10.0, {
-        'left_shoulder': (-41.887, 37.788, -60.42), 'left_elbow': (82.43, 31.031),
-        'left_wrist': (-62.106, 8.755),
+    human.KeyJoints(10.9, {
+        'left_shoulder': (-41.98, 36.822, -59.781), 'left_elbow': (81.475, 30.997),
+        'left_wrist': (-61.884, 8.697),
     })
-    human.KeyJoints(10.1, {
-        'left_shoulder': (-41.13, 43.646, -69.704), 'left_elbow': (90.198, 30.964),
-        'left_wrist': (-64.823, 8.898),
+    human.KeyJoints(11.0, {
+        'left_shoulder': (-41.221, 43.519, -68.163), 'left_elbow': (89.19, 31.024),
+        'left_wrist': (-64.328, 8.924),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=10.153418, duration=0.072)
-    human.KeyJoints(10.2, {
+    human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
+    human.KeyJoints(11.1, {
         'neck': (35.0, -8.111, 66.258), 'left_shoulder': (-40.997, 39.949, -75.438),
         'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=10.225418, duration=0.2628)
-    human.KeyJoints(10.3, {'neck': (35.0, -7.954, 66.245)})
-    human.KeyJoints(10.4, {
-        'neck': (35.0, -7.52, 66.173), 'right_shoulder': (22.884, 39.943, -35.018),
-    })
+    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.2628)
+    human.KeyJoints(11.2, {'neck': (35.0, -7.995, 66.249)})
+    human.KeyJoints(11.3, {'neck': (35.0, -7.568, 66.185)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=10.488218, duration=0.719288)
-    human.KeyJoints(10.5, {
-        'spine_lumbar': (60.0, 19.95, -14.974), 'spine_thoracic': (6.598, -9.975, -29.977),
-        'neck': (34.999, -7.392, 65.948), 'head': (15.0, 11.25), 'right_clavicle': (-7.107, 15.0),
-        'right_shoulder': (22.907, 39.874, -34.993), 'right_elbow': (27.305, 44.184),
-        'right_wrist': (-66.231, 18.76),
-    })
-    human.KeyJoints(10.6, {
-        'spine_lumbar': (60.0, 16.058, -12.956), 'spine_thoracic': (5.043, -8.029, -28.171),
-        'neck': (33.88, -7.788, 61.658), 'head': (14.692, 11.217), 'right_clavicle': (-7.389, 15.0),
-        'right_shoulder': (24.723, 34.481, -33.02), 'right_elbow': (27.376, 44.836),
-        'right_wrist': (-64.595, 18.413),
-    })
-    human.KeyJoints(10.7, {
-        'spine_lumbar': (60.0, 7.734, -8.638), 'spine_thoracic': (1.603, -3.867, -24.297),
-        'neck': (31.025, -8.04, 51.441), 'head': (14.554, 11.081), 'right_clavicle': (-7.992, 15.0),
-        'right_shoulder': (28.686, 22.825, -28.752), 'right_elbow': (27.556, 46.249),
-        'right_wrist': (-61.095, 17.67),
-    })
-    human.KeyJoints(10.8, {
-        'spine_lumbar': (60.0, -2.504, -3.329), 'spine_thoracic': (-2.867, 1.252, -19.51),
-        'neck': (27.995, -9.971, 37.537), 'head': (14.967, 11.212),
-        'right_shoulder': (33.729, 8.235, -23.395), 'right_wrist': (-56.79, 16.757),
-    })
-    human.KeyJoints(10.9, {
-        'spine_lumbar': (60.0, -12.135, 1.666), 'spine_thoracic': (-7.513, 6.067, -14.967),
-        'neck': (27.329, -15.054, 23.96), 'right_clavicle': (-9.43, 15.0),
-        'right_shoulder': (38.783, -5.961, -18.159), 'right_elbow': (28.2, 49.763),
-        'right_wrist': (-52.741, 15.898),
-    })
-    human.KeyJoints(11.0, {
-        'spine_lumbar': (60.0, -18.64, 5.04), 'spine_thoracic': (-11.483, 9.32, -11.821),
-        'neck': (29.064, -20.441, 13.683), 'right_clavicle': (-9.902, 15.0),
-        'right_shoulder': (42.783, -16.436, -14.251), 'right_elbow': (28.646, 51.069),
-        'right_wrist': (-50.006, 15.317),
-    })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
-    human.KeyJoints(11.1, {
-        'spine_lumbar': (58.759, -19.786, 5.683), 'spine_thoracic': (-14.035, 10.0, -11.02),
-        'neck': (31.241, -23.332, 11.454), 'right_clavicle': (-10.0, 15.0),
-        'right_shoulder': (44.783, -20.234, -12.731), 'right_elbow': (29.362, 51.594),
-        'right_wrist': (-49.535, 15.343),
-    })
-    human.KeyJoints(11.2, {
-        'spine_lumbar': (54.705, -19.026, 5.472), 'spine_thoracic': (-12.808, 9.897, -11.408),
-        'neck': (31.618, -23.425, 13.008), 'right_clavicle': (-9.072, 14.364),
-        'right_shoulder': (41.599, -22.453, -12.373), 'right_elbow': (29.091, 51.683),
-        'right_wrist': (-50.321, 15.654),
-    })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=11.207505, duration=0.072)
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.3, {
-        'spine_lumbar': (54.52, -18.971, 5.425), 'neck': (31.689, -23.388, 13.263),
-        'right_shoulder': (41.289, -22.49, -12.396), 'right_elbow': (29.193, 52.561),
-        'right_wrist': (-50.469, 15.684),
-    })
+    human.LookAt((10.0, 25.0, 95.0), start=11.399653, duration=0.719288)
     human.KeyJoints(11.4, {
-        'spine_thoracic': (-12.72, 9.879, -11.469), 'right_clavicle': (-8.996, 14.294),
-        'right_shoulder': (40.743, -20.833, -13.031), 'right_elbow': (28.927, 70.834),
-        'right_wrist': (-50.347, 15.398),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (6.617, -10.0, -30.0),
+        'neck': (35.0, -7.309, 66.034), 'head': (15.0, 11.25), 'right_clavicle': (-7.103, 15.0),
+        'right_shoulder': (22.884, 39.942, -35.017), 'right_elbow': (27.304, 44.176),
+        'right_wrist': (-66.252, 18.764),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.5, {
-        'right_shoulder': (40.636, -20.385, -13.199), 'right_elbow': (28.968, 75.57),
-        'right_wrist': (-50.357, 15.337),
+        'spine_lumbar': (60.0, 16.775, -13.327), 'spine_thoracic': (5.332, -8.387, -28.504),
+        'neck': (34.132, -7.787, 62.483), 'right_clavicle': (-7.337, 15.0),
+        'right_shoulder': (24.386, 35.477, -33.385), 'right_elbow': (27.362, 44.716),
+        'right_wrist': (-64.896, 18.477),
     })
     human.KeyJoints(11.6, {
-        'right_shoulder': (42.817, -25.1, -11.415), 'right_elbow': (31.744, 15.525),
-        'right_wrist': (-51.581, 16.662),
+        'spine_lumbar': (60.0, 8.83, -9.207), 'spine_thoracic': (2.065, -4.415, -24.807),
+        'neck': (31.384, -7.977, 52.833), 'head': (14.508, 11.109),
+        'right_clavicle': (-7.912, 15.0), 'right_shoulder': (28.158, 24.369, -29.318),
+        'right_elbow': (27.53, 46.061), 'right_wrist': (-61.555, 17.768),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.7, {
-        'right_shoulder': (43.657, -25.84, -11.172), 'right_elbow': (33.97, -3.603),
-        'right_wrist': (-52.754, 17.493),
+        'spine_lumbar': (60.0, -1.316, -3.945), 'spine_thoracic': (-2.331, 0.658, -20.067),
+        'neck': (28.266, -9.478, 39.224), 'head': (14.936, 11.18),
+        'right_shoulder': (33.131, 9.946, -24.025), 'right_wrist': (-57.29, 16.863),
     })
     human.KeyJoints(11.8, {
-        'right_shoulder': (41.099, -22.021, -12.578), 'right_elbow': (29.06, 57.949),
-        'right_wrist': (-50.418, 15.594),
+        'spine_lumbar': (60.0, -11.144, 1.152), 'spine_thoracic': (-7.0, 5.572, -15.437),
+        'neck': (27.241, -14.365, 25.422), 'right_clavicle': (-9.359, 15.0),
+        'right_shoulder': (38.239, -4.464, -18.713), 'right_elbow': (28.154, 49.579),
+        'right_wrist': (-53.158, 15.986),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.9, {
-        'right_shoulder': (40.731, -20.786, -13.049), 'right_elbow': (28.929, 71.334),
-        'right_wrist': (-50.347, 15.391),
+        'spine_lumbar': (60.0, -18.135, 4.778), 'spine_thoracic': (-11.09, 9.067, -12.074),
+        'neck': (28.786, -19.921, 14.542), 'head': (14.972, 11.218),
+        'right_clavicle': (-9.865, 15.0), 'right_shoulder': (42.413, -15.532, -14.592),
+        'right_elbow': (28.592, 50.954), 'right_wrist': (-50.218, 15.363),
     })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.0, {
-        'right_shoulder': (43.119, -25.418, -11.306), 'right_elbow': (32.474, 8.736),
-        'right_wrist': (-51.94, 16.926),
+        'spine_lumbar': (59.289, -19.878, 5.71), 'spine_thoracic': (-13.852, 10.0, -11.032),
+        'neck': (30.997, -23.089, 11.385), 'right_clavicle': (-10.0, 15.0),
+        'right_shoulder': (44.672, -20.071, -12.797), 'right_elbow': (29.243, 51.571),
+        'right_wrist': (-49.487, 15.283),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.1, {
-        'right_shoulder': (43.45, -25.7, -11.214), 'right_elbow': (33.362, 1.212),
-        'right_wrist': (-52.41, 17.258),
+        'spine_lumbar': (55.191, -19.118, 5.483), 'spine_thoracic': (-13.011, 9.913, -11.37),
+        'neck': (31.557, -23.433, 12.793), 'right_clavicle': (-9.212, 14.438),
+        'right_shoulder': (42.073, -22.173, -12.411), 'right_elbow': (29.151, 51.675),
+        'right_wrist': (-50.22, 15.619),
     })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.2, {
-        'right_shoulder': (40.88, -21.446, -12.802), 'right_elbow': (29.003, 64.395),
-        'right_wrist': (-50.406, 15.501),
+        'spine_lumbar': (54.52, -18.971, 5.425), 'spine_thoracic': (-12.72, 9.879, -11.469),
+        'neck': (31.689, -23.388, 13.263), 'right_clavicle': (-8.996, 14.294),
+        'right_shoulder': (41.319, -22.561, -12.368), 'right_elbow': (29.221, 51.727),
+        'right_wrist': (-50.48, 15.699),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.3, {
-        'right_shoulder': (40.868, -21.285, -12.86), 'right_elbow': (28.933, 65.992),
-        'right_wrist': (-50.355, 15.466),
+        'right_shoulder': (41.135, -22.112, -12.543), 'right_elbow': (29.079, 56.918),
     })
-    human.KeyJoints(12.4, {
-        'right_shoulder': (43.386, -25.651, -11.23), 'right_elbow': (33.182, 2.685),
-        'right_wrist': (-52.312, 17.19),
+    human.KeyJoints(12.4, {'right_elbow': (28.928, 66.967)})
+    human.KeyJoints(12.5, {
+        'right_shoulder': (40.618, -20.302, -13.23), 'right_elbow': (28.98, 76.444),
+        'right_wrist': (-50.36, 15.326),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(12.5, {
-        'right_shoulder': (43.195, -25.489, -11.282), 'right_elbow': (32.668, 7.028),
-        'right_wrist': (-52.04, 16.998),
-    })
     human.KeyJoints(12.6, {
-        'right_shoulder': (40.763, -20.911, -13.002), 'right_elbow': (28.925, 69.998),
+        'right_shoulder': (40.554, -19.987, -13.346), 'right_elbow': (29.041, 79.758),
+        'right_wrist': (-50.38, 15.287),
+    })
+    human.KeyJoints(12.7, {
+        'right_shoulder': (40.942, -21.611, -12.738), 'right_elbow': (29.008, 62.557),
+        'right_wrist': (-50.404, 15.526),
+    })
+    human.KeyJoints(12.8, {
+        'right_shoulder': (42.16, -24.211, -11.738), 'right_elbow': (30.412, 30.427),
+        'right_wrist': (-50.979, 16.186),
+    })
+    human.KeyJoints(12.9, {
+        'right_shoulder': (43.476, -25.719, -11.209), 'right_elbow': (33.435, 0.621),
+        'right_wrist': (-52.45, 17.286),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(13.0, {
+        'right_shoulder': (43.95, -25.951, -11.134), 'right_elbow': (34.693, -9.627),
+        'right_wrist': (-53.184, 17.781),
+    })
+    human.KeyJoints(13.1, {
+        'right_shoulder': (43.14, -25.438, -11.299), 'right_elbow': (32.528, 8.259),
+        'right_wrist': (-51.968, 16.946),
+    })
+    human.KeyJoints(13.2, {
+        'right_shoulder': (41.72, -23.478, -12.018), 'right_elbow': (29.768, 40.567),
+        'right_wrist': (-50.718, 15.939),
+    })
+    human.KeyJoints(13.3, {
+        'right_shoulder': (40.762, -20.907, -13.003), 'right_elbow': (28.925, 70.044),
         'right_wrist': (-50.347, 15.409),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(12.7, {
-        'right_shoulder': (41.037, -21.862, -12.64), 'right_elbow': (29.033, 59.753),
-        'right_wrist': (-50.409, 15.566),
+    human.KeyJoints(13.4, {
+        'right_shoulder': (40.559, -20.015, -13.336), 'right_elbow': (29.035, 79.469),
+        'right_wrist': (-50.378, 15.29),
     })
-    human.KeyJoints(12.8, {
-        'right_shoulder': (43.607, -25.809, -11.181), 'right_elbow': (33.818, -2.419),
-        'right_wrist': (-52.666, 17.434),
+    human.KeyJoints(13.5, {
+        'right_shoulder': (40.997, -21.758, -12.681), 'right_elbow': (29.02, 60.912),
+        'right_wrist': (-50.406, 15.549),
+    })
+    human.KeyJoints(13.6, {
+        'right_shoulder': (42.246, -24.344, -11.688), 'right_elbow': (30.567, 28.441),
+        'right_wrist': (-51.046, 16.242),
+    })
+    human.KeyJoints(13.7, {
+        'right_shoulder': (43.533, -25.759, -11.196), 'right_elbow': (33.599, -0.691),
+        'right_wrist': (-52.542, 17.349),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(13.8, {
+        'right_shoulder': (43.896, -25.963, -11.138), 'right_elbow': (34.722, -9.283),
+        'right_wrist': (-53.208, 17.793),
+    })
+    human.KeyJoints(13.9, {
+        'right_shoulder': (43.066, -25.366, -11.323), 'right_elbow': (32.34, 9.929),
+        'right_wrist': (-51.873, 16.877),
+    })
+    human.KeyJoints(14.0, {
+        'right_shoulder': (41.649, -23.321, -12.077), 'right_elbow': (29.647, 42.548),
+        'right_wrist': (-50.663, 15.891),
+    })
+    human.KeyJoints(14.1, {
+        'right_shoulder': (40.731, -20.787, -13.049), 'right_elbow': (28.929, 71.321),
+        'right_wrist': (-50.347, 15.391),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(14.2, {
+        'right_shoulder': (40.566, -20.052, -13.322), 'right_elbow': (29.027, 79.071),
+        'right_wrist': (-50.375, 15.295),
+    })
+    human.KeyJoints(14.3, {
+        'right_shoulder': (41.055, -21.909, -12.622), 'right_elbow': (29.04, 59.218),
+        'right_wrist': (-50.411, 15.574),
+    })
+    human.KeyJoints(14.4, {
+        'right_shoulder': (42.332, -24.472, -11.641), 'right_elbow': (30.728, 26.466),
+        'right_wrist': (-51.116, 16.299),
+    })
+    human.KeyJoints(14.5, {
+        'right_shoulder': (43.586, -25.795, -11.185), 'right_elbow': (33.756, -1.932),
+        'right_wrist': (-52.631, 17.409),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(14.6, {
+        'right_shoulder': (43.877, -25.955, -11.14), 'right_elbow': (34.661, -8.833),
+        'right_wrist': (-53.17, 17.768),
+    })
+    human.KeyJoints(14.7, {
+        'right_shoulder': (42.99, -25.289, -11.349), 'right_elbow': (32.152, 11.646),
+        'right_wrist': (-51.779, 16.809),
+    })
+    human.KeyJoints(14.8, {
+        'right_shoulder': (41.578, -23.162, -12.137), 'right_elbow': (29.536, 44.516),
+        'right_wrist': (-50.614, 15.846),
+    })
+    human.KeyJoints(14.9, {
+        'right_shoulder': (40.703, -20.674, -13.091), 'right_elbow': (28.937, 72.525),
+        'right_wrist': (-50.348, 15.375),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(15.0, {
+        'right_shoulder': (40.576, -20.1, -13.304), 'right_elbow': (29.017, 78.57),
+        'right_wrist': (-50.372, 15.3),
+    })
+    human.KeyJoints(15.1, {
+        'right_shoulder': (41.116, -22.063, -12.562), 'right_elbow': (29.069, 57.48),
+        'right_wrist': (-50.421, 15.601),
+    })
+    human.KeyJoints(15.2, {
+        'right_shoulder': (42.418, -24.594, -11.596), 'right_elbow': (30.895, 24.506),
+        'right_wrist': (-51.19, 16.359),
+    })
+    human.KeyJoints(15.3, {
+        'right_shoulder': (43.636, -25.827, -11.176), 'right_elbow': (33.905, -3.098),
+        'right_wrist': (-52.716, 17.467),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=12.834705, duration=0.072)
-    human.KeyJoints(12.9, {
+    human.Grasp('right_hand', 'open', start=15.367411, duration=0.072)
+    human.KeyJoints(15.4, {
         'right_shoulder': (43.966, -25.957, -11.132), 'right_elbow': (34.742, -10.0),
         'right_wrist': (-53.215, 17.801),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=12.906705, duration=0.2628)
-    human.KeyJoints(13.0, {'neck': (31.694, -23.37, 13.262), 'right_elbow': (32.628, -10.0)})
-    human.KeyJoints(13.1, {
-        'right_shoulder': (41.997, -23.303, -12.088), 'right_elbow': (30.361, -10.0),
-        'right_wrist': (-51.011, 16.148),
+    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.2628)
+    human.KeyJoints(15.5, {
+        'neck': (31.694, -23.369, 13.262), 'right_shoulder': (43.349, -25.125, -11.432),
+        'right_elbow': (33.369, -10.0), 'right_wrist': (-52.524, 17.283),
+    })
+    human.KeyJoints(15.6, {
+        'right_shoulder': (42.33, -23.752, -11.927), 'right_elbow': (31.102, -10.0),
+        'right_wrist': (-51.384, 16.428),
+    })
+    human.KeyJoints(15.7, {
+        'right_shoulder': (41.419, -22.524, -12.369), 'right_elbow': (29.076, -10.0),
+        'right_wrist': (-50.365, 15.664),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(13.2, {
-        'right_shoulder': (41.43, -22.522, -12.368), 'right_elbow': (29.049, -9.991),
-        'right_wrist': (-50.39, 15.681),
-    })
-    human.KeyJoints(13.3, {'neck': (31.731, -23.243, 13.254)})
-    human.KeyJoints(16.1, {
+    human.KeyJoints(15.8, {'neck': (31.731, -23.243, 13.254)})
+    human.KeyJoints(18.7, {
         'spine_lumbar': (54.52, -18.971, 5.425), 'spine_thoracic': (-12.72, 9.879, -11.469),
         'right_clavicle': (-8.996, 14.294), 'right_shoulder': (41.419, -22.524, -12.369),
         'right_elbow': (29.076, -10.0), 'right_wrist': (-50.365, 15.664),
@@ -785,210 +846,200 @@ def replace_fuel_filter():
         'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
-    human.KeyJoints(16.2, {
-        'spine_lumbar': (52.974, -18.432, 5.268), 'spine_thoracic': (-12.245, 9.595, -11.079),
-        'right_clavicle': (-8.736, 13.808), 'right_shoulder': (40.6, -21.506, -12.54),
-        'right_elbow': (28.72, -9.165), 'right_wrist': (-48.247, 14.917),
-        'left_clavicle': (-9.711, 14.49), 'left_shoulder': (-39.295, 39.065, -73.492),
-        'left_elbow': (94.12, 30.719), 'left_wrist': (-65.686, 9.096),
+    human.KeyJoints(18.8, {
+        'spine_lumbar': (42.97, -14.863, 4.071), 'spine_thoracic': (-9.163, 7.423, -8.608),
+        'right_clavicle': (-6.752, 10.664), 'right_shoulder': (33.395, -14.929, -14.217),
+        'right_elbow': (29.91, -3.16), 'right_wrist': (-37.265, 11.498),
+        'left_clavicle': (-7.505, 11.191), 'left_shoulder': (-28.404, 31.863, -61.481),
+        'left_elbow': (80.503, 27.611), 'left_wrist': (-50.772, 7.003),
     })
-    human.KeyJoints(16.3, {
-        'spine_lumbar': (35.985, -12.291, 3.238), 'spine_thoracic': (-7.004, 5.911, -6.796),
-        'right_clavicle': (-5.37, 8.469), 'right_shoulder': (28.333, -10.305, -15.398),
-        'right_elbow': (30.812, 1.038), 'right_wrist': (-29.625, 9.137),
-        'left_clavicle': (-5.97, 8.888), 'left_shoulder': (-20.776, 26.914, -52.952),
-        'left_elbow': (70.99, 25.463), 'left_wrist': (-40.316, 5.565),
+    human.KeyJoints(18.9, {
+        'spine_lumbar': (21.101, -6.482, 1.46), 'spine_thoracic': (-2.372, 2.684, -3.087),
+        'right_clavicle': (-2.421, 3.792), 'right_shoulder': (17.565, -0.518, -17.896),
+        'right_elbow': (32.681, 9.965), 'right_wrist': (-13.269, 4.081),
+        'left_clavicle': (-2.691, 3.98), 'left_shoulder': (-4.624, 16.309, -34.823),
+        'left_elbow': (50.698, 20.887), 'left_wrist': (-18.063, 2.486),
     })
-    human.KeyRoot(16.4, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.4, {
-        'spine_lumbar': (15.052, -3.848, 0.739), 'spine_thoracic': (-0.464, 1.375, -1.518),
-        'right_clavicle': (-1.225, 1.891), 'right_shoulder': (13.138, 3.478, -18.921),
-        'right_elbow': (33.498, 13.588), 'right_wrist': (-6.62, 2.036),
-        'left_clavicle': (-1.362, 1.985), 'left_shoulder': (2.045, 12.0, -27.413),
-        'left_elbow': (42.398, 19.031), 'left_wrist': (-8.998, 1.228),
+    human.KeyRoot(19.0, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.0, {
+        'spine_lumbar': (8.893, -0.021, 0.001), 'spine_thoracic': (1.585, 0.036, -0.002),
+        'right_clavicle': (-0.001, -0.044), 'right_shoulder': (8.668, 7.533, -19.96),
+        'right_elbow': (34.284, 17.273), 'right_wrist': (0.177, -0.064),
+        'left_clavicle': (-0.002, -0.046), 'left_shoulder': (8.777, 7.586, -19.884),
+        'left_elbow': (33.991, 17.146), 'left_wrist': (0.201, -0.049),
         'right_hip': (22.438, 0.0, 0.0), 'right_knee': (124.422,), 'left_hip': (22.438, 0.0, 0.0),
         'left_knee': (124.422,),
     })
-    human.KeyRoot(16.5, (2.05, 44.598, 43.869), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.5, {
-        'spine_lumbar': (9.354, 0.835, 0.0), 'spine_thoracic': (1.658, 0.208, 0.037),
-        'right_clavicle': (0.0, -0.046), 'right_shoulder': (8.624, 7.548, -19.969),
-        'right_elbow': (34.317, 17.276), 'right_wrist': (0.178, -0.06),
-        'left_clavicle': (0.0, -0.048), 'left_shoulder': (8.822, 7.569, -19.868),
-        'left_elbow': (33.952, 17.144), 'left_wrist': (0.215, -0.056),
-        'right_hip': (23.13, 0.0, 0.0), 'right_knee': (125.116,), 'left_hip': (23.13, 0.0, 0.0),
-        'left_knee': (125.116,),
+    human.KeyRoot(19.1, (2.257, 44.092, 42.749), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.1, {
+        'spine_lumbar': (6.365, 6.487, 0.0), 'spine_thoracic': (1.036, 1.445, 0.0),
+        'right_hip': (24.788, 0.0, 0.0), 'right_knee': (126.775,), 'left_hip': (24.788, 0.0, 0.0),
+        'left_knee': (126.775,),
     })
-    human.KeyRoot(16.6, (2.337, 43.885, 42.314), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.6, {
-        'spine_lumbar': (3.137, 10.614, 0.0), 'spine_thoracic': (0.333, 2.474, 0.03),
-        'right_hip': (25.437, 0.0, 0.0), 'right_knee': (127.424,), 'left_hip': (25.437, 0.0, 0.0),
-        'left_knee': (127.424,),
+    human.KeyRoot(19.2, (2.402, 43.711, 41.96), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.2, {
+        'spine_lumbar': (-6.339, 19.969, 0.0), 'spine_thoracic': (-2.106, 6.013, 0.0),
+        'right_hip': (25.97, 0.0, 0.0), 'right_knee': (127.957,), 'left_hip': (25.97, 0.0, 0.0),
+        'left_knee': (127.957,),
     })
-    human.KeyRoot(16.7, (2.365, 43.809, 42.159), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.7, {
-        'spine_lumbar': (-11.806, 20.0, 0.0), 'spine_thoracic': (-4.29, 10.0, 0.023),
-        'right_hip': (25.67, -0.001, 0.0), 'right_knee': (127.657,),
-        'left_hip': (25.67, 0.001, 0.0), 'left_knee': (127.657,), 'left_ankle': (15.003, -0.002),
-        'left_toes': (86.984,),
+    human.KeyRoot(19.3, (2.114, 44.439, 43.508), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.3, {
+        'spine_lumbar': (-23.361, 20.0, 0.0), 'spine_thoracic': (-8.935, 10.0, 0.0),
+        'right_hip': (23.661, -0.003, -0.001), 'right_knee': (125.648,),
+        'left_hip': (23.661, 0.003, 0.001), 'left_knee': (125.648,), 'left_ankle': (15.003, -0.004),
     })
-    human.KeyRoot(16.8, (1.932, 44.864, 44.493), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.8, {
-        'spine_lumbar': (-27.985, 20.0, 0.0), 'spine_thoracic': (-11.636, 10.0, 0.015),
-        'right_elbow': (34.301, 17.225), 'right_hip': (22.213, -0.004, -0.001),
-        'right_knee': (124.2,), 'left_hip': (22.171, 0.002, 0.002), 'left_knee': (124.204,),
-        'left_ankle': (15.144, -0.003), 'left_toes': (86.889,),
+    human.KeyRoot(19.4, (1.881, 44.978, 44.772), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.4, {
+        'spine_lumbar': (-28.663, 20.0, 0.0), 'spine_thoracic': (-14.988, 10.0, 0.0),
+        'right_hip': (21.806, -0.004, -0.001), 'right_knee': (123.791,),
+        'left_hip': (21.246, -0.017, 0.02), 'left_knee': (125.596,), 'left_ankle': (17.388, 0.026),
+        'left_toes': (86.962,),
     })
-    human.KeyRoot(16.9, (2.045, 44.604, 43.881), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.9, {
-        'spine_lumbar': (-25.223, 20.0, 0.0), 'spine_thoracic': (-14.99, 10.0, 0.008),
-        'right_hip': (23.11, -0.003, -0.001), 'right_knee': (125.094,),
-        'left_hip': (22.48, -2.354, -0.231), 'left_knee': (128.694,), 'left_ankle': (17.628, 0.397),
-        'left_toes': (89.07,),
+    human.KeyRoot(19.5, (2.448, 43.58, 41.696), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.5, {
+        'spine_lumbar': (-18.092, 20.0, 0.0), 'right_hip': (26.366, -0.003, -0.001),
+        'right_knee': (128.35,), 'right_ankle': (15.002, 0.002),
+        'left_hip': (26.227, -20.941, -1.322), 'left_knee': (131.634,),
+        'left_ankle': (16.764, 4.839), 'right_toes': (86.982,), 'left_toes': (88.882,),
     })
-    human.KeyRoot(17.0, (2.617, 43.103, 40.779), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.0, {
-        'spine_lumbar': (-16.343, 20.0, 0.0), 'right_elbow': (34.377, 17.192),
-        'left_elbow': (34.371, 17.187), 'right_hip': (27.759, -0.003, -0.001),
-        'right_knee': (129.743,), 'right_ankle': (15.002, 0.002), 'left_hip': (31.85, -23.439, 1.0),
-        'left_knee': (133.585,), 'left_ankle': (3.204, 8.849), 'right_toes': (86.982,),
-        'left_toes': (90.0,),
+    human.KeyRoot(19.6, (2.431, 42.849, 40.256), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.6, {
+        'spine_lumbar': (-15.664, 20.0, 0.0), 'spine_thoracic': (-14.908, 10.0, 0.0),
+        'left_elbow': (34.377, 17.189), 'right_hip': (28.482, -0.359, -0.13),
+        'right_knee': (130.48,), 'right_ankle': (15.02, 0.243),
+        'left_hip': (47.903, -19.442, 9.601), 'left_knee': (135.0,), 'left_ankle': (-46.42, 9.954),
+        'left_toes': (74.385,),
     })
-    human.KeyRoot(17.1, (2.513, 42.01, 38.772), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.1, {
-        'spine_lumbar': (-17.485, 20.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'left_wrist': (0.0, 0.0), 'right_hip': (30.735, -0.594, -0.248), 'right_knee': (132.751,),
-        'right_ankle': (15.047, 0.395), 'left_hip': (62.255, -10.259, 34.129),
-        'left_knee': (135.0,), 'left_ankle': (-45.731, 8.145), 'right_toes': (86.768,),
-        'left_toes': (59.888,),
+    human.KeyRoot(19.7, (2.696, 41.474, 37.913), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.7, {
+        'spine_lumbar': (-17.259, 20.0, 0.0), 'right_wrist': (0.0, 0.0),
+        'left_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
+        'right_hip': (32.104, -0.564, -0.25), 'right_knee': (134.118,),
+        'right_ankle': (15.041, 0.384), 'left_hip': (81.032, -10.365, 34.313),
+        'left_knee': (135.0,), 'left_ankle': (-46.552, 12.264), 'right_toes': (86.776,),
+        'left_toes': (47.087,),
     })
-    human.KeyRoot(17.2, (2.896, 41.376, 37.795), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.2, {
-        'spine_lumbar': (-16.755, 20.0, 0.0), 'right_wrist': (0.0, 0.0),
-        'right_hip': (32.349, -0.346, -0.15), 'right_knee': (134.348,),
-        'left_hip': (89.364, -20.23, 31.99), 'left_knee': (135.0,), 'left_ankle': (-43.879, 14.355),
-        'left_toes': (39.069,),
+    human.KeyRoot(19.8, (3.208, 41.195, 37.565), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.8, {
+        'spine_lumbar': (-15.726, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (32.797, -0.004, -0.002), 'right_knee': (134.782,),
+        'right_ankle': (15.002, 0.002), 'left_hip': (103.584, -24.868, 15.517),
+        'left_knee': (133.985,), 'left_ankle': (-11.436, 18.778), 'right_toes': (86.983,),
+        'left_toes': (28.669,),
     })
-    human.KeyRoot(17.3, (3.232, 41.116, 37.445), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.3, {
-        'spine_lumbar': (-15.368, 20.0, 0.0), 'right_hip': (32.99, -0.002, -0.001),
-        'right_knee': (134.974,), 'right_ankle': (15.002, 0.002),
-        'left_hip': (108.148, -25.0, 9.196), 'left_knee': (133.596,), 'left_ankle': (4.985, 24.675),
-        'right_toes': (86.982,), 'left_toes': (26.325,),
+    human.KeyJoints(19.9, {
+        'left_hip': (104.606, -22.918, 1.77), 'left_knee': (132.689,),
+        'left_ankle': (15.448, 13.67), 'left_toes': (20.341,),
     })
-    human.KeyRoot(17.4, (3.191, 41.261, 37.665), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.4, {
-        'spine_lumbar': (-16.89, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (32.636, -0.002, -0.001), 'right_knee': (134.62,),
-        'left_hip': (99.556, -19.406, -3.226), 'left_knee': (129.906,),
-        'left_ankle': (19.683, 2.524), 'left_toes': (12.481,),
+    human.KeyRoot(20.0, (3.231, 41.113, 37.44), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.0, {
+        'spine_lumbar': (-16.256, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_elbow': (34.377, 17.189), 'right_hip': (32.998, -0.005, -0.002),
+        'right_knee': (134.983,), 'left_hip': (94.24, -0.04, 0.044), 'left_knee': (127.041,),
+        'left_ankle': (19.996, 0.068), 'left_toes': (12.781,),
     })
-    human.KeyRoot(17.5, (3.23, 41.116, 37.445), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.5, {
-        'spine_lumbar': (-13.871, 20.0, 0.0), 'spine_thoracic': (-13.88, 10.0, 0.0),
-        'right_hip': (32.99, -0.005, -0.002), 'right_knee': (134.977,),
-        'left_hip': (94.229, -0.003, 0.009), 'left_knee': (127.038,), 'left_ankle': (20.0, 0.01),
-        'left_toes': (12.809,),
+    human.KeyRoot(20.1, (3.103, 41.574, 38.154), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.1, {
+        'spine_lumbar': (-8.353, 13.078, 0.0), 'spine_thoracic': (-1.771, 2.342, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.0), 'right_hip': (31.855, 0.0, 0.0),
+        'right_knee': (133.842,), 'right_ankle': (15.003, 0.0), 'left_hip': (93.358, 0.0, 0.0),
+        'left_knee': (127.157,), 'right_toes': (86.984,), 'left_toes': (13.799,),
     })
-    human.KeyRoot(17.6, (3.078, 41.659, 38.289), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.6, {
-        'spine_lumbar': (-4.399, 5.832, 0.0), 'spine_thoracic': (-0.902, 1.053, 0.0),
-        'right_hip': (31.64, 0.0, 0.0), 'right_knee': (133.627,), 'right_ankle': (15.003, 0.0),
-        'left_hip': (93.25, 0.0, 0.0), 'left_knee': (127.194,), 'left_ankle': (19.825, 0.0),
-        'right_toes': (86.984,), 'left_toes': (14.12,),
+    human.KeyRoot(20.2, (3.499, 41.868, 36.044), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.2, {
+        'spine_lumbar': (6.335, 0.029, 0.0), 'spine_thoracic': (0.971, 0.004, 0.0),
+        'right_hip': (34.099, -0.01, 0.019), 'right_knee': (134.902,),
+        'right_ankle': (17.572, 0.021), 'left_hip': (93.658, 0.004, -0.014),
+        'left_knee': (124.666,), 'left_ankle': (20.0, -0.015), 'right_toes': (83.232,),
+        'left_toes': (11.009,),
     })
-    human.KeyRoot(17.7, (3.888, 42.894, 34.099), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.7, {
-        'spine_lumbar': (12.596, 0.137, 0.0), 'spine_thoracic': (1.957, 0.022, 0.0),
-        'right_hip': (35.937, -0.043, 0.093), 'right_knee': (134.697,),
-        'right_ankle': (20.0, 0.103), 'left_hip': (92.788, 0.014, -0.069), 'left_knee': (121.307,),
-        'left_ankle': (20.0, -0.07), 'right_toes': (78.76,), 'left_toes': (8.519,),
+    human.KeyRoot(20.3, (4.749, 44.321, 30.225), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.3, {
+        'spine_lumbar': (25.174, 0.659, 0.0), 'spine_thoracic': (3.57, 0.11, 0.0),
+        'right_hip': (41.201, -0.214, 0.461), 'right_knee': (134.95,),
+        'right_ankle': (19.999, 0.508), 'left_hip': (92.536, 0.048, -0.313),
+        'left_knee': (115.482,), 'left_ankle': (16.775, -0.317), 'right_toes': (73.749,),
+        'left_toes': (6.171,),
     })
-    human.KeyRoot(17.8, (5.342, 45.281, 27.606), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.8, {
-        'spine_lumbar': (34.545, 1.048, 0.0), 'spine_thoracic': (4.689, 0.172, 0.0),
-        'right_hip': (44.62, -0.341, 0.735), 'right_knee': (134.807,), 'right_ankle': (19.9, 0.81),
-        'left_hip': (92.067, 0.056, -0.475), 'left_knee': (111.359,),
-        'left_ankle': (14.668, -0.479), 'right_toes': (70.285,), 'left_toes': (4.624,),
+    human.KeyRoot(20.4, (5.857, 55.104, 26.168), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.4, {
+        'spine_lumbar': (39.302, 1.746, 0.0), 'spine_thoracic': (5.428, 0.288, 0.0),
+        'right_hip': (40.951, -0.18, 0.977), 'right_knee': (120.184,),
+        'right_ankle': (19.749, 0.994), 'left_hip': (78.578, -0.119, -0.636),
+        'left_knee': (95.188,), 'left_ankle': (15.774, -0.647), 'right_toes': (59.483,),
+        'left_toes': (0.837,),
     })
-    human.KeyRoot(17.9, (5.737, 63.559, 29.871), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.9, {
-        'spine_lumbar': (27.058, 3.623, 0.0), 'spine_thoracic': (4.051, 0.631, 0.0),
-        'right_hip': (30.861, 0.134, 1.453), 'right_knee': (104.128,),
-        'right_ankle': (19.377, 1.46), 'left_hip': (66.207, -0.44, -1.017), 'left_knee': (84.139,),
-        'left_ankle': (17.542, -1.108), 'right_toes': (53.892,), 'left_toes': (0.394,),
+    human.KeyRoot(20.5, (6.562, 77.604, 42.005), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.5, {
+        'spine_lumbar': (-5.32, 12.493, 0.0), 'spine_thoracic': (-1.229, 2.235, 0.0),
+        'right_hip': (3.514, 2.452, 2.275), 'right_knee': (62.825,), 'right_ankle': (20.0, 3.344),
+        'left_hip': (42.101, -2.458, -2.242), 'left_knee': (61.811,),
+        'left_ankle': (19.461, -3.326), 'right_toes': (39.36,), 'left_toes': (0.297,),
     })
-    human.KeyRoot(18.0, (7.172, 80.398, 43.353), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.0, {
-        'spine_lumbar': (-8.229, 15.007, 0.0), 'spine_thoracic': (-1.804, 2.685, 0.0),
-        'right_hip': (-2.996, 3.222, 1.9), 'right_knee': (50.502,), 'right_ankle': (20.0, 3.74),
-        'left_hip': (37.208, -3.066, -2.333), 'left_knee': (54.554,),
-        'left_ankle': (17.314, -3.852), 'right_toes': (33.551,), 'left_toes': (0.095,),
+    human.KeyRoot(20.6, (7.87, 82.879, 42.413), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.6, {
+        'spine_lumbar': (-4.236, 16.578, 0.0), 'spine_thoracic': (-1.102, 2.97, 0.0),
+        'right_hip': (-7.94, 3.731, 1.258), 'right_knee': (38.603,), 'right_ankle': (20.0, 3.937),
+        'left_hip': (33.445, -3.432, -2.265), 'left_knee': (45.956,),
+        'left_ankle': (12.579, -4.111), 'right_toes': (26.584,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(18.1, (8.151, 83.731, 41.885), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.1, {
-        'spine_lumbar': (-1.991, 17.13, 0.0), 'spine_thoracic': (-0.721, 3.071, 0.0),
-        'right_hip': (-10.357, 3.908, 0.896), 'right_knee': (32.894,), 'right_ankle': (20.0, 4.009),
-        'left_hip': (32.052, -3.561, -2.227), 'left_knee': (42.498,), 'left_ankle': (10.515, -4.2),
-        'right_toes': (23.282,),
+    human.KeyRoot(20.7, (7.686, 84.22, 41.797), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.7, {
+        'spine_lumbar': (-1.807, 15.654, 0.0), 'spine_thoracic': (-0.916, 2.812, 0.0),
+        'right_hip': (-13.245, 3.61, 0.451), 'right_knee': (27.111,), 'right_ankle': (20.0, 3.638),
+        'left_hip': (31.143, -3.275, -1.977), 'left_knee': (40.788,), 'left_ankle': (9.701, -3.824),
+        'right_toes': (20.37,),
     })
-    human.KeyRoot(18.2, (7.906, 84.063, 42.399), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.2, {
-        'spine_lumbar': (-1.819, 16.027, 0.0), 'spine_thoracic': (-1.297, 2.877, 0.0),
-        'right_hip': (-13.953, 3.841, 0.437), 'right_knee': (26.454,),
-        'right_ankle': (19.978, 3.865), 'left_hip': (31.221, -3.485, -2.11), 'left_knee': (41.702,),
-        'left_ankle': (10.546, -4.073), 'right_toes': (20.444,), 'left_toes': (0.0,),
+    human.KeyRoot(20.8, (10.329, 83.31, 44.372), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.8, {
+        'spine_lumbar': (30.551, 11.326, 0.0), 'spine_thoracic': (2.49, 2.027, 0.0),
+        'right_hip': (-14.784, 5.758, 0.708), 'right_knee': (26.903,),
+        'right_ankle': (19.914, 5.801), 'left_hip': (31.671, -5.241, -3.225),
+        'left_knee': (44.539,), 'left_ankle': (13.015, -6.152), 'right_toes': (21.809,),
     })
-    human.KeyRoot(18.3, (11.038, 83.836, 45.173), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.3, {
-        'spine_lumbar': (54.696, 4.562, 0.0), 'spine_thoracic': (5.537, 0.75, 0.0),
-        'right_hip': (-14.948, 6.264, 1.125), 'right_knee': (26.537,),
-        'right_ankle': (16.402, 6.362), 'left_hip': (30.257, -5.82, -3.385), 'left_knee': (42.714,),
-        'left_ankle': (12.629, -6.73), 'right_toes': (25.144,),
+    human.KeyRoot(20.9, (10.769, 87.897, 51.521), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.9, {
+        'spine_lumbar': (60.0, -2.236, 0.0), 'spine_thoracic': (6.323, -0.367, 0.0),
+        'right_hip': (-14.506, 5.998, 5.223), 'right_knee': (24.607,),
+        'right_ankle': (-16.311, 7.943), 'left_hip': (17.978, -6.674, -2.16),
+        'left_knee': (27.514,), 'left_ankle': (9.663, -7.014), 'right_toes': (55.883,),
     })
-    human.KeyRoot(18.4, (10.576, 89.064, 52.516), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.4, {
-        'spine_lumbar': (57.392, -2.416, 0.0), 'spine_thoracic': (5.678, -0.388, 0.0),
-        'right_hip': (-12.892, 5.849, 5.819), 'right_knee': (25.132,),
-        'right_ankle': (-19.579, 8.24), 'left_hip': (13.721, -6.712, -1.635),
-        'left_knee': (20.415,), 'left_ankle': (6.79, -6.908), 'right_toes': (58.825,),
+    human.KeyRoot(21.0, (9.735, 90.144, 55.39), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.0, {
+        'spine_lumbar': (49.126, -3.466, 0.0), 'spine_thoracic': (7.176, -0.68, 0.0),
+        'right_hip': (-13.365, 5.933, 4.154), 'right_knee': (30.098,),
+        'right_ankle': (-4.829, 7.111), 'left_hip': (7.302, -6.558, -0.838), 'left_knee': (11.627,),
+        'left_ankle': (4.372, -6.611), 'right_toes': (12.091,),
     })
-    human.KeyRoot(18.5, (8.856, 90.301, 59.679), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.5, {
-        'spine_lumbar': (34.754, -4.082, 0.0), 'spine_thoracic': (5.169, -0.717, 0.0),
-        'right_hip': (-13.35, 5.804, 3.435), 'right_knee': (30.592,), 'right_ankle': (0.065, 6.712),
-        'left_hip': (3.268, -6.529, -0.372), 'left_knee': (9.549,), 'left_ankle': (6.301, -6.539),
-        'right_toes': (7.214,),
+    human.KeyRoot(21.1, (7.398, 90.146, 65.569), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.1, {
+        'spine_lumbar': (11.678, -5.381, 0.0), 'spine_thoracic': (1.965, -0.969, 0.0),
+        'right_hip': (-8.256, 6.054, 2.344), 'right_knee': (35.792,),
+        'right_ankle': (14.718, 6.508), 'left_hip': (-2.591, -6.296, 0.284), 'left_knee': (6.088,),
+        'left_ankle': (8.663, -6.302), 'right_toes': (4.89,),
     })
-    human.KeyRoot(18.6, (7.134, 90.252, 65.088), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.6, {
-        'spine_lumbar': (10.457, -6.446, 0.0), 'spine_thoracic': (1.754, -1.161, 0.0),
-        'right_hip': (-0.486, 5.912, 2.231), 'right_knee': (40.309,),
-        'right_ankle': (19.735, 6.341), 'left_hip': (-2.675, -6.052, 0.282), 'left_knee': (5.315,),
-        'left_ankle': (7.975, -6.058), 'right_toes': (3.599,),
+    human.KeyRoot(21.2, (6.231, 90.415, 64.464), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.2, {
+        'spine_lumbar': (8.744, -9.484, 0.0), 'spine_thoracic': (1.412, -1.704, 0.0),
+        'right_hip': (7.2, 5.28, 1.366), 'right_knee': (33.785,), 'right_ankle': (19.344, 5.461),
+        'left_hip': (-2.695, -5.361, 0.252), 'left_knee': (4.636,), 'left_ankle': (7.319, -5.367),
+        'right_toes': (6.318,),
     })
-    human.KeyRoot(18.7, (5.719, 90.485, 63.638), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.7, {
-        'spine_lumbar': (10.65, -11.473, 0.0), 'spine_thoracic': (1.693, -2.056, 0.0),
-        'right_hip': (6.239, 4.798, 0.691), 'right_knee': (24.052,), 'right_ankle': (15.902, 4.86),
-        'left_hip': (-1.521, -4.916, 0.13), 'left_knee': (6.025,), 'left_ankle': (7.54, -4.918),
-        'right_toes': (2.136,),
-    })
-    human.KeyRoot(18.8, (2.764, 90.877, 59.31), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.8, {
-        'spine_lumbar': (14.304, -13.901, 0.0), 'spine_thoracic': (2.303, -2.492, 0.0),
-        'right_hip': (1.61, 2.386, 0.067), 'right_knee': (7.225,), 'right_ankle': (5.616, 2.386),
-        'left_hip': (1.61, -2.386, -0.067), 'left_knee': (7.225,), 'left_ankle': (5.616, -2.386),
+    human.KeyRoot(21.3, (3.981, 90.676, 61.13), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.3, {
+        'spine_lumbar': (16.037, -15.511, 0.0), 'spine_thoracic': (2.532, -2.768, 0.0),
+        'right_hip': (1.086, 3.434, 0.065), 'right_knee': (8.345,), 'right_ankle': (7.261, 3.434),
+        'left_hip': (1.086, -3.434, -0.065), 'left_knee': (8.345,), 'left_ankle': (7.261, -3.434),
         'right_toes': (0.0,),
     })
-    human.KeyRoot(18.9, (0.163, 91.09, 55.266), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.9, {
-        'spine_lumbar': (1.65, -1.646, 0.0), 'spine_thoracic': (0.294, -0.299, 0.0),
-        'right_hip': (2.786, 0.142, 0.007), 'right_knee': (4.745,), 'right_ankle': (1.959, 0.142),
-        'left_hip': (2.786, -0.142, -0.007), 'left_knee': (4.745,), 'left_ankle': (1.959, -0.142),
+    human.KeyRoot(21.4, (0.675, 91.072, 56.082), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.4, {
+        'spine_lumbar': (5.571, -5.531, 0.0), 'spine_thoracic': (0.962, -1.003, 0.0),
+        'right_hip': (2.546, 0.585, 0.026), 'right_knee': (5.242,), 'right_ankle': (2.696, 0.586),
+        'left_hip': (2.546, -0.585, -0.026), 'left_knee': (5.242,), 'left_ankle': (2.696, -0.586),
     })
-    human.KeyRoot(18.930705, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.930705, {
+    human.KeyRoot(21.463411, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.463411, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (31.731, -23.243, 13.254), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),

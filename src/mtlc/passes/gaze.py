@@ -374,7 +374,7 @@ def keep_branch(
 
     With the target near or past the neck's range several heads aim about as well, and rows
     solved from one seed fell on either (the neck swung 45 deg between two frames while a
-    screwdriver turned); from the row before, the solver stays on its branch."""
+    wrench swung on the access panel); from the row before, the solver stays on its branch."""
     gaze_dofs = default_dofs(skel, ["gaze"], "arm")  # type: ignore[arg-type]
     for a, b in itertools.pairwise(rows):
         allowed = HEAD_SPEED * max(float(times[b] - times[a]), 0.0)

@@ -44,6 +44,7 @@ SAMPLE_STEP = 0.05  # s: the longest gap between two solved head poses while fol
 TURN_MIN = 0.2  # s: a head turn to a target close by (docs/passes.md, gaze: sources)
 TURN_MAX = 0.4  # s: a head turn of TURN_FULL or more
 TURN_FULL = math.radians(60.0)
+HEAD_PACE = math.radians(200.0)  # rad/s: a head's mean speed between keys (peaks ~1.5x)
 HEAD_SPEED = math.radians(240.0)  # rad/s: faster than a head turn (60 deg in TURN_MAX)
 SAME_TARGET = 1e-3  # m: targets closer than this are one target
 WORK_PAUSE = 0.5  # s: reaches closer than this in time are one stretch of work (a grasp between)
@@ -330,8 +331,26 @@ def follow_part(
     errors = aim_errors(skel, q_head, roots[0], roots[1], aims)
     kf_time = np.concatenate([[turn_start], times[idx]])
     kf_q = np.vstack([head0[None], q_head[:, dofs]])
+    kept = paced(kf_time, kf_q)
+    kf_time, kf_q, errors = kf_time[kept], kf_q[kept], errors[kept[1:] - 1]
     last = targets[idx[-1]]
     return implicit_segment(ir, part, last, kf_time, kf_q, errors, turn_start)
+
+
+def paced(kf_time: FloatArray, kf_q: FloatArray) -> FloatArray:
+    """Indices of the head's keys to keep: the first, the last, and each one the head reaches
+    from the last kept at no more than ``HEAD_PACE`` (issue 19).
+
+    A turn is timed by the eyes' angle to the new target, but where two heads aim about as well
+    the solved head may be on the other branch: the fuel filter's neck turned 62 deg in 0.05 s
+    to look at the filter it already nearly saw. Leaving out the keys it cannot reach in time
+    turns the head at a person's pace instead (it looks slightly off the work meanwhile)."""
+    keep = [0]
+    for i in range(1, len(kf_time)):
+        dt = float(kf_time[i] - kf_time[keep[-1]])
+        if i == len(kf_time) - 1 or np.abs(kf_q[i] - kf_q[keep[-1]]).max() <= HEAD_PACE * dt:
+            keep.append(i)
+    return np.asarray(keep)
 
 
 def aim_rows(

@@ -267,7 +267,7 @@ def remove_avionics_unit():
     human.LookAt((0.0, 165.0, 75.0), start=3.656683, duration=2.430743)
     human.KeyJoints(3.7, {
         'spine_lumbar': (27.469, -0.009, -14.914), 'spine_thoracic': (0.919, -1.396, -30.0),
-        'neck': (-57.532, 0.646, -1.658), 'head': (-19.928, 0.021),
+        'neck': (-57.502, 0.653, -1.638), 'head': (-19.924, 0.006),
         'right_clavicle': (30.0, -14.91), 'right_shoulder': (5.849, 168.2, -41.605),
         'right_elbow': (0.476, 8.579), 'right_wrist': (0.752, -1.375),
         'left_clavicle': (30.0, 14.804), 'left_shoulder': (158.976, 21.784, -2.123),
@@ -275,14 +275,15 @@ def remove_avionics_unit():
     })
     human.KeyJoints(3.8, {
         'spine_lumbar': (29.354, -0.6, -14.336), 'spine_thoracic': (12.134, -6.256, -30.0),
-        'neck': (-60.0, -15.1, -30.842), 'head': (-20.0, 11.25), 'right_clavicle': (30.0, -14.304),
-        'right_shoulder': (2.637, 144.094, -40.979), 'right_wrist': (3.002, -2.627),
-        'left_clavicle': (29.996, 13.493), 'left_shoulder': (84.918, 110.921, -38.76),
-        'left_elbow': (10.174, -69.462), 'left_wrist': (3.019, -0.33),
+        'neck': (-58.892, -6.427, -20.65), 'head': (-19.148, 3.841),
+        'right_clavicle': (30.0, -14.304), 'right_shoulder': (2.637, 144.094, -40.979),
+        'right_wrist': (3.002, -2.627), 'left_clavicle': (29.996, 13.493),
+        'left_shoulder': (84.918, 110.921, -38.76), 'left_elbow': (10.174, -69.462),
+        'left_wrist': (3.019, -0.33),
     })
     human.KeyJoints(3.9, {
         'spine_lumbar': (30.79, -1.05, -13.896), 'spine_thoracic': (20.679, -9.959, -30.0),
-        'neck': (-59.85, -19.806, -49.302), 'head': (-17.761, 11.14),
+        'neck': (-59.71, -17.468, -44.51), 'head': (-17.939, 9.802),
         'right_clavicle': (30.0, -13.843), 'right_shoulder': (0.19, 125.725, -40.502),
         'right_elbow': (0.002, 8.504), 'right_wrist': (4.716, -3.581),
         'left_clavicle': (29.994, 12.493), 'left_shoulder': (28.487, 178.841, -66.677),
@@ -291,8 +292,8 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(4.0, {
-        'neck': (-59.84, -19.915, -49.579), 'right_shoulder': (0.163, 125.523, -40.497),
-        'left_shoulder': (27.863, 179.592, -66.986),
+        'neck': (-59.84, -19.915, -49.579), 'head': (-17.671, 11.123),
+        'right_shoulder': (0.163, 125.523, -40.497), 'left_shoulder': (27.863, 179.592, -66.986),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=4.045791, duration=0.072)
@@ -611,27 +612,27 @@ def remove_avionics_unit():
     human.LookAt((-110.0, 85.0, 40.0), start=10.203216, duration=1.197891)
     human.KeyRoot(10.3, (-70.618, 71.983, 43.354), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.3, {
-        'neck': (-43.918, -21.272, -17.642), 'head': (-14.844, 11.211),
+        'neck': (-48.43, -20.559, -19.509), 'head': (-16.551, 11.21),
         'right_hip': (28.576, 2.784, -1.335), 'right_knee': (67.859,),
         'right_ankle': (19.554, 1.895), 'left_hip': (12.994, -2.826, -0.652), 'left_knee': (8.929,),
         'left_ankle': (-4.049, -2.9),
     })
     human.KeyRoot(10.4, (-72.224, 71.983, 42.879), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.4, {
-        'neck': (-12.392, -26.257, -4.597), 'head': (-2.922, 11.221),
+        'neck': (-25.64, -24.162, -10.079), 'head': (-7.932, 11.217),
         'right_hip': (23.945, 2.322, 0.142), 'right_knee': (40.617,),
         'right_ankle': (16.794, 2.151), 'left_hip': (13.702, -2.42, -0.59), 'left_knee': (13.295,),
         'left_ankle': (-0.394, -2.49),
     })
     human.KeyRoot(10.5, (-75.479, 72.036, 41.784), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.5, {
-        'neck': (19.693, -31.33, 8.679), 'head': (9.211, 11.231),
+        'neck': (1.849, -28.509, 1.295), 'head': (2.463, 11.225),
         'right_hip': (12.924, 1.503, 0.345), 'right_knee': (17.547,), 'right_ankle': (4.639, 1.542),
         'left_hip': (12.875, -1.504, -0.344), 'left_knee': (17.443,), 'left_ankle': (4.572, -1.542),
     })
     human.KeyRoot(10.6, (-79.955, 72.977, 40.019), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.6, {
-        'neck': (34.982, -33.747, 15.005), 'head': (14.993, 11.236),
+        'neck': (25.056, -32.178, 10.898), 'head': (11.239, 11.232),
         'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
         'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
         'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
@@ -642,6 +643,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(10.7, (-80.0, 72.985, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.7, {
+        'neck': (34.998, -33.75, 15.011), 'head': (14.999, 11.236),
         'right_shoulder': (4.779, 155.807, -34.588), 'right_elbow': (12.293, 5.283),
         'right_wrist': (13.991, -11.675), 'left_shoulder': (22.284, 155.277, -57.645),
         'left_elbow': (14.069, -64.416), 'left_wrist': (10.843, -2.553),

@@ -316,20 +316,20 @@ def replace_fuel_filter():
     })
     human.KeyJoints(4.5, {
         'spine_lumbar': (36.268, 8.106, 10.48), 'spine_thoracic': (-3.33, 6.997, 13.831),
-        'neck': (35.0, 26.609, -10.963), 'head': (15.0, -10.661), 'right_clavicle': (-5.111, 10.48),
+        'neck': (35.0, -29.764, -0.832), 'head': (15.0, 8.432), 'right_clavicle': (-5.111, 10.48),
         'right_shoulder': (26.242, 17.642, 6.956), 'right_elbow': (28.361, 17.199),
     })
     human.KeyJoints(4.6, {
         'spine_lumbar': (43.142, 10.439, 13.126), 'spine_thoracic': (-5.041, 8.755, 17.942),
-        'neck': (35.0, 17.722, -14.194), 'head': (15.0, -11.25), 'right_clavicle': (-6.705, 13.126),
+        'neck': (35.0, -4.402, -10.074), 'head': (15.0, -3.083), 'right_clavicle': (-6.705, 13.126),
         'right_shoulder': (31.186, 20.649, 5.82), 'right_elbow': (26.843, 17.203),
         'right_wrist': (-1.803, -2.3),
     })
     human.KeyJoints(4.7, {
         'spine_lumbar': (47.341, 12.205, 14.741), 'spine_thoracic': (-6.656, 9.828, 21.19),
-        'neck': (35.0, 15.756, -16.803), 'right_clavicle': (-8.042, 14.741),
-        'right_shoulder': (34.788, 22.486, 5.126), 'right_elbow': (25.915, 17.207),
-        'right_wrist': (-2.025, -2.583),
+        'neck': (35.0, 15.537, -16.771), 'head': (15.0, -11.229),
+        'right_clavicle': (-8.042, 14.741), 'right_shoulder': (34.788, 22.486, 5.126),
+        'right_elbow': (25.915, 17.207), 'right_wrist': (-2.025, -2.583),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
@@ -548,13 +548,13 @@ def replace_fuel_filter():
     })
     human.KeyJoints(9.6, {
         'spine_lumbar': (60.0, 19.416, -13.46), 'spine_thoracic': (-6.484, -5.634, -26.697),
-        'neck': (35.0, 33.75, -1.832), 'head': (15.0, -11.25), 'left_clavicle': (-8.689, 15.0),
+        'neck': (35.0, 33.75, -1.656), 'head': (15.0, -11.25), 'left_clavicle': (-8.689, 15.0),
         'left_shoulder': (39.166, 8.404, 23.884), 'left_elbow': (28.095, 50.892),
         'left_wrist': (-58.348, 19.079),
     })
     human.KeyJoints(9.7, {
         'spine_lumbar': (60.0, 20.0, -14.999), 'spine_thoracic': (-4.771, -6.685, -29.998),
-        'neck': (35.0, -8.611, 9.192), 'head': (15.0, 11.25), 'left_clavicle': (-8.131, 15.0),
+        'neck': (34.901, 14.446, 5.098), 'head': (14.927, 1.363), 'left_clavicle': (-8.131, 15.0),
         'left_shoulder': (40.285, 9.591, 25.019), 'left_elbow': (22.645, 53.398),
         'left_wrist': (-62.433, 20.0),
     })

@@ -524,3 +524,18 @@ def test_lint_sweep_reaches_with_the_tool(tmp_path: Path) -> None:
     (short,) = [f for f in result.findings if f.code == "MT0501"]
     assert short.manikins == ("gb10000_1988:female:5",)  # the tall manikin reaches it
     assert short.message.startswith("the wrench_10mm in the right hand cannot reach")
+
+
+def test_a_twist_takes_the_time_a_forearm_needs(tmp_path: Path) -> None:
+    """Issue 19: MTM-1's T90S (5.4 TMU, 0.19 s) would turn a forearm at 700 deg/s at its peak;
+    a bare hand's quarter turn takes 1.5 x 90 deg / 340 deg/s, a screwdriver's / 570 deg/s."""
+    bare = _timeline(tmp_path, setting="", turns=1)
+    (d_bare,) = {
+        round(p.duration, 9) for p in bare.primitives if p.params.get("posture") == "twist"
+    }
+    assert d_bare == pytest.approx(1.5 * 90.0 / 340.0)
+    driver = _timeline(tmp_path, setting="tool screwdriver_flat", turns=1)
+    (d_tool,) = {
+        round(p.duration, 9) for p in driver.primitives if p.params.get("posture") == "twist"
+    }
+    assert d_tool == pytest.approx(1.5 * 90.0 / 570.0)

@@ -44,6 +44,8 @@ SAMPLE_STEP = 0.05  # s: the longest gap between two solved head poses while fol
 TURN_MIN = 0.2  # s: a head turn to a target close by (docs/passes.md, gaze: sources)
 TURN_MAX = 0.4  # s: a head turn of TURN_FULL or more
 TURN_FULL = math.radians(60.0)
+HEAD_PACE = math.radians(200.0)  # rad/s: a head's mean speed between keys (peaks ~1.5x)
+HEAD_SPEED = math.radians(240.0)  # rad/s: faster than a head turn (60 deg in TURN_MAX)
 SAME_TARGET = 1e-3  # m: targets closer than this are one target
 WORK_PAUSE = 0.5  # s: reaches closer than this in time are one stretch of work (a grasp between)
 EPS = 1e-9
@@ -325,22 +327,46 @@ def follow_part(
     aims = np.array([a.target for a in plan])
     q_rows = body.q[idx]
     roots = (body.root_position[idx], body.root_rotation[idx])
-    q_head = aim_rows(skel, q_rows, roots, aims)
+    q_head = aim_rows(skel, q_rows, roots, aims, times[idx])
     errors = aim_errors(skel, q_head, roots[0], roots[1], aims)
     kf_time = np.concatenate([[turn_start], times[idx]])
     kf_q = np.vstack([head0[None], q_head[:, dofs]])
+    kept = paced(kf_time, kf_q)
+    kf_time, kf_q, errors = kf_time[kept], kf_q[kept], errors[kept[1:] - 1]
     last = targets[idx[-1]]
     return implicit_segment(ir, part, last, kf_time, kf_q, errors, turn_start)
 
 
+def paced(kf_time: FloatArray, kf_q: FloatArray) -> FloatArray:
+    """Indices of the head's keys to keep: the first, the last, and each one the head reaches
+    from the last kept at no more than ``HEAD_PACE`` (issue 19).
+
+    A turn is timed by the eyes' angle to the new target, but where two heads aim about as well
+    the solved head may be on the other branch: the fuel filter's neck turned 62 deg in 0.05 s
+    to look at the filter it already nearly saw. Leaving out the keys it cannot reach in time
+    turns the head at a person's pace instead (it looks slightly off the work meanwhile)."""
+    keep = [0]
+    for i in range(1, len(kf_time)):
+        dt = float(kf_time[i] - kf_time[keep[-1]])
+        if i == len(kf_time) - 1 or np.abs(kf_q[i] - kf_q[keep[-1]]).max() <= HEAD_PACE * dt:
+            keep.append(i)
+    return np.asarray(keep)
+
+
 def aim_rows(
-    skel: object, q_rows: FloatArray, roots: tuple[FloatArray, FloatArray], aims: FloatArray
+    skel: object,
+    q_rows: FloatArray,
+    roots: tuple[FloatArray, FloatArray],
+    aims: FloatArray,
+    times: FloatArray,
 ) -> FloatArray:
     """Solve the head of every row for its aim, one batch per target.
 
     Each target's first row is solved with restarts (the best of several starts: from a head
     turned the other way a target far to the side has poor local minima) and its solution
-    starts the target's other rows, which then follow the body smoothly from one basin."""
+    starts the target's other rows, which then follow the body smoothly from one basin. A row
+    whose head is then further from the row before than a person turns it in that time is
+    solved again from that row (``keep_branch``)."""
     out = np.array(q_rows, dtype=float, copy=True)
     gaze_dofs = default_dofs(skel, ["gaze"], "arm")  # type: ignore[arg-type]
     keys = [a.round(6).tobytes() for a in aims]
@@ -351,7 +377,31 @@ def aim_rows(
         start = out[rows].copy()
         start[:, gaze_dofs] = seed[0, gaze_dofs]
         out[rows] = solve_rows(skel, start, roots, aims, np.flatnonzero(rows), restarts=0)
+        keep_branch(skel, out, roots, aims, np.flatnonzero(rows), times)
     return out
+
+
+def keep_branch(
+    skel: object,
+    out: FloatArray,
+    roots: tuple[FloatArray, FloatArray],
+    aims: FloatArray,
+    rows: FloatArray,
+    times: FloatArray,
+) -> None:
+    """Re-solve, from the row before, each row whose head jumped from it (issue 19).
+
+    With the target near or past the neck's range several heads aim about as well, and rows
+    solved from one seed fell on either (the neck swung 45 deg between two frames while a
+    wrench swung on the access panel); from the row before, the solver stays on its branch."""
+    gaze_dofs = default_dofs(skel, ["gaze"], "arm")  # type: ignore[arg-type]
+    for a, b in itertools.pairwise(rows):
+        allowed = HEAD_SPEED * max(float(times[b] - times[a]), 0.0)
+        if np.abs(out[b, gaze_dofs] - out[a, gaze_dofs]).max() <= allowed:
+            continue
+        start = out[b : b + 1].copy()
+        start[0, gaze_dofs] = out[a, gaze_dofs]
+        out[b] = solve_rows(skel, start, roots, aims, [b], restarts=0)[0]
 
 
 def solve_rows(

@@ -98,7 +98,8 @@ def _held_curve(
     parts: list[tuple[FloatArray, int, FloatArray]], rest: float
 ) -> tuple[FloatArray, FloatArray]:
     """One dof's knots: from ``rest`` at 0 through its keyframes in time order (at equal times
-    in segment order), with a hold just before each segment's first keyframe."""
+    in segment order), with a hold just before each segment's first keyframe and after the
+    last keyframe (so the dof comes to rest there)."""
     t = np.concatenate([p[0] for p in parts])
     order = np.concatenate([np.full(len(p[0]), p[1]) for p in parts])
     v = np.concatenate([np.asarray(p[2], dtype=float) for p in parts])
@@ -113,7 +114,9 @@ def _held_curve(
     knots_t = np.concatenate([[0.0], t[hold] - HOLD_EPS, t])
     knots_v = np.concatenate([[rest], before_v[hold], v])
     by = np.argsort(slot, kind="stable")
-    return knots_t[by], knots_v[by]
+    # and a hold just after the last: PCHIP's end slope is extrapolated from the last two
+    # intervals, so a dof would stop at speed there (a forearm twist ended at 400 deg/s)
+    return np.append(knots_t[by], t[-1] + HOLD_EPS), np.append(knots_v[by], v[-1])
 
 
 def interpolate_root(ir: MotionIR, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

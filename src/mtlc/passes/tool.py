@@ -191,6 +191,20 @@ def stroke_plan(
     return frac, theta, lift
 
 
+def paced_fractions(q: FloatArray, frac: FloatArray) -> FloatArray:
+    """A wrench stroke's key times after its seat, shared out by how far the joints move
+    between keys (the largest change of any dof; issue 19).
+
+    ``stroke_plan``'s fixed shares gave the lift-off (3 cm) a tenth of the stroke and the swing
+    back and re-engagement 0.3: the elbow flexed 18 deg and came back 30 deg in 2-3 frames while
+    the arc's 5 deg keys went slowly. Time given where the joints move keeps the stroke's
+    length and its peak joint speed lowest."""
+    moves = np.abs(np.diff(q[1:], axis=0)).max(axis=1)  # key 1 on: key 0 -> 1 is the seat
+    moves = np.maximum(moves, 0.05 * moves.max(initial=0.0) + 1e-9)
+    share = np.concatenate([[0.0], np.cumsum(moves)]) / float(np.sum(moves))
+    return np.concatenate([frac[:1], frac[1] + (1.0 - frac[1]) * share])
+
+
 def _solve_keys(
     state: PoseState,
     seg: Segment,
@@ -317,6 +331,8 @@ def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSol
     hands = hands + LIFT * lift[:, None] * n
     tips = site + LIFT * lift[:, None] * n
     q, reach, tip_err = _solve_keys(state, seg, hands, tips, run.q_reached, run.root)
+    if tool.get("kind") != "ratchet":
+        frac = paced_fractions(q, frac)
     run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift)
     return run.solved[key]
 

@@ -494,6 +494,10 @@ class Expander:
                 )
             strokes = _strokes(values["angle"], stroke)
         stated = None if timing is None else self.duration(timing, None, stmt, env)
+        if stated is not None and isinstance(timing, Timing) and timing.rule == "turn":
+            # MTM-1's turn (the stdlib's `turn`), no faster than a forearm turns (_stroke_tmu)
+            floor = sum(_forearm_tmu(a, tool, arc) for a in strokes) * T.TMU_SECONDS
+            stated = max(stated, floor)
         for h in HANDS[values["hand"]]:
             fastener = self._hold_tool(h, tool, arc, stmt, env)
             t_h = t
@@ -797,16 +801,35 @@ def _stroke_params(
     }
 
 
+# The forearm's peak speed in a twist (issue 19): a person's joints move at most 360 deg/s in
+# this work, a tool's quarter turns on a fastener at most 600 deg/s (the wrist's looser goal);
+# a little under each so a frame's step stays under it at 30 fps.
+FOREARM_SPEED = math.radians(340.0)  # rad/s: a hand turning what it holds
+TOOL_FOREARM_SPEED = math.radians(570.0)  # rad/s: a screwdriver's or pliers' quarter turns
+SMOOTH_PEAK = 1.5  # a twist starts and ends at rest: its peak speed is 1.5x its mean
+
+
 def _stroke_tmu(angle: float, load: float, tool: Tool | None, arc: bool) -> float:
     """MTM-1 for one stroke: the turn; a wrench is then let go (RL1), moved back over the arc's
-    chord (R-B) and re-grasped (G1A); a ratchet swings back engaged (a second turn)."""
+    chord (R-B) and re-grasped (G1A); a ratchet swings back engaged (a second turn). A forearm
+    twist takes at least the time a person's forearm needs for it (``FOREARM_SPEED``): MTM-1's
+    T90S (0.19 s) would turn it at 700 deg/s at its peak."""
     turn = mtm.turn_tmu(angle, load)
     if not arc or tool is None:
-        return turn
+        return max(turn, _forearm_tmu(angle, tool, arc))
     if tool.properties.get("kind") == "ratchet":
         return 2.0 * turn
     chord = 2.0 * _tool_radius(tool) * math.sin(abs(angle) / 2.0)
     return turn + mtm.code_tmu("RL1") + mtm.reach_tmu("B", chord) + mtm.grasp_tmu("G1A")
+
+
+def _forearm_tmu(angle: float, tool: Tool | None, arc: bool) -> float:
+    """The least time (TMU) of a forearm's twist by ``angle`` at a person's speed (0 for a
+    wrench's arc: the shoulder and elbow swing it)."""
+    if arc and tool is not None:
+        return 0.0
+    speed = FOREARM_SPEED if tool is None else TOOL_FOREARM_SPEED
+    return SMOOTH_PEAK * abs(angle) / speed / T.TMU_SECONDS
 
 
 def _tool_radius(tool: Tool) -> float:

@@ -209,44 +209,48 @@ def drain_reservoir():
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)
     human.KeyJoints(3.5, {
-        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002),
-        'right_shoulder': (109.016, 4.279, 59.594), 'right_elbow': (29.989, -29.318),
+        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002), 'right_elbow': (29.989, -29.318),
         'right_wrist': (-15.251, 0.243),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(3.6, {
-        'right_shoulder': (109.404, 4.531, 59.478), 'right_elbow': (31.13, -53.2),
-        'right_wrist': (-15.335, 0.484),
+        'right_shoulder': (109.113, 4.331, 59.566), 'right_elbow': (30.345, -36.421),
     })
-    human.KeyJoints(3.7, {
+    human.KeyJoints(3.7, {'right_elbow': (31.151, -53.69)})
+    human.KeyJoints(3.8, {
+        'right_shoulder': (109.803, 4.843, 59.356), 'right_elbow': (31.801, -71.451),
+        'right_wrist': (-15.306, 0.544),
+    })
+    human.KeyJoints(3.9, {
         'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002),
-        'right_shoulder': (110.013, 5.01, 59.293), 'right_elbow': (32.016, -79.997),
+        'right_shoulder': (110.013, 5.01, 59.293), 'right_elbow': (32.015, -79.988),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
-    human.LookAt((5.0, 2.0, 75.0), start=3.700934, duration=0.2628)
-    human.KeyJoints(3.8, {'neck': (0.133, 0.186, -8.077), 'head': (0.134, 0.001)})
-    human.KeyJoints(3.9, {'neck': (2.139, 0.043, -2.152), 'head': (2.14, 0.0)})
+    human.LookAt((5.0, 2.0, 75.0), start=3.903593, duration=0.2628)
+    human.KeyJoints(4.0, {'neck': (0.888, 0.132, -5.846), 'head': (0.889, 0.001)})
+    human.KeyJoints(4.1, {'neck': (3.376, -0.045, 1.504), 'head': (3.377, 0.0)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(4.0, {'neck': (3.921, -0.098, 3.114), 'head': (3.922, -0.001)})
-    human.KeyJoints(4.6, {'right_wrist': (-15.279, 0.53)})
-    human.KeyJoints(4.8, {'neck': (4.116, -0.098, 3.688)})
-    human.KeyJoints(5.0, {'head': (4.116, -0.001)})
-    human.KeyJoints(7.9, {
-        'right_shoulder': (110.013, 5.011, 59.293), 'right_elbow': (32.016, -80.0),
-    })
+    human.KeyJoints(4.2, {'neck': (4.116, -0.098, 3.754), 'head': (4.116, -0.001)})
+    human.KeyJoints(7.5, {'neck': (4.116, -0.098, 3.688)})
+    human.KeyJoints(8.1, {'right_elbow': (32.016, -80.0)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
-    human.KeyJoints(8.0, {
-        'right_shoulder': (109.934, 4.948, 59.316), 'right_elbow': (31.945, -76.855),
-        'right_wrist': (-15.289, 0.538),
+    human.KeyJoints(8.2, {
+        'right_shoulder': (109.967, 4.974, 59.306), 'right_elbow': (31.976, -78.175),
+        'right_wrist': (-15.285, 0.535),
     })
-    human.KeyJoints(8.1, {
-        'right_shoulder': (109.103, 4.325, 59.569), 'right_elbow': (30.31, -35.712),
-        'right_wrist': (-15.29, 0.32),
+    human.KeyJoints(8.3, {'right_elbow': (31.26, -56.287), 'right_wrist': (-15.334, 0.503)})
+    human.KeyJoints(8.4, {
+        'right_shoulder': (108.945, 4.252, 59.614), 'right_elbow': (29.68, -23.198),
+        'right_wrist': (-15.201, 0.166),
+    })
+    human.KeyJoints(8.5, {
+        'right_shoulder': (108.858, 4.224, 59.639), 'right_elbow': (28.158, 3.839),
+        'right_wrist': (-14.8, -0.194),
     })
     # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=8.158134, duration=0.072)
-    human.KeyRoot(8.2, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.2, {
+    human.Grasp('right_hand', 'open', start=8.563452, duration=0.072)
+    human.KeyRoot(8.6, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.6, {
         'spine_lumbar': (60.0, -1.884, 3.474), 'spine_thoracic': (28.561, -2.067, 2.853),
         'right_shoulder': (108.876, 4.257, 59.63), 'right_elbow': (27.839, 10.0),
         'right_wrist': (-14.685, -0.255), 'left_shoulder': (74.757, 5.73, 11.459),
@@ -254,75 +258,83 @@ def drain_reservoir():
         'left_hip': (79.683, 0.0, 0.0), 'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
-    human.KeyRoot(8.3, (7.845, 51.096, 20.812), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.3, {
-        'spine_lumbar': (59.307, -1.467, 2.705), 'spine_thoracic': (28.415, -1.61, 2.222),
-        'right_shoulder': (108.98, 4.13, 59.628), 'right_elbow': (28.123, 9.979),
-        'right_wrist': (-14.737, -0.188), 'left_shoulder': (72.6, 5.73, 11.459),
-        'right_hip': (77.179, 0.0, 0.0), 'right_knee': (96.583,), 'right_ankle': (19.426, 0.0),
-        'left_hip': (77.179, 0.0, 0.0), 'left_knee': (96.583,), 'left_ankle': (19.426, 0.0),
-    })
-    human.KeyRoot(8.4, (7.714, 56.936, 21.216), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.4, {
-        'spine_lumbar': (56.577, -0.317, 0.584), 'spine_thoracic': (27.785, -0.348, 0.48),
-        'right_elbow': (29.11, 9.982), 'left_shoulder': (65.564, 5.73, 11.459),
-        'right_hip': (69.01, 0.0, 0.0), 'right_knee': (86.47,), 'right_ankle': (17.479, 0.0),
-        'left_hip': (69.01, 0.0, 0.0), 'left_knee': (86.47,), 'left_ankle': (17.479, 0.0),
-    })
-    human.KeyRoot(8.5, (7.394, 61.975, 22.203), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.5, {
-        'spine_lumbar': (52.572, 0.0, 0.0), 'spine_thoracic': (26.505, 0.0, 0.0),
-        'right_elbow': (29.916, 9.986), 'right_wrist': (-15.205, 0.225),
-        'left_shoulder': (59.15, 5.73, 11.459), 'right_hip': (61.559, 0.0, 0.0),
-        'right_knee': (77.226,), 'right_ankle': (15.668, 0.0), 'left_hip': (61.559, 0.0, 0.0),
-        'left_knee': (77.226,), 'left_ankle': (15.668, 0.0),
-    })
-    human.KeyRoot(8.6, (6.953, 66.192, 23.562), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.6, {
-        'spine_lumbar': (45.229, 0.0, 0.0), 'spine_thoracic': (22.785, 0.0, 0.0),
-        'right_shoulder': (108.985, 4.278, 59.602),
-    })
-    human.KeyRoot(8.7, (6.378, 70.07, 25.336), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.7, (7.845, 50.849, 20.811), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'spine_lumbar': (37.655, 0.0, 0.0), 'spine_thoracic': (18.828, 0.0, 0.0),
-        'right_clavicle': (1.132, 1.945), 'right_shoulder': (108.877, 4.307, 59.557),
-        'right_elbow': (30.06, 9.995), 'right_wrist': (-15.233, 0.257),
+        'spine_lumbar': (59.404, -1.521, 2.805), 'spine_thoracic': (28.436, -1.669, 2.304),
+        'right_shoulder': (108.969, 4.146, 59.628), 'right_elbow': (28.114, 9.984),
+        'right_wrist': (-14.751, -0.178), 'left_shoulder': (72.891, 5.73, 11.459),
+        'right_hip': (77.516, 0.0, 0.0), 'right_knee': (97.001,), 'right_ankle': (19.504, 0.0),
+        'left_hip': (77.516, 0.0, 0.0), 'left_knee': (97.001,), 'left_ankle': (19.504, 0.0),
     })
-    human.KeyRoot(8.8, (5.679, 73.558, 27.489), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.8, (7.728, 56.599, 21.173), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'spine_lumbar': (31.183, 0.0, 0.0), 'spine_thoracic': (15.592, 0.0, 0.0),
-        'right_clavicle': (1.041, 1.787), 'right_shoulder': (100.755, 4.433, 55.661),
-        'right_elbow': (30.432, 9.997), 'right_wrist': (-14.008, 0.241),
+        'spine_lumbar': (56.755, -0.369, 0.68), 'spine_thoracic': (27.828, -0.404, 0.558),
+        'right_elbow': (29.093, 9.987), 'left_shoulder': (65.979, 5.73, 11.459),
+        'right_hip': (69.491, 0.0, 0.0), 'right_knee': (87.065,), 'left_hip': (69.491, 0.0, 0.0),
+        'left_knee': (87.065,),
     })
-    human.KeyRoot(8.9, (4.871, 76.611, 29.98), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.9, (7.413, 61.735, 22.143), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'spine_lumbar': (25.103, 0.0, 0.0), 'spine_thoracic': (12.551, 0.0, 0.0),
-        'right_shoulder': (85.831, 4.663, 48.499), 'right_elbow': (31.122, 10.0),
-        'right_wrist': (-11.755, 0.214),
+        'spine_lumbar': (52.873, 0.0, 0.0), 'spine_thoracic': (26.637, 0.0, 0.0),
+        'right_elbow': (29.939, 9.99), 'right_wrist': (-15.222, 0.239),
+        'left_shoulder': (59.464, 5.73, 11.459), 'right_hip': (61.924, 0.0, 0.0),
+        'right_knee': (77.681,), 'right_ankle': (15.758, 0.0), 'left_hip': (61.924, 0.0, 0.0),
+        'left_knee': (77.681,), 'left_ankle': (15.758, 0.0),
     })
-    human.KeyRoot(9.0, (3.969, 79.19, 32.761), (-17.969, 0.0, 0.0))
-    human.KeyJoints(9.0, {
-        'spine_lumbar': (19.619, 0.0, 0.0), 'spine_thoracic': (9.809, 0.0, 0.0),
-        'right_clavicle': (0.659, 1.131), 'right_shoulder': (66.917, 4.924, 39.429),
-        'right_elbow': (31.919, 10.0), 'right_wrist': (-8.876, 0.162),
-    })
-    human.KeyRoot(9.1, (2.99, 81.265, 35.782), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.0, (6.98, 65.97, 23.479), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.0, {'spine_lumbar': (45.663, 0.0, 0.0), 'spine_thoracic': (23.016, 0.0, 0.0)})
+    human.KeyRoot(9.1, (6.411, 69.869, 25.232), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'right_clavicle': (0.394, 0.677), 'right_shoulder': (43.501, 5.248, 28.199),
-        'right_elbow': (32.906, 10.0), 'right_wrist': (-5.313, 0.097),
+        'spine_lumbar': (38.006, 0.0, 0.0), 'spine_thoracic': (19.003, 0.0, 0.0),
+        'right_clavicle': (1.133, 1.946), 'right_shoulder': (108.946, 4.309, 59.589),
+        'right_elbow': (30.062, 9.997), 'right_wrist': (-15.252, 0.265),
     })
-    human.KeyRoot(9.2, (1.949, 82.812, 38.989), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.2, (5.719, 73.38, 27.366), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.2, {
-        'spine_lumbar': (9.328, 0.0, 0.0), 'right_shoulder': (27.342, 5.471, 20.45),
-        'right_elbow': (33.587, 10.0), 'right_wrist': (-2.853, 0.052),
+        'spine_lumbar': (31.519, 0.0, 0.0), 'spine_thoracic': (15.76, 0.0, 0.0),
+        'right_clavicle': (1.048, 1.8), 'right_shoulder': (101.438, 4.448, 55.984),
+        'right_elbow': (30.444, 10.0), 'right_wrist': (-14.13, 0.257),
     })
-    human.KeyRoot(9.3, (0.867, 83.805, 42.326), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.3, (4.917, 76.458, 29.84), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.3, {
-        'right_clavicle': (0.075, 0.129), 'right_shoulder': (15.24, 5.638, 14.646),
-        'right_elbow': (34.097, 10.0), 'right_wrist': (-1.011, 0.018),
+        'spine_lumbar': (25.413, 0.0, 0.0), 'spine_thoracic': (12.706, 0.0, 0.0),
+        'right_shoulder': (86.648, 4.652, 48.891), 'right_elbow': (31.075, 10.0),
+        'right_wrist': (-11.879, 0.216),
     })
-    human.KeyRoot(9.378534, (0.0, 84.188, 45.0), (-17.969, 0.0, 0.0))
-    human.KeyJoints(9.378534, {
+    human.KeyRoot(9.4, (4.02, 79.065, 32.606), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.4, {
+        'spine_lumbar': (19.896, 0.0, 0.0), 'spine_thoracic': (9.948, 0.0, 0.0),
+        'right_clavicle': (0.673, 1.155), 'right_shoulder': (68.152, 4.907, 40.021),
+        'right_elbow': (31.861, 10.0), 'right_wrist': (-9.064, 0.165),
+    })
+    human.KeyRoot(9.5, (3.043, 81.167, 35.616), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.5, {
+        'spine_lumbar': (14.785, 0.0, 0.0), 'spine_thoracic': (7.392, 0.0, 0.0),
+        'right_clavicle': (0.407, 0.699), 'right_shoulder': (44.635, 5.232, 28.743),
+        'right_elbow': (32.858, 10.0), 'right_wrist': (-5.485, 0.1),
+        'left_shoulder': (24.948, 5.73, 11.459), 'right_hip': (21.852, 0.0, 0.0),
+        'right_knee': (28.089,), 'right_ankle': (6.237, 0.0), 'left_hip': (21.852, 0.0, 0.0),
+        'left_knee': (28.089,), 'left_ankle': (6.237, 0.0),
+    })
+    human.KeyRoot(9.6, (1.928, 82.837, 39.055), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.6, {
+        'spine_lumbar': (9.223, 0.0, 0.0), 'spine_thoracic': (4.612, 0.0, 0.0),
+        'right_shoulder': (27.597, 5.467, 20.572), 'right_elbow': (33.576, 10.0),
+        'right_wrist': (-2.892, 0.053), 'left_shoulder': (18.765, 5.73, 11.459),
+        'right_hip': (14.673, 0.0, 0.0), 'right_knee': (19.202,), 'right_ankle': (4.529, 0.0),
+        'left_hip': (14.673, 0.0, 0.0), 'left_knee': (19.202,), 'left_ankle': (4.529, 0.0),
+    })
+    human.KeyRoot(9.7, (0.554, 83.985, 43.292), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.7, {
+        'spine_lumbar': (2.615, 0.0, 0.0), 'spine_thoracic': (1.307, 0.0, 0.0),
+        'right_clavicle': (0.057, 0.097), 'right_shoulder': (13.604, 5.66, 13.862),
+        'right_elbow': (34.166, 10.0), 'right_wrist': (-0.762, 0.014),
+        'left_shoulder': (11.478, 5.73, 11.459), 'right_hip': (6.213, 0.0, 0.0),
+        'right_knee': (8.728,), 'right_ankle': (2.516, 0.0), 'left_hip': (6.213, 0.0, 0.0),
+        'left_knee': (8.728,), 'left_ankle': (2.516, 0.0),
+    })
+    human.KeyRoot(9.783852, (0.0, 84.188, 45.0), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.783852, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (4.116, -0.098, 3.688), 'head': (4.116, -0.001), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 10.0),

@@ -166,34 +166,34 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
-        'spine_lumbar': (7.371, 1.153, 1.454), 'spine_thoracic': (-3.035, -2.61, 1.43),
-        'neck': (-0.449, -0.698, -26.417), 'head': (-0.6, -0.002), 'right_clavicle': (3.876, 0.507),
-        'right_shoulder': (89.855, 12.229, 0.531), 'right_elbow': (33.049, 11.171),
-        'right_wrist': (-1.345, -26.967),
+        'spine_lumbar': (7.705, 1.128, 1.285), 'spine_thoracic': (-3.035, -2.932, 1.267),
+        'neck': (-0.515, -0.724, -26.45), 'head': (-0.672, -0.002),
+        'right_clavicle': (4.329, 0.305), 'right_shoulder': (89.679, 12.609, 0.996),
+        'right_elbow': (33.302, 11.64), 'right_wrist': (-1.149, -26.347),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (11.256, 1.619, -0.05), 'spine_thoracic': (-3.607, -6.103, -0.103),
-        'neck': (-1.372, -1.061, -27.022), 'head': (-1.597, -0.006),
-        'right_clavicle': (9.02, -1.734), 'right_shoulder': (87.979, 16.791, 5.327),
-        'right_elbow': (36.139, 16.138), 'right_wrist': (0.654, -19.478),
+        'spine_lumbar': (12.906, 2.33, -0.658), 'spine_thoracic': (-3.559, -7.421, -0.719),
+        'neck': (-2.109, -1.341, -27.056), 'head': (-2.387, -0.012),
+        'right_clavicle': (11.156, -2.645), 'right_shoulder': (88.191, 18.634, 7.333),
+        'right_elbow': (37.501, 18.161), 'right_wrist': (1.496, -16.355),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (15.3, 3.775, -1.372), 'spine_thoracic': (-3.798, -9.604, -1.468),
-        'neck': (-3.081, -1.706, -26.993), 'head': (-3.427, -0.023),
-        'right_clavicle': (14.761, -4.032), 'right_shoulder': (88.448, 21.788, 10.047),
-        'right_elbow': (39.417, 21.0), 'right_wrist': (2.538, -11.467),
+        'spine_lumbar': (17.117, 5.386, -3.023), 'spine_thoracic': (-1.67, -10.0, -2.882),
+        'neck': (-5.464, -2.562, -25.161), 'head': (-5.942, -0.072),
+        'right_clavicle': (16.378, -5.0), 'right_shoulder': (93.749, 22.582, 13.228),
+        'right_elbow': (41.262, 23.633), 'right_wrist': (4.2, -9.459),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (13.546, 4.889, -3.596), 'spine_thoracic': (-1.536, -10.0, -3.452),
-        'neck': (-3.722, -1.852, -21.827), 'head': (-4.051, -0.032),
-        'right_clavicle': (15.972, -5.243), 'right_shoulder': (90.15, 21.164, 14.347),
-        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.093),
+        'spine_lumbar': (10.668, 3.163, -2.991), 'spine_thoracic': (-2.049, -8.924, -2.902),
+        'neck': (-1.728, -1.1, -21.835), 'head': (-1.929, -0.008),
+        'right_clavicle': (13.451, -4.502), 'right_shoulder': (87.475, 18.746, 12.43),
+        'right_elbow': (40.64, 22.209), 'right_wrist': (3.637, -10.685),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (7.529, 1.005, -0.526), 'spine_thoracic': (-2.614, -4.84, -0.578),
-        'neck': (-0.322, -0.606, -24.377), 'head': (-0.445, -0.001),
-        'right_clavicle': (6.882, -1.656), 'right_shoulder': (86.119, 14.039, 5.218),
-        'right_elbow': (35.983, 15.429), 'right_wrist': (0.635, -20.619),
+        'spine_lumbar': (7.194, 1.06, 0.146), 'spine_thoracic': (-2.532, -3.858, 0.093),
+        'neck': (-0.358, -0.632, -24.745), 'head': (-0.489, -0.001),
+        'right_clavicle': (5.508, -0.879), 'right_shoulder': (87.349, 13.063, 3.512),
+        'right_elbow': (34.942, 13.823), 'right_wrist': (-0.059, -23.049),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
@@ -203,96 +203,96 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (9.519, 1.192, 0.563), 'spine_thoracic': (-3.474, -4.644, 0.534),
-        'neck': (-0.838, -0.853, -26.793), 'head': (-1.022, -0.003),
-        'right_clavicle': (6.788, -0.763), 'right_shoulder': (88.36, 14.801, 3.259),
-        'right_elbow': (34.773, 13.998), 'right_wrist': (-0.213, -22.82),
+        'spine_lumbar': (10.633, 1.426, 0.194), 'spine_thoracic': (-3.63, -5.612, 0.144),
+        'neck': (-1.094, -0.954, -26.939), 'head': (-1.299, -0.004),
+        'right_clavicle': (8.247, -1.388), 'right_shoulder': (87.939, 16.121, 4.554),
+        'right_elbow': (35.656, 15.359), 'right_wrist': (0.318, -20.641),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (13.6, 2.704, -0.887), 'spine_thoracic': (-3.591, -8.007, -0.955),
-        'neck': (-2.399, -1.45, -27.032), 'head': (-2.698, -0.015),
-        'right_clavicle': (12.122, -3.034), 'right_shoulder': (88.266, 19.469, 8.148),
-        'right_elbow': (38.096, 18.995), 'right_wrist': (1.822, -15.0),
+        'spine_lumbar': (15.648, 4.07, -1.573), 'spine_thoracic': (-3.723, -9.776, -1.651),
+        'neck': (-3.344, -1.803, -26.886), 'head': (-3.707, -0.027),
+        'right_clavicle': (15.093, -4.19), 'right_shoulder': (88.711, 21.946, 10.571),
+        'right_elbow': (39.747, 21.46), 'right_wrist': (2.765, -11.034),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (17.231, 5.574, -3.372), 'spine_thoracic': (-1.286, -10.0, -3.235),
-        'neck': (-5.759, -2.664, -24.398), 'head': (-6.249, -0.08),
-        'right_clavicle': (16.76, -5.288), 'right_shoulder': (94.389, 22.791, 13.972),
-        'right_elbow': (41.692, 24.111), 'right_wrist': (4.474, -8.623),
+        'spine_lumbar': (13.53, 4.887, -3.596), 'spine_thoracic': (-1.537, -10.0, -3.452),
+        'neck': (-3.702, -1.845, -21.824), 'head': (-4.03, -0.031),
+        'right_clavicle': (15.971, -5.243), 'right_shoulder': (90.132, 21.158, 14.346),
+        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.094),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (9.225, 1.833, -2.169), 'spine_thoracic': (-2.417, -7.489, -2.146),
-        'neck': (-0.904, -0.804, -22.68), 'head': (-1.058, -0.004),
-        'right_clavicle': (11.057, -3.558), 'right_shoulder': (86.255, 17.049, 9.88),
-        'right_elbow': (38.957, 19.817), 'right_wrist': (2.567, -14.15),
+        'spine_lumbar': (8.038, 0.992, -1.262), 'spine_thoracic': (-2.649, -5.97, -1.298),
+        'neck': (-0.3, -0.591, -23.709), 'head': (-0.418, -0.001),
+        'right_clavicle': (8.575, -2.511), 'right_shoulder': (85.54, 15.27, 7.194),
+        'right_elbow': (37.214, 17.291), 'right_wrist': (1.447, -17.839),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.597, 1.233, 1.682), 'spine_thoracic': (-2.28, -1.679, 1.65),
-        'neck': (-0.621, -0.758, -26.088), 'head': (-0.783, -0.002),
-        'right_clavicle': (2.602, 0.896), 'right_shoulder': (91.162, 11.036, -0.259),
-        'right_elbow': (32.672, 10.276), 'right_wrist': (-1.584, -28.465),
+        'spine_lumbar': (6.589, 1.236, 1.704), 'spine_thoracic': (-2.276, -1.648, 1.673),
+        'neck': (-0.628, -0.761, -26.114), 'head': (-0.791, -0.002),
+        'right_clavicle': (2.561, 0.922), 'right_shoulder': (91.225, 11.007, -0.314),
+        'right_elbow': (32.64, 10.225), 'right_wrist': (-1.606, -28.544),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'spine_lumbar': (7.886, 1.117, 1.185), 'spine_thoracic': (-3.035, -3.094, 1.171),
-        'neck': (-0.573, -0.746, -26.464), 'head': (-0.734, -0.002),
-        'right_clavicle': (4.558, 0.193), 'right_shoulder': (89.565, 12.796, 1.263),
-        'right_elbow': (33.521, 11.901), 'right_wrist': (-1.033, -26.022),
+        'spine_lumbar': (8.473, 1.114, 0.905), 'spine_thoracic': (-3.068, -3.635, 0.896),
+        'neck': (-0.711, -0.8, -26.534), 'head': (-0.883, -0.002), 'right_clavicle': (5.33, -0.161),
+        'right_shoulder': (89.256, 13.458, 2.056), 'right_elbow': (33.978, 12.705),
+        'right_wrist': (-0.688, -24.926),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (11.842, 1.842, -0.278), 'spine_thoracic': (-3.567, -6.561, -0.332),
-        'neck': (-1.667, -1.175, -27.087), 'head': (-1.913, -0.009),
-        'right_clavicle': (9.754, -2.057), 'right_shoulder': (88.036, 17.422, 6.054),
-        'right_elbow': (36.657, 16.866), 'right_wrist': (0.962, -18.385),
+        'spine_lumbar': (13.633, 2.723, -0.898), 'spine_thoracic': (-3.593, -8.035, -0.966),
+        'neck': (-2.413, -1.456, -27.031), 'head': (-2.712, -0.015),
+        'right_clavicle': (12.169, -3.052), 'right_shoulder': (88.27, 19.509, 8.186),
+        'right_elbow': (38.122, 19.034), 'right_wrist': (1.837, -14.935),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (15.946, 4.384, -1.941), 'spine_thoracic': (-3.292, -9.896, -1.934),
-        'neck': (-3.771, -1.954, -26.38), 'head': (-4.157, -0.034),
-        'right_clavicle': (15.285, -4.293), 'right_shoulder': (89.822, 22.009, 11.168),
-        'right_elbow': (40.09, 21.891), 'right_wrist': (3.071, -10.782),
+        'spine_lumbar': (17.427, 5.602, -3.3), 'spine_thoracic': (-1.275, -10.0, -3.165),
+        'neck': (-5.895, -2.719, -24.75), 'head': (-6.396, -0.084),
+        'right_clavicle': (16.79, -5.29), 'right_shoulder': (94.63, 22.863, 13.846),
+        'right_elbow': (41.618, 24.113), 'right_wrist': (4.475, -8.789),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (12.486, 4.439, -3.507), 'spine_thoracic': (-1.678, -9.838, -3.371),
-        'neck': (-2.927, -1.549, -21.853), 'head': (-3.203, -0.021),
-        'right_clavicle': (15.369, -5.118), 'right_shoulder': (89.136, 20.416, 14.059),
-        'right_elbow': (41.724, 23.765), 'right_wrist': (4.331, -8.48),
+        'spine_lumbar': (9.831, 2.427, -2.585), 'spine_thoracic': (-2.254, -8.211, -2.529),
+        'neck': (-1.184, -0.901, -22.338), 'head': (-1.353, -0.005),
+        'right_clavicle': (12.207, -4.033), 'right_shoulder': (86.746, 17.827, 11.162),
+        'right_elbow': (39.8, 21.016), 'right_wrist': (3.103, -12.405),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (7.198, 1.06, 0.136), 'spine_thoracic': (-2.533, -3.872, 0.084),
-        'neck': (-0.385, -0.642, -24.848), 'head': (-0.518, -0.001),
-        'right_clavicle': (5.528, -0.89), 'right_shoulder': (87.34, 13.077, 3.536),
-        'right_elbow': (34.957, 13.846), 'right_wrist': (-0.049, -23.015),
+        'spine_lumbar': (6.972, 1.113, 0.662), 'spine_thoracic': (-2.455, -3.118, 0.614),
+        'neck': (-0.437, -0.671, -25.205), 'head': (-0.578, -0.002),
+        'right_clavicle': (4.503, -0.282), 'right_shoulder': (88.512, 12.357, 2.229),
+        'right_elbow': (34.166, 12.616), 'right_wrist': (-0.579, -24.887),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (10.086, 1.29, 0.403), 'spine_thoracic': (-3.619, -5.167, 0.357),
-        'neck': (-0.91, -0.884, -26.907), 'head': (-1.102, -0.003),
-        'right_clavicle': (7.564, -1.08), 'right_shoulder': (88.029, 15.52, 3.882),
-        'right_elbow': (35.212, 14.674), 'right_wrist': (0.03, -21.672),
+        'spine_lumbar': (11.395, 1.67, -0.105), 'spine_thoracic': (-3.594, -6.211, -0.158),
+        'neck': (-1.446, -1.089, -27.048), 'head': (-1.676, -0.007),
+        'right_clavicle': (9.191, -1.81), 'right_shoulder': (87.978, 16.938, 5.502),
+        'right_elbow': (36.286, 16.311), 'right_wrist': (0.726, -19.22),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (14.174, 3.044, -1.066), 'spine_thoracic': (-3.637, -8.51, -1.142),
-        'neck': (-2.638, -1.54, -27.013), 'head': (-2.953, -0.017),
-        'right_clavicle': (12.956, -3.36), 'right_shoulder': (88.34, 20.19, 8.809),
-        'right_elbow': (38.555, 19.679), 'right_wrist': (2.08, -13.857),
+        'spine_lumbar': (16.069, 4.513, -2.085), 'spine_thoracic': (-3.145, -9.94, -2.047),
+        'neck': (-3.942, -2.015, -26.207), 'head': (-4.339, -0.037),
+        'right_clavicle': (15.36, -4.337), 'right_shoulder': (90.209, 22.031, 11.415),
+        'right_elbow': (40.233, 22.071), 'right_wrist': (3.196, -10.684),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (16.249, 5.423, -3.487), 'spine_thoracic': (-1.343, -10.0, -3.347),
-        'neck': (-5.2, -2.438, -23.59), 'head': (-5.642, -0.063), 'right_clavicle': (16.597, -5.28),
-        'right_shoulder': (93.204, 22.412, 14.168), 'right_elbow': (41.809, 24.101),
-        'right_wrist': (4.471, -8.354),
+        'spine_lumbar': (12.547, 4.487, -3.536), 'spine_thoracic': (-1.665, -9.89, -3.398),
+        'neck': (-3.003, -1.576, -21.776), 'head': (-3.284, -0.021),
+        'right_clavicle': (15.435, -5.15), 'right_shoulder': (89.206, 20.458, 14.152),
+        'right_elbow': (41.786, 23.85), 'right_wrist': (4.37, -8.355),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (8.419, 1.192, -1.607), 'spine_thoracic': (-2.594, -6.536, -1.623),
-        'neck': (-0.451, -0.644, -23.296), 'head': (-0.578, -0.002),
-        'right_clavicle': (9.483, -2.91), 'right_shoulder': (85.704, 15.926, 8.191),
-        'right_elbow': (37.855, 18.23), 'right_wrist': (1.861, -16.462),
+        'spine_lumbar': (7.733, 0.985, -0.864), 'spine_thoracic': (-2.642, -5.348, -0.913),
+        'neck': (-0.295, -0.591, -24.06), 'head': (-0.414, -0.001),
+        'right_clavicle': (7.621, -2.049), 'right_shoulder': (85.686, 14.572, 6.104),
+        'right_elbow': (36.53, 16.263), 'right_wrist': (0.997, -19.365),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
@@ -302,133 +302,133 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (8.414, 1.112, 0.93), 'spine_thoracic': (-3.058, -3.579, 0.921),
-        'neck': (-0.7, -0.796, -26.524), 'head': (-0.872, -0.002), 'right_clavicle': (5.25, -0.126),
-        'right_shoulder': (89.295, 13.388, 1.981), 'right_elbow': (33.932, 12.627),
-        'right_wrist': (-0.719, -25.04),
+        'spine_lumbar': (9.191, 1.151, 0.644), 'spine_thoracic': (-3.291, -4.32, 0.626),
+        'neck': (-0.812, -0.842, -26.683), 'head': (-0.994, -0.003),
+        'right_clavicle': (6.318, -0.579), 'right_shoulder': (88.712, 14.355, 2.915),
+        'right_elbow': (34.528, 13.614), 'right_wrist': (-0.341, -23.506),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (12.428, 2.099, -0.491), 'spine_thoracic': (-3.558, -7.029, -0.549),
-        'neck': (-1.912, -1.267, -27.072), 'head': (-2.175, -0.01),
-        'right_shoulder': (88.109, 18.079, 6.763), 'right_elbow': (37.141, 17.582),
-        'right_wrist': (1.26, -17.274),
+        'spine_lumbar': (14.345, 3.149, -1.117), 'spine_thoracic': (-3.655, -8.662, -1.195),
+        'neck': (-2.708, -1.566, -27.008), 'head': (-3.029, -0.018),
+        'right_clavicle': (13.21, -3.458), 'right_shoulder': (88.361, 20.409, 9.003),
+        'right_elbow': (38.69, 19.88), 'right_wrist': (2.155, -13.515),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (16.621, 5.03, -2.696), 'spine_thoracic': (-2.285, -10.0, -2.556),
-        'neck': (-4.787, -2.317, -25.416), 'head': (-5.228, -0.054),
-        'right_clavicle': (15.789, -4.599), 'right_shoulder': (92.33, 22.206, 12.48),
-        'right_elbow': (40.835, 22.894), 'right_wrist': (3.765, -10.134),
+        'spine_lumbar': (16.595, 5.477, -3.444), 'spine_thoracic': (-1.323, -10.0, -3.305),
+        'neck': (-5.455, -2.542, -23.774), 'head': (-5.92, -0.073),
+        'right_clavicle': (16.656, -5.283), 'right_shoulder': (93.626, 22.545, 14.096),
+        'right_elbow': (41.766, 24.105), 'right_wrist': (4.473, -8.456),
     })
     human.KeyJoints(5.2, {
-        'spine_lumbar': (11.36, 3.658, -3.195), 'spine_thoracic': (-1.905, -9.283, -3.088),
-        'neck': (-2.119, -1.246, -22.022), 'head': (-2.345, -0.012),
-        'right_clavicle': (14.221, -4.747), 'right_shoulder': (88.087, 19.415, 13.07),
-        'right_elbow': (41.065, 22.823), 'right_wrist': (3.91, -9.817),
+        'spine_lumbar': (9.095, 1.761, -2.138), 'spine_thoracic': (-2.439, -7.436, -2.117),
+        'neck': (-0.786, -0.759, -22.88), 'head': (-0.931, -0.003),
+        'right_clavicle': (10.919, -3.519), 'right_shoulder': (86.154, 16.916, 9.786),
+        'right_elbow': (38.895, 19.725), 'right_wrist': (2.527, -14.278),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (6.921, 1.128, 0.791), 'spine_thoracic': (-2.434, -2.934, 0.745),
-        'neck': (-0.451, -0.677, -25.271), 'head': (-0.593, -0.002),
-        'right_clavicle': (4.257, -0.132), 'right_shoulder': (88.833, 12.185, 1.911),
-        'right_elbow': (33.974, 12.317), 'right_wrist': (-0.708, -25.343),
+        'spine_lumbar': (6.792, 1.165, 1.125), 'spine_thoracic': (-2.379, -2.461, 1.083),
+        'neck': (-0.52, -0.71, -25.611), 'head': (-0.67, -0.002), 'right_clavicle': (3.627, 0.253),
+        'right_shoulder': (89.662, 11.746, 1.092), 'right_elbow': (33.482, 11.547),
+        'right_wrist': (-1.039, -26.519),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'spine_lumbar': (6.763, 1.217, 1.678), 'spine_thoracic': (-2.526, -1.849, 1.649),
-        'neck': (-0.574, -0.743, -26.232), 'head': (-0.734, -0.002),
-        'right_clavicle': (2.837, 0.859), 'right_shoulder': (90.881, 11.281, -0.191),
-        'right_elbow': (32.709, 10.379), 'right_wrist': (-1.58, -28.259),
+        'spine_lumbar': (6.887, 1.202, 1.636), 'spine_thoracic': (-2.686, -2.016, 1.607),
+        'neck': (-0.535, -0.729, -26.28), 'head': (-0.692, -0.002),
+        'right_clavicle': (3.062, 0.788), 'right_shoulder': (90.597, 11.491, -0.049),
+        'right_elbow': (32.792, 10.538), 'right_wrist': (-1.538, -27.985),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (10.663, 1.434, 0.182), 'spine_thoracic': (-3.63, -5.636, 0.132),
-        'neck': (-1.106, -0.958, -26.94), 'head': (-1.312, -0.004),
-        'right_clavicle': (8.284, -1.405), 'right_shoulder': (87.936, 16.153, 4.592),
-        'right_elbow': (35.681, 15.397), 'right_wrist': (0.335, -20.584),
+        'spine_lumbar': (12.151, 1.973, -0.392), 'spine_thoracic': (-3.561, -6.807, -0.447),
+        'neck': (-1.799, -1.225, -27.081), 'head': (-2.054, -0.01),
+        'right_clavicle': (10.153, -2.227), 'right_shoulder': (88.074, 17.767, 6.431),
+        'right_elbow': (36.913, 17.245), 'right_wrist': (1.121, -17.8),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (14.738, 3.398, -1.226), 'spine_thoracic': (-3.706, -9.042, -1.31),
-        'neck': (-2.862, -1.624, -27.0), 'head': (-3.193, -0.02),
-        'right_clavicle': (13.834, -3.691), 'right_shoulder': (88.401, 20.965, 9.436),
-        'right_elbow': (38.992, 20.342), 'right_wrist': (2.316, -12.682),
+        'spine_lumbar': (16.49, 4.926, -2.592), 'spine_thoracic': (-2.449, -10.0, -2.458),
+        'neck': (-4.608, -2.252, -25.52), 'head': (-5.04, -0.05),
+        'right_clavicle': (15.659, -4.516), 'right_shoulder': (91.94, 22.14, 12.26),
+        'right_elbow': (40.709, 22.701), 'right_wrist': (3.646, -10.296),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (14.872, 5.183, -3.563), 'spine_thoracic': (-1.432, -10.0, -3.421),
-        'neck': (-4.541, -2.175, -22.646), 'head': (-4.931, -0.047),
-        'right_clavicle': (16.324, -5.264), 'right_shoulder': (91.594, 21.831, 14.294),
-        'right_elbow': (41.884, 24.084), 'right_wrist': (4.467, -8.172),
+        'spine_lumbar': (11.593, 3.887, -3.324), 'spine_thoracic': (-1.842, -9.514, -3.206),
+        'neck': (-2.329, -1.322, -21.759), 'head': (-2.567, -0.013),
+        'right_clavicle': (14.572, -4.893), 'right_shoulder': (88.318, 19.647, 13.481),
+        'right_elbow': (41.338, 23.203), 'right_wrist': (4.082, -9.262),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (7.903, 0.978, -1.103), 'spine_thoracic': (-2.652, -5.716, -1.145),
-        'neck': (-0.289, -0.587, -23.871), 'head': (-0.407, -0.001),
-        'right_clavicle': (8.177, -2.326), 'right_shoulder': (85.536, 14.978, 6.747),
-        'right_elbow': (36.931, 16.87), 'right_wrist': (1.262, -18.462),
+        'spine_lumbar': (7.453, 1.015, -0.385), 'spine_thoracic': (-2.599, -4.631, -0.438),
+        'neck': (-0.32, -0.608, -24.379), 'head': (-0.445, -0.001),
+        'right_clavicle': (6.585, -1.493), 'right_shoulder': (86.337, 13.827, 4.855),
+        'right_elbow': (35.761, 15.088), 'right_wrist': (0.487, -21.134),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (8.954, 1.135, 0.717), 'spine_thoracic': (-3.204, -4.091, 0.705),
-        'neck': (-0.786, -0.831, -26.625), 'head': (-0.965, -0.003),
-        'right_clavicle': (5.987, -0.443), 'right_shoulder': (88.914, 14.049, 2.647),
-        'right_elbow': (34.347, 13.324), 'right_wrist': (-0.446, -23.985),
+        'spine_lumbar': (9.876, 1.251, 0.471), 'spine_thoracic': (-3.609, -4.983, 0.43),
+        'neck': (-0.872, -0.868, -26.886), 'head': (-1.06, -0.003),
+        'right_clavicle': (7.287, -0.962), 'right_shoulder': (88.086, 15.27, 3.639),
+        'right_elbow': (35.046, 14.417), 'right_wrist': (-0.068, -22.085),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (13.011, 2.384, -0.693), 'spine_thoracic': (-3.562, -7.508, -0.755),
-        'neck': (-2.153, -1.358, -27.053), 'head': (-2.434, -0.012),
-        'right_clavicle': (11.299, -2.704), 'right_shoulder': (88.186, 18.758, 7.458),
-        'right_elbow': (37.618, 18.288), 'right_wrist': (1.545, -16.152),
+        'spine_lumbar': (15.059, 3.606, -1.301), 'spine_thoracic': (-3.761, -9.379, -1.393),
+        'neck': (-2.975, -1.667, -26.997), 'head': (-3.314, -0.022),
+        'right_clavicle': (14.385, -3.891), 'right_shoulder': (88.423, 21.464, 9.771),
+        'right_elbow': (39.229, 20.713), 'right_wrist': (2.435, -11.958),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (17.339, 5.538, -3.183), 'spine_thoracic': (-1.396, -10.0, -3.046),
-        'neck': (-5.766, -2.672, -25.003), 'head': (-6.26, -0.081),
-        'right_clavicle': (16.661, -5.197), 'right_shoulder': (94.37, 22.774, 13.597),
-        'right_elbow': (41.473, 23.965), 'right_wrist': (4.391, -9.078),
+        'spine_lumbar': (15.023, 5.211, -3.548), 'spine_thoracic': (-1.421, -10.0, -3.406),
+        'neck': (-4.595, -2.198, -22.562), 'head': (-4.991, -0.051),
+        'right_clavicle': (16.36, -5.267), 'right_shoulder': (91.776, 21.897, 14.269),
+        'right_elbow': (41.87, 24.087), 'right_wrist': (4.467, -8.209),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (10.247, 2.73, -2.728), 'spine_thoracic': (-2.167, -8.461, -2.661),
-        'neck': (-1.456, -1.002, -22.257), 'head': (-1.643, -0.006),
-        'right_clavicle': (12.724, -4.205), 'right_shoulder': (87.095, 18.263, 11.607),
-        'right_elbow': (40.095, 21.442), 'right_wrist': (3.293, -11.8),
+        'spine_lumbar': (8.49, 1.253, -1.687), 'spine_thoracic': (-2.578, -6.669, -1.698),
+        'neck': (-0.487, -0.655, -23.304), 'head': (-0.616, -0.002),
+        'right_clavicle': (9.682, -3.001), 'right_shoulder': (85.74, 16.054, 8.428),
+        'right_elbow': (38.008, 18.451), 'right_wrist': (1.959, -16.137),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (6.715, 1.191, 1.339), 'spine_thoracic': (-2.342, -2.16, 1.301),
-        'neck': (-0.541, -0.72, -25.73), 'head': (-0.694, -0.002), 'right_clavicle': (3.23, 0.5),
-        'right_shoulder': (90.228, 11.47, 0.571), 'right_elbow': (33.169, 11.057),
-        'right_wrist': (-1.249, -27.269),
+        'spine_lumbar': (6.662, 1.209, 1.488), 'spine_thoracic': (-2.315, -1.951, 1.452),
+        'neck': (-0.579, -0.738, -25.894), 'head': (-0.736, -0.002),
+        'right_clavicle': (2.956, 0.672), 'right_shoulder': (90.623, 11.28, 0.21),
+        'right_elbow': (32.953, 10.717), 'right_wrist': (-1.395, -27.789),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'spine_lumbar': (7.363, 1.153, 1.458), 'spine_thoracic': (-3.035, -2.6, 1.434),
-        'neck': (-0.448, -0.698, -26.415), 'head': (-0.6, -0.002), 'right_clavicle': (3.863, 0.512),
-        'right_shoulder': (89.815, 12.217, 0.521), 'right_elbow': (33.118, 11.159),
-        'right_wrist': (-1.354, -26.983),
+        'spine_lumbar': (7.691, 1.129, 1.292), 'spine_thoracic': (-3.035, -2.92, 1.274),
+        'neck': (-0.511, -0.722, -26.449), 'head': (-0.668, -0.002),
+        'right_clavicle': (4.312, 0.313), 'right_shoulder': (89.638, 12.595, 0.978),
+        'right_elbow': (33.367, 11.621), 'right_wrist': (-1.162, -26.37),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (11.246, 1.616, -0.046), 'spine_thoracic': (-3.607, -6.096, -0.099),
-        'neck': (-1.367, -1.059, -27.02), 'head': (-1.592, -0.006),
-        'right_clavicle': (9.007, -1.728), 'right_shoulder': (87.958, 16.78, 5.316),
-        'right_elbow': (36.162, 16.126), 'right_wrist': (0.646, -19.497),
+        'spine_lumbar': (12.894, 2.324, -0.653), 'spine_thoracic': (-3.559, -7.411, -0.714),
+        'neck': (-2.104, -1.339, -27.056), 'head': (-2.382, -0.012),
+        'right_clavicle': (11.139, -2.638), 'right_shoulder': (88.17, 18.619, 7.319),
+        'right_elbow': (37.522, 18.146), 'right_wrist': (1.488, -16.379),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (15.29, 3.768, -1.369), 'spine_thoracic': (-3.797, -9.597, -1.464),
-        'neck': (-3.076, -1.705, -26.993), 'head': (-3.422, -0.023),
-        'right_clavicle': (14.748, -4.027), 'right_shoulder': (88.447, 21.779, 10.034),
-        'right_elbow': (39.409, 20.988), 'right_wrist': (2.533, -11.484),
+        'spine_lumbar': (17.107, 5.379, -3.017), 'spine_thoracic': (-1.683, -10.0, -2.875),
+        'neck': (-5.45, -2.557, -25.166), 'head': (-5.927, -0.072),
+        'right_clavicle': (16.365, -4.991), 'right_shoulder': (93.72, 22.573, 13.212),
+        'right_elbow': (41.253, 23.618), 'right_wrist': (4.191, -9.475),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (13.565, 4.894, -3.596), 'spine_thoracic': (-1.534, -10.0, -3.452),
-        'neck': (-3.735, -1.857, -21.832), 'head': (-4.065, -0.032),
-        'right_clavicle': (15.979, -5.243), 'right_shoulder': (90.169, 21.175, 14.346),
-        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.093),
+        'spine_lumbar': (10.682, 3.175, -2.997), 'spine_thoracic': (-2.045, -8.935, -2.907),
+        'neck': (-1.737, -1.103, -21.83), 'head': (-1.939, -0.008),
+        'right_clavicle': (13.471, -4.51), 'right_shoulder': (87.488, 18.762, 12.45),
+        'right_elbow': (40.653, 22.227), 'right_wrist': (3.645, -10.658),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (7.535, 1.004, -0.536), 'spine_thoracic': (-2.615, -4.855, -0.589),
-        'neck': (-0.321, -0.606, -24.369), 'head': (-0.444, -0.001),
-        'right_clavicle': (6.904, -1.669), 'right_shoulder': (86.103, 14.055, 5.245),
-        'right_elbow': (36.0, 15.455), 'right_wrist': (0.646, -20.58),
+        'spine_lumbar': (7.198, 1.06, 0.137), 'spine_thoracic': (-2.533, -3.871, 0.084),
+        'neck': (-0.357, -0.631, -24.738), 'head': (-0.488, -0.001),
+        'right_clavicle': (5.526, -0.889), 'right_shoulder': (87.331, 13.075, 3.534),
+        'right_elbow': (34.956, 13.844), 'right_wrist': (-0.05, -23.017),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
@@ -438,96 +438,96 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (9.509, 1.191, 0.565), 'spine_thoracic': (-3.468, -4.634, 0.536),
-        'neck': (-0.837, -0.853, -26.79), 'head': (-1.021, -0.003),
-        'right_clavicle': (6.775, -0.757), 'right_shoulder': (88.37, 14.788, 3.249),
-        'right_elbow': (34.766, 13.987), 'right_wrist': (-0.217, -22.84),
+        'spine_lumbar': (10.62, 1.422, 0.199), 'spine_thoracic': (-3.63, -5.602, 0.149),
+        'neck': (-1.089, -0.952, -26.938), 'head': (-1.294, -0.004),
+        'right_clavicle': (8.231, -1.38), 'right_shoulder': (87.94, 16.107, 4.538),
+        'right_elbow': (35.645, 15.343), 'right_wrist': (0.311, -20.665),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (13.591, 2.699, -0.884), 'spine_thoracic': (-3.591, -7.999, -0.952),
-        'neck': (-2.395, -1.449, -27.033), 'head': (-2.693, -0.015),
-        'right_clavicle': (12.108, -3.028), 'right_shoulder': (88.264, 19.457, 8.136),
-        'right_elbow': (38.088, 18.983), 'right_wrist': (1.817, -15.019),
+        'spine_lumbar': (15.64, 4.062, -1.566), 'spine_thoracic': (-3.728, -9.772, -1.645),
+        'neck': (-3.335, -1.8, -26.893), 'head': (-3.698, -0.027),
+        'right_clavicle': (15.087, -4.187), 'right_shoulder': (88.695, 21.943, 10.557),
+        'right_elbow': (39.739, 21.449), 'right_wrist': (2.758, -11.042),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (17.242, 5.575, -3.37), 'spine_thoracic': (-1.285, -10.0, -3.233),
-        'neck': (-5.766, -2.667, -24.411), 'head': (-6.256, -0.08),
-        'right_clavicle': (16.762, -5.288), 'right_shoulder': (94.402, 22.795, 13.968),
-        'right_elbow': (41.69, 24.111), 'right_wrist': (4.474, -8.628),
+        'spine_lumbar': (13.549, 4.892, -3.596), 'spine_thoracic': (-1.535, -10.0, -3.452),
+        'neck': (-3.715, -1.85, -21.828), 'head': (-4.044, -0.032),
+        'right_clavicle': (15.978, -5.243), 'right_shoulder': (90.152, 21.169, 14.346),
+        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.094),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (9.24, 1.846, -2.178), 'spine_thoracic': (-2.413, -7.506, -2.155),
-        'neck': (-0.913, -0.808, -22.671), 'head': (-1.067, -0.004),
-        'right_clavicle': (11.085, -3.569), 'right_shoulder': (86.267, 17.069, 9.909),
-        'right_elbow': (38.976, 19.845), 'right_wrist': (2.58, -14.11),
+        'spine_lumbar': (8.044, 0.994, -1.269), 'spine_thoracic': (-2.648, -5.98, -1.304),
+        'neck': (-0.301, -0.591, -23.703), 'head': (-0.419, -0.001),
+        'right_clavicle': (8.591, -2.519), 'right_shoulder': (85.541, 15.282, 7.212),
+        'right_elbow': (37.226, 17.308), 'right_wrist': (1.454, -17.814),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (6.598, 1.233, 1.678), 'spine_thoracic': (-2.28, -1.684, 1.647),
-        'neck': (-0.62, -0.757, -26.084), 'head': (-0.782, -0.002),
-        'right_clavicle': (2.608, 0.892), 'right_shoulder': (91.153, 11.04, -0.251),
-        'right_elbow': (32.677, 10.284), 'right_wrist': (-1.581, -28.454),
+        'spine_lumbar': (6.59, 1.236, 1.702), 'spine_thoracic': (-2.276, -1.65, 1.671),
+        'neck': (-0.627, -0.76, -26.112), 'head': (-0.79, -0.002), 'right_clavicle': (2.565, 0.92),
+        'right_shoulder': (91.219, 11.01, -0.309), 'right_elbow': (32.643, 10.229),
+        'right_wrist': (-1.604, -28.537),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'spine_lumbar': (7.877, 1.118, 1.189), 'spine_thoracic': (-3.035, -3.086, 1.175),
-        'neck': (-0.57, -0.745, -26.463), 'head': (-0.731, -0.002),
-        'right_clavicle': (4.547, 0.198), 'right_shoulder': (89.569, 12.787, 1.25),
-        'right_elbow': (33.514, 11.889), 'right_wrist': (-1.039, -26.038),
+        'spine_lumbar': (8.461, 1.114, 0.91), 'spine_thoracic': (-3.066, -3.623, 0.901),
+        'neck': (-0.708, -0.799, -26.532), 'head': (-0.881, -0.002),
+        'right_clavicle': (5.314, -0.154), 'right_shoulder': (89.265, 13.443, 2.04),
+        'right_elbow': (33.968, 12.688), 'right_wrist': (-0.694, -24.95),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (11.832, 1.838, -0.274), 'spine_thoracic': (-3.567, -6.553, -0.328),
-        'neck': (-1.663, -1.173, -27.087), 'head': (-1.908, -0.009),
-        'right_clavicle': (9.741, -2.051), 'right_shoulder': (88.035, 17.411, 6.042),
-        'right_elbow': (36.649, 16.853), 'right_wrist': (0.957, -18.403),
+        'spine_lumbar': (13.621, 2.716, -0.894), 'spine_thoracic': (-3.592, -8.025, -0.962),
+        'neck': (-2.408, -1.454, -27.032), 'head': (-2.707, -0.015),
+        'right_clavicle': (12.152, -3.045), 'right_shoulder': (88.268, 19.495, 8.172),
+        'right_elbow': (38.113, 19.02), 'right_wrist': (1.831, -14.959),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (15.934, 4.372, -1.926), 'spine_thoracic': (-3.31, -9.892, -1.922),
-        'neck': (-3.753, -1.948, -26.4), 'head': (-4.138, -0.034),
-        'right_clavicle': (15.278, -4.289), 'right_shoulder': (89.776, 22.007, 11.144),
-        'right_elbow': (40.077, 21.874), 'right_wrist': (3.058, -10.791),
+        'spine_lumbar': (17.43, 5.602, -3.297), 'spine_thoracic': (-1.275, -10.0, -3.163),
+        'neck': (-5.896, -2.719, -24.76), 'head': (-6.397, -0.084),
+        'right_clavicle': (16.79, -5.29), 'right_shoulder': (94.634, 22.864, 13.841),
+        'right_elbow': (41.615, 24.113), 'right_wrist': (4.475, -8.795),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (12.505, 4.45, -3.51), 'spine_thoracic': (-1.675, -9.845, -3.374),
-        'neck': (-2.941, -1.554, -21.851), 'head': (-3.218, -0.021),
-        'right_clavicle': (15.384, -5.123), 'right_shoulder': (89.154, 20.431, 14.071),
-        'right_elbow': (41.732, 23.776), 'right_wrist': (4.336, -8.465),
+        'spine_lumbar': (9.844, 2.439, -2.592), 'spine_thoracic': (-2.251, -8.223, -2.536),
+        'neck': (-1.192, -0.904, -22.327), 'head': (-1.362, -0.005),
+        'right_clavicle': (12.229, -4.041), 'right_shoulder': (86.757, 17.842, 11.184),
+        'right_elbow': (39.815, 21.037), 'right_wrist': (3.113, -12.375),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (7.203, 1.059, 0.125), 'spine_thoracic': (-2.534, -3.888, 0.072),
-        'neck': (-0.384, -0.642, -24.84), 'head': (-0.517, -0.001),
-        'right_clavicle': (5.551, -0.903), 'right_shoulder': (87.317, 13.093, 3.565),
-        'right_elbow': (34.975, 13.873), 'right_wrist': (-0.038, -22.974),
+        'spine_lumbar': (6.976, 1.112, 0.654), 'spine_thoracic': (-2.457, -3.13, 0.605),
+        'neck': (-0.435, -0.67, -25.197), 'head': (-0.576, -0.002),
+        'right_clavicle': (4.519, -0.292), 'right_shoulder': (88.492, 12.368, 2.25),
+        'right_elbow': (34.179, 12.635), 'right_wrist': (-0.571, -24.857),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (10.077, 1.289, 0.406), 'spine_thoracic': (-3.618, -5.159, 0.361),
-        'neck': (-0.908, -0.883, -26.907), 'head': (-1.099, -0.003),
-        'right_clavicle': (7.552, -1.075), 'right_shoulder': (88.032, 15.509, 3.871),
-        'right_elbow': (35.204, 14.662), 'right_wrist': (0.026, -21.691),
+        'spine_lumbar': (11.382, 1.665, -0.1), 'spine_thoracic': (-3.595, -6.201, -0.153),
+        'neck': (-1.439, -1.087, -27.045), 'head': (-1.669, -0.007),
+        'right_clavicle': (9.176, -1.803), 'right_shoulder': (87.976, 16.924, 5.486),
+        'right_elbow': (36.275, 16.295), 'right_wrist': (0.719, -19.244),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (14.165, 3.038, -1.063), 'spine_thoracic': (-3.636, -8.501, -1.139),
-        'neck': (-2.634, -1.539, -27.013), 'head': (-2.949, -0.017),
-        'right_clavicle': (12.942, -3.354), 'right_shoulder': (88.339, 20.177, 8.798),
-        'right_elbow': (38.547, 19.667), 'right_wrist': (2.076, -13.877),
+        'spine_lumbar': (16.062, 4.506, -2.076), 'spine_thoracic': (-3.157, -9.938, -2.04),
+        'neck': (-3.931, -2.011, -26.221), 'head': (-4.327, -0.037),
+        'right_clavicle': (15.356, -4.334), 'right_shoulder': (90.179, 22.03, 11.401),
+        'right_elbow': (40.225, 22.061), 'right_wrist': (3.188, -10.689),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (16.27, 5.427, -3.485), 'spine_thoracic': (-1.341, -10.0, -3.345),
-        'neck': (-5.21, -2.442, -23.603), 'head': (-5.653, -0.064), 'right_clavicle': (16.6, -5.28),
-        'right_shoulder': (93.229, 22.421, 14.165), 'right_elbow': (41.808, 24.102),
-        'right_wrist': (4.472, -8.358),
+        'spine_lumbar': (12.564, 4.495, -3.538), 'spine_thoracic': (-1.663, -9.895, -3.4),
+        'neck': (-3.015, -1.581, -21.777), 'head': (-3.296, -0.021),
+        'right_clavicle': (15.447, -5.153), 'right_shoulder': (89.221, 20.471, 14.16),
+        'right_elbow': (41.791, 23.858), 'right_wrist': (4.373, -8.345),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (8.431, 1.2, -1.616), 'spine_thoracic': (-2.592, -6.551, -1.631),
-        'neck': (-0.457, -0.646, -23.285), 'head': (-0.584, -0.002),
-        'right_clavicle': (9.508, -2.92), 'right_shoulder': (85.71, 15.943, 8.218),
-        'right_elbow': (37.872, 18.255), 'right_wrist': (1.873, -16.425),
+        'spine_lumbar': (7.738, 0.985, -0.872), 'spine_thoracic': (-2.643, -5.359, -0.92),
+        'neck': (-0.295, -0.591, -24.054), 'head': (-0.414, -0.001),
+        'right_clavicle': (7.638, -2.058), 'right_shoulder': (85.679, 14.584, 6.124),
+        'right_elbow': (36.542, 16.282), 'right_wrist': (1.006, -19.338),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
@@ -537,133 +537,133 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (8.405, 1.112, 0.934), 'spine_thoracic': (-3.057, -3.57, 0.925),
-        'neck': (-0.698, -0.795, -26.523), 'head': (-0.87, -0.002),
-        'right_clavicle': (5.238, -0.121), 'right_shoulder': (89.3, 13.377, 1.969),
-        'right_elbow': (33.925, 12.615), 'right_wrist': (-0.724, -25.057),
+        'spine_lumbar': (9.179, 1.15, 0.647), 'spine_thoracic': (-3.285, -4.308, 0.63),
+        'neck': (-0.811, -0.841, -26.68), 'head': (-0.993, -0.003),
+        'right_clavicle': (6.302, -0.572), 'right_shoulder': (88.723, 14.339, 2.903),
+        'right_elbow': (34.519, 13.6), 'right_wrist': (-0.346, -23.53),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (12.418, 2.094, -0.488), 'spine_thoracic': (-3.558, -7.021, -0.545),
-        'neck': (-1.908, -1.265, -27.072), 'head': (-2.171, -0.01),
-        'right_shoulder': (88.108, 18.068, 6.752), 'right_elbow': (37.132, 17.57),
-        'right_wrist': (1.255, -17.293),
+        'spine_lumbar': (14.333, 3.142, -1.114), 'spine_thoracic': (-3.653, -8.652, -1.191),
+        'neck': (-2.704, -1.565, -27.008), 'head': (-3.023, -0.018),
+        'right_clavicle': (13.192, -3.451), 'right_shoulder': (88.36, 20.394, 8.989),
+        'right_elbow': (38.68, 19.866), 'right_wrist': (2.15, -13.538),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (16.608, 5.02, -2.687), 'spine_thoracic': (-2.301, -10.0, -2.547),
-        'neck': (-4.77, -2.311, -25.425), 'head': (-5.21, -0.053),
-        'right_clavicle': (15.776, -4.59), 'right_shoulder': (92.293, 22.199, 12.46),
-        'right_elbow': (40.823, 22.876), 'right_wrist': (3.754, -10.15),
+        'spine_lumbar': (16.617, 5.48, -3.442), 'spine_thoracic': (-1.321, -10.0, -3.303),
+        'neck': (-5.467, -2.547, -23.794), 'head': (-5.933, -0.073),
+        'right_clavicle': (16.66, -5.283), 'right_shoulder': (93.653, 22.554, 14.092),
+        'right_elbow': (41.764, 24.105), 'right_wrist': (4.473, -8.461),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (11.379, 3.673, -3.202), 'spine_thoracic': (-1.901, -9.295, -3.094),
-        'neck': (-2.132, -1.251, -22.019), 'head': (-2.359, -0.012),
-        'right_clavicle': (14.244, -4.755), 'right_shoulder': (88.105, 19.434, 13.092),
-        'right_elbow': (41.079, 22.843), 'right_wrist': (3.919, -9.788),
+        'spine_lumbar': (9.107, 1.771, -2.145), 'spine_thoracic': (-2.436, -7.449, -2.124),
+        'neck': (-0.791, -0.761, -22.873), 'head': (-0.937, -0.003),
+        'right_clavicle': (10.94, -3.528), 'right_shoulder': (86.163, 16.931, 9.809),
+        'right_elbow': (38.91, 19.747), 'right_wrist': (2.536, -14.246),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (6.925, 1.126, 0.781), 'spine_thoracic': (-2.436, -2.949, 0.734),
-        'neck': (-0.45, -0.676, -25.264), 'head': (-0.592, -0.002),
-        'right_clavicle': (4.277, -0.144), 'right_shoulder': (88.808, 12.199, 1.936),
-        'right_elbow': (33.99, 12.341), 'right_wrist': (-0.697, -25.307),
+        'spine_lumbar': (6.795, 1.164, 1.118), 'spine_thoracic': (-2.38, -2.471, 1.076),
+        'neck': (-0.519, -0.709, -25.606), 'head': (-0.669, -0.002),
+        'right_clavicle': (3.64, 0.245), 'right_shoulder': (89.644, 11.755, 1.109),
+        'right_elbow': (33.492, 11.563), 'right_wrist': (-1.032, -26.495),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
-        'spine_lumbar': (6.754, 1.218, 1.681), 'spine_thoracic': (-2.515, -1.838, 1.652),
-        'neck': (-0.577, -0.744, -26.229), 'head': (-0.737, -0.002),
-        'right_clavicle': (2.821, 0.864), 'right_shoulder': (90.901, 11.266, -0.201),
-        'right_elbow': (32.704, 10.368), 'right_wrist': (-1.583, -28.278),
+        'spine_lumbar': (6.873, 1.204, 1.641), 'spine_thoracic': (-2.669, -1.997, 1.612),
+        'neck': (-0.539, -0.73, -26.275), 'head': (-0.696, -0.002),
+        'right_clavicle': (3.037, 0.796), 'right_shoulder': (90.627, 11.467, -0.065),
+        'right_elbow': (32.783, 10.52), 'right_wrist': (-1.543, -28.016),
     })
     human.KeyJoints(9.3, {
-        'spine_lumbar': (10.653, 1.431, 0.186), 'spine_thoracic': (-3.63, -5.629, 0.135),
-        'neck': (-1.102, -0.957, -26.94), 'head': (-1.308, -0.004),
-        'right_shoulder': (87.937, 16.143, 4.58), 'right_elbow': (35.673, 15.385),
-        'right_wrist': (0.329, -20.602),
+        'spine_lumbar': (12.139, 1.968, -0.387), 'spine_thoracic': (-3.561, -6.797, -0.443),
+        'neck': (-1.794, -1.223, -27.081), 'head': (-2.049, -0.01),
+        'right_clavicle': (10.136, -2.22), 'right_shoulder': (88.072, 17.752, 6.415),
+        'right_elbow': (36.902, 17.23), 'right_wrist': (1.114, -17.824),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (14.728, 3.392, -1.223), 'spine_thoracic': (-3.705, -9.032, -1.308),
-        'neck': (-2.859, -1.623, -27.0), 'head': (-3.19, -0.02), 'right_clavicle': (13.818, -3.685),
-        'right_shoulder': (88.4, 20.95, 9.426), 'right_elbow': (38.985, 20.331),
-        'right_wrist': (2.313, -12.703),
+        'spine_lumbar': (16.482, 4.92, -2.585), 'spine_thoracic': (-2.459, -10.0, -2.452),
+        'neck': (-4.597, -2.248, -25.528), 'head': (-5.028, -0.049),
+        'right_clavicle': (15.652, -4.512), 'right_shoulder': (91.916, 22.136, 12.246),
+        'right_elbow': (40.701, 22.689), 'right_wrist': (3.639, -10.305),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (14.896, 5.187, -3.562), 'spine_thoracic': (-1.43, -10.0, -3.42),
-        'neck': (-4.554, -2.18, -22.665), 'head': (-4.945, -0.048),
-        'right_clavicle': (16.33, -5.265), 'right_shoulder': (91.621, 21.842, 14.292),
-        'right_elbow': (41.884, 24.085), 'right_wrist': (4.467, -8.175),
+        'spine_lumbar': (11.609, 3.899, -3.329), 'spine_thoracic': (-1.839, -9.522, -3.21),
+        'neck': (-2.339, -1.326, -21.759), 'head': (-2.579, -0.013),
+        'right_clavicle': (14.589, -4.898), 'right_shoulder': (88.332, 19.662, 13.495),
+        'right_elbow': (41.348, 23.217), 'right_wrist': (4.088, -9.243),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (7.909, 0.978, -1.111), 'spine_thoracic': (-2.652, -5.728, -1.153),
-        'neck': (-0.289, -0.587, -23.863), 'head': (-0.407, -0.001),
-        'right_clavicle': (8.197, -2.335), 'right_shoulder': (85.535, 14.993, 6.769),
-        'right_elbow': (36.946, 16.891), 'right_wrist': (1.271, -18.43),
+        'spine_lumbar': (7.458, 1.014, -0.393), 'spine_thoracic': (-2.6, -4.644, -0.447),
+        'neck': (-0.32, -0.608, -24.373), 'head': (-0.444, -0.001),
+        'right_clavicle': (6.603, -1.503), 'right_shoulder': (86.322, 13.84, 4.877),
+        'right_elbow': (35.774, 15.108), 'right_wrist': (0.496, -21.103),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (8.944, 1.135, 0.72), 'spine_thoracic': (-3.201, -4.082, 0.708),
-        'neck': (-0.785, -0.83, -26.623), 'head': (-0.964, -0.003),
-        'right_clavicle': (5.974, -0.437), 'right_shoulder': (88.921, 14.037, 2.636),
-        'right_elbow': (34.34, 13.312), 'right_wrist': (-0.45, -24.003),
+        'spine_lumbar': (9.864, 1.249, 0.474), 'spine_thoracic': (-3.607, -4.972, 0.434),
+        'neck': (-0.871, -0.867, -26.884), 'head': (-1.059, -0.003),
+        'right_clavicle': (7.271, -0.955), 'right_shoulder': (88.09, 15.255, 3.625),
+        'right_elbow': (35.036, 14.402), 'right_wrist': (-0.074, -22.109),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (13.001, 2.379, -0.69), 'spine_thoracic': (-3.562, -7.5, -0.752),
-        'neck': (-2.149, -1.356, -27.053), 'head': (-2.43, -0.012),
-        'right_clavicle': (11.286, -2.698), 'right_shoulder': (88.185, 18.746, 7.446),
-        'right_elbow': (37.61, 18.276), 'right_wrist': (1.54, -16.171),
+        'spine_lumbar': (15.048, 3.598, -1.298), 'spine_thoracic': (-3.759, -9.367, -1.39),
+        'neck': (-2.971, -1.665, -26.997), 'head': (-3.31, -0.022),
+        'right_clavicle': (14.365, -3.883), 'right_shoulder': (88.422, 21.446, 9.759),
+        'right_elbow': (39.22, 20.699), 'right_wrist': (2.431, -11.985),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (17.331, 5.532, -3.177), 'spine_thoracic': (-1.406, -10.0, -3.04),
-        'neck': (-5.755, -2.668, -25.01), 'head': (-6.249, -0.08), 'right_clavicle': (16.65, -5.19),
-        'right_shoulder': (94.348, 22.767, 13.583), 'right_elbow': (41.465, 23.953),
-        'right_wrist': (4.384, -9.093),
+        'spine_lumbar': (15.051, 5.217, -3.547), 'spine_thoracic': (-1.419, -10.0, -3.405),
+        'neck': (-4.611, -2.204, -22.581), 'head': (-5.008, -0.051),
+        'right_clavicle': (16.366, -5.267), 'right_shoulder': (91.808, 21.909, 14.267),
+        'right_elbow': (41.868, 24.087), 'right_wrist': (4.467, -8.212),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (10.265, 2.746, -2.737), 'spine_thoracic': (-2.163, -8.476, -2.669),
-        'neck': (-1.465, -1.005, -22.253), 'head': (-1.652, -0.006),
-        'right_clavicle': (12.751, -4.215), 'right_shoulder': (87.111, 18.283, 11.634),
-        'right_elbow': (40.113, 21.467), 'right_wrist': (3.304, -11.763),
+        'spine_lumbar': (8.499, 1.26, -1.694), 'spine_thoracic': (-2.576, -6.682, -1.705),
+        'neck': (-0.492, -0.656, -23.297), 'head': (-0.62, -0.002),
+        'right_clavicle': (9.701, -3.009), 'right_shoulder': (85.745, 16.067, 8.45),
+        'right_elbow': (38.023, 18.471), 'right_wrist': (1.969, -16.106),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (6.718, 1.19, 1.331), 'spine_thoracic': (-2.343, -2.171, 1.293),
-        'neck': (-0.539, -0.72, -25.722), 'head': (-0.692, -0.002),
-        'right_clavicle': (3.245, 0.491), 'right_shoulder': (90.207, 11.48, 0.59),
-        'right_elbow': (33.181, 11.075), 'right_wrist': (-1.241, -27.241),
+        'spine_lumbar': (6.664, 1.208, 1.483), 'spine_thoracic': (-2.316, -1.958, 1.447),
+        'neck': (-0.578, -0.737, -25.89), 'head': (-0.735, -0.002),
+        'right_clavicle': (2.965, 0.666), 'right_shoulder': (90.61, 11.286, 0.222),
+        'right_elbow': (32.96, 10.729), 'right_wrist': (-1.39, -27.772),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'spine_lumbar': (7.354, 1.154, 1.462), 'spine_thoracic': (-3.035, -2.591, 1.437),
-        'neck': (-0.448, -0.698, -26.414), 'head': (-0.6, -0.002), 'right_clavicle': (3.85, 0.517),
-        'right_shoulder': (89.822, 12.206, 0.51), 'right_elbow': (33.111, 11.148),
-        'right_wrist': (-1.358, -27.0),
+        'spine_lumbar': (7.678, 1.13, 1.3), 'spine_thoracic': (-3.035, -2.908, 1.281),
+        'neck': (-0.507, -0.721, -26.448), 'head': (-0.663, -0.002),
+        'right_clavicle': (4.295, 0.321), 'right_shoulder': (89.644, 12.581, 0.959),
+        'right_elbow': (33.356, 11.602), 'right_wrist': (-1.171, -26.394),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (11.236, 1.612, -0.042), 'spine_thoracic': (-3.608, -6.088, -0.095),
-        'neck': (-1.362, -1.057, -27.018), 'head': (-1.586, -0.006),
-        'right_clavicle': (8.995, -1.723), 'right_shoulder': (87.957, 16.769, 5.303),
-        'right_elbow': (36.154, 16.113), 'right_wrist': (0.641, -19.515),
+        'spine_lumbar': (12.881, 2.318, -0.649), 'spine_thoracic': (-3.558, -7.401, -0.71),
+        'neck': (-2.099, -1.337, -27.057), 'head': (-2.376, -0.012),
+        'right_clavicle': (11.122, -2.631), 'right_shoulder': (88.169, 18.604, 7.304),
+        'right_elbow': (37.512, 18.131), 'right_wrist': (1.482, -16.403),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (15.281, 3.761, -1.365), 'spine_thoracic': (-3.797, -9.59, -1.461),
-        'neck': (-3.071, -1.703, -26.993), 'head': (-3.417, -0.023),
-        'right_clavicle': (14.735, -4.021), 'right_shoulder': (88.445, 21.771, 10.022),
-        'right_elbow': (39.401, 20.976), 'right_wrist': (2.529, -11.5),
+        'spine_lumbar': (17.097, 5.372, -3.01), 'spine_thoracic': (-1.696, -10.0, -2.868),
+        'neck': (-5.435, -2.552, -25.171), 'head': (-5.912, -0.071),
+        'right_clavicle': (16.352, -4.981), 'right_shoulder': (93.691, 22.564, 13.197),
+        'right_elbow': (41.244, 23.603), 'right_wrist': (4.182, -9.49),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (13.584, 4.899, -3.596), 'spine_thoracic': (-1.533, -10.0, -3.452),
-        'neck': (-3.748, -1.862, -21.838), 'head': (-4.079, -0.032),
-        'right_clavicle': (15.985, -5.244), 'right_shoulder': (90.188, 21.186, 14.346),
-        'right_elbow': (41.916, 24.061), 'right_wrist': (4.46, -8.094),
+        'spine_lumbar': (10.697, 3.187, -3.004), 'spine_thoracic': (-2.042, -8.946, -2.913),
+        'neck': (-1.747, -1.107, -21.824), 'head': (-1.95, -0.008),
+        'right_clavicle': (13.491, -4.517), 'right_shoulder': (87.502, 18.777, 12.469),
+        'right_elbow': (40.666, 22.246), 'right_wrist': (3.654, -10.631),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (7.541, 1.003, -0.547), 'spine_thoracic': (-2.616, -4.871, -0.599),
-        'neck': (-0.321, -0.605, -24.361), 'head': (-0.443, -0.001),
-        'right_clavicle': (6.927, -1.681), 'right_shoulder': (86.087, 14.071, 5.273),
-        'right_elbow': (36.017, 15.481), 'right_wrist': (0.657, -20.541),
+        'spine_lumbar': (7.202, 1.059, 0.128), 'spine_thoracic': (-2.535, -3.884, 0.075),
+        'neck': (-0.356, -0.631, -24.731), 'head': (-0.487, -0.001),
+        'right_clavicle': (5.544, -0.899), 'right_shoulder': (87.312, 13.088, 3.557),
+        'right_elbow': (34.969, 13.865), 'right_wrist': (-0.041, -22.985),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
@@ -673,96 +673,96 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (9.5, 1.19, 0.568), 'spine_thoracic': (-3.463, -4.625, 0.539),
-        'neck': (-0.836, -0.852, -26.787), 'head': (-1.02, -0.003),
-        'right_clavicle': (6.761, -0.752), 'right_shoulder': (88.38, 14.775, 3.239),
-        'right_elbow': (34.759, 13.976), 'right_wrist': (-0.22, -22.86),
+        'spine_lumbar': (10.607, 1.419, 0.204), 'spine_thoracic': (-3.629, -5.592, 0.154),
+        'neck': (-1.084, -0.95, -26.937), 'head': (-1.289, -0.004),
+        'right_clavicle': (8.215, -1.373), 'right_shoulder': (87.941, 16.093, 4.522),
+        'right_elbow': (35.635, 15.327), 'right_wrist': (0.304, -20.689),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (13.581, 2.693, -0.881), 'spine_thoracic': (-3.59, -7.99, -0.949),
-        'neck': (-2.391, -1.447, -27.033), 'head': (-2.689, -0.015),
-        'right_clavicle': (12.094, -3.023), 'right_shoulder': (88.263, 19.445, 8.125),
-        'right_elbow': (38.08, 18.971), 'right_wrist': (1.813, -15.038),
+        'spine_lumbar': (15.632, 4.055, -1.559), 'spine_thoracic': (-3.734, -9.769, -1.639),
+        'neck': (-3.327, -1.797, -26.9), 'head': (-3.689, -0.027),
+        'right_clavicle': (15.08, -4.184), 'right_shoulder': (88.68, 21.941, 10.543),
+        'right_elbow': (39.73, 21.438), 'right_wrist': (2.752, -11.05),
     })
     human.KeyJoints(11.1, {
-        'spine_lumbar': (17.252, 5.577, -3.367), 'spine_thoracic': (-1.285, -10.0, -3.231),
-        'neck': (-5.773, -2.669, -24.423), 'head': (-6.263, -0.08),
-        'right_clavicle': (16.764, -5.288), 'right_shoulder': (94.415, 22.798, 13.964),
-        'right_elbow': (41.688, 24.111), 'right_wrist': (4.474, -8.634),
+        'spine_lumbar': (13.568, 4.898, -3.595), 'spine_thoracic': (-1.533, -10.0, -3.452),
+        'neck': (-3.727, -1.855, -21.833), 'head': (-4.057, -0.032),
+        'right_clavicle': (15.985, -5.244), 'right_shoulder': (90.171, 21.181, 14.345),
+        'right_elbow': (41.915, 24.061), 'right_wrist': (4.46, -8.095),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (9.256, 1.86, -2.188), 'spine_thoracic': (-2.409, -7.522, -2.163),
-        'neck': (-0.922, -0.811, -22.661), 'head': (-1.077, -0.004),
-        'right_clavicle': (11.112, -3.58), 'right_shoulder': (86.279, 17.089, 9.939),
-        'right_elbow': (38.995, 19.872), 'right_wrist': (2.592, -14.07),
+        'spine_lumbar': (8.05, 0.996, -1.276), 'spine_thoracic': (-2.648, -5.991, -1.31),
+        'neck': (-0.303, -0.592, -23.696), 'head': (-0.421, -0.001),
+        'right_clavicle': (8.608, -2.526), 'right_shoulder': (85.543, 15.294, 7.231),
+        'right_elbow': (37.238, 17.326), 'right_wrist': (1.462, -17.788),
     })
     human.KeyJoints(11.3, {
-        'spine_lumbar': (6.599, 1.232, 1.675), 'spine_thoracic': (-2.281, -1.689, 1.643),
-        'neck': (-0.62, -0.757, -26.08), 'head': (-0.781, -0.002), 'right_clavicle': (2.614, 0.888),
-        'right_shoulder': (91.143, 11.044, -0.243), 'right_elbow': (32.682, 10.291),
-        'right_wrist': (-1.577, -28.442),
+        'spine_lumbar': (6.59, 1.235, 1.7), 'spine_thoracic': (-2.276, -1.653, 1.669),
+        'neck': (-0.627, -0.76, -26.11), 'head': (-0.789, -0.002), 'right_clavicle': (2.568, 0.917),
+        'right_shoulder': (91.213, 11.013, -0.304), 'right_elbow': (32.646, 10.234),
+        'right_wrist': (-1.602, -28.53),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
-        'spine_lumbar': (7.869, 1.118, 1.194), 'spine_thoracic': (-3.035, -3.078, 1.18),
-        'neck': (-0.567, -0.744, -26.462), 'head': (-0.728, -0.002),
-        'right_clavicle': (4.536, 0.204), 'right_shoulder': (89.572, 12.778, 1.237),
-        'right_elbow': (33.507, 11.876), 'right_wrist': (-1.044, -26.054),
+        'spine_lumbar': (8.449, 1.113, 0.915), 'spine_thoracic': (-3.063, -3.611, 0.906),
+        'neck': (-0.706, -0.798, -26.53), 'head': (-0.878, -0.002),
+        'right_clavicle': (5.297, -0.146), 'right_shoulder': (89.273, 13.428, 2.024),
+        'right_elbow': (33.959, 12.672), 'right_wrist': (-0.701, -24.974),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (11.822, 1.834, -0.27), 'spine_thoracic': (-3.567, -6.545, -0.324),
-        'neck': (-1.659, -1.171, -27.087), 'head': (-1.904, -0.009),
-        'right_clavicle': (9.729, -2.046), 'right_shoulder': (88.034, 17.4, 6.03),
-        'right_elbow': (36.641, 16.841),
+        'spine_lumbar': (13.609, 2.709, -0.89), 'spine_thoracic': (-3.592, -8.015, -0.958),
+        'neck': (-2.403, -1.452, -27.032), 'head': (-2.702, -0.015),
+        'right_clavicle': (12.134, -3.039), 'right_shoulder': (88.267, 19.48, 8.158),
+        'right_elbow': (38.103, 19.005), 'right_wrist': (1.826, -14.983),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (15.923, 4.359, -1.911), 'spine_thoracic': (-3.327, -9.888, -1.91),
-        'neck': (-3.735, -1.942, -26.421), 'head': (-4.12, -0.033),
-        'right_clavicle': (15.271, -4.285), 'right_shoulder': (89.73, 22.005, 11.12),
-        'right_elbow': (40.063, 21.857), 'right_wrist': (3.046, -10.8),
+        'spine_lumbar': (17.433, 5.603, -3.295), 'spine_thoracic': (-1.275, -10.0, -3.16),
+        'neck': (-5.897, -2.72, -24.771), 'head': (-6.399, -0.084),
+        'right_clavicle': (16.791, -5.29), 'right_shoulder': (94.637, 22.865, 13.836),
+        'right_elbow': (41.612, 24.113), 'right_wrist': (4.475, -8.802),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (12.523, 4.461, -3.514), 'spine_thoracic': (-1.672, -9.851, -3.377),
-        'neck': (-2.955, -1.559, -21.849), 'head': (-3.233, -0.021),
-        'right_clavicle': (15.399, -5.127), 'right_shoulder': (89.171, 20.446, 14.082),
-        'right_elbow': (41.739, 23.787), 'right_wrist': (4.341, -8.45),
+        'spine_lumbar': (9.857, 2.452, -2.599), 'spine_thoracic': (-2.248, -8.236, -2.543),
+        'neck': (-1.201, -0.907, -22.317), 'head': (-1.371, -0.005),
+        'right_clavicle': (12.25, -4.05), 'right_shoulder': (86.768, 17.858, 11.207),
+        'right_elbow': (39.83, 21.058), 'right_wrist': (3.122, -12.344),
     })
     human.KeyJoints(11.8, {
-        'spine_lumbar': (7.208, 1.058, 0.114), 'spine_thoracic': (-2.536, -3.905, 0.061),
-        'neck': (-0.383, -0.641, -24.833), 'head': (-0.516, -0.001),
-        'right_clavicle': (5.573, -0.916), 'right_shoulder': (87.293, 13.109, 3.593),
-        'right_elbow': (34.992, 13.9), 'right_wrist': (-0.026, -22.933),
+        'spine_lumbar': (6.979, 1.111, 0.645), 'spine_thoracic': (-2.458, -3.142, 0.597),
+        'neck': (-0.434, -0.669, -25.189), 'head': (-0.574, -0.002),
+        'right_clavicle': (4.535, -0.301), 'right_shoulder': (88.472, 12.379, 2.27),
+        'right_elbow': (34.191, 12.655), 'right_wrist': (-0.562, -24.827),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(12.0, {
-        'spine_lumbar': (10.067, 1.287, 0.409), 'spine_thoracic': (-3.618, -5.151, 0.364),
-        'neck': (-0.906, -0.882, -26.906), 'head': (-1.097, -0.003),
-        'right_clavicle': (7.539, -1.069), 'right_shoulder': (88.034, 15.498, 3.859),
-        'right_elbow': (35.196, 14.65), 'right_wrist': (0.021, -21.709),
+        'spine_lumbar': (11.369, 1.66, -0.095), 'spine_thoracic': (-3.596, -6.191, -0.148),
+        'neck': (-1.432, -1.084, -27.043), 'head': (-1.662, -0.007),
+        'right_clavicle': (9.16, -1.796), 'right_shoulder': (87.974, 16.911, 5.469),
+        'right_elbow': (36.264, 16.279), 'right_wrist': (0.712, -19.268),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (14.155, 3.032, -1.06), 'spine_thoracic': (-3.635, -8.493, -1.135),
-        'neck': (-2.63, -1.537, -27.013), 'head': (-2.945, -0.017),
-        'right_clavicle': (12.928, -3.349), 'right_shoulder': (88.338, 20.165, 8.787),
-        'right_elbow': (38.54, 19.656), 'right_wrist': (2.072, -13.896),
+        'spine_lumbar': (16.055, 4.499, -2.066), 'spine_thoracic': (-3.169, -9.936, -2.033),
+        'neck': (-3.92, -2.008, -26.234), 'head': (-4.315, -0.036),
+        'right_clavicle': (15.352, -4.332), 'right_shoulder': (90.148, 22.029, 11.387),
+        'right_elbow': (40.217, 22.051), 'right_wrist': (3.18, -10.694),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (16.291, 5.43, -3.484), 'spine_thoracic': (-1.34, -10.0, -3.344),
-        'neck': (-5.22, -2.447, -23.617), 'head': (-5.664, -0.064),
-        'right_clavicle': (16.604, -5.28), 'right_shoulder': (93.254, 22.429, 14.163),
-        'right_elbow': (41.806, 24.102), 'right_wrist': (4.472, -8.361),
+        'spine_lumbar': (12.586, 4.507, -3.539), 'spine_thoracic': (-1.66, -9.899, -3.4),
+        'neck': (-3.033, -1.588, -21.788), 'head': (-3.316, -0.021),
+        'right_clavicle': (15.46, -5.155), 'right_shoulder': (89.236, 20.487, 14.167),
+        'right_elbow': (41.8, 23.865), 'right_wrist': (4.375, -8.328),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (8.505, 1.243, -1.609), 'spine_thoracic': (-2.59, -6.566, -1.626),
-        'neck': (-0.471, -0.651, -23.297), 'head': (-0.599, -0.002),
-        'right_clavicle': (9.546, -2.922), 'right_shoulder': (85.717, 15.992, 8.242),
-        'right_elbow': (37.926, 18.28), 'right_wrist': (1.875, -16.318),
+        'spine_lumbar': (7.688, 0.95, -0.898), 'spine_thoracic': (-2.628, -5.371, -0.944),
+        'neck': (-0.289, -0.588, -24.029), 'head': (-0.407, -0.001),
+        'right_clavicle': (7.641, -2.077), 'right_shoulder': (85.684, 14.565, 6.147),
+        'right_elbow': (36.514, 16.302), 'right_wrist': (1.023, -19.39),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.394506, duration=0.072)
@@ -831,34 +831,34 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
-        'spine_lumbar': (2.377, -18.466, 7.42), 'spine_thoracic': (-8.608, -7.698, 7.457),
-        'neck': (2.848, -0.773, -17.037), 'head': (3.007, -0.021), 'right_clavicle': (4.522, 6.415),
-        'right_shoulder': (88.195, 7.781, -1.998), 'right_elbow': (22.233, 9.315),
-        'right_wrist': (-2.158, -30.0),
+        'spine_lumbar': (2.492, -19.008, 7.243), 'spine_thoracic': (-9.367, -8.567, 7.281),
+        'neck': (3.26, -0.901, -17.51), 'head': (3.446, -0.025), 'right_clavicle': (5.68, 5.993),
+        'right_shoulder': (86.686, 8.742, -1.087), 'right_elbow': (22.715, 10.216),
+        'right_wrist': (-1.887, -30.0),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (3.19, -20.0, 5.014), 'spine_thoracic': (-8.58, -10.0, 5.876),
-        'neck': (2.604, -0.705, -16.351), 'right_clavicle': (10.744, 4.654),
-        'right_shoulder': (87.149, 10.608, 3.993), 'right_elbow': (22.111, 15.308),
-        'right_wrist': (0.817, -27.877),
+        'spine_lumbar': (3.833, -20.0, 4.16), 'spine_thoracic': (-8.808, -10.0, 5.496),
+        'neck': (2.354, -0.637, -15.499), 'head': (2.482, -0.017),
+        'right_clavicle': (14.225, 4.123), 'right_shoulder': (87.147, 11.981, 6.998),
+        'right_elbow': (21.996, 18.321), 'right_wrist': (2.338, -26.051),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (4.524, -18.893, 3.569), 'spine_thoracic': (-9.692, -10.0, 5.58),
-        'neck': (2.299, -0.648, -13.976), 'head': (2.425, -0.015), 'right_clavicle': (19.69, 3.971),
-        'right_shoulder': (87.398, 13.851, 10.789), 'right_elbow': (20.499, 22.168),
-        'right_wrist': (4.428, -22.76),
+        'spine_lumbar': (4.801, -18.454, 3.055), 'spine_thoracic': (-10.019, -10.0, 5.446),
+        'neck': (2.249, -0.655, -12.864), 'head': (2.373, -0.011),
+        'right_clavicle': (22.477, 3.692), 'right_shoulder': (87.475, 14.768, 13.266),
+        'right_elbow': (20.683, 24.469), 'right_wrist': (5.64, -20.946),
     })
     human.KeyJoints(13.8, {
-        'spine_lumbar': (0.588, -19.023, 3.059), 'spine_thoracic': (-9.113, -10.0, 5.242),
-        'neck': (3.772, -1.205, -11.788), 'head': (3.99, -0.012), 'right_clavicle': (20.337, 3.804),
-        'right_shoulder': (85.476, 11.569, 13.071), 'right_elbow': (21.23, 23.544),
-        'right_wrist': (5.474, -21.519),
+        'spine_lumbar': (-0.528, -19.59, 3.573), 'spine_thoracic': (-8.383, -10.0, 5.324),
+        'neck': (3.961, -1.257, -12.211), 'head': (4.189, -0.019),
+        'right_clavicle': (15.975, 4.113), 'right_shoulder': (85.104, 9.428, 10.056),
+        'right_elbow': (21.651, 20.355), 'right_wrist': (3.903, -24.293),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (0.109, -19.073, 6.465), 'spine_thoracic': (-8.176, -8.662, 6.607),
-        'neck': (3.649, -1.076, -15.517), 'head': (3.858, -0.029), 'right_clavicle': (5.991, 5.878),
-        'right_shoulder': (86.217, 7.174, 0.232), 'right_elbow': (22.355, 11.065),
-        'right_wrist': (-1.1, -29.192),
+        'spine_lumbar': (0.324, -18.907, 6.607), 'spine_thoracic': (-8.228, -8.421, 6.752),
+        'neck': (3.576, -1.049, -15.58), 'head': (3.781, -0.028), 'right_clavicle': (5.809, 5.974),
+        'right_shoulder': (86.449, 7.151, -0.001), 'right_elbow': (22.368, 10.858),
+        'right_wrist': (-1.215, -29.242),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
@@ -868,28 +868,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (2.773, -19.922, 6.359), 'spine_thoracic': (-9.458, -9.998, 6.608),
-        'neck': (3.346, -0.922, -17.9), 'head': (3.538, -0.026), 'right_clavicle': (7.68, 5.194),
-        'right_shoulder': (85.782, 9.898, 0.783), 'right_elbow': (22.748, 12.121),
-        'right_wrist': (-1.021, -29.049),
+        'spine_lumbar': (3.116, -20.0, 5.13), 'spine_thoracic': (-8.553, -10.0, 5.927),
+        'neck': (2.632, -0.711, -16.476), 'head': (2.778, -0.019),
+        'right_clavicle': (10.253, 4.725), 'right_shoulder': (87.146, 10.42, 3.575),
+        'right_elbow': (22.17, 14.891), 'right_wrist': (0.604, -28.072),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (4.116, -20.0, 3.852), 'spine_thoracic': (-8.866, -10.0, 5.345),
-        'neck': (2.231, -0.602, -15.285), 'head': (2.352, -0.016),
-        'right_clavicle': (15.195, 3.907), 'right_shoulder': (87.166, 12.424, 7.909),
-        'right_elbow': (22.132, 19.233), 'right_wrist': (2.773, -25.453),
+        'spine_lumbar': (4.483, -18.92, 3.598), 'spine_thoracic': (-9.669, -10.0, 5.585),
+        'neck': (2.31, -0.651, -14.024), 'head': (2.437, -0.015), 'right_clavicle': (19.509, 3.987),
+        'right_shoulder': (87.381, 13.781, 10.642), 'right_elbow': (20.501, 22.021),
+        'right_wrist': (4.353, -22.867),
     })
     human.KeyJoints(14.3, {
-        'spine_lumbar': (3.749, -18.541, 3.02), 'spine_thoracic': (-9.867, -10.0, 5.363),
-        'neck': (2.687, -0.816, -12.445), 'head': (2.838, -0.013),
-        'right_clavicle': (22.262, 3.701), 'right_shoulder': (86.933, 14.202, 13.398),
-        'right_elbow': (20.786, 24.408), 'right_wrist': (5.677, -20.965),
+        'spine_lumbar': (0.446, -19.087, 3.062), 'spine_thoracic': (-9.026, -10.0, 5.242),
+        'neck': (3.787, -1.213, -11.742), 'head': (4.005, -0.013), 'right_clavicle': (20.03, 3.819),
+        'right_shoulder': (85.43, 11.299, 13.038), 'right_elbow': (21.284, 23.42),
+        'right_wrist': (5.457, -21.6),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (-1.025, -19.953, 4.481), 'spine_thoracic': (-7.946, -10.0, 5.495),
-        'neck': (4.095, -1.265, -13.367), 'head': (4.331, -0.029),
-        'right_clavicle': (10.964, 4.617), 'right_shoulder': (84.948, 7.977, 5.577),
-        'right_elbow': (21.999, 16.048), 'right_wrist': (1.589, -27.474),
+        'spine_lumbar': (-1.081, -19.996, 4.714), 'spine_thoracic': (-7.895, -10.0, 5.549),
+        'neck': (4.112, -1.266, -13.712), 'head': (4.349, -0.03), 'right_clavicle': (9.975, 4.755),
+        'right_shoulder': (84.932, 7.743, 4.65), 'right_elbow': (22.071, 15.156),
+        'right_wrist': (1.114, -27.96),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
@@ -899,65 +899,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (2.44, -18.843, 7.261), 'spine_thoracic': (-8.903, -8.308, 7.307),
-        'neck': (3.016, -0.825, -17.245), 'head': (3.186, -0.023), 'right_clavicle': (5.302, 6.114),
-        'right_shoulder': (87.388, 8.359, -1.32), 'right_elbow': (22.536, 9.985),
-        'right_wrist': (-1.939, -29.994),
+        'spine_lumbar': (2.647, -19.573, 6.989), 'spine_thoracic': (-9.713, -9.515, 7.055),
+        'neck': (3.449, -0.958, -17.948), 'head': (3.647, -0.027), 'right_clavicle': (6.748, 5.561),
+        'right_shoulder': (85.681, 9.614, -0.249), 'right_elbow': (22.922, 11.067),
+        'right_wrist': (-1.599, -29.677),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (3.365, -20.0, 4.739), 'spine_thoracic': (-8.661, -10.0, 5.76),
-        'neck': (2.541, -0.689, -16.064), 'head': (2.681, -0.018),
-        'right_clavicle': (11.892, 4.493), 'right_shoulder': (87.11, 11.041, 4.957),
-        'right_elbow': (21.987, 16.275), 'right_wrist': (1.313, -27.294),
+        'spine_lumbar': (4.185, -20.0, 3.787), 'spine_thoracic': (-8.891, -10.0, 5.317),
+        'neck': (2.208, -0.595, -15.205), 'head': (2.327, -0.015),
+        'right_clavicle': (15.541, 3.866), 'right_shoulder': (87.18, 12.569, 8.203),
+        'right_elbow': (22.158, 19.529), 'right_wrist': (2.921, -25.239),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (4.854, -18.69, 3.343), 'spine_thoracic': (-9.86, -10.0, 5.542),
-        'neck': (2.196, -0.623, -13.653), 'head': (2.317, -0.013),
-        'right_clavicle': (20.976, 3.838), 'right_shoulder': (87.528, 14.368, 11.829),
-        'right_elbow': (20.499, 23.221), 'right_wrist': (4.953, -21.971),
+        'spine_lumbar': (3.151, -18.602, 3.011), 'spine_thoracic': (-9.762, -10.0, 5.333),
+        'neck': (2.883, -0.889, -12.236), 'head': (3.047, -0.011),
+        'right_clavicle': (22.105, 3.708), 'right_shoulder': (86.643, 13.815, 13.432),
+        'right_elbow': (20.844, 24.365), 'right_wrist': (5.687, -20.979),
     })
     human.KeyJoints(14.9, {
-        'spine_lumbar': (0.046, -19.273, 3.282), 'spine_thoracic': (-8.788, -10.0, 5.276),
-        'neck': (3.873, -1.236, -12.003), 'head': (4.096, -0.016),
-        'right_clavicle': (18.415, 3.937), 'right_shoulder': (85.291, 10.591, 11.736),
-        'right_elbow': (21.423, 22.139), 'right_wrist': (4.779, -22.736),
+        'spine_lumbar': (-0.749, -19.738, 3.822), 'spine_thoracic': (-8.203, -10.0, 5.368),
+        'neck': (4.006, -1.263, -12.602), 'head': (4.237, -0.022), 'right_clavicle': (14.414, 4.25),
+        'right_shoulder': (85.034, 8.897, 8.726), 'right_elbow': (21.764, 19.062),
+        'right_wrist': (3.213, -25.361),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (1.032, -18.357, 7.353), 'spine_thoracic': (-8.397, -7.629, 7.312),
-        'neck': (3.377, -0.97, -16.042), 'head': (3.57, -0.027), 'right_clavicle': (4.563, 6.465),
-        'right_shoulder': (87.212, 7.013, -1.531), 'right_elbow': (22.452, 9.476),
-        'right_wrist': (-1.974, -29.561),
+        'spine_lumbar': (1.187, -18.237, 7.444), 'spine_thoracic': (-8.434, -7.455, 7.413),
+        'neck': (3.319, -0.951, -16.056), 'head': (3.509, -0.026), 'right_clavicle': (4.473, 6.527),
+        'right_shoulder': (87.379, 7.003, -1.658), 'right_elbow': (22.458, 9.366),
+        'right_wrist': (-2.036, -29.583),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
-        'spine_lumbar': (2.429, -17.5, 8.413), 'spine_thoracic': (-8.727, -6.325, 8.22),
-        'neck': (2.779, -0.752, -16.901), 'head': (2.933, -0.021), 'right_clavicle': (3.061, 7.143),
-        'right_shoulder': (88.655, 7.011, -3.589), 'right_elbow': (22.432, 7.692),
-        'right_wrist': (-2.984, -30.0),
+        'spine_lumbar': (2.359, -17.96, 8.024), 'spine_thoracic': (-8.692, -6.903, 7.915),
+        'neck': (2.837, -0.77, -17.0), 'head': (2.995, -0.021), 'right_clavicle': (3.659, 6.835),
+        'right_shoulder': (88.434, 7.342, -3.023), 'right_elbow': (22.248, 8.286),
+        'right_wrist': (-2.695, -30.0),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (2.871, -19.997, 5.627), 'spine_thoracic': (-8.542, -10.0, 6.166),
-        'neck': (2.789, -0.753, -17.033), 'head': (2.944, -0.021), 'right_clavicle': (8.517, 5.001),
-        'right_shoulder': (87.126, 9.883, 1.973), 'right_elbow': (22.29, 13.301),
-        'right_wrist': (-0.226, -28.686),
+        'spine_lumbar': (3.314, -20.0, 4.815), 'spine_thoracic': (-8.638, -10.0, 5.792),
+        'neck': (2.559, -0.693, -16.143), 'right_clavicle': (11.573, 4.538),
+        'right_shoulder': (87.115, 10.919, 4.689), 'right_elbow': (22.023, 16.006),
+        'right_wrist': (1.175, -27.462),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (4.256, -19.847, 3.741), 'spine_thoracic': (-9.048, -10.0, 5.365),
-        'neck': (2.229, -0.606, -14.919), 'head': (2.35, -0.015), 'right_clavicle': (16.561, 3.888),
-        'right_shoulder': (87.22, 12.898, 8.862), 'right_elbow': (21.842, 20.202),
-        'right_wrist': (3.301, -24.622),
+        'spine_lumbar': (4.825, -18.71, 3.361), 'spine_thoracic': (-9.844, -10.0, 5.545),
+        'neck': (2.205, -0.625, -13.678), 'head': (2.326, -0.013),
+        'right_clavicle': (20.856, 3.849), 'right_shoulder': (87.516, 14.32, 11.737),
+        'right_elbow': (20.497, 23.125), 'right_wrist': (4.905, -22.048),
     })
     human.KeyJoints(15.4, {
-        'spine_lumbar': (2.279, -18.684, 2.995), 'spine_thoracic': (-9.622, -10.0, 5.276),
-        'neck': (3.176, -0.997, -12.01), 'right_clavicle': (21.865, 3.719),
-        'right_shoulder': (86.198, 13.303, 13.49), 'right_elbow': (20.921, 24.293),
-        'right_wrist': (5.702, -21.003),
+        'spine_lumbar': (0.074, -19.254, 3.185), 'spine_thoracic': (-8.806, -10.0, 5.261),
+        'neck': (3.848, -1.232, -11.789), 'head': (4.07, -0.015), 'right_clavicle': (18.861, 3.895),
+        'right_shoulder': (85.303, 10.646, 12.289), 'right_elbow': (21.41, 22.603),
+        'right_wrist': (5.066, -22.322),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (-1.072, -19.99, 4.931), 'spine_thoracic': (-7.894, -9.985, 5.608),
-        'neck': (4.108, -1.264, -14.017), 'head': (4.346, -0.03), 'right_clavicle': (9.198, 4.886),
-        'right_shoulder': (84.945, 7.607, 3.878), 'right_elbow': (22.128, 14.42),
-        'right_wrist': (0.723, -28.248),
+        'spine_lumbar': (-0.983, -19.921, 5.103), 'spine_thoracic': (-7.915, -9.885, 5.695),
+        'neck': (4.068, -1.247, -14.23), 'head': (4.303, -0.03), 'right_clavicle': (8.715, 4.995),
+        'right_shoulder': (85.041, 7.529, 3.376), 'right_elbow': (22.164, 13.947),
+        'right_wrist': (0.47, -28.41),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
@@ -967,65 +967,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (2.57, -19.246, 7.2), 'spine_thoracic': (-9.732, -8.944, 7.229),
-        'neck': (3.45, -0.959, -17.809), 'head': (3.648, -0.027), 'right_clavicle': (6.199, 5.814),
-        'right_shoulder': (85.934, 9.207, -0.731), 'right_elbow': (22.946, 10.57),
-        'right_wrist': (-1.803, -29.953),
+        'spine_lumbar': (2.8, -19.95, 6.154), 'spine_thoracic': (-9.233, -9.999, 6.478),
+        'neck': (3.224, -0.883, -17.726), 'head': (3.408, -0.025), 'right_clavicle': (7.908, 5.135),
+        'right_shoulder': (86.088, 9.895, 1.102), 'right_elbow': (22.633, 12.44),
+        'right_wrist': (-0.813, -28.943),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (3.572, -20.0, 4.463), 'spine_thoracic': (-8.734, -10.0, 5.637),
-        'neck': (2.461, -0.668, -15.787), 'head': (2.596, -0.018), 'right_clavicle': (13.02, 4.321),
-        'right_shoulder': (87.112, 11.485, 5.931), 'right_elbow': (21.974, 17.251),
-        'right_wrist': (1.806, -26.706),
+        'spine_lumbar': (4.264, -19.765, 3.738), 'spine_thoracic': (-9.112, -10.0, 5.399),
+        'neck': (2.247, -0.613, -14.828), 'head': (2.369, -0.016), 'right_clavicle': (16.856, 3.91),
+        'right_shoulder': (87.231, 12.978, 9.019), 'right_elbow': (21.655, 20.364),
+        'right_wrist': (3.401, -24.445),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (5.225, -18.439, 3.128), 'spine_thoracic': (-10.068, -10.0, 5.511),
-        'neck': (2.083, -0.593, -13.326), 'head': (2.196, -0.011),
-        'right_clavicle': (22.437, 3.701), 'right_shoulder': (87.693, 14.965, 12.957),
-        'right_elbow': (20.574, 24.389), 'right_wrist': (5.528, -21.024),
+        'spine_lumbar': (1.508, -18.783, 2.988), 'spine_thoracic': (-9.461, -10.0, 5.244),
+        'neck': (3.5, -1.114, -11.774), 'head': (3.701, -0.011), 'right_clavicle': (21.57, 3.733),
+        'right_shoulder': (85.838, 12.722, 13.515), 'right_elbow': (21.013, 24.206),
+        'right_wrist': (5.708, -21.031),
     })
     human.KeyJoints(16.0, {
-        'spine_lumbar': (-0.426, -19.542, 3.618), 'spine_thoracic': (-8.449, -10.0, 5.331),
-        'neck': (3.951, -1.252, -12.285), 'head': (4.179, -0.019),
-        'right_clavicle': (15.965, 4.127), 'right_shoulder': (85.136, 9.589, 9.835),
-        'right_elbow': (21.627, 20.222), 'right_wrist': (3.79, -24.364),
+        'spine_lumbar': (-0.916, -19.861, 4.099), 'spine_thoracic': (-8.055, -10.0, 5.42),
+        'neck': (4.046, -1.265, -12.952), 'head': (4.279, -0.024),
+        'right_clavicle': (12.854, 4.403), 'right_shoulder': (84.982, 8.432, 7.34),
+        'right_elbow': (21.871, 17.729), 'right_wrist': (2.496, -26.381),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (1.873, -17.705, 8.107), 'spine_thoracic': (-8.598, -6.686, 7.94),
-        'neck': (3.044, -0.849, -16.488), 'head': (3.215, -0.024), 'right_clavicle': (3.453, 6.965),
-        'right_shoulder': (88.119, 6.897, -2.945), 'right_elbow': (22.526, 8.212),
-        'right_wrist': (-2.673, -29.832),
+        'spine_lumbar': (1.945, -17.649, 8.146), 'spine_thoracic': (-8.616, -6.605, 7.987),
+        'neck': (3.008, -0.837, -16.496), 'head': (3.177, -0.023), 'right_clavicle': (3.422, 6.993),
+        'right_shoulder': (88.197, 6.894, -2.994), 'right_elbow': (22.528, 8.171),
+        'right_wrist': (-2.697, -29.839),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
-        'spine_lumbar': (2.354, -18.101, 7.888), 'spine_thoracic': (-8.677, -7.102, 7.809),
-        'neck': (2.843, -0.772, -17.017), 'right_clavicle': (3.871, 6.73),
-        'right_shoulder': (88.358, 7.457, -2.802), 'right_elbow': (22.236, 8.512),
-        'right_wrist': (-2.583, -30.0),
+        'spine_lumbar': (2.393, -18.614, 7.31), 'spine_thoracic': (-8.594, -7.946, 7.364),
+        'neck': (2.851, -0.774, -17.05), 'head': (3.01, -0.021), 'right_clavicle': (4.815, 6.289),
+        'right_shoulder': (88.02, 7.951, -1.686), 'right_elbow': (22.341, 9.623),
+        'right_wrist': (-2.035, -30.0),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (3.014, -20.0, 5.277), 'spine_thoracic': (-8.515, -10.0, 5.992),
-        'neck': (2.666, -0.72, -16.638), 'head': (2.813, -0.02), 'right_clavicle': (9.564, 4.823),
-        'right_shoulder': (87.178, 10.114, 3.004), 'right_elbow': (22.197, 14.324),
-        'right_wrist': (0.327, -28.309),
+        'spine_lumbar': (3.545, -20.0, 4.496), 'spine_thoracic': (-8.726, -10.0, 5.652),
+        'neck': (2.472, -0.671, -15.819), 'right_clavicle': (12.888, 4.342),
+        'right_shoulder': (87.11, 11.432, 5.815), 'right_elbow': (21.971, 17.136),
+        'right_wrist': (1.748, -26.775),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (4.307, -19.144, 3.72), 'spine_thoracic': (-9.494, -10.0, 5.597),
-        'neck': (2.35, -0.659, -14.349), 'head': (2.479, -0.016), 'right_clavicle': (18.34, 4.04),
-        'right_shoulder': (87.295, 13.366, 9.788), 'right_elbow': (20.557, 21.158),
-        'right_wrist': (3.895, -23.559),
+        'spine_lumbar': (5.217, -18.444, 3.135), 'spine_thoracic': (-10.063, -10.0, 5.512),
+        'neck': (2.085, -0.593, -13.34), 'head': (2.199, -0.011), 'right_clavicle': (22.404, 3.704),
+        'right_shoulder': (87.69, 14.952, 12.923), 'right_elbow': (20.57, 24.363),
+        'right_wrist': (5.513, -21.045),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (1.182, -18.837, 2.985), 'spine_thoracic': (-9.376, -10.0, 5.232),
-        'neck': (3.613, -1.155, -11.714), 'head': (3.821, -0.011),
-        'right_clavicle': (21.365, 3.743), 'right_shoulder': (85.691, 12.423, 13.524),
-        'right_elbow': (21.065, 24.14), 'right_wrist': (5.711, -21.053),
+        'spine_lumbar': (-0.25, -19.424, 3.356), 'spine_thoracic': (-8.589, -10.0, 5.288),
+        'neck': (3.907, -1.246, -11.897), 'head': (4.132, -0.016),
+        'right_clavicle': (17.496, 3.993), 'right_shoulder': (85.195, 10.022, 11.28),
+        'right_elbow': (21.532, 21.569), 'right_wrist': (4.54, -23.241),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.678, -19.684, 5.593), 'spine_thoracic': (-7.988, -9.544, 5.978),
-        'neck': (3.94, -1.194, -14.765), 'head': (4.167, -0.03), 'right_clavicle': (7.607, 5.309),
-        'right_shoulder': (85.369, 7.377, 2.137), 'right_elbow': (22.243, 12.802),
-        'right_wrist': (-0.151, -28.741),
+        'spine_lumbar': (-0.471, -19.523, 5.768), 'spine_thoracic': (-8.037, -9.311, 6.127),
+        'neck': (3.855, -1.161, -14.915), 'head': (4.077, -0.029), 'right_clavicle': (7.294, 5.424),
+        'right_shoulder': (85.593, 7.332, 1.775), 'right_elbow': (22.265, 12.471),
+        'right_wrist': (-0.331, -28.837),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
@@ -1035,65 +1035,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (2.673, -19.69, 6.897), 'spine_thoracic': (-9.701, -9.731, 6.983),
-        'neck': (3.448, -0.957, -17.988), 'head': (3.646, -0.027), 'right_clavicle': (6.923, 5.474),
-        'right_shoulder': (85.614, 9.749, -0.082), 'right_elbow': (22.908, 11.239),
-        'right_wrist': (-1.517, -29.552),
+        'spine_lumbar': (2.92, -20.0, 5.456), 'spine_thoracic': (-8.49, -10.0, 6.077),
+        'neck': (2.714, -0.732, -16.836), 'head': (2.864, -0.02), 'right_clavicle': (8.896, 4.929),
+        'right_shoulder': (87.205, 9.898, 2.398), 'right_elbow': (22.231, 13.723),
+        'right_wrist': (0.018, -28.536),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (3.81, -20.0, 4.186), 'spine_thoracic': (-8.802, -10.0, 5.508),
-        'neck': (2.364, -0.64, -15.521), 'head': (2.493, -0.017), 'right_clavicle': (14.129, 4.14),
-        'right_shoulder': (87.128, 11.94, 6.912), 'right_elbow': (22.014, 18.234),
-        'right_wrist': (2.294, -26.099),
+        'spine_lumbar': (4.299, -19.199, 3.723), 'spine_thoracic': (-9.458, -10.0, 5.588),
+        'neck': (2.345, -0.657, -14.4), 'head': (2.473, -0.016), 'right_clavicle': (18.171, 4.034),
+        'right_shoulder': (87.286, 13.316, 9.689), 'right_elbow': (20.613, 21.057),
+        'right_wrist': (3.835, -23.66),
     })
     human.KeyJoints(17.0, {
-        'spine_lumbar': (4.953, -18.44, 3.061), 'spine_thoracic': (-10.044, -10.0, 5.455),
-        'neck': (2.219, -0.644, -12.915), 'head': (2.341, -0.011),
-        'right_clavicle': (22.511, 3.691), 'right_shoulder': (87.55, 14.861, 13.245),
-        'right_elbow': (20.667, 24.477), 'right_wrist': (5.634, -20.943),
+        'spine_lumbar': (0.871, -18.928, 2.995), 'spine_thoracic': (-9.243, -10.0, 5.233),
+        'neck': (3.7, -1.184, -11.715), 'head': (3.913, -0.012), 'right_clavicle': (20.952, 3.764),
+        'right_shoulder': (85.579, 11.98, 13.462), 'right_elbow': (21.152, 23.968),
+        'right_wrist': (5.678, -21.152),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (-0.793, -19.784, 4.028), 'spine_thoracic': (-8.152, -10.0, 5.404),
-        'neck': (4.03, -1.26, -12.732), 'head': (4.263, -0.024), 'right_clavicle': (13.366, 4.358),
-        'right_shoulder': (85.02, 8.682, 7.686), 'right_elbow': (21.824, 18.101),
-        'right_wrist': (2.676, -26.052),
+        'spine_lumbar': (-1.027, -19.95, 4.397), 'spine_thoracic': (-7.949, -10.0, 5.48),
+        'neck': (4.086, -1.266, -13.305), 'head': (4.322, -0.028), 'right_clavicle': (11.36, 4.571),
+        'right_shoulder': (84.948, 8.045, 5.966), 'right_elbow': (21.973, 16.414),
+        'right_wrist': (1.788, -27.272),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (2.405, -17.292, 8.563), 'spine_thoracic': (-8.726, -6.09, 8.332),
-        'neck': (2.779, -0.754, -16.787), 'head': (2.934, -0.021), 'right_clavicle': (2.821, 7.27),
-        'right_shoulder': (88.692, 6.835, -3.77), 'right_elbow': (22.568, 7.479),
-        'right_wrist': (-3.08, -29.98),
+        'spine_lumbar': (2.415, -17.284, 8.569), 'spine_thoracic': (-8.728, -6.079, 8.339),
+        'neck': (2.773, -0.753, -16.788), 'head': (2.928, -0.021), 'right_clavicle': (2.818, 7.274),
+        'right_shoulder': (88.703, 6.835, -3.776), 'right_elbow': (22.568, 7.474),
+        'right_wrist': (-3.083, -29.981),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
-        'spine_lumbar': (2.376, -18.46, 7.426), 'spine_thoracic': (-8.609, -7.689, 7.462),
-        'neck': (2.848, -0.773, -17.037), 'head': (3.007, -0.021), 'right_clavicle': (4.511, 6.42),
-        'right_shoulder': (88.154, 7.775, -2.01), 'right_elbow': (22.295, 9.302),
-        'right_wrist': (-2.169, -30.0),
+        'spine_lumbar': (2.49, -19.002, 7.243), 'spine_thoracic': (-9.35, -8.557, 7.282),
+        'neck': (3.252, -0.898, -17.5), 'head': (3.437, -0.025), 'right_clavicle': (5.666, 5.998),
+        'right_shoulder': (86.668, 8.727, -1.094), 'right_elbow': (22.77, 10.208),
+        'right_wrist': (-1.893, -29.983),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (3.187, -20.0, 5.018), 'spine_thoracic': (-8.579, -10.0, 5.878),
-        'neck': (2.605, -0.705, -16.356), 'right_clavicle': (10.725, 4.657),
-        'right_shoulder': (87.133, 10.601, 3.977), 'right_elbow': (22.136, 15.292),
-        'right_wrist': (0.808, -27.878),
+        'spine_lumbar': (3.827, -20.0, 4.166), 'spine_thoracic': (-8.807, -10.0, 5.499),
+        'neck': (2.356, -0.638, -15.504), 'head': (2.485, -0.017),
+        'right_clavicle': (14.203, 4.127), 'right_shoulder': (87.13, 11.971, 6.978),
+        'right_elbow': (22.018, 18.3), 'right_wrist': (2.327, -26.057),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (4.519, -18.896, 3.573), 'spine_thoracic': (-9.689, -10.0, 5.581),
-        'neck': (2.301, -0.648, -13.981), 'head': (2.426, -0.015), 'right_clavicle': (19.67, 3.973),
-        'right_shoulder': (87.396, 13.843, 10.772), 'right_elbow': (20.499, 22.151),
-        'right_wrist': (4.419, -22.772),
+        'spine_lumbar': (4.822, -18.452, 3.056), 'spine_thoracic': (-10.022, -10.0, 5.448),
+        'neck': (2.242, -0.652, -12.874), 'head': (2.365, -0.011),
+        'right_clavicle': (22.481, 3.692), 'right_shoulder': (87.486, 14.779, 13.262),
+        'right_elbow': (20.68, 24.47), 'right_wrist': (5.639, -20.946),
     })
     human.KeyJoints(17.6, {
-        'spine_lumbar': (0.597, -19.019, 3.056), 'spine_thoracic': (-9.118, -10.0, 5.242),
-        'neck': (3.77, -1.204, -11.785), 'head': (3.987, -0.012), 'right_clavicle': (20.363, 3.802),
-        'right_shoulder': (85.48, 11.585, 13.087), 'right_elbow': (21.227, 23.561),
-        'right_wrist': (5.482, -21.504),
+        'spine_lumbar': (-0.524, -19.588, 3.569), 'spine_thoracic': (-8.386, -10.0, 5.323),
+        'neck': (3.96, -1.257, -12.205), 'head': (4.188, -0.019), 'right_clavicle': (16.001, 4.111),
+        'right_shoulder': (85.106, 9.437, 10.077), 'right_elbow': (21.65, 20.377),
+        'right_wrist': (3.914, -24.275),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (0.094, -19.085, 6.45), 'spine_thoracic': (-8.173, -8.679, 6.596),
-        'neck': (3.654, -1.078, -15.506), 'head': (3.864, -0.029), 'right_clavicle': (6.016, 5.868),
-        'right_shoulder': (86.201, 7.177, 0.264), 'right_elbow': (22.354, 11.093),
-        'right_wrist': (-1.084, -29.185),
+        'spine_lumbar': (0.31, -18.918, 6.592), 'spine_thoracic': (-8.224, -8.437, 6.741),
+        'neck': (3.58, -1.05, -15.571), 'head': (3.785, -0.028), 'right_clavicle': (5.833, 5.965),
+        'right_shoulder': (86.434, 7.154, 0.028), 'right_elbow': (22.366, 10.884),
+        'right_wrist': (-1.2, -29.235),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
@@ -1103,28 +1103,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (2.771, -19.92, 6.371), 'spine_thoracic': (-9.472, -9.998, 6.616),
-        'neck': (3.354, -0.924, -17.91), 'head': (3.546, -0.026), 'right_clavicle': (7.667, 5.198),
-        'right_shoulder': (85.763, 9.899, 0.765), 'right_elbow': (22.754, 12.103),
-        'right_wrist': (-1.033, -29.056),
+        'spine_lumbar': (3.113, -20.0, 5.135), 'spine_thoracic': (-8.551, -10.0, 5.929),
+        'neck': (2.634, -0.712, -16.482), 'head': (2.779, -0.019), 'right_clavicle': (10.23, 4.728),
+        'right_shoulder': (87.147, 10.41, 3.556), 'right_elbow': (22.171, 14.872),
+        'right_wrist': (0.595, -28.08),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (4.112, -20.0, 3.857), 'spine_thoracic': (-8.864, -10.0, 5.347),
-        'neck': (2.233, -0.602, -15.289), 'head': (2.354, -0.016), 'right_clavicle': (15.177, 3.91),
-        'right_shoulder': (87.165, 12.416, 7.893), 'right_elbow': (22.13, 19.217),
-        'right_wrist': (2.765, -25.464),
+        'spine_lumbar': (4.478, -18.924, 3.602), 'spine_thoracic': (-9.666, -10.0, 5.586),
+        'neck': (2.312, -0.651, -14.03), 'head': (2.439, -0.016), 'right_clavicle': (19.486, 3.989),
+        'right_shoulder': (87.379, 13.772, 10.624), 'right_elbow': (20.501, 22.003),
+        'right_wrist': (4.344, -22.88),
     })
     human.KeyJoints(18.1, {
-        'spine_lumbar': (3.773, -18.538, 3.021), 'spine_thoracic': (-9.871, -10.0, 5.364),
-        'neck': (2.679, -0.813, -12.453), 'head': (2.83, -0.013), 'right_clavicle': (22.268, 3.701),
-        'right_shoulder': (86.945, 14.216, 13.396), 'right_elbow': (20.784, 24.41),
-        'right_wrist': (5.677, -20.965),
+        'spine_lumbar': (0.453, -19.084, 3.061), 'spine_thoracic': (-9.029, -10.0, 5.242),
+        'neck': (3.786, -1.213, -11.741), 'head': (4.004, -0.013),
+        'right_clavicle': (20.048, 3.818), 'right_shoulder': (85.432, 11.311, 13.048),
+        'right_elbow': (21.282, 23.432), 'right_wrist': (5.462, -21.59),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (-1.023, -19.951, 4.473), 'spine_thoracic': (-7.949, -10.0, 5.494),
-        'neck': (4.094, -1.265, -13.356), 'head': (4.331, -0.029),
-        'right_clavicle': (10.999, 4.613), 'right_shoulder': (84.949, 7.986, 5.61),
-        'right_elbow': (21.996, 16.079), 'right_wrist': (1.605, -27.455),
+        'spine_lumbar': (-1.081, -19.996, 4.708), 'spine_thoracic': (-7.895, -10.0, 5.548),
+        'neck': (4.112, -1.266, -13.705), 'head': (4.349, -0.03), 'right_clavicle': (9.997, 4.752),
+        'right_shoulder': (84.932, 7.747, 4.67), 'right_elbow': (22.069, 15.176),
+        'right_wrist': (1.125, -27.951),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
@@ -1134,65 +1134,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (2.438, -18.836, 7.262), 'spine_thoracic': (-8.887, -8.297, 7.308),
-        'neck': (3.008, -0.822, -17.236), 'head': (3.177, -0.023), 'right_clavicle': (5.287, 6.119),
-        'right_shoulder': (87.416, 8.345, -1.33), 'right_elbow': (22.528, 9.975),
-        'right_wrist': (-1.941, -29.994),
+        'spine_lumbar': (2.644, -19.558, 7.002), 'spine_thoracic': (-9.715, -9.488, 7.065),
+        'neck': (3.449, -0.958, -17.943), 'head': (3.648, -0.027), 'right_clavicle': (6.724, 5.573),
+        'right_shoulder': (85.69, 9.597, -0.271), 'right_elbow': (22.924, 11.043),
+        'right_wrist': (-1.61, -29.695),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (3.362, -20.0, 4.744), 'spine_thoracic': (-8.66, -10.0, 5.762),
-        'neck': (2.542, -0.689, -16.069), 'head': (2.682, -0.018),
-        'right_clavicle': (11.873, 4.495), 'right_shoulder': (87.11, 11.034, 4.941),
-        'right_elbow': (21.989, 16.259), 'right_wrist': (1.305, -27.304),
+        'spine_lumbar': (4.181, -20.0, 3.791), 'spine_thoracic': (-8.889, -10.0, 5.318),
+        'neck': (2.209, -0.595, -15.21), 'head': (2.328, -0.015), 'right_clavicle': (15.519, 3.868),
+        'right_shoulder': (87.18, 12.56, 8.185), 'right_elbow': (22.157, 19.511),
+        'right_wrist': (2.912, -25.253),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (4.848, -18.694, 3.347), 'spine_thoracic': (-9.857, -10.0, 5.543),
-        'neck': (2.198, -0.623, -13.659), 'head': (2.319, -0.013),
-        'right_clavicle': (20.949, 3.841), 'right_shoulder': (87.526, 14.357, 11.809),
-        'right_elbow': (20.499, 23.199), 'right_wrist': (4.942, -21.988),
+        'spine_lumbar': (3.183, -18.599, 3.012), 'spine_thoracic': (-9.767, -10.0, 5.335),
+        'neck': (2.871, -0.885, -12.246), 'head': (3.034, -0.011),
+        'right_clavicle': (22.113, 3.708), 'right_shoulder': (86.658, 13.834, 13.43),
+        'right_elbow': (20.841, 24.368), 'right_wrist': (5.686, -20.978),
     })
     human.KeyJoints(18.7, {
-        'spine_lumbar': (0.054, -19.268, 3.277), 'spine_thoracic': (-8.793, -10.0, 5.275),
-        'neck': (3.872, -1.236, -11.999), 'head': (4.095, -0.015),
-        'right_clavicle': (18.453, 3.934), 'right_shoulder': (85.294, 10.608, 11.764),
-        'right_elbow': (21.42, 22.167), 'right_wrist': (4.793, -22.712),
+        'spine_lumbar': (-0.746, -19.736, 3.817), 'spine_thoracic': (-8.205, -10.0, 5.367),
+        'neck': (4.005, -1.263, -12.595), 'head': (4.236, -0.021), 'right_clavicle': (14.44, 4.247),
+        'right_shoulder': (85.035, 8.906, 8.749), 'right_elbow': (21.762, 19.084),
+        'right_wrist': (3.225, -25.344),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (1.016, -18.37, 7.339), 'spine_thoracic': (-8.393, -7.646, 7.3),
-        'neck': (3.382, -0.972, -16.035), 'head': (3.575, -0.027), 'right_clavicle': (4.584, 6.455),
-        'right_shoulder': (87.195, 7.015, -1.504), 'right_elbow': (22.451, 9.501),
-        'right_wrist': (-1.961, -29.556),
+        'spine_lumbar': (1.173, -18.248, 7.43), 'spine_thoracic': (-8.431, -7.47, 7.402),
+        'neck': (3.324, -0.953, -16.048), 'head': (3.514, -0.026), 'right_clavicle': (4.493, 6.518),
+        'right_shoulder': (87.364, 7.005, -1.633), 'right_elbow': (22.457, 9.389),
+        'right_wrist': (-2.023, -29.578),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
-        'spine_lumbar': (2.431, -17.489, 8.422), 'spine_thoracic': (-8.727, -6.312, 8.227),
-        'neck': (2.777, -0.752, -16.899), 'head': (2.931, -0.021), 'right_clavicle': (3.048, 7.149),
-        'right_shoulder': (88.66, 7.003, -3.601), 'right_elbow': (22.437, 7.679),
-        'right_wrist': (-2.99, -30.0),
+        'spine_lumbar': (2.361, -17.941, 8.041), 'spine_thoracic': (-8.693, -6.879, 7.928),
+        'neck': (2.835, -0.769, -16.997), 'head': (2.993, -0.021), 'right_clavicle': (3.633, 6.848),
+        'right_shoulder': (88.444, 7.328, -3.048), 'right_elbow': (22.253, 8.259),
+        'right_wrist': (-2.708, -30.0),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (2.869, -19.997, 5.637), 'spine_thoracic': (-8.551, -10.0, 6.171),
-        'neck': (2.795, -0.754, -17.045), 'head': (2.951, -0.021), 'right_clavicle': (8.502, 5.004),
-        'right_shoulder': (87.113, 9.883, 1.953), 'right_elbow': (22.295, 13.282),
-        'right_wrist': (-0.238, -28.692),
+        'spine_lumbar': (3.311, -20.0, 4.821), 'spine_thoracic': (-8.636, -10.0, 5.794),
+        'neck': (2.561, -0.694, -16.148), 'right_clavicle': (11.551, 4.541),
+        'right_shoulder': (87.115, 10.911, 4.67), 'right_elbow': (22.026, 15.988),
+        'right_wrist': (1.166, -27.473),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (4.255, -19.857, 3.741), 'spine_thoracic': (-9.041, -10.0, 5.361),
-        'neck': (2.227, -0.605, -14.929), 'head': (2.347, -0.015),
-        'right_clavicle': (16.532, 3.885), 'right_shoulder': (87.219, 12.89, 8.846),
-        'right_elbow': (21.863, 20.186), 'right_wrist': (3.291, -24.64),
+        'spine_lumbar': (4.818, -18.715, 3.364), 'spine_thoracic': (-9.84, -10.0, 5.545),
+        'neck': (2.207, -0.625, -13.684), 'head': (2.328, -0.013),
+        'right_clavicle': (20.829, 3.852), 'right_shoulder': (87.513, 14.309, 11.716),
+        'right_elbow': (20.496, 23.103), 'right_wrist': (4.895, -22.065),
     })
     human.KeyJoints(19.2, {
-        'spine_lumbar': (2.303, -18.682, 2.995), 'spine_thoracic': (-9.626, -10.0, 5.277),
-        'neck': (3.166, -0.994, -12.017), 'right_clavicle': (21.873, 3.719),
-        'right_shoulder': (86.21, 13.319, 13.489), 'right_elbow': (20.918, 24.295),
-        'right_wrist': (5.702, -21.002),
+        'spine_lumbar': (0.08, -19.251, 3.182), 'spine_thoracic': (-8.809, -10.0, 5.26),
+        'neck': (3.847, -1.232, -11.788), 'head': (4.069, -0.015),
+        'right_clavicle': (18.882, 3.894), 'right_shoulder': (85.305, 10.657, 12.304),
+        'right_elbow': (21.408, 22.619), 'right_wrist': (5.074, -22.308),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (-1.074, -19.991, 4.922), 'spine_thoracic': (-7.893, -9.987, 5.604),
-        'neck': (4.109, -1.264, -14.005), 'head': (4.347, -0.03), 'right_clavicle': (9.224, 4.881),
-        'right_shoulder': (84.942, 7.611, 3.904), 'right_elbow': (22.126, 14.445),
-        'right_wrist': (0.736, -28.239),
+        'spine_lumbar': (-0.988, -19.925, 5.094), 'spine_thoracic': (-7.914, -9.891, 5.69),
+        'neck': (4.071, -1.248, -14.219), 'head': (4.306, -0.03), 'right_clavicle': (8.738, 4.989),
+        'right_shoulder': (85.035, 7.533, 3.4), 'right_elbow': (22.162, 13.97),
+        'right_wrist': (0.482, -28.403),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
@@ -1202,65 +1202,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (2.568, -19.239, 7.201), 'spine_thoracic': (-9.729, -8.933, 7.231),
-        'neck': (3.449, -0.959, -17.804), 'head': (3.647, -0.027), 'right_clavicle': (6.185, 5.82),
-        'right_shoulder': (85.943, 9.197, -0.742), 'right_elbow': (22.945, 10.559),
-        'right_wrist': (-1.806, -29.954),
+        'spine_lumbar': (2.798, -19.948, 6.169), 'spine_thoracic': (-9.253, -9.999, 6.487),
+        'neck': (3.235, -0.887, -17.743), 'head': (3.42, -0.025), 'right_clavicle': (7.893, 5.139),
+        'right_shoulder': (86.059, 9.895, 1.08), 'right_elbow': (22.643, 12.417),
+        'right_wrist': (-0.828, -28.95),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (3.568, -20.0, 4.468), 'spine_thoracic': (-8.733, -10.0, 5.639),
-        'neck': (2.463, -0.668, -15.792), 'head': (2.598, -0.018),
-        'right_clavicle': (13.001, 4.324), 'right_shoulder': (87.111, 11.477, 5.914),
-        'right_elbow': (21.974, 17.235), 'right_wrist': (1.798, -26.716),
+        'spine_lumbar': (4.264, -19.774, 3.738), 'spine_thoracic': (-9.106, -10.0, 5.396),
+        'neck': (2.245, -0.613, -14.835), 'head': (2.367, -0.016),
+        'right_clavicle': (16.834, 3.908), 'right_shoulder': (87.23, 12.972, 9.008),
+        'right_elbow': (21.674, 20.353), 'right_wrist': (3.394, -24.459),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (5.221, -18.441, 3.13), 'spine_thoracic': (-10.066, -10.0, 5.511),
-        'neck': (2.084, -0.593, -13.332), 'head': (2.198, -0.011),
-        'right_clavicle': (22.423, 3.702), 'right_shoulder': (87.692, 14.96, 12.945),
-        'right_elbow': (20.573, 24.377), 'right_wrist': (5.522, -21.033),
+        'spine_lumbar': (1.529, -18.78, 2.988), 'spine_thoracic': (-9.465, -10.0, 5.245),
+        'neck': (3.492, -1.112, -11.779), 'head': (3.693, -0.011),
+        'right_clavicle': (21.579, 3.732), 'right_shoulder': (85.847, 12.738, 13.514),
+        'right_elbow': (21.01, 24.209), 'right_wrist': (5.708, -21.03),
     })
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-0.419, -19.537, 3.612), 'spine_thoracic': (-8.455, -10.0, 5.329),
-        'neck': (3.95, -1.252, -12.28), 'head': (4.177, -0.019), 'right_clavicle': (16.008, 4.124),
-        'right_shoulder': (85.139, 9.606, 9.87), 'right_elbow': (21.624, 20.257),
-        'right_wrist': (3.808, -24.335),
+        'spine_lumbar': (-0.914, -19.859, 4.094), 'spine_thoracic': (-8.057, -10.0, 5.419),
+        'neck': (4.045, -1.265, -12.946), 'head': (4.279, -0.024), 'right_clavicle': (12.88, 4.4),
+        'right_shoulder': (84.982, 8.439, 7.364), 'right_elbow': (21.87, 17.751),
+        'right_wrist': (2.508, -26.365),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (1.861, -17.714, 8.096), 'spine_thoracic': (-8.595, -6.7, 7.931),
-        'neck': (3.049, -0.851, -16.481), 'head': (3.221, -0.024), 'right_clavicle': (3.469, 6.958),
-        'right_shoulder': (88.105, 6.899, -2.926), 'right_elbow': (22.525, 8.23),
-        'right_wrist': (-2.664, -29.829),
+        'spine_lumbar': (1.934, -17.657, 8.136), 'spine_thoracic': (-8.613, -6.617, 7.978),
+        'neck': (3.013, -0.839, -16.489), 'head': (3.182, -0.023), 'right_clavicle': (3.437, 6.986),
+        'right_shoulder': (88.185, 6.896, -2.976), 'right_elbow': (22.527, 8.187),
+        'right_wrist': (-2.688, -29.835),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
-        'spine_lumbar': (2.354, -18.094, 7.895), 'spine_thoracic': (-8.678, -7.092, 7.815),
-        'neck': (2.843, -0.772, -17.017), 'right_clavicle': (3.86, 6.736),
-        'right_shoulder': (88.361, 7.451, -2.814), 'right_elbow': (22.235, 8.5),
-        'right_wrist': (-2.589, -30.0),
+        'spine_lumbar': (2.392, -18.606, 7.314), 'spine_thoracic': (-8.595, -7.932, 7.368),
+        'neck': (2.851, -0.773, -17.049), 'head': (3.01, -0.021), 'right_clavicle': (4.798, 6.295),
+        'right_shoulder': (88.029, 7.94, -1.702), 'right_elbow': (22.338, 9.607),
+        'right_wrist': (-2.04, -30.0),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (3.011, -20.0, 5.281), 'spine_thoracic': (-8.514, -10.0, 5.994),
-        'neck': (2.667, -0.72, -16.642), 'head': (2.814, -0.02), 'right_clavicle': (9.545, 4.826),
-        'right_shoulder': (87.179, 10.105, 2.988), 'right_elbow': (22.198, 14.308),
-        'right_wrist': (0.319, -28.316),
+        'spine_lumbar': (3.541, -20.0, 4.501), 'spine_thoracic': (-8.725, -10.0, 5.655),
+        'neck': (2.474, -0.671, -15.825), 'right_clavicle': (12.866, 4.346),
+        'right_shoulder': (87.11, 11.423, 5.796), 'right_elbow': (21.971, 17.116),
+        'right_wrist': (1.739, -26.787),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (4.306, -19.152, 3.72), 'spine_thoracic': (-9.488, -10.0, 5.596),
-        'neck': (2.349, -0.659, -14.357), 'head': (2.478, -0.016),
-        'right_clavicle': (18.314, 4.039), 'right_shoulder': (87.293, 13.358, 9.772),
-        'right_elbow': (20.566, 21.142), 'right_wrist': (3.886, -23.575),
+        'spine_lumbar': (5.213, -18.447, 3.138), 'spine_thoracic': (-10.061, -10.0, 5.513),
+        'neck': (2.087, -0.594, -13.346), 'head': (2.201, -0.011),
+        'right_clavicle': (22.388, 3.705), 'right_shoulder': (87.688, 14.945, 12.909),
+        'right_elbow': (20.568, 24.35), 'right_wrist': (5.506, -21.055),
     })
     human.KeyJoints(20.3, {
-        'spine_lumbar': (1.194, -18.835, 2.985), 'spine_thoracic': (-9.379, -10.0, 5.232),
-        'neck': (3.609, -1.154, -11.715), 'head': (3.816, -0.011),
-        'right_clavicle': (21.374, 3.742), 'right_shoulder': (85.696, 12.436, 13.524),
-        'right_elbow': (21.062, 24.143), 'right_wrist': (5.711, -21.052),
+        'spine_lumbar': (-0.245, -19.421, 3.353), 'spine_thoracic': (-8.593, -10.0, 5.287),
+        'neck': (3.906, -1.245, -11.893), 'head': (4.131, -0.016), 'right_clavicle': (17.52, 3.992),
+        'right_shoulder': (85.197, 10.032, 11.298), 'right_elbow': (21.53, 21.588),
+        'right_wrist': (4.549, -23.224),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (-0.688, -19.692, 5.58), 'spine_thoracic': (-7.985, -9.555, 5.97),
-        'neck': (3.944, -1.196, -14.752), 'head': (4.172, -0.03), 'right_clavicle': (7.634, 5.3),
-        'right_shoulder': (85.358, 7.381, 2.169), 'right_elbow': (22.241, 12.83),
-        'right_wrist': (-0.135, -28.733),
+        'spine_lumbar': (-0.482, -19.532, 5.755), 'spine_thoracic': (-8.035, -9.324, 6.118),
+        'neck': (3.86, -1.162, -14.903), 'head': (4.082, -0.029), 'right_clavicle': (7.318, 5.416),
+        'right_shoulder': (85.581, 7.335, 1.804), 'right_elbow': (22.264, 12.497),
+        'right_wrist': (-0.317, -28.83),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
@@ -1270,65 +1270,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (2.671, -19.683, 6.905), 'spine_thoracic': (-9.702, -9.719, 6.988),
-        'neck': (3.448, -0.957, -17.986), 'head': (3.646, -0.027), 'right_clavicle': (6.911, 5.48),
-        'right_shoulder': (85.617, 9.742, -0.094), 'right_elbow': (22.91, 11.227),
-        'right_wrist': (-1.523, -29.562),
+        'spine_lumbar': (2.917, -20.0, 5.463), 'spine_thoracic': (-8.49, -10.0, 6.081),
+        'neck': (2.716, -0.732, -16.843), 'head': (2.866, -0.02), 'right_clavicle': (8.876, 4.932),
+        'right_shoulder': (87.205, 9.895, 2.377), 'right_elbow': (22.232, 13.703),
+        'right_wrist': (0.007, -28.544),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (3.805, -20.0, 4.191), 'spine_thoracic': (-8.801, -10.0, 5.51),
-        'neck': (2.365, -0.64, -15.525), 'head': (2.494, -0.017), 'right_clavicle': (14.111, 4.143),
-        'right_shoulder': (87.128, 11.932, 6.896), 'right_elbow': (22.013, 18.217),
-        'right_wrist': (2.286, -26.11),
+        'spine_lumbar': (4.298, -19.207, 3.723), 'spine_thoracic': (-9.453, -10.0, 5.586),
+        'neck': (2.344, -0.657, -14.407), 'head': (2.472, -0.016),
+        'right_clavicle': (18.149, 4.033), 'right_shoulder': (87.285, 13.31, 9.677),
+        'right_elbow': (20.623, 21.044), 'right_wrist': (3.828, -23.673),
     })
     human.KeyJoints(20.8, {
-        'spine_lumbar': (4.967, -18.439, 3.061), 'spine_thoracic': (-10.046, -10.0, 5.456),
-        'neck': (2.213, -0.642, -12.922), 'head': (2.335, -0.011),
-        'right_clavicle': (22.514, 3.691), 'right_shoulder': (87.557, 14.868, 13.242),
-        'right_elbow': (20.665, 24.478), 'right_wrist': (5.634, -20.943),
+        'spine_lumbar': (0.879, -18.926, 2.994), 'spine_thoracic': (-9.247, -10.0, 5.233),
+        'neck': (3.698, -1.183, -11.714), 'head': (3.911, -0.012),
+        'right_clavicle': (20.964, 3.763), 'right_shoulder': (85.581, 11.991, 13.465),
+        'right_elbow': (21.15, 23.974), 'right_wrist': (5.68, -21.147),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (-0.788, -19.78, 4.021), 'spine_thoracic': (-8.156, -10.0, 5.403),
-        'neck': (4.029, -1.26, -12.723), 'head': (4.261, -0.024), 'right_clavicle': (13.409, 4.354),
-        'right_shoulder': (85.022, 8.696, 7.723), 'right_elbow': (21.821, 18.136),
-        'right_wrist': (2.695, -26.025),
+        'spine_lumbar': (-1.026, -19.949, 4.391), 'spine_thoracic': (-7.951, -10.0, 5.479),
+        'neck': (4.085, -1.266, -13.299), 'head': (4.321, -0.028),
+        'right_clavicle': (11.384, 4.568), 'right_shoulder': (84.948, 8.05, 5.988),
+        'right_elbow': (21.971, 16.435), 'right_wrist': (1.8, -27.258),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (2.4, -17.296, 8.559), 'spine_thoracic': (-8.724, -6.096, 8.329),
-        'neck': (2.782, -0.755, -16.784), 'head': (2.937, -0.021), 'right_clavicle': (2.827, 7.267),
-        'right_shoulder': (88.686, 6.836, -3.763), 'right_elbow': (22.568, 7.486),
-        'right_wrist': (-3.076, -29.979),
+        'spine_lumbar': (2.41, -17.288, 8.565), 'spine_thoracic': (-8.727, -6.084, 8.335),
+        'neck': (2.776, -0.753, -16.785), 'head': (2.93, -0.021), 'right_clavicle': (2.823, 7.271),
+        'right_shoulder': (88.698, 6.836, -3.769), 'right_elbow': (22.568, 7.481),
+        'right_wrist': (-3.079, -29.979),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
-        'spine_lumbar': (2.376, -18.454, 7.433), 'spine_thoracic': (-8.61, -7.679, 7.467),
-        'neck': (2.848, -0.773, -17.036), 'head': (3.007, -0.021), 'right_clavicle': (4.5, 6.425),
-        'right_shoulder': (88.159, 7.769, -2.023), 'right_elbow': (22.293, 9.289),
-        'right_wrist': (-2.175, -30.0),
+        'spine_lumbar': (2.487, -18.996, 7.244), 'spine_thoracic': (-9.332, -8.548, 7.283),
+        'neck': (3.242, -0.895, -17.489), 'head': (3.427, -0.025), 'right_clavicle': (5.653, 6.002),
+        'right_shoulder': (86.696, 8.713, -1.102), 'right_elbow': (22.762, 10.2),
+        'right_wrist': (-1.895, -29.983),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (3.184, -20.0, 5.023), 'spine_thoracic': (-8.578, -10.0, 5.88),
-        'neck': (2.607, -0.705, -16.361), 'right_clavicle': (10.706, 4.659),
-        'right_shoulder': (87.133, 10.594, 3.961), 'right_elbow': (22.138, 15.276),
-        'right_wrist': (0.799, -27.886),
+        'spine_lumbar': (3.822, -20.0, 4.172), 'spine_thoracic': (-8.805, -10.0, 5.501),
+        'neck': (2.359, -0.638, -15.509), 'head': (2.487, -0.017),
+        'right_clavicle': (14.181, 4.131), 'right_shoulder': (87.129, 11.962, 6.958),
+        'right_elbow': (22.016, 18.28), 'right_wrist': (2.317, -26.069),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (4.514, -18.899, 3.577), 'spine_thoracic': (-9.687, -10.0, 5.582),
-        'neck': (2.302, -0.649, -13.987), 'head': (2.428, -0.015),
-        'right_clavicle': (19.649, 3.976), 'right_shoulder': (87.394, 13.835, 10.755),
-        'right_elbow': (20.499, 22.135), 'right_wrist': (4.411, -22.784),
+        'spine_lumbar': (4.842, -18.451, 3.057), 'spine_thoracic': (-10.025, -10.0, 5.449),
+        'neck': (2.234, -0.65, -12.884), 'head': (2.357, -0.011), 'right_clavicle': (22.485, 3.692),
+        'right_shoulder': (87.496, 14.79, 13.259), 'right_elbow': (20.678, 24.471),
+        'right_wrist': (5.638, -20.945),
     })
     human.KeyJoints(21.4, {
-        'spine_lumbar': (0.607, -19.015, 3.053), 'spine_thoracic': (-9.123, -10.0, 5.241),
-        'neck': (3.768, -1.204, -11.783), 'head': (3.985, -0.012), 'right_clavicle': (20.388, 3.8),
-        'right_shoulder': (85.483, 11.601, 13.102), 'right_elbow': (21.224, 23.579),
-        'right_wrist': (5.491, -21.489),
+        'spine_lumbar': (-0.52, -19.585, 3.565), 'spine_thoracic': (-8.389, -10.0, 5.322),
+        'neck': (3.959, -1.256, -12.199), 'head': (4.187, -0.019),
+        'right_clavicle': (16.027, 4.109), 'right_shoulder': (85.107, 9.447, 10.098),
+        'right_elbow': (21.648, 20.398), 'right_wrist': (3.925, -24.257),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (0.079, -19.097, 6.435), 'spine_thoracic': (-8.169, -8.696, 6.584),
-        'neck': (3.659, -1.08, -15.495), 'head': (3.869, -0.029), 'right_clavicle': (6.042, 5.859),
-        'right_shoulder': (86.185, 7.18, 0.295), 'right_elbow': (22.352, 11.122),
-        'right_wrist': (-1.068, -29.178),
+        'spine_lumbar': (0.295, -18.929, 6.578), 'spine_thoracic': (-8.221, -8.454, 6.73),
+        'neck': (3.585, -1.052, -15.561), 'head': (3.79, -0.028), 'right_clavicle': (5.857, 5.955),
+        'right_shoulder': (86.418, 7.157, 0.058), 'right_elbow': (22.365, 10.911),
+        'right_wrist': (-1.186, -29.229),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
@@ -1338,28 +1338,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(21.7, {
-        'spine_lumbar': (2.77, -19.918, 6.383), 'spine_thoracic': (-9.485, -9.998, 6.623),
-        'neck': (3.361, -0.926, -17.92), 'head': (3.553, -0.026), 'right_clavicle': (7.654, 5.201),
-        'right_shoulder': (85.745, 9.899, 0.747), 'right_elbow': (22.761, 12.085),
-        'right_wrist': (-1.045, -29.062),
+        'spine_lumbar': (3.109, -20.0, 5.14), 'spine_thoracic': (-8.55, -10.0, 5.932),
+        'neck': (2.635, -0.712, -16.487), 'head': (2.78, -0.019), 'right_clavicle': (10.207, 4.732),
+        'right_shoulder': (87.148, 10.4, 3.537), 'right_elbow': (22.172, 14.853),
+        'right_wrist': (0.585, -28.089),
     })
     human.KeyJoints(21.8, {
-        'spine_lumbar': (4.107, -20.0, 3.862), 'spine_thoracic': (-8.863, -10.0, 5.35),
-        'neck': (2.235, -0.603, -15.293), 'head': (2.356, -0.016),
-        'right_clavicle': (15.158, 3.913), 'right_shoulder': (87.164, 12.408, 7.877),
-        'right_elbow': (22.128, 19.2), 'right_wrist': (2.757, -25.476),
+        'spine_lumbar': (4.473, -18.927, 3.606), 'spine_thoracic': (-9.663, -10.0, 5.587),
+        'neck': (2.314, -0.651, -14.036), 'head': (2.44, -0.016), 'right_clavicle': (19.464, 3.991),
+        'right_shoulder': (87.377, 13.763, 10.606), 'right_elbow': (20.502, 21.985),
+        'right_wrist': (4.335, -22.893),
     })
     human.KeyJoints(21.9, {
-        'spine_lumbar': (3.797, -18.536, 3.021), 'spine_thoracic': (-9.875, -10.0, 5.366),
-        'neck': (2.671, -0.811, -12.46), 'head': (2.822, -0.013), 'right_clavicle': (22.273, 3.701),
-        'right_shoulder': (86.957, 14.229, 13.394), 'right_elbow': (20.782, 24.411),
-        'right_wrist': (5.676, -20.964),
+        'spine_lumbar': (0.459, -19.081, 3.059), 'spine_thoracic': (-9.033, -10.0, 5.242),
+        'neck': (3.785, -1.213, -11.741), 'head': (4.002, -0.013),
+        'right_clavicle': (20.065, 3.816), 'right_shoulder': (85.435, 11.322, 13.058),
+        'right_elbow': (21.28, 23.443), 'right_wrist': (5.467, -21.58),
     })
     human.KeyJoints(22.0, {
-        'spine_lumbar': (-1.02, -19.949, 4.466), 'spine_thoracic': (-7.951, -10.0, 5.492),
-        'neck': (4.093, -1.265, -13.345), 'head': (4.33, -0.029), 'right_clavicle': (11.035, 4.609),
-        'right_shoulder': (84.95, 7.995, 5.642), 'right_elbow': (21.994, 16.111),
-        'right_wrist': (1.622, -27.435),
+        'spine_lumbar': (-1.08, -19.995, 4.703), 'spine_thoracic': (-7.896, -10.0, 5.546),
+        'neck': (4.111, -1.266, -13.698), 'head': (4.349, -0.03), 'right_clavicle': (10.018, 4.749),
+        'right_shoulder': (84.932, 7.751, 4.691), 'right_elbow': (22.067, 15.196),
+        'right_wrist': (1.136, -27.942),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
@@ -1369,65 +1369,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (2.436, -18.829, 7.263), 'spine_thoracic': (-8.871, -8.286, 7.309),
-        'neck': (3.0, -0.819, -17.226), 'head': (3.168, -0.023), 'right_clavicle': (5.272, 6.124),
-        'right_shoulder': (87.443, 8.33, -1.34), 'right_elbow': (22.519, 9.965),
-        'right_wrist': (-1.943, -29.995),
+        'spine_lumbar': (2.641, -19.543, 7.015), 'spine_thoracic': (-9.717, -9.462, 7.075),
+        'neck': (3.449, -0.958, -17.938), 'head': (3.648, -0.027), 'right_clavicle': (6.701, 5.585),
+        'right_shoulder': (85.698, 9.58, -0.294), 'right_elbow': (22.926, 11.02),
+        'right_wrist': (-1.621, -29.713),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (3.359, -20.0, 4.748), 'spine_thoracic': (-8.658, -10.0, 5.764),
-        'neck': (2.544, -0.689, -16.073), 'head': (2.684, -0.018),
-        'right_clavicle': (11.854, 4.498), 'right_shoulder': (87.111, 11.026, 4.924),
-        'right_elbow': (21.99, 16.243), 'right_wrist': (1.297, -27.314),
+        'spine_lumbar': (4.177, -20.0, 3.795), 'spine_thoracic': (-8.887, -10.0, 5.32),
+        'neck': (2.21, -0.595, -15.215), 'head': (2.33, -0.015), 'right_clavicle': (15.496, 3.87),
+        'right_shoulder': (87.179, 12.551, 8.167), 'right_elbow': (22.155, 19.492),
+        'right_wrist': (2.902, -25.266),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (4.841, -18.699, 3.351), 'spine_thoracic': (-9.853, -10.0, 5.543),
-        'neck': (2.2, -0.624, -13.664), 'head': (2.321, -0.013), 'right_clavicle': (20.923, 3.843),
-        'right_shoulder': (87.523, 14.347, 11.788), 'right_elbow': (20.498, 23.178),
-        'right_wrist': (4.932, -22.005),
+        'spine_lumbar': (3.214, -18.596, 3.012), 'spine_thoracic': (-9.772, -10.0, 5.337),
+        'neck': (2.859, -0.88, -12.257), 'head': (3.021, -0.011), 'right_clavicle': (22.121, 3.707),
+        'right_shoulder': (86.674, 13.853, 13.427), 'right_elbow': (20.838, 24.37),
+        'right_wrist': (5.685, -20.977),
     })
     human.KeyJoints(22.5, {
-        'spine_lumbar': (0.063, -19.264, 3.273), 'spine_thoracic': (-8.799, -10.0, 5.274),
-        'neck': (3.87, -1.235, -11.994), 'head': (4.093, -0.015), 'right_clavicle': (18.49, 3.932),
-        'right_shoulder': (85.297, 10.625, 11.792), 'right_elbow': (21.416, 22.196),
-        'right_wrist': (4.808, -22.687),
+        'spine_lumbar': (-0.742, -19.734, 3.813), 'spine_thoracic': (-8.208, -10.0, 5.366),
+        'neck': (4.004, -1.263, -12.589), 'head': (4.235, -0.021),
+        'right_clavicle': (14.467, 4.245), 'right_shoulder': (85.036, 8.914, 8.772),
+        'right_elbow': (21.76, 19.107), 'right_wrist': (3.237, -25.326),
     })
     human.KeyJoints(22.6, {
-        'spine_lumbar': (1.001, -18.382, 7.324), 'spine_thoracic': (-8.39, -7.663, 7.288),
-        'neck': (3.387, -0.974, -16.027), 'head': (3.58, -0.027), 'right_clavicle': (4.606, 6.446),
-        'right_shoulder': (87.179, 7.018, -1.476), 'right_elbow': (22.449, 9.525),
-        'right_wrist': (-1.947, -29.55),
+        'spine_lumbar': (1.158, -18.259, 7.417), 'spine_thoracic': (-8.427, -7.486, 7.392),
+        'neck': (3.329, -0.954, -16.041), 'head': (3.519, -0.026), 'right_clavicle': (4.514, 6.509),
+        'right_shoulder': (87.349, 7.008, -1.607), 'right_elbow': (22.455, 9.412),
+        'right_wrist': (-2.011, -29.573),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
-        'spine_lumbar': (2.433, -17.479, 8.43), 'spine_thoracic': (-8.728, -6.299, 8.233),
-        'neck': (2.775, -0.751, -16.896), 'head': (2.93, -0.021), 'right_clavicle': (3.035, 7.156),
-        'right_shoulder': (88.665, 6.996, -3.613), 'right_elbow': (22.442, 7.666),
-        'right_wrist': (-2.996, -30.0),
+        'spine_lumbar': (2.363, -17.922, 8.058), 'spine_thoracic': (-8.695, -6.853, 7.941),
+        'neck': (2.833, -0.769, -16.994), 'head': (2.991, -0.021), 'right_clavicle': (3.607, 6.862),
+        'right_shoulder': (88.454, 7.314, -3.074), 'right_elbow': (22.259, 8.232),
+        'right_wrist': (-2.721, -30.0),
     })
     human.KeyJoints(22.8, {
-        'spine_lumbar': (2.867, -19.996, 5.647), 'spine_thoracic': (-8.56, -10.0, 6.177),
-        'neck': (2.802, -0.756, -17.058), 'head': (2.958, -0.021), 'right_clavicle': (8.486, 5.007),
-        'right_shoulder': (87.1, 9.883, 1.934), 'right_elbow': (22.3, 13.262),
-        'right_wrist': (-0.25, -28.698),
+        'spine_lumbar': (3.308, -20.0, 4.826), 'spine_thoracic': (-8.635, -10.0, 5.796),
+        'neck': (2.562, -0.694, -16.153), 'right_clavicle': (11.528, 4.544),
+        'right_shoulder': (87.115, 10.902, 4.652), 'right_elbow': (22.029, 15.969),
+        'right_wrist': (1.156, -27.485),
     })
     human.KeyJoints(22.9, {
-        'spine_lumbar': (4.254, -19.867, 3.742), 'spine_thoracic': (-9.034, -10.0, 5.357),
-        'neck': (2.225, -0.604, -14.938), 'head': (2.345, -0.015),
-        'right_clavicle': (16.503, 3.883), 'right_shoulder': (87.218, 12.882, 8.83),
-        'right_elbow': (21.884, 20.17), 'right_wrist': (3.281, -24.657),
+        'spine_lumbar': (4.812, -18.719, 3.368), 'spine_thoracic': (-9.836, -10.0, 5.546),
+        'neck': (2.209, -0.626, -13.69), 'head': (2.33, -0.013), 'right_clavicle': (20.802, 3.854),
+        'right_shoulder': (87.51, 14.298, 11.696), 'right_elbow': (20.496, 23.082),
+        'right_wrist': (4.884, -22.082),
     })
     human.KeyJoints(23.0, {
-        'spine_lumbar': (2.326, -18.679, 2.996), 'spine_thoracic': (-9.631, -10.0, 5.278),
-        'neck': (3.157, -0.99, -12.025), 'right_clavicle': (21.88, 3.718),
-        'right_shoulder': (86.221, 13.334, 13.488), 'right_elbow': (20.916, 24.298),
-        'right_wrist': (5.701, -21.001),
+        'spine_lumbar': (0.086, -19.248, 3.17), 'spine_thoracic': (-8.813, -10.0, 5.259),
+        'neck': (3.845, -1.232, -11.778), 'head': (4.067, -0.014),
+        'right_clavicle': (18.905, 3.888), 'right_shoulder': (85.307, 10.617, 12.057),
+        'right_elbow': (21.336, 22.443), 'right_wrist': (4.997, -22.297),
     })
     human.KeyJoints(23.1, {
-        'spine_lumbar': (-1.064, -19.984, 4.921), 'spine_thoracic': (-7.892, -9.985, 5.604),
-        'neck': (4.101, -1.262, -13.984), 'head': (4.338, -0.03), 'right_clavicle': (9.249, 4.88),
-        'right_shoulder': (84.942, 7.636, 4.059), 'right_elbow': (22.186, 14.564),
-        'right_wrist': (0.792, -28.229),
+        'spine_lumbar': (-0.874, -19.842, 5.119), 'spine_thoracic': (-7.904, -9.857, 5.706),
+        'neck': (3.989, -1.221, -14.19), 'head': (4.219, -0.03), 'right_clavicle': (8.759, 5.003),
+        'right_shoulder': (85.047, 7.596, 3.801), 'right_elbow': (22.493, 14.267),
+        'right_wrist': (0.619, -28.392),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=23.179001, duration=0.072)
@@ -1485,71 +1485,71 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=24.218664, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
-        'spine_lumbar': (7.42, -12.905, 9.687), 'spine_thoracic': (-8.557, -4.265, 9.229),
-        'neck': (34.775, -2.807, -41.405), 'head': (14.779, -0.706),
-        'right_clavicle': (2.903, 7.947), 'right_shoulder': (18.89, 34.088, -16.396),
-        'right_elbow': (37.151, 3.142), 'right_wrist': (-6.33, -3.661),
+        'spine_lumbar': (7.412, -12.905, 9.687), 'spine_thoracic': (-8.557, -4.265, 9.229),
+        'neck': (34.776, -2.805, -41.396), 'head': (14.781, -0.706),
+        'right_clavicle': (2.893, 7.947), 'right_shoulder': (18.89, 34.074, -16.406),
+        'right_elbow': (37.15, 3.129), 'right_wrist': (-6.331, -3.673),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (12.324, -2.451, 10.423), 'spine_thoracic': (-8.66, -4.306, 10.02),
-        'neck': (32.496, -4.686, -42.552), 'head': (12.437, -1.103),
-        'right_clavicle': (8.244, 8.534), 'right_shoulder': (18.895, 41.164, -10.821),
-        'right_elbow': (44.435, 9.941), 'right_wrist': (-5.989, 12.487),
+        'spine_lumbar': (12.58, -2.8, 10.302), 'spine_thoracic': (-8.268, -4.914, 9.999),
+        'neck': (32.543, -4.705, -42.732), 'head': (12.466, -1.105),
+        'right_clavicle': (8.902, 8.531), 'right_shoulder': (18.293, 41.773, -10.266),
+        'right_elbow': (44.412, 10.716), 'right_wrist': (-5.978, 12.767),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (13.727, -5.108, 9.622), 'spine_thoracic': (-6.137, -8.214, 9.855),
-        'neck': (32.954, -4.673, -43.702), 'head': (12.819, -1.11),
-        'right_clavicle': (12.271, 8.553), 'right_shoulder': (14.986, 44.592, -7.285),
-        'right_elbow': (43.899, 14.727), 'right_wrist': (-5.963, 13.502),
+        'spine_lumbar': (14.395, -7.144, 9.124), 'spine_thoracic': (-4.671, -9.974, 9.717),
+        'neck': (33.303, -4.628, -44.466), 'head': (13.13, -1.113),
+        'right_clavicle': (13.374, 8.75), 'right_shoulder': (12.74, 46.493, -6.317),
+        'right_elbow': (43.587, 16.491), 'right_wrist': (-6.123, 13.59),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (14.819, -10.555, 8.593), 'spine_thoracic': (-2.845, -10.0, 9.649),
-        'neck': (33.737, -4.722, -45.902), 'head': (13.435, -1.13),
-        'right_clavicle': (15.156, 9.067), 'right_shoulder': (9.755, 48.966, -5.317),
-        'right_elbow': (42.783, 18.847), 'right_wrist': (-6.455, 13.104),
+        'spine_lumbar': (12.67, -12.775, 8.073), 'spine_thoracic': (-1.742, -10.0, 9.307),
+        'neck': (33.735, -4.288, -44.441), 'head': (13.595, -1.064),
+        'right_clavicle': (14.901, 9.03), 'right_shoulder': (7.876, 47.972, -3.681),
+        'right_elbow': (42.944, 20.089), 'right_wrist': (-6.37, 13.373),
     })
     human.KeyJoints(24.7, {
-        'spine_lumbar': (11.324, -11.273, 8.217), 'spine_thoracic': (-2.579, -9.478, 9.174),
-        'neck': (33.385, -4.112, -42.827), 'head': (13.38, -1.022),
-        'right_clavicle': (13.096, 8.643), 'right_shoulder': (9.141, 45.623, -4.237),
-        'right_elbow': (43.84, 18.948), 'right_wrist': (-6.139, 14.049),
+        'spine_lumbar': (10.679, -7.226, 8.761), 'spine_thoracic': (-4.979, -7.954, 9.134),
+        'neck': (32.819, -4.095, -41.42), 'head': (12.984, -1.043),
+        'right_clavicle': (10.918, 8.168), 'right_shoulder': (12.838, 42.962, -6.096),
+        'right_elbow': (44.73, 15.722), 'right_wrist': (-5.848, 14.491),
     })
     human.KeyJoints(24.8, {
-        'spine_lumbar': (11.079, -2.531, 10.281), 'spine_thoracic': (-8.92, -3.728, 9.716),
-        'neck': (32.434, -4.398, -41.479), 'head': (12.539, -1.081),
-        'right_clavicle': (7.031, 8.366), 'right_shoulder': (19.156, 39.688, -11.043),
-        'right_elbow': (44.546, 9.207), 'right_wrist': (-5.955, 12.454),
+        'spine_lumbar': (11.192, -2.052, 10.511), 'spine_thoracic': (-9.397, -3.09, 9.859),
+        'neck': (32.42, -4.474, -41.693), 'head': (12.489, -1.086),
+        'right_clavicle': (6.549, 8.431), 'right_shoulder': (19.935, 39.344, -11.779),
+        'right_elbow': (44.473, 8.341), 'right_wrist': (-5.992, 11.945),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
-        'spine_lumbar': (11.526, -1.601, 10.752), 'spine_thoracic': (-9.78, -2.594, 10.056),
-        'neck': (32.415, -4.595, -42.057), 'head': (12.42, -1.095), 'right_clavicle': (6.33, 8.527),
-        'right_shoulder': (20.593, 39.313, -12.42), 'right_elbow': (44.397, 7.685),
-        'right_wrist': (-6.032, 11.476),
+        'spine_lumbar': (11.606, -1.673, 10.722), 'spine_thoracic': (-9.673, -2.756, 10.054),
+        'neck': (32.42, -4.606, -42.103), 'head': (12.418, -1.096),
+        'right_clavicle': (6.515, 8.529), 'right_shoulder': (20.432, 39.497, -12.266),
+        'right_elbow': (44.408, 7.904), 'right_wrist': (-6.027, 11.585),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (13.189, -3.831, 9.976), 'spine_thoracic': (-7.237, -6.517, 9.932),
-        'neck': (32.71, -4.717, -43.207), 'head': (12.596, -1.109),
-        'right_clavicle': (10.585, 8.527), 'right_shoulder': (16.698, 43.248, -8.814),
-        'right_elbow': (44.243, 12.706), 'right_wrist': (-5.96, 13.296),
+        'spine_lumbar': (13.635, -4.857, 9.688), 'spine_thoracic': (-6.342, -7.9, 9.869),
+        'neck': (32.904, -4.686, -43.611), 'head': (12.771, -1.11),
+        'right_clavicle': (11.966, 8.544), 'right_shoulder': (15.306, 44.36, -7.568),
+        'right_elbow': (43.976, 14.358), 'right_wrist': (-5.961, 13.489),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (14.483, -7.777, 8.993), 'spine_thoracic': (-4.34, -10.0, 9.7),
-        'neck': (33.384, -4.636, -44.704), 'head': (13.192, -1.115),
-        'right_clavicle': (13.744, 8.809), 'right_shoulder': (12.18, 46.95, -6.016),
-        'right_elbow': (43.484, 17.025), 'right_wrist': (-6.16, 13.5),
+        'spine_lumbar': (14.838, -10.832, 8.548), 'spine_thoracic': (-2.721, -10.0, 9.649),
+        'neck': (33.781, -4.72, -46.007), 'head': (13.471, -1.131),
+        'right_clavicle': (15.444, 9.109), 'right_shoulder': (9.548, 49.112, -5.089),
+        'right_elbow': (42.651, 19.114), 'right_wrist': (-6.454, 12.93),
     })
     human.KeyJoints(25.2, {
-        'spine_lumbar': (12.736, -12.778, 8.072), 'spine_thoracic': (-1.74, -10.0, 9.313),
-        'neck': (33.736, -4.311, -44.561), 'head': (13.599, -1.076),
-        'right_clavicle': (14.951, 9.037), 'right_shoulder': (7.873, 48.038, -3.679),
-        'right_elbow': (42.919, 20.09), 'right_wrist': (-6.374, 13.343),
+        'spine_lumbar': (11.151, -10.787, 8.276), 'spine_thoracic': (-2.855, -9.314, 9.163),
+        'neck': (33.355, -4.097, -42.672), 'head': (13.353, -1.016),
+        'right_clavicle': (12.669, 8.548), 'right_shoulder': (9.564, 45.08, -4.438),
+        'right_elbow': (44.039, 18.587), 'right_wrist': (-6.081, 14.162),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (10.623, -5.507, 9.108), 'spine_thoracic': (-6.194, -6.986, 9.14),
-        'neck': (32.588, -4.11, -41.062), 'head': (12.806, -1.064),
-        'right_clavicle': (9.795, 8.107), 'right_shoulder': (14.744, 41.843, -7.258),
-        'right_elbow': (44.839, 13.926), 'right_wrist': (-5.81, 14.504),
+        'spine_lumbar': (10.79, -3.993, 9.638), 'spine_thoracic': (-7.52, -5.512, 9.351),
+        'neck': (32.485, -4.234, -41.126), 'head': (12.669, -1.07),
+        'right_clavicle': (8.448, 8.202), 'right_shoulder': (16.878, 40.742, -8.98),
+        'right_elbow': (44.731, 11.696), 'right_wrist': (-5.863, 13.751),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
@@ -1559,65 +1559,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(25.5, {
-        'spine_lumbar': (12.554, -2.763, 10.315), 'spine_thoracic': (-8.309, -4.85, 10.001),
-        'neck': (32.537, -4.703, -42.713), 'head': (12.462, -1.105),
-        'right_clavicle': (8.834, 8.531), 'right_shoulder': (18.356, 41.711, -10.323),
-        'right_elbow': (44.415, 10.636), 'right_wrist': (-5.979, 12.74),
+        'spine_lumbar': (12.867, -3.245, 10.156), 'spine_thoracic': (-7.803, -5.636, 9.97),
+        'neck': (32.611, -4.717, -42.946), 'head': (12.515, -1.107),
+        'right_clavicle': (9.671, 8.527), 'right_shoulder': (17.576, 42.462, -9.609),
+        'right_elbow': (44.354, 11.623), 'right_wrist': (-5.967, 13.044),
     })
     human.KeyJoints(25.6, {
-        'spine_lumbar': (13.875, -5.559, 9.507), 'spine_thoracic': (-5.778, -8.793, 9.833),
-        'neck': (33.049, -4.638, -43.852), 'head': (12.914, -1.109),
-        'right_clavicle': (12.878, 8.571), 'right_shoulder': (14.428, 44.956, -6.684),
-        'right_elbow': (43.715, 15.408), 'right_wrist': (-5.966, 13.474),
+        'spine_lumbar': (14.506, -8.052, 8.942), 'spine_thoracic': (-4.217, -10.0, 9.696),
+        'neck': (33.416, -4.641, -44.802), 'head': (13.217, -1.116),
+        'right_clavicle': (14.081, 8.828), 'right_shoulder': (11.957, 47.107, -5.722),
+        'right_elbow': (43.367, 17.34),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (14.862, -11.352, 8.453), 'spine_thoracic': (-2.487, -10.0, 9.651),
-        'neck': (33.841, -4.715, -46.144), 'head': (13.526, -1.132),
-        'right_clavicle': (15.885, 9.168), 'right_shoulder': (9.154, 49.298, -4.621),
-        'right_elbow': (42.453, 19.569), 'right_wrist': (-6.452, 12.652),
+        'spine_lumbar': (12.009, -12.895, 8.032), 'spine_thoracic': (-1.675, -9.996, 9.224),
+        'neck': (33.665, -4.172, -43.774), 'head': (13.597, -1.04),
+        'right_clavicle': (14.335, 8.942), 'right_shoulder': (7.76, 47.241, -3.601),
+        'right_elbow': (43.206, 20.115), 'right_wrist': (-6.32, 13.647),
     })
     human.KeyJoints(25.8, {
-        'spine_lumbar': (11.016, -9.734, 8.407), 'spine_thoracic': (-3.461, -8.947, 9.154),
-        'neck': (33.198, -4.104, -42.338), 'head': (13.234, -1.021),
-        'right_clavicle': (12.275, 8.437), 'right_shoulder': (10.495, 44.577, -4.888),
-        'right_elbow': (44.233, 17.787), 'right_wrist': (-6.012, 14.253),
+        'spine_lumbar': (10.623, -6.247, 8.934), 'spine_thoracic': (-5.631, -7.472, 9.13),
+        'neck': (32.672, -4.1, -41.107), 'head': (12.89, -1.057), 'right_clavicle': (10.354, 8.111),
+        'right_shoulder': (13.855, 42.367, -6.678), 'right_elbow': (44.83, 14.788),
+        'right_wrist': (-5.812, 14.533),
     })
     human.KeyJoints(25.9, {
-        'spine_lumbar': (11.245, -1.84, 10.617), 'spine_thoracic': (-9.612, -2.797, 9.927),
-        'neck': (32.417, -4.497, -41.741), 'head': (12.472, -1.088),
-        'right_clavicle': (6.332, 8.461), 'right_shoulder': (20.287, 39.191, -12.116),
-        'right_elbow': (44.438, 7.948), 'right_wrist': (-6.009, 11.703),
+        'spine_lumbar': (11.292, -1.661, 10.707), 'spine_thoracic': (-9.795, -2.546, 9.985),
+        'neck': (32.412, -4.53, -41.846), 'head': (12.452, -1.09), 'right_clavicle': (6.147, 8.488),
+        'right_shoulder': (20.586, 39.062, -12.405), 'right_elbow': (44.408, 7.612),
+        'right_wrist': (-6.024, 11.493),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.0, {
-        'spine_lumbar': (11.831, -1.888, 10.634), 'spine_thoracic': (-9.366, -3.221, 10.048),
-        'neck': (32.435, -4.635, -42.236), 'head': (12.416, -1.098),
-        'right_clavicle': (7.041, 8.533), 'right_shoulder': (19.969, 40.014, -11.827),
-        'right_elbow': (44.429, 8.525), 'right_wrist': (-6.015, 11.885),
+        'spine_lumbar': (11.96, -2.023, 10.582), 'spine_thoracic': (-9.187, -3.496, 10.042),
+        'neck': (32.447, -4.65, -42.315), 'head': (12.418, -1.1), 'right_clavicle': (7.349, 8.534),
+        'right_shoulder': (19.697, 40.313, -11.57), 'right_elbow': (44.436, 8.888),
+        'right_wrist': (-6.008, 12.05),
     })
     human.KeyJoints(26.1, {
-        'spine_lumbar': (13.378, -4.231, 9.86), 'spine_thoracic': (-6.876, -7.077, 9.907),
-        'neck': (32.783, -4.71, -43.371), 'head': (12.66, -1.109), 'right_clavicle': (11.152, 8.53),
-        'right_shoulder': (16.137, 43.716, -8.309), 'right_elbow': (44.149, 13.381),
-        'right_wrist': (-5.959, 13.408),
+        'spine_lumbar': (13.853, -5.487, 9.525), 'spine_thoracic': (-5.835, -8.698, 9.836),
+        'neck': (33.034, -4.646, -43.829), 'head': (12.898, -1.109),
+        'right_clavicle': (12.767, 8.568), 'right_shoulder': (14.515, 44.903, -6.8),
+        'right_elbow': (43.752, 15.294), 'right_wrist': (-5.965, 13.484),
     })
     human.KeyJoints(26.2, {
-        'spine_lumbar': (14.549, -8.51, 8.865), 'spine_thoracic': (-3.999, -10.0, 9.688),
-        'neck': (33.471, -4.65, -44.976), 'head': (13.257, -1.118),
-        'right_clavicle': (14.487, 8.863), 'right_shoulder': (11.575, 47.392, -5.44),
-        'right_elbow': (43.204, 17.767), 'right_wrist': (-6.189, 13.269),
+        'spine_lumbar': (14.806, -11.627, 8.392), 'spine_thoracic': (-2.351, -10.0, 9.641),
+        'neck': (33.842, -4.699, -46.108), 'head': (13.545, -1.13),
+        'right_clavicle': (15.885, 9.168), 'right_shoulder': (8.921, 49.276, -4.429),
+        'right_elbow': (42.455, 19.7), 'right_wrist': (-6.448, 12.656),
     })
     human.KeyJoints(26.3, {
-        'spine_lumbar': (12.074, -12.909, 8.031), 'spine_thoracic': (-1.668, -10.0, 9.229),
-        'neck': (33.678, -4.182, -43.857), 'head': (13.6, -1.043), 'right_clavicle': (14.436, 8.96),
-        'right_shoulder': (7.749, 47.369, -3.595), 'right_elbow': (43.161, 20.124),
-        'right_wrist': (-6.33, 13.612),
+        'spine_lumbar': (10.948, -9.618, 8.422), 'spine_thoracic': (-3.53, -8.904, 9.15),
+        'neck': (33.168, -4.094, -42.227), 'head': (13.217, -1.022),
+        'right_clavicle': (12.088, 8.402), 'right_shoulder': (10.6, 44.345, -4.94),
+        'right_elbow': (44.312, 17.696), 'right_wrist': (-5.991, 14.299),
     })
     human.KeyJoints(26.4, {
-        'spine_lumbar': (10.719, -4.481, 9.448), 'spine_thoracic': (-7.074, -6.04, 9.261),
-        'neck': (32.512, -4.19, -41.155), 'head': (12.701, -1.071), 'right_clavicle': (8.9, 8.161),
-        'right_shoulder': (16.158, 41.096, -8.367), 'right_elbow': (44.777, 12.464),
-        'right_wrist': (-5.84, 14.074),
+        'spine_lumbar': (10.922, -3.265, 9.945), 'spine_thoracic': (-8.205, -4.659, 9.517),
+        'neck': (32.455, -4.313, -41.258), 'head': (12.601, -1.076),
+        'right_clavicle': (7.754, 8.277), 'right_shoulder': (17.991, 40.217, -9.969),
+        'right_elbow': (44.647, 10.489), 'right_wrist': (-5.905, 13.16),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.5, {
@@ -1627,65 +1627,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(26.6, {
-        'spine_lumbar': (12.775, -3.095, 10.205), 'spine_thoracic': (-7.956, -5.399, 9.98),
-        'neck': (32.587, -4.715, -42.876), 'head': (12.497, -1.107),
-        'right_clavicle': (9.42, 8.528), 'right_shoulder': (17.812, 42.24, -9.824),
-        'right_elbow': (44.376, 11.327), 'right_wrist': (-5.97, 12.961),
+        'spine_lumbar': (13.138, -3.732, 10.006), 'spine_thoracic': (-7.33, -6.373, 9.939),
+        'neck': (32.693, -4.717, -43.164), 'head': (12.581, -1.109),
+        'right_clavicle': (10.437, 8.527), 'right_shoulder': (16.842, 43.123, -8.944),
+        'right_elbow': (44.264, 12.53), 'right_wrist': (-5.961, 13.262),
     })
     human.KeyJoints(26.7, {
-        'spine_lumbar': (14.046, -6.108, 9.373), 'spine_thoracic': (-5.368, -9.349, 9.803),
-        'neck': (33.155, -4.617, -44.04), 'right_clavicle': (13.272, 8.606),
-        'right_shoulder': (13.794, 45.407, -6.342), 'right_elbow': (43.599, 16.007),
-        'right_wrist': (-5.977, 13.447),
+        'spine_lumbar': (14.614, -8.959, 8.803), 'spine_thoracic': (-3.744, -10.0, 9.676),
+        'neck': (33.528, -4.669, -45.184), 'head': (13.294, -1.121),
+        'right_clavicle': (14.618, 8.901), 'right_shoulder': (11.166, 47.759, -5.442),
+        'right_elbow': (43.12, 18.007), 'right_wrist': (-6.254, 13.253),
     })
     human.KeyJoints(26.8, {
-        'spine_lumbar': (14.572, -11.907, 8.321), 'spine_thoracic': (-2.206, -10.0, 9.603),
-        'neck': (33.824, -4.641, -45.887), 'head': (13.573, -1.126),
-        'right_clavicle': (15.797, 9.156), 'right_shoulder': (8.674, 49.159, -4.243),
-        'right_elbow': (42.499, 19.808), 'right_wrist': (-6.44, 12.729),
+        'spine_lumbar': (11.688, -12.545, 8.071), 'spine_thoracic': (-1.868, -9.888, 9.2),
+        'neck': (33.588, -4.129, -43.405), 'head': (13.545, -1.025),
+        'right_clavicle': (13.805, 8.833), 'right_shoulder': (8.054, 46.555, -3.734),
+        'right_elbow': (43.463, 19.868), 'right_wrist': (-6.255, 13.829),
     })
     human.KeyJoints(26.9, {
-        'spine_lumbar': (10.782, -8.085, 8.631), 'spine_thoracic': (-4.443, -8.319, 9.14),
-        'neck': (32.958, -4.104, -41.716), 'head': (13.084, -1.033),
-        'right_clavicle': (11.421, 8.252), 'right_shoulder': (12.008, 43.541, -5.652),
-        'right_elbow': (44.574, 16.464), 'right_wrist': (-5.899, 14.417),
+        'spine_lumbar': (10.623, -5.505, 9.108), 'spine_thoracic': (-6.196, -6.984, 9.14),
+        'neck': (32.585, -4.113, -41.058), 'head': (12.808, -1.064),
+        'right_clavicle': (9.793, 8.107), 'right_shoulder': (14.748, 41.841, -7.26),
+        'right_elbow': (44.839, 13.923), 'right_wrist': (-5.81, 14.503),
     })
     human.KeyJoints(27.0, {
-        'spine_lumbar': (11.342, -1.477, 10.802), 'spine_thoracic': (-9.984, -2.282, 10.048),
-        'neck': (32.407, -4.564, -41.938), 'head': (12.431, -1.093),
-        'right_clavicle': (5.956, 8.516), 'right_shoulder': (20.896, 38.93, -12.708),
-        'right_elbow': (44.376, 7.263), 'right_wrist': (-6.04, 11.269),
+        'spine_lumbar': (11.346, -1.463, 10.809), 'spine_thoracic': (-9.999, -2.262, 10.053),
+        'neck': (32.407, -4.567, -41.948), 'head': (12.429, -1.093),
+        'right_clavicle': (5.941, 8.518), 'right_shoulder': (20.92, 38.92, -12.731),
+        'right_elbow': (44.374, 7.236), 'right_wrist': (-6.041, 11.252),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
-        'spine_lumbar': (12.08, -2.157, 10.531), 'spine_thoracic': (-9.016, -3.757, 10.036),
-        'neck': (32.461, -4.664, -42.391), 'head': (12.423, -1.101),
-        'right_clavicle': (7.639, 8.535), 'right_shoulder': (19.438, 40.592, -11.328),
-        'right_elbow': (44.44, 9.229), 'right_wrist': (-6.001, 12.199),
+        'spine_lumbar': (12.274, -2.389, 10.446), 'spine_thoracic': (-8.734, -4.192, 10.024),
+        'neck': (32.488, -4.682, -42.519), 'head': (12.433, -1.103),
+        'right_clavicle': (8.119, 8.534), 'right_shoulder': (19.008, 41.047, -10.926),
+        'right_elbow': (44.438, 9.794), 'right_wrist': (-5.991, 12.43),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (13.557, -4.653, 9.743), 'spine_thoracic': (-6.511, -7.639, 9.881),
-        'neck': (32.864, -4.695, -43.535), 'head': (12.733, -1.11),
-        'right_clavicle': (11.711, 8.538), 'right_shoulder': (15.569, 44.162, -7.803),
-        'right_elbow': (44.035, 14.051), 'right_wrist': (-5.96, 13.471),
+        'spine_lumbar': (14.083, -6.213, 9.347), 'spine_thoracic': (-5.293, -9.432, 9.794),
+        'neck': (33.172, -4.617, -44.08), 'right_clavicle': (13.288, 8.617),
+        'right_shoulder': (13.68, 45.512, -6.338), 'right_elbow': (43.597, 16.07),
+        'right_wrist': (-5.986, 13.455),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (14.713, -9.558, 8.732), 'spine_thoracic': (-3.377, -10.0, 9.658),
-        'neck': (33.604, -4.704, -45.486), 'head': (13.341, -1.125),
-        'right_clavicle': (14.726, 8.956), 'right_shoulder': (10.604, 48.3, -5.448),
-        'right_elbow': (43.034, 18.248), 'right_wrist': (-6.382, 13.244),
+        'spine_lumbar': (13.921, -12.28, 8.219), 'spine_thoracic': (-2.009, -10.0, 9.5),
+        'neck': (33.803, -4.525, -45.441), 'head': (13.576, -1.103),
+        'right_clavicle': (15.517, 9.118), 'right_shoulder': (8.337, 48.785, -4.0),
+        'right_elbow': (42.641, 19.939), 'right_wrist': (-6.418, 12.945),
     })
     human.KeyJoints(27.4, {
-        'spine_lumbar': (11.688, -12.438, 8.083), 'spine_thoracic': (-1.927, -9.854, 9.2),
-        'neck': (33.56, -4.14, -43.317), 'head': (13.529, -1.031),
-        'right_clavicle': (13.843, 8.833), 'right_shoulder': (8.145, 46.596, -3.775),
-        'right_elbow': (43.455, 19.792), 'right_wrist': (-6.254, 13.825),
+        'spine_lumbar': (10.79, -8.4, 8.586), 'spine_thoracic': (-4.252, -8.445, 9.14),
+        'neck': (32.989, -4.093, -41.827), 'head': (13.09, -1.03),
+        'right_clavicle': (11.506, 8.271), 'right_shoulder': (11.713, 43.636, -5.5),
+        'right_elbow': (44.548, 16.725), 'right_wrist': (-5.911, 14.41),
     })
     human.KeyJoints(27.5, {
-        'spine_lumbar': (10.885, -3.458, 9.862), 'spine_thoracic': (-8.021, -4.891, 9.471),
-        'neck': (32.461, -4.304, -41.304), 'head': (12.611, -1.075),
-        'right_clavicle': (7.94, 8.256), 'right_shoulder': (17.692, 40.356, -9.699),
-        'right_elbow': (44.67, 10.815), 'right_wrist': (-5.893, 13.325),
+        'spine_lumbar': (11.061, -2.607, 10.245), 'spine_thoracic': (-8.845, -3.829, 9.693),
+        'neck': (32.433, -4.404, -41.501), 'head': (12.535, -1.082),
+        'right_clavicle': (7.107, 8.356), 'right_shoulder': (19.033, 39.743, -10.927),
+        'right_elbow': (44.557, 9.343), 'right_wrist': (-5.95, 12.534),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
@@ -1695,28 +1695,28 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(27.7, {
-        'spine_lumbar': (12.986, -3.449, 10.092), 'spine_thoracic': (-7.6, -5.951, 9.957),
-        'neck': (32.644, -4.717, -43.039), 'head': (12.541, -1.108),
-        'right_clavicle': (10.001, 8.527), 'right_shoulder': (17.263, 42.75, -9.324),
-        'right_elbow': (44.32, 12.013), 'right_wrist': (-5.964, 13.144),
+        'spine_lumbar': (13.393, -4.264, 9.851), 'spine_thoracic': (-6.846, -7.123, 9.905),
+        'neck': (32.79, -4.709, -43.385), 'head': (12.665, -1.11),
+        'right_clavicle': (11.198, 8.531), 'right_shoulder': (16.09, 43.754, -8.268),
+        'right_elbow': (44.14, 13.436), 'right_wrist': (-5.959, 13.415),
     })
     human.KeyJoints(27.8, {
-        'spine_lumbar': (14.352, -6.988, 9.16), 'spine_thoracic': (-4.767, -9.915, 9.728),
-        'neck': (33.282, -4.626, -44.402), 'right_clavicle': (13.355, 8.729),
-        'right_shoulder': (12.89, 46.342, -6.322), 'right_elbow': (43.589, 16.414),
-        'right_wrist': (-6.103, 13.573),
+        'spine_lumbar': (14.759, -9.866, 8.694), 'spine_thoracic': (-3.194, -10.0, 9.65),
+        'neck': (33.643, -4.718, -45.634), 'head': (13.367, -1.127),
+        'right_clavicle': (14.792, 8.986), 'right_shoulder': (10.322, 48.557, -5.45),
+        'right_elbow': (42.984, 18.382), 'right_wrist': (-6.437, 13.237),
     })
     human.KeyJoints(27.9, {
-        'spine_lumbar': (13.726, -12.41, 8.182), 'spine_thoracic': (-1.94, -10.0, 9.466),
-        'neck': (33.779, -4.487, -45.264), 'head': (13.598, -1.112),
-        'right_clavicle': (15.447, 9.108), 'right_shoulder': (8.218, 48.693, -3.916),
-        'right_elbow': (42.676, 19.98), 'right_wrist': (-6.413, 13.003),
+        'spine_lumbar': (11.402, -11.812, 8.154), 'spine_thoracic': (-2.276, -9.654, 9.18),
+        'neck': (33.491, -4.104, -43.079), 'head': (13.456, -1.015),
+        'right_clavicle': (13.25, 8.698), 'right_shoulder': (8.678, 45.831, -4.021),
+        'right_elbow': (43.746, 19.342), 'right_wrist': (-6.173, 14.002),
     })
     human.KeyJoints(28.0, {
-        'spine_lumbar': (10.644, -6.604, 8.867), 'spine_thoracic': (-5.386, -7.659, 9.132),
-        'neck': (32.721, -4.103, -41.186), 'head': (12.932, -1.053),
-        'right_clavicle': (10.587, 8.129), 'right_shoulder': (13.472, 42.608, -6.452),
-        'right_elbow': (44.796, 15.145), 'right_wrist': (-5.824, 14.518),
+        'spine_lumbar': (10.684, -4.762, 9.346), 'spine_thoracic': (-6.826, -6.323, 9.216),
+        'neck': (32.527, -4.165, -41.082), 'head': (12.737, -1.067),
+        'right_clavicle': (9.152, 8.141), 'right_shoulder': (15.757, 41.3, -8.036),
+        'right_elbow': (44.8, 12.886), 'right_wrist': (-5.829, 14.232),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.1, {
@@ -1726,65 +1726,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(28.2, {
-        'spine_lumbar': (12.32, -2.446, 10.425), 'spine_thoracic': (-8.666, -4.297, 10.02),
-        'neck': (32.495, -4.686, -42.55), 'head': (12.437, -1.103),
-        'right_clavicle': (8.234, 8.534), 'right_shoulder': (18.904, 41.155, -10.83),
-        'right_elbow': (44.436, 9.929), 'right_wrist': (-5.989, 12.483),
+        'spine_lumbar': (12.575, -2.793, 10.305), 'spine_thoracic': (-8.276, -4.902, 9.999),
+        'neck': (32.542, -4.704, -42.728), 'head': (12.465, -1.105),
+        'right_clavicle': (8.889, 8.531), 'right_shoulder': (18.305, 41.761, -10.277),
+        'right_elbow': (44.412, 10.701), 'right_wrist': (-5.978, 12.762),
     })
     human.KeyJoints(28.3, {
-        'spine_lumbar': (13.725, -5.1, 9.624), 'spine_thoracic': (-6.143, -8.205, 9.855),
-        'neck': (32.953, -4.673, -43.699), 'head': (12.817, -1.11),
-        'right_clavicle': (12.261, 8.552), 'right_shoulder': (14.996, 44.585, -7.294),
-        'right_elbow': (43.901, 14.715), 'right_wrist': (-5.963, 13.502),
+        'spine_lumbar': (14.391, -7.128, 9.128), 'spine_thoracic': (-4.68, -9.97, 9.718),
+        'neck': (33.301, -4.628, -44.46), 'head': (13.128, -1.113),
+        'right_clavicle': (13.372, 8.748), 'right_shoulder': (12.755, 46.479, -6.317),
+        'right_elbow': (43.587, 16.483), 'right_wrist': (-6.122, 13.589),
     })
     human.KeyJoints(28.4, {
-        'spine_lumbar': (14.818, -10.54, 8.595), 'spine_thoracic': (-2.852, -10.0, 9.649),
-        'neck': (33.735, -4.722, -45.896), 'head': (13.433, -1.13),
-        'right_clavicle': (15.142, 9.064), 'right_shoulder': (9.767, 48.958, -5.326),
-        'right_elbow': (42.79, 18.834), 'right_wrist': (-6.455, 13.111),
+        'spine_lumbar': (12.688, -12.769, 8.075), 'spine_thoracic': (-1.745, -10.0, 9.31),
+        'neck': (33.736, -4.291, -44.457), 'head': (13.595, -1.064),
+        'right_clavicle': (14.912, 9.032), 'right_shoulder': (7.881, 47.986, -3.685),
+        'right_elbow': (42.939, 20.087), 'right_wrist': (-6.371, 13.366),
     })
     human.KeyJoints(28.5, {
-        'spine_lumbar': (11.329, -11.296, 8.214), 'spine_thoracic': (-2.566, -9.485, 9.174),
-        'neck': (33.388, -4.113, -42.835), 'head': (13.382, -1.022),
-        'right_clavicle': (13.109, 8.647), 'right_shoulder': (9.121, 45.64, -4.228),
-        'right_elbow': (43.833, 18.965), 'right_wrist': (-6.141, 14.046),
+        'spine_lumbar': (10.68, -7.244, 8.758), 'spine_thoracic': (-4.968, -7.962, 9.134),
+        'neck': (32.822, -4.095, -41.427), 'head': (12.986, -1.043),
+        'right_clavicle': (10.928, 8.17), 'right_shoulder': (12.82, 42.973, -6.086),
+        'right_elbow': (44.727, 15.738), 'right_wrist': (-5.848, 14.49),
     })
     human.KeyJoints(28.6, {
-        'spine_lumbar': (11.075, -2.545, 10.274), 'spine_thoracic': (-8.907, -3.746, 9.712),
-        'neck': (32.435, -4.397, -41.475), 'head': (12.54, -1.081),
-        'right_clavicle': (7.044, 8.364), 'right_shoulder': (19.134, 39.698, -11.022),
-        'right_elbow': (44.548, 9.231), 'right_wrist': (-5.954, 12.468),
+        'spine_lumbar': (11.19, -2.06, 10.507), 'spine_thoracic': (-9.389, -3.101, 9.856),
+        'neck': (32.42, -4.473, -41.69), 'head': (12.489, -1.086), 'right_clavicle': (6.557, 8.43),
+        'right_shoulder': (19.922, 39.349, -11.767), 'right_elbow': (44.474, 8.356),
+        'right_wrist': (-5.991, 11.953),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.7, {
-        'spine_lumbar': (11.521, -1.596, 10.754), 'spine_thoracic': (-9.788, -2.582, 10.056),
-        'neck': (32.415, -4.594, -42.054), 'head': (12.421, -1.095),
-        'right_clavicle': (6.317, 8.527), 'right_shoulder': (20.605, 39.3, -12.431),
-        'right_elbow': (44.396, 7.669), 'right_wrist': (-6.032, 11.468),
+        'spine_lumbar': (11.599, -1.666, 10.725), 'spine_thoracic': (-9.683, -2.741, 10.054),
+        'neck': (32.419, -4.605, -42.099), 'head': (12.418, -1.096),
+        'right_clavicle': (6.498, 8.529), 'right_shoulder': (20.447, 39.479, -12.28),
+        'right_elbow': (44.407, 7.883), 'right_wrist': (-6.028, 11.575),
     })
     human.KeyJoints(28.8, {
-        'spine_lumbar': (13.186, -3.825, 9.978), 'spine_thoracic': (-7.243, -6.508, 9.933),
-        'neck': (32.709, -4.717, -43.204), 'head': (12.595, -1.109),
-        'right_clavicle': (10.575, 8.527), 'right_shoulder': (16.708, 43.24, -8.822),
-        'right_elbow': (44.244, 12.694), 'right_wrist': (-5.96, 13.294),
+        'spine_lumbar': (13.632, -4.846, 9.691), 'spine_thoracic': (-6.35, -7.887, 9.87),
+        'neck': (32.902, -4.686, -43.607), 'head': (12.769, -1.11),
+        'right_clavicle': (11.954, 8.544), 'right_shoulder': (15.319, 44.351, -7.58),
+        'right_elbow': (43.979, 14.343), 'right_wrist': (-5.961, 13.488),
     })
     human.KeyJoints(28.9, {
-        'spine_lumbar': (14.482, -7.765, 8.996), 'spine_thoracic': (-4.346, -10.0, 9.7),
-        'neck': (33.382, -4.636, -44.7), 'head': (13.191, -1.115), 'right_clavicle': (13.73, 8.808),
-        'right_shoulder': (12.19, 46.943, -6.029), 'right_elbow': (43.489, 17.012),
-        'right_wrist': (-6.16, 13.505),
+        'spine_lumbar': (14.837, -10.816, 8.551), 'spine_thoracic': (-2.728, -10.0, 9.649),
+        'neck': (33.778, -4.72, -46.001), 'head': (13.469, -1.13),
+        'right_clavicle': (15.427, 9.106), 'right_shoulder': (9.56, 49.104, -5.103),
+        'right_elbow': (42.658, 19.098), 'right_wrist': (-6.454, 12.94),
     })
     human.KeyJoints(29.0, {
-        'spine_lumbar': (12.751, -12.774, 8.073), 'spine_thoracic': (-1.742, -10.0, 9.316),
-        'neck': (33.737, -4.314, -44.574), 'head': (13.599, -1.077),
-        'right_clavicle': (14.96, 9.039), 'right_shoulder': (7.877, 48.05, -3.682),
-        'right_elbow': (42.915, 20.089), 'right_wrist': (-6.375, 13.338),
+        'spine_lumbar': (11.155, -10.806, 8.273), 'spine_thoracic': (-2.845, -9.32, 9.163),
+        'neck': (33.358, -4.097, -42.68), 'head': (13.355, -1.016),
+        'right_clavicle': (12.679, 8.55), 'right_shoulder': (9.548, 45.092, -4.43),
+        'right_elbow': (44.034, 18.601), 'right_wrist': (-6.082, 14.16),
     })
     human.KeyJoints(29.1, {
-        'spine_lumbar': (10.623, -5.523, 9.103), 'spine_thoracic': (-6.18, -6.999, 9.139),
-        'neck': (32.59, -4.11, -41.062), 'head': (12.808, -1.064), 'right_clavicle': (9.809, 8.107),
-        'right_shoulder': (14.723, 41.855, -7.242), 'right_elbow': (44.839, 13.948),
-        'right_wrist': (-5.809, 14.507),
+        'spine_lumbar': (10.788, -4.005, 9.633), 'spine_thoracic': (-7.508, -5.526, 9.349),
+        'neck': (32.485, -4.233, -41.125), 'head': (12.671, -1.07), 'right_clavicle': (8.46, 8.201),
+        'right_shoulder': (16.859, 40.751, -8.964), 'right_elbow': (44.732, 11.716),
+        'right_wrist': (-5.862, 13.76),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.2, {
@@ -1794,65 +1794,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(29.3, {
-        'spine_lumbar': (12.55, -2.757, 10.317), 'spine_thoracic': (-8.315, -4.841, 10.002),
-        'neck': (32.537, -4.703, -42.71), 'head': (12.462, -1.105),
-        'right_clavicle': (8.824, 8.531), 'right_shoulder': (18.365, 41.702, -10.332),
-        'right_elbow': (44.415, 10.625), 'right_wrist': (-5.979, 12.736),
+        'spine_lumbar': (12.862, -3.237, 10.159), 'spine_thoracic': (-7.811, -5.624, 9.971),
+        'neck': (32.609, -4.717, -42.942), 'head': (12.514, -1.107),
+        'right_clavicle': (9.658, 8.527), 'right_shoulder': (17.588, 42.45, -9.62),
+        'right_elbow': (44.355, 11.608), 'right_wrist': (-5.967, 13.04),
     })
     human.KeyJoints(29.4, {
-        'spine_lumbar': (13.872, -5.551, 9.509), 'spine_thoracic': (-5.784, -8.783, 9.833),
-        'neck': (33.048, -4.639, -43.849), 'head': (12.912, -1.109),
-        'right_clavicle': (12.867, 8.571), 'right_shoulder': (14.437, 44.951, -6.695),
-        'right_elbow': (43.719, 15.396), 'right_wrist': (-5.966, 13.475),
+        'spine_lumbar': (14.505, -8.037, 8.945), 'spine_thoracic': (-4.224, -10.0, 9.696),
+        'neck': (33.414, -4.641, -44.796), 'head': (13.215, -1.116),
+        'right_clavicle': (14.062, 8.827), 'right_shoulder': (11.969, 47.099, -5.738),
+        'right_elbow': (43.374, 17.322), 'right_wrist': (-6.168, 13.394),
     })
     human.KeyJoints(29.5, {
-        'spine_lumbar': (14.861, -11.341, 8.456), 'spine_thoracic': (-2.492, -10.0, 9.651),
-        'neck': (33.84, -4.715, -46.143), 'head': (13.525, -1.132),
-        'right_clavicle': (15.88, 9.168), 'right_shoulder': (9.162, 49.297, -4.63),
-        'right_elbow': (42.455, 19.561), 'right_wrist': (-6.452, 12.655),
+        'spine_lumbar': (12.015, -12.897, 8.032), 'spine_thoracic': (-1.674, -9.996, 9.225),
+        'neck': (33.666, -4.173, -43.781), 'head': (13.598, -1.04),
+        'right_clavicle': (14.344, 8.944), 'right_shoulder': (7.759, 47.252, -3.6),
+        'right_elbow': (43.202, 20.116), 'right_wrist': (-6.321, 13.644),
     })
     human.KeyJoints(29.6, {
-        'spine_lumbar': (11.021, -9.762, 8.403), 'spine_thoracic': (-3.445, -8.956, 9.154),
-        'neck': (33.201, -4.104, -42.347), 'head': (13.236, -1.02),
-        'right_clavicle': (12.289, 8.44), 'right_shoulder': (10.47, 44.595, -4.876),
-        'right_elbow': (44.227, 17.809), 'right_wrist': (-6.014, 14.25),
+        'spine_lumbar': (10.623, -6.262, 8.931), 'spine_thoracic': (-5.621, -7.48, 9.13),
+        'neck': (32.674, -4.1, -41.11), 'head': (12.891, -1.057), 'right_clavicle': (10.363, 8.111),
+        'right_shoulder': (13.839, 42.376, -6.668), 'right_elbow': (44.829, 14.803),
+        'right_wrist': (-5.812, 14.533),
     })
     human.KeyJoints(29.7, {
-        'spine_lumbar': (11.243, -1.849, 10.612), 'spine_thoracic': (-9.603, -2.81, 9.924),
-        'neck': (32.417, -4.496, -41.736), 'head': (12.473, -1.088),
-        'right_clavicle': (6.341, 8.46), 'right_shoulder': (20.271, 39.198, -12.102),
-        'right_elbow': (44.44, 7.965), 'right_wrist': (-6.008, 11.713),
+        'spine_lumbar': (11.29, -1.666, 10.705), 'spine_thoracic': (-9.79, -2.553, 9.984),
+        'neck': (32.412, -4.53, -41.844), 'head': (12.452, -1.09), 'right_clavicle': (6.152, 8.487),
+        'right_shoulder': (20.577, 39.066, -12.397), 'right_elbow': (44.409, 7.622),
+        'right_wrist': (-6.023, 11.5),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.8, {
-        'spine_lumbar': (11.827, -1.884, 10.636), 'spine_thoracic': (-9.372, -3.212, 10.048),
-        'neck': (32.434, -4.635, -42.233), 'head': (12.416, -1.098),
-        'right_clavicle': (7.031, 8.533), 'right_shoulder': (19.978, 40.005, -11.835),
-        'right_elbow': (44.428, 8.513), 'right_wrist': (-6.015, 11.879),
+        'spine_lumbar': (11.954, -2.018, 10.584), 'spine_thoracic': (-9.194, -3.484, 10.043),
+        'neck': (32.447, -4.65, -42.312), 'head': (12.418, -1.1), 'right_clavicle': (7.336, 8.534),
+        'right_shoulder': (19.708, 40.301, -11.581), 'right_elbow': (44.436, 8.872),
+        'right_wrist': (-6.008, 12.043),
     })
     human.KeyJoints(29.9, {
-        'spine_lumbar': (13.375, -4.224, 9.862), 'spine_thoracic': (-6.882, -7.067, 9.907),
-        'neck': (32.782, -4.71, -43.368), 'head': (12.659, -1.109),
-        'right_clavicle': (11.143, 8.53), 'right_shoulder': (16.146, 43.709, -8.318),
-        'right_elbow': (44.15, 13.37), 'right_wrist': (-5.959, 13.406),
+        'spine_lumbar': (13.849, -5.476, 9.528), 'spine_thoracic': (-5.843, -8.683, 9.836),
+        'neck': (33.031, -4.647, -43.826), 'head': (12.895, -1.109),
+        'right_clavicle': (12.751, 8.567), 'right_shoulder': (14.529, 44.895, -6.816),
+        'right_elbow': (43.757, 15.277), 'right_wrist': (-5.965, 13.485),
     })
     human.KeyJoints(30.0, {
-        'spine_lumbar': (14.547, -8.495, 8.867), 'spine_thoracic': (-4.006, -10.0, 9.688),
-        'neck': (33.47, -4.65, -44.971), 'head': (13.256, -1.118), 'right_clavicle': (14.48, 8.862),
-        'right_shoulder': (11.587, 47.382, -5.44), 'right_elbow': (43.208, 17.757),
-        'right_wrist': (-6.189, 13.27),
+        'spine_lumbar': (14.812, -11.615, 8.394), 'spine_thoracic': (-2.356, -10.0, 9.642),
+        'neck': (33.842, -4.701, -46.113), 'head': (13.544, -1.13),
+        'right_clavicle': (15.887, 9.168), 'right_shoulder': (8.931, 49.28, -4.436),
+        'right_elbow': (42.453, 19.695), 'right_wrist': (-6.448, 12.654),
     })
     human.KeyJoints(30.1, {
-        'spine_lumbar': (12.08, -12.909, 8.031), 'spine_thoracic': (-1.668, -10.0, 9.23),
-        'neck': (33.679, -4.183, -43.867), 'head': (13.6, -1.043),
-        'right_clavicle': (14.444, 8.961), 'right_shoulder': (7.748, 47.38, -3.595),
-        'right_elbow': (43.157, 20.125), 'right_wrist': (-6.331, 13.608),
+        'spine_lumbar': (10.951, -9.638, 8.419), 'spine_thoracic': (-3.518, -8.912, 9.15),
+        'neck': (33.172, -4.094, -42.235), 'head': (13.219, -1.022),
+        'right_clavicle': (12.098, 8.404), 'right_shoulder': (10.581, 44.357, -4.931),
+        'right_elbow': (44.307, 17.712), 'right_wrist': (-5.993, 14.297),
     })
     human.KeyJoints(30.2, {
-        'spine_lumbar': (10.716, -4.499, 9.441), 'spine_thoracic': (-7.058, -6.058, 9.258),
-        'neck': (32.513, -4.188, -41.153), 'head': (12.702, -1.07), 'right_clavicle': (8.916, 8.16),
-        'right_shoulder': (16.133, 41.109, -8.345), 'right_elbow': (44.779, 12.491),
-        'right_wrist': (-5.839, 14.085),
+        'spine_lumbar': (10.919, -3.277, 9.94), 'spine_thoracic': (-8.194, -4.673, 9.514),
+        'neck': (32.456, -4.311, -41.255), 'head': (12.602, -1.076),
+        'right_clavicle': (7.765, 8.276), 'right_shoulder': (17.973, 40.225, -9.952),
+        'right_elbow': (44.648, 10.509), 'right_wrist': (-5.904, 13.171),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.3, {
@@ -1862,65 +1862,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(30.4, {
-        'spine_lumbar': (12.771, -3.089, 10.206), 'spine_thoracic': (-7.962, -5.39, 9.98),
-        'neck': (32.586, -4.715, -42.873), 'head': (12.497, -1.107),
-        'right_clavicle': (9.41, 8.528), 'right_shoulder': (17.821, 42.231, -9.833),
-        'right_elbow': (44.377, 11.315), 'right_wrist': (-5.97, 12.957),
+        'spine_lumbar': (13.134, -3.723, 10.008), 'spine_thoracic': (-7.338, -6.36, 9.939),
+        'neck': (32.691, -4.717, -43.16), 'head': (12.58, -1.109),
+        'right_clavicle': (10.424, 8.527), 'right_shoulder': (16.855, 43.112, -8.955),
+        'right_elbow': (44.266, 12.514), 'right_wrist': (-5.961, 13.259),
     })
     human.KeyJoints(30.5, {
-        'spine_lumbar': (14.041, -6.095, 9.376), 'spine_thoracic': (-5.377, -9.339, 9.804),
-        'neck': (33.153, -4.617, -44.035), 'right_clavicle': (13.27, 8.605),
-        'right_shoulder': (13.807, 45.395, -6.343), 'right_elbow': (43.599, 15.999),
-        'right_wrist': (-5.976, 13.446),
+        'spine_lumbar': (14.611, -8.944, 8.805), 'spine_thoracic': (-3.753, -10.0, 9.676),
+        'neck': (33.526, -4.668, -45.176), 'head': (13.293, -1.121),
+        'right_clavicle': (14.615, 8.9), 'right_shoulder': (11.18, 47.746, -5.442),
+        'right_elbow': (43.123, 18.0), 'right_wrist': (-6.251, 13.254),
     })
     human.KeyJoints(30.6, {
-        'spine_lumbar': (14.582, -11.898, 8.323), 'spine_thoracic': (-2.21, -10.0, 9.604),
-        'neck': (33.825, -4.643, -45.896), 'head': (13.573, -1.127),
-        'right_clavicle': (15.801, 9.157), 'right_shoulder': (8.682, 49.165, -4.249),
-        'right_elbow': (42.497, 19.805), 'right_wrist': (-6.441, 12.726),
+        'spine_lumbar': (11.693, -12.554, 8.07), 'spine_thoracic': (-1.863, -9.891, 9.201),
+        'neck': (33.589, -4.129, -43.41), 'head': (13.546, -1.025),
+        'right_clavicle': (13.814, 8.835), 'right_shoulder': (8.046, 46.566, -3.73),
+        'right_elbow': (43.458, 19.875), 'right_wrist': (-6.256, 13.826),
     })
     human.KeyJoints(30.7, {
-        'spine_lumbar': (10.786, -8.112, 8.627), 'spine_thoracic': (-4.427, -8.33, 9.14),
-        'neck': (32.962, -4.104, -41.727), 'head': (13.087, -1.033),
-        'right_clavicle': (11.435, 8.255), 'right_shoulder': (11.982, 43.558, -5.639),
-        'right_elbow': (44.569, 16.487), 'right_wrist': (-5.901, 14.415),
+        'spine_lumbar': (10.623, -5.517, 9.105), 'spine_thoracic': (-6.186, -6.994, 9.139),
+        'neck': (32.586, -4.113, -41.057), 'head': (12.809, -1.064),
+        'right_clavicle': (9.803, 8.107), 'right_shoulder': (14.732, 41.85, -7.249),
+        'right_elbow': (44.839, 13.939), 'right_wrist': (-5.809, 14.506),
     })
     human.KeyJoints(30.8, {
-        'spine_lumbar': (11.341, -1.479, 10.801), 'spine_thoracic': (-9.981, -2.287, 10.047),
-        'neck': (32.407, -4.563, -41.936), 'head': (12.431, -1.093),
-        'right_clavicle': (5.959, 8.516), 'right_shoulder': (20.891, 38.932, -12.703),
-        'right_elbow': (44.377, 7.268), 'right_wrist': (-6.039, 11.273),
+        'spine_lumbar': (11.345, -1.464, 10.809), 'spine_thoracic': (-9.997, -2.264, 10.053),
+        'neck': (32.407, -4.566, -41.947), 'head': (12.429, -1.093),
+        'right_clavicle': (5.943, 8.518), 'right_shoulder': (20.917, 38.921, -12.729),
+        'right_elbow': (44.374, 7.239), 'right_wrist': (-6.041, 11.254),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
-        'spine_lumbar': (12.075, -2.152, 10.533), 'spine_thoracic': (-9.022, -3.748, 10.036),
-        'neck': (32.461, -4.663, -42.389), 'head': (12.422, -1.101),
-        'right_clavicle': (7.629, 8.535), 'right_shoulder': (19.447, 40.583, -11.336),
-        'right_elbow': (44.44, 9.218), 'right_wrist': (-6.001, 12.194),
+        'spine_lumbar': (12.269, -2.382, 10.448), 'spine_thoracic': (-8.742, -4.18, 10.024),
+        'neck': (32.487, -4.682, -42.515), 'head': (12.433, -1.103),
+        'right_clavicle': (8.106, 8.534), 'right_shoulder': (19.019, 41.035, -10.937),
+        'right_elbow': (44.438, 9.779), 'right_wrist': (-5.992, 12.424),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (13.554, -4.646, 9.745), 'spine_thoracic': (-6.518, -7.63, 9.881),
-        'neck': (32.863, -4.695, -43.533), 'head': (12.732, -1.11),
-        'right_clavicle': (11.702, 8.538), 'right_shoulder': (15.579, 44.155, -7.811),
-        'right_elbow': (44.038, 14.04), 'right_wrist': (-5.96, 13.47),
+        'spine_lumbar': (14.078, -6.199, 9.35), 'spine_thoracic': (-5.303, -9.421, 9.796),
+        'neck': (33.17, -4.617, -44.075), 'right_clavicle': (13.286, 8.616),
+        'right_shoulder': (13.695, 45.497, -6.338), 'right_elbow': (43.597, 16.062),
+        'right_wrist': (-5.985, 13.454),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (14.71, -9.539, 8.734), 'spine_thoracic': (-3.389, -10.0, 9.658),
-        'neck': (33.602, -4.703, -45.477), 'head': (13.34, -1.125),
-        'right_clavicle': (14.723, 8.954), 'right_shoulder': (10.621, 48.284, -5.448),
-        'right_elbow': (43.037, 18.241), 'right_wrist': (-6.378, 13.244),
+        'spine_lumbar': (13.942, -12.27, 8.222), 'spine_thoracic': (-2.014, -10.0, 9.503),
+        'neck': (33.804, -4.529, -45.457), 'head': (13.575, -1.104),
+        'right_clavicle': (15.525, 9.119), 'right_shoulder': (8.346, 48.797, -4.007),
+        'right_elbow': (42.637, 19.935), 'right_wrist': (-6.419, 12.938),
     })
     human.KeyJoints(31.2, {
-        'spine_lumbar': (11.694, -12.452, 8.081), 'spine_thoracic': (-1.919, -9.859, 9.2),
-        'neck': (33.562, -4.14, -43.325), 'head': (13.531, -1.031),
-        'right_clavicle': (13.854, 8.836), 'right_shoulder': (8.133, 46.611, -3.769),
-        'right_elbow': (43.45, 19.802), 'right_wrist': (-6.256, 13.822),
+        'spine_lumbar': (10.792, -8.42, 8.583), 'spine_thoracic': (-4.24, -8.453, 9.14),
+        'neck': (32.992, -4.093, -41.833), 'head': (13.092, -1.03),
+        'right_clavicle': (11.515, 8.273), 'right_shoulder': (11.694, 43.648, -5.49),
+        'right_elbow': (44.544, 16.742), 'right_wrist': (-5.912, 14.408),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (10.882, -3.475, 9.854), 'spine_thoracic': (-8.005, -4.911, 9.467),
-        'neck': (32.461, -4.302, -41.301), 'head': (12.613, -1.075),
-        'right_clavicle': (7.956, 8.254), 'right_shoulder': (17.666, 40.368, -9.676),
-        'right_elbow': (44.672, 10.843), 'right_wrist': (-5.892, 13.339),
+        'spine_lumbar': (11.058, -2.618, 10.24), 'spine_thoracic': (-8.835, -3.842, 9.69),
+        'neck': (32.433, -4.403, -41.497), 'head': (12.536, -1.082),
+        'right_clavicle': (7.117, 8.355), 'right_shoulder': (19.017, 39.75, -10.912),
+        'right_elbow': (44.559, 9.362), 'right_wrist': (-5.949, 12.545),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
@@ -1930,28 +1930,28 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(31.5, {
-        'spine_lumbar': (12.982, -3.443, 10.094), 'spine_thoracic': (-7.606, -5.942, 9.957),
-        'neck': (32.643, -4.717, -43.037), 'head': (12.54, -1.108),
-        'right_clavicle': (9.991, 8.527), 'right_shoulder': (17.272, 42.741, -9.332),
-        'right_elbow': (44.321, 12.002), 'right_wrist': (-5.964, 13.141),
+        'spine_lumbar': (13.389, -4.255, 9.853), 'spine_thoracic': (-6.854, -7.11, 9.905),
+        'neck': (32.788, -4.709, -43.381), 'head': (12.664, -1.109),
+        'right_clavicle': (11.186, 8.531), 'right_shoulder': (16.103, 43.744, -8.279),
+        'right_elbow': (44.142, 13.421), 'right_wrist': (-5.959, 13.413),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (14.347, -6.972, 9.163), 'spine_thoracic': (-4.777, -9.909, 9.729),
-        'neck': (33.28, -4.626, -44.396), 'right_clavicle': (13.353, 8.727),
-        'right_shoulder': (12.905, 46.326, -6.322), 'right_elbow': (43.59, 16.407),
-        'right_wrist': (-6.101, 13.571),
+        'spine_lumbar': (14.757, -9.851, 8.696), 'spine_thoracic': (-3.203, -10.0, 9.651),
+        'neck': (33.641, -4.718, -45.627), 'head': (13.365, -1.127),
+        'right_clavicle': (14.788, 8.984), 'right_shoulder': (10.335, 48.545, -5.45),
+        'right_elbow': (42.987, 18.374), 'right_wrist': (-6.435, 13.237),
     })
     human.KeyJoints(31.7, {
-        'spine_lumbar': (13.743, -12.402, 8.185), 'spine_thoracic': (-1.944, -10.0, 9.468),
-        'neck': (33.78, -4.489, -45.274), 'head': (13.598, -1.112),
-        'right_clavicle': (15.454, 9.109), 'right_shoulder': (8.225, 48.702, -3.921),
-        'right_elbow': (42.672, 19.978), 'right_wrist': (-6.413, 12.998),
+        'spine_lumbar': (11.406, -11.826, 8.152), 'spine_thoracic': (-2.268, -9.659, 9.18),
+        'neck': (33.493, -4.104, -43.085), 'head': (13.458, -1.016),
+        'right_clavicle': (13.26, 8.701), 'right_shoulder': (8.665, 45.844, -4.015),
+        'right_elbow': (43.741, 19.352), 'right_wrist': (-6.174, 13.999),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (10.645, -6.626, 8.863), 'spine_thoracic': (-5.371, -7.67, 9.132),
-        'neck': (32.724, -4.103, -41.192), 'head': (12.935, -1.053),
-        'right_clavicle': (10.601, 8.131), 'right_shoulder': (13.449, 42.623, -6.439),
-        'right_elbow': (44.793, 15.166), 'right_wrist': (-5.824, 14.517),
+        'spine_lumbar': (10.682, -4.774, 9.342), 'spine_thoracic': (-6.814, -6.335, 9.215),
+        'neck': (32.527, -4.164, -41.081), 'head': (12.738, -1.067),
+        'right_clavicle': (9.164, 8.141), 'right_shoulder': (15.739, 41.309, -8.022),
+        'right_elbow': (44.801, 12.905), 'right_wrist': (-5.828, 14.238),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
@@ -1961,65 +1961,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(32.0, {
-        'spine_lumbar': (12.316, -2.441, 10.427), 'spine_thoracic': (-8.672, -4.288, 10.021),
-        'neck': (32.494, -4.686, -42.547), 'head': (12.436, -1.103),
-        'right_clavicle': (8.224, 8.534), 'right_shoulder': (18.913, 41.146, -10.838),
-        'right_elbow': (44.436, 9.918), 'right_wrist': (-5.989, 12.478),
+        'spine_lumbar': (12.57, -2.786, 10.307), 'spine_thoracic': (-8.284, -4.889, 10.0),
+        'neck': (32.541, -4.704, -42.725), 'head': (12.465, -1.105),
+        'right_clavicle': (8.876, 8.531), 'right_shoulder': (18.317, 41.749, -10.288),
+        'right_elbow': (44.413, 10.686), 'right_wrist': (-5.978, 12.756),
     })
     human.KeyJoints(32.1, {
-        'spine_lumbar': (13.722, -5.093, 9.626), 'spine_thoracic': (-6.149, -8.195, 9.856),
-        'neck': (32.951, -4.674, -43.696), 'head': (12.816, -1.11),
-        'right_clavicle': (12.252, 8.552), 'right_shoulder': (15.006, 44.578, -7.302),
-        'right_elbow': (43.904, 14.704), 'right_wrist': (-5.963, 13.501),
+        'spine_lumbar': (14.387, -7.112, 9.131), 'spine_thoracic': (-4.69, -9.966, 9.719),
+        'neck': (33.299, -4.628, -44.453), 'head': (13.127, -1.113),
+        'right_clavicle': (13.369, 8.746), 'right_shoulder': (12.77, 46.464, -6.318),
+        'right_elbow': (43.588, 16.475), 'right_wrist': (-6.12, 13.587),
     })
     human.KeyJoints(32.2, {
-        'spine_lumbar': (14.817, -10.524, 8.598), 'spine_thoracic': (-2.859, -10.0, 9.648),
-        'neck': (33.732, -4.722, -45.891), 'head': (13.431, -1.13),
-        'right_clavicle': (15.129, 9.062), 'right_shoulder': (9.779, 48.95, -5.335),
-        'right_elbow': (42.796, 18.82), 'right_wrist': (-6.455, 13.119),
+        'spine_lumbar': (12.707, -12.763, 8.076), 'spine_thoracic': (-1.748, -10.0, 9.313),
+        'neck': (33.738, -4.295, -44.472), 'head': (13.595, -1.065),
+        'right_clavicle': (14.922, 9.033), 'right_shoulder': (7.887, 47.999, -3.689),
+        'right_elbow': (42.934, 20.085), 'right_wrist': (-6.372, 13.36),
     })
     human.KeyJoints(32.3, {
-        'spine_lumbar': (11.335, -11.319, 8.212), 'spine_thoracic': (-2.553, -9.493, 9.175),
-        'neck': (33.391, -4.113, -42.843), 'head': (13.385, -1.022),
-        'right_clavicle': (13.122, 8.65), 'right_shoulder': (9.101, 45.657, -4.218),
-        'right_elbow': (43.827, 18.982), 'right_wrist': (-6.143, 14.042),
+        'spine_lumbar': (10.682, -7.263, 8.755), 'spine_thoracic': (-4.956, -7.97, 9.134),
+        'neck': (32.825, -4.095, -41.434), 'head': (12.987, -1.043),
+        'right_clavicle': (10.938, 8.171), 'right_shoulder': (12.802, 42.983, -6.076),
+        'right_elbow': (44.725, 15.755), 'right_wrist': (-5.849, 14.489),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (11.072, -2.559, 10.268), 'spine_thoracic': (-8.893, -3.764, 9.708),
-        'neck': (32.435, -4.395, -41.471), 'head': (12.541, -1.081),
-        'right_clavicle': (7.058, 8.363), 'right_shoulder': (19.112, 39.708, -11.002),
-        'right_elbow': (44.55, 9.256), 'right_wrist': (-5.953, 12.482),
+        'spine_lumbar': (11.188, -2.069, 10.503), 'spine_thoracic': (-9.381, -3.112, 9.854),
+        'neck': (32.42, -4.472, -41.687), 'head': (12.49, -1.086), 'right_clavicle': (6.565, 8.428),
+        'right_shoulder': (19.909, 39.355, -11.754), 'right_elbow': (44.475, 8.37),
+        'right_wrist': (-5.99, 11.962),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
-        'spine_lumbar': (11.515, -1.591, 10.756), 'spine_thoracic': (-9.795, -2.571, 10.056),
-        'neck': (32.415, -4.594, -42.051), 'head': (12.421, -1.095),
-        'right_clavicle': (6.304, 8.526), 'right_shoulder': (20.616, 39.287, -12.442),
-        'right_elbow': (44.396, 7.654), 'right_wrist': (-6.033, 11.46),
+        'spine_lumbar': (11.591, -1.66, 10.728), 'spine_thoracic': (-9.693, -2.726, 10.054),
+        'neck': (32.419, -4.604, -42.095), 'head': (12.418, -1.096),
+        'right_clavicle': (6.481, 8.529), 'right_shoulder': (20.462, 39.462, -12.294),
+        'right_elbow': (44.406, 7.863), 'right_wrist': (-6.028, 11.565),
     })
     human.KeyJoints(32.6, {
-        'spine_lumbar': (13.183, -3.818, 9.98), 'spine_thoracic': (-7.249, -6.498, 9.933),
-        'neck': (32.708, -4.717, -43.201), 'head': (12.594, -1.109),
-        'right_clavicle': (10.566, 8.527), 'right_shoulder': (16.717, 43.232, -8.83),
-        'right_elbow': (44.246, 12.683), 'right_wrist': (-5.96, 13.292),
+        'spine_lumbar': (13.628, -4.836, 9.694), 'spine_thoracic': (-6.359, -7.874, 9.87),
+        'neck': (32.9, -4.687, -43.603), 'head': (12.767, -1.11), 'right_clavicle': (11.941, 8.543),
+        'right_shoulder': (15.332, 44.341, -7.592), 'right_elbow': (43.982, 14.328),
+        'right_wrist': (-5.961, 13.487),
     })
     human.KeyJoints(32.7, {
-        'spine_lumbar': (14.481, -7.754, 8.998), 'spine_thoracic': (-4.351, -10.0, 9.7),
-        'neck': (33.381, -4.636, -44.696), 'head': (13.19, -1.115),
-        'right_clavicle': (13.717, 8.807), 'right_shoulder': (12.199, 46.936, -6.041),
-        'right_elbow': (43.493, 16.999), 'right_wrist': (-6.16, 13.509),
+        'spine_lumbar': (14.836, -10.799, 8.554), 'spine_thoracic': (-2.735, -10.0, 9.649),
+        'neck': (33.776, -4.721, -45.995), 'head': (13.467, -1.13),
+        'right_clavicle': (15.41, 9.104), 'right_shoulder': (9.573, 49.096, -5.117),
+        'right_elbow': (42.666, 19.082), 'right_wrist': (-6.454, 12.95),
     })
     human.KeyJoints(32.8, {
-        'spine_lumbar': (12.766, -12.769, 8.075), 'spine_thoracic': (-1.745, -10.0, 9.318),
-        'neck': (33.738, -4.317, -44.587), 'head': (13.599, -1.078),
-        'right_clavicle': (14.969, 9.04), 'right_shoulder': (7.881, 48.061, -3.685),
-        'right_elbow': (42.911, 20.087), 'right_wrist': (-6.375, 13.332),
+        'spine_lumbar': (11.159, -10.824, 8.271), 'spine_thoracic': (-2.834, -9.327, 9.163),
+        'neck': (33.36, -4.097, -42.687), 'head': (13.357, -1.016),
+        'right_clavicle': (12.689, 8.553), 'right_shoulder': (9.532, 45.104, -4.423),
+        'right_elbow': (44.029, 18.615), 'right_wrist': (-6.084, 14.157),
     })
     human.KeyJoints(32.9, {
-        'spine_lumbar': (10.622, -5.54, 9.098), 'spine_thoracic': (-6.167, -7.012, 9.138),
-        'neck': (32.591, -4.109, -41.061), 'head': (12.81, -1.064),
-        'right_clavicle': (9.823, 8.106), 'right_shoulder': (14.702, 41.867, -7.227),
-        'right_elbow': (44.84, 13.969), 'right_wrist': (-5.809, 14.51),
+        'spine_lumbar': (10.786, -4.018, 9.628), 'spine_thoracic': (-7.496, -5.54, 9.346),
+        'neck': (32.486, -4.232, -41.124), 'head': (12.672, -1.07), 'right_clavicle': (8.472, 8.2),
+        'right_shoulder': (16.84, 40.76, -8.947), 'right_elbow': (44.734, 11.736),
+        'right_wrist': (-5.862, 13.769),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
@@ -2029,65 +2029,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (12.547, -2.752, 10.319), 'spine_thoracic': (-8.321, -4.832, 10.002),
-        'neck': (32.536, -4.703, -42.708), 'head': (12.462, -1.105),
-        'right_clavicle': (8.814, 8.531), 'right_shoulder': (18.374, 41.693, -10.34),
-        'right_elbow': (44.416, 10.613), 'right_wrist': (-5.979, 12.732),
+        'spine_lumbar': (12.858, -3.229, 10.161), 'spine_thoracic': (-7.819, -5.612, 9.971),
+        'neck': (32.608, -4.717, -42.939), 'head': (12.513, -1.107),
+        'right_clavicle': (9.645, 8.527), 'right_shoulder': (17.601, 42.439, -9.631),
+        'right_elbow': (44.356, 11.592), 'right_wrist': (-5.968, 13.036),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (13.87, -5.543, 9.511), 'spine_thoracic': (-5.79, -8.773, 9.833),
-        'neck': (33.046, -4.639, -43.847), 'head': (12.911, -1.109),
-        'right_clavicle': (12.856, 8.57), 'right_shoulder': (14.446, 44.945, -6.706),
-        'right_elbow': (43.722, 15.385), 'right_wrist': (-5.966, 13.476),
+        'spine_lumbar': (14.503, -8.021, 8.947), 'spine_thoracic': (-4.231, -10.0, 9.696),
+        'neck': (33.413, -4.64, -44.791), 'head': (13.214, -1.116),
+        'right_clavicle': (14.044, 8.826), 'right_shoulder': (11.981, 47.09, -5.754),
+        'right_elbow': (43.38, 17.305), 'right_wrist': (-6.168, 13.4),
     })
     human.KeyJoints(33.3, {
-        'spine_lumbar': (14.861, -11.331, 8.458), 'spine_thoracic': (-2.497, -10.0, 9.651),
-        'neck': (33.84, -4.715, -46.141), 'head': (13.523, -1.132),
-        'right_clavicle': (15.875, 9.167), 'right_shoulder': (9.171, 49.295, -4.639),
-        'right_elbow': (42.457, 19.554), 'right_wrist': (-6.452, 12.659),
+        'spine_lumbar': (12.021, -12.899, 8.032), 'spine_thoracic': (-1.673, -9.997, 9.225),
+        'neck': (33.667, -4.174, -43.789), 'head': (13.598, -1.04),
+        'right_clavicle': (14.353, 8.945), 'right_shoulder': (7.757, 47.264, -3.599),
+        'right_elbow': (43.198, 20.117), 'right_wrist': (-6.321, 13.641),
     })
     human.KeyJoints(33.4, {
-        'spine_lumbar': (11.026, -9.789, 8.4), 'spine_thoracic': (-3.429, -8.966, 9.155),
-        'neck': (33.205, -4.105, -42.356), 'head': (13.239, -1.02),
-        'right_clavicle': (12.303, 8.444), 'right_shoulder': (10.445, 44.613, -4.864),
-        'right_elbow': (44.221, 17.83), 'right_wrist': (-6.017, 14.247),
+        'spine_lumbar': (10.624, -6.276, 8.928), 'spine_thoracic': (-5.611, -7.488, 9.13),
+        'neck': (32.677, -4.099, -41.114), 'head': (12.893, -1.057),
+        'right_clavicle': (10.373, 8.112), 'right_shoulder': (13.823, 42.385, -6.658),
+        'right_elbow': (44.828, 14.818), 'right_wrist': (-5.813, 14.533),
     })
     human.KeyJoints(33.5, {
-        'spine_lumbar': (11.241, -1.859, 10.607), 'spine_thoracic': (-9.593, -2.823, 9.921),
-        'neck': (32.417, -4.494, -41.732), 'head': (12.474, -1.088),
-        'right_clavicle': (6.351, 8.459), 'right_shoulder': (20.256, 39.204, -12.087),
-        'right_elbow': (44.441, 7.982), 'right_wrist': (-6.007, 11.724),
+        'spine_lumbar': (11.289, -1.671, 10.702), 'spine_thoracic': (-9.784, -2.56, 9.982),
+        'neck': (32.412, -4.529, -41.842), 'head': (12.453, -1.09),
+        'right_clavicle': (6.158, 8.486), 'right_shoulder': (20.569, 39.07, -12.389),
+        'right_elbow': (44.41, 7.632), 'right_wrist': (-6.023, 11.506),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
-        'spine_lumbar': (11.822, -1.879, 10.638), 'spine_thoracic': (-9.378, -3.203, 10.048),
-        'neck': (32.434, -4.634, -42.231), 'head': (12.415, -1.098),
-        'right_clavicle': (7.021, 8.533), 'right_shoulder': (19.987, 39.995, -11.844),
-        'right_elbow': (44.428, 8.501), 'right_wrist': (-6.015, 11.874),
+        'spine_lumbar': (11.949, -2.012, 10.586), 'spine_thoracic': (-9.202, -3.473, 10.043),
+        'neck': (32.446, -4.649, -42.309), 'head': (12.418, -1.1), 'right_clavicle': (7.323, 8.534),
+        'right_shoulder': (19.72, 40.288, -11.592), 'right_elbow': (44.435, 8.857),
+        'right_wrist': (-6.008, 12.036),
     })
     human.KeyJoints(33.7, {
-        'spine_lumbar': (13.372, -4.217, 9.864), 'spine_thoracic': (-6.888, -7.058, 9.908),
-        'neck': (32.781, -4.71, -43.366), 'head': (12.657, -1.109),
-        'right_clavicle': (11.133, 8.53), 'right_shoulder': (16.156, 43.701, -8.326),
-        'right_elbow': (44.152, 13.359), 'right_wrist': (-5.959, 13.404),
+        'spine_lumbar': (13.846, -5.465, 9.531), 'spine_thoracic': (-5.852, -8.669, 9.837),
+        'neck': (33.029, -4.648, -43.822), 'head': (12.893, -1.109),
+        'right_clavicle': (12.736, 8.567), 'right_shoulder': (14.542, 44.887, -6.831),
+        'right_elbow': (43.762, 15.26), 'right_wrist': (-5.965, 13.487),
     })
     human.KeyJoints(33.8, {
-        'spine_lumbar': (14.546, -8.481, 8.869), 'spine_thoracic': (-4.014, -10.0, 9.689),
-        'neck': (33.468, -4.649, -44.965), 'head': (13.255, -1.118),
-        'right_clavicle': (14.474, 8.861), 'right_shoulder': (11.6, 47.372, -5.44),
-        'right_elbow': (43.211, 17.747), 'right_wrist': (-6.188, 13.271),
+        'spine_lumbar': (14.818, -11.604, 8.397), 'spine_thoracic': (-2.362, -10.0, 9.643),
+        'neck': (33.842, -4.701, -46.117), 'head': (13.543, -1.13),
+        'right_clavicle': (15.89, 9.169), 'right_shoulder': (8.941, 49.283, -4.444),
+        'right_elbow': (42.452, 19.69), 'right_wrist': (-6.449, 12.652),
     })
     human.KeyJoints(33.9, {
-        'spine_lumbar': (12.087, -12.91, 8.031), 'spine_thoracic': (-1.668, -10.0, 9.23),
-        'neck': (33.68, -4.185, -43.877), 'head': (13.6, -1.043), 'right_clavicle': (14.452, 8.962),
-        'right_shoulder': (7.748, 47.391, -3.595), 'right_elbow': (43.153, 20.125),
-        'right_wrist': (-6.331, 13.605),
+        'spine_lumbar': (11.232, -8.934, 8.491), 'spine_thoracic': (-3.642, -8.814, 9.15),
+        'neck': (33.008, -4.202, -42.309), 'head': (13.061, -1.054),
+        'right_clavicle': (12.274, 8.45), 'right_shoulder': (10.742, 44.706, -4.822),
+        'right_elbow': (44.303, 17.902), 'right_wrist': (-5.994, 14.295),
     })
     human.KeyJoints(34.0, {
-        'spine_lumbar': (9.864, -6.926, 9.195), 'spine_thoracic': (-6.692, -6.478, 9.134),
-        'neck': (33.059, -3.793, -41.05), 'head': (13.243, -0.984),
-        'right_clavicle': (8.333, 8.031), 'right_shoulder': (15.626, 40.088, -8.946),
-        'right_elbow': (43.729, 11.761), 'right_wrist': (-5.88, 11.932),
+        'spine_lumbar': (8.894, -9.146, 9.354), 'spine_thoracic': (-7.392, -5.699, 9.142),
+        'neck': (33.686, -3.411, -40.993), 'head': (13.805, -0.866),
+        'right_clavicle': (6.287, 7.974), 'right_shoulder': (16.853, 37.769, -11.632),
+        'right_elbow': (41.435, 8.573), 'right_wrist': (-6.031, 6.57),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.062708, duration=0.072)
@@ -2139,71 +2139,71 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=35.003158, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'spine_lumbar': (7.496, -13.725, 9.703), 'spine_thoracic': (-8.531, -4.428, 9.257),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.797, 7.948),
-        'right_shoulder': (57.214, 2.34, 11.045), 'right_elbow': (32.277, 18.468),
-        'right_wrist': (-1.051, -20.428),
+        'spine_lumbar': (7.496, -13.725, 9.703), 'spine_thoracic': (-8.516, -4.428, 9.253),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.785, 7.948),
+        'right_shoulder': (57.222, 2.303, 11.028), 'right_elbow': (32.277, 18.449),
+        'right_wrist': (-1.055, -20.428),
     })
     human.KeyJoints(35.2, {
-        'spine_lumbar': (5.787, -17.083, 9.513), 'spine_thoracic': (-10.193, -7.629, 9.431),
-        'neck': (24.843, -1.138, -6.657), 'head': (8.709, -0.136), 'right_clavicle': (6.203, 7.902),
-        'right_shoulder': (55.731, 4.644, 12.945), 'right_elbow': (31.267, 20.952),
-        'right_wrist': (-0.277, -21.672),
+        'spine_lumbar': (4.61, -19.248, 9.043), 'spine_thoracic': (-10.393, -9.893, 9.38),
+        'neck': (25.088, -1.162, -7.061), 'right_clavicle': (8.966, 7.918),
+        'right_shoulder': (56.084, 5.493, 15.082), 'right_elbow': (30.278, 23.175),
+        'right_wrist': (0.577, -23.147),
     })
     human.KeyJoints(35.3, {
-        'spine_lumbar': (3.628, -19.197, 8.997), 'spine_thoracic': (-10.617, -10.0, 9.856),
-        'neck': (25.376, -1.12, -6.988), 'head': (9.462, -0.151), 'right_clavicle': (12.413, 8.525),
-        'right_shoulder': (56.945, 6.194, 17.896), 'right_elbow': (28.824, 25.989),
-        'right_wrist': (1.82, -25.452),
+        'spine_lumbar': (2.035, -19.918, 9.455), 'spine_thoracic': (-11.771, -10.0, 11.21),
+        'neck': (26.182, -1.188, -8.177), 'head': (10.53, -0.169), 'right_clavicle': (17.524, 9.76),
+        'right_shoulder': (57.15, 7.5, 20.675), 'right_elbow': (25.277, 29.504),
+        'right_wrist': (3.373, -26.26),
     })
     human.KeyJoints(35.4, {
-        'spine_lumbar': (0.683, -19.998, 10.221), 'spine_thoracic': (-12.734, -10.0, 12.827),
-        'neck': (27.018, -1.294, -9.54), 'head': (11.396, -0.173),
-        'right_clavicle': (21.396, 11.187), 'right_shoulder': (57.74, 7.833, 21.333),
-        'right_elbow': (19.06, 31.344), 'right_wrist': (4.258, -24.146),
+        'spine_lumbar': (-3.043, -20.0, 10.294), 'spine_thoracic': (-12.353, -10.0, 12.793),
+        'neck': (27.718, -1.065, -8.295), 'head': (12.095, -0.17),
+        'right_clavicle': (20.864, 11.373), 'right_shoulder': (56.262, 5.654, 21.907),
+        'right_elbow': (19.367, 31.146), 'right_wrist': (4.468, -24.514),
     })
     human.KeyJoints(35.5, {
-        'spine_lumbar': (-2.056, -19.711, 9.27), 'spine_thoracic': (-10.453, -10.0, 10.577),
-        'neck': (26.642, -0.86, -5.988), 'head': (10.964, -0.164), 'right_clavicle': (14.81, 9.546),
-        'right_shoulder': (54.97, 3.191, 19.639), 'right_elbow': (25.193, 27.539),
-        'right_wrist': (2.973, -24.374),
+        'spine_lumbar': (-1.327, -19.548, 8.852), 'spine_thoracic': (-9.844, -10.0, 9.696),
+        'neck': (26.163, -0.795, -5.144), 'head': (10.452, -0.162),
+        'right_clavicle': (12.546, 8.802), 'right_shoulder': (54.748, 2.707, 18.615),
+        'right_elbow': (27.404, 26.111), 'right_wrist': (2.332, -24.259),
     })
     human.KeyJoints(35.6, {
-        'spine_lumbar': (7.204, -14.174, 9.679), 'spine_thoracic': (-8.857, -5.116, 9.345),
-        'neck': (24.296, -1.043, -5.38), 'head': (7.795, -0.11), 'right_clavicle': (3.541, 8.016),
-        'right_shoulder': (56.659, 2.94, 11.821), 'right_elbow': (32.594, 19.23),
-        'right_wrist': (-0.8, -19.88),
+        'spine_lumbar': (7.195, -14.161, 9.686), 'spine_thoracic': (-8.858, -5.087, 9.347),
+        'neck': (24.303, -1.042, -5.371), 'head': (7.804, -0.11), 'right_clavicle': (3.566, 8.017),
+        'right_shoulder': (56.67, 2.943, 11.838), 'right_elbow': (32.583, 19.249),
+        'right_wrist': (-0.791, -19.868),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
-        'spine_lumbar': (7.023, -14.988, 9.712), 'spine_thoracic': (-9.496, -5.657, 9.407),
-        'neck': (24.512, -1.098, -5.994), 'head': (8.112, -0.117), 'right_clavicle': (4.277, 7.958),
-        'right_shoulder': (56.3, 3.71, 11.858), 'right_elbow': (32.141, 19.591),
-        'right_wrist': (-0.736, -20.326),
+        'spine_lumbar': (6.349, -16.084, 9.572), 'spine_thoracic': (-9.833, -6.699, 9.39),
+        'neck': (24.728, -1.12, -6.365), 'head': (8.447, -0.125), 'right_clavicle': (5.282, 7.918),
+        'right_shoulder': (56.033, 4.171, 12.437), 'right_elbow': (31.67, 20.306),
+        'right_wrist': (-0.494, -21.076),
     })
     human.KeyJoints(35.8, {
-        'spine_lumbar': (4.577, -19.276, 8.93), 'spine_thoracic': (-10.24, -9.932, 9.313),
-        'neck': (25.047, -1.15, -6.921), 'head': (9.01, -0.143), 'right_clavicle': (9.113, 7.918),
-        'right_shoulder': (56.364, 5.448, 15.293), 'right_elbow': (30.238, 23.336),
-        'right_wrist': (0.652, -23.236),
+        'spine_lumbar': (3.141, -19.272, 9.147), 'spine_thoracic': (-10.994, -10.0, 10.266),
+        'neck': (25.61, -1.128, -7.278), 'right_clavicle': (14.113, 8.905),
+        'right_shoulder': (56.983, 6.708, 19.068), 'right_elbow': (28.04, 27.268),
+        'right_wrist': (2.396, -26.197),
     })
     human.KeyJoints(35.9, {
-        'spine_lumbar': (2.327, -19.995, 9.325), 'spine_thoracic': (-11.583, -10.0, 10.911),
-        'neck': (26.02, -1.179, -7.999), 'head': (10.362, -0.169),
-        'right_clavicle': (16.789, 9.495), 'right_shoulder': (57.055, 7.496, 20.674),
-        'right_elbow': (26.374, 29.2), 'right_wrist': (3.221, -26.445),
+        'spine_lumbar': (0.888, -19.894, 10.167), 'spine_thoracic': (-12.651, -10.0, 12.707),
+        'neck': (26.906, -1.282, -9.404), 'head': (11.28, -0.173),
+        'right_clavicle': (21.026, 11.055), 'right_shoulder': (57.709, 7.758, 21.118),
+        'right_elbow': (19.457, 31.114), 'right_wrist': (4.128, -24.275),
     })
     human.KeyJoints(36.0, {
-        'spine_lumbar': (-3.557, -19.999, 10.296), 'spine_thoracic': (-12.147, -10.0, 12.762),
-        'neck': (27.789, -1.002, -7.833), 'head': (12.166, -0.169),
-        'right_clavicle': (20.515, 11.379), 'right_shoulder': (55.851, 4.979, 21.95),
-        'right_elbow': (19.586, 31.006), 'right_wrist': (4.478, -24.573),
+        'spine_lumbar': (-2.874, -19.874, 9.735), 'spine_thoracic': (-11.062, -10.0, 11.539),
+        'neck': (27.115, -0.925, -6.82), 'head': (11.469, -0.167),
+        'right_clavicle': (17.331, 10.387), 'right_shoulder': (55.17, 3.617, 20.852),
+        'right_elbow': (22.698, 29.171), 'right_wrist': (3.745, -24.487),
     })
     human.KeyJoints(36.1, {
-        'spine_lumbar': (2.206, -18.05, 8.721), 'spine_thoracic': (-9.08, -9.117, 9.051),
-        'neck': (25.183, -0.885, -5.068), 'head': (9.017, -0.131), 'right_clavicle': (7.033, 8.08),
-        'right_shoulder': (54.999, 2.534, 15.085), 'right_elbow': (31.132, 22.133),
-        'right_wrist': (0.516, -23.092),
+        'spine_lumbar': (2.208, -17.991, 8.748), 'spine_thoracic': (-9.08, -9.008, 9.059),
+        'neck': (25.204, -0.89, -5.1), 'head': (9.036, -0.131), 'right_clavicle': (7.065, 8.079),
+        'right_shoulder': (55.044, 2.545, 15.109), 'right_elbow': (31.125, 22.16),
+        'right_wrist': (0.528, -23.038),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
@@ -2213,65 +2213,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(36.3, {
-        'spine_lumbar': (5.416, -17.792, 9.507), 'spine_thoracic': (-10.479, -8.275, 9.493),
-        'neck': (24.996, -1.162, -6.99), 'head': (8.957, -0.142), 'right_clavicle': (6.856, 7.898),
-        'right_shoulder': (55.376, 5.034, 13.293), 'right_elbow': (31.072, 21.404),
-        'right_wrist': (-0.131, -21.953),
+        'spine_lumbar': (4.307, -19.312, 8.764), 'spine_thoracic': (-10.051, -10.0, 9.259),
+        'neck': (25.014, -1.125, -6.723), 'head': (8.94, -0.14), 'right_clavicle': (10.12, 7.971),
+        'right_shoulder': (56.892, 5.429, 16.297), 'right_elbow': (29.785, 24.252),
+        'right_wrist': (1.061, -23.975),
     })
     human.KeyJoints(36.4, {
-        'spine_lumbar': (3.314, -19.189, 9.1), 'spine_thoracic': (-10.864, -10.0, 10.126),
-        'neck': (25.53, -1.122, -7.158), 'head': (9.692, -0.156), 'right_clavicle': (13.527, 8.776),
-        'right_shoulder': (56.967, 6.531, 18.679), 'right_elbow': (28.345, 26.834),
-        'right_wrist': (2.202, -25.987),
+        'spine_lumbar': (1.759, -19.762, 9.631), 'spine_thoracic': (-11.941, -10.0, 11.529),
+        'neck': (26.347, -1.199, -8.366), 'head': (10.698, -0.17),
+        'right_clavicle': (18.143, 10.039), 'right_shoulder': (57.284, 7.505, 20.676),
+        'right_elbow': (23.928, 29.712), 'right_wrist': (3.483, -25.809),
     })
     human.KeyJoints(36.5, {
-        'spine_lumbar': (-0.264, -20.0, 10.256), 'spine_thoracic': (-12.689, -10.0, 12.825),
-        'neck': (27.282, -1.231, -9.19), 'head': (11.661, -0.172),
-        'right_clavicle': (21.341, 11.276), 'right_shoulder': (57.515, 7.513, 21.573),
-        'right_elbow': (19.089, 31.325), 'right_wrist': (4.356, -24.209),
+        'spine_lumbar': (-3.556, -19.999, 10.295), 'spine_thoracic': (-12.122, -10.0, 12.755),
+        'neck': (27.786, -1.0, -7.805), 'head': (12.163, -0.169),
+        'right_clavicle': (20.466, 11.377), 'right_shoulder': (55.83, 4.937, 21.949),
+        'right_elbow': (19.619, 30.986), 'right_wrist': (4.477, -24.573),
     })
     human.KeyJoints(36.6, {
-        'spine_lumbar': (-1.182, -19.52, 8.842), 'spine_thoracic': (-9.828, -10.0, 9.679),
-        'neck': (26.22, -0.823, -5.302), 'head': (10.459, -0.158),
-        'right_clavicle': (12.247, 8.769), 'right_shoulder': (54.769, 2.75, 18.418),
-        'right_elbow': (27.616, 25.887), 'right_wrist': (2.218, -24.239),
+        'spine_lumbar': (-0.697, -19.398, 8.641), 'spine_thoracic': (-9.532, -10.0, 9.257),
+        'neck': (25.931, -0.792, -4.855), 'head': (10.135, -0.156),
+        'right_clavicle': (11.004, 8.407), 'right_shoulder': (54.674, 2.539, 17.798),
+        'right_elbow': (28.751, 25.075), 'right_wrist': (1.85, -24.153),
     })
     human.KeyJoints(36.7, {
-        'spine_lumbar': (7.938, -13.557, 9.839), 'spine_thoracic': (-8.833, -4.45, 9.394),
-        'neck': (24.084, -1.057, -5.319), 'head': (7.538, -0.107), 'right_clavicle': (3.11, 8.01),
-        'right_shoulder': (56.935, 3.008, 11.379), 'right_elbow': (32.756, 18.859),
+        'spine_lumbar': (7.938, -13.556, 9.839), 'spine_thoracic': (-8.833, -4.449, 9.394),
+        'neck': (24.085, -1.057, -5.318), 'head': (7.539, -0.107), 'right_clavicle': (3.112, 8.01),
+        'right_shoulder': (56.935, 3.008, 11.38), 'right_elbow': (32.756, 18.86),
         'right_wrist': (-0.968, -19.365),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
-        'spine_lumbar': (6.592, -15.676, 9.613), 'spine_thoracic': (-9.699, -6.314, 9.389),
-        'neck': (24.669, -1.112, -6.24), 'head': (8.333, -0.121), 'right_clavicle': (4.908, 7.929),
-        'right_shoulder': (56.146, 3.99, 12.226), 'right_elbow': (31.836, 20.041),
-        'right_wrist': (-0.583, -20.816),
+        'spine_lumbar': (5.615, -17.406, 9.51), 'spine_thoracic': (-10.324, -7.921, 9.457),
+        'neck': (24.909, -1.148, -6.802), 'right_clavicle': (6.497, 7.9),
+        'right_shoulder': (55.546, 4.826, 13.101), 'right_elbow': (31.194, 21.155),
+        'right_wrist': (-0.213, -21.783),
     })
     human.KeyJoints(36.9, {
-        'spine_lumbar': (4.305, -19.311, 8.765), 'spine_thoracic': (-10.053, -10.0, 9.261),
-        'neck': (25.015, -1.125, -6.723), 'head': (8.942, -0.14), 'right_clavicle': (10.127, 7.972),
-        'right_shoulder': (56.892, 5.431, 16.302), 'right_elbow': (29.782, 24.257),
-        'right_wrist': (1.063, -23.979),
+        'spine_lumbar': (2.742, -19.609, 9.236), 'spine_thoracic': (-11.287, -10.0, 10.578),
+        'neck': (25.802, -1.149, -7.61), 'head': (10.095, -0.165),
+        'right_clavicle': (15.453, 9.191), 'right_shoulder': (57.016, 7.139, 19.971),
+        'right_elbow': (27.294, 28.27), 'right_wrist': (2.827, -26.414),
     })
     human.KeyJoints(37.0, {
-        'spine_lumbar': (1.566, -19.665, 9.768), 'spine_thoracic': (-12.062, -10.0, 11.768),
-        'neck': (26.46, -1.213, -8.548), 'head': (10.819, -0.171),
-        'right_clavicle': (18.584, 10.247), 'right_shoulder': (57.401, 7.508, 20.677),
-        'right_elbow': (22.886, 29.86), 'right_wrist': (3.561, -25.391),
+        'spine_lumbar': (0.276, -20.0, 10.242), 'spine_thoracic': (-12.718, -10.0, 12.828),
+        'neck': (27.144, -1.282, -9.48), 'head': (11.523, -0.173),
+        'right_clavicle': (21.38, 11.239), 'right_shoulder': (57.661, 7.719, 21.465),
+        'right_elbow': (19.066, 31.339), 'right_wrist': (4.315, -24.166),
     })
     human.KeyJoints(37.1, {
-        'spine_lumbar': (-3.33, -19.959, 10.116), 'spine_thoracic': (-11.743, -10.0, 12.364),
-        'neck': (27.537, -0.948, -7.259), 'head': (11.914, -0.168),
-        'right_clavicle': (19.381, 11.059), 'right_shoulder': (55.538, 4.374, 21.583),
-        'right_elbow': (20.655, 30.365), 'right_wrist': (4.233, -24.546),
+        'spine_lumbar': (-2.436, -19.788, 9.434), 'spine_thoracic': (-10.639, -10.0, 10.908),
+        'neck': (26.79, -0.864, -6.176), 'head': (11.146, -0.166),
+        'right_clavicle': (15.811, 9.852), 'right_shoulder': (55.0, 3.258, 20.187),
+        'right_elbow': (24.242, 28.222), 'right_wrist': (3.313, -24.427),
     })
     human.KeyJoints(37.2, {
-        'spine_lumbar': (3.992, -16.746, 9.032), 'spine_thoracic': (-8.984, -7.821, 9.147),
-        'neck': (24.924, -0.977, -5.424), 'head': (8.612, -0.122), 'right_clavicle': (5.645, 8.052),
-        'right_shoulder': (55.537, 2.666, 13.854), 'right_elbow': (31.744, 21.001),
-        'right_wrist': (0.003, -22.017),
+        'spine_lumbar': (3.972, -16.695, 9.057), 'spine_thoracic': (-8.987, -7.714, 9.154),
+        'neck': (24.945, -0.975, -5.424), 'head': (8.637, -0.122), 'right_clavicle': (5.711, 8.052),
+        'right_shoulder': (55.581, 2.677, 13.901), 'right_elbow': (31.718, 21.054),
+        'right_wrist': (0.027, -21.969),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
@@ -2281,28 +2281,28 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(37.4, {
-        'spine_lumbar': (5.09, -18.486, 9.487), 'spine_thoracic': (-10.698, -8.979, 9.542),
-        'neck': (25.127, -1.183, -7.279), 'head': (9.167, -0.148), 'right_clavicle': (7.516, 7.902),
-        'right_shoulder': (55.211, 5.409, 13.685), 'right_elbow': (30.859, 21.879),
-        'right_wrist': (0.034, -22.248),
+        'spine_lumbar': (3.894, -19.241, 8.903), 'spine_thoracic': (-10.405, -10.0, 9.624),
+        'neck': (25.243, -1.12, -6.876), 'head': (9.268, -0.146), 'right_clavicle': (11.459, 8.309),
+        'right_shoulder': (56.913, 5.911, 17.204), 'right_elbow': (29.206, 25.257),
+        'right_wrist': (1.488, -24.831),
     })
     human.KeyJoints(37.5, {
-        'spine_lumbar': (2.99, -19.378, 9.184), 'spine_thoracic': (-11.105, -10.0, 10.387),
-        'neck': (25.68, -1.135, -7.395), 'head': (9.927, -0.162), 'right_clavicle': (14.618, 9.015),
-        'right_shoulder': (56.997, 6.861, 19.397), 'right_elbow': (27.758, 27.64),
-        'right_wrist': (2.559, -26.33),
+        'spine_lumbar': (1.486, -19.617, 9.817), 'spine_thoracic': (-12.112, -10.0, 11.861),
+        'neck': (26.51, -1.214, -8.592), 'head': (10.867, -0.171),
+        'right_clavicle': (18.767, 10.328), 'right_shoulder': (57.439, 7.509, 20.677),
+        'right_elbow': (22.501, 29.922), 'right_wrist': (3.594, -25.281),
     })
     human.KeyJoints(37.6, {
-        'spine_lumbar': (-1.746, -20.0, 10.281), 'spine_thoracic': (-12.557, -10.0, 12.813),
-        'neck': (27.518, -1.127, -8.602), 'head': (11.896, -0.171),
-        'right_clavicle': (21.159, 11.338), 'right_shoulder': (56.947, 6.69, 21.775),
-        'right_elbow': (19.194, 31.258), 'right_wrist': (4.427, -24.364),
+        'spine_lumbar': (-3.452, -19.981, 10.199), 'spine_thoracic': (-11.834, -10.0, 12.533),
+        'neck': (27.639, -0.976, -7.506), 'head': (12.01, -0.168),
+        'right_clavicle': (19.756, 11.209), 'right_shoulder': (55.589, 4.47, 21.775),
+        'right_elbow': (20.254, 30.613), 'right_wrist': (4.359, -24.561),
     })
     human.KeyJoints(37.7, {
-        'spine_lumbar': (-0.258, -19.292, 8.561), 'spine_thoracic': (-9.379, -10.0, 9.092),
-        'neck': (25.807, -0.796, -4.762), 'head': (9.933, -0.15), 'right_clavicle': (10.041, 8.243),
-        'right_shoulder': (54.652, 2.489, 17.253), 'right_elbow': (29.486, 24.408),
-        'right_wrist': (1.542, -24.078),
+        'spine_lumbar': (-0.034, -19.229, 8.523), 'spine_thoracic': (-9.31, -10.0, 9.014),
+        'neck': (25.706, -0.791, -4.677), 'right_clavicle': (9.629, 8.172),
+        'right_shoulder': (54.637, 2.454, 17.006), 'right_elbow': (29.788, 24.117),
+        'right_wrist': (1.41, -24.032),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
@@ -2312,65 +2312,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(37.9, {
-        'spine_lumbar': (6.182, -16.372, 9.547), 'spine_thoracic': (-9.933, -6.968, 9.398),
-        'neck': (24.757, -1.124, -6.44), 'head': (8.518, -0.128), 'right_clavicle': (5.546, 7.911),
-        'right_shoulder': (55.942, 4.305, 12.584), 'right_elbow': (31.557, 20.492),
-        'right_wrist': (-0.432, -21.249),
+        'spine_lumbar': (4.972, -18.745, 9.467), 'spine_thoracic': (-10.764, -9.264, 9.556),
+        'neck': (25.168, -1.19, -7.371), 'head': (9.234, -0.15), 'right_clavicle': (7.786, 7.908),
+        'right_shoulder': (55.174, 5.54, 13.862), 'right_elbow': (30.775, 22.08),
+        'right_wrist': (0.107, -22.361),
     })
     human.KeyJoints(38.0, {
-        'spine_lumbar': (3.951, -19.249, 8.884), 'spine_thoracic': (-10.358, -10.0, 9.576),
-        'neck': (25.213, -1.12, -6.853), 'head': (9.225, -0.146), 'right_clavicle': (11.267, 8.264),
-        'right_shoulder': (56.909, 5.848, 17.07), 'right_elbow': (29.287, 25.111),
-        'right_wrist': (1.424, -24.712),
+        'spine_lumbar': (2.351, -20.0, 9.317), 'spine_thoracic': (-11.566, -10.0, 10.888),
+        'neck': (26.007, -1.177, -7.976), 'head': (10.346, -0.169),
+        'right_clavicle': (16.718, 9.475), 'right_shoulder': (57.049, 7.494, 20.674),
+        'right_elbow': (26.448, 29.161), 'right_wrist': (3.203, -26.459),
     })
     human.KeyJoints(38.1, {
-        'spine_lumbar': (1.041, -19.673, 10.074), 'spine_thoracic': (-12.472, -10.0, 12.446),
-        'neck': (26.791, -1.256, -9.11), 'head': (11.16, -0.172),
-        'right_clavicle': (20.238, 10.837), 'right_shoulder': (57.638, 7.6, 20.816),
-        'right_elbow': (20.332, 30.634), 'right_wrist': (3.927, -24.558),
+        'spine_lumbar': (-1.348, -20.0, 10.274), 'spine_thoracic': (-12.578, -10.0, 12.815),
+        'neck': (27.452, -1.187, -8.985), 'head': (11.832, -0.172),
+        'right_clavicle': (21.192, 11.322), 'right_shoulder': (57.051, 6.832, 21.72),
+        'right_elbow': (19.174, 31.27), 'right_wrist': (4.408, -24.326),
     })
     human.KeyJoints(38.2, {
-        'spine_lumbar': (-2.807, -19.862, 9.738), 'spine_thoracic': (-11.141, -10.0, 11.562),
-        'neck': (27.077, -0.899, -6.607), 'head': (11.441, -0.167),
-        'right_clavicle': (17.356, 10.386), 'right_shoulder': (55.237, 3.76, 20.763),
-        'right_elbow': (22.676, 29.135), 'right_wrist': (3.694, -24.479),
+        'spine_lumbar': (-1.919, -19.68, 9.131), 'spine_thoracic': (-10.226, -10.0, 10.275),
+        'neck': (26.448, -0.808, -5.532), 'head': (10.791, -0.164),
+        'right_clavicle': (14.196, 9.308), 'right_shoulder': (54.859, 2.952, 19.433),
+        'right_elbow': (25.843, 27.19), 'right_wrist': (2.835, -24.351),
     })
     human.KeyJoints(38.3, {
-        'spine_lumbar': (5.762, -15.355, 9.378), 'spine_thoracic': (-8.908, -6.374, 9.253),
-        'neck': (24.637, -1.017, -5.455), 'head': (8.221, -0.116), 'right_clavicle': (4.44, 8.03),
-        'right_shoulder': (56.137, 2.813, 12.713), 'right_elbow': (32.241, 19.995),
-        'right_wrist': (-0.453, -20.863),
+        'spine_lumbar': (5.742, -15.322, 9.395), 'spine_thoracic': (-8.912, -6.302, 9.258),
+        'neck': (24.653, -1.014, -5.439), 'head': (8.242, -0.116), 'right_clavicle': (4.496, 8.031),
+        'right_shoulder': (56.167, 2.82, 12.752), 'right_elbow': (32.217, 20.038),
+        'right_wrist': (-0.433, -20.832),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
-        'spine_lumbar': (7.587, -14.116, 9.8), 'spine_thoracic': (-9.131, -4.901, 9.405),
-        'neck': (24.264, -1.075, -5.609), 'head': (7.776, -0.111), 'right_clavicle': (3.553, 7.99),
-        'right_shoulder': (56.64, 3.307, 11.534), 'right_elbow': (32.515, 19.123),
-        'right_wrist': (-0.888, -19.732),
+        'spine_lumbar': (7.178, -14.746, 9.742), 'spine_thoracic': (-9.413, -5.436, 9.409),
+        'neck': (24.45, -1.093, -5.898), 'head': (8.027, -0.115), 'right_clavicle': (4.066, 7.968),
+        'right_shoulder': (56.368, 3.606, 11.751), 'right_elbow': (32.247, 19.448),
+        'right_wrist': (-0.784, -20.156),
     })
     human.KeyJoints(38.5, {
-        'spine_lumbar': (4.807, -19.04, 9.422), 'spine_thoracic': (-10.823, -9.606, 9.568),
-        'neck': (25.205, -1.196, -7.455), 'head': (9.295, -0.152), 'right_clavicle': (8.222, 7.915),
-        'right_shoulder': (55.142, 5.662, 14.194), 'right_elbow': (30.628, 22.431),
-        'right_wrist': (0.243, -22.572),
+        'spine_lumbar': (3.528, -19.184, 9.033), 'spine_thoracic': (-10.697, -10.0, 9.944),
+        'neck': (25.426, -1.121, -7.037), 'right_clavicle': (12.775, 8.608),
+        'right_shoulder': (56.947, 6.305, 18.157), 'right_elbow': (28.685, 26.267),
+        'right_wrist': (1.947, -25.656),
     })
     human.KeyJoints(38.6, {
-        'spine_lumbar': (2.689, -19.719, 9.246), 'spine_thoracic': (-11.327, -10.0, 10.617),
-        'neck': (25.829, -1.153, -7.66), 'head': (10.13, -0.166), 'right_clavicle': (15.642, 9.227),
-        'right_shoulder': (57.019, 7.242, 20.183), 'right_elbow': (27.197, 28.433),
-        'right_wrist': (2.892, -26.43),
+        'spine_lumbar': (1.189, -19.58, 9.988), 'spine_thoracic': (-12.321, -10.0, 12.218),
+        'neck': (26.689, -1.237, -8.881), 'head': (11.053, -0.171),
+        'right_clavicle': (19.593, 10.643), 'right_shoulder': (57.572, 7.527, 20.694),
+        'right_elbow': (21.117, 30.277), 'right_wrist': (3.769, -24.809),
     })
     human.KeyJoints(38.7, {
-        'spine_lumbar': (-3.073, -20.0, 10.295), 'spine_thoracic': (-12.369, -10.0, 12.794),
-        'neck': (27.71, -1.06, -8.238), 'head': (12.087, -0.17), 'right_clavicle': (20.882, 11.374),
-        'right_shoulder': (56.305, 5.729, 21.913), 'right_elbow': (19.358, 31.152),
-        'right_wrist': (4.469, -24.516),
+        'spine_lumbar': (-3.222, -19.94, 10.003), 'spine_thoracic': (-11.474, -10.0, 12.109),
+        'neck': (27.384, -0.957, -7.224), 'head': (11.746, -0.168),
+        'right_clavicle': (18.69, 10.864), 'right_shoulder': (55.369, 4.029, 21.401),
+        'right_elbow': (21.312, 29.995), 'right_wrist': (4.107, -24.532),
     })
     human.KeyJoints(38.8, {
-        'spine_lumbar': (0.712, -18.966, 8.531), 'spine_thoracic': (-9.195, -9.912, 8.993),
-        'neck': (25.468, -0.802, -4.704), 'head': (9.461, -0.142), 'right_clavicle': (8.499, 8.115),
-        'right_shoulder': (54.669, 2.453, 16.253), 'right_elbow': (30.428, 23.284),
-        'right_wrist': (1.035, -23.834),
+        'spine_lumbar': (0.772, -18.92, 8.544), 'spine_thoracic': (-9.186, -9.858, 8.997),
+        'neck': (25.463, -0.807, -4.731), 'head': (9.445, -0.141), 'right_clavicle': (8.421, 8.112),
+        'right_shoulder': (54.692, 2.459, 16.202), 'right_elbow': (30.476, 23.227),
+        'right_wrist': (1.009, -23.796),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
@@ -2380,65 +2380,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(39.0, {
-        'spine_lumbar': (5.793, -17.071, 9.513), 'spine_thoracic': (-10.189, -7.618, 9.43),
-        'neck': (24.841, -1.137, -6.652), 'head': (8.705, -0.136), 'right_clavicle': (6.192, 7.902),
-        'right_shoulder': (55.696, 4.649, 12.94), 'right_elbow': (31.302, 20.945),
-        'right_wrist': (-0.282, -21.628),
+        'spine_lumbar': (4.614, -19.244, 9.055), 'spine_thoracic': (-10.408, -9.887, 9.387),
+        'neck': (25.092, -1.163, -7.075), 'head': (9.092, -0.145), 'right_clavicle': (8.949, 7.918),
+        'right_shoulder': (56.01, 5.51, 15.058), 'right_elbow': (30.317, 23.156),
+        'right_wrist': (0.566, -23.094),
     })
     human.KeyJoints(39.1, {
-        'spine_lumbar': (3.633, -19.198, 8.995), 'spine_thoracic': (-10.613, -10.0, 9.851),
-        'neck': (25.374, -1.12, -6.986), 'head': (9.458, -0.151), 'right_clavicle': (12.394, 8.521),
-        'right_shoulder': (56.936, 6.191, 17.882), 'right_elbow': (28.837, 25.975),
-        'right_wrist': (1.813, -25.432),
+        'spine_lumbar': (2.04, -19.92, 9.452), 'spine_thoracic': (-11.768, -10.0, 11.204),
+        'neck': (26.179, -1.188, -8.175), 'head': (10.527, -0.169),
+        'right_clavicle': (17.513, 9.755), 'right_shoulder': (57.139, 7.503, 20.675),
+        'right_elbow': (25.305, 29.5), 'right_wrist': (3.371, -26.259),
     })
     human.KeyJoints(39.2, {
-        'spine_lumbar': (0.691, -19.997, 10.22), 'spine_thoracic': (-12.733, -10.0, 12.826),
-        'neck': (27.014, -1.294, -9.539), 'head': (11.392, -0.173),
-        'right_clavicle': (21.393, 11.184), 'right_shoulder': (57.74, 7.832, 21.328),
-        'right_elbow': (19.063, 31.341), 'right_wrist': (4.255, -24.147),
+        'spine_lumbar': (-3.022, -20.0, 10.294), 'spine_thoracic': (-12.357, -10.0, 12.793),
+        'neck': (27.715, -1.067, -8.306), 'head': (12.092, -0.17),
+        'right_clavicle': (20.87, 11.372), 'right_shoulder': (56.273, 5.672, 21.905),
+        'right_elbow': (19.364, 31.149), 'right_wrist': (4.467, -24.512),
     })
     human.KeyJoints(39.3, {
-        'spine_lumbar': (-2.07, -19.714, 9.278), 'spine_thoracic': (-10.465, -10.0, 10.593),
-        'neck': (26.648, -0.86, -5.999), 'head': (10.972, -0.164), 'right_clavicle': (14.854, 9.56),
-        'right_shoulder': (54.974, 3.2, 19.659), 'right_elbow': (25.15, 27.567),
-        'right_wrist': (2.986, -24.376),
+        'spine_lumbar': (-1.337, -19.55, 8.856), 'spine_thoracic': (-9.85, -10.0, 9.704),
+        'neck': (26.168, -0.795, -5.149), 'head': (10.458, -0.162),
+        'right_clavicle': (12.573, 8.809), 'right_shoulder': (54.75, 2.71, 18.629),
+        'right_elbow': (27.379, 26.129), 'right_wrist': (2.34, -24.26),
     })
     human.KeyJoints(39.4, {
-        'spine_lumbar': (7.185, -14.19, 9.675), 'spine_thoracic': (-8.857, -5.133, 9.344),
-        'neck': (24.301, -1.043, -5.381), 'head': (7.801, -0.11), 'right_clavicle': (3.553, 8.017),
-        'right_shoulder': (56.651, 2.939, 11.832), 'right_elbow': (32.589, 19.24),
-        'right_wrist': (-0.795, -19.893),
+        'spine_lumbar': (7.175, -14.177, 9.682), 'spine_thoracic': (-8.859, -5.104, 9.346),
+        'neck': (24.308, -1.042, -5.373), 'head': (7.81, -0.11), 'right_clavicle': (3.578, 8.017),
+        'right_shoulder': (56.664, 2.942, 11.85), 'right_elbow': (32.578, 19.259),
+        'right_wrist': (-0.787, -19.881),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'spine_lumbar': (7.031, -14.976, 9.714), 'spine_thoracic': (-9.492, -5.646, 9.407),
-        'neck': (24.509, -1.098, -5.99), 'head': (8.108, -0.117), 'right_clavicle': (4.267, 7.959),
-        'right_shoulder': (56.303, 3.705, 11.853), 'right_elbow': (32.146, 19.584),
-        'right_wrist': (-0.739, -20.318),
+        'spine_lumbar': (6.362, -16.062, 9.574), 'spine_thoracic': (-9.825, -6.678, 9.39),
+        'neck': (24.725, -1.119, -6.359), 'head': (8.441, -0.125), 'right_clavicle': (5.262, 7.918),
+        'right_shoulder': (56.039, 4.16, 12.426), 'right_elbow': (31.678, 20.291),
+        'right_wrist': (-0.499, -21.063),
     })
     human.KeyJoints(39.6, {
-        'spine_lumbar': (4.581, -19.273, 8.939), 'spine_thoracic': (-10.252, -9.928, 9.318),
-        'neck': (25.05, -1.151, -6.932), 'head': (9.016, -0.143), 'right_clavicle': (9.097, 7.918),
-        'right_shoulder': (56.339, 5.453, 15.272), 'right_elbow': (30.245, 23.319),
-        'right_wrist': (0.644, -23.223),
+        'spine_lumbar': (3.148, -19.268, 9.145), 'spine_thoracic': (-10.989, -10.0, 10.261),
+        'neck': (25.607, -1.127, -7.273), 'right_clavicle': (14.091, 8.9),
+        'right_shoulder': (56.982, 6.701, 19.054), 'right_elbow': (28.052, 27.251),
+        'right_wrist': (2.388, -26.19),
     })
     human.KeyJoints(39.7, {
-        'spine_lumbar': (2.336, -19.996, 9.322), 'spine_thoracic': (-11.577, -10.0, 10.902),
-        'neck': (26.015, -1.178, -7.992), 'head': (10.356, -0.169),
-        'right_clavicle': (16.765, 9.487), 'right_shoulder': (57.052, 7.496, 20.674),
-        'right_elbow': (26.403, 29.188), 'right_wrist': (3.215, -26.45),
+        'spine_lumbar': (0.894, -19.889, 10.164), 'spine_thoracic': (-12.646, -10.0, 12.7),
+        'neck': (26.902, -1.281, -9.396), 'head': (11.276, -0.173),
+        'right_clavicle': (21.006, 11.049), 'right_shoulder': (57.707, 7.754, 21.11),
+        'right_elbow': (19.479, 31.101), 'right_wrist': (4.122, -24.282),
     })
     human.KeyJoints(39.8, {
-        'spine_lumbar': (-3.558, -20.0, 10.297), 'spine_thoracic': (-12.151, -10.0, 12.764),
-        'neck': (27.79, -1.003, -7.841), 'head': (12.167, -0.169),
-        'right_clavicle': (20.524, 11.381), 'right_shoulder': (55.856, 4.988, 21.952),
-        'right_elbow': (19.579, 31.011), 'right_wrist': (4.479, -24.573),
+        'spine_lumbar': (-2.88, -19.876, 9.739), 'spine_thoracic': (-11.069, -10.0, 11.549),
+        'neck': (27.12, -0.926, -6.829), 'head': (11.474, -0.167),
+        'right_clavicle': (17.355, 10.396), 'right_shoulder': (55.173, 3.623, 20.863),
+        'right_elbow': (22.673, 29.186), 'right_wrist': (3.752, -24.488),
     })
     human.KeyJoints(39.9, {
-        'spine_lumbar': (2.178, -18.07, 8.717), 'spine_thoracic': (-9.082, -9.135, 9.05),
-        'neck': (25.187, -0.883, -5.061), 'head': (9.024, -0.132), 'right_clavicle': (7.058, 8.08),
-        'right_shoulder': (54.991, 2.532, 15.106), 'right_elbow': (31.121, 22.153),
-        'right_wrist': (0.524, -23.108),
+        'spine_lumbar': (2.181, -18.011, 8.743), 'spine_thoracic': (-9.081, -9.027, 9.058),
+        'neck': (25.209, -0.888, -5.094), 'head': (9.043, -0.131), 'right_clavicle': (7.089, 8.08),
+        'right_shoulder': (55.036, 2.543, 15.128), 'right_elbow': (31.115, 22.178),
+        'right_wrist': (0.536, -23.054),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
@@ -2448,65 +2448,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(40.1, {
-        'spine_lumbar': (5.422, -17.78, 9.507), 'spine_thoracic': (-10.474, -8.264, 9.492),
-        'neck': (24.994, -1.161, -6.985), 'head': (8.953, -0.142), 'right_clavicle': (6.844, 7.898),
-        'right_shoulder': (55.381, 5.028, 13.287), 'right_elbow': (31.076, 21.396),
-        'right_wrist': (-0.134, -21.948),
+        'spine_lumbar': (4.313, -19.313, 8.762), 'spine_thoracic': (-10.047, -10.0, 9.254),
+        'neck': (25.012, -1.125, -6.721), 'head': (8.936, -0.14), 'right_clavicle': (10.099, 7.966),
+        'right_shoulder': (56.891, 5.423, 16.281), 'right_elbow': (29.795, 24.235),
+        'right_wrist': (1.054, -23.96),
     })
     human.KeyJoints(40.2, {
-        'spine_lumbar': (3.32, -19.187, 9.098), 'spine_thoracic': (-10.86, -10.0, 10.122),
-        'neck': (25.528, -1.122, -7.154), 'head': (9.688, -0.156),
-        'right_clavicle': (13.509, 8.772), 'right_shoulder': (56.967, 6.525, 18.666),
-        'right_elbow': (28.354, 26.82), 'right_wrist': (2.196, -25.98),
+        'spine_lumbar': (1.763, -19.764, 9.628), 'spine_thoracic': (-11.938, -10.0, 11.524),
+        'neck': (26.344, -1.199, -8.363), 'head': (10.695, -0.17),
+        'right_clavicle': (18.133, 10.034), 'right_shoulder': (57.281, 7.505, 20.676),
+        'right_elbow': (23.951, 29.709), 'right_wrist': (3.481, -25.818),
     })
     human.KeyJoints(40.3, {
-        'spine_lumbar': (-0.241, -20.0, 10.256), 'spine_thoracic': (-12.691, -10.0, 12.825),
-        'neck': (27.277, -1.233, -9.2), 'head': (11.657, -0.172),
-        'right_clavicle': (21.343, 11.274), 'right_shoulder': (57.523, 7.524, 21.569),
-        'right_elbow': (19.087, 31.326), 'right_wrist': (4.354, -24.207),
+        'spine_lumbar': (-3.557, -19.999, 10.295), 'spine_thoracic': (-12.126, -10.0, 12.757),
+        'neck': (27.787, -1.001, -7.811), 'head': (12.164, -0.169),
+        'right_clavicle': (20.474, 11.378), 'right_shoulder': (55.834, 4.945, 21.95),
+        'right_elbow': (19.613, 30.989), 'right_wrist': (4.477, -24.573),
     })
     human.KeyJoints(40.4, {
-        'spine_lumbar': (-1.198, -19.523, 8.848), 'spine_thoracic': (-9.838, -10.0, 9.693),
-        'neck': (26.227, -0.823, -5.314), 'head': (10.468, -0.158),
-        'right_clavicle': (12.288, 8.781), 'right_shoulder': (54.772, 2.756, 18.439),
-        'right_elbow': (27.578, 25.914), 'right_wrist': (2.231, -24.242),
+        'spine_lumbar': (-0.708, -19.401, 8.643), 'spine_thoracic': (-9.536, -10.0, 9.263),
+        'neck': (25.934, -0.792, -4.859), 'head': (10.14, -0.156),
+        'right_clavicle': (11.029, 8.413), 'right_shoulder': (54.675, 2.541, 17.812),
+        'right_elbow': (28.73, 25.092), 'right_wrist': (1.858, -24.155),
     })
     human.KeyJoints(40.5, {
-        'spine_lumbar': (7.933, -13.561, 9.838), 'spine_thoracic': (-8.834, -4.455, 9.394),
-        'neck': (24.086, -1.057, -5.319), 'head': (7.54, -0.107), 'right_clavicle': (3.113, 8.01),
-        'right_shoulder': (56.933, 3.007, 11.382), 'right_elbow': (32.755, 18.861),
-        'right_wrist': (-0.967, -19.369),
+        'spine_lumbar': (7.933, -13.56, 9.838), 'spine_thoracic': (-8.834, -4.453, 9.394),
+        'neck': (24.086, -1.057, -5.319), 'head': (7.541, -0.107), 'right_clavicle': (3.115, 8.01),
+        'right_shoulder': (56.933, 3.008, 11.383), 'right_elbow': (32.754, 18.862),
+        'right_wrist': (-0.967, -19.368),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
-        'spine_lumbar': (6.599, -15.664, 9.615), 'spine_thoracic': (-9.695, -6.303, 9.389),
-        'neck': (24.667, -1.112, -6.237), 'head': (8.329, -0.121), 'right_clavicle': (4.897, 7.929),
-        'right_shoulder': (56.149, 3.985, 12.22), 'right_elbow': (31.841, 20.034),
-        'right_wrist': (-0.586, -20.809),
+        'spine_lumbar': (5.627, -17.383, 9.51), 'spine_thoracic': (-10.315, -7.901, 9.455),
+        'neck': (24.904, -1.147, -6.791), 'right_clavicle': (6.477, 7.9),
+        'right_shoulder': (55.557, 4.814, 13.09), 'right_elbow': (31.201, 21.141),
+        'right_wrist': (-0.218, -21.773),
     })
     human.KeyJoints(40.7, {
-        'spine_lumbar': (4.31, -19.312, 8.763), 'spine_thoracic': (-10.05, -10.0, 9.257),
-        'neck': (25.013, -1.125, -6.722), 'head': (8.938, -0.14), 'right_clavicle': (10.108, 7.969),
-        'right_shoulder': (56.892, 5.426, 16.288), 'right_elbow': (29.79, 24.243),
-        'right_wrist': (1.057, -23.967),
+        'spine_lumbar': (2.749, -19.6, 9.235), 'spine_thoracic': (-11.282, -10.0, 10.573),
+        'neck': (25.798, -1.149, -7.603), 'head': (10.091, -0.165),
+        'right_clavicle': (15.429, 9.186), 'right_shoulder': (57.015, 7.13, 19.953),
+        'right_elbow': (27.307, 28.251), 'right_wrist': (2.819, -26.413),
     })
     human.KeyJoints(40.8, {
-        'spine_lumbar': (1.58, -19.671, 9.76), 'spine_thoracic': (-12.054, -10.0, 11.752),
-        'neck': (26.452, -1.212, -8.538), 'head': (10.811, -0.171),
-        'right_clavicle': (18.552, 10.233), 'right_shoulder': (57.394, 7.507, 20.677),
-        'right_elbow': (22.951, 29.849), 'right_wrist': (3.555, -25.413),
+        'spine_lumbar': (0.296, -20.0, 10.241), 'spine_thoracic': (-12.72, -10.0, 12.828),
+        'neck': (27.139, -1.283, -9.484), 'head': (11.519, -0.173),
+        'right_clavicle': (21.382, 11.237), 'right_shoulder': (57.667, 7.728, 21.461),
+        'right_elbow': (19.065, 31.34), 'right_wrist': (4.313, -24.164),
     })
     human.KeyJoints(40.9, {
-        'spine_lumbar': (-3.337, -19.961, 10.121), 'spine_thoracic': (-11.752, -10.0, 12.375),
-        'neck': (27.544, -0.948, -7.27), 'head': (11.92, -0.168),
-        'right_clavicle': (19.409, 11.068), 'right_shoulder': (55.543, 4.384, 21.593),
-        'right_elbow': (20.628, 30.382), 'right_wrist': (4.24, -24.547),
+        'spine_lumbar': (-2.444, -19.789, 9.439), 'spine_thoracic': (-10.647, -10.0, 10.919),
+        'neck': (26.796, -0.865, -6.188), 'head': (11.152, -0.166),
+        'right_clavicle': (15.837, 9.862), 'right_shoulder': (55.003, 3.263, 20.199),
+        'right_elbow': (24.215, 28.239), 'right_wrist': (3.321, -24.428),
     })
     human.KeyJoints(41.0, {
-        'spine_lumbar': (3.962, -16.77, 9.026), 'spine_thoracic': (-8.985, -7.845, 9.145),
-        'neck': (24.928, -0.976, -5.42), 'head': (8.619, -0.122), 'right_clavicle': (5.667, 8.052),
-        'right_shoulder': (55.527, 2.663, 13.875), 'right_elbow': (31.735, 21.02),
-        'right_wrist': (0.012, -22.036),
+        'spine_lumbar': (3.942, -16.718, 9.052), 'spine_thoracic': (-8.988, -7.738, 9.153),
+        'neck': (24.949, -0.974, -5.421), 'head': (8.643, -0.122), 'right_clavicle': (5.734, 8.052),
+        'right_shoulder': (55.571, 2.674, 13.921), 'right_elbow': (31.708, 21.072),
+        'right_wrist': (0.035, -21.988),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
@@ -2516,28 +2516,28 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(41.2, {
-        'spine_lumbar': (5.095, -18.474, 9.487), 'spine_thoracic': (-10.695, -8.966, 9.541),
-        'neck': (25.125, -1.182, -7.274), 'head': (9.164, -0.148), 'right_clavicle': (7.505, 7.902),
-        'right_shoulder': (55.213, 5.402, 13.679), 'right_elbow': (30.862, 21.871),
-        'right_wrist': (0.031, -22.243),
+        'spine_lumbar': (3.901, -19.242, 8.901), 'spine_thoracic': (-10.4, -10.0, 9.619),
+        'neck': (25.24, -1.12, -6.873), 'head': (9.263, -0.146), 'right_clavicle': (11.437, 8.304),
+        'right_shoulder': (56.912, 5.904, 17.188), 'right_elbow': (29.216, 25.24),
+        'right_wrist': (1.48, -24.817),
     })
     human.KeyJoints(41.3, {
-        'spine_lumbar': (2.995, -19.374, 9.183), 'spine_thoracic': (-11.101, -10.0, 10.382),
-        'neck': (25.678, -1.135, -7.391), 'head': (9.923, -0.162), 'right_clavicle': (14.6, 9.011),
-        'right_shoulder': (56.996, 6.856, 19.385), 'right_elbow': (27.768, 27.626),
-        'right_wrist': (2.553, -26.326),
+        'spine_lumbar': (1.491, -19.619, 9.814), 'spine_thoracic': (-12.109, -10.0, 11.855),
+        'neck': (26.508, -1.214, -8.588), 'head': (10.865, -0.171),
+        'right_clavicle': (18.755, 10.323), 'right_shoulder': (57.437, 7.509, 20.677),
+        'right_elbow': (22.525, 29.917), 'right_wrist': (3.592, -25.29),
     })
     human.KeyJoints(41.4, {
-        'spine_lumbar': (-1.72, -20.0, 10.28), 'spine_thoracic': (-12.56, -10.0, 12.813),
-        'neck': (27.515, -1.129, -8.609), 'head': (11.893, -0.171),
-        'right_clavicle': (21.163, 11.337), 'right_shoulder': (56.958, 6.706, 21.773),
-        'right_elbow': (19.192, 31.259), 'right_wrist': (4.426, -24.361),
+        'spine_lumbar': (-3.455, -19.982, 10.202), 'spine_thoracic': (-11.839, -10.0, 12.539),
+        'neck': (27.642, -0.977, -7.51), 'head': (12.014, -0.168),
+        'right_clavicle': (19.771, 11.214), 'right_shoulder': (55.593, 4.477, 21.78),
+        'right_elbow': (20.239, 30.621), 'right_wrist': (4.362, -24.561),
     })
     human.KeyJoints(41.5, {
-        'spine_lumbar': (-0.273, -19.296, 8.563), 'spine_thoracic': (-9.384, -10.0, 9.098),
-        'neck': (25.813, -0.796, -4.768), 'head': (9.941, -0.15), 'right_clavicle': (10.073, 8.249),
-        'right_shoulder': (54.653, 2.491, 17.271), 'right_elbow': (29.462, 24.43),
-        'right_wrist': (1.552, -24.081),
+        'spine_lumbar': (-0.045, -19.232, 8.524), 'spine_thoracic': (-9.313, -10.0, 9.016),
+        'neck': (25.71, -0.791, -4.679), 'right_clavicle': (9.65, 8.174),
+        'right_shoulder': (54.637, 2.454, 17.019), 'right_elbow': (29.774, 24.133),
+        'right_wrist': (1.417, -24.035),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
@@ -2547,65 +2547,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(41.7, {
-        'spine_lumbar': (6.189, -16.36, 9.548), 'spine_thoracic': (-9.929, -6.957, 9.398),
-        'neck': (24.756, -1.124, -6.437), 'head': (8.515, -0.128), 'right_clavicle': (5.535, 7.911),
-        'right_shoulder': (55.946, 4.3, 12.578), 'right_elbow': (31.561, 20.484),
-        'right_wrist': (-0.435, -21.242),
+        'spine_lumbar': (4.982, -18.723, 9.469), 'spine_thoracic': (-10.759, -9.24, 9.555),
+        'neck': (25.165, -1.189, -7.364), 'head': (9.229, -0.15), 'right_clavicle': (7.763, 7.907),
+        'right_shoulder': (55.177, 5.529, 13.846), 'right_elbow': (30.782, 22.063),
+        'right_wrist': (0.101, -22.351),
     })
     human.KeyJoints(41.8, {
-        'spine_lumbar': (3.957, -19.25, 8.882), 'spine_thoracic': (-10.354, -10.0, 9.57),
-        'neck': (25.21, -1.12, -6.851), 'head': (9.221, -0.145), 'right_clavicle': (11.248, 8.259),
-        'right_shoulder': (56.909, 5.841, 17.057), 'right_elbow': (29.296, 25.097),
-        'right_wrist': (1.418, -24.7),
+        'spine_lumbar': (2.357, -20.0, 9.315), 'spine_thoracic': (-11.562, -10.0, 10.883),
+        'neck': (26.003, -1.177, -7.972), 'head': (10.342, -0.169),
+        'right_clavicle': (16.702, 9.47), 'right_shoulder': (57.048, 7.494, 20.673),
+        'right_elbow': (26.464, 29.153), 'right_wrist': (3.199, -26.459),
     })
     human.KeyJoints(41.9, {
-        'spine_lumbar': (1.047, -19.667, 10.071), 'spine_thoracic': (-12.465, -10.0, 12.436),
-        'neck': (26.787, -1.255, -9.1), 'head': (11.156, -0.172), 'right_clavicle': (20.21, 10.829),
-        'right_shoulder': (57.635, 7.595, 20.809), 'right_elbow': (20.365, 30.617),
-        'right_wrist': (3.92, -24.568),
+        'spine_lumbar': (-1.317, -20.0, 10.274), 'spine_thoracic': (-12.581, -10.0, 12.816),
+        'neck': (27.447, -1.189, -8.996), 'head': (11.827, -0.172),
+        'right_clavicle': (21.196, 11.321), 'right_shoulder': (57.064, 6.851, 21.716),
+        'right_elbow': (19.172, 31.272), 'right_wrist': (4.407, -24.322),
     })
     human.KeyJoints(42.0, {
-        'spine_lumbar': (-2.818, -19.864, 9.746), 'spine_thoracic': (-11.152, -10.0, 11.578),
-        'neck': (27.085, -0.9, -6.618), 'head': (11.45, -0.167), 'right_clavicle': (17.395, 10.399),
-        'right_shoulder': (55.242, 3.77, 20.779), 'right_elbow': (22.637, 29.159),
-        'right_wrist': (3.705, -24.48),
+        'spine_lumbar': (-1.928, -19.682, 9.136), 'spine_thoracic': (-10.233, -10.0, 10.285),
+        'neck': (26.454, -0.809, -5.542), 'head': (10.797, -0.164),
+        'right_clavicle': (14.224, 9.317), 'right_shoulder': (54.861, 2.957, 19.446),
+        'right_elbow': (25.816, 27.208), 'right_wrist': (2.843, -24.352),
     })
     human.KeyJoints(42.1, {
-        'spine_lumbar': (5.734, -15.378, 9.372), 'spine_thoracic': (-8.909, -6.398, 9.251),
-        'neck': (24.642, -1.017, -5.456), 'head': (8.228, -0.116), 'right_clavicle': (4.458, 8.031),
-        'right_shoulder': (56.127, 2.81, 12.731), 'right_elbow': (32.234, 20.01),
-        'right_wrist': (-0.446, -20.881),
+        'spine_lumbar': (5.714, -15.344, 9.39), 'spine_thoracic': (-8.913, -6.325, 9.256),
+        'neck': (24.659, -1.013, -5.44), 'head': (8.249, -0.116), 'right_clavicle': (4.514, 8.031),
+        'right_shoulder': (56.157, 2.818, 12.77), 'right_elbow': (32.21, 20.054),
+        'right_wrist': (-0.426, -20.85),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
-        'spine_lumbar': (7.598, -14.099, 9.801), 'spine_thoracic': (-9.123, -4.887, 9.404),
-        'neck': (24.258, -1.075, -5.601), 'head': (7.769, -0.111), 'right_clavicle': (3.54, 7.991),
-        'right_shoulder': (56.649, 3.298, 11.529), 'right_elbow': (32.522, 19.115),
-        'right_wrist': (-0.89, -19.72),
+        'spine_lumbar': (7.192, -14.724, 9.745), 'spine_thoracic': (-9.404, -5.417, 9.41),
+        'neck': (24.444, -1.092, -5.889), 'head': (8.019, -0.115), 'right_clavicle': (4.047, 7.969),
+        'right_shoulder': (56.375, 3.596, 11.742), 'right_elbow': (32.257, 19.435),
+        'right_wrist': (-0.788, -20.141),
     })
     human.KeyJoints(42.3, {
-        'spine_lumbar': (4.812, -19.035, 9.423), 'spine_thoracic': (-10.823, -9.6, 9.569),
-        'neck': (25.205, -1.196, -7.455), 'head': (9.295, -0.152), 'right_clavicle': (8.209, 7.914),
-        'right_shoulder': (55.142, 5.662, 14.183), 'right_elbow': (30.632, 22.42),
-        'right_wrist': (0.238, -22.565),
+        'spine_lumbar': (3.534, -19.184, 9.031), 'spine_thoracic': (-10.692, -10.0, 9.939),
+        'neck': (25.423, -1.121, -7.034), 'right_clavicle': (12.753, 8.603),
+        'right_shoulder': (56.946, 6.298, 18.141), 'right_elbow': (28.695, 26.25),
+        'right_wrist': (1.939, -25.644),
     })
     human.KeyJoints(42.4, {
-        'spine_lumbar': (2.694, -19.711, 9.245), 'spine_thoracic': (-11.323, -10.0, 10.614),
-        'neck': (25.826, -1.153, -7.656), 'head': (10.127, -0.166),
-        'right_clavicle': (15.626, 9.224), 'right_shoulder': (57.019, 7.235, 20.168),
-        'right_elbow': (27.206, 28.419), 'right_wrist': (2.886, -26.429),
+        'spine_lumbar': (1.194, -19.577, 9.985), 'spine_thoracic': (-12.317, -10.0, 12.211),
+        'neck': (26.686, -1.236, -8.875), 'head': (11.05, -0.171),
+        'right_clavicle': (19.574, 10.636), 'right_shoulder': (57.57, 7.525, 20.691),
+        'right_elbow': (21.142, 30.267), 'right_wrist': (3.765, -24.817),
     })
     human.KeyJoints(42.5, {
-        'spine_lumbar': (-3.055, -20.0, 10.295), 'spine_thoracic': (-12.372, -10.0, 12.794),
-        'neck': (27.707, -1.061, -8.243), 'head': (12.084, -0.17),
-        'right_clavicle': (20.887, 11.374), 'right_shoulder': (56.315, 5.744, 21.911),
-        'right_elbow': (19.355, 31.154), 'right_wrist': (4.469, -24.514),
+        'spine_lumbar': (-3.226, -19.941, 10.007), 'spine_thoracic': (-11.48, -10.0, 12.118),
+        'neck': (27.388, -0.958, -7.229), 'head': (11.751, -0.168),
+        'right_clavicle': (18.71, 10.871), 'right_shoulder': (55.373, 4.036, 21.408),
+        'right_elbow': (21.291, 30.007), 'right_wrist': (4.112, -24.533),
     })
     human.KeyJoints(42.6, {
-        'spine_lumbar': (0.692, -18.976, 8.529), 'spine_thoracic': (-9.197, -9.919, 8.993),
-        'neck': (25.473, -0.801, -4.701), 'head': (9.468, -0.142), 'right_clavicle': (8.523, 8.116),
-        'right_shoulder': (54.666, 2.453, 16.27), 'right_elbow': (30.415, 23.302),
-        'right_wrist': (1.043, -23.842),
+        'spine_lumbar': (0.753, -18.93, 8.542), 'spine_thoracic': (-9.188, -9.866, 8.996),
+        'neck': (25.467, -0.806, -4.727), 'head': (9.452, -0.141), 'right_clavicle': (8.442, 8.113),
+        'right_shoulder': (54.688, 2.458, 16.218), 'right_elbow': (30.465, 23.244),
+        'right_wrist': (1.017, -23.804),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.7, {
@@ -2615,65 +2615,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(42.8, {
-        'spine_lumbar': (5.8, -17.059, 9.513), 'spine_thoracic': (-10.184, -7.607, 9.43),
-        'neck': (24.839, -1.137, -6.647), 'head': (8.702, -0.135), 'right_clavicle': (6.181, 7.902),
-        'right_shoulder': (55.701, 4.643, 12.934), 'right_elbow': (31.306, 20.937),
-        'right_wrist': (-0.285, -21.622),
+        'spine_lumbar': (4.618, -19.241, 9.067), 'spine_thoracic': (-10.424, -9.882, 9.393),
+        'neck': (25.097, -1.165, -7.09), 'head': (9.1, -0.145), 'right_clavicle': (8.931, 7.918),
+        'right_shoulder': (55.978, 5.516, 15.034), 'right_elbow': (30.325, 23.137),
+        'right_wrist': (0.557, -23.08),
     })
     human.KeyJoints(42.9, {
-        'spine_lumbar': (3.638, -19.198, 8.993), 'spine_thoracic': (-10.608, -10.0, 9.846),
-        'neck': (25.371, -1.12, -6.983), 'head': (9.454, -0.151), 'right_clavicle': (12.375, 8.516),
-        'right_shoulder': (56.936, 6.185, 17.868), 'right_elbow': (28.845, 25.96),
-        'right_wrist': (1.806, -25.42),
+        'spine_lumbar': (2.045, -19.922, 9.449), 'spine_thoracic': (-11.765, -10.0, 11.199),
+        'neck': (26.176, -1.188, -8.172), 'head': (10.524, -0.169),
+        'right_clavicle': (17.501, 9.75), 'right_shoulder': (57.137, 7.503, 20.675),
+        'right_elbow': (25.326, 29.496), 'right_wrist': (3.369, -26.264),
     })
     human.KeyJoints(43.0, {
-        'spine_lumbar': (0.699, -19.995, 10.219), 'spine_thoracic': (-12.732, -10.0, 12.825),
-        'neck': (27.01, -1.294, -9.538), 'head': (11.387, -0.173),
-        'right_clavicle': (21.388, 11.182), 'right_shoulder': (57.74, 7.831, 21.322),
-        'right_elbow': (19.067, 31.339), 'right_wrist': (4.253, -24.149),
+        'spine_lumbar': (-3.0, -20.0, 10.294), 'spine_thoracic': (-12.361, -10.0, 12.794),
+        'neck': (27.712, -1.069, -8.317), 'head': (12.089, -0.17),
+        'right_clavicle': (20.876, 11.372), 'right_shoulder': (56.285, 5.69, 21.903),
+        'right_elbow': (19.36, 31.151), 'right_wrist': (4.466, -24.509),
     })
     human.KeyJoints(43.1, {
-        'spine_lumbar': (-2.083, -19.717, 9.285), 'spine_thoracic': (-10.476, -10.0, 10.609),
-        'neck': (26.655, -0.861, -6.009), 'head': (10.98, -0.164),
-        'right_clavicle': (14.898, 9.574), 'right_shoulder': (54.978, 3.208, 19.679),
-        'right_elbow': (25.107, 27.595), 'right_wrist': (2.999, -24.378),
+        'spine_lumbar': (-1.348, -19.553, 8.861), 'spine_thoracic': (-9.856, -10.0, 9.713),
+        'neck': (26.172, -0.795, -5.154), 'head': (10.463, -0.162), 'right_clavicle': (12.6, 8.817),
+        'right_shoulder': (54.752, 2.714, 18.643), 'right_elbow': (27.355, 26.146),
+        'right_wrist': (2.349, -24.262),
     })
     human.KeyJoints(43.2, {
-        'spine_lumbar': (7.166, -14.206, 9.671), 'spine_thoracic': (-8.858, -5.15, 9.343),
-        'neck': (24.306, -1.043, -5.383), 'head': (7.808, -0.11), 'right_clavicle': (3.564, 8.017),
-        'right_shoulder': (56.644, 2.937, 11.844), 'right_elbow': (32.585, 19.25),
-        'right_wrist': (-0.791, -19.906),
+        'spine_lumbar': (7.156, -14.192, 9.678), 'spine_thoracic': (-8.859, -5.12, 9.345),
+        'neck': (24.314, -1.041, -5.374), 'head': (7.817, -0.111), 'right_clavicle': (3.59, 8.017),
+        'right_shoulder': (56.657, 2.94, 11.862), 'right_elbow': (32.574, 19.27),
+        'right_wrist': (-0.782, -19.894),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.3, {
-        'spine_lumbar': (7.038, -14.964, 9.715), 'spine_thoracic': (-9.488, -5.635, 9.407),
-        'neck': (24.506, -1.098, -5.985), 'head': (8.104, -0.117), 'right_clavicle': (4.256, 7.959),
-        'right_shoulder': (56.306, 3.7, 11.847), 'right_elbow': (32.152, 19.577),
-        'right_wrist': (-0.741, -20.309),
+        'spine_lumbar': (6.375, -16.04, 9.577), 'spine_thoracic': (-9.817, -6.657, 9.389),
+        'neck': (24.723, -1.119, -6.352), 'head': (8.435, -0.124), 'right_clavicle': (5.241, 7.919),
+        'right_shoulder': (56.046, 4.15, 12.414), 'right_elbow': (31.687, 20.277),
+        'right_wrist': (-0.504, -21.049),
     })
     human.KeyJoints(43.4, {
-        'spine_lumbar': (4.585, -19.27, 8.949), 'spine_thoracic': (-10.265, -9.924, 9.324),
-        'neck': (25.053, -1.152, -6.943), 'head': (9.022, -0.143), 'right_clavicle': (9.081, 7.918),
-        'right_shoulder': (56.313, 5.457, 15.25), 'right_elbow': (30.253, 23.302),
-        'right_wrist': (0.636, -23.21),
+        'spine_lumbar': (3.154, -19.264, 9.143), 'spine_thoracic': (-10.984, -10.0, 10.256),
+        'neck': (25.604, -1.127, -7.268), 'right_clavicle': (14.069, 8.895),
+        'right_shoulder': (56.982, 6.694, 19.039), 'right_elbow': (28.064, 27.235),
+        'right_wrist': (2.381, -26.183),
     })
     human.KeyJoints(43.5, {
-        'spine_lumbar': (2.344, -19.998, 9.319), 'spine_thoracic': (-11.571, -10.0, 10.894),
-        'neck': (26.01, -1.178, -7.985), 'head': (10.351, -0.169), 'right_clavicle': (16.741, 9.48),
-        'right_shoulder': (57.051, 7.495, 20.674), 'right_elbow': (26.43, 29.176),
-        'right_wrist': (3.209, -26.453),
+        'spine_lumbar': (0.9, -19.883, 10.162), 'spine_thoracic': (-12.642, -10.0, 12.694),
+        'neck': (26.898, -1.281, -9.389), 'head': (11.272, -0.173),
+        'right_clavicle': (20.985, 11.043), 'right_shoulder': (57.705, 7.75, 21.101),
+        'right_elbow': (19.501, 31.089), 'right_wrist': (4.117, -24.289),
     })
     human.KeyJoints(43.6, {
-        'spine_lumbar': (-3.559, -20.0, 10.297), 'spine_thoracic': (-12.156, -10.0, 12.765),
-        'neck': (27.791, -1.003, -7.849), 'head': (12.168, -0.169),
-        'right_clavicle': (20.533, 11.382), 'right_shoulder': (55.861, 4.998, 21.953),
-        'right_elbow': (19.572, 31.015), 'right_wrist': (4.48, -24.574),
+        'spine_lumbar': (-2.887, -19.877, 9.744), 'spine_thoracic': (-11.076, -10.0, 11.559),
+        'neck': (27.124, -0.927, -6.838), 'head': (11.479, -0.167),
+        'right_clavicle': (17.379, 10.404), 'right_shoulder': (55.176, 3.63, 20.873),
+        'right_elbow': (22.648, 29.2), 'right_wrist': (3.758, -24.489),
     })
     human.KeyJoints(43.7, {
-        'spine_lumbar': (2.15, -18.089, 8.713), 'spine_thoracic': (-9.083, -9.154, 9.049),
-        'neck': (25.192, -0.881, -5.053), 'head': (9.031, -0.132), 'right_clavicle': (7.082, 8.081),
-        'right_shoulder': (54.984, 2.53, 15.126), 'right_elbow': (31.11, 22.172),
-        'right_wrist': (0.533, -23.124),
+        'spine_lumbar': (2.153, -18.03, 8.739), 'spine_thoracic': (-9.083, -9.045, 9.057),
+        'neck': (25.213, -0.887, -5.087), 'head': (9.05, -0.131), 'right_clavicle': (7.112, 8.08),
+        'right_shoulder': (55.029, 2.541, 15.148), 'right_elbow': (31.104, 22.197),
+        'right_wrist': (0.544, -23.07),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
@@ -2683,65 +2683,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(43.9, {
-        'spine_lumbar': (5.427, -17.769, 9.507), 'spine_thoracic': (-10.47, -8.253, 9.491),
-        'neck': (24.991, -1.161, -6.979), 'head': (8.949, -0.142), 'right_clavicle': (6.833, 7.898),
-        'right_shoulder': (55.385, 5.022, 13.281), 'right_elbow': (31.08, 21.388),
-        'right_wrist': (-0.136, -21.943),
+        'spine_lumbar': (4.32, -19.314, 8.761), 'spine_thoracic': (-10.043, -10.0, 9.25),
+        'neck': (25.009, -1.125, -6.719), 'head': (8.932, -0.14), 'right_clavicle': (10.077, 7.963),
+        'right_shoulder': (56.891, 5.417, 16.265), 'right_elbow': (29.804, 24.218),
+        'right_wrist': (1.047, -23.946),
     })
     human.KeyJoints(44.0, {
-        'spine_lumbar': (3.325, -19.186, 9.097), 'spine_thoracic': (-10.856, -10.0, 10.117),
-        'neck': (25.525, -1.122, -7.151), 'head': (9.684, -0.156), 'right_clavicle': (13.49, 8.768),
-        'right_shoulder': (56.966, 6.52, 18.654), 'right_elbow': (28.364, 26.806),
-        'right_wrist': (2.19, -25.973),
+        'spine_lumbar': (1.768, -19.767, 9.625), 'spine_thoracic': (-11.935, -10.0, 11.518),
+        'neck': (26.341, -1.198, -8.359), 'head': (10.692, -0.17),
+        'right_clavicle': (18.123, 10.029), 'right_shoulder': (57.279, 7.505, 20.676),
+        'right_elbow': (23.975, 29.706), 'right_wrist': (3.479, -25.827),
     })
     human.KeyJoints(44.1, {
-        'spine_lumbar': (-0.219, -20.0, 10.255), 'spine_thoracic': (-12.692, -10.0, 12.825),
-        'neck': (27.273, -1.235, -9.211), 'head': (11.652, -0.172),
-        'right_clavicle': (21.345, 11.273), 'right_shoulder': (57.53, 7.534, 21.565),
-        'right_elbow': (19.086, 31.327), 'right_wrist': (4.353, -24.205),
+        'spine_lumbar': (-3.557, -19.999, 10.296), 'spine_thoracic': (-12.13, -10.0, 12.759),
+        'neck': (27.788, -1.002, -7.817), 'head': (12.164, -0.169),
+        'right_clavicle': (20.482, 11.379), 'right_shoulder': (55.838, 4.953, 21.95),
+        'right_elbow': (19.607, 30.993), 'right_wrist': (4.478, -24.573),
     })
     human.KeyJoints(44.2, {
-        'spine_lumbar': (-1.213, -19.527, 8.854), 'spine_thoracic': (-9.847, -10.0, 9.706),
-        'neck': (26.234, -0.824, -5.325), 'head': (10.477, -0.159),
-        'right_clavicle': (12.33, 8.792), 'right_shoulder': (54.774, 2.762, 18.459),
-        'right_elbow': (27.54, 25.941), 'right_wrist': (2.243, -24.244),
+        'spine_lumbar': (-0.719, -19.404, 8.646), 'spine_thoracic': (-9.541, -10.0, 9.269),
+        'neck': (25.938, -0.792, -4.864), 'head': (10.145, -0.156),
+        'right_clavicle': (11.054, 8.418), 'right_shoulder': (54.676, 2.544, 17.825),
+        'right_elbow': (28.71, 25.109), 'right_wrist': (1.866, -24.157),
     })
     human.KeyJoints(44.3, {
-        'spine_lumbar': (7.928, -13.566, 9.836), 'spine_thoracic': (-8.834, -4.46, 9.393),
-        'neck': (24.087, -1.057, -5.32), 'head': (7.542, -0.107), 'right_clavicle': (3.116, 8.01),
-        'right_shoulder': (56.931, 3.007, 11.385), 'right_elbow': (32.754, 18.864),
-        'right_wrist': (-0.966, -19.373),
+        'spine_lumbar': (7.927, -13.565, 9.837), 'spine_thoracic': (-8.834, -4.458, 9.393),
+        'neck': (24.088, -1.057, -5.319), 'head': (7.543, -0.107), 'right_clavicle': (3.118, 8.01),
+        'right_shoulder': (56.932, 3.007, 11.386), 'right_elbow': (32.753, 18.865),
+        'right_wrist': (-0.966, -19.372),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.4, {
-        'spine_lumbar': (6.606, -15.653, 9.616), 'spine_thoracic': (-9.692, -6.292, 9.389),
-        'neck': (24.665, -1.112, -6.233), 'head': (8.326, -0.121), 'right_clavicle': (4.887, 7.93),
-        'right_shoulder': (56.151, 3.98, 12.214), 'right_elbow': (31.846, 20.026),
-        'right_wrist': (-0.588, -20.801),
+        'spine_lumbar': (5.639, -17.361, 9.51), 'spine_thoracic': (-10.306, -7.88, 9.453),
+        'neck': (24.899, -1.146, -6.78), 'right_clavicle': (6.456, 7.9),
+        'right_shoulder': (55.567, 4.802, 13.079), 'right_elbow': (31.208, 21.127),
+        'right_wrist': (-0.222, -21.762),
     })
     human.KeyJoints(44.5, {
-        'spine_lumbar': (4.316, -19.313, 8.762), 'spine_thoracic': (-10.046, -10.0, 9.253),
-        'neck': (25.011, -1.125, -6.72), 'head': (8.935, -0.14), 'right_clavicle': (10.09, 7.965),
-        'right_shoulder': (56.891, 5.421, 16.274), 'right_elbow': (29.798, 24.228),
-        'right_wrist': (1.051, -23.955),
+        'spine_lumbar': (2.756, -19.591, 9.234), 'spine_thoracic': (-11.277, -10.0, 10.568),
+        'neck': (25.795, -1.148, -7.596), 'head': (10.086, -0.165),
+        'right_clavicle': (15.405, 9.182), 'right_shoulder': (57.015, 7.121, 19.935),
+        'right_elbow': (27.32, 28.232), 'right_wrist': (2.811, -26.411),
     })
     human.KeyJoints(44.6, {
-        'spine_lumbar': (1.593, -19.677, 9.751), 'spine_thoracic': (-12.045, -10.0, 11.736),
-        'neck': (26.444, -1.212, -8.528), 'head': (10.803, -0.171),
-        'right_clavicle': (18.521, 10.219), 'right_shoulder': (57.387, 7.507, 20.677),
-        'right_elbow': (23.017, 29.838), 'right_wrist': (3.549, -25.435),
+        'spine_lumbar': (0.315, -20.0, 10.24), 'spine_thoracic': (-12.721, -10.0, 12.828),
+        'neck': (27.134, -1.284, -9.489), 'head': (11.514, -0.173),
+        'right_clavicle': (21.383, 11.236), 'right_shoulder': (57.672, 7.736, 21.456),
+        'right_elbow': (19.064, 31.341), 'right_wrist': (4.311, -24.163),
     })
     human.KeyJoints(44.7, {
-        'spine_lumbar': (-3.337, -19.961, 10.126), 'spine_thoracic': (-11.777, -10.0, 12.385),
-        'neck': (27.557, -0.948, -7.278), 'head': (11.933, -0.168),
-        'right_clavicle': (19.445, 11.083), 'right_shoulder': (55.548, 4.413, 21.609),
-        'right_elbow': (20.632, 30.408), 'right_wrist': (4.248, -24.545),
+        'spine_lumbar': (-2.428, -19.79, 9.445), 'spine_thoracic': (-10.737, -10.0, 10.93),
+        'neck': (26.828, -0.862, -6.19), 'head': (11.184, -0.166),
+        'right_clavicle': (15.907, 9.903), 'right_shoulder': (55.005, 3.371, 20.237),
+        'right_elbow': (24.347, 28.301), 'right_wrist': (3.338, -24.421),
     })
     human.KeyJoints(44.8, {
-        'spine_lumbar': (3.577, -16.931, 8.922), 'spine_thoracic': (-8.757, -7.878, 9.052),
-        'neck': (24.927, -0.949, -5.198), 'head': (8.613, -0.122), 'right_clavicle': (5.502, 7.982),
-        'right_shoulder': (55.611, 2.22, 13.704), 'right_elbow': (31.286, 20.799),
-        'right_wrist': (-0.029, -22.757),
+        'spine_lumbar': (3.551, -16.886, 8.943), 'spine_thoracic': (-8.765, -7.771, 9.055),
+        'neck': (24.95, -0.946, -5.194), 'head': (8.64, -0.122), 'right_clavicle': (5.573, 7.984),
+        'right_shoulder': (55.661, 2.223, 13.751), 'right_elbow': (31.269, 20.855),
+        'right_wrist': (-0.005, -22.74),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.847203, duration=0.072)
@@ -3178,7 +3178,7 @@ def remove_access_panel():
     human.KeyJoints(52.1, {
         'right_shoulder': (-38.284, 0.354, 11.519), 'right_elbow': (111.486, 26.667),
         'right_wrist': (-19.587, -12.557), 'left_shoulder': (0.502, 9.421, 57.233),
-        'left_elbow': (103.375, 4.834), 'left_wrist': (-70.0, 3.647),
+        'left_elbow': (103.375, 4.834), 'left_wrist': (-70.0, 3.646),
     })
     human.KeyJoints(52.2, {
         'right_shoulder': (-40.216, -1.56, 14.417), 'right_elbow': (110.521, 26.535),

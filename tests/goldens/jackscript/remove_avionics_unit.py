@@ -262,7 +262,7 @@ def remove_avionics_unit():
     human.LookAt((0.0, 165.0, 75.0), start=3.656683, duration=2.430743)
     human.KeyJoints(3.7, {
         'spine_lumbar': (27.222, 0.068, -14.989), 'spine_thoracic': (-0.552, -0.758, -30.0),
-        'neck': (-57.532, 0.646, -1.658), 'head': (-19.928, 0.021),
+        'neck': (-57.502, 0.653, -1.638), 'head': (-19.924, 0.006),
         'right_clavicle': (30.0, -14.989), 'right_shoulder': (6.271, 171.363, -41.687),
         'right_elbow': (0.511, 8.584), 'right_wrist': (0.457, -1.211),
         'left_clavicle': (30.0, 14.976), 'left_shoulder': (168.692, 10.089, 2.684),
@@ -270,15 +270,15 @@ def remove_avionics_unit():
     })
     human.KeyJoints(3.8, {
         'spine_lumbar': (27.992, -0.173, -14.754), 'spine_thoracic': (4.027, -2.743, -30.0),
-        'neck': (-60.0, -15.03, -30.751), 'head': (-20.0, 11.25), 'right_clavicle': (30.0, -14.742),
-        'right_shoulder': (4.959, 161.52, -41.431), 'right_elbow': (0.401, 8.567),
-        'right_wrist': (1.375, -1.722), 'left_clavicle': (29.999, 14.441),
-        'left_shoulder': (138.452, 46.487, -12.276), 'left_elbow': (6.73, -73.058),
-        'left_wrist': (-2.191, -1.171),
+        'neck': (-58.892, -6.427, -20.65), 'head': (-19.148, 3.841),
+        'right_clavicle': (30.0, -14.742), 'right_shoulder': (4.959, 161.52, -41.431),
+        'right_elbow': (0.401, 8.567), 'right_wrist': (1.375, -1.722),
+        'left_clavicle': (29.999, 14.441), 'left_shoulder': (138.452, 46.487, -12.276),
+        'left_elbow': (6.73, -73.058), 'left_wrist': (-2.191, -1.171),
     })
     human.KeyJoints(3.9, {
         'spine_lumbar': (29.788, -0.736, -14.203), 'spine_thoracic': (14.719, -7.376, -30.0),
-        'neck': (-59.85, -19.807, -49.302), 'head': (-17.761, 11.14),
+        'neck': (-59.71, -17.468, -44.51), 'head': (-17.939, 9.802),
         'right_clavicle': (30.0, -14.165), 'right_shoulder': (1.897, 138.536, -40.835),
         'right_elbow': (0.145, 8.527), 'right_wrist': (3.521, -2.916),
         'left_clavicle': (29.996, 13.19), 'left_shoulder': (67.843, 131.472, -47.207),
@@ -288,11 +288,11 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(4.0, {
         'spine_lumbar': (30.758, -1.041, -13.906), 'spine_thoracic': (20.492, -9.878, -30.0),
-        'neck': (-59.84, -19.915, -49.579), 'right_clavicle': (30.0, -13.853),
-        'right_shoulder': (0.243, 126.128, -40.512), 'right_elbow': (0.007, 8.505),
-        'right_wrist': (4.679, -3.56), 'left_clavicle': (29.994, 12.515),
-        'left_shoulder': (29.723, 177.354, -66.066), 'left_elbow': (13.726, -65.755),
-        'left_wrist': (8.39, 0.537),
+        'neck': (-59.84, -19.915, -49.579), 'head': (-17.671, 11.123),
+        'right_clavicle': (30.0, -13.853), 'right_shoulder': (0.243, 126.128, -40.512),
+        'right_elbow': (0.007, 8.505), 'right_wrist': (4.679, -3.56),
+        'left_clavicle': (29.994, 12.515), 'left_shoulder': (29.723, 177.354, -66.066),
+        'left_elbow': (13.726, -65.755), 'left_wrist': (8.39, 0.537),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=4.045791, duration=0.072)
@@ -352,58 +352,63 @@ def remove_avionics_unit():
         'left_shoulder': (20.841, 163.061, -64.828), 'left_elbow': (7.839, -65.257),
         'left_wrist': (7.529, -1.361),
     })
-    human.KeyJoints(4.8, {'spine_thoracic': (-3.875, 1.123, -0.707)})
-    human.KeyJoints(4.9, {'spine_lumbar': (25.022, -3.166, -9.687)})
-    human.KeyJoints(5.0, {'spine_thoracic': (-3.711, 0.8, -0.708)})
-    human.KeyJoints(5.1, {
-        'right_shoulder': (2.232, 165.087, -40.319), 'left_shoulder': (20.906, 163.076, -64.821),
+    human.KeyJoints(4.9, {'spine_thoracic': (-3.863, 1.099, -0.708)})
+    human.KeyJoints(5.0, {'spine_lumbar': (25.023, -3.167, -9.692)})
+    human.KeyJoints(5.1, {'spine_thoracic': (-3.739, 0.855, -0.712)})
+    human.KeyJoints(5.2, {
+        'spine_lumbar': (24.847, -2.893, -9.73), 'spine_thoracic': (-3.624, 0.627, -0.722),
+        'right_clavicle': (14.148, -13.287), 'right_shoulder': (2.245, 165.065, -40.319),
+        'right_elbow': (7.152, 8.711), 'left_clavicle': (30.0, 12.282),
+        'left_shoulder': (20.889, 163.072, -64.822),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (24.574, -2.465, -9.743), 'spine_thoracic': (-3.328, 0.038, -0.726),
-        'right_clavicle': (14.132, -13.302), 'right_elbow': (7.24, 8.707),
-        'left_clavicle': (30.0, 12.298), 'left_elbow': (7.915, -65.26),
+        'spine_lumbar': (24.633, -2.558, -9.846), 'spine_thoracic': (-3.392, 0.166, -0.761),
+        'left_elbow': (7.897, -65.259),
     })
-    human.KeyJoints(5.4, {'spine_thoracic': (-3.235, -0.151, -0.759)})
+    human.KeyJoints(5.4, {
+        'spine_lumbar': (24.525, -2.389, -9.951), 'spine_thoracic': (-3.275, -0.068, -0.797),
+        'left_wrist': (7.604, -1.343),
+    })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (24.454, -2.275, -9.963), 'right_shoulder': (2.12, 165.591, -40.315),
-        'left_shoulder': (21.309, 163.172, -64.813),
+        'right_clavicle': (13.795, -13.634), 'right_shoulder': (2.13, 165.462, -40.315),
+        'left_clavicle': (30.0, 12.634), 'left_shoulder': (21.206, 163.148, -64.814),
     })
-    human.KeyJoints(5.6, {
-        'neck': (-57.625, -19.189, -23.212), 'right_clavicle': (13.767, -13.661),
-        'left_clavicle': (30.0, 12.662),
+    human.KeyJoints(5.6, {'neck': (-57.575, -19.141, -23.258)})
+    human.KeyJoints(5.8, {
+        'spine_thoracic': (-3.192, -0.242, -0.861), 'right_elbow': (7.368, 8.706),
     })
-    human.KeyJoints(5.7, {'spine_thoracic': (-3.189, -0.25, -0.846), 'right_elbow': (7.377, 8.706)})
-    human.KeyJoints(5.9, {'spine_lumbar': (24.445, -2.26, -10.152)})
+    human.KeyJoints(5.9, {'spine_lumbar': (24.446, -2.262, -10.154)})
     human.KeyRoot(6.0, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(6.0, {
         'right_clavicle': (13.624, -13.801), 'left_clavicle': (30.0, 12.804),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'left_shoulder': (21.36, 163.184, -64.813), 'right_hip': (2.865, 0.0, 0.0),
+        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
+        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
     human.Walk((-79.956, 0.0, 40.019), start=6.087427, duration=4.515789)
     human.KeyRoot(6.1, (0.106, 72.958, 50.048), (-0.181, 0.0, 0.0))
     human.KeyJoints(6.1, {
+        'right_shoulder': (2.139, 165.72, -40.318), 'left_shoulder': (21.416, 163.091, -64.813),
         'right_hip': (3.492, 0.079, 0.186), 'right_knee': (5.944,), 'right_ankle': (2.441, 0.092),
         'left_hip': (3.409, -0.079, -0.186), 'left_knee': (5.864,), 'left_ankle': (2.454, -0.092),
     })
     human.KeyRoot(6.2, (1.206, 72.55, 50.337), (-1.8, 0.0, 0.0))
     human.KeyJoints(6.2, {
-        'left_elbow': (8.068, -65.264), 'right_hip': (8.228, 0.772, 1.94), 'right_knee': (15.865,),
-        'right_ankle': (7.122, 1.043), 'left_hip': (6.782, -0.813, -1.909), 'left_knee': (13.841,),
-        'left_ankle': (7.089, -1.034),
+        'right_hip': (8.228, 0.772, 1.94), 'right_knee': (15.865,), 'right_ankle': (7.122, 1.043),
+        'left_hip': (6.782, -0.813, -1.909), 'left_knee': (13.841,), 'left_ankle': (7.089, -1.034),
     })
     human.KeyRoot(6.3, (1.924, 72.488, 50.485), (-3.697, 0.0, 0.0))
     human.KeyJoints(6.3, {
-        'right_shoulder': (2.139, 165.703, -40.317), 'right_hip': (10.75, 1.024, 3.812),
-        'right_knee': (20.79,), 'right_ankle': (9.201, 1.726), 'left_hip': (6.792, -1.192, -3.864),
-        'left_knee': (14.483,), 'left_ankle': (7.784, -1.639),
+        'left_elbow': (8.062, -65.264), 'right_hip': (10.75, 1.024, 3.812), 'right_knee': (20.79,),
+        'right_ankle': (9.201, 1.726), 'left_hip': (6.792, -1.192, -3.864), 'left_knee': (14.483,),
+        'left_ankle': (7.784, -1.639),
     })
     human.KeyRoot(6.4, (2.314, 72.497, 50.54), (-5.822, 0.0, 0.0))
     human.KeyJoints(6.4, {
-        'left_shoulder': (21.401, 163.125, -64.814), 'left_wrist': (7.697, -1.33),
-        'right_hip': (22.123, 1.76, 1.124), 'right_knee': (45.295,), 'right_ankle': (17.997, 2.046),
-        'left_hip': (6.713, -1.268, -6.013), 'left_knee': (14.785,), 'left_ankle': (8.08, -1.953),
+        'left_wrist': (7.697, -1.33), 'right_hip': (22.123, 1.76, 1.124), 'right_knee': (45.295,),
+        'right_ankle': (17.997, 2.046), 'left_hip': (6.713, -1.268, -6.013), 'left_knee': (14.785,),
+        'left_ankle': (8.08, -1.953),
     })
     human.KeyRoot(6.5, (2.439, 72.771, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(6.5, {
@@ -450,9 +455,9 @@ def remove_avionics_unit():
     })
     human.KeyRoot(7.1, (-2.332, 72.499, 49.32), (-32.671, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'neck': (-57.551, -19.117, -23.283), 'right_hip': (8.248, -2.365, -0.264),
-        'right_knee': (15.796,), 'right_ankle': (7.041, -2.38), 'left_hip': (28.609, 1.129, 1.379),
-        'left_knee': (58.793,), 'left_ankle': (19.282, 1.574),
+        'right_hip': (8.248, -2.365, -0.264), 'right_knee': (15.796,),
+        'right_ankle': (7.041, -2.38), 'left_hip': (28.609, 1.129, 1.379), 'left_knee': (58.793,),
+        'left_ankle': (19.282, 1.574),
     })
     human.KeyRoot(7.2, (-2.702, 72.857, 50.678), (-37.827, 0.0, 0.0))
     human.KeyJoints(7.2, {
@@ -634,27 +639,27 @@ def remove_avionics_unit():
     human.LookAt((-110.0, 85.0, 40.0), start=10.203216, duration=1.197891)
     human.KeyRoot(10.3, (-70.618, 71.983, 43.354), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.3, {
-        'neck': (-43.918, -21.272, -17.642), 'head': (-14.844, 11.211),
+        'neck': (-48.43, -20.559, -19.509), 'head': (-16.551, 11.21),
         'right_hip': (28.576, 2.784, -1.335), 'right_knee': (67.859,),
         'right_ankle': (19.554, 1.895), 'left_hip': (12.994, -2.826, -0.652), 'left_knee': (8.929,),
         'left_ankle': (-4.049, -2.9),
     })
     human.KeyRoot(10.4, (-72.224, 71.983, 42.879), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.4, {
-        'neck': (-12.392, -26.257, -4.597), 'head': (-2.922, 11.221),
+        'neck': (-25.64, -24.162, -10.079), 'head': (-7.932, 11.217),
         'right_hip': (23.945, 2.322, 0.142), 'right_knee': (40.617,),
         'right_ankle': (16.794, 2.151), 'left_hip': (13.702, -2.42, -0.59), 'left_knee': (13.295,),
         'left_ankle': (-0.394, -2.49),
     })
     human.KeyRoot(10.5, (-75.479, 72.036, 41.784), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.5, {
-        'neck': (19.693, -31.33, 8.679), 'head': (9.211, 11.231),
+        'neck': (1.849, -28.509, 1.295), 'head': (2.463, 11.225),
         'right_hip': (12.924, 1.503, 0.345), 'right_knee': (17.547,), 'right_ankle': (4.639, 1.542),
         'left_hip': (12.875, -1.504, -0.344), 'left_knee': (17.443,), 'left_ankle': (4.572, -1.542),
     })
     human.KeyRoot(10.6, (-79.955, 72.977, 40.019), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.6, {
-        'neck': (34.982, -33.747, 15.005), 'head': (14.993, 11.236),
+        'neck': (25.056, -32.178, 10.898), 'head': (11.239, 11.232),
         'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
         'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
         'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
@@ -665,6 +670,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(10.7, (-80.0, 72.985, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.7, {
+        'neck': (34.998, -33.75, 15.011), 'head': (14.999, 11.236),
         'right_shoulder': (2.935, 162.629, -38.542), 'right_elbow': (8.89, 7.654),
         'right_wrist': (12.665, -11.068), 'left_shoulder': (21.644, 160.754, -62.6),
         'left_elbow': (9.874, -64.998), 'left_wrist': (8.64, -1.711),
@@ -696,16 +702,16 @@ def remove_avionics_unit():
         'left_elbow': (79.795, -53.951), 'left_wrist': (45.369, -17.222),
     })
     human.KeyJoints(11.2, {
-        'right_shoulder': (40.412, 21.478, 50.014), 'right_elbow': (76.394, -40.549),
+        'right_shoulder': (40.412, 21.478, 50.014), 'right_elbow': (76.393, -40.549),
         'right_wrist': (39.215, -26.03), 'left_shoulder': (34.495, 46.881, 45.289),
-        'left_elbow': (93.728, -49.71), 'left_wrist': (53.249, -22.5),
+        'left_elbow': (93.728, -49.709), 'left_wrist': (53.249, -22.5),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
     human.KeyJoints(11.3, {
-        'right_shoulder': (42.919, 4.511, 62.884), 'right_elbow': (74.534, -43.385),
+        'right_shoulder': (42.919, 4.511, 62.884), 'right_elbow': (74.533, -43.385),
         'right_wrist': (39.304, -29.272), 'left_shoulder': (34.932, 32.122, 59.268),
-        'left_elbow': (93.871, -45.055), 'left_wrist': (55.233, -27.415),
+        'left_elbow': (93.87, -45.055), 'left_wrist': (55.233, -27.415),
     })
     human.KeyJoints(11.4, {
         'right_shoulder': (43.268, 1.055, 65.506), 'right_elbow': (73.272, -43.699),

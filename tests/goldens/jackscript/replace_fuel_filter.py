@@ -313,18 +313,18 @@ def replace_fuel_filter():
     })
     human.KeyJoints(4.5, {
         'spine_lumbar': (33.468, 7.251, 9.403), 'spine_thoracic': (-2.792, 6.281, 12.362),
-        'neck': (35.0, 26.364, -10.966), 'head': (15.0, -10.661), 'right_clavicle': (-4.562, 9.403),
+        'neck': (35.0, -29.764, -0.832), 'head': (15.0, 8.432), 'right_clavicle': (-4.562, 9.403),
         'right_shoulder': (24.39, 16.417, 7.419), 'right_elbow': (28.98, 17.198),
     })
     human.KeyJoints(4.6, {
         'spine_lumbar': (42.012, 10.198, 12.711), 'spine_thoracic': (-4.974, 8.48, 17.552),
-        'neck': (35.0, 17.722, -14.194), 'head': (15.0, -11.25), 'right_clavicle': (-6.584, 12.711),
+        'neck': (35.0, -4.402, -10.074), 'head': (15.0, -3.083), 'right_clavicle': (-6.584, 12.711),
         'right_shoulder': (30.609, 20.139, 6.006), 'right_elbow': (27.1, 17.203),
         'right_wrist': (-1.743, -2.222),
     })
     human.KeyJoints(4.7, {
         'spine_lumbar': (45.555, 12.859, 14.418), 'spine_thoracic': (-7.192, 9.639, 21.646),
-        'neck': (35.0, 15.756, -16.803), 'right_clavicle': (-8.488, 14.39),
+        'neck': (35.0, 15.537, -16.771), 'head': (15.0, -11.229), 'right_clavicle': (-8.488, 14.39),
         'right_shoulder': (34.79, 21.341, 5.42), 'right_elbow': (26.33, 17.208),
         'right_wrist': (-1.918, -2.459),
     })
@@ -347,431 +347,491 @@ def replace_fuel_filter():
         'neck': (35.0, 28.675, -19.308), 'right_shoulder': (32.897, 17.558, 6.352),
         'right_elbow': (27.263, 17.2),
     })
-    human.KeyJoints(5.1, {'right_elbow': (27.263, 17.2)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {
-        'right_shoulder': (32.897, 17.559, 6.352), 'right_elbow': (27.264, 17.031),
+    human.KeyJoints(5.2, {'right_elbow': (27.263, 17.169)})
+    human.KeyJoints(5.3, {'right_elbow': (27.301, 12.277)})
+    human.KeyJoints(5.4, {
+        'right_shoulder': (32.907, 17.625, 6.335), 'right_elbow': (27.379, 0.657),
     })
-    human.KeyJoints(5.3, {
-        'right_shoulder': (32.911, 17.659, 6.327), 'right_elbow': (27.417, -6.264),
-        'right_wrist': (-1.545, -2.144),
-    })
-    human.KeyJoints(5.4, {'right_elbow': (27.478, -47.914)})
-    human.KeyJoints(5.5, {
-        'right_shoulder': (32.945, 18.039, 6.234), 'right_elbow': (27.341, -77.819),
-    })
-    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=5.530179, duration=0.072)
-    human.KeyJoints(5.6, {'right_elbow': (27.326, -80.0)})
-    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=5.602179, duration=0.2628)
-    human.KeyJoints(5.8, {'right_elbow': (27.326, -80.0), 'right_wrist': (-1.468, -2.173)})
-    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
+    human.KeyJoints(5.5, {'right_elbow': (27.456, -15.361)})
+    human.KeyJoints(5.6, {'right_elbow': (27.491, -33.449), 'right_wrist': (-1.503, -2.133)})
+    human.KeyJoints(5.7, {'right_elbow': (27.47, -51.276)})
+    human.KeyJoints(5.8, {'right_elbow': (27.409, -66.514)})
     human.KeyJoints(5.9, {
-        'right_shoulder': (32.945, 18.028, 6.236), 'right_elbow': (27.358, -75.214),
-    })
-    human.KeyJoints(6.0, {'right_elbow': (27.48, -23.911), 'right_wrist': (-1.518, -2.133)})
-    human.KeyJoints(6.1, {
-        'right_shoulder': (32.882, 17.497, 6.367), 'right_elbow': (27.021, 44.327),
-    })
-    human.KeyJoints(6.2, {
-        'neck': (35.0, 28.675, -19.308), 'right_elbow': (26.69, 79.952),
-        'right_wrist': (-1.464, -2.234),
+        'right_shoulder': (32.945, 18.035, 6.235), 'right_elbow': (27.348, -76.834),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=6.203379, duration=0.072)
+    human.Grasp('right_hand', 'open', start=5.985897, duration=0.072)
+    human.KeyJoints(6.0, {'right_elbow': (27.326, -80.0)})
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=6.057897, duration=0.2628)
+    human.KeyJoints(6.3, {'right_elbow': (27.326, -80.0)})
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
+    human.KeyJoints(6.4, {
+        'right_shoulder': (32.945, 18.029, 6.236), 'right_elbow': (27.356, -75.532),
+    })
+    human.KeyJoints(6.5, {'right_elbow': (27.443, -59.213)})
+    human.KeyJoints(6.6, {'right_elbow': (27.492, -34.545), 'right_wrist': (-1.501, -2.133)})
+    human.KeyJoints(6.7, {'right_elbow': (27.412, -5.363)})
+    human.KeyJoints(6.8, {
+        'right_shoulder': (32.893, 17.535, 6.358), 'right_elbow': (27.203, 24.501),
+    })
+    human.KeyJoints(6.9, {'right_elbow': (26.955, 51.211), 'right_wrist': (-1.526, -2.231)})
+    human.KeyJoints(7.0, {'right_elbow': (26.769, 70.933)})
+    human.KeyJoints(7.1, {'right_elbow': (26.691, 79.835)})
+    # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=6.275379, duration=0.072)
+    human.Grasp('right_hand', 'close', start=7.186814, duration=0.072)
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TA on l_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
-    human.LookAt((-35.0, 5.0, 80.0), start=6.275379, duration=1.618047)
-    human.KeyJoints(6.3, {
-        'spine_lumbar': (40.105, 16.004, 13.204), 'spine_thoracic': (-7.419, 8.993, 21.588),
-        'neck': (35.0, 28.747, -19.153), 'right_clavicle': (-9.671, 12.995),
-        'right_shoulder': (32.864, 17.52, 6.362), 'right_elbow': (26.699, 80.0),
-        'right_wrist': (-1.466, -2.233), 'left_clavicle': (-0.003, 0.004),
-        'left_shoulder': (8.603, 5.729, 11.459),
+    human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
+    human.KeyJoints(7.2, {
+        'spine_lumbar': (40.101, 16.007, 13.207), 'spine_thoracic': (-7.417, 8.994, 21.59),
+        'neck': (35.0, 28.698, -19.258), 'right_shoulder': (32.865, 17.524, 6.361),
+        'right_elbow': (26.691, 80.0), 'right_wrist': (-1.464, -2.234),
+        'left_clavicle': (0.0, 0.001), 'left_shoulder': (8.596, 5.729, 11.459),
     })
-    human.KeyJoints(6.4, {
-        'spine_lumbar': (40.687, 15.67, 12.915), 'spine_thoracic': (-7.64, 8.895, 21.381),
-        'neck': (35.0, 29.738, -17.461), 'right_clavicle': (-9.674, 13.054),
-        'right_shoulder': (32.674, 17.006, 6.495), 'right_elbow': (27.715, 80.0),
-        'right_wrist': (-1.732, -2.151), 'left_clavicle': (-0.288, 0.442),
-        'left_shoulder': (9.511, 5.64, 11.422), 'left_elbow': (34.327, 17.188),
-        'left_wrist': (-0.004, -0.026),
+    human.KeyJoints(7.3, {
+        'spine_lumbar': (40.55, 15.749, 12.983), 'spine_thoracic': (-7.588, 8.918, 21.43),
+        'neck': (35.0, 29.51, -17.702), 'right_clavicle': (-9.674, 13.04),
+        'right_shoulder': (32.719, 17.127, 6.464), 'right_elbow': (27.475, 80.0),
+        'right_wrist': (-1.669, -2.171), 'left_clavicle': (-0.221, 0.339),
+        'left_shoulder': (9.297, 5.661, 11.43), 'left_elbow': (34.339, 17.188),
+        'left_wrist': (-0.003, -0.02),
     })
-    human.KeyJoints(6.5, {
-        'spine_lumbar': (42.868, 14.417, 11.83), 'spine_thoracic': (-8.472, 8.528, 20.604),
-        'neck': (35.0, 32.494, -14.275), 'head': (15.0, -11.25), 'right_clavicle': (-9.687, 13.273),
-        'right_shoulder': (31.895, 15.105, 6.995), 'right_elbow': (31.598, 80.0),
-        'right_wrist': (-2.76, -1.82), 'left_clavicle': (-1.36, 2.087),
-        'left_shoulder': (12.918, 5.308, 11.28), 'left_elbow': (34.139, 17.186),
+    human.KeyJoints(7.4, {
+        'spine_lumbar': (42.528, 14.612, 11.999), 'spine_thoracic': (-8.342, 8.586, 20.725),
+        'neck': (35.0, 32.15, -14.688), 'head': (15.0, -11.25), 'right_clavicle': (-9.685, 13.239),
+        'right_shoulder': (32.023, 15.398, 6.917), 'right_elbow': (30.985, 80.0),
+        'right_wrist': (-2.597, -1.874), 'left_clavicle': (-1.193, 1.831),
+        'left_shoulder': (12.387, 5.36, 11.302), 'left_elbow': (34.168, 17.187),
     })
-    human.KeyJoints(6.6, {
-        'spine_lumbar': (46.694, 12.219, 9.926), 'spine_thoracic': (-9.929, 7.885, 19.242),
-        'neck': (35.0, 33.75, -10.064), 'head': (15.0, -11.12),
-        'right_shoulder': (30.837, 11.776, 7.891), 'right_elbow': (37.769, 80.0),
-        'right_wrist': (-4.404, -1.172), 'left_clavicle': (-3.24, 4.97),
-        'left_shoulder': (18.892, 4.725, 11.006), 'left_wrist': (-0.062, -0.293),
+    human.KeyJoints(7.5, {
+        'spine_lumbar': (46.19, 12.508, 10.177), 'spine_thoracic': (-9.738, 7.97, 19.421),
+        'neck': (35.0, 33.75, -10.495), 'head': (15.0, -11.129), 'right_clavicle': (-9.705, 13.608),
+        'right_shoulder': (30.967, 12.213, 7.771), 'right_elbow': (36.984, 80.0),
+        'right_wrist': (-4.195, -1.261), 'left_clavicle': (-2.992, 4.591),
+        'left_shoulder': (18.105, 4.802, 11.045), 'left_wrist': (-0.056, -0.271),
     })
-    human.KeyJoints(6.7, {
-        'neck': (35.0, 33.75, -6.769), 'head': (15.0, -11.25), 'right_clavicle': (-9.735, 14.143),
-        'right_shoulder': (29.761, 7.633, 9.056), 'right_elbow': (44.846, 80.0),
-        'left_shoulder': (26.396, 3.993, 10.594), 'left_elbow': (33.397, 17.179),
-        'left_wrist': (-0.147, -0.507),
+    human.KeyJoints(7.6, {
+        'spine_lumbar': (50.93, 9.785, 7.819), 'neck': (35.0, 33.75, -7.2), 'head': (15.0, -11.25),
+        'right_elbow': (44.023, 80.0), 'right_wrist': (-6.063, -0.38),
+        'left_shoulder': (25.507, 4.079, 10.649), 'left_elbow': (33.445, 17.179),
+        'left_wrist': (-0.134, -0.482),
     })
-    human.KeyJoints(6.8, {
-        'spine_lumbar': (56.291, 6.705, 5.151), 'spine_thoracic': (-13.587, 6.272, 15.825),
-        'neck': (35.0, 33.75, -3.33), 'right_clavicle': (-9.762, 14.626),
-        'right_shoulder': (28.699, 3.614, 10.259), 'right_elbow': (51.643, 80.0),
-        'right_wrist': (-8.08, 0.724), 'left_clavicle': (-7.955, 12.204),
-        'left_shoulder': (33.708, 3.328, 9.987), 'left_elbow': (33.601, 17.177),
-        'left_wrist': (-0.375, -0.583),
+    human.KeyJoints(7.7, {
+        'spine_lumbar': (55.78, 6.999, 5.406), 'spine_thoracic': (-13.392, 6.358, 16.007),
+        'neck': (35.0, 33.75, -3.603), 'right_clavicle': (-9.759, 14.575),
+        'right_shoulder': (28.813, 4.037, 10.128), 'right_elbow': (50.926, 80.0),
+        'right_wrist': (-7.89, 0.614), 'left_clavicle': (-7.704, 11.819),
+        'left_shoulder': (32.979, 3.381, 10.073), 'left_elbow': (33.409, 17.176),
+        'left_wrist': (-0.327, -0.613),
     })
-    human.KeyJoints(6.9, {
-        'spine_lumbar': (59.675, 4.76, 3.467), 'spine_thoracic': (-14.876, 5.703, 14.62),
-        'neck': (35.0, 33.191, -1.477), 'right_clavicle': (-9.781, 14.967),
-        'right_shoulder': (27.96, 0.946, 11.267), 'right_elbow': (56.293, 80.0),
-        'right_wrist': (-9.489, 1.547), 'left_clavicle': (-9.618, 14.755),
-        'left_shoulder': (33.153, 4.231, 9.03), 'left_elbow': (46.98, 17.235),
-        'left_wrist': (-1.923, 2.496),
+    human.KeyJoints(7.8, {
+        'spine_lumbar': (59.484, 4.87, 3.563), 'spine_thoracic': (-14.803, 5.735, 14.688),
+        'neck': (35.0, 33.356, -1.593), 'right_clavicle': (-9.78, 14.948),
+        'right_shoulder': (28.002, 1.093, 11.207), 'right_elbow': (56.032, 80.0),
+        'right_wrist': (-9.405, 1.498), 'left_clavicle': (-9.524, 14.611),
+        'left_shoulder': (34.43, 3.915, 9.134), 'left_elbow': (43.776, 17.22),
+        'left_wrist': (-1.597, 1.724),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
-    human.KeyJoints(7.0, {
-        'spine_lumbar': (59.985, 4.582, 3.313), 'spine_thoracic': (-14.994, 5.651, 14.51),
-        'neck': (35.0, 32.941, -1.342), 'right_shoulder': (27.892, 0.709, 11.364),
-        'right_elbow': (56.714, 80.0), 'right_wrist': (-9.623, 1.625),
-        'left_clavicle': (-9.77, 14.989), 'left_shoulder': (25.249, 5.921, 8.7),
-        'left_elbow': (62.156, 17.304), 'left_wrist': (-3.423, 6.271),
+    human.KeyJoints(7.9, {
+        'spine_lumbar': (59.978, 4.586, 3.317), 'spine_thoracic': (-14.992, 5.652, 14.512),
+        'neck': (35.0, 32.941, -1.342), 'right_shoulder': (27.893, 0.714, 11.362),
+        'right_elbow': (56.705, 80.0), 'right_wrist': (-9.62, 1.624),
+        'left_clavicle': (-9.767, 14.984), 'left_shoulder': (25.696, 5.829, 8.714),
+        'left_elbow': (61.369, 17.301), 'left_wrist': (-3.345, 6.073), 'right_toes': (86.982,),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=7.088459, duration=0.072)
-    human.KeyJoints(7.1, {
+    human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
+    human.KeyJoints(8.0, {
         'neck': (35.0, 32.941, -1.342), 'head': (15.0, -11.167),
         'right_shoulder': (27.889, 0.698, 11.368), 'right_elbow': (56.735, 80.0),
         'right_wrist': (-9.629, 1.629), 'left_shoulder': (24.08, 6.162, 8.66),
         'left_elbow': (64.193, 17.313), 'left_wrist': (-3.624, 6.788),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
-    human.KeyJoints(7.2, {
-        'neck': (35.0, 32.653, -2.384), 'head': (14.807, -11.155),
-        'right_shoulder': (29.684, 1.064, 11.033), 'right_elbow': (52.93, 79.884),
-        'right_wrist': (-8.822, 1.455),
-    })
-    human.KeyJoints(7.3, {
-        'neck': (35.0, 29.994, -11.984), 'head': (13.032, -11.04),
-        'right_shoulder': (30.14, 4.046, 7.253), 'right_elbow': (47.251, 76.254),
-        'right_wrist': (-13.521, 2.954),
-    })
-    human.KeyJoints(7.4, {
-        'neck': (35.0, 26.164, -25.816), 'head': (10.474, -10.876),
-        'right_shoulder': (24.971, 10.555, -1.521), 'right_elbow': (46.989, 67.304),
-        'right_wrist': (-28.837, 7.528),
-    })
-    human.KeyJoints(7.5, {
-        'spine_lumbar': (60.0, 4.574, 3.306), 'spine_thoracic': (-15.0, 5.648, 14.504),
-        'neck': (35.0, 23.156, -36.676), 'head': (8.466, -10.746),
-        'right_shoulder': (18.991, 19.098, -13.355), 'right_elbow': (50.816, 56.886),
-        'right_wrist': (-48.661, 13.397), 'left_elbow': (64.051, 17.313),
-    })
-    human.KeyJoints(7.6, {
-        'spine_lumbar': (60.0, 4.686, 3.381), 'spine_thoracic': (-14.955, 5.708, 14.561),
-        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721),
-        'right_clavicle': (-9.757, 14.999), 'right_shoulder': (19.747, 28.515, -25.954),
-        'right_elbow': (41.519, 49.125), 'right_wrist': (-62.502, 17.655),
-    })
-    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
-    human.KeyJoints(7.7, {
-        'spine_lumbar': (60.0, 8.441, 5.486), 'spine_thoracic': (-13.892, 7.252, 16.205),
-        'neck': (34.939, 22.242, -39.329), 'head': (7.799, -10.577),
-        'right_clavicle': (-8.384, 14.991), 'right_shoulder': (21.835, 36.886, -33.864),
-        'right_elbow': (30.025, 44.817), 'right_wrist': (-67.363, 19.144),
-    })
-    human.KeyJoints(7.8, {
-        'spine_lumbar': (60.0, 11.567, 7.156), 'spine_thoracic': (-13.108, 8.435, 17.524),
-        'neck': (34.862, 20.294, -43.042), 'head': (6.389, -9.638),
-        'right_clavicle': (-7.113, 15.0), 'right_shoulder': (22.877, 39.921, -35.01),
-        'right_elbow': (27.322, 44.18), 'right_wrist': (-66.261, 18.768),
-        'left_shoulder': (24.17, 6.143, 8.665),
-    })
-    # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=7.821426, duration=0.072)
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
-    human.LookAt((-40.0, 10.0, 60.0), start=7.893426, duration=0.2628)
-    human.KeyJoints(7.9, {
-        'neck': (34.866, 20.055, -43.728), 'head': (6.071, -9.547), 'right_elbow': (27.218, 44.176),
-        'right_wrist': (-66.161, 18.747), 'right_toes': (86.982,),
-    })
-    human.KeyJoints(8.0, {
-        'neck': (34.823, 20.664, -48.08), 'head': (9.239, -10.148),
-        'right_shoulder': (22.92, 39.973, -35.012),
-    })
     human.KeyJoints(8.1, {
-        'spine_thoracic': (-13.102, 8.444, 17.534), 'neck': (34.699, 21.552, -54.426),
-        'head': (13.886, -11.024), 'left_elbow': (64.051, 17.313), 'left_wrist': (-3.609, 6.749),
+        'neck': (35.0, 32.792, -1.879), 'head': (14.901, -11.161),
+        'right_shoulder': (29.214, 0.934, 11.164), 'right_elbow': (53.983, 79.957),
+        'right_wrist': (-8.976, 1.482),
     })
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
-    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=8.156226, duration=2.069192)
     human.KeyJoints(8.2, {
-        'spine_lumbar': (60.0, 11.604, 7.132), 'spine_thoracic': (-13.093, 8.419, 17.456),
-        'neck': (34.282, 21.695, -55.132), 'head': (14.998, -11.201),
-        'left_shoulder': (24.196, 6.144, 8.691), 'left_elbow': (63.994, 17.372),
-        'left_wrist': (-3.704, 6.771),
+        'neck': (35.0, 30.395, -10.537), 'head': (13.3, -11.058),
+        'right_shoulder': (30.463, 3.512, 7.961), 'right_elbow': (47.538, 76.981),
+        'right_wrist': (-12.356, 2.602),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (60.0, 11.984, 6.13), 'spine_thoracic': (-12.852, 7.735, 15.308),
-        'neck': (31.991, 21.96, -49.168), 'left_clavicle': (-9.755, 15.0),
-        'left_shoulder': (24.924, 6.187, 9.43), 'left_elbow': (62.43, 19.003),
-        'left_wrist': (-6.363, 7.37),
+        'neck': (35.0, 26.598, -24.249), 'head': (10.764, -10.894),
+        'right_shoulder': (25.616, 9.665, -0.315), 'right_elbow': (46.971, 68.494),
+        'right_wrist': (-26.771, 6.911),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (60.0, 13.111, 3.16), 'spine_thoracic': (-12.121, 5.708, 8.939),
-        'neck': (29.577, 23.954, -38.316), 'left_shoulder': (27.084, 6.327, 11.622),
-        'left_elbow': (57.757, 23.838), 'left_wrist': (-14.245, 9.145),
+        'spine_lumbar': (60.0, 4.574, 3.306), 'neck': (35.0, 23.395, -35.814),
+        'head': (8.625, -10.756), 'right_shoulder': (19.216, 18.015, -11.873),
+        'right_elbow': (51.05, 57.981), 'right_wrist': (-46.623, 12.783),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (60.0, 14.882, -1.51), 'spine_thoracic': (-10.876, 2.522, -1.073),
-        'neck': (29.294, 29.082, -24.857), 'right_wrist': (-66.252, 18.764),
-        'left_clavicle': (-9.537, 15.0), 'left_shoulder': (30.478, 6.627, 15.067),
-        'left_elbow': (50.193, 31.439), 'left_wrist': (-26.636, 11.936),
+        'spine_lumbar': (60.0, 4.634, 3.347), 'spine_thoracic': (-14.975, 5.681, 14.536),
+        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721), 'right_clavicle': (-9.771, 15.0),
+        'right_shoulder': (19.569, 27.498, -24.633), 'right_elbow': (42.953, 49.863),
+        'right_wrist': (-61.243, 17.263), 'left_elbow': (64.051, 17.313),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (60.0, 16.916, -6.87), 'spine_thoracic': (-9.212, -1.137, -12.568),
-        'neck': (33.461, 33.75, -10.496), 'head': (15.0, -11.25), 'right_elbow': (27.304, 44.176),
-        'left_clavicle': (-9.276, 14.999), 'left_shoulder': (34.376, 7.17, 19.022),
-        'left_elbow': (40.974, 40.166), 'left_wrist': (-40.862, 15.141),
+        'spine_lumbar': (60.0, 7.697, 5.084), 'spine_thoracic': (-14.084, 6.964, 15.889),
+        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721),
+        'right_clavicle': (-8.679, 14.991), 'right_shoulder': (21.571, 36.068, -33.451),
+        'right_elbow': (30.875, 45.043), 'right_wrist': (-67.495, 19.192),
     })
+    # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(8.7, {
-        'spine_lumbar': (60.0, 18.809, -11.81), 'spine_thoracic': (-6.914, -4.538, -23.218),
-        'neck': (35.0, 31.236, -0.225), 'head': (15.0, -10.046), 'left_clavicle': (-8.779, 14.943),
-        'left_shoulder': (38.114, 8.386, 22.638), 'left_elbow': (30.805, 48.257),
-        'left_wrist': (-53.957, 18.055),
+        'spine_lumbar': (60.0, 11.509, 7.125), 'spine_thoracic': (-13.122, 8.413, 17.499),
+        'neck': (34.849, 20.482, -42.571), 'head': (6.576, -9.726),
+        'right_clavicle': (-7.137, 15.0), 'right_shoulder': (22.858, 39.866, -34.992),
+        'right_elbow': (27.368, 44.19), 'right_wrist': (-66.285, 18.775),
     })
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
+    # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
     human.KeyJoints(8.8, {
-        'spine_lumbar': (60.0, 19.928, -14.681), 'spine_thoracic': (0.867, -8.148, -29.46),
-        'neck': (35.0, -7.194, 8.642), 'head': (15.0, 11.25), 'left_clavicle': (-9.103, 14.855),
-        'left_shoulder': (47.984, 11.833, 23.603), 'left_elbow': (16.206, 52.318),
-        'left_wrist': (-53.656, 17.182),
+        'neck': (34.866, 20.052, -43.706), 'head': (6.054, -9.544),
+        'right_shoulder': (22.947, 39.995, -35.008), 'right_elbow': (27.216, 44.176),
+        'right_wrist': (-66.159, 18.747), 'left_shoulder': (24.17, 6.143, 8.665),
     })
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
+    human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.2628)
     human.KeyJoints(8.9, {
-        'spine_lumbar': (60.0, 19.998, -14.988), 'spine_thoracic': (6.352, -9.916, -29.981),
-        'neck': (35.0, 12.243, 9.077), 'head': (15.0, 9.519), 'left_clavicle': (-9.958, 14.993),
-        'left_shoulder': (55.859, 12.624, 22.97), 'left_elbow': (9.538, 52.088),
-        'left_wrist': (-46.228, 14.906),
+        'spine_lumbar': (60.0, 11.591, 7.168), 'neck': (34.832, 20.559, -47.33),
+        'head': (8.692, -10.045),
     })
-    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=8.949414, duration=0.2628)
-    human.KeyJoints(9.0, {
-        'spine_thoracic': (6.618, -10.0, -30.0), 'neck': (34.331, 33.75, 7.559),
-        'head': (15.0, -11.25), 'left_shoulder': (56.358, 12.609, 22.942),
-        'left_elbow': (9.02, 52.073), 'left_wrist': (-45.588, 14.719),
+    human.KeyJoints(9.0, {'neck': (34.717, 21.472, -53.855), 'head': (13.465, -10.945)})
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
+    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=9.067661, duration=2.069192)
+    human.KeyJoints(9.1, {
+        'spine_lumbar': (60.0, 11.596, 7.153), 'spine_thoracic': (-13.098, 8.434, 17.502),
+        'neck': (34.397, 21.709, -55.414), 'head': (14.994, -11.206),
+        'left_shoulder': (24.181, 6.143, 8.676), 'left_elbow': (64.027, 17.337),
+        'left_wrist': (-3.648, 6.758),
     })
     human.KeyJoints(9.2, {
-        'neck': (34.331, 33.75, 7.559), 'head': (15.0, -11.25),
+        'spine_lumbar': (60.0, 11.905, 6.338), 'spine_thoracic': (-12.902, 7.877, 15.754),
+        'neck': (32.248, 21.911, -50.134), 'left_clavicle': (-9.76, 15.0),
+        'left_shoulder': (24.773, 6.178, 9.277), 'left_elbow': (62.755, 18.664),
+        'left_wrist': (-5.811, 7.245),
+    })
+    human.KeyJoints(9.3, {
+        'spine_lumbar': (60.0, 12.944, 3.6), 'spine_thoracic': (-12.232, 6.008, 9.882),
+        'neck': (29.757, 23.595, -39.729), 'left_shoulder': (26.764, 6.304, 11.297),
+        'left_elbow': (58.455, 23.122), 'left_wrist': (-13.078, 8.882),
+    })
+    human.KeyJoints(9.4, {
+        'spine_lumbar': (60.0, 14.658, -0.918), 'spine_thoracic': (-11.042, 2.925, 0.195),
+        'neck': (29.235, 28.28, -26.441), 'right_elbow': (27.304, 44.176),
+        'right_wrist': (-66.252, 18.764), 'left_clavicle': (-9.559, 15.0),
+        'left_shoulder': (30.049, 6.583, 14.631), 'left_elbow': (51.169, 30.477),
+        'left_wrist': (-25.067, 11.583),
+    })
+    human.KeyJoints(9.5, {
+        'spine_lumbar': (60.0, 16.685, -6.26), 'spine_thoracic': (-9.421, -0.721, -11.26),
+        'neck': (32.88, 33.732, -12.032), 'left_clavicle': (-9.313, 15.0),
+        'left_shoulder': (33.932, 7.091, 18.572), 'left_elbow': (42.068, 39.173),
+        'left_wrist': (-39.243, 14.776),
+    })
+    human.KeyJoints(9.6, {
+        'spine_lumbar': (60.0, 18.607, -11.292), 'spine_thoracic': (-7.261, -4.171, -22.088),
+        'neck': (35.0, 33.75, -1.656), 'head': (15.0, -11.25), 'left_clavicle': (-8.854, 14.961),
+        'left_shoulder': (37.672, 8.156, 22.269), 'left_elbow': (32.085, 47.4),
+        'left_wrist': (-52.607, 17.765),
+    })
+    human.KeyJoints(9.7, {
+        'spine_lumbar': (60.0, 19.897, -14.582), 'spine_thoracic': (-0.282, -7.763, -29.269),
+        'neck': (34.901, 14.446, 5.098), 'head': (14.927, 1.363), 'left_clavicle': (-8.938, 14.833),
+        'left_shoulder': (46.383, 11.579, 23.718), 'left_elbow': (17.703, 52.304),
+        'left_wrist': (-55.031, 17.621),
+    })
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
+    human.KeyJoints(9.8, {
+        'spine_lumbar': (60.0, 19.996, -14.977), 'spine_thoracic': (6.134, -9.846, -29.965),
+        'neck': (34.309, -0.41, 9.576), 'head': (14.513, 11.185), 'left_clavicle': (-9.923, 14.987),
+        'left_shoulder': (55.542, 12.599, 22.996), 'left_elbow': (9.798, 52.101),
+        'left_wrist': (-46.535, 14.999),
+    })
+    # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
+    human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
+    human.KeyJoints(9.9, {
+        'spine_thoracic': (6.618, -10.0, -30.0), 'neck': (31.613, 0.298, 9.832),
+        'head': (12.542, 11.006), 'left_shoulder': (56.358, 12.609, 22.942),
+        'left_elbow': (9.02, 52.073), 'left_wrist': (-45.588, 14.719),
+    })
+    human.KeyJoints(10.0, {'left_clavicle': (-10.0, 15.0)})
+    human.KeyJoints(10.1, {
+        'neck': (31.613, 0.298, 9.832), 'head': (12.542, 11.006),
         'left_shoulder': (56.358, 12.609, 22.942), 'left_elbow': (9.02, 52.073),
         'left_wrist': (-45.588, 14.719),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
-    human.KeyJoints(9.3, {
-        'neck': (34.405, 29.1, 14.079), 'head': (15.0, -8.751),
-        'left_shoulder': (54.672, 13.175, 21.564), 'left_elbow': (12.524, 51.793),
-        'left_wrist': (-46.257, 14.818),
-    })
-    human.KeyJoints(9.4, {
-        'neck': (34.609, 16.36, 31.944), 'head': (15.0, -1.903),
-        'left_shoulder': (46.25, 15.982, 14.558), 'left_elbow': (29.911, 50.365),
-        'left_wrist': (-49.268, 15.212),
-    })
-    human.KeyJoints(9.5, {
-        'neck': (34.838, 2.034, 52.032), 'head': (15.0, 5.797),
-        'left_shoulder': (33.467, 20.122, 3.902), 'left_elbow': (54.542, 48.156),
-        'left_wrist': (-53.501, 15.746),
-    })
-    human.KeyJoints(9.6, {
-        'neck': (34.987, -7.267, 65.074), 'head': (15.0, 10.796),
-        'left_shoulder': (16.032, 25.105, -10.526), 'left_elbow': (79.037, 44.934),
-        'left_wrist': (-57.885, 16.166),
-    })
-    human.KeyJoints(9.7, {
-        'neck': (35.0, -8.111, 66.258), 'head': (15.0, 11.25),
-        'left_shoulder': (-8.002, 29.563, -29.166), 'left_elbow': (88.444, 39.713),
-        'left_wrist': (-60.416, 14.933),
-    })
-    human.KeyJoints(9.8, {
-        'left_shoulder': (-29.616, 32.604, -46.043), 'left_elbow': (84.488, 34.269),
-        'left_wrist': (-61.12, 11.376),
-    })
-    human.KeyJoints(9.9, {
-        'left_shoulder': (-40.253, 38.22, -62.278), 'left_elbow': (86.106, 31.402),
-        'left_wrist': (-63.339, 9.178),
-    })
-    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
-    human.KeyJoints(10.0, {
-        'left_shoulder': (-41.039, 39.913, -71.875), 'left_elbow': (93.016, 31.152),
-        'left_wrist': (-66.583, 9.211),
-    })
-    human.KeyJoints(10.1, {
-        'left_shoulder': (-41.0, 39.949, -75.259), 'left_elbow': (95.93, 31.158),
-        'left_wrist': (-67.946, 9.322),
-    })
-    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=10.153418, duration=0.072)
     human.KeyJoints(10.2, {
-        'neck': (35.0, -8.111, 66.258), 'left_shoulder': (-40.997, 39.949, -75.438),
-        'left_elbow': (96.085, 31.159),
+        'neck': (31.903, -0.423, 14.672), 'head': (12.753, 11.027),
+        'right_shoulder': (22.884, 39.943, -35.018), 'left_shoulder': (55.195, 13.0, 21.997),
+        'left_elbow': (11.435, 51.881), 'left_wrist': (-46.064, 14.792),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=10.225418, duration=0.2628)
-    human.KeyJoints(10.3, {'neck': (35.0, -7.954, 66.245)})
-    human.KeyJoints(10.4, {'neck': (35.0, -7.52, 66.173), 'left_wrist': (-68.019, 9.328)})
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=10.488218, duration=0.719288)
+    human.KeyJoints(10.3, {
+        'neck': (32.885, -2.861, 31.033), 'head': (13.466, 11.098),
+        'left_shoulder': (47.483, 15.574, 15.585), 'left_elbow': (27.397, 50.575),
+        'left_wrist': (-48.835, 15.156),
+    })
+    human.KeyJoints(10.4, {
+        'neck': (34.057, -5.77, 50.55), 'head': (14.316, 11.182),
+        'left_shoulder': (35.109, 19.605, 5.272), 'left_elbow': (51.587, 48.445),
+        'left_wrist': (-52.995, 15.684),
+    })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (60.0, 19.998, -14.999), 'spine_thoracic': (6.617, -9.999, -29.999),
-        'neck': (34.999, -7.392, 65.948), 'head': (15.0, 11.25), 'right_clavicle': (-7.103, 15.0),
-        'right_shoulder': (22.885, 39.939, -35.016), 'right_elbow': (27.304, 44.177),
-        'right_wrist': (-66.251, 18.764),
+        'neck': (34.883, -7.821, 64.313), 'head': (14.915, 11.242),
+        'left_shoulder': (18.401, 24.501, -8.591), 'left_elbow': (76.6, 45.394),
+        'left_wrist': (-57.418, 16.148),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (60.0, 18.461, -14.202), 'spine_thoracic': (5.995, -9.231, -29.285),
-        'neck': (33.88, -7.788, 61.658), 'head': (14.692, 11.217), 'right_clavicle': (-7.215, 15.0),
-        'right_shoulder': (23.607, 37.802, -34.235), 'right_elbow': (27.334, 44.435),
-        'right_wrist': (-65.605, 18.627),
+        'neck': (35.0, -8.111, 66.258), 'left_shoulder': (-5.223, 29.191, -27.107),
+        'left_elbow': (88.472, 40.369), 'left_wrist': (-60.282, 15.233),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (60.0, 12.274, -10.993), 'spine_thoracic': (3.473, -6.137, -26.409),
-        'neck': (31.025, -8.04, 51.441), 'head': (14.554, 11.081), 'right_clavicle': (-7.663, 15.0),
-        'right_shoulder': (26.529, 29.175, -31.077), 'right_elbow': (27.459, 45.48),
-        'right_wrist': (-63.003, 18.075),
+        'head': (15.0, 11.25), 'left_shoulder': (-27.453, 32.151, -44.094),
+        'left_elbow': (84.969, 34.834), 'left_wrist': (-61.024, 11.808),
     })
     human.KeyJoints(10.8, {
-        'spine_lumbar': (60.0, 2.6, -5.976), 'spine_thoracic': (-0.628, -1.3, -21.897),
-        'neck': (27.995, -9.971, 37.537), 'head': (14.967, 11.212),
-        'right_shoulder': (31.207, 15.519, -26.07), 'right_elbow': (27.693, 47.137),
-        'right_wrist': (-58.936, 17.212),
+        'left_shoulder': (-39.855, 37.689, -60.746), 'left_elbow': (85.362, 31.517),
+        'left_wrist': (-62.961, 9.248),
     })
+    # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.9, {
-        'spine_lumbar': (59.999, -7.688, -0.64), 'spine_thoracic': (-5.35, 3.844, -17.066),
-        'neck': (27.329, -15.054, 23.96), 'right_clavicle': (-9.108, 15.0),
-        'right_shoulder': (36.437, 0.612, -20.585), 'right_elbow': (28.027, 48.957),
-        'right_wrist': (-54.611, 16.295),
+        'left_shoulder': (-41.039, 39.881, -71.112), 'left_elbow': (92.374, 31.154),
+        'left_wrist': (-66.283, 9.19),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (59.544, -15.625, 3.494), 'spine_thoracic': (-9.768, 7.846, -13.259),
-        'neck': (29.064, -20.441, 13.683), 'right_clavicle': (-9.611, 14.945),
-        'right_shoulder': (40.838, -12.06, -15.911), 'right_elbow': (28.487, 50.513),
-        'right_wrist': (-51.313, 15.619),
+        'left_shoulder': (-41.002, 39.95, -75.123), 'left_elbow': (95.812, 31.158),
+        'left_wrist': (-67.891, 9.317),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
+    # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
+    human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
     human.KeyJoints(11.1, {
-        'spine_lumbar': (55.972, -18.607, 5.179), 'spine_thoracic': (-12.274, 9.593, -11.69),
-        'neck': (31.241, -23.332, 11.454), 'right_clavicle': (-9.221, 14.484),
-        'right_shoulder': (41.657, -20.499, -13.016), 'right_elbow': (28.958, 51.471),
-        'right_wrist': (-50.384, 15.597),
+        'neck': (35.0, -8.111, 66.258), 'left_shoulder': (-40.997, 39.949, -75.438),
+        'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
     })
-    human.KeyJoints(11.2, {
-        'spine_lumbar': (54.52, -18.971, 5.424), 'spine_thoracic': (-12.72, 9.879, -11.469),
-        'neck': (31.618, -23.425, 13.008), 'right_clavicle': (-8.996, 14.294),
-        'right_shoulder': (41.419, -22.523, -12.369), 'right_elbow': (29.076, 51.683),
-        'right_wrist': (-50.365, 15.664),
-    })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=11.207505, duration=0.072)
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(11.3, {
-        'neck': (31.689, -23.388, 13.263), 'right_shoulder': (41.289, -22.49, -12.396),
-        'right_elbow': (29.193, 52.561), 'right_wrist': (-50.469, 15.684),
-    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.2628)
+    human.KeyJoints(11.2, {'neck': (35.0, -7.995, 66.249)})
+    human.KeyJoints(11.3, {'neck': (35.0, -7.568, 66.185)})
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=11.399653, duration=0.719288)
     human.KeyJoints(11.4, {
-        'right_shoulder': (40.743, -20.833, -13.031), 'right_elbow': (28.927, 70.834),
-        'right_wrist': (-50.347, 15.398),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (6.618, -10.0, -30.0),
+        'neck': (35.0, -7.309, 66.034), 'head': (15.0, 11.25), 'right_clavicle': (-7.103, 15.0),
+        'right_shoulder': (22.884, 39.943, -35.018), 'right_elbow': (27.304, 44.176),
+        'right_wrist': (-66.252, 18.764),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.5, {
-        'right_shoulder': (40.636, -20.385, -13.199), 'right_elbow': (28.968, 75.57),
-        'right_wrist': (-50.357, 15.337),
+        'spine_lumbar': (60.0, 18.852, -14.405), 'spine_thoracic': (6.154, -9.426, -29.467),
+        'neck': (34.132, -7.787, 62.483), 'right_clavicle': (-7.186, 15.0),
+        'right_shoulder': (23.423, 38.346, -34.434), 'right_elbow': (27.326, 44.369),
+        'right_wrist': (-65.769, 18.662),
     })
     human.KeyJoints(11.6, {
-        'right_shoulder': (42.817, -25.1, -11.415), 'right_elbow': (31.744, 15.525),
-        'right_wrist': (-51.581, 16.662),
+        'spine_lumbar': (60.0, 13.208, -11.478), 'spine_thoracic': (3.857, -6.604, -26.843),
+        'neck': (31.384, -7.977, 52.833), 'head': (14.508, 11.109),
+        'right_clavicle': (-7.595, 15.0), 'right_shoulder': (26.085, 30.482, -31.555),
+        'right_elbow': (27.44, 45.321), 'right_wrist': (-63.396, 18.159),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.7, {
-        'right_shoulder': (43.657, -25.84, -11.172), 'right_elbow': (33.97, -3.603),
-        'right_wrist': (-52.754, 17.493),
+        'spine_lumbar': (60.0, 3.792, -6.594), 'spine_thoracic': (-0.109, -1.896, -22.455),
+        'neck': (28.266, -9.478, 39.224), 'head': (14.936, 11.18),
+        'right_shoulder': (30.621, 17.217, -26.693), 'right_elbow': (27.661, 46.931),
+        'right_wrist': (-59.437, 17.319),
     })
     human.KeyJoints(11.8, {
-        'right_shoulder': (41.099, -22.021, -12.578), 'right_elbow': (29.06, 57.949),
-        'right_wrist': (-50.418, 15.594),
+        'spine_lumbar': (60.0, -6.573, -1.219), 'spine_thoracic': (-4.809, 3.286, -17.593),
+        'neck': (27.241, -14.365, 25.422), 'right_clavicle': (-9.028, 15.0),
+        'right_shoulder': (35.849, 2.259, -21.192), 'right_elbow': (27.984, 48.755),
+        'right_wrist': (-55.08, 16.394),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(11.9, {
-        'right_shoulder': (40.731, -20.786, -13.049), 'right_elbow': (28.929, 71.334),
-        'right_wrist': (-50.347, 15.391),
+        'spine_lumbar': (59.713, -14.941, 3.132), 'spine_thoracic': (-9.315, 7.491, -13.596),
+        'neck': (28.786, -19.921, 14.542), 'head': (14.972, 11.218),
+        'right_clavicle': (-9.589, 14.966), 'right_shoulder': (40.46, -10.789, -16.374),
+        'right_elbow': (28.425, 50.359), 'right_wrist': (-51.586, 15.668),
     })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.0, {
-        'right_shoulder': (43.119, -25.418, -11.306), 'right_elbow': (32.474, 8.736),
-        'right_wrist': (-51.94, 16.926),
+        'spine_lumbar': (56.404, -18.477, 5.095), 'spine_thoracic': (-12.126, 9.497, -11.767),
+        'neck': (30.997, -23.089, 11.385), 'right_clavicle': (-9.286, 14.54),
+        'right_shoulder': (41.712, -19.86, -13.223), 'right_elbow': (28.921, 51.404),
+        'right_wrist': (-50.398, 15.58),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.1, {
-        'right_shoulder': (43.45, -25.7, -11.214), 'right_elbow': (33.362, 1.212),
-        'right_wrist': (-52.41, 17.258),
+        'spine_lumbar': (54.53, -18.969, 5.423), 'spine_thoracic': (-12.717, 9.877, -11.47),
+        'neck': (31.557, -23.433, 12.793), 'right_clavicle': (-8.997, 14.295),
+        'right_shoulder': (41.421, -22.511, -12.373), 'right_elbow': (29.075, 51.682),
+        'right_wrist': (-50.365, 15.663),
     })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.2, {
-        'right_shoulder': (40.88, -21.446, -12.802), 'right_elbow': (29.003, 64.395),
-        'right_wrist': (-50.406, 15.501),
+        'neck': (31.689, -23.388, 13.263), 'right_shoulder': (41.319, -22.561, -12.368),
+        'right_elbow': (29.221, 51.727), 'right_wrist': (-50.48, 15.699),
     })
-    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.3, {
-        'right_shoulder': (40.868, -21.285, -12.86), 'right_elbow': (28.933, 65.992),
-        'right_wrist': (-50.355, 15.466),
+        'right_shoulder': (41.135, -22.112, -12.543), 'right_elbow': (29.079, 56.918),
     })
-    human.KeyJoints(12.4, {
-        'right_shoulder': (43.386, -25.651, -11.23), 'right_elbow': (33.182, 2.685),
-        'right_wrist': (-52.312, 17.19),
+    human.KeyJoints(12.4, {'right_elbow': (28.928, 66.967)})
+    human.KeyJoints(12.5, {
+        'right_shoulder': (40.618, -20.302, -13.23), 'right_elbow': (28.98, 76.444),
+        'right_wrist': (-50.36, 15.326),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(12.5, {
-        'right_shoulder': (43.195, -25.489, -11.282), 'right_elbow': (32.668, 7.028),
-        'right_wrist': (-52.04, 16.998),
-    })
     human.KeyJoints(12.6, {
-        'right_shoulder': (40.763, -20.911, -13.002), 'right_elbow': (28.925, 69.998),
+        'right_shoulder': (40.554, -19.987, -13.346), 'right_elbow': (29.041, 79.758),
+        'right_wrist': (-50.38, 15.287),
+    })
+    human.KeyJoints(12.7, {
+        'right_shoulder': (40.942, -21.611, -12.738), 'right_elbow': (29.008, 62.557),
+        'right_wrist': (-50.404, 15.526),
+    })
+    human.KeyJoints(12.8, {
+        'right_shoulder': (42.16, -24.211, -11.738), 'right_elbow': (30.412, 30.427),
+        'right_wrist': (-50.979, 16.186),
+    })
+    human.KeyJoints(12.9, {
+        'right_shoulder': (43.476, -25.719, -11.209), 'right_elbow': (33.435, 0.621),
+        'right_wrist': (-52.45, 17.286),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(13.0, {
+        'right_shoulder': (43.95, -25.951, -11.134), 'right_elbow': (34.693, -9.627),
+        'right_wrist': (-53.184, 17.781),
+    })
+    human.KeyJoints(13.1, {
+        'right_shoulder': (43.14, -25.438, -11.299), 'right_elbow': (32.528, 8.259),
+        'right_wrist': (-51.968, 16.946),
+    })
+    human.KeyJoints(13.2, {
+        'right_shoulder': (41.72, -23.478, -12.018), 'right_elbow': (29.768, 40.567),
+        'right_wrist': (-50.718, 15.939),
+    })
+    human.KeyJoints(13.3, {
+        'right_shoulder': (40.762, -20.907, -13.003), 'right_elbow': (28.925, 70.044),
         'right_wrist': (-50.347, 15.409),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(12.7, {
-        'right_shoulder': (41.037, -21.862, -12.64), 'right_elbow': (29.033, 59.753),
-        'right_wrist': (-50.409, 15.566),
+    human.KeyJoints(13.4, {
+        'right_shoulder': (40.559, -20.015, -13.336), 'right_elbow': (29.035, 79.469),
+        'right_wrist': (-50.378, 15.29),
     })
-    human.KeyJoints(12.8, {
-        'right_shoulder': (43.607, -25.809, -11.181), 'right_elbow': (33.818, -2.419),
-        'right_wrist': (-52.666, 17.434),
+    human.KeyJoints(13.5, {
+        'right_shoulder': (40.997, -21.758, -12.681), 'right_elbow': (29.02, 60.912),
+        'right_wrist': (-50.406, 15.549),
+    })
+    human.KeyJoints(13.6, {
+        'right_shoulder': (42.246, -24.344, -11.688), 'right_elbow': (30.567, 28.441),
+        'right_wrist': (-51.046, 16.242),
+    })
+    human.KeyJoints(13.7, {
+        'right_shoulder': (43.533, -25.759, -11.196), 'right_elbow': (33.599, -0.691),
+        'right_wrist': (-52.542, 17.349),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(13.8, {
+        'right_shoulder': (43.896, -25.963, -11.138), 'right_elbow': (34.722, -9.283),
+        'right_wrist': (-53.208, 17.793),
+    })
+    human.KeyJoints(13.9, {
+        'right_shoulder': (43.066, -25.366, -11.323), 'right_elbow': (32.34, 9.929),
+        'right_wrist': (-51.873, 16.877),
+    })
+    human.KeyJoints(14.0, {
+        'right_shoulder': (41.649, -23.321, -12.077), 'right_elbow': (29.647, 42.548),
+        'right_wrist': (-50.663, 15.891),
+    })
+    human.KeyJoints(14.1, {
+        'right_shoulder': (40.731, -20.787, -13.049), 'right_elbow': (28.929, 71.321),
+        'right_wrist': (-50.347, 15.391),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(14.2, {
+        'right_shoulder': (40.566, -20.052, -13.322), 'right_elbow': (29.027, 79.071),
+        'right_wrist': (-50.375, 15.295),
+    })
+    human.KeyJoints(14.3, {
+        'right_shoulder': (41.055, -21.909, -12.622), 'right_elbow': (29.04, 59.218),
+        'right_wrist': (-50.411, 15.574),
+    })
+    human.KeyJoints(14.4, {
+        'right_shoulder': (42.332, -24.472, -11.641), 'right_elbow': (30.728, 26.466),
+        'right_wrist': (-51.116, 16.299),
+    })
+    human.KeyJoints(14.5, {
+        'right_shoulder': (43.586, -25.795, -11.185), 'right_elbow': (33.756, -1.932),
+        'right_wrist': (-52.631, 17.409),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(14.6, {
+        'right_shoulder': (43.877, -25.955, -11.14), 'right_elbow': (34.661, -8.833),
+        'right_wrist': (-53.17, 17.768),
+    })
+    human.KeyJoints(14.7, {
+        'right_shoulder': (42.99, -25.289, -11.349), 'right_elbow': (32.152, 11.646),
+        'right_wrist': (-51.779, 16.809),
+    })
+    human.KeyJoints(14.8, {
+        'right_shoulder': (41.578, -23.162, -12.137), 'right_elbow': (29.536, 44.516),
+        'right_wrist': (-50.614, 15.846),
+    })
+    human.KeyJoints(14.9, {
+        'right_shoulder': (40.703, -20.674, -13.091), 'right_elbow': (28.937, 72.525),
+        'right_wrist': (-50.348, 15.375),
+    })
+    # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
+    human.KeyJoints(15.0, {
+        'right_shoulder': (40.576, -20.1, -13.304), 'right_elbow': (29.017, 78.57),
+        'right_wrist': (-50.372, 15.3),
+    })
+    human.KeyJoints(15.1, {
+        'right_shoulder': (41.116, -22.063, -12.562), 'right_elbow': (29.069, 57.48),
+        'right_wrist': (-50.421, 15.601),
+    })
+    human.KeyJoints(15.2, {
+        'right_shoulder': (42.418, -24.594, -11.596), 'right_elbow': (30.895, 24.506),
+        'right_wrist': (-51.19, 16.359),
+    })
+    human.KeyJoints(15.3, {
+        'right_shoulder': (43.636, -25.827, -11.176), 'right_elbow': (33.905, -3.098),
+        'right_wrist': (-52.716, 17.467),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=12.834705, duration=0.072)
-    human.KeyJoints(12.9, {
+    human.Grasp('right_hand', 'open', start=15.367411, duration=0.072)
+    human.KeyJoints(15.4, {
         'right_shoulder': (43.966, -25.957, -11.132), 'right_elbow': (34.742, -10.0),
         'right_wrist': (-53.215, 17.801),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=12.906705, duration=0.2628)
-    human.KeyJoints(13.0, {'neck': (31.694, -23.37, 13.262), 'right_elbow': (32.628, -10.0)})
-    human.KeyJoints(13.1, {
-        'right_shoulder': (41.997, -23.303, -12.088), 'right_elbow': (30.361, -10.0),
-        'right_wrist': (-51.011, 16.148),
+    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.2628)
+    human.KeyJoints(15.5, {
+        'neck': (31.694, -23.369, 13.262), 'right_shoulder': (43.349, -25.125, -11.432),
+        'right_elbow': (33.369, -10.0), 'right_wrist': (-52.524, 17.283),
+    })
+    human.KeyJoints(15.6, {
+        'right_shoulder': (42.33, -23.752, -11.927), 'right_elbow': (31.102, -10.0),
+        'right_wrist': (-51.384, 16.428),
+    })
+    human.KeyJoints(15.7, {
+        'right_shoulder': (41.419, -22.524, -12.369), 'right_elbow': (29.076, -10.0),
+        'right_wrist': (-50.365, 15.664),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(13.2, {
-        'right_shoulder': (41.43, -22.522, -12.368), 'right_elbow': (29.049, -9.991),
-        'right_wrist': (-50.39, 15.681),
-    })
-    human.KeyJoints(13.3, {'neck': (31.731, -23.243, 13.254)})
-    human.KeyJoints(16.1, {
+    human.KeyJoints(15.8, {'neck': (31.731, -23.243, 13.254)})
+    human.KeyJoints(18.7, {
         'spine_lumbar': (54.52, -18.971, 5.425), 'spine_thoracic': (-12.72, 9.879, -11.469),
         'right_clavicle': (-8.996, 14.294), 'right_shoulder': (41.419, -22.524, -12.369),
         'right_elbow': (29.076, -10.0), 'right_wrist': (-50.365, 15.664),
@@ -779,210 +839,200 @@ def replace_fuel_filter():
         'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
-    human.KeyJoints(16.2, {
-        'spine_lumbar': (52.974, -18.432, 5.268), 'spine_thoracic': (-12.245, 9.595, -11.079),
-        'right_clavicle': (-8.736, 13.808), 'right_shoulder': (40.6, -21.506, -12.54),
-        'right_elbow': (28.72, -9.165), 'right_wrist': (-48.247, 14.917),
-        'left_clavicle': (-9.711, 14.49), 'left_shoulder': (-39.295, 39.065, -73.492),
-        'left_elbow': (94.12, 30.719), 'left_wrist': (-65.686, 9.096),
+    human.KeyJoints(18.8, {
+        'spine_lumbar': (42.97, -14.863, 4.071), 'spine_thoracic': (-9.163, 7.423, -8.608),
+        'right_clavicle': (-6.752, 10.664), 'right_shoulder': (33.395, -14.929, -14.217),
+        'right_elbow': (29.91, -3.16), 'right_wrist': (-37.265, 11.498),
+        'left_clavicle': (-7.505, 11.191), 'left_shoulder': (-28.404, 31.863, -61.481),
+        'left_elbow': (80.503, 27.611), 'left_wrist': (-50.772, 7.003),
     })
-    human.KeyJoints(16.3, {
-        'spine_lumbar': (35.985, -12.291, 3.238), 'spine_thoracic': (-7.004, 5.911, -6.796),
-        'right_clavicle': (-5.37, 8.469), 'right_shoulder': (28.333, -10.305, -15.398),
-        'right_elbow': (30.812, 1.038), 'right_wrist': (-29.625, 9.137),
-        'left_clavicle': (-5.97, 8.888), 'left_shoulder': (-20.776, 26.914, -52.952),
-        'left_elbow': (70.99, 25.463), 'left_wrist': (-40.316, 5.565),
+    human.KeyJoints(18.9, {
+        'spine_lumbar': (21.101, -6.482, 1.46), 'spine_thoracic': (-2.372, 2.684, -3.087),
+        'right_clavicle': (-2.421, 3.792), 'right_shoulder': (17.565, -0.518, -17.896),
+        'right_elbow': (32.681, 9.965), 'right_wrist': (-13.269, 4.081),
+        'left_clavicle': (-2.691, 3.98), 'left_shoulder': (-4.624, 16.309, -34.823),
+        'left_elbow': (50.698, 20.887), 'left_wrist': (-18.063, 2.486),
     })
-    human.KeyRoot(16.4, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.4, {
-        'spine_lumbar': (15.052, -3.848, 0.739), 'spine_thoracic': (-0.464, 1.375, -1.518),
-        'right_clavicle': (-1.225, 1.891), 'right_shoulder': (13.138, 3.478, -18.921),
-        'right_elbow': (33.498, 13.588), 'right_wrist': (-6.62, 2.036),
-        'left_clavicle': (-1.362, 1.985), 'left_shoulder': (2.045, 12.0, -27.413),
-        'left_elbow': (42.398, 19.031), 'left_wrist': (-8.998, 1.228),
+    human.KeyRoot(19.0, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.0, {
+        'spine_lumbar': (8.893, -0.021, 0.001), 'spine_thoracic': (1.585, 0.036, -0.002),
+        'right_clavicle': (-0.001, -0.044), 'right_shoulder': (8.668, 7.533, -19.96),
+        'right_elbow': (34.284, 17.273), 'right_wrist': (0.177, -0.064),
+        'left_clavicle': (-0.002, -0.046), 'left_shoulder': (8.777, 7.586, -19.884),
+        'left_elbow': (33.991, 17.146), 'left_wrist': (0.201, -0.049),
         'right_hip': (22.438, 0.0, 0.0), 'right_knee': (124.422,), 'left_hip': (22.438, 0.0, 0.0),
         'left_knee': (124.422,),
     })
-    human.KeyRoot(16.5, (2.05, 44.598, 43.869), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.5, {
-        'spine_lumbar': (9.354, 0.835, 0.0), 'spine_thoracic': (1.658, 0.208, 0.037),
-        'right_clavicle': (0.0, -0.046), 'right_shoulder': (8.624, 7.548, -19.969),
-        'right_elbow': (34.317, 17.276), 'right_wrist': (0.178, -0.06),
-        'left_clavicle': (0.0, -0.048), 'left_shoulder': (8.822, 7.569, -19.868),
-        'left_elbow': (33.952, 17.144), 'left_wrist': (0.215, -0.056),
-        'right_hip': (23.13, 0.0, 0.0), 'right_knee': (125.116,), 'left_hip': (23.13, 0.0, 0.0),
-        'left_knee': (125.116,),
+    human.KeyRoot(19.1, (2.257, 44.092, 42.749), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.1, {
+        'spine_lumbar': (6.365, 6.487, 0.0), 'spine_thoracic': (1.036, 1.445, 0.0),
+        'right_hip': (24.788, 0.0, 0.0), 'right_knee': (126.775,), 'left_hip': (24.788, 0.0, 0.0),
+        'left_knee': (126.775,),
     })
-    human.KeyRoot(16.6, (2.337, 43.885, 42.314), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.6, {
-        'spine_lumbar': (3.137, 10.614, 0.0), 'spine_thoracic': (0.333, 2.474, 0.03),
-        'right_hip': (25.437, 0.0, 0.0), 'right_knee': (127.424,), 'left_hip': (25.437, 0.0, 0.0),
-        'left_knee': (127.424,),
+    human.KeyRoot(19.2, (2.402, 43.711, 41.96), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.2, {
+        'spine_lumbar': (-6.339, 19.969, 0.0), 'spine_thoracic': (-2.106, 6.013, 0.0),
+        'right_hip': (25.97, 0.0, 0.0), 'right_knee': (127.957,), 'left_hip': (25.97, 0.0, 0.0),
+        'left_knee': (127.957,),
     })
-    human.KeyRoot(16.7, (2.365, 43.809, 42.159), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.7, {
-        'spine_lumbar': (-11.806, 20.0, 0.0), 'spine_thoracic': (-4.29, 10.0, 0.023),
-        'right_hip': (25.67, -0.001, 0.0), 'right_knee': (127.657,),
-        'left_hip': (25.67, 0.001, 0.0), 'left_knee': (127.657,), 'left_ankle': (15.003, -0.002),
-        'left_toes': (86.984,),
+    human.KeyRoot(19.3, (2.114, 44.439, 43.508), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.3, {
+        'spine_lumbar': (-23.361, 20.0, 0.0), 'spine_thoracic': (-8.935, 10.0, 0.0),
+        'right_hip': (23.661, -0.003, -0.001), 'right_knee': (125.648,),
+        'left_hip': (23.661, 0.003, 0.001), 'left_knee': (125.648,), 'left_ankle': (15.003, -0.004),
     })
-    human.KeyRoot(16.8, (1.932, 44.864, 44.493), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.8, {
-        'spine_lumbar': (-27.985, 20.0, 0.0), 'spine_thoracic': (-11.636, 10.0, 0.015),
-        'right_elbow': (34.301, 17.225), 'right_hip': (22.213, -0.004, -0.001),
-        'right_knee': (124.2,), 'left_hip': (22.171, 0.002, 0.002), 'left_knee': (124.204,),
-        'left_ankle': (15.144, -0.003), 'left_toes': (86.889,),
+    human.KeyRoot(19.4, (1.881, 44.978, 44.772), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.4, {
+        'spine_lumbar': (-28.663, 20.0, 0.0), 'spine_thoracic': (-14.988, 10.0, 0.0),
+        'right_hip': (21.806, -0.004, -0.001), 'right_knee': (123.791,),
+        'left_hip': (21.246, -0.017, 0.02), 'left_knee': (125.596,), 'left_ankle': (17.388, 0.026),
+        'left_toes': (86.962,),
     })
-    human.KeyRoot(16.9, (2.045, 44.604, 43.881), (-10.437, 0.0, 0.0))
-    human.KeyJoints(16.9, {
-        'spine_lumbar': (-25.223, 20.0, 0.0), 'spine_thoracic': (-14.99, 10.0, 0.008),
-        'right_hip': (23.11, -0.003, -0.001), 'right_knee': (125.094,),
-        'left_hip': (22.48, -2.354, -0.231), 'left_knee': (128.694,), 'left_ankle': (17.628, 0.397),
-        'left_toes': (89.07,),
+    human.KeyRoot(19.5, (2.448, 43.58, 41.696), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.5, {
+        'spine_lumbar': (-18.092, 20.0, 0.0), 'right_hip': (26.366, -0.003, -0.001),
+        'right_knee': (128.35,), 'right_ankle': (15.002, 0.002),
+        'left_hip': (26.227, -20.941, -1.322), 'left_knee': (131.634,),
+        'left_ankle': (16.764, 4.839), 'right_toes': (86.982,), 'left_toes': (88.882,),
     })
-    human.KeyRoot(17.0, (2.617, 43.103, 40.779), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.0, {
-        'spine_lumbar': (-16.343, 20.0, 0.0), 'right_elbow': (34.377, 17.192),
-        'left_elbow': (34.371, 17.187), 'right_hip': (27.759, -0.003, -0.001),
-        'right_knee': (129.743,), 'right_ankle': (15.002, 0.002), 'left_hip': (31.85, -23.439, 1.0),
-        'left_knee': (133.585,), 'left_ankle': (3.204, 8.849), 'right_toes': (86.982,),
-        'left_toes': (90.0,),
+    human.KeyRoot(19.6, (2.431, 42.849, 40.256), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.6, {
+        'spine_lumbar': (-15.664, 20.0, 0.0), 'spine_thoracic': (-14.908, 10.0, 0.0),
+        'left_elbow': (34.377, 17.189), 'right_hip': (28.482, -0.359, -0.13),
+        'right_knee': (130.48,), 'right_ankle': (15.02, 0.243),
+        'left_hip': (47.903, -19.442, 9.601), 'left_knee': (135.0,), 'left_ankle': (-46.42, 9.954),
+        'left_toes': (74.385,),
     })
-    human.KeyRoot(17.1, (2.513, 42.01, 38.772), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.1, {
-        'spine_lumbar': (-17.485, 20.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'left_wrist': (0.0, 0.0), 'right_hip': (30.735, -0.594, -0.248), 'right_knee': (132.751,),
-        'right_ankle': (15.047, 0.395), 'left_hip': (62.255, -10.259, 34.129),
-        'left_knee': (135.0,), 'left_ankle': (-45.731, 8.145), 'right_toes': (86.768,),
-        'left_toes': (59.888,),
+    human.KeyRoot(19.7, (2.696, 41.474, 37.913), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.7, {
+        'spine_lumbar': (-17.259, 20.0, 0.0), 'right_wrist': (0.0, 0.0),
+        'left_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
+        'right_hip': (32.104, -0.564, -0.25), 'right_knee': (134.118,),
+        'right_ankle': (15.041, 0.384), 'left_hip': (81.032, -10.365, 34.313),
+        'left_knee': (135.0,), 'left_ankle': (-46.552, 12.264), 'right_toes': (86.776,),
+        'left_toes': (47.087,),
     })
-    human.KeyRoot(17.2, (2.896, 41.376, 37.795), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.2, {
-        'spine_lumbar': (-16.755, 20.0, 0.0), 'right_wrist': (0.0, 0.0),
-        'right_hip': (32.349, -0.346, -0.15), 'right_knee': (134.348,),
-        'left_hip': (89.364, -20.23, 31.99), 'left_knee': (135.0,), 'left_ankle': (-43.879, 14.355),
-        'left_toes': (39.069,),
+    human.KeyRoot(19.8, (3.208, 41.195, 37.565), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.8, {
+        'spine_lumbar': (-15.726, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (32.797, -0.004, -0.002), 'right_knee': (134.782,),
+        'right_ankle': (15.002, 0.002), 'left_hip': (103.584, -24.868, 15.517),
+        'left_knee': (133.985,), 'left_ankle': (-11.436, 18.778), 'right_toes': (86.983,),
+        'left_toes': (28.669,),
     })
-    human.KeyRoot(17.3, (3.232, 41.116, 37.445), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.3, {
-        'spine_lumbar': (-15.368, 20.0, 0.0), 'right_hip': (32.99, -0.002, -0.001),
-        'right_knee': (134.974,), 'right_ankle': (15.002, 0.002),
-        'left_hip': (108.148, -25.0, 9.196), 'left_knee': (133.596,), 'left_ankle': (4.985, 24.675),
-        'right_toes': (86.982,), 'left_toes': (26.325,),
+    human.KeyJoints(19.9, {
+        'left_hip': (104.606, -22.918, 1.77), 'left_knee': (132.689,),
+        'left_ankle': (15.448, 13.67), 'left_toes': (20.341,),
     })
-    human.KeyRoot(17.4, (3.191, 41.261, 37.665), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.4, {
-        'spine_lumbar': (-16.89, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (32.636, -0.002, -0.001), 'right_knee': (134.62,),
-        'left_hip': (99.556, -19.406, -3.226), 'left_knee': (129.906,),
-        'left_ankle': (19.683, 2.524), 'left_toes': (12.481,),
+    human.KeyRoot(20.0, (3.231, 41.113, 37.44), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.0, {
+        'spine_lumbar': (-16.256, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_elbow': (34.377, 17.189), 'right_hip': (32.998, -0.005, -0.002),
+        'right_knee': (134.983,), 'left_hip': (94.24, -0.04, 0.044), 'left_knee': (127.041,),
+        'left_ankle': (19.996, 0.068), 'left_toes': (12.781,),
     })
-    human.KeyRoot(17.5, (3.23, 41.116, 37.445), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.5, {
-        'spine_lumbar': (-13.871, 20.0, 0.0), 'spine_thoracic': (-13.88, 10.0, 0.0),
-        'right_hip': (32.99, -0.005, -0.002), 'right_knee': (134.977,),
-        'left_hip': (94.229, -0.003, 0.009), 'left_knee': (127.038,), 'left_ankle': (20.0, 0.01),
-        'left_toes': (12.809,),
+    human.KeyRoot(20.1, (3.103, 41.574, 38.154), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.1, {
+        'spine_lumbar': (-8.353, 13.078, 0.0), 'spine_thoracic': (-1.771, 2.342, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.0), 'right_hip': (31.855, 0.0, 0.0),
+        'right_knee': (133.842,), 'right_ankle': (15.003, 0.0), 'left_hip': (93.358, 0.0, 0.0),
+        'left_knee': (127.157,), 'right_toes': (86.984,), 'left_toes': (13.799,),
     })
-    human.KeyRoot(17.6, (3.078, 41.659, 38.289), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.6, {
-        'spine_lumbar': (-4.399, 5.832, 0.0), 'spine_thoracic': (-0.902, 1.053, 0.0),
-        'right_hip': (31.64, 0.0, 0.0), 'right_knee': (133.627,), 'right_ankle': (15.003, 0.0),
-        'left_hip': (93.25, 0.0, 0.0), 'left_knee': (127.194,), 'left_ankle': (19.825, 0.0),
-        'right_toes': (86.984,), 'left_toes': (14.12,),
+    human.KeyRoot(20.2, (3.499, 41.868, 36.044), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.2, {
+        'spine_lumbar': (6.335, 0.029, 0.0), 'spine_thoracic': (0.971, 0.004, 0.0),
+        'right_hip': (34.099, -0.01, 0.019), 'right_knee': (134.902,),
+        'right_ankle': (17.572, 0.021), 'left_hip': (93.658, 0.004, -0.014),
+        'left_knee': (124.666,), 'left_ankle': (20.0, -0.015), 'right_toes': (83.232,),
+        'left_toes': (11.009,),
     })
-    human.KeyRoot(17.7, (3.888, 42.894, 34.099), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.7, {
-        'spine_lumbar': (12.596, 0.137, 0.0), 'spine_thoracic': (1.957, 0.022, 0.0),
-        'right_hip': (35.937, -0.043, 0.093), 'right_knee': (134.697,),
-        'right_ankle': (20.0, 0.103), 'left_hip': (92.788, 0.014, -0.069), 'left_knee': (121.307,),
-        'left_ankle': (20.0, -0.07), 'right_toes': (78.76,), 'left_toes': (8.519,),
+    human.KeyRoot(20.3, (4.749, 44.321, 30.225), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.3, {
+        'spine_lumbar': (25.174, 0.659, 0.0), 'spine_thoracic': (3.57, 0.11, 0.0),
+        'right_hip': (41.201, -0.214, 0.461), 'right_knee': (134.95,),
+        'right_ankle': (19.999, 0.508), 'left_hip': (92.536, 0.048, -0.313),
+        'left_knee': (115.482,), 'left_ankle': (16.775, -0.317), 'right_toes': (73.749,),
+        'left_toes': (6.171,),
     })
-    human.KeyRoot(17.8, (5.342, 45.281, 27.606), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.8, {
-        'spine_lumbar': (34.545, 1.048, 0.0), 'spine_thoracic': (4.689, 0.172, 0.0),
-        'right_hip': (44.62, -0.341, 0.735), 'right_knee': (134.807,), 'right_ankle': (19.9, 0.81),
-        'left_hip': (92.067, 0.056, -0.475), 'left_knee': (111.359,),
-        'left_ankle': (14.668, -0.479), 'right_toes': (70.285,), 'left_toes': (4.624,),
+    human.KeyRoot(20.4, (5.857, 55.104, 26.168), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.4, {
+        'spine_lumbar': (39.302, 1.746, 0.0), 'spine_thoracic': (5.428, 0.288, 0.0),
+        'right_hip': (40.951, -0.18, 0.977), 'right_knee': (120.184,),
+        'right_ankle': (19.749, 0.994), 'left_hip': (78.578, -0.119, -0.636),
+        'left_knee': (95.188,), 'left_ankle': (15.774, -0.647), 'right_toes': (59.483,),
+        'left_toes': (0.837,),
     })
-    human.KeyRoot(17.9, (5.737, 63.559, 29.871), (-10.437, 0.0, 0.0))
-    human.KeyJoints(17.9, {
-        'spine_lumbar': (27.058, 3.623, 0.0), 'spine_thoracic': (4.051, 0.631, 0.0),
-        'right_hip': (30.861, 0.134, 1.453), 'right_knee': (104.128,),
-        'right_ankle': (19.377, 1.46), 'left_hip': (66.207, -0.44, -1.017), 'left_knee': (84.139,),
-        'left_ankle': (17.542, -1.108), 'right_toes': (53.892,), 'left_toes': (0.394,),
+    human.KeyRoot(20.5, (6.562, 77.604, 42.005), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.5, {
+        'spine_lumbar': (-5.32, 12.493, 0.0), 'spine_thoracic': (-1.229, 2.235, 0.0),
+        'right_hip': (3.514, 2.452, 2.275), 'right_knee': (62.825,), 'right_ankle': (20.0, 3.344),
+        'left_hip': (42.101, -2.458, -2.242), 'left_knee': (61.811,),
+        'left_ankle': (19.461, -3.326), 'right_toes': (39.36,), 'left_toes': (0.297,),
     })
-    human.KeyRoot(18.0, (7.172, 80.398, 43.353), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.0, {
-        'spine_lumbar': (-8.229, 15.007, 0.0), 'spine_thoracic': (-1.804, 2.685, 0.0),
-        'right_hip': (-2.996, 3.222, 1.9), 'right_knee': (50.502,), 'right_ankle': (20.0, 3.74),
-        'left_hip': (37.208, -3.066, -2.333), 'left_knee': (54.554,),
-        'left_ankle': (17.314, -3.852), 'right_toes': (33.551,), 'left_toes': (0.095,),
+    human.KeyRoot(20.6, (7.87, 82.879, 42.413), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.6, {
+        'spine_lumbar': (-4.236, 16.578, 0.0), 'spine_thoracic': (-1.102, 2.97, 0.0),
+        'right_hip': (-7.94, 3.731, 1.258), 'right_knee': (38.603,), 'right_ankle': (20.0, 3.937),
+        'left_hip': (33.445, -3.432, -2.265), 'left_knee': (45.956,),
+        'left_ankle': (12.579, -4.111), 'right_toes': (26.584,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(18.1, (8.151, 83.731, 41.885), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.1, {
-        'spine_lumbar': (-1.991, 17.13, 0.0), 'spine_thoracic': (-0.721, 3.071, 0.0),
-        'right_hip': (-10.357, 3.908, 0.896), 'right_knee': (32.894,), 'right_ankle': (20.0, 4.009),
-        'left_hip': (32.052, -3.561, -2.227), 'left_knee': (42.498,), 'left_ankle': (10.515, -4.2),
-        'right_toes': (23.282,),
+    human.KeyRoot(20.7, (7.686, 84.22, 41.797), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.7, {
+        'spine_lumbar': (-1.807, 15.654, 0.0), 'spine_thoracic': (-0.916, 2.812, 0.0),
+        'right_hip': (-13.245, 3.61, 0.451), 'right_knee': (27.111,), 'right_ankle': (20.0, 3.638),
+        'left_hip': (31.143, -3.275, -1.977), 'left_knee': (40.788,), 'left_ankle': (9.701, -3.824),
+        'right_toes': (20.37,),
     })
-    human.KeyRoot(18.2, (7.906, 84.063, 42.399), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.2, {
-        'spine_lumbar': (-1.819, 16.027, 0.0), 'spine_thoracic': (-1.297, 2.877, 0.0),
-        'right_hip': (-13.953, 3.841, 0.437), 'right_knee': (26.454,),
-        'right_ankle': (19.978, 3.865), 'left_hip': (31.221, -3.485, -2.11), 'left_knee': (41.702,),
-        'left_ankle': (10.546, -4.073), 'right_toes': (20.444,), 'left_toes': (0.0,),
+    human.KeyRoot(20.8, (10.329, 83.31, 44.372), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.8, {
+        'spine_lumbar': (30.551, 11.326, 0.0), 'spine_thoracic': (2.49, 2.027, 0.0),
+        'right_hip': (-14.784, 5.758, 0.708), 'right_knee': (26.903,),
+        'right_ankle': (19.914, 5.801), 'left_hip': (31.671, -5.241, -3.225),
+        'left_knee': (44.539,), 'left_ankle': (13.015, -6.152), 'right_toes': (21.809,),
     })
-    human.KeyRoot(18.3, (11.038, 83.836, 45.173), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.3, {
-        'spine_lumbar': (54.696, 4.562, 0.0), 'spine_thoracic': (5.537, 0.75, 0.0),
-        'right_hip': (-14.948, 6.264, 1.125), 'right_knee': (26.537,),
-        'right_ankle': (16.402, 6.362), 'left_hip': (30.257, -5.82, -3.385), 'left_knee': (42.714,),
-        'left_ankle': (12.629, -6.73), 'right_toes': (25.144,),
+    human.KeyRoot(20.9, (10.769, 87.897, 51.521), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.9, {
+        'spine_lumbar': (60.0, -2.236, 0.0), 'spine_thoracic': (6.323, -0.367, 0.0),
+        'right_hip': (-14.506, 5.998, 5.223), 'right_knee': (24.607,),
+        'right_ankle': (-16.311, 7.943), 'left_hip': (17.978, -6.674, -2.16),
+        'left_knee': (27.514,), 'left_ankle': (9.663, -7.014), 'right_toes': (55.883,),
     })
-    human.KeyRoot(18.4, (10.576, 89.064, 52.516), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.4, {
-        'spine_lumbar': (57.392, -2.416, 0.0), 'spine_thoracic': (5.678, -0.388, 0.0),
-        'right_hip': (-12.892, 5.849, 5.819), 'right_knee': (25.132,),
-        'right_ankle': (-19.579, 8.24), 'left_hip': (13.721, -6.712, -1.635),
-        'left_knee': (20.415,), 'left_ankle': (6.79, -6.908), 'right_toes': (58.825,),
+    human.KeyRoot(21.0, (9.735, 90.144, 55.39), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.0, {
+        'spine_lumbar': (49.126, -3.466, 0.0), 'spine_thoracic': (7.176, -0.68, 0.0),
+        'right_hip': (-13.365, 5.933, 4.154), 'right_knee': (30.098,),
+        'right_ankle': (-4.829, 7.111), 'left_hip': (7.302, -6.558, -0.838), 'left_knee': (11.627,),
+        'left_ankle': (4.372, -6.611), 'right_toes': (12.091,),
     })
-    human.KeyRoot(18.5, (8.856, 90.301, 59.679), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.5, {
-        'spine_lumbar': (34.754, -4.082, 0.0), 'spine_thoracic': (5.169, -0.717, 0.0),
-        'right_hip': (-13.35, 5.804, 3.435), 'right_knee': (30.592,), 'right_ankle': (0.065, 6.712),
-        'left_hip': (3.268, -6.529, -0.372), 'left_knee': (9.549,), 'left_ankle': (6.301, -6.539),
-        'right_toes': (7.214,),
+    human.KeyRoot(21.1, (7.398, 90.146, 65.569), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.1, {
+        'spine_lumbar': (11.678, -5.381, 0.0), 'spine_thoracic': (1.965, -0.969, 0.0),
+        'right_hip': (-8.256, 6.054, 2.344), 'right_knee': (35.792,),
+        'right_ankle': (14.718, 6.508), 'left_hip': (-2.591, -6.296, 0.284), 'left_knee': (6.088,),
+        'left_ankle': (8.663, -6.302), 'right_toes': (4.89,),
     })
-    human.KeyRoot(18.6, (7.134, 90.252, 65.088), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.6, {
-        'spine_lumbar': (10.457, -6.446, 0.0), 'spine_thoracic': (1.754, -1.161, 0.0),
-        'right_hip': (-0.486, 5.912, 2.231), 'right_knee': (40.309,),
-        'right_ankle': (19.735, 6.341), 'left_hip': (-2.675, -6.052, 0.282), 'left_knee': (5.315,),
-        'left_ankle': (7.975, -6.058), 'right_toes': (3.599,),
+    human.KeyRoot(21.2, (6.231, 90.415, 64.464), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.2, {
+        'spine_lumbar': (8.744, -9.484, 0.0), 'spine_thoracic': (1.412, -1.704, 0.0),
+        'right_hip': (7.2, 5.28, 1.366), 'right_knee': (33.785,), 'right_ankle': (19.344, 5.461),
+        'left_hip': (-2.695, -5.361, 0.252), 'left_knee': (4.636,), 'left_ankle': (7.319, -5.367),
+        'right_toes': (6.318,),
     })
-    human.KeyRoot(18.7, (5.719, 90.485, 63.638), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.7, {
-        'spine_lumbar': (10.65, -11.473, 0.0), 'spine_thoracic': (1.693, -2.056, 0.0),
-        'right_hip': (6.239, 4.798, 0.691), 'right_knee': (24.052,), 'right_ankle': (15.902, 4.86),
-        'left_hip': (-1.521, -4.916, 0.13), 'left_knee': (6.025,), 'left_ankle': (7.54, -4.918),
-        'right_toes': (2.136,),
-    })
-    human.KeyRoot(18.8, (2.764, 90.877, 59.31), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.8, {
-        'spine_lumbar': (14.304, -13.901, 0.0), 'spine_thoracic': (2.303, -2.492, 0.0),
-        'right_hip': (1.61, 2.386, 0.067), 'right_knee': (7.225,), 'right_ankle': (5.616, 2.386),
-        'left_hip': (1.61, -2.386, -0.067), 'left_knee': (7.225,), 'left_ankle': (5.616, -2.386),
+    human.KeyRoot(21.3, (3.981, 90.676, 61.13), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.3, {
+        'spine_lumbar': (16.037, -15.511, 0.0), 'spine_thoracic': (2.532, -2.768, 0.0),
+        'right_hip': (1.086, 3.434, 0.065), 'right_knee': (8.345,), 'right_ankle': (7.261, 3.434),
+        'left_hip': (1.086, -3.434, -0.065), 'left_knee': (8.345,), 'left_ankle': (7.261, -3.434),
         'right_toes': (0.0,),
     })
-    human.KeyRoot(18.9, (0.163, 91.09, 55.266), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.9, {
-        'spine_lumbar': (1.65, -1.646, 0.0), 'spine_thoracic': (0.294, -0.299, 0.0),
-        'right_hip': (2.786, 0.142, 0.007), 'right_knee': (4.745,), 'right_ankle': (1.959, 0.142),
-        'left_hip': (2.786, -0.142, -0.007), 'left_knee': (4.745,), 'left_ankle': (1.959, -0.142),
+    human.KeyRoot(21.4, (0.675, 91.072, 56.082), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.4, {
+        'spine_lumbar': (5.571, -5.531, 0.0), 'spine_thoracic': (0.962, -1.003, 0.0),
+        'right_hip': (2.546, 0.585, 0.026), 'right_knee': (5.242,), 'right_ankle': (2.696, 0.586),
+        'left_hip': (2.546, -0.585, -0.026), 'left_knee': (5.242,), 'left_ankle': (2.696, -0.586),
     })
-    human.KeyRoot(18.930705, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
-    human.KeyJoints(18.930705, {
+    human.KeyRoot(21.463411, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.463411, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'neck': (31.731, -23.243, 13.254), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),

@@ -34,6 +34,7 @@ from mtlc.body import center_of_mass, forward, site_positions
 from mtlc.body.ik.clearance import penetration
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import INTERNAL_FPS, PassContext
+from mtlc.passes.hold import holding
 from mtlc.passes.interpolate import FOOT_POINTS
 from mtlc.passes.kneel import (
     HALF_KNEEL_PHASES,
@@ -656,6 +657,21 @@ def _stand_from_kneel(
     mark(ctx.cache, seg)  # its first keyframe holds the pose the reaches left
 
 
+def released_arms(ir: MotionIR, seg: Segment, free: tuple[str, ...]) -> tuple[str, ...]:
+    """``free`` and the arms that let go of their site before ``seg`` and do nothing during it:
+    standing up from between the knees, an arm left where it worked goes into a rising thigh
+    (the right forearm 10-12 mm on the drain valve, women P90-P99)."""
+    held = holding(ir, seg.start)
+    out = list(free)
+    for side in ("r", "l"):
+        track, dof = f"{side}_arm", f"{side}_shoulder_flex"
+        busy = any(s.start < seg.end - 1e-9 and s.end > seg.start + 1e-9
+                   for s in ir.on_track(track))  # fmt: skip
+        if dof not in out and track not in held and not busy:
+            out.append(dof)
+    return tuple(sorted(out, key=lambda d: d[0] != "r"))
+
+
 def wide_stance(ir: MotionIR, seg: Segment) -> FloatArray | None:
     """The standing legs (``LEG_DOFS``) of a wide stance the body is in when ``seg`` starts: the
     last walk before it landed its feet apart and turned out (``mtlc.passes.stance``). None
@@ -799,6 +815,10 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     dofs = TRUNK_DOFS if kind == "bend" else (TRUNK_DOFS + LEG_DOFS + arms if flat else LEG_DOFS)
     idx = [skel.dof_index(n) for n in dofs]
     stance = wide_stance(ir, seg) if flat else None
+    if stance is not None and kind == "stand":
+        arms = released_arms(ir, seg, arms)
+        target = target_posture(skel, cur, seg.goal.params, arms)
+        dofs = TRUNK_DOFS + LEG_DOFS + arms
     times = np.linspace(seg.start, seg.end, TRANSITION_KEYS if flat else 2)
     if stance is not None:  # the feet stand apart: the legs fold over them
         times = np.linspace(seg.start, seg.end, WIDE_KEYS)

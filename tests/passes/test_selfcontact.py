@@ -320,3 +320,46 @@ def test_the_clearance_pass_measures_again_only_what_a_correction_can_move() -> 
         depth_after(sk, penetration(sk, q, root, "r"), q, moved, root, "r"),
         penetration(sk, moved, root, "r"),
     )
+
+
+def planted_foot_speed(ir: MotionIR, t0: float, t1: float) -> float:
+    """The fastest (m/s) a heel or toe on the floor (within 2 mm) moves between two output
+    frames in [t0, t1]."""
+    f, sk = ir.frames, ir.skeleton
+    assert f is not None
+    rows = np.flatnonzero((f.time >= t0) & (f.time <= t1))
+    pose = forward(sk, f.q[rows], f.root_position[rows], f.root_rotation[rows], with_axes=False)
+    feet = site_positions(sk, pose, ["r_heel", "l_heel", "r_toe", "l_toe"])
+    down = feet[..., 1] < ir.ground + 0.002
+    speed = np.linalg.norm(np.diff(feet[..., [0, 2]], axis=0), axis=-1) * f.fps
+    return float(np.where(down[1:] & down[:-1], speed, 0.0).max())
+
+
+@pytest.mark.parametrize(
+    ("name", "sex", "pct"),
+    [("w03_right_knee_30cm", "male", 95), ("w04_two_hands_midline", "female", 99)],
+)
+def test_a_squat_in_front_of_the_knees_stands_wide(name: str, sex: str, pct: int) -> None:
+    """A squat whose reach goes down in front of the knees: the walk lands the feet apart and
+    turned out, the knees go out over them and the arms come down between them (before, feet
+    together: 32 mm (male P95) and 22 mm (female P99) into a thigh, MT0514)."""
+    ir, sink = compile_file(ROOT / "tests" / "data" / "squat" / f"{name}.mtask", (sex, pct))
+    (walk,) = ir.on_track("root")[:1]
+    assert "wide_stance" in walk.result
+    squat = next(s for s in ir.on_track("root") if s.goal.params.get("posture") == "squat")
+    f, sk = ir.frames, ir.skeleton
+    assert f is not None
+    at = int(np.searchsorted(f.time, squat.end))
+    for side in ("r", "l"):  # the knees apart: hips abducted, the feet turned out
+        assert f.q[at, sk.dof_index(f"{side}_hip_abd")] > np.radians(8.0)
+    assert deepest_inside(ir) <= 1e-3
+    assert planted_foot_speed(ir, squat.start, ir.duration) <= 0.02
+    assert ir.verification is not None and ir.verification.static_margin > 0.0
+    assert not [d for d in sink.items if d.code in ("MT0514", "MT0502", "MT0501")]
+
+
+def test_a_squat_to_the_side_of_the_knees_keeps_the_feet_together(tmp_path: Path) -> None:
+    """A site 32 cm to the side is reached outside the knee: no wide stance."""
+    text = PLUG.replace("site plug at (10, 18, 78) cm", "site plug at (32, 18, 78) cm")
+    ir, _ = compile_text(tmp_path, text, ("male", 50))
+    assert all("wide_stance" not in s.result for s in ir.on_track("root"))

@@ -68,7 +68,7 @@ SQUAT_ANKLE_LEAD = 0.5
 SQUAT_ARMS = math.radians(90.0)  # free arms held forward at the deepest squat (counterweight)
 HEEL_MARGIN = 0.03  # m: a flat-footed posture keeps its CoM this far in front of the heels
 TRANSITION_KEYS = 6  # keyframes of a flat-footed posture change, each one balanced
-WIDE_KEYS = 41  # ...over feet set apart: the leg IK plants them at each key (11 keys slid them 5 cm/s between)
+WIDE_KEYS = 41  # ...over feet set apart: leg IK at each key (11 keys slid them 5 cm/s)
 ARM_FLEX = ("r_shoulder_flex", "l_shoulder_flex")
 FINGER_CLEARANCE = 0.03  # m: free fingertips stay this far above the ground in a posture
 FINGER_ARM_MAX = math.radians(120.0)  # ...raising the arm forward at most this far
@@ -764,6 +764,9 @@ def _inside_knee(skel: Any, q: FloatArray, side: str) -> bool:
 
 WIDE_ARM_TURNS = np.radians(np.arange(-40.0, 41.0, 5.0))  # shoulder abduction tried
 WIDE_ARM_RAISES = np.radians([0.0, 15.0, 30.0, 45.0, 60.0])  # more shoulder flexion tried
+# m beyond the clearance the chosen pose keeps: the reach that follows turns and bends the trunk
+# (a hand 10 cm above the floor: 11° of turn), and the free arm goes with it
+WIDE_ARM_SPARE = 0.03
 
 
 def arms_between_knees(
@@ -772,7 +775,7 @@ def arms_between_knees(
     """``poses`` with each free arm whose forearm or hand would come within the clearance of a
     thigh (the knees go out over the turned-out feet, where arms held forward hang) raised
     forward and moved in at the shoulder: the least change (raise plus turn, from
-    ``WIDE_ARM_RAISES`` and ``WIDE_ARM_TURNS``) that keeps it ``KNEEL_ARM_SPARE`` beyond the
+    ``WIDE_ARM_RAISES`` and ``WIDE_ARM_TURNS``) that keeps it ``WIDE_ARM_SPARE`` beyond the
     clearance on every pose with the wrist between the knees (``_inside_knee``), or the least
     deep; ``share`` (N,) how much of the change each pose takes (0 where it must stay)."""
     out = poses.copy()
@@ -780,7 +783,7 @@ def arms_between_knees(
     tries = sorted(((float(r), float(t)) for r in WIDE_ARM_RAISES for t in WIDE_ARM_TURNS),
                    key=lambda rt: (abs(rt[0]) + abs(rt[1]), rt))  # fmt: skip
     for side in sides:
-        if float(penetration(skel, out, roots, side).max()) <= -KNEEL_ARM_SPARE:
+        if float(penetration(skel, out, roots, side).max()) <= -WIDE_ARM_SPARE:
             continue
         flex, abd = (skel.dof_index(f"{side}_shoulder_{d}") for d in ("flex", "abd"))
         best: tuple[float, FloatArray] | None = None
@@ -789,7 +792,7 @@ def arms_between_knees(
             q[:, flex] = np.clip(q[:, flex] + share * raise_, skel.lower[flex], skel.upper[flex])
             q[:, abd] = np.clip(q[:, abd] + share * turn, skel.lower[abd], skel.upper[abd])
             depth = float(penetration(skel, q, roots, side).max())
-            if depth <= -KNEEL_ARM_SPARE and _inside_knee(skel, q[-1], side):
+            if depth <= -WIDE_ARM_SPARE and _inside_knee(skel, q[-1], side):
                 best = (depth, q)
                 break
             if best is None or depth < best[0]:

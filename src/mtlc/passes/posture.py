@@ -749,7 +749,8 @@ def wide_transition(
         poses.append(q if f == 0.0 else clear_fingertips(skel, balanced_lean(skel, q), free))
     fracs = np.linspace(0.0, 1.0, n)
     share = fracs if squat else 4.0 * fracs * (1.0 - fracs)  # a stand ends where arms hang
-    return arms_between_knees(skel, np.stack(poses), tuple(a[0] for a in free), share)
+    spare = WIDE_ARM_SPARE if squat else KNEEL_ARM_SPARE  # nothing follows a stand's arms
+    return arms_between_knees(skel, np.stack(poses), tuple(a[0] for a in free), share, spare)
 
 
 def _inside_knee(skel: Any, q: FloatArray, side: str) -> bool:
@@ -770,12 +771,13 @@ WIDE_ARM_SPARE = 0.03
 
 
 def arms_between_knees(
-    skel: Any, poses: FloatArray, sides: tuple[str, ...], share: FloatArray
-) -> FloatArray:
+    skel: Any, poses: FloatArray, sides: tuple[str, ...], share: FloatArray,
+    spare: float = WIDE_ARM_SPARE,
+) -> FloatArray:  # fmt: skip
     """``poses`` with each free arm whose forearm or hand would come within the clearance of a
     thigh (the knees go out over the turned-out feet, where arms held forward hang) raised
     forward and moved in at the shoulder: the least change (raise plus turn, from
-    ``WIDE_ARM_RAISES`` and ``WIDE_ARM_TURNS``) that keeps it ``WIDE_ARM_SPARE`` beyond the
+    ``WIDE_ARM_RAISES`` and ``WIDE_ARM_TURNS``) that keeps it ``spare`` beyond the
     clearance on every pose with the wrist between the knees (``_inside_knee``), or the least
     deep; ``share`` (N,) how much of the change each pose takes (0 where it must stay)."""
     out = poses.copy()
@@ -783,7 +785,7 @@ def arms_between_knees(
     tries = sorted(((float(r), float(t)) for r in WIDE_ARM_RAISES for t in WIDE_ARM_TURNS),
                    key=lambda rt: (abs(rt[0]) + abs(rt[1]), rt))  # fmt: skip
     for side in sides:
-        if float(penetration(skel, out, roots, side).max()) <= -WIDE_ARM_SPARE:
+        if float(penetration(skel, out, roots, side).max()) <= -spare:
             continue
         flex, abd = (skel.dof_index(f"{side}_shoulder_{d}") for d in ("flex", "abd"))
         best: tuple[float, FloatArray] | None = None
@@ -792,7 +794,7 @@ def arms_between_knees(
             q[:, flex] = np.clip(q[:, flex] + share * raise_, skel.lower[flex], skel.upper[flex])
             q[:, abd] = np.clip(q[:, abd] + share * turn, skel.lower[abd], skel.upper[abd])
             depth = float(penetration(skel, q, roots, side).max())
-            if depth <= -WIDE_ARM_SPARE and _inside_knee(skel, q[-1], side):
+            if depth <= -spare and _inside_knee(skel, q[-1], side):
                 best = (depth, q)
                 break
             if best is None or depth < best[0]:
@@ -843,7 +845,34 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
         seg.result = {"root_height": float(rows[-1][1] - ir.ground)}
     seg.keyframes = kf
     state.add(seg)
-    mark(ctx.cache, seg)
+    mark(ctx.cache, seg, "wide_stand" if stance is not None and kind == "stand" else "hold")
+
+
+def restate_wide_stand(seg: Segment, state: PoseState) -> None:
+    """A stand over feet apart starts from the pose the reaches left (the first keyframe), and
+    its arms go from there, not from where the posture pass saw them before the reaches: a
+    hand that let go of a site between the knees (two hands on a cap) was keyed from the free
+    arms' pose of the squat and swung 43° in one frame, through a thigh. Then between the
+    knees again (``arms_between_knees``)."""
+    kf = seg.keyframes
+    assert kf is not None
+    skel = state.skel
+    q0 = state.q_at(seg.start, skip=seg)
+    idx = [skel.dof_index(n) for n in kf.dofs]
+    kf.q[0] = q0[idx]
+    if kf.root_position is not None:
+        kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)
+    arms = [k for k, n in enumerate(kf.dofs) if n[2:] in ("shoulder_flex", "shoulder_abd")]
+    if not arms:
+        return
+    f = np.linspace(0.0, 1.0, len(kf.time))
+    poses = np.repeat(q0[None], len(f), axis=0)
+    poses[:, idx] = kf.q
+    cols = [idx[k] for k in arms]
+    poses[:, cols] = q0[cols][None] + f[:, None] * (kf.q[-1, arms] - q0[cols])[None]
+    sides = tuple(sorted({kf.dofs[k][0] for k in arms}, key=lambda side: side != "r"))
+    poses = arms_between_knees(skel, poses, sides, 4.0 * f * (1.0 - f), KNEEL_ARM_SPARE)
+    kf.q[:, arms] = poses[:, cols]
 
 
 def twist_target(skel: Any, dof: str, current: float, angle: float) -> float:
@@ -899,6 +928,7 @@ RESTATERS = {
     "twist": restate_twist,
     "kneel_arms": restate_kneel_arms,
     "kneel_on": restate_kneel_on,
+    "wide_stand": restate_wide_stand,
 }
 
 

@@ -132,23 +132,21 @@ def test_a_squat_reach_keeps_the_forearm_out_of_the_thigh(
     tmp_path: Path, sex: str, pct: int
 ) -> None:
     ir, sink = compile_text(tmp_path, PLUG, (sex, pct))
-    # the forearm's axis was 53 mm (male P90), 32 mm (female P5) into the thigh; its surface
-    # (docs/metrics.md) is now outside for female P5 and 13 mm in for male P90, whose elbow
-    # meets the squatting knee with the hand on the plug: reported, the goal kept
-    depth = deepest_inside(ir)
-    assert depth <= (1e-3 if sex == "female" else 0.02)
-    expected = ["MT0514"] if depth > 1e-3 else []
-    assert [d.code for d in sink.items if d.code.startswith("MT05")] == expected
+    # the forearm's axis was 53 mm (male P90), 32 mm (female P5) into the thigh; then, with the
+    # elbow swung out, its surface (docs/metrics.md) 12 mm in for male P90, whose elbow met
+    # the squatting knee. The plug is in front of the knees: the squat stands wide, the arm
+    # comes down between them
+    assert "wide_stance" in ir.on_track("root")[0].result
+    assert deepest_inside(ir) <= 1e-3
+    assert not [d.code for d in sink.items if d.code.startswith("MT05")]
 
 
 def test_the_drain_valve_reach_keeps_the_forearm_out_of_the_thigh() -> None:
     ir, sink = compile_file(ROOT / "examples" / "drain_hydraulic_reservoir.mtask", ("male", 95))
-    # the forearm's axis was 38 mm into the thigh; its surface is 5 mm in where the elbow
-    # meets the knee with the hand on the valve (the squat keeps the knees forward): reported
-    depth = deepest_inside(ir)
-    assert depth <= 0.01
-    expected = ["MT0514"] if depth > 1e-3 else []
-    assert [d.code for d in sink.items if d.code.startswith("MT05")] == expected
+    # the forearm's axis was 38 mm into the thigh; its surface 5 mm in where the elbow met the
+    # knee with the hand on the valve (knees together); the squat now stands wide
+    assert deepest_inside(ir) <= 1e-3
+    assert not [d.code for d in sink.items if d.code.startswith("MT05")]
 
 
 LOW_VALVE = (
@@ -359,7 +357,13 @@ def test_a_squat_in_front_of_the_knees_stands_wide(name: str, sex: str, pct: int
 
 
 def test_a_squat_to_the_side_of_the_knees_keeps_the_feet_together(tmp_path: Path) -> None:
-    """A site 32 cm to the side is reached outside the knee: no wide stance."""
-    text = PLUG.replace("site plug at (10, 18, 78) cm", "site plug at (32, 18, 78) cm")
+    """A site 32 cm to the side of the way the body faces is reached outside the knee: the
+    feet stay together (the walk faces the work unless told otherwise, then it is ahead)."""
+    text = PLUG.replace(
+        "site plug at (10, 18, 78) cm",
+        "site plug at (32, 18, 78) cm\n    site ahead at (0, 0, 90) cm",
+    ).replace("walk_to(side)", "travel_facing(side, ahead)")
     ir, _ = compile_text(tmp_path, text, ("male", 50))
     assert all("wide_stance" not in s.result for s in ir.on_track("root"))
+    ahead, _ = compile_text(tmp_path, PLUG.replace("walk_to(side)", "travel_facing(side, plug)"))
+    assert "wide_stance" in ahead.on_track("root")[0].result  # 10 cm to the side: in front

@@ -722,6 +722,14 @@ def _narrow_drop(skel: Any, legs: LegModel, s: float) -> FloatArray:
     return _ankle_drop(legs, q[idx], np.zeros(len(idx)))
 
 
+def stand_arms(f: float | FloatArray, squat: bool) -> Any:
+    """How far (0-1) the free arms have gone to their end pose at fraction ``f`` of a posture
+    over feet apart: with the body going down (a squat), or, standing up, only over the second
+    half, once the knees have come up past the hands between them (let down at once, a forearm
+    went 50-70 mm into the rising thigh)."""
+    return f if squat else smoothstep(2.0 * np.asarray(f) - 1.0)
+
+
 def wide_transition(
     skel: Any, cur: FloatArray, target: FloatArray, n: int, free: tuple[str, ...],
     stance: FloatArray, squat: bool,
@@ -741,16 +749,19 @@ def wide_transition(
     s0 = _bisect(lambda s: float(_narrow_drop(skel, legs, s)[1] - start[1]), 0.0, 1.0)
     s1 = float(target[skel.dof_index("r_hip_flex")]) / SQUAT_HIP_MAX if squat else 0.0
     rest = start - _narrow_drop(skel, legs, s0)  # what the start has beside the squat's path
+    arm_cols = [skel.dof_index(f"{a[0]}_shoulder_{d}") for a in free for d in ("flex", "abd")]
     poses = []
     for f in np.linspace(0.0, 1.0, n):
         q = cur + f * (target - cur)
+        q[arm_cols] = cur[arm_cols] + stand_arms(f, squat) * (target - cur)[arm_cols]
         drop = _narrow_drop(skel, legs, s0 + f * (s1 - s0)) + (1.0 - f) * rest
         q[idx] = legs_over_feet(legs, stance, drop)
         poses.append(q if f == 0.0 else clear_fingertips(skel, balanced_lean(skel, q), free))
     fracs = np.linspace(0.0, 1.0, n)
     share = fracs if squat else 4.0 * fracs * (1.0 - fracs)  # a stand ends where arms hang
     spare = WIDE_ARM_SPARE if squat else KNEEL_ARM_SPARE  # nothing follows a stand's arms
-    return arms_between_knees(skel, np.stack(poses), tuple(a[0] for a in free), share, spare)
+    sides = tuple(a[0] for a in free)
+    return arms_between_knees(skel, np.stack(poses), sides, share, spare, between=squat)
 
 
 def _inside_knee(skel: Any, q: FloatArray, side: str) -> bool:
@@ -772,14 +783,15 @@ WIDE_ARM_SPARE = 0.03
 
 def arms_between_knees(
     skel: Any, poses: FloatArray, sides: tuple[str, ...], share: FloatArray,
-    spare: float = WIDE_ARM_SPARE,
+    spare: float = WIDE_ARM_SPARE, between: bool = True,
 ) -> FloatArray:  # fmt: skip
     """``poses`` with each free arm whose forearm or hand would come within the clearance of a
     thigh (the knees go out over the turned-out feet, where arms held forward hang) raised
     forward and moved in at the shoulder: the least change (raise plus turn, from
     ``WIDE_ARM_RAISES`` and ``WIDE_ARM_TURNS``) that keeps it ``spare`` beyond the
-    clearance on every pose with the wrist between the knees (``_inside_knee``), or the least
-    deep; ``share`` (N,) how much of the change each pose takes (0 where it must stay)."""
+    clearance on every pose with the wrist between the knees (``_inside_knee``; unless not
+    ``between``: a stand ends with the arms hanging at the sides), or the least deep;
+    ``share`` (N,) how much of the change each pose takes (0 where it must stay)."""
     out = poses.copy()
     roots = (np.zeros((len(poses), 3)), np.tile([1.0, 0.0, 0.0, 0.0], (len(poses), 1)))
     tries = sorted(((float(r), float(t)) for r in WIDE_ARM_RAISES for t in WIDE_ARM_TURNS),
@@ -794,7 +806,7 @@ def arms_between_knees(
             q[:, flex] = np.clip(q[:, flex] + share * raise_, skel.lower[flex], skel.upper[flex])
             q[:, abd] = np.clip(q[:, abd] + share * turn, skel.lower[abd], skel.upper[abd])
             depth = float(penetration(skel, q, roots, side).max())
-            if depth <= -spare and _inside_knee(skel, q[-1], side):
+            if depth <= -spare and (not between or _inside_knee(skel, q[-1], side)):
                 best = (depth, q)
                 break
             if best is None or depth < best[0]:
@@ -869,9 +881,10 @@ def restate_wide_stand(seg: Segment, state: PoseState) -> None:
     poses = np.repeat(q0[None], len(f), axis=0)
     poses[:, idx] = kf.q
     cols = [idx[k] for k in arms]
-    poses[:, cols] = q0[cols][None] + f[:, None] * (kf.q[-1, arms] - q0[cols])[None]
+    blend = stand_arms(f, False)[:, None]
+    poses[:, cols] = q0[cols][None] + blend * (kf.q[-1, arms] - q0[cols])[None]
     sides = tuple(sorted({kf.dofs[k][0] for k in arms}, key=lambda side: side != "r"))
-    poses = arms_between_knees(skel, poses, sides, 4.0 * f * (1.0 - f), KNEEL_ARM_SPARE)
+    poses = arms_between_knees(skel, poses, sides, 4.0 * f * (1.0 - f), KNEEL_ARM_SPARE, False)
     kf.q[:, arms] = poses[:, cols]
 
 

@@ -37,9 +37,10 @@ def _heading_axes(heading: float) -> tuple[FloatArray, FloatArray]:
 
 
 def _squat_segment(ir: MotionIR, t0: float, t1: float) -> Segment | None:
-    """The first whole-body posture in [t0, t1) when it is a squat."""
+    """The first whole-body posture in [t0, t1) when it is a squat (a wrist turn is a posture
+    of a hand's track, not the body's)."""
     postures = sorted(
-        (s for s in ir.segments if s.kind == "posture" and t0 - 1e-9 <= s.start < t1),
+        (s for s in ir.on_track("root") if s.kind == "posture" and t0 - 1e-9 <= s.start < t1),
         key=lambda s: s.start,
     )
     if postures and postures[0].goal.params.get("posture") == "squat":
@@ -66,7 +67,7 @@ def needs_wide_squat(
     squat = _squat_segment(ir, t_walk_end, t_next_walk)
     if skel is None or squat is None:
         return False
-    later = [s for s in ir.segments if s.kind == "posture" and s.start >= squat.end - 1e-9]
+    later = [s for s in ir.on_track("root") if s.kind == "posture" and s.start >= squat.end - 1e-9]
     until = min([s.start for s in later if s.start < t_next_walk], default=t_next_walk)
     left, ahead = _heading_axes(heading)
     ankle = skel.joints[skel.joint_index("r_ankle")].offset

@@ -11,7 +11,7 @@ def drain_reservoir():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=50, stature=167.8, mass=59.0)
     # examples/drain_hydraulic_reservoir.mtask:22:5 drain_reservoir > walk_to > travel: locomotion on root at skid_side
-    human.Walk((-0.04, 0.0, 44.49), start=0.0, duration=1.294737)
+    human.Walk((-0.042, 0.0, 44.227), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 84.188, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,288 +22,323 @@ def drain_reservoir():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (0.683, 83.712, 0.947), (-1.743, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.109, 83.712, 0.922), (-1.743, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (13.357, 0.094, 1.856), 'right_knee': (26.257,), 'right_ankle': (8.402, 0.522),
-        'left_hip': (6.331, -0.309, -1.788), 'left_knee': (13.507,), 'left_ankle': (7.189, -0.504),
+        'right_hip': (13.166, -0.315, 1.723), 'right_knee': (25.891,),
+        'right_ankle': (8.395, 0.086), 'left_hip': (6.354, 0.115, -1.741), 'left_knee': (13.545,),
+        'left_ankle': (7.19, -0.078),
     })
-    human.KeyRoot(0.2, (1.116, 83.605, 3.467), (-3.802, 0.0, 0.0))
+    human.KeyRoot(0.2, (0.167, 83.605, 3.37), (-3.802, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (16.491, -0.279, 4.029), 'right_knee': (35.057,),
-        'right_ankle': (9.472, 0.887), 'left_hip': (4.486, -0.517, -3.854), 'left_knee': (13.969,),
-        'left_ankle': (9.527, -0.815),
+        'right_hip': (16.224, -0.932, 3.711), 'right_knee': (34.535,),
+        'right_ankle': (9.537, 0.145), 'left_hip': (4.58, 0.194, -3.798), 'left_knee': (14.109,),
+        'left_ankle': (9.527, -0.11),
     })
-    human.KeyRoot(0.3, (1.346, 83.605, 7.079), (-6.118, 0.0, 0.0))
+    human.KeyRoot(0.3, (0.19, 83.605, 6.864), (-6.118, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (26.503, -0.716, 3.862), 'right_knee': (51.524,),
-        'right_ankle': (18.014, 1.087), 'left_hip': (0.477, -0.919, -6.13), 'left_knee': (11.6,),
-        'left_ankle': (10.967, -0.965),
+        'right_hip': (26.252, 0.392, 1.24), 'right_knee': (51.188,), 'right_ankle': (18.004, 0.868),
+        'left_hip': (0.788, -0.021, -6.12), 'left_knee': (12.104,), 'left_ankle': (11.052, -0.105),
     })
-    human.KeyRoot(0.4, (1.422, 83.912, 11.3), (-8.636, 0.0, 0.0))
+    human.KeyRoot(0.4, (0.194, 83.912, 10.925), (-8.636, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (34.878, -0.294, 0.367), 'right_knee': (53.098,),
-        'right_ankle': (17.062, -0.067), 'left_hip': (3.79, -0.419, -8.798), 'left_knee': (24.408,),
-        'left_ankle': (14.034, -0.999),
+        'right_hip': (34.3, 5.197, -6.911), 'right_knee': (52.983,), 'right_ankle': (17.249, 0.244),
+        'left_hip': (4.584, 0.623, -8.623), 'left_knee': (25.708,), 'left_ankle': (14.016, -0.073),
     })
-    human.KeyRoot(0.5, (1.226, 83.389, 18.859), (-12.102, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.092, 83.428, 18.063), (-12.102, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (31.574, -0.908, -3.056), 'right_knee': (36.699,),
-        'right_ankle': (5.166, -2.428), 'left_hip': (6.184, 0.565, -12.37), 'left_knee': (39.907,),
-        'left_ankle': (15.337, -0.816),
+        'right_hip': (30.584, 6.483, -17.106), 'right_knee': (36.881,),
+        'right_ankle': (5.85, -3.45), 'left_hip': (7.506, 2.531, -11.53), 'left_knee': (41.888,),
+        'left_ankle': (14.584, 1.02),
     })
-    human.KeyRoot(0.6, (0.686, 82.44, 29.614), (-16.153, 0.0, 0.0))
+    human.KeyRoot(0.6, (-3.995, 82.44, 28.129), (-16.153, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (17.397, -2.286, -2.458), 'right_knee': (12.341,),
-        'right_ankle': (-4.988, -2.961), 'left_hip': (1.955, 0.318, -16.297),
-        'left_knee': (46.233,), 'left_ankle': (13.404, -0.283),
+        'right_hip': (17.337, 1.875, -21.922), 'right_knee': (13.429,),
+        'right_ankle': (-3.351, -4.919), 'left_hip': (3.973, 4.137, -13.929),
+        'left_knee': (49.512,), 'left_ankle': (12.004, 3.619),
     })
-    human.KeyRoot(0.7, (0.094, 82.442, 34.707), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.7, (-5.495, 82.629, 32.886), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (17.0, -2.227, -0.68), 'right_knee': (18.451,), 'right_ankle': (1.462, -2.328),
-        'left_hip': (0.283, 0.312, -17.794), 'left_knee': (48.472,), 'left_ankle': (8.586, 0.273),
+        'right_hip': (15.809, 1.717, -20.286), 'right_knee': (17.111,),
+        'right_ankle': (1.674, -3.865), 'left_hip': (2.44, 4.606, -14.307), 'left_knee': (51.605,),
+        'left_ankle': (6.239, 5.169),
     })
-    human.KeyRoot(0.8, (-0.644, 82.451, 34.282), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.8, (-5.382, 83.026, 32.71), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_knee': (17.803,), 'right_ankle': (0.994, -2.956),
-        'left_hip': (5.548, 2.276, -16.833), 'left_knee': (57.934,), 'left_ankle': (14.675, 0.681),
+        'right_hip': (13.699, 0.942, -20.333), 'right_knee': (12.256,),
+        'right_ankle': (-0.934, -3.86), 'left_hip': (6.993, 6.107, -13.878), 'left_knee': (59.17,),
+        'left_ankle': (11.369, 5.435),
     })
-    human.KeyRoot(0.9, (-1.359, 82.447, 33.629), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.9, (-5.109, 83.031, 32.44), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.618, -3.469, -1.035), 'right_knee': (16.773,),
-        'right_ankle': (0.18, -3.619), 'left_hip': (19.442, 4.545, -12.082), 'left_knee': (70.625,),
-        'left_ankle': (18.79, 0.21),
+        'right_hip': (13.63, 0.955, -20.327), 'right_knee': (11.555,),
+        'right_ankle': (-1.577, -3.823), 'left_hip': (19.748, 11.044, -11.912),
+        'left_knee': (70.262,), 'left_ankle': (18.801, 7.036),
     })
-    human.KeyRoot(1.0, (-1.524, 82.509, 33.622), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.0, (-4.681, 83.025, 32.563), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.246, -3.587, -1.044), 'right_knee': (16.091,),
-        'right_ankle': (-0.125, -3.736), 'left_hip': (29.949, 4.028, -5.127),
-        'left_knee': (66.507,), 'left_ankle': (18.82, 0.956),
+        'right_hip': (13.7, 1.3, -20.254), 'right_knee': (11.681,), 'right_ankle': (-1.633, -3.515),
+        'left_hip': (28.791, 15.533, -11.038), 'left_knee': (63.963,),
+        'left_ankle': (18.829, 8.154),
     })
-    human.KeyRoot(1.1, (-1.321, 82.972, 35.819), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.1, (-3.612, 82.685, 35.016), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (13.948, -2.972, -0.738), 'right_knee': (14.552,),
-        'right_ankle': (0.623, -3.063), 'left_hip': (22.716, 2.731, -0.484), 'left_knee': (36.649,),
-        'left_ankle': (14.036, 2.33),
+        'right_hip': (15.382, 3.715, -19.742), 'right_knee': (18.471,),
+        'right_ankle': (2.753, -1.765), 'left_hip': (20.867, 14.474, -15.55),
+        'left_knee': (33.465,), 'left_ankle': (9.455, 7.423),
     })
-    human.KeyRoot(1.2, (-0.818, 83.153, 39.953), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.2, (-1.94, 82.514, 39.565), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
-        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (12.455, -1.705, -0.376),
-        'right_knee': (17.279,), 'right_ankle': (4.83, -1.746), 'left_hip': (12.439, 1.705, 0.376),
-        'left_knee': (17.245,), 'left_ankle': (4.808, 1.746),
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
+        'right_hip': (14.32, 6.507, -18.998), 'right_knee': (22.21,), 'right_ankle': (6.564, 1.336),
+        'left_hip': (11.646, 10.68, -18.107), 'left_knee': (16.168,), 'left_ankle': (1.699, 6.303),
     })
     # examples/drain_hydraulic_reservoir.mtask:23:5 drain_reservoir > squat: posture on root
-    human.KeyRoot(1.3, (0.003, 84.177, 44.742), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.063, 83.889, 44.486), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (0.115, 0.0, 0.0), 'spine_thoracic': (0.007, 0.0, 0.0),
-        'right_shoulder': (8.724, 5.73, 11.459), 'left_shoulder': (8.724, 5.73, 11.459),
-        'right_hip': (3.32, -0.056, -0.003), 'right_knee': (5.145,), 'right_ankle': (1.827, -0.057),
-        'left_hip': (3.313, 0.056, 0.003), 'left_knee': (5.131,), 'left_ankle': (1.82, 0.057),
+        'spine_lumbar': (0.559, 0.0, 0.0), 'spine_thoracic': (0.28, 0.0, 0.0),
+        'right_shoulder': (9.351, 5.403, 11.459), 'left_shoulder': (9.351, 5.403, 11.459),
+        'right_hip': (2.451, 5.907, -19.698), 'right_knee': (3.142,),
+        'right_ankle': (-1.081, 4.669), 'left_hip': (1.841, 5.835, -19.748), 'left_knee': (1.818,),
+        'left_ankle': (-1.814, 4.826),
     })
-    human.KeyRoot(1.4, (0.963, 83.74, 41.811), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.4, (1.123, 83.62, 41.134), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (4.578, 0.0, 0.0), 'spine_thoracic': (2.245, 0.0, 0.0),
-        'right_shoulder': (13.725, 5.73, 11.459), 'left_shoulder': (13.725, 5.73, 11.459),
-        'right_hip': (8.836, -0.049, -0.007), 'right_knee': (11.768,),
-        'right_ankle': (2.938, -0.05), 'left_hip': (8.821, 0.049, 0.007), 'left_knee': (11.735,),
-        'left_ankle': (2.919, 0.05),
+        'spine_lumbar': (6.445, 0.0, 0.0), 'right_shoulder': (17.313, 1.97, 11.459),
+        'left_shoulder': (17.313, 1.97, 11.459), 'right_hip': (6.776, 6.46, -19.333),
+        'right_knee': (6.834,), 'right_ankle': (-1.717, 3.806), 'left_hip': (6.561, 6.567, -19.332),
+        'left_knee': (6.367,), 'left_ankle': (-2.015, 3.978),
     })
-    human.KeyRoot(1.5, (2.447, 82.15, 37.268), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.5, (2.161, 82.538, 37.989), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (11.86, 0.0, 0.0), 'spine_thoracic': (5.892, 0.0, 0.0),
-        'right_shoulder': (21.685, 5.73, 11.459), 'left_shoulder': (21.685, 5.73, 11.459),
-        'right_hip': (18.04, -0.042, -0.013), 'right_knee': (23.157,),
-        'right_ankle': (5.124, -0.044), 'left_hip': (18.037, 0.042, 0.013), 'left_knee': (23.151,),
-        'left_ankle': (5.12, 0.044),
+        'spine_thoracic': (6.069, 0.0, 0.0), 'right_hip': (14.408, 8.248, -18.524),
+        'right_knee': (17.808,), 'right_ankle': (1.515, 3.021),
+        'left_hip': (14.332, 8.376, -18.492), 'left_knee': (17.635,), 'left_ankle': (1.376, 3.172),
     })
-    human.KeyRoot(1.6, (3.559, 80.137, 33.867), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.6, {'spine_lumbar': (17.891, 0.0, 0.0), 'spine_thoracic': (8.913, 0.0, 0.0)})
-    human.KeyRoot(1.7, (4.586, 77.497, 30.732), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.7, {'spine_lumbar': (24.391, 0.0, 0.0), 'spine_thoracic': (12.169, 0.0, 0.0)})
-    human.KeyRoot(1.8, (5.505, 74.27, 27.928), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.8, {'spine_lumbar': (32.046, 0.0, 0.0), 'spine_thoracic': (16.003, 0.0, 0.0)})
-    human.KeyRoot(1.9, (6.295, 70.505, 25.521), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.9, {'spine_lumbar': (40.469, 0.0, 0.0), 'spine_thoracic': (20.22, 0.0, 0.0)})
-    human.KeyRoot(2.0, (6.939, 66.262, 23.565), (-17.969, 0.0, 0.0))
-    human.KeyJoints(2.0, {'spine_lumbar': (50.468, 0.0, 0.0), 'spine_thoracic': (25.226, 0.0, 0.0)})
-    human.KeyRoot(2.1, (7.42, 61.606, 22.112), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.6, (3.143, 80.492, 35.018), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.6, {
+        'right_hip': (22.43, 10.104, -17.497), 'right_knee': (29.452,),
+        'right_ankle': (5.057, 2.289), 'left_hip': (22.389, 10.217, -17.45), 'left_knee': (29.351,),
+        'left_ankle': (4.96, 2.42),
+    })
+    human.KeyRoot(1.7, (4.042, 77.731, 32.299), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.7, {
+        'right_hip': (30.166, 11.786, -16.351), 'right_knee': (40.334,),
+        'left_hip': (30.146, 11.878, -16.296), 'left_knee': (40.271,), 'left_ankle': (8.116, 1.714),
+    })
+    human.KeyRoot(1.8, (4.835, 74.255, 29.909), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.8, {
+        'right_hip': (37.929, 13.385, -15.03), 'right_knee': (51.089,),
+        'right_ankle': (11.214, 0.971), 'left_hip': (37.921, 13.454, -14.974),
+        'left_knee': (51.049,), 'left_ankle': (11.164, 1.06),
+    })
+    human.KeyRoot(1.9, (5.499, 70.14, 27.918), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.9, {
+        'right_hip': (45.742, 14.887, -13.513), 'right_knee': (61.739,),
+        'left_hip': (45.74, 14.935, -13.465), 'left_knee': (61.714,),
+    })
+    human.KeyRoot(2.0, (6.014, 65.452, 26.385), (-17.969, 0.0, 0.0))
+    human.KeyJoints(2.0, {
+        'right_hip': (53.605, 16.275, -11.781), 'right_knee': (72.276,),
+        'right_ankle': (16.98, -0.088), 'left_hip': (53.607, 16.301, -11.748),
+        'left_knee': (72.264,), 'left_ankle': (16.965, -0.048),
+    })
+    human.KeyRoot(2.1, (6.807, 60.822, 23.993), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (59.318, 0.0, 0.0), 'spine_thoracic': (29.657, 0.0, 0.0),
-        'right_shoulder': (59.632, 5.73, 11.459), 'left_shoulder': (59.632, 5.73, 11.459),
-        'right_hip': (62.128, -0.003, 0.0), 'right_knee': (77.947,), 'right_ankle': (15.82, -0.003),
-        'left_hip': (62.128, 0.003, 0.0), 'left_knee': (77.947,), 'left_ankle': (15.82, 0.003),
+        'spine_lumbar': (46.277, 0.0, 0.0), 'spine_thoracic': (23.139, 0.0, 0.0),
+        'right_hip': (61.46, 17.273, -10.285), 'right_knee': (80.375,),
+        'right_ankle': (17.519, -0.99), 'left_hip': (61.461, 17.279, -10.276),
+        'left_knee': (80.372,), 'left_ankle': (17.515, -0.979),
     })
-    human.KeyRoot(2.2, (7.756, 55.802, 21.085), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.2, (7.492, 55.985, 21.901), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'right_shoulder': (66.954, 5.73, 11.459), 'left_shoulder': (66.954, 5.73, 11.459),
-        'right_hip': (70.624, 0.0, 0.0), 'right_knee': (88.468,), 'left_hip': (70.624, 0.0, 0.0),
-        'left_knee': (88.468,),
+        'spine_lumbar': (59.616, 0.0, 0.0), 'spine_thoracic': (29.808, 0.0, 0.0),
+        'right_hip': (69.334, 18.146, -8.773), 'left_hip': (69.334, 18.146, -8.773),
     })
-    human.KeyRoot(2.3, (7.843, 49.962, 20.816), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.3, (7.973, 50.914, 20.418), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (73.93, 5.73, 11.459),
-        'left_shoulder': (73.93, 5.73, 11.459), 'right_hip': (78.723, 0.0, 0.0),
-        'right_knee': (98.495,), 'right_ankle': (19.772, 0.0), 'left_hip': (78.723, 0.0, 0.0),
-        'left_knee': (98.495,), 'left_ankle': (19.772, 0.0),
+        'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (86.64, -27.972, 11.459),
+        'left_shoulder': (86.64, -27.972, 11.459), 'right_hip': (77.266, 18.947, -7.124),
+        'right_knee': (95.438,), 'right_ankle': (17.487, -2.863),
+        'left_hip': (77.266, 18.947, -7.124), 'left_knee': (95.438,),
+        'left_ankle': (17.487, -2.863),
     })
     # examples/drain_hydraulic_reservoir.mtask:24:5 drain_reservoir > look: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=2.338737, duration=0.2628)
-    human.KeyRoot(2.4, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.4, (8.102, 48.902, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'neck': (-0.231, 0.0, 0.0), 'head': (-0.231, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
-        'left_shoulder': (74.757, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
-        'right_knee': (99.683,), 'right_ankle': (20.0, 0.0), 'left_hip': (79.683, 0.0, 0.0),
-        'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
+        'neck': (-0.313, 0.0, 0.0), 'head': (-0.313, 0.0),
+        'right_shoulder': (92.498, -29.27, 11.459), 'left_shoulder': (92.498, -29.27, 11.459),
+        'right_hip': (80.361, 19.234, -6.436), 'right_knee': (98.345,),
+        'right_ankle': (17.456, -3.193), 'left_hip': (80.361, 19.234, -6.436),
+        'left_knee': (98.345,), 'left_ankle': (17.456, -3.193),
     })
-    human.KeyJoints(2.5, {'neck': (-1.122, 0.0, 0.0), 'head': (-1.122, 0.0)})
+    human.KeyJoints(2.5, {'neck': (-1.517, 0.0, 0.0), 'head': (-1.517, 0.0)})
     human.KeyJoints(2.6, {
-        'neck': (-1.681, 0.0, 0.0), 'head': (-1.681, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
-        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
+        'neck': (-2.273, 0.0, 0.0), 'head': (-2.273, 0.0),
+        'right_shoulder': (92.498, -29.27, 11.459), 'right_wrist': (0.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=2.601537, duration=0.832997)
     human.KeyJoints(2.7, {
-        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0),
-        'right_shoulder': (75.968, 5.398, 14.463), 'right_elbow': (34.401, 14.453),
-        'right_wrist': (-0.832, 0.026),
+        'neck': (-1.849, 0.0, 0.0), 'head': (-1.849, 0.0),
+        'right_shoulder': (92.526, -28.443, 11.232), 'right_elbow': (34.391, 17.185),
+        'right_wrist': (-0.071, -0.028),
     })
-    human.KeyJoints(2.8, {
-        'right_shoulder': (79.243, 4.501, 22.308), 'right_elbow': (34.476, 7.308),
-        'right_wrist': (-3.012, 0.102),
-    })
+    human.KeyJoints(2.8, {'right_shoulder': (92.622, -26.28, 10.64)})
     human.KeyJoints(2.9, {
-        'right_shoulder': (83.925, 3.219, 32.933), 'right_elbow': (34.603, -2.368),
-        'right_wrist': (-5.975, 0.219),
+        'right_shoulder': (92.801, -23.352, 9.837), 'right_wrist': (-0.513, -0.202),
     })
     human.KeyJoints(3.0, {
-        'right_shoulder': (89.351, 1.732, 44.275), 'right_elbow': (34.783, -12.697),
-        'right_wrist': (-9.159, 0.373),
+        'right_shoulder': (93.076, -20.226, 8.98), 'right_elbow': (34.661, 17.145),
     })
     human.KeyJoints(3.1, {
-        'right_shoulder': (98.149, 2.129, 67.375), 'right_elbow': (35.145, -33.062),
-        'right_wrist': (-15.359, 1.794),
+        'right_shoulder': (93.463, -17.472, 8.225), 'right_wrist': (-1.04, -0.403),
     })
     human.KeyJoints(3.2, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (102.196, -0.028, 70.0), 'right_elbow': (35.333, -37.031),
-        'right_wrist': (-16.523, 2.4),
+        'neck': (-1.849, 0.0, 0.0), 'head': (-1.849, 0.0), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (93.976, -15.657, 7.728), 'right_elbow': (35.097, 17.123),
+        'right_wrist': (-1.219, -0.465),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(3.3, {
-        'spine_lumbar': (59.255, -0.22, 0.37), 'spine_thoracic': (29.136, -0.234, 0.293),
-        'neck': (-0.727, 0.024, -1.029), 'head': (-0.727, 0.0), 'right_clavicle': (0.132, 0.332),
-        'right_shoulder': (105.598, -1.285, 70.0), 'right_elbow': (35.893, -37.053),
-        'right_wrist': (-16.728, 2.489),
+        'spine_lumbar': (59.271, -0.255, 0.422), 'spine_thoracic': (29.058, -0.272, 0.33),
+        'neck': (-1.183, 0.037, -1.176), 'head': (-1.183, 0.0), 'right_clavicle': (0.137, 0.33),
+        'right_shoulder': (95.23, -15.563, 7.677), 'right_elbow': (35.798, 17.124),
+        'right_wrist': (-1.28, -0.364),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (60.0, -1.342, 2.382), 'spine_thoracic': (27.943, -1.439, 1.935),
-        'neck': (-0.333, 0.155, -6.702), 'head': (-0.332, 0.001), 'right_clavicle': (0.671, 1.408),
-        'right_shoulder': (107.526, 1.614, 60.365), 'right_elbow': (32.562, -29.223),
-        'right_wrist': (-15.016, 0.636),
+        'spine_lumbar': (60.0, -1.478, 2.649), 'spine_thoracic': (28.441, -1.626, 2.143),
+        'neck': (-1.05, 0.237, -7.53), 'head': (-1.049, 0.001), 'right_clavicle': (0.775, 1.347),
+        'right_shoulder': (100.434, -9.7, 5.51), 'right_wrist': (-1.941, -0.947),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)
     human.KeyJoints(3.5, {
-        'spine_lumbar': (60.0, -1.884, 3.474), 'spine_thoracic': (28.561, -2.067, 2.853),
-        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002), 'right_clavicle': (1.133, 1.946),
-        'right_shoulder': (109.016, 4.279, 59.594), 'right_elbow': (29.989, -29.318),
-        'right_wrist': (-15.251, 0.243),
+        'spine_lumbar': (60.0, -2.063, 3.891), 'spine_thoracic': (29.251, -2.355, 3.187),
+        'neck': (-1.336, 0.357, -11.371), 'head': (-1.335, 0.003), 'right_clavicle': (1.388, 1.857),
+        'right_shoulder': (102.557, -5.779, 4.227), 'right_elbow': (32.622, 17.103),
+        'right_wrist': (-2.284, -1.434),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(3.6, {
-        'right_shoulder': (109.404, 4.531, 59.478), 'right_elbow': (31.13, -53.2),
-        'right_wrist': (-15.335, 0.484),
+        'right_shoulder': (102.573, -5.644, 4.186), 'right_elbow': (32.967, -25.305),
     })
     human.KeyJoints(3.7, {
-        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002),
-        'right_shoulder': (110.013, 5.01, 59.293), 'right_elbow': (32.016, -79.997),
+        'neck': (-1.336, 0.357, -11.371), 'head': (-1.335, 0.003),
+        'right_shoulder': (102.587, -5.386, 4.108), 'right_elbow': (33.056, -72.891),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=3.700934, duration=0.2628)
-    human.KeyJoints(3.8, {'neck': (0.133, 0.186, -8.077), 'head': (0.134, 0.001)})
-    human.KeyJoints(3.9, {'neck': (2.139, 0.043, -2.152), 'head': (2.14, 0.0)})
-    # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(4.0, {'neck': (3.921, -0.098, 3.114), 'head': (3.922, -0.001)})
-    human.KeyJoints(4.6, {'right_wrist': (-15.279, 0.53)})
-    human.KeyJoints(4.8, {'neck': (4.116, -0.098, 3.688)})
-    human.KeyJoints(5.0, {'head': (4.116, -0.001)})
-    human.KeyJoints(7.9, {
-        'right_shoulder': (110.013, 5.011, 59.293), 'right_elbow': (32.016, -80.0),
+    human.KeyJoints(3.8, {
+        'neck': (-0.659, 0.292, -9.365), 'head': (-0.658, 0.002), 'right_wrist': (-2.254, -1.337),
     })
+    human.KeyJoints(3.9, {'neck': (1.394, 0.094, -3.284), 'head': (1.395, 0.001)})
+    # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
+    human.KeyJoints(4.0, {'neck': (3.219, -0.1, 2.122), 'head': (3.219, -0.001)})
+    human.KeyJoints(4.8, {'neck': (3.418, -0.1, 2.711)})
+    human.KeyJoints(5.0, {'head': (3.418, -0.001)})
+    human.KeyJoints(7.9, {'right_elbow': (33.056, -72.897)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(8.0, {
-        'right_shoulder': (109.934, 4.948, 59.316), 'right_elbow': (31.945, -76.855),
-        'right_wrist': (-15.289, 0.538),
+        'right_shoulder': (102.586, -5.403, 4.113), 'right_elbow': (33.063, -69.752),
     })
-    human.KeyJoints(8.1, {
-        'right_shoulder': (109.103, 4.325, 59.569), 'right_elbow': (30.31, -35.712),
-        'right_wrist': (-15.29, 0.32),
-    })
+    human.KeyJoints(8.1, {'right_elbow': (32.986, -28.609), 'right_wrist': (-2.297, -1.351)})
     # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.158134, duration=0.072)
-    human.KeyRoot(8.2, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.2, (8.102, 48.902, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.2, {
-        'spine_lumbar': (60.0, -1.884, 3.474), 'spine_thoracic': (28.561, -2.067, 2.853),
-        'right_shoulder': (108.876, 4.257, 59.63), 'right_elbow': (27.839, 10.0),
-        'right_wrist': (-14.685, -0.255), 'left_shoulder': (74.757, 5.73, 11.459),
-        'right_hip': (79.683, 0.0, 0.0), 'right_knee': (99.683,), 'right_ankle': (20.0, 0.0),
-        'left_hip': (79.683, 0.0, 0.0), 'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
+        'spine_lumbar': (60.0, -2.063, 3.891), 'spine_thoracic': (29.251, -2.355, 3.187),
+        'right_shoulder': (102.557, -5.779, 4.227), 'right_elbow': (32.622, 17.103),
+        'right_wrist': (-2.284, -1.434), 'right_hip': (80.361, 19.234, -6.436),
+        'right_knee': (98.345,), 'right_ankle': (17.456, -3.193),
+        'left_hip': (80.361, 19.234, -6.436), 'left_knee': (98.345,),
+        'left_ankle': (17.456, -3.193),
     })
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
-    human.KeyRoot(8.3, (7.845, 51.096, 20.812), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.3, (7.873, 52.537, 20.789), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.3, {
-        'spine_lumbar': (59.307, -1.467, 2.705), 'spine_thoracic': (28.415, -1.61, 2.222),
-        'right_shoulder': (108.98, 4.13, 59.628), 'right_elbow': (28.123, 9.979),
-        'right_wrist': (-14.737, -0.188), 'left_shoulder': (72.6, 5.73, 11.459),
-        'right_hip': (77.179, 0.0, 0.0), 'right_knee': (96.583,), 'right_ankle': (19.426, 0.0),
-        'left_hip': (77.179, 0.0, 0.0), 'left_knee': (96.583,), 'left_ankle': (19.426, 0.0),
+        'spine_lumbar': (57.569, 0.636, -1.2), 'spine_thoracic': (29.015, 0.726, -0.983),
+        'right_shoulder': (114.311, -17.674, 4.694), 'right_elbow': (23.71, 17.008),
+        'right_wrist': (-1.162, -3.123), 'right_hip': (74.771, 18.709, -7.651),
+        'right_knee': (93.029,), 'right_ankle': (17.452, -2.577),
+        'left_hip': (74.764, 18.695, -7.696), 'left_knee': (93.04,), 'left_ankle': (17.471, -2.621),
     })
-    human.KeyRoot(8.4, (7.714, 56.936, 21.216), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.4, (7.397, 57.063, 22.247), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.4, {
-        'spine_lumbar': (56.577, -0.317, 0.584), 'spine_thoracic': (27.785, -0.348, 0.48),
-        'right_elbow': (29.11, 9.982), 'left_shoulder': (65.564, 5.73, 11.459),
-        'right_hip': (69.01, 0.0, 0.0), 'right_knee': (86.47,), 'right_ankle': (17.479, 0.0),
-        'left_hip': (69.01, 0.0, 0.0), 'left_knee': (86.47,), 'left_ankle': (17.479, 0.0),
+        'spine_lumbar': (51.125, 0.553, -1.043), 'spine_thoracic': (25.763, 0.631, -0.854),
+        'right_shoulder': (121.749, -28.019, 4.537), 'right_elbow': (25.374, 17.025),
+        'right_hip': (67.644, 17.965, -9.112), 'left_hip': (67.64, 17.95, -9.146),
     })
-    human.KeyRoot(8.5, (7.394, 61.975, 22.203), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.5, (6.755, 61.368, 24.219), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.5, {
-        'spine_lumbar': (52.572, 0.0, 0.0), 'spine_thoracic': (26.505, 0.0, 0.0),
-        'right_elbow': (29.916, 9.986), 'right_wrist': (-15.205, 0.225),
-        'left_shoulder': (59.15, 5.73, 11.459), 'right_hip': (61.559, 0.0, 0.0),
-        'right_knee': (77.226,), 'right_ankle': (15.668, 0.0), 'left_hip': (61.559, 0.0, 0.0),
-        'left_knee': (77.226,), 'left_ankle': (15.668, 0.0),
+        'right_shoulder': (127.359, -36.08, 4.422), 'right_elbow': (27.221, 17.043),
+        'right_knee': (79.422,), 'right_ankle': (17.427, -0.878), 'left_knee': (79.431,),
+        'left_ankle': (17.44, -0.905),
     })
-    human.KeyRoot(8.6, (6.953, 66.192, 23.562), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.6, {'spine_lumbar': (45.229, 0.0, 0.0), 'spine_thoracic': (22.785, 0.0, 0.0)})
-    human.KeyRoot(8.7, (6.378, 70.07, 25.336), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.7, {'spine_lumbar': (37.655, 0.0, 0.0), 'spine_thoracic': (18.828, 0.0, 0.0)})
-    human.KeyRoot(8.8, (5.679, 73.558, 27.489), (-17.969, 0.0, 0.0))
-    human.KeyJoints(8.8, {'spine_lumbar': (31.183, 0.0, 0.0), 'spine_thoracic': (15.592, 0.0, 0.0)})
-    human.KeyRoot(8.9, (4.871, 76.611, 29.98), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.6, (6.027, 65.475, 26.455), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.6, {
+        'right_shoulder': (131.327, -41.849, 4.345), 'right_elbow': (28.664, 17.059),
+        'right_wrist': (-1.806, -2.211), 'right_hip': (53.537, 16.295, -11.759),
+        'right_knee': (72.255,), 'right_ankle': (17.041, -0.037),
+        'left_hip': (53.536, 16.281, -11.777), 'left_knee': (72.262,),
+        'left_ankle': (17.051, -0.058),
+    })
+    human.KeyRoot(8.7, (5.566, 69.675, 27.868), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.7, {
+        'right_shoulder': (133.525, -45.0, 5.272), 'right_elbow': (29.852, 17.067),
+        'right_hip': (46.492, 15.078, -13.303), 'left_hip': (46.492, 15.067, -13.314),
+    })
+    human.KeyRoot(8.8, (4.983, 73.413, 29.657), (-17.969, 0.0, 0.0))
+    human.KeyJoints(8.8, {
+        'right_shoulder': (133.908, -45.0, 6.045), 'right_elbow': (30.805, 17.073),
+        'right_wrist': (-1.343, -1.577), 'left_shoulder': (92.498, -29.27, 11.459),
+        'right_hip': (39.531, 13.781, -14.668), 'right_ankle': (12.082, 0.95),
+        'left_hip': (39.532, 13.773, -14.675), 'left_ankle': (12.088, 0.94),
+    })
+    human.KeyRoot(8.9, (4.29, 76.633, 31.786), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'spine_lumbar': (25.103, 0.0, 0.0), 'spine_thoracic': (12.551, 0.0, 0.0),
-        'right_shoulder': (108.967, 4.344, 59.594),
+        'right_shoulder': (125.441, -44.247, 4.279), 'right_elbow': (31.616, 17.09),
+        'right_wrist': (-2.153, -1.632), 'left_shoulder': (86.295, -26.683, 11.459),
+        'right_hip': (32.651, 12.424, -15.871), 'left_hip': (32.652, 12.419, -15.874),
     })
-    human.KeyRoot(9.0, (3.969, 79.19, 32.761), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.0, (3.503, 79.292, 34.204), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'spine_lumbar': (19.619, 0.0, 0.0), 'spine_thoracic': (9.809, 0.0, 0.0),
-        'right_elbow': (30.147, 10.0),
+        'right_shoulder': (103.99, -38.223, 4.256), 'right_elbow': (32.256, 17.097),
+        'left_shoulder': (69.907, -19.847, 11.459), 'right_hip': (25.852, 11.022, -16.928),
+        'right_knee': (34.936,), 'left_hip': (25.853, 11.019, -16.929), 'left_knee': (34.938,),
     })
-    human.KeyRoot(9.1, (2.99, 81.265, 35.782), (-17.969, 0.0, 0.0))
-    human.KeyRoot(9.2, (1.949, 82.812, 38.989), (-17.969, 0.0, 0.0))
-    human.KeyJoints(9.2, {'spine_lumbar': (9.328, 0.0, 0.0)})
-    human.KeyRoot(9.3, (0.867, 83.805, 42.326), (-17.969, 0.0, 0.0))
-    human.KeyRoot(9.378534, (0.0, 84.188, 45.0), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.1, (2.64, 81.371, 36.859), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.1, {
+        'spine_lumbar': (14.552, 0.0, 0.0), 'spine_thoracic': (7.276, 0.0, 0.0),
+        'right_shoulder': (75.483, -29.164, 4.23), 'right_elbow': (32.762, 17.103),
+        'right_wrist': (-2.299, -1.405), 'left_shoulder': (48.671, -10.988, 11.459),
+        'right_hip': (19.102, 9.578, -17.858), 'right_knee': (25.644,),
+        'right_ankle': (4.536, 2.825), 'left_hip': (19.102, 9.578, -17.858), 'left_knee': (25.644,),
+        'left_ankle': (4.536, 2.825),
+    })
+    human.KeyRoot(9.2, (1.72, 82.857, 39.695), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.2, {
+        'right_shoulder': (45.931, -17.924, 4.23), 'left_shoulder': (27.881, -2.316, 11.459),
+        'right_hip': (12.327, 8.077, -18.684), 'left_hip': (12.327, 8.077, -18.684),
+    })
+    human.KeyRoot(9.3, (0.764, 83.699, 42.645), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.3, {
+        'right_shoulder': (21.032, -5.051, 4.23), 'left_shoulder': (12.878, 3.942, 11.459),
+        'right_hip': (5.59, 6.543, -19.401), 'right_knee': (6.76,), 'right_ankle': (-0.705, 4.279),
+        'left_hip': (5.59, 6.543, -19.401), 'left_knee': (6.76,), 'left_ankle': (-0.705, 4.279),
+    })
+    human.KeyRoot(9.378534, (0.0, 83.902, 45.0), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.378534, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (4.116, -0.098, 3.688), 'head': (4.116, -0.001), 'right_clavicle': (1.133, 1.946),
-        'right_shoulder': (108.967, 4.344, 59.594), 'right_elbow': (30.147, 10.0),
-        'right_wrist': (-15.276, 0.278), 'left_clavicle': (0.0, 0.0),
+        'neck': (3.418, -0.1, 2.711), 'head': (3.418, -0.001), 'right_clavicle': (1.388, 1.857),
+        'right_shoulder': (8.594, 5.73, 4.23), 'right_elbow': (32.762, 17.103),
+        'right_wrist': (-2.299, -1.405), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
+        'left_wrist': (0.0, 0.0), 'right_hip': (0.632, 5.431, -19.866), 'right_knee': (0.0,),
+        'right_ankle': (-2.447, 4.891), 'left_hip': (0.632, 5.431, -19.866), 'left_knee': (0.0,),
+        'left_ankle': (-2.447, 4.891), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

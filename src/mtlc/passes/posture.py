@@ -749,12 +749,17 @@ def wide_transition(
     s0 = _bisect(lambda s: float(_narrow_drop(skel, legs, s)[1] - start[1]), 0.0, 1.0)
     s1 = float(target[skel.dof_index("r_hip_flex")]) / SQUAT_HIP_MAX if squat else 0.0
     rest = start - _narrow_drop(skel, legs, s0)  # what the start has beside the squat's path
+    # legs apart already stand the pelvis lower (3.5 mm, male P50): a squat's depth is from
+    # the legs straight, as with the feet together
+    apart = _ankle_drop(legs, stance, np.zeros(len(idx))) * np.array([0.0, 1.0, 0.0])
+    if not squat:
+        apart[:] = 0.0
     arm_cols = [skel.dof_index(f"{a[0]}_shoulder_{d}") for a in free for d in ("flex", "abd")]
     poses = []
     for f in np.linspace(0.0, 1.0, n):
         q = cur + f * (target - cur)
         q[arm_cols] = cur[arm_cols] + stand_arms(f, squat) * (target - cur)[arm_cols]
-        drop = _narrow_drop(skel, legs, s0 + f * (s1 - s0)) + (1.0 - f) * rest
+        drop = _narrow_drop(skel, legs, s0 + f * (s1 - s0)) + (1.0 - f) * rest - f * apart
         q[idx] = legs_over_feet(legs, stance, drop)
         poses.append(q if f == 0.0 else clear_fingertips(skel, balanced_lean(skel, q), free))
     fracs = np.linspace(0.0, 1.0, n)

@@ -11,7 +11,7 @@ def drain_reservoir():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=50, stature=167.8, mass=59.0)
     # examples/drain_hydraulic_reservoir.mtask:22:5 drain_reservoir > walk_to > travel: locomotion on root at skid_side
-    human.Walk((-0.042, 0.0, 44.227), start=0.0, duration=1.294737)
+    human.Walk((-0.061, 0.0, 44.23), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 84.188, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -94,249 +94,251 @@ def drain_reservoir():
         'left_hip': (11.646, 10.68, -18.107), 'left_knee': (16.168,), 'left_ankle': (1.699, 6.303),
     })
     # examples/drain_hydraulic_reservoir.mtask:23:5 drain_reservoir > squat: posture on root
-    human.KeyRoot(1.3, (0.063, 83.889, 44.486), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.043, 83.884, 44.49), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.3, {
         'spine_lumbar': (0.559, 0.0, 0.0), 'spine_thoracic': (0.28, 0.0, 0.0),
         'right_shoulder': (9.351, 5.403, 11.459), 'left_shoulder': (9.351, 5.403, 11.459),
-        'right_hip': (2.451, 5.907, -19.698), 'right_knee': (3.142,),
-        'right_ankle': (-1.081, 4.669), 'left_hip': (1.841, 5.835, -19.748), 'left_knee': (1.818,),
-        'left_ankle': (-1.814, 4.826),
+        'right_hip': (2.453, 5.884, -19.699), 'right_knee': (3.149,),
+        'right_ankle': (-1.141, 4.668), 'left_hip': (1.843, 5.837, -19.748), 'left_knee': (1.825,),
+        'left_ankle': (-1.89, 4.825),
     })
-    human.KeyRoot(1.4, (1.123, 83.62, 41.134), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.4, (1.123, 83.651, 41.132), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.4, {
         'spine_lumbar': (6.445, 0.0, 0.0), 'right_shoulder': (17.313, 1.97, 11.459),
-        'left_shoulder': (17.313, 1.97, 11.459), 'right_hip': (6.776, 6.46, -19.333),
-        'right_knee': (6.834,), 'right_ankle': (-1.717, 3.806), 'left_hip': (6.561, 6.567, -19.332),
-        'left_knee': (6.367,), 'left_ankle': (-2.015, 3.978),
+        'left_shoulder': (17.313, 1.97, 11.459), 'right_hip': (6.399, 6.326, -19.375),
+        'right_knee': (6.019,), 'right_ankle': (-2.133, 3.803), 'left_hip': (6.195, 6.437, -19.374),
+        'left_knee': (5.575,), 'left_ankle': (-2.423, 3.977),
     })
-    human.KeyRoot(1.5, (2.161, 82.538, 37.989), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.5, (2.161, 82.615, 37.987), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_thoracic': (6.069, 0.0, 0.0), 'right_hip': (14.408, 8.248, -18.524),
-        'right_knee': (17.808,), 'right_ankle': (1.515, 3.021),
-        'left_hip': (14.332, 8.376, -18.492), 'left_knee': (17.635,), 'left_ankle': (1.376, 3.172),
+        'spine_thoracic': (6.069, 0.0, 0.0), 'right_hip': (14.055, 8.127, -18.575),
+        'right_knee': (17.062,), 'right_ankle': (1.138, 3.017),
+        'left_hip': (13.976, 8.255, -18.544), 'left_knee': (16.883,), 'left_ankle': (0.996, 3.169),
     })
-    human.KeyRoot(1.6, (3.143, 80.492, 35.018), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.6, (3.143, 80.602, 35.016), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'right_hip': (22.43, 10.104, -17.497), 'right_knee': (29.452,),
-        'right_ankle': (5.057, 2.289), 'left_hip': (22.389, 10.217, -17.45), 'left_knee': (29.351,),
-        'left_ankle': (4.96, 2.42),
+        'right_hip': (22.12, 10.003, -17.553), 'right_knee': (28.819,),
+        'right_ankle': (4.745, 2.285), 'left_hip': (22.078, 10.117, -17.507),
+        'left_knee': (28.714,), 'left_ankle': (4.647, 2.417),
     })
-    human.KeyRoot(1.7, (4.042, 77.731, 32.299), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.7, (4.042, 77.873, 32.298), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'right_hip': (30.166, 11.786, -16.351), 'right_knee': (40.334,),
-        'left_hip': (30.146, 11.878, -16.296), 'left_knee': (40.271,), 'left_ankle': (8.116, 1.714),
+        'right_hip': (29.86, 11.694, -16.416), 'right_knee': (39.735,),
+        'right_ankle': (7.901, 1.599), 'left_hip': (29.839, 11.786, -16.361),
+        'left_knee': (39.671,), 'left_ankle': (7.83, 1.711),
     })
-    human.KeyRoot(1.8, (4.835, 74.255, 29.909), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.8, (4.835, 74.429, 29.908), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'right_hip': (37.929, 13.385, -15.03), 'right_knee': (51.089,),
-        'right_ankle': (11.214, 0.971), 'left_hip': (37.921, 13.454, -14.974),
-        'left_knee': (51.049,), 'left_ankle': (11.164, 1.06),
+        'right_hip': (37.615, 13.3, -15.104), 'right_knee': (50.508,),
+        'right_ankle': (10.951, 0.968), 'left_hip': (37.606, 13.369, -15.049),
+        'left_knee': (50.466,), 'left_ankle': (10.9, 1.058),
     })
-    human.KeyRoot(1.9, (5.499, 70.14, 27.918), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.9, (5.499, 70.348, 27.917), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'right_hip': (45.742, 14.887, -13.513), 'right_knee': (61.739,),
-        'left_hip': (45.74, 14.935, -13.465), 'left_knee': (61.714,),
+        'right_hip': (45.411, 14.808, -13.599), 'right_knee': (61.167,),
+        'left_hip': (45.409, 14.857, -13.552), 'left_knee': (61.141,),
     })
-    human.KeyRoot(2.0, (6.014, 65.452, 26.385), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.0, (6.014, 65.693, 26.385), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'right_hip': (53.605, 16.275, -11.781), 'right_knee': (72.276,),
-        'right_ankle': (16.98, -0.088), 'left_hip': (53.607, 16.301, -11.748),
-        'left_knee': (72.264,), 'left_ankle': (16.965, -0.048),
+        'right_hip': (53.251, 16.204, -11.88), 'right_knee': (71.709,),
+        'right_ankle': (16.76, -0.088), 'left_hip': (53.253, 16.23, -11.847),
+        'left_knee': (71.696,), 'left_ankle': (16.746, -0.048),
     })
-    human.KeyRoot(2.1, (6.807, 60.822, 23.993), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.1, (6.807, 61.095, 23.993), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (46.277, 0.0, 0.0), 'spine_thoracic': (23.139, 0.0, 0.0),
-        'right_hip': (61.46, 17.273, -10.285), 'right_knee': (80.375,),
-        'right_ankle': (17.519, -0.99), 'left_hip': (61.461, 17.279, -10.276),
-        'left_knee': (80.372,), 'left_ankle': (17.515, -0.979),
+        'spine_lumbar': (46.271, 0.0, 0.0), 'spine_thoracic': (23.136, 0.0, 0.0),
+        'right_hip': (61.068, 17.207, -10.397), 'right_knee': (79.802,),
+        'right_ankle': (17.326, -0.985), 'left_hip': (61.069, 17.213, -10.388),
+        'left_knee': (79.799,), 'left_ankle': (17.322, -0.974),
     })
-    human.KeyRoot(2.2, (7.492, 55.985, 21.901), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.2, (7.492, 56.292, 21.901), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (59.616, 0.0, 0.0), 'spine_thoracic': (29.808, 0.0, 0.0),
-        'right_hip': (69.334, 18.146, -8.773), 'left_hip': (69.334, 18.146, -8.773),
+        'spine_lumbar': (59.67, 0.0, 0.0), 'spine_thoracic': (29.835, 0.0, 0.0),
+        'right_shoulder': (78.971, -24.619, 11.459), 'left_shoulder': (78.971, -24.619, 11.459),
+        'right_hip': (68.896, 18.086, -8.898), 'left_hip': (68.896, 18.086, -8.898),
     })
-    human.KeyRoot(2.3, (7.973, 50.914, 20.418), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.3, (7.973, 51.255, 20.418), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.3, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (86.64, -27.972, 11.459),
-        'left_shoulder': (86.64, -27.972, 11.459), 'right_hip': (77.266, 18.947, -7.124),
-        'right_knee': (95.438,), 'right_ankle': (17.487, -2.863),
-        'left_hip': (77.266, 18.947, -7.124), 'left_knee': (95.438,),
-        'left_ankle': (17.487, -2.863),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (86.745, -27.972, 11.459),
+        'left_shoulder': (86.745, -27.972, 11.459), 'right_hip': (76.774, 18.893, -7.262),
+        'right_knee': (94.86,), 'right_ankle': (17.377, -2.841),
+        'left_hip': (76.774, 18.893, -7.262), 'left_knee': (94.86,), 'left_ankle': (17.377, -2.841),
     })
     # examples/drain_hydraulic_reservoir.mtask:24:5 drain_reservoir > look: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=2.338737, duration=0.2628)
-    human.KeyRoot(2.4, (8.102, 48.902, 20.018), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.4, (8.102, 49.255, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'neck': (-0.313, 0.0, 0.0), 'head': (-0.313, 0.0),
-        'right_shoulder': (92.498, -29.27, 11.459), 'left_shoulder': (92.498, -29.27, 11.459),
-        'right_hip': (80.361, 19.234, -6.436), 'right_knee': (98.345,),
-        'right_ankle': (17.456, -3.193), 'left_hip': (80.361, 19.234, -6.436),
-        'left_knee': (98.345,), 'left_ankle': (17.456, -3.193),
+        'neck': (-0.31, 0.0, 0.0), 'head': (-0.31, 0.0), 'right_shoulder': (89.757, -29.27, 11.459),
+        'left_shoulder': (89.757, -29.27, 11.459), 'right_hip': (79.846, 19.182, -6.579),
+        'right_knee': (97.768,), 'right_ankle': (17.368, -3.166),
+        'left_hip': (79.846, 19.182, -6.579), 'left_knee': (97.768,),
+        'left_ankle': (17.368, -3.166),
     })
-    human.KeyJoints(2.5, {'neck': (-1.517, 0.0, 0.0), 'head': (-1.517, 0.0)})
+    human.KeyJoints(2.5, {'neck': (-1.505, 0.0, 0.0), 'head': (-1.505, 0.0)})
     human.KeyJoints(2.6, {
-        'neck': (-2.273, 0.0, 0.0), 'head': (-2.273, 0.0),
-        'right_shoulder': (92.498, -29.27, 11.459), 'right_wrist': (0.0, 0.0),
+        'neck': (-2.254, 0.0, 0.0), 'head': (-2.254, 0.0),
+        'right_shoulder': (89.757, -29.27, 11.459), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=2.601537, duration=0.832997)
     human.KeyJoints(2.7, {
-        'neck': (-1.849, 0.0, 0.0), 'head': (-1.849, 0.0),
-        'right_shoulder': (92.526, -28.443, 11.232), 'right_elbow': (34.391, 17.185),
-        'right_wrist': (-0.071, -0.028),
+        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0),
+        'right_shoulder': (89.893, -28.444, 11.22), 'right_wrist': (-0.066, -0.053),
     })
-    human.KeyJoints(2.8, {'right_shoulder': (92.622, -26.28, 10.64)})
-    human.KeyJoints(2.9, {
-        'right_shoulder': (92.801, -23.352, 9.837), 'right_wrist': (-0.513, -0.202),
+    human.KeyJoints(2.8, {
+        'right_shoulder': (90.301, -26.284, 10.596), 'right_elbow': (34.17, 17.172),
     })
+    human.KeyJoints(2.9, {'right_shoulder': (90.965, -23.36, 9.751)})
     human.KeyJoints(3.0, {
-        'right_shoulder': (93.076, -20.226, 8.98), 'right_elbow': (34.661, 17.145),
+        'right_shoulder': (91.867, -20.238, 8.848), 'right_wrist': (-0.738, -0.579),
     })
     human.KeyJoints(3.1, {
-        'right_shoulder': (93.463, -17.472, 8.225), 'right_wrist': (-1.04, -0.403),
+        'right_shoulder': (92.993, -17.487, 8.053), 'right_elbow': (33.56, 17.124),
     })
     human.KeyJoints(3.2, {
         'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'neck': (-1.849, 0.0, 0.0), 'head': (-1.849, 0.0), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (93.976, -15.657, 7.728), 'right_elbow': (35.097, 17.123),
-        'right_wrist': (-1.219, -0.465),
+        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0), 'right_clavicle': (0.0, 0.0),
+        'right_shoulder': (94.326, -15.674, 7.529), 'right_elbow': (33.434, 17.115),
+        'right_wrist': (-1.144, -0.872),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(3.3, {
-        'spine_lumbar': (59.271, -0.255, 0.422), 'spine_thoracic': (29.058, -0.272, 0.33),
-        'neck': (-1.183, 0.037, -1.176), 'head': (-1.183, 0.0), 'right_clavicle': (0.137, 0.33),
-        'right_shoulder': (95.23, -15.563, 7.677), 'right_elbow': (35.798, 17.124),
-        'right_wrist': (-1.28, -0.364),
+        'spine_lumbar': (59.282, -0.216, 0.357), 'spine_thoracic': (29.176, -0.229, 0.281),
+        'neck': (-1.227, 0.032, -1.0), 'head': (-1.227, 0.0), 'right_clavicle': (0.134, 0.325),
+        'right_shoulder': (96.16, -15.572, 7.468), 'right_elbow': (33.874, 17.115),
+        'right_wrist': (-1.206, -0.784),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (60.0, -1.478, 2.649), 'spine_thoracic': (28.441, -1.626, 2.143),
-        'neck': (-1.05, 0.237, -7.53), 'head': (-1.049, 0.001), 'right_clavicle': (0.775, 1.347),
-        'right_shoulder': (100.434, -9.7, 5.51), 'right_wrist': (-1.941, -0.947),
+        'spine_lumbar': (60.0, -1.476, 2.667), 'spine_thoracic': (28.511, -1.628, 2.164),
+        'neck': (-1.071, 0.236, -7.554), 'head': (-1.07, 0.001), 'right_clavicle': (0.78, 1.369),
+        'right_shoulder': (101.302, -9.69, 5.429), 'right_elbow': (32.517, 17.11),
+        'right_wrist': (-1.872, -1.303),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)
     human.KeyJoints(3.5, {
-        'spine_lumbar': (60.0, -2.063, 3.891), 'spine_thoracic': (29.251, -2.355, 3.187),
-        'neck': (-1.336, 0.357, -11.371), 'head': (-1.335, 0.003), 'right_clavicle': (1.388, 1.857),
-        'right_shoulder': (102.557, -5.779, 4.227), 'right_elbow': (32.622, 17.103),
-        'right_wrist': (-2.284, -1.434),
+        'spine_lumbar': (60.0, -2.055, 3.909), 'spine_thoracic': (29.366, -2.351, 3.211),
+        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003), 'right_clavicle': (1.387, 1.879),
+        'right_shoulder': (103.475, -5.701, 4.199), 'right_elbow': (30.878, 17.105),
+        'right_wrist': (-2.213, -1.784),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(3.6, {
-        'right_shoulder': (102.573, -5.644, 4.186), 'right_elbow': (32.967, -25.305),
+        'right_shoulder': (103.493, -5.539, 4.152), 'right_elbow': (31.208, -25.303),
     })
     human.KeyJoints(3.7, {
-        'neck': (-1.336, 0.357, -11.371), 'head': (-1.335, 0.003),
-        'right_shoulder': (102.587, -5.386, 4.108), 'right_elbow': (33.056, -72.891),
+        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003),
+        'right_shoulder': (103.506, -5.264, 4.072), 'right_elbow': (31.249, -72.889),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=3.700934, duration=0.2628)
     human.KeyJoints(3.8, {
-        'neck': (-0.659, 0.292, -9.365), 'head': (-0.658, 0.002), 'right_wrist': (-2.254, -1.337),
+        'neck': (-0.709, 0.291, -9.386), 'head': (-0.708, 0.002), 'right_wrist': (-2.234, -1.664),
     })
-    human.KeyJoints(3.9, {'neck': (1.394, 0.094, -3.284), 'head': (1.395, 0.001)})
+    human.KeyJoints(3.9, {'neck': (1.335, 0.096, -3.335), 'head': (1.335, 0.001)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(4.0, {'neck': (3.219, -0.1, 2.122), 'head': (3.219, -0.001)})
-    human.KeyJoints(4.8, {'neck': (3.418, -0.1, 2.711)})
-    human.KeyJoints(5.0, {'head': (3.418, -0.001)})
-    human.KeyJoints(7.9, {'right_elbow': (33.056, -72.897)})
+    human.KeyJoints(4.0, {'neck': (3.151, -0.096, 2.043), 'head': (3.152, -0.001)})
+    human.KeyJoints(4.8, {'neck': (3.349, -0.096, 2.63)})
+    human.KeyJoints(5.0, {'head': (3.35, -0.001)})
+    human.KeyJoints(7.9, {'right_elbow': (31.249, -72.895)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(8.0, {
-        'right_shoulder': (102.586, -5.403, 4.113), 'right_elbow': (33.063, -69.752),
+        'right_shoulder': (103.506, -5.282, 4.077), 'right_elbow': (31.259, -69.75),
     })
-    human.KeyJoints(8.1, {'right_elbow': (32.986, -28.609), 'right_wrist': (-2.297, -1.351)})
+    human.KeyJoints(8.1, {'right_elbow': (31.224, -28.607), 'right_wrist': (-2.254, -1.7)})
     # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.158134, duration=0.072)
-    human.KeyRoot(8.2, (8.102, 48.902, 20.018), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.2, (8.102, 49.255, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.2, {
-        'spine_lumbar': (60.0, -2.063, 3.891), 'spine_thoracic': (29.251, -2.355, 3.187),
-        'right_shoulder': (102.557, -5.779, 4.227), 'right_elbow': (32.622, 17.103),
-        'right_wrist': (-2.284, -1.434), 'right_hip': (80.361, 19.234, -6.436),
-        'right_knee': (98.345,), 'right_ankle': (17.456, -3.193),
-        'left_hip': (80.361, 19.234, -6.436), 'left_knee': (98.345,),
-        'left_ankle': (17.456, -3.193),
+        'spine_lumbar': (60.0, -2.055, 3.909), 'spine_thoracic': (29.366, -2.351, 3.211),
+        'right_shoulder': (103.475, -5.701, 4.199), 'right_elbow': (30.878, 17.105),
+        'right_wrist': (-2.213, -1.784), 'right_hip': (79.846, 19.182, -6.579),
+        'right_knee': (97.768,), 'right_ankle': (17.368, -3.166),
+        'left_hip': (79.846, 19.182, -6.579), 'left_knee': (97.768,),
+        'left_ankle': (17.368, -3.166),
     })
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
-    human.KeyRoot(8.3, (7.873, 52.537, 20.789), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.3, (7.864, 52.86, 20.819), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.3, {
-        'spine_lumbar': (57.569, 0.636, -1.2), 'spine_thoracic': (29.015, 0.726, -0.983),
-        'right_shoulder': (114.311, -17.674, 4.694), 'right_elbow': (23.71, 17.008),
-        'right_wrist': (-1.162, -3.123), 'right_hip': (74.771, 18.709, -7.651),
-        'right_knee': (93.029,), 'right_ankle': (17.452, -2.577),
-        'left_hip': (74.764, 18.695, -7.696), 'left_knee': (93.04,), 'left_ankle': (17.471, -2.621),
+        'spine_lumbar': (58.587, 0.634, -1.205), 'spine_thoracic': (29.489, 0.725, -0.99),
+        'right_shoulder': (121.99, -8.79, 5.035), 'right_elbow': (21.974, 17.006),
+        'right_wrist': (-0.934, -3.353), 'right_hip': (74.294, 18.656, -7.773),
+        'right_knee': (92.493,), 'right_ankle': (17.37, -2.546),
+        'left_hip': (74.288, 18.641, -7.82), 'left_knee': (92.504,), 'left_ankle': (17.39, -2.59),
     })
-    human.KeyRoot(8.4, (7.397, 57.063, 22.247), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.4, (7.379, 57.344, 22.307), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.4, {
-        'spine_lumbar': (51.125, 0.553, -1.043), 'spine_thoracic': (25.763, 0.631, -0.854),
-        'right_shoulder': (121.749, -28.019, 4.537), 'right_elbow': (25.374, 17.025),
-        'right_hip': (67.644, 17.965, -9.112), 'left_hip': (67.64, 17.95, -9.146),
+        'spine_lumbar': (51.125, 0.551, -1.048), 'spine_thoracic': (25.732, 0.63, -0.861),
+        'right_shoulder': (136.784, -8.319, 4.926), 'right_elbow': (24.814, 17.034),
+        'right_hip': (67.216, 17.912, -9.211), 'left_hip': (67.212, 17.896, -9.247),
     })
-    human.KeyRoot(8.5, (6.755, 61.368, 24.219), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.5, (6.729, 61.606, 24.301), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.5, {
-        'right_shoulder': (127.359, -36.08, 4.422), 'right_elbow': (27.221, 17.043),
-        'right_knee': (79.422,), 'right_ankle': (17.427, -0.878), 'left_knee': (79.431,),
-        'left_ankle': (17.44, -0.905),
+        'right_shoulder': (148.316, -7.76, 4.785), 'right_elbow': (27.207, 17.058),
+        'right_wrist': (-1.583, -2.435), 'right_knee': (78.992,), 'right_ankle': (17.364, -0.843),
+        'left_knee': (79.001,), 'left_ankle': (17.377, -0.871),
     })
-    human.KeyRoot(8.6, (6.027, 65.475, 26.455), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.6, (6.019, 65.696, 26.482), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.6, {
-        'right_shoulder': (131.327, -41.849, 4.345), 'right_elbow': (28.664, 17.059),
-        'right_wrist': (-1.806, -2.211), 'right_hip': (53.537, 16.295, -11.759),
-        'right_knee': (72.255,), 'right_ankle': (17.041, -0.037),
-        'left_hip': (53.536, 16.281, -11.777), 'left_knee': (72.262,),
-        'left_ankle': (17.051, -0.058),
+        'right_shoulder': (156.755, -7.242, 4.645), 'right_elbow': (28.745, 17.075),
+        'right_wrist': (-1.805, -2.155), 'right_hip': (53.198, 16.233, -11.846),
+        'right_knee': (71.757,), 'right_ankle': (16.876, -0.027),
+        'left_hip': (53.197, 16.219, -11.864), 'left_knee': (71.764,),
+        'left_ankle': (16.887, -0.049),
     })
-    human.KeyRoot(8.7, (5.566, 69.675, 27.868), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.7, (5.555, 69.851, 27.904), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'right_shoulder': (133.525, -45.0, 5.272), 'right_elbow': (29.852, 17.067),
-        'right_hip': (46.492, 15.078, -13.303), 'left_hip': (46.492, 15.067, -13.314),
+        'right_shoulder': (161.889, -6.816, 4.526), 'right_elbow': (29.73, 17.087),
+        'right_hip': (46.199, 15.019, -13.371), 'left_hip': (46.199, 15.007, -13.383),
     })
-    human.KeyRoot(8.8, (4.983, 73.413, 29.657), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.8, (4.97, 73.544, 29.701), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'right_shoulder': (133.908, -45.0, 6.045), 'right_elbow': (30.805, 17.073),
-        'right_wrist': (-1.343, -1.577), 'left_shoulder': (92.498, -29.27, 11.459),
-        'right_hip': (39.531, 13.781, -14.668), 'right_ankle': (12.082, 0.95),
-        'left_hip': (39.532, 13.773, -14.675), 'left_ankle': (12.088, 0.94),
+        'right_shoulder': (163.561, -6.477, 4.43), 'right_elbow': (30.411, 17.095),
+        'right_wrist': (-2.071, -1.853), 'left_shoulder': (89.757, -29.27, 11.459),
+        'right_hip': (39.284, 13.728, -14.719), 'right_ankle': (11.95, 0.962),
+        'left_hip': (39.284, 13.719, -14.726), 'left_ankle': (11.956, 0.951),
     })
-    human.KeyRoot(8.9, (4.29, 76.633, 31.786), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.9, (4.276, 76.725, 31.831), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'right_shoulder': (125.441, -44.247, 4.279), 'right_elbow': (31.616, 17.09),
-        'right_wrist': (-2.153, -1.632), 'left_shoulder': (86.295, -26.683, 11.459),
-        'right_hip': (32.651, 12.424, -15.871), 'left_hip': (32.652, 12.419, -15.874),
+        'right_shoulder': (154.869, -5.396, 4.359), 'left_shoulder': (83.756, -26.683, 11.459),
+        'right_hip': (32.448, 12.377, -15.908), 'left_hip': (32.449, 12.372, -15.911),
     })
-    human.KeyRoot(9.0, (3.503, 79.292, 34.204), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.0, (3.49, 79.351, 34.246), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'right_shoulder': (103.99, -38.223, 4.256), 'right_elbow': (32.256, 17.097),
-        'left_shoulder': (69.907, -19.847, 11.459), 'right_hip': (25.852, 11.022, -16.928),
-        'right_knee': (34.936,), 'left_hip': (25.853, 11.019, -16.929), 'left_knee': (34.938,),
+        'right_shoulder': (131.009, -2.893, 4.28), 'right_elbow': (30.802, 17.1),
+        'left_shoulder': (67.904, -19.847, 11.459), 'right_hip': (25.692, 10.983, -16.953),
+        'right_knee': (34.687,), 'left_hip': (25.693, 10.981, -16.955), 'left_knee': (34.689,),
     })
-    human.KeyRoot(9.1, (2.64, 81.371, 36.859), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.1, (2.629, 81.404, 36.894), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.1, {
         'spine_lumbar': (14.552, 0.0, 0.0), 'spine_thoracic': (7.276, 0.0, 0.0),
-        'right_shoulder': (75.483, -29.164, 4.23), 'right_elbow': (32.762, 17.103),
-        'right_wrist': (-2.299, -1.405), 'left_shoulder': (48.671, -10.988, 11.459),
-        'right_hip': (19.102, 9.578, -17.858), 'right_knee': (25.644,),
-        'right_ankle': (4.536, 2.825), 'left_hip': (19.102, 9.578, -17.858), 'left_knee': (25.644,),
-        'left_ankle': (4.536, 2.825),
+        'right_shoulder': (97.933, 0.261, 4.206), 'right_elbow': (31.145, 17.105),
+        'left_shoulder': (47.362, -10.988, 11.459), 'right_hip': (18.985, 9.549, -17.875),
+        'right_knee': (25.46,), 'right_ankle': (4.471, 2.834), 'left_hip': (18.985, 9.549, -17.875),
+        'left_knee': (25.46,), 'left_ankle': (4.471, 2.834),
     })
-    human.KeyRoot(9.2, (1.72, 82.857, 39.695), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.2, (1.713, 82.87, 39.719), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.2, {
-        'right_shoulder': (45.931, -17.924, 4.23), 'left_shoulder': (27.881, -2.316, 11.459),
-        'right_hip': (12.327, 8.077, -18.684), 'left_hip': (12.327, 8.077, -18.684),
+        'right_shoulder': (61.881, 3.098, 4.206), 'right_wrist': (-2.239, -1.73),
+        'left_shoulder': (27.251, -2.316, 11.459), 'right_hip': (12.252, 8.057, -18.693),
+        'left_hip': (12.252, 8.057, -18.693),
     })
-    human.KeyRoot(9.3, (0.764, 83.699, 42.645), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.3, (0.76, 83.701, 42.656), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.3, {
-        'right_shoulder': (21.032, -5.051, 4.23), 'left_shoulder': (12.878, 3.942, 11.459),
-        'right_hip': (5.59, 6.543, -19.401), 'right_knee': (6.76,), 'right_ankle': (-0.705, 4.279),
-        'left_hip': (5.59, 6.543, -19.401), 'left_knee': (6.76,), 'left_ankle': (-0.705, 4.279),
+        'right_shoulder': (28.719, 5.145, 4.206), 'left_shoulder': (12.738, 3.942, 11.459),
+        'right_hip': (5.557, 6.535, -19.404), 'right_knee': (6.706,),
+        'right_ankle': (-0.725, 4.282), 'left_hip': (5.557, 6.535, -19.404), 'left_knee': (6.706,),
+        'left_ankle': (-0.725, 4.282),
     })
     human.KeyRoot(9.378534, (0.0, 83.902, 45.0), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.378534, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (3.418, -0.1, 2.711), 'head': (3.418, -0.001), 'right_clavicle': (1.388, 1.857),
-        'right_shoulder': (8.594, 5.73, 4.23), 'right_elbow': (32.762, 17.103),
-        'right_wrist': (-2.299, -1.405), 'left_clavicle': (0.0, 0.0),
+        'neck': (3.349, -0.096, 2.63), 'head': (3.35, -0.001), 'right_clavicle': (1.387, 1.879),
+        'right_shoulder': (8.594, 5.73, 4.206), 'right_elbow': (31.145, 17.105),
+        'right_wrist': (-2.239, -1.73), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (0.632, 5.431, -19.866), 'right_knee': (0.0,),
         'right_ankle': (-2.447, 4.891), 'left_hip': (0.632, 5.431, -19.866), 'left_knee': (0.0,),

@@ -216,12 +216,13 @@ use stdlib.elements
 scene hangar_floor {
     site front at (0, 0, 40) cm
     site floor_plate at (25, 1, 45) cm normal (1, 0, 0)
+    site ahead at (0, 0, 90) cm
 }
 
 task touch_floor_plate {
     manikin gb10000_1988 male p50
     scene hangar_floor
-    walk_to(front)
+    travel_facing(front, ahead)
     squat(0 cm)
     reach(right, floor_plate)
     stand()
@@ -231,7 +232,9 @@ task touch_floor_plate {
 
 def test_fingertips_that_cannot_be_lifted_are_reported(tmp_path: Path) -> None:
     """Once, by verify (MT0512): the balance pass's own MT0525 for the same fault is retired
-    (this was the example of its page)."""
+    (this was the example of its page). The body faces ahead, the plate 25 cm to its side:
+    walking to face it, the plate is in front of the knees and the squat stands wide, which
+    stops the hand 85 mm short with the fingertips above the floor (MT0501 only)."""
     ir, codes = _motion(tmp_path, FLOOR_PLATE)
     assert "MT0512" in codes and "MT0525" not in codes
     f = ir.frames

@@ -132,23 +132,21 @@ def test_a_squat_reach_keeps_the_forearm_out_of_the_thigh(
     tmp_path: Path, sex: str, pct: int
 ) -> None:
     ir, sink = compile_text(tmp_path, PLUG, (sex, pct))
-    # the forearm's axis was 53 mm (male P90), 32 mm (female P5) into the thigh; its surface
-    # (docs/metrics.md) is now outside for female P5 and 13 mm in for male P90, whose elbow
-    # meets the squatting knee with the hand on the plug: reported, the goal kept
-    depth = deepest_inside(ir)
-    assert depth <= (1e-3 if sex == "female" else 0.02)
-    expected = ["MT0514"] if depth > 1e-3 else []
-    assert [d.code for d in sink.items if d.code.startswith("MT05")] == expected
+    # the forearm's axis was 53 mm (male P90), 32 mm (female P5) into the thigh; then, with the
+    # elbow swung out, its surface (docs/metrics.md) 12 mm in for male P90, whose elbow met
+    # the squatting knee. The plug is in front of the knees: the squat stands wide, the arm
+    # comes down between them
+    assert "wide_stance" in ir.on_track("root")[0].result
+    assert deepest_inside(ir) <= 1e-3
+    assert not [d.code for d in sink.items if d.code.startswith("MT05")]
 
 
 def test_the_drain_valve_reach_keeps_the_forearm_out_of_the_thigh() -> None:
     ir, sink = compile_file(ROOT / "examples" / "drain_hydraulic_reservoir.mtask", ("male", 95))
-    # the forearm's axis was 38 mm into the thigh; its surface is 5 mm in where the elbow
-    # meets the knee with the hand on the valve (the squat keeps the knees forward): reported
-    depth = deepest_inside(ir)
-    assert depth <= 0.01
-    expected = ["MT0514"] if depth > 1e-3 else []
-    assert [d.code for d in sink.items if d.code.startswith("MT05")] == expected
+    # the forearm's axis was 38 mm into the thigh; its surface 5 mm in where the elbow met the
+    # knee with the hand on the valve (knees together); the squat now stands wide
+    assert deepest_inside(ir) <= 1e-3
+    assert not [d.code for d in sink.items if d.code.startswith("MT05")]
 
 
 LOW_VALVE = (
@@ -320,3 +318,52 @@ def test_the_clearance_pass_measures_again_only_what_a_correction_can_move() -> 
         depth_after(sk, penetration(sk, q, root, "r"), q, moved, root, "r"),
         penetration(sk, moved, root, "r"),
     )
+
+
+def planted_foot_speed(ir: MotionIR, t0: float, t1: float) -> float:
+    """The fastest (m/s) a heel or toe on the floor (within 2 mm) moves between two output
+    frames in [t0, t1]."""
+    f, sk = ir.frames, ir.skeleton
+    assert f is not None
+    rows = np.flatnonzero((f.time >= t0) & (f.time <= t1))
+    pose = forward(sk, f.q[rows], f.root_position[rows], f.root_rotation[rows], with_axes=False)
+    feet = site_positions(sk, pose, ["r_heel", "l_heel", "r_toe", "l_toe"])
+    down = feet[..., 1] < ir.ground + 0.002
+    speed = np.linalg.norm(np.diff(feet[..., [0, 2]], axis=0), axis=-1) * f.fps
+    return float(np.where(down[1:] & down[:-1], speed, 0.0).max())
+
+
+@pytest.mark.parametrize(
+    ("name", "sex", "pct"),
+    [("w03_right_knee_30cm", "male", 95), ("w04_two_hands_midline", "female", 99)],
+)
+def test_a_squat_in_front_of_the_knees_stands_wide(name: str, sex: str, pct: int) -> None:
+    """A squat whose reach goes down in front of the knees: the walk lands the feet apart and
+    turned out, the knees go out over them and the arms come down between them (before, feet
+    together: 32 mm (male P95) and 22 mm (female P99) into a thigh, MT0514)."""
+    ir, sink = compile_file(ROOT / "tests" / "data" / "squat" / f"{name}.mtask", (sex, pct))
+    (walk,) = ir.on_track("root")[:1]
+    assert "wide_stance" in walk.result
+    squat = next(s for s in ir.on_track("root") if s.goal.params.get("posture") == "squat")
+    f, sk = ir.frames, ir.skeleton
+    assert f is not None
+    at = int(np.searchsorted(f.time, squat.end))
+    for side in ("r", "l"):  # the knees apart: hips abducted, the feet turned out
+        assert f.q[at, sk.dof_index(f"{side}_hip_abd")] > np.radians(8.0)
+    assert deepest_inside(ir) <= 1e-3
+    assert planted_foot_speed(ir, squat.start, ir.duration) <= 0.02
+    assert ir.verification is not None and ir.verification.static_margin > 0.0
+    assert not [d for d in sink.items if d.code in ("MT0514", "MT0502", "MT0501")]
+
+
+def test_a_squat_to_the_side_of_the_knees_keeps_the_feet_together(tmp_path: Path) -> None:
+    """A site 32 cm to the side of the way the body faces is reached outside the knee: the
+    feet stay together (the walk faces the work unless told otherwise, then it is ahead)."""
+    text = PLUG.replace(
+        "site plug at (10, 18, 78) cm",
+        "site plug at (32, 18, 78) cm\n    site ahead at (0, 0, 90) cm",
+    ).replace("walk_to(side)", "travel_facing(side, ahead)")
+    ir, _ = compile_text(tmp_path, text, ("male", 50))
+    assert all("wide_stance" not in s.result for s in ir.on_track("root"))
+    ahead, _ = compile_text(tmp_path, PLUG.replace("walk_to(side)", "travel_facing(side, plug)"))
+    assert "wide_stance" in ahead.on_track("root")[0].result  # 10 cm to the side: in front

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -32,6 +32,7 @@ from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 
 from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
 from mtlc.passes.context import INTERNAL_FPS, PassContext
+from mtlc.passes.stance import WIDE_RESULT, WIDE_STEP, WIDE_TURN_OUT, needs_wide_squat
 
 # the front end times the turns these thresholds make the gait step (mtlc.semantics.turning)
 from mtlc.semantics import gait as steps_time
@@ -382,6 +383,23 @@ def plan_footsteps(
     if abs(rest) > FINAL_TURN:
         pivot(centre, h0, rest, foot)
     return steps
+
+
+def widen(steps: list[Step], step: float, turn_out: float) -> list[Step]:
+    """The steps with each foot's last landing ``step`` further out to its side and its toes
+    turned out by ``turn_out``: the wide stance of a squat in front of the knees
+    (``mtlc.passes.stance``). Only the landings move: each foot still steps there."""
+    out = list(steps)
+    for foot in LEGS:
+        last = max((i for i, st in enumerate(out) if st.foot == foot), default=None)
+        if last is None:
+            continue
+        st = out[last]
+        h = st.end.heading
+        out_h = h + turn_out if foot == "l" else h - turn_out
+        end = Footprint(st.end.position + _side(h, foot, step), out_h)
+        out[last] = replace(st, end=end)
+    return out
 
 
 def _other(foot: str) -> str:
@@ -1121,6 +1139,9 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
                                   walking + 1)  # fmt: skip
             if _steps_need(more, gait) <= (t1 - t0) * (1 + 1e-9):
                 steps = more
+        wide = bool(steps) and needs_wide_squat(ir, t1, next_start, goal, h1)
+        if wide:
+            steps = widen(steps, WIDE_STEP * legs.length, WIDE_TURN_OUT)
         time_steps(steps, t0, t1, gait)
         root_end, h_end = np.array([p1[0], 0.0, p1[2]]), h1
         if not _travels(stance, goal):  # the root moves and turns only as the feet in place do
@@ -1171,6 +1192,9 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
                 ],
             }
         )
+        if wide:
+            seg.result[WIDE_RESULT] = {"step": round(WIDE_STEP * legs.length, 6),
+                                       "turn_out": round(WIDE_TURN_OUT, 6)}  # fmt: skip
         if steps:
             next_foot = "l" if steps[-1].foot == "r" else "r"
         # the standing body after the walk stays where the gait left it, until the next walk

@@ -34,6 +34,7 @@ from mtlc.body import center_of_mass, forward, site_positions
 from mtlc.body.ik.clearance import penetration
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import INTERNAL_FPS, PassContext
+from mtlc.passes.hold import holding
 from mtlc.passes.interpolate import FOOT_POINTS
 from mtlc.passes.kneel import (
     HALF_KNEEL_PHASES,
@@ -48,6 +49,8 @@ from mtlc.passes.kneel import (
     smoothstep,
     to_world,
 )
+from mtlc.passes.locomotion import LegModel, leg_fk, leg_ik, leg_model
+from mtlc.passes.stance import WIDE_RESULT
 from mtlc.passes.state import PoseState, mark, reanchor
 
 TRUNK_DOFS = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
@@ -65,6 +68,7 @@ SQUAT_ANKLE_LEAD = 0.5
 SQUAT_ARMS = math.radians(90.0)  # free arms held forward at the deepest squat (counterweight)
 HEEL_MARGIN = 0.03  # m: a flat-footed posture keeps its CoM this far in front of the heels
 TRANSITION_KEYS = 6  # keyframes of a flat-footed posture change, each one balanced
+WIDE_KEYS = 41  # ...over feet set apart: leg IK at each key (11 keys slid them 5 cm/s)
 ARM_FLEX = ("r_shoulder_flex", "l_shoulder_flex")
 FINGER_CLEARANCE = 0.03  # m: free fingertips stay this far above the ground in a posture
 FINGER_ARM_MAX = math.radians(120.0)  # ...raising the arm forward at most this far
@@ -705,6 +709,170 @@ def _stand_from_kneel(
     mark(ctx.cache, seg)  # its first keyframe holds the pose the reaches left
 
 
+def wide_stand_arms(ir: MotionIR, seg: Segment, free: tuple[str, ...]) -> tuple[str, ...]:
+    """``free`` and the arms that let go of their site before ``seg`` and do nothing during it:
+    standing up from between the knees, an arm left where it worked goes into a rising thigh
+    (the right forearm 10-12 mm on the drain valve, women P90-P99)."""
+    held = holding(ir, seg.start)
+    out = list(free)
+    for side in ("r", "l"):
+        track, dof = f"{side}_arm", f"{side}_shoulder_flex"
+        busy = any(s.start < seg.end - 1e-9 and s.end > seg.start + 1e-9
+                   for s in ir.on_track(track))  # fmt: skip
+        if dof not in out and track not in held and not busy:
+            out.append(dof)
+    return tuple(sorted(out, key=lambda d: d[0] != "r"))
+
+
+def wide_stance(ir: MotionIR, seg: Segment) -> FloatArray | None:
+    """The standing legs (``LEG_DOFS``) of a wide stance the body is in when ``seg`` starts: the
+    last walk before it landed its feet apart and turned out (``mtlc.passes.stance``). None
+    when the feet stand as the rest pose has them."""
+    walks = [s for s in ir.on_track("root") if s.kind == "locomotion" and s.end <= seg.start + 1e-9]
+    last = max(walks, key=lambda s: s.end, default=None)
+    if last is None or WIDE_RESULT not in last.result or last.keyframes is None:
+        return None
+    kf = last.keyframes
+    return np.array([kf.q[-1, kf.dofs.index(name)] for name in LEG_DOFS])
+
+
+def _feet_in_root(legs: LegModel, q_legs: FloatArray) -> dict[str, tuple[FloatArray, float]]:
+    """Each foot's ankle (root frame, root at the origin facing +Z) and heading, legs ``q_legs``
+    in ``LEG_DOFS`` order."""
+    out = {}
+    for k, side in enumerate(("r", "l")):
+        row = q_legs[None, 6 * k : 6 * k + 6]
+        ankle, toe = leg_fk(legs, side, np.zeros((1, 3)), np.zeros(1), row)
+        d = toe[0] - ankle[0]  # a level foot: its toe turned about +Y by the heading
+        heading = math.atan2(float(d[0]), float(d[2])) - math.atan2(legs.toe[0], legs.toe[2])
+        out[side] = ankle[0], heading
+    return out
+
+
+def legs_over_feet(legs: LegModel, stance: FloatArray, drop: FloatArray) -> FloatArray:
+    """Legs (``LEG_DOFS``) that keep the feet of the standing legs ``stance`` where they are
+    while the pelvis (upright, facing as before) moves by ``-drop`` (so the feet move by
+    ``drop`` in its frame): the leg IK is exact, each leg's six dofs for its foot's six."""
+    out = []
+    for side, (ankle, heading) in _feet_in_root(legs, stance).items():
+        out.append(leg_ik(legs, side, np.zeros((1, 3)), np.zeros(1), (ankle + drop)[None],
+                          np.array([heading]))[0])  # fmt: skip
+    return np.concatenate(out)
+
+
+def _ankle_drop(legs: LegModel, q_legs: FloatArray, stance: FloatArray) -> FloatArray:
+    """How far the right ankle of legs ``q_legs`` is from where the legs ``stance`` put it, in
+    the root's frame."""
+    return _feet_in_root(legs, q_legs)["r"][0] - _feet_in_root(legs, stance)["r"][0]
+
+
+def _narrow_drop(skel: Any, legs: LegModel, s: float) -> FloatArray:
+    """Where the ankle of the feet-together squat ``s`` (0 standing, 1 the deepest) is, seen
+    from the pelvis, against the legs straight."""
+    idx = [skel.dof_index(name) for name in LEG_DOFS]
+    q = _squat_q(skel, np.zeros(len(skel.lower)), s)
+    return _ankle_drop(legs, q[idx], np.zeros(len(idx)))
+
+
+def stand_arms(f: float | FloatArray, squat: bool) -> Any:
+    """How far (0-1) the free arms have gone to their end pose at fraction ``f`` of a posture
+    over feet apart: with the body going down (a squat), or, standing up, only over the second
+    half, once the knees have come up past the hands between them (let down at once, a forearm
+    went 50-70 mm into the rising thigh)."""
+    return f if squat else smoothstep(2.0 * np.asarray(f) - 1.0)
+
+
+def wide_transition(
+    skel: Any, cur: FloatArray, target: FloatArray, n: int, free: tuple[str, ...],
+    stance: FloatArray, squat: bool,
+) -> FloatArray:  # fmt: skip
+    """``transition`` over feet set apart. The feet-together squat says how far the pelvis
+    goes down and back on the way (its ankle seen from the pelvis: the ankles dorsiflex by half
+    the depth, so the heels stay down); the wide stance's legs are solved to do the same over
+    their own feet at every keyframe, so the feet stay planted; then each pose is leaned until
+    it is balanced. A squat goes to the depth of ``target``, a stand back to the stance."""
+    legs = leg_model(skel)
+    idx = [skel.dof_index(name) for name in LEG_DOFS]
+    if not squat:  # standing up, the free arms hang again as they do at rest
+        abd = [skel.dof_index(f"{a[0]}_shoulder_abd") for a in free]
+        target = target.copy()
+        target[abd] = skel.q_comfort[abd]
+    start = _ankle_drop(legs, cur[idx], stance)
+    s0 = _bisect(lambda s: float(_narrow_drop(skel, legs, s)[1] - start[1]), 0.0, 1.0)
+    s1 = float(target[skel.dof_index("r_hip_flex")]) / SQUAT_HIP_MAX if squat else 0.0
+    rest = start - _narrow_drop(skel, legs, s0)  # what the start has beside the squat's path
+    # legs apart already stand the pelvis lower (3.5 mm, male P50): a squat's depth is from
+    # the legs straight, as with the feet together
+    apart = _ankle_drop(legs, stance, np.zeros(len(idx))) * np.array([0.0, 1.0, 0.0])
+    if not squat:
+        apart[:] = 0.0
+    arm_cols = [skel.dof_index(f"{a[0]}_shoulder_{d}") for a in free for d in ("flex", "abd")]
+    poses = []
+    for f in np.linspace(0.0, 1.0, n):
+        q = cur + f * (target - cur)
+        q[arm_cols] = cur[arm_cols] + stand_arms(f, squat) * (target - cur)[arm_cols]
+        drop = _narrow_drop(skel, legs, s0 + f * (s1 - s0)) + (1.0 - f) * rest - f * apart
+        q[idx] = legs_over_feet(legs, stance, drop)
+        poses.append(q if f == 0.0 else clear_fingertips(skel, balanced_lean(skel, q), free))
+    fracs = np.linspace(0.0, 1.0, n)
+    share = fracs if squat else 4.0 * fracs * (1.0 - fracs)  # a stand ends where arms hang
+    spare = WIDE_ARM_SPARE if squat else KNEEL_ARM_SPARE  # nothing follows a stand's arms
+    sides = tuple(a[0] for a in free)
+    return arms_between_knees(skel, np.stack(poses), sides, share, spare, between=squat)
+
+
+def _inside_knee(skel: Any, q: FloatArray, side: str) -> bool:
+    """Whether the ``side`` wrist of pose ``q`` is nearer the midline than its knee: the arm
+    hangs between the knees, where a reach down in front of them starts without crossing a
+    thigh (from outside the knee, the way to a site between them was over it)."""
+    pose = forward(skel, q[None])
+    wrist = pose.p[0, skel.joint_index(f"{side}_wrist"), 0]
+    knee = pose.p[0, skel.joint_index(f"{side}_knee"), 0]
+    return bool(abs(wrist) < abs(knee))
+
+
+WIDE_ARM_TURNS = np.radians(np.arange(-40.0, 41.0, 5.0))  # shoulder abduction tried
+WIDE_ARM_RAISES = np.radians([0.0, 15.0, 30.0, 45.0, 60.0])  # more shoulder flexion tried
+# m beyond the clearance the chosen pose keeps: the reach that follows turns and bends the trunk
+# (a hand 10 cm above the floor: 11° of turn), and the free arm goes with it
+WIDE_ARM_SPARE = 0.03
+
+
+def arms_between_knees(
+    skel: Any, poses: FloatArray, sides: tuple[str, ...], share: FloatArray,
+    spare: float = WIDE_ARM_SPARE, between: bool = True,
+) -> FloatArray:  # fmt: skip
+    """``poses`` with each free arm whose forearm or hand would come within the clearance of a
+    thigh (the knees go out over the turned-out feet, where arms held forward hang) raised
+    forward and moved in at the shoulder: the least change (raise plus turn, from
+    ``WIDE_ARM_RAISES`` and ``WIDE_ARM_TURNS``) that keeps it ``spare`` beyond the
+    clearance on every pose with the wrist between the knees (``_inside_knee``; unless not
+    ``between``: a stand ends with the arms hanging at the sides), or the least deep;
+    ``share`` (N,) how much of the change each pose takes (0 where it must stay)."""
+    out = poses.copy()
+    roots = (np.zeros((len(poses), 3)), np.tile([1.0, 0.0, 0.0, 0.0], (len(poses), 1)))
+    tries = sorted(((float(r), float(t)) for r in WIDE_ARM_RAISES for t in WIDE_ARM_TURNS),
+                   key=lambda rt: (abs(rt[0]) + abs(rt[1]), rt))  # fmt: skip
+    for side in sides:
+        if float(penetration(skel, out, roots, side).max()) <= -spare:
+            continue
+        flex, abd = (skel.dof_index(f"{side}_shoulder_{d}") for d in ("flex", "abd"))
+        best: tuple[float, FloatArray] | None = None
+        for raise_, turn in tries:
+            q = out.copy()
+            q[:, flex] = np.clip(q[:, flex] + share * raise_, skel.lower[flex], skel.upper[flex])
+            q[:, abd] = np.clip(q[:, abd] + share * turn, skel.lower[abd], skel.upper[abd])
+            depth = float(penetration(skel, q, roots, side).max())
+            if depth <= -spare and (not between or _inside_knee(skel, q[-1], side)):
+                best = (depth, q)
+                break
+            if best is None or depth < best[0]:
+                best = (depth, q)
+        assert best is not None
+        out = best[1]
+    return out
+
+
 def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     skel, ir = state.skel, state.ir
     kind = seg.goal.params.get("posture", "stand")
@@ -723,9 +891,24 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
         TRUNK_DOFS if kind == "bend" else (TRUNK_DOFS + LEG_DOFS + moved_arms if flat else LEG_DOFS)
     )
     idx = [skel.dof_index(n) for n in dofs]
+    stance = wide_stance(ir, seg) if flat else None
+    if stance is not None and kind == "stand":
+        arms = wide_stand_arms(ir, seg, arms)
+        target = target_posture(skel, cur, seg.goal.params, arms)
+        # over feet apart the arms' flexion and abduction come down between the knees
+        # (``restate_wide_stand``); the rest of each arm stays as the reach left it
+        kept = [skel.dof_index(n) for n in standing_arm_dofs(arms) if n[2:] != "shoulder_flex"]
+        target[kept] = cur[kept]
+        dofs = TRUNK_DOFS + LEG_DOFS + arms
     times = np.linspace(seg.start, seg.end, TRANSITION_KEYS if flat else 2)
     late = standing_arm_dofs(released_arms(ir, seg)) if kind == "stand" else ()
-    if flat:
+    if stance is not None:  # the feet stand apart: the legs fold over them
+        times = np.linspace(seg.start, seg.end, WIDE_KEYS)
+        poses = wide_transition(skel, cur, target, len(times), arms, stance, kind == "squat")
+        dofs = (*dofs, *(f"{a[0]}_shoulder_abd" for a in arms))
+        idx = [skel.dof_index(n) for n in dofs]
+        late = ()
+    elif flat:
         poses = transition(skel, cur, target, len(times), arms, late)
     else:
         poses = np.stack([cur, target])
@@ -740,7 +923,9 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
         seg.result = {"root_height": float(rows[-1][1] - ir.ground)}
     seg.keyframes = kf
     state.add(seg)
-    if late:
+    if stance is not None and kind == "stand":
+        mark(ctx.cache, seg, "wide_stand")
+    elif late:
         seg.result["arms_let_down"] = list(late)
         mark(ctx.cache, seg, "stand_arms")
     else:
@@ -760,6 +945,34 @@ def restate_stand_arms(seg: Segment, state: PoseState) -> None:
     share = late_share((kf.time - seg.start) / max(seg.end - seg.start, 1e-9))
     start, target = kf.q[0, cols], kf.q[-1, cols]
     kf.q[:, cols] = start[None] + share[:, None] * (target - start)[None]
+
+
+def restate_wide_stand(seg: Segment, state: PoseState) -> None:
+    """A stand over feet apart starts from the pose the reaches left (the first keyframe), and
+    its arms go from there, not from where the posture pass saw them before the reaches: a
+    hand that let go of a site between the knees (two hands on a cap) was keyed from the free
+    arms' pose of the squat and swung 43° in one frame, through a thigh. Then between the
+    knees again (``arms_between_knees``)."""
+    kf = seg.keyframes
+    assert kf is not None
+    skel = state.skel
+    q0 = state.q_at(seg.start, skip=seg)
+    idx = [skel.dof_index(n) for n in kf.dofs]
+    kf.q[0] = q0[idx]
+    if kf.root_position is not None:
+        kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)
+    arms = [k for k, n in enumerate(kf.dofs) if n[2:] in ("shoulder_flex", "shoulder_abd")]
+    if not arms:
+        return
+    f = np.linspace(0.0, 1.0, len(kf.time))
+    poses = np.repeat(q0[None], len(f), axis=0)
+    poses[:, idx] = kf.q
+    cols = [idx[k] for k in arms]
+    blend = stand_arms(f, False)[:, None]
+    poses[:, cols] = q0[cols][None] + blend * (kf.q[-1, arms] - q0[cols])[None]
+    sides = tuple(sorted({kf.dofs[k][0] for k in arms}, key=lambda side: side != "r"))
+    poses = arms_between_knees(skel, poses, sides, 4.0 * f * (1.0 - f), KNEEL_ARM_SPARE, False)
+    kf.q[:, arms] = poses[:, cols]
 
 
 def twist_target(skel: Any, dof: str, current: float, angle: float) -> float:
@@ -816,6 +1029,7 @@ RESTATERS = {
     "kneel_arms": restate_kneel_arms,
     "kneel_on": restate_kneel_on,
     "stand_arms": restate_stand_arms,
+    "wide_stand": restate_wide_stand,
 }
 
 

@@ -11,7 +11,7 @@ def drain_reservoir():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=50, stature=167.8, mass=59.0)
     # examples/drain_hydraulic_reservoir.mtask:22:5 drain_reservoir > walk_to > travel: locomotion on root at skid_side
-    human.Walk((-0.04, 0.0, 44.49), start=0.0, duration=1.294737)
+    human.Walk((0.07, 0.0, 44.627), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 84.188, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,325 +22,331 @@ def drain_reservoir():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (0.683, 83.712, 0.947), (-1.743, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.028, 83.712, 0.922), (-0.843, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (13.357, 0.094, 1.856), 'right_knee': (26.257,), 'right_ankle': (8.402, 0.522),
-        'left_hip': (6.331, -0.309, -1.788), 'left_knee': (13.507,), 'left_ankle': (7.189, -0.504),
+        'right_hip': (13.071, -0.169, 0.828), 'right_knee': (25.9,), 'right_ankle': (8.501, 0.022),
+        'left_hip': (6.458, 0.074, -0.84), 'left_knee': (13.551,), 'left_ankle': (7.093, -0.02),
     })
-    human.KeyRoot(0.2, (1.116, 83.605, 3.467), (-3.802, 0.0, 0.0))
+    human.KeyRoot(0.2, (0.092, 83.605, 3.37), (-2.967, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (16.491, -0.279, 4.029), 'right_knee': (35.057,),
-        'right_ankle': (9.472, 0.887), 'left_hip': (4.486, -0.517, -3.854), 'left_knee': (13.969,),
-        'left_ankle': (9.527, -0.815),
+        'right_hip': (16.133, -0.752, 2.884), 'right_knee': (34.529,), 'right_ankle': (9.63, 0.081),
+        'left_hip': (4.701, 0.184, -2.962), 'left_knee': (14.169,), 'left_ankle': (9.465, -0.06),
     })
-    human.KeyRoot(0.3, (1.346, 83.605, 7.079), (-6.118, 0.0, 0.0))
+    human.KeyRoot(0.3, (0.158, 83.605, 6.864), (-5.765, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (26.503, -0.716, 3.862), 'right_knee': (51.524,),
-        'right_ankle': (18.014, 1.087), 'left_hip': (0.477, -0.919, -6.13), 'left_knee': (11.6,),
-        'left_ankle': (10.967, -0.965),
+        'right_hip': (26.206, 0.519, 0.907), 'right_knee': (51.193,),
+        'right_ankle': (18.004, 0.841), 'left_hip': (0.856, 0.001, -5.766), 'left_knee': (12.169,),
+        'left_ankle': (11.047, -0.085),
     })
-    human.KeyRoot(0.4, (1.422, 83.912, 11.3), (-8.636, 0.0, 0.0))
+    human.KeyRoot(0.4, (0.193, 83.912, 10.925), (-8.629, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (34.878, -0.294, 0.367), 'right_knee': (53.098,),
-        'right_ankle': (17.062, -0.067), 'left_hip': (3.79, -0.419, -8.798), 'left_knee': (24.408,),
-        'left_ankle': (14.034, -0.999),
+        'right_hip': (34.298, 5.191, -6.92), 'right_knee': (52.984,),
+        'right_ankle': (17.251, 0.243), 'left_hip': (4.585, 0.623, -8.616), 'left_knee': (25.709,),
+        'left_ankle': (14.016, -0.073),
     })
-    human.KeyRoot(0.5, (1.226, 83.389, 18.859), (-12.102, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.092, 83.428, 18.063), (-12.102, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (31.574, -0.908, -3.056), 'right_knee': (36.699,),
-        'right_ankle': (5.166, -2.428), 'left_hip': (6.184, 0.565, -12.37), 'left_knee': (39.907,),
-        'left_ankle': (15.337, -0.816),
+        'right_hip': (30.583, 6.475, -17.108), 'right_knee': (36.881,),
+        'right_ankle': (5.85, -3.45), 'left_hip': (7.506, 2.531, -11.53), 'left_knee': (41.888,),
+        'left_ankle': (14.584, 1.02),
     })
-    human.KeyRoot(0.6, (0.686, 82.44, 29.614), (-16.153, 0.0, 0.0))
+    human.KeyRoot(0.6, (-3.995, 82.44, 28.129), (-16.153, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (17.397, -2.286, -2.458), 'right_knee': (12.341,),
-        'right_ankle': (-4.988, -2.961), 'left_hip': (1.955, 0.318, -16.297),
-        'left_knee': (46.233,), 'left_ankle': (13.404, -0.283),
+        'right_hip': (17.337, 1.868, -21.924), 'right_knee': (13.429,),
+        'right_ankle': (-3.351, -4.919), 'left_hip': (3.973, 4.137, -13.929),
+        'left_knee': (49.512,), 'left_ankle': (12.004, 3.619),
     })
-    human.KeyRoot(0.7, (0.094, 82.442, 34.707), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.7, (-5.495, 82.629, 32.886), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (17.0, -2.227, -0.68), 'right_knee': (18.451,), 'right_ankle': (1.462, -2.328),
-        'left_hip': (0.283, 0.312, -17.794), 'left_knee': (48.472,), 'left_ankle': (8.586, 0.273),
+        'right_hip': (15.809, 1.717, -20.286), 'right_knee': (17.111,),
+        'right_ankle': (1.674, -3.865), 'left_hip': (2.44, 4.606, -14.307), 'left_knee': (51.605,),
+        'left_ankle': (6.239, 5.169),
     })
-    human.KeyRoot(0.8, (-0.644, 82.451, 34.282), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.8, (-5.382, 83.026, 32.71), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_knee': (17.803,), 'right_ankle': (0.994, -2.956),
-        'left_hip': (5.548, 2.276, -16.833), 'left_knee': (57.934,), 'left_ankle': (14.675, 0.681),
+        'right_hip': (13.699, 0.942, -20.333), 'right_knee': (12.256,),
+        'right_ankle': (-0.934, -3.86), 'left_hip': (6.993, 6.107, -13.878), 'left_knee': (59.17,),
+        'left_ankle': (11.369, 5.435),
     })
-    human.KeyRoot(0.9, (-1.359, 82.447, 33.629), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.9, (-5.109, 83.031, 32.44), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.618, -3.469, -1.035), 'right_knee': (16.773,),
-        'right_ankle': (0.18, -3.619), 'left_hip': (19.442, 4.545, -12.082), 'left_knee': (70.625,),
-        'left_ankle': (18.79, 0.21),
+        'right_hip': (13.63, 0.955, -20.327), 'right_knee': (11.555,),
+        'right_ankle': (-1.577, -3.823), 'left_hip': (19.748, 11.044, -11.912),
+        'left_knee': (70.262,), 'left_ankle': (18.801, 7.036),
     })
-    human.KeyRoot(1.0, (-1.524, 82.509, 33.622), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.0, (-4.608, 83.025, 32.766), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.246, -3.587, -1.044), 'right_knee': (16.091,),
-        'right_ankle': (-0.125, -3.736), 'left_hip': (29.949, 4.028, -5.127),
-        'left_knee': (66.507,), 'left_ankle': (18.82, 0.956),
+        'right_hip': (13.746, 1.458, -20.222), 'right_knee': (12.054,),
+        'right_ankle': (-1.358, -3.379), 'left_hip': (28.639, 15.442, -11.102),
+        'left_knee': (63.994,), 'left_ankle': (18.829, 8.094),
     })
-    human.KeyRoot(1.1, (-1.321, 82.972, 35.819), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.1, (-2.905, 83.023, 36.993), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (13.948, -2.972, -0.738), 'right_knee': (14.552,),
-        'right_ankle': (0.623, -3.063), 'left_hip': (22.716, 2.731, -0.484), 'left_knee': (36.649,),
-        'left_ankle': (14.036, 2.33),
+        'right_hip': (13.346, 4.361, -19.542), 'right_knee': (16.749,),
+        'right_ankle': (2.727, -0.428), 'left_hip': (19.439, 13.578, -16.106),
+        'left_knee': (33.414,), 'left_ankle': (10.981, 6.895),
     })
-    human.KeyRoot(1.2, (-0.818, 83.153, 39.953), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.899, 83.072, 42.474), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
-        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (12.455, -1.705, -0.376),
-        'right_knee': (17.279,), 'right_ankle': (4.83, -1.746), 'left_hip': (12.439, 1.705, 0.376),
-        'left_knee': (17.245,), 'left_ankle': (4.808, 1.746),
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
+        'right_hip': (10.359, 7.147, -19.003), 'right_knee': (17.606,),
+        'right_ankle': (5.471, 3.277), 'left_hip': (8.835, 8.997, -18.752), 'left_knee': (14.222,),
+        'left_ankle': (2.914, 5.563),
     })
     # examples/drain_hydraulic_reservoir.mtask:23:5 drain_reservoir > squat: posture on root
-    human.KeyRoot(1.3, (0.003, 84.177, 44.742), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.124, 83.895, 44.746), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (0.115, 0.0, 0.0), 'spine_thoracic': (0.007, 0.0, 0.0),
-        'right_shoulder': (8.724, 5.73, 11.459), 'left_shoulder': (8.724, 5.73, 11.459),
-        'right_hip': (3.32, -0.056, -0.003), 'right_knee': (5.145,), 'right_ankle': (1.827, -0.057),
-        'left_hip': (3.313, 0.056, 0.003), 'left_knee': (5.131,), 'left_ankle': (1.82, 0.057),
+        'spine_lumbar': (0.559, 0.0, 0.0), 'spine_thoracic': (0.28, 0.0, 0.0),
+        'right_shoulder': (9.351, 5.403, 11.459), 'left_shoulder': (9.351, 5.403, 11.459),
+        'right_hip': (1.676, 5.763, -19.766), 'right_knee': (1.817,),
+        'right_ankle': (-1.715, 4.845), 'left_hip': (1.831, 5.76, -19.754), 'left_knee': (2.154,),
+        'left_ankle': (-1.524, 4.786),
     })
-    human.KeyRoot(1.4, (0.963, 83.74, 41.811), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.4, (1.213, 83.66, 41.364), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (4.578, 0.0, 0.0), 'spine_thoracic': (2.245, 0.0, 0.0),
-        'right_shoulder': (13.725, 5.73, 11.459), 'left_shoulder': (13.725, 5.73, 11.459),
-        'right_hip': (8.836, -0.049, -0.007), 'right_knee': (11.768,),
-        'right_ankle': (2.938, -0.05), 'left_hip': (8.821, 0.049, 0.007), 'left_knee': (11.735,),
-        'left_ankle': (2.919, 0.05),
+        'spine_lumbar': (6.445, 0.0, 0.0), 'right_shoulder': (17.313, 1.97, 11.459),
+        'left_shoulder': (17.313, 1.97, 11.459), 'right_hip': (6.163, 6.409, -19.378),
+        'right_knee': (5.817,), 'right_ankle': (-2.14, 3.962), 'left_hip': (6.251, 6.393, -19.375),
+        'left_knee': (6.01,), 'left_ankle': (-2.026, 3.917),
     })
-    human.KeyRoot(1.5, (2.447, 82.15, 37.268), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.5, (2.239, 82.54, 38.188), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (11.86, 0.0, 0.0), 'spine_thoracic': (5.892, 0.0, 0.0),
-        'right_shoulder': (21.685, 5.73, 11.459), 'left_shoulder': (21.685, 5.73, 11.459),
-        'right_hip': (18.04, -0.042, -0.013), 'right_knee': (23.157,),
-        'right_ankle': (5.124, -0.044), 'left_hip': (18.037, 0.042, 0.013), 'left_knee': (23.151,),
-        'left_ankle': (5.12, 0.044),
+        'spine_thoracic': (6.069, 0.0, 0.0), 'right_hip': (14.297, 8.351, -18.501),
+        'right_knee': (17.828,), 'right_ankle': (1.609, 3.159),
+        'left_hip': (14.321, 8.319, -18.509), 'left_knee': (17.882,), 'left_ankle': (1.651, 3.119),
     })
-    human.KeyRoot(1.6, (3.559, 80.137, 33.867), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.6, {'spine_lumbar': (17.891, 0.0, 0.0), 'spine_thoracic': (8.913, 0.0, 0.0)})
-    human.KeyRoot(1.7, (4.586, 77.497, 30.732), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.7, {'spine_lumbar': (24.391, 0.0, 0.0), 'spine_thoracic': (12.169, 0.0, 0.0)})
-    human.KeyRoot(1.8, (5.505, 74.27, 27.928), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.8, {'spine_lumbar': (32.046, 0.0, 0.0), 'spine_thoracic': (16.003, 0.0, 0.0)})
-    human.KeyRoot(1.9, (6.295, 70.505, 25.521), (-17.969, 0.0, 0.0))
-    human.KeyJoints(1.9, {'spine_lumbar': (40.469, 0.0, 0.0), 'spine_thoracic': (20.22, 0.0, 0.0)})
-    human.KeyRoot(2.0, (6.939, 66.262, 23.565), (-17.969, 0.0, 0.0))
-    human.KeyJoints(2.0, {'spine_lumbar': (50.468, 0.0, 0.0), 'spine_thoracic': (25.226, 0.0, 0.0)})
-    human.KeyRoot(2.1, (7.42, 61.606, 22.112), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.6, (3.208, 80.54, 35.185), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.6, {
+        'right_hip': (22.221, 10.152, -17.485), 'right_knee': (29.235,),
+        'right_ankle': (5.022, 2.407), 'left_hip': (22.232, 10.122, -17.497),
+        'left_knee': (29.262,), 'left_ankle': (5.048, 2.373),
+    })
+    human.KeyRoot(1.7, (4.095, 77.819, 32.435), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.7, {
+        'right_hip': (29.92, 11.802, -16.349), 'left_hip': (29.926, 11.778, -16.363),
+    })
+    human.KeyRoot(1.8, (4.876, 74.388, 30.014), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.8, {
+        'right_hip': (37.665, 13.378, -15.041), 'right_knee': (50.72,),
+        'right_ankle': (11.07, 1.051), 'left_hip': (37.667, 13.36, -15.055), 'left_knee': (50.73,),
+        'left_ankle': (11.085, 1.028),
+    })
+    human.KeyRoot(1.9, (5.527, 70.318, 27.991), (-17.969, 0.0, 0.0))
+    human.KeyJoints(1.9, {
+        'right_hip': (45.426, 14.856, -13.551), 'left_hip': (45.426, 14.844, -13.563),
+    })
+    human.KeyRoot(2.0, (6.03, 65.676, 26.427), (-17.969, 0.0, 0.0))
+    human.KeyJoints(2.0, {
+        'right_hip': (53.259, 16.229, -11.848), 'right_knee': (71.766,),
+        'right_ankle': (16.81, -0.051), 'left_hip': (53.258, 16.223, -11.857),
+        'left_knee': (71.77,), 'left_ankle': (16.816, -0.062),
+    })
+    human.KeyRoot(2.1, (6.811, 61.091, 24.003), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (59.318, 0.0, 0.0), 'spine_thoracic': (29.657, 0.0, 0.0),
-        'right_shoulder': (59.632, 5.73, 11.459), 'left_shoulder': (59.632, 5.73, 11.459),
-        'right_hip': (62.128, -0.003, 0.0), 'right_knee': (77.947,), 'right_ankle': (15.82, -0.003),
-        'left_hip': (62.128, 0.003, 0.0), 'left_knee': (77.947,), 'left_ankle': (15.82, 0.003),
+        'spine_lumbar': (46.271, 0.0, 0.0), 'spine_thoracic': (23.136, 0.0, 0.0),
+        'right_hip': (61.071, 17.212, -10.388), 'right_knee': (79.816,),
+        'right_ankle': (17.338, -0.975), 'left_hip': (61.07, 17.211, -10.391),
+        'left_knee': (79.817,), 'left_ankle': (17.34, -0.978),
     })
-    human.KeyRoot(2.2, (7.756, 55.802, 21.085), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.2, (7.492, 56.292, 21.901), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
-        'right_shoulder': (66.954, 5.73, 11.459), 'left_shoulder': (66.954, 5.73, 11.459),
-        'right_hip': (70.624, 0.0, 0.0), 'right_knee': (88.468,), 'left_hip': (70.624, 0.0, 0.0),
-        'left_knee': (88.468,),
+        'spine_lumbar': (59.67, 0.0, 0.0), 'spine_thoracic': (29.835, 0.0, 0.0),
+        'right_shoulder': (78.971, -24.619, 11.459), 'left_shoulder': (78.971, -24.619, 11.459),
+        'right_hip': (68.896, 18.086, -8.898), 'left_hip': (68.896, 18.086, -8.898),
     })
-    human.KeyRoot(2.3, (7.843, 49.962, 20.816), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.3, (7.973, 51.255, 20.418), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (73.93, 5.73, 11.459),
-        'left_shoulder': (73.93, 5.73, 11.459), 'right_hip': (78.723, 0.0, 0.0),
-        'right_knee': (98.495,), 'right_ankle': (19.772, 0.0), 'left_hip': (78.723, 0.0, 0.0),
-        'left_knee': (98.495,), 'left_ankle': (19.772, 0.0),
+        'spine_lumbar': (60.0, 0.0, 0.0), 'spine_thoracic': (30.0, 0.0, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (86.745, -27.972, 11.459),
+        'left_shoulder': (86.745, -27.972, 11.459), 'right_hip': (76.774, 18.893, -7.262),
+        'right_knee': (94.86,), 'right_ankle': (17.377, -2.841),
+        'left_hip': (76.774, 18.893, -7.262), 'left_knee': (94.86,), 'left_ankle': (17.377, -2.841),
     })
     # examples/drain_hydraulic_reservoir.mtask:24:5 drain_reservoir > look: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=2.338737, duration=0.2628)
-    human.KeyRoot(2.4, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.4, (8.102, 49.255, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'neck': (-0.231, 0.0, 0.0), 'head': (-0.231, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
-        'left_shoulder': (74.757, 5.73, 11.459), 'right_hip': (79.683, 0.0, 0.0),
-        'right_knee': (99.683,), 'right_ankle': (20.0, 0.0), 'left_hip': (79.683, 0.0, 0.0),
-        'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
+        'neck': (-0.31, 0.0, 0.0), 'head': (-0.31, 0.0), 'right_shoulder': (89.757, -29.27, 11.459),
+        'left_shoulder': (89.757, -29.27, 11.459), 'right_hip': (79.846, 19.182, -6.579),
+        'right_knee': (97.768,), 'right_ankle': (17.368, -3.166),
+        'left_hip': (79.846, 19.182, -6.579), 'left_knee': (97.768,),
+        'left_ankle': (17.368, -3.166),
     })
-    human.KeyJoints(2.5, {'neck': (-1.122, 0.0, 0.0), 'head': (-1.122, 0.0)})
+    human.KeyJoints(2.5, {'neck': (-1.505, 0.0, 0.0), 'head': (-1.505, 0.0)})
     human.KeyJoints(2.6, {
-        'neck': (-1.681, 0.0, 0.0), 'head': (-1.681, 0.0), 'right_shoulder': (74.757, 5.73, 11.459),
-        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
+        'neck': (-2.254, 0.0, 0.0), 'head': (-2.254, 0.0),
+        'right_shoulder': (89.757, -29.27, 11.459),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TA on r_arm at drain_valve
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: gaze on head at drain_valve
     human.LookAt((-12.0, 20.0, 82.0), start=2.601537, duration=0.832997)
     human.KeyJoints(2.7, {
-        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0),
-        'right_shoulder': (75.151, 5.622, 12.404), 'right_elbow': (34.386, 16.328),
-        'right_wrist': (-0.263, 0.009),
+        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0),
+        'right_shoulder': (89.818, -28.956, 11.368), 'right_elbow': (34.356, 17.187),
+        'right_wrist': (-0.025, -0.02),
     })
     human.KeyJoints(2.8, {
-        'right_shoulder': (77.438, 4.995, 17.861), 'right_elbow': (34.439, 11.358),
-        'right_wrist': (-1.779, 0.062),
+        'right_shoulder': (90.171, -27.174, 10.853), 'right_elbow': (34.232, 17.177),
+        'right_wrist': (-0.17, -0.134),
     })
     human.KeyJoints(2.9, {
-        'right_shoulder': (82.395, 3.638, 29.271), 'right_elbow': (34.568, 0.967),
-        'right_wrist': (-4.958, 0.184),
+        'right_shoulder': (90.989, -23.597, 9.819), 'right_wrist': (-0.462, -0.364),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (59.998, 0.0, 0.001), 'spine_thoracic': (29.998, 0.0, 0.001),
-        'right_clavicle': (0.0, 0.001), 'right_shoulder': (90.082, 1.531, 45.078),
-        'right_elbow': (34.833, -13.428), 'right_wrist': (-9.401, 0.406),
+        'spine_lumbar': (59.982, -0.005, 0.009), 'spine_thoracic': (29.98, -0.006, 0.007),
+        'right_clavicle': (0.003, 0.008), 'right_shoulder': (92.684, -18.851, 8.447),
+        'right_elbow': (33.666, 17.132), 'right_wrist': (-0.864, -0.666),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (59.865, -0.05, 0.085), 'spine_thoracic': (29.808, -0.054, 0.067),
-        'right_clavicle': (0.028, 0.071), 'right_shoulder': (101.884, 0.619, 70.0),
-        'right_elbow': (35.363, -37.145), 'right_wrist': (-16.432, 2.723),
+        'spine_lumbar': (59.487, -0.2, 0.335), 'spine_thoracic': (29.25, -0.214, 0.263),
+        'right_clavicle': (0.114, 0.275), 'right_shoulder': (95.898, -15.624, 7.483),
+        'right_elbow': (33.791, 17.115),
     })
     human.KeyJoints(3.2, {
-        'spine_lumbar': (59.509, -0.481, 0.83), 'spine_thoracic': (28.582, -0.514, 0.664),
-        'neck': (-1.373, 0.0, 0.0), 'head': (-1.373, 0.0), 'right_clavicle': (0.246, 0.579),
-        'right_shoulder': (106.225, -0.543, 69.091), 'right_elbow': (35.295, -36.67),
-        'right_wrist': (-16.689, 2.371),
+        'spine_lumbar': (59.707, -0.953, 1.705), 'spine_thoracic': (28.299, -1.052, 1.373),
+        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0), 'right_clavicle': (0.52, 0.957),
+        'right_shoulder': (99.393, -12.535, 6.401), 'right_elbow': (33.381, 17.114),
+        'right_wrist': (-1.57, -1.005),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(3.3, {
-        'spine_lumbar': (59.914, -1.498, 2.726), 'spine_thoracic': (28.274, -1.634, 2.229),
-        'neck': (-0.727, 0.024, -1.029), 'head': (-0.727, 0.0), 'right_clavicle': (0.86, 1.575),
-        'right_shoulder': (107.868, 2.503, 60.172), 'right_elbow': (31.789, -29.254),
-        'right_wrist': (-15.083, 0.517),
+        'spine_lumbar': (59.969, -1.789, 3.368), 'spine_thoracic': (29.046, -2.034, 2.759),
+        'neck': (-1.227, 0.032, -1.0), 'head': (-1.227, 0.0), 'right_clavicle': (1.16, 1.652),
+        'right_shoulder': (102.416, -7.395, 4.738), 'right_elbow': (31.717, 17.107),
+        'right_wrist': (-2.079, -1.548),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (59.998, -1.876, 3.458), 'spine_thoracic': (28.555, -2.058, 2.84),
-        'neck': (-0.333, 0.155, -6.702), 'head': (-0.332, 0.001), 'right_clavicle': (1.128, 1.939),
-        'right_shoulder': (108.945, 4.305, 59.606), 'right_elbow': (30.181, -29.317),
-        'right_wrist': (-15.272, 0.283),
+        'spine_lumbar': (59.999, -2.05, 3.898), 'spine_thoracic': (29.359, -2.344, 3.202),
+        'neck': (-1.071, 0.236, -7.554), 'head': (-1.07, 0.001), 'right_clavicle': (1.382, 1.874),
+        'right_shoulder': (103.303, -5.754, 4.217), 'right_elbow': (31.156, 17.105),
+        'right_wrist': (-2.235, -1.727),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)
     human.KeyJoints(3.5, {
-        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002), 'right_elbow': (29.989, -29.318),
-        'right_wrist': (-15.251, 0.243),
+        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003),
+        'right_shoulder': (103.475, -5.701, 4.199), 'right_elbow': (30.878, 17.105),
     })
     # examples/drain_hydraulic_reservoir.mtask:27:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(3.6, {
-        'right_shoulder': (109.113, 4.331, 59.566), 'right_elbow': (30.345, -36.421),
+        'right_shoulder': (103.481, -5.668, 4.189), 'right_elbow': (30.996, 4.492),
+        'right_wrist': (-2.237, -1.761),
     })
-    human.KeyJoints(3.7, {'right_elbow': (31.151, -53.69)})
-    human.KeyJoints(3.8, {
-        'right_shoulder': (109.803, 4.843, 59.356), 'right_elbow': (31.801, -71.451),
-        'right_wrist': (-15.306, 0.544),
-    })
+    human.KeyJoints(3.7, {'right_elbow': (31.213, -26.174)})
+    human.KeyJoints(3.8, {'right_elbow': (31.281, -57.713)})
     human.KeyJoints(3.9, {
-        'neck': (-0.529, 0.233, -10.031), 'head': (-0.527, 0.002),
-        'right_shoulder': (110.013, 5.01, 59.293), 'right_elbow': (32.015, -79.988),
+        'neck': (-1.383, 0.355, -11.382), 'head': (-1.382, 0.003),
+        'right_shoulder': (103.506, -5.264, 4.072), 'right_elbow': (31.249, -72.873),
     })
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > look: gaze on head at drain_tray
     human.LookAt((5.0, 2.0, 75.0), start=3.903593, duration=0.2628)
-    human.KeyJoints(4.0, {'neck': (0.888, 0.132, -5.846), 'head': (0.889, 0.001)})
-    human.KeyJoints(4.1, {'neck': (3.376, -0.045, 1.504), 'head': (3.377, 0.0)})
+    human.KeyJoints(4.0, {
+        'neck': (0.06, 0.217, -7.109), 'head': (0.061, 0.002), 'right_wrist': (-2.234, -1.664),
+    })
+    human.KeyJoints(4.1, {'neck': (2.596, -0.025, 0.399), 'head': (2.596, 0.0)})
     # examples/drain_hydraulic_reservoir.mtask:28:5 drain_reservoir > inspect > hold: hold on root
-    human.KeyJoints(4.2, {'neck': (4.116, -0.098, 3.754), 'head': (4.116, -0.001)})
-    human.KeyJoints(7.5, {'neck': (4.116, -0.098, 3.688)})
-    human.KeyJoints(8.1, {'right_elbow': (32.016, -80.0)})
+    human.KeyJoints(4.2, {'neck': (3.349, -0.096, 2.697), 'head': (3.35, -0.001)})
+    human.KeyJoints(7.3, {'neck': (3.349, -0.096, 2.63)})
+    human.KeyJoints(8.1, {'right_elbow': (31.249, -72.895)})
     # examples/drain_hydraulic_reservoir.mtask:29:5 drain_reservoir > turn: posture on r_hand
     human.KeyJoints(8.2, {
-        'right_shoulder': (109.967, 4.974, 59.306), 'right_elbow': (31.976, -78.175),
-        'right_wrist': (-15.285, 0.535),
+        'right_shoulder': (103.506, -5.275, 4.075), 'right_elbow': (31.255, -71.07),
     })
-    human.KeyJoints(8.3, {'right_elbow': (31.26, -56.287), 'right_wrist': (-15.334, 0.503)})
-    human.KeyJoints(8.4, {
-        'right_shoulder': (108.945, 4.252, 59.614), 'right_elbow': (29.68, -23.198),
-        'right_wrist': (-15.201, 0.166),
-    })
+    human.KeyJoints(8.3, {'right_elbow': (31.28, -49.182), 'right_wrist': (-2.244, -1.677)})
+    human.KeyJoints(8.4, {'right_elbow': (31.155, -16.093)})
     human.KeyJoints(8.5, {
-        'right_shoulder': (108.858, 4.224, 59.639), 'right_elbow': (28.158, 3.839),
-        'right_wrist': (-14.8, -0.194),
+        'right_shoulder': (103.478, -5.687, 4.194), 'right_elbow': (30.937, 10.944),
     })
     # examples/drain_hydraulic_reservoir.mtask:30:5 drain_reservoir > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.563452, duration=0.072)
-    human.KeyRoot(8.6, (7.838, 49.255, 20.832), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.6, (8.102, 49.255, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.6, {
-        'spine_lumbar': (60.0, -1.884, 3.474), 'spine_thoracic': (28.561, -2.067, 2.853),
-        'right_shoulder': (108.876, 4.257, 59.63), 'right_elbow': (27.839, 10.0),
-        'right_wrist': (-14.685, -0.255), 'left_shoulder': (74.757, 5.73, 11.459),
-        'right_hip': (79.683, 0.0, 0.0), 'right_knee': (99.683,), 'right_ankle': (20.0, 0.0),
-        'left_hip': (79.683, 0.0, 0.0), 'left_knee': (99.683,), 'left_ankle': (20.0, 0.0),
+        'spine_lumbar': (60.0, -2.055, 3.909), 'spine_thoracic': (29.366, -2.351, 3.211),
+        'right_shoulder': (103.475, -5.701, 4.199), 'right_elbow': (30.878, 17.105),
+        'right_wrist': (-2.213, -1.784), 'right_hip': (79.846, 19.182, -6.579),
+        'right_knee': (97.768,), 'right_ankle': (17.368, -3.166),
+        'left_hip': (79.846, 19.182, -6.579), 'left_knee': (97.768,),
+        'left_ankle': (17.368, -3.166),
     })
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
-    human.KeyRoot(8.7, (7.845, 50.849, 20.811), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.7, (7.885, 52.269, 20.686), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'spine_lumbar': (59.404, -1.521, 2.805), 'spine_thoracic': (28.436, -1.669, 2.304),
-        'right_shoulder': (108.969, 4.146, 59.628), 'right_elbow': (28.114, 9.984),
-        'right_wrist': (-14.751, -0.178), 'left_shoulder': (72.891, 5.73, 11.459),
-        'right_hip': (77.516, 0.0, 0.0), 'right_knee': (97.001,), 'right_ankle': (19.504, 0.0),
-        'left_hip': (77.516, 0.0, 0.0), 'left_knee': (97.001,), 'left_ankle': (19.504, 0.0),
+        'spine_lumbar': (59.47, -0.512, 0.974), 'spine_thoracic': (29.577, -0.586, 0.8),
+        'right_shoulder': (113.455, -3.213, 3.521), 'right_elbow': (35.613, 17.161),
+        'right_wrist': (-3.023, -0.951), 'right_hip': (75.195, 18.74, -7.592),
+        'right_knee': (93.4,), 'right_ankle': (17.418, -2.657), 'left_hip': (75.195, 18.74, -7.592),
+        'left_knee': (93.4,), 'left_ankle': (17.418, -2.657),
     })
-    human.KeyRoot(8.8, (7.728, 56.599, 21.173), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.8, (7.409, 56.808, 22.156), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'spine_lumbar': (56.755, -0.369, 0.68), 'spine_thoracic': (27.828, -0.404, 0.558),
-        'right_elbow': (29.093, 9.987), 'left_shoulder': (65.979, 5.73, 11.459),
-        'right_hip': (69.491, 0.0, 0.0), 'right_knee': (87.065,), 'left_hip': (69.491, 0.0, 0.0),
-        'left_knee': (87.065,),
+        'spine_lumbar': (51.403, -0.447, 0.85), 'spine_thoracic': (25.564, -0.511, 0.698),
+        'right_shoulder': (130.622, -3.579, 3.618), 'right_elbow': (35.101, 17.154),
+        'right_hip': (68.045, 18.002, -9.045), 'left_hip': (68.045, 18.002, -9.045),
     })
-    human.KeyRoot(8.9, (7.413, 61.735, 22.143), (-17.969, 0.0, 0.0))
+    human.KeyRoot(8.9, (6.768, 61.129, 24.133), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'spine_lumbar': (52.873, 0.0, 0.0), 'spine_thoracic': (26.637, 0.0, 0.0),
-        'right_elbow': (29.939, 9.99), 'right_wrist': (-15.222, 0.239),
-        'left_shoulder': (59.464, 5.73, 11.459), 'right_hip': (61.924, 0.0, 0.0),
-        'right_knee': (77.681,), 'right_ankle': (15.758, 0.0), 'left_hip': (61.924, 0.0, 0.0),
-        'left_knee': (77.681,), 'left_ankle': (15.758, 0.0),
+        'right_shoulder': (144.194, -4.032, 3.741), 'right_knee': (79.855,),
+        'right_ankle': (17.49, -0.927), 'left_knee': (79.855,), 'left_ankle': (17.49, -0.927),
     })
-    human.KeyRoot(9.0, (6.98, 65.97, 23.479), (-17.969, 0.0, 0.0))
-    human.KeyJoints(9.0, {'spine_lumbar': (45.663, 0.0, 0.0), 'spine_thoracic': (23.016, 0.0, 0.0)})
-    human.KeyRoot(9.1, (6.411, 69.869, 25.232), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.0, (6.042, 65.253, 26.371), (-17.969, 0.0, 0.0))
+    human.KeyJoints(9.0, {
+        'right_shoulder': (154.1, -4.459, 3.858), 'right_hip': (53.902, 16.344, -11.687),
+        'right_knee': (72.711,), 'right_ankle': (17.152, -0.077),
+        'left_hip': (53.902, 16.344, -11.687), 'left_knee': (72.711,),
+        'left_ankle': (17.152, -0.077),
+    })
+    human.KeyRoot(9.1, (5.583, 69.474, 27.786), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'spine_lumbar': (38.006, 0.0, 0.0), 'spine_thoracic': (19.003, 0.0, 0.0),
-        'right_clavicle': (1.133, 1.946), 'right_shoulder': (108.946, 4.309, 59.589),
-        'right_elbow': (30.062, 9.997), 'right_wrist': (-15.252, 0.265),
+        'right_shoulder': (160.286, -4.803, 3.952), 'right_elbow': (32.885, 17.126),
+        'right_hip': (46.845, 15.136, -13.235), 'left_hip': (46.845, 15.136, -13.235),
     })
-    human.KeyRoot(9.2, (5.719, 73.38, 27.366), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.2, (5.004, 73.238, 29.572), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.2, {
-        'spine_lumbar': (31.519, 0.0, 0.0), 'spine_thoracic': (15.76, 0.0, 0.0),
-        'right_clavicle': (1.048, 1.8), 'right_shoulder': (101.438, 4.448, 55.984),
-        'right_elbow': (30.444, 10.0), 'right_wrist': (-14.13, 0.257),
+        'right_shoulder': (162.722, -5.076, 4.028), 'right_elbow': (32.349, 17.119),
+        'right_wrist': (-2.446, -1.515), 'left_shoulder': (89.757, -29.27, 11.459),
+        'right_hip': (39.869, 13.845, -14.605), 'right_ankle': (12.222, 0.922),
+        'left_hip': (39.869, 13.845, -14.605), 'left_ankle': (12.222, 0.922),
     })
-    human.KeyRoot(9.3, (4.917, 76.458, 29.84), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.3, (4.315, 76.492, 31.695), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.3, {
-        'spine_lumbar': (25.413, 0.0, 0.0), 'spine_thoracic': (12.706, 0.0, 0.0),
-        'right_shoulder': (86.648, 4.652, 48.891), 'right_elbow': (31.075, 10.0),
-        'right_wrist': (-11.879, 0.216),
+        'right_shoulder': (155.133, -4.504, 4.08), 'left_shoulder': (84.368, -26.947, 11.459),
+        'right_hip': (32.967, 12.489, -15.817), 'left_hip': (32.967, 12.489, -15.817),
     })
-    human.KeyRoot(9.4, (4.02, 79.065, 32.606), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.4, (3.533, 79.194, 34.105), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.4, {
-        'spine_lumbar': (19.896, 0.0, 0.0), 'spine_thoracic': (9.948, 0.0, 0.0),
-        'right_clavicle': (0.673, 1.155), 'right_shoulder': (68.152, 4.907, 40.021),
-        'right_elbow': (31.861, 10.0), 'right_wrist': (-9.064, 0.165),
+        'right_shoulder': (132.153, -2.525, 4.136), 'right_elbow': (31.604, 17.11),
+        'left_shoulder': (68.912, -20.281, 11.459), 'right_hip': (26.134, 11.08, -16.887),
+        'left_hip': (26.134, 11.08, -16.887),
     })
-    human.KeyRoot(9.5, (3.043, 81.167, 35.616), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.5, (2.676, 81.308, 36.748), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.5, {
-        'spine_lumbar': (14.785, 0.0, 0.0), 'spine_thoracic': (7.392, 0.0, 0.0),
-        'right_clavicle': (0.407, 0.699), 'right_shoulder': (44.635, 5.232, 28.743),
-        'right_elbow': (32.858, 10.0), 'right_wrist': (-5.485, 0.1),
-        'left_shoulder': (24.948, 5.73, 11.459), 'right_hip': (21.852, 0.0, 0.0),
-        'right_knee': (28.089,), 'right_ankle': (6.237, 0.0), 'left_hip': (21.852, 0.0, 0.0),
-        'left_knee': (28.089,), 'left_ankle': (6.237, 0.0),
+        'spine_lumbar': (14.83, 0.0, 0.0), 'spine_thoracic': (7.415, 0.0, 0.0),
+        'right_shoulder': (99.815, 0.102, 4.206), 'right_elbow': (31.145, 17.105),
+        'right_wrist': (-2.239, -1.73), 'left_shoulder': (48.488, -11.474, 11.459),
+        'right_hip': (19.344, 9.627, -17.828), 'right_ankle': (4.607, 2.797),
+        'left_hip': (19.344, 9.627, -17.828), 'left_ankle': (4.607, 2.797),
     })
-    human.KeyRoot(9.6, (1.928, 82.837, 39.055), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.6, (1.763, 82.808, 39.566), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.6, {
-        'spine_lumbar': (9.223, 0.0, 0.0), 'spine_thoracic': (4.612, 0.0, 0.0),
-        'right_shoulder': (27.597, 5.467, 20.572), 'right_elbow': (33.576, 10.0),
-        'right_wrist': (-2.892, 0.053), 'left_shoulder': (18.765, 5.73, 11.459),
-        'right_hip': (14.673, 0.0, 0.0), 'right_knee': (19.202,), 'right_ankle': (4.529, 0.0),
-        'left_hip': (14.673, 0.0, 0.0), 'left_knee': (19.202,), 'left_ankle': (4.529, 0.0),
+        'right_shoulder': (63.78, 2.96, 4.206), 'left_shoulder': (28.226, -2.736, 11.459),
+        'right_hip': (12.609, 8.138, -18.652), 'left_hip': (12.609, 8.138, -18.652),
     })
-    human.KeyRoot(9.7, (0.554, 83.985, 43.292), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.7, (0.811, 83.673, 42.498), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.7, {
-        'spine_lumbar': (2.615, 0.0, 0.0), 'spine_thoracic': (1.307, 0.0, 0.0),
-        'right_clavicle': (0.057, 0.097), 'right_shoulder': (13.604, 5.66, 13.862),
-        'right_elbow': (34.166, 10.0), 'right_wrist': (-0.762, 0.014),
-        'left_shoulder': (11.478, 5.73, 11.459), 'right_hip': (6.213, 0.0, 0.0),
-        'right_knee': (8.728,), 'right_ankle': (2.516, 0.0), 'left_hip': (6.213, 0.0, 0.0),
-        'left_knee': (8.728,), 'left_ankle': (2.516, 0.0),
+        'right_shoulder': (30.311, 5.068, 4.206), 'left_shoulder': (13.286, 3.706, 11.459),
+        'right_hip': (5.912, 6.617, -19.369), 'right_knee': (7.206,),
+        'right_ankle': (-0.585, 4.242), 'left_hip': (5.912, 6.617, -19.369), 'left_knee': (7.206,),
+        'left_ankle': (-0.585, 4.242),
     })
-    human.KeyRoot(9.783852, (0.0, 84.188, 45.0), (-17.969, 0.0, 0.0))
+    human.KeyRoot(9.783852, (0.0, 83.902, 45.0), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.783852, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (4.116, -0.098, 3.688), 'head': (4.116, -0.001), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_elbow': (34.377, 10.0),
-        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
+        'neck': (3.349, -0.096, 2.63), 'head': (3.35, -0.001), 'right_clavicle': (1.387, 1.879),
+        'right_shoulder': (8.594, 5.73, 4.206), 'right_elbow': (31.145, 17.105),
+        'right_wrist': (-2.239, -1.73), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),
-        'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
-        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
-        'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
+        'left_wrist': (0.0, 0.0), 'right_hip': (0.632, 5.431, -19.866), 'right_knee': (0.0,),
+        'right_ankle': (-2.447, 4.891), 'left_hip': (0.632, 5.431, -19.866), 'left_knee': (0.0,),
+        'left_ankle': (-2.447, 4.891), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

@@ -11,7 +11,7 @@ def remove_access_panel():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
     # examples/remove_access_panel.mtask:28:5 remove_access_panel > walk_to > travel: locomotion on root at panel_front
-    human.Walk((-0.067, 0.0, 59.666), start=0.0, duration=1.294737)
+    human.Walk((-0.026, 0.0, 59.851), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,35 +22,36 @@ def remove_access_panel():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (1.195, 72.58, 1.235), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.359, 72.58, 1.235), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (15.294, 0.985, 0.409), 'right_knee': (31.455,), 'right_ankle': (8.903, 1.067),
-        'left_hip': (5.993, -1.019, -0.107), 'left_knee': (13.403,), 'left_ankle': (7.41, -1.025),
+        'right_hip': (15.322, 0.296, 0.123), 'right_knee': (31.518,), 'right_ankle': (8.935, 0.32),
+        'left_hip': (6.059, -0.306, -0.032), 'left_knee': (13.544,), 'left_ankle': (7.485, -0.308),
     })
-    human.KeyRoot(0.2, (1.934, 72.119, 4.545), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.159, 72.153, 4.545), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (19.269, 1.514, 1.019), 'right_knee': (44.066,),
-        'right_ankle': (10.129, 1.825), 'left_hip': (5.17, -1.664, -0.15), 'left_knee': (17.69,),
-        'left_ankle': (12.522, -1.67),
+        'right_hip': (19.234, 0.907, 0.61), 'right_knee': (44.001,), 'right_ankle': (10.089, 1.093),
+        'left_hip': (5.087, -0.997, -0.089), 'left_knee': (17.517,), 'left_ankle': (12.43, -1.0),
     })
-    human.KeyRoot(0.3, (2.315, 72.114, 9.336), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.987, 72.114, 9.336), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (28.966, 1.77, 1.505), 'right_knee': (58.064,), 'right_ankle': (18.099, 2.323),
-        'left_hip': (-0.931, -2.001, 0.02), 'left_knee': (13.429,), 'left_ankle': (13.993, -2.001),
+        'right_hip': (28.981, 1.519, 1.293), 'right_knee': (58.103,),
+        'right_ankle': (18.098, 1.994), 'left_hip': (-0.859, -1.717, 0.015), 'left_knee': (13.583,),
+        'left_ankle': (14.075, -1.717),
     })
-    human.KeyRoot(0.4, (2.435, 72.655, 15.015), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (2.429, 72.655, 15.015), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (39.096, 1.82, 1.599), 'right_knee': (53.634,), 'right_ankle': (12.697, 2.422),
-        'left_hip': (0.908, -2.095, -0.388), 'left_knee': (26.074,), 'left_ankle': (15.59, -2.13),
+        'right_hip': (39.095, 1.816, 1.595), 'right_knee': (53.633,),
+        'right_ankle': (12.697, 2.416), 'left_hip': (0.909, -2.089, -0.387), 'left_knee': (26.076,),
+        'left_ankle': (15.591, -2.125),
     })
     human.KeyRoot(0.5, (2.049, 71.002, 25.741), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (36.631, 1.56, 1.174), 'right_knee': (33.107,), 'right_ankle': (-3.558, 1.953),
+        'right_hip': (36.631, 1.56, 1.174), 'right_knee': (33.105,), 'right_ankle': (-3.558, 1.953),
         'left_hip': (2.154, -1.676, -0.91), 'left_knee': (45.649,), 'left_ankle': (17.15, -1.907),
     })
     human.KeyRoot(0.6, (1.011, 68.312, 41.366), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (30.554, 0.799, 0.477), 'right_knee': (28.731,), 'right_ankle': (-1.859, 0.93),
+        'right_hip': (30.553, 0.799, 0.477), 'right_knee': (28.73,), 'right_ankle': (-1.86, 0.93),
         'left_hip': (-8.49, -0.785, -0.564), 'left_knee': (47.983,), 'left_ankle': (12.281, -0.967),
     })
     human.KeyRoot(0.7, (-0.047, 67.478, 48.806), (0.0, 0.0, 0.0))
@@ -67,27 +68,27 @@ def remove_access_panel():
     })
     human.KeyRoot(0.9, (-2.187, 70.981, 46.244), (0.0, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (18.735, -1.82, -0.617), 'right_knee': (12.938,),
+        'right_hip': (18.735, -1.82, -0.617), 'right_knee': (12.937,),
         'right_ankle': (-5.793, -1.922), 'left_hip': (12.764, 1.478, 1.921), 'left_knee': (71.106,),
         'left_ankle': (18.896, 2.423),
     })
-    human.KeyRoot(1.0, (-2.414, 70.977, 46.016), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.358, 70.977, 46.261), (0.0, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (18.522, -2.011, -0.674), 'right_knee': (12.085,),
-        'right_ankle': (-6.427, -2.121), 'left_hip': (30.472, 1.64, 2.098), 'left_knee': (70.707,),
-        'left_ankle': (18.911, 2.663),
+        'right_hip': (18.731, -1.962, -0.665), 'right_knee': (12.958,),
+        'right_ankle': (-5.763, -2.072), 'left_hip': (30.201, 1.603, 2.049), 'left_knee': (70.675,),
+        'left_ankle': (18.911, 2.601),
     })
-    human.KeyRoot(1.1, (-2.08, 71.031, 48.627), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.1, (-1.544, 71.289, 51.007), (0.0, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (19.285, -1.724, -0.603), 'right_knee': (18.356,),
-        'right_ankle': (-0.921, -1.826), 'left_hip': (27.058, 1.701, 0.867), 'left_knee': (40.925,),
-        'left_ankle': (14.077, 1.909),
+        'right_hip': (17.969, -1.284, -0.416), 'right_knee': (19.942,),
+        'right_ankle': (1.977, -1.35), 'left_hip': (24.932, 1.28, 0.594), 'left_knee': (41.048,),
+        'left_ankle': (16.32, 1.411),
     })
-    human.KeyRoot(1.2, (-1.277, 71.667, 53.659), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.487, 72.082, 57.163), (0.0, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'right_hip': (15.523, -1.07, -0.297), 'right_knee': (19.669,),
-        'right_ankle': (4.149, -1.11), 'left_hip': (15.517, 1.07, 0.297), 'left_knee': (19.656,),
-        'left_ankle': (4.14, 1.11),
+        'right_hip': (11.9, -0.412, -0.087), 'right_knee': (18.453,),
+        'right_ankle': (6.554, -0.421), 'left_hip': (11.893, 0.412, 0.087), 'left_knee': (18.439,),
+        'left_ankle': (6.544, 0.421),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 112.0), start=1.294737, duration=0.2628)
@@ -1511,7 +1512,7 @@ def remove_access_panel():
     human.KeyJoints(24.7, {
         'spine_lumbar': (10.679, -7.226, 8.761), 'spine_thoracic': (-4.979, -7.954, 9.134),
         'neck': (32.819, -4.095, -41.42), 'head': (12.984, -1.043),
-        'right_clavicle': (10.918, 8.168), 'right_shoulder': (12.838, 42.962, -6.096),
+        'right_clavicle': (10.919, 8.168), 'right_shoulder': (12.838, 42.962, -6.096),
         'right_elbow': (44.73, 15.722), 'right_wrist': (-5.848, 14.491),
     })
     human.KeyJoints(24.8, {
@@ -1541,7 +1542,7 @@ def remove_access_panel():
     })
     human.KeyJoints(25.2, {
         'spine_lumbar': (11.151, -10.787, 8.276), 'spine_thoracic': (-2.855, -9.314, 9.163),
-        'neck': (33.355, -4.097, -42.672), 'head': (13.353, -1.016),
+        'neck': (33.355, -4.097, -42.673), 'head': (13.353, -1.016),
         'right_clavicle': (12.669, 8.548), 'right_shoulder': (9.564, 45.08, -4.438),
         'right_elbow': (44.039, 18.587), 'right_wrist': (-6.081, 14.162),
     })
@@ -1571,7 +1572,7 @@ def remove_access_panel():
         'right_elbow': (43.367, 17.34),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (12.009, -12.895, 8.032), 'spine_thoracic': (-1.675, -9.996, 9.224),
+        'spine_lumbar': (12.009, -12.895, 8.032), 'spine_thoracic': (-1.676, -9.996, 9.224),
         'neck': (33.665, -4.172, -43.774), 'head': (13.597, -1.04),
         'right_clavicle': (14.335, 8.942), 'right_shoulder': (7.76, 47.241, -3.601),
         'right_elbow': (43.206, 20.115), 'right_wrist': (-6.32, 13.647),
@@ -1660,7 +1661,7 @@ def remove_access_panel():
     human.KeyJoints(27.1, {
         'spine_lumbar': (12.274, -2.389, 10.446), 'spine_thoracic': (-8.734, -4.192, 10.024),
         'neck': (32.488, -4.682, -42.519), 'head': (12.433, -1.103),
-        'right_clavicle': (8.119, 8.534), 'right_shoulder': (19.008, 41.047, -10.926),
+        'right_clavicle': (8.119, 8.534), 'right_shoulder': (19.007, 41.047, -10.926),
         'right_elbow': (44.438, 9.794), 'right_wrist': (-5.991, 12.43),
     })
     human.KeyJoints(27.2, {
@@ -1919,7 +1920,7 @@ def remove_access_panel():
     human.KeyJoints(31.3, {
         'spine_lumbar': (11.058, -2.618, 10.24), 'spine_thoracic': (-8.835, -3.842, 9.69),
         'neck': (32.433, -4.403, -41.497), 'head': (12.536, -1.082),
-        'right_clavicle': (7.117, 8.355), 'right_shoulder': (19.017, 39.75, -10.912),
+        'right_clavicle': (7.117, 8.355), 'right_shoulder': (19.016, 39.75, -10.912),
         'right_elbow': (44.559, 9.362), 'right_wrist': (-5.949, 12.545),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
@@ -1931,7 +1932,7 @@ def remove_access_panel():
     })
     human.KeyJoints(31.5, {
         'spine_lumbar': (13.389, -4.255, 9.853), 'spine_thoracic': (-6.854, -7.11, 9.905),
-        'neck': (32.788, -4.709, -43.381), 'head': (12.664, -1.109),
+        'neck': (32.788, -4.709, -43.381), 'head': (12.664, -1.11),
         'right_clavicle': (11.186, 8.531), 'right_shoulder': (16.103, 43.744, -8.279),
         'right_elbow': (44.142, 13.421), 'right_wrist': (-5.959, 13.413),
     })
@@ -1964,7 +1965,7 @@ def remove_access_panel():
         'spine_lumbar': (12.57, -2.786, 10.307), 'spine_thoracic': (-8.284, -4.889, 10.0),
         'neck': (32.541, -4.704, -42.725), 'head': (12.465, -1.105),
         'right_clavicle': (8.876, 8.531), 'right_shoulder': (18.317, 41.749, -10.288),
-        'right_elbow': (44.413, 10.686), 'right_wrist': (-5.978, 12.756),
+        'right_elbow': (44.413, 10.686), 'right_wrist': (-5.978, 12.757),
     })
     human.KeyJoints(32.1, {
         'spine_lumbar': (14.387, -7.112, 9.131), 'spine_thoracic': (-4.69, -9.966, 9.719),
@@ -2066,7 +2067,7 @@ def remove_access_panel():
         'right_wrist': (-6.008, 12.036),
     })
     human.KeyJoints(33.7, {
-        'spine_lumbar': (13.846, -5.465, 9.531), 'spine_thoracic': (-5.852, -8.669, 9.837),
+        'spine_lumbar': (13.846, -5.466, 9.531), 'spine_thoracic': (-5.852, -8.669, 9.837),
         'neck': (33.029, -4.648, -43.822), 'head': (12.893, -1.109),
         'right_clavicle': (12.736, 8.567), 'right_shoulder': (14.542, 44.887, -6.831),
         'right_elbow': (43.762, 15.26), 'right_wrist': (-5.965, 13.487),
@@ -2080,7 +2081,7 @@ def remove_access_panel():
     human.KeyJoints(33.9, {
         'spine_lumbar': (11.232, -8.934, 8.491), 'spine_thoracic': (-3.642, -8.814, 9.15),
         'neck': (33.008, -4.202, -42.309), 'head': (13.061, -1.054),
-        'right_clavicle': (12.274, 8.45), 'right_shoulder': (10.742, 44.706, -4.822),
+        'right_clavicle': (12.274, 8.45), 'right_shoulder': (10.741, 44.706, -4.822),
         'right_elbow': (44.303, 17.902), 'right_wrist': (-5.994, 14.295),
     })
     human.KeyJoints(34.0, {
@@ -2114,7 +2115,7 @@ def remove_access_panel():
         'right_wrist': (-6.079, -5.491),
     })
     human.KeyJoints(34.6, {
-        'right_shoulder': (25.993, 25.029, -9.209), 'right_elbow': (35.675, 6.913),
+        'right_shoulder': (25.992, 25.029, -9.209), 'right_elbow': (35.675, 6.913),
         'right_wrist': (-4.828, -8.32),
     })
     human.KeyJoints(34.7, {
@@ -2185,7 +2186,7 @@ def remove_access_panel():
         'spine_lumbar': (3.141, -19.272, 9.147), 'spine_thoracic': (-10.994, -10.0, 10.266),
         'neck': (25.61, -1.128, -7.278), 'right_clavicle': (14.113, 8.905),
         'right_shoulder': (56.983, 6.708, 19.068), 'right_elbow': (28.04, 27.268),
-        'right_wrist': (2.396, -26.197),
+        'right_wrist': (2.395, -26.197),
     })
     human.KeyJoints(35.9, {
         'spine_lumbar': (0.888, -19.894, 10.167), 'spine_thoracic': (-12.651, -10.0, 12.707),
@@ -2221,14 +2222,14 @@ def remove_access_panel():
     human.KeyJoints(36.4, {
         'spine_lumbar': (1.759, -19.762, 9.631), 'spine_thoracic': (-11.941, -10.0, 11.529),
         'neck': (26.347, -1.199, -8.366), 'head': (10.698, -0.17),
-        'right_clavicle': (18.143, 10.039), 'right_shoulder': (57.284, 7.505, 20.676),
+        'right_clavicle': (18.143, 10.039), 'right_shoulder': (57.284, 7.506, 20.676),
         'right_elbow': (23.928, 29.712), 'right_wrist': (3.483, -25.809),
     })
     human.KeyJoints(36.5, {
         'spine_lumbar': (-3.556, -19.999, 10.295), 'spine_thoracic': (-12.122, -10.0, 12.755),
         'neck': (27.786, -1.0, -7.805), 'head': (12.163, -0.169),
         'right_clavicle': (20.466, 11.377), 'right_shoulder': (55.83, 4.937, 21.949),
-        'right_elbow': (19.619, 30.986), 'right_wrist': (4.477, -24.573),
+        'right_elbow': (19.62, 30.986), 'right_wrist': (4.477, -24.573),
     })
     human.KeyJoints(36.6, {
         'spine_lumbar': (-0.697, -19.398, 8.641), 'spine_thoracic': (-9.532, -10.0, 9.257),
@@ -2343,7 +2344,7 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
-        'spine_lumbar': (7.178, -14.746, 9.742), 'spine_thoracic': (-9.413, -5.436, 9.409),
+        'spine_lumbar': (7.178, -14.746, 9.742), 'spine_thoracic': (-9.413, -5.436, 9.41),
         'neck': (24.45, -1.093, -5.898), 'head': (8.027, -0.115), 'right_clavicle': (4.066, 7.968),
         'right_shoulder': (56.368, 3.606, 11.751), 'right_elbow': (32.247, 19.448),
         'right_wrist': (-0.784, -20.156),
@@ -2356,7 +2357,7 @@ def remove_access_panel():
     })
     human.KeyJoints(38.6, {
         'spine_lumbar': (1.189, -19.58, 9.988), 'spine_thoracic': (-12.321, -10.0, 12.218),
-        'neck': (26.689, -1.237, -8.881), 'head': (11.053, -0.171),
+        'neck': (26.689, -1.237, -8.882), 'head': (11.053, -0.171),
         'right_clavicle': (19.593, 10.643), 'right_shoulder': (57.572, 7.527, 20.694),
         'right_elbow': (21.117, 30.277), 'right_wrist': (3.769, -24.809),
     })
@@ -2400,7 +2401,7 @@ def remove_access_panel():
     human.KeyJoints(39.3, {
         'spine_lumbar': (-1.337, -19.55, 8.856), 'spine_thoracic': (-9.85, -10.0, 9.704),
         'neck': (26.168, -0.795, -5.149), 'head': (10.458, -0.162),
-        'right_clavicle': (12.573, 8.809), 'right_shoulder': (54.75, 2.71, 18.629),
+        'right_clavicle': (12.573, 8.809), 'right_shoulder': (54.75, 2.711, 18.629),
         'right_elbow': (27.379, 26.129), 'right_wrist': (2.34, -24.26),
     })
     human.KeyJoints(39.4, {
@@ -2457,7 +2458,7 @@ def remove_access_panel():
         'spine_lumbar': (1.763, -19.764, 9.628), 'spine_thoracic': (-11.938, -10.0, 11.524),
         'neck': (26.344, -1.199, -8.363), 'head': (10.695, -0.17),
         'right_clavicle': (18.133, 10.034), 'right_shoulder': (57.281, 7.505, 20.676),
-        'right_elbow': (23.951, 29.709), 'right_wrist': (3.481, -25.818),
+        'right_elbow': (23.952, 29.709), 'right_wrist': (3.481, -25.818),
     })
     human.KeyJoints(40.3, {
         'spine_lumbar': (-3.557, -19.999, 10.295), 'spine_thoracic': (-12.126, -10.0, 12.757),
@@ -2468,7 +2469,7 @@ def remove_access_panel():
     human.KeyJoints(40.4, {
         'spine_lumbar': (-0.708, -19.401, 8.643), 'spine_thoracic': (-9.536, -10.0, 9.263),
         'neck': (25.934, -0.792, -4.859), 'head': (10.14, -0.156),
-        'right_clavicle': (11.029, 8.413), 'right_shoulder': (54.675, 2.541, 17.812),
+        'right_clavicle': (11.029, 8.413), 'right_shoulder': (54.675, 2.542, 17.812),
         'right_elbow': (28.73, 25.092), 'right_wrist': (1.858, -24.155),
     })
     human.KeyJoints(40.5, {
@@ -2617,7 +2618,7 @@ def remove_access_panel():
     human.KeyJoints(42.8, {
         'spine_lumbar': (4.618, -19.241, 9.067), 'spine_thoracic': (-10.424, -9.882, 9.393),
         'neck': (25.097, -1.165, -7.09), 'head': (9.1, -0.145), 'right_clavicle': (8.931, 7.918),
-        'right_shoulder': (55.978, 5.516, 15.034), 'right_elbow': (30.325, 23.137),
+        'right_shoulder': (55.977, 5.516, 15.034), 'right_elbow': (30.325, 23.137),
         'right_wrist': (0.557, -23.08),
     })
     human.KeyJoints(42.9, {
@@ -2635,7 +2636,7 @@ def remove_access_panel():
     human.KeyJoints(43.1, {
         'spine_lumbar': (-1.348, -19.553, 8.861), 'spine_thoracic': (-9.856, -10.0, 9.713),
         'neck': (26.172, -0.795, -5.154), 'head': (10.463, -0.162), 'right_clavicle': (12.6, 8.817),
-        'right_shoulder': (54.752, 2.714, 18.643), 'right_elbow': (27.355, 26.146),
+        'right_shoulder': (54.751, 2.714, 18.643), 'right_elbow': (27.355, 26.146),
         'right_wrist': (2.349, -24.262),
     })
     human.KeyJoints(43.2, {
@@ -2691,7 +2692,7 @@ def remove_access_panel():
     human.KeyJoints(44.0, {
         'spine_lumbar': (1.768, -19.767, 9.625), 'spine_thoracic': (-11.935, -10.0, 11.518),
         'neck': (26.341, -1.198, -8.359), 'head': (10.692, -0.17),
-        'right_clavicle': (18.123, 10.029), 'right_shoulder': (57.279, 7.505, 20.676),
+        'right_clavicle': (18.123, 10.029), 'right_shoulder': (57.278, 7.505, 20.676),
         'right_elbow': (23.975, 29.706), 'right_wrist': (3.479, -25.827),
     })
     human.KeyJoints(44.1, {
@@ -2749,7 +2750,7 @@ def remove_access_panel():
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.151),
+        'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.2628)
@@ -2824,47 +2825,47 @@ def remove_access_panel():
     human.KeyRoot(46.1, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(46.1, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
-        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.843, 24.897),
-        'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.158, 18.169),
+        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.842, 24.897),
+        'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
-    human.Walk((138.904, 0.0, 19.976), start=46.121638, duration=5.147368)
-    human.KeyRoot(46.2, (-0.926, 72.652, 60.238), (1.318, 0.0, 0.0))
+    human.Walk((139.64, 0.0, 19.995), start=46.121638, duration=5.147368)
+    human.KeyRoot(46.2, (-0.234, 72.652, 60.048), (0.523, 0.0, 0.0))
     human.KeyJoints(46.2, {
-        'right_hip': (6.229, -0.644, -1.396), 'right_knee': (12.402,),
-        'right_ankle': (6.189, -0.791), 'left_hip': (7.266, 0.623, 1.413), 'left_knee': (13.849,),
-        'left_ankle': (6.258, 0.796),
+        'right_hip': (6.502, -0.14, -0.543), 'right_knee': (12.463,), 'right_ankle': (5.964, -0.2),
+        'left_hip': (7.353, 0.133, 0.546), 'left_knee': (13.923,), 'left_ankle': (6.23, 0.201),
     })
-    human.KeyRoot(46.3, (-1.764, 72.489, 60.416), (3.284, 0.0, 0.0))
+    human.KeyRoot(46.3, (-0.989, 72.489, 60.203), (2.394, 0.0, 0.0))
     human.KeyJoints(46.3, {
         'right_clavicle': (6.997, 9.73), 'left_clavicle': (-2.488, 4.0),
-        'right_hip': (6.912, -1.099, -3.44), 'right_knee': (14.541,),
-        'right_ankle': (7.705, -1.503), 'left_hip': (9.392, 0.974, 3.515), 'left_knee': (17.902,),
-        'left_ankle': (7.601, 1.533),
+        'right_hip': (7.254, -0.535, -2.481), 'right_knee': (14.749,),
+        'right_ankle': (7.525, -0.844), 'left_hip': (9.5, 0.451, 2.517), 'left_knee': (18.067,),
+        'left_ankle': (7.612, 0.86),
     })
-    human.KeyRoot(46.4, (-2.263, 72.487, 60.492), (5.517, 0.0, 0.0))
+    human.KeyRoot(46.4, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
     human.KeyJoints(46.4, {
-        'right_hip': (6.565, -1.275, -5.697), 'right_knee': (14.351,),
-        'right_ankle': (7.941, -1.911), 'left_hip': (19.975, 1.025, 2.93), 'left_knee': (40.224,),
-        'left_ankle': (18.216, 1.974),
+        'right_hip': (6.758, -0.972, -5.207), 'right_knee': (14.53,),
+        'right_ankle': (7.887, -1.574), 'left_hip': (20.008, 0.777, 2.365), 'left_knee': (40.308,),
+        'left_ankle': (18.233, 1.603),
     })
-    human.KeyRoot(46.5, (-2.473, 72.667, 60.509), (7.96, 0.0, 0.0))
+    human.KeyRoot(46.5, (-2.436, 72.667, 60.499), (7.918, 0.0, 0.0))
     human.KeyJoints(46.5, {
-        'right_hip': (7.236, -1.05, -8.193), 'right_knee': (16.082,), 'right_ankle': (7.948, -2.06),
-        'left_hip': (24.523, 4.05, -3.864), 'left_knee': (51.467,), 'left_ankle': (18.316, 2.031),
+        'right_hip': (7.254, -1.022, -8.147), 'right_knee': (16.102,),
+        'right_ankle': (7.946, -2.03), 'left_hip': (24.526, 3.982, -3.916), 'left_knee': (51.493,),
+        'left_ankle': (18.331, 1.995),
     })
     human.KeyRoot(46.6, (-2.328, 72.98, 60.194), (10.582, 0.0, 0.0))
     human.KeyJoints(46.6, {
-        'right_hip': (9.635, -0.091, -10.87), 'right_knee': (20.783,), 'right_ankle': (7.606, -1.9),
-        'left_hip': (20.283, 7.105, -13.308), 'left_knee': (45.054,), 'left_ankle': (18.416, 1.759),
+        'right_hip': (9.635, -0.09, -10.87), 'right_knee': (20.784,), 'right_ankle': (7.607, -1.9),
+        'left_hip': (20.288, 7.057, -13.303), 'left_knee': (45.071,), 'left_ankle': (18.429, 1.759),
     })
     human.KeyRoot(46.7, (-1.65, 72.577, 59.046), (13.541, 0.0, 0.0))
     human.KeyJoints(46.7, {
-        'right_hip': (14.948, 2.341, -13.55), 'right_knee': (30.581,),
-        'right_ankle': (8.733, -1.268), 'left_hip': (9.402, 4.51, -20.287), 'left_knee': (21.265,),
-        'left_ankle': (10.922, 0.747),
+        'right_hip': (14.928, 2.341, -13.55), 'right_knee': (30.551,),
+        'right_ankle': (8.735, -1.268), 'left_hip': (9.406, 4.47, -20.283), 'left_knee': (21.279,),
+        'left_ankle': (10.931, 0.747),
     })
     human.KeyRoot(46.8, (-0.8, 72.491, 58.202), (17.063, 0.0, 0.0))
     human.KeyJoints(46.8, {
@@ -2874,19 +2875,19 @@ def remove_access_panel():
     })
     human.KeyRoot(46.9, (0.09, 72.499, 58.262), (21.676, 0.0, 0.0))
     human.KeyJoints(46.9, {
-        'right_hip': (18.916, 7.706, -19.698), 'right_knee': (41.432,),
-        'right_ankle': (11.357, 0.59), 'left_hip': (7.689, 0.721, -13.77),
+        'right_hip': (18.911, 7.706, -19.698), 'right_knee': (41.434,),
+        'right_ankle': (11.363, 0.59), 'left_hip': (7.69, 0.721, -13.77),
     })
     human.KeyRoot(47.0, (1.15, 72.495, 58.545), (27.492, 0.0, 0.0))
     human.KeyJoints(47.0, {
         'right_hip': (25.321, 8.637, -14.777), 'right_knee': (55.368,),
-        'right_ankle': (19.434, 1.247), 'left_hip': (7.675, -0.801, -8.102), 'left_knee': (14.217,),
+        'right_ankle': (19.434, 1.247), 'left_hip': (7.676, -0.801, -8.102), 'left_knee': (14.218,),
         'left_ankle': (6.723, -1.865),
     })
     human.KeyRoot(47.1, (2.061, 72.49, 58.972), (33.566, 0.0, 0.0))
     human.KeyJoints(47.1, {
         'right_hip': (28.76, 3.487, -3.228), 'right_knee': (59.798,),
-        'right_ankle': (19.373, 1.412), 'left_hip': (7.696, -2.085, -2.154), 'left_knee': (14.5,),
+        'right_ankle': (19.373, 1.412), 'left_hip': (7.696, -2.085, -2.153), 'left_knee': (14.5,),
         'left_ankle': (6.749, -2.354),
     })
     human.KeyRoot(47.2, (2.651, 72.765, 59.912), (39.221, 0.0, 0.0))
@@ -3107,37 +3108,38 @@ def remove_access_panel():
         'right_ankle': (19.553, 5.044), 'left_hip': (17.053, -0.066, -0.02), 'left_knee': (16.053,),
         'left_ankle': (-1.006, -0.069),
     })
-    human.KeyRoot(51.0, (130.123, 71.541, 19.849), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.0, (130.628, 71.609, 19.862), (90.0, 0.0, 0.0))
     human.KeyJoints(51.0, {
-        'right_hip': (30.0, -0.013, 6.336), 'right_knee': (63.063,), 'right_ankle': (19.465, 3.29),
-        'left_hip': (16.783, -0.126, -0.038), 'left_knee': (15.921,),
-        'left_ankle': (-0.865, -0.132),
+        'right_hip': (29.398, -0.006, 6.31), 'right_knee': (62.848,),
+        'right_ankle': (19.465, 3.229), 'left_hip': (16.419, -0.115, -0.034),
+        'left_knee': (16.078,), 'left_ankle': (-0.344, -0.12),
     })
-    human.KeyRoot(51.1, (132.453, 71.944, 19.866), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.1, (134.664, 71.986, 19.921), (90.0, 0.0, 0.0))
     human.KeyJoints(51.1, {
-        'right_hip': (19.611, 0.233, 0.755), 'right_knee': (28.333,), 'right_ankle': (8.864, 0.534),
-        'left_hip': (14.358, -0.113, -0.029), 'left_knee': (15.092,), 'left_ankle': (0.732, -0.116),
+        'right_hip': (18.195, 0.185, 0.725), 'right_knee': (29.437,),
+        'right_ankle': (11.383, 0.464), 'left_hip': (13.6, -0.066, -0.016), 'left_knee': (17.492,),
+        'left_ankle': (3.89, -0.068),
     })
-    human.KeyRoot(51.2, (136.465, 72.24, 19.923), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.2, (138.838, 72.442, 19.983), (90.0, 0.0, 0.0))
     human.KeyJoints(51.2, {
         'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446),
-        'right_hip': (11.431, 0.065, 0.013), 'right_knee': (16.215,), 'right_ankle': (4.787, 0.066),
-        'left_hip': (11.419, -0.065, -0.013), 'left_knee': (16.19,), 'left_ankle': (4.771, -0.066),
+        'right_hip': (8.858, 0.015, 0.002), 'right_knee': (15.102,), 'right_ankle': (6.247, 0.015),
+        'left_hip': (8.842, -0.015, -0.002), 'left_knee': (15.07,), 'left_ankle': (6.228, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=51.269006, duration=0.2628)
     human.KeyRoot(51.3, (140.0, 72.985, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(51.3, {
-        'neck': (21.826, -3.495, -31.398), 'head': (6.505, -0.862), 'right_hip': (3.154, 0.0, 0.0),
+        'neck': (21.826, -3.495, -31.399), 'head': (6.505, -0.862), 'right_hip': (3.154, 0.0, 0.0),
         'right_knee': (5.194,), 'right_ankle': (2.042, 0.0), 'left_hip': (3.126, 0.0, 0.0),
         'left_knee': (5.134,), 'left_ankle': (2.01, 0.0),
     })
     human.KeyJoints(51.4, {'neck': (28.118, 14.293, -30.537), 'right_knee': (5.127,)})
     human.KeyJoints(51.5, {
         'neck': (34.447, 32.185, -29.671), 'head': (14.643, -10.814),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
-        'left_elbow': (21.158, 18.169), 'left_wrist': (0.918, -5.518),
+        'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
         'right_hip': (3.042, 0.0, 0.0), 'right_knee': (4.957,), 'right_ankle': (1.917, 0.0),
         'left_hip': (3.037, 0.0, 0.0), 'left_knee': (4.946,), 'left_ankle': (1.912, 0.0),
     })
@@ -3147,8 +3149,8 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=51.531806, duration=0.698258)
     human.KeyJoints(51.6, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.677, 34.899, -9.742), 'right_elbow': (91.123, 24.926),
-        'right_wrist': (-16.615, -18.203), 'left_shoulder': (88.603, -29.033, 15.112),
+        'right_shoulder': (33.677, 34.899, -9.742), 'right_elbow': (91.122, 24.926),
+        'right_wrist': (-16.615, -18.203), 'left_shoulder': (88.604, -29.033, 15.112),
         'left_elbow': (22.215, 17.985), 'left_wrist': (-0.024, -5.397),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
@@ -3199,7 +3201,7 @@ def remove_access_panel():
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
         'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-0.856, 15.331, 60.151), 'left_elbow': (105.457, 9.045),
+        'left_shoulder': (-0.856, 15.331, 60.151), 'left_elbow': (105.457, 9.044),
         'left_wrist': (-70.0, 8.11), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),

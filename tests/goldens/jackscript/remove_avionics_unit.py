@@ -11,7 +11,7 @@ def remove_avionics_unit():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
     # examples/remove_avionics_unit.mtask:29:5 remove_avionics_unit > walk_to > travel: locomotion on root at rack_front
-    human.Walk((-0.067, 0.0, 49.725), start=0.0, duration=1.294737)
+    human.Walk((-0.026, 0.0, 49.877), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,42 +22,41 @@ def remove_avionics_unit():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (1.195, 72.58, 1.042), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.359, 72.58, 1.042), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (14.287, 0.993, 0.368), 'right_knee': (29.273,), 'right_ankle': (8.937, 1.059),
-        'left_hip': (6.165, -1.019, -0.11), 'left_knee': (13.416,), 'left_ankle': (7.252, -1.025),
+        'right_hip': (14.317, 0.298, 0.111), 'right_knee': (29.34,), 'right_ankle': (8.971, 0.318),
+        'left_hip': (6.231, -0.306, -0.033), 'left_knee': (13.558,), 'left_ankle': (7.327, -0.308),
     })
-    human.KeyRoot(0.2, (1.934, 72.22, 3.833), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.159, 72.22, 3.833), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (17.951, 1.547, 0.9), 'right_knee': (40.637,), 'right_ankle': (10.462, 1.789),
-        'left_hip': (5.44, -1.66, -0.158), 'left_knee': (16.958,), 'left_ankle': (11.52, -1.668),
+        'right_hip': (17.991, 0.927, 0.54), 'right_knee': (40.73,), 'right_ankle': (10.508, 1.072),
+        'left_hip': (5.536, -0.995, -0.096), 'left_knee': (17.166,), 'left_ankle': (11.63, -0.999),
     })
-    human.KeyRoot(0.3, (2.315, 72.148, 7.868), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.987, 72.148, 7.868), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (27.674, 1.797, 1.422), 'right_knee': (55.911,),
-        'right_ankle': (18.063, 2.292), 'left_hip': (1.098, -1.999, -0.049), 'left_knee': (15.067,),
-        'left_ankle': (13.664, -2.0),
+        'right_hip': (27.692, 1.542, 1.222), 'right_knee': (55.957,),
+        'right_ankle': (18.065, 1.967), 'left_hip': (1.162, -1.716, -0.044), 'left_knee': (15.205,),
+        'left_ankle': (13.737, -1.716),
     })
-    human.KeyRoot(0.4, (2.435, 72.719, 12.642), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (2.429, 72.719, 12.642), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (36.895, 1.868, 1.506), 'right_knee': (53.928,),
-        'right_ankle': (15.502, 2.399), 'left_hip': (2.474, -2.091, -0.386), 'left_knee': (25.323,),
-        'left_ankle': (14.871, -2.127),
+        'right_hip': (36.897, 1.863, 1.502), 'right_knee': (53.931,),
+        'right_ankle': (15.504, 2.393), 'left_hip': (2.475, -2.086, -0.385), 'left_knee': (25.325,),
+        'left_ankle': (14.872, -2.121),
     })
     human.KeyRoot(0.5, (2.049, 71.867, 21.601), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (33.863, 1.588, 1.081), 'right_knee': (34.774,), 'right_ankle': (0.885, 1.921),
+        'right_hip': (33.865, 1.588, 1.081), 'right_knee': (34.776,), 'right_ankle': (0.886, 1.921),
         'left_hip': (3.816, -1.693, -0.817), 'left_knee': (42.103,), 'left_ankle': (16.334, -1.88),
     })
     human.KeyRoot(0.6, (1.011, 70.974, 34.615), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (19.656, 0.838, 0.305), 'right_knee': (12.619,),
-        'right_ankle': (-7.069, 0.892), 'left_hip': (-5.115, -0.803, -0.496), 'left_knee': (43.3,),
-        'left_ankle': (11.589, -0.944),
+        'right_hip': (19.657, 0.838, 0.305), 'right_knee': (12.62,), 'right_ankle': (-7.068, 0.892),
+        'left_hip': (-5.115, -0.803, -0.496), 'left_knee': (43.3,), 'left_ankle': (11.589, -0.944),
     })
     human.KeyRoot(0.7, (-0.047, 71.284, 40.807), (0.0, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (18.112, -0.039, -0.013), 'right_knee': (19.884,),
+        'right_hip': (18.112, -0.039, -0.013), 'right_knee': (19.885,),
         'right_ankle': (1.772, -0.042), 'left_hip': (-9.458, 0.036, 0.028), 'left_knee': (41.049,),
         'left_ankle': (3.347, 0.045),
     })
@@ -73,23 +72,23 @@ def remove_avionics_unit():
         'right_ankle': (-3.713, -1.907), 'left_hip': (15.466, 1.487, 1.899), 'left_knee': (70.321,),
         'left_ankle': (18.723, 2.412),
     })
-    human.KeyRoot(1.0, (-2.414, 71.485, 38.48), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.358, 71.485, 38.681), (0.0, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.387, -2.019, -0.594), 'right_knee': (12.127,),
-        'right_ankle': (-4.253, -2.104), 'left_hip': (29.459, 1.69, 1.981), 'left_knee': (68.003,),
-        'left_ankle': (18.763, 2.604),
+        'right_hip': (16.508, -1.972, -0.584), 'right_knee': (12.743,),
+        'right_ankle': (-3.76, -2.056), 'left_hip': (29.24, 1.652, 1.935), 'left_knee': (67.979,),
+        'left_ankle': (18.763, 2.544),
     })
-    human.KeyRoot(1.1, (-2.08, 71.482, 40.629), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.1, (-1.544, 71.706, 42.592), (0.0, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (16.96, -1.735, -0.529), 'right_knee': (17.178,),
-        'right_ankle': (0.223, -1.814), 'left_hip': (24.8, 1.718, 0.796), 'left_knee': (38.982,),
-        'left_ankle': (14.359, 1.893),
+        'right_hip': (15.594, -1.292, -0.361), 'right_knee': (17.893,),
+        'right_ankle': (2.3, -1.342), 'left_hip': (22.944, 1.289, 0.547), 'left_knee': (38.845,),
+        'left_ankle': (16.072, 1.4),
     })
-    human.KeyRoot(1.2, (-1.277, 71.884, 44.774), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.487, 72.198, 47.663), (0.0, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'right_hip': (14.045, -1.074, -0.269), 'right_knee': (18.61,),
-        'right_ankle': (4.566, -1.107), 'left_hip': (14.033, 1.074, 0.268), 'left_knee': (18.584,),
-        'left_ankle': (4.549, 1.107),
+        'right_hip': (11.006, -0.412, -0.08), 'right_knee': (17.486,),
+        'right_ankle': (6.478, -0.42), 'left_hip': (10.992, 0.412, 0.08), 'left_knee': (17.457,),
+        'left_ankle': (6.46, 0.42),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
     human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.2628)
@@ -124,123 +123,126 @@ def remove_avionics_unit():
         'spine_lumbar': (0.042, -0.04, -0.142), 'spine_thoracic': (0.129, 0.011, -0.284),
         'neck': (-20.534, -0.386, 1.248), 'head': (-17.771, 0.0), 'right_clavicle': (0.261, -0.142),
         'right_shoulder': (8.557, 7.354, 10.954), 'right_elbow': (34.17, 17.107),
-        'left_clavicle': (0.284, 0.105), 'left_shoulder': (9.839, 5.802, 11.378),
+        'left_clavicle': (0.284, 0.105), 'left_shoulder': (9.84, 5.802, 11.378),
         'left_elbow': (34.357, 16.313), 'left_wrist': (-0.066, -0.02),
     })
     human.KeyJoints(1.8, {
         'spine_lumbar': (0.182, -0.172, -0.62), 'spine_thoracic': (0.564, 0.046, -1.24),
         'neck': (-21.336, -0.911, 2.953), 'head': (-18.659, -0.003),
-        'right_clavicle': (1.136, -0.62), 'right_shoulder': (8.433, 12.813, 9.256),
+        'right_clavicle': (1.137, -0.62), 'right_shoulder': (8.433, 12.813, 9.256),
         'right_elbow': (33.472, 16.833), 'right_wrist': (0.015, -0.038),
         'left_clavicle': (1.238, 0.459), 'left_shoulder': (14.026, 6.046, 11.106),
         'left_elbow': (34.289, 13.371), 'left_wrist': (-0.29, -0.087),
     })
     human.KeyJoints(1.9, {
-        'spine_lumbar': (0.455, -0.426, -1.532), 'spine_thoracic': (1.394, 0.115, -3.064),
+        'spine_lumbar': (0.455, -0.426, -1.532), 'spine_thoracic': (1.394, 0.115, -3.065),
         'neck': (-22.871, -1.611, 5.231), 'head': (-19.701, -0.009),
-        'right_clavicle': (2.81, -1.532), 'right_shoulder': (8.196, 23.229, 6.016),
-        'right_elbow': (32.136, 16.31), 'left_clavicle': (3.057, 1.136),
-        'left_shoulder': (22.022, 6.512, 10.586), 'left_elbow': (34.156, 7.757),
+        'right_clavicle': (2.81, -1.532), 'right_shoulder': (8.196, 23.23, 6.016),
+        'right_elbow': (32.136, 16.31), 'left_clavicle': (3.058, 1.137),
+        'left_shoulder': (22.023, 6.513, 10.586), 'left_elbow': (34.156, 7.756),
         'left_wrist': (-0.716, -0.214),
     })
     human.KeyJoints(2.0, {
         'spine_lumbar': (0.883, -0.798, -2.87), 'spine_thoracic': (2.611, 0.215, -5.74),
         'neck': (-26.392, -2.325, 7.51), 'head': (-19.519, -0.024),
-        'right_clavicle': (5.275, -2.87), 'right_shoulder': (7.849, 38.507, 1.264),
-        'right_elbow': (30.154, 15.543), 'left_clavicle': (5.727, 2.136),
-        'left_shoulder': (33.792, 7.201, 9.822), 'left_elbow': (33.951, -0.478),
+        'right_clavicle': (5.275, -2.87), 'right_shoulder': (7.849, 38.51, 1.263),
+        'right_elbow': (30.153, 15.543), 'left_clavicle': (5.728, 2.136),
+        'left_shoulder': (33.794, 7.201, 9.822), 'left_elbow': (33.951, -0.479),
         'left_wrist': (-1.342, -0.401),
     })
     human.KeyJoints(2.1, {
-        'spine_lumbar': (1.486, -1.266, -4.554), 'spine_thoracic': (4.143, 0.34, -9.108),
+        'spine_lumbar': (1.486, -1.266, -4.554), 'spine_thoracic': (4.144, 0.34, -9.109),
         'neck': (-30.606, -3.001, 9.662), 'head': (-19.459, -0.058),
-        'right_clavicle': (8.4, -4.554), 'right_shoulder': (7.411, 57.741, -4.718),
-        'right_elbow': (27.607, 14.577), 'right_wrist': (0.118, -0.298),
-        'left_clavicle': (9.089, 3.407), 'left_shoulder': (48.703, 8.079, 8.855),
-        'left_elbow': (33.669, -10.844), 'left_wrist': (-2.134, -0.636),
+        'right_clavicle': (8.401, -4.554), 'right_shoulder': (7.411, 57.745, -4.719),
+        'right_elbow': (27.606, 14.577), 'right_wrist': (0.118, -0.298),
+        'left_clavicle': (9.09, 3.407), 'left_shoulder': (48.707, 8.079, 8.855),
+        'left_elbow': (33.669, -10.846), 'left_wrist': (-2.134, -0.636),
     })
     human.KeyJoints(2.2, {
-        'spine_lumbar': (2.274, -1.798, -6.469), 'spine_thoracic': (5.885, 0.483, -12.937),
-        'neck': (-35.144, -3.441, 10.981), 'right_clavicle': (11.992, -6.469),
-        'right_shoulder': (6.914, 79.608, -11.519), 'right_elbow': (24.627, 13.479),
-        'left_clavicle': (12.912, 4.875), 'left_shoulder': (65.81, 9.095, 7.749),
-        'left_elbow': (33.31, -22.63),
+        'spine_lumbar': (2.275, -1.798, -6.469), 'spine_thoracic': (5.886, 0.484, -12.938),
+        'neck': (-35.144, -3.441, 10.981), 'right_clavicle': (11.993, -6.469),
+        'right_shoulder': (6.914, 79.615, -11.521), 'right_elbow': (24.626, 13.478),
+        'left_clavicle': (12.913, 4.876), 'left_shoulder': (65.815, 9.095, 7.749),
+        'left_elbow': (33.31, -22.633),
     })
     human.KeyJoints(2.3, {
-        'spine_lumbar': (3.259, -2.358, -8.484), 'neck': (-39.783, -3.634, 11.425),
-        'right_shoulder': (6.39, 102.626, -18.679), 'right_elbow': (21.366, 12.322),
-        'left_elbow': (32.875, -35.036),
+        'spine_lumbar': (3.259, -2.358, -8.485), 'neck': (-39.783, -3.634, 11.425),
+        'right_shoulder': (6.39, 102.635, -18.682), 'right_elbow': (21.365, 12.322),
+        'left_elbow': (32.875, -35.041),
     })
     human.KeyJoints(2.4, {
-        'spine_lumbar': (4.487, -2.901, -10.456), 'spine_thoracic': (9.497, 0.78, -20.912),
+        'spine_lumbar': (4.488, -2.902, -10.457), 'spine_thoracic': (9.497, 0.78, -20.914),
         'neck': (-44.208, -3.569, 11.016), 'head': (-18.875, -0.254),
-        'right_clavicle': (19.672, -10.456), 'right_shoulder': (5.88, 125.143, -25.684),
-        'right_elbow': (17.968, 11.19), 'left_clavicle': (20.879, 8.057),
-        'left_shoulder': (102.278, 11.297, 5.41), 'left_elbow': (32.336, -47.176),
-        'left_wrist': (-4.953, -1.46),
+        'right_clavicle': (19.674, -10.457), 'right_shoulder': (5.879, 125.155, -25.688),
+        'right_elbow': (17.967, 11.19), 'left_clavicle': (20.881, 8.058),
+        'left_shoulder': (102.287, 11.297, 5.41), 'left_elbow': (32.335, -47.182),
+        'left_wrist': (-4.954, -1.46),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (6.509, -3.27, -12.22), 'spine_thoracic': (10.666, 0.867, -24.441),
+        'spine_lumbar': (6.511, -3.271, -12.221), 'spine_thoracic': (10.666, 0.867, -24.443),
         'neck': (-47.389, -3.089, 9.932), 'head': (-19.256, -0.132),
-        'right_clavicle': (23.274, -12.22), 'right_shoulder': (5.468, 145.125, -31.948),
-        'right_elbow': (14.389, 10.177), 'right_wrist': (0.433, -1.008),
-        'left_clavicle': (24.409, 9.662), 'left_shoulder': (119.762, 12.199, 4.364),
-        'left_elbow': (31.09, -58.038), 'left_wrist': (-5.81, -1.709),
+        'right_clavicle': (23.277, -12.221), 'right_shoulder': (5.468, 145.137, -31.951),
+        'right_elbow': (14.386, 10.177), 'right_wrist': (0.433, -1.008),
+        'left_clavicle': (24.412, 9.663), 'left_shoulder': (119.774, 12.199, 4.363),
+        'left_elbow': (31.088, -58.044), 'left_wrist': (-5.81, -1.709),
     })
     human.KeyJoints(2.6, {
-        'spine_lumbar': (11.434, -2.883, -13.602), 'spine_thoracic': (9.22, 0.672, -27.204),
+        'spine_lumbar': (11.44, -2.884, -13.603), 'spine_thoracic': (9.214, 0.67, -27.206),
         'neck': (-49.574, -2.324, 8.269), 'head': (-19.909, 0.0),
-        'right_clavicle': (26.363, -13.602), 'right_shoulder': (5.396, 159.902, -36.83),
-        'right_elbow': (10.008, 9.384), 'left_clavicle': (27.181, 11.476),
-        'left_shoulder': (137.458, 12.078, 3.643), 'left_elbow': (26.348, -66.549),
+        'right_clavicle': (26.365, -13.603), 'right_shoulder': (5.397, 159.911, -36.833),
+        'right_elbow': (10.003, 9.384), 'left_clavicle': (27.183, 11.478),
+        'left_shoulder': (137.476, 12.077, 3.642), 'left_elbow': (26.339, -66.555),
         'left_wrist': (-6.399, -1.914),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.7, {
-        'spine_lumbar': (19.499, -1.507, -14.476), 'spine_thoracic': (4.405, 0.094, -28.952),
-        'neck': (-52.072, -1.409, 5.931), 'right_clavicle': (28.567, -14.476),
-        'right_shoulder': (5.755, 167.86, -39.884), 'right_elbow': (5.055, 8.884),
-        'right_wrist': (0.587, -1.453), 'left_clavicle': (28.941, 13.417),
-        'left_shoulder': (154.557, 10.527, 3.385), 'left_elbow': (17.176, -71.943),
-        'left_wrist': (-6.598, -2.054),
+        'spine_lumbar': (19.503, -1.512, -14.476), 'spine_thoracic': (4.396, 0.089, -28.952),
+        'neck': (-52.072, -1.409, 5.931), 'right_clavicle': (28.568, -14.476),
+        'right_shoulder': (5.758, 167.863, -39.886), 'right_elbow': (5.05, 8.883),
+        'right_wrist': (0.587, -1.453), 'left_clavicle': (28.942, 13.418),
+        'left_shoulder': (154.574, 10.525, 3.385), 'left_elbow': (17.164, -71.946),
+        'left_wrist': (-6.597, -2.054),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (25.277, -0.39, -14.887), 'spine_thoracic': (0.528, -0.368, -29.774),
-        'neck': (-54.368, -0.668, 3.442), 'right_clavicle': (29.687, -14.887),
-        'right_shoulder': (6.09, 171.036, -41.307), 'right_elbow': (1.867, 8.649),
-        'left_clavicle': (29.771, 14.643), 'left_shoulder': (164.972, 9.174, 3.35),
-        'left_elbow': (10.304, -74.484),
+        'spine_lumbar': (25.274, -0.4, -14.887), 'spine_thoracic': (0.52, -0.375, -29.774),
+        'neck': (-54.369, -0.668, 3.442), 'right_clavicle': (29.687, -14.887),
+        'right_shoulder': (6.094, 171.037, -41.308), 'right_elbow': (1.864, 8.649),
+        'left_clavicle': (29.771, 14.643), 'left_shoulder': (164.982, 9.174, 3.35),
+        'left_elbow': (10.298, -74.485),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (26.946, -0.061, -14.997), 'spine_thoracic': (-0.61, -0.504, -29.994),
-        'neck': (-56.848, -0.104, 1.018), 'head': (-19.525, 0.003),
-        'right_clavicle': (29.992, -14.997), 'right_shoulder': (6.19, 171.854, -41.688),
-        'right_elbow': (0.96, 8.586), 'right_wrist': (0.611, -1.593),
-        'left_clavicle': (29.994, 14.991), 'left_shoulder': (167.909, 8.773, 3.346),
-        'left_elbow': (8.305, -75.166),
+        'spine_lumbar': (26.941, -0.073, -14.997), 'spine_thoracic': (-0.617, -0.512, -29.994),
+        'neck': (-56.851, -0.104, 1.019), 'head': (-19.525, 0.003),
+        'right_clavicle': (29.992, -14.997), 'right_shoulder': (6.194, 171.854, -41.688),
+        'right_elbow': (0.958, 8.586), 'right_wrist': (0.611, -1.592),
+        'left_clavicle': (29.994, 14.991), 'left_shoulder': (167.916, 8.773, 3.346),
+        'left_elbow': (8.301, -75.166),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(3.0, {
-        'neck': (-57.925, 0.09, 0.001), 'left_shoulder': (168.028, 8.757, 3.346),
-        'left_elbow': (8.183, -75.185), 'left_wrist': (-6.596, -2.137),
+        'neck': (-57.994, 0.082, 0.045), 'right_elbow': (0.918, 8.584),
+        'right_wrist': (0.605, -1.581), 'left_shoulder': (168.07, 8.751, 3.346),
+        'left_elbow': (8.115, -75.185), 'left_wrist': (-6.577, -2.13),
     })
     human.KeyJoints(3.1, {
-        'neck': (-57.932, 0.101, -0.059), 'right_elbow': (0.846, 8.584),
-        'right_wrist': (0.575, -1.522), 'left_shoulder': (168.422, 8.698, 3.347),
-        'left_elbow': (7.51, -75.184), 'left_wrist': (-6.404, -2.067),
+        'spine_lumbar': (27.114, 0.035, -15.0), 'spine_thoracic': (-0.738, -0.615, -30.0),
+        'right_shoulder': (6.235, 171.838, -41.698), 'right_elbow': (0.73, 8.585),
+        'right_wrist': (0.523, -1.411), 'left_shoulder': (169.002, 8.609, 3.35),
+        'left_elbow': (6.48, -75.182), 'left_wrist': (-6.047, -1.94),
     })
     human.KeyJoints(3.2, {
-        'spine_thoracic': (-0.771, -0.656, -30.0), 'neck': (-58.149, 0.107, -0.094),
-        'head': (-19.586, 0.003), 'right_shoulder': (6.275, 171.826, -41.698),
-        'left_shoulder': (169.384, 8.559, 3.35), 'left_elbow': (5.849, -75.181),
-        'left_wrist': (-5.784, -1.848),
+        'neck': (-58.22, 0.099, -0.049), 'head': (-19.584, 0.003), 'right_elbow': (0.424, 8.585),
+        'right_wrist': (0.357, -1.054), 'left_shoulder': (170.507, 8.403, 3.353),
+        'left_elbow': (3.885, -75.179), 'left_wrist': (-4.749, -1.494),
     })
     human.KeyJoints(3.3, {
-        'right_elbow': (0.517, 8.585), 'right_wrist': (0.416, -1.189),
-        'left_shoulder': (170.037, 8.465, 3.352), 'left_elbow': (4.706, -75.18),
-        'left_wrist': (-5.269, -1.669),
+        'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.564, -0.547, -30.0),
+        'neck': (-58.558, 0.104, -0.076), 'right_shoulder': (6.523, 171.769, -41.698),
+        'right_elbow': (0.293, 8.586), 'right_wrist': (0.269, -0.856),
+        'left_shoulder': (171.161, 8.326, 3.353), 'left_elbow': (2.793, -75.178),
+        'left_wrist': (-3.955, -1.23),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=3.321883, duration=0.072)
@@ -248,51 +250,51 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'open', start=3.321883, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
     human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.2628)
-    human.KeyJoints(3.4, {'spine_lumbar': (27.188, 0.079, -15.0), 'neck': (-58.162, 0.107, -0.095)})
-    human.KeyJoints(3.5, {'neck': (-57.469, 0.034, 0.132), 'head': (-19.512, 0.002)})
+    human.KeyJoints(3.4, {'neck': (-58.615, 0.104, -0.075)})
+    human.KeyJoints(3.5, {'neck': (-57.925, 0.032, 0.152), 'head': (-19.489, 0.002)})
     human.KeyJoints(3.6, {
-        'spine_thoracic': (-0.757, -0.67, -30.0), 'neck': (-56.451, -0.074, 0.464),
-        'head': (-19.404, 0.0), 'right_shoulder': (6.329, 171.803, -41.698),
-        'left_shoulder': (170.043, 8.464, 3.352), 'left_elbow': (4.697, -75.18),
-        'left_wrist': (-5.265, -1.668),
+        'spine_thoracic': (-0.563, -0.546, -30.0), 'neck': (-56.912, -0.075, 0.485),
+        'head': (-19.372, 0.0), 'right_shoulder': (6.524, 171.769, -41.698),
+        'left_shoulder': (171.167, 8.326, 3.353), 'left_elbow': (2.783, -75.178),
+        'left_wrist': (-3.947, -1.227),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
     human.LookAt((0.0, 165.0, 75.0), start=3.656683, duration=2.430743)
     human.KeyJoints(3.7, {
-        'spine_lumbar': (27.222, 0.068, -14.989), 'spine_thoracic': (-0.552, -0.758, -30.0),
-        'neck': (-57.502, 0.653, -1.638), 'head': (-19.924, 0.006),
-        'right_clavicle': (30.0, -14.989), 'right_shoulder': (6.271, 171.363, -41.687),
-        'right_elbow': (0.511, 8.584), 'right_wrist': (0.457, -1.211),
-        'left_clavicle': (30.0, 14.976), 'left_shoulder': (168.692, 10.089, 2.684),
-        'left_elbow': (4.784, -75.089), 'left_wrist': (-5.134, -1.646),
+        'spine_lumbar': (27.281, 0.132, -14.989), 'spine_thoracic': (-0.359, -0.637, -30.0),
+        'neck': (-57.912, 0.651, -1.619), 'head': (-19.926, 0.006),
+        'right_clavicle': (30.0, -14.989), 'right_shoulder': (6.463, 171.327, -41.687),
+        'right_wrist': (0.311, -0.881), 'left_clavicle': (30.0, 14.976),
+        'left_shoulder': (169.798, 9.962, 2.681), 'left_elbow': (2.889, -75.086),
+        'left_wrist': (-3.828, -1.21),
     })
     human.KeyJoints(3.8, {
-        'spine_lumbar': (27.992, -0.173, -14.754), 'spine_thoracic': (4.027, -2.743, -30.0),
-        'neck': (-58.892, -6.427, -20.65), 'head': (-19.148, 3.841),
-        'right_clavicle': (30.0, -14.742), 'right_shoulder': (4.959, 161.52, -41.431),
-        'right_elbow': (0.401, 8.567), 'right_wrist': (1.375, -1.722),
-        'left_clavicle': (29.999, 14.441), 'left_shoulder': (138.452, 46.487, -12.276),
-        'left_elbow': (6.73, -73.058), 'left_wrist': (-2.191, -1.171),
+        'spine_lumbar': (28.041, -0.124, -14.753), 'spine_thoracic': (4.198, -2.656, -30.0),
+        'neck': (-59.081, -6.423, -20.636), 'head': (-19.155, 3.844),
+        'right_clavicle': (30.0, -14.741), 'right_shoulder': (5.105, 161.451, -41.43),
+        'right_elbow': (0.227, 8.568), 'right_wrist': (1.265, -1.465),
+        'left_clavicle': (29.999, 14.438), 'left_shoulder': (139.194, 46.537, -12.34),
+        'left_elbow': (5.251, -73.048), 'left_wrist': (-1.154, -0.827),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (29.788, -0.736, -14.203), 'spine_thoracic': (14.719, -7.376, -30.0),
-        'neck': (-59.71, -17.468, -44.51), 'head': (-17.939, 9.802),
-        'right_clavicle': (30.0, -14.165), 'right_shoulder': (1.897, 138.536, -40.835),
-        'right_elbow': (0.145, 8.527), 'right_wrist': (3.521, -2.916),
-        'left_clavicle': (29.996, 13.19), 'left_shoulder': (67.843, 131.472, -47.207),
-        'left_elbow': (11.273, -68.316), 'left_wrist': (4.68, -0.062),
+        'spine_lumbar': (29.806, -0.719, -14.203), 'spine_thoracic': (14.78, -7.345, -30.0),
+        'neck': (-59.736, -17.455, -44.502), 'head': (-17.951, 9.81),
+        'right_clavicle': (30.0, -14.164), 'right_shoulder': (1.95, 138.513, -40.834),
+        'right_wrist': (3.48, -2.823), 'left_clavicle': (29.996, 13.19),
+        'left_shoulder': (68.117, 131.483, -47.228), 'left_elbow': (10.738, -68.312),
+        'left_wrist': (5.055, 0.063),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(4.0, {
-        'spine_lumbar': (30.758, -1.041, -13.906), 'spine_thoracic': (20.492, -9.878, -30.0),
-        'neck': (-59.84, -19.915, -49.579), 'head': (-17.671, 11.123),
-        'right_clavicle': (30.0, -13.853), 'right_shoulder': (0.243, 126.128, -40.512),
-        'right_elbow': (0.007, 8.505), 'right_wrist': (4.679, -3.56),
-        'left_clavicle': (29.994, 12.515), 'left_shoulder': (29.723, 177.354, -66.066),
-        'left_elbow': (13.726, -65.755), 'left_wrist': (8.39, 0.537),
+        'spine_lumbar': (30.759, -1.04, -13.906), 'spine_thoracic': (20.494, -9.876, -30.0),
+        'neck': (-59.838, -19.899, -49.573), 'head': (-17.685, 11.131),
+        'right_clavicle': (30.0, -13.853), 'right_shoulder': (0.246, 126.127, -40.512),
+        'right_elbow': (0.004, 8.505), 'right_wrist': (4.677, -3.556),
+        'left_clavicle': (29.994, 12.515), 'left_shoulder': (29.737, 177.353, -66.066),
+        'left_elbow': (13.701, -65.755), 'left_wrist': (8.407, 0.543),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=4.045791, duration=0.072)
@@ -300,7 +302,7 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'close', start=4.045791, duration=0.072)
     human.KeyJoints(4.1, {
         'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
-        'neck': (-59.84, -19.915, -49.579), 'head': (-17.671, 11.123),
+        'neck': (-59.838, -19.899, -49.573), 'head': (-17.685, 11.131),
         'right_clavicle': (30.0, -13.838), 'right_shoulder': (0.163, 125.523, -40.497),
         'right_elbow': (0.0, 8.504), 'right_wrist': (4.735, -3.591),
         'left_shoulder': (27.863, 179.592, -66.986), 'left_elbow': (13.845, -65.63),
@@ -309,153 +311,150 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(4.2, {
-        'spine_lumbar': (31.012, -1.485, -13.855), 'spine_thoracic': (19.418, -9.249, -28.982),
-        'neck': (-59.865, -19.238, -47.603), 'head': (-18.041, 11.143),
-        'right_clavicle': (28.589, -13.887), 'right_shoulder': (0.483, 127.49, -40.509),
-        'right_elbow': (0.412, 8.516), 'right_wrist': (5.084, -3.949),
+        'spine_lumbar': (31.012, -1.486, -13.855), 'spine_thoracic': (19.417, -9.249, -28.982),
+        'neck': (-59.863, -19.225, -47.598), 'head': (-18.053, 11.15),
+        'right_clavicle': (28.588, -13.887), 'right_shoulder': (0.483, 127.491, -40.509),
+        'right_elbow': (0.412, 8.516), 'right_wrist': (5.085, -3.949),
         'left_clavicle': (29.994, 12.525), 'left_shoulder': (27.661, 179.405, -66.935),
         'left_wrist': (8.602, 0.55),
     })
     human.KeyJoints(4.3, {
-        'spine_lumbar': (32.346, -4.261, -13.601), 'spine_thoracic': (10.665, -4.403, -22.357),
-        'neck': (-59.934, -17.409, -41.947), 'head': (-19.043, 11.198),
-        'right_clavicle': (19.475, -14.201), 'right_shoulder': (2.55, 140.192, -40.589),
-        'right_elbow': (3.071, 8.596), 'right_wrist': (7.34, -6.257),
-        'left_clavicle': (29.996, 12.8), 'left_shoulder': (26.352, 178.085, -66.603),
+        'spine_lumbar': (32.347, -4.263, -13.601), 'spine_thoracic': (10.66, -4.4, -22.354),
+        'neck': (-59.933, -17.402, -41.946), 'head': (-19.049, 11.201),
+        'right_clavicle': (19.47, -14.202), 'right_shoulder': (2.551, 140.2, -40.589),
+        'right_elbow': (3.073, 8.596), 'right_wrist': (7.341, -6.259),
+        'left_clavicle': (29.996, 12.8), 'left_shoulder': (26.351, 178.085, -66.603),
         'left_elbow': (13.836, -65.597), 'left_wrist': (8.802, 0.431),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (34.49, -8.841, -12.976), 'spine_thoracic': (-3.895, 3.647, -10.736),
-        'neck': (-59.992, -15.868, -36.249), 'head': (-19.887, 11.244),
-        'right_clavicle': (4.366, -14.72), 'right_shoulder': (5.969, 161.354, -40.72),
-        'right_elbow': (7.501, 8.729), 'right_wrist': (11.094, -10.098),
-        'left_clavicle': (29.999, 13.251), 'left_shoulder': (24.168, 174.656, -65.958),
-        'left_elbow': (13.75, -65.523), 'left_wrist': (9.124, 0.108),
+        'spine_lumbar': (34.496, -8.847, -12.977), 'spine_thoracic': (-3.91, 3.656, -10.73),
+        'neck': (-59.992, -15.867, -36.25), 'head': (-19.888, 11.244),
+        'right_clavicle': (4.348, -14.72), 'right_shoulder': (5.973, 161.372, -40.721),
+        'right_elbow': (7.505, 8.729), 'right_wrist': (11.097, -10.102),
+        'left_clavicle': (29.999, 13.252), 'left_shoulder': (24.167, 174.662, -65.958),
+        'left_elbow': (13.752, -65.524), 'left_wrist': (9.125, 0.109),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(4.5, {
-        'spine_lumbar': (27.676, -5.301, -10.36), 'spine_thoracic': (-5.97, 3.09, -1.514),
+        'spine_lumbar': (27.696, -5.318, -10.361), 'spine_thoracic': (-5.971, 3.094, -1.521),
         'neck': (-58.398, -15.806, -32.425), 'head': (-20.0, 11.241),
-        'right_clavicle': (9.253, -13.775), 'right_shoulder': (3.795, 167.551, -40.475),
-        'right_elbow': (8.085, 8.737), 'right_wrist': (12.334, -11.163),
-        'left_clavicle': (30.0, 12.592), 'left_shoulder': (21.486, 164.821, -64.979),
-        'left_elbow': (9.17, -65.301), 'left_wrist': (7.944, -1.104),
+        'right_clavicle': (9.3, -13.756), 'right_shoulder': (3.794, 167.462, -40.474),
+        'right_elbow': (8.061, 8.736), 'right_wrist': (12.332, -11.159),
+        'left_clavicle': (30.0, 12.582), 'left_shoulder': (21.479, 164.849, -64.981),
+        'left_elbow': (9.184, -65.302), 'left_wrist': (7.947, -1.101),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(4.6, {
-        'spine_lumbar': (25.111, -3.306, -9.686), 'spine_thoracic': (-3.91, 1.19, -0.707),
-        'neck': (-57.578, -19.121, -23.315), 'right_clavicle': (14.201, -13.235),
-        'right_shoulder': (2.33, 165.006, -40.322), 'right_elbow': (7.129, 8.714),
-        'right_wrist': (12.092, -10.835), 'left_clavicle': (30.0, 12.229),
-        'left_shoulder': (20.841, 163.061, -64.828), 'left_elbow': (7.839, -65.257),
-        'left_wrist': (7.529, -1.361),
+        'spine_lumbar': (25.131, -3.332, -9.682), 'spine_thoracic': (-3.932, 1.224, -0.706),
+        'neck': (-57.573, -19.113, -23.323), 'right_clavicle': (14.226, -13.216),
+        'right_shoulder': (2.338, 164.98, -40.325), 'right_elbow': (7.133, 8.713),
+        'right_wrist': (12.09, -10.832), 'left_clavicle': (30.0, 12.219),
+        'left_shoulder': (20.833, 163.058, -64.828), 'left_elbow': (7.836, -65.257),
+        'left_wrist': (7.527, -1.361),
     })
-    human.KeyJoints(4.9, {'spine_thoracic': (-3.863, 1.099, -0.708)})
-    human.KeyJoints(5.0, {'spine_lumbar': (25.023, -3.167, -9.692)})
-    human.KeyJoints(5.1, {'spine_thoracic': (-3.739, 0.855, -0.712)})
+    human.KeyJoints(4.9, {'spine_thoracic': (-3.884, 1.13, -0.706)})
+    human.KeyJoints(5.0, {'spine_lumbar': (25.039, -3.191, -9.688)})
+    human.KeyJoints(5.1, {'spine_thoracic': (-3.756, 0.878, -0.711)})
     human.KeyJoints(5.2, {
-        'spine_lumbar': (24.847, -2.893, -9.73), 'spine_thoracic': (-3.624, 0.627, -0.722),
-        'right_clavicle': (14.148, -13.287), 'right_shoulder': (2.245, 165.065, -40.319),
-        'right_elbow': (7.152, 8.711), 'left_clavicle': (30.0, 12.282),
-        'left_shoulder': (20.889, 163.072, -64.822),
+        'spine_lumbar': (24.861, -2.915, -9.725), 'spine_thoracic': (-3.639, 0.647, -0.72),
+        'right_clavicle': (14.172, -13.268), 'right_shoulder': (2.251, 165.039, -40.321),
+        'left_clavicle': (30.0, 12.271), 'left_shoulder': (20.88, 163.07, -64.822),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (24.633, -2.558, -9.846), 'spine_thoracic': (-3.392, 0.166, -0.761),
-        'left_elbow': (7.897, -65.259),
+        'spine_lumbar': (24.648, -2.583, -9.834), 'spine_thoracic': (-3.409, 0.191, -0.757),
+        'right_elbow': (7.211, 8.708), 'left_elbow': (7.892, -65.259),
     })
     human.KeyJoints(5.4, {
-        'spine_lumbar': (24.525, -2.389, -9.951), 'spine_thoracic': (-3.275, -0.068, -0.797),
-        'left_wrist': (7.604, -1.343),
+        'spine_lumbar': (24.53, -2.397, -9.945), 'spine_thoracic': (-3.28, -0.065, -0.795),
     })
     human.KeyJoints(5.5, {
-        'right_clavicle': (13.795, -13.634), 'right_shoulder': (2.13, 165.462, -40.315),
-        'left_clavicle': (30.0, 12.634), 'left_shoulder': (21.206, 163.148, -64.814),
+        'right_clavicle': (13.805, -13.625), 'right_shoulder': (2.13, 165.451, -40.316),
+        'left_clavicle': (30.0, 12.628), 'left_shoulder': (21.201, 163.146, -64.814),
     })
-    human.KeyJoints(5.6, {'neck': (-57.575, -19.141, -23.258)})
-    human.KeyJoints(5.8, {
-        'spine_thoracic': (-3.192, -0.242, -0.861), 'right_elbow': (7.368, 8.706),
+    human.KeyJoints(5.7, {'spine_thoracic': (-3.198, -0.23, -0.851)})
+    human.KeyJoints(5.8, {'neck': (-57.56, -19.126, -23.275)})
+    human.KeyJoints(5.9, {
+        'spine_lumbar': (24.446, -2.262, -10.154), 'right_shoulder': (2.118, 165.645, -40.315),
     })
-    human.KeyJoints(5.9, {'spine_lumbar': (24.446, -2.262, -10.154)})
     human.KeyRoot(6.0, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(6.0, {
-        'right_clavicle': (13.624, -13.801), 'left_clavicle': (30.0, 12.804),
-        'left_shoulder': (21.36, 163.184, -64.813), 'right_hip': (2.865, 0.0, 0.0),
-        'right_knee': (4.584,), 'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0),
-        'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'right_clavicle': (13.624, -13.801), 'right_elbow': (7.38, 8.706),
+        'left_clavicle': (30.0, 12.804), 'left_shoulder': (21.36, 163.184, -64.813),
+        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
+        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
-    human.Walk((-79.956, 0.0, 40.019), start=6.087427, duration=4.515789)
-    human.KeyRoot(6.1, (0.106, 72.958, 50.048), (-0.181, 0.0, 0.0))
+    human.Walk((-79.996, 0.0, 40.001), start=6.087427, duration=4.515789)
+    human.KeyRoot(6.1, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
     human.KeyJoints(6.1, {
-        'right_shoulder': (2.139, 165.72, -40.318), 'left_shoulder': (21.416, 163.091, -64.813),
-        'right_hip': (3.492, 0.079, 0.186), 'right_knee': (5.944,), 'right_ankle': (2.441, 0.092),
-        'left_hip': (3.409, -0.079, -0.186), 'left_knee': (5.864,), 'left_ankle': (2.454, -0.092),
+        'right_hip': (3.51, 0.005, 0.014), 'right_knee': (5.94,), 'right_ankle': (2.42, 0.006),
+        'left_hip': (3.459, -0.005, -0.014), 'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
     })
-    human.KeyRoot(6.2, (1.206, 72.55, 50.337), (-1.8, 0.0, 0.0))
+    human.KeyRoot(6.2, (0.45, 72.55, 50.1), (-0.953, 0.0, 0.0))
     human.KeyJoints(6.2, {
-        'right_hip': (8.228, 0.772, 1.94), 'right_knee': (15.865,), 'right_ankle': (7.122, 1.043),
-        'left_hip': (6.782, -0.813, -1.909), 'left_knee': (13.841,), 'left_ankle': (7.089, -1.034),
+        'left_elbow': (8.013, -65.263), 'right_hip': (8.352, 0.245, 1.003), 'right_knee': (15.966,),
+        'right_ankle': (7.075, 0.388), 'left_hip': (7.114, -0.264, -0.994), 'left_knee': (13.946,),
+        'left_ankle': (6.838, -0.385),
     })
-    human.KeyRoot(6.3, (1.924, 72.488, 50.485), (-3.697, 0.0, 0.0))
+    human.KeyRoot(6.3, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
     human.KeyJoints(6.3, {
-        'left_elbow': (8.062, -65.264), 'right_hip': (10.75, 1.024, 3.812), 'right_knee': (20.79,),
-        'right_ankle': (9.201, 1.726), 'left_hip': (6.792, -1.192, -3.864), 'left_knee': (14.483,),
-        'left_ankle': (7.784, -1.639),
+        'right_hip': (10.865, 0.561, 2.995), 'right_knee': (20.949,), 'right_ankle': (9.2, 1.128),
+        'left_hip': (7.104, -0.721, -3.097), 'left_knee': (14.693,), 'left_ankle': (7.637, -1.097),
     })
-    human.KeyRoot(6.4, (2.314, 72.497, 50.54), (-5.822, 0.0, 0.0))
+    human.KeyRoot(6.4, (2.102, 72.487, 50.466), (-5.558, 0.0, 0.0))
     human.KeyJoints(6.4, {
-        'left_wrist': (7.697, -1.33), 'right_hip': (22.123, 1.76, 1.124), 'right_knee': (45.295,),
-        'right_ankle': (17.997, 2.046), 'left_hip': (6.713, -1.268, -6.013), 'left_knee': (14.785,),
-        'left_ankle': (8.08, -1.953),
+        'right_hip': (22.224, 1.634, 0.781), 'right_knee': (45.481,),
+        'right_ankle': (18.009, 1.806), 'left_hip': (6.859, -1.1, -5.732), 'left_knee': (14.949,),
+        'left_ankle': (8.095, -1.773),
     })
-    human.KeyRoot(6.5, (2.439, 72.771, 50.548), (-8.122, 0.0, 0.0))
+    human.KeyRoot(6.5, (2.471, 72.804, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(6.5, {
-        'right_hip': (24.055, 5.205, -6.25), 'right_knee': (51.364,),
-        'right_ankle': (18.134, 2.076), 'left_hip': (7.717, -0.927, -8.381), 'left_knee': (17.096,),
-        'left_ankle': (7.818, -2.033),
+        'right_hip': (24.003, 5.185, -6.251), 'right_knee': (51.255,),
+        'right_ankle': (18.144, 2.075), 'left_hip': (7.533, -0.981, -8.382), 'left_knee': (16.695,),
+        'left_ankle': (7.607, -2.058),
     })
-    human.KeyRoot(6.6, (2.074, 72.843, 49.938), (-10.614, 0.0, 0.0))
+    human.KeyRoot(6.6, (2.099, 72.843, 49.938), (-10.614, 0.0, 0.0))
     human.KeyJoints(6.6, {
-        'right_shoulder': (2.134, 165.678, -40.316), 'right_elbow': (7.381, 8.707),
-        'right_wrist': (12.073, -10.793), 'left_shoulder': (21.388, 163.148, -64.814),
-        'left_elbow': (8.041, -65.264), 'left_wrist': (7.685, -1.329),
-        'right_hip': (16.945, 6.569, -15.078), 'right_knee': (37.878,),
-        'right_ankle': (18.271, 1.516), 'left_hip': (11.338, 0.455, -10.867),
-        'left_knee': (23.908,), 'left_ankle': (8.222, -1.691),
+        'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
+        'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
+        'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
+        'right_hip': (16.952, 6.558, -15.072), 'right_knee': (37.894,),
+        'right_ankle': (18.28, 1.516), 'left_hip': (11.34, 0.434, -10.873), 'left_knee': (23.903,),
+        'left_ankle': (8.22, -1.711),
     })
-    human.KeyRoot(6.7, (1.246, 72.519, 48.852), (-13.49, 0.0, 0.0))
+    human.KeyRoot(6.7, (1.264, 72.518, 48.852), (-13.49, 0.0, 0.0))
     human.KeyJoints(6.7, {
-        'right_shoulder': (2.205, 165.648, -40.315), 'right_elbow': (7.596, 8.69),
-        'right_wrist': (12.366, -10.974), 'left_shoulder': (21.472, 162.988, -64.813),
-        'left_elbow': (8.37, -65.269), 'left_wrist': (7.891, -1.327),
-        'right_hip': (6.73, 2.944, -18.841), 'right_knee': (14.452,), 'right_ankle': (7.174, 0.391),
-        'left_hip': (15.631, 2.835, -13.342), 'left_knee': (31.747,), 'left_ankle': (8.687, -0.914),
+        'right_shoulder': (2.19, 165.634, -40.315), 'right_elbow': (7.588, 8.69),
+        'right_wrist': (12.358, -10.967), 'left_shoulder': (21.449, 163.017, -64.813),
+        'left_elbow': (8.341, -65.269), 'left_wrist': (7.87, -1.327),
+        'right_hip': (6.736, 2.935, -18.836), 'right_knee': (14.465,),
+        'right_ankle': (7.181, 0.391), 'left_hip': (15.636, 2.822, -13.347), 'left_knee': (31.75,),
+        'left_ankle': (8.689, -0.93),
     })
-    human.KeyRoot(6.8, (0.39, 72.492, 48.416), (-16.969, 0.0, 0.0))
+    human.KeyRoot(6.8, (0.4, 72.492, 48.416), (-16.969, 0.0, 0.0))
     human.KeyJoints(6.8, {
         'right_elbow': (7.38, 8.706), 'right_wrist': (12.077, -10.792),
         'left_shoulder': (21.36, 163.184, -64.813), 'left_elbow': (8.013, -65.263),
-        'left_wrist': (7.663, -1.329), 'right_hip': (7.57, 1.523, -15.534), 'right_knee': (14.689,),
-        'right_ankle': (6.985, -0.567), 'left_hip': (16.817, 5.014, -16.238),
-        'left_knee': (34.869,), 'left_ankle': (8.337, -0.033),
+        'left_wrist': (7.663, -1.329), 'right_hip': (7.573, 1.531, -15.533),
+        'right_knee': (14.689,), 'right_ankle': (6.98, -0.56), 'left_hip': (16.819, 5.006, -16.241),
+        'left_knee': (34.869,), 'left_ankle': (8.337, -0.042),
     })
-    human.KeyRoot(6.9, (-0.609, 72.491, 48.562), (-21.678, 0.0, 0.0))
+    human.KeyRoot(6.9, (-0.606, 72.491, 48.562), (-21.678, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'right_shoulder': (2.118, 165.656, -40.315), 'right_hip': (7.718, 0.113, -10.969),
-        'right_knee': (14.498,), 'left_hip': (21.101, 8.111, -17.579), 'left_knee': (46.479,),
-        'left_ankle': (15.546, 0.959),
+        'right_hip': (7.719, 0.115, -10.969), 'right_knee': (14.499,),
+        'left_hip': (21.101, 8.111, -17.579), 'left_knee': (46.479,), 'left_ankle': (15.546, 0.959),
     })
     human.KeyRoot(7.0, (-1.645, 72.495, 48.882), (-27.206, 0.0, 0.0))
     human.KeyJoints(7.0, {
-        'right_hip': (7.539, -1.337, -5.58), 'right_knee': (14.126,),
-        'right_ankle': (6.742, -2.051), 'left_hip': (26.692, 6.916, -10.231),
-        'left_knee': (57.217,), 'left_ankle': (19.33, 1.469),
+        'right_shoulder': (2.118, 165.656, -40.315), 'right_hip': (7.54, -1.337, -5.58),
+        'right_knee': (14.127,), 'right_ankle': (6.743, -2.051),
+        'left_hip': (26.692, 6.916, -10.231), 'left_knee': (57.217,), 'left_ankle': (19.33, 1.469),
     })
     human.KeyRoot(7.1, (-2.332, 72.499, 49.32), (-32.671, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'right_hip': (8.248, -2.365, -0.264), 'right_knee': (15.796,),
+        'right_hip': (8.248, -2.366, -0.264), 'right_knee': (15.797,),
         'right_ankle': (7.041, -2.38), 'left_hip': (28.609, 1.129, 1.379), 'left_knee': (58.793,),
         'left_ankle': (19.282, 1.574),
     })
@@ -637,34 +636,33 @@ def remove_avionics_unit():
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
     human.LookAt((-110.0, 85.0, 40.0), start=10.203216, duration=1.197891)
-    human.KeyRoot(10.3, (-70.618, 71.983, 43.354), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.3, (-70.713, 71.983, 43.313), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.3, {
         'neck': (-48.43, -20.559, -19.509), 'head': (-16.551, 11.21),
-        'right_hip': (28.576, 2.784, -1.335), 'right_knee': (67.859,),
-        'right_ankle': (19.554, 1.895), 'left_hip': (12.994, -2.826, -0.652), 'left_knee': (8.929,),
-        'left_ankle': (-4.049, -2.9),
+        'right_hip': (28.471, 2.754, -1.367), 'right_knee': (67.845,),
+        'right_ankle': (19.554, 1.857), 'left_hip': (13.081, -2.791, -0.648), 'left_knee': (9.283,),
+        'left_ankle': (-3.783, -2.865),
     })
-    human.KeyRoot(10.4, (-72.224, 71.983, 42.879), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.4, (-73.653, 71.983, 42.264), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.4, {
         'neck': (-25.64, -24.162, -10.079), 'head': (-7.932, 11.217),
-        'right_hip': (23.945, 2.322, 0.142), 'right_knee': (40.617,),
-        'right_ankle': (16.794, 2.151), 'left_hip': (13.702, -2.42, -0.59), 'left_knee': (13.295,),
-        'left_ankle': (-0.394, -2.49),
+        'right_hip': (22.929, 1.824, -0.107), 'right_knee': (41.22,), 'right_ankle': (18.412, 1.61),
+        'left_hip': (13.707, -1.903, -0.464), 'left_knee': (15.882,), 'left_ankle': (2.183, -1.959),
     })
-    human.KeyRoot(10.5, (-75.479, 72.036, 41.784), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.5, (-77.802, 72.247, 40.784), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.5, {
         'neck': (1.849, -28.509, 1.295), 'head': (2.463, 11.225),
-        'right_hip': (12.924, 1.503, 0.345), 'right_knee': (17.547,), 'right_ankle': (4.639, 1.542),
-        'left_hip': (12.875, -1.504, -0.344), 'left_knee': (17.443,), 'left_ankle': (4.572, -1.542),
+        'right_hip': (10.673, 0.664, 0.125), 'right_knee': (17.039,), 'right_ankle': (6.379, 0.676),
+        'left_hip': (10.621, -0.664, -0.125), 'left_knee': (16.93,), 'left_ankle': (6.309, -0.676),
     })
-    human.KeyRoot(10.6, (-79.955, 72.977, 40.019), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.6, (-79.996, 72.976, 40.001), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.6, {
         'neck': (25.056, -32.178, 10.898), 'head': (11.239, 11.232),
         'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
         'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
         'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
-        'right_hip': (3.314, 0.016, 0.001), 'right_knee': (5.45,), 'right_ankle': (2.133, 0.016),
-        'left_hip': (3.272, -0.016, -0.001), 'left_knee': (5.361,), 'left_ankle': (2.077, -0.016),
+        'right_hip': (3.289, 0.001, 0.0), 'right_knee': (5.475,), 'right_ankle': (2.183, 0.001),
+        'left_hip': (3.247, -0.001, 0.0), 'left_knee': (5.384,), 'left_ankle': (2.126, -0.001),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
@@ -674,7 +672,7 @@ def remove_avionics_unit():
         'right_shoulder': (2.935, 162.629, -38.542), 'right_elbow': (8.89, 7.654),
         'right_wrist': (12.665, -11.068), 'left_shoulder': (21.644, 160.754, -62.6),
         'left_elbow': (9.874, -64.998), 'left_wrist': (8.64, -1.711),
-        'right_hip': (3.144, 0.0, 0.0), 'right_knee': (5.171,), 'left_hip': (3.124, 0.0, 0.0),
+        'right_hip': (3.144, 0.0, 0.0), 'right_knee': (5.171,), 'right_ankle': (2.03, 0.0),
         'left_knee': (5.13,),
     })
     human.KeyJoints(10.8, {

@@ -11,7 +11,7 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((-0.032, 0.0, 54.542), start=0.0, duration=1.294737)
+    human.Walk((0.004, 0.0, 54.988), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,43 +22,44 @@ def replace_fuel_filter():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (0.982, 90.571, 1.156), (-1.013, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.294, 90.571, 1.156), (-0.49, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (14.085, 0.407, 1.213), 'right_knee': (27.854,), 'right_ankle': (8.413, 0.693),
-        'left_hip': (6.32, -0.556, -1.08), 'left_knee': (13.474,), 'left_ankle': (7.165, -0.672),
+        'right_hip': (14.033, 0.077, 0.544), 'right_knee': (27.888,), 'right_ankle': (8.49, 0.208),
+        'left_hip': (6.401, -0.146, -0.509), 'left_knee': (13.539,), 'left_ankle': (7.14, -0.201),
     })
-    human.KeyRoot(0.2, (1.589, 90.162, 4.239), (-2.208, 0.0, 0.0))
+    human.KeyRoot(0.2, (0.951, 90.204, 4.239), (-1.723, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (17.932, 0.344, 2.663), 'right_knee': (38.562,), 'right_ankle': (9.811, 1.167),
-        'left_hip': (5.703, -0.865, -2.305), 'left_knee': (16.771,), 'left_ankle': (11.107, -1.089),
+        'right_hip': (17.792, 0.087, 1.976), 'right_knee': (38.426,), 'right_ankle': (9.796, 0.699),
+        'left_hip': (5.604, -0.48, -1.779), 'left_knee': (16.498,), 'left_ankle': (10.912, -0.651),
     })
-    human.KeyRoot(0.3, (1.901, 89.946, 8.673), (-3.554, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.631, 89.946, 8.673), (-3.348, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (27.818, 0.166, 2.744), 'right_knee': (54.206,),
-        'right_ankle': (18.101, 1.467), 'left_hip': (2.47, -1.148, -3.612), 'left_knee': (16.592,),
-        'left_ankle': (13.909, -1.3),
+        'right_hip': (27.788, 0.094, 2.438), 'right_knee': (54.222,),
+        'right_ankle': (18.098, 1.255), 'left_hip': (2.519, -0.968, -3.399), 'left_knee': (16.676,),
+        'left_ankle': (13.93, -1.115),
     })
-    human.KeyRoot(0.4, (1.998, 90.74, 13.884), (-5.016, 0.0, 0.0))
+    human.KeyRoot(0.4, (1.993, 90.74, 13.884), (-5.012, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (35.969, 0.425, 0.698), 'right_knee': (53.033,), 'right_ankle': (15.69, 0.756),
-        'left_hip': (3.59, -1.034, -5.269), 'left_knee': (25.322,), 'left_ankle': (14.308, -1.369),
+        'right_hip': (35.966, 0.424, 0.692), 'right_knee': (53.029,),
+        'right_ankle': (15.689, 0.752), 'left_hip': (3.59, -1.03, -5.265), 'left_knee': (25.324,),
+        'left_ankle': (14.309, -1.365),
     })
     human.KeyRoot(0.5, (1.683, 89.889, 23.402), (-7.029, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (32.918, -0.128, -1.535), 'right_knee': (35.837,),
-        'right_ankle': (2.894, -0.95), 'left_hip': (5.897, -0.339, -7.521), 'left_knee': (41.822,),
+        'right_hip': (32.916, -0.128, -1.535), 'right_knee': (35.833,),
+        'right_ankle': (2.893, -0.95), 'left_hip': (5.897, -0.339, -7.521), 'left_knee': (41.822,),
         'left_ankle': (15.297, -1.181),
     })
     human.KeyRoot(0.6, (0.831, 88.559, 37.064), (-9.383, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (20.396, -1.18, -1.461), 'right_knee': (15.994,),
-        'right_ankle': (-4.404, -1.621), 'left_hip': (0.149, -0.421, -9.689),
+        'right_hip': (20.395, -1.18, -1.461), 'right_knee': (15.991,),
+        'right_ankle': (-4.405, -1.621), 'left_hip': (0.149, -0.421, -9.689),
         'left_knee': (47.081,), 'left_ankle': (12.266, -0.535),
     })
     human.KeyRoot(0.7, (-0.049, 88.986, 43.547), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.7, {
         'right_hip': (18.098, -1.409, -0.46), 'right_knee': (19.762,),
-        'right_ankle': (1.67, -1.482), 'left_hip': (-2.838, -0.401, -10.319),
+        'right_ankle': (1.67, -1.482), 'left_hip': (-2.839, -0.401, -10.319),
         'left_knee': (46.873,), 'left_ankle': (5.256, 0.16),
     })
     human.KeyRoot(0.8, (-1.01, 89.205, 42.81), (-10.437, 0.0, 0.0))
@@ -70,94 +71,94 @@ def replace_fuel_filter():
     human.KeyRoot(0.9, (-1.894, 89.202, 41.676), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
         'right_hip': (16.786, -2.849, -0.859), 'right_knee': (15.014,),
-        'right_ankle': (-1.759, -2.976), 'left_hip': (18.481, 2.973, -6.455),
-        'left_knee': (70.475,), 'left_ankle': (18.778, 0.895),
+        'right_ankle': (-1.76, -2.976), 'left_hip': (18.481, 2.973, -6.455), 'left_knee': (70.475,),
+        'left_ankle': (18.778, 0.895),
     })
-    human.KeyRoot(1.0, (-2.092, 89.197, 41.562), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.044, 89.197, 41.793), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.734, -2.993, -0.899), 'right_knee': (14.799,),
-        'right_ankle': (-1.915, -3.125), 'left_hip': (30.252, 2.956, -2.286),
-        'left_knee': (66.852,), 'left_ankle': (18.809, 1.466),
+        'right_hip': (16.792, -2.933, -0.885), 'right_knee': (15.221,),
+        'right_ankle': (-1.553, -3.063), 'left_hip': (30.063, 2.903, -2.34), 'left_knee': (66.833,),
+        'left_ankle': (18.809, 1.403),
     })
-    human.KeyRoot(1.1, (-1.802, 89.265, 44.113), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.1, (-1.338, 89.56, 46.356), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (16.629, -2.495, -0.745), 'right_knee': (18.023,),
-        'right_ankle': (1.408, -2.604), 'left_hip': (24.387, 2.319, 0.095), 'left_knee': (38.461,),
-        'left_ankle': (14.217, 2.15),
+        'right_hip': (15.162, -1.928, -0.522), 'right_knee': (18.049,),
+        'right_ankle': (2.893, -1.997), 'left_hip': (22.654, 1.761, -0.21), 'left_knee': (38.085,),
+        'left_ankle': (15.573, 1.543),
     })
-    human.KeyRoot(1.2, (-1.106, 89.865, 48.973), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.422, 90.175, 52.273), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
-        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (13.236, -1.465, -0.345),
-        'right_knee': (17.705,), 'right_ankle': (4.472, -1.505), 'left_hip': (13.228, 1.465, 0.344),
-        'left_knee': (17.688,), 'left_ankle': (4.46, 1.505),
+        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (10.658, -0.615, -0.116),
+        'right_knee': (16.849,), 'right_ankle': (6.189, -0.626), 'left_hip': (10.649, 0.615, 0.116),
+        'left_knee': (16.83,), 'left_ankle': (6.177, 0.626),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(1.3, (0.028, 91.103, 54.852), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.028, 91.075, 55.139), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.3, {
         'spine_lumbar': (0.441, -0.44, 0.0), 'spine_thoracic': (0.05, -0.05, 0.0),
         'right_shoulder': (8.594, 5.731, 11.234), 'left_shoulder': (8.594, 5.731, 11.234),
-        'right_hip': (2.852, 0.0, 0.0), 'right_knee': (4.347,), 'right_ankle': (1.497, 0.0),
-        'left_hip': (2.85, 0.0, 0.0), 'left_knee': (4.343,), 'left_ankle': (1.496, 0.0),
+        'right_hip': (3.165, 0.036, 0.002), 'right_knee': (5.381,), 'right_ankle': (2.211, 0.035),
+        'left_hip': (3.16, -0.036, -0.002), 'left_knee': (5.37,), 'left_ankle': (2.203, -0.035),
     })
-    human.KeyRoot(1.4, (1.803, 91.013, 57.667), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.4, (1.803, 90.97, 57.92), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.4, {
         'spine_lumbar': (11.288, -11.071, 0.0), 'spine_thoracic': (1.841, -1.969, 0.0),
         'right_shoulder': (8.594, 6.231, 2.385), 'left_shoulder': (8.594, 6.231, 2.385),
-        'right_hip': (1.925, 1.536, 0.052), 'right_knee': (5.858,), 'right_ankle': (3.934, 1.538),
-        'left_hip': (1.904, -1.536, -0.051), 'left_knee': (5.815,), 'left_ankle': (3.911, -1.538),
+        'right_hip': (2.206, 1.568, 0.06), 'right_knee': (6.781,), 'right_ankle': (4.576, 1.568),
+        'left_hip': (2.188, -1.568, -0.06), 'left_knee': (6.744,), 'left_ankle': (4.556, -1.568),
         'right_toes': (0.0,),
     })
-    human.KeyRoot(1.5, (5.135, 90.513, 62.534), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.5, (5.135, 90.45, 62.752), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
         'spine_lumbar': (14.11, -13.944, 0.0), 'spine_thoracic': (2.209, -2.469, 0.0),
         'right_shoulder': (8.594, 7.082, -12.719), 'left_shoulder': (8.594, 7.082, -12.719),
-        'right_hip': (1.718, 4.399, 0.155), 'right_knee': (11.644,), 'right_ankle': (9.881, 4.467),
-        'left_hip': (0.278, -4.389, -0.021), 'left_knee': (8.333,), 'left_ankle': (8.056, -4.389),
+        'right_hip': (1.982, 4.399, 0.156), 'right_knee': (12.468,), 'right_ankle': (10.441, 4.467),
+        'left_hip': (0.519, -4.419, -0.04), 'left_knee': (9.129,), 'left_ankle': (8.612, -4.418),
         'right_toes': (0.199,),
     })
-    human.KeyRoot(1.6, (6.878, 90.392, 64.178), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.6, (6.878, 90.352, 64.362), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
         'spine_lumbar': (10.434, -7.765, 0.0), 'spine_thoracic': (1.718, -1.378, 0.0),
         'right_shoulder': (8.594, 7.5, -20.126), 'left_shoulder': (8.594, 7.5, -20.126),
-        'right_hip': (5.288, 5.696, 2.14), 'right_knee': (40.273,), 'right_ankle': (19.829, 6.147),
-        'left_hip': (-2.32, -5.76, 0.233), 'left_knee': (4.846,), 'left_ankle': (7.157, -5.765),
+        'right_hip': (5.478, 5.696, 2.137), 'right_knee': (40.897,), 'right_ankle': (20.0, 6.146),
+        'left_hip': (-2.135, -5.787, 0.216), 'left_knee': (5.479,), 'left_ankle': (7.599, -5.79),
         'right_toes': (3.509,),
     })
-    human.KeyRoot(1.7, (7.971, 90.231, 63.771), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.7, (7.971, 90.19, 63.92), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
         'spine_lumbar': (19.647, -4.644, 0.0), 'spine_thoracic': (3.144, -0.813, 0.0),
-        'right_hip': (-14.208, 6.015, 2.661), 'right_knee': (29.893,),
-        'right_ankle': (6.159, 6.573), 'left_hip': (-0.736, -6.456, 0.083), 'left_knee': (7.247,),
-        'left_ankle': (7.978, -6.458), 'right_toes': (6.246,),
+        'right_hip': (-14.036, 6.015, 2.661), 'right_knee': (30.44,), 'right_ankle': (6.533, 6.573),
+        'left_hip': (-0.57, -6.478, 0.065), 'left_knee': (7.792,), 'left_ankle': (8.358, -6.478),
+        'right_toes': (6.246,),
     })
-    human.KeyRoot(1.8, (10.285, 89.729, 53.233), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.8, (10.285, 89.698, 53.348), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
         'spine_lumbar': (57.108, -2.941, 0.0), 'spine_thoracic': (6.563, -0.531, 0.0),
-        'right_hip': (-11.724, 5.815, 5.29), 'right_knee': (27.241,),
-        'right_ankle': (-14.916, 7.832), 'left_hip': (10.603, -6.632, -1.239), 'left_knee': (15.2,),
-        'left_ankle': (4.67, -6.747), 'right_toes': (44.321,),
+        'right_hip': (-11.592, 5.815, 5.29), 'right_knee': (27.66,),
+        'right_ankle': (-14.628, 7.832), 'left_hip': (10.703, -6.646, -1.253),
+        'left_knee': (15.56,), 'left_ankle': (4.932, -6.763), 'right_toes': (44.321,),
     })
-    human.KeyRoot(1.9, (11.194, 85.826, 46.963), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.9, (11.194, 85.805, 47.043), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.9, {
         'spine_lumbar': (60.0, -0.966, 0.0), 'spine_thoracic': (7.653, -0.045, 0.0),
-        'right_hip': (-14.893, 6.301, 2.434), 'right_knee': (25.459,),
-        'right_ankle': (4.414, 6.751), 'left_hip': (25.319, -6.246, -2.947), 'left_knee': (35.589,),
-        'left_ankle': (10.43, -6.904), 'right_toes': (36.068,),
+        'right_hip': (-14.992, 6.313, 2.426), 'right_knee': (25.37,), 'right_ankle': (4.432, 6.758),
+        'left_hip': (25.334, -6.256, -2.953), 'left_knee': (35.729,),
+        'left_ankle': (10.559, -6.916), 'right_toes': (36.068,),
     })
-    human.KeyRoot(2.0, (9.158, 83.665, 43.505), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.0, (9.158, 83.653, 43.551), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.0, {
         'spine_lumbar': (9.163, 15.331, 0.0), 'spine_thoracic': (-0.013, 2.764, 0.0),
-        'right_hip': (-14.576, 4.843, 0.548), 'right_knee': (26.422,),
-        'right_ankle': (19.982, 4.874), 'left_hip': (31.472, -4.4, -2.689), 'left_knee': (43.33,),
-        'left_ankle': (11.96, -5.156), 'right_toes': (21.038,),
+        'right_hip': (-14.633, 4.849, 0.544), 'right_knee': (26.372,), 'right_ankle': (19.99, 4.88),
+        'left_hip': (31.478, -4.406, -2.693), 'left_knee': (43.404,),
+        'left_ankle': (12.031, -5.163), 'right_toes': (21.038,),
     })
-    human.KeyRoot(2.1, (7.987, 84.105, 41.731), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.1, (7.987, 84.102, 41.743), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.1, {
         'spine_lumbar': (-1.556, 16.535, 0.0), 'spine_thoracic': (-0.719, 2.969, 0.0),
-        'right_hip': (-12.149, 3.801, 0.613), 'right_knee': (29.134,),
-        'right_ankle': (19.986, 3.85), 'left_hip': (31.381, -3.452, -2.103), 'left_knee': (41.06,),
-        'left_ankle': (9.743, -4.042), 'right_toes': (21.318,),
+        'right_hip': (-12.136, 3.801, 0.613), 'right_knee': (29.176,), 'right_ankle': (20.0, 3.85),
+        'left_hip': (31.394, -3.452, -2.103), 'left_knee': (41.102,), 'left_ankle': (9.771, -4.042),
+        'right_toes': (21.318,),
     })
     human.KeyRoot(2.2, (7.617, 82.008, 42.761), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.2, {

@@ -9,9 +9,19 @@ from motion.py's forward kinematics of the file (``Body``). Definitions (docs/te
   forearm's pronation during a fastener turn (``turn_fastener``) are judged apart (their goal is
   looser). Peak joint speed is that step over the frame interval.
 * reach: one movement of an effector (hand or tool tip) to a goal: from the start of its approach
-  (TA) to the end of the goal it claims (the TO that continues the TA, or the TA itself), each
-  wrench or screwdriver stroke on its own. Reaches shorter than 4 frames or moving less than
-  1 cm are not judged (too few samples for a jerk).
+  (TA) to the end of the goal it claims (the TO that continues the TA, or the TA itself).
+  Reaches shorter than 4 frames or moving less than 1 cm are not judged (too few samples for a
+  jerk).
+* stroke (a wrench's or ratchet's TO with a ``stroke`` number): not one reach but the movements
+  it is made of, each from rest to rest (a reciprocating movement that stops at each reversal is
+  a series of discrete movements: Hogan & Sternad 2007, "On rhythmic and discrete movements",
+  Exp Brain Res 181:13-30): the seat, the swing (the hand turns the handle through the swing
+  angle) and the return (lift off, swing back, re-seat), at the times the stroke's
+  ``result.phases`` records (older IR: 10 %, 60 % of the stroke). Each is judged by the hand
+  that holds the handle: in the swing the tip only turns on the fastener, the hand is what
+  moves. Each is judged on the frames inside it (the next movement starts where it ends); the
+  return's contact speed is the tool tip's, where it comes back onto the fastener, over the
+  frame interval that ends at the first frame at or after the stroke's end.
 * LDLJ: log dimensionless jerk of the effector's path, -ln((t2 - t1)^3 / v_peak^2 * integral of
   |jerk|^2 dt) (Balasubramanian, Melendez-Calderon, Roby-Brami & Burdet 2015, "On the analysis
   of movement smoothness", J NeuroEng Rehabil 12:112), jerk by third differences at the output
@@ -20,7 +30,8 @@ from motion.py's forward kinematics of the file (``Body``). Definitions (docs/te
   peak speed (the speed is taken as zero just before and after the reach, so a movement that
   starts or ends at speed shows its peak at the edge).
 * contact speed: the effector's speed over the last frame interval before the first output frame
-  at or after the goal's end (the frame where contact is claimed).
+  at or after the goal's end (the frame where contact is claimed); a stroke's seat and swing
+  make no contact (the tip stays on), its return is judged by the tip.
 * gait, over each locomotion segment: a foot swings while its lowest contact point is more than
   5 mm above the floor; steps are the swing
   phases; cadence = steps / the walk's duration (min^-1); swing time the length of each swing

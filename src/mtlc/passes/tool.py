@@ -410,6 +410,8 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
     names = chain_names(state.skel, [g.effector], "torso")
     idx = [state.skel.dof_index(nm) for nm in names]
     times, poses = paced_stroke(sol.frac, q[:, idx], seg.start, seg.end, bool(sol.lift.max() > 0))
+    # a dof at its stop stays there (the last stroke's blend to the reach pose pushed one past)
+    poses = np.clip(poses, state.skel.lower[idx], state.skel.upper[idx])
     seg.keyframes = Keyframes(time=times, dofs=names, q=poses)
     worst = float(tip_err[sol.lift == 0].max())
     seg.result = {

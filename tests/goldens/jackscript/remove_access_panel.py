@@ -166,34 +166,34 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
-        'spine_lumbar': (7.371, 1.153, 1.454), 'spine_thoracic': (-3.035, -2.61, 1.43),
-        'neck': (-0.449, -0.698, -26.417), 'head': (-0.6, -0.002), 'right_clavicle': (3.876, 0.507),
-        'right_shoulder': (89.855, 12.229, 0.531), 'right_elbow': (33.049, 11.171),
-        'right_wrist': (-1.345, -26.967),
+        'spine_lumbar': (6.627, 1.234, 1.727), 'spine_thoracic': (-2.345, -1.67, 1.696),
+        'neck': (-0.612, -0.756, -26.18), 'head': (-0.774, -0.002),
+        'right_clavicle': (2.593, 0.936), 'right_shoulder': (91.239, 11.055, -0.35),
+        'right_elbow': (32.543, 10.204), 'right_wrist': (-1.624, -28.555),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (11.256, 1.619, -0.05), 'spine_thoracic': (-3.607, -6.103, -0.103),
-        'neck': (-1.372, -1.061, -27.022), 'head': (-1.597, -0.006),
-        'right_clavicle': (9.02, -1.734), 'right_shoulder': (87.979, 16.791, 5.327),
-        'right_elbow': (36.139, 16.138), 'right_wrist': (0.654, -19.478),
+        'spine_lumbar': (10.813, 1.477, 0.123), 'spine_thoracic': (-3.631, -5.756, 0.072),
+        'neck': (-1.166, -0.981, -26.953), 'head': (-1.377, -0.004),
+        'right_clavicle': (8.47, -1.488), 'right_shoulder': (87.95, 16.316, 4.777),
+        'right_elbow': (35.772, 15.585), 'right_wrist': (0.417, -20.303),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (15.3, 3.775, -1.372), 'spine_thoracic': (-3.798, -9.604, -1.468),
-        'neck': (-3.081, -1.706, -26.993), 'head': (-3.427, -0.023),
-        'right_clavicle': (14.761, -4.032), 'right_shoulder': (88.448, 21.788, 10.047),
-        'right_elbow': (39.417, 21.0), 'right_wrist': (2.538, -11.467),
+        'spine_lumbar': (16.967, 5.299, -2.981), 'spine_thoracic': (-1.854, -10.0, -2.824),
+        'neck': (-5.269, -2.491, -25.064), 'head': (-5.736, -0.066),
+        'right_clavicle': (16.162, -4.845), 'right_shoulder': (93.35, 22.426, 13.076),
+        'right_elbow': (41.177, 23.407), 'right_wrist': (4.076, -9.644),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (13.546, 4.889, -3.596), 'spine_thoracic': (-1.536, -10.0, -3.452),
-        'neck': (-3.722, -1.852, -21.827), 'head': (-4.051, -0.032),
-        'right_clavicle': (15.972, -5.243), 'right_shoulder': (90.15, 21.164, 14.347),
-        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.093),
+        'spine_lumbar': (12.774, 3.403, -2.002), 'spine_thoracic': (-3.174, -9.328, -2.098),
+        'neck': (-2.187, -1.324, -24.58), 'head': (-2.446, -0.012),
+        'right_clavicle': (14.169, -4.327), 'right_shoulder': (86.762, 20.402, 11.047),
+        'right_elbow': (39.995, 21.484), 'right_wrist': (2.938, -10.736),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (7.529, 1.005, -0.526), 'spine_thoracic': (-2.614, -4.84, -0.578),
-        'neck': (-0.322, -0.606, -24.377), 'head': (-0.445, -0.001),
-        'right_clavicle': (6.882, -1.656), 'right_shoulder': (86.119, 14.039, 5.218),
-        'right_elbow': (35.983, 15.429), 'right_wrist': (0.635, -20.619),
+        'spine_lumbar': (5.947, 1.09, 1.583), 'spine_thoracic': (-2.292, -1.558, 1.551),
+        'neck': (-0.337, -0.642, -25.718), 'head': (-0.475, -0.001),
+        'right_clavicle': (2.38, 0.855), 'right_shoulder': (90.573, 10.721, -0.263),
+        'right_elbow': (32.641, 10.193), 'right_wrist': (-1.608, -28.528),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
@@ -203,65 +203,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (9.519, 1.192, 0.563), 'spine_thoracic': (-3.474, -4.644, 0.534),
-        'neck': (-0.838, -0.853, -26.793), 'head': (-1.022, -0.003),
-        'right_clavicle': (6.788, -0.763), 'right_shoulder': (88.36, 14.801, 3.259),
-        'right_elbow': (34.773, 13.998), 'right_wrist': (-0.213, -22.82),
+        'spine_lumbar': (8.086, 1.11, 1.08), 'spine_thoracic': (-3.035, -3.271, 1.069),
+        'neck': (-0.631, -0.769, -26.479), 'head': (-0.797, -0.002),
+        'right_clavicle': (4.811, 0.071), 'right_shoulder': (89.483, 13.007, 1.546),
+        'right_elbow': (33.678, 12.183), 'right_wrist': (-0.904, -25.662),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (13.6, 2.704, -0.887), 'spine_thoracic': (-3.591, -8.007, -0.955),
-        'neck': (-2.399, -1.45, -27.032), 'head': (-2.698, -0.015),
-        'right_clavicle': (12.122, -3.034), 'right_shoulder': (88.266, 19.469, 8.148),
-        'right_elbow': (38.096, 18.995), 'right_wrist': (1.822, -15.0),
+        'spine_lumbar': (14.92, 3.514, -1.267), 'spine_thoracic': (-3.742, -9.245, -1.356),
+        'neck': (-2.921, -1.647, -27.065), 'head': (-3.257, -0.021),
+        'right_clavicle': (14.16, -3.807), 'right_shoulder': (88.413, 21.274, 9.622),
+        'right_elbow': (39.124, 20.551), 'right_wrist': (2.382, -12.253),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (17.231, 5.574, -3.372), 'spine_thoracic': (-1.286, -10.0, -3.235),
-        'neck': (-5.759, -2.664, -24.398), 'head': (-6.249, -0.08),
-        'right_clavicle': (16.76, -5.288), 'right_shoulder': (94.389, 22.791, 13.972),
-        'right_elbow': (41.692, 24.111), 'right_wrist': (4.474, -8.623),
+        'spine_lumbar': (17.37, 5.594, -3.295), 'spine_thoracic': (-1.255, -10.0, -3.16),
+        'neck': (-5.873, -2.71, -24.757), 'head': (-6.372, -0.084),
+        'right_clavicle': (16.765, -5.295), 'right_shoulder': (94.599, 22.826, 13.83),
+        'right_elbow': (41.609, 24.117), 'right_wrist': (4.481, -8.817),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (9.225, 1.833, -2.169), 'spine_thoracic': (-2.417, -7.489, -2.146),
-        'neck': (-0.904, -0.804, -22.68), 'head': (-1.058, -0.004),
-        'right_clavicle': (11.057, -3.558), 'right_shoulder': (86.255, 17.049, 9.88),
-        'right_elbow': (38.957, 19.817), 'right_wrist': (2.567, -14.15),
+        'spine_lumbar': (5.343, 0.464, 0.186), 'spine_thoracic': (-2.243, -2.889, 0.188),
+        'neck': (0.238, -0.392, -24.165), 'head': (0.156, 0.0), 'right_clavicle': (4.033, -0.461),
+        'right_shoulder': (87.491, 11.52, 2.562), 'right_elbow': (34.097, 12.673),
+        'right_wrist': (-0.444, -25.168),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.597, 1.233, 1.682), 'spine_thoracic': (-2.28, -1.679, 1.65),
-        'neck': (-0.621, -0.758, -26.088), 'head': (-0.783, -0.002),
-        'right_clavicle': (2.602, 0.896), 'right_shoulder': (91.162, 11.036, -0.259),
-        'right_elbow': (32.672, 10.276), 'right_wrist': (-1.584, -28.465),
+        'spine_lumbar': (6.576, 1.24, 1.738), 'spine_thoracic': (-2.243, -1.59, 1.708),
+        'neck': (-0.649, -0.77, -26.154), 'head': (-0.814, -0.002),
+        'right_clavicle': (2.486, 0.964), 'right_shoulder': (91.347, 10.952, -0.396),
+        'right_elbow': (32.588, 10.146), 'right_wrist': (-1.635, -28.678),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'spine_lumbar': (7.886, 1.117, 1.185), 'spine_thoracic': (-3.035, -3.094, 1.171),
-        'neck': (-0.573, -0.746, -26.464), 'head': (-0.734, -0.002),
-        'right_clavicle': (4.558, 0.193), 'right_shoulder': (89.565, 12.796, 1.263),
-        'right_elbow': (33.521, 11.901), 'right_wrist': (-1.033, -26.022),
+        'spine_lumbar': (6.768, 1.214, 1.683), 'spine_thoracic': (-2.554, -1.87, 1.654),
+        'neck': (-0.544, -0.731, -26.236), 'head': (-0.702, -0.002),
+        'right_clavicle': (2.863, 0.857), 'right_shoulder': (90.826, 11.309, -0.195),
+        'right_elbow': (32.709, 10.381), 'right_wrist': (-1.59, -28.234),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (11.842, 1.842, -0.278), 'spine_thoracic': (-3.567, -6.561, -0.332),
-        'neck': (-1.667, -1.175, -27.087), 'head': (-1.913, -0.009),
-        'right_clavicle': (9.754, -2.057), 'right_shoulder': (88.036, 17.422, 6.054),
-        'right_elbow': (36.657, 16.866), 'right_wrist': (0.962, -18.385),
+        'spine_lumbar': (11.905, 1.868, -0.301), 'spine_thoracic': (-3.566, -6.61, -0.355),
+        'neck': (-1.69, -1.183, -27.084), 'head': (-1.938, -0.009),
+        'right_clavicle': (9.834, -2.091), 'right_shoulder': (88.043, 17.491, 6.131),
+        'right_elbow': (36.709, 16.943), 'right_wrist': (0.995, -18.266),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (15.946, 4.384, -1.941), 'spine_thoracic': (-3.292, -9.896, -1.934),
-        'neck': (-3.771, -1.954, -26.38), 'head': (-4.157, -0.034),
-        'right_clavicle': (15.285, -4.293), 'right_shoulder': (89.822, 22.009, 11.168),
-        'right_elbow': (40.09, 21.891), 'right_wrist': (3.071, -10.782),
+        'spine_lumbar': (17.261, 5.499, -3.182), 'spine_thoracic': (-1.491, -10.0, -3.031),
+        'neck': (-5.667, -2.635, -24.877), 'head': (-6.155, -0.077),
+        'right_clavicle': (16.54, -5.11), 'right_shoulder': (94.171, 22.686, 13.546),
+        'right_elbow': (41.446, 23.846), 'right_wrist': (4.328, -9.156),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (12.486, 4.439, -3.507), 'spine_thoracic': (-1.678, -9.838, -3.371),
-        'neck': (-2.927, -1.549, -21.853), 'head': (-3.203, -0.021),
-        'right_clavicle': (15.369, -5.118), 'right_shoulder': (89.136, 20.416, 14.059),
-        'right_elbow': (41.724, 23.765), 'right_wrist': (4.331, -8.48),
+        'spine_lumbar': (10.26, 2.097, -1.733), 'spine_thoracic': (-2.763, -7.564, -1.794),
+        'neck': (-1.169, -0.924, -23.882), 'head': (-1.351, -0.004),
+        'right_clavicle': (11.207, -3.431), 'right_shoulder': (86.033, 17.625, 9.299),
+        'right_elbow': (38.724, 19.49), 'right_wrist': (2.299, -14.245),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (7.198, 1.06, 0.136), 'spine_thoracic': (-2.533, -3.872, 0.084),
-        'neck': (-0.385, -0.642, -24.848), 'head': (-0.518, -0.001),
-        'right_clavicle': (5.528, -0.89), 'right_shoulder': (87.34, 13.077, 3.536),
-        'right_elbow': (34.957, 13.846), 'right_wrist': (-0.049, -23.015),
+        'spine_lumbar': (6.324, 1.181, 1.657), 'spine_thoracic': (-2.158, -1.545, 1.629),
+        'neck': (-0.574, -0.737, -25.955), 'head': (-0.731, -0.002),
+        'right_clavicle': (2.396, 0.921), 'right_shoulder': (91.24, 10.787, -0.316),
+        'right_elbow': (32.614, 10.178), 'right_wrist': (-1.6, -28.675),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
@@ -271,28 +271,28 @@ def remove_access_panel():
         'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (10.086, 1.29, 0.403), 'spine_thoracic': (-3.619, -5.167, 0.357),
-        'neck': (-0.91, -0.884, -26.907), 'head': (-1.102, -0.003),
-        'right_clavicle': (7.564, -1.08), 'right_shoulder': (88.029, 15.52, 3.882),
-        'right_elbow': (35.212, 14.674), 'right_wrist': (0.03, -21.672),
+        'spine_lumbar': (8.849, 1.13, 0.754), 'spine_thoracic': (-3.172, -3.991, 0.743),
+        'neck': (-0.772, -0.824, -26.595), 'head': (-0.949, -0.003),
+        'right_clavicle': (5.843, -0.382), 'right_shoulder': (88.993, 13.918, 2.522),
+        'right_elbow': (34.267, 13.191), 'right_wrist': (-0.496, -24.193),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (14.174, 3.044, -1.066), 'spine_thoracic': (-3.637, -8.51, -1.142),
-        'neck': (-2.638, -1.54, -27.013), 'head': (-2.953, -0.017),
-        'right_clavicle': (12.956, -3.36), 'right_shoulder': (88.34, 20.19, 8.809),
-        'right_elbow': (38.555, 19.679), 'right_wrist': (2.08, -13.857),
+        'spine_lumbar': (15.732, 4.158, -1.678), 'spine_thoracic': (-3.59, -9.816, -1.73),
+        'neck': (-3.464, -1.844, -26.646), 'head': (-3.833, -0.029),
+        'right_clavicle': (15.152, -4.22), 'right_shoulder': (89.048, 21.968, 10.737),
+        'right_elbow': (39.843, 21.58), 'right_wrist': (2.849, -10.956),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (16.249, 5.423, -3.487), 'spine_thoracic': (-1.343, -10.0, -3.347),
-        'neck': (-5.2, -2.438, -23.59), 'head': (-5.642, -0.063), 'right_clavicle': (16.597, -5.28),
-        'right_shoulder': (93.204, 22.412, 14.168), 'right_elbow': (41.809, 24.101),
-        'right_wrist': (4.471, -8.354),
+        'spine_lumbar': (16.795, 5.498, -3.39), 'spine_thoracic': (-1.07, -10.0, -3.258),
+        'neck': (-5.647, -2.618, -24.326), 'head': (-6.126, -0.076),
+        'right_clavicle': (16.468, -5.294), 'right_shoulder': (94.24, 22.437, 13.898),
+        'right_elbow': (41.651, 24.077), 'right_wrist': (4.51, -8.845),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (8.419, 1.192, -1.607), 'spine_thoracic': (-2.594, -6.536, -1.623),
-        'neck': (-0.451, -0.644, -23.296), 'head': (-0.578, -0.002),
-        'right_clavicle': (9.483, -2.91), 'right_shoulder': (85.704, 15.926, 8.191),
-        'right_elbow': (37.855, 18.23), 'right_wrist': (1.861, -16.462),
+        'spine_lumbar': (5.304, 0.663, 0.932), 'spine_thoracic': (-2.547, -2.188, 0.909),
+        'neck': (0.231, -0.41, -24.914), 'head': (0.142, 0.0), 'right_clavicle': (3.111, 0.236),
+        'right_shoulder': (88.308, 11.043, 0.919), 'right_elbow': (33.238, 11.206),
+        'right_wrist': (-1.191, -26.949),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
@@ -302,65 +302,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (8.414, 1.112, 0.93), 'spine_thoracic': (-3.058, -3.579, 0.921),
-        'neck': (-0.7, -0.796, -26.524), 'head': (-0.872, -0.002), 'right_clavicle': (5.25, -0.126),
-        'right_shoulder': (89.295, 13.388, 1.981), 'right_elbow': (33.932, 12.627),
-        'right_wrist': (-0.719, -25.04),
+        'spine_lumbar': (7.042, 1.182, 1.587), 'spine_thoracic': (-2.883, -2.228, 1.56),
+        'neck': (-0.452, -0.697, -26.32), 'head': (-0.603, -0.002), 'right_clavicle': (3.35, 0.7),
+        'right_shoulder': (90.232, 11.76, 0.122), 'right_elbow': (32.891, 10.733),
+        'right_wrist': (-1.492, -27.64),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (12.428, 2.099, -0.491), 'spine_thoracic': (-3.558, -7.029, -0.549),
-        'neck': (-1.912, -1.267, -27.072), 'head': (-2.175, -0.01),
-        'right_shoulder': (88.109, 18.079, 6.763), 'right_elbow': (37.141, 17.582),
-        'right_wrist': (1.26, -17.274),
+        'spine_lumbar': (12.989, 2.373, -0.686), 'spine_thoracic': (-3.561, -7.491, -0.748),
+        'neck': (-2.145, -1.355, -27.054), 'head': (-2.425, -0.012),
+        'right_clavicle': (11.27, -2.692), 'right_shoulder': (88.183, 18.732, 7.432),
+        'right_elbow': (37.6, 18.262), 'right_wrist': (1.534, -16.194),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (16.621, 5.03, -2.696), 'spine_thoracic': (-2.285, -10.0, -2.556),
-        'neck': (-4.787, -2.317, -25.416), 'head': (-5.228, -0.054),
-        'right_clavicle': (15.789, -4.599), 'right_shoulder': (92.33, 22.206, 12.48),
-        'right_elbow': (40.835, 22.894), 'right_wrist': (3.765, -10.134),
+        'spine_lumbar': (17.4, 5.582, -3.262), 'spine_thoracic': (-1.32, -10.0, -3.124),
+        'neck': (-5.851, -2.703, -24.824), 'head': (-6.35, -0.083),
+        'right_clavicle': (16.737, -5.25), 'right_shoulder': (94.544, 22.827, 13.758),
+        'right_elbow': (41.567, 24.056), 'right_wrist': (4.444, -8.902),
     })
     human.KeyJoints(5.2, {
-        'spine_lumbar': (11.36, 3.658, -3.195), 'spine_thoracic': (-1.905, -9.283, -3.088),
-        'neck': (-2.119, -1.246, -22.022), 'head': (-2.345, -0.012),
-        'right_clavicle': (14.221, -4.747), 'right_shoulder': (88.087, 19.415, 13.07),
-        'right_elbow': (41.065, 22.823), 'right_wrist': (3.91, -9.817),
+        'spine_lumbar': (7.962, 0.984, -1.162), 'spine_thoracic': (-2.654, -5.815, -1.202),
+        'neck': (-0.294, -0.589, -23.815), 'head': (-0.412, -0.001),
+        'right_clavicle': (8.332, -2.397), 'right_shoulder': (85.53, 15.096, 6.916),
+        'right_elbow': (37.04, 17.031), 'right_wrist': (1.331, -18.22),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (6.921, 1.128, 0.791), 'spine_thoracic': (-2.434, -2.934, 0.745),
-        'neck': (-0.451, -0.677, -25.271), 'head': (-0.593, -0.002),
-        'right_clavicle': (4.257, -0.132), 'right_shoulder': (88.833, 12.185, 1.911),
-        'right_elbow': (33.974, 12.317), 'right_wrist': (-0.708, -25.343),
+        'spine_lumbar': (6.495, 1.219, 1.698), 'spine_thoracic': (-2.128, -1.544, 1.67),
+        'neck': (-0.668, -0.775, -26.073), 'head': (-0.833, -0.002),
+        'right_clavicle': (2.422, 0.947), 'right_shoulder': (91.406, 10.862, -0.349),
+        'right_elbow': (32.601, 10.167), 'right_wrist': (-1.598, -28.705),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'spine_lumbar': (6.763, 1.217, 1.678), 'spine_thoracic': (-2.526, -1.849, 1.649),
-        'neck': (-0.574, -0.743, -26.232), 'head': (-0.734, -0.002),
-        'right_clavicle': (2.837, 0.859), 'right_shoulder': (90.881, 11.281, -0.191),
-        'right_elbow': (32.709, 10.379), 'right_wrist': (-1.58, -28.259),
+        'spine_lumbar': (6.58, 1.24, 1.739), 'spine_thoracic': (-2.273, -1.602, 1.709),
+        'neck': (-0.636, -0.765, -26.158), 'head': (-0.8, -0.002), 'right_clavicle': (2.502, 0.962),
+        'right_shoulder': (91.32, 10.968, -0.397), 'right_elbow': (32.59, 10.147),
+        'right_wrist': (-1.64, -28.663),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (10.663, 1.434, 0.182), 'spine_thoracic': (-3.63, -5.636, 0.132),
-        'neck': (-1.106, -0.958, -26.94), 'head': (-1.312, -0.004),
-        'right_clavicle': (8.284, -1.405), 'right_shoulder': (87.936, 16.153, 4.592),
-        'right_elbow': (35.681, 15.397), 'right_wrist': (0.335, -20.584),
+        'spine_lumbar': (9.765, 1.232, 0.502), 'spine_thoracic': (-3.584, -4.88, 0.464),
+        'neck': (-0.845, -0.857, -26.85), 'head': (-1.03, -0.003), 'right_clavicle': (7.135, -0.9),
+        'right_shoulder': (88.145, 15.129, 3.517), 'right_elbow': (34.96, 14.285),
+        'right_wrist': (-0.116, -22.31),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (14.738, 3.398, -1.226), 'spine_thoracic': (-3.706, -9.042, -1.31),
-        'neck': (-2.862, -1.624, -27.0), 'head': (-3.193, -0.02),
-        'right_clavicle': (13.834, -3.691), 'right_shoulder': (88.401, 20.965, 9.436),
-        'right_elbow': (38.992, 20.342), 'right_wrist': (2.316, -12.682),
+        'spine_lumbar': (16.47, 4.91, -2.575), 'spine_thoracic': (-2.474, -10.0, -2.443),
+        'neck': (-4.581, -2.242, -25.541), 'head': (-5.011, -0.049),
+        'right_clavicle': (15.641, -4.506), 'right_shoulder': (91.879, 22.132, 12.225),
+        'right_elbow': (40.689, 22.672), 'right_wrist': (3.628, -10.319),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (14.872, 5.183, -3.563), 'spine_thoracic': (-1.432, -10.0, -3.421),
-        'neck': (-4.541, -2.175, -22.646), 'head': (-4.931, -0.047),
-        'right_clavicle': (16.324, -5.264), 'right_shoulder': (91.594, 21.831, 14.294),
-        'right_elbow': (41.884, 24.084), 'right_wrist': (4.467, -8.172),
+        'spine_lumbar': (15.229, 4.914, -3.045), 'spine_thoracic': (-2.021, -10.0, -2.904),
+        'neck': (-4.231, -2.082, -23.928), 'head': (-4.618, -0.041),
+        'right_clavicle': (15.758, -4.839), 'right_shoulder': (91.212, 21.68, 13.17),
+        'right_elbow': (41.242, 23.293), 'right_wrist': (4.013, -9.349),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (7.903, 0.978, -1.103), 'spine_thoracic': (-2.652, -5.716, -1.145),
-        'neck': (-0.289, -0.587, -23.871), 'head': (-0.407, -0.001),
-        'right_clavicle': (8.177, -2.326), 'right_shoulder': (85.536, 14.978, 6.747),
-        'right_elbow': (36.931, 16.87), 'right_wrist': (1.262, -18.462),
+        'spine_lumbar': (5.471, 0.92, 1.379), 'spine_thoracic': (-2.603, -1.773, 1.346),
+        'neck': (0.066, -0.481, -25.34), 'head': (-0.039, -0.001), 'right_clavicle': (2.613, 0.651),
+        'right_shoulder': (89.333, 10.826, 0.065), 'right_elbow': (32.811, 10.465),
+        'right_wrist': (-1.521, -27.981),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
@@ -370,65 +370,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (8.954, 1.135, 0.717), 'spine_thoracic': (-3.204, -4.091, 0.705),
-        'neck': (-0.786, -0.831, -26.625), 'head': (-0.965, -0.003),
-        'right_clavicle': (5.987, -0.443), 'right_shoulder': (88.914, 14.049, 2.647),
-        'right_elbow': (34.347, 13.324), 'right_wrist': (-0.446, -23.985),
+        'spine_lumbar': (7.472, 1.145, 1.408), 'spine_thoracic': (-3.035, -2.713, 1.385),
+        'neck': (-0.476, -0.709, -26.446), 'head': (-0.63, -0.002), 'right_clavicle': (4.02, 0.447),
+        'right_shoulder': (89.743, 12.352, 0.666), 'right_elbow': (33.198, 11.309),
+        'right_wrist': (-1.298, -26.773),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (13.011, 2.384, -0.693), 'spine_thoracic': (-3.562, -7.508, -0.755),
-        'neck': (-2.153, -1.358, -27.053), 'head': (-2.434, -0.012),
-        'right_clavicle': (11.299, -2.704), 'right_shoulder': (88.186, 18.758, 7.458),
-        'right_elbow': (37.618, 18.288), 'right_wrist': (1.545, -16.152),
+        'spine_lumbar': (14.009, 2.943, -1.016), 'spine_thoracic': (-3.621, -8.363, -1.089),
+        'neck': (-2.57, -1.514, -27.019), 'head': (-2.88, -0.017),
+        'right_clavicle': (12.713, -3.266), 'right_shoulder': (88.319, 19.979, 8.62),
+        'right_elbow': (38.423, 19.482), 'right_wrist': (2.007, -14.188),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (17.339, 5.538, -3.183), 'spine_thoracic': (-1.396, -10.0, -3.046),
-        'neck': (-5.766, -2.672, -25.003), 'head': (-6.26, -0.081),
-        'right_clavicle': (16.661, -5.197), 'right_shoulder': (94.37, 22.774, 13.597),
-        'right_elbow': (41.473, 23.965), 'right_wrist': (4.391, -9.078),
+        'spine_lumbar': (17.437, 5.603, -3.282), 'spine_thoracic': (-1.276, -10.0, -3.147),
+        'neck': (-5.899, -2.721, -24.815), 'head': (-6.4, -0.084),
+        'right_clavicle': (16.79, -5.289), 'right_shoulder': (94.641, 22.866, 13.812),
+        'right_elbow': (41.598, 24.111), 'right_wrist': (4.474, -8.832),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (10.247, 2.73, -2.728), 'spine_thoracic': (-2.167, -8.461, -2.661),
-        'neck': (-1.456, -1.002, -22.257), 'head': (-1.643, -0.006),
-        'right_clavicle': (12.724, -4.205), 'right_shoulder': (87.095, 18.263, 11.607),
-        'right_elbow': (40.095, 21.442), 'right_wrist': (3.293, -11.8),
+        'spine_lumbar': (6.249, 0.434, -0.595), 'spine_thoracic': (-2.182, -4.118, -0.589),
+        'neck': (0.047, -0.458, -23.807), 'head': (-0.046, -0.001),
+        'right_clavicle': (5.779, -1.379), 'right_shoulder': (86.496, 12.851, 4.686),
+        'right_elbow': (35.413, 14.711), 'right_wrist': (0.458, -22.201),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (6.715, 1.191, 1.339), 'spine_thoracic': (-2.342, -2.16, 1.301),
-        'neck': (-0.541, -0.72, -25.73), 'head': (-0.694, -0.002), 'right_clavicle': (3.23, 0.5),
-        'right_shoulder': (90.228, 11.47, 0.571), 'right_elbow': (33.169, 11.057),
-        'right_wrist': (-1.249, -27.269),
+        'spine_lumbar': (6.556, 1.235, 1.724), 'spine_thoracic': (-2.174, -1.565, 1.695),
+        'neck': (-0.673, -0.778, -26.131), 'head': (-0.839, -0.002),
+        'right_clavicle': (2.455, 0.959), 'right_shoulder': (91.39, 10.914, -0.377),
+        'right_elbow': (32.592, 10.155), 'right_wrist': (-1.615, -28.697),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'spine_lumbar': (7.363, 1.153, 1.458), 'spine_thoracic': (-3.035, -2.6, 1.434),
-        'neck': (-0.448, -0.698, -26.415), 'head': (-0.6, -0.002), 'right_clavicle': (3.863, 0.512),
-        'right_shoulder': (89.815, 12.217, 0.521), 'right_elbow': (33.118, 11.159),
-        'right_wrist': (-1.354, -26.983),
+        'spine_lumbar': (6.625, 1.234, 1.727), 'spine_thoracic': (-2.342, -1.667, 1.697),
+        'neck': (-0.613, -0.756, -26.179), 'head': (-0.775, -0.002),
+        'right_clavicle': (2.59, 0.937), 'right_shoulder': (91.197, 11.052, -0.35),
+        'right_elbow': (32.618, 10.202), 'right_wrist': (-1.63, -28.559),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (11.246, 1.616, -0.046), 'spine_thoracic': (-3.607, -6.096, -0.099),
-        'neck': (-1.367, -1.059, -27.02), 'head': (-1.592, -0.006),
-        'right_clavicle': (9.007, -1.728), 'right_shoulder': (87.958, 16.78, 5.316),
-        'right_elbow': (36.162, 16.126), 'right_wrist': (0.646, -19.497),
+        'spine_lumbar': (10.795, 1.471, 0.13), 'spine_thoracic': (-3.631, -5.741, 0.079),
+        'neck': (-1.16, -0.979, -26.953), 'head': (-1.37, -0.004),
+        'right_clavicle': (8.448, -1.478), 'right_shoulder': (87.93, 16.296, 4.756),
+        'right_elbow': (35.789, 15.562), 'right_wrist': (0.405, -20.337),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (15.29, 3.768, -1.369), 'spine_thoracic': (-3.797, -9.597, -1.464),
-        'neck': (-3.076, -1.705, -26.993), 'head': (-3.422, -0.023),
-        'right_clavicle': (14.748, -4.027), 'right_shoulder': (88.447, 21.779, 10.034),
-        'right_elbow': (39.409, 20.988), 'right_wrist': (2.533, -11.484),
+        'spine_lumbar': (16.961, 5.294, -2.976), 'spine_thoracic': (-1.862, -10.0, -2.819),
+        'neck': (-5.26, -2.488, -25.069), 'head': (-5.727, -0.066),
+        'right_clavicle': (16.154, -4.839), 'right_shoulder': (93.331, 22.421, 13.065),
+        'right_elbow': (41.171, 23.397), 'right_wrist': (4.07, -9.654),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (13.565, 4.894, -3.596), 'spine_thoracic': (-1.534, -10.0, -3.452),
-        'neck': (-3.735, -1.857, -21.832), 'head': (-4.065, -0.032),
-        'right_clavicle': (15.979, -5.243), 'right_shoulder': (90.169, 21.175, 14.346),
-        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.093),
+        'spine_lumbar': (12.816, 3.426, -2.009), 'spine_thoracic': (-3.175, -9.346, -2.105),
+        'neck': (-2.21, -1.333, -24.58), 'head': (-2.47, -0.013),
+        'right_clavicle': (14.204, -4.338), 'right_shoulder': (86.784, 20.432, 11.079),
+        'right_elbow': (40.016, 21.516), 'right_wrist': (2.952, -10.702),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (7.535, 1.004, -0.536), 'spine_thoracic': (-2.615, -4.855, -0.589),
-        'neck': (-0.321, -0.606, -24.369), 'head': (-0.444, -0.001),
-        'right_clavicle': (6.904, -1.669), 'right_shoulder': (86.103, 14.055, 5.245),
-        'right_elbow': (36.0, 15.455), 'right_wrist': (0.646, -20.58),
+        'spine_lumbar': (5.941, 1.089, 1.581), 'spine_thoracic': (-2.295, -1.558, 1.549),
+        'neck': (-0.333, -0.641, -25.713), 'head': (-0.47, -0.001), 'right_clavicle': (2.38, 0.854),
+        'right_shoulder': (90.56, 10.721, -0.261), 'right_elbow': (32.642, 10.193),
+        'right_wrist': (-1.608, -28.524),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
@@ -438,65 +438,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (9.509, 1.191, 0.565), 'spine_thoracic': (-3.468, -4.634, 0.536),
-        'neck': (-0.837, -0.853, -26.79), 'head': (-1.021, -0.003),
-        'right_clavicle': (6.775, -0.757), 'right_shoulder': (88.37, 14.788, 3.249),
-        'right_elbow': (34.766, 13.987), 'right_wrist': (-0.217, -22.84),
+        'spine_lumbar': (8.074, 1.11, 1.086), 'spine_thoracic': (-3.035, -3.261, 1.075),
+        'neck': (-0.628, -0.768, -26.478), 'head': (-0.794, -0.002),
+        'right_clavicle': (4.796, 0.078), 'right_shoulder': (89.489, 12.994, 1.53),
+        'right_elbow': (33.669, 12.167), 'right_wrist': (-0.911, -25.683),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (13.591, 2.699, -0.884), 'spine_thoracic': (-3.591, -7.999, -0.952),
-        'neck': (-2.395, -1.449, -27.033), 'head': (-2.693, -0.015),
-        'right_clavicle': (12.108, -3.028), 'right_shoulder': (88.264, 19.457, 8.136),
-        'right_elbow': (38.088, 18.983), 'right_wrist': (1.817, -15.019),
+        'spine_lumbar': (14.907, 3.505, -1.264), 'spine_thoracic': (-3.739, -9.23, -1.352),
+        'neck': (-2.916, -1.646, -27.062), 'head': (-3.252, -0.021),
+        'right_clavicle': (14.136, -3.798), 'right_shoulder': (88.412, 21.251, 9.608),
+        'right_elbow': (39.114, 20.535), 'right_wrist': (2.377, -12.285),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (17.242, 5.575, -3.37), 'spine_thoracic': (-1.285, -10.0, -3.233),
-        'neck': (-5.766, -2.667, -24.411), 'head': (-6.256, -0.08),
-        'right_clavicle': (16.762, -5.288), 'right_shoulder': (94.402, 22.795, 13.968),
-        'right_elbow': (41.69, 24.111), 'right_wrist': (4.474, -8.628),
+        'spine_lumbar': (17.373, 5.594, -3.294), 'spine_thoracic': (-1.256, -10.0, -3.16),
+        'neck': (-5.874, -2.71, -24.759), 'head': (-6.373, -0.084),
+        'right_clavicle': (16.767, -5.295), 'right_shoulder': (94.601, 22.828, 13.83),
+        'right_elbow': (41.608, 24.116), 'right_wrist': (4.481, -8.817),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (9.24, 1.846, -2.178), 'spine_thoracic': (-2.413, -7.506, -2.155),
-        'neck': (-0.913, -0.808, -22.671), 'head': (-1.067, -0.004),
-        'right_clavicle': (11.085, -3.569), 'right_shoulder': (86.267, 17.069, 9.909),
-        'right_elbow': (38.976, 19.845), 'right_wrist': (2.58, -14.11),
+        'spine_lumbar': (5.351, 0.463, 0.173), 'spine_thoracic': (-2.241, -2.905, 0.175),
+        'neck': (0.237, -0.392, -24.153), 'head': (0.155, 0.0), 'right_clavicle': (4.055, -0.475),
+        'right_shoulder': (87.475, 11.535, 2.594), 'right_elbow': (34.115, 12.702),
+        'right_wrist': (-0.43, -25.128),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (6.598, 1.233, 1.678), 'spine_thoracic': (-2.28, -1.684, 1.647),
-        'neck': (-0.62, -0.757, -26.084), 'head': (-0.782, -0.002),
-        'right_clavicle': (2.608, 0.892), 'right_shoulder': (91.153, 11.04, -0.251),
-        'right_elbow': (32.677, 10.284), 'right_wrist': (-1.581, -28.454),
+        'spine_lumbar': (6.576, 1.24, 1.737), 'spine_thoracic': (-2.242, -1.589, 1.708),
+        'neck': (-0.65, -0.77, -26.154), 'head': (-0.814, -0.002), 'right_clavicle': (2.486, 0.964),
+        'right_shoulder': (91.348, 10.952, -0.395), 'right_elbow': (32.588, 10.146),
+        'right_wrist': (-1.634, -28.678),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'spine_lumbar': (7.877, 1.118, 1.189), 'spine_thoracic': (-3.035, -3.086, 1.175),
-        'neck': (-0.57, -0.745, -26.463), 'head': (-0.731, -0.002),
-        'right_clavicle': (4.547, 0.198), 'right_shoulder': (89.569, 12.787, 1.25),
-        'right_elbow': (33.514, 11.889), 'right_wrist': (-1.039, -26.038),
+        'spine_lumbar': (6.765, 1.215, 1.685), 'spine_thoracic': (-2.55, -1.865, 1.655),
+        'neck': (-0.546, -0.732, -26.235), 'head': (-0.703, -0.002),
+        'right_clavicle': (2.857, 0.859), 'right_shoulder': (90.834, 11.303, -0.199),
+        'right_elbow': (32.707, 10.377), 'right_wrist': (-1.591, -28.242),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (11.832, 1.838, -0.274), 'spine_thoracic': (-3.567, -6.553, -0.328),
-        'neck': (-1.663, -1.173, -27.087), 'head': (-1.908, -0.009),
-        'right_clavicle': (9.741, -2.051), 'right_shoulder': (88.035, 17.411, 6.042),
-        'right_elbow': (36.649, 16.853), 'right_wrist': (0.957, -18.403),
+        'spine_lumbar': (11.886, 1.86, -0.294), 'spine_thoracic': (-3.566, -6.596, -0.349),
+        'neck': (-1.683, -1.18, -27.084), 'head': (-1.93, -0.009),
+        'right_clavicle': (9.811, -2.081), 'right_shoulder': (88.041, 17.471, 6.108),
+        'right_elbow': (36.694, 16.92), 'right_wrist': (0.985, -18.301),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (15.934, 4.372, -1.926), 'spine_thoracic': (-3.31, -9.892, -1.922),
-        'neck': (-3.753, -1.948, -26.4), 'head': (-4.138, -0.034),
-        'right_clavicle': (15.278, -4.289), 'right_shoulder': (89.776, 22.007, 11.144),
-        'right_elbow': (40.077, 21.874), 'right_wrist': (3.058, -10.791),
+        'spine_lumbar': (17.257, 5.496, -3.18), 'spine_thoracic': (-1.496, -10.0, -3.029),
+        'neck': (-5.662, -2.634, -24.879), 'head': (-6.15, -0.077),
+        'right_clavicle': (16.535, -5.106), 'right_shoulder': (94.161, 22.682, 13.541),
+        'right_elbow': (41.443, 23.841), 'right_wrist': (4.325, -9.162),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (12.505, 4.45, -3.51), 'spine_thoracic': (-1.675, -9.845, -3.374),
-        'neck': (-2.941, -1.554, -21.851), 'head': (-3.218, -0.021),
-        'right_clavicle': (15.384, -5.123), 'right_shoulder': (89.154, 20.431, 14.071),
-        'right_elbow': (41.732, 23.776), 'right_wrist': (4.336, -8.465),
+        'spine_lumbar': (10.301, 2.118, -1.74), 'spine_thoracic': (-2.766, -7.593, -1.801),
+        'neck': (-1.185, -0.93, -23.889), 'head': (-1.368, -0.004),
+        'right_clavicle': (11.256, -3.447), 'right_shoulder': (86.043, 17.67, 9.333),
+        'right_elbow': (38.748, 19.528), 'right_wrist': (2.312, -14.183),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (7.203, 1.059, 0.125), 'spine_thoracic': (-2.534, -3.888, 0.072),
-        'neck': (-0.384, -0.642, -24.84), 'head': (-0.517, -0.001),
-        'right_clavicle': (5.551, -0.903), 'right_shoulder': (87.317, 13.093, 3.565),
-        'right_elbow': (34.975, 13.873), 'right_wrist': (-0.038, -22.974),
+        'spine_lumbar': (6.318, 1.18, 1.656), 'spine_thoracic': (-2.159, -1.545, 1.628),
+        'neck': (-0.571, -0.736, -25.952), 'head': (-0.728, -0.002),
+        'right_clavicle': (2.395, 0.92), 'right_shoulder': (91.232, 10.785, -0.315),
+        'right_elbow': (32.614, 10.178), 'right_wrist': (-1.6, -28.673),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
@@ -506,28 +506,28 @@ def remove_access_panel():
         'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (10.077, 1.289, 0.406), 'spine_thoracic': (-3.618, -5.159, 0.361),
-        'neck': (-0.908, -0.883, -26.907), 'head': (-1.099, -0.003),
-        'right_clavicle': (7.552, -1.075), 'right_shoulder': (88.032, 15.509, 3.871),
-        'right_elbow': (35.204, 14.662), 'right_wrist': (0.026, -21.691),
+        'spine_lumbar': (8.835, 1.129, 0.759), 'spine_thoracic': (-3.168, -3.977, 0.749),
+        'neck': (-0.77, -0.824, -26.592), 'head': (-0.947, -0.003),
+        'right_clavicle': (5.823, -0.374), 'right_shoulder': (89.003, 13.9, 2.505),
+        'right_elbow': (34.256, 13.174), 'right_wrist': (-0.503, -24.221),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (14.165, 3.038, -1.063), 'spine_thoracic': (-3.636, -8.501, -1.139),
-        'neck': (-2.634, -1.539, -27.013), 'head': (-2.949, -0.017),
-        'right_clavicle': (12.942, -3.354), 'right_shoulder': (88.339, 20.177, 8.798),
-        'right_elbow': (38.547, 19.667), 'right_wrist': (2.076, -13.877),
+        'spine_lumbar': (15.718, 4.144, -1.662), 'spine_thoracic': (-3.607, -9.81, -1.718),
+        'neck': (-3.446, -1.838, -26.666), 'head': (-3.814, -0.028),
+        'right_clavicle': (15.143, -4.215), 'right_shoulder': (89.005, 21.965, 10.71),
+        'right_elbow': (39.827, 21.56), 'right_wrist': (2.836, -10.968),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (16.27, 5.427, -3.485), 'spine_thoracic': (-1.341, -10.0, -3.345),
-        'neck': (-5.21, -2.442, -23.603), 'head': (-5.653, -0.064), 'right_clavicle': (16.6, -5.28),
-        'right_shoulder': (93.229, 22.421, 14.165), 'right_elbow': (41.808, 24.102),
-        'right_wrist': (4.472, -8.358),
+        'spine_lumbar': (16.811, 5.501, -3.389), 'spine_thoracic': (-1.072, -10.0, -3.257),
+        'neck': (-5.655, -2.621, -24.336), 'head': (-6.135, -0.076),
+        'right_clavicle': (16.476, -5.294), 'right_shoulder': (94.252, 22.447, 13.897),
+        'right_elbow': (41.651, 24.078), 'right_wrist': (4.51, -8.844),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (8.431, 1.2, -1.616), 'spine_thoracic': (-2.592, -6.551, -1.631),
-        'neck': (-0.457, -0.646, -23.285), 'head': (-0.584, -0.002),
-        'right_clavicle': (9.508, -2.92), 'right_shoulder': (85.71, 15.943, 8.218),
-        'right_elbow': (37.872, 18.255), 'right_wrist': (1.873, -16.425),
+        'spine_lumbar': (5.303, 0.658, 0.921), 'spine_thoracic': (-2.54, -2.197, 0.898),
+        'neck': (0.23, -0.41, -24.904), 'head': (0.142, 0.0), 'right_clavicle': (3.122, 0.226),
+        'right_shoulder': (88.295, 11.048, 0.943), 'right_elbow': (33.249, 11.226),
+        'right_wrist': (-1.18, -26.925),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
@@ -537,65 +537,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (8.405, 1.112, 0.934), 'spine_thoracic': (-3.057, -3.57, 0.925),
-        'neck': (-0.698, -0.795, -26.523), 'head': (-0.87, -0.002),
-        'right_clavicle': (5.238, -0.121), 'right_shoulder': (89.3, 13.377, 1.969),
-        'right_elbow': (33.925, 12.615), 'right_wrist': (-0.724, -25.057),
+        'spine_lumbar': (7.036, 1.183, 1.589), 'spine_thoracic': (-2.878, -2.221, 1.562),
+        'neck': (-0.453, -0.698, -26.318), 'head': (-0.604, -0.002),
+        'right_clavicle': (3.34, 0.704), 'right_shoulder': (90.242, 11.751, 0.115),
+        'right_elbow': (32.887, 10.725), 'right_wrist': (-1.494, -27.652),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (12.418, 2.094, -0.488), 'spine_thoracic': (-3.558, -7.021, -0.545),
-        'neck': (-1.908, -1.265, -27.072), 'head': (-2.171, -0.01),
-        'right_shoulder': (88.108, 18.068, 6.752), 'right_elbow': (37.132, 17.57),
-        'right_wrist': (1.255, -17.293),
+        'spine_lumbar': (12.972, 2.364, -0.68), 'spine_thoracic': (-3.561, -7.476, -0.742),
+        'neck': (-2.137, -1.352, -27.055), 'head': (-2.417, -0.012),
+        'right_clavicle': (11.245, -2.682), 'right_shoulder': (88.181, 18.711, 7.411),
+        'right_elbow': (37.586, 18.24), 'right_wrist': (1.526, -16.229),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (16.608, 5.02, -2.687), 'spine_thoracic': (-2.301, -10.0, -2.547),
-        'neck': (-4.77, -2.311, -25.425), 'head': (-5.21, -0.053),
-        'right_clavicle': (15.776, -4.59), 'right_shoulder': (92.293, 22.199, 12.46),
-        'right_elbow': (40.823, 22.876), 'right_wrist': (3.754, -10.15),
+        'spine_lumbar': (17.399, 5.582, -3.262), 'spine_thoracic': (-1.322, -10.0, -3.123),
+        'neck': (-5.849, -2.702, -24.825), 'head': (-6.348, -0.083),
+        'right_clavicle': (16.735, -5.249), 'right_shoulder': (94.541, 22.826, 13.756),
+        'right_elbow': (41.566, 24.054), 'right_wrist': (4.443, -8.904),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (11.379, 3.673, -3.202), 'spine_thoracic': (-1.901, -9.295, -3.094),
-        'neck': (-2.132, -1.251, -22.019), 'head': (-2.359, -0.012),
-        'right_clavicle': (14.244, -4.755), 'right_shoulder': (88.105, 19.434, 13.092),
-        'right_elbow': (41.079, 22.843), 'right_wrist': (3.919, -9.788),
+        'spine_lumbar': (7.995, 0.996, -1.171), 'spine_thoracic': (-2.657, -5.844, -1.212),
+        'neck': (-0.304, -0.593, -23.817), 'head': (-0.423, -0.001),
+        'right_clavicle': (8.378, -2.414), 'right_shoulder': (85.53, 15.136, 6.955),
+        'right_wrist': (1.347, -18.153),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (6.925, 1.126, 0.781), 'spine_thoracic': (-2.436, -2.949, 0.734),
-        'neck': (-0.45, -0.676, -25.264), 'head': (-0.592, -0.002),
-        'right_clavicle': (4.277, -0.144), 'right_shoulder': (88.808, 12.199, 1.936),
-        'right_elbow': (33.99, 12.341), 'right_wrist': (-0.697, -25.307),
+        'spine_lumbar': (6.494, 1.219, 1.697), 'spine_thoracic': (-2.128, -1.544, 1.669),
+        'neck': (-0.667, -0.775, -26.071), 'head': (-0.832, -0.002),
+        'right_clavicle': (2.422, 0.947), 'right_shoulder': (91.406, 10.861, -0.349),
+        'right_elbow': (32.601, 10.167), 'right_wrist': (-1.598, -28.705),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
-        'spine_lumbar': (6.754, 1.218, 1.681), 'spine_thoracic': (-2.515, -1.838, 1.652),
-        'neck': (-0.577, -0.744, -26.229), 'head': (-0.737, -0.002),
-        'right_clavicle': (2.821, 0.864), 'right_shoulder': (90.901, 11.266, -0.201),
-        'right_elbow': (32.704, 10.368), 'right_wrist': (-1.583, -28.278),
+        'spine_lumbar': (6.58, 1.24, 1.74), 'spine_thoracic': (-2.273, -1.601, 1.709),
+        'neck': (-0.636, -0.765, -26.158), 'head': (-0.8, -0.002), 'right_clavicle': (2.501, 0.962),
+        'right_shoulder': (91.321, 10.968, -0.398), 'right_elbow': (32.589, 10.146),
+        'right_wrist': (-1.64, -28.663),
     })
     human.KeyJoints(9.3, {
-        'spine_lumbar': (10.653, 1.431, 0.186), 'spine_thoracic': (-3.63, -5.629, 0.135),
-        'neck': (-1.102, -0.957, -26.94), 'head': (-1.308, -0.004),
-        'right_shoulder': (87.937, 16.143, 4.58), 'right_elbow': (35.673, 15.385),
-        'right_wrist': (0.329, -20.602),
+        'spine_lumbar': (9.748, 1.229, 0.506), 'spine_thoracic': (-3.579, -4.865, 0.469),
+        'neck': (-0.842, -0.856, -26.845), 'head': (-1.028, -0.003),
+        'right_clavicle': (7.112, -0.891), 'right_shoulder': (88.156, 15.108, 3.499),
+        'right_elbow': (34.947, 14.265), 'right_wrist': (-0.123, -22.344),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (14.728, 3.392, -1.223), 'spine_thoracic': (-3.705, -9.032, -1.308),
-        'neck': (-2.859, -1.623, -27.0), 'head': (-3.19, -0.02), 'right_clavicle': (13.818, -3.685),
-        'right_shoulder': (88.4, 20.95, 9.426), 'right_elbow': (38.985, 20.331),
-        'right_wrist': (2.313, -12.703),
+        'spine_lumbar': (16.46, 4.901, -2.565), 'spine_thoracic': (-2.487, -10.0, -2.434),
+        'neck': (-4.566, -2.237, -25.552), 'head': (-4.996, -0.049),
+        'right_clavicle': (15.632, -4.5), 'right_shoulder': (91.848, 22.128, 12.207),
+        'right_elbow': (40.678, 22.657), 'right_wrist': (3.619, -10.33),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (14.896, 5.187, -3.562), 'spine_thoracic': (-1.43, -10.0, -3.42),
-        'neck': (-4.554, -2.18, -22.665), 'head': (-4.945, -0.048),
-        'right_clavicle': (16.33, -5.265), 'right_shoulder': (91.621, 21.842, 14.292),
-        'right_elbow': (41.884, 24.085), 'right_wrist': (4.467, -8.175),
+        'spine_lumbar': (15.263, 4.929, -3.055), 'spine_thoracic': (-2.0, -10.0, -2.913),
+        'neck': (-4.262, -2.094, -23.928), 'head': (-4.651, -0.042),
+        'right_clavicle': (15.774, -4.848), 'right_shoulder': (91.278, 21.696, 13.19),
+        'right_elbow': (41.254, 23.313), 'right_wrist': (4.026, -9.336),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (7.909, 0.978, -1.111), 'spine_thoracic': (-2.652, -5.728, -1.153),
-        'neck': (-0.289, -0.587, -23.863), 'head': (-0.407, -0.001),
-        'right_clavicle': (8.197, -2.335), 'right_shoulder': (85.535, 14.993, 6.769),
-        'right_elbow': (36.946, 16.891), 'right_wrist': (1.271, -18.43),
+        'spine_lumbar': (5.464, 0.917, 1.374), 'spine_thoracic': (-2.609, -1.779, 1.341),
+        'neck': (0.073, -0.478, -25.333), 'head': (-0.031, -0.001), 'right_clavicle': (2.62, 0.646),
+        'right_shoulder': (89.309, 10.829, 0.074), 'right_elbow': (32.815, 10.473),
+        'right_wrist': (-1.519, -27.968),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
@@ -605,65 +605,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (8.944, 1.135, 0.72), 'spine_thoracic': (-3.201, -4.082, 0.708),
-        'neck': (-0.785, -0.83, -26.623), 'head': (-0.964, -0.003),
-        'right_clavicle': (5.974, -0.437), 'right_shoulder': (88.921, 14.037, 2.636),
-        'right_elbow': (34.34, 13.312), 'right_wrist': (-0.45, -24.003),
+        'spine_lumbar': (7.463, 1.146, 1.412), 'spine_thoracic': (-3.035, -2.704, 1.389),
+        'neck': (-0.474, -0.708, -26.445), 'head': (-0.627, -0.002),
+        'right_clavicle': (4.008, 0.453), 'right_shoulder': (89.748, 12.342, 0.654),
+        'right_elbow': (33.191, 11.297), 'right_wrist': (-1.303, -26.79),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (13.001, 2.379, -0.69), 'spine_thoracic': (-3.562, -7.5, -0.752),
-        'neck': (-2.149, -1.356, -27.053), 'head': (-2.43, -0.012),
-        'right_clavicle': (11.286, -2.698), 'right_shoulder': (88.185, 18.746, 7.446),
-        'right_elbow': (37.61, 18.276), 'right_wrist': (1.54, -16.171),
+        'spine_lumbar': (13.993, 2.933, -1.011), 'spine_thoracic': (-3.62, -8.349, -1.084),
+        'neck': (-2.563, -1.512, -27.02), 'head': (-2.873, -0.017),
+        'right_clavicle': (12.689, -3.256), 'right_shoulder': (88.317, 19.959, 8.601),
+        'right_elbow': (38.41, 19.463), 'right_wrist': (2.0, -14.221),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (17.331, 5.532, -3.177), 'spine_thoracic': (-1.406, -10.0, -3.04),
-        'neck': (-5.755, -2.668, -25.01), 'head': (-6.249, -0.08), 'right_clavicle': (16.65, -5.19),
-        'right_shoulder': (94.348, 22.767, 13.583), 'right_elbow': (41.465, 23.953),
-        'right_wrist': (4.384, -9.093),
+        'spine_lumbar': (17.437, 5.603, -3.282), 'spine_thoracic': (-1.276, -10.0, -3.147),
+        'neck': (-5.899, -2.72, -24.815), 'head': (-6.4, -0.084), 'right_clavicle': (16.79, -5.289),
+        'right_shoulder': (94.64, 22.865, 13.812), 'right_elbow': (41.598, 24.111),
+        'right_wrist': (4.474, -8.833),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (10.265, 2.746, -2.737), 'spine_thoracic': (-2.163, -8.476, -2.669),
-        'neck': (-1.465, -1.005, -22.253), 'head': (-1.652, -0.006),
-        'right_clavicle': (12.751, -4.215), 'right_shoulder': (87.111, 18.283, 11.634),
-        'right_elbow': (40.113, 21.467), 'right_wrist': (3.304, -11.763),
+        'spine_lumbar': (6.269, 0.436, -0.606), 'spine_thoracic': (-2.185, -4.143, -0.6),
+        'neck': (0.043, -0.46, -23.806), 'head': (-0.05, -0.001), 'right_clavicle': (5.815, -1.395),
+        'right_shoulder': (86.477, 12.881, 4.722), 'right_elbow': (35.438, 14.748),
+        'right_wrist': (0.472, -22.142),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (6.718, 1.19, 1.331), 'spine_thoracic': (-2.343, -2.171, 1.293),
-        'neck': (-0.539, -0.72, -25.722), 'head': (-0.692, -0.002),
-        'right_clavicle': (3.245, 0.491), 'right_shoulder': (90.207, 11.48, 0.59),
-        'right_elbow': (33.181, 11.075), 'right_wrist': (-1.241, -27.241),
+        'spine_lumbar': (6.555, 1.235, 1.724), 'spine_thoracic': (-2.173, -1.564, 1.695),
+        'neck': (-0.674, -0.778, -26.13), 'head': (-0.84, -0.002), 'right_clavicle': (2.455, 0.959),
+        'right_shoulder': (91.391, 10.913, -0.377), 'right_elbow': (32.592, 10.155),
+        'right_wrist': (-1.614, -28.698),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'spine_lumbar': (7.354, 1.154, 1.462), 'spine_thoracic': (-3.035, -2.591, 1.437),
-        'neck': (-0.448, -0.698, -26.414), 'head': (-0.6, -0.002), 'right_clavicle': (3.85, 0.517),
-        'right_shoulder': (89.822, 12.206, 0.51), 'right_elbow': (33.111, 11.148),
-        'right_wrist': (-1.358, -27.0),
+        'spine_lumbar': (6.624, 1.234, 1.727), 'spine_thoracic': (-2.34, -1.665, 1.697),
+        'neck': (-0.614, -0.757, -26.179), 'head': (-0.776, -0.002),
+        'right_clavicle': (2.587, 0.938), 'right_shoulder': (91.201, 11.049, -0.352),
+        'right_elbow': (32.617, 10.2), 'right_wrist': (-1.63, -28.562),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (11.236, 1.612, -0.042), 'spine_thoracic': (-3.608, -6.088, -0.095),
-        'neck': (-1.362, -1.057, -27.018), 'head': (-1.586, -0.006),
-        'right_clavicle': (8.995, -1.723), 'right_shoulder': (87.957, 16.769, 5.303),
-        'right_elbow': (36.154, 16.113), 'right_wrist': (0.641, -19.515),
+        'spine_lumbar': (10.777, 1.466, 0.137), 'spine_thoracic': (-3.631, -5.727, 0.086),
+        'neck': (-1.153, -0.976, -26.953), 'head': (-1.363, -0.004),
+        'right_clavicle': (8.426, -1.468), 'right_shoulder': (87.931, 16.276, 4.733),
+        'right_elbow': (35.774, 15.54), 'right_wrist': (0.396, -20.371),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (15.281, 3.761, -1.365), 'spine_thoracic': (-3.797, -9.59, -1.461),
-        'neck': (-3.071, -1.703, -26.993), 'head': (-3.417, -0.023),
-        'right_clavicle': (14.735, -4.021), 'right_shoulder': (88.445, 21.771, 10.022),
-        'right_elbow': (39.401, 20.976), 'right_wrist': (2.529, -11.5),
+        'spine_lumbar': (16.954, 5.289, -2.971), 'spine_thoracic': (-1.87, -10.0, -2.814),
+        'neck': (-5.251, -2.484, -25.074), 'head': (-5.717, -0.065),
+        'right_clavicle': (16.146, -4.834), 'right_shoulder': (93.312, 22.416, 13.055),
+        'right_elbow': (41.165, 23.387), 'right_wrist': (4.065, -9.664),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (13.584, 4.899, -3.596), 'spine_thoracic': (-1.533, -10.0, -3.452),
-        'neck': (-3.748, -1.862, -21.838), 'head': (-4.079, -0.032),
-        'right_clavicle': (15.985, -5.244), 'right_shoulder': (90.188, 21.186, 14.346),
-        'right_elbow': (41.916, 24.061), 'right_wrist': (4.46, -8.094),
+        'spine_lumbar': (12.857, 3.45, -2.017), 'spine_thoracic': (-3.174, -9.362, -2.112),
+        'neck': (-2.233, -1.341, -24.579), 'head': (-2.494, -0.013),
+        'right_clavicle': (14.239, -4.348), 'right_shoulder': (86.806, 20.461, 11.111),
+        'right_elbow': (40.037, 21.548), 'right_wrist': (2.965, -10.669),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (7.541, 1.003, -0.547), 'spine_thoracic': (-2.616, -4.871, -0.599),
-        'neck': (-0.321, -0.605, -24.361), 'head': (-0.443, -0.001),
-        'right_clavicle': (6.927, -1.681), 'right_shoulder': (86.087, 14.071, 5.273),
-        'right_elbow': (36.017, 15.481), 'right_wrist': (0.657, -20.541),
+        'spine_lumbar': (5.935, 1.087, 1.579), 'spine_thoracic': (-2.297, -1.558, 1.547),
+        'neck': (-0.329, -0.639, -25.709), 'head': (-0.466, -0.001),
+        'right_clavicle': (2.38, 0.852), 'right_shoulder': (90.547, 10.721, -0.26),
+        'right_elbow': (32.643, 10.194), 'right_wrist': (-1.608, -28.521),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
@@ -673,65 +673,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (9.5, 1.19, 0.568), 'spine_thoracic': (-3.463, -4.625, 0.539),
-        'neck': (-0.836, -0.852, -26.787), 'head': (-1.02, -0.003),
-        'right_clavicle': (6.761, -0.752), 'right_shoulder': (88.38, 14.775, 3.239),
-        'right_elbow': (34.759, 13.976), 'right_wrist': (-0.22, -22.86),
+        'spine_lumbar': (8.063, 1.111, 1.091), 'spine_thoracic': (-3.035, -3.25, 1.08),
+        'neck': (-0.625, -0.766, -26.477), 'head': (-0.79, -0.002),
+        'right_clavicle': (4.781, 0.085), 'right_shoulder': (89.494, 12.981, 1.514),
+        'right_elbow': (33.66, 12.151), 'right_wrist': (-0.918, -25.704),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (13.581, 2.693, -0.881), 'spine_thoracic': (-3.59, -7.99, -0.949),
-        'neck': (-2.391, -1.447, -27.033), 'head': (-2.689, -0.015),
-        'right_clavicle': (12.094, -3.023), 'right_shoulder': (88.263, 19.445, 8.125),
-        'right_elbow': (38.08, 18.971), 'right_wrist': (1.813, -15.038),
+        'spine_lumbar': (14.893, 3.496, -1.261), 'spine_thoracic': (-3.736, -9.215, -1.349),
+        'neck': (-2.912, -1.644, -27.059), 'head': (-3.247, -0.021),
+        'right_clavicle': (14.112, -3.789), 'right_shoulder': (88.411, 21.228, 9.594),
+        'right_elbow': (39.104, 20.519), 'right_wrist': (2.372, -12.317),
     })
     human.KeyJoints(11.1, {
-        'spine_lumbar': (17.252, 5.577, -3.367), 'spine_thoracic': (-1.285, -10.0, -3.231),
-        'neck': (-5.773, -2.669, -24.423), 'head': (-6.263, -0.08),
-        'right_clavicle': (16.764, -5.288), 'right_shoulder': (94.415, 22.798, 13.964),
-        'right_elbow': (41.688, 24.111), 'right_wrist': (4.474, -8.634),
+        'spine_lumbar': (17.376, 5.595, -3.294), 'spine_thoracic': (-1.257, -10.0, -3.159),
+        'neck': (-5.875, -2.711, -24.762), 'head': (-6.375, -0.084),
+        'right_clavicle': (16.768, -5.295), 'right_shoulder': (94.603, 22.83, 13.829),
+        'right_elbow': (41.608, 24.116), 'right_wrist': (4.481, -8.817),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (9.256, 1.86, -2.188), 'spine_thoracic': (-2.409, -7.522, -2.163),
-        'neck': (-0.922, -0.811, -22.661), 'head': (-1.077, -0.004),
-        'right_clavicle': (11.112, -3.58), 'right_shoulder': (86.279, 17.089, 9.939),
-        'right_elbow': (38.995, 19.872), 'right_wrist': (2.592, -14.07),
+        'spine_lumbar': (5.359, 0.462, 0.159), 'spine_thoracic': (-2.238, -2.921, 0.162),
+        'neck': (0.235, -0.393, -24.142), 'head': (0.154, 0.0), 'right_clavicle': (4.078, -0.489),
+        'right_shoulder': (87.459, 11.55, 2.626), 'right_elbow': (34.134, 12.732),
+        'right_wrist': (-0.416, -25.088),
     })
     human.KeyJoints(11.3, {
-        'spine_lumbar': (6.599, 1.232, 1.675), 'spine_thoracic': (-2.281, -1.689, 1.643),
-        'neck': (-0.62, -0.757, -26.08), 'head': (-0.781, -0.002), 'right_clavicle': (2.614, 0.888),
-        'right_shoulder': (91.143, 11.044, -0.243), 'right_elbow': (32.682, 10.291),
-        'right_wrist': (-1.577, -28.442),
+        'spine_lumbar': (6.576, 1.24, 1.737), 'spine_thoracic': (-2.241, -1.589, 1.708),
+        'neck': (-0.65, -0.77, -26.154), 'head': (-0.815, -0.002), 'right_clavicle': (2.486, 0.964),
+        'right_shoulder': (91.349, 10.951, -0.395), 'right_elbow': (32.588, 10.146),
+        'right_wrist': (-1.634, -28.679),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
-        'spine_lumbar': (7.869, 1.118, 1.194), 'spine_thoracic': (-3.035, -3.078, 1.18),
-        'neck': (-0.567, -0.744, -26.462), 'head': (-0.728, -0.002),
-        'right_clavicle': (4.536, 0.204), 'right_shoulder': (89.572, 12.778, 1.237),
-        'right_elbow': (33.507, 11.876), 'right_wrist': (-1.044, -26.054),
+        'spine_lumbar': (6.761, 1.215, 1.686), 'spine_thoracic': (-2.545, -1.861, 1.656),
+        'neck': (-0.547, -0.732, -26.234), 'head': (-0.705, -0.002),
+        'right_clavicle': (2.85, 0.861), 'right_shoulder': (90.842, 11.297, -0.202),
+        'right_elbow': (32.704, 10.372), 'right_wrist': (-1.592, -28.249),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (11.822, 1.834, -0.27), 'spine_thoracic': (-3.567, -6.545, -0.324),
-        'neck': (-1.659, -1.171, -27.087), 'head': (-1.904, -0.009),
-        'right_clavicle': (9.729, -2.046), 'right_shoulder': (88.034, 17.4, 6.03),
-        'right_elbow': (36.641, 16.841),
+        'spine_lumbar': (11.868, 1.853, -0.287), 'spine_thoracic': (-3.566, -6.581, -0.342),
+        'neck': (-1.675, -1.177, -27.085), 'head': (-1.921, -0.009),
+        'right_clavicle': (9.787, -2.071), 'right_shoulder': (88.039, 17.45, 6.086),
+        'right_elbow': (36.678, 16.897), 'right_wrist': (0.976, -18.336),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (15.923, 4.359, -1.911), 'spine_thoracic': (-3.327, -9.888, -1.91),
-        'neck': (-3.735, -1.942, -26.421), 'head': (-4.12, -0.033),
-        'right_clavicle': (15.271, -4.285), 'right_shoulder': (89.73, 22.005, 11.12),
-        'right_elbow': (40.063, 21.857), 'right_wrist': (3.046, -10.8),
+        'spine_lumbar': (17.254, 5.494, -3.178), 'spine_thoracic': (-1.5, -10.0, -3.026),
+        'neck': (-5.657, -2.632, -24.881), 'head': (-6.145, -0.077),
+        'right_clavicle': (16.53, -5.103), 'right_shoulder': (94.151, 22.679, 13.535),
+        'right_elbow': (41.44, 23.835), 'right_wrist': (4.322, -9.169),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (12.523, 4.461, -3.514), 'spine_thoracic': (-1.672, -9.851, -3.377),
-        'neck': (-2.955, -1.559, -21.849), 'head': (-3.233, -0.021),
-        'right_clavicle': (15.399, -5.127), 'right_shoulder': (89.171, 20.446, 14.082),
-        'right_elbow': (41.739, 23.787), 'right_wrist': (4.341, -8.45),
+        'spine_lumbar': (10.341, 2.138, -1.746), 'spine_thoracic': (-2.768, -7.623, -1.808),
+        'neck': (-1.2, -0.936, -23.897), 'head': (-1.385, -0.005),
+        'right_clavicle': (11.305, -3.463), 'right_shoulder': (86.053, 17.714, 9.367),
+        'right_elbow': (38.773, 19.565), 'right_wrist': (2.325, -14.12),
     })
     human.KeyJoints(11.8, {
-        'spine_lumbar': (7.208, 1.058, 0.114), 'spine_thoracic': (-2.536, -3.905, 0.061),
-        'neck': (-0.383, -0.641, -24.833), 'head': (-0.516, -0.001),
-        'right_clavicle': (5.573, -0.916), 'right_shoulder': (87.293, 13.109, 3.593),
-        'right_elbow': (34.992, 13.9), 'right_wrist': (-0.026, -22.933),
+        'spine_lumbar': (6.313, 1.179, 1.655), 'spine_thoracic': (-2.161, -1.545, 1.627),
+        'neck': (-0.568, -0.735, -25.948), 'head': (-0.725, -0.002),
+        'right_clavicle': (2.395, 0.92), 'right_shoulder': (91.224, 10.784, -0.315),
+        'right_elbow': (32.614, 10.178), 'right_wrist': (-1.6, -28.671),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
@@ -741,28 +741,28 @@ def remove_access_panel():
         'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(12.0, {
-        'spine_lumbar': (10.067, 1.287, 0.409), 'spine_thoracic': (-3.618, -5.151, 0.364),
-        'neck': (-0.906, -0.882, -26.906), 'head': (-1.097, -0.003),
-        'right_clavicle': (7.539, -1.069), 'right_shoulder': (88.034, 15.498, 3.859),
-        'right_elbow': (35.196, 14.65), 'right_wrist': (0.021, -21.709),
+        'spine_lumbar': (8.821, 1.128, 0.764), 'spine_thoracic': (-3.163, -3.964, 0.754),
+        'neck': (-0.768, -0.823, -26.589), 'head': (-0.945, -0.003),
+        'right_clavicle': (5.804, -0.365), 'right_shoulder': (89.014, 13.882, 2.488),
+        'right_elbow': (34.245, 13.156), 'right_wrist': (-0.51, -24.249),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (14.155, 3.032, -1.06), 'spine_thoracic': (-3.635, -8.493, -1.135),
-        'neck': (-2.63, -1.537, -27.013), 'head': (-2.945, -0.017),
-        'right_clavicle': (12.928, -3.349), 'right_shoulder': (88.338, 20.165, 8.787),
-        'right_elbow': (38.54, 19.656), 'right_wrist': (2.072, -13.896),
+        'spine_lumbar': (15.704, 4.129, -1.647), 'spine_thoracic': (-3.623, -9.804, -1.705),
+        'neck': (-3.428, -1.831, -26.686), 'head': (-3.795, -0.028),
+        'right_clavicle': (15.133, -4.21), 'right_shoulder': (88.962, 21.961, 10.683),
+        'right_elbow': (39.811, 21.54), 'right_wrist': (2.823, -10.981),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (16.291, 5.43, -3.484), 'spine_thoracic': (-1.34, -10.0, -3.344),
-        'neck': (-5.22, -2.447, -23.617), 'head': (-5.664, -0.064),
-        'right_clavicle': (16.604, -5.28), 'right_shoulder': (93.254, 22.429, 14.163),
-        'right_elbow': (41.806, 24.102), 'right_wrist': (4.472, -8.361),
+        'spine_lumbar': (16.814, 5.493, -3.399), 'spine_thoracic': (-1.054, -10.0, -3.266),
+        'neck': (-5.662, -2.624, -24.345), 'head': (-6.143, -0.077),
+        'right_clavicle': (16.479, -5.3), 'right_shoulder': (94.277, 22.446, 13.898),
+        'right_elbow': (41.629, 24.08), 'right_wrist': (4.514, -8.879),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (8.505, 1.243, -1.609), 'spine_thoracic': (-2.59, -6.566, -1.626),
-        'neck': (-0.471, -0.651, -23.297), 'head': (-0.599, -0.002),
-        'right_clavicle': (9.546, -2.922), 'right_shoulder': (85.717, 15.992, 8.242),
-        'right_elbow': (37.926, 18.28), 'right_wrist': (1.875, -16.318),
+        'spine_lumbar': (4.916, 0.283, 0.638), 'spine_thoracic': (-1.992, -2.21, 0.631),
+        'neck': (0.236, -0.404, -24.732), 'head': (0.149, 0.0), 'right_clavicle': (2.979, 0.064),
+        'right_shoulder': (88.685, 10.707, 1.015), 'right_elbow': (32.734, 11.261),
+        'right_wrist': (-1.05, -28.038),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.394506, duration=0.072)
@@ -831,34 +831,34 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
-        'spine_lumbar': (2.377, -18.466, 7.42), 'spine_thoracic': (-8.608, -7.698, 7.457),
-        'neck': (2.848, -0.773, -17.037), 'head': (3.007, -0.021), 'right_clavicle': (4.522, 6.415),
-        'right_shoulder': (88.195, 7.781, -1.998), 'right_elbow': (22.233, 9.315),
-        'right_wrist': (-2.158, -30.0),
+        'spine_lumbar': (2.428, -17.485, 8.431), 'spine_thoracic': (-8.73, -6.298, 8.234),
+        'neck': (2.776, -0.751, -16.899), 'head': (2.93, -0.021), 'right_clavicle': (3.03, 7.157),
+        'right_shoulder': (88.711, 6.995, -3.631), 'right_elbow': (22.365, 7.652),
+        'right_wrist': (-2.999, -30.0),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (3.19, -20.0, 5.014), 'spine_thoracic': (-8.58, -10.0, 5.876),
-        'neck': (2.604, -0.705, -16.351), 'right_clavicle': (10.744, 4.654),
-        'right_shoulder': (87.149, 10.608, 3.993), 'right_elbow': (22.111, 15.308),
-        'right_wrist': (0.817, -27.877),
+        'spine_lumbar': (3.221, -20.0, 4.962), 'spine_thoracic': (-8.594, -10.0, 5.854),
+        'neck': (2.592, -0.702, -16.297), 'head': (2.735, -0.019),
+        'right_clavicle': (10.958, 4.624), 'right_shoulder': (87.144, 10.687, 4.173),
+        'right_elbow': (22.085, 15.489), 'right_wrist': (0.91, -27.778),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (4.524, -18.893, 3.569), 'spine_thoracic': (-9.692, -10.0, 5.58),
-        'neck': (2.299, -0.648, -13.976), 'head': (2.425, -0.015), 'right_clavicle': (19.69, 3.971),
-        'right_shoulder': (87.398, 13.851, 10.789), 'right_elbow': (20.499, 22.168),
-        'right_wrist': (4.428, -22.76),
+        'spine_lumbar': (5.166, -18.477, 3.15), 'spine_thoracic': (-10.036, -10.0, 5.508),
+        'neck': (2.101, -0.598, -13.309), 'head': (2.216, -0.011),
+        'right_clavicle': (22.216, 3.723), 'right_shoulder': (87.666, 14.873, 12.825),
+        'right_elbow': (20.571, 24.212), 'right_wrist': (5.453, -21.172),
     })
     human.KeyJoints(13.8, {
-        'spine_lumbar': (0.588, -19.023, 3.059), 'spine_thoracic': (-9.113, -10.0, 5.242),
-        'neck': (3.772, -1.205, -11.788), 'head': (3.99, -0.012), 'right_clavicle': (20.337, 3.804),
-        'right_shoulder': (85.476, 11.569, 13.071), 'right_elbow': (21.23, 23.544),
-        'right_wrist': (5.474, -21.519),
+        'spine_lumbar': (-0.158, -20.0, 4.053), 'spine_thoracic': (-8.199, -10.0, 5.278),
+        'neck': (3.798, -1.174, -13.281), 'head': (4.016, -0.024),
+        'right_clavicle': (13.213, 4.305), 'right_shoulder': (85.151, 9.283, 7.337),
+        'right_elbow': (22.04, 17.92), 'right_wrist': (2.473, -26.284),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (0.109, -19.073, 6.465), 'spine_thoracic': (-8.176, -8.662, 6.607),
-        'neck': (3.649, -1.076, -15.517), 'head': (3.858, -0.029), 'right_clavicle': (5.991, 5.878),
-        'right_shoulder': (86.217, 7.174, 0.232), 'right_elbow': (22.355, 11.065),
-        'right_wrist': (-1.1, -29.192),
+        'spine_lumbar': (2.241, -17.208, 8.6), 'spine_thoracic': (-8.693, -5.997, 8.362),
+        'neck': (2.824, -0.772, -16.684), 'head': (2.981, -0.021), 'right_clavicle': (2.685, 7.315),
+        'right_shoulder': (88.632, 6.653, -3.859), 'right_elbow': (22.55, 7.363),
+        'right_wrist': (-3.124, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
@@ -868,28 +868,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (2.773, -19.922, 6.359), 'spine_thoracic': (-9.458, -9.998, 6.608),
-        'neck': (3.346, -0.922, -17.9), 'head': (3.538, -0.026), 'right_clavicle': (7.68, 5.194),
-        'right_shoulder': (85.782, 9.898, 0.783), 'right_elbow': (22.748, 12.121),
-        'right_wrist': (-1.021, -29.049),
+        'spine_lumbar': (2.553, -19.189, 7.213), 'spine_thoracic': (-9.69, -8.854, 7.245),
+        'neck': (3.424, -0.953, -17.725), 'head': (3.62, -0.027), 'right_clavicle': (6.081, 5.858),
+        'right_shoulder': (86.042, 9.113, -0.82), 'right_elbow': (22.926, 10.481),
+        'right_wrist': (-1.828, -29.961),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (4.116, -20.0, 3.852), 'spine_thoracic': (-8.866, -10.0, 5.345),
-        'neck': (2.231, -0.602, -15.285), 'head': (2.352, -0.016),
-        'right_clavicle': (15.195, 3.907), 'right_shoulder': (87.166, 12.424, 7.909),
-        'right_elbow': (22.132, 19.233), 'right_wrist': (2.773, -25.453),
+        'spine_lumbar': (4.436, -18.947, 3.634), 'spine_thoracic': (-9.646, -10.0, 5.592),
+        'neck': (2.334, -0.659, -14.078), 'head': (2.462, -0.016),
+        'right_clavicle': (19.331, 4.008), 'right_shoulder': (87.364, 13.711, 10.496),
+        'right_elbow': (20.504, 21.875), 'right_wrist': (4.28, -22.971),
     })
     human.KeyJoints(14.3, {
-        'spine_lumbar': (3.749, -18.541, 3.02), 'spine_thoracic': (-9.867, -10.0, 5.363),
-        'neck': (2.687, -0.816, -12.445), 'head': (2.838, -0.013),
-        'right_clavicle': (22.262, 3.701), 'right_shoulder': (86.933, 14.202, 13.398),
-        'right_elbow': (20.786, 24.408), 'right_wrist': (5.677, -20.965),
+        'spine_lumbar': (4.539, -18.507, 3.096), 'spine_thoracic': (-9.943, -10.0, 5.458),
+        'neck': (2.343, -0.687, -12.97), 'head': (2.473, -0.012), 'right_clavicle': (22.241, 3.711),
+        'right_shoulder': (87.349, 14.52, 13.078), 'right_elbow': (20.671, 24.334),
+        'right_wrist': (5.566, -21.033),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (-1.025, -19.953, 4.481), 'spine_thoracic': (-7.946, -10.0, 5.495),
-        'neck': (4.095, -1.265, -13.367), 'head': (4.331, -0.029),
-        'right_clavicle': (10.964, 4.617), 'right_shoulder': (84.948, 7.977, 5.577),
-        'right_elbow': (21.999, 16.048), 'right_wrist': (1.589, -27.474),
+        'spine_lumbar': (0.148, -17.764, 7.752), 'spine_thoracic': (-8.243, -6.836, 7.663),
+        'neck': (3.609, -1.059, -15.548), 'head': (3.816, -0.029), 'right_clavicle': (3.248, 6.87),
+        'right_shoulder': (87.197, 5.862, -2.772), 'right_elbow': (22.046, 8.119),
+        'right_wrist': (-2.566, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
@@ -899,65 +899,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (2.44, -18.843, 7.261), 'spine_thoracic': (-8.903, -8.308, 7.307),
-        'neck': (3.016, -0.825, -17.245), 'head': (3.186, -0.023), 'right_clavicle': (5.302, 6.114),
-        'right_shoulder': (87.388, 8.359, -1.32), 'right_elbow': (22.536, 9.985),
-        'right_wrist': (-1.939, -29.994),
+        'spine_lumbar': (2.373, -17.796, 8.173), 'spine_thoracic': (-8.707, -6.682, 8.031),
+        'neck': (2.819, -0.764, -16.969), 'head': (2.976, -0.021), 'right_clavicle': (3.425, 6.952),
+        'right_shoulder': (88.521, 7.214, -3.259), 'right_elbow': (22.285, 8.042),
+        'right_wrist': (-2.814, -30.0),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (3.365, -20.0, 4.739), 'spine_thoracic': (-8.661, -10.0, 5.76),
-        'neck': (2.541, -0.689, -16.064), 'head': (2.681, -0.018),
-        'right_clavicle': (11.892, 4.493), 'right_shoulder': (87.11, 11.041, 4.957),
-        'right_elbow': (21.987, 16.275), 'right_wrist': (1.313, -27.294),
+        'spine_lumbar': (3.58, -20.0, 4.453), 'spine_thoracic': (-8.737, -10.0, 5.632),
+        'neck': (2.458, -0.666, -15.777), 'right_clavicle': (13.061, 4.315),
+        'right_shoulder': (87.112, 11.501, 5.967), 'right_elbow': (21.975, 17.288),
+        'right_wrist': (1.825, -26.684),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (4.854, -18.69, 3.343), 'spine_thoracic': (-9.86, -10.0, 5.542),
-        'neck': (2.196, -0.623, -13.653), 'head': (2.317, -0.013),
-        'right_clavicle': (20.976, 3.838), 'right_shoulder': (87.528, 14.368, 11.829),
-        'right_elbow': (20.499, 23.221), 'right_wrist': (4.953, -21.971),
+        'spine_lumbar': (5.24, -18.428, 3.107), 'spine_thoracic': (-10.076, -10.0, 5.501),
+        'neck': (2.078, -0.591, -13.235), 'head': (2.191, -0.011),
+        'right_clavicle': (22.497, 3.695), 'right_shoulder': (87.7, 14.99, 13.049),
+        'right_elbow': (20.595, 24.437), 'right_wrist': (5.566, -20.985),
     })
     human.KeyJoints(14.9, {
-        'spine_lumbar': (0.046, -19.273, 3.282), 'spine_thoracic': (-8.788, -10.0, 5.276),
-        'neck': (3.873, -1.236, -12.003), 'head': (4.096, -0.016),
-        'right_clavicle': (18.415, 3.937), 'right_shoulder': (85.291, 10.591, 11.736),
-        'right_elbow': (21.423, 22.139), 'right_wrist': (4.779, -22.736),
+        'spine_lumbar': (-1.099, -19.994, 4.932), 'spine_thoracic': (-7.91, -9.996, 5.623),
+        'neck': (4.138, -1.272, -14.0), 'head': (4.377, -0.031), 'right_clavicle': (9.229, 4.88),
+        'right_shoulder': (84.88, 7.586, 3.917), 'right_elbow': (22.124, 14.443),
+        'right_wrist': (0.73, -28.288),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (1.032, -18.357, 7.353), 'spine_thoracic': (-8.397, -7.629, 7.312),
-        'neck': (3.377, -0.97, -16.042), 'head': (3.57, -0.027), 'right_clavicle': (4.563, 6.465),
-        'right_shoulder': (87.212, 7.013, -1.531), 'right_elbow': (22.452, 9.476),
-        'right_wrist': (-1.974, -29.561),
+        'spine_lumbar': (2.402, -17.219, 8.621), 'spine_thoracic': (-8.727, -5.994, 8.382),
+        'neck': (2.765, -0.75, -16.778), 'head': (2.919, -0.021), 'right_clavicle': (2.714, 7.317),
+        'right_shoulder': (88.728, 6.768, -3.88), 'right_elbow': (22.567, 7.365),
+        'right_wrist': (-3.134, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
-        'spine_lumbar': (2.429, -17.5, 8.413), 'spine_thoracic': (-8.727, -6.325, 8.22),
-        'neck': (2.779, -0.752, -16.901), 'head': (2.933, -0.021), 'right_clavicle': (3.061, 7.143),
-        'right_shoulder': (88.655, 7.011, -3.589), 'right_elbow': (22.432, 7.692),
-        'right_wrist': (-2.984, -30.0),
+        'spine_lumbar': (2.482, -17.237, 8.625), 'spine_thoracic': (-8.744, -6.008, 8.387),
+        'neck': (2.737, -0.739, -16.834), 'head': (2.889, -0.02), 'right_clavicle': (2.739, 7.311),
+        'right_shoulder': (88.774, 6.83, -3.882), 'right_elbow': (22.57, 7.381),
+        'right_wrist': (-3.135, -30.0),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (2.871, -19.997, 5.627), 'spine_thoracic': (-8.542, -10.0, 6.166),
-        'neck': (2.789, -0.753, -17.033), 'head': (2.944, -0.021), 'right_clavicle': (8.517, 5.001),
-        'right_shoulder': (87.126, 9.883, 1.973), 'right_elbow': (22.29, 13.301),
-        'right_wrist': (-0.226, -28.686),
+        'spine_lumbar': (2.725, -19.856, 6.649), 'spine_thoracic': (-9.658, -9.984, 6.803),
+        'neck': (3.455, -0.955, -18.088), 'head': (3.653, -0.027), 'right_clavicle': (7.294, 5.313),
+        'right_shoulder': (85.547, 9.895, 0.308), 'right_elbow': (22.862, 11.642),
+        'right_wrist': (-1.304, -29.254),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (4.256, -19.847, 3.741), 'spine_thoracic': (-9.048, -10.0, 5.365),
-        'neck': (2.229, -0.606, -14.919), 'head': (2.35, -0.015), 'right_clavicle': (16.561, 3.888),
-        'right_shoulder': (87.22, 12.898, 8.862), 'right_elbow': (21.842, 20.202),
-        'right_wrist': (3.301, -24.622),
+        'spine_lumbar': (4.772, -18.748, 3.393), 'spine_thoracic': (-9.813, -10.0, 5.549),
+        'neck': (2.221, -0.629, -13.727), 'head': (2.343, -0.014),
+        'right_clavicle': (20.635, 3.869), 'right_shoulder': (87.493, 14.231, 11.568),
+        'right_elbow': (20.494, 22.949), 'right_wrist': (4.818, -22.187),
     })
     human.KeyJoints(15.4, {
-        'spine_lumbar': (2.279, -18.684, 2.995), 'spine_thoracic': (-9.622, -10.0, 5.276),
-        'neck': (3.176, -0.997, -12.01), 'right_clavicle': (21.865, 3.719),
-        'right_shoulder': (86.198, 13.303, 13.49), 'right_elbow': (20.921, 24.293),
-        'right_wrist': (5.702, -21.003),
+        'spine_lumbar': (3.115, -18.845, 3.22), 'spine_thoracic': (-9.565, -10.0, 5.403),
+        'neck': (2.847, -0.863, -12.794), 'head': (3.008, -0.015),
+        'right_clavicle': (20.723, 3.826), 'right_shoulder': (86.647, 13.298, 12.266),
+        'right_elbow': (20.738, 23.301), 'right_wrist': (5.132, -21.839),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (-1.072, -19.99, 4.931), 'spine_thoracic': (-7.894, -9.985, 5.608),
-        'neck': (4.108, -1.264, -14.017), 'head': (4.346, -0.03), 'right_clavicle': (9.198, 4.886),
-        'right_shoulder': (84.945, 7.607, 3.878), 'right_elbow': (22.128, 14.42),
-        'right_wrist': (0.723, -28.248),
+        'spine_lumbar': (1.091, -17.352, 8.272), 'spine_thoracic': (-8.458, -6.249, 8.083),
+        'neck': (3.255, -0.93, -16.048), 'head': (3.44, -0.025), 'right_clavicle': (2.789, 7.175),
+        'right_shoulder': (87.877, 6.043, -3.479), 'right_elbow': (22.298, 7.55),
+        'right_wrist': (-2.93, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
@@ -967,65 +967,64 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (2.57, -19.246, 7.2), 'spine_thoracic': (-9.732, -8.944, 7.229),
-        'neck': (3.45, -0.959, -17.809), 'head': (3.648, -0.027), 'right_clavicle': (6.199, 5.814),
-        'right_shoulder': (85.934, 9.207, -0.731), 'right_elbow': (22.946, 10.57),
-        'right_wrist': (-1.803, -29.953),
+        'spine_lumbar': (2.356, -18.186, 7.786), 'spine_thoracic': (-8.663, -7.233, 7.732),
+        'neck': (2.846, -0.773, -17.004), 'head': (3.005, -0.021), 'right_clavicle': (4.011, 6.661),
+        'right_shoulder': (88.313, 7.527, -2.638), 'right_elbow': (22.241, 8.678),
+        'right_wrist': (-2.496, -30.0),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (3.572, -20.0, 4.463), 'spine_thoracic': (-8.734, -10.0, 5.637),
-        'neck': (2.461, -0.668, -15.787), 'head': (2.596, -0.018), 'right_clavicle': (13.02, 4.321),
-        'right_shoulder': (87.112, 11.485, 5.931), 'right_elbow': (21.974, 17.251),
-        'right_wrist': (1.806, -26.706),
+        'spine_lumbar': (4.05, -20.0, 3.922), 'spine_thoracic': (-8.85, -10.0, 5.379),
+        'neck': (2.257, -0.609, -15.272), 'head': (2.379, -0.016),
+        'right_clavicle': (14.953, 3.955), 'right_shoulder': (87.155, 12.315, 7.688),
+        'right_elbow': (22.103, 19.011), 'right_wrist': (2.666, -25.603),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (5.225, -18.439, 3.128), 'spine_thoracic': (-10.068, -10.0, 5.511),
-        'neck': (2.083, -0.593, -13.326), 'head': (2.196, -0.011),
-        'right_clavicle': (22.437, 3.701), 'right_shoulder': (87.693, 14.965, 12.957),
-        'right_elbow': (20.574, 24.389), 'right_wrist': (5.528, -21.024),
+        'spine_lumbar': (5.259, -18.416, 3.097), 'spine_thoracic': (-10.086, -10.0, 5.499),
+        'neck': (2.072, -0.59, -13.218), 'head': (2.185, -0.011), 'right_clavicle': (22.565, 3.688),
+        'right_shoulder': (87.708, 15.018, 13.103), 'right_elbow': (20.601, 24.491),
+        'right_wrist': (5.593, -20.939),
     })
     human.KeyJoints(16.0, {
-        'spine_lumbar': (-0.426, -19.542, 3.618), 'spine_thoracic': (-8.449, -10.0, 5.331),
-        'neck': (3.951, -1.252, -12.285), 'head': (4.179, -0.019),
-        'right_clavicle': (15.965, 4.127), 'right_shoulder': (85.136, 9.589, 9.835),
-        'right_elbow': (21.627, 20.222), 'right_wrist': (3.79, -24.364),
+        'spine_lumbar': (-1.189, -19.415, 6.474), 'spine_thoracic': (-9.083, -9.528, 6.578),
+        'neck': (4.791, -1.464, -15.315), 'head': (5.072, -0.04), 'right_clavicle': (6.286, 5.595),
+        'right_shoulder': (83.606, 6.998, 0.635), 'right_elbow': (22.762, 11.224),
+        'right_wrist': (-1.159, -29.749),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (1.873, -17.705, 8.107), 'spine_thoracic': (-8.598, -6.686, 7.94),
-        'neck': (3.044, -0.849, -16.488), 'head': (3.215, -0.024), 'right_clavicle': (3.453, 6.965),
-        'right_shoulder': (88.119, 6.897, -2.945), 'right_elbow': (22.526, 8.212),
-        'right_wrist': (-2.673, -29.832),
+        'spine_lumbar': (2.463, -17.226, 8.627), 'spine_thoracic': (-8.74, -5.996, 8.388),
+        'neck': (2.742, -0.742, -16.815), 'head': (2.895, -0.02), 'right_clavicle': (2.727, 7.316),
+        'right_shoulder': (88.765, 6.812, -3.885), 'right_elbow': (22.572, 7.37),
+        'right_wrist': (-3.137, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
-        'spine_lumbar': (2.354, -18.101, 7.888), 'spine_thoracic': (-8.677, -7.102, 7.809),
-        'neck': (2.843, -0.772, -17.017), 'right_clavicle': (3.871, 6.73),
-        'right_shoulder': (88.358, 7.457, -2.802), 'right_elbow': (22.236, 8.512),
-        'right_wrist': (-2.583, -30.0),
+        'spine_lumbar': (2.468, -17.301, 8.576), 'spine_thoracic': (-8.741, -6.082, 8.348),
+        'right_clavicle': (2.813, 7.271), 'right_shoulder': (88.747, 6.872, -3.82),
+        'right_elbow': (22.532, 7.449), 'right_wrist': (-3.102, -30.0),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (3.014, -20.0, 5.277), 'spine_thoracic': (-8.515, -10.0, 5.992),
-        'neck': (2.666, -0.72, -16.638), 'head': (2.813, -0.02), 'right_clavicle': (9.564, 4.823),
-        'right_shoulder': (87.178, 10.114, 3.004), 'right_elbow': (22.197, 14.324),
-        'right_wrist': (0.327, -28.309),
+        'spine_lumbar': (2.908, -20.0, 5.488), 'spine_thoracic': (-8.489, -10.0, 6.093),
+        'neck': (2.726, -0.735, -16.867), 'head': (2.878, -0.02), 'right_clavicle': (8.805, 4.945),
+        'right_shoulder': (87.206, 9.886, 2.304), 'right_elbow': (22.238, 13.63),
+        'right_wrist': (-0.033, -28.571),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (4.307, -19.144, 3.72), 'spine_thoracic': (-9.494, -10.0, 5.597),
-        'neck': (2.35, -0.659, -14.349), 'head': (2.479, -0.016), 'right_clavicle': (18.34, 4.04),
-        'right_shoulder': (87.295, 13.366, 9.788), 'right_elbow': (20.557, 21.158),
-        'right_wrist': (3.895, -23.559),
+        'spine_lumbar': (5.008, -18.583, 3.244), 'spine_thoracic': (-9.949, -10.0, 5.524),
+        'neck': (2.15, -0.61, -13.47), 'head': (2.267, -0.012), 'right_clavicle': (21.606, 3.781),
+        'right_shoulder': (87.596, 14.622, 12.339), 'right_elbow': (20.528, 23.723),
+        'right_wrist': (5.209, -21.571),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (1.182, -18.837, 2.985), 'spine_thoracic': (-9.376, -10.0, 5.232),
-        'neck': (3.613, -1.155, -11.714), 'head': (3.821, -0.011),
-        'right_clavicle': (21.365, 3.743), 'right_shoulder': (85.691, 12.423, 13.524),
-        'right_elbow': (21.065, 24.14), 'right_wrist': (5.711, -21.053),
+        'spine_lumbar': (1.63, -20.0, 3.234), 'spine_thoracic': (-8.585, -10.0, 4.955),
+        'neck': (3.142, -0.957, -13.056), 'head': (3.321, -0.018),
+        'right_clavicle': (16.873, 3.651), 'right_shoulder': (85.79, 11.47, 10.373),
+        'right_elbow': (22.465, 21.143), 'right_wrist': (3.943, -24.016),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.678, -19.684, 5.593), 'spine_thoracic': (-7.988, -9.544, 5.978),
-        'neck': (3.94, -1.194, -14.765), 'head': (4.167, -0.03), 'right_clavicle': (7.607, 5.309),
-        'right_shoulder': (85.369, 7.377, 2.137), 'right_elbow': (22.243, 12.802),
-        'right_wrist': (-0.151, -28.741),
+        'spine_lumbar': (1.802, -17.196, 8.521), 'spine_thoracic': (-8.602, -6.017, 8.292),
+        'neck': (2.984, -0.831, -16.417), 'right_clavicle': (2.641, 7.3),
+        'right_shoulder': (88.359, 6.375, -3.778), 'right_elbow': (22.489, 7.362),
+        'right_wrist': (-3.083, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
@@ -1035,65 +1034,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (2.673, -19.69, 6.897), 'spine_thoracic': (-9.701, -9.731, 6.983),
-        'neck': (3.448, -0.957, -17.988), 'head': (3.646, -0.027), 'right_clavicle': (6.923, 5.474),
-        'right_shoulder': (85.614, 9.749, -0.082), 'right_elbow': (22.908, 11.239),
-        'right_wrist': (-1.517, -29.552),
+        'spine_lumbar': (2.391, -18.603, 7.315), 'spine_thoracic': (-8.595, -7.927, 7.369),
+        'neck': (2.848, -0.773, -17.021), 'head': (3.007, -0.021), 'right_clavicle': (4.792, 6.298),
+        'right_shoulder': (88.03, 7.937, -1.708), 'right_elbow': (22.338, 9.6),
+        'right_wrist': (-2.042, -30.0),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (3.81, -20.0, 4.186), 'spine_thoracic': (-8.802, -10.0, 5.508),
-        'neck': (2.364, -0.64, -15.521), 'head': (2.493, -0.017), 'right_clavicle': (14.129, 4.14),
-        'right_shoulder': (87.128, 11.94, 6.912), 'right_elbow': (22.014, 18.234),
-        'right_wrist': (2.294, -26.099),
+        'spine_lumbar': (4.272, -19.594, 3.735), 'spine_thoracic': (-9.211, -10.0, 5.459),
+        'neck': (2.273, -0.624, -14.769), 'head': (2.396, -0.016), 'right_clavicle': (17.204, 3.95),
+        'right_shoulder': (87.244, 13.063, 9.188), 'right_elbow': (21.326, 20.54),
+        'right_wrist': (3.513, -24.238),
     })
     human.KeyJoints(17.0, {
-        'spine_lumbar': (4.953, -18.44, 3.061), 'spine_thoracic': (-10.044, -10.0, 5.455),
-        'neck': (2.219, -0.644, -12.915), 'head': (2.341, -0.011),
-        'right_clavicle': (22.511, 3.691), 'right_shoulder': (87.55, 14.861, 13.245),
-        'right_elbow': (20.667, 24.477), 'right_wrist': (5.634, -20.943),
+        'spine_lumbar': (5.175, -18.425, 3.094), 'spine_thoracic': (-10.071, -10.0, 5.494),
+        'neck': (2.104, -0.601, -13.183), 'head': (2.22, -0.011), 'right_clavicle': (22.54, 3.69),
+        'right_shoulder': (87.666, 14.964, 13.115), 'right_elbow': (20.61, 24.484),
+        'right_wrist': (5.596, -20.941),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (-0.793, -19.784, 4.028), 'spine_thoracic': (-8.152, -10.0, 5.404),
-        'neck': (4.03, -1.26, -12.732), 'head': (4.263, -0.024), 'right_clavicle': (13.366, 4.358),
-        'right_shoulder': (85.02, 8.682, 7.686), 'right_elbow': (21.824, 18.101),
-        'right_wrist': (2.676, -26.052),
+        'spine_lumbar': (-0.751, -18.512, 7.021), 'spine_thoracic': (-8.152, -7.981, 7.066),
+        'neck': (4.032, -1.209, -15.186), 'head': (4.265, -0.033), 'right_clavicle': (4.338, 6.318),
+        'right_shoulder': (86.046, 5.881, -1.384), 'right_elbow': (21.963, 9.358),
+        'right_wrist': (-1.912, -29.992),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (2.405, -17.292, 8.563), 'spine_thoracic': (-8.726, -6.09, 8.332),
-        'neck': (2.779, -0.754, -16.787), 'head': (2.934, -0.021), 'right_clavicle': (2.821, 7.27),
-        'right_shoulder': (88.692, 6.835, -3.77), 'right_elbow': (22.568, 7.479),
-        'right_wrist': (-3.08, -29.98),
+        'spine_lumbar': (2.483, -17.23, 8.629), 'spine_thoracic': (-8.744, -6.001, 8.39),
+        'neck': (2.736, -0.739, -16.831), 'head': (2.888, -0.02), 'right_clavicle': (2.732, 7.315),
+        'right_shoulder': (88.776, 6.826, -3.887), 'right_elbow': (22.574, 7.375),
+        'right_wrist': (-3.137, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
-        'spine_lumbar': (2.376, -18.46, 7.426), 'spine_thoracic': (-8.609, -7.689, 7.462),
-        'neck': (2.848, -0.773, -17.037), 'head': (3.007, -0.021), 'right_clavicle': (4.511, 6.42),
-        'right_shoulder': (88.154, 7.775, -2.01), 'right_elbow': (22.295, 9.302),
-        'right_wrist': (-2.169, -30.0),
+        'spine_lumbar': (2.429, -17.481, 8.434), 'spine_thoracic': (-8.73, -6.293, 8.236),
+        'neck': (2.775, -0.751, -16.898), 'head': (2.93, -0.021), 'right_clavicle': (3.025, 7.159),
+        'right_shoulder': (88.668, 6.992, -3.634), 'right_elbow': (22.43, 7.647),
+        'right_wrist': (-3.006, -30.0),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (3.187, -20.0, 5.018), 'spine_thoracic': (-8.579, -10.0, 5.878),
-        'neck': (2.605, -0.705, -16.356), 'right_clavicle': (10.725, 4.657),
-        'right_shoulder': (87.133, 10.601, 3.977), 'right_elbow': (22.136, 15.292),
-        'right_wrist': (0.808, -27.878),
+        'spine_lumbar': (3.216, -20.0, 4.971), 'spine_thoracic': (-8.591, -10.0, 5.857),
+        'neck': (2.594, -0.702, -16.306), 'head': (2.737, -0.019),
+        'right_clavicle': (10.921, 4.629), 'right_shoulder': (87.128, 10.674, 4.144),
+        'right_elbow': (22.112, 15.459), 'right_wrist': (0.893, -27.788),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (4.519, -18.896, 3.573), 'spine_thoracic': (-9.689, -10.0, 5.581),
-        'neck': (2.301, -0.648, -13.981), 'head': (2.426, -0.015), 'right_clavicle': (19.67, 3.973),
-        'right_shoulder': (87.396, 13.843, 10.772), 'right_elbow': (20.499, 22.151),
-        'right_wrist': (4.419, -22.772),
+        'spine_lumbar': (5.164, -18.478, 3.152), 'spine_thoracic': (-10.035, -10.0, 5.508),
+        'neck': (2.102, -0.598, -13.311), 'head': (2.217, -0.011),
+        'right_clavicle': (22.209, 3.723), 'right_shoulder': (87.665, 14.87, 12.819),
+        'right_elbow': (20.571, 24.206), 'right_wrist': (5.45, -21.176),
     })
     human.KeyJoints(17.6, {
-        'spine_lumbar': (0.597, -19.019, 3.056), 'spine_thoracic': (-9.118, -10.0, 5.242),
-        'neck': (3.77, -1.204, -11.785), 'head': (3.987, -0.012), 'right_clavicle': (20.363, 3.802),
-        'right_shoulder': (85.48, 11.585, 13.087), 'right_elbow': (21.227, 23.561),
-        'right_wrist': (5.482, -21.504),
+        'spine_lumbar': (-0.134, -20.0, 4.04), 'spine_thoracic': (-8.207, -10.0, 5.273),
+        'neck': (3.79, -1.172, -13.275), 'head': (4.008, -0.024), 'right_clavicle': (13.281, 4.295),
+        'right_shoulder': (85.156, 9.318, 7.392), 'right_elbow': (22.04, 17.977),
+        'right_wrist': (2.5, -26.247),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (0.094, -19.085, 6.45), 'spine_thoracic': (-8.173, -8.679, 6.596),
-        'neck': (3.654, -1.078, -15.506), 'head': (3.864, -0.029), 'right_clavicle': (6.016, 5.868),
-        'right_shoulder': (86.201, 7.177, 0.264), 'right_elbow': (22.354, 11.093),
-        'right_wrist': (-1.084, -29.185),
+        'spine_lumbar': (2.236, -17.208, 8.599), 'spine_thoracic': (-8.692, -5.997, 8.361),
+        'neck': (2.826, -0.772, -16.681), 'head': (2.983, -0.021), 'right_clavicle': (2.684, 7.315),
+        'right_shoulder': (88.628, 6.65, -3.858), 'right_elbow': (22.55, 7.363),
+        'right_wrist': (-3.124, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
@@ -1103,28 +1102,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (2.771, -19.92, 6.371), 'spine_thoracic': (-9.472, -9.998, 6.616),
-        'neck': (3.354, -0.924, -17.91), 'head': (3.546, -0.026), 'right_clavicle': (7.667, 5.198),
-        'right_shoulder': (85.763, 9.899, 0.765), 'right_elbow': (22.754, 12.103),
-        'right_wrist': (-1.033, -29.056),
+        'spine_lumbar': (2.55, -19.179, 7.216), 'spine_thoracic': (-9.677, -8.837, 7.248),
+        'neck': (3.417, -0.951, -17.712), 'head': (3.613, -0.027), 'right_clavicle': (6.058, 5.866),
+        'right_shoulder': (86.069, 9.094, -0.836), 'right_elbow': (22.92, 10.465),
+        'right_wrist': (-1.833, -29.963),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (4.112, -20.0, 3.857), 'spine_thoracic': (-8.864, -10.0, 5.347),
-        'neck': (2.233, -0.602, -15.289), 'head': (2.354, -0.016), 'right_clavicle': (15.177, 3.91),
-        'right_shoulder': (87.165, 12.416, 7.893), 'right_elbow': (22.13, 19.217),
-        'right_wrist': (2.765, -25.464),
+        'spine_lumbar': (4.43, -18.951, 3.638), 'spine_thoracic': (-9.643, -10.0, 5.593),
+        'neck': (2.336, -0.659, -14.085), 'head': (2.464, -0.016), 'right_clavicle': (19.306, 4.01),
+        'right_shoulder': (87.362, 13.701, 10.476), 'right_elbow': (20.505, 21.854),
+        'right_wrist': (4.269, -22.986),
     })
     human.KeyJoints(18.1, {
-        'spine_lumbar': (3.773, -18.538, 3.021), 'spine_thoracic': (-9.871, -10.0, 5.364),
-        'neck': (2.679, -0.813, -12.453), 'head': (2.83, -0.013), 'right_clavicle': (22.268, 3.701),
-        'right_shoulder': (86.945, 14.216, 13.396), 'right_elbow': (20.784, 24.41),
-        'right_wrist': (5.677, -20.965),
+        'spine_lumbar': (4.555, -18.505, 3.096), 'spine_thoracic': (-9.946, -10.0, 5.459),
+        'neck': (2.337, -0.685, -12.974), 'head': (2.467, -0.012), 'right_clavicle': (22.25, 3.711),
+        'right_shoulder': (87.357, 14.532, 13.079), 'right_elbow': (20.67, 24.339),
+        'right_wrist': (5.567, -21.03),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (-1.023, -19.951, 4.473), 'spine_thoracic': (-7.949, -10.0, 5.494),
-        'neck': (4.094, -1.265, -13.356), 'head': (4.331, -0.029),
-        'right_clavicle': (10.999, 4.613), 'right_shoulder': (84.949, 7.986, 5.61),
-        'right_elbow': (21.996, 16.079), 'right_wrist': (1.605, -27.455),
+        'spine_lumbar': (0.13, -17.775, 7.739), 'spine_thoracic': (-8.239, -6.851, 7.653),
+        'neck': (3.615, -1.062, -15.538), 'head': (3.823, -0.029), 'right_clavicle': (3.261, 6.862),
+        'right_shoulder': (87.184, 5.861, -2.754), 'right_elbow': (22.041, 8.135),
+        'right_wrist': (-2.556, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
@@ -1134,65 +1133,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (2.438, -18.836, 7.262), 'spine_thoracic': (-8.887, -8.297, 7.308),
-        'neck': (3.008, -0.822, -17.236), 'head': (3.177, -0.023), 'right_clavicle': (5.287, 6.119),
-        'right_shoulder': (87.416, 8.345, -1.33), 'right_elbow': (22.528, 9.975),
-        'right_wrist': (-1.941, -29.994),
+        'spine_lumbar': (2.374, -17.79, 8.178), 'spine_thoracic': (-8.708, -6.674, 8.035),
+        'neck': (2.818, -0.764, -16.967), 'head': (2.975, -0.021), 'right_clavicle': (3.417, 6.957),
+        'right_shoulder': (88.524, 7.21, -3.267), 'right_elbow': (22.287, 8.033),
+        'right_wrist': (-2.818, -30.0),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (3.362, -20.0, 4.744), 'spine_thoracic': (-8.66, -10.0, 5.762),
-        'neck': (2.542, -0.689, -16.069), 'head': (2.682, -0.018),
-        'right_clavicle': (11.873, 4.495), 'right_shoulder': (87.11, 11.034, 4.941),
-        'right_elbow': (21.989, 16.259), 'right_wrist': (1.305, -27.304),
+        'spine_lumbar': (3.573, -20.0, 4.461), 'spine_thoracic': (-8.735, -10.0, 5.636),
+        'neck': (2.46, -0.667, -15.785), 'right_clavicle': (13.027, 4.32),
+        'right_shoulder': (87.112, 11.487, 5.937), 'right_elbow': (21.974, 17.258),
+        'right_wrist': (1.81, -26.702),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (4.848, -18.694, 3.347), 'spine_thoracic': (-9.857, -10.0, 5.543),
-        'neck': (2.198, -0.623, -13.659), 'head': (2.319, -0.013),
-        'right_clavicle': (20.949, 3.841), 'right_shoulder': (87.526, 14.357, 11.809),
-        'right_elbow': (20.499, 23.199), 'right_wrist': (4.942, -21.988),
+        'spine_lumbar': (5.24, -18.429, 3.108), 'spine_thoracic': (-10.076, -10.0, 5.501),
+        'neck': (2.078, -0.591, -13.236), 'head': (2.192, -0.011),
+        'right_clavicle': (22.495, 3.695), 'right_shoulder': (87.7, 14.989, 13.047),
+        'right_elbow': (20.594, 24.435), 'right_wrist': (5.565, -20.986),
     })
     human.KeyJoints(18.7, {
-        'spine_lumbar': (0.054, -19.268, 3.277), 'spine_thoracic': (-8.793, -10.0, 5.275),
-        'neck': (3.872, -1.236, -11.999), 'head': (4.095, -0.015),
-        'right_clavicle': (18.453, 3.934), 'right_shoulder': (85.294, 10.608, 11.764),
-        'right_elbow': (21.42, 22.167), 'right_wrist': (4.793, -22.712),
+        'spine_lumbar': (-1.097, -19.996, 4.91), 'spine_thoracic': (-7.903, -9.997, 5.612),
+        'neck': (4.132, -1.27, -13.975), 'head': (4.37, -0.031), 'right_clavicle': (9.286, 4.869),
+        'right_shoulder': (84.893, 7.599, 3.975), 'right_elbow': (22.119, 14.5),
+        'right_wrist': (0.763, -28.258),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (1.016, -18.37, 7.339), 'spine_thoracic': (-8.393, -7.646, 7.3),
-        'neck': (3.382, -0.972, -16.035), 'head': (3.575, -0.027), 'right_clavicle': (4.584, 6.455),
-        'right_shoulder': (87.195, 7.015, -1.504), 'right_elbow': (22.451, 9.501),
-        'right_wrist': (-1.961, -29.556),
+        'spine_lumbar': (2.4, -17.219, 8.621), 'spine_thoracic': (-8.727, -5.994, 8.382),
+        'neck': (2.765, -0.75, -16.777), 'head': (2.919, -0.021), 'right_clavicle': (2.714, 7.317),
+        'right_shoulder': (88.727, 6.767, -3.879), 'right_elbow': (22.567, 7.365),
+        'right_wrist': (-3.134, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
-        'spine_lumbar': (2.431, -17.489, 8.422), 'spine_thoracic': (-8.727, -6.312, 8.227),
-        'neck': (2.777, -0.752, -16.899), 'head': (2.931, -0.021), 'right_clavicle': (3.048, 7.149),
-        'right_shoulder': (88.66, 7.003, -3.601), 'right_elbow': (22.437, 7.679),
-        'right_wrist': (-2.99, -30.0),
+        'spine_lumbar': (2.482, -17.236, 8.626), 'spine_thoracic': (-8.744, -6.008, 8.387),
+        'neck': (2.737, -0.739, -16.834), 'head': (2.889, -0.02), 'right_clavicle': (2.739, 7.311),
+        'right_shoulder': (88.775, 6.83, -3.882), 'right_elbow': (22.571, 7.381),
+        'right_wrist': (-3.135, -30.0),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (2.869, -19.997, 5.637), 'spine_thoracic': (-8.551, -10.0, 6.171),
-        'neck': (2.795, -0.754, -17.045), 'head': (2.951, -0.021), 'right_clavicle': (8.502, 5.004),
-        'right_shoulder': (87.113, 9.883, 1.953), 'right_elbow': (22.295, 13.282),
-        'right_wrist': (-0.238, -28.692),
+        'spine_lumbar': (2.722, -19.85, 6.664), 'spine_thoracic': (-9.661, -9.978, 6.813),
+        'neck': (3.457, -0.956, -18.099), 'head': (3.656, -0.027), 'right_clavicle': (7.272, 5.321),
+        'right_shoulder': (85.548, 9.891, 0.284), 'right_elbow': (22.865, 11.617),
+        'right_wrist': (-1.317, -29.269),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (4.255, -19.857, 3.741), 'spine_thoracic': (-9.041, -10.0, 5.361),
-        'neck': (2.227, -0.605, -14.929), 'head': (2.347, -0.015),
-        'right_clavicle': (16.532, 3.885), 'right_shoulder': (87.219, 12.89, 8.846),
-        'right_elbow': (21.863, 20.186), 'right_wrist': (3.291, -24.64),
+        'spine_lumbar': (4.767, -18.751, 3.396), 'spine_thoracic': (-9.81, -10.0, 5.55),
+        'neck': (2.223, -0.629, -13.732), 'head': (2.344, -0.014),
+        'right_clavicle': (20.615, 3.871), 'right_shoulder': (87.491, 14.224, 11.552),
+        'right_elbow': (20.494, 22.933), 'right_wrist': (4.81, -22.199),
     })
     human.KeyJoints(19.2, {
-        'spine_lumbar': (2.303, -18.682, 2.995), 'spine_thoracic': (-9.626, -10.0, 5.277),
-        'neck': (3.166, -0.994, -12.017), 'right_clavicle': (21.873, 3.719),
-        'right_shoulder': (86.21, 13.319, 13.489), 'right_elbow': (20.918, 24.295),
-        'right_wrist': (5.702, -21.002),
+        'spine_lumbar': (3.139, -18.832, 3.22), 'spine_thoracic': (-9.576, -10.0, 5.406),
+        'neck': (2.841, -0.861, -12.793), 'head': (3.001, -0.015),
+        'right_clavicle': (20.764, 3.827), 'right_shoulder': (86.66, 13.323, 12.287),
+        'right_elbow': (20.728, 23.326), 'right_wrist': (5.144, -21.817),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (-1.074, -19.991, 4.922), 'spine_thoracic': (-7.893, -9.987, 5.604),
-        'neck': (4.109, -1.264, -14.005), 'head': (4.347, -0.03), 'right_clavicle': (9.224, 4.881),
-        'right_shoulder': (84.942, 7.611, 3.904), 'right_elbow': (22.126, 14.445),
-        'right_wrist': (0.736, -28.239),
+        'spine_lumbar': (1.076, -17.357, 8.266), 'spine_thoracic': (-8.455, -6.256, 8.078),
+        'neck': (3.261, -0.932, -16.041), 'head': (3.446, -0.026), 'right_clavicle': (2.794, 7.171),
+        'right_shoulder': (87.866, 6.037, -3.471), 'right_elbow': (22.293, 7.556),
+        'right_wrist': (-2.926, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
@@ -1202,65 +1201,64 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (2.568, -19.239, 7.201), 'spine_thoracic': (-9.729, -8.933, 7.231),
-        'neck': (3.449, -0.959, -17.804), 'head': (3.647, -0.027), 'right_clavicle': (6.185, 5.82),
-        'right_shoulder': (85.943, 9.197, -0.742), 'right_elbow': (22.945, 10.559),
-        'right_wrist': (-1.806, -29.954),
+        'spine_lumbar': (2.356, -18.179, 7.794), 'spine_thoracic': (-8.664, -7.223, 7.738),
+        'neck': (2.846, -0.773, -17.006), 'head': (3.005, -0.021), 'right_clavicle': (4.0, 6.666),
+        'right_shoulder': (88.316, 7.522, -2.652), 'right_elbow': (22.24, 8.664),
+        'right_wrist': (-2.504, -30.0),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (3.568, -20.0, 4.468), 'spine_thoracic': (-8.733, -10.0, 5.639),
-        'neck': (2.463, -0.668, -15.792), 'head': (2.598, -0.018),
-        'right_clavicle': (13.001, 4.324), 'right_shoulder': (87.111, 11.477, 5.914),
-        'right_elbow': (21.974, 17.235), 'right_wrist': (1.798, -26.716),
+        'spine_lumbar': (4.041, -20.0, 3.931), 'spine_thoracic': (-8.848, -10.0, 5.383),
+        'neck': (2.261, -0.61, -15.281), 'head': (2.383, -0.016), 'right_clavicle': (14.923, 3.962),
+        'right_shoulder': (87.154, 12.301, 7.66), 'right_elbow': (22.099, 18.983),
+        'right_wrist': (2.652, -25.622),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (5.221, -18.441, 3.13), 'spine_thoracic': (-10.066, -10.0, 5.511),
-        'neck': (2.084, -0.593, -13.332), 'head': (2.198, -0.011),
-        'right_clavicle': (22.423, 3.702), 'right_shoulder': (87.692, 14.96, 12.945),
-        'right_elbow': (20.573, 24.377), 'right_wrist': (5.522, -21.033),
+        'spine_lumbar': (5.258, -18.416, 3.097), 'spine_thoracic': (-10.086, -10.0, 5.499),
+        'neck': (2.072, -0.59, -13.218), 'head': (2.186, -0.011), 'right_clavicle': (22.565, 3.689),
+        'right_shoulder': (87.708, 15.018, 13.103), 'right_elbow': (20.601, 24.491),
+        'right_wrist': (5.593, -20.939),
     })
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-0.419, -19.537, 3.612), 'spine_thoracic': (-8.455, -10.0, 5.329),
-        'neck': (3.95, -1.252, -12.28), 'head': (4.177, -0.019), 'right_clavicle': (16.008, 4.124),
-        'right_shoulder': (85.139, 9.606, 9.87), 'right_elbow': (21.624, 20.257),
-        'right_wrist': (3.808, -24.335),
+        'spine_lumbar': (-1.189, -19.426, 6.459), 'spine_thoracic': (-9.081, -9.54, 6.567),
+        'neck': (4.79, -1.464, -15.306), 'head': (5.071, -0.04), 'right_clavicle': (6.325, 5.583),
+        'right_shoulder': (83.609, 7.01, 0.678), 'right_elbow': (22.76, 11.264),
+        'right_wrist': (-1.14, -29.741),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (1.861, -17.714, 8.096), 'spine_thoracic': (-8.595, -6.7, 7.931),
-        'neck': (3.049, -0.851, -16.481), 'head': (3.221, -0.024), 'right_clavicle': (3.469, 6.958),
-        'right_shoulder': (88.105, 6.899, -2.926), 'right_elbow': (22.525, 8.23),
-        'right_wrist': (-2.664, -29.829),
+        'spine_lumbar': (2.463, -17.226, 8.627), 'spine_thoracic': (-8.74, -5.996, 8.388),
+        'neck': (2.743, -0.742, -16.815), 'head': (2.895, -0.02), 'right_clavicle': (2.727, 7.317),
+        'right_shoulder': (88.764, 6.812, -3.885), 'right_elbow': (22.572, 7.37),
+        'right_wrist': (-3.137, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
-        'spine_lumbar': (2.354, -18.094, 7.895), 'spine_thoracic': (-8.678, -7.092, 7.815),
-        'neck': (2.843, -0.772, -17.017), 'right_clavicle': (3.86, 6.736),
-        'right_shoulder': (88.361, 7.451, -2.814), 'right_elbow': (22.235, 8.5),
-        'right_wrist': (-2.589, -30.0),
+        'spine_lumbar': (2.468, -17.299, 8.577), 'spine_thoracic': (-8.741, -6.08, 8.349),
+        'right_clavicle': (2.81, 7.273), 'right_shoulder': (88.748, 6.871, -3.821),
+        'right_elbow': (22.533, 7.447), 'right_wrist': (-3.103, -30.0),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (3.011, -20.0, 5.281), 'spine_thoracic': (-8.514, -10.0, 5.994),
-        'neck': (2.667, -0.72, -16.642), 'head': (2.814, -0.02), 'right_clavicle': (9.545, 4.826),
-        'right_shoulder': (87.179, 10.105, 2.988), 'right_elbow': (22.198, 14.308),
-        'right_wrist': (0.319, -28.316),
+        'spine_lumbar': (2.903, -20.0, 5.5), 'spine_thoracic': (-8.489, -10.0, 6.099),
+        'neck': (2.729, -0.736, -16.881), 'head': (2.881, -0.02), 'right_clavicle': (8.774, 4.951),
+        'right_shoulder': (87.206, 9.884, 2.271), 'right_elbow': (22.241, 13.597),
+        'right_wrist': (-0.051, -28.582),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (4.306, -19.152, 3.72), 'spine_thoracic': (-9.488, -10.0, 5.596),
-        'neck': (2.349, -0.659, -14.357), 'head': (2.478, -0.016),
-        'right_clavicle': (18.314, 4.039), 'right_shoulder': (87.293, 13.358, 9.772),
-        'right_elbow': (20.566, 21.142), 'right_wrist': (3.886, -23.575),
+        'spine_lumbar': (5.005, -18.585, 3.246), 'spine_thoracic': (-9.947, -10.0, 5.524),
+        'neck': (2.151, -0.611, -13.473), 'head': (2.268, -0.012),
+        'right_clavicle': (21.593, 3.782), 'right_shoulder': (87.594, 14.616, 12.328),
+        'right_elbow': (20.527, 23.713), 'right_wrist': (5.204, -21.579),
     })
     human.KeyJoints(20.3, {
-        'spine_lumbar': (1.194, -18.835, 2.985), 'spine_thoracic': (-9.379, -10.0, 5.232),
-        'neck': (3.609, -1.154, -11.715), 'head': (3.816, -0.011),
-        'right_clavicle': (21.374, 3.742), 'right_shoulder': (85.696, 12.436, 13.524),
-        'right_elbow': (21.062, 24.143), 'right_wrist': (5.711, -21.052),
+        'spine_lumbar': (1.66, -20.0, 3.23), 'spine_thoracic': (-8.594, -10.0, 4.953),
+        'neck': (3.133, -0.954, -13.064), 'head': (3.311, -0.018),
+        'right_clavicle': (16.934, 3.648), 'right_shoulder': (85.803, 11.505, 10.414),
+        'right_elbow': (22.469, 21.188), 'right_wrist': (3.965, -23.979),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (-0.688, -19.692, 5.58), 'spine_thoracic': (-7.985, -9.555, 5.97),
-        'neck': (3.944, -1.196, -14.752), 'head': (4.172, -0.03), 'right_clavicle': (7.634, 5.3),
-        'right_shoulder': (85.358, 7.381, 2.169), 'right_elbow': (22.241, 12.83),
-        'right_wrist': (-0.135, -28.733),
+        'spine_lumbar': (1.793, -17.196, 8.52), 'spine_thoracic': (-8.6, -6.017, 8.29),
+        'neck': (2.987, -0.832, -16.411), 'head': (3.155, -0.023), 'right_clavicle': (2.641, 7.3),
+        'right_shoulder': (88.354, 6.37, -3.776), 'right_elbow': (22.488, 7.362),
+        'right_wrist': (-3.082, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
@@ -1270,65 +1268,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (2.671, -19.683, 6.905), 'spine_thoracic': (-9.702, -9.719, 6.988),
-        'neck': (3.448, -0.957, -17.986), 'head': (3.646, -0.027), 'right_clavicle': (6.911, 5.48),
-        'right_shoulder': (85.617, 9.742, -0.094), 'right_elbow': (22.91, 11.227),
-        'right_wrist': (-1.523, -29.562),
+        'spine_lumbar': (2.391, -18.594, 7.319), 'spine_thoracic': (-8.595, -7.913, 7.373),
+        'neck': (2.847, -0.773, -17.012), 'head': (3.006, -0.021), 'right_clavicle': (4.776, 6.305),
+        'right_shoulder': (88.038, 7.927, -1.724), 'right_elbow': (22.335, 9.585),
+        'right_wrist': (-2.048, -30.0),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (3.805, -20.0, 4.191), 'spine_thoracic': (-8.801, -10.0, 5.51),
-        'neck': (2.365, -0.64, -15.525), 'head': (2.494, -0.017), 'right_clavicle': (14.111, 4.143),
-        'right_shoulder': (87.128, 11.932, 6.896), 'right_elbow': (22.013, 18.217),
-        'right_wrist': (2.286, -26.11),
+        'spine_lumbar': (4.271, -19.613, 3.735), 'spine_thoracic': (-9.199, -10.0, 5.452),
+        'neck': (2.269, -0.622, -14.786), 'head': (2.393, -0.016),
+        'right_clavicle': (17.158, 3.945), 'right_shoulder': (87.242, 13.052, 9.165),
+        'right_elbow': (21.364, 20.516), 'right_wrist': (3.498, -24.265),
     })
     human.KeyJoints(20.8, {
-        'spine_lumbar': (4.967, -18.439, 3.061), 'spine_thoracic': (-10.046, -10.0, 5.456),
-        'neck': (2.213, -0.642, -12.922), 'head': (2.335, -0.011),
-        'right_clavicle': (22.514, 3.691), 'right_shoulder': (87.557, 14.868, 13.242),
-        'right_elbow': (20.665, 24.478), 'right_wrist': (5.634, -20.943),
+        'spine_lumbar': (5.178, -18.424, 3.094), 'spine_thoracic': (-10.071, -10.0, 5.494),
+        'neck': (2.103, -0.601, -13.184), 'head': (2.218, -0.011), 'right_clavicle': (22.542, 3.69),
+        'right_shoulder': (87.668, 14.966, 13.115), 'right_elbow': (20.61, 24.484),
+        'right_wrist': (5.596, -20.941),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (-0.788, -19.78, 4.021), 'spine_thoracic': (-8.156, -10.0, 5.403),
-        'neck': (4.029, -1.26, -12.723), 'head': (4.261, -0.024), 'right_clavicle': (13.409, 4.354),
-        'right_shoulder': (85.022, 8.696, 7.723), 'right_elbow': (21.821, 18.136),
-        'right_wrist': (2.695, -26.025),
+        'spine_lumbar': (-0.762, -18.527, 7.012), 'spine_thoracic': (-8.163, -8.008, 7.058),
+        'neck': (4.044, -1.214, -15.19), 'head': (4.279, -0.033), 'right_clavicle': (4.362, 6.307),
+        'right_shoulder': (86.003, 5.892, -1.356), 'right_elbow': (21.973, 9.382),
+        'right_wrist': (-1.901, -29.991),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (2.4, -17.296, 8.559), 'spine_thoracic': (-8.724, -6.096, 8.329),
-        'neck': (2.782, -0.755, -16.784), 'head': (2.937, -0.021), 'right_clavicle': (2.827, 7.267),
-        'right_shoulder': (88.686, 6.836, -3.763), 'right_elbow': (22.568, 7.486),
-        'right_wrist': (-3.076, -29.979),
+        'spine_lumbar': (2.482, -17.23, 8.629), 'spine_thoracic': (-8.744, -6.0, 8.39),
+        'neck': (2.736, -0.739, -16.83), 'head': (2.888, -0.02), 'right_clavicle': (2.732, 7.315),
+        'right_shoulder': (88.776, 6.826, -3.887), 'right_elbow': (22.574, 7.375),
+        'right_wrist': (-3.137, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
-        'spine_lumbar': (2.376, -18.454, 7.433), 'spine_thoracic': (-8.61, -7.679, 7.467),
-        'neck': (2.848, -0.773, -17.036), 'head': (3.007, -0.021), 'right_clavicle': (4.5, 6.425),
-        'right_shoulder': (88.159, 7.769, -2.023), 'right_elbow': (22.293, 9.289),
-        'right_wrist': (-2.175, -30.0),
+        'spine_lumbar': (2.43, -17.477, 8.438), 'spine_thoracic': (-8.73, -6.288, 8.239),
+        'neck': (2.775, -0.751, -16.897), 'head': (2.929, -0.021), 'right_clavicle': (3.02, 7.162),
+        'right_shoulder': (88.67, 6.989, -3.639), 'right_elbow': (22.432, 7.642),
+        'right_wrist': (-3.008, -30.0),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (3.184, -20.0, 5.023), 'spine_thoracic': (-8.578, -10.0, 5.88),
-        'neck': (2.607, -0.705, -16.361), 'right_clavicle': (10.706, 4.659),
-        'right_shoulder': (87.133, 10.594, 3.961), 'right_elbow': (22.138, 15.276),
-        'right_wrist': (0.799, -27.886),
+        'spine_lumbar': (3.211, -20.0, 4.98), 'spine_thoracic': (-8.589, -10.0, 5.861),
+        'neck': (2.596, -0.702, -16.315), 'head': (2.739, -0.019),
+        'right_clavicle': (10.885, 4.634), 'right_shoulder': (87.129, 10.661, 4.113),
+        'right_elbow': (22.117, 15.428), 'right_wrist': (0.877, -27.805),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (4.514, -18.899, 3.577), 'spine_thoracic': (-9.687, -10.0, 5.582),
-        'neck': (2.302, -0.649, -13.987), 'head': (2.428, -0.015),
-        'right_clavicle': (19.649, 3.976), 'right_shoulder': (87.394, 13.835, 10.755),
-        'right_elbow': (20.499, 22.135), 'right_wrist': (4.411, -22.784),
+        'spine_lumbar': (5.162, -18.48, 3.153), 'spine_thoracic': (-10.034, -10.0, 5.508),
+        'neck': (2.103, -0.598, -13.313), 'head': (2.217, -0.011),
+        'right_clavicle': (22.201, 3.724), 'right_shoulder': (87.664, 14.867, 12.813),
+        'right_elbow': (20.57, 24.2), 'right_wrist': (5.447, -21.181),
     })
     human.KeyJoints(21.4, {
-        'spine_lumbar': (0.607, -19.015, 3.053), 'spine_thoracic': (-9.123, -10.0, 5.241),
-        'neck': (3.768, -1.204, -11.783), 'head': (3.985, -0.012), 'right_clavicle': (20.388, 3.8),
-        'right_shoulder': (85.483, 11.601, 13.102), 'right_elbow': (21.224, 23.579),
-        'right_wrist': (5.491, -21.489),
+        'spine_lumbar': (-0.111, -20.0, 4.027), 'spine_thoracic': (-8.214, -10.0, 5.268),
+        'neck': (3.782, -1.169, -13.269), 'head': (4.0, -0.024), 'right_clavicle': (13.347, 4.286),
+        'right_shoulder': (85.161, 9.352, 7.446), 'right_elbow': (22.04, 18.034),
+        'right_wrist': (2.527, -26.211),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (0.079, -19.097, 6.435), 'spine_thoracic': (-8.169, -8.696, 6.584),
-        'neck': (3.659, -1.08, -15.495), 'head': (3.869, -0.029), 'right_clavicle': (6.042, 5.859),
-        'right_shoulder': (86.185, 7.18, 0.295), 'right_elbow': (22.352, 11.122),
-        'right_wrist': (-1.068, -29.178),
+        'spine_lumbar': (2.23, -17.208, 8.598), 'spine_thoracic': (-8.691, -5.997, 8.361),
+        'neck': (2.827, -0.773, -16.678), 'head': (2.985, -0.021), 'right_clavicle': (2.683, 7.315),
+        'right_shoulder': (88.625, 6.646, -3.858), 'right_elbow': (22.549, 7.363),
+        'right_wrist': (-3.123, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
@@ -1338,28 +1336,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(21.7, {
-        'spine_lumbar': (2.77, -19.918, 6.383), 'spine_thoracic': (-9.485, -9.998, 6.623),
-        'neck': (3.361, -0.926, -17.92), 'head': (3.553, -0.026), 'right_clavicle': (7.654, 5.201),
-        'right_shoulder': (85.745, 9.899, 0.747), 'right_elbow': (22.761, 12.085),
-        'right_wrist': (-1.045, -29.062),
+        'spine_lumbar': (2.546, -19.168, 7.218), 'spine_thoracic': (-9.664, -8.82, 7.25),
+        'neck': (3.41, -0.948, -17.699), 'head': (3.605, -0.027), 'right_clavicle': (6.036, 5.874),
+        'right_shoulder': (86.097, 9.075, -0.852), 'right_elbow': (22.913, 10.449),
+        'right_wrist': (-1.837, -29.964),
     })
     human.KeyJoints(21.8, {
-        'spine_lumbar': (4.107, -20.0, 3.862), 'spine_thoracic': (-8.863, -10.0, 5.35),
-        'neck': (2.235, -0.603, -15.293), 'head': (2.356, -0.016),
-        'right_clavicle': (15.158, 3.913), 'right_shoulder': (87.164, 12.408, 7.877),
-        'right_elbow': (22.128, 19.2), 'right_wrist': (2.757, -25.476),
+        'spine_lumbar': (4.425, -18.956, 3.642), 'spine_thoracic': (-9.639, -10.0, 5.593),
+        'neck': (2.337, -0.66, -14.092), 'head': (2.466, -0.016), 'right_clavicle': (19.28, 4.012),
+        'right_shoulder': (87.36, 13.691, 10.455), 'right_elbow': (20.505, 21.834),
+        'right_wrist': (4.259, -23.002),
     })
     human.KeyJoints(21.9, {
-        'spine_lumbar': (3.797, -18.536, 3.021), 'spine_thoracic': (-9.875, -10.0, 5.366),
-        'neck': (2.671, -0.811, -12.46), 'head': (2.822, -0.013), 'right_clavicle': (22.273, 3.701),
-        'right_shoulder': (86.957, 14.229, 13.394), 'right_elbow': (20.782, 24.411),
-        'right_wrist': (5.676, -20.964),
+        'spine_lumbar': (4.571, -18.502, 3.096), 'spine_thoracic': (-9.95, -10.0, 5.46),
+        'neck': (2.331, -0.683, -12.979), 'head': (2.46, -0.012), 'right_clavicle': (22.259, 3.71),
+        'right_shoulder': (87.365, 14.543, 13.08), 'right_elbow': (20.669, 24.344),
+        'right_wrist': (5.568, -21.027),
     })
     human.KeyJoints(22.0, {
-        'spine_lumbar': (-1.02, -19.949, 4.466), 'spine_thoracic': (-7.951, -10.0, 5.492),
-        'neck': (4.093, -1.265, -13.345), 'head': (4.33, -0.029), 'right_clavicle': (11.035, 4.609),
-        'right_shoulder': (84.95, 7.995, 5.642), 'right_elbow': (21.994, 16.111),
-        'right_wrist': (1.622, -27.435),
+        'spine_lumbar': (0.112, -17.785, 7.727), 'spine_thoracic': (-8.234, -6.866, 7.643),
+        'neck': (3.621, -1.064, -15.528), 'head': (3.83, -0.029), 'right_clavicle': (3.274, 6.855),
+        'right_shoulder': (87.172, 5.859, -2.736), 'right_elbow': (22.037, 8.151),
+        'right_wrist': (-2.547, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
@@ -1369,65 +1367,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (2.436, -18.829, 7.263), 'spine_thoracic': (-8.871, -8.286, 7.309),
-        'neck': (3.0, -0.819, -17.226), 'head': (3.168, -0.023), 'right_clavicle': (5.272, 6.124),
-        'right_shoulder': (87.443, 8.33, -1.34), 'right_elbow': (22.519, 9.965),
-        'right_wrist': (-1.943, -29.995),
+        'spine_lumbar': (2.375, -17.784, 8.184), 'spine_thoracic': (-8.708, -6.666, 8.039),
+        'neck': (2.817, -0.764, -16.966), 'head': (2.975, -0.021), 'right_clavicle': (3.408, 6.961),
+        'right_shoulder': (88.527, 7.205, -3.275), 'right_elbow': (22.289, 8.025),
+        'right_wrist': (-2.822, -30.0),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (3.359, -20.0, 4.748), 'spine_thoracic': (-8.658, -10.0, 5.764),
-        'neck': (2.544, -0.689, -16.073), 'head': (2.684, -0.018),
-        'right_clavicle': (11.854, 4.498), 'right_shoulder': (87.111, 11.026, 4.924),
-        'right_elbow': (21.99, 16.243), 'right_wrist': (1.297, -27.314),
+        'spine_lumbar': (3.566, -20.0, 4.47), 'spine_thoracic': (-8.733, -10.0, 5.64),
+        'neck': (2.463, -0.668, -15.793), 'right_clavicle': (12.993, 4.325),
+        'right_shoulder': (87.111, 11.474, 5.907), 'right_elbow': (21.974, 17.228),
+        'right_wrist': (1.795, -26.72),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (4.841, -18.699, 3.351), 'spine_thoracic': (-9.853, -10.0, 5.543),
-        'neck': (2.2, -0.624, -13.664), 'head': (2.321, -0.013), 'right_clavicle': (20.923, 3.843),
-        'right_shoulder': (87.523, 14.347, 11.788), 'right_elbow': (20.498, 23.178),
-        'right_wrist': (4.932, -22.005),
+        'spine_lumbar': (5.239, -18.429, 3.108), 'spine_thoracic': (-10.076, -10.0, 5.501),
+        'neck': (2.079, -0.592, -13.237), 'head': (2.192, -0.011),
+        'right_clavicle': (22.492, 3.696), 'right_shoulder': (87.699, 14.988, 13.045),
+        'right_elbow': (20.594, 24.433), 'right_wrist': (5.564, -20.988),
     })
     human.KeyJoints(22.5, {
-        'spine_lumbar': (0.063, -19.264, 3.273), 'spine_thoracic': (-8.799, -10.0, 5.274),
-        'neck': (3.87, -1.235, -11.994), 'head': (4.093, -0.015), 'right_clavicle': (18.49, 3.932),
-        'right_shoulder': (85.297, 10.625, 11.792), 'right_elbow': (21.416, 22.196),
-        'right_wrist': (4.808, -22.687),
+        'spine_lumbar': (-1.094, -19.998, 4.889), 'spine_thoracic': (-7.897, -9.999, 5.602),
+        'neck': (4.126, -1.269, -13.951), 'head': (4.365, -0.031), 'right_clavicle': (9.343, 4.858),
+        'right_shoulder': (84.904, 7.614, 4.032), 'right_elbow': (22.114, 14.558),
+        'right_wrist': (0.794, -28.228),
     })
     human.KeyJoints(22.6, {
-        'spine_lumbar': (1.001, -18.382, 7.324), 'spine_thoracic': (-8.39, -7.663, 7.288),
-        'neck': (3.387, -0.974, -16.027), 'head': (3.58, -0.027), 'right_clavicle': (4.606, 6.446),
-        'right_shoulder': (87.179, 7.018, -1.476), 'right_elbow': (22.449, 9.525),
-        'right_wrist': (-1.947, -29.55),
+        'spine_lumbar': (2.399, -17.219, 8.621), 'spine_thoracic': (-8.727, -5.994, 8.382),
+        'neck': (2.766, -0.75, -16.776), 'head': (2.92, -0.021), 'right_clavicle': (2.713, 7.317),
+        'right_shoulder': (88.727, 6.766, -3.879), 'right_elbow': (22.567, 7.365),
+        'right_wrist': (-3.134, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
-        'spine_lumbar': (2.433, -17.479, 8.43), 'spine_thoracic': (-8.728, -6.299, 8.233),
-        'neck': (2.775, -0.751, -16.896), 'head': (2.93, -0.021), 'right_clavicle': (3.035, 7.156),
-        'right_shoulder': (88.665, 6.996, -3.613), 'right_elbow': (22.442, 7.666),
-        'right_wrist': (-2.996, -30.0),
+        'spine_lumbar': (2.482, -17.236, 8.626), 'spine_thoracic': (-8.744, -6.008, 8.387),
+        'neck': (2.736, -0.739, -16.834), 'head': (2.888, -0.02), 'right_clavicle': (2.738, 7.311),
+        'right_shoulder': (88.775, 6.83, -3.882), 'right_elbow': (22.571, 7.381),
+        'right_wrist': (-3.135, -30.0),
     })
     human.KeyJoints(22.8, {
-        'spine_lumbar': (2.867, -19.996, 5.647), 'spine_thoracic': (-8.56, -10.0, 6.177),
-        'neck': (2.802, -0.756, -17.058), 'head': (2.958, -0.021), 'right_clavicle': (8.486, 5.007),
-        'right_shoulder': (87.1, 9.883, 1.934), 'right_elbow': (22.3, 13.262),
-        'right_wrist': (-0.25, -28.698),
+        'spine_lumbar': (2.719, -19.843, 6.678), 'spine_thoracic': (-9.664, -9.971, 6.824),
+        'neck': (3.46, -0.957, -18.11), 'head': (3.659, -0.027), 'right_clavicle': (7.25, 5.329),
+        'right_shoulder': (85.55, 9.887, 0.26), 'right_elbow': (22.868, 11.593),
+        'right_wrist': (-1.33, -29.284),
     })
     human.KeyJoints(22.9, {
-        'spine_lumbar': (4.254, -19.867, 3.742), 'spine_thoracic': (-9.034, -10.0, 5.357),
-        'neck': (2.225, -0.604, -14.938), 'head': (2.345, -0.015),
-        'right_clavicle': (16.503, 3.883), 'right_shoulder': (87.218, 12.882, 8.83),
-        'right_elbow': (21.884, 20.17), 'right_wrist': (3.281, -24.657),
+        'spine_lumbar': (4.762, -18.754, 3.399), 'spine_thoracic': (-9.807, -10.0, 5.55),
+        'neck': (2.224, -0.63, -13.738), 'head': (2.346, -0.014), 'right_clavicle': (20.596, 3.873),
+        'right_shoulder': (87.489, 14.216, 11.537), 'right_elbow': (20.494, 22.917),
+        'right_wrist': (4.802, -22.212),
     })
     human.KeyJoints(23.0, {
-        'spine_lumbar': (2.326, -18.679, 2.996), 'spine_thoracic': (-9.631, -10.0, 5.278),
-        'neck': (3.157, -0.99, -12.025), 'right_clavicle': (21.88, 3.718),
-        'right_shoulder': (86.221, 13.334, 13.488), 'right_elbow': (20.916, 24.298),
-        'right_wrist': (5.701, -21.001),
+        'spine_lumbar': (3.652, -18.467, 3.322), 'spine_thoracic': (-9.554, -9.836, 5.49),
+        'neck': (2.564, -0.768, -12.734), 'head': (2.707, -0.013),
+        'right_clavicle': (20.802, 3.888), 'right_shoulder': (86.746, 13.395, 12.836),
+        'right_elbow': (21.814, 23.737), 'right_wrist': (5.342, -21.792),
     })
     human.KeyJoints(23.1, {
-        'spine_lumbar': (-1.064, -19.984, 4.921), 'spine_thoracic': (-7.892, -9.985, 5.604),
-        'neck': (4.101, -1.262, -13.984), 'head': (4.338, -0.03), 'right_clavicle': (9.249, 4.88),
-        'right_shoulder': (84.942, 7.636, 4.059), 'right_elbow': (22.186, 14.564),
-        'right_wrist': (0.792, -28.229),
+        'spine_lumbar': (5.359, -14.261, 9.149), 'spine_thoracic': (-8.164, -4.816, 8.783),
+        'neck': (0.933, -0.18, -14.432), 'head': (0.974, -0.003), 'right_clavicle': (2.783, 7.709),
+        'right_shoulder': (88.492, 6.446, 1.206), 'right_elbow': (31.878, 10.987),
+        'right_wrist': (-1.277, -29.97),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=23.179001, duration=0.072)
@@ -1435,11 +1433,12 @@ def remove_access_panel():
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
-        'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 112.0), start=23.251001, duration=0.2628)
-    human.KeyJoints(23.3, {'neck': (3.338, -0.229, -17.165), 'head': (1.504, 0.0)})
+    human.KeyJoints(23.3, {
+        'neck': (3.338, -0.229, -17.165), 'head': (1.504, 0.0), 'right_wrist': (-1.361, -29.967),
+    })
     human.KeyJoints(23.4, {'neck': (21.057, -1.984, -30.715), 'head': (9.057, -0.045)})
     human.KeyJoints(23.5, {
         'neck': (34.722, -3.338, -41.165), 'head': (14.881, -0.156),
@@ -1477,617 +1476,616 @@ def remove_access_panel():
     })
     human.KeyJoints(24.2, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (18.714, 33.746, -16.635), 'right_elbow': (36.549, 2.884),
-        'right_wrist': (-6.352, -4.864),
+        'right_clavicle': (2.715, 7.9), 'right_shoulder': (18.714, 33.746, -16.635),
+        'right_elbow': (36.549, 2.884), 'right_wrist': (-6.352, -4.864),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.218664, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
-        'spine_lumbar': (7.42, -12.905, 9.687), 'spine_thoracic': (-8.557, -4.265, 9.229),
-        'neck': (34.775, -2.807, -41.405), 'head': (14.779, -0.706),
-        'right_clavicle': (2.903, 7.947), 'right_shoulder': (18.89, 34.088, -16.396),
-        'right_elbow': (37.151, 3.142), 'right_wrist': (-6.33, -3.661),
+        'spine_lumbar': (7.287, -13.401, 9.638), 'spine_thoracic': (-8.494, -4.353, 9.193),
+        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.839, 7.924),
+        'right_shoulder': (18.801, 33.955, -16.49), 'right_elbow': (36.844, 3.049),
+        'right_wrist': (-6.341, -4.249),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (12.324, -2.451, 10.423), 'spine_thoracic': (-8.66, -4.306, 10.02),
-        'neck': (32.496, -4.686, -42.552), 'head': (12.437, -1.103),
-        'right_clavicle': (8.244, 8.534), 'right_shoulder': (18.895, 41.164, -10.821),
-        'right_elbow': (44.435, 9.941), 'right_wrist': (-5.989, 12.487),
+        'spine_lumbar': (11.65, -1.711, 10.706), 'spine_thoracic': (-9.614, -2.845, 10.054),
+        'neck': (32.421, -4.612, -42.128), 'head': (12.416, -1.097),
+        'right_clavicle': (6.617, 8.531), 'right_shoulder': (20.343, 39.598, -12.181),
+        'right_elbow': (44.415, 8.024), 'right_wrist': (-6.025, 11.647),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (13.727, -5.108, 9.622), 'spine_thoracic': (-6.137, -8.214, 9.855),
-        'neck': (32.954, -4.673, -43.702), 'head': (12.819, -1.11),
-        'right_clavicle': (12.271, 8.553), 'right_shoulder': (14.986, 44.592, -7.285),
-        'right_elbow': (43.899, 14.727), 'right_wrist': (-5.963, 13.502),
+        'spine_lumbar': (13.896, -5.63, 9.49), 'spine_thoracic': (-5.723, -8.883, 9.829),
+        'neck': (33.066, -4.634, -43.871), 'right_clavicle': (12.972, 8.575),
+        'right_shoulder': (14.341, 45.01, -6.589), 'right_elbow': (43.684, 15.513),
+        'right_wrist': (-5.967, 13.465),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (14.819, -10.555, 8.593), 'spine_thoracic': (-2.845, -10.0, 9.649),
-        'neck': (33.737, -4.722, -45.902), 'head': (13.435, -1.13),
-        'right_clavicle': (15.156, 9.067), 'right_shoulder': (9.755, 48.966, -5.317),
-        'right_elbow': (42.783, 18.847), 'right_wrist': (-6.455, 13.104),
+        'spine_lumbar': (14.863, -11.415, 8.44), 'spine_thoracic': (-2.454, -10.0, 9.65),
+        'neck': (33.841, -4.714, -46.145), 'head': (13.531, -1.132),
+        'right_clavicle': (15.875, 9.167), 'right_shoulder': (9.098, 49.302, -4.584),
+        'right_elbow': (42.457, 19.59), 'right_wrist': (-6.451, 12.658),
     })
     human.KeyJoints(24.7, {
-        'spine_lumbar': (11.324, -11.273, 8.217), 'spine_thoracic': (-2.579, -9.478, 9.174),
-        'neck': (33.385, -4.112, -42.827), 'head': (13.38, -1.022),
-        'right_clavicle': (13.096, 8.643), 'right_shoulder': (9.141, 45.623, -4.237),
-        'right_elbow': (43.84, 18.948), 'right_wrist': (-6.139, 14.049),
+        'spine_lumbar': (10.475, -5.512, 9.089), 'spine_thoracic': (-6.212, -6.79, 9.133),
+        'neck': (32.562, -4.109, -40.928), 'head': (12.798, -1.063),
+        'right_clavicle': (9.63, 8.083), 'right_shoulder': (14.754, 41.739, -7.365),
+        'right_elbow': (44.914, 13.818), 'right_wrist': (-5.808, 14.499),
     })
     human.KeyJoints(24.8, {
-        'spine_lumbar': (11.079, -2.531, 10.281), 'spine_thoracic': (-8.92, -3.728, 9.716),
-        'neck': (32.434, -4.398, -41.479), 'head': (12.539, -1.081),
-        'right_clavicle': (7.031, 8.366), 'right_shoulder': (19.156, 39.688, -11.043),
-        'right_elbow': (44.546, 9.207), 'right_wrist': (-5.955, 12.454),
+        'spine_lumbar': (11.299, -1.469, 10.801), 'spine_thoracic': (-10.003, -2.231, 10.042),
+        'neck': (32.403, -4.559, -41.916), 'head': (12.43, -1.092), 'right_clavicle': (5.897, 8.51),
+        'right_shoulder': (20.921, 38.874, -12.742), 'right_elbow': (44.383, 7.212),
+        'right_wrist': (-6.039, 11.248),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
-        'spine_lumbar': (11.526, -1.601, 10.752), 'spine_thoracic': (-9.78, -2.594, 10.056),
-        'neck': (32.415, -4.595, -42.057), 'head': (12.42, -1.095), 'right_clavicle': (6.33, 8.527),
-        'right_shoulder': (20.593, 39.313, -12.42), 'right_elbow': (44.397, 7.685),
-        'right_wrist': (-6.032, 11.476),
+        'spine_lumbar': (11.354, -1.45, 10.816), 'spine_thoracic': (-10.01, -2.247, 10.059),
+        'neck': (32.407, -4.571, -41.96), 'head': (12.427, -1.093),
+        'right_clavicle': (5.934, 8.521), 'right_shoulder': (20.939, 38.919, -12.75),
+        'right_elbow': (44.372, 7.217), 'right_wrist': (-6.042, 11.238),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (13.189, -3.831, 9.976), 'spine_thoracic': (-7.237, -6.517, 9.932),
-        'neck': (32.71, -4.717, -43.207), 'head': (12.596, -1.109),
-        'right_clavicle': (10.585, 8.527), 'right_shoulder': (16.698, 43.248, -8.814),
-        'right_elbow': (44.243, 12.706), 'right_wrist': (-5.96, 13.296),
+        'spine_lumbar': (12.909, -3.315, 10.134), 'spine_thoracic': (-7.733, -5.746, 9.966),
+        'neck': (32.622, -4.718, -42.978), 'head': (12.524, -1.107),
+        'right_clavicle': (9.786, 8.527), 'right_shoulder': (17.467, 42.562, -9.51),
+        'right_elbow': (44.343, 11.759), 'right_wrist': (-5.966, 13.08),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (14.483, -7.777, 8.993), 'spine_thoracic': (-4.34, -10.0, 9.7),
-        'neck': (33.384, -4.636, -44.704), 'head': (13.192, -1.115),
-        'right_clavicle': (13.744, 8.809), 'right_shoulder': (12.18, 46.95, -6.016),
-        'right_elbow': (43.484, 17.025), 'right_wrist': (-6.16, 13.5),
+        'spine_lumbar': (14.803, -10.332, 8.628), 'spine_thoracic': (-2.948, -10.0, 9.648),
+        'neck': (33.703, -4.725, -45.818), 'head': (13.411, -1.129),
+        'right_clavicle': (14.962, 9.034), 'right_shoulder': (9.926, 48.844, -5.432),
+        'right_elbow': (42.878, 18.652), 'right_wrist': (-6.456, 13.204),
     })
     human.KeyJoints(25.2, {
-        'spine_lumbar': (12.736, -12.778, 8.072), 'spine_thoracic': (-1.74, -10.0, 9.313),
-        'neck': (33.736, -4.311, -44.561), 'head': (13.599, -1.076),
-        'right_clavicle': (14.951, 9.037), 'right_shoulder': (7.873, 48.038, -3.679),
-        'right_elbow': (42.919, 20.09), 'right_wrist': (-6.374, 13.343),
+        'spine_lumbar': (13.451, -11.107, 8.381), 'spine_thoracic': (-2.556, -10.0, 9.428),
+        'neck': (33.605, -4.453, -44.703), 'head': (13.469, -1.105),
+        'right_clavicle': (14.485, 8.932), 'right_shoulder': (9.233, 47.863, -4.664),
+        'right_elbow': (43.153, 19.056), 'right_wrist': (-6.367, 13.524),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (10.623, -5.507, 9.108), 'spine_thoracic': (-6.194, -6.986, 9.14),
-        'neck': (32.588, -4.11, -41.062), 'head': (12.806, -1.064),
-        'right_clavicle': (9.795, 8.107), 'right_shoulder': (14.744, 41.843, -7.258),
-        'right_elbow': (44.839, 13.926), 'right_wrist': (-5.81, 14.504),
+        'spine_lumbar': (10.569, -1.923, 10.485), 'spine_thoracic': (-9.663, -2.363, 9.762),
+        'neck': (32.359, -4.395, -41.288), 'head': (12.482, -1.08),
+        'right_clavicle': (5.737, 8.331), 'right_shoulder': (20.286, 38.609, -12.28),
+        'right_elbow': (44.596, 7.617), 'right_wrist': (-5.986, 11.673),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(25.5, {
-        'spine_lumbar': (12.554, -2.763, 10.315), 'spine_thoracic': (-8.309, -4.85, 10.001),
-        'neck': (32.537, -4.703, -42.713), 'head': (12.462, -1.105),
-        'right_clavicle': (8.834, 8.531), 'right_shoulder': (18.356, 41.711, -10.323),
-        'right_elbow': (44.415, 10.636), 'right_wrist': (-5.979, 12.74),
+        'spine_lumbar': (11.888, -1.947, 10.611), 'spine_thoracic': (-9.287, -3.342, 10.046),
+        'neck': (32.44, -4.642, -42.271), 'head': (12.416, -1.099),
+        'right_clavicle': (7.177, 8.533), 'right_shoulder': (19.849, 40.147, -11.713),
+        'right_elbow': (44.432, 8.685), 'right_wrist': (-6.011, 11.958),
     })
     human.KeyJoints(25.6, {
-        'spine_lumbar': (13.875, -5.559, 9.507), 'spine_thoracic': (-5.778, -8.793, 9.833),
-        'neck': (33.049, -4.638, -43.852), 'head': (12.914, -1.109),
-        'right_clavicle': (12.878, 8.571), 'right_shoulder': (14.428, 44.956, -6.684),
-        'right_elbow': (43.715, 15.408), 'right_wrist': (-5.966, 13.474),
+        'spine_lumbar': (14.32, -6.884, 9.184), 'spine_thoracic': (-4.834, -9.868, 9.736),
+        'neck': (33.272, -4.618, -44.355), 'head': (13.109, -1.112),
+        'right_clavicle': (13.345, 8.714), 'right_shoulder': (12.992, 46.235, -6.324),
+        'right_elbow': (43.59, 16.367), 'right_wrist': (-6.088, 13.559),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (14.862, -11.352, 8.453), 'spine_thoracic': (-2.487, -10.0, 9.651),
-        'neck': (33.841, -4.715, -46.144), 'head': (13.526, -1.132),
-        'right_clavicle': (15.885, 9.168), 'right_shoulder': (9.154, 49.298, -4.621),
-        'right_elbow': (42.453, 19.569), 'right_wrist': (-6.452, 12.652),
+        'spine_lumbar': (14.863, -11.442, 8.434), 'spine_thoracic': (-2.444, -10.0, 9.651),
+        'neck': (33.844, -4.713, -46.15), 'head': (13.534, -1.132),
+        'right_clavicle': (15.907, 9.171), 'right_shoulder': (9.08, 49.306, -4.552),
+        'right_elbow': (42.443, 19.62), 'right_wrist': (-6.451, 12.637),
     })
     human.KeyJoints(25.8, {
-        'spine_lumbar': (11.016, -9.734, 8.407), 'spine_thoracic': (-3.461, -8.947, 9.154),
-        'neck': (33.198, -4.104, -42.338), 'head': (13.234, -1.021),
-        'right_clavicle': (12.275, 8.437), 'right_shoulder': (10.495, 44.577, -4.888),
-        'right_elbow': (44.233, 17.787), 'right_wrist': (-6.012, 14.253),
+        'spine_lumbar': (10.071, -4.182, 9.442), 'spine_thoracic': (-7.425, -5.008, 9.19),
+        'neck': (32.385, -4.15, -40.598), 'head': (12.634, -1.063),
+        'right_clavicle': (7.884, 8.044), 'right_shoulder': (16.636, 40.303, -9.081),
+        'right_elbow': (45.068, 11.558), 'right_wrist': (-5.822, 13.876),
     })
     human.KeyJoints(25.9, {
-        'spine_lumbar': (11.245, -1.84, 10.617), 'spine_thoracic': (-9.612, -2.797, 9.927),
-        'neck': (32.417, -4.497, -41.741), 'head': (12.472, -1.088),
-        'right_clavicle': (6.332, 8.461), 'right_shoulder': (20.287, 39.191, -12.116),
-        'right_elbow': (44.438, 7.948), 'right_wrist': (-6.009, 11.703),
+        'spine_lumbar': (11.339, -1.451, 10.814), 'spine_thoracic': (-10.013, -2.234, 10.055),
+        'neck': (32.405, -4.568, -41.949), 'head': (12.427, -1.093),
+        'right_clavicle': (5.919, 8.518), 'right_shoulder': (20.942, 38.901, -12.755),
+        'right_elbow': (44.373, 7.207), 'right_wrist': (-6.042, 11.235),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.0, {
-        'spine_lumbar': (11.831, -1.888, 10.634), 'spine_thoracic': (-9.366, -3.221, 10.048),
-        'neck': (32.435, -4.635, -42.236), 'head': (12.416, -1.098),
-        'right_clavicle': (7.041, 8.533), 'right_shoulder': (19.969, 40.014, -11.827),
-        'right_elbow': (44.429, 8.525), 'right_wrist': (-6.015, 11.885),
+        'spine_lumbar': (11.39, -1.48, 10.803), 'spine_thoracic': (-9.962, -2.318, 10.059),
+        'neck': (32.408, -4.576, -41.979), 'head': (12.425, -1.094),
+        'right_clavicle': (6.016, 8.522), 'right_shoulder': (20.868, 39.0, -12.682),
+        'right_elbow': (44.378, 7.313), 'right_wrist': (-6.04, 11.288),
     })
     human.KeyJoints(26.1, {
-        'spine_lumbar': (13.378, -4.231, 9.86), 'spine_thoracic': (-6.876, -7.077, 9.907),
-        'neck': (32.783, -4.71, -43.371), 'head': (12.66, -1.109), 'right_clavicle': (11.152, 8.53),
-        'right_shoulder': (16.137, 43.716, -8.309), 'right_elbow': (44.149, 13.381),
-        'right_wrist': (-5.959, 13.408),
+        'spine_lumbar': (13.271, -4.0, 9.927), 'spine_thoracic': (-7.082, -6.756, 9.921),
+        'neck': (32.741, -4.715, -43.277), 'head': (12.622, -1.109),
+        'right_clavicle': (10.829, 8.528), 'right_shoulder': (16.458, 43.451, -8.598),
+        'right_elbow': (44.205, 12.996), 'right_wrist': (-5.96, 13.346),
     })
     human.KeyJoints(26.2, {
-        'spine_lumbar': (14.549, -8.51, 8.865), 'spine_thoracic': (-3.999, -10.0, 9.688),
-        'neck': (33.471, -4.65, -44.976), 'head': (13.257, -1.118),
-        'right_clavicle': (14.487, 8.863), 'right_shoulder': (11.575, 47.392, -5.44),
-        'right_elbow': (43.204, 17.767), 'right_wrist': (-6.189, 13.269),
+        'spine_lumbar': (14.846, -10.942, 8.528), 'spine_thoracic': (-2.653, -10.0, 9.649),
+        'neck': (33.782, -4.725, -46.024), 'head': (13.476, -1.131),
+        'right_clavicle': (15.385, 9.105), 'right_shoulder': (9.44, 49.152, -5.088),
+        'right_elbow': (42.673, 19.124), 'right_wrist': (-6.455, 12.975),
     })
     human.KeyJoints(26.3, {
-        'spine_lumbar': (12.074, -12.909, 8.031), 'spine_thoracic': (-1.668, -10.0, 9.229),
-        'neck': (33.678, -4.182, -43.857), 'head': (13.6, -1.043), 'right_clavicle': (14.436, 8.96),
-        'right_shoulder': (7.749, 47.369, -3.595), 'right_elbow': (43.161, 20.124),
-        'right_wrist': (-6.33, 13.612),
+        'spine_lumbar': (12.313, -9.173, 8.513), 'spine_thoracic': (-3.653, -9.942, 9.286),
+        'neck': (33.305, -4.207, -42.999), 'head': (13.288, -1.044),
+        'right_clavicle': (13.317, 8.589), 'right_shoulder': (10.886, 45.534, -4.65),
+        'right_elbow': (43.797, 17.979), 'right_wrist': (-6.017, 14.048),
     })
     human.KeyJoints(26.4, {
-        'spine_lumbar': (10.719, -4.481, 9.448), 'spine_thoracic': (-7.074, -6.04, 9.261),
-        'neck': (32.512, -4.19, -41.155), 'head': (12.701, -1.071), 'right_clavicle': (8.9, 8.161),
-        'right_shoulder': (16.158, 41.096, -8.367), 'right_elbow': (44.777, 12.464),
-        'right_wrist': (-5.84, 14.074),
+        'spine_lumbar': (10.927, -1.652, 10.665), 'spine_thoracic': (-9.887, -2.237, 9.911),
+        'neck': (32.382, -4.477, -41.605), 'head': (12.457, -1.086),
+        'right_clavicle': (5.716, 8.425), 'right_shoulder': (20.689, 38.63, -12.589),
+        'right_elbow': (44.476, 7.317), 'right_wrist': (-6.016, 11.4),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.5, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(26.6, {
+        'spine_lumbar': (12.189, -2.285, 10.483), 'spine_thoracic': (-8.858, -4.0, 10.029),
+        'neck': (32.476, -4.674, -42.463), 'head': (12.428, -1.102),
+        'right_clavicle': (7.908, 8.535), 'right_shoulder': (19.197, 40.848, -11.103),
+        'right_elbow': (44.441, 9.546), 'right_wrist': (-5.996, 12.331),
+    })
+    human.KeyJoints(26.7, {
+        'spine_lumbar': (14.507, -8.065, 8.939), 'spine_thoracic': (-4.212, -10.0, 9.695),
+        'neck': (33.415, -4.643, -44.809), 'head': (13.214, -1.116),
+        'right_clavicle': (14.108, 8.829), 'right_shoulder': (11.946, 47.114, -5.684),
+        'right_elbow': (43.36, 17.361), 'right_wrist': (-6.169, 13.377),
+    })
+    human.KeyJoints(26.8, {
+        'spine_lumbar': (14.785, -11.484, 8.423), 'spine_thoracic': (-2.422, -10.0, 9.639),
+        'neck': (33.838, -4.698, -46.087), 'head': (13.537, -1.13),
+        'right_clavicle': (15.865, 9.165), 'right_shoulder': (9.043, 49.252, -4.525),
+        'right_elbow': (42.463, 19.633), 'right_wrist': (-6.447, 12.664),
+    })
+    human.KeyJoints(26.9, {
+        'spine_lumbar': (9.99, -3.152, 9.833), 'spine_thoracic': (-8.447, -3.652, 9.353),
+        'neck': (32.328, -4.21, -40.637), 'head': (12.556, -1.067),
+        'right_clavicle': (6.625, 8.104), 'right_shoulder': (18.263, 39.246, -10.549),
+        'right_elbow': (44.967, 9.674), 'right_wrist': (-5.877, 12.996),
+    })
+    human.KeyJoints(27.0, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.238, 10.059),
         'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
         'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
-    human.KeyJoints(26.6, {
-        'spine_lumbar': (12.775, -3.095, 10.205), 'spine_thoracic': (-7.956, -5.399, 9.98),
-        'neck': (32.587, -4.715, -42.876), 'head': (12.497, -1.107),
-        'right_clavicle': (9.42, 8.528), 'right_shoulder': (17.812, 42.24, -9.824),
-        'right_elbow': (44.376, 11.327), 'right_wrist': (-5.97, 12.961),
-    })
-    human.KeyJoints(26.7, {
-        'spine_lumbar': (14.046, -6.108, 9.373), 'spine_thoracic': (-5.368, -9.349, 9.803),
-        'neck': (33.155, -4.617, -44.04), 'right_clavicle': (13.272, 8.606),
-        'right_shoulder': (13.794, 45.407, -6.342), 'right_elbow': (43.599, 16.007),
-        'right_wrist': (-5.977, 13.447),
-    })
-    human.KeyJoints(26.8, {
-        'spine_lumbar': (14.572, -11.907, 8.321), 'spine_thoracic': (-2.206, -10.0, 9.603),
-        'neck': (33.824, -4.641, -45.887), 'head': (13.573, -1.126),
-        'right_clavicle': (15.797, 9.156), 'right_shoulder': (8.674, 49.159, -4.243),
-        'right_elbow': (42.499, 19.808), 'right_wrist': (-6.44, 12.729),
-    })
-    human.KeyJoints(26.9, {
-        'spine_lumbar': (10.782, -8.085, 8.631), 'spine_thoracic': (-4.443, -8.319, 9.14),
-        'neck': (32.958, -4.104, -41.716), 'head': (13.084, -1.033),
-        'right_clavicle': (11.421, 8.252), 'right_shoulder': (12.008, 43.541, -5.652),
-        'right_elbow': (44.574, 16.464), 'right_wrist': (-5.899, 14.417),
-    })
-    human.KeyJoints(27.0, {
-        'spine_lumbar': (11.342, -1.477, 10.802), 'spine_thoracic': (-9.984, -2.282, 10.048),
-        'neck': (32.407, -4.564, -41.938), 'head': (12.431, -1.093),
-        'right_clavicle': (5.956, 8.516), 'right_shoulder': (20.896, 38.93, -12.708),
-        'right_elbow': (44.376, 7.263), 'right_wrist': (-6.04, 11.269),
-    })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
-        'spine_lumbar': (12.08, -2.157, 10.531), 'spine_thoracic': (-9.016, -3.757, 10.036),
-        'neck': (32.461, -4.664, -42.391), 'head': (12.423, -1.101),
-        'right_clavicle': (7.639, 8.535), 'right_shoulder': (19.438, 40.592, -11.328),
-        'right_elbow': (44.44, 9.229), 'right_wrist': (-6.001, 12.199),
+        'spine_lumbar': (11.483, -1.559, 10.769), 'spine_thoracic': (-9.839, -2.504, 10.057),
+        'neck': (32.412, -4.589, -42.031), 'head': (12.421, -1.095),
+        'right_clavicle': (6.229, 8.526), 'right_shoulder': (20.682, 39.214, -12.504),
+        'right_elbow': (44.392, 7.566), 'right_wrist': (-6.034, 11.418),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (13.557, -4.653, 9.743), 'spine_thoracic': (-6.511, -7.639, 9.881),
-        'neck': (32.864, -4.695, -43.535), 'head': (12.733, -1.11),
-        'right_clavicle': (11.711, 8.538), 'right_shoulder': (15.569, 44.162, -7.803),
-        'right_elbow': (44.035, 14.051), 'right_wrist': (-5.96, 13.471),
+        'spine_lumbar': (13.608, -4.784, 9.707), 'spine_thoracic': (-6.402, -7.808, 9.873),
+        'neck': (32.89, -4.689, -43.584), 'head': (12.757, -1.11),
+        'right_clavicle': (11.877, 8.542), 'right_shoulder': (15.399, 44.291, -7.651),
+        'right_elbow': (43.998, 14.251), 'right_wrist': (-5.96, 13.483),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (14.713, -9.558, 8.732), 'spine_thoracic': (-3.377, -10.0, 9.658),
-        'neck': (33.604, -4.704, -45.486), 'head': (13.341, -1.125),
-        'right_clavicle': (14.726, 8.956), 'right_shoulder': (10.604, 48.3, -5.448),
-        'right_elbow': (43.034, 18.248), 'right_wrist': (-6.382, 13.244),
+        'spine_lumbar': (14.86, -11.275, 8.467), 'spine_thoracic': (-2.509, -10.0, 9.65),
+        'neck': (33.823, -4.719, -46.114), 'head': (13.514, -1.132),
+        'right_clavicle': (15.714, 9.148), 'right_shoulder': (9.194, 49.271, -4.75),
+        'right_elbow': (42.527, 19.44), 'right_wrist': (-6.453, 12.762),
     })
     human.KeyJoints(27.4, {
-        'spine_lumbar': (11.688, -12.438, 8.083), 'spine_thoracic': (-1.927, -9.854, 9.2),
-        'neck': (33.56, -4.14, -43.317), 'head': (13.529, -1.031),
-        'right_clavicle': (13.843, 8.833), 'right_shoulder': (8.145, 46.596, -3.775),
-        'right_elbow': (43.455, 19.792), 'right_wrist': (-6.254, 13.825),
+        'spine_lumbar': (11.223, -7.045, 8.82), 'spine_thoracic': (-4.94, -8.956, 9.184),
+        'neck': (32.936, -4.067, -41.619), 'head': (13.065, -1.03),
+        'right_clavicle': (11.696, 8.237), 'right_shoulder': (12.851, 43.271, -5.507),
+        'right_elbow': (44.384, 16.185), 'right_wrist': (-5.831, 14.431),
     })
     human.KeyJoints(27.5, {
-        'spine_lumbar': (10.885, -3.458, 9.862), 'spine_thoracic': (-8.021, -4.891, 9.471),
-        'neck': (32.461, -4.304, -41.304), 'head': (12.611, -1.075),
-        'right_clavicle': (7.94, 8.256), 'right_shoulder': (17.692, 40.356, -9.699),
-        'right_elbow': (44.67, 10.815), 'right_wrist': (-5.893, 13.325),
+        'spine_lumbar': (11.2, -1.513, 10.767), 'spine_thoracic': (-9.977, -2.231, 10.008),
+        'neck': (32.398, -4.537, -41.834), 'head': (12.438, -1.091),
+        'right_clavicle': (5.841, 8.488), 'right_shoulder': (20.868, 38.801, -12.709),
+        'right_elbow': (44.406, 7.231), 'right_wrist': (-6.034, 11.283),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(27.7, {
-        'spine_lumbar': (12.986, -3.449, 10.092), 'spine_thoracic': (-7.6, -5.951, 9.957),
-        'neck': (32.644, -4.717, -43.039), 'head': (12.541, -1.108),
-        'right_clavicle': (10.001, 8.527), 'right_shoulder': (17.263, 42.75, -9.324),
-        'right_elbow': (44.32, 12.013), 'right_wrist': (-5.964, 13.144),
+        'spine_lumbar': (12.535, -2.736, 10.324), 'spine_thoracic': (-8.338, -4.805, 10.003),
+        'neck': (32.534, -4.702, -42.7), 'head': (12.46, -1.105), 'right_clavicle': (8.785, 8.531),
+        'right_shoulder': (18.401, 41.666, -10.365), 'right_elbow': (44.417, 10.578),
+        'right_wrist': (-5.979, 12.72),
     })
     human.KeyJoints(27.8, {
-        'spine_lumbar': (14.352, -6.988, 9.16), 'spine_thoracic': (-4.767, -9.915, 9.728),
-        'neck': (33.282, -4.626, -44.402), 'right_clavicle': (13.355, 8.729),
-        'right_shoulder': (12.89, 46.342, -6.322), 'right_elbow': (43.589, 16.414),
-        'right_wrist': (-6.103, 13.573),
+        'spine_lumbar': (14.664, -9.259, 8.767), 'spine_thoracic': (-3.56, -10.0, 9.667),
+        'neck': (33.565, -4.686, -45.336), 'head': (13.316, -1.123),
+        'right_clavicle': (14.673, 8.928), 'right_shoulder': (10.884, 48.033, -5.445),
+        'right_elbow': (43.077, 18.129), 'right_wrist': (-6.32, 13.248),
     })
     human.KeyJoints(27.9, {
-        'spine_lumbar': (13.726, -12.41, 8.182), 'spine_thoracic': (-1.94, -10.0, 9.466),
-        'neck': (33.779, -4.487, -45.264), 'head': (13.598, -1.112),
-        'right_clavicle': (15.447, 9.108), 'right_shoulder': (8.218, 48.693, -3.916),
-        'right_elbow': (42.676, 19.98), 'right_wrist': (-6.413, 13.003),
+        'spine_lumbar': (14.32, -11.612, 8.377), 'spine_thoracic': (-2.346, -10.0, 9.568),
+        'neck': (33.789, -4.61, -45.677), 'head': (13.541, -1.122),
+        'right_clavicle': (15.534, 9.116), 'right_shoulder': (8.914, 48.886, -4.451),
+        'right_elbow': (42.623, 19.628), 'right_wrist': (-6.427, 12.877),
     })
     human.KeyJoints(28.0, {
-        'spine_lumbar': (10.644, -6.604, 8.867), 'spine_thoracic': (-5.386, -7.659, 9.132),
-        'neck': (32.721, -4.103, -41.186), 'head': (12.932, -1.053),
-        'right_clavicle': (10.587, 8.129), 'right_shoulder': (13.472, 42.608, -6.452),
-        'right_elbow': (44.796, 15.145), 'right_wrist': (-5.824, 14.518),
+        'spine_lumbar': (10.205, -2.41, 10.198), 'spine_thoracic': (-9.2, -2.785, 9.56),
+        'neck': (32.333, -4.298, -40.92), 'head': (12.513, -1.073),
+        'right_clavicle': (5.913, 8.212), 'right_shoulder': (19.497, 38.664, -11.628),
+        'right_elbow': (44.776, 8.351), 'right_wrist': (-5.937, 12.206),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.1, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(28.2, {
-        'spine_lumbar': (12.32, -2.446, 10.425), 'spine_thoracic': (-8.666, -4.297, 10.02),
-        'neck': (32.495, -4.686, -42.55), 'head': (12.437, -1.103),
-        'right_clavicle': (8.234, 8.534), 'right_shoulder': (18.904, 41.155, -10.83),
-        'right_elbow': (44.436, 9.929), 'right_wrist': (-5.989, 12.483),
+        'spine_lumbar': (11.647, -1.708, 10.707), 'spine_thoracic': (-9.618, -2.838, 10.054),
+        'neck': (32.421, -4.612, -42.126), 'head': (12.416, -1.096),
+        'right_clavicle': (6.609, 8.531), 'right_shoulder': (20.35, 39.59, -12.188),
+        'right_elbow': (44.414, 8.014), 'right_wrist': (-6.025, 11.642),
     })
     human.KeyJoints(28.3, {
-        'spine_lumbar': (13.725, -5.1, 9.624), 'spine_thoracic': (-6.143, -8.205, 9.855),
-        'neck': (32.953, -4.673, -43.699), 'head': (12.817, -1.11),
-        'right_clavicle': (12.261, 8.552), 'right_shoulder': (14.996, 44.585, -7.294),
-        'right_elbow': (43.901, 14.715), 'right_wrist': (-5.963, 13.502),
+        'spine_lumbar': (13.892, -5.616, 9.493), 'spine_thoracic': (-5.734, -8.866, 9.83),
+        'neck': (33.063, -4.635, -43.866), 'right_clavicle': (12.954, 8.574),
+        'right_shoulder': (14.358, 44.999, -6.607), 'right_elbow': (43.69, 15.493),
+        'right_wrist': (-5.966, 13.467),
     })
     human.KeyJoints(28.4, {
-        'spine_lumbar': (14.818, -10.54, 8.595), 'spine_thoracic': (-2.852, -10.0, 9.649),
-        'neck': (33.735, -4.722, -45.896), 'head': (13.433, -1.13),
-        'right_clavicle': (15.142, 9.064), 'right_shoulder': (9.767, 48.958, -5.326),
-        'right_elbow': (42.79, 18.834), 'right_wrist': (-6.455, 13.111),
+        'spine_lumbar': (14.863, -11.414, 8.44), 'spine_thoracic': (-2.454, -10.0, 9.65),
+        'neck': (33.84, -4.714, -46.145), 'head': (13.531, -1.132),
+        'right_clavicle': (15.873, 9.167), 'right_shoulder': (9.098, 49.302, -4.586),
+        'right_elbow': (42.458, 19.589), 'right_wrist': (-6.451, 12.659),
     })
     human.KeyJoints(28.5, {
-        'spine_lumbar': (11.329, -11.296, 8.214), 'spine_thoracic': (-2.566, -9.485, 9.174),
-        'neck': (33.388, -4.113, -42.835), 'head': (13.382, -1.022),
-        'right_clavicle': (13.109, 8.647), 'right_shoulder': (9.121, 45.64, -4.228),
-        'right_elbow': (43.833, 18.965), 'right_wrist': (-6.141, 14.046),
+        'spine_lumbar': (10.485, -5.536, 9.084), 'spine_thoracic': (-6.19, -6.822, 9.133),
+        'neck': (32.566, -4.109, -40.937), 'head': (12.801, -1.063),
+        'right_clavicle': (9.663, 8.085), 'right_shoulder': (14.721, 41.765, -7.335),
+        'right_elbow': (44.909, 13.858), 'right_wrist': (-5.808, 14.504),
     })
     human.KeyJoints(28.6, {
-        'spine_lumbar': (11.075, -2.545, 10.274), 'spine_thoracic': (-8.907, -3.746, 9.712),
-        'neck': (32.435, -4.397, -41.475), 'head': (12.54, -1.081),
-        'right_clavicle': (7.044, 8.364), 'right_shoulder': (19.134, 39.698, -11.022),
-        'right_elbow': (44.548, 9.231), 'right_wrist': (-5.954, 12.468),
+        'spine_lumbar': (11.298, -1.469, 10.8), 'spine_thoracic': (-10.003, -2.231, 10.041),
+        'neck': (32.403, -4.559, -41.915), 'head': (12.43, -1.092),
+        'right_clavicle': (5.897, 8.509), 'right_shoulder': (20.921, 38.874, -12.742),
+        'right_elbow': (44.383, 7.213), 'right_wrist': (-6.039, 11.249),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.7, {
-        'spine_lumbar': (11.521, -1.596, 10.754), 'spine_thoracic': (-9.788, -2.582, 10.056),
-        'neck': (32.415, -4.594, -42.054), 'head': (12.421, -1.095),
-        'right_clavicle': (6.317, 8.527), 'right_shoulder': (20.605, 39.3, -12.431),
-        'right_elbow': (44.396, 7.669), 'right_wrist': (-6.032, 11.468),
+        'spine_lumbar': (11.354, -1.45, 10.816), 'spine_thoracic': (-10.01, -2.247, 10.059),
+        'neck': (32.407, -4.571, -41.96), 'right_clavicle': (5.934, 8.521),
+        'right_shoulder': (20.939, 38.918, -12.75), 'right_elbow': (44.371, 7.216),
+        'right_wrist': (-6.042, 11.237),
     })
     human.KeyJoints(28.8, {
-        'spine_lumbar': (13.186, -3.825, 9.978), 'spine_thoracic': (-7.243, -6.508, 9.933),
-        'neck': (32.709, -4.717, -43.204), 'head': (12.595, -1.109),
-        'right_clavicle': (10.575, 8.527), 'right_shoulder': (16.708, 43.24, -8.822),
-        'right_elbow': (44.244, 12.694), 'right_wrist': (-5.96, 13.294),
+        'spine_lumbar': (12.902, -3.304, 10.137), 'spine_thoracic': (-7.743, -5.729, 9.966),
+        'neck': (32.62, -4.718, -42.974), 'head': (12.522, -1.107),
+        'right_clavicle': (9.768, 8.527), 'right_shoulder': (17.484, 42.547, -9.525),
+        'right_elbow': (44.344, 11.738), 'right_wrist': (-5.966, 13.074),
     })
     human.KeyJoints(28.9, {
-        'spine_lumbar': (14.482, -7.765, 8.996), 'spine_thoracic': (-4.346, -10.0, 9.7),
-        'neck': (33.382, -4.636, -44.7), 'head': (13.191, -1.115), 'right_clavicle': (13.73, 8.808),
-        'right_shoulder': (12.19, 46.943, -6.029), 'right_elbow': (43.489, 17.012),
-        'right_wrist': (-6.16, 13.505),
+        'spine_lumbar': (14.802, -10.318, 8.63), 'spine_thoracic': (-2.954, -10.0, 9.648),
+        'neck': (33.702, -4.724, -45.813), 'head': (13.41, -1.129),
+        'right_clavicle': (14.956, 9.033), 'right_shoulder': (9.937, 48.837, -5.435),
+        'right_elbow': (42.881, 18.643), 'right_wrist': (-6.456, 13.206),
     })
     human.KeyJoints(29.0, {
-        'spine_lumbar': (12.751, -12.774, 8.073), 'spine_thoracic': (-1.742, -10.0, 9.316),
-        'neck': (33.737, -4.314, -44.574), 'head': (13.599, -1.077),
-        'right_clavicle': (14.96, 9.039), 'right_shoulder': (7.877, 48.05, -3.682),
-        'right_elbow': (42.915, 20.089), 'right_wrist': (-6.375, 13.338),
+        'spine_lumbar': (13.468, -11.129, 8.38), 'spine_thoracic': (-2.545, -10.0, 9.43),
+        'neck': (33.61, -4.457, -44.726), 'head': (13.471, -1.105),
+        'right_clavicle': (14.502, 8.936), 'right_shoulder': (9.216, 47.894, -4.666),
+        'right_elbow': (43.142, 19.069), 'right_wrist': (-6.371, 13.514),
     })
     human.KeyJoints(29.1, {
-        'spine_lumbar': (10.623, -5.523, 9.103), 'spine_thoracic': (-6.18, -6.999, 9.139),
-        'neck': (32.59, -4.11, -41.062), 'head': (12.808, -1.064), 'right_clavicle': (9.809, 8.107),
-        'right_shoulder': (14.723, 41.855, -7.242), 'right_elbow': (44.839, 13.948),
-        'right_wrist': (-5.809, 14.507),
+        'spine_lumbar': (10.562, -1.929, 10.48), 'spine_thoracic': (-9.657, -2.368, 9.758),
+        'neck': (32.358, -4.393, -41.282), 'head': (12.482, -1.08),
+        'right_clavicle': (5.738, 8.329), 'right_shoulder': (20.275, 38.609, -12.272),
+        'right_elbow': (44.598, 7.626), 'right_wrist': (-5.985, 11.68),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.2, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(29.3, {
-        'spine_lumbar': (12.55, -2.757, 10.317), 'spine_thoracic': (-8.315, -4.841, 10.002),
-        'neck': (32.537, -4.703, -42.71), 'head': (12.462, -1.105),
-        'right_clavicle': (8.824, 8.531), 'right_shoulder': (18.365, 41.702, -10.332),
-        'right_elbow': (44.415, 10.625), 'right_wrist': (-5.979, 12.736),
+        'spine_lumbar': (11.883, -1.942, 10.613), 'spine_thoracic': (-9.293, -3.333, 10.046),
+        'neck': (32.44, -4.642, -42.268), 'head': (12.416, -1.099),
+        'right_clavicle': (7.166, 8.533), 'right_shoulder': (19.859, 40.136, -11.723),
+        'right_elbow': (44.432, 8.672), 'right_wrist': (-6.012, 11.953),
     })
     human.KeyJoints(29.4, {
-        'spine_lumbar': (13.872, -5.551, 9.509), 'spine_thoracic': (-5.784, -8.783, 9.833),
-        'neck': (33.048, -4.639, -43.849), 'head': (12.912, -1.109),
-        'right_clavicle': (12.867, 8.571), 'right_shoulder': (14.437, 44.951, -6.695),
-        'right_elbow': (43.719, 15.396), 'right_wrist': (-5.966, 13.475),
+        'spine_lumbar': (14.312, -6.858, 9.19), 'spine_thoracic': (-4.851, -9.856, 9.738),
+        'neck': (33.268, -4.617, -44.344), 'head': (13.106, -1.112),
+        'right_clavicle': (13.343, 8.711), 'right_shoulder': (13.018, 46.208, -6.325),
+        'right_elbow': (43.591, 16.356), 'right_wrist': (-6.084, 13.555),
     })
     human.KeyJoints(29.5, {
-        'spine_lumbar': (14.861, -11.341, 8.456), 'spine_thoracic': (-2.492, -10.0, 9.651),
-        'neck': (33.84, -4.715, -46.143), 'head': (13.525, -1.132),
-        'right_clavicle': (15.88, 9.168), 'right_shoulder': (9.162, 49.297, -4.63),
-        'right_elbow': (42.455, 19.561), 'right_wrist': (-6.452, 12.655),
+        'spine_lumbar': (14.863, -11.442, 8.434), 'spine_thoracic': (-2.444, -10.0, 9.651),
+        'neck': (33.844, -4.713, -46.15), 'head': (13.534, -1.132),
+        'right_clavicle': (15.907, 9.171), 'right_shoulder': (9.08, 49.306, -4.552),
+        'right_elbow': (42.443, 19.62), 'right_wrist': (-6.451, 12.637),
     })
     human.KeyJoints(29.6, {
-        'spine_lumbar': (11.021, -9.762, 8.403), 'spine_thoracic': (-3.445, -8.956, 9.154),
-        'neck': (33.201, -4.104, -42.347), 'head': (13.236, -1.02),
-        'right_clavicle': (12.289, 8.44), 'right_shoulder': (10.47, 44.595, -4.876),
-        'right_elbow': (44.227, 17.809), 'right_wrist': (-6.014, 14.25),
+        'spine_lumbar': (10.073, -4.201, 9.436), 'spine_thoracic': (-7.406, -5.034, 9.188),
+        'neck': (32.387, -4.149, -40.599), 'head': (12.637, -1.063),
+        'right_clavicle': (7.91, 8.043), 'right_shoulder': (16.606, 40.324, -9.054),
+        'right_elbow': (45.069, 11.593), 'right_wrist': (-5.822, 13.888),
     })
     human.KeyJoints(29.7, {
-        'spine_lumbar': (11.243, -1.849, 10.612), 'spine_thoracic': (-9.603, -2.81, 9.924),
-        'neck': (32.417, -4.496, -41.736), 'head': (12.473, -1.088),
-        'right_clavicle': (6.341, 8.46), 'right_shoulder': (20.271, 39.198, -12.102),
-        'right_elbow': (44.44, 7.965), 'right_wrist': (-6.008, 11.713),
+        'spine_lumbar': (11.339, -1.452, 10.814), 'spine_thoracic': (-10.013, -2.234, 10.055),
+        'neck': (32.405, -4.568, -41.949), 'head': (12.427, -1.093),
+        'right_clavicle': (5.918, 8.518), 'right_shoulder': (20.941, 38.901, -12.755),
+        'right_elbow': (44.373, 7.207), 'right_wrist': (-6.042, 11.235),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.8, {
-        'spine_lumbar': (11.827, -1.884, 10.636), 'spine_thoracic': (-9.372, -3.212, 10.048),
-        'neck': (32.434, -4.635, -42.233), 'head': (12.416, -1.098),
-        'right_clavicle': (7.031, 8.533), 'right_shoulder': (19.978, 40.005, -11.835),
-        'right_elbow': (44.428, 8.513), 'right_wrist': (-6.015, 11.879),
+        'spine_lumbar': (11.389, -1.479, 10.804), 'spine_thoracic': (-9.964, -2.316, 10.059),
+        'neck': (32.408, -4.576, -41.979), 'head': (12.425, -1.094),
+        'right_clavicle': (6.013, 8.522), 'right_shoulder': (20.87, 38.998, -12.684),
+        'right_elbow': (44.377, 7.311), 'right_wrist': (-6.04, 11.287),
     })
     human.KeyJoints(29.9, {
-        'spine_lumbar': (13.375, -4.224, 9.862), 'spine_thoracic': (-6.882, -7.067, 9.907),
-        'neck': (32.782, -4.71, -43.368), 'head': (12.659, -1.109),
-        'right_clavicle': (11.143, 8.53), 'right_shoulder': (16.146, 43.709, -8.318),
-        'right_elbow': (44.15, 13.37), 'right_wrist': (-5.959, 13.406),
+        'spine_lumbar': (13.265, -3.987, 9.93), 'spine_thoracic': (-7.094, -6.739, 9.922),
+        'neck': (32.738, -4.715, -43.272), 'head': (12.62, -1.109),
+        'right_clavicle': (10.811, 8.527), 'right_shoulder': (16.476, 43.436, -8.614),
+        'right_elbow': (44.208, 12.975), 'right_wrist': (-5.96, 13.343),
     })
     human.KeyJoints(30.0, {
-        'spine_lumbar': (14.547, -8.495, 8.867), 'spine_thoracic': (-4.006, -10.0, 9.688),
-        'neck': (33.47, -4.65, -44.971), 'head': (13.256, -1.118), 'right_clavicle': (14.48, 8.862),
-        'right_shoulder': (11.587, 47.382, -5.44), 'right_elbow': (43.208, 17.757),
-        'right_wrist': (-6.189, 13.27),
+        'spine_lumbar': (14.846, -10.934, 8.529), 'spine_thoracic': (-2.656, -10.0, 9.649),
+        'neck': (33.781, -4.725, -46.021), 'head': (13.476, -1.131),
+        'right_clavicle': (15.378, 9.104), 'right_shoulder': (9.446, 49.148, -5.094),
+        'right_elbow': (42.676, 19.117), 'right_wrist': (-6.455, 12.979),
     })
     human.KeyJoints(30.1, {
-        'spine_lumbar': (12.08, -12.909, 8.031), 'spine_thoracic': (-1.668, -10.0, 9.23),
-        'neck': (33.679, -4.183, -43.867), 'head': (13.6, -1.043),
-        'right_clavicle': (14.444, 8.961), 'right_shoulder': (7.748, 47.38, -3.595),
-        'right_elbow': (43.157, 20.125), 'right_wrist': (-6.331, 13.608),
+        'spine_lumbar': (12.333, -9.211, 8.509), 'spine_thoracic': (-3.633, -9.949, 9.288),
+        'neck': (33.311, -4.21, -43.027), 'head': (13.292, -1.045),
+        'right_clavicle': (13.34, 8.596), 'right_shoulder': (10.854, 45.578, -4.644),
+        'right_elbow': (43.787, 18.003), 'right_wrist': (-6.022, 14.039),
     })
     human.KeyJoints(30.2, {
-        'spine_lumbar': (10.716, -4.499, 9.441), 'spine_thoracic': (-7.058, -6.058, 9.258),
-        'neck': (32.513, -4.188, -41.153), 'head': (12.702, -1.07), 'right_clavicle': (8.916, 8.16),
-        'right_shoulder': (16.133, 41.109, -8.345), 'right_elbow': (44.779, 12.491),
-        'right_wrist': (-5.839, 14.085),
+        'spine_lumbar': (10.922, -1.655, 10.663), 'spine_thoracic': (-9.885, -2.237, 9.909),
+        'neck': (32.382, -4.476, -41.601), 'head': (12.457, -1.086),
+        'right_clavicle': (5.714, 8.423), 'right_shoulder': (20.685, 38.628, -12.586),
+        'right_elbow': (44.477, 7.319), 'right_wrist': (-6.016, 11.403),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.3, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(30.4, {
+        'spine_lumbar': (12.184, -2.278, 10.486), 'spine_thoracic': (-8.866, -3.988, 10.03),
+        'neck': (32.475, -4.674, -42.459), 'head': (12.427, -1.102),
+        'right_clavicle': (7.895, 8.535), 'right_shoulder': (19.21, 40.836, -11.114),
+        'right_elbow': (44.441, 9.53), 'right_wrist': (-5.996, 12.324),
+    })
+    human.KeyJoints(30.5, {
+        'spine_lumbar': (14.505, -8.048, 8.942), 'spine_thoracic': (-4.219, -10.0, 9.696),
+        'neck': (33.413, -4.643, -44.803), 'head': (13.212, -1.116),
+        'right_clavicle': (14.087, 8.828), 'right_shoulder': (11.96, 47.104, -5.702),
+        'right_elbow': (43.367, 17.342), 'right_wrist': (-6.169, 13.384),
+    })
+    human.KeyJoints(30.6, {
+        'spine_lumbar': (14.788, -11.482, 8.423), 'spine_thoracic': (-2.422, -10.0, 9.639),
+        'neck': (33.838, -4.699, -46.089), 'head': (13.537, -1.13),
+        'right_clavicle': (15.867, 9.166), 'right_shoulder': (9.044, 49.253, -4.526),
+        'right_elbow': (42.462, 19.633), 'right_wrist': (-6.448, 12.663),
+    })
+    human.KeyJoints(30.7, {
+        'spine_lumbar': (9.99, -3.166, 9.827), 'spine_thoracic': (-8.432, -3.669, 9.35),
+        'neck': (32.329, -4.209, -40.635), 'head': (12.557, -1.067),
+        'right_clavicle': (6.64, 8.103), 'right_shoulder': (18.24, 39.258, -10.528),
+        'right_elbow': (44.969, 9.7), 'right_wrist': (-5.876, 13.01),
+    })
+    human.KeyJoints(30.8, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.238, 10.059),
         'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
         'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
-    human.KeyJoints(30.4, {
-        'spine_lumbar': (12.771, -3.089, 10.206), 'spine_thoracic': (-7.962, -5.39, 9.98),
-        'neck': (32.586, -4.715, -42.873), 'head': (12.497, -1.107),
-        'right_clavicle': (9.41, 8.528), 'right_shoulder': (17.821, 42.231, -9.833),
-        'right_elbow': (44.377, 11.315), 'right_wrist': (-5.97, 12.957),
-    })
-    human.KeyJoints(30.5, {
-        'spine_lumbar': (14.041, -6.095, 9.376), 'spine_thoracic': (-5.377, -9.339, 9.804),
-        'neck': (33.153, -4.617, -44.035), 'right_clavicle': (13.27, 8.605),
-        'right_shoulder': (13.807, 45.395, -6.343), 'right_elbow': (43.599, 15.999),
-        'right_wrist': (-5.976, 13.446),
-    })
-    human.KeyJoints(30.6, {
-        'spine_lumbar': (14.582, -11.898, 8.323), 'spine_thoracic': (-2.21, -10.0, 9.604),
-        'neck': (33.825, -4.643, -45.896), 'head': (13.573, -1.127),
-        'right_clavicle': (15.801, 9.157), 'right_shoulder': (8.682, 49.165, -4.249),
-        'right_elbow': (42.497, 19.805), 'right_wrist': (-6.441, 12.726),
-    })
-    human.KeyJoints(30.7, {
-        'spine_lumbar': (10.786, -8.112, 8.627), 'spine_thoracic': (-4.427, -8.33, 9.14),
-        'neck': (32.962, -4.104, -41.727), 'head': (13.087, -1.033),
-        'right_clavicle': (11.435, 8.255), 'right_shoulder': (11.982, 43.558, -5.639),
-        'right_elbow': (44.569, 16.487), 'right_wrist': (-5.901, 14.415),
-    })
-    human.KeyJoints(30.8, {
-        'spine_lumbar': (11.341, -1.479, 10.801), 'spine_thoracic': (-9.981, -2.287, 10.047),
-        'neck': (32.407, -4.563, -41.936), 'head': (12.431, -1.093),
-        'right_clavicle': (5.959, 8.516), 'right_shoulder': (20.891, 38.932, -12.703),
-        'right_elbow': (44.377, 7.268), 'right_wrist': (-6.039, 11.273),
-    })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
-        'spine_lumbar': (12.075, -2.152, 10.533), 'spine_thoracic': (-9.022, -3.748, 10.036),
-        'neck': (32.461, -4.663, -42.389), 'head': (12.422, -1.101),
-        'right_clavicle': (7.629, 8.535), 'right_shoulder': (19.447, 40.583, -11.336),
-        'right_elbow': (44.44, 9.218), 'right_wrist': (-6.001, 12.194),
+        'spine_lumbar': (11.481, -1.558, 10.77), 'spine_thoracic': (-9.842, -2.5, 10.057),
+        'neck': (32.411, -4.589, -42.03), 'head': (12.421, -1.095),
+        'right_clavicle': (6.224, 8.526), 'right_shoulder': (20.687, 39.209, -12.508),
+        'right_elbow': (44.392, 7.56), 'right_wrist': (-6.034, 11.415),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (13.554, -4.646, 9.745), 'spine_thoracic': (-6.518, -7.63, 9.881),
-        'neck': (32.863, -4.695, -43.533), 'head': (12.732, -1.11),
-        'right_clavicle': (11.702, 8.538), 'right_shoulder': (15.579, 44.155, -7.811),
-        'right_elbow': (44.038, 14.04), 'right_wrist': (-5.96, 13.47),
+        'spine_lumbar': (13.603, -4.77, 9.711), 'spine_thoracic': (-6.413, -7.79, 9.874),
+        'neck': (32.887, -4.69, -43.579), 'head': (12.755, -1.11),
+        'right_clavicle': (11.859, 8.541), 'right_shoulder': (15.417, 44.278, -7.667),
+        'right_elbow': (44.002, 14.23), 'right_wrist': (-5.96, 13.482),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (14.71, -9.539, 8.734), 'spine_thoracic': (-3.389, -10.0, 9.658),
-        'neck': (33.602, -4.703, -45.477), 'head': (13.34, -1.125),
-        'right_clavicle': (14.723, 8.954), 'right_shoulder': (10.621, 48.284, -5.448),
-        'right_elbow': (43.037, 18.241), 'right_wrist': (-6.378, 13.244),
+        'spine_lumbar': (14.86, -11.271, 8.468), 'spine_thoracic': (-2.51, -10.0, 9.65),
+        'neck': (33.823, -4.719, -46.113), 'head': (13.514, -1.132),
+        'right_clavicle': (15.71, 9.147), 'right_shoulder': (9.197, 49.27, -4.754),
+        'right_elbow': (42.529, 19.437), 'right_wrist': (-6.453, 12.765),
     })
     human.KeyJoints(31.2, {
-        'spine_lumbar': (11.694, -12.452, 8.081), 'spine_thoracic': (-1.919, -9.859, 9.2),
-        'neck': (33.562, -4.14, -43.325), 'head': (13.531, -1.031),
-        'right_clavicle': (13.854, 8.836), 'right_shoulder': (8.133, 46.611, -3.769),
-        'right_elbow': (43.45, 19.802), 'right_wrist': (-6.256, 13.822),
+        'spine_lumbar': (11.238, -7.073, 8.816), 'spine_thoracic': (-4.919, -8.987, 9.186),
+        'neck': (32.942, -4.067, -41.635), 'head': (13.07, -1.03),
+        'right_clavicle': (11.729, 8.241), 'right_shoulder': (12.82, 43.299, -5.482),
+        'right_elbow': (44.373, 16.221), 'right_wrist': (-5.832, 14.427),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (10.882, -3.475, 9.854), 'spine_thoracic': (-8.005, -4.911, 9.467),
-        'neck': (32.461, -4.302, -41.301), 'head': (12.613, -1.075),
-        'right_clavicle': (7.956, 8.254), 'right_shoulder': (17.666, 40.368, -9.676),
-        'right_elbow': (44.672, 10.843), 'right_wrist': (-5.892, 13.339),
+        'spine_lumbar': (11.197, -1.515, 10.766), 'spine_thoracic': (-9.976, -2.231, 10.007),
+        'neck': (32.398, -4.536, -41.831), 'head': (12.438, -1.091),
+        'right_clavicle': (5.84, 8.487), 'right_shoulder': (20.866, 38.799, -12.707),
+        'right_elbow': (44.407, 7.232), 'right_wrist': (-6.033, 11.284),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(31.5, {
-        'spine_lumbar': (12.982, -3.443, 10.094), 'spine_thoracic': (-7.606, -5.942, 9.957),
-        'neck': (32.643, -4.717, -43.037), 'head': (12.54, -1.108),
-        'right_clavicle': (9.991, 8.527), 'right_shoulder': (17.272, 42.741, -9.332),
-        'right_elbow': (44.321, 12.002), 'right_wrist': (-5.964, 13.141),
+        'spine_lumbar': (12.529, -2.727, 10.327), 'spine_thoracic': (-8.348, -4.79, 10.003),
+        'neck': (32.532, -4.702, -42.695), 'head': (12.459, -1.105),
+        'right_clavicle': (8.769, 8.531), 'right_shoulder': (18.416, 41.651, -10.379),
+        'right_elbow': (44.418, 10.559), 'right_wrist': (-5.98, 12.714),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (14.347, -6.972, 9.163), 'spine_thoracic': (-4.777, -9.909, 9.729),
-        'neck': (33.28, -4.626, -44.396), 'right_clavicle': (13.353, 8.727),
-        'right_shoulder': (12.905, 46.326, -6.322), 'right_elbow': (43.59, 16.407),
-        'right_wrist': (-6.101, 13.571),
+        'spine_lumbar': (14.661, -9.237, 8.77), 'spine_thoracic': (-3.573, -10.0, 9.667),
+        'neck': (33.563, -4.685, -45.325), 'head': (13.314, -1.123),
+        'right_clavicle': (14.669, 8.926), 'right_shoulder': (10.904, 48.013, -5.445),
+        'right_elbow': (43.081, 18.12), 'right_wrist': (-6.315, 13.249),
     })
     human.KeyJoints(31.7, {
-        'spine_lumbar': (13.743, -12.402, 8.185), 'spine_thoracic': (-1.944, -10.0, 9.468),
-        'neck': (33.78, -4.489, -45.274), 'head': (13.598, -1.112),
-        'right_clavicle': (15.454, 9.109), 'right_shoulder': (8.225, 48.702, -3.921),
-        'right_elbow': (42.672, 19.978), 'right_wrist': (-6.413, 12.998),
+        'spine_lumbar': (14.331, -11.613, 8.377), 'spine_thoracic': (-2.346, -10.0, 9.569),
+        'neck': (33.79, -4.612, -45.688), 'head': (13.541, -1.122),
+        'right_clavicle': (15.545, 9.118), 'right_shoulder': (8.913, 48.895, -4.448),
+        'right_elbow': (42.618, 19.631), 'right_wrist': (-6.428, 12.87),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (10.645, -6.626, 8.863), 'spine_thoracic': (-5.371, -7.67, 9.132),
-        'neck': (32.724, -4.103, -41.192), 'head': (12.935, -1.053),
-        'right_clavicle': (10.601, 8.131), 'right_shoulder': (13.449, 42.623, -6.439),
-        'right_elbow': (44.793, 15.166), 'right_wrist': (-5.824, 14.517),
+        'spine_lumbar': (10.199, -2.42, 10.192), 'spine_thoracic': (-9.19, -2.796, 9.556),
+        'neck': (32.332, -4.296, -40.914), 'head': (12.513, -1.073), 'right_clavicle': (5.92, 8.21),
+        'right_shoulder': (19.48, 38.669, -11.614), 'right_elbow': (44.78, 8.369),
+        'right_wrist': (-5.936, 12.218),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(32.0, {
-        'spine_lumbar': (12.316, -2.441, 10.427), 'spine_thoracic': (-8.672, -4.288, 10.021),
-        'neck': (32.494, -4.686, -42.547), 'head': (12.436, -1.103),
-        'right_clavicle': (8.224, 8.534), 'right_shoulder': (18.913, 41.146, -10.838),
-        'right_elbow': (44.436, 9.918), 'right_wrist': (-5.989, 12.478),
+        'spine_lumbar': (11.644, -1.705, 10.708), 'spine_thoracic': (-9.623, -2.831, 10.054),
+        'neck': (32.421, -4.612, -42.124), 'head': (12.416, -1.096),
+        'right_clavicle': (6.601, 8.53), 'right_shoulder': (20.357, 39.582, -12.194),
+        'right_elbow': (44.414, 8.005), 'right_wrist': (-6.025, 11.638),
     })
     human.KeyJoints(32.1, {
-        'spine_lumbar': (13.722, -5.093, 9.626), 'spine_thoracic': (-6.149, -8.195, 9.856),
-        'neck': (32.951, -4.674, -43.696), 'head': (12.816, -1.11),
-        'right_clavicle': (12.252, 8.552), 'right_shoulder': (15.006, 44.578, -7.302),
-        'right_elbow': (43.904, 14.704), 'right_wrist': (-5.963, 13.501),
+        'spine_lumbar': (13.888, -5.602, 9.497), 'spine_thoracic': (-5.745, -8.848, 9.83),
+        'neck': (33.06, -4.636, -43.862), 'right_clavicle': (12.936, 8.573),
+        'right_shoulder': (14.375, 44.989, -6.625), 'right_elbow': (43.696, 15.472),
+        'right_wrist': (-5.966, 13.468),
     })
     human.KeyJoints(32.2, {
-        'spine_lumbar': (14.817, -10.524, 8.598), 'spine_thoracic': (-2.859, -10.0, 9.648),
-        'neck': (33.732, -4.722, -45.891), 'head': (13.431, -1.13),
-        'right_clavicle': (15.129, 9.062), 'right_shoulder': (9.779, 48.95, -5.335),
-        'right_elbow': (42.796, 18.82), 'right_wrist': (-6.455, 13.119),
+        'spine_lumbar': (14.863, -11.413, 8.44), 'spine_thoracic': (-2.455, -10.0, 9.65),
+        'neck': (33.84, -4.714, -46.144), 'head': (13.531, -1.132),
+        'right_clavicle': (15.872, 9.167), 'right_shoulder': (9.099, 49.302, -4.587),
+        'right_elbow': (42.459, 19.588), 'right_wrist': (-6.451, 12.66),
     })
     human.KeyJoints(32.3, {
-        'spine_lumbar': (11.335, -11.319, 8.212), 'spine_thoracic': (-2.553, -9.493, 9.175),
-        'neck': (33.391, -4.113, -42.843), 'head': (13.385, -1.022),
-        'right_clavicle': (13.122, 8.65), 'right_shoulder': (9.101, 45.657, -4.218),
-        'right_elbow': (43.827, 18.982), 'right_wrist': (-6.143, 14.042),
+        'spine_lumbar': (10.496, -5.561, 9.079), 'spine_thoracic': (-6.169, -6.855, 9.132),
+        'neck': (32.57, -4.109, -40.946), 'head': (12.804, -1.063),
+        'right_clavicle': (9.695, 8.086), 'right_shoulder': (14.689, 41.791, -7.305),
+        'right_elbow': (44.904, 13.898), 'right_wrist': (-5.808, 14.509),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (11.072, -2.559, 10.268), 'spine_thoracic': (-8.893, -3.764, 9.708),
-        'neck': (32.435, -4.395, -41.471), 'head': (12.541, -1.081),
-        'right_clavicle': (7.058, 8.363), 'right_shoulder': (19.112, 39.708, -11.002),
-        'right_elbow': (44.55, 9.256), 'right_wrist': (-5.953, 12.482),
+        'spine_lumbar': (11.297, -1.47, 10.8), 'spine_thoracic': (-10.003, -2.231, 10.041),
+        'neck': (32.403, -4.559, -41.915), 'head': (12.43, -1.092),
+        'right_clavicle': (5.896, 8.509), 'right_shoulder': (20.92, 38.873, -12.742),
+        'right_elbow': (44.383, 7.213), 'right_wrist': (-6.039, 11.249),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
-        'spine_lumbar': (11.515, -1.591, 10.756), 'spine_thoracic': (-9.795, -2.571, 10.056),
-        'neck': (32.415, -4.594, -42.051), 'head': (12.421, -1.095),
-        'right_clavicle': (6.304, 8.526), 'right_shoulder': (20.616, 39.287, -12.442),
-        'right_elbow': (44.396, 7.654), 'right_wrist': (-6.033, 11.46),
+        'spine_lumbar': (11.354, -1.45, 10.816), 'spine_thoracic': (-10.01, -2.246, 10.059),
+        'neck': (32.407, -4.571, -41.96), 'right_clavicle': (5.933, 8.521),
+        'right_shoulder': (20.94, 38.918, -12.751), 'right_elbow': (44.371, 7.216),
+        'right_wrist': (-6.042, 11.237),
     })
     human.KeyJoints(32.6, {
-        'spine_lumbar': (13.183, -3.818, 9.98), 'spine_thoracic': (-7.249, -6.498, 9.933),
-        'neck': (32.708, -4.717, -43.201), 'head': (12.594, -1.109),
-        'right_clavicle': (10.566, 8.527), 'right_shoulder': (16.717, 43.232, -8.83),
-        'right_elbow': (44.246, 12.683), 'right_wrist': (-5.96, 13.292),
+        'spine_lumbar': (12.896, -3.293, 10.141), 'spine_thoracic': (-7.754, -5.713, 9.967),
+        'neck': (32.619, -4.718, -42.969), 'head': (12.521, -1.107),
+        'right_clavicle': (9.751, 8.527), 'right_shoulder': (17.5, 42.532, -9.54),
+        'right_elbow': (44.346, 11.718), 'right_wrist': (-5.967, 13.069),
     })
     human.KeyJoints(32.7, {
-        'spine_lumbar': (14.481, -7.754, 8.998), 'spine_thoracic': (-4.351, -10.0, 9.7),
-        'neck': (33.381, -4.636, -44.696), 'head': (13.19, -1.115),
-        'right_clavicle': (13.717, 8.807), 'right_shoulder': (12.199, 46.936, -6.041),
-        'right_elbow': (43.493, 16.999), 'right_wrist': (-6.16, 13.509),
+        'spine_lumbar': (14.801, -10.305, 8.632), 'spine_thoracic': (-2.961, -10.0, 9.648),
+        'neck': (33.7, -4.724, -45.808), 'head': (13.409, -1.129),
+        'right_clavicle': (14.949, 9.032), 'right_shoulder': (9.948, 48.83, -5.437),
+        'right_elbow': (42.885, 18.634), 'right_wrist': (-6.456, 13.208),
     })
     human.KeyJoints(32.8, {
-        'spine_lumbar': (12.766, -12.769, 8.075), 'spine_thoracic': (-1.745, -10.0, 9.318),
-        'neck': (33.738, -4.317, -44.587), 'head': (13.599, -1.078),
-        'right_clavicle': (14.969, 9.04), 'right_shoulder': (7.881, 48.061, -3.685),
-        'right_elbow': (42.911, 20.087), 'right_wrist': (-6.375, 13.332),
+        'spine_lumbar': (13.485, -11.149, 8.38), 'spine_thoracic': (-2.534, -10.0, 9.433),
+        'neck': (33.615, -4.46, -44.75), 'head': (13.473, -1.106),
+        'right_clavicle': (14.519, 8.941), 'right_shoulder': (9.2, 47.923, -4.667),
+        'right_elbow': (43.132, 19.082), 'right_wrist': (-6.376, 13.505),
     })
     human.KeyJoints(32.9, {
-        'spine_lumbar': (10.622, -5.54, 9.098), 'spine_thoracic': (-6.167, -7.012, 9.138),
-        'neck': (32.591, -4.109, -41.061), 'head': (12.81, -1.064),
-        'right_clavicle': (9.823, 8.106), 'right_shoulder': (14.702, 41.867, -7.227),
-        'right_elbow': (44.84, 13.969), 'right_wrist': (-5.809, 14.51),
+        'spine_lumbar': (10.555, -1.936, 10.476), 'spine_thoracic': (-9.651, -2.374, 9.755),
+        'neck': (32.358, -4.391, -41.275), 'head': (12.483, -1.08),
+        'right_clavicle': (5.739, 8.327), 'right_shoulder': (20.265, 38.609, -12.264),
+        'right_elbow': (44.601, 7.635), 'right_wrist': (-5.984, 11.687),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (12.547, -2.752, 10.319), 'spine_thoracic': (-8.321, -4.832, 10.002),
-        'neck': (32.536, -4.703, -42.708), 'head': (12.462, -1.105),
-        'right_clavicle': (8.814, 8.531), 'right_shoulder': (18.374, 41.693, -10.34),
-        'right_elbow': (44.416, 10.613), 'right_wrist': (-5.979, 12.732),
+        'spine_lumbar': (11.879, -1.938, 10.615), 'spine_thoracic': (-9.3, -3.323, 10.046),
+        'neck': (32.44, -4.641, -42.265), 'head': (12.416, -1.099),
+        'right_clavicle': (7.156, 8.533), 'right_shoulder': (19.868, 40.126, -11.732),
+        'right_elbow': (44.431, 8.66), 'right_wrist': (-6.012, 11.947),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (13.87, -5.543, 9.511), 'spine_thoracic': (-5.79, -8.773, 9.833),
-        'neck': (33.046, -4.639, -43.847), 'head': (12.911, -1.109),
-        'right_clavicle': (12.856, 8.57), 'right_shoulder': (14.446, 44.945, -6.706),
-        'right_elbow': (43.722, 15.385), 'right_wrist': (-5.966, 13.476),
+        'spine_lumbar': (14.304, -6.832, 9.196), 'spine_thoracic': (-4.868, -9.842, 9.74),
+        'neck': (33.265, -4.617, -44.334), 'head': (13.103, -1.111),
+        'right_clavicle': (13.341, 8.707), 'right_shoulder': (13.043, 46.181, -6.325),
+        'right_elbow': (43.591, 16.345), 'right_wrist': (-6.08, 13.551),
     })
     human.KeyJoints(33.3, {
-        'spine_lumbar': (14.861, -11.331, 8.458), 'spine_thoracic': (-2.497, -10.0, 9.651),
-        'neck': (33.84, -4.715, -46.141), 'head': (13.523, -1.132),
-        'right_clavicle': (15.875, 9.167), 'right_shoulder': (9.171, 49.295, -4.639),
-        'right_elbow': (42.457, 19.554), 'right_wrist': (-6.452, 12.659),
+        'spine_lumbar': (14.863, -11.442, 8.434), 'spine_thoracic': (-2.444, -10.0, 9.651),
+        'neck': (33.844, -4.713, -46.15), 'head': (13.534, -1.132),
+        'right_clavicle': (15.907, 9.171), 'right_shoulder': (9.08, 49.306, -4.552),
+        'right_elbow': (42.443, 19.62), 'right_wrist': (-6.451, 12.637),
     })
     human.KeyJoints(33.4, {
-        'spine_lumbar': (11.026, -9.789, 8.4), 'spine_thoracic': (-3.429, -8.966, 9.155),
-        'neck': (33.205, -4.105, -42.356), 'head': (13.239, -1.02),
-        'right_clavicle': (12.303, 8.444), 'right_shoulder': (10.445, 44.613, -4.864),
-        'right_elbow': (44.221, 17.83), 'right_wrist': (-6.017, 14.247),
+        'spine_lumbar': (10.075, -4.221, 9.43), 'spine_thoracic': (-7.387, -5.06, 9.187),
+        'neck': (32.389, -4.148, -40.601), 'head': (12.639, -1.063),
+        'right_clavicle': (7.935, 8.043), 'right_shoulder': (16.577, 40.345, -9.027),
+        'right_elbow': (45.069, 11.628), 'right_wrist': (-5.821, 13.9),
     })
     human.KeyJoints(33.5, {
-        'spine_lumbar': (11.241, -1.859, 10.607), 'spine_thoracic': (-9.593, -2.823, 9.921),
-        'neck': (32.417, -4.494, -41.732), 'head': (12.474, -1.088),
-        'right_clavicle': (6.351, 8.459), 'right_shoulder': (20.256, 39.204, -12.087),
-        'right_elbow': (44.441, 7.982), 'right_wrist': (-6.007, 11.724),
+        'spine_lumbar': (11.338, -1.452, 10.814), 'spine_thoracic': (-10.012, -2.234, 10.055),
+        'neck': (32.405, -4.568, -41.949), 'head': (12.427, -1.093),
+        'right_clavicle': (5.918, 8.518), 'right_shoulder': (20.941, 38.901, -12.754),
+        'right_elbow': (44.374, 7.207), 'right_wrist': (-6.042, 11.235),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
-        'spine_lumbar': (11.822, -1.879, 10.638), 'spine_thoracic': (-9.378, -3.203, 10.048),
-        'neck': (32.434, -4.634, -42.231), 'head': (12.415, -1.098),
-        'right_clavicle': (7.021, 8.533), 'right_shoulder': (19.987, 39.995, -11.844),
-        'right_elbow': (44.428, 8.501), 'right_wrist': (-6.015, 11.874),
+        'spine_lumbar': (11.388, -1.478, 10.804), 'spine_thoracic': (-9.965, -2.314, 10.059),
+        'neck': (32.408, -4.576, -41.978), 'head': (12.425, -1.094),
+        'right_clavicle': (6.011, 8.522), 'right_shoulder': (20.872, 38.996, -12.686),
+        'right_elbow': (44.377, 7.308), 'right_wrist': (-6.04, 11.285),
     })
     human.KeyJoints(33.7, {
-        'spine_lumbar': (13.372, -4.217, 9.864), 'spine_thoracic': (-6.888, -7.058, 9.908),
-        'neck': (32.781, -4.71, -43.366), 'head': (12.657, -1.109),
-        'right_clavicle': (11.133, 8.53), 'right_shoulder': (16.156, 43.701, -8.326),
-        'right_elbow': (44.152, 13.359), 'right_wrist': (-5.959, 13.404),
+        'spine_lumbar': (13.26, -3.975, 9.934), 'spine_thoracic': (-7.105, -6.721, 9.923),
+        'neck': (32.736, -4.715, -43.267), 'head': (12.618, -1.109),
+        'right_clavicle': (10.793, 8.527), 'right_shoulder': (16.493, 43.422, -8.629),
+        'right_elbow': (44.211, 12.953), 'right_wrist': (-5.96, 13.339),
     })
     human.KeyJoints(33.8, {
-        'spine_lumbar': (14.546, -8.481, 8.869), 'spine_thoracic': (-4.014, -10.0, 9.689),
-        'neck': (33.468, -4.649, -44.965), 'head': (13.255, -1.118),
-        'right_clavicle': (14.474, 8.861), 'right_shoulder': (11.6, 47.372, -5.44),
-        'right_elbow': (43.211, 17.747), 'right_wrist': (-6.188, 13.271),
+        'spine_lumbar': (14.845, -10.926, 8.531), 'spine_thoracic': (-2.66, -10.0, 9.649),
+        'neck': (33.78, -4.725, -46.019), 'head': (13.475, -1.131),
+        'right_clavicle': (15.371, 9.103), 'right_shoulder': (9.452, 49.145, -5.101),
+        'right_elbow': (42.679, 19.11), 'right_wrist': (-6.455, 12.984),
     })
     human.KeyJoints(33.9, {
-        'spine_lumbar': (12.087, -12.91, 8.031), 'spine_thoracic': (-1.668, -10.0, 9.23),
-        'neck': (33.68, -4.185, -43.877), 'head': (13.6, -1.043), 'right_clavicle': (14.452, 8.962),
-        'right_shoulder': (7.748, 47.391, -3.595), 'right_elbow': (43.153, 20.125),
-        'right_wrist': (-6.331, 13.605),
+        'spine_lumbar': (11.353, -12.194, 8.216), 'spine_thoracic': (-3.237, -10.0, 9.076),
+        'neck': (33.818, -3.767, -42.594), 'head': (13.79, -0.932),
+        'right_clavicle': (12.602, 8.456), 'right_shoulder': (10.293, 44.401, -5.562),
+        'right_elbow': (41.928, 17.002), 'right_wrist': (-6.101, 10.214),
     })
     human.KeyJoints(34.0, {
-        'spine_lumbar': (9.864, -6.926, 9.195), 'spine_thoracic': (-6.692, -6.478, 9.134),
-        'neck': (33.059, -3.793, -41.05), 'head': (13.243, -0.984),
-        'right_clavicle': (8.333, 8.031), 'right_shoulder': (15.626, 40.088, -8.946),
-        'right_elbow': (43.729, 11.761), 'right_wrist': (-5.88, 11.932),
+        'spine_lumbar': (6.814, -13.723, 9.47), 'spine_thoracic': (-8.347, -4.364, 9.033),
+        'neck': (34.841, -2.571, -40.78), 'head': (14.941, -0.682), 'right_clavicle': (2.613, 7.82),
+        'right_shoulder': (18.515, 33.648, -16.35), 'right_elbow': (36.883, 3.124),
+        'right_wrist': (-6.317, -4.218),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.062708, duration=0.072)
@@ -2139,71 +2137,71 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=35.003158, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'spine_lumbar': (7.496, -13.725, 9.703), 'spine_thoracic': (-8.531, -4.428, 9.257),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.797, 7.948),
-        'right_shoulder': (57.214, 2.34, 11.045), 'right_elbow': (32.277, 18.468),
-        'right_wrist': (-1.051, -20.428),
+        'spine_lumbar': (7.483, -13.731, 9.699), 'spine_thoracic': (-8.601, -4.428, 9.259),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.872, 7.946),
+        'right_shoulder': (57.165, 2.456, 11.108), 'right_elbow': (32.265, 18.55),
+        'right_wrist': (-1.032, -20.456),
     })
     human.KeyJoints(35.2, {
-        'spine_lumbar': (5.787, -17.083, 9.513), 'spine_thoracic': (-10.193, -7.629, 9.431),
-        'neck': (24.843, -1.138, -6.657), 'head': (8.709, -0.136), 'right_clavicle': (6.203, 7.902),
-        'right_shoulder': (55.731, 4.644, 12.945), 'right_elbow': (31.267, 20.952),
-        'right_wrist': (-0.277, -21.672),
+        'spine_lumbar': (6.919, -15.152, 9.689), 'spine_thoracic': (-9.546, -5.811, 9.403),
+        'neck': (24.545, -1.102, -6.052), 'head': (8.164, -0.118), 'right_clavicle': (4.425, 7.951),
+        'right_shoulder': (56.301, 3.766, 11.94), 'right_elbow': (32.037, 19.695),
+        'right_wrist': (-0.699, -20.483),
     })
     human.KeyJoints(35.3, {
-        'spine_lumbar': (3.628, -19.197, 8.997), 'spine_thoracic': (-10.617, -10.0, 9.856),
-        'neck': (25.376, -1.12, -6.988), 'head': (9.462, -0.151), 'right_clavicle': (12.413, 8.525),
-        'right_shoulder': (56.945, 6.194, 17.896), 'right_elbow': (28.824, 25.989),
-        'right_wrist': (1.82, -25.452),
+        'spine_lumbar': (3.007, -19.365, 9.18), 'spine_thoracic': (-11.093, -10.0, 10.373),
+        'neck': (25.674, -1.134, -7.382), 'head': (9.912, -0.161), 'right_clavicle': (14.56, 9.003),
+        'right_shoulder': (57.003, 6.841, 19.359), 'right_elbow': (27.785, 27.597),
+        'right_wrist': (2.541, -26.325),
     })
     human.KeyJoints(35.4, {
-        'spine_lumbar': (0.683, -19.998, 10.221), 'spine_thoracic': (-12.734, -10.0, 12.827),
-        'neck': (27.018, -1.294, -9.54), 'head': (11.396, -0.173),
-        'right_clavicle': (21.396, 11.187), 'right_shoulder': (57.74, 7.833, 21.333),
-        'right_elbow': (19.06, 31.344), 'right_wrist': (4.258, -24.146),
+        'spine_lumbar': (0.651, -20.0, 10.224), 'spine_thoracic': (-12.735, -10.0, 12.829),
+        'neck': (27.033, -1.295, -9.543), 'head': (11.411, -0.173),
+        'right_clavicle': (21.401, 11.194), 'right_shoulder': (57.741, 7.834, 21.35),
+        'right_elbow': (19.054, 31.347), 'right_wrist': (4.265, -24.144),
     })
     human.KeyJoints(35.5, {
-        'spine_lumbar': (-2.056, -19.711, 9.27), 'spine_thoracic': (-10.453, -10.0, 10.577),
-        'neck': (26.642, -0.86, -5.988), 'head': (10.964, -0.164), 'right_clavicle': (14.81, 9.546),
-        'right_shoulder': (54.97, 3.191, 19.639), 'right_elbow': (25.193, 27.539),
-        'right_wrist': (2.973, -24.374),
+        'spine_lumbar': (2.008, -17.046, 9.276), 'spine_thoracic': (-9.719, -7.901, 9.246),
+        'neck': (25.524, -0.858, -5.09), 'head': (9.542, -0.144), 'right_clavicle': (5.891, 8.066),
+        'right_shoulder': (53.185, 2.335, 13.679), 'right_elbow': (31.327, 20.971),
+        'right_wrist': (0.059, -21.948),
     })
     human.KeyJoints(35.6, {
-        'spine_lumbar': (7.204, -14.174, 9.679), 'spine_thoracic': (-8.857, -5.116, 9.345),
-        'neck': (24.296, -1.043, -5.38), 'head': (7.795, -0.11), 'right_clavicle': (3.541, 8.016),
-        'right_shoulder': (56.659, 2.94, 11.821), 'right_elbow': (32.594, 19.23),
-        'right_wrist': (-0.8, -19.88),
+        'spine_lumbar': (7.967, -13.508, 9.842), 'spine_thoracic': (-8.812, -4.415, 9.392),
+        'neck': (24.067, -1.055, -5.292), 'head': (7.516, -0.107), 'right_clavicle': (3.086, 8.008),
+        'right_shoulder': (56.949, 2.999, 11.365), 'right_elbow': (32.764, 18.844),
+        'right_wrist': (-0.975, -19.34),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
-        'spine_lumbar': (7.023, -14.988, 9.712), 'spine_thoracic': (-9.496, -5.657, 9.407),
-        'neck': (24.512, -1.098, -5.994), 'head': (8.112, -0.117), 'right_clavicle': (4.277, 7.958),
-        'right_shoulder': (56.3, 3.71, 11.858), 'right_elbow': (32.141, 19.591),
-        'right_wrist': (-0.736, -20.326),
+        'spine_lumbar': (7.886, -13.66, 9.838), 'spine_thoracic': (-8.906, -4.523, 9.4),
+        'neck': (24.123, -1.062, -5.387), 'head': (7.581, -0.107), 'right_clavicle': (3.192, 8.006),
+        'right_shoulder': (56.871, 3.082, 11.39), 'right_elbow': (32.707, 18.9),
+        'right_wrist': (-0.959, -19.427),
     })
     human.KeyJoints(35.8, {
-        'spine_lumbar': (4.577, -19.276, 8.93), 'spine_thoracic': (-10.24, -9.932, 9.313),
-        'neck': (25.047, -1.15, -6.921), 'head': (9.01, -0.143), 'right_clavicle': (9.113, 7.918),
-        'right_shoulder': (56.364, 5.448, 15.293), 'right_elbow': (30.238, 23.336),
-        'right_wrist': (0.652, -23.236),
+        'spine_lumbar': (4.684, -19.177, 9.225), 'spine_thoracic': (-10.61, -9.792, 9.475),
+        'neck': (25.151, -1.179, -7.269), 'head': (9.197, -0.148), 'right_clavicle': (8.659, 7.917),
+        'right_shoulder': (55.587, 5.584, 14.686), 'right_elbow': (30.447, 22.855),
+        'right_wrist': (0.428, -22.87),
     })
     human.KeyJoints(35.9, {
-        'spine_lumbar': (2.327, -19.995, 9.325), 'spine_thoracic': (-11.583, -10.0, 10.911),
-        'neck': (26.02, -1.179, -7.999), 'head': (10.362, -0.169),
-        'right_clavicle': (16.789, 9.495), 'right_shoulder': (57.055, 7.496, 20.674),
-        'right_elbow': (26.374, 29.2), 'right_wrist': (3.221, -26.445),
+        'spine_lumbar': (0.825, -19.729, 10.159), 'spine_thoracic': (-12.586, -10.0, 12.627),
+        'neck': (26.916, -1.268, -9.266), 'head': (11.289, -0.172),
+        'right_clavicle': (20.712, 11.01), 'right_shoulder': (57.697, 7.663, 20.979),
+        'right_elbow': (19.668, 30.883), 'right_wrist': (4.056, -24.35),
     })
     human.KeyJoints(36.0, {
-        'spine_lumbar': (-3.557, -19.999, 10.296), 'spine_thoracic': (-12.147, -10.0, 12.762),
-        'neck': (27.789, -1.002, -7.833), 'head': (12.166, -0.169),
-        'right_clavicle': (20.515, 11.379), 'right_shoulder': (55.851, 4.979, 21.95),
-        'right_elbow': (19.586, 31.006), 'right_wrist': (4.478, -24.573),
+        'spine_lumbar': (-0.634, -19.862, 9.168), 'spine_thoracic': (-10.856, -10.0, 10.531),
+        'neck': (26.41, -0.925, -6.341), 'head': (10.742, -0.165),
+        'right_clavicle': (15.311, 9.414), 'right_shoulder': (55.402, 5.081, 20.958),
+        'right_elbow': (27.388, 28.475), 'right_wrist': (3.192, -26.696),
     })
     human.KeyJoints(36.1, {
-        'spine_lumbar': (2.206, -18.05, 8.721), 'spine_thoracic': (-9.08, -9.117, 9.051),
-        'neck': (25.183, -0.885, -5.068), 'head': (9.017, -0.131), 'right_clavicle': (7.033, 8.08),
-        'right_shoulder': (54.999, 2.534, 15.085), 'right_elbow': (31.132, 22.133),
-        'right_wrist': (0.516, -23.092),
+        'spine_lumbar': (7.419, -13.49, 9.752), 'spine_thoracic': (-8.64, -4.465, 9.317),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.049, 8.012),
+        'right_shoulder': (56.646, 2.582, 11.496), 'right_elbow': (32.726, 18.854),
+        'right_wrist': (-0.915, -19.45),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
@@ -2213,65 +2211,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(36.3, {
-        'spine_lumbar': (5.416, -17.792, 9.507), 'spine_thoracic': (-10.479, -8.275, 9.493),
-        'neck': (24.996, -1.162, -6.99), 'head': (8.957, -0.142), 'right_clavicle': (6.856, 7.898),
-        'right_shoulder': (55.376, 5.034, 13.293), 'right_elbow': (31.072, 21.404),
-        'right_wrist': (-0.131, -21.953),
+        'spine_lumbar': (6.391, -16.013, 9.579), 'spine_thoracic': (-9.808, -6.632, 9.389),
+        'neck': (24.736, -1.12, -6.363), 'head': (8.439, -0.124), 'right_clavicle': (5.217, 7.919),
+        'right_shoulder': (56.054, 4.138, 12.401), 'right_elbow': (31.698, 20.26),
+        'right_wrist': (-0.51, -21.032),
     })
     human.KeyJoints(36.4, {
-        'spine_lumbar': (3.314, -19.189, 9.1), 'spine_thoracic': (-10.864, -10.0, 10.126),
-        'neck': (25.53, -1.122, -7.158), 'head': (9.692, -0.156), 'right_clavicle': (13.527, 8.776),
-        'right_shoulder': (56.967, 6.531, 18.679), 'right_elbow': (28.345, 26.834),
-        'right_wrist': (2.202, -25.987),
+        'spine_lumbar': (2.544, -19.92, 9.272), 'spine_thoracic': (-11.431, -10.0, 10.727),
+        'neck': (25.899, -1.17, -7.847), 'head': (10.232, -0.168),
+        'right_clavicle': (16.128, 9.328), 'right_shoulder': (57.03, 7.419, 20.537),
+        'right_elbow': (26.908, 28.804), 'right_wrist': (3.044, -26.453),
     })
     human.KeyJoints(36.5, {
-        'spine_lumbar': (-0.264, -20.0, 10.256), 'spine_thoracic': (-12.689, -10.0, 12.825),
-        'neck': (27.282, -1.231, -9.19), 'head': (11.661, -0.172),
-        'right_clavicle': (21.341, 11.276), 'right_shoulder': (57.515, 7.513, 21.573),
-        'right_elbow': (19.089, 31.325), 'right_wrist': (4.356, -24.209),
+        'spine_lumbar': (0.509, -20.0, 10.226), 'spine_thoracic': (-12.715, -10.0, 12.827),
+        'neck': (27.058, -1.285, -9.487), 'head': (11.436, -0.173),
+        'right_clavicle': (21.372, 11.2), 'right_shoulder': (57.677, 7.739, 21.369),
+        'right_elbow': (19.071, 31.335), 'right_wrist': (4.271, -24.16),
     })
     human.KeyJoints(36.6, {
-        'spine_lumbar': (-1.182, -19.52, 8.842), 'spine_thoracic': (-9.828, -10.0, 9.679),
-        'neck': (26.22, -0.823, -5.302), 'head': (10.459, -0.158),
-        'right_clavicle': (12.247, 8.769), 'right_shoulder': (54.769, 2.75, 18.418),
-        'right_elbow': (27.616, 25.887), 'right_wrist': (2.218, -24.239),
+        'spine_lumbar': (3.843, -15.279, 9.359), 'spine_thoracic': (-9.075, -6.257, 9.167),
+        'neck': (24.996, -0.88, -4.773), 'head': (8.78, -0.128), 'right_clavicle': (4.456, 8.033),
+        'right_shoulder': (54.308, 1.994, 12.707), 'right_elbow': (31.915, 19.901),
+        'right_wrist': (-0.356, -20.917),
     })
     human.KeyJoints(36.7, {
-        'spine_lumbar': (7.938, -13.557, 9.839), 'spine_thoracic': (-8.833, -4.45, 9.394),
-        'neck': (24.084, -1.057, -5.319), 'head': (7.538, -0.107), 'right_clavicle': (3.11, 8.01),
-        'right_shoulder': (56.935, 3.008, 11.379), 'right_elbow': (32.756, 18.859),
-        'right_wrist': (-0.968, -19.365),
+        'spine_lumbar': (7.977, -13.522, 9.847), 'spine_thoracic': (-8.83, -4.414, 9.396),
+        'neck': (24.071, -1.057, -5.313), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.011, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
-        'spine_lumbar': (6.592, -15.676, 9.613), 'spine_thoracic': (-9.699, -6.314, 9.389),
-        'neck': (24.669, -1.112, -6.24), 'head': (8.333, -0.121), 'right_clavicle': (4.908, 7.929),
-        'right_shoulder': (56.146, 3.99, 12.226), 'right_elbow': (31.836, 20.041),
-        'right_wrist': (-0.583, -20.816),
+        'spine_lumbar': (7.692, -13.954, 9.816), 'spine_thoracic': (-9.06, -4.76, 9.405),
+        'neck': (24.222, -1.071, -5.536), 'head': (7.708, -0.109), 'right_clavicle': (3.419, 7.996),
+        'right_shoulder': (56.71, 3.23, 11.472), 'right_elbow': (32.584, 19.036),
+        'right_wrist': (-0.916, -19.622),
     })
     human.KeyJoints(36.9, {
-        'spine_lumbar': (4.305, -19.311, 8.765), 'spine_thoracic': (-10.053, -10.0, 9.261),
-        'neck': (25.015, -1.125, -6.723), 'head': (8.942, -0.14), 'right_clavicle': (10.127, 7.972),
-        'right_shoulder': (56.892, 5.431, 16.302), 'right_elbow': (29.782, 24.257),
-        'right_wrist': (1.063, -23.979),
+        'spine_lumbar': (4.173, -19.29, 8.805), 'spine_thoracic': (-10.157, -10.0, 9.367),
+        'neck': (25.095, -1.12, -6.743), 'head': (9.052, -0.142), 'right_clavicle': (10.552, 8.071),
+        'right_shoulder': (56.899, 5.573, 16.597), 'right_elbow': (29.596, 24.581),
+        'right_wrist': (1.2, -24.259),
     })
     human.KeyJoints(37.0, {
-        'spine_lumbar': (1.566, -19.665, 9.768), 'spine_thoracic': (-12.062, -10.0, 11.768),
-        'neck': (26.46, -1.213, -8.548), 'head': (10.819, -0.171),
-        'right_clavicle': (18.584, 10.247), 'right_shoulder': (57.401, 7.508, 20.677),
-        'right_elbow': (22.886, 29.86), 'right_wrist': (3.561, -25.391),
+        'spine_lumbar': (0.699, -19.894, 10.21), 'spine_thoracic': (-12.69, -10.0, 12.773),
+        'neck': (26.999, -1.286, -9.454), 'head': (11.376, -0.173),
+        'right_clavicle': (21.184, 11.142), 'right_shoulder': (57.733, 7.774, 21.22),
+        'right_elbow': (19.203, 31.19), 'right_wrist': (4.195, -24.197),
     })
     human.KeyJoints(37.1, {
-        'spine_lumbar': (-3.33, -19.959, 10.116), 'spine_thoracic': (-11.743, -10.0, 12.364),
-        'neck': (27.537, -0.948, -7.259), 'head': (11.914, -0.168),
-        'right_clavicle': (19.381, 11.059), 'right_shoulder': (55.538, 4.374, 21.583),
-        'right_elbow': (20.655, 30.365), 'right_wrist': (4.233, -24.546),
+        'spine_lumbar': (-0.403, -19.311, 8.759), 'spine_thoracic': (-9.849, -10.0, 9.549),
+        'neck': (25.958, -0.807, -5.097), 'head': (10.163, -0.156),
+        'right_clavicle': (11.708, 8.623), 'right_shoulder': (54.887, 3.337, 18.546),
+        'right_elbow': (29.134, 25.75), 'right_wrist': (2.106, -25.667),
     })
     human.KeyJoints(37.2, {
-        'spine_lumbar': (3.992, -16.746, 9.032), 'spine_thoracic': (-8.984, -7.821, 9.147),
-        'neck': (24.924, -0.977, -5.424), 'head': (8.612, -0.122), 'right_clavicle': (5.645, 8.052),
-        'right_shoulder': (55.537, 2.666, 13.854), 'right_elbow': (31.744, 21.001),
-        'right_wrist': (0.003, -22.017),
+        'spine_lumbar': (7.812, -13.486, 9.803), 'spine_thoracic': (-8.725, -4.426, 9.359),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.07, 8.007),
+        'right_shoulder': (56.916, 2.841, 11.426), 'right_elbow': (32.757, 18.853),
+        'right_wrist': (-0.951, -19.371),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
@@ -2281,28 +2279,28 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(37.4, {
-        'spine_lumbar': (5.09, -18.486, 9.487), 'spine_thoracic': (-10.698, -8.979, 9.542),
-        'neck': (25.127, -1.183, -7.279), 'head': (9.167, -0.148), 'right_clavicle': (7.516, 7.902),
-        'right_shoulder': (55.211, 5.409, 13.685), 'right_elbow': (30.859, 21.879),
-        'right_wrist': (0.034, -22.248),
+        'spine_lumbar': (5.798, -17.062, 9.513), 'spine_thoracic': (-10.185, -7.61, 9.43),
+        'neck': (24.845, -1.138, -6.656), 'head': (8.706, -0.135), 'right_clavicle': (6.184, 7.902),
+        'right_shoulder': (55.7, 4.645, 12.935), 'right_elbow': (31.305, 20.939),
+        'right_wrist': (-0.284, -21.623),
     })
     human.KeyJoints(37.5, {
-        'spine_lumbar': (2.99, -19.378, 9.184), 'spine_thoracic': (-11.105, -10.0, 10.387),
-        'neck': (25.68, -1.135, -7.395), 'head': (9.927, -0.162), 'right_clavicle': (14.618, 9.015),
-        'right_shoulder': (56.997, 6.861, 19.397), 'right_elbow': (27.758, 27.64),
-        'right_wrist': (2.559, -26.33),
+        'spine_lumbar': (1.774, -19.762, 9.637), 'spine_thoracic': (-11.932, -10.0, 11.524),
+        'neck': (26.339, -1.201, -8.375), 'head': (10.69, -0.17),
+        'right_clavicle': (18.104, 10.033), 'right_shoulder': (57.295, 7.505, 20.676),
+        'right_elbow': (23.907, 29.696), 'right_wrist': (3.474, -25.729),
     })
     human.KeyJoints(37.6, {
-        'spine_lumbar': (-1.746, -20.0, 10.281), 'spine_thoracic': (-12.557, -10.0, 12.813),
-        'neck': (27.518, -1.127, -8.602), 'head': (11.896, -0.171),
-        'right_clavicle': (21.159, 11.338), 'right_shoulder': (56.947, 6.69, 21.775),
-        'right_elbow': (19.194, 31.258), 'right_wrist': (4.427, -24.364),
+        'spine_lumbar': (-0.203, -20.0, 10.202), 'spine_thoracic': (-12.558, -10.0, 12.732),
+        'neck': (27.155, -1.227, -9.113), 'head': (11.531, -0.172),
+        'right_clavicle': (20.996, 11.162), 'right_shoulder': (57.314, 7.194, 21.374),
+        'right_elbow': (19.404, 31.131), 'right_wrist': (4.248, -24.291),
     })
     human.KeyJoints(37.7, {
-        'spine_lumbar': (-0.258, -19.292, 8.561), 'spine_thoracic': (-9.379, -10.0, 9.092),
-        'neck': (25.807, -0.796, -4.762), 'head': (9.933, -0.15), 'right_clavicle': (10.041, 8.243),
-        'right_shoulder': (54.652, 2.489, 17.253), 'right_elbow': (29.486, 24.408),
-        'right_wrist': (1.542, -24.078),
+        'spine_lumbar': (5.491, -14.208, 9.592), 'spine_thoracic': (-8.897, -5.167, 9.26),
+        'neck': (24.734, -0.925, -4.841), 'head': (8.334, -0.116), 'right_clavicle': (3.549, 8.042),
+        'right_shoulder': (55.126, 2.179, 11.957), 'right_elbow': (32.413, 19.198),
+        'right_wrist': (-0.678, -20.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
@@ -2312,65 +2310,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(37.9, {
-        'spine_lumbar': (6.182, -16.372, 9.547), 'spine_thoracic': (-9.933, -6.968, 9.398),
-        'neck': (24.757, -1.124, -6.44), 'head': (8.518, -0.128), 'right_clavicle': (5.546, 7.911),
-        'right_shoulder': (55.942, 4.305, 12.584), 'right_elbow': (31.557, 20.492),
-        'right_wrist': (-0.432, -21.249),
+        'spine_lumbar': (7.367, -14.452, 9.772), 'spine_thoracic': (-9.295, -5.179, 9.409),
+        'neck': (24.371, -1.085, -5.77), 'head': (7.915, -0.113), 'right_clavicle': (3.819, 7.979),
+        'right_shoulder': (56.475, 3.472, 11.638), 'right_elbow': (32.373, 19.287),
+        'right_wrist': (-0.836, -19.956),
     })
     human.KeyJoints(38.0, {
-        'spine_lumbar': (3.951, -19.249, 8.884), 'spine_thoracic': (-10.358, -10.0, 9.576),
-        'neck': (25.213, -1.12, -6.853), 'head': (9.225, -0.146), 'right_clavicle': (11.267, 8.264),
-        'right_shoulder': (56.909, 5.848, 17.07), 'right_elbow': (29.287, 25.111),
-        'right_wrist': (1.424, -24.712),
+        'spine_lumbar': (3.567, -19.188, 9.019), 'spine_thoracic': (-10.666, -10.0, 9.91),
+        'neck': (25.407, -1.12, -7.025), 'head': (9.508, -0.152), 'right_clavicle': (12.634, 8.576),
+        'right_shoulder': (56.943, 6.263, 18.056), 'right_elbow': (28.742, 26.159),
+        'right_wrist': (1.897, -25.577),
     })
     human.KeyJoints(38.1, {
-        'spine_lumbar': (1.041, -19.673, 10.074), 'spine_thoracic': (-12.472, -10.0, 12.446),
-        'neck': (26.791, -1.256, -9.11), 'head': (11.16, -0.172),
-        'right_clavicle': (20.238, 10.837), 'right_shoulder': (57.638, 7.6, 20.816),
-        'right_elbow': (20.332, 30.634), 'right_wrist': (3.927, -24.558),
+        'spine_lumbar': (0.657, -19.983, 10.222), 'spine_thoracic': (-12.729, -10.0, 12.821),
+        'neck': (27.028, -1.293, -9.529), 'head': (11.406, -0.173),
+        'right_clavicle': (21.369, 11.187), 'right_shoulder': (57.74, 7.825, 21.33),
+        'right_elbow': (19.073, 31.323), 'right_wrist': (4.255, -24.151),
     })
     human.KeyJoints(38.2, {
-        'spine_lumbar': (-2.807, -19.862, 9.738), 'spine_thoracic': (-11.141, -10.0, 11.562),
-        'neck': (27.077, -0.899, -6.607), 'head': (11.441, -0.167),
-        'right_clavicle': (17.356, 10.386), 'right_shoulder': (55.237, 3.76, 20.763),
-        'right_elbow': (22.676, 29.135), 'right_wrist': (3.694, -24.479),
+        'spine_lumbar': (0.59, -18.864, 8.641), 'spine_thoracic': (-9.349, -9.773, 9.038),
+        'neck': (25.587, -0.81, -4.787), 'head': (9.632, -0.145), 'right_clavicle': (8.206, 8.109),
+        'right_shoulder': (54.252, 2.422, 15.859), 'right_elbow': (30.453, 22.971),
+        'right_wrist': (0.906, -23.433),
     })
     human.KeyJoints(38.3, {
-        'spine_lumbar': (5.762, -15.355, 9.378), 'spine_thoracic': (-8.908, -6.374, 9.253),
-        'neck': (24.637, -1.017, -5.455), 'head': (8.221, -0.116), 'right_clavicle': (4.44, 8.03),
-        'right_shoulder': (56.137, 2.813, 12.713), 'right_elbow': (32.241, 19.995),
-        'right_wrist': (-0.453, -20.863),
+        'spine_lumbar': (7.922, -13.491, 9.828), 'spine_thoracic': (-8.778, -4.418, 9.38),
+        'neck': (24.068, -1.049, -5.247), 'head': (7.512, -0.106), 'right_clavicle': (3.081, 8.007),
+        'right_shoulder': (56.946, 2.947, 11.388), 'right_elbow': (32.763, 18.85),
+        'right_wrist': (-0.966, -19.349),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
-        'spine_lumbar': (7.587, -14.116, 9.8), 'spine_thoracic': (-9.131, -4.901, 9.405),
-        'neck': (24.264, -1.075, -5.609), 'head': (7.776, -0.111), 'right_clavicle': (3.553, 7.99),
-        'right_shoulder': (56.64, 3.307, 11.534), 'right_elbow': (32.515, 19.123),
-        'right_wrist': (-0.888, -19.732),
+        'spine_lumbar': (7.966, -13.54, 9.846), 'spine_thoracic': (-8.841, -4.427, 9.397),
+        'neck': (24.078, -1.058, -5.323), 'head': (7.53, -0.107), 'right_clavicle': (3.1, 8.01),
+        'right_shoulder': (56.94, 3.02, 11.359), 'right_elbow': (32.758, 18.847),
+        'right_wrist': (-0.975, -19.348),
     })
     human.KeyJoints(38.5, {
-        'spine_lumbar': (4.807, -19.04, 9.422), 'spine_thoracic': (-10.823, -9.606, 9.568),
-        'neck': (25.205, -1.196, -7.455), 'head': (9.295, -0.152), 'right_clavicle': (8.222, 7.915),
-        'right_shoulder': (55.142, 5.662, 14.194), 'right_elbow': (30.628, 22.431),
-        'right_wrist': (0.243, -22.572),
+        'spine_lumbar': (5.193, -18.246, 9.498), 'spine_thoracic': (-10.628, -8.725, 9.527),
+        'neck': (25.082, -1.176, -7.187), 'head': (9.095, -0.146), 'right_clavicle': (7.299, 7.899),
+        'right_shoulder': (55.254, 5.275, 13.553), 'right_elbow': (30.926, 21.722),
+        'right_wrist': (-0.021, -22.157),
     })
     human.KeyJoints(38.6, {
-        'spine_lumbar': (2.689, -19.719, 9.246), 'spine_thoracic': (-11.327, -10.0, 10.617),
-        'neck': (25.829, -1.153, -7.66), 'head': (10.13, -0.166), 'right_clavicle': (15.642, 9.227),
-        'right_shoulder': (57.019, 7.242, 20.183), 'right_elbow': (27.197, 28.433),
-        'right_wrist': (2.892, -26.43),
+        'spine_lumbar': (1.118, -19.579, 10.019), 'spine_thoracic': (-12.367, -10.0, 12.29),
+        'neck': (26.732, -1.24, -8.933), 'head': (11.097, -0.172),
+        'right_clavicle': (19.781, 10.709), 'right_shoulder': (57.595, 7.533, 20.705),
+        'right_elbow': (20.858, 30.37), 'right_wrist': (3.816, -24.727),
     })
     human.KeyJoints(38.7, {
-        'spine_lumbar': (-3.073, -20.0, 10.295), 'spine_thoracic': (-12.369, -10.0, 12.794),
-        'neck': (27.71, -1.06, -8.238), 'head': (12.087, -0.17), 'right_clavicle': (20.882, 11.374),
-        'right_shoulder': (56.305, 5.729, 21.913), 'right_elbow': (19.358, 31.152),
-        'right_wrist': (4.469, -24.516),
+        'spine_lumbar': (-0.757, -20.0, 9.87), 'spine_thoracic': (-11.972, -10.0, 11.998),
+        'neck': (26.991, -1.102, -8.062), 'head': (11.353, -0.17),
+        'right_clavicle': (19.08, 10.598), 'right_shoulder': (56.505, 6.228, 21.188),
+        'right_elbow': (21.989, 30.173), 'right_wrist': (3.902, -25.14),
     })
     human.KeyJoints(38.8, {
-        'spine_lumbar': (0.712, -18.966, 8.531), 'spine_thoracic': (-9.195, -9.912, 8.993),
-        'neck': (25.468, -0.802, -4.704), 'head': (9.461, -0.142), 'right_clavicle': (8.499, 8.115),
-        'right_shoulder': (54.669, 2.453, 16.253), 'right_elbow': (30.428, 23.284),
-        'right_wrist': (1.035, -23.834),
+        'spine_lumbar': (6.688, -13.646, 9.692), 'spine_thoracic': (-8.703, -4.644, 9.292),
+        'neck': (24.383, -0.97, -4.878), 'head': (7.859, -0.108), 'right_clavicle': (3.147, 8.028),
+        'right_shoulder': (56.037, 2.368, 11.64), 'right_elbow': (32.638, 18.921),
+        'right_wrist': (-0.838, -19.617),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
@@ -2380,65 +2378,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(39.0, {
-        'spine_lumbar': (5.793, -17.071, 9.513), 'spine_thoracic': (-10.189, -7.618, 9.43),
-        'neck': (24.841, -1.137, -6.652), 'head': (8.705, -0.136), 'right_clavicle': (6.192, 7.902),
-        'right_shoulder': (55.696, 4.649, 12.94), 'right_elbow': (31.302, 20.945),
-        'right_wrist': (-0.282, -21.628),
+        'spine_lumbar': (6.927, -15.139, 9.69), 'spine_thoracic': (-9.542, -5.799, 9.403),
+        'neck': (24.542, -1.101, -6.048), 'head': (8.16, -0.118), 'right_clavicle': (4.413, 7.952),
+        'right_shoulder': (56.264, 3.772, 11.934), 'right_elbow': (32.073, 19.687),
+        'right_wrist': (-0.704, -20.435),
     })
     human.KeyJoints(39.1, {
-        'spine_lumbar': (3.633, -19.198, 8.995), 'spine_thoracic': (-10.613, -10.0, 9.851),
-        'neck': (25.374, -1.12, -6.986), 'head': (9.458, -0.151), 'right_clavicle': (12.394, 8.521),
-        'right_shoulder': (56.936, 6.191, 17.882), 'right_elbow': (28.837, 25.975),
-        'right_wrist': (1.813, -25.432),
+        'spine_lumbar': (3.016, -19.358, 9.178), 'spine_thoracic': (-11.086, -10.0, 10.366),
+        'neck': (25.67, -1.134, -7.375), 'head': (9.906, -0.161), 'right_clavicle': (14.53, 8.996),
+        'right_shoulder': (56.994, 6.834, 19.34), 'right_elbow': (27.808, 27.575),
+        'right_wrist': (2.531, -26.311),
     })
     human.KeyJoints(39.2, {
-        'spine_lumbar': (0.691, -19.997, 10.22), 'spine_thoracic': (-12.733, -10.0, 12.826),
-        'neck': (27.014, -1.294, -9.539), 'head': (11.392, -0.173),
-        'right_clavicle': (21.393, 11.184), 'right_shoulder': (57.74, 7.832, 21.328),
-        'right_elbow': (19.063, 31.341), 'right_wrist': (4.255, -24.147),
+        'spine_lumbar': (0.651, -20.0, 10.224), 'spine_thoracic': (-12.735, -10.0, 12.829),
+        'neck': (27.033, -1.295, -9.543), 'head': (11.411, -0.173),
+        'right_clavicle': (21.401, 11.194), 'right_shoulder': (57.741, 7.834, 21.35),
+        'right_elbow': (19.054, 31.347), 'right_wrist': (4.265, -24.144),
     })
     human.KeyJoints(39.3, {
-        'spine_lumbar': (-2.07, -19.714, 9.278), 'spine_thoracic': (-10.465, -10.0, 10.593),
-        'neck': (26.648, -0.86, -5.999), 'head': (10.972, -0.164), 'right_clavicle': (14.854, 9.56),
-        'right_shoulder': (54.974, 3.2, 19.659), 'right_elbow': (25.15, 27.567),
-        'right_wrist': (2.986, -24.376),
+        'spine_lumbar': (1.979, -17.078, 9.274), 'spine_thoracic': (-9.727, -7.931, 9.247),
+        'neck': (25.531, -0.858, -5.095), 'head': (9.553, -0.144), 'right_clavicle': (5.921, 8.067),
+        'right_shoulder': (53.174, 2.34, 13.7), 'right_elbow': (31.315, 20.994),
+        'right_wrist': (0.068, -21.968),
     })
     human.KeyJoints(39.4, {
-        'spine_lumbar': (7.185, -14.19, 9.675), 'spine_thoracic': (-8.857, -5.133, 9.344),
-        'neck': (24.301, -1.043, -5.381), 'head': (7.801, -0.11), 'right_clavicle': (3.553, 8.017),
-        'right_shoulder': (56.651, 2.939, 11.832), 'right_elbow': (32.589, 19.24),
-        'right_wrist': (-0.795, -19.893),
+        'spine_lumbar': (7.966, -13.507, 9.842), 'spine_thoracic': (-8.812, -4.415, 9.392),
+        'neck': (24.067, -1.055, -5.292), 'head': (7.516, -0.107), 'right_clavicle': (3.086, 8.008),
+        'right_shoulder': (56.949, 2.998, 11.365), 'right_elbow': (32.764, 18.845),
+        'right_wrist': (-0.975, -19.34),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'spine_lumbar': (7.031, -14.976, 9.714), 'spine_thoracic': (-9.492, -5.646, 9.407),
-        'neck': (24.509, -1.098, -5.99), 'head': (8.108, -0.117), 'right_clavicle': (4.267, 7.959),
-        'right_shoulder': (56.303, 3.705, 11.853), 'right_elbow': (32.146, 19.584),
-        'right_wrist': (-0.739, -20.318),
+        'spine_lumbar': (7.889, -13.657, 9.838), 'spine_thoracic': (-8.905, -4.52, 9.399),
+        'neck': (24.122, -1.062, -5.386), 'head': (7.579, -0.107), 'right_clavicle': (3.189, 8.006),
+        'right_shoulder': (56.873, 3.08, 11.389), 'right_elbow': (32.709, 18.898),
+        'right_wrist': (-0.959, -19.425),
     })
     human.KeyJoints(39.6, {
-        'spine_lumbar': (4.581, -19.273, 8.939), 'spine_thoracic': (-10.252, -9.928, 9.318),
-        'neck': (25.05, -1.151, -6.932), 'head': (9.016, -0.143), 'right_clavicle': (9.097, 7.918),
-        'right_shoulder': (56.339, 5.453, 15.272), 'right_elbow': (30.245, 23.319),
-        'right_wrist': (0.644, -23.223),
+        'spine_lumbar': (4.691, -19.169, 9.243), 'spine_thoracic': (-10.631, -9.781, 9.484),
+        'neck': (25.157, -1.18, -7.287), 'head': (9.208, -0.149), 'right_clavicle': (8.632, 7.917),
+        'right_shoulder': (55.543, 5.592, 14.65), 'right_elbow': (30.459, 22.827),
+        'right_wrist': (0.415, -22.849),
     })
     human.KeyJoints(39.7, {
-        'spine_lumbar': (2.336, -19.996, 9.322), 'spine_thoracic': (-11.577, -10.0, 10.902),
-        'neck': (26.015, -1.178, -7.992), 'head': (10.356, -0.169),
-        'right_clavicle': (16.765, 9.487), 'right_shoulder': (57.052, 7.496, 20.674),
-        'right_elbow': (26.403, 29.188), 'right_wrist': (3.215, -26.45),
+        'spine_lumbar': (0.828, -19.726, 10.157), 'spine_thoracic': (-12.583, -10.0, 12.623),
+        'neck': (26.914, -1.268, -9.262), 'head': (11.287, -0.172),
+        'right_clavicle': (20.7, 11.006), 'right_shoulder': (57.696, 7.661, 20.974),
+        'right_elbow': (19.681, 30.876), 'right_wrist': (4.053, -24.354),
     })
     human.KeyJoints(39.8, {
-        'spine_lumbar': (-3.558, -20.0, 10.297), 'spine_thoracic': (-12.151, -10.0, 12.764),
-        'neck': (27.79, -1.003, -7.841), 'head': (12.167, -0.169),
-        'right_clavicle': (20.524, 11.381), 'right_shoulder': (55.856, 4.988, 21.952),
-        'right_elbow': (19.579, 31.011), 'right_wrist': (4.479, -24.573),
+        'spine_lumbar': (-0.635, -19.874, 9.174), 'spine_thoracic': (-10.872, -10.0, 10.547),
+        'neck': (26.418, -0.927, -6.364), 'head': (10.75, -0.165),
+        'right_clavicle': (15.368, 9.426), 'right_shoulder': (55.415, 5.109, 20.989),
+        'right_elbow': (27.351, 28.516), 'right_wrist': (3.208, -26.703),
     })
     human.KeyJoints(39.9, {
-        'spine_lumbar': (2.178, -18.07, 8.717), 'spine_thoracic': (-9.082, -9.135, 9.05),
-        'neck': (25.187, -0.883, -5.061), 'head': (9.024, -0.132), 'right_clavicle': (7.058, 8.08),
-        'right_shoulder': (54.991, 2.532, 15.106), 'right_elbow': (31.121, 22.153),
-        'right_wrist': (0.524, -23.108),
+        'spine_lumbar': (7.41, -13.49, 9.751), 'spine_thoracic': (-8.639, -4.466, 9.316),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.049, 8.012),
+        'right_shoulder': (56.64, 2.578, 11.497), 'right_elbow': (32.725, 18.854),
+        'right_wrist': (-0.914, -19.452),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
@@ -2448,65 +2446,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(40.1, {
-        'spine_lumbar': (5.422, -17.78, 9.507), 'spine_thoracic': (-10.474, -8.264, 9.492),
-        'neck': (24.994, -1.161, -6.985), 'head': (8.953, -0.142), 'right_clavicle': (6.844, 7.898),
-        'right_shoulder': (55.381, 5.028, 13.287), 'right_elbow': (31.076, 21.396),
-        'right_wrist': (-0.134, -21.948),
+        'spine_lumbar': (6.4, -15.997, 9.581), 'spine_thoracic': (-9.803, -6.617, 9.389),
+        'neck': (24.732, -1.119, -6.356), 'head': (8.434, -0.124), 'right_clavicle': (5.202, 7.92),
+        'right_shoulder': (56.059, 4.131, 12.393), 'right_elbow': (31.704, 20.249),
+        'right_wrist': (-0.513, -21.022),
     })
     human.KeyJoints(40.2, {
-        'spine_lumbar': (3.32, -19.187, 9.098), 'spine_thoracic': (-10.86, -10.0, 10.122),
-        'neck': (25.528, -1.122, -7.154), 'head': (9.688, -0.156),
-        'right_clavicle': (13.509, 8.772), 'right_shoulder': (56.967, 6.525, 18.666),
-        'right_elbow': (28.354, 26.82), 'right_wrist': (2.196, -25.98),
+        'spine_lumbar': (2.552, -19.911, 9.27), 'spine_thoracic': (-11.425, -10.0, 10.72),
+        'neck': (25.894, -1.169, -7.84), 'head': (10.228, -0.168),
+        'right_clavicle': (16.102, 9.322), 'right_shoulder': (57.029, 7.412, 20.523),
+        'right_elbow': (26.925, 28.785), 'right_wrist': (3.037, -26.452),
     })
     human.KeyJoints(40.3, {
-        'spine_lumbar': (-0.241, -20.0, 10.256), 'spine_thoracic': (-12.691, -10.0, 12.825),
-        'neck': (27.277, -1.233, -9.2), 'head': (11.657, -0.172),
-        'right_clavicle': (21.343, 11.274), 'right_shoulder': (57.523, 7.524, 21.569),
-        'right_elbow': (19.087, 31.326), 'right_wrist': (4.354, -24.207),
+        'spine_lumbar': (0.514, -20.0, 10.226), 'spine_thoracic': (-12.716, -10.0, 12.828),
+        'neck': (27.057, -1.285, -9.489), 'head': (11.435, -0.173),
+        'right_clavicle': (21.374, 11.2), 'right_shoulder': (57.68, 7.743, 21.368),
+        'right_elbow': (19.07, 31.335), 'right_wrist': (4.271, -24.159),
     })
     human.KeyJoints(40.4, {
-        'spine_lumbar': (-1.198, -19.523, 8.848), 'spine_thoracic': (-9.838, -10.0, 9.693),
-        'neck': (26.227, -0.823, -5.314), 'head': (10.468, -0.158),
-        'right_clavicle': (12.288, 8.781), 'right_shoulder': (54.772, 2.756, 18.439),
-        'right_elbow': (27.578, 25.914), 'right_wrist': (2.231, -24.242),
+        'spine_lumbar': (3.814, -15.301, 9.357), 'spine_thoracic': (-9.08, -6.279, 9.167),
+        'neck': (25.002, -0.879, -4.775), 'head': (8.79, -0.128), 'right_clavicle': (4.475, 8.033),
+        'right_shoulder': (54.293, 1.994, 12.721), 'right_elbow': (31.906, 19.915),
+        'right_wrist': (-0.35, -20.933),
     })
     human.KeyJoints(40.5, {
-        'spine_lumbar': (7.933, -13.561, 9.838), 'spine_thoracic': (-8.834, -4.455, 9.394),
-        'neck': (24.086, -1.057, -5.319), 'head': (7.54, -0.107), 'right_clavicle': (3.113, 8.01),
-        'right_shoulder': (56.933, 3.007, 11.382), 'right_elbow': (32.755, 18.861),
-        'right_wrist': (-0.967, -19.369),
+        'spine_lumbar': (7.977, -13.522, 9.847), 'spine_thoracic': (-8.83, -4.414, 9.396),
+        'neck': (24.071, -1.057, -5.313), 'head': (7.522, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.011, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
-        'spine_lumbar': (6.599, -15.664, 9.615), 'spine_thoracic': (-9.695, -6.303, 9.389),
-        'neck': (24.667, -1.112, -6.237), 'head': (8.329, -0.121), 'right_clavicle': (4.897, 7.929),
-        'right_shoulder': (56.149, 3.985, 12.22), 'right_elbow': (31.841, 20.034),
-        'right_wrist': (-0.586, -20.809),
+        'spine_lumbar': (7.696, -13.947, 9.817), 'spine_thoracic': (-9.057, -4.755, 9.404),
+        'neck': (24.22, -1.071, -5.533), 'head': (7.705, -0.109), 'right_clavicle': (3.413, 7.996),
+        'right_shoulder': (56.714, 3.227, 11.47), 'right_elbow': (32.587, 19.033),
+        'right_wrist': (-0.917, -19.617),
     })
     human.KeyJoints(40.7, {
-        'spine_lumbar': (4.31, -19.312, 8.763), 'spine_thoracic': (-10.05, -10.0, 9.257),
-        'neck': (25.013, -1.125, -6.722), 'head': (8.938, -0.14), 'right_clavicle': (10.108, 7.969),
-        'right_shoulder': (56.892, 5.426, 16.288), 'right_elbow': (29.79, 24.243),
-        'right_wrist': (1.057, -23.967),
+        'spine_lumbar': (4.184, -19.292, 8.801), 'spine_thoracic': (-10.147, -10.0, 9.357),
+        'neck': (25.089, -1.121, -6.738), 'head': (9.043, -0.142),
+        'right_clavicle': (10.516, 8.061), 'right_shoulder': (56.899, 5.559, 16.573),
+        'right_elbow': (29.612, 24.554), 'right_wrist': (1.188, -24.235),
     })
     human.KeyJoints(40.8, {
-        'spine_lumbar': (1.58, -19.671, 9.76), 'spine_thoracic': (-12.054, -10.0, 11.752),
-        'neck': (26.452, -1.212, -8.538), 'head': (10.811, -0.171),
-        'right_clavicle': (18.552, 10.233), 'right_shoulder': (57.394, 7.507, 20.677),
-        'right_elbow': (22.951, 29.849), 'right_wrist': (3.555, -25.413),
+        'spine_lumbar': (0.7, -19.892, 10.209), 'spine_thoracic': (-12.689, -10.0, 12.771),
+        'neck': (26.998, -1.286, -9.452), 'head': (11.375, -0.173),
+        'right_clavicle': (21.179, 11.141), 'right_shoulder': (57.732, 7.772, 21.217),
+        'right_elbow': (19.208, 31.186), 'right_wrist': (4.194, -24.198),
     })
     human.KeyJoints(40.9, {
-        'spine_lumbar': (-3.337, -19.961, 10.121), 'spine_thoracic': (-11.752, -10.0, 12.375),
-        'neck': (27.544, -0.948, -7.27), 'head': (11.92, -0.168),
-        'right_clavicle': (19.409, 11.068), 'right_shoulder': (55.543, 4.384, 21.593),
-        'right_elbow': (20.628, 30.382), 'right_wrist': (4.24, -24.547),
+        'spine_lumbar': (-0.415, -19.314, 8.768), 'spine_thoracic': (-9.87, -10.0, 9.57),
+        'neck': (25.968, -0.809, -5.116), 'head': (10.178, -0.156),
+        'right_clavicle': (11.776, 8.64), 'right_shoulder': (54.892, 3.369, 18.59),
+        'right_elbow': (29.107, 25.8), 'right_wrist': (2.128, -25.705),
     })
     human.KeyJoints(41.0, {
-        'spine_lumbar': (3.962, -16.77, 9.026), 'spine_thoracic': (-8.985, -7.845, 9.145),
-        'neck': (24.928, -0.976, -5.42), 'head': (8.619, -0.122), 'right_clavicle': (5.667, 8.052),
-        'right_shoulder': (55.527, 2.663, 13.875), 'right_elbow': (31.735, 21.02),
-        'right_wrist': (0.012, -22.036),
+        'spine_lumbar': (7.808, -13.486, 9.802), 'spine_thoracic': (-8.724, -4.427, 9.358),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.07, 8.007),
+        'right_shoulder': (56.914, 2.838, 11.427), 'right_elbow': (32.757, 18.853),
+        'right_wrist': (-0.95, -19.371),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
@@ -2516,28 +2514,28 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(41.2, {
-        'spine_lumbar': (5.095, -18.474, 9.487), 'spine_thoracic': (-10.695, -8.966, 9.541),
-        'neck': (25.125, -1.182, -7.274), 'head': (9.164, -0.148), 'right_clavicle': (7.505, 7.902),
-        'right_shoulder': (55.213, 5.402, 13.679), 'right_elbow': (30.862, 21.871),
-        'right_wrist': (0.031, -22.243),
+        'spine_lumbar': (5.808, -17.043, 9.514), 'spine_thoracic': (-10.178, -7.592, 9.429),
+        'neck': (24.841, -1.137, -6.647), 'head': (8.699, -0.135), 'right_clavicle': (6.167, 7.902),
+        'right_shoulder': (55.707, 4.635, 12.926), 'right_elbow': (31.312, 20.927),
+        'right_wrist': (-0.288, -21.614),
     })
     human.KeyJoints(41.3, {
-        'spine_lumbar': (2.995, -19.374, 9.183), 'spine_thoracic': (-11.101, -10.0, 10.382),
-        'neck': (25.678, -1.135, -7.391), 'head': (9.923, -0.162), 'right_clavicle': (14.6, 9.011),
-        'right_shoulder': (56.996, 6.856, 19.385), 'right_elbow': (27.768, 27.626),
-        'right_wrist': (2.553, -26.326),
+        'spine_lumbar': (1.79, -19.77, 9.627), 'spine_thoracic': (-11.921, -10.0, 11.505),
+        'neck': (26.33, -1.2, -8.362), 'head': (10.68, -0.17), 'right_clavicle': (18.067, 10.017),
+        'right_shoulder': (57.287, 7.505, 20.676), 'right_elbow': (23.986, 29.683),
+        'right_wrist': (3.468, -25.755),
     })
     human.KeyJoints(41.4, {
-        'spine_lumbar': (-1.72, -20.0, 10.28), 'spine_thoracic': (-12.56, -10.0, 12.813),
-        'neck': (27.515, -1.129, -8.609), 'head': (11.893, -0.171),
-        'right_clavicle': (21.163, 11.337), 'right_shoulder': (56.958, 6.706, 21.773),
-        'right_elbow': (19.192, 31.259), 'right_wrist': (4.426, -24.361),
+        'spine_lumbar': (-0.186, -20.0, 10.204), 'spine_thoracic': (-12.563, -10.0, 12.737),
+        'neck': (27.153, -1.229, -9.125), 'head': (11.529, -0.172),
+        'right_clavicle': (21.011, 11.166), 'right_shoulder': (57.323, 7.208, 21.379),
+        'right_elbow': (19.389, 31.14), 'right_wrist': (4.251, -24.287),
     })
     human.KeyJoints(41.5, {
-        'spine_lumbar': (-0.273, -19.296, 8.563), 'spine_thoracic': (-9.384, -10.0, 9.098),
-        'neck': (25.813, -0.796, -4.768), 'head': (9.941, -0.15), 'right_clavicle': (10.073, 8.249),
-        'right_shoulder': (54.653, 2.491, 17.271), 'right_elbow': (29.462, 24.43),
-        'right_wrist': (1.552, -24.081),
+        'spine_lumbar': (5.467, -14.221, 9.589), 'spine_thoracic': (-8.9, -5.18, 9.259),
+        'neck': (24.74, -0.924, -4.839), 'head': (8.342, -0.116), 'right_clavicle': (3.56, 8.042),
+        'right_shoulder': (55.113, 2.175, 11.966), 'right_elbow': (32.407, 19.206),
+        'right_wrist': (-0.674, -20.011),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
@@ -2547,65 +2545,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(41.7, {
-        'spine_lumbar': (6.189, -16.36, 9.548), 'spine_thoracic': (-9.929, -6.957, 9.398),
-        'neck': (24.756, -1.124, -6.437), 'head': (8.515, -0.128), 'right_clavicle': (5.535, 7.911),
-        'right_shoulder': (55.946, 4.3, 12.578), 'right_elbow': (31.561, 20.484),
-        'right_wrist': (-0.435, -21.242),
+        'spine_lumbar': (7.373, -14.442, 9.773), 'spine_thoracic': (-9.29, -5.17, 9.409),
+        'neck': (24.369, -1.085, -5.765), 'head': (7.911, -0.113), 'right_clavicle': (3.811, 7.98),
+        'right_shoulder': (56.479, 3.467, 11.634), 'right_elbow': (32.378, 19.281),
+        'right_wrist': (-0.838, -19.949),
     })
     human.KeyJoints(41.8, {
-        'spine_lumbar': (3.957, -19.25, 8.882), 'spine_thoracic': (-10.354, -10.0, 9.57),
-        'neck': (25.21, -1.12, -6.851), 'head': (9.221, -0.145), 'right_clavicle': (11.248, 8.259),
-        'right_shoulder': (56.909, 5.841, 17.057), 'right_elbow': (29.296, 25.097),
-        'right_wrist': (1.418, -24.7),
+        'spine_lumbar': (3.576, -19.189, 9.016), 'spine_thoracic': (-10.658, -10.0, 9.902),
+        'neck': (25.402, -1.12, -7.02), 'head': (9.501, -0.152), 'right_clavicle': (12.6, 8.568),
+        'right_shoulder': (56.942, 6.253, 18.032), 'right_elbow': (28.756, 26.133),
+        'right_wrist': (1.885, -25.557),
     })
     human.KeyJoints(41.9, {
-        'spine_lumbar': (1.047, -19.667, 10.071), 'spine_thoracic': (-12.465, -10.0, 12.436),
-        'neck': (26.787, -1.255, -9.1), 'head': (11.156, -0.172), 'right_clavicle': (20.21, 10.829),
-        'right_shoulder': (57.635, 7.595, 20.809), 'right_elbow': (20.365, 30.617),
-        'right_wrist': (3.92, -24.568),
+        'spine_lumbar': (0.658, -19.982, 10.222), 'spine_thoracic': (-12.728, -10.0, 12.821),
+        'neck': (27.028, -1.293, -9.529), 'head': (11.406, -0.173),
+        'right_clavicle': (21.368, 11.186), 'right_shoulder': (57.74, 7.824, 21.329),
+        'right_elbow': (19.074, 31.322), 'right_wrist': (4.254, -24.151),
     })
     human.KeyJoints(42.0, {
-        'spine_lumbar': (-2.818, -19.864, 9.746), 'spine_thoracic': (-11.152, -10.0, 11.578),
-        'neck': (27.085, -0.9, -6.618), 'head': (11.45, -0.167), 'right_clavicle': (17.395, 10.399),
-        'right_shoulder': (55.242, 3.77, 20.779), 'right_elbow': (22.637, 29.159),
-        'right_wrist': (3.705, -24.48),
+        'spine_lumbar': (0.57, -18.887, 8.628), 'spine_thoracic': (-9.339, -9.795, 9.033),
+        'neck': (25.586, -0.809, -4.776), 'head': (9.631, -0.145), 'right_clavicle': (8.254, 8.11),
+        'right_shoulder': (54.282, 2.423, 15.906), 'right_elbow': (30.435, 23.013),
+        'right_wrist': (0.925, -23.462),
     })
     human.KeyJoints(42.1, {
-        'spine_lumbar': (5.734, -15.378, 9.372), 'spine_thoracic': (-8.909, -6.398, 9.251),
-        'neck': (24.642, -1.017, -5.456), 'head': (8.228, -0.116), 'right_clavicle': (4.458, 8.031),
-        'right_shoulder': (56.127, 2.81, 12.731), 'right_elbow': (32.234, 20.01),
-        'right_wrist': (-0.446, -20.881),
+        'spine_lumbar': (7.921, -13.49, 9.828), 'spine_thoracic': (-8.778, -4.418, 9.38),
+        'neck': (24.068, -1.049, -5.246), 'head': (7.511, -0.106), 'right_clavicle': (3.081, 8.007),
+        'right_shoulder': (56.946, 2.946, 11.388), 'right_elbow': (32.763, 18.85),
+        'right_wrist': (-0.966, -19.349),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
-        'spine_lumbar': (7.598, -14.099, 9.801), 'spine_thoracic': (-9.123, -4.887, 9.404),
-        'neck': (24.258, -1.075, -5.601), 'head': (7.769, -0.111), 'right_clavicle': (3.54, 7.991),
-        'right_shoulder': (56.649, 3.298, 11.529), 'right_elbow': (32.522, 19.115),
-        'right_wrist': (-0.89, -19.72),
+        'spine_lumbar': (7.967, -13.539, 9.846), 'spine_thoracic': (-8.841, -4.427, 9.397),
+        'neck': (24.078, -1.058, -5.323), 'head': (7.53, -0.107), 'right_clavicle': (3.1, 8.01),
+        'right_shoulder': (56.941, 3.02, 11.359), 'right_elbow': (32.758, 18.846),
+        'right_wrist': (-0.975, -19.348),
     })
     human.KeyJoints(42.3, {
-        'spine_lumbar': (4.812, -19.035, 9.423), 'spine_thoracic': (-10.823, -9.6, 9.569),
-        'neck': (25.205, -1.196, -7.455), 'head': (9.295, -0.152), 'right_clavicle': (8.209, 7.914),
-        'right_shoulder': (55.142, 5.662, 14.183), 'right_elbow': (30.632, 22.42),
-        'right_wrist': (0.238, -22.565),
+        'spine_lumbar': (5.203, -18.224, 9.498), 'spine_thoracic': (-10.621, -8.703, 9.525),
+        'neck': (25.079, -1.176, -7.178), 'head': (9.089, -0.146), 'right_clavicle': (7.28, 7.899),
+        'right_shoulder': (55.259, 5.263, 13.541), 'right_elbow': (30.932, 21.708),
+        'right_wrist': (-0.026, -22.149),
     })
     human.KeyJoints(42.4, {
-        'spine_lumbar': (2.694, -19.711, 9.245), 'spine_thoracic': (-11.323, -10.0, 10.614),
-        'neck': (25.826, -1.153, -7.656), 'head': (10.127, -0.166),
-        'right_clavicle': (15.626, 9.224), 'right_shoulder': (57.019, 7.235, 20.168),
-        'right_elbow': (27.206, 28.419), 'right_wrist': (2.886, -26.429),
+        'spine_lumbar': (1.125, -19.578, 10.016), 'spine_thoracic': (-12.362, -10.0, 12.283),
+        'neck': (26.727, -1.24, -8.926), 'head': (11.093, -0.172),
+        'right_clavicle': (19.761, 10.702), 'right_shoulder': (57.592, 7.532, 20.703),
+        'right_elbow': (20.885, 30.359), 'right_wrist': (3.811, -24.736),
     })
     human.KeyJoints(42.5, {
-        'spine_lumbar': (-3.055, -20.0, 10.295), 'spine_thoracic': (-12.372, -10.0, 12.794),
-        'neck': (27.707, -1.061, -8.243), 'head': (12.084, -0.17),
-        'right_clavicle': (20.887, 11.374), 'right_shoulder': (56.315, 5.744, 21.911),
-        'right_elbow': (19.355, 31.154), 'right_wrist': (4.469, -24.514),
+        'spine_lumbar': (-0.759, -20.0, 9.883), 'spine_thoracic': (-11.99, -10.0, 12.023),
+        'neck': (27.001, -1.105, -8.092), 'head': (11.363, -0.17),
+        'right_clavicle': (19.137, 10.619), 'right_shoulder': (56.526, 6.242, 21.185),
+        'right_elbow': (21.875, 30.192), 'right_wrist': (3.911, -25.092),
     })
     human.KeyJoints(42.6, {
-        'spine_lumbar': (0.692, -18.976, 8.529), 'spine_thoracic': (-9.197, -9.919, 8.993),
-        'neck': (25.473, -0.801, -4.701), 'head': (9.468, -0.142), 'right_clavicle': (8.523, 8.116),
-        'right_shoulder': (54.666, 2.453, 16.27), 'right_elbow': (30.415, 23.302),
-        'right_wrist': (1.043, -23.842),
+        'spine_lumbar': (6.671, -13.653, 9.691), 'spine_thoracic': (-8.706, -4.65, 9.292),
+        'neck': (24.388, -0.969, -4.878), 'head': (7.866, -0.108), 'right_clavicle': (3.151, 8.029),
+        'right_shoulder': (56.021, 2.365, 11.643), 'right_elbow': (32.635, 18.924),
+        'right_wrist': (-0.836, -19.621),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.7, {
@@ -2615,65 +2613,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(42.8, {
-        'spine_lumbar': (5.8, -17.059, 9.513), 'spine_thoracic': (-10.184, -7.607, 9.43),
-        'neck': (24.839, -1.137, -6.647), 'head': (8.702, -0.135), 'right_clavicle': (6.181, 7.902),
-        'right_shoulder': (55.701, 4.643, 12.934), 'right_elbow': (31.306, 20.937),
-        'right_wrist': (-0.285, -21.622),
+        'spine_lumbar': (6.935, -15.126, 9.692), 'spine_thoracic': (-9.538, -5.787, 9.403),
+        'neck': (24.539, -1.101, -6.043), 'head': (8.156, -0.118), 'right_clavicle': (4.401, 7.952),
+        'right_shoulder': (56.267, 3.767, 11.928), 'right_elbow': (32.079, 19.678),
+        'right_wrist': (-0.707, -20.426),
     })
     human.KeyJoints(42.9, {
-        'spine_lumbar': (3.638, -19.198, 8.993), 'spine_thoracic': (-10.608, -10.0, 9.846),
-        'neck': (25.371, -1.12, -6.983), 'head': (9.454, -0.151), 'right_clavicle': (12.375, 8.516),
-        'right_shoulder': (56.936, 6.185, 17.868), 'right_elbow': (28.845, 25.96),
-        'right_wrist': (1.806, -25.42),
+        'spine_lumbar': (3.025, -19.352, 9.176), 'spine_thoracic': (-11.079, -10.0, 10.359),
+        'neck': (25.666, -1.133, -7.367), 'head': (9.899, -0.161), 'right_clavicle': (14.5, 8.99),
+        'right_shoulder': (56.994, 6.825, 19.32), 'right_elbow': (27.825, 27.553),
+        'right_wrist': (2.521, -26.304),
     })
     human.KeyJoints(43.0, {
-        'spine_lumbar': (0.699, -19.995, 10.219), 'spine_thoracic': (-12.732, -10.0, 12.825),
-        'neck': (27.01, -1.294, -9.538), 'head': (11.387, -0.173),
-        'right_clavicle': (21.388, 11.182), 'right_shoulder': (57.74, 7.831, 21.322),
-        'right_elbow': (19.067, 31.339), 'right_wrist': (4.253, -24.149),
+        'spine_lumbar': (0.651, -20.0, 10.224), 'spine_thoracic': (-12.735, -10.0, 12.829),
+        'neck': (27.033, -1.295, -9.543), 'head': (11.411, -0.173),
+        'right_clavicle': (21.401, 11.194), 'right_shoulder': (57.741, 7.834, 21.35),
+        'right_elbow': (19.054, 31.347), 'right_wrist': (4.265, -24.144),
     })
     human.KeyJoints(43.1, {
-        'spine_lumbar': (-2.083, -19.717, 9.285), 'spine_thoracic': (-10.476, -10.0, 10.609),
-        'neck': (26.655, -0.861, -6.009), 'head': (10.98, -0.164),
-        'right_clavicle': (14.898, 9.574), 'right_shoulder': (54.978, 3.208, 19.679),
-        'right_elbow': (25.107, 27.595), 'right_wrist': (2.999, -24.378),
+        'spine_lumbar': (1.951, -17.109, 9.272), 'spine_thoracic': (-9.734, -7.96, 9.248),
+        'neck': (25.538, -0.858, -5.099), 'head': (9.563, -0.144), 'right_clavicle': (5.951, 8.067),
+        'right_shoulder': (53.164, 2.346, 13.722), 'right_elbow': (31.303, 21.018),
+        'right_wrist': (0.077, -21.988),
     })
     human.KeyJoints(43.2, {
-        'spine_lumbar': (7.166, -14.206, 9.671), 'spine_thoracic': (-8.858, -5.15, 9.343),
-        'neck': (24.306, -1.043, -5.383), 'head': (7.808, -0.11), 'right_clavicle': (3.564, 8.017),
-        'right_shoulder': (56.644, 2.937, 11.844), 'right_elbow': (32.585, 19.25),
-        'right_wrist': (-0.791, -19.906),
+        'spine_lumbar': (7.966, -13.507, 9.842), 'spine_thoracic': (-8.811, -4.415, 9.391),
+        'neck': (24.067, -1.055, -5.291), 'head': (7.516, -0.107), 'right_clavicle': (3.086, 8.008),
+        'right_shoulder': (56.949, 2.998, 11.366), 'right_elbow': (32.764, 18.845),
+        'right_wrist': (-0.975, -19.34),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.3, {
-        'spine_lumbar': (7.038, -14.964, 9.715), 'spine_thoracic': (-9.488, -5.635, 9.407),
-        'neck': (24.506, -1.098, -5.985), 'head': (8.104, -0.117), 'right_clavicle': (4.256, 7.959),
-        'right_shoulder': (56.306, 3.7, 11.847), 'right_elbow': (32.152, 19.577),
-        'right_wrist': (-0.741, -20.309),
+        'spine_lumbar': (7.891, -13.654, 9.839), 'spine_thoracic': (-8.903, -4.517, 9.399),
+        'neck': (24.12, -1.062, -5.384), 'head': (7.578, -0.107), 'right_clavicle': (3.187, 8.006),
+        'right_shoulder': (56.875, 3.079, 11.388), 'right_elbow': (32.71, 18.897),
+        'right_wrist': (-0.96, -19.423),
     })
     human.KeyJoints(43.4, {
-        'spine_lumbar': (4.585, -19.27, 8.949), 'spine_thoracic': (-10.265, -9.924, 9.324),
-        'neck': (25.053, -1.152, -6.943), 'head': (9.022, -0.143), 'right_clavicle': (9.081, 7.918),
-        'right_shoulder': (56.313, 5.457, 15.25), 'right_elbow': (30.253, 23.302),
-        'right_wrist': (0.636, -23.21),
+        'spine_lumbar': (4.698, -19.162, 9.26), 'spine_thoracic': (-10.652, -9.771, 9.493),
+        'neck': (25.163, -1.182, -7.305), 'head': (9.218, -0.149), 'right_clavicle': (8.604, 7.917),
+        'right_shoulder': (55.5, 5.599, 14.615), 'right_elbow': (30.471, 22.798),
+        'right_wrist': (0.402, -22.828),
     })
     human.KeyJoints(43.5, {
-        'spine_lumbar': (2.344, -19.998, 9.319), 'spine_thoracic': (-11.571, -10.0, 10.894),
-        'neck': (26.01, -1.178, -7.985), 'head': (10.351, -0.169), 'right_clavicle': (16.741, 9.48),
-        'right_shoulder': (57.051, 7.495, 20.674), 'right_elbow': (26.43, 29.176),
-        'right_wrist': (3.209, -26.453),
+        'spine_lumbar': (0.831, -19.723, 10.156), 'spine_thoracic': (-12.581, -10.0, 12.619),
+        'neck': (26.912, -1.267, -9.257), 'head': (11.284, -0.172),
+        'right_clavicle': (20.689, 11.003), 'right_shoulder': (57.695, 7.659, 20.969),
+        'right_elbow': (19.694, 30.869), 'right_wrist': (4.05, -24.358),
     })
     human.KeyJoints(43.6, {
-        'spine_lumbar': (-3.559, -20.0, 10.297), 'spine_thoracic': (-12.156, -10.0, 12.765),
-        'neck': (27.791, -1.003, -7.849), 'head': (12.168, -0.169),
-        'right_clavicle': (20.533, 11.382), 'right_shoulder': (55.861, 4.998, 21.953),
-        'right_elbow': (19.572, 31.015), 'right_wrist': (4.48, -24.574),
+        'spine_lumbar': (-0.637, -19.885, 9.181), 'spine_thoracic': (-10.887, -10.0, 10.563),
+        'neck': (26.425, -0.929, -6.387), 'head': (10.758, -0.166),
+        'right_clavicle': (15.425, 9.439), 'right_shoulder': (55.427, 5.137, 21.018),
+        'right_elbow': (27.315, 28.556), 'right_wrist': (3.223, -26.71),
     })
     human.KeyJoints(43.7, {
-        'spine_lumbar': (2.15, -18.089, 8.713), 'spine_thoracic': (-9.083, -9.154, 9.049),
-        'neck': (25.192, -0.881, -5.053), 'head': (9.031, -0.132), 'right_clavicle': (7.082, 8.081),
-        'right_shoulder': (54.984, 2.53, 15.126), 'right_elbow': (31.11, 22.172),
-        'right_wrist': (0.533, -23.124),
+        'spine_lumbar': (7.401, -13.49, 9.75), 'spine_thoracic': (-8.638, -4.467, 9.316),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.049, 8.012),
+        'right_shoulder': (56.633, 2.573, 11.499), 'right_elbow': (32.725, 18.854),
+        'right_wrist': (-0.913, -19.454),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
@@ -2683,73 +2681,71 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(43.9, {
-        'spine_lumbar': (5.427, -17.769, 9.507), 'spine_thoracic': (-10.47, -8.253, 9.491),
-        'neck': (24.991, -1.161, -6.979), 'head': (8.949, -0.142), 'right_clavicle': (6.833, 7.898),
-        'right_shoulder': (55.385, 5.022, 13.281), 'right_elbow': (31.08, 21.388),
-        'right_wrist': (-0.136, -21.943),
+        'spine_lumbar': (6.41, -15.981, 9.582), 'spine_thoracic': (-9.797, -6.602, 9.388),
+        'neck': (24.729, -1.119, -6.35), 'head': (8.428, -0.124), 'right_clavicle': (5.187, 7.92),
+        'right_shoulder': (56.063, 4.123, 12.384), 'right_elbow': (31.711, 20.239),
+        'right_wrist': (-0.517, -21.012),
     })
     human.KeyJoints(44.0, {
-        'spine_lumbar': (3.325, -19.186, 9.097), 'spine_thoracic': (-10.856, -10.0, 10.117),
-        'neck': (25.525, -1.122, -7.151), 'head': (9.684, -0.156), 'right_clavicle': (13.49, 8.768),
-        'right_shoulder': (56.966, 6.52, 18.654), 'right_elbow': (28.364, 26.806),
-        'right_wrist': (2.19, -25.973),
+        'spine_lumbar': (2.56, -19.903, 9.268), 'spine_thoracic': (-11.42, -10.0, 10.714),
+        'neck': (25.89, -1.169, -7.832), 'head': (10.223, -0.168),
+        'right_clavicle': (16.076, 9.316), 'right_shoulder': (57.028, 7.404, 20.509),
+        'right_elbow': (26.942, 28.767), 'right_wrist': (3.029, -26.451),
     })
     human.KeyJoints(44.1, {
-        'spine_lumbar': (-0.219, -20.0, 10.255), 'spine_thoracic': (-12.692, -10.0, 12.825),
-        'neck': (27.273, -1.235, -9.211), 'head': (11.652, -0.172),
-        'right_clavicle': (21.345, 11.273), 'right_shoulder': (57.53, 7.534, 21.565),
-        'right_elbow': (19.086, 31.327), 'right_wrist': (4.353, -24.205),
+        'spine_lumbar': (0.52, -20.0, 10.226), 'spine_thoracic': (-12.717, -10.0, 12.828),
+        'neck': (27.056, -1.286, -9.492), 'head': (11.434, -0.173),
+        'right_clavicle': (21.375, 11.2), 'right_shoulder': (57.682, 7.746, 21.368),
+        'right_elbow': (19.069, 31.336), 'right_wrist': (4.271, -24.159),
     })
     human.KeyJoints(44.2, {
-        'spine_lumbar': (-1.213, -19.527, 8.854), 'spine_thoracic': (-9.847, -10.0, 9.706),
-        'neck': (26.234, -0.824, -5.325), 'head': (10.477, -0.159),
-        'right_clavicle': (12.33, 8.792), 'right_shoulder': (54.774, 2.762, 18.459),
-        'right_elbow': (27.54, 25.941), 'right_wrist': (2.243, -24.244),
+        'spine_lumbar': (3.786, -15.323, 9.355), 'spine_thoracic': (-9.085, -6.3, 9.167),
+        'neck': (25.009, -0.879, -4.777), 'head': (8.799, -0.129), 'right_clavicle': (4.493, 8.033),
+        'right_shoulder': (54.278, 1.994, 12.735), 'right_elbow': (31.897, 19.929),
+        'right_wrist': (-0.344, -20.949),
     })
     human.KeyJoints(44.3, {
-        'spine_lumbar': (7.928, -13.566, 9.836), 'spine_thoracic': (-8.834, -4.46, 9.393),
-        'neck': (24.087, -1.057, -5.32), 'head': (7.542, -0.107), 'right_clavicle': (3.116, 8.01),
-        'right_shoulder': (56.931, 3.007, 11.385), 'right_elbow': (32.754, 18.864),
-        'right_wrist': (-0.966, -19.373),
+        'spine_lumbar': (7.977, -13.522, 9.847), 'spine_thoracic': (-8.83, -4.414, 9.396),
+        'neck': (24.071, -1.057, -5.313), 'head': (7.522, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.011, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.4, {
-        'spine_lumbar': (6.606, -15.653, 9.616), 'spine_thoracic': (-9.692, -6.292, 9.389),
-        'neck': (24.665, -1.112, -6.233), 'head': (8.326, -0.121), 'right_clavicle': (4.887, 7.93),
-        'right_shoulder': (56.151, 3.98, 12.214), 'right_elbow': (31.846, 20.026),
-        'right_wrist': (-0.588, -20.801),
+        'spine_lumbar': (7.701, -13.941, 9.817), 'spine_thoracic': (-9.053, -4.749, 9.404),
+        'neck': (24.218, -1.071, -5.53), 'head': (7.702, -0.109), 'right_clavicle': (3.408, 7.997),
+        'right_shoulder': (56.717, 3.224, 11.468), 'right_elbow': (32.59, 19.029),
+        'right_wrist': (-0.918, -19.613),
     })
     human.KeyJoints(44.5, {
-        'spine_lumbar': (4.316, -19.313, 8.762), 'spine_thoracic': (-10.046, -10.0, 9.253),
-        'neck': (25.011, -1.125, -6.72), 'head': (8.935, -0.14), 'right_clavicle': (10.09, 7.965),
-        'right_shoulder': (56.891, 5.421, 16.274), 'right_elbow': (29.798, 24.228),
-        'right_wrist': (1.051, -23.955),
+        'spine_lumbar': (4.195, -19.294, 8.797), 'spine_thoracic': (-10.137, -10.0, 9.347),
+        'neck': (25.084, -1.121, -6.733), 'head': (9.035, -0.141), 'right_clavicle': (10.48, 8.052),
+        'right_shoulder': (56.898, 5.546, 16.549), 'right_elbow': (29.627, 24.527),
+        'right_wrist': (1.177, -24.212),
     })
     human.KeyJoints(44.6, {
-        'spine_lumbar': (1.593, -19.677, 9.751), 'spine_thoracic': (-12.045, -10.0, 11.736),
-        'neck': (26.444, -1.212, -8.528), 'head': (10.803, -0.171),
-        'right_clavicle': (18.521, 10.219), 'right_shoulder': (57.387, 7.507, 20.677),
-        'right_elbow': (23.017, 29.838), 'right_wrist': (3.549, -25.435),
+        'spine_lumbar': (0.701, -19.89, 10.209), 'spine_thoracic': (-12.688, -10.0, 12.77),
+        'neck': (26.998, -1.285, -9.45), 'head': (11.374, -0.173),
+        'right_clavicle': (21.173, 11.139), 'right_shoulder': (57.732, 7.771, 21.214),
+        'right_elbow': (19.212, 31.182), 'right_wrist': (4.192, -24.2),
     })
     human.KeyJoints(44.7, {
-        'spine_lumbar': (-3.337, -19.961, 10.126), 'spine_thoracic': (-11.777, -10.0, 12.385),
-        'neck': (27.557, -0.948, -7.278), 'head': (11.933, -0.168),
-        'right_clavicle': (19.445, 11.083), 'right_shoulder': (55.548, 4.413, 21.609),
-        'right_elbow': (20.632, 30.408), 'right_wrist': (4.248, -24.545),
+        'spine_lumbar': (-0.767, -19.457, 8.674), 'spine_thoracic': (-9.732, -10.0, 9.495),
+        'neck': (25.984, -0.781, -4.925), 'head': (10.2, -0.156), 'right_clavicle': (11.698, 8.615),
+        'right_shoulder': (54.994, 3.046, 18.468), 'right_elbow': (28.779, 25.655),
+        'right_wrist': (2.108, -26.467),
     })
     human.KeyJoints(44.8, {
-        'spine_lumbar': (3.577, -16.931, 8.922), 'spine_thoracic': (-8.757, -7.878, 9.052),
-        'neck': (24.927, -0.949, -5.198), 'head': (8.613, -0.122), 'right_clavicle': (5.502, 7.982),
-        'right_shoulder': (55.611, 2.22, 13.704), 'right_elbow': (31.286, 20.799),
-        'right_wrist': (-0.029, -22.757),
+        'spine_lumbar': (6.958, -13.84, 9.547), 'spine_thoracic': (-8.327, -4.451, 9.121),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.7, 7.898),
+        'right_shoulder': (57.157, 1.918, 11.006), 'right_elbow': (31.997, 18.359),
+        'right_wrist': (-1.052, -21.17),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.847203, duration=0.072)
     human.KeyJoints(44.9, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.151),
+        'neck': (24.173, -1.012, -5.014), 'right_shoulder': (57.197, 2.088, 10.93),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.2628)

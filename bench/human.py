@@ -9,9 +9,19 @@ from motion.py's forward kinematics of the file (``Body``). Definitions (docs/te
   forearm's pronation during a fastener turn (``turn_fastener``) are judged apart (their goal is
   looser). Peak joint speed is that step over the frame interval.
 * reach: one movement of an effector (hand or tool tip) to a goal: from the start of its approach
-  (TA) to the end of the goal it claims (the TO that continues the TA, or the TA itself), each
-  wrench or screwdriver stroke on its own. Reaches shorter than 4 frames or moving less than
-  1 cm are not judged (too few samples for a jerk).
+  (TA) to the end of the goal it claims (the TO that continues the TA, or the TA itself).
+  Reaches shorter than 4 frames or moving less than 1 cm are not judged (too few samples for a
+  jerk).
+* stroke (a wrench's or ratchet's TO with a ``stroke`` number): not one reach but the movements
+  it is made of, each from rest to rest (a reciprocating movement that stops at each reversal is
+  a series of discrete movements: Hogan & Sternad 2007, "On rhythmic and discrete movements",
+  Exp Brain Res 181:13-30): the seat, the swing (the hand turns the handle through the swing
+  angle) and the return (lift off, swing back, re-seat), at the times the stroke's
+  ``result.phases`` records (older IR: 10 %, 60 % of the stroke). Each is judged by the hand
+  that holds the handle: in the swing the tip only turns on the fastener, the hand is what
+  moves. Each is judged on the frames inside it (the next movement starts where it ends); the
+  return's contact speed is the tool tip's, where it comes back onto the fastener, over the
+  frame interval that ends at the first frame at or after the stroke's end.
 * LDLJ: log dimensionless jerk of the effector's path, -ln((t2 - t1)^3 / v_peak^2 * integral of
   |jerk|^2 dt) (Balasubramanian, Melendez-Calderon, Roby-Brami & Burdet 2015, "On the analysis
   of movement smoothness", J NeuroEng Rehabil 12:112), jerk by third differences at the output
@@ -20,7 +30,8 @@ from motion.py's forward kinematics of the file (``Body``). Definitions (docs/te
   peak speed (the speed is taken as zero just before and after the reach, so a movement that
   starts or ends at speed shows its peak at the edge).
 * contact speed: the effector's speed over the last frame interval before the first output frame
-  at or after the goal's end (the frame where contact is claimed).
+  at or after the goal's end (the frame where contact is claimed); a stroke's seat and swing
+  make no contact (the tip stays on), its return is judged by the tip.
 * gait, over each locomotion segment: a foot swings while its lowest contact point is more than
   5 mm above the floor; steps are the swing
   phases; cadence = steps / the walk's duration (min^-1); swing time the length of each swing
@@ -121,11 +132,48 @@ def _peaks(speed: Array) -> int:
     return len(found)
 
 
+STROKE_SHARES = {"seat": (0.0, 0.1), "swing": (0.1, 0.6), "return": (0.6, 1.0)}  # older IR
+
+
+def stroke_movements(g: dict[str, Any], seg: dict[str, Any]) -> list[dict[str, Any]]:
+    """A wrench or ratchet stroke's movements, each judged on its own (docs/testing.md): the
+    seat and the swing by the hand that swings the handle, from rest to rest, and the return
+    (lift off, swing back, re-seat) by the hand, its contact speed by the tool's tip where it
+    comes back onto the fastener. The phases are the stroke's ``result.phases`` (times); IR
+    written before they were recorded is split at the shares its stroke plan used."""
+    phases = (seg.get("result") or {}).get("phases")
+    if not phases:
+        a, b = float(g["t_start"]), float(g["t_end"])
+        phases = {k: [a + (b - a) * x, a + (b - a) * y] for k, (x, y) in STROKE_SHARES.items()}
+    src = g.get("source") or {}
+    what = str(src.get("path", "")).split(" > ")[-1]
+    hand = f"{g['effector'][0]}_hand"
+    return [
+        {
+            "effector": hand,
+            "start": float(phases[name][0]),
+            "end": float(phases[name][1]),
+            "line": src.get("line"),
+            "what": f"{what} stroke {name}",
+            "contact": g["effector"] if name == "return" else None,
+            "inside": True,
+        }
+        for name in ("seat", "swing", "return")
+    ]
+
+
 def reach_windows(doc: dict[str, Any]) -> list[dict[str, Any]]:
-    """Each movement to a claimed goal: (effector, start, end, line, what)."""
+    """Each movement to a claimed goal: (effector, start, end, line, what, contact), the
+    effector whose speed is judged at contact (None: the movement makes none)."""
     goals = doc["goals"]
+    segs = [s for s in doc.get("segments", []) if s["kind"] in ("TA", "TO")]
+    if len(segs) != len(goals):
+        segs = [{} for _ in goals]
     out = []
-    for g in goals:
+    for g, seg in zip(goals, segs, strict=True):
+        if "stroke" in ((seg.get("goal") or {}).get("params") or {}):
+            out += stroke_movements(g, seg)
+            continue
         ends_in_to = any(
             h["phase"] == "TO"
             and h["effector"] == g["effector"]
@@ -151,6 +199,7 @@ def reach_windows(doc: dict[str, Any]) -> list[dict[str, Any]]:
                 "end": float(g["t_end"]),
                 "line": src.get("line"),
                 "what": str(src.get("path", "")).split(" > ")[-1],
+                "contact": g["effector"],
             }
         )
     return out
@@ -165,7 +214,9 @@ def reaches(doc: dict[str, Any], body: Any) -> dict[str, Any]:
         if r["effector"] not in body.points:
             continue
         a = int(np.searchsorted(time, r["start"] - 1e-9))
-        b = min(int(np.searchsorted(time, r["end"] - 1e-9)), len(time) - 1)
+        after = min(int(np.searchsorted(time, r["end"] - 1e-9)), len(time) - 1)
+        # a stroke's phases follow one another: the frame after one is the next one's
+        b = int(np.searchsorted(time, r["end"] + 1e-9)) - 1 if r.get("inside") else after
         if b - a + 1 < MIN_REACH_FRAMES:
             continue
         p = body.points[r["effector"]][a : b + 1]
@@ -173,12 +224,16 @@ def reaches(doc: dict[str, Any], body: Any) -> dict[str, Any]:
         if float(np.sum(steps)) < MIN_REACH_PATH:
             continue
         speed = steps / dt
+        contact = None
+        if r["contact"] in body.points:
+            tip = body.points[r["contact"]]
+            contact = float(np.linalg.norm(tip[after] - tip[after - 1])) / dt * 100.0
         judged.append(
             {
                 **r,
                 "ldlj": _ldlj(p, dt),
                 "peaks": _peaks(speed),
-                "contact_cms": float(speed[-1]) * 100.0,
+                "contact_cms": contact,
                 "peak_ms": float(np.max(speed)),
             }
         )
@@ -193,7 +248,9 @@ def reaches(doc: dict[str, Any], body: Any) -> dict[str, Any]:
         }
     ldlj = [j["ldlj"] for j in judged]
     worst = min(judged, key=lambda j: j["ldlj"])
-    fastest = max(judged, key=lambda j: j["contact_cms"])
+    touching = [j for j in judged if j["contact_cms"] is not None]
+    fastest = max(touching, key=lambda j: j["contact_cms"], default=None)
+    strokes = [j for j in judged if " stroke " in j["what"]]
     return {
         "reaches": len(judged),
         "ldlj_min": min(ldlj),
@@ -201,13 +258,21 @@ def reaches(doc: dict[str, Any], body: Any) -> dict[str, Any]:
         "ldlj_ok": sum(1 for v in ldlj if v >= -7.0),
         "multi_peak": sum(1 for j in judged if j["peaks"] > 1),
         "peaks_all": [j["peaks"] for j in judged],
-        "contact_cms_max": fastest["contact_cms"],
-        "contact_all": [j["contact_cms"] for j in judged],
+        "contact_cms_max": fastest["contact_cms"] if fastest else None,
+        "contact_all": [j["contact_cms"] for j in touching],
+        "stroke_ldlj_all": [j["ldlj"] for j in strokes],
+        "stroke_peaks_all": [j["peaks"] for j in strokes],
+        "stroke_contact_all": [j["contact_cms"] for j in strokes if j["contact_cms"] is not None],
         "reach_worst": (
             f"line {worst['line']} {worst['what']} {worst['effector']} "
             f"@{worst['start']:.2f}-{worst['end']:.2f}s LDLJ {worst['ldlj']:.1f}, "
-            f"{worst['peaks']} peaks; contact {fastest['contact_cms']:.1f} cm/s at line "
-            f"{fastest['line']} @{fastest['end']:.2f}s"
+            f"{worst['peaks']} peaks"
+            + (
+                f"; contact {fastest['contact_cms']:.1f} cm/s at line "
+                f"{fastest['line']} {fastest['what']} @{fastest['end']:.2f}s"
+                if fastest
+                else ""
+            )
         ),
     }
 
@@ -294,6 +359,32 @@ def _stats(vals: list[float]) -> tuple[float, float, float, float]:
     return float(np.median(a)), float(np.percentile(a, 5)), float(np.percentile(a, 95)), len(a)
 
 
+def _movement_rows(tasks: list[dict[str, Any]], label: str, prefix: str) -> list[str]:
+    """LDLJ, velocity peaks and contact speed rows of the movements under ``prefix`` keys."""
+    every = [v for t in tasks for v in t.get(f"{prefix}ldlj_all", [])]
+    if not every:
+        return []
+    share = sum(1 for v in every if v >= -7.0) / len(every)
+    peaks = [p for t in tasks for p in t.get(f"{prefix}peaks_all", [])]
+    speeds = [v for t in tasks for v in t.get(f"{prefix}contact_all", [])]
+    lines = [
+        f"{label + ' LDLJ':<24} {float(np.median(every)):>8.2f} "
+        f"{float(np.percentile(every, 5)):>8.2f} {float(np.percentile(every, 95)):>8.2f} "
+        f"{min(every):>8.2f} {f'{sum(1 for v in every if v < -8.0)} of {len(every)}':>16}   "
+        f">= -8 all, >= -7 for 90 % (now {100 * share:.0f} %)",
+        f"{label + ' peaks':<24} {float(np.median(peaks)):>8.0f} {'':>8} "
+        f"{float(np.percentile(peaks, 95)):>8.0f} {max(peaks):>8d} "
+        f"{f'{sum(1 for p in peaks if p > 1)} of {len(peaks)}':>16}   1",
+    ]
+    if speeds:
+        lines.append(
+            f"{label + ' contact cm/s':<24} {float(np.median(speeds)):>8.2f} {'':>8} "
+            f"{float(np.percentile(speeds, 95)):>8.2f} {max(speeds):>8.2f} "
+            f"{f'{sum(1 for v in speeds if v > 5.0)} of {len(speeds)}':>16}   <= 5"
+        )
+    return lines
+
+
 def table(tasks: list[dict[str, Any]]) -> list[str]:
     """Lines of issue 19's figures over a group of task outputs, each beside its goal."""
     lines = [
@@ -324,27 +415,8 @@ def table(tasks: list[dict[str, Any]]) -> list[str]:
     row("joint step deg", "step_max_deg", "<= 12 (frame 0 included)", hi=12.0)
     row("turn wrist step deg", "turn_step_deg", "<= 20 (fastener turns)", hi=20.0)
     row("peak joint speed deg/s", "speed_max_dps", "<= 360", hi=360.0)
-    every = [v for t in tasks for v in t.get("ldlj_all", [])]
-    if every:
-        share = sum(1 for v in every if v >= -7.0) / len(every)
-        lines.append(
-            f"{'reach LDLJ':<24} {float(np.median(every)):>8.2f} {float(np.percentile(every, 5)):>8.2f} "
-            f"{float(np.percentile(every, 95)):>8.2f} {min(every):>8.2f} "
-            f"{f'{sum(1 for v in every if v < -8.0)} of {len(every)}':>16}   "
-            f">= -8 all, >= -7 for 90 % (now {100 * share:.0f} %)"
-        )
-        peaks = [p for t in tasks for p in t.get("peaks_all", [])]
-        lines.append(
-            f"{'velocity peaks/reach':<24} {float(np.median(peaks)):>8.0f} {'':>8} "
-            f"{float(np.percentile(peaks, 95)):>8.0f} {max(peaks):>8d} "
-            f"{f'{sum(1 for p in peaks if p > 1)} of {len(peaks)}':>16}   1"
-        )
-        speeds = [v for t in tasks for v in t.get("contact_all", [])]
-        lines.append(
-            f"{'contact speed cm/s':<24} {float(np.median(speeds)):>8.2f} {'':>8} "
-            f"{float(np.percentile(speeds, 95)):>8.2f} {max(speeds):>8.2f} "
-            f"{f'{sum(1 for v in speeds if v > 5.0)} of {len(speeds)}':>16}   <= 5"
-        )
+    for label, prefix in (("reach", ""), ("stroke move", "stroke_")):
+        lines += _movement_rows(tasks, label, prefix)
     row("cadence max /min", "cadence_max", "90-125", lo=90.0, hi=125.0)
     row("cadence min /min", "cadence_min", "90-125", lo=90.0, hi=125.0, worse_below=True)
     row("swing min s", "swing_min", ">= 0.35", lo=0.35, worse_below=True)

@@ -156,16 +156,58 @@ def _keyframe_points(ir: MotionIR, seg, names: list[str]) -> np.ndarray:
 
 
 def test_tip_stays_on_the_fastener_and_hand_on_the_arc(wrench_ir: MotionIR) -> None:
+    # every keyframe of the seat and the swing (the tool engaged), and the re-seat at the end
     bolt = np.array([0.2, 1.35, 1.12])
     for seg in _strokes_of(wrench_ir)[:3]:
-        _, _, lift = stroke_plan(0.0, -seg.goal.params["angle"], ratchet=False)
+        swing_end = seg.result["phases"]["swing"][1]
         pts = _keyframe_points(wrench_ir, seg, ["r_tool_wrench_10mm", "r_hand"])
-        engaged = lift == 0
+        engaged = (seg.keyframes.time <= swing_end + 1e-9) | (seg.keyframes.time >= seg.end - 1e-9)
+        assert engaged.sum() >= 10
         tip_err = np.linalg.norm(pts[engaged, 0] - bolt, axis=1)
         assert tip_err.max() <= 1e-3
         # the hand's distance to the bolt's axis (along z) is the radius, 11.5 cm
         axis_dist = np.hypot(*(pts[engaged, 1] - bolt)[:, :2].T)
         assert np.allclose(axis_dist, 0.115, atol=1e-3)
+
+
+def _peaks(speed: np.ndarray) -> int:
+    """Maxima of a speed series (zero before and after) with 10 % of its top as prominence."""
+    from scipy.signal import find_peaks
+
+    found, _ = find_peaks(np.r_[0.0, speed, 0.0], prominence=0.1 * speed.max())
+    return len(found)
+
+
+def test_each_swing_and_return_is_one_bell_and_the_tip_reseats_slowly(wrench_ir: MotionIR) -> None:
+    # issue 19: the hand swings the handle in one movement from rest to rest, returns in
+    # another, and the tip comes back onto the bolt at <= 5 cm/s over the last 1/30 s
+    for seg in _strokes_of(wrench_ir):
+        kf = seg.keyframes
+        pts = _keyframe_points(wrench_ir, seg, ["r_tool_wrench_10mm", "r_hand"])
+        dt = np.diff(kf.time)
+        hand = np.linalg.norm(np.diff(pts[:, 1], axis=0), axis=1) / dt
+        tip = np.linalg.norm(np.diff(pts[:, 0], axis=0), axis=1) / dt
+        mid = 0.5 * (kf.time[1:] + kf.time[:-1])
+        for name in ("swing", "return"):
+            a, b = seg.result["phases"][name]
+            inside = (mid > a) & (mid < b)
+            assert _peaks(hand[inside]) == 1, (seg.goal.params["stroke"], name)
+            assert hand[inside][0] < 0.1 * hand[inside].max()  # from rest
+            assert hand[inside][-1] < 0.1 * hand[inside].max()  # to rest
+        last = kf.time >= seg.end - 1.0 / 30.0 - 1e-9
+        reseat = np.linalg.norm(pts[-1, 0] - pts[last][0, 0]) / (kf.time[-1] - kf.time[last][0])
+        assert reseat <= 0.05
+        assert tip[-1] <= 0.05
+
+
+def test_stroke_phases_keep_the_stroke_time(wrench_ir: MotionIR) -> None:
+    # seat, swing and return tile the stroke (its MTM time unchanged), keys on both ends
+    for seg in _strokes_of(wrench_ir):
+        ph = seg.result["phases"]
+        assert ph["seat"][0] == seg.start and ph["return"][1] == pytest.approx(seg.end)
+        assert ph["seat"][1] == ph["swing"][0] and ph["swing"][1] == ph["return"][0]
+        assert seg.keyframes.time[0] == seg.start
+        assert seg.keyframes.time[-1] == pytest.approx(seg.end, abs=1e-9)
 
 
 def test_reused_strokes_equal_the_solved_ones(

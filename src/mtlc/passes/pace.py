@@ -30,6 +30,7 @@ from mtlc.body import forward, site_positions
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
+from mtlc.passes.profile import minimum_jerk as minimum_jerk  # re-exported
 from mtlc.passes.tool import is_stroke
 
 JOINT_WEIGHT = 0.02  # m of progress per radian of the movement's joints (L2 over its dofs)
@@ -38,12 +39,6 @@ MIN_PATH_SAMPLES = 64
 EPS = 1e-6
 PATH_POINTS = 241  # the path, resampled at even steps of progress before it is smoothed
 SMOOTH_SIGMA = 0.1  # of the path's progress: the Gaussian that smooths it
-
-
-def minimum_jerk(tau: FloatArray) -> FloatArray:
-    """Flash & Hogan's progress of a point-to-point movement at normalised time ``tau``."""
-    t = np.clip(tau, 0.0, 1.0)
-    return t**3 * (10.0 - 15.0 * t + 6.0 * t**2)
 
 
 @dataclass

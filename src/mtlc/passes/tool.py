@@ -26,6 +26,7 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 
 from mtlc.body import forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
@@ -35,7 +36,8 @@ from mtlc.loads import AXIAL_KINDS, tool_site
 from mtlc.loads import carried_com as carried_com  # re-exported: it lives below the passes
 from mtlc.loads import held_spans as held_spans
 from mtlc.passes.approach import TOLERANCE, _restaters, chain_names, report_short
-from mtlc.passes.context import PassContext
+from mtlc.passes.context import INTERNAL_FPS, PassContext
+from mtlc.passes.profile import minimum_jerk, placing_clock
 from mtlc.passes.state import PoseState, reanchor
 
 LIFT = 0.03  # m the tool is lifted off the fastener to swing back
@@ -165,44 +167,93 @@ def arc_angle(centre: FloatArray, normal: Any, point: FloatArray) -> float:
     return math.atan2(float(d @ v), float(d @ u))
 
 
+RETURN_KEYS = 12  # keyframes of a wrench's return (lift, swing back, re-seat)
+BACK_SHARE = (0.1, 0.9)  # of the return's parameter: swinging back above the fastener
+
+
+def _return_path(a0: float, a1: float) -> tuple[FloatArray, FloatArray]:
+    """(K,) arc angles and lifts of a wrench's return from ``a1`` (engaged) to ``a0`` (engaged)
+    at ``RETURN_KEYS`` even steps of its parameter: one arch, the lift a smooth bump
+    ``(4 phi (1 - phi))^3`` (flat at both ends: it leaves and meets the fastener along its
+    axis) and the swing back a minimum-jerk move inside it (``BACK_SHARE``), so the hand's
+    path has no corner and its speed one bell."""
+    phi = np.linspace(0.0, 1.0, RETURN_KEYS + 1)[1:]
+    lo, hi = BACK_SHARE
+    theta = a1 + (a0 - a1) * minimum_jerk((phi - lo) / (hi - lo))
+    return theta, (4.0 * phi * (1.0 - phi)) ** 3
+
+
+def _shares(points: FloatArray, a: float, b: float) -> FloatArray:
+    """Times in [a, b] of a phase's keys in proportion to the hand's path between them."""
+    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    along = np.concatenate([[0.0], np.cumsum(step)])
+    if along[-1] <= 1e-12:
+        return np.linspace(a, b, len(points))
+    return a + (b - a) * along / along[-1]
+
+
 def stroke_plan(
-    theta_start: float, turn: float, ratchet: bool
+    theta_start: float, turn: float, ratchet: bool, arm: float = 0.1
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Keyframe fractions of the stroke's time, arc angles and lift (0/1) for one stroke.
 
-    The swing runs from ``theta_start`` (where the reach left the hand, so a stroke starts where
-    the motion before it ended) to ``theta_start + turn`` (``turn`` signed, about the fastener's
-    normal) in steps of at most ``KEY_STEP``; a wrench is then lifted, swung back over the
-    middle and re-engaged at the start, a ratchet swings back engaged."""
+    Three phases, each a movement from rest to rest: the seat (``SEAT_SHARE`` of the time: the
+    pose the motion before left, settled on the fastener), the swing (to ``SWING_SHARE``) from
+    ``theta_start`` (where the reach left the hand) to ``theta_start + turn`` (``turn`` signed,
+    about the fastener's normal) in steps of at most ``KEY_STEP``, and the return: a wrench is
+    lifted, swung back above the fastener and re-seated (``_return_path``), a ratchet swings
+    back engaged. Inside the seat, the swing and a ratchet's return a key's fraction is in
+    proportion to the hand's path up to it (a hand at ``arm`` from the axis), so
+    ``paced_stroke`` can time the path by its length; a wrench's return keys are even steps
+    of the arch's own parameter."""
     steps = max(2, math.ceil(abs(turn) / KEY_STEP - 1e-9))  # 60 deg is 12 steps, not 13
     a0, a1 = theta_start, theta_start + turn
     swing = np.linspace(a0, a1, steps + 1)
     if ratchet:
-        back = swing[::-1][1:]
-        frac = np.concatenate([np.linspace(0, 0.5, steps + 1), np.linspace(0.5, 1, steps + 1)[1:]])
-        return frac, np.concatenate([swing, back]), np.zeros(len(frac))
-    # the wrench is seated for a moment before it swings (SEAT_SHARE), then swung, lifted off,
-    # swung back above the fastener and put back on
-    frac = np.concatenate(
-        [[0.0], np.linspace(SEAT_SHARE, SWING_SHARE, steps + 1), [0.7, 0.85, 1.0]]
+        back, back_lift = swing[::-1][1:], np.zeros(steps)
+    else:
+        back, back_lift = _return_path(a0, a1)
+    theta = np.concatenate([[a0], swing, back])
+    lift = np.concatenate([np.zeros(steps + 2), back_lift])
+    hand = np.stack([arm * np.cos(theta), arm * np.sin(theta), LIFT * lift], axis=1)
+    swing_frac = _shares(hand[1 : steps + 2], SEAT_SHARE, SWING_SHARE)
+    back_frac = (
+        _shares(hand[-steps - 1 :], SWING_SHARE, 1.0)[1:]
+        if ratchet
+        else np.linspace(SWING_SHARE, 1.0, RETURN_KEYS + 1)[1:]
     )
-    theta = np.concatenate([[a0], swing, [a1, a0 + turn / 2.0, a0]])
-    lift = np.concatenate([np.zeros(steps + 2), [1.0, 1.0, 0.0]])
-    return frac, theta, lift
+    return np.concatenate([[0.0], swing_frac, back_frac]), theta, lift
 
 
-def paced_fractions(q: FloatArray, frac: FloatArray) -> FloatArray:
-    """A wrench stroke's key times after its seat, shared out by how far the joints move
-    between keys (the largest change of any dof; issue 19).
+PHASES = ((0.0, SEAT_SHARE), (SEAT_SHARE, SWING_SHARE), (SWING_SHARE, 1.0))
 
-    ``stroke_plan``'s fixed shares gave the lift-off (3 cm) a tenth of the stroke and the swing
-    back and re-engagement 0.3: the elbow flexed 18 deg and came back 30 deg in 2-3 frames while
-    the arc's 5 deg keys went slowly. Time given where the joints move keeps the stroke's
-    length and its peak joint speed lowest."""
-    moves = np.abs(np.diff(q[1:], axis=0)).max(axis=1)  # key 1 on: key 0 -> 1 is the seat
-    moves = np.maximum(moves, 0.05 * moves.max(initial=0.0) + 1e-9)
-    share = np.concatenate([[0.0], np.cumsum(moves)]) / float(np.sum(moves))
-    return np.concatenate([frac[:1], frac[1] + (1.0 - frac[1]) * share])
+
+def paced_stroke(
+    frac: FloatArray, q: FloatArray, start: float, end: float, lifted: bool
+) -> tuple[FloatArray, FloatArray]:
+    """Dense keyframes (times, (N, D) poses) of a stroke whose keys ``q`` sit at ``frac``: each
+    phase (seat, swing, return) one movement from rest to rest. The seat, the swing and a
+    ratchet's return progress along the hand's path (the keys' fractions inside the phase) by
+    the minimum-jerk profile; a wrench's ``lifted`` return runs its arch (already a bell in its
+    own parameter) on a placing clock (``mtlc.passes.profile.placing_clock``), so the tool comes
+    back onto the fastener slowly. Keys every internal frame: interpolation cannot undo that."""
+    times, poses = [np.array([start])], [q[:1]]
+    for k, (a, b) in enumerate(PHASES):
+        keys = np.flatnonzero((frac >= a - 1e-9) & (frac <= b + 1e-9))
+        t0, t1 = start + (end - start) * a, start + (end - start) * b
+        grid = np.arange(np.ceil(t0 * INTERNAL_FPS - 1e-9), np.floor(t1 * INTERNAL_FPS + 1e-9) + 1)
+        t = np.unique(np.round(np.r_[grid / INTERNAL_FPS, t1], 9))
+        t = t[t > t0 + 1e-9]
+        tau = (t - t0) / (t1 - t0)
+        u = (placing_clock if lifted and k == len(PHASES) - 1 else minimum_jerk)(tau)
+        along = (frac[keys] - a) / (b - a)
+        if len(keys) > 2:
+            path = PchipInterpolator(along, q[keys], axis=0)(u)
+        else:
+            path = q[keys[0]] + u[:, None] * (q[keys[-1]] - q[keys[0]])
+        times.append(t)
+        poses.append(path)
+    return np.concatenate(times), np.concatenate(poses)
 
 
 def _solve_keys(
@@ -325,37 +376,43 @@ def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSol
         return run.solved[key]
     site = np.asarray(g.position, float)
     normal = g.params["normal"]
-    frac, theta, lift = stroke_plan(run.theta_start, turn, tool.get("kind") == "ratchet")
+    frac, theta, lift = stroke_plan(
+        run.theta_start, turn, tool.get("kind") == "ratchet", radius(tool)
+    )
     n = plane_basis(normal)[0]
     hands = arc_points(site, normal, radius(tool), theta, axial_offset(tool))
     hands = hands + LIFT * lift[:, None] * n
     tips = site + LIFT * lift[:, None] * n
     q, reach, tip_err = _solve_keys(state, seg, hands, tips, run.q_reached, run.root)
-    if tool.get("kind") != "ratchet":
-        frac = paced_fractions(q, frac)
     run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift)
     return run.solved[key]
 
 
 def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict) -> None:
     """Keyframes of one stroke (see the module). The first keyframe is the pose the stroke
-    starts from (the motion before it is continuous), the last stroke's last keyframe the reach
-    pose (the motion after it was solved from there); the rest are the series' solved stroke."""
+    starts from (the motion before it is continuous), the last stroke ends at the reach pose
+    (the motion after it was solved from there); the rest are the series' solved stroke, timed
+    by ``paced_stroke``."""
     g = seg.goal
     run = _series(state, seg, series)
     sol = _solve_stroke_keys(state, seg, run)
     q = sol.q.copy()
     q[0] = _start_pose(state, seg, run)
     if g.params["stroke"] == g.params["strokes"]:
-        q[-1] = run.q_reached
+        # back to the reach pose (the motion after was solved from it), blended in over the
+        # return: a jump in its last stretch would be a second movement at the re-seat
+        back = sol.frac >= SWING_SHARE - 1e-9
+        w = minimum_jerk((sol.frac[back] - SWING_SHARE) / (1.0 - SWING_SHARE))
+        q[back] += w[:, None] * (run.q_reached - sol.q[-1])
     tip_err = sol.tip_error.copy()
     tip_err[0], tip_err[-1] = _tip_error(state, run, seg, q[0]), _tip_error(state, run, seg, q[-1])
     # every stroke keys the trunk too, so no trunk angle holds across strokes solved differently
     names = chain_names(state.skel, [g.effector], "torso")
     idx = [state.skel.dof_index(nm) for nm in names]
-    seg.keyframes = Keyframes(
-        time=seg.start + (seg.end - seg.start) * sol.frac, dofs=names, q=q[:, idx]
-    )
+    times, poses = paced_stroke(sol.frac, q[:, idx], seg.start, seg.end, bool(sol.lift.max() > 0))
+    # a dof at its stop stays there (the last stroke's blend to the reach pose pushed one past)
+    poses = np.clip(poses, state.skel.lower[idx], state.skel.upper[idx])
+    seg.keyframes = Keyframes(time=times, dofs=names, q=poses)
     worst = float(tip_err[sol.lift == 0].max())
     seg.result = {
         "distance": float(tip_err[-1]),
@@ -365,6 +422,11 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
         "swing": abs(float(g.params["angle"])),
         "keyframes": len(sol.frac),
         "tip_error_max": worst,
+        # the stroke's movements (bench/human.py judges each): settle, swing, return
+        "phases": {
+            name: [seg.start + (seg.end - seg.start) * a, seg.start + (seg.end - seg.start) * b]
+            for name, (a, b) in zip(("seat", "swing", "return"), PHASES, strict=True)
+        },
     }
     if worst > TOLERANCE:
         report_short(ctx, seg, worst)

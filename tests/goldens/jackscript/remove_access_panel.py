@@ -167,34 +167,34 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
-        'spine_lumbar': (7.705, 1.128, 1.285), 'spine_thoracic': (-3.035, -2.932, 1.267),
-        'neck': (-0.515, -0.724, -26.45), 'head': (-0.672, -0.002),
-        'right_clavicle': (4.329, 0.305), 'right_shoulder': (89.679, 12.609, 0.996),
-        'right_elbow': (33.302, 11.64), 'right_wrist': (-1.149, -26.347),
+        'spine_lumbar': (6.627, 1.234, 1.727), 'spine_thoracic': (-2.345, -1.67, 1.696),
+        'neck': (-0.612, -0.756, -26.18), 'head': (-0.774, -0.002),
+        'right_clavicle': (2.593, 0.936), 'right_shoulder': (91.239, 11.055, -0.35),
+        'right_elbow': (32.543, 10.204), 'right_wrist': (-1.624, -28.555),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (12.906, 2.33, -0.658), 'spine_thoracic': (-3.559, -7.421, -0.719),
-        'neck': (-2.109, -1.341, -27.056), 'head': (-2.387, -0.012),
-        'right_clavicle': (11.156, -2.645), 'right_shoulder': (88.191, 18.634, 7.333),
-        'right_elbow': (37.501, 18.161), 'right_wrist': (1.496, -16.355),
+        'spine_lumbar': (10.813, 1.477, 0.123), 'spine_thoracic': (-3.631, -5.756, 0.072),
+        'neck': (-1.166, -0.981, -26.953), 'head': (-1.377, -0.004),
+        'right_clavicle': (8.47, -1.488), 'right_shoulder': (87.95, 16.316, 4.777),
+        'right_elbow': (35.772, 15.585), 'right_wrist': (0.417, -20.303),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (17.117, 5.386, -3.023), 'spine_thoracic': (-1.67, -10.0, -2.882),
-        'neck': (-5.464, -2.562, -25.161), 'head': (-5.942, -0.072),
-        'right_clavicle': (16.378, -5.0), 'right_shoulder': (93.749, 22.582, 13.228),
-        'right_elbow': (41.262, 23.633), 'right_wrist': (4.2, -9.459),
+        'spine_lumbar': (16.967, 5.299, -2.981), 'spine_thoracic': (-1.854, -10.0, -2.824),
+        'neck': (-5.269, -2.491, -25.064), 'head': (-5.736, -0.066),
+        'right_clavicle': (16.162, -4.845), 'right_shoulder': (93.35, 22.426, 13.076),
+        'right_elbow': (41.177, 23.407), 'right_wrist': (4.076, -9.644),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (10.668, 3.163, -2.991), 'spine_thoracic': (-2.049, -8.924, -2.902),
-        'neck': (-1.728, -1.1, -21.835), 'head': (-1.929, -0.008),
-        'right_clavicle': (13.451, -4.502), 'right_shoulder': (87.475, 18.746, 12.43),
-        'right_elbow': (40.64, 22.209), 'right_wrist': (3.637, -10.685),
+        'spine_lumbar': (12.774, 3.403, -2.002), 'spine_thoracic': (-3.174, -9.328, -2.098),
+        'neck': (-2.187, -1.324, -24.58), 'head': (-2.446, -0.012),
+        'right_clavicle': (14.169, -4.327), 'right_shoulder': (86.762, 20.402, 11.047),
+        'right_elbow': (39.995, 21.484), 'right_wrist': (2.938, -10.736),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (7.194, 1.06, 0.146), 'spine_thoracic': (-2.532, -3.858, 0.093),
-        'neck': (-0.358, -0.632, -24.745), 'head': (-0.489, -0.001),
-        'right_clavicle': (5.508, -0.879), 'right_shoulder': (87.349, 13.063, 3.512),
-        'right_elbow': (34.942, 13.823), 'right_wrist': (-0.059, -23.049),
+        'spine_lumbar': (5.947, 1.09, 1.583), 'spine_thoracic': (-2.292, -1.558, 1.551),
+        'neck': (-0.337, -0.642, -25.718), 'head': (-0.475, -0.001),
+        'right_clavicle': (2.38, 0.855), 'right_shoulder': (90.573, 10.721, -0.263),
+        'right_elbow': (32.641, 10.193), 'right_wrist': (-1.608, -28.528),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
@@ -204,96 +204,96 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (10.633, 1.426, 0.194), 'spine_thoracic': (-3.63, -5.612, 0.144),
-        'neck': (-1.094, -0.954, -26.939), 'head': (-1.299, -0.004),
-        'right_clavicle': (8.247, -1.388), 'right_shoulder': (87.939, 16.121, 4.554),
-        'right_elbow': (35.656, 15.359), 'right_wrist': (0.318, -20.641),
+        'spine_lumbar': (8.086, 1.11, 1.08), 'spine_thoracic': (-3.035, -3.271, 1.069),
+        'neck': (-0.631, -0.769, -26.479), 'head': (-0.797, -0.002),
+        'right_clavicle': (4.811, 0.071), 'right_shoulder': (89.483, 13.007, 1.546),
+        'right_elbow': (33.678, 12.183), 'right_wrist': (-0.904, -25.662),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (15.648, 4.07, -1.573), 'spine_thoracic': (-3.723, -9.776, -1.651),
-        'neck': (-3.344, -1.803, -26.886), 'head': (-3.707, -0.027),
-        'right_clavicle': (15.093, -4.19), 'right_shoulder': (88.711, 21.946, 10.571),
-        'right_elbow': (39.747, 21.46), 'right_wrist': (2.765, -11.034),
+        'spine_lumbar': (14.92, 3.514, -1.267), 'spine_thoracic': (-3.742, -9.245, -1.356),
+        'neck': (-2.921, -1.647, -27.065), 'head': (-3.257, -0.021),
+        'right_clavicle': (14.16, -3.807), 'right_shoulder': (88.413, 21.274, 9.622),
+        'right_elbow': (39.124, 20.551), 'right_wrist': (2.382, -12.253),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (13.53, 4.887, -3.596), 'spine_thoracic': (-1.537, -10.0, -3.452),
-        'neck': (-3.702, -1.845, -21.824), 'head': (-4.03, -0.031),
-        'right_clavicle': (15.971, -5.243), 'right_shoulder': (90.132, 21.158, 14.346),
-        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.094),
+        'spine_lumbar': (17.37, 5.594, -3.295), 'spine_thoracic': (-1.255, -10.0, -3.16),
+        'neck': (-5.873, -2.71, -24.757), 'head': (-6.372, -0.084),
+        'right_clavicle': (16.765, -5.295), 'right_shoulder': (94.599, 22.826, 13.83),
+        'right_elbow': (41.609, 24.117), 'right_wrist': (4.481, -8.817),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (8.038, 0.992, -1.262), 'spine_thoracic': (-2.649, -5.97, -1.298),
-        'neck': (-0.3, -0.591, -23.709), 'head': (-0.418, -0.001),
-        'right_clavicle': (8.575, -2.511), 'right_shoulder': (85.54, 15.27, 7.194),
-        'right_elbow': (37.214, 17.291), 'right_wrist': (1.447, -17.839),
+        'spine_lumbar': (5.343, 0.464, 0.186), 'spine_thoracic': (-2.243, -2.889, 0.188),
+        'neck': (0.238, -0.392, -24.165), 'head': (0.156, 0.0), 'right_clavicle': (4.033, -0.461),
+        'right_shoulder': (87.491, 11.52, 2.562), 'right_elbow': (34.097, 12.673),
+        'right_wrist': (-0.444, -25.168),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.589, 1.236, 1.704), 'spine_thoracic': (-2.276, -1.648, 1.673),
-        'neck': (-0.628, -0.761, -26.114), 'head': (-0.791, -0.002),
-        'right_clavicle': (2.561, 0.922), 'right_shoulder': (91.225, 11.007, -0.314),
-        'right_elbow': (32.64, 10.225), 'right_wrist': (-1.606, -28.544),
+        'spine_lumbar': (6.576, 1.24, 1.738), 'spine_thoracic': (-2.243, -1.59, 1.708),
+        'neck': (-0.649, -0.77, -26.154), 'head': (-0.814, -0.002),
+        'right_clavicle': (2.486, 0.964), 'right_shoulder': (91.347, 10.952, -0.396),
+        'right_elbow': (32.588, 10.146), 'right_wrist': (-1.635, -28.678),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'spine_lumbar': (8.473, 1.114, 0.905), 'spine_thoracic': (-3.068, -3.635, 0.896),
-        'neck': (-0.711, -0.8, -26.534), 'head': (-0.883, -0.002), 'right_clavicle': (5.33, -0.161),
-        'right_shoulder': (89.256, 13.458, 2.056), 'right_elbow': (33.978, 12.705),
-        'right_wrist': (-0.688, -24.926),
+        'spine_lumbar': (6.768, 1.214, 1.683), 'spine_thoracic': (-2.554, -1.87, 1.654),
+        'neck': (-0.544, -0.731, -26.236), 'head': (-0.702, -0.002),
+        'right_clavicle': (2.863, 0.857), 'right_shoulder': (90.826, 11.309, -0.195),
+        'right_elbow': (32.709, 10.381), 'right_wrist': (-1.59, -28.234),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (13.633, 2.723, -0.898), 'spine_thoracic': (-3.593, -8.035, -0.966),
-        'neck': (-2.413, -1.456, -27.031), 'head': (-2.712, -0.015),
-        'right_clavicle': (12.169, -3.052), 'right_shoulder': (88.27, 19.509, 8.186),
-        'right_elbow': (38.122, 19.034), 'right_wrist': (1.837, -14.935),
+        'spine_lumbar': (11.905, 1.868, -0.301), 'spine_thoracic': (-3.566, -6.61, -0.355),
+        'neck': (-1.69, -1.183, -27.084), 'head': (-1.938, -0.009),
+        'right_clavicle': (9.834, -2.091), 'right_shoulder': (88.043, 17.491, 6.131),
+        'right_elbow': (36.709, 16.943), 'right_wrist': (0.995, -18.266),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (17.427, 5.602, -3.3), 'spine_thoracic': (-1.275, -10.0, -3.165),
-        'neck': (-5.895, -2.719, -24.75), 'head': (-6.396, -0.084),
-        'right_clavicle': (16.79, -5.29), 'right_shoulder': (94.63, 22.863, 13.846),
-        'right_elbow': (41.618, 24.113), 'right_wrist': (4.475, -8.789),
+        'spine_lumbar': (17.261, 5.499, -3.182), 'spine_thoracic': (-1.491, -10.0, -3.031),
+        'neck': (-5.667, -2.635, -24.877), 'head': (-6.155, -0.077),
+        'right_clavicle': (16.54, -5.11), 'right_shoulder': (94.171, 22.686, 13.546),
+        'right_elbow': (41.446, 23.846), 'right_wrist': (4.328, -9.156),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (9.831, 2.427, -2.585), 'spine_thoracic': (-2.254, -8.211, -2.529),
-        'neck': (-1.184, -0.901, -22.338), 'head': (-1.353, -0.005),
-        'right_clavicle': (12.207, -4.033), 'right_shoulder': (86.746, 17.827, 11.162),
-        'right_elbow': (39.8, 21.016), 'right_wrist': (3.103, -12.405),
+        'spine_lumbar': (10.26, 2.097, -1.733), 'spine_thoracic': (-2.763, -7.564, -1.794),
+        'neck': (-1.169, -0.924, -23.882), 'head': (-1.351, -0.004),
+        'right_clavicle': (11.207, -3.431), 'right_shoulder': (86.033, 17.625, 9.299),
+        'right_elbow': (38.724, 19.49), 'right_wrist': (2.299, -14.245),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (6.972, 1.113, 0.662), 'spine_thoracic': (-2.455, -3.118, 0.614),
-        'neck': (-0.437, -0.671, -25.205), 'head': (-0.578, -0.002),
-        'right_clavicle': (4.503, -0.282), 'right_shoulder': (88.512, 12.357, 2.229),
-        'right_elbow': (34.166, 12.616), 'right_wrist': (-0.579, -24.887),
+        'spine_lumbar': (6.324, 1.181, 1.657), 'spine_thoracic': (-2.158, -1.545, 1.629),
+        'neck': (-0.574, -0.737, -25.955), 'head': (-0.731, -0.002),
+        'right_clavicle': (2.396, 0.921), 'right_shoulder': (91.24, 10.787, -0.316),
+        'right_elbow': (32.614, 10.178), 'right_wrist': (-1.6, -28.675),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (11.395, 1.67, -0.105), 'spine_thoracic': (-3.594, -6.211, -0.158),
-        'neck': (-1.446, -1.089, -27.048), 'head': (-1.676, -0.007),
-        'right_clavicle': (9.191, -1.81), 'right_shoulder': (87.978, 16.938, 5.502),
-        'right_elbow': (36.286, 16.311), 'right_wrist': (0.726, -19.22),
+        'spine_lumbar': (8.849, 1.13, 0.754), 'spine_thoracic': (-3.172, -3.991, 0.743),
+        'neck': (-0.772, -0.824, -26.595), 'head': (-0.949, -0.003),
+        'right_clavicle': (5.843, -0.382), 'right_shoulder': (88.993, 13.918, 2.522),
+        'right_elbow': (34.267, 13.191), 'right_wrist': (-0.496, -24.193),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (16.069, 4.513, -2.085), 'spine_thoracic': (-3.145, -9.94, -2.047),
-        'neck': (-3.942, -2.015, -26.207), 'head': (-4.339, -0.037),
-        'right_clavicle': (15.36, -4.337), 'right_shoulder': (90.209, 22.031, 11.415),
-        'right_elbow': (40.233, 22.071), 'right_wrist': (3.196, -10.684),
+        'spine_lumbar': (15.732, 4.158, -1.678), 'spine_thoracic': (-3.59, -9.816, -1.73),
+        'neck': (-3.464, -1.844, -26.646), 'head': (-3.833, -0.029),
+        'right_clavicle': (15.152, -4.22), 'right_shoulder': (89.048, 21.968, 10.737),
+        'right_elbow': (39.843, 21.58), 'right_wrist': (2.849, -10.956),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (12.547, 4.487, -3.536), 'spine_thoracic': (-1.665, -9.89, -3.398),
-        'neck': (-3.003, -1.576, -21.776), 'head': (-3.284, -0.021),
-        'right_clavicle': (15.435, -5.15), 'right_shoulder': (89.206, 20.458, 14.152),
-        'right_elbow': (41.786, 23.85), 'right_wrist': (4.37, -8.355),
+        'spine_lumbar': (16.795, 5.498, -3.39), 'spine_thoracic': (-1.07, -10.0, -3.258),
+        'neck': (-5.647, -2.618, -24.326), 'head': (-6.126, -0.076),
+        'right_clavicle': (16.468, -5.294), 'right_shoulder': (94.24, 22.437, 13.898),
+        'right_elbow': (41.651, 24.077), 'right_wrist': (4.51, -8.845),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (7.733, 0.985, -0.864), 'spine_thoracic': (-2.642, -5.348, -0.913),
-        'neck': (-0.295, -0.591, -24.06), 'head': (-0.414, -0.001),
-        'right_clavicle': (7.621, -2.049), 'right_shoulder': (85.686, 14.572, 6.104),
-        'right_elbow': (36.53, 16.263), 'right_wrist': (0.997, -19.365),
+        'spine_lumbar': (5.304, 0.663, 0.932), 'spine_thoracic': (-2.547, -2.188, 0.909),
+        'neck': (0.231, -0.41, -24.914), 'head': (0.142, 0.0), 'right_clavicle': (3.111, 0.236),
+        'right_shoulder': (88.308, 11.043, 0.919), 'right_elbow': (33.238, 11.206),
+        'right_wrist': (-1.191, -26.949),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
@@ -303,133 +303,133 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (9.191, 1.151, 0.644), 'spine_thoracic': (-3.291, -4.32, 0.626),
-        'neck': (-0.812, -0.842, -26.683), 'head': (-0.994, -0.003),
-        'right_clavicle': (6.318, -0.579), 'right_shoulder': (88.712, 14.355, 2.915),
-        'right_elbow': (34.528, 13.614), 'right_wrist': (-0.341, -23.506),
+        'spine_lumbar': (7.042, 1.182, 1.587), 'spine_thoracic': (-2.883, -2.228, 1.56),
+        'neck': (-0.452, -0.697, -26.32), 'head': (-0.603, -0.002), 'right_clavicle': (3.35, 0.7),
+        'right_shoulder': (90.232, 11.76, 0.122), 'right_elbow': (32.891, 10.733),
+        'right_wrist': (-1.492, -27.64),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (14.345, 3.149, -1.117), 'spine_thoracic': (-3.655, -8.662, -1.195),
-        'neck': (-2.708, -1.566, -27.008), 'head': (-3.029, -0.018),
-        'right_clavicle': (13.21, -3.458), 'right_shoulder': (88.361, 20.409, 9.003),
-        'right_elbow': (38.69, 19.88), 'right_wrist': (2.155, -13.515),
+        'spine_lumbar': (12.989, 2.373, -0.686), 'spine_thoracic': (-3.561, -7.491, -0.748),
+        'neck': (-2.145, -1.355, -27.054), 'head': (-2.425, -0.012),
+        'right_clavicle': (11.27, -2.692), 'right_shoulder': (88.183, 18.732, 7.432),
+        'right_elbow': (37.6, 18.262), 'right_wrist': (1.534, -16.194),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (16.595, 5.477, -3.444), 'spine_thoracic': (-1.323, -10.0, -3.305),
-        'neck': (-5.455, -2.542, -23.774), 'head': (-5.92, -0.073),
-        'right_clavicle': (16.656, -5.283), 'right_shoulder': (93.626, 22.545, 14.096),
-        'right_elbow': (41.766, 24.105), 'right_wrist': (4.473, -8.456),
+        'spine_lumbar': (17.4, 5.582, -3.262), 'spine_thoracic': (-1.32, -10.0, -3.124),
+        'neck': (-5.851, -2.703, -24.824), 'head': (-6.35, -0.083),
+        'right_clavicle': (16.737, -5.25), 'right_shoulder': (94.544, 22.827, 13.758),
+        'right_elbow': (41.567, 24.056), 'right_wrist': (4.444, -8.902),
     })
     human.KeyJoints(5.2, {
-        'spine_lumbar': (9.095, 1.761, -2.138), 'spine_thoracic': (-2.439, -7.436, -2.117),
-        'neck': (-0.786, -0.759, -22.88), 'head': (-0.931, -0.003),
-        'right_clavicle': (10.919, -3.519), 'right_shoulder': (86.154, 16.916, 9.786),
-        'right_elbow': (38.895, 19.725), 'right_wrist': (2.527, -14.278),
+        'spine_lumbar': (7.962, 0.984, -1.162), 'spine_thoracic': (-2.654, -5.815, -1.202),
+        'neck': (-0.294, -0.589, -23.815), 'head': (-0.412, -0.001),
+        'right_clavicle': (8.332, -2.397), 'right_shoulder': (85.53, 15.096, 6.916),
+        'right_elbow': (37.04, 17.031), 'right_wrist': (1.331, -18.22),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (6.792, 1.165, 1.125), 'spine_thoracic': (-2.379, -2.461, 1.083),
-        'neck': (-0.52, -0.71, -25.611), 'head': (-0.67, -0.002), 'right_clavicle': (3.627, 0.253),
-        'right_shoulder': (89.662, 11.746, 1.092), 'right_elbow': (33.482, 11.547),
-        'right_wrist': (-1.039, -26.519),
+        'spine_lumbar': (6.495, 1.219, 1.698), 'spine_thoracic': (-2.128, -1.544, 1.67),
+        'neck': (-0.668, -0.775, -26.073), 'head': (-0.833, -0.002),
+        'right_clavicle': (2.422, 0.947), 'right_shoulder': (91.406, 10.862, -0.349),
+        'right_elbow': (32.601, 10.167), 'right_wrist': (-1.598, -28.705),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'spine_lumbar': (6.887, 1.202, 1.636), 'spine_thoracic': (-2.686, -2.016, 1.607),
-        'neck': (-0.535, -0.729, -26.28), 'head': (-0.692, -0.002),
-        'right_clavicle': (3.062, 0.788), 'right_shoulder': (90.597, 11.491, -0.049),
-        'right_elbow': (32.792, 10.538), 'right_wrist': (-1.538, -27.985),
+        'spine_lumbar': (6.58, 1.24, 1.739), 'spine_thoracic': (-2.273, -1.602, 1.709),
+        'neck': (-0.636, -0.765, -26.158), 'head': (-0.8, -0.002), 'right_clavicle': (2.502, 0.962),
+        'right_shoulder': (91.32, 10.968, -0.397), 'right_elbow': (32.59, 10.147),
+        'right_wrist': (-1.64, -28.663),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (12.151, 1.973, -0.392), 'spine_thoracic': (-3.561, -6.807, -0.447),
-        'neck': (-1.799, -1.225, -27.081), 'head': (-2.054, -0.01),
-        'right_clavicle': (10.153, -2.227), 'right_shoulder': (88.074, 17.767, 6.431),
-        'right_elbow': (36.913, 17.245), 'right_wrist': (1.121, -17.8),
+        'spine_lumbar': (9.765, 1.232, 0.502), 'spine_thoracic': (-3.584, -4.88, 0.464),
+        'neck': (-0.845, -0.857, -26.85), 'head': (-1.03, -0.003), 'right_clavicle': (7.135, -0.9),
+        'right_shoulder': (88.145, 15.129, 3.517), 'right_elbow': (34.96, 14.285),
+        'right_wrist': (-0.116, -22.31),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (16.49, 4.926, -2.592), 'spine_thoracic': (-2.449, -10.0, -2.458),
-        'neck': (-4.608, -2.252, -25.52), 'head': (-5.04, -0.05),
-        'right_clavicle': (15.659, -4.516), 'right_shoulder': (91.94, 22.14, 12.26),
-        'right_elbow': (40.709, 22.701), 'right_wrist': (3.646, -10.296),
+        'spine_lumbar': (16.47, 4.91, -2.575), 'spine_thoracic': (-2.474, -10.0, -2.443),
+        'neck': (-4.581, -2.242, -25.541), 'head': (-5.011, -0.049),
+        'right_clavicle': (15.641, -4.506), 'right_shoulder': (91.879, 22.132, 12.225),
+        'right_elbow': (40.689, 22.672), 'right_wrist': (3.628, -10.319),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (11.593, 3.887, -3.324), 'spine_thoracic': (-1.842, -9.514, -3.206),
-        'neck': (-2.329, -1.322, -21.759), 'head': (-2.567, -0.013),
-        'right_clavicle': (14.572, -4.893), 'right_shoulder': (88.318, 19.647, 13.481),
-        'right_elbow': (41.338, 23.203), 'right_wrist': (4.082, -9.262),
+        'spine_lumbar': (15.229, 4.914, -3.045), 'spine_thoracic': (-2.021, -10.0, -2.904),
+        'neck': (-4.231, -2.082, -23.928), 'head': (-4.618, -0.041),
+        'right_clavicle': (15.758, -4.839), 'right_shoulder': (91.212, 21.68, 13.17),
+        'right_elbow': (41.242, 23.293), 'right_wrist': (4.013, -9.349),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (7.453, 1.015, -0.385), 'spine_thoracic': (-2.599, -4.631, -0.438),
-        'neck': (-0.32, -0.608, -24.379), 'head': (-0.445, -0.001),
-        'right_clavicle': (6.585, -1.493), 'right_shoulder': (86.337, 13.827, 4.855),
-        'right_elbow': (35.761, 15.088), 'right_wrist': (0.487, -21.134),
+        'spine_lumbar': (5.471, 0.92, 1.379), 'spine_thoracic': (-2.603, -1.773, 1.346),
+        'neck': (0.066, -0.481, -25.34), 'head': (-0.039, -0.001), 'right_clavicle': (2.613, 0.651),
+        'right_shoulder': (89.333, 10.826, 0.065), 'right_elbow': (32.811, 10.465),
+        'right_wrist': (-1.521, -27.981),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (9.876, 1.251, 0.471), 'spine_thoracic': (-3.609, -4.983, 0.43),
-        'neck': (-0.872, -0.868, -26.886), 'head': (-1.06, -0.003),
-        'right_clavicle': (7.287, -0.962), 'right_shoulder': (88.086, 15.27, 3.639),
-        'right_elbow': (35.046, 14.417), 'right_wrist': (-0.068, -22.085),
+        'spine_lumbar': (7.472, 1.145, 1.408), 'spine_thoracic': (-3.035, -2.713, 1.385),
+        'neck': (-0.476, -0.709, -26.446), 'head': (-0.63, -0.002), 'right_clavicle': (4.02, 0.447),
+        'right_shoulder': (89.743, 12.352, 0.666), 'right_elbow': (33.198, 11.309),
+        'right_wrist': (-1.298, -26.773),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (15.059, 3.606, -1.301), 'spine_thoracic': (-3.761, -9.379, -1.393),
-        'neck': (-2.975, -1.667, -26.997), 'head': (-3.314, -0.022),
-        'right_clavicle': (14.385, -3.891), 'right_shoulder': (88.423, 21.464, 9.771),
-        'right_elbow': (39.229, 20.713), 'right_wrist': (2.435, -11.958),
+        'spine_lumbar': (14.009, 2.943, -1.016), 'spine_thoracic': (-3.621, -8.363, -1.089),
+        'neck': (-2.57, -1.514, -27.019), 'head': (-2.88, -0.017),
+        'right_clavicle': (12.713, -3.266), 'right_shoulder': (88.319, 19.979, 8.62),
+        'right_elbow': (38.423, 19.482), 'right_wrist': (2.007, -14.188),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (15.023, 5.211, -3.548), 'spine_thoracic': (-1.421, -10.0, -3.406),
-        'neck': (-4.595, -2.198, -22.562), 'head': (-4.991, -0.051),
-        'right_clavicle': (16.36, -5.267), 'right_shoulder': (91.776, 21.897, 14.269),
-        'right_elbow': (41.87, 24.087), 'right_wrist': (4.467, -8.209),
+        'spine_lumbar': (17.437, 5.603, -3.282), 'spine_thoracic': (-1.276, -10.0, -3.147),
+        'neck': (-5.899, -2.721, -24.815), 'head': (-6.4, -0.084),
+        'right_clavicle': (16.79, -5.289), 'right_shoulder': (94.641, 22.866, 13.812),
+        'right_elbow': (41.598, 24.111), 'right_wrist': (4.474, -8.832),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (8.49, 1.253, -1.687), 'spine_thoracic': (-2.578, -6.669, -1.698),
-        'neck': (-0.487, -0.655, -23.304), 'head': (-0.616, -0.002),
-        'right_clavicle': (9.682, -3.001), 'right_shoulder': (85.74, 16.054, 8.428),
-        'right_elbow': (38.008, 18.451), 'right_wrist': (1.959, -16.137),
+        'spine_lumbar': (6.249, 0.434, -0.595), 'spine_thoracic': (-2.182, -4.118, -0.589),
+        'neck': (0.047, -0.458, -23.807), 'head': (-0.046, -0.001),
+        'right_clavicle': (5.779, -1.379), 'right_shoulder': (86.496, 12.851, 4.686),
+        'right_elbow': (35.413, 14.711), 'right_wrist': (0.458, -22.201),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (6.662, 1.209, 1.488), 'spine_thoracic': (-2.315, -1.951, 1.452),
-        'neck': (-0.579, -0.738, -25.894), 'head': (-0.736, -0.002),
-        'right_clavicle': (2.956, 0.672), 'right_shoulder': (90.623, 11.28, 0.21),
-        'right_elbow': (32.953, 10.717), 'right_wrist': (-1.395, -27.789),
+        'spine_lumbar': (6.556, 1.235, 1.724), 'spine_thoracic': (-2.174, -1.565, 1.695),
+        'neck': (-0.673, -0.778, -26.131), 'head': (-0.839, -0.002),
+        'right_clavicle': (2.455, 0.959), 'right_shoulder': (91.39, 10.914, -0.377),
+        'right_elbow': (32.592, 10.155), 'right_wrist': (-1.615, -28.697),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'spine_lumbar': (7.691, 1.129, 1.292), 'spine_thoracic': (-3.035, -2.92, 1.274),
-        'neck': (-0.511, -0.722, -26.449), 'head': (-0.668, -0.002),
-        'right_clavicle': (4.312, 0.313), 'right_shoulder': (89.638, 12.595, 0.978),
-        'right_elbow': (33.367, 11.621), 'right_wrist': (-1.162, -26.37),
+        'spine_lumbar': (6.625, 1.234, 1.727), 'spine_thoracic': (-2.342, -1.667, 1.697),
+        'neck': (-0.613, -0.756, -26.179), 'head': (-0.775, -0.002),
+        'right_clavicle': (2.59, 0.937), 'right_shoulder': (91.197, 11.052, -0.35),
+        'right_elbow': (32.618, 10.202), 'right_wrist': (-1.63, -28.559),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (12.894, 2.324, -0.653), 'spine_thoracic': (-3.559, -7.411, -0.714),
-        'neck': (-2.104, -1.339, -27.056), 'head': (-2.382, -0.012),
-        'right_clavicle': (11.139, -2.638), 'right_shoulder': (88.17, 18.619, 7.319),
-        'right_elbow': (37.522, 18.146), 'right_wrist': (1.488, -16.379),
+        'spine_lumbar': (10.795, 1.471, 0.13), 'spine_thoracic': (-3.631, -5.741, 0.079),
+        'neck': (-1.16, -0.979, -26.953), 'head': (-1.37, -0.004),
+        'right_clavicle': (8.448, -1.478), 'right_shoulder': (87.93, 16.296, 4.756),
+        'right_elbow': (35.789, 15.562), 'right_wrist': (0.405, -20.337),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (17.107, 5.379, -3.017), 'spine_thoracic': (-1.683, -10.0, -2.875),
-        'neck': (-5.45, -2.557, -25.166), 'head': (-5.927, -0.072),
-        'right_clavicle': (16.365, -4.991), 'right_shoulder': (93.72, 22.573, 13.212),
-        'right_elbow': (41.253, 23.618), 'right_wrist': (4.191, -9.475),
+        'spine_lumbar': (16.961, 5.294, -2.976), 'spine_thoracic': (-1.862, -10.0, -2.819),
+        'neck': (-5.26, -2.488, -25.069), 'head': (-5.727, -0.066),
+        'right_clavicle': (16.154, -4.839), 'right_shoulder': (93.331, 22.421, 13.065),
+        'right_elbow': (41.171, 23.397), 'right_wrist': (4.07, -9.654),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (10.682, 3.175, -2.997), 'spine_thoracic': (-2.045, -8.935, -2.907),
-        'neck': (-1.737, -1.103, -21.83), 'head': (-1.939, -0.008),
-        'right_clavicle': (13.471, -4.51), 'right_shoulder': (87.488, 18.762, 12.45),
-        'right_elbow': (40.653, 22.227), 'right_wrist': (3.645, -10.658),
+        'spine_lumbar': (12.816, 3.426, -2.009), 'spine_thoracic': (-3.175, -9.346, -2.105),
+        'neck': (-2.21, -1.333, -24.58), 'head': (-2.47, -0.013),
+        'right_clavicle': (14.204, -4.338), 'right_shoulder': (86.784, 20.432, 11.079),
+        'right_elbow': (40.016, 21.516), 'right_wrist': (2.952, -10.702),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (7.198, 1.06, 0.137), 'spine_thoracic': (-2.533, -3.871, 0.084),
-        'neck': (-0.357, -0.631, -24.738), 'head': (-0.488, -0.001),
-        'right_clavicle': (5.526, -0.889), 'right_shoulder': (87.331, 13.075, 3.534),
-        'right_elbow': (34.956, 13.844), 'right_wrist': (-0.05, -23.017),
+        'spine_lumbar': (5.941, 1.089, 1.581), 'spine_thoracic': (-2.295, -1.558, 1.549),
+        'neck': (-0.333, -0.641, -25.713), 'head': (-0.47, -0.001), 'right_clavicle': (2.38, 0.854),
+        'right_shoulder': (90.56, 10.721, -0.261), 'right_elbow': (32.642, 10.193),
+        'right_wrist': (-1.608, -28.524),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
@@ -439,96 +439,96 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (10.62, 1.422, 0.199), 'spine_thoracic': (-3.63, -5.602, 0.149),
-        'neck': (-1.089, -0.952, -26.938), 'head': (-1.294, -0.004),
-        'right_clavicle': (8.231, -1.38), 'right_shoulder': (87.94, 16.107, 4.538),
-        'right_elbow': (35.645, 15.343), 'right_wrist': (0.311, -20.665),
+        'spine_lumbar': (8.074, 1.11, 1.086), 'spine_thoracic': (-3.035, -3.261, 1.075),
+        'neck': (-0.628, -0.768, -26.478), 'head': (-0.794, -0.002),
+        'right_clavicle': (4.796, 0.078), 'right_shoulder': (89.489, 12.994, 1.53),
+        'right_elbow': (33.669, 12.167), 'right_wrist': (-0.911, -25.683),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (15.64, 4.062, -1.566), 'spine_thoracic': (-3.728, -9.772, -1.645),
-        'neck': (-3.335, -1.8, -26.893), 'head': (-3.698, -0.027),
-        'right_clavicle': (15.087, -4.187), 'right_shoulder': (88.695, 21.943, 10.557),
-        'right_elbow': (39.739, 21.449), 'right_wrist': (2.758, -11.042),
+        'spine_lumbar': (14.907, 3.505, -1.264), 'spine_thoracic': (-3.739, -9.23, -1.352),
+        'neck': (-2.916, -1.646, -27.062), 'head': (-3.252, -0.021),
+        'right_clavicle': (14.136, -3.798), 'right_shoulder': (88.412, 21.251, 9.608),
+        'right_elbow': (39.114, 20.535), 'right_wrist': (2.377, -12.285),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (13.549, 4.892, -3.596), 'spine_thoracic': (-1.535, -10.0, -3.452),
-        'neck': (-3.715, -1.85, -21.828), 'head': (-4.044, -0.032),
-        'right_clavicle': (15.978, -5.243), 'right_shoulder': (90.152, 21.169, 14.346),
-        'right_elbow': (41.916, 24.06), 'right_wrist': (4.46, -8.094),
+        'spine_lumbar': (17.373, 5.594, -3.294), 'spine_thoracic': (-1.256, -10.0, -3.16),
+        'neck': (-5.874, -2.71, -24.759), 'head': (-6.373, -0.084),
+        'right_clavicle': (16.767, -5.295), 'right_shoulder': (94.601, 22.828, 13.83),
+        'right_elbow': (41.608, 24.116), 'right_wrist': (4.481, -8.817),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (8.044, 0.994, -1.269), 'spine_thoracic': (-2.648, -5.98, -1.304),
-        'neck': (-0.301, -0.591, -23.703), 'head': (-0.419, -0.001),
-        'right_clavicle': (8.591, -2.519), 'right_shoulder': (85.541, 15.282, 7.212),
-        'right_elbow': (37.226, 17.308), 'right_wrist': (1.454, -17.814),
+        'spine_lumbar': (5.351, 0.463, 0.173), 'spine_thoracic': (-2.241, -2.905, 0.175),
+        'neck': (0.237, -0.392, -24.153), 'head': (0.155, 0.0), 'right_clavicle': (4.055, -0.475),
+        'right_shoulder': (87.475, 11.535, 2.594), 'right_elbow': (34.115, 12.702),
+        'right_wrist': (-0.43, -25.128),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (6.59, 1.236, 1.702), 'spine_thoracic': (-2.276, -1.65, 1.671),
-        'neck': (-0.627, -0.76, -26.112), 'head': (-0.79, -0.002), 'right_clavicle': (2.565, 0.92),
-        'right_shoulder': (91.219, 11.01, -0.309), 'right_elbow': (32.643, 10.229),
-        'right_wrist': (-1.604, -28.537),
+        'spine_lumbar': (6.576, 1.24, 1.737), 'spine_thoracic': (-2.242, -1.589, 1.708),
+        'neck': (-0.65, -0.77, -26.154), 'head': (-0.814, -0.002), 'right_clavicle': (2.486, 0.964),
+        'right_shoulder': (91.348, 10.952, -0.395), 'right_elbow': (32.588, 10.146),
+        'right_wrist': (-1.634, -28.678),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'spine_lumbar': (8.461, 1.114, 0.91), 'spine_thoracic': (-3.066, -3.623, 0.901),
-        'neck': (-0.708, -0.799, -26.532), 'head': (-0.881, -0.002),
-        'right_clavicle': (5.314, -0.154), 'right_shoulder': (89.265, 13.443, 2.04),
-        'right_elbow': (33.968, 12.688), 'right_wrist': (-0.694, -24.95),
+        'spine_lumbar': (6.765, 1.215, 1.685), 'spine_thoracic': (-2.55, -1.865, 1.655),
+        'neck': (-0.546, -0.732, -26.235), 'head': (-0.703, -0.002),
+        'right_clavicle': (2.857, 0.859), 'right_shoulder': (90.834, 11.303, -0.199),
+        'right_elbow': (32.707, 10.377), 'right_wrist': (-1.591, -28.242),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (13.621, 2.716, -0.894), 'spine_thoracic': (-3.592, -8.025, -0.962),
-        'neck': (-2.408, -1.454, -27.032), 'head': (-2.707, -0.015),
-        'right_clavicle': (12.152, -3.045), 'right_shoulder': (88.268, 19.495, 8.172),
-        'right_elbow': (38.113, 19.02), 'right_wrist': (1.831, -14.959),
+        'spine_lumbar': (11.886, 1.86, -0.294), 'spine_thoracic': (-3.566, -6.596, -0.349),
+        'neck': (-1.683, -1.18, -27.084), 'head': (-1.93, -0.009),
+        'right_clavicle': (9.811, -2.081), 'right_shoulder': (88.041, 17.471, 6.108),
+        'right_elbow': (36.694, 16.92), 'right_wrist': (0.985, -18.301),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (17.43, 5.602, -3.297), 'spine_thoracic': (-1.275, -10.0, -3.163),
-        'neck': (-5.896, -2.719, -24.76), 'head': (-6.397, -0.084),
-        'right_clavicle': (16.79, -5.29), 'right_shoulder': (94.634, 22.864, 13.841),
-        'right_elbow': (41.615, 24.113), 'right_wrist': (4.475, -8.795),
+        'spine_lumbar': (17.257, 5.496, -3.18), 'spine_thoracic': (-1.496, -10.0, -3.029),
+        'neck': (-5.662, -2.634, -24.879), 'head': (-6.15, -0.077),
+        'right_clavicle': (16.535, -5.106), 'right_shoulder': (94.161, 22.682, 13.541),
+        'right_elbow': (41.443, 23.841), 'right_wrist': (4.325, -9.162),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (9.844, 2.439, -2.592), 'spine_thoracic': (-2.251, -8.223, -2.536),
-        'neck': (-1.192, -0.904, -22.327), 'head': (-1.362, -0.005),
-        'right_clavicle': (12.229, -4.041), 'right_shoulder': (86.757, 17.842, 11.184),
-        'right_elbow': (39.815, 21.037), 'right_wrist': (3.113, -12.375),
+        'spine_lumbar': (10.301, 2.118, -1.74), 'spine_thoracic': (-2.766, -7.593, -1.801),
+        'neck': (-1.185, -0.93, -23.889), 'head': (-1.368, -0.004),
+        'right_clavicle': (11.256, -3.447), 'right_shoulder': (86.043, 17.67, 9.333),
+        'right_elbow': (38.748, 19.528), 'right_wrist': (2.312, -14.183),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (6.976, 1.112, 0.654), 'spine_thoracic': (-2.457, -3.13, 0.605),
-        'neck': (-0.435, -0.67, -25.197), 'head': (-0.576, -0.002),
-        'right_clavicle': (4.519, -0.292), 'right_shoulder': (88.492, 12.368, 2.25),
-        'right_elbow': (34.179, 12.635), 'right_wrist': (-0.571, -24.857),
+        'spine_lumbar': (6.318, 1.18, 1.656), 'spine_thoracic': (-2.159, -1.545, 1.628),
+        'neck': (-0.571, -0.736, -25.952), 'head': (-0.728, -0.002),
+        'right_clavicle': (2.395, 0.92), 'right_shoulder': (91.232, 10.785, -0.315),
+        'right_elbow': (32.614, 10.178), 'right_wrist': (-1.6, -28.673),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (11.382, 1.665, -0.1), 'spine_thoracic': (-3.595, -6.201, -0.153),
-        'neck': (-1.439, -1.087, -27.045), 'head': (-1.669, -0.007),
-        'right_clavicle': (9.176, -1.803), 'right_shoulder': (87.976, 16.924, 5.486),
-        'right_elbow': (36.275, 16.295), 'right_wrist': (0.719, -19.244),
+        'spine_lumbar': (8.835, 1.129, 0.759), 'spine_thoracic': (-3.168, -3.977, 0.749),
+        'neck': (-0.77, -0.824, -26.592), 'head': (-0.947, -0.003),
+        'right_clavicle': (5.823, -0.374), 'right_shoulder': (89.003, 13.9, 2.505),
+        'right_elbow': (34.256, 13.174), 'right_wrist': (-0.503, -24.221),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (16.062, 4.506, -2.076), 'spine_thoracic': (-3.157, -9.938, -2.04),
-        'neck': (-3.931, -2.011, -26.221), 'head': (-4.327, -0.037),
-        'right_clavicle': (15.356, -4.334), 'right_shoulder': (90.179, 22.03, 11.401),
-        'right_elbow': (40.225, 22.061), 'right_wrist': (3.188, -10.689),
+        'spine_lumbar': (15.718, 4.144, -1.662), 'spine_thoracic': (-3.607, -9.81, -1.718),
+        'neck': (-3.446, -1.838, -26.666), 'head': (-3.814, -0.028),
+        'right_clavicle': (15.143, -4.215), 'right_shoulder': (89.005, 21.965, 10.71),
+        'right_elbow': (39.827, 21.56), 'right_wrist': (2.836, -10.968),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (12.564, 4.495, -3.538), 'spine_thoracic': (-1.663, -9.895, -3.4),
-        'neck': (-3.015, -1.581, -21.777), 'head': (-3.296, -0.021),
-        'right_clavicle': (15.447, -5.153), 'right_shoulder': (89.221, 20.471, 14.16),
-        'right_elbow': (41.791, 23.858), 'right_wrist': (4.373, -8.345),
+        'spine_lumbar': (16.811, 5.501, -3.389), 'spine_thoracic': (-1.072, -10.0, -3.257),
+        'neck': (-5.655, -2.621, -24.336), 'head': (-6.135, -0.076),
+        'right_clavicle': (16.476, -5.294), 'right_shoulder': (94.252, 22.447, 13.897),
+        'right_elbow': (41.651, 24.078), 'right_wrist': (4.51, -8.844),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (7.738, 0.985, -0.872), 'spine_thoracic': (-2.643, -5.359, -0.92),
-        'neck': (-0.295, -0.591, -24.054), 'head': (-0.414, -0.001),
-        'right_clavicle': (7.638, -2.058), 'right_shoulder': (85.679, 14.584, 6.124),
-        'right_elbow': (36.542, 16.282), 'right_wrist': (1.006, -19.338),
+        'spine_lumbar': (5.303, 0.658, 0.921), 'spine_thoracic': (-2.54, -2.197, 0.898),
+        'neck': (0.23, -0.41, -24.904), 'head': (0.142, 0.0), 'right_clavicle': (3.122, 0.226),
+        'right_shoulder': (88.295, 11.048, 0.943), 'right_elbow': (33.249, 11.226),
+        'right_wrist': (-1.18, -26.925),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
@@ -538,133 +538,133 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (9.179, 1.15, 0.647), 'spine_thoracic': (-3.285, -4.308, 0.63),
-        'neck': (-0.811, -0.841, -26.68), 'head': (-0.993, -0.003),
-        'right_clavicle': (6.302, -0.572), 'right_shoulder': (88.723, 14.339, 2.903),
-        'right_elbow': (34.519, 13.6), 'right_wrist': (-0.346, -23.53),
+        'spine_lumbar': (7.036, 1.183, 1.589), 'spine_thoracic': (-2.878, -2.221, 1.562),
+        'neck': (-0.453, -0.698, -26.318), 'head': (-0.604, -0.002),
+        'right_clavicle': (3.34, 0.704), 'right_shoulder': (90.242, 11.751, 0.115),
+        'right_elbow': (32.887, 10.725), 'right_wrist': (-1.494, -27.652),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (14.333, 3.142, -1.114), 'spine_thoracic': (-3.653, -8.652, -1.191),
-        'neck': (-2.704, -1.565, -27.008), 'head': (-3.023, -0.018),
-        'right_clavicle': (13.192, -3.451), 'right_shoulder': (88.36, 20.394, 8.989),
-        'right_elbow': (38.68, 19.866), 'right_wrist': (2.15, -13.538),
+        'spine_lumbar': (12.972, 2.364, -0.68), 'spine_thoracic': (-3.561, -7.476, -0.742),
+        'neck': (-2.137, -1.352, -27.055), 'head': (-2.417, -0.012),
+        'right_clavicle': (11.245, -2.682), 'right_shoulder': (88.181, 18.711, 7.411),
+        'right_elbow': (37.586, 18.24), 'right_wrist': (1.526, -16.229),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (16.617, 5.48, -3.442), 'spine_thoracic': (-1.321, -10.0, -3.303),
-        'neck': (-5.467, -2.547, -23.794), 'head': (-5.933, -0.073),
-        'right_clavicle': (16.66, -5.283), 'right_shoulder': (93.653, 22.554, 14.092),
-        'right_elbow': (41.764, 24.105), 'right_wrist': (4.473, -8.461),
+        'spine_lumbar': (17.399, 5.582, -3.262), 'spine_thoracic': (-1.322, -10.0, -3.123),
+        'neck': (-5.849, -2.702, -24.825), 'head': (-6.348, -0.083),
+        'right_clavicle': (16.735, -5.249), 'right_shoulder': (94.541, 22.826, 13.756),
+        'right_elbow': (41.566, 24.054), 'right_wrist': (4.443, -8.904),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (9.107, 1.771, -2.145), 'spine_thoracic': (-2.436, -7.449, -2.124),
-        'neck': (-0.791, -0.761, -22.873), 'head': (-0.937, -0.003),
-        'right_clavicle': (10.94, -3.528), 'right_shoulder': (86.163, 16.931, 9.809),
-        'right_elbow': (38.91, 19.747), 'right_wrist': (2.536, -14.246),
+        'spine_lumbar': (7.995, 0.996, -1.171), 'spine_thoracic': (-2.657, -5.844, -1.212),
+        'neck': (-0.304, -0.593, -23.817), 'head': (-0.423, -0.001),
+        'right_clavicle': (8.378, -2.414), 'right_shoulder': (85.53, 15.136, 6.955),
+        'right_wrist': (1.347, -18.153),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (6.795, 1.164, 1.118), 'spine_thoracic': (-2.38, -2.471, 1.076),
-        'neck': (-0.519, -0.709, -25.606), 'head': (-0.669, -0.002),
-        'right_clavicle': (3.64, 0.245), 'right_shoulder': (89.644, 11.755, 1.109),
-        'right_elbow': (33.492, 11.563), 'right_wrist': (-1.032, -26.495),
+        'spine_lumbar': (6.494, 1.219, 1.697), 'spine_thoracic': (-2.128, -1.544, 1.669),
+        'neck': (-0.667, -0.775, -26.071), 'head': (-0.832, -0.002),
+        'right_clavicle': (2.422, 0.947), 'right_shoulder': (91.406, 10.861, -0.349),
+        'right_elbow': (32.601, 10.167), 'right_wrist': (-1.598, -28.705),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
-        'spine_lumbar': (6.873, 1.204, 1.641), 'spine_thoracic': (-2.669, -1.997, 1.612),
-        'neck': (-0.539, -0.73, -26.275), 'head': (-0.696, -0.002),
-        'right_clavicle': (3.037, 0.796), 'right_shoulder': (90.627, 11.467, -0.065),
-        'right_elbow': (32.783, 10.52), 'right_wrist': (-1.543, -28.016),
+        'spine_lumbar': (6.58, 1.24, 1.74), 'spine_thoracic': (-2.273, -1.601, 1.709),
+        'neck': (-0.636, -0.765, -26.158), 'head': (-0.8, -0.002), 'right_clavicle': (2.501, 0.962),
+        'right_shoulder': (91.321, 10.968, -0.398), 'right_elbow': (32.589, 10.146),
+        'right_wrist': (-1.64, -28.663),
     })
     human.KeyJoints(9.3, {
-        'spine_lumbar': (12.139, 1.968, -0.387), 'spine_thoracic': (-3.561, -6.797, -0.443),
-        'neck': (-1.794, -1.223, -27.081), 'head': (-2.049, -0.01),
-        'right_clavicle': (10.136, -2.22), 'right_shoulder': (88.072, 17.752, 6.415),
-        'right_elbow': (36.902, 17.23), 'right_wrist': (1.114, -17.824),
+        'spine_lumbar': (9.748, 1.229, 0.506), 'spine_thoracic': (-3.579, -4.865, 0.469),
+        'neck': (-0.842, -0.856, -26.845), 'head': (-1.028, -0.003),
+        'right_clavicle': (7.112, -0.891), 'right_shoulder': (88.156, 15.108, 3.499),
+        'right_elbow': (34.947, 14.265), 'right_wrist': (-0.123, -22.344),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (16.482, 4.92, -2.585), 'spine_thoracic': (-2.459, -10.0, -2.452),
-        'neck': (-4.597, -2.248, -25.528), 'head': (-5.028, -0.049),
-        'right_clavicle': (15.652, -4.512), 'right_shoulder': (91.916, 22.136, 12.246),
-        'right_elbow': (40.701, 22.689), 'right_wrist': (3.639, -10.305),
+        'spine_lumbar': (16.46, 4.901, -2.565), 'spine_thoracic': (-2.487, -10.0, -2.434),
+        'neck': (-4.566, -2.237, -25.552), 'head': (-4.996, -0.049),
+        'right_clavicle': (15.632, -4.5), 'right_shoulder': (91.848, 22.128, 12.207),
+        'right_elbow': (40.678, 22.657), 'right_wrist': (3.619, -10.33),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (11.609, 3.899, -3.329), 'spine_thoracic': (-1.839, -9.522, -3.21),
-        'neck': (-2.339, -1.326, -21.759), 'head': (-2.579, -0.013),
-        'right_clavicle': (14.589, -4.898), 'right_shoulder': (88.332, 19.662, 13.495),
-        'right_elbow': (41.348, 23.217), 'right_wrist': (4.088, -9.243),
+        'spine_lumbar': (15.263, 4.929, -3.055), 'spine_thoracic': (-2.0, -10.0, -2.913),
+        'neck': (-4.262, -2.094, -23.928), 'head': (-4.651, -0.042),
+        'right_clavicle': (15.774, -4.848), 'right_shoulder': (91.278, 21.696, 13.19),
+        'right_elbow': (41.254, 23.313), 'right_wrist': (4.026, -9.336),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (7.458, 1.014, -0.393), 'spine_thoracic': (-2.6, -4.644, -0.447),
-        'neck': (-0.32, -0.608, -24.373), 'head': (-0.444, -0.001),
-        'right_clavicle': (6.603, -1.503), 'right_shoulder': (86.322, 13.84, 4.877),
-        'right_elbow': (35.774, 15.108), 'right_wrist': (0.496, -21.103),
+        'spine_lumbar': (5.464, 0.917, 1.374), 'spine_thoracic': (-2.609, -1.779, 1.341),
+        'neck': (0.073, -0.478, -25.333), 'head': (-0.031, -0.001), 'right_clavicle': (2.62, 0.646),
+        'right_shoulder': (89.309, 10.829, 0.074), 'right_elbow': (32.815, 10.473),
+        'right_wrist': (-1.519, -27.968),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (9.864, 1.249, 0.474), 'spine_thoracic': (-3.607, -4.972, 0.434),
-        'neck': (-0.871, -0.867, -26.884), 'head': (-1.059, -0.003),
-        'right_clavicle': (7.271, -0.955), 'right_shoulder': (88.09, 15.255, 3.625),
-        'right_elbow': (35.036, 14.402), 'right_wrist': (-0.074, -22.109),
+        'spine_lumbar': (7.463, 1.146, 1.412), 'spine_thoracic': (-3.035, -2.704, 1.389),
+        'neck': (-0.474, -0.708, -26.445), 'head': (-0.627, -0.002),
+        'right_clavicle': (4.008, 0.453), 'right_shoulder': (89.748, 12.342, 0.654),
+        'right_elbow': (33.191, 11.297), 'right_wrist': (-1.303, -26.79),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (15.048, 3.598, -1.298), 'spine_thoracic': (-3.759, -9.367, -1.39),
-        'neck': (-2.971, -1.665, -26.997), 'head': (-3.31, -0.022),
-        'right_clavicle': (14.365, -3.883), 'right_shoulder': (88.422, 21.446, 9.759),
-        'right_elbow': (39.22, 20.699), 'right_wrist': (2.431, -11.985),
+        'spine_lumbar': (13.993, 2.933, -1.011), 'spine_thoracic': (-3.62, -8.349, -1.084),
+        'neck': (-2.563, -1.512, -27.02), 'head': (-2.873, -0.017),
+        'right_clavicle': (12.689, -3.256), 'right_shoulder': (88.317, 19.959, 8.601),
+        'right_elbow': (38.41, 19.463), 'right_wrist': (2.0, -14.221),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (15.051, 5.217, -3.547), 'spine_thoracic': (-1.419, -10.0, -3.405),
-        'neck': (-4.611, -2.204, -22.581), 'head': (-5.008, -0.051),
-        'right_clavicle': (16.366, -5.267), 'right_shoulder': (91.808, 21.909, 14.267),
-        'right_elbow': (41.868, 24.087), 'right_wrist': (4.467, -8.212),
+        'spine_lumbar': (17.437, 5.603, -3.282), 'spine_thoracic': (-1.276, -10.0, -3.147),
+        'neck': (-5.899, -2.72, -24.815), 'head': (-6.4, -0.084), 'right_clavicle': (16.79, -5.289),
+        'right_shoulder': (94.64, 22.865, 13.812), 'right_elbow': (41.598, 24.111),
+        'right_wrist': (4.474, -8.833),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (8.499, 1.26, -1.694), 'spine_thoracic': (-2.576, -6.682, -1.705),
-        'neck': (-0.492, -0.656, -23.297), 'head': (-0.62, -0.002),
-        'right_clavicle': (9.701, -3.009), 'right_shoulder': (85.745, 16.067, 8.45),
-        'right_elbow': (38.023, 18.471), 'right_wrist': (1.969, -16.106),
+        'spine_lumbar': (6.269, 0.436, -0.606), 'spine_thoracic': (-2.185, -4.143, -0.6),
+        'neck': (0.043, -0.46, -23.806), 'head': (-0.05, -0.001), 'right_clavicle': (5.815, -1.395),
+        'right_shoulder': (86.477, 12.881, 4.722), 'right_elbow': (35.438, 14.748),
+        'right_wrist': (0.472, -22.142),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (6.664, 1.208, 1.483), 'spine_thoracic': (-2.316, -1.958, 1.447),
-        'neck': (-0.578, -0.737, -25.89), 'head': (-0.735, -0.002),
-        'right_clavicle': (2.965, 0.666), 'right_shoulder': (90.61, 11.286, 0.222),
-        'right_elbow': (32.96, 10.729), 'right_wrist': (-1.39, -27.772),
+        'spine_lumbar': (6.555, 1.235, 1.724), 'spine_thoracic': (-2.173, -1.564, 1.695),
+        'neck': (-0.674, -0.778, -26.13), 'head': (-0.84, -0.002), 'right_clavicle': (2.455, 0.959),
+        'right_shoulder': (91.391, 10.913, -0.377), 'right_elbow': (32.592, 10.155),
+        'right_wrist': (-1.614, -28.698),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'spine_lumbar': (7.678, 1.13, 1.3), 'spine_thoracic': (-3.035, -2.908, 1.281),
-        'neck': (-0.507, -0.721, -26.448), 'head': (-0.663, -0.002),
-        'right_clavicle': (4.295, 0.321), 'right_shoulder': (89.644, 12.581, 0.959),
-        'right_elbow': (33.356, 11.602), 'right_wrist': (-1.171, -26.394),
+        'spine_lumbar': (6.624, 1.234, 1.727), 'spine_thoracic': (-2.34, -1.665, 1.697),
+        'neck': (-0.614, -0.757, -26.179), 'head': (-0.776, -0.002),
+        'right_clavicle': (2.587, 0.938), 'right_shoulder': (91.201, 11.049, -0.352),
+        'right_elbow': (32.617, 10.2), 'right_wrist': (-1.63, -28.562),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (12.881, 2.318, -0.649), 'spine_thoracic': (-3.558, -7.401, -0.71),
-        'neck': (-2.099, -1.337, -27.057), 'head': (-2.376, -0.012),
-        'right_clavicle': (11.122, -2.631), 'right_shoulder': (88.169, 18.604, 7.304),
-        'right_elbow': (37.512, 18.131), 'right_wrist': (1.482, -16.403),
+        'spine_lumbar': (10.777, 1.466, 0.137), 'spine_thoracic': (-3.631, -5.727, 0.086),
+        'neck': (-1.153, -0.976, -26.953), 'head': (-1.363, -0.004),
+        'right_clavicle': (8.426, -1.468), 'right_shoulder': (87.931, 16.276, 4.733),
+        'right_elbow': (35.774, 15.54), 'right_wrist': (0.396, -20.371),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (17.097, 5.372, -3.01), 'spine_thoracic': (-1.696, -10.0, -2.868),
-        'neck': (-5.435, -2.552, -25.171), 'head': (-5.912, -0.071),
-        'right_clavicle': (16.352, -4.981), 'right_shoulder': (93.691, 22.564, 13.197),
-        'right_elbow': (41.244, 23.603), 'right_wrist': (4.182, -9.49),
+        'spine_lumbar': (16.954, 5.289, -2.971), 'spine_thoracic': (-1.87, -10.0, -2.814),
+        'neck': (-5.251, -2.484, -25.074), 'head': (-5.717, -0.065),
+        'right_clavicle': (16.146, -4.834), 'right_shoulder': (93.312, 22.416, 13.055),
+        'right_elbow': (41.165, 23.387), 'right_wrist': (4.065, -9.664),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (10.697, 3.187, -3.004), 'spine_thoracic': (-2.042, -8.946, -2.913),
-        'neck': (-1.747, -1.107, -21.824), 'head': (-1.95, -0.008),
-        'right_clavicle': (13.491, -4.517), 'right_shoulder': (87.502, 18.777, 12.469),
-        'right_elbow': (40.666, 22.246), 'right_wrist': (3.654, -10.631),
+        'spine_lumbar': (12.857, 3.45, -2.017), 'spine_thoracic': (-3.174, -9.362, -2.112),
+        'neck': (-2.233, -1.341, -24.579), 'head': (-2.494, -0.013),
+        'right_clavicle': (14.239, -4.348), 'right_shoulder': (86.806, 20.461, 11.111),
+        'right_elbow': (40.037, 21.548), 'right_wrist': (2.965, -10.669),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (7.202, 1.059, 0.128), 'spine_thoracic': (-2.535, -3.884, 0.075),
-        'neck': (-0.356, -0.631, -24.731), 'head': (-0.487, -0.001),
-        'right_clavicle': (5.544, -0.899), 'right_shoulder': (87.312, 13.088, 3.557),
-        'right_elbow': (34.969, 13.865), 'right_wrist': (-0.041, -22.985),
+        'spine_lumbar': (5.935, 1.087, 1.579), 'spine_thoracic': (-2.297, -1.558, 1.547),
+        'neck': (-0.329, -0.639, -25.709), 'head': (-0.466, -0.001),
+        'right_clavicle': (2.38, 0.852), 'right_shoulder': (90.547, 10.721, -0.26),
+        'right_elbow': (32.643, 10.194), 'right_wrist': (-1.608, -28.521),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
@@ -674,96 +674,96 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (10.607, 1.419, 0.204), 'spine_thoracic': (-3.629, -5.592, 0.154),
-        'neck': (-1.084, -0.95, -26.937), 'head': (-1.289, -0.004),
-        'right_clavicle': (8.215, -1.373), 'right_shoulder': (87.941, 16.093, 4.522),
-        'right_elbow': (35.635, 15.327), 'right_wrist': (0.304, -20.689),
+        'spine_lumbar': (8.063, 1.111, 1.091), 'spine_thoracic': (-3.035, -3.25, 1.08),
+        'neck': (-0.625, -0.766, -26.477), 'head': (-0.79, -0.002),
+        'right_clavicle': (4.781, 0.085), 'right_shoulder': (89.494, 12.981, 1.514),
+        'right_elbow': (33.66, 12.151), 'right_wrist': (-0.918, -25.704),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (15.632, 4.055, -1.559), 'spine_thoracic': (-3.734, -9.769, -1.639),
-        'neck': (-3.327, -1.797, -26.9), 'head': (-3.689, -0.027),
-        'right_clavicle': (15.08, -4.184), 'right_shoulder': (88.68, 21.941, 10.543),
-        'right_elbow': (39.73, 21.438), 'right_wrist': (2.752, -11.05),
+        'spine_lumbar': (14.893, 3.496, -1.261), 'spine_thoracic': (-3.736, -9.215, -1.349),
+        'neck': (-2.912, -1.644, -27.059), 'head': (-3.247, -0.021),
+        'right_clavicle': (14.112, -3.789), 'right_shoulder': (88.411, 21.228, 9.594),
+        'right_elbow': (39.104, 20.519), 'right_wrist': (2.372, -12.317),
     })
     human.KeyJoints(11.1, {
-        'spine_lumbar': (13.568, 4.898, -3.595), 'spine_thoracic': (-1.533, -10.0, -3.452),
-        'neck': (-3.727, -1.855, -21.833), 'head': (-4.057, -0.032),
-        'right_clavicle': (15.985, -5.244), 'right_shoulder': (90.171, 21.181, 14.345),
-        'right_elbow': (41.915, 24.061), 'right_wrist': (4.46, -8.095),
+        'spine_lumbar': (17.376, 5.595, -3.294), 'spine_thoracic': (-1.257, -10.0, -3.159),
+        'neck': (-5.875, -2.711, -24.762), 'head': (-6.375, -0.084),
+        'right_clavicle': (16.768, -5.295), 'right_shoulder': (94.603, 22.83, 13.829),
+        'right_elbow': (41.608, 24.116), 'right_wrist': (4.481, -8.817),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (8.05, 0.996, -1.276), 'spine_thoracic': (-2.648, -5.991, -1.31),
-        'neck': (-0.303, -0.592, -23.696), 'head': (-0.421, -0.001),
-        'right_clavicle': (8.608, -2.526), 'right_shoulder': (85.543, 15.294, 7.231),
-        'right_elbow': (37.238, 17.326), 'right_wrist': (1.462, -17.788),
+        'spine_lumbar': (5.359, 0.462, 0.159), 'spine_thoracic': (-2.238, -2.921, 0.162),
+        'neck': (0.235, -0.393, -24.142), 'head': (0.154, 0.0), 'right_clavicle': (4.078, -0.489),
+        'right_shoulder': (87.459, 11.55, 2.626), 'right_elbow': (34.134, 12.732),
+        'right_wrist': (-0.416, -25.088),
     })
     human.KeyJoints(11.3, {
-        'spine_lumbar': (6.59, 1.235, 1.7), 'spine_thoracic': (-2.276, -1.653, 1.669),
-        'neck': (-0.627, -0.76, -26.11), 'head': (-0.789, -0.002), 'right_clavicle': (2.568, 0.917),
-        'right_shoulder': (91.213, 11.013, -0.304), 'right_elbow': (32.646, 10.234),
-        'right_wrist': (-1.602, -28.53),
+        'spine_lumbar': (6.576, 1.24, 1.737), 'spine_thoracic': (-2.241, -1.589, 1.708),
+        'neck': (-0.65, -0.77, -26.154), 'head': (-0.815, -0.002), 'right_clavicle': (2.486, 0.964),
+        'right_shoulder': (91.349, 10.951, -0.395), 'right_elbow': (32.588, 10.146),
+        'right_wrist': (-1.634, -28.679),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
-        'spine_lumbar': (8.449, 1.113, 0.915), 'spine_thoracic': (-3.063, -3.611, 0.906),
-        'neck': (-0.706, -0.798, -26.53), 'head': (-0.878, -0.002),
-        'right_clavicle': (5.297, -0.146), 'right_shoulder': (89.273, 13.428, 2.024),
-        'right_elbow': (33.959, 12.672), 'right_wrist': (-0.701, -24.974),
+        'spine_lumbar': (6.761, 1.215, 1.686), 'spine_thoracic': (-2.545, -1.861, 1.656),
+        'neck': (-0.547, -0.732, -26.234), 'head': (-0.705, -0.002),
+        'right_clavicle': (2.85, 0.861), 'right_shoulder': (90.842, 11.297, -0.202),
+        'right_elbow': (32.704, 10.372), 'right_wrist': (-1.592, -28.249),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (13.609, 2.709, -0.89), 'spine_thoracic': (-3.592, -8.015, -0.958),
-        'neck': (-2.403, -1.452, -27.032), 'head': (-2.702, -0.015),
-        'right_clavicle': (12.134, -3.039), 'right_shoulder': (88.267, 19.48, 8.158),
-        'right_elbow': (38.103, 19.005), 'right_wrist': (1.826, -14.983),
+        'spine_lumbar': (11.868, 1.853, -0.287), 'spine_thoracic': (-3.566, -6.581, -0.342),
+        'neck': (-1.675, -1.177, -27.085), 'head': (-1.921, -0.009),
+        'right_clavicle': (9.787, -2.071), 'right_shoulder': (88.039, 17.45, 6.086),
+        'right_elbow': (36.678, 16.897), 'right_wrist': (0.976, -18.336),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (17.433, 5.603, -3.295), 'spine_thoracic': (-1.275, -10.0, -3.16),
-        'neck': (-5.897, -2.72, -24.771), 'head': (-6.399, -0.084),
-        'right_clavicle': (16.791, -5.29), 'right_shoulder': (94.637, 22.865, 13.836),
-        'right_elbow': (41.612, 24.113), 'right_wrist': (4.475, -8.802),
+        'spine_lumbar': (17.254, 5.494, -3.178), 'spine_thoracic': (-1.5, -10.0, -3.026),
+        'neck': (-5.657, -2.632, -24.881), 'head': (-6.145, -0.077),
+        'right_clavicle': (16.53, -5.103), 'right_shoulder': (94.151, 22.679, 13.535),
+        'right_elbow': (41.44, 23.835), 'right_wrist': (4.322, -9.169),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (9.857, 2.452, -2.599), 'spine_thoracic': (-2.248, -8.236, -2.543),
-        'neck': (-1.201, -0.907, -22.317), 'head': (-1.371, -0.005),
-        'right_clavicle': (12.25, -4.05), 'right_shoulder': (86.768, 17.858, 11.207),
-        'right_elbow': (39.83, 21.058), 'right_wrist': (3.122, -12.344),
+        'spine_lumbar': (10.341, 2.138, -1.746), 'spine_thoracic': (-2.768, -7.623, -1.808),
+        'neck': (-1.2, -0.936, -23.897), 'head': (-1.385, -0.005),
+        'right_clavicle': (11.305, -3.463), 'right_shoulder': (86.053, 17.714, 9.367),
+        'right_elbow': (38.773, 19.565), 'right_wrist': (2.325, -14.12),
     })
     human.KeyJoints(11.8, {
-        'spine_lumbar': (6.979, 1.111, 0.645), 'spine_thoracic': (-2.458, -3.142, 0.597),
-        'neck': (-0.434, -0.669, -25.189), 'head': (-0.574, -0.002),
-        'right_clavicle': (4.535, -0.301), 'right_shoulder': (88.472, 12.379, 2.27),
-        'right_elbow': (34.191, 12.655), 'right_wrist': (-0.562, -24.827),
+        'spine_lumbar': (6.313, 1.179, 1.655), 'spine_thoracic': (-2.161, -1.545, 1.627),
+        'neck': (-0.568, -0.735, -25.948), 'head': (-0.725, -0.002),
+        'right_clavicle': (2.395, 0.92), 'right_shoulder': (91.224, 10.784, -0.315),
+        'right_elbow': (32.614, 10.178), 'right_wrist': (-1.6, -28.671),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
+        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(12.0, {
-        'spine_lumbar': (11.369, 1.66, -0.095), 'spine_thoracic': (-3.596, -6.191, -0.148),
-        'neck': (-1.432, -1.084, -27.043), 'head': (-1.662, -0.007),
-        'right_clavicle': (9.16, -1.796), 'right_shoulder': (87.974, 16.911, 5.469),
-        'right_elbow': (36.264, 16.279), 'right_wrist': (0.712, -19.268),
+        'spine_lumbar': (8.821, 1.128, 0.764), 'spine_thoracic': (-3.163, -3.964, 0.754),
+        'neck': (-0.768, -0.823, -26.589), 'head': (-0.945, -0.003),
+        'right_clavicle': (5.804, -0.365), 'right_shoulder': (89.014, 13.882, 2.488),
+        'right_elbow': (34.245, 13.156), 'right_wrist': (-0.51, -24.249),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (16.055, 4.499, -2.066), 'spine_thoracic': (-3.169, -9.936, -2.033),
-        'neck': (-3.92, -2.008, -26.234), 'head': (-4.315, -0.036),
-        'right_clavicle': (15.352, -4.332), 'right_shoulder': (90.148, 22.029, 11.387),
-        'right_elbow': (40.217, 22.051), 'right_wrist': (3.18, -10.694),
+        'spine_lumbar': (15.704, 4.129, -1.647), 'spine_thoracic': (-3.623, -9.804, -1.705),
+        'neck': (-3.428, -1.831, -26.686), 'head': (-3.795, -0.028),
+        'right_clavicle': (15.133, -4.21), 'right_shoulder': (88.962, 21.961, 10.683),
+        'right_elbow': (39.811, 21.54), 'right_wrist': (2.823, -10.981),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (12.586, 4.507, -3.539), 'spine_thoracic': (-1.66, -9.899, -3.4),
-        'neck': (-3.033, -1.588, -21.788), 'head': (-3.316, -0.021),
-        'right_clavicle': (15.46, -5.155), 'right_shoulder': (89.236, 20.487, 14.167),
-        'right_elbow': (41.8, 23.865), 'right_wrist': (4.375, -8.328),
+        'spine_lumbar': (16.814, 5.493, -3.399), 'spine_thoracic': (-1.054, -10.0, -3.266),
+        'neck': (-5.662, -2.624, -24.345), 'head': (-6.143, -0.077),
+        'right_clavicle': (16.479, -5.3), 'right_shoulder': (94.277, 22.446, 13.898),
+        'right_elbow': (41.629, 24.08), 'right_wrist': (4.514, -8.879),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (7.688, 0.95, -0.898), 'spine_thoracic': (-2.628, -5.371, -0.944),
-        'neck': (-0.289, -0.588, -24.029), 'head': (-0.407, -0.001),
-        'right_clavicle': (7.641, -2.077), 'right_shoulder': (85.684, 14.565, 6.147),
-        'right_elbow': (36.514, 16.302), 'right_wrist': (1.023, -19.39),
+        'spine_lumbar': (4.916, 0.283, 0.638), 'spine_thoracic': (-1.992, -2.21, 0.631),
+        'neck': (0.236, -0.404, -24.732), 'head': (0.149, 0.0), 'right_clavicle': (2.979, 0.064),
+        'right_shoulder': (88.685, 10.707, 1.015), 'right_elbow': (32.734, 11.261),
+        'right_wrist': (-1.05, -28.038),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.394506, duration=0.072)
@@ -832,34 +832,34 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
-        'spine_lumbar': (2.492, -19.008, 7.243), 'spine_thoracic': (-9.367, -8.567, 7.281),
-        'neck': (3.26, -0.901, -17.51), 'head': (3.446, -0.025), 'right_clavicle': (5.68, 5.993),
-        'right_shoulder': (86.686, 8.742, -1.087), 'right_elbow': (22.715, 10.216),
-        'right_wrist': (-1.887, -30.0),
+        'spine_lumbar': (2.428, -17.485, 8.431), 'spine_thoracic': (-8.73, -6.298, 8.234),
+        'neck': (2.776, -0.751, -16.899), 'head': (2.93, -0.021), 'right_clavicle': (3.03, 7.157),
+        'right_shoulder': (88.711, 6.995, -3.631), 'right_elbow': (22.365, 7.652),
+        'right_wrist': (-2.999, -30.0),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (3.833, -20.0, 4.16), 'spine_thoracic': (-8.808, -10.0, 5.496),
-        'neck': (2.354, -0.637, -15.499), 'head': (2.482, -0.017),
-        'right_clavicle': (14.225, 4.123), 'right_shoulder': (87.147, 11.981, 6.998),
-        'right_elbow': (21.996, 18.321), 'right_wrist': (2.338, -26.051),
+        'spine_lumbar': (3.221, -20.0, 4.962), 'spine_thoracic': (-8.594, -10.0, 5.854),
+        'neck': (2.592, -0.702, -16.297), 'head': (2.735, -0.019),
+        'right_clavicle': (10.958, 4.624), 'right_shoulder': (87.144, 10.687, 4.173),
+        'right_elbow': (22.085, 15.489), 'right_wrist': (0.91, -27.778),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (4.801, -18.454, 3.055), 'spine_thoracic': (-10.019, -10.0, 5.446),
-        'neck': (2.249, -0.655, -12.864), 'head': (2.373, -0.011),
-        'right_clavicle': (22.477, 3.692), 'right_shoulder': (87.475, 14.768, 13.266),
-        'right_elbow': (20.683, 24.469), 'right_wrist': (5.64, -20.946),
+        'spine_lumbar': (5.166, -18.477, 3.15), 'spine_thoracic': (-10.036, -10.0, 5.508),
+        'neck': (2.101, -0.598, -13.309), 'head': (2.216, -0.011),
+        'right_clavicle': (22.216, 3.723), 'right_shoulder': (87.666, 14.873, 12.825),
+        'right_elbow': (20.571, 24.212), 'right_wrist': (5.453, -21.172),
     })
     human.KeyJoints(13.8, {
-        'spine_lumbar': (-0.528, -19.59, 3.573), 'spine_thoracic': (-8.383, -10.0, 5.324),
-        'neck': (3.961, -1.257, -12.211), 'head': (4.189, -0.019),
-        'right_clavicle': (15.975, 4.113), 'right_shoulder': (85.104, 9.428, 10.056),
-        'right_elbow': (21.651, 20.355), 'right_wrist': (3.903, -24.293),
+        'spine_lumbar': (-0.158, -20.0, 4.053), 'spine_thoracic': (-8.199, -10.0, 5.278),
+        'neck': (3.798, -1.174, -13.281), 'head': (4.016, -0.024),
+        'right_clavicle': (13.213, 4.305), 'right_shoulder': (85.151, 9.283, 7.337),
+        'right_elbow': (22.04, 17.92), 'right_wrist': (2.473, -26.284),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (0.324, -18.907, 6.607), 'spine_thoracic': (-8.228, -8.421, 6.752),
-        'neck': (3.576, -1.049, -15.58), 'head': (3.781, -0.028), 'right_clavicle': (5.809, 5.974),
-        'right_shoulder': (86.449, 7.151, -0.001), 'right_elbow': (22.368, 10.858),
-        'right_wrist': (-1.215, -29.242),
+        'spine_lumbar': (2.241, -17.208, 8.6), 'spine_thoracic': (-8.693, -5.997, 8.362),
+        'neck': (2.824, -0.772, -16.684), 'head': (2.981, -0.021), 'right_clavicle': (2.685, 7.315),
+        'right_shoulder': (88.632, 6.653, -3.859), 'right_elbow': (22.55, 7.363),
+        'right_wrist': (-3.124, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
@@ -869,28 +869,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (3.116, -20.0, 5.13), 'spine_thoracic': (-8.553, -10.0, 5.927),
-        'neck': (2.632, -0.711, -16.476), 'head': (2.778, -0.019),
-        'right_clavicle': (10.253, 4.725), 'right_shoulder': (87.146, 10.42, 3.575),
-        'right_elbow': (22.17, 14.891), 'right_wrist': (0.604, -28.072),
+        'spine_lumbar': (2.553, -19.189, 7.213), 'spine_thoracic': (-9.69, -8.854, 7.245),
+        'neck': (3.424, -0.953, -17.725), 'head': (3.62, -0.027), 'right_clavicle': (6.081, 5.858),
+        'right_shoulder': (86.042, 9.113, -0.82), 'right_elbow': (22.926, 10.481),
+        'right_wrist': (-1.828, -29.961),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (4.483, -18.92, 3.598), 'spine_thoracic': (-9.669, -10.0, 5.585),
-        'neck': (2.31, -0.651, -14.024), 'head': (2.437, -0.015), 'right_clavicle': (19.509, 3.987),
-        'right_shoulder': (87.381, 13.781, 10.642), 'right_elbow': (20.501, 22.021),
-        'right_wrist': (4.353, -22.867),
+        'spine_lumbar': (4.436, -18.947, 3.634), 'spine_thoracic': (-9.646, -10.0, 5.592),
+        'neck': (2.334, -0.659, -14.078), 'head': (2.462, -0.016),
+        'right_clavicle': (19.331, 4.008), 'right_shoulder': (87.364, 13.711, 10.496),
+        'right_elbow': (20.504, 21.875), 'right_wrist': (4.28, -22.971),
     })
     human.KeyJoints(14.3, {
-        'spine_lumbar': (0.446, -19.087, 3.062), 'spine_thoracic': (-9.026, -10.0, 5.242),
-        'neck': (3.787, -1.213, -11.742), 'head': (4.005, -0.013), 'right_clavicle': (20.03, 3.819),
-        'right_shoulder': (85.43, 11.299, 13.038), 'right_elbow': (21.284, 23.42),
-        'right_wrist': (5.457, -21.6),
+        'spine_lumbar': (4.539, -18.507, 3.096), 'spine_thoracic': (-9.943, -10.0, 5.458),
+        'neck': (2.343, -0.687, -12.97), 'head': (2.473, -0.012), 'right_clavicle': (22.241, 3.711),
+        'right_shoulder': (87.349, 14.52, 13.078), 'right_elbow': (20.671, 24.334),
+        'right_wrist': (5.566, -21.033),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (-1.081, -19.996, 4.714), 'spine_thoracic': (-7.895, -10.0, 5.549),
-        'neck': (4.112, -1.266, -13.712), 'head': (4.349, -0.03), 'right_clavicle': (9.975, 4.755),
-        'right_shoulder': (84.932, 7.743, 4.65), 'right_elbow': (22.071, 15.156),
-        'right_wrist': (1.114, -27.96),
+        'spine_lumbar': (0.148, -17.764, 7.752), 'spine_thoracic': (-8.243, -6.836, 7.663),
+        'neck': (3.609, -1.059, -15.548), 'head': (3.816, -0.029), 'right_clavicle': (3.248, 6.87),
+        'right_shoulder': (87.197, 5.862, -2.772), 'right_elbow': (22.046, 8.119),
+        'right_wrist': (-2.566, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
@@ -900,65 +900,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (2.647, -19.573, 6.989), 'spine_thoracic': (-9.713, -9.515, 7.055),
-        'neck': (3.449, -0.958, -17.948), 'head': (3.647, -0.027), 'right_clavicle': (6.748, 5.561),
-        'right_shoulder': (85.681, 9.614, -0.249), 'right_elbow': (22.922, 11.067),
-        'right_wrist': (-1.599, -29.677),
+        'spine_lumbar': (2.373, -17.796, 8.173), 'spine_thoracic': (-8.707, -6.682, 8.031),
+        'neck': (2.819, -0.764, -16.969), 'head': (2.976, -0.021), 'right_clavicle': (3.425, 6.952),
+        'right_shoulder': (88.521, 7.214, -3.259), 'right_elbow': (22.285, 8.042),
+        'right_wrist': (-2.814, -30.0),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (4.185, -20.0, 3.787), 'spine_thoracic': (-8.891, -10.0, 5.317),
-        'neck': (2.208, -0.595, -15.205), 'head': (2.327, -0.015),
-        'right_clavicle': (15.541, 3.866), 'right_shoulder': (87.18, 12.569, 8.203),
-        'right_elbow': (22.158, 19.529), 'right_wrist': (2.921, -25.239),
+        'spine_lumbar': (3.58, -20.0, 4.453), 'spine_thoracic': (-8.737, -10.0, 5.632),
+        'neck': (2.458, -0.666, -15.777), 'right_clavicle': (13.061, 4.315),
+        'right_shoulder': (87.112, 11.501, 5.967), 'right_elbow': (21.975, 17.288),
+        'right_wrist': (1.825, -26.684),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (3.151, -18.602, 3.011), 'spine_thoracic': (-9.762, -10.0, 5.333),
-        'neck': (2.883, -0.889, -12.236), 'head': (3.047, -0.011),
-        'right_clavicle': (22.105, 3.708), 'right_shoulder': (86.643, 13.815, 13.432),
-        'right_elbow': (20.844, 24.365), 'right_wrist': (5.687, -20.979),
+        'spine_lumbar': (5.24, -18.428, 3.107), 'spine_thoracic': (-10.076, -10.0, 5.501),
+        'neck': (2.078, -0.591, -13.235), 'head': (2.191, -0.011),
+        'right_clavicle': (22.497, 3.695), 'right_shoulder': (87.7, 14.99, 13.049),
+        'right_elbow': (20.595, 24.437), 'right_wrist': (5.566, -20.985),
     })
     human.KeyJoints(14.9, {
-        'spine_lumbar': (-0.749, -19.738, 3.822), 'spine_thoracic': (-8.203, -10.0, 5.368),
-        'neck': (4.006, -1.263, -12.602), 'head': (4.237, -0.022), 'right_clavicle': (14.414, 4.25),
-        'right_shoulder': (85.034, 8.897, 8.726), 'right_elbow': (21.764, 19.062),
-        'right_wrist': (3.213, -25.361),
+        'spine_lumbar': (-1.099, -19.994, 4.932), 'spine_thoracic': (-7.91, -9.996, 5.623),
+        'neck': (4.138, -1.272, -14.0), 'head': (4.377, -0.031), 'right_clavicle': (9.229, 4.88),
+        'right_shoulder': (84.88, 7.586, 3.917), 'right_elbow': (22.124, 14.443),
+        'right_wrist': (0.73, -28.288),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (1.187, -18.237, 7.444), 'spine_thoracic': (-8.434, -7.455, 7.413),
-        'neck': (3.319, -0.951, -16.056), 'head': (3.509, -0.026), 'right_clavicle': (4.473, 6.527),
-        'right_shoulder': (87.379, 7.003, -1.658), 'right_elbow': (22.458, 9.366),
-        'right_wrist': (-2.036, -29.583),
+        'spine_lumbar': (2.402, -17.219, 8.621), 'spine_thoracic': (-8.727, -5.994, 8.382),
+        'neck': (2.765, -0.75, -16.778), 'head': (2.919, -0.021), 'right_clavicle': (2.714, 7.317),
+        'right_shoulder': (88.728, 6.768, -3.88), 'right_elbow': (22.567, 7.365),
+        'right_wrist': (-3.134, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
-        'spine_lumbar': (2.359, -17.96, 8.024), 'spine_thoracic': (-8.692, -6.903, 7.915),
-        'neck': (2.837, -0.77, -17.0), 'head': (2.995, -0.021), 'right_clavicle': (3.659, 6.835),
-        'right_shoulder': (88.434, 7.342, -3.023), 'right_elbow': (22.248, 8.286),
-        'right_wrist': (-2.695, -30.0),
+        'spine_lumbar': (2.482, -17.237, 8.625), 'spine_thoracic': (-8.744, -6.008, 8.387),
+        'neck': (2.737, -0.739, -16.834), 'head': (2.889, -0.02), 'right_clavicle': (2.739, 7.311),
+        'right_shoulder': (88.774, 6.83, -3.882), 'right_elbow': (22.57, 7.381),
+        'right_wrist': (-3.135, -30.0),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (3.314, -20.0, 4.815), 'spine_thoracic': (-8.638, -10.0, 5.792),
-        'neck': (2.559, -0.693, -16.143), 'right_clavicle': (11.573, 4.538),
-        'right_shoulder': (87.115, 10.919, 4.689), 'right_elbow': (22.023, 16.006),
-        'right_wrist': (1.175, -27.462),
+        'spine_lumbar': (2.725, -19.856, 6.649), 'spine_thoracic': (-9.658, -9.984, 6.803),
+        'neck': (3.455, -0.955, -18.088), 'head': (3.653, -0.027), 'right_clavicle': (7.294, 5.313),
+        'right_shoulder': (85.547, 9.895, 0.308), 'right_elbow': (22.862, 11.642),
+        'right_wrist': (-1.304, -29.254),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (4.825, -18.71, 3.361), 'spine_thoracic': (-9.844, -10.0, 5.545),
-        'neck': (2.205, -0.625, -13.678), 'head': (2.326, -0.013),
-        'right_clavicle': (20.856, 3.849), 'right_shoulder': (87.516, 14.32, 11.737),
-        'right_elbow': (20.497, 23.125), 'right_wrist': (4.905, -22.048),
+        'spine_lumbar': (4.772, -18.748, 3.393), 'spine_thoracic': (-9.813, -10.0, 5.549),
+        'neck': (2.221, -0.629, -13.727), 'head': (2.343, -0.014),
+        'right_clavicle': (20.635, 3.869), 'right_shoulder': (87.493, 14.231, 11.568),
+        'right_elbow': (20.494, 22.949), 'right_wrist': (4.818, -22.187),
     })
     human.KeyJoints(15.4, {
-        'spine_lumbar': (0.074, -19.254, 3.185), 'spine_thoracic': (-8.806, -10.0, 5.261),
-        'neck': (3.848, -1.232, -11.789), 'head': (4.07, -0.015), 'right_clavicle': (18.861, 3.895),
-        'right_shoulder': (85.303, 10.646, 12.289), 'right_elbow': (21.41, 22.603),
-        'right_wrist': (5.066, -22.322),
+        'spine_lumbar': (3.115, -18.845, 3.22), 'spine_thoracic': (-9.565, -10.0, 5.403),
+        'neck': (2.847, -0.863, -12.794), 'head': (3.008, -0.015),
+        'right_clavicle': (20.723, 3.826), 'right_shoulder': (86.647, 13.298, 12.266),
+        'right_elbow': (20.738, 23.301), 'right_wrist': (5.132, -21.839),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (-0.983, -19.921, 5.103), 'spine_thoracic': (-7.915, -9.885, 5.695),
-        'neck': (4.068, -1.247, -14.23), 'head': (4.303, -0.03), 'right_clavicle': (8.715, 4.995),
-        'right_shoulder': (85.041, 7.529, 3.376), 'right_elbow': (22.164, 13.947),
-        'right_wrist': (0.47, -28.41),
+        'spine_lumbar': (1.091, -17.352, 8.272), 'spine_thoracic': (-8.458, -6.249, 8.083),
+        'neck': (3.255, -0.93, -16.048), 'head': (3.44, -0.025), 'right_clavicle': (2.789, 7.175),
+        'right_shoulder': (87.877, 6.043, -3.479), 'right_elbow': (22.298, 7.55),
+        'right_wrist': (-2.93, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
@@ -968,65 +968,64 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (2.8, -19.95, 6.154), 'spine_thoracic': (-9.233, -9.999, 6.478),
-        'neck': (3.224, -0.883, -17.726), 'head': (3.408, -0.025), 'right_clavicle': (7.908, 5.135),
-        'right_shoulder': (86.088, 9.895, 1.102), 'right_elbow': (22.633, 12.44),
-        'right_wrist': (-0.813, -28.943),
+        'spine_lumbar': (2.356, -18.186, 7.786), 'spine_thoracic': (-8.663, -7.233, 7.732),
+        'neck': (2.846, -0.773, -17.004), 'head': (3.005, -0.021), 'right_clavicle': (4.011, 6.661),
+        'right_shoulder': (88.313, 7.527, -2.638), 'right_elbow': (22.241, 8.678),
+        'right_wrist': (-2.496, -30.0),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (4.264, -19.765, 3.738), 'spine_thoracic': (-9.112, -10.0, 5.399),
-        'neck': (2.247, -0.613, -14.828), 'head': (2.369, -0.016), 'right_clavicle': (16.856, 3.91),
-        'right_shoulder': (87.231, 12.978, 9.019), 'right_elbow': (21.655, 20.364),
-        'right_wrist': (3.401, -24.445),
+        'spine_lumbar': (4.05, -20.0, 3.922), 'spine_thoracic': (-8.85, -10.0, 5.379),
+        'neck': (2.257, -0.609, -15.272), 'head': (2.379, -0.016),
+        'right_clavicle': (14.953, 3.955), 'right_shoulder': (87.155, 12.315, 7.688),
+        'right_elbow': (22.103, 19.011), 'right_wrist': (2.666, -25.603),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (1.508, -18.783, 2.988), 'spine_thoracic': (-9.461, -10.0, 5.244),
-        'neck': (3.5, -1.114, -11.774), 'head': (3.701, -0.011), 'right_clavicle': (21.57, 3.733),
-        'right_shoulder': (85.838, 12.722, 13.515), 'right_elbow': (21.013, 24.206),
-        'right_wrist': (5.708, -21.031),
+        'spine_lumbar': (5.259, -18.416, 3.097), 'spine_thoracic': (-10.086, -10.0, 5.499),
+        'neck': (2.072, -0.59, -13.218), 'head': (2.185, -0.011), 'right_clavicle': (22.565, 3.688),
+        'right_shoulder': (87.708, 15.018, 13.103), 'right_elbow': (20.601, 24.491),
+        'right_wrist': (5.593, -20.939),
     })
     human.KeyJoints(16.0, {
-        'spine_lumbar': (-0.916, -19.861, 4.099), 'spine_thoracic': (-8.055, -10.0, 5.42),
-        'neck': (4.046, -1.265, -12.952), 'head': (4.279, -0.024),
-        'right_clavicle': (12.854, 4.403), 'right_shoulder': (84.982, 8.432, 7.34),
-        'right_elbow': (21.871, 17.729), 'right_wrist': (2.496, -26.381),
+        'spine_lumbar': (-1.189, -19.415, 6.474), 'spine_thoracic': (-9.083, -9.528, 6.578),
+        'neck': (4.791, -1.464, -15.315), 'head': (5.072, -0.04), 'right_clavicle': (6.286, 5.595),
+        'right_shoulder': (83.606, 6.998, 0.635), 'right_elbow': (22.762, 11.224),
+        'right_wrist': (-1.159, -29.749),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (1.945, -17.649, 8.146), 'spine_thoracic': (-8.616, -6.605, 7.987),
-        'neck': (3.008, -0.837, -16.496), 'head': (3.177, -0.023), 'right_clavicle': (3.422, 6.993),
-        'right_shoulder': (88.197, 6.894, -2.994), 'right_elbow': (22.528, 8.171),
-        'right_wrist': (-2.697, -29.839),
+        'spine_lumbar': (2.463, -17.226, 8.627), 'spine_thoracic': (-8.74, -5.996, 8.388),
+        'neck': (2.742, -0.742, -16.815), 'head': (2.895, -0.02), 'right_clavicle': (2.727, 7.317),
+        'right_shoulder': (88.765, 6.812, -3.885), 'right_elbow': (22.572, 7.37),
+        'right_wrist': (-3.137, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
-        'spine_lumbar': (2.393, -18.614, 7.31), 'spine_thoracic': (-8.594, -7.946, 7.364),
-        'neck': (2.851, -0.774, -17.05), 'head': (3.01, -0.021), 'right_clavicle': (4.815, 6.289),
-        'right_shoulder': (88.02, 7.951, -1.686), 'right_elbow': (22.341, 9.623),
-        'right_wrist': (-2.035, -30.0),
+        'spine_lumbar': (2.468, -17.301, 8.576), 'spine_thoracic': (-8.741, -6.082, 8.348),
+        'right_clavicle': (2.813, 7.271), 'right_shoulder': (88.747, 6.872, -3.82),
+        'right_elbow': (22.532, 7.449), 'right_wrist': (-3.102, -30.0),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (3.545, -20.0, 4.496), 'spine_thoracic': (-8.726, -10.0, 5.652),
-        'neck': (2.472, -0.671, -15.819), 'right_clavicle': (12.888, 4.342),
-        'right_shoulder': (87.11, 11.432, 5.815), 'right_elbow': (21.971, 17.136),
-        'right_wrist': (1.748, -26.775),
+        'spine_lumbar': (2.908, -20.0, 5.488), 'spine_thoracic': (-8.489, -10.0, 6.093),
+        'neck': (2.726, -0.735, -16.867), 'head': (2.878, -0.02), 'right_clavicle': (8.805, 4.945),
+        'right_shoulder': (87.206, 9.886, 2.304), 'right_elbow': (22.238, 13.63),
+        'right_wrist': (-0.033, -28.571),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (5.217, -18.444, 3.135), 'spine_thoracic': (-10.063, -10.0, 5.512),
-        'neck': (2.085, -0.593, -13.34), 'head': (2.199, -0.011), 'right_clavicle': (22.404, 3.704),
-        'right_shoulder': (87.69, 14.952, 12.923), 'right_elbow': (20.57, 24.363),
-        'right_wrist': (5.513, -21.045),
+        'spine_lumbar': (5.008, -18.583, 3.244), 'spine_thoracic': (-9.949, -10.0, 5.524),
+        'neck': (2.15, -0.61, -13.47), 'head': (2.267, -0.012), 'right_clavicle': (21.606, 3.781),
+        'right_shoulder': (87.596, 14.622, 12.339), 'right_elbow': (20.528, 23.723),
+        'right_wrist': (5.209, -21.571),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (-0.25, -19.424, 3.356), 'spine_thoracic': (-8.589, -10.0, 5.288),
-        'neck': (3.907, -1.246, -11.897), 'head': (4.132, -0.016),
-        'right_clavicle': (17.496, 3.993), 'right_shoulder': (85.195, 10.022, 11.28),
-        'right_elbow': (21.532, 21.569), 'right_wrist': (4.54, -23.241),
+        'spine_lumbar': (1.63, -20.0, 3.234), 'spine_thoracic': (-8.585, -10.0, 4.955),
+        'neck': (3.142, -0.957, -13.056), 'head': (3.321, -0.018),
+        'right_clavicle': (16.873, 3.651), 'right_shoulder': (85.79, 11.47, 10.373),
+        'right_elbow': (22.465, 21.143), 'right_wrist': (3.943, -24.016),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (-0.471, -19.523, 5.768), 'spine_thoracic': (-8.037, -9.311, 6.127),
-        'neck': (3.855, -1.161, -14.915), 'head': (4.077, -0.029), 'right_clavicle': (7.294, 5.424),
-        'right_shoulder': (85.593, 7.332, 1.775), 'right_elbow': (22.265, 12.471),
-        'right_wrist': (-0.331, -28.837),
+        'spine_lumbar': (1.802, -17.196, 8.521), 'spine_thoracic': (-8.602, -6.017, 8.292),
+        'neck': (2.984, -0.831, -16.417), 'right_clavicle': (2.641, 7.3),
+        'right_shoulder': (88.359, 6.375, -3.778), 'right_elbow': (22.489, 7.362),
+        'right_wrist': (-3.083, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
@@ -1036,65 +1035,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (2.92, -20.0, 5.456), 'spine_thoracic': (-8.49, -10.0, 6.077),
-        'neck': (2.714, -0.732, -16.836), 'head': (2.864, -0.02), 'right_clavicle': (8.896, 4.929),
-        'right_shoulder': (87.205, 9.898, 2.398), 'right_elbow': (22.231, 13.723),
-        'right_wrist': (0.018, -28.536),
+        'spine_lumbar': (2.391, -18.603, 7.315), 'spine_thoracic': (-8.595, -7.927, 7.369),
+        'neck': (2.848, -0.773, -17.021), 'head': (3.007, -0.021), 'right_clavicle': (4.792, 6.298),
+        'right_shoulder': (88.03, 7.937, -1.708), 'right_elbow': (22.338, 9.6),
+        'right_wrist': (-2.042, -30.0),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (4.299, -19.199, 3.723), 'spine_thoracic': (-9.458, -10.0, 5.588),
-        'neck': (2.345, -0.657, -14.4), 'head': (2.473, -0.016), 'right_clavicle': (18.171, 4.034),
-        'right_shoulder': (87.286, 13.316, 9.689), 'right_elbow': (20.613, 21.057),
-        'right_wrist': (3.835, -23.66),
+        'spine_lumbar': (4.272, -19.594, 3.735), 'spine_thoracic': (-9.211, -10.0, 5.459),
+        'neck': (2.273, -0.624, -14.769), 'head': (2.396, -0.016), 'right_clavicle': (17.204, 3.95),
+        'right_shoulder': (87.244, 13.063, 9.188), 'right_elbow': (21.326, 20.54),
+        'right_wrist': (3.513, -24.238),
     })
     human.KeyJoints(17.0, {
-        'spine_lumbar': (0.871, -18.928, 2.995), 'spine_thoracic': (-9.243, -10.0, 5.233),
-        'neck': (3.7, -1.184, -11.715), 'head': (3.913, -0.012), 'right_clavicle': (20.952, 3.764),
-        'right_shoulder': (85.579, 11.98, 13.462), 'right_elbow': (21.152, 23.968),
-        'right_wrist': (5.678, -21.152),
+        'spine_lumbar': (5.175, -18.425, 3.094), 'spine_thoracic': (-10.071, -10.0, 5.494),
+        'neck': (2.104, -0.601, -13.183), 'head': (2.22, -0.011), 'right_clavicle': (22.54, 3.69),
+        'right_shoulder': (87.666, 14.964, 13.115), 'right_elbow': (20.61, 24.484),
+        'right_wrist': (5.596, -20.941),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (-1.027, -19.95, 4.397), 'spine_thoracic': (-7.949, -10.0, 5.48),
-        'neck': (4.086, -1.266, -13.305), 'head': (4.322, -0.028), 'right_clavicle': (11.36, 4.571),
-        'right_shoulder': (84.948, 8.045, 5.966), 'right_elbow': (21.973, 16.414),
-        'right_wrist': (1.788, -27.272),
+        'spine_lumbar': (-0.751, -18.512, 7.021), 'spine_thoracic': (-8.152, -7.981, 7.066),
+        'neck': (4.032, -1.209, -15.186), 'head': (4.265, -0.033), 'right_clavicle': (4.338, 6.318),
+        'right_shoulder': (86.046, 5.881, -1.384), 'right_elbow': (21.963, 9.358),
+        'right_wrist': (-1.912, -29.992),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (2.415, -17.284, 8.569), 'spine_thoracic': (-8.728, -6.079, 8.339),
-        'neck': (2.773, -0.753, -16.788), 'head': (2.928, -0.021), 'right_clavicle': (2.818, 7.274),
-        'right_shoulder': (88.703, 6.835, -3.776), 'right_elbow': (22.568, 7.474),
-        'right_wrist': (-3.083, -29.981),
+        'spine_lumbar': (2.483, -17.23, 8.629), 'spine_thoracic': (-8.744, -6.001, 8.39),
+        'neck': (2.736, -0.739, -16.831), 'head': (2.888, -0.02), 'right_clavicle': (2.732, 7.315),
+        'right_shoulder': (88.776, 6.826, -3.887), 'right_elbow': (22.574, 7.375),
+        'right_wrist': (-3.137, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
-        'spine_lumbar': (2.49, -19.002, 7.243), 'spine_thoracic': (-9.35, -8.557, 7.282),
-        'neck': (3.252, -0.898, -17.5), 'head': (3.437, -0.025), 'right_clavicle': (5.666, 5.998),
-        'right_shoulder': (86.668, 8.727, -1.094), 'right_elbow': (22.77, 10.208),
-        'right_wrist': (-1.893, -29.983),
+        'spine_lumbar': (2.429, -17.481, 8.434), 'spine_thoracic': (-8.73, -6.293, 8.236),
+        'neck': (2.775, -0.751, -16.898), 'head': (2.93, -0.021), 'right_clavicle': (3.025, 7.159),
+        'right_shoulder': (88.668, 6.992, -3.634), 'right_elbow': (22.43, 7.647),
+        'right_wrist': (-3.006, -30.0),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (3.827, -20.0, 4.166), 'spine_thoracic': (-8.807, -10.0, 5.499),
-        'neck': (2.356, -0.638, -15.504), 'head': (2.485, -0.017),
-        'right_clavicle': (14.203, 4.127), 'right_shoulder': (87.13, 11.971, 6.978),
-        'right_elbow': (22.018, 18.3), 'right_wrist': (2.327, -26.057),
+        'spine_lumbar': (3.216, -20.0, 4.971), 'spine_thoracic': (-8.591, -10.0, 5.857),
+        'neck': (2.594, -0.702, -16.306), 'head': (2.737, -0.019),
+        'right_clavicle': (10.921, 4.629), 'right_shoulder': (87.128, 10.674, 4.144),
+        'right_elbow': (22.112, 15.459), 'right_wrist': (0.893, -27.788),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (4.822, -18.452, 3.056), 'spine_thoracic': (-10.022, -10.0, 5.448),
-        'neck': (2.242, -0.652, -12.874), 'head': (2.365, -0.011),
-        'right_clavicle': (22.481, 3.692), 'right_shoulder': (87.486, 14.779, 13.262),
-        'right_elbow': (20.68, 24.47), 'right_wrist': (5.639, -20.946),
+        'spine_lumbar': (5.164, -18.478, 3.152), 'spine_thoracic': (-10.035, -10.0, 5.508),
+        'neck': (2.102, -0.598, -13.311), 'head': (2.217, -0.011),
+        'right_clavicle': (22.209, 3.723), 'right_shoulder': (87.665, 14.87, 12.819),
+        'right_elbow': (20.571, 24.206), 'right_wrist': (5.45, -21.176),
     })
     human.KeyJoints(17.6, {
-        'spine_lumbar': (-0.524, -19.588, 3.569), 'spine_thoracic': (-8.386, -10.0, 5.323),
-        'neck': (3.96, -1.257, -12.205), 'head': (4.188, -0.019), 'right_clavicle': (16.001, 4.111),
-        'right_shoulder': (85.106, 9.437, 10.077), 'right_elbow': (21.65, 20.377),
-        'right_wrist': (3.914, -24.275),
+        'spine_lumbar': (-0.134, -20.0, 4.04), 'spine_thoracic': (-8.207, -10.0, 5.273),
+        'neck': (3.79, -1.172, -13.275), 'head': (4.008, -0.024), 'right_clavicle': (13.281, 4.295),
+        'right_shoulder': (85.156, 9.318, 7.392), 'right_elbow': (22.04, 17.977),
+        'right_wrist': (2.5, -26.247),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (0.31, -18.918, 6.592), 'spine_thoracic': (-8.224, -8.437, 6.741),
-        'neck': (3.58, -1.05, -15.571), 'head': (3.785, -0.028), 'right_clavicle': (5.833, 5.965),
-        'right_shoulder': (86.434, 7.154, 0.028), 'right_elbow': (22.366, 10.884),
-        'right_wrist': (-1.2, -29.235),
+        'spine_lumbar': (2.236, -17.208, 8.599), 'spine_thoracic': (-8.692, -5.997, 8.361),
+        'neck': (2.826, -0.772, -16.681), 'head': (2.983, -0.021), 'right_clavicle': (2.684, 7.315),
+        'right_shoulder': (88.628, 6.65, -3.858), 'right_elbow': (22.55, 7.363),
+        'right_wrist': (-3.124, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
@@ -1104,28 +1103,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (3.113, -20.0, 5.135), 'spine_thoracic': (-8.551, -10.0, 5.929),
-        'neck': (2.634, -0.712, -16.482), 'head': (2.779, -0.019), 'right_clavicle': (10.23, 4.728),
-        'right_shoulder': (87.147, 10.41, 3.556), 'right_elbow': (22.171, 14.872),
-        'right_wrist': (0.595, -28.08),
+        'spine_lumbar': (2.55, -19.179, 7.216), 'spine_thoracic': (-9.677, -8.837, 7.248),
+        'neck': (3.417, -0.951, -17.712), 'head': (3.613, -0.027), 'right_clavicle': (6.058, 5.866),
+        'right_shoulder': (86.069, 9.094, -0.836), 'right_elbow': (22.92, 10.465),
+        'right_wrist': (-1.833, -29.963),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (4.478, -18.924, 3.602), 'spine_thoracic': (-9.666, -10.0, 5.586),
-        'neck': (2.312, -0.651, -14.03), 'head': (2.439, -0.016), 'right_clavicle': (19.486, 3.989),
-        'right_shoulder': (87.379, 13.772, 10.624), 'right_elbow': (20.501, 22.003),
-        'right_wrist': (4.344, -22.88),
+        'spine_lumbar': (4.43, -18.951, 3.638), 'spine_thoracic': (-9.643, -10.0, 5.593),
+        'neck': (2.336, -0.659, -14.085), 'head': (2.464, -0.016), 'right_clavicle': (19.306, 4.01),
+        'right_shoulder': (87.362, 13.701, 10.476), 'right_elbow': (20.505, 21.854),
+        'right_wrist': (4.269, -22.986),
     })
     human.KeyJoints(18.1, {
-        'spine_lumbar': (0.453, -19.084, 3.061), 'spine_thoracic': (-9.029, -10.0, 5.242),
-        'neck': (3.786, -1.213, -11.741), 'head': (4.004, -0.013),
-        'right_clavicle': (20.048, 3.818), 'right_shoulder': (85.432, 11.311, 13.048),
-        'right_elbow': (21.282, 23.432), 'right_wrist': (5.462, -21.59),
+        'spine_lumbar': (4.555, -18.505, 3.096), 'spine_thoracic': (-9.946, -10.0, 5.459),
+        'neck': (2.337, -0.685, -12.974), 'head': (2.467, -0.012), 'right_clavicle': (22.25, 3.711),
+        'right_shoulder': (87.357, 14.532, 13.079), 'right_elbow': (20.67, 24.339),
+        'right_wrist': (5.567, -21.03),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (-1.081, -19.996, 4.708), 'spine_thoracic': (-7.895, -10.0, 5.548),
-        'neck': (4.112, -1.266, -13.705), 'head': (4.349, -0.03), 'right_clavicle': (9.997, 4.752),
-        'right_shoulder': (84.932, 7.747, 4.67), 'right_elbow': (22.069, 15.176),
-        'right_wrist': (1.125, -27.951),
+        'spine_lumbar': (0.13, -17.775, 7.739), 'spine_thoracic': (-8.239, -6.851, 7.653),
+        'neck': (3.615, -1.062, -15.538), 'head': (3.823, -0.029), 'right_clavicle': (3.261, 6.862),
+        'right_shoulder': (87.184, 5.861, -2.754), 'right_elbow': (22.041, 8.135),
+        'right_wrist': (-2.556, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
@@ -1135,65 +1134,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (2.644, -19.558, 7.002), 'spine_thoracic': (-9.715, -9.488, 7.065),
-        'neck': (3.449, -0.958, -17.943), 'head': (3.648, -0.027), 'right_clavicle': (6.724, 5.573),
-        'right_shoulder': (85.69, 9.597, -0.271), 'right_elbow': (22.924, 11.043),
-        'right_wrist': (-1.61, -29.695),
+        'spine_lumbar': (2.374, -17.79, 8.178), 'spine_thoracic': (-8.708, -6.674, 8.035),
+        'neck': (2.818, -0.764, -16.967), 'head': (2.975, -0.021), 'right_clavicle': (3.417, 6.957),
+        'right_shoulder': (88.524, 7.21, -3.267), 'right_elbow': (22.287, 8.033),
+        'right_wrist': (-2.818, -30.0),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (4.181, -20.0, 3.791), 'spine_thoracic': (-8.889, -10.0, 5.318),
-        'neck': (2.209, -0.595, -15.21), 'head': (2.328, -0.015), 'right_clavicle': (15.519, 3.868),
-        'right_shoulder': (87.18, 12.56, 8.185), 'right_elbow': (22.157, 19.511),
-        'right_wrist': (2.912, -25.253),
+        'spine_lumbar': (3.573, -20.0, 4.461), 'spine_thoracic': (-8.735, -10.0, 5.636),
+        'neck': (2.46, -0.667, -15.785), 'right_clavicle': (13.027, 4.32),
+        'right_shoulder': (87.112, 11.487, 5.937), 'right_elbow': (21.974, 17.258),
+        'right_wrist': (1.81, -26.702),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (3.183, -18.599, 3.012), 'spine_thoracic': (-9.767, -10.0, 5.335),
-        'neck': (2.871, -0.885, -12.246), 'head': (3.034, -0.011),
-        'right_clavicle': (22.113, 3.708), 'right_shoulder': (86.658, 13.834, 13.43),
-        'right_elbow': (20.841, 24.368), 'right_wrist': (5.686, -20.978),
+        'spine_lumbar': (5.24, -18.429, 3.108), 'spine_thoracic': (-10.076, -10.0, 5.501),
+        'neck': (2.078, -0.591, -13.236), 'head': (2.192, -0.011),
+        'right_clavicle': (22.495, 3.695), 'right_shoulder': (87.7, 14.989, 13.047),
+        'right_elbow': (20.594, 24.435), 'right_wrist': (5.565, -20.986),
     })
     human.KeyJoints(18.7, {
-        'spine_lumbar': (-0.746, -19.736, 3.817), 'spine_thoracic': (-8.205, -10.0, 5.367),
-        'neck': (4.005, -1.263, -12.595), 'head': (4.236, -0.021), 'right_clavicle': (14.44, 4.247),
-        'right_shoulder': (85.035, 8.906, 8.749), 'right_elbow': (21.762, 19.084),
-        'right_wrist': (3.225, -25.344),
+        'spine_lumbar': (-1.097, -19.996, 4.91), 'spine_thoracic': (-7.903, -9.997, 5.612),
+        'neck': (4.132, -1.27, -13.975), 'head': (4.37, -0.031), 'right_clavicle': (9.286, 4.869),
+        'right_shoulder': (84.893, 7.599, 3.975), 'right_elbow': (22.119, 14.5),
+        'right_wrist': (0.763, -28.258),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (1.173, -18.248, 7.43), 'spine_thoracic': (-8.431, -7.47, 7.402),
-        'neck': (3.324, -0.953, -16.048), 'head': (3.514, -0.026), 'right_clavicle': (4.493, 6.518),
-        'right_shoulder': (87.364, 7.005, -1.633), 'right_elbow': (22.457, 9.389),
-        'right_wrist': (-2.023, -29.578),
+        'spine_lumbar': (2.4, -17.219, 8.621), 'spine_thoracic': (-8.727, -5.994, 8.382),
+        'neck': (2.765, -0.75, -16.777), 'head': (2.919, -0.021), 'right_clavicle': (2.714, 7.317),
+        'right_shoulder': (88.727, 6.767, -3.879), 'right_elbow': (22.567, 7.365),
+        'right_wrist': (-3.134, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
-        'spine_lumbar': (2.361, -17.941, 8.041), 'spine_thoracic': (-8.693, -6.879, 7.928),
-        'neck': (2.835, -0.769, -16.997), 'head': (2.993, -0.021), 'right_clavicle': (3.633, 6.848),
-        'right_shoulder': (88.444, 7.328, -3.048), 'right_elbow': (22.253, 8.259),
-        'right_wrist': (-2.708, -30.0),
+        'spine_lumbar': (2.482, -17.236, 8.626), 'spine_thoracic': (-8.744, -6.008, 8.387),
+        'neck': (2.737, -0.739, -16.834), 'head': (2.889, -0.02), 'right_clavicle': (2.739, 7.311),
+        'right_shoulder': (88.775, 6.83, -3.882), 'right_elbow': (22.571, 7.381),
+        'right_wrist': (-3.135, -30.0),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (3.311, -20.0, 4.821), 'spine_thoracic': (-8.636, -10.0, 5.794),
-        'neck': (2.561, -0.694, -16.148), 'right_clavicle': (11.551, 4.541),
-        'right_shoulder': (87.115, 10.911, 4.67), 'right_elbow': (22.026, 15.988),
-        'right_wrist': (1.166, -27.473),
+        'spine_lumbar': (2.722, -19.85, 6.664), 'spine_thoracic': (-9.661, -9.978, 6.813),
+        'neck': (3.457, -0.956, -18.099), 'head': (3.656, -0.027), 'right_clavicle': (7.272, 5.321),
+        'right_shoulder': (85.548, 9.891, 0.284), 'right_elbow': (22.865, 11.617),
+        'right_wrist': (-1.317, -29.269),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (4.818, -18.715, 3.364), 'spine_thoracic': (-9.84, -10.0, 5.545),
-        'neck': (2.207, -0.625, -13.684), 'head': (2.328, -0.013),
-        'right_clavicle': (20.829, 3.852), 'right_shoulder': (87.513, 14.309, 11.716),
-        'right_elbow': (20.496, 23.103), 'right_wrist': (4.895, -22.065),
+        'spine_lumbar': (4.767, -18.751, 3.396), 'spine_thoracic': (-9.81, -10.0, 5.55),
+        'neck': (2.223, -0.629, -13.732), 'head': (2.344, -0.014),
+        'right_clavicle': (20.615, 3.871), 'right_shoulder': (87.491, 14.224, 11.552),
+        'right_elbow': (20.494, 22.933), 'right_wrist': (4.81, -22.199),
     })
     human.KeyJoints(19.2, {
-        'spine_lumbar': (0.08, -19.251, 3.182), 'spine_thoracic': (-8.809, -10.0, 5.26),
-        'neck': (3.847, -1.232, -11.788), 'head': (4.069, -0.015),
-        'right_clavicle': (18.882, 3.894), 'right_shoulder': (85.305, 10.657, 12.304),
-        'right_elbow': (21.408, 22.619), 'right_wrist': (5.074, -22.308),
+        'spine_lumbar': (3.139, -18.832, 3.22), 'spine_thoracic': (-9.576, -10.0, 5.406),
+        'neck': (2.841, -0.861, -12.793), 'head': (3.001, -0.015),
+        'right_clavicle': (20.764, 3.827), 'right_shoulder': (86.66, 13.323, 12.287),
+        'right_elbow': (20.728, 23.326), 'right_wrist': (5.144, -21.817),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (-0.988, -19.925, 5.094), 'spine_thoracic': (-7.914, -9.891, 5.69),
-        'neck': (4.071, -1.248, -14.219), 'head': (4.306, -0.03), 'right_clavicle': (8.738, 4.989),
-        'right_shoulder': (85.035, 7.533, 3.4), 'right_elbow': (22.162, 13.97),
-        'right_wrist': (0.482, -28.403),
+        'spine_lumbar': (1.076, -17.357, 8.266), 'spine_thoracic': (-8.455, -6.256, 8.078),
+        'neck': (3.261, -0.932, -16.041), 'head': (3.446, -0.026), 'right_clavicle': (2.794, 7.171),
+        'right_shoulder': (87.866, 6.037, -3.471), 'right_elbow': (22.293, 7.556),
+        'right_wrist': (-2.926, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
@@ -1203,65 +1202,64 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (2.798, -19.948, 6.169), 'spine_thoracic': (-9.253, -9.999, 6.487),
-        'neck': (3.235, -0.887, -17.743), 'head': (3.42, -0.025), 'right_clavicle': (7.893, 5.139),
-        'right_shoulder': (86.059, 9.895, 1.08), 'right_elbow': (22.643, 12.417),
-        'right_wrist': (-0.828, -28.95),
+        'spine_lumbar': (2.356, -18.179, 7.794), 'spine_thoracic': (-8.664, -7.223, 7.738),
+        'neck': (2.846, -0.773, -17.006), 'head': (3.005, -0.021), 'right_clavicle': (4.0, 6.666),
+        'right_shoulder': (88.316, 7.522, -2.652), 'right_elbow': (22.24, 8.664),
+        'right_wrist': (-2.504, -30.0),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (4.264, -19.774, 3.738), 'spine_thoracic': (-9.106, -10.0, 5.396),
-        'neck': (2.245, -0.613, -14.835), 'head': (2.367, -0.016),
-        'right_clavicle': (16.834, 3.908), 'right_shoulder': (87.23, 12.972, 9.008),
-        'right_elbow': (21.674, 20.353), 'right_wrist': (3.394, -24.459),
+        'spine_lumbar': (4.041, -20.0, 3.931), 'spine_thoracic': (-8.848, -10.0, 5.383),
+        'neck': (2.261, -0.61, -15.281), 'head': (2.383, -0.016), 'right_clavicle': (14.923, 3.962),
+        'right_shoulder': (87.154, 12.301, 7.66), 'right_elbow': (22.099, 18.983),
+        'right_wrist': (2.652, -25.622),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (1.529, -18.78, 2.988), 'spine_thoracic': (-9.465, -10.0, 5.245),
-        'neck': (3.492, -1.112, -11.779), 'head': (3.693, -0.011),
-        'right_clavicle': (21.579, 3.732), 'right_shoulder': (85.847, 12.738, 13.514),
-        'right_elbow': (21.01, 24.209), 'right_wrist': (5.708, -21.03),
+        'spine_lumbar': (5.258, -18.416, 3.097), 'spine_thoracic': (-10.086, -10.0, 5.499),
+        'neck': (2.072, -0.59, -13.218), 'head': (2.186, -0.011), 'right_clavicle': (22.565, 3.689),
+        'right_shoulder': (87.708, 15.018, 13.103), 'right_elbow': (20.601, 24.491),
+        'right_wrist': (5.593, -20.939),
     })
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-0.914, -19.859, 4.094), 'spine_thoracic': (-8.057, -10.0, 5.419),
-        'neck': (4.045, -1.265, -12.946), 'head': (4.279, -0.024), 'right_clavicle': (12.88, 4.4),
-        'right_shoulder': (84.982, 8.439, 7.364), 'right_elbow': (21.87, 17.751),
-        'right_wrist': (2.508, -26.365),
+        'spine_lumbar': (-1.189, -19.426, 6.459), 'spine_thoracic': (-9.081, -9.54, 6.567),
+        'neck': (4.79, -1.464, -15.306), 'head': (5.071, -0.04), 'right_clavicle': (6.325, 5.583),
+        'right_shoulder': (83.609, 7.01, 0.678), 'right_elbow': (22.76, 11.264),
+        'right_wrist': (-1.14, -29.741),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (1.934, -17.657, 8.136), 'spine_thoracic': (-8.613, -6.617, 7.978),
-        'neck': (3.013, -0.839, -16.489), 'head': (3.182, -0.023), 'right_clavicle': (3.437, 6.986),
-        'right_shoulder': (88.185, 6.896, -2.976), 'right_elbow': (22.527, 8.187),
-        'right_wrist': (-2.688, -29.835),
+        'spine_lumbar': (2.463, -17.226, 8.627), 'spine_thoracic': (-8.74, -5.996, 8.388),
+        'neck': (2.743, -0.742, -16.815), 'head': (2.895, -0.02), 'right_clavicle': (2.727, 7.317),
+        'right_shoulder': (88.764, 6.812, -3.885), 'right_elbow': (22.572, 7.37),
+        'right_wrist': (-3.137, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
-        'spine_lumbar': (2.392, -18.606, 7.314), 'spine_thoracic': (-8.595, -7.932, 7.368),
-        'neck': (2.851, -0.773, -17.049), 'head': (3.01, -0.021), 'right_clavicle': (4.798, 6.295),
-        'right_shoulder': (88.029, 7.94, -1.702), 'right_elbow': (22.338, 9.607),
-        'right_wrist': (-2.04, -30.0),
+        'spine_lumbar': (2.468, -17.299, 8.577), 'spine_thoracic': (-8.741, -6.08, 8.349),
+        'right_clavicle': (2.81, 7.273), 'right_shoulder': (88.748, 6.871, -3.821),
+        'right_elbow': (22.533, 7.447), 'right_wrist': (-3.103, -30.0),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (3.541, -20.0, 4.501), 'spine_thoracic': (-8.725, -10.0, 5.655),
-        'neck': (2.474, -0.671, -15.825), 'right_clavicle': (12.866, 4.346),
-        'right_shoulder': (87.11, 11.423, 5.796), 'right_elbow': (21.971, 17.116),
-        'right_wrist': (1.739, -26.787),
+        'spine_lumbar': (2.903, -20.0, 5.5), 'spine_thoracic': (-8.489, -10.0, 6.099),
+        'neck': (2.729, -0.736, -16.881), 'head': (2.881, -0.02), 'right_clavicle': (8.774, 4.951),
+        'right_shoulder': (87.206, 9.884, 2.271), 'right_elbow': (22.241, 13.597),
+        'right_wrist': (-0.051, -28.582),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (5.213, -18.447, 3.138), 'spine_thoracic': (-10.061, -10.0, 5.513),
-        'neck': (2.087, -0.594, -13.346), 'head': (2.201, -0.011),
-        'right_clavicle': (22.388, 3.705), 'right_shoulder': (87.688, 14.945, 12.909),
-        'right_elbow': (20.568, 24.35), 'right_wrist': (5.506, -21.055),
+        'spine_lumbar': (5.005, -18.585, 3.246), 'spine_thoracic': (-9.947, -10.0, 5.524),
+        'neck': (2.151, -0.611, -13.473), 'head': (2.268, -0.012),
+        'right_clavicle': (21.593, 3.782), 'right_shoulder': (87.594, 14.616, 12.328),
+        'right_elbow': (20.527, 23.713), 'right_wrist': (5.204, -21.579),
     })
     human.KeyJoints(20.3, {
-        'spine_lumbar': (-0.245, -19.421, 3.353), 'spine_thoracic': (-8.593, -10.0, 5.287),
-        'neck': (3.906, -1.245, -11.893), 'head': (4.131, -0.016), 'right_clavicle': (17.52, 3.992),
-        'right_shoulder': (85.197, 10.032, 11.298), 'right_elbow': (21.53, 21.588),
-        'right_wrist': (4.549, -23.224),
+        'spine_lumbar': (1.66, -20.0, 3.23), 'spine_thoracic': (-8.594, -10.0, 4.953),
+        'neck': (3.133, -0.954, -13.064), 'head': (3.311, -0.018),
+        'right_clavicle': (16.934, 3.648), 'right_shoulder': (85.803, 11.505, 10.414),
+        'right_elbow': (22.469, 21.188), 'right_wrist': (3.965, -23.979),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (-0.482, -19.532, 5.755), 'spine_thoracic': (-8.035, -9.324, 6.118),
-        'neck': (3.86, -1.162, -14.903), 'head': (4.082, -0.029), 'right_clavicle': (7.318, 5.416),
-        'right_shoulder': (85.581, 7.335, 1.804), 'right_elbow': (22.264, 12.497),
-        'right_wrist': (-0.317, -28.83),
+        'spine_lumbar': (1.793, -17.196, 8.52), 'spine_thoracic': (-8.6, -6.017, 8.29),
+        'neck': (2.987, -0.832, -16.411), 'head': (3.155, -0.023), 'right_clavicle': (2.641, 7.3),
+        'right_shoulder': (88.354, 6.37, -3.776), 'right_elbow': (22.488, 7.362),
+        'right_wrist': (-3.082, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
@@ -1271,65 +1269,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (2.917, -20.0, 5.463), 'spine_thoracic': (-8.49, -10.0, 6.081),
-        'neck': (2.716, -0.732, -16.843), 'head': (2.866, -0.02), 'right_clavicle': (8.876, 4.932),
-        'right_shoulder': (87.205, 9.895, 2.377), 'right_elbow': (22.232, 13.703),
-        'right_wrist': (0.007, -28.544),
+        'spine_lumbar': (2.391, -18.594, 7.319), 'spine_thoracic': (-8.595, -7.913, 7.373),
+        'neck': (2.847, -0.773, -17.012), 'head': (3.006, -0.021), 'right_clavicle': (4.776, 6.305),
+        'right_shoulder': (88.038, 7.927, -1.724), 'right_elbow': (22.335, 9.585),
+        'right_wrist': (-2.048, -30.0),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (4.298, -19.207, 3.723), 'spine_thoracic': (-9.453, -10.0, 5.586),
-        'neck': (2.344, -0.657, -14.407), 'head': (2.472, -0.016),
-        'right_clavicle': (18.149, 4.033), 'right_shoulder': (87.285, 13.31, 9.677),
-        'right_elbow': (20.623, 21.044), 'right_wrist': (3.828, -23.673),
+        'spine_lumbar': (4.271, -19.613, 3.735), 'spine_thoracic': (-9.199, -10.0, 5.452),
+        'neck': (2.269, -0.622, -14.786), 'head': (2.393, -0.016),
+        'right_clavicle': (17.158, 3.945), 'right_shoulder': (87.242, 13.052, 9.165),
+        'right_elbow': (21.364, 20.516), 'right_wrist': (3.498, -24.265),
     })
     human.KeyJoints(20.8, {
-        'spine_lumbar': (0.879, -18.926, 2.994), 'spine_thoracic': (-9.247, -10.0, 5.233),
-        'neck': (3.698, -1.183, -11.714), 'head': (3.911, -0.012),
-        'right_clavicle': (20.964, 3.763), 'right_shoulder': (85.581, 11.991, 13.465),
-        'right_elbow': (21.15, 23.974), 'right_wrist': (5.68, -21.147),
+        'spine_lumbar': (5.178, -18.424, 3.094), 'spine_thoracic': (-10.071, -10.0, 5.494),
+        'neck': (2.103, -0.601, -13.184), 'head': (2.218, -0.011), 'right_clavicle': (22.542, 3.69),
+        'right_shoulder': (87.668, 14.966, 13.115), 'right_elbow': (20.61, 24.484),
+        'right_wrist': (5.596, -20.941),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (-1.026, -19.949, 4.391), 'spine_thoracic': (-7.951, -10.0, 5.479),
-        'neck': (4.085, -1.266, -13.299), 'head': (4.321, -0.028),
-        'right_clavicle': (11.384, 4.568), 'right_shoulder': (84.948, 8.05, 5.988),
-        'right_elbow': (21.971, 16.435), 'right_wrist': (1.8, -27.258),
+        'spine_lumbar': (-0.762, -18.527, 7.012), 'spine_thoracic': (-8.163, -8.008, 7.058),
+        'neck': (4.044, -1.214, -15.19), 'head': (4.279, -0.033), 'right_clavicle': (4.362, 6.307),
+        'right_shoulder': (86.003, 5.892, -1.356), 'right_elbow': (21.973, 9.382),
+        'right_wrist': (-1.901, -29.991),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (2.41, -17.288, 8.565), 'spine_thoracic': (-8.727, -6.084, 8.335),
-        'neck': (2.776, -0.753, -16.785), 'head': (2.93, -0.021), 'right_clavicle': (2.823, 7.271),
-        'right_shoulder': (88.698, 6.836, -3.769), 'right_elbow': (22.568, 7.481),
-        'right_wrist': (-3.079, -29.979),
+        'spine_lumbar': (2.482, -17.23, 8.629), 'spine_thoracic': (-8.744, -6.0, 8.39),
+        'neck': (2.736, -0.739, -16.83), 'head': (2.888, -0.02), 'right_clavicle': (2.732, 7.315),
+        'right_shoulder': (88.776, 6.826, -3.887), 'right_elbow': (22.574, 7.375),
+        'right_wrist': (-3.137, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
-        'spine_lumbar': (2.487, -18.996, 7.244), 'spine_thoracic': (-9.332, -8.548, 7.283),
-        'neck': (3.242, -0.895, -17.489), 'head': (3.427, -0.025), 'right_clavicle': (5.653, 6.002),
-        'right_shoulder': (86.696, 8.713, -1.102), 'right_elbow': (22.762, 10.2),
-        'right_wrist': (-1.895, -29.983),
+        'spine_lumbar': (2.43, -17.477, 8.438), 'spine_thoracic': (-8.73, -6.288, 8.239),
+        'neck': (2.775, -0.751, -16.897), 'head': (2.929, -0.021), 'right_clavicle': (3.02, 7.162),
+        'right_shoulder': (88.67, 6.989, -3.639), 'right_elbow': (22.432, 7.642),
+        'right_wrist': (-3.008, -30.0),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (3.822, -20.0, 4.172), 'spine_thoracic': (-8.805, -10.0, 5.501),
-        'neck': (2.359, -0.638, -15.509), 'head': (2.487, -0.017),
-        'right_clavicle': (14.181, 4.131), 'right_shoulder': (87.129, 11.962, 6.958),
-        'right_elbow': (22.016, 18.28), 'right_wrist': (2.317, -26.069),
+        'spine_lumbar': (3.211, -20.0, 4.98), 'spine_thoracic': (-8.589, -10.0, 5.861),
+        'neck': (2.596, -0.702, -16.315), 'head': (2.739, -0.019),
+        'right_clavicle': (10.885, 4.634), 'right_shoulder': (87.129, 10.661, 4.113),
+        'right_elbow': (22.117, 15.428), 'right_wrist': (0.877, -27.805),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (4.842, -18.451, 3.057), 'spine_thoracic': (-10.025, -10.0, 5.449),
-        'neck': (2.234, -0.65, -12.884), 'head': (2.357, -0.011), 'right_clavicle': (22.485, 3.692),
-        'right_shoulder': (87.496, 14.79, 13.259), 'right_elbow': (20.678, 24.471),
-        'right_wrist': (5.638, -20.945),
+        'spine_lumbar': (5.162, -18.48, 3.153), 'spine_thoracic': (-10.034, -10.0, 5.508),
+        'neck': (2.103, -0.598, -13.313), 'head': (2.217, -0.011),
+        'right_clavicle': (22.201, 3.724), 'right_shoulder': (87.664, 14.867, 12.813),
+        'right_elbow': (20.57, 24.2), 'right_wrist': (5.447, -21.181),
     })
     human.KeyJoints(21.4, {
-        'spine_lumbar': (-0.52, -19.585, 3.565), 'spine_thoracic': (-8.389, -10.0, 5.322),
-        'neck': (3.959, -1.256, -12.199), 'head': (4.187, -0.019),
-        'right_clavicle': (16.027, 4.109), 'right_shoulder': (85.107, 9.447, 10.098),
-        'right_elbow': (21.648, 20.398), 'right_wrist': (3.925, -24.257),
+        'spine_lumbar': (-0.111, -20.0, 4.027), 'spine_thoracic': (-8.214, -10.0, 5.268),
+        'neck': (3.782, -1.169, -13.269), 'head': (4.0, -0.024), 'right_clavicle': (13.347, 4.286),
+        'right_shoulder': (85.161, 9.352, 7.446), 'right_elbow': (22.04, 18.034),
+        'right_wrist': (2.527, -26.211),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (0.295, -18.929, 6.578), 'spine_thoracic': (-8.221, -8.454, 6.73),
-        'neck': (3.585, -1.052, -15.561), 'head': (3.79, -0.028), 'right_clavicle': (5.857, 5.955),
-        'right_shoulder': (86.418, 7.157, 0.058), 'right_elbow': (22.365, 10.911),
-        'right_wrist': (-1.186, -29.229),
+        'spine_lumbar': (2.23, -17.208, 8.598), 'spine_thoracic': (-8.691, -5.997, 8.361),
+        'neck': (2.827, -0.773, -16.678), 'head': (2.985, -0.021), 'right_clavicle': (2.683, 7.315),
+        'right_shoulder': (88.625, 6.646, -3.858), 'right_elbow': (22.549, 7.363),
+        'right_wrist': (-3.123, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
@@ -1339,28 +1337,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(21.7, {
-        'spine_lumbar': (3.109, -20.0, 5.14), 'spine_thoracic': (-8.55, -10.0, 5.932),
-        'neck': (2.635, -0.712, -16.487), 'head': (2.78, -0.019), 'right_clavicle': (10.207, 4.732),
-        'right_shoulder': (87.148, 10.4, 3.537), 'right_elbow': (22.172, 14.853),
-        'right_wrist': (0.585, -28.089),
+        'spine_lumbar': (2.546, -19.168, 7.218), 'spine_thoracic': (-9.664, -8.82, 7.25),
+        'neck': (3.41, -0.948, -17.699), 'head': (3.605, -0.027), 'right_clavicle': (6.036, 5.874),
+        'right_shoulder': (86.097, 9.075, -0.852), 'right_elbow': (22.913, 10.449),
+        'right_wrist': (-1.837, -29.964),
     })
     human.KeyJoints(21.8, {
-        'spine_lumbar': (4.473, -18.927, 3.606), 'spine_thoracic': (-9.663, -10.0, 5.587),
-        'neck': (2.314, -0.651, -14.036), 'head': (2.44, -0.016), 'right_clavicle': (19.464, 3.991),
-        'right_shoulder': (87.377, 13.763, 10.606), 'right_elbow': (20.502, 21.985),
-        'right_wrist': (4.335, -22.893),
+        'spine_lumbar': (4.425, -18.956, 3.642), 'spine_thoracic': (-9.639, -10.0, 5.593),
+        'neck': (2.337, -0.66, -14.092), 'head': (2.466, -0.016), 'right_clavicle': (19.28, 4.012),
+        'right_shoulder': (87.36, 13.691, 10.455), 'right_elbow': (20.505, 21.834),
+        'right_wrist': (4.259, -23.002),
     })
     human.KeyJoints(21.9, {
-        'spine_lumbar': (0.459, -19.081, 3.059), 'spine_thoracic': (-9.033, -10.0, 5.242),
-        'neck': (3.785, -1.213, -11.741), 'head': (4.002, -0.013),
-        'right_clavicle': (20.065, 3.816), 'right_shoulder': (85.435, 11.322, 13.058),
-        'right_elbow': (21.28, 23.443), 'right_wrist': (5.467, -21.58),
+        'spine_lumbar': (4.571, -18.502, 3.096), 'spine_thoracic': (-9.95, -10.0, 5.46),
+        'neck': (2.331, -0.683, -12.979), 'head': (2.46, -0.012), 'right_clavicle': (22.259, 3.71),
+        'right_shoulder': (87.365, 14.543, 13.08), 'right_elbow': (20.669, 24.344),
+        'right_wrist': (5.568, -21.027),
     })
     human.KeyJoints(22.0, {
-        'spine_lumbar': (-1.08, -19.995, 4.703), 'spine_thoracic': (-7.896, -10.0, 5.546),
-        'neck': (4.111, -1.266, -13.698), 'head': (4.349, -0.03), 'right_clavicle': (10.018, 4.749),
-        'right_shoulder': (84.932, 7.751, 4.691), 'right_elbow': (22.067, 15.196),
-        'right_wrist': (1.136, -27.942),
+        'spine_lumbar': (0.112, -17.785, 7.727), 'spine_thoracic': (-8.234, -6.866, 7.643),
+        'neck': (3.621, -1.064, -15.528), 'head': (3.83, -0.029), 'right_clavicle': (3.274, 6.855),
+        'right_shoulder': (87.172, 5.859, -2.736), 'right_elbow': (22.037, 8.151),
+        'right_wrist': (-2.547, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
@@ -1370,65 +1368,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (2.641, -19.543, 7.015), 'spine_thoracic': (-9.717, -9.462, 7.075),
-        'neck': (3.449, -0.958, -17.938), 'head': (3.648, -0.027), 'right_clavicle': (6.701, 5.585),
-        'right_shoulder': (85.698, 9.58, -0.294), 'right_elbow': (22.926, 11.02),
-        'right_wrist': (-1.621, -29.713),
+        'spine_lumbar': (2.375, -17.784, 8.184), 'spine_thoracic': (-8.708, -6.666, 8.039),
+        'neck': (2.817, -0.764, -16.966), 'head': (2.975, -0.021), 'right_clavicle': (3.408, 6.961),
+        'right_shoulder': (88.527, 7.205, -3.275), 'right_elbow': (22.289, 8.025),
+        'right_wrist': (-2.822, -30.0),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (4.177, -20.0, 3.795), 'spine_thoracic': (-8.887, -10.0, 5.32),
-        'neck': (2.21, -0.595, -15.215), 'head': (2.33, -0.015), 'right_clavicle': (15.496, 3.87),
-        'right_shoulder': (87.179, 12.551, 8.167), 'right_elbow': (22.155, 19.492),
-        'right_wrist': (2.902, -25.266),
+        'spine_lumbar': (3.566, -20.0, 4.47), 'spine_thoracic': (-8.733, -10.0, 5.64),
+        'neck': (2.463, -0.668, -15.793), 'right_clavicle': (12.993, 4.325),
+        'right_shoulder': (87.111, 11.474, 5.907), 'right_elbow': (21.974, 17.228),
+        'right_wrist': (1.795, -26.72),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (3.214, -18.596, 3.012), 'spine_thoracic': (-9.772, -10.0, 5.337),
-        'neck': (2.859, -0.88, -12.257), 'head': (3.021, -0.011), 'right_clavicle': (22.121, 3.707),
-        'right_shoulder': (86.674, 13.853, 13.427), 'right_elbow': (20.838, 24.37),
-        'right_wrist': (5.685, -20.977),
+        'spine_lumbar': (5.239, -18.429, 3.108), 'spine_thoracic': (-10.076, -10.0, 5.501),
+        'neck': (2.079, -0.592, -13.237), 'head': (2.192, -0.011),
+        'right_clavicle': (22.492, 3.696), 'right_shoulder': (87.699, 14.988, 13.045),
+        'right_elbow': (20.594, 24.433), 'right_wrist': (5.564, -20.988),
     })
     human.KeyJoints(22.5, {
-        'spine_lumbar': (-0.742, -19.734, 3.813), 'spine_thoracic': (-8.208, -10.0, 5.366),
-        'neck': (4.004, -1.263, -12.589), 'head': (4.235, -0.021),
-        'right_clavicle': (14.467, 4.245), 'right_shoulder': (85.036, 8.914, 8.772),
-        'right_elbow': (21.76, 19.107), 'right_wrist': (3.237, -25.326),
+        'spine_lumbar': (-1.094, -19.998, 4.889), 'spine_thoracic': (-7.897, -9.999, 5.602),
+        'neck': (4.126, -1.269, -13.951), 'head': (4.365, -0.031), 'right_clavicle': (9.343, 4.858),
+        'right_shoulder': (84.904, 7.614, 4.032), 'right_elbow': (22.114, 14.558),
+        'right_wrist': (0.794, -28.228),
     })
     human.KeyJoints(22.6, {
-        'spine_lumbar': (1.158, -18.259, 7.417), 'spine_thoracic': (-8.427, -7.486, 7.392),
-        'neck': (3.329, -0.954, -16.041), 'head': (3.519, -0.026), 'right_clavicle': (4.514, 6.509),
-        'right_shoulder': (87.349, 7.008, -1.607), 'right_elbow': (22.455, 9.412),
-        'right_wrist': (-2.011, -29.573),
+        'spine_lumbar': (2.399, -17.219, 8.621), 'spine_thoracic': (-8.727, -5.994, 8.382),
+        'neck': (2.766, -0.75, -16.776), 'head': (2.92, -0.021), 'right_clavicle': (2.713, 7.317),
+        'right_shoulder': (88.727, 6.766, -3.879), 'right_elbow': (22.567, 7.365),
+        'right_wrist': (-3.134, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
-        'spine_lumbar': (2.363, -17.922, 8.058), 'spine_thoracic': (-8.695, -6.853, 7.941),
-        'neck': (2.833, -0.769, -16.994), 'head': (2.991, -0.021), 'right_clavicle': (3.607, 6.862),
-        'right_shoulder': (88.454, 7.314, -3.074), 'right_elbow': (22.259, 8.232),
-        'right_wrist': (-2.721, -30.0),
+        'spine_lumbar': (2.482, -17.236, 8.626), 'spine_thoracic': (-8.744, -6.008, 8.387),
+        'neck': (2.736, -0.739, -16.834), 'head': (2.888, -0.02), 'right_clavicle': (2.738, 7.311),
+        'right_shoulder': (88.775, 6.83, -3.882), 'right_elbow': (22.571, 7.381),
+        'right_wrist': (-3.135, -30.0),
     })
     human.KeyJoints(22.8, {
-        'spine_lumbar': (3.308, -20.0, 4.826), 'spine_thoracic': (-8.635, -10.0, 5.796),
-        'neck': (2.562, -0.694, -16.153), 'right_clavicle': (11.528, 4.544),
-        'right_shoulder': (87.115, 10.902, 4.652), 'right_elbow': (22.029, 15.969),
-        'right_wrist': (1.156, -27.485),
+        'spine_lumbar': (2.719, -19.843, 6.678), 'spine_thoracic': (-9.664, -9.971, 6.824),
+        'neck': (3.46, -0.957, -18.11), 'head': (3.659, -0.027), 'right_clavicle': (7.25, 5.329),
+        'right_shoulder': (85.55, 9.887, 0.26), 'right_elbow': (22.868, 11.593),
+        'right_wrist': (-1.33, -29.284),
     })
     human.KeyJoints(22.9, {
-        'spine_lumbar': (4.812, -18.719, 3.368), 'spine_thoracic': (-9.836, -10.0, 5.546),
-        'neck': (2.209, -0.626, -13.69), 'head': (2.33, -0.013), 'right_clavicle': (20.802, 3.854),
-        'right_shoulder': (87.51, 14.298, 11.696), 'right_elbow': (20.496, 23.082),
-        'right_wrist': (4.884, -22.082),
+        'spine_lumbar': (4.762, -18.754, 3.399), 'spine_thoracic': (-9.807, -10.0, 5.55),
+        'neck': (2.224, -0.63, -13.738), 'head': (2.346, -0.014), 'right_clavicle': (20.596, 3.873),
+        'right_shoulder': (87.489, 14.216, 11.537), 'right_elbow': (20.494, 22.917),
+        'right_wrist': (4.802, -22.212),
     })
     human.KeyJoints(23.0, {
-        'spine_lumbar': (0.086, -19.248, 3.17), 'spine_thoracic': (-8.813, -10.0, 5.259),
-        'neck': (3.845, -1.232, -11.778), 'head': (4.067, -0.014),
-        'right_clavicle': (18.905, 3.888), 'right_shoulder': (85.307, 10.617, 12.057),
-        'right_elbow': (21.336, 22.443), 'right_wrist': (4.997, -22.297),
+        'spine_lumbar': (3.652, -18.467, 3.322), 'spine_thoracic': (-9.554, -9.836, 5.49),
+        'neck': (2.564, -0.768, -12.734), 'head': (2.707, -0.013),
+        'right_clavicle': (20.802, 3.888), 'right_shoulder': (86.746, 13.395, 12.836),
+        'right_elbow': (21.814, 23.737), 'right_wrist': (5.342, -21.792),
     })
     human.KeyJoints(23.1, {
-        'spine_lumbar': (-0.874, -19.842, 5.119), 'spine_thoracic': (-7.904, -9.857, 5.706),
-        'neck': (3.989, -1.221, -14.19), 'head': (4.219, -0.03), 'right_clavicle': (8.759, 5.003),
-        'right_shoulder': (85.047, 7.596, 3.801), 'right_elbow': (22.493, 14.267),
-        'right_wrist': (0.619, -28.392),
+        'spine_lumbar': (5.359, -14.261, 9.149), 'spine_thoracic': (-8.164, -4.816, 8.783),
+        'neck': (0.933, -0.18, -14.432), 'head': (0.974, -0.003), 'right_clavicle': (2.783, 7.709),
+        'right_shoulder': (88.492, 6.446, 1.206), 'right_elbow': (31.878, 10.987),
+        'right_wrist': (-1.277, -29.97),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=23.179001, duration=0.072)
@@ -1436,11 +1434,12 @@ def remove_access_panel():
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
-        'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 112.0), start=23.251001, duration=0.2628)
-    human.KeyJoints(23.3, {'neck': (3.338, -0.229, -17.165), 'head': (1.504, 0.0)})
+    human.KeyJoints(23.3, {
+        'neck': (3.338, -0.229, -17.165), 'head': (1.504, 0.0), 'right_wrist': (-1.361, -29.967),
+    })
     human.KeyJoints(23.4, {'neck': (21.057, -1.984, -30.715), 'head': (9.057, -0.045)})
     human.KeyJoints(23.5, {
         'neck': (34.722, -3.338, -41.165), 'head': (14.881, -0.156),
@@ -1478,617 +1477,616 @@ def remove_access_panel():
     })
     human.KeyJoints(24.2, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (18.714, 33.746, -16.635), 'right_elbow': (36.549, 2.884),
-        'right_wrist': (-6.352, -4.864),
+        'right_clavicle': (2.715, 7.9), 'right_shoulder': (18.714, 33.746, -16.635),
+        'right_elbow': (36.549, 2.884), 'right_wrist': (-6.352, -4.864),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.218664, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
-        'spine_lumbar': (7.412, -12.905, 9.687), 'spine_thoracic': (-8.557, -4.265, 9.229),
-        'neck': (34.776, -2.805, -41.396), 'head': (14.781, -0.706),
-        'right_clavicle': (2.893, 7.947), 'right_shoulder': (18.89, 34.074, -16.406),
-        'right_elbow': (37.15, 3.129), 'right_wrist': (-6.331, -3.673),
+        'spine_lumbar': (7.287, -13.401, 9.638), 'spine_thoracic': (-8.494, -4.353, 9.193),
+        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.839, 7.924),
+        'right_shoulder': (18.801, 33.955, -16.49), 'right_elbow': (36.844, 3.049),
+        'right_wrist': (-6.341, -4.249),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (12.58, -2.8, 10.302), 'spine_thoracic': (-8.268, -4.914, 9.999),
-        'neck': (32.543, -4.705, -42.732), 'head': (12.466, -1.105),
-        'right_clavicle': (8.902, 8.531), 'right_shoulder': (18.293, 41.773, -10.266),
-        'right_elbow': (44.412, 10.716), 'right_wrist': (-5.978, 12.767),
+        'spine_lumbar': (11.65, -1.711, 10.706), 'spine_thoracic': (-9.614, -2.845, 10.054),
+        'neck': (32.421, -4.612, -42.128), 'head': (12.416, -1.097),
+        'right_clavicle': (6.617, 8.531), 'right_shoulder': (20.343, 39.598, -12.181),
+        'right_elbow': (44.415, 8.024), 'right_wrist': (-6.025, 11.647),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (14.395, -7.144, 9.124), 'spine_thoracic': (-4.671, -9.974, 9.717),
-        'neck': (33.303, -4.628, -44.466), 'head': (13.13, -1.113),
-        'right_clavicle': (13.374, 8.75), 'right_shoulder': (12.74, 46.493, -6.317),
-        'right_elbow': (43.587, 16.491), 'right_wrist': (-6.123, 13.59),
+        'spine_lumbar': (13.896, -5.63, 9.49), 'spine_thoracic': (-5.723, -8.883, 9.829),
+        'neck': (33.066, -4.634, -43.871), 'right_clavicle': (12.972, 8.575),
+        'right_shoulder': (14.341, 45.01, -6.589), 'right_elbow': (43.684, 15.513),
+        'right_wrist': (-5.967, 13.465),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (12.67, -12.775, 8.073), 'spine_thoracic': (-1.742, -10.0, 9.307),
-        'neck': (33.735, -4.288, -44.441), 'head': (13.595, -1.064),
-        'right_clavicle': (14.901, 9.03), 'right_shoulder': (7.876, 47.972, -3.681),
-        'right_elbow': (42.944, 20.089), 'right_wrist': (-6.37, 13.373),
+        'spine_lumbar': (14.863, -11.415, 8.44), 'spine_thoracic': (-2.454, -10.0, 9.65),
+        'neck': (33.841, -4.714, -46.145), 'head': (13.531, -1.132),
+        'right_clavicle': (15.875, 9.167), 'right_shoulder': (9.098, 49.302, -4.584),
+        'right_elbow': (42.457, 19.59), 'right_wrist': (-6.451, 12.658),
     })
     human.KeyJoints(24.7, {
-        'spine_lumbar': (10.679, -7.226, 8.761), 'spine_thoracic': (-4.979, -7.954, 9.134),
-        'neck': (32.819, -4.095, -41.42), 'head': (12.984, -1.043),
-        'right_clavicle': (10.919, 8.168), 'right_shoulder': (12.838, 42.962, -6.096),
-        'right_elbow': (44.73, 15.722), 'right_wrist': (-5.848, 14.491),
+        'spine_lumbar': (10.475, -5.512, 9.089), 'spine_thoracic': (-6.212, -6.79, 9.133),
+        'neck': (32.562, -4.109, -40.928), 'head': (12.798, -1.063),
+        'right_clavicle': (9.63, 8.083), 'right_shoulder': (14.754, 41.739, -7.365),
+        'right_elbow': (44.914, 13.818), 'right_wrist': (-5.808, 14.499),
     })
     human.KeyJoints(24.8, {
-        'spine_lumbar': (11.192, -2.052, 10.511), 'spine_thoracic': (-9.397, -3.09, 9.859),
-        'neck': (32.42, -4.474, -41.693), 'head': (12.489, -1.086),
-        'right_clavicle': (6.549, 8.431), 'right_shoulder': (19.935, 39.344, -11.779),
-        'right_elbow': (44.473, 8.341), 'right_wrist': (-5.992, 11.945),
+        'spine_lumbar': (11.299, -1.469, 10.801), 'spine_thoracic': (-10.003, -2.231, 10.042),
+        'neck': (32.403, -4.559, -41.916), 'head': (12.43, -1.092), 'right_clavicle': (5.897, 8.51),
+        'right_shoulder': (20.921, 38.874, -12.742), 'right_elbow': (44.383, 7.212),
+        'right_wrist': (-6.039, 11.248),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
-        'spine_lumbar': (11.606, -1.673, 10.722), 'spine_thoracic': (-9.673, -2.756, 10.054),
-        'neck': (32.42, -4.606, -42.103), 'head': (12.418, -1.096),
-        'right_clavicle': (6.515, 8.529), 'right_shoulder': (20.432, 39.497, -12.266),
-        'right_elbow': (44.408, 7.904), 'right_wrist': (-6.027, 11.585),
+        'spine_lumbar': (11.354, -1.45, 10.816), 'spine_thoracic': (-10.01, -2.247, 10.059),
+        'neck': (32.407, -4.571, -41.96), 'head': (12.427, -1.093),
+        'right_clavicle': (5.934, 8.521), 'right_shoulder': (20.939, 38.919, -12.75),
+        'right_elbow': (44.372, 7.217), 'right_wrist': (-6.042, 11.238),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (13.635, -4.857, 9.688), 'spine_thoracic': (-6.342, -7.9, 9.869),
-        'neck': (32.904, -4.686, -43.611), 'head': (12.771, -1.11),
-        'right_clavicle': (11.966, 8.544), 'right_shoulder': (15.306, 44.36, -7.568),
-        'right_elbow': (43.976, 14.358), 'right_wrist': (-5.961, 13.489),
+        'spine_lumbar': (12.909, -3.315, 10.134), 'spine_thoracic': (-7.733, -5.746, 9.966),
+        'neck': (32.622, -4.718, -42.978), 'head': (12.524, -1.107),
+        'right_clavicle': (9.786, 8.527), 'right_shoulder': (17.467, 42.562, -9.51),
+        'right_elbow': (44.343, 11.759), 'right_wrist': (-5.966, 13.08),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (14.838, -10.832, 8.548), 'spine_thoracic': (-2.721, -10.0, 9.649),
-        'neck': (33.781, -4.72, -46.007), 'head': (13.471, -1.131),
-        'right_clavicle': (15.444, 9.109), 'right_shoulder': (9.548, 49.112, -5.089),
-        'right_elbow': (42.651, 19.114), 'right_wrist': (-6.454, 12.93),
+        'spine_lumbar': (14.803, -10.332, 8.628), 'spine_thoracic': (-2.948, -10.0, 9.648),
+        'neck': (33.703, -4.725, -45.818), 'head': (13.411, -1.129),
+        'right_clavicle': (14.962, 9.034), 'right_shoulder': (9.926, 48.844, -5.432),
+        'right_elbow': (42.878, 18.652), 'right_wrist': (-6.456, 13.204),
     })
     human.KeyJoints(25.2, {
-        'spine_lumbar': (11.151, -10.787, 8.276), 'spine_thoracic': (-2.855, -9.314, 9.163),
-        'neck': (33.355, -4.097, -42.673), 'head': (13.353, -1.016),
-        'right_clavicle': (12.669, 8.548), 'right_shoulder': (9.564, 45.08, -4.438),
-        'right_elbow': (44.039, 18.587), 'right_wrist': (-6.081, 14.162),
+        'spine_lumbar': (13.451, -11.107, 8.381), 'spine_thoracic': (-2.556, -10.0, 9.428),
+        'neck': (33.605, -4.453, -44.703), 'head': (13.469, -1.105),
+        'right_clavicle': (14.485, 8.932), 'right_shoulder': (9.233, 47.863, -4.664),
+        'right_elbow': (43.153, 19.056), 'right_wrist': (-6.367, 13.524),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (10.79, -3.993, 9.638), 'spine_thoracic': (-7.52, -5.512, 9.351),
-        'neck': (32.485, -4.234, -41.126), 'head': (12.669, -1.07),
-        'right_clavicle': (8.448, 8.202), 'right_shoulder': (16.878, 40.742, -8.98),
-        'right_elbow': (44.731, 11.696), 'right_wrist': (-5.863, 13.751),
+        'spine_lumbar': (10.569, -1.923, 10.485), 'spine_thoracic': (-9.663, -2.363, 9.762),
+        'neck': (32.359, -4.395, -41.288), 'head': (12.482, -1.08),
+        'right_clavicle': (5.737, 8.331), 'right_shoulder': (20.286, 38.609, -12.28),
+        'right_elbow': (44.596, 7.617), 'right_wrist': (-5.986, 11.673),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(25.5, {
-        'spine_lumbar': (12.867, -3.245, 10.156), 'spine_thoracic': (-7.803, -5.636, 9.97),
-        'neck': (32.611, -4.717, -42.946), 'head': (12.515, -1.107),
-        'right_clavicle': (9.671, 8.527), 'right_shoulder': (17.576, 42.462, -9.609),
-        'right_elbow': (44.354, 11.623), 'right_wrist': (-5.967, 13.044),
+        'spine_lumbar': (11.888, -1.947, 10.611), 'spine_thoracic': (-9.287, -3.342, 10.046),
+        'neck': (32.44, -4.642, -42.271), 'head': (12.416, -1.099),
+        'right_clavicle': (7.177, 8.533), 'right_shoulder': (19.849, 40.147, -11.713),
+        'right_elbow': (44.432, 8.685), 'right_wrist': (-6.012, 11.958),
     })
     human.KeyJoints(25.6, {
-        'spine_lumbar': (14.506, -8.052, 8.942), 'spine_thoracic': (-4.217, -10.0, 9.696),
-        'neck': (33.416, -4.641, -44.802), 'head': (13.217, -1.116),
-        'right_clavicle': (14.081, 8.828), 'right_shoulder': (11.957, 47.107, -5.722),
-        'right_elbow': (43.367, 17.34),
+        'spine_lumbar': (14.32, -6.884, 9.184), 'spine_thoracic': (-4.834, -9.868, 9.736),
+        'neck': (33.272, -4.618, -44.355), 'head': (13.109, -1.112),
+        'right_clavicle': (13.345, 8.714), 'right_shoulder': (12.992, 46.235, -6.324),
+        'right_elbow': (43.59, 16.367), 'right_wrist': (-6.088, 13.559),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (12.009, -12.895, 8.032), 'spine_thoracic': (-1.676, -9.996, 9.224),
-        'neck': (33.665, -4.172, -43.774), 'head': (13.597, -1.04),
-        'right_clavicle': (14.335, 8.942), 'right_shoulder': (7.76, 47.241, -3.601),
-        'right_elbow': (43.206, 20.115), 'right_wrist': (-6.32, 13.647),
+        'spine_lumbar': (14.863, -11.442, 8.434), 'spine_thoracic': (-2.444, -10.0, 9.651),
+        'neck': (33.844, -4.713, -46.15), 'head': (13.534, -1.132),
+        'right_clavicle': (15.907, 9.171), 'right_shoulder': (9.08, 49.306, -4.552),
+        'right_elbow': (42.443, 19.62), 'right_wrist': (-6.451, 12.637),
     })
     human.KeyJoints(25.8, {
-        'spine_lumbar': (10.623, -6.247, 8.934), 'spine_thoracic': (-5.631, -7.472, 9.13),
-        'neck': (32.672, -4.1, -41.107), 'head': (12.89, -1.057), 'right_clavicle': (10.354, 8.111),
-        'right_shoulder': (13.855, 42.367, -6.678), 'right_elbow': (44.83, 14.788),
-        'right_wrist': (-5.812, 14.533),
+        'spine_lumbar': (10.071, -4.182, 9.442), 'spine_thoracic': (-7.425, -5.008, 9.19),
+        'neck': (32.385, -4.15, -40.598), 'head': (12.634, -1.063),
+        'right_clavicle': (7.884, 8.044), 'right_shoulder': (16.636, 40.303, -9.081),
+        'right_elbow': (45.068, 11.558), 'right_wrist': (-5.822, 13.876),
     })
     human.KeyJoints(25.9, {
-        'spine_lumbar': (11.292, -1.661, 10.707), 'spine_thoracic': (-9.795, -2.546, 9.985),
-        'neck': (32.412, -4.53, -41.846), 'head': (12.452, -1.09), 'right_clavicle': (6.147, 8.488),
-        'right_shoulder': (20.586, 39.062, -12.405), 'right_elbow': (44.408, 7.612),
-        'right_wrist': (-6.024, 11.493),
+        'spine_lumbar': (11.339, -1.451, 10.814), 'spine_thoracic': (-10.013, -2.234, 10.055),
+        'neck': (32.405, -4.568, -41.949), 'head': (12.427, -1.093),
+        'right_clavicle': (5.919, 8.518), 'right_shoulder': (20.942, 38.901, -12.755),
+        'right_elbow': (44.373, 7.207), 'right_wrist': (-6.042, 11.235),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.0, {
-        'spine_lumbar': (11.96, -2.023, 10.582), 'spine_thoracic': (-9.187, -3.496, 10.042),
-        'neck': (32.447, -4.65, -42.315), 'head': (12.418, -1.1), 'right_clavicle': (7.349, 8.534),
-        'right_shoulder': (19.697, 40.313, -11.57), 'right_elbow': (44.436, 8.888),
-        'right_wrist': (-6.008, 12.05),
+        'spine_lumbar': (11.39, -1.48, 10.803), 'spine_thoracic': (-9.962, -2.318, 10.059),
+        'neck': (32.408, -4.576, -41.979), 'head': (12.425, -1.094),
+        'right_clavicle': (6.016, 8.522), 'right_shoulder': (20.868, 39.0, -12.682),
+        'right_elbow': (44.378, 7.313), 'right_wrist': (-6.04, 11.288),
     })
     human.KeyJoints(26.1, {
-        'spine_lumbar': (13.853, -5.487, 9.525), 'spine_thoracic': (-5.835, -8.698, 9.836),
-        'neck': (33.034, -4.646, -43.829), 'head': (12.898, -1.109),
-        'right_clavicle': (12.767, 8.568), 'right_shoulder': (14.515, 44.903, -6.8),
-        'right_elbow': (43.752, 15.294), 'right_wrist': (-5.965, 13.484),
+        'spine_lumbar': (13.271, -4.0, 9.927), 'spine_thoracic': (-7.082, -6.756, 9.921),
+        'neck': (32.741, -4.715, -43.277), 'head': (12.622, -1.109),
+        'right_clavicle': (10.829, 8.528), 'right_shoulder': (16.458, 43.451, -8.598),
+        'right_elbow': (44.205, 12.996), 'right_wrist': (-5.96, 13.346),
     })
     human.KeyJoints(26.2, {
-        'spine_lumbar': (14.806, -11.627, 8.392), 'spine_thoracic': (-2.351, -10.0, 9.641),
-        'neck': (33.842, -4.699, -46.108), 'head': (13.545, -1.13),
-        'right_clavicle': (15.885, 9.168), 'right_shoulder': (8.921, 49.276, -4.429),
-        'right_elbow': (42.455, 19.7), 'right_wrist': (-6.448, 12.656),
+        'spine_lumbar': (14.846, -10.942, 8.528), 'spine_thoracic': (-2.653, -10.0, 9.649),
+        'neck': (33.782, -4.725, -46.024), 'head': (13.476, -1.131),
+        'right_clavicle': (15.385, 9.105), 'right_shoulder': (9.44, 49.152, -5.088),
+        'right_elbow': (42.673, 19.124), 'right_wrist': (-6.455, 12.975),
     })
     human.KeyJoints(26.3, {
-        'spine_lumbar': (10.948, -9.618, 8.422), 'spine_thoracic': (-3.53, -8.904, 9.15),
-        'neck': (33.168, -4.094, -42.227), 'head': (13.217, -1.022),
-        'right_clavicle': (12.088, 8.402), 'right_shoulder': (10.6, 44.345, -4.94),
-        'right_elbow': (44.312, 17.696), 'right_wrist': (-5.991, 14.299),
+        'spine_lumbar': (12.313, -9.173, 8.513), 'spine_thoracic': (-3.653, -9.942, 9.286),
+        'neck': (33.305, -4.207, -42.999), 'head': (13.288, -1.044),
+        'right_clavicle': (13.317, 8.589), 'right_shoulder': (10.886, 45.534, -4.65),
+        'right_elbow': (43.797, 17.979), 'right_wrist': (-6.017, 14.048),
     })
     human.KeyJoints(26.4, {
-        'spine_lumbar': (10.922, -3.265, 9.945), 'spine_thoracic': (-8.205, -4.659, 9.517),
-        'neck': (32.455, -4.313, -41.258), 'head': (12.601, -1.076),
-        'right_clavicle': (7.754, 8.277), 'right_shoulder': (17.991, 40.217, -9.969),
-        'right_elbow': (44.647, 10.489), 'right_wrist': (-5.905, 13.16),
+        'spine_lumbar': (10.927, -1.652, 10.665), 'spine_thoracic': (-9.887, -2.237, 9.911),
+        'neck': (32.382, -4.477, -41.605), 'head': (12.457, -1.086),
+        'right_clavicle': (5.716, 8.425), 'right_shoulder': (20.689, 38.63, -12.589),
+        'right_elbow': (44.476, 7.317), 'right_wrist': (-6.016, 11.4),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.5, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(26.6, {
+        'spine_lumbar': (12.189, -2.285, 10.483), 'spine_thoracic': (-8.858, -4.0, 10.029),
+        'neck': (32.476, -4.674, -42.463), 'head': (12.428, -1.102),
+        'right_clavicle': (7.908, 8.535), 'right_shoulder': (19.197, 40.848, -11.103),
+        'right_elbow': (44.441, 9.546), 'right_wrist': (-5.996, 12.331),
+    })
+    human.KeyJoints(26.7, {
+        'spine_lumbar': (14.507, -8.065, 8.939), 'spine_thoracic': (-4.212, -10.0, 9.695),
+        'neck': (33.415, -4.643, -44.809), 'head': (13.214, -1.116),
+        'right_clavicle': (14.108, 8.829), 'right_shoulder': (11.946, 47.114, -5.685),
+        'right_elbow': (43.36, 17.361), 'right_wrist': (-6.169, 13.377),
+    })
+    human.KeyJoints(26.8, {
+        'spine_lumbar': (14.785, -11.484, 8.423), 'spine_thoracic': (-2.422, -10.0, 9.639),
+        'neck': (33.838, -4.698, -46.087), 'head': (13.537, -1.13),
+        'right_clavicle': (15.865, 9.165), 'right_shoulder': (9.043, 49.252, -4.525),
+        'right_elbow': (42.463, 19.633), 'right_wrist': (-6.447, 12.664),
+    })
+    human.KeyJoints(26.9, {
+        'spine_lumbar': (9.99, -3.152, 9.833), 'spine_thoracic': (-8.447, -3.652, 9.353),
+        'neck': (32.328, -4.21, -40.637), 'head': (12.556, -1.067),
+        'right_clavicle': (6.625, 8.104), 'right_shoulder': (18.263, 39.246, -10.549),
+        'right_elbow': (44.967, 9.674), 'right_wrist': (-5.877, 12.996),
+    })
+    human.KeyJoints(27.0, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.238, 10.059),
         'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
         'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
-    human.KeyJoints(26.6, {
-        'spine_lumbar': (13.138, -3.732, 10.006), 'spine_thoracic': (-7.33, -6.373, 9.939),
-        'neck': (32.693, -4.717, -43.164), 'head': (12.581, -1.109),
-        'right_clavicle': (10.437, 8.527), 'right_shoulder': (16.842, 43.123, -8.944),
-        'right_elbow': (44.264, 12.53), 'right_wrist': (-5.961, 13.262),
-    })
-    human.KeyJoints(26.7, {
-        'spine_lumbar': (14.614, -8.959, 8.803), 'spine_thoracic': (-3.744, -10.0, 9.676),
-        'neck': (33.528, -4.669, -45.184), 'head': (13.294, -1.121),
-        'right_clavicle': (14.618, 8.901), 'right_shoulder': (11.166, 47.759, -5.442),
-        'right_elbow': (43.12, 18.007), 'right_wrist': (-6.254, 13.253),
-    })
-    human.KeyJoints(26.8, {
-        'spine_lumbar': (11.688, -12.545, 8.071), 'spine_thoracic': (-1.868, -9.888, 9.2),
-        'neck': (33.588, -4.129, -43.405), 'head': (13.545, -1.025),
-        'right_clavicle': (13.805, 8.833), 'right_shoulder': (8.054, 46.555, -3.734),
-        'right_elbow': (43.463, 19.868), 'right_wrist': (-6.255, 13.829),
-    })
-    human.KeyJoints(26.9, {
-        'spine_lumbar': (10.623, -5.505, 9.108), 'spine_thoracic': (-6.196, -6.984, 9.14),
-        'neck': (32.585, -4.113, -41.058), 'head': (12.808, -1.064),
-        'right_clavicle': (9.793, 8.107), 'right_shoulder': (14.748, 41.841, -7.26),
-        'right_elbow': (44.839, 13.923), 'right_wrist': (-5.81, 14.503),
-    })
-    human.KeyJoints(27.0, {
-        'spine_lumbar': (11.346, -1.463, 10.809), 'spine_thoracic': (-9.999, -2.262, 10.053),
-        'neck': (32.407, -4.567, -41.948), 'head': (12.429, -1.093),
-        'right_clavicle': (5.941, 8.518), 'right_shoulder': (20.92, 38.92, -12.731),
-        'right_elbow': (44.374, 7.236), 'right_wrist': (-6.041, 11.252),
-    })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
-        'spine_lumbar': (12.274, -2.389, 10.446), 'spine_thoracic': (-8.734, -4.192, 10.024),
-        'neck': (32.488, -4.682, -42.519), 'head': (12.433, -1.103),
-        'right_clavicle': (8.119, 8.534), 'right_shoulder': (19.007, 41.047, -10.926),
-        'right_elbow': (44.438, 9.794), 'right_wrist': (-5.991, 12.43),
+        'spine_lumbar': (11.483, -1.559, 10.769), 'spine_thoracic': (-9.839, -2.504, 10.057),
+        'neck': (32.412, -4.589, -42.031), 'head': (12.421, -1.095),
+        'right_clavicle': (6.229, 8.526), 'right_shoulder': (20.682, 39.214, -12.504),
+        'right_elbow': (44.392, 7.566), 'right_wrist': (-6.034, 11.418),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (14.083, -6.213, 9.347), 'spine_thoracic': (-5.293, -9.432, 9.794),
-        'neck': (33.172, -4.617, -44.08), 'right_clavicle': (13.288, 8.617),
-        'right_shoulder': (13.68, 45.512, -6.338), 'right_elbow': (43.597, 16.07),
-        'right_wrist': (-5.986, 13.455),
+        'spine_lumbar': (13.608, -4.784, 9.707), 'spine_thoracic': (-6.402, -7.808, 9.873),
+        'neck': (32.89, -4.689, -43.584), 'head': (12.757, -1.11),
+        'right_clavicle': (11.877, 8.542), 'right_shoulder': (15.399, 44.291, -7.651),
+        'right_elbow': (43.998, 14.251), 'right_wrist': (-5.96, 13.483),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (13.921, -12.28, 8.219), 'spine_thoracic': (-2.009, -10.0, 9.5),
-        'neck': (33.803, -4.525, -45.441), 'head': (13.576, -1.103),
-        'right_clavicle': (15.517, 9.118), 'right_shoulder': (8.337, 48.785, -4.0),
-        'right_elbow': (42.641, 19.939), 'right_wrist': (-6.418, 12.945),
+        'spine_lumbar': (14.86, -11.275, 8.467), 'spine_thoracic': (-2.509, -10.0, 9.65),
+        'neck': (33.823, -4.719, -46.114), 'head': (13.514, -1.132),
+        'right_clavicle': (15.714, 9.148), 'right_shoulder': (9.194, 49.271, -4.75),
+        'right_elbow': (42.527, 19.44), 'right_wrist': (-6.453, 12.762),
     })
     human.KeyJoints(27.4, {
-        'spine_lumbar': (10.79, -8.4, 8.586), 'spine_thoracic': (-4.252, -8.445, 9.14),
-        'neck': (32.989, -4.093, -41.827), 'head': (13.09, -1.03),
-        'right_clavicle': (11.506, 8.271), 'right_shoulder': (11.713, 43.636, -5.5),
-        'right_elbow': (44.548, 16.725), 'right_wrist': (-5.911, 14.41),
+        'spine_lumbar': (11.223, -7.045, 8.82), 'spine_thoracic': (-4.94, -8.956, 9.184),
+        'neck': (32.936, -4.067, -41.619), 'head': (13.065, -1.03),
+        'right_clavicle': (11.696, 8.237), 'right_shoulder': (12.851, 43.271, -5.507),
+        'right_elbow': (44.384, 16.185), 'right_wrist': (-5.831, 14.431),
     })
     human.KeyJoints(27.5, {
-        'spine_lumbar': (11.061, -2.607, 10.245), 'spine_thoracic': (-8.845, -3.829, 9.693),
-        'neck': (32.433, -4.404, -41.501), 'head': (12.535, -1.082),
-        'right_clavicle': (7.107, 8.356), 'right_shoulder': (19.033, 39.743, -10.927),
-        'right_elbow': (44.557, 9.343), 'right_wrist': (-5.95, 12.534),
+        'spine_lumbar': (11.2, -1.513, 10.767), 'spine_thoracic': (-9.977, -2.231, 10.008),
+        'neck': (32.398, -4.537, -41.834), 'head': (12.438, -1.091),
+        'right_clavicle': (5.841, 8.488), 'right_shoulder': (20.868, 38.801, -12.709),
+        'right_elbow': (44.406, 7.231), 'right_wrist': (-6.034, 11.283),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(27.7, {
-        'spine_lumbar': (13.393, -4.264, 9.851), 'spine_thoracic': (-6.846, -7.123, 9.905),
-        'neck': (32.79, -4.709, -43.385), 'head': (12.665, -1.11),
-        'right_clavicle': (11.198, 8.531), 'right_shoulder': (16.09, 43.754, -8.268),
-        'right_elbow': (44.14, 13.436), 'right_wrist': (-5.959, 13.415),
+        'spine_lumbar': (12.535, -2.736, 10.324), 'spine_thoracic': (-8.338, -4.805, 10.003),
+        'neck': (32.534, -4.702, -42.7), 'head': (12.46, -1.105), 'right_clavicle': (8.785, 8.531),
+        'right_shoulder': (18.401, 41.666, -10.365), 'right_elbow': (44.417, 10.578),
+        'right_wrist': (-5.979, 12.72),
     })
     human.KeyJoints(27.8, {
-        'spine_lumbar': (14.759, -9.866, 8.694), 'spine_thoracic': (-3.194, -10.0, 9.65),
-        'neck': (33.643, -4.718, -45.634), 'head': (13.367, -1.127),
-        'right_clavicle': (14.792, 8.986), 'right_shoulder': (10.322, 48.557, -5.45),
-        'right_elbow': (42.984, 18.382), 'right_wrist': (-6.437, 13.237),
+        'spine_lumbar': (14.664, -9.259, 8.767), 'spine_thoracic': (-3.56, -10.0, 9.667),
+        'neck': (33.565, -4.686, -45.336), 'head': (13.316, -1.123),
+        'right_clavicle': (14.673, 8.928), 'right_shoulder': (10.884, 48.033, -5.445),
+        'right_elbow': (43.077, 18.129), 'right_wrist': (-6.32, 13.248),
     })
     human.KeyJoints(27.9, {
-        'spine_lumbar': (11.402, -11.812, 8.154), 'spine_thoracic': (-2.276, -9.654, 9.18),
-        'neck': (33.491, -4.104, -43.079), 'head': (13.456, -1.015),
-        'right_clavicle': (13.25, 8.698), 'right_shoulder': (8.678, 45.831, -4.021),
-        'right_elbow': (43.746, 19.342), 'right_wrist': (-6.173, 14.002),
+        'spine_lumbar': (14.32, -11.612, 8.377), 'spine_thoracic': (-2.346, -10.0, 9.568),
+        'neck': (33.789, -4.61, -45.677), 'head': (13.541, -1.122),
+        'right_clavicle': (15.534, 9.116), 'right_shoulder': (8.914, 48.886, -4.451),
+        'right_elbow': (42.623, 19.628), 'right_wrist': (-6.427, 12.877),
     })
     human.KeyJoints(28.0, {
-        'spine_lumbar': (10.684, -4.762, 9.346), 'spine_thoracic': (-6.826, -6.323, 9.216),
-        'neck': (32.527, -4.165, -41.082), 'head': (12.737, -1.067),
-        'right_clavicle': (9.152, 8.141), 'right_shoulder': (15.757, 41.3, -8.036),
-        'right_elbow': (44.8, 12.886), 'right_wrist': (-5.829, 14.232),
+        'spine_lumbar': (10.205, -2.41, 10.198), 'spine_thoracic': (-9.2, -2.785, 9.56),
+        'neck': (32.333, -4.298, -40.92), 'head': (12.513, -1.073),
+        'right_clavicle': (5.913, 8.212), 'right_shoulder': (19.497, 38.664, -11.628),
+        'right_elbow': (44.776, 8.351), 'right_wrist': (-5.937, 12.206),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.1, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(28.2, {
-        'spine_lumbar': (12.575, -2.793, 10.305), 'spine_thoracic': (-8.276, -4.902, 9.999),
-        'neck': (32.542, -4.704, -42.728), 'head': (12.465, -1.105),
-        'right_clavicle': (8.889, 8.531), 'right_shoulder': (18.305, 41.761, -10.277),
-        'right_elbow': (44.412, 10.701), 'right_wrist': (-5.978, 12.762),
+        'spine_lumbar': (11.647, -1.708, 10.707), 'spine_thoracic': (-9.618, -2.838, 10.054),
+        'neck': (32.421, -4.612, -42.126), 'head': (12.416, -1.096),
+        'right_clavicle': (6.609, 8.531), 'right_shoulder': (20.35, 39.59, -12.188),
+        'right_elbow': (44.414, 8.014), 'right_wrist': (-6.025, 11.642),
     })
     human.KeyJoints(28.3, {
-        'spine_lumbar': (14.391, -7.128, 9.128), 'spine_thoracic': (-4.68, -9.97, 9.718),
-        'neck': (33.301, -4.628, -44.46), 'head': (13.128, -1.113),
-        'right_clavicle': (13.372, 8.748), 'right_shoulder': (12.755, 46.479, -6.317),
-        'right_elbow': (43.587, 16.483), 'right_wrist': (-6.122, 13.589),
+        'spine_lumbar': (13.892, -5.616, 9.493), 'spine_thoracic': (-5.734, -8.866, 9.83),
+        'neck': (33.063, -4.635, -43.866), 'right_clavicle': (12.954, 8.574),
+        'right_shoulder': (14.358, 44.999, -6.607), 'right_elbow': (43.69, 15.493),
+        'right_wrist': (-5.966, 13.467),
     })
     human.KeyJoints(28.4, {
-        'spine_lumbar': (12.688, -12.769, 8.075), 'spine_thoracic': (-1.745, -10.0, 9.31),
-        'neck': (33.736, -4.291, -44.457), 'head': (13.595, -1.064),
-        'right_clavicle': (14.912, 9.032), 'right_shoulder': (7.881, 47.986, -3.685),
-        'right_elbow': (42.939, 20.087), 'right_wrist': (-6.371, 13.366),
+        'spine_lumbar': (14.863, -11.414, 8.44), 'spine_thoracic': (-2.454, -10.0, 9.65),
+        'neck': (33.84, -4.714, -46.145), 'head': (13.531, -1.132),
+        'right_clavicle': (15.873, 9.167), 'right_shoulder': (9.098, 49.302, -4.586),
+        'right_elbow': (42.458, 19.589), 'right_wrist': (-6.451, 12.659),
     })
     human.KeyJoints(28.5, {
-        'spine_lumbar': (10.68, -7.244, 8.758), 'spine_thoracic': (-4.968, -7.962, 9.134),
-        'neck': (32.822, -4.095, -41.427), 'head': (12.986, -1.043),
-        'right_clavicle': (10.928, 8.17), 'right_shoulder': (12.82, 42.973, -6.086),
-        'right_elbow': (44.727, 15.738), 'right_wrist': (-5.848, 14.49),
+        'spine_lumbar': (10.485, -5.536, 9.084), 'spine_thoracic': (-6.19, -6.822, 9.133),
+        'neck': (32.566, -4.109, -40.937), 'head': (12.801, -1.063),
+        'right_clavicle': (9.663, 8.085), 'right_shoulder': (14.721, 41.765, -7.335),
+        'right_elbow': (44.909, 13.858), 'right_wrist': (-5.808, 14.504),
     })
     human.KeyJoints(28.6, {
-        'spine_lumbar': (11.19, -2.06, 10.507), 'spine_thoracic': (-9.389, -3.101, 9.856),
-        'neck': (32.42, -4.473, -41.69), 'head': (12.489, -1.086), 'right_clavicle': (6.557, 8.43),
-        'right_shoulder': (19.922, 39.349, -11.767), 'right_elbow': (44.474, 8.356),
-        'right_wrist': (-5.991, 11.953),
+        'spine_lumbar': (11.298, -1.469, 10.8), 'spine_thoracic': (-10.003, -2.231, 10.041),
+        'neck': (32.403, -4.559, -41.915), 'head': (12.43, -1.092),
+        'right_clavicle': (5.897, 8.509), 'right_shoulder': (20.921, 38.874, -12.742),
+        'right_elbow': (44.383, 7.213), 'right_wrist': (-6.039, 11.249),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.7, {
-        'spine_lumbar': (11.599, -1.666, 10.725), 'spine_thoracic': (-9.683, -2.741, 10.054),
-        'neck': (32.419, -4.605, -42.099), 'head': (12.418, -1.096),
-        'right_clavicle': (6.498, 8.529), 'right_shoulder': (20.447, 39.479, -12.28),
-        'right_elbow': (44.407, 7.883), 'right_wrist': (-6.028, 11.575),
+        'spine_lumbar': (11.354, -1.45, 10.816), 'spine_thoracic': (-10.01, -2.247, 10.059),
+        'neck': (32.407, -4.571, -41.96), 'right_clavicle': (5.934, 8.521),
+        'right_shoulder': (20.939, 38.918, -12.75), 'right_elbow': (44.372, 7.216),
+        'right_wrist': (-6.042, 11.237),
     })
     human.KeyJoints(28.8, {
-        'spine_lumbar': (13.632, -4.846, 9.691), 'spine_thoracic': (-6.35, -7.887, 9.87),
-        'neck': (32.902, -4.686, -43.607), 'head': (12.769, -1.11),
-        'right_clavicle': (11.954, 8.544), 'right_shoulder': (15.319, 44.351, -7.58),
-        'right_elbow': (43.979, 14.343), 'right_wrist': (-5.961, 13.488),
+        'spine_lumbar': (12.902, -3.304, 10.137), 'spine_thoracic': (-7.743, -5.729, 9.967),
+        'neck': (32.62, -4.718, -42.974), 'head': (12.522, -1.107),
+        'right_clavicle': (9.768, 8.527), 'right_shoulder': (17.484, 42.547, -9.525),
+        'right_elbow': (44.344, 11.738), 'right_wrist': (-5.966, 13.074),
     })
     human.KeyJoints(28.9, {
-        'spine_lumbar': (14.837, -10.816, 8.551), 'spine_thoracic': (-2.728, -10.0, 9.649),
-        'neck': (33.778, -4.72, -46.001), 'head': (13.469, -1.13),
-        'right_clavicle': (15.427, 9.106), 'right_shoulder': (9.56, 49.104, -5.103),
-        'right_elbow': (42.658, 19.098), 'right_wrist': (-6.454, 12.94),
+        'spine_lumbar': (14.802, -10.318, 8.63), 'spine_thoracic': (-2.954, -10.0, 9.648),
+        'neck': (33.702, -4.724, -45.813), 'head': (13.41, -1.129),
+        'right_clavicle': (14.956, 9.033), 'right_shoulder': (9.937, 48.837, -5.435),
+        'right_elbow': (42.881, 18.643), 'right_wrist': (-6.456, 13.206),
     })
     human.KeyJoints(29.0, {
-        'spine_lumbar': (11.155, -10.806, 8.273), 'spine_thoracic': (-2.845, -9.32, 9.163),
-        'neck': (33.358, -4.097, -42.68), 'head': (13.355, -1.016),
-        'right_clavicle': (12.679, 8.55), 'right_shoulder': (9.548, 45.092, -4.43),
-        'right_elbow': (44.034, 18.601), 'right_wrist': (-6.082, 14.16),
+        'spine_lumbar': (13.468, -11.129, 8.38), 'spine_thoracic': (-2.545, -10.0, 9.43),
+        'neck': (33.61, -4.457, -44.726), 'head': (13.471, -1.105),
+        'right_clavicle': (14.502, 8.936), 'right_shoulder': (9.216, 47.894, -4.666),
+        'right_elbow': (43.142, 19.069), 'right_wrist': (-6.371, 13.514),
     })
     human.KeyJoints(29.1, {
-        'spine_lumbar': (10.788, -4.005, 9.633), 'spine_thoracic': (-7.508, -5.526, 9.349),
-        'neck': (32.485, -4.233, -41.125), 'head': (12.671, -1.07), 'right_clavicle': (8.46, 8.201),
-        'right_shoulder': (16.859, 40.751, -8.964), 'right_elbow': (44.732, 11.716),
-        'right_wrist': (-5.862, 13.76),
+        'spine_lumbar': (10.562, -1.929, 10.48), 'spine_thoracic': (-9.657, -2.368, 9.758),
+        'neck': (32.358, -4.393, -41.282), 'head': (12.482, -1.08),
+        'right_clavicle': (5.738, 8.329), 'right_shoulder': (20.275, 38.609, -12.272),
+        'right_elbow': (44.598, 7.626), 'right_wrist': (-5.985, 11.68),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.2, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(29.3, {
-        'spine_lumbar': (12.862, -3.237, 10.159), 'spine_thoracic': (-7.811, -5.624, 9.971),
-        'neck': (32.609, -4.717, -42.942), 'head': (12.514, -1.107),
-        'right_clavicle': (9.658, 8.527), 'right_shoulder': (17.588, 42.45, -9.62),
-        'right_elbow': (44.355, 11.608), 'right_wrist': (-5.967, 13.04),
+        'spine_lumbar': (11.883, -1.942, 10.613), 'spine_thoracic': (-9.293, -3.333, 10.046),
+        'neck': (32.44, -4.642, -42.268), 'head': (12.416, -1.099),
+        'right_clavicle': (7.166, 8.533), 'right_shoulder': (19.859, 40.136, -11.723),
+        'right_elbow': (44.432, 8.672), 'right_wrist': (-6.012, 11.953),
     })
     human.KeyJoints(29.4, {
-        'spine_lumbar': (14.505, -8.037, 8.945), 'spine_thoracic': (-4.224, -10.0, 9.696),
-        'neck': (33.414, -4.641, -44.796), 'head': (13.215, -1.116),
-        'right_clavicle': (14.062, 8.827), 'right_shoulder': (11.969, 47.099, -5.738),
-        'right_elbow': (43.374, 17.322), 'right_wrist': (-6.168, 13.394),
+        'spine_lumbar': (14.312, -6.858, 9.19), 'spine_thoracic': (-4.851, -9.856, 9.738),
+        'neck': (33.268, -4.617, -44.344), 'head': (13.106, -1.112),
+        'right_clavicle': (13.343, 8.711), 'right_shoulder': (13.018, 46.208, -6.325),
+        'right_elbow': (43.591, 16.356), 'right_wrist': (-6.084, 13.555),
     })
     human.KeyJoints(29.5, {
-        'spine_lumbar': (12.015, -12.897, 8.032), 'spine_thoracic': (-1.674, -9.996, 9.225),
-        'neck': (33.666, -4.173, -43.781), 'head': (13.598, -1.04),
-        'right_clavicle': (14.344, 8.944), 'right_shoulder': (7.759, 47.252, -3.6),
-        'right_elbow': (43.202, 20.116), 'right_wrist': (-6.321, 13.644),
+        'spine_lumbar': (14.863, -11.442, 8.434), 'spine_thoracic': (-2.444, -10.0, 9.651),
+        'neck': (33.844, -4.713, -46.15), 'head': (13.534, -1.132),
+        'right_clavicle': (15.907, 9.171), 'right_shoulder': (9.08, 49.306, -4.552),
+        'right_elbow': (42.443, 19.62), 'right_wrist': (-6.451, 12.637),
     })
     human.KeyJoints(29.6, {
-        'spine_lumbar': (10.623, -6.262, 8.931), 'spine_thoracic': (-5.621, -7.48, 9.13),
-        'neck': (32.674, -4.1, -41.11), 'head': (12.891, -1.057), 'right_clavicle': (10.363, 8.111),
-        'right_shoulder': (13.839, 42.376, -6.668), 'right_elbow': (44.829, 14.803),
-        'right_wrist': (-5.812, 14.533),
+        'spine_lumbar': (10.073, -4.201, 9.436), 'spine_thoracic': (-7.406, -5.034, 9.188),
+        'neck': (32.387, -4.149, -40.599), 'head': (12.637, -1.063),
+        'right_clavicle': (7.91, 8.043), 'right_shoulder': (16.606, 40.324, -9.054),
+        'right_elbow': (45.069, 11.593), 'right_wrist': (-5.822, 13.888),
     })
     human.KeyJoints(29.7, {
-        'spine_lumbar': (11.29, -1.666, 10.705), 'spine_thoracic': (-9.79, -2.553, 9.984),
-        'neck': (32.412, -4.53, -41.844), 'head': (12.452, -1.09), 'right_clavicle': (6.152, 8.487),
-        'right_shoulder': (20.577, 39.066, -12.397), 'right_elbow': (44.409, 7.622),
-        'right_wrist': (-6.023, 11.5),
+        'spine_lumbar': (11.339, -1.452, 10.814), 'spine_thoracic': (-10.013, -2.234, 10.055),
+        'neck': (32.405, -4.568, -41.949), 'head': (12.427, -1.093),
+        'right_clavicle': (5.918, 8.518), 'right_shoulder': (20.941, 38.901, -12.755),
+        'right_elbow': (44.373, 7.207), 'right_wrist': (-6.042, 11.235),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.8, {
-        'spine_lumbar': (11.954, -2.018, 10.584), 'spine_thoracic': (-9.194, -3.484, 10.043),
-        'neck': (32.447, -4.65, -42.312), 'head': (12.418, -1.1), 'right_clavicle': (7.336, 8.534),
-        'right_shoulder': (19.708, 40.301, -11.581), 'right_elbow': (44.436, 8.872),
-        'right_wrist': (-6.008, 12.043),
+        'spine_lumbar': (11.389, -1.479, 10.804), 'spine_thoracic': (-9.964, -2.316, 10.059),
+        'neck': (32.408, -4.576, -41.979), 'head': (12.425, -1.094),
+        'right_clavicle': (6.013, 8.522), 'right_shoulder': (20.87, 38.998, -12.684),
+        'right_elbow': (44.377, 7.311), 'right_wrist': (-6.04, 11.287),
     })
     human.KeyJoints(29.9, {
-        'spine_lumbar': (13.849, -5.476, 9.528), 'spine_thoracic': (-5.843, -8.683, 9.836),
-        'neck': (33.031, -4.647, -43.826), 'head': (12.895, -1.109),
-        'right_clavicle': (12.751, 8.567), 'right_shoulder': (14.529, 44.895, -6.816),
-        'right_elbow': (43.757, 15.277), 'right_wrist': (-5.965, 13.485),
+        'spine_lumbar': (13.265, -3.987, 9.93), 'spine_thoracic': (-7.094, -6.739, 9.922),
+        'neck': (32.738, -4.715, -43.272), 'head': (12.62, -1.109),
+        'right_clavicle': (10.811, 8.527), 'right_shoulder': (16.476, 43.436, -8.614),
+        'right_elbow': (44.208, 12.975), 'right_wrist': (-5.96, 13.343),
     })
     human.KeyJoints(30.0, {
-        'spine_lumbar': (14.812, -11.615, 8.394), 'spine_thoracic': (-2.356, -10.0, 9.642),
-        'neck': (33.842, -4.701, -46.113), 'head': (13.544, -1.13),
-        'right_clavicle': (15.887, 9.168), 'right_shoulder': (8.931, 49.28, -4.436),
-        'right_elbow': (42.453, 19.695), 'right_wrist': (-6.448, 12.654),
+        'spine_lumbar': (14.846, -10.934, 8.529), 'spine_thoracic': (-2.656, -10.0, 9.649),
+        'neck': (33.781, -4.725, -46.021), 'head': (13.476, -1.131),
+        'right_clavicle': (15.378, 9.104), 'right_shoulder': (9.446, 49.148, -5.094),
+        'right_elbow': (42.676, 19.117), 'right_wrist': (-6.455, 12.979),
     })
     human.KeyJoints(30.1, {
-        'spine_lumbar': (10.951, -9.638, 8.419), 'spine_thoracic': (-3.518, -8.912, 9.15),
-        'neck': (33.172, -4.094, -42.235), 'head': (13.219, -1.022),
-        'right_clavicle': (12.098, 8.404), 'right_shoulder': (10.581, 44.357, -4.931),
-        'right_elbow': (44.307, 17.712), 'right_wrist': (-5.993, 14.297),
+        'spine_lumbar': (12.333, -9.211, 8.509), 'spine_thoracic': (-3.633, -9.949, 9.288),
+        'neck': (33.311, -4.21, -43.027), 'head': (13.292, -1.045),
+        'right_clavicle': (13.34, 8.596), 'right_shoulder': (10.854, 45.578, -4.644),
+        'right_elbow': (43.787, 18.003), 'right_wrist': (-6.022, 14.039),
     })
     human.KeyJoints(30.2, {
-        'spine_lumbar': (10.919, -3.277, 9.94), 'spine_thoracic': (-8.194, -4.673, 9.514),
-        'neck': (32.456, -4.311, -41.255), 'head': (12.602, -1.076),
-        'right_clavicle': (7.765, 8.276), 'right_shoulder': (17.973, 40.225, -9.952),
-        'right_elbow': (44.648, 10.509), 'right_wrist': (-5.904, 13.171),
+        'spine_lumbar': (10.922, -1.655, 10.663), 'spine_thoracic': (-9.885, -2.237, 9.909),
+        'neck': (32.382, -4.476, -41.601), 'head': (12.457, -1.086),
+        'right_clavicle': (5.714, 8.423), 'right_shoulder': (20.685, 38.628, -12.586),
+        'right_elbow': (44.477, 7.319), 'right_wrist': (-6.016, 11.403),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.3, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(30.4, {
+        'spine_lumbar': (12.184, -2.278, 10.486), 'spine_thoracic': (-8.866, -3.988, 10.03),
+        'neck': (32.475, -4.674, -42.459), 'head': (12.427, -1.102),
+        'right_clavicle': (7.895, 8.535), 'right_shoulder': (19.21, 40.836, -11.114),
+        'right_elbow': (44.441, 9.53), 'right_wrist': (-5.996, 12.324),
+    })
+    human.KeyJoints(30.5, {
+        'spine_lumbar': (14.505, -8.048, 8.942), 'spine_thoracic': (-4.219, -10.0, 9.696),
+        'neck': (33.413, -4.643, -44.803), 'head': (13.212, -1.116),
+        'right_clavicle': (14.087, 8.828), 'right_shoulder': (11.96, 47.104, -5.702),
+        'right_elbow': (43.367, 17.342), 'right_wrist': (-6.169, 13.384),
+    })
+    human.KeyJoints(30.6, {
+        'spine_lumbar': (14.788, -11.482, 8.423), 'spine_thoracic': (-2.422, -10.0, 9.639),
+        'neck': (33.838, -4.699, -46.089), 'head': (13.537, -1.13),
+        'right_clavicle': (15.867, 9.166), 'right_shoulder': (9.044, 49.253, -4.526),
+        'right_elbow': (42.462, 19.633), 'right_wrist': (-6.448, 12.663),
+    })
+    human.KeyJoints(30.7, {
+        'spine_lumbar': (9.99, -3.166, 9.827), 'spine_thoracic': (-8.432, -3.669, 9.35),
+        'neck': (32.329, -4.209, -40.635), 'head': (12.557, -1.067),
+        'right_clavicle': (6.64, 8.103), 'right_shoulder': (18.24, 39.258, -10.528),
+        'right_elbow': (44.969, 9.7), 'right_wrist': (-5.876, 13.01),
+    })
+    human.KeyJoints(30.8, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.238, 10.059),
         'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
         'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
-    human.KeyJoints(30.4, {
-        'spine_lumbar': (13.134, -3.723, 10.008), 'spine_thoracic': (-7.338, -6.36, 9.939),
-        'neck': (32.691, -4.717, -43.16), 'head': (12.58, -1.109),
-        'right_clavicle': (10.424, 8.527), 'right_shoulder': (16.855, 43.112, -8.955),
-        'right_elbow': (44.266, 12.514), 'right_wrist': (-5.961, 13.259),
-    })
-    human.KeyJoints(30.5, {
-        'spine_lumbar': (14.611, -8.944, 8.805), 'spine_thoracic': (-3.753, -10.0, 9.676),
-        'neck': (33.526, -4.668, -45.176), 'head': (13.293, -1.121),
-        'right_clavicle': (14.615, 8.9), 'right_shoulder': (11.18, 47.746, -5.442),
-        'right_elbow': (43.123, 18.0), 'right_wrist': (-6.251, 13.254),
-    })
-    human.KeyJoints(30.6, {
-        'spine_lumbar': (11.693, -12.554, 8.07), 'spine_thoracic': (-1.863, -9.891, 9.201),
-        'neck': (33.589, -4.129, -43.41), 'head': (13.546, -1.025),
-        'right_clavicle': (13.814, 8.835), 'right_shoulder': (8.046, 46.566, -3.73),
-        'right_elbow': (43.458, 19.875), 'right_wrist': (-6.256, 13.826),
-    })
-    human.KeyJoints(30.7, {
-        'spine_lumbar': (10.623, -5.517, 9.105), 'spine_thoracic': (-6.186, -6.994, 9.139),
-        'neck': (32.586, -4.113, -41.057), 'head': (12.809, -1.064),
-        'right_clavicle': (9.803, 8.107), 'right_shoulder': (14.732, 41.85, -7.249),
-        'right_elbow': (44.839, 13.939), 'right_wrist': (-5.809, 14.506),
-    })
-    human.KeyJoints(30.8, {
-        'spine_lumbar': (11.345, -1.464, 10.809), 'spine_thoracic': (-9.997, -2.264, 10.053),
-        'neck': (32.407, -4.566, -41.947), 'head': (12.429, -1.093),
-        'right_clavicle': (5.943, 8.518), 'right_shoulder': (20.917, 38.921, -12.729),
-        'right_elbow': (44.374, 7.239), 'right_wrist': (-6.041, 11.254),
-    })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
-        'spine_lumbar': (12.269, -2.382, 10.448), 'spine_thoracic': (-8.742, -4.18, 10.024),
-        'neck': (32.487, -4.682, -42.515), 'head': (12.433, -1.103),
-        'right_clavicle': (8.106, 8.534), 'right_shoulder': (19.019, 41.035, -10.937),
-        'right_elbow': (44.438, 9.779), 'right_wrist': (-5.992, 12.424),
+        'spine_lumbar': (11.481, -1.558, 10.77), 'spine_thoracic': (-9.842, -2.5, 10.057),
+        'neck': (32.411, -4.589, -42.03), 'head': (12.421, -1.095),
+        'right_clavicle': (6.224, 8.526), 'right_shoulder': (20.687, 39.209, -12.508),
+        'right_elbow': (44.392, 7.56), 'right_wrist': (-6.035, 11.415),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (14.078, -6.199, 9.35), 'spine_thoracic': (-5.303, -9.421, 9.796),
-        'neck': (33.17, -4.617, -44.075), 'right_clavicle': (13.286, 8.616),
-        'right_shoulder': (13.695, 45.497, -6.338), 'right_elbow': (43.597, 16.062),
-        'right_wrist': (-5.985, 13.454),
+        'spine_lumbar': (13.603, -4.771, 9.711), 'spine_thoracic': (-6.413, -7.79, 9.874),
+        'neck': (32.887, -4.69, -43.579), 'head': (12.755, -1.11),
+        'right_clavicle': (11.859, 8.541), 'right_shoulder': (15.417, 44.278, -7.667),
+        'right_elbow': (44.002, 14.23), 'right_wrist': (-5.96, 13.482),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (13.942, -12.27, 8.222), 'spine_thoracic': (-2.014, -10.0, 9.503),
-        'neck': (33.804, -4.529, -45.457), 'head': (13.575, -1.104),
-        'right_clavicle': (15.525, 9.119), 'right_shoulder': (8.346, 48.797, -4.007),
-        'right_elbow': (42.637, 19.935), 'right_wrist': (-6.419, 12.938),
+        'spine_lumbar': (14.86, -11.271, 8.468), 'spine_thoracic': (-2.51, -10.0, 9.65),
+        'neck': (33.823, -4.719, -46.113), 'head': (13.514, -1.132),
+        'right_clavicle': (15.71, 9.147), 'right_shoulder': (9.197, 49.27, -4.754),
+        'right_elbow': (42.529, 19.437), 'right_wrist': (-6.453, 12.765),
     })
     human.KeyJoints(31.2, {
-        'spine_lumbar': (10.792, -8.42, 8.583), 'spine_thoracic': (-4.24, -8.453, 9.14),
-        'neck': (32.992, -4.093, -41.833), 'head': (13.092, -1.03),
-        'right_clavicle': (11.515, 8.273), 'right_shoulder': (11.694, 43.648, -5.49),
-        'right_elbow': (44.544, 16.742), 'right_wrist': (-5.912, 14.408),
+        'spine_lumbar': (11.238, -7.073, 8.816), 'spine_thoracic': (-4.919, -8.987, 9.186),
+        'neck': (32.942, -4.067, -41.635), 'head': (13.07, -1.03),
+        'right_clavicle': (11.729, 8.241), 'right_shoulder': (12.82, 43.299, -5.482),
+        'right_elbow': (44.373, 16.221), 'right_wrist': (-5.832, 14.427),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (11.058, -2.618, 10.24), 'spine_thoracic': (-8.835, -3.842, 9.69),
-        'neck': (32.433, -4.403, -41.497), 'head': (12.536, -1.082),
-        'right_clavicle': (7.117, 8.355), 'right_shoulder': (19.016, 39.75, -10.912),
-        'right_elbow': (44.559, 9.362), 'right_wrist': (-5.949, 12.545),
+        'spine_lumbar': (11.197, -1.515, 10.766), 'spine_thoracic': (-9.976, -2.231, 10.007),
+        'neck': (32.398, -4.536, -41.831), 'head': (12.438, -1.091),
+        'right_clavicle': (5.84, 8.487), 'right_shoulder': (20.866, 38.799, -12.707),
+        'right_elbow': (44.407, 7.232), 'right_wrist': (-6.033, 11.284),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(31.5, {
-        'spine_lumbar': (13.389, -4.255, 9.853), 'spine_thoracic': (-6.854, -7.11, 9.905),
-        'neck': (32.788, -4.709, -43.381), 'head': (12.664, -1.11),
-        'right_clavicle': (11.186, 8.531), 'right_shoulder': (16.103, 43.744, -8.279),
-        'right_elbow': (44.142, 13.421), 'right_wrist': (-5.959, 13.413),
+        'spine_lumbar': (12.529, -2.727, 10.327), 'spine_thoracic': (-8.348, -4.79, 10.003),
+        'neck': (32.533, -4.702, -42.695), 'head': (12.459, -1.105),
+        'right_clavicle': (8.769, 8.531), 'right_shoulder': (18.416, 41.651, -10.379),
+        'right_elbow': (44.418, 10.559), 'right_wrist': (-5.98, 12.714),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (14.757, -9.851, 8.696), 'spine_thoracic': (-3.203, -10.0, 9.651),
-        'neck': (33.641, -4.718, -45.627), 'head': (13.365, -1.127),
-        'right_clavicle': (14.788, 8.984), 'right_shoulder': (10.335, 48.545, -5.45),
-        'right_elbow': (42.987, 18.374), 'right_wrist': (-6.435, 13.237),
+        'spine_lumbar': (14.661, -9.237, 8.77), 'spine_thoracic': (-3.573, -10.0, 9.667),
+        'neck': (33.563, -4.685, -45.325), 'head': (13.314, -1.123),
+        'right_clavicle': (14.669, 8.926), 'right_shoulder': (10.904, 48.013, -5.445),
+        'right_elbow': (43.081, 18.12), 'right_wrist': (-6.315, 13.249),
     })
     human.KeyJoints(31.7, {
-        'spine_lumbar': (11.406, -11.826, 8.152), 'spine_thoracic': (-2.268, -9.659, 9.18),
-        'neck': (33.493, -4.104, -43.085), 'head': (13.458, -1.016),
-        'right_clavicle': (13.26, 8.701), 'right_shoulder': (8.665, 45.844, -4.015),
-        'right_elbow': (43.741, 19.352), 'right_wrist': (-6.174, 13.999),
+        'spine_lumbar': (14.331, -11.613, 8.377), 'spine_thoracic': (-2.346, -10.0, 9.569),
+        'neck': (33.79, -4.612, -45.688), 'head': (13.541, -1.122),
+        'right_clavicle': (15.545, 9.118), 'right_shoulder': (8.913, 48.895, -4.448),
+        'right_elbow': (42.618, 19.631), 'right_wrist': (-6.428, 12.87),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (10.682, -4.774, 9.342), 'spine_thoracic': (-6.814, -6.335, 9.215),
-        'neck': (32.527, -4.164, -41.081), 'head': (12.738, -1.067),
-        'right_clavicle': (9.164, 8.141), 'right_shoulder': (15.739, 41.309, -8.022),
-        'right_elbow': (44.801, 12.905), 'right_wrist': (-5.828, 14.238),
+        'spine_lumbar': (10.199, -2.42, 10.192), 'spine_thoracic': (-9.19, -2.796, 9.556),
+        'neck': (32.332, -4.296, -40.914), 'head': (12.513, -1.073), 'right_clavicle': (5.92, 8.21),
+        'right_shoulder': (19.48, 38.669, -11.614), 'right_elbow': (44.78, 8.369),
+        'right_wrist': (-5.936, 12.218),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(32.0, {
-        'spine_lumbar': (12.57, -2.786, 10.307), 'spine_thoracic': (-8.284, -4.889, 10.0),
-        'neck': (32.541, -4.704, -42.725), 'head': (12.465, -1.105),
-        'right_clavicle': (8.876, 8.531), 'right_shoulder': (18.317, 41.749, -10.288),
-        'right_elbow': (44.413, 10.686), 'right_wrist': (-5.978, 12.757),
+        'spine_lumbar': (11.644, -1.705, 10.708), 'spine_thoracic': (-9.623, -2.831, 10.054),
+        'neck': (32.421, -4.612, -42.124), 'head': (12.416, -1.096),
+        'right_clavicle': (6.601, 8.53), 'right_shoulder': (20.357, 39.582, -12.194),
+        'right_elbow': (44.414, 8.005), 'right_wrist': (-6.025, 11.638),
     })
     human.KeyJoints(32.1, {
-        'spine_lumbar': (14.387, -7.112, 9.131), 'spine_thoracic': (-4.69, -9.966, 9.719),
-        'neck': (33.299, -4.628, -44.453), 'head': (13.127, -1.113),
-        'right_clavicle': (13.369, 8.746), 'right_shoulder': (12.77, 46.464, -6.318),
-        'right_elbow': (43.588, 16.475), 'right_wrist': (-6.12, 13.587),
+        'spine_lumbar': (13.888, -5.602, 9.497), 'spine_thoracic': (-5.745, -8.848, 9.83),
+        'neck': (33.06, -4.636, -43.862), 'right_clavicle': (12.936, 8.573),
+        'right_shoulder': (14.375, 44.989, -6.625), 'right_elbow': (43.696, 15.472),
+        'right_wrist': (-5.966, 13.468),
     })
     human.KeyJoints(32.2, {
-        'spine_lumbar': (12.707, -12.763, 8.076), 'spine_thoracic': (-1.748, -10.0, 9.313),
-        'neck': (33.738, -4.295, -44.472), 'head': (13.595, -1.065),
-        'right_clavicle': (14.922, 9.033), 'right_shoulder': (7.887, 47.999, -3.689),
-        'right_elbow': (42.934, 20.085), 'right_wrist': (-6.372, 13.36),
+        'spine_lumbar': (14.863, -11.413, 8.44), 'spine_thoracic': (-2.455, -10.0, 9.65),
+        'neck': (33.84, -4.714, -46.145), 'head': (13.531, -1.132),
+        'right_clavicle': (15.872, 9.167), 'right_shoulder': (9.099, 49.302, -4.587),
+        'right_elbow': (42.459, 19.588), 'right_wrist': (-6.451, 12.66),
     })
     human.KeyJoints(32.3, {
-        'spine_lumbar': (10.682, -7.263, 8.755), 'spine_thoracic': (-4.956, -7.97, 9.134),
-        'neck': (32.825, -4.095, -41.434), 'head': (12.987, -1.043),
-        'right_clavicle': (10.938, 8.171), 'right_shoulder': (12.802, 42.983, -6.076),
-        'right_elbow': (44.725, 15.755), 'right_wrist': (-5.849, 14.489),
+        'spine_lumbar': (10.496, -5.561, 9.079), 'spine_thoracic': (-6.169, -6.855, 9.132),
+        'neck': (32.57, -4.109, -40.946), 'head': (12.804, -1.063),
+        'right_clavicle': (9.695, 8.086), 'right_shoulder': (14.689, 41.791, -7.305),
+        'right_elbow': (44.904, 13.898), 'right_wrist': (-5.808, 14.509),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (11.188, -2.069, 10.503), 'spine_thoracic': (-9.381, -3.112, 9.854),
-        'neck': (32.42, -4.472, -41.687), 'head': (12.49, -1.086), 'right_clavicle': (6.565, 8.428),
-        'right_shoulder': (19.909, 39.355, -11.754), 'right_elbow': (44.475, 8.37),
-        'right_wrist': (-5.99, 11.962),
+        'spine_lumbar': (11.297, -1.47, 10.8), 'spine_thoracic': (-10.003, -2.231, 10.041),
+        'neck': (32.403, -4.559, -41.915), 'head': (12.43, -1.092),
+        'right_clavicle': (5.896, 8.509), 'right_shoulder': (20.92, 38.873, -12.742),
+        'right_elbow': (44.383, 7.213), 'right_wrist': (-6.039, 11.249),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
-        'spine_lumbar': (11.591, -1.66, 10.728), 'spine_thoracic': (-9.693, -2.726, 10.054),
-        'neck': (32.419, -4.604, -42.095), 'head': (12.418, -1.096),
-        'right_clavicle': (6.481, 8.529), 'right_shoulder': (20.462, 39.462, -12.294),
-        'right_elbow': (44.406, 7.863), 'right_wrist': (-6.028, 11.565),
+        'spine_lumbar': (11.354, -1.45, 10.816), 'spine_thoracic': (-10.01, -2.246, 10.059),
+        'neck': (32.407, -4.571, -41.96), 'right_clavicle': (5.933, 8.521),
+        'right_shoulder': (20.94, 38.918, -12.751), 'right_elbow': (44.371, 7.216),
+        'right_wrist': (-6.042, 11.237),
     })
     human.KeyJoints(32.6, {
-        'spine_lumbar': (13.628, -4.836, 9.694), 'spine_thoracic': (-6.359, -7.874, 9.87),
-        'neck': (32.9, -4.687, -43.603), 'head': (12.767, -1.11), 'right_clavicle': (11.941, 8.543),
-        'right_shoulder': (15.332, 44.341, -7.592), 'right_elbow': (43.982, 14.328),
-        'right_wrist': (-5.961, 13.487),
+        'spine_lumbar': (12.896, -3.294, 10.141), 'spine_thoracic': (-7.754, -5.713, 9.967),
+        'neck': (32.619, -4.718, -42.969), 'head': (12.521, -1.107),
+        'right_clavicle': (9.751, 8.527), 'right_shoulder': (17.5, 42.532, -9.54),
+        'right_elbow': (44.346, 11.718), 'right_wrist': (-5.967, 13.069),
     })
     human.KeyJoints(32.7, {
-        'spine_lumbar': (14.836, -10.799, 8.554), 'spine_thoracic': (-2.735, -10.0, 9.649),
-        'neck': (33.776, -4.721, -45.995), 'head': (13.467, -1.13),
-        'right_clavicle': (15.41, 9.104), 'right_shoulder': (9.573, 49.096, -5.117),
-        'right_elbow': (42.666, 19.082), 'right_wrist': (-6.454, 12.95),
+        'spine_lumbar': (14.801, -10.305, 8.632), 'spine_thoracic': (-2.961, -10.0, 9.648),
+        'neck': (33.7, -4.724, -45.808), 'head': (13.409, -1.129),
+        'right_clavicle': (14.949, 9.032), 'right_shoulder': (9.948, 48.83, -5.437),
+        'right_elbow': (42.885, 18.634), 'right_wrist': (-6.456, 13.208),
     })
     human.KeyJoints(32.8, {
-        'spine_lumbar': (11.159, -10.824, 8.271), 'spine_thoracic': (-2.834, -9.327, 9.163),
-        'neck': (33.36, -4.097, -42.687), 'head': (13.357, -1.016),
-        'right_clavicle': (12.689, 8.553), 'right_shoulder': (9.532, 45.104, -4.423),
-        'right_elbow': (44.029, 18.615), 'right_wrist': (-6.084, 14.157),
+        'spine_lumbar': (13.485, -11.149, 8.38), 'spine_thoracic': (-2.534, -10.0, 9.433),
+        'neck': (33.615, -4.46, -44.75), 'head': (13.473, -1.106),
+        'right_clavicle': (14.519, 8.941), 'right_shoulder': (9.2, 47.923, -4.667),
+        'right_elbow': (43.132, 19.082), 'right_wrist': (-6.376, 13.505),
     })
     human.KeyJoints(32.9, {
-        'spine_lumbar': (10.786, -4.018, 9.628), 'spine_thoracic': (-7.496, -5.54, 9.346),
-        'neck': (32.486, -4.232, -41.124), 'head': (12.672, -1.07), 'right_clavicle': (8.472, 8.2),
-        'right_shoulder': (16.84, 40.76, -8.947), 'right_elbow': (44.734, 11.736),
-        'right_wrist': (-5.862, 13.769),
+        'spine_lumbar': (10.555, -1.936, 10.476), 'spine_thoracic': (-9.651, -2.374, 9.755),
+        'neck': (32.358, -4.391, -41.275), 'head': (12.483, -1.08),
+        'right_clavicle': (5.739, 8.327), 'right_shoulder': (20.265, 38.609, -12.264),
+        'right_elbow': (44.601, 7.635), 'right_wrist': (-5.984, 11.687),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (12.858, -3.229, 10.161), 'spine_thoracic': (-7.819, -5.612, 9.971),
-        'neck': (32.608, -4.717, -42.939), 'head': (12.513, -1.107),
-        'right_clavicle': (9.645, 8.527), 'right_shoulder': (17.601, 42.439, -9.631),
-        'right_elbow': (44.356, 11.592), 'right_wrist': (-5.968, 13.036),
+        'spine_lumbar': (11.879, -1.938, 10.615), 'spine_thoracic': (-9.3, -3.323, 10.046),
+        'neck': (32.44, -4.641, -42.265), 'head': (12.416, -1.099),
+        'right_clavicle': (7.156, 8.533), 'right_shoulder': (19.868, 40.126, -11.732),
+        'right_elbow': (44.431, 8.66), 'right_wrist': (-6.012, 11.947),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (14.503, -8.021, 8.947), 'spine_thoracic': (-4.231, -10.0, 9.696),
-        'neck': (33.413, -4.64, -44.791), 'head': (13.214, -1.116),
-        'right_clavicle': (14.044, 8.826), 'right_shoulder': (11.981, 47.09, -5.754),
-        'right_elbow': (43.38, 17.305), 'right_wrist': (-6.168, 13.4),
+        'spine_lumbar': (14.304, -6.832, 9.196), 'spine_thoracic': (-4.868, -9.842, 9.74),
+        'neck': (33.265, -4.617, -44.334), 'head': (13.103, -1.111),
+        'right_clavicle': (13.341, 8.707), 'right_shoulder': (13.043, 46.181, -6.325),
+        'right_elbow': (43.591, 16.345), 'right_wrist': (-6.08, 13.551),
     })
     human.KeyJoints(33.3, {
-        'spine_lumbar': (12.021, -12.899, 8.032), 'spine_thoracic': (-1.673, -9.997, 9.225),
-        'neck': (33.667, -4.174, -43.789), 'head': (13.598, -1.04),
-        'right_clavicle': (14.353, 8.945), 'right_shoulder': (7.757, 47.264, -3.599),
-        'right_elbow': (43.198, 20.117), 'right_wrist': (-6.321, 13.641),
+        'spine_lumbar': (14.863, -11.442, 8.434), 'spine_thoracic': (-2.444, -10.0, 9.651),
+        'neck': (33.844, -4.713, -46.15), 'head': (13.534, -1.132),
+        'right_clavicle': (15.907, 9.171), 'right_shoulder': (9.08, 49.306, -4.552),
+        'right_elbow': (42.443, 19.62), 'right_wrist': (-6.451, 12.637),
     })
     human.KeyJoints(33.4, {
-        'spine_lumbar': (10.624, -6.276, 8.928), 'spine_thoracic': (-5.611, -7.488, 9.13),
-        'neck': (32.677, -4.099, -41.114), 'head': (12.893, -1.057),
-        'right_clavicle': (10.373, 8.112), 'right_shoulder': (13.823, 42.385, -6.658),
-        'right_elbow': (44.828, 14.818), 'right_wrist': (-5.813, 14.533),
+        'spine_lumbar': (10.075, -4.221, 9.43), 'spine_thoracic': (-7.387, -5.06, 9.187),
+        'neck': (32.389, -4.147, -40.601), 'head': (12.639, -1.063),
+        'right_clavicle': (7.935, 8.043), 'right_shoulder': (16.577, 40.345, -9.027),
+        'right_elbow': (45.069, 11.628), 'right_wrist': (-5.821, 13.9),
     })
     human.KeyJoints(33.5, {
-        'spine_lumbar': (11.289, -1.671, 10.702), 'spine_thoracic': (-9.784, -2.56, 9.982),
-        'neck': (32.412, -4.529, -41.842), 'head': (12.453, -1.09),
-        'right_clavicle': (6.158, 8.486), 'right_shoulder': (20.569, 39.07, -12.389),
-        'right_elbow': (44.41, 7.632), 'right_wrist': (-6.023, 11.506),
+        'spine_lumbar': (11.338, -1.452, 10.814), 'spine_thoracic': (-10.012, -2.234, 10.055),
+        'neck': (32.405, -4.568, -41.949), 'head': (12.427, -1.093),
+        'right_clavicle': (5.918, 8.518), 'right_shoulder': (20.941, 38.901, -12.754),
+        'right_elbow': (44.374, 7.207), 'right_wrist': (-6.042, 11.235),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
-        'spine_lumbar': (11.949, -2.012, 10.586), 'spine_thoracic': (-9.202, -3.473, 10.043),
-        'neck': (32.446, -4.649, -42.309), 'head': (12.418, -1.1), 'right_clavicle': (7.323, 8.534),
-        'right_shoulder': (19.72, 40.288, -11.592), 'right_elbow': (44.435, 8.857),
-        'right_wrist': (-6.008, 12.036),
+        'spine_lumbar': (11.388, -1.478, 10.804), 'spine_thoracic': (-9.965, -2.314, 10.059),
+        'neck': (32.408, -4.576, -41.978), 'head': (12.425, -1.094),
+        'right_clavicle': (6.011, 8.522), 'right_shoulder': (20.872, 38.996, -12.686),
+        'right_elbow': (44.377, 7.308), 'right_wrist': (-6.04, 11.285),
     })
     human.KeyJoints(33.7, {
-        'spine_lumbar': (13.846, -5.466, 9.531), 'spine_thoracic': (-5.852, -8.669, 9.837),
-        'neck': (33.029, -4.648, -43.822), 'head': (12.893, -1.109),
-        'right_clavicle': (12.736, 8.567), 'right_shoulder': (14.542, 44.887, -6.831),
-        'right_elbow': (43.762, 15.26), 'right_wrist': (-5.965, 13.487),
+        'spine_lumbar': (13.26, -3.975, 9.934), 'spine_thoracic': (-7.105, -6.721, 9.923),
+        'neck': (32.736, -4.715, -43.267), 'head': (12.618, -1.109),
+        'right_clavicle': (10.793, 8.527), 'right_shoulder': (16.493, 43.422, -8.629),
+        'right_elbow': (44.211, 12.953), 'right_wrist': (-5.96, 13.339),
     })
     human.KeyJoints(33.8, {
-        'spine_lumbar': (14.818, -11.604, 8.397), 'spine_thoracic': (-2.362, -10.0, 9.643),
-        'neck': (33.842, -4.701, -46.117), 'head': (13.543, -1.13),
-        'right_clavicle': (15.89, 9.169), 'right_shoulder': (8.941, 49.283, -4.444),
-        'right_elbow': (42.452, 19.69), 'right_wrist': (-6.449, 12.652),
+        'spine_lumbar': (14.845, -10.926, 8.531), 'spine_thoracic': (-2.66, -10.0, 9.649),
+        'neck': (33.78, -4.725, -46.019), 'head': (13.475, -1.131),
+        'right_clavicle': (15.371, 9.103), 'right_shoulder': (9.452, 49.145, -5.101),
+        'right_elbow': (42.679, 19.11), 'right_wrist': (-6.455, 12.984),
     })
     human.KeyJoints(33.9, {
-        'spine_lumbar': (11.232, -8.934, 8.491), 'spine_thoracic': (-3.642, -8.814, 9.15),
-        'neck': (33.008, -4.202, -42.309), 'head': (13.061, -1.054),
-        'right_clavicle': (12.274, 8.45), 'right_shoulder': (10.741, 44.706, -4.822),
-        'right_elbow': (44.303, 17.902), 'right_wrist': (-5.994, 14.295),
+        'spine_lumbar': (11.353, -12.194, 8.216), 'spine_thoracic': (-3.237, -10.0, 9.076),
+        'neck': (33.818, -3.767, -42.594), 'head': (13.79, -0.932),
+        'right_clavicle': (12.602, 8.456), 'right_shoulder': (10.293, 44.401, -5.562),
+        'right_elbow': (41.928, 17.002), 'right_wrist': (-6.101, 10.214),
     })
     human.KeyJoints(34.0, {
-        'spine_lumbar': (8.894, -9.146, 9.354), 'spine_thoracic': (-7.392, -5.699, 9.142),
-        'neck': (33.686, -3.411, -40.993), 'head': (13.805, -0.866),
-        'right_clavicle': (6.287, 7.974), 'right_shoulder': (16.853, 37.769, -11.632),
-        'right_elbow': (41.435, 8.573), 'right_wrist': (-6.031, 6.57),
+        'spine_lumbar': (6.814, -13.723, 9.47), 'spine_thoracic': (-8.347, -4.364, 9.033),
+        'neck': (34.841, -2.571, -40.78), 'head': (14.941, -0.682), 'right_clavicle': (2.613, 7.82),
+        'right_shoulder': (18.515, 33.648, -16.35), 'right_elbow': (36.883, 3.124),
+        'right_wrist': (-6.317, -4.218),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.062708, duration=0.072)
@@ -2140,71 +2138,71 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=35.003158, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'spine_lumbar': (7.496, -13.725, 9.703), 'spine_thoracic': (-8.516, -4.428, 9.253),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.785, 7.948),
-        'right_shoulder': (57.222, 2.303, 11.028), 'right_elbow': (32.277, 18.449),
-        'right_wrist': (-1.055, -20.428),
+        'spine_lumbar': (7.483, -13.731, 9.699), 'spine_thoracic': (-8.601, -4.428, 9.259),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.872, 7.946),
+        'right_shoulder': (57.165, 2.456, 11.108), 'right_elbow': (32.265, 18.55),
+        'right_wrist': (-1.032, -20.456),
     })
     human.KeyJoints(35.2, {
-        'spine_lumbar': (4.61, -19.248, 9.043), 'spine_thoracic': (-10.393, -9.893, 9.38),
-        'neck': (25.088, -1.162, -7.061), 'right_clavicle': (8.966, 7.918),
-        'right_shoulder': (56.084, 5.493, 15.082), 'right_elbow': (30.278, 23.175),
-        'right_wrist': (0.577, -23.147),
+        'spine_lumbar': (6.919, -15.152, 9.689), 'spine_thoracic': (-9.546, -5.811, 9.403),
+        'neck': (24.545, -1.102, -6.052), 'head': (8.164, -0.118), 'right_clavicle': (4.425, 7.951),
+        'right_shoulder': (56.301, 3.766, 11.94), 'right_elbow': (32.037, 19.695),
+        'right_wrist': (-0.699, -20.483),
     })
     human.KeyJoints(35.3, {
-        'spine_lumbar': (2.035, -19.918, 9.455), 'spine_thoracic': (-11.771, -10.0, 11.21),
-        'neck': (26.182, -1.188, -8.177), 'head': (10.53, -0.169), 'right_clavicle': (17.524, 9.76),
-        'right_shoulder': (57.15, 7.5, 20.675), 'right_elbow': (25.277, 29.504),
-        'right_wrist': (3.373, -26.26),
+        'spine_lumbar': (3.007, -19.365, 9.18), 'spine_thoracic': (-11.093, -10.0, 10.373),
+        'neck': (25.674, -1.134, -7.382), 'head': (9.912, -0.161), 'right_clavicle': (14.56, 9.003),
+        'right_shoulder': (57.003, 6.841, 19.359), 'right_elbow': (27.785, 27.597),
+        'right_wrist': (2.541, -26.325),
     })
     human.KeyJoints(35.4, {
-        'spine_lumbar': (-3.043, -20.0, 10.294), 'spine_thoracic': (-12.353, -10.0, 12.793),
-        'neck': (27.718, -1.065, -8.295), 'head': (12.095, -0.17),
-        'right_clavicle': (20.864, 11.373), 'right_shoulder': (56.262, 5.654, 21.907),
-        'right_elbow': (19.367, 31.146), 'right_wrist': (4.468, -24.514),
+        'spine_lumbar': (0.651, -20.0, 10.224), 'spine_thoracic': (-12.735, -10.0, 12.829),
+        'neck': (27.033, -1.295, -9.543), 'head': (11.411, -0.173),
+        'right_clavicle': (21.401, 11.194), 'right_shoulder': (57.741, 7.834, 21.35),
+        'right_elbow': (19.054, 31.347), 'right_wrist': (4.265, -24.144),
     })
     human.KeyJoints(35.5, {
-        'spine_lumbar': (-1.327, -19.548, 8.852), 'spine_thoracic': (-9.844, -10.0, 9.696),
-        'neck': (26.163, -0.795, -5.144), 'head': (10.452, -0.162),
-        'right_clavicle': (12.546, 8.802), 'right_shoulder': (54.748, 2.707, 18.615),
-        'right_elbow': (27.404, 26.111), 'right_wrist': (2.332, -24.259),
+        'spine_lumbar': (2.008, -17.046, 9.276), 'spine_thoracic': (-9.719, -7.901, 9.246),
+        'neck': (25.524, -0.858, -5.09), 'head': (9.542, -0.144), 'right_clavicle': (5.891, 8.066),
+        'right_shoulder': (53.185, 2.335, 13.679), 'right_elbow': (31.327, 20.971),
+        'right_wrist': (0.059, -21.948),
     })
     human.KeyJoints(35.6, {
-        'spine_lumbar': (7.195, -14.161, 9.686), 'spine_thoracic': (-8.858, -5.087, 9.347),
-        'neck': (24.303, -1.042, -5.371), 'head': (7.804, -0.11), 'right_clavicle': (3.566, 8.017),
-        'right_shoulder': (56.67, 2.943, 11.838), 'right_elbow': (32.583, 19.249),
-        'right_wrist': (-0.791, -19.868),
+        'spine_lumbar': (7.967, -13.508, 9.842), 'spine_thoracic': (-8.812, -4.415, 9.392),
+        'neck': (24.067, -1.055, -5.292), 'head': (7.516, -0.107), 'right_clavicle': (3.086, 8.008),
+        'right_shoulder': (56.949, 2.999, 11.365), 'right_elbow': (32.764, 18.844),
+        'right_wrist': (-0.975, -19.34),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
-        'spine_lumbar': (6.349, -16.084, 9.572), 'spine_thoracic': (-9.833, -6.699, 9.39),
-        'neck': (24.728, -1.12, -6.365), 'head': (8.447, -0.125), 'right_clavicle': (5.282, 7.918),
-        'right_shoulder': (56.033, 4.171, 12.437), 'right_elbow': (31.67, 20.306),
-        'right_wrist': (-0.494, -21.076),
+        'spine_lumbar': (7.886, -13.66, 9.838), 'spine_thoracic': (-8.906, -4.523, 9.4),
+        'neck': (24.123, -1.062, -5.387), 'head': (7.581, -0.107), 'right_clavicle': (3.192, 8.006),
+        'right_shoulder': (56.871, 3.082, 11.39), 'right_elbow': (32.707, 18.9),
+        'right_wrist': (-0.959, -19.427),
     })
     human.KeyJoints(35.8, {
-        'spine_lumbar': (3.141, -19.272, 9.147), 'spine_thoracic': (-10.994, -10.0, 10.266),
-        'neck': (25.61, -1.128, -7.278), 'right_clavicle': (14.113, 8.905),
-        'right_shoulder': (56.983, 6.708, 19.068), 'right_elbow': (28.04, 27.268),
-        'right_wrist': (2.395, -26.197),
+        'spine_lumbar': (4.684, -19.177, 9.225), 'spine_thoracic': (-10.61, -9.792, 9.475),
+        'neck': (25.151, -1.179, -7.269), 'head': (9.197, -0.148), 'right_clavicle': (8.659, 7.917),
+        'right_shoulder': (55.587, 5.584, 14.686), 'right_elbow': (30.447, 22.855),
+        'right_wrist': (0.428, -22.87),
     })
     human.KeyJoints(35.9, {
-        'spine_lumbar': (0.888, -19.894, 10.167), 'spine_thoracic': (-12.651, -10.0, 12.707),
-        'neck': (26.906, -1.282, -9.404), 'head': (11.28, -0.173),
-        'right_clavicle': (21.026, 11.055), 'right_shoulder': (57.709, 7.758, 21.118),
-        'right_elbow': (19.457, 31.114), 'right_wrist': (4.128, -24.275),
+        'spine_lumbar': (0.825, -19.729, 10.159), 'spine_thoracic': (-12.586, -10.0, 12.627),
+        'neck': (26.916, -1.268, -9.266), 'head': (11.289, -0.172),
+        'right_clavicle': (20.712, 11.01), 'right_shoulder': (57.697, 7.663, 20.979),
+        'right_elbow': (19.668, 30.883), 'right_wrist': (4.056, -24.35),
     })
     human.KeyJoints(36.0, {
-        'spine_lumbar': (-2.874, -19.874, 9.735), 'spine_thoracic': (-11.062, -10.0, 11.539),
-        'neck': (27.115, -0.925, -6.82), 'head': (11.469, -0.167),
-        'right_clavicle': (17.331, 10.387), 'right_shoulder': (55.17, 3.617, 20.852),
-        'right_elbow': (22.698, 29.171), 'right_wrist': (3.745, -24.487),
+        'spine_lumbar': (-0.634, -19.862, 9.168), 'spine_thoracic': (-10.856, -10.0, 10.531),
+        'neck': (26.41, -0.925, -6.341), 'head': (10.742, -0.165),
+        'right_clavicle': (15.311, 9.414), 'right_shoulder': (55.402, 5.081, 20.958),
+        'right_elbow': (27.388, 28.475), 'right_wrist': (3.192, -26.696),
     })
     human.KeyJoints(36.1, {
-        'spine_lumbar': (2.208, -17.991, 8.748), 'spine_thoracic': (-9.08, -9.008, 9.059),
-        'neck': (25.204, -0.89, -5.1), 'head': (9.036, -0.131), 'right_clavicle': (7.065, 8.079),
-        'right_shoulder': (55.044, 2.545, 15.109), 'right_elbow': (31.125, 22.16),
-        'right_wrist': (0.528, -23.038),
+        'spine_lumbar': (7.419, -13.49, 9.752), 'spine_thoracic': (-8.64, -4.465, 9.317),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.049, 8.012),
+        'right_shoulder': (56.646, 2.582, 11.496), 'right_elbow': (32.726, 18.854),
+        'right_wrist': (-0.915, -19.45),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
@@ -2214,65 +2212,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(36.3, {
-        'spine_lumbar': (4.307, -19.312, 8.764), 'spine_thoracic': (-10.051, -10.0, 9.259),
-        'neck': (25.014, -1.125, -6.723), 'head': (8.94, -0.14), 'right_clavicle': (10.12, 7.971),
-        'right_shoulder': (56.892, 5.429, 16.297), 'right_elbow': (29.785, 24.252),
-        'right_wrist': (1.061, -23.975),
+        'spine_lumbar': (6.391, -16.013, 9.579), 'spine_thoracic': (-9.808, -6.632, 9.389),
+        'neck': (24.736, -1.12, -6.363), 'head': (8.439, -0.124), 'right_clavicle': (5.217, 7.919),
+        'right_shoulder': (56.054, 4.138, 12.401), 'right_elbow': (31.698, 20.26),
+        'right_wrist': (-0.51, -21.032),
     })
     human.KeyJoints(36.4, {
-        'spine_lumbar': (1.759, -19.762, 9.631), 'spine_thoracic': (-11.941, -10.0, 11.529),
-        'neck': (26.347, -1.199, -8.366), 'head': (10.698, -0.17),
-        'right_clavicle': (18.143, 10.039), 'right_shoulder': (57.284, 7.506, 20.676),
-        'right_elbow': (23.928, 29.712), 'right_wrist': (3.483, -25.809),
+        'spine_lumbar': (2.544, -19.92, 9.272), 'spine_thoracic': (-11.431, -10.0, 10.727),
+        'neck': (25.899, -1.17, -7.847), 'head': (10.232, -0.168),
+        'right_clavicle': (16.128, 9.328), 'right_shoulder': (57.03, 7.419, 20.537),
+        'right_elbow': (26.908, 28.804), 'right_wrist': (3.044, -26.453),
     })
     human.KeyJoints(36.5, {
-        'spine_lumbar': (-3.556, -19.999, 10.295), 'spine_thoracic': (-12.122, -10.0, 12.755),
-        'neck': (27.786, -1.0, -7.805), 'head': (12.163, -0.169),
-        'right_clavicle': (20.466, 11.377), 'right_shoulder': (55.83, 4.937, 21.949),
-        'right_elbow': (19.62, 30.986), 'right_wrist': (4.477, -24.573),
+        'spine_lumbar': (0.509, -20.0, 10.226), 'spine_thoracic': (-12.715, -10.0, 12.827),
+        'neck': (27.058, -1.285, -9.487), 'head': (11.436, -0.173),
+        'right_clavicle': (21.372, 11.2), 'right_shoulder': (57.677, 7.739, 21.369),
+        'right_elbow': (19.071, 31.335), 'right_wrist': (4.271, -24.16),
     })
     human.KeyJoints(36.6, {
-        'spine_lumbar': (-0.697, -19.398, 8.641), 'spine_thoracic': (-9.532, -10.0, 9.257),
-        'neck': (25.931, -0.792, -4.855), 'head': (10.135, -0.156),
-        'right_clavicle': (11.004, 8.407), 'right_shoulder': (54.674, 2.539, 17.798),
-        'right_elbow': (28.751, 25.075), 'right_wrist': (1.85, -24.153),
+        'spine_lumbar': (3.843, -15.279, 9.359), 'spine_thoracic': (-9.075, -6.257, 9.167),
+        'neck': (24.996, -0.88, -4.773), 'head': (8.78, -0.128), 'right_clavicle': (4.456, 8.033),
+        'right_shoulder': (54.308, 1.994, 12.707), 'right_elbow': (31.915, 19.901),
+        'right_wrist': (-0.356, -20.917),
     })
     human.KeyJoints(36.7, {
-        'spine_lumbar': (7.938, -13.556, 9.839), 'spine_thoracic': (-8.833, -4.449, 9.394),
-        'neck': (24.085, -1.057, -5.318), 'head': (7.539, -0.107), 'right_clavicle': (3.112, 8.01),
-        'right_shoulder': (56.935, 3.008, 11.38), 'right_elbow': (32.756, 18.86),
-        'right_wrist': (-0.968, -19.365),
+        'spine_lumbar': (7.977, -13.522, 9.847), 'spine_thoracic': (-8.83, -4.414, 9.396),
+        'neck': (24.071, -1.057, -5.313), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.011, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
-        'spine_lumbar': (5.615, -17.406, 9.51), 'spine_thoracic': (-10.324, -7.921, 9.457),
-        'neck': (24.909, -1.148, -6.802), 'right_clavicle': (6.497, 7.9),
-        'right_shoulder': (55.546, 4.826, 13.101), 'right_elbow': (31.194, 21.155),
-        'right_wrist': (-0.213, -21.783),
+        'spine_lumbar': (7.692, -13.954, 9.816), 'spine_thoracic': (-9.06, -4.76, 9.405),
+        'neck': (24.222, -1.071, -5.536), 'head': (7.708, -0.109), 'right_clavicle': (3.419, 7.996),
+        'right_shoulder': (56.71, 3.23, 11.472), 'right_elbow': (32.584, 19.036),
+        'right_wrist': (-0.916, -19.622),
     })
     human.KeyJoints(36.9, {
-        'spine_lumbar': (2.742, -19.609, 9.236), 'spine_thoracic': (-11.287, -10.0, 10.578),
-        'neck': (25.802, -1.149, -7.61), 'head': (10.095, -0.165),
-        'right_clavicle': (15.453, 9.191), 'right_shoulder': (57.016, 7.139, 19.971),
-        'right_elbow': (27.294, 28.27), 'right_wrist': (2.827, -26.414),
+        'spine_lumbar': (4.173, -19.29, 8.805), 'spine_thoracic': (-10.157, -10.0, 9.367),
+        'neck': (25.095, -1.12, -6.743), 'head': (9.052, -0.142), 'right_clavicle': (10.552, 8.071),
+        'right_shoulder': (56.899, 5.573, 16.597), 'right_elbow': (29.596, 24.581),
+        'right_wrist': (1.2, -24.259),
     })
     human.KeyJoints(37.0, {
-        'spine_lumbar': (0.276, -20.0, 10.242), 'spine_thoracic': (-12.718, -10.0, 12.828),
-        'neck': (27.144, -1.282, -9.48), 'head': (11.523, -0.173),
-        'right_clavicle': (21.38, 11.239), 'right_shoulder': (57.661, 7.719, 21.465),
-        'right_elbow': (19.066, 31.339), 'right_wrist': (4.315, -24.166),
+        'spine_lumbar': (0.699, -19.894, 10.21), 'spine_thoracic': (-12.69, -10.0, 12.773),
+        'neck': (26.999, -1.286, -9.454), 'head': (11.376, -0.173),
+        'right_clavicle': (21.184, 11.142), 'right_shoulder': (57.733, 7.774, 21.22),
+        'right_elbow': (19.204, 31.19), 'right_wrist': (4.195, -24.197),
     })
     human.KeyJoints(37.1, {
-        'spine_lumbar': (-2.436, -19.788, 9.434), 'spine_thoracic': (-10.639, -10.0, 10.908),
-        'neck': (26.79, -0.864, -6.176), 'head': (11.146, -0.166),
-        'right_clavicle': (15.811, 9.852), 'right_shoulder': (55.0, 3.258, 20.187),
-        'right_elbow': (24.242, 28.222), 'right_wrist': (3.313, -24.427),
+        'spine_lumbar': (-0.403, -19.311, 8.759), 'spine_thoracic': (-9.849, -10.0, 9.549),
+        'neck': (25.958, -0.807, -5.097), 'head': (10.163, -0.156),
+        'right_clavicle': (11.708, 8.623), 'right_shoulder': (54.887, 3.337, 18.546),
+        'right_elbow': (29.134, 25.75), 'right_wrist': (2.106, -25.667),
     })
     human.KeyJoints(37.2, {
-        'spine_lumbar': (3.972, -16.695, 9.057), 'spine_thoracic': (-8.987, -7.714, 9.154),
-        'neck': (24.945, -0.975, -5.424), 'head': (8.637, -0.122), 'right_clavicle': (5.711, 8.052),
-        'right_shoulder': (55.581, 2.677, 13.901), 'right_elbow': (31.718, 21.054),
-        'right_wrist': (0.027, -21.969),
+        'spine_lumbar': (7.812, -13.486, 9.803), 'spine_thoracic': (-8.725, -4.426, 9.359),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.07, 8.007),
+        'right_shoulder': (56.916, 2.841, 11.426), 'right_elbow': (32.757, 18.853),
+        'right_wrist': (-0.951, -19.371),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
@@ -2282,28 +2280,28 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(37.4, {
-        'spine_lumbar': (3.894, -19.241, 8.903), 'spine_thoracic': (-10.405, -10.0, 9.624),
-        'neck': (25.243, -1.12, -6.876), 'head': (9.268, -0.146), 'right_clavicle': (11.459, 8.309),
-        'right_shoulder': (56.913, 5.911, 17.204), 'right_elbow': (29.206, 25.257),
-        'right_wrist': (1.488, -24.831),
+        'spine_lumbar': (5.798, -17.062, 9.513), 'spine_thoracic': (-10.185, -7.61, 9.43),
+        'neck': (24.845, -1.138, -6.656), 'head': (8.706, -0.135), 'right_clavicle': (6.184, 7.902),
+        'right_shoulder': (55.7, 4.645, 12.935), 'right_elbow': (31.305, 20.939),
+        'right_wrist': (-0.284, -21.623),
     })
     human.KeyJoints(37.5, {
-        'spine_lumbar': (1.486, -19.617, 9.817), 'spine_thoracic': (-12.112, -10.0, 11.861),
-        'neck': (26.51, -1.214, -8.592), 'head': (10.867, -0.171),
-        'right_clavicle': (18.767, 10.328), 'right_shoulder': (57.439, 7.509, 20.677),
-        'right_elbow': (22.501, 29.922), 'right_wrist': (3.594, -25.281),
+        'spine_lumbar': (1.774, -19.762, 9.637), 'spine_thoracic': (-11.932, -10.0, 11.524),
+        'neck': (26.339, -1.201, -8.375), 'head': (10.69, -0.17),
+        'right_clavicle': (18.104, 10.033), 'right_shoulder': (57.295, 7.505, 20.676),
+        'right_elbow': (23.907, 29.696), 'right_wrist': (3.474, -25.729),
     })
     human.KeyJoints(37.6, {
-        'spine_lumbar': (-3.452, -19.981, 10.199), 'spine_thoracic': (-11.834, -10.0, 12.533),
-        'neck': (27.639, -0.976, -7.506), 'head': (12.01, -0.168),
-        'right_clavicle': (19.756, 11.209), 'right_shoulder': (55.589, 4.47, 21.775),
-        'right_elbow': (20.254, 30.613), 'right_wrist': (4.359, -24.561),
+        'spine_lumbar': (-0.203, -20.0, 10.202), 'spine_thoracic': (-12.558, -10.0, 12.732),
+        'neck': (27.155, -1.227, -9.113), 'head': (11.531, -0.172),
+        'right_clavicle': (20.996, 11.162), 'right_shoulder': (57.314, 7.194, 21.374),
+        'right_elbow': (19.404, 31.131), 'right_wrist': (4.248, -24.291),
     })
     human.KeyJoints(37.7, {
-        'spine_lumbar': (-0.034, -19.229, 8.523), 'spine_thoracic': (-9.31, -10.0, 9.014),
-        'neck': (25.706, -0.791, -4.677), 'right_clavicle': (9.629, 8.172),
-        'right_shoulder': (54.637, 2.454, 17.006), 'right_elbow': (29.788, 24.117),
-        'right_wrist': (1.41, -24.032),
+        'spine_lumbar': (5.491, -14.208, 9.592), 'spine_thoracic': (-8.897, -5.167, 9.26),
+        'neck': (24.734, -0.925, -4.841), 'head': (8.334, -0.116), 'right_clavicle': (3.549, 8.042),
+        'right_shoulder': (55.126, 2.179, 11.957), 'right_elbow': (32.413, 19.198),
+        'right_wrist': (-0.678, -20.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
@@ -2313,65 +2311,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(37.9, {
-        'spine_lumbar': (4.972, -18.745, 9.467), 'spine_thoracic': (-10.764, -9.264, 9.556),
-        'neck': (25.168, -1.19, -7.371), 'head': (9.234, -0.15), 'right_clavicle': (7.786, 7.908),
-        'right_shoulder': (55.174, 5.54, 13.862), 'right_elbow': (30.775, 22.08),
-        'right_wrist': (0.107, -22.361),
+        'spine_lumbar': (7.367, -14.452, 9.772), 'spine_thoracic': (-9.295, -5.179, 9.409),
+        'neck': (24.371, -1.085, -5.77), 'head': (7.915, -0.113), 'right_clavicle': (3.819, 7.979),
+        'right_shoulder': (56.475, 3.472, 11.638), 'right_elbow': (32.373, 19.287),
+        'right_wrist': (-0.836, -19.956),
     })
     human.KeyJoints(38.0, {
-        'spine_lumbar': (2.351, -20.0, 9.317), 'spine_thoracic': (-11.566, -10.0, 10.888),
-        'neck': (26.007, -1.177, -7.976), 'head': (10.346, -0.169),
-        'right_clavicle': (16.718, 9.475), 'right_shoulder': (57.049, 7.494, 20.674),
-        'right_elbow': (26.448, 29.161), 'right_wrist': (3.203, -26.459),
+        'spine_lumbar': (3.567, -19.188, 9.019), 'spine_thoracic': (-10.666, -10.0, 9.91),
+        'neck': (25.407, -1.12, -7.025), 'head': (9.508, -0.152), 'right_clavicle': (12.634, 8.576),
+        'right_shoulder': (56.943, 6.263, 18.056), 'right_elbow': (28.743, 26.159),
+        'right_wrist': (1.897, -25.577),
     })
     human.KeyJoints(38.1, {
-        'spine_lumbar': (-1.348, -20.0, 10.274), 'spine_thoracic': (-12.578, -10.0, 12.815),
-        'neck': (27.452, -1.187, -8.985), 'head': (11.832, -0.172),
-        'right_clavicle': (21.192, 11.322), 'right_shoulder': (57.051, 6.832, 21.72),
-        'right_elbow': (19.174, 31.27), 'right_wrist': (4.408, -24.326),
+        'spine_lumbar': (0.657, -19.983, 10.222), 'spine_thoracic': (-12.729, -10.0, 12.821),
+        'neck': (27.028, -1.293, -9.529), 'head': (11.406, -0.173),
+        'right_clavicle': (21.369, 11.187), 'right_shoulder': (57.74, 7.825, 21.33),
+        'right_elbow': (19.073, 31.323), 'right_wrist': (4.255, -24.151),
     })
     human.KeyJoints(38.2, {
-        'spine_lumbar': (-1.919, -19.68, 9.131), 'spine_thoracic': (-10.226, -10.0, 10.275),
-        'neck': (26.448, -0.808, -5.532), 'head': (10.791, -0.164),
-        'right_clavicle': (14.196, 9.308), 'right_shoulder': (54.859, 2.952, 19.433),
-        'right_elbow': (25.843, 27.19), 'right_wrist': (2.835, -24.351),
+        'spine_lumbar': (0.59, -18.864, 8.641), 'spine_thoracic': (-9.349, -9.773, 9.038),
+        'neck': (25.587, -0.81, -4.787), 'head': (9.632, -0.145), 'right_clavicle': (8.206, 8.109),
+        'right_shoulder': (54.252, 2.422, 15.859), 'right_elbow': (30.453, 22.971),
+        'right_wrist': (0.906, -23.433),
     })
     human.KeyJoints(38.3, {
-        'spine_lumbar': (5.742, -15.322, 9.395), 'spine_thoracic': (-8.912, -6.302, 9.258),
-        'neck': (24.653, -1.014, -5.439), 'head': (8.242, -0.116), 'right_clavicle': (4.496, 8.031),
-        'right_shoulder': (56.167, 2.82, 12.752), 'right_elbow': (32.217, 20.038),
-        'right_wrist': (-0.433, -20.832),
+        'spine_lumbar': (7.922, -13.491, 9.828), 'spine_thoracic': (-8.778, -4.418, 9.38),
+        'neck': (24.068, -1.049, -5.247), 'head': (7.512, -0.106), 'right_clavicle': (3.081, 8.007),
+        'right_shoulder': (56.946, 2.947, 11.388), 'right_elbow': (32.763, 18.85),
+        'right_wrist': (-0.966, -19.349),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
-        'spine_lumbar': (7.178, -14.746, 9.742), 'spine_thoracic': (-9.413, -5.436, 9.41),
-        'neck': (24.45, -1.093, -5.898), 'head': (8.027, -0.115), 'right_clavicle': (4.066, 7.968),
-        'right_shoulder': (56.368, 3.606, 11.751), 'right_elbow': (32.247, 19.448),
-        'right_wrist': (-0.784, -20.156),
+        'spine_lumbar': (7.966, -13.54, 9.846), 'spine_thoracic': (-8.841, -4.427, 9.397),
+        'neck': (24.078, -1.058, -5.323), 'head': (7.53, -0.107), 'right_clavicle': (3.1, 8.01),
+        'right_shoulder': (56.94, 3.02, 11.359), 'right_elbow': (32.758, 18.847),
+        'right_wrist': (-0.975, -19.348),
     })
     human.KeyJoints(38.5, {
-        'spine_lumbar': (3.528, -19.184, 9.033), 'spine_thoracic': (-10.697, -10.0, 9.944),
-        'neck': (25.426, -1.121, -7.037), 'right_clavicle': (12.775, 8.608),
-        'right_shoulder': (56.947, 6.305, 18.157), 'right_elbow': (28.685, 26.267),
-        'right_wrist': (1.947, -25.656),
+        'spine_lumbar': (5.193, -18.246, 9.498), 'spine_thoracic': (-10.628, -8.725, 9.527),
+        'neck': (25.082, -1.176, -7.187), 'head': (9.095, -0.146), 'right_clavicle': (7.299, 7.899),
+        'right_shoulder': (55.254, 5.275, 13.553), 'right_elbow': (30.926, 21.722),
+        'right_wrist': (-0.021, -22.157),
     })
     human.KeyJoints(38.6, {
-        'spine_lumbar': (1.189, -19.58, 9.988), 'spine_thoracic': (-12.321, -10.0, 12.218),
-        'neck': (26.689, -1.237, -8.882), 'head': (11.053, -0.171),
-        'right_clavicle': (19.593, 10.643), 'right_shoulder': (57.572, 7.527, 20.694),
-        'right_elbow': (21.117, 30.277), 'right_wrist': (3.769, -24.809),
+        'spine_lumbar': (1.118, -19.579, 10.019), 'spine_thoracic': (-12.367, -10.0, 12.29),
+        'neck': (26.732, -1.24, -8.933), 'head': (11.097, -0.172),
+        'right_clavicle': (19.781, 10.709), 'right_shoulder': (57.595, 7.533, 20.705),
+        'right_elbow': (20.858, 30.37), 'right_wrist': (3.816, -24.727),
     })
     human.KeyJoints(38.7, {
-        'spine_lumbar': (-3.222, -19.94, 10.003), 'spine_thoracic': (-11.474, -10.0, 12.109),
-        'neck': (27.384, -0.957, -7.224), 'head': (11.746, -0.168),
-        'right_clavicle': (18.69, 10.864), 'right_shoulder': (55.369, 4.029, 21.401),
-        'right_elbow': (21.312, 29.995), 'right_wrist': (4.107, -24.532),
+        'spine_lumbar': (-0.757, -20.0, 9.87), 'spine_thoracic': (-11.972, -10.0, 11.998),
+        'neck': (26.991, -1.102, -8.062), 'head': (11.353, -0.17),
+        'right_clavicle': (19.08, 10.598), 'right_shoulder': (56.505, 6.228, 21.188),
+        'right_elbow': (21.989, 30.173), 'right_wrist': (3.902, -25.14),
     })
     human.KeyJoints(38.8, {
-        'spine_lumbar': (0.772, -18.92, 8.544), 'spine_thoracic': (-9.186, -9.858, 8.997),
-        'neck': (25.463, -0.807, -4.731), 'head': (9.445, -0.141), 'right_clavicle': (8.421, 8.112),
-        'right_shoulder': (54.692, 2.459, 16.202), 'right_elbow': (30.476, 23.227),
-        'right_wrist': (1.009, -23.796),
+        'spine_lumbar': (6.688, -13.646, 9.692), 'spine_thoracic': (-8.703, -4.644, 9.292),
+        'neck': (24.383, -0.97, -4.878), 'head': (7.859, -0.108), 'right_clavicle': (3.147, 8.028),
+        'right_shoulder': (56.037, 2.368, 11.64), 'right_elbow': (32.638, 18.921),
+        'right_wrist': (-0.838, -19.617),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
@@ -2381,65 +2379,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(39.0, {
-        'spine_lumbar': (4.614, -19.244, 9.055), 'spine_thoracic': (-10.408, -9.887, 9.387),
-        'neck': (25.092, -1.163, -7.075), 'head': (9.092, -0.145), 'right_clavicle': (8.949, 7.918),
-        'right_shoulder': (56.01, 5.51, 15.058), 'right_elbow': (30.317, 23.156),
-        'right_wrist': (0.566, -23.094),
+        'spine_lumbar': (6.927, -15.139, 9.69), 'spine_thoracic': (-9.542, -5.799, 9.403),
+        'neck': (24.542, -1.101, -6.048), 'head': (8.16, -0.118), 'right_clavicle': (4.413, 7.952),
+        'right_shoulder': (56.264, 3.772, 11.934), 'right_elbow': (32.074, 19.687),
+        'right_wrist': (-0.704, -20.435),
     })
     human.KeyJoints(39.1, {
-        'spine_lumbar': (2.04, -19.92, 9.452), 'spine_thoracic': (-11.768, -10.0, 11.204),
-        'neck': (26.179, -1.188, -8.175), 'head': (10.527, -0.169),
-        'right_clavicle': (17.513, 9.755), 'right_shoulder': (57.139, 7.503, 20.675),
-        'right_elbow': (25.305, 29.5), 'right_wrist': (3.371, -26.259),
+        'spine_lumbar': (3.016, -19.358, 9.178), 'spine_thoracic': (-11.086, -10.0, 10.366),
+        'neck': (25.67, -1.134, -7.375), 'head': (9.906, -0.161), 'right_clavicle': (14.53, 8.996),
+        'right_shoulder': (56.994, 6.834, 19.34), 'right_elbow': (27.808, 27.575),
+        'right_wrist': (2.531, -26.311),
     })
     human.KeyJoints(39.2, {
-        'spine_lumbar': (-3.022, -20.0, 10.294), 'spine_thoracic': (-12.357, -10.0, 12.793),
-        'neck': (27.715, -1.067, -8.306), 'head': (12.092, -0.17),
-        'right_clavicle': (20.87, 11.372), 'right_shoulder': (56.273, 5.672, 21.905),
-        'right_elbow': (19.364, 31.149), 'right_wrist': (4.467, -24.512),
+        'spine_lumbar': (0.651, -20.0, 10.224), 'spine_thoracic': (-12.735, -10.0, 12.829),
+        'neck': (27.033, -1.295, -9.543), 'head': (11.411, -0.173),
+        'right_clavicle': (21.401, 11.194), 'right_shoulder': (57.741, 7.834, 21.35),
+        'right_elbow': (19.054, 31.347), 'right_wrist': (4.265, -24.144),
     })
     human.KeyJoints(39.3, {
-        'spine_lumbar': (-1.337, -19.55, 8.856), 'spine_thoracic': (-9.85, -10.0, 9.704),
-        'neck': (26.168, -0.795, -5.149), 'head': (10.458, -0.162),
-        'right_clavicle': (12.573, 8.809), 'right_shoulder': (54.75, 2.711, 18.629),
-        'right_elbow': (27.379, 26.129), 'right_wrist': (2.34, -24.26),
+        'spine_lumbar': (1.979, -17.078, 9.274), 'spine_thoracic': (-9.727, -7.931, 9.247),
+        'neck': (25.531, -0.858, -5.095), 'head': (9.553, -0.144), 'right_clavicle': (5.921, 8.067),
+        'right_shoulder': (53.174, 2.34, 13.7), 'right_elbow': (31.315, 20.994),
+        'right_wrist': (0.068, -21.968),
     })
     human.KeyJoints(39.4, {
-        'spine_lumbar': (7.175, -14.177, 9.682), 'spine_thoracic': (-8.859, -5.104, 9.346),
-        'neck': (24.308, -1.042, -5.373), 'head': (7.81, -0.11), 'right_clavicle': (3.578, 8.017),
-        'right_shoulder': (56.664, 2.942, 11.85), 'right_elbow': (32.578, 19.259),
-        'right_wrist': (-0.787, -19.881),
+        'spine_lumbar': (7.966, -13.507, 9.842), 'spine_thoracic': (-8.812, -4.415, 9.392),
+        'neck': (24.067, -1.055, -5.292), 'head': (7.516, -0.107), 'right_clavicle': (3.086, 8.008),
+        'right_shoulder': (56.949, 2.998, 11.365), 'right_elbow': (32.764, 18.845),
+        'right_wrist': (-0.975, -19.34),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'spine_lumbar': (6.362, -16.062, 9.574), 'spine_thoracic': (-9.825, -6.678, 9.39),
-        'neck': (24.725, -1.119, -6.359), 'head': (8.441, -0.125), 'right_clavicle': (5.262, 7.918),
-        'right_shoulder': (56.039, 4.16, 12.426), 'right_elbow': (31.678, 20.291),
-        'right_wrist': (-0.499, -21.063),
+        'spine_lumbar': (7.889, -13.657, 9.838), 'spine_thoracic': (-8.905, -4.52, 9.399),
+        'neck': (24.122, -1.062, -5.386), 'head': (7.579, -0.107), 'right_clavicle': (3.189, 8.006),
+        'right_shoulder': (56.873, 3.08, 11.389), 'right_elbow': (32.709, 18.898),
+        'right_wrist': (-0.959, -19.425),
     })
     human.KeyJoints(39.6, {
-        'spine_lumbar': (3.148, -19.268, 9.145), 'spine_thoracic': (-10.989, -10.0, 10.261),
-        'neck': (25.607, -1.127, -7.273), 'right_clavicle': (14.091, 8.9),
-        'right_shoulder': (56.982, 6.701, 19.054), 'right_elbow': (28.052, 27.251),
-        'right_wrist': (2.388, -26.19),
+        'spine_lumbar': (4.691, -19.169, 9.243), 'spine_thoracic': (-10.631, -9.781, 9.484),
+        'neck': (25.157, -1.18, -7.287), 'head': (9.208, -0.149), 'right_clavicle': (8.632, 7.917),
+        'right_shoulder': (55.543, 5.592, 14.65), 'right_elbow': (30.459, 22.827),
+        'right_wrist': (0.415, -22.849),
     })
     human.KeyJoints(39.7, {
-        'spine_lumbar': (0.894, -19.889, 10.164), 'spine_thoracic': (-12.646, -10.0, 12.7),
-        'neck': (26.902, -1.281, -9.396), 'head': (11.276, -0.173),
-        'right_clavicle': (21.006, 11.049), 'right_shoulder': (57.707, 7.754, 21.11),
-        'right_elbow': (19.479, 31.101), 'right_wrist': (4.122, -24.282),
+        'spine_lumbar': (0.828, -19.726, 10.157), 'spine_thoracic': (-12.583, -10.0, 12.623),
+        'neck': (26.914, -1.268, -9.262), 'head': (11.287, -0.172),
+        'right_clavicle': (20.7, 11.006), 'right_shoulder': (57.696, 7.661, 20.974),
+        'right_elbow': (19.681, 30.876), 'right_wrist': (4.053, -24.354),
     })
     human.KeyJoints(39.8, {
-        'spine_lumbar': (-2.88, -19.876, 9.739), 'spine_thoracic': (-11.069, -10.0, 11.549),
-        'neck': (27.12, -0.926, -6.829), 'head': (11.474, -0.167),
-        'right_clavicle': (17.355, 10.396), 'right_shoulder': (55.173, 3.623, 20.863),
-        'right_elbow': (22.673, 29.186), 'right_wrist': (3.752, -24.488),
+        'spine_lumbar': (-0.635, -19.874, 9.174), 'spine_thoracic': (-10.872, -10.0, 10.547),
+        'neck': (26.418, -0.927, -6.364), 'head': (10.75, -0.165),
+        'right_clavicle': (15.368, 9.426), 'right_shoulder': (55.415, 5.109, 20.989),
+        'right_elbow': (27.351, 28.516), 'right_wrist': (3.208, -26.703),
     })
     human.KeyJoints(39.9, {
-        'spine_lumbar': (2.181, -18.011, 8.743), 'spine_thoracic': (-9.081, -9.027, 9.058),
-        'neck': (25.209, -0.888, -5.094), 'head': (9.043, -0.131), 'right_clavicle': (7.089, 8.08),
-        'right_shoulder': (55.036, 2.543, 15.128), 'right_elbow': (31.115, 22.178),
-        'right_wrist': (0.536, -23.054),
+        'spine_lumbar': (7.41, -13.49, 9.751), 'spine_thoracic': (-8.639, -4.466, 9.316),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.049, 8.012),
+        'right_shoulder': (56.64, 2.578, 11.497), 'right_elbow': (32.725, 18.854),
+        'right_wrist': (-0.914, -19.452),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
@@ -2449,65 +2447,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(40.1, {
-        'spine_lumbar': (4.313, -19.313, 8.762), 'spine_thoracic': (-10.047, -10.0, 9.254),
-        'neck': (25.012, -1.125, -6.721), 'head': (8.936, -0.14), 'right_clavicle': (10.099, 7.966),
-        'right_shoulder': (56.891, 5.423, 16.281), 'right_elbow': (29.795, 24.235),
-        'right_wrist': (1.054, -23.96),
+        'spine_lumbar': (6.4, -15.997, 9.581), 'spine_thoracic': (-9.803, -6.617, 9.389),
+        'neck': (24.732, -1.119, -6.356), 'head': (8.434, -0.124), 'right_clavicle': (5.202, 7.92),
+        'right_shoulder': (56.059, 4.131, 12.393), 'right_elbow': (31.704, 20.249),
+        'right_wrist': (-0.513, -21.022),
     })
     human.KeyJoints(40.2, {
-        'spine_lumbar': (1.763, -19.764, 9.628), 'spine_thoracic': (-11.938, -10.0, 11.524),
-        'neck': (26.344, -1.199, -8.363), 'head': (10.695, -0.17),
-        'right_clavicle': (18.133, 10.034), 'right_shoulder': (57.281, 7.505, 20.676),
-        'right_elbow': (23.952, 29.709), 'right_wrist': (3.481, -25.818),
+        'spine_lumbar': (2.552, -19.911, 9.27), 'spine_thoracic': (-11.425, -10.0, 10.72),
+        'neck': (25.894, -1.169, -7.84), 'head': (10.228, -0.168),
+        'right_clavicle': (16.102, 9.322), 'right_shoulder': (57.029, 7.412, 20.523),
+        'right_elbow': (26.925, 28.785), 'right_wrist': (3.037, -26.452),
     })
     human.KeyJoints(40.3, {
-        'spine_lumbar': (-3.557, -19.999, 10.295), 'spine_thoracic': (-12.126, -10.0, 12.757),
-        'neck': (27.787, -1.001, -7.811), 'head': (12.164, -0.169),
-        'right_clavicle': (20.474, 11.378), 'right_shoulder': (55.834, 4.945, 21.95),
-        'right_elbow': (19.613, 30.989), 'right_wrist': (4.477, -24.573),
+        'spine_lumbar': (0.514, -20.0, 10.226), 'spine_thoracic': (-12.716, -10.0, 12.828),
+        'neck': (27.057, -1.285, -9.489), 'head': (11.435, -0.173),
+        'right_clavicle': (21.374, 11.2), 'right_shoulder': (57.68, 7.743, 21.368),
+        'right_elbow': (19.07, 31.335), 'right_wrist': (4.271, -24.159),
     })
     human.KeyJoints(40.4, {
-        'spine_lumbar': (-0.708, -19.401, 8.643), 'spine_thoracic': (-9.536, -10.0, 9.263),
-        'neck': (25.934, -0.792, -4.859), 'head': (10.14, -0.156),
-        'right_clavicle': (11.029, 8.413), 'right_shoulder': (54.675, 2.542, 17.812),
-        'right_elbow': (28.73, 25.092), 'right_wrist': (1.858, -24.155),
+        'spine_lumbar': (3.814, -15.301, 9.357), 'spine_thoracic': (-9.08, -6.279, 9.167),
+        'neck': (25.002, -0.879, -4.775), 'head': (8.79, -0.128), 'right_clavicle': (4.475, 8.033),
+        'right_shoulder': (54.293, 1.994, 12.721), 'right_elbow': (31.906, 19.915),
+        'right_wrist': (-0.35, -20.933),
     })
     human.KeyJoints(40.5, {
-        'spine_lumbar': (7.933, -13.56, 9.838), 'spine_thoracic': (-8.834, -4.453, 9.394),
-        'neck': (24.086, -1.057, -5.319), 'head': (7.541, -0.107), 'right_clavicle': (3.115, 8.01),
-        'right_shoulder': (56.933, 3.008, 11.383), 'right_elbow': (32.754, 18.862),
-        'right_wrist': (-0.967, -19.368),
+        'spine_lumbar': (7.977, -13.522, 9.847), 'spine_thoracic': (-8.83, -4.414, 9.396),
+        'neck': (24.071, -1.057, -5.313), 'head': (7.522, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.011, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
-        'spine_lumbar': (5.627, -17.383, 9.51), 'spine_thoracic': (-10.315, -7.901, 9.455),
-        'neck': (24.904, -1.147, -6.791), 'right_clavicle': (6.477, 7.9),
-        'right_shoulder': (55.557, 4.814, 13.09), 'right_elbow': (31.201, 21.141),
-        'right_wrist': (-0.218, -21.773),
+        'spine_lumbar': (7.696, -13.947, 9.817), 'spine_thoracic': (-9.057, -4.755, 9.404),
+        'neck': (24.22, -1.071, -5.533), 'head': (7.705, -0.109), 'right_clavicle': (3.413, 7.996),
+        'right_shoulder': (56.714, 3.227, 11.47), 'right_elbow': (32.587, 19.033),
+        'right_wrist': (-0.917, -19.617),
     })
     human.KeyJoints(40.7, {
-        'spine_lumbar': (2.749, -19.6, 9.235), 'spine_thoracic': (-11.282, -10.0, 10.573),
-        'neck': (25.798, -1.149, -7.603), 'head': (10.091, -0.165),
-        'right_clavicle': (15.429, 9.186), 'right_shoulder': (57.015, 7.13, 19.953),
-        'right_elbow': (27.307, 28.251), 'right_wrist': (2.819, -26.413),
+        'spine_lumbar': (4.184, -19.292, 8.801), 'spine_thoracic': (-10.147, -10.0, 9.357),
+        'neck': (25.089, -1.121, -6.738), 'head': (9.043, -0.142),
+        'right_clavicle': (10.516, 8.061), 'right_shoulder': (56.899, 5.559, 16.573),
+        'right_elbow': (29.612, 24.554), 'right_wrist': (1.188, -24.235),
     })
     human.KeyJoints(40.8, {
-        'spine_lumbar': (0.296, -20.0, 10.241), 'spine_thoracic': (-12.72, -10.0, 12.828),
-        'neck': (27.139, -1.283, -9.484), 'head': (11.519, -0.173),
-        'right_clavicle': (21.382, 11.237), 'right_shoulder': (57.667, 7.728, 21.461),
-        'right_elbow': (19.065, 31.34), 'right_wrist': (4.313, -24.164),
+        'spine_lumbar': (0.7, -19.892, 10.209), 'spine_thoracic': (-12.689, -10.0, 12.771),
+        'neck': (26.998, -1.286, -9.452), 'head': (11.375, -0.173),
+        'right_clavicle': (21.179, 11.141), 'right_shoulder': (57.732, 7.772, 21.217),
+        'right_elbow': (19.208, 31.186), 'right_wrist': (4.194, -24.198),
     })
     human.KeyJoints(40.9, {
-        'spine_lumbar': (-2.444, -19.789, 9.439), 'spine_thoracic': (-10.647, -10.0, 10.919),
-        'neck': (26.796, -0.865, -6.188), 'head': (11.152, -0.166),
-        'right_clavicle': (15.837, 9.862), 'right_shoulder': (55.003, 3.263, 20.199),
-        'right_elbow': (24.215, 28.239), 'right_wrist': (3.321, -24.428),
+        'spine_lumbar': (-0.415, -19.314, 8.768), 'spine_thoracic': (-9.87, -10.0, 9.57),
+        'neck': (25.968, -0.809, -5.116), 'head': (10.178, -0.156),
+        'right_clavicle': (11.776, 8.64), 'right_shoulder': (54.892, 3.369, 18.59),
+        'right_elbow': (29.107, 25.8), 'right_wrist': (2.128, -25.705),
     })
     human.KeyJoints(41.0, {
-        'spine_lumbar': (3.942, -16.718, 9.052), 'spine_thoracic': (-8.988, -7.738, 9.153),
-        'neck': (24.949, -0.974, -5.421), 'head': (8.643, -0.122), 'right_clavicle': (5.734, 8.052),
-        'right_shoulder': (55.571, 2.674, 13.921), 'right_elbow': (31.708, 21.072),
-        'right_wrist': (0.035, -21.988),
+        'spine_lumbar': (7.808, -13.486, 9.802), 'spine_thoracic': (-8.724, -4.427, 9.358),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.07, 8.007),
+        'right_shoulder': (56.914, 2.838, 11.427), 'right_elbow': (32.757, 18.853),
+        'right_wrist': (-0.95, -19.371),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
@@ -2517,28 +2515,28 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(41.2, {
-        'spine_lumbar': (3.901, -19.242, 8.901), 'spine_thoracic': (-10.4, -10.0, 9.619),
-        'neck': (25.24, -1.12, -6.873), 'head': (9.263, -0.146), 'right_clavicle': (11.437, 8.304),
-        'right_shoulder': (56.912, 5.904, 17.188), 'right_elbow': (29.216, 25.24),
-        'right_wrist': (1.48, -24.817),
+        'spine_lumbar': (5.808, -17.043, 9.514), 'spine_thoracic': (-10.178, -7.592, 9.429),
+        'neck': (24.841, -1.137, -6.647), 'head': (8.699, -0.135), 'right_clavicle': (6.167, 7.902),
+        'right_shoulder': (55.707, 4.635, 12.926), 'right_elbow': (31.312, 20.927),
+        'right_wrist': (-0.288, -21.614),
     })
     human.KeyJoints(41.3, {
-        'spine_lumbar': (1.491, -19.619, 9.814), 'spine_thoracic': (-12.109, -10.0, 11.855),
-        'neck': (26.508, -1.214, -8.588), 'head': (10.865, -0.171),
-        'right_clavicle': (18.755, 10.323), 'right_shoulder': (57.437, 7.509, 20.677),
-        'right_elbow': (22.525, 29.917), 'right_wrist': (3.592, -25.29),
+        'spine_lumbar': (1.79, -19.77, 9.627), 'spine_thoracic': (-11.921, -10.0, 11.505),
+        'neck': (26.33, -1.2, -8.362), 'head': (10.68, -0.17), 'right_clavicle': (18.067, 10.017),
+        'right_shoulder': (57.287, 7.505, 20.676), 'right_elbow': (23.986, 29.683),
+        'right_wrist': (3.468, -25.755),
     })
     human.KeyJoints(41.4, {
-        'spine_lumbar': (-3.455, -19.982, 10.202), 'spine_thoracic': (-11.839, -10.0, 12.539),
-        'neck': (27.642, -0.977, -7.51), 'head': (12.014, -0.168),
-        'right_clavicle': (19.771, 11.214), 'right_shoulder': (55.593, 4.477, 21.78),
-        'right_elbow': (20.239, 30.621), 'right_wrist': (4.362, -24.561),
+        'spine_lumbar': (-0.186, -20.0, 10.204), 'spine_thoracic': (-12.563, -10.0, 12.737),
+        'neck': (27.153, -1.229, -9.125), 'head': (11.529, -0.172),
+        'right_clavicle': (21.011, 11.166), 'right_shoulder': (57.323, 7.208, 21.379),
+        'right_elbow': (19.389, 31.14), 'right_wrist': (4.251, -24.287),
     })
     human.KeyJoints(41.5, {
-        'spine_lumbar': (-0.045, -19.232, 8.524), 'spine_thoracic': (-9.313, -10.0, 9.016),
-        'neck': (25.71, -0.791, -4.679), 'right_clavicle': (9.65, 8.174),
-        'right_shoulder': (54.637, 2.454, 17.019), 'right_elbow': (29.774, 24.133),
-        'right_wrist': (1.417, -24.035),
+        'spine_lumbar': (5.467, -14.221, 9.589), 'spine_thoracic': (-8.9, -5.18, 9.259),
+        'neck': (24.74, -0.924, -4.839), 'head': (8.342, -0.116), 'right_clavicle': (3.56, 8.042),
+        'right_shoulder': (55.113, 2.175, 11.966), 'right_elbow': (32.407, 19.206),
+        'right_wrist': (-0.674, -20.011),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
@@ -2548,65 +2546,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(41.7, {
-        'spine_lumbar': (4.982, -18.723, 9.469), 'spine_thoracic': (-10.759, -9.24, 9.555),
-        'neck': (25.165, -1.189, -7.364), 'head': (9.229, -0.15), 'right_clavicle': (7.763, 7.907),
-        'right_shoulder': (55.177, 5.529, 13.846), 'right_elbow': (30.782, 22.063),
-        'right_wrist': (0.101, -22.351),
+        'spine_lumbar': (7.373, -14.442, 9.773), 'spine_thoracic': (-9.29, -5.17, 9.409),
+        'neck': (24.369, -1.085, -5.765), 'head': (7.911, -0.113), 'right_clavicle': (3.811, 7.98),
+        'right_shoulder': (56.479, 3.467, 11.634), 'right_elbow': (32.378, 19.281),
+        'right_wrist': (-0.838, -19.949),
     })
     human.KeyJoints(41.8, {
-        'spine_lumbar': (2.357, -20.0, 9.315), 'spine_thoracic': (-11.562, -10.0, 10.883),
-        'neck': (26.003, -1.177, -7.972), 'head': (10.342, -0.169),
-        'right_clavicle': (16.702, 9.47), 'right_shoulder': (57.048, 7.494, 20.673),
-        'right_elbow': (26.464, 29.153), 'right_wrist': (3.199, -26.459),
+        'spine_lumbar': (3.576, -19.189, 9.016), 'spine_thoracic': (-10.658, -10.0, 9.902),
+        'neck': (25.402, -1.12, -7.02), 'head': (9.501, -0.152), 'right_clavicle': (12.6, 8.568),
+        'right_shoulder': (56.942, 6.253, 18.032), 'right_elbow': (28.756, 26.133),
+        'right_wrist': (1.885, -25.557),
     })
     human.KeyJoints(41.9, {
-        'spine_lumbar': (-1.317, -20.0, 10.274), 'spine_thoracic': (-12.581, -10.0, 12.816),
-        'neck': (27.447, -1.189, -8.996), 'head': (11.827, -0.172),
-        'right_clavicle': (21.196, 11.321), 'right_shoulder': (57.064, 6.851, 21.716),
-        'right_elbow': (19.172, 31.272), 'right_wrist': (4.407, -24.322),
+        'spine_lumbar': (0.658, -19.982, 10.222), 'spine_thoracic': (-12.728, -10.0, 12.821),
+        'neck': (27.028, -1.293, -9.529), 'head': (11.406, -0.173),
+        'right_clavicle': (21.368, 11.186), 'right_shoulder': (57.74, 7.824, 21.329),
+        'right_elbow': (19.074, 31.322), 'right_wrist': (4.254, -24.151),
     })
     human.KeyJoints(42.0, {
-        'spine_lumbar': (-1.928, -19.682, 9.136), 'spine_thoracic': (-10.233, -10.0, 10.285),
-        'neck': (26.454, -0.809, -5.542), 'head': (10.797, -0.164),
-        'right_clavicle': (14.224, 9.317), 'right_shoulder': (54.861, 2.957, 19.446),
-        'right_elbow': (25.816, 27.208), 'right_wrist': (2.843, -24.352),
+        'spine_lumbar': (0.57, -18.887, 8.628), 'spine_thoracic': (-9.339, -9.795, 9.033),
+        'neck': (25.586, -0.809, -4.776), 'head': (9.631, -0.145), 'right_clavicle': (8.254, 8.11),
+        'right_shoulder': (54.282, 2.423, 15.906), 'right_elbow': (30.435, 23.013),
+        'right_wrist': (0.925, -23.462),
     })
     human.KeyJoints(42.1, {
-        'spine_lumbar': (5.714, -15.344, 9.39), 'spine_thoracic': (-8.913, -6.325, 9.256),
-        'neck': (24.659, -1.013, -5.44), 'head': (8.249, -0.116), 'right_clavicle': (4.514, 8.031),
-        'right_shoulder': (56.157, 2.818, 12.77), 'right_elbow': (32.21, 20.054),
-        'right_wrist': (-0.426, -20.85),
+        'spine_lumbar': (7.921, -13.49, 9.828), 'spine_thoracic': (-8.778, -4.418, 9.38),
+        'neck': (24.068, -1.049, -5.246), 'head': (7.511, -0.106), 'right_clavicle': (3.081, 8.007),
+        'right_shoulder': (56.946, 2.946, 11.388), 'right_elbow': (32.763, 18.85),
+        'right_wrist': (-0.966, -19.349),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
-        'spine_lumbar': (7.192, -14.724, 9.745), 'spine_thoracic': (-9.404, -5.417, 9.41),
-        'neck': (24.444, -1.092, -5.889), 'head': (8.019, -0.115), 'right_clavicle': (4.047, 7.969),
-        'right_shoulder': (56.375, 3.596, 11.742), 'right_elbow': (32.257, 19.435),
-        'right_wrist': (-0.788, -20.141),
+        'spine_lumbar': (7.967, -13.539, 9.846), 'spine_thoracic': (-8.841, -4.427, 9.397),
+        'neck': (24.078, -1.058, -5.323), 'head': (7.53, -0.107), 'right_clavicle': (3.1, 8.01),
+        'right_shoulder': (56.941, 3.02, 11.359), 'right_elbow': (32.758, 18.846),
+        'right_wrist': (-0.975, -19.348),
     })
     human.KeyJoints(42.3, {
-        'spine_lumbar': (3.534, -19.184, 9.031), 'spine_thoracic': (-10.692, -10.0, 9.939),
-        'neck': (25.423, -1.121, -7.034), 'right_clavicle': (12.753, 8.603),
-        'right_shoulder': (56.946, 6.298, 18.141), 'right_elbow': (28.695, 26.25),
-        'right_wrist': (1.939, -25.644),
+        'spine_lumbar': (5.203, -18.224, 9.498), 'spine_thoracic': (-10.621, -8.703, 9.525),
+        'neck': (25.079, -1.176, -7.178), 'head': (9.089, -0.146), 'right_clavicle': (7.28, 7.899),
+        'right_shoulder': (55.259, 5.263, 13.541), 'right_elbow': (30.932, 21.708),
+        'right_wrist': (-0.026, -22.149),
     })
     human.KeyJoints(42.4, {
-        'spine_lumbar': (1.194, -19.577, 9.985), 'spine_thoracic': (-12.317, -10.0, 12.211),
-        'neck': (26.686, -1.236, -8.875), 'head': (11.05, -0.171),
-        'right_clavicle': (19.574, 10.636), 'right_shoulder': (57.57, 7.525, 20.691),
-        'right_elbow': (21.142, 30.267), 'right_wrist': (3.765, -24.817),
+        'spine_lumbar': (1.125, -19.578, 10.016), 'spine_thoracic': (-12.362, -10.0, 12.283),
+        'neck': (26.727, -1.24, -8.926), 'head': (11.093, -0.172),
+        'right_clavicle': (19.761, 10.702), 'right_shoulder': (57.592, 7.532, 20.703),
+        'right_elbow': (20.885, 30.359), 'right_wrist': (3.811, -24.736),
     })
     human.KeyJoints(42.5, {
-        'spine_lumbar': (-3.226, -19.941, 10.007), 'spine_thoracic': (-11.48, -10.0, 12.118),
-        'neck': (27.388, -0.958, -7.229), 'head': (11.751, -0.168),
-        'right_clavicle': (18.71, 10.871), 'right_shoulder': (55.373, 4.036, 21.408),
-        'right_elbow': (21.291, 30.007), 'right_wrist': (4.112, -24.533),
+        'spine_lumbar': (-0.759, -20.0, 9.883), 'spine_thoracic': (-11.99, -10.0, 12.023),
+        'neck': (27.001, -1.105, -8.092), 'head': (11.363, -0.17),
+        'right_clavicle': (19.137, 10.619), 'right_shoulder': (56.526, 6.242, 21.185),
+        'right_elbow': (21.875, 30.192), 'right_wrist': (3.911, -25.092),
     })
     human.KeyJoints(42.6, {
-        'spine_lumbar': (0.753, -18.93, 8.542), 'spine_thoracic': (-9.188, -9.866, 8.996),
-        'neck': (25.467, -0.806, -4.727), 'head': (9.452, -0.141), 'right_clavicle': (8.442, 8.113),
-        'right_shoulder': (54.688, 2.458, 16.218), 'right_elbow': (30.465, 23.244),
-        'right_wrist': (1.017, -23.804),
+        'spine_lumbar': (6.671, -13.653, 9.691), 'spine_thoracic': (-8.706, -4.65, 9.292),
+        'neck': (24.388, -0.969, -4.878), 'head': (7.866, -0.108), 'right_clavicle': (3.151, 8.029),
+        'right_shoulder': (56.021, 2.365, 11.643), 'right_elbow': (32.635, 18.924),
+        'right_wrist': (-0.836, -19.621),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.7, {
@@ -2616,65 +2614,65 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(42.8, {
-        'spine_lumbar': (4.618, -19.241, 9.067), 'spine_thoracic': (-10.424, -9.882, 9.393),
-        'neck': (25.097, -1.165, -7.09), 'head': (9.1, -0.145), 'right_clavicle': (8.931, 7.918),
-        'right_shoulder': (55.977, 5.516, 15.034), 'right_elbow': (30.325, 23.137),
-        'right_wrist': (0.557, -23.08),
+        'spine_lumbar': (6.935, -15.126, 9.692), 'spine_thoracic': (-9.538, -5.787, 9.403),
+        'neck': (24.539, -1.101, -6.043), 'head': (8.156, -0.118), 'right_clavicle': (4.401, 7.952),
+        'right_shoulder': (56.267, 3.767, 11.927), 'right_elbow': (32.079, 19.678),
+        'right_wrist': (-0.707, -20.426),
     })
     human.KeyJoints(42.9, {
-        'spine_lumbar': (2.045, -19.922, 9.449), 'spine_thoracic': (-11.765, -10.0, 11.199),
-        'neck': (26.176, -1.188, -8.172), 'head': (10.524, -0.169),
-        'right_clavicle': (17.501, 9.75), 'right_shoulder': (57.137, 7.503, 20.675),
-        'right_elbow': (25.326, 29.496), 'right_wrist': (3.369, -26.264),
+        'spine_lumbar': (3.025, -19.352, 9.176), 'spine_thoracic': (-11.079, -10.0, 10.359),
+        'neck': (25.666, -1.133, -7.367), 'head': (9.899, -0.161), 'right_clavicle': (14.5, 8.99),
+        'right_shoulder': (56.994, 6.825, 19.32), 'right_elbow': (27.825, 27.553),
+        'right_wrist': (2.521, -26.304),
     })
     human.KeyJoints(43.0, {
-        'spine_lumbar': (-3.0, -20.0, 10.294), 'spine_thoracic': (-12.361, -10.0, 12.794),
-        'neck': (27.712, -1.069, -8.317), 'head': (12.089, -0.17),
-        'right_clavicle': (20.876, 11.372), 'right_shoulder': (56.285, 5.69, 21.903),
-        'right_elbow': (19.36, 31.151), 'right_wrist': (4.466, -24.509),
+        'spine_lumbar': (0.651, -20.0, 10.224), 'spine_thoracic': (-12.735, -10.0, 12.829),
+        'neck': (27.033, -1.295, -9.543), 'head': (11.411, -0.173),
+        'right_clavicle': (21.401, 11.194), 'right_shoulder': (57.741, 7.834, 21.35),
+        'right_elbow': (19.054, 31.347), 'right_wrist': (4.265, -24.144),
     })
     human.KeyJoints(43.1, {
-        'spine_lumbar': (-1.348, -19.553, 8.861), 'spine_thoracic': (-9.856, -10.0, 9.713),
-        'neck': (26.172, -0.795, -5.154), 'head': (10.463, -0.162), 'right_clavicle': (12.6, 8.817),
-        'right_shoulder': (54.751, 2.714, 18.643), 'right_elbow': (27.355, 26.146),
-        'right_wrist': (2.349, -24.262),
+        'spine_lumbar': (1.951, -17.109, 9.272), 'spine_thoracic': (-9.734, -7.96, 9.248),
+        'neck': (25.538, -0.858, -5.099), 'head': (9.563, -0.144), 'right_clavicle': (5.951, 8.067),
+        'right_shoulder': (53.164, 2.346, 13.722), 'right_elbow': (31.304, 21.018),
+        'right_wrist': (0.077, -21.988),
     })
     human.KeyJoints(43.2, {
-        'spine_lumbar': (7.156, -14.192, 9.678), 'spine_thoracic': (-8.859, -5.12, 9.345),
-        'neck': (24.314, -1.041, -5.374), 'head': (7.817, -0.111), 'right_clavicle': (3.59, 8.017),
-        'right_shoulder': (56.657, 2.94, 11.862), 'right_elbow': (32.574, 19.27),
-        'right_wrist': (-0.782, -19.894),
+        'spine_lumbar': (7.966, -13.507, 9.842), 'spine_thoracic': (-8.811, -4.415, 9.391),
+        'neck': (24.067, -1.055, -5.291), 'head': (7.516, -0.107), 'right_clavicle': (3.086, 8.008),
+        'right_shoulder': (56.949, 2.998, 11.366), 'right_elbow': (32.764, 18.845),
+        'right_wrist': (-0.975, -19.34),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.3, {
-        'spine_lumbar': (6.375, -16.04, 9.577), 'spine_thoracic': (-9.817, -6.657, 9.389),
-        'neck': (24.723, -1.119, -6.352), 'head': (8.435, -0.124), 'right_clavicle': (5.241, 7.919),
-        'right_shoulder': (56.046, 4.15, 12.414), 'right_elbow': (31.687, 20.277),
-        'right_wrist': (-0.504, -21.049),
+        'spine_lumbar': (7.891, -13.654, 9.839), 'spine_thoracic': (-8.903, -4.517, 9.399),
+        'neck': (24.12, -1.062, -5.384), 'head': (7.578, -0.107), 'right_clavicle': (3.187, 8.006),
+        'right_shoulder': (56.875, 3.079, 11.388), 'right_elbow': (32.71, 18.897),
+        'right_wrist': (-0.96, -19.423),
     })
     human.KeyJoints(43.4, {
-        'spine_lumbar': (3.154, -19.264, 9.143), 'spine_thoracic': (-10.984, -10.0, 10.256),
-        'neck': (25.604, -1.127, -7.268), 'right_clavicle': (14.069, 8.895),
-        'right_shoulder': (56.982, 6.694, 19.039), 'right_elbow': (28.064, 27.235),
-        'right_wrist': (2.381, -26.183),
+        'spine_lumbar': (4.698, -19.162, 9.26), 'spine_thoracic': (-10.652, -9.771, 9.493),
+        'neck': (25.163, -1.182, -7.305), 'head': (9.218, -0.149), 'right_clavicle': (8.604, 7.917),
+        'right_shoulder': (55.5, 5.599, 14.615), 'right_elbow': (30.471, 22.798),
+        'right_wrist': (0.402, -22.828),
     })
     human.KeyJoints(43.5, {
-        'spine_lumbar': (0.9, -19.883, 10.162), 'spine_thoracic': (-12.642, -10.0, 12.694),
-        'neck': (26.898, -1.281, -9.389), 'head': (11.272, -0.173),
-        'right_clavicle': (20.985, 11.043), 'right_shoulder': (57.705, 7.75, 21.101),
-        'right_elbow': (19.501, 31.089), 'right_wrist': (4.117, -24.289),
+        'spine_lumbar': (0.831, -19.723, 10.156), 'spine_thoracic': (-12.581, -10.0, 12.619),
+        'neck': (26.912, -1.267, -9.257), 'head': (11.284, -0.172),
+        'right_clavicle': (20.689, 11.003), 'right_shoulder': (57.695, 7.659, 20.969),
+        'right_elbow': (19.694, 30.869), 'right_wrist': (4.05, -24.358),
     })
     human.KeyJoints(43.6, {
-        'spine_lumbar': (-2.887, -19.877, 9.744), 'spine_thoracic': (-11.076, -10.0, 11.559),
-        'neck': (27.124, -0.927, -6.838), 'head': (11.479, -0.167),
-        'right_clavicle': (17.379, 10.404), 'right_shoulder': (55.176, 3.63, 20.873),
-        'right_elbow': (22.648, 29.2), 'right_wrist': (3.758, -24.489),
+        'spine_lumbar': (-0.637, -19.885, 9.181), 'spine_thoracic': (-10.887, -10.0, 10.563),
+        'neck': (26.425, -0.929, -6.387), 'head': (10.758, -0.166),
+        'right_clavicle': (15.425, 9.439), 'right_shoulder': (55.427, 5.137, 21.018),
+        'right_elbow': (27.315, 28.556), 'right_wrist': (3.223, -26.71),
     })
     human.KeyJoints(43.7, {
-        'spine_lumbar': (2.153, -18.03, 8.739), 'spine_thoracic': (-9.083, -9.045, 9.057),
-        'neck': (25.213, -0.887, -5.087), 'head': (9.05, -0.131), 'right_clavicle': (7.112, 8.08),
-        'right_shoulder': (55.029, 2.541, 15.148), 'right_elbow': (31.104, 22.197),
-        'right_wrist': (0.544, -23.07),
+        'spine_lumbar': (7.401, -13.49, 9.75), 'spine_thoracic': (-8.638, -4.467, 9.316),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.049, 8.012),
+        'right_shoulder': (56.633, 2.573, 11.499), 'right_elbow': (32.725, 18.854),
+        'right_wrist': (-0.913, -19.454),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
@@ -2684,73 +2682,71 @@ def remove_access_panel():
         'right_wrist': (-0.977, -19.338),
     })
     human.KeyJoints(43.9, {
-        'spine_lumbar': (4.32, -19.314, 8.761), 'spine_thoracic': (-10.043, -10.0, 9.25),
-        'neck': (25.009, -1.125, -6.719), 'head': (8.932, -0.14), 'right_clavicle': (10.077, 7.963),
-        'right_shoulder': (56.891, 5.417, 16.265), 'right_elbow': (29.804, 24.218),
-        'right_wrist': (1.047, -23.946),
+        'spine_lumbar': (6.41, -15.981, 9.582), 'spine_thoracic': (-9.797, -6.602, 9.388),
+        'neck': (24.729, -1.119, -6.35), 'head': (8.428, -0.124), 'right_clavicle': (5.187, 7.92),
+        'right_shoulder': (56.063, 4.123, 12.384), 'right_elbow': (31.711, 20.239),
+        'right_wrist': (-0.517, -21.012),
     })
     human.KeyJoints(44.0, {
-        'spine_lumbar': (1.768, -19.767, 9.625), 'spine_thoracic': (-11.935, -10.0, 11.518),
-        'neck': (26.341, -1.198, -8.359), 'head': (10.692, -0.17),
-        'right_clavicle': (18.123, 10.029), 'right_shoulder': (57.278, 7.505, 20.676),
-        'right_elbow': (23.975, 29.706), 'right_wrist': (3.479, -25.827),
+        'spine_lumbar': (2.56, -19.903, 9.268), 'spine_thoracic': (-11.42, -10.0, 10.714),
+        'neck': (25.89, -1.169, -7.832), 'head': (10.223, -0.168),
+        'right_clavicle': (16.076, 9.316), 'right_shoulder': (57.028, 7.404, 20.509),
+        'right_elbow': (26.942, 28.767), 'right_wrist': (3.029, -26.451),
     })
     human.KeyJoints(44.1, {
-        'spine_lumbar': (-3.557, -19.999, 10.296), 'spine_thoracic': (-12.13, -10.0, 12.759),
-        'neck': (27.788, -1.002, -7.817), 'head': (12.164, -0.169),
-        'right_clavicle': (20.482, 11.379), 'right_shoulder': (55.838, 4.953, 21.95),
-        'right_elbow': (19.607, 30.993), 'right_wrist': (4.478, -24.573),
+        'spine_lumbar': (0.52, -20.0, 10.226), 'spine_thoracic': (-12.717, -10.0, 12.828),
+        'neck': (27.056, -1.286, -9.492), 'head': (11.434, -0.173),
+        'right_clavicle': (21.375, 11.2), 'right_shoulder': (57.682, 7.746, 21.368),
+        'right_elbow': (19.069, 31.336), 'right_wrist': (4.271, -24.159),
     })
     human.KeyJoints(44.2, {
-        'spine_lumbar': (-0.719, -19.404, 8.646), 'spine_thoracic': (-9.541, -10.0, 9.269),
-        'neck': (25.938, -0.792, -4.864), 'head': (10.145, -0.156),
-        'right_clavicle': (11.054, 8.418), 'right_shoulder': (54.676, 2.544, 17.825),
-        'right_elbow': (28.71, 25.109), 'right_wrist': (1.866, -24.157),
+        'spine_lumbar': (3.786, -15.323, 9.355), 'spine_thoracic': (-9.085, -6.3, 9.167),
+        'neck': (25.009, -0.879, -4.777), 'head': (8.799, -0.129), 'right_clavicle': (4.493, 8.033),
+        'right_shoulder': (54.278, 1.994, 12.735), 'right_elbow': (31.897, 19.929),
+        'right_wrist': (-0.344, -20.949),
     })
     human.KeyJoints(44.3, {
-        'spine_lumbar': (7.927, -13.565, 9.837), 'spine_thoracic': (-8.834, -4.458, 9.393),
-        'neck': (24.088, -1.057, -5.319), 'head': (7.543, -0.107), 'right_clavicle': (3.118, 8.01),
-        'right_shoulder': (56.932, 3.007, 11.386), 'right_elbow': (32.753, 18.865),
-        'right_wrist': (-0.966, -19.372),
+        'spine_lumbar': (7.977, -13.522, 9.847), 'spine_thoracic': (-8.83, -4.414, 9.396),
+        'neck': (24.071, -1.057, -5.313), 'head': (7.522, -0.107), 'right_clavicle': (3.088, 8.01),
+        'right_shoulder': (56.95, 3.011, 11.356), 'right_elbow': (32.764, 18.84),
+        'right_wrist': (-0.977, -19.338),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.4, {
-        'spine_lumbar': (5.639, -17.361, 9.51), 'spine_thoracic': (-10.306, -7.88, 9.453),
-        'neck': (24.899, -1.146, -6.78), 'right_clavicle': (6.456, 7.9),
-        'right_shoulder': (55.567, 4.802, 13.079), 'right_elbow': (31.208, 21.127),
-        'right_wrist': (-0.222, -21.762),
+        'spine_lumbar': (7.701, -13.941, 9.817), 'spine_thoracic': (-9.053, -4.749, 9.404),
+        'neck': (24.218, -1.071, -5.53), 'head': (7.702, -0.109), 'right_clavicle': (3.408, 7.997),
+        'right_shoulder': (56.717, 3.224, 11.468), 'right_elbow': (32.59, 19.029),
+        'right_wrist': (-0.918, -19.613),
     })
     human.KeyJoints(44.5, {
-        'spine_lumbar': (2.756, -19.591, 9.234), 'spine_thoracic': (-11.277, -10.0, 10.568),
-        'neck': (25.795, -1.148, -7.596), 'head': (10.086, -0.165),
-        'right_clavicle': (15.405, 9.182), 'right_shoulder': (57.015, 7.121, 19.935),
-        'right_elbow': (27.32, 28.232), 'right_wrist': (2.811, -26.411),
+        'spine_lumbar': (4.195, -19.294, 8.797), 'spine_thoracic': (-10.137, -10.0, 9.347),
+        'neck': (25.084, -1.121, -6.733), 'head': (9.035, -0.141), 'right_clavicle': (10.48, 8.052),
+        'right_shoulder': (56.898, 5.546, 16.549), 'right_elbow': (29.627, 24.527),
+        'right_wrist': (1.177, -24.212),
     })
     human.KeyJoints(44.6, {
-        'spine_lumbar': (0.315, -20.0, 10.24), 'spine_thoracic': (-12.721, -10.0, 12.828),
-        'neck': (27.134, -1.284, -9.489), 'head': (11.514, -0.173),
-        'right_clavicle': (21.383, 11.236), 'right_shoulder': (57.672, 7.736, 21.456),
-        'right_elbow': (19.064, 31.341), 'right_wrist': (4.311, -24.163),
+        'spine_lumbar': (0.701, -19.89, 10.209), 'spine_thoracic': (-12.688, -10.0, 12.77),
+        'neck': (26.998, -1.285, -9.45), 'head': (11.374, -0.173),
+        'right_clavicle': (21.173, 11.139), 'right_shoulder': (57.732, 7.771, 21.214),
+        'right_elbow': (19.212, 31.182), 'right_wrist': (4.192, -24.2),
     })
     human.KeyJoints(44.7, {
-        'spine_lumbar': (-2.428, -19.79, 9.445), 'spine_thoracic': (-10.737, -10.0, 10.93),
-        'neck': (26.828, -0.862, -6.19), 'head': (11.184, -0.166),
-        'right_clavicle': (15.907, 9.903), 'right_shoulder': (55.005, 3.371, 20.237),
-        'right_elbow': (24.347, 28.301), 'right_wrist': (3.338, -24.421),
+        'spine_lumbar': (-0.767, -19.457, 8.674), 'spine_thoracic': (-9.732, -10.0, 9.495),
+        'neck': (25.984, -0.781, -4.925), 'head': (10.2, -0.156), 'right_clavicle': (11.698, 8.615),
+        'right_shoulder': (54.993, 3.046, 18.468), 'right_elbow': (28.779, 25.655),
+        'right_wrist': (2.108, -26.467),
     })
     human.KeyJoints(44.8, {
-        'spine_lumbar': (3.551, -16.886, 8.943), 'spine_thoracic': (-8.765, -7.771, 9.055),
-        'neck': (24.95, -0.946, -5.194), 'head': (8.64, -0.122), 'right_clavicle': (5.573, 7.984),
-        'right_shoulder': (55.661, 2.223, 13.751), 'right_elbow': (31.269, 20.855),
-        'right_wrist': (-0.005, -22.74),
+        'spine_lumbar': (6.958, -13.84, 9.547), 'spine_thoracic': (-8.327, -4.451, 9.121),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.7, 7.898),
+        'right_shoulder': (57.157, 1.918, 11.006), 'right_elbow': (31.997, 18.359),
+        'right_wrist': (-1.053, -21.17),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.847203, duration=0.072)
     human.KeyJoints(44.9, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.715, 7.9),
-        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
-        'right_wrist': (-1.08, -21.15),
+        'neck': (24.173, -1.012, -5.014), 'right_shoulder': (57.197, 2.088, 10.93),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.2628)

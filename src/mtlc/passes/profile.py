@@ -1,0 +1,32 @@
+"""Progress profiles of human point-to-point movements (shared by the pace and tool passes).
+
+A point-to-point hand movement minimises the integrated squared jerk (Flash & Hogan 1985, "The
+coordination of arm movements: an experimentally confirmed mathematical model", J Neurosci
+5(7):1688-1703): its progress follows ``s(tau) = 10 tau^3 - 15 tau^4 + 6 tau^5``, one bell of
+speed from rest to rest. A movement that ends by placing something precisely spends longer
+decelerating than accelerating (MacKenzie, Marteniuk, Dugas, Liske & Eickmeier 1987,
+"Three-dimensional movement trajectories in Fitts' task: implications for control", Q J Exp
+Psychol 39A:629-647): ``placing_clock`` runs a movement's own smooth parameter on a clock that
+slows toward the end, so the bell's tail is longer than its rise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mtlc.ir.model import FloatArray
+
+PLACING_SKEW = 1.5  # tau -> 1 - (1 - tau)^1.5: the end approached more slowly than the start left
+
+
+def minimum_jerk(tau: FloatArray) -> FloatArray:
+    """Flash & Hogan's progress of a point-to-point movement at normalised time ``tau``."""
+    t = np.clip(tau, 0.0, 1.0)
+    return t**3 * (10.0 - 15.0 * t + 6.0 * t**2)
+
+
+def placing_clock(tau: FloatArray) -> FloatArray:
+    """A placing movement's parameter at normalised time ``tau``: it leaves at speed (the
+    path's own shape starts from rest) and arrives with a long deceleration."""
+    t = np.clip(tau, 0.0, 1.0)
+    return 1.0 - (1.0 - t) ** PLACING_SKEW

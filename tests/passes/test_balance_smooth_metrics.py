@@ -275,6 +275,32 @@ def test_balancing_some_frames_blends_each_run_of_frames_by_itself() -> None:
     assert np.all(after[2:] >= balance.ACCEPT_MARGIN) and not failed.any()
 
 
+def test_only_hands_on_their_site_or_holding_a_part_are_pinned() -> None:
+    """A TO that left the hand short of its site (MT0501) pins nothing while its grip is open:
+    the hand rests on nothing; with a closed grip it holds its part, so it stays pinned."""
+    site = np.zeros(3)
+
+    def reach(track: str, effector: str, start: float, short: float) -> Segment:
+        seg = Segment(track, "TO", start, start + 0.5, GoalSpec(effector, "s", site), PROV)
+        seg.result = {"distance": short}
+        return seg
+
+    right = reach("r_arm", "r_hand", 0.0, 0.0)  # reached
+    left = reach("l_arm", "l_hand", 0.0, 2.0)  # 2 m short, grip open
+    ir = make_ir(standing(3), [right, left])
+    t = np.array([0.2, 0.6, 1.0])
+    all_pins = balance.hand_pins(ir, t)
+    held = balance.hand_pins(ir, t, balance.pin_windows(ir, reached_only=True))
+    assert all_pins["l_hand"].all() and all_pins["r_hand"].all()
+    assert held["r_hand"].all() and not held["l_hand"].any()
+    grasp = Segment(
+        "l_hand", "grip", 0.4, 0.5, GoalSpec("l_hand", params={"state": "closed"}), PROV
+    )
+    ir.segments.append(grasp)
+    held = balance.hand_pins(ir, t, balance.pin_windows(ir, reached_only=True))
+    assert held["l_hand"].all()
+
+
 def test_balance_lost_reports_mt0502_once_per_segment() -> None:
     # on one foot, the right arm straight up with the hand held on a site: the pelvis cannot
     # move over the foot without pulling the hand off the site

@@ -272,18 +272,19 @@ def solve_group(
     root: tuple[FloatArray, FloatArray],
     pinned: list[Goal] | None = None,
     flat: list[FloatArray | None] | None = None,
-) -> tuple[FloatArray, str, list[float]]:
+) -> tuple[FloatArray, str, list[float], bool]:
     """Best pose for one or two hands: arm chains first, then (together) with the torso; a
     torso pose puts the ``pinned`` hands back on their sites (``repin``). ``flat``: per
     segment, the fingers' offset from the hand that lays it flat (``flat_hand``), or None; a
-    pose that lays the hands flat is kept only if it reaches as well as one that does not."""
+    pose that lays the hands flat is kept only if it reaches as well as one that does not.
+    Returns the pose, its reach, the hands' distances and whether the pose is the flat one."""
     if flat is not None and any(f is not None for f in flat):
         laid = _solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
         if max(laid[2]) <= TOLERANCE:
-            return laid
+            return (*laid, True)
         plain = _solve_group(ctx, state, segs, targets, q0, root, pinned, None)
-        return laid if max(laid[2]) <= max(plain[2]) else plain
-    return _solve_group(ctx, state, segs, targets, q0, root, pinned, None)
+        return (*laid, True) if max(laid[2]) <= max(plain[2]) else (*plain, False)
+    return (*_solve_group(ctx, state, segs, targets, q0, root, pinned, None), False)
 
 
 def _solve_group(
@@ -510,7 +511,7 @@ def sweep_mid(
         return None
     here = [state.site(s.goal.effector, q0, root) for s in segs]
     mids = [0.5 * (a + b) + np.array([0.0, sink, 0.0]) for a, b in zip(here, targets, strict=True)]
-    mid, _, _ = solve_group(ctx, state, segs, mids, 0.5 * (q0 + q1), root, pinned)
+    mid, _, _, _ = solve_group(ctx, state, segs, mids, 0.5 * (q0 + q1), root, pinned)
     return mid
 
 
@@ -601,14 +602,19 @@ def solve_ta_group(
         targets.append(approach_point(state, seg, seg.goal.position, q0, root))
     pinned = pinned_hands(state, segs, q0, root)
     flat = [flat_hand(state, seg, root) for seg in segs]
-    q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
+    q1, reach, dist, laid = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
+    if not laid:
+        # the lifts raise the pose that was chosen, the plain one: the flat one, which lost
+        # at the approach point, is not tried again at each raised point (each try of a
+        # flat pose that cannot reach costs every restart of up to five solves)
+        flat = None
     for _ in range(LIFTS):
         sink = ir.ground - GROUND_SLACK - lowest_hand_point(state, segs, q1, root)
         if sink <= 0.0:
             break
         # the hand arrives fingers first: raise its approach point by what they sink
         targets = [p + np.array([0.0, sink + GROUND_SLACK, 0.0]) for p in targets]
-        q1, reach, dist = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
+        q1, reach, dist, _ = solve_group(ctx, state, segs, targets, q0, root, pinned, flat)
     q1 = clear_of_body(state, segs, q1, root)
     dist = [
         hand_distance(state, s.goal.effector, q1, root, p)

@@ -62,7 +62,7 @@ from mtlc.metrics import (
     walking,
 )
 from mtlc.passes.context import PassContext
-from mtlc.passes.hold import on_site
+from mtlc.passes.hold import REPORT_TOL, closed_during, on_site
 
 MARGIN = 0.01  # m: how far inside the support a corrected CoM ends
 ROUNDS = 6
@@ -96,18 +96,27 @@ def ends_on_site(seg: Segment) -> bool:
     return seg.kind == "TA" and not seg.goal.approach
 
 
-def pin_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def pin_windows(
+    ir: MotionIR, reached_only: bool = False
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per hand, the (lo, hi) bounds of the times it is pinned (``lo <= t < hi``), one pair per
     TO segment on its arm track, or TA segment that ends on its site (``ends_on_site``): from
     the segment's start until the next segment on that track starts, or the end of the
-    motion."""
+    motion. ``reached_only``: without the segments that left the hand short of its site
+    (``distance`` over ``REPORT_TOL``, as ``hold.hold_windows``: MT0501) while its grip is
+    open: such a hand neither rests on the site nor holds a part (a closed grip holds its part
+    wherever the hand is, verify's MT0511)."""
     by_track: dict[str, list[Segment]] = {track: [] for track in HANDS.values()}
+    grips: dict[str, list[Segment]] = {hand: [] for hand in HANDS}
     for seg in ir.segments:  # one pass over the segments for both arms
         if seg.track in by_track:
             by_track[seg.track].append(seg)
+        elif seg.track in grips and seg.kind == "grip":
+            grips[seg.track].append(seg)
     out = {}
     for hand, track in HANDS.items():
         segs = sorted(by_track[track], key=lambda s: s.start)
+        hand_grips = sorted(grips[hand], key=lambda s: s.start)
         starts = [s.start for s in segs]
         lo: list[float] = []
         hi: list[float] = []
@@ -116,6 +125,12 @@ def pin_windows(ir: MotionIR) -> dict[str, tuple[np.ndarray, np.ndarray]]:
                 continue
             j = bisect_left(starts, seg.end - 1e-9, lo=i + 1)  # the first later start
             end = starts[j] if j < len(starts) else math.inf
+            if (
+                reached_only
+                and float(seg.result.get("distance", 0.0)) > REPORT_TOL
+                and not closed_during(hand_grips, seg.start, end)
+            ):
+                continue
             lo.append(seg.start - 1e-9)
             hi.append(end - 1e-9)
         out[hand] = (np.array(lo, dtype=float), np.array(hi, dtype=float))
@@ -462,7 +477,9 @@ def balance_frames(
         )
         for k, name in enumerate(FEET_SITES)
     }
-    pins = hand_pins(ir, t)
+    # a hand short of its site is not held there: restoring it after every correction cost
+    # most of the pass (72 strokes on a site 60 m away) and lost every row it was pinned on
+    pins = hand_pins(ir, t, pin_windows(ir, reached_only=True))
     hand_pos = {h: site_positions(skel, pose_r, h) for h in HANDS}
     hands = {h: (pins[h][rows], hand_pos[h]) for h in HANDS}
     q0 = frames.q[rows].copy()

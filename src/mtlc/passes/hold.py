@@ -73,6 +73,14 @@ def _closed_at(grips: list[Segment], t: float) -> bool:
     return bool(before) and not _is_open(before[-1])
 
 
+def closed_during(grips: list[Segment], lo: float, hi: float) -> bool:
+    """Whether the hand's grip (its ``grip`` segments, in time order) is closed at some time in
+    ``[lo, hi)``: closed at ``lo``, or closing after it."""
+    return _closed_at(grips, lo) or any(
+        not _is_open(g) for g in grips if lo - EPS <= g.start < hi - EPS
+    )
+
+
 def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
     """Each contact (TO) segment with the time its hand stops holding: the hand's next arm
     segment, the next walk, a whole-body posture while the hand's grip is open, or the end of

@@ -40,6 +40,7 @@ from mtlc.passes.balance import (
     MARGIN,
     balance_frames,
     hand_pins,
+    pin_windows,
     restore_contacts,
 )
 from mtlc.passes.context import PassContext
@@ -118,7 +119,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     rows = np.flatnonzero(changed)
     if rows.size == 0:
         return ir
-    stance_all, pins = foot_stance(ir, t), hand_pins(ir, t)
+    stance_all, pins = foot_stance(ir, t), hand_pins(ir, t, pin_windows(ir, reached_only=True))
     # contacts before and after, on the changed frames only (forward kinematics is the cost),
     # a chunk of frames at a time: a long walk changes most of its frames (~16 KB each here)
     moved = np.zeros(rows.size, dtype=bool)

@@ -35,6 +35,18 @@ from .result import IKResult, residual, returned_errors
 
 FloatArray = NDArray[np.float64]
 
+try:  # numpy's own batched LAPACK solve, without ``np.linalg.solve``'s checks and conversions
+    from numpy.linalg import _umath_linalg
+
+    def solve_spd(a: FloatArray, b: FloatArray) -> FloatArray:
+        """``np.linalg.solve(a, b)`` for float64 (b, m, m) and (b, m, k): the same LAPACK call
+        (the same numbers), without the wrapper that costs more than the 6x6 solve itself (a
+        DLS step solves two). Only for matrices that cannot be singular (``JJᵀ + λ²I``)."""
+        return _umath_linalg.solve(a, b, signature="dd->d")
+
+except ImportError:  # pragma: no cover - another numpy layout
+    solve_spd = np.linalg.solve
+
 
 def prepare(
     skel: Skeleton,
@@ -322,7 +334,7 @@ def _dls_step(
     z = (null_gain * fade)[:, None] * (comfort - q)
     # J⁺e + (I − J⁺J)z = J⁺(e − Jz) + z: one right-hand side for task and null space.
     rhs = e - np.einsum("bmn,bn->bm", J, z)
-    y = np.linalg.solve(A, rhs[..., None])[..., 0]
+    y = solve_spd(A, rhs[..., None])[..., 0]
     dq = np.einsum("bnm,bm->bn", Jt, y) + z
     qn = q + dq
     over = (qn > hi) | (qn < lo)
@@ -335,7 +347,7 @@ def _dls_step(
         e2 = e[hit] - np.einsum("bmn,bn->bm", Jh, dq_pin)
         Jf = Jh * (~ov)[:, None, :]
         Jft = np.swapaxes(Jf, -1, -2)
-        y2 = np.linalg.solve(Jf @ Jft + lam2I, e2[..., None])[..., 0]
+        y2 = solve_spd(Jf @ Jft + lam2I, e2[..., None])[..., 0]
         dq[hit] = np.where(ov, dq_pin, np.einsum("bnm,bm->bn", Jft, y2))
     big = np.max(np.abs(dq), axis=-1)
     dq = dq * np.minimum(1.0, max_step / np.maximum(big, 1e-300))[:, None]

@@ -243,3 +243,50 @@ def test_samples_cover_the_part_densely(start: float, length: float, marks: list
     assert (np.diff(times) > 0).all() and np.diff(times).max() <= SAMPLE_STEP + 1e-9
     for t in seg.keyframes.time:
         assert np.isclose(times, t, atol=1e-8, rtol=0).any()
+
+
+# A valve low and to the side, then a walk away: the head turned to the valve faces ahead again
+# as the walk sets off (it walked with the head on the valve before), and a stand at the end
+# brings it back from a look as well.
+SET_OFF = """\
+use stdlib.actions
+use stdlib.elements
+
+scene yard {
+    ground 0 cm
+    site valve at (45, 60, 35) cm
+    site door at (0, 0, 300) cm
+    site gauge at (-40, 30, 40) cm
+}
+
+task set_off "Close a valve, walk to the door, squat, look at a gauge, stand" {
+    manikin gb10000_1988 female p50
+    scene yard
+    reach(right, valve)
+    grasp(right)
+    release(right)
+    walk_to(door)
+    squat(30 cm)
+    look(gauge)
+    stand()
+}
+"""
+
+
+def test_the_head_faces_ahead_when_the_body_sets_off(tmp_path: Path) -> None:
+    path = tmp_path / "set_off.mtask"
+    path.write_text(SET_OFF)
+    program = run_frontend([path])
+    assert program.timelines, [d.message for d in program.diagnostics]
+    ir = run_motion(program.timelines[0], program.sink)
+    skel, frames = ir.skeleton, ir.frames
+    neck = [skel.dof_index(n) for n in ("neck_flex", "neck_lat", "neck_rot")]
+    rest = np.asarray(skel.q_comfort)[neck]
+    walk = next(s for s in ir.segments if s.kind == "locomotion")
+    before = frames.q[np.searchsorted(frames.time, walk.start) - 1, neck]
+    assert np.abs(before - rest).max() > math.radians(10)  # it looked at the valve
+    during = (frames.time > walk.start + TURN_MAX + 0.05) & (frames.time < walk.end)
+    assert during.any()
+    assert np.abs(frames.q[during][:, neck] - rest).max() < ONE_DEG
+    assert np.abs(frames.q[-1, neck] - rest).max() < ONE_DEG  # the stand ends looking ahead
+    assert np.abs(np.diff(frames.q[:, neck], axis=0)).max() < math.radians(12)

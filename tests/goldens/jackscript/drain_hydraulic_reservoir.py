@@ -263,6 +263,7 @@ def drain_reservoir():
     human.KeyRoot(8.6, (8.102, 49.255, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.6, {
         'spine_lumbar': (60.0, -2.055, 3.909), 'spine_thoracic': (29.366, -2.351, 3.211),
+        'neck': (3.349, -0.096, 2.63), 'head': (3.35, -0.001),
         'right_shoulder': (103.475, -5.701, 4.199), 'right_elbow': (30.878, 17.105),
         'right_wrist': (-2.213, -1.784), 'right_hip': (79.846, 19.182, -6.579),
         'right_knee': (97.768,), 'right_ankle': (17.368, -3.166),
@@ -270,9 +271,11 @@ def drain_reservoir():
         'left_ankle': (17.368, -3.166),
     })
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
+    # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: gaze on head
     human.KeyRoot(8.7, (7.885, 52.269, 20.686), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.7, {
         'spine_lumbar': (59.47, -0.512, 0.974), 'spine_thoracic': (29.577, -0.586, 0.8),
+        'neck': (2.602, -0.075, 2.043), 'head': (2.602, 0.0),
         'right_shoulder': (113.455, -3.213, 3.521), 'right_elbow': (35.613, 17.161),
         'right_wrist': (-3.023, -0.951), 'right_hip': (75.195, 18.74, -7.592),
         'right_knee': (93.4,), 'right_ankle': (17.418, -2.657), 'left_hip': (75.195, 18.74, -7.592),
@@ -281,13 +284,15 @@ def drain_reservoir():
     human.KeyRoot(8.8, (7.409, 56.808, 22.156), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.8, {
         'spine_lumbar': (51.403, -0.447, 0.85), 'spine_thoracic': (25.564, -0.511, 0.698),
+        'neck': (0.418, -0.012, 0.328), 'head': (0.418, 0.0),
         'right_shoulder': (130.622, -3.579, 3.618), 'right_elbow': (35.101, 17.154),
         'right_hip': (68.045, 18.002, -9.045), 'left_hip': (68.045, 18.002, -9.045),
     })
     human.KeyRoot(8.9, (6.768, 61.129, 24.133), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'right_shoulder': (144.194, -4.032, 3.741), 'right_knee': (79.855,),
-        'right_ankle': (17.49, -0.927), 'left_knee': (79.855,), 'left_ankle': (17.49, -0.927),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (144.194, -4.032, 3.741),
+        'right_knee': (79.855,), 'right_ankle': (17.49, -0.927), 'left_knee': (79.855,),
+        'left_ankle': (17.49, -0.927),
     })
     human.KeyRoot(9.0, (6.042, 65.253, 26.371), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.0, {
@@ -341,8 +346,8 @@ def drain_reservoir():
     })
     human.KeyRoot(9.783852, (0.0, 83.902, 45.0), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.783852, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (3.349, -0.096, 2.63), 'head': (3.35, -0.001), 'right_clavicle': (1.387, 1.879),
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
+        'head': (0.0, 0.0), 'right_clavicle': (1.387, 1.879),
         'right_shoulder': (8.594, 5.73, 4.206), 'right_elbow': (31.145, 17.105),
         'right_wrist': (-2.239, -1.73), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 5.73, 11.459), 'left_elbow': (34.377, 17.189),

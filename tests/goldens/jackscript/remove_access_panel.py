@@ -2828,29 +2828,32 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
     human.Walk((139.64, 0.0, 19.995), start=46.121638, duration=5.147368)
+    # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: gaze on head
     human.KeyRoot(46.2, (-0.234, 72.652, 60.048), (0.523, 0.0, 0.0))
     human.KeyJoints(46.2, {
+        'neck': (17.689, -4.165, -26.137), 'head': (5.153, -0.373),
         'right_hip': (6.502, -0.14, -0.543), 'right_knee': (12.463,), 'right_ankle': (5.964, -0.2),
         'left_hip': (7.353, 0.133, 0.546), 'left_knee': (13.923,), 'left_ankle': (6.23, 0.201),
     })
     human.KeyRoot(46.3, (-0.989, 72.489, 60.203), (2.394, 0.0, 0.0))
     human.KeyJoints(46.3, {
-        'right_clavicle': (6.997, 9.73), 'left_clavicle': (-2.488, 4.0),
-        'right_hip': (7.254, -0.535, -2.481), 'right_knee': (14.749,),
-        'right_ankle': (7.525, -0.844), 'left_hip': (9.5, 0.451, 2.517), 'left_knee': (18.067,),
-        'left_ankle': (7.612, 0.86),
+        'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167), 'right_clavicle': (6.997, 9.73),
+        'left_clavicle': (-2.488, 4.0), 'right_hip': (7.254, -0.535, -2.481),
+        'right_knee': (14.749,), 'right_ankle': (7.525, -0.844), 'left_hip': (9.5, 0.451, 2.517),
+        'left_knee': (18.067,), 'left_ankle': (7.612, 0.86),
     })
     human.KeyRoot(46.4, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
     human.KeyJoints(46.4, {
+        'neck': (0.373, -0.107, -0.551), 'head': (0.132, -0.01),
         'right_hip': (6.758, -0.972, -5.207), 'right_knee': (14.53,),
         'right_ankle': (7.887, -1.574), 'left_hip': (20.008, 0.777, 2.365), 'left_knee': (40.308,),
         'left_ankle': (18.233, 1.603),
     })
     human.KeyRoot(46.5, (-2.436, 72.667, 60.499), (7.918, 0.0, 0.0))
     human.KeyJoints(46.5, {
-        'right_hip': (7.254, -1.022, -8.147), 'right_knee': (16.102,),
-        'right_ankle': (7.946, -2.03), 'left_hip': (24.526, 3.982, -3.916), 'left_knee': (51.493,),
-        'left_ankle': (18.331, 1.995),
+        'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.254, -1.022, -8.147),
+        'right_knee': (16.102,), 'right_ankle': (7.946, -2.03), 'left_hip': (24.526, 3.982, -3.916),
+        'left_knee': (51.493,), 'left_ankle': (18.331, 1.995),
     })
     human.KeyRoot(46.6, (-2.328, 72.98, 60.194), (10.582, 0.0, 0.0))
     human.KeyJoints(46.6, {
@@ -2899,7 +2902,7 @@ def remove_access_panel():
     })
     human.KeyRoot(47.4, (3.482, 72.487, 63.676), (50.437, 0.0, 0.0))
     human.KeyJoints(47.4, {
-        'right_hip': (5.794, -3.11, 20.191), 'right_knee': (14.796,),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.794, -3.11, 20.191), 'right_knee': (14.796,),
         'right_ankle': (8.291, -0.907), 'left_hip': (14.487, -4.606, 14.218),
         'left_knee': (32.959,), 'left_ankle': (9.993, -0.805),
     })
@@ -3118,21 +3121,21 @@ def remove_access_panel():
     })
     human.KeyRoot(51.2, (138.838, 72.442, 19.983), (90.0, 0.0, 0.0))
     human.KeyJoints(51.2, {
-        'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446),
-        'right_hip': (8.858, 0.015, 0.002), 'right_knee': (15.102,), 'right_ankle': (6.247, 0.015),
-        'left_hip': (8.842, -0.015, -0.002), 'left_knee': (15.07,), 'left_ankle': (6.228, -0.015),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (8.858, 0.015, 0.002),
+        'right_knee': (15.102,), 'right_ankle': (6.247, 0.015), 'left_hip': (8.842, -0.015, -0.002),
+        'left_knee': (15.07,), 'left_ankle': (6.228, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
     human.LookAt((160.0, 90.0, 20.0), start=51.269006, duration=0.2628)
     human.KeyRoot(51.3, (140.0, 72.985, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(51.3, {
-        'neck': (21.826, -3.495, -31.399), 'head': (6.505, -0.862), 'right_hip': (3.154, 0.0, 0.0),
+        'neck': (1.346, 1.298, -1.138), 'head': (0.577, -0.433), 'right_hip': (3.154, 0.0, 0.0),
         'right_knee': (5.194,), 'right_ankle': (2.042, 0.0), 'left_hip': (3.126, 0.0, 0.0),
         'left_knee': (5.134,), 'left_ankle': (2.01, 0.0),
     })
-    human.KeyJoints(51.4, {'neck': (28.118, 14.293, -30.537), 'right_knee': (5.127,)})
+    human.KeyJoints(51.4, {'right_knee': (5.127,)})
     human.KeyJoints(51.5, {
-        'neck': (34.447, 32.185, -29.671), 'head': (14.643, -10.814),
+        'neck': (33.586, 32.387, -28.4), 'head': (14.394, -10.796),
         'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),

@@ -380,6 +380,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(6.0, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(6.0, {
+        'neck': (-57.552, -19.118, -23.282), 'head': (-20.0, 11.207),
         'right_clavicle': (13.624, -13.801), 'right_elbow': (7.38, 8.706),
         'left_clavicle': (30.0, 12.804), 'left_shoulder': (21.36, 163.184, -64.813),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
@@ -387,33 +388,38 @@ def remove_avionics_unit():
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
     human.Walk((-79.996, 0.0, 40.001), start=6.087427, duration=4.515789)
+    # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: gaze on head
     human.KeyRoot(6.1, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
     human.KeyJoints(6.1, {
+        'neck': (-57.181, -18.994, -23.134), 'head': (-19.871, 11.173),
         'right_hip': (3.51, 0.005, 0.014), 'right_knee': (5.94,), 'right_ankle': (2.42, 0.006),
         'left_hip': (3.459, -0.005, -0.014), 'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
     })
     human.KeyRoot(6.2, (0.45, 72.55, 50.1), (-0.953, 0.0, 0.0))
     human.KeyJoints(6.2, {
+        'neck': (-45.857, -15.232, -18.552), 'head': (-15.936, 8.963),
         'left_elbow': (8.013, -65.263), 'right_hip': (8.352, 0.245, 1.003), 'right_knee': (15.966,),
         'right_ankle': (7.075, 0.388), 'left_hip': (7.114, -0.264, -0.994), 'left_knee': (13.946,),
         'left_ankle': (6.838, -0.385),
     })
     human.KeyRoot(6.3, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
     human.KeyJoints(6.3, {
+        'neck': (-24.966, -8.293, -10.1), 'head': (-8.676, 4.891),
         'right_hip': (10.865, 0.561, 2.995), 'right_knee': (20.949,), 'right_ankle': (9.2, 1.128),
         'left_hip': (7.104, -0.721, -3.097), 'left_knee': (14.693,), 'left_ankle': (7.637, -1.097),
     })
     human.KeyRoot(6.4, (2.102, 72.487, 50.466), (-5.558, 0.0, 0.0))
     human.KeyJoints(6.4, {
+        'neck': (-5.987, -1.989, -2.422), 'head': (-2.081, 1.19),
         'right_hip': (22.224, 1.634, 0.781), 'right_knee': (45.481,),
         'right_ankle': (18.009, 1.806), 'left_hip': (6.859, -1.1, -5.732), 'left_knee': (14.949,),
         'left_ankle': (8.095, -1.773),
     })
     human.KeyRoot(6.5, (2.471, 72.804, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(6.5, {
-        'right_hip': (24.003, 5.185, -6.251), 'right_knee': (51.255,),
-        'right_ankle': (18.144, 2.075), 'left_hip': (7.533, -0.981, -8.382), 'left_knee': (16.695,),
-        'left_ankle': (7.607, -2.058),
+        'neck': (0.102, 0.034, 0.041), 'head': (0.035, 0.0), 'right_hip': (24.003, 5.185, -6.251),
+        'right_knee': (51.255,), 'right_ankle': (18.144, 2.075),
+        'left_hip': (7.533, -0.981, -8.382), 'left_knee': (16.695,), 'left_ankle': (7.607, -2.058),
     })
     human.KeyRoot(6.6, (2.099, 72.843, 49.938), (-10.614, 0.0, 0.0))
     human.KeyJoints(6.6, {
@@ -472,7 +478,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(7.4, (-3.113, 72.487, 53.952), (-48.139, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'right_hip': (14.698, -4.586, 14.828), 'right_knee': (33.165,),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (14.698, -4.586, 14.828), 'right_knee': (33.165,),
         'right_ankle': (9.883, -0.568), 'left_hip': (5.577, -2.761, 16.804), 'left_knee': (14.684,),
         'left_ankle': (8.551, -1.02),
     })
@@ -629,35 +635,33 @@ def remove_avionics_unit():
     })
     human.KeyRoot(10.2, (-70.819, 71.984, 42.963), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.2, {
-        'neck': (-57.551, -19.117, -23.283), 'head': (-20.0, 11.207),
-        'right_hip': (16.977, 2.563, -4.52), 'right_knee': (69.766,),
-        'right_ankle': (19.657, 1.333), 'left_hip': (13.289, -2.494, -0.589), 'left_knee': (9.911,),
-        'left_ankle': (-3.367, -2.563),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (16.977, 2.563, -4.52),
+        'right_knee': (69.766,), 'right_ankle': (19.657, 1.333),
+        'left_hip': (13.289, -2.494, -0.589), 'left_knee': (9.911,), 'left_ankle': (-3.367, -2.563),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
     human.LookAt((-110.0, 85.0, 40.0), start=10.203216, duration=1.197891)
     human.KeyRoot(10.3, (-70.713, 71.983, 43.313), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.3, {
-        'neck': (-48.43, -20.559, -19.509), 'head': (-16.551, 11.21),
-        'right_hip': (28.471, 2.754, -1.367), 'right_knee': (67.845,),
-        'right_ankle': (19.554, 1.857), 'left_hip': (13.081, -2.791, -0.648), 'left_knee': (9.283,),
-        'left_ankle': (-3.783, -2.865),
+        'neck': (3.449, -3.326, 1.48), 'head': (1.478, 1.107), 'right_hip': (28.471, 2.754, -1.367),
+        'right_knee': (67.845,), 'right_ankle': (19.554, 1.857),
+        'left_hip': (13.081, -2.791, -0.648), 'left_knee': (9.283,), 'left_ankle': (-3.783, -2.865),
     })
     human.KeyRoot(10.4, (-73.653, 71.983, 42.264), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.4, {
-        'neck': (-25.64, -24.162, -10.079), 'head': (-7.932, 11.217),
+        'neck': (12.068, -11.637, 5.176), 'head': (5.172, 3.874),
         'right_hip': (22.929, 1.824, -0.107), 'right_knee': (41.22,), 'right_ankle': (18.412, 1.61),
         'left_hip': (13.707, -1.903, -0.464), 'left_knee': (15.882,), 'left_ankle': (2.183, -1.959),
     })
     human.KeyRoot(10.5, (-77.802, 72.247, 40.784), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.5, {
-        'neck': (1.849, -28.509, 1.295), 'head': (2.463, 11.225),
+        'neck': (22.463, -21.661, 9.635), 'head': (9.627, 7.211),
         'right_hip': (10.673, 0.664, 0.125), 'right_knee': (17.039,), 'right_ankle': (6.379, 0.676),
         'left_hip': (10.621, -0.664, -0.125), 'left_knee': (16.93,), 'left_ankle': (6.309, -0.676),
     })
     human.KeyRoot(10.6, (-79.996, 72.976, 40.001), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.6, {
-        'neck': (25.056, -32.178, 10.898), 'head': (11.239, 11.232),
+        'neck': (31.239, -30.124, 13.399), 'head': (13.388, 10.028),
         'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
         'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
         'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
@@ -668,7 +672,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
     human.KeyRoot(10.7, (-80.0, 72.985, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.7, {
-        'neck': (34.998, -33.75, 15.011), 'head': (14.999, 11.236),
+        'neck': (34.999, -33.749, 15.012), 'head': (15.0, 11.235),
         'right_shoulder': (2.935, 162.629, -38.542), 'right_elbow': (8.89, 7.654),
         'right_wrist': (12.665, -11.068), 'left_shoulder': (21.644, 160.754, -62.6),
         'left_elbow': (9.874, -64.998), 'left_wrist': (8.64, -1.711),

@@ -834,14 +834,17 @@ def replace_fuel_filter():
     human.KeyJoints(15.8, {'neck': (31.731, -23.243, 13.254)})
     human.KeyJoints(18.7, {
         'spine_lumbar': (54.52, -18.971, 5.425), 'spine_thoracic': (-12.72, 9.879, -11.469),
+        'neck': (31.731, -23.243, 13.254), 'head': (15.0, 11.25),
         'right_clavicle': (-8.996, 14.294), 'right_shoulder': (41.419, -22.524, -12.369),
         'right_elbow': (29.076, -10.0), 'right_wrist': (-50.365, 15.664),
         'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-40.997, 39.949, -75.438),
         'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
+    # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: gaze on head
     human.KeyJoints(18.8, {
         'spine_lumbar': (42.97, -14.863, 4.071), 'spine_thoracic': (-9.163, 7.423, -8.608),
+        'neck': (23.935, -17.533, 9.997), 'head': (11.315, 8.534),
         'right_clavicle': (-6.752, 10.664), 'right_shoulder': (33.395, -14.929, -14.217),
         'right_elbow': (29.91, -3.16), 'right_wrist': (-37.265, 11.498),
         'left_clavicle': (-7.505, 11.191), 'left_shoulder': (-28.404, 31.863, -61.481),
@@ -849,14 +852,16 @@ def replace_fuel_filter():
     })
     human.KeyJoints(18.9, {
         'spine_lumbar': (21.101, -6.482, 1.46), 'spine_thoracic': (-2.372, 2.684, -3.087),
-        'right_clavicle': (-2.421, 3.792), 'right_shoulder': (17.565, -0.518, -17.896),
-        'right_elbow': (32.681, 9.965), 'right_wrist': (-13.269, 4.081),
-        'left_clavicle': (-2.691, 3.98), 'left_shoulder': (-4.624, 16.309, -34.823),
-        'left_elbow': (50.698, 20.887), 'left_wrist': (-18.063, 2.486),
+        'neck': (8.959, -6.563, 3.742), 'head': (4.235, 3.218), 'right_clavicle': (-2.421, 3.792),
+        'right_shoulder': (17.565, -0.518, -17.896), 'right_elbow': (32.681, 9.965),
+        'right_wrist': (-13.269, 4.081), 'left_clavicle': (-2.691, 3.98),
+        'left_shoulder': (-4.624, 16.309, -34.823), 'left_elbow': (50.698, 20.887),
+        'left_wrist': (-18.063, 2.486),
     })
     human.KeyRoot(19.0, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.0, {
         'spine_lumbar': (8.893, -0.021, 0.001), 'spine_thoracic': (1.585, 0.036, -0.002),
+        'neck': (-0.036, 0.026, -0.015), 'head': (-0.017, 0.023),
         'right_clavicle': (-0.001, -0.044), 'right_shoulder': (8.668, 7.533, -19.96),
         'right_elbow': (34.284, 17.273), 'right_wrist': (0.177, -0.064),
         'left_clavicle': (-0.002, -0.046), 'left_shoulder': (8.777, 7.586, -19.884),
@@ -885,9 +890,9 @@ def replace_fuel_filter():
     human.KeyRoot(19.4, (1.881, 44.978, 44.772), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.4, {
         'spine_lumbar': (-28.663, 20.0, 0.0), 'spine_thoracic': (-14.988, 10.0, 0.0),
-        'right_hip': (21.806, -0.004, -0.001), 'right_knee': (123.791,),
-        'left_hip': (21.246, -0.017, 0.02), 'left_knee': (125.596,), 'left_ankle': (17.388, 0.026),
-        'left_toes': (86.962,),
+        'neck': (-0.027, 0.02, -0.011), 'right_hip': (21.806, -0.004, -0.001),
+        'right_knee': (123.791,), 'left_hip': (21.246, -0.017, 0.02), 'left_knee': (125.596,),
+        'left_ankle': (17.388, 0.026), 'left_toes': (86.962,),
     })
     human.KeyRoot(19.5, (2.448, 43.58, 41.696), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.5, {
@@ -1034,10 +1039,9 @@ def replace_fuel_filter():
     })
     human.KeyRoot(21.463411, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.463411, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
-        'neck': (31.731, -23.243, 13.254), 'head': (15.0, 11.25), 'right_clavicle': (0.0, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
+        'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
+        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),
         'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),
         'left_wrist': (0.0, 0.0), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),

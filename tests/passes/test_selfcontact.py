@@ -367,3 +367,21 @@ def test_a_squat_to_the_side_of_the_knees_keeps_the_feet_together(tmp_path: Path
     assert all("wide_stance" not in s.result for s in ir.on_track("root"))
     ahead, _ = compile_text(tmp_path, PLUG.replace("walk_to(side)", "travel_facing(side, plug)"))
     assert "wide_stance" in ahead.on_track("root")[0].result  # 10 cm to the side: in front
+
+
+def test_the_stand_from_the_drain_valve_turns_the_trunk_back_gradually() -> None:
+    """The stand over feet apart started from the trunk the reach left (turned 12° toward the
+    valve) at its first keyframe and had its own (0°) from the second, 29 ms later; smoothing
+    that jump with the released hand still pinned swung the forearm 30 mm into the rising
+    thigh (women P90-P99, MT0514). The trunk now comes back over the stand's first half."""
+    ir, sink = compile_file(ROOT / "examples" / "drain_hydraulic_reservoir.mtask", ("female", 99))
+    stand = [s for s in ir.on_track("root") if s.kind == "posture"][-1]
+    kf = stand.keyframes
+    # the turn and the side lean the reach left (the flexion is the stand's own balanced lean)
+    trunk = [k for k, n in enumerate(kf.dofs) if n.split("_")[0] in ("lumbar", "thorax")]
+    trunk = [k for k in trunk if not kf.dofs[k].endswith("_flex")]
+    steps = np.abs(np.diff(kf.q[:, trunk], axis=0)).max(axis=1)
+    assert kf.q[0, kf.dofs.index("lumbar_rot")] > np.radians(5.0)  # it starts turned
+    assert np.degrees(steps.max()) < 2.0
+    assert deepest_inside(ir) <= 1e-3
+    assert not [d.code for d in sink.items if d.code == "MT0514"]

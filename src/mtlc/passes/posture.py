@@ -947,17 +947,33 @@ def restate_stand_arms(seg: Segment, state: PoseState) -> None:
     kf.q[:, cols] = start[None] + share[:, None] * (target - start)[None]
 
 
+WIDE_STAND_SETTLE = 0.5  # share of a stand over feet apart that brings the trunk to its own
+
+
 def restate_wide_stand(seg: Segment, state: PoseState) -> None:
     """A stand over feet apart starts from the pose the reaches left (the first keyframe), and
     its arms go from there, not from where the posture pass saw them before the reaches: a
     hand that let go of a site between the knees (two hands on a cap) was keyed from the free
     arms' pose of the squat and swung 43° in one frame, through a thigh. Then between the
-    knees again (``arms_between_knees``)."""
+    knees again (``arms_between_knees``).
+
+    The trunk the reaches left (turned and leaned toward the site) goes to the stand's own over
+    the first ``WIDE_STAND_SETTLE`` of it, as a kneel's spine does (``restate_kneel_on``):
+    restated at the first keyframe only, it turned back 12° in the first 29 ms of the stand
+    (the drain valve), and smoothing that jump with the hand still pinned swung the arm into
+    the rising thigh."""
     kf = seg.keyframes
     assert kf is not None
     skel = state.skel
     q0 = state.q_at(seg.start, skip=seg)
     idx = [skel.dof_index(n) for n in kf.dofs]
+    trunk = [k for k, n in enumerate(kf.dofs) if n in TRUNK_DOFS]
+    if trunk:
+        dofs = [idx[k] for k in trunk]
+        span = max(WIDE_STAND_SETTLE * (seg.end - seg.start), 1e-9)
+        fade = 1.0 - smoothstep((kf.time - seg.start) / span)
+        shifted = kf.q[:, trunk] + fade[:, None] * (q0[dofs] - kf.q[0, trunk])[None]
+        kf.q[:, trunk] = np.clip(shifted, skel.lower[dofs], skel.upper[dofs])
     kf.q[0] = q0[idx]
     if kf.root_position is not None:
         kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)

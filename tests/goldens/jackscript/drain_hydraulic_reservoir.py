@@ -263,83 +263,77 @@ def drain_reservoir():
     human.KeyRoot(8.6, (8.102, 49.255, 20.018), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.6, {
         'spine_lumbar': (60.0, -2.055, 3.909), 'spine_thoracic': (29.366, -2.351, 3.211),
-        'neck': (3.349, -0.096, 2.63), 'head': (3.35, -0.001),
-        'right_shoulder': (103.475, -5.701, 4.199), 'right_elbow': (30.878, 17.105),
-        'right_wrist': (-2.213, -1.784), 'right_hip': (79.846, 19.182, -6.579),
-        'right_knee': (97.768,), 'right_ankle': (17.368, -3.166),
-        'left_hip': (79.846, 19.182, -6.579), 'left_knee': (97.768,),
-        'left_ankle': (17.368, -3.166),
+        'neck': (3.349, -0.096, 2.63), 'head': (3.35, -0.001), 'right_elbow': (30.878, 17.105),
+        'right_hip': (79.846, 19.182, -6.579), 'right_knee': (97.768,),
+        'right_ankle': (17.368, -3.166), 'left_hip': (79.846, 19.182, -6.579),
+        'left_knee': (97.768,), 'left_ankle': (17.368, -3.166),
     })
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: posture on root
     # examples/drain_hydraulic_reservoir.mtask:31:5 drain_reservoir > stand: gaze on head
     human.KeyRoot(8.7, (7.885, 52.269, 20.686), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'spine_lumbar': (59.47, -0.512, 0.974), 'spine_thoracic': (29.577, -0.586, 0.8),
-        'neck': (2.602, -0.075, 2.043), 'head': (2.602, 0.0),
-        'right_shoulder': (113.455, -3.213, 3.521), 'right_elbow': (35.613, 17.161),
-        'right_wrist': (-3.023, -0.951), 'right_hip': (75.195, 18.74, -7.592),
-        'right_knee': (93.4,), 'right_ankle': (17.418, -2.657), 'left_hip': (75.195, 18.74, -7.592),
-        'left_knee': (93.4,), 'left_ankle': (17.418, -2.657),
+        'spine_lumbar': (59.47, -1.983, 3.773), 'spine_thoracic': (29.12, -2.269, 3.099),
+        'neck': (2.602, -0.075, 2.043), 'head': (2.602, 0.0), 'right_wrist': (-2.22, -1.77),
+        'right_hip': (75.195, 18.74, -7.592), 'right_knee': (93.4,),
+        'right_ankle': (17.418, -2.657), 'left_hip': (75.195, 18.74, -7.592), 'left_knee': (93.4,),
+        'left_ankle': (17.418, -2.657),
     })
     human.KeyRoot(8.8, (7.409, 56.808, 22.156), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'spine_lumbar': (51.403, -0.447, 0.85), 'spine_thoracic': (25.564, -0.511, 0.698),
-        'neck': (0.418, -0.012, 0.328), 'head': (0.418, 0.0),
-        'right_shoulder': (130.622, -3.579, 3.618), 'right_elbow': (35.101, 17.154),
-        'right_hip': (68.045, 18.002, -9.045), 'left_hip': (68.045, 18.002, -9.045),
+        'spine_lumbar': (51.403, -1.646, 3.13), 'spine_thoracic': (25.194, -1.882, 2.571),
+        'neck': (0.418, -0.012, 0.328), 'head': (0.418, 0.0), 'right_hip': (68.045, 18.002, -9.045),
+        'left_hip': (68.045, 18.002, -9.045),
     })
     human.KeyRoot(8.9, (6.768, 61.129, 24.133), (-17.969, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_shoulder': (144.194, -4.032, 3.741),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_elbow': (31.145, 17.105),
         'right_knee': (79.855,), 'right_ankle': (17.49, -0.927), 'left_knee': (79.855,),
         'left_ankle': (17.49, -0.927),
     })
     human.KeyRoot(9.0, (6.042, 65.253, 26.371), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'right_shoulder': (154.1, -4.459, 3.858), 'right_hip': (53.902, 16.344, -11.687),
+        'spine_lumbar': (40.954, -0.622, 1.183), 'spine_thoracic': (20.285, -0.711, 0.972),
+        'right_shoulder': (103.322, -5.72, 4.206), 'right_hip': (53.902, 16.344, -11.687),
         'right_knee': (72.711,), 'right_ankle': (17.152, -0.077),
         'left_hip': (53.902, 16.344, -11.687), 'left_knee': (72.711,),
         'left_ankle': (17.152, -0.077),
     })
     human.KeyRoot(9.1, (5.583, 69.474, 27.786), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'right_shoulder': (160.286, -4.803, 3.952), 'right_elbow': (32.885, 17.126),
+        'spine_lumbar': (35.729, -0.196, 0.373), 'spine_thoracic': (17.804, -0.225, 0.307),
         'right_hip': (46.845, 15.136, -13.235), 'left_hip': (46.845, 15.136, -13.235),
     })
     human.KeyRoot(9.2, (5.004, 73.238, 29.572), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.2, {
-        'right_shoulder': (162.722, -5.076, 4.028), 'right_elbow': (32.349, 17.119),
-        'right_wrist': (-2.446, -1.515), 'left_shoulder': (89.757, -29.27, 11.459),
+        'spine_lumbar': (30.504, -0.002, 0.004), 'spine_thoracic': (15.251, -0.003, 0.004),
+        'right_shoulder': (103.322, -5.72, 4.206), 'left_shoulder': (89.757, -29.27, 11.459),
         'right_hip': (39.869, 13.845, -14.605), 'right_ankle': (12.222, 0.922),
         'left_hip': (39.869, 13.845, -14.605), 'left_ankle': (12.222, 0.922),
     })
     human.KeyRoot(9.3, (4.315, 76.492, 31.695), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.3, {
-        'right_shoulder': (155.133, -4.504, 4.08), 'left_shoulder': (84.368, -26.947, 11.459),
+        'right_shoulder': (97.033, -4.96, 4.206), 'left_shoulder': (84.368, -26.947, 11.459),
         'right_hip': (32.967, 12.489, -15.817), 'left_hip': (32.967, 12.489, -15.817),
     })
     human.KeyRoot(9.4, (3.533, 79.194, 34.105), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.4, {
-        'right_shoulder': (132.153, -2.525, 4.136), 'right_elbow': (31.604, 17.11),
-        'left_shoulder': (68.912, -20.281, 11.459), 'right_hip': (26.134, 11.08, -16.887),
-        'left_hip': (26.134, 11.08, -16.887),
+        'right_shoulder': (78.993, -2.779, 4.206), 'left_shoulder': (68.912, -20.281, 11.459),
+        'right_hip': (26.134, 11.08, -16.887), 'left_hip': (26.134, 11.08, -16.887),
     })
     human.KeyRoot(9.5, (2.676, 81.308, 36.748), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.5, {
-        'spine_lumbar': (14.83, 0.0, 0.0), 'spine_thoracic': (7.415, 0.0, 0.0),
-        'right_shoulder': (99.815, 0.102, 4.206), 'right_elbow': (31.145, 17.105),
-        'right_wrist': (-2.239, -1.73), 'left_shoulder': (48.488, -11.474, 11.459),
+        'right_shoulder': (55.156, 0.102, 4.206), 'left_shoulder': (48.488, -11.474, 11.459),
         'right_hip': (19.344, 9.627, -17.828), 'right_ankle': (4.607, 2.797),
         'left_hip': (19.344, 9.627, -17.828), 'left_ankle': (4.607, 2.797),
     })
     human.KeyRoot(9.6, (1.763, 82.808, 39.566), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.6, {
-        'right_shoulder': (63.78, 2.96, 4.206), 'left_shoulder': (28.226, -2.736, 11.459),
+        'right_shoulder': (31.507, 2.96, 4.206), 'left_shoulder': (28.226, -2.736, 11.459),
         'right_hip': (12.609, 8.138, -18.652), 'left_hip': (12.609, 8.138, -18.652),
     })
     human.KeyRoot(9.7, (0.811, 83.673, 42.498), (-17.969, 0.0, 0.0))
     human.KeyJoints(9.7, {
-        'right_shoulder': (30.311, 5.068, 4.206), 'left_shoulder': (13.286, 3.706, 11.459),
+        'right_shoulder': (14.07, 5.068, 4.206), 'left_shoulder': (13.286, 3.706, 11.459),
         'right_hip': (5.912, 6.617, -19.369), 'right_knee': (7.206,),
         'right_ankle': (-0.585, 4.242), 'left_hip': (5.912, 6.617, -19.369), 'left_knee': (7.206,),
         'left_ankle': (-0.585, 4.242),

@@ -256,6 +256,18 @@ def paced_stroke(
     return np.concatenate(times), np.concatenate(poses)
 
 
+def key_times(frac: FloatArray, lifted: bool) -> FloatArray:
+    """(K,) share of the stroke's time at which ``paced_stroke`` passes each key: the inverse
+    of each phase's progress profile at the key's place in the phase."""
+    out = np.zeros(len(frac))
+    grid = np.linspace(0.0, 1.0, 2001)
+    for k, (a, b) in enumerate(PHASES):
+        keys = np.flatnonzero((frac >= a - 1e-9) & (frac <= b + 1e-9))
+        u = (placing_clock if lifted and k == len(PHASES) - 1 else minimum_jerk)(grid)
+        out[keys] = a + (b - a) * np.interp((frac[keys] - a) / (b - a), u, grid)
+    return out
+
+
 def _solve_keys(
     state: PoseState,
     seg: Segment,
@@ -263,16 +275,20 @@ def _solve_keys(
     tips: FloatArray,
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
+    clock: FloatArray,
+    first: str = "arm",
 ) -> tuple[FloatArray, str, FloatArray]:
     """(K, D) poses putting the grip on ``hands`` and the tip on ``tips``, solved as a chain
-    (``_chain``); the arm first, the torso when the arm leaves a keyframe short. Also the
-    reach and the tip's distance per keyframe."""
+    (``_chain``) and evened out in time (``_even_out``; ``clock`` the keys' times); the arm
+    first, the torso when the arm leaves a keyframe short (``first``: the series' strokes so
+    far went with the torso, so this one starts and ends on their pose). Also the reach and
+    the tip's distance per keyframe."""
     sites = [f"{seg.goal.effector[0]}_hand", seg.goal.effector]
     best, reach = None, "arm"
-    for r in ("arm", "torso"):
+    for r in (first, "torso" if first == "arm" else "arm"):
         q = _chain(state, sites, hands, tips, q0, root, r)
         q[-1] = q[1]  # the stroke ends on the pose it swings from: the same goals
-        q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, r)
+        q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, r, clock[1:])
         err = _errors(state, q, root, sites, [hands, tips])
         if best is None or err.max() < best[1].max() - 1e-6:
             best, reach = (q, err), r
@@ -320,7 +336,7 @@ def _chain(
     return out
 
 
-EVEN_ROUNDS = 12  # rounds of smoothing the chained keys' joint path and putting them back
+EVEN_ROUNDS = 24  # rounds of smoothing the chained keys' joint path and putting them back
 
 
 def _even_out(
@@ -331,10 +347,13 @@ def _even_out(
     q: FloatArray,
     root: tuple[FloatArray, FloatArray],
     reach: str,
+    clock: FloatArray,
 ) -> FloatArray:
-    """The chained keys with their joint path evened out: each round moves every inner key
-    halfway to its neighbours' mean and solves it back onto its goals from there (the arm's
-    spare freedom). A chain takes the nearest solution at each key, so a wrist that meets its
+    """The chained keys with their joint path evened out in time: each round moves every
+    inner key halfway to where its neighbours would put it at its time (``clock``: moving at
+    one speed from one to the other) and solves it back onto its goals from there (the arm's
+    spare freedom), so the joints tend to one speed over the stroke (the least integral of
+    squared joint speed). A chain takes the nearest solution at each key, so a wrist that meets its
     stop hands the rest of the turn to the forearm's roll in one or two keys (15 deg between
     keys 5 deg of arc apart, 29 deg between frames at the swing's peak speed); evened out, the
     roll is spread over the swing. A key that would end further from its goals than before
@@ -348,8 +367,10 @@ def _even_out(
     model = prepare(skel, sites, q[inner], reach=reach, root_position=rp, root_rotation=rr)
     err = _errors(state, q[inner], root, sites, [hands[inner], tips[inner]])
     q = q.copy()
+    gap = np.maximum(np.diff(clock), 1e-9)
+    after = (gap[:-1] / (gap[:-1] + gap[1:]))[:, None]  # share of the way from key i-1 to i+1
     for _ in range(EVEN_ROUNDS):
-        guess = 0.5 * q[inner] + 0.25 * (q[:-2] + q[2:])
+        guess = 0.5 * q[inner] + 0.5 * ((1.0 - after) * q[:-2] + after * q[2:])
         moved = solve_ta(skel, goals, guess, model=model, restarts=0, null_gain=0.0, tol=2e-4,
                          root_position=rp, root_rotation=rr).q  # fmt: skip
         new_err = _errors(state, moved, root, sites, [hands[inner], tips[inner]])
@@ -455,7 +476,9 @@ def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSol
     hands = arc_points(site, normal, radius(tool), theta, axial_offset(tool))
     hands = hands + LIFT * lift[:, None] * n
     tips = site + LIFT * lift[:, None] * n
-    q, reach, tip_err = _solve_keys(state, seg, hands, tips, run.q_reached, run.root)
+    clock = key_times(frac, bool(lift.max() > 0))
+    first = next((s.reach for s in run.solved.values()), "arm")
+    q, reach, tip_err = _solve_keys(state, seg, hands, tips, run.q_reached, run.root, clock, first)
     q, tip_err = _closed(q, tip_err, frac, lift)
     run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift, tips)
     return run.solved[key]

@@ -396,7 +396,7 @@ def _errors(
 
 @dataclasses.dataclass(frozen=True)
 class StrokeSolution:
-    """One stroke's solved keyframes (every keyframe solved from the series' reach pose), shared
+    """One stroke's solved keyframes (a chain from the series' reach pose), shared
     by the strokes of a series that repeat it: same fastener, tool, angle, reach pose and root."""
 
     q: FloatArray  # (K, D)
@@ -459,8 +459,8 @@ def _series(state: PoseState, seg: Segment, series: dict[Any, Series]) -> Series
 
 
 def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSolution:
-    """Solve a stroke's keyframes (the grip on the arc, the tip on the fastener) from the
-    series' reach pose, or reuse the solution of an identical stroke of the series."""
+    """Solve a stroke's keyframes (the grip on the arc, the tip on the fastener) as a chain
+    from the series' reach pose, or reuse the solution of an identical stroke of the series."""
     g = seg.goal
     tool = g.params["tool"]
     turn = -float(g.params["angle"])  # twist angles loosen when negative: positive about n

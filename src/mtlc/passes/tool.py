@@ -312,7 +312,9 @@ def _chain(
     ``q0``): a continuation along the stroke's path, so neighbouring keys keep one branch of
     the arm (solved each from the reach pose, a lifted key sometimes took another forearm roll:
     a 40 deg step between two frames). Random restarts are used only where a warm start
-    stalls short of the goal; a key that is still short keeps the best of both."""
+    stalls short of the goal, and kept only when they reach it: on a fastener out of reach every
+    key is short, and the restarts' slightly nearer poses flipped the shoulder by 175 deg
+    between neighbouring keys."""
     skel = state.skel
     k = len(hands)
     model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
@@ -330,7 +332,7 @@ def _chain(
         if err > TOLERANCE:
             q2 = solve_ta(skel, goals, prev[None], restarts=2, **kw).q
             err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
-            if err2 < err - 1e-6:
+            if err2 <= TOLERANCE:  # a restart that is short too is no better: another branch
                 q = q2
         out[i] = prev = q[0]
     return out

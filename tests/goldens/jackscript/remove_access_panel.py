@@ -2145,19 +2145,19 @@ def remove_access_panel():
     })
     human.KeyJoints(35.3, {
         'right_shoulder': (55.758, 3.751, 2.359), 'right_elbow': (49.466, 76.276),
-        'right_wrist': (9.274, -30.0),
+        'right_wrist': (9.273, -30.0),
     })
     human.KeyJoints(35.4, {
-        'right_shoulder': (59.815, 7.375, 9.502), 'right_elbow': (53.039, 80.0),
-        'right_wrist': (27.616, -30.0),
+        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
+        'right_wrist': (27.614, -30.0),
     })
     human.KeyJoints(35.5, {
-        'right_shoulder': (49.473, -6.512, -14.772), 'right_elbow': (55.97, 59.98),
-        'right_wrist': (19.957, -27.086),
+        'right_shoulder': (49.469, -6.509, -14.76), 'right_elbow': (55.968, 59.98),
+        'right_wrist': (19.931, -27.087),
     })
     human.KeyJoints(35.6, {
-        'right_shoulder': (58.938, 1.62, 6.874), 'right_elbow': (27.842, 22.501),
-        'right_wrist': (1.847, -15.98),
+        'right_shoulder': (58.938, 1.62, 6.876), 'right_elbow': (27.842, 22.5),
+        'right_wrist': (1.843, -15.98),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
@@ -2169,16 +2169,16 @@ def remove_access_panel():
         'right_wrist': (2.633, -29.898),
     })
     human.KeyJoints(35.9, {
-        'right_shoulder': (58.894, 7.235, 9.198), 'right_elbow': (52.647, 80.0),
-        'right_wrist': (22.711, -30.0),
+        'right_shoulder': (58.894, 7.235, 9.199), 'right_elbow': (52.647, 80.0),
+        'right_wrist': (22.71, -30.0),
     })
     human.KeyJoints(36.0, {
-        'right_shoulder': (52.523, 0.198, -3.437), 'right_elbow': (63.352, 79.8),
-        'right_wrist': (32.96, -30.0),
+        'right_shoulder': (52.522, 0.198, -3.436), 'right_elbow': (63.352, 79.8),
+        'right_wrist': (32.957, -30.0),
     })
     human.KeyJoints(36.1, {
-        'right_shoulder': (57.356, -1.752, -8.069), 'right_elbow': (31.628, 36.499),
-        'right_wrist': (9.365, -15.937),
+        'right_shoulder': (57.355, -1.752, -8.06), 'right_elbow': (31.627, 36.496),
+        'right_wrist': (9.346, -15.937),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
@@ -2191,15 +2191,15 @@ def remove_access_panel():
     })
     human.KeyJoints(36.4, {
         'right_shoulder': (56.421, 4.988, 4.641), 'right_elbow': (50.66, 78.52),
-        'right_wrist': (12.1, -30.0),
+        'right_wrist': (12.099, -30.0),
     })
     human.KeyJoints(36.5, {
-        'right_shoulder': (59.797, 7.049, 8.74), 'right_elbow': (53.585, 80.0),
-        'right_wrist': (29.625, -30.0),
+        'right_shoulder': (59.796, 7.049, 8.741), 'right_elbow': (53.585, 80.0),
+        'right_wrist': (29.624, -30.0),
     })
     human.KeyJoints(36.6, {
-        'right_shoulder': (51.288, -6.175, -15.554), 'right_elbow': (49.081, 52.593),
-        'right_wrist': (16.794, -23.523),
+        'right_shoulder': (51.285, -6.173, -15.542), 'right_elbow': (49.08, 52.592),
+        'right_wrist': (16.767, -23.524),
     })
     human.KeyJoints(36.7, {
         'right_shoulder': (59.008, 2.34, 10.949), 'right_elbow': (27.719, 18.807),
@@ -2211,20 +2211,20 @@ def remove_access_panel():
         'right_wrist': (-0.448, -17.795),
     })
     human.KeyJoints(36.9, {
-        'right_shoulder': (55.0, 2.16, 0.435), 'right_elbow': (46.145, 66.464),
+        'right_shoulder': (55.0, 2.16, 0.436), 'right_elbow': (46.145, 66.464),
         'right_wrist': (4.446, -30.0),
     })
     human.KeyJoints(37.0, {
-        'right_shoulder': (59.492, 7.346, 9.434), 'right_elbow': (52.908, 80.0),
-        'right_wrist': (25.885, -30.0),
+        'right_shoulder': (59.492, 7.346, 9.435), 'right_elbow': (52.908, 80.0),
+        'right_wrist': (25.884, -30.0),
     })
     human.KeyJoints(37.1, {
-        'right_shoulder': (49.847, -3.574, -8.927), 'right_elbow': (63.908, 76.784),
-        'right_wrist': (27.751, -30.0),
+        'right_shoulder': (49.845, -3.572, -8.921), 'right_elbow': (63.908, 76.785),
+        'right_wrist': (27.736, -30.0),
     })
     human.KeyJoints(37.2, {
-        'right_shoulder': (58.266, -0.591, -3.79), 'right_elbow': (29.307, 32.409),
-        'right_wrist': (7.187, -15.554),
+        'right_shoulder': (58.266, -0.591, -3.783), 'right_elbow': (29.306, 32.407),
+        'right_wrist': (7.172, -15.554),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
@@ -2236,16 +2236,16 @@ def remove_access_panel():
         'right_wrist': (0.35, -26.968),
     })
     human.KeyJoints(37.5, {
-        'right_shoulder': (57.186, 6.203, 7.058), 'right_elbow': (51.544, 79.699),
-        'right_wrist': (14.976, -30.0),
+        'right_shoulder': (57.186, 6.203, 7.059), 'right_elbow': (51.544, 79.699),
+        'right_wrist': (14.975, -30.0),
     })
     human.KeyJoints(37.6, {
-        'right_shoulder': (58.586, 6.474, 7.496), 'right_elbow': (56.256, 80.0),
-        'right_wrist': (32.012, -30.0),
+        'right_shoulder': (58.586, 6.474, 7.495), 'right_elbow': (56.256, 80.0),
+        'right_wrist': (32.015, -30.0),
     })
     human.KeyJoints(37.7, {
-        'right_shoulder': (53.563, -4.837, -14.35), 'right_elbow': (41.947, 46.344),
-        'right_wrist': (14.103, -20.016),
+        'right_shoulder': (53.56, -4.836, -14.339), 'right_elbow': (41.946, 46.342),
+        'right_wrist': (14.077, -20.017),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
@@ -2261,16 +2261,16 @@ def remove_access_panel():
         'right_wrist': (6.653, -30.0),
     })
     human.KeyJoints(38.1, {
-        'right_shoulder': (59.766, 7.372, 9.494), 'right_elbow': (53.019, 80.0),
-        'right_wrist': (27.349, -30.0),
+        'right_shoulder': (59.765, 7.372, 9.495), 'right_elbow': (53.019, 80.0),
+        'right_wrist': (27.347, -30.0),
     })
     human.KeyJoints(38.2, {
-        'right_shoulder': (49.046, -5.665, -12.392), 'right_elbow': (61.396, 68.224),
-        'right_wrist': (23.733, -29.727),
+        'right_shoulder': (49.043, -5.663, -12.383), 'right_elbow': (61.394, 68.226),
+        'right_wrist': (23.711, -29.727),
     })
     human.KeyJoints(38.3, {
-        'right_shoulder': (58.698, 0.563, 1.305), 'right_elbow': (28.342, 27.606),
-        'right_wrist': (4.611, -15.611),
+        'right_shoulder': (58.698, 0.563, 1.309), 'right_elbow': (28.341, 27.605),
+        'right_wrist': (4.601, -15.611),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
@@ -2282,16 +2282,16 @@ def remove_access_panel():
         'right_wrist': (1.256, -28.926),
     })
     human.KeyJoints(38.6, {
-        'right_shoulder': (58.024, 6.929, 8.561), 'right_elbow': (52.191, 80.0),
-        'right_wrist': (18.355, -30.0),
+        'right_shoulder': (58.024, 6.929, 8.562), 'right_elbow': (52.191, 80.0),
+        'right_wrist': (18.354, -30.0),
     })
     human.KeyJoints(38.7, {
-        'right_shoulder': (55.891, 4.422, 3.537), 'right_elbow': (60.218, 80.0),
-        'right_wrist': (33.506, -30.0),
+        'right_shoulder': (55.891, 4.422, 3.536), 'right_elbow': (60.218, 80.0),
+        'right_wrist': (33.508, -30.0),
     })
     human.KeyJoints(38.8, {
-        'right_shoulder': (55.766, -3.247, -11.812), 'right_elbow': (35.792, 41.136),
-        'right_wrist': (11.682, -17.246),
+        'right_shoulder': (55.764, -3.246, -11.802), 'right_elbow': (35.792, 41.133),
+        'right_wrist': (11.659, -17.246),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
@@ -2304,19 +2304,19 @@ def remove_access_panel():
     })
     human.KeyJoints(39.1, {
         'right_shoulder': (55.741, 3.762, 2.387), 'right_elbow': (49.446, 76.152),
-        'right_wrist': (9.212, -30.0),
+        'right_wrist': (9.211, -30.0),
     })
     human.KeyJoints(39.2, {
-        'right_shoulder': (59.815, 7.375, 9.502), 'right_elbow': (53.039, 80.0),
-        'right_wrist': (27.616, -30.0),
+        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
+        'right_wrist': (27.614, -30.0),
     })
     human.KeyJoints(39.3, {
-        'right_shoulder': (49.454, -6.514, -14.749), 'right_elbow': (56.075, 60.112),
-        'right_wrist': (20.015, -27.139),
+        'right_shoulder': (49.451, -6.511, -14.737), 'right_elbow': (56.073, 60.112),
+        'right_wrist': (19.989, -27.14),
     })
     human.KeyJoints(39.4, {
-        'right_shoulder': (58.936, 1.604, 6.788), 'right_elbow': (27.847, 22.579),
-        'right_wrist': (1.89, -15.973),
+        'right_shoulder': (58.936, 1.604, 6.79), 'right_elbow': (27.847, 22.578),
+        'right_wrist': (1.885, -15.973),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
@@ -2328,16 +2328,16 @@ def remove_access_panel():
         'right_wrist': (2.606, -29.893),
     })
     human.KeyJoints(39.7, {
-        'right_shoulder': (58.881, 7.232, 9.191), 'right_elbow': (52.641, 80.0),
-        'right_wrist': (22.644, -30.0),
+        'right_shoulder': (58.881, 7.232, 9.192), 'right_elbow': (52.641, 80.0),
+        'right_wrist': (22.643, -30.0),
     })
     human.KeyJoints(39.8, {
-        'right_shoulder': (52.582, 0.276, -3.323), 'right_elbow': (63.316, 79.818),
-        'right_wrist': (33.041, -30.0),
+        'right_shoulder': (52.581, 0.277, -3.321), 'right_elbow': (63.316, 79.819),
+        'right_wrist': (33.038, -30.0),
     })
     human.KeyJoints(39.9, {
-        'right_shoulder': (57.337, -1.773, -8.134), 'right_elbow': (31.678, 36.569),
-        'right_wrist': (9.402, -15.947),
+        'right_shoulder': (57.336, -1.773, -8.126), 'right_elbow': (31.678, 36.566),
+        'right_wrist': (9.382, -15.947),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
@@ -2349,20 +2349,20 @@ def remove_access_panel():
         'right_wrist': (-0.187, -24.395),
     })
     human.KeyJoints(40.2, {
-        'right_shoulder': (56.408, 4.968, 4.602), 'right_elbow': (50.642, 78.491),
+        'right_shoulder': (56.408, 4.968, 4.602), 'right_elbow': (50.642, 78.492),
         'right_wrist': (12.05, -30.0),
     })
     human.KeyJoints(40.3, {
-        'right_shoulder': (59.801, 7.055, 8.755), 'right_elbow': (53.564, 80.0),
-        'right_wrist': (29.585, -30.0),
+        'right_shoulder': (59.801, 7.056, 8.755), 'right_elbow': (53.564, 80.0),
+        'right_wrist': (29.584, -30.0),
     })
     human.KeyJoints(40.4, {
-        'right_shoulder': (51.255, -6.184, -15.556), 'right_elbow': (49.198, 52.707),
-        'right_wrist': (16.844, -23.581),
+        'right_shoulder': (51.252, -6.183, -15.544), 'right_elbow': (49.196, 52.706),
+        'right_wrist': (16.816, -23.582),
     })
     human.KeyJoints(40.5, {
         'right_shoulder': (59.007, 2.332, 10.905), 'right_elbow': (27.719, 18.847),
-        'right_wrist': (-0.137, -16.34),
+        'right_wrist': (-0.138, -16.34),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
@@ -2374,16 +2374,16 @@ def remove_access_panel():
         'right_wrist': (4.412, -30.0),
     })
     human.KeyJoints(40.8, {
-        'right_shoulder': (59.485, 7.345, 9.432), 'right_elbow': (52.905, 80.0),
-        'right_wrist': (25.846, -30.0),
+        'right_shoulder': (59.485, 7.345, 9.433), 'right_elbow': (52.905, 80.0),
+        'right_wrist': (25.845, -30.0),
     })
     human.KeyJoints(40.9, {
-        'right_shoulder': (49.881, -3.528, -8.859), 'right_elbow': (63.932, 76.909),
-        'right_wrist': (27.821, -30.0),
+        'right_shoulder': (49.879, -3.526, -8.854), 'right_elbow': (63.931, 76.911),
+        'right_wrist': (27.807, -30.0),
     })
     human.KeyJoints(41.0, {
-        'right_shoulder': (58.256, -0.61, -3.868), 'right_elbow': (29.333, 32.482),
-        'right_wrist': (7.226, -15.557),
+        'right_shoulder': (58.255, -0.611, -3.862), 'right_elbow': (29.332, 32.479),
+        'right_wrist': (7.21, -15.557),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
@@ -2395,16 +2395,16 @@ def remove_access_panel():
         'right_wrist': (0.339, -26.93),
     })
     human.KeyJoints(41.3, {
-        'right_shoulder': (57.173, 6.183, 7.019), 'right_elbow': (51.531, 79.684),
-        'right_wrist': (14.928, -30.0),
+        'right_shoulder': (57.172, 6.184, 7.019), 'right_elbow': (51.531, 79.685),
+        'right_wrist': (14.927, -30.0),
     })
     human.KeyJoints(41.4, {
-        'right_shoulder': (58.619, 6.493, 7.536), 'right_elbow': (56.196, 80.0),
-        'right_wrist': (31.977, -30.0),
+        'right_shoulder': (58.62, 6.493, 7.535), 'right_elbow': (56.196, 80.0),
+        'right_wrist': (31.98, -30.0),
     })
     human.KeyJoints(41.5, {
-        'right_shoulder': (53.524, -4.864, -14.38), 'right_elbow': (42.06, 46.441),
-        'right_wrist': (14.146, -20.069),
+        'right_shoulder': (53.522, -4.863, -14.369), 'right_elbow': (42.059, 46.438),
+        'right_wrist': (14.12, -20.07),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
@@ -2421,15 +2421,15 @@ def remove_access_panel():
     })
     human.KeyJoints(41.9, {
         'right_shoulder': (59.763, 7.372, 9.494), 'right_elbow': (53.018, 80.0),
-        'right_wrist': (27.336, -30.0),
+        'right_wrist': (27.334, -30.0),
     })
     human.KeyJoints(42.0, {
-        'right_shoulder': (49.043, -5.636, -12.336), 'right_elbow': (61.465, 68.363),
-        'right_wrist': (23.799, -29.755),
+        'right_shoulder': (49.041, -5.633, -12.328), 'right_elbow': (61.464, 68.365),
+        'right_wrist': (23.777, -29.755),
     })
     human.KeyJoints(42.1, {
-        'right_shoulder': (58.693, 0.544, 1.211), 'right_elbow': (28.354, 27.693),
-        'right_wrist': (4.658, -15.607),
+        'right_shoulder': (58.692, 0.544, 1.216), 'right_elbow': (28.353, 27.691),
+        'right_wrist': (4.648, -15.607),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
@@ -2441,16 +2441,16 @@ def remove_access_panel():
         'right_wrist': (1.238, -28.899),
     })
     human.KeyJoints(42.4, {
-        'right_shoulder': (58.009, 6.922, 8.546), 'right_elbow': (52.182, 80.0),
-        'right_wrist': (18.286, -30.0),
+        'right_shoulder': (58.009, 6.922, 8.547), 'right_elbow': (52.181, 80.0),
+        'right_wrist': (18.285, -30.0),
     })
     human.KeyJoints(42.5, {
-        'right_shoulder': (55.944, 4.48, 3.642), 'right_elbow': (60.149, 80.0),
-        'right_wrist': (33.49, -30.0),
+        'right_shoulder': (55.944, 4.48, 3.641), 'right_elbow': (60.149, 80.0),
+        'right_wrist': (33.492, -30.0),
     })
     human.KeyJoints(42.6, {
-        'right_shoulder': (55.731, -3.274, -11.87), 'right_elbow': (35.887, 41.217),
-        'right_wrist': (11.721, -17.286),
+        'right_shoulder': (55.729, -3.274, -11.86), 'right_elbow': (35.886, 41.214),
+        'right_wrist': (11.698, -17.287),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.7, {
@@ -2466,16 +2466,16 @@ def remove_access_panel():
         'right_wrist': (9.166, -30.0),
     })
     human.KeyJoints(43.0, {
-        'right_shoulder': (59.815, 7.375, 9.502), 'right_elbow': (53.039, 80.0),
-        'right_wrist': (27.616, -30.0),
+        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
+        'right_wrist': (27.614, -30.0),
     })
     human.KeyJoints(43.1, {
-        'right_shoulder': (49.436, -6.516, -14.726), 'right_elbow': (56.178, 60.243),
-        'right_wrist': (20.073, -27.191),
+        'right_shoulder': (49.433, -6.513, -14.714), 'right_elbow': (56.177, 60.243),
+        'right_wrist': (20.046, -27.192),
     })
     human.KeyJoints(43.2, {
-        'right_shoulder': (58.934, 1.589, 6.702), 'right_elbow': (27.852, 22.657),
-        'right_wrist': (1.932, -15.966),
+        'right_shoulder': (58.933, 1.589, 6.704), 'right_elbow': (27.852, 22.657),
+        'right_wrist': (1.928, -15.966),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.3, {
@@ -2487,16 +2487,16 @@ def remove_access_panel():
         'right_wrist': (2.58, -29.887),
     })
     human.KeyJoints(43.5, {
-        'right_shoulder': (58.868, 7.228, 9.184), 'right_elbow': (52.635, 80.0),
-        'right_wrist': (22.577, -30.0),
+        'right_shoulder': (58.868, 7.229, 9.185), 'right_elbow': (52.635, 80.0),
+        'right_wrist': (22.576, -30.0),
     })
     human.KeyJoints(43.6, {
-        'right_shoulder': (52.641, 0.354, -3.208), 'right_elbow': (63.28, 79.836),
-        'right_wrist': (33.12, -30.0),
+        'right_shoulder': (52.641, 0.355, -3.207), 'right_elbow': (63.28, 79.836),
+        'right_wrist': (33.117, -30.0),
     })
     human.KeyJoints(43.7, {
-        'right_shoulder': (57.317, -1.794, -8.199), 'right_elbow': (31.73, 36.639),
-        'right_wrist': (9.438, -15.956),
+        'right_shoulder': (57.316, -1.794, -8.191), 'right_elbow': (31.729, 36.636),
+        'right_wrist': (9.419, -15.957),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
@@ -2509,19 +2509,19 @@ def remove_access_panel():
     })
     human.KeyJoints(44.0, {
         'right_shoulder': (56.396, 4.947, 4.562), 'right_elbow': (50.625, 78.463),
-        'right_wrist': (12.001, -30.0),
+        'right_wrist': (12.0, -30.0),
     })
     human.KeyJoints(44.1, {
         'right_shoulder': (59.804, 7.062, 8.77), 'right_elbow': (53.544, 80.0),
-        'right_wrist': (29.546, -30.0),
+        'right_wrist': (29.544, -30.0),
     })
     human.KeyJoints(44.2, {
-        'right_shoulder': (51.223, -6.193, -15.557), 'right_elbow': (49.314, 52.822),
-        'right_wrist': (16.893, -23.639),
+        'right_shoulder': (51.22, -6.191, -15.545), 'right_elbow': (49.312, 52.82),
+        'right_wrist': (16.865, -23.64),
     })
     human.KeyJoints(44.3, {
         'right_shoulder': (59.007, 2.325, 10.86), 'right_elbow': (27.72, 18.888),
-        'right_wrist': (-0.115, -16.336),
+        'right_wrist': (-0.116, -16.336),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.4, {
@@ -2529,20 +2529,20 @@ def remove_access_panel():
         'right_wrist': (-0.446, -17.752),
     })
     human.KeyJoints(44.5, {
-        'right_shoulder': (54.994, 2.148, 0.449), 'right_elbow': (46.08, 66.23),
+        'right_shoulder': (54.994, 2.148, 0.449), 'right_elbow': (46.08, 66.231),
         'right_wrist': (4.378, -30.0),
     })
     human.KeyJoints(44.6, {
-        'right_shoulder': (59.478, 7.344, 9.43), 'right_elbow': (52.902, 80.0),
-        'right_wrist': (25.807, -30.0),
+        'right_shoulder': (59.477, 7.344, 9.431), 'right_elbow': (52.901, 80.0),
+        'right_wrist': (25.805, -30.0),
     })
     human.KeyJoints(44.7, {
-        'right_shoulder': (49.862, -3.65, -9.013), 'right_elbow': (64.063, 77.523),
-        'right_wrist': (27.678, -30.0),
+        'right_shoulder': (49.86, -3.648, -9.007), 'right_elbow': (64.062, 77.524),
+        'right_wrist': (27.664, -30.0),
     })
     human.KeyJoints(44.8, {
-        'right_shoulder': (56.522, -1.425, -4.2), 'right_elbow': (33.613, 32.572),
-        'right_wrist': (6.66, -20.251),
+        'right_shoulder': (56.522, -1.425, -4.193), 'right_elbow': (33.612, 32.569),
+        'right_wrist': (6.645, -20.252),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.847203, duration=0.072)

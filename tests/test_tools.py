@@ -200,6 +200,30 @@ def test_each_swing_and_return_is_one_bell_and_the_tip_reseats_slowly(wrench_ir:
         assert tip[-1] <= 0.05
 
 
+def test_stroke_joints_move_at_most_20_degrees_a_frame(wrench_ir: MotionIR) -> None:
+    # issue 19: the wrist and forearm in a fastener turn turn at most 20 deg in 1/30 s (the
+    # keys are solved as one chain: no other forearm roll between neighbours, no 24 deg seat)
+    for seg in _strokes_of(wrench_ir):
+        kf = seg.keyframes
+        turn = [
+            i for i, n in enumerate(kf.dofs) if n.endswith(("wrist_flex", "wrist_dev", "elbow_pro"))
+        ]
+        speed = np.abs(np.diff(kf.q[:, turn], axis=0)) / np.diff(kf.time)[:, None]
+        assert np.degrees(speed.max()) / 30.0 <= 20.0, seg.goal.params["stroke"]
+
+
+def test_key_times_are_the_paced_strokes_passing_times() -> None:
+    frac, _, _ = tool_pass.stroke_plan(0.3, -math.radians(60.0), ratchet=False)
+    times = tool_pass.key_times(frac, lifted=True)
+    assert np.all(np.diff(times[1:]) > 0) and times[-1] == pytest.approx(1.0)
+    phases = np.isin(np.round(frac, 9), [0.1, 0.6])
+    assert np.allclose(times[phases], frac[phases])  # the phase ends keep their times
+    swing = (frac > 0.1) & (frac < 0.6)
+    # minimum-jerk progress: the keys near the swing's ends are passed later/earlier than a
+    # path-proportional clock would
+    assert times[swing][0] > frac[swing][0] and times[swing][-1] < frac[swing][-1]
+
+
 def test_stroke_phases_keep_the_stroke_time(wrench_ir: MotionIR) -> None:
     # seat, swing and return tile the stroke (its MTM time unchanged), keys on both ends
     for seg in _strokes_of(wrench_ir):

@@ -256,6 +256,18 @@ def paced_stroke(
     return np.concatenate(times), np.concatenate(poses)
 
 
+def key_times(frac: FloatArray, lifted: bool) -> FloatArray:
+    """(K,) share of the stroke's time at which ``paced_stroke`` passes each key: the inverse
+    of each phase's progress profile at the key's place in the phase."""
+    out = np.zeros(len(frac))
+    grid = np.linspace(0.0, 1.0, 2001)
+    for k, (a, b) in enumerate(PHASES):
+        keys = np.flatnonzero((frac >= a - 1e-9) & (frac <= b + 1e-9))
+        u = (placing_clock if lifted and k == len(PHASES) - 1 else minimum_jerk)(grid)
+        out[keys] = a + (b - a) * np.interp((frac[keys] - a) / (b - a), u, grid)
+    return out
+
+
 def _solve_keys(
     state: PoseState,
     seg: Segment,
@@ -263,22 +275,21 @@ def _solve_keys(
     tips: FloatArray,
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
+    clock: FloatArray,
+    first: str = "arm",
 ) -> tuple[FloatArray, str, FloatArray]:
-    """(K, D) poses putting the grip on ``hands`` and the tip on ``tips``, each solved from
-    ``q0``; the arm first, the torso for the keyframes the arm leaves short. Also the reach
-    and the tip's distance per keyframe."""
-    skel = state.skel
-    hand = f"{seg.goal.effector[0]}_hand"
-    k = len(hands)
-    qs = np.tile(q0, (k, 1))
-    rp, rr = np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1))
-    goals = [Goal(hand, position=hands), Goal(seg.goal.effector, position=tips)]
+    """(K, D) poses putting the grip on ``hands`` and the tip on ``tips``, solved as a chain
+    (``_chain``) and evened out in time (``_even_out``; ``clock`` the keys' times); the arm
+    first, the torso when the arm leaves a keyframe short (``first``: the series' strokes so
+    far went with the torso, so this one starts and ends on their pose). Also the reach and
+    the tip's distance per keyframe."""
+    sites = [f"{seg.goal.effector[0]}_hand", seg.goal.effector]
     best, reach = None, "arm"
-    for r in ("arm", "torso"):
-        model = prepare(skel, [hand, seg.goal.effector], qs, reach=r, root_position=rp,
-                        root_rotation=rr)  # fmt: skip
-        q = solve_ta(skel, goals, qs, model=model, restarts=2, tol=2e-4).q
-        err = _errors(state, q, root, [hand, seg.goal.effector], [hands, tips])
+    for r in (first, "torso" if first == "arm" else "arm"):
+        q = _chain(state, sites, hands, tips, q0, root, r)
+        q[-1] = q[1]  # the stroke ends on the pose it swings from: the same goals
+        q[1:] = _even_out(state, sites, hands[1:], tips[1:], q[1:], root, r, clock[1:])
+        err = _errors(state, q, root, sites, [hands, tips])
         if best is None or err.max() < best[1].max() - 1e-6:
             best, reach = (q, err), r
         if best[1].max() <= TOLERANCE:
@@ -286,6 +297,89 @@ def _solve_keys(
     assert best is not None
     tip_err = _errors(state, best[0], root, [seg.goal.effector], [tips])
     return best[0], reach, tip_err
+
+
+def _chain(
+    state: PoseState,
+    sites: list[str],
+    hands: FloatArray,
+    tips: FloatArray,
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    reach: str,
+) -> FloatArray:
+    """(K, D) keyframes solved one after the other, each from the one before (the first from
+    ``q0``): a continuation along the stroke's path, so neighbouring keys keep one branch of
+    the arm (solved each from the reach pose, a lifted key sometimes took another forearm roll:
+    a 40 deg step between two frames). Random restarts are used only where a warm start
+    stalls short of the goal, and kept only when they reach it: on a fastener out of reach every
+    key is short, and the restarts' slightly nearer poses flipped the shoulder by 175 deg
+    between neighbouring keys."""
+    skel = state.skel
+    k = len(hands)
+    model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
+                    root_rotation=root[1][None])  # fmt: skip
+    out = np.empty((k, len(q0)))
+    prev = q0
+    for i in range(k):
+        goals = [
+            Goal(sites[0], position=hands[i : i + 1]),
+            Goal(sites[1], position=tips[i : i + 1]),
+        ]
+        kw = dict(model=model, root_position=root[0][None], root_rotation=root[1][None], tol=2e-4)
+        q = solve_ta(skel, goals, prev[None], restarts=0, **kw).q
+        err = _errors(state, q, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
+        if err > TOLERANCE:
+            q2 = solve_ta(skel, goals, prev[None], restarts=2, **kw).q
+            err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
+            if err2 <= TOLERANCE:  # a restart that is short too is no better: another branch
+                q = q2
+        out[i] = prev = q[0]
+    return out
+
+
+EVEN_ROUNDS = 24  # rounds of smoothing the chained keys' joint path and putting them back
+
+
+def _even_out(
+    state: PoseState,
+    sites: list[str],
+    hands: FloatArray,
+    tips: FloatArray,
+    q: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    reach: str,
+    clock: FloatArray,
+) -> FloatArray:
+    """The chained keys with their joint path evened out in time: each round moves every
+    inner key halfway to where its neighbours would put it at its time (``clock``: moving at
+    one speed from one to the other) and solves it back onto its goals from there (the arm's
+    spare freedom), so the joints tend to one speed over the stroke (the least integral of
+    squared joint speed). A chain takes the nearest solution at each key, so a wrist that meets its
+    stop hands the rest of the turn to the forearm's roll in one or two keys (15 deg between
+    keys 5 deg of arc apart, 29 deg between frames at the swing's peak speed); evened out, the
+    roll is spread over the swing. A key that would end further from its goals than before
+    (or than the tolerance) keeps its pose. The first and last keys stay."""
+    skel, k = state.skel, len(q)
+    if k < 3:
+        return q
+    inner = slice(1, k - 1)
+    goals = [Goal(sites[0], position=hands[inner]), Goal(sites[1], position=tips[inner])]
+    rp, rr = np.tile(root[0], (k - 2, 1)), np.tile(root[1], (k - 2, 1))
+    model = prepare(skel, sites, q[inner], reach=reach, root_position=rp, root_rotation=rr)
+    err = _errors(state, q[inner], root, sites, [hands[inner], tips[inner]])
+    q = q.copy()
+    gap = np.maximum(np.diff(clock), 1e-9)
+    after = (gap[:-1] / (gap[:-1] + gap[1:]))[:, None]  # share of the way from key i-1 to i+1
+    for _ in range(EVEN_ROUNDS):
+        guess = 0.5 * q[inner] + 0.5 * ((1.0 - after) * q[:-2] + after * q[2:])
+        moved = solve_ta(skel, goals, guess, model=model, restarts=0, null_gain=0.0, tol=2e-4,
+                         root_position=rp, root_rotation=rr).q  # fmt: skip
+        new_err = _errors(state, moved, root, sites, [hands[inner], tips[inner]])
+        ok = (new_err <= np.maximum(err, TOLERANCE) + 1e-9) & skel.within_limits(moved)
+        q[inner][ok] = moved[ok]
+        err = np.where(ok, new_err, err)
+    return q
 
 
 def _errors(
@@ -304,7 +398,7 @@ def _errors(
 
 @dataclasses.dataclass(frozen=True)
 class StrokeSolution:
-    """One stroke's solved keyframes (every keyframe solved from the series' reach pose), shared
+    """One stroke's solved keyframes (a chain from the series' reach pose), shared
     by the strokes of a series that repeat it: same fastener, tool, angle, reach pose and root."""
 
     q: FloatArray  # (K, D)
@@ -312,6 +406,7 @@ class StrokeSolution:
     tip_error: FloatArray  # (K,) m
     frac: FloatArray  # (K,) share of the stroke's time
     lift: FloatArray  # (K,) 0 engaged, 1 lifted off
+    tips: FloatArray  # (K, 3) where the tip is put
 
 
 @dataclasses.dataclass
@@ -366,8 +461,8 @@ def _series(state: PoseState, seg: Segment, series: dict[Any, Series]) -> Series
 
 
 def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSolution:
-    """Solve a stroke's keyframes (the grip on the arc, the tip on the fastener) from the
-    series' reach pose, or reuse the solution of an identical stroke of the series."""
+    """Solve a stroke's keyframes (the grip on the arc, the tip on the fastener) as a chain
+    from the series' reach pose, or reuse the solution of an identical stroke of the series."""
     g = seg.goal
     tool = g.params["tool"]
     turn = -float(g.params["angle"])  # twist angles loosen when negative: positive about n
@@ -383,9 +478,53 @@ def _solve_stroke_keys(state: PoseState, seg: Segment, run: Series) -> StrokeSol
     hands = arc_points(site, normal, radius(tool), theta, axial_offset(tool))
     hands = hands + LIFT * lift[:, None] * n
     tips = site + LIFT * lift[:, None] * n
-    q, reach, tip_err = _solve_keys(state, seg, hands, tips, run.q_reached, run.root)
-    run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift)
+    clock = key_times(frac, bool(lift.max() > 0))
+    first = next((s.reach for s in run.solved.values()), "arm")
+    q, reach, tip_err = _solve_keys(state, seg, hands, tips, run.q_reached, run.root, clock, first)
+    q, tip_err = _closed(q, tip_err, frac, lift)
+    run.solved[key] = StrokeSolution(q, reach, tip_err, frac, lift, tips)
     return run.solved[key]
+
+
+def _closed(
+    q: FloatArray, tip_err: FloatArray, frac: FloatArray, lift: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """A ratchet's return is its swing's keys reversed (the chain closes the loop on its own:
+    its last key is the swing's first)."""
+    if lift.max() > 0:
+        return q, tip_err
+    q, tip_err = q.copy(), tip_err.copy()
+    back = np.flatnonzero(frac > SWING_SHARE + 1e-9)
+    swing = np.flatnonzero((frac >= SEAT_SHARE - 1e-9) & (frac <= SWING_SHARE + 1e-9))
+    q[back], tip_err[back] = q[swing[::-1][1:]], tip_err[swing[::-1][1:]]
+    return q, tip_err
+
+
+def _bent(
+    state: PoseState,
+    seg: Segment,
+    run: Series,
+    sol: StrokeSolution,
+    delta: FloatArray,
+    keys: FloatArray,
+    weight: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """The solved ``keys`` moved by ``weight`` × ``delta`` (a difference of poses) and solved
+    back onto their tip positions from there (the hand free): the blend to or from another
+    pose with the tip kept on its path. Blended in joint angles alone, the tip left the
+    fastener by 3 mm as the last return came down (contact 5.7 cm/s). (len(keys), D) poses
+    and the tip's distances."""
+    skel = state.skel
+    k = len(keys)
+    if k == 0:
+        return sol.q[keys], sol.tip_error[keys]
+    guess = np.clip(sol.q[keys] + weight[:, None] * delta, skel.lower, skel.upper)
+    tips = sol.tips[keys]
+    rp, rr = np.tile(run.root[0], (k, 1)), np.tile(run.root[1], (k, 1))
+    eff = seg.goal.effector
+    q = solve_ta(skel, [Goal(eff, position=tips)], guess, reach=sol.reach, restarts=0,
+                 null_gain=0.0, tol=2e-4, root_position=rp, root_rotation=rr).q  # fmt: skip
+    return q, _errors(state, q, run.root, [eff], [tips])
 
 
 def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict) -> None:
@@ -398,13 +537,22 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
     sol = _solve_stroke_keys(state, seg, run)
     q = sol.q.copy()
     q[0] = _start_pose(state, seg, run)
+    tip_err = sol.tip_error.copy()
+    if g.params["stroke"] == 1:
+        # from the reach pose (the wrench tilted off the fastener's plane) into the seated
+        # one over the seat and the swing: in the seat alone (54 ms) the wrist turned 24 deg
+        out = np.flatnonzero((sol.frac > 1e-9) & (sol.frac < SWING_SHARE - 1e-9))
+        w = 1.0 - minimum_jerk(sol.frac[out] / SWING_SHARE)
+        q[out], tip_err[out] = _bent(state, seg, run, sol, q[0] - sol.q[1], out, w)
     if g.params["stroke"] == g.params["strokes"]:
         # back to the reach pose (the motion after was solved from it), blended in over the
         # return: a jump in its last stretch would be a second movement at the re-seat
-        back = sol.frac >= SWING_SHARE - 1e-9
+        back = np.flatnonzero(sol.frac > SWING_SHARE + 1e-9)
         w = minimum_jerk((sol.frac[back] - SWING_SHARE) / (1.0 - SWING_SHARE))
-        q[back] += w[:, None] * (run.q_reached - sol.q[-1])
-    tip_err = sol.tip_error.copy()
+        q[back[:-1]], tip_err[back[:-1]] = _bent(
+            state, seg, run, sol, run.q_reached - sol.q[-1], back[:-1], w[:-1]
+        )
+        q[-1] = run.q_reached
     tip_err[0], tip_err[-1] = _tip_error(state, run, seg, q[0]), _tip_error(state, run, seg, q[-1])
     # every stroke keys the trunk too, so no trunk angle holds across strokes solved differently
     names = chain_names(state.skel, [g.effector], "torso")

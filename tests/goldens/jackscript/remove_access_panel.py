@@ -160,41 +160,41 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.550462, duration=0.072)
     human.KeyJoints(2.6, {
-        'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
-        'neck': (-0.615, -0.753, -25.987), 'head': (-0.775, -0.002),
-        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.868, 10.559, -0.346),
-        'right_elbow': (31.861, 10.16), 'right_wrist': (-1.494, -30.0),
+        'spine_thoracic': (-1.65, -1.602, 1.41), 'neck': (-0.615, -0.753, -25.987),
+        'head': (-0.775, -0.002), 'right_clavicle': (2.315, 0.785),
+        'right_shoulder': (91.868, 10.559, -0.346), 'right_elbow': (31.861, 10.16),
+        'right_wrist': (-1.494, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
-        'spine_lumbar': (6.627, 1.234, 1.727), 'spine_thoracic': (-2.345, -1.67, 1.696),
-        'neck': (-0.612, -0.756, -26.18), 'head': (-0.774, -0.002),
-        'right_clavicle': (2.593, 0.936), 'right_shoulder': (91.239, 11.055, -0.35),
-        'right_elbow': (32.543, 10.204), 'right_wrist': (-1.624, -28.555),
+        'spine_lumbar': (6.184, 0.827, 1.483), 'spine_thoracic': (-1.934, -1.733, 1.463),
+        'neck': (-0.504, -0.714, -26.113), 'head': (-0.657, -0.002),
+        'right_clavicle': (2.509, 0.766), 'right_shoulder': (91.451, 10.784, -0.367),
+        'right_elbow': (31.916, 10.172), 'right_wrist': (-1.554, -29.783),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (10.813, 1.477, 0.123), 'spine_thoracic': (-3.631, -5.756, 0.072),
-        'neck': (-1.166, -0.981, -26.953), 'head': (-1.377, -0.004),
-        'right_clavicle': (8.47, -1.488), 'right_shoulder': (87.95, 16.316, 4.777),
-        'right_elbow': (35.772, 15.585), 'right_wrist': (0.417, -20.303),
+        'spine_lumbar': (10.156, 1.166, 1.314), 'spine_thoracic': (-7.085, -6.71, 1.447),
+        'neck': (0.837, -0.251, -28.596), 'head': (0.766, 0.0), 'right_clavicle': (10.22, -1.088),
+        'right_shoulder': (81.683, 18.276, 2.928), 'right_elbow': (34.846, 14.579),
+        'right_wrist': (-1.299, -19.604),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (16.967, 5.299, -2.981), 'spine_thoracic': (-1.854, -10.0, -2.824),
-        'neck': (-5.269, -2.491, -25.064), 'head': (-5.736, -0.066),
-        'right_clavicle': (16.162, -4.845), 'right_shoulder': (93.35, 22.426, 13.076),
-        'right_elbow': (41.177, 23.407), 'right_wrist': (4.076, -9.644),
+        'spine_lumbar': (16.227, 3.139, 0.557), 'spine_thoracic': (-9.814, -10.0, 1.358),
+        'neck': (-0.576, -0.819, -30.206), 'head': (-0.768, -0.005),
+        'right_clavicle': (20.547, -3.403), 'right_shoulder': (77.109, 27.567, 8.408),
+        'right_elbow': (39.566, 21.54), 'right_wrist': (-0.836, -6.452),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (12.774, 3.403, -2.002), 'spine_thoracic': (-3.174, -9.328, -2.098),
-        'neck': (-2.187, -1.324, -24.58), 'head': (-2.446, -0.012),
-        'right_clavicle': (14.169, -4.327), 'right_shoulder': (86.762, 20.402, 11.047),
-        'right_elbow': (39.995, 21.484), 'right_wrist': (2.938, -10.736),
+        'spine_lumbar': (12.345, 1.38, 1.252), 'spine_thoracic': (-10.764, -8.938, 1.739),
+        'neck': (1.783, 0.089, -29.558), 'head': (1.776, 0.001), 'right_clavicle': (18.463, -3.174),
+        'right_shoulder': (72.144, 25.056, 6.747), 'right_elbow': (38.626, 19.393),
+        'right_wrist': (-1.311, -7.853),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (5.947, 1.09, 1.583), 'spine_thoracic': (-2.292, -1.558, 1.551),
-        'neck': (-0.337, -0.642, -25.718), 'head': (-0.475, -0.001),
-        'right_clavicle': (2.38, 0.855), 'right_shoulder': (90.573, 10.721, -0.263),
-        'right_elbow': (32.641, 10.193), 'right_wrist': (-1.608, -28.528),
+        'spine_lumbar': (5.647, 0.007, 4.422), 'spine_thoracic': (-9.642, -2.42, 3.71),
+        'neck': (3.188, 0.614, -30.047), 'head': (3.283, 0.002), 'right_clavicle': (5.984, -0.111),
+        'right_shoulder': (79.525, 14.793, -4.076), 'right_elbow': (31.528, 7.641),
+        'right_wrist': (-3.411, -25.765),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
@@ -204,96 +204,96 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (8.086, 1.11, 1.08), 'spine_thoracic': (-3.035, -3.271, 1.069),
-        'neck': (-0.631, -0.769, -26.479), 'head': (-0.797, -0.002),
-        'right_clavicle': (4.811, 0.071), 'right_shoulder': (89.483, 13.007, 1.546),
-        'right_elbow': (33.678, 12.183), 'right_wrist': (-0.904, -25.662),
+        'spine_lumbar': (7.832, 1.114, 1.985), 'spine_thoracic': (-5.733, -4.055, 1.939),
+        'neck': (0.767, -0.259, -27.648), 'head': (0.697, 0.0), 'right_clavicle': (6.021, 0.183),
+        'right_shoulder': (85.231, 14.542, 0.237), 'right_elbow': (33.251, 11.444),
+        'right_wrist': (-1.932, -24.704),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (14.92, 3.514, -1.267), 'spine_thoracic': (-3.742, -9.245, -1.356),
-        'neck': (-2.921, -1.647, -27.065), 'head': (-3.257, -0.021),
-        'right_clavicle': (14.16, -3.807), 'right_shoulder': (88.413, 21.274, 9.622),
-        'right_elbow': (39.124, 20.551), 'right_wrist': (2.382, -12.253),
+        'spine_lumbar': (14.402, 2.586, 0.767), 'spine_thoracic': (-9.091, -9.509, 1.315),
+        'neck': (0.042, -0.573, -29.625), 'head': (-0.1, -0.001),
+        'right_clavicle': (17.008, -2.625), 'right_shoulder': (78.184, 24.519, 6.753),
+        'right_elbow': (38.232, 19.313), 'right_wrist': (-0.897, -10.439),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (17.37, 5.594, -3.295), 'spine_thoracic': (-1.255, -10.0, -3.16),
-        'neck': (-5.873, -2.71, -24.757), 'head': (-6.372, -0.084),
-        'right_clavicle': (16.765, -5.295), 'right_shoulder': (94.599, 22.826, 13.83),
-        'right_elbow': (41.609, 24.117), 'right_wrist': (4.481, -8.817),
+        'spine_lumbar': (16.571, 3.121, 0.773), 'spine_thoracic': (-10.35, -10.0, 1.65),
+        'neck': (-0.498, -0.798, -30.679), 'head': (-0.688, -0.004),
+        'right_clavicle': (21.726, -3.637), 'right_shoulder': (75.93, 28.57, 8.567),
+        'right_elbow': (39.771, 21.955), 'right_wrist': (-0.928, -5.219),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (5.343, 0.464, 0.186), 'spine_thoracic': (-2.243, -2.889, 0.188),
-        'neck': (0.238, -0.392, -24.165), 'head': (0.156, 0.0), 'right_clavicle': (4.033, -0.461),
-        'right_shoulder': (87.491, 11.52, 2.562), 'right_elbow': (34.097, 12.673),
-        'right_wrist': (-0.444, -25.168),
+        'spine_lumbar': (4.972, -1.11, 4.129), 'spine_thoracic': (-11.629, -3.863, 3.424),
+        'neck': (4.737, 1.198, -30.337), 'head': (4.942, 0.005), 'right_clavicle': (8.846, -1.189),
+        'right_shoulder': (72.595, 16.745, -2.475), 'right_elbow': (32.468, 9.41),
+        'right_wrist': (-3.244, -21.538),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.576, 1.24, 1.738), 'spine_thoracic': (-2.243, -1.59, 1.708),
-        'neck': (-0.649, -0.77, -26.154), 'head': (-0.814, -0.002),
-        'right_clavicle': (2.486, 0.964), 'right_shoulder': (91.347, 10.952, -0.396),
-        'right_elbow': (32.588, 10.146), 'right_wrist': (-1.635, -28.678),
+        'spine_lumbar': (6.559, 1.169, 1.941), 'spine_thoracic': (-2.807, -1.664, 1.862),
+        'neck': (-0.374, -0.671, -26.459), 'head': (-0.521, -0.002),
+        'right_clavicle': (2.761, 0.888), 'right_shoulder': (90.538, 11.271, -0.679),
+        'right_elbow': (32.511, 9.959), 'right_wrist': (-1.77, -28.468),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'spine_lumbar': (6.768, 1.214, 1.683), 'spine_thoracic': (-2.554, -1.87, 1.654),
-        'neck': (-0.544, -0.731, -26.236), 'head': (-0.702, -0.002),
-        'right_clavicle': (2.863, 0.857), 'right_shoulder': (90.826, 11.309, -0.195),
-        'right_elbow': (32.709, 10.381), 'right_wrist': (-1.59, -28.234),
+        'spine_lumbar': (6.71, 1.217, 1.897), 'spine_thoracic': (-3.197, -2.056, 1.847),
+        'neck': (-0.211, -0.61, -26.53), 'head': (-0.346, -0.001), 'right_clavicle': (3.15, 0.858),
+        'right_shoulder': (89.837, 11.681, -0.437), 'right_elbow': (32.617, 10.214),
+        'right_wrist': (-1.817, -28.0),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (11.905, 1.868, -0.301), 'spine_thoracic': (-3.566, -6.61, -0.355),
-        'neck': (-1.69, -1.183, -27.084), 'head': (-1.938, -0.009),
-        'right_clavicle': (9.834, -2.091), 'right_shoulder': (88.043, 17.491, 6.131),
-        'right_elbow': (36.709, 16.943), 'right_wrist': (0.995, -18.266),
+        'spine_lumbar': (11.431, 1.619, 1.302), 'spine_thoracic': (-7.939, -7.593, 1.512),
+        'neck': (0.715, -0.305, -29.009), 'head': (0.63, 0.0), 'right_clavicle': (12.01, -1.441),
+        'right_shoulder': (80.321, 20.056, 3.865), 'right_elbow': (35.933, 15.761),
+        'right_wrist': (-1.219, -16.759),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (17.261, 5.499, -3.182), 'spine_thoracic': (-1.491, -10.0, -3.031),
-        'neck': (-5.667, -2.635, -24.877), 'head': (-6.155, -0.077),
-        'right_clavicle': (16.54, -5.11), 'right_shoulder': (94.171, 22.686, 13.546),
-        'right_elbow': (41.446, 23.846), 'right_wrist': (4.328, -9.156),
+        'spine_lumbar': (16.487, 3.162, 0.634), 'spine_thoracic': (-10.072, -10.0, 1.486),
+        'neck': (-0.592, -0.829, -30.425), 'head': (-0.787, -0.005),
+        'right_clavicle': (21.225, -3.537), 'right_shoulder': (76.596, 28.154, 8.56),
+        'right_elbow': (39.717, 21.83), 'right_wrist': (-0.871, -5.754),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (10.26, 2.097, -1.733), 'spine_thoracic': (-2.763, -7.564, -1.794),
-        'neck': (-1.169, -0.924, -23.882), 'head': (-1.351, -0.004),
-        'right_clavicle': (11.207, -3.431), 'right_shoulder': (86.033, 17.625, 9.299),
-        'right_elbow': (38.724, 19.49), 'right_wrist': (2.299, -14.245),
+        'spine_lumbar': (9.805, 0.219, 1.829), 'spine_thoracic': (-10.978, -7.664, 2.0),
+        'neck': (2.954, 0.537, -29.453), 'head': (3.036, 0.002), 'right_clavicle': (15.782, -2.705),
+        'right_shoulder': (70.97, 22.488, 4.715), 'right_elbow': (37.164, 16.983),
+        'right_wrist': (-1.662, -11.088),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (6.324, 1.181, 1.657), 'spine_thoracic': (-2.158, -1.545, 1.629),
-        'neck': (-0.574, -0.737, -25.955), 'head': (-0.731, -0.002),
-        'right_clavicle': (2.396, 0.921), 'right_shoulder': (91.24, 10.787, -0.316),
-        'right_elbow': (32.614, 10.178), 'right_wrist': (-1.6, -28.675),
+        'spine_lumbar': (6.047, 0.319, 3.971), 'spine_thoracic': (-8.293, -2.284, 3.387),
+        'neck': (2.395, 0.325, -29.427), 'head': (2.435, 0.001), 'right_clavicle': (5.364, 0.104),
+        'right_shoulder': (82.012, 14.189, -3.498), 'right_elbow': (31.706, 8.047),
+        'right_wrist': (-3.098, -26.369),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (8.849, 1.13, 0.754), 'spine_thoracic': (-3.172, -3.991, 0.743),
-        'neck': (-0.772, -0.824, -26.595), 'head': (-0.949, -0.003),
-        'right_clavicle': (5.843, -0.382), 'right_shoulder': (88.993, 13.918, 2.522),
-        'right_elbow': (34.267, 13.191), 'right_wrist': (-0.496, -24.193),
+        'spine_lumbar': (8.548, 1.128, 1.82), 'spine_thoracic': (-6.267, -4.878, 1.816),
+        'neck': (0.837, -0.238, -27.958), 'head': (0.77, 0.0), 'right_clavicle': (7.261, -0.176),
+        'right_shoulder': (84.006, 15.68, 1.007), 'right_elbow': (33.765, 12.343),
+        'right_wrist': (-1.755, -23.095),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (15.732, 4.158, -1.678), 'spine_thoracic': (-3.59, -9.816, -1.73),
-        'neck': (-3.464, -1.844, -26.646), 'head': (-3.833, -0.029),
-        'right_clavicle': (15.152, -4.22), 'right_shoulder': (89.048, 21.968, 10.737),
-        'right_elbow': (39.843, 21.58), 'right_wrist': (2.849, -10.956),
+        'spine_lumbar': (15.18, 2.878, 0.61), 'spine_thoracic': (-9.319, -9.835, 1.278),
+        'neck': (-0.22, -0.673, -29.7), 'head': (-0.382, -0.002),
+        'right_clavicle': (18.384, -2.938), 'right_shoulder': (77.881, 25.709, 7.521),
+        'right_elbow': (38.832, 20.275), 'right_wrist': (-0.842, -8.823),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (16.795, 5.498, -3.39), 'spine_thoracic': (-1.07, -10.0, -3.258),
-        'neck': (-5.647, -2.618, -24.326), 'head': (-6.126, -0.076),
-        'right_clavicle': (16.468, -5.294), 'right_shoulder': (94.24, 22.437, 13.898),
-        'right_elbow': (41.651, 24.077), 'right_wrist': (4.51, -8.845),
+        'spine_lumbar': (16.036, 2.927, 0.818), 'spine_thoracic': (-10.491, -10.0, 1.659),
+        'neck': (-0.138, -0.659, -30.527), 'head': (-0.299, -0.003),
+        'right_clavicle': (21.567, -3.642), 'right_shoulder': (75.056, 28.321, 8.474),
+        'right_elbow': (39.76, 21.789), 'right_wrist': (-0.992, -5.141),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (5.304, 0.663, 0.932), 'spine_thoracic': (-2.547, -2.188, 0.909),
-        'neck': (0.231, -0.41, -24.914), 'head': (0.142, 0.0), 'right_clavicle': (3.111, 0.236),
-        'right_shoulder': (88.308, 11.043, 0.919), 'right_elbow': (33.238, 11.206),
-        'right_wrist': (-1.191, -26.949),
+        'spine_lumbar': (4.949, -0.811, 4.557), 'spine_thoracic': (-11.41, -3.111, 3.758),
+        'neck': (4.46, 1.088, -30.574), 'head': (4.644, 0.005), 'right_clavicle': (7.568, -0.755),
+        'right_shoulder': (74.616, 15.91, -3.822), 'right_elbow': (31.749, 8.064),
+        'right_wrist': (-3.533, -23.58),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
@@ -303,65 +303,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (7.042, 1.182, 1.587), 'spine_thoracic': (-2.883, -2.228, 1.56),
-        'neck': (-0.452, -0.697, -26.32), 'head': (-0.603, -0.002), 'right_clavicle': (3.35, 0.7),
-        'right_shoulder': (90.232, 11.76, 0.122), 'right_elbow': (32.891, 10.733),
-        'right_wrist': (-1.492, -27.64),
+        'spine_lumbar': (6.915, 1.187, 2.061), 'spine_thoracic': (-4.296, -2.637, 1.991),
+        'neck': (0.278, -0.432, -26.958), 'head': (0.176, 0.0), 'right_clavicle': (3.979, 0.71),
+        'right_shoulder': (88.05, 12.575, -0.459), 'right_elbow': (32.691, 10.37),
+        'right_wrist': (-2.002, -27.129),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (12.989, 2.373, -0.686), 'spine_thoracic': (-3.561, -7.491, -0.748),
-        'neck': (-2.145, -1.355, -27.054), 'head': (-2.425, -0.012),
-        'right_clavicle': (11.27, -2.692), 'right_shoulder': (88.183, 18.732, 7.432),
-        'right_elbow': (37.6, 18.262), 'right_wrist': (1.534, -16.194),
+        'spine_lumbar': (12.464, 1.916, 1.134), 'spine_thoracic': (-8.414, -8.367, 1.445),
+        'neck': (0.548, -0.374, -29.292), 'head': (0.449, 0.0), 'right_clavicle': (13.724, -1.858),
+        'right_shoulder': (79.368, 21.612, 4.854), 'right_elbow': (36.726, 16.974),
+        'right_wrist': (-1.09, -14.532),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (17.4, 5.582, -3.262), 'spine_thoracic': (-1.32, -10.0, -3.124),
-        'neck': (-5.851, -2.703, -24.824), 'head': (-6.35, -0.083),
-        'right_clavicle': (16.737, -5.25), 'right_shoulder': (94.544, 22.827, 13.758),
-        'right_elbow': (41.567, 24.056), 'right_wrist': (4.444, -8.902),
+        'spine_lumbar': (16.612, 3.166, 0.683), 'spine_thoracic': (-10.212, -10.0, 1.558),
+        'neck': (-0.591, -0.831, -30.551), 'head': (-0.786, -0.005),
+        'right_clavicle': (21.57, -3.604), 'right_shoulder': (76.315, 28.454, 8.622),
+        'right_elbow': (39.785, 21.965), 'right_wrist': (-0.892, -5.403),
     })
     human.KeyJoints(5.2, {
-        'spine_lumbar': (7.962, 0.984, -1.162), 'spine_thoracic': (-2.654, -5.815, -1.202),
-        'neck': (-0.294, -0.589, -23.815), 'head': (-0.412, -0.001),
-        'right_clavicle': (8.332, -2.397), 'right_shoulder': (85.53, 15.096, 6.916),
-        'right_elbow': (37.04, 17.031), 'right_wrist': (1.331, -18.22),
+        'spine_lumbar': (7.503, -0.723, 2.591), 'spine_thoracic': (-11.268, -6.256, 2.419),
+        'neck': (3.948, 0.912, -29.647), 'head': (4.101, 0.004), 'right_clavicle': (13.052, -2.193),
+        'right_shoulder': (70.561, 20.037, 2.193), 'right_elbow': (35.395, 14.209),
+        'right_wrist': (-2.16, -14.898),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (6.495, 1.219, 1.698), 'spine_thoracic': (-2.128, -1.544, 1.67),
-        'neck': (-0.668, -0.775, -26.073), 'head': (-0.833, -0.002),
-        'right_clavicle': (2.422, 0.947), 'right_shoulder': (91.406, 10.862, -0.349),
-        'right_elbow': (32.601, 10.167), 'right_wrist': (-1.598, -28.705),
+        'spine_lumbar': (6.313, 0.624, 3.351), 'spine_thoracic': (-6.618, -2.123, 2.926),
+        'neck': (1.512, 0.007, -28.54), 'head': (1.492, 0.0), 'right_clavicle': (4.616, 0.343),
+        'right_shoulder': (84.791, 13.393, -2.626), 'right_elbow': (31.97, 8.659),
+        'right_wrist': (-2.684, -27.019),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'spine_lumbar': (6.58, 1.24, 1.739), 'spine_thoracic': (-2.273, -1.602, 1.709),
-        'neck': (-0.636, -0.765, -26.158), 'head': (-0.8, -0.002), 'right_clavicle': (2.502, 0.962),
-        'right_shoulder': (91.32, 10.968, -0.397), 'right_elbow': (32.59, 10.147),
-        'right_wrist': (-1.64, -28.663),
+        'spine_lumbar': (6.579, 1.24, 1.743), 'spine_thoracic': (-2.284, -1.605, 1.712),
+        'neck': (-0.631, -0.763, -26.163), 'head': (-0.794, -0.002),
+        'right_clavicle': (2.506, 0.962), 'right_shoulder': (91.305, 10.974, -0.401),
+        'right_elbow': (32.588, 10.144), 'right_wrist': (-1.644, -28.659),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (9.765, 1.232, 0.502), 'spine_thoracic': (-3.584, -4.88, 0.464),
-        'neck': (-0.845, -0.857, -26.85), 'head': (-1.03, -0.003), 'right_clavicle': (7.135, -0.9),
-        'right_shoulder': (88.145, 15.129, 3.517), 'right_elbow': (34.96, 14.285),
-        'right_wrist': (-0.116, -22.31),
+        'spine_lumbar': (9.406, 1.203, 1.642), 'spine_thoracic': (-6.82, -5.776, 1.694),
+        'neck': (0.857, -0.238, -28.305), 'head': (0.788, 0.0), 'right_clavicle': (8.693, -0.578),
+        'right_shoulder': (82.736, 16.999, 1.896), 'right_elbow': (34.4, 13.388),
+        'right_wrist': (-1.562, -21.189),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (16.47, 4.91, -2.575), 'spine_thoracic': (-2.474, -10.0, -2.443),
-        'neck': (-4.581, -2.242, -25.541), 'head': (-5.011, -0.049),
-        'right_clavicle': (15.641, -4.506), 'right_shoulder': (91.879, 22.132, 12.225),
-        'right_elbow': (40.689, 22.672), 'right_wrist': (3.628, -10.319),
+        'spine_lumbar': (15.793, 3.079, 0.509), 'spine_thoracic': (-9.517, -10.0, 1.263),
+        'neck': (-0.485, -0.78, -29.99), 'head': (-0.668, -0.004),
+        'right_clavicle': (19.544, -3.197), 'right_shoulder': (77.634, 26.702, 8.103),
+        'right_elbow': (39.289, 21.037), 'right_wrist': (-0.813, -7.52),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (15.229, 4.914, -3.045), 'spine_thoracic': (-2.021, -10.0, -2.904),
-        'neck': (-4.231, -2.082, -23.928), 'head': (-4.618, -0.041),
-        'right_clavicle': (15.758, -4.839), 'right_shoulder': (91.212, 21.68, 13.17),
-        'right_elbow': (41.242, 23.293), 'right_wrist': (4.013, -9.349),
+        'spine_lumbar': (14.611, 2.39, 0.923), 'spine_thoracic': (-10.613, -9.784, 1.647),
+        'neck': (0.669, -0.34, -29.929), 'head': (0.575, 0.0), 'right_clavicle': (20.553, -3.515),
+        'right_shoulder': (73.69, 27.186, 8.008), 'right_elbow': (39.5, 21.058),
+        'right_wrist': (-1.101, -5.792),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (5.471, 0.92, 1.379), 'spine_thoracic': (-2.603, -1.773, 1.346),
-        'neck': (0.066, -0.481, -25.34), 'head': (-0.039, -0.001), 'right_clavicle': (2.613, 0.651),
-        'right_shoulder': (89.333, 10.826, 0.065), 'right_elbow': (32.811, 10.465),
-        'right_wrist': (-1.521, -27.981),
+        'spine_lumbar': (5.147, -0.388, 4.621), 'spine_thoracic': (-10.756, -2.669, 3.82),
+        'neck': (3.958, 0.901, -30.365), 'head': (4.107, 0.003), 'right_clavicle': (6.673, -0.399),
+        'right_shoulder': (76.968, 15.315, -4.125), 'right_elbow': (31.55, 7.681),
+        'right_wrist': (-3.57, -24.893),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
@@ -371,65 +371,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (7.472, 1.145, 1.408), 'spine_thoracic': (-3.035, -2.713, 1.385),
-        'neck': (-0.476, -0.709, -26.446), 'head': (-0.63, -0.002), 'right_clavicle': (4.02, 0.447),
-        'right_shoulder': (89.743, 12.352, 0.666), 'right_elbow': (33.198, 11.309),
-        'right_wrist': (-1.298, -26.773),
+        'spine_lumbar': (7.265, 1.15, 2.124), 'spine_thoracic': (-5.217, -3.346, 2.048),
+        'neck': (0.654, -0.297, -27.375), 'head': (0.577, 0.0), 'right_clavicle': (4.997, 0.487),
+        'right_shoulder': (86.371, 13.602, -0.429), 'right_elbow': (32.855, 10.701),
+        'right_wrist': (-2.075, -25.981),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (14.009, 2.943, -1.016), 'spine_thoracic': (-3.621, -8.363, -1.089),
-        'neck': (-2.57, -1.514, -27.019), 'head': (-2.88, -0.017),
-        'right_clavicle': (12.713, -3.266), 'right_shoulder': (88.319, 19.979, 8.62),
-        'right_elbow': (38.423, 19.482), 'right_wrist': (2.007, -14.188),
+        'spine_lumbar': (13.465, 2.248, 0.953), 'spine_thoracic': (-8.795, -9.008, 1.38),
+        'neck': (0.317, -0.466, -29.496), 'head': (0.198, -0.001),
+        'right_clavicle': (15.404, -2.254), 'right_shoulder': (78.663, 23.112, 5.828),
+        'right_elbow': (37.503, 18.171), 'right_wrist': (-0.983, -12.405),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (17.437, 5.603, -3.282), 'spine_thoracic': (-1.276, -10.0, -3.147),
-        'neck': (-5.899, -2.721, -24.815), 'head': (-6.4, -0.084),
-        'right_clavicle': (16.79, -5.289), 'right_shoulder': (94.641, 22.866, 13.812),
-        'right_elbow': (41.598, 24.111), 'right_wrist': (4.474, -8.832),
+        'spine_lumbar': (16.645, 3.167, 0.698), 'spine_thoracic': (-10.251, -10.0, 1.577),
+        'neck': (-0.589, -0.831, -30.587), 'head': (-0.785, -0.005),
+        'right_clavicle': (21.663, -3.622), 'right_shoulder': (76.238, 28.535, 8.637),
+        'right_elbow': (39.802, 22.0), 'right_wrist': (-0.898, -5.309),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (6.249, 0.434, -0.595), 'spine_thoracic': (-2.182, -4.118, -0.589),
-        'neck': (0.047, -0.458, -23.807), 'head': (-0.046, -0.001),
-        'right_clavicle': (5.779, -1.379), 'right_shoulder': (86.496, 12.851, 4.686),
-        'right_elbow': (35.413, 14.711), 'right_wrist': (0.458, -22.201),
+        'spine_lumbar': (5.841, -1.189, 3.408), 'spine_thoracic': (-11.562, -4.948, 2.929),
+        'neck': (4.582, 1.146, -30.011), 'head': (4.778, 0.005), 'right_clavicle': (10.69, -1.682),
+        'right_shoulder': (71.147, 18.093, -0.35), 'right_elbow': (33.729, 11.556),
+        'right_wrist': (-2.73, -18.552),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (6.556, 1.235, 1.724), 'spine_thoracic': (-2.174, -1.565, 1.695),
-        'neck': (-0.673, -0.778, -26.131), 'head': (-0.839, -0.002),
-        'right_clavicle': (2.455, 0.959), 'right_shoulder': (91.39, 10.914, -0.377),
-        'right_elbow': (32.592, 10.155), 'right_wrist': (-1.615, -28.697),
+        'spine_lumbar': (6.473, 0.926, 2.607), 'spine_thoracic': (-4.599, -1.885, 2.367),
+        'neck': (0.505, -0.355, -27.45), 'head': (0.417, 0.0), 'right_clavicle': (3.64, 0.634),
+        'right_shoulder': (87.888, 12.289, -1.602), 'right_elbow': (32.257, 9.346),
+        'right_wrist': (-2.2, -27.795),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'spine_lumbar': (6.625, 1.234, 1.727), 'spine_thoracic': (-2.342, -1.667, 1.697),
-        'neck': (-0.613, -0.756, -26.179), 'head': (-0.775, -0.002),
-        'right_clavicle': (2.59, 0.937), 'right_shoulder': (91.197, 11.052, -0.35),
-        'right_elbow': (32.618, 10.202), 'right_wrist': (-1.63, -28.559),
+        'spine_lumbar': (6.61, 1.234, 1.782), 'spine_thoracic': (-2.511, -1.716, 1.746),
+        'neck': (-0.525, -0.724, -26.256), 'head': (-0.681, -0.002),
+        'right_clavicle': (2.665, 0.937), 'right_shoulder': (90.939, 11.149, -0.412),
+        'right_elbow': (32.593, 10.157), 'right_wrist': (-1.688, -28.497),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (10.795, 1.471, 0.13), 'spine_thoracic': (-3.631, -5.741, 0.079),
-        'neck': (-1.16, -0.979, -26.953), 'head': (-1.37, -0.004),
-        'right_clavicle': (8.448, -1.478), 'right_shoulder': (87.93, 16.296, 4.756),
-        'right_elbow': (35.789, 15.562), 'right_wrist': (0.405, -20.337),
+        'spine_lumbar': (10.391, 1.378, 1.47), 'spine_thoracic': (-7.389, -6.702, 1.592),
+        'neck': (0.813, -0.261, -28.662), 'head': (0.739, 0.0), 'right_clavicle': (10.297, -1.006),
+        'right_shoulder': (81.492, 18.482, 2.862), 'right_elbow': (35.142, 14.544),
+        'right_wrist': (-1.378, -19.031),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (16.961, 5.294, -2.976), 'spine_thoracic': (-1.862, -10.0, -2.819),
-        'neck': (-5.26, -2.488, -25.069), 'head': (-5.727, -0.066),
-        'right_clavicle': (16.154, -4.839), 'right_shoulder': (93.331, 22.421, 13.065),
-        'right_elbow': (41.171, 23.397), 'right_wrist': (4.07, -9.654),
+        'spine_lumbar': (16.221, 3.139, 0.556), 'spine_thoracic': (-9.808, -10.0, 1.356),
+        'neck': (-0.576, -0.819, -30.202), 'head': (-0.767, -0.005),
+        'right_clavicle': (20.533, -3.4), 'right_shoulder': (77.119, 27.555, 8.404),
+        'right_elbow': (39.562, 21.533), 'right_wrist': (-0.836, -6.467),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (12.816, 3.426, -2.009), 'spine_thoracic': (-3.175, -9.346, -2.105),
-        'neck': (-2.21, -1.333, -24.58), 'head': (-2.47, -0.013),
-        'right_clavicle': (14.204, -4.338), 'right_shoulder': (86.784, 20.432, 11.079),
-        'right_elbow': (40.016, 21.516), 'right_wrist': (2.952, -10.702),
+        'spine_lumbar': (12.386, 1.398, 1.244), 'spine_thoracic': (-10.761, -8.955, 1.737),
+        'neck': (1.763, 0.082, -29.563), 'head': (1.755, 0.0), 'right_clavicle': (18.502, -3.181),
+        'right_shoulder': (72.167, 25.095, 6.774), 'right_elbow': (38.645, 19.427),
+        'right_wrist': (-1.306, -7.811),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (5.941, 1.089, 1.581), 'spine_thoracic': (-2.295, -1.558, 1.549),
-        'neck': (-0.333, -0.641, -25.713), 'head': (-0.47, -0.001), 'right_clavicle': (2.38, 0.854),
-        'right_shoulder': (90.56, 10.721, -0.261), 'right_elbow': (32.642, 10.193),
-        'right_wrist': (-1.608, -28.524),
+        'spine_lumbar': (5.64, 0.001, 4.426), 'spine_thoracic': (-9.662, -2.423, 3.712),
+        'neck': (3.201, 0.619, -30.053), 'head': (3.296, 0.002), 'right_clavicle': (5.995, -0.116),
+        'right_shoulder': (79.482, 14.803, -4.078), 'right_elbow': (31.527, 7.641),
+        'right_wrist': (-3.414, -25.753),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
@@ -439,96 +439,96 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (8.074, 1.11, 1.086), 'spine_thoracic': (-3.035, -3.261, 1.075),
-        'neck': (-0.628, -0.768, -26.478), 'head': (-0.794, -0.002),
-        'right_clavicle': (4.796, 0.078), 'right_shoulder': (89.489, 12.994, 1.53),
-        'right_elbow': (33.669, 12.167), 'right_wrist': (-0.911, -25.683),
+        'spine_lumbar': (7.821, 1.114, 1.988), 'spine_thoracic': (-5.725, -4.042, 1.941),
+        'neck': (0.766, -0.259, -27.644), 'head': (0.696, 0.0), 'right_clavicle': (6.002, 0.188),
+        'right_shoulder': (85.25, 14.525, 0.224), 'right_elbow': (33.243, 11.429),
+        'right_wrist': (-1.935, -24.728),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (14.907, 3.505, -1.264), 'spine_thoracic': (-3.739, -9.23, -1.352),
-        'neck': (-2.916, -1.646, -27.062), 'head': (-3.252, -0.021),
-        'right_clavicle': (14.136, -3.798), 'right_shoulder': (88.412, 21.251, 9.608),
-        'right_elbow': (39.114, 20.535), 'right_wrist': (2.377, -12.285),
+        'spine_lumbar': (14.387, 2.581, 0.77), 'spine_thoracic': (-9.087, -9.502, 1.316),
+        'neck': (0.046, -0.571, -29.623), 'head': (-0.095, -0.001),
+        'right_clavicle': (16.983, -2.619), 'right_shoulder': (78.19, 24.497, 6.739),
+        'right_elbow': (38.221, 19.296), 'right_wrist': (-0.898, -10.469),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (17.373, 5.594, -3.294), 'spine_thoracic': (-1.256, -10.0, -3.16),
-        'neck': (-5.874, -2.71, -24.759), 'head': (-6.373, -0.084),
-        'right_clavicle': (16.767, -5.295), 'right_shoulder': (94.601, 22.828, 13.83),
-        'right_elbow': (41.608, 24.116), 'right_wrist': (4.481, -8.817),
+        'spine_lumbar': (16.575, 3.122, 0.771), 'spine_thoracic': (-10.348, -10.0, 1.649),
+        'neck': (-0.501, -0.799, -30.678), 'head': (-0.691, -0.004),
+        'right_clavicle': (21.726, -3.637), 'right_shoulder': (75.941, 28.569, 8.569),
+        'right_elbow': (39.771, 21.956), 'right_wrist': (-0.927, -5.221),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (5.351, 0.463, 0.173), 'spine_thoracic': (-2.241, -2.905, 0.175),
-        'neck': (0.237, -0.392, -24.153), 'head': (0.155, 0.0), 'right_clavicle': (4.055, -0.475),
-        'right_shoulder': (87.475, 11.535, 2.594), 'right_elbow': (34.115, 12.702),
-        'right_wrist': (-0.43, -25.128),
+        'spine_lumbar': (4.98, -1.113, 4.119), 'spine_thoracic': (-11.629, -3.878, 3.417),
+        'neck': (4.737, 1.199, -30.332), 'head': (4.942, 0.005), 'right_clavicle': (8.872, -1.196),
+        'right_shoulder': (72.565, 16.763, -2.446), 'right_elbow': (32.484, 9.439),
+        'right_wrist': (-3.237, -21.496),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (6.576, 1.24, 1.737), 'spine_thoracic': (-2.242, -1.589, 1.708),
-        'neck': (-0.65, -0.77, -26.154), 'head': (-0.814, -0.002), 'right_clavicle': (2.486, 0.964),
-        'right_shoulder': (91.348, 10.952, -0.395), 'right_elbow': (32.588, 10.146),
-        'right_wrist': (-1.634, -28.678),
+        'spine_lumbar': (6.558, 1.166, 1.95), 'spine_thoracic': (-2.831, -1.667, 1.869),
+        'neck': (-0.363, -0.667, -26.472), 'head': (-0.509, -0.002),
+        'right_clavicle': (2.772, 0.884), 'right_shoulder': (90.503, 11.284, -0.691),
+        'right_elbow': (32.508, 9.951), 'right_wrist': (-1.776, -28.459),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'spine_lumbar': (6.765, 1.215, 1.685), 'spine_thoracic': (-2.55, -1.865, 1.655),
-        'neck': (-0.546, -0.732, -26.235), 'head': (-0.703, -0.002),
-        'right_clavicle': (2.857, 0.859), 'right_shoulder': (90.834, 11.303, -0.199),
-        'right_elbow': (32.707, 10.377), 'right_wrist': (-1.591, -28.242),
+        'spine_lumbar': (6.708, 1.217, 1.895), 'spine_thoracic': (-3.182, -2.048, 1.845),
+        'neck': (-0.218, -0.612, -26.523), 'head': (-0.354, -0.001),
+        'right_clavicle': (3.139, 0.86), 'right_shoulder': (89.862, 11.669, -0.436),
+        'right_elbow': (32.616, 10.212), 'right_wrist': (-1.814, -28.012),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (11.886, 1.86, -0.294), 'spine_thoracic': (-3.566, -6.596, -0.349),
-        'neck': (-1.683, -1.18, -27.084), 'head': (-1.93, -0.009),
-        'right_clavicle': (9.811, -2.081), 'right_shoulder': (88.041, 17.471, 6.108),
-        'right_elbow': (36.694, 16.92), 'right_wrist': (0.985, -18.301),
+        'spine_lumbar': (11.413, 1.614, 1.304), 'spine_thoracic': (-7.931, -7.579, 1.513),
+        'neck': (0.717, -0.305, -29.003), 'head': (0.633, 0.0), 'right_clavicle': (11.981, -1.434),
+        'right_shoulder': (80.339, 20.029, 3.848), 'right_elbow': (35.92, 15.741),
+        'right_wrist': (-1.222, -16.797),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (17.257, 5.496, -3.18), 'spine_thoracic': (-1.496, -10.0, -3.029),
-        'neck': (-5.662, -2.634, -24.879), 'head': (-6.15, -0.077),
-        'right_clavicle': (16.535, -5.106), 'right_shoulder': (94.161, 22.682, 13.541),
-        'right_elbow': (41.443, 23.841), 'right_wrist': (4.325, -9.162),
+        'spine_lumbar': (16.484, 3.162, 0.633), 'spine_thoracic': (-10.069, -10.0, 1.484),
+        'neck': (-0.592, -0.829, -30.422), 'head': (-0.787, -0.005),
+        'right_clavicle': (21.216, -3.536), 'right_shoulder': (76.603, 28.147, 8.559),
+        'right_elbow': (39.715, 21.826), 'right_wrist': (-0.871, -5.763),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (10.301, 2.118, -1.74), 'spine_thoracic': (-2.766, -7.593, -1.801),
-        'neck': (-1.185, -0.93, -23.889), 'head': (-1.368, -0.004),
-        'right_clavicle': (11.256, -3.447), 'right_shoulder': (86.043, 17.67, 9.333),
-        'right_elbow': (38.748, 19.528), 'right_wrist': (2.312, -14.183),
+        'spine_lumbar': (9.846, 0.237, 1.818), 'spine_thoracic': (-10.974, -7.686, 1.994),
+        'neck': (2.936, 0.53, -29.453), 'head': (3.016, 0.002), 'right_clavicle': (15.828, -2.713),
+        'right_shoulder': (70.98, 22.531, 4.753), 'right_elbow': (37.191, 17.026),
+        'right_wrist': (-1.655, -11.029),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (6.318, 1.18, 1.656), 'spine_thoracic': (-2.159, -1.545, 1.628),
-        'neck': (-0.571, -0.736, -25.952), 'head': (-0.728, -0.002),
-        'right_clavicle': (2.395, 0.92), 'right_shoulder': (91.232, 10.785, -0.315),
-        'right_elbow': (32.614, 10.178), 'right_wrist': (-1.6, -28.673),
+        'spine_lumbar': (6.041, 0.314, 3.981), 'spine_thoracic': (-8.319, -2.286, 3.394),
+        'neck': (2.409, 0.33, -29.441), 'head': (2.45, 0.001), 'right_clavicle': (5.375, 0.1),
+        'right_shoulder': (81.969, 14.2, -3.512), 'right_elbow': (31.701, 8.036),
+        'right_wrist': (-3.105, -26.36),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (8.835, 1.129, 0.759), 'spine_thoracic': (-3.168, -3.977, 0.749),
-        'neck': (-0.77, -0.824, -26.592), 'head': (-0.947, -0.003),
-        'right_clavicle': (5.823, -0.374), 'right_shoulder': (89.003, 13.9, 2.505),
-        'right_elbow': (34.256, 13.174), 'right_wrist': (-0.503, -24.221),
+        'spine_lumbar': (8.535, 1.127, 1.823), 'spine_thoracic': (-6.258, -4.863, 1.818),
+        'neck': (0.836, -0.239, -27.953), 'head': (0.769, 0.0), 'right_clavicle': (7.238, -0.17),
+        'right_shoulder': (84.027, 15.66, 0.993), 'right_elbow': (33.756, 12.326),
+        'right_wrist': (-1.759, -23.124),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (15.718, 4.144, -1.662), 'spine_thoracic': (-3.607, -9.81, -1.718),
-        'neck': (-3.446, -1.838, -26.666), 'head': (-3.814, -0.028),
-        'right_clavicle': (15.143, -4.215), 'right_shoulder': (89.005, 21.965, 10.71),
-        'right_elbow': (39.827, 21.56), 'right_wrist': (2.836, -10.968),
+        'spine_lumbar': (15.168, 2.874, 0.613), 'spine_thoracic': (-9.316, -9.83, 1.278),
+        'neck': (-0.215, -0.671, -29.699), 'head': (-0.378, -0.002),
+        'right_clavicle': (18.363, -2.934), 'right_shoulder': (77.885, 25.691, 7.509),
+        'right_elbow': (38.823, 20.26), 'right_wrist': (-0.843, -8.847),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (16.811, 5.501, -3.389), 'spine_thoracic': (-1.072, -10.0, -3.257),
-        'neck': (-5.655, -2.621, -24.336), 'head': (-6.135, -0.076),
-        'right_clavicle': (16.476, -5.294), 'right_shoulder': (94.252, 22.447, 13.897),
-        'right_elbow': (41.651, 24.078), 'right_wrist': (4.51, -8.844),
+        'spine_lumbar': (16.051, 2.932, 0.817), 'spine_thoracic': (-10.489, -10.0, 1.659),
+        'neck': (-0.147, -0.663, -30.532), 'head': (-0.309, -0.003),
+        'right_clavicle': (21.573, -3.642), 'right_shoulder': (75.075, 28.33, 8.476),
+        'right_elbow': (39.76, 21.793), 'right_wrist': (-0.99, -5.141),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (5.303, 0.658, 0.921), 'spine_thoracic': (-2.54, -2.197, 0.898),
-        'neck': (0.23, -0.41, -24.904), 'head': (0.142, 0.0), 'right_clavicle': (3.122, 0.226),
-        'right_shoulder': (88.295, 11.048, 0.943), 'right_elbow': (33.249, 11.226),
-        'right_wrist': (-1.18, -26.925),
+        'spine_lumbar': (4.947, -0.819, 4.552), 'spine_thoracic': (-11.419, -3.122, 3.754),
+        'neck': (4.467, 1.09, -30.573), 'head': (4.652, 0.005), 'right_clavicle': (7.586, -0.761),
+        'right_shoulder': (74.578, 15.922, -3.805), 'right_elbow': (31.758, 8.081),
+        'right_wrist': (-3.53, -23.552),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
@@ -538,65 +538,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (7.036, 1.183, 1.589), 'spine_thoracic': (-2.878, -2.221, 1.562),
-        'neck': (-0.453, -0.698, -26.318), 'head': (-0.604, -0.002),
-        'right_clavicle': (3.34, 0.704), 'right_shoulder': (90.242, 11.751, 0.115),
-        'right_elbow': (32.887, 10.725), 'right_wrist': (-1.494, -27.652),
+        'spine_lumbar': (6.91, 1.187, 2.058), 'spine_thoracic': (-4.276, -2.626, 1.988),
+        'neck': (0.269, -0.435, -26.95), 'head': (0.167, 0.0), 'right_clavicle': (3.963, 0.714),
+        'right_shoulder': (88.083, 12.558, -0.459), 'right_elbow': (32.69, 10.366),
+        'right_wrist': (-1.999, -27.147),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (12.972, 2.364, -0.68), 'spine_thoracic': (-3.561, -7.476, -0.742),
-        'neck': (-2.137, -1.352, -27.055), 'head': (-2.417, -0.012),
-        'right_clavicle': (11.245, -2.682), 'right_shoulder': (88.181, 18.711, 7.411),
-        'right_elbow': (37.586, 18.24), 'right_wrist': (1.526, -16.229),
+        'spine_lumbar': (12.446, 1.911, 1.136), 'spine_thoracic': (-8.407, -8.355, 1.446),
+        'neck': (0.552, -0.373, -29.288), 'head': (0.453, 0.0), 'right_clavicle': (13.695, -1.851),
+        'right_shoulder': (79.382, 21.586, 4.838), 'right_elbow': (36.713, 16.954),
+        'right_wrist': (-1.092, -14.568),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (17.399, 5.582, -3.262), 'spine_thoracic': (-1.322, -10.0, -3.123),
-        'neck': (-5.849, -2.702, -24.825), 'head': (-6.348, -0.083),
-        'right_clavicle': (16.735, -5.249), 'right_shoulder': (94.541, 22.826, 13.756),
-        'right_elbow': (41.566, 24.054), 'right_wrist': (4.443, -8.904),
+        'spine_lumbar': (16.61, 3.166, 0.683), 'spine_thoracic': (-10.211, -10.0, 1.557),
+        'neck': (-0.591, -0.831, -30.55), 'head': (-0.786, -0.005),
+        'right_clavicle': (21.566, -3.603), 'right_shoulder': (76.317, 28.451, 8.621),
+        'right_elbow': (39.784, 21.964), 'right_wrist': (-0.892, -5.407),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (7.995, 0.996, -1.171), 'spine_thoracic': (-2.657, -5.844, -1.212),
-        'neck': (-0.304, -0.593, -23.817), 'head': (-0.423, -0.001),
-        'right_clavicle': (8.378, -2.414), 'right_shoulder': (85.53, 15.136, 6.955),
-        'right_wrist': (1.347, -18.153),
+        'spine_lumbar': (7.536, -0.713, 2.578), 'spine_thoracic': (-11.263, -6.279, 2.412),
+        'neck': (3.935, 0.907, -29.643), 'head': (4.087, 0.004), 'right_clavicle': (13.095, -2.201),
+        'right_shoulder': (70.561, 20.074, 2.236), 'right_elbow': (35.424, 14.255),
+        'right_wrist': (-2.152, -14.835),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (6.494, 1.219, 1.697), 'spine_thoracic': (-2.128, -1.544, 1.669),
-        'neck': (-0.667, -0.775, -26.071), 'head': (-0.832, -0.002),
-        'right_clavicle': (2.422, 0.947), 'right_shoulder': (91.406, 10.861, -0.349),
-        'right_elbow': (32.601, 10.167), 'right_wrist': (-1.598, -28.705),
+        'spine_lumbar': (6.309, 0.619, 3.362), 'spine_thoracic': (-6.65, -2.127, 2.935),
+        'neck': (1.528, 0.013, -28.557), 'head': (1.509, 0.0), 'right_clavicle': (4.631, 0.339),
+        'right_shoulder': (84.74, 13.41, -2.642), 'right_elbow': (31.965, 8.648),
+        'right_wrist': (-2.691, -27.007),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
-        'spine_lumbar': (6.58, 1.24, 1.74), 'spine_thoracic': (-2.273, -1.601, 1.709),
-        'neck': (-0.636, -0.765, -26.158), 'head': (-0.8, -0.002), 'right_clavicle': (2.501, 0.962),
-        'right_shoulder': (91.321, 10.968, -0.398), 'right_elbow': (32.589, 10.146),
-        'right_wrist': (-1.64, -28.663),
+        'spine_lumbar': (6.579, 1.24, 1.743), 'spine_thoracic': (-2.282, -1.604, 1.712),
+        'neck': (-0.631, -0.763, -26.162), 'head': (-0.794, -0.002),
+        'right_clavicle': (2.505, 0.962), 'right_shoulder': (91.306, 10.973, -0.401),
+        'right_elbow': (32.588, 10.144), 'right_wrist': (-1.644, -28.66),
     })
     human.KeyJoints(9.3, {
-        'spine_lumbar': (9.748, 1.229, 0.506), 'spine_thoracic': (-3.579, -4.865, 0.469),
-        'neck': (-0.842, -0.856, -26.845), 'head': (-1.028, -0.003),
-        'right_clavicle': (7.112, -0.891), 'right_shoulder': (88.156, 15.108, 3.499),
-        'right_elbow': (34.947, 14.265), 'right_wrist': (-0.123, -22.344),
+        'spine_lumbar': (9.391, 1.201, 1.645), 'spine_thoracic': (-6.81, -5.761, 1.696),
+        'neck': (0.857, -0.237, -28.299), 'head': (0.789, 0.0), 'right_clavicle': (8.668, -0.571),
+        'right_shoulder': (82.758, 16.975, 1.88), 'right_elbow': (34.389, 13.37),
+        'right_wrist': (-1.565, -21.224),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (16.46, 4.901, -2.565), 'spine_thoracic': (-2.487, -10.0, -2.434),
-        'neck': (-4.566, -2.237, -25.552), 'head': (-4.996, -0.049),
-        'right_clavicle': (15.632, -4.5), 'right_shoulder': (91.848, 22.128, 12.207),
-        'right_elbow': (40.678, 22.657), 'right_wrist': (3.619, -10.33),
+        'spine_lumbar': (15.785, 3.077, 0.509), 'spine_thoracic': (-9.513, -10.0, 1.263),
+        'neck': (-0.482, -0.779, -29.988), 'head': (-0.665, -0.004),
+        'right_clavicle': (19.526, -3.193), 'right_shoulder': (77.64, 26.686, 8.096),
+        'right_elbow': (39.283, 21.027), 'right_wrist': (-0.813, -7.54),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (15.263, 4.929, -3.055), 'spine_thoracic': (-2.0, -10.0, -2.913),
-        'neck': (-4.262, -2.094, -23.928), 'head': (-4.651, -0.042),
-        'right_clavicle': (15.774, -4.848), 'right_shoulder': (91.278, 21.696, 13.19),
-        'right_elbow': (41.254, 23.313), 'right_wrist': (4.026, -9.336),
+        'spine_lumbar': (14.642, 2.402, 0.92), 'spine_thoracic': (-10.611, -9.79, 1.647),
+        'neck': (0.654, -0.347, -29.937), 'head': (0.558, 0.0), 'right_clavicle': (20.577, -3.519),
+        'right_shoulder': (73.715, 27.212, 8.02), 'right_elbow': (39.507, 21.076),
+        'right_wrist': (-1.099, -5.774),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (5.464, 0.917, 1.374), 'spine_thoracic': (-2.609, -1.779, 1.341),
-        'neck': (0.073, -0.478, -25.333), 'head': (-0.031, -0.001), 'right_clavicle': (2.62, 0.646),
-        'right_shoulder': (89.309, 10.829, 0.074), 'right_elbow': (32.815, 10.473),
-        'right_wrist': (-1.519, -27.968),
+        'spine_lumbar': (5.14, -0.395, 4.623), 'spine_thoracic': (-10.771, -2.675, 3.821),
+        'neck': (3.97, 0.905, -30.371), 'head': (4.119, 0.003), 'right_clavicle': (6.685, -0.404),
+        'right_shoulder': (76.927, 15.324, -4.125), 'right_elbow': (31.551, 7.683),
+        'right_wrist': (-3.572, -24.876),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
@@ -606,65 +606,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (7.463, 1.146, 1.412), 'spine_thoracic': (-3.035, -2.704, 1.389),
-        'neck': (-0.474, -0.708, -26.445), 'head': (-0.627, -0.002),
-        'right_clavicle': (4.008, 0.453), 'right_shoulder': (89.748, 12.342, 0.654),
-        'right_elbow': (33.191, 11.297), 'right_wrist': (-1.303, -26.79),
+        'spine_lumbar': (7.258, 1.151, 2.125), 'spine_thoracic': (-5.207, -3.335, 2.048),
+        'neck': (0.65, -0.298, -27.369), 'head': (0.574, 0.0), 'right_clavicle': (4.98, 0.491),
+        'right_shoulder': (86.392, 13.586, -0.434), 'right_elbow': (32.851, 10.692),
+        'right_wrist': (-2.076, -26.001),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (13.993, 2.933, -1.011), 'spine_thoracic': (-3.62, -8.349, -1.084),
-        'neck': (-2.563, -1.512, -27.02), 'head': (-2.873, -0.017),
-        'right_clavicle': (12.689, -3.256), 'right_shoulder': (88.317, 19.959, 8.601),
-        'right_elbow': (38.41, 19.463), 'right_wrist': (2.0, -14.221),
+        'spine_lumbar': (13.448, 2.242, 0.956), 'spine_thoracic': (-8.789, -8.998, 1.381),
+        'neck': (0.321, -0.464, -29.494), 'head': (0.203, -0.001),
+        'right_clavicle': (15.376, -2.248), 'right_shoulder': (78.673, 23.087, 5.812),
+        'right_elbow': (37.49, 18.151), 'right_wrist': (-0.984, -12.44),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (17.437, 5.603, -3.282), 'spine_thoracic': (-1.276, -10.0, -3.147),
-        'neck': (-5.899, -2.72, -24.815), 'head': (-6.4, -0.084), 'right_clavicle': (16.79, -5.289),
-        'right_shoulder': (94.64, 22.865, 13.812), 'right_elbow': (41.598, 24.111),
-        'right_wrist': (4.474, -8.833),
+        'spine_lumbar': (16.644, 3.167, 0.698), 'spine_thoracic': (-10.25, -10.0, 1.577),
+        'neck': (-0.589, -0.831, -30.586), 'head': (-0.785, -0.005),
+        'right_clavicle': (21.663, -3.622), 'right_shoulder': (76.238, 28.535, 8.637),
+        'right_elbow': (39.802, 22.0), 'right_wrist': (-0.898, -5.309),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (6.269, 0.436, -0.606), 'spine_thoracic': (-2.185, -4.143, -0.6),
-        'neck': (0.043, -0.46, -23.806), 'head': (-0.05, -0.001), 'right_clavicle': (5.815, -1.395),
-        'right_shoulder': (86.477, 12.881, 4.722), 'right_elbow': (35.438, 14.748),
-        'right_wrist': (0.472, -22.142),
+        'spine_lumbar': (5.861, -1.187, 3.395), 'spine_thoracic': (-11.559, -4.968, 2.921),
+        'neck': (4.576, 1.144, -30.005), 'head': (4.772, 0.005), 'right_clavicle': (10.725, -1.691),
+        'right_shoulder': (71.133, 18.12, -0.311), 'right_elbow': (33.753, 11.596),
+        'right_wrist': (-2.721, -18.496),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (6.555, 1.235, 1.724), 'spine_thoracic': (-2.173, -1.564, 1.695),
-        'neck': (-0.674, -0.778, -26.13), 'head': (-0.84, -0.002), 'right_clavicle': (2.455, 0.959),
-        'right_shoulder': (91.391, 10.913, -0.377), 'right_elbow': (32.592, 10.155),
-        'right_wrist': (-1.614, -28.698),
+        'spine_lumbar': (6.471, 0.921, 2.62), 'spine_thoracic': (-4.633, -1.889, 2.377),
+        'neck': (0.522, -0.349, -27.469), 'head': (0.435, 0.0), 'right_clavicle': (3.657, 0.629),
+        'right_shoulder': (87.837, 12.309, -1.619), 'right_elbow': (32.253, 9.334),
+        'right_wrist': (-2.208, -27.782),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'spine_lumbar': (6.624, 1.234, 1.727), 'spine_thoracic': (-2.34, -1.665, 1.697),
-        'neck': (-0.614, -0.757, -26.179), 'head': (-0.776, -0.002),
-        'right_clavicle': (2.587, 0.938), 'right_shoulder': (91.201, 11.049, -0.352),
-        'right_elbow': (32.617, 10.2), 'right_wrist': (-1.63, -28.562),
+        'spine_lumbar': (6.609, 1.235, 1.781), 'spine_thoracic': (-2.504, -1.713, 1.745),
+        'neck': (-0.529, -0.726, -26.253), 'head': (-0.685, -0.002),
+        'right_clavicle': (2.66, 0.938), 'right_shoulder': (90.951, 11.144, -0.411),
+        'right_elbow': (32.593, 10.157), 'right_wrist': (-1.687, -28.502),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (10.777, 1.466, 0.137), 'spine_thoracic': (-3.631, -5.727, 0.086),
-        'neck': (-1.153, -0.976, -26.953), 'head': (-1.363, -0.004),
-        'right_clavicle': (8.426, -1.468), 'right_shoulder': (87.931, 16.276, 4.733),
-        'right_elbow': (35.774, 15.54), 'right_wrist': (0.396, -20.371),
+        'spine_lumbar': (10.374, 1.374, 1.473), 'spine_thoracic': (-7.379, -6.687, 1.594),
+        'neck': (0.814, -0.261, -28.656), 'head': (0.74, 0.0), 'right_clavicle': (10.269, -0.999),
+        'right_shoulder': (81.513, 18.457, 2.845), 'right_elbow': (35.129, 14.524),
+        'right_wrist': (-1.381, -19.069),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (16.954, 5.289, -2.971), 'spine_thoracic': (-1.87, -10.0, -2.814),
-        'neck': (-5.251, -2.484, -25.074), 'head': (-5.717, -0.065),
-        'right_clavicle': (16.146, -4.834), 'right_shoulder': (93.312, 22.416, 13.055),
-        'right_elbow': (41.165, 23.387), 'right_wrist': (4.065, -9.664),
+        'spine_lumbar': (16.215, 3.138, 0.554), 'spine_thoracic': (-9.803, -10.0, 1.353),
+        'neck': (-0.575, -0.818, -30.198), 'head': (-0.767, -0.004),
+        'right_clavicle': (20.518, -3.398), 'right_shoulder': (77.129, 27.542, 8.401),
+        'right_elbow': (39.559, 21.527), 'right_wrist': (-0.835, -6.482),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (12.857, 3.45, -2.017), 'spine_thoracic': (-3.174, -9.362, -2.112),
-        'neck': (-2.233, -1.341, -24.579), 'head': (-2.494, -0.013),
-        'right_clavicle': (14.239, -4.348), 'right_shoulder': (86.806, 20.461, 11.111),
-        'right_elbow': (40.037, 21.548), 'right_wrist': (2.965, -10.669),
+        'spine_lumbar': (12.426, 1.417, 1.237), 'spine_thoracic': (-10.758, -8.972, 1.735),
+        'neck': (1.744, 0.075, -29.568), 'head': (1.735, 0.0), 'right_clavicle': (18.542, -3.187),
+        'right_shoulder': (72.19, 25.134, 6.8), 'right_elbow': (38.663, 19.459),
+        'right_wrist': (-1.302, -7.769),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (5.935, 1.087, 1.579), 'spine_thoracic': (-2.297, -1.558, 1.547),
-        'neck': (-0.329, -0.639, -25.709), 'head': (-0.466, -0.001),
-        'right_clavicle': (2.38, 0.852), 'right_shoulder': (90.547, 10.721, -0.26),
-        'right_elbow': (32.643, 10.194), 'right_wrist': (-1.608, -28.521),
+        'spine_lumbar': (5.633, -0.005, 4.43), 'spine_thoracic': (-9.682, -2.427, 3.715),
+        'neck': (3.213, 0.623, -30.059), 'head': (3.309, 0.002), 'right_clavicle': (6.007, -0.12),
+        'right_shoulder': (79.44, 14.813, -4.079), 'right_elbow': (31.527, 7.641),
+        'right_wrist': (-3.417, -25.74),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
@@ -674,96 +674,96 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (8.063, 1.111, 1.091), 'spine_thoracic': (-3.035, -3.25, 1.08),
-        'neck': (-0.625, -0.766, -26.477), 'head': (-0.79, -0.002),
-        'right_clavicle': (4.781, 0.085), 'right_shoulder': (89.494, 12.981, 1.514),
-        'right_elbow': (33.66, 12.151), 'right_wrist': (-0.918, -25.704),
+        'spine_lumbar': (7.81, 1.114, 1.991), 'spine_thoracic': (-5.716, -4.03, 1.943),
+        'neck': (0.765, -0.26, -27.639), 'head': (0.694, 0.0), 'right_clavicle': (5.984, 0.194),
+        'right_shoulder': (85.269, 14.508, 0.211), 'right_elbow': (33.235, 11.415),
+        'right_wrist': (-1.938, -24.751),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (14.893, 3.496, -1.261), 'spine_thoracic': (-3.736, -9.215, -1.349),
-        'neck': (-2.912, -1.644, -27.059), 'head': (-3.247, -0.021),
-        'right_clavicle': (14.112, -3.789), 'right_shoulder': (88.411, 21.228, 9.594),
-        'right_elbow': (39.104, 20.519), 'right_wrist': (2.372, -12.317),
+        'spine_lumbar': (14.373, 2.575, 0.773), 'spine_thoracic': (-9.082, -9.495, 1.317),
+        'neck': (0.051, -0.569, -29.622), 'head': (-0.09, -0.001),
+        'right_clavicle': (16.958, -2.614), 'right_shoulder': (78.196, 24.475, 6.725),
+        'right_elbow': (38.21, 19.278), 'right_wrist': (-0.899, -10.499),
     })
     human.KeyJoints(11.1, {
-        'spine_lumbar': (17.376, 5.595, -3.294), 'spine_thoracic': (-1.257, -10.0, -3.159),
-        'neck': (-5.875, -2.711, -24.762), 'head': (-6.375, -0.084),
-        'right_clavicle': (16.768, -5.295), 'right_shoulder': (94.603, 22.83, 13.829),
-        'right_elbow': (41.608, 24.116), 'right_wrist': (4.481, -8.817),
+        'spine_lumbar': (16.578, 3.124, 0.77), 'spine_thoracic': (-10.345, -10.0, 1.648),
+        'neck': (-0.504, -0.801, -30.677), 'head': (-0.695, -0.004),
+        'right_clavicle': (21.726, -3.637), 'right_shoulder': (75.951, 28.569, 8.571),
+        'right_elbow': (39.772, 21.958), 'right_wrist': (-0.926, -5.223),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (5.359, 0.462, 0.159), 'spine_thoracic': (-2.238, -2.921, 0.162),
-        'neck': (0.235, -0.393, -24.142), 'head': (0.154, 0.0), 'right_clavicle': (4.078, -0.489),
-        'right_shoulder': (87.459, 11.55, 2.626), 'right_elbow': (34.134, 12.732),
-        'right_wrist': (-0.416, -25.088),
+        'spine_lumbar': (4.987, -1.115, 4.109), 'spine_thoracic': (-11.629, -3.894, 3.41),
+        'neck': (4.737, 1.199, -30.327), 'head': (4.942, 0.005), 'right_clavicle': (8.898, -1.204),
+        'right_shoulder': (72.534, 16.782, -2.417), 'right_elbow': (32.501, 9.468),
+        'right_wrist': (-3.23, -21.453),
     })
     human.KeyJoints(11.3, {
-        'spine_lumbar': (6.576, 1.24, 1.737), 'spine_thoracic': (-2.241, -1.589, 1.708),
-        'neck': (-0.65, -0.77, -26.154), 'head': (-0.815, -0.002), 'right_clavicle': (2.486, 0.964),
-        'right_shoulder': (91.349, 10.951, -0.395), 'right_elbow': (32.588, 10.146),
-        'right_wrist': (-1.634, -28.679),
+        'spine_lumbar': (6.557, 1.163, 1.958), 'spine_thoracic': (-2.854, -1.67, 1.875),
+        'neck': (-0.351, -0.662, -26.485), 'head': (-0.496, -0.001),
+        'right_clavicle': (2.784, 0.881), 'right_shoulder': (90.469, 11.297, -0.703),
+        'right_elbow': (32.505, 9.943), 'right_wrist': (-1.781, -28.45),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
-        'spine_lumbar': (6.761, 1.215, 1.686), 'spine_thoracic': (-2.545, -1.861, 1.656),
-        'neck': (-0.547, -0.732, -26.234), 'head': (-0.705, -0.002),
-        'right_clavicle': (2.85, 0.861), 'right_shoulder': (90.842, 11.297, -0.202),
-        'right_elbow': (32.704, 10.372), 'right_wrist': (-1.592, -28.249),
+        'spine_lumbar': (6.705, 1.217, 1.892), 'spine_thoracic': (-3.166, -2.041, 1.842),
+        'neck': (-0.225, -0.615, -26.517), 'head': (-0.361, -0.001),
+        'right_clavicle': (3.128, 0.862), 'right_shoulder': (89.887, 11.656, -0.436),
+        'right_elbow': (32.615, 10.211), 'right_wrist': (-1.812, -28.023),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (11.868, 1.853, -0.287), 'spine_thoracic': (-3.566, -6.581, -0.342),
-        'neck': (-1.675, -1.177, -27.085), 'head': (-1.921, -0.009),
-        'right_clavicle': (9.787, -2.071), 'right_shoulder': (88.039, 17.45, 6.086),
-        'right_elbow': (36.678, 16.897), 'right_wrist': (0.976, -18.336),
+        'spine_lumbar': (11.396, 1.61, 1.307), 'spine_thoracic': (-7.922, -7.565, 1.514),
+        'neck': (0.719, -0.304, -28.998), 'head': (0.635, 0.0), 'right_clavicle': (11.953, -1.427),
+        'right_shoulder': (80.357, 20.003, 3.832), 'right_elbow': (35.907, 15.72),
+        'right_wrist': (-1.224, -16.835),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (17.254, 5.494, -3.178), 'spine_thoracic': (-1.5, -10.0, -3.026),
-        'neck': (-5.657, -2.632, -24.881), 'head': (-6.145, -0.077),
-        'right_clavicle': (16.53, -5.103), 'right_shoulder': (94.151, 22.679, 13.535),
-        'right_elbow': (41.44, 23.835), 'right_wrist': (4.322, -9.169),
+        'spine_lumbar': (16.48, 3.162, 0.632), 'spine_thoracic': (-10.065, -10.0, 1.483),
+        'neck': (-0.592, -0.829, -30.419), 'head': (-0.787, -0.005),
+        'right_clavicle': (21.208, -3.534), 'right_shoulder': (76.61, 28.139, 8.557),
+        'right_elbow': (39.714, 21.823), 'right_wrist': (-0.87, -5.771),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (10.341, 2.138, -1.746), 'spine_thoracic': (-2.768, -7.623, -1.808),
-        'neck': (-1.2, -0.936, -23.897), 'head': (-1.385, -0.005),
-        'right_clavicle': (11.305, -3.463), 'right_shoulder': (86.053, 17.714, 9.367),
-        'right_elbow': (38.773, 19.565), 'right_wrist': (2.325, -14.12),
+        'spine_lumbar': (9.887, 0.255, 1.807), 'spine_thoracic': (-10.97, -7.709, 1.989),
+        'neck': (2.918, 0.523, -29.453), 'head': (2.997, 0.002), 'right_clavicle': (15.874, -2.722),
+        'right_shoulder': (70.991, 22.573, 4.791), 'right_elbow': (37.218, 17.07),
+        'right_wrist': (-1.648, -10.97),
     })
     human.KeyJoints(11.8, {
-        'spine_lumbar': (6.313, 1.179, 1.655), 'spine_thoracic': (-2.161, -1.545, 1.627),
-        'neck': (-0.568, -0.735, -25.948), 'head': (-0.725, -0.002),
-        'right_clavicle': (2.395, 0.92), 'right_shoulder': (91.224, 10.784, -0.315),
-        'right_elbow': (32.614, 10.178), 'right_wrist': (-1.6, -28.671),
+        'spine_lumbar': (6.034, 0.309, 3.99), 'spine_thoracic': (-8.344, -2.288, 3.401),
+        'neck': (2.423, 0.335, -29.454), 'head': (2.465, 0.001), 'right_clavicle': (5.385, 0.097),
+        'right_shoulder': (81.926, 14.211, -3.526), 'right_elbow': (31.697, 8.026),
+        'right_wrist': (-3.112, -26.35),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
         'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'right_clavicle': (2.496, 0.964),
-        'right_shoulder': (91.328, 10.963, -0.4), 'right_elbow': (32.588, 10.143),
-        'right_wrist': (-1.641, -28.669),
+        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
+        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(12.0, {
-        'spine_lumbar': (8.821, 1.128, 0.764), 'spine_thoracic': (-3.163, -3.964, 0.754),
-        'neck': (-0.768, -0.823, -26.589), 'head': (-0.945, -0.003),
-        'right_clavicle': (5.804, -0.365), 'right_shoulder': (89.014, 13.882, 2.488),
-        'right_elbow': (34.245, 13.156), 'right_wrist': (-0.51, -24.249),
+        'spine_lumbar': (8.522, 1.127, 1.826), 'spine_thoracic': (-6.249, -4.849, 1.82),
+        'neck': (0.835, -0.239, -27.947), 'head': (0.768, 0.0), 'right_clavicle': (7.216, -0.163),
+        'right_shoulder': (84.047, 15.639, 0.979), 'right_elbow': (33.746, 12.31),
+        'right_wrist': (-1.762, -23.154),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (15.704, 4.129, -1.647), 'spine_thoracic': (-3.623, -9.804, -1.705),
-        'neck': (-3.428, -1.831, -26.686), 'head': (-3.795, -0.028),
-        'right_clavicle': (15.133, -4.21), 'right_shoulder': (88.962, 21.961, 10.683),
-        'right_elbow': (39.811, 21.54), 'right_wrist': (2.823, -10.981),
+        'spine_lumbar': (15.156, 2.869, 0.615), 'spine_thoracic': (-9.313, -9.825, 1.279),
+        'neck': (-0.211, -0.67, -29.698), 'head': (-0.373, -0.002),
+        'right_clavicle': (18.342, -2.929), 'right_shoulder': (77.888, 25.673, 7.497),
+        'right_elbow': (38.813, 20.245), 'right_wrist': (-0.843, -8.871),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (16.814, 5.493, -3.399), 'spine_thoracic': (-1.054, -10.0, -3.266),
-        'neck': (-5.662, -2.624, -24.345), 'head': (-6.143, -0.077),
-        'right_clavicle': (16.479, -5.3), 'right_shoulder': (94.277, 22.446, 13.898),
-        'right_elbow': (41.629, 24.08), 'right_wrist': (4.514, -8.879),
+        'spine_lumbar': (16.052, 2.925, 0.807), 'spine_thoracic': (-10.47, -10.0, 1.651),
+        'neck': (-0.154, -0.665, -30.534), 'head': (-0.316, -0.003),
+        'right_clavicle': (21.574, -3.648), 'right_shoulder': (75.107, 28.328, 8.479),
+        'right_elbow': (39.743, 21.798), 'right_wrist': (-0.985, -5.187),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (4.916, 0.283, 0.638), 'spine_thoracic': (-1.992, -2.21, 0.631),
-        'neck': (0.236, -0.404, -24.732), 'head': (0.149, 0.0), 'right_clavicle': (2.979, 0.064),
-        'right_shoulder': (88.685, 10.707, 1.015), 'right_elbow': (32.734, 11.261),
-        'right_wrist': (-1.05, -28.038),
+        'spine_lumbar': (4.576, -1.201, 4.284), 'spine_thoracic': (-10.929, -3.156, 3.505),
+        'neck': (4.502, 1.107, -30.428), 'head': (4.689, 0.005), 'right_clavicle': (7.477, -0.914),
+        'right_shoulder': (74.985, 15.611, -3.749), 'right_elbow': (31.239, 8.11),
+        'right_wrist': (-3.41, -24.674),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.394506, duration=0.072)
@@ -828,38 +828,37 @@ def remove_access_panel():
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.535, 7.271, 1.146), 'right_elbow': (32.827, 11.054),
-        'right_wrist': (-1.354, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
-        'spine_lumbar': (2.428, -17.485, 8.431), 'spine_thoracic': (-8.73, -6.298, 8.234),
-        'neck': (2.776, -0.751, -16.899), 'head': (2.93, -0.021), 'right_clavicle': (3.03, 7.157),
-        'right_shoulder': (88.711, 6.995, -3.631), 'right_elbow': (22.365, 7.652),
-        'right_wrist': (-2.999, -30.0),
+        'spine_lumbar': (6.82, -14.213, 9.501), 'spine_thoracic': (-8.921, -4.628, 9.091),
+        'neck': (0.564, -0.045, -15.037), 'head': (0.581, 0.001), 'right_clavicle': (3.249, 7.73),
+        'right_shoulder': (88.764, 7.696, 1.099), 'right_elbow': (32.288, 11.082),
+        'right_wrist': (-1.411, -29.986),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (3.221, -20.0, 4.962), 'spine_thoracic': (-8.594, -10.0, 5.854),
-        'neck': (2.592, -0.702, -16.297), 'head': (2.735, -0.019),
-        'right_clavicle': (10.958, 4.624), 'right_shoulder': (87.144, 10.687, 4.173),
-        'right_elbow': (22.085, 15.489), 'right_wrist': (0.91, -27.778),
+        'spine_lumbar': (4.488, -18.628, 6.229), 'spine_thoracic': (-11.053, -9.008, 7.003),
+        'neck': (3.083, -0.86, -16.648), 'head': (3.257, -0.024), 'right_clavicle': (12.096, 5.123),
+        'right_shoulder': (83.72, 12.472, 5.394), 'right_elbow': (26.234, 16.105),
+        'right_wrist': (0.506, -28.124),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (5.166, -18.477, 3.15), 'spine_thoracic': (-10.036, -10.0, 5.508),
-        'neck': (2.101, -0.598, -13.309), 'head': (2.216, -0.011),
-        'right_clavicle': (22.216, 3.723), 'right_shoulder': (87.666, 14.873, 12.825),
-        'right_elbow': (20.571, 24.212), 'right_wrist': (5.453, -21.172),
+        'spine_lumbar': (5.712, -19.946, 3.833), 'spine_thoracic': (-11.698, -10.0, 6.067),
+        'neck': (2.864, -0.798, -16.061), 'head': (3.024, -0.022),
+        'right_clavicle': (21.587, 3.587), 'right_shoulder': (82.781, 17.047, 12.591),
+        'right_elbow': (25.196, 23.477), 'right_wrist': (3.39, -22.347),
     })
     human.KeyJoints(13.8, {
-        'spine_lumbar': (-0.158, -20.0, 4.053), 'spine_thoracic': (-8.199, -10.0, 5.278),
-        'neck': (3.798, -1.174, -13.281), 'head': (4.016, -0.024),
-        'right_clavicle': (13.213, 4.305), 'right_shoulder': (85.151, 9.283, 7.337),
-        'right_elbow': (22.04, 17.92), 'right_wrist': (2.473, -26.284),
+        'spine_lumbar': (-0.231, -19.997, 5.048), 'spine_thoracic': (-11.377, -7.008, 6.693),
+        'neck': (5.22, -1.645, -13.81), 'head': (5.526, -0.04), 'right_clavicle': (15.691, 5.507),
+        'right_shoulder': (81.07, 10.853, 7.505), 'right_elbow': (22.591, 18.003),
+        'right_wrist': (1.461, -27.092),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (2.241, -17.208, 8.6), 'spine_thoracic': (-8.693, -5.997, 8.362),
-        'neck': (2.824, -0.772, -16.684), 'head': (2.981, -0.021), 'right_clavicle': (2.685, 7.315),
-        'right_shoulder': (88.632, 6.653, -3.859), 'right_elbow': (22.55, 7.363),
-        'right_wrist': (-3.124, -30.0),
+        'spine_lumbar': (2.089, -17.685, 9.042), 'spine_thoracic': (-10.569, -2.943, 8.985),
+        'neck': (3.628, -1.044, -16.6), 'head': (3.837, -0.029), 'right_clavicle': (4.343, 7.611),
+        'right_shoulder': (86.62, 7.523, -3.702), 'right_elbow': (21.963, 7.584),
+        'right_wrist': (-3.313, -29.89),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
@@ -869,28 +868,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (2.553, -19.189, 7.213), 'spine_thoracic': (-9.69, -8.854, 7.245),
-        'neck': (3.424, -0.953, -17.725), 'head': (3.62, -0.027), 'right_clavicle': (6.081, 5.858),
-        'right_shoulder': (86.042, 9.113, -0.82), 'right_elbow': (22.926, 10.481),
-        'right_wrist': (-1.828, -29.961),
+        'spine_lumbar': (2.406, -18.87, 7.604), 'spine_thoracic': (-10.537, -7.936, 7.763),
+        'neck': (3.824, -1.09, -17.62), 'head': (4.047, -0.031), 'right_clavicle': (7.112, 6.2),
+        'right_shoulder': (85.087, 9.578, -0.803), 'right_elbow': (22.369, 10.409),
+        'right_wrist': (-1.999, -29.852),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (4.436, -18.947, 3.634), 'spine_thoracic': (-9.646, -10.0, 5.592),
-        'neck': (2.334, -0.659, -14.078), 'head': (2.462, -0.016),
-        'right_clavicle': (19.331, 4.008), 'right_shoulder': (87.364, 13.711, 10.496),
-        'right_elbow': (20.504, 21.875), 'right_wrist': (4.28, -22.971),
+        'spine_lumbar': (4.917, -20.0, 4.361), 'spine_thoracic': (-11.469, -10.0, 6.244),
+        'neck': (3.165, -0.892, -16.396), 'head': (3.344, -0.025), 'right_clavicle': (19.04, 4.014),
+        'right_shoulder': (82.777, 15.636, 10.327), 'right_elbow': (24.499, 21.251),
+        'right_wrist': (2.548, -24.216),
     })
     human.KeyJoints(14.3, {
-        'spine_lumbar': (4.539, -18.507, 3.096), 'spine_thoracic': (-9.943, -10.0, 5.458),
-        'neck': (2.343, -0.687, -12.97), 'head': (2.473, -0.012), 'right_clavicle': (22.241, 3.711),
-        'right_shoulder': (87.349, 14.52, 13.078), 'right_elbow': (20.671, 24.334),
-        'right_wrist': (5.566, -21.033),
+        'spine_lumbar': (5.077, -19.875, 3.76), 'spine_thoracic': (-11.721, -10.0, 6.045),
+        'neck': (3.151, -0.904, -15.569), 'head': (3.329, -0.025),
+        'right_clavicle': (21.723, 3.696), 'right_shoulder': (82.447, 16.645, 12.823),
+        'right_elbow': (25.154, 23.607), 'right_wrist': (3.479, -22.206),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (0.148, -17.764, 7.752), 'spine_thoracic': (-8.243, -6.836, 7.663),
-        'neck': (3.609, -1.059, -15.548), 'head': (3.816, -0.029), 'right_clavicle': (3.248, 6.87),
-        'right_shoulder': (87.197, 5.862, -2.772), 'right_elbow': (22.046, 8.119),
-        'right_wrist': (-2.566, -30.0),
+        'spine_lumbar': (-0.05, -18.238, 8.576), 'spine_thoracic': (-11.352, -1.667, 8.806),
+        'neck': (4.92, -1.505, -15.471), 'head': (5.21, -0.041), 'right_clavicle': (6.243, 7.541),
+        'right_shoulder': (83.964, 7.332, -2.406), 'right_elbow': (21.032, 8.658),
+        'right_wrist': (-2.856, -29.991),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
@@ -900,65 +899,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (2.373, -17.796, 8.173), 'spine_thoracic': (-8.707, -6.682, 8.031),
-        'neck': (2.819, -0.764, -16.969), 'head': (2.976, -0.021), 'right_clavicle': (3.425, 6.952),
-        'right_shoulder': (88.521, 7.214, -3.259), 'right_elbow': (22.285, 8.042),
-        'right_wrist': (-2.814, -30.0),
+        'spine_lumbar': (2.352, -17.707, 8.551), 'spine_thoracic': (-9.711, -6.336, 8.357),
+        'neck': (3.311, -0.925, -17.224), 'head': (3.5, -0.026), 'right_clavicle': (3.95, 7.058),
+        'right_shoulder': (87.228, 7.745, -3.369), 'right_elbow': (22.375, 7.897),
+        'right_wrist': (-3.03, -30.0),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (3.58, -20.0, 4.453), 'spine_thoracic': (-8.737, -10.0, 5.632),
-        'neck': (2.458, -0.666, -15.777), 'right_clavicle': (13.061, 4.315),
-        'right_shoulder': (87.112, 11.501, 5.967), 'right_elbow': (21.975, 17.288),
-        'right_wrist': (1.825, -26.684),
+        'spine_lumbar': (3.586, -19.976, 5.552), 'spine_thoracic': (-11.126, -9.844, 6.699),
+        'neck': (3.681, -1.05, -17.189), 'head': (3.894, -0.03), 'right_clavicle': (13.988, 4.809),
+        'right_shoulder': (83.071, 13.07, 5.653), 'right_elbow': (23.306, 16.692),
+        'right_wrist': (0.719, -27.195),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (5.24, -18.428, 3.107), 'spine_thoracic': (-10.076, -10.0, 5.501),
-        'neck': (2.078, -0.591, -13.235), 'head': (2.191, -0.011),
-        'right_clavicle': (22.497, 3.695), 'right_shoulder': (87.7, 14.99, 13.049),
-        'right_elbow': (20.595, 24.437), 'right_wrist': (5.566, -20.985),
+        'spine_lumbar': (5.793, -19.929, 3.788), 'spine_thoracic': (-11.728, -10.0, 6.055),
+        'neck': (2.836, -0.789, -16.026), 'head': (2.994, -0.021),
+        'right_clavicle': (21.837, 3.546), 'right_shoulder': (82.784, 17.189, 12.807),
+        'right_elbow': (25.266, 23.69), 'right_wrist': (3.471, -22.157),
     })
     human.KeyJoints(14.9, {
-        'spine_lumbar': (-1.099, -19.994, 4.932), 'spine_thoracic': (-7.91, -9.996, 5.623),
-        'neck': (4.138, -1.272, -14.0), 'head': (4.377, -0.031), 'right_clavicle': (9.229, 4.88),
-        'right_shoulder': (84.88, 7.586, 3.917), 'right_elbow': (22.124, 14.443),
-        'right_wrist': (0.73, -28.288),
+        'spine_lumbar': (-1.323, -19.812, 5.966), 'spine_thoracic': (-11.33, -5.139, 7.198),
+        'neck': (5.606, -1.774, -13.869), 'head': (5.935, -0.044),
+        'right_clavicle': (12.651, 6.186), 'right_shoulder': (81.219, 9.054, 4.375),
+        'right_elbow': (21.571, 14.964), 'right_wrist': (0.154, -28.921),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (2.402, -17.219, 8.621), 'spine_thoracic': (-8.727, -5.994, 8.382),
-        'neck': (2.765, -0.75, -16.778), 'head': (2.919, -0.021), 'right_clavicle': (2.714, 7.317),
-        'right_shoulder': (88.728, 6.768, -3.88), 'right_elbow': (22.567, 7.365),
-        'right_wrist': (-3.134, -30.0),
+        'spine_lumbar': (2.315, -17.578, 8.954), 'spine_thoracic': (-10.063, -3.879, 8.833),
+        'neck': (3.333, -0.941, -16.768), 'head': (3.523, -0.026), 'right_clavicle': (3.884, 7.517),
+        'right_shoulder': (87.35, 7.475, -3.783), 'right_elbow': (22.167, 7.512),
+        'right_wrist': (-3.288, -29.912),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
-        'spine_lumbar': (2.482, -17.237, 8.625), 'spine_thoracic': (-8.744, -6.008, 8.387),
-        'neck': (2.737, -0.739, -16.834), 'head': (2.889, -0.02), 'right_clavicle': (2.739, 7.311),
-        'right_shoulder': (88.774, 6.83, -3.882), 'right_elbow': (22.57, 7.381),
-        'right_wrist': (-3.135, -30.0),
+        'spine_lumbar': (2.482, -17.236, 8.629), 'spine_thoracic': (-8.754, -6.005, 8.39),
+        'neck': (2.742, -0.741, -16.837), 'head': (2.894, -0.02), 'right_clavicle': (2.744, 7.312),
+        'right_shoulder': (88.761, 6.836, -3.883), 'right_elbow': (22.572, 7.38),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (2.725, -19.856, 6.649), 'spine_thoracic': (-9.658, -9.984, 6.803),
-        'neck': (3.455, -0.955, -18.088), 'head': (3.653, -0.027), 'right_clavicle': (7.294, 5.313),
-        'right_shoulder': (85.547, 9.895, 0.308), 'right_elbow': (22.862, 11.642),
-        'right_wrist': (-1.304, -29.254),
+        'spine_lumbar': (2.566, -19.278, 7.113), 'spine_thoracic': (-10.716, -8.572, 7.474),
+        'neck': (3.888, -1.111, -17.638), 'head': (4.115, -0.032), 'right_clavicle': (8.596, 5.84),
+        'right_shoulder': (84.429, 10.36, 0.567), 'right_elbow': (22.483, 11.744),
+        'right_wrist': (-1.414, -29.491),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (4.772, -18.748, 3.393), 'spine_thoracic': (-9.813, -10.0, 5.549),
-        'neck': (2.221, -0.629, -13.727), 'head': (2.343, -0.014),
-        'right_clavicle': (20.635, 3.869), 'right_shoulder': (87.493, 14.231, 11.568),
-        'right_elbow': (20.494, 22.949), 'right_wrist': (4.818, -22.187),
+        'spine_lumbar': (5.279, -20.0, 4.104), 'spine_thoracic': (-11.559, -10.0, 6.148),
+        'neck': (3.023, -0.848, -16.243), 'head': (3.193, -0.023),
+        'right_clavicle': (20.198, 3.814), 'right_shoulder': (82.774, 16.276, 11.378),
+        'right_elbow': (24.832, 22.281), 'right_wrist': (2.937, -23.378),
     })
     human.KeyJoints(15.4, {
-        'spine_lumbar': (3.115, -18.845, 3.22), 'spine_thoracic': (-9.565, -10.0, 5.403),
-        'neck': (2.847, -0.863, -12.794), 'head': (3.008, -0.015),
-        'right_clavicle': (20.723, 3.826), 'right_shoulder': (86.647, 13.298, 12.266),
-        'right_elbow': (20.738, 23.301), 'right_wrist': (5.132, -21.839),
+        'spine_lumbar': (3.603, -19.922, 3.882), 'spine_thoracic': (-11.629, -9.677, 6.083),
+        'neck': (3.756, -1.122, -14.896), 'right_clavicle': (20.678, 4.09),
+        'right_shoulder': (81.904, 15.25, 12.094), 'right_elbow': (24.716, 22.726),
+        'right_wrist': (3.22, -23.02),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (1.091, -17.352, 8.272), 'spine_thoracic': (-8.458, -6.249, 8.083),
-        'neck': (3.255, -0.93, -16.048), 'head': (3.44, -0.025), 'right_clavicle': (2.789, 7.175),
-        'right_shoulder': (87.877, 6.043, -3.479), 'right_elbow': (22.298, 7.55),
-        'right_wrist': (-2.93, -30.0),
+        'spine_lumbar': (0.901, -17.925, 8.955), 'spine_thoracic': (-11.225, -1.69, 9.018),
+        'neck': (4.427, -1.328, -15.954), 'head': (4.687, -0.037), 'right_clavicle': (5.324, 7.657),
+        'right_shoulder': (84.986, 7.396, -3.194), 'right_elbow': (21.451, 7.978),
+        'right_wrist': (-3.197, -29.941),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
@@ -968,64 +967,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (2.356, -18.186, 7.786), 'spine_thoracic': (-8.663, -7.233, 7.732),
-        'neck': (2.846, -0.773, -17.004), 'head': (3.005, -0.021), 'right_clavicle': (4.011, 6.661),
-        'right_shoulder': (88.313, 7.527, -2.638), 'right_elbow': (22.241, 8.678),
-        'right_wrist': (-2.496, -30.0),
+        'spine_lumbar': (2.327, -18.053, 8.407), 'spine_thoracic': (-10.103, -6.695, 8.282),
+        'neck': (3.55, -1.0, -17.486), 'head': (3.755, -0.028), 'right_clavicle': (4.835, 6.838),
+        'right_shoulder': (86.417, 8.323, -2.826), 'right_elbow': (22.326, 8.434),
+        'right_wrist': (-2.864, -30.0),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (4.05, -20.0, 3.922), 'spine_thoracic': (-8.85, -10.0, 5.379),
-        'neck': (2.257, -0.609, -15.272), 'head': (2.379, -0.016),
-        'right_clavicle': (14.953, 3.955), 'right_shoulder': (87.155, 12.315, 7.688),
-        'right_elbow': (22.103, 19.011), 'right_wrist': (2.666, -25.603),
+        'spine_lumbar': (4.033, -20.0, 5.098), 'spine_thoracic': (-11.246, -9.98, 6.52),
+        'neck': (3.515, -1.0, -16.9), 'head': (3.718, -0.028), 'right_clavicle': (15.84, 4.521),
+        'right_shoulder': (82.888, 13.984, 7.382), 'right_elbow': (23.695, 18.376),
+        'right_wrist': (1.415, -26.204),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (5.259, -18.416, 3.097), 'spine_thoracic': (-10.086, -10.0, 5.499),
-        'neck': (2.072, -0.59, -13.218), 'head': (2.185, -0.011), 'right_clavicle': (22.565, 3.688),
-        'right_shoulder': (87.708, 15.018, 13.103), 'right_elbow': (20.601, 24.491),
-        'right_wrist': (5.593, -20.939),
+        'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
+        'neck': (2.829, -0.787, -16.018), 'head': (2.987, -0.021),
+        'right_clavicle': (21.897, 3.537), 'right_shoulder': (82.785, 17.223, 12.859),
+        'right_elbow': (25.282, 23.741), 'right_wrist': (3.491, -22.111),
     })
     human.KeyJoints(16.0, {
-        'spine_lumbar': (-1.189, -19.415, 6.474), 'spine_thoracic': (-9.083, -9.528, 6.578),
-        'neck': (4.791, -1.464, -15.315), 'head': (5.072, -0.04), 'right_clavicle': (6.286, 5.595),
-        'right_shoulder': (83.606, 6.998, 0.635), 'right_elbow': (22.762, 11.224),
-        'right_wrist': (-1.159, -29.749),
+        'spine_lumbar': (-1.544, -19.31, 6.966), 'spine_thoracic': (-11.355, -3.45, 7.792),
+        'neck': (5.652, -1.779, -14.236), 'head': (5.985, -0.047), 'right_clavicle': (9.917, 6.772),
+        'right_shoulder': (81.889, 7.904, 1.443), 'right_elbow': (20.944, 12.186),
+        'right_wrist': (-1.125, -29.934),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (2.463, -17.226, 8.627), 'spine_thoracic': (-8.74, -5.996, 8.388),
-        'neck': (2.742, -0.742, -16.815), 'head': (2.895, -0.02), 'right_clavicle': (2.727, 7.317),
-        'right_shoulder': (88.765, 6.812, -3.885), 'right_elbow': (22.572, 7.37),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.436, -17.415, 8.804), 'spine_thoracic': (-9.429, -4.918, 8.624),
+        'neck': (3.028, -0.838, -16.819), 'head': (3.199, -0.023), 'right_clavicle': (3.324, 7.418),
+        'right_shoulder': (88.073, 7.191, -3.843), 'right_elbow': (22.373, 7.441),
+        'right_wrist': (-3.22, -29.952),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
-        'spine_lumbar': (2.468, -17.301, 8.576), 'spine_thoracic': (-8.741, -6.082, 8.348),
-        'right_clavicle': (2.813, 7.271), 'right_shoulder': (88.747, 6.872, -3.82),
-        'right_elbow': (22.532, 7.449), 'right_wrist': (-3.102, -30.0),
+        'spine_lumbar': (2.466, -17.289, 8.628), 'spine_thoracic': (-8.873, -6.036, 8.389),
+        'neck': (2.812, -0.764, -16.888), 'head': (2.968, -0.021), 'right_clavicle': (2.882, 7.285),
+        'right_shoulder': (88.575, 6.943, -3.834), 'right_elbow': (22.547, 7.43),
+        'right_wrist': (-3.132, -30.0),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (2.908, -20.0, 5.488), 'spine_thoracic': (-8.489, -10.0, 6.093),
-        'neck': (2.726, -0.735, -16.867), 'head': (2.878, -0.02), 'right_clavicle': (8.805, 4.945),
-        'right_shoulder': (87.206, 9.886, 2.304), 'right_elbow': (22.238, 13.63),
-        'right_wrist': (-0.033, -28.571),
+        'spine_lumbar': (2.822, -19.616, 6.589), 'spine_thoracic': (-10.87, -9.127, 7.189),
+        'neck': (3.885, -1.111, -17.575), 'head': (4.111, -0.032),
+        'right_clavicle': (10.271, 5.479), 'right_shoulder': (83.851, 11.218, 2.14),
+        'right_elbow': (22.676, 13.276), 'right_wrist': (-0.745, -28.907),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (5.008, -18.583, 3.244), 'spine_thoracic': (-9.949, -10.0, 5.524),
-        'neck': (2.15, -0.61, -13.47), 'head': (2.267, -0.012), 'right_clavicle': (21.606, 3.781),
-        'right_shoulder': (87.596, 14.622, 12.339), 'right_elbow': (20.528, 23.723),
-        'right_wrist': (5.209, -21.571),
+        'spine_lumbar': (5.545, -19.975, 3.934), 'spine_thoracic': (-11.641, -10.0, 6.095),
+        'neck': (2.924, -0.817, -16.134), 'head': (3.089, -0.022),
+        'right_clavicle': (21.048, 3.674), 'right_shoulder': (82.777, 16.747, 12.126),
+        'right_elbow': (25.061, 23.018), 'right_wrist': (3.216, -22.752),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (1.63, -20.0, 3.234), 'spine_thoracic': (-8.585, -10.0, 4.955),
-        'neck': (3.142, -0.957, -13.056), 'head': (3.321, -0.018),
-        'right_clavicle': (16.873, 3.651), 'right_shoulder': (85.79, 11.47, 10.373),
-        'right_elbow': (22.465, 21.143), 'right_wrist': (3.943, -24.016),
+        'spine_lumbar': (1.621, -20.0, 4.31), 'spine_thoracic': (-11.493, -8.641, 6.297),
+        'neck': (4.527, -1.398, -14.199), 'head': (4.79, -0.036), 'right_clavicle': (18.571, 4.747),
+        'right_shoulder': (81.35, 13.128, 10.278), 'right_elbow': (23.787, 20.794),
+        'right_wrist': (2.55, -24.83),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (1.802, -17.196, 8.521), 'spine_thoracic': (-8.602, -6.017, 8.292),
-        'neck': (2.984, -0.831, -16.417), 'right_clavicle': (2.641, 7.3),
-        'right_shoulder': (88.359, 6.375, -3.778), 'right_elbow': (22.489, 7.362),
-        'right_wrist': (-3.083, -30.0),
+        'spine_lumbar': (1.628, -17.766, 9.092), 'spine_thoracic': (-10.959, -2.167, 9.083),
+        'neck': (3.989, -1.171, -16.359), 'head': (4.221, -0.033), 'right_clavicle': (4.742, 7.684),
+        'right_shoulder': (85.884, 7.528, -3.576), 'right_elbow': (21.756, 7.669),
+        'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
@@ -1035,65 +1035,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (2.391, -18.603, 7.315), 'spine_thoracic': (-8.595, -7.927, 7.369),
-        'neck': (2.848, -0.773, -17.021), 'head': (3.007, -0.021), 'right_clavicle': (4.792, 6.298),
-        'right_shoulder': (88.03, 7.937, -1.708), 'right_elbow': (22.338, 9.6),
-        'right_wrist': (-2.042, -30.0),
+        'spine_lumbar': (2.331, -18.44, 8.041), 'spine_thoracic': (-10.326, -7.283, 8.036),
+        'neck': (3.703, -1.05, -17.549), 'head': (3.917, -0.03), 'right_clavicle': (5.832, 6.544),
+        'right_shoulder': (85.783, 8.882, -1.95), 'right_elbow': (22.317, 9.29),
+        'right_wrist': (-2.486, -30.0),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (4.272, -19.594, 3.735), 'spine_thoracic': (-9.211, -10.0, 5.459),
-        'neck': (2.273, -0.624, -14.769), 'head': (2.396, -0.016), 'right_clavicle': (17.204, 3.95),
-        'right_shoulder': (87.244, 13.063, 9.188), 'right_elbow': (21.326, 20.54),
-        'right_wrist': (3.513, -24.238),
+        'spine_lumbar': (4.485, -20.0, 4.702), 'spine_thoracic': (-11.363, -10.0, 6.374),
+        'neck': (3.337, -0.946, -16.622), 'head': (3.528, -0.026),
+        'right_clavicle': (17.555, 4.258), 'right_shoulder': (82.802, 14.848, 8.964),
+        'right_elbow': (24.099, 19.919), 'right_wrist': (2.033, -25.198),
     })
     human.KeyJoints(17.0, {
-        'spine_lumbar': (5.175, -18.425, 3.094), 'spine_thoracic': (-10.071, -10.0, 5.494),
-        'neck': (2.104, -0.601, -13.183), 'head': (2.22, -0.011), 'right_clavicle': (22.54, 3.69),
-        'right_shoulder': (87.666, 14.964, 13.115), 'right_elbow': (20.61, 24.484),
-        'right_wrist': (5.596, -20.941),
+        'spine_lumbar': (5.722, -19.892, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
+        'neck': (2.872, -0.803, -15.95), 'head': (3.033, -0.022), 'right_clavicle': (21.909, 3.561),
+        'right_shoulder': (82.741, 17.158, 12.873), 'right_elbow': (25.254, 23.741),
+        'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (-0.751, -18.512, 7.021), 'spine_thoracic': (-8.152, -7.981, 7.066),
-        'neck': (4.032, -1.209, -15.186), 'head': (4.265, -0.033), 'right_clavicle': (4.338, 6.318),
-        'right_shoulder': (86.046, 5.881, -1.384), 'right_elbow': (21.963, 9.358),
-        'right_wrist': (-1.912, -29.992),
+        'spine_lumbar': (-1.002, -18.779, 7.864), 'spine_thoracic': (-11.389, -2.243, 8.351),
+        'neck': (5.386, -1.676, -14.853), 'head': (5.703, -0.045), 'right_clavicle': (7.767, 7.219),
+        'right_shoulder': (82.866, 7.382, -0.922), 'right_elbow': (20.733, 10.004),
+        'right_wrist': (-2.181, -29.998),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (2.483, -17.23, 8.629), 'spine_thoracic': (-8.744, -6.001, 8.39),
-        'neck': (2.736, -0.739, -16.831), 'head': (2.888, -0.02), 'right_clavicle': (2.732, 7.315),
-        'right_shoulder': (88.776, 6.826, -3.887), 'right_elbow': (22.574, 7.375),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.48, -17.269, 8.665), 'spine_thoracic': (-8.885, -5.78, 8.438),
+        'neck': (2.793, -0.758, -16.831), 'head': (2.948, -0.021), 'right_clavicle': (2.854, 7.335),
+        'right_shoulder': (88.635, 6.901, -3.879), 'right_elbow': (22.533, 7.389),
+        'right_wrist': (-3.155, -29.99),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
-        'spine_lumbar': (2.429, -17.481, 8.434), 'spine_thoracic': (-8.73, -6.293, 8.236),
-        'neck': (2.775, -0.751, -16.898), 'head': (2.93, -0.021), 'right_clavicle': (3.025, 7.159),
-        'right_shoulder': (88.668, 6.992, -3.634), 'right_elbow': (22.43, 7.647),
-        'right_wrist': (-3.006, -30.0),
+        'spine_lumbar': (2.42, -17.44, 8.613), 'spine_thoracic': (-9.197, -6.131, 8.383),
+        'neck': (3.004, -0.826, -17.018), 'head': (3.173, -0.023), 'right_clavicle': (3.266, 7.207),
+        'right_shoulder': (88.065, 7.24, -3.685), 'right_elbow': (22.479, 7.58),
+        'right_wrist': (-3.107, -30.0),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (3.216, -20.0, 4.971), 'spine_thoracic': (-8.591, -10.0, 5.857),
-        'neck': (2.594, -0.702, -16.306), 'head': (2.737, -0.019),
-        'right_clavicle': (10.921, 4.629), 'right_shoulder': (87.128, 10.674, 4.144),
-        'right_elbow': (22.112, 15.459), 'right_wrist': (0.893, -27.788),
+        'spine_lumbar': (3.167, -19.851, 6.062), 'spine_thoracic': (-11.002, -9.554, 6.927),
+        'neck': (3.813, -1.09, -17.422), 'head': (4.034, -0.031), 'right_clavicle': (12.082, 5.133),
+        'right_shoulder': (83.393, 12.127, 3.854), 'right_elbow': (22.953, 14.943),
+        'right_wrist': (-0.024, -28.13),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (5.164, -18.478, 3.152), 'spine_thoracic': (-10.035, -10.0, 5.508),
-        'neck': (2.102, -0.598, -13.311), 'head': (2.217, -0.011),
-        'right_clavicle': (22.209, 3.723), 'right_shoulder': (87.665, 14.87, 12.819),
-        'right_elbow': (20.571, 24.206), 'right_wrist': (5.45, -21.176),
+        'spine_lumbar': (5.712, -19.945, 3.834), 'spine_thoracic': (-11.699, -10.0, 6.067),
+        'neck': (2.864, -0.798, -16.06), 'head': (3.025, -0.022), 'right_clavicle': (21.581, 3.587),
+        'right_shoulder': (82.782, 17.045, 12.587), 'right_elbow': (25.2, 23.473),
+        'right_wrist': (3.389, -22.352),
     })
     human.KeyJoints(17.6, {
-        'spine_lumbar': (-0.134, -20.0, 4.04), 'spine_thoracic': (-8.207, -10.0, 5.273),
-        'neck': (3.79, -1.172, -13.275), 'head': (4.008, -0.024), 'right_clavicle': (13.281, 4.295),
-        'right_shoulder': (85.156, 9.318, 7.392), 'right_elbow': (22.04, 17.977),
-        'right_wrist': (2.5, -26.247),
+        'spine_lumbar': (-0.206, -19.997, 5.034), 'spine_thoracic': (-11.378, -7.038, 6.685),
+        'neck': (5.211, -1.641, -13.812), 'head': (5.516, -0.04), 'right_clavicle': (15.741, 5.495),
+        'right_shoulder': (81.07, 10.888, 7.555), 'right_elbow': (22.61, 18.053),
+        'right_wrist': (1.481, -27.056),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (2.236, -17.208, 8.599), 'spine_thoracic': (-8.692, -5.997, 8.361),
-        'neck': (2.826, -0.772, -16.681), 'head': (2.983, -0.021), 'right_clavicle': (2.684, 7.315),
-        'right_shoulder': (88.628, 6.65, -3.858), 'right_elbow': (22.55, 7.363),
-        'right_wrist': (-3.124, -30.0),
+        'spine_lumbar': (2.084, -17.687, 9.043), 'spine_thoracic': (-10.576, -2.928, 8.987),
+        'neck': (3.633, -1.046, -16.596), 'head': (3.843, -0.029), 'right_clavicle': (4.349, 7.613),
+        'right_shoulder': (86.608, 7.523, -3.701), 'right_elbow': (21.96, 7.585),
+        'right_wrist': (-3.313, -29.889),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
@@ -1103,28 +1103,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (2.55, -19.179, 7.216), 'spine_thoracic': (-9.677, -8.837, 7.248),
-        'neck': (3.417, -0.951, -17.712), 'head': (3.613, -0.027), 'right_clavicle': (6.058, 5.866),
-        'right_shoulder': (86.069, 9.094, -0.836), 'right_elbow': (22.92, 10.465),
-        'right_wrist': (-1.833, -29.963),
+        'spine_lumbar': (2.404, -18.863, 7.612), 'spine_thoracic': (-10.534, -7.925, 7.768),
+        'neck': (3.823, -1.089, -17.62), 'head': (4.045, -0.031), 'right_clavicle': (7.089, 6.206),
+        'right_shoulder': (85.098, 9.566, -0.824), 'right_elbow': (22.368, 10.389),
+        'right_wrist': (-2.008, -29.856),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (4.43, -18.951, 3.638), 'spine_thoracic': (-9.643, -10.0, 5.593),
-        'neck': (2.336, -0.659, -14.085), 'head': (2.464, -0.016), 'right_clavicle': (19.306, 4.01),
-        'right_shoulder': (87.362, 13.701, 10.476), 'right_elbow': (20.505, 21.854),
-        'right_wrist': (4.269, -22.986),
+        'spine_lumbar': (4.91, -20.0, 4.367), 'spine_thoracic': (-11.468, -10.0, 6.246),
+        'neck': (3.167, -0.893, -16.4), 'head': (3.347, -0.025), 'right_clavicle': (19.018, 4.018),
+        'right_shoulder': (82.778, 15.624, 10.307), 'right_elbow': (24.493, 21.232),
+        'right_wrist': (2.541, -24.231),
     })
     human.KeyJoints(18.1, {
-        'spine_lumbar': (4.555, -18.505, 3.096), 'spine_thoracic': (-9.946, -10.0, 5.459),
-        'neck': (2.337, -0.685, -12.974), 'head': (2.467, -0.012), 'right_clavicle': (22.25, 3.711),
-        'right_shoulder': (87.357, 14.532, 13.079), 'right_elbow': (20.67, 24.339),
-        'right_wrist': (5.567, -21.03),
+        'spine_lumbar': (5.093, -19.875, 3.76), 'spine_thoracic': (-11.722, -10.0, 6.045),
+        'neck': (3.144, -0.902, -15.577), 'head': (3.322, -0.024),
+        'right_clavicle': (21.729, 3.692), 'right_shoulder': (82.454, 16.658, 12.825),
+        'right_elbow': (25.157, 23.611), 'right_wrist': (3.48, -22.202),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (0.13, -17.775, 7.739), 'spine_thoracic': (-8.239, -6.851, 7.653),
-        'neck': (3.615, -1.062, -15.538), 'head': (3.823, -0.029), 'right_clavicle': (3.261, 6.862),
-        'right_shoulder': (87.184, 5.861, -2.754), 'right_elbow': (22.041, 8.135),
-        'right_wrist': (-2.556, -30.0),
+        'spine_lumbar': (-0.068, -18.247, 8.566), 'spine_thoracic': (-11.354, -1.673, 8.8),
+        'neck': (4.929, -1.508, -15.462), 'head': (5.22, -0.041), 'right_clavicle': (6.263, 7.537),
+        'right_shoulder': (83.946, 7.332, -2.388), 'right_elbow': (21.023, 8.675),
+        'right_wrist': (-2.848, -29.991),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
@@ -1134,65 +1134,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (2.374, -17.79, 8.178), 'spine_thoracic': (-8.708, -6.674, 8.035),
-        'neck': (2.818, -0.764, -16.967), 'head': (2.975, -0.021), 'right_clavicle': (3.417, 6.957),
-        'right_shoulder': (88.524, 7.21, -3.267), 'right_elbow': (22.287, 8.033),
-        'right_wrist': (-2.818, -30.0),
+        'spine_lumbar': (2.353, -17.702, 8.553), 'spine_thoracic': (-9.702, -6.332, 8.358),
+        'neck': (3.306, -0.923, -17.22), 'head': (3.495, -0.026), 'right_clavicle': (3.936, 7.062),
+        'right_shoulder': (87.243, 7.735, -3.376), 'right_elbow': (22.377, 7.89),
+        'right_wrist': (-3.032, -30.0),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (3.573, -20.0, 4.461), 'spine_thoracic': (-8.735, -10.0, 5.636),
-        'neck': (2.46, -0.667, -15.785), 'right_clavicle': (13.027, 4.32),
-        'right_shoulder': (87.112, 11.487, 5.937), 'right_elbow': (21.974, 17.258),
-        'right_wrist': (1.81, -26.702),
+        'spine_lumbar': (3.579, -19.975, 5.56), 'spine_thoracic': (-11.124, -9.84, 6.702),
+        'neck': (3.684, -1.051, -17.193), 'head': (3.897, -0.03), 'right_clavicle': (13.956, 4.814),
+        'right_shoulder': (83.075, 13.055, 5.624), 'right_elbow': (23.299, 16.663),
+        'right_wrist': (0.707, -27.211),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (5.24, -18.429, 3.108), 'spine_thoracic': (-10.076, -10.0, 5.501),
-        'neck': (2.078, -0.591, -13.236), 'head': (2.192, -0.011),
-        'right_clavicle': (22.495, 3.695), 'right_shoulder': (87.7, 14.989, 13.047),
-        'right_elbow': (20.594, 24.435), 'right_wrist': (5.565, -20.986),
+        'spine_lumbar': (5.792, -19.929, 3.788), 'spine_thoracic': (-11.728, -10.0, 6.055),
+        'neck': (2.836, -0.789, -16.026), 'head': (2.995, -0.021),
+        'right_clavicle': (21.835, 3.547), 'right_shoulder': (82.784, 17.188, 12.805),
+        'right_elbow': (25.266, 23.688), 'right_wrist': (3.471, -22.159),
     })
     human.KeyJoints(18.7, {
-        'spine_lumbar': (-1.097, -19.996, 4.91), 'spine_thoracic': (-7.903, -9.997, 5.612),
-        'neck': (4.132, -1.27, -13.975), 'head': (4.37, -0.031), 'right_clavicle': (9.286, 4.869),
-        'right_shoulder': (84.893, 7.599, 3.975), 'right_elbow': (22.119, 14.5),
-        'right_wrist': (0.763, -28.258),
+        'spine_lumbar': (-1.316, -19.817, 5.95), 'spine_thoracic': (-11.33, -5.169, 7.189),
+        'neck': (5.604, -1.774, -13.862), 'head': (5.933, -0.043), 'right_clavicle': (12.7, 6.176),
+        'right_shoulder': (81.214, 9.079, 4.427), 'right_elbow': (21.585, 15.013),
+        'right_wrist': (0.176, -28.898),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (2.4, -17.219, 8.621), 'spine_thoracic': (-8.727, -5.994, 8.382),
-        'neck': (2.765, -0.75, -16.777), 'head': (2.919, -0.021), 'right_clavicle': (2.714, 7.317),
-        'right_shoulder': (88.727, 6.767, -3.879), 'right_elbow': (22.567, 7.365),
-        'right_wrist': (-3.134, -30.0),
+        'spine_lumbar': (2.312, -17.581, 8.956), 'spine_thoracic': (-10.073, -3.862, 8.836),
+        'neck': (3.338, -0.943, -16.767), 'head': (3.528, -0.026), 'right_clavicle': (3.894, 7.519),
+        'right_shoulder': (87.338, 7.478, -3.782), 'right_elbow': (22.163, 7.513),
+        'right_wrist': (-3.289, -29.912),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
-        'spine_lumbar': (2.482, -17.236, 8.626), 'spine_thoracic': (-8.744, -6.008, 8.387),
-        'neck': (2.737, -0.739, -16.834), 'head': (2.889, -0.02), 'right_clavicle': (2.739, 7.311),
-        'right_shoulder': (88.775, 6.83, -3.882), 'right_elbow': (22.571, 7.381),
-        'right_wrist': (-3.135, -30.0),
+        'spine_lumbar': (2.482, -17.235, 8.629), 'spine_thoracic': (-8.754, -6.005, 8.39),
+        'neck': (2.741, -0.741, -16.837), 'head': (2.894, -0.02), 'right_clavicle': (2.744, 7.312),
+        'right_shoulder': (88.762, 6.835, -3.883), 'right_elbow': (22.572, 7.38),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (2.722, -19.85, 6.664), 'spine_thoracic': (-9.661, -9.978, 6.813),
-        'neck': (3.457, -0.956, -18.099), 'head': (3.656, -0.027), 'right_clavicle': (7.272, 5.321),
-        'right_shoulder': (85.548, 9.891, 0.284), 'right_elbow': (22.865, 11.617),
-        'right_wrist': (-1.317, -29.269),
+        'spine_lumbar': (2.563, -19.271, 7.122), 'spine_thoracic': (-10.714, -8.561, 7.478),
+        'neck': (3.888, -1.111, -17.638), 'head': (4.114, -0.032), 'right_clavicle': (8.57, 5.846),
+        'right_shoulder': (84.44, 10.346, 0.542), 'right_elbow': (22.481, 11.72),
+        'right_wrist': (-1.425, -29.499),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (4.767, -18.751, 3.396), 'spine_thoracic': (-9.81, -10.0, 5.55),
-        'neck': (2.223, -0.629, -13.732), 'head': (2.344, -0.014),
-        'right_clavicle': (20.615, 3.871), 'right_shoulder': (87.491, 14.224, 11.552),
-        'right_elbow': (20.494, 22.933), 'right_wrist': (4.81, -22.199),
+        'spine_lumbar': (5.274, -20.0, 4.107), 'spine_thoracic': (-11.558, -10.0, 6.149),
+        'neck': (3.025, -0.848, -16.245), 'head': (3.195, -0.023),
+        'right_clavicle': (20.181, 3.817), 'right_shoulder': (82.774, 16.266, 11.362),
+        'right_elbow': (24.828, 22.266), 'right_wrist': (2.931, -23.391),
     })
     human.KeyJoints(19.2, {
-        'spine_lumbar': (3.139, -18.832, 3.22), 'spine_thoracic': (-9.576, -10.0, 5.406),
-        'neck': (2.841, -0.861, -12.793), 'head': (3.001, -0.015),
-        'right_clavicle': (20.764, 3.827), 'right_shoulder': (86.66, 13.323, 12.287),
-        'right_elbow': (20.728, 23.326), 'right_wrist': (5.144, -21.817),
+        'spine_lumbar': (3.633, -19.921, 3.878), 'spine_thoracic': (-11.631, -9.686, 6.081),
+        'neck': (3.744, -1.118, -14.908), 'right_clavicle': (20.703, 4.081),
+        'right_shoulder': (81.914, 15.279, 12.113), 'right_elbow': (24.726, 22.748),
+        'right_wrist': (3.227, -23.0),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (1.076, -17.357, 8.266), 'spine_thoracic': (-8.455, -6.256, 8.078),
-        'neck': (3.261, -0.932, -16.041), 'head': (3.446, -0.026), 'right_clavicle': (2.794, 7.171),
-        'right_shoulder': (87.866, 6.037, -3.471), 'right_elbow': (22.293, 7.556),
-        'right_wrist': (-2.926, -30.0),
+        'spine_lumbar': (0.886, -17.928, 8.95), 'spine_thoracic': (-11.228, -1.684, 9.016),
+        'neck': (4.436, -1.331, -15.945), 'head': (4.696, -0.037), 'right_clavicle': (5.336, 7.656),
+        'right_shoulder': (84.97, 7.393, -3.185), 'right_elbow': (21.445, 7.986),
+        'right_wrist': (-3.192, -29.943),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
@@ -1202,64 +1202,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (2.356, -18.179, 7.794), 'spine_thoracic': (-8.664, -7.223, 7.738),
-        'neck': (2.846, -0.773, -17.006), 'head': (3.005, -0.021), 'right_clavicle': (4.0, 6.666),
-        'right_shoulder': (88.316, 7.522, -2.652), 'right_elbow': (22.24, 8.664),
-        'right_wrist': (-2.504, -30.0),
+        'spine_lumbar': (2.327, -18.047, 8.412), 'spine_thoracic': (-10.099, -6.687, 8.285),
+        'neck': (3.547, -0.999, -17.483), 'head': (3.752, -0.028), 'right_clavicle': (4.82, 6.842),
+        'right_shoulder': (86.429, 8.314, -2.838), 'right_elbow': (22.326, 8.423),
+        'right_wrist': (-2.868, -30.0),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (4.041, -20.0, 3.931), 'spine_thoracic': (-8.848, -10.0, 5.383),
-        'neck': (2.261, -0.61, -15.281), 'head': (2.383, -0.016), 'right_clavicle': (14.923, 3.962),
-        'right_shoulder': (87.154, 12.301, 7.66), 'right_elbow': (22.099, 18.983),
-        'right_wrist': (2.652, -25.622),
+        'spine_lumbar': (4.026, -20.0, 5.105), 'spine_thoracic': (-11.244, -9.979, 6.522),
+        'neck': (3.518, -1.001, -16.904), 'head': (3.721, -0.028), 'right_clavicle': (15.81, 4.526),
+        'right_shoulder': (82.89, 13.969, 7.354), 'right_elbow': (23.688, 18.348),
+        'right_wrist': (1.404, -26.221),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (5.258, -18.416, 3.097), 'spine_thoracic': (-10.086, -10.0, 5.499),
-        'neck': (2.072, -0.59, -13.218), 'head': (2.186, -0.011), 'right_clavicle': (22.565, 3.689),
-        'right_shoulder': (87.708, 15.018, 13.103), 'right_elbow': (20.601, 24.491),
-        'right_wrist': (5.593, -20.939),
+        'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
+        'neck': (2.829, -0.787, -16.018), 'head': (2.987, -0.021),
+        'right_clavicle': (21.897, 3.537), 'right_shoulder': (82.785, 17.223, 12.858),
+        'right_elbow': (25.282, 23.741), 'right_wrist': (3.491, -22.112),
     })
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-1.189, -19.426, 6.459), 'spine_thoracic': (-9.081, -9.54, 6.567),
-        'neck': (4.79, -1.464, -15.306), 'head': (5.071, -0.04), 'right_clavicle': (6.325, 5.583),
-        'right_shoulder': (83.609, 7.01, 0.678), 'right_elbow': (22.76, 11.264),
-        'right_wrist': (-1.14, -29.741),
+        'spine_lumbar': (-1.544, -19.318, 6.95), 'spine_thoracic': (-11.354, -3.473, 7.782),
+        'neck': (5.652, -1.78, -14.228), 'head': (5.985, -0.047), 'right_clavicle': (9.957, 6.763),
+        'right_shoulder': (81.876, 7.916, 1.487), 'right_elbow': (20.95, 12.227),
+        'right_wrist': (-1.106, -29.931),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (2.463, -17.226, 8.627), 'spine_thoracic': (-8.74, -5.996, 8.388),
-        'neck': (2.743, -0.742, -16.815), 'head': (2.895, -0.02), 'right_clavicle': (2.727, 7.317),
-        'right_shoulder': (88.764, 6.812, -3.885), 'right_elbow': (22.572, 7.37),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.435, -17.417, 8.807), 'spine_thoracic': (-9.44, -4.901, 8.628),
+        'neck': (3.033, -0.84, -16.819), 'head': (3.204, -0.023), 'right_clavicle': (3.334, 7.419),
+        'right_shoulder': (88.061, 7.197, -3.842), 'right_elbow': (22.369, 7.442),
+        'right_wrist': (-3.222, -29.952),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
-        'spine_lumbar': (2.468, -17.299, 8.577), 'spine_thoracic': (-8.741, -6.08, 8.349),
-        'right_clavicle': (2.81, 7.273), 'right_shoulder': (88.748, 6.871, -3.821),
-        'right_elbow': (22.533, 7.447), 'right_wrist': (-3.103, -30.0),
+        'spine_lumbar': (2.466, -17.288, 8.628), 'spine_thoracic': (-8.869, -6.035, 8.389),
+        'neck': (2.809, -0.763, -16.886), 'head': (2.966, -0.021), 'right_clavicle': (2.877, 7.286),
+        'right_shoulder': (88.581, 6.94, -3.836), 'right_elbow': (22.548, 7.428),
+        'right_wrist': (-3.132, -30.0),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (2.903, -20.0, 5.5), 'spine_thoracic': (-8.489, -10.0, 6.099),
-        'neck': (2.729, -0.736, -16.881), 'head': (2.881, -0.02), 'right_clavicle': (8.774, 4.951),
-        'right_shoulder': (87.206, 9.884, 2.271), 'right_elbow': (22.241, 13.597),
-        'right_wrist': (-0.051, -28.582),
+        'spine_lumbar': (2.817, -19.612, 6.598), 'spine_thoracic': (-10.867, -9.118, 7.193),
+        'neck': (3.885, -1.111, -17.577), 'head': (4.112, -0.032),
+        'right_clavicle': (10.242, 5.485), 'right_shoulder': (83.86, 11.203, 2.112),
+        'right_elbow': (22.672, 13.249), 'right_wrist': (-0.757, -28.919),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (5.005, -18.585, 3.246), 'spine_thoracic': (-9.947, -10.0, 5.524),
-        'neck': (2.151, -0.611, -13.473), 'head': (2.268, -0.012),
-        'right_clavicle': (21.593, 3.782), 'right_shoulder': (87.594, 14.616, 12.328),
-        'right_elbow': (20.527, 23.713), 'right_wrist': (5.204, -21.579),
+        'spine_lumbar': (5.541, -19.975, 3.936), 'spine_thoracic': (-11.64, -10.0, 6.095),
+        'neck': (2.926, -0.817, -16.136), 'head': (3.09, -0.022), 'right_clavicle': (21.036, 3.675),
+        'right_shoulder': (82.777, 16.741, 12.116), 'right_elbow': (25.058, 23.008),
+        'right_wrist': (3.213, -22.761),
     })
     human.KeyJoints(20.3, {
-        'spine_lumbar': (1.66, -20.0, 3.23), 'spine_thoracic': (-8.594, -10.0, 4.953),
-        'neck': (3.133, -0.954, -13.064), 'head': (3.311, -0.018),
-        'right_clavicle': (16.934, 3.648), 'right_shoulder': (85.803, 11.505, 10.414),
-        'right_elbow': (22.469, 21.188), 'right_wrist': (3.965, -23.979),
+        'spine_lumbar': (1.654, -20.0, 4.301), 'spine_thoracic': (-11.496, -8.662, 6.292),
+        'neck': (4.514, -1.394, -14.21), 'head': (4.777, -0.036), 'right_clavicle': (18.612, 4.735),
+        'right_shoulder': (81.358, 13.166, 10.316), 'right_elbow': (23.805, 20.833),
+        'right_wrist': (2.565, -24.795),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (1.793, -17.196, 8.52), 'spine_thoracic': (-8.6, -6.017, 8.29),
-        'neck': (2.987, -0.832, -16.411), 'head': (3.155, -0.023), 'right_clavicle': (2.641, 7.3),
-        'right_shoulder': (88.354, 6.37, -3.776), 'right_elbow': (22.488, 7.362),
-        'right_wrist': (-3.082, -30.0),
+        'spine_lumbar': (1.619, -17.768, 9.093), 'spine_thoracic': (-10.964, -2.157, 9.084),
+        'neck': (3.995, -1.173, -16.355), 'head': (4.228, -0.033), 'right_clavicle': (4.75, 7.685),
+        'right_shoulder': (85.871, 7.528, -3.573), 'right_elbow': (21.752, 7.671),
+        'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
@@ -1269,65 +1270,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (2.391, -18.594, 7.319), 'spine_thoracic': (-8.595, -7.913, 7.373),
-        'neck': (2.847, -0.773, -17.012), 'head': (3.006, -0.021), 'right_clavicle': (4.776, 6.305),
-        'right_shoulder': (88.038, 7.927, -1.724), 'right_elbow': (22.335, 9.585),
-        'right_wrist': (-2.048, -30.0),
+        'spine_lumbar': (2.331, -18.433, 8.047), 'spine_thoracic': (-10.322, -7.272, 8.041),
+        'neck': (3.7, -1.049, -17.548), 'head': (3.915, -0.03), 'right_clavicle': (5.814, 6.549),
+        'right_shoulder': (85.794, 8.871, -1.967), 'right_elbow': (22.317, 9.274),
+        'right_wrist': (-2.493, -30.0),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (4.271, -19.613, 3.735), 'spine_thoracic': (-9.199, -10.0, 5.452),
-        'neck': (2.269, -0.622, -14.786), 'head': (2.393, -0.016),
-        'right_clavicle': (17.158, 3.945), 'right_shoulder': (87.242, 13.052, 9.165),
-        'right_elbow': (21.364, 20.516), 'right_wrist': (3.498, -24.265),
+        'spine_lumbar': (4.477, -20.0, 4.708), 'spine_thoracic': (-11.362, -10.0, 6.376),
+        'neck': (3.34, -0.947, -16.626), 'head': (3.531, -0.026), 'right_clavicle': (17.528, 4.262),
+        'right_shoulder': (82.803, 14.834, 8.939), 'right_elbow': (24.093, 19.895),
+        'right_wrist': (2.023, -25.215),
     })
     human.KeyJoints(20.8, {
-        'spine_lumbar': (5.178, -18.424, 3.094), 'spine_thoracic': (-10.071, -10.0, 5.494),
-        'neck': (2.103, -0.601, -13.184), 'head': (2.218, -0.011), 'right_clavicle': (22.542, 3.69),
-        'right_shoulder': (87.668, 14.966, 13.115), 'right_elbow': (20.61, 24.484),
-        'right_wrist': (5.596, -20.941),
+        'spine_lumbar': (5.725, -19.893, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
+        'neck': (2.87, -0.802, -15.952), 'head': (3.031, -0.022), 'right_clavicle': (21.909, 3.56),
+        'right_shoulder': (82.743, 17.161, 12.873), 'right_elbow': (25.255, 23.741),
+        'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (-0.762, -18.527, 7.012), 'spine_thoracic': (-8.163, -8.008, 7.058),
-        'neck': (4.044, -1.214, -15.19), 'head': (4.279, -0.033), 'right_clavicle': (4.362, 6.307),
-        'right_shoulder': (86.003, 5.892, -1.356), 'right_elbow': (21.973, 9.382),
-        'right_wrist': (-1.901, -29.991),
+        'spine_lumbar': (-1.015, -18.788, 7.851), 'spine_thoracic': (-11.388, -2.257, 8.343),
+        'neck': (5.392, -1.678, -14.842), 'head': (5.71, -0.045), 'right_clavicle': (7.797, 7.212),
+        'right_shoulder': (82.849, 7.386, -0.89), 'right_elbow': (20.734, 10.034),
+        'right_wrist': (-2.166, -29.998),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (2.482, -17.23, 8.629), 'spine_thoracic': (-8.744, -6.0, 8.39),
-        'neck': (2.736, -0.739, -16.83), 'head': (2.888, -0.02), 'right_clavicle': (2.732, 7.315),
-        'right_shoulder': (88.776, 6.826, -3.887), 'right_elbow': (22.574, 7.375),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.48, -17.271, 8.667), 'spine_thoracic': (-8.892, -5.769, 8.441),
+        'neck': (2.796, -0.759, -16.831), 'head': (2.952, -0.021), 'right_clavicle': (2.86, 7.336),
+        'right_shoulder': (88.628, 6.905, -3.879), 'right_elbow': (22.531, 7.39),
+        'right_wrist': (-3.155, -29.99),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
-        'spine_lumbar': (2.43, -17.477, 8.438), 'spine_thoracic': (-8.73, -6.288, 8.239),
-        'neck': (2.775, -0.751, -16.897), 'head': (2.929, -0.021), 'right_clavicle': (3.02, 7.162),
-        'right_shoulder': (88.67, 6.989, -3.639), 'right_elbow': (22.432, 7.642),
-        'right_wrist': (-3.008, -30.0),
+        'spine_lumbar': (2.421, -17.436, 8.613), 'spine_thoracic': (-9.19, -6.129, 8.384),
+        'neck': (3.0, -0.824, -17.015), 'head': (3.169, -0.023), 'right_clavicle': (3.257, 7.208),
+        'right_shoulder': (88.076, 7.233, -3.688), 'right_elbow': (22.481, 7.577),
+        'right_wrist': (-3.108, -30.0),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (3.211, -20.0, 4.98), 'spine_thoracic': (-8.589, -10.0, 5.861),
-        'neck': (2.596, -0.702, -16.315), 'head': (2.739, -0.019),
-        'right_clavicle': (10.885, 4.634), 'right_shoulder': (87.129, 10.661, 4.113),
-        'right_elbow': (22.117, 15.428), 'right_wrist': (0.877, -27.805),
+        'spine_lumbar': (3.16, -19.848, 6.071), 'spine_thoracic': (-11.0, -9.548, 6.931),
+        'neck': (3.814, -1.09, -17.426), 'head': (4.036, -0.031), 'right_clavicle': (12.051, 5.139),
+        'right_shoulder': (83.4, 12.111, 3.825), 'right_elbow': (22.948, 14.914),
+        'right_wrist': (-0.036, -28.144),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (5.162, -18.48, 3.153), 'spine_thoracic': (-10.034, -10.0, 5.508),
-        'neck': (2.103, -0.598, -13.313), 'head': (2.217, -0.011),
-        'right_clavicle': (22.201, 3.724), 'right_shoulder': (87.664, 14.867, 12.813),
-        'right_elbow': (20.57, 24.2), 'right_wrist': (5.447, -21.181),
+        'spine_lumbar': (5.71, -19.945, 3.835), 'spine_thoracic': (-11.698, -10.0, 6.067),
+        'neck': (2.865, -0.798, -16.061), 'head': (3.025, -0.022),
+        'right_clavicle': (21.574, 3.588), 'right_shoulder': (82.781, 17.041, 12.582),
+        'right_elbow': (25.199, 23.467), 'right_wrist': (3.387, -22.357),
     })
     human.KeyJoints(21.4, {
-        'spine_lumbar': (-0.111, -20.0, 4.027), 'spine_thoracic': (-8.214, -10.0, 5.268),
-        'neck': (3.782, -1.169, -13.269), 'head': (4.0, -0.024), 'right_clavicle': (13.347, 4.286),
-        'right_shoulder': (85.161, 9.352, 7.446), 'right_elbow': (22.04, 18.034),
-        'right_wrist': (2.527, -26.211),
+        'spine_lumbar': (-0.181, -19.998, 5.02), 'spine_thoracic': (-11.379, -7.068, 6.678),
+        'neck': (5.201, -1.638, -13.815), 'head': (5.506, -0.04), 'right_clavicle': (15.791, 5.483),
+        'right_shoulder': (81.069, 10.922, 7.605), 'right_elbow': (22.629, 18.102),
+        'right_wrist': (1.501, -27.021),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (2.23, -17.208, 8.598), 'spine_thoracic': (-8.691, -5.997, 8.361),
-        'neck': (2.827, -0.773, -16.678), 'head': (2.985, -0.021), 'right_clavicle': (2.683, 7.315),
-        'right_shoulder': (88.625, 6.646, -3.858), 'right_elbow': (22.549, 7.363),
-        'right_wrist': (-3.123, -30.0),
+        'spine_lumbar': (2.078, -17.688, 9.045), 'spine_thoracic': (-10.584, -2.913, 8.989),
+        'neck': (3.639, -1.048, -16.592), 'head': (3.849, -0.029), 'right_clavicle': (4.355, 7.615),
+        'right_shoulder': (86.596, 7.523, -3.699), 'right_elbow': (21.957, 7.586),
+        'right_wrist': (-3.314, -29.889),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
@@ -1337,28 +1338,28 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(21.7, {
-        'spine_lumbar': (2.546, -19.168, 7.218), 'spine_thoracic': (-9.664, -8.82, 7.25),
-        'neck': (3.41, -0.948, -17.699), 'head': (3.605, -0.027), 'right_clavicle': (6.036, 5.874),
-        'right_shoulder': (86.097, 9.075, -0.852), 'right_elbow': (22.913, 10.449),
-        'right_wrist': (-1.837, -29.964),
+        'spine_lumbar': (2.402, -18.855, 7.62), 'spine_thoracic': (-10.53, -7.914, 7.772),
+        'neck': (3.821, -1.089, -17.619), 'head': (4.043, -0.031), 'right_clavicle': (7.066, 6.212),
+        'right_shoulder': (85.11, 9.553, -0.845), 'right_elbow': (22.367, 10.368),
+        'right_wrist': (-2.017, -29.86),
     })
     human.KeyJoints(21.8, {
-        'spine_lumbar': (4.425, -18.956, 3.642), 'spine_thoracic': (-9.639, -10.0, 5.593),
-        'neck': (2.337, -0.66, -14.092), 'head': (2.466, -0.016), 'right_clavicle': (19.28, 4.012),
-        'right_shoulder': (87.36, 13.691, 10.455), 'right_elbow': (20.505, 21.834),
-        'right_wrist': (4.259, -23.002),
+        'spine_lumbar': (4.904, -20.0, 4.372), 'spine_thoracic': (-11.466, -10.0, 6.248),
+        'neck': (3.17, -0.894, -16.403), 'head': (3.35, -0.025), 'right_clavicle': (18.996, 4.021),
+        'right_shoulder': (82.778, 15.612, 10.287), 'right_elbow': (24.486, 21.212),
+        'right_wrist': (2.533, -24.247),
     })
     human.KeyJoints(21.9, {
-        'spine_lumbar': (4.571, -18.502, 3.096), 'spine_thoracic': (-9.95, -10.0, 5.46),
-        'neck': (2.331, -0.683, -12.979), 'head': (2.46, -0.012), 'right_clavicle': (22.259, 3.71),
-        'right_shoulder': (87.365, 14.543, 13.08), 'right_elbow': (20.669, 24.344),
-        'right_wrist': (5.568, -21.027),
+        'spine_lumbar': (5.109, -19.875, 3.76), 'spine_thoracic': (-11.723, -10.0, 6.045),
+        'neck': (3.137, -0.899, -15.586), 'head': (3.315, -0.024),
+        'right_clavicle': (21.735, 3.689), 'right_shoulder': (82.461, 16.672, 12.827),
+        'right_elbow': (25.159, 23.616), 'right_wrist': (3.48, -22.199),
     })
     human.KeyJoints(22.0, {
-        'spine_lumbar': (0.112, -17.785, 7.727), 'spine_thoracic': (-8.234, -6.866, 7.643),
-        'neck': (3.621, -1.064, -15.528), 'head': (3.83, -0.029), 'right_clavicle': (3.274, 6.855),
-        'right_shoulder': (87.172, 5.859, -2.736), 'right_elbow': (22.037, 8.151),
-        'right_wrist': (-2.547, -30.0),
+        'spine_lumbar': (-0.086, -18.255, 8.557), 'spine_thoracic': (-11.355, -1.679, 8.794),
+        'neck': (4.939, -1.511, -15.453), 'head': (5.23, -0.042), 'right_clavicle': (6.284, 7.533),
+        'right_shoulder': (83.927, 7.333, -2.368), 'right_elbow': (21.013, 8.692),
+        'right_wrist': (-2.839, -29.991),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
@@ -1368,65 +1369,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (2.375, -17.784, 8.184), 'spine_thoracic': (-8.708, -6.666, 8.039),
-        'neck': (2.817, -0.764, -16.966), 'head': (2.975, -0.021), 'right_clavicle': (3.408, 6.961),
-        'right_shoulder': (88.527, 7.205, -3.275), 'right_elbow': (22.289, 8.025),
-        'right_wrist': (-2.822, -30.0),
+        'spine_lumbar': (2.354, -17.697, 8.554), 'spine_thoracic': (-9.693, -6.327, 8.358),
+        'neck': (3.301, -0.922, -17.216), 'head': (3.489, -0.026), 'right_clavicle': (3.923, 7.065),
+        'right_shoulder': (87.258, 7.726, -3.382), 'right_elbow': (22.379, 7.883),
+        'right_wrist': (-3.034, -30.0),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (3.566, -20.0, 4.47), 'spine_thoracic': (-8.733, -10.0, 5.64),
-        'neck': (2.463, -0.668, -15.793), 'right_clavicle': (12.993, 4.325),
-        'right_shoulder': (87.111, 11.474, 5.907), 'right_elbow': (21.974, 17.228),
-        'right_wrist': (1.795, -26.72),
+        'spine_lumbar': (3.571, -19.974, 5.568), 'spine_thoracic': (-11.122, -9.836, 6.706),
+        'neck': (3.686, -1.052, -17.197), 'head': (3.9, -0.03), 'right_clavicle': (13.925, 4.819),
+        'right_shoulder': (83.08, 13.039, 5.594), 'right_elbow': (23.293, 16.635),
+        'right_wrist': (0.695, -27.227),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (5.239, -18.429, 3.108), 'spine_thoracic': (-10.076, -10.0, 5.501),
-        'neck': (2.079, -0.592, -13.237), 'head': (2.192, -0.011),
-        'right_clavicle': (22.492, 3.696), 'right_shoulder': (87.699, 14.988, 13.045),
-        'right_elbow': (20.594, 24.433), 'right_wrist': (5.564, -20.988),
+        'spine_lumbar': (5.792, -19.929, 3.789), 'spine_thoracic': (-11.727, -10.0, 6.055),
+        'neck': (2.836, -0.789, -16.027), 'head': (2.995, -0.021),
+        'right_clavicle': (21.832, 3.547), 'right_shoulder': (82.784, 17.186, 12.803),
+        'right_elbow': (25.265, 23.686), 'right_wrist': (3.47, -22.161),
     })
     human.KeyJoints(22.5, {
-        'spine_lumbar': (-1.094, -19.998, 4.889), 'spine_thoracic': (-7.897, -9.999, 5.602),
-        'neck': (4.126, -1.269, -13.951), 'head': (4.365, -0.031), 'right_clavicle': (9.343, 4.858),
-        'right_shoulder': (84.904, 7.614, 4.032), 'right_elbow': (22.114, 14.558),
-        'right_wrist': (0.794, -28.228),
+        'spine_lumbar': (-1.31, -19.822, 5.934), 'spine_thoracic': (-11.33, -5.199, 7.18),
+        'neck': (5.602, -1.773, -13.856), 'head': (5.931, -0.043),
+        'right_clavicle': (12.749, 6.165), 'right_shoulder': (81.209, 9.103, 4.478),
+        'right_elbow': (21.598, 15.062), 'right_wrist': (0.198, -28.875),
     })
     human.KeyJoints(22.6, {
-        'spine_lumbar': (2.399, -17.219, 8.621), 'spine_thoracic': (-8.727, -5.994, 8.382),
-        'neck': (2.766, -0.75, -16.776), 'head': (2.92, -0.021), 'right_clavicle': (2.713, 7.317),
-        'right_shoulder': (88.727, 6.766, -3.879), 'right_elbow': (22.567, 7.365),
-        'right_wrist': (-3.134, -30.0),
+        'spine_lumbar': (2.309, -17.583, 8.958), 'spine_thoracic': (-10.083, -3.845, 8.839),
+        'neck': (3.343, -0.945, -16.765), 'head': (3.534, -0.026), 'right_clavicle': (3.903, 7.52),
+        'right_shoulder': (87.325, 7.481, -3.781), 'right_elbow': (22.16, 7.514),
+        'right_wrist': (-3.29, -29.911),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
-        'spine_lumbar': (2.482, -17.236, 8.626), 'spine_thoracic': (-8.744, -6.008, 8.387),
-        'neck': (2.736, -0.739, -16.834), 'head': (2.888, -0.02), 'right_clavicle': (2.738, 7.311),
-        'right_shoulder': (88.775, 6.83, -3.882), 'right_elbow': (22.571, 7.381),
-        'right_wrist': (-3.135, -30.0),
+        'spine_lumbar': (2.482, -17.235, 8.629), 'spine_thoracic': (-8.753, -6.004, 8.39),
+        'neck': (2.741, -0.741, -16.837), 'head': (2.893, -0.02), 'right_clavicle': (2.743, 7.312),
+        'right_shoulder': (88.763, 6.835, -3.883), 'right_elbow': (22.572, 7.379),
+        'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.8, {
-        'spine_lumbar': (2.719, -19.843, 6.678), 'spine_thoracic': (-9.664, -9.971, 6.824),
-        'neck': (3.46, -0.957, -18.11), 'head': (3.659, -0.027), 'right_clavicle': (7.25, 5.329),
-        'right_shoulder': (85.55, 9.887, 0.26), 'right_elbow': (22.868, 11.593),
-        'right_wrist': (-1.33, -29.284),
+        'spine_lumbar': (2.559, -19.265, 7.13), 'spine_thoracic': (-10.711, -8.551, 7.483),
+        'neck': (3.887, -1.11, -17.639), 'head': (4.114, -0.032), 'right_clavicle': (8.543, 5.852),
+        'right_shoulder': (84.45, 10.332, 0.517), 'right_elbow': (22.478, 11.696),
+        'right_wrist': (-1.436, -29.506),
     })
     human.KeyJoints(22.9, {
-        'spine_lumbar': (4.762, -18.754, 3.399), 'spine_thoracic': (-9.807, -10.0, 5.55),
-        'neck': (2.224, -0.63, -13.738), 'head': (2.346, -0.014), 'right_clavicle': (20.596, 3.873),
-        'right_shoulder': (87.489, 14.216, 11.537), 'right_elbow': (20.494, 22.917),
-        'right_wrist': (4.802, -22.212),
+        'spine_lumbar': (5.269, -20.0, 4.111), 'spine_thoracic': (-11.556, -10.0, 6.15),
+        'neck': (3.027, -0.849, -16.247), 'head': (3.197, -0.023), 'right_clavicle': (20.164, 3.82),
+        'right_shoulder': (82.774, 16.257, 11.347), 'right_elbow': (24.823, 22.251),
+        'right_wrist': (2.926, -23.403),
     })
     human.KeyJoints(23.0, {
-        'spine_lumbar': (3.652, -18.467, 3.322), 'spine_thoracic': (-9.554, -9.836, 5.49),
-        'neck': (2.564, -0.768, -12.734), 'head': (2.707, -0.013),
-        'right_clavicle': (20.802, 3.888), 'right_shoulder': (86.746, 13.395, 12.836),
-        'right_elbow': (21.814, 23.737), 'right_wrist': (5.342, -21.792),
+        'spine_lumbar': (4.093, -19.512, 3.933), 'spine_thoracic': (-11.706, -9.515, 6.097),
+        'neck': (3.523, -1.048, -14.66), 'head': (3.725, -0.028), 'right_clavicle': (20.734, 4.025),
+        'right_shoulder': (82.084, 15.497, 12.595), 'right_elbow': (25.814, 23.132),
+        'right_wrist': (3.388, -23.012),
     })
     human.KeyJoints(23.1, {
-        'spine_lumbar': (5.359, -14.261, 9.149), 'spine_thoracic': (-8.164, -4.816, 8.783),
-        'neck': (0.933, -0.18, -14.432), 'head': (0.974, -0.003), 'right_clavicle': (2.783, 7.709),
-        'right_shoulder': (88.492, 6.446, 1.206), 'right_elbow': (31.878, 10.987),
-        'right_wrist': (-1.277, -29.97),
+        'spine_lumbar': (5.102, -14.736, 9.776), 'spine_thoracic': (-10.86, -0.201, 9.656),
+        'neck': (2.207, -0.622, -13.83), 'head': (2.328, -0.014), 'right_clavicle': (5.282, 8.153),
+        'right_shoulder': (85.467, 7.752, 1.511), 'right_elbow': (31.04, 11.407),
+        'right_wrist': (-1.526, -29.872),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=23.179001, duration=0.072)
@@ -1434,12 +1435,11 @@ def remove_access_panel():
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
         'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
+        'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 112.0), start=23.251001, duration=0.2628)
-    human.KeyJoints(23.3, {
-        'neck': (3.338, -0.229, -17.165), 'head': (1.504, 0.0), 'right_wrist': (-1.361, -29.967),
-    })
+    human.KeyJoints(23.3, {'neck': (3.338, -0.229, -17.165), 'head': (1.504, 0.0)})
     human.KeyJoints(23.4, {'neck': (21.057, -1.984, -30.715), 'head': (9.057, -0.045)})
     human.KeyJoints(23.5, {
         'neck': (34.722, -3.338, -41.165), 'head': (14.881, -0.156),
@@ -1476,617 +1476,616 @@ def remove_access_panel():
         'right_wrist': (-6.199, -3.54),
     })
     human.KeyJoints(24.2, {
-        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'right_clavicle': (2.715, 7.9), 'right_shoulder': (18.714, 33.746, -16.635),
-        'right_elbow': (36.549, 2.884), 'right_wrist': (-6.352, -4.864),
+        'right_shoulder': (18.714, 33.746, -16.635), 'right_elbow': (36.549, 2.884),
+        'right_wrist': (-6.352, -4.864),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.218664, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
-        'spine_lumbar': (7.287, -13.401, 9.638), 'spine_thoracic': (-8.494, -4.353, 9.193),
-        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.839, 7.924),
-        'right_shoulder': (18.801, 33.955, -16.49), 'right_elbow': (36.844, 3.049),
-        'right_wrist': (-6.341, -4.249),
+        'spine_lumbar': (7.129, -13.864, 9.591), 'spine_thoracic': (-8.434, -4.435, 9.159),
+        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.719, 7.9),
+        'right_shoulder': (18.717, 33.763, -16.635), 'right_elbow': (36.552, 2.888),
+        'right_wrist': (-6.352, -4.848),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (11.65, -1.711, 10.706), 'spine_thoracic': (-9.614, -2.845, 10.054),
-        'neck': (32.421, -4.612, -42.128), 'head': (12.416, -1.097),
-        'right_clavicle': (6.617, 8.531), 'right_shoulder': (20.343, 39.598, -12.181),
-        'right_elbow': (44.415, 8.024), 'right_wrist': (-6.025, 11.647),
+        'spine_lumbar': (7.548, -12.336, 9.436), 'spine_thoracic': (-8.476, -5.022, 9.157),
+        'neck': (34.65, -2.719, -40.792), 'head': (14.726, -0.7), 'right_clavicle': (4.411, 7.688),
+        'right_shoulder': (18.766, 33.53, -14.458), 'right_elbow': (36.758, 4.633),
+        'right_wrist': (-6.056, -3.63),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (13.896, -5.63, 9.49), 'spine_thoracic': (-5.723, -8.883, 9.829),
-        'neck': (33.066, -4.634, -43.871), 'right_clavicle': (12.972, 8.575),
-        'right_shoulder': (14.341, 45.01, -6.589), 'right_elbow': (43.684, 15.513),
-        'right_wrist': (-5.967, 13.465),
+        'spine_lumbar': (12.772, -5.683, 8.806), 'spine_thoracic': (-7.358, -8.851, 9.589),
+        'neck': (33.087, -3.981, -41.668), 'head': (13.202, -1.008),
+        'right_clavicle': (14.784, 8.096), 'right_shoulder': (16.802, 40.295, -3.38),
+        'right_elbow': (41.175, 17.204), 'right_wrist': (-6.358, 9.225),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (14.863, -11.415, 8.44), 'spine_thoracic': (-2.454, -10.0, 9.65),
-        'neck': (33.841, -4.714, -46.145), 'head': (13.531, -1.132),
-        'right_clavicle': (15.875, 9.167), 'right_shoulder': (9.098, 49.302, -4.584),
-        'right_elbow': (42.457, 19.59), 'right_wrist': (-6.451, 12.658),
+        'spine_lumbar': (14.092, -8.193, 8.173), 'spine_thoracic': (-5.995, -10.0, 9.733),
+        'neck': (33.488, -4.128, -43.166), 'head': (13.454, -1.026),
+        'right_clavicle': (20.093, 8.504), 'right_shoulder': (14.612, 43.233, 1.701),
+        'right_elbow': (40.685, 23.54), 'right_wrist': (-6.812, 10.069),
     })
     human.KeyJoints(24.7, {
-        'spine_lumbar': (10.475, -5.512, 9.089), 'spine_thoracic': (-6.212, -6.79, 9.133),
-        'neck': (32.562, -4.109, -40.928), 'head': (12.798, -1.063),
-        'right_clavicle': (9.63, 8.083), 'right_shoulder': (14.754, 41.739, -7.365),
-        'right_elbow': (44.914, 13.818), 'right_wrist': (-5.808, 14.499),
+        'spine_lumbar': (9.431, -2.13, 8.843), 'spine_thoracic': (-8.913, -5.514, 9.203),
+        'neck': (32.126, -3.651, -38.406), 'head': (12.705, -1.032),
+        'right_clavicle': (14.827, 6.951), 'right_shoulder': (18.517, 36.231, -1.109),
+        'right_elbow': (42.848, 16.944), 'right_wrist': (-5.261, 11.752),
     })
     human.KeyJoints(24.8, {
-        'spine_lumbar': (11.299, -1.469, 10.801), 'spine_thoracic': (-10.003, -2.231, 10.042),
-        'neck': (32.403, -4.559, -41.916), 'head': (12.43, -1.092), 'right_clavicle': (5.897, 8.51),
-        'right_shoulder': (20.921, 38.874, -12.742), 'right_elbow': (44.383, 7.212),
-        'right_wrist': (-6.039, 11.248),
+        'spine_lumbar': (10.957, 0.012, 10.845), 'spine_thoracic': (-10.657, -2.034, 10.151),
+        'neck': (32.221, -4.438, -41.072), 'head': (12.35, -1.082), 'right_clavicle': (7.79, 7.863),
+        'right_shoulder': (21.951, 36.955, -10.586), 'right_elbow': (43.57, 8.176),
+        'right_wrist': (-5.44, 10.579),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
-        'spine_lumbar': (11.354, -1.45, 10.816), 'spine_thoracic': (-10.01, -2.247, 10.059),
-        'neck': (32.407, -4.571, -41.96), 'head': (12.427, -1.093),
-        'right_clavicle': (5.934, 8.521), 'right_shoulder': (20.939, 38.919, -12.75),
-        'right_elbow': (44.372, 7.217), 'right_wrist': (-6.042, 11.238),
+        'spine_lumbar': (11.352, -1.435, 10.815), 'spine_thoracic': (-10.016, -2.251, 10.059),
+        'neck': (32.404, -4.569, -41.948), 'right_clavicle': (5.95, 8.517),
+        'right_shoulder': (20.947, 38.899, -12.728), 'right_elbow': (44.364, 7.227),
+        'right_wrist': (-6.038, 11.232),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (12.909, -3.315, 10.134), 'spine_thoracic': (-7.733, -5.746, 9.966),
-        'neck': (32.622, -4.718, -42.978), 'head': (12.524, -1.107),
-        'right_clavicle': (9.786, 8.527), 'right_shoulder': (17.467, 42.562, -9.51),
-        'right_elbow': (44.343, 11.759), 'right_wrist': (-5.966, 13.08),
+        'spine_lumbar': (12.635, -1.528, 9.867), 'spine_thoracic': (-9.069, -6.017, 9.924),
+        'neck': (32.35, -4.398, -41.284), 'head': (12.476, -1.082),
+        'right_clavicle': (11.707, 8.142), 'right_shoulder': (19.381, 39.738, -6.648),
+        'right_elbow': (43.389, 13.331), 'right_wrist': (-5.971, 12.013),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (14.803, -10.332, 8.628), 'spine_thoracic': (-2.948, -10.0, 9.648),
-        'neck': (33.703, -4.725, -45.818), 'head': (13.411, -1.129),
-        'right_clavicle': (14.962, 9.034), 'right_shoulder': (9.926, 48.844, -5.432),
-        'right_elbow': (42.878, 18.652), 'right_wrist': (-6.456, 13.204),
+        'spine_lumbar': (14.084, -7.227, 8.288), 'spine_thoracic': (-6.303, -10.0, 9.687),
+        'neck': (33.312, -4.155, -42.83), 'head': (13.311, -1.034),
+        'right_clavicle': (18.994, 8.487), 'right_shoulder': (15.046, 43.091, 0.607),
+        'right_elbow': (41.207, 22.346), 'right_wrist': (-6.782, 10.691),
     })
     human.KeyJoints(25.2, {
-        'spine_lumbar': (13.451, -11.107, 8.381), 'spine_thoracic': (-2.556, -10.0, 9.428),
-        'neck': (33.605, -4.453, -44.703), 'head': (13.469, -1.105),
-        'right_clavicle': (14.485, 8.932), 'right_shoulder': (9.233, 47.863, -4.664),
-        'right_elbow': (43.153, 19.056), 'right_wrist': (-6.367, 13.524),
+        'spine_lumbar': (12.517, -7.561, 8.083), 'spine_thoracic': (-6.294, -9.693, 9.493),
+        'neck': (33.263, -3.84, -41.562), 'head': (13.37, -0.971),
+        'right_clavicle': (19.389, 8.188), 'right_shoulder': (14.867, 41.363, 2.215),
+        'right_elbow': (41.224, 23.068), 'right_wrist': (-6.465, 10.556),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (10.569, -1.923, 10.485), 'spine_thoracic': (-9.663, -2.363, 9.762),
-        'neck': (32.359, -4.395, -41.288), 'head': (12.482, -1.08),
-        'right_clavicle': (5.737, 8.331), 'right_shoulder': (20.286, 38.609, -12.28),
-        'right_elbow': (44.596, 7.617), 'right_wrist': (-5.986, 11.673),
+        'spine_lumbar': (9.791, 1.23, 10.544), 'spine_thoracic': (-11.096, -1.883, 9.942),
+        'neck': (31.99, -4.105, -39.449), 'head': (12.347, -1.058),
+        'right_clavicle': (9.886, 6.931), 'right_shoulder': (22.48, 34.245, -7.456),
+        'right_elbow': (42.847, 9.769), 'right_wrist': (-4.719, 10.118),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(25.5, {
-        'spine_lumbar': (11.888, -1.947, 10.611), 'spine_thoracic': (-9.287, -3.342, 10.046),
-        'neck': (32.44, -4.642, -42.271), 'head': (12.416, -1.099),
-        'right_clavicle': (7.177, 8.533), 'right_shoulder': (19.849, 40.147, -11.713),
-        'right_elbow': (44.432, 8.685), 'right_wrist': (-6.012, 11.958),
+        'spine_lumbar': (11.69, -0.716, 10.488), 'spine_thoracic': (-9.998, -3.618, 10.031),
+        'neck': (32.277, -4.44, -41.224), 'head': (12.394, -1.083), 'right_clavicle': (8.432, 8.24),
+        'right_shoulder': (20.872, 38.416, -9.915), 'right_elbow': (43.832, 9.566),
+        'right_wrist': (-5.765, 11.369),
     })
     human.KeyJoints(25.6, {
-        'spine_lumbar': (14.32, -6.884, 9.184), 'spine_thoracic': (-4.834, -9.868, 9.736),
-        'neck': (33.272, -4.618, -44.355), 'head': (13.109, -1.112),
-        'right_clavicle': (13.345, 8.714), 'right_shoulder': (12.992, 46.235, -6.324),
-        'right_elbow': (43.59, 16.367), 'right_wrist': (-6.088, 13.559),
+        'spine_lumbar': (13.707, -4.558, 8.838), 'spine_thoracic': (-7.357, -9.206, 9.764),
+        'neck': (32.857, -4.229, -42.035), 'right_clavicle': (16.625, 8.261),
+        'right_shoulder': (16.681, 41.909, -1.764), 'right_elbow': (42.149, 19.258),
+        'right_wrist': (-6.46, 11.664),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (14.863, -11.442, 8.434), 'spine_thoracic': (-2.444, -10.0, 9.651),
-        'neck': (33.844, -4.713, -46.15), 'head': (13.534, -1.132),
-        'right_clavicle': (15.907, 9.171), 'right_shoulder': (9.08, 49.306, -4.552),
-        'right_elbow': (42.443, 19.62), 'right_wrist': (-6.451, 12.637),
+        'spine_lumbar': (14.092, -8.221, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
+        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
+        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
+        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
     })
     human.KeyJoints(25.8, {
-        'spine_lumbar': (10.071, -4.182, 9.442), 'spine_thoracic': (-7.425, -5.008, 9.19),
-        'neck': (32.385, -4.15, -40.598), 'head': (12.634, -1.063),
-        'right_clavicle': (7.884, 8.044), 'right_shoulder': (16.636, 40.303, -9.081),
-        'right_elbow': (45.068, 11.558), 'right_wrist': (-5.822, 13.876),
+        'spine_lumbar': (9.052, -0.551, 9.301), 'spine_thoracic': (-9.802, -4.008, 9.291),
+        'neck': (31.956, -3.708, -38.145), 'head': (12.539, -1.033),
+        'right_clavicle': (13.125, 6.689), 'right_shoulder': (19.981, 34.83, -2.887),
+        'right_elbow': (42.938, 14.484), 'right_wrist': (-4.909, 11.326),
     })
     human.KeyJoints(25.9, {
-        'spine_lumbar': (11.339, -1.451, 10.814), 'spine_thoracic': (-10.013, -2.234, 10.055),
-        'neck': (32.405, -4.568, -41.949), 'head': (12.427, -1.093),
-        'right_clavicle': (5.919, 8.518), 'right_shoulder': (20.942, 38.901, -12.755),
-        'right_elbow': (44.373, 7.207), 'right_wrist': (-6.042, 11.235),
+        'spine_lumbar': (11.184, -0.74, 10.837), 'spine_thoracic': (-10.328, -2.142, 10.112),
+        'neck': (32.318, -4.513, -41.553), 'head': (12.386, -1.088),
+        'right_clavicle': (6.823, 8.211), 'right_shoulder': (21.441, 37.989, -11.733),
+        'right_elbow': (43.983, 7.661), 'right_wrist': (-5.755, 10.914),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.0, {
-        'spine_lumbar': (11.39, -1.48, 10.803), 'spine_thoracic': (-9.962, -2.318, 10.059),
-        'neck': (32.408, -4.576, -41.979), 'head': (12.425, -1.094),
-        'right_clavicle': (6.016, 8.522), 'right_shoulder': (20.868, 39.0, -12.682),
-        'right_elbow': (44.378, 7.313), 'right_wrist': (-6.04, 11.288),
+        'spine_lumbar': (11.367, -1.334, 10.792), 'spine_thoracic': (-10.023, -2.351, 10.058),
+        'neck': (32.387, -4.558, -41.869), 'head': (12.418, -1.092),
+        'right_clavicle': (6.156, 8.488), 'right_shoulder': (20.947, 38.815, -12.483),
+        'right_elbow': (44.31, 7.406), 'right_wrist': (-6.0, 11.233),
     })
     human.KeyJoints(26.1, {
-        'spine_lumbar': (13.271, -4.0, 9.927), 'spine_thoracic': (-7.082, -6.756, 9.921),
-        'neck': (32.741, -4.715, -43.277), 'head': (12.622, -1.109),
-        'right_clavicle': (10.829, 8.528), 'right_shoulder': (16.458, 43.451, -8.598),
-        'right_elbow': (44.205, 12.996), 'right_wrist': (-5.96, 13.346),
+        'spine_lumbar': (12.951, -2.068, 9.614), 'spine_thoracic': (-8.673, -6.941, 9.885),
+        'neck': (32.435, -4.362, -41.39), 'head': (12.564, -1.081), 'right_clavicle': (13.0, 8.134),
+        'right_shoulder': (18.752, 40.271, -5.367), 'right_elbow': (43.138, 14.84),
+        'right_wrist': (-6.076, 12.085),
     })
     human.KeyJoints(26.2, {
-        'spine_lumbar': (14.846, -10.942, 8.528), 'spine_thoracic': (-2.653, -10.0, 9.649),
-        'neck': (33.782, -4.725, -46.024), 'head': (13.476, -1.131),
-        'right_clavicle': (15.385, 9.105), 'right_shoulder': (9.44, 49.152, -5.088),
-        'right_elbow': (42.673, 19.124), 'right_wrist': (-6.455, 12.975),
+        'spine_lumbar': (14.09, -7.746, 8.219), 'spine_thoracic': (-6.132, -10.0, 9.704),
+        'neck': (33.402, -4.142, -43.004), 'head': (13.383, -1.03), 'right_clavicle': (19.55, 8.5),
+        'right_shoulder': (14.8, 43.191, 1.161), 'right_elbow': (40.947, 22.971),
+        'right_wrist': (-6.804, 10.383),
     })
     human.KeyJoints(26.3, {
-        'spine_lumbar': (12.313, -9.173, 8.513), 'spine_thoracic': (-3.653, -9.942, 9.286),
-        'neck': (33.305, -4.207, -42.999), 'head': (13.288, -1.044),
-        'right_clavicle': (13.317, 8.589), 'right_shoulder': (10.886, 45.534, -4.65),
-        'right_elbow': (43.797, 17.979), 'right_wrist': (-6.017, 14.048),
+        'spine_lumbar': (11.343, -6.074, 8.195), 'spine_thoracic': (-6.972, -8.692, 9.337),
+        'neck': (32.864, -3.722, -40.316), 'head': (13.169, -0.993),
+        'right_clavicle': (18.22, 7.82), 'right_shoulder': (15.707, 39.807, 1.661),
+        'right_elbow': (41.894, 21.627), 'right_wrist': (-6.124, 11.245),
     })
     human.KeyJoints(26.4, {
-        'spine_lumbar': (10.927, -1.652, 10.665), 'spine_thoracic': (-9.887, -2.237, 9.911),
-        'neck': (32.382, -4.477, -41.605), 'head': (12.457, -1.086),
-        'right_clavicle': (5.716, 8.425), 'right_shoulder': (20.689, 38.63, -12.589),
-        'right_elbow': (44.476, 7.317), 'right_wrist': (-6.016, 11.4),
+        'spine_lumbar': (10.264, 1.123, 10.735), 'spine_thoracic': (-11.111, -1.825, 10.08),
+        'neck': (32.046, -4.237, -40.0), 'head': (12.319, -1.067), 'right_clavicle': (9.236, 7.22),
+        'right_shoulder': (22.564, 35.032, -8.548), 'right_elbow': (42.975, 9.103),
+        'right_wrist': (-4.906, 10.097),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.5, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(26.6, {
-        'spine_lumbar': (12.189, -2.285, 10.483), 'spine_thoracic': (-8.858, -4.0, 10.029),
-        'neck': (32.476, -4.674, -42.463), 'head': (12.428, -1.102),
-        'right_clavicle': (7.908, 8.535), 'right_shoulder': (19.197, 40.848, -11.103),
-        'right_elbow': (44.441, 9.546), 'right_wrist': (-5.996, 12.331),
-    })
-    human.KeyJoints(26.7, {
-        'spine_lumbar': (14.507, -8.065, 8.939), 'spine_thoracic': (-4.212, -10.0, 9.695),
-        'neck': (33.415, -4.643, -44.809), 'head': (13.214, -1.116),
-        'right_clavicle': (14.108, 8.829), 'right_shoulder': (11.946, 47.114, -5.685),
-        'right_elbow': (43.36, 17.361), 'right_wrist': (-6.169, 13.377),
-    })
-    human.KeyJoints(26.8, {
-        'spine_lumbar': (14.785, -11.484, 8.423), 'spine_thoracic': (-2.422, -10.0, 9.639),
-        'neck': (33.838, -4.698, -46.087), 'head': (13.537, -1.13),
-        'right_clavicle': (15.865, 9.165), 'right_shoulder': (9.043, 49.252, -4.525),
-        'right_elbow': (42.463, 19.633), 'right_wrist': (-6.447, 12.664),
-    })
-    human.KeyJoints(26.9, {
-        'spine_lumbar': (9.99, -3.152, 9.833), 'spine_thoracic': (-8.447, -3.652, 9.353),
-        'neck': (32.328, -4.21, -40.637), 'head': (12.556, -1.067),
-        'right_clavicle': (6.625, 8.104), 'right_shoulder': (18.263, 39.246, -10.549),
-        'right_elbow': (44.967, 9.674), 'right_wrist': (-5.877, 12.996),
-    })
-    human.KeyJoints(27.0, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.238, 10.059),
         'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
         'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
+    human.KeyJoints(26.6, {
+        'spine_lumbar': (11.98, -0.861, 10.315), 'spine_thoracic': (-9.729, -4.292, 9.999),
+        'neck': (32.271, -4.442, -41.215), 'head': (12.388, -1.084),
+        'right_clavicle': (9.352, 8.201), 'right_shoulder': (20.436, 38.792, -8.99),
+        'right_elbow': (43.729, 10.619), 'right_wrist': (-5.809, 11.616),
+    })
+    human.KeyJoints(26.7, {
+        'spine_lumbar': (13.881, -5.532, 8.613), 'spine_thoracic': (-6.942, -9.646, 9.727),
+        'neck': (33.032, -4.195, -42.315), 'head': (13.094, -1.052),
+        'right_clavicle': (17.563, 8.344), 'right_shoulder': (16.035, 42.394, -0.823),
+        'right_elbow': (41.807, 20.479), 'right_wrist': (-6.59, 11.354),
+    })
+    human.KeyJoints(26.8, {
+        'spine_lumbar': (13.982, -8.194, 8.176), 'spine_thoracic': (-6.001, -10.0, 9.738),
+        'neck': (33.495, -4.104, -43.091), 'head': (13.464, -1.02),
+        'right_clavicle': (20.193, 8.47), 'right_shoulder': (14.628, 43.067, 1.878),
+        'right_elbow': (40.642, 23.626), 'right_wrist': (-6.773, 10.014),
+    })
+    human.KeyJoints(26.9, {
+        'spine_lumbar': (9.033, 0.555, 9.781), 'spine_thoracic': (-10.5, -2.861, 9.485),
+        'neck': (31.899, -3.811, -38.312), 'head': (12.437, -1.039),
+        'right_clavicle': (11.711, 6.608), 'right_shoulder': (21.218, 33.994, -4.625),
+        'right_elbow': (42.875, 12.376), 'right_wrist': (-4.689, 10.749),
+    })
+    human.KeyJoints(27.0, {
+        'spine_lumbar': (11.328, -1.346, 10.821), 'spine_thoracic': (-10.06, -2.225, 10.067),
+        'neck': (32.394, -4.563, -41.902), 'right_clavicle': (6.053, 8.477),
+        'right_shoulder': (21.018, 38.779, -12.613), 'right_elbow': (44.315, 7.27),
+        'right_wrist': (-6.001, 11.186),
+    })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
-        'spine_lumbar': (11.483, -1.559, 10.769), 'spine_thoracic': (-9.839, -2.504, 10.057),
-        'neck': (32.412, -4.589, -42.031), 'head': (12.421, -1.095),
-        'right_clavicle': (6.229, 8.526), 'right_shoulder': (20.682, 39.214, -12.504),
-        'right_elbow': (44.392, 7.566), 'right_wrist': (-6.034, 11.418),
+        'spine_lumbar': (11.412, -1.09, 10.733), 'spine_thoracic': (-10.035, -2.606, 10.055),
+        'neck': (32.343, -4.532, -41.676), 'head': (12.396, -1.09),
+        'right_clavicle': (6.675, 8.414), 'right_shoulder': (20.947, 38.624, -11.871),
+        'right_elbow': (44.177, 7.86), 'right_wrist': (-5.908, 11.241),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (13.608, -4.784, 9.707), 'spine_thoracic': (-6.402, -7.808, 9.873),
-        'neck': (32.89, -4.689, -43.584), 'head': (12.757, -1.11),
-        'right_clavicle': (11.877, 8.542), 'right_shoulder': (15.399, 44.291, -7.651),
-        'right_elbow': (43.998, 14.251), 'right_wrist': (-5.96, 13.483),
+        'spine_lumbar': (13.238, -2.761, 9.352), 'spine_thoracic': (-8.247, -7.819, 9.844),
+        'neck': (32.55, -4.318, -41.551), 'head': (12.68, -1.079),
+        'right_clavicle': (14.292, 8.148), 'right_shoulder': (18.08, 40.818, -4.087),
+        'right_elbow': (42.837, 16.371), 'right_wrist': (-6.194, 12.063),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (14.86, -11.275, 8.467), 'spine_thoracic': (-2.509, -10.0, 9.65),
-        'neck': (33.823, -4.719, -46.114), 'head': (13.514, -1.132),
-        'right_clavicle': (15.714, 9.148), 'right_shoulder': (9.194, 49.271, -4.75),
-        'right_elbow': (42.527, 19.44), 'right_wrist': (-6.453, 12.762),
+        'spine_lumbar': (14.091, -8.055, 8.186), 'spine_thoracic': (-6.036, -10.0, 9.723),
+        'neck': (33.461, -4.132, -43.115), 'head': (13.431, -1.027),
+        'right_clavicle': (19.919, 8.504), 'right_shoulder': (14.667, 43.226, 1.529),
+        'right_elbow': (40.769, 23.361), 'right_wrist': (-6.811, 10.169),
     })
     human.KeyJoints(27.4, {
-        'spine_lumbar': (11.223, -7.045, 8.82), 'spine_thoracic': (-4.94, -8.956, 9.184),
-        'neck': (32.936, -4.067, -41.619), 'head': (13.065, -1.03),
-        'right_clavicle': (11.696, 8.237), 'right_shoulder': (12.851, 43.271, -5.507),
-        'right_elbow': (44.384, 16.185), 'right_wrist': (-5.831, 14.431),
+        'spine_lumbar': (10.246, -4.104, 8.457), 'spine_thoracic': (-7.905, -7.202, 9.23),
+        'neck': (32.425, -3.654, -39.183), 'head': (12.94, -1.035),
+        'right_clavicle': (16.638, 7.369), 'right_shoulder': (16.994, 38.016, 0.506),
+        'right_elbow': (42.501, 19.486), 'right_wrist': (-5.7, 11.7),
     })
     human.KeyJoints(27.5, {
-        'spine_lumbar': (11.2, -1.513, 10.767), 'spine_thoracic': (-9.977, -2.231, 10.008),
-        'neck': (32.398, -4.537, -41.834), 'head': (12.438, -1.091),
-        'right_clavicle': (5.841, 8.488), 'right_shoulder': (20.868, 38.801, -12.709),
-        'right_elbow': (44.406, 7.231), 'right_wrist': (-6.034, 11.283),
+        'spine_lumbar': (10.648, 0.646, 10.833), 'spine_thoracic': (-10.921, -1.924, 10.149),
+        'neck': (32.136, -4.348, -40.573), 'head': (12.33, -1.075), 'right_clavicle': (8.612, 7.52),
+        'right_shoulder': (22.32, 35.932, -9.487), 'right_elbow': (43.229, 8.673),
+        'right_wrist': (-5.147, 10.302),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(27.7, {
-        'spine_lumbar': (12.535, -2.736, 10.324), 'spine_thoracic': (-8.338, -4.805, 10.003),
-        'neck': (32.534, -4.702, -42.7), 'head': (12.46, -1.105), 'right_clavicle': (8.785, 8.531),
-        'right_shoulder': (18.401, 41.666, -10.365), 'right_elbow': (44.417, 10.578),
-        'right_wrist': (-5.979, 12.72),
-    })
-    human.KeyJoints(27.8, {
-        'spine_lumbar': (14.664, -9.259, 8.767), 'spine_thoracic': (-3.56, -10.0, 9.667),
-        'neck': (33.565, -4.686, -45.336), 'head': (13.316, -1.123),
-        'right_clavicle': (14.673, 8.928), 'right_shoulder': (10.884, 48.033, -5.445),
-        'right_elbow': (43.077, 18.129), 'right_wrist': (-6.32, 13.248),
-    })
-    human.KeyJoints(27.9, {
-        'spine_lumbar': (14.32, -11.612, 8.377), 'spine_thoracic': (-2.346, -10.0, 9.568),
-        'neck': (33.789, -4.61, -45.677), 'head': (13.541, -1.122),
-        'right_clavicle': (15.534, 9.116), 'right_shoulder': (8.914, 48.886, -4.451),
-        'right_elbow': (42.623, 19.628), 'right_wrist': (-6.427, 12.877),
-    })
-    human.KeyJoints(28.0, {
-        'spine_lumbar': (10.205, -2.41, 10.198), 'spine_thoracic': (-9.2, -2.785, 9.56),
-        'neck': (32.333, -4.298, -40.92), 'head': (12.513, -1.073),
-        'right_clavicle': (5.913, 8.212), 'right_shoulder': (19.497, 38.664, -11.628),
-        'right_elbow': (44.776, 8.351), 'right_wrist': (-5.937, 12.206),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(28.1, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(28.2, {
-        'spine_lumbar': (11.647, -1.708, 10.707), 'spine_thoracic': (-9.618, -2.838, 10.054),
-        'neck': (32.421, -4.612, -42.126), 'head': (12.416, -1.096),
-        'right_clavicle': (6.609, 8.531), 'right_shoulder': (20.35, 39.59, -12.188),
-        'right_elbow': (44.414, 8.014), 'right_wrist': (-6.025, 11.642),
-    })
-    human.KeyJoints(28.3, {
-        'spine_lumbar': (13.892, -5.616, 9.493), 'spine_thoracic': (-5.734, -8.866, 9.83),
-        'neck': (33.063, -4.635, -43.866), 'right_clavicle': (12.954, 8.574),
-        'right_shoulder': (14.358, 44.999, -6.607), 'right_elbow': (43.69, 15.493),
-        'right_wrist': (-5.966, 13.467),
-    })
-    human.KeyJoints(28.4, {
-        'spine_lumbar': (14.863, -11.414, 8.44), 'spine_thoracic': (-2.454, -10.0, 9.65),
-        'neck': (33.84, -4.714, -46.145), 'head': (13.531, -1.132),
-        'right_clavicle': (15.873, 9.167), 'right_shoulder': (9.098, 49.302, -4.586),
-        'right_elbow': (42.458, 19.589), 'right_wrist': (-6.451, 12.659),
-    })
-    human.KeyJoints(28.5, {
-        'spine_lumbar': (10.485, -5.536, 9.084), 'spine_thoracic': (-6.19, -6.822, 9.133),
-        'neck': (32.566, -4.109, -40.937), 'head': (12.801, -1.063),
-        'right_clavicle': (9.663, 8.085), 'right_shoulder': (14.721, 41.765, -7.335),
-        'right_elbow': (44.909, 13.858), 'right_wrist': (-5.808, 14.504),
-    })
-    human.KeyJoints(28.6, {
-        'spine_lumbar': (11.298, -1.469, 10.8), 'spine_thoracic': (-10.003, -2.231, 10.041),
-        'neck': (32.403, -4.559, -41.915), 'head': (12.43, -1.092),
-        'right_clavicle': (5.897, 8.509), 'right_shoulder': (20.921, 38.874, -12.742),
-        'right_elbow': (44.383, 7.213), 'right_wrist': (-6.039, 11.249),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(28.7, {
-        'spine_lumbar': (11.354, -1.45, 10.816), 'spine_thoracic': (-10.01, -2.247, 10.059),
-        'neck': (32.407, -4.571, -41.96), 'right_clavicle': (5.934, 8.521),
-        'right_shoulder': (20.939, 38.918, -12.75), 'right_elbow': (44.372, 7.216),
-        'right_wrist': (-6.042, 11.237),
-    })
-    human.KeyJoints(28.8, {
-        'spine_lumbar': (12.902, -3.304, 10.137), 'spine_thoracic': (-7.743, -5.729, 9.967),
-        'neck': (32.62, -4.718, -42.974), 'head': (12.522, -1.107),
-        'right_clavicle': (9.768, 8.527), 'right_shoulder': (17.484, 42.547, -9.525),
-        'right_elbow': (44.344, 11.738), 'right_wrist': (-5.966, 13.074),
-    })
-    human.KeyJoints(28.9, {
-        'spine_lumbar': (14.802, -10.318, 8.63), 'spine_thoracic': (-2.954, -10.0, 9.648),
-        'neck': (33.702, -4.724, -45.813), 'head': (13.41, -1.129),
-        'right_clavicle': (14.956, 9.033), 'right_shoulder': (9.937, 48.837, -5.435),
-        'right_elbow': (42.881, 18.643), 'right_wrist': (-6.456, 13.206),
-    })
-    human.KeyJoints(29.0, {
-        'spine_lumbar': (13.468, -11.129, 8.38), 'spine_thoracic': (-2.545, -10.0, 9.43),
-        'neck': (33.61, -4.457, -44.726), 'head': (13.471, -1.105),
-        'right_clavicle': (14.502, 8.936), 'right_shoulder': (9.216, 47.894, -4.666),
-        'right_elbow': (43.142, 19.069), 'right_wrist': (-6.371, 13.514),
-    })
-    human.KeyJoints(29.1, {
-        'spine_lumbar': (10.562, -1.929, 10.48), 'spine_thoracic': (-9.657, -2.368, 9.758),
-        'neck': (32.358, -4.393, -41.282), 'head': (12.482, -1.08),
-        'right_clavicle': (5.738, 8.329), 'right_shoulder': (20.275, 38.609, -12.272),
-        'right_elbow': (44.598, 7.626), 'right_wrist': (-5.985, 11.68),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(29.2, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(29.3, {
-        'spine_lumbar': (11.883, -1.942, 10.613), 'spine_thoracic': (-9.293, -3.333, 10.046),
-        'neck': (32.44, -4.642, -42.268), 'head': (12.416, -1.099),
-        'right_clavicle': (7.166, 8.533), 'right_shoulder': (19.859, 40.136, -11.723),
-        'right_elbow': (44.432, 8.672), 'right_wrist': (-6.012, 11.953),
-    })
-    human.KeyJoints(29.4, {
-        'spine_lumbar': (14.312, -6.858, 9.19), 'spine_thoracic': (-4.851, -9.856, 9.738),
-        'neck': (33.268, -4.617, -44.344), 'head': (13.106, -1.112),
-        'right_clavicle': (13.343, 8.711), 'right_shoulder': (13.018, 46.208, -6.325),
-        'right_elbow': (43.591, 16.356), 'right_wrist': (-6.084, 13.555),
-    })
-    human.KeyJoints(29.5, {
-        'spine_lumbar': (14.863, -11.442, 8.434), 'spine_thoracic': (-2.444, -10.0, 9.651),
-        'neck': (33.844, -4.713, -46.15), 'head': (13.534, -1.132),
-        'right_clavicle': (15.907, 9.171), 'right_shoulder': (9.08, 49.306, -4.552),
-        'right_elbow': (42.443, 19.62), 'right_wrist': (-6.451, 12.637),
-    })
-    human.KeyJoints(29.6, {
-        'spine_lumbar': (10.073, -4.201, 9.436), 'spine_thoracic': (-7.406, -5.034, 9.188),
-        'neck': (32.387, -4.149, -40.599), 'head': (12.637, -1.063),
-        'right_clavicle': (7.91, 8.043), 'right_shoulder': (16.606, 40.324, -9.054),
-        'right_elbow': (45.069, 11.593), 'right_wrist': (-5.822, 13.888),
-    })
-    human.KeyJoints(29.7, {
-        'spine_lumbar': (11.339, -1.452, 10.814), 'spine_thoracic': (-10.013, -2.234, 10.055),
-        'neck': (32.405, -4.568, -41.949), 'head': (12.427, -1.093),
-        'right_clavicle': (5.918, 8.518), 'right_shoulder': (20.941, 38.901, -12.755),
-        'right_elbow': (44.373, 7.207), 'right_wrist': (-6.042, 11.235),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(29.8, {
-        'spine_lumbar': (11.389, -1.479, 10.804), 'spine_thoracic': (-9.964, -2.316, 10.059),
-        'neck': (32.408, -4.576, -41.979), 'head': (12.425, -1.094),
-        'right_clavicle': (6.013, 8.522), 'right_shoulder': (20.87, 38.998, -12.684),
-        'right_elbow': (44.377, 7.311), 'right_wrist': (-6.04, 11.287),
-    })
-    human.KeyJoints(29.9, {
-        'spine_lumbar': (13.265, -3.987, 9.93), 'spine_thoracic': (-7.094, -6.739, 9.922),
-        'neck': (32.738, -4.715, -43.272), 'head': (12.62, -1.109),
-        'right_clavicle': (10.811, 8.527), 'right_shoulder': (16.476, 43.436, -8.614),
-        'right_elbow': (44.208, 12.975), 'right_wrist': (-5.96, 13.343),
-    })
-    human.KeyJoints(30.0, {
-        'spine_lumbar': (14.846, -10.934, 8.529), 'spine_thoracic': (-2.656, -10.0, 9.649),
-        'neck': (33.781, -4.725, -46.021), 'head': (13.476, -1.131),
-        'right_clavicle': (15.378, 9.104), 'right_shoulder': (9.446, 49.148, -5.094),
-        'right_elbow': (42.676, 19.117), 'right_wrist': (-6.455, 12.979),
-    })
-    human.KeyJoints(30.1, {
-        'spine_lumbar': (12.333, -9.211, 8.509), 'spine_thoracic': (-3.633, -9.949, 9.288),
-        'neck': (33.311, -4.21, -43.027), 'head': (13.292, -1.045),
-        'right_clavicle': (13.34, 8.596), 'right_shoulder': (10.854, 45.578, -4.644),
-        'right_elbow': (43.787, 18.003), 'right_wrist': (-6.022, 14.039),
-    })
-    human.KeyJoints(30.2, {
-        'spine_lumbar': (10.922, -1.655, 10.663), 'spine_thoracic': (-9.885, -2.237, 9.909),
-        'neck': (32.382, -4.476, -41.601), 'head': (12.457, -1.086),
-        'right_clavicle': (5.714, 8.423), 'right_shoulder': (20.685, 38.628, -12.586),
-        'right_elbow': (44.477, 7.319), 'right_wrist': (-6.016, 11.403),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(30.3, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
-    })
-    human.KeyJoints(30.4, {
-        'spine_lumbar': (12.184, -2.278, 10.486), 'spine_thoracic': (-8.866, -3.988, 10.03),
-        'neck': (32.475, -4.674, -42.459), 'head': (12.427, -1.102),
-        'right_clavicle': (7.895, 8.535), 'right_shoulder': (19.21, 40.836, -11.114),
-        'right_elbow': (44.441, 9.53), 'right_wrist': (-5.996, 12.324),
-    })
-    human.KeyJoints(30.5, {
-        'spine_lumbar': (14.505, -8.048, 8.942), 'spine_thoracic': (-4.219, -10.0, 9.696),
-        'neck': (33.413, -4.643, -44.803), 'head': (13.212, -1.116),
-        'right_clavicle': (14.087, 8.828), 'right_shoulder': (11.96, 47.104, -5.702),
-        'right_elbow': (43.367, 17.342), 'right_wrist': (-6.169, 13.384),
-    })
-    human.KeyJoints(30.6, {
-        'spine_lumbar': (14.788, -11.482, 8.423), 'spine_thoracic': (-2.422, -10.0, 9.639),
-        'neck': (33.838, -4.699, -46.089), 'head': (13.537, -1.13),
-        'right_clavicle': (15.867, 9.166), 'right_shoulder': (9.044, 49.253, -4.526),
-        'right_elbow': (42.462, 19.633), 'right_wrist': (-6.448, 12.663),
-    })
-    human.KeyJoints(30.7, {
-        'spine_lumbar': (9.99, -3.166, 9.827), 'spine_thoracic': (-8.432, -3.669, 9.35),
-        'neck': (32.329, -4.209, -40.635), 'head': (12.557, -1.067),
-        'right_clavicle': (6.64, 8.103), 'right_shoulder': (18.24, 39.258, -10.528),
-        'right_elbow': (44.969, 9.7), 'right_wrist': (-5.876, 13.01),
-    })
-    human.KeyJoints(30.8, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.238, 10.059),
         'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
         'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
+    human.KeyJoints(27.7, {
+        'spine_lumbar': (12.3, -1.126, 10.106), 'spine_thoracic': (-9.429, -5.104, 9.964),
+        'neck': (32.296, -4.425, -41.227), 'head': (12.418, -1.083),
+        'right_clavicle': (10.458, 8.167), 'right_shoulder': (19.956, 39.229, -7.886),
+        'right_elbow': (43.586, 11.889), 'right_wrist': (-5.88, 11.839),
+    })
+    human.KeyJoints(27.8, {
+        'spine_lumbar': (14.022, -6.457, 8.421), 'spine_thoracic': (-6.58, -9.913, 9.697),
+        'neck': (33.188, -4.172, -42.593), 'head': (13.213, -1.041),
+        'right_clavicle': (18.332, 8.435), 'right_shoulder': (15.468, 42.827, -0.053),
+        'right_elbow': (41.496, 21.505), 'right_wrist': (-6.712, 11.025),
+    })
+    human.KeyJoints(27.9, {
+        'spine_lumbar': (13.48, -8.203, 8.11), 'spine_thoracic': (-6.011, -9.997, 9.651),
+        'neck': (33.464, -3.996, -42.598), 'head': (13.464, -0.993),
+        'right_clavicle': (20.059, 8.397), 'right_shoulder': (14.589, 42.511, 2.169),
+        'right_elbow': (40.765, 23.657), 'right_wrist': (-6.681, 10.095),
+    })
+    human.KeyJoints(28.0, {
+        'spine_lumbar': (9.324, 1.19, 10.216), 'spine_thoracic': (-10.962, -2.148, 9.723),
+        'neck': (31.912, -3.95, -38.771), 'head': (12.371, -1.048),
+        'right_clavicle': (10.664, 6.713), 'right_shoulder': (22.101, 33.949, -6.157),
+        'right_elbow': (42.815, 10.804), 'right_wrist': (-4.654, 10.276),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(28.1, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(28.2, {
+        'spine_lumbar': (11.508, -0.774, 10.632), 'spine_thoracic': (-10.043, -3.037, 10.048),
+        'neck': (32.286, -4.491, -41.401), 'head': (12.373, -1.087),
+        'right_clavicle': (7.498, 8.309), 'right_shoulder': (20.947, 38.403, -10.919),
+        'right_elbow': (43.981, 8.61), 'right_wrist': (-5.789, 11.272),
+    })
+    human.KeyJoints(28.3, {
+        'spine_lumbar': (13.49, -3.599, 9.091), 'spine_thoracic': (-7.805, -8.585, 9.804),
+        'neck': (32.69, -4.271, -41.769), 'head': (12.818, -1.078),
+        'right_clavicle': (15.513, 8.192), 'right_shoulder': (17.383, 41.368, -2.874),
+        'right_elbow': (42.502, 17.857), 'right_wrist': (-6.323, 11.912),
+    })
+    human.KeyJoints(28.4, {
+        'spine_lumbar': (14.092, -8.193, 8.173), 'spine_thoracic': (-5.995, -10.0, 9.733),
+        'neck': (33.488, -4.128, -43.166), 'head': (13.454, -1.026),
+        'right_clavicle': (20.091, 8.504), 'right_shoulder': (14.612, 43.233, 1.7),
+        'right_elbow': (40.685, 23.538), 'right_wrist': (-6.812, 10.068),
+    })
+    human.KeyJoints(28.5, {
+        'spine_lumbar': (9.442, -2.16, 8.836), 'spine_thoracic': (-8.897, -5.541, 9.203),
+        'neck': (32.13, -3.65, -38.415), 'head': (12.708, -1.032),
+        'right_clavicle': (14.857, 6.957), 'right_shoulder': (18.492, 36.259, -1.08),
+        'right_elbow': (42.845, 16.987), 'right_wrist': (-5.268, 11.756),
+    })
+    human.KeyJoints(28.6, {
+        'spine_lumbar': (10.953, 0.024, 10.845), 'spine_thoracic': (-10.662, -2.032, 10.151),
+        'neck': (32.22, -4.437, -41.063), 'head': (12.349, -1.082),
+        'right_clavicle': (7.806, 7.857), 'right_shoulder': (21.959, 36.938, -10.566),
+        'right_elbow': (43.564, 8.185), 'right_wrist': (-5.435, 10.574),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(28.7, {
+        'spine_lumbar': (11.352, -1.435, 10.815), 'spine_thoracic': (-10.016, -2.25, 10.059),
+        'neck': (32.404, -4.569, -41.948), 'right_clavicle': (5.948, 8.517),
+        'right_shoulder': (20.947, 38.899, -12.73), 'right_elbow': (44.365, 7.226),
+        'right_wrist': (-6.038, 11.232),
+    })
+    human.KeyJoints(28.8, {
+        'spine_lumbar': (12.629, -1.52, 9.871), 'spine_thoracic': (-9.076, -6.002, 9.925),
+        'neck': (32.349, -4.399, -41.283), 'head': (12.474, -1.082),
+        'right_clavicle': (11.685, 8.142), 'right_shoulder': (19.391, 39.729, -6.669),
+        'right_elbow': (43.392, 13.306), 'right_wrist': (-5.97, 12.01),
+    })
+    human.KeyJoints(28.9, {
+        'spine_lumbar': (14.084, -7.217, 8.289), 'spine_thoracic': (-6.306, -10.0, 9.687),
+        'neck': (33.31, -4.155, -42.827), 'head': (13.309, -1.034),
+        'right_clavicle': (18.983, 8.487), 'right_shoulder': (15.051, 43.089, 0.596),
+        'right_elbow': (41.212, 22.334), 'right_wrist': (-6.782, 10.697),
+    })
+    human.KeyJoints(29.0, {
+        'spine_lumbar': (12.535, -7.579, 8.083), 'spine_thoracic': (-6.286, -9.703, 9.496),
+        'neck': (33.268, -3.842, -41.581), 'head': (13.372, -0.971),
+        'right_clavicle': (19.404, 8.193), 'right_shoulder': (14.858, 41.386, 2.219),
+        'right_elbow': (41.214, 23.084), 'right_wrist': (-6.469, 10.545),
+    })
+    human.KeyJoints(29.1, {
+        'spine_lumbar': (9.782, 1.231, 10.539), 'spine_thoracic': (-11.095, -1.885, 9.939),
+        'neck': (31.989, -4.103, -39.438), 'head': (12.347, -1.058),
+        'right_clavicle': (9.897, 6.926), 'right_shoulder': (22.476, 34.233, -7.436),
+        'right_elbow': (42.845, 9.783), 'right_wrist': (-4.716, 10.119),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(29.2, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(29.3, {
+        'spine_lumbar': (11.686, -0.714, 10.491), 'spine_thoracic': (-10.001, -3.608, 10.031),
+        'neck': (32.277, -4.44, -41.225), 'head': (12.394, -1.083),
+        'right_clavicle': (8.417, 8.241), 'right_shoulder': (20.877, 38.412, -9.93),
+        'right_elbow': (43.834, 9.55), 'right_wrist': (-5.764, 11.365),
+    })
+    human.KeyJoints(29.4, {
+        'spine_lumbar': (13.704, -4.541, 8.842), 'spine_thoracic': (-7.364, -9.197, 9.764),
+        'neck': (32.854, -4.23, -42.03), 'right_clavicle': (16.608, 8.26),
+        'right_shoulder': (16.692, 41.9, -1.781), 'right_elbow': (42.154, 19.236),
+        'right_wrist': (-6.458, 11.669),
+    })
+    human.KeyJoints(29.5, {
+        'spine_lumbar': (14.092, -8.221, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
+        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
+        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
+        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
+    })
+    human.KeyJoints(29.6, {
+        'spine_lumbar': (9.053, -0.574, 9.293), 'spine_thoracic': (-9.789, -4.031, 9.289),
+        'neck': (31.958, -3.706, -38.144), 'head': (12.542, -1.033),
+        'right_clavicle': (13.151, 6.692), 'right_shoulder': (19.958, 34.849, -2.857),
+        'right_elbow': (42.938, 14.522), 'right_wrist': (-4.914, 11.334),
+    })
+    human.KeyJoints(29.7, {
+        'spine_lumbar': (11.181, -0.728, 10.837), 'spine_thoracic': (-10.334, -2.14, 10.113),
+        'neck': (32.316, -4.512, -41.546), 'head': (12.386, -1.088),
+        'right_clavicle': (6.838, 8.206), 'right_shoulder': (21.45, 37.973, -11.715),
+        'right_elbow': (43.976, 7.67), 'right_wrist': (-5.75, 10.909),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(29.8, {
+        'spine_lumbar': (11.367, -1.337, 10.793), 'spine_thoracic': (-10.022, -2.348, 10.058),
+        'neck': (32.387, -4.558, -41.872), 'head': (12.418, -1.092),
+        'right_clavicle': (6.15, 8.488), 'right_shoulder': (20.947, 38.817, -12.49),
+        'right_elbow': (44.312, 7.401), 'right_wrist': (-6.001, 11.232),
+    })
+    human.KeyJoints(29.9, {
+        'spine_lumbar': (12.946, -2.058, 9.618), 'spine_thoracic': (-8.68, -6.926, 9.885),
+        'neck': (32.433, -4.362, -41.387), 'head': (12.562, -1.081),
+        'right_clavicle': (12.978, 8.134), 'right_shoulder': (18.763, 40.261, -5.389),
+        'right_elbow': (43.143, 14.814), 'right_wrist': (-6.075, 12.085),
+    })
+    human.KeyJoints(30.0, {
+        'spine_lumbar': (14.09, -7.739, 8.22), 'spine_thoracic': (-6.134, -10.0, 9.703),
+        'neck': (33.401, -4.142, -43.002), 'head': (13.382, -1.03), 'right_clavicle': (19.542, 8.5),
+        'right_shoulder': (14.803, 43.19, 1.154), 'right_elbow': (40.951, 22.962),
+        'right_wrist': (-6.804, 10.388),
+    })
+    human.KeyJoints(30.1, {
+        'spine_lumbar': (11.363, -6.104, 8.192), 'spine_thoracic': (-6.958, -8.713, 9.339),
+        'neck': (32.871, -3.724, -40.337), 'head': (13.173, -0.992),
+        'right_clavicle': (18.244, 7.827), 'right_shoulder': (15.689, 39.835, 1.676),
+        'right_elbow': (41.883, 21.658), 'right_wrist': (-6.131, 11.233),
+    })
+    human.KeyJoints(30.2, {
+        'spine_lumbar': (10.257, 1.127, 10.733), 'spine_thoracic': (-11.113, -1.825, 10.079),
+        'neck': (32.044, -4.235, -39.991), 'head': (12.319, -1.067),
+        'right_clavicle': (9.246, 7.215), 'right_shoulder': (22.566, 35.019, -8.531),
+        'right_elbow': (42.972, 9.112), 'right_wrist': (-4.903, 10.096),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(30.3, {
+        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+    })
+    human.KeyJoints(30.4, {
+        'spine_lumbar': (11.975, -0.857, 10.319), 'spine_thoracic': (-9.733, -4.279, 10.0),
+        'neck': (32.271, -4.442, -41.215), 'head': (12.388, -1.084),
+        'right_clavicle': (9.334, 8.202), 'right_shoulder': (20.444, 38.786, -9.008),
+        'right_elbow': (43.731, 10.599), 'right_wrist': (-5.808, 11.613),
+    })
+    human.KeyJoints(30.5, {
+        'spine_lumbar': (13.879, -5.516, 8.617), 'spine_thoracic': (-6.949, -9.64, 9.728),
+        'neck': (33.029, -4.196, -42.31), 'head': (13.092, -1.053),
+        'right_clavicle': (17.549, 8.343), 'right_shoulder': (16.045, 42.386, -0.837),
+        'right_elbow': (41.812, 20.46), 'right_wrist': (-6.588, 11.36),
+    })
+    human.KeyJoints(30.6, {
+        'spine_lumbar': (13.985, -8.194, 8.176), 'spine_thoracic': (-6.001, -10.0, 9.738),
+        'neck': (33.495, -4.105, -43.093), 'head': (13.464, -1.02),
+        'right_clavicle': (20.193, 8.471), 'right_shoulder': (14.628, 43.072, 1.874),
+        'right_elbow': (40.642, 23.625), 'right_wrist': (-6.774, 10.014),
+    })
+    human.KeyJoints(30.7, {
+        'spine_lumbar': (9.033, 0.542, 9.774), 'spine_thoracic': (-10.491, -2.876, 9.481),
+        'neck': (31.899, -3.81, -38.307), 'head': (12.438, -1.039),
+        'right_clavicle': (11.731, 6.608), 'right_shoulder': (21.201, 33.998, -4.597),
+        'right_elbow': (42.876, 12.406), 'right_wrist': (-4.691, 10.758),
+    })
+    human.KeyJoints(30.8, {
+        'spine_lumbar': (11.326, -1.339, 10.822), 'spine_thoracic': (-10.063, -2.224, 10.068),
+        'neck': (32.393, -4.562, -41.898), 'right_clavicle': (6.062, 8.474),
+        'right_shoulder': (21.023, 38.77, -12.602), 'right_elbow': (44.312, 7.275),
+        'right_wrist': (-5.999, 11.183),
+    })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
-        'spine_lumbar': (11.481, -1.558, 10.77), 'spine_thoracic': (-9.842, -2.5, 10.057),
-        'neck': (32.411, -4.589, -42.03), 'head': (12.421, -1.095),
-        'right_clavicle': (6.224, 8.526), 'right_shoulder': (20.687, 39.209, -12.508),
-        'right_elbow': (44.392, 7.56), 'right_wrist': (-6.035, 11.415),
+        'spine_lumbar': (11.411, -1.096, 10.735), 'spine_thoracic': (-10.035, -2.6, 10.055),
+        'neck': (32.344, -4.533, -41.681), 'head': (12.397, -1.09),
+        'right_clavicle': (6.663, 8.416), 'right_shoulder': (20.947, 38.628, -11.885),
+        'right_elbow': (44.179, 7.849), 'right_wrist': (-5.91, 11.24),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (13.603, -4.771, 9.711), 'spine_thoracic': (-6.413, -7.79, 9.874),
-        'neck': (32.887, -4.69, -43.579), 'head': (12.755, -1.11),
-        'right_clavicle': (11.859, 8.541), 'right_shoulder': (15.417, 44.278, -7.667),
-        'right_elbow': (44.002, 14.23), 'right_wrist': (-5.96, 13.482),
+        'spine_lumbar': (13.233, -2.748, 9.356), 'spine_thoracic': (-8.254, -7.805, 9.845),
+        'neck': (32.548, -4.318, -41.548), 'head': (12.678, -1.079),
+        'right_clavicle': (14.271, 8.147), 'right_shoulder': (18.091, 40.809, -4.108),
+        'right_elbow': (42.842, 16.345), 'right_wrist': (-6.192, 12.064),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (14.86, -11.271, 8.468), 'spine_thoracic': (-2.51, -10.0, 9.65),
-        'neck': (33.823, -4.719, -46.113), 'head': (13.514, -1.132),
-        'right_clavicle': (15.71, 9.147), 'right_shoulder': (9.197, 49.27, -4.754),
-        'right_elbow': (42.529, 19.437), 'right_wrist': (-6.453, 12.765),
+        'spine_lumbar': (14.091, -8.052, 8.186), 'spine_thoracic': (-6.037, -10.0, 9.722),
+        'neck': (33.46, -4.133, -43.114), 'head': (13.431, -1.027),
+        'right_clavicle': (19.915, 8.504), 'right_shoulder': (14.669, 43.226, 1.524),
+        'right_elbow': (40.771, 23.356), 'right_wrist': (-6.811, 10.172),
     })
     human.KeyJoints(31.2, {
-        'spine_lumbar': (11.238, -7.073, 8.816), 'spine_thoracic': (-4.919, -8.987, 9.186),
-        'neck': (32.942, -4.067, -41.635), 'head': (13.07, -1.03),
-        'right_clavicle': (11.729, 8.241), 'right_shoulder': (12.82, 43.299, -5.482),
-        'right_elbow': (44.373, 16.221), 'right_wrist': (-5.832, 14.427),
+        'spine_lumbar': (10.263, -4.139, 8.452), 'spine_thoracic': (-7.889, -7.229, 9.231),
+        'neck': (32.43, -3.654, -39.2), 'head': (12.944, -1.035), 'right_clavicle': (16.668, 7.376),
+        'right_shoulder': (16.97, 38.047, 0.529), 'right_elbow': (42.493, 19.526),
+        'right_wrist': (-5.707, 11.697),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (11.197, -1.515, 10.766), 'spine_thoracic': (-9.976, -2.231, 10.007),
-        'neck': (32.398, -4.536, -41.831), 'head': (12.438, -1.091),
-        'right_clavicle': (5.84, 8.487), 'right_shoulder': (20.866, 38.799, -12.707),
-        'right_elbow': (44.407, 7.232), 'right_wrist': (-6.033, 11.284),
+        'spine_lumbar': (10.643, 0.656, 10.832), 'spine_thoracic': (-10.925, -1.922, 10.149),
+        'neck': (32.134, -4.346, -40.564), 'head': (12.33, -1.075),
+        'right_clavicle': (8.623, 7.515), 'right_shoulder': (22.326, 35.915, -9.471),
+        'right_elbow': (43.224, 8.68), 'right_wrist': (-5.143, 10.298),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(31.5, {
-        'spine_lumbar': (12.529, -2.727, 10.327), 'spine_thoracic': (-8.348, -4.79, 10.003),
-        'neck': (32.533, -4.702, -42.695), 'head': (12.459, -1.105),
-        'right_clavicle': (8.769, 8.531), 'right_shoulder': (18.416, 41.651, -10.379),
-        'right_elbow': (44.418, 10.559), 'right_wrist': (-5.98, 12.714),
+        'spine_lumbar': (12.294, -1.121, 10.11), 'spine_thoracic': (-9.435, -5.089, 9.964),
+        'neck': (32.296, -4.425, -41.227), 'head': (12.417, -1.083),
+        'right_clavicle': (10.439, 8.167), 'right_shoulder': (19.964, 39.221, -7.906),
+        'right_elbow': (43.588, 11.866), 'right_wrist': (-5.879, 11.836),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (14.661, -9.237, 8.77), 'spine_thoracic': (-3.573, -10.0, 9.667),
-        'neck': (33.563, -4.685, -45.325), 'head': (13.314, -1.123),
-        'right_clavicle': (14.669, 8.926), 'right_shoulder': (10.904, 48.013, -5.445),
-        'right_elbow': (43.081, 18.12), 'right_wrist': (-6.315, 13.249),
+        'spine_lumbar': (14.02, -6.442, 8.424), 'spine_thoracic': (-6.585, -9.909, 9.698),
+        'neck': (33.185, -4.172, -42.589), 'head': (13.211, -1.041),
+        'right_clavicle': (18.32, 8.433), 'right_shoulder': (15.477, 42.82, -0.064),
+        'right_elbow': (41.501, 21.489), 'right_wrist': (-6.71, 11.03),
     })
     human.KeyJoints(31.7, {
-        'spine_lumbar': (14.331, -11.613, 8.377), 'spine_thoracic': (-2.346, -10.0, 9.569),
-        'neck': (33.79, -4.612, -45.688), 'head': (13.541, -1.122),
-        'right_clavicle': (15.545, 9.118), 'right_shoulder': (8.913, 48.895, -4.448),
-        'right_elbow': (42.618, 19.631), 'right_wrist': (-6.428, 12.87),
+        'spine_lumbar': (13.492, -8.206, 8.111), 'spine_thoracic': (-6.01, -9.998, 9.653),
+        'neck': (33.465, -3.999, -42.61), 'head': (13.465, -0.994),
+        'right_clavicle': (20.065, 8.399), 'right_shoulder': (14.588, 42.525, 2.167),
+        'right_elbow': (40.761, 23.659), 'right_wrist': (-6.683, 10.091),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (10.199, -2.42, 10.192), 'spine_thoracic': (-9.19, -2.796, 9.556),
-        'neck': (32.332, -4.296, -40.914), 'head': (12.513, -1.073), 'right_clavicle': (5.92, 8.21),
-        'right_shoulder': (19.48, 38.669, -11.614), 'right_elbow': (44.78, 8.369),
-        'right_wrist': (-5.936, 12.218),
+        'spine_lumbar': (9.317, 1.184, 10.209), 'spine_thoracic': (-10.956, -2.156, 9.719),
+        'neck': (31.911, -3.947, -38.761), 'head': (12.372, -1.048),
+        'right_clavicle': (10.679, 6.71), 'right_shoulder': (22.09, 33.949, -6.133),
+        'right_elbow': (42.816, 10.826), 'right_wrist': (-4.654, 10.282),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(32.0, {
-        'spine_lumbar': (11.644, -1.705, 10.708), 'spine_thoracic': (-9.623, -2.831, 10.054),
-        'neck': (32.421, -4.612, -42.124), 'head': (12.416, -1.096),
-        'right_clavicle': (6.601, 8.53), 'right_shoulder': (20.357, 39.582, -12.194),
-        'right_elbow': (44.414, 8.005), 'right_wrist': (-6.025, 11.638),
+        'spine_lumbar': (11.506, -0.779, 10.634), 'spine_thoracic': (-10.043, -3.029, 10.048),
+        'neck': (32.286, -4.491, -41.406), 'head': (12.373, -1.087),
+        'right_clavicle': (7.483, 8.311), 'right_shoulder': (20.947, 38.406, -10.937),
+        'right_elbow': (43.984, 8.595), 'right_wrist': (-5.79, 11.271),
     })
     human.KeyJoints(32.1, {
-        'spine_lumbar': (13.888, -5.602, 9.497), 'spine_thoracic': (-5.745, -8.848, 9.83),
-        'neck': (33.06, -4.636, -43.862), 'right_clavicle': (12.936, 8.573),
-        'right_shoulder': (14.375, 44.989, -6.625), 'right_elbow': (43.696, 15.472),
-        'right_wrist': (-5.966, 13.468),
+        'spine_lumbar': (13.486, -3.584, 9.096), 'spine_thoracic': (-7.812, -8.574, 9.805),
+        'neck': (32.688, -4.272, -41.765), 'head': (12.815, -1.078),
+        'right_clavicle': (15.493, 8.191), 'right_shoulder': (17.395, 41.358, -2.894),
+        'right_elbow': (42.508, 17.832), 'right_wrist': (-6.321, 11.915),
     })
     human.KeyJoints(32.2, {
-        'spine_lumbar': (14.863, -11.413, 8.44), 'spine_thoracic': (-2.455, -10.0, 9.65),
-        'neck': (33.84, -4.714, -46.145), 'head': (13.531, -1.132),
-        'right_clavicle': (15.872, 9.167), 'right_shoulder': (9.099, 49.302, -4.587),
-        'right_elbow': (42.459, 19.588), 'right_wrist': (-6.451, 12.66),
+        'spine_lumbar': (14.092, -8.191, 8.173), 'spine_thoracic': (-5.995, -10.0, 9.733),
+        'neck': (33.488, -4.128, -43.165), 'head': (13.454, -1.026),
+        'right_clavicle': (20.09, 8.504), 'right_shoulder': (14.613, 43.233, 1.698),
+        'right_elbow': (40.685, 23.536), 'right_wrist': (-6.812, 10.069),
     })
     human.KeyJoints(32.3, {
-        'spine_lumbar': (10.496, -5.561, 9.079), 'spine_thoracic': (-6.169, -6.855, 9.132),
-        'neck': (32.57, -4.109, -40.946), 'head': (12.804, -1.063),
-        'right_clavicle': (9.695, 8.086), 'right_shoulder': (14.689, 41.791, -7.305),
-        'right_elbow': (44.904, 13.898), 'right_wrist': (-5.808, 14.509),
+        'spine_lumbar': (9.453, -2.191, 8.829), 'spine_thoracic': (-8.88, -5.569, 9.202),
+        'neck': (32.134, -3.65, -38.424), 'head': (12.712, -1.032),
+        'right_clavicle': (14.887, 6.963), 'right_shoulder': (18.466, 36.287, -1.051),
+        'right_elbow': (42.842, 17.029), 'right_wrist': (-5.275, 11.76),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (11.297, -1.47, 10.8), 'spine_thoracic': (-10.003, -2.231, 10.041),
-        'neck': (32.403, -4.559, -41.915), 'head': (12.43, -1.092),
-        'right_clavicle': (5.896, 8.509), 'right_shoulder': (20.92, 38.873, -12.742),
-        'right_elbow': (44.383, 7.213), 'right_wrist': (-6.039, 11.249),
+        'spine_lumbar': (10.948, 0.036, 10.845), 'spine_thoracic': (-10.667, -2.03, 10.152),
+        'neck': (32.218, -4.435, -41.055), 'head': (12.349, -1.082),
+        'right_clavicle': (7.822, 7.851), 'right_shoulder': (21.967, 36.92, -10.547),
+        'right_elbow': (43.557, 8.194), 'right_wrist': (-5.429, 10.568),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
-        'spine_lumbar': (11.354, -1.45, 10.816), 'spine_thoracic': (-10.01, -2.246, 10.059),
-        'neck': (32.407, -4.571, -41.96), 'right_clavicle': (5.933, 8.521),
-        'right_shoulder': (20.94, 38.918, -12.751), 'right_elbow': (44.371, 7.216),
-        'right_wrist': (-6.042, 11.237),
+        'spine_lumbar': (11.352, -1.436, 10.815), 'spine_thoracic': (-10.016, -2.25, 10.059),
+        'neck': (32.405, -4.569, -41.949), 'right_clavicle': (5.947, 8.518),
+        'right_shoulder': (20.947, 38.9, -12.732), 'right_elbow': (44.365, 7.225),
+        'right_wrist': (-6.038, 11.232),
     })
     human.KeyJoints(32.6, {
-        'spine_lumbar': (12.896, -3.294, 10.141), 'spine_thoracic': (-7.754, -5.713, 9.967),
-        'neck': (32.619, -4.718, -42.969), 'head': (12.521, -1.107),
-        'right_clavicle': (9.751, 8.527), 'right_shoulder': (17.5, 42.532, -9.54),
-        'right_elbow': (44.346, 11.718), 'right_wrist': (-5.967, 13.069),
+        'spine_lumbar': (12.624, -1.513, 9.875), 'spine_thoracic': (-9.082, -5.986, 9.926),
+        'neck': (32.348, -4.399, -41.281), 'head': (12.473, -1.082),
+        'right_clavicle': (11.664, 8.143), 'right_shoulder': (19.401, 39.72, -6.691),
+        'right_elbow': (43.396, 13.282), 'right_wrist': (-5.968, 12.008),
     })
     human.KeyJoints(32.7, {
-        'spine_lumbar': (14.801, -10.305, 8.632), 'spine_thoracic': (-2.961, -10.0, 9.648),
-        'neck': (33.7, -4.724, -45.808), 'head': (13.409, -1.129),
-        'right_clavicle': (14.949, 9.032), 'right_shoulder': (9.948, 48.83, -5.437),
-        'right_elbow': (42.885, 18.634), 'right_wrist': (-6.456, 13.208),
+        'spine_lumbar': (14.084, -7.206, 8.291), 'spine_thoracic': (-6.31, -10.0, 9.687),
+        'neck': (33.309, -4.155, -42.824), 'head': (13.308, -1.034),
+        'right_clavicle': (18.973, 8.486), 'right_shoulder': (15.057, 43.086, 0.586),
+        'right_elbow': (41.217, 22.321), 'right_wrist': (-6.781, 10.702),
     })
     human.KeyJoints(32.8, {
-        'spine_lumbar': (13.485, -11.149, 8.38), 'spine_thoracic': (-2.534, -10.0, 9.433),
-        'neck': (33.615, -4.46, -44.75), 'head': (13.473, -1.106),
-        'right_clavicle': (14.519, 8.941), 'right_shoulder': (9.2, 47.923, -4.667),
-        'right_elbow': (43.132, 19.082), 'right_wrist': (-6.376, 13.505),
+        'spine_lumbar': (12.554, -7.597, 8.082), 'spine_thoracic': (-6.279, -9.714, 9.499),
+        'neck': (33.273, -3.845, -41.601), 'head': (13.375, -0.971),
+        'right_clavicle': (19.419, 8.198), 'right_shoulder': (14.849, 41.409, 2.223),
+        'right_elbow': (41.204, 23.101), 'right_wrist': (-6.474, 10.535),
     })
     human.KeyJoints(32.9, {
-        'spine_lumbar': (10.555, -1.936, 10.476), 'spine_thoracic': (-9.651, -2.374, 9.755),
-        'neck': (32.358, -4.391, -41.275), 'head': (12.483, -1.08),
-        'right_clavicle': (5.739, 8.327), 'right_shoulder': (20.265, 38.609, -12.264),
-        'right_elbow': (44.601, 7.635), 'right_wrist': (-5.984, 11.687),
+        'spine_lumbar': (9.774, 1.232, 10.535), 'spine_thoracic': (-11.094, -1.888, 9.936),
+        'neck': (31.987, -4.1, -39.426), 'head': (12.347, -1.058), 'right_clavicle': (9.908, 6.921),
+        'right_shoulder': (22.472, 34.22, -7.417), 'right_elbow': (42.843, 9.796),
+        'right_wrist': (-4.713, 10.121),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
-        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
-        'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
+        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
+        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (11.879, -1.938, 10.615), 'spine_thoracic': (-9.3, -3.323, 10.046),
-        'neck': (32.44, -4.641, -42.265), 'head': (12.416, -1.099),
-        'right_clavicle': (7.156, 8.533), 'right_shoulder': (19.868, 40.126, -11.732),
-        'right_elbow': (44.431, 8.66), 'right_wrist': (-6.012, 11.947),
+        'spine_lumbar': (11.681, -0.713, 10.494), 'spine_thoracic': (-10.004, -3.598, 10.032),
+        'neck': (32.278, -4.441, -41.226), 'head': (12.394, -1.083),
+        'right_clavicle': (8.403, 8.241), 'right_shoulder': (20.882, 38.408, -9.945),
+        'right_elbow': (43.836, 9.534), 'right_wrist': (-5.764, 11.362),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (14.304, -6.832, 9.196), 'spine_thoracic': (-4.868, -9.842, 9.74),
-        'neck': (33.265, -4.617, -44.334), 'head': (13.103, -1.111),
-        'right_clavicle': (13.341, 8.707), 'right_shoulder': (13.043, 46.181, -6.325),
-        'right_elbow': (43.591, 16.345), 'right_wrist': (-6.08, 13.551),
+        'spine_lumbar': (13.701, -4.525, 8.846), 'spine_thoracic': (-7.371, -9.188, 9.765),
+        'neck': (32.851, -4.23, -42.026), 'right_clavicle': (16.591, 8.259),
+        'right_shoulder': (16.704, 41.892, -1.798), 'right_elbow': (42.16, 19.214),
+        'right_wrist': (-6.456, 11.674),
     })
     human.KeyJoints(33.3, {
-        'spine_lumbar': (14.863, -11.442, 8.434), 'spine_thoracic': (-2.444, -10.0, 9.651),
-        'neck': (33.844, -4.713, -46.15), 'head': (13.534, -1.132),
-        'right_clavicle': (15.907, 9.171), 'right_shoulder': (9.08, 49.306, -4.552),
-        'right_elbow': (42.443, 19.62), 'right_wrist': (-6.451, 12.637),
+        'spine_lumbar': (14.092, -8.221, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
+        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
+        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
+        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
     })
     human.KeyJoints(33.4, {
-        'spine_lumbar': (10.075, -4.221, 9.43), 'spine_thoracic': (-7.387, -5.06, 9.187),
-        'neck': (32.389, -4.147, -40.601), 'head': (12.639, -1.063),
-        'right_clavicle': (7.935, 8.043), 'right_shoulder': (16.577, 40.345, -9.027),
-        'right_elbow': (45.069, 11.628), 'right_wrist': (-5.821, 13.9),
+        'spine_lumbar': (9.054, -0.596, 9.285), 'spine_thoracic': (-9.776, -4.053, 9.287),
+        'neck': (31.96, -3.705, -38.144), 'head': (12.545, -1.033),
+        'right_clavicle': (13.177, 6.694), 'right_shoulder': (19.935, 34.868, -2.828),
+        'right_elbow': (42.938, 14.561), 'right_wrist': (-4.919, 11.343),
     })
     human.KeyJoints(33.5, {
-        'spine_lumbar': (11.338, -1.452, 10.814), 'spine_thoracic': (-10.012, -2.234, 10.055),
-        'neck': (32.405, -4.568, -41.949), 'head': (12.427, -1.093),
-        'right_clavicle': (5.918, 8.518), 'right_shoulder': (20.941, 38.901, -12.754),
-        'right_elbow': (44.374, 7.207), 'right_wrist': (-6.042, 11.235),
+        'spine_lumbar': (11.178, -0.715, 10.837), 'spine_thoracic': (-10.339, -2.139, 10.114),
+        'neck': (32.315, -4.511, -41.538), 'head': (12.385, -1.088), 'right_clavicle': (6.854, 8.2),
+        'right_shoulder': (21.458, 37.957, -11.697), 'right_elbow': (43.969, 7.678),
+        'right_wrist': (-5.745, 10.903),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
-        'spine_lumbar': (11.388, -1.478, 10.804), 'spine_thoracic': (-9.965, -2.314, 10.059),
-        'neck': (32.408, -4.576, -41.978), 'head': (12.425, -1.094),
-        'right_clavicle': (6.011, 8.522), 'right_shoulder': (20.872, 38.996, -12.686),
-        'right_elbow': (44.377, 7.308), 'right_wrist': (-6.04, 11.285),
+        'spine_lumbar': (11.366, -1.34, 10.794), 'spine_thoracic': (-10.022, -2.345, 10.058),
+        'neck': (32.388, -4.558, -41.874), 'head': (12.418, -1.092),
+        'right_clavicle': (6.145, 8.489), 'right_shoulder': (20.947, 38.819, -12.497),
+        'right_elbow': (44.313, 7.396), 'right_wrist': (-6.002, 11.232),
     })
     human.KeyJoints(33.7, {
-        'spine_lumbar': (13.26, -3.975, 9.934), 'spine_thoracic': (-7.105, -6.721, 9.923),
-        'neck': (32.736, -4.715, -43.267), 'head': (12.618, -1.109),
-        'right_clavicle': (10.793, 8.527), 'right_shoulder': (16.493, 43.422, -8.629),
-        'right_elbow': (44.211, 12.953), 'right_wrist': (-5.96, 13.339),
+        'spine_lumbar': (12.941, -2.047, 9.622), 'spine_thoracic': (-8.687, -6.91, 9.886),
+        'neck': (32.431, -4.363, -41.385), 'head': (12.56, -1.081),
+        'right_clavicle': (12.957, 8.134), 'right_shoulder': (18.774, 40.252, -5.411),
+        'right_elbow': (43.147, 14.788), 'right_wrist': (-6.073, 12.085),
     })
     human.KeyJoints(33.8, {
-        'spine_lumbar': (14.845, -10.926, 8.531), 'spine_thoracic': (-2.66, -10.0, 9.649),
-        'neck': (33.78, -4.725, -46.019), 'head': (13.475, -1.131),
-        'right_clavicle': (15.371, 9.103), 'right_shoulder': (9.452, 49.145, -5.101),
-        'right_elbow': (42.679, 19.11), 'right_wrist': (-6.455, 12.984),
+        'spine_lumbar': (14.09, -7.732, 8.221), 'spine_thoracic': (-6.136, -10.0, 9.703),
+        'neck': (33.4, -4.142, -42.999), 'head': (13.381, -1.03), 'right_clavicle': (19.534, 8.5),
+        'right_shoulder': (14.807, 43.189, 1.146), 'right_elbow': (40.955, 22.953),
+        'right_wrist': (-6.803, 10.392),
     })
     human.KeyJoints(33.9, {
-        'spine_lumbar': (11.353, -12.194, 8.216), 'spine_thoracic': (-3.237, -10.0, 9.076),
-        'neck': (33.818, -3.767, -42.594), 'head': (13.79, -0.932),
-        'right_clavicle': (12.602, 8.456), 'right_shoulder': (10.293, 44.401, -5.562),
-        'right_elbow': (41.928, 17.002), 'right_wrist': (-6.101, 10.214),
+        'spine_lumbar': (10.486, -9.008, 7.881), 'spine_thoracic': (-6.327, -9.077, 9.123),
+        'neck': (33.39, -3.345, -40.199), 'head': (13.668, -0.899),
+        'right_clavicle': (17.24, 7.772), 'right_shoulder': (14.931, 38.377, 0.963),
+        'right_elbow': (40.035, 20.754), 'right_wrist': (-6.179, 7.484),
     })
     human.KeyJoints(34.0, {
-        'spine_lumbar': (6.814, -13.723, 9.47), 'spine_thoracic': (-8.347, -4.364, 9.033),
-        'neck': (34.841, -2.571, -40.78), 'head': (14.941, -0.682), 'right_clavicle': (2.613, 7.82),
-        'right_shoulder': (18.515, 33.648, -16.35), 'right_elbow': (36.883, 3.124),
-        'right_wrist': (-6.317, -4.218),
+        'spine_lumbar': (6.054, -10.936, 9.413), 'spine_thoracic': (-9.605, -3.984, 9.08),
+        'neck': (34.409, -2.395, -39.483), 'head': (14.822, -0.751),
+        'right_clavicle': (6.191, 6.487), 'right_shoulder': (20.379, 30.062, -12.328),
+        'right_elbow': (35.384, 4.906), 'right_wrist': (-5.216, -5.476),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.062708, duration=0.072)
@@ -2130,623 +2129,427 @@ def remove_access_panel():
         'right_wrist': (-0.867, -20.144),
     })
     human.KeyJoints(35.0, {
-        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'right_clavicle': (2.715, 7.9), 'right_shoulder': (57.197, 2.088, 10.93),
-        'right_elbow': (31.998, 18.34), 'right_wrist': (-1.08, -21.15),
+        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
+        'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=35.003158, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'spine_lumbar': (7.483, -13.731, 9.699), 'spine_thoracic': (-8.601, -4.428, 9.259),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.872, 7.946),
-        'right_shoulder': (57.165, 2.456, 11.108), 'right_elbow': (32.265, 18.55),
-        'right_wrist': (-1.032, -20.456),
+        'right_shoulder': (57.328, 2.065, 10.935), 'right_elbow': (31.855, 18.342),
+        'right_wrist': (-1.063, -21.177),
     })
     human.KeyJoints(35.2, {
-        'spine_lumbar': (6.919, -15.152, 9.689), 'spine_thoracic': (-9.546, -5.811, 9.403),
-        'neck': (24.545, -1.102, -6.052), 'head': (8.164, -0.118), 'right_clavicle': (4.425, 7.951),
-        'right_shoulder': (56.301, 3.766, 11.94), 'right_elbow': (32.037, 19.695),
-        'right_wrist': (-0.699, -20.483),
+        'right_shoulder': (55.552, 0.884, 4.546), 'right_elbow': (37.09, 32.88),
+        'right_wrist': (-0.925, -26.289),
     })
     human.KeyJoints(35.3, {
-        'spine_lumbar': (3.007, -19.365, 9.18), 'spine_thoracic': (-11.093, -10.0, 10.373),
-        'neck': (25.674, -1.134, -7.382), 'head': (9.912, -0.161), 'right_clavicle': (14.56, 9.003),
-        'right_shoulder': (57.003, 6.841, 19.359), 'right_elbow': (27.785, 27.597),
-        'right_wrist': (2.541, -26.325),
+        'right_shoulder': (55.758, 3.751, 2.359), 'right_elbow': (49.466, 76.276),
+        'right_wrist': (9.273, -30.0),
     })
     human.KeyJoints(35.4, {
-        'spine_lumbar': (0.651, -20.0, 10.224), 'spine_thoracic': (-12.735, -10.0, 12.829),
-        'neck': (27.033, -1.295, -9.543), 'head': (11.411, -0.173),
-        'right_clavicle': (21.401, 11.194), 'right_shoulder': (57.741, 7.834, 21.35),
-        'right_elbow': (19.054, 31.347), 'right_wrist': (4.265, -24.144),
+        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
+        'right_wrist': (27.614, -30.0),
     })
     human.KeyJoints(35.5, {
-        'spine_lumbar': (2.008, -17.046, 9.276), 'spine_thoracic': (-9.719, -7.901, 9.246),
-        'neck': (25.524, -0.858, -5.09), 'head': (9.542, -0.144), 'right_clavicle': (5.891, 8.066),
-        'right_shoulder': (53.185, 2.335, 13.679), 'right_elbow': (31.327, 20.971),
-        'right_wrist': (0.059, -21.948),
+        'right_shoulder': (49.469, -6.509, -14.76), 'right_elbow': (55.968, 59.98),
+        'right_wrist': (19.931, -27.087),
     })
     human.KeyJoints(35.6, {
-        'spine_lumbar': (7.967, -13.508, 9.842), 'spine_thoracic': (-8.812, -4.415, 9.392),
-        'neck': (24.067, -1.055, -5.292), 'head': (7.516, -0.107), 'right_clavicle': (3.086, 8.008),
-        'right_shoulder': (56.949, 2.999, 11.365), 'right_elbow': (32.764, 18.844),
-        'right_wrist': (-0.975, -19.34),
+        'right_shoulder': (58.938, 1.62, 6.876), 'right_elbow': (27.842, 22.5),
+        'right_wrist': (1.843, -15.98),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
-        'spine_lumbar': (7.886, -13.66, 9.838), 'spine_thoracic': (-8.906, -4.523, 9.4),
-        'neck': (24.123, -1.062, -5.387), 'head': (7.581, -0.107), 'right_clavicle': (3.192, 8.006),
-        'right_shoulder': (56.871, 3.082, 11.39), 'right_elbow': (32.707, 18.9),
-        'right_wrist': (-0.959, -19.427),
+        'right_shoulder': (58.802, 2.257, 10.455), 'right_elbow': (28.244, 19.941),
+        'right_wrist': (-0.41, -16.835),
     })
     human.KeyJoints(35.8, {
-        'spine_lumbar': (4.684, -19.177, 9.225), 'spine_thoracic': (-10.61, -9.792, 9.475),
-        'neck': (25.151, -1.179, -7.269), 'head': (9.197, -0.148), 'right_clavicle': (8.659, 7.917),
-        'right_shoulder': (55.587, 5.584, 14.686), 'right_elbow': (30.447, 22.855),
-        'right_wrist': (0.428, -22.87),
+        'right_shoulder': (54.982, 2.093, 1.382), 'right_elbow': (44.134, 58.809),
+        'right_wrist': (2.633, -29.898),
     })
     human.KeyJoints(35.9, {
-        'spine_lumbar': (0.825, -19.729, 10.159), 'spine_thoracic': (-12.586, -10.0, 12.627),
-        'neck': (26.916, -1.268, -9.266), 'head': (11.289, -0.172),
-        'right_clavicle': (20.712, 11.01), 'right_shoulder': (57.697, 7.663, 20.979),
-        'right_elbow': (19.668, 30.883), 'right_wrist': (4.056, -24.35),
+        'right_shoulder': (58.894, 7.235, 9.199), 'right_elbow': (52.647, 80.0),
+        'right_wrist': (22.71, -30.0),
     })
     human.KeyJoints(36.0, {
-        'spine_lumbar': (-0.634, -19.862, 9.168), 'spine_thoracic': (-10.856, -10.0, 10.531),
-        'neck': (26.41, -0.925, -6.341), 'head': (10.742, -0.165),
-        'right_clavicle': (15.311, 9.414), 'right_shoulder': (55.402, 5.081, 20.958),
-        'right_elbow': (27.388, 28.475), 'right_wrist': (3.192, -26.696),
+        'right_shoulder': (52.522, 0.198, -3.436), 'right_elbow': (63.352, 79.8),
+        'right_wrist': (32.957, -30.0),
     })
     human.KeyJoints(36.1, {
-        'spine_lumbar': (7.419, -13.49, 9.752), 'spine_thoracic': (-8.64, -4.465, 9.317),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.049, 8.012),
-        'right_shoulder': (56.646, 2.582, 11.496), 'right_elbow': (32.726, 18.854),
-        'right_wrist': (-0.915, -19.45),
+        'right_shoulder': (57.355, -1.752, -8.06), 'right_elbow': (31.627, 36.496),
+        'right_wrist': (9.346, -15.937),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(36.3, {
-        'spine_lumbar': (6.391, -16.013, 9.579), 'spine_thoracic': (-9.808, -6.632, 9.389),
-        'neck': (24.736, -1.12, -6.363), 'head': (8.439, -0.124), 'right_clavicle': (5.217, 7.919),
-        'right_shoulder': (56.054, 4.138, 12.401), 'right_elbow': (31.698, 20.26),
-        'right_wrist': (-0.51, -21.032),
+        'right_shoulder': (56.255, 1.781, 4.264), 'right_elbow': (36.401, 37.567),
+        'right_wrist': (-0.181, -24.44),
     })
     human.KeyJoints(36.4, {
-        'spine_lumbar': (2.544, -19.92, 9.272), 'spine_thoracic': (-11.431, -10.0, 10.727),
-        'neck': (25.899, -1.17, -7.847), 'head': (10.232, -0.168),
-        'right_clavicle': (16.128, 9.328), 'right_shoulder': (57.03, 7.419, 20.537),
-        'right_elbow': (26.908, 28.804), 'right_wrist': (3.044, -26.453),
+        'right_shoulder': (56.421, 4.988, 4.641), 'right_elbow': (50.66, 78.52),
+        'right_wrist': (12.099, -30.0),
     })
     human.KeyJoints(36.5, {
-        'spine_lumbar': (0.509, -20.0, 10.226), 'spine_thoracic': (-12.715, -10.0, 12.827),
-        'neck': (27.058, -1.285, -9.487), 'head': (11.436, -0.173),
-        'right_clavicle': (21.372, 11.2), 'right_shoulder': (57.677, 7.739, 21.369),
-        'right_elbow': (19.071, 31.335), 'right_wrist': (4.271, -24.16),
+        'right_shoulder': (59.796, 7.049, 8.741), 'right_elbow': (53.585, 80.0),
+        'right_wrist': (29.624, -30.0),
     })
     human.KeyJoints(36.6, {
-        'spine_lumbar': (3.843, -15.279, 9.359), 'spine_thoracic': (-9.075, -6.257, 9.167),
-        'neck': (24.996, -0.88, -4.773), 'head': (8.78, -0.128), 'right_clavicle': (4.456, 8.033),
-        'right_shoulder': (54.308, 1.994, 12.707), 'right_elbow': (31.915, 19.901),
-        'right_wrist': (-0.356, -20.917),
+        'right_shoulder': (51.285, -6.173, -15.542), 'right_elbow': (49.08, 52.592),
+        'right_wrist': (16.767, -23.524),
     })
     human.KeyJoints(36.7, {
-        'spine_lumbar': (7.977, -13.522, 9.847), 'spine_thoracic': (-8.83, -4.414, 9.396),
-        'neck': (24.071, -1.057, -5.313), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.011, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.008, 2.34, 10.949), 'right_elbow': (27.719, 18.807),
+        'right_wrist': (-0.159, -16.344),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
-        'spine_lumbar': (7.692, -13.954, 9.816), 'spine_thoracic': (-9.06, -4.76, 9.405),
-        'neck': (24.222, -1.071, -5.536), 'head': (7.708, -0.109), 'right_clavicle': (3.419, 7.996),
-        'right_shoulder': (56.71, 3.23, 11.472), 'right_elbow': (32.584, 19.036),
-        'right_wrist': (-0.916, -19.622),
+        'right_shoulder': (58.37, 1.935, 8.498), 'right_elbow': (29.361, 23.144),
+        'right_wrist': (-0.448, -17.795),
     })
     human.KeyJoints(36.9, {
-        'spine_lumbar': (4.173, -19.29, 8.805), 'spine_thoracic': (-10.157, -10.0, 9.367),
-        'neck': (25.095, -1.12, -6.743), 'head': (9.052, -0.142), 'right_clavicle': (10.552, 8.071),
-        'right_shoulder': (56.899, 5.573, 16.597), 'right_elbow': (29.596, 24.581),
-        'right_wrist': (1.2, -24.259),
+        'right_shoulder': (55.0, 2.16, 0.436), 'right_elbow': (46.145, 66.464),
+        'right_wrist': (4.446, -30.0),
     })
     human.KeyJoints(37.0, {
-        'spine_lumbar': (0.699, -19.894, 10.21), 'spine_thoracic': (-12.69, -10.0, 12.773),
-        'neck': (26.999, -1.286, -9.454), 'head': (11.376, -0.173),
-        'right_clavicle': (21.184, 11.142), 'right_shoulder': (57.733, 7.774, 21.22),
-        'right_elbow': (19.204, 31.19), 'right_wrist': (4.195, -24.197),
+        'right_shoulder': (59.492, 7.346, 9.435), 'right_elbow': (52.908, 80.0),
+        'right_wrist': (25.884, -30.0),
     })
     human.KeyJoints(37.1, {
-        'spine_lumbar': (-0.403, -19.311, 8.759), 'spine_thoracic': (-9.849, -10.0, 9.549),
-        'neck': (25.958, -0.807, -5.097), 'head': (10.163, -0.156),
-        'right_clavicle': (11.708, 8.623), 'right_shoulder': (54.887, 3.337, 18.546),
-        'right_elbow': (29.134, 25.75), 'right_wrist': (2.106, -25.667),
+        'right_shoulder': (49.845, -3.572, -8.921), 'right_elbow': (63.908, 76.785),
+        'right_wrist': (27.736, -30.0),
     })
     human.KeyJoints(37.2, {
-        'spine_lumbar': (7.812, -13.486, 9.803), 'spine_thoracic': (-8.725, -4.426, 9.359),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.07, 8.007),
-        'right_shoulder': (56.916, 2.841, 11.426), 'right_elbow': (32.757, 18.853),
-        'right_wrist': (-0.951, -19.371),
+        'right_shoulder': (58.266, -0.591, -3.783), 'right_elbow': (29.306, 32.407),
+        'right_wrist': (7.172, -15.554),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(37.4, {
-        'spine_lumbar': (5.798, -17.062, 9.513), 'spine_thoracic': (-10.185, -7.61, 9.43),
-        'neck': (24.845, -1.138, -6.656), 'head': (8.706, -0.135), 'right_clavicle': (6.184, 7.902),
-        'right_shoulder': (55.7, 4.645, 12.935), 'right_elbow': (31.305, 20.939),
-        'right_wrist': (-0.284, -21.623),
+        'right_shoulder': (55.641, 1.981, 3.616), 'right_elbow': (39.173, 43.614),
+        'right_wrist': (0.35, -26.968),
     })
     human.KeyJoints(37.5, {
-        'spine_lumbar': (1.774, -19.762, 9.637), 'spine_thoracic': (-11.932, -10.0, 11.524),
-        'neck': (26.339, -1.201, -8.375), 'head': (10.69, -0.17),
-        'right_clavicle': (18.104, 10.033), 'right_shoulder': (57.295, 7.505, 20.676),
-        'right_elbow': (23.907, 29.696), 'right_wrist': (3.474, -25.729),
+        'right_shoulder': (57.186, 6.203, 7.059), 'right_elbow': (51.544, 79.699),
+        'right_wrist': (14.975, -30.0),
     })
     human.KeyJoints(37.6, {
-        'spine_lumbar': (-0.203, -20.0, 10.202), 'spine_thoracic': (-12.558, -10.0, 12.732),
-        'neck': (27.155, -1.227, -9.113), 'head': (11.531, -0.172),
-        'right_clavicle': (20.996, 11.162), 'right_shoulder': (57.314, 7.194, 21.374),
-        'right_elbow': (19.404, 31.131), 'right_wrist': (4.248, -24.291),
+        'right_shoulder': (58.586, 6.474, 7.495), 'right_elbow': (56.256, 80.0),
+        'right_wrist': (32.015, -30.0),
     })
     human.KeyJoints(37.7, {
-        'spine_lumbar': (5.491, -14.208, 9.592), 'spine_thoracic': (-8.897, -5.167, 9.26),
-        'neck': (24.734, -0.925, -4.841), 'head': (8.334, -0.116), 'right_clavicle': (3.549, 8.042),
-        'right_shoulder': (55.126, 2.179, 11.957), 'right_elbow': (32.413, 19.198),
-        'right_wrist': (-0.678, -20.0),
+        'right_shoulder': (53.56, -4.836, -14.339), 'right_elbow': (41.946, 46.342),
+        'right_wrist': (14.077, -20.017),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(37.9, {
-        'spine_lumbar': (7.367, -14.452, 9.772), 'spine_thoracic': (-9.295, -5.179, 9.409),
-        'neck': (24.371, -1.085, -5.77), 'head': (7.915, -0.113), 'right_clavicle': (3.819, 7.979),
-        'right_shoulder': (56.475, 3.472, 11.638), 'right_elbow': (32.373, 19.287),
-        'right_wrist': (-0.836, -19.956),
+        'right_shoulder': (57.705, 1.553, 5.921), 'right_elbow': (31.2, 27.955),
+        'right_wrist': (-0.473, -19.423),
     })
     human.KeyJoints(38.0, {
-        'spine_lumbar': (3.567, -19.188, 9.019), 'spine_thoracic': (-10.666, -10.0, 9.91),
-        'neck': (25.407, -1.12, -7.025), 'head': (9.508, -0.152), 'right_clavicle': (12.634, 8.576),
-        'right_shoulder': (56.943, 6.263, 18.056), 'right_elbow': (28.743, 26.159),
-        'right_wrist': (1.897, -25.577),
+        'right_shoulder': (55.26, 2.741, 0.778), 'right_elbow': (47.939, 72.28),
+        'right_wrist': (6.653, -30.0),
     })
     human.KeyJoints(38.1, {
-        'spine_lumbar': (0.657, -19.983, 10.222), 'spine_thoracic': (-12.729, -10.0, 12.821),
-        'neck': (27.028, -1.293, -9.529), 'head': (11.406, -0.173),
-        'right_clavicle': (21.369, 11.187), 'right_shoulder': (57.74, 7.825, 21.33),
-        'right_elbow': (19.073, 31.323), 'right_wrist': (4.255, -24.151),
+        'right_shoulder': (59.765, 7.372, 9.495), 'right_elbow': (53.019, 80.0),
+        'right_wrist': (27.347, -30.0),
     })
     human.KeyJoints(38.2, {
-        'spine_lumbar': (0.59, -18.864, 8.641), 'spine_thoracic': (-9.349, -9.773, 9.038),
-        'neck': (25.587, -0.81, -4.787), 'head': (9.632, -0.145), 'right_clavicle': (8.206, 8.109),
-        'right_shoulder': (54.252, 2.422, 15.859), 'right_elbow': (30.453, 22.971),
-        'right_wrist': (0.906, -23.433),
+        'right_shoulder': (49.043, -5.663, -12.383), 'right_elbow': (61.394, 68.226),
+        'right_wrist': (23.711, -29.727),
     })
     human.KeyJoints(38.3, {
-        'spine_lumbar': (7.922, -13.491, 9.828), 'spine_thoracic': (-8.778, -4.418, 9.38),
-        'neck': (24.068, -1.049, -5.247), 'head': (7.512, -0.106), 'right_clavicle': (3.081, 8.007),
-        'right_shoulder': (56.946, 2.947, 11.388), 'right_elbow': (32.763, 18.85),
-        'right_wrist': (-0.966, -19.349),
+        'right_shoulder': (58.698, 0.563, 1.309), 'right_elbow': (28.341, 27.605),
+        'right_wrist': (4.601, -15.611),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
-        'spine_lumbar': (7.966, -13.54, 9.846), 'spine_thoracic': (-8.841, -4.427, 9.397),
-        'neck': (24.078, -1.058, -5.323), 'head': (7.53, -0.107), 'right_clavicle': (3.1, 8.01),
-        'right_shoulder': (56.94, 3.02, 11.359), 'right_elbow': (32.758, 18.847),
-        'right_wrist': (-0.975, -19.348),
+        'right_shoulder': (58.985, 2.4, 11.296), 'right_elbow': (27.781, 18.576),
+        'right_wrist': (-0.389, -16.442),
     })
     human.KeyJoints(38.5, {
-        'spine_lumbar': (5.193, -18.246, 9.498), 'spine_thoracic': (-10.628, -8.725, 9.527),
-        'neck': (25.082, -1.176, -7.187), 'head': (9.095, -0.146), 'right_clavicle': (7.299, 7.899),
-        'right_shoulder': (55.254, 5.275, 13.553), 'right_elbow': (30.926, 21.722),
-        'right_wrist': (-0.021, -22.157),
+        'right_shoulder': (55.196, 2.087, 2.685), 'right_elbow': (41.781, 50.756),
+        'right_wrist': (1.256, -28.926),
     })
     human.KeyJoints(38.6, {
-        'spine_lumbar': (1.118, -19.579, 10.019), 'spine_thoracic': (-12.367, -10.0, 12.29),
-        'neck': (26.732, -1.24, -8.933), 'head': (11.097, -0.172),
-        'right_clavicle': (19.781, 10.709), 'right_shoulder': (57.595, 7.533, 20.705),
-        'right_elbow': (20.858, 30.37), 'right_wrist': (3.816, -24.727),
+        'right_shoulder': (58.024, 6.929, 8.562), 'right_elbow': (52.191, 80.0),
+        'right_wrist': (18.354, -30.0),
     })
     human.KeyJoints(38.7, {
-        'spine_lumbar': (-0.757, -20.0, 9.87), 'spine_thoracic': (-11.972, -10.0, 11.998),
-        'neck': (26.991, -1.102, -8.062), 'head': (11.353, -0.17),
-        'right_clavicle': (19.08, 10.598), 'right_shoulder': (56.505, 6.228, 21.188),
-        'right_elbow': (21.989, 30.173), 'right_wrist': (3.902, -25.14),
+        'right_shoulder': (55.891, 4.422, 3.536), 'right_elbow': (60.218, 80.0),
+        'right_wrist': (33.508, -30.0),
     })
     human.KeyJoints(38.8, {
-        'spine_lumbar': (6.688, -13.646, 9.692), 'spine_thoracic': (-8.703, -4.644, 9.292),
-        'neck': (24.383, -0.97, -4.878), 'head': (7.859, -0.108), 'right_clavicle': (3.147, 8.028),
-        'right_shoulder': (56.037, 2.368, 11.64), 'right_elbow': (32.638, 18.921),
-        'right_wrist': (-0.838, -19.617),
+        'right_shoulder': (55.764, -3.246, -11.802), 'right_elbow': (35.792, 41.133),
+        'right_wrist': (11.659, -17.246),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(39.0, {
-        'spine_lumbar': (6.927, -15.139, 9.69), 'spine_thoracic': (-9.542, -5.799, 9.403),
-        'neck': (24.542, -1.101, -6.048), 'head': (8.16, -0.118), 'right_clavicle': (4.413, 7.952),
-        'right_shoulder': (56.264, 3.772, 11.934), 'right_elbow': (32.074, 19.687),
-        'right_wrist': (-0.704, -20.435),
+        'right_shoulder': (56.968, 1.54, 4.805), 'right_elbow': (33.614, 32.77),
+        'right_wrist': (-0.432, -21.706),
     })
     human.KeyJoints(39.1, {
-        'spine_lumbar': (3.016, -19.358, 9.178), 'spine_thoracic': (-11.086, -10.0, 10.366),
-        'neck': (25.67, -1.134, -7.375), 'head': (9.906, -0.161), 'right_clavicle': (14.53, 8.996),
-        'right_shoulder': (56.994, 6.834, 19.34), 'right_elbow': (27.808, 27.575),
-        'right_wrist': (2.531, -26.311),
+        'right_shoulder': (55.741, 3.762, 2.387), 'right_elbow': (49.446, 76.152),
+        'right_wrist': (9.211, -30.0),
     })
     human.KeyJoints(39.2, {
-        'spine_lumbar': (0.651, -20.0, 10.224), 'spine_thoracic': (-12.735, -10.0, 12.829),
-        'neck': (27.033, -1.295, -9.543), 'head': (11.411, -0.173),
-        'right_clavicle': (21.401, 11.194), 'right_shoulder': (57.741, 7.834, 21.35),
-        'right_elbow': (19.054, 31.347), 'right_wrist': (4.265, -24.144),
+        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
+        'right_wrist': (27.614, -30.0),
     })
     human.KeyJoints(39.3, {
-        'spine_lumbar': (1.979, -17.078, 9.274), 'spine_thoracic': (-9.727, -7.931, 9.247),
-        'neck': (25.531, -0.858, -5.095), 'head': (9.553, -0.144), 'right_clavicle': (5.921, 8.067),
-        'right_shoulder': (53.174, 2.34, 13.7), 'right_elbow': (31.315, 20.994),
-        'right_wrist': (0.068, -21.968),
+        'right_shoulder': (49.451, -6.511, -14.737), 'right_elbow': (56.073, 60.112),
+        'right_wrist': (19.989, -27.14),
     })
     human.KeyJoints(39.4, {
-        'spine_lumbar': (7.966, -13.507, 9.842), 'spine_thoracic': (-8.812, -4.415, 9.392),
-        'neck': (24.067, -1.055, -5.292), 'head': (7.516, -0.107), 'right_clavicle': (3.086, 8.008),
-        'right_shoulder': (56.949, 2.998, 11.365), 'right_elbow': (32.764, 18.845),
-        'right_wrist': (-0.975, -19.34),
+        'right_shoulder': (58.936, 1.604, 6.79), 'right_elbow': (27.847, 22.578),
+        'right_wrist': (1.885, -15.973),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'spine_lumbar': (7.889, -13.657, 9.838), 'spine_thoracic': (-8.905, -4.52, 9.399),
-        'neck': (24.122, -1.062, -5.386), 'head': (7.579, -0.107), 'right_clavicle': (3.189, 8.006),
-        'right_shoulder': (56.873, 3.08, 11.389), 'right_elbow': (32.709, 18.898),
-        'right_wrist': (-0.959, -19.425),
+        'right_shoulder': (58.807, 2.261, 10.478), 'right_elbow': (28.231, 19.904),
+        'right_wrist': (-0.41, -16.824),
     })
     human.KeyJoints(39.6, {
-        'spine_lumbar': (4.691, -19.169, 9.243), 'spine_thoracic': (-10.631, -9.781, 9.484),
-        'neck': (25.157, -1.18, -7.287), 'head': (9.208, -0.149), 'right_clavicle': (8.632, 7.917),
-        'right_shoulder': (55.543, 5.592, 14.65), 'right_elbow': (30.459, 22.827),
-        'right_wrist': (0.415, -22.849),
+        'right_shoulder': (54.983, 2.094, 1.409), 'right_elbow': (44.098, 58.67),
+        'right_wrist': (2.606, -29.893),
     })
     human.KeyJoints(39.7, {
-        'spine_lumbar': (0.828, -19.726, 10.157), 'spine_thoracic': (-12.583, -10.0, 12.623),
-        'neck': (26.914, -1.268, -9.262), 'head': (11.287, -0.172),
-        'right_clavicle': (20.7, 11.006), 'right_shoulder': (57.696, 7.661, 20.974),
-        'right_elbow': (19.681, 30.876), 'right_wrist': (4.053, -24.354),
+        'right_shoulder': (58.881, 7.232, 9.192), 'right_elbow': (52.641, 80.0),
+        'right_wrist': (22.643, -30.0),
     })
     human.KeyJoints(39.8, {
-        'spine_lumbar': (-0.635, -19.874, 9.174), 'spine_thoracic': (-10.872, -10.0, 10.547),
-        'neck': (26.418, -0.927, -6.364), 'head': (10.75, -0.165),
-        'right_clavicle': (15.368, 9.426), 'right_shoulder': (55.415, 5.109, 20.989),
-        'right_elbow': (27.351, 28.516), 'right_wrist': (3.208, -26.703),
+        'right_shoulder': (52.581, 0.277, -3.321), 'right_elbow': (63.316, 79.819),
+        'right_wrist': (33.038, -30.0),
     })
     human.KeyJoints(39.9, {
-        'spine_lumbar': (7.41, -13.49, 9.751), 'spine_thoracic': (-8.639, -4.466, 9.316),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.049, 8.012),
-        'right_shoulder': (56.64, 2.578, 11.497), 'right_elbow': (32.725, 18.854),
-        'right_wrist': (-0.914, -19.452),
+        'right_shoulder': (57.336, -1.773, -8.126), 'right_elbow': (31.678, 36.566),
+        'right_wrist': (9.382, -15.947),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(40.1, {
-        'spine_lumbar': (6.4, -15.997, 9.581), 'spine_thoracic': (-9.803, -6.617, 9.389),
-        'neck': (24.732, -1.119, -6.356), 'head': (8.434, -0.124), 'right_clavicle': (5.202, 7.92),
-        'right_shoulder': (56.059, 4.131, 12.393), 'right_elbow': (31.704, 20.249),
-        'right_wrist': (-0.513, -21.022),
+        'right_shoulder': (56.266, 1.778, 4.275), 'right_elbow': (36.353, 37.474),
+        'right_wrist': (-0.187, -24.395),
     })
     human.KeyJoints(40.2, {
-        'spine_lumbar': (2.552, -19.911, 9.27), 'spine_thoracic': (-11.425, -10.0, 10.72),
-        'neck': (25.894, -1.169, -7.84), 'head': (10.228, -0.168),
-        'right_clavicle': (16.102, 9.322), 'right_shoulder': (57.029, 7.412, 20.523),
-        'right_elbow': (26.925, 28.785), 'right_wrist': (3.037, -26.452),
+        'right_shoulder': (56.408, 4.968, 4.602), 'right_elbow': (50.642, 78.492),
+        'right_wrist': (12.05, -30.0),
     })
     human.KeyJoints(40.3, {
-        'spine_lumbar': (0.514, -20.0, 10.226), 'spine_thoracic': (-12.716, -10.0, 12.828),
-        'neck': (27.057, -1.285, -9.489), 'head': (11.435, -0.173),
-        'right_clavicle': (21.374, 11.2), 'right_shoulder': (57.68, 7.743, 21.368),
-        'right_elbow': (19.07, 31.335), 'right_wrist': (4.271, -24.159),
+        'right_shoulder': (59.801, 7.056, 8.755), 'right_elbow': (53.564, 80.0),
+        'right_wrist': (29.584, -30.0),
     })
     human.KeyJoints(40.4, {
-        'spine_lumbar': (3.814, -15.301, 9.357), 'spine_thoracic': (-9.08, -6.279, 9.167),
-        'neck': (25.002, -0.879, -4.775), 'head': (8.79, -0.128), 'right_clavicle': (4.475, 8.033),
-        'right_shoulder': (54.293, 1.994, 12.721), 'right_elbow': (31.906, 19.915),
-        'right_wrist': (-0.35, -20.933),
+        'right_shoulder': (51.252, -6.183, -15.544), 'right_elbow': (49.196, 52.706),
+        'right_wrist': (16.816, -23.582),
     })
     human.KeyJoints(40.5, {
-        'spine_lumbar': (7.977, -13.522, 9.847), 'spine_thoracic': (-8.83, -4.414, 9.396),
-        'neck': (24.071, -1.057, -5.313), 'head': (7.522, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.011, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.007, 2.332, 10.905), 'right_elbow': (27.719, 18.847),
+        'right_wrist': (-0.138, -16.34),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
-        'spine_lumbar': (7.696, -13.947, 9.817), 'spine_thoracic': (-9.057, -4.755, 9.404),
-        'neck': (24.22, -1.071, -5.533), 'head': (7.705, -0.109), 'right_clavicle': (3.413, 7.996),
-        'right_shoulder': (56.714, 3.227, 11.47), 'right_elbow': (32.587, 19.033),
-        'right_wrist': (-0.917, -19.617),
+        'right_shoulder': (58.379, 1.942, 8.539), 'right_elbow': (29.336, 23.074),
+        'right_wrist': (-0.447, -17.774),
     })
     human.KeyJoints(40.7, {
-        'spine_lumbar': (4.184, -19.292, 8.801), 'spine_thoracic': (-10.147, -10.0, 9.357),
-        'neck': (25.089, -1.121, -6.738), 'head': (9.043, -0.142),
-        'right_clavicle': (10.516, 8.061), 'right_shoulder': (56.899, 5.559, 16.573),
-        'right_elbow': (29.612, 24.554), 'right_wrist': (1.188, -24.235),
+        'right_shoulder': (54.997, 2.154, 0.442), 'right_elbow': (46.113, 66.348),
+        'right_wrist': (4.412, -30.0),
     })
     human.KeyJoints(40.8, {
-        'spine_lumbar': (0.7, -19.892, 10.209), 'spine_thoracic': (-12.689, -10.0, 12.771),
-        'neck': (26.998, -1.286, -9.452), 'head': (11.375, -0.173),
-        'right_clavicle': (21.179, 11.141), 'right_shoulder': (57.732, 7.772, 21.217),
-        'right_elbow': (19.208, 31.186), 'right_wrist': (4.194, -24.198),
+        'right_shoulder': (59.485, 7.345, 9.433), 'right_elbow': (52.905, 80.0),
+        'right_wrist': (25.845, -30.0),
     })
     human.KeyJoints(40.9, {
-        'spine_lumbar': (-0.415, -19.314, 8.768), 'spine_thoracic': (-9.87, -10.0, 9.57),
-        'neck': (25.968, -0.809, -5.116), 'head': (10.178, -0.156),
-        'right_clavicle': (11.776, 8.64), 'right_shoulder': (54.892, 3.369, 18.59),
-        'right_elbow': (29.107, 25.8), 'right_wrist': (2.128, -25.705),
+        'right_shoulder': (49.879, -3.526, -8.854), 'right_elbow': (63.931, 76.911),
+        'right_wrist': (27.807, -30.0),
     })
     human.KeyJoints(41.0, {
-        'spine_lumbar': (7.808, -13.486, 9.802), 'spine_thoracic': (-8.724, -4.427, 9.358),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.07, 8.007),
-        'right_shoulder': (56.914, 2.838, 11.427), 'right_elbow': (32.757, 18.853),
-        'right_wrist': (-0.95, -19.371),
+        'right_shoulder': (58.255, -0.611, -3.862), 'right_elbow': (29.332, 32.479),
+        'right_wrist': (7.21, -15.557),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(41.2, {
-        'spine_lumbar': (5.808, -17.043, 9.514), 'spine_thoracic': (-10.178, -7.592, 9.429),
-        'neck': (24.841, -1.137, -6.647), 'head': (8.699, -0.135), 'right_clavicle': (6.167, 7.902),
-        'right_shoulder': (55.707, 4.635, 12.926), 'right_elbow': (31.312, 20.927),
-        'right_wrist': (-0.288, -21.614),
+        'right_shoulder': (55.65, 1.978, 3.629), 'right_elbow': (39.127, 43.503),
+        'right_wrist': (0.339, -26.93),
     })
     human.KeyJoints(41.3, {
-        'spine_lumbar': (1.79, -19.77, 9.627), 'spine_thoracic': (-11.921, -10.0, 11.505),
-        'neck': (26.33, -1.2, -8.362), 'head': (10.68, -0.17), 'right_clavicle': (18.067, 10.017),
-        'right_shoulder': (57.287, 7.505, 20.676), 'right_elbow': (23.986, 29.683),
-        'right_wrist': (3.468, -25.755),
+        'right_shoulder': (57.172, 6.184, 7.019), 'right_elbow': (51.531, 79.685),
+        'right_wrist': (14.927, -30.0),
     })
     human.KeyJoints(41.4, {
-        'spine_lumbar': (-0.186, -20.0, 10.204), 'spine_thoracic': (-12.563, -10.0, 12.737),
-        'neck': (27.153, -1.229, -9.125), 'head': (11.529, -0.172),
-        'right_clavicle': (21.011, 11.166), 'right_shoulder': (57.323, 7.208, 21.379),
-        'right_elbow': (19.389, 31.14), 'right_wrist': (4.251, -24.287),
+        'right_shoulder': (58.62, 6.493, 7.535), 'right_elbow': (56.196, 80.0),
+        'right_wrist': (31.98, -30.0),
     })
     human.KeyJoints(41.5, {
-        'spine_lumbar': (5.467, -14.221, 9.589), 'spine_thoracic': (-8.9, -5.18, 9.259),
-        'neck': (24.74, -0.924, -4.839), 'head': (8.342, -0.116), 'right_clavicle': (3.56, 8.042),
-        'right_shoulder': (55.113, 2.175, 11.966), 'right_elbow': (32.407, 19.206),
-        'right_wrist': (-0.674, -20.011),
+        'right_shoulder': (53.522, -4.863, -14.369), 'right_elbow': (42.059, 46.438),
+        'right_wrist': (14.12, -20.07),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(41.7, {
-        'spine_lumbar': (7.373, -14.442, 9.773), 'spine_thoracic': (-9.29, -5.17, 9.409),
-        'neck': (24.369, -1.085, -5.765), 'head': (7.911, -0.113), 'right_clavicle': (3.811, 7.98),
-        'right_shoulder': (56.479, 3.467, 11.634), 'right_elbow': (32.378, 19.281),
-        'right_wrist': (-0.838, -19.949),
+        'right_shoulder': (57.717, 1.558, 5.959), 'right_elbow': (31.164, 27.868),
+        'right_wrist': (-0.473, -19.39),
     })
     human.KeyJoints(41.8, {
-        'spine_lumbar': (3.576, -19.189, 9.016), 'spine_thoracic': (-10.658, -10.0, 9.902),
-        'neck': (25.402, -1.12, -7.02), 'head': (9.501, -0.152), 'right_clavicle': (12.6, 8.568),
-        'right_shoulder': (56.942, 6.253, 18.032), 'right_elbow': (28.756, 26.133),
-        'right_wrist': (1.885, -25.557),
+        'right_shoulder': (55.254, 2.726, 0.758), 'right_elbow': (47.911, 72.198),
+        'right_wrist': (6.613, -30.0),
     })
     human.KeyJoints(41.9, {
-        'spine_lumbar': (0.658, -19.982, 10.222), 'spine_thoracic': (-12.728, -10.0, 12.821),
-        'neck': (27.028, -1.293, -9.529), 'head': (11.406, -0.173),
-        'right_clavicle': (21.368, 11.186), 'right_shoulder': (57.74, 7.824, 21.329),
-        'right_elbow': (19.074, 31.322), 'right_wrist': (4.254, -24.151),
+        'right_shoulder': (59.763, 7.372, 9.494), 'right_elbow': (53.018, 80.0),
+        'right_wrist': (27.334, -30.0),
     })
     human.KeyJoints(42.0, {
-        'spine_lumbar': (0.57, -18.887, 8.628), 'spine_thoracic': (-9.339, -9.795, 9.033),
-        'neck': (25.586, -0.809, -4.776), 'head': (9.631, -0.145), 'right_clavicle': (8.254, 8.11),
-        'right_shoulder': (54.282, 2.423, 15.906), 'right_elbow': (30.435, 23.013),
-        'right_wrist': (0.925, -23.462),
+        'right_shoulder': (49.041, -5.633, -12.328), 'right_elbow': (61.464, 68.365),
+        'right_wrist': (23.777, -29.755),
     })
     human.KeyJoints(42.1, {
-        'spine_lumbar': (7.921, -13.49, 9.828), 'spine_thoracic': (-8.778, -4.418, 9.38),
-        'neck': (24.068, -1.049, -5.246), 'head': (7.511, -0.106), 'right_clavicle': (3.081, 8.007),
-        'right_shoulder': (56.946, 2.946, 11.388), 'right_elbow': (32.763, 18.85),
-        'right_wrist': (-0.966, -19.349),
+        'right_shoulder': (58.692, 0.544, 1.216), 'right_elbow': (28.353, 27.691),
+        'right_wrist': (4.648, -15.607),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
-        'spine_lumbar': (7.967, -13.539, 9.846), 'spine_thoracic': (-8.841, -4.427, 9.397),
-        'neck': (24.078, -1.058, -5.323), 'head': (7.53, -0.107), 'right_clavicle': (3.1, 8.01),
-        'right_shoulder': (56.941, 3.02, 11.359), 'right_elbow': (32.758, 18.846),
-        'right_wrist': (-0.975, -19.348),
+        'right_shoulder': (58.986, 2.401, 11.302), 'right_elbow': (27.777, 18.566),
+        'right_wrist': (-0.389, -16.439),
     })
     human.KeyJoints(42.3, {
-        'spine_lumbar': (5.203, -18.224, 9.498), 'spine_thoracic': (-10.621, -8.703, 9.525),
-        'neck': (25.079, -1.176, -7.178), 'head': (9.089, -0.146), 'right_clavicle': (7.28, 7.899),
-        'right_shoulder': (55.259, 5.263, 13.541), 'right_elbow': (30.932, 21.708),
-        'right_wrist': (-0.026, -22.149),
+        'right_shoulder': (55.202, 2.086, 2.703), 'right_elbow': (41.74, 50.628),
+        'right_wrist': (1.238, -28.899),
     })
     human.KeyJoints(42.4, {
-        'spine_lumbar': (1.125, -19.578, 10.016), 'spine_thoracic': (-12.362, -10.0, 12.283),
-        'neck': (26.727, -1.24, -8.926), 'head': (11.093, -0.172),
-        'right_clavicle': (19.761, 10.702), 'right_shoulder': (57.592, 7.532, 20.703),
-        'right_elbow': (20.885, 30.359), 'right_wrist': (3.811, -24.736),
+        'right_shoulder': (58.009, 6.922, 8.547), 'right_elbow': (52.181, 80.0),
+        'right_wrist': (18.285, -30.0),
     })
     human.KeyJoints(42.5, {
-        'spine_lumbar': (-0.759, -20.0, 9.883), 'spine_thoracic': (-11.99, -10.0, 12.023),
-        'neck': (27.001, -1.105, -8.092), 'head': (11.363, -0.17),
-        'right_clavicle': (19.137, 10.619), 'right_shoulder': (56.526, 6.242, 21.185),
-        'right_elbow': (21.875, 30.192), 'right_wrist': (3.911, -25.092),
+        'right_shoulder': (55.944, 4.48, 3.641), 'right_elbow': (60.149, 80.0),
+        'right_wrist': (33.492, -30.0),
     })
     human.KeyJoints(42.6, {
-        'spine_lumbar': (6.671, -13.653, 9.691), 'spine_thoracic': (-8.706, -4.65, 9.292),
-        'neck': (24.388, -0.969, -4.878), 'head': (7.866, -0.108), 'right_clavicle': (3.151, 8.029),
-        'right_shoulder': (56.021, 2.365, 11.643), 'right_elbow': (32.635, 18.924),
-        'right_wrist': (-0.836, -19.621),
+        'right_shoulder': (55.729, -3.274, -11.86), 'right_elbow': (35.886, 41.214),
+        'right_wrist': (11.698, -17.287),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.7, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(42.8, {
-        'spine_lumbar': (6.935, -15.126, 9.692), 'spine_thoracic': (-9.538, -5.787, 9.403),
-        'neck': (24.539, -1.101, -6.043), 'head': (8.156, -0.118), 'right_clavicle': (4.401, 7.952),
-        'right_shoulder': (56.267, 3.767, 11.927), 'right_elbow': (32.079, 19.678),
-        'right_wrist': (-0.707, -20.426),
+        'right_shoulder': (56.981, 1.536, 4.814), 'right_elbow': (33.57, 32.697),
+        'right_wrist': (-0.435, -21.662),
     })
     human.KeyJoints(42.9, {
-        'spine_lumbar': (3.025, -19.352, 9.176), 'spine_thoracic': (-11.079, -10.0, 10.359),
-        'neck': (25.666, -1.133, -7.367), 'head': (9.899, -0.161), 'right_clavicle': (14.5, 8.99),
-        'right_shoulder': (56.994, 6.825, 19.32), 'right_elbow': (27.825, 27.553),
-        'right_wrist': (2.521, -26.304),
+        'right_shoulder': (55.731, 3.742, 2.352), 'right_elbow': (49.423, 76.101),
+        'right_wrist': (9.166, -30.0),
     })
     human.KeyJoints(43.0, {
-        'spine_lumbar': (0.651, -20.0, 10.224), 'spine_thoracic': (-12.735, -10.0, 12.829),
-        'neck': (27.033, -1.295, -9.543), 'head': (11.411, -0.173),
-        'right_clavicle': (21.401, 11.194), 'right_shoulder': (57.741, 7.834, 21.35),
-        'right_elbow': (19.054, 31.347), 'right_wrist': (4.265, -24.144),
+        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
+        'right_wrist': (27.614, -30.0),
     })
     human.KeyJoints(43.1, {
-        'spine_lumbar': (1.951, -17.109, 9.272), 'spine_thoracic': (-9.734, -7.96, 9.248),
-        'neck': (25.538, -0.858, -5.099), 'head': (9.563, -0.144), 'right_clavicle': (5.951, 8.067),
-        'right_shoulder': (53.164, 2.346, 13.722), 'right_elbow': (31.304, 21.018),
-        'right_wrist': (0.077, -21.988),
+        'right_shoulder': (49.433, -6.513, -14.714), 'right_elbow': (56.177, 60.243),
+        'right_wrist': (20.046, -27.192),
     })
     human.KeyJoints(43.2, {
-        'spine_lumbar': (7.966, -13.507, 9.842), 'spine_thoracic': (-8.811, -4.415, 9.391),
-        'neck': (24.067, -1.055, -5.291), 'head': (7.516, -0.107), 'right_clavicle': (3.086, 8.008),
-        'right_shoulder': (56.949, 2.998, 11.366), 'right_elbow': (32.764, 18.845),
-        'right_wrist': (-0.975, -19.34),
+        'right_shoulder': (58.933, 1.589, 6.704), 'right_elbow': (27.852, 22.657),
+        'right_wrist': (1.928, -15.966),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.3, {
-        'spine_lumbar': (7.891, -13.654, 9.839), 'spine_thoracic': (-8.903, -4.517, 9.399),
-        'neck': (24.12, -1.062, -5.384), 'head': (7.578, -0.107), 'right_clavicle': (3.187, 8.006),
-        'right_shoulder': (56.875, 3.079, 11.388), 'right_elbow': (32.71, 18.897),
-        'right_wrist': (-0.96, -19.423),
+        'right_shoulder': (58.812, 2.265, 10.501), 'right_elbow': (28.219, 19.868),
+        'right_wrist': (-0.409, -16.814),
     })
     human.KeyJoints(43.4, {
-        'spine_lumbar': (4.698, -19.162, 9.26), 'spine_thoracic': (-10.652, -9.771, 9.493),
-        'neck': (25.163, -1.182, -7.305), 'head': (9.218, -0.149), 'right_clavicle': (8.604, 7.917),
-        'right_shoulder': (55.5, 5.599, 14.615), 'right_elbow': (30.471, 22.798),
-        'right_wrist': (0.402, -22.828),
+        'right_shoulder': (54.984, 2.094, 1.436), 'right_elbow': (44.062, 58.532),
+        'right_wrist': (2.58, -29.887),
     })
     human.KeyJoints(43.5, {
-        'spine_lumbar': (0.831, -19.723, 10.156), 'spine_thoracic': (-12.581, -10.0, 12.619),
-        'neck': (26.912, -1.267, -9.257), 'head': (11.284, -0.172),
-        'right_clavicle': (20.689, 11.003), 'right_shoulder': (57.695, 7.659, 20.969),
-        'right_elbow': (19.694, 30.869), 'right_wrist': (4.05, -24.358),
+        'right_shoulder': (58.868, 7.229, 9.185), 'right_elbow': (52.635, 80.0),
+        'right_wrist': (22.576, -30.0),
     })
     human.KeyJoints(43.6, {
-        'spine_lumbar': (-0.637, -19.885, 9.181), 'spine_thoracic': (-10.887, -10.0, 10.563),
-        'neck': (26.425, -0.929, -6.387), 'head': (10.758, -0.166),
-        'right_clavicle': (15.425, 9.439), 'right_shoulder': (55.427, 5.137, 21.018),
-        'right_elbow': (27.315, 28.556), 'right_wrist': (3.223, -26.71),
+        'right_shoulder': (52.641, 0.355, -3.207), 'right_elbow': (63.28, 79.836),
+        'right_wrist': (33.117, -30.0),
     })
     human.KeyJoints(43.7, {
-        'spine_lumbar': (7.401, -13.49, 9.75), 'spine_thoracic': (-8.638, -4.467, 9.316),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (3.049, 8.012),
-        'right_shoulder': (56.633, 2.573, 11.499), 'right_elbow': (32.725, 18.854),
-        'right_wrist': (-0.913, -19.454),
+        'right_shoulder': (57.316, -1.794, -8.191), 'right_elbow': (31.729, 36.636),
+        'right_wrist': (9.419, -15.957),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
-        'spine_lumbar': (7.977, -13.524, 9.847), 'spine_thoracic': (-8.832, -4.414, 9.397),
-        'neck': (24.072, -1.058, -5.315), 'head': (7.523, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.012, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(43.9, {
-        'spine_lumbar': (6.41, -15.981, 9.582), 'spine_thoracic': (-9.797, -6.602, 9.388),
-        'neck': (24.729, -1.119, -6.35), 'head': (8.428, -0.124), 'right_clavicle': (5.187, 7.92),
-        'right_shoulder': (56.063, 4.123, 12.384), 'right_elbow': (31.711, 20.239),
-        'right_wrist': (-0.517, -21.012),
+        'right_shoulder': (56.277, 1.774, 4.285), 'right_elbow': (36.306, 37.381),
+        'right_wrist': (-0.192, -24.35),
     })
     human.KeyJoints(44.0, {
-        'spine_lumbar': (2.56, -19.903, 9.268), 'spine_thoracic': (-11.42, -10.0, 10.714),
-        'neck': (25.89, -1.169, -7.832), 'head': (10.223, -0.168),
-        'right_clavicle': (16.076, 9.316), 'right_shoulder': (57.028, 7.404, 20.509),
-        'right_elbow': (26.942, 28.767), 'right_wrist': (3.029, -26.451),
+        'right_shoulder': (56.396, 4.947, 4.562), 'right_elbow': (50.625, 78.463),
+        'right_wrist': (12.0, -30.0),
     })
     human.KeyJoints(44.1, {
-        'spine_lumbar': (0.52, -20.0, 10.226), 'spine_thoracic': (-12.717, -10.0, 12.828),
-        'neck': (27.056, -1.286, -9.492), 'head': (11.434, -0.173),
-        'right_clavicle': (21.375, 11.2), 'right_shoulder': (57.682, 7.746, 21.368),
-        'right_elbow': (19.069, 31.336), 'right_wrist': (4.271, -24.159),
+        'right_shoulder': (59.804, 7.062, 8.77), 'right_elbow': (53.544, 80.0),
+        'right_wrist': (29.544, -30.0),
     })
     human.KeyJoints(44.2, {
-        'spine_lumbar': (3.786, -15.323, 9.355), 'spine_thoracic': (-9.085, -6.3, 9.167),
-        'neck': (25.009, -0.879, -4.777), 'head': (8.799, -0.129), 'right_clavicle': (4.493, 8.033),
-        'right_shoulder': (54.278, 1.994, 12.735), 'right_elbow': (31.897, 19.929),
-        'right_wrist': (-0.344, -20.949),
+        'right_shoulder': (51.22, -6.191, -15.545), 'right_elbow': (49.312, 52.82),
+        'right_wrist': (16.865, -23.64),
     })
     human.KeyJoints(44.3, {
-        'spine_lumbar': (7.977, -13.522, 9.847), 'spine_thoracic': (-8.83, -4.414, 9.396),
-        'neck': (24.071, -1.057, -5.313), 'head': (7.522, -0.107), 'right_clavicle': (3.088, 8.01),
-        'right_shoulder': (56.95, 3.011, 11.356), 'right_elbow': (32.764, 18.84),
-        'right_wrist': (-0.977, -19.338),
+        'right_shoulder': (59.007, 2.325, 10.86), 'right_elbow': (27.72, 18.888),
+        'right_wrist': (-0.116, -16.336),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.4, {
-        'spine_lumbar': (7.701, -13.941, 9.817), 'spine_thoracic': (-9.053, -4.749, 9.404),
-        'neck': (24.218, -1.071, -5.53), 'head': (7.702, -0.109), 'right_clavicle': (3.408, 7.997),
-        'right_shoulder': (56.717, 3.224, 11.468), 'right_elbow': (32.59, 19.029),
-        'right_wrist': (-0.918, -19.613),
+        'right_shoulder': (58.388, 1.948, 8.581), 'right_elbow': (29.311, 23.005),
+        'right_wrist': (-0.446, -17.752),
     })
     human.KeyJoints(44.5, {
-        'spine_lumbar': (4.195, -19.294, 8.797), 'spine_thoracic': (-10.137, -10.0, 9.347),
-        'neck': (25.084, -1.121, -6.733), 'head': (9.035, -0.141), 'right_clavicle': (10.48, 8.052),
-        'right_shoulder': (56.898, 5.546, 16.549), 'right_elbow': (29.627, 24.527),
-        'right_wrist': (1.177, -24.212),
+        'right_shoulder': (54.994, 2.148, 0.449), 'right_elbow': (46.08, 66.231),
+        'right_wrist': (4.378, -30.0),
     })
     human.KeyJoints(44.6, {
-        'spine_lumbar': (0.701, -19.89, 10.209), 'spine_thoracic': (-12.688, -10.0, 12.77),
-        'neck': (26.998, -1.285, -9.45), 'head': (11.374, -0.173),
-        'right_clavicle': (21.173, 11.139), 'right_shoulder': (57.732, 7.771, 21.214),
-        'right_elbow': (19.212, 31.182), 'right_wrist': (4.192, -24.2),
+        'right_shoulder': (59.477, 7.344, 9.431), 'right_elbow': (52.901, 80.0),
+        'right_wrist': (25.805, -30.0),
     })
     human.KeyJoints(44.7, {
-        'spine_lumbar': (-0.767, -19.457, 8.674), 'spine_thoracic': (-9.732, -10.0, 9.495),
-        'neck': (25.984, -0.781, -4.925), 'head': (10.2, -0.156), 'right_clavicle': (11.698, 8.615),
-        'right_shoulder': (54.993, 3.046, 18.468), 'right_elbow': (28.779, 25.655),
-        'right_wrist': (2.108, -26.467),
+        'right_shoulder': (49.86, -3.648, -9.007), 'right_elbow': (64.062, 77.524),
+        'right_wrist': (27.664, -30.0),
     })
     human.KeyJoints(44.8, {
-        'spine_lumbar': (6.958, -13.84, 9.547), 'spine_thoracic': (-8.327, -4.451, 9.121),
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103), 'right_clavicle': (2.7, 7.898),
-        'right_shoulder': (57.157, 1.918, 11.006), 'right_elbow': (31.997, 18.359),
-        'right_wrist': (-1.053, -21.17),
+        'right_shoulder': (56.522, -1.425, -4.193), 'right_elbow': (33.612, 32.569),
+        'right_wrist': (6.645, -20.252),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.847203, duration=0.072)
     human.KeyJoints(44.9, {
-        'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (24.173, -1.012, -5.014), 'right_shoulder': (57.197, 2.088, 10.93),
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
+        'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
+        'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.2628)

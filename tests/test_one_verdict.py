@@ -120,4 +120,6 @@ def test_compile_lint_report_and_preview_print_one_margin_and_one_shortfall(
     short = {(line, m[0]): int(m[1]) for c, line, msg in linted for m in SHORT.findall(msg)}
     assert short and set(short) == set(reported)
     for key, mm in short.items():
-        assert mm == round(reported[key]), key
+        # lint prints whole millimetres, the report one decimal: 720.51 mm is "721" and
+        # "720.5", and round(720.5) is 720, so the two agree within half a millimetre
+        assert abs(mm - reported[key]) <= 0.5 + 0.05, key

@@ -309,8 +309,7 @@ def late_share(f: FloatArray) -> FloatArray:
     """How far a released arm has gone toward the stand's pose at share ``f`` of the stand: not
     at all until ``LATE_START``, then a smoothstep. Let down with the body, an arm that had
     reached low in a squat swept through the thigh while the thighs were still level."""
-    x = np.clip((f - LATE_START) / (1.0 - LATE_START), 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
+    return smoothstep((f - LATE_START) / (1.0 - LATE_START))
 
 
 def _let_go(ir: MotionIR, side: str, after: float, before: float) -> bool:
@@ -937,14 +936,22 @@ def restate_stand_arms(seg: Segment, state: PoseState) -> None:
     posture's) and the arms' ramps (``late_share``) from where the reach left them, which the
     posture pass, solved before the reaches, could not know."""
     kf = seg.keyframes
-    assert kf is not None and kf.root_position is not None
-    q = state.q_at(seg.start, skip=seg)
-    kf.q[0] = q[[state.skel.dof_index(n) for n in kf.dofs]]
-    kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)
+    assert kf is not None
+    _start_from(seg, state, state.q_at(seg.start, skip=seg))
     cols = [kf.dofs.index(n) for n in seg.result["arms_let_down"]]
     share = late_share((kf.time - seg.start) / max(seg.end - seg.start, 1e-9))
     start, target = kf.q[0, cols], kf.q[-1, cols]
     kf.q[:, cols] = start[None] + share[:, None] * (target - start)[None]
+
+
+def _start_from(seg: Segment, state: PoseState, q0: FloatArray) -> None:
+    """A posture's first keyframe at ``q0``, the pose before it, and its root at the height
+    the body has then: what the default restater (``state.reanchor``) does for any posture."""
+    kf = seg.keyframes
+    assert kf is not None
+    kf.q[0] = q0[[state.skel.dof_index(n) for n in kf.dofs]]
+    if kf.root_position is not None:
+        kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)
 
 
 WIDE_STAND_SETTLE = 0.5  # share of a stand over feet apart that brings the trunk to its own
@@ -974,9 +981,7 @@ def restate_wide_stand(seg: Segment, state: PoseState) -> None:
         fade = 1.0 - smoothstep((kf.time - seg.start) / span)
         shifted = kf.q[:, trunk] + fade[:, None] * (q0[dofs] - kf.q[0, trunk])[None]
         kf.q[:, trunk] = np.clip(shifted, skel.lower[dofs], skel.upper[dofs])
-    kf.q[0] = q0[idx]
-    if kf.root_position is not None:
-        kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)
+    _start_from(seg, state, q0)
     arms = [k for k, n in enumerate(kf.dofs) if n[2:] in ("shoulder_flex", "shoulder_abd")]
     if not arms:
         return

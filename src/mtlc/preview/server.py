@@ -460,6 +460,9 @@ class IPv6Server(BoundedServer):
     address_family = socket.AF_INET6
 
 
+SETTLE_SECONDS = 0.05  # a changed file is recompiled once its stamp held still this long
+
+
 class FileWatcher(threading.Thread):
     """Recompile when a watched file's modification time or size changes (polling)."""
 
@@ -483,6 +486,13 @@ class FileWatcher(threading.Thread):
         while not self.stop_event.wait(self.interval):
             stamp = self._stamp()
             if stamp != self._seen:
+                # a save in progress (truncated, then written) changes the stamp twice: wait
+                # until it holds still, and recompile once, on the saved text (a poll between
+                # the two sent the half-written file's diagnostics and then the file's own)
+                while (
+                    not self.stop_event.wait(SETTLE_SECONDS) and (again := self._stamp()) != stamp
+                ):
+                    stamp = again
                 self._seen = stamp
                 try:
                     self.on_change()

@@ -25,6 +25,12 @@ the radii minus the distance between the two axes). Avoiding the capsules (``cle
 by the clearance pass and ``mtlc.body.ik.clearance``) asks ``CLEARANCE_MARGIN`` more, at
 ``LIMB_SAMPLES`` points along each limb, so what the solver leaves is outside with room to
 spare, not on the edge of the check.
+
+``collision_capsules`` is the other model, the body's **outer** volume against the equipment
+(docs/collision.md): 16 capsules, head, pelvis, abdomen, thorax, and each side's upper arm,
+forearm, hand, thigh, shank and foot, each end a point fixed in a joint's frame, so
+``capsule_segments`` places them all for every frame in one pass. The forearms, hands and thighs
+are the self-contact model's (one definition of each); the rest are sized below.
 """
 
 from __future__ import annotations
@@ -121,6 +127,122 @@ def limb_axis(skel: Skeleton, pose: Pose, limb: Limb) -> tuple[FloatArray, Float
         length = np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
         p1 = p1 - d / length * np.minimum(limb_radius(skel, limb), 0.5 * length)
     return p0, p1
+
+
+# -- the collision model: the body's outer volume against the equipment -------------------------
+
+# a capsule's radius as a fraction of the GB 10000-88 measure it is sized from (docs/collision.md)
+UPPER_ARM_RADIUS_OF_HAND_BREADTH = 0.5  # men P50: 41 mm (an arm about 8 cm across, as assumed)
+CALF_RADIUS_OF_FOOT_BREADTH = 0.5  # the calf about as broad as the foot (men P50: 48 mm)
+FOOT_RADIUS_OF_FOOT_BREADTH = 0.3  # the foot's height at the instep (men P50: 29 mm)
+# GB 10000-88 gives head breadth 154 mm for men P50 (stature 1678 mm); the table shipped here
+# has no head measures, so the head scales with stature
+HEAD_BREADTH_OF_STATURE = 154.0 / 1678.0
+HEAD_FRONT_OF_EYE = 0.01  # m: the brow's front ahead of the eyes
+TOOL_RADIUS = 0.01  # m: a tool with no `radius` (a wrench's handle, a screwdriver's shaft)
+
+
+@dataclass(frozen=True)
+class PartCapsule:
+    """A body part (or a held tool) as a capsule: two points, each fixed in a joint's frame
+    (joint name, offset in that frame, m), and a radius (m)."""
+
+    name: str
+    start: tuple[str, tuple[float, float, float]]
+    end: tuple[str, tuple[float, float, float]]
+    radius: float
+
+
+def _vec(*v: float) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def collision_capsules(skel: Skeleton) -> tuple[PartCapsule, ...]:
+    """The body's 16 capsules against the equipment, sized from the manikin's anthropometry
+    (see the module docstring and docs/collision.md for each size's reason)."""
+    stature = _measure_m(skel, "stature")
+    hand_breadth = _measure_m(skel, HAND_BREADTH)
+    foot_breadth = _measure_m(skel, "foot_breadth")
+    chest = 0.5 * _measure_m(skel, TRUNK_MEASURE)  # the trunk's half depth
+    thigh = next(c.radius for c in body_capsules(skel) if c.name == "right thigh")
+    # head: a vertical capsule from the head joint to the vertex, its front at the brow
+    head_r = 0.5 * HEAD_BREADTH_OF_STATURE * stature
+    eye = skel.site("gaze").offset
+    vertex = skel.site("vertex").offset
+    z_head = eye[2] + HEAD_FRONT_OF_EYE - head_r
+    caps = [
+        PartCapsule(
+            "head",
+            ("head", _vec(0, 0, z_head)),
+            ("head", _vec(0, vertex[1] - head_r, z_head)),
+            head_r,
+        )
+    ]
+    # trunk: pelvis across the hip joints as broad as the hips, abdomen up the spine, thorax
+    # across the chest as broad as the chest, all as deep as the chest
+    pelvis_half = max(0.5 * _measure_m(skel, "hip_breadth") - chest, 0.0)
+    thorax_half = max(0.5 * _measure_m(skel, "chest_breadth") - chest, 0.0)
+    sc_y = skel.joints[skel.joint_index("r_clavicle")].offset[1]
+    caps += [
+        PartCapsule("pelvis", ("pelvis", _vec(-pelvis_half, 0, 0)), ("pelvis", _vec(pelvis_half, 0, 0)), chest),
+        PartCapsule("abdomen", ("lumbar", _vec(0, 0, 0)), ("thorax", _vec(0, 0, 0)), chest),
+        PartCapsule(
+            "thorax", ("thorax", _vec(-thorax_half, 0.5 * sc_y, 0)), ("thorax", _vec(thorax_half, 0.5 * sc_y, 0)), chest
+        ),
+    ]  # fmt: skip
+    for side, word in (("r", "right"), ("l", "left")):
+        hand_limb = next(limb for limb in ARM_LIMBS if limb.name == f"{word} hand")
+        hand_r = limb_radius(skel, hand_limb)
+        tip = np.asarray(skel.site(f"{side}_fingertip").offset, float)
+        tip_axis = tip * (1.0 - min(hand_r, 0.5 * float(np.linalg.norm(tip))) / np.linalg.norm(tip))
+        foot_r = FOOT_RADIUS_OF_FOOT_BREADTH * foot_breadth
+        heel = skel.site(f"{side}_heel").offset
+        toe = skel.site(f"{side}_toe").offset
+        zero = _vec(0, 0, 0)
+        caps += [
+            PartCapsule(f"{word} upper arm", (f"{side}_shoulder", zero), (f"{side}_elbow", zero),
+                        UPPER_ARM_RADIUS_OF_HAND_BREADTH * hand_breadth),
+            PartCapsule(f"{word} forearm", (f"{side}_elbow", zero), (f"{side}_wrist", zero),
+                        LIMB_RADIUS["forearm"] * hand_breadth),
+            PartCapsule(f"{word} hand", (f"{side}_wrist", zero), (f"{side}_wrist", _vec(*tip_axis)), hand_r),
+            PartCapsule(f"{word} thigh", (f"{side}_hip", zero), (f"{side}_knee", zero), thigh),
+            PartCapsule(f"{word} shank", (f"{side}_knee", zero), (f"{side}_ankle", zero),
+                        CALF_RADIUS_OF_FOOT_BREADTH * foot_breadth),
+            PartCapsule(f"{word} foot", (f"{side}_ankle", _vec(heel[0], heel[1] + foot_r, heel[2] + foot_r)),
+                        (f"{side}_toes", _vec(toe[0], toe[1] + foot_r, toe[2] - foot_r)), foot_r),
+        ]  # fmt: skip
+    return tuple(caps)
+
+
+def tool_capsule(skel: Skeleton, tool_site: str, tool: dict[str, object]) -> PartCapsule:
+    """A held tool as a capsule from the hand's grip point to the tool's working point (the
+    site the tool pass adds for it, ``r_tool_wrench_10mm``), its radius the tool's ``radius``
+    or ``TOOL_RADIUS``."""
+    hand = skel.site(f"{tool_site[0]}_hand")
+    tip = skel.site(tool_site)
+    radius = tool.get("radius", TOOL_RADIUS)
+    return PartCapsule(
+        f"tool {tool.get('name', tool_site)}",
+        (hand.joint, _vec(*hand.offset)),
+        (tip.joint, _vec(*tip.offset)),
+        float(radius) if isinstance(radius, int | float) else TOOL_RADIUS,
+    )
+
+
+def capsule_segments(
+    skel: Skeleton, pose: Pose, caps: tuple[PartCapsule, ...]
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The capsules' axes in the world for every frame of ``pose``: start and end points
+    (..., C, 3), and the radii (C,). One gather and one batched rotation per end."""
+    if not caps:
+        shape = (*pose.batch_shape, 0, 3)
+        return np.zeros(shape), np.zeros(shape), np.zeros(0)
+    ends = []
+    for which in ("start", "end"):
+        js = [skel.joint_index(getattr(c, which)[0]) for c in caps]
+        offs = np.array([getattr(c, which)[1] for c in caps], dtype=float)
+        ends.append(pose.p[..., js, :] + np.einsum("...cij,cj->...ci", pose.R[..., js, :, :], offs))
+    return ends[0], ends[1], np.array([c.radius for c in caps])
 
 
 def segment_distance(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray) -> FloatArray:

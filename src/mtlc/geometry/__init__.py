@@ -1,0 +1,1 @@
+"""Geometry of the equipment the manikin works on: meshes, distances."""

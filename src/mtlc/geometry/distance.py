@@ -1,0 +1,270 @@
+"""Distance from capsules to triangle meshes, batched over frames (docs/collision.md).
+
+A capsule is an axis segment and a radius; its signed clearance to a mesh is the distance from
+its axis to the mesh's triangles less its radius: positive is the gap, negative how deep the
+capsule's surface goes past the mesh's surface (at most its radius, when the axis touches or
+crosses a triangle). The mesh is its surface: a capsule wholly inside a closed solid without
+touching its surface reads as clear (the manikin enters equipment from outside, so a limb inside
+a solid crossed its surface on the way in, and was reported there).
+
+Two implementations of the same quantity:
+
+* ``MeshIndex``: a bounding-volume hierarchy (OBB-RSS) built once per mesh by coal (the
+  maintained successor of FCL, from the same authors' group); each query asks coal for the
+  distance from the axis (a capsule of radius 0) to the mesh. coal was chosen over python-fcl on
+  this machine's measurements (bench/collision.py, docs/collision.md): the same distances,
+  faster builds and queries.
+* ``brute_force_distance``: every segment against every triangle in numpy, the baseline the
+  library is tested and benchmarked against (``O(S·T)``: small meshes only).
+
+The meshes come as plain arrays (vertices (V, 3) m in the scene's frame, faces (F, 3) indices),
+so this module knows no file format and no scene model.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+Mesh = tuple[FloatArray, IntArray]  # vertices (V, 3), faces (F, 3)
+
+_EPS = 1e-12
+_BRUTE_CHUNK = 2_000_000  # segment-triangle pairs per numpy block (about 1 GB of temporaries)
+
+
+# -- brute force ----------------------------------------------------------------------------
+
+
+def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
+    return np.einsum("...c,...c->...", a, b)
+
+
+def point_segment_distance(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """(...,) distance from points ``p`` to segments ``a``-``b`` (all (..., 3), broadcast)."""
+    d = b - a
+    t = np.clip(_dot(p - a, d) / np.maximum(_dot(d, d), _EPS), 0.0, 1.0)
+    return np.linalg.norm(p - a - t[..., None] * d, axis=-1)
+
+
+def segment_segment_distance(
+    p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray
+) -> FloatArray:
+    """(...,) closest distance between segments ``p1``-``q1`` and ``p2``-``q2`` (broadcast;
+    Ericson, Real-Time Collision Detection, 5.1.9, with both clamps)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = np.maximum(_dot(d1, d1), _EPS)
+    e = np.maximum(_dot(d2, d2), _EPS)
+    b, c, f = _dot(d1, d2), _dot(d1, r), _dot(d2, r)
+    denom = a * e - b * b
+    s = np.where(denom > _EPS, np.clip((b * f - c * e) / np.maximum(denom, _EPS), 0.0, 1.0), 0.0)
+    t = (b * s + f) / e
+    s = np.where(
+        t < 0.0, np.clip(-c / a, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a, 0.0, 1.0), s)
+    )
+    t = np.clip(t, 0.0, 1.0)
+    return np.linalg.norm(p1 + s[..., None] * d1 - p2 - t[..., None] * d2, axis=-1)
+
+
+def point_triangle_distance(p: FloatArray, tri: FloatArray) -> FloatArray:
+    """(...,) distance from points ``p`` (..., 3) to triangles ``tri`` (..., 3, 3): to the
+    plane where the point projects inside the triangle, else to the nearest edge."""
+    a, b, c = tri[..., 0, :], tri[..., 1, :], tri[..., 2, :]
+    n = np.cross(b - a, c - a)
+    n_len = np.linalg.norm(n, axis=-1)
+    unit = n / np.maximum(n_len, _EPS)[..., None]
+    height = _dot(p - a, unit)
+    foot = p - height[..., None] * unit
+    inside = (
+        (n_len > _EPS)  # a degenerate triangle is its edges
+        & (_dot(np.cross(b - a, foot - a), n) >= 0.0)
+        & (_dot(np.cross(c - b, foot - b), n) >= 0.0)
+        & (_dot(np.cross(a - c, foot - c), n) >= 0.0)
+    )
+    edges = np.minimum(
+        np.minimum(point_segment_distance(p, a, b), point_segment_distance(p, b, c)),
+        point_segment_distance(p, c, a),
+    )
+    return np.where(inside, np.abs(height), edges)
+
+
+def segment_crosses_triangle(p: FloatArray, q: FloatArray, tri: FloatArray) -> NDArray[np.bool_]:
+    """(...,) whether segment ``p``-``q`` passes through triangle ``tri`` (Möller-Trumbore)."""
+    a, b, c = tri[..., 0, :], tri[..., 1, :], tri[..., 2, :]
+    d = q - p
+    e1, e2 = b - a, c - a
+    h = np.cross(d, e2)
+    det = _dot(e1, h)
+    ok = np.abs(det) > _EPS
+    inv = 1.0 / np.where(ok, det, 1.0)
+    s = p - a
+    u = inv * _dot(s, h)
+    qv = np.cross(s, e1)
+    v = inv * _dot(d, qv)
+    t = inv * _dot(e2, qv)
+    return ok & (u >= 0.0) & (v >= 0.0) & (u + v <= 1.0) & (t >= 0.0) & (t <= 1.0)
+
+
+def segment_triangle_distance(p: FloatArray, q: FloatArray, tri: FloatArray) -> FloatArray:
+    """(...,) closest distance between segments ``p``-``q`` (..., 3) and triangles (..., 3, 3):
+    zero where the segment crosses the triangle, else the least of its two ends to the
+    triangle and the segment to the triangle's three edges."""
+    ends = np.minimum(point_triangle_distance(p, tri), point_triangle_distance(q, tri))
+    for i in range(3):
+        ends = np.minimum(
+            ends, segment_segment_distance(p, q, tri[..., i, :], tri[..., (i + 1) % 3, :])
+        )
+    return np.where(segment_crosses_triangle(p, q, tri), 0.0, ends)
+
+
+def brute_force_distance(a: FloatArray, b: FloatArray, mesh: Mesh) -> FloatArray:
+    """(S,) distance from each segment ``a``-``b`` (S, 3) to the nearest triangle of ``mesh``,
+    every pair in numpy (in blocks of ``_BRUTE_CHUNK`` pairs)."""
+    vertices, faces = mesh
+    tri = np.asarray(vertices, float)[np.asarray(faces, np.int64)]  # (T, 3, 3)
+    a, b = np.reshape(np.asarray(a, float), (-1, 3)), np.reshape(np.asarray(b, float), (-1, 3))
+    out = np.full(len(a), np.inf)
+    if len(tri) == 0:
+        return out
+    rows = max(1, _BRUTE_CHUNK // len(tri))
+    for lo in range(0, len(a), rows):
+        sl = slice(lo, lo + rows)
+        d = segment_triangle_distance(a[sl, None, :], b[sl, None, :], tri[None, :, :, :])
+        out[sl] = d.min(axis=1)
+    return out
+
+
+# -- the collision library --------------------------------------------------------------------
+
+
+def _segment_frames(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(S, 3, 3) rotations taking +Z to ``b - a``, (S, 3) mid-points and (S,) lengths: where
+    the libraries' capsules (centred, along their own Z) must be put to lie on the segments.
+    Computed for all segments at once: per-segment numpy calls cost more than the query."""
+    d = b - a
+    length = np.linalg.norm(d, axis=-1)
+    z = np.where(length[:, None] > _EPS, d / np.maximum(length, _EPS)[:, None], [0.0, 0.0, 1.0])
+    helper = np.where(np.abs(z[:, :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x, axis=-1, keepdims=True)
+    return np.stack([x, np.cross(z, x), z], axis=-1), 0.5 * (a + b), length
+
+
+class MeshIndex:
+    """One mesh's bounding-volume hierarchy, for segment-distance queries.
+
+    ``library`` is "coal" (the default, see the module doc) or "fcl" (python-fcl, kept for the
+    comparison in bench/collision.py). Build once per mesh (a 100 k-triangle mesh: tens of ms),
+    query as often as needed.
+    """
+
+    def __init__(self, vertices: FloatArray, faces: IntArray, library: str = "coal") -> None:
+        self.library = library
+        v = np.ascontiguousarray(vertices, dtype=np.float64)
+        f = np.ascontiguousarray(faces, dtype=np.int64)
+        self.n_triangles = len(f)
+        used = v[np.unique(f)] if len(f) else np.zeros((1, 3))
+        self.lower, self.upper = used.min(axis=0), used.max(axis=0)  # the bounding box
+        if library == "coal":
+            import coal
+
+            model = coal.BVHModelOBBRSS()
+            model.beginModel(len(f), len(v))
+            model.addVertices(v)
+            model.addTriangles(f)
+            model.endModel()
+            self._coal = coal
+            self._model = model
+            self._identity = coal.Transform3s()
+        elif library == "fcl":
+            import fcl
+
+            model = fcl.BVHModel()
+            model.beginModel(len(v), len(f))
+            model.addSubModel(v, f)
+            model.endModel()
+            self._fcl = fcl
+            self._object = fcl.CollisionObject(model, fcl.Transform())
+        else:
+            raise ValueError(f"unknown collision library {library!r}: 'coal' or 'fcl'")
+
+    def segment_distance(
+        self, a: FloatArray, b: FloatArray, horizon: float | None = None
+    ) -> FloatArray:
+        """(S,) distance from each segment ``a``-``b`` (S, 3) to the mesh (0 where it touches or
+        crosses a triangle). With a ``horizon`` (m), a segment farther than it from the mesh's
+        bounding box is not queried: its distance to the box, a lower bound over the horizon,
+        stands in (most of a body is far from most equipment most of the time)."""
+        a, b = np.reshape(np.asarray(a, float), (-1, 3)), np.reshape(np.asarray(b, float), (-1, 3))
+        out = np.empty(len(a))
+        if self.n_triangles == 0:
+            out.fill(np.inf)
+            return out
+        query = self._coal_distance if self.library == "coal" else self._fcl_distance
+        rot, mid, length = _segment_frames(a, b)
+        ask = np.ones(len(a), dtype=bool)
+        if horizon is not None:
+            outside = np.maximum(np.maximum(self.lower - mid, mid - self.upper), 0.0)
+            out[:] = np.maximum(np.linalg.norm(outside, axis=-1) - 0.5 * length, 0.0)
+            ask = out <= horizon
+        for i in np.flatnonzero(ask):
+            out[i] = query(rot[i], mid[i], float(length[i]))
+        # in contact the libraries answer 0, -1 (fcl) or a degenerate penetration (coal, a
+        # segment in a triangle's plane): the axis touches the mesh
+        return np.where(np.isfinite(out) & (out > 0.0), out, 0.0)
+
+    def _coal_distance(self, rot: FloatArray, mid: FloatArray, length: float) -> float:
+        coal = self._coal
+        pose = coal.Transform3s(rot, mid)
+        return float(
+            coal.distance(
+                coal.Capsule(0.0, length),
+                pose,
+                self._model,
+                self._identity,
+                coal.DistanceRequest(),
+                coal.DistanceResult(),
+            )
+        )
+
+    def _fcl_distance(self, rot: FloatArray, mid: FloatArray, length: float) -> float:
+        fcl = self._fcl
+        seg = fcl.CollisionObject(fcl.Capsule(0.0, length), fcl.Transform(rot, mid))
+        return float(fcl.distance(seg, self._object, fcl.DistanceRequest(), fcl.DistanceResult()))
+
+
+def build_indices(meshes: Mapping[str, Mesh], library: str = "coal") -> dict[str, MeshIndex]:
+    """A ``MeshIndex`` per named mesh, in name order."""
+    return {name: MeshIndex(*meshes[name], library=library) for name in sorted(meshes)}
+
+
+def capsule_clearance(
+    a: FloatArray,
+    b: FloatArray,
+    radius: Any,
+    meshes: Mapping[str, Mesh] | Mapping[str, MeshIndex],
+    library: str = "coal",
+    horizon: float | None = None,
+) -> tuple[FloatArray, tuple[str, ...]]:
+    """(..., M) signed clearance (m) of capsules with axes ``a``-``b`` (..., 3) and radius
+    (broadcast to ``a.shape[:-1]``) to each mesh, and the mesh names in column order (sorted):
+    the axis's distance to the mesh less the radius (negative: how deep the surface goes in).
+
+    ``meshes`` maps names to (vertices, faces) or to indices already built (build them once
+    when the same meshes are asked about again); ``horizon`` as in
+    ``MeshIndex.segment_distance`` (beyond it, a lower bound)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    shape = a.shape[:-1]
+    r = np.broadcast_to(np.asarray(radius, float), shape).reshape(-1)
+    names = tuple(sorted(meshes))
+    cols = []
+    for name in names:
+        m = meshes[name]
+        index = m if isinstance(m, MeshIndex) else MeshIndex(*m, library=library)
+        cols.append(index.segment_distance(a.reshape(-1, 3), b.reshape(-1, 3), horizon) - r)
+    out = np.stack(cols, axis=-1) if cols else np.zeros((len(r), 0))
+    return out.reshape(*shape, len(names)), names

@@ -90,11 +90,11 @@ def main() -> None:
         mesh = uv_sphere(size)
         n_tri = len(mesh[1])
         checked = min(args.queries, max(4, 20_000_000 // n_tri))
-        t_brute, truth = cpu(lambda: brute_force_distance(a[:checked], b[:checked], mesh))
+        t_brute, truth = cpu(lambda n=checked, m=mesh: brute_force_distance(a[:n], b[:n], m))
         for lib in LIBRARIES:
             try:
                 t_build, index = cpu(
-                    lambda lib=lib: MeshIndex(*mesh, library=lib),
+                    lambda lib=lib, m=mesh: MeshIndex(*m, library=lib),
                     repeat=1 if n_tri > 500_000 else 3,
                 )
             except ImportError as exc:

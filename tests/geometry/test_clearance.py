@@ -30,13 +30,20 @@ EXAMPLE = Path("examples/remove_access_panel.mtask")
 HALF_BOX = 0.02  # m: a 4 cm cube
 
 
-@pytest.fixture(scope="module")
-def panel_ir() -> MotionIR:
+@pytest.fixture(scope="module", params=[("female", 5), ("male", 95)], ids=["F5", "M95"])
+def panel_ir(request: pytest.FixtureRequest) -> MotionIR:
     program = run_frontend([EXAMPLE])
     assert not program.sink.has_errors, program.diagnostics
     (timeline,) = program.timelines
-    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "female", 5))
+    sex, pct = request.param
+    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, pct))
     return run_motion(timeline, DiagnosticSink())
+
+
+def _stroke_frame(ir: MotionIR) -> int:
+    """A frame in the middle of the first wrench stroke: the hand is at a bolt."""
+    stroke = next(s for s in ir.segments if s.kind == "TO" and "stroke" in s.goal.params)
+    return int(np.argmin(np.abs(ir.frames.time - 0.5 * (stroke.start + stroke.end))))
 
 
 def _segments(ir: MotionIR):
@@ -85,7 +92,7 @@ def test_capsules_are_sized_from_the_manikin() -> None:
 
 def test_box_on_the_forearm_is_found_at_its_frame_and_goal(panel_ir: MotionIR) -> None:
     frames = panel_ir.frames
-    k = len(frames.time) // 3
+    k = _stroke_frame(panel_ir)
     box = _box_on(panel_ir, "right forearm", k)
     fc = frame_clearance(panel_ir, {"bracket": (box.vertices, box.faces)})
     j = fc.capsules.index("right forearm")
@@ -117,16 +124,16 @@ def test_box_on_the_forearm_is_found_at_its_frame_and_goal(panel_ir: MotionIR) -
 
 
 def test_clearance_agrees_with_trimesh_proximity(panel_ir: MotionIR) -> None:
-    """Sample every capsule's axis every tenth frame and ask trimesh for the nearest surface
+    """Sample every capsule's axis every 20th frame and ask trimesh for the nearest surface
     point: the sampled distance less the radius is never below the metric, and above it by at
     most half the sample spacing (distance is 1-Lipschitz along the axis)."""
     frames = panel_ir.frames
-    k = len(frames.time) // 3
+    k = _stroke_frame(panel_ir)
     box = _box_on(panel_ir, "right forearm", k)
     fc = frame_clearance(panel_ir, {"bracket": (box.vertices, box.faces)}, horizon=None)
     skel, pose, caps = _segments(panel_ir)
     a, b, r = capsule_segments(skel, pose, caps)
-    rows = np.union1d(np.arange(0, len(frames.time), 10), [k])
+    rows = np.union1d(np.arange(0, len(frames.time), 20), [k])
     samples = 41
     s = np.linspace(0.0, 1.0, samples)
     pts = a[rows, :, None, :] + s[None, None, :, None] * (b - a)[rows, :, None, :]
@@ -134,8 +141,9 @@ def test_clearance_agrees_with_trimesh_proximity(panel_ir: MotionIR) -> None:
     sampled = dist.reshape(len(rows), len(caps), samples).min(axis=2) - r
     ours = fc.clearance[rows, : len(caps), 0]
     half_spacing = 0.5 * np.linalg.norm(b - a, axis=-1)[rows] / (samples - 1)
-    assert np.all(sampled >= ours - 1e-7)
-    assert np.all(sampled - ours <= half_spacing + 1e-7)
+    # (to a micrometre: coal's GJK tolerance, 1e-6 m; it answered 0.13 µm long on one pair)
+    assert np.all(sampled >= ours - 1e-6)
+    assert np.all(sampled - ours <= half_spacing + 1e-6)
     # and the penetration at frame k is seen by trimesh too
     assert (
         sampled[np.flatnonzero(rows == k)[0], [c.name for c in caps].index("right forearm")] < -0.02

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from mtlc.body import forward
 from mtlc.body.capsules import PartCapsule, capsule_segments, collision_capsules, tool_capsule
-from mtlc.geometry.distance import Mesh, MeshIndex, build_indices
+from mtlc.geometry.distance import Mesh, MeshIndex
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.loads import held_spans
 
@@ -205,7 +205,6 @@ __all__ = [
     "FrameClearance",
     "GoalClearance",
     "PartClearance",
-    "build_indices",
     "carried_part_capsules",
     "frame_clearance",
     "goal_clearances",

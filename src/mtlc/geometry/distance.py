@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from mtlc.body.capsules import segment_distance
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 Mesh = tuple[FloatArray, IntArray]  # vertices (V, 3), faces (F, 3)
@@ -54,20 +56,11 @@ def point_segment_distance(p: FloatArray, a: FloatArray, b: FloatArray) -> Float
 def segment_segment_distance(
     p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray
 ) -> FloatArray:
-    """(...,) closest distance between segments ``p1``-``q1`` and ``p2``-``q2`` (broadcast;
-    Ericson, Real-Time Collision Detection, 5.1.9, with both clamps)."""
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a = np.maximum(_dot(d1, d1), _EPS)
-    e = np.maximum(_dot(d2, d2), _EPS)
-    b, c, f = _dot(d1, d2), _dot(d1, r), _dot(d2, r)
-    denom = a * e - b * b
-    s = np.where(denom > _EPS, np.clip((b * f - c * e) / np.maximum(denom, _EPS), 0.0, 1.0), 0.0)
-    t = (b * s + f) / e
-    s = np.where(
-        t < 0.0, np.clip(-c / a, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a, 0.0, 1.0), s)
-    )
-    t = np.clip(t, 0.0, 1.0)
-    return np.linalg.norm(p1 + s[..., None] * d1 - p2 - t[..., None] * d2, axis=-1)
+    """(...,) closest distance between segments ``p1``-``q1`` and ``p2``-``q2`` (broadcast):
+    the self-contact model's ``segment_distance`` (Ericson 5.1.9) on the flattened pairs."""
+    shape = np.broadcast_shapes(p1.shape, q1.shape, p2.shape, q2.shape)
+    flat = [np.broadcast_to(x, shape).reshape(-1, 3) for x in (p1, q1, p2, q2)]
+    return segment_distance(*flat).reshape(shape[:-1])
 
 
 def point_triangle_distance(p: FloatArray, tri: FloatArray) -> FloatArray:

@@ -157,6 +157,12 @@ def _vec(*v: float) -> tuple[float, float, float]:
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
+def _joints(name: str, start: str, end: str, radius: float) -> PartCapsule:
+    """A capsule between two joint centres."""
+    zero = _vec(0, 0, 0)
+    return PartCapsule(name, (start, zero), (end, zero), radius)
+
+
 def collision_capsules(skel: Skeleton) -> tuple[PartCapsule, ...]:
     """The body's 16 capsules against the equipment, sized from the manikin's anthropometry
     (see the module docstring and docs/collision.md for each size's reason)."""
@@ -183,34 +189,57 @@ def collision_capsules(skel: Skeleton) -> tuple[PartCapsule, ...]:
     pelvis_half = max(0.5 * _measure_m(skel, "hip_breadth") - chest, 0.0)
     thorax_half = max(0.5 * _measure_m(skel, "chest_breadth") - chest, 0.0)
     sc_y = skel.joints[skel.joint_index("r_clavicle")].offset[1]
+    zero = _vec(0, 0, 0)
     caps += [
-        PartCapsule("pelvis", ("pelvis", _vec(-pelvis_half, 0, 0)), ("pelvis", _vec(pelvis_half, 0, 0)), chest),
-        PartCapsule("abdomen", ("lumbar", _vec(0, 0, 0)), ("thorax", _vec(0, 0, 0)), chest),
         PartCapsule(
-            "thorax", ("thorax", _vec(-thorax_half, 0.5 * sc_y, 0)), ("thorax", _vec(thorax_half, 0.5 * sc_y, 0)), chest
+            "pelvis",
+            ("pelvis", _vec(-pelvis_half, 0, 0)),
+            ("pelvis", _vec(pelvis_half, 0, 0)),
+            chest,
         ),
-    ]  # fmt: skip
+        PartCapsule("abdomen", ("lumbar", zero), ("thorax", zero), chest),
+        PartCapsule(
+            "thorax",
+            ("thorax", _vec(-thorax_half, 0.5 * sc_y, 0)),
+            ("thorax", _vec(thorax_half, 0.5 * sc_y, 0)),
+            chest,
+        ),
+    ]
+    foot_r = FOOT_RADIUS_OF_FOOT_BREADTH * foot_breadth
     for side, word in (("r", "right"), ("l", "left")):
-        hand_limb = next(limb for limb in ARM_LIMBS if limb.name == f"{word} hand")
-        hand_r = limb_radius(skel, hand_limb)
+        forearm, hand = side_limbs(side)
+        hand_r = limb_radius(skel, hand)
         tip = np.asarray(skel.site(f"{side}_fingertip").offset, float)
-        tip_axis = tip * (1.0 - min(hand_r, 0.5 * float(np.linalg.norm(tip))) / np.linalg.norm(tip))
-        foot_r = FOOT_RADIUS_OF_FOOT_BREADTH * foot_breadth
+        tip_length = float(np.linalg.norm(tip))
+        tip_axis = tip * (1.0 - min(hand_r, 0.5 * tip_length) / tip_length)  # as ``limb_axis``
         heel = skel.site(f"{side}_heel").offset
         toe = skel.site(f"{side}_toe").offset
-        zero = _vec(0, 0, 0)
+        heel_axis = _vec(heel[0], heel[1] + foot_r, heel[2] + foot_r)
+        toe_axis = _vec(toe[0], toe[1] + foot_r, toe[2] - foot_r)
         caps += [
-            PartCapsule(f"{word} upper arm", (f"{side}_shoulder", zero), (f"{side}_elbow", zero),
-                        UPPER_ARM_RADIUS_OF_HAND_BREADTH * hand_breadth),
-            PartCapsule(f"{word} forearm", (f"{side}_elbow", zero), (f"{side}_wrist", zero),
-                        LIMB_RADIUS["forearm"] * hand_breadth),
-            PartCapsule(f"{word} hand", (f"{side}_wrist", zero), (f"{side}_wrist", _vec(*tip_axis)), hand_r),
-            PartCapsule(f"{word} thigh", (f"{side}_hip", zero), (f"{side}_knee", zero), thigh),
-            PartCapsule(f"{word} shank", (f"{side}_knee", zero), (f"{side}_ankle", zero),
-                        CALF_RADIUS_OF_FOOT_BREADTH * foot_breadth),
-            PartCapsule(f"{word} foot", (f"{side}_ankle", _vec(heel[0], heel[1] + foot_r, heel[2] + foot_r)),
-                        (f"{side}_toes", _vec(toe[0], toe[1] + foot_r, toe[2] - foot_r)), foot_r),
-        ]  # fmt: skip
+            _joints(
+                f"{word} upper arm",
+                f"{side}_shoulder",
+                f"{side}_elbow",
+                UPPER_ARM_RADIUS_OF_HAND_BREADTH * hand_breadth,
+            ),
+            _joints(
+                f"{word} forearm", f"{side}_elbow", f"{side}_wrist", limb_radius(skel, forearm)
+            ),
+            PartCapsule(
+                f"{word} hand", (f"{side}_wrist", zero), (f"{side}_wrist", _vec(*tip_axis)), hand_r
+            ),
+            _joints(f"{word} thigh", f"{side}_hip", f"{side}_knee", thigh),
+            _joints(
+                f"{word} shank",
+                f"{side}_knee",
+                f"{side}_ankle",
+                CALF_RADIUS_OF_FOOT_BREADTH * foot_breadth,
+            ),
+            PartCapsule(
+                f"{word} foot", (f"{side}_ankle", heel_axis), (f"{side}_toes", toe_axis), foot_r
+            ),
+        ]
     return tuple(caps)
 
 

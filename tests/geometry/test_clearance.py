@@ -148,3 +148,14 @@ def test_clearance_agrees_with_trimesh_proximity(panel_ir: MotionIR) -> None:
     assert (
         sampled[np.flatnonzero(rows == k)[0], [c.name for c in caps].index("right forearm")] < -0.02
     )
+
+
+def test_no_meshes_means_nothing_near(panel_ir: MotionIR) -> None:
+    fc = frame_clearance(panel_ir, {})
+    assert fc.clearance.shape == (len(panel_ir.frames.time), len(fc.capsules), 0)
+    goals = goal_clearances(panel_ir, fc)
+    assert len(goals) == sum(s.kind == "TA" for s in panel_ir.segments)
+    for goal in goals:
+        word = "right" if goal.effector.startswith("r") else "left"
+        assert {p.part for p in goal.path} >= {f"{word} hand", f"{word} forearm"}
+        assert all(p.clearance == np.inf and p.mesh is None for p in goal.path + goal.at_site)

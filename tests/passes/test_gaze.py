@@ -290,3 +290,56 @@ def test_the_head_faces_ahead_when_the_body_sets_off(tmp_path: Path) -> None:
     assert np.abs(frames.q[during][:, neck] - rest).max() < ONE_DEG
     assert np.abs(frames.q[-1, neck] - rest).max() < ONE_DEG  # the stand ends looking ahead
     assert np.abs(np.diff(frames.q[:, neck], axis=0)).max() < math.radians(12)
+
+
+# Looks pulled every way (a generated procedure's shape): the first at frame 0, one overhead
+# while the other hand screws behind the body, two in parallel branches, a look far to the side.
+LOOK_AROUND = """\
+use stdlib.actions
+use stdlib.elements
+use stdlib.tools
+
+scene bay {
+    ground 15 cm
+    site front at (-35, 113, 55) cm normal (-1, 0, 0)
+    site behind at (7, 125, -59) cm normal (0, 0, -1)
+    site overhead at (-15, 226, 26) cm normal (0, -1, 0)
+    site side at (-88, 99, 26) cm normal (0, -1, 0)
+}
+
+task look_around "Look every way" {
+    manikin gb10000_1988 female p1
+    scene bay
+    look(behind)
+    reach(right, front, approach: 6 cm)
+    press(right, overhead)
+    parallel {
+        {
+            look(side)
+            reach(left, side, approach: 3 cm)
+        }
+        {
+            screw(right, behind, turns: 2, tool: screwdriver_flat, swing: 30 deg)
+            pick(right, overhead, G1C)
+        }
+    }
+    place(right, behind)
+    look(side)
+}
+"""
+
+
+@pytest.mark.parametrize("manikin", ["female p5", "male p95"])
+def test_the_head_never_turns_faster_than_a_person(tmp_path: Path, manikin: str) -> None:
+    """Issue 19: before, such looks swung the neck limit to limit, 30 deg in one frame."""
+    path = tmp_path / "look_around.mtask"
+    path.write_text(LOOK_AROUND.replace("female p1", manikin))
+    program = run_frontend([path])
+    assert program.timelines, [d.message for d in program.diagnostics]
+    ir = run_motion(program.timelines[0], program.sink)
+    skel, frames = ir.skeleton, ir.frames
+    head = [d for d, n in enumerate(skel.dof_names) if n.startswith(("neck_", "head_"))]
+    steps = np.abs(np.diff(frames.q[:, head], axis=0))
+    assert np.degrees(steps.max()) <= 12.0
+    looks = [s for s in ir.segments if s.kind == "gaze" and not s.goal.params.get("implicit")]
+    assert len(looks) >= 4 and all(s.end - s.start >= TURN_MIN - 1e-9 for s in looks)

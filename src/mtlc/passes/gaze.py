@@ -46,6 +46,7 @@ TURN_MAX = 0.4  # s: a head turn of TURN_FULL or more
 TURN_FULL = math.radians(60.0)
 HEAD_PACE = math.radians(200.0)  # rad/s: a head's mean speed between keys (peaks ~1.5x)
 HEAD_SPEED = math.radians(240.0)  # rad/s: faster than a head turn (60 deg in TURN_MAX)
+NEAR_BRANCH = math.radians(10.0)  # aim given up to stay on the head's side of the neck
 SAME_TARGET = 1e-3  # m: targets closer than this are one target
 WORK_PAUSE = 0.5  # s: reaches closer than this in time are one stretch of work (a grasp between)
 AHEAD_MIN = math.radians(2.0)  # a head this close to facing ahead is left where it is
@@ -57,6 +58,7 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     looks = solve_looks(ir, ctx, state)
     follow_the_work(ir, ctx, state, looks)
     face_ahead(ir, ctx, state)
+    keep_pace(ir, ctx, state)
     reanchor(ir, ctx.cache, RESTATERS)
     return ir
 
@@ -65,7 +67,11 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
 
 
 def solve_looks(ir: MotionIR, ctx: PassContext, state: PoseState) -> list[tuple[float, float]]:
-    """Aim the head at every ``look`` target at the look's end; returns the looks' windows."""
+    """Aim the head at every ``look`` target; returns the windows the head turns in.
+
+    A look lasts what MTM-1 gives the eyes (EF, 0.26 s); the head turns at a person's pace
+    (``look_window``), so a look whose head has far to go ends its turn after its own end, the
+    eyes already on the target (a gaze shift: the eyes land first, the head follows)."""
     skel = ir.skeleton
     dofs = default_dofs(skel, ["gaze"], "arm")
     names = tuple(skel.dof_names[d] for d in dofs)
@@ -73,31 +79,70 @@ def solve_looks(ir: MotionIR, ctx: PassContext, state: PoseState) -> list[tuple[
     for s in ir.segments:
         if s.kind == "gaze" and s.goal.position is not None:
             windows.setdefault((round(s.start, 9), round(s.end, 9)), []).append(s)
-    for _, segs in sorted(windows.items()):
+    ordered = sorted(windows.items())
+    turns: list[tuple[float, float]] = []
+    for k, (_, segs) in enumerate(ordered):
         t0, t1 = segs[0].start, segs[0].end
+        limit = ordered[k + 1][1][0].start if k + 1 < len(ordered) else ir.duration
+        free = min(t0, max((end for _, end in turns), default=0.0))
         target = np.mean([np.asarray(s.goal.position, dtype=float) for s in segs], axis=0)
-        q0 = state.q_at(t0)
-        root = state.root_at(t1)
-        base = sorted(set(skel.chain_dofs("gaze")) - set(dofs))
-        key = ("gaze", root[0].tobytes(), root[1].tobytes(), q0[base].round(12).tobytes())
-        model = cached(
-            ctx.cache,
-            key,
-            lambda q0=q0, root=root: prepare(
-                skel, ["gaze"], q0, root_position=root[0], root_rotation=root[1]
-            ),
-        )
-        res = solve_ta(skel, [Goal("gaze", aim=target)], q0, model=model, restarts=2)
-        q1 = res.q[0]
+        q1 = aim_head(ir, ctx, state, state.q_at(t0), target, t1)
+        start, end = look_window(t0, t1, state.q_at(t0)[dofs], q1[dofs], free, max(limit, t1))
+        q0 = state.q_at(start)
+        if end > t1 + EPS:  # the body may have moved on by the time the head arrives
+            q1 = aim_head(ir, ctx, state, q1, target, end)
+        root = state.root_at(end)
         err = float(aim_errors(skel, q1[None], root[0][None], root[1][None], target[None])[0])
         for seg in segs:
+            seg.start, seg.end = min(seg.start, start), max(seg.end, end)
             seg.keyframes = Keyframes(
-                time=np.array([t0, t1]), dofs=names, q=np.stack([q0[dofs], q1[dofs]])
+                time=np.array([start, end]), dofs=names, q=np.stack([q0[dofs], q1[dofs]])
             )
             seg.result = {"angle_error": err, "success": err <= GAZE_TOLERANCE}
             state.add(seg)
             mark(ctx.cache, seg)
-    return [(s[0].start, s[0].end) for _, s in sorted(windows.items())]
+        turns.append((min(t0, start), max(t1, end)))
+    return turns
+
+
+def look_window(
+    t0: float, t1: float, q0: FloatArray, q1: FloatArray, free: float, limit: float
+) -> tuple[float, float]:
+    """When the head turns from ``q0`` to ``q1`` for a look from ``t0`` to ``t1``: from ``t0``
+    for a head turn's time (``turn_time``, and no joint faster than ``HEAD_PACE`` on average),
+    ending by ``limit`` (the next look, the task's end); when that is too short, starting
+    earlier, back to ``free`` (the head's last turn), for the time still missing."""
+    move = float(np.abs(q1 - q0).max())
+    need = max(t1 - t0, turn_time(move), move / HEAD_PACE)
+    end = max(t1, min(limit, t0 + need))
+    start = min(t0, max(free, end - need))
+    return start, end
+
+
+def aim_head(
+    ir: MotionIR, ctx: PassContext, state: PoseState, q0: FloatArray, target: FloatArray, t: float
+) -> FloatArray:
+    """The whole pose with the neck and head aimed at ``target`` from the body at ``t``."""
+    skel = ir.skeleton
+    dofs = default_dofs(skel, ["gaze"], "arm")
+    root = state.root_at(t)
+    body = state.q_at(t)
+    body[dofs] = q0[dofs]
+    base = sorted(set(skel.chain_dofs("gaze")) - set(dofs))
+    key = ("gaze", root[0].tobytes(), root[1].tobytes(), body[base].round(12).tobytes())
+    model = cached(
+        ctx.cache,
+        key,
+        lambda: prepare(skel, ["gaze"], body, root_position=root[0], root_rotation=root[1]),
+    )
+    goal = [Goal("gaze", aim=target)]
+    best = solve_ta(skel, goal, body, model=model, restarts=2).q[0]
+    near = solve_ta(skel, goal, body, model=model, restarts=0).q[0]
+    errors = aim_errors(skel, np.stack([best, near]), np.stack([root[0]] * 2),
+                        np.stack([root[1]] * 2), np.stack([target] * 2))  # fmt: skip
+    # a target past the neck's range is seen about as badly from either limit: stay on the
+    # side the head is on rather than swing limit to limit (issue 19)
+    return near if errors[1] <= errors[0] + NEAR_BRANCH else best
 
 
 def aim_errors(
@@ -297,21 +342,97 @@ def face_ahead(ir: MotionIR, ctx: PassContext, state: PoseState) -> None:
         or (s.kind == "posture" and s.goal.params.get("posture") == "stand")
     ]
     for seg in sorted(setting_off, key=lambda s: s.start):
-        q = state.q_at(seg.start)[dofs]
+        # a look still turning when the body sets off: the head comes back once it is done
+        start = max((h.end for h in heads if h.start <= seg.start + EPS), default=seg.start)
+        start = max(start, seg.start)
+        if start >= seg.end - EPS:
+            continue
+        q = state.q_at(start)[dofs]
         angle = float(np.abs(q - rest).max())
         if angle < AHEAD_MIN:
             continue
-        end = seg.start + turn_time(angle)
-        if any(h.start < end - EPS and h.end > seg.start + EPS for h in heads):
+        end = start + max(turn_time(angle), angle / HEAD_PACE)
+        if any(h.start < end - EPS and h.end > start + EPS for h in heads):
             continue
         goal = GoalSpec("gaze", params={"implicit": True, "ahead": True})
-        ahead = Segment("head", "gaze", seg.start, end, goal, seg.provenance)
-        ahead.keyframes = Keyframes(time=np.array([seg.start, end]), dofs=names,
+        ahead = Segment("head", "gaze", start, end, goal, seg.provenance)
+        ahead.keyframes = Keyframes(time=np.array([start, end]), dofs=names,
                                     q=np.stack([q, rest]))  # fmt: skip
         insert_in_time_order(ir.segments, ahead)
         state.add(ahead)
         mark(ctx.cache, ahead)
         heads.append(ahead)
+
+
+def keep_pace(ir: MotionIR, ctx: PassContext, state: PoseState) -> None:
+    """No head key further from the one before than the head turns at ``HEAD_PACE``.
+
+    Looks are solved first, then the work is followed between them, each from the pose the
+    earlier solve assumed; where they disagree (a follow ended at one neck limit, the next look
+    starts from where the previous look left the head), or two parallel looks pull the head
+    apart, the head swung limit to limit in a few frames (issue 19). One sweep over every head
+    key in time order (at one instant in segment order, as interpolation takes them): a
+    segment's first key is the pose the head is in, and a key the head cannot reach in time
+    from the one before becomes the better aimed of two it can: part of the way there, or still
+    where it was. Each changed segment's ``angle_error`` says how far off it then is.
+    """
+    heads = [s for s in ir.segments if s.track == "head" and s.keyframes is not None]
+    keys = sorted(
+        (round(float(t), 9), n, i)
+        for n, s in enumerate(heads)
+        for i, t in enumerate(s.keyframes.time)  # type: ignore[union-attr]
+    )
+    changed: set[int] = set()
+    last_t, last_q = 0.0, None
+    for t, n, i in keys:
+        q = heads[n].keyframes.q  # type: ignore[union-attr]
+        if last_q is not None:
+            if i == 0:
+                kept = last_q
+            else:
+                room = HEAD_PACE * max(t - last_t, 0.0)
+                kept = np.clip(q[i], last_q - room, last_q + room)
+                if np.abs(kept - q[i]).max() > 1e-12:
+                    kept = _better_aimed(ir, state, heads[n], t, (kept, last_q))
+            if np.abs(kept - q[i]).max() > 1e-12:
+                q[i] = kept
+                changed.add(n)
+        last_t, last_q = t, q[i].copy()
+    for n in sorted(changed):
+        seg = heads[n]
+        mark(ctx.cache, seg)
+        if seg.goal.position is None:
+            continue  # facing ahead: no target to miss
+        kf = seg.keyframes
+        errors = _key_errors(ir, state, seg, kf.time, kf.q)  # type: ignore[union-attr]
+        worst = float(errors[1:].max() if seg.goal.params.get("implicit") else errors[-1])
+        seg.result = {**seg.result, "angle_error": worst, "success": worst <= GAZE_TOLERANCE}
+
+
+def _key_errors(
+    ir: MotionIR, state: PoseState, seg: Segment, times: FloatArray, heads: FloatArray
+) -> FloatArray:
+    """The aim error of head poses ``heads`` (the segment's dofs) at ``times``."""
+    skel = ir.skeleton
+    kf = seg.keyframes
+    assert kf is not None and seg.goal.position is not None
+    body = np.array([state.q_at(float(t)) for t in times])
+    cols = [skel.dof_index(name) for name in kf.dofs]
+    body[:, cols] = heads
+    roots = [state.root_at(float(t)) for t in times]
+    target = np.asarray(seg.goal.position, dtype=float)
+    return aim_errors(skel, body, np.array([r[0] for r in roots]),
+                      np.array([r[1] for r in roots]), np.tile(target, (len(body), 1)))  # fmt: skip
+
+
+def _better_aimed(
+    ir: MotionIR, state: PoseState, seg: Segment, t: float, options: tuple[FloatArray, ...]
+) -> FloatArray:
+    """Of ``options`` (head poses), the one that aims best at the segment's target at ``t``."""
+    if seg.goal.position is None:
+        return options[0]
+    errors = _key_errors(ir, state, seg, np.full(len(options), t), np.stack(options))
+    return options[int(np.argmin(errors))]
 
 
 def insert_in_time_order(segments: list[Segment], seg: Segment) -> None:

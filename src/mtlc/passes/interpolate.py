@@ -100,7 +100,10 @@ def _held_curve(
     """One dof's knots: from ``rest`` at 0 through its keyframes in time order (at equal times
     in segment order), with a hold just before each segment's first keyframe and after the
     last keyframe (so the dof comes to rest there)."""
-    t = np.concatenate([p[0] for p in parts])
+    # to the nanosecond: two segments' keys at one instant, computed two ways (a gaze part's
+    # end, rounded, and the next look's start), must sort by segment, not by a 4e-10 s
+    # difference that put a hold of the older value just before the later key (issue 19)
+    t = np.round(np.concatenate([p[0] for p in parts]), 9)
     order = np.concatenate([np.full(len(p[0]), p[1]) for p in parts])
     v = np.concatenate([np.asarray(p[2], dtype=float) for p in parts])
     first = np.concatenate([np.arange(len(p[0])) == 0 for p in parts])

@@ -91,25 +91,25 @@ def remove_access_panel():
         'left_ankle': (6.544, 0.421),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 112.0), start=1.294737, duration=0.2628)
+    human.LookAt((-20.0, 135.0, 112.0), start=1.294737, duration=0.269582)
     human.KeyRoot(1.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (0.001, 0.0, -0.024), 'head': (0.001, 0.0), 'right_hip': (3.014, 0.0, 0.0),
+        'neck': (0.001, 0.0, -0.023), 'head': (0.001, 0.0), 'right_hip': (3.014, 0.0, 0.0),
         'right_knee': (4.898,), 'right_ankle': (1.886, 0.0), 'left_hip': (3.011, 0.0, 0.0),
         'left_knee': (4.893,), 'left_ankle': (1.884, 0.0),
     })
-    human.KeyJoints(1.4, {'neck': (0.363, -0.002, -7.15), 'head': (0.366, 0.0)})
+    human.KeyJoints(1.4, {'neck': (0.348, -0.002, -6.849), 'head': (0.351, 0.0)})
     human.KeyJoints(1.5, {
-        'neck': (0.919, -0.005, -18.013), 'head': (0.926, 0.0),
+        'neck': (0.895, -0.005, -17.559), 'head': (0.902, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (3.017, 0.0, 0.0),
         'right_knee': (4.905,), 'right_ankle': (1.89, 0.0), 'left_hip': (3.016, 0.0, 0.0),
         'left_knee': (4.903,), 'left_ankle': (1.889, 0.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 112.0), start=1.557537, duration=10.90897)
+    human.LookAt((-20.0, 135.0, 112.0), start=1.564319, duration=10.902187)
     human.KeyJoints(1.6, {
-        'neck': (1.089, -0.004, -21.136), 'head': (1.095, 0.0),
+        'neck': (1.087, -0.004, -21.117), 'head': (1.094, 0.0),
         'right_shoulder': (8.654, 5.731, 11.452), 'right_elbow': (34.377, 17.184),
         'right_wrist': (-0.001, -0.023), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
@@ -774,51 +774,51 @@ def remove_access_panel():
         'right_elbow': (31.97, 10.16), 'right_wrist': (-1.501, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 112.0), start=12.466506, duration=0.2628)
-    human.KeyJoints(12.5, {'neck': (-0.643, -0.724, -23.943), 'head': (-0.793, -0.002)})
-    human.KeyJoints(12.6, {'neck': (-0.937, -0.422, -2.522)})
+    human.LookAt((20.0, 135.0, 112.0), start=12.466506, duration=0.335738)
+    human.KeyJoints(12.5, {'neck': (-0.632, -0.735, -24.709), 'head': (-0.786, -0.002)})
+    human.KeyJoints(12.6, {'neck': (-0.834, -0.527, -10.011)})
     human.KeyJoints(12.7, {
         'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
-        'neck': (-1.222, -0.127, 18.264), 'head': (-1.158, -0.003),
-        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.802, 10.558, -0.344),
+        'neck': (-1.104, -0.248, 9.684), 'right_clavicle': (2.315, 0.785),
+        'right_shoulder': (91.802, 10.558, -0.344),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 112.0), start=12.729306, duration=10.521694)
     human.KeyJoints(12.8, {
         'spine_lumbar': (6.052, 0.634, 1.526), 'spine_thoracic': (-1.72, -1.634, 1.508),
-        'neck': (-1.145, -0.103, 18.191), 'head': (-1.077, -0.004),
+        'neck': (-1.243, -0.104, 19.841), 'head': (-1.172, -0.003),
         'right_clavicle': (2.312, 0.884), 'right_shoulder': (91.744, 10.455, -0.293),
         'right_elbow': (32.007, 10.181), 'right_wrist': (-1.487, -29.965),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_right
+    human.LookAt((20.0, 135.0, 112.0), start=12.802244, duration=10.448757)
     human.KeyJoints(12.9, {
         'spine_lumbar': (5.492, -1.084, 2.512), 'spine_thoracic': (-2.39, -1.944, 2.446),
-        'neck': (-0.626, -0.134, 11.013), 'head': (-0.568, -0.005),
-        'right_clavicle': (2.283, 1.832), 'right_shoulder': (91.182, 9.479, 0.197),
-        'right_elbow': (32.364, 10.382), 'right_wrist': (-1.346, -29.634),
+        'neck': (-0.723, -0.181, 13.528), 'head': (-0.66, -0.003), 'right_clavicle': (2.283, 1.832),
+        'right_shoulder': (91.182, 9.479, 0.197), 'right_elbow': (32.364, 10.382),
+        'right_wrist': (-1.346, -29.634),
     })
     human.KeyJoints(13.0, {
         'spine_lumbar': (4.333, -4.642, 4.555), 'spine_thoracic': (-3.778, -2.587, 4.388),
-        'neck': (0.306, -0.269, 1.484), 'head': (0.365, -0.004), 'right_clavicle': (2.211, 3.794),
+        'neck': (0.342, -0.315, 1.585), 'right_clavicle': (2.211, 3.794),
         'right_shoulder': (89.917, 7.456, 1.211), 'right_elbow': (33.104, 10.798),
         'right_wrist': (-1.054, -28.949),
     })
     human.KeyJoints(13.1, {
         'spine_lumbar': (2.99, -8.798, 6.941), 'spine_thoracic': (-5.395, -3.336, 6.656),
-        'neck': (1.365, -0.475, -6.821), 'head': (1.444, -0.003), 'right_clavicle': (2.08, 6.085),
+        'neck': (1.335, -0.384, -6.701), 'head': (1.424, -0.012), 'right_clavicle': (2.08, 6.085),
         'right_shoulder': (88.095, 5.099, 2.394), 'right_elbow': (33.965, 11.283),
         'right_wrist': (-0.714, -28.151),
     })
     human.KeyJoints(13.2, {
         'spine_lumbar': (3.709, -12.305, 8.832), 'spine_thoracic': (-6.808, -3.987, 8.459),
-        'neck': (1.954, -0.606, -10.876), 'head': (2.064, -0.002), 'right_clavicle': (2.051, 7.715),
+        'neck': (1.907, -0.417, -10.606), 'head': (2.019, -0.014), 'right_clavicle': (2.051, 7.715),
         'right_shoulder': (86.716, 4.529, 2.645), 'right_elbow': (34.001, 11.468),
         'right_wrist': (-0.717, -28.279),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.3, {
         'spine_lumbar': (7.039, -13.847, 9.574), 'spine_thoracic': (-8.39, -4.427, 9.143),
-        'neck': (0.329, 0.012, -13.86), 'head': (0.334, 0.003), 'right_clavicle': (2.697, 7.898),
+        'neck': (0.331, -0.49, -14.055), 'head': (0.458, -0.015), 'right_clavicle': (2.697, 7.898),
         'right_shoulder': (89.386, 7.199, 1.187), 'right_elbow': (32.955, 11.065),
         'right_wrist': (-1.344, -29.924),
     })
@@ -826,606 +826,606 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=13.334957, duration=0.072)
     human.KeyJoints(13.4, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
+        'neck': (0.163, -0.504, -14.994), 'head': (0.295, -0.015), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.535, 7.271, 1.146), 'right_elbow': (32.827, 11.054),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
         'spine_lumbar': (6.82, -14.213, 9.501), 'spine_thoracic': (-8.921, -4.628, 9.091),
-        'neck': (0.564, -0.045, -15.037), 'head': (0.581, 0.001), 'right_clavicle': (3.249, 7.73),
+        'neck': (0.568, -0.499, -15.26), 'head': (0.704, -0.015), 'right_clavicle': (3.249, 7.73),
         'right_shoulder': (88.764, 7.696, 1.099), 'right_elbow': (32.288, 11.082),
         'right_wrist': (-1.411, -29.986),
     })
     human.KeyJoints(13.6, {
         'spine_lumbar': (4.488, -18.628, 6.229), 'spine_thoracic': (-11.053, -9.008, 7.003),
-        'neck': (3.083, -0.86, -16.648), 'head': (3.257, -0.024), 'right_clavicle': (12.096, 5.123),
-        'right_shoulder': (83.72, 12.472, 5.394), 'right_elbow': (26.234, 16.105),
-        'right_wrist': (0.506, -28.124),
+        'neck': (3.012, -0.467, -16.484), 'head': (3.165, -0.014),
+        'right_clavicle': (12.096, 5.123), 'right_shoulder': (83.72, 12.472, 5.394),
+        'right_elbow': (26.234, 16.105), 'right_wrist': (0.506, -28.124),
     })
     human.KeyJoints(13.7, {
         'spine_lumbar': (5.712, -19.946, 3.833), 'spine_thoracic': (-11.698, -10.0, 6.067),
-        'neck': (2.864, -0.798, -16.061), 'head': (3.024, -0.022),
-        'right_clavicle': (21.587, 3.587), 'right_shoulder': (82.781, 17.047, 12.591),
-        'right_elbow': (25.196, 23.477), 'right_wrist': (3.39, -22.347),
+        'neck': (2.799, -0.464, -15.9), 'head': (2.948, -0.014), 'right_clavicle': (21.587, 3.587),
+        'right_shoulder': (82.781, 17.047, 12.591), 'right_elbow': (25.196, 23.477),
+        'right_wrist': (3.39, -22.347),
     })
     human.KeyJoints(13.8, {
         'spine_lumbar': (-0.231, -19.997, 5.048), 'spine_thoracic': (-11.377, -7.008, 6.693),
-        'neck': (5.22, -1.645, -13.81), 'head': (5.526, -0.04), 'right_clavicle': (15.691, 5.507),
-        'right_shoulder': (81.07, 10.853, 7.505), 'right_elbow': (22.591, 18.003),
-        'right_wrist': (1.461, -27.092),
+        'neck': (5.112, -0.391, -13.578), 'head': (5.247, -0.014),
+        'right_clavicle': (15.691, 5.507), 'right_shoulder': (81.07, 10.853, 7.505),
+        'right_elbow': (22.591, 18.003), 'right_wrist': (1.461, -27.092),
     })
     human.KeyJoints(13.9, {
         'spine_lumbar': (2.089, -17.685, 9.042), 'spine_thoracic': (-10.569, -2.943, 8.985),
-        'neck': (3.628, -1.044, -16.6), 'head': (3.837, -0.029), 'right_clavicle': (4.343, 7.611),
+        'neck': (3.542, -0.456, -16.419), 'head': (3.696, -0.014), 'right_clavicle': (4.343, 7.611),
         'right_shoulder': (86.62, 7.523, -3.702), 'right_elbow': (21.963, 7.584),
         'right_wrist': (-3.313, -29.89),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.1, {
         'spine_lumbar': (2.406, -18.87, 7.604), 'spine_thoracic': (-10.537, -7.936, 7.763),
-        'neck': (3.824, -1.09, -17.62), 'head': (4.047, -0.031), 'right_clavicle': (7.112, 6.2),
+        'neck': (3.731, -0.465, -17.437), 'head': (3.892, -0.014), 'right_clavicle': (7.112, 6.2),
         'right_shoulder': (85.087, 9.578, -0.803), 'right_elbow': (22.369, 10.409),
         'right_wrist': (-1.999, -29.852),
     })
     human.KeyJoints(14.2, {
         'spine_lumbar': (4.917, -20.0, 4.361), 'spine_thoracic': (-11.469, -10.0, 6.244),
-        'neck': (3.165, -0.892, -16.396), 'head': (3.344, -0.025), 'right_clavicle': (19.04, 4.014),
+        'neck': (3.091, -0.463, -16.225), 'head': (3.242, -0.014), 'right_clavicle': (19.04, 4.014),
         'right_shoulder': (82.777, 15.636, 10.327), 'right_elbow': (24.499, 21.251),
         'right_wrist': (2.548, -24.216),
     })
     human.KeyJoints(14.3, {
         'spine_lumbar': (5.077, -19.875, 3.76), 'spine_thoracic': (-11.721, -10.0, 6.045),
-        'neck': (3.151, -0.904, -15.569), 'head': (3.329, -0.025),
+        'neck': (3.078, -0.453, -15.393), 'head': (3.224, -0.014),
         'right_clavicle': (21.723, 3.696), 'right_shoulder': (82.447, 16.645, 12.823),
         'right_elbow': (25.154, 23.607), 'right_wrist': (3.479, -22.206),
     })
     human.KeyJoints(14.4, {
         'spine_lumbar': (-0.05, -18.238, 8.576), 'spine_thoracic': (-11.352, -1.667, 8.806),
-        'neck': (4.92, -1.505, -15.471), 'head': (5.21, -0.041), 'right_clavicle': (6.243, 7.541),
+        'neck': (4.808, -0.418, -15.252), 'head': (4.955, -0.014), 'right_clavicle': (6.243, 7.541),
         'right_shoulder': (83.964, 7.332, -2.406), 'right_elbow': (21.032, 8.658),
         'right_wrist': (-2.856, -29.991),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.6, {
         'spine_lumbar': (2.352, -17.707, 8.551), 'spine_thoracic': (-9.711, -6.336, 8.357),
-        'neck': (3.311, -0.925, -17.224), 'head': (3.5, -0.026), 'right_clavicle': (3.95, 7.058),
+        'neck': (3.234, -0.47, -17.059), 'head': (3.391, -0.014), 'right_clavicle': (3.95, 7.058),
         'right_shoulder': (87.228, 7.745, -3.369), 'right_elbow': (22.375, 7.897),
         'right_wrist': (-3.03, -30.0),
     })
     human.KeyJoints(14.7, {
         'spine_lumbar': (3.586, -19.976, 5.552), 'spine_thoracic': (-11.126, -9.844, 6.699),
-        'neck': (3.681, -1.05, -17.189), 'head': (3.894, -0.03), 'right_clavicle': (13.988, 4.809),
+        'neck': (3.592, -0.462, -17.005), 'head': (3.75, -0.014), 'right_clavicle': (13.988, 4.809),
         'right_shoulder': (83.071, 13.07, 5.653), 'right_elbow': (23.306, 16.692),
         'right_wrist': (0.719, -27.195),
     })
     human.KeyJoints(14.8, {
         'spine_lumbar': (5.793, -19.929, 3.788), 'spine_thoracic': (-11.728, -10.0, 6.055),
-        'neck': (2.836, -0.789, -16.026), 'head': (2.994, -0.021),
-        'right_clavicle': (21.837, 3.546), 'right_shoulder': (82.784, 17.189, 12.807),
-        'right_elbow': (25.266, 23.69), 'right_wrist': (3.471, -22.157),
+        'neck': (2.771, -0.464, -15.866), 'head': (2.92, -0.014), 'right_clavicle': (21.837, 3.546),
+        'right_shoulder': (82.784, 17.189, 12.807), 'right_elbow': (25.266, 23.69),
+        'right_wrist': (3.471, -22.157),
     })
     human.KeyJoints(14.9, {
         'spine_lumbar': (-1.323, -19.812, 5.966), 'spine_thoracic': (-11.33, -5.139, 7.198),
-        'neck': (5.606, -1.774, -13.869), 'head': (5.935, -0.044),
+        'neck': (5.491, -0.384, -13.636), 'head': (5.627, -0.014),
         'right_clavicle': (12.651, 6.186), 'right_shoulder': (81.219, 9.054, 4.375),
         'right_elbow': (21.571, 14.964), 'right_wrist': (0.154, -28.921),
     })
     human.KeyJoints(15.0, {
         'spine_lumbar': (2.315, -17.578, 8.954), 'spine_thoracic': (-10.063, -3.879, 8.833),
-        'neck': (3.333, -0.941, -16.768), 'head': (3.523, -0.026), 'right_clavicle': (3.884, 7.517),
+        'neck': (3.255, -0.464, -16.599), 'head': (3.409, -0.014), 'right_clavicle': (3.884, 7.517),
         'right_shoulder': (87.35, 7.475, -3.783), 'right_elbow': (22.167, 7.512),
         'right_wrist': (-3.288, -29.912),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
         'spine_lumbar': (2.482, -17.236, 8.629), 'spine_thoracic': (-8.754, -6.005, 8.39),
-        'neck': (2.742, -0.741, -16.837), 'head': (2.894, -0.02), 'right_clavicle': (2.744, 7.312),
+        'neck': (2.682, -0.476, -16.695), 'head': (2.835, -0.014), 'right_clavicle': (2.744, 7.312),
         'right_shoulder': (88.761, 6.836, -3.883), 'right_elbow': (22.572, 7.38),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.2, {
         'spine_lumbar': (2.566, -19.278, 7.113), 'spine_thoracic': (-10.716, -8.572, 7.474),
-        'neck': (3.888, -1.111, -17.638), 'head': (4.115, -0.032), 'right_clavicle': (8.596, 5.84),
+        'neck': (3.793, -0.464, -17.452), 'head': (3.954, -0.014), 'right_clavicle': (8.596, 5.84),
         'right_shoulder': (84.429, 10.36, 0.567), 'right_elbow': (22.483, 11.744),
         'right_wrist': (-1.414, -29.491),
     })
     human.KeyJoints(15.3, {
         'spine_lumbar': (5.279, -20.0, 4.104), 'spine_thoracic': (-11.559, -10.0, 6.148),
-        'neck': (3.023, -0.848, -16.243), 'head': (3.193, -0.023),
+        'neck': (2.953, -0.464, -16.077), 'head': (3.103, -0.014),
         'right_clavicle': (20.198, 3.814), 'right_shoulder': (82.774, 16.276, 11.378),
         'right_elbow': (24.832, 22.281), 'right_wrist': (2.937, -23.378),
     })
     human.KeyJoints(15.4, {
         'spine_lumbar': (3.603, -19.922, 3.882), 'spine_thoracic': (-11.629, -9.677, 6.083),
-        'neck': (3.756, -1.122, -14.896), 'right_clavicle': (20.678, 4.09),
+        'neck': (3.669, -0.434, -14.695), 'right_clavicle': (20.678, 4.09),
         'right_shoulder': (81.904, 15.25, 12.094), 'right_elbow': (24.716, 22.726),
         'right_wrist': (3.22, -23.02),
     })
     human.KeyJoints(15.5, {
         'spine_lumbar': (0.901, -17.925, 8.955), 'spine_thoracic': (-11.225, -1.69, 9.018),
-        'neck': (4.427, -1.328, -15.954), 'head': (4.687, -0.037), 'right_clavicle': (5.324, 7.657),
+        'neck': (4.323, -0.434, -15.746), 'head': (4.473, -0.014), 'right_clavicle': (5.324, 7.657),
         'right_shoulder': (84.986, 7.396, -3.194), 'right_elbow': (21.451, 7.978),
         'right_wrist': (-3.197, -29.941),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.7, {
         'spine_lumbar': (2.327, -18.053, 8.407), 'spine_thoracic': (-10.103, -6.695, 8.282),
-        'neck': (3.55, -1.0, -17.486), 'head': (3.755, -0.028), 'right_clavicle': (4.835, 6.838),
+        'neck': (3.465, -0.468, -17.312), 'head': (3.625, -0.014), 'right_clavicle': (4.835, 6.838),
         'right_shoulder': (86.417, 8.323, -2.826), 'right_elbow': (22.326, 8.434),
         'right_wrist': (-2.864, -30.0),
     })
     human.KeyJoints(15.8, {
         'spine_lumbar': (4.033, -20.0, 5.098), 'spine_thoracic': (-11.246, -9.98, 6.52),
-        'neck': (3.515, -1.0, -16.9), 'head': (3.718, -0.028), 'right_clavicle': (15.84, 4.521),
+        'neck': (3.431, -0.462, -16.719), 'head': (3.587, -0.014), 'right_clavicle': (15.84, 4.521),
         'right_shoulder': (82.888, 13.984, 7.382), 'right_elbow': (23.695, 18.376),
         'right_wrist': (1.415, -26.204),
     })
     human.KeyJoints(15.9, {
         'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
-        'neck': (2.829, -0.787, -16.018), 'head': (2.987, -0.021),
+        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
         'right_clavicle': (21.897, 3.537), 'right_shoulder': (82.785, 17.223, 12.859),
         'right_elbow': (25.282, 23.741), 'right_wrist': (3.491, -22.111),
     })
     human.KeyJoints(16.0, {
         'spine_lumbar': (-1.544, -19.31, 6.966), 'spine_thoracic': (-11.355, -3.45, 7.792),
-        'neck': (5.652, -1.779, -14.236), 'head': (5.985, -0.047), 'right_clavicle': (9.917, 6.772),
+        'neck': (5.534, -0.388, -14.005), 'head': (5.672, -0.014), 'right_clavicle': (9.917, 6.772),
         'right_shoulder': (81.889, 7.904, 1.443), 'right_elbow': (20.944, 12.186),
         'right_wrist': (-1.125, -29.934),
     })
     human.KeyJoints(16.1, {
         'spine_lumbar': (2.436, -17.415, 8.804), 'spine_thoracic': (-9.429, -4.918, 8.624),
-        'neck': (3.028, -0.838, -16.819), 'head': (3.199, -0.023), 'right_clavicle': (3.324, 7.418),
+        'neck': (2.96, -0.47, -16.664), 'head': (3.114, -0.014), 'right_clavicle': (3.324, 7.418),
         'right_shoulder': (88.073, 7.191, -3.843), 'right_elbow': (22.373, 7.441),
         'right_wrist': (-3.22, -29.952),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
         'spine_lumbar': (2.466, -17.289, 8.628), 'spine_thoracic': (-8.873, -6.036, 8.389),
-        'neck': (2.812, -0.764, -16.888), 'head': (2.968, -0.021), 'right_clavicle': (2.882, 7.285),
+        'neck': (2.75, -0.475, -16.743), 'head': (2.903, -0.014), 'right_clavicle': (2.882, 7.285),
         'right_shoulder': (88.575, 6.943, -3.834), 'right_elbow': (22.547, 7.43),
         'right_wrist': (-3.132, -30.0),
     })
     human.KeyJoints(16.3, {
         'spine_lumbar': (2.822, -19.616, 6.589), 'spine_thoracic': (-10.87, -9.127, 7.189),
-        'neck': (3.885, -1.111, -17.575), 'head': (4.111, -0.032),
-        'right_clavicle': (10.271, 5.479), 'right_shoulder': (83.851, 11.218, 2.14),
-        'right_elbow': (22.676, 13.276), 'right_wrist': (-0.745, -28.907),
+        'neck': (3.789, -0.463, -17.388), 'head': (3.95, -0.014), 'right_clavicle': (10.271, 5.479),
+        'right_shoulder': (83.851, 11.218, 2.14), 'right_elbow': (22.676, 13.276),
+        'right_wrist': (-0.745, -28.907),
     })
     human.KeyJoints(16.4, {
         'spine_lumbar': (5.545, -19.975, 3.934), 'spine_thoracic': (-11.641, -10.0, 6.095),
-        'neck': (2.924, -0.817, -16.134), 'head': (3.089, -0.022),
+        'neck': (2.858, -0.464, -15.971), 'head': (3.007, -0.014),
         'right_clavicle': (21.048, 3.674), 'right_shoulder': (82.777, 16.747, 12.126),
         'right_elbow': (25.061, 23.018), 'right_wrist': (3.216, -22.752),
     })
     human.KeyJoints(16.5, {
         'spine_lumbar': (1.621, -20.0, 4.31), 'spine_thoracic': (-11.493, -8.641, 6.297),
-        'neck': (4.527, -1.398, -14.199), 'head': (4.79, -0.036), 'right_clavicle': (18.571, 4.747),
+        'neck': (4.428, -0.41, -13.976), 'head': (4.566, -0.014), 'right_clavicle': (18.571, 4.747),
         'right_shoulder': (81.35, 13.128, 10.278), 'right_elbow': (23.787, 20.794),
         'right_wrist': (2.55, -24.83),
     })
     human.KeyJoints(16.6, {
         'spine_lumbar': (1.628, -17.766, 9.092), 'spine_thoracic': (-10.959, -2.167, 9.083),
-        'neck': (3.989, -1.171, -16.359), 'head': (4.221, -0.033), 'right_clavicle': (4.742, 7.684),
+        'neck': (3.894, -0.447, -16.165), 'head': (4.047, -0.014), 'right_clavicle': (4.742, 7.684),
         'right_shoulder': (85.884, 7.528, -3.576), 'right_elbow': (21.756, 7.669),
         'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.8, {
         'spine_lumbar': (2.331, -18.44, 8.041), 'spine_thoracic': (-10.326, -7.283, 8.036),
-        'neck': (3.703, -1.05, -17.549), 'head': (3.917, -0.03), 'right_clavicle': (5.832, 6.544),
+        'neck': (3.613, -0.466, -17.369), 'head': (3.774, -0.014), 'right_clavicle': (5.832, 6.544),
         'right_shoulder': (85.783, 8.882, -1.95), 'right_elbow': (22.317, 9.29),
         'right_wrist': (-2.486, -30.0),
     })
     human.KeyJoints(16.9, {
         'spine_lumbar': (4.485, -20.0, 4.702), 'spine_thoracic': (-11.363, -10.0, 6.374),
-        'neck': (3.337, -0.946, -16.622), 'head': (3.528, -0.026),
-        'right_clavicle': (17.555, 4.258), 'right_shoulder': (82.802, 14.848, 8.964),
-        'right_elbow': (24.099, 19.919), 'right_wrist': (2.033, -25.198),
+        'neck': (3.259, -0.462, -16.446), 'right_clavicle': (17.555, 4.258),
+        'right_shoulder': (82.802, 14.848, 8.964), 'right_elbow': (24.099, 19.919),
+        'right_wrist': (2.033, -25.198),
     })
     human.KeyJoints(17.0, {
         'spine_lumbar': (5.722, -19.892, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
-        'neck': (2.872, -0.803, -15.95), 'head': (3.033, -0.022), 'right_clavicle': (21.909, 3.561),
-        'right_shoulder': (82.741, 17.158, 12.873), 'right_elbow': (25.254, 23.741),
-        'right_wrist': (3.499, -22.114),
+        'neck': (2.806, -0.463, -15.787), 'head': (2.954, -0.014),
+        'right_clavicle': (21.909, 3.561), 'right_shoulder': (82.741, 17.158, 12.873),
+        'right_elbow': (25.254, 23.741), 'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(17.1, {
         'spine_lumbar': (-1.002, -18.779, 7.864), 'spine_thoracic': (-11.389, -2.243, 8.351),
-        'neck': (5.386, -1.676, -14.853), 'head': (5.703, -0.045), 'right_clavicle': (7.767, 7.219),
+        'neck': (5.268, -0.401, -14.626), 'head': (5.41, -0.014), 'right_clavicle': (7.767, 7.219),
         'right_shoulder': (82.866, 7.382, -0.922), 'right_elbow': (20.733, 10.004),
         'right_wrist': (-2.181, -29.998),
     })
     human.KeyJoints(17.2, {
         'spine_lumbar': (2.48, -17.269, 8.665), 'spine_thoracic': (-8.885, -5.78, 8.438),
-        'neck': (2.793, -0.758, -16.831), 'head': (2.948, -0.021), 'right_clavicle': (2.854, 7.335),
+        'neck': (2.732, -0.475, -16.686), 'head': (2.885, -0.014), 'right_clavicle': (2.854, 7.335),
         'right_shoulder': (88.635, 6.901, -3.879), 'right_elbow': (22.533, 7.389),
         'right_wrist': (-3.155, -29.99),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
         'spine_lumbar': (2.42, -17.44, 8.613), 'spine_thoracic': (-9.197, -6.131, 8.383),
-        'neck': (3.004, -0.826, -17.018), 'head': (3.173, -0.023), 'right_clavicle': (3.266, 7.207),
+        'neck': (2.936, -0.473, -16.865), 'head': (3.092, -0.014), 'right_clavicle': (3.266, 7.207),
         'right_shoulder': (88.065, 7.24, -3.685), 'right_elbow': (22.479, 7.58),
         'right_wrist': (-3.107, -30.0),
     })
     human.KeyJoints(17.4, {
         'spine_lumbar': (3.167, -19.851, 6.062), 'spine_thoracic': (-11.002, -9.554, 6.927),
-        'neck': (3.813, -1.09, -17.422), 'head': (4.034, -0.031), 'right_clavicle': (12.082, 5.133),
-        'right_shoulder': (83.393, 12.127, 3.854), 'right_elbow': (22.953, 14.943),
-        'right_wrist': (-0.024, -28.13),
+        'neck': (3.719, -0.463, -17.236), 'head': (3.879, -0.014),
+        'right_clavicle': (12.082, 5.133), 'right_shoulder': (83.393, 12.127, 3.854),
+        'right_elbow': (22.953, 14.943), 'right_wrist': (-0.024, -28.13),
     })
     human.KeyJoints(17.5, {
         'spine_lumbar': (5.712, -19.945, 3.834), 'spine_thoracic': (-11.699, -10.0, 6.067),
-        'neck': (2.864, -0.798, -16.06), 'head': (3.025, -0.022), 'right_clavicle': (21.581, 3.587),
-        'right_shoulder': (82.782, 17.045, 12.587), 'right_elbow': (25.2, 23.473),
-        'right_wrist': (3.389, -22.352),
+        'neck': (2.799, -0.464, -15.899), 'head': (2.948, -0.014),
+        'right_clavicle': (21.581, 3.587), 'right_shoulder': (82.782, 17.045, 12.587),
+        'right_elbow': (25.2, 23.473), 'right_wrist': (3.389, -22.352),
     })
     human.KeyJoints(17.6, {
         'spine_lumbar': (-0.206, -19.997, 5.034), 'spine_thoracic': (-11.378, -7.038, 6.685),
-        'neck': (5.211, -1.641, -13.812), 'head': (5.516, -0.04), 'right_clavicle': (15.741, 5.495),
+        'neck': (5.102, -0.392, -13.58), 'head': (5.238, -0.014), 'right_clavicle': (15.741, 5.495),
         'right_shoulder': (81.07, 10.888, 7.555), 'right_elbow': (22.61, 18.053),
         'right_wrist': (1.481, -27.056),
     })
     human.KeyJoints(17.7, {
         'spine_lumbar': (2.084, -17.687, 9.043), 'spine_thoracic': (-10.576, -2.928, 8.987),
-        'neck': (3.633, -1.046, -16.596), 'head': (3.843, -0.029), 'right_clavicle': (4.349, 7.613),
+        'neck': (3.548, -0.456, -16.415), 'head': (3.701, -0.014), 'right_clavicle': (4.349, 7.613),
         'right_shoulder': (86.608, 7.523, -3.701), 'right_elbow': (21.96, 7.585),
         'right_wrist': (-3.313, -29.889),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(17.9, {
         'spine_lumbar': (2.404, -18.863, 7.612), 'spine_thoracic': (-10.534, -7.925, 7.768),
-        'neck': (3.823, -1.089, -17.62), 'head': (4.045, -0.031), 'right_clavicle': (7.089, 6.206),
+        'neck': (3.729, -0.465, -17.436), 'head': (3.89, -0.014), 'right_clavicle': (7.089, 6.206),
         'right_shoulder': (85.098, 9.566, -0.824), 'right_elbow': (22.368, 10.389),
         'right_wrist': (-2.008, -29.856),
     })
     human.KeyJoints(18.0, {
         'spine_lumbar': (4.91, -20.0, 4.367), 'spine_thoracic': (-11.468, -10.0, 6.246),
-        'neck': (3.167, -0.893, -16.4), 'head': (3.347, -0.025), 'right_clavicle': (19.018, 4.018),
-        'right_shoulder': (82.778, 15.624, 10.307), 'right_elbow': (24.493, 21.232),
-        'right_wrist': (2.541, -24.231),
+        'neck': (3.094, -0.463, -16.228), 'head': (3.245, -0.014),
+        'right_clavicle': (19.018, 4.018), 'right_shoulder': (82.778, 15.624, 10.307),
+        'right_elbow': (24.493, 21.232), 'right_wrist': (2.541, -24.231),
     })
     human.KeyJoints(18.1, {
         'spine_lumbar': (5.093, -19.875, 3.76), 'spine_thoracic': (-11.722, -10.0, 6.045),
-        'neck': (3.144, -0.902, -15.577), 'head': (3.322, -0.024),
+        'neck': (3.071, -0.453, -15.401), 'head': (3.217, -0.014),
         'right_clavicle': (21.729, 3.692), 'right_shoulder': (82.454, 16.658, 12.825),
         'right_elbow': (25.157, 23.611), 'right_wrist': (3.48, -22.202),
     })
     human.KeyJoints(18.2, {
         'spine_lumbar': (-0.068, -18.247, 8.566), 'spine_thoracic': (-11.354, -1.673, 8.8),
-        'neck': (4.929, -1.508, -15.462), 'head': (5.22, -0.041), 'right_clavicle': (6.263, 7.537),
+        'neck': (4.817, -0.418, -15.243), 'head': (4.964, -0.014), 'right_clavicle': (6.263, 7.537),
         'right_shoulder': (83.946, 7.332, -2.388), 'right_elbow': (21.023, 8.675),
         'right_wrist': (-2.848, -29.991),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.4, {
         'spine_lumbar': (2.353, -17.702, 8.553), 'spine_thoracic': (-9.702, -6.332, 8.358),
-        'neck': (3.306, -0.923, -17.22), 'head': (3.495, -0.026), 'right_clavicle': (3.936, 7.062),
+        'neck': (3.229, -0.47, -17.055), 'head': (3.386, -0.014), 'right_clavicle': (3.936, 7.062),
         'right_shoulder': (87.243, 7.735, -3.376), 'right_elbow': (22.377, 7.89),
         'right_wrist': (-3.032, -30.0),
     })
     human.KeyJoints(18.5, {
         'spine_lumbar': (3.579, -19.975, 5.56), 'spine_thoracic': (-11.124, -9.84, 6.702),
-        'neck': (3.684, -1.051, -17.193), 'head': (3.897, -0.03), 'right_clavicle': (13.956, 4.814),
-        'right_shoulder': (83.075, 13.055, 5.624), 'right_elbow': (23.299, 16.663),
-        'right_wrist': (0.707, -27.211),
+        'neck': (3.594, -0.462, -17.009), 'head': (3.752, -0.014),
+        'right_clavicle': (13.956, 4.814), 'right_shoulder': (83.075, 13.055, 5.624),
+        'right_elbow': (23.299, 16.663), 'right_wrist': (0.707, -27.211),
     })
     human.KeyJoints(18.6, {
         'spine_lumbar': (5.792, -19.929, 3.788), 'spine_thoracic': (-11.728, -10.0, 6.055),
-        'neck': (2.836, -0.789, -16.026), 'head': (2.995, -0.021),
-        'right_clavicle': (21.835, 3.547), 'right_shoulder': (82.784, 17.188, 12.805),
-        'right_elbow': (25.266, 23.688), 'right_wrist': (3.471, -22.159),
+        'neck': (2.772, -0.464, -15.866), 'head': (2.92, -0.014), 'right_clavicle': (21.835, 3.547),
+        'right_shoulder': (82.784, 17.188, 12.805), 'right_elbow': (25.266, 23.688),
+        'right_wrist': (3.471, -22.159),
     })
     human.KeyJoints(18.7, {
         'spine_lumbar': (-1.316, -19.817, 5.95), 'spine_thoracic': (-11.33, -5.169, 7.189),
-        'neck': (5.604, -1.774, -13.862), 'head': (5.933, -0.043), 'right_clavicle': (12.7, 6.176),
+        'neck': (5.489, -0.384, -13.63), 'head': (5.625, -0.014), 'right_clavicle': (12.7, 6.176),
         'right_shoulder': (81.214, 9.079, 4.427), 'right_elbow': (21.585, 15.013),
         'right_wrist': (0.176, -28.898),
     })
     human.KeyJoints(18.8, {
         'spine_lumbar': (2.312, -17.581, 8.956), 'spine_thoracic': (-10.073, -3.862, 8.836),
-        'neck': (3.338, -0.943, -16.767), 'head': (3.528, -0.026), 'right_clavicle': (3.894, 7.519),
+        'neck': (3.26, -0.464, -16.598), 'head': (3.414, -0.014), 'right_clavicle': (3.894, 7.519),
         'right_shoulder': (87.338, 7.478, -3.782), 'right_elbow': (22.163, 7.513),
         'right_wrist': (-3.289, -29.912),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
         'spine_lumbar': (2.482, -17.235, 8.629), 'spine_thoracic': (-8.754, -6.005, 8.39),
-        'neck': (2.741, -0.741, -16.837), 'head': (2.894, -0.02), 'right_clavicle': (2.744, 7.312),
+        'neck': (2.681, -0.476, -16.695), 'head': (2.835, -0.014), 'right_clavicle': (2.744, 7.312),
         'right_shoulder': (88.762, 6.835, -3.883), 'right_elbow': (22.572, 7.38),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.0, {
         'spine_lumbar': (2.563, -19.271, 7.122), 'spine_thoracic': (-10.714, -8.561, 7.478),
-        'neck': (3.888, -1.111, -17.638), 'head': (4.114, -0.032), 'right_clavicle': (8.57, 5.846),
+        'neck': (3.792, -0.464, -17.452), 'head': (3.954, -0.014), 'right_clavicle': (8.57, 5.846),
         'right_shoulder': (84.44, 10.346, 0.542), 'right_elbow': (22.481, 11.72),
         'right_wrist': (-1.425, -29.499),
     })
     human.KeyJoints(19.1, {
         'spine_lumbar': (5.274, -20.0, 4.107), 'spine_thoracic': (-11.558, -10.0, 6.149),
-        'neck': (3.025, -0.848, -16.245), 'head': (3.195, -0.023),
+        'neck': (2.955, -0.464, -16.079), 'head': (3.105, -0.014),
         'right_clavicle': (20.181, 3.817), 'right_shoulder': (82.774, 16.266, 11.362),
         'right_elbow': (24.828, 22.266), 'right_wrist': (2.931, -23.391),
     })
     human.KeyJoints(19.2, {
         'spine_lumbar': (3.633, -19.921, 3.878), 'spine_thoracic': (-11.631, -9.686, 6.081),
-        'neck': (3.744, -1.118, -14.908), 'right_clavicle': (20.703, 4.081),
+        'neck': (3.658, -0.434, -14.708), 'right_clavicle': (20.703, 4.081),
         'right_shoulder': (81.914, 15.279, 12.113), 'right_elbow': (24.726, 22.748),
         'right_wrist': (3.227, -23.0),
     })
     human.KeyJoints(19.3, {
         'spine_lumbar': (0.886, -17.928, 8.95), 'spine_thoracic': (-11.228, -1.684, 9.016),
-        'neck': (4.436, -1.331, -15.945), 'head': (4.696, -0.037), 'right_clavicle': (5.336, 7.656),
+        'neck': (4.332, -0.433, -15.737), 'head': (4.481, -0.014), 'right_clavicle': (5.336, 7.656),
         'right_shoulder': (84.97, 7.393, -3.185), 'right_elbow': (21.445, 7.986),
         'right_wrist': (-3.192, -29.943),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.5, {
         'spine_lumbar': (2.327, -18.047, 8.412), 'spine_thoracic': (-10.099, -6.687, 8.285),
-        'neck': (3.547, -0.999, -17.483), 'head': (3.752, -0.028), 'right_clavicle': (4.82, 6.842),
+        'neck': (3.463, -0.468, -17.309), 'head': (3.622, -0.014), 'right_clavicle': (4.82, 6.842),
         'right_shoulder': (86.429, 8.314, -2.838), 'right_elbow': (22.326, 8.423),
         'right_wrist': (-2.868, -30.0),
     })
     human.KeyJoints(19.6, {
         'spine_lumbar': (4.026, -20.0, 5.105), 'spine_thoracic': (-11.244, -9.979, 6.522),
-        'neck': (3.518, -1.001, -16.904), 'head': (3.721, -0.028), 'right_clavicle': (15.81, 4.526),
+        'neck': (3.434, -0.462, -16.724), 'head': (3.59, -0.014), 'right_clavicle': (15.81, 4.526),
         'right_shoulder': (82.89, 13.969, 7.354), 'right_elbow': (23.688, 18.348),
         'right_wrist': (1.404, -26.221),
     })
     human.KeyJoints(19.7, {
         'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
-        'neck': (2.829, -0.787, -16.018), 'head': (2.987, -0.021),
+        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
         'right_clavicle': (21.897, 3.537), 'right_shoulder': (82.785, 17.223, 12.858),
         'right_elbow': (25.282, 23.741), 'right_wrist': (3.491, -22.112),
     })
     human.KeyJoints(19.8, {
         'spine_lumbar': (-1.544, -19.318, 6.95), 'spine_thoracic': (-11.354, -3.473, 7.782),
-        'neck': (5.652, -1.78, -14.228), 'head': (5.985, -0.047), 'right_clavicle': (9.957, 6.763),
+        'neck': (5.534, -0.388, -13.997), 'head': (5.673, -0.014), 'right_clavicle': (9.957, 6.763),
         'right_shoulder': (81.876, 7.916, 1.487), 'right_elbow': (20.95, 12.227),
         'right_wrist': (-1.106, -29.931),
     })
     human.KeyJoints(19.9, {
         'spine_lumbar': (2.435, -17.417, 8.807), 'spine_thoracic': (-9.44, -4.901, 8.628),
-        'neck': (3.033, -0.84, -16.819), 'head': (3.204, -0.023), 'right_clavicle': (3.334, 7.419),
+        'neck': (2.964, -0.47, -16.663), 'head': (3.118, -0.014), 'right_clavicle': (3.334, 7.419),
         'right_shoulder': (88.061, 7.197, -3.842), 'right_elbow': (22.369, 7.442),
         'right_wrist': (-3.222, -29.952),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
         'spine_lumbar': (2.466, -17.288, 8.628), 'spine_thoracic': (-8.869, -6.035, 8.389),
-        'neck': (2.809, -0.763, -16.886), 'head': (2.966, -0.021), 'right_clavicle': (2.877, 7.286),
+        'neck': (2.748, -0.475, -16.741), 'head': (2.901, -0.014), 'right_clavicle': (2.877, 7.286),
         'right_shoulder': (88.581, 6.94, -3.836), 'right_elbow': (22.548, 7.428),
         'right_wrist': (-3.132, -30.0),
     })
     human.KeyJoints(20.1, {
         'spine_lumbar': (2.817, -19.612, 6.598), 'spine_thoracic': (-10.867, -9.118, 7.193),
-        'neck': (3.885, -1.111, -17.577), 'head': (4.112, -0.032),
-        'right_clavicle': (10.242, 5.485), 'right_shoulder': (83.86, 11.203, 2.112),
-        'right_elbow': (22.672, 13.249), 'right_wrist': (-0.757, -28.919),
+        'neck': (3.79, -0.463, -17.39), 'head': (3.951, -0.014), 'right_clavicle': (10.242, 5.485),
+        'right_shoulder': (83.86, 11.203, 2.112), 'right_elbow': (22.672, 13.249),
+        'right_wrist': (-0.757, -28.919),
     })
     human.KeyJoints(20.2, {
         'spine_lumbar': (5.541, -19.975, 3.936), 'spine_thoracic': (-11.64, -10.0, 6.095),
-        'neck': (2.926, -0.817, -16.136), 'head': (3.09, -0.022), 'right_clavicle': (21.036, 3.675),
-        'right_shoulder': (82.777, 16.741, 12.116), 'right_elbow': (25.058, 23.008),
-        'right_wrist': (3.213, -22.761),
+        'neck': (2.859, -0.464, -15.972), 'head': (3.008, -0.014),
+        'right_clavicle': (21.036, 3.675), 'right_shoulder': (82.777, 16.741, 12.116),
+        'right_elbow': (25.058, 23.008), 'right_wrist': (3.213, -22.761),
     })
     human.KeyJoints(20.3, {
         'spine_lumbar': (1.654, -20.0, 4.301), 'spine_thoracic': (-11.496, -8.662, 6.292),
-        'neck': (4.514, -1.394, -14.21), 'head': (4.777, -0.036), 'right_clavicle': (18.612, 4.735),
+        'neck': (4.415, -0.41, -13.988), 'head': (4.553, -0.014), 'right_clavicle': (18.612, 4.735),
         'right_shoulder': (81.358, 13.166, 10.316), 'right_elbow': (23.805, 20.833),
         'right_wrist': (2.565, -24.795),
     })
     human.KeyJoints(20.4, {
         'spine_lumbar': (1.619, -17.768, 9.093), 'spine_thoracic': (-10.964, -2.157, 9.084),
-        'neck': (3.995, -1.173, -16.355), 'head': (4.228, -0.033), 'right_clavicle': (4.75, 7.685),
+        'neck': (3.9, -0.447, -16.161), 'head': (4.053, -0.014), 'right_clavicle': (4.75, 7.685),
         'right_shoulder': (85.871, 7.528, -3.573), 'right_elbow': (21.752, 7.671),
         'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.6, {
         'spine_lumbar': (2.331, -18.433, 8.047), 'spine_thoracic': (-10.322, -7.272, 8.041),
-        'neck': (3.7, -1.049, -17.548), 'head': (3.915, -0.03), 'right_clavicle': (5.814, 6.549),
+        'neck': (3.611, -0.466, -17.368), 'head': (3.771, -0.014), 'right_clavicle': (5.814, 6.549),
         'right_shoulder': (85.794, 8.871, -1.967), 'right_elbow': (22.317, 9.274),
         'right_wrist': (-2.493, -30.0),
     })
     human.KeyJoints(20.7, {
         'spine_lumbar': (4.477, -20.0, 4.708), 'spine_thoracic': (-11.362, -10.0, 6.376),
-        'neck': (3.34, -0.947, -16.626), 'head': (3.531, -0.026), 'right_clavicle': (17.528, 4.262),
+        'neck': (3.262, -0.462, -16.45), 'head': (3.415, -0.014), 'right_clavicle': (17.528, 4.262),
         'right_shoulder': (82.803, 14.834, 8.939), 'right_elbow': (24.093, 19.895),
         'right_wrist': (2.023, -25.215),
     })
     human.KeyJoints(20.8, {
         'spine_lumbar': (5.725, -19.893, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
-        'neck': (2.87, -0.802, -15.952), 'head': (3.031, -0.022), 'right_clavicle': (21.909, 3.56),
+        'neck': (2.805, -0.463, -15.79), 'head': (2.953, -0.014), 'right_clavicle': (21.909, 3.56),
         'right_shoulder': (82.743, 17.161, 12.873), 'right_elbow': (25.255, 23.741),
         'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(20.9, {
         'spine_lumbar': (-1.015, -18.788, 7.851), 'spine_thoracic': (-11.388, -2.257, 8.343),
-        'neck': (5.392, -1.678, -14.842), 'head': (5.71, -0.045), 'right_clavicle': (7.797, 7.212),
+        'neck': (5.274, -0.401, -14.616), 'head': (5.417, -0.014), 'right_clavicle': (7.797, 7.212),
         'right_shoulder': (82.849, 7.386, -0.89), 'right_elbow': (20.734, 10.034),
         'right_wrist': (-2.166, -29.998),
     })
     human.KeyJoints(21.0, {
         'spine_lumbar': (2.48, -17.271, 8.667), 'spine_thoracic': (-8.892, -5.769, 8.441),
-        'neck': (2.796, -0.759, -16.831), 'head': (2.952, -0.021), 'right_clavicle': (2.86, 7.336),
+        'neck': (2.734, -0.475, -16.686), 'head': (2.888, -0.014), 'right_clavicle': (2.86, 7.336),
         'right_shoulder': (88.628, 6.905, -3.879), 'right_elbow': (22.531, 7.39),
         'right_wrist': (-3.155, -29.99),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
         'spine_lumbar': (2.421, -17.436, 8.613), 'spine_thoracic': (-9.19, -6.129, 8.384),
-        'neck': (3.0, -0.824, -17.015), 'head': (3.169, -0.023), 'right_clavicle': (3.257, 7.208),
+        'neck': (2.932, -0.473, -16.862), 'head': (3.087, -0.014), 'right_clavicle': (3.257, 7.208),
         'right_shoulder': (88.076, 7.233, -3.688), 'right_elbow': (22.481, 7.577),
         'right_wrist': (-3.108, -30.0),
     })
     human.KeyJoints(21.2, {
         'spine_lumbar': (3.16, -19.848, 6.071), 'spine_thoracic': (-11.0, -9.548, 6.931),
-        'neck': (3.814, -1.09, -17.426), 'head': (4.036, -0.031), 'right_clavicle': (12.051, 5.139),
-        'right_shoulder': (83.4, 12.111, 3.825), 'right_elbow': (22.948, 14.914),
-        'right_wrist': (-0.036, -28.144),
+        'neck': (3.721, -0.463, -17.239), 'head': (3.881, -0.014),
+        'right_clavicle': (12.051, 5.139), 'right_shoulder': (83.4, 12.111, 3.825),
+        'right_elbow': (22.948, 14.914), 'right_wrist': (-0.036, -28.144),
     })
     human.KeyJoints(21.3, {
         'spine_lumbar': (5.71, -19.945, 3.835), 'spine_thoracic': (-11.698, -10.0, 6.067),
-        'neck': (2.865, -0.798, -16.061), 'head': (3.025, -0.022),
-        'right_clavicle': (21.574, 3.588), 'right_shoulder': (82.781, 17.041, 12.582),
-        'right_elbow': (25.199, 23.467), 'right_wrist': (3.387, -22.357),
+        'neck': (2.8, -0.464, -15.9), 'head': (2.948, -0.014), 'right_clavicle': (21.574, 3.588),
+        'right_shoulder': (82.781, 17.041, 12.582), 'right_elbow': (25.199, 23.467),
+        'right_wrist': (3.387, -22.357),
     })
     human.KeyJoints(21.4, {
         'spine_lumbar': (-0.181, -19.998, 5.02), 'spine_thoracic': (-11.379, -7.068, 6.678),
-        'neck': (5.201, -1.638, -13.815), 'head': (5.506, -0.04), 'right_clavicle': (15.791, 5.483),
-        'right_shoulder': (81.069, 10.922, 7.605), 'right_elbow': (22.629, 18.102),
-        'right_wrist': (1.501, -27.021),
+        'neck': (5.093, -0.392, -13.583), 'head': (5.228, -0.014),
+        'right_clavicle': (15.791, 5.483), 'right_shoulder': (81.069, 10.922, 7.605),
+        'right_elbow': (22.629, 18.102), 'right_wrist': (1.501, -27.021),
     })
     human.KeyJoints(21.5, {
         'spine_lumbar': (2.078, -17.688, 9.045), 'spine_thoracic': (-10.584, -2.913, 8.989),
-        'neck': (3.639, -1.048, -16.592), 'head': (3.849, -0.029), 'right_clavicle': (4.355, 7.615),
+        'neck': (3.553, -0.456, -16.411), 'head': (3.706, -0.014), 'right_clavicle': (4.355, 7.615),
         'right_shoulder': (86.596, 7.523, -3.699), 'right_elbow': (21.957, 7.586),
         'right_wrist': (-3.314, -29.889),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(21.7, {
         'spine_lumbar': (2.402, -18.855, 7.62), 'spine_thoracic': (-10.53, -7.914, 7.772),
-        'neck': (3.821, -1.089, -17.619), 'head': (4.043, -0.031), 'right_clavicle': (7.066, 6.212),
+        'neck': (3.728, -0.465, -17.435), 'head': (3.889, -0.014), 'right_clavicle': (7.066, 6.212),
         'right_shoulder': (85.11, 9.553, -0.845), 'right_elbow': (22.367, 10.368),
         'right_wrist': (-2.017, -29.86),
     })
     human.KeyJoints(21.8, {
         'spine_lumbar': (4.904, -20.0, 4.372), 'spine_thoracic': (-11.466, -10.0, 6.248),
-        'neck': (3.17, -0.894, -16.403), 'head': (3.35, -0.025), 'right_clavicle': (18.996, 4.021),
-        'right_shoulder': (82.778, 15.612, 10.287), 'right_elbow': (24.486, 21.212),
-        'right_wrist': (2.533, -24.247),
+        'neck': (3.096, -0.463, -16.232), 'head': (3.248, -0.014),
+        'right_clavicle': (18.996, 4.021), 'right_shoulder': (82.778, 15.612, 10.287),
+        'right_elbow': (24.486, 21.212), 'right_wrist': (2.533, -24.247),
     })
     human.KeyJoints(21.9, {
         'spine_lumbar': (5.109, -19.875, 3.76), 'spine_thoracic': (-11.723, -10.0, 6.045),
-        'neck': (3.137, -0.899, -15.586), 'head': (3.315, -0.024),
-        'right_clavicle': (21.735, 3.689), 'right_shoulder': (82.461, 16.672, 12.827),
-        'right_elbow': (25.159, 23.616), 'right_wrist': (3.48, -22.199),
+        'neck': (3.065, -0.454, -15.41), 'head': (3.21, -0.014), 'right_clavicle': (21.735, 3.689),
+        'right_shoulder': (82.461, 16.672, 12.827), 'right_elbow': (25.159, 23.616),
+        'right_wrist': (3.48, -22.199),
     })
     human.KeyJoints(22.0, {
         'spine_lumbar': (-0.086, -18.255, 8.557), 'spine_thoracic': (-11.355, -1.679, 8.794),
-        'neck': (4.939, -1.511, -15.453), 'head': (5.23, -0.042), 'right_clavicle': (6.284, 7.533),
+        'neck': (4.826, -0.418, -15.234), 'head': (4.972, -0.014), 'right_clavicle': (6.284, 7.533),
         'right_shoulder': (83.927, 7.333, -2.368), 'right_elbow': (21.013, 8.692),
         'right_wrist': (-2.839, -29.991),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
         'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.736, -0.739, -16.833), 'head': (2.888, -0.02), 'right_clavicle': (2.733, 7.314),
+        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
         'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.2, {
         'spine_lumbar': (2.354, -17.697, 8.554), 'spine_thoracic': (-9.693, -6.327, 8.358),
-        'neck': (3.301, -0.922, -17.216), 'head': (3.489, -0.026), 'right_clavicle': (3.923, 7.065),
+        'neck': (3.223, -0.47, -17.051), 'head': (3.381, -0.014), 'right_clavicle': (3.923, 7.065),
         'right_shoulder': (87.258, 7.726, -3.382), 'right_elbow': (22.379, 7.883),
         'right_wrist': (-3.034, -30.0),
     })
     human.KeyJoints(22.3, {
         'spine_lumbar': (3.571, -19.974, 5.568), 'spine_thoracic': (-11.122, -9.836, 6.706),
-        'neck': (3.686, -1.052, -17.197), 'head': (3.9, -0.03), 'right_clavicle': (13.925, 4.819),
-        'right_shoulder': (83.08, 13.039, 5.594), 'right_elbow': (23.293, 16.635),
-        'right_wrist': (0.695, -27.227),
+        'neck': (3.597, -0.462, -17.013), 'head': (3.755, -0.014),
+        'right_clavicle': (13.925, 4.819), 'right_shoulder': (83.08, 13.039, 5.594),
+        'right_elbow': (23.293, 16.635), 'right_wrist': (0.695, -27.227),
     })
     human.KeyJoints(22.4, {
         'spine_lumbar': (5.792, -19.929, 3.789), 'spine_thoracic': (-11.727, -10.0, 6.055),
-        'neck': (2.836, -0.789, -16.027), 'head': (2.995, -0.021),
-        'right_clavicle': (21.832, 3.547), 'right_shoulder': (82.784, 17.186, 12.803),
-        'right_elbow': (25.265, 23.686), 'right_wrist': (3.47, -22.161),
+        'neck': (2.772, -0.464, -15.866), 'head': (2.92, -0.014), 'right_clavicle': (21.832, 3.547),
+        'right_shoulder': (82.784, 17.186, 12.803), 'right_elbow': (25.265, 23.686),
+        'right_wrist': (3.47, -22.161),
     })
     human.KeyJoints(22.5, {
         'spine_lumbar': (-1.31, -19.822, 5.934), 'spine_thoracic': (-11.33, -5.199, 7.18),
-        'neck': (5.602, -1.773, -13.856), 'head': (5.931, -0.043),
+        'neck': (5.487, -0.384, -13.623), 'head': (5.623, -0.014),
         'right_clavicle': (12.749, 6.165), 'right_shoulder': (81.209, 9.103, 4.478),
         'right_elbow': (21.598, 15.062), 'right_wrist': (0.198, -28.875),
     })
     human.KeyJoints(22.6, {
         'spine_lumbar': (2.309, -17.583, 8.958), 'spine_thoracic': (-10.083, -3.845, 8.839),
-        'neck': (3.343, -0.945, -16.765), 'head': (3.534, -0.026), 'right_clavicle': (3.903, 7.52),
+        'neck': (3.265, -0.464, -16.596), 'head': (3.419, -0.014), 'right_clavicle': (3.903, 7.52),
         'right_shoulder': (87.325, 7.481, -3.781), 'right_elbow': (22.16, 7.514),
         'right_wrist': (-3.29, -29.911),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
         'spine_lumbar': (2.482, -17.235, 8.629), 'spine_thoracic': (-8.753, -6.004, 8.39),
-        'neck': (2.741, -0.741, -16.837), 'head': (2.893, -0.02), 'right_clavicle': (2.743, 7.312),
+        'neck': (2.681, -0.476, -16.695), 'head': (2.834, -0.014), 'right_clavicle': (2.743, 7.312),
         'right_shoulder': (88.763, 6.835, -3.883), 'right_elbow': (22.572, 7.379),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.8, {
         'spine_lumbar': (2.559, -19.265, 7.13), 'spine_thoracic': (-10.711, -8.551, 7.483),
-        'neck': (3.887, -1.11, -17.639), 'head': (4.114, -0.032), 'right_clavicle': (8.543, 5.852),
+        'neck': (3.791, -0.464, -17.452), 'head': (3.953, -0.014), 'right_clavicle': (8.543, 5.852),
         'right_shoulder': (84.45, 10.332, 0.517), 'right_elbow': (22.478, 11.696),
         'right_wrist': (-1.436, -29.506),
     })
     human.KeyJoints(22.9, {
         'spine_lumbar': (5.269, -20.0, 4.111), 'spine_thoracic': (-11.556, -10.0, 6.15),
-        'neck': (3.027, -0.849, -16.247), 'head': (3.197, -0.023), 'right_clavicle': (20.164, 3.82),
+        'neck': (2.957, -0.463, -16.08), 'head': (3.107, -0.014), 'right_clavicle': (20.164, 3.82),
         'right_shoulder': (82.774, 16.257, 11.347), 'right_elbow': (24.823, 22.251),
         'right_wrist': (2.926, -23.403),
     })
     human.KeyJoints(23.0, {
         'spine_lumbar': (4.093, -19.512, 3.933), 'spine_thoracic': (-11.706, -9.515, 6.097),
-        'neck': (3.523, -1.048, -14.66), 'head': (3.725, -0.028), 'right_clavicle': (20.734, 4.025),
-        'right_shoulder': (82.084, 15.497, 12.595), 'right_elbow': (25.814, 23.132),
-        'right_wrist': (3.388, -23.012),
+        'neck': (3.443, -0.435, -14.465), 'head': (3.583, -0.014),
+        'right_clavicle': (20.734, 4.025), 'right_shoulder': (82.084, 15.497, 12.595),
+        'right_elbow': (25.814, 23.132), 'right_wrist': (3.388, -23.012),
     })
     human.KeyJoints(23.1, {
         'spine_lumbar': (5.102, -14.736, 9.776), 'spine_thoracic': (-10.86, -0.201, 9.656),
-        'neck': (2.207, -0.622, -13.83), 'head': (2.328, -0.014), 'right_clavicle': (5.282, 8.153),
+        'neck': (2.161, -0.451, -13.691), 'head': (2.293, -0.014), 'right_clavicle': (5.282, 8.153),
         'right_shoulder': (85.467, 7.752, 1.511), 'right_elbow': (31.04, 11.407),
         'right_wrist': (-1.526, -29.872),
     })
@@ -1433,28 +1433,29 @@ def remove_access_panel():
     human.Grasp('right_hand', 'open', start=23.179001, duration=0.072)
     human.KeyJoints(23.2, {
         'spine_lumbar': (7.124, -13.882, 9.591), 'spine_thoracic': (-8.433, -4.438, 9.158),
-        'neck': (0.155, 0.086, -14.731), 'head': (0.148, 0.005), 'right_clavicle': (2.715, 7.9),
+        'neck': (0.163, -0.504, -14.994), 'head': (0.295, -0.015), 'right_clavicle': (2.715, 7.9),
         'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
         'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_left
-    human.LookAt((-20.0, 105.0, 112.0), start=23.251001, duration=0.2628)
-    human.KeyJoints(23.3, {'neck': (3.338, -0.229, -17.165), 'head': (1.504, 0.0)})
-    human.KeyJoints(23.4, {'neck': (21.057, -1.984, -30.715), 'head': (9.057, -0.045)})
+    human.LookAt((-20.0, 105.0, 112.0), start=23.251001, duration=0.4)
+    human.KeyJoints(23.3, {'neck': (1.603, -0.622, -16.084), 'head': (0.903, -0.017)})
+    human.KeyJoints(23.4, {'neck': (11.063, -1.399, -23.249), 'head': (4.896, -0.03)})
     human.KeyJoints(23.5, {
-        'neck': (34.722, -3.338, -41.165), 'head': (14.881, -0.156),
+        'neck': (23.854, -2.45, -32.937), 'head': (10.295, -0.066),
         'right_shoulder': (89.464, 7.271, 1.148), 'right_elbow': (32.928, 11.054),
         'right_wrist': (-1.361, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_left
-    human.LookAt((-20.0, 105.0, 112.0), start=23.513801, duration=10.620907)
     human.KeyJoints(23.6, {
-        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659),
+        'neck': (33.445, -3.238, -40.2), 'head': (14.344, -0.131),
         'right_shoulder': (88.391, 7.516, 0.971), 'right_elbow': (33.028, 10.972),
         'right_wrist': (-1.417, -29.538),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_left
+    human.LookAt((-20.0, 105.0, 112.0), start=23.651001, duration=10.483707)
     human.KeyJoints(23.7, {
+        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659),
         'right_shoulder': (80.945, 9.225, -0.267), 'right_elbow': (33.721, 10.404),
         'right_wrist': (-1.811, -26.564),
     })
@@ -2096,18 +2097,19 @@ def remove_access_panel():
         'right_wrist': (-6.353, -4.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > look: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=34.134708, duration=0.2628)
-    human.KeyJoints(34.2, {'neck': (33.327, -2.367, -35.616), 'head': (13.852, -0.573)})
-    human.KeyJoints(34.3, {'neck': (27.538, -1.511, -16.265), 'head': (9.881, -0.276)})
+    human.LookAt((20.0, 105.0, 112.0), start=34.134708, duration=0.321213)
+    human.KeyJoints(34.2, {'neck': (33.84, -2.443, -37.33), 'head': (14.204, -0.599)})
+    human.KeyJoints(34.3, {'neck': (29.35, -1.779, -22.32), 'head': (11.123, -0.369)})
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=34.397508, duration=10.521694)
     human.KeyJoints(34.4, {
-        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
+        'neck': (25.043, -1.141, -7.923), 'head': (8.169, -0.148),
         'right_shoulder': (18.715, 33.756, -16.64), 'right_elbow': (36.542, 2.882),
         'right_wrist': (-6.353, -4.871),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
+    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=10.463281)
     human.KeyJoints(34.5, {
+        'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (20.012, 32.188, -15.305), 'right_elbow': (36.386, 3.606),
         'right_wrist': (-6.079, -5.491),
     })
@@ -2552,23 +2554,24 @@ def remove_access_panel():
         'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.2628)
-    human.KeyJoints(45.0, {'neck': (23.844, -1.814, -11.356), 'head': (7.5, -0.133)})
-    human.KeyJoints(45.1, {'neck': (23.05, -3.744, -26.637)})
+    human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.293772)
+    human.KeyJoints(45.0, {'neck': (23.902, -1.671, -10.227)})
+    human.KeyJoints(45.1, {'neck': (23.194, -3.393, -23.864)})
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
-    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=45.182003, duration=0.867635)
     human.KeyJoints(45.2, {
-        'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
+        'neck': (22.721, -4.546, -32.985), 'head': (7.255, -0.233),
         'right_shoulder': (57.194, 2.091, 10.928), 'right_elbow': (32.004, 18.341),
         'right_wrist': (-1.082, -21.15), 'left_shoulder': (8.602, 5.726, 11.46),
         'left_elbow': (34.376, 17.189), 'left_wrist': (0.0, -0.001),
     })
+    # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
+    human.LookAt((0.0, 120.0, 110.0), start=45.212974, duration=0.836663)
     human.KeyJoints(45.3, {
-        'right_shoulder': (56.497, 2.761, 10.533), 'right_elbow': (33.533, 18.51),
-        'right_wrist': (-1.473, -21.079), 'left_shoulder': (10.378, 4.889, 11.549),
-        'left_elbow': (34.02, 17.212), 'left_wrist': (0.037, -0.15),
+        'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.497, 2.761, 10.533),
+        'right_elbow': (33.533, 18.51), 'right_wrist': (-1.473, -21.079),
+        'left_shoulder': (10.378, 4.889, 11.549), 'left_elbow': (34.02, 17.212),
+        'left_wrist': (0.037, -0.15),
     })
     human.KeyJoints(45.4, {
         'right_shoulder': (53.622, 5.532, 8.896), 'right_elbow': (39.832, 19.207),
@@ -2929,16 +2932,18 @@ def remove_access_panel():
         'left_knee': (15.07,), 'left_ankle': (6.228, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.269006, duration=0.2628)
+    human.LookAt((160.0, 90.0, 20.0), start=51.269006, duration=0.32772)
     human.KeyRoot(51.3, (140.0, 72.985, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(51.3, {
-        'neck': (1.346, 1.298, -1.138), 'head': (0.577, -0.433), 'right_hip': (3.154, 0.0, 0.0),
+        'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (3.154, 0.0, 0.0),
         'right_knee': (5.194,), 'right_ankle': (2.042, 0.0), 'left_hip': (3.126, 0.0, 0.0),
         'left_knee': (5.134,), 'left_ankle': (2.01, 0.0),
     })
-    human.KeyJoints(51.4, {'right_knee': (5.127,)})
+    human.KeyJoints(51.4, {
+        'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955), 'right_knee': (5.127,),
+    })
     human.KeyJoints(51.5, {
-        'neck': (33.586, 32.387, -28.4), 'head': (14.394, -10.796),
+        'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
         'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
@@ -2948,7 +2953,7 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.531806, duration=0.698258)
+    human.LookAt((160.0, 90.0, 20.0), start=51.596726, duration=0.633339)
     human.KeyJoints(51.6, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
         'right_shoulder': (33.677, 34.899, -9.742), 'right_elbow': (91.122, 24.926),

@@ -91,28 +91,28 @@ def remove_avionics_unit():
         'left_ankle': (6.46, 0.42),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
-    human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.2628)
+    human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > look: gaze on head at latch_right
-    human.LookAt((22.0, 178.0, 100.0), start=1.294737, duration=0.2628)
+    human.LookAt((22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
     human.KeyRoot(1.3, (0.0, 72.993, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (-0.022, 0.0, 0.0), 'head': (-0.019, 0.0), 'right_hip': (2.996, 0.0, 0.0),
+        'neck': (-0.022, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_hip': (2.996, 0.0, 0.0),
         'right_knee': (4.859,), 'right_ankle': (1.866, 0.0), 'left_hip': (2.991, 0.0, 0.0),
         'left_knee': (4.851,), 'left_ankle': (1.862, 0.0),
     })
-    human.KeyJoints(1.4, {'neck': (-6.625, 0.0, 0.0), 'head': (-5.618, 0.0)})
+    human.KeyJoints(1.4, {'neck': (-6.498, 0.0, 0.0), 'head': (-5.508, 0.0)})
     human.KeyJoints(1.5, {
-        'neck': (-16.832, 0.0, 0.0), 'head': (-14.341, 0.0), 'right_hip': (3.011, 0.0, 0.0),
+        'neck': (-16.638, 0.0, 0.0), 'head': (-14.171, 0.0), 'right_hip': (3.011, 0.0, 0.0),
         'right_knee': (4.892,), 'right_ankle': (1.883, 0.0), 'left_hip': (3.01, 0.0, 0.0),
         'left_knee': (4.889,), 'left_ankle': (1.882, 0.0),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: gaze on head at latch_right
-    human.LookAt((0.0, 178.0, 100.0), start=1.557537, duration=1.836346)
+    human.LookAt((0.0, 178.0, 100.0), start=1.560423, duration=1.833461)
     human.KeyJoints(1.6, {
         'spine_lumbar': (0.001, -0.001, -0.004), 'spine_thoracic': (0.004, 0.0, -0.008),
-        'neck': (-20.088, -0.039, 0.128), 'head': (-17.287, 0.0), 'right_clavicle': (0.008, -0.004),
+        'neck': (-20.079, -0.039, 0.129), 'head': (-17.277, 0.0), 'right_clavicle': (0.008, -0.004),
         'right_shoulder': (8.593, 5.778, 11.444), 'right_elbow': (34.371, 17.186),
         'left_clavicle': (0.008, 0.003), 'left_shoulder': (8.631, 5.732, 11.457),
         'left_elbow': (34.377, 17.163), 'left_wrist': (-0.002, -0.001),
@@ -121,14 +121,14 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.7, {
         'spine_lumbar': (0.042, -0.04, -0.142), 'spine_thoracic': (0.129, 0.011, -0.284),
-        'neck': (-20.534, -0.386, 1.248), 'head': (-17.771, 0.0), 'right_clavicle': (0.261, -0.142),
+        'neck': (-20.535, -0.387, 1.251), 'head': (-17.771, 0.0), 'right_clavicle': (0.261, -0.142),
         'right_shoulder': (8.557, 7.354, 10.954), 'right_elbow': (34.17, 17.107),
         'left_clavicle': (0.284, 0.105), 'left_shoulder': (9.84, 5.802, 11.378),
         'left_elbow': (34.357, 16.313), 'left_wrist': (-0.066, -0.02),
     })
     human.KeyJoints(1.8, {
         'spine_lumbar': (0.182, -0.172, -0.62), 'spine_thoracic': (0.564, 0.046, -1.24),
-        'neck': (-21.336, -0.911, 2.953), 'head': (-18.659, -0.003),
+        'neck': (-21.337, -0.911, 2.954), 'head': (-18.659, -0.003),
         'right_clavicle': (1.137, -0.62), 'right_shoulder': (8.433, 12.813, 9.256),
         'right_elbow': (33.472, 16.833), 'right_wrist': (0.015, -0.038),
         'left_clavicle': (1.238, 0.459), 'left_shoulder': (14.026, 6.046, 11.106),
@@ -136,7 +136,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(1.9, {
         'spine_lumbar': (0.455, -0.426, -1.532), 'spine_thoracic': (1.394, 0.115, -3.065),
-        'neck': (-22.871, -1.611, 5.231), 'head': (-19.701, -0.009),
+        'neck': (-22.882, -1.611, 5.231), 'head': (-19.699, -0.009),
         'right_clavicle': (2.81, -1.532), 'right_shoulder': (8.196, 23.23, 6.016),
         'right_elbow': (32.136, 16.31), 'left_clavicle': (3.058, 1.137),
         'left_shoulder': (22.023, 6.513, 10.586), 'left_elbow': (34.156, 7.756),
@@ -144,7 +144,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(2.0, {
         'spine_lumbar': (0.883, -0.798, -2.87), 'spine_thoracic': (2.611, 0.215, -5.74),
-        'neck': (-26.392, -2.325, 7.51), 'head': (-19.519, -0.024),
+        'neck': (-26.392, -2.325, 7.512), 'head': (-19.521, -0.023),
         'right_clavicle': (5.275, -2.87), 'right_shoulder': (7.849, 38.51, 1.263),
         'right_elbow': (30.153, 15.543), 'left_clavicle': (5.728, 2.136),
         'left_shoulder': (33.794, 7.201, 9.822), 'left_elbow': (33.951, -0.479),
@@ -152,7 +152,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(2.1, {
         'spine_lumbar': (1.486, -1.266, -4.554), 'spine_thoracic': (4.144, 0.34, -9.109),
-        'neck': (-30.606, -3.001, 9.662), 'head': (-19.459, -0.058),
+        'neck': (-30.605, -2.999, 9.662), 'head': (-19.459, -0.058),
         'right_clavicle': (8.401, -4.554), 'right_shoulder': (7.411, 57.745, -4.719),
         'right_elbow': (27.606, 14.577), 'right_wrist': (0.118, -0.298),
         'left_clavicle': (9.09, 3.407), 'left_shoulder': (48.707, 8.079, 8.855),
@@ -160,19 +160,19 @@ def remove_avionics_unit():
     })
     human.KeyJoints(2.2, {
         'spine_lumbar': (2.275, -1.798, -6.469), 'spine_thoracic': (5.886, 0.484, -12.938),
-        'neck': (-35.144, -3.441, 10.981), 'right_clavicle': (11.993, -6.469),
+        'neck': (-35.143, -3.438, 10.983), 'right_clavicle': (11.993, -6.469),
         'right_shoulder': (6.914, 79.615, -11.521), 'right_elbow': (24.626, 13.478),
         'left_clavicle': (12.913, 4.876), 'left_shoulder': (65.815, 9.095, 7.749),
         'left_elbow': (33.31, -22.633),
     })
     human.KeyJoints(2.3, {
-        'spine_lumbar': (3.259, -2.358, -8.485), 'neck': (-39.783, -3.634, 11.425),
+        'spine_lumbar': (3.259, -2.358, -8.485), 'neck': (-39.782, -3.629, 11.428),
         'right_shoulder': (6.39, 102.635, -18.682), 'right_elbow': (21.365, 12.322),
         'left_elbow': (32.875, -35.041),
     })
     human.KeyJoints(2.4, {
         'spine_lumbar': (4.488, -2.902, -10.457), 'spine_thoracic': (9.497, 0.78, -20.914),
-        'neck': (-44.208, -3.569, 11.016), 'head': (-18.875, -0.254),
+        'neck': (-44.207, -3.563, 11.019), 'head': (-18.876, -0.253),
         'right_clavicle': (19.674, -10.457), 'right_shoulder': (5.879, 125.155, -25.688),
         'right_elbow': (17.967, 11.19), 'left_clavicle': (20.881, 8.058),
         'left_shoulder': (102.287, 11.297, 5.41), 'left_elbow': (32.335, -47.182),
@@ -180,7 +180,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(2.5, {
         'spine_lumbar': (6.511, -3.271, -12.221), 'spine_thoracic': (10.666, 0.867, -24.443),
-        'neck': (-47.389, -3.089, 9.932), 'head': (-19.256, -0.132),
+        'neck': (-47.39, -3.083, 9.936), 'head': (-19.254, -0.132),
         'right_clavicle': (23.277, -12.221), 'right_shoulder': (5.468, 145.137, -31.951),
         'right_elbow': (14.386, 10.177), 'right_wrist': (0.433, -1.008),
         'left_clavicle': (24.412, 9.663), 'left_shoulder': (119.774, 12.199, 4.363),
@@ -188,7 +188,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(2.6, {
         'spine_lumbar': (11.44, -2.884, -13.603), 'spine_thoracic': (9.214, 0.67, -27.206),
-        'neck': (-49.574, -2.324, 8.269), 'head': (-19.909, 0.0),
+        'neck': (-49.573, -2.317, 8.272), 'head': (-19.909, 0.001),
         'right_clavicle': (26.365, -13.603), 'right_shoulder': (5.397, 159.911, -36.833),
         'right_elbow': (10.003, 9.384), 'left_clavicle': (27.183, 11.478),
         'left_shoulder': (137.476, 12.077, 3.642), 'left_elbow': (26.339, -66.555),
@@ -198,7 +198,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.7, {
         'spine_lumbar': (19.503, -1.512, -14.476), 'spine_thoracic': (4.396, 0.089, -28.952),
-        'neck': (-52.072, -1.409, 5.931), 'right_clavicle': (28.568, -14.476),
+        'neck': (-52.071, -1.402, 5.935), 'right_clavicle': (28.568, -14.476),
         'right_shoulder': (5.758, 167.863, -39.886), 'right_elbow': (5.05, 8.883),
         'right_wrist': (0.587, -1.453), 'left_clavicle': (28.942, 13.418),
         'left_shoulder': (154.574, 10.525, 3.385), 'left_elbow': (17.164, -71.946),
@@ -206,14 +206,14 @@ def remove_avionics_unit():
     })
     human.KeyJoints(2.8, {
         'spine_lumbar': (25.274, -0.4, -14.887), 'spine_thoracic': (0.52, -0.375, -29.774),
-        'neck': (-54.369, -0.668, 3.442), 'right_clavicle': (29.687, -14.887),
+        'neck': (-54.368, -0.66, 3.447), 'right_clavicle': (29.687, -14.887),
         'right_shoulder': (6.094, 171.037, -41.308), 'right_elbow': (1.864, 8.649),
         'left_clavicle': (29.771, 14.643), 'left_shoulder': (164.982, 9.174, 3.35),
         'left_elbow': (10.298, -74.485),
     })
     human.KeyJoints(2.9, {
         'spine_lumbar': (26.941, -0.073, -14.997), 'spine_thoracic': (-0.617, -0.512, -29.994),
-        'neck': (-56.851, -0.104, 1.019), 'head': (-19.525, 0.003),
+        'neck': (-56.851, -0.095, 1.024), 'head': (-19.525, 0.003),
         'right_clavicle': (29.992, -14.997), 'right_shoulder': (6.194, 171.854, -41.688),
         'right_elbow': (0.958, 8.586), 'right_wrist': (0.611, -1.592),
         'left_clavicle': (29.994, 14.991), 'left_shoulder': (167.916, 8.773, 3.346),
@@ -222,7 +222,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(3.0, {
-        'neck': (-57.994, 0.082, 0.045), 'right_elbow': (0.918, 8.584),
+        'neck': (-57.993, 0.092, 0.051), 'right_elbow': (0.918, 8.584),
         'right_wrist': (0.605, -1.581), 'left_shoulder': (168.07, 8.751, 3.346),
         'left_elbow': (8.115, -75.185), 'left_wrist': (-6.577, -2.13),
     })
@@ -233,13 +233,13 @@ def remove_avionics_unit():
         'left_elbow': (6.48, -75.182), 'left_wrist': (-6.047, -1.94),
     })
     human.KeyJoints(3.2, {
-        'neck': (-58.22, 0.099, -0.049), 'head': (-19.584, 0.003), 'right_elbow': (0.424, 8.585),
+        'neck': (-58.22, 0.109, -0.044), 'head': (-19.584, 0.003), 'right_elbow': (0.424, 8.585),
         'right_wrist': (0.357, -1.054), 'left_shoulder': (170.507, 8.403, 3.353),
         'left_elbow': (3.885, -75.179), 'left_wrist': (-4.749, -1.494),
     })
     human.KeyJoints(3.3, {
         'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.564, -0.547, -30.0),
-        'neck': (-58.558, 0.104, -0.076), 'right_shoulder': (6.523, 171.769, -41.698),
+        'neck': (-58.558, 0.114, -0.07), 'right_shoulder': (6.523, 171.769, -41.698),
         'right_elbow': (0.293, 8.586), 'right_wrist': (0.269, -0.856),
         'left_shoulder': (171.161, 8.326, 3.353), 'left_elbow': (2.793, -75.178),
         'left_wrist': (-3.955, -1.23),
@@ -249,30 +249,28 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=3.321883, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
-    human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.2628)
-    human.KeyJoints(3.4, {'neck': (-58.615, 0.104, -0.075)})
-    human.KeyJoints(3.5, {'neck': (-57.925, 0.032, 0.152), 'head': (-19.489, 0.002)})
+    human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.32325)
+    human.KeyJoints(3.4, {'neck': (-58.615, 0.114, -0.07)})
+    human.KeyJoints(3.5, {'neck': (-58.128, 0.091, 0.089), 'head': (-19.513, 0.002)})
     human.KeyJoints(3.6, {
-        'spine_thoracic': (-0.563, -0.546, -30.0), 'neck': (-56.912, -0.075, 0.485),
-        'head': (-19.372, 0.0), 'right_shoulder': (6.524, 171.769, -41.698),
-        'left_shoulder': (171.167, 8.326, 3.353), 'left_elbow': (2.783, -75.178),
-        'left_wrist': (-3.947, -1.227),
+        'spine_thoracic': (-0.563, -0.546, -30.0), 'neck': (-57.259, 0.028, 0.372),
+        'right_shoulder': (6.524, 171.769, -41.698), 'left_shoulder': (171.167, 8.326, 3.353),
+        'left_elbow': (2.783, -75.178), 'left_wrist': (-3.947, -1.227),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
-    # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
-    human.LookAt((0.0, 165.0, 75.0), start=3.656683, duration=2.430743)
     human.KeyJoints(3.7, {
         'spine_lumbar': (27.281, 0.132, -14.989), 'spine_thoracic': (-0.359, -0.637, -30.0),
-        'neck': (-57.912, 0.651, -1.619), 'head': (-19.926, 0.006),
-        'right_clavicle': (30.0, -14.989), 'right_shoulder': (6.463, 171.327, -41.687),
-        'right_wrist': (0.311, -0.881), 'left_clavicle': (30.0, 14.976),
-        'left_shoulder': (169.798, 9.962, 2.681), 'left_elbow': (2.889, -75.086),
-        'left_wrist': (-3.828, -1.21),
+        'neck': (-56.696, -0.077, 0.556), 'head': (-19.348, 0.0), 'right_clavicle': (30.0, -14.989),
+        'right_shoulder': (6.463, 171.327, -41.687), 'right_wrist': (0.311, -0.881),
+        'left_clavicle': (30.0, 14.976), 'left_shoulder': (169.798, 9.962, 2.681),
+        'left_elbow': (2.889, -75.086), 'left_wrist': (-3.828, -1.21),
     })
+    # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
+    human.LookAt((0.0, 165.0, 75.0), start=3.717133, duration=2.370294)
     human.KeyJoints(3.8, {
         'spine_lumbar': (28.041, -0.124, -14.753), 'spine_thoracic': (4.198, -2.656, -30.0),
-        'neck': (-59.081, -6.423, -20.636), 'head': (-19.155, 3.844),
+        'neck': (-57.325, -3.627, -9.583), 'head': (-19.481, 2.324),
         'right_clavicle': (30.0, -14.741), 'right_shoulder': (5.105, 161.451, -41.43),
         'right_elbow': (0.227, 8.568), 'right_wrist': (1.265, -1.465),
         'left_clavicle': (29.999, 14.438), 'left_shoulder': (139.194, 46.537, -12.34),
@@ -280,17 +278,16 @@ def remove_avionics_unit():
     })
     human.KeyJoints(3.9, {
         'spine_lumbar': (29.806, -0.719, -14.203), 'spine_thoracic': (14.78, -7.345, -30.0),
-        'neck': (-59.736, -17.455, -44.502), 'head': (-17.951, 9.81),
-        'right_clavicle': (30.0, -14.164), 'right_shoulder': (1.95, 138.513, -40.834),
-        'right_wrist': (3.48, -2.823), 'left_clavicle': (29.996, 13.19),
-        'left_shoulder': (68.117, 131.483, -47.228), 'left_elbow': (10.738, -68.312),
-        'left_wrist': (5.055, 0.063),
+        'neck': (-58.901, -12.1, -34.4), 'head': (-19.812, 8.01), 'right_clavicle': (30.0, -14.164),
+        'right_shoulder': (1.95, 138.513, -40.834), 'right_wrist': (3.48, -2.823),
+        'left_clavicle': (29.996, 13.19), 'left_shoulder': (68.117, 131.483, -47.228),
+        'left_elbow': (10.738, -68.312), 'left_wrist': (5.055, 0.063),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
     human.KeyJoints(4.0, {
         'spine_lumbar': (30.759, -1.04, -13.906), 'spine_thoracic': (20.494, -9.876, -30.0),
-        'neck': (-59.838, -19.899, -49.573), 'head': (-17.685, 11.131),
+        'neck': (-59.799, -16.911, -48.542), 'head': (-20.0, 11.25),
         'right_clavicle': (30.0, -13.853), 'right_shoulder': (0.246, 126.127, -40.512),
         'right_elbow': (0.004, 8.505), 'right_wrist': (4.677, -3.556),
         'left_clavicle': (29.994, 12.515), 'left_shoulder': (29.737, 177.353, -66.066),
@@ -302,25 +299,22 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'close', start=4.045791, duration=0.072)
     human.KeyJoints(4.1, {
         'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
-        'neck': (-59.838, -19.899, -49.573), 'head': (-17.685, 11.131),
-        'right_clavicle': (30.0, -13.838), 'right_shoulder': (0.163, 125.523, -40.497),
-        'right_elbow': (0.0, 8.504), 'right_wrist': (4.735, -3.591),
-        'left_shoulder': (27.863, 179.592, -66.986), 'left_elbow': (13.845, -65.63),
-        'left_wrist': (8.571, 0.566),
+        'neck': (-59.799, -16.911, -48.542), 'right_clavicle': (30.0, -13.838),
+        'right_shoulder': (0.163, 125.523, -40.497), 'right_elbow': (0.0, 8.504),
+        'right_wrist': (4.735, -3.591), 'left_shoulder': (27.863, 179.592, -66.986),
+        'left_elbow': (13.845, -65.63), 'left_wrist': (8.571, 0.566),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(4.2, {
         'spine_lumbar': (31.012, -1.486, -13.855), 'spine_thoracic': (19.417, -9.249, -28.982),
-        'neck': (-59.863, -19.225, -47.598), 'head': (-18.053, 11.15),
-        'right_clavicle': (28.588, -13.887), 'right_shoulder': (0.483, 127.491, -40.509),
-        'right_elbow': (0.412, 8.516), 'right_wrist': (5.085, -3.949),
-        'left_clavicle': (29.994, 12.525), 'left_shoulder': (27.661, 179.405, -66.935),
-        'left_wrist': (8.602, 0.55),
+        'neck': (-59.831, -16.713, -46.726), 'right_clavicle': (28.588, -13.887),
+        'right_shoulder': (0.483, 127.491, -40.509), 'right_elbow': (0.412, 8.516),
+        'right_wrist': (5.085, -3.949), 'left_clavicle': (29.994, 12.525),
+        'left_shoulder': (27.661, 179.405, -66.935), 'left_wrist': (8.602, 0.55),
     })
     human.KeyJoints(4.3, {
         'spine_lumbar': (32.347, -4.263, -13.601), 'spine_thoracic': (10.66, -4.4, -22.354),
-        'neck': (-59.933, -17.402, -41.946), 'head': (-19.049, 11.201),
         'right_clavicle': (19.47, -14.202), 'right_shoulder': (2.551, 140.2, -40.589),
         'right_elbow': (3.073, 8.596), 'right_wrist': (7.341, -6.259),
         'left_clavicle': (29.996, 12.8), 'left_shoulder': (26.351, 178.085, -66.603),
@@ -328,21 +322,21 @@ def remove_avionics_unit():
     })
     human.KeyJoints(4.4, {
         'spine_lumbar': (34.496, -8.847, -12.977), 'spine_thoracic': (-3.91, 3.656, -10.73),
-        'neck': (-59.992, -15.867, -36.25), 'head': (-19.888, 11.244),
-        'right_clavicle': (4.348, -14.72), 'right_shoulder': (5.973, 161.372, -40.721),
-        'right_elbow': (7.505, 8.729), 'right_wrist': (11.097, -10.102),
-        'left_clavicle': (29.999, 13.252), 'left_shoulder': (24.167, 174.662, -65.958),
-        'left_elbow': (13.752, -65.524), 'left_wrist': (9.125, 0.109),
+        'neck': (-59.99, -15.723, -36.188), 'right_clavicle': (4.348, -14.72),
+        'right_shoulder': (5.973, 161.372, -40.721), 'right_elbow': (7.505, 8.729),
+        'right_wrist': (11.097, -10.102), 'left_clavicle': (29.999, 13.252),
+        'left_shoulder': (24.167, 174.662, -65.958), 'left_elbow': (13.752, -65.524),
+        'left_wrist': (9.125, 0.109),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(4.5, {
         'spine_lumbar': (27.696, -5.318, -10.361), 'spine_thoracic': (-5.971, 3.094, -1.521),
-        'neck': (-58.398, -15.806, -32.425), 'head': (-20.0, 11.241),
-        'right_clavicle': (9.3, -13.756), 'right_shoulder': (3.794, 167.462, -40.474),
-        'right_elbow': (8.061, 8.736), 'right_wrist': (12.332, -11.159),
-        'left_clavicle': (30.0, 12.582), 'left_shoulder': (21.479, 164.849, -64.981),
-        'left_elbow': (9.184, -65.302), 'left_wrist': (7.947, -1.101),
+        'neck': (-58.398, -15.806, -32.425), 'right_clavicle': (9.3, -13.756),
+        'right_shoulder': (3.794, 167.462, -40.474), 'right_elbow': (8.061, 8.736),
+        'right_wrist': (12.332, -11.159), 'left_clavicle': (30.0, 12.582),
+        'left_shoulder': (21.479, 164.849, -64.981), 'left_elbow': (9.184, -65.302),
+        'left_wrist': (7.947, -1.101),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out

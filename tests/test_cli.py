@@ -312,3 +312,35 @@ def test_a_bug_in_lint_or_report_is_one_line_and_exit_2(
         f"mtlc {command}: internal error: RuntimeError: boom (MT0900; "
         "rerun with MTLC_DEBUG=1 for the trace and report it)\n"
     )
+
+
+@pytest.mark.parametrize(
+    ("args", "loaded", "not_loaded"),
+    [
+        (["--version"], [], ["numpy", "lark", "mtlc.frontend"]),
+        (["explain", "MT0201"], [], ["numpy", "lark", "mtlc.frontend"]),
+        (["check", FLAGSHIP], ["lark", "mtlc.frontend"], ["numpy", "scipy", "mtlc.passes"]),
+    ],
+)
+def test_each_command_imports_only_what_it_uses(
+    args: list[str], loaded: list[str], not_loaded: list[str]
+) -> None:
+    """Issue 21: start-up was 1-2 s of every command, the motion passes and scipy loaded to
+    print a version. A fresh interpreter runs the command, then lists what it imported."""
+    code = (
+        "import sys, contextlib, io\n"
+        "from mtlc.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
+        "    try:\n"
+        f"        main({args!r})\n"
+        "    except SystemExit:\n"
+        "        pass\n"
+        "print(' '.join(sorted(sys.modules)))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120
+    )
+    modules = set(out.stdout.split())
+    assert modules, out.stderr
+    assert all(m in modules for m in loaded), [m for m in loaded if m not in modules]
+    assert not modules & set(not_loaded), sorted(modules & set(not_loaded))

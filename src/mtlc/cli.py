@@ -11,7 +11,7 @@ import json
 import os
 import sys
 import traceback
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -82,56 +82,65 @@ def _budget(text: str) -> int:
     return value
 
 
+COMMANDS = ("check", "compile", "explain", "lint", "report", "fmt", "preview", "serve")
+
+
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    """The command line; with ``only="fmt"``, the same with no other command (for `mtlc fmt
-    ...`, whose arguments, help and errors are the same: it then imports nothing else)."""
+    """The command line; with ``only`` (a command's name), the same with no other command: its
+    arguments, help and errors are the same, and it imports only what that command's own
+    options need (`mtlc explain` and `mtlc fmt` no numpy, `mtlc check` no motion passes or
+    scipy: start-up was 1-2 s of every command, issue 21). ``only=""``: no command at all (for
+    `mtlc --version`)."""
     parser = argparse.ArgumentParser(
         prog="mtlc",
         description="Maintenance Task Language Compiler: maintenance procedures to virtual-human motion.",
     )
     parser.add_argument("--version", action="version", version=f"mtlc {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    from mtlc.fmt.command import add_fmt_parser
+    for command, add in _SUBPARSERS:
+        if only is None or only == command:
+            add(sub)
+    return parser
 
-    if only == "fmt":
-        add_fmt_parser(sub)
-        return parser
-    from mtlc.codegen import DEFAULT_TARGET, TA_MODES, TARGET_CHOICES
+
+def _frontend_options(p: argparse.ArgumentParser) -> None:
     from mtlc.frontend import add_motion_budget
-    from mtlc.lint.command import add_lint_parser
-    from mtlc.passes.context import DEFAULT_FPS
-    from mtlc.preview.command import add_preview_parsers
-    from mtlc.report.command import add_report_parser
     from mtlc.semantics.expand import DEFAULT_BUDGET
 
-    def frontend_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("files", nargs="+", type=Path, metavar="FILE", help=".mtask files")
-        p.add_argument(
-            "-I", dest="include", action="append", type=Path, default=[], metavar="DIR",
-            help="also look for used modules in DIR (after the file's own folder)",
-        )  # fmt: skip
-        p.add_argument(
-            "--expansion-budget", type=_budget, default=DEFAULT_BUDGET, metavar="N",
-            help=f"most primitives a task may expand into (default {DEFAULT_BUDGET:,})",
-        )  # fmt: skip
-        add_motion_budget(p)
-        p.add_argument(
-            "--manikin", type=_manikin, metavar="POP:SEX:PCT",
-            help="override every task's manikin, e.g. gb10000_1988:female:5",
-        )  # fmt: skip
-        p.add_argument(
-            "--format", choices=("text", "json"), default="text",
-            help="how diagnostics are printed (json: versioned, for tools)",
-        )  # fmt: skip
+    p.add_argument("files", nargs="+", type=Path, metavar="FILE", help=".mtask files")
+    p.add_argument(
+        "-I", dest="include", action="append", type=Path, default=[], metavar="DIR",
+        help="also look for used modules in DIR (after the file's own folder)",
+    )  # fmt: skip
+    p.add_argument(
+        "--expansion-budget", type=_budget, default=DEFAULT_BUDGET, metavar="N",
+        help=f"most primitives a task may expand into (default {DEFAULT_BUDGET:,})",
+    )  # fmt: skip
+    add_motion_budget(p)
+    p.add_argument(
+        "--manikin", type=_manikin, metavar="POP:SEX:PCT",
+        help="override every task's manikin, e.g. gb10000_1988:female:5",
+    )  # fmt: skip
+    p.add_argument(
+        "--format", choices=("text", "json"), default="text",
+        help="how diagnostics are printed (json: versioned, for tools)",
+    )  # fmt: skip
 
+
+def _add_check(sub: argparse._SubParsersAction) -> None:
     check = sub.add_parser("check", help="parse, resolve, type-check and expand task files")
-    frontend_options(check)
+    _frontend_options(check)
     check.add_argument(
         "--dump", choices=("ast", "timeline"), help="print the AST or the expanded timeline as JSON"
     )
 
+
+def _add_compile(sub: argparse._SubParsersAction) -> None:
+    from mtlc.codegen import DEFAULT_TARGET, TA_MODES, TARGET_CHOICES  # compile loads them anyway
+    from mtlc.passes.context import DEFAULT_FPS
+
     compile_ = sub.add_parser("compile", help="compile task files into motion outputs")
-    frontend_options(compile_)
+    _frontend_options(compile_)
     compile_.add_argument("-o", "--output", type=Path, default=Path("out"), metavar="DIR",
                           help="output folder (default: out)")  # fmt: skip
     compile_.add_argument("--target", choices=TARGET_CHOICES, default=DEFAULT_TARGET,
@@ -149,18 +158,60 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     compile_.add_argument("--walk-clip", type=Path, default=None, metavar="FILE",
                           help="a BVH walking clip: the walks take its gait, adapted to each task (seed 004)")  # fmt: skip
 
+
+def _add_explain(sub: argparse._SubParsersAction) -> None:
     explain = sub.add_parser("explain", help="show the documentation page of a diagnostic code")
     explain.add_argument("code", metavar="CODE", help="e.g. MT0201")
+
+
+def _add_lint(sub: argparse._SubParsersAction) -> None:
+    from mtlc.lint.command import add_lint_parser
+
     add_lint_parser(sub)
+
+
+def _add_report(sub: argparse._SubParsersAction) -> None:
+    from mtlc.report.command import add_report_parser
+
     add_report_parser(sub)
+
+
+def _add_fmt(sub: argparse._SubParsersAction) -> None:
+    from mtlc.fmt.command import add_fmt_parser
+
     add_fmt_parser(sub)
-    add_preview_parsers(sub, frontend_options)
-    return parser
+
+
+def _add_preview(sub: argparse._SubParsersAction) -> None:
+    from mtlc.preview.command import add_preview_parsers
+
+    add_preview_parsers(sub, _frontend_options)
+
+
+# in the order `mtlc --help` lists them (preview adds `preview` and `serve`)
+_SUBPARSERS: list[tuple[str, Callable[[argparse._SubParsersAction], None]]] = [
+    ("check", _add_check),
+    ("compile", _add_compile),
+    ("explain", _add_explain),
+    ("lint", _add_lint),
+    ("report", _add_report),
+    ("fmt", _add_fmt),
+    ("preview", _add_preview),  # and `serve`
+]
+
+
+def _only(words: list[str]) -> str | None:
+    """Which command's parser alone parses ``words`` the same as the whole command line."""
+    if words[:1] == ["--version"]:
+        return ""
+    if words[:1] and words[0] in COMMANDS:
+        return "preview" if words[0] == "serve" else words[0]
+    return None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     words = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(only="fmt" if words[:1] == ["fmt"] else None)
+    parser = build_parser(only=_only(words))
     args = parser.parse_args(words)
     if args.command is None:
         parser.print_help(sys.stderr)

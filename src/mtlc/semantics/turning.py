@@ -15,8 +15,6 @@ import math
 from collections.abc import Iterable, Sequence
 from itertools import islice
 
-import numpy as np
-
 from mtlc.semantics import gait, mtm
 from mtlc.semantics import types as T
 from mtlc.semantics.timeline import Primitive
@@ -47,7 +45,7 @@ def heading_to(src: Point, dst: Point, default: float) -> float:
     return math.atan2(dx, dz)
 
 
-def work_after(prims: Iterable[Primitive], walk: Primitive) -> np.ndarray | None:
+def work_after(prims: Iterable[Primitive], walk: Primitive) -> Point | None:
     """Where the work is after ``walk``: the mean site of the reaches before the next walk
     (a site reached often weighs more), which the body faces when the walk names no ``facing``.
     Lowering's root plan uses this too: the time given to turning and the turn made agree."""
@@ -58,8 +56,9 @@ def work_after(prims: Iterable[Primitive], walk: Primitive) -> np.ndarray | None
         if p.kind == "locomotion":
             break
         if p.kind == "goal":
-            sites.append(np.asarray(p.params["position"], dtype=float))
-    return np.mean(sites, axis=0) if sites else None
+            sites.append(tuple(float(c) for c in p.params["position"]))
+    # summed in order, as numpy's mean over rows does (the front end needs no numpy: issue 21)
+    return tuple(sum(c) / len(sites) for c in zip(*sites, strict=True)) if sites else None  # type: ignore[return-value]
 
 
 def arrival_heading(prims: Iterable[Primitive], walk: Primitive, walking: float) -> float:

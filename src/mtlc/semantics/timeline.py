@@ -67,6 +67,8 @@ class Timeline:
     tool: Tool | None
     budget: float | None
     primitives: list[Primitive] = field(default_factory=list)
+    # the scene's models and solids, placed (mtlc.geometry.model.SceneModel)
+    models: list[Any] = field(default_factory=list)
 
     @property
     def duration(self) -> float:

@@ -240,3 +240,36 @@ def test_solid_meshes_are_outward() -> None:
     ):
         mesh = trimesh.Trimesh(vertices, faces)
         assert mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0
+
+
+def test_ir_json_and_jackscript_carry_the_models(tmp_path: Path) -> None:
+    """The IR names each model's file and hash (each solid's parameters); the JackScript loads
+    the file through the mapping table's LoadModel, its path a string literal, never code."""
+    import json
+
+    from mtlc.cli import main
+
+    panel_scene().export(tmp_path / "it's.glb")
+    src = tmp_path / "main.mtask"
+    src.write_text(
+        f'{HEADER}scene bay {{\n    model p "it\'s.glb" at (0, 100, 80) cm\n'
+        "    box b size (10, 10, 10) cm at (1, 0, 0) m\n    sites from p\n"
+        "    site front at (0, 0, 50) cm\n}\ntask t {\n    scene bay\n    walk_to(front)\n"
+        "    reach(right, bolt_1)\n}\n",
+        encoding="utf-8",
+    )
+    assert (
+        main(
+            ["compile", str(src), "--target", "ir", "--format", "json", "-o", str(tmp_path / "ir")]
+        )
+        == 0
+    )
+    (ir_file,) = (tmp_path / "ir").iterdir()
+    models = json.loads(ir_file.read_text(encoding="utf-8"))["scene"]["models"]
+    assert [(m["name"], m["kind"]) for m in models] == [("p", "model"), ("b", "box")]
+    assert models[0]["path"] == "it's.glb" and len(models[0]["sha256"]) == 64
+    assert models[0]["transform"][1][3] == 1.0 and models[1]["size"] == [0.1, 0.1, 0.1]
+    assert main(["compile", str(src), "-o", str(tmp_path / "js")]) == 0
+    script = (tmp_path / "js" / "main.py").read_text(encoding="utf-8")
+    assert "LoadModel(\"it's.glb\", name='p', transform=((100.0, 0.0, 0.0, 0.0)," in script
+    compile(script, "main.py", "exec")

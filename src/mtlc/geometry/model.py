@@ -48,6 +48,17 @@ class SceneModel:
     def triangles(self) -> int:
         return int(self.faces.shape[0])
 
+    def record(self) -> dict[str, Any]:
+        """What the IR JSON says of it (docs/ir.md): no vertices, the file and its hash, or the
+        solid's parameters (SI units), and the placement as a row-major 4x4 matrix."""
+        out: dict[str, Any] = {"name": self.name, "kind": self.solid or "model"}
+        if self.solid is None:
+            out.update(path=self.source, sha256=self.sha256)
+        out.update(self.parameters)
+        out["transform"] = [[float(x) for x in row] for row in self.transform]
+        out["triangles"] = self.triangles
+        return out
+
     def farthest(self) -> float:
         """The largest distance of a vertex from the scene's origin (m)."""
         if len(self.vertices) == 0:

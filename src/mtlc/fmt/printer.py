@@ -565,8 +565,8 @@ class _Printer:
         path's string as written (its escapes kept)."""
         assert isinstance(shape, ast.Shape)
         doc: list[Doc] = [Text(f"{shape.kind} {shape.name}")]
-        if shape.path_span is not None:
-            doc.append(Text(" " + self.src.text(self.src.starting_at(shape.path_span.start))))
+        if shape.file_span is not None:
+            doc.append(Text(" " + self.src.text(self.src.starting_at(shape.file_span.start))))
         for clause in shape.clauses:
             doc.append(Text(f" {clause.keyword}"))
             if clause.word is not None:

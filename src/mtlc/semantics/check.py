@@ -248,9 +248,9 @@ class Checker:
         from mtlc.geometry.load import FIXED_FRAME, ModelError, read_mesh, resolve
 
         mesh = None
-        assert shape.path is not None
+        assert shape.file is not None
         try:
-            mesh = read_mesh(resolve(shape.path, Path(shape.span.file).parent))
+            mesh = read_mesh(resolve(shape.file, Path(shape.span.file).parent))
         except ModelError as exc:
             self.sink.report(exc.code, exc.message, shape.span, help=exc.help)
         if mesh is not None:

@@ -313,7 +313,7 @@ class Expander:
                 vertices=place_points(matrix, mesh.vertices),
                 faces=mesh.faces,
                 nodes=place_nodes(matrix, mesh.nodes),
-                source=shape.path,
+                source=shape.file,
                 sha256=mesh.sha256,
                 solid=None,
                 transform=matrix,

@@ -272,8 +272,8 @@ class Shape(Decl):
     """Equipment geometry in a scene: a mesh file (`model`) or a `box`, `cylinder`, `plate`."""
 
     kind: str  # "model", "box", "cylinder" or "plate"
-    path: str | None  # the model's file, as written (relative to the declaring file's folder)
-    path_span: Span | None
+    file: str | None  # the model's file, as written (relative to the declaring file's folder)
+    file_span: Span | None
     clauses: tuple[ShapeClause, ...]
 
     def clause(self, keyword: str) -> ShapeClause | None:

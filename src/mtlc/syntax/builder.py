@@ -272,8 +272,8 @@ class AstBuilder(Transformer):
             name=name.value,
             name_span=self._sp(name),
             kind=kind,
-            path=path,
-            path_span=self._sp(path_tok) if path_tok is not None else None,
+            file=path,
+            file_span=self._sp(path_tok) if path_tok is not None else None,
             clauses=tuple(kept),
         )
 

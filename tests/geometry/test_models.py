@@ -92,6 +92,10 @@ BAD_FILES: dict[str, tuple[str, bytes | None, str]] = {
     "wrong kind": ("bay.step", b"ISO-10303-21;", "MT0006"),
     "escaping": ("../outside.glb", None, "MT0008"),
     "absolute": ("/etc/passwd.glb", None, "MT0008"),
+    "drive": ("C:/cad/bay.glb", None, "MT0008"),
+    "empty path": ("", None, "MT0005"),
+    "nul in path": ("a\\u{0}b.glb", None, "MT0005"),
+    "folder": (".", None, "MT0006"),
 }
 
 

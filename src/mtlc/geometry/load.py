@@ -12,7 +12,7 @@ import hashlib
 import io
 import os
 from dataclasses import dataclass
-from pathlib import Path, PurePath
+from pathlib import Path, PurePath, PureWindowsPath
 
 import numpy as np
 
@@ -51,11 +51,14 @@ class MeshFile:
 def resolve(written: str, folder: Path) -> Path:
     """The file a model's path names: relative to ``folder`` (the .mtask file's), and inside it
     (MT0008). Checked on the text, so a link inside the folder that the user put there works."""
+    if not written.strip() or "\0" in written:
+        what = "is empty" if not written.strip() else "holds a NUL character"
+        raise ModelError("MT0005", f"the model's path {what}", help="name the model's file")
     pure = PurePath(written.replace("\\", "/"))
-    if pure.is_absolute() or pure.drive or written.startswith(("/", "\\")):
+    if pure.is_absolute() or PureWindowsPath(written).drive or written.startswith(("/", "\\")):
         raise ModelError(
             "MT0008",
-            f"the model's path `{written}` is absolute",
+            f"the model's path `{written}` is absolute or names a drive",
             help="write it relative to the folder of this .mtask file",
         )
     normal = os.path.normpath(pure.as_posix())

@@ -157,14 +157,9 @@ class Checker:
                 continue
             nodes = self.node_names(shape)
             if nodes is not None and node_site.node not in nodes:
-                what = (
-                    f"model `{shape.name}`"
-                    if shape.kind == "model"
-                    else f"{shape.kind} `{shape.name}`"
-                )
                 self.sink.report(
                     "MT0211",
-                    f"{what} has no node `{node_site.node}`",
+                    f"{shape.kind} `{shape.name}` has no node `{node_site.node}`",
                     node_site.node_span,
                     help=did_you_mean(node_site.node, sorted(nodes))
                     or (

@@ -246,6 +246,8 @@ class Expander:
             for name in mesh.markers:
                 if name.isidentifier() and name not in sites:
                     sites[name] = self._node_site(name, model.nodes[name], item.span)
+        # in the order they are written (a `sites from` line's, by node name)
+        sites = dict(sorted(sites.items(), key=lambda item: item[1].span.start))
         self.scenes[id(scene)] = sites
         return sites
 
@@ -299,28 +301,32 @@ class Expander:
         return self.eval(clause.value, env)
 
     def _place(self, shape: ast.Shape, env: _Env) -> SceneModel | None:
+        """The shape in the scene frame: a model's file as the checker read it (None when it
+        could not be), a solid built from its clauses."""
         at = tuple(self._value(shape, "at", env, (0.0, 0.0, 0.0)))
-        if shape.kind == "model":
-            mesh = self.meshes.get(id(shape))
-            if mesh is None:
-                return None
-            units, up = shape.clause("units"), shape.clause("up")
-            scale = T.UNITS[units.word][1] if units is not None and units.word in T.UNITS else 1.0
-            rotate = tuple(self._value(shape, "rotate", env, (0.0, 0.0, 0.0)))
-            matrix = placement(at, rotate, scale, up.word if up is not None else "y")  # type: ignore[arg-type]
-            return SceneModel(
-                name=shape.name,
-                vertices=place_points(matrix, mesh.vertices),
-                faces=mesh.faces,
-                nodes=place_nodes(matrix, mesh.nodes),
-                source=shape.file,
-                sha256=mesh.sha256,
-                solid=None,
-                transform=matrix,
-                parameters={"units": units.word if units else "m", "up": up.word if up else "y"},
-            )
+        if shape.kind != "model":
+            return self._place_solid(shape, env, at)
+        mesh = self.meshes.get(id(shape))
+        if mesh is None:
+            return None
+        units, up = shape.clause("units"), shape.clause("up")
+        scale = T.UNITS[units.word][1] if units is not None and units.word in T.UNITS else 1.0
+        rotate = tuple(self._value(shape, "rotate", env, (0.0, 0.0, 0.0)))
+        matrix = placement(at, rotate, scale, up.word if up is not None else "y")  # type: ignore[arg-type]
+        return SceneModel(
+            name=shape.name,
+            vertices=place_points(matrix, mesh.vertices),
+            faces=mesh.faces,
+            nodes=place_nodes(matrix, mesh.nodes),
+            source=shape.file,
+            sha256=mesh.sha256,
+            solid=None,
+            transform=matrix,
+            parameters={"units": units.word if units else "m", "up": up.word if up else "y"},
+        )
+
+    def _place_solid(self, shape: ast.Shape, env: _Env, at: tuple[float, ...]) -> SceneModel:
         params: dict[str, Any] = {}
-        rotation = np.eye(3)
         if shape.kind == "box":
             params["size"] = tuple(self._value(shape, "size", env))
             params["rotate"] = tuple(self._value(shape, "rotate", env, (0.0, 0.0, 0.0)))

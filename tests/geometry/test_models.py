@@ -277,3 +277,33 @@ def test_ir_json_and_jackscript_carry_the_models(tmp_path: Path) -> None:
     script = (tmp_path / "js" / "main.py").read_text(encoding="utf-8")
     assert "LoadModel(\"it's.glb\", name='p', transform=((100.0, 0.0, 0.0, 0.0)," in script
     compile(script, "main.py", "exec")
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    st.tuples(*[st.integers(-300, 300) for _ in range(3)]),
+    st.tuples(*[st.integers(-180, 180) for _ in range(3)]),
+)
+def test_a_node_site_written_in_a_file_follows_the_model(at, rotate) -> None:  # type: ignore[no-untyped-def]
+    """Through the whole front end: the site `bolt_1` of a placed glb is where scipy's intrinsic
+    X-Y-Z rotation and the offset put the node, with the node's +Y turned likewise."""
+    import tempfile
+
+    from scipy.spatial.transform import Rotation
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        panel_scene().export(folder / "panel.glb")
+        vec = ", ".join(str(c) for c in at)
+        rot = ", ".join(str(c) for c in rotate)
+        program = compile_front(
+            folder,
+            f'    model p "panel.glb" at ({vec}) cm rotate ({rot}) deg\n    site b = p.bolt_1\n',
+            "    walk_to(front)\n    look(b)\n",
+        )
+    assert codes(program) == []
+    site = next(s for s in program.timelines[0].sites if s.name == "b")
+    turn = Rotation.from_euler("XYZ", rotate, degrees=True)
+    expected = turn.apply([0.2, 0.15, 0.01]) + np.asarray(at) / 100
+    assert np.allclose(site.position, expected, atol=1e-9)
+    assert np.allclose(site.normal, turn.apply([0, 0, 1]), atol=1e-9)

@@ -307,3 +307,19 @@ def test_a_node_site_written_in_a_file_follows_the_model(at, rotate) -> None:  #
     expected = turn.apply([0.2, 0.15, 0.01]) + np.asarray(at) / 100
     assert np.allclose(site.position, expected, atol=1e-9)
     assert np.allclose(site.normal, turn.apply([0, 0, 1]), atol=1e-9)
+
+
+def test_a_gltf_buffer_outside_the_folder_is_not_read(tmp_path: Path) -> None:
+    """A .gltf's buffer URI leading out of the model's folder is refused (trimesh's resolver
+    stays inside its root): MT0008, not the outside file's bytes."""
+    import json
+
+    inner = tmp_path / "proc"
+    inner.mkdir()
+    trimesh.creation.box().export(inner / "m.gltf")
+    doc = json.loads((inner / "m.gltf").read_text(encoding="utf-8"))
+    buffer = next(iter(doc["buffers"]))
+    (tmp_path / "secret.bin").write_bytes(b"\0" * buffer["byteLength"])
+    buffer["uri"] = "../secret.bin"
+    (inner / "m.gltf").write_text(json.dumps(doc), encoding="utf-8")
+    assert codes(compile_front(inner, '    model m "m.gltf"\n')) == ["MT0008"]

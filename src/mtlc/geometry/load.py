@@ -130,6 +130,12 @@ def _read(path: Path, fmt: str) -> MeshFile:
     except ModelError:
         raise
     except Exception as exc:  # trimesh raises many kinds on a broken file
+        if "escapes resolver root" in str(exc):  # a .gltf's buffer or image named outside
+            raise ModelError(
+                "MT0008",
+                f"model file `{path.name}` names a file outside its folder",
+                help="keep a .gltf's .bin and textures beside it, or export a .glb",
+            ) from None
         raise ModelError(
             "MT0006",
             f"model file `{path.name}` cannot be read as {fmt.upper()}: {_short(exc)}",

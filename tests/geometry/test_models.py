@@ -323,3 +323,14 @@ def test_a_gltf_buffer_outside_the_folder_is_not_read(tmp_path: Path) -> None:
     buffer["uri"] = "../secret.bin"
     (inner / "m.gltf").write_text(json.dumps(doc), encoding="utf-8")
     assert codes(compile_front(inner, '    model m "m.gltf"\n')) == ["MT0008"]
+
+
+def test_an_edited_model_file_is_read_again(tmp_path: Path) -> None:
+    """`mtlc serve` recompiles in one process: a changed file is read anew, one version kept."""
+    trimesh.creation.box().export(tmp_path / "m.stl")
+    first = compile_front(tmp_path, '    model m "m.stl" units cm\n').timelines[0].models[0]
+    trimesh.creation.icosphere(subdivisions=1).export(tmp_path / "m.stl")
+    second = compile_front(tmp_path, '    model m "m.stl" units cm\n').timelines[0].models[0]
+    assert (first.triangles, second.triangles) == (12, 80)
+    assert first.sha256 != second.sha256
+    assert sum(key.endswith("m.stl") for key in load._CACHE) == 1

@@ -71,7 +71,7 @@ def resolve(written: str, folder: Path) -> Path:
     return folder / normal
 
 
-_CACHE: dict[tuple[str, int, int], MeshFile] = {}
+_CACHE: dict[str, tuple[tuple[int, int], MeshFile]] = {}  # by file: (mtime, size), mesh
 
 
 def read_mesh(path: Path) -> MeshFile:
@@ -96,11 +96,11 @@ def read_mesh(path: Path) -> MeshFile:
             f"{MAX_FILE_BYTES / 2**20:.0f} MB limit",
             help="simplify (decimate) the model, or keep only the parts near the task",
         )
-    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+    key, stamp = str(path.resolve()), (stat.st_mtime_ns, stat.st_size)
     cached = _CACHE.get(key)
-    if cached is None:
-        cached = _CACHE[key] = _read(path, fmt)
-    return cached
+    if cached is None or cached[0] != stamp:  # one version a file: `serve` recompiles on edits
+        cached = _CACHE[key] = (stamp, _read(path, fmt))
+    return cached[1]
 
 
 def _os_help(exc: OSError) -> str:

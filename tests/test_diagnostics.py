@@ -38,6 +38,25 @@ def task(body: str, extra: str = "") -> str:
 # code -> (files, (file, line, column)); `main.mtask` is the file checked
 CASES: dict[str, tuple[dict[str, str | bytes], tuple[str, int, int]]] = {
     "MT0002": ({"main.mtask": b"task t {\n  x\xff\n}\n"}, ("main.mtask", 2, 4)),
+    "MT0005": ({"main.mtask": 'scene s {\n    model m "m.glb"\n}\n'}, ("main.mtask", 2, 5)),
+    "MT0006": (
+        {"main.mtask": 'scene s {\n    model m "m.stl" units mm\n}\n', "m.stl": b"solid x\n"},
+        ("main.mtask", 2, 5),
+    ),
+    "MT0008": ({"main.mtask": 'scene s {\n    model m "../m.glb"\n}\n'}, ("main.mtask", 2, 5)),
+    "MT0211": (
+        {"main.mtask": "scene s {\n    box b size (1, 1, 1) m\n    site x = b.bolt\n}\n"},
+        ("main.mtask", 3, 16),
+    ),
+    "MT0212": ({"main.mtask": "scene s {\n    box b radius 1 m\n}\n"}, ("main.mtask", 2, 11)),
+    "MT0408": (
+        {
+            "main.mtask": task("    walk_to(a)\n").replace(
+                "    site b", "    box far size (1, 1, 1) m at (0, 0, 2000) m\n    site b"
+            )
+        },
+        ("main.mtask", 5, 5),
+    ),
     "MT0101": ({"main.mtask": "task t {\n    walk_to(a) b\n}\n"}, ("main.mtask", 2, 16)),
     "MT0102": ({"main.mtask": "task t {\n    @@\n}\n"}, ("main.mtask", 2, 5)),
     "MT0103": ({"main.mtask": 'task t "open title {\n}\n'}, ("main.mtask", 1, 8)),
@@ -254,6 +273,7 @@ def test_every_code_is_tested() -> None:
         "MT0001",
         "MT0003",
         "MT0004",
+        "MT0007",  # tests/geometry/test_models.py
         "MT0106",
         "MT0109",  # tests/test_fmt.py
         "MT0205",

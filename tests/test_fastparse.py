@@ -300,3 +300,47 @@ def test_the_lexers_item_ends_agree_on_mutated_files(
         at %= len(text) + 1
         text = text[:at] + insert + text[at + cut :]
     _split_both(text)
+
+
+_SHAPE_CLAUSES = [
+    "at (0, 1, 2) cm",
+    "rotate (0, 90, 0) deg",
+    "size (1, 2, 3) cm",
+    "radius 2 cm",
+    "length x",
+    "axis (1, 0, 0)",
+    "normal (0, 0, -1)",
+    "units mm",
+    "up z",
+    "opening round 8 cm",
+    "opening rect (1, 2) cm",
+    "at",
+    "opening round",
+    "units",
+]
+_SCENE_MEMBERS = st.one_of(
+    st.builds(
+        lambda head, clauses: head + " " + " ".join(clauses),
+        st.sampled_from(['model m "a.glb"', "box b", "cylinder c", "plate p", "model m", "box"]),
+        st.lists(st.sampled_from(_SHAPE_CLAUSES), max_size=4),
+    ),
+    st.sampled_from(
+        [
+            "site a = m.n",
+            "site a = m.n.o",
+            "site a = m",
+            "sites from m",
+            "sites m",
+            "site up = box.length",
+            "site a at (0, 0, 0) m",
+        ]
+    ),
+)
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(_SCENE_MEMBERS, max_size=4), st.sampled_from(["\n", "; "]))
+def test_models_and_solids_agree(members: list[str], sep: str) -> None:
+    """Scene members of every new kind, with their clauses in any order, some cut short."""
+    for tokens in _items("scene s {" + sep.join(members) + "}\n"):
+        _both(tokens)

@@ -127,6 +127,7 @@ def expand_tasks(program: Program) -> Program:
         program.options.expansion_budget,
         program.options.manikin,
         dict(program.options.site_overrides),
+        program.checker.meshes,
     )
     for module in program.roots:
         scope = program.scopes[id(module)]

@@ -23,6 +23,9 @@ class JackApi:
 
     module: str = "js"
     create_human: str = "CreateHuman"
+    # load a scene's model file: LoadModel(path, name=..., transform=4x4 rows), the matrix
+    # taking the file's own coordinates to Jack's world in its length unit (our assumption)
+    load_model: str = "LoadModel"
     human_variable: str = "human"
     # methods of the object CreateHuman returns
     set_anthropometry: str = "SetAnthropometry"
@@ -69,7 +72,7 @@ class JackApi:
     @property
     def functions(self) -> tuple[str, ...]:
         """Every module-level name ``from js import *`` brings in."""
-        return (self.create_human,)
+        return (self.create_human, self.load_model)
 
 
 JACK_API = JackApi()
@@ -154,6 +157,7 @@ def markdown_tables() -> str:
         f"| module | `{api.module}` |",
         f"| create the manikin | `{api.create_human}()` |",
         f"| variable holding it | `{api.human_variable}` |",
+        f"| load a model file | `{api.load_model}(path, name=, transform=)` |",
         f"| anthropometry | `{api.human_variable}.{api.set_anthropometry}` |",
         f"| walk | `{api.human_variable}.{api.walk}` |",
         f"| root keyframe | `{api.human_variable}.{api.key_root}` |",

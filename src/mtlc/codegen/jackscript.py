@@ -476,10 +476,34 @@ def _prelude(ir: MotionIR, name: str) -> Block:
         f"def {name}():",
         f"{INDENT}{string_literal(ir.title if ir.title is not None else ir.task)}",
         f"{INDENT}# " + comment_text(f"task {ir.task} from {ir.file}"),
+        *_model_lines(ir),
         f"{INDENT}{JACK_API.human_variable} = {JACK_API.create_human}()",
         _method(JACK_API.set_anthropometry, *_anthropometry(ir)),
     ]
     return block
+
+
+def _model_lines(ir: MotionIR) -> list[str]:
+    """One LoadModel call per model file (its path a string literal: text of the task file,
+    never code); a solid, which Jack's documented API cannot build, as a comment."""
+    axes = jack_axes()
+    lines = []
+    for m in ir.models:
+        matrix = np.asarray(m["transform"], dtype=float)
+        jack = np.eye(4)
+        jack[:3, :3] = axes @ matrix[:3, :3] * JACK_API.length_per_metre
+        jack[:3, 3] = to_jack_position(matrix[:3, 3])
+        rows = "(" + ", ".join(vector(row, 6) for row in jack) + ")"
+        if m["kind"] == "model":
+            lines.append(
+                f"{INDENT}{JACK_API.load_model}({string_literal(m['path'])}, "
+                f"name={string_literal(m['name'])}, transform={rows})"
+            )
+        else:
+            lines.append(
+                f"{INDENT}# " + comment_text(f"{m['kind']} {m['name']} (not loaded): {rows}")
+            )
+    return lines
 
 
 def _anthropometry(ir: MotionIR) -> list[str]:

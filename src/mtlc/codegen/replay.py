@@ -179,8 +179,12 @@ def fake_js_module(humans: list[_Human]) -> types.ModuleType:
         humans.append(human)
         return human
 
+    def load_model(*args: Any, **kwargs: Any) -> None:
+        """Scene geometry: the replay rebuilds the manikin's motion only."""
+
     module = types.ModuleType(JACK_API.module)
     setattr(module, JACK_API.create_human, create_human)
+    setattr(module, JACK_API.load_model, load_model)
     module.__all__ = list(JACK_API.functions)  # type: ignore[attr-defined]
     return module
 

@@ -36,6 +36,20 @@ _ALL = [
     Code(
         "MT0004", "not-a-regular-file", Severity.ERROR, "an input is a pipe, a device or a socket"
     ),
+    Code("MT0005", "model-not-found", Severity.ERROR, "a model's file cannot be found or read"),
+    Code(
+        "MT0006",
+        "unreadable-model",
+        Severity.ERROR,
+        "a model file that is not a mesh mtlc reads, or has no triangles",
+    ),
+    Code("MT0007", "model-too-large", Severity.ERROR, "a model with more triangles than the limit"),
+    Code(
+        "MT0008",
+        "model-outside-folder",
+        Severity.ERROR,
+        "a model's path leads outside the folder of the file that names it",
+    ),
     # syntax
     Code("MT0101", "unexpected-token", Severity.ERROR, "the parser found a token it cannot use"),
     Code("MT0102", "unexpected-character", Severity.ERROR, "a character that no token starts with"),
@@ -79,6 +93,13 @@ _ALL = [
         "a statement that is not allowed where it stands",
     ),
     Code("MT0210", "duplicate-setting", Severity.ERROR, "a setting given twice in one place"),
+    Code("MT0211", "unknown-model-node", Severity.ERROR, "a site names a node its model lacks"),
+    Code(
+        "MT0212",
+        "invalid-shape-clause",
+        Severity.ERROR,
+        "a model or solid with a clause it does not take, or without one it needs",
+    ),
     # types, units, calls
     Code("MT0301", "type-mismatch", Severity.ERROR, "a value of the wrong type"),
     Code("MT0302", "unit-mismatch", Severity.ERROR, "quantities of different dimensions mixed"),
@@ -125,6 +146,12 @@ _ALL = [
         "two parallel branches move the same body part",
     ),
     Code("MT0407", "motion-budget", Severity.ERROR, "a task's motion is longer than the budget"),
+    Code(
+        "MT0408",
+        "model-far-away",
+        Severity.ERROR,
+        "a model or solid more than 1 km from the origin",
+    ),
     # motion passes
     Code("MT0501", "unreachable-site", Severity.WARNING, "a manikin cannot reach a site"),
     Code(

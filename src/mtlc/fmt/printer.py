@@ -526,6 +526,11 @@ class _Printer:
 
     def _scene_body(self, scene: ast.Scene) -> Doc:
         entries = [self._entry(s.span, self._bind(self._site, s)) for s in scene.sites]
+        entries += [self._entry(s.span, self._bind(self._shape, s)) for s in scene.shapes]
+        entries += [
+            self._entry(s.span, self._bind(self._scene_line, s))
+            for s in (*scene.node_sites, *scene.sites_from)
+        ]
         if scene.ground is not None:
             ground = scene.ground
             keyword = self.src.at(self.src.starting_at(ground.span.start) - 1)
@@ -547,6 +552,27 @@ class _Printer:
             doc += [Text(" normal "), self._expr(site.normal)]
         if site.frame is not None:
             doc += [Text(" frame "), self._expr(site.frame)]
+        return doc
+
+    def _scene_line(self, member: ast.Node) -> Doc:
+        if isinstance(member, ast.NodeSite):
+            return Text(f"site {member.name} = {member.model}.{member.node}")
+        assert isinstance(member, ast.SitesFrom)
+        return Text(f"sites from {member.model}")
+
+    def _shape(self, shape: ast.Node) -> Doc:
+        """`model NAME "PATH" clauses` or `box NAME clauses`: the clauses in their order, the
+        path's string as written (its escapes kept)."""
+        assert isinstance(shape, ast.Shape)
+        doc: list[Doc] = [Text(f"{shape.kind} {shape.name}")]
+        if shape.file_span is not None:
+            doc.append(Text(" " + self.src.text(self.src.starting_at(shape.file_span.start))))
+        for clause in shape.clauses:
+            doc.append(Text(f" {clause.keyword}"))
+            if clause.word is not None:
+                doc.append(Text(f" {clause.word}"))
+            if clause.value is not None:
+                doc += [Text(" "), self._expr(clause.value)]
         return doc
 
     def _tool_property(self, prop: ast.Node) -> Doc:

@@ -152,6 +152,11 @@ class MotionIR:
     manikin: dict[str, Any]  # population, sex, percentile
     ground: float
     sites: list[dict[str, Any]]  # name, position, normal, frame
+    # the scene's models and solids as the IR JSON gives them (SceneModel.record); present in
+    # the JSON only when there are some, so scenes without geometry keep their bytes
+    models: list[dict[str, Any]] = field(default_factory=list)
+    # the same, placed, with their meshes (mtlc.geometry.model.SceneModel): for passes, not JSON
+    geometry: list[Any] = field(default_factory=list)
     segments: list[Segment] = field(default_factory=list)
     skeleton: Any = None  # mtlc.body.Skeleton, set by the manikin pass
     root_plan: RootPlan | None = None

@@ -174,7 +174,8 @@ def to_dict(ir: MotionIR) -> dict[str, Any]:
         "units": {"length": "m", "angle": "rad", "time": "s", "mass": "kg"},
         "source": {"file": ir.file, "task": ir.task, "title": ir.title},
         "manikin": manikin,
-        "scene": {"ground": ir.ground, "sites": ir.sites},
+        "scene": {"ground": ir.ground, "sites": ir.sites}
+        | ({"models": ir.models} if ir.models else {}),
         "goals": goals,
         "segments": [_segment(s) for s in ir.segments],
         "frames": frames,

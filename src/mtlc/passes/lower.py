@@ -65,6 +65,8 @@ def lower(timeline: Timeline) -> MotionIR:
             {"name": s.name, "position": list(s.position), "normal": s.normal, "frame": s.frame}
             for s in timeline.sites
         ],
+        models=[m.record() for m in timeline.models],
+        geometry=list(timeline.models),
     )
     for prim in timeline.primitives:
         ir.segments.extend(_segments(prim))

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mtlc.diagnostics import DiagnosticSink, Label, Span
 from mtlc.diagnostics.suggest import did_you_mean, suggest
@@ -18,6 +20,9 @@ from mtlc.semantics import values as V
 from mtlc.semantics.mtm import other_codes
 from mtlc.semantics.scopes import Scope, Symbol
 from mtlc.syntax import ast
+
+if TYPE_CHECKING:
+    from mtlc.geometry.load import MeshFile
 
 # which level may call which
 CALLABLE_FROM = {
@@ -30,6 +35,18 @@ TASK_SETTINGS = (ast.ManikinSetting, ast.SceneSetting, ast.ToolSetting, ast.Budg
 POSITION = T.VectorType(T.LENGTH_DIM)
 DIRECTION = T.VectorType(T.NONE_DIM)
 ORIENTATION = T.VectorType(T.ANGLE_DIM)
+OPENING_RECT = T.VectorType(T.LENGTH_DIM, 2)
+# what each clause of a model or solid holds: (type, what it is called, range)
+SHAPE_VALUES: dict[str, tuple[T.Type, str, V.Range | None]] = {
+    "at": (POSITION, "a position", V.POSITION),
+    "rotate": (ORIENTATION, "a rotation (X, Y, Z angles)", V.FRAME),
+    "size": (POSITION, "a size (x, y, z)", V.SOLID_SIZE),
+    "radius": (T.LENGTH, "a radius", V.SOLID_SIZE),
+    "length": (T.LENGTH, "a length", V.SOLID_SIZE),
+    "axis": (DIRECTION, "an axis", V.AXIS),
+    "normal": (DIRECTION, "a normal", V.NORMAL),
+}
+UP_WORDS = ("x", "y", "z")
 TOOL_RANGES = {
     "length": V.TOOL_LENGTH,
     "mass": V.TOOL_MASS,
@@ -68,6 +85,9 @@ class Checker:
         self.callees: dict[Span, Symbol] = {}  # each call statement's definition, by callee span
         self._current: ast.Definition | None = None
         self._site_names: dict[int, frozenset[str]] = {}  # by id of the scene declaration
+        # each model's file as read (None: it could not be, and that was reported), by id of
+        # its declaration: expansion places them
+        self.meshes: dict[int, MeshFile | None] = {}
 
     # ------------------------------------------------------------ declarations
     def check_module(self, scope: Scope) -> None:
@@ -103,6 +123,165 @@ class Checker:
             if site.frame is not None:
                 what = "a frame (X, Y, Z rotations)"
                 self.expect_vector_in(site.frame, ORIENTATION, env, what, V.FRAME)
+        self.check_geometry(scene, env, seen)
+
+    # ------------------------------------------------------------ models and solids
+    def check_geometry(self, scene: ast.Scene, env: Env, sites: dict[str, ast.SiteDecl]) -> None:
+        """Models and solids (types, units, files), and the sites taken from their nodes."""
+        shapes: dict[str, ast.Shape] = {}
+        for shape in scene.shapes:
+            if shape.name in shapes:
+                self.sink.report(
+                    "MT0202",
+                    f"`{shape.name}` is defined twice in scene `{scene.name}`",
+                    shape.name_span,
+                    labels=(Label(shapes[shape.name].name_span, "first defined here"),),
+                )
+                continue
+            shapes[shape.name] = shape
+            self.check_shape(shape, env)
+        taken: dict[str, Span] = {name: site.name_span for name, site in sites.items()}
+        for node_site in scene.node_sites:
+            if node_site.name in taken:
+                self._twice(node_site.name, scene, node_site.name_span, taken[node_site.name])
+                continue
+            taken[node_site.name] = node_site.name_span
+            shape = shapes.get(node_site.model)
+            if shape is None:
+                self.sink.report(
+                    "MT0201",
+                    f"scene `{scene.name}` has no model `{node_site.model}`",
+                    node_site.model_span,
+                    help=did_you_mean(node_site.model, list(shapes)),
+                )
+                continue
+            nodes = self.node_names(shape)
+            if nodes is not None and node_site.node not in nodes:
+                self.sink.report(
+                    "MT0211",
+                    f"{shape.kind} `{shape.name}` has no node `{node_site.node}`",
+                    node_site.node_span,
+                    help=did_you_mean(node_site.node, sorted(nodes))
+                    or (
+                        "a solid has no nodes: write the site's position with `at`"
+                        if shape.kind != "model"
+                        else "the model's named nodes become sites"
+                    ),
+                )
+        for item in scene.sites_from:
+            shape = shapes.get(item.model)
+            if shape is None or shape.kind != "model":
+                self.sink.report(
+                    "MT0201",
+                    f"scene `{scene.name}` has no model `{item.model}`",
+                    item.model_span,
+                    help=did_you_mean(
+                        item.model, [s.name for s in shapes.values() if s.kind == "model"]
+                    ),
+                )
+                continue
+            for name in self.marker_sites(shape):
+                if name in taken:
+                    self._twice(name, scene, item.span, taken[name])
+                else:
+                    taken[name] = item.span
+
+    def _twice(self, name: str, scene: ast.Scene, span: Span, first: Span) -> None:
+        self.sink.report(
+            "MT0202",
+            f"site `{name}` is defined twice in scene `{scene.name}`",
+            span,
+            labels=(Label(first, "first defined here"),),
+        )
+
+    def check_shape(self, shape: ast.Shape, env: Env) -> None:
+        for clause in shape.clauses:
+            if clause.keyword in SHAPE_VALUES and clause.value is not None:
+                expected, what, rule = SHAPE_VALUES[clause.keyword]
+                if isinstance(expected, T.VectorType):
+                    self.expect_vector_in(clause.value, expected, env, what, rule)
+                else:
+                    self.expect_in(clause.value, expected, env, rule)
+            elif clause.keyword == "units" and clause.word is not None:
+                found = T.UNITS.get(clause.word)
+                if found is None or found[0] != T.LENGTH_DIM:
+                    lengths = [u for u, (d, _) in T.UNITS.items() if d == T.LENGTH_DIM]
+                    self.sink.report(
+                        "MT0303",
+                        f"`{clause.word}` is not a unit of length",
+                        clause.word_span or clause.span,
+                        help="a model's units are one of " + ", ".join(f"`{u}`" for u in lengths),
+                    )
+            elif clause.keyword == "up" and clause.word not in UP_WORDS:
+                self.sink.report(
+                    "MT0212",
+                    f"`up {clause.word}`: a model's up axis is `x`, `y` or `z`",
+                    clause.span,
+                    help="CAD files are often Z up: `up z`",
+                )
+            elif clause.keyword == "opening" and clause.value is not None:
+                if clause.word == "round":
+                    self.expect_in(clause.value, T.LENGTH, env, V.SOLID_SIZE)
+                elif clause.word == "rect":
+                    what = "a rectangular opening (width, height)"
+                    self.expect_vector_in(clause.value, OPENING_RECT, env, what, V.SOLID_SIZE)
+                else:
+                    self.sink.report(
+                        "MT0212",
+                        f"an opening is `round` or `rect`, not `{clause.word}`",
+                        clause.word_span or clause.span,
+                        help="`opening round 8 cm` or `opening rect (10, 6) cm`",
+                    )
+        if shape.kind == "model":
+            self.load_model(shape)
+
+    def load_model(self, shape: ast.Shape) -> MeshFile | None:
+        """The model's file, read once; a file mtlc cannot use is reported at the `model` line."""
+        key = id(shape)
+        if key in self.meshes:
+            return self.meshes[key]
+        from mtlc.geometry.load import FIXED_FRAME, ModelError, read_mesh, resolve
+
+        mesh = None
+        assert shape.file is not None
+        try:
+            mesh = read_mesh(resolve(shape.file, Path(shape.span.file).parent))
+        except ModelError as exc:
+            self.sink.report(exc.code, exc.message, shape.span, help=exc.help)
+        if mesh is not None:
+            units, up = shape.clause("units"), shape.clause("up")
+            if mesh.format in FIXED_FRAME and (units or up):
+                self.sink.report(
+                    "MT0212",
+                    f"a glTF model is in metres and +Y up: `{(units or up).keyword}` does not apply",  # type: ignore[union-attr]
+                    (units or up).span,  # type: ignore[union-attr]
+                    help=f"delete `{(units or up).keyword} ...`",  # type: ignore[union-attr]
+                )
+            elif mesh.format not in FIXED_FRAME and units is None:
+                self.sink.report(
+                    "MT0212",
+                    f"an {mesh.format.upper()} file does not say its units: model "
+                    f"`{shape.name}` needs its `units`",
+                    shape.span,
+                    help="add `units mm` (or cm, m) after the path; `up z` if the file is Z up",
+                )
+        self.meshes[key] = mesh
+        return mesh
+
+    def node_names(self, shape: ast.Shape) -> frozenset[str] | None:
+        """A model's named nodes (a solid has none); None when its file could not be read."""
+        if shape.kind != "model":
+            return frozenset()
+        mesh = self.load_model(shape)
+        return None if mesh is None else frozenset(mesh.nodes)
+
+    def marker_sites(self, shape: ast.Shape) -> list[str]:
+        """The sites `sites from` takes: the model's nodes without geometry whose names are
+        names in the language (others are left out)."""
+        mesh = self.load_model(shape)
+        if mesh is None:
+            return []
+        return [m for m in mesh.markers if m.isidentifier()]
 
     def check_tool(self, tool: ast.ToolDecl, scope: Scope) -> None:
         env = Env(scope, "tool")
@@ -205,12 +384,21 @@ class Checker:
             return None
         return sym
 
+    def all_site_names(self, scene: ast.Scene) -> list[str]:
+        """A scene's sites: declared, taken from a node, and every marker of `sites from`."""
+        names = [s.name for s in scene.sites] + [s.name for s in scene.node_sites]
+        models = {s.name: s for s in scene.shapes if s.kind == "model"}
+        for item in scene.sites_from:
+            if item.model in models:
+                names += self.marker_sites(models[item.model])
+        return names
+
     def site_names(self, scene: ast.Scene) -> frozenset[str]:
         """The names of a scene's sites, collected once: each name used is then one set lookup,
         not a walk over the sites (quadratic in a scene of thousands)."""
         names = self._site_names.get(id(scene))
         if names is None:
-            names = self._site_names[id(scene)] = frozenset(s.name for s in scene.sites)
+            names = self._site_names[id(scene)] = frozenset(self.all_site_names(scene))
         return names
 
     # ------------------------------------------------------------ statements
@@ -700,7 +888,7 @@ class Checker:
             return None
         pool = list(env.locals) + list(env.scope.names)
         if env.scene is not None:
-            pool += [s.name for s in env.scene.decl.sites]  # type: ignore[attr-defined]
+            pool += self.all_site_names(env.scene.decl)  # type: ignore[arg-type]
         if isinstance(expected, T.EnumType):
             pool += list(expected.members)
         help = _module_hint(name) or did_you_mean(name, pool)
@@ -744,7 +932,7 @@ class Checker:
                     "MT0201",
                     f"scene `{scene.name}` has no site `{expr.name}`",
                     expr.name_span,
-                    help=did_you_mean(expr.name, [s.name for s in scene.sites]),
+                    help=did_you_mean(expr.name, self.all_site_names(scene)),
                 )
                 return T.UNKNOWN
         if owner == T.TOOL and expr.name in B.TOOL_PROPERTIES:

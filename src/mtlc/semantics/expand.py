@@ -12,10 +12,14 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from mtlc.body.anthropometry import dimensions
 from mtlc.diagnostics import DiagnosticSink, Label, Span
+from mtlc.geometry import solids
+from mtlc.geometry.model import FAR_AWAY, SceneModel, place_nodes, place_points, placement
 from mtlc.semantics import builtins as B
 from mtlc.semantics import mtm, turning
 from mtlc.semantics import types as T
@@ -24,6 +28,9 @@ from mtlc.semantics.check import TOOL_RANGES, check_manikin
 from mtlc.semantics.scopes import Scope, Symbol
 from mtlc.semantics.timeline import ManikinSpec, Primitive, Site, Timeline, Tool
 from mtlc.syntax import ast
+
+if TYPE_CHECKING:
+    from mtlc.geometry.load import MeshFile
 
 DEFAULT_BUDGET = 100_000
 MAX_NESTING = 150  # blocks and calls inside each other while expanding
@@ -73,6 +80,7 @@ class Expander:
         budget: int = DEFAULT_BUDGET,
         manikin_override: ManikinSpec | None = None,
         site_overrides: Mapping[str, tuple[float, float, float]] | None = None,
+        meshes: Mapping[int, MeshFile | None] | None = None,
     ) -> None:
         self.sink = sink
         self.scopes = scopes
@@ -82,6 +90,8 @@ class Expander:
         self.manikin_override = manikin_override
         # positions (metres) that replace the scene's, by site name: `mtlc serve` moves sites
         self.site_overrides = dict(site_overrides or {})
+        self.meshes = meshes or {}  # the models' files as the checker read them, by declaration
+        self.models: dict[int, dict[str, SceneModel]] = {}  # placed, by scene declaration
 
     # ------------------------------------------------------------ entry
     def expand_task(self, task: ast.Task, scope: Scope) -> Timeline | None:
@@ -99,6 +109,7 @@ class Expander:
         self.tool: Tool | None = None
         spec = ManikinSpec(*B.DEFAULT_MANIKIN)
         scene_name: str | None = None
+        models: list[SceneModel] = []
         ground = 0.0
         budget: float | None = None
         budget_span = task.name_span
@@ -113,6 +124,7 @@ class Expander:
                     sym = scope.lookup(stmt.name)
                     if sym is not None and isinstance(sym.decl, ast.Scene):
                         scene_name = stmt.name
+                        models = list(self._scene_models(sym).values())
                         self.task_sites = self._scene_sites(sym)
                         ground = self._ground(sym)
                 elif isinstance(stmt, ast.ToolSetting):
@@ -132,6 +144,7 @@ class Expander:
                 sites=[],
                 tool=self.tool,
                 budget=budget,
+                models=models,
             )
             self.out = timeline.primitives
             self.block(task.body, env, 0.0)
@@ -217,8 +230,156 @@ class Expander:
                 norm = math.hypot(*normal)
                 normal = tuple(c / norm for c in normal) if norm > 0 else None
             sites[site.name] = Site(site.name, position, normal, frame, site.name_span)
+        models = self._scene_models(sym)
+        for node_site in scene.node_sites:
+            model = models.get(node_site.model)
+            if node_site.name in sites or model is None or node_site.node not in model.nodes:
+                continue  # reported by the checker
+            sites[node_site.name] = self._node_site(
+                node_site.name, model.nodes[node_site.node], node_site.name_span
+            )
+        for item in scene.sites_from:
+            model = models.get(item.model)
+            mesh = self._mesh(scene, item.model)
+            if model is None or mesh is None:
+                continue
+            for name in mesh.markers:
+                if name.isidentifier() and name not in sites:
+                    sites[name] = self._node_site(name, model.nodes[name], item.span)
+        # in the order they are written (a `sites from` line's, by node name)
+        sites = dict(sorted(sites.items(), key=lambda item: item[1].span.start))
         self.scenes[id(scene)] = sites
         return sites
+
+    def _node_site(self, name: str, node: tuple[np.ndarray, np.ndarray], span: Span) -> Site:
+        position = self.site_overrides.get(name) or tuple(float(c) for c in node[0])
+        normal = tuple(float(c) for c in node[1])
+        return Site(name, position, normal, None, span)  # type: ignore[arg-type]
+
+    def _mesh(self, scene: ast.Scene, model: str) -> MeshFile | None:
+        for shape in scene.shapes:
+            if shape.name == model and shape.kind == "model":
+                return self.meshes.get(id(shape))
+        return None
+
+    def _scene_models(self, sym: Symbol) -> dict[str, SceneModel]:
+        """A scene's models and solids, placed in the scene frame, once (MT0408 when one lies
+        more than 1 km from the origin: a model in millimetres read as metres)."""
+        scene = sym.decl
+        assert isinstance(scene, ast.Scene)
+        if id(scene) in self.models:
+            return self.models[id(scene)]
+        env = _Env(self._scene_scope(sym), {}, ())
+        models: dict[str, SceneModel] = {}
+        for shape in scene.shapes:
+            if shape.name in models:
+                continue
+            model = self._place(shape, env)
+            if model is None:
+                continue
+            far = model.farthest()
+            if far > FAR_AWAY:
+                units = shape.clause("units")
+                self.fail(
+                    "MT0408",
+                    f"{shape.kind} `{shape.name}` reaches {far / 1000:,.1f} km from the scene's "
+                    f"origin",
+                    env,
+                    shape,
+                    help="check its `units`"
+                    + (f" (`{units.word}` now)" if units is not None else "")
+                    + " and its `at`",
+                )
+            models[shape.name] = model
+        self.models[id(scene)] = models
+        return models
+
+    def _value(self, shape: ast.Shape, keyword: str, env: _Env, default: Any = None) -> Any:
+        clause = shape.clause(keyword)
+        if clause is None or clause.value is None:
+            return default
+        return self.eval(clause.value, env)
+
+    def _place(self, shape: ast.Shape, env: _Env) -> SceneModel | None:
+        """The shape in the scene frame: a model's file as the checker read it (None when it
+        could not be), a solid built from its clauses."""
+        at = tuple(self._value(shape, "at", env, (0.0, 0.0, 0.0)))
+        if shape.kind != "model":
+            return self._place_solid(shape, env, at)
+        mesh = self.meshes.get(id(shape))
+        if mesh is None:
+            return None
+        units, up = shape.clause("units"), shape.clause("up")
+        scale = T.UNITS[units.word][1] if units is not None and units.word in T.UNITS else 1.0
+        rotate = tuple(self._value(shape, "rotate", env, (0.0, 0.0, 0.0)))
+        matrix = placement(at, rotate, scale, up.word if up is not None else "y")  # type: ignore[arg-type]
+        return SceneModel(
+            name=shape.name,
+            vertices=place_points(matrix, mesh.vertices),
+            faces=mesh.faces,
+            nodes=place_nodes(matrix, mesh.nodes),
+            source=shape.file,
+            sha256=mesh.sha256,
+            solid=None,
+            transform=matrix,
+            parameters={"units": units.word if units else "m", "up": up.word if up else "y"},
+        )
+
+    def _place_solid(self, shape: ast.Shape, env: _Env, at: tuple[float, ...]) -> SceneModel:
+        params: dict[str, Any] = {}
+        if shape.kind == "box":
+            params["size"] = tuple(self._value(shape, "size", env))
+            params["rotate"] = tuple(self._value(shape, "rotate", env, (0.0, 0.0, 0.0)))
+            vertices, faces = solids.box(params["size"])
+            rotation = placement(rotate=params["rotate"])[:3, :3]
+        elif shape.kind == "cylinder":
+            params["radius"] = float(self._value(shape, "radius", env))
+            params["length"] = float(self._value(shape, "length", env))
+            params["axis"] = tuple(self._value(shape, "axis", env, (0.0, 1.0, 0.0)))
+            vertices, faces = solids.cylinder(params["radius"], params["length"])
+            rotation = solids.frame_from_axis(np.asarray(params["axis"]), 1)
+        else:
+            params["size"] = tuple(self._value(shape, "size", env))
+            params["normal"] = tuple(self._value(shape, "normal", env, (0.0, 0.0, 1.0)))
+            opening = shape.clause("opening")
+            hole = None
+            if opening is not None and opening.value is not None:
+                dims = self.eval(opening.value, env)
+                hole = (opening.word, float(dims) if opening.word == "round" else tuple(dims))
+                self._check_opening(shape, hole, params["size"], env, opening)
+                params["opening"] = {"shape": hole[0], "size": hole[1]}
+            vertices, faces = solids.plate(params["size"], hole)  # type: ignore[arg-type]
+            rotation = solids.frame_from_axis(np.asarray(params["normal"]), 2)
+        matrix = np.eye(4)
+        matrix[:3, :3] = rotation
+        matrix[:3, 3] = at
+        return SceneModel(
+            name=shape.name,
+            vertices=place_points(matrix, vertices),
+            faces=faces,
+            nodes={},
+            source=None,
+            sha256=None,
+            solid=shape.kind,
+            transform=matrix,
+            parameters=params,
+        )
+
+    def _check_opening(
+        self, shape: ast.Shape, hole: tuple[Any, Any], size: Any, env: _Env, at: ast.Node
+    ) -> None:
+        """An opening must leave a rim: smaller than the plate both ways."""
+        width, height = size[0], size[1]
+        ow, oh = (hole[1], hole[1]) if hole[0] == "round" else hole[1]
+        if ow >= width or oh >= height:
+            self.fail(
+                "MT0309",
+                f"plate `{shape.name}`'s opening ({ow * 100:g} x {oh * 100:g} cm) does not fit "
+                f"inside the plate ({width * 100:g} x {height * 100:g} cm)",
+                env,
+                at,
+                help="make the opening smaller than the plate's width and height",
+            )
 
     # ------------------------------------------------------------ statements
     def block(self, block: ast.Block, env: _Env, t: float) -> float:

@@ -67,6 +67,8 @@ class Timeline:
     tool: Tool | None
     budget: float | None
     primitives: list[Primitive] = field(default_factory=list)
+    # the scene's models and solids, placed (mtlc.geometry.model.SceneModel)
+    models: list[Any] = field(default_factory=list)
 
     @property
     def duration(self) -> float:
@@ -98,7 +100,9 @@ class Timeline:
                     }
                     for s in self.sites
                 ],
-            },
+            }
+            # only with geometry: timelines of scenes without it keep their bytes
+            | ({"models": [_num(m.record()) for m in self.models]} if self.models else {}),
             "tool": None
             if self.tool is None
             else {"name": self.tool.name, **{k: _num(v) for k, v in self.tool.properties.items()}},

@@ -61,6 +61,20 @@ NORMAL = Range(
     direction=True,
     help="a normal is the direction out of the surface, for example (0, 0, -1)",
 )
+SOLID_SIZE = Range(
+    "a solid's size",
+    "m",
+    0.0,
+    100.0,
+    low_open=True,
+    help="a solid's sizes, radius and length are more than 0 and at most 100 m",
+)
+AXIS = Range(
+    "an axis",
+    "",
+    direction=True,
+    help="an axis is a direction, for example (1, 0, 0)",
+)
 FRAME = Range(
     "a frame's rotation",
     "deg",

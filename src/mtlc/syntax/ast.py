@@ -240,9 +240,57 @@ class SiteDecl(Decl):
 
 
 @_node
+class NodeSite(Decl):
+    """`site NAME = MODEL.NODE`: a site whose position and normal come from a model's node."""
+
+    model: str
+    model_span: Span
+    node: str
+    node_span: Span
+
+
+@_node
+class SitesFrom(Node):
+    """`sites from MODEL`: a site for every named marker node of the model."""
+
+    model: str
+    model_span: Span
+
+
+@_node
+class ShapeClause(Node):
+    """One clause of a model or solid: `at EXPR`, `units WORD`, `opening WORD EXPR` ..."""
+
+    keyword: str
+    word: str | None  # units mm, up z, opening round
+    word_span: Span | None
+    value: Expr | None
+
+
+@_node
+class Shape(Decl):
+    """Equipment geometry in a scene: a mesh file (`model`) or a `box`, `cylinder`, `plate`."""
+
+    kind: str  # "model", "box", "cylinder" or "plate"
+    file: str | None  # the model's file, as written (relative to the declaring file's folder)
+    file_span: Span | None
+    clauses: tuple[ShapeClause, ...]
+
+    def clause(self, keyword: str) -> ShapeClause | None:
+        """The clause ``keyword`` (the builder reports a clause given twice and keeps the first)."""
+        for c in self.clauses:
+            if c.keyword == keyword:
+                return c
+        return None
+
+
+@_node
 class Scene(Decl):
     ground: Expr | None
     sites: tuple[SiteDecl, ...]
+    shapes: tuple[Shape, ...] = ()
+    node_sites: tuple[NodeSite, ...] = ()
+    sites_from: tuple[SitesFrom, ...] = ()
 
 
 @_node

@@ -30,7 +30,22 @@ _vector = ast.maker(ast.Vector, "span", "items", "unit", "unit_span")
 _block = ast.maker(ast.Block, "span", "stmts")
 _set_depth = ast.Expr.depth.__set__  # type: ignore[attr-defined]
 _site_decl = ast.maker(ast.SiteDecl, "span", "name", "name_span", "position", "normal", "frame")
-_scene = ast.maker(ast.Scene, "span", "name", "name_span", "ground", "sites")
+_scene = ast.maker(
+    ast.Scene, "span", "name", "name_span", "ground", "sites", "shapes", "node_sites", "sites_from"
+)
+# the clauses each kind of shape takes, and those it needs (docs/language.md, "Models and solids")
+SHAPE_CLAUSES: dict[str, tuple[str, ...]] = {
+    "model": ("at", "rotate", "units", "up"),
+    "box": ("size", "at", "rotate"),
+    "cylinder": ("radius", "length", "axis", "at"),
+    "plate": ("size", "at", "normal", "opening"),
+}
+SHAPE_NEEDS: dict[str, tuple[str, ...]] = {
+    "model": (),
+    "box": ("size",),
+    "cylinder": ("radius", "length"),
+    "plate": ("size",),
+}
 _param = ast.maker(ast.Param, "span", "name", "type_name", "type_span", "default")
 _definition = ast.maker(ast.Definition, "span", "name", "name_span", "kind", "params", "body")
 _task = ast.maker(ast.Task, "span", "name", "name_span", "title", "body")
@@ -52,6 +67,13 @@ _goal = ast.maker(ast.Goal, "span", "effector", "target", "approach", "offset", 
 _unary = ast.maker(ast.Unary, "span", "op", "operand")
 _attr = ast.maker(ast.Attr, "span", "obj", "name", "name_span")
 _call_expr = ast.maker(ast.CallExpr, "span", "func", "args")
+
+
+_SHAPE_EXAMPLES = {
+    "box": "e.g. `box bracket size (20, 5, 10) cm at (0, 120, 100) cm`",
+    "cylinder": "e.g. `cylinder pipe radius 2 cm length 80 cm axis (1, 0, 0) at (0, 90, 100) cm`",
+    "plate": "e.g. `plate panel size (60, 40, 0.2) cm at (0, 120, 112) cm normal (0, 0, -1)`",
+}
 
 
 class AstBuilder(Transformer):
@@ -164,17 +186,126 @@ class AstBuilder(Transformer):
             clauses.get("frame"),
         )
 
+    def node_site_decl(self, c: list[Token]) -> ast.NodeSite:
+        kw, name, model, node = c
+        return ast.NodeSite(
+            span=self._join(kw, node),
+            name=name.value,
+            name_span=self._sp(name),
+            model=model.value,
+            model_span=self._sp(model),
+            node=node.value,
+            node_span=self._sp(node),
+        )
+
+    def sites_from_decl(self, c: list[Token]) -> ast.SitesFrom:
+        kw, _from, model = c
+        return ast.SitesFrom(
+            span=self._join(kw, model), model=model.value, model_span=self._sp(model)
+        )
+
+    def value_clause(self, c: list[Any]) -> ast.ShapeClause:
+        kw, value = c
+        return ast.ShapeClause(
+            span=self._join(kw, value), keyword=kw.value, word=None, word_span=None, value=value
+        )
+
+    def word_clause(self, c: list[Token]) -> ast.ShapeClause:
+        kw, word = c
+        return ast.ShapeClause(
+            span=self._join(kw, word),
+            keyword=kw.value,
+            word=word.value,
+            word_span=self._sp(word),
+            value=None,
+        )
+
+    def opening_clause(self, c: list[Any]) -> ast.ShapeClause:
+        kw, word, value = c
+        return ast.ShapeClause(
+            span=self._join(kw, value),
+            keyword=kw.value,
+            word=word.value,
+            word_span=self._sp(word),
+            value=value,
+        )
+
+    def model_decl(self, c: list[Any]) -> ast.Shape:
+        kw, name, path, *clauses = c
+        return self._shape(kw, name, decode_string(path, self.file, self.sink), path, clauses)
+
+    def solid_decl(self, c: list[Any]) -> ast.Shape:
+        kw, name, *clauses = c
+        return self._shape(kw, name, None, None, clauses)
+
+    def _shape(
+        self, kw: Token, name: Token, path: str | None, path_tok: Token | None, clauses: list[Any]
+    ) -> ast.Shape:
+        """A model or solid, its clauses checked against its kind (MT0212; twice: MT0210)."""
+        kind = kw.value
+        allowed = SHAPE_CLAUSES[kind]
+        kept: list[ast.ShapeClause] = []
+        for clause in clauses:
+            if clause.keyword not in allowed:
+                self.sink.report(
+                    "MT0212",
+                    f"a {kind} takes no `{clause.keyword}`",
+                    clause.span,
+                    help=f"a {kind} takes " + ", ".join(f"`{a}`" for a in allowed),
+                )
+            elif any(k.keyword == clause.keyword for k in kept):
+                self.sink.report("MT0210", f"`{clause.keyword}` is given twice", clause.span)
+            else:
+                kept.append(clause)
+        last = clauses[-1] if clauses else (path_tok if path_tok is not None else name)
+        span = self._join(kw, last)
+        for needed in SHAPE_NEEDS[kind]:
+            if not any(k.keyword == needed for k in kept):
+                self.sink.report(
+                    "MT0212",
+                    f"{kind} `{name.value}` needs its `{needed}`",
+                    span,
+                    help=_SHAPE_EXAMPLES[kind],
+                )
+        return ast.Shape(
+            span=span,
+            name=name.value,
+            name_span=self._sp(name),
+            kind=kind,
+            file=path,
+            file_span=self._sp(path_tok) if path_tok is not None else None,
+            clauses=tuple(kept),
+        )
+
     def scene_decl(self, c: list[Any]) -> ast.Scene:
         ground: ast.Expr | None = None
         sites = []
+        shapes = []
+        node_sites = []
+        sites_from = []
         for member in self._present(c[2:-1]):
             if isinstance(member, ast.SiteDecl):
                 sites.append(member)
+            elif isinstance(member, ast.Shape):
+                shapes.append(member)
+            elif isinstance(member, ast.NodeSite):
+                node_sites.append(member)
+            elif isinstance(member, ast.SitesFrom):
+                sites_from.append(member)
             elif ground is not None:
                 self.sink.report("MT0210", "the scene's ground is given twice", member[2])
             else:
                 ground = member[1]
-        return _scene(self._join(c[0], c[-1]), c[1].value, self._sp(c[1]), ground, tuple(sites))
+        return _scene(
+            self._join(c[0], c[-1]),
+            c[1].value,
+            self._sp(c[1]),
+            ground,
+            tuple(sites),
+            tuple(shapes),
+            tuple(node_sites),
+            tuple(sites_from),
+        )
 
     def tool_prop(self, c: list[Any]) -> ast.ToolProperty:
         return ast.ToolProperty(span=self._join(c[0], c[1]), name=c[0].value, value=c[1])

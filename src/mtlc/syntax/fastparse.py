@@ -33,6 +33,8 @@ MAX_UNARY = 200  # longer runs of `-` go to lark (which is iterative), not into 
 # keywords whose statement may go on with `(`: lark shifts (the statement), never reduces
 # the keyword to the name of a call
 _PAREN_STATEMENTS = frozenset({"TOOL", "GOAL", "GRIP", "REPEAT", "BUDGET", "TIME"})
+_SOLIDS = frozenset({"BOX", "CYLINDER", "PLATE"})
+_VALUE_CLAUSES = frozenset({"AT", "ROTATE", "SIZE", "RADIUS", "LENGTH", "AXIS", "NORMAL"})
 _SEPARATORS = frozenset({NEWLINE, "SEMICOLON"})
 # what goes on with the expression after a primary (and its unit): `.`, `(`, an operator
 _GOES_ON = frozenset({"DOT", "LPAR", "STAR", "SLASH", "PLUS", "MINUS"})
@@ -138,15 +140,31 @@ class FastParser:
 
     def scene_member(self) -> Any:
         kind = self.types[self.i]
+        kw = self.toks[self.i]
         if kind == "GROUND":
-            kw = self.toks[self.i]
             self.i += 1
             return self.b.ground_decl([kw, self.expr()])
+        if kind == "MODEL":
+            self.i += 1
+            name = self.ident()
+            path = self.take("STRING")
+            return self.b.model_decl([kw, name, path, *self.shape_clauses()])
+        if kind in _SOLIDS:
+            self.i += 1
+            name = self.ident()
+            return self.b.solid_decl([kw, name, *self.shape_clauses()])
+        if kind == "SITES":
+            self.i += 1
+            return self.b.sites_from_decl([kw, self.take("FROM"), self.ident()])
         if kind != "SITE":
             raise Fallback
-        kw = self.toks[self.i]
         self.i += 1
         name = self.ident()
+        if self.types[self.i] == "EQUAL":
+            self.i += 1
+            model = self.ident()
+            self.take("DOT")
+            return self.b.node_site_decl([kw, name, model, self.ident()])
         self.take("AT")
         c = [kw, name, self.expr()]
         while True:
@@ -161,6 +179,26 @@ class FastParser:
                 c.append(self.b.site_frame([clause_kw, self.expr()]))
             else:
                 return self.b.site_decl(c)
+
+    def shape_clauses(self) -> list[Any]:
+        """`shape_clause*`: a keyword and its expression, its word, or both (`opening`)."""
+        out = []
+        b = self.b
+        while True:
+            kind = self.types[self.i]
+            kw = self.toks[self.i]
+            if kind in _VALUE_CLAUSES:
+                self.i += 1
+                out.append(b.value_clause([kw, self.expr()]))
+            elif kind in ("UNITS", "UP"):
+                self.i += 1
+                out.append(b.word_clause([kw, self.ident()]))
+            elif kind == "OPENING":
+                self.i += 1
+                word = self.ident()
+                out.append(b.opening_clause([kw, word, self.expr()]))
+            else:
+                return out
 
     def tool_prop(self) -> Any:
         name = self.ident()

@@ -14,12 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from mtlc.body.anthropometry import dimensions
 from mtlc.diagnostics import DiagnosticSink, Label, Span
-from mtlc.geometry import solids
-from mtlc.geometry.model import FAR_AWAY, SceneModel, place_nodes, place_points, placement
 from mtlc.semantics import builtins as B
 from mtlc.semantics import mtm, turning
 from mtlc.semantics import types as T
@@ -30,7 +26,10 @@ from mtlc.semantics.timeline import ManikinSpec, Primitive, Site, Timeline, Tool
 from mtlc.syntax import ast
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from mtlc.geometry.load import MeshFile
+    from mtlc.geometry.model import SceneModel
 
 DEFAULT_BUDGET = 100_000
 MAX_NESTING = 150  # blocks and calls inside each other while expanding
@@ -277,6 +276,8 @@ class Expander:
             model = self._place(shape, env)
             if model is None:
                 continue
+            from mtlc.geometry.model import FAR_AWAY  # numpy: only for scenes with geometry
+
             far = model.farthest()
             if far > FAR_AWAY:
                 units = shape.clause("units")
@@ -303,6 +304,8 @@ class Expander:
     def _place(self, shape: ast.Shape, env: _Env) -> SceneModel | None:
         """The shape in the scene frame: a model's file as the checker read it (None when it
         could not be), a solid built from its clauses."""
+        from mtlc.geometry.model import SceneModel, place_nodes, place_points, placement
+
         at = tuple(self._value(shape, "at", env, (0.0, 0.0, 0.0)))
         if shape.kind != "model":
             return self._place_solid(shape, env, at)
@@ -326,6 +329,11 @@ class Expander:
         )
 
     def _place_solid(self, shape: ast.Shape, env: _Env, at: tuple[float, ...]) -> SceneModel:
+        import numpy as np
+
+        from mtlc.geometry import solids
+        from mtlc.geometry.model import SceneModel, place_points, placement
+
         params: dict[str, Any] = {}
         if shape.kind == "box":
             params["size"] = tuple(self._value(shape, "size", env))

@@ -9,11 +9,11 @@ import tracemalloc
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from mtlc.diagnostics import DiagnosticSink
-from mtlc.frontend import run_frontend
+from mtlc.frontend import DEFAULT_MOTION_BUDGET, run_frontend
 from mtlc.semantics import mtm
 from mtlc.semantics import values as V
 from mtlc.semantics.timeline import ManikinSpec
@@ -182,6 +182,7 @@ _SLOTS = [
     slot=st.sampled_from(_SLOTS),
     value=st.floats(allow_nan=False, allow_infinity=False, width=64),
 )
+@example(slot=_SLOTS[0], value=900.0)  # over the motion budget: MT0407
 def test_any_written_number_is_accepted_or_mt0309_and_the_timeline_is_finite(
     tmp_path: Path, slot: tuple[str, V.Range, float], value: float
 ) -> None:
@@ -189,7 +190,11 @@ def test_any_written_number_is_accepted_or_mt0309_and_the_timeline_is_finite(
     program = _run(tmp_path, _task(template.format(v=repr(value))))
     codes = [d.code for d in program.diagnostics if d.severity == "error"]
     in_range = V.problem(rule, value * factor) is None
-    assert codes == ([] if in_range else ["MT0309"]), (value, program.diagnostics)
+    # a legal duration near or over the motion budget is a longer motion than a task may have
+    # by default: MT0407, not a bad number (hypothesis drew `inspect(a, 900 s)`)
+    long = in_range and rule is V.DURATION and value * factor > DEFAULT_MOTION_BUDGET - 60.0
+    allowed = [["MT0407"], []] if long else [[] if in_range else ["MT0309"]]
+    assert codes in allowed, (value, program.diagnostics)
     for timeline in program.timelines:
         assert math.isfinite(timeline.duration)
         for prim in timeline.primitives:

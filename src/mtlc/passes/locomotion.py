@@ -767,8 +767,8 @@ class WalkMotion:
         y[0] = y[-1] = stand  # meet the standing root at the ends
         # erosion then a box average of the same width (narrowing at the ends, which must
         # stay at the standing height): smooth, and below the reach bound
-        eroded = _window(y, int(0.06 * HEIGHT_RATE), np.min)
-        return np.minimum(_window(eroded, int(0.06 * HEIGHT_RATE), np.mean), y)
+        eroded = _window(y, int(0.1 * HEIGHT_RATE), np.min)
+        return np.minimum(_window(eroded, int(0.1 * HEIGHT_RATE), np.mean), y)
 
     def _end_allowance(self, grid: FloatArray, first: float, last: float) -> FloatArray:
         """How far above the reach bound the pelvis may be near the walk's ends. The rest pose

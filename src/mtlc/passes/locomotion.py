@@ -41,7 +41,7 @@ from mtlc.semantics.turning import FINAL_TURN, MAX_TWIST, MIN_DISTANCE, TURN_IN_
 
 FloatArray = NDArray[np.float64]
 
-STEP_HEIGHT_RATIO = 0.045  # mid-swing ankle rise / stature: ~7 cm for a 1.6 m manikin
+STEP_HEIGHT_RATIO = 0.03  # mid-swing ankle rise / stature: ~7 cm for a 1.6 m manikin
 DOUBLE_SUPPORT = 0.2  # share of each step with both feet down (10 % at each end)
 # from standing, the first step's heel rises and the weight shifts for this share of the step
 # before toe-off (gait initiation's anticipatory phase), and the closing step settles the body
@@ -55,14 +55,14 @@ SWAY = 0.3  # lateral pelvis shift toward the stance foot in single support, × 
 # set the pelvis's lowest point at 40°, 6.6 cm below standing on the 5th-percentile woman)
 TOE_OFF_PITCH = math.radians(60)
 HEEL_OFF = 0.6  # the heel rises this many steps before toe-off (in the other foot's swing)
-LEAD = 0.3  # at double support the pelvis is ahead of the feet's mid-point by this × the move
+LEAD = 0.25  # at double support the pelvis is ahead of the feet's mid-point by this × the move
 LIMIT_MARGIN = math.radians(1.0)  # the pelvis height keeps the legs this far inside the limits
 STANCE_REACH = 0.995  # hip–ankle distance while walking, × thigh + shank length
 DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interpolation's frames
 SWING_TOL = 5e-3  # m: a swinging foot's
 SWING_KEYS = (0.25, 0.5, 0.75, 0.9)  # swing fractions always keyed (0.9: the set-down)
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
-ROLL_RATE = 2.0  # rad/s: how fast a planted foot's unscheduled roll may begin or end
+ROLL_RATE = 1.2  # rad/s: how fast a planted foot's unscheduled roll may begin or end
 ROLL_ROUNDS = 4  # rounds of that roll, each from the last one's
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
 REACH_CHUNK = 1024  # grid times whose candidate heights are solved at once

@@ -61,6 +61,7 @@ import human  # noqa: E402  (issue 19's figures)
 from strategies.procedures import generate  # noqa: E402
 
 EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
+WALKS = sorted((ROOT / "bench" / "walks").glob("*.mtask"))  # --walks: the gait's own procedures
 MANIKINS = tuple(
     f"{sex}-p{pct}" for sex in ("female", "male") for pct in (1, 5, 10, 50, 90, 95, 99)
 )
@@ -557,7 +558,7 @@ def measure(doc: dict[str, Any], diagnostics: list[dict[str, Any]]) -> dict[str,
 class Job:
     """One compile: a source file with one manikin (``female-p5``)."""
 
-    kind: str  # "example" or "generated"
+    kind: str  # "example", "walk" (bench/walks) or "generated"
     path: str
     manikin: str
     seed: int | None = None
@@ -600,6 +601,8 @@ def remeasure(folder: Path, sources: Path | None) -> list[dict[str, Any]]:
         stem, manikin = sub.name.rsplit(".", 1)
         kind = "generated" if stem.startswith("gen_") else "example"
         base = sources if kind == "generated" and sources else ROOT / "examples"
+        if kind == "example" and (ROOT / "bench" / "walks" / f"{stem}.mtask").is_file():
+            kind, base = "walk", ROOT / "bench" / "walks"
         job = Job(kind, str(base / f"{stem}.mtask"), manikin)
         stdout = (sub / "diagnostics.json").read_text(encoding="utf-8")
         rows.append(measure_folder(job, sub, stdout, 0))
@@ -785,6 +788,11 @@ def main(argv: list[str] | None = None) -> int:
         help="'all', 'none' or a comma list of example stems (with all 14 manikins)",
     )
     parser.add_argument("--example-manikins", default="all", help="'all' 14 or a comma list")
+    parser.add_argument(
+        "--walks",
+        action="store_true",
+        help="also compile bench/walks/*.mtask with each of --example-manikins",
+    )
     parser.add_argument("--workers", type=int, default=2, help="worker processes (2)")
     parser.add_argument("--save", type=Path, help="keep the generated procedures in this folder")
     parser.add_argument("--worst", type=int, default=8, help="worst cases listed per figure (8)")
@@ -810,6 +818,11 @@ def main(argv: list[str] | None = None) -> int:
             MANIKINS if args.example_manikins == "all" else tuple(args.example_manikins.split(","))
         )
         jobs += [Job("example", str(p.relative_to(ROOT)), m) for p in picked for m in mans]
+    if args.walks:
+        mans = (
+            MANIKINS if args.example_manikins == "all" else tuple(args.example_manikins.split(","))
+        )
+        jobs += [Job("walk", str(p.relative_to(ROOT)), m) for p in WALKS for m in mans]
     gen_manikins = [m for m in args.manikins.split(",") if m]
     for seed in range(args.seed0, args.seed0 + args.generated):
         path = generate(seed, lo, hi).write(folder)
@@ -831,7 +844,11 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"  {k}/{len(jobs)}", file=sys.stderr, flush=True)
     rows.sort(key=lambda r: (r["job"].kind, r["job"].path, r["job"].manikin))
     lines = [f"# bench/motion.py {' '.join(argv if argv is not None else sys.argv[1:])}"]
-    for kind, label in (("example", "examples x manikins"), ("generated", "generated procedures")):
+    for kind, label in (
+        ("example", "examples x manikins"),
+        ("walk", "bench/walks x manikins"),
+        ("generated", "generated procedures"),
+    ):
         group = [r for r in rows if r["job"].kind == kind]
         if group:
             lines += table(group, label)

@@ -109,7 +109,8 @@ def _violation_by_leg_ik(legs, side, xz, heading, ankle, fh, pitch, planted, hei
     over[np.repeat(planted, m), 4] = 0.0
     bad = np.maximum(lo - q, 0.0).sum(axis=1) + over.sum(axis=1)
     hip = root + np.einsum("nij,j->ni", _ry(hh), legs.hip[side])
-    bad += 10 * np.maximum(np.linalg.norm(hip - a, axis=1) - STANCE_REACH * legs.length, 0.0)
+    reach = np.maximum(np.linalg.norm(hip - a, axis=1) - STANCE_REACH * legs.length, 0.0)
+    bad += 10 * np.where(np.repeat(planted, m), reach, 0.0)  # a swinging ankle rises instead
     return bad.reshape(n, m)
 
 

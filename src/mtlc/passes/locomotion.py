@@ -41,7 +41,7 @@ from mtlc.semantics.turning import FINAL_TURN, MAX_TWIST, MIN_DISTANCE, TURN_IN_
 
 FloatArray = NDArray[np.float64]
 
-STEP_HEIGHT_RATIO = 0.045  # mid-swing ankle rise / stature: ~7 cm for a 1.6 m manikin
+STEP_HEIGHT_RATIO = 0.03  # mid-swing ankle rise / stature: ~7 cm for a 1.6 m manikin
 DOUBLE_SUPPORT = 0.2  # share of each step with both feet down (10 % at each end)
 # from standing, the first step's heel rises and the weight shifts for this share of the step
 # before toe-off (gait initiation's anticipatory phase), and the closing step settles the body
@@ -55,13 +55,15 @@ SWAY = 0.3  # lateral pelvis shift toward the stance foot in single support, × 
 # set the pelvis's lowest point at 40°, 6.6 cm below standing on the 5th-percentile woman)
 TOE_OFF_PITCH = math.radians(60)
 HEEL_OFF = 0.6  # the heel rises this many steps before toe-off (in the other foot's swing)
-LEAD = 0.3  # at double support the pelvis is ahead of the feet's mid-point by this × the move
+LEAD = 0.25  # at double support the pelvis is ahead of the feet's mid-point by this × the move
 LIMIT_MARGIN = math.radians(1.0)  # the pelvis height keeps the legs this far inside the limits
 STANCE_REACH = 0.995  # hip–ankle distance while walking, × thigh + shank length
 DRIFT_TOL = 3e-4  # m: a planted foot's interpolated drift allowed at the interpolation's frames
 SWING_TOL = 5e-3  # m: a swinging foot's
 SWING_KEYS = (0.25, 0.5, 0.75, 0.9)  # swing fractions always keyed (0.9: the set-down)
 CAP = 0.05  # s after the last keyframe, a copy of it: the legs arrive at rest
+ROLL_RATE = 1.2  # rad/s: how fast a planted foot's unscheduled roll may begin or end
+ROLL_ROUNDS = 4  # rounds of that roll, each from the last one's
 HEIGHT_RATE = 120.0  # Hz: the pelvis height is searched on this grid
 REACH_CHUNK = 1024  # grid times whose candidate heights are solved at once
 REACH_CANDIDATES = 41  # pelvis heights tried, from standing down to 30 % of the leg lower
@@ -252,7 +254,9 @@ def leg_violation(
     hz = Rroot[:, 2, 0] * hip[0] + Rroot[:, 2, 2] * hip[2] + xz[:, 1] - ankle[:, 2]
     hy = heights[None, :] + hip[1] - ankle[:, 1, None]
     reach = np.sqrt((hx * hx + hz * hz)[:, None] + hy * hy)
-    return bad + 10 * np.maximum(reach - STANCE_REACH * legs.length, 0.0)
+    # a swinging leg does not hold the pelvis down: its ankle rises instead (WalkMotion.pose)
+    over = np.where(planted[:, None], np.maximum(reach - STANCE_REACH * legs.length, 0.0), 0.0)
+    return bad + 10 * over
 
 
 # --------------------------------------------------------------------------- gait and footsteps
@@ -488,6 +492,7 @@ class WalkMotion:
 
     def __post_init__(self) -> None:
         self._geo: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
+        self._early_roll: dict[str, FloatArray] = {}  # set once the pelvis height is known
         ts, xz, hs = [self.t0], [self.root_start[[0, 2]]], [self.heading_start]
         feet = dict(self.stance)
         last = final_feet(self.stance, self.steps)
@@ -528,6 +533,7 @@ class WalkMotion:
         grid = np.linspace(self.t0, self.t1, max(3, int((self.t1 - self.t0) * HEIGHT_RATE) + 1))
         self._grid = grid
         self._y = self._pelvis_height(grid)
+        self._early_roll = self._anticipated_rolls(grid)
         # the swing starts from the foot as it actually leaves: rolled as far as it had to
         lifts = np.array([st.t_lift for st in self.steps])
         for _ in range(2):
@@ -536,6 +542,37 @@ class WalkMotion:
             *_, feet = self.pose(lifts)
             for i, st in enumerate(self.steps):
                 st.toe_off_pitch = max(st.toe_off_pitch, float(feet[st.foot].pitch[i]))
+
+    def _anticipated_rolls(self, grid: FloatArray) -> dict[str, FloatArray]:
+        """Each planted foot's roll beyond its schedule (what :meth:`pose` adds where the
+        ankle would pass its dorsiflexion limit), begun early and let go late at no more than
+        ``ROLL_RATE``: the roll a limit needs can jump (a rear foot rolled 4° → 13° in 17 ms
+        as the pelvis sank 1.5 mm, its knee 21° → 37°), and a foot that starts rolling
+        before it must does not. Kept inside each stance (a lifted or landing foot is not
+        rolled by it), on the pelvis grid; :meth:`feet` adds it to the planted feet."""
+        out = {f: np.zeros(len(grid)) for f in LEGS}
+        for _ in range(ROLL_ROUNDS):  # a roll begun early can need more: the limit's other branch
+            self._early_roll = out
+            *_, rolled = self.pose(grid)
+            planned = self.feet(grid)
+            grown = False
+            for f in LEGS:
+                on = rolled[f].planted
+                extra = np.where(on, np.maximum(rolled[f].pitch - planned[f].pitch, 0.0), 0.0)
+                if not np.any(extra > 1e-6):
+                    continue
+                grown = True
+                want = out[f] + extra
+                env = np.zeros(len(grid))
+                for a, b in _runs_of(on):
+                    t, e = grid[a:b], want[a:b]
+                    ahead = np.maximum.accumulate((e - ROLL_RATE * t)[::-1])[::-1] + ROLL_RATE * t
+                    after = np.maximum.accumulate(e + ROLL_RATE * t) - ROLL_RATE * t
+                    env[a:b] = np.maximum(ahead, after)
+                out[f] = env
+            if not grown:
+                break
+        return out
 
     def _geometry(self, st: Step) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """A step's landing ankle, its start's rotation and toe tip, its landing toe tip."""
@@ -606,19 +643,38 @@ class WalkMotion:
                     # step behind (the pelvis sank up to 25 cm) at up to 8.7 m/s.
                     s = tau * tau * (3 - 2 * tau)
                     pos[sw] = start + s[:, None] * (a1 - start)
-                    rise = np.where(tau < 0.5, np.sin(np.pi * tau), np.sin(np.pi * tau) ** 2)
-                    pos[sw, 1] += self.gait.step_height * rise
                     head[sw] = h0 + s * wrap(st.end.heading - h0)
                     # level from 60 % of the swing on (levelled as it travelled, the toe
                     # hung low and touched down a fifth of the swing early), smoothly from
                     # the roll (a kink here is a "jump" the smooth pass blends for 50 frames)
                     u = np.clip(tau / 0.6, 0.0, 1.0)
                     pitch[sw] = st.toe_off_pitch * (1 - u * u * (3 - 2 * u))
+                    pos[sw, 1] = self._swing_height(st, tau, pitch[sw], toe_w, toe_end)
                     planted[sw] = False
+            if self._early_roll:
+                extra = np.interp(ts, self._grid, self._early_roll[f])
+                rows = planted & (extra > 0.0)
+                pitch[rows] += extra[rows]
+                pos[rows] = _rolled(_ry(head[rows]), anchor[rows], pitch[rows], toe)
             back = np.empty_like(order)  # the caller's order of ``t``
             back[order] = np.arange(n)
             out[f] = FootTrack(pos[back], head[back], pitch[back], planted[back], anchor[back])
         return out
+
+    def _swing_height(
+        self, st: Step, tau: FloatArray, pitch: FloatArray, toe_w: FloatArray, toe_end: FloatArray
+    ) -> FloatArray:
+        """The swinging ankle's height: as high as the foot's pitch needs for its toe to be
+        ``clearance`` above the floor (the toe-off roll unwinds as the foot levels), no more."""
+        floor = toe_w[1] + tau * tau * (3 - 2 * tau) * (toe_end[1] - toe_w[1])
+        # lifts briskly off its toe (sin) and sets down late and softly (sin^1.5: at rest on
+        # touch-down, over 5 mm until 95 % of the swing; sin² was under it from 91 %)
+        bump = np.sin(np.pi * np.clip(tau, 0.0, 1.0))
+        clearance = self.gait.step_height * np.where(tau < 0.5, bump, bump**1.5)
+        toe = self.legs.toe
+        # the toe tip's height from the ankle for a foot pitched nose down (Rx(pitch) @ toe)
+        toe_y = np.cos(pitch) * toe[1] - np.sin(pitch) * toe[2]
+        return floor + clearance - toe_y
 
     def _steps_touching(self, foot: str, t: FloatArray) -> list[Step]:
         """The foot's steps that set any of ``t`` in :meth:`feet`, in order. A step wholly
@@ -711,8 +767,8 @@ class WalkMotion:
         y[0] = y[-1] = stand  # meet the standing root at the ends
         # erosion then a box average of the same width (narrowing at the ends, which must
         # stay at the standing height): smooth, and below the reach bound
-        eroded = _window(y, int(0.06 * HEIGHT_RATE), np.min)
-        return np.minimum(_window(eroded, int(0.06 * HEIGHT_RATE), np.mean), y)
+        eroded = _window(y, int(0.1 * HEIGHT_RATE), np.min)
+        return np.minimum(_window(eroded, int(0.1 * HEIGHT_RATE), np.mean), y)
 
     def _end_allowance(self, grid: FloatArray, first: float, last: float) -> FloatArray:
         """How far above the reach bound the pelvis may be near the walk's ends. The rest pose
@@ -741,6 +797,22 @@ class WalkMotion:
         y = np.interp(tt, self._grid, self._y)
         return np.stack([xz[:, 0], y, xz[:, 1]], axis=-1), self._h(tt)
 
+    def _within_reach(self, foot: str, ft: FootTrack, pos: FloatArray, head: FloatArray) -> None:
+        """Lift a swinging ankle that the leg would reach only straighter than
+        ``STANCE_REACH``: late in the swing the foot is over its landing point before the
+        pelvis is; it waits above it (the leg near straight, as in terminal swing) while the
+        pelvis comes forward and down, instead of the pelvis sinking early to reach it."""
+        rows = np.flatnonzero(~ft.planted)
+        if not rows.size:
+            return
+        hip = pos[rows] + _ry(head[rows]) @ self.legs.hip[foot]
+        d = ft.ankle[rows] - hip
+        flat2 = d[:, 0] ** 2 + d[:, 2] ** 2
+        reach = STANCE_REACH * self.legs.length
+        low = hip[:, 1] - np.sqrt(np.maximum(reach * reach - flat2, 0.0))
+        lift = (flat2 < reach * reach) & (ft.ankle[rows, 1] < low)
+        ft.ankle[rows[lift], 1] = low[lift]
+
     def pose(
         self, t: FloatArray
     ) -> tuple[FloatArray, FloatArray, dict[str, FloatArray], dict[str, FootTrack]]:
@@ -752,6 +824,7 @@ class WalkMotion:
         pos, head = self.root(t)
         legs, feet = {}, self.feet(t)
         for f, ft in feet.items():
+            self._within_reach(f, ft, pos, head)
             hi = self.legs.upper[f][4] - LIMIT_MARGIN
             q = leg_ik(self.legs, f, pos, head, ft.ankle, ft.heading, ft.pitch, clip=False)
             sub = np.flatnonzero(q[:, 4] > hi + 1e-7)  # only these rows roll (the root is set)
@@ -778,6 +851,12 @@ class WalkMotion:
                                 ft.pitch[sub], clip=False)  # fmt: skip
             legs[f] = np.clip(q, self.legs.lower[f], self.legs.upper[f])
         return pos, head, legs, feet
+
+
+def _runs_of(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """(start, stop) index ranges where ``mask`` holds."""
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def at_rest_ends(t: FloatArray, y: FloatArray) -> CubicHermiteSpline:

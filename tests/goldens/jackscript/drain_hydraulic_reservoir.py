@@ -11,7 +11,7 @@ def drain_reservoir():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=50, stature=167.8, mass=59.0)
     # examples/drain_hydraulic_reservoir.mtask:22:5 drain_reservoir > walk_to > travel: locomotion on root at skid_side
-    human.Walk((0.07, 0.0, 44.627), start=0.0, duration=1.294737)
+    human.Walk((0.069, 0.0, 44.631), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 84.188, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,132 +22,132 @@ def drain_reservoir():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (0.028, 83.712, 0.922), (-0.843, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.028, 83.758, 0.945), (-0.843, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (13.071, -0.169, 0.828), 'right_knee': (25.9,), 'right_ankle': (8.501, 0.022),
-        'left_hip': (6.458, 0.074, -0.84), 'left_knee': (13.551,), 'left_ankle': (7.093, -0.02),
+        'right_hip': (12.907, -0.167, 0.828), 'right_knee': (25.599,),
+        'right_ankle': (8.364, 0.022), 'left_hip': (6.157, 0.07, -0.84), 'left_knee': (12.968,),
+        'left_ankle': (6.811, -0.02),
     })
-    human.KeyRoot(0.2, (0.092, 83.605, 3.37), (-2.967, 0.0, 0.0))
+    human.KeyRoot(0.2, (0.092, 83.605, 3.431), (-2.967, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (16.133, -0.752, 2.884), 'right_knee': (34.529,), 'right_ankle': (9.63, 0.081),
-        'left_hip': (4.701, 0.184, -2.962), 'left_knee': (14.169,), 'left_ankle': (9.465, -0.06),
+        'right_hip': (16.084, -0.749, 2.885), 'right_knee': (34.526,),
+        'right_ankle': (9.676, 0.081), 'left_hip': (4.641, 0.18, -2.962), 'left_knee': (14.14,),
+        'left_ankle': (9.496, -0.06),
     })
-    human.KeyRoot(0.3, (0.158, 83.605, 6.864), (-5.765, 0.0, 0.0))
+    human.KeyRoot(0.3, (0.158, 83.605, 6.937), (-5.765, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (26.206, 0.519, 0.907), 'right_knee': (51.193,),
-        'right_ankle': (18.004, 0.841), 'left_hip': (0.856, 0.001, -5.766), 'left_knee': (12.169,),
-        'left_ankle': (11.047, -0.085),
+        'right_hip': (22.566, 0.557, 0.844), 'right_knee': (43.881,),
+        'right_ankle': (15.459, 0.818), 'left_hip': (0.758, -0.009, -5.766), 'left_knee': (12.078,),
+        'left_ankle': (11.054, -0.085),
     })
-    human.KeyRoot(0.4, (0.193, 83.912, 10.925), (-8.629, 0.0, 0.0))
+    human.KeyRoot(0.4, (0.193, 83.448, 10.941), (-8.629, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (34.298, 5.191, -6.92), 'right_knee': (52.984,),
-        'right_ankle': (17.251, 0.243), 'left_hip': (4.585, 0.623, -8.616), 'left_knee': (25.709,),
-        'left_ankle': (14.016, -0.073),
+        'right_hip': (28.615, 4.433, -7.42), 'right_knee': (42.035,),
+        'right_ankle': (12.011, 0.236), 'left_hip': (5.91, 0.823, -8.6), 'left_knee': (28.587,),
+        'left_ankle': (15.554, -0.073),
     })
-    human.KeyRoot(0.5, (-1.092, 83.428, 18.063), (-12.102, 0.0, 0.0))
+    human.KeyRoot(0.5, (-1.015, 82.66, 17.373), (-12.102, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (30.583, 6.475, -17.108), 'right_knee': (36.881,),
-        'right_ankle': (5.85, -3.45), 'left_hip': (7.506, 2.531, -11.53), 'left_knee': (41.888,),
-        'left_ankle': (14.584, 1.02),
+        'right_hip': (28.385, 5.568, -17.447), 'right_knee': (31.466,),
+        'right_ankle': (2.777, -3.618), 'left_hip': (9.609, 2.914, -11.453), 'left_knee': (45.455,),
+        'left_ankle': (16.015, 0.971),
     })
-    human.KeyRoot(0.6, (-3.995, 82.44, 28.129), (-16.153, 0.0, 0.0))
+    human.KeyRoot(0.6, (-3.742, 81.931, 26.208), (-16.153, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (17.337, 1.868, -21.924), 'right_knee': (13.429,),
-        'right_ankle': (-3.351, -4.919), 'left_hip': (3.973, 4.137, -13.929),
-        'left_knee': (49.512,), 'left_ankle': (12.004, 3.619),
+        'right_hip': (20.003, 2.07, -22.088), 'right_knee': (16.027,),
+        'right_ankle': (-3.316, -5.695), 'left_hip': (7.096, 4.796, -13.772), 'left_knee': (53.27,),
+        'left_ankle': (12.582, 3.482),
     })
-    human.KeyRoot(0.7, (-5.495, 82.629, 32.886), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.7, (-5.151, 82.049, 30.936), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (15.809, 1.717, -20.286), 'right_knee': (17.111,),
-        'right_ankle': (1.674, -3.865), 'left_hip': (2.44, 4.606, -14.307), 'left_knee': (51.605,),
-        'left_ankle': (6.239, 5.169),
+        'right_hip': (18.447, 1.949, -20.411), 'right_knee': (19.592,),
+        'right_ankle': (1.605, -4.596), 'left_hip': (5.706, 5.313, -14.146), 'left_knee': (55.705,),
+        'left_ankle': (7.012, 5.002),
     })
-    human.KeyRoot(0.8, (-5.382, 83.026, 32.71), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.8, (-5.104, 82.326, 31.545), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (13.699, 0.942, -20.333), 'right_knee': (12.256,),
-        'right_ankle': (-0.934, -3.86), 'left_hip': (6.993, 6.107, -13.878), 'left_knee': (59.17,),
-        'left_ankle': (11.369, 5.435),
+        'right_knee': (18.017,), 'right_ankle': (1.148, -4.27), 'left_hip': (8.191, 6.235, -13.921),
+        'left_knee': (59.443,), 'left_ankle': (10.465, 5.219),
     })
-    human.KeyRoot(0.9, (-5.109, 83.031, 32.44), (-17.969, 0.0, 0.0))
+    human.KeyRoot(0.9, (-4.983, 82.579, 31.919), (-17.969, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (13.63, 0.955, -20.327), 'right_knee': (11.555,),
-        'right_ankle': (-1.577, -3.823), 'left_hip': (19.748, 11.044, -11.912),
-        'left_knee': (70.262,), 'left_ankle': (18.801, 7.036),
+        'right_hip': (16.125, 1.684, -20.316), 'right_knee': (16.054,),
+        'right_ankle': (0.33, -4.012), 'left_hip': (15.075, 10.082, -13.971),
+        'left_knee': (57.838,), 'left_ankle': (18.89, 6.264),
     })
-    human.KeyRoot(1.0, (-4.608, 83.025, 32.766), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.0, (-4.665, 82.854, 33.029), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (13.746, 1.458, -20.222), 'right_knee': (12.054,),
-        'right_ankle': (-1.358, -3.379), 'left_hip': (28.639, 15.442, -11.102),
-        'left_knee': (63.994,), 'left_ankle': (18.829, 8.094),
+        'right_hip': (14.769, 1.917, -20.172), 'right_knee': (14.681,),
+        'right_ankle': (0.151, -3.299), 'left_hip': (18.504, 13.212, -15.273),
+        'left_knee': (43.66,), 'left_ankle': (18.905, 7.221),
     })
-    human.KeyRoot(1.1, (-2.905, 83.023, 36.993), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.1, (-3.0, 83.023, 37.433), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (13.346, 4.361, -19.542), 'right_knee': (16.749,),
-        'right_ankle': (2.727, -0.428), 'left_hip': (19.439, 13.578, -16.106),
-        'left_knee': (33.414,), 'left_ankle': (10.981, 6.895),
+        'right_hip': (13.205, 4.463, -19.518), 'right_knee': (17.165,),
+        'right_ankle': (3.242, -0.281), 'left_hip': (16.173, 12.6, -16.865), 'left_knee': (27.447,),
+        'left_ankle': (8.347, 6.874),
     })
-    human.KeyRoot(1.2, (-0.899, 83.072, 42.474), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.938, 83.161, 42.655), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
-        'right_hip': (10.359, 7.147, -19.003), 'right_knee': (17.606,),
-        'right_ankle': (5.471, 3.277), 'left_hip': (8.835, 8.997, -18.752), 'left_knee': (14.222,),
-        'left_ankle': (2.914, 5.563),
+        'right_hip': (9.827, 7.023, -19.057), 'right_knee': (16.762,),
+        'right_ankle': (5.167, 3.333), 'left_hip': (8.232, 8.822, -18.841), 'left_knee': (13.233,),
+        'left_ankle': (2.546, 5.59),
     })
     # examples/drain_hydraulic_reservoir.mtask:23:5 drain_reservoir > squat: posture on root
-    human.KeyRoot(1.3, (0.124, 83.895, 44.746), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.125, 83.895, 44.741), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.3, {
         'spine_lumbar': (0.559, 0.0, 0.0), 'spine_thoracic': (0.28, 0.0, 0.0),
         'right_shoulder': (9.351, 5.403, 11.459), 'left_shoulder': (9.351, 5.403, 11.459),
-        'right_hip': (1.676, 5.763, -19.766), 'right_knee': (1.817,),
-        'right_ankle': (-1.715, 4.845), 'left_hip': (1.831, 5.76, -19.754), 'left_knee': (2.154,),
-        'left_ankle': (-1.524, 4.786),
+        'right_hip': (1.68, 5.762, -19.766), 'right_knee': (1.817,), 'right_ankle': (-1.719, 4.844),
+        'left_hip': (1.833, 5.76, -19.754), 'left_knee': (2.15,), 'left_ankle': (-1.53, 4.784),
     })
-    human.KeyRoot(1.4, (1.213, 83.66, 41.364), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.4, (1.214, 83.658, 41.36), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.4, {
         'spine_lumbar': (6.445, 0.0, 0.0), 'right_shoulder': (17.313, 1.97, 11.459),
-        'left_shoulder': (17.313, 1.97, 11.459), 'right_hip': (6.163, 6.409, -19.378),
-        'right_knee': (5.817,), 'right_ankle': (-2.14, 3.962), 'left_hip': (6.251, 6.393, -19.375),
-        'left_knee': (6.01,), 'left_ankle': (-2.026, 3.917),
+        'left_shoulder': (17.313, 1.97, 11.459), 'right_hip': (6.173, 6.411, -19.377),
+        'right_knee': (5.832,), 'right_ankle': (-2.136, 3.961), 'left_hip': (6.271, 6.399, -19.373),
+        'left_knee': (6.046,), 'left_ankle': (-2.011, 3.916),
     })
-    human.KeyRoot(1.5, (2.239, 82.54, 38.188), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.5, (2.239, 82.54, 38.184), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_thoracic': (6.069, 0.0, 0.0), 'right_hip': (14.297, 8.351, -18.501),
-        'right_knee': (17.828,), 'right_ankle': (1.609, 3.159),
-        'left_hip': (14.321, 8.319, -18.509), 'left_knee': (17.882,), 'left_ankle': (1.651, 3.119),
+        'spine_thoracic': (6.069, 0.0, 0.0), 'right_hip': (14.298, 8.35, -18.501),
+        'right_knee': (17.825,), 'right_ankle': (1.605, 3.158),
+        'left_hip': (14.322, 8.318, -18.509), 'left_knee': (17.879,), 'left_ankle': (1.646, 3.119),
     })
-    human.KeyRoot(1.6, (3.208, 80.54, 35.185), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.6, (3.209, 80.54, 35.182), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'right_hip': (22.221, 10.152, -17.485), 'right_knee': (29.235,),
-        'right_ankle': (5.022, 2.407), 'left_hip': (22.232, 10.122, -17.497),
-        'left_knee': (29.262,), 'left_ankle': (5.048, 2.373),
+        'right_hip': (22.222, 10.151, -17.486), 'right_knee': (29.232,),
+        'right_ankle': (5.019, 2.406), 'left_hip': (22.233, 10.122, -17.497),
+        'left_knee': (29.259,), 'left_ankle': (5.044, 2.372),
     })
-    human.KeyRoot(1.7, (4.095, 77.819, 32.435), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.7, (4.096, 77.819, 32.433), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'right_hip': (29.92, 11.802, -16.349), 'left_hip': (29.926, 11.778, -16.363),
+        'right_hip': (29.921, 11.802, -16.349), 'left_hip': (29.927, 11.778, -16.363),
     })
-    human.KeyRoot(1.8, (4.876, 74.388, 30.014), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.8, (4.876, 74.388, 30.012), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'right_hip': (37.665, 13.378, -15.041), 'right_knee': (50.72,),
-        'right_ankle': (11.07, 1.051), 'left_hip': (37.667, 13.36, -15.055), 'left_knee': (50.73,),
-        'left_ankle': (11.085, 1.028),
+        'right_hip': (37.666, 13.378, -15.042), 'right_knee': (50.719,),
+        'right_ankle': (11.067, 1.05), 'left_hip': (37.668, 13.36, -15.055), 'left_knee': (50.729,),
+        'left_ankle': (11.083, 1.027),
     })
-    human.KeyRoot(1.9, (5.527, 70.318, 27.991), (-17.969, 0.0, 0.0))
+    human.KeyRoot(1.9, (5.528, 70.318, 27.99), (-17.969, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'right_hip': (45.426, 14.856, -13.551), 'left_hip': (45.426, 14.844, -13.563),
+        'right_hip': (45.427, 14.856, -13.551), 'left_hip': (45.427, 14.844, -13.563),
     })
-    human.KeyRoot(2.0, (6.03, 65.676, 26.427), (-17.969, 0.0, 0.0))
+    human.KeyRoot(2.0, (6.03, 65.676, 26.426), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.0, {
         'right_hip': (53.259, 16.229, -11.848), 'right_knee': (71.766,),
-        'right_ankle': (16.81, -0.051), 'left_hip': (53.258, 16.223, -11.857),
-        'left_knee': (71.77,), 'left_ankle': (16.816, -0.062),
+        'right_ankle': (16.809, -0.052), 'left_hip': (53.259, 16.223, -11.857),
+        'left_knee': (71.769,), 'left_ankle': (16.815, -0.062),
     })
     human.KeyRoot(2.1, (6.811, 61.091, 24.003), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.1, {
         'spine_lumbar': (46.271, 0.0, 0.0), 'spine_thoracic': (23.136, 0.0, 0.0),
         'right_hip': (61.071, 17.212, -10.388), 'right_knee': (79.816,),
-        'right_ankle': (17.338, -0.975), 'left_hip': (61.07, 17.211, -10.391),
-        'left_knee': (79.817,), 'left_ankle': (17.34, -0.978),
+        'right_ankle': (17.338, -0.975), 'left_hip': (61.071, 17.211, -10.391),
+        'left_knee': (79.817,), 'left_ankle': (17.339, -0.978),
     })
     human.KeyRoot(2.2, (7.492, 56.292, 21.901), (-17.969, 0.0, 0.0))
     human.KeyJoints(2.2, {

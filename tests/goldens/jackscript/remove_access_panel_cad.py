@@ -24,94 +24,93 @@ def remove_access_panel_cad():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (0.359, 72.58, 1.235), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.359, 72.438, 1.264), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (15.322, 0.296, 0.123), 'right_knee': (31.518,), 'right_ankle': (8.935, 0.32),
-        'left_hip': (6.059, -0.306, -0.032), 'left_knee': (13.544,), 'left_ankle': (7.485, -0.308),
+        'right_hip': (15.712, 0.296, 0.125), 'right_knee': (32.396,), 'right_ankle': (9.423, 0.321),
+        'left_hip': (6.94, -0.306, -0.037), 'left_knee': (15.455,), 'left_ankle': (8.515, -0.308),
     })
-    human.KeyRoot(0.2, (1.159, 72.153, 4.545), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.159, 72.065, 4.623), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (19.234, 0.907, 0.61), 'right_knee': (44.001,), 'right_ankle': (10.089, 1.093),
-        'left_hip': (5.087, -0.997, -0.089), 'left_knee': (17.517,), 'left_ankle': (12.43, -1.0),
+        'right_hip': (19.344, 0.907, 0.612), 'right_knee': (44.391,), 'right_ankle': (10.37, 1.094),
+        'left_hip': (5.449, -0.997, -0.095), 'left_knee': (18.431,), 'left_ankle': (12.983, -1.002),
     })
-    human.KeyRoot(0.3, (1.987, 72.114, 9.336), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.987, 71.964, 9.429), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (28.981, 1.519, 1.293), 'right_knee': (58.103,),
-        'right_ankle': (18.098, 1.994), 'left_hip': (-0.859, -1.717, 0.015), 'left_knee': (13.583,),
-        'left_ankle': (14.075, -1.717),
+        'right_hip': (25.525, 1.56, 1.114), 'right_knee': (51.004,), 'right_ankle': (15.648, 1.917),
+        'left_hip': (0.61, -1.722, -0.041), 'left_knee': (16.839,), 'left_ankle': (15.477, -1.723),
     })
-    human.KeyRoot(0.4, (2.429, 72.655, 15.015), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (2.429, 71.185, 15.035), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (39.095, 1.816, 1.595), 'right_knee': (53.633,),
-        'right_ankle': (12.697, 2.416), 'left_hip': (0.909, -2.089, -0.387), 'left_knee': (26.076,),
-        'left_ankle': (15.591, -2.125),
+        'right_hip': (34.276, 1.869, 1.372), 'right_knee': (44.52,), 'right_ankle': (8.401, 2.319),
+        'left_hip': (10.357, -2.008, -1.018), 'left_knee': (45.219,),
+        'left_ankle': (18.352, -2.251),
     })
-    human.KeyRoot(0.5, (2.049, 71.002, 25.741), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.5, (2.049, 70.218, 24.998), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (36.631, 1.56, 1.174), 'right_knee': (33.105,), 'right_ankle': (-3.558, 1.953),
-        'left_hip': (2.154, -1.676, -0.91), 'left_knee': (45.649,), 'left_ankle': (17.15, -1.907),
+        'right_hip': (32.783, 1.608, 1.042), 'right_knee': (24.448,), 'right_ankle': (-8.37, 1.916),
+        'left_hip': (4.649, -1.661, -1.006), 'left_knee': (50.027,), 'left_ankle': (18.837, -1.942),
     })
-    human.KeyRoot(0.6, (1.011, 68.312, 41.366), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.6, (1.011, 69.965, 39.125), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (30.553, 0.799, 0.477), 'right_knee': (28.73,), 'right_ankle': (-1.86, 0.93),
-        'left_hip': (-8.49, -0.785, -0.564), 'left_knee': (47.983,), 'left_ankle': (12.281, -0.967),
+        'right_hip': (23.671, 0.834, 0.368), 'right_knee': (10.98,),
+        'right_ankle': (-12.728, 0.912), 'left_hip': (-6.548, -0.771, -0.594),
+        'left_knee': (46.639,), 'left_ankle': (8.995, -0.973),
     })
-    human.KeyRoot(0.7, (-0.047, 67.478, 48.806), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.047, 70.167, 45.81), (0.0, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (30.807, -0.038, -0.023), 'right_knee': (41.827,),
-        'right_ankle': (11.004, -0.044), 'left_hip': (-13.225, 0.034, 0.032),
-        'left_knee': (46.681,), 'left_ankle': (3.313, 0.047),
+        'right_hip': (23.242, -0.039, -0.017), 'right_knee': (21.354,),
+        'right_ankle': (-1.899, -0.042), 'left_hip': (-10.779, 0.034, 0.034),
+        'left_knee': (44.062,), 'left_ankle': (-1.752, 0.048),
     })
-    human.KeyRoot(0.8, (-1.168, 69.347, 47.797), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.168, 70.648, 45.81), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (26.07, -0.946, -0.463), 'right_knee': (30.594,),
-        'right_ankle': (4.517, -1.053), 'left_hip': (-7.211, 0.824, 0.867), 'left_knee': (53.845,),
-        'left_ankle': (7.644, 1.196),
+        'right_hip': (20.776, -0.965, -0.366), 'right_ankle': (-4.435, -1.032),
+        'left_hip': (-5.808, 0.809, 0.892), 'left_knee': (51.288,), 'left_ankle': (3.671, 1.204),
     })
-    human.KeyRoot(0.9, (-2.187, 70.981, 46.244), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.9, (-2.187, 70.977, 45.81), (0.0, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (18.735, -1.82, -0.617), 'right_knee': (12.937,),
-        'right_ankle': (-5.793, -1.922), 'left_hip': (12.764, 1.478, 1.921), 'left_knee': (71.106,),
-        'left_ankle': (18.896, 2.423),
+        'right_hip': (18.385, -1.824, -0.606), 'right_knee': (11.433,),
+        'right_ankle': (-6.946, -1.922), 'left_hip': (9.016, 1.675, 1.414), 'left_knee': (59.006,),
+        'left_ankle': (19.0, 2.192),
     })
-    human.KeyRoot(1.0, (-2.358, 70.977, 46.261), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.358, 70.975, 46.261), (0.0, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (18.731, -1.962, -0.665), 'right_knee': (12.958,),
-        'right_ankle': (-5.763, -2.072), 'left_hip': (30.201, 1.603, 2.049), 'left_knee': (70.675,),
-        'left_ankle': (18.911, 2.601),
+        'right_hip': (18.742, -1.962, -0.666), 'right_knee': (12.98,),
+        'right_ankle': (-5.752, -2.072), 'left_hip': (20.684, 1.919, 1.14), 'left_knee': (49.571,),
+        'left_ankle': (19.0, 2.232),
     })
-    human.KeyRoot(1.1, (-1.544, 71.289, 51.007), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.1, (-1.543, 71.17, 51.011), (0.0, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (17.969, -1.284, -0.416), 'right_knee': (19.942,),
-        'right_ankle': (1.977, -1.35), 'left_hip': (24.932, 1.28, 0.594), 'left_knee': (41.048,),
-        'left_ankle': (16.32, 1.411),
+        'right_hip': (18.524, -1.282, -0.43), 'right_knee': (21.085,),
+        'right_ankle': (2.563, -1.352), 'left_hip': (22.453, 1.284, 0.529), 'left_knee': (36.044,),
+        'left_ankle': (13.795, 1.389),
     })
-    human.KeyRoot(1.2, (-0.487, 72.082, 57.163), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.487, 71.915, 57.163), (0.0, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'right_hip': (11.9, -0.412, -0.087), 'right_knee': (18.453,),
-        'right_ankle': (6.554, -0.421), 'left_hip': (11.893, 0.412, 0.087), 'left_knee': (18.439,),
-        'left_ankle': (6.544, 0.421),
+        'right_hip': (12.707, -0.412, -0.093), 'right_knee': (20.141,),
+        'right_ankle': (7.434, -0.422), 'left_hip': (12.705, 0.412, 0.093), 'left_knee': (20.136,),
+        'left_ankle': (7.432, 0.422),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 111.6), start=1.294737, duration=0.2628)
+    human.LookAt((-20.0, 135.0, 111.6), start=1.294737, duration=0.270061)
     human.KeyRoot(1.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (0.001, 0.0, -0.024), 'head': (0.001, 0.0), 'right_hip': (3.014, 0.0, 0.0),
-        'right_knee': (4.898,), 'right_ankle': (1.886, 0.0), 'left_hip': (3.011, 0.0, 0.0),
-        'left_knee': (4.893,), 'left_ankle': (1.884, 0.0),
+        'neck': (0.001, 0.0, -0.023), 'head': (0.001, 0.0), 'right_hip': (3.019, 0.0, 0.0),
+        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
+        'left_knee': (4.906,), 'left_ankle': (1.891, 0.0),
     })
-    human.KeyJoints(1.4, {'neck': (0.365, -0.002, -7.194), 'head': (0.368, 0.0)})
+    human.KeyJoints(1.4, {'neck': (0.349, -0.002, -6.87), 'head': (0.352, 0.0)})
     human.KeyJoints(1.5, {
-        'neck': (0.925, -0.005, -18.13), 'head': (0.932, 0.0),
-        'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (3.017, 0.0, 0.0),
-        'right_knee': (4.905,), 'right_ankle': (1.89, 0.0), 'left_hip': (3.016, 0.0, 0.0),
-        'left_knee': (4.903,), 'left_ankle': (1.889, 0.0),
+        'neck': (0.899, -0.005, -17.64), 'head': (0.906, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'right_hip': (3.019, 0.0, 0.0),
+        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
+        'left_knee': (4.908,), 'left_ankle': (1.891, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_left
-    human.LookAt((-20.0, 135.0, 111.6), start=1.557537, duration=10.906376)
+    human.LookAt((-20.0, 135.0, 111.6), start=1.564798, duration=10.899115)
     human.KeyJoints(1.6, {
-        'neck': (1.097, -0.004, -21.288), 'head': (1.103, 0.0),
+        'neck': (1.095, -0.004, -21.266), 'head': (1.101, 0.0),
         'right_shoulder': (8.654, 5.731, 11.451), 'right_elbow': (34.378, 17.184),
         'right_wrist': (-0.001, -0.023), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
@@ -776,50 +775,50 @@ def remove_access_panel_cad():
         'right_wrist': (-1.596, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 111.6), start=12.463913, duration=0.2628)
-    human.KeyJoints(12.5, {'neck': (-0.602, -0.711, -23.75), 'head': (-0.75, -0.002)})
-    human.KeyJoints(12.6, {'neck': (-0.903, -0.398, -1.824)})
+    human.LookAt((20.0, 135.0, 111.6), start=12.463913, duration=0.336746)
+    human.KeyJoints(12.5, {'neck': (-0.59, -0.723, -24.645), 'head': (-0.742, -0.002)})
+    human.KeyJoints(12.6, {'neck': (-0.796, -0.509, -9.61)})
     human.KeyJoints(12.7, {
         'spine_lumbar': (6.038, 0.806, 1.411), 'spine_thoracic': (-1.644, -1.603, 1.398),
-        'neck': (-1.184, -0.106, 18.673), 'head': (-1.115, -0.003), 'right_clavicle': (2.313, 0.78),
+        'neck': (-1.067, -0.228, 10.105), 'right_clavicle': (2.313, 0.78),
         'right_shoulder': (90.86, 10.606, -0.379),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_right
-    human.LookAt((20.0, 135.0, 111.6), start=12.726713, duration=10.521694)
     human.KeyJoints(12.8, {
         'spine_lumbar': (5.974, 0.606, 1.526), 'spine_thoracic': (-1.724, -1.64, 1.507),
-        'neck': (-1.097, -0.087, 18.206), 'head': (-1.024, -0.003), 'right_clavicle': (2.31, 0.889),
+        'neck': (-1.202, -0.086, 20.005), 'head': (-1.126, -0.003), 'right_clavicle': (2.31, 0.889),
         'right_shoulder': (90.795, 10.496, -0.322), 'right_elbow': (33.754, 10.093),
         'right_wrist': (-1.579, -29.962),
     })
+    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_right
+    human.LookAt((20.0, 135.0, 111.6), start=12.800659, duration=10.447749)
     human.KeyJoints(12.9, {
         'spine_lumbar': (5.404, -1.178, 2.547), 'spine_thoracic': (-2.437, -1.968, 2.476),
-        'neck': (-0.566, -0.127, 10.864), 'head': (-0.504, -0.004),
+        'neck': (-0.659, -0.174, 13.393), 'head': (-0.592, -0.003),
         'right_clavicle': (2.287, 1.864), 'right_shoulder': (90.215, 9.508, 0.191),
         'right_elbow': (34.085, 10.304), 'right_wrist': (-1.436, -29.619),
     })
     human.KeyJoints(13.0, {
         'spine_lumbar': (4.25, -4.797, 4.618), 'spine_thoracic': (-3.883, -2.634, 4.442),
-        'neck': (0.402, -0.278, 1.101), 'right_clavicle': (2.228, 3.842),
+        'neck': (0.424, -0.322, 1.282), 'right_clavicle': (2.228, 3.842),
         'right_shoulder': (88.937, 7.505, 1.232), 'right_wrist': (-1.144, -28.925),
     })
     human.KeyJoints(13.1, {
         'spine_lumbar': (2.933, -8.976, 7.007), 'spine_thoracic': (-5.546, -3.401, 6.711),
-        'neck': (1.432, -0.496, -6.939), 'head': (1.517, -0.002), 'right_clavicle': (2.117, 6.124),
+        'neck': (1.431, -0.398, -6.99), 'head': (1.525, -0.013), 'right_clavicle': (2.117, 6.124),
         'right_shoulder': (87.107, 5.2, 2.43), 'right_elbow': (35.525, 11.224),
         'right_wrist': (-0.808, -28.129),
     })
     human.KeyJoints(13.2, {
         'spine_lumbar': (3.691, -12.46, 8.868), 'spine_thoracic': (-6.979, -4.045, 8.478),
-        'neck': (2.048, -0.63, -11.105), 'head': (2.165, -0.004), 'right_clavicle': (2.1, 7.711),
+        'neck': (1.994, -0.434, -10.792), 'head': (2.112, -0.014), 'right_clavicle': (2.1, 7.711),
         'right_shoulder': (85.703, 4.706, 2.653), 'right_elbow': (35.451, 11.409),
         'right_wrist': (-0.821, -28.274),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.3, {
         'spine_lumbar': (6.855, -13.92, 9.586), 'spine_thoracic': (-8.513, -4.494, 9.141),
-        'neck': (0.596, -0.086, -13.207), 'head': (0.62, 0.0), 'right_clavicle': (2.778, 7.879),
+        'neck': (0.597, -0.496, -13.18), 'head': (0.726, -0.015), 'right_clavicle': (2.778, 7.879),
         'right_shoulder': (88.363, 7.263, 1.216), 'right_elbow': (34.359, 11.021),
         'right_wrist': (-1.416, -29.894),
     })
@@ -827,607 +826,607 @@ def remove_access_panel_cad():
     human.Grasp('right_hand', 'close', start=13.332364, duration=0.072)
     human.KeyJoints(13.4, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (0.313, 0.039, -14.779), 'head': (0.316, 0.003), 'right_clavicle': (2.794, 7.882),
+        'neck': (0.321, -0.525, -15.038), 'head': (0.458, -0.016), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (88.537, 7.32, 1.181), 'right_elbow': (34.178, 11.013),
         'right_wrist': (-1.418, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
         'spine_lumbar': (6.596, -14.3, 9.502), 'spine_thoracic': (-9.122, -4.703, 9.087),
-        'neck': (0.776, -0.112, -15.096), 'head': (0.807, -0.001), 'right_clavicle': (3.454, 7.692),
+        'neck': (0.78, -0.519, -15.31), 'head': (0.921, -0.016), 'right_clavicle': (3.454, 7.692),
         'right_shoulder': (87.672, 7.825, 1.152), 'right_elbow': (33.536, 11.075),
         'right_wrist': (-1.473, -29.984),
     })
     human.KeyJoints(13.6, {
         'spine_lumbar': (3.978, -18.71, 6.163), 'spine_thoracic': (-11.159, -9.102, 7.035),
-        'neck': (3.372, -0.965, -16.537), 'head': (3.57, -0.027), 'right_clavicle': (12.673, 5.15),
+        'neck': (3.295, -0.481, -16.363), 'head': (3.453, -0.015), 'right_clavicle': (12.673, 5.15),
         'right_shoulder': (82.731, 12.538, 5.5), 'right_elbow': (26.696, 16.227),
         'right_wrist': (0.564, -28.035),
     })
     human.KeyJoints(13.7, {
         'spine_lumbar': (5.134, -19.945, 3.905), 'spine_thoracic': (-11.789, -10.0, 6.214),
-        'neck': (3.171, -0.907, -15.991), 'head': (3.355, -0.025),
-        'right_clavicle': (21.923, 3.742), 'right_shoulder': (81.863, 16.994, 12.457),
-        'right_elbow': (25.59, 23.373), 'right_wrist': (3.377, -22.38),
+        'neck': (3.099, -0.478, -15.82), 'head': (3.253, -0.015), 'right_clavicle': (21.923, 3.742),
+        'right_shoulder': (81.863, 16.994, 12.457), 'right_elbow': (25.59, 23.373),
+        'right_wrist': (3.377, -22.38),
     })
     human.KeyJoints(13.8, {
         'spine_lumbar': (-1.1, -19.982, 5.252), 'spine_thoracic': (-11.449, -6.729, 6.891),
-        'neck': (5.614, -1.791, -13.714), 'head': (5.952, -0.044),
+        'neck': (5.502, -0.395, -13.479), 'head': (5.642, -0.014),
         'right_clavicle': (15.416, 5.761), 'right_shoulder': (80.217, 10.373, 6.733),
         'right_elbow': (22.692, 17.274), 'right_wrist': (1.178, -27.507),
     })
     human.KeyJoints(13.9, {
         'spine_lumbar': (1.538, -17.878, 8.98), 'spine_thoracic': (-10.584, -3.249, 8.937),
-        'neck': (3.91, -1.146, -16.678), 'head': (4.143, -0.032), 'right_clavicle': (4.426, 7.573),
+        'neck': (3.819, -0.472, -16.491), 'head': (3.979, -0.015), 'right_clavicle': (4.426, 7.573),
         'right_shoulder': (85.766, 7.39, -4.042), 'right_elbow': (22.39, 7.292),
         'right_wrist': (-3.446, -29.895),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(14.1, {
         'spine_lumbar': (1.851, -19.132, 7.499), 'spine_thoracic': (-10.659, -8.144, 7.722),
-        'neck': (4.157, -1.211, -17.617), 'head': (4.407, -0.035), 'right_clavicle': (7.542, 6.157),
+        'neck': (4.057, -0.479, -17.426), 'head': (4.224, -0.015), 'right_clavicle': (7.542, 6.157),
         'right_shoulder': (83.989, 9.575, -0.843), 'right_elbow': (22.832, 10.394),
         'right_wrist': (-2.012, -29.828),
     })
     human.KeyJoints(14.2, {
         'spine_lumbar': (4.397, -20.0, 4.382), 'spine_thoracic': (-11.57, -10.0, 6.36),
-        'neck': (3.443, -0.994, -16.281), 'head': (3.645, -0.028),
+        'neck': (3.364, -0.476, -16.101), 'head': (3.521, -0.015),
         'right_clavicle': (19.546, 4.124), 'right_shoulder': (81.859, 15.662, 10.356),
         'right_elbow': (24.963, 21.303), 'right_wrist': (2.588, -24.144),
     })
     human.KeyJoints(14.3, {
         'spine_lumbar': (4.282, -19.883, 3.848), 'spine_thoracic': (-11.796, -9.989, 6.198),
-        'neck': (3.545, -1.046, -15.419), 'head': (3.753, -0.029),
-        'right_clavicle': (21.909, 3.908), 'right_shoulder': (81.458, 16.391, 12.588),
-        'right_elbow': (25.471, 23.376), 'right_wrist': (3.428, -22.33),
+        'neck': (3.464, -0.463, -15.23), 'head': (3.615, -0.015), 'right_clavicle': (21.909, 3.908),
+        'right_shoulder': (81.458, 16.391, 12.588), 'right_elbow': (25.471, 23.376),
+        'right_wrist': (3.428, -22.33),
     })
     human.KeyJoints(14.4, {
         'spine_lumbar': (-0.464, -18.246, 8.649), 'spine_thoracic': (-11.417, -1.712, 8.888),
-        'neck': (5.138, -1.588, -15.522), 'head': (5.449, -0.044), 'right_clavicle': (6.246, 7.604),
+        'neck': (5.023, -0.431, -15.301), 'head': (5.175, -0.014), 'right_clavicle': (6.246, 7.604),
         'right_shoulder': (83.27, 7.18, -2.871), 'right_elbow': (21.422, 8.254),
         'right_wrist': (-3.036, -29.99),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(14.6, {
         'spine_lumbar': (1.748, -18.057, 8.475), 'spine_thoracic': (-9.918, -6.542, 8.304),
-        'neck': (3.713, -1.066, -17.336), 'head': (3.934, -0.03), 'right_clavicle': (4.229, 6.99),
+        'neck': (3.627, -0.484, -17.159), 'head': (3.791, -0.015), 'right_clavicle': (4.229, 6.99),
         'right_shoulder': (86.033, 7.728, -3.631), 'right_elbow': (22.825, 7.674),
         'right_wrist': (-3.167, -30.0),
     })
     human.KeyJoints(14.7, {
         'spine_lumbar': (3.084, -19.997, 5.513), 'spine_thoracic': (-11.23, -9.907, 6.767),
-        'neck': (3.953, -1.153, -17.036), 'head': (4.189, -0.033),
+        'neck': (3.859, -0.475, -16.845), 'head': (4.021, -0.015),
         'right_clavicle': (14.591, 4.871), 'right_shoulder': (82.111, 13.107, 5.78),
         'right_elbow': (23.788, 16.835), 'right_wrist': (0.794, -27.108),
     })
     human.KeyJoints(14.8, {
         'spine_lumbar': (5.2, -19.931, 3.869), 'spine_thoracic': (-11.814, -10.0, 6.205),
-        'neck': (3.148, -0.9, -15.964), 'head': (3.33, -0.025), 'right_clavicle': (22.13, 3.709),
+        'neck': (3.077, -0.478, -15.794), 'head': (3.231, -0.015), 'right_clavicle': (22.13, 3.709),
         'right_shoulder': (81.865, 17.113, 12.636), 'right_elbow': (25.647, 23.55),
         'right_wrist': (3.445, -22.222),
     })
     human.KeyJoints(14.9, {
         'spine_lumbar': (-1.983, -19.766, 6.173), 'spine_thoracic': (-11.416, -4.875, 7.391),
-        'neck': (5.917, -1.891, -13.866), 'head': (6.274, -0.048),
-        'right_clavicle': (12.393, 6.399), 'right_shoulder': (80.44, 8.672, 3.59),
-        'right_elbow': (21.72, 14.237), 'right_wrist': (-0.15, -29.196),
+        'neck': (5.8, -0.391, -13.633), 'head': (5.94, -0.014), 'right_clavicle': (12.393, 6.399),
+        'right_shoulder': (80.44, 8.672, 3.59), 'right_elbow': (21.72, 14.237),
+        'right_wrist': (-0.15, -29.196),
     })
     human.KeyJoints(15.0, {
         'spine_lumbar': (1.735, -17.812, 8.872), 'spine_thoracic': (-10.063, -4.229, 8.76),
-        'neck': (3.626, -1.045, -16.86), 'head': (3.841, -0.03), 'right_clavicle': (3.917, 7.463),
+        'neck': (3.543, -0.48, -16.684), 'head': (3.703, -0.015), 'right_clavicle': (3.917, 7.463),
         'right_shoulder': (86.467, 7.317, -4.143), 'right_elbow': (22.644, 7.198),
         'right_wrist': (-3.434, -29.919),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
         'spine_lumbar': (1.875, -17.611, 8.556), 'spine_thoracic': (-8.901, -6.215, 8.323),
-        'neck': (3.118, -0.87, -16.995), 'head': (3.299, -0.025), 'right_clavicle': (2.846, 7.246),
+        'neck': (3.05, -0.492, -16.841), 'head': (3.21, -0.015), 'right_clavicle': (2.846, 7.246),
         'right_shoulder': (87.65, 6.753, -4.268), 'right_elbow': (23.101, 7.043),
         'right_wrist': (-3.33, -30.0),
     })
     human.KeyJoints(15.2, {
         'spine_lumbar': (2.032, -19.486, 7.015), 'spine_thoracic': (-10.829, -8.749, 7.454),
-        'neck': (4.201, -1.226, -17.593), 'head': (4.454, -0.035), 'right_clavicle': (9.084, 5.817),
+        'neck': (4.099, -0.477, -17.399), 'head': (4.266, -0.015), 'right_clavicle': (9.084, 5.817),
         'right_shoulder': (83.359, 10.371, 0.592), 'right_elbow': (22.958, 11.789),
         'right_wrist': (-1.394, -29.441),
     })
     human.KeyJoints(15.3, {
         'spine_lumbar': (4.74, -19.998, 4.146), 'spine_thoracic': (-11.66, -10.0, 6.279),
-        'neck': (3.312, -0.952, -16.15), 'head': (3.506, -0.027), 'right_clavicle': (20.649, 3.942),
-        'right_shoulder': (81.856, 16.279, 11.351), 'right_elbow': (25.271, 22.279),
-        'right_wrist': (2.96, -23.339),
+        'neck': (3.237, -0.477, -15.974), 'head': (3.392, -0.015),
+        'right_clavicle': (20.649, 3.942), 'right_shoulder': (81.856, 16.279, 11.351),
+        'right_elbow': (25.271, 22.279), 'right_wrist': (2.96, -23.339),
     })
     human.KeyJoints(15.4, {
         'spine_lumbar': (2.669, -19.941, 4.011), 'spine_thoracic': (-11.692, -9.569, 6.251),
-        'neck': (4.194, -1.281, -14.708), 'head': (4.443, -0.035),
-        'right_clavicle': (20.655, 4.352), 'right_shoulder': (80.901, 14.822, 11.656),
-        'right_elbow': (24.927, 22.293), 'right_wrist': (3.093, -23.331),
+        'neck': (4.101, -0.44, -14.495), 'head': (4.247, -0.014), 'right_clavicle': (20.655, 4.352),
+        'right_shoulder': (80.901, 14.822, 11.656), 'right_elbow': (24.927, 22.293),
+        'right_wrist': (3.093, -23.331),
     })
     human.KeyJoints(15.5, {
         'spine_lumbar': (0.452, -18.011, 8.965), 'spine_thoracic': (-11.267, -1.869, 9.042),
-        'neck': (4.661, -1.415, -16.021), 'head': (4.942, -0.04), 'right_clavicle': (5.397, 7.669),
+        'neck': (4.553, -0.447, -15.81), 'head': (4.709, -0.014), 'right_clavicle': (5.397, 7.669),
         'right_shoulder': (84.243, 7.286, -3.584), 'right_elbow': (21.834, 7.647),
         'right_wrist': (-3.349, -29.926),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(15.7, {
         'spine_lumbar': (1.737, -18.377, 8.313), 'spine_thoracic': (-10.253, -6.914, 8.229),
-        'neck': (3.918, -1.131, -17.559), 'head': (4.152, -0.033), 'right_clavicle': (5.152, 6.773),
+        'neck': (3.824, -0.483, -17.376), 'head': (3.99, -0.015), 'right_clavicle': (5.152, 6.773),
         'right_shoulder': (85.288, 8.291, -3.007), 'right_elbow': (22.772, 8.287),
         'right_wrist': (-2.947, -30.0),
     })
     human.KeyJoints(15.8, {
         'spine_lumbar': (3.529, -20.0, 5.082), 'spine_thoracic': (-11.353, -9.995, 6.612),
-        'neck': (3.785, -1.102, -16.744), 'head': (4.01, -0.031), 'right_clavicle': (16.441, 4.605),
-        'right_shoulder': (81.954, 14.024, 7.5), 'right_elbow': (24.173, 18.511),
-        'right_wrist': (1.488, -26.119),
+        'neck': (3.696, -0.475, -16.556), 'head': (3.857, -0.015),
+        'right_clavicle': (16.441, 4.605), 'right_shoulder': (81.954, 14.024, 7.5),
+        'right_elbow': (24.173, 18.511), 'right_wrist': (1.488, -26.119),
     })
     human.KeyJoints(15.9, {
         'spine_lumbar': (5.212, -19.929, 3.862), 'spine_thoracic': (-11.818, -10.0, 6.204),
-        'neck': (3.143, -0.899, -15.96), 'head': (3.326, -0.025), 'right_clavicle': (22.169, 3.703),
-        'right_shoulder': (81.865, 17.135, 12.67), 'right_elbow': (25.656, 23.583),
-        'right_wrist': (3.457, -22.191),
+        'neck': (3.073, -0.478, -15.789), 'head': (3.226, -0.015),
+        'right_clavicle': (22.169, 3.703), 'right_shoulder': (81.865, 17.135, 12.67),
+        'right_elbow': (25.656, 23.583), 'right_wrist': (3.457, -22.191),
     })
     human.KeyJoints(16.0, {
         'spine_lumbar': (-2.118, -19.258, 7.142), 'spine_thoracic': (-11.441, -3.278, 7.96),
-        'neck': (5.933, -1.886, -14.263), 'head': (6.292, -0.051), 'right_clavicle': (9.742, 6.931),
+        'neck': (5.812, -0.396, -14.032), 'head': (5.956, -0.014), 'right_clavicle': (9.742, 6.931),
         'right_shoulder': (81.181, 7.644, 0.732), 'right_elbow': (21.173, 11.543),
         'right_wrist': (-1.406, -29.962),
     })
     human.KeyJoints(16.1, {
         'spine_lumbar': (1.843, -17.705, 8.71), 'spine_thoracic': (-9.441, -5.285, 8.532),
-        'neck': (3.339, -0.946, -16.941), 'head': (3.534, -0.027), 'right_clavicle': (3.336, 7.349),
+        'neck': (3.263, -0.487, -16.777), 'head': (3.424, -0.015), 'right_clavicle': (3.336, 7.349),
         'right_shoulder': (87.13, 7.027, -4.221), 'right_elbow': (22.895, 7.108),
         'right_wrist': (-3.383, -29.961),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
         'spine_lumbar': (1.856, -17.668, 8.554), 'spine_thoracic': (-9.048, -6.247, 8.322),
-        'neck': (3.204, -0.898, -17.043), 'head': (3.391, -0.025), 'right_clavicle': (3.027, 7.215),
+        'neck': (3.133, -0.491, -16.885), 'head': (3.294, -0.015), 'right_clavicle': (3.027, 7.215),
         'right_shoulder': (87.422, 6.885, -4.198), 'right_elbow': (23.061, 7.113),
         'right_wrist': (-3.318, -30.0),
     })
     human.KeyJoints(16.3, {
         'spine_lumbar': (2.305, -19.764, 6.505), 'spine_thoracic': (-10.975, -9.264, 7.195),
-        'neck': (4.179, -1.221, -17.488), 'head': (4.43, -0.035), 'right_clavicle': (10.81, 5.482),
+        'neck': (4.077, -0.477, -17.294), 'head': (4.244, -0.015), 'right_clavicle': (10.81, 5.482),
         'right_shoulder': (82.816, 11.241, 2.218), 'right_elbow': (23.159, 13.371),
         'right_wrist': (-0.697, -28.835),
     })
     human.KeyJoints(16.4, {
         'spine_lumbar': (4.985, -19.97, 3.993), 'spine_thoracic': (-11.738, -10.0, 6.235),
-        'neck': (3.223, -0.924, -16.052), 'head': (3.411, -0.026), 'right_clavicle': (21.44, 3.816),
+        'neck': (3.151, -0.478, -15.879), 'head': (3.305, -0.015), 'right_clavicle': (21.44, 3.816),
         'right_shoulder': (81.859, 16.723, 12.043), 'right_elbow': (25.476, 22.963),
         'right_wrist': (3.22, -22.748),
     })
     human.KeyJoints(16.5, {
         'spine_lumbar': (0.661, -20.0, 4.488), 'spine_thoracic': (-11.555, -8.424, 6.489),
-        'neck': (4.963, -1.559, -14.029), 'head': (5.259, -0.041),
-        'right_clavicle': (18.379, 5.028), 'right_shoulder': (80.392, 12.616, 9.637),
-        'right_elbow': (23.907, 20.173), 'right_wrist': (2.336, -25.271),
+        'neck': (4.859, -0.414, -13.799), 'head': (5.0, -0.014), 'right_clavicle': (18.379, 5.028),
+        'right_shoulder': (80.392, 12.616, 9.637), 'right_elbow': (23.907, 20.173),
+        'right_wrist': (2.336, -25.271),
     })
     human.KeyJoints(16.6, {
         'spine_lumbar': (1.115, -17.913, 9.048), 'spine_thoracic': (-10.99, -2.401, 9.069),
-        'neck': (4.253, -1.268, -16.414), 'head': (4.508, -0.036), 'right_clavicle': (4.832, 7.672),
+        'neck': (4.153, -0.461, -16.215), 'head': (4.312, -0.015), 'right_clavicle': (4.832, 7.672),
         'right_shoulder': (85.078, 7.386, -3.914), 'right_elbow': (22.154, 7.383),
         'right_wrist': (-3.442, -29.882),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(16.8, {
         'spine_lumbar': (1.751, -18.744, 7.934), 'spine_thoracic': (-10.461, -7.508, 7.981),
-        'neck': (4.057, -1.178, -17.583), 'head': (4.301, -0.034), 'right_clavicle': (6.204, 6.485),
+        'neck': (3.96, -0.48, -17.395), 'head': (4.126, -0.015), 'right_clavicle': (6.204, 6.485),
         'right_shoulder': (84.666, 8.864, -2.065), 'right_elbow': (22.76, 9.205),
         'right_wrist': (-2.536, -29.997),
     })
     human.KeyJoints(16.9, {
         'spine_lumbar': (3.975, -20.0, 4.704), 'spine_thoracic': (-11.468, -10.0, 6.479),
-        'neck': (3.61, -1.047, -16.486), 'right_clavicle': (18.117, 4.355),
+        'neck': (3.527, -0.475, -16.301), 'right_clavicle': (18.117, 4.355),
         'right_shoulder': (81.88, 14.886, 9.045), 'right_elbow': (24.573, 20.02),
         'right_wrist': (2.092, -25.113),
     })
     human.KeyJoints(17.0, {
         'spine_lumbar': (5.078, -19.892, 3.866), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (3.205, -0.921, -15.865), 'head': (3.392, -0.026),
+        'neck': (3.133, -0.476, -15.692), 'head': (3.286, -0.015),
         'right_clavicle': (22.181, 3.739), 'right_shoulder': (81.802, 17.039, 12.683),
         'right_elbow': (25.612, 23.581), 'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(17.1, {
         'spine_lumbar': (-1.465, -18.752, 7.991), 'spine_thoracic': (-11.47, -2.196, 8.479),
-        'neck': (5.625, -1.768, -14.91), 'head': (5.966, -0.048), 'right_clavicle': (7.69, 7.326),
+        'neck': (5.504, -0.412, -14.681), 'head': (5.652, -0.014), 'right_clavicle': (7.69, 7.326),
         'right_shoulder': (82.188, 7.209, -1.506), 'right_elbow': (21.0, 9.488),
         'right_wrist': (-2.41, -30.0),
     })
     human.KeyJoints(17.2, {
         'spine_lumbar': (1.876, -17.616, 8.576), 'spine_thoracic': (-8.952, -6.094, 8.349),
-        'neck': (3.135, -0.876, -16.983), 'head': (3.317, -0.025), 'right_clavicle': (2.887, 7.262),
+        'neck': (3.066, -0.491, -16.829), 'head': (3.226, -0.015), 'right_clavicle': (2.887, 7.262),
         'right_shoulder': (87.611, 6.772, -4.27), 'right_elbow': (23.08, 7.044),
         'right_wrist': (-3.338, -29.995),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
         'spine_lumbar': (1.809, -17.812, 8.538), 'spine_thoracic': (-9.405, -6.34, 8.319),
-        'neck': (3.412, -0.967, -17.154), 'head': (3.613, -0.027), 'right_clavicle': (3.477, 7.136),
+        'neck': (3.335, -0.488, -16.988), 'head': (3.497, -0.015), 'right_clavicle': (3.477, 7.136),
         'right_shoulder': (86.87, 7.209, -4.008), 'right_elbow': (22.961, 7.301),
         'right_wrist': (-3.275, -30.0),
     })
     human.KeyJoints(17.4, {
         'spine_lumbar': (2.661, -19.939, 5.998), 'spine_thoracic': (-11.105, -9.65, 6.963),
-        'neck': (4.092, -1.195, -17.303), 'head': (4.338, -0.034), 'right_clavicle': (12.66, 5.165),
+        'neck': (3.994, -0.476, -17.109), 'head': (4.159, -0.015), 'right_clavicle': (12.66, 5.165),
         'right_shoulder': (82.397, 12.159, 3.967), 'right_elbow': (23.439, 15.071),
         'right_wrist': (0.042, -28.042),
     })
     human.KeyJoints(17.5, {
         'spine_lumbar': (5.134, -19.944, 3.906), 'spine_thoracic': (-11.79, -10.0, 6.214),
-        'neck': (3.171, -0.907, -15.99), 'head': (3.355, -0.025), 'right_clavicle': (21.917, 3.742),
-        'right_shoulder': (81.863, 16.993, 12.455), 'right_elbow': (25.595, 23.37),
-        'right_wrist': (3.376, -22.385),
+        'neck': (3.099, -0.478, -15.819), 'head': (3.253, -0.015),
+        'right_clavicle': (21.917, 3.742), 'right_shoulder': (81.863, 16.993, 12.455),
+        'right_elbow': (25.595, 23.37), 'right_wrist': (3.376, -22.385),
     })
     human.KeyJoints(17.6, {
         'spine_lumbar': (-1.074, -19.984, 5.238), 'spine_thoracic': (-11.45, -6.76, 6.884),
-        'neck': (5.605, -1.788, -13.717), 'head': (5.942, -0.044), 'right_clavicle': (15.468, 5.75),
+        'neck': (5.493, -0.395, -13.482), 'head': (5.633, -0.014), 'right_clavicle': (15.468, 5.75),
         'right_shoulder': (80.216, 10.407, 6.786), 'right_elbow': (22.711, 17.326),
         'right_wrist': (1.2, -27.472),
     })
     human.KeyJoints(17.7, {
         'spine_lumbar': (1.533, -17.878, 8.981), 'spine_thoracic': (-10.592, -3.234, 8.94),
-        'neck': (3.915, -1.147, -16.674), 'head': (4.148, -0.032), 'right_clavicle': (4.433, 7.575),
+        'neck': (3.824, -0.472, -16.486), 'head': (3.984, -0.015), 'right_clavicle': (4.433, 7.575),
         'right_shoulder': (85.755, 7.39, -4.04), 'right_elbow': (22.386, 7.293),
         'right_wrist': (-3.446, -29.895),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(17.9, {
         'spine_lumbar': (1.849, -19.126, 7.507), 'spine_thoracic': (-10.656, -8.133, 7.726),
-        'neck': (4.156, -1.21, -17.617), 'head': (4.406, -0.035), 'right_clavicle': (7.518, 6.162),
+        'neck': (4.055, -0.479, -17.426), 'head': (4.222, -0.015), 'right_clavicle': (7.518, 6.162),
         'right_shoulder': (84.0, 9.562, -0.865), 'right_elbow': (22.831, 10.372),
         'right_wrist': (-2.022, -29.832),
     })
     human.KeyJoints(18.0, {
         'spine_lumbar': (4.39, -20.0, 4.387), 'spine_thoracic': (-11.569, -10.0, 6.362),
-        'neck': (3.446, -0.995, -16.284), 'head': (3.648, -0.028),
+        'neck': (3.367, -0.476, -16.104), 'head': (3.523, -0.015),
         'right_clavicle': (19.525, 4.128), 'right_shoulder': (81.859, 15.65, 10.337),
         'right_elbow': (24.957, 21.284), 'right_wrist': (2.581, -24.159),
     })
     human.KeyJoints(18.1, {
         'spine_lumbar': (4.303, -19.883, 3.847), 'spine_thoracic': (-11.797, -9.991, 6.198),
-        'neck': (3.536, -1.043, -15.429), 'head': (3.744, -0.029), 'right_clavicle': (21.92, 3.903),
+        'neck': (3.456, -0.463, -15.24), 'head': (3.607, -0.015), 'right_clavicle': (21.92, 3.903),
         'right_shoulder': (81.466, 16.409, 12.595), 'right_elbow': (25.476, 23.386),
         'right_wrist': (3.43, -22.322),
     })
     human.KeyJoints(18.2, {
         'spine_lumbar': (-0.481, -18.252, 8.64), 'spine_thoracic': (-11.419, -1.716, 8.883),
-        'neck': (5.146, -1.591, -15.513), 'head': (5.458, -0.044), 'right_clavicle': (6.265, 7.601),
+        'neck': (5.031, -0.43, -15.292), 'head': (5.183, -0.014), 'right_clavicle': (6.265, 7.601),
         'right_shoulder': (83.253, 7.18, -2.854), 'right_elbow': (21.413, 8.269),
         'right_wrist': (-3.028, -29.99),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(18.4, {
         'spine_lumbar': (1.749, -18.052, 8.477), 'spine_thoracic': (-9.91, -6.537, 8.304),
-        'neck': (3.709, -1.064, -17.332), 'head': (3.929, -0.03), 'right_clavicle': (4.214, 6.993),
+        'neck': (3.622, -0.484, -17.155), 'head': (3.786, -0.015), 'right_clavicle': (4.214, 6.993),
         'right_shoulder': (86.047, 7.718, -3.639), 'right_elbow': (22.827, 7.666),
         'right_wrist': (-3.17, -30.0),
     })
     human.KeyJoints(18.5, {
         'spine_lumbar': (3.077, -19.997, 5.521), 'spine_thoracic': (-11.228, -9.904, 6.77),
-        'neck': (3.956, -1.154, -17.041), 'head': (4.192, -0.033),
+        'neck': (3.861, -0.475, -16.849), 'head': (4.024, -0.015),
         'right_clavicle': (14.559, 4.875), 'right_shoulder': (82.115, 13.092, 5.75),
         'right_elbow': (23.782, 16.806), 'right_wrist': (0.782, -27.124),
     })
     human.KeyJoints(18.6, {
         'spine_lumbar': (5.2, -19.931, 3.869), 'spine_thoracic': (-11.813, -10.0, 6.205),
-        'neck': (3.148, -0.9, -15.965), 'head': (3.331, -0.025), 'right_clavicle': (22.128, 3.709),
-        'right_shoulder': (81.865, 17.112, 12.635), 'right_elbow': (25.646, 23.549),
-        'right_wrist': (3.444, -22.223),
+        'neck': (3.077, -0.478, -15.794), 'head': (3.231, -0.015),
+        'right_clavicle': (22.128, 3.709), 'right_shoulder': (81.865, 17.112, 12.635),
+        'right_elbow': (25.646, 23.549), 'right_wrist': (3.444, -22.223),
     })
     human.KeyJoints(18.7, {
         'spine_lumbar': (-1.977, -19.773, 6.156), 'spine_thoracic': (-11.416, -4.906, 7.382),
-        'neck': (5.916, -1.891, -13.861), 'head': (6.272, -0.048),
+        'neck': (5.798, -0.391, -13.627), 'head': (5.939, -0.014),
         'right_clavicle': (12.442, 6.389), 'right_shoulder': (80.431, 8.696, 3.642),
         'right_elbow': (21.733, 14.287), 'right_wrist': (-0.127, -29.173),
     })
     human.KeyJoints(18.8, {
         'spine_lumbar': (1.732, -17.813, 8.875), 'spine_thoracic': (-10.073, -4.211, 8.764),
-        'neck': (3.631, -1.047, -16.858), 'head': (3.846, -0.03), 'right_clavicle': (3.927, 7.465),
+        'neck': (3.548, -0.48, -16.681), 'head': (3.708, -0.015), 'right_clavicle': (3.927, 7.465),
         'right_shoulder': (86.455, 7.32, -4.142), 'right_elbow': (22.64, 7.199),
         'right_wrist': (-3.434, -29.919),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
         'spine_lumbar': (1.875, -17.61, 8.556), 'spine_thoracic': (-8.9, -6.215, 8.323),
-        'neck': (3.118, -0.87, -16.995), 'head': (3.298, -0.025), 'right_clavicle': (2.845, 7.246),
+        'neck': (3.049, -0.492, -16.841), 'head': (3.21, -0.015), 'right_clavicle': (2.845, 7.246),
         'right_shoulder': (87.652, 6.752, -4.268), 'right_elbow': (23.102, 7.043),
         'right_wrist': (-3.33, -30.0),
     })
     human.KeyJoints(19.0, {
         'spine_lumbar': (2.028, -19.481, 7.024), 'spine_thoracic': (-10.826, -8.739, 7.458),
-        'neck': (4.201, -1.226, -17.594), 'head': (4.454, -0.035), 'right_clavicle': (9.056, 5.823),
+        'neck': (4.099, -0.477, -17.4), 'head': (4.266, -0.015), 'right_clavicle': (9.056, 5.823),
         'right_shoulder': (83.369, 10.357, 0.566), 'right_elbow': (22.955, 11.764),
         'right_wrist': (-1.406, -29.449),
     })
     human.KeyJoints(19.1, {
         'spine_lumbar': (4.735, -19.998, 4.149), 'spine_thoracic': (-11.658, -10.0, 6.28),
-        'neck': (3.314, -0.953, -16.152), 'head': (3.508, -0.027),
+        'neck': (3.239, -0.477, -15.976), 'head': (3.394, -0.015),
         'right_clavicle': (20.633, 3.945), 'right_shoulder': (81.856, 16.27, 11.336),
         'right_elbow': (25.267, 22.265), 'right_wrist': (2.954, -23.351),
     })
     human.KeyJoints(19.2, {
         'spine_lumbar': (2.702, -19.94, 4.005), 'spine_thoracic': (-11.694, -9.583, 6.249),
-        'neck': (4.182, -1.277, -14.72), 'head': (4.43, -0.035), 'right_clavicle': (20.686, 4.342),
+        'neck': (4.089, -0.44, -14.508), 'head': (4.235, -0.014), 'right_clavicle': (20.686, 4.342),
         'right_shoulder': (80.911, 14.855, 11.681), 'right_elbow': (24.941, 22.321),
         'right_wrist': (3.102, -23.305),
     })
     human.KeyJoints(19.3, {
         'spine_lumbar': (0.437, -18.013, 8.961), 'spine_thoracic': (-11.27, -1.861, 9.04),
-        'neck': (4.669, -1.418, -16.012), 'head': (4.95, -0.04), 'right_clavicle': (5.408, 7.668),
+        'neck': (4.561, -0.447, -15.8), 'head': (4.717, -0.014), 'right_clavicle': (5.408, 7.668),
         'right_shoulder': (84.227, 7.282, -3.575), 'right_elbow': (21.828, 7.654),
         'right_wrist': (-3.345, -29.928),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(19.5, {
         'spine_lumbar': (1.736, -18.371, 8.318), 'spine_thoracic': (-10.249, -6.906, 8.232),
-        'neck': (3.915, -1.13, -17.557), 'head': (4.149, -0.032), 'right_clavicle': (5.136, 6.777),
+        'neck': (3.822, -0.483, -17.374), 'head': (3.988, -0.015), 'right_clavicle': (5.136, 6.777),
         'right_shoulder': (85.299, 8.282, -3.02), 'right_elbow': (22.772, 8.274),
         'right_wrist': (-2.953, -30.0),
     })
     human.KeyJoints(19.6, {
         'spine_lumbar': (3.522, -20.0, 5.089), 'spine_thoracic': (-11.351, -9.994, 6.615),
-        'neck': (3.788, -1.103, -16.749), 'head': (4.013, -0.031),
+        'neck': (3.699, -0.475, -16.561), 'head': (3.859, -0.015),
         'right_clavicle': (16.411, 4.609), 'right_shoulder': (81.956, 14.008, 7.472),
         'right_elbow': (24.166, 18.484), 'right_wrist': (1.477, -26.136),
     })
     human.KeyJoints(19.7, {
         'spine_lumbar': (5.212, -19.929, 3.862), 'spine_thoracic': (-11.818, -10.0, 6.204),
-        'neck': (3.143, -0.899, -15.96), 'head': (3.326, -0.025), 'right_clavicle': (22.169, 3.703),
-        'right_shoulder': (81.865, 17.135, 12.67), 'right_elbow': (25.656, 23.583),
-        'right_wrist': (3.457, -22.191),
+        'neck': (3.073, -0.478, -15.789), 'head': (3.226, -0.015),
+        'right_clavicle': (22.169, 3.703), 'right_shoulder': (81.865, 17.135, 12.67),
+        'right_elbow': (25.656, 23.583), 'right_wrist': (3.457, -22.191),
     })
     human.KeyJoints(19.8, {
         'spine_lumbar': (-2.122, -19.266, 7.127), 'spine_thoracic': (-11.441, -3.301, 7.95),
-        'neck': (5.936, -1.887, -14.254), 'head': (6.294, -0.051), 'right_clavicle': (9.782, 6.923),
+        'neck': (5.815, -0.396, -14.022), 'head': (5.958, -0.014), 'right_clavicle': (9.782, 6.923),
         'right_shoulder': (81.167, 7.656, 0.775), 'right_elbow': (21.178, 11.584),
         'right_wrist': (-1.386, -29.961),
     })
     human.KeyJoints(19.9, {
         'spine_lumbar': (1.842, -17.706, 8.712), 'spine_thoracic': (-9.451, -5.269, 8.536),
-        'neck': (3.343, -0.947, -16.94), 'head': (3.539, -0.027), 'right_clavicle': (3.345, 7.351),
+        'neck': (3.268, -0.487, -16.776), 'head': (3.428, -0.015), 'right_clavicle': (3.345, 7.351),
         'right_shoulder': (87.12, 7.033, -4.22), 'right_elbow': (22.891, 7.109),
         'right_wrist': (-3.384, -29.96),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
         'spine_lumbar': (1.856, -17.666, 8.554), 'spine_thoracic': (-9.044, -6.246, 8.322),
-        'neck': (3.202, -0.897, -17.041), 'head': (3.388, -0.025), 'right_clavicle': (3.022, 7.216),
+        'neck': (3.131, -0.491, -16.884), 'head': (3.291, -0.015), 'right_clavicle': (3.022, 7.216),
         'right_shoulder': (87.429, 6.881, -4.2), 'right_elbow': (23.062, 7.111),
         'right_wrist': (-3.318, -30.0),
     })
     human.KeyJoints(20.1, {
         'spine_lumbar': (2.3, -19.76, 6.514), 'spine_thoracic': (-10.973, -9.256, 7.199),
-        'neck': (4.18, -1.221, -17.491), 'head': (4.431, -0.035), 'right_clavicle': (10.78, 5.488),
+        'neck': (4.078, -0.477, -17.296), 'head': (4.244, -0.015), 'right_clavicle': (10.78, 5.488),
         'right_shoulder': (82.824, 11.226, 2.189), 'right_elbow': (23.155, 13.343),
         'right_wrist': (-0.71, -28.847),
     })
     human.KeyJoints(20.2, {
         'spine_lumbar': (4.982, -19.971, 3.995), 'spine_thoracic': (-11.737, -10.0, 6.236),
-        'neck': (3.224, -0.924, -16.053), 'head': (3.412, -0.026),
-        'right_clavicle': (21.429, 3.818), 'right_shoulder': (81.859, 16.717, 12.034),
-        'right_elbow': (25.473, 22.954), 'right_wrist': (3.217, -22.756),
+        'neck': (3.152, -0.478, -15.88), 'head': (3.306, -0.015), 'right_clavicle': (21.429, 3.818),
+        'right_shoulder': (81.859, 16.717, 12.034), 'right_elbow': (25.473, 22.954),
+        'right_wrist': (3.217, -22.756),
     })
     human.KeyJoints(20.3, {
         'spine_lumbar': (0.695, -20.0, 4.477), 'spine_thoracic': (-11.558, -8.448, 6.484),
-        'neck': (4.95, -1.554, -14.039), 'head': (5.246, -0.041), 'right_clavicle': (18.425, 5.016),
-        'right_shoulder': (80.399, 12.656, 9.679), 'right_elbow': (23.927, 20.217),
-        'right_wrist': (2.353, -25.233),
+        'neck': (4.846, -0.414, -13.809), 'head': (4.988, -0.014),
+        'right_clavicle': (18.425, 5.016), 'right_shoulder': (80.399, 12.656, 9.679),
+        'right_elbow': (23.927, 20.217), 'right_wrist': (2.353, -25.233),
     })
     human.KeyJoints(20.4, {
         'spine_lumbar': (1.107, -17.913, 9.048), 'spine_thoracic': (-10.996, -2.389, 9.07),
-        'neck': (4.259, -1.27, -16.409), 'head': (4.514, -0.036), 'right_clavicle': (4.84, 7.673),
+        'neck': (4.159, -0.461, -16.21), 'head': (4.317, -0.015), 'right_clavicle': (4.84, 7.673),
         'right_shoulder': (85.066, 7.386, -3.911), 'right_elbow': (22.149, 7.385),
         'right_wrist': (-3.442, -29.882),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(20.6, {
         'spine_lumbar': (1.75, -18.737, 7.941), 'spine_thoracic': (-10.458, -7.498, 7.985),
-        'neck': (4.055, -1.177, -17.582), 'head': (4.298, -0.034), 'right_clavicle': (6.183, 6.49),
+        'neck': (3.958, -0.48, -17.394), 'head': (4.124, -0.015), 'right_clavicle': (6.183, 6.49),
         'right_shoulder': (84.677, 8.853, -2.083), 'right_elbow': (22.76, 9.188),
         'right_wrist': (-2.544, -29.998),
     })
     human.KeyJoints(20.7, {
         'spine_lumbar': (3.968, -20.0, 4.71), 'spine_thoracic': (-11.466, -10.0, 6.481),
-        'neck': (3.613, -1.048, -16.49), 'right_clavicle': (18.091, 4.359),
+        'neck': (3.529, -0.475, -16.305), 'right_clavicle': (18.091, 4.359),
         'right_shoulder': (81.88, 14.872, 9.021), 'right_elbow': (24.566, 19.997),
         'right_wrist': (2.083, -25.13),
     })
     human.KeyJoints(20.8, {
         'spine_lumbar': (5.082, -19.892, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (3.203, -0.921, -15.868), 'head': (3.39, -0.026), 'right_clavicle': (22.181, 3.738),
-        'right_shoulder': (81.804, 17.042, 12.683), 'right_elbow': (25.614, 23.581),
-        'right_wrist': (3.465, -22.192),
+        'neck': (3.131, -0.476, -15.694), 'head': (3.284, -0.015),
+        'right_clavicle': (22.181, 3.738), 'right_shoulder': (81.804, 17.042, 12.683),
+        'right_elbow': (25.614, 23.581), 'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(20.9, {
         'spine_lumbar': (-1.477, -18.76, 7.979), 'spine_thoracic': (-11.47, -2.207, 8.472),
-        'neck': (5.631, -1.77, -14.899), 'head': (5.972, -0.048), 'right_clavicle': (7.718, 7.321),
+        'neck': (5.51, -0.412, -14.671), 'head': (5.658, -0.014), 'right_clavicle': (7.718, 7.321),
         'right_shoulder': (82.171, 7.21, -1.478), 'right_elbow': (21.001, 9.513),
         'right_wrist': (-2.398, -30.0),
     })
     human.KeyJoints(21.0, {
         'spine_lumbar': (1.876, -17.617, 8.577), 'spine_thoracic': (-8.958, -6.085, 8.351),
-        'neck': (3.137, -0.877, -16.983), 'head': (3.319, -0.025), 'right_clavicle': (2.892, 7.263),
+        'neck': (3.068, -0.491, -16.828), 'head': (3.228, -0.015), 'right_clavicle': (2.892, 7.263),
         'right_shoulder': (87.606, 6.775, -4.27), 'right_elbow': (23.078, 7.044),
         'right_wrist': (-3.339, -29.995),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
         'spine_lumbar': (1.81, -17.809, 8.538), 'spine_thoracic': (-9.398, -6.338, 8.319),
-        'neck': (3.408, -0.965, -17.151), 'head': (3.608, -0.027), 'right_clavicle': (3.467, 7.138),
+        'neck': (3.33, -0.488, -16.985), 'head': (3.492, -0.015), 'right_clavicle': (3.467, 7.138),
         'right_shoulder': (86.882, 7.202, -4.013), 'right_elbow': (22.963, 7.297),
         'right_wrist': (-3.276, -30.0),
     })
     human.KeyJoints(21.2, {
         'spine_lumbar': (2.655, -19.937, 6.006), 'spine_thoracic': (-11.103, -9.645, 6.966),
-        'neck': (4.094, -1.196, -17.306), 'head': (4.34, -0.034), 'right_clavicle': (12.629, 5.17),
+        'neck': (3.996, -0.476, -17.113), 'head': (4.16, -0.015), 'right_clavicle': (12.629, 5.17),
         'right_shoulder': (82.403, 12.144, 3.937), 'right_elbow': (23.434, 15.042),
         'right_wrist': (0.03, -28.057),
     })
     human.KeyJoints(21.3, {
         'spine_lumbar': (5.132, -19.944, 3.907), 'spine_thoracic': (-11.789, -10.0, 6.214),
-        'neck': (3.171, -0.908, -15.991), 'head': (3.356, -0.025),
-        'right_clavicle': (21.912, 3.743), 'right_shoulder': (81.863, 16.989, 12.45),
-        'right_elbow': (25.594, 23.365), 'right_wrist': (3.374, -22.389),
+        'neck': (3.1, -0.478, -15.82), 'head': (3.254, -0.015), 'right_clavicle': (21.912, 3.743),
+        'right_shoulder': (81.863, 16.989, 12.45), 'right_elbow': (25.594, 23.365),
+        'right_wrist': (3.374, -22.389),
     })
     human.KeyJoints(21.4, {
         'spine_lumbar': (-1.049, -19.986, 5.223), 'spine_thoracic': (-11.451, -6.791, 6.876),
-        'neck': (5.596, -1.785, -13.72), 'head': (5.932, -0.044), 'right_clavicle': (15.52, 5.739),
+        'neck': (5.484, -0.396, -13.484), 'head': (5.624, -0.014), 'right_clavicle': (15.52, 5.739),
         'right_shoulder': (80.214, 10.442, 6.839), 'right_elbow': (22.731, 17.378),
         'right_wrist': (1.222, -27.437),
     })
     human.KeyJoints(21.5, {
         'spine_lumbar': (1.528, -17.879, 8.983), 'spine_thoracic': (-10.6, -3.218, 8.943),
-        'neck': (3.92, -1.149, -16.67), 'head': (4.154, -0.033), 'right_clavicle': (4.44, 7.577),
+        'neck': (3.829, -0.471, -16.482), 'head': (3.988, -0.015), 'right_clavicle': (4.44, 7.577),
         'right_shoulder': (85.743, 7.39, -4.039), 'right_elbow': (22.382, 7.294),
         'right_wrist': (-3.446, -29.895),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(21.7, {
         'spine_lumbar': (1.846, -19.119, 7.514), 'spine_thoracic': (-10.653, -8.123, 7.731),
-        'neck': (4.155, -1.21, -17.617), 'head': (4.405, -0.035), 'right_clavicle': (7.494, 6.168),
+        'neck': (4.054, -0.479, -17.426), 'head': (4.221, -0.015), 'right_clavicle': (7.494, 6.168),
         'right_shoulder': (84.011, 9.55, -0.888), 'right_elbow': (22.829, 10.35),
         'right_wrist': (-2.031, -29.836),
     })
     human.KeyJoints(21.8, {
         'spine_lumbar': (4.384, -20.0, 4.391), 'spine_thoracic': (-11.567, -10.0, 6.364),
-        'neck': (3.448, -0.996, -16.287), 'head': (3.651, -0.028),
+        'neck': (3.369, -0.476, -16.107), 'head': (3.526, -0.015),
         'right_clavicle': (19.504, 4.132), 'right_shoulder': (81.859, 15.638, 10.317),
         'right_elbow': (24.951, 21.265), 'right_wrist': (2.574, -24.174),
     })
     human.KeyJoints(21.9, {
         'spine_lumbar': (4.322, -19.883, 3.846), 'spine_thoracic': (-11.798, -9.993, 6.198),
-        'neck': (3.528, -1.04, -15.438), 'head': (3.735, -0.029), 'right_clavicle': (21.931, 3.898),
+        'neck': (3.448, -0.463, -15.25), 'head': (3.599, -0.015), 'right_clavicle': (21.931, 3.898),
         'right_shoulder': (81.473, 16.426, 12.601), 'right_elbow': (25.481, 23.394),
         'right_wrist': (3.432, -22.315),
     })
     human.KeyJoints(22.0, {
         'spine_lumbar': (-0.498, -18.259, 8.632), 'spine_thoracic': (-11.42, -1.72, 8.879),
-        'neck': (5.155, -1.594, -15.505), 'head': (5.467, -0.044), 'right_clavicle': (6.284, 7.598),
+        'neck': (5.04, -0.43, -15.283), 'head': (5.192, -0.014), 'right_clavicle': (6.284, 7.598),
         'right_shoulder': (83.235, 7.18, -2.837), 'right_elbow': (21.404, 8.284),
         'right_wrist': (-3.021, -29.99),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.107, -0.866, -16.989), 'head': (3.287, -0.024), 'right_clavicle': (2.823, 7.25),
+        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
         'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(22.2, {
         'spine_lumbar': (1.75, -18.047, 8.478), 'spine_thoracic': (-9.902, -6.533, 8.304),
-        'neck': (3.704, -1.062, -17.329), 'head': (3.923, -0.03), 'right_clavicle': (4.2, 6.996),
+        'neck': (3.617, -0.484, -17.152), 'head': (3.781, -0.015), 'right_clavicle': (4.2, 6.996),
         'right_shoulder': (86.062, 7.709, -3.647), 'right_elbow': (22.829, 7.658),
         'right_wrist': (-3.172, -30.0),
     })
     human.KeyJoints(22.3, {
         'spine_lumbar': (3.069, -19.996, 5.528), 'spine_thoracic': (-11.226, -9.901, 6.773),
-        'neck': (3.958, -1.155, -17.046), 'head': (4.195, -0.033), 'right_clavicle': (14.527, 4.88),
+        'neck': (3.864, -0.475, -16.854), 'head': (4.027, -0.015), 'right_clavicle': (14.527, 4.88),
         'right_shoulder': (82.119, 13.076, 5.721), 'right_elbow': (23.776, 16.777),
         'right_wrist': (0.77, -27.14),
     })
     human.KeyJoints(22.4, {
         'spine_lumbar': (5.199, -19.932, 3.869), 'spine_thoracic': (-11.813, -10.0, 6.205),
-        'neck': (3.148, -0.9, -15.965), 'head': (3.331, -0.025), 'right_clavicle': (22.126, 3.71),
+        'neck': (3.077, -0.478, -15.794), 'head': (3.231, -0.015), 'right_clavicle': (22.126, 3.71),
         'right_shoulder': (81.865, 17.111, 12.633), 'right_elbow': (25.646, 23.547),
         'right_wrist': (3.443, -22.224),
     })
     human.KeyJoints(22.5, {
         'spine_lumbar': (-1.971, -19.779, 6.14), 'spine_thoracic': (-11.416, -4.936, 7.373),
-        'neck': (5.914, -1.89, -13.855), 'head': (6.27, -0.048), 'right_clavicle': (12.491, 6.379),
-        'right_shoulder': (80.423, 8.72, 3.694), 'right_elbow': (21.747, 14.336),
-        'right_wrist': (-0.105, -29.15),
+        'neck': (5.796, -0.391, -13.621), 'head': (5.937, -0.014),
+        'right_clavicle': (12.491, 6.379), 'right_shoulder': (80.423, 8.72, 3.694),
+        'right_elbow': (21.747, 14.336), 'right_wrist': (-0.105, -29.15),
     })
     human.KeyJoints(22.6, {
         'spine_lumbar': (1.73, -17.815, 8.877), 'spine_thoracic': (-10.083, -4.194, 8.768),
-        'neck': (3.636, -1.049, -16.856), 'head': (3.851, -0.03), 'right_clavicle': (3.936, 7.467),
+        'neck': (3.553, -0.48, -16.679), 'head': (3.713, -0.015), 'right_clavicle': (3.936, 7.467),
         'right_shoulder': (86.443, 7.324, -4.14), 'right_elbow': (22.635, 7.201),
         'right_wrist': (-3.435, -29.918),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
         'spine_lumbar': (1.875, -17.61, 8.556), 'spine_thoracic': (-8.899, -6.214, 8.323),
-        'neck': (3.117, -0.87, -16.995), 'head': (3.298, -0.025), 'right_clavicle': (2.843, 7.246),
+        'neck': (3.049, -0.492, -16.841), 'head': (3.209, -0.015), 'right_clavicle': (2.843, 7.246),
         'right_shoulder': (87.653, 6.751, -4.269), 'right_elbow': (23.102, 7.042),
         'right_wrist': (-3.33, -30.0),
     })
     human.KeyJoints(22.8, {
         'spine_lumbar': (2.025, -19.476, 7.032), 'spine_thoracic': (-10.823, -8.73, 7.463),
-        'neck': (4.201, -1.226, -17.595), 'head': (4.454, -0.035), 'right_clavicle': (9.028, 5.829),
+        'neck': (4.099, -0.477, -17.401), 'head': (4.265, -0.015), 'right_clavicle': (9.028, 5.829),
         'right_shoulder': (83.379, 10.343, 0.54), 'right_elbow': (22.952, 11.739),
         'right_wrist': (-1.417, -29.457),
     })
     human.KeyJoints(22.9, {
         'spine_lumbar': (4.73, -19.998, 4.153), 'spine_thoracic': (-11.657, -10.0, 6.281),
-        'neck': (3.316, -0.954, -16.153), 'head': (3.51, -0.027), 'right_clavicle': (20.617, 3.947),
-        'right_shoulder': (81.856, 16.261, 11.322), 'right_elbow': (25.263, 22.251),
-        'right_wrist': (2.949, -23.362),
+        'neck': (3.241, -0.477, -15.977), 'head': (3.396, -0.015),
+        'right_clavicle': (20.617, 3.947), 'right_shoulder': (81.856, 16.261, 11.322),
+        'right_elbow': (25.263, 22.251), 'right_wrist': (2.949, -23.362),
     })
     human.KeyJoints(23.0, {
         'spine_lumbar': (3.282, -19.416, 4.073), 'spine_thoracic': (-11.784, -9.364, 6.267),
-        'neck': (3.906, -1.189, -14.407), 'head': (4.137, -0.032),
-        'right_clavicle': (20.722, 4.274), 'right_shoulder': (81.117, 15.133, 12.298),
-        'right_elbow': (26.316, 22.808), 'right_wrist': (3.306, -23.313),
+        'neck': (3.82, -0.442, -14.201), 'head': (3.964, -0.014), 'right_clavicle': (20.722, 4.274),
+        'right_shoulder': (81.117, 15.133, 12.298), 'right_elbow': (26.316, 22.808),
+        'right_wrist': (3.306, -23.313),
     })
     human.KeyJoints(23.1, {
         'spine_lumbar': (5.099, -14.519, 9.89), 'spine_thoracic': (-10.878, -0.236, 9.764),
-        'neck': (2.222, -0.629, -13.752), 'head': (2.347, -0.015), 'right_clavicle': (5.349, 8.227),
+        'neck': (2.178, -0.469, -13.617), 'head': (2.314, -0.015), 'right_clavicle': (5.349, 8.227),
         'right_shoulder': (84.794, 7.776, 1.566), 'right_elbow': (32.332, 11.39),
         'right_wrist': (-1.543, -29.83),
     })
@@ -1435,29 +1434,31 @@ def remove_access_panel_cad():
     human.Grasp('right_hand', 'open', start=23.176408, duration=0.072)
     human.KeyJoints(23.2, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
-        'neck': (0.313, 0.039, -14.779), 'head': (0.316, 0.003), 'right_clavicle': (2.794, 7.882),
+        'neck': (0.321, -0.525, -15.038), 'head': (0.458, -0.016), 'right_clavicle': (2.794, 7.882),
         'right_shoulder': (88.427, 7.319, 1.185), 'right_elbow': (34.336, 11.013),
         'right_wrist': (-1.429, -29.929),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_left
-    human.LookAt((-20.0, 105.0, 111.6), start=23.248408, duration=0.2628)
-    human.KeyJoints(23.3, {'neck': (3.799, -0.164, -17.439), 'head': (1.791, -0.116)})
-    human.KeyJoints(23.4, {'neck': (21.623, -1.2, -31.044), 'head': (9.337, -0.728)})
+    human.LookAt((-20.0, 105.0, 111.6), start=23.248408, duration=0.4)
+    human.KeyJoints(23.3, {'neck': (1.903, -0.592, -16.234), 'head': (1.122, -0.069)})
+    human.KeyJoints(23.4, {'neck': (11.488, -0.993, -23.48), 'head': (5.141, -0.393)})
     human.KeyJoints(23.5, {
-        'neck': (34.816, -1.966, -41.114), 'head': (14.922, -1.18),
+        'neck': (24.221, -1.526, -33.106), 'head': (10.48, -0.823),
         'right_shoulder': (88.427, 7.319, 1.185), 'right_elbow': (34.336, 11.013),
         'right_wrist': (-1.429, -29.929),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_left
-    human.LookAt((-20.0, 105.0, 111.6), start=23.511208, duration=10.620907)
     human.KeyJoints(23.6, {
-        'neck': (35.0, -1.977, -41.255), 'right_shoulder': (87.257, 7.579, 0.989),
-        'right_elbow': (34.444, 10.924), 'right_wrist': (-1.493, -29.466),
+        'neck': (33.599, -1.919, -40.196), 'head': (14.413, -1.139),
+        'right_shoulder': (87.257, 7.579, 0.989), 'right_elbow': (34.444, 10.924),
+        'right_wrist': (-1.493, -29.466),
     })
+    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_left
+    human.LookAt((-20.0, 105.0, 111.6), start=23.648408, duration=10.483707)
     human.KeyJoints(23.7, {
-        'head': (15.0, -1.187), 'right_shoulder': (79.576, 9.299, -0.303),
-        'right_elbow': (35.153, 10.334), 'right_wrist': (-1.918, -26.427),
+        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187),
+        'right_shoulder': (79.576, 9.299, -0.303), 'right_elbow': (35.153, 10.334),
+        'right_wrist': (-1.918, -26.427),
     })
     human.KeyJoints(23.8, {
         'right_shoulder': (64.041, 12.943, -3.027), 'right_elbow': (36.587, 9.092),
@@ -2097,18 +2098,19 @@ def remove_access_panel_cad():
         'right_wrist': (-6.586, -5.145),
     })
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 111.6), start=34.132115, duration=0.2628)
-    human.KeyJoints(34.2, {'neck': (33.162, -1.572, -35.222), 'head': (13.857, -1.189)})
-    human.KeyJoints(34.3, {'neck': (27.204, -0.26, -15.664), 'head': (10.153, -1.195)})
+    human.LookAt((20.0, 105.0, 111.6), start=34.132115, duration=0.321358)
+    human.KeyJoints(34.2, {'neck': (33.724, -1.696, -37.067), 'head': (14.207, -1.188)})
+    human.KeyJoints(34.3, {'neck': (29.081, -0.674, -21.827), 'head': (11.32, -1.193)})
     # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 111.6), start=34.394915, duration=10.521694)
     human.KeyJoints(34.4, {
-        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199),
+        'neck': (24.727, 0.285, -7.536), 'head': (8.613, -1.198),
         'right_shoulder': (17.514, 33.362, -16.788), 'right_elbow': (37.58, 2.81),
         'right_wrist': (-6.586, -5.145),
     })
+    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_right
+    human.LookAt((20.0, 105.0, 111.6), start=34.453473, duration=10.463136)
     human.KeyJoints(34.5, {
+        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199),
         'right_shoulder': (18.914, 31.713, -15.343), 'right_elbow': (37.431, 3.591),
         'right_wrist': (-6.288, -5.773),
     })
@@ -2750,23 +2752,24 @@ def remove_access_panel_cad():
         'right_wrist': (-1.15, -21.055),
     })
     # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=44.916609, duration=0.2628)
-    human.KeyJoints(45.0, {'neck': (23.569, -0.456, -11.545), 'head': (7.858, -1.207)})
-    human.KeyJoints(45.1, {'neck': (22.796, -2.557, -26.817), 'head': (7.298, -1.227)})
+    human.LookAt((0.0, 120.0, 110.0), start=44.916609, duration=0.293734)
+    human.KeyJoints(45.0, {'neck': (23.629, -0.293, -10.36), 'head': (7.902, -1.206)})
+    human.KeyJoints(45.1, {'neck': (22.936, -2.175, -24.044), 'head': (7.4, -1.223)})
     # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > reach: TA on r_arm at panel_handle
-    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=45.179409, duration=0.867635)
     human.KeyJoints(45.2, {
-        'neck': (22.484, -3.403, -32.967), 'head': (7.073, -1.235),
+        'neck': (22.49, -3.389, -32.865), 'head': (7.077, -1.235),
         'right_shoulder': (56.296, 2.091, 11.177), 'right_elbow': (33.14, 18.451),
         'right_wrist': (-1.152, -21.054), 'left_shoulder': (8.606, 5.724, 11.46),
         'left_elbow': (34.375, 17.189), 'left_wrist': (0.0, -0.001),
     })
+    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > reach: gaze on head at panel_handle
+    human.LookAt((0.0, 120.0, 110.0), start=45.210343, duration=0.836702)
     human.KeyJoints(45.3, {
-        'right_shoulder': (55.564, 2.807, 10.751), 'right_elbow': (34.726, 18.617),
-        'right_wrist': (-1.548, -20.961), 'left_shoulder': (10.495, 4.832, 11.556),
-        'left_elbow': (33.971, 17.214), 'left_wrist': (0.04, -0.162),
+        'neck': (22.484, -3.403, -32.967), 'right_shoulder': (55.564, 2.807, 10.751),
+        'right_elbow': (34.726, 18.617), 'right_wrist': (-1.548, -20.961),
+        'left_shoulder': (10.495, 4.832, 11.556), 'left_elbow': (33.971, 17.214),
+        'left_wrist': (0.04, -0.162),
     })
     human.KeyJoints(45.4, {
         'right_shoulder': (52.656, 5.661, 9.052), 'right_elbow': (41.028, 19.275),
@@ -2830,329 +2833,325 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:31:5 remove_access_panel_cad > walk_to > travel: locomotion on root at bench_front
     human.Walk((139.636, 0.0, 19.995), start=46.119044, duration=5.147368)
     # examples/remove_access_panel_cad.mtask:31:5 remove_access_panel_cad > walk_to > travel: gaze on head
-    human.KeyRoot(46.2, (-0.249, 72.647, 60.051), (0.557, 0.0, 0.0))
+    human.KeyRoot(46.2, (-0.249, 72.654, 60.051), (0.557, 0.0, 0.0))
     human.KeyJoints(46.2, {
         'spine_thoracic': (-14.741, -6.475, 6.865), 'neck': (17.28, -3.214, -25.79),
         'head': (4.925, -1.169), 'right_elbow': (90.706, 24.523),
-        'right_hip': (6.522, -0.148, -0.577), 'right_knee': (12.517,),
-        'right_ankle': (5.994, -0.213), 'left_hip': (7.411, 0.14, 0.581), 'left_knee': (14.038,),
-        'left_ankle': (6.263, 0.214),
+        'right_hip': (6.473, -0.149, -0.577), 'right_knee': (12.415,),
+        'right_ankle': (5.941, -0.213), 'left_hip': (7.367, 0.141, 0.581), 'left_knee': (13.946,),
+        'left_ankle': (6.215, 0.214),
     })
-    human.KeyRoot(46.3, (-1.012, 72.493, 60.207), (2.456, 0.0, 0.0))
+    human.KeyRoot(46.3, (-1.012, 72.494, 60.207), (2.456, 0.0, 0.0))
     human.KeyJoints(46.3, {
         'neck': (7.509, -1.404, -11.207), 'head': (2.152, -0.511),
-        'right_hip': (7.214, -0.549, -2.544), 'right_knee': (14.684,),
-        'right_ankle': (7.498, -0.863), 'left_hip': (9.49, 0.461, 2.582), 'left_knee': (18.036,),
-        'left_ankle': (7.579, 0.88),
+        'right_hip': (7.206, -0.549, -2.544), 'right_knee': (14.668,),
+        'right_ankle': (7.49, -0.863), 'left_hip': (9.484, 0.461, 2.582), 'left_knee': (18.022,),
+        'left_ankle': (7.572, 0.88),
     })
-    human.KeyRoot(46.4, (-1.885, 72.491, 60.386), (5.133, 0.0, 0.0))
+    human.KeyRoot(46.4, (-1.885, 72.49, 60.386), (5.133, 0.0, 0.0))
     human.KeyJoints(46.4, {
         'neck': (0.293, -0.067, -0.438), 'head': (0.103, -0.024),
-        'right_hip': (6.719, -0.984, -5.282), 'right_knee': (14.468,),
-        'right_ankle': (7.862, -1.591), 'left_hip': (19.588, 0.902, 2.274), 'left_knee': (39.445,),
-        'left_ankle': (17.517, 1.618),
+        'right_hip': (6.721, -0.984, -5.282), 'right_knee': (14.472,),
+        'right_ankle': (7.865, -1.591), 'left_hip': (16.939, 0.988, 2.177), 'left_knee': (33.85,),
+        'left_ankle': (16.158, 1.584),
     })
-    human.KeyRoot(46.5, (-2.443, 72.68, 60.501), (7.989, 0.0, 0.0))
+    human.KeyRoot(46.5, (-2.443, 72.624, 60.501), (7.989, 0.0, 0.0))
     human.KeyJoints(46.5, {
-        'neck': (-0.057, 0.0, 0.085), 'head': (0.0, 0.0), 'right_hip': (7.258, -1.017, -8.221),
-        'right_knee': (16.118,), 'right_ankle': (7.903, -2.035),
-        'left_hip': (23.971, 4.159, -4.128), 'left_knee': (50.389,), 'left_ankle': (17.714, 1.999),
+        'neck': (-0.057, 0.0, 0.085), 'head': (0.0, 0.0), 'right_hip': (7.573, -0.973, -8.226),
+        'right_knee': (16.79,), 'right_ankle': (8.257, -2.036), 'left_hip': (19.977, 3.814, -4.616),
+        'left_knee': (41.897,), 'left_ankle': (18.146, 1.909),
     })
-    human.KeyRoot(46.6, (-2.316, 72.972, 60.171), (10.654, 0.0, 0.0))
+    human.KeyRoot(46.6, (-2.313, 72.711, 60.186), (10.654, 0.0, 0.0))
     human.KeyJoints(46.6, {
-        'right_clavicle': (7.073, 9.769), 'right_hip': (9.787, -0.038, -10.941),
-        'right_knee': (21.074,), 'right_ankle': (7.66, -1.889),
-        'left_hip': (19.601, 7.135, -13.547), 'left_knee': (43.656,), 'left_ankle': (17.912, 1.74),
+        'right_clavicle': (7.073, 9.769), 'right_hip': (10.848, 0.163, -10.941),
+        'right_knee': (23.385,), 'right_ankle': (8.891, -1.894),
+        'left_hip': (17.11, 6.438, -13.979), 'left_knee': (38.255,), 'left_ankle': (18.278, 1.702),
     })
-    human.KeyRoot(46.7, (-1.628, 72.568, 59.014), (13.625, 0.0, 0.0))
+    human.KeyRoot(46.7, (-1.613, 72.597, 59.079), (13.625, 0.0, 0.0))
     human.KeyJoints(46.7, {
-        'left_clavicle': (-2.502, 4.071), 'right_hip': (15.033, 2.411, -13.62),
-        'right_knee': (30.741,), 'right_ankle': (8.733, -1.247),
-        'left_hip': (8.757, 4.388, -20.352), 'left_knee': (19.83,), 'left_ankle': (10.158, 0.715),
+        'left_clavicle': (-2.502, 4.071), 'right_hip': (14.893, 2.391, -13.62),
+        'right_knee': (30.566,), 'right_ankle': (8.697, -1.233),
+        'left_hip': (9.306, 4.496, -20.324), 'left_knee': (21.151,), 'left_ankle': (10.91, 0.737),
     })
-    human.KeyRoot(46.8, (-0.779, 72.495, 58.196), (17.164, 0.0, 0.0))
+    human.KeyRoot(46.8, (-0.754, 72.492, 58.296), (17.164, 0.0, 0.0))
     human.KeyJoints(46.8, {
-        'right_hip': (17.194, 4.865, -16.547), 'right_knee': (35.124,),
-        'right_ankle': (8.087, -0.379), 'left_hip': (7.436, 2.022, -18.149), 'left_knee': (14.685,),
-        'left_ankle': (6.986, -0.405),
+        'right_hip': (17.108, 4.861, -16.544), 'right_knee': (35.136,),
+        'right_ankle': (8.184, -0.356), 'left_hip': (7.367, 2.033, -18.148), 'left_knee': (14.731,),
+        'left_ankle': (7.095, -0.372),
     })
-    human.KeyRoot(46.9, (0.117, 72.493, 58.267), (21.815, 0.0, 0.0))
+    human.KeyRoot(46.9, (0.148, 72.491, 58.358), (21.815, 0.0, 0.0))
     human.KeyJoints(46.9, {
-        'right_hip': (18.84, 7.716, -19.724), 'right_knee': (41.324,),
-        'right_ankle': (11.355, 0.616), 'left_hip': (7.726, 0.69, -13.632), 'left_knee': (14.537,),
+        'right_hip': (17.929, 7.432, -19.836), 'right_knee': (39.484,),
+        'right_ankle': (10.468, 0.641), 'left_hip': (7.664, 0.698, -13.63), 'left_knee': (14.58,),
     })
-    human.KeyRoot(47.0, (1.177, 72.491, 58.555), (27.65, 0.0, 0.0))
+    human.KeyRoot(47.0, (1.21, 72.496, 58.614), (27.65, 0.0, 0.0))
     human.KeyJoints(47.0, {
-        'right_hip': (25.229, 8.479, -14.551), 'right_knee': (55.084,),
-        'right_ankle': (19.164, 1.256), 'left_hip': (7.693, -0.837, -7.946), 'left_knee': (14.258,),
-        'left_ankle': (6.748, -1.882),
+        'right_hip': (21.258, 7.447, -15.177), 'right_knee': (46.561,),
+        'right_ankle': (17.88, 1.224), 'left_hip': (7.615, -0.841, -7.946), 'left_knee': (14.215,),
+        'left_ankle': (6.78, -1.876),
     })
-    human.KeyRoot(47.1, (2.079, 72.492, 58.985), (33.719, 0.0, 0.0))
+    human.KeyRoot(47.1, (2.093, 72.491, 58.999), (33.719, 0.0, 0.0))
     human.KeyJoints(47.1, {
-        'right_hip': (28.594, 3.228, -2.902), 'right_knee': (59.354,),
-        'right_ankle': (19.141, 1.414), 'left_hip': (7.721, -2.112, -2.005), 'left_knee': (14.557,),
-        'left_ankle': (6.753, -2.361),
+        'right_hip': (22.515, 2.89, -3.42), 'right_knee': (46.48,), 'right_ankle': (19.089, 1.318),
+        'left_hip': (7.715, -2.115, -2.005), 'left_knee': (14.579,), 'left_ankle': (6.782, -2.364),
     })
-    human.KeyRoot(47.2, (2.665, 72.775, 59.956), (39.367, 0.0, 0.0))
+    human.KeyRoot(47.2, (2.624, 72.628, 59.9), (39.367, 0.0, 0.0))
     human.KeyJoints(47.2, {
-        'right_hip': (24.969, -3.34, 10.295), 'right_knee': (51.252,),
-        'right_ankle': (19.118, 1.286), 'left_hip': (8.875, -2.859, 3.466), 'left_knee': (17.731,),
-        'left_ankle': (6.665, -2.286),
+        'right_hip': (20.28, -2.485, 10.398), 'right_knee': (41.054,),
+        'right_ankle': (19.075, 1.242), 'left_hip': (9.671, -2.91, 3.425), 'left_knee': (19.283,),
+        'left_ankle': (7.42, -2.289),
     })
-    human.KeyRoot(47.3, (3.173, 72.704, 62.005), (44.974, 0.0, 0.0))
+    human.KeyRoot(47.3, (3.065, 72.643, 61.838), (44.974, 0.0, 0.0))
     human.KeyJoints(47.3, {
-        'right_hip': (13.432, -4.67, 20.433), 'right_knee': (29.163,), 'right_ankle': (14.98, 0.34),
-        'left_hip': (11.97, -3.512, 8.883), 'left_knee': (26.265,), 'left_ankle': (8.869, -1.563),
+        'right_hip': (12.861, -4.118, 20.454), 'right_knee': (27.47,),
+        'right_ankle': (14.092, 0.425), 'left_hip': (12.351, -3.587, 8.859), 'left_knee': (26.712,),
+        'left_ankle': (8.93, -1.572),
     })
-    human.KeyRoot(47.4, (3.486, 72.487, 63.703), (50.582, 0.0, 0.0))
+    human.KeyRoot(47.4, (3.337, 72.487, 63.487), (50.582, 0.0, 0.0))
     human.KeyJoints(47.4, {
-        'right_hip': (5.737, -3.101, 20.047), 'right_knee': (14.731,),
-        'right_ankle': (8.281, -0.934), 'left_hip': (14.529, -4.641, 14.36), 'left_knee': (33.06,),
-        'left_ankle': (9.983, -0.79),
+        'right_hip': (5.972, -3.046, 20.049), 'right_knee': (14.772,),
+        'right_ankle': (8.12, -0.801), 'left_hip': (14.759, -4.703, 14.34), 'left_knee': (33.069,),
+        'left_ankle': (9.754, -0.793),
     })
-    human.KeyRoot(47.5, (3.357, 72.487, 63.943), (56.19, 0.0, 0.0))
+    human.KeyRoot(47.5, (3.21, 72.487, 63.785), (56.19, 0.0, 0.0))
     human.KeyJoints(47.5, {
-        'right_hip': (5.177, -2.758, 14.453), 'right_knee': (14.443,),
-        'right_ankle': (8.742, -1.368), 'left_hip': (15.857, -6.257, 19.791), 'left_knee': (35.29,),
-        'left_ankle': (9.026, -0.356),
+        'right_hip': (5.39, -2.725, 14.452), 'right_knee': (14.514,),
+        'right_ankle': (8.615, -1.283), 'left_hip': (16.043, -6.298, 19.782),
+        'left_knee': (35.282,), 'left_ankle': (8.832, -0.329),
     })
-    human.KeyRoot(47.6, (2.406, 72.487, 63.927), (61.797, 0.0, 0.0))
+    human.KeyRoot(47.6, (2.303, 72.487, 63.839), (61.797, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'right_hip': (5.417, -2.633, 8.85), 'right_ankle': (8.574, -1.764),
-        'left_hip': (23.572, -8.227, 18.45), 'left_knee': (50.9,), 'left_ankle': (18.844, 0.188),
+        'right_hip': (5.546, -2.611, 8.846), 'right_ankle': (8.483, -1.721),
+        'left_hip': (20.784, -7.276, 18.835), 'left_knee': (44.459,), 'left_ankle': (15.32, 0.2),
     })
-    human.KeyRoot(47.7, (1.11, 72.487, 63.897), (67.405, 0.0, 0.0))
+    human.KeyRoot(47.7, (1.071, 72.487, 63.867), (67.405, 0.0, 0.0))
     human.KeyJoints(47.7, {
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.919, -2.524, 3.187), 'right_knee': (14.151,),
-        'right_ankle': (8.097, -2.179), 'left_hip': (27.622, -3.874, 8.329), 'left_knee': (58.333,),
-        'left_ankle': (19.0, 0.526),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.965, -2.514, 3.186), 'right_knee': (14.164,),
+        'right_ankle': (8.064, -2.166), 'left_hip': (22.262, -3.067, 8.589), 'left_knee': (46.718,),
+        'left_ankle': (19.0, 0.487),
     })
-    human.KeyRoot(47.8, (-0.055, 72.537, 63.736), (73.091, 0.0, 0.0))
+    human.KeyRoot(47.8, (-0.029, 72.558, 63.755), (73.091, 0.0, 0.0))
     human.KeyJoints(47.8, {
-        'right_hip': (7.328, -2.08, -2.569), 'right_knee': (15.892,),
-        'right_ankle': (8.001, -2.388), 'left_hip': (25.686, 3.501, -4.666), 'left_knee': (55.746,),
-        'left_ankle': (19.0, 1.192),
+        'right_hip': (7.179, -2.093, -2.564), 'right_knee': (15.633,),
+        'right_ankle': (7.891, -2.395), 'left_hip': (19.868, 3.028, -5.142), 'left_knee': (43.333,),
+        'left_ankle': (19.0, 1.13),
     })
-    human.KeyRoot(47.9, (-1.441, 72.79, 62.593), (79.26, 0.0, 0.0))
+    human.KeyRoot(47.9, (-1.323, 72.592, 62.663), (79.251, 0.0, 0.0))
     human.KeyJoints(47.9, {
-        'right_hip': (9.278, -0.404, -8.667), 'right_knee': (18.097,),
-        'right_ankle': (6.865, -1.788), 'left_hip': (16.076, 6.191, -16.872),
-        'left_knee': (36.623,), 'left_ankle': (19.0, 1.104),
+        'right_hip': (10.13, -0.301, -8.666), 'right_ankle': (8.057, -1.817),
+        'left_hip': (14.357, 5.674, -16.914), 'left_knee': (33.053,), 'left_ankle': (18.281, 1.173),
     })
-    human.KeyRoot(48.0, (-2.627, 72.487, 61.048), (85.051, 0.0, 0.0))
+    human.KeyRoot(48.0, (-2.437, 72.538, 61.149), (85.051, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'right_hip': (13.08, 2.557, -14.057), 'right_knee': (25.07,),
-        'right_ankle': (8.061, -0.735), 'left_hip': (7.26, 2.81, -20.935), 'left_knee': (15.506,),
-        'left_ankle': (7.758, 0.025),
+        'right_hip': (12.735, 2.444, -14.08), 'right_knee': (24.7,), 'right_ankle': (8.053, -0.763),
+        'left_hip': (7.125, 2.895, -20.923), 'left_knee': (15.59,), 'left_ankle': (7.934, 0.153),
     })
-    human.KeyRoot(48.1, (-2.968, 72.487, 59.993), (89.374, 0.0, 0.0))
+    human.KeyRoot(48.1, (-2.756, 72.487, 60.087), (89.374, 0.0, 0.0))
     human.KeyJoints(48.1, {
-        'right_hip': (13.757, 4.751, -17.927), 'right_knee': (27.28,),
-        'right_ankle': (7.995, 0.192), 'left_hip': (7.813, 1.239, -16.868), 'left_knee': (14.578,),
-        'left_ankle': (6.742, -1.086),
+        'right_hip': (13.588, 4.68, -17.946), 'right_knee': (27.324,),
+        'right_ankle': (8.221, 0.176), 'left_hip': (7.663, 1.326, -16.854), 'left_knee': (14.649,),
+        'left_ankle': (6.932, -0.958),
     })
-    human.KeyRoot(48.2, (-2.559, 72.489, 59.23), (92.422, 0.0, 0.0))
+    human.KeyRoot(48.2, (-2.399, 72.489, 59.286), (92.422, 0.0, 0.0))
     human.KeyJoints(48.2, {
-        'right_hip': (19.049, 7.863, -18.515), 'right_knee': (40.591,),
-        'right_ankle': (15.717, 1.078), 'left_hip': (7.766, 0.156, -13.963),
-        'left_ankle': (6.799, -1.715),
+        'right_hip': (16.94, 7.137, -18.81), 'right_knee': (36.257,),
+        'right_ankle': (13.594, 1.059), 'left_hip': (7.66, 0.216, -13.951),
+        'left_ankle': (6.95, -1.63),
     })
-    human.KeyRoot(48.3, (-1.829, 72.488, 58.631), (94.977, 0.0, 0.0))
+    human.KeyRoot(48.3, (-1.756, 72.488, 58.648), (94.977, 0.0, 0.0))
     human.KeyJoints(48.3, {
-        'right_hip': (24.917, 8.287, -13.139), 'right_knee': (52.928,),
-        'right_ankle': (18.706, 1.827), 'left_hip': (7.343, -0.665, -11.457),
-        'left_knee': (14.233,), 'left_ankle': (7.169, -2.101),
+        'right_hip': (20.559, 7.253, -13.92), 'right_knee': (43.697,),
+        'right_ankle': (18.811, 1.74), 'left_hip': (7.293, -0.644, -11.452), 'left_knee': (14.256,),
+        'left_ankle': (7.237, -2.069),
     })
-    human.KeyRoot(48.4, (-1.071, 72.669, 58.414), (97.605, 0.0, 0.0))
+    human.KeyRoot(48.4, (-1.075, 72.616, 58.414), (97.605, 0.0, 0.0))
     human.KeyJoints(48.4, {
-        'right_hip': (26.374, 5.367, -6.123), 'right_knee': (54.819,),
-        'right_ankle': (18.749, 2.117), 'left_hip': (10.905, -0.493, -9.017),
-        'left_knee': (22.047,), 'left_ankle': (8.192, -2.18),
+        'right_hip': (21.184, 4.799, -6.837), 'right_knee': (43.807,),
+        'right_ankle': (18.839, 1.997), 'left_hip': (11.127, -0.46, -9.019), 'left_knee': (22.511,),
+        'left_ankle': (8.432, -2.183),
     })
-    human.KeyRoot(48.5, (-0.409, 72.945, 58.977), (101.079, 0.0, 0.0))
+    human.KeyRoot(48.5, (-0.459, 72.709, 58.98), (101.079, 0.0, 0.0))
     human.KeyJoints(48.5, {
-        'right_hip': (20.393, 2.024, -1.174), 'right_knee': (41.709,),
-        'right_ankle': (18.792, 1.538), 'left_hip': (21.349, 0.477, -5.865), 'left_knee': (40.996,),
-        'left_ankle': (4.302, -1.753),
+        'right_hip': (17.947, 1.991, -1.332), 'right_knee': (36.455,),
+        'right_ankle': (18.478, 1.515), 'left_hip': (21.928, 0.522, -5.871), 'left_knee': (42.119,),
+        'left_ankle': (4.845, -1.771),
     })
-    human.KeyRoot(48.6, (0.349, 72.541, 59.95), (104.519, 0.0, 0.0))
+    human.KeyRoot(48.6, (0.266, 72.601, 59.956), (104.518, 0.0, 0.0))
     human.KeyJoints(48.6, {
-        'right_hip': (9.847, 0.387, 1.047), 'right_knee': (20.005,), 'right_ankle': (10.186, 0.614),
-        'left_hip': (31.878, 0.52, -2.244), 'left_knee': (56.543,), 'left_ankle': (-6.38, -0.868),
+        'right_hip': (10.173, 0.414, 1.036), 'right_knee': (20.55,), 'right_ankle': (10.402, 0.628),
+        'left_hip': (31.837, 0.509, -2.262), 'left_knee': (56.298,), 'left_ankle': (-6.581, -0.888),
     })
-    human.KeyRoot(48.7, (1.409, 72.492, 60.523), (106.239, 0.0, 0.0))
+    human.KeyRoot(48.7, (1.289, 72.463, 60.533), (106.239, 0.0, 0.0))
     human.KeyJoints(48.7, {
-        'right_hip': (6.467, -0.104, 0.002), 'right_knee': (14.761,), 'right_ankle': (8.29, -0.103),
-        'left_hip': (37.722, 0.036, 0.181), 'left_knee': (63.013,), 'left_ankle': (-18.478, 0.193),
+        'right_hip': (6.756, -0.083, 0.004), 'right_knee': (15.158,),
+        'right_ankle': (8.399, -0.082), 'left_hip': (37.859, 0.03, 0.142), 'left_knee': (63.049,),
+        'left_ankle': (-18.579, 0.154),
     })
-    human.KeyRoot(48.8, (3.359, 72.381, 60.449), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.8, (3.252, 72.22, 60.456), (106.251, 0.0, 0.0))
     human.KeyJoints(48.8, {
-        'right_hip': (5.232, -0.509, -0.046), 'right_knee': (15.592,),
-        'right_ankle': (10.356, -0.511), 'left_hip': (39.634, 0.066, 1.046), 'left_knee': (67.879,),
-        'left_ankle': (-18.637, 1.048),
+        'right_hip': (6.241, -0.49, -0.053), 'right_knee': (17.545,),
+        'right_ankle': (11.302, -0.493), 'left_hip': (39.447, 0.066, 1.006), 'left_knee': (67.297,),
+        'left_ankle': (-19.033, 1.008),
     })
-    human.KeyRoot(48.9, (6.561, 71.987, 60.196), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.9, (6.544, 71.984, 60.201), (106.251, 0.0, 0.0))
     human.KeyJoints(48.9, {
-        'right_hip': (3.57, -1.078, -0.067), 'right_knee': (17.831,),
-        'right_ankle': (14.258, -1.08), 'left_hip': (44.682, 0.389, 1.77), 'left_knee': (74.674,),
-        'left_ankle': (-3.045, 1.812),
+        'right_hip': (3.608, -1.077, -0.068), 'right_knee': (17.879,),
+        'right_ankle': (14.272, -1.079), 'left_hip': (41.07, 0.474, 1.658), 'left_knee': (67.679,),
+        'left_ankle': (-6.427, 1.725),
     })
-    human.KeyRoot(49.0, (10.626, 71.991, 59.798), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.0, (10.658, 71.976, 59.799), (106.251, 0.0, 0.0))
     human.KeyJoints(49.0, {
-        'right_hip': (-2.603, -1.731, 0.073), 'right_knee': (12.02,),
-        'right_ankle': (14.481, -1.733), 'left_hip': (47.911, 1.167, 2.031), 'left_knee': (70.923,),
-        'left_ankle': (10.719, 2.343),
+        'right_hip': (-2.554, -1.74, 0.073), 'right_knee': (12.183,),
+        'right_ankle': (14.594, -1.742), 'left_hip': (38.459, 1.346, 1.645), 'left_knee': (53.429,),
+        'left_ankle': (2.675, 2.125),
     })
-    human.KeyRoot(49.1, (15.573, 72.309, 59.009), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.1, (15.404, 71.479, 59.044), (106.251, 0.0, 0.0))
     human.KeyJoints(49.1, {
-        'right_hip': (0.103, -2.275, -0.344), 'right_knee': (25.472,),
-        'right_ankle': (16.884, -2.301), 'left_hip': (45.203, 1.886, 1.9), 'left_knee': (55.852,),
-        'left_ankle': (10.585, 2.677),
+        'right_hip': (6.989, -2.22, -0.818), 'right_knee': (39.18,),
+        'right_ankle': (18.959, -2.366), 'left_hip': (33.453, 2.036, 1.348), 'left_knee': (33.667,),
+        'left_ankle': (0.142, 2.442),
     })
-    human.KeyRoot(49.2, (23.331, 71.774, 56.305), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.2, (22.203, 70.753, 56.597), (106.251, 0.0, 0.0))
     human.KeyJoints(49.2, {
-        'right_hip': (3.125, -1.799, -0.964), 'right_knee': (43.71,),
-        'right_ankle': (15.531, -2.041), 'left_hip': (33.69, 1.716, 1.139), 'left_knee': (32.709,),
-        'left_ankle': (-0.909, 2.059),
+        'right_hip': (6.56, -1.75, -1.077), 'right_knee': (49.417,),
+        'right_ankle': (17.806, -2.055), 'left_hip': (29.501, 1.733, 0.977), 'left_knee': (22.456,),
+        'left_ankle': (-6.974, 1.99),
     })
-    human.KeyRoot(49.3, (31.775, 70.974, 52.713), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.3, (29.62, 70.469, 53.303), (106.251, 0.0, 0.0))
     human.KeyJoints(49.3, {
-        'right_hip': (2.231, -0.796, -0.813), 'right_knee': (53.318,),
-        'right_ankle': (7.725, -1.138), 'left_hip': (20.207, 0.928, 0.34), 'left_knee': (12.869,),
-        'left_ankle': (-7.293, 0.989),
+        'right_hip': (6.279, -0.738, -0.868), 'right_knee': (58.1,), 'right_ankle': (8.462, -1.139),
+        'left_hip': (21.577, 0.897, 0.353), 'left_knee': (11.616,), 'left_ankle': (-9.916, 0.964),
     })
-    human.KeyRoot(49.4, (37.98, 71.195, 49.768), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.4, (35.628, 70.622, 50.451), (106.251, 0.0, 0.0))
     human.KeyJoints(49.4, {
-        'right_hip': (-0.899, -0.017, -0.026), 'right_knee': (53.069,),
-        'right_ankle': (-2.906, -0.031), 'left_hip': (18.507, 0.023, 0.008), 'left_knee': (20.94,),
-        'left_ankle': (2.434, 0.025),
+        'right_hip': (3.656, -0.015, -0.027), 'right_knee': (58.737,),
+        'right_ankle': (-1.791, -0.031), 'left_hip': (21.343, 0.022, 0.008), 'left_knee': (22.331,),
+        'left_ankle': (0.989, 0.023),
     })
-    human.KeyRoot(49.5, (40.965, 71.891, 48.033), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.5, (39.247, 71.212, 48.529), (106.251, 0.0, 0.0))
     human.KeyJoints(49.5, {
-        'right_hip': (-1.598, 0.5, 0.733), 'right_knee': (54.765,), 'right_ankle': (-1.424, 0.887),
-        'left_hip': (14.23, -0.674, -0.171), 'left_knee': (18.138,), 'left_ankle': (3.913, -0.695),
+        'right_hip': (1.398, 0.476, 0.789), 'right_knee': (57.974,), 'right_ankle': (-1.205, 0.922),
+        'left_hip': (17.984, -0.672, -0.218), 'left_knee': (22.674,), 'left_ankle': (4.692, -0.707),
     })
-    human.KeyRoot(49.6, (43.04, 72.227, 46.617), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.6, (42.06, 71.852, 46.845), (106.251, 0.0, 0.0))
     human.KeyJoints(49.6, {
-        'right_hip': (16.463, 1.067, 1.39), 'right_knee': (72.805,), 'right_ankle': (19.864, 1.753),
-        'left_hip': (11.302, -1.337, -0.267), 'left_knee': (16.332,), 'left_ankle': (5.036, -1.363),
+        'right_hip': (15.363, 1.124, 1.352), 'right_knee': (66.717,),
+        'right_ankle': (16.199, 1.758), 'left_hip': (13.744, -1.378, -0.337),
+        'left_knee': (19.608,), 'left_ankle': (5.87, -1.419),
     })
-    human.KeyRoot(49.7, (45.963, 72.562, 45.011), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.7, (45.801, 71.741, 45.031), (106.251, 0.0, 0.0))
     human.KeyJoints(49.7, {
-        'right_hip': (38.146, 1.509, 2.13), 'right_knee': (74.813,), 'right_ankle': (19.742, 2.61),
-        'left_hip': (9.942, -1.952, -0.401), 'left_knee': (19.047,), 'left_ankle': (7.442, -1.993),
+        'right_hip': (29.714, 1.82, 1.39), 'right_knee': (56.794,), 'right_ankle': (19.201, 2.29),
+        'left_hip': (13.457, -1.97, -0.532), 'left_knee': (26.146,), 'left_ankle': (11.025, -2.04),
     })
-    human.KeyRoot(49.8, (54.206, 72.289, 42.381), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.8, (54.085, 70.769, 42.508), (106.251, 0.0, 0.0))
     human.KeyJoints(49.8, {
-        'right_hip': (41.179, 1.878, 1.617), 'right_knee': (50.157,), 'right_ankle': (9.106, 2.478),
-        'left_hip': (14.852, -2.029, -1.163), 'left_knee': (42.427,),
-        'left_ankle': (12.628, -2.339),
+        'right_hip': (33.807, 1.896, 1.255), 'right_knee': (35.868,), 'right_ankle': (2.188, 2.273),
+        'left_hip': (18.019, -1.941, -1.26), 'left_knee': (49.139,), 'left_ankle': (16.172, -2.314),
     })
-    human.KeyRoot(49.9, (69.173, 70.529, 38.883), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.9, (67.683, 69.965, 39.427), (106.251, 0.0, 0.0))
     human.KeyJoints(49.9, {
-        'right_hip': (28.059, 1.365, 0.717), 'right_knee': (20.431,),
-        'right_ankle': (-7.537, 1.542), 'left_hip': (10.754, -1.217, -1.235),
-        'left_knee': (58.126,), 'left_ankle': (12.71, -1.734),
+        'right_hip': (26.071, 1.301, 0.63), 'right_knee': (13.477,),
+        'right_ankle': (-12.502, 1.445), 'left_hip': (13.663, -1.108, -1.245),
+        'left_knee': (61.49,), 'left_ankle': (13.162, -1.667),
     })
-    human.KeyRoot(50.0, (82.272, 70.651, 36.384), (106.251, 0.0, 0.0))
+    human.KeyRoot(50.0, (79.827, 70.053, 37.137), (106.251, 0.0, 0.0))
     human.KeyJoints(50.0, {
-        'right_hip': (21.238, 0.351, 0.136), 'right_knee': (22.314,), 'right_ankle': (1.089, 0.376),
-        'left_hip': (0.983, -0.275, -0.37), 'left_knee': (55.318,), 'left_ankle': (1.874, -0.461),
+        'right_hip': (23.761, 0.316, 0.139), 'right_knee': (22.826,),
+        'right_ankle': (-0.926, 0.345), 'left_hip': (5.63, -0.232, -0.372), 'left_knee': (60.914,),
+        'left_ankle': (2.821, -0.438),
     })
-    human.KeyRoot(50.1, (87.38, 71.692, 35.98), (105.631, 0.0, 0.0))
+    human.KeyRoot(50.1, (85.545, 70.767, 36.479), (105.631, 0.0, 0.0))
     human.KeyJoints(50.1, {
-        'right_hip': (15.501, -0.682, 0.455), 'right_knee': (19.413,),
-        'right_ankle': (3.914, -0.535), 'left_hip': (-3.538, 0.339, -0.052), 'left_knee': (50.402,),
-        'left_ankle': (-5.878, 0.685),
+        'right_hip': (20.074, -0.694, 0.407), 'right_knee': (25.398,),
+        'right_ankle': (5.327, -0.512), 'left_hip': (0.549, 0.337, -0.037), 'left_knee': (56.439,),
+        'left_ankle': (-3.928, 0.673),
     })
-    human.KeyRoot(50.2, (89.891, 72.022, 35.894), (102.968, 0.0, 0.0))
+    human.KeyRoot(50.2, (88.775, 71.687, 36.234), (102.968, 0.0, 0.0))
     human.KeyJoints(50.2, {
-        'right_hip': (12.907, -1.766, 2.963), 'right_knee': (17.876,),
-        'right_ankle': (4.896, -1.058), 'left_hip': (8.853, 0.579, -1.086), 'left_knee': (67.194,),
-        'left_ankle': (14.293, 0.582),
+        'right_hip': (15.068, -1.894, 2.89), 'right_knee': (20.27,), 'right_ankle': (5.129, -1.075),
+        'left_hip': (9.152, 0.619, -1.04), 'left_knee': (64.358,), 'left_ankle': (11.157, 0.634),
     })
-    human.KeyRoot(50.3, (92.564, 72.425, 35.797), (99.604, 0.0, 0.0))
+    human.KeyRoot(50.3, (92.174, 72.06, 35.956), (99.604, 0.0, 0.0))
     human.KeyJoints(50.3, {
-        'right_hip': (9.455, -2.663, 6.291), 'right_knee': (14.797,),
-        'right_ankle': (4.995, -1.579), 'left_hip': (32.012, 1.348, 0.539), 'left_knee': (77.1,),
-        'left_ankle': (19.603, 1.587),
+        'right_hip': (11.721, -2.956, 6.171), 'right_knee': (18.818,),
+        'right_ankle': (6.736, -1.626), 'left_hip': (25.793, 1.493, 0.151), 'left_knee': (61.936,),
+        'left_ankle': (19.438, 1.477),
     })
-    human.KeyRoot(50.4, (98.952, 72.785, 34.84), (96.688, 0.0, 0.0))
+    human.KeyRoot(50.4, (99.074, 71.634, 34.769), (96.688, 0.0, 0.0))
     human.KeyJoints(50.4, {
-        'right_hip': (11.897, -4.226, 8.568), 'right_knee': (29.928,),
-        'right_ankle': (10.109, -2.346), 'left_hip': (41.853, 3.277, 4.101), 'left_knee': (59.148,),
-        'left_ankle': (17.564, 5.168),
+        'right_hip': (14.942, -4.687, 8.327), 'right_knee': (36.761,),
+        'right_ankle': (13.873, -2.357), 'left_hip': (31.48, 3.563, 3.214), 'left_knee': (39.489,),
+        'left_ankle': (8.256, 4.709),
     })
-    human.KeyRoot(50.5, (114.336, 71.528, 30.07), (93.324, 0.0, 0.0))
+    human.KeyRoot(50.5, (113.567, 71.069, 30.335), (93.324, 0.0, 0.0))
     human.KeyJoints(50.5, {
-        'right_hip': (6.838, -3.471, 11.81), 'right_knee': (45.797,),
-        'right_ankle': (16.785, -2.125), 'left_hip': (30.721, 4.752, 4.581), 'left_knee': (29.915,),
-        'left_ankle': (-0.437, 6.41),
+        'right_hip': (8.702, -3.913, 11.658), 'right_knee': (48.526,),
+        'right_ankle': (17.605, -2.188), 'left_hip': (25.893, 5.21, 4.216), 'left_knee': (18.889,),
+        'left_ankle': (-6.632, 6.513),
     })
-    human.KeyRoot(50.6, (129.127, 71.011, 24.552), (90.643, 0.0, 0.0))
+    human.KeyRoot(50.6, (127.097, 70.974, 25.237), (90.643, 0.0, 0.0))
     human.KeyJoints(50.6, {
-        'right_hip': (-5.803, 0.764, 15.045), 'right_knee': (42.178,),
-        'right_ankle': (11.759, -0.954), 'left_hip': (19.127, 3.57, 1.895), 'left_knee': (18.607,),
-        'left_ankle': (-0.369, 3.99),
+        'right_hip': (-2.194, -0.298, 15.003), 'right_knee': (46.409,),
+        'right_ankle': (12.231, -1.06), 'left_hip': (18.456, 4.163, 2.043), 'left_knee': (13.509,),
+        'left_ankle': (-4.778, 4.592),
     })
-    human.KeyRoot(50.7, (132.804, 71.721, 21.926), (90.0, 0.0, 0.0))
+    human.KeyRoot(50.7, (130.515, 71.178, 22.503), (90.0, 0.0, 0.0))
     human.KeyJoints(50.7, {
-        'right_hip': (-7.797, 2.654, 16.375), 'right_knee': (40.826,),
-        'right_ankle': (4.195, 0.466), 'left_hip': (15.45, 1.613, 0.446), 'left_knee': (17.973,),
-        'left_ankle': (2.537, 1.673),
+        'right_hip': (-2.974, 1.308, 16.606), 'right_knee': (47.822,),
+        'right_ankle': (6.188, 0.568), 'left_hip': (18.459, 2.079, 0.694), 'left_knee': (20.048,),
+        'left_ankle': (1.607, 2.192),
     })
-    human.KeyRoot(50.8, (131.348, 71.888, 20.637), (90.0, 0.0, 0.0))
+    human.KeyRoot(50.8, (130.134, 71.426, 20.886), (90.0, 0.0, 0.0))
     human.KeyJoints(50.8, {
-        'right_hip': (2.967, 1.381, 16.603), 'right_knee': (58.088,),
-        'right_ankle': (19.301, 2.682), 'left_hip': (14.702, 0.534, 0.141), 'left_knee': (13.813,),
-        'left_ankle': (-0.86, 0.552),
+        'right_hip': (3.407, 1.313, 16.638), 'right_knee': (55.466,),
+        'right_ankle': (16.357, 2.738), 'left_hip': (17.417, 0.738, 0.232), 'left_knee': (17.244,),
+        'left_ankle': (-0.168, 0.774),
     })
-    human.KeyRoot(50.9, (129.864, 71.483, 19.911), (90.0, 0.0, 0.0))
+    human.KeyRoot(50.9, (129.745, 71.682, 19.933), (90.0, 0.0, 0.0))
     human.KeyJoints(50.9, {
-        'right_hip': (20.868, -0.58, 13.597), 'right_knee': (71.946,),
-        'right_ankle': (19.262, 5.061), 'left_hip': (17.104, -0.074, -0.023),
-        'left_knee': (16.116,), 'left_ankle': (-0.991, -0.077),
+        'right_hip': (13.89, 1.201, 12.419), 'right_knee': (53.448,),
+        'right_ankle': (19.241, 4.395), 'left_hip': (15.825, -0.056, -0.016),
+        'left_knee': (13.259,), 'left_ankle': (-2.559, -0.059),
     })
-    human.KeyRoot(51.0, (130.703, 71.62, 19.863), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.0, (130.703, 71.923, 19.863), (90.0, 0.0, 0.0))
     human.KeyJoints(51.0, {
-        'right_hip': (29.202, 0.065, 6.106), 'right_knee': (61.815,),
-        'right_ankle': (19.223, 3.141), 'left_hip': (16.357, -0.115, -0.034),
-        'left_knee': (16.083,), 'left_ankle': (-0.277, -0.119),
+        'right_hip': (20.806, 0.937, 5.437), 'right_knee': (43.737,),
+        'right_ankle': (19.202, 2.832), 'left_hip': (14.313, -0.115, -0.029),
+        'left_knee': (11.855,), 'left_ankle': (-2.457, -0.119),
     })
-    human.KeyRoot(51.1, (134.786, 71.982, 19.923), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.1, (134.785, 71.983, 19.923), (90.0, 0.0, 0.0))
     human.KeyJoints(51.1, {
-        'right_hip': (17.709, 0.201, 0.654), 'right_knee': (28.32,), 'right_ankle': (10.761, 0.423),
-        'left_hip': (13.59, -0.065, -0.016), 'left_knee': (17.705,), 'left_ankle': (4.101, -0.067),
+        'right_hip': (16.877, 0.211, 0.649), 'right_knee': (26.57,), 'right_ankle': (9.844, 0.421),
+        'left_hip': (13.569, -0.065, -0.016), 'left_knee': (17.646,), 'left_ankle': (4.078, -0.067),
     })
-    human.KeyRoot(51.2, (138.917, 72.463, 19.984), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.2, (138.917, 72.403, 19.984), (90.0, 0.0, 0.0))
     human.KeyJoints(51.2, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (8.7, 0.014, 0.002),
-        'right_knee': (14.913,), 'right_ankle': (6.218, 0.014), 'left_hip': (8.661, -0.014, -0.002),
-        'left_knee': (14.832,), 'left_ankle': (6.169, -0.014),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.041, 0.014, 0.002),
+        'right_knee': (15.632,), 'right_ankle': (6.594, 0.014), 'left_hip': (9.023, -0.014, -0.002),
+        'left_knee': (15.593,), 'left_ankle': (6.57, -0.014),
     })
     # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.266413, duration=0.2628)
+    human.LookAt((160.0, 90.0, 20.0), start=51.266413, duration=0.323843)
     human.KeyRoot(51.3, (140.0, 72.989, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(51.3, {
-        'neck': (1.569, 1.513, -1.329), 'head': (0.672, -0.504), 'right_hip': (3.104, 0.0, 0.0),
-        'right_knee': (5.088,), 'right_ankle': (1.987, 0.0), 'left_hip': (3.087, 0.0, 0.0),
-        'left_knee': (5.051,), 'left_ankle': (1.967, 0.0),
+        'neck': (1.051, 1.014, -0.891), 'head': (0.451, -0.338), 'right_hip': (3.052, 0.0, 0.0),
+        'right_knee': (4.978,), 'right_ankle': (1.929, 0.0), 'left_hip': (3.044, 0.0, 0.0),
+        'left_knee': (4.962,), 'left_ankle': (1.92, 0.0),
     })
-    human.KeyJoints(51.4, {
-        'neck': (17.937, 17.296, -15.193), 'head': (7.687, -5.765), 'right_knee': (4.956,),
-    })
+    human.KeyJoints(51.4, {'neck': (12.953, 12.491, -10.972), 'head': (5.551, -4.164)})
     human.KeyJoints(51.5, {
-        'neck': (33.799, 32.592, -28.628), 'head': (14.485, -10.864),
+        'neck': (28.359, 27.347, -24.021), 'head': (12.154, -9.116),
         'right_shoulder': (33.846, 35.556, -9.98), 'right_elbow': (90.706, 24.523),
         'right_wrist': (-15.93, -17.527), 'left_shoulder': (89.831, -29.271, 14.706),
         'left_elbow': (20.441, 18.178), 'left_wrist': (0.918, -5.555),
-        'right_hip': (3.028, 0.0, 0.0), 'right_knee': (4.927,), 'right_ankle': (1.902, 0.0),
-        'left_hip': (3.025, 0.0, 0.0), 'left_knee': (4.921,), 'left_ankle': (1.898, 0.0),
+        'right_hip': (3.027, 0.0, 0.0), 'right_knee': (4.926,), 'right_ankle': (1.901, 0.0),
+        'left_hip': (3.025, 0.0, 0.0), 'left_knee': (4.922,), 'left_ankle': (1.899, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.529213, duration=0.698258)
+    human.LookAt((160.0, 90.0, 20.0), start=51.590256, duration=0.637215)
     human.KeyJoints(51.6, {
         'neck': (35.0, 33.75, -29.645), 'head': (15.0, -11.25),
         'right_shoulder': (33.029, 35.195, -9.83), 'right_elbow': (91.04, 24.553),

@@ -22,89 +22,90 @@ def remove_avionics_unit():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (0.359, 72.58, 1.042), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.359, 72.499, 1.067), (0.0, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (14.317, 0.298, 0.111), 'right_knee': (29.34,), 'right_ankle': (8.971, 0.318),
-        'left_hip': (6.231, -0.306, -0.033), 'left_knee': (13.558,), 'left_ankle': (7.327, -0.308),
+        'right_hip': (14.552, 0.298, 0.112), 'right_knee': (29.88,), 'right_ankle': (9.277, 0.318),
+        'left_hip': (6.741, -0.306, -0.036), 'left_knee': (14.678,), 'left_ankle': (7.937, -0.308),
     })
-    human.KeyRoot(0.2, (1.159, 72.22, 3.833), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.2, (1.159, 72.125, 3.899), (0.0, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (17.991, 0.927, 0.54), 'right_knee': (40.73,), 'right_ankle': (10.508, 1.072),
-        'left_hip': (5.536, -0.995, -0.096), 'left_knee': (17.166,), 'left_ankle': (11.63, -0.999),
+        'right_hip': (18.143, 0.926, 0.543), 'right_knee': (41.186,),
+        'right_ankle': (10.812, 1.074), 'left_hip': (5.959, -0.995, -0.104), 'left_knee': (18.186,),
+        'left_ankle': (12.228, -1.001),
     })
-    human.KeyRoot(0.3, (1.987, 72.148, 7.868), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.987, 71.983, 7.947), (0.0, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (27.692, 1.542, 1.222), 'right_knee': (55.957,),
-        'right_ankle': (18.065, 1.967), 'left_hip': (1.162, -1.716, -0.044), 'left_knee': (15.205,),
-        'left_ankle': (13.737, -1.716),
+        'right_hip': (24.377, 1.589, 1.026), 'right_knee': (49.109,),
+        'right_ankle': (16.542, 1.892), 'left_hip': (1.978, -1.719, -0.069), 'left_knee': (17.1,),
+        'left_ankle': (14.817, -1.721),
     })
-    human.KeyRoot(0.4, (2.429, 72.719, 12.642), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.4, (2.429, 71.745, 12.659), (0.0, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (36.897, 1.863, 1.502), 'right_knee': (53.931,),
-        'right_ankle': (15.504, 2.393), 'left_hip': (2.475, -2.086, -0.385), 'left_knee': (25.325,),
-        'left_ankle': (14.872, -2.121),
+        'right_hip': (31.653, 1.91, 1.261), 'right_knee': (43.811,), 'right_ankle': (10.623, 2.289),
+        'left_hip': (5.444, -2.094, -0.5), 'left_knee': (31.934,), 'left_ankle': (18.514, -2.153),
     })
-    human.KeyRoot(0.5, (2.049, 71.867, 21.601), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.5, (2.049, 71.063, 20.981), (0.0, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (33.865, 1.588, 1.081), 'right_knee': (34.776,), 'right_ankle': (0.886, 1.921),
-        'left_hip': (3.816, -1.693, -0.817), 'left_knee': (42.103,), 'left_ankle': (16.334, -1.88),
+        'right_hip': (30.993, 1.616, 0.98), 'right_knee': (28.154,), 'right_ankle': (-2.867, 1.89),
+        'left_hip': (6.174, -1.684, -0.9), 'left_knee': (46.382,), 'left_ankle': (18.256, -1.909),
     })
-    human.KeyRoot(0.6, (1.011, 70.974, 34.615), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.6, (1.011, 70.533, 32.746), (0.0, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (19.657, 0.838, 0.305), 'right_knee': (12.62,), 'right_ankle': (-7.068, 0.892),
-        'left_hip': (-5.115, -0.803, -0.496), 'left_knee': (43.3,), 'left_ankle': (11.589, -0.944),
+        'right_hip': (21.801, 0.834, 0.337), 'right_knee': (13.632,),
+        'right_ankle': (-8.201, 0.899), 'left_hip': (-1.276, -0.787, -0.563),
+        'left_knee': (48.499,), 'left_ankle': (12.949, -0.968),
     })
-    human.KeyRoot(0.7, (-0.047, 71.284, 40.807), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.047, 70.733, 38.31), (0.0, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (18.112, -0.039, -0.013), 'right_knee': (19.885,),
-        'right_ankle': (1.772, -0.042), 'left_hip': (-9.458, 0.036, 0.028), 'left_knee': (41.049,),
-        'left_ankle': (3.347, 0.045),
+        'right_hip': (20.875, -0.039, -0.015), 'right_knee': (21.045,),
+        'right_ankle': (0.16, -0.042), 'left_hip': (-4.154, 0.035, 0.032), 'left_knee': (48.523,),
+        'left_ankle': (5.516, 0.047),
     })
-    human.KeyRoot(0.8, (-1.168, 71.482, 39.966), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.168, 71.214, 38.31), (0.0, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (17.062, -0.974, -0.299), 'right_knee': (16.208,),
-        'right_ankle': (-0.854, -1.019), 'left_hip': (-2.413, 0.86, 0.787), 'left_knee': (52.756,),
-        'left_ankle': (10.66, 1.166),
+        'right_hip': (18.357, -0.971, -0.322), 'right_knee': (15.894,),
+        'right_ankle': (-2.467, -1.023), 'left_hip': (-0.32, 0.843, 0.827), 'left_knee': (53.779,),
+        'left_ankle': (9.537, 1.181),
     })
-    human.KeyRoot(0.9, (-2.187, 71.482, 38.672), (0.0, 0.0, 0.0))
+    human.KeyRoot(0.9, (-2.188, 71.474, 38.31), (0.0, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.565, -1.828, -0.544), 'right_knee': (12.846,),
-        'right_ankle': (-3.713, -1.907), 'left_hip': (15.466, 1.487, 1.899), 'left_knee': (70.321,),
-        'left_ankle': (18.723, 2.412),
+        'right_hip': (16.429, -1.83, -0.539), 'right_knee': (11.912,),
+        'right_ankle': (-4.512, -1.908), 'left_hip': (10.827, 1.707, 1.291), 'left_knee': (56.499,),
+        'left_ankle': (18.925, 2.163),
     })
-    human.KeyRoot(1.0, (-2.358, 71.485, 38.681), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.358, 71.48, 38.681), (0.0, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.508, -1.972, -0.584), 'right_knee': (12.743,),
-        'right_ankle': (-3.76, -2.056), 'left_hip': (29.24, 1.652, 1.935), 'left_knee': (67.979,),
-        'left_ankle': (18.763, 2.544),
+        'right_hip': (16.541, -1.971, -0.585), 'right_knee': (12.813,),
+        'right_ankle': (-3.72, -2.056), 'left_hip': (19.878, 1.938, 1.059), 'left_knee': (47.416,),
+        'left_ankle': (18.936, 2.209),
     })
-    human.KeyRoot(1.1, (-1.544, 71.706, 42.592), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.1, (-1.543, 71.559, 42.595), (0.0, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (15.594, -1.292, -0.361), 'right_knee': (17.893,),
-        'right_ankle': (2.3, -1.342), 'left_hip': (22.944, 1.289, 0.547), 'left_knee': (38.845,),
-        'left_ankle': (16.072, 1.4),
+        'right_hip': (16.375, -1.29, -0.379), 'right_knee': (19.555,),
+        'right_ankle': (3.152, -1.344), 'left_hip': (20.673, 1.291, 0.488), 'left_knee': (34.303,),
+        'left_ankle': (13.771, 1.381),
     })
-    human.KeyRoot(1.2, (-0.487, 72.198, 47.663), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.487, 72.08, 47.663), (0.0, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'right_hip': (11.006, -0.412, -0.08), 'right_knee': (17.486,),
-        'right_ankle': (6.478, -0.42), 'left_hip': (10.992, 0.412, 0.08), 'left_knee': (17.457,),
-        'left_ankle': (6.46, 0.42),
+        'right_hip': (11.61, -0.412, -0.085), 'right_knee': (18.752,),
+        'right_ankle': (7.142, -0.421), 'left_hip': (11.602, 0.412, 0.085), 'left_knee': (18.734,),
+        'left_ankle': (7.131, 0.421),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > look: gaze on head at latch_left
     human.LookAt((-22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > look: gaze on head at latch_right
     human.LookAt((22.0, 178.0, 100.0), start=1.294737, duration=0.265686)
-    human.KeyRoot(1.3, (0.0, 72.993, 50.0), (0.0, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'neck': (-0.022, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_hip': (2.996, 0.0, 0.0),
-        'right_knee': (4.859,), 'right_ankle': (1.866, 0.0), 'left_hip': (2.991, 0.0, 0.0),
-        'left_knee': (4.851,), 'left_ankle': (1.862, 0.0),
+        'neck': (-0.022, 0.0, 0.0), 'head': (-0.018, 0.0), 'right_hip': (3.019, 0.0, 0.0),
+        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.016, 0.0, 0.0),
+        'left_knee': (4.902,), 'left_ankle': (1.889, 0.0),
     })
     human.KeyJoints(1.4, {'neck': (-6.498, 0.0, 0.0), 'head': (-5.508, 0.0)})
     human.KeyJoints(1.5, {
-        'neck': (-16.638, 0.0, 0.0), 'head': (-14.171, 0.0), 'right_hip': (3.011, 0.0, 0.0),
-        'right_knee': (4.892,), 'right_ankle': (1.883, 0.0), 'left_hip': (3.01, 0.0, 0.0),
-        'left_knee': (4.889,), 'left_ankle': (1.882, 0.0),
+        'neck': (-16.638, 0.0, 0.0), 'head': (-14.171, 0.0), 'right_hip': (3.019, 0.0, 0.0),
+        'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
+        'left_knee': (4.906,), 'left_ankle': (1.891, 0.0),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TA on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TA on r_arm at latch_right
@@ -381,7 +382,7 @@ def remove_avionics_unit():
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
-    human.Walk((-79.996, 0.0, 40.001), start=6.087427, duration=4.515789)
+    human.Walk((-79.997, 0.0, 40.001), start=6.087427, duration=4.515789)
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: gaze on head
     human.KeyRoot(6.1, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
     human.KeyJoints(6.1, {
@@ -389,296 +390,286 @@ def remove_avionics_unit():
         'right_hip': (3.51, 0.005, 0.014), 'right_knee': (5.94,), 'right_ankle': (2.42, 0.006),
         'left_hip': (3.459, -0.005, -0.014), 'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
     })
-    human.KeyRoot(6.2, (0.45, 72.55, 50.1), (-0.953, 0.0, 0.0))
+    human.KeyRoot(6.2, (0.45, 72.589, 50.1), (-0.953, 0.0, 0.0))
     human.KeyJoints(6.2, {
         'neck': (-45.857, -15.232, -18.552), 'head': (-15.936, 8.963),
-        'left_elbow': (8.013, -65.263), 'right_hip': (8.352, 0.245, 1.003), 'right_knee': (15.966,),
-        'right_ankle': (7.075, 0.388), 'left_hip': (7.114, -0.264, -0.994), 'left_knee': (13.946,),
-        'left_ankle': (6.838, -0.385),
+        'left_elbow': (8.013, -65.263), 'right_hip': (8.12, 0.249, 1.002), 'right_knee': (15.476,),
+        'right_ankle': (6.818, 0.388), 'left_hip': (6.846, -0.269, -0.992), 'left_knee': (13.383,),
+        'left_ankle': (6.542, -0.385),
     })
     human.KeyRoot(6.3, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
     human.KeyJoints(6.3, {
         'neck': (-24.966, -8.293, -10.1), 'head': (-8.676, 4.891),
-        'right_hip': (10.865, 0.561, 2.995), 'right_knee': (20.949,), 'right_ankle': (9.2, 1.128),
+        'right_hip': (10.472, 0.538, 2.991), 'right_knee': (20.12,), 'right_ankle': (8.764, 1.125),
         'left_hip': (7.104, -0.721, -3.097), 'left_knee': (14.693,), 'left_ankle': (7.637, -1.097),
     })
-    human.KeyRoot(6.4, (2.102, 72.487, 50.466), (-5.558, 0.0, 0.0))
+    human.KeyRoot(6.4, (2.102, 72.488, 50.466), (-5.558, 0.0, 0.0))
     human.KeyJoints(6.4, {
         'neck': (-5.987, -1.989, -2.422), 'head': (-2.081, 1.19),
-        'right_hip': (22.224, 1.634, 0.781), 'right_knee': (45.481,),
-        'right_ankle': (18.009, 1.806), 'left_hip': (6.859, -1.1, -5.732), 'left_knee': (14.949,),
-        'left_ankle': (8.095, -1.773),
+        'right_hip': (18.851, 1.631, 0.537), 'right_knee': (38.348,),
+        'right_ankle': (18.377, 1.749), 'left_hip': (6.848, -1.102, -5.732), 'left_knee': (14.925,),
+        'left_ankle': (8.083, -1.773),
     })
-    human.KeyRoot(6.5, (2.471, 72.804, 50.548), (-8.122, 0.0, 0.0))
+    human.KeyRoot(6.5, (2.471, 72.699, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(6.5, {
-        'neck': (0.102, 0.034, 0.041), 'head': (0.035, 0.0), 'right_hip': (24.003, 5.185, -6.251),
-        'right_knee': (51.255,), 'right_ankle': (18.144, 2.075),
-        'left_hip': (7.533, -0.981, -8.382), 'left_knee': (16.695,), 'left_ankle': (7.607, -2.058),
+        'neck': (0.102, 0.034, 0.041), 'head': (0.035, 0.0), 'right_hip': (19.911, 4.648, -6.821),
+        'right_knee': (42.523,), 'right_ankle': (18.462, 1.981),
+        'left_hip': (8.098, -0.901, -8.392), 'left_knee': (17.9,), 'left_ankle': (8.243, -2.061),
     })
-    human.KeyRoot(6.6, (2.099, 72.843, 49.938), (-10.614, 0.0, 0.0))
+    human.KeyRoot(6.6, (2.092, 72.713, 49.963), (-10.614, 0.0, 0.0))
     human.KeyJoints(6.6, {
-        'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
-        'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
-        'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
-        'right_hip': (16.952, 6.558, -15.072), 'right_knee': (37.894,),
-        'right_ankle': (18.28, 1.516), 'left_hip': (11.34, 0.434, -10.873), 'left_knee': (23.903,),
-        'left_ankle': (8.22, -1.711),
+        'left_wrist': (7.663, -1.329), 'right_hip': (15.347, 5.98, -15.312),
+        'right_knee': (34.413,), 'right_ankle': (17.743, 1.503),
+        'left_hip': (11.807, 0.527, -10.868), 'left_knee': (24.956,), 'left_ankle': (8.788, -1.709),
     })
-    human.KeyRoot(6.7, (1.264, 72.518, 48.852), (-13.49, 0.0, 0.0))
+    human.KeyRoot(6.7, (1.248, 72.52, 48.925), (-13.49, 0.0, 0.0))
     human.KeyJoints(6.7, {
-        'right_shoulder': (2.19, 165.634, -40.315), 'right_elbow': (7.588, 8.69),
-        'right_wrist': (12.358, -10.967), 'left_shoulder': (21.449, 163.017, -64.813),
-        'left_elbow': (8.341, -65.269), 'left_wrist': (7.87, -1.327),
-        'right_hip': (6.736, 2.935, -18.836), 'right_knee': (14.465,),
-        'right_ankle': (7.181, 0.391), 'left_hip': (15.636, 2.822, -13.347), 'left_knee': (31.75,),
-        'left_ankle': (8.689, -0.93),
+        'right_hip': (7.07, 2.973, -18.824), 'right_knee': (15.329,), 'right_ankle': (7.695, 0.413),
+        'left_hip': (15.561, 2.817, -13.346), 'left_knee': (31.733,), 'left_ankle': (8.741, -0.916),
     })
-    human.KeyRoot(6.8, (0.4, 72.492, 48.416), (-16.969, 0.0, 0.0))
+    human.KeyRoot(6.8, (0.379, 72.499, 48.508), (-16.969, 0.0, 0.0))
     human.KeyJoints(6.8, {
-        'right_elbow': (7.38, 8.706), 'right_wrist': (12.077, -10.792),
-        'left_shoulder': (21.36, 163.184, -64.813), 'left_elbow': (8.013, -65.263),
-        'left_wrist': (7.663, -1.329), 'right_hip': (7.573, 1.531, -15.533),
-        'right_knee': (14.689,), 'right_ankle': (6.98, -0.56), 'left_hip': (16.819, 5.006, -16.241),
-        'left_knee': (34.869,), 'left_ankle': (8.337, -0.042),
+        'right_hip': (7.453, 1.525, -15.532), 'right_knee': (14.604,),
+        'right_ankle': (7.016, -0.533), 'left_hip': (16.709, 4.993, -16.242),
+        'left_knee': (34.812,), 'left_ankle': (8.391, -0.023),
     })
-    human.KeyRoot(6.9, (-0.606, 72.491, 48.562), (-21.678, 0.0, 0.0))
+    human.KeyRoot(6.9, (-0.637, 72.496, 48.638), (-21.678, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'right_hip': (7.719, 0.115, -10.969), 'right_knee': (14.499,),
-        'left_hip': (21.101, 8.111, -17.579), 'left_knee': (46.479,), 'left_ankle': (15.546, 0.959),
+        'right_hip': (7.631, 0.111, -10.969), 'right_knee': (14.461,),
+        'left_hip': (19.106, 7.456, -17.844), 'left_knee': (42.234,), 'left_ankle': (13.375, 0.972),
     })
-    human.KeyRoot(7.0, (-1.645, 72.495, 48.882), (-27.206, 0.0, 0.0))
+    human.KeyRoot(7.0, (-1.678, 72.492, 48.923), (-27.207, 0.0, 0.0))
     human.KeyJoints(7.0, {
-        'right_shoulder': (2.118, 165.656, -40.315), 'right_hip': (7.54, -1.337, -5.58),
-        'right_knee': (14.127,), 'right_ankle': (6.743, -2.051),
-        'left_hip': (26.692, 6.916, -10.231), 'left_knee': (57.217,), 'left_ankle': (19.33, 1.469),
+        'right_hip': (7.514, -1.344, -5.58), 'right_knee': (14.166,), 'right_ankle': (6.81, -2.055),
+        'left_hip': (21.891, 6.012, -10.938), 'left_knee': (46.992,), 'left_ankle': (19.216, 1.41),
     })
-    human.KeyRoot(7.1, (-2.332, 72.499, 49.32), (-32.671, 0.0, 0.0))
+    human.KeyRoot(7.1, (-2.331, 72.517, 49.319), (-32.671, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'right_hip': (8.248, -2.366, -0.264), 'right_knee': (15.797,),
-        'right_ankle': (7.041, -2.38), 'left_hip': (28.609, 1.129, 1.379), 'left_knee': (58.793,),
-        'left_ankle': (19.282, 1.574),
+        'right_hip': (8.13, -2.368, -0.258), 'right_knee': (15.546,),
+        'right_ankle': (6.914, -2.379), 'left_hip': (22.336, 1.204, 1.029), 'left_knee': (45.501,),
+        'left_ankle': (19.184, 1.463),
     })
-    human.KeyRoot(7.2, (-2.702, 72.857, 50.678), (-37.827, 0.0, 0.0))
+    human.KeyRoot(7.2, (-2.643, 72.629, 50.612), (-37.827, 0.0, 0.0))
     human.KeyJoints(7.2, {
-        'right_hip': (9.274, -2.815, 4.773), 'right_knee': (19.087,),
-        'right_ankle': (6.898, -2.002), 'left_hip': (21.828, -3.937, 13.036),
-        'left_knee': (45.218,), 'left_ankle': (19.234, 1.126),
+        'right_hip': (10.407, -2.906, 4.717), 'right_knee': (21.318,),
+        'right_ankle': (7.991, -1.997), 'left_hip': (18.581, -3.341, 13.249),
+        'left_knee': (38.017,), 'left_ankle': (18.571, 1.11),
     })
-    human.KeyRoot(7.3, (-2.984, 72.579, 52.72), (-42.983, 0.0, 0.0))
+    human.KeyRoot(7.3, (-2.874, 72.623, 52.556), (-42.983, 0.0, 0.0))
     human.KeyJoints(7.3, {
-        'right_hip': (12.765, -3.475, 9.776), 'right_knee': (28.346,),
-        'right_ankle': (9.604, -1.194), 'left_hip': (9.881, -3.532, 20.102), 'left_knee': (21.885,),
-        'left_ankle': (11.392, 0.012),
+        'right_hip': (12.795, -3.475, 9.776), 'right_knee': (28.043,),
+        'right_ankle': (9.271, -1.189), 'left_hip': (10.034, -3.551, 20.096), 'left_knee': (21.85,),
+        'left_ankle': (11.225, 0.095),
     })
-    human.KeyRoot(7.4, (-3.113, 72.487, 53.952), (-48.139, 0.0, 0.0))
+    human.KeyRoot(7.4, (-2.978, 72.487, 53.756), (-48.139, 0.0, 0.0))
     human.KeyJoints(7.4, {
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (14.698, -4.586, 14.828), 'right_knee': (33.165,),
-        'right_ankle': (9.883, -0.568), 'left_hip': (5.577, -2.761, 16.804), 'left_knee': (14.684,),
-        'left_ankle': (8.551, -1.02),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (14.909, -4.634, 14.814), 'right_knee': (33.171,),
+        'right_ankle': (9.674, -0.561), 'left_hip': (5.795, -2.719, 16.805), 'left_knee': (14.725,),
+        'left_ankle': (8.395, -0.916),
     })
-    human.KeyRoot(7.5, (-2.716, 72.487, 53.964), (-53.295, 0.0, 0.0))
+    human.KeyRoot(7.5, (-2.595, 72.487, 53.808), (-53.295, 0.0, 0.0))
     human.KeyJoints(7.5, {
-        'right_hip': (18.145, -6.615, 19.091), 'right_knee': (39.689,),
-        'right_ankle': (11.979, -0.085), 'left_hip': (5.35, -2.47, 11.654),
-        'left_ankle': (8.746, -1.329),
+        'right_hip': (17.461, -6.382, 19.178), 'right_knee': (37.781,),
+        'right_ankle': (10.797, -0.07), 'left_hip': (5.539, -2.43, 11.654),
+        'left_ankle': (8.625, -1.251),
     })
-    human.KeyRoot(7.6, (-1.604, 72.487, 53.926), (-58.451, 0.0, 0.0))
+    human.KeyRoot(7.6, (-1.531, 72.487, 53.829), (-58.451, 0.0, 0.0))
     human.KeyJoints(7.6, {
-        'right_hip': (25.356, -6.684, 14.694), 'right_knee': (54.045,),
-        'right_ankle': (19.184, 0.426), 'left_hip': (5.682, -2.468, 6.464), 'left_knee': (14.328,),
+        'right_hip': (21.602, -5.708, 15.063), 'right_knee': (45.621,),
+        'right_ankle': (17.881, 0.398), 'left_hip': (5.817, -2.431, 6.48), 'left_knee': (14.401,),
     })
-    human.KeyRoot(7.7, (-0.38, 72.487, 53.862), (-63.607, 0.0, 0.0))
+    human.KeyRoot(7.7, (-0.364, 72.487, 53.837), (-63.607, 0.0, 0.0))
     human.KeyJoints(7.7, {
-        'right_hip': (27.713, -1.21, 4.153), 'right_knee': (58.703,),
-        'left_hip': (6.274, -2.392, 1.265), 'left_knee': (14.425,), 'left_ankle': (8.021, -2.239),
+        'right_hip': (21.932, -0.788, 4.133), 'right_knee': (46.273,),
+        'right_ankle': (19.11, 0.857), 'left_hip': (6.301, -2.379, 1.265), 'left_knee': (14.436,),
+        'left_ankle': (8.005, -2.226),
     })
-    human.KeyRoot(7.8, (0.643, 72.661, 53.392), (-68.973, 0.0, 0.0))
+    human.KeyRoot(7.8, (0.596, 72.548, 53.446), (-68.973, 0.0, 0.0))
     human.KeyJoints(7.8, {
-        'right_hip': (23.342, 4.985, -7.998), 'right_knee': (51.307,),
-        'right_ankle': (19.133, 1.44), 'left_hip': (7.425, -1.716, -4.135), 'left_knee': (15.615,),
-        'left_ankle': (7.347, -2.232),
+        'right_hip': (18.708, 4.367, -8.493), 'right_knee': (41.461,),
+        'right_ankle': (19.092, 1.416), 'left_hip': (8.009, -1.702, -4.157), 'left_knee': (16.964,),
+        'left_ankle': (8.112, -2.261),
     })
-    human.KeyRoot(7.9, (1.754, 72.717, 51.921), (-74.647, 0.0, 0.0))
+    human.KeyRoot(7.9, (1.624, 72.555, 52.025), (-74.637, 0.0, 0.0))
     human.KeyJoints(7.9, {
-        'right_hip': (12.672, 5.115, -17.85), 'right_knee': (28.851,),
-        'right_ankle': (15.244, 0.933), 'left_hip': (10.251, 0.309, -9.675), 'left_knee': (19.874,),
-        'left_ankle': (7.284, -1.415),
+        'right_hip': (12.244, 4.952, -17.815), 'right_ankle': (15.501, 1.024),
+        'left_hip': (10.864, 0.381, -9.665), 'left_knee': (21.475,), 'left_ankle': (8.253, -1.453),
     })
-    human.KeyRoot(8.0, (2.517, 72.487, 50.372), (-79.647, 0.0, 0.0))
+    human.KeyRoot(8.0, (2.335, 72.487, 50.491), (-79.647, 0.0, 0.0))
     human.KeyJoints(8.0, {
-        'right_hip': (7.38, 2.065, -17.938), 'right_knee': (14.82,), 'right_ankle': (7.167, -0.319),
-        'left_hip': (13.117, 3.016, -14.235), 'left_knee': (25.311,), 'left_ankle': (8.06, -0.353),
+        'right_hip': (7.217, 2.14, -17.928), 'right_knee': (14.839,),
+        'right_ankle': (7.317, -0.196), 'left_hip': (12.959, 2.948, -14.252), 'left_knee': (25.35,),
+        'left_ankle': (8.267, -0.38),
     })
-    human.KeyRoot(8.1, (2.512, 72.487, 49.515), (-83.144, 0.0, 0.0))
+    human.KeyRoot(8.1, (2.334, 72.487, 49.607), (-83.144, 0.0, 0.0))
     human.KeyJoints(8.1, {
-        'right_hip': (7.886, 0.846, -14.575), 'right_ankle': (6.731, -1.168),
-        'left_hip': (13.306, 4.732, -17.37), 'left_knee': (26.749,), 'left_ankle': (8.174, 0.455),
+        'right_hip': (7.751, 0.912, -14.564), 'right_ankle': (6.901, -1.068),
+        'left_hip': (13.156, 4.677, -17.385), 'left_knee': (26.784,), 'left_ankle': (8.367, 0.447),
     })
-    human.KeyRoot(8.2, (1.918, 72.487, 48.836), (-85.746, 0.0, 0.0))
+    human.KeyRoot(8.2, (1.802, 72.487, 48.882), (-85.746, 0.0, 0.0))
     human.KeyJoints(8.2, {
-        'right_hip': (7.696, -0.153, -12.097), 'right_knee': (14.425,),
-        'right_ankle': (6.932, -1.749), 'left_hip': (21.479, 7.954, -15.854),
-        'left_knee': (45.668,), 'left_ankle': (18.904, 1.319),
+        'right_hip': (7.605, -0.117, -12.089), 'right_ankle': (7.039, -1.696),
+        'left_hip': (18.509, 7.058, -16.276), 'left_knee': (39.353,), 'left_ankle': (16.186, 1.29),
     })
-    human.KeyRoot(8.3, (1.108, 72.487, 48.381), (-88.06, 0.0, 0.0))
+    human.KeyRoot(8.3, (1.069, 72.487, 48.39), (-88.06, 0.0, 0.0))
     human.KeyJoints(8.3, {
-        'right_hip': (7.211, -0.889, -9.822), 'right_knee': (14.266,),
-        'right_ankle': (7.306, -2.095), 'left_hip': (26.061, 7.195, -9.921), 'left_knee': (54.867,),
-        'left_ankle': (18.917, 1.997),
+        'right_hip': (7.181, -0.882, -9.82), 'right_knee': (14.272,),
+        'right_ankle': (7.341, -2.084), 'left_hip': (21.279, 6.318, -10.704),
+        'left_knee': (44.664,), 'left_ankle': (18.954, 1.894),
     })
-    human.KeyRoot(8.4, (0.42, 72.791, 48.376), (-90.665, 0.0, 0.0))
+    human.KeyRoot(8.4, (0.438, 72.69, 48.375), (-90.665, 0.0, 0.0))
     human.KeyJoints(8.4, {
-        'right_hip': (12.835, -0.457, -7.508), 'right_knee': (25.827,),
-        'right_ankle': (7.944, -2.114), 'left_hip': (25.437, 4.135, -3.764), 'left_knee': (52.683,),
-        'left_ankle': (18.93, 2.102),
+        'right_hip': (13.209, -0.413, -7.512), 'right_knee': (26.59,), 'right_ankle': (8.33, -2.12),
+        'left_hip': (20.677, 3.795, -4.318), 'left_knee': (42.513,), 'left_ankle': (18.961, 1.999),
     })
-    human.KeyRoot(8.5, (-0.135, 72.822, 49.147), (-94.017, 0.0, 0.0))
+    human.KeyRoot(8.5, (-0.082, 72.709, 49.144), (-94.017, 0.0, 0.0))
     human.KeyJoints(8.5, {
-        'right_hip': (22.64, 0.208, -4.388), 'right_knee': (43.281,),
-        'right_ankle': (3.844, -1.563), 'left_hip': (17.257, 1.469, -0.055), 'left_knee': (35.371,),
-        'left_ankle': (18.121, 1.374),
+        'right_hip': (22.932, 0.221, -4.395), 'right_knee': (43.792,),
+        'right_ankle': (4.063, -1.576), 'left_hip': (15.851, 1.46, -0.095), 'left_knee': (32.257,),
+        'left_ankle': (16.434, 1.368),
     })
-    human.KeyRoot(8.6, (-0.784, 72.487, 50.182), (-96.847, 0.0, 0.0))
+    human.KeyRoot(8.6, (-0.7, 72.527, 50.176), (-96.847, 0.0, 0.0))
     human.KeyJoints(8.6, {
-        'right_hip': (31.082, 0.143, -1.252), 'right_knee': (55.883,),
-        'right_ankle': (-4.829, -0.602), 'left_hip': (7.372, 0.34, 0.86), 'left_knee': (15.405,),
-        'left_ankle': (8.049, 0.444),
+        'right_hip': (31.078, 0.133, -1.269), 'right_knee': (55.711,),
+        'right_ankle': (-4.997, -0.622), 'left_hip': (7.593, 0.352, 0.862), 'left_knee': (15.684,),
+        'left_ankle': (8.125, 0.459),
     })
-    human.KeyRoot(8.7, (-1.773, 72.493, 50.836), (-97.695, 0.0, 0.0))
+    human.KeyRoot(8.7, (-1.652, 72.448, 50.83), (-97.695, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'right_hip': (34.947, 0.105, 0.349), 'right_knee': (61.01,), 'right_ankle': (-12.27, 0.365),
-        'left_hip': (6.166, -0.225, -0.001), 'left_knee': (14.696,), 'left_ankle': (8.538, -0.226),
+        'right_hip': (35.11, 0.096, 0.322), 'right_knee': (61.101,),
+        'right_ankle': (-12.343, 0.336), 'left_hip': (6.548, -0.207, -0.023), 'left_knee': (15.3,),
+        'left_ankle': (8.752, -0.208),
     })
-    human.KeyRoot(8.8, (-3.735, 72.357, 51.253), (-97.695, 0.0, 0.0))
+    human.KeyRoot(8.8, (-3.655, 72.206, 51.25), (-97.695, 0.0, 0.0))
     human.KeyJoints(8.8, {
-        'right_hip': (37.941, 0.352, 1.258), 'right_knee': (68.354,),
-        'right_ankle': (-6.277, 1.306), 'left_hip': (5.002, -0.806, -0.057), 'left_knee': (15.674,),
-        'left_ankle': (10.677, -0.809),
+        'right_hip': (36.786, 0.364, 1.217), 'right_knee': (65.859,), 'right_ankle': (-7.617, 1.27),
+        'left_hip': (5.928, -0.794, -0.082), 'left_knee': (17.504,), 'left_ankle': (11.576, -0.798),
     })
-    human.KeyRoot(8.9, (-6.649, 71.984, 51.587), (-97.695, 0.0, 0.0))
+    human.KeyRoot(8.9, (-6.648, 71.984, 51.585), (-97.695, 0.0, 0.0))
     human.KeyJoints(8.9, {
-        'right_hip': (42.952, 0.87, 1.843), 'right_knee': (73.203,), 'right_ankle': (8.254, 2.038),
-        'left_hip': (3.518, -1.434, -0.084), 'left_knee': (17.744,), 'left_ankle': (14.229, -1.437),
+        'right_hip': (37.582, 0.969, 1.643), 'right_knee': (62.681,), 'right_ankle': (3.103, 1.908),
+        'left_hip': (3.525, -1.433, -0.084), 'left_ankle': (14.231, -1.436),
     })
-    human.KeyRoot(9.0, (-10.204, 72.014, 51.756), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.0, (-10.22, 72.001, 51.756), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.0, {
-        'right_hip': (45.218, 1.582, 1.931), 'right_knee': (68.15,), 'right_ankle': (17.309, 2.497),
-        'left_hip': (0.667, -1.998, -0.075), 'left_knee': (17.855,), 'left_ankle': (15.693, -2.0),
+        'right_hip': (34.56, 1.724, 1.451), 'right_knee': (47.96,), 'right_ankle': (7.772, 2.253),
+        'left_hip': (0.705, -2.0, -0.077), 'left_knee': (17.967,), 'left_ankle': (15.767, -2.002),
     })
-    human.KeyRoot(9.1, (-15.098, 72.686, 51.273), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.1, (-14.752, 71.843, 51.31), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.1, {
-        'right_hip': (39.642, 1.873, 1.54), 'right_knee': (50.67,), 'right_ankle': (11.104, 2.425),
-        'left_hip': (4.581, -2.101, -0.672), 'left_knee': (32.941,), 'left_ankle': (15.222, -2.206),
+        'right_hip': (30.974, 1.954, 1.166), 'right_knee': (33.466,), 'right_ankle': (2.563, 2.275),
+        'left_hip': (7.11, -2.09, -0.771), 'left_knee': (37.954,), 'left_ankle': (17.707, -2.228),
     })
-    human.KeyRoot(9.2, (-22.271, 71.893, 49.586), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.2, (-21.005, 71.361, 49.736), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.2, {
-        'right_hip': (27.497, 1.423, 0.735), 'right_knee': (27.958,), 'right_ankle': (0.511, 1.601),
-        'left_hip': (8.99, -1.332, -1.116), 'left_knee': (51.59,), 'left_ankle': (11.638, -1.738),
+        'right_hip': (25.395, 1.42, 0.671), 'right_knee': (21.477,), 'right_ankle': (-3.869, 1.57),
+        'left_hip': (11.535, -1.29, -1.183), 'left_knee': (54.8,), 'left_ankle': (12.302, -1.75),
     })
-    human.KeyRoot(9.3, (-29.291, 71.478, 47.548), (-97.695, 0.0, 0.0))
+    human.KeyRoot(9.3, (-27.284, 70.996, 47.802), (-97.695, 0.0, 0.0))
     human.KeyJoints(9.3, {
-        'right_hip': (17.092, 0.576, 0.176), 'right_knee': (14.661,), 'right_ankle': (-2.4, 0.602),
-        'left_hip': (9.538, -0.414, -0.663), 'left_knee': (59.926,), 'left_ankle': (1.928, -0.781),
+        'right_hip': (19.404, 0.558, 0.196), 'right_knee': (15.775,),
+        'right_ankle': (-3.599, 0.591), 'left_hip': (12.975, -0.378, -0.694),
+        'left_knee': (63.521,), 'left_ankle': (2.086, -0.79),
     })
-    human.KeyRoot(9.4, (-33.707, 71.776, 46.015), (-97.636, 0.0, 0.0))
+    human.KeyRoot(9.4, (-31.849, 71.25, 46.271), (-97.636, 0.0, 0.0))
     human.KeyJoints(9.4, {
-        'right_hip': (15.033, -0.184, -0.111), 'right_knee': (18.717,),
-        'right_ankle': (3.686, -0.207), 'left_hip': (8.191, 0.108, 0.336), 'left_knee': (60.392,),
-        'left_ankle': (-6.898, 0.301),
+        'right_hip': (18.053, -0.175, -0.12), 'right_knee': (21.575,),
+        'right_ankle': (3.523, -0.204), 'left_hip': (11.5, 0.09, 0.348), 'left_knee': (64.101,),
+        'left_ankle': (-6.498, 0.307),
     })
-    human.KeyRoot(9.5, (-35.957, 72.145, 44.781), (-96.682, 0.0, 0.0))
+    human.KeyRoot(9.5, (-34.678, 71.734, 44.922), (-96.682, 0.0, 0.0))
     human.KeyJoints(9.5, {
-        'right_hip': (12.054, -0.767, -1.199), 'right_knee': (17.04,), 'right_ankle': (5.007, -1.0),
-        'left_hip': (11.513, 0.538, 2.053), 'left_knee': (66.267,), 'left_ankle': (2.039, 1.557),
+        'right_hip': (14.711, -0.743, -1.242), 'right_knee': (20.252,),
+        'right_ankle': (5.56, -1.034), 'left_hip': (12.972, 0.511, 2.114), 'left_knee': (66.425,),
+        'left_ankle': (0.748, 1.61),
     })
-    human.KeyRoot(9.6, (-37.896, 72.487, 43.685), (-95.126, 0.0, 0.0))
+    human.KeyRoot(9.6, (-37.283, 72.181, 43.703), (-95.126, 0.0, 0.0))
     human.KeyJoints(9.6, {
-        'right_hip': (8.664, -1.294, -2.795), 'right_knee': (13.957,),
-        'right_ankle': (5.365, -1.698), 'left_hip': (27.84, 1.114, 2.769), 'left_knee': (75.711,),
-        'left_ankle': (18.6, 2.619),
+        'right_hip': (10.844, -1.249, -2.854), 'right_knee': (17.428,),
+        'right_ankle': (6.654, -1.762), 'left_hip': (24.436, 1.311, 2.485), 'left_knee': (65.938,),
+        'left_ankle': (15.705, 2.47),
     })
-    human.KeyRoot(9.7, (-41.134, 72.682, 42.818), (-93.689, 0.0, 0.0))
+    human.KeyRoot(9.7, (-41.205, 72.209, 42.826), (-93.689, 0.0, 0.0))
     human.KeyJoints(9.7, {
-        'right_hip': (9.827, -1.345, -4.415), 'right_knee': (22.076,),
-        'right_ankle': (9.17, -2.078), 'left_hip': (41.108, 1.368, 1.405), 'left_knee': (67.937,),
-        'left_ankle': (18.658, 1.975),
+        'right_hip': (11.585, -1.208, -4.454), 'right_knee': (25.941,),
+        'right_ankle': (11.27, -2.077), 'left_hip': (29.855, 1.51, 0.808), 'left_knee': (45.935,),
+        'left_ankle': (13.612, 1.714),
     })
-    human.KeyRoot(9.8, (-51.54, 72.409, 42.031), (-92.161, 0.0, 0.0))
+    human.KeyRoot(9.8, (-51.221, 71.633, 42.137), (-92.161, 0.0, 0.0))
     human.KeyJoints(9.8, {
-        'right_hip': (9.372, -0.565, -6.099), 'right_knee': (38.564,),
-        'right_ankle': (14.997, -1.595), 'left_hip': (35.183, 0.456, -0.554),
-        'left_knee': (41.632,), 'left_ankle': (6.531, 0.053),
+        'right_hip': (11.443, -0.311, -6.101), 'right_knee': (42.595,),
+        'right_ankle': (16.939, -1.56), 'left_hip': (28.873, 0.312, -0.645), 'left_knee': (28.84,),
+        'left_ankle': (0.056, -0.038),
     })
-    human.KeyRoot(9.9, (-65.081, 71.478, 41.376), (-90.688, 0.0, 0.0))
+    human.KeyRoot(9.9, (-63.626, 71.08, 41.589), (-90.688, 0.0, 0.0))
     human.KeyJoints(9.9, {
-        'right_hip': (1.548, -0.278, -7.267), 'right_knee': (44.737,),
-        'right_ankle': (15.322, -0.534), 'left_hip': (19.669, -0.794, -0.869),
-        'left_knee': (14.804,), 'left_ankle': (-4.787, -1.041),
+        'right_hip': (4.43, 0.095, -7.269), 'right_knee': (48.438,),
+        'right_ankle': (16.115, -0.528), 'left_hip': (20.933, -0.954, -0.954),
+        'left_knee': (14.78,), 'left_ankle': (-6.067, -1.232),
     })
-    human.KeyRoot(10.0, (-72.092, 71.643, 41.091), (-90.001, 0.0, 0.0))
+    human.KeyRoot(10.0, (-70.11, 71.113, 41.357), (-90.001, 0.0, 0.0))
     human.KeyJoints(10.0, {
-        'right_hip': (-3.089, -0.343, -7.631), 'right_knee': (44.534,),
-        'right_ankle': (9.353, 0.09), 'left_hip': (16.076, -0.912, -0.264), 'left_knee': (17.995,),
-        'left_ankle': (1.915, -0.949),
+        'right_hip': (0.944, 0.199, -7.636), 'right_knee': (49.984,),
+        'right_ankle': (10.732, 0.091), 'left_hip': (18.949, -1.125, -0.387),
+        'left_knee': (20.342,), 'left_ankle': (1.393, -1.19),
     })
-    human.KeyRoot(10.1, (-71.641, 71.987, 41.761), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.1, (-70.301, 71.353, 41.949), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.1, {
-        'right_hip': (2.63, 0.812, -7.122), 'right_knee': (54.796,), 'right_ankle': (14.07, 0.619),
-        'left_hip': (13.895, -1.479, -0.366), 'left_knee': (12.666,),
-        'left_ankle': (-1.228, -1.524),
+        'right_hip': (4.368, 1.006, -7.081), 'right_knee': (55.782,),
+        'right_ankle': (13.303, 0.637), 'left_hip': (17.676, -1.622, -0.517),
+        'left_knee': (18.065,), 'left_ankle': (0.393, -1.702),
     })
-    human.KeyRoot(10.2, (-70.819, 71.984, 42.963), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.2, (-70.396, 71.614, 43.011), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.2, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (16.977, 2.563, -4.52),
-        'right_knee': (69.766,), 'right_ankle': (19.657, 1.333),
-        'left_hip': (13.289, -2.494, -0.589), 'left_knee': (9.911,), 'left_ankle': (-3.367, -2.563),
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.793, 2.22, -4.887),
+        'right_knee': (57.652,), 'right_ankle': (19.416, 1.222),
+        'left_hip': (15.958, -2.518, -0.72), 'left_knee': (14.676,), 'left_ankle': (-1.267, -2.619),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
     human.LookAt((-110.0, 85.0, 40.0), start=10.203216, duration=1.197891)
-    human.KeyRoot(10.3, (-70.713, 71.983, 43.313), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.3, (-70.776, 71.855, 43.313), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.3, {
-        'neck': (3.449, -3.326, 1.48), 'head': (1.478, 1.107), 'right_hip': (28.471, 2.754, -1.367),
-        'right_knee': (67.845,), 'right_ankle': (19.554, 1.857),
-        'left_hip': (13.081, -2.791, -0.648), 'left_knee': (9.283,), 'left_ankle': (-3.783, -2.865),
+        'neck': (3.449, -3.326, 1.48), 'head': (1.478, 1.107), 'right_hip': (19.146, 2.452, -2.188),
+        'right_knee': (47.265,), 'right_ankle': (19.357, 1.629),
+        'left_hip': (14.241, -2.782, -0.706), 'left_knee': (11.802,), 'left_ankle': (-2.421, -2.87),
     })
-    human.KeyRoot(10.4, (-73.653, 71.983, 42.264), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.4, (-73.788, 71.983, 42.264), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.4, {
         'neck': (12.068, -11.637, 5.176), 'head': (5.172, 3.874),
-        'right_hip': (22.929, 1.824, -0.107), 'right_knee': (41.22,), 'right_ankle': (18.412, 1.61),
-        'left_hip': (13.707, -1.903, -0.464), 'left_knee': (15.882,), 'left_ankle': (2.183, -1.959),
+        'right_hip': (19.52, 1.751, -0.22), 'right_knee': (34.329,), 'right_ankle': (14.929, 1.58),
+        'left_hip': (13.675, -1.903, -0.463), 'left_knee': (16.058,), 'left_ankle': (2.39, -1.959),
     })
-    human.KeyRoot(10.5, (-77.802, 72.247, 40.784), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.5, (-77.864, 72.252, 40.784), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.5, {
         'neck': (22.463, -21.661, 9.635), 'head': (9.627, 7.211),
-        'right_hip': (10.673, 0.664, 0.125), 'right_knee': (17.039,), 'right_ankle': (6.379, 0.676),
-        'left_hip': (10.621, -0.664, -0.125), 'left_knee': (16.93,), 'left_ankle': (6.309, -0.676),
+        'right_hip': (10.584, 0.664, 0.124), 'right_knee': (16.964,), 'right_ankle': (6.389, 0.676),
+        'left_hip': (10.552, -0.664, -0.124), 'left_knee': (16.897,), 'left_ankle': (6.345, -0.676),
     })
-    human.KeyRoot(10.6, (-79.996, 72.976, 40.001), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.6, (-79.996, 72.98, 40.001), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.6, {
         'neck': (31.239, -30.124, 13.399), 'head': (13.388, 10.028),
         'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
         'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
         'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
-        'right_hip': (3.289, 0.001, 0.0), 'right_knee': (5.475,), 'right_ankle': (2.183, 0.001),
-        'left_hip': (3.247, -0.001, 0.0), 'left_knee': (5.384,), 'left_ankle': (2.126, -0.001),
+        'right_hip': (3.252, 0.001, 0.0), 'right_knee': (5.396,), 'right_ankle': (2.139, 0.001),
+        'left_hip': (3.225, -0.001, 0.0), 'left_knee': (5.337,), 'left_ankle': (2.102, -0.001),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
-    human.KeyRoot(10.7, (-80.0, 72.985, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyRoot(10.7, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(10.7, {
         'neck': (34.999, -33.749, 15.012), 'head': (15.0, 11.235),
         'right_shoulder': (2.935, 162.629, -38.542), 'right_elbow': (8.89, 7.654),
         'right_wrist': (12.665, -11.068), 'left_shoulder': (21.644, 160.754, -62.6),
-        'left_elbow': (9.874, -64.998), 'left_wrist': (8.64, -1.711),
-        'right_hip': (3.144, 0.0, 0.0), 'right_knee': (5.171,), 'right_ankle': (2.03, 0.0),
-        'left_knee': (5.13,),
+        'left_elbow': (9.874, -64.998), 'left_wrist': (8.64, -1.711), 'right_knee': (5.111,),
+        'left_knee': (5.084,),
     })
     human.KeyJoints(10.8, {
         'right_shoulder': (7.371, 146.213, -28.91), 'right_elbow': (17.079, 1.949),
         'right_wrist': (15.856, -12.568), 'left_shoulder': (23.183, 147.571, -50.579),
-        'left_elbow': (19.969, -63.551), 'left_wrist': (13.942, -3.789),
-        'right_hip': (3.107, 0.0, 0.0), 'right_knee': (5.094,), 'right_ankle': (1.989, 0.0),
-        'left_hip': (3.097, 0.0, 0.0), 'left_knee': (5.073,), 'left_ankle': (1.978, 0.0),
+        'left_elbow': (19.969, -63.551), 'left_wrist': (13.942, -3.789), 'right_knee': (4.96,),
+        'right_ankle': (1.919, 0.0), 'left_hip': (3.039, 0.0, 0.0), 'left_knee': (4.95,),
+        'left_ankle': (1.914, 0.0),
     })
     human.KeyJoints(10.9, {
         'right_shoulder': (15.201, 117.233, -11.724), 'right_elbow': (31.536, -8.123),

@@ -11,7 +11,7 @@ def replace_fuel_filter():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter.mtask:31:5 replace_fuel_filter > walk_to > travel: locomotion on root at skid_front
-    human.Walk((0.004, 0.0, 54.988), start=0.0, duration=1.294737)
+    human.Walk((0.004, 0.0, 54.99), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -22,136 +22,136 @@ def replace_fuel_filter():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (0.294, 90.571, 1.156), (-0.49, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.294, 90.495, 1.183), (-0.49, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (14.033, 0.077, 0.544), 'right_knee': (27.888,), 'right_ankle': (8.49, 0.208),
-        'left_hip': (6.401, -0.146, -0.509), 'left_knee': (13.539,), 'left_ankle': (7.14, -0.201),
+        'right_hip': (14.222, 0.076, 0.544), 'right_knee': (28.313,), 'right_ankle': (8.726, 0.208),
+        'left_hip': (6.795, -0.142, -0.51), 'left_knee': (14.386,), 'left_ankle': (7.592, -0.202),
     })
-    human.KeyRoot(0.2, (0.951, 90.204, 4.239), (-1.723, 0.0, 0.0))
+    human.KeyRoot(0.2, (0.951, 90.027, 4.314), (-1.723, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (17.792, 0.087, 1.976), 'right_knee': (38.426,), 'right_ankle': (9.796, 0.699),
-        'left_hip': (5.604, -0.48, -1.779), 'left_knee': (16.498,), 'left_ankle': (10.912, -0.651),
+        'right_hip': (18.088, 0.078, 1.977), 'right_knee': (39.149,), 'right_ankle': (10.223, 0.7),
+        'left_hip': (6.318, -0.46, -1.785), 'left_knee': (18.078,), 'left_ankle': (11.776, -0.653),
     })
-    human.KeyRoot(0.3, (1.631, 89.946, 8.673), (-3.348, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.631, 89.823, 8.763), (-3.348, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (27.788, 0.094, 2.438), 'right_knee': (54.222,),
-        'right_ankle': (18.098, 1.255), 'left_hip': (2.519, -0.968, -3.399), 'left_knee': (16.676,),
-        'left_ankle': (13.93, -1.115),
+        'right_hip': (24.391, 0.228, 2.385), 'right_knee': (47.444,),
+        'right_ankle': (15.803, 1.215), 'left_hip': (2.952, -0.944, -3.407), 'left_knee': (17.706,),
+        'left_ankle': (14.527, -1.117),
     })
-    human.KeyRoot(0.4, (1.993, 90.74, 13.884), (-5.012, 0.0, 0.0))
+    human.KeyRoot(0.4, (1.993, 89.753, 13.903), (-5.012, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (35.966, 0.424, 0.692), 'right_knee': (53.029,),
-        'right_ankle': (15.689, 0.752), 'left_hip': (3.59, -1.03, -5.265), 'left_knee': (25.324,),
-        'left_ankle': (14.309, -1.365),
+        'right_hip': (30.679, 0.462, 0.632), 'right_knee': (43.037,),
+        'right_ankle': (10.984, 0.722), 'left_hip': (6.125, -0.812, -5.309), 'left_knee': (30.782,),
+        'left_ankle': (17.223, -1.382),
     })
-    human.KeyRoot(0.5, (1.683, 89.889, 23.402), (-7.029, 0.0, 0.0))
+    human.KeyRoot(0.5, (1.683, 89.148, 22.675), (-7.029, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (32.916, -0.128, -1.535), 'right_knee': (35.833,),
-        'right_ankle': (2.893, -0.95), 'left_hip': (5.897, -0.339, -7.521), 'left_knee': (41.822,),
-        'left_ankle': (15.297, -1.181),
+        'right_hip': (29.874, -0.266, -1.555), 'right_knee': (29.109,),
+        'right_ankle': (-0.787, -1.01), 'left_hip': (7.872, -0.091, -7.535), 'left_knee': (45.126,),
+        'left_ankle': (16.611, -1.196),
     })
-    human.KeyRoot(0.6, (0.831, 88.559, 37.064), (-9.383, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.832, 88.559, 34.928), (-9.383, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (20.395, -1.18, -1.461), 'right_knee': (15.991,),
-        'right_ankle': (-4.405, -1.621), 'left_hip': (0.149, -0.421, -9.689),
-        'left_knee': (47.081,), 'left_ankle': (12.266, -0.535),
+        'right_hip': (20.011, -1.449, -1.543), 'right_knee': (12.289,),
+        'right_ankle': (-7.716, -1.893), 'left_hip': (2.888, 0.04, -9.703), 'left_knee': (49.757,),
+        'left_ankle': (12.164, -0.544),
     })
-    human.KeyRoot(0.7, (-0.049, 88.986, 43.547), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.049, 88.715, 40.902), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (18.098, -1.409, -0.46), 'right_knee': (19.762,),
-        'right_ankle': (1.67, -1.482), 'left_hip': (-2.839, -0.401, -10.319),
-        'left_knee': (46.873,), 'left_ankle': (5.256, 0.16),
+        'right_hip': (19.235, -1.72, -0.6), 'right_knee': (18.399,),
+        'right_ankle': (-0.837, -1.822), 'left_hip': (0.982, 0.298, -10.319),
+        'left_knee': (51.349,), 'left_ankle': (5.847, 0.164),
     })
-    human.KeyRoot(0.8, (-1.01, 89.205, 42.81), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.01, 89.016, 41.097), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (17.078, -2.131, -0.654), 'right_knee': (16.945,),
-        'right_ankle': (-0.135, -2.229), 'left_hip': (2.994, 1.112, -9.522), 'left_knee': (56.439,),
-        'left_ankle': (11.319, 0.791),
+        'right_hip': (17.77, -2.333, -0.747), 'right_knee': (15.977,),
+        'right_ankle': (-1.785, -2.45), 'left_hip': (4.306, 1.326, -9.487), 'left_knee': (56.147,),
+        'left_ankle': (9.674, 0.803),
     })
-    human.KeyRoot(0.9, (-1.894, 89.202, 41.676), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.9, (-1.895, 89.209, 41.212), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.786, -2.849, -0.859), 'right_knee': (15.014,),
-        'right_ankle': (-1.76, -2.976), 'left_hip': (18.481, 2.973, -6.455), 'left_knee': (70.475,),
-        'left_ankle': (18.778, 0.895),
+        'right_hip': (16.691, -2.909, -0.869), 'right_knee': (14.21,),
+        'right_ankle': (-2.494, -3.036), 'left_hip': (13.44, 2.416, -6.829), 'left_knee': (56.858,),
+        'left_ankle': (18.918, 0.842),
     })
-    human.KeyRoot(1.0, (-2.044, 89.197, 41.793), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.044, 89.193, 41.885), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.792, -2.933, -0.885), 'right_knee': (15.221,),
-        'right_ankle': (-1.553, -3.063), 'left_hip': (30.063, 2.903, -2.34), 'left_knee': (66.833,),
-        'left_ankle': (18.809, 1.403),
+        'right_hip': (16.822, -2.921, -0.883), 'right_knee': (15.409,),
+        'right_ankle': (-1.393, -3.052), 'left_hip': (20.431, 2.453, -3.097),
+        'left_knee': (46.712,), 'left_ankle': (18.93, 1.224),
     })
-    human.KeyRoot(1.1, (-1.338, 89.56, 46.356), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.1, (-1.338, 89.461, 46.51), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (15.162, -1.928, -0.522), 'right_knee': (18.049,),
-        'right_ankle': (2.893, -1.997), 'left_hip': (22.654, 1.761, -0.21), 'left_knee': (38.085,),
-        'left_ankle': (15.573, 1.543),
+        'right_hip': (15.539, -1.908, -0.53), 'right_knee': (19.017,),
+        'right_ankle': (3.487, -1.98), 'left_hip': (20.08, 1.711, -0.305), 'left_knee': (33.199,),
+        'left_ankle': (13.246, 1.503),
     })
-    human.KeyRoot(1.2, (-0.422, 90.175, 52.273), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.422, 90.158, 52.336), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
-        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (10.658, -0.615, -0.116),
-        'right_knee': (16.849,), 'right_ankle': (6.189, -0.626), 'left_hip': (10.649, 0.615, 0.116),
-        'left_knee': (16.83,), 'left_ankle': (6.177, 0.626),
+        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (10.698, -0.607, -0.115),
+        'right_knee': (17.017,), 'right_ankle': (6.32, -0.618), 'left_hip': (10.691, 0.607, 0.115),
+        'left_knee': (17.002,), 'left_ankle': (6.31, 0.618),
     })
     # examples/replace_fuel_filter.mtask:32:5 replace_fuel_filter > kneel: posture on root
-    human.KeyRoot(1.3, (0.028, 91.075, 55.139), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.028, 91.072, 55.137), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.3, {
         'spine_lumbar': (0.441, -0.44, 0.0), 'spine_thoracic': (0.05, -0.05, 0.0),
         'right_shoulder': (8.594, 5.731, 11.234), 'left_shoulder': (8.594, 5.731, 11.234),
-        'right_hip': (3.165, 0.036, 0.002), 'right_knee': (5.381,), 'right_ankle': (2.211, 0.035),
-        'left_hip': (3.16, -0.036, -0.002), 'left_knee': (5.37,), 'left_ankle': (2.203, -0.035),
+        'right_hip': (3.186, 0.035, 0.002), 'right_knee': (5.421,), 'right_ankle': (2.231, 0.035),
+        'left_hip': (3.183, -0.035, -0.002), 'left_knee': (5.415,), 'left_ankle': (2.226, -0.035),
     })
-    human.KeyRoot(1.4, (1.803, 90.97, 57.92), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.4, (1.803, 90.968, 57.918), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.4, {
         'spine_lumbar': (11.288, -11.071, 0.0), 'spine_thoracic': (1.841, -1.969, 0.0),
         'right_shoulder': (8.594, 6.231, 2.385), 'left_shoulder': (8.594, 6.231, 2.385),
-        'right_hip': (2.206, 1.568, 0.06), 'right_knee': (6.781,), 'right_ankle': (4.576, 1.568),
-        'left_hip': (2.188, -1.568, -0.06), 'left_knee': (6.744,), 'left_ankle': (4.556, -1.568),
+        'right_hip': (2.232, 1.568, 0.061), 'right_knee': (6.833,), 'right_ankle': (4.601, 1.568),
+        'left_hip': (2.218, -1.568, -0.061), 'left_knee': (6.803,), 'left_ankle': (4.585, -1.568),
         'right_toes': (0.0,),
     })
-    human.KeyRoot(1.5, (5.135, 90.45, 62.752), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.5, (5.135, 90.448, 62.751), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
         'spine_lumbar': (14.11, -13.944, 0.0), 'spine_thoracic': (2.209, -2.469, 0.0),
         'right_shoulder': (8.594, 7.082, -12.719), 'left_shoulder': (8.594, 7.082, -12.719),
-        'right_hip': (1.982, 4.399, 0.156), 'right_knee': (12.468,), 'right_ankle': (10.441, 4.467),
-        'left_hip': (0.519, -4.419, -0.04), 'left_knee': (9.129,), 'left_ankle': (8.612, -4.418),
+        'right_hip': (2.004, 4.399, 0.157), 'right_knee': (12.511,), 'right_ankle': (10.462, 4.467),
+        'left_hip': (0.536, -4.419, -0.041), 'left_knee': (9.163,), 'left_ankle': (8.628, -4.418),
         'right_toes': (0.199,),
     })
-    human.KeyRoot(1.6, (6.878, 90.352, 64.362), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.6, (6.878, 90.352, 64.361), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
         'spine_lumbar': (10.434, -7.765, 0.0), 'spine_thoracic': (1.718, -1.378, 0.0),
         'right_shoulder': (8.594, 7.5, -20.126), 'left_shoulder': (8.594, 7.5, -20.126),
-        'right_hip': (5.478, 5.696, 2.137), 'right_knee': (40.897,), 'right_ankle': (20.0, 6.146),
-        'left_hip': (-2.135, -5.787, 0.216), 'left_knee': (5.479,), 'left_ankle': (7.599, -5.79),
+        'right_hip': (5.479, 5.696, 2.137), 'right_knee': (40.897,), 'right_ankle': (20.0, 6.146),
+        'left_hip': (-2.134, -5.786, 0.216), 'left_knee': (5.479,), 'left_ankle': (7.599, -5.79),
         'right_toes': (3.509,),
     })
-    human.KeyRoot(1.7, (7.971, 90.19, 63.92), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.7, (7.971, 90.19, 63.919), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
         'spine_lumbar': (19.647, -4.644, 0.0), 'spine_thoracic': (3.144, -0.813, 0.0),
-        'right_hip': (-14.036, 6.015, 2.661), 'right_knee': (30.44,), 'right_ankle': (6.533, 6.573),
-        'left_hip': (-0.57, -6.478, 0.065), 'left_knee': (7.792,), 'left_ankle': (8.358, -6.478),
-        'right_toes': (6.246,),
+        'right_hip': (-14.035, 6.015, 2.661), 'right_knee': (30.439,),
+        'right_ankle': (6.532, 6.573), 'left_hip': (-0.57, -6.478, 0.065), 'left_knee': (7.792,),
+        'left_ankle': (8.358, -6.478), 'right_toes': (6.246,),
     })
     human.KeyRoot(1.8, (10.285, 89.698, 53.348), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
         'spine_lumbar': (57.108, -2.941, 0.0), 'spine_thoracic': (6.563, -0.531, 0.0),
-        'right_hip': (-11.592, 5.815, 5.29), 'right_knee': (27.66,),
-        'right_ankle': (-14.628, 7.832), 'left_hip': (10.703, -6.646, -1.253),
+        'right_hip': (-11.591, 5.815, 5.29), 'right_knee': (27.66,),
+        'right_ankle': (-14.629, 7.832), 'left_hip': (10.704, -6.646, -1.253),
         'left_knee': (15.56,), 'left_ankle': (4.932, -6.763), 'right_toes': (44.321,),
     })
     human.KeyRoot(1.9, (11.194, 85.805, 47.043), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.9, {
         'spine_lumbar': (60.0, -0.966, 0.0), 'spine_thoracic': (7.653, -0.045, 0.0),
-        'right_hip': (-14.992, 6.313, 2.426), 'right_knee': (25.37,), 'right_ankle': (4.432, 6.758),
-        'left_hip': (25.334, -6.256, -2.953), 'left_knee': (35.729,),
-        'left_ankle': (10.559, -6.916), 'right_toes': (36.068,),
+        'right_hip': (-14.992, 6.313, 2.426), 'right_knee': (25.371,),
+        'right_ankle': (4.432, 6.758), 'left_hip': (25.334, -6.256, -2.953), 'left_knee': (35.729,),
+        'left_ankle': (10.559, -6.915), 'right_toes': (36.068,),
     })
     human.KeyRoot(2.0, (9.158, 83.653, 43.551), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.0, {
         'spine_lumbar': (9.163, 15.331, 0.0), 'spine_thoracic': (-0.013, 2.764, 0.0),
-        'right_hip': (-14.633, 4.849, 0.544), 'right_knee': (26.372,), 'right_ankle': (19.99, 4.88),
-        'left_hip': (31.478, -4.406, -2.693), 'left_knee': (43.404,),
-        'left_ankle': (12.031, -5.163), 'right_toes': (21.038,),
+        'right_hip': (-14.632, 4.849, 0.544), 'right_knee': (26.373,), 'right_ankle': (19.99, 4.88),
+        'left_hip': (31.478, -4.406, -2.693), 'left_knee': (43.403,),
+        'left_ankle': (12.031, -5.162), 'right_toes': (21.038,),
     })
     human.KeyRoot(2.1, (7.987, 84.102, 41.743), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.1, {

@@ -12,7 +12,7 @@ def replace_fuel_filter_cad():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter_cad.mtask:34:5 replace_fuel_filter_cad > walk_to > travel: locomotion on root at skid_front
-    human.Walk((0.004, 0.0, 54.988), start=0.0, duration=1.294737)
+    human.Walk((0.004, 0.0, 54.99), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -23,136 +23,136 @@ def replace_fuel_filter_cad():
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(0.1, (0.294, 90.571, 1.156), (-0.49, 0.0, 0.0))
+    human.KeyRoot(0.1, (0.294, 90.495, 1.183), (-0.49, 0.0, 0.0))
     human.KeyJoints(0.1, {
-        'right_hip': (14.033, 0.077, 0.544), 'right_knee': (27.888,), 'right_ankle': (8.49, 0.208),
-        'left_hip': (6.401, -0.146, -0.509), 'left_knee': (13.539,), 'left_ankle': (7.14, -0.201),
+        'right_hip': (14.222, 0.076, 0.544), 'right_knee': (28.313,), 'right_ankle': (8.726, 0.208),
+        'left_hip': (6.795, -0.142, -0.51), 'left_knee': (14.386,), 'left_ankle': (7.592, -0.202),
     })
-    human.KeyRoot(0.2, (0.951, 90.204, 4.239), (-1.723, 0.0, 0.0))
+    human.KeyRoot(0.2, (0.951, 90.027, 4.314), (-1.723, 0.0, 0.0))
     human.KeyJoints(0.2, {
-        'right_hip': (17.792, 0.087, 1.976), 'right_knee': (38.426,), 'right_ankle': (9.796, 0.699),
-        'left_hip': (5.604, -0.48, -1.779), 'left_knee': (16.498,), 'left_ankle': (10.912, -0.651),
+        'right_hip': (18.088, 0.078, 1.977), 'right_knee': (39.149,), 'right_ankle': (10.223, 0.7),
+        'left_hip': (6.318, -0.46, -1.785), 'left_knee': (18.078,), 'left_ankle': (11.776, -0.653),
     })
-    human.KeyRoot(0.3, (1.631, 89.946, 8.673), (-3.348, 0.0, 0.0))
+    human.KeyRoot(0.3, (1.631, 89.823, 8.763), (-3.348, 0.0, 0.0))
     human.KeyJoints(0.3, {
-        'right_hip': (27.788, 0.094, 2.438), 'right_knee': (54.222,),
-        'right_ankle': (18.098, 1.255), 'left_hip': (2.519, -0.968, -3.399), 'left_knee': (16.676,),
-        'left_ankle': (13.93, -1.115),
+        'right_hip': (24.391, 0.228, 2.385), 'right_knee': (47.444,),
+        'right_ankle': (15.803, 1.215), 'left_hip': (2.952, -0.944, -3.407), 'left_knee': (17.706,),
+        'left_ankle': (14.527, -1.117),
     })
-    human.KeyRoot(0.4, (1.993, 90.74, 13.884), (-5.012, 0.0, 0.0))
+    human.KeyRoot(0.4, (1.993, 89.753, 13.903), (-5.012, 0.0, 0.0))
     human.KeyJoints(0.4, {
-        'right_hip': (35.966, 0.424, 0.692), 'right_knee': (53.029,),
-        'right_ankle': (15.689, 0.752), 'left_hip': (3.59, -1.03, -5.265), 'left_knee': (25.324,),
-        'left_ankle': (14.309, -1.365),
+        'right_hip': (30.679, 0.462, 0.632), 'right_knee': (43.037,),
+        'right_ankle': (10.984, 0.722), 'left_hip': (6.125, -0.812, -5.309), 'left_knee': (30.782,),
+        'left_ankle': (17.223, -1.382),
     })
-    human.KeyRoot(0.5, (1.683, 89.889, 23.402), (-7.029, 0.0, 0.0))
+    human.KeyRoot(0.5, (1.683, 89.148, 22.675), (-7.029, 0.0, 0.0))
     human.KeyJoints(0.5, {
-        'right_hip': (32.916, -0.128, -1.535), 'right_knee': (35.833,),
-        'right_ankle': (2.893, -0.95), 'left_hip': (5.897, -0.339, -7.521), 'left_knee': (41.822,),
-        'left_ankle': (15.297, -1.181),
+        'right_hip': (29.874, -0.266, -1.555), 'right_knee': (29.109,),
+        'right_ankle': (-0.787, -1.01), 'left_hip': (7.872, -0.091, -7.535), 'left_knee': (45.126,),
+        'left_ankle': (16.611, -1.196),
     })
-    human.KeyRoot(0.6, (0.831, 88.559, 37.064), (-9.383, 0.0, 0.0))
+    human.KeyRoot(0.6, (0.832, 88.559, 34.928), (-9.383, 0.0, 0.0))
     human.KeyJoints(0.6, {
-        'right_hip': (20.395, -1.18, -1.461), 'right_knee': (15.991,),
-        'right_ankle': (-4.405, -1.621), 'left_hip': (0.149, -0.421, -9.689),
-        'left_knee': (47.081,), 'left_ankle': (12.266, -0.535),
+        'right_hip': (20.011, -1.449, -1.543), 'right_knee': (12.289,),
+        'right_ankle': (-7.716, -1.893), 'left_hip': (2.888, 0.04, -9.703), 'left_knee': (49.757,),
+        'left_ankle': (12.164, -0.544),
     })
-    human.KeyRoot(0.7, (-0.049, 88.986, 43.547), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.7, (-0.049, 88.715, 40.902), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.7, {
-        'right_hip': (18.098, -1.409, -0.46), 'right_knee': (19.762,),
-        'right_ankle': (1.67, -1.482), 'left_hip': (-2.839, -0.401, -10.319),
-        'left_knee': (46.873,), 'left_ankle': (5.256, 0.16),
+        'right_hip': (19.235, -1.72, -0.6), 'right_knee': (18.399,),
+        'right_ankle': (-0.837, -1.822), 'left_hip': (0.982, 0.298, -10.319),
+        'left_knee': (51.349,), 'left_ankle': (5.847, 0.164),
     })
-    human.KeyRoot(0.8, (-1.01, 89.205, 42.81), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.8, (-1.01, 89.016, 41.097), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.8, {
-        'right_hip': (17.078, -2.131, -0.654), 'right_knee': (16.945,),
-        'right_ankle': (-0.135, -2.229), 'left_hip': (2.994, 1.112, -9.522), 'left_knee': (56.439,),
-        'left_ankle': (11.319, 0.791),
+        'right_hip': (17.77, -2.333, -0.747), 'right_knee': (15.977,),
+        'right_ankle': (-1.785, -2.45), 'left_hip': (4.306, 1.326, -9.487), 'left_knee': (56.147,),
+        'left_ankle': (9.674, 0.803),
     })
-    human.KeyRoot(0.9, (-1.894, 89.202, 41.676), (-10.437, 0.0, 0.0))
+    human.KeyRoot(0.9, (-1.895, 89.209, 41.212), (-10.437, 0.0, 0.0))
     human.KeyJoints(0.9, {
-        'right_hip': (16.786, -2.849, -0.859), 'right_knee': (15.014,),
-        'right_ankle': (-1.76, -2.976), 'left_hip': (18.481, 2.973, -6.455), 'left_knee': (70.475,),
-        'left_ankle': (18.778, 0.895),
+        'right_hip': (16.691, -2.909, -0.869), 'right_knee': (14.21,),
+        'right_ankle': (-2.494, -3.036), 'left_hip': (13.44, 2.416, -6.829), 'left_knee': (56.858,),
+        'left_ankle': (18.918, 0.842),
     })
-    human.KeyRoot(1.0, (-2.044, 89.197, 41.793), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.0, (-2.044, 89.193, 41.885), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.0, {
-        'right_hip': (16.792, -2.933, -0.885), 'right_knee': (15.221,),
-        'right_ankle': (-1.553, -3.063), 'left_hip': (30.063, 2.903, -2.34), 'left_knee': (66.833,),
-        'left_ankle': (18.809, 1.403),
+        'right_hip': (16.822, -2.921, -0.883), 'right_knee': (15.409,),
+        'right_ankle': (-1.393, -3.052), 'left_hip': (20.431, 2.453, -3.097),
+        'left_knee': (46.712,), 'left_ankle': (18.93, 1.224),
     })
-    human.KeyRoot(1.1, (-1.338, 89.56, 46.356), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.1, (-1.338, 89.461, 46.51), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.1, {
-        'right_hip': (15.162, -1.928, -0.522), 'right_knee': (18.049,),
-        'right_ankle': (2.893, -1.997), 'left_hip': (22.654, 1.761, -0.21), 'left_knee': (38.085,),
-        'left_ankle': (15.573, 1.543),
+        'right_hip': (15.539, -1.908, -0.53), 'right_knee': (19.017,),
+        'right_ankle': (3.487, -1.98), 'left_hip': (20.08, 1.711, -0.305), 'left_knee': (33.199,),
+        'left_ankle': (13.246, 1.503),
     })
-    human.KeyRoot(1.2, (-0.422, 90.175, 52.273), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.2, (-0.422, 90.158, 52.336), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.2, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
-        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (10.658, -0.615, -0.116),
-        'right_knee': (16.849,), 'right_ankle': (6.189, -0.626), 'left_hip': (10.649, 0.615, 0.116),
-        'left_knee': (16.83,), 'left_ankle': (6.177, 0.626),
+        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (10.698, -0.607, -0.115),
+        'right_knee': (17.017,), 'right_ankle': (6.32, -0.618), 'left_hip': (10.691, 0.607, 0.115),
+        'left_knee': (17.002,), 'left_ankle': (6.31, 0.618),
     })
     # examples/replace_fuel_filter_cad.mtask:35:5 replace_fuel_filter_cad > kneel: posture on root
-    human.KeyRoot(1.3, (0.028, 91.075, 55.139), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.028, 91.072, 55.137), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.3, {
         'spine_lumbar': (0.441, -0.44, 0.0), 'spine_thoracic': (0.05, -0.05, 0.0),
         'right_shoulder': (8.594, 5.731, 11.234), 'left_shoulder': (8.594, 5.731, 11.234),
-        'right_hip': (3.165, 0.036, 0.002), 'right_knee': (5.381,), 'right_ankle': (2.211, 0.035),
-        'left_hip': (3.16, -0.036, -0.002), 'left_knee': (5.37,), 'left_ankle': (2.203, -0.035),
+        'right_hip': (3.186, 0.035, 0.002), 'right_knee': (5.421,), 'right_ankle': (2.231, 0.035),
+        'left_hip': (3.183, -0.035, -0.002), 'left_knee': (5.415,), 'left_ankle': (2.226, -0.035),
     })
-    human.KeyRoot(1.4, (1.803, 90.97, 57.92), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.4, (1.803, 90.968, 57.918), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.4, {
         'spine_lumbar': (11.288, -11.071, 0.0), 'spine_thoracic': (1.841, -1.969, 0.0),
         'right_shoulder': (8.594, 6.231, 2.385), 'left_shoulder': (8.594, 6.231, 2.385),
-        'right_hip': (2.206, 1.568, 0.06), 'right_knee': (6.781,), 'right_ankle': (4.576, 1.568),
-        'left_hip': (2.188, -1.568, -0.06), 'left_knee': (6.744,), 'left_ankle': (4.556, -1.568),
+        'right_hip': (2.232, 1.568, 0.061), 'right_knee': (6.833,), 'right_ankle': (4.601, 1.568),
+        'left_hip': (2.218, -1.568, -0.061), 'left_knee': (6.803,), 'left_ankle': (4.585, -1.568),
         'right_toes': (0.0,),
     })
-    human.KeyRoot(1.5, (5.135, 90.45, 62.752), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.5, (5.135, 90.448, 62.751), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
         'spine_lumbar': (14.11, -13.944, 0.0), 'spine_thoracic': (2.209, -2.469, 0.0),
         'right_shoulder': (8.594, 7.082, -12.719), 'left_shoulder': (8.594, 7.082, -12.719),
-        'right_hip': (1.982, 4.399, 0.156), 'right_knee': (12.468,), 'right_ankle': (10.441, 4.467),
-        'left_hip': (0.519, -4.419, -0.04), 'left_knee': (9.129,), 'left_ankle': (8.612, -4.418),
+        'right_hip': (2.004, 4.399, 0.157), 'right_knee': (12.511,), 'right_ankle': (10.462, 4.467),
+        'left_hip': (0.536, -4.419, -0.041), 'left_knee': (9.163,), 'left_ankle': (8.628, -4.418),
         'right_toes': (0.199,),
     })
-    human.KeyRoot(1.6, (6.878, 90.352, 64.362), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.6, (6.878, 90.352, 64.361), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
         'spine_lumbar': (10.434, -7.765, 0.0), 'spine_thoracic': (1.718, -1.378, 0.0),
         'right_shoulder': (8.594, 7.5, -20.126), 'left_shoulder': (8.594, 7.5, -20.126),
-        'right_hip': (5.478, 5.696, 2.137), 'right_knee': (40.897,), 'right_ankle': (20.0, 6.146),
-        'left_hip': (-2.135, -5.787, 0.216), 'left_knee': (5.479,), 'left_ankle': (7.599, -5.79),
+        'right_hip': (5.479, 5.696, 2.137), 'right_knee': (40.897,), 'right_ankle': (20.0, 6.146),
+        'left_hip': (-2.134, -5.786, 0.216), 'left_knee': (5.479,), 'left_ankle': (7.599, -5.79),
         'right_toes': (3.509,),
     })
-    human.KeyRoot(1.7, (7.971, 90.19, 63.92), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.7, (7.971, 90.19, 63.919), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
         'spine_lumbar': (19.647, -4.644, 0.0), 'spine_thoracic': (3.144, -0.813, 0.0),
-        'right_hip': (-14.036, 6.015, 2.661), 'right_knee': (30.44,), 'right_ankle': (6.533, 6.573),
-        'left_hip': (-0.57, -6.478, 0.065), 'left_knee': (7.792,), 'left_ankle': (8.358, -6.478),
-        'right_toes': (6.246,),
+        'right_hip': (-14.035, 6.015, 2.661), 'right_knee': (30.439,),
+        'right_ankle': (6.532, 6.573), 'left_hip': (-0.57, -6.478, 0.065), 'left_knee': (7.792,),
+        'left_ankle': (8.358, -6.478), 'right_toes': (6.246,),
     })
     human.KeyRoot(1.8, (10.285, 89.698, 53.348), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
         'spine_lumbar': (57.108, -2.941, 0.0), 'spine_thoracic': (6.563, -0.531, 0.0),
-        'right_hip': (-11.592, 5.815, 5.29), 'right_knee': (27.66,),
-        'right_ankle': (-14.628, 7.832), 'left_hip': (10.703, -6.646, -1.253),
+        'right_hip': (-11.591, 5.815, 5.29), 'right_knee': (27.66,),
+        'right_ankle': (-14.629, 7.832), 'left_hip': (10.704, -6.646, -1.253),
         'left_knee': (15.56,), 'left_ankle': (4.932, -6.763), 'right_toes': (44.321,),
     })
     human.KeyRoot(1.9, (11.194, 85.805, 47.043), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.9, {
         'spine_lumbar': (60.0, -0.966, 0.0), 'spine_thoracic': (7.653, -0.045, 0.0),
-        'right_hip': (-14.992, 6.313, 2.426), 'right_knee': (25.37,), 'right_ankle': (4.432, 6.758),
-        'left_hip': (25.334, -6.256, -2.953), 'left_knee': (35.729,),
-        'left_ankle': (10.559, -6.916), 'right_toes': (36.068,),
+        'right_hip': (-14.992, 6.313, 2.426), 'right_knee': (25.371,),
+        'right_ankle': (4.432, 6.758), 'left_hip': (25.334, -6.256, -2.953), 'left_knee': (35.729,),
+        'left_ankle': (10.559, -6.915), 'right_toes': (36.068,),
     })
     human.KeyRoot(2.0, (9.158, 83.653, 43.551), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.0, {
         'spine_lumbar': (9.163, 15.331, 0.0), 'spine_thoracic': (-0.013, 2.764, 0.0),
-        'right_hip': (-14.633, 4.849, 0.544), 'right_knee': (26.372,), 'right_ankle': (19.99, 4.88),
-        'left_hip': (31.478, -4.406, -2.693), 'left_knee': (43.404,),
-        'left_ankle': (12.031, -5.163), 'right_toes': (21.038,),
+        'right_hip': (-14.632, 4.849, 0.544), 'right_knee': (26.373,), 'right_ankle': (19.99, 4.88),
+        'left_hip': (31.478, -4.406, -2.693), 'left_knee': (43.403,),
+        'left_ankle': (12.031, -5.162), 'right_toes': (21.038,),
     })
     human.KeyRoot(2.1, (7.987, 84.102, 41.743), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.1, {
@@ -271,82 +271,82 @@ def replace_fuel_filter_cad():
     human.KeyRoot(3.7, (2.239, 44.137, 42.847), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.7, {
         'spine_lumbar': (6.887, 5.821, 0.0), 'spine_thoracic': (1.081, 1.306, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 6.136, 4.245),
-        'left_shoulder': (8.594, 6.136, 4.245), 'right_hip': (24.642, 0.0, 0.0),
-        'right_knee': (126.629,), 'left_hip': (24.642, 0.0, 0.0), 'left_knee': (126.629,),
+        'right_shoulder': (8.594, 6.136, 4.245), 'left_shoulder': (8.594, 6.136, 4.245),
+        'right_hip': (24.642, 0.0, 0.0), 'right_knee': (126.629,), 'left_hip': (24.642, 0.0, 0.0),
+        'left_knee': (126.629,),
     })
     # examples/replace_fuel_filter_cad.mtask:36:5 replace_fuel_filter_cad > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=3.793137, duration=0.2628)
+    human.LookAt((10.0, 25.0, 95.0), start=3.793137, duration=0.316667)
     human.KeyRoot(3.8, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.8, {
         'spine_lumbar': (9.033, 0.001, 0.0), 'spine_thoracic': (1.549, 0.034, 0.0),
-        'neck': (0.07, -0.068, 0.04), 'head': (0.03, 0.022),
+        'neck': (0.049, -0.047, 0.028), 'head': (0.021, 0.015),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (22.438, 0.0, 0.0), 'right_knee': (124.422,), 'left_hip': (22.438, 0.0, 0.0),
         'left_knee': (124.422,),
     })
-    human.KeyJoints(3.9, {'neck': (12.655, -12.203, 7.208), 'head': (5.424, 3.949)})
-    human.KeyJoints(4.0, {'neck': (30.918, -29.814, 17.609), 'head': (13.251, 9.647)})
+    human.KeyJoints(3.9, {'neck': (9.267, -8.936, 5.278), 'head': (3.972, 2.832)})
+    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 14.406), 'head': (10.84, 7.776)})
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: TA on r_arm at filter_bowl
-    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=4.055937, duration=0.873042)
     human.KeyJoints(4.1, {
         'spine_lumbar': (9.097, 0.019, 0.024), 'spine_thoracic': (1.539, 0.05, 0.031),
-        'neck': (35.0, -33.75, 19.502), 'head': (15.0, 10.919), 'right_clavicle': (-0.011, 0.024),
-        'right_shoulder': (8.634, 5.757, 11.449), 'right_elbow': (34.363, 17.189),
-        'right_wrist': (-0.003, -0.004),
+        'neck': (34.901, -33.655, 19.878), 'head': (14.958, 10.867),
+        'right_clavicle': (-0.011, 0.024), 'right_shoulder': (8.634, 5.757, 11.449),
+        'right_elbow': (34.363, 17.189), 'right_wrist': (-0.003, -0.004),
     })
+    # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=4.109804, duration=0.819176)
     human.KeyJoints(4.2, {
         'spine_lumbar': (10.861, 0.524, 0.704), 'spine_thoracic': (1.256, 0.501, 0.883),
-        'neck': (35.0, -33.75, 16.102), 'right_clavicle': (-0.321, 0.704),
+        'neck': (35.0, -33.75, 17.789), 'head': (15.0, 11.11), 'right_clavicle': (-0.321, 0.704),
         'right_shoulder': (9.743, 6.529, 11.157), 'right_elbow': (33.974, 17.189),
         'right_wrist': (-0.097, -0.123),
     })
     human.KeyJoints(4.3, {
         'spine_lumbar': (16.071, 2.022, 2.708), 'spine_thoracic': (0.411, 1.833, 3.416),
-        'neck': (35.0, -33.75, 11.188), 'head': (15.0, 10.821), 'right_clavicle': (-1.243, 2.708),
+        'neck': (35.0, -33.75, 12.189), 'head': (15.0, 11.23), 'right_clavicle': (-1.243, 2.708),
         'right_shoulder': (13.03, 8.808, 10.296), 'right_elbow': (32.823, 17.191),
         'right_wrist': (-0.372, -0.475),
     })
     human.KeyJoints(4.4, {
         'spine_lumbar': (24.147, 4.392, 5.816), 'spine_thoracic': (-0.98, 3.898, 7.444),
-        'neck': (35.0, -33.75, 4.869), 'head': (15.0, 9.252), 'right_clavicle': (-2.723, 5.816),
+        'neck': (35.0, -33.75, 5.116), 'right_clavicle': (-2.723, 5.816),
         'right_shoulder': (18.205, 12.341, 8.96), 'right_elbow': (31.039, 17.194),
     })
     human.KeyJoints(4.5, {
         'spine_lumbar': (33.468, 7.251, 9.403), 'spine_thoracic': (-2.792, 6.281, 12.362),
-        'neck': (35.0, -29.764, -0.832), 'head': (15.0, 8.432), 'right_clavicle': (-4.562, 9.403),
+        'neck': (35.0, -29.97, -0.548), 'head': (15.0, 9.445), 'right_clavicle': (-4.562, 9.403),
         'right_shoulder': (24.39, 16.417, 7.419), 'right_elbow': (28.98, 17.198),
     })
     human.KeyJoints(4.6, {
         'spine_lumbar': (42.012, 10.198, 12.711), 'spine_thoracic': (-4.974, 8.48, 17.552),
-        'neck': (35.0, -4.402, -10.074), 'head': (15.0, -3.083), 'right_clavicle': (-6.584, 12.711),
+        'neck': (35.0, -4.38, -9.881), 'head': (15.0, -2.589), 'right_clavicle': (-6.584, 12.711),
         'right_shoulder': (30.609, 20.139, 6.006), 'right_elbow': (27.1, 17.203),
         'right_wrist': (-1.743, -2.222),
     })
     human.KeyJoints(4.7, {
         'spine_lumbar': (45.555, 12.859, 14.418), 'spine_thoracic': (-7.192, 9.639, 21.646),
-        'neck': (35.0, 15.537, -16.771), 'head': (15.0, -11.229), 'right_clavicle': (-8.488, 14.39),
+        'neck': (35.0, 15.597, -16.757), 'head': (15.0, -11.225), 'right_clavicle': (-8.488, 14.39),
         'right_shoulder': (34.79, 21.341, 5.42), 'right_elbow': (26.33, 17.208),
         'right_wrist': (-1.918, -2.459),
     })
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
         'spine_lumbar': (41.746, 15.251, 13.636), 'spine_thoracic': (-7.545, 9.234, 21.897),
-        'neck': (35.0, 19.82, -18.942), 'right_clavicle': (-9.467, 13.475),
+        'neck': (35.0, 19.765, -18.951), 'right_clavicle': (-9.467, 13.475),
         'right_shoulder': (33.847, 18.632, 6.07), 'right_elbow': (26.785, 17.203),
         'right_wrist': (-1.646, -2.298),
     })
     human.KeyJoints(4.9, {
         'spine_lumbar': (40.122, 15.997, 13.213), 'spine_thoracic': (-7.419, 8.997, 21.594),
-        'neck': (35.0, 26.607, -19.404), 'right_clavicle': (-9.668, 13.001),
+        'neck': (35.0, 26.604, -19.405), 'right_clavicle': (-9.668, 13.001),
         'right_shoulder': (33.089, 17.555, 6.348), 'right_elbow': (26.959, 17.2),
         'right_wrist': (-1.532, -2.234),
     })
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
     human.KeyJoints(5.0, {
-        'neck': (35.0, 28.675, -19.308), 'right_shoulder': (32.897, 17.558, 6.352),
+        'neck': (35.0, 28.669, -19.309), 'right_shoulder': (32.897, 17.558, 6.352),
         'right_elbow': (27.263, 17.2),
     })
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
@@ -390,13 +390,13 @@ def replace_fuel_filter_cad():
     human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
     human.KeyJoints(7.2, {
         'spine_lumbar': (40.101, 16.007, 13.207), 'spine_thoracic': (-7.417, 8.994, 21.59),
-        'neck': (35.0, 28.698, -19.258), 'right_shoulder': (32.865, 17.524, 6.361),
+        'neck': (35.0, 28.692, -19.258), 'right_shoulder': (32.865, 17.524, 6.361),
         'right_elbow': (26.691, 80.0), 'right_wrist': (-1.464, -2.234),
         'left_clavicle': (0.0, 0.001), 'left_shoulder': (8.596, 5.729, 11.459),
     })
     human.KeyJoints(7.3, {
         'spine_lumbar': (40.55, 15.749, 12.983), 'spine_thoracic': (-7.588, 8.918, 21.43),
-        'neck': (35.0, 29.51, -17.702), 'right_clavicle': (-9.674, 13.04),
+        'neck': (35.0, 29.506, -17.701), 'right_clavicle': (-9.674, 13.04),
         'right_shoulder': (32.719, 17.127, 6.464), 'right_elbow': (27.475, 80.0),
         'right_wrist': (-1.669, -2.171), 'left_clavicle': (-0.221, 0.339),
         'left_shoulder': (9.297, 5.661, 11.43), 'left_elbow': (34.339, 17.188),
@@ -404,7 +404,7 @@ def replace_fuel_filter_cad():
     })
     human.KeyJoints(7.4, {
         'spine_lumbar': (42.528, 14.612, 11.999), 'spine_thoracic': (-8.342, 8.586, 20.725),
-        'neck': (35.0, 32.15, -14.688), 'head': (15.0, -11.25), 'right_clavicle': (-9.685, 13.239),
+        'neck': (35.0, 32.149, -14.688), 'head': (15.0, -11.25), 'right_clavicle': (-9.685, 13.239),
         'right_shoulder': (32.023, 15.398, 6.917), 'right_elbow': (30.985, 80.0),
         'right_wrist': (-2.597, -1.874), 'left_clavicle': (-1.193, 1.831),
         'left_shoulder': (12.387, 5.36, 11.302), 'left_elbow': (34.168, 17.187),
@@ -461,136 +461,136 @@ def replace_fuel_filter_cad():
         'right_wrist': (-8.976, 1.482),
     })
     human.KeyJoints(8.2, {
-        'neck': (35.0, 30.395, -10.537), 'head': (13.3, -11.058),
+        'neck': (35.0, 30.393, -10.537), 'head': (13.3, -11.058),
         'right_shoulder': (30.463, 3.512, 7.961), 'right_elbow': (47.538, 76.981),
         'right_wrist': (-12.356, 2.602),
     })
     human.KeyJoints(8.3, {
-        'neck': (35.0, 26.598, -24.249), 'head': (10.764, -10.894),
+        'neck': (35.0, 26.594, -24.249), 'head': (10.766, -10.894),
         'right_shoulder': (25.616, 9.665, -0.315), 'right_elbow': (46.971, 68.494),
         'right_wrist': (-26.771, 6.911),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (60.0, 4.574, 3.306), 'neck': (35.0, 23.395, -35.814),
-        'head': (8.625, -10.756), 'right_shoulder': (19.216, 18.015, -11.873),
+        'spine_lumbar': (60.0, 4.574, 3.306), 'neck': (35.0, 23.39, -35.814),
+        'head': (8.628, -10.757), 'right_shoulder': (19.216, 18.015, -11.873),
         'right_elbow': (51.05, 57.981), 'right_wrist': (-46.623, 12.783),
     })
     human.KeyJoints(8.5, {
         'spine_lumbar': (60.0, 4.634, 3.347), 'spine_thoracic': (-14.975, 5.681, 14.536),
-        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721), 'right_clavicle': (-9.771, 15.0),
+        'neck': (35.0, 22.569, -38.777), 'head': (8.081, -10.721), 'right_clavicle': (-9.771, 15.0),
         'right_shoulder': (19.569, 27.498, -24.633), 'right_elbow': (42.953, 49.863),
         'right_wrist': (-61.243, 17.263), 'left_elbow': (64.051, 17.313),
     })
     human.KeyJoints(8.6, {
         'spine_lumbar': (60.0, 7.697, 5.084), 'spine_thoracic': (-14.084, 6.964, 15.889),
-        'neck': (35.0, 22.574, -38.777), 'head': (8.077, -10.721),
+        'neck': (35.0, 22.569, -38.777), 'head': (8.081, -10.721),
         'right_clavicle': (-8.679, 14.991), 'right_shoulder': (21.571, 36.068, -33.451),
         'right_elbow': (30.875, 45.043), 'right_wrist': (-67.495, 19.192),
     })
     # examples/replace_fuel_filter_cad.mtask:43:5 replace_fuel_filter_cad > move: TO on r_arm at drain_tray
     human.KeyJoints(8.7, {
         'spine_lumbar': (60.0, 11.509, 7.125), 'spine_thoracic': (-13.122, 8.413, 17.499),
-        'neck': (34.849, 20.482, -42.571), 'head': (6.576, -9.726),
-        'right_clavicle': (-7.137, 15.0), 'right_shoulder': (22.858, 39.866, -34.992),
-        'right_elbow': (27.368, 44.19), 'right_wrist': (-66.285, 18.775),
+        'neck': (34.849, 20.476, -42.571), 'head': (6.58, -9.726), 'right_clavicle': (-7.137, 15.0),
+        'right_shoulder': (22.858, 39.866, -34.992), 'right_elbow': (27.368, 44.19),
+        'right_wrist': (-66.285, 18.775),
     })
     # examples/replace_fuel_filter_cad.mtask:44:5 replace_fuel_filter_cad > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
     human.KeyJoints(8.8, {
-        'neck': (34.866, 20.052, -43.706), 'head': (6.054, -9.544),
+        'neck': (34.866, 20.046, -43.706), 'head': (6.058, -9.545),
         'right_shoulder': (22.947, 39.995, -35.008), 'right_elbow': (27.216, 44.176),
         'right_wrist': (-66.159, 18.747), 'left_shoulder': (24.17, 6.143, 8.665),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > look: gaze on head at spares_box
-    human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.2628)
+    human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.4)
     human.KeyJoints(8.9, {
-        'spine_lumbar': (60.0, 11.591, 7.168), 'neck': (34.832, 20.559, -47.33),
-        'head': (8.692, -10.045),
+        'spine_lumbar': (60.0, 11.591, 7.168), 'neck': (34.851, 20.146, -45.441),
+        'head': (7.327, -9.781),
     })
-    human.KeyJoints(9.0, {'neck': (34.717, 21.472, -53.855), 'head': (13.465, -10.945)})
+    human.KeyJoints(9.0, {'neck': (34.803, 20.463, -49.56)})
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > reach: TA on l_arm at spares_box
-    # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=9.067661, duration=2.069192)
     human.KeyJoints(9.1, {
         'spine_lumbar': (60.0, 11.596, 7.153), 'spine_thoracic': (-13.098, 8.434, 17.502),
-        'neck': (34.397, 21.709, -55.414), 'head': (14.994, -11.206),
+        'neck': (34.718, 20.987, -53.79), 'head': (13.44, -10.925),
         'left_shoulder': (24.181, 6.143, 8.676), 'left_elbow': (64.027, 17.337),
         'left_wrist': (-3.648, 6.758),
     })
     human.KeyJoints(9.2, {
         'spine_lumbar': (60.0, 11.905, 6.338), 'spine_thoracic': (-12.902, 7.877, 15.754),
-        'neck': (32.248, 21.911, -50.134), 'left_clavicle': (-9.76, 15.0),
+        'neck': (34.595, 21.712, -55.851), 'head': (14.964, -11.22), 'left_clavicle': (-9.76, 15.0),
         'left_shoulder': (24.773, 6.178, 9.277), 'left_elbow': (62.755, 18.664),
         'left_wrist': (-5.811, 7.245),
     })
+    # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
     human.KeyJoints(9.3, {
         'spine_lumbar': (60.0, 12.944, 3.6), 'spine_thoracic': (-12.232, 6.008, 9.882),
-        'neck': (29.757, 23.595, -39.729), 'left_shoulder': (26.764, 6.304, 11.297),
+        'neck': (33.047, 25.107, -47.177), 'left_shoulder': (26.764, 6.304, 11.297),
         'left_elbow': (58.455, 23.122), 'left_wrist': (-13.078, 8.882),
     })
     human.KeyJoints(9.4, {
         'spine_lumbar': (60.0, 14.658, -0.918), 'spine_thoracic': (-11.042, 2.925, 0.195),
-        'neck': (29.235, 28.28, -26.441), 'right_elbow': (27.304, 44.176),
+        'neck': (30.564, 30.733, -28.371), 'right_elbow': (27.304, 44.176),
         'right_wrist': (-66.252, 18.764), 'left_clavicle': (-9.559, 15.0),
         'left_shoulder': (30.049, 6.583, 14.631), 'left_elbow': (51.169, 30.477),
         'left_wrist': (-25.067, 11.583),
     })
     human.KeyJoints(9.5, {
         'spine_lumbar': (60.0, 16.685, -6.26), 'spine_thoracic': (-9.421, -0.721, -11.26),
-        'neck': (32.88, 33.732, -12.032), 'left_clavicle': (-9.313, 15.0),
+        'neck': (32.794, 33.743, -12.054), 'left_clavicle': (-9.313, 15.0),
         'left_shoulder': (33.932, 7.091, 18.572), 'left_elbow': (42.068, 39.173),
         'left_wrist': (-39.243, 14.776),
     })
     human.KeyJoints(9.6, {
         'spine_lumbar': (60.0, 18.607, -11.292), 'spine_thoracic': (-7.261, -4.171, -22.088),
-        'neck': (35.0, 33.75, -1.656), 'head': (15.0, -11.25), 'left_clavicle': (-8.854, 14.961),
+        'neck': (35.0, 33.699, -1.647), 'head': (15.0, -11.25), 'left_clavicle': (-8.854, 14.961),
         'left_shoulder': (37.672, 8.156, 22.269), 'left_elbow': (32.085, 47.4),
         'left_wrist': (-52.607, 17.765),
     })
     human.KeyJoints(9.7, {
         'spine_lumbar': (60.0, 19.897, -14.582), 'spine_thoracic': (-0.282, -7.763, -29.269),
-        'neck': (34.901, 14.446, 5.098), 'head': (14.927, 1.363), 'left_clavicle': (-8.938, 14.833),
+        'neck': (35.0, 12.811, 5.723), 'head': (15.0, 3.19), 'left_clavicle': (-8.938, 14.833),
         'left_shoulder': (46.383, 11.579, 23.718), 'left_elbow': (17.703, 52.304),
         'left_wrist': (-55.031, 17.621),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(9.8, {
         'spine_lumbar': (60.0, 19.996, -14.977), 'spine_thoracic': (6.134, -9.846, -29.965),
-        'neck': (34.309, -0.41, 9.576), 'head': (14.513, 11.185), 'left_clavicle': (-9.923, 14.987),
+        'neck': (34.455, 1.537, 9.487), 'head': (14.646, 11.212), 'left_clavicle': (-9.923, 14.987),
         'left_shoulder': (55.542, 12.599, 22.996), 'left_elbow': (9.798, 52.101),
         'left_wrist': (-46.535, 14.999),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
     human.KeyJoints(9.9, {
-        'spine_thoracic': (6.618, -10.0, -30.0), 'neck': (31.613, 0.298, 9.832),
-        'head': (12.542, 11.006), 'left_shoulder': (56.358, 12.609, 22.942),
+        'spine_thoracic': (6.618, -10.0, -30.0), 'neck': (31.757, 2.234, 9.832),
+        'head': (12.688, 11.083), 'left_shoulder': (56.358, 12.609, 22.942),
         'left_elbow': (9.02, 52.073), 'left_wrist': (-45.588, 14.719),
     })
     human.KeyJoints(10.0, {'left_clavicle': (-10.0, 15.0)})
     human.KeyJoints(10.1, {
-        'neck': (31.613, 0.298, 9.832), 'head': (12.542, 11.006),
+        'neck': (31.757, 2.234, 9.832), 'head': (12.688, 11.083),
         'left_shoulder': (56.358, 12.609, 22.942), 'left_elbow': (9.02, 52.073),
         'left_wrist': (-45.588, 14.719),
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.2, {
-        'neck': (31.903, -0.423, 14.672), 'head': (12.753, 11.027),
+        'neck': (32.036, 1.347, 14.672), 'head': (12.887, 11.098),
         'right_shoulder': (22.884, 39.943, -35.018), 'left_shoulder': (55.195, 13.0, 21.997),
         'left_elbow': (11.435, 51.881), 'left_wrist': (-46.064, 14.792),
     })
     human.KeyJoints(10.3, {
-        'neck': (32.885, -2.861, 31.033), 'head': (13.466, 11.098),
+        'neck': (32.976, -1.653, 31.033), 'head': (13.557, 11.146),
         'left_shoulder': (47.483, 15.574, 15.585), 'left_elbow': (27.397, 50.575),
         'left_wrist': (-48.835, 15.156),
     })
     human.KeyJoints(10.4, {
-        'neck': (34.057, -5.77, 50.55), 'head': (14.316, 11.182),
+        'neck': (34.097, -5.231, 50.55), 'head': (14.357, 11.204),
         'left_shoulder': (35.109, 19.605, 5.272), 'left_elbow': (51.587, 48.445),
         'left_wrist': (-52.995, 15.684),
     })
     human.KeyJoints(10.5, {
-        'neck': (34.883, -7.821, 64.313), 'head': (14.915, 11.242),
+        'neck': (34.888, -7.755, 64.313), 'head': (14.92, 11.244),
         'left_shoulder': (18.401, 24.501, -8.591), 'left_elbow': (76.6, 45.394),
         'left_wrist': (-57.418, 16.148),
     })
@@ -618,70 +618,65 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:47:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
     human.KeyJoints(11.1, {
-        'neck': (35.0, -8.111, 66.258), 'left_shoulder': (-40.997, 39.949, -75.438),
-        'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
+        'left_shoulder': (-40.997, 39.949, -75.438), 'left_elbow': (96.085, 31.159),
+        'left_wrist': (-68.019, 9.328),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.2628)
-    human.KeyJoints(11.2, {'neck': (35.0, -7.995, 66.249)})
-    human.KeyJoints(11.3, {'neck': (35.0, -7.568, 66.185)})
+    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.609456)
+    human.KeyJoints(11.2, {'neck': (35.0, -8.087, 66.256)})
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: TA on r_arm at filter_bowl
-    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.399653, duration=0.719288)
     human.KeyJoints(11.4, {
         'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (6.618, -10.0, -30.0),
-        'neck': (35.0, -7.309, 66.034), 'head': (15.0, 11.25), 'right_clavicle': (-7.103, 15.0),
-        'right_shoulder': (22.884, 39.943, -35.018), 'right_elbow': (27.304, 44.176),
-        'right_wrist': (-66.252, 18.764),
+        'right_clavicle': (-7.103, 15.0), 'right_shoulder': (22.884, 39.943, -35.018),
+        'right_elbow': (27.304, 44.176), 'right_wrist': (-66.252, 18.764),
     })
     human.KeyJoints(11.5, {
         'spine_lumbar': (60.0, 18.852, -14.405), 'spine_thoracic': (6.154, -9.426, -29.467),
-        'neck': (34.132, -7.787, 62.483), 'right_clavicle': (-7.186, 15.0),
-        'right_shoulder': (23.423, 38.346, -34.434), 'right_elbow': (27.326, 44.369),
-        'right_wrist': (-65.769, 18.662),
+        'right_clavicle': (-7.186, 15.0), 'right_shoulder': (23.423, 38.346, -34.434),
+        'right_elbow': (27.326, 44.369), 'right_wrist': (-65.769, 18.662),
     })
     human.KeyJoints(11.6, {
         'spine_lumbar': (60.0, 13.208, -11.478), 'spine_thoracic': (3.857, -6.604, -26.843),
-        'neck': (31.384, -7.977, 52.833), 'head': (14.508, 11.109),
         'right_clavicle': (-7.595, 15.0), 'right_shoulder': (26.085, 30.482, -31.555),
         'right_elbow': (27.44, 45.321), 'right_wrist': (-63.396, 18.159),
     })
     human.KeyJoints(11.7, {
         'spine_lumbar': (60.0, 3.792, -6.594), 'spine_thoracic': (-0.109, -1.896, -22.455),
-        'neck': (28.266, -9.478, 39.224), 'head': (14.936, 11.18),
-        'right_shoulder': (30.621, 17.217, -26.693), 'right_elbow': (27.661, 46.931),
-        'right_wrist': (-59.437, 17.319),
+        'neck': (35.0, -7.323, 66.07), 'right_shoulder': (30.621, 17.217, -26.693),
+        'right_elbow': (27.661, 46.931), 'right_wrist': (-59.437, 17.319),
     })
+    # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
+    human.LookAt((10.0, 25.0, 95.0), start=11.746309, duration=0.372632)
     human.KeyJoints(11.8, {
         'spine_lumbar': (60.0, -6.573, -1.219), 'spine_thoracic': (-4.809, 3.286, -17.593),
-        'neck': (27.241, -14.365, 25.422), 'right_clavicle': (-9.028, 15.0),
+        'neck': (34.791, -8.293, 62.727), 'right_clavicle': (-9.028, 15.0),
         'right_shoulder': (35.849, 2.259, -21.192), 'right_elbow': (27.984, 48.755),
         'right_wrist': (-55.08, 16.394),
     })
     human.KeyJoints(11.9, {
         'spine_lumbar': (59.713, -14.941, 3.132), 'spine_thoracic': (-9.315, 7.491, -13.596),
-        'neck': (28.786, -19.921, 14.542), 'head': (14.972, 11.218),
-        'right_clavicle': (-9.589, 14.966), 'right_shoulder': (40.46, -10.789, -16.374),
-        'right_elbow': (28.425, 50.359), 'right_wrist': (-51.586, 15.668),
+        'neck': (33.642, -13.686, 44.747), 'right_clavicle': (-9.589, 14.966),
+        'right_shoulder': (40.46, -10.789, -16.374), 'right_elbow': (28.425, 50.359),
+        'right_wrist': (-51.586, 15.668),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.0, {
         'spine_lumbar': (56.404, -18.477, 5.095), 'spine_thoracic': (-12.126, 9.497, -11.767),
-        'neck': (30.997, -23.089, 11.385), 'right_clavicle': (-9.286, 14.54),
+        'neck': (32.275, -20.106, 23.378), 'right_clavicle': (-9.286, 14.54),
         'right_shoulder': (41.712, -19.86, -13.223), 'right_elbow': (28.921, 51.404),
         'right_wrist': (-50.398, 15.58),
     })
     human.KeyJoints(12.1, {
         'spine_lumbar': (54.53, -18.969, 5.423), 'spine_thoracic': (-12.717, 9.877, -11.47),
-        'neck': (31.557, -23.433, 12.793), 'right_clavicle': (-8.997, 14.295),
-        'right_shoulder': (41.421, -22.511, -12.373), 'right_elbow': (29.075, 51.682),
-        'right_wrist': (-50.365, 15.663),
+        'neck': (31.599, -23.286, 12.801), 'head': (14.969, 11.213),
+        'right_clavicle': (-8.997, 14.295), 'right_shoulder': (41.421, -22.511, -12.373),
+        'right_elbow': (29.075, 51.682), 'right_wrist': (-50.365, 15.663),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.2, {
-        'neck': (31.689, -23.388, 13.263), 'right_shoulder': (41.319, -22.561, -12.368),
+        'neck': (31.669, -23.149, 13.1), 'right_shoulder': (41.319, -22.561, -12.368),
         'right_elbow': (29.221, 51.727), 'right_wrist': (-50.48, 15.699),
     })
     human.KeyJoints(12.3, {
@@ -702,8 +697,8 @@ def replace_fuel_filter_cad():
         'right_wrist': (-50.404, 15.526),
     })
     human.KeyJoints(12.8, {
-        'right_shoulder': (42.16, -24.211, -11.738), 'right_elbow': (30.412, 30.427),
-        'right_wrist': (-50.979, 16.186),
+        'head': (14.946, 11.155), 'right_shoulder': (42.16, -24.211, -11.738),
+        'right_elbow': (30.412, 30.427), 'right_wrist': (-50.979, 16.186),
     })
     human.KeyJoints(12.9, {
         'right_shoulder': (43.476, -25.719, -11.209), 'right_elbow': (33.435, 0.621),
@@ -818,21 +813,22 @@ def replace_fuel_filter_cad():
         'right_wrist': (-53.215, 17.801),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.2628)
+    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.375936)
     human.KeyJoints(15.5, {
-        'neck': (31.694, -23.369, 13.262), 'right_shoulder': (43.349, -25.125, -11.432),
+        'neck': (31.673, -23.155, 13.11), 'right_shoulder': (43.349, -25.125, -11.432),
         'right_elbow': (33.369, -10.0), 'right_wrist': (-52.524, 17.283),
     })
     human.KeyJoints(15.6, {
-        'right_shoulder': (42.33, -23.752, -11.927), 'right_elbow': (31.102, -10.0),
-        'right_wrist': (-51.384, 16.428),
+        'head': (14.967, 11.192), 'right_shoulder': (42.33, -23.752, -11.927),
+        'right_elbow': (31.102, -10.0), 'right_wrist': (-51.384, 16.428),
     })
     human.KeyJoints(15.7, {
         'right_shoulder': (41.419, -22.524, -12.369), 'right_elbow': (29.076, -10.0),
         'right_wrist': (-50.365, 15.664),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > inspect > hold: hold on root
-    human.KeyJoints(15.8, {'neck': (31.731, -23.243, 13.254)})
+    human.KeyJoints(15.9, {'neck': (31.731, -23.243, 13.254)})
+    human.KeyJoints(17.1, {'head': (15.0, 11.25)})
     human.KeyJoints(18.7, {
         'spine_lumbar': (54.52, -18.971, 5.425), 'spine_thoracic': (-12.72, 9.879, -11.469),
         'neck': (31.731, -23.243, 13.254), 'head': (15.0, 11.25),

@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.interpolate import PchipInterpolator
 
 from mtlc.body import forward, site_positions
 from mtlc.ir.model import FloatArray, Frames, MotionIR, yaw_quaternion
+from mtlc.ir.pchip import pchip
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 
 FOOT_POINTS = (
@@ -53,7 +53,7 @@ def track(times: ArrayLike, values: ArrayLike, grid: np.ndarray) -> np.ndarray:
     t, v = t[keep], v[keep]
     if len(t) == 1:
         return np.broadcast_to(v[0], (len(grid), *v.shape[1:])).copy()
-    inside = PchipInterpolator(t, v, axis=0, extrapolate=False)(np.clip(grid, t[0], t[-1]))
+    inside = pchip(t, v, extrapolate=False)(np.clip(grid, t[0], t[-1]))
     return inside
 
 

@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
-from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 
 from mtlc.ir.model import Keyframes, MotionIR, Segment, yaw_quaternion
+from mtlc.ir.pchip import Hermite, hermite, pchip, pchip_slopes
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.stance import WIDE_RESULT, WIDE_STEP, WIDE_TURN_OUT, needs_wide_squat
 
@@ -859,15 +859,15 @@ def _runs_of(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
-def at_rest_ends(t: FloatArray, y: FloatArray) -> CubicHermiteSpline:
+def at_rest_ends(t: FloatArray, y: FloatArray) -> Hermite:
     """PCHIP through the knots, but at rest at the first and the last: PCHIP's end slopes are
     extrapolated, and the pelvis set off at 13 cm/s in the first frame of a walk (a hand that
     had just put the avionics unit on its site was 1.5 mm off it 13 ms later). A smaller end
     slope keeps the curve monotone where PCHIP's was (Fritsch & Carlson 1980)."""
-    slopes = PchipInterpolator(t, y, axis=0).derivative()(t)
+    slopes = pchip_slopes(t, y)
     slopes[0] = 0.0
     slopes[-1] = 0.0
-    return CubicHermiteSpline(t, y, slopes, axis=0)
+    return hermite(t, y, slopes)
 
 
 def _window(x: FloatArray, half: int, op: Any) -> FloatArray:
@@ -953,12 +953,12 @@ def _key_times(motion: WalkMotion) -> tuple[FloatArray, Pose]:
             legq = {f: np.vstack([v, v[-1]]) for f, v in legq.items()}
         else:
             keys_c = keys
-        rp = PchipInterpolator(keys_c, pos, axis=0)(dense)
-        quat = PchipInterpolator(keys_c, yaw_quaternion(head), axis=0)(dense)
+        rp = pchip(keys_c, pos)(dense)
+        quat = pchip(keys_c, yaw_quaternion(head))(dense)
         rh = _heading_of(quat / np.linalg.norm(quat, axis=1, keepdims=True))
         bad = np.zeros(len(dense), dtype=bool)
         for f in LEGS:
-            q = PchipInterpolator(keys_c, legq[f], axis=0)(dense)
+            q = pchip(keys_c, legq[f])(dense)
             ankle, toe = leg_fk(motion.legs, f, rp, rh, q)
             da, dt = ankle - want[f].ankle, toe - want_toe[f]
             err = np.maximum(np.linalg.norm(da, axis=1), np.linalg.norm(dt, axis=1))

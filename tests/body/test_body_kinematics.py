@@ -21,7 +21,14 @@ from mtlc.body import (
     site_positions,
     site_rotation,
 )
-from mtlc.body.kinematics import axis_angle, cross, forward_below, rotate_about
+from mtlc.body.kinematics import (
+    axis_angle,
+    cross,
+    forward_below,
+    forward_part,
+    part_site_positions,
+    rotate_about,
+)
 
 SK = build_manikin("gb10000_1988", "male", 50)
 
@@ -247,6 +254,34 @@ def test_forward_below_is_whole_body_forward_to_the_bit(rows: int, joint: str, s
     assert np.array_equal(branch.p, whole.p)
     assert np.array_equal(branch.R, whole.R)
     assert not np.array_equal(branch.R[:, top], base.R[:, top])  # the branch did move
+
+
+@settings(max_examples=60)
+@given(
+    rows=st.integers(1, 600),
+    sites=st.sampled_from(
+        [["r_hand"], ["l_fingertip", "r_hand"], ["r_heel", "l_toe", "r_ball_lat"], ["gaze"]]
+    ),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_forward_part_is_whole_body_forward_to_the_bit(
+    rows: int, sites: list[str], seed: int
+) -> None:
+    """The pace, interpolation and balance passes pose only the chains that carry the sites
+    they measure (``forward_part``, ``part_site_positions``): the same numbers, bit for bit, as
+    the whole body's pose, whatever the batch; the joints not on those chains are NaN."""
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(SK.lower, SK.upper, size=(rows, SK.n_dofs))
+    root = rng.normal(size=(rows, 3)), rng.normal(size=(rows, 4))
+    whole = forward(SK, q, *root, with_axes=False)
+    part = forward_part(SK, q, *root, sites)
+    assert np.array_equal(site_positions(SK, part, sites), site_positions(SK, whole, sites))
+    assert np.array_equal(
+        part_site_positions(SK, q, *root, sites), site_positions(SK, whole, sites)
+    )
+    carried = SK.ancestor[[SK.joint_index(SK.site(n).joint) for n in sites]].any(axis=0)
+    assert np.array_equal(part.R[:, carried], whole.R[:, carried])
+    assert np.isnan(part.p[:, ~carried]).all()
 
 
 def test_forward_below_refuses_the_root() -> None:

@@ -82,3 +82,19 @@ def test_one_knee_to_both_and_back_never_stands_up() -> None:
     assert knee_heights(ir, up)[0, 1] == pytest.approx(KNEE_HEIGHT, abs=5 * MM)
     assert knee_heights(ir, up)[-1, 1] > 0.3  # the left foot stands in front again
     assert [s["foot"] for s in up.result["steps"]] == ["l"]
+
+
+def test_the_tucked_foot_is_found_once_per_manikin_and_side() -> None:
+    """Every kneel asks for the tucked foot of its manikin (two nested bisections): it is
+    kept on the skeleton, the same numbers as finding it again, and a caller's change to the
+    heel it got does not reach the next caller."""
+    from mtlc.body import build_manikin
+    from mtlc.passes.kneel import _tucked_foot, tucked_foot
+
+    skel = build_manikin("gb10000_1988", "female", 5)
+    reach, heel = tucked_foot(skel)
+    again = _tucked_foot(skel, "r")
+    assert reach == again[0] and np.array_equal(heel, again[1])
+    heel[:] = 9.0
+    assert np.array_equal(tucked_foot(skel)[1], again[1])
+    assert tucked_foot(skel, "l")[0] == pytest.approx(reach, abs=1e-9)  # a symmetric manikin

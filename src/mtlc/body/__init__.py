@@ -20,8 +20,10 @@ if TYPE_CHECKING:
         center_of_mass,
         com_jacobian,
         forward,
+        forward_part,
         jacobian,
         matrix_to_quat,
+        part_site_positions,
         quat_to_matrix,
         rotation_error,
         site_direction,
@@ -42,8 +44,9 @@ if TYPE_CHECKING:
 # (which needs only the anthropometry: a stature for the walks' time) starts without it
 _LAZY = {
     **dict.fromkeys(
-        ("Pose", "center_of_mass", "com_jacobian", "forward", "jacobian", "matrix_to_quat",
-         "quat_to_matrix", "rotation_error", "site_direction", "site_positions", "site_rotation"),
+        ("Pose", "center_of_mass", "com_jacobian", "forward", "forward_part", "jacobian",
+         "matrix_to_quat", "part_site_positions", "quat_to_matrix", "rotation_error",
+         "site_direction", "site_positions", "site_rotation"),
         ".kinematics",
     ),
     **dict.fromkeys(
@@ -80,8 +83,10 @@ __all__ = [
     "com_jacobian",
     "dimensions",
     "forward",
+    "forward_part",
     "jacobian",
     "matrix_to_quat",
+    "part_site_positions",
     "quat_to_matrix",
     "rotation_error",
     "site_direction",

@@ -361,6 +361,75 @@ def _forward_flat(
     )  # fmt: skip
 
 
+PART_CHUNK = 256  # configurations a chunk of ``forward_part``
+
+
+def forward_part(
+    skel: Skeleton,
+    q: ArrayLike,
+    root_position: ArrayLike | None,
+    root_rotation: ArrayLike | None,
+    sites: Sequence[str],
+) -> Pose:
+    """``forward(skel, q, ...)`` (``with_axes=False``) of only the joints that carry ``sites``
+    and their ancestors; every other joint's frame is NaN. The same products in the same order
+    as ``forward``, so the same numbers: a pass that needs a hand's or the feet's positions on
+    thousands of frames places 7 or 9 joints, not 21."""
+    qa = np.asarray(q, dtype=float)
+    if qa.shape[-1] != skel.n_dofs:
+        raise ValueError(f"q has {qa.shape[-1]} angles, the skeleton has {skel.n_dofs}")
+    batch = qa.shape[:-1]
+    rp, RR = _root_inputs(skel, batch, root_position, root_rotation)
+    n, nj = math.prod(batch), skel.n_joints
+    qf, rpf, RRf = qa.reshape(n, -1), rp.reshape(n, 3), RR.reshape(n, 3, 3)
+    part = _part(skel, tuple(sites))
+    R, p = np.full((n, nj, 3, 3), np.nan), np.full((n, nj, 3), np.nan)
+    for a in range(0, n, PART_CHUNK):
+        c = slice(a, a + PART_CHUNK)
+        start = _homogeneous(RRf[c], rpf[c])
+        R[c, part.joints], p[c, part.joints] = _forward_branch(skel, part, qf[c], start)
+    return Pose(
+        R=R.reshape(*batch, nj, 3, 3), p=p.reshape(*batch, nj, 3),
+        axes=np.empty((*batch, 0, 3)), root=np.array(rp),
+    )  # fmt: skip
+
+
+def part_site_positions(
+    skel: Skeleton,
+    q: ArrayLike,
+    root_position: ArrayLike | None,
+    root_rotation: ArrayLike | None,
+    sites: Sequence[str],
+) -> FloatArray:
+    """``site_positions(skel, forward(skel, q, ...), sites)`` (N, S, 3) for (N, D) angles, by
+    ``forward_part``'s joints only, chunk by chunk: the same numbers without the whole body's
+    frames (what the pace and interpolation passes ask of thousands of frames)."""
+    qa = np.asarray(q, dtype=float)
+    n = len(qa)
+    rp, RR = _root_inputs(skel, (n,), root_position, root_rotation)
+    part = _part(skel, tuple(sites))
+    where = {int(j): k for k, j in enumerate(part.joints)}
+    js, offs = _site_lookup(skel, tuple(sites))
+    local = [where[j] for j in js]
+    out = np.empty((n, len(js), 3))
+    for a in range(0, n, PART_CHUNK):
+        c = slice(a, a + PART_CHUNK)
+        R, p = _forward_branch(skel, part, qa[c], _homogeneous(RR[c], rp[c]))
+        out[c] = p[:, local] + np.einsum("...sij,sj->...si", R[:, local], offs)
+    return out
+
+
+def _part(skel: Skeleton, sites: tuple[str, ...]) -> _Branch:
+    """The root-down branch of the joints that carry ``sites`` (cached per skeleton)."""
+    cache: dict[tuple[str, ...], _Branch] = skel.__dict__.setdefault("_fk_parts", {})
+    found = cache.get(sites)
+    if found is None:
+        carriers = {skel.joint_index(skel.site(name).joint) for name in sites}
+        keep = skel.ancestor[list(carriers)].any(axis=0)  # (ancestor[j, k]: k is j or above it)
+        found = cache[sites] = _subtree(skel, np.flatnonzero(keep))
+    return found
+
+
 def forward_below(skel: Skeleton, q: ArrayLike, base: Pose, top: int) -> Pose:
     """``forward(skel, q, ...)`` (``with_axes=False``) of configurations ``q`` (n, D) that
     differ from ``base``'s (n rows, the same root) only in the dofs of joint ``top`` and the
@@ -396,10 +465,15 @@ class _Branch:
 def _branch(skel: Skeleton, top: int) -> _Branch:
     cache: dict[int, _Branch] = skel.__dict__.setdefault("_fk_branches", {})
     found = cache.get(top)
-    if found is not None:
-        return found
+    if found is None:
+        found = cache[top] = _subtree(skel, np.flatnonzero(skel.ancestor[:, top]))
+    return found
+
+
+def _subtree(skel: Skeleton, joints: NDArray[np.intp]) -> _Branch:
+    """The ``_Branch`` of a set of joints closed downward from one joint (a branch) or upward
+    to the root (``_part``): a joint's parent is among them or is the branch's fixed start."""
     plan = _plan(skel)
-    joints = np.flatnonzero(skel.ancestor[:, top])
     depth = [int(skel.ancestor[j].sum()) for j in joints]
     joints = joints[np.argsort(depth, kind="stable")]
     dofs = np.concatenate([np.flatnonzero(skel.dof_joint == j) for j in joints]).astype(np.intp)
@@ -410,8 +484,7 @@ def _branch(skel: Skeleton, top: int) -> _Branch:
     )
     where = {int(j): k for k, j in enumerate(joints)}
     parent = np.array([where.get(int(skel.parent[j]), -1) for j in joints], dtype=np.intp)
-    found = cache[top] = _Branch(joints, dofs, slot, parent)
-    return found
+    return _Branch(joints, dofs, slot, parent)
 
 
 def _forward_branch(

@@ -39,7 +39,16 @@ from bisect import bisect_left
 
 import numpy as np
 
-from mtlc.body import Pose, Skeleton, com_jacobian, forward, site_positions, site_rotation
+from mtlc.body import (
+    Pose,
+    Skeleton,
+    com_jacobian,
+    forward,
+    forward_part,
+    part_site_positions,
+    site_positions,
+    site_rotation,
+)
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.body.kinematics import rotate_about
 from mtlc.ir.model import Frames, MotionIR, Segment
@@ -208,6 +217,9 @@ def lower_for_reach(
     return root
 
 
+LEG_SITES = (*FEET_SITES, *(f"{side}_{p}" for side in "rl" for p in FOOT_POINT_NAMES))
+
+
 def restore_contacts(
     ir: MotionIR,
     q: np.ndarray,
@@ -219,37 +231,20 @@ def restore_contacts(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
 
-    See ``restore_contacts_posed``; this drops the solved pose.
-    """
-    q, root, worst, _ = restore_contacts_posed(
-        ir, q, root_position, root_rotation, feet, hands, pose
-    )
-    return q, root, worst
-
-
-def restore_contacts_posed(
-    ir: MotionIR,
-    q: np.ndarray,
-    root_position: np.ndarray,
-    root_rotation: np.ndarray,
-    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    hands: dict[str, tuple[np.ndarray, np.ndarray]],
-    pose: Pose | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
-    """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
-
     ``feet`` maps r_foot/l_foot to target positions (B, 3), rotations (B, 3, 3) and whether the
     foot touches the ground (B,): a foot in the air keeps its joint angles instead;
-    ``hands`` maps r_hand/l_hand to a row mask (B,) and target positions (B, 3). The pelvis drops
-    by what straight legs cannot reach. Returns the new q (B, D), root positions, each row's
-    worst remaining distance (m) and the pose of the result (forward kinematics is the costly
-    part of balancing thousands of frames: callers reuse it instead of recomputing it).
+    ``hands`` maps r_hand/l_hand to a row mask (B,) and target positions (B, 3); ``pose``: the
+    pose of (q, root_position, root_rotation) if the caller has it (its legs are read). The
+    pelvis drops by what straight legs cannot reach. Returns the new q (B, D), root positions
+    and each row's worst remaining distance (m). Only the legs are posed here (the feet's chains,
+    9 joints of 21): a caller poses the rows it keeps (``restore_contacts_posed``, or
+    ``balance_frames``, which drops the rows that lost their contacts unposed).
     """
     skel = ir.skeleton
     q = q.copy()
     # a foot off the ground keeps its angles: its target is where the moved pelvis takes it
-    if pose is None:  # the pose of (q, root_position, root_rotation), when the caller has it
-        pose = forward(skel, q, root_position, root_rotation, with_axes=False)  # no Jacobian
+    if pose is None:  # the legs' frames (the same numbers as the whole body's pose)
+        pose = forward_part(skel, q, root_position, root_rotation, LEG_SITES)
     feet = {
         name: (
             np.where(touch[:, None], pos, site_positions(skel, pose, name)),
@@ -277,19 +272,17 @@ def restore_contacts_posed(
         orientation_tol=math.radians(0.05), max_iter=40,
     )  # fmt: skip
     q = res.q
-    pose = forward(skel, q, root, root_rotation)
     worst = np.zeros(len(q))
     for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
         soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
         want = pos[:, None, :] + np.einsum("bij,bsj->bsi", rot, soles_in_foot[name])
-        err = np.linalg.norm(site_positions(skel, pose, soles) - want, axis=-1).max(axis=1)
+        now = part_site_positions(skel, q, root, root_rotation, soles)
+        err = np.linalg.norm(now - want, axis=-1).max(axis=1)
         worst = np.maximum(worst, np.where(touch, err, 0.0))
-    solved = np.zeros(len(q), dtype=bool)
     for hand, (rows, target) in hands.items():
         idx = np.flatnonzero(rows)
         if idx.size == 0:
             continue
-        solved[idx] = True
         goal = [Goal(hand, position=target[idx])]
         elbow = skel.dof_index(f"{hand[0]}_elbow_flex")
         q[idx, elbow] = np.maximum(q[idx, elbow], SEED_FLEX)
@@ -301,10 +294,22 @@ def restore_contacts_posed(
         )
         q[idx] = res.q
         worst[idx] = np.maximum(worst[idx], res.position_error)
-    idx = np.flatnonzero(solved)
-    if idx.size:  # the arms moved: their rows' pose is recomputed
-        put_pose(pose, idx, forward(skel, q[idx], root[idx], root_rotation[idx]))
-    return q, root, worst, pose
+    return q, root, worst
+
+
+def restore_contacts_posed(
+    ir: MotionIR,
+    q: np.ndarray,
+    root_position: np.ndarray,
+    root_rotation: np.ndarray,
+    feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+    pose: Pose | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
+    """``restore_contacts`` and the pose of its result (forward kinematics is the costly part
+    of balancing thousands of frames: callers reuse it instead of recomputing it)."""
+    q, root, worst = restore_contacts(ir, q, root_position, root_rotation, feet, hands, pose)
+    return q, root, worst, forward(ir.skeleton, q, root, root_rotation)
 
 
 def lean_trunk(
@@ -506,13 +511,16 @@ def balance_frames(
         new_root[:, [0, 2]] += step
         shift = new_root[:, [0, 2]] - root0[active][:, [0, 2]]
         far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
-        q_a, root_a, worst_a, p_a = restore_contacts_posed(
+        q_a, root_a, worst_a = restore_contacts(
             ir, q[active], new_root, rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
         )
         lost = far | ((worst_a > POSITION_TOL) & (worst[active] <= POSITION_TOL))
         ok_rows = active[~lost]
         q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
-        put_pose(p_rows, ok_rows, take_pose(p_a, np.flatnonzero(~lost)))
+        # only the rows kept are posed (a lost row keeps its pose: a squat at its ankles' limit
+        # loses every row of four rounds)
+        if ok_rows.size:
+            put_pose(p_rows, ok_rows, forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows]))
         cap[active[lost]] /= 2  # a joint ran out of range: retry with half the step
         active = active[(cap[active] >= MIN_STEP) & ~far]
     p = p_rows
@@ -649,8 +657,9 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
     start = np.empty((len(t), len(TIP_SITES)))  # one FK of the frames for both sides
     for a in range(0, len(t), CHUNK_FRAMES):
         c = slice(a, a + CHUNK_FRAMES)
-        pose = forward(skel, frames.q[c], frames.root_position[c], frames.root_rotation[c])
-        start[c] = ir.ground - site_positions(skel, pose, list(TIP_SITES.values()))[..., 1]
+        tips = part_site_positions(skel, frames.q[c], frames.root_position[c],
+                                   frames.root_rotation[c], list(TIP_SITES.values()))  # fmt: skip
+        start[c] = ir.ground - tips[..., 1]
     for i, (side, tip) in enumerate(TIP_SITES.items()):
         depth = start[:, i].copy()  # a side's wrist does not move the other side's fingertip
         free = ~pins[f"{side}_hand"]
@@ -673,8 +682,12 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
             q_new = np.clip(frames.q[moved, k] + delta[moved, 0], skel.lower[k], skel.upper[k])
             q = frames.q[moved].copy()
             q[:, k] = q_new
-            pose = forward(skel, q, frames.root_position[moved], frames.root_rotation[moved])
-            new_depth = ir.ground - site_positions(skel, pose, tip)[:, 1]
+            new_depth = (
+                ir.ground
+                - part_site_positions(
+                    skel, q, frames.root_position[moved], frames.root_rotation[moved], [tip]
+                )[:, 0, 1]
+            )
             # a frame takes the change where it does not take the fingertip deeper
             take = new_depth <= np.maximum(depth[moved], 0.0) + 1e-6
             frames.q[moved[take], k] = q_new[take]

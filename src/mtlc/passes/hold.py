@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import forward, site_positions
+from mtlc.body import part_site_positions
 from mtlc.body.ik import Goal, default_dofs, prepare, solve_ta
 from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.context import PassContext
@@ -161,8 +161,8 @@ def _arm_dofs(skel: Any, effector: str) -> list[int]:
 
 
 def _site(skel: Any, frames: Frames, rows: np.ndarray, effector: str, q: FloatArray) -> FloatArray:
-    pose = forward(skel, q, frames.root_position[rows], frames.root_rotation[rows], with_axes=False)
-    return np.asarray(site_positions(skel, pose, effector))
+    root, rotation = frames.root_position[rows], frames.root_rotation[rows]
+    return part_site_positions(skel, q, root, rotation, [effector])[:, 0]
 
 
 def keep_hold(

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mtlc.body import forward, site_positions
+from mtlc.body import part_site_positions
 from mtlc.ir.model import FloatArray, Frames, MotionIR, yaw_quaternion
 from mtlc.ir.pchip import pchip
 from mtlc.passes.context import INTERNAL_FPS, PassContext
@@ -207,16 +207,16 @@ def walking_mask(ir: MotionIR, grid: np.ndarray) -> np.ndarray:
 
 
 def lowest_foot_point(ir: MotionIR, frames: Frames) -> np.ndarray:
-    pose = forward(
-        ir.skeleton, frames.q, frames.root_position, frames.root_rotation, with_axes=False
+    feet = part_site_positions(
+        ir.skeleton, frames.q, frames.root_position, frames.root_rotation, list(FOOT_POINTS)
     )
-    return site_positions(ir.skeleton, pose, list(FOOT_POINTS))[..., 1].min(axis=-1)
+    return feet[..., 1].min(axis=-1)
 
 
 def _feet_in_root_frame(skel: Any, q: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """Foot points (N, P, 3) relative to the root position, for joint angles and root rotation."""
-    pose = forward(skel, q, np.zeros((len(q), 3)), rotation, with_axes=False)
-    return site_positions(skel, pose, list(FOOT_POINTS))
+    # the legs' joints only (9 of 21): the same numbers as a whole pose, for every frame
+    return part_site_positions(skel, q, np.zeros((len(q), 3)), rotation, list(FOOT_POINTS))
 
 
 _REST_CENTRES: dict[int, tuple[Any, np.ndarray]] = {}

@@ -32,7 +32,13 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import center_of_mass, forward, site_positions
+from mtlc.body import (
+    center_of_mass,
+    forward,
+    forward_part,
+    part_site_positions,
+    site_positions,
+)
 from mtlc.body.kinematics import cross, segment_coms
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray
@@ -531,7 +537,18 @@ def tucked_foot(skel: Any, side: str = "r") -> tuple[float, FloatArray]:
     toward the knee (a rigid foot stood on its toe tip, balls 7 cm up: issue 18). Also where
     the heel is then, from the toe tip (y, z): the knee, toe and balls alone leave the ankle
     free to swing up the shank's circle, the foot past vertical and the toes past their
-    90°."""
+    90°.
+
+    A property of the manikin, found once per skeleton and side (two nested bisections, ~4,000
+    poses of the leg: every kneel of a task asked it again)."""
+    cache: dict[str, tuple[float, FloatArray]] = skel.__dict__.setdefault("_tucked_foot", {})
+    if side not in cache:
+        cache[side] = _tucked_foot(skel, side)
+    reach, heel = cache[side]
+    return reach, heel.copy()
+
+
+def _tucked_foot(skel: Any, side: str) -> tuple[float, FloatArray]:
     q = np.asarray(skel.q_comfort, dtype=float).copy()
     q[skel.dof_index(f"{side}_hip_flex")] = 0.0
     q[skel.dof_index(f"{side}_ankle_dorsi")] = TUCK_ANKLE
@@ -545,11 +562,11 @@ def tucked_foot(skel: Any, side: str = "r") -> tuple[float, FloatArray]:
 
         def toe_above_balls(t: float) -> float:
             qq[t_dof] = t
-            pts = site_positions(skel, forward(skel, qq[None]), names)[0]
+            pts = part_site_positions(skel, qq[None], None, None, names)[0]  # the leg only
             return float(pts[2, 1] - pts[:2, 1].mean())
 
         qq[t_dof] = _bisect(toe_above_balls, 0.0, float(skel.upper[t_dof]))
-        pose = forward(skel, qq[None])
+        pose = forward_part(skel, qq[None], None, None, [*names, f"{side}_heel"])
         return pose, site_positions(skel, pose, names)[0]
 
     def height(k: float) -> float:

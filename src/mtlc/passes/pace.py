@@ -26,7 +26,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 from scipy.ndimage import gaussian_filter1d
 
-from mtlc.body import forward, site_positions
+from mtlc.body import part_site_positions
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
@@ -157,8 +157,8 @@ def progress(ir: MotionIR, m: Movement, frames: Frames) -> tuple[FloatArray, flo
     """Each sample's share of the movement's progress (rising from 0 to 1) and its length: the
     effectors' arc length plus ``JOINT_WEIGHT`` times the movement's joint path."""
     skel = ir.skeleton
-    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation, with_axes=False)
-    p = site_positions(skel, pose, m.effectors).reshape(len(frames.time), -1, 3)
+    # the effectors' chains only (7 joints of 21 for a hand): the same numbers as a whole pose
+    p = part_site_positions(skel, frames.q, frames.root_position, frames.root_rotation, m.effectors)
     idx = [skel.dof_index(n) for n in m.dofs]
     step = np.linalg.norm(np.diff(p, axis=0), axis=-1).sum(axis=1)
     step += JOINT_WEIGHT * np.linalg.norm(np.diff(frames.q[:, idx], axis=0), axis=1)

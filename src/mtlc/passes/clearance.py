@@ -39,7 +39,7 @@ GOAL_LEAD = 0.15  # s before a reach's end the hand counts as arriving at its go
 ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
 HAND_TRACK = {"r": "r_hand", "l": "l_hand"}
 EPS = 1e-9
-MAX_SWING = 0.09  # rad a corrected dof may move between two dense frames, if the motion did not
+MAX_SWING = 0.6  # rad a corrected dof may move between two dense frames, if the motion did not
 FIRM = 30.0  # the clearance's weight where the first solve leaves an arm inside (keep_clear)
 SWING_SMOOTH = 6  # dense frames each side a correction that swings is averaged over
 

@@ -48,8 +48,6 @@ KEEP_PATH = 0.3  # ...on the way there: the hand may move out of the body's way
 PATH_SAMPLES = 9  # poses checked on each stretch between two keyframes, ends included
 CLEAR_KEYS = 1  # keyframes added at most to keep an approach's arms out of the body
 CLEAR_GAIN = 0.005  # m a cleared keyframe must take off the path's depth to be kept
-PART_KEYS = 8  # stretches a two-handed move of a held part is keyed in (``key_part_path``)
-PART_SLACK = 0.01  # m the hands' distance may differ at a move's ends and still hold one part
 NEAR_RATIO = 2.0  # a restart's pose is kept over the start's own descent if this many times closer
 
 
@@ -148,14 +146,6 @@ def approach_point(
     side = "r" if goal.effector.startswith("r") else "l"
     shoulder = state.site(f"joint:{side}_shoulder", q, root)
     d = target - shoulder
-    if goal.params.get("two_handed"):
-        # both hands come in along one line, from between the shoulders to the part's centre:
-        # each from its own shoulder, the approach points were 12 cm apart on a 20 cm part
-        # and the hands squeezed it on the way (carry)
-        other = state.site(f"joint:{'l' if side == 'r' else 'r'}_shoulder", q, root)
-        centre = site_position(state.ir, goal.site)
-        if centre is not None:
-            d = centre - 0.5 * (shoulder + other)
     norm = float(np.linalg.norm(d))
     return target if norm < 1e-9 else target - dist * d / norm
 
@@ -592,59 +582,6 @@ def relift(ir: MotionIR, ctx: PassContext) -> None:
         poses, new_fracs = clear_path(state, segs, poses, root, fracs)
         if len(poses) != len(fracs):
             _rekey(skel, segs, poses, new_fracs)
-
-
-def carried(segs: list[Segment]) -> bool:
-    """Both hands of the group move one two-handed goal in one window."""
-    return (
-        len(segs) == 2
-        and all(s.goal.params.get("two_handed") for s in segs)
-        and segs[0].goal.site == segs[1].goal.site
-        and abs(segs[0].start - segs[1].start) + abs(segs[0].end - segs[1].end) < 1e-9
-        and all(s.keyframes is not None and len(s.keyframes.time) == 2 for s in segs)
-    )
-
-
-def key_part_path(ir: MotionIR, ctx: PassContext) -> None:
-    """Key a two-handed move of a part held between the hands along the way (issue 19).
-
-    Each arm's keys are interpolated on its own, so half-way the hands were up to 162 mm closer
-    than the part is long (the avionics unit carried down from its rack); the carry pass puts
-    them back on the part's ends frame by frame, and corrections that large flexed an elbow 22°
-    in one output frame. Here, once the contacts before it are solved (the move's first key is
-    the pose it truly starts from), ``PART_KEYS - 1`` poses are added: each hand on the straight
-    line from where it starts to where it ends, both solved (arm chains, no restarts) from the
-    straight joint-space line between the move's two keys at that point. Kept only when every
-    pose reaches and no dof turns further between two keys than the straight line does over the
-    whole move."""
-    state = PoseState(ir)
-    skel = ir.skeleton
-    for segs in groups(ir, "TA"):
-        if not carried(segs):
-            continue
-        t0, t1 = segs[0].start, segs[0].end
-        root = state.root_at(t1)
-        q0 = _pose_at(skel, state.q_at(t0), segs, 0)
-        q1 = _pose_at(skel, state.q_at(t0), segs, -1)
-        a = [state.site(s.goal.effector, q0, root) for s in segs]
-        b = [state.site(s.goal.effector, q1, root) for s in segs]
-        if abs(np.linalg.norm(a[0] - a[1]) - np.linalg.norm(b[0] - b[1])) > PART_SLACK:
-            continue  # the hands do not hold one part from end to end
-        fracs = np.linspace(0.0, 1.0, PART_KEYS + 1)
-        poses, ok = [q0], True
-        for f in fracs[1:-1]:
-            q = q0 + f * (q1 - q0)
-            for seg, pa, pb in zip(segs, a, b, strict=True):
-                goals = [Goal(seg.goal.effector, position=pa + f * (pb - pa))]
-                m = model_for(ctx, skel, (seg.goal.effector,), "arm", q, root)
-                res = solved(ctx.cache, solve_ta, skel, goals, q, m, restarts=0)
-                ok &= bool(res.position_error[0] <= TOLERANCE)
-                q = res.q[0]
-            poses.append(q)
-        poses.append(q1)
-        steps = np.abs(np.diff(np.array(poses), axis=0)).max()
-        if ok and steps <= np.abs(q1 - q0).max():
-            _rekey(skel, segs, poses, list(fracs))
 
 
 def _pose_at(skel: Any, q: FloatArray, segs: list[Segment], k: int) -> FloatArray:

@@ -28,7 +28,6 @@ from mtlc.passes.approach import (
     _restaters,
     groups,
     hand_target,
-    key_part_path,
     model_for,
     near_first,
     own_names,
@@ -255,16 +254,15 @@ def _solve_parts(
     return out
 
 
-def _approach_again(ctx: PassContext, state: PoseState, segs: list[Segment]) -> PoseState:
-    """Solve a group of approaches again when the contacts solved since (before it in time)
-    moved the body under it (``approach.stale_approach``); the state, indexed again if so.
-
-    An approach that ends its goal (``goal ... approach 0 cm``) makes the frames' claim. One
-    that a contact phase follows was left as it was, and its arm angles, solved for the trunk
-    before a torso contact bent it, ended the move of the avionics unit 13-20 cm from its
-    approach points: the contact then covered that in 0.1 s, and the part in both hands was
-    squeezed 6 cm at the approach's end (issue 19)."""
-    if not stale_approach(state, segs):
+def _approach_again(
+    ctx: PassContext, state: PoseState, segs: list[Segment], followed: set[int]
+) -> PoseState:
+    """Solve a group of approaches again when it ends its goal (no contact phase follows it:
+    ``goal ... approach 0 cm``, so the frames' claim rests on it) and the contacts solved
+    since (before it in time) moved the body under it (``approach.stale_approach``); the
+    state, indexed again if so. An approach that a contact phase follows is left as it is:
+    that phase is solved from the body as it is and makes the claim."""
+    if all(id(s) in followed for s in segs) or not stale_approach(state, segs):
         return state
     solve_ta_group(ctx, state, segs, skip=segs)
     return PoseState(state.ir)  # the group's keyframes were replaced
@@ -278,10 +276,11 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
     # contacts before it are solved, and before the contact that starts where it ends
     approaches, checked = groups(ir, "TA"), 0
     contacts = groups(ir, "TO")
+    followed = {id(ta) for segs in contacts for s in segs if (ta := _ta_for(ta_of, s)) is not None}
     for segs in contacts:
         t0, t1 = min(s.start for s in segs), max(s.end for s in segs)
         while checked < len(approaches) and (min(s.end for s in approaches[checked]) <= t0 + 1e-9):
-            state = _approach_again(ctx, state, approaches[checked])
+            state = _approach_again(ctx, state, approaches[checked], followed)
             checked += 1
         q0 = state.q_at(t0)
         root = state.root_at(t1)
@@ -330,8 +329,7 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
                     report_short(ctx, seg, d)
                 state.add(seg)
     for segs in approaches[checked:]:
-        state = _approach_again(ctx, state, segs)
+        state = _approach_again(ctx, state, segs, followed)
     reanchor(ir, ctx.cache, _restaters())
     relift(ir, ctx)
-    key_part_path(ir, ctx)
     return ir

@@ -39,8 +39,6 @@ MIN_PATH_SAMPLES = 64
 EPS = 1e-6
 PATH_POINTS = 241  # the path, resampled at even steps of progress before it is smoothed
 SMOOTH_SIGMA = 0.1  # of the path's progress: the Gaussian that smooths it
-MAX_SPEED = np.radians(360.0)  # rad/s: 12 deg from one frame to the next at 30 fps (issue 19)
-JOINT_SHARES = (0.25, 0.5, 0.75, 1.0)  # shares of the joints' own progress tried, in order
 
 
 @dataclass
@@ -193,31 +191,7 @@ def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> Float
     body.q[:, idx] = smooth_path(body.q[:, idx], SMOOTH_SIGMA * (PATH_POINTS - 1))
     u2, _ = progress(ir, m, body)
     s = minimum_jerk((t_new - m.start) / (m.end - m.start))
-    q = PchipInterpolator(u2, body.q[:, idx], axis=0)(s)
-    fastest = top_speed(q, t_new)
-    if fastest <= MAX_SPEED:
-        return q
-    # a stretch where the joints turn and the hand hardly moves (an arm rolling over onto a
-    # site out of reach) got a sliver of the time: its share of the joints' path is blended in
-    joints = np.abs(np.diff(body.q[:, idx], axis=0)).max(axis=1)
-    j = np.concatenate([[0.0], np.cumsum(joints)]) + np.arange(len(u2)) * 1e-9
-    j /= j[-1]
-    for share in JOINT_SHARES:
-        trial = PchipInterpolator((1.0 - share) * u2 + share * j, body.q[:, idx], axis=0)(s)
-        speed = top_speed(trial, t_new)
-        if speed < fastest:
-            q, fastest = trial, speed
-        if fastest <= MAX_SPEED:
-            break
-    return q
-
-
-def top_speed(q: FloatArray, t: FloatArray) -> float:
-    """The fastest any dof of ``q`` (N, D), sampled at ``t``, turns (rad/s)."""
-    if len(t) < 2:
-        return 0.0
-    rate = np.abs(np.diff(q, axis=0)) / np.maximum(np.diff(t), 1e-9)[:, None]
-    return float(rate.max())
+    return PchipInterpolator(u2, body.q[:, idx], axis=0)(s)
 
 
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:

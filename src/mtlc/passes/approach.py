@@ -94,22 +94,19 @@ def near_first(
     ``solve_ta`` restarts from random poses when its descent stalls and keeps the nearest
     pose any attempt found, whatever branch it is on: short of the avionics unit's handle by
     11 cm, a small woman's shoulder abducted 165 degrees in 0.25 s for a pose 5 cm nearer. The
-    restarts' pose is kept when it meets the goals (the solver's own test: position, orientation,
-    joint limits) and the descent does not, or when it ends ``NEAR_RATIO`` times closer (both
-    short: MT0501 either way)."""
+    restarts' pose is kept when it reaches (within ``TOLERANCE``) and the descent does not, or
+    when it ends ``NEAR_RATIO`` times closer (both short: MT0501 either way)."""
     best = None
     for start in (q, *seeds):
         res = solved(ctx.cache, solve_ta, skel, goals, start, model, restarts=0)
-        if best is None or (res.success[0], -res.position_error[0]) > (
-            best.success[0],
-            -best.position_error[0],
-        ):
+        if best is None or res.position_error[0] < best.position_error[0]:
             best = res
     assert best is not None
-    if best.success[0]:
+    if best.position_error[0] <= TOLERANCE:
         return best.q[0]
     full = solved(ctx.cache, solve_ta, skel, goals, q, model)
-    if full.success[0] or full.position_error[0] * NEAR_RATIO < best.position_error[0]:
+    err = full.position_error[0]
+    if err <= TOLERANCE or err * NEAR_RATIO < best.position_error[0]:
         return full.q[0]
     return best.q[0]
 

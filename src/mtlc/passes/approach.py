@@ -48,7 +48,6 @@ KEEP_PATH = 0.3  # ...on the way there: the hand may move out of the body's way
 PATH_SAMPLES = 9  # poses checked on each stretch between two keyframes, ends included
 CLEAR_KEYS = 1  # keyframes added at most to keep an approach's arms out of the body
 CLEAR_GAIN = 0.005  # m a cleared keyframe must take off the path's depth to be kept
-NEAR_RATIO = 2.0  # a restart's pose is kept over the start's own descent if this many times closer
 
 
 def model_for(
@@ -78,37 +77,6 @@ def site_position(ir: MotionIR, name: str | None) -> FloatArray | None:
         if s["name"] == name:
             return np.asarray(s["position"], dtype=float)
     return None
-
-
-def near_first(
-    ctx: PassContext,
-    skel: Any,
-    goals: list[Goal],
-    q: FloatArray,
-    model: ChainModel,
-    seeds: tuple[FloatArray, ...] = (),
-) -> FloatArray:
-    """A pose for ``goals``: the descent from ``q`` (or from ``seeds``) without restarts
-    first, so the arm stays on the branch it is on (issue 19).
-
-    ``solve_ta`` restarts from random poses when its descent stalls and keeps the nearest
-    pose any attempt found, whatever branch it is on: short of the avionics unit's handle by
-    11 cm, a small woman's shoulder abducted 165 degrees in 0.25 s for a pose 5 cm nearer. The
-    restarts' pose is kept when it reaches (within ``TOLERANCE``) and the descent does not, or
-    when it ends ``NEAR_RATIO`` times closer (both short: MT0501 either way)."""
-    best = None
-    for start in (q, *seeds):
-        res = solved(ctx.cache, solve_ta, skel, goals, start, model, restarts=0)
-        if best is None or res.position_error[0] < best.position_error[0]:
-            best = res
-    assert best is not None
-    if best.position_error[0] <= TOLERANCE:
-        return best.q[0]
-    full = solved(ctx.cache, solve_ta, skel, goals, q, model)
-    err = full.position_error[0]
-    if err <= TOLERANCE or err * NEAR_RATIO < best.position_error[0]:
-        return full.q[0]
-    return best.q[0]
 
 
 def hand_target(ir: MotionIR, seg: Segment, heading_rot: FloatArray) -> FloatArray:
@@ -341,7 +309,7 @@ def _solve_group(
     for k, (seg, p) in enumerate(zip(segs, targets, strict=True)):
         arm_goals = goals_of(k, seg, p)
         m = model_for(ctx, skel, tuple(g.effector for g in arm_goals), "arm", q, root)
-        q = near_first(ctx, skel, arm_goals, q, m)
+        q = solved(ctx.cache, solve_ta, skel, arm_goals, q, m).q[0]
     dist = [
         hand_distance(state, s.goal.effector, q, root, p)
         for s, p in zip(segs, targets, strict=True)
@@ -353,7 +321,7 @@ def _solve_group(
         """The goals solved with the trunk, the pinned hands put back; None when they cannot
         be (the trunk is then tried moving around them: they join the goals)."""
         m = model_for(ctx, skel, tuple(g.effector for g in goals), "torso", q0, root)
-        qt = near_first(ctx, skel, goals, q0, m)
+        qt = solved(ctx.cache, solve_ta, skel, goals, q0, m).q[0]
         if not pinned:
             return qt
         qt = repin(ctx, skel, qt[None], pinned, root)[0]
@@ -394,7 +362,7 @@ def _solve_group(
                 if j != k:
                     arm_goals = goals_of(j, seg, p)
                     m = model_for(ctx, skel, tuple(g.effector for g in arm_goals), "arm", qk, root)
-                    qk = near_first(ctx, skel, arm_goals, qk, m)
+                    qk = solved(ctx.cache, solve_ta, skel, arm_goals, qk, m).q[0]
             dk = distances(qk)
             if score(dk) < score(best[2]):
                 best = (qk, "torso", dk)

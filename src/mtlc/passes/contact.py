@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from mtlc.body import forward, site_positions
-from mtlc.body.ik import Goal, solve_to
+from mtlc.body.ik import Goal, solve_ta, solve_to
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.approach import (
     TOLERANCE,
@@ -29,7 +29,6 @@ from mtlc.passes.approach import (
     groups,
     hand_target,
     model_for,
-    near_first,
     own_names,
     pinned_hands,
     pins_off,
@@ -45,6 +44,7 @@ from mtlc.passes.state import PoseState, reanchor, solved
 
 MAX_KEYFRAMES = 12
 MAX_ITER = 400
+NEAR_RATIO = 2.0  # a pose near the start is kept unless a restart's ends this many times closer
 GROUND_SLACK = 5e-4  # m a hand point may dip below the ground (half the 1 mm budget)
 FINGERTIPS = {"r_hand": "r_fingertip", "l_hand": "l_fingertip"}
 
@@ -192,15 +192,27 @@ def nearest_solution(
     root: tuple[FloatArray, FloatArray],
     seeds: list[FloatArray],
 ) -> FloatArray:
-    """A torso pose that meets ``goals``, found near ``q0`` first (``approach.near_first``).
+    """A torso pose that meets ``goals``, found near ``q0`` first (issue 19).
 
-    The straight joint-space line to it is the contact's path, and a restart's pose on another
-    branch of the arm made it a swing: the avionics unit's handle, 22 cm from the latches, was
-    reached with the shoulder turned 124 degrees the other way in 0.14 s. The descents from
-    ``q0`` and ``seeds`` (where the gradient path stalled, where the hands solved one after the
-    other ended) come first."""
+    The straight joint-space line to it is the contact's path. ``solve_ta`` restarts from
+    random poses when its descent from ``q0`` stalls, and the pose a restart finds may be on
+    another branch of the arm: the avionics unit's handle, 22 cm from the latches, was reached
+    with the shoulder turned 124 degrees the other way in 0.14 s. The descent from each of
+    ``seeds`` (where the gradient path stalled) is tried first, without restarts; the solver's
+    restarts when none reaches, and their pose is kept if it ends ``NEAR_RATIO`` times closer
+    (both are then short: MT0501)."""
     model = model_for(ctx, state.skel, tuple(g.effector for g in goals), "torso", q0, root)
-    return near_first(ctx, state.skel, goals, q0, model, tuple(seeds))
+    best = None
+    for seed in seeds:
+        res = solved(ctx.cache, solve_ta, state.skel, goals, seed, model, restarts=0)
+        if best is None or res.position_error[0] < best.position_error[0]:
+            best = res
+    if best is not None and best.position_error[0] <= TOLERANCE:
+        return best.q[0]
+    res = solved(ctx.cache, solve_ta, state.skel, goals, q0, model)
+    if best is None or res.position_error[0] * NEAR_RATIO < best.position_error[0]:
+        best = res
+    return best.q[0]
 
 
 def above_ground(

@@ -7,7 +7,7 @@ shoulder, elbow, wrist, forearm) are read off the sampled output frames: no step
 one frame to the next at 30 fps, the wrist and forearm inside a fastener turn up to 20°
 (bench/human.py's goal). What broke it: the two hands' part axis turning end over end when
 interpolation brought the hands together (carry), and the IK's random restarts putting an arm
-on another branch (approach, contact).
+on another branch (the contact pass's torso line).
 """
 
 from __future__ import annotations

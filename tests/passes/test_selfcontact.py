@@ -224,6 +224,18 @@ def test_part_ends_keep_the_centre_and_axis_and_set_the_length() -> None:
     assert np.allclose(ends[0, 0], [0.325, 1.0, 0.5])
 
 
+def test_part_ends_do_not_swap_when_the_hands_pass_each_other() -> None:
+    """Two arms interpolated apart can bring the hands together and past each other; the part
+    they hold does not turn end over end: each hand's end stays on its side (issue 19: the
+    ends swapped and an elbow flexed 24 degrees in one output frame)."""
+    x = np.linspace(0.1, -0.1, 21)  # the right hand from 10 cm left of the centre to 10 cm right
+    hands = np.stack([np.stack([x, np.ones(21), np.zeros(21)], 1),
+                      np.stack([-x, np.ones(21), np.zeros(21)], 1)], axis=1)  # fmt: skip
+    ends = part_ends(hands, 0.2)
+    assert np.allclose(ends[:, 0], [0.1, 1.0, 0.0])
+    assert np.allclose(ends[:, 1], [-0.1, 1.0, 0.0])
+
+
 def test_keep_clear_never_goes_deeper_and_keeps_a_held_hand() -> None:
     """Random left-arm poses near or in the trunk of a small woman (most with the hand itself
     inside its clearance, where keeping the hand leaves little to do): the clearance solve

@@ -44,6 +44,7 @@ from mtlc.passes.state import PoseState, reanchor, solved
 
 MAX_KEYFRAMES = 12
 MAX_ITER = 400
+NEAR_RATIO = 2.0  # a pose near the start is kept unless a restart's ends this many times closer
 GROUND_SLACK = 5e-4  # m a hand point may dip below the ground (half the 1 mm budget)
 FINGERTIPS = {"r_hand": "r_fingertip", "l_hand": "l_fingertip"}
 
@@ -134,13 +135,15 @@ def best_path(
     reach: str,
     hopeless: bool,
     pinned: list[Goal] | None = None,
+    seeds: list[FloatArray] | None = None,
 ) -> tuple[FloatArray, str, FloatArray]:
     """The path onto the sites: the gradient path on TA's chain; if it stalls short of a
     reachable site (a local minimum at a limit), the gradient path with the torso, then the
     straight joint-space line to a DLS solution (kept samples still never move away).
     Each is judged as it will be used: a torso path with the other hand put back (``pinned``),
     every path cut where a hand meets the floor (``above_ground``). Returns the path, the
-    reach used and the (T, H) distances along it."""
+    reach used and the (T, H) distances along it. ``seeds``: poses near the goals (the hands
+    solved one after the other) the torso solve starts from too (``nearest_solution``)."""
     skel = state.skel
     goals = [g for s, p in zip(segs, targets, strict=True) for g in seg_goals(skel, s, p)]
     effs = [s.goal.effector for s in segs]
@@ -164,14 +167,13 @@ def best_path(
     tries = []
     if reach != "torso":
         tries.append(("torso", _gradient(ctx, state, goals, q0, root, "torso", MAX_ITER)))
-    model = model_for(ctx, skel, tuple(g.effector for g in goals), "torso", q0, root)
-    q_star = solved(ctx.cache, solve_ta, skel, goals, q0, model).q[0]
+    near = [path[-1], *(seeds or [])]
+    q_star = nearest_solution(ctx, state, goals, q0, root, near)
     steps = np.linspace(0.0, 1.0, 2 * MAX_KEYFRAMES)[:, None]
     tries.append(("torso", q0[None] + steps * (q_star - q0)[None]))
     if pinned:  # a trunk that moves around the held hands: they are goals of the solve too
         both = goals + list(pinned)
-        model = model_for(ctx, skel, tuple(g.effector for g in both), "torso", q0, root)
-        q_held = solved(ctx.cache, solve_ta, skel, both, q0, model).q[0]
+        q_held = nearest_solution(ctx, state, both, q0, root, near)
         tries.append(("torso", q0[None] + steps * (q_held - q0)[None]))
     for r, p in tries:
         p, d = finished(p, r)
@@ -180,6 +182,37 @@ def best_path(
         if dist[-1].max() <= TOLERANCE:
             break
     return path, reach, dist
+
+
+def nearest_solution(
+    ctx: PassContext,
+    state: PoseState,
+    goals: list[Goal],
+    q0: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    seeds: list[FloatArray],
+) -> FloatArray:
+    """A torso pose that meets ``goals``, found near ``q0`` first (issue 19).
+
+    The straight joint-space line to it is the contact's path. ``solve_ta`` restarts from
+    random poses when its descent from ``q0`` stalls, and the pose a restart finds may be on
+    another branch of the arm: the avionics unit's handle, 22 cm from the latches, was reached
+    with the shoulder turned 124 degrees the other way in 0.14 s. The descent from each of
+    ``seeds`` (where the gradient path stalled) is tried first, without restarts; the solver's
+    restarts when none reaches, and their pose is kept if it ends ``NEAR_RATIO`` times closer
+    (both are then short: MT0501)."""
+    model = model_for(ctx, state.skel, tuple(g.effector for g in goals), "torso", q0, root)
+    best = None
+    for seed in seeds:
+        res = solved(ctx.cache, solve_ta, state.skel, goals, seed, model, restarts=0)
+        if best is None or res.position_error[0] < best.position_error[0]:
+            best = res
+    if best is not None and best.position_error[0] <= TOLERANCE:
+        return best.q[0]
+    res = solved(ctx.cache, solve_ta, state.skel, goals, q0, model)
+    if best is None or res.position_error[0] * NEAR_RATIO < best.position_error[0]:
+        best = res
+    return best.q[0]
 
 
 def above_ground(
@@ -218,12 +251,15 @@ def _solve_parts(
     q0: FloatArray,
     root: tuple[FloatArray, FloatArray],
     pinned: list[Goal] | None = None,
+    seeds: list[FloatArray] | None = None,
 ) -> list[tuple[FloatArray, list[Segment], str, FloatArray, list[int], FloatArray]]:
     """Paths for each part of a time window, each hand starting where the one before left;
     with the kept samples and their progress (``select_keys``)."""
     out = []
     for psegs, ptargets, reach, hopeless in parts:
-        path, used, dist = best_path(ctx, state, psegs, ptargets, q0, root, reach, hopeless, pinned)
+        path, used, dist = best_path(
+            ctx, state, psegs, ptargets, q0, root, reach, hopeless, pinned, seeds
+        )
         keep, prog = select_keys(dist)
         q0 = path[keep[-1]].copy()
         out.append((path, psegs, used, dist, keep, prog))
@@ -278,10 +314,13 @@ def solve(ir: MotionIR, ctx: PassContext) -> MotionIR:
         pinned = pinned_hands(state, segs, q0, root)
         solved = _solve_parts(ctx, state, parts, q0, root, pinned)
         if len(parts) > 1 and any(x[2] == "torso" for x in solved):
-            # one hand needed the trunk: that would move the other hand, so solve them together
+            # one hand needed the trunk: that would move the other hand, so solve them together,
+            # from where the hands solved one after the other ended too (near both goals)
+            ends = [x[0][x[4][-1]] for x in solved]
             solved = _solve_parts(
-                ctx, state, [(segs, targets, "torso", any(hopeless_all))], q0, root, pinned
-            )
+                ctx, state, [(segs, targets, "torso", any(hopeless_all))], q0, root, pinned,
+                ends,
+            )  # fmt: skip
         for path, psegs, reach, dist, keep, prog in solved:
             for h, seg in enumerate(psegs):
                 # each hand keeps its own window; the trunk is keyed by the one ending first

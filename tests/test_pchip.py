@@ -1,4 +1,5 @@
-"""mtlc.ir.pchip against scipy's PchipInterpolator and CubicHermiteSpline (issue 21)."""
+"""mtlc.ir.pchip and the pace pass's Gaussian against scipy's PchipInterpolator,
+CubicHermiteSpline and gaussian_filter1d (issue 21): compiles load no scipy, same numbers."""
 
 from __future__ import annotations
 
@@ -72,3 +73,21 @@ def test_bad_knots_are_refused() -> None:
         pchip([0.0, 0.0, 1.0], [1.0, 2.0, 3.0])
     with pytest.raises(ValueError):
         pchip([0.0], [1.0])
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    n=st.integers(3, 120),
+    cols=st.integers(1, 6),
+    sigma=st.floats(0.05, 40.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_the_pace_pass_gaussian_is_scipys(n: int, cols: int, sigma: float, seed: int) -> None:
+    """passes.pace.gaussian_rows sums in scipy's order: the same numbers, to the bit."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from mtlc.passes.pace import gaussian_rows
+
+    x = np.random.default_rng(seed).normal(size=(n, cols)) * 10.0
+    ours = gaussian_rows(x, sigma)
+    assert np.array_equal(ours, gaussian_filter1d(x, sigma, axis=0, mode="nearest"))

@@ -29,7 +29,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.cluster.vq import kmeans2
 
 from mtlc.diagnostics import Span
 from mtlc.ir.model import MotionIR, Segment
@@ -368,6 +367,8 @@ def key_joints(clip: BvhClip, *, seed: int = 0) -> list[str]:
     n_clusters = min(CLUSTERS, len(joints))
     rng = np.random.default_rng(seed)
     init = rows[rng.choice(len(rows), n_clusters, replace=False)]
+    from scipy.cluster.vq import kmeans2  # only with --walk-clip: scipy loads when needed
+
     _, labels = kmeans2(rows, init, minit="matrix", seed=seed)
     strength = np.linalg.norm(rows, axis=1)
     means = [

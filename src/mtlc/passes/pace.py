@@ -23,11 +23,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
-from scipy.ndimage import gaussian_filter1d
 
 from mtlc.body import part_site_positions
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
+from mtlc.ir.pchip import pchip
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
 from mtlc.passes.profile import minimum_jerk as minimum_jerk  # re-exported
@@ -175,7 +174,30 @@ def smooth_path(q: FloatArray, sigma: float) -> FloatArray:
         return q
     n = min(len(q) - 1, int(np.ceil(4 * sigma)))
     padded = np.concatenate([2 * q[0] - q[n:0:-1], q, 2 * q[-1] - q[-2 : -n - 2 : -1]])
-    return gaussian_filter1d(padded, sigma, axis=0, mode="nearest")[n : n + len(q)]
+    return gaussian_rows(padded, sigma)[n : n + len(q)]
+
+
+def gaussian_rows(x: FloatArray, sigma: float, truncate: float = 4.0) -> FloatArray:
+    """scipy's ``gaussian_filter1d(x, sigma, axis=0, mode="nearest")`` in numpy, summed in its
+    order (the kernel's symmetric pairs from the outside in), so the same numbers: importing
+    ``scipy.ndimage`` was a third of every compile's start-up (issue 21)."""
+    radius = int(truncate * float(sigma) + 0.5)
+    offsets = np.arange(-radius, radius + 1)
+    weights = np.exp(-0.5 / (sigma * sigma) * offsets**2)
+    weights = weights / weights.sum()
+    x = np.asarray(x, dtype=float)
+    padded = np.concatenate(
+        [np.repeat(x[:1], radius, axis=0), x, np.repeat(x[-1:], radius, axis=0)]
+    )
+    n = len(x)
+    out = padded[radius : radius + n] * weights[radius]
+    for j in range(radius, 0, -1):
+        out = (
+            out
+            + (padded[radius - j : radius - j + n] + padded[radius + j : radius + j + n])
+            * weights[radius - j]
+        )
+    return out
 
 
 def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> FloatArray | None:
@@ -191,7 +213,7 @@ def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> Float
     body.q[:, idx] = smooth_path(body.q[:, idx], SMOOTH_SIGMA * (PATH_POINTS - 1))
     u2, _ = progress(ir, m, body)
     s = minimum_jerk((t_new - m.start) / (m.end - m.start))
-    return PchipInterpolator(u2, body.q[:, idx], axis=0)(s)
+    return pchip(u2, body.q[:, idx])(s)
 
 
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:

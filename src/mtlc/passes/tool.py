@@ -26,12 +26,12 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from mtlc.body import forward, site_positions, site_rotation
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.body.skeleton import Site, Skeleton
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
+from mtlc.ir.pchip import pchip
 from mtlc.loads import AXIAL_KINDS, tool_site
 from mtlc.loads import carried_com as carried_com  # re-exported: it lives below the passes
 from mtlc.loads import held_spans as held_spans
@@ -248,7 +248,7 @@ def paced_stroke(
         u = (placing_clock if lifted and k == len(PHASES) - 1 else minimum_jerk)(tau)
         along = (frac[keys] - a) / (b - a)
         if len(keys) > 2:
-            path = PchipInterpolator(along, q[keys], axis=0)(u)
+            path = pchip(along, q[keys])(u)
         else:
             path = q[keys[0]] + u[:, None] * (q[keys[-1]] - q[keys[0]])
         times.append(t)

@@ -74,6 +74,9 @@ SPINE_W = 1.0
 TOE_NOMINAL_W = 5.0
 SWING_TOE_W = 30.0  # the stepping foot's toes led to its heel's pitch (per radian)
 GROUND_EPS = 2e-4  # m: the ground's barrier is smooth over this much
+# per metre below the ground: at PLANT_W (1000) a swinging toe led by its joint path went
+# 1.8 mm into the floor, the path pulling it as hard as the ground pushed (k07, male P95)
+GROUND_W = 3000.0
 
 # (name, share of the motion): the phases of kneeling on both knees, in order
 # (the shares follow the joint travel each phase asks for at ``MAX_JOINT_SPEED``: with 15 % and
@@ -260,7 +263,7 @@ class Body:
         soles = site_positions(self.skel, pose, GROUND_SITES)[..., 1]
         knees = pose.p[:, self.knees, 1] - (KNEE_HEIGHT - 0.002)
         low = np.concatenate([soles, knees], axis=1)
-        out.append(PLANT_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))  # smooth min(·, 0)
+        out.append(GROUND_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))  # smooth min(·, 0)
         out.append(tg.smooth * ROOT_SMOOTH * (x[:, :3] - prev[:3]))
         out.append(tg.smooth * (x[:, 3:] - prev[3:]))
         if tg.root_y is not None:
@@ -412,9 +415,9 @@ class Body:
         m = self.n_named
         low = pts[..., :m, 1] - self.ground_lift
         root = np.sqrt(low * low + GROUND_EPS**2)
-        return PLANT_W * 0.5 * (low - root), (PLANT_W * 0.5 * (1.0 - low / root))[..., None] * jac[
-            ..., :m, 1, :
-        ]
+        return GROUND_W * 0.5 * (low - root), (GROUND_W * 0.5 * (1.0 - low / root))[
+            ..., None
+        ] * jac[..., :m, 1, :]
 
     def _linear_rows(self, tg: Targets) -> tuple[FloatArray, ...]:
         """``tg``'s residual rows that are linear in the points: A @ points - a (targets,

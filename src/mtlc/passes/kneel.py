@@ -52,6 +52,9 @@ LAND_PITCH = math.radians(60.0)  # the back foot lands on its balls and toes, he
 KNEEL_COM_BEHIND = 0.12  # m: the kneeling CoM's target behind the knees
 SINGLE_KNEE_AT = 0.5  # share of the knee-to-toe distance: the CoM target on one kneeling leg
 FPS = 30.0
+# rad/s: the fastest a joint turns in the kneel (``track``); issue 19 allows 360°/s (12° a
+# 30 fps frame), this leaves room for the balance pass's corrections after it
+MAX_JOINT_SPEED = math.radians(300.0)
 ITERATIONS = 8  # Gauss-Newton iterations a frame (it does not converge: see docs/passes.md)
 PREDICT = 1.0  # a frame starts from the last one moved on by this share of its last change
 STEP_TOL = 1e-5  # rad or m: a frame whose last step was this small has converged
@@ -75,17 +78,25 @@ LEVEL_W = 40.0
 NOMINAL_W = 0.1
 SPINE_W = 1.0
 TOE_NOMINAL_W = 5.0
+SWING_TOE_W = 30.0  # the stepping foot's toes led to its heel's pitch (per radian)
 GROUND_EPS = 2e-4  # m: the ground's barrier is smooth over this much
+# per metre below the ground: at PLANT_W (1000) a swinging toe led by its joint path went
+# 1.8 mm into the floor, the path pulling it as hard as the ground pushed (k07, male P95)
+GROUND_W = 3000.0
 
 # (name, share of the motion): the phases of kneeling on both knees, in order
+# (the shares follow the joint travel each phase asks for at ``MAX_JOINT_SPEED``: with 15 % and
+# 26 % the step back's and the second knee's joints ran at that limit for 10-12 of 12 and 16 of
+# 20 frames; at 17 % for going down onto the knee both knees ran at it and the pelvis dropped
+# 7 cm in a frame, the left forefoot 35 mm into the floor)
 PHASES: tuple[tuple[str, float], ...] = (
-    ("weight on the left foot", 0.08),
-    ("right foot steps back", 0.15),
-    ("weight between the feet", 0.07),
+    ("weight on the left foot", 0.05),
+    ("right foot steps back", 0.17),
+    ("weight between the feet", 0.05),
     ("down onto the right knee", 0.22),
-    ("weight on the right knee", 0.08),
-    ("left knee down beside it", 0.26),
-    ("settle on both knees", 0.14),
+    ("weight on the right knee", 0.07),
+    ("left knee down beside it", 0.34),
+    ("settle on both knees", 0.10),
 )
 
 LEG_VARS = tuple(
@@ -95,16 +106,27 @@ LEG_VARS = tuple(
 )
 SPINE_VARS = ("lumbar_flex", "lumbar_lat", "thorax_flex", "thorax_lat")
 TOE_VARS = ("r_toes_dorsi", "l_toes_dorsi")  # last: the legs' and spine's columns stay put
+R_TOES = len(LEG_VARS) + len(SPINE_VARS)  # the right toes' place among a state's joints
 SOLE = ("toe", "heel", "ball_med", "ball_lat")
+ALL_COLS = np.arange(3 + 12 + 4 + 2)  # every column of a state vector
 LEFT_COLS = np.r_[3 + 6 : 3 + 12, 3 + 12 + 4 + 1]  # the left leg's columns in a state vector
 # (its six, then its toes': they swing with it from bent on the ground to bent on the ground)
 KNEE_COL, HIP_COL, ANKLE_COL = 3, 0, 4  # knee, hip and ankle flexion among a leg's dofs
 PELVIS_W = 20.0
+# the pose on the right knee alone is solved once with the CoM pulled this hard (at 250 a
+# frame's solve left it 4 cm off, the spine at its side-bend limits), and the body is led to
+# it at this weight per radian (at 30 the led joints pushed the left forefoot 2 mm into the
+# floor)
+ONE_POSE_COM_W = 2000.0
+ONE_PATH_W = 10.0
 # mid-swing of the second knee's leg (hip flex, abd, rot, knee, ankle dorsi, inversion; NaN:
-# as the path has it): the knee folded, the thigh turned out and abducted and the foot pointed,
-# so the lower leg comes round the side; straight back under the hip it would pass 4-7 cm
-# below the ground (knee flexion stops at 135°, the kneeling pelvis is 0.48 m up)
-SWING_LEG = np.radians([np.nan, 5.0, 38.0, 133.0, -45.0, np.nan, np.nan])
+# as the path has it): the knee folded, the thigh turned out and the foot pointed, so the lower
+# leg comes round the side; straight back under the hip it would pass 4-7 cm below the ground
+# (knee flexion stops at 135°, the kneeling pelvis is 0.48 m up). The thigh is drawn in (20°
+# adducted) toward the kneeling one, which keeps the CoM over that leg: abducted 5° and
+# turned out 38° it was 4-5 cm off it for the large women, and the old solve got back only by
+# flinging the leg across in one frame (issue 19)
+SWING_LEG = np.radians([np.nan, -20.0, 25.0, 133.0, -45.0, np.nan, np.nan])
 LIFT_END = 0.2  # share of the second knee's phase in which its toe rises straight up
 LIFT_HIP = math.radians(15.0)  # and extra hip flexion: the thigh rises first
 LIFT_FLEX = math.radians(30.0)  # extra knee flexion at mid-swing: the foot clears the ground
@@ -112,6 +134,7 @@ JOINT_W = 30.0
 LIFT_W = 150.0
 MIN_KNEE = 0.08  # rad: the least knee flexion (the comfortable pose's)
 HEEL_DOWN = 0.5  # share of the descent with the front heel down
+KNEE_DOWN_BY = 0.8  # share of the descent by which the kneeling knee's path is down
 GROUND_SITES = tuple(f"{s}_{n}" for s in ("r", "l") for n in (*SOLE, "foot", "hand", "fingertip"))
 SOLE_SITES = {s: tuple(f"{s}_{n}" for n in SOLE) for s in ("r", "l")}
 CONTACT_SITES = tuple(f"{s}_{n}" for s in ("r", "l") for n in SOLE)
@@ -246,7 +269,7 @@ class Body:
         soles = site_positions(self.skel, pose, GROUND_SITES)[..., 1]
         knees = pose.p[:, self.knees, 1] - (KNEE_HEIGHT - 0.002)
         low = np.concatenate([soles, knees], axis=1)
-        out.append(PLANT_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))  # smooth min(·, 0)
+        out.append(GROUND_W * 0.5 * (low - np.sqrt(low * low + GROUND_EPS**2)))  # smooth min(·, 0)
         out.append(tg.smooth * ROOT_SMOOTH * (x[:, :3] - prev[:3]))
         out.append(tg.smooth * (x[:, 3:] - prev[3:]))
         if tg.root_y is not None:
@@ -260,16 +283,18 @@ class Body:
             out.append(w * np.where(free, 0.0, x[:, 3:] - np.nan_to_num(tg.nominal)))
         return np.concatenate(out, axis=1)
 
-    def steps(self, jac: FloatArray, r0: FloatArray, lam: FloatArray, x: FloatArray) -> FloatArray:
+    def steps(
+        self, jac: FloatArray, r0: FloatArray, lam: FloatArray, x: FloatArray,
+        lo: FloatArray, hi: FloatArray,
+    ) -> FloatArray:  # fmt: skip
         """Damped Gauss-Newton steps (F, n) of F frames at once (``jac`` (F, R, n), ``r0``
-        (F, R)); joints at a limit that a step would push past it are held (their columns
-        dropped), so the rest of the body still moves."""
+        (F, R)); variables at a bound (``lo``, ``hi``: (F, n)) that a step would push past it
+        are held (their columns dropped), so the rest of the body still moves."""
         f, n = x.shape
         jtj = np.swapaxes(jac, 1, 2) @ jac
         g0 = np.einsum("frn,fr->fn", jac, r0)
         jtj0, g = jtj.copy(), g0
-        q = x[:, 3:]
-        low, high = q <= self.lo + 1e-9, q >= self.hi - 1e-9
+        low, high = x <= lo + 1e-9, x >= hi - 1e-9
         bound = bool(low.any() or high.any())  # no joint at a limit: nothing to hold
         held = np.zeros((f, n), dtype=bool)
         for _ in range(3):
@@ -279,11 +304,10 @@ class Body:
             if not bound:
                 break
             step[held] = 0.0
-            d = step[:, 3:]
-            out = ((low & (d < 0)) | (high & (d > 0))) & ~held[:, 3:]
+            out = ((low & (step < 0)) | (high & (step > 0))) & ~held
             if not out.any():
                 break
-            held[:, 3:] |= out
+            held |= out
             free = ~held  # a held column dropped: its row and column of JᵀJ, its entry of Jᵀr
             jtj = jtj0 * (free[:, :, None] & free[:, None, :])
             g = g0 * free
@@ -311,11 +335,18 @@ class Body:
         return out
 
     def descend(
-        self, x0: FloatArray, prev: FloatArray, tgs: list[Targets], iterations: int
-    ) -> FloatArray:
+        self, x0: FloatArray, prev: FloatArray, tgs: list[Targets], iterations: int,
+        bounds: tuple[FloatArray, FloatArray] | None = None,
+    ) -> FloatArray:  # fmt: skip
         """Damped Gauss-Newton of F frames at once (states (F, n), one ``Targets`` each, each
         pulled toward its ``prev``): a frame stops once its step is under ``STEP_TOL``, and
-        only the frames still moving are computed."""
+        only the frames still moving are computed. ``bounds`` (each (F, V)) narrow the joint
+        limits per frame, and bound the root (``track``'s speed limits)."""
+        if bounds is None:
+            lo = np.broadcast_to(np.r_[np.full(3, -np.inf), self.lo], x0.shape)
+            hi = np.broadcast_to(np.r_[np.full(3, np.inf), self.hi], x0.shape)
+        else:
+            lo, hi = bounds
         lin = self._stacked_rows(tgs)
         com = any(tg.com is not None for tg in tgs)  # the CoM is computed only if a row uses it
         x, lam = x0.copy(), np.full(len(x0), 1e-2)
@@ -324,8 +355,8 @@ class Body:
         live = np.arange(len(x0))
         xl = x.copy()
         for _ in range(iterations):
-            cand = xl + self.steps(jac, r0, lam, xl)
-            cand[:, 3:] = np.clip(cand[:, 3:], self.lo, self.hi)
+            cand = xl + self.steps(jac, r0, lam, xl, lo, hi)
+            cand = np.clip(cand, lo, hi)
             rc, jc = self._linearise_batch(cand, lin, prev, com)
             cost_c = np.einsum("fr,fr->f", rc, rc)
             better = cost_c < cost
@@ -338,7 +369,7 @@ class Body:
             lam = np.where(better, np.maximum(lam * 0.3, 1e-5), lam * 10.0)
             if not going.all():  # frames that have converged leave the batch
                 x[live] = xl
-                live, xl, r0, jac, lam, prev, cost = (
+                live, xl, r0, jac, lam, prev, cost, lo, hi = (
                     live[going],
                     xl[going],
                     r0[going],
@@ -346,6 +377,8 @@ class Body:
                     lam[going],
                     prev[going],
                     cost[going],
+                    lo[going],
+                    hi[going],
                 )
                 lin = tuple(a[going] for a in lin)
                 if not live.size:
@@ -388,9 +421,9 @@ class Body:
         m = self.n_named
         low = pts[..., :m, 1] - self.ground_lift
         root = np.sqrt(low * low + GROUND_EPS**2)
-        return PLANT_W * 0.5 * (low - root), (PLANT_W * 0.5 * (1.0 - low / root))[..., None] * jac[
-            ..., :m, 1, :
-        ]
+        return GROUND_W * 0.5 * (low - root), (GROUND_W * 0.5 * (1.0 - low / root))[
+            ..., None
+        ] * jac[..., :m, 1, :]
 
     def _linear_rows(self, tg: Targets) -> tuple[FloatArray, ...]:
         """``tg``'s residual rows that are linear in the points: A @ points - a (targets,
@@ -478,19 +511,26 @@ class Body:
 
 
 def track(body: Body, x0: FloatArray, targets: Callable[[float, FloatArray], Targets],
-          n: int) -> FloatArray:  # fmt: skip
-    """States (n, 3 + V) for u = 0..1: each frame solved from the previous one, then all
-    polished at once (the next frame starts from the unpolished one: the polish moves planted
-    points by microns, and the targets that hold them are absolute places)."""
-    xs, tgs = [x0.copy()], []
+          n: int, max_step: float = math.inf) -> FloatArray:  # fmt: skip
+    """States (n, 3 + V) for u = 0..1: each frame solved from the previous one, then polished
+    on its own targets (pulled toward itself, not the previous frame), which puts planted
+    points back within microns. No joint turns more than ``max_step`` (rad) from one frame to
+    the next, in the solve and in the polish: where a frame's targets asked for more, a hip
+    flipped 50° in one frame and back (issue 19); now the body follows at a person's joint
+    speed. (All frames used to be polished at once afterwards on their planted points and CoM
+    alone: with the swinging foot's targets dropped, that polish moved joints up to 48°.)"""
+    free = np.r_[np.full(3, np.inf), np.full(len(body.lo), max_step)]  # the root is not bound
+    low, high = np.r_[np.full(3, -np.inf), body.lo], np.r_[np.full(3, np.inf), body.hi]
+    xs = [x0.copy()]
     for k in range(1, n):
-        tgs.append(targets(k / (n - 1), xs[-1]))
-        guess = xs[-1] + PREDICT * (xs[-1] - xs[-2]) if k > 1 else xs[-1]
-        guess[3:] = np.clip(guess[3:], body.lo, body.hi)
-        xs.append(body.descend(guess[None], xs[-1][None], tgs[-1:], ITERATIONS)[0])
-    out = np.stack(xs)
-    out[1:] = body.polish(out[1:], tgs)
-    return out
+        tg = targets(k / (n - 1), xs[-1])
+        lo = np.maximum(low, xs[-1] - free)[None]
+        hi = np.minimum(high, xs[-1] + free)[None]
+        guess = xs[-1] + PREDICT * (xs[-1] - xs[-2]) if k > 1 else xs[-1].copy()
+        guess = np.clip(guess, lo[0], hi[0])
+        x = body.descend(guess[None], xs[-1][None], [tg], ITERATIONS, (lo, hi))
+        xs.append(body.descend(x, x, [tg], POLISH_ITERATIONS, (lo, hi))[0])
+    return np.stack(xs)
 
 
 def _bisect(f: Callable[[float], float], lo: float, hi: float, n: int = 40) -> float:
@@ -722,6 +762,11 @@ def kneel_targets(
             )
             tg.level = ["r"]
             tg.com = geo.com_left
+            # its toes bend up as its heel rises, so it lands shaped for its forefoot: pulled
+            # straight, they bent at touchdown and the toe tip went 6-9 mm into the floor
+            tg.nominal, tg.nominal_w = nominal.copy(), weights.copy()
+            tg.nominal[R_TOES] = float(smoothstep(s / 0.8)) * LAND_PITCH
+            tg.nominal_w[R_TOES] = SWING_TOE_W
         elif k == 2:
             heel = geo.foot("r", toe["r"], LAND_PITCH)[1]  # the heel stays up
             tg.points = flat("l", geo.left0) + planted("r_toe") + [("r_heel", heel, LAND_HEEL_W)]
@@ -730,22 +775,38 @@ def kneel_targets(
         elif k == 3:
             # the left heel stays down for the first half, then the foot may roll on its toe
             k0 = knee_at("r", start[k])
-            knee = k0 + float(smoothstep(s)) * (geo.knees["r"] - k0)
+            # the knee's path ends before the phase does: the knees bend at most at the joint
+            # speed limit and lag it, and kneel(1) ends with this phase (7 cm up, not 5)
+            knee = k0 + float(smoothstep(s / KNEE_DOWN_BY)) * (geo.knees["r"] - k0)
             give = 1.0 - float(smoothstep((s - HEEL_DOWN + 0.15) / 0.3))  # the heel may rise
             left = [
                 (n, p, w * give + 1e-3 if n == "l_heel" else w) for n, p, w in flat("l", geo.left0)
             ]
-            tg.points = left + planted("r_toe") + [("joint:r_knee", knee, KNEE_W)]
+            # ...and lands: held as a contact from then on (led at ``KNEE_W`` alone it stayed
+            # 2 cm up, between the CoM's pull and the left forefoot, for kneel(1) to keep)
+            land = float(smoothstep((s - KNEE_DOWN_BY) / (1.0 - KNEE_DOWN_BY)))
+            w = KNEE_W + (PLANT_W - KNEE_W) * land
+            tg.points = left + planted("r_toe") + [("joint:r_knee", knee, w)]
             tg.level = ["r", "l"]
             tg.com = com_path(geo.com_split, geo.com_half, s)
         elif k == 4:
-            tg.points = planted("l_toe0", "r_toe", "r_knee")
+            # the kneeling leg held as firmly as in the swing: led onto it, the CoM's growing
+            # pull slid the right toe tip 2-3.5 cm/s
+            tg.points = planted("l_toe0") + [(n, p, w * KNEEL_LEG_FIRM if w >= PLANT_W else w)
+                                             for n, p, w in planted("r_toe", "r_knee")]  # fmt: skip
             tg.level = ["r", "l"]
             tg.com = com_path(geo.com_half, geo.com_one, s)
             # the weight goes onto the kneeling leg before the other lifts: the CoM's pull
             # grows to the swing's, so the swing starts from the CoM over its support
             tg.com_w = COM_W + (ONE_KNEE_COM_W - COM_W) * float(smoothstep(s))
             tg.root_y = (start[k][1], PELVIS_W * float(smoothstep(s)))
+            # ...along a planned path: the pose with the CoM over the kneeling leg is solved
+            # once, and the body is led to it (followed frame by frame, the CoM's pull left the
+            # spine at its side-bend limits, the CoM 4 cm off and the pelvis where it was)
+            if "one" not in start:
+                start["one"] = body.solve(start[k], one_knee_targets(), iterations=80)
+            path = start[k] + float(smoothstep(s)) * (start["one"] - start[k])
+            tg.joints = (ALL_COLS, path, ONE_PATH_W)
         elif k == 5:
             # the left leg swings in joint space from where it was to its kneeling angles: the
             # thigh lifts, the knee folds fully and the foot points back (the toes clear the
@@ -795,6 +856,13 @@ def kneel_targets(
             tg.points = planted("r_toe", "l_toe", "r_knee", "l_knee")
             tg.level = ["r", "l"]
             tg.com = com_path(geo.com_one, geo.com_kneel, s)
+        return tg
+
+    def one_knee_targets() -> Targets:
+        tg = Targets(nominal=nominal, nominal_w=weights, level=["r", "l"], com=geo.com_one)
+        tg.points = planted("l_toe0", "r_toe", "r_knee")
+        tg.com_w = ONE_POSE_COM_W
+        tg.root_y = (start[4][1], PELVIS_W)
         return tg
 
     def final_targets(x: FloatArray) -> Targets:
@@ -953,7 +1021,8 @@ def _solve_kneel(
     x0 = np.concatenate([[0.0, float(root_start[1]) - ground, 0.0], q_start[body.idx]])
     geo = geometry(body, x0)
     n = max(round(duration * FPS) + 1, 2)
-    xs = track(body, x0, kneel_targets(body, geo, x0, count), n)
+    step = MAX_JOINT_SPEED * duration / (n - 1)
+    xs = track(body, x0, kneel_targets(body, geo, x0, count), n, step)
     edges = phase_edges(count) * duration
     phases = [{"name": PHASES[k][0], "start": float(edges[k]), "end": float(edges[k + 1])}
               for k in range(count)]  # fmt: skip

@@ -12,7 +12,7 @@ def replace_fuel_filter_cad():
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='male', percentile=95, stature=177.5, mass=75.0)
     # examples/replace_fuel_filter_cad.mtask:34:5 replace_fuel_filter_cad > walk_to > travel: locomotion on root at skid_front
-    human.Walk((0.004, 0.0, 54.99), start=0.0, duration=1.294737)
+    human.Walk((0.119, 0.0, 55.134), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 91.087, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
@@ -89,298 +89,299 @@ def replace_fuel_filter_cad():
     })
     human.KeyRoot(1.2, (-0.422, 90.158, 52.336), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.2, {
-        'spine_lumbar': (0.0, 0.0, 0.0), 'right_shoulder': (8.594, 5.73, 11.459),
-        'left_shoulder': (8.594, 5.73, 11.459), 'right_hip': (10.698, -0.607, -0.115),
-        'right_knee': (17.017,), 'right_ankle': (6.32, -0.618), 'left_hip': (10.691, 0.607, 0.115),
-        'left_knee': (17.002,), 'left_ankle': (6.31, 0.618),
+        'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0),
+        'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
+        'right_hip': (10.698, -0.607, -0.115), 'right_knee': (17.017,),
+        'right_ankle': (6.32, -0.618), 'left_hip': (10.691, 0.607, 0.115), 'left_knee': (17.002,),
+        'left_ankle': (6.31, 0.618),
     })
     # examples/replace_fuel_filter_cad.mtask:35:5 replace_fuel_filter_cad > kneel: posture on root
-    human.KeyRoot(1.3, (0.028, 91.072, 55.137), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.3, (0.15, 91.079, 55.29), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.3, {
-        'spine_lumbar': (0.441, -0.44, 0.0), 'spine_thoracic': (0.05, -0.05, 0.0),
+        'spine_lumbar': (0.835, -0.843, 0.0), 'spine_thoracic': (0.091, -0.097, 0.0),
         'right_shoulder': (8.594, 5.731, 11.234), 'left_shoulder': (8.594, 5.731, 11.234),
-        'right_hip': (3.186, 0.035, 0.002), 'right_knee': (5.421,), 'right_ankle': (2.231, 0.035),
-        'left_hip': (3.183, -0.035, -0.002), 'left_knee': (5.415,), 'left_ankle': (2.226, -0.035),
+        'right_hip': (3.123, 0.136, 0.007), 'right_knee': (5.471,), 'right_ankle': (2.344, 0.136),
+        'left_hip': (3.12, -0.136, -0.007), 'left_knee': (5.464,), 'left_ankle': (2.339, -0.136),
     })
-    human.KeyRoot(1.4, (1.803, 90.968, 57.918), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.4, (4.573, 90.565, 62.069), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.4, {
-        'spine_lumbar': (11.288, -11.071, 0.0), 'spine_thoracic': (1.841, -1.969, 0.0),
+        'spine_lumbar': (12.345, -12.349, 0.0), 'spine_thoracic': (1.917, -2.16, 0.0),
         'right_shoulder': (8.594, 6.231, 2.385), 'left_shoulder': (8.594, 6.231, 2.385),
-        'right_hip': (2.232, 1.568, 0.061), 'right_knee': (6.833,), 'right_ankle': (4.601, 1.568),
-        'left_hip': (2.218, -1.568, -0.061), 'left_knee': (6.803,), 'left_ankle': (4.585, -1.568),
-        'right_toes': (0.0,),
+        'right_hip': (1.455, 3.954, 0.088), 'right_knee': (10.267,), 'right_ankle': (8.796, 3.955),
+        'left_hip': (0.781, -3.952, -0.054), 'left_knee': (8.865,), 'left_ankle': (8.087, -3.953),
+        'right_toes': (0.017,),
     })
-    human.KeyRoot(1.5, (5.135, 90.448, 62.751), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.5, (8.298, 89.944, 66.87), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.5, {
-        'spine_lumbar': (14.11, -13.944, 0.0), 'spine_thoracic': (2.209, -2.469, 0.0),
+        'spine_lumbar': (2.846, -2.421, 0.0), 'spine_thoracic': (0.453, -0.396, 0.0),
         'right_shoulder': (8.594, 7.082, -12.719), 'left_shoulder': (8.594, 7.082, -12.719),
-        'right_hip': (2.004, 4.399, 0.157), 'right_knee': (12.511,), 'right_ankle': (10.462, 4.467),
-        'left_hip': (0.536, -4.419, -0.041), 'left_knee': (9.163,), 'left_ankle': (8.628, -4.418),
-        'right_toes': (0.199,),
+        'right_hip': (5.323, 7.155, 1.741), 'right_knee': (34.173,), 'right_ankle': (20.0, 7.448),
+        'left_hip': (-3.814, -7.065, 0.47), 'left_knee': (5.172,), 'left_ankle': (8.956, -7.08),
+        'right_toes': (8.767,),
     })
-    human.KeyRoot(1.6, (6.878, 90.352, 64.361), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.6, (8.51, 89.705, 68.197), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.6, {
-        'spine_lumbar': (10.434, -7.765, 0.0), 'spine_thoracic': (1.718, -1.378, 0.0),
+        'spine_lumbar': (4.261, -0.975, 0.0), 'spine_thoracic': (0.719, -0.141, 0.0),
         'right_shoulder': (8.594, 7.5, -20.126), 'left_shoulder': (8.594, 7.5, -20.126),
-        'right_hip': (5.479, 5.696, 2.137), 'right_knee': (40.897,), 'right_ankle': (20.0, 6.146),
-        'left_hip': (-2.134, -5.786, 0.216), 'left_knee': (5.479,), 'left_ankle': (7.599, -5.79),
-        'right_toes': (3.509,),
+        'right_hip': (-8.772, 7.087, 3.105), 'right_knee': (34.524,),
+        'right_ankle': (10.789, 7.757), 'left_hip': (-4.279, -7.387, 0.552), 'left_knee': (6.016,),
+        'left_ankle': (10.259, -7.407), 'right_toes': (32.728,),
     })
-    human.KeyRoot(1.7, (7.971, 90.19, 63.919), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.7, (9.813, 90.282, 58.306), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.7, {
-        'spine_lumbar': (19.647, -4.644, 0.0), 'spine_thoracic': (3.144, -0.813, 0.0),
-        'right_hip': (-14.035, 6.015, 2.661), 'right_knee': (30.439,),
-        'right_ankle': (6.532, 6.573), 'left_hip': (-0.57, -6.478, 0.065), 'left_knee': (7.792,),
-        'left_ankle': (8.358, -6.478), 'right_toes': (6.246,),
+        'spine_lumbar': (28.473, -1.997, 0.0), 'spine_thoracic': (10.488, -0.294, 0.0),
+        'right_hip': (-14.761, 6.077, 5.177), 'right_knee': (28.907,),
+        'right_ankle': (-12.482, 7.545), 'left_hip': (4.094, -6.994, -0.499), 'left_knee': (9.09,),
+        'left_ankle': (5.027, -7.012), 'right_toes': (54.985,),
     })
-    human.KeyRoot(1.8, (10.285, 89.698, 53.348), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.8, (10.078, 88.38, 53.545), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.8, {
-        'spine_lumbar': (57.108, -2.941, 0.0), 'spine_thoracic': (6.563, -0.531, 0.0),
-        'right_hip': (-11.591, 5.815, 5.29), 'right_knee': (27.66,),
-        'right_ankle': (-14.629, 7.832), 'left_hip': (10.704, -6.646, -1.253),
-        'left_knee': (15.56,), 'left_ankle': (4.932, -6.763), 'right_toes': (44.321,),
+        'spine_lumbar': (51.755, -3.371, 0.0), 'spine_thoracic': (5.547, -0.491, 0.0),
+        'right_hip': (-14.834, 5.641, 5.604), 'right_knee': (26.933,),
+        'right_ankle': (-17.962, 7.951), 'left_hip': (15.622, -6.509, -1.815),
+        'left_knee': (25.796,), 'left_ankle': (10.283, -6.756), 'right_toes': (59.998,),
     })
-    human.KeyRoot(1.9, (11.194, 85.805, 47.043), (-10.437, 0.0, 0.0))
+    human.KeyRoot(1.9, (10.05, 85.663, 47.729), (-10.437, 0.0, 0.0))
     human.KeyJoints(1.9, {
-        'spine_lumbar': (60.0, -0.966, 0.0), 'spine_thoracic': (7.653, -0.045, 0.0),
-        'right_hip': (-14.992, 6.313, 2.426), 'right_knee': (25.371,),
-        'right_ankle': (4.432, 6.758), 'left_hip': (25.334, -6.256, -2.953), 'left_knee': (35.729,),
-        'left_ankle': (10.559, -6.915), 'right_toes': (36.068,),
+        'spine_lumbar': (41.434, 6.066, 0.0), 'spine_thoracic': (-2.109, 1.265, 0.0),
+        'right_hip': (-14.153, 5.571, 2.549), 'right_knee': (27.717,), 'right_ankle': (3.21, 6.125),
+        'left_hip': (25.497, -5.61, -2.669), 'left_knee': (37.364,), 'left_ankle': (12.0, -6.21),
+        'right_toes': (38.771,),
     })
-    human.KeyRoot(2.0, (9.158, 83.653, 43.551), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.0, (9.53, 85.535, 35.454), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.0, {
-        'spine_lumbar': (9.163, 15.331, 0.0), 'spine_thoracic': (-0.013, 2.764, 0.0),
-        'right_hip': (-14.632, 4.849, 0.544), 'right_knee': (26.373,), 'right_ankle': (19.99, 4.88),
-        'left_hip': (31.478, -4.406, -2.693), 'left_knee': (43.403,),
-        'left_ankle': (12.031, -5.162), 'right_toes': (21.038,),
+        'spine_lumbar': (18.691, 15.904, 0.0), 'spine_thoracic': (0.707, 2.864, 0.0),
+        'right_hip': (-5.886, 4.04, 0.93), 'right_knee': (32.938,), 'right_ankle': (19.995, 4.145),
+        'left_hip': (29.115, -3.709, -2.063), 'left_knee': (27.714,),
+        'left_ankle': (-1.332, -4.243), 'right_toes': (18.83,),
     })
-    human.KeyRoot(2.1, (7.987, 84.102, 41.743), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.1, (7.953, 81.981, 39.118), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.1, {
-        'spine_lumbar': (-1.556, 16.535, 0.0), 'spine_thoracic': (-0.719, 2.969, 0.0),
-        'right_hip': (-12.136, 3.801, 0.613), 'right_knee': (29.176,), 'right_ankle': (20.0, 3.85),
-        'left_hip': (31.394, -3.452, -2.103), 'left_knee': (41.102,), 'left_ankle': (9.771, -4.042),
-        'right_toes': (21.318,),
+        'spine_lumbar': (4.283, 13.717, 0.0), 'spine_thoracic': (0.526, 2.465, 0.0),
+        'right_hip': (-0.355, 3.237, 1.842), 'right_knee': (49.659,), 'right_ankle': (20.0, 3.725),
+        'left_hip': (36.344, -3.038, -2.231), 'left_knee': (46.788,),
+        'left_ankle': (10.503, -3.769), 'right_toes': (30.018,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(2.2, (7.617, 82.008, 42.761), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.2, (6.195, 73.021, 37.709), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.2, {
-        'spine_lumbar': (-5.766, 16.013, 0.0), 'spine_thoracic': (-1.362, 2.867, 0.0),
-        'right_hip': (-5.877, 3.547, 1.539), 'right_knee': (43.426,), 'right_ankle': (20.0, 3.867),
-        'left_hip': (34.827, -3.3, -2.293), 'left_knee': (49.128,), 'left_ankle': (14.367, -4.018),
-        'right_toes': (29.351,), 'left_toes': (0.0,),
+        'spine_lumbar': (4.004, 8.343, 0.0), 'spine_thoracic': (0.631, 1.507, 0.0),
+        'right_hip': (14.001, 1.42, 2.418), 'right_knee': (79.602,), 'right_ankle': (20.0, 2.806),
+        'left_hip': (50.412, -1.634, -1.978), 'left_knee': (70.435,), 'left_ankle': (20.0, -2.566),
+        'right_toes': (45.587,), 'left_toes': (0.072,),
     })
-    human.KeyRoot(2.3, (6.086, 72.577, 37.202), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.3, (4.555, 59.529, 32.918), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.3, {
-        'spine_lumbar': (6.288, 8.587, 0.0), 'spine_thoracic': (0.932, 1.537, 0.0),
-        'right_hip': (15.029, 1.282, 2.331), 'right_knee': (81.065,),
-        'right_ankle': (19.889, 2.661), 'left_hip': (51.33, -1.499, -1.895), 'left_knee': (71.245,),
-        'left_ankle': (19.6, -2.416), 'right_toes': (46.173,), 'left_toes': (0.34,),
+        'spine_lumbar': (14.493, 1.435, 0.0), 'spine_thoracic': (2.393, 0.256, 0.0),
+        'right_hip': (29.944, 0.004, 0.706), 'right_knee': (109.721,), 'right_ankle': (20.0, 0.706),
+        'left_hip': (70.929, -0.144, -0.531), 'left_knee': (94.888,), 'left_ankle': (20.0, -0.55),
+        'right_toes': (59.715,), 'left_toes': (3.979,),
     })
-    human.KeyRoot(2.4, (5.899, 49.371, 25.878), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.4, (3.713, 42.365, 34.784), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.4, {
-        'spine_lumbar': (40.955, 1.821, 0.0), 'spine_thoracic': (5.452, 0.302, 0.0),
-        'right_hip': (44.917, -0.416, 1.167), 'right_knee': (129.367,),
-        'right_ankle': (19.736, 1.239), 'left_hip': (86.382, -0.025, -0.731),
-        'left_knee': (103.529,), 'left_ankle': (15.479, -0.731), 'right_toes': (64.709,),
-        'left_toes': (1.668,),
+        'spine_lumbar': (8.565, -0.044, 0.0), 'spine_thoracic': (1.433, -0.008, 0.0),
+        'right_hip': (35.045, 0.012, -0.027), 'right_knee': (135.0,), 'right_ankle': (20.0, -0.029),
+        'left_hip': (93.38, -0.005, 0.022), 'left_knee': (122.749,), 'left_ankle': (19.906, 0.023),
+        'right_toes': (79.844,), 'left_toes': (9.447,),
     })
-    human.KeyRoot(2.5, (4.36, 43.672, 31.976), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.5, (3.237, 41.13, 37.427), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.5, {
-        'spine_lumbar': (19.299, 0.425, 0.0), 'spine_thoracic': (2.834, 0.071, 0.0),
+        'spine_lumbar': (1.405, 0.025, 0.0), 'spine_thoracic': (0.218, 0.012, 0.0),
         'right_shoulder': (8.594, 7.5, -20.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'right_hip': (38.86, -0.138, 0.296), 'right_knee': (134.913,),
-        'right_ankle': (19.996, 0.327), 'left_hip': (92.226, 0.029, -0.204),
-        'left_knee': (117.977,), 'left_ankle': (19.816, -0.206), 'right_toes': (76.057,),
-        'left_toes': (5.935,),
+        'right_hip': (32.974, 0.0, 0.0), 'right_knee': (134.999,), 'right_ankle': (15.171, 0.0),
+        'left_hip': (94.236, 0.0, 0.0), 'left_knee': (127.019,), 'left_ankle': (20.0, 0.001),
+        'right_toes': (86.743,), 'left_toes': (12.763,),
     })
-    human.KeyRoot(2.6, (3.217, 41.176, 37.536), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.6, (2.97, 41.832, 38.548), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.6, {
-        'spine_lumbar': (1.173, 0.447, 0.0), 'spine_thoracic': (0.108, 0.08, 0.0),
-        'right_hip': (32.844, 0.0, 0.0), 'right_knee': (134.831,), 'right_ankle': (15.003, 0.0),
-        'left_hip': (94.138, 0.0, 0.0), 'left_knee': (127.059,), 'left_ankle': (19.936, 0.0),
-        'right_toes': (86.984,), 'left_toes': (12.985,),
+        'spine_lumbar': (-10.741, 12.848, 0.0), 'spine_thoracic': (-6.196, 5.171, 0.0),
+        'right_hip': (31.202, -0.074, -0.032), 'right_knee': (133.209,),
+        'right_ankle': (15.046, 0.053), 'left_hip': (97.833, -0.455, 0.468),
+        'left_knee': (127.895,), 'left_ankle': (3.938, 0.882), 'right_toes': (86.903,),
+        'left_toes': (25.977,),
     })
-    human.KeyRoot(2.7, (3.173, 41.332, 37.775), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.7, (2.445, 42.614, 39.827), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'spine_lumbar': (-10.056, 17.379, 0.0), 'spine_thoracic': (-3.979, 4.291, 0.0),
-        'right_hip': (32.46, 0.0, 0.0), 'right_knee': (134.447,), 'left_hip': (93.822, 0.0, 0.001),
-        'left_knee': (127.093,), 'left_ankle': (20.0, 0.001), 'left_toes': (13.271,),
+        'spine_lumbar': (-28.157, 20.0, 0.0), 'spine_thoracic': (-6.508, 10.0, 0.0),
+        'right_hip': (29.121, -0.426, -0.171), 'right_knee': (131.165,),
+        'right_ankle': (15.058, 0.292), 'left_hip': (100.053, -16.704, 11.053),
+        'left_knee': (127.427,), 'left_ankle': (-16.349, 21.355), 'right_toes': (86.719,),
+        'left_toes': (41.112,),
     })
-    human.KeyRoot(2.8, (3.234, 41.107, 37.43), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.8, (2.535, 42.888, 40.329), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (-16.844, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (33.014, -0.003, -0.001), 'right_knee': (134.998,),
-        'left_hip': (94.53, -3.601, -0.677), 'left_knee': (127.403,), 'left_ankle': (19.952, 0.314),
-        'left_toes': (13.173,),
+        'spine_lumbar': (-26.19, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (28.389, -0.201, -0.079), 'right_knee': (130.401,),
+        'right_ankle': (15.065, 0.143), 'left_hip': (108.494, -25.0, 13.449),
+        'left_knee': (134.551,), 'left_ankle': (-19.22, 28.142), 'right_toes': (86.822,),
+        'left_toes': (40.74,),
     })
-    human.KeyRoot(2.9, (3.233, 41.113, 37.44), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.9, (3.066, 41.13, 37.417), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.9, {
-        'spine_lumbar': (-15.34, 20.0, 0.0), 'right_hip': (32.999, -0.003, -0.001),
-        'right_knee': (134.983,), 'left_hip': (106.385, -24.866, 5.711), 'left_knee': (133.424,),
-        'left_ankle': (11.961, 22.061), 'left_toes': (26.017,),
+        'spine_lumbar': (-14.66, 20.0, 0.0), 'right_hip': (32.971, -0.209, -0.098),
+        'right_knee': (134.986,), 'left_hip': (119.758, -25.0, 11.003), 'left_knee': (134.749,),
+        'left_ankle': (-31.022, 21.615), 'left_toes': (33.332,),
     })
-    human.KeyRoot(3.0, (3.2, 41.229, 37.617), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.0, (2.97, 41.308, 37.693), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.0, {
-        'spine_lumbar': (-15.972, 20.0, 0.0), 'right_hip': (32.714, -0.003, -0.001),
-        'right_knee': (134.698,), 'right_ankle': (15.002, 0.002),
-        'left_hip': (99.895, -24.423, 20.778), 'left_knee': (133.932,),
-        'left_ankle': (-22.564, 17.533), 'right_toes': (86.982,), 'left_toes': (30.877,),
+        'spine_lumbar': (-16.606, 20.0, 0.0), 'right_hip': (32.521, -0.265, -0.122),
+        'right_knee': (134.546,), 'left_hip': (104.013, -23.385, 22.411), 'left_knee': (133.11,),
+        'left_ankle': (-42.581, 18.58), 'left_toes': (44.69,),
     })
-    human.KeyRoot(3.1, (2.627, 41.619, 38.137), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.1, (2.268, 43.458, 41.368), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.1, {
-        'spine_lumbar': (-17.403, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (31.738, -0.595, -0.262), 'right_knee': (133.755,),
-        'right_ankle': (15.049, 0.406), 'left_hip': (76.886, -7.168, 34.777), 'left_knee': (135.0,),
-        'left_ankle': (-45.65, 11.589), 'right_toes': (86.746,), 'left_toes': (48.434,),
+        'spine_lumbar': (-26.383, 20.0, 0.0), 'spine_thoracic': (-14.931, 10.0, 0.0),
+        'right_hip': (26.776, -0.293, -0.107), 'right_knee': (128.789,),
+        'right_ankle': (15.083, 0.2), 'left_hip': (83.258, -23.225, 26.785), 'left_knee': (135.0,),
+        'left_ankle': (-45.775, 13.173), 'right_toes': (86.75,), 'left_toes': (57.709,),
     })
-    human.KeyRoot(3.2, (2.644, 42.46, 39.586), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.2, (2.114, 43.338, 41.038), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.2, {
-        'spine_lumbar': (-15.347, 20.0, 0.0), 'spine_thoracic': (-14.905, 10.0, 0.0),
-        'right_hip': (29.546, -0.247, -0.094), 'right_knee': (131.539,),
-        'left_hip': (45.385, -22.122, 2.425), 'left_knee': (134.31,),
-        'left_ankle': (-41.711, 9.374), 'right_toes': (86.931,), 'left_toes': (75.571,),
+        'spine_lumbar': (-24.433, 20.0, 0.0), 'spine_thoracic': (-8.751, 10.0, 0.0),
+        'right_hip': (27.214, -0.56, -0.204), 'right_knee': (129.221,),
+        'right_ankle': (15.086, 0.349), 'left_hip': (54.221, -21.049, 27.079),
+        'left_ankle': (-49.614, 10.384), 'right_toes': (86.567,), 'left_toes': (73.38,),
     })
-    human.KeyRoot(3.3, (2.385, 43.753, 42.045), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.3, (2.567, 42.686, 39.897), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.3, {
-        'spine_lumbar': (-19.087, 20.0, 0.0), 'right_hip': (25.841, -0.002, -0.001),
-        'right_knee': (127.826,), 'right_ankle': (15.002, 0.002),
-        'left_hip': (25.151, -20.396, -1.978), 'left_knee': (130.92,),
-        'left_ankle': (18.487, 3.853), 'left_toes': (88.565,),
+        'spine_lumbar': (-13.338, 20.0, 0.0), 'spine_thoracic': (-14.876, 10.0, 0.0),
+        'right_hip': (29.021, -0.258, -0.105), 'right_knee': (131.014,),
+        'right_ankle': (15.118, 0.183), 'left_hip': (40.638, -17.056, 7.742),
+        'left_ankle': (-28.034, 18.006), 'right_toes': (86.713,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(3.4, (1.846, 45.054, 44.96), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.4, (2.281, 43.183, 40.771), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.4, {
-        'spine_lumbar': (-29.227, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (21.533, -0.004, -0.001), 'right_knee': (123.517,),
-        'left_hip': (20.961, -0.017, 0.02), 'left_knee': (124.791,), 'left_ankle': (17.285, 0.025),
-        'left_toes': (86.543,),
+        'spine_lumbar': (-16.335, 20.0, 0.0), 'right_hip': (27.642, -0.411, -0.156),
+        'right_knee': (129.644,), 'left_hip': (32.137, -4.273, 3.161), 'left_knee': (134.901,),
+        'left_ankle': (1.976, 5.318), 'right_toes': (86.619,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(3.5, (2.158, 44.334, 43.274), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.5, (2.415, 42.623, 39.8), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.5, {
-        'spine_lumbar': (-21.804, 20.0, 0.0), 'spine_thoracic': (-8.307, 10.0, 0.0),
+        'spine_lumbar': (-13.204, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'right_shoulder': (8.594, 7.497, -19.951), 'left_shoulder': (8.594, 7.497, -19.951),
-        'right_hip': (24.007, -0.003, -0.001), 'right_knee': (125.993,),
-        'left_hip': (24.007, 0.003, 0.001), 'left_knee': (125.993,), 'left_ankle': (15.003, -0.004),
-        'left_toes': (86.984,),
+        'right_hip': (29.142, -0.468, -0.191), 'right_knee': (131.173,),
+        'right_ankle': (15.087, 0.295), 'left_hip': (28.513, -2.105, 2.216),
+        'left_knee': (131.944,), 'left_ankle': (17.15, 2.937), 'left_toes': (85.697,),
     })
-    human.KeyRoot(3.6, (2.401, 43.715, 41.968), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.6, (3.015, 41.885, 38.62), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.6, {
-        'spine_lumbar': (-5.069, 18.99, 0.0), 'spine_thoracic': (-1.802, 5.497, 0.0),
+        'spine_lumbar': (-5.343, 20.0, 0.0), 'spine_thoracic': (-2.94, 9.54, 0.0),
         'right_shoulder': (8.594, 6.986, -10.869), 'left_shoulder': (8.594, 6.986, -10.869),
-        'right_hip': (25.958, 0.0, 0.0), 'right_knee': (127.944,), 'left_hip': (25.958, 0.0, 0.0),
-        'left_knee': (127.944,),
+        'right_hip': (31.075, -0.002, -0.001), 'right_knee': (133.104,),
+        'right_ankle': (15.162, 0.003), 'left_hip': (31.075, 0.002, 0.001), 'left_knee': (133.104,),
+        'left_ankle': (15.162, -0.003), 'left_toes': (86.736,),
     })
-    human.KeyRoot(3.7, (2.239, 44.137, 42.847), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.7, (2.95, 42.105, 38.984), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.887, 5.821, 0.0), 'spine_thoracic': (1.081, 1.306, 0.0),
+        'spine_lumbar': (11.816, 9.529, 0.0), 'spine_thoracic': (1.845, 1.915, 0.0),
         'right_shoulder': (8.594, 6.136, 4.245), 'left_shoulder': (8.594, 6.136, 4.245),
-        'right_hip': (24.642, 0.0, 0.0), 'right_knee': (126.629,), 'left_hip': (24.642, 0.0, 0.0),
-        'left_knee': (126.629,),
+        'right_hip': (30.503, 0.0, 0.0), 'right_knee': (132.532,), 'left_hip': (30.503, 0.0, 0.0),
+        'left_knee': (132.532,), 'right_toes': (86.736,),
     })
     # examples/replace_fuel_filter_cad.mtask:36:5 replace_fuel_filter_cad > look: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=3.793137, duration=0.316667)
-    human.KeyRoot(3.8, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.8, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.8, {
-        'spine_lumbar': (9.033, 0.001, 0.0), 'spine_thoracic': (1.549, 0.034, 0.0),
-        'neck': (0.049, -0.047, 0.028), 'head': (0.021, 0.015),
+        'spine_lumbar': (11.328, 0.01, 0.0), 'spine_thoracic': (1.908, 0.004, 0.0),
+        'neck': (0.049, -0.047, 0.026), 'head': (0.021, 0.015),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
-        'right_hip': (22.438, 0.0, 0.0), 'right_knee': (124.422,), 'left_hip': (22.438, 0.0, 0.0),
-        'left_knee': (124.422,),
+        'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,), 'left_hip': (24.096, 0.0, 0.0),
+        'left_knee': (126.122,),
     })
-    human.KeyJoints(3.9, {'neck': (9.267, -8.936, 5.278), 'head': (3.972, 2.832)})
-    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 14.406), 'head': (10.84, 7.776)})
+    human.KeyJoints(3.9, {
+        'neck': (9.267, -8.936, 4.966), 'head': (3.972, 2.943), 'right_toes': (86.654,),
+    })
+    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 13.555), 'head': (10.84, 8.034)})
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: TA on r_arm at filter_bowl
     human.KeyJoints(4.1, {
-        'spine_lumbar': (9.097, 0.019, 0.024), 'spine_thoracic': (1.539, 0.05, 0.031),
-        'neck': (34.901, -33.655, 19.878), 'head': (14.958, 10.867),
-        'right_clavicle': (-0.011, 0.024), 'right_shoulder': (8.634, 5.757, 11.449),
-        'right_elbow': (34.363, 17.189), 'right_wrist': (-0.003, -0.004),
+        'spine_lumbar': (11.388, 0.026, 0.024), 'spine_thoracic': (1.896, 0.02, 0.029),
+        'neck': (34.901, -33.655, 18.703), 'head': (14.958, 11.085),
+        'right_clavicle': (-0.012, 0.024), 'right_shoulder': (8.635, 5.756, 11.449),
+        'right_elbow': (34.365, 17.189), 'right_wrist': (-0.003, -0.004), 'left_toes': (86.654,),
     })
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=4.109804, duration=0.819176)
     human.KeyJoints(4.2, {
-        'spine_lumbar': (10.861, 0.524, 0.704), 'spine_thoracic': (1.256, 0.501, 0.883),
-        'neck': (35.0, -33.75, 17.789), 'head': (15.0, 11.11), 'right_clavicle': (-0.321, 0.704),
-        'right_shoulder': (9.743, 6.529, 11.157), 'right_elbow': (33.974, 17.189),
-        'right_wrist': (-0.097, -0.123),
+        'spine_lumbar': (13.048, 0.488, 0.698), 'spine_thoracic': (1.574, 0.469, 0.844),
+        'neck': (35.0, -33.75, 16.614), 'head': (15.0, 10.899), 'right_clavicle': (-0.334, 0.698),
+        'right_shoulder': (9.764, 6.499, 11.155), 'right_elbow': (34.023, 17.189),
+        'right_wrist': (-0.098, -0.114),
     })
     human.KeyJoints(4.3, {
-        'spine_lumbar': (16.071, 2.022, 2.708), 'spine_thoracic': (0.411, 1.833, 3.416),
-        'neck': (35.0, -33.75, 12.189), 'head': (15.0, 11.23), 'right_clavicle': (-1.243, 2.708),
-        'right_shoulder': (13.03, 8.808, 10.296), 'right_elbow': (32.823, 17.191),
-        'right_wrist': (-0.372, -0.475),
+        'spine_lumbar': (17.965, 1.863, 2.695), 'spine_thoracic': (0.607, 1.8, 3.272),
+        'neck': (35.0, -33.75, 11.087), 'head': (15.0, 10.241), 'right_clavicle': (-1.297, 2.695),
+        'right_shoulder': (13.12, 8.699, 10.285), 'right_elbow': (33.008, 17.19),
+        'right_wrist': (-0.379, -0.439),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (24.147, 4.392, 5.816), 'spine_thoracic': (-0.98, 3.898, 7.444),
-        'neck': (35.0, -33.75, 5.116), 'right_clavicle': (-2.723, 5.816),
-        'right_shoulder': (18.205, 12.341, 8.96), 'right_elbow': (31.039, 17.194),
+        'spine_lumbar': (25.623, 4.05, 5.804), 'spine_thoracic': (-0.984, 3.872, 7.154),
+        'neck': (35.0, -33.75, 4.361), 'head': (15.0, 8.861), 'right_clavicle': (-2.844, 5.804),
+        'right_shoulder': (18.429, 12.124, 8.93), 'right_elbow': (31.427, 17.192),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (33.468, 7.251, 9.403), 'spine_thoracic': (-2.792, 6.281, 12.362),
-        'neck': (35.0, -29.97, -0.548), 'head': (15.0, 9.445), 'right_clavicle': (-4.562, 9.403),
-        'right_shoulder': (24.39, 16.417, 7.419), 'right_elbow': (28.98, 17.198),
+        'spine_lumbar': (34.49, 6.703, 9.405), 'spine_thoracic': (-3.047, 6.271, 11.91),
+        'neck': (35.0, -30.306, -0.737), 'head': (15.0, 9.445), 'right_clavicle': (-4.762, 9.405),
+        'right_shoulder': (24.792, 16.091, 7.362), 'right_elbow': (29.597, 17.194),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (42.012, 10.198, 12.711), 'spine_thoracic': (-4.974, 8.48, 17.552),
-        'neck': (35.0, -4.38, -9.881), 'head': (15.0, -2.589), 'right_clavicle': (-6.584, 12.711),
-        'right_shoulder': (30.609, 20.139, 6.006), 'right_elbow': (27.1, 17.203),
-        'right_wrist': (-1.743, -2.222),
+        'spine_lumbar': (42.601, 9.45, 12.721), 'spine_thoracic': (-5.494, 8.482, 16.929),
+        'neck': (35.0, -6.706, -9.435), 'head': (15.0, -2.589), 'right_clavicle': (-6.838, 12.72),
+        'right_shoulder': (31.177, 19.705, 5.926), 'right_elbow': (27.932, 17.198),
+        'right_wrist': (-1.787, -2.068),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (45.555, 12.859, 14.418), 'spine_thoracic': (-7.192, 9.639, 21.646),
-        'neck': (35.0, 15.597, -16.757), 'head': (15.0, -11.225), 'right_clavicle': (-8.488, 14.39),
-        'right_shoulder': (34.79, 21.341, 5.42), 'right_elbow': (26.33, 17.208),
-        'right_wrist': (-1.918, -2.459),
+        'spine_lumbar': (45.87, 11.953, 14.427), 'spine_thoracic': (-7.898, 9.646, 20.867),
+        'neck': (35.0, 12.864, -15.897), 'head': (15.0, -11.225),
+        'right_clavicle': (-8.721, 14.393), 'right_shoulder': (35.436, 20.86, 5.335),
+        'right_elbow': (27.299, 17.202), 'right_wrist': (-1.97, -2.279),
     })
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
-        'spine_lumbar': (41.746, 15.251, 13.636), 'spine_thoracic': (-7.545, 9.234, 21.897),
-        'neck': (35.0, 19.765, -18.951), 'right_clavicle': (-9.467, 13.475),
-        'right_shoulder': (33.847, 18.632, 6.07), 'right_elbow': (26.785, 17.203),
-        'right_wrist': (-1.646, -2.298),
+        'spine_lumbar': (42.085, 14.293, 13.694), 'spine_thoracic': (-8.262, 9.282, 21.124),
+        'neck': (35.0, 17.869, -18.04), 'right_clavicle': (-9.679, 13.504),
+        'right_shoulder': (34.509, 18.216, 5.995), 'right_elbow': (27.785, 17.199),
+        'right_wrist': (-1.708, -2.109),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (40.122, 15.997, 13.213), 'spine_thoracic': (-7.419, 8.997, 21.594),
-        'neck': (35.0, 26.604, -19.405), 'right_clavicle': (-9.668, 13.001),
-        'right_shoulder': (33.089, 17.555, 6.348), 'right_elbow': (26.959, 17.2),
-        'right_wrist': (-1.532, -2.234),
+        'spine_lumbar': (40.459, 15.038, 13.284), 'spine_thoracic': (-8.111, 9.057, 20.822),
+        'neck': (35.0, 24.913, -18.5), 'right_clavicle': (-9.879, 13.032),
+        'right_shoulder': (33.727, 17.145, 6.284), 'right_elbow': (27.965, 17.197),
+        'right_wrist': (-1.594, -2.042),
     })
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
-    human.KeyJoints(5.0, {
-        'neck': (35.0, 28.669, -19.309), 'right_shoulder': (32.897, 17.558, 6.352),
-        'right_elbow': (27.263, 17.2),
-    })
+    human.KeyJoints(5.0, {'neck': (35.0, 27.038, -18.369)})
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.2, {'right_elbow': (27.263, 17.169)})
-    human.KeyJoints(5.3, {'right_elbow': (27.301, 12.277)})
+    human.KeyJoints(5.2, {'right_elbow': (27.967, 17.166)})
+    human.KeyJoints(5.3, {'right_elbow': (28.099, 12.274)})
     human.KeyJoints(5.4, {
-        'right_shoulder': (32.907, 17.625, 6.335), 'right_elbow': (27.379, 0.657),
+        'right_shoulder': (33.668, 17.197, 6.273), 'right_elbow': (28.178, 0.654),
     })
-    human.KeyJoints(5.5, {'right_elbow': (27.456, -15.361)})
-    human.KeyJoints(5.6, {'right_elbow': (27.491, -33.449), 'right_wrist': (-1.503, -2.133)})
-    human.KeyJoints(5.7, {'right_elbow': (27.47, -51.276)})
-    human.KeyJoints(5.8, {'right_elbow': (27.409, -66.514)})
+    human.KeyJoints(5.5, {'right_elbow': (28.259, -15.363)})
+    human.KeyJoints(5.6, {'right_elbow': (28.303, -33.45)})
+    human.KeyJoints(5.7, {'right_elbow': (28.294, -51.277)})
+    human.KeyJoints(5.8, {'right_elbow': (28.244, -66.515)})
     human.KeyJoints(5.9, {
-        'right_shoulder': (32.945, 18.035, 6.235), 'right_elbow': (27.348, -76.834),
+        'right_shoulder': (33.705, 17.587, 6.172), 'right_elbow': (28.191, -76.834),
     })
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=5.985897, duration=0.072)
-    human.KeyJoints(6.0, {'right_elbow': (27.326, -80.0)})
+    human.KeyJoints(6.0, {'right_elbow': (28.172, -80.0)})
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=6.057897, duration=0.2628)
-    human.KeyJoints(6.3, {'right_elbow': (27.326, -80.0)})
+    human.KeyJoints(6.3, {'right_elbow': (28.172, -80.0)})
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
     human.KeyJoints(6.4, {
-        'right_shoulder': (32.945, 18.029, 6.236), 'right_elbow': (27.356, -75.532),
+        'right_shoulder': (33.705, 17.581, 6.173), 'right_elbow': (28.199, -75.532),
     })
-    human.KeyJoints(6.5, {'right_elbow': (27.443, -59.213)})
-    human.KeyJoints(6.6, {'right_elbow': (27.492, -34.545), 'right_wrist': (-1.501, -2.133)})
-    human.KeyJoints(6.7, {'right_elbow': (27.412, -5.363)})
+    human.KeyJoints(6.5, {'right_elbow': (28.272, -59.213)})
+    human.KeyJoints(6.6, {'right_elbow': (28.304, -34.545), 'right_wrist': (-1.582, -1.97)})
+    human.KeyJoints(6.7, {'right_elbow': (28.213, -5.363)})
     human.KeyJoints(6.8, {
-        'right_shoulder': (32.893, 17.535, 6.358), 'right_elbow': (27.203, 24.501),
+        'right_shoulder': (33.655, 17.117, 6.293), 'right_elbow': (28.002, 24.501),
     })
-    human.KeyJoints(6.9, {'right_elbow': (26.955, 51.211), 'right_wrist': (-1.526, -2.231)})
-    human.KeyJoints(7.0, {'right_elbow': (26.769, 70.933)})
-    human.KeyJoints(7.1, {'right_elbow': (26.691, 79.835)})
+    human.KeyJoints(6.9, {'right_elbow': (27.763, 51.211), 'right_wrist': (-1.547, -2.061)})
+    human.KeyJoints(7.0, {'right_elbow': (27.588, 70.933)})
+    human.KeyJoints(7.1, {'neck': (35.0, 27.038, -18.369), 'right_elbow': (27.516, 79.835)})
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:39:9 replace_fuel_filter_cad > grasp: grip on r_hand
@@ -389,650 +390,661 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:43:5 replace_fuel_filter_cad > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
     human.KeyJoints(7.2, {
-        'spine_lumbar': (40.101, 16.007, 13.207), 'spine_thoracic': (-7.417, 8.994, 21.59),
-        'neck': (35.0, 28.692, -19.258), 'right_shoulder': (32.865, 17.524, 6.361),
-        'right_elbow': (26.691, 80.0), 'right_wrist': (-1.464, -2.234),
-        'left_clavicle': (0.0, 0.001), 'left_shoulder': (8.596, 5.729, 11.459),
+        'spine_lumbar': (40.438, 15.048, 13.277), 'spine_thoracic': (-8.11, 9.053, 20.818),
+        'neck': (35.0, 27.063, -18.314), 'right_clavicle': (-9.881, 13.025),
+        'right_shoulder': (33.629, 17.124, 6.292), 'right_elbow': (27.516, 80.0),
+        'right_wrist': (-1.48, -2.045), 'left_clavicle': (-0.001, 0.001),
+        'left_shoulder': (8.595, 5.729, 11.459),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (40.55, 15.749, 12.983), 'spine_thoracic': (-7.588, 8.918, 21.43),
-        'neck': (35.0, 29.506, -17.701), 'right_clavicle': (-9.674, 13.04),
-        'right_shoulder': (32.719, 17.127, 6.464), 'right_elbow': (27.475, 80.0),
-        'right_wrist': (-1.669, -2.171), 'left_clavicle': (-0.221, 0.339),
-        'left_shoulder': (9.297, 5.661, 11.43), 'left_elbow': (34.339, 17.188),
-        'left_wrist': (-0.003, -0.02),
+        'spine_lumbar': (40.98, 14.759, 13.011), 'spine_thoracic': (-8.3, 8.971, 20.63),
+        'neck': (35.0, 27.718, -16.677), 'right_clavicle': (-9.879, 13.08),
+        'right_shoulder': (33.448, 16.654, 6.418), 'right_elbow': (28.474, 80.0),
+        'right_wrist': (-1.732, -1.966), 'left_clavicle': (-0.272, 0.416),
+        'left_shoulder': (9.125, 5.645, 11.427), 'left_elbow': (34.351, 17.188),
+        'left_wrist': (-0.005, -0.02),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (42.528, 14.612, 11.999), 'spine_thoracic': (-8.342, 8.586, 20.725),
-        'neck': (35.0, 32.149, -14.688), 'head': (15.0, -11.25), 'right_clavicle': (-9.685, 13.239),
-        'right_shoulder': (32.023, 15.398, 6.917), 'right_elbow': (30.985, 80.0),
-        'right_wrist': (-2.597, -1.874), 'left_clavicle': (-1.193, 1.831),
-        'left_shoulder': (12.387, 5.36, 11.302), 'left_elbow': (34.168, 17.187),
+        'spine_lumbar': (43.355, 13.489, 11.844), 'spine_thoracic': (-9.137, 8.609, 19.81),
+        'neck': (35.0, 29.754, -13.81), 'right_clavicle': (-9.869, 13.32),
+        'right_shoulder': (32.588, 14.617, 6.974), 'right_elbow': (32.741, 80.0),
+        'right_wrist': (-2.861, -1.593), 'left_clavicle': (-1.462, 2.238),
+        'left_shoulder': (11.479, 5.276, 11.285),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (46.19, 12.508, 10.177), 'spine_thoracic': (-9.738, 7.97, 19.421),
-        'neck': (35.0, 33.75, -10.495), 'head': (15.0, -11.129), 'right_clavicle': (-9.705, 13.608),
-        'right_shoulder': (30.967, 12.213, 7.771), 'right_elbow': (36.984, 80.0),
-        'right_wrist': (-4.195, -1.261), 'left_clavicle': (-2.992, 4.591),
-        'left_shoulder': (18.105, 4.802, 11.045), 'left_wrist': (-0.056, -0.271),
+        'spine_lumbar': (47.663, 11.188, 9.728), 'spine_thoracic': (-10.654, 7.953, 18.321),
+        'neck': (35.0, 33.59, -10.033), 'right_clavicle': (-9.852, 13.754),
+        'right_shoulder': (31.444, 10.914, 8.008), 'right_elbow': (39.641, 80.0),
+        'right_wrist': (-4.699, -0.839), 'left_clavicle': (-3.621, 5.54),
+        'left_shoulder': (16.113, 4.607, 10.989), 'left_elbow': (34.029, 17.179),
+        'left_wrist': (-0.083, -0.27),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (50.93, 9.785, 7.819), 'neck': (35.0, 33.75, -7.2), 'head': (15.0, -11.25),
-        'right_elbow': (44.023, 80.0), 'right_wrist': (-6.063, -0.38),
-        'left_shoulder': (25.507, 4.079, 10.649), 'left_elbow': (33.445, 17.179),
-        'left_wrist': (-0.134, -0.482),
+        'spine_lumbar': (52.972, 8.351, 7.121), 'spine_thoracic': (-12.524, 7.145, 16.486),
+        'neck': (35.0, 33.675, -6.28), 'right_shoulder': (30.346, 6.378, 9.337),
+        'right_elbow': (47.332, 80.0), 'right_wrist': (-6.737, 0.191),
+        'left_clavicle': (-6.281, 9.611), 'left_shoulder': (22.994, 3.783, 10.502),
+        'left_elbow': (33.774, 17.172), 'left_wrist': (-0.202, -0.468),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (55.78, 6.999, 5.406), 'spine_thoracic': (-13.392, 6.358, 16.007),
-        'neck': (35.0, 33.75, -3.603), 'right_clavicle': (-9.759, 14.575),
-        'right_shoulder': (28.813, 4.037, 10.128), 'right_elbow': (50.926, 80.0),
-        'right_wrist': (-7.89, 0.614), 'left_clavicle': (-7.704, 11.819),
-        'left_shoulder': (32.979, 3.381, 10.073), 'left_elbow': (33.409, 17.176),
-        'left_wrist': (-0.327, -0.613),
+        'spine_lumbar': (57.687, 5.831, 4.804), 'spine_thoracic': (-14.185, 6.427, 14.857),
+        'neck': (35.0, 33.746, -2.942), 'right_clavicle': (-9.812, 14.766),
+        'right_shoulder': (29.4, 2.445, 10.568), 'right_elbow': (53.888, 80.0),
+        'right_wrist': (-8.471, 1.197), 'left_clavicle': (-8.643, 13.226),
+        'left_shoulder': (31.871, 3.097, 9.763), 'left_elbow': (33.976, 17.168),
+        'left_wrist': (-0.469, -0.547),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (59.484, 4.87, 3.563), 'spine_thoracic': (-14.803, 5.735, 14.688),
-        'neck': (35.0, 33.356, -1.593), 'right_clavicle': (-9.78, 14.948),
-        'right_shoulder': (28.002, 1.093, 11.207), 'right_elbow': (56.032, 80.0),
-        'right_wrist': (-9.405, 1.498), 'left_clavicle': (-9.524, 14.611),
-        'left_shoulder': (34.43, 3.915, 9.134), 'left_elbow': (43.776, 17.22),
-        'left_wrist': (-1.597, 1.724),
+        'spine_lumbar': (59.845, 4.678, 3.744), 'spine_thoracic': (-14.945, 6.099, 14.111),
+        'neck': (35.0, 32.826, -0.951), 'right_clavicle': (-9.803, 14.984),
+        'right_shoulder': (28.99, 0.756, 11.264), 'right_elbow': (56.784, 80.0),
+        'right_wrist': (-9.384, 1.736), 'left_clavicle': (-9.725, 14.881),
+        'left_shoulder': (35.044, 3.902, 8.9), 'left_elbow': (44.822, 17.214),
+        'left_wrist': (-1.735, 1.954),
     })
     # examples/replace_fuel_filter_cad.mtask:40:9 replace_fuel_filter_cad > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.9, {
-        'spine_lumbar': (59.978, 4.586, 3.317), 'spine_thoracic': (-14.992, 5.652, 14.512),
-        'neck': (35.0, 32.941, -1.342), 'right_shoulder': (27.893, 0.714, 11.362),
-        'right_elbow': (56.705, 80.0), 'right_wrist': (-9.62, 1.624),
-        'left_clavicle': (-9.767, 14.984), 'left_shoulder': (25.696, 5.829, 8.714),
-        'left_elbow': (61.369, 17.301), 'left_wrist': (-3.345, 6.073), 'right_toes': (86.982,),
+        'spine_lumbar': (59.995, 4.598, 3.671), 'neck': (35.0, 32.785, -0.758),
+        'right_shoulder': (28.961, 0.64, 11.312), 'right_elbow': (56.984, 80.0),
+        'left_clavicle': (-9.8, 14.996), 'left_shoulder': (26.79, 5.763, 8.564),
+        'left_elbow': (61.618, 17.292), 'left_wrist': (-3.376, 6.13),
     })
     # examples/replace_fuel_filter_cad.mtask:42:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
     human.KeyJoints(8.0, {
-        'neck': (35.0, 32.941, -1.342), 'head': (15.0, -11.167),
-        'right_shoulder': (27.889, 0.698, 11.368), 'right_elbow': (56.735, 80.0),
-        'right_wrist': (-9.629, 1.629), 'left_shoulder': (24.08, 6.162, 8.66),
-        'left_elbow': (64.193, 17.313), 'left_wrist': (-3.624, 6.788),
+        'neck': (35.0, 32.785, -0.758), 'head': (15.0, -11.25),
+        'right_shoulder': (28.96, 0.636, 11.314), 'right_elbow': (56.991, 80.0),
+        'right_wrist': (-9.449, 1.776), 'left_shoulder': (25.156, 6.092, 8.516),
+        'left_elbow': (64.45, 17.304), 'left_wrist': (-3.653, 6.85),
     })
     # examples/replace_fuel_filter_cad.mtask:43:5 replace_fuel_filter_cad > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
-        'neck': (35.0, 32.792, -1.879), 'head': (14.901, -11.161),
-        'right_shoulder': (29.214, 0.934, 11.164), 'right_elbow': (53.983, 79.957),
-        'right_wrist': (-8.976, 1.482),
+        'neck': (35.0, 32.613, -1.304), 'head': (14.902, -11.243),
+        'right_shoulder': (30.239, 0.887, 11.121), 'right_elbow': (54.301, 79.954),
+        'right_wrist': (-8.81, 1.62),
     })
     human.KeyJoints(8.2, {
-        'neck': (35.0, 30.393, -10.537), 'head': (13.3, -11.058),
-        'right_shoulder': (30.463, 3.512, 7.961), 'right_elbow': (47.538, 76.981),
-        'right_wrist': (-12.356, 2.602),
+        'neck': (35.0, 29.841, -10.089), 'head': (13.324, -11.138),
+        'right_shoulder': (31.426, 3.805, 8.675), 'right_elbow': (48.101, 76.719),
+        'right_wrist': (-11.86, 2.301),
     })
     human.KeyJoints(8.3, {
-        'neck': (35.0, 26.594, -24.249), 'head': (10.766, -10.894),
-        'right_shoulder': (25.616, 9.665, -0.315), 'right_elbow': (46.971, 68.494),
-        'right_wrist': (-26.771, 6.911),
+        'neck': (35.0, 25.451, -24.003), 'head': (10.824, -10.971),
+        'right_shoulder': (26.259, 11.127, 2.398), 'right_elbow': (48.242, 66.985),
+        'right_wrist': (-25.958, 5.518),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (60.0, 4.574, 3.306), 'neck': (35.0, 23.39, -35.814),
-        'head': (8.628, -10.757), 'right_shoulder': (19.216, 18.015, -11.873),
-        'right_elbow': (51.05, 57.981), 'right_wrist': (-46.623, 12.783),
+        'neck': (35.0, 21.748, -35.738), 'head': (8.716, -10.83),
+        'right_shoulder': (19.198, 21.217, -6.431), 'right_elbow': (53.178, 53.767),
+        'right_wrist': (-47.005, 10.012),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (60.0, 4.634, 3.347), 'spine_thoracic': (-14.975, 5.681, 14.536),
-        'neck': (35.0, 22.569, -38.777), 'head': (8.081, -10.721), 'right_clavicle': (-9.771, 15.0),
-        'right_shoulder': (19.569, 27.498, -24.633), 'right_elbow': (42.953, 49.863),
-        'right_wrist': (-61.243, 17.263), 'left_elbow': (64.051, 17.313),
+        'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
+        'right_shoulder': (18.3, 31.789, -15.814), 'right_elbow': (46.252, 42.475),
+        'right_wrist': (-63.007, 13.065),
     })
     human.KeyJoints(8.6, {
-        'spine_lumbar': (60.0, 7.697, 5.084), 'spine_thoracic': (-14.084, 6.964, 15.889),
-        'neck': (35.0, 22.569, -38.777), 'head': (8.081, -10.721),
-        'right_clavicle': (-8.679, 14.991), 'right_shoulder': (21.571, 36.068, -33.451),
-        'right_elbow': (30.875, 45.043), 'right_wrist': (-67.495, 19.192),
+        'right_shoulder': (22.943, 38.156, -19.736), 'right_elbow': (28.622, 35.849),
+        'right_wrist': (-63.352, 12.999), 'left_elbow': (64.34, 17.304),
     })
     # examples/replace_fuel_filter_cad.mtask:43:5 replace_fuel_filter_cad > move: TO on r_arm at drain_tray
     human.KeyJoints(8.7, {
-        'spine_lumbar': (60.0, 11.509, 7.125), 'spine_thoracic': (-13.122, 8.413, 17.499),
-        'neck': (34.849, 20.476, -42.571), 'head': (6.58, -9.726), 'right_clavicle': (-7.137, 15.0),
-        'right_shoulder': (22.858, 39.866, -34.992), 'right_elbow': (27.368, 44.19),
-        'right_wrist': (-66.285, 18.775),
+        'right_shoulder': (29.232, 39.672, -18.673), 'right_elbow': (18.547, 34.803),
+        'right_wrist': (-52.625, 11.244),
     })
     # examples/replace_fuel_filter_cad.mtask:44:5 replace_fuel_filter_cad > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
     human.KeyJoints(8.8, {
-        'neck': (34.866, 20.046, -43.706), 'head': (6.058, -9.545),
-        'right_shoulder': (22.947, 39.995, -35.008), 'right_elbow': (27.216, 44.176),
-        'right_wrist': (-66.159, 18.747), 'left_shoulder': (24.17, 6.143, 8.665),
+        'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
+        'right_shoulder': (29.481, 39.714, -18.624), 'right_elbow': (18.233, 34.786),
+        'right_wrist': (-52.264, 11.178),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.4)
     human.KeyJoints(8.9, {
-        'spine_lumbar': (60.0, 11.591, 7.168), 'neck': (34.851, 20.146, -45.441),
-        'head': (7.327, -9.781),
+        'neck': (34.981, 21.121, -40.398), 'head': (9.151, -10.859),
+        'right_wrist': (-55.044, 11.187),
     })
-    human.KeyJoints(9.0, {'neck': (34.803, 20.463, -49.56)})
+    human.KeyJoints(9.0, {'neck': (34.92, 22.048, -44.324)})
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(9.1, {
-        'spine_lumbar': (60.0, 11.596, 7.153), 'spine_thoracic': (-13.098, 8.434, 17.502),
-        'neck': (34.718, 20.987, -53.79), 'head': (13.44, -10.925),
-        'left_shoulder': (24.181, 6.143, 8.676), 'left_elbow': (64.027, 17.337),
-        'left_wrist': (-3.648, 6.758),
+        'spine_lumbar': (60.0, 4.606, 3.655), 'spine_thoracic': (-14.996, 6.067, 14.027),
+        'neck': (34.817, 23.414, -48.355), 'head': (13.839, -11.172),
+        'right_wrist': (-55.092, 11.203), 'left_shoulder': (25.234, 6.08, 8.528),
+        'left_elbow': (64.319, 17.329), 'left_wrist': (-3.681, 6.829),
     })
     human.KeyJoints(9.2, {
-        'spine_lumbar': (60.0, 11.905, 6.338), 'spine_thoracic': (-12.902, 7.877, 15.754),
-        'neck': (34.595, 21.712, -55.851), 'head': (14.964, -11.22), 'left_clavicle': (-9.76, 15.0),
-        'left_shoulder': (24.773, 6.178, 9.277), 'left_elbow': (62.755, 18.664),
-        'left_wrist': (-5.811, 7.245),
+        'spine_lumbar': (60.0, 5.185, 2.954), 'spine_thoracic': (-14.793, 5.621, 12.372),
+        'neck': (34.674, 25.05, -50.321), 'head': (14.997, -11.25),
+        'right_wrist': (-54.815, 11.203), 'left_clavicle': (-9.784, 15.0),
+        'left_shoulder': (25.731, 6.114, 9.048), 'left_elbow': (63.151, 18.675),
+        'left_wrist': (-5.832, 7.324),
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
     human.KeyJoints(9.3, {
-        'spine_lumbar': (60.0, 12.944, 3.6), 'spine_thoracic': (-12.232, 6.008, 9.882),
-        'neck': (33.047, 25.107, -47.177), 'left_shoulder': (26.764, 6.304, 11.297),
-        'left_elbow': (58.455, 23.122), 'left_wrist': (-13.078, 8.882),
+        'spine_lumbar': (60.0, 7.129, 0.598), 'spine_thoracic': (-14.097, 4.124, 6.811),
+        'neck': (33.754, 28.576, -42.612), 'right_shoulder': (29.377, 39.703, -18.644),
+        'left_shoulder': (27.401, 6.239, 10.794), 'left_elbow': (59.201, 23.194),
+        'left_wrist': (-13.057, 8.988),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (60.0, 14.658, -0.918), 'spine_thoracic': (-11.042, 2.925, 0.195),
-        'neck': (30.564, 30.733, -28.371), 'right_elbow': (27.304, 44.176),
-        'right_wrist': (-66.252, 18.764), 'left_clavicle': (-9.559, 15.0),
-        'left_shoulder': (30.049, 6.583, 14.631), 'left_elbow': (51.169, 30.477),
-        'left_wrist': (-25.067, 11.583),
+        'spine_lumbar': (60.0, 10.335, -3.287), 'spine_thoracic': (-12.854, 1.656, -2.357),
+        'neck': (32.357, 32.88, -25.677), 'head': (15.0, -11.146), 'right_elbow': (18.333, 34.786),
+        'left_clavicle': (-9.576, 15.0), 'left_shoulder': (30.153, 6.516, 13.674),
+        'left_elbow': (52.485, 30.646), 'left_wrist': (-24.97, 11.731),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (60.0, 16.685, -6.26), 'spine_thoracic': (-9.421, -0.721, -11.26),
-        'neck': (32.794, 33.743, -12.054), 'left_clavicle': (-9.313, 15.0),
-        'left_shoulder': (33.932, 7.091, 18.572), 'left_elbow': (42.068, 39.173),
-        'left_wrist': (-39.243, 14.776),
+        'spine_lumbar': (60.0, 14.119, -7.873), 'spine_thoracic': (-11.136, -1.258, -13.181),
+        'neck': (34.794, 33.581, -10.221), 'head': (14.99, -8.893), 'left_clavicle': (-9.319, 15.0),
+        'left_shoulder': (33.402, 7.031, 17.074), 'left_elbow': (44.018, 39.444),
+        'left_wrist': (-39.034, 14.969),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (60.0, 18.607, -11.292), 'spine_thoracic': (-7.261, -4.171, -22.088),
-        'neck': (35.0, 33.699, -1.647), 'head': (15.0, -11.25), 'left_clavicle': (-8.854, 14.961),
-        'left_shoulder': (37.672, 8.156, 22.269), 'left_elbow': (32.085, 47.4),
-        'left_wrist': (-52.607, 17.765),
+        'spine_lumbar': (60.0, 17.691, -12.157), 'spine_thoracic': (-8.772, -3.994, -23.351),
+        'neck': (35.0, 33.75, -1.443), 'head': (15.0, -8.051), 'right_wrist': (-52.744, 11.203),
+        'left_clavicle': (-8.825, 14.951), 'left_shoulder': (36.514, 8.162, 20.227),
+        'left_elbow': (34.493, 47.721), 'left_wrist': (-52.226, 17.979),
     })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 19.897, -14.582), 'spine_thoracic': (-0.282, -7.763, -29.269),
-        'neck': (35.0, 12.811, 5.723), 'head': (15.0, 3.19), 'left_clavicle': (-8.938, 14.833),
-        'left_shoulder': (46.383, 11.579, 23.718), 'left_elbow': (17.703, 52.304),
-        'left_wrist': (-55.031, 17.621),
+        'spine_lumbar': (60.0, 19.87, -14.692), 'spine_thoracic': (-2.078, -7.28, -29.479),
+        'neck': (34.633, 15.394, 5.567), 'head': (14.71, 1.877), 'right_wrist': (-52.409, 11.203),
+        'left_clavicle': (-8.97, 14.829), 'left_shoulder': (44.121, 11.874, 20.981),
+        'left_elbow': (20.714, 52.114), 'left_wrist': (-54.377, 17.713),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.996, -14.977), 'spine_thoracic': (6.134, -9.846, -29.965),
-        'neck': (34.455, 1.537, 9.487), 'head': (14.646, 11.212), 'left_clavicle': (-9.923, 14.987),
-        'left_shoulder': (55.542, 12.599, 22.996), 'left_elbow': (9.798, 52.101),
-        'left_wrist': (-46.535, 14.999),
+        'spine_lumbar': (60.0, 19.995, -14.983), 'spine_thoracic': (3.657, -9.803, -29.975),
+        'neck': (33.537, -8.22, 10.045), 'head': (13.853, 10.536),
+        'left_clavicle': (-9.926, 14.987), 'left_shoulder': (52.535, 13.019, 20.166),
+        'left_elbow': (12.852, 51.78), 'left_wrist': (-46.632, 15.19),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
     human.KeyJoints(9.9, {
-        'spine_thoracic': (6.618, -10.0, -30.0), 'neck': (31.757, 2.234, 9.832),
-        'head': (12.688, 11.083), 'left_shoulder': (56.358, 12.609, 22.942),
-        'left_elbow': (9.02, 52.073), 'left_wrist': (-45.588, 14.719),
+        'spine_thoracic': (4.095, -9.996, -30.0), 'neck': (31.566, -8.564, 10.152),
+        'head': (12.394, 10.567), 'left_shoulder': (53.321, 13.042, 20.107),
+        'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
     })
-    human.KeyJoints(10.0, {'left_clavicle': (-10.0, 15.0)})
     human.KeyJoints(10.1, {
-        'neck': (31.757, 2.234, 9.832), 'head': (12.688, 11.083),
-        'left_shoulder': (56.358, 12.609, 22.942), 'left_elbow': (9.02, 52.073),
-        'left_wrist': (-45.588, 14.719),
+        'neck': (31.566, -8.564, 10.152), 'head': (12.394, 10.567), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (53.321, 13.042, 20.107), 'left_elbow': (12.071, 51.745),
+        'left_wrist': (-45.774, 14.924),
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.2, {
-        'neck': (32.036, 1.347, 14.672), 'head': (12.887, 11.098),
-        'right_shoulder': (22.884, 39.943, -35.018), 'left_shoulder': (55.195, 13.0, 21.997),
-        'left_elbow': (11.435, 51.881), 'left_wrist': (-46.064, 14.792),
+        'neck': (31.843, -8.588, 14.979), 'head': (12.607, 10.625),
+        'left_shoulder': (52.272, 13.365, 19.282), 'left_elbow': (14.216, 51.579),
+        'left_wrist': (-46.208, 14.985),
     })
     human.KeyJoints(10.3, {
-        'neck': (32.976, -1.653, 31.033), 'head': (13.557, 11.146),
-        'left_shoulder': (47.483, 15.574, 15.585), 'left_elbow': (27.397, 50.575),
-        'left_wrist': (-48.835, 15.156),
+        'neck': (32.777, -8.67, 31.296), 'head': (13.328, 10.823),
+        'left_shoulder': (45.01, 15.583, 13.406), 'left_elbow': (29.079, 50.394),
+        'left_wrist': (-48.874, 15.302),
     })
     human.KeyJoints(10.4, {
-        'neck': (34.097, -5.231, 50.55), 'head': (14.357, 11.204),
-        'left_shoulder': (35.109, 19.605, 5.272), 'left_elbow': (51.587, 48.445),
-        'left_wrist': (-52.995, 15.684),
+        'neck': (33.891, -8.768, 50.761), 'head': (14.188, 11.06),
+        'left_shoulder': (32.866, 19.226, 3.535), 'left_elbow': (52.642, 48.373),
+        'left_wrist': (-53.058, 15.783),
     })
     human.KeyJoints(10.5, {
-        'neck': (34.888, -7.755, 64.313), 'head': (14.92, 11.244),
-        'left_shoulder': (18.401, 24.501, -8.591), 'left_elbow': (76.6, 45.394),
-        'left_wrist': (-57.418, 16.148),
+        'neck': (34.676, -8.837, 64.486), 'head': (14.795, 11.226),
+        'left_shoulder': (16.343, 23.783, -9.907), 'left_elbow': (77.43, 45.435),
+        'left_wrist': (-57.545, 16.204),
     })
     human.KeyJoints(10.6, {
-        'neck': (35.0, -8.111, 66.258), 'left_shoulder': (-5.223, 29.191, -27.107),
-        'left_elbow': (88.472, 40.369), 'left_wrist': (-60.282, 15.233),
+        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-7.016, 28.415, -28.084),
+        'left_elbow': (89.204, 40.485), 'left_wrist': (-60.375, 15.202),
     })
     human.KeyJoints(10.7, {
-        'head': (15.0, 11.25), 'left_shoulder': (-27.453, 32.151, -44.094),
-        'left_elbow': (84.969, 34.834), 'left_wrist': (-61.024, 11.808),
+        'head': (14.88, 11.25), 'left_shoulder': (-28.521, 31.547, -44.683),
+        'left_elbow': (84.912, 35.019), 'left_wrist': (-61.003, 11.587),
     })
     human.KeyJoints(10.8, {
-        'left_shoulder': (-39.855, 37.689, -60.746), 'left_elbow': (85.362, 31.517),
-        'left_wrist': (-62.961, 9.248),
+        'left_shoulder': (-40.176, 37.196, -61.06), 'left_elbow': (84.819, 31.81),
+        'left_wrist': (-62.893, 8.937),
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.9, {
-        'left_shoulder': (-41.039, 39.881, -71.112), 'left_elbow': (92.374, 31.154),
-        'left_wrist': (-66.283, 9.19),
+        'left_shoulder': (-41.407, 39.218, -71.453), 'left_elbow': (91.759, 31.455),
+        'left_wrist': (-66.267, 8.851),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-41.002, 39.95, -75.123), 'left_elbow': (95.812, 31.158),
-        'left_wrist': (-67.891, 9.317),
+        'left_shoulder': (-41.449, 39.196, -75.482), 'left_elbow': (95.178, 31.456),
+        'left_wrist': (-67.9, 8.971),
     })
     # examples/replace_fuel_filter_cad.mtask:47:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
     human.KeyJoints(11.1, {
-        'left_shoulder': (-40.997, 39.949, -75.438), 'left_elbow': (96.085, 31.159),
-        'left_wrist': (-68.019, 9.328),
+        'left_shoulder': (-41.453, 39.119, -75.823), 'left_elbow': (95.476, 31.457),
+        'left_wrist': (-68.055, 8.983),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.609456)
-    human.KeyJoints(11.2, {'neck': (35.0, -8.087, 66.256)})
+    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.586594)
+    human.KeyJoints(11.2, {'neck': (34.794, -8.847, 66.444)})
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: TA on r_arm at filter_bowl
     human.KeyJoints(11.4, {
-        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (6.618, -10.0, -30.0),
-        'right_clavicle': (-7.103, 15.0), 'right_shoulder': (22.884, 39.943, -35.018),
-        'right_elbow': (27.304, 44.176), 'right_wrist': (-66.252, 18.764),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.095, -9.996, -30.0),
+        'right_shoulder': (29.377, 39.703, -18.644), 'right_elbow': (18.333, 34.786),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (60.0, 18.852, -14.405), 'spine_thoracic': (6.154, -9.426, -29.467),
-        'right_clavicle': (-7.186, 15.0), 'right_shoulder': (23.423, 38.346, -34.434),
-        'right_elbow': (27.326, 44.369), 'right_wrist': (-65.769, 18.662),
+        'spine_lumbar': (60.0, 18.966, -14.445), 'spine_thoracic': (3.738, -9.479, -29.459),
+        'right_shoulder': (29.656, 38.398, -18.233), 'right_elbow': (18.701, 34.954),
+        'right_wrist': (-52.36, 11.238),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (60.0, 13.208, -11.478), 'spine_thoracic': (3.857, -6.604, -26.843),
-        'right_clavicle': (-7.595, 15.0), 'right_shoulder': (26.085, 30.482, -31.555),
-        'right_elbow': (27.44, 45.321), 'right_wrist': (-63.396, 18.159),
+        'spine_lumbar': (60.0, 13.73, -11.635), 'spine_thoracic': (1.916, -6.862, -26.717),
+        'right_clavicle': (-9.833, 15.0), 'right_shoulder': (31.08, 31.777, -16.141),
+        'right_elbow': (20.578, 35.81), 'right_wrist': (-52.109, 11.415),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (60.0, 3.792, -6.594), 'spine_thoracic': (-0.109, -1.896, -22.455),
-        'neck': (35.0, -7.323, 66.07), 'right_shoulder': (30.621, 17.217, -26.693),
-        'right_elbow': (27.661, 46.931), 'right_wrist': (-59.437, 17.319),
+        'spine_lumbar': (60.0, 4.556, -6.713), 'spine_thoracic': (-1.394, -2.275, -21.902),
+        'neck': (34.999, -8.917, 66.99), 'right_shoulder': (33.654, 20.058, -12.422),
+        'right_elbow': (23.95, 37.331), 'right_wrist': (-51.669, 11.747),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.746309, duration=0.372632)
+    human.LookAt((10.0, 25.0, 95.0), start=11.723447, duration=0.395493)
     human.KeyJoints(11.8, {
-        'spine_lumbar': (60.0, -6.573, -1.219), 'spine_thoracic': (-4.809, 3.286, -17.593),
-        'neck': (34.791, -8.293, 62.727), 'right_clavicle': (-9.028, 15.0),
-        'right_shoulder': (35.849, 2.259, -21.192), 'right_elbow': (27.984, 48.755),
-        'right_wrist': (-55.08, 16.394),
+        'spine_lumbar': (60.0, -5.966, -1.067), 'spine_thoracic': (-5.5, 2.985, -16.353),
+        'neck': (34.474, -10.956, 59.829), 'right_shoulder': (36.816, 6.307, -8.017),
+        'right_elbow': (28.041, 39.13), 'right_wrist': (-51.165, 12.184),
     })
     human.KeyJoints(11.9, {
-        'spine_lumbar': (59.713, -14.941, 3.132), 'spine_thoracic': (-9.315, 7.491, -13.596),
-        'neck': (33.642, -13.686, 44.747), 'right_clavicle': (-9.589, 14.966),
-        'right_shoulder': (40.46, -10.789, -16.374), 'right_elbow': (28.425, 50.359),
-        'right_wrist': (-51.586, 15.668),
+        'spine_lumbar': (59.721, -14.688, 3.624), 'spine_thoracic': (-9.58, 7.365, -11.686),
+        'neck': (32.834, -17.256, 37.475), 'head': (14.985, 11.242),
+        'right_clavicle': (-9.936, 14.965), 'right_shoulder': (39.774, -5.973, -3.986),
+        'right_elbow': (31.972, 40.763), 'right_wrist': (-50.791, 12.699),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.0, {
-        'spine_lumbar': (56.404, -18.477, 5.095), 'spine_thoracic': (-12.126, 9.497, -11.767),
-        'neck': (32.275, -20.106, 23.378), 'right_clavicle': (-9.286, 14.54),
-        'right_shoulder': (41.712, -19.86, -13.223), 'right_elbow': (28.921, 51.404),
-        'right_wrist': (-50.398, 15.58),
+        'spine_lumbar': (56.523, -18.489, 5.786), 'spine_thoracic': (-12.132, 9.499, -9.512),
+        'neck': (31.232, -23.402, 15.641), 'head': (14.965, 11.225),
+        'right_clavicle': (-9.485, 14.526), 'right_shoulder': (40.158, -14.576, -1.016),
+        'right_elbow': (34.899, 41.894), 'right_wrist': (-51.137, 13.428),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (54.53, -18.969, 5.423), 'spine_thoracic': (-12.717, 9.877, -11.47),
-        'neck': (31.599, -23.286, 12.801), 'head': (14.969, 11.213),
-        'right_clavicle': (-8.997, 14.295), 'right_shoulder': (41.421, -22.511, -12.373),
-        'right_elbow': (29.075, 51.682), 'right_wrist': (-50.365, 15.663),
+        'spine_lumbar': (54.726, -19.056, 6.158), 'spine_thoracic': (-12.649, 9.913, -9.146),
+        'neck': (30.932, -24.891, 10.016), 'right_clavicle': (-9.218, 14.274),
+        'right_shoulder': (39.68, -17.086, -0.132), 'right_elbow': (35.723, 42.211),
+        'right_wrist': (-51.41, 13.721), 'left_shoulder': (-41.45, 39.188, -75.798),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.2, {
-        'neck': (31.669, -23.149, 13.1), 'right_shoulder': (41.319, -22.561, -12.368),
-        'right_elbow': (29.221, 51.727), 'right_wrist': (-50.48, 15.699),
+        'neck': (30.986, -24.739, 10.338), 'head': (14.889, 11.044),
+        'right_shoulder': (39.601, -17.113, -0.126), 'right_elbow': (35.832, 42.271),
+        'right_wrist': (-51.485, 13.749),
     })
     human.KeyJoints(12.3, {
-        'right_shoulder': (41.135, -22.112, -12.543), 'right_elbow': (29.079, 56.918),
+        'right_shoulder': (39.458, -16.509, -0.393), 'right_elbow': (35.463, 49.199),
     })
-    human.KeyJoints(12.4, {'right_elbow': (28.928, 66.967)})
+    human.KeyJoints(12.4, {'right_elbow': (34.977, 62.608), 'right_wrist': (-51.115, 13.353)})
     human.KeyJoints(12.5, {
-        'right_shoulder': (40.618, -20.302, -13.23), 'right_elbow': (28.98, 76.444),
-        'right_wrist': (-50.36, 15.326),
+        'right_shoulder': (39.201, -14.009, -1.513), 'right_elbow': (34.902, 75.254),
+        'right_wrist': (-51.041, 13.177),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.6, {
-        'right_shoulder': (40.554, -19.987, -13.346), 'right_elbow': (29.041, 79.758),
-        'right_wrist': (-50.38, 15.287),
+        'right_shoulder': (39.193, -13.562, -1.709), 'right_elbow': (34.962, 79.758),
+        'right_wrist': (-51.045, 13.124),
     })
     human.KeyJoints(12.7, {
-        'right_shoulder': (40.942, -21.611, -12.738), 'right_elbow': (29.008, 62.557),
-        'right_wrist': (-50.404, 15.526),
+        'right_shoulder': (39.285, -15.256, -0.955), 'right_elbow': (34.978, 62.557),
+        'right_wrist': (-51.115, 13.354),
     })
     human.KeyJoints(12.8, {
-        'head': (14.946, 11.155), 'right_shoulder': (42.16, -24.211, -11.738),
-        'right_elbow': (30.412, 30.427), 'right_wrist': (-50.979, 16.186),
+        'right_shoulder': (39.846, -18.058, 0.276), 'right_elbow': (36.775, 30.427),
+        'right_wrist': (-51.876, 14.076),
     })
     human.KeyJoints(12.9, {
-        'right_shoulder': (43.476, -25.719, -11.209), 'right_elbow': (33.435, 0.621),
-        'right_wrist': (-52.45, 17.286),
+        'right_shoulder': (40.685, -19.749, 0.914), 'right_elbow': (40.194, 0.621),
+        'right_wrist': (-53.313, 15.241),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.0, {
-        'right_shoulder': (43.95, -25.951, -11.134), 'right_elbow': (34.693, -9.627),
-        'right_wrist': (-53.184, 17.781),
+        'right_shoulder': (40.975, -20.05, 0.995), 'right_elbow': (41.703, -9.627),
+        'right_wrist': (-54.025, 15.778),
     })
     human.KeyJoints(13.1, {
-        'right_shoulder': (43.14, -25.438, -11.299), 'right_elbow': (32.528, 8.259),
-        'right_wrist': (-51.968, 16.946),
+        'right_shoulder': (40.466, -19.425, 0.807), 'right_elbow': (39.165, 8.259),
+        'right_wrist': (-52.857, 14.884),
     })
     human.KeyJoints(13.2, {
-        'right_shoulder': (41.72, -23.478, -12.018), 'right_elbow': (29.768, 40.567),
-        'right_wrist': (-50.718, 15.939),
+        'right_shoulder': (39.637, -17.256, -0.064), 'right_elbow': (35.944, 40.567),
+        'right_wrist': (-51.53, 13.79),
     })
     human.KeyJoints(13.3, {
-        'right_shoulder': (40.762, -20.907, -13.003), 'right_elbow': (28.925, 70.044),
-        'right_wrist': (-50.347, 15.409),
+        'right_shoulder': (39.224, -14.524, -1.283), 'right_elbow': (34.89, 70.044),
+        'right_wrist': (-51.056, 13.244),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.4, {
-        'right_shoulder': (40.559, -20.015, -13.336), 'right_elbow': (29.035, 79.469),
-        'right_wrist': (-50.378, 15.29),
+        'right_shoulder': (39.193, -13.591, -1.697), 'right_elbow': (34.957, 79.469),
+        'right_wrist': (-51.045, 13.128),
     })
     human.KeyJoints(13.5, {
-        'right_shoulder': (40.997, -21.758, -12.681), 'right_elbow': (29.02, 60.912),
-        'right_wrist': (-50.406, 15.549),
+        'right_shoulder': (39.303, -15.414, -0.883), 'right_elbow': (35.014, 60.912),
+        'right_wrist': (-51.134, 13.38),
     })
     human.KeyJoints(13.6, {
-        'right_shoulder': (42.246, -24.344, -11.688), 'right_elbow': (30.567, 28.441),
-        'right_wrist': (-51.046, 16.242),
+        'right_shoulder': (39.885, -18.204, 0.335), 'right_elbow': (36.972, 28.441),
+        'right_wrist': (-51.959, 14.141),
     })
     human.KeyJoints(13.7, {
-        'right_shoulder': (43.533, -25.759, -11.196), 'right_elbow': (33.599, -0.691),
-        'right_wrist': (-52.542, 17.349),
+        'right_shoulder': (40.722, -19.796, 0.928), 'right_elbow': (40.379, -0.691),
+        'right_wrist': (-53.398, 15.307),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(13.8, {
-        'right_shoulder': (43.896, -25.963, -11.138), 'right_elbow': (34.722, -9.283),
-        'right_wrist': (-53.208, 17.793),
+        'right_shoulder': (40.965, -20.042, 0.993), 'right_elbow': (41.65, -9.283),
+        'right_wrist': (-53.999, 15.759),
     })
     human.KeyJoints(13.9, {
-        'right_shoulder': (43.066, -25.366, -11.323), 'right_elbow': (32.34, 9.929),
-        'right_wrist': (-51.873, 16.877),
+        'right_shoulder': (40.419, -19.344, 0.779), 'right_elbow': (38.952, 9.929),
+        'right_wrist': (-52.766, 14.812),
     })
     human.KeyJoints(14.0, {
-        'right_shoulder': (41.649, -23.321, -12.077), 'right_elbow': (29.647, 42.548),
-        'right_wrist': (-50.663, 15.891),
+        'right_shoulder': (39.595, -17.089, -0.136), 'right_elbow': (35.815, 42.548),
+        'right_wrist': (-51.478, 13.742),
     })
     human.KeyJoints(14.1, {
-        'right_shoulder': (40.731, -20.787, -13.049), 'right_elbow': (28.929, 71.321),
-        'right_wrist': (-50.347, 15.391),
+        'right_shoulder': (39.217, -14.399, -1.34), 'right_elbow': (34.888, 71.321),
+        'right_wrist': (-51.051, 13.227),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(14.2, {
-        'right_shoulder': (40.566, -20.052, -13.322), 'right_elbow': (29.027, 79.071),
-        'right_wrist': (-50.375, 15.295),
+        'right_shoulder': (39.194, -13.631, -1.68), 'right_elbow': (34.95, 79.071),
+        'right_wrist': (-51.044, 13.132),
     })
     human.KeyJoints(14.3, {
-        'right_shoulder': (41.055, -21.909, -12.622), 'right_elbow': (29.04, 59.218),
-        'right_wrist': (-50.411, 15.574),
+        'right_shoulder': (39.323, -15.576, -0.81), 'right_elbow': (35.057, 59.218),
+        'right_wrist': (-51.155, 13.408),
     })
     human.KeyJoints(14.4, {
-        'right_shoulder': (42.332, -24.472, -11.641), 'right_elbow': (30.728, 26.466),
-        'right_wrist': (-51.116, 16.299),
+        'right_shoulder': (39.967, -18.345, 0.396), 'right_elbow': (37.106, 26.466),
+        'right_wrist': (-51.999, 14.19),
     })
     human.KeyJoints(14.5, {
-        'right_shoulder': (43.586, -25.795, -11.185), 'right_elbow': (33.756, -1.932),
-        'right_wrist': (-52.631, 17.409),
+        'right_shoulder': (40.758, -19.839, 0.94), 'right_elbow': (40.557, -1.932),
+        'right_wrist': (-53.48, 15.369),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(14.6, {
-        'right_shoulder': (43.877, -25.955, -11.14), 'right_elbow': (34.661, -8.833),
-        'right_wrist': (-53.17, 17.768),
+        'right_shoulder': (40.953, -20.032, 0.991), 'right_elbow': (41.581, -8.833),
+        'right_wrist': (-53.966, 15.734),
     })
     human.KeyJoints(14.7, {
-        'right_shoulder': (42.99, -25.289, -11.349), 'right_elbow': (32.152, 11.646),
-        'right_wrist': (-51.779, 16.809),
+        'right_shoulder': (40.37, -19.256, 0.747), 'right_elbow': (38.738, 11.646),
     })
     human.KeyJoints(14.8, {
-        'right_shoulder': (41.578, -23.162, -12.137), 'right_elbow': (29.536, 44.516),
-        'right_wrist': (-50.614, 15.846),
+        'right_shoulder': (39.554, -16.921, -0.211), 'right_elbow': (35.698, 44.516),
+        'right_wrist': (-51.432, 13.698),
     })
     human.KeyJoints(14.9, {
-        'right_shoulder': (40.703, -20.674, -13.091), 'right_elbow': (28.937, 72.525),
-        'right_wrist': (-50.348, 15.375),
+        'right_shoulder': (39.211, -14.279, -1.393), 'right_elbow': (34.889, 72.525),
+        'right_wrist': (-51.046, 13.211),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(15.0, {
-        'right_shoulder': (40.576, -20.1, -13.304), 'right_elbow': (29.017, 78.57),
-        'right_wrist': (-50.372, 15.3),
+        'right_shoulder': (39.194, -13.68, -1.658), 'right_elbow': (34.942, 78.57),
+        'right_wrist': (-51.043, 13.138),
     })
     human.KeyJoints(15.1, {
-        'right_shoulder': (41.116, -22.063, -12.562), 'right_elbow': (29.069, 57.48),
-        'right_wrist': (-50.421, 15.601),
+        'right_shoulder': (39.344, -15.741, -0.736), 'right_elbow': (35.108, 57.48),
+        'right_wrist': (-51.179, 13.438),
     })
     human.KeyJoints(15.2, {
-        'right_shoulder': (42.418, -24.594, -11.596), 'right_elbow': (30.895, 24.506),
-        'right_wrist': (-51.19, 16.359),
+        'right_shoulder': (40.017, -18.481, 0.45), 'right_elbow': (37.299, 24.506),
+        'right_wrist': (-52.077, 14.254),
     })
     human.KeyJoints(15.3, {
-        'right_shoulder': (43.636, -25.827, -11.176), 'right_elbow': (33.905, -3.098),
-        'right_wrist': (-52.716, 17.467),
+        'right_shoulder': (40.791, -19.876, 0.951), 'right_elbow': (40.726, -3.098),
+        'right_wrist': (-53.558, 15.429),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > screw > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=15.367411, duration=0.072)
     human.KeyJoints(15.4, {
-        'right_shoulder': (43.966, -25.957, -11.132), 'right_elbow': (34.742, -10.0),
-        'right_wrist': (-53.215, 17.801),
+        'right_shoulder': (40.985, -20.058, 0.997), 'right_elbow': (41.76, -10.0),
+        'right_wrist': (-54.053, 15.799),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.375936)
+    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.388226)
     human.KeyJoints(15.5, {
-        'neck': (31.673, -23.155, 13.11), 'right_shoulder': (43.349, -25.125, -11.432),
-        'right_elbow': (33.369, -10.0), 'right_wrist': (-52.524, 17.283),
+        'neck': (30.986, -24.758, 10.35), 'head': (14.896, 11.058),
+        'right_shoulder': (40.668, -19.34, 0.724), 'right_elbow': (40.298, -10.0),
+        'right_wrist': (-53.413, 15.296),
     })
     human.KeyJoints(15.6, {
-        'head': (14.967, 11.192), 'right_shoulder': (42.33, -23.752, -11.927),
-        'right_elbow': (31.102, -10.0), 'right_wrist': (-51.384, 16.428),
+        'right_shoulder': (40.145, -18.157, 0.275), 'right_elbow': (37.885, -10.0),
+        'right_wrist': (-52.356, 14.465),
     })
     human.KeyJoints(15.7, {
-        'right_shoulder': (41.419, -22.524, -12.369), 'right_elbow': (29.076, -10.0),
-        'right_wrist': (-50.365, 15.664),
+        'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
+        'right_wrist': (-51.411, 13.723),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > inspect > hold: hold on root
-    human.KeyJoints(15.9, {'neck': (31.731, -23.243, 13.254)})
-    human.KeyJoints(17.1, {'head': (15.0, 11.25)})
+    human.KeyJoints(15.8, {'neck': (30.989, -25.025, 10.522)})
+    human.KeyJoints(15.9, {'head': (15.0, 11.25)})
     human.KeyJoints(18.7, {
-        'spine_lumbar': (54.52, -18.971, 5.425), 'spine_thoracic': (-12.72, 9.879, -11.469),
-        'neck': (31.731, -23.243, 13.254), 'head': (15.0, 11.25),
-        'right_clavicle': (-8.996, 14.294), 'right_shoulder': (41.419, -22.524, -12.369),
-        'right_elbow': (29.076, -10.0), 'right_wrist': (-50.365, 15.664),
-        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-40.997, 39.949, -75.438),
-        'left_elbow': (96.085, 31.159), 'left_wrist': (-68.019, 9.328),
+        'spine_lumbar': (54.717, -19.058, 6.16), 'spine_thoracic': (-12.652, 9.915, -9.144),
+        'neck': (30.989, -25.03, 10.525), 'head': (15.0, 11.25), 'right_clavicle': (-9.216, 14.273),
+        'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
+        'right_wrist': (-51.411, 13.723), 'left_clavicle': (-10.0, 15.0),
+        'left_shoulder': (-41.45, 39.188, -75.798), 'left_elbow': (95.45, 31.457),
+        'left_wrist': (-68.031, 8.981),
     })
     # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > stand: posture on root
     # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > stand: gaze on head
     human.KeyJoints(18.8, {
-        'spine_lumbar': (42.97, -14.863, 4.071), 'spine_thoracic': (-9.163, 7.423, -8.608),
-        'neck': (23.935, -17.533, 9.997), 'head': (11.315, 8.534),
-        'right_clavicle': (-6.752, 10.664), 'right_shoulder': (33.395, -14.929, -14.217),
-        'right_elbow': (29.91, -3.16), 'right_wrist': (-37.265, 11.498),
-        'left_clavicle': (-7.505, 11.191), 'left_shoulder': (-28.404, 31.863, -61.481),
-        'left_elbow': (80.503, 27.611), 'left_wrist': (-50.772, 7.003),
+        'spine_lumbar': (43.7, -15.312, 4.623), 'spine_thoracic': (-9.216, 7.442, -6.863),
+        'neck': (23.267, -18.793, 7.948), 'head': (11.263, 8.496),
+        'right_clavicle': (-6.917, 10.649), 'right_shoulder': (32.095, -10.932, -5.11),
+        'right_elbow': (34.938, -3.159), 'right_wrist': (-38.091, 10.078),
+        'left_clavicle': (-7.505, 11.191), 'left_shoulder': (-28.752, 31.293, -61.764),
+        'left_elbow': (80.055, 27.836), 'left_wrist': (-50.792, 6.746),
     })
     human.KeyJoints(18.9, {
-        'spine_lumbar': (21.101, -6.482, 1.46), 'spine_thoracic': (-2.372, 2.684, -3.087),
-        'neck': (8.959, -6.563, 3.742), 'head': (4.235, 3.218), 'right_clavicle': (-2.421, 3.792),
-        'right_shoulder': (17.565, -0.518, -17.896), 'right_elbow': (32.681, 9.965),
-        'right_wrist': (-13.269, 4.081), 'left_clavicle': (-2.691, 3.98),
-        'left_shoulder': (-4.624, 16.309, -34.823), 'left_elbow': (50.698, 20.887),
-        'left_wrist': (-18.063, 2.486),
+        'spine_lumbar': (22.84, -7.288, 1.658), 'spine_thoracic': (-2.49, 2.671, -2.461),
+        'neck': (8.525, -6.885, 2.935), 'head': (4.126, 3.137), 'right_clavicle': (-2.48, 3.787),
+        'right_shoulder': (17.108, 0.906, -14.674), 'right_elbow': (34.476, 9.964),
+        'right_wrist': (-13.548, 3.57), 'left_clavicle': (-2.691, 3.98),
+        'left_shoulder': (-4.759, 16.102, -34.921), 'left_elbow': (50.554, 20.967),
+        'left_wrist': (-18.073, 2.398),
     })
-    human.KeyRoot(19.0, (1.964, 44.799, 44.34), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.0, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.0, {
-        'spine_lumbar': (8.893, -0.021, 0.001), 'spine_thoracic': (1.585, 0.036, -0.002),
-        'neck': (-0.036, 0.026, -0.015), 'head': (-0.017, 0.023),
-        'right_clavicle': (-0.001, -0.044), 'right_shoulder': (8.668, 7.533, -19.96),
-        'right_elbow': (34.284, 17.273), 'right_wrist': (0.177, -0.064),
-        'left_clavicle': (-0.002, -0.046), 'left_shoulder': (8.777, 7.586, -19.884),
-        'left_elbow': (33.991, 17.146), 'left_wrist': (0.201, -0.049),
-        'right_hip': (22.438, 0.0, 0.0), 'right_knee': (124.422,), 'left_hip': (22.438, 0.0, 0.0),
-        'left_knee': (124.422,),
+        'spine_lumbar': (11.195, -0.055, 0.001), 'spine_thoracic': (1.923, 0.005, -0.001),
+        'neck': (-0.068, 0.055, 0.01), 'head': (-0.033, 0.011), 'right_clavicle': (-0.001, -0.044),
+        'right_shoulder': (8.675, 7.513, -20.021), 'right_elbow': (34.283, 17.273),
+        'right_wrist': (0.18, -0.058), 'left_clavicle': (-0.002, -0.046),
+        'left_shoulder': (8.766, 7.584, -19.883), 'left_elbow': (34.016, 17.145),
+        'left_wrist': (0.199, -0.044), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
+        'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
+        'left_toes': (86.654,),
     })
-    human.KeyRoot(19.1, (2.257, 44.092, 42.749), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.1, (2.993, 41.966, 38.754), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.1, {
-        'spine_lumbar': (6.365, 6.487, 0.0), 'spine_thoracic': (1.036, 1.445, 0.0),
-        'right_hip': (24.788, 0.0, 0.0), 'right_knee': (126.775,), 'left_hip': (24.788, 0.0, 0.0),
-        'left_knee': (126.775,),
+        'spine_lumbar': (11.241, 10.547, 0.0), 'spine_thoracic': (1.79, 2.125, 0.0),
+        'right_hip': (30.865, 0.0, 0.0), 'right_knee': (132.894,), 'left_hip': (30.865, 0.0, 0.0),
+        'left_knee': (132.894,),
     })
-    human.KeyRoot(19.2, (2.402, 43.711, 41.96), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.2, (2.991, 41.966, 38.752), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.2, {
-        'spine_lumbar': (-6.339, 19.969, 0.0), 'spine_thoracic': (-2.106, 6.013, 0.0),
-        'right_hip': (25.97, 0.0, 0.0), 'right_knee': (127.957,), 'left_hip': (25.97, 0.0, 0.0),
-        'left_knee': (127.957,),
+        'spine_lumbar': (-6.898, 20.0, 0.0), 'spine_thoracic': (-3.456, 10.0, 0.0),
+        'right_hip': (30.866, -0.002, -0.001), 'right_knee': (132.895,),
+        'right_ankle': (15.162, 0.004), 'left_hip': (30.866, 0.002, 0.001), 'left_knee': (132.895,),
+        'left_ankle': (15.162, -0.004), 'right_toes': (86.736,), 'left_toes': (86.736,),
     })
-    human.KeyRoot(19.3, (2.114, 44.439, 43.508), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.3, (2.37, 42.857, 40.233), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.3, {
-        'spine_lumbar': (-23.361, 20.0, 0.0), 'spine_thoracic': (-8.935, 10.0, 0.0),
-        'right_hip': (23.661, -0.003, -0.001), 'right_knee': (125.648,),
-        'left_hip': (23.661, 0.003, 0.001), 'left_knee': (125.648,), 'left_ankle': (15.003, -0.004),
+        'spine_lumbar': (-13.391, 20.0, 0.0), 'spine_thoracic': (-14.98, 10.0, 0.0),
+        'right_shoulder': (8.641, 7.527, -20.016), 'right_elbow': (34.278, 17.229),
+        'right_wrist': (0.088, -0.041), 'left_shoulder': (8.699, 7.526, -19.937),
+        'left_elbow': (34.2, 17.168), 'left_wrist': (0.099, -0.022),
+        'right_hip': (28.486, -0.424, -0.166), 'right_knee': (130.517,),
+        'right_ankle': (15.078, 0.289), 'left_hip': (27.853, -2.167, 2.214),
+        'left_knee': (131.581,), 'left_ankle': (17.246, 3.048), 'left_toes': (85.897,),
     })
-    human.KeyRoot(19.4, (1.881, 44.978, 44.772), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.4, (2.272, 43.234, 40.853), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.4, {
-        'spine_lumbar': (-28.663, 20.0, 0.0), 'spine_thoracic': (-14.988, 10.0, 0.0),
-        'neck': (-0.027, 0.02, -0.011), 'right_hip': (21.806, -0.004, -0.001),
-        'right_knee': (123.791,), 'left_hip': (21.246, -0.017, 0.02), 'left_knee': (125.596,),
-        'left_ankle': (17.388, 0.026), 'left_toes': (86.962,),
+        'spine_lumbar': (-16.67, 20.0, 0.0), 'spine_thoracic': (-14.922, 10.0, 0.0),
+        'right_shoulder': (8.438, 7.102, -19.894), 'right_elbow': (35.715, 17.213),
+        'right_wrist': (-0.001, 0.305), 'left_shoulder': (7.532, 7.447, -20.083),
+        'left_elbow': (36.621, 17.176), 'left_wrist': (-0.153, 0.511),
+        'right_hip': (27.513, -0.403, -0.152), 'right_knee': (129.508,),
+        'left_hip': (32.968, -5.009, 3.49), 'left_knee': (135.0,), 'left_ankle': (-1.226, 6.13),
+        'right_toes': (86.604,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(19.5, (2.448, 43.58, 41.696), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.5, (2.616, 42.503, 39.589), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.5, {
-        'spine_lumbar': (-18.092, 20.0, 0.0), 'right_hip': (26.366, -0.003, -0.001),
-        'right_knee': (128.35,), 'right_ankle': (15.002, 0.002),
-        'left_hip': (26.227, -20.941, -1.322), 'left_knee': (131.634,),
-        'left_ankle': (16.764, 4.839), 'right_toes': (86.982,), 'left_toes': (88.882,),
+        'spine_lumbar': (-12.243, 20.0, 0.0), 'spine_thoracic': (-14.101, 10.0, 0.0),
+        'right_shoulder': (8.099, 6.293, -19.659), 'right_elbow': (38.424, 17.197),
+        'right_wrist': (-0.136, 0.959), 'left_shoulder': (5.44, 7.36, -20.35),
+        'left_elbow': (40.95, 17.184), 'left_wrist': (-0.589, 1.481),
+        'right_hip': (29.502, -0.268, -0.11), 'right_knee': (131.502,),
+        'right_ankle': (15.106, 0.192), 'left_hip': (41.798, -18.556, 7.998),
+        'left_ankle': (-31.674, 18.652), 'right_toes': (86.725,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(19.6, (2.431, 42.849, 40.256), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.6, (2.141, 43.633, 41.688), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.6, {
-        'spine_lumbar': (-15.664, 20.0, 0.0), 'spine_thoracic': (-14.908, 10.0, 0.0),
-        'left_elbow': (34.377, 17.189), 'right_hip': (28.482, -0.359, -0.13),
-        'right_knee': (130.48,), 'right_ankle': (15.02, 0.243),
-        'left_hip': (47.903, -19.442, 9.601), 'left_knee': (135.0,), 'left_ankle': (-46.42, 9.954),
-        'left_toes': (74.385,),
+        'spine_lumbar': (-26.098, 20.0, 0.0), 'spine_thoracic': (-11.502, 10.0, 0.0),
+        'right_shoulder': (8.095, 6.08, -19.585), 'right_elbow': (39.099, 17.188),
+        'right_wrist': (-0.172, 1.125), 'left_shoulder': (4.887, 7.365, -20.436),
+        'left_elbow': (42.001, 17.188), 'left_wrist': (-0.709, 1.712),
+        'right_hip': (26.282, -0.378, -0.134), 'right_knee': (128.291,),
+        'left_hip': (58.604, -20.287, 29.244), 'left_knee': (135.0,),
+        'left_ankle': (-48.907, 8.399), 'left_toes': (70.117,),
     })
-    human.KeyRoot(19.7, (2.696, 41.474, 37.913), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.7, (2.518, 42.736, 40.04), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.7, {
-        'spine_lumbar': (-17.259, 20.0, 0.0), 'right_wrist': (0.0, 0.0),
-        'left_shoulder': (8.594, 7.5, -20.0), 'left_wrist': (0.0, 0.0),
-        'right_hip': (32.104, -0.564, -0.25), 'right_knee': (134.118,),
-        'right_ankle': (15.041, 0.384), 'left_hip': (81.032, -10.365, 34.313),
-        'left_knee': (135.0,), 'left_ankle': (-46.552, 12.264), 'right_toes': (86.776,),
-        'left_toes': (47.087,),
+        'spine_lumbar': (-22.953, 20.0, 0.0), 'spine_thoracic': (-14.889, 10.0, 0.0),
+        'right_elbow': (36.684, 17.189), 'right_hip': (28.817, -0.287, -0.114),
+        'right_knee': (130.835,), 'left_hip': (87.066, -23.273, 26.673), 'left_knee': (134.85,),
+        'left_ankle': (-45.238, 14.118), 'left_toes': (55.282,),
     })
-    human.KeyRoot(19.8, (3.208, 41.195, 37.565), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.8, (2.983, 41.281, 37.651), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-15.726, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_hip': (32.797, -0.004, -0.002), 'right_knee': (134.782,),
-        'right_ankle': (15.002, 0.002), 'left_hip': (103.584, -24.868, 15.517),
-        'left_knee': (133.985,), 'left_ankle': (-11.436, 18.778), 'right_toes': (86.983,),
-        'left_toes': (28.669,),
+        'spine_lumbar': (-16.365, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
+        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
+        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
+        'right_hip': (32.589, -0.259, -0.12), 'right_knee': (134.614,),
+        'left_hip': (107.043, -23.666, 20.819), 'left_knee': (133.257,),
+        'left_ankle': (-40.684, 19.283), 'left_toes': (43.214,),
     })
+    human.KeyRoot(19.9, (3.017, 41.34, 37.73), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.9, {
-        'left_hip': (104.606, -22.918, 1.77), 'left_knee': (132.689,),
-        'left_ankle': (15.448, 13.67), 'left_toes': (20.341,),
+        'spine_lumbar': (-15.41, 20.0, 0.0), 'right_hip': (32.466, -0.198, -0.092),
+        'right_knee': (134.476,), 'left_hip': (119.764, -25.0, 10.638), 'left_knee': (134.997,),
+        'left_ankle': (-30.516, 21.77), 'left_toes': (34.363,),
     })
-    human.KeyRoot(20.0, (3.231, 41.113, 37.44), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.0, (2.582, 42.702, 40.007), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.0, {
-        'spine_lumbar': (-16.256, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_elbow': (34.377, 17.189), 'right_hip': (32.998, -0.005, -0.002),
-        'right_knee': (134.983,), 'left_hip': (94.24, -0.04, 0.044), 'left_knee': (127.041,),
-        'left_ankle': (19.996, 0.068), 'left_toes': (12.781,),
+        'spine_lumbar': (-25.197, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (28.888, -0.217, -0.087), 'right_knee': (130.908,),
+        'right_ankle': (15.05, 0.155), 'left_hip': (106.01, -25.0, 14.333), 'left_knee': (132.939,),
+        'left_ankle': (-18.119, 29.406), 'right_toes': (86.834,), 'left_toes': (40.267,),
     })
-    human.KeyRoot(20.1, (3.103, 41.574, 38.154), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.1, (2.269, 43.004, 40.525), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.1, {
-        'spine_lumbar': (-8.353, 13.078, 0.0), 'spine_thoracic': (-1.771, 2.342, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'right_hip': (31.855, 0.0, 0.0),
-        'right_knee': (133.842,), 'right_ankle': (15.003, 0.0), 'left_hip': (93.358, 0.0, 0.0),
-        'left_knee': (127.157,), 'right_toes': (86.984,), 'left_toes': (13.799,),
+        'spine_lumbar': (-29.5, 20.0, 0.0), 'spine_thoracic': (-8.639, 10.0, 0.0),
+        'right_hip': (28.034, -0.485, -0.185), 'right_knee': (130.084,),
+        'right_ankle': (15.055, 0.314), 'left_hip': (99.615, -12.599, 8.426),
+        'left_knee': (127.337,), 'left_ankle': (-16.144, 16.163), 'right_toes': (86.696,),
+        'left_toes': (42.178,),
     })
-    human.KeyRoot(20.2, (3.499, 41.868, 36.044), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.2, (3.103, 41.488, 38.006), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.2, {
-        'spine_lumbar': (6.335, 0.029, 0.0), 'spine_thoracic': (0.971, 0.004, 0.0),
-        'right_hip': (34.099, -0.01, 0.019), 'right_knee': (134.902,),
-        'right_ankle': (17.572, 0.021), 'left_hip': (93.658, 0.004, -0.014),
-        'left_knee': (124.666,), 'left_ankle': (20.0, -0.015), 'right_toes': (83.232,),
-        'left_toes': (11.009,),
+        'spine_lumbar': (-5.713, 7.385, 0.0), 'spine_thoracic': (-3.594, 3.031, 0.0),
+        'right_hip': (32.073, -0.033, -0.015), 'right_knee': (134.078,),
+        'right_ankle': (15.046, 0.026), 'left_hip': (96.457, -0.145, 0.178),
+        'left_knee': (127.684,), 'left_ankle': (10.8, 0.335), 'right_toes': (86.914,),
+        'left_toes': (20.363,),
     })
-    human.KeyRoot(20.3, (4.749, 44.321, 30.225), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.3, (3.209, 41.267, 37.579), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.3, {
-        'spine_lumbar': (25.174, 0.659, 0.0), 'spine_thoracic': (3.57, 0.11, 0.0),
-        'right_hip': (41.201, -0.214, 0.461), 'right_knee': (134.95,),
-        'right_ankle': (19.999, 0.508), 'left_hip': (92.536, 0.048, -0.313),
-        'left_knee': (115.482,), 'left_ankle': (16.775, -0.317), 'right_toes': (73.749,),
-        'left_toes': (6.171,),
+        'spine_lumbar': (0.941, 0.0, 0.0), 'spine_thoracic': (0.143, 0.0, 0.0),
+        'right_hip': (32.658, 0.0, 0.0), 'right_knee': (134.703,), 'right_ankle': (15.376, 0.0),
+        'left_hip': (93.997, 0.0, 0.0), 'left_knee': (126.997,), 'left_ankle': (20.0, 0.0),
+        'right_toes': (86.539,), 'left_toes': (12.977,),
     })
-    human.KeyRoot(20.4, (5.857, 55.104, 26.168), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.4, (3.978, 45.913, 33.6), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.4, {
-        'spine_lumbar': (39.302, 1.746, 0.0), 'spine_thoracic': (5.428, 0.288, 0.0),
-        'right_hip': (40.951, -0.18, 0.977), 'right_knee': (120.184,),
-        'right_ankle': (19.749, 0.994), 'left_hip': (78.578, -0.119, -0.636),
-        'left_knee': (95.188,), 'left_ankle': (15.774, -0.647), 'right_toes': (59.483,),
-        'left_toes': (0.837,),
+        'spine_lumbar': (11.865, 0.122, 0.0), 'spine_thoracic': (1.976, 0.022, 0.0),
+        'right_hip': (35.75, -0.031, 0.081), 'right_knee': (130.764,), 'right_ankle': (20.0, 0.087),
+        'left_hip': (88.888, 0.007, -0.06), 'left_knee': (116.813,), 'left_ankle': (20.0, -0.06),
+        'right_toes': (74.913,), 'left_toes': (7.921,),
     })
-    human.KeyRoot(20.5, (6.562, 77.604, 42.005), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.5, (5.082, 63.964, 33.244), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.5, {
-        'spine_lumbar': (-5.32, 12.493, 0.0), 'spine_thoracic': (-1.229, 2.235, 0.0),
-        'right_hip': (3.514, 2.452, 2.275), 'right_knee': (62.825,), 'right_ankle': (20.0, 3.344),
-        'left_hip': (42.101, -2.458, -2.242), 'left_knee': (61.811,),
-        'left_ankle': (19.461, -3.326), 'right_toes': (39.36,), 'left_toes': (0.297,),
+        'spine_lumbar': (14.316, 3.17, 0.0), 'spine_thoracic': (2.369, 0.568, 0.0),
+        'right_hip': (26.588, 0.198, 1.33), 'right_knee': (101.578,), 'right_ankle': (20.0, 1.346),
+        'left_hip': (64.703, -0.43, -0.998), 'left_knee': (86.717,), 'left_ankle': (20.0, -1.087),
+        'right_toes': (54.948,), 'left_toes': (2.049,),
     })
-    human.KeyRoot(20.6, (7.87, 82.879, 42.413), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.6, (6.331, 75.581, 40.058), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.6, {
-        'spine_lumbar': (-4.236, 16.578, 0.0), 'spine_thoracic': (-1.102, 2.97, 0.0),
-        'right_hip': (-7.94, 3.731, 1.258), 'right_knee': (38.603,), 'right_ankle': (20.0, 3.937),
-        'left_hip': (33.445, -3.432, -2.265), 'left_knee': (45.956,),
-        'left_ankle': (12.579, -4.111), 'right_toes': (26.584,), 'left_toes': (0.0,),
+        'spine_lumbar': (-1.71, 9.848, 0.0), 'spine_thoracic': (-0.436, 1.776, 0.0),
+        'right_hip': (8.501, 1.931, 2.38), 'right_knee': (70.951,), 'right_ankle': (20.0, 3.067),
+        'left_hip': (45.804, -2.047, -2.104), 'left_knee': (65.778,),
+        'left_ankle': (19.999, -2.935), 'right_toes': (42.45,), 'left_toes': (0.022,),
     })
-    human.KeyRoot(20.7, (7.686, 84.22, 41.797), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.7, (8.579, 83.689, 38.102), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.7, {
-        'spine_lumbar': (-1.807, 15.654, 0.0), 'spine_thoracic': (-0.916, 2.812, 0.0),
-        'right_hip': (-13.245, 3.61, 0.451), 'right_knee': (27.111,), 'right_ankle': (20.0, 3.638),
-        'left_hip': (31.143, -3.275, -1.977), 'left_knee': (40.788,), 'left_ankle': (9.701, -3.824),
-        'right_toes': (20.37,),
+        'spine_lumbar': (8.531, 14.895, 0.0), 'spine_thoracic': (1.134, 2.665, 0.0),
+        'right_hip': (-3.264, 3.635, 1.473), 'right_knee': (42.03,), 'right_ankle': (20.0, 3.923),
+        'left_hip': (33.319, -3.35, -2.2), 'left_knee': (39.56,), 'left_ankle': (6.305, -4.007),
+        'right_toes': (25.311,),
     })
-    human.KeyRoot(20.8, (10.329, 83.31, 44.372), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.8, (9.596, 85.871, 36.289), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.8, {
-        'spine_lumbar': (30.551, 11.326, 0.0), 'spine_thoracic': (2.49, 2.027, 0.0),
-        'right_hip': (-14.784, 5.758, 0.708), 'right_knee': (26.903,),
-        'right_ankle': (19.914, 5.801), 'left_hip': (31.671, -5.241, -3.225),
-        'left_knee': (44.539,), 'left_ankle': (13.015, -6.152), 'right_toes': (21.809,),
+        'spine_lumbar': (22.264, 16.653, 0.0), 'spine_thoracic': (-5.011, 3.145, 0.0),
+        'right_hip': (-7.038, 4.168, 0.967), 'right_knee': (31.28,), 'right_ankle': (18.237, 4.279),
+        'left_hip': (28.147, -3.865, -2.065), 'left_knee': (26.977,), 'left_ankle': (-1.1, -4.381),
+        'right_toes': (20.073,),
     })
-    human.KeyRoot(20.9, (10.769, 87.897, 51.521), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.9, (10.037, 86.114, 51.031), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.9, {
-        'spine_lumbar': (60.0, -2.236, 0.0), 'spine_thoracic': (6.323, -0.367, 0.0),
-        'right_hip': (-14.506, 5.998, 5.223), 'right_knee': (24.607,),
-        'right_ankle': (-16.311, 7.943), 'left_hip': (17.978, -6.674, -2.16),
-        'left_knee': (27.514,), 'left_ankle': (9.663, -7.014), 'right_toes': (55.883,),
+        'spine_lumbar': (51.349, -1.637, 0.0), 'spine_thoracic': (4.065, -0.211, 0.0),
+        'right_hip': (-14.983, 5.693, 3.814), 'right_knee': (27.257,),
+        'right_ankle': (-6.474, 6.843), 'left_hip': (22.775, -6.084, -2.548),
+        'left_knee': (36.605,), 'left_ankle': (13.97, -6.596), 'right_toes': (48.816,),
     })
-    human.KeyRoot(21.0, (9.735, 90.144, 55.39), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.0, (10.141, 89.342, 53.738), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.0, {
-        'spine_lumbar': (49.126, -3.466, 0.0), 'spine_thoracic': (7.176, -0.68, 0.0),
-        'right_hip': (-13.365, 5.933, 4.154), 'right_knee': (30.098,),
-        'right_ankle': (-4.829, 7.111), 'left_hip': (7.302, -6.558, -0.838), 'left_knee': (11.627,),
-        'left_ankle': (4.372, -6.611), 'right_toes': (12.091,),
+        'spine_lumbar': (47.257, -2.876, 0.0), 'spine_thoracic': (7.719, -0.426, 0.0),
+        'right_hip': (-14.94, 5.685, 5.666), 'right_knee': (27.039,),
+        'right_ankle': (-17.806, 7.986), 'left_hip': (12.165, -6.594, -1.418),
+        'left_knee': (19.083,), 'left_ankle': (7.0, -6.745), 'right_toes': (59.998,),
     })
-    human.KeyRoot(21.1, (7.398, 90.146, 65.569), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.1, (9.286, 90.232, 62.858), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.1, {
-        'spine_lumbar': (11.678, -5.381, 0.0), 'spine_thoracic': (1.965, -0.969, 0.0),
-        'right_hip': (-8.256, 6.054, 2.344), 'right_knee': (35.792,),
-        'right_ankle': (14.718, 6.508), 'left_hip': (-2.591, -6.296, 0.284), 'left_knee': (6.088,),
-        'left_ankle': (8.663, -6.302), 'right_toes': (4.89,),
+        'spine_lumbar': (17.404, -1.006, 0.0), 'spine_thoracic': (5.423, -0.176, 0.0),
+        'right_hip': (-14.945, 6.496, 4.367), 'right_knee': (28.863,),
+        'right_ankle': (-5.779, 7.316), 'left_hip': (-0.469, -7.222, 0.059), 'left_knee': (6.199,),
+        'left_ankle': (6.665, -7.223), 'right_toes': (48.343,),
     })
-    human.KeyRoot(21.2, (6.231, 90.415, 64.464), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.2, (8.445, 89.814, 67.717), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.2, {
-        'spine_lumbar': (8.744, -9.484, 0.0), 'spine_thoracic': (1.412, -1.704, 0.0),
-        'right_hip': (7.2, 5.28, 1.366), 'right_knee': (33.785,), 'right_ankle': (19.344, 5.461),
-        'left_hip': (-2.695, -5.361, 0.252), 'left_knee': (4.636,), 'left_ankle': (7.319, -5.367),
-        'right_toes': (6.318,),
+        'spine_lumbar': (2.684, -1.08, 0.0), 'spine_thoracic': (0.477, -0.196, 0.0),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
+        'right_ankle': (17.106, 7.667), 'left_hip': (-4.403, -7.274, 0.559), 'left_knee': (5.109,),
+        'left_ankle': (9.477, -7.295), 'right_toes': (22.805,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(21.3, (3.981, 90.676, 61.13), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.3, (7.433, 90.141, 66.587), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.3, {
-        'spine_lumbar': (16.037, -15.511, 0.0), 'spine_thoracic': (2.532, -2.768, 0.0),
-        'right_hip': (1.086, 3.434, 0.065), 'right_knee': (8.345,), 'right_ankle': (7.261, 3.434),
-        'left_hip': (1.086, -3.434, -0.065), 'left_knee': (8.345,), 'left_ankle': (7.261, -3.434),
-        'right_toes': (0.0,),
+        'spine_lumbar': (2.848, -4.453, 0.0), 'spine_thoracic': (0.454, -0.803, 0.0),
+        'right_hip': (3.235, 6.573, 0.606), 'right_ankle': (17.293, 6.863),
+        'left_hip': (-3.955, -6.431, 0.44), 'left_knee': (4.662,), 'left_ankle': (8.382, -6.387),
+        'right_toes': (2.302,), 'left_toes': (0.151,),
     })
-    human.KeyRoot(21.4, (0.675, 91.072, 56.082), (-10.437, 0.0, 0.0))
+    human.KeyRoot(21.4, (2.022, 90.983, 58.188), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.4, {
-        'spine_lumbar': (5.571, -5.531, 0.0), 'spine_thoracic': (0.962, -1.003, 0.0),
-        'right_hip': (2.546, 0.585, 0.026), 'right_knee': (5.242,), 'right_ankle': (2.696, 0.586),
-        'left_hip': (2.546, -0.585, -0.026), 'left_knee': (5.242,), 'left_ankle': (2.696, -0.586),
+        'spine_lumbar': (8.853, -8.877, 0.0), 'spine_thoracic': (1.456, -1.599, 0.0),
+        'right_hip': (1.912, 1.748, 0.058), 'right_knee': (6.491,), 'right_ankle': (4.58, 1.749),
+        'left_hip': (1.912, -1.748, -0.058), 'left_knee': (6.491,), 'left_ankle': (4.58, -1.749),
+        'right_toes': (0.0,), 'left_toes': (0.0,),
     })
     human.KeyRoot(21.463411, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
     human.KeyJoints(21.463411, {

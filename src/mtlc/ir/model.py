@@ -152,16 +152,17 @@ class MotionIR:
     manikin: dict[str, Any]  # population, sex, percentile
     ground: float
     sites: list[dict[str, Any]]  # name, position, normal, frame
-    # the scene's models and solids as the IR JSON gives them (SceneModel.record); present in
-    # the JSON only when there are some, so scenes without geometry keep their bytes
-    models: list[dict[str, Any]] = field(default_factory=list)
-    # the same, placed, with their meshes (mtlc.geometry.model.SceneModel): for passes, not JSON
-    geometry: list[Any] = field(default_factory=list)
     segments: list[Segment] = field(default_factory=list)
     skeleton: Any = None  # mtlc.body.Skeleton, set by the manikin pass
     root_plan: RootPlan | None = None
     frames: Frames | None = None  # dense frames, set by interpolation, refined by later passes
     verification: Verification | None = None  # set by the verify pass, on the output frames
+    # (last: the fields before keep their positions)
+    # the scene's models and solids as the IR JSON gives them (SceneModel.record); present in
+    # the JSON only when there are some, so scenes without geometry keep their bytes
+    models: list[dict[str, Any]] = field(default_factory=list)
+    # the same, placed, with their meshes (mtlc.geometry.model.SceneModel): for passes, not JSON
+    geometry: list[Any] = field(default_factory=list)
 
     def on_track(self, track: str) -> list[Segment]:
         return [s for s in self.segments if s.track == track]

@@ -62,3 +62,21 @@ def test_kneel_stand_kneel_has_no_leg_or_trunk_jump(sex: str, pct: int) -> None:
         what = (seg.goal.params.get("posture"), round(seg.start, 2))
         assert steps[np.ix_(inside, legs)].max() <= STEP_LIMIT, what
         assert steps[np.ix_(inside, trunk)].max() <= TRUNK_LIMIT, what
+
+
+def test_the_arms_come_down_from_the_reach_at_a_persons_pace_when_standing() -> None:
+    """The fuel filter's stand from its kneel starts with the right arm up at the bowl (106 deg
+    of shoulder flexion on female P5); over STAND_SETTLE's 0.3 s alone it came down 16-22 deg
+    in one frame (issue 19). Now the arms take the rise's first part (SETTLE_PACE)."""
+    path = Path(__file__).resolve().parents[2] / "examples" / "replace_fuel_filter.mtask"
+    spec = ManikinSpec("gb10000_1988", "female", 5)
+    program = run_frontend([path], FrontendOptions(manikin=spec))
+    ir = run_motion(program.timelines[0], program.sink)
+    skel, frames = ir.skeleton, ir.frames
+    stand = next(s for s in ir.segments if s.goal.params.get("posture") == "stand")
+    arms = [d for d, n in enumerate(skel.dof_names) if n[2:] in ("shoulder_flex", "shoulder_abd",
+                                                                    "shoulder_rot", "elbow_flex")]  # fmt: skip
+    rows = (frames.time >= stand.start - 1e-9) & (frames.time <= stand.start + 1.0)
+    q = frames.q[rows][:, arms]
+    assert np.degrees(np.abs(q[0] - q[-1]).max()) > 60.0  # the arm does come down that far
+    assert np.degrees(np.abs(np.diff(q, axis=0)).max()) <= 12.0

@@ -346,6 +346,7 @@ def transition(
 
 KNEEL_PLANS = "passes.posture.kneel_plans"  # ctx.cache: id(kneel segment) -> KneelPlan
 STAND_SETTLE = 0.3  # s: a stand from a kneel first brings trunk and arms to the kneel's pose
+SETTLE_PACE = math.radians(200.0)  # rad/s: their mean speed at most (peaks 1.5x: 10 deg a frame)
 ARM_DOFS = tuple(
     f"{s}_{d}"
     for s in ("r", "l")
@@ -704,8 +705,25 @@ def _stand_from_kneel(
     kf.time = np.concatenate([[seg.start], kf.time])
     kf.dofs = (*kf.dofs, *settled)
     kf.root_position = np.concatenate([kf.root_position[:1], kf.root_position])
+    seg.result["arms_settled"] = [float(v) for v in arms]  # what the restater ramps to, each time
     state.add(seg)
-    mark(ctx.cache, seg)  # its first keyframe holds the pose the reaches left
+    mark(ctx.cache, seg, "stand_from_kneel")  # its first keyframe: the pose the reaches left
+
+
+def restate_stand_from_kneel(seg: Segment, state: PoseState) -> None:
+    """A stand from a kneel starts from the pose the reaches left (its first keyframe), and its
+    arms and trunk turn come back from there at a person's pace: over ``STAND_SETTLE``, or
+    over the rise's first part when that is too short for them (``SETTLE_PACE``). Brought up
+    100 deg in 0.3 s, a shoulder stepped 16-22 deg in one frame (issue 19)."""
+    kf = seg.keyframes
+    assert kf is not None
+    _start_from(seg, state, state.q_at(seg.start, skip=seg))
+    cols = [kf.dofs.index(n) for n in (*ARM_DOFS, *TRUNK_TURN)]
+    start, target = kf.q[0, cols].copy(), np.asarray(seg.result["arms_settled"], dtype=float)
+    need = float(np.abs(target - start).max()) / SETTLE_PACE
+    span = min(max(STAND_SETTLE, need), seg.end - seg.start)
+    share = smoothstep(np.clip((kf.time - seg.start) / span, 0.0, 1.0))
+    kf.q[:, cols] = start[None] + share[:, None] * (target - start)[None]
 
 
 def wide_stand_arms(ir: MotionIR, seg: Segment, free: tuple[str, ...]) -> tuple[str, ...]:
@@ -1050,6 +1068,7 @@ RESTATERS = {
     "kneel_arms": restate_kneel_arms,
     "kneel_on": restate_kneel_on,
     "stand_arms": restate_stand_arms,
+    "stand_from_kneel": restate_stand_from_kneel,
     "wide_stand": restate_wide_stand,
 }
 

@@ -836,35 +836,39 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: gaze on head
     human.KeyJoints(18.8, {
-        'spine_lumbar': (43.7, -15.312, 4.623), 'spine_thoracic': (-9.216, 7.442, -6.863),
+        'spine_lumbar': (43.7, -15.312, 4.931), 'spine_thoracic': (-9.216, 7.442, -7.32),
         'neck': (23.267, -18.793, 7.948), 'head': (11.263, 8.496),
-        'right_clavicle': (-6.917, 10.649), 'right_shoulder': (32.095, -10.932, -5.11),
-        'right_elbow': (34.938, -3.159), 'right_wrist': (-38.091, 10.078),
-        'left_clavicle': (-7.505, 11.191), 'left_shoulder': (-28.752, 31.293, -61.764),
-        'left_elbow': (80.055, 27.836), 'left_wrist': (-50.792, 6.746),
+        'right_clavicle': (-7.378, 11.426), 'right_shoulder': (33.617, -12.127, -4.125),
+        'right_elbow': (35.037, -4.545), 'right_wrist': (-40.73, 10.834),
+        'left_clavicle': (-8.005, 11.955), 'left_shoulder': (-31.283, 32.882, -64.542),
+        'left_elbow': (83.101, 28.61), 'left_wrist': (-54.226, 7.188),
     })
     human.KeyJoints(18.9, {
-        'spine_lumbar': (22.84, -7.288, 1.658), 'spine_thoracic': (-2.49, 2.671, -2.461),
-        'neck': (8.525, -6.885, 2.935), 'head': (4.126, 3.137), 'right_clavicle': (-2.48, 3.787),
-        'right_shoulder': (17.108, 0.906, -14.674), 'right_elbow': (34.476, 9.964),
-        'right_wrist': (-13.548, 3.57), 'left_clavicle': (-2.691, 3.98),
-        'left_shoulder': (-4.759, 16.102, -34.921), 'left_elbow': (50.554, 20.967),
-        'left_wrist': (-18.073, 2.398),
+        'spine_lumbar': (22.84, -7.288, 2.346), 'spine_thoracic': (-2.49, 2.671, -3.482),
+        'neck': (8.525, -6.885, 2.935), 'head': (4.126, 3.137), 'right_clavicle': (-3.51, 5.435),
+        'right_shoulder': (20.545, -1.816, -12.46), 'right_elbow': (34.626, 6.899),
+        'right_wrist': (-19.323, 5.147), 'left_clavicle': (-3.808, 5.667),
+        'left_shoulder': (-10.355, 19.619, -41.18), 'left_elbow': (57.412, 22.613),
+        'left_wrist': (-25.711, 3.4),
     })
     human.KeyRoot(19.0, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.0, {
-        'spine_lumbar': (11.195, -0.055, 0.001), 'spine_thoracic': (1.923, 0.005, -0.001),
-        'neck': (-0.068, 0.055, 0.01), 'head': (-0.033, 0.011), 'right_clavicle': (-0.001, -0.044),
-        'right_shoulder': (8.675, 7.513, -20.021), 'right_elbow': (34.283, 17.273),
-        'right_wrist': (0.18, -0.058), 'left_clavicle': (-0.002, -0.046),
-        'left_shoulder': (8.766, 7.584, -19.883), 'left_elbow': (34.016, 17.145),
-        'left_wrist': (0.199, -0.044), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
+        'spine_lumbar': (11.195, -0.055, 0.263), 'spine_thoracic': (1.923, 0.005, -0.391),
+        'neck': (-0.068, 0.055, 0.01), 'head': (-0.033, 0.011), 'right_clavicle': (-0.394, 0.61),
+        'right_shoulder': (9.965, 6.48, -19.177), 'right_elbow': (34.347, 16.095),
+        'right_wrist': (-2.049, 0.569), 'left_clavicle': (-0.428, 0.603),
+        'left_shoulder': (6.609, 8.924, -22.29), 'left_elbow': (36.66, 17.797),
+        'left_wrist': (-2.734, 0.34), 'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,),
         'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
         'left_toes': (86.654,),
     })
     human.KeyRoot(19.1, (2.993, 41.966, 38.754), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.1, {
         'spine_lumbar': (11.241, 10.547, 0.0), 'spine_thoracic': (1.79, 2.125, 0.0),
+        'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.602, 7.531, -20.027),
+        'right_elbow': (34.336, 17.246), 'right_wrist': (0.116, -0.007),
+        'left_clavicle': (0.0, -0.031), 'left_shoulder': (8.761, 7.55, -19.913),
+        'left_elbow': (34.061, 17.189), 'left_wrist': (0.143, -0.046),
         'right_hip': (30.865, 0.0, 0.0), 'right_knee': (132.894,), 'left_hip': (30.865, 0.0, 0.0),
         'left_knee': (132.894,),
     })
@@ -878,9 +882,9 @@ def replace_fuel_filter():
     human.KeyRoot(19.3, (2.37, 42.857, 40.233), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.3, {
         'spine_lumbar': (-13.391, 20.0, 0.0), 'spine_thoracic': (-14.98, 10.0, 0.0),
-        'right_shoulder': (8.641, 7.527, -20.016), 'right_elbow': (34.278, 17.229),
-        'right_wrist': (0.088, -0.041), 'left_shoulder': (8.699, 7.526, -19.937),
-        'left_elbow': (34.2, 17.168), 'left_wrist': (0.099, -0.022),
+        'right_shoulder': (8.622, 7.533, -20.017), 'right_elbow': (34.289, 17.22),
+        'right_wrist': (0.068, -0.019), 'left_shoulder': (8.696, 7.521, -19.948),
+        'left_elbow': (34.204, 17.189), 'left_wrist': (0.081, -0.024),
         'right_hip': (28.486, -0.424, -0.166), 'right_knee': (130.517,),
         'right_ankle': (15.078, 0.289), 'left_hip': (27.853, -2.167, 2.214),
         'left_knee': (131.581,), 'left_ankle': (17.246, 3.048), 'left_toes': (85.897,),
@@ -888,9 +892,9 @@ def replace_fuel_filter():
     human.KeyRoot(19.4, (2.272, 43.234, 40.853), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.4, {
         'spine_lumbar': (-16.67, 20.0, 0.0), 'spine_thoracic': (-14.922, 10.0, 0.0),
-        'right_shoulder': (8.438, 7.102, -19.894), 'right_elbow': (35.715, 17.213),
-        'right_wrist': (-0.001, 0.305), 'left_shoulder': (7.532, 7.447, -20.083),
-        'left_elbow': (36.621, 17.176), 'left_wrist': (-0.153, 0.511),
+        'right_shoulder': (8.389, 7.104, -19.899), 'right_elbow': (35.772, 17.208),
+        'right_wrist': (-0.017, 0.33), 'left_shoulder': (7.531, 7.444, -20.09),
+        'left_elbow': (36.623, 17.189), 'left_wrist': (-0.164, 0.51),
         'right_hip': (27.513, -0.403, -0.152), 'right_knee': (129.508,),
         'left_hip': (32.968, -5.009, 3.49), 'left_knee': (135.0,), 'left_ankle': (-1.226, 6.13),
         'right_toes': (86.604,), 'left_toes': (90.0,),
@@ -898,9 +902,9 @@ def replace_fuel_filter():
     human.KeyRoot(19.5, (2.616, 42.503, 39.589), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.5, {
         'spine_lumbar': (-12.243, 20.0, 0.0), 'spine_thoracic': (-14.101, 10.0, 0.0),
-        'right_shoulder': (8.099, 6.293, -19.659), 'right_elbow': (38.424, 17.197),
-        'right_wrist': (-0.136, 0.959), 'left_shoulder': (5.44, 7.36, -20.35),
-        'left_elbow': (40.95, 17.184), 'left_wrist': (-0.589, 1.481),
+        'right_shoulder': (8.101, 6.291, -19.657), 'right_elbow': (38.424, 17.195),
+        'right_wrist': (-0.139, 0.963), 'left_shoulder': (5.436, 7.362, -20.353),
+        'left_elbow': (40.954, 17.189), 'left_wrist': (-0.594, 1.481),
         'right_hip': (29.502, -0.268, -0.11), 'right_knee': (131.502,),
         'right_ankle': (15.106, 0.192), 'left_hip': (41.798, -18.556, 7.998),
         'left_ankle': (-31.674, 18.652), 'right_toes': (86.725,), 'left_toes': (90.0,),

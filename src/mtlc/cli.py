@@ -82,9 +82,6 @@ def _budget(text: str) -> int:
     return value
 
 
-COMMANDS = ("check", "compile", "explain", "lint", "report", "fmt", "preview", "serve")
-
-
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The command line; with ``only`` (a command's name), the same with no other command: its
     arguments, help and errors are the same, and it imports only what that command's own
@@ -204,9 +201,8 @@ def _only(words: list[str]) -> str | None:
     """Which command's parser alone parses ``words`` the same as the whole command line."""
     if words[:1] == ["--version"]:
         return ""
-    if words[:1] and words[0] in COMMANDS:
-        return "preview" if words[0] == "serve" else words[0]
-    return None
+    command = "preview" if words[:1] == ["serve"] else (words[0] if words else "")
+    return command if command in dict(_SUBPARSERS) else None
 
 
 def main(argv: Sequence[str] | None = None) -> int:

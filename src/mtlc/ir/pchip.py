@@ -39,7 +39,10 @@ def _knots(x: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray]:
 
 def pchip_slopes(x: ArrayLike, y: ArrayLike) -> FloatArray:
     """The PCHIP slope at each knot, for ``y`` of shape (n, ...) over increasing ``x`` (n,)."""
-    x, y = _knots(x, y)
+    return _slopes(*_knots(x, y))
+
+
+def _slopes(x: FloatArray, y: FloatArray) -> FloatArray:
     shape = y.shape
     y2 = y.reshape(len(y), -1)
     h = np.diff(x)[:, None]
@@ -95,7 +98,10 @@ class Hermite:
 def hermite(x: ArrayLike, y: ArrayLike, dydx: ArrayLike, extrapolate: bool = True) -> Hermite:
     """The cubic Hermite curve through ``y`` (n, ...) at increasing ``x`` with slopes ``dydx``
     (scipy's ``CubicHermiteSpline`` with ``axis=0``)."""
-    x, y = _knots(x, y)
+    return _hermite(*_knots(x, y), dydx, extrapolate)
+
+
+def _hermite(x: FloatArray, y: FloatArray, dydx: ArrayLike, extrapolate: bool) -> Hermite:
     shape = y.shape[1:]
     y2 = y.reshape(len(y), -1)
     d2 = np.asarray(dydx, dtype=float).reshape(len(y), -1)
@@ -109,4 +115,5 @@ def hermite(x: ArrayLike, y: ArrayLike, dydx: ArrayLike, extrapolate: bool = Tru
 def pchip(x: ArrayLike, y: ArrayLike, extrapolate: bool = True) -> Hermite:
     """The PCHIP curve through ``y`` (n, ...) at increasing ``x`` (scipy's ``PchipInterpolator``
     with ``axis=0``)."""
-    return hermite(x, y, pchip_slopes(x, y), extrapolate)
+    x, y = _knots(x, y)  # checked once for both steps
+    return _hermite(x, y, _slopes(x, y), extrapolate)

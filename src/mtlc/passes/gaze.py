@@ -86,8 +86,9 @@ def solve_looks(ir: MotionIR, ctx: PassContext, state: PoseState) -> list[tuple[
         limit = ordered[k + 1][1][0].start if k + 1 < len(ordered) else ir.duration
         free = min(t0, max((end for _, end in turns), default=0.0))
         target = np.mean([np.asarray(s.goal.position, dtype=float) for s in segs], axis=0)
-        q1 = aim_head(ir, ctx, state, state.q_at(t0), target, t1)
-        start, end = look_window(t0, t1, state.q_at(t0)[dofs], q1[dofs], free, max(limit, t1))
+        before = state.q_at(t0)
+        q1 = aim_head(ir, ctx, state, before, target, t1)
+        start, end = look_window(t0, t1, before[dofs], q1[dofs], free, max(limit, t1))
         q0 = state.q_at(start)
         if end > t1 + EPS:  # the body may have moved on by the time the head arrives
             q1 = aim_head(ir, ctx, state, q1, target, end)

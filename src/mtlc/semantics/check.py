@@ -110,12 +110,7 @@ class Checker:
         seen: dict[str, ast.SiteDecl] = {}
         for site in scene.sites:
             if site.name in seen:
-                self.sink.report(
-                    "MT0202",
-                    f"site `{site.name}` is defined twice in scene `{scene.name}`",
-                    site.name_span,
-                    labels=(Label(seen[site.name].name_span, "first defined here"),),
-                )
+                self._twice(site.name, scene, site.name_span, seen[site.name].name_span)
             seen.setdefault(site.name, site)
             self.expect_vector_in(site.position, POSITION, env, "a site's position", V.POSITION)
             if site.normal is not None:
@@ -131,12 +126,8 @@ class Checker:
         shapes: dict[str, ast.Shape] = {}
         for shape in scene.shapes:
             if shape.name in shapes:
-                self.sink.report(
-                    "MT0202",
-                    f"`{shape.name}` is defined twice in scene `{scene.name}`",
-                    shape.name_span,
-                    labels=(Label(shapes[shape.name].name_span, "first defined here"),),
-                )
+                first = shapes[shape.name].name_span
+                self._twice(shape.name, scene, shape.name_span, first, what="")
                 continue
             shapes[shape.name] = shape
             self.check_shape(shape, env)
@@ -186,10 +177,13 @@ class Checker:
                 else:
                     taken[name] = item.span
 
-    def _twice(self, name: str, scene: ast.Scene, span: Span, first: Span) -> None:
+    def _twice(
+        self, name: str, scene: ast.Scene, span: Span, first: Span, what: str = "site "
+    ) -> None:
+        """MT0202: a scene's site (or, with ``what=""``, model or solid) named twice."""
         self.sink.report(
             "MT0202",
-            f"site `{name}` is defined twice in scene `{scene.name}`",
+            f"{what}`{name}` is defined twice in scene `{scene.name}`",
             span,
             labels=(Label(first, "first defined here"),),
         )

@@ -70,7 +70,7 @@ class Limb:
     end: str
 
 
-def _measure_m(skel: Skeleton, name: str) -> float:
+def measure_m(skel: Skeleton, name: str) -> float:
     """A GB 10000-88 measure for the manikin (m): its own row when the manikin is built from
     GB 10000-88, else the same sex and percentile's value scaled by the stature ratio."""
     sex = skel.sex if skel.sex in ("male", "female") else "male"
@@ -84,8 +84,8 @@ def _measure_m(skel: Skeleton, name: str) -> float:
 
 def body_capsules(skel: Skeleton) -> tuple[Capsule, ...]:
     """The trunk and the two thighs, sized from the manikin (see the module docstring)."""
-    trunk = 0.5 * _measure_m(skel, TRUNK_MEASURE)
-    thigh = 0.5 * _measure_m(skel, THIGH_MEASURE)
+    trunk = 0.5 * measure_m(skel, TRUNK_MEASURE)
+    thigh = 0.5 * measure_m(skel, THIGH_MEASURE)
     return (
         Capsule("trunk", (("pelvis",), ("r_clavicle", "l_clavicle")), trunk),
         Capsule("right thigh", (("r_hip",), ("r_knee",)), thigh),
@@ -166,10 +166,10 @@ def _joints(name: str, start: str, end: str, radius: float) -> PartCapsule:
 def collision_capsules(skel: Skeleton) -> tuple[PartCapsule, ...]:
     """The body's 16 capsules against the equipment, sized from the manikin's anthropometry
     (see the module docstring and docs/collision.md for each size's reason)."""
-    stature = _measure_m(skel, "stature")
-    hand_breadth = _measure_m(skel, HAND_BREADTH)
-    foot_breadth = _measure_m(skel, "foot_breadth")
-    chest = 0.5 * _measure_m(skel, TRUNK_MEASURE)  # the trunk's half depth
+    stature = measure_m(skel, "stature")
+    hand_breadth = measure_m(skel, HAND_BREADTH)
+    foot_breadth = measure_m(skel, "foot_breadth")
+    chest = 0.5 * measure_m(skel, TRUNK_MEASURE)  # the trunk's half depth
     thigh = next(c.radius for c in body_capsules(skel) if c.name == "right thigh")
     # head: a vertical capsule from the head joint to the vertex, its front at the brow
     head_r = 0.5 * HEAD_BREADTH_OF_STATURE * stature
@@ -186,8 +186,8 @@ def collision_capsules(skel: Skeleton) -> tuple[PartCapsule, ...]:
     ]
     # trunk: pelvis across the hip joints as broad as the hips, abdomen up the spine, thorax
     # across the chest as broad as the chest, all as deep as the chest
-    pelvis_half = max(0.5 * _measure_m(skel, "hip_breadth") - chest, 0.0)
-    thorax_half = max(0.5 * _measure_m(skel, "chest_breadth") - chest, 0.0)
+    pelvis_half = max(0.5 * measure_m(skel, "hip_breadth") - chest, 0.0)
+    thorax_half = max(0.5 * measure_m(skel, "chest_breadth") - chest, 0.0)
     sc_y = skel.joints[skel.joint_index("r_clavicle")].offset[1]
     zero = _vec(0, 0, 0)
     caps += [
@@ -331,7 +331,7 @@ def self_intersection(
 def limb_radius(skel: Skeleton, limb: Limb) -> float:
     """The limb's own radius (m): ``LIMB_RADIUS`` of the manikin's hand breadth."""
     kind = "hand" if limb.name.endswith("hand") else "forearm"
-    return LIMB_RADIUS[kind] * _measure_m(skel, HAND_BREADTH)
+    return LIMB_RADIUS[kind] * measure_m(skel, HAND_BREADTH)
 
 
 def side_limbs(side: str) -> tuple[Limb, ...]:

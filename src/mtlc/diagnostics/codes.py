@@ -202,6 +202,13 @@ _ALL = [
         Severity.WARNING,
         "a posture at or above a RULA score held too long",
     ),
+    Code(
+        "MT0610",
+        "access-opening",
+        Severity.WARNING,
+        "a hand, forearm or tool does not fit through the way to a site",
+    ),
+    Code("MT0611", "site-occluded", Severity.WARNING, "the equipment hides a site from the eyes"),
     # internal
     Code("MT0900", "internal-error", Severity.ERROR, "a bug in mtlc: please report it"),
 ]

@@ -125,7 +125,7 @@ def frame_clearance(
     return FrameClearance(t, tuple(cap.name for cap in caps), tuple(indices), out, horizon)
 
 
-def _goal_groups(ir: MotionIR) -> list[tuple[Segment, list[Segment]]]:
+def goal_groups(ir: MotionIR) -> list[tuple[Segment, list[Segment]]]:
     """Each TA segment with the TO segments after it on its track, at its site, before the
     track's next TA."""
     groups: list[tuple[Segment, list[Segment]]] = []
@@ -178,7 +178,7 @@ def goal_clearances(
     site (see the module docstring), a glove's thickness ``glove`` (m) off the hand's."""
     t = fc.time
     out = []
-    for ta, work in _goal_groups(ir):
+    for ta, work in goal_groups(ir):
         path = (t >= ta.start - EPS) & (t <= ta.end + EPS)
         site = np.zeros_like(path)
         for seg in work:

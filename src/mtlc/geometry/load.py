@@ -46,6 +46,7 @@ class MeshFile:
     faces: IntArray
     nodes: dict[str, FloatArray]
     markers: tuple[str, ...]
+    parts: tuple[tuple[str, int], ...] = ()  # each node with geometry: its first face
 
 
 def resolve(written: str, folder: Path) -> Path:
@@ -117,16 +118,16 @@ def _read(path: Path, fmt: str) -> MeshFile:
 
     try:
         if fmt in FIXED_FRAME:
-            vertices, faces, nodes, markers = _read_scene(trimesh, path)
+            vertices, faces, nodes, markers, parts = _read_scene(trimesh, path)
         elif fmt == "stl":  # the arrays straight from the parser: a Trimesh costs 10x more
             from trimesh.exchange.stl import load_stl
 
             vertices, faces = _arrays(_Arrays(load_stl(io.BytesIO(data))))
-            nodes, markers = {}, ()
+            nodes, markers, parts = {}, (), ()
         else:
             mesh = trimesh.load(str(path), file_type=fmt, force="mesh", process=False)
             vertices, faces = _arrays(mesh)
-            nodes, markers = {}, ()
+            nodes, markers, parts = {}, (), ()
     except ModelError:
         raise
     except Exception as exc:  # trimesh raises many kinds on a broken file
@@ -154,7 +155,7 @@ def _read(path: Path, fmt: str) -> MeshFile:
         raise ModelError("MT0006", f"model file `{path.name}` has coordinates that are not numbers")
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise ModelError("MT0006", f"model file `{path.name}` has triangles with missing corners")
-    return MeshFile(path, fmt, digest, vertices, faces, nodes, markers)
+    return MeshFile(path, fmt, digest, vertices, faces, nodes, markers, parts)
 
 
 class _Arrays:
@@ -182,9 +183,11 @@ def _arrays(mesh: object) -> tuple[FloatArray, IntArray]:
 
 def _read_scene(
     trimesh: object, path: Path
-) -> tuple[FloatArray, IntArray, dict[str, FloatArray], tuple[str, ...]]:
+) -> tuple[
+    FloatArray, IntArray, dict[str, FloatArray], tuple[str, ...], tuple[tuple[str, int], ...]
+]:
     """A glTF scene: every node's geometry placed by the scene graph, as one mesh; every named
-    node's frame; the nodes without geometry (markers)."""
+    node's frame; the nodes without geometry (markers); where each node's faces begin."""
     scene = trimesh.load(str(path), force="scene", process=False)  # type: ignore[attr-defined]
     graph = scene.graph
     with_geometry = set(graph.nodes_geometry)
@@ -199,7 +202,8 @@ def _read_scene(
             markers.append(str(name))
     verts: list[FloatArray] = []
     faces: list[IntArray] = []
-    offset = 0
+    parts: list[tuple[str, int]] = []
+    offset = first = 0
     for name in sorted(with_geometry):
         matrix, geometry = graph[name]
         v, f = _arrays(scene.geometry.get(geometry))
@@ -207,7 +211,10 @@ def _read_scene(
             continue  # a point cloud or a path: nothing to collide with
         verts.append(v @ np.asarray(matrix)[:3, :3].T + np.asarray(matrix)[:3, 3])
         faces.append(f + offset)
+        parts.append((str(name), first))
         offset += len(v)
+        first += len(f)
     if not faces:
-        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64), nodes, tuple(markers)
-    return np.concatenate(verts), np.concatenate(faces), nodes, tuple(markers)
+        empty = np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+        return *empty, nodes, tuple(markers), ()
+    return np.concatenate(verts), np.concatenate(faces), nodes, tuple(markers), tuple(parts)

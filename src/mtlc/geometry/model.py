@@ -43,6 +43,9 @@ class SceneModel:
     solid: str | None
     transform: FloatArray = field(default_factory=lambda: np.eye(4))  # own frame -> scene
     parameters: dict[str, Any] = field(default_factory=dict)  # a solid's size, radius...
+    # a glTF file's parts: (node name, index of its first face), in face order; what a ray
+    # meets is named by them (mtlc.geometry.rays); empty for a solid or a one-part file
+    parts: tuple[tuple[str, int], ...] = ()
 
     @property
     def triangles(self) -> int:

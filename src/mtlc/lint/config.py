@@ -24,6 +24,7 @@ DEFAULT_LIMIT_DEG = 0.5
 DEFAULT_VIEW_CONE_DEG = view.DEFAULT_HALF_ANGLE_DEG  # docs/visibility.md
 DEFAULT_SUSTAINED_RULA = 5  # RULA action level 3 and above (docs/sustained.md)
 DEFAULT_SUSTAINED_SECONDS = 60.0  # RULA's "static, held > 1 min" (docs/sustained.md)
+DEFAULT_GLOVE_MM = 0.0  # bare hands (docs/collision.md, "Access openings")
 
 
 class ConfigError(ValueError):
@@ -43,6 +44,7 @@ class LintConfig:
     lift_frequency: float = niosh.DEFAULT_FREQUENCY  # lifts per minute
     lift_duration: str = niosh.DEFAULT_DURATION  # NIOSH work duration: up to 1 h, 2 h or 8 h
     lift_coupling: str = niosh.DEFAULT_COUPLING  # NIOSH hand-to-object coupling
+    glove_mm: float = DEFAULT_GLOVE_MM  # a glove's thickness on each side of the hand and arm
     fail_on: Severity = Severity.WARNING
     source: Path | None = None  # the file it came from, None for the defaults
 
@@ -58,6 +60,7 @@ _KEYS = (
     "penetration-mm",
     "limit-deg",
     "view-cone-half-angle",
+    "glove-mm",
     "sustained-rula",
     "sustained-seconds",
     "lift-frequency",
@@ -155,6 +158,7 @@ def parse_config(table: dict[str, Any], where: Path | None = None) -> LintConfig
         lift_coupling=_choice(
             table, "lift-coupling", niosh.DEFAULT_COUPLING, niosh.COUPLINGS, where
         ),
+        glove_mm=_number(table, "glove-mm", DEFAULT_GLOVE_MM, 0, 50, where),
         fail_on=_severity(table.get("fail-on", "warning"), where),
         source=where,
     )

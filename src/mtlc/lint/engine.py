@@ -31,7 +31,8 @@ from mtlc.semantics.timeline import ManikinSpec, Timeline
 # figures (docs/lint.md): lint gives the rule's finding, not both
 SCREENED_BY = {"MT0512": "MT0604", "MT0513": "MT0603"}
 SEVERITY_RANK = {Severity.NOTE: 1, Severity.WARNING: 2, Severity.ERROR: 3}
-# what only the motion passes find: without one of these enabled no motion is compiled
+# what only the motion passes find: without one of these enabled no motion is compiled (the
+# passes' own codes, then every motion rule's)
 MOTION_CODES = (
     "MT0501",
     "MT0502",
@@ -41,12 +42,7 @@ MOTION_CODES = (
     "MT0512",
     "MT0513",
     "MT0514",
-    "MT0603",
-    "MT0604",
-    "MT0605",
-    "MT0607",
-    "MT0608",
-    "MT0609",
+    *(rule.code for rule in RULES if rule.on == "motion"),
 )
 
 

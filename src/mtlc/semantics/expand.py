@@ -326,6 +326,7 @@ class Expander:
             solid=None,
             transform=matrix,
             parameters={"units": units.word if units else "m", "up": up.word if up else "y"},
+            parts=mesh.parts,
         )
 
     def _place_solid(self, shape: ast.Shape, env: _Env, at: tuple[float, ...]) -> SceneModel:

@@ -1,7 +1,10 @@
-"""MT0607: a site being reached or worked on (a TA or TO segment) lies outside the view cone.
+"""MT0607: a site being reached or worked on (a TA or TO segment) lies outside the view cone;
+MT0611: the equipment hides it from the eyes.
 
-Per frame of each reach, the angle between the head's forward axis and the line from the eye to
-the reached site (mtlc.ergonomics.view); reported once per task line, at its worst frame.
+MT0607: per frame of each reach, the angle between the head's forward axis and the line from
+the eye to the reached site (mtlc.ergonomics.view); reported once per task line, at its worst
+frame. MT0611: lines from the eye to a small disc at the site, through the scene's triangles
+(mtlc.geometry.rays), at the reach's end and over the work there.
 """
 
 from __future__ import annotations
@@ -11,9 +14,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from mtlc.body.kinematics import Pose
+from mtlc.body.kinematics import Pose, site_positions
 from mtlc.diagnostics import Span
-from mtlc.ergonomics.view import outside_cone, site_view_angles
+from mtlc.ergonomics.view import EYE_SITE, outside_cone, site_view_angles
+from mtlc.geometry.clearance import goal_groups
+from mtlc.geometry.rays import RayScene
 from mtlc.ir.model import Segment, SourceRef
 from mtlc.lint.findings import Finding
 from mtlc.lint.rules.view import MotionView
@@ -68,6 +73,97 @@ def _finding(view: MotionView, half: float, angle: float, frame: int, seg: Segme
         msg,
         Span(o.file, o.line, o.column, o.end_line, o.end_column),
         help="look at the site first (`look`), turn the body toward it, or move the site into view",
+        manikins=(view.manikin,),
+        details=(msg,),
+    )
+
+
+# MT0611: the equipment between the eyes and a site (docs/visibility.md, "Occlusion")
+SITE_RADIUS = 0.01  # m: the site is seen as a disc this wide across the line of sight...
+RING = 8  # ...sampled at its centre and this many points around its rim
+SPARE = 0.01  # m before a sampled point a surface does not hide it (the one the site is on)
+HIDDEN_SHARE = 0.5  # a site is hidden at a frame when less than this share of it is visible
+OCCLUSION_FRAMES = 6  # frames of a goal tested: its arrival and up to five over the work
+
+
+def site_hidden(view: MotionView) -> list[Finding]:
+    """Each goal's site seen from the eyes through the scene's geometry, at the reach's end
+    and over the work there; reported once per task line, at its least visible frame."""
+    if not view.ir.geometry or view.ir.skeleton is None:
+        return []
+    scene = RayScene(view.ir.geometry)
+    if len(scene) == 0:
+        return []
+    worst: dict[SourceRef, tuple[float, int, Segment, str, float]] = {}
+    for reach, work in goal_groups(view.ir):
+        if reach.goal.position is None:
+            continue
+        frames = goal_frames(view.time, reach, work, OCCLUSION_FRAMES)
+        if len(frames) == 0:
+            continue
+        eye = site_positions(view.ir.skeleton, pose_frames(view.pose, frames), EYE_SITE)
+        points = site_disc(eye, np.asarray(reach.goal.position, dtype=float))  # (F, P, 3)
+        n, p = points.shape[:2]
+        hits = scene.blocked(np.repeat(eye, p, axis=0), points.reshape(-1, 3), SPARE)
+        blocked = np.isfinite(hits.distance).reshape(n, p)
+        share = 1.0 - blocked.mean(axis=1)
+        k = int(np.argmin(share))
+        if share[k] >= HIDDEN_SHARE:
+            continue
+        faces = hits.face.reshape(n, p)[k][blocked[k]]
+        names = [scene.name(int(f)) for f in faces]
+        by = max(sorted(set(names)), key=names.count)
+        key = reach.provenance.origin
+        if key not in worst or share[k] < worst[key][0]:
+            worst[key] = (float(share[k]), int(frames[k]), reach, by, float(share.mean()))
+    ordered = sorted(worst.values(), key=lambda w: w[1])
+    return [_hidden(view, *w) for w in ordered]
+
+
+def goal_frames(time: np.ndarray, reach: Segment, work: list[Segment], most: int) -> np.ndarray:
+    """A reach's last frame and up to ``most - 1`` frames spread over the work after it."""
+    eps = 1e-9
+    last = int(np.searchsorted(time, reach.end + eps, side="right")) - 1
+    out = [last] if last >= 0 else []
+    if work:
+        lo = int(np.searchsorted(time, min(w.start for w in work) - eps, side="left"))
+        hi = int(np.searchsorted(time, max(w.end for w in work) + eps, side="right"))
+        if hi > lo:
+            out += np.linspace(lo, hi - 1, min(most - 1, hi - lo)).round().astype(int).tolist()
+    return np.array(sorted(set(out)), dtype=np.intp)
+
+
+def site_disc(eye: np.ndarray, site: np.ndarray) -> np.ndarray:
+    """(F, 1 + RING, 3): the site and RING points SITE_RADIUS around it, across the line of
+    sight from each eye point (F, 3)."""
+    sight = site - eye
+    sight /= np.maximum(np.linalg.norm(sight, axis=1, keepdims=True), 1e-12)
+    ref = np.where(np.abs(sight[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    u = np.cross(sight, ref)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(sight, u)
+    angle = np.linspace(0, 2 * math.pi, RING, endpoint=False)
+    ring = SITE_RADIUS * (
+        np.cos(angle)[None, :, None] * u[:, None, :] + np.sin(angle)[None, :, None] * v[:, None, :]
+    )
+    centre = np.broadcast_to(site, (len(eye), 1, 3))
+    return np.concatenate([centre, site + ring], axis=1)
+
+
+def _hidden(
+    view: MotionView, share: float, frame: int, seg: Segment, by: str, mean: float
+) -> Finding:
+    o = seg.provenance.origin
+    msg = (
+        f"site `{seg.goal.site}` is hidden from the eyes by `{by}`: {share:.0%} of it visible at "
+        f"{view.time[frame]:.2f} s in `{' > '.join(seg.provenance.path)}` ({mean:.0%} over the "
+        f"reach's end and the work)"
+    )
+    return Finding(
+        "MT0611",
+        msg,
+        Span(o.file, o.line, o.column, o.end_line, o.end_column),
+        help="move what is in the way, add a viewing opening, or turn the body to see past it",
         manikins=(view.manikin,),
         details=(msg,),
     )

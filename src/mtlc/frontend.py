@@ -87,6 +87,11 @@ class Program:
     def diagnostics(self) -> list[Diagnostic]:
         return self.sink.sorted()
 
+    @property
+    def model_files(self) -> list[Path]:
+        """The model files the scenes name (whether they could be read or not)."""
+        return list(self.checker.model_files) if self.checker else []
+
 
 def load_modules(program: Program) -> Program:
     program.loader = ModuleLoader(list(program.options.include_dirs), program.sink)

@@ -168,3 +168,51 @@ def test_served_page_receives_frames_and_a_dragged_site_comes_back_recompiled(
         ".position"
     )
     assert np.linalg.norm(np.array(after) - before) > 0.05
+
+
+CAD_SCREENSHOT = ROOT / "docs" / "img" / "preview_cad.png"
+# pixels of the view that change when the models are hidden (the floor is drawn under them)
+MODEL_PIXELS_JS = """
+const c = document.querySelector('#view canvas');
+const grab = () => {
+  const o = document.createElement('canvas'); o.width = c.width; o.height = c.height;
+  const g = o.getContext('2d'); g.drawImage(c, 0, 0);
+  return g.getImageData(0, 0, o.width, o.height).data;
+};
+const a = grab(); window.mtlcPreview.setModelsVisible(false);
+const b = grab(); window.mtlcPreview.setModelsVisible(true);
+let n = 0;
+for (let i = 0; i < a.length; i += 4) {
+  if (Math.abs(a[i] - b[i]) + Math.abs(a[i + 1] - b[i + 1]) + Math.abs(a[i + 2] - b[i + 2]) > 30) n++;
+}
+return [n, a.length / 4];
+"""
+
+
+def test_the_models_are_drawn_and_a_clash_is_shown(
+    browser: Any, examples: dict[str, Example], request: pytest.FixtureRequest
+) -> None:
+    """The CAD example's panel and bench as the compile read them; at the frame of the
+    smallest clearance, the model the body is inside turns red and the figure names the pair."""
+    example = examples["remove_access_panel_cad"]
+    doc = example.document
+    _open(browser, example)
+    models = browser.execute_script("return window.mtlcPreview.models")
+    assert [(m["name"], m["triangles"]) for m in models] == [
+        (m["name"], m["triangles"]) for m in doc["models"]
+    ]
+    values = np.array([np.inf if v is None else v for v in doc["figures"]["clearance"]])
+    worst = int(np.argmin(values))
+    browser.execute_script("window.mtlcPreview.setFrame(arguments[0])", worst)
+    now = browser.execute_script("return window.mtlcPreview.clearance")
+    assert now["value"] == pytest.approx(values[worst])
+    drawn = browser.execute_script("return window.mtlcPreview.models")
+    assert {m["name"]: m["clash"] for m in drawn}[now["mesh"]] is bool(values[worst] < 0)
+    shown = browser.find_element("id", "fig-clearance").text
+    assert now["part"] in shown and now["mesh"] in shown
+    changed, total = browser.execute_script(MODEL_PIXELS_JS)
+    assert changed > 0.005 * total, f"the models change {changed} of {total} pixels"
+    png = browser.get_screenshot_as_png()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    if request.config.getoption("--update-goldens") or not CAD_SCREENSHOT.exists():
+        CAD_SCREENSHOT.write_bytes(png)

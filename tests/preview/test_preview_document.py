@@ -27,16 +27,45 @@ def test_figures_have_one_value_per_frame(examples: dict[str, Example]) -> None:
     for example in examples.values():
         n = len(example.ir.frames.time)
         figs = example.document["figures"]
+        geometry = {"clearance"} if example.ir.geometry else set()
         assert set(figs) == {
             "contact_error",
             "com_margin",
             "penetration",
             "rula",
             "rula_worst_so_far",
+            *geometry,
         }
         assert all(len(v) == n for v in figs.values())
         worst = np.array(figs["rula_worst_so_far"], dtype=float)
         assert np.all(np.diff(worst) >= 0) and worst.min() >= 1 and worst.max() <= 7
+
+
+def test_models_are_drawn_as_read_and_the_clearance_is_the_metric(
+    examples: dict[str, Example],
+) -> None:
+    """The CAD examples carry their models' triangles; the clearance figure is the smallest of
+    mtlc.geometry.clearance's per-frame figures, naming its pair."""
+    from mtlc.geometry.clearance import frame_clearance
+
+    for example in examples.values():
+        doc, ir = example.document, example.ir
+        if not ir.geometry:
+            assert "models" not in doc and "clearance" not in doc
+            continue
+        for drawn, model in zip(doc["models"], ir.geometry, strict=True):
+            assert drawn["name"] == model.name and drawn["indices"] == model.faces.ravel().tolist()
+            assert np.allclose(np.reshape(drawn["positions"], (-1, 3)), model.vertices, atol=6e-5)
+        fc = frame_clearance(ir, {m.name: (m.vertices, m.faces) for m in ir.geometry})
+        smallest = np.nanmin(fc.clearance.reshape(len(fc.time), -1), axis=1)
+        assert np.allclose(doc["figures"]["clearance"], smallest, atol=1e-6)
+        c = doc["clearance"]
+        k = int(np.argmin(smallest))
+        pair = (
+            fc.capsules.index(c["parts"][c["part"][k]]),
+            fc.meshes.index(c["meshes"][c["mesh"][k]]),
+        )
+        assert fc.clearance[k, pair[0], pair[1]] == pytest.approx(smallest[k])
 
 
 def test_contact_error_per_frame_agrees_with_the_metrics(examples: dict[str, Example]) -> None:

@@ -240,3 +240,45 @@ def test_serve_command_listens_on_loopback_and_serves_the_page() -> None:
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+def test_a_new_watched_file_is_no_change_and_its_edit_is(tmp_path: Path) -> None:
+    """The watch list grows when a compile names a model: that alone does not recompile; a
+    later edit of the model does."""
+    from mtlc.preview.server import FileWatcher
+
+    task, model = tmp_path / "t.mtask", tmp_path / "m.glb"
+    task.write_text("x", encoding="utf-8")
+    model.write_bytes(b"one")
+    files = [task]
+    calls: list[int] = []
+    watcher = FileWatcher(lambda: list(files), lambda: calls.append(1), 0.01)
+    before = watcher._stamp()
+    files.append(model)  # a compile named the model
+    assert not watcher._changed(before, watcher._stamp())
+    seen = watcher._stamp()
+    time.sleep(0.05)
+    model.write_bytes(b"two, longer")
+    assert watcher._changed(seen, watcher._stamp())
+
+
+def test_the_hub_watches_the_models_its_scenes_name(tmp_path: Path) -> None:
+    from mtlc.frontend import FrontendOptions
+    from mtlc.passes import MotionOptions
+    from mtlc.preview.server import MotionHub
+
+    (tmp_path / "models").mkdir()
+    glb = tmp_path / "models" / "panel.glb"
+    source = Path(__file__).resolve().parents[2] / "examples" / "models" / "access_panel.glb"
+    glb.write_bytes(source.read_bytes())
+    task = tmp_path / "t.mtask"
+    task.write_text(
+        "use stdlib.actions\n\nscene s {\n    ground 0 cm\n"
+        '    model panel "models/panel.glb" at (0, 120, 60) cm\n'
+        "    site front at (0, 0, 10) cm\n}\n\n"
+        'task t "t" {\n    scene s\n    walk_to(front)\n}\n',
+        encoding="utf-8",
+    )
+    hub = MotionHub([task], FrontendOptions(), MotionOptions())
+    assert hub.recompile()
+    assert hub.watched() == [task, glb]

@@ -2,8 +2,10 @@
 
 The page recomputes the pose from the IR itself (forward kinematics in JavaScript), so the dict
 carries the IR's versioned JSON unchanged; next to it go the figures the page cannot cheaply
-compute (support margin, penetration and contact error, as the verify pass measured them; RULA)
-and the task › action › element blocks of the timeline with the source lines they came from.
+compute (support margin, penetration and contact error, as the verify pass measured them; RULA;
+with equipment geometry, the body's clearance to it) and the task › action › element blocks of
+the timeline with the source lines they came from, and the scene's models as triangles (the IR
+names a model's file, the page is self-contained: it draws what the compile read).
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ from mtlc.metrics import foot_stance
 
 FloatArray = NDArray[np.float64]
 PREVIEW_FORMAT_VERSION = 1
+MAX_DRAWN_TRIANGLES = 200_000  # over this, the page draws a model's bounding box (a big page)
+DRAWN_DECIMALS = 4  # m: the vertices to 0.1 mm
 LEVELS = ("task", "action", "element")
 
 
@@ -72,6 +76,55 @@ def figures(ir: MotionIR) -> dict[str, FloatArray]:
         "rula": rula,
         "rula_worst_so_far": np.maximum.accumulate(rula),
     }
+
+
+def clearance_figures(ir: MotionIR) -> dict[str, Any] | None:
+    """Per frame, the smallest clearance (m) of any body capsule or held tool to any model,
+    and which pair (indices into ``parts`` and ``meshes``); None without geometry. The
+    measure of docs/collision.md (``mtlc.geometry.clearance``), on the output frames."""
+    if not ir.geometry:
+        return None
+    from mtlc.geometry.clearance import frame_clearance
+
+    meshes = {m.name: (m.vertices, m.faces) for m in ir.geometry if len(m.faces)}
+    if not meshes:
+        return None
+    fc = frame_clearance(ir, meshes)
+    n, c, m = fc.clearance.shape
+    flat = np.where(np.isnan(fc.clearance), np.inf, fc.clearance).reshape(n, c * m)
+    k = np.argmin(flat, axis=1)
+    return {
+        "values": flat[np.arange(n), k],
+        "parts": list(fc.capsules),
+        "meshes": list(fc.meshes),
+        "part": (k // m).tolist(),
+        "mesh": (k % m).tolist(),
+    }
+
+
+def drawn_models(ir: MotionIR) -> list[dict[str, Any]]:
+    """The scene's models for the page: vertices (flat, m, rounded) and triangles (flat
+    indices); past MAX_DRAWN_TRIANGLES in all, a model is drawn as its bounding box."""
+    from mtlc.geometry.solids import box
+
+    out, budget = [], MAX_DRAWN_TRIANGLES
+    for model in ir.geometry:
+        vertices, faces, drawn = model.vertices, model.faces, "mesh"
+        if len(faces) > budget and len(vertices):
+            lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+            vertices, faces = box(tuple(hi - lo))  # type: ignore[arg-type]
+            vertices, drawn = vertices + (lo + hi) / 2, "box"
+        budget -= len(faces)
+        out.append(
+            {
+                "name": model.name,
+                "drawn": drawn,
+                "triangles": model.triangles,
+                "positions": [round(float(x), DRAWN_DECIMALS) + 0.0 for x in vertices.ravel()],
+                "indices": [int(i) for i in faces.ravel()],
+            }
+        )
+    return out
 
 
 # -- timeline blocks ---------------------------------------------------------------------------
@@ -172,7 +225,10 @@ def preview_document(
     """The page's data: the IR's JSON, per-frame figures, timeline blocks and the view cone's
     half-angle (degrees, docs/visibility.md); deterministic."""
     figs = figures(ir)
-    return {
+    clear = clearance_figures(ir)
+    if clear is not None:
+        figs["clearance"] = clear.pop("values")
+    doc = {
         "format": "mtlc-preview",
         "version": PREVIEW_FORMAT_VERSION,
         "ir": to_dict(ir),
@@ -194,3 +250,7 @@ def preview_document(
         "site_sources": dict(site_spans or {}),
         "view_cone": {"half_angle_deg": float(view_cone_half_angle)},
     }
+    if ir.geometry:  # scenes without models keep their documents as they were
+        doc["models"] = drawn_models(ir)
+        doc["clearance"] = clear
+    return doc

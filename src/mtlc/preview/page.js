@@ -217,8 +217,49 @@
       group.add(ring);
       view.goals.push({ goal, mesh: ring });
     }
+    buildModels(group, state.doc);
     view.scene.add(group);
     view.world = group;
+  }
+
+  // the scene's models as the compile read them (positions in m, flat; triangles, flat)
+  const MODEL_COLOUR = 0x9aa3ad, CLASH_COLOUR = 0xd0402a;
+  function buildModels(group, doc) {
+    view.models = new Map();
+    for (const model of (doc && doc.models) || []) {
+      const geometry = new THREE.BufferGeometry();
+      geometry.setAttribute("position", new THREE.Float32BufferAttribute(model.positions, 3));
+      geometry.setIndex(model.indices);
+      geometry.computeVertexNormals();
+      const material = new THREE.MeshStandardMaterial({
+        color: MODEL_COLOUR, roughness: 0.8, transparent: true, opacity: 0.6, side: 2,
+        depthWrite: false,
+      });
+      const mesh = new THREE.Mesh(geometry, material);
+      mesh.userData.model = model.name;
+      group.add(mesh);
+      view.models.set(model.name, mesh);
+    }
+  }
+
+  // the frame's smallest clearance: its text, and the model it is to tinted when inside
+  function clearanceAt(doc, i) {
+    const c = doc.clearance, v = doc.figures.clearance ? doc.figures.clearance[i] : null;
+    if (!c || v === null || v === undefined) return null;
+    return { value: v, part: c.parts[c.part[i]], mesh: c.meshes[c.mesh[i]] };
+  }
+  function showClearance(doc, i) {
+    const rows = document.querySelectorAll(".geometry");
+    rows.forEach((r) => { r.hidden = !doc.figures.clearance; });
+    const now = clearanceAt(doc, i), el = document.getElementById("fig-clearance");
+    state.clearance = now;
+    for (const [name, mesh] of view.models || []) {
+      const clash = now !== null && now.value < 0 && now.mesh === name;
+      mesh.material.color.setHex(clash ? CLASH_COLOUR : MODEL_COLOUR);
+    }
+    if (!now) { el.textContent = "–"; el.className = ""; return; }
+    el.textContent = `${(now.value * 1000).toFixed(0)} mm (${now.part} · ${now.mesh})`;
+    el.className = now.value < 0 ? "bad" : "";
   }
 
   function frameCamera(ir) {
@@ -322,7 +363,10 @@
     const el = document.getElementById("fig-rula");
     el.textContent = rula === null ? "–" : `${rula} (${worst})`;
     el.className = worst >= 5 ? "bad" : "";
-    document.querySelectorAll(".spark").forEach((c) => drawSpark(c, figs[c.dataset.figure], i));
+    showClearance(doc, i);
+    document.querySelectorAll(".spark").forEach((c) => {
+      if (figs[c.dataset.figure]) drawSpark(c, figs[c.dataset.figure], i);
+    });
   }
 
   function drawSpark(canvas, values, cursor) {
@@ -527,6 +571,17 @@
     get points() { return state.points; },
     get diagnostics() { return state.diagnostics; },
     get webgl() { return state.webgl; },
+    get models() {
+      return [...(view.models || new Map()).entries()].map(([name, mesh]) => ({
+        name, triangles: mesh.geometry.index.count / 3,
+        clash: mesh.material.color.getHex() === CLASH_COLOUR,
+      }));
+    },
+    get clearance() { return state.clearance; },
+    setModelsVisible(visible) {
+      for (const mesh of (view.models || new Map()).values()) mesh.visible = Boolean(visible);
+      render();
+    },
     get document() { return state.doc; },
     get viewCone() {
       const c = state.cone;

@@ -174,6 +174,7 @@ class MotionHub:
     generation: int = 0
     sites: set[str] = field(default_factory=set)
     centre: Vec3 = (0.0, 0.0, 0.0)  # of the scene, for bounding site moves
+    models: list[Path] = field(default_factory=list)  # the scenes' model files, watched too
     _clients: list[Mailbox] = field(default_factory=list)
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _compile_lock: threading.Lock = field(default_factory=threading.Lock)  # also guards `moved`
@@ -203,10 +204,16 @@ class MotionHub:
             compiled = compile_motions(
                 self.paths, self.options, self.motion, task=self.task, moved=dict(self.moved)
             )
+            if compiled.program.checker is not None:  # a broken model stays watched: its fix
+                self.models = compiled.program.model_files  # recompiles
             return self._publish(compiled)
         except Exception as exc:  # a bug in mtlc: say so, and keep serving
             self._publish_crash(exc)
             return Outcome.CRASHED
+
+    def watched(self) -> list[Path]:
+        """The files whose change recompiles: the task files and their scenes' models."""
+        return [*self.paths, *self.models]
 
     def _publish(self, compiled: Compiled) -> Outcome:
         if not compiled.ok or not compiled.motions:
@@ -464,41 +471,50 @@ SETTLE_SECONDS = 0.05  # a changed file is recompiled once its stamp held still 
 
 
 class FileWatcher(threading.Thread):
-    """Recompile when a watched file's modification time or size changes (polling)."""
+    """Recompile when a watched file's modification time or size changes (polling). The list
+    is asked anew at each poll: a compile can add files (a scene's model)."""
 
-    def __init__(self, paths: list[Path], on_change: Callable[[], object], interval: float) -> None:
+    def __init__(
+        self, watched: Callable[[], list[Path]], on_change: Callable[[], object], interval: float
+    ) -> None:
         super().__init__(daemon=True, name="mtlc-watch")
-        self.paths, self.on_change, self.interval = paths, on_change, interval
+        self.watched, self.on_change, self.interval = watched, on_change, interval
         self.stop_event = threading.Event()
         self._seen = self._stamp()
 
-    def _stamp(self) -> tuple[tuple[int, int], ...]:
-        out = []
-        for p in self.paths:
+    def _stamp(self) -> dict[str, tuple[int, int]]:
+        out = {}
+        for p in self.watched():
             try:
                 st = p.stat()
-                out.append((st.st_mtime_ns, st.st_size))
+                out[str(p)] = (st.st_mtime_ns, st.st_size)
             except OSError:
-                out.append((0, 0))
-        return tuple(out)
+                out[str(p)] = (0, 0)
+        return out
+
+    @staticmethod
+    def _changed(before: dict[str, tuple[int, int]], now: dict[str, tuple[int, int]]) -> bool:
+        """A file seen before with another stamp; a file just added to the list (the compile
+        that named it has read it) or dropped from it is not a change."""
+        return any(before.get(path, stamp) != stamp for path, stamp in now.items())
 
     def run(self) -> None:
         while not self.stop_event.wait(self.interval):
             stamp = self._stamp()
-            if stamp != self._seen:
+            if self._changed(self._seen, stamp):
                 # a save in progress (truncated, then written) changes the stamp twice: wait
                 # until it holds still, and recompile once, on the saved text (a poll between
                 # the two sent the half-written file's diagnostics and then the file's own)
-                while (
-                    not self.stop_event.wait(SETTLE_SECONDS) and (again := self._stamp()) != stamp
+                while not self.stop_event.wait(SETTLE_SECONDS) and self._changed(
+                    stamp, again := self._stamp()
                 ):
                     stamp = again
-                self._seen = stamp
                 try:
                     self.on_change()
                 except Exception:  # one bad recompile must not end the watching
                     if os.environ.get("MTLC_DEBUG"):
                         traceback.print_exc()
+            self._seen = {**self._stamp(), **stamp}  # what was compiled, and the files it added
 
 
 @dataclass
@@ -524,7 +540,7 @@ class PreviewServer:
         server_class = IPv6Server if ":" in self.host else BoundedServer
         self.httpd = server_class((self.host, self.port), make_handler(self.hub, page))
         threading.Thread(target=self.httpd.serve_forever, daemon=True, name="mtlc-http").start()
-        self.watcher = FileWatcher(self.hub.paths, self.hub.recompile, self.poll)
+        self.watcher = FileWatcher(self.hub.watched, self.hub.recompile, self.poll)
         self.watcher.start()
 
     def stop(self) -> None:

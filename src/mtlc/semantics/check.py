@@ -88,6 +88,7 @@ class Checker:
         # each model's file as read (None: it could not be, and that was reported), by id of
         # its declaration: expansion places them
         self.meshes: dict[int, MeshFile | None] = {}
+        self.model_files: list[Path] = []  # every model file named, read or not (serve watches)
 
     # ------------------------------------------------------------ declarations
     def check_module(self, scope: Scope) -> None:
@@ -239,7 +240,9 @@ class Checker:
         mesh = None
         assert shape.file is not None
         try:
-            mesh = read_mesh(resolve(shape.file, Path(shape.span.file).parent))
+            path = resolve(shape.file, Path(shape.span.file).parent)
+            self.model_files.append(path)
+            mesh = read_mesh(path)
         except ModelError as exc:
             self.sink.report(exc.code, exc.message, shape.span, help=exc.help)
         if mesh is not None:

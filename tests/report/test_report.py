@@ -191,3 +191,27 @@ def test_python_m_entry_point() -> None:
         check=False,
     )
     assert done.returncode == 2 and "mtlc report:" in done.stderr
+
+
+def test_the_prototype_table_gives_sight_and_openings(tmp_path: Path) -> None:
+    """A latch behind an 8 cm opening: the 5th-percentile woman's 70 mm hand passes, the
+    95th-percentile man's 89 mm does not; the terminal, CSV and HTML say the same."""
+    text = Path("tests/lint/data/cover.mtask").read_text(encoding="utf-8")
+    path = tmp_path / "cover.mtask"
+    path.write_text(text.replace("round 14 cm", "round 8 cm"), encoding="utf-8")
+    (timeline,) = run_frontend([path]).timelines
+    selection = parse_selection("gb10000_1988:female:5,gb10000_1988:male:95")
+    report = Report([analyse_task(timeline, selection)], selection, RATIO)
+    woman, man = report.tasks[0].manikins
+    (goal,) = [g for g in report.tasks[0].goals if g.site == "latch"]
+    assert woman.opening[goal][0] >= woman.opening[goal][1]  # 80 mm through, 70 needed
+    assert man.opening[goal][0] < man.opening[goal][1] == pytest.approx(0.089, abs=1e-3)
+    assert 0.0 <= man.seen[goal] <= 1.0
+    csv_rows = [r for r in rows(report) if r["section"] == "prototype"]
+    assert {(r["manikin"], r["metric"]) for r in csv_rows} == {
+        (m.label, metric) for m in (woman, man) for metric in ("seen", "opening")
+    }
+    terminal = render_terminal(report, color=False, width=200)
+    assert "Sight and access openings on the prototype" in terminal
+    assert "80/89" in terminal and "80/70" in terminal
+    assert "Sight and access openings on the prototype" in render_html(report)

@@ -20,8 +20,10 @@ from mtlc.ergonomics import rula as R
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.lint.config import LintConfig
 from mtlc.lint.manikins import label
+from mtlc.lint.rules.access import goal_openings
 from mtlc.lint.rules.reach import contact_goals, stature
 from mtlc.lint.rules.view import make_view
+from mtlc.lint.rules.visibility import goal_sights
 from mtlc.metrics import foot_stance
 from mtlc.passes import MotionOptions, run_motion
 from mtlc.passes.approach import HAND_NAMES, TOLERANCE
@@ -63,6 +65,11 @@ class ManikinResult:
     method: str  # FULL or FAILED
     distance: dict[GoalRef, float] = field(default_factory=dict)  # m, hand to site
     rula: RulaWorst | None = None
+    # with equipment geometry only: the share of each goal's site the eyes see at its least
+    # visible frame (MT0611's measure), and its tightest opening (MT0610's: what passes, what
+    # the part needs, in m, and the part)
+    seen: dict[GoalRef, float] = field(default_factory=dict)
+    opening: dict[GoalRef, tuple[float, float, str]] = field(default_factory=dict)
     error: str | None = None
 
     @property
@@ -152,7 +159,32 @@ def measure_one(
     ir = run_motion(dataclasses.replace(timelines[index], manikin=spec), DiagnosticSink(), options)
     result.distance = contact_distances(ir)
     result.rula = worst_rula(ir)
+    if ir.geometry:
+        result.seen, result.opening = prototype_measures(ir)
     return result
+
+
+def prototype_measures(
+    ir: MotionIR,
+) -> tuple[dict[GoalRef, float], dict[GoalRef, tuple[float, float, str]]]:
+    """Per goal, what lint's MT0611 and MT0610 measure: the least share of the site seen, and
+    the tightest opening on the way (only where there is one around a part)."""
+    view = make_view(ir, "", LintConfig())
+    if view is None:
+        return {}, {}
+    seen: dict[GoalRef, float] = {}
+    for sight in goal_sights(view):
+        ref = goal_ref(sight.goal)
+        seen[ref] = min(seen.get(ref, 1.0), sight.share)
+    opening: dict[GoalRef, tuple[float, float, str]] = {}
+    for tight in goal_openings(view):
+        ref = goal_ref(tight.goal)
+        if not np.isfinite(tight.scale):
+            continue
+        free, need = tight.scale * tight.size[0], tight.size[0]
+        if ref not in opening or free / need < opening[ref][0] / opening[ref][1]:
+            opening[ref] = (free, need, tight.part)
+    return seen, opening
 
 
 def contact_distances(ir: MotionIR) -> dict[GoalRef, float]:

@@ -51,7 +51,26 @@ def _task_rows(task: TaskResult, report: Report) -> list[dict[str, str]]:
         *_manikin_rows(task),
         *_reach_rows(task),
         *_share_rows(task, report.ratio),
+        *_prototype_rows(task),
     ]
+
+
+def _prototype_rows(task: TaskResult) -> list[dict[str, str]]:
+    """With equipment geometry: each goal's share seen and its tightest opening, per manikin."""
+    out = []
+    for g in task.goals:
+        for m in task.manikins:
+            base = {"task": task.task, "section": "prototype", "manikin": m.label,
+                    "method": m.method, "sex": m.spec.sex, "site": g.site, "hand": g.hand,
+                    "line": str(g.line), "column": str(g.column)}  # fmt: skip
+            if g in m.seen:
+                out.append({**base, "metric": "seen", "value": f"{m.seen[g] * 100:.0f}",
+                            "unit": "%", "note": "least share of the site the eyes see"})  # fmt: skip
+            if g in m.opening:
+                free, need, part = m.opening[g]
+                out.append({**base, "metric": "opening", "value": f"{free * 1000:.1f}",
+                            "unit": "mm", "note": f"{part} needs {need * 1000:.1f} mm"})  # fmt: skip
+    return out
 
 
 def _time_rows(task: TaskResult) -> list[dict[str, str]]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mtlc.lint.manikins import SWEEP_POPULATION
+from mtlc.lint.rules.visibility import HIDDEN_SHARE
 from mtlc.report.access import AccessRow, access_rows, groups, populations
 from mtlc.report.analysis import FAILED, ManikinResult, Report, TaskResult
 from mtlc.report.maintenance import CATEGORIES
@@ -184,8 +185,44 @@ def _mark(ok: bool | None) -> str:
     return "" if ok is None else "ok" if ok else "bad"
 
 
+def prototype_table(task: TaskResult) -> Table | None:
+    """With equipment geometry: per goal and manikin, the share of the site the eyes see
+    (MT0611) and the tightest opening on the way (MT0610); None without geometry."""
+    if not any(m.seen or m.opening for m in task.manikins):
+        return None
+    many = len(populations(task)) > 1
+    header = ("site", "hand", "line", *(short_label(m.spec, many) for m in task.manikins))
+    rows, marks = [], []
+    for g in task.goals:
+        cells, cell_marks = [], []
+        for m in task.manikins:
+            seen, opening = m.seen.get(g), m.opening.get(g)
+            text = UNKNOWN if seen is None else f"{seen * 100:.0f} %"
+            bad = seen is not None and seen < HIDDEN_SHARE
+            if opening is not None:
+                free, need, part = opening
+                what = "" if part.endswith("hand") else f" {part.split(' ', 1)[-1]}"
+                text += f" · {free * 1000:.0f}/{need * 1000:.0f}{what}"
+                bad = bad or free < need
+            cells.append(text)
+            cell_marks.append("bad" if bad else "")
+        rows.append((g.site, g.hand, str(g.line), *cells))
+        marks.append(("", "", "", *cell_marks))
+    note = (
+        "With the scene's models and solids. N %: the least share of the site the eyes see at "
+        f"the reach's end and over the work (lint MT0611 under {HIDDEN_SHARE * 100:.0f} %). "
+        "· A/B: an opening on the way lets a hand A mm broad through where the manikin's is B "
+        "mm (a forearm or tool: named; lint MT0610 when A < B; docs/collision.md, access "
+        "openings)."
+    )
+    return Table("Sight and access openings on the prototype", header, rows, note, marks)
+
+
 def task_tables(task: TaskResult, report: Report) -> list[Table]:
     tables = [manikin_table(task), time_table(task)]
     if task.goals:
         tables.append(access_table(task, report.ratio))
+        prototype = prototype_table(task)
+        if prototype is not None:
+            tables.append(prototype)
     return tables

@@ -55,6 +55,20 @@ class Tight:
 
 
 def access_openings(view: MotionView) -> list[Finding]:
+    """MT0610, once per task line, at its tightest part."""
+    worst: dict[SourceRef, Tight] = {}
+    for tight in goal_openings(view):
+        if tight.scale >= 1.0:
+            continue
+        key = tight.goal.provenance.origin
+        if key not in worst or tight.scale < worst[key].scale:
+            worst[key] = tight
+    return [_finding(view, w) for w in sorted(worst.values(), key=lambda w: w.frame)]
+
+
+def goal_openings(view: MotionView) -> list[Tight]:
+    """Each goal's tightest part through the openings on its way (scale ``inf``: no opening
+    around it); empty without geometry."""
     models = view.ir.geometry
     skel = view.ir.skeleton
     if not models or skel is None:
@@ -68,7 +82,7 @@ def access_openings(view: MotionView) -> list[Finding]:
     tools = [(tool_capsule(skel, site, tool), a, b) for site, tool, a, b in held_spans(view.ir)
              if site in names]  # fmt: skip
     breadth = measure_m(skel, HAND_BREADTH) + 2 * glove
-    worst: dict[SourceRef, Tight] = {}
+    out = []
     for reach, work in goal_groups(view.ir):
         frames = goal_frames(view.time, reach, work, FRAMES)
         if len(frames) == 0:
@@ -90,6 +104,7 @@ def access_openings(view: MotionView) -> list[Finding]:
         if normal is not None and reach.goal.position is not None:
             frames = frames[:1]  # the way in along the normal: one question, asked at arrival
         pose = pose_frames(view.pose, frames)
+        best: Tight | None = None
         starts, ends, _ = capsule_segments(skel, pose, tuple(p[0] for p in parts))
         for i, frame in enumerate(frames):
             if normal is not None and reach.goal.position is not None:
@@ -101,13 +116,12 @@ def access_openings(view: MotionView) -> list[Finding]:
                 ]
             for (a, b), (cap, size, _) in zip(axes, parts, strict=True):
                 got = passage(scene, a, b, *size)
-                if got.fits:
-                    continue
-                key = reach.provenance.origin
-                if key not in worst or got.scale < worst[key].scale:
+                if best is None or got.scale < best.scale:
                     blocker = scene.name(got.face) if got.face >= 0 else "the model"
-                    worst[key] = Tight(got.scale, cap.name, size, int(frame), blocker, reach)
-    return [_finding(view, w) for w in sorted(worst.values(), key=lambda w: w.frame)]
+                    best = Tight(got.scale, cap.name, size, int(frame), blocker, reach)
+        if best is not None:
+            out.append(best)
+    return out
 
 
 def _along_normal(

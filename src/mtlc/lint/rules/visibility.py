@@ -10,7 +10,7 @@ frame. MT0611: lines from the eye to a small disc at the site, through the scene
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -86,15 +86,27 @@ HIDDEN_SHARE = 0.5  # a site is hidden at a frame when less than this share of i
 OCCLUSION_FRAMES = 6  # frames of a goal tested: its arrival and up to five over the work
 
 
-def site_hidden(view: MotionView) -> list[Finding]:
-    """Each goal's site seen from the eyes through the scene's geometry, at the reach's end
-    and over the work there; reported once per task line, at its least visible frame."""
+@dataclass(frozen=True)
+class Sight:
+    """How much of one goal's site the eyes see through the geometry: the least share at a
+    frame (and that frame), the share over the goal's frames, and what hides the most."""
+
+    goal: Segment
+    share: float
+    frame: int
+    mean: float
+    by: str | None
+
+
+def goal_sights(view: MotionView) -> list[Sight]:
+    """Each goal's site seen from the eyes through the scene's geometry, at the reach's end and
+    over the work there (empty without geometry)."""
     if not view.ir.geometry or view.ir.skeleton is None:
         return []
     scene = RayScene(view.ir.geometry)
     if len(scene) == 0:
         return []
-    worst: dict[SourceRef, tuple[float, int, Segment, str, float]] = {}
+    out = []
     for reach, work in goal_groups(view.ir):
         if reach.goal.position is None:
             continue
@@ -108,16 +120,22 @@ def site_hidden(view: MotionView) -> list[Finding]:
         blocked = np.isfinite(hits.distance).reshape(n, p)
         share = 1.0 - blocked.mean(axis=1)
         k = int(np.argmin(share))
-        if share[k] >= HIDDEN_SHARE:
+        names = [scene.name(int(f)) for f in hits.face.reshape(n, p)[k][blocked[k]]]
+        by = max(sorted(set(names)), key=names.count) if names else None
+        out.append(Sight(reach, float(share[k]), int(frames[k]), float(share.mean()), by))
+    return out
+
+
+def site_hidden(view: MotionView) -> list[Finding]:
+    """MT0611, once per task line, at its least visible frame."""
+    worst: dict[SourceRef, Sight] = {}
+    for sight in goal_sights(view):
+        if sight.share >= HIDDEN_SHARE:
             continue
-        faces = hits.face.reshape(n, p)[k][blocked[k]]
-        names = [scene.name(int(f)) for f in faces]
-        by = max(sorted(set(names)), key=names.count)
-        key = reach.provenance.origin
-        if key not in worst or share[k] < worst[key][0]:
-            worst[key] = (float(share[k]), int(frames[k]), reach, by, float(share.mean()))
-    ordered = sorted(worst.values(), key=lambda w: w[1])
-    return [_hidden(view, *w) for w in ordered]
+        key = sight.goal.provenance.origin
+        if key not in worst or sight.share < worst[key].share:
+            worst[key] = sight
+    return [_hidden(view, s) for s in sorted(worst.values(), key=lambda s: s.frame)]
 
 
 def goal_frames(time: np.ndarray, reach: Segment, work: list[Segment], most: int) -> np.ndarray:
@@ -150,14 +168,13 @@ def site_disc(eye: np.ndarray, site: np.ndarray) -> np.ndarray:
     return np.concatenate([centre, site + ring], axis=1)
 
 
-def _hidden(
-    view: MotionView, share: float, frame: int, seg: Segment, by: str, mean: float
-) -> Finding:
+def _hidden(view: MotionView, sight: Sight) -> Finding:
+    seg = sight.goal
     o = seg.provenance.origin
     msg = (
-        f"site `{seg.goal.site}` is hidden from the eyes by `{by}`: {share:.0%} of it visible at "
-        f"{view.time[frame]:.2f} s in `{' > '.join(seg.provenance.path)}` ({mean:.0%} over the "
-        f"reach's end and the work)"
+        f"site `{seg.goal.site}` is hidden from the eyes by `{sight.by}`: {sight.share:.0%} of it "
+        f"visible at {view.time[sight.frame]:.2f} s in `{' > '.join(seg.provenance.path)}` "
+        f"({sight.mean:.0%} over the reach's end and the work)"
     )
     return Finding(
         "MT0611",

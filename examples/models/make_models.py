@@ -43,9 +43,10 @@ def _add(scene: trimesh.Scene, name: str, mesh: trimesh.Trimesh, at: tuple[float
     scene.add_geometry(mesh, node_name=name, geom_name=name)
 
 
-def access_panel() -> trimesh.Scene:
+def access_panel(hole: float = 0.12) -> trimesh.Scene:
+    """The panel; ``hole`` (m) the lightening hole's diameter (tests shrink it)."""
     scene = trimesh.Scene()
-    vertices, faces = solids.plate((0.60, 0.45, 0.003), ("round", 0.12))
+    vertices, faces = solids.plate((0.60, 0.45, 0.003), ("round", hole))
     _add(scene, "panel", trimesh.Trimesh(vertices, faces, process=False), (0, 0, 0.0015))
     bolts = {
         "bolt_upper_left": (-0.20, 0.15),

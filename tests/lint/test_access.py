@@ -134,3 +134,36 @@ def test_mt0611_a_bracket_before_the_eyes_hides_the_site(tmp_path: Path) -> None
     hidden = [f for f in lint_cover(tmp_path, 20, bracket=True) if f.code == "MT0611"]
     assert plain == []
     assert [(f.span.line, "`bracket`" in f.message) for f in hidden] == [(LATCH_LINE + 1, True)]
+
+
+def test_mt0610_on_the_access_panel_when_its_hole_shrinks(tmp_path: Path) -> None:
+    """examples/remove_access_panel_cad.mtask releases a latch through the panel's 12 cm
+    lightening hole: clear; with the hole made 6 cm in the CAD (make_models.py), lint reports
+    it at the `press` line, for both manikins."""
+    import importlib.util
+
+    root = Path(__file__).resolve().parents[2]
+    spec = importlib.util.spec_from_file_location(
+        "make_models", root / "examples/models/make_models.py"
+    )
+    assert spec is not None and spec.loader is not None
+    make_models = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_models)
+    example = root / "examples" / "remove_access_panel_cad.mtask"
+    line = next(
+        i for i, text in enumerate(example.read_text("utf-8").splitlines(), 1) if "press(" in text
+    )
+    (tmp_path / "models").mkdir()
+    task = tmp_path / example.name
+    task.write_text(example.read_text("utf-8"), encoding="utf-8")
+    glb = tmp_path / "models" / "access_panel.glb"
+    glb.write_bytes(make_models.access_panel(0.12).export(file_type="glb"))
+    assert [
+        f for f in lint_paths([task], CONFIG, manikins=EXTREMES).findings if f.code == "MT0610"
+    ] == []
+    glb.write_bytes(make_models.access_panel(0.06).export(file_type="glb"))
+    (found,) = [
+        f for f in lint_paths([task], CONFIG, manikins=EXTREMES).findings if f.code == "MT0610"
+    ]
+    assert found.span.line == line and "`panel.panel`" in found.message
+    assert set(found.manikins) == {"gb10000_1988:female:5", "gb10000_1988:male:95"}

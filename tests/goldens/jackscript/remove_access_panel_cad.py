@@ -12,7 +12,7 @@ def remove_access_panel_cad():
     # box bench (not loaded): ((100.0, 0.0, 0.0, 175.0), (0.0, 100.0, 0.0, 42.5), (0.0, 0.0, 100.0, 20.0), (0.0, 0.0, 0.0, 1.0))
     human = CreateHuman()
     human.SetAnthropometry(population='gb10000_1988', sex='female', percentile=5, stature=148.4, mass=42.0)
-    # examples/remove_access_panel_cad.mtask:26:5 remove_access_panel_cad > walk_to > travel: locomotion on root at panel_front
+    # examples/remove_access_panel_cad.mtask:29:5 remove_access_panel_cad > walk_to > travel: locomotion on root at panel_front
     human.Walk((-0.026, 0.0, 59.851), start=0.0, duration=1.294737)
     human.KeyRoot(0.0, (0.0, 72.992, 0.0), (0.0, 0.0, 0.0))
     human.KeyJoints(0.0, {
@@ -91,7 +91,7 @@ def remove_access_panel_cad():
         'right_ankle': (7.434, -0.422), 'left_hip': (12.705, 0.412, 0.093), 'left_knee': (20.136,),
         'left_ankle': (7.432, 0.422),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 111.6), start=1.294737, duration=0.270061)
     human.KeyRoot(1.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(1.3, {
@@ -106,8 +106,8 @@ def remove_access_panel_cad():
         'right_knee': (4.908,), 'right_ankle': (1.892, 0.0), 'left_hip': (3.018, 0.0, 0.0),
         'left_knee': (4.908,), 'left_ankle': (1.891, 0.0),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_left
     human.LookAt((-20.0, 135.0, 111.6), start=1.564798, duration=10.899115)
     human.KeyJoints(1.6, {
         'neck': (1.095, -0.004, -21.266), 'head': (1.101, 0.0),
@@ -145,7 +145,7 @@ def remove_access_panel_cad():
         'right_shoulder': (80.292, 7.309, 2.163), 'right_elbow': (35.341, 11.089),
         'right_wrist': (-0.848, -27.422),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.4, {
         'spine_lumbar': (3.935, 0.522, 0.93), 'spine_thoracic': (-0.937, -0.99, 0.922),
         'neck': (0.302, -0.344, -22.809), 'head': (0.236, 0.0), 'right_clavicle': (1.435, 0.533),
@@ -158,7 +158,7 @@ def remove_access_panel_cad():
         'right_clavicle': (2.277, 0.77), 'right_shoulder': (90.758, 10.552, -0.346),
         'right_elbow': (33.744, 10.08), 'right_wrist': (-1.584, -29.987),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.547869, duration=0.072)
     human.KeyJoints(2.6, {
         'spine_thoracic': (-1.644, -1.603, 1.398), 'neck': (-0.57, -0.745, -26.12),
@@ -166,7 +166,7 @@ def remove_access_panel_cad():
         'right_shoulder': (90.923, 10.607, -0.381), 'right_elbow': (33.613, 10.07),
         'right_wrist': (-1.588, -30.0),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
         'spine_lumbar': (6.11, 0.811, 1.48), 'spine_thoracic': (-2.006, -1.776, 1.458),
         'neck': (-0.416, -0.688, -26.271), 'head': (-0.566, -0.002),
@@ -197,7 +197,7 @@ def remove_access_panel_cad():
         'right_shoulder': (79.375, 14.444, -4.04), 'right_elbow': (32.5, 7.64),
         'right_wrist': (-3.384, -26.349),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -234,7 +234,7 @@ def remove_access_panel_cad():
         'right_clavicle': (2.562, 0.831), 'right_shoulder': (90.18, 10.994, -0.582),
         'right_elbow': (33.938, 9.952), 'right_wrist': (-1.746, -29.204),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
         'spine_lumbar': (6.434, 1.006, 1.765), 'spine_thoracic': (-3.091, -2.152, 1.715),
         'neck': (-0.064, -0.56, -26.639), 'head': (-0.19, -0.001), 'right_clavicle': (3.188, 0.748),
@@ -265,7 +265,7 @@ def remove_access_panel_cad():
         'right_shoulder': (81.853, 13.837, -3.349), 'right_elbow': (32.807, 8.122),
         'right_wrist': (-3.043, -26.974),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -296,7 +296,7 @@ def remove_access_panel_cad():
         'right_shoulder': (74.475, 15.536, -3.982), 'right_elbow': (32.491, 7.896),
         'right_wrist': (-3.568, -24.244),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -333,7 +333,7 @@ def remove_access_panel_cad():
         'right_shoulder': (84.696, 13.005, -2.463), 'right_elbow': (33.183, 8.723),
         'right_wrist': (-2.62, -27.71),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
         'spine_lumbar': (6.288, 1.028, 1.586), 'spine_thoracic': (-2.011, -1.621, 1.562),
         'neck': (-0.562, -0.744, -26.231), 'head': (-0.722, -0.002),
@@ -364,7 +364,7 @@ def remove_access_panel_cad():
         'right_shoulder': (76.833, 14.972, -4.118), 'right_elbow': (32.434, 7.649),
         'right_wrist': (-3.555, -25.482),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -401,7 +401,7 @@ def remove_access_panel_cad():
         'right_shoulder': (87.748, 11.914, -1.435), 'right_elbow': (33.598, 9.397),
         'right_wrist': (-2.14, -28.538),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
         'spine_lumbar': (6.325, 1.022, 1.637), 'spine_thoracic': (-2.308, -1.766, 1.606),
         'neck': (-0.423, -0.693, -26.345), 'head': (-0.574, -0.002),
@@ -432,7 +432,7 @@ def remove_access_panel_cad():
         'right_shoulder': (79.333, 14.453, -4.046), 'right_elbow': (32.497, 7.637),
         'right_wrist': (-3.388, -26.337),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -469,7 +469,7 @@ def remove_access_panel_cad():
         'right_clavicle': (2.571, 0.829), 'right_shoulder': (90.152, 11.005, -0.592),
         'right_elbow': (33.934, 9.945), 'right_wrist': (-1.75, -29.196),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
         'spine_lumbar': (6.431, 1.007, 1.762), 'spine_thoracic': (-3.074, -2.144, 1.713),
         'neck': (-0.072, -0.563, -26.632), 'head': (-0.198, -0.001),
@@ -500,7 +500,7 @@ def remove_access_panel_cad():
         'right_shoulder': (81.81, 13.849, -3.364), 'right_elbow': (32.801, 8.112),
         'right_wrist': (-3.049, -26.963),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -531,7 +531,7 @@ def remove_access_panel_cad():
         'right_shoulder': (74.437, 15.547, -3.969), 'right_elbow': (32.497, 7.91),
         'right_wrist': (-3.566, -24.217),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -568,7 +568,7 @@ def remove_access_panel_cad():
         'right_shoulder': (84.644, 13.022, -2.48), 'right_elbow': (33.176, 8.712),
         'right_wrist': (-2.628, -27.696),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
         'spine_lumbar': (6.288, 1.028, 1.585), 'spine_thoracic': (-2.009, -1.62, 1.562),
         'neck': (-0.563, -0.744, -26.23), 'head': (-0.723, -0.002),
@@ -599,7 +599,7 @@ def remove_access_panel_cad():
         'right_shoulder': (76.792, 14.98, -4.118), 'right_elbow': (32.434, 7.651),
         'right_wrist': (-3.557, -25.466),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -636,7 +636,7 @@ def remove_access_panel_cad():
         'right_shoulder': (87.699, 11.932, -1.452), 'right_elbow': (33.591, 9.386),
         'right_wrist': (-2.147, -28.525),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
         'spine_lumbar': (6.323, 1.022, 1.635), 'spine_thoracic': (-2.3, -1.762, 1.604),
         'neck': (-0.427, -0.694, -26.342), 'head': (-0.578, -0.002),
@@ -667,7 +667,7 @@ def remove_access_panel_cad():
         'right_shoulder': (79.292, 14.463, -4.051), 'right_elbow': (32.495, 7.634),
         'right_wrist': (-3.392, -26.325),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -704,7 +704,7 @@ def remove_access_panel_cad():
         'right_clavicle': (2.581, 0.826), 'right_shoulder': (90.122, 11.016, -0.602),
         'right_elbow': (33.93, 9.938), 'right_wrist': (-1.755, -29.188),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
         'spine_lumbar': (6.429, 1.007, 1.759), 'spine_thoracic': (-3.058, -2.135, 1.71),
         'neck': (-0.08, -0.566, -26.626), 'head': (-0.207, -0.001),
@@ -735,7 +735,7 @@ def remove_access_panel_cad():
         'right_shoulder': (81.766, 13.86, -3.378), 'right_elbow': (32.794, 8.101),
         'right_wrist': (-3.056, -26.953),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
         'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
         'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
@@ -766,7 +766,7 @@ def remove_access_panel_cad():
         'right_shoulder': (74.634, 15.395, -3.929), 'right_elbow': (32.247, 7.933),
         'right_wrist': (-3.499, -24.79),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > release: grip on r_hand
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.391913, duration=0.072)
     human.KeyJoints(12.4, {
         'spine_lumbar': (6.038, 0.806, 1.411), 'spine_thoracic': (-1.644, -1.603, 1.398),
@@ -774,7 +774,7 @@ def remove_access_panel_cad():
         'right_shoulder': (90.86, 10.606, -0.379), 'right_elbow': (33.717, 10.07),
         'right_wrist': (-1.596, -30.0),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_upper_right
     human.LookAt((20.0, 135.0, 111.6), start=12.463913, duration=0.336746)
     human.KeyJoints(12.5, {'neck': (-0.59, -0.723, -24.645), 'head': (-0.742, -0.002)})
     human.KeyJoints(12.6, {'neck': (-0.796, -0.509, -9.61)})
@@ -783,14 +783,14 @@ def remove_access_panel_cad():
         'neck': (-1.067, -0.228, 10.105), 'right_clavicle': (2.313, 0.78),
         'right_shoulder': (90.86, 10.606, -0.379),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
     human.KeyJoints(12.8, {
         'spine_lumbar': (5.974, 0.606, 1.526), 'spine_thoracic': (-1.724, -1.64, 1.507),
         'neck': (-1.202, -0.086, 20.005), 'head': (-1.126, -0.003), 'right_clavicle': (2.31, 0.889),
         'right_shoulder': (90.795, 10.496, -0.322), 'right_elbow': (33.754, 10.093),
         'right_wrist': (-1.579, -29.962),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_right
     human.LookAt((20.0, 135.0, 111.6), start=12.800659, duration=10.447749)
     human.KeyJoints(12.9, {
         'spine_lumbar': (5.404, -1.178, 2.547), 'spine_thoracic': (-2.437, -1.968, 2.476),
@@ -815,14 +815,14 @@ def remove_access_panel_cad():
         'right_shoulder': (85.703, 4.706, 2.653), 'right_elbow': (35.451, 11.409),
         'right_wrist': (-0.821, -28.274),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.3, {
         'spine_lumbar': (6.855, -13.92, 9.586), 'spine_thoracic': (-8.513, -4.494, 9.141),
         'neck': (0.597, -0.496, -13.18), 'head': (0.726, -0.015), 'right_clavicle': (2.778, 7.879),
         'right_shoulder': (88.363, 7.263, 1.216), 'right_elbow': (34.359, 11.021),
         'right_wrist': (-1.416, -29.894),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=13.332364, duration=0.072)
     human.KeyJoints(13.4, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
@@ -830,7 +830,7 @@ def remove_access_panel_cad():
         'right_shoulder': (88.537, 7.32, 1.181), 'right_elbow': (34.178, 11.013),
         'right_wrist': (-1.418, -30.0),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
         'spine_lumbar': (6.596, -14.3, 9.502), 'spine_thoracic': (-9.122, -4.703, 9.087),
         'neck': (0.78, -0.519, -15.31), 'head': (0.921, -0.016), 'right_clavicle': (3.454, 7.692),
@@ -861,7 +861,7 @@ def remove_access_panel_cad():
         'right_shoulder': (85.766, 7.39, -4.042), 'right_elbow': (22.39, 7.292),
         'right_wrist': (-3.446, -29.895),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -892,7 +892,7 @@ def remove_access_panel_cad():
         'right_shoulder': (83.27, 7.18, -2.871), 'right_elbow': (21.422, 8.254),
         'right_wrist': (-3.036, -29.99),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -929,7 +929,7 @@ def remove_access_panel_cad():
         'right_shoulder': (86.467, 7.317, -4.143), 'right_elbow': (22.644, 7.198),
         'right_wrist': (-3.434, -29.919),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
         'spine_lumbar': (1.875, -17.611, 8.556), 'spine_thoracic': (-8.901, -6.215, 8.323),
         'neck': (3.05, -0.492, -16.841), 'head': (3.21, -0.015), 'right_clavicle': (2.846, 7.246),
@@ -960,7 +960,7 @@ def remove_access_panel_cad():
         'right_shoulder': (84.243, 7.286, -3.584), 'right_elbow': (21.834, 7.647),
         'right_wrist': (-3.349, -29.926),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -997,7 +997,7 @@ def remove_access_panel_cad():
         'right_shoulder': (87.13, 7.027, -4.221), 'right_elbow': (22.895, 7.108),
         'right_wrist': (-3.383, -29.961),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
         'spine_lumbar': (1.856, -17.668, 8.554), 'spine_thoracic': (-9.048, -6.247, 8.322),
         'neck': (3.133, -0.491, -16.885), 'head': (3.294, -0.015), 'right_clavicle': (3.027, 7.215),
@@ -1028,7 +1028,7 @@ def remove_access_panel_cad():
         'right_shoulder': (85.078, 7.386, -3.914), 'right_elbow': (22.154, 7.383),
         'right_wrist': (-3.442, -29.882),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -1065,7 +1065,7 @@ def remove_access_panel_cad():
         'right_shoulder': (87.611, 6.772, -4.27), 'right_elbow': (23.08, 7.044),
         'right_wrist': (-3.338, -29.995),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
         'spine_lumbar': (1.809, -17.812, 8.538), 'spine_thoracic': (-9.405, -6.34, 8.319),
         'neck': (3.335, -0.488, -16.988), 'head': (3.497, -0.015), 'right_clavicle': (3.477, 7.136),
@@ -1096,7 +1096,7 @@ def remove_access_panel_cad():
         'right_shoulder': (85.755, 7.39, -4.04), 'right_elbow': (22.386, 7.293),
         'right_wrist': (-3.446, -29.895),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -1127,7 +1127,7 @@ def remove_access_panel_cad():
         'right_shoulder': (83.253, 7.18, -2.854), 'right_elbow': (21.413, 8.269),
         'right_wrist': (-3.028, -29.99),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -1164,7 +1164,7 @@ def remove_access_panel_cad():
         'right_shoulder': (86.455, 7.32, -4.142), 'right_elbow': (22.64, 7.199),
         'right_wrist': (-3.434, -29.919),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
         'spine_lumbar': (1.875, -17.61, 8.556), 'spine_thoracic': (-8.9, -6.215, 8.323),
         'neck': (3.049, -0.492, -16.841), 'head': (3.21, -0.015), 'right_clavicle': (2.845, 7.246),
@@ -1195,7 +1195,7 @@ def remove_access_panel_cad():
         'right_shoulder': (84.227, 7.282, -3.575), 'right_elbow': (21.828, 7.654),
         'right_wrist': (-3.345, -29.928),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -1232,7 +1232,7 @@ def remove_access_panel_cad():
         'right_shoulder': (87.12, 7.033, -4.22), 'right_elbow': (22.891, 7.109),
         'right_wrist': (-3.384, -29.96),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
         'spine_lumbar': (1.856, -17.666, 8.554), 'spine_thoracic': (-9.044, -6.246, 8.322),
         'neck': (3.131, -0.491, -16.884), 'head': (3.291, -0.015), 'right_clavicle': (3.022, 7.216),
@@ -1263,7 +1263,7 @@ def remove_access_panel_cad():
         'right_shoulder': (85.066, 7.386, -3.911), 'right_elbow': (22.149, 7.385),
         'right_wrist': (-3.442, -29.882),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -1300,7 +1300,7 @@ def remove_access_panel_cad():
         'right_shoulder': (87.606, 6.775, -4.27), 'right_elbow': (23.078, 7.044),
         'right_wrist': (-3.339, -29.995),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
         'spine_lumbar': (1.81, -17.809, 8.538), 'spine_thoracic': (-9.398, -6.338, 8.319),
         'neck': (3.33, -0.488, -16.985), 'head': (3.492, -0.015), 'right_clavicle': (3.467, 7.138),
@@ -1331,7 +1331,7 @@ def remove_access_panel_cad():
         'right_shoulder': (85.743, 7.39, -4.039), 'right_elbow': (22.382, 7.294),
         'right_wrist': (-3.446, -29.895),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -1362,7 +1362,7 @@ def remove_access_panel_cad():
         'right_shoulder': (83.235, 7.18, -2.837), 'right_elbow': (21.404, 8.284),
         'right_wrist': (-3.021, -29.99),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
         'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
         'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
@@ -1399,7 +1399,7 @@ def remove_access_panel_cad():
         'right_shoulder': (86.443, 7.324, -4.14), 'right_elbow': (22.635, 7.201),
         'right_wrist': (-3.435, -29.918),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
         'spine_lumbar': (1.875, -17.61, 8.556), 'spine_thoracic': (-8.899, -6.214, 8.323),
         'neck': (3.049, -0.492, -16.841), 'head': (3.209, -0.015), 'right_clavicle': (2.843, 7.246),
@@ -1430,7 +1430,7 @@ def remove_access_panel_cad():
         'right_shoulder': (84.794, 7.776, 1.566), 'right_elbow': (32.332, 11.39),
         'right_wrist': (-1.543, -29.83),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > release: grip on r_hand
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=23.176408, duration=0.072)
     human.KeyJoints(23.2, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
@@ -1438,7 +1438,7 @@ def remove_access_panel_cad():
         'right_shoulder': (88.427, 7.319, 1.185), 'right_elbow': (34.336, 11.013),
         'right_wrist': (-1.429, -29.929),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 111.6), start=23.248408, duration=0.4)
     human.KeyJoints(23.3, {'neck': (1.903, -0.592, -16.234), 'head': (1.122, -0.069)})
     human.KeyJoints(23.4, {'neck': (11.488, -0.993, -23.48), 'head': (5.141, -0.393)})
@@ -1447,13 +1447,13 @@ def remove_access_panel_cad():
         'right_shoulder': (88.427, 7.319, 1.185), 'right_elbow': (34.336, 11.013),
         'right_wrist': (-1.429, -29.929),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_left
     human.KeyJoints(23.6, {
         'neck': (33.599, -1.919, -40.196), 'head': (14.413, -1.139),
         'right_shoulder': (87.257, 7.579, 0.989), 'right_elbow': (34.444, 10.924),
         'right_wrist': (-1.493, -29.466),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_left
     human.LookAt((-20.0, 105.0, 111.6), start=23.648408, duration=10.483707)
     human.KeyJoints(23.7, {
         'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187),
@@ -1472,7 +1472,7 @@ def remove_access_panel_cad():
         'right_shoulder': (25.08, 24.64, -11.559), 'right_elbow': (40.105, 5.21),
         'right_wrist': (-5.458, -4.946),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.1, {
         'right_shoulder': (17.429, 31.412, -15.796), 'right_elbow': (38.919, 3.272),
         'right_wrist': (-6.457, -3.791),
@@ -1481,9 +1481,9 @@ def remove_access_panel_cad():
         'right_shoulder': (17.513, 33.356, -16.785), 'right_elbow': (37.585, 2.811),
         'right_wrist': (-6.586, -5.14),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.216071, duration=0.072)
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
         'spine_lumbar': (6.932, -13.915, 9.602), 'spine_thoracic': (-8.55, -4.497, 9.155),
         'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.802, 7.882),
@@ -1520,7 +1520,7 @@ def remove_access_panel_cad():
         'right_clavicle': (7.568, 7.954), 'right_shoulder': (20.801, 36.974, -11.008),
         'right_elbow': (44.407, 8.058), 'right_wrist': (-5.697, 10.471),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
         'spine_lumbar': (11.066, -1.424, 10.817), 'spine_thoracic': (-10.114, -2.305, 10.043),
         'neck': (32.43, -3.922, -41.878), 'right_clavicle': (6.028, 8.495),
@@ -1551,7 +1551,7 @@ def remove_access_panel_cad():
         'right_clavicle': (9.567, 7.073), 'right_shoulder': (21.534, 34.374, -7.954),
         'right_elbow': (43.555, 9.58), 'right_wrist': (-4.948, 10.045),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
@@ -1588,7 +1588,7 @@ def remove_access_panel_cad():
         'right_clavicle': (6.671, 8.269), 'right_shoulder': (20.253, 37.926, -12.1),
         'right_elbow': (44.852, 7.565), 'right_wrist': (-6.01, 10.76),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.0, {
         'spine_lumbar': (11.084, -1.306, 10.787), 'spine_thoracic': (-10.114, -2.429, 10.041),
         'neck': (32.408, -3.909, -41.783), 'head': (12.435, -1.576),
@@ -1619,7 +1619,7 @@ def remove_access_panel_cad():
         'right_clavicle': (8.968, 7.344), 'right_shoulder': (21.54, 35.117, -8.988),
         'right_elbow': (43.721, 8.976), 'right_wrist': (-5.141, 10.044),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.5, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
@@ -1656,7 +1656,7 @@ def remove_access_panel_cad():
         'right_shoulder': (19.849, 38.586, -12.861), 'right_elbow': (45.173, 7.224),
         'right_wrist': (-6.231, 10.97),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
         'spine_lumbar': (11.132, -1.052, 10.717), 'spine_thoracic': (-10.114, -2.716, 10.036),
         'neck': (32.359, -3.881, -41.574), 'head': (12.413, -1.574),
@@ -1687,7 +1687,7 @@ def remove_access_panel_cad():
         'right_clavicle': (8.378, 7.629), 'right_shoulder': (21.235, 35.994, -9.906),
         'right_elbow': (44.016, 8.562), 'right_wrist': (-5.394, 10.229),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
@@ -1718,7 +1718,7 @@ def remove_access_panel_cad():
         'right_clavicle': (10.259, 6.853), 'right_shoulder': (21.241, 33.972, -6.73),
         'right_elbow': (43.488, 10.524), 'right_wrist': (-4.85, 10.211),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.1, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
@@ -1755,7 +1755,7 @@ def remove_access_panel_cad():
         'right_clavicle': (7.584, 7.948), 'right_shoulder': (20.81, 36.957, -10.988),
         'right_elbow': (44.399, 8.067), 'right_wrist': (-5.691, 10.466),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.7, {
         'spine_lumbar': (11.066, -1.425, 10.817), 'spine_thoracic': (-10.114, -2.304, 10.043),
         'neck': (32.43, -3.922, -41.879), 'right_clavicle': (6.026, 8.495),
@@ -1786,7 +1786,7 @@ def remove_access_panel_cad():
         'right_clavicle': (9.577, 7.068), 'right_shoulder': (21.531, 34.362, -7.935),
         'right_elbow': (43.553, 9.592), 'right_wrist': (-4.945, 10.047),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.2, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
@@ -1823,7 +1823,7 @@ def remove_access_panel_cad():
         'right_clavicle': (6.685, 8.264), 'right_shoulder': (20.262, 37.911, -12.084),
         'right_elbow': (44.845, 7.573), 'right_wrist': (-6.005, 10.755),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.8, {
         'spine_lumbar': (11.083, -1.309, 10.788), 'spine_thoracic': (-10.114, -2.426, 10.041),
         'neck': (32.408, -3.91, -41.785), 'head': (12.435, -1.576),
@@ -1854,7 +1854,7 @@ def remove_access_panel_cad():
         'right_clavicle': (8.977, 7.339), 'right_shoulder': (21.544, 35.103, -8.972),
         'right_elbow': (43.717, 8.984), 'right_wrist': (-5.138, 10.042),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.3, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
@@ -1891,7 +1891,7 @@ def remove_access_panel_cad():
         'right_shoulder': (19.853, 38.58, -12.854), 'right_elbow': (45.17, 7.227),
         'right_wrist': (-6.229, 10.968),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
         'spine_lumbar': (11.131, -1.057, 10.719), 'spine_thoracic': (-10.114, -2.71, 10.036),
         'neck': (32.36, -3.882, -41.578), 'head': (12.414, -1.574),
@@ -1922,7 +1922,7 @@ def remove_access_panel_cad():
         'right_clavicle': (8.389, 7.624), 'right_shoulder': (21.241, 35.978, -9.89),
         'right_elbow': (44.011, 8.569), 'right_wrist': (-5.389, 10.225),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
@@ -1953,7 +1953,7 @@ def remove_access_panel_cad():
         'right_clavicle': (10.273, 6.85), 'right_shoulder': (21.233, 33.972, -6.708),
         'right_elbow': (43.488, 10.544), 'right_wrist': (-4.851, 10.216),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
@@ -1990,7 +1990,7 @@ def remove_access_panel_cad():
         'right_clavicle': (7.599, 7.943), 'right_shoulder': (20.819, 36.94, -10.969),
         'right_elbow': (44.392, 8.075), 'right_wrist': (-5.686, 10.461),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
         'spine_lumbar': (11.066, -1.426, 10.818), 'spine_thoracic': (-10.114, -2.303, 10.043),
         'neck': (32.431, -3.922, -41.88), 'right_clavicle': (6.024, 8.495),
@@ -2021,7 +2021,7 @@ def remove_access_panel_cad():
         'right_clavicle': (9.587, 7.063), 'right_shoulder': (21.528, 34.35, -7.917),
         'right_elbow': (43.551, 9.605), 'right_wrist': (-4.942, 10.049),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
@@ -2058,7 +2058,7 @@ def remove_access_panel_cad():
         'right_clavicle': (6.699, 8.259), 'right_shoulder': (20.271, 37.897, -12.067),
         'right_elbow': (44.838, 7.58), 'right_wrist': (-6.0, 10.75),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
         'spine_lumbar': (11.083, -1.312, 10.789), 'spine_thoracic': (-10.114, -2.423, 10.041),
         'neck': (32.409, -3.91, -41.788), 'head': (12.436, -1.576),
@@ -2089,7 +2089,7 @@ def remove_access_panel_cad():
         'right_clavicle': (5.937, 6.618), 'right_shoulder': (19.291, 30.023, -12.791),
         'right_elbow': (36.298, 4.689), 'right_wrist': (-5.484, -5.634),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > release: grip on r_hand
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.060115, duration=0.072)
     human.KeyJoints(34.1, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
@@ -2097,17 +2097,17 @@ def remove_access_panel_cad():
         'right_shoulder': (17.514, 33.362, -16.788), 'right_elbow': (37.58, 2.81),
         'right_wrist': (-6.586, -5.145),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > look: gaze on head at bolt_lower_right
     human.LookAt((20.0, 105.0, 111.6), start=34.132115, duration=0.321358)
     human.KeyJoints(34.2, {'neck': (33.724, -1.696, -37.067), 'head': (14.207, -1.188)})
     human.KeyJoints(34.3, {'neck': (29.081, -0.674, -21.827), 'head': (11.32, -1.193)})
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_lower_right
     human.KeyJoints(34.4, {
         'neck': (24.727, 0.285, -7.536), 'head': (8.613, -1.198),
         'right_shoulder': (17.514, 33.362, -16.788), 'right_elbow': (37.58, 2.81),
         'right_wrist': (-6.586, -5.145),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_lower_right
     human.LookAt((20.0, 105.0, 111.6), start=34.453473, duration=10.463136)
     human.KeyJoints(34.5, {
         'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199),
@@ -2126,7 +2126,7 @@ def remove_access_panel_cad():
         'right_shoulder': (45.169, 3.653, 9.277), 'right_elbow': (34.897, 16.898),
         'right_wrist': (-1.221, -16.632),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.9, {
         'right_shoulder': (54.382, 1.367, 11.663), 'right_elbow': (33.733, 18.538),
         'right_wrist': (-0.965, -20.024),
@@ -2135,9 +2135,9 @@ def remove_access_panel_cad():
         'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
         'right_wrist': (-1.15, -21.055),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=35.000565, duration=0.072)
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
         'spine_lumbar': (6.958, -13.956, 9.611), 'spine_thoracic': (-8.561, -4.503, 9.164),
         'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.8, 7.886),
@@ -2174,7 +2174,7 @@ def remove_access_panel_cad():
         'right_shoulder': (55.549, 3.217, 11.371), 'right_elbow': (33.481, 18.953),
         'right_wrist': (-1.091, -19.979),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
         'spine_lumbar': (7.38, -13.916, 9.852), 'spine_thoracic': (-9.078, -4.582, 9.408),
         'neck': (23.969, 0.404, -5.306), 'head': (8.226, -1.198), 'right_clavicle': (3.232, 7.984),
@@ -2205,7 +2205,7 @@ def remove_access_panel_cad():
         'right_shoulder': (52.764, 4.669, 11.203), 'right_elbow': (32.893, 19.594),
         'right_wrist': (-1.081, -20.76),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
         'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
         'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
@@ -2242,7 +2242,7 @@ def remove_access_panel_cad():
         'right_shoulder': (56.128, 2.772, 11.458), 'right_elbow': (33.608, 18.805),
         'right_wrist': (-1.077, -19.831),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
         'spine_lumbar': (7.109, -14.252, 9.967), 'spine_thoracic': (-9.495, -4.744, 9.548),
         'neck': (24.192, 0.363, -5.715), 'head': (8.531, -1.197), 'right_clavicle': (3.537, 8.024),
@@ -2273,7 +2273,7 @@ def remove_access_panel_cad():
         'right_shoulder': (53.661, 4.358, 11.198), 'right_elbow': (33.072, 19.412),
         'right_wrist': (-1.109, -20.498),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
         'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.842, -4.505, 9.328),
         'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
@@ -2304,7 +2304,7 @@ def remove_access_panel_cad():
         'right_shoulder': (50.769, 4.721, 11.69), 'right_elbow': (32.222, 20.335),
         'right_wrist': (-0.793, -21.928),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
         'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
         'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
@@ -2341,7 +2341,7 @@ def remove_access_panel_cad():
         'right_shoulder': (54.631, 3.872, 11.248), 'right_elbow': (33.281, 19.183),
         'right_wrist': (-1.106, -20.222),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
         'spine_lumbar': (7.504, -13.764, 9.796), 'spine_thoracic': (-8.879, -4.517, 9.341),
         'neck': (23.857, 0.423, -5.111), 'head': (8.087, -1.198), 'right_clavicle': (3.096, 7.965),
@@ -2372,7 +2372,7 @@ def remove_access_panel_cad():
         'right_shoulder': (51.785, 4.73, 11.283), 'right_elbow': (32.63, 19.871),
         'right_wrist': (-1.0, -21.19),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
         'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
         'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
@@ -2409,7 +2409,7 @@ def remove_access_panel_cad():
         'right_shoulder': (55.536, 3.227, 11.369), 'right_elbow': (33.478, 18.956),
         'right_wrist': (-1.092, -19.983),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
         'spine_lumbar': (7.383, -13.912, 9.85), 'spine_thoracic': (-9.072, -4.581, 9.406),
         'neck': (23.966, 0.404, -5.301), 'head': (8.222, -1.198), 'right_clavicle': (3.228, 7.984),
@@ -2440,7 +2440,7 @@ def remove_access_panel_cad():
         'right_shoulder': (52.748, 4.673, 11.203), 'right_elbow': (32.889, 19.597),
         'right_wrist': (-1.08, -20.765),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
         'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
         'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
@@ -2477,7 +2477,7 @@ def remove_access_panel_cad():
         'right_shoulder': (56.123, 2.775, 11.458), 'right_elbow': (33.607, 18.807),
         'right_wrist': (-1.077, -19.832),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
         'spine_lumbar': (7.115, -14.245, 9.965), 'spine_thoracic': (-9.486, -4.74, 9.545),
         'neck': (24.187, 0.364, -5.707), 'head': (8.525, -1.197), 'right_clavicle': (3.53, 8.023),
@@ -2508,7 +2508,7 @@ def remove_access_panel_cad():
         'right_shoulder': (53.645, 4.363, 11.198), 'right_elbow': (33.069, 19.415),
         'right_wrist': (-1.109, -20.502),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
         'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
         'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
@@ -2539,7 +2539,7 @@ def remove_access_panel_cad():
         'right_shoulder': (50.752, 4.721, 11.698), 'right_elbow': (32.213, 20.345),
         'right_wrist': (-0.788, -21.943),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
         'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
         'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
@@ -2576,7 +2576,7 @@ def remove_access_panel_cad():
         'right_shoulder': (54.615, 3.882, 11.247), 'right_elbow': (33.277, 19.187),
         'right_wrist': (-1.106, -20.226),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
         'spine_lumbar': (7.505, -13.763, 9.796), 'spine_thoracic': (-8.877, -4.516, 9.34),
         'neck': (23.856, 0.423, -5.11), 'head': (8.086, -1.198), 'right_clavicle': (3.095, 7.965),
@@ -2607,7 +2607,7 @@ def remove_access_panel_cad():
         'right_shoulder': (51.768, 4.73, 11.287), 'right_elbow': (32.624, 19.877),
         'right_wrist': (-0.997, -21.2),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.7, {
         'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
         'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
@@ -2644,7 +2644,7 @@ def remove_access_panel_cad():
         'right_shoulder': (55.522, 3.237, 11.367), 'right_elbow': (33.475, 18.96),
         'right_wrist': (-1.092, -19.986),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.3, {
         'spine_lumbar': (7.386, -13.908, 9.849), 'spine_thoracic': (-9.067, -4.579, 9.405),
         'neck': (23.963, 0.405, -5.296), 'head': (8.219, -1.198), 'right_clavicle': (3.225, 7.983),
@@ -2675,7 +2675,7 @@ def remove_access_panel_cad():
         'right_shoulder': (52.733, 4.677, 11.204), 'right_elbow': (32.886, 19.6),
         'right_wrist': (-1.079, -20.77),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
         'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
         'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
@@ -2712,7 +2712,7 @@ def remove_access_panel_cad():
         'right_shoulder': (56.119, 2.778, 11.457), 'right_elbow': (33.606, 18.808),
         'right_wrist': (-1.077, -19.833),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.4, {
         'spine_lumbar': (7.12, -14.237, 9.962), 'spine_thoracic': (-9.477, -4.736, 9.542),
         'neck': (24.183, 0.365, -5.699), 'head': (8.518, -1.197), 'right_clavicle': (3.523, 8.023),
@@ -2743,7 +2743,7 @@ def remove_access_panel_cad():
         'right_shoulder': (53.843, 3.741, 10.891), 'right_elbow': (32.578, 19.06),
         'right_wrist': (-1.192, -21.751),
     })
-    # examples/remove_access_panel_cad.mtask:28:9 remove_access_panel_cad > unscrew > release: grip on r_hand
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.844609, duration=0.072)
     human.KeyJoints(44.9, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'spine_thoracic': (-8.547, -4.503, 9.154),
@@ -2751,459 +2751,497 @@ def remove_access_panel_cad():
         'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
         'right_wrist': (-1.15, -21.055),
     })
-    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=44.916609, duration=0.293734)
-    human.KeyJoints(45.0, {'neck': (23.629, -0.293, -10.36), 'head': (7.902, -1.206)})
-    human.KeyJoints(45.1, {'neck': (22.936, -2.175, -24.044), 'head': (7.4, -1.223)})
-    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > reach: TA on l_arm at panel_handle
-    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > reach: TA on r_arm at panel_handle
+    # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > look: gaze on head at panel_latch
+    human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.287409)
+    human.KeyJoints(45.0, {'neck': (23.271, -0.26, -10.041), 'head': (7.587, -1.211)})
+    human.KeyJoints(45.1, {'neck': (21.657, -2.072, -22.888), 'head': (6.283, -1.247)})
+    # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TA on r_arm at panel_latch
     human.KeyJoints(45.2, {
-        'neck': (22.49, -3.389, -32.865), 'head': (7.077, -1.235),
-        'right_shoulder': (56.296, 2.091, 11.177), 'right_elbow': (33.14, 18.451),
-        'right_wrist': (-1.152, -21.054), 'left_shoulder': (8.606, 5.724, 11.46),
-        'left_elbow': (34.375, 17.189), 'left_wrist': (0.0, -0.001),
+        'neck': (20.515, -3.276, -31.021), 'head': (5.372, -1.288),
+        'right_shoulder': (56.301, 2.111, 11.17), 'right_elbow': (33.184, 18.454),
+        'right_wrist': (-1.156, -21.048),
     })
-    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=45.210343, duration=0.836702)
+    # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > push: gaze on head at panel_latch
+    human.LookAt((0.0, 120.0, 118.0), start=45.204018, duration=0.847021)
     human.KeyJoints(45.3, {
-        'neck': (22.484, -3.403, -32.967), 'right_shoulder': (55.564, 2.807, 10.751),
-        'right_elbow': (34.726, 18.617), 'right_wrist': (-1.548, -20.961),
-        'left_shoulder': (10.495, 4.832, 11.556), 'left_elbow': (33.971, 17.214),
-        'left_wrist': (0.04, -0.162),
+        'neck': (20.398, -3.354, -31.314), 'right_shoulder': (56.398, 5.425, 9.922),
+        'right_elbow': (40.196, 18.963), 'right_wrist': (-1.963, -20.202),
     })
     human.KeyJoints(45.4, {
-        'right_shoulder': (52.656, 5.661, 9.052), 'right_elbow': (41.028, 19.275),
-        'right_wrist': (-3.122, -20.588), 'left_shoulder': (18.015, 1.276, 11.942),
-        'left_elbow': (32.366, 17.314), 'left_wrist': (0.197, -0.8),
+        'head': (5.285, -1.307), 'right_shoulder': (56.9, 15.557, 5.844),
+        'right_elbow': (56.491, 20.263), 'right_wrist': (-4.199, -18.238),
     })
+    # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TO on r_arm at panel_latch
     human.KeyJoints(45.5, {
-        'right_shoulder': (47.516, 10.802, 5.963), 'right_elbow': (52.165, 20.439),
-        'right_wrist': (-5.91, -19.93), 'left_shoulder': (31.415, -5.129, 12.637),
-        'left_elbow': (29.53, 17.49), 'left_wrist': (0.482, -1.928),
+        'right_shoulder': (65.928, 24.131, 1.727), 'right_elbow': (47.452, 20.234),
+        'right_wrist': (-3.842, -18.199),
     })
+    # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > push: TO on r_arm at panel_latch
     human.KeyJoints(45.6, {
-        'right_shoulder': (41.135, 17.484, 1.859), 'right_elbow': (65.99, 21.884),
-        'left_shoulder': (48.394, -13.445, 13.542), 'left_elbow': (26.008, 17.709),
+        'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.262, 19.57),
+        'right_wrist': (-1.859, -18.104),
     })
-    human.KeyJoints(45.7, {
-        'spine_lumbar': (6.939, -13.93, 9.587), 'spine_thoracic': (-8.556, -4.503, 9.14),
-        'right_clavicle': (2.801, 7.88), 'right_shoulder': (34.976, 24.622, -2.717),
-        'right_elbow': (79.339, 23.28), 'right_wrist': (-12.8, -18.326),
-        'left_clavicle': (-0.004, 0.013), 'left_shoulder': (65.581, -22.308, 14.511),
-        'left_elbow': (22.61, 17.921), 'left_wrist': (1.254, -4.679),
-    })
-    human.KeyJoints(45.8, {
-        'spine_lumbar': (7.704, -13.509, 9.331), 'spine_thoracic': (-8.986, -4.586, 8.861),
-        'neck': (22.484, -3.403, -32.967), 'head': (7.073, -1.235),
-        'right_clavicle': (3.122, 7.946), 'right_shoulder': (31.072, 30.988, -7.14),
-        'right_elbow': (88.22, 24.22), 'right_wrist': (-15.206, -17.829),
-        'left_clavicle': (-0.174, 0.369), 'left_shoulder': (79.162, -29.821, 15.314),
-        'left_elbow': (20.411, 18.068), 'left_wrist': (1.568, -5.563),
-    })
-    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > reach: TO on l_arm at panel_handle
-    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > reach: TO on r_arm at panel_handle
     human.KeyJoints(45.9, {
-        'spine_lumbar': (13.548, -12.104, 8.207), 'spine_thoracic': (-12.563, -5.733, 7.621),
-        'neck': (21.708, -3.454, -30.857), 'head': (6.613, -1.351), 'right_clavicle': (5.62, 9.053),
-        'right_shoulder': (32.453, 34.685, -9.565), 'right_elbow': (90.321, 24.479),
-        'right_wrist': (-15.872, -17.651), 'left_clavicle': (-1.616, 2.673),
-        'left_shoulder': (87.123, -30.58, 15.076), 'left_elbow': (20.424, 18.148),
-        'left_wrist': (1.219, -5.616),
+        'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.262, 19.57),
     })
+    # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=45.979039, duration=0.072)
     human.KeyJoints(46.0, {
-        'spine_lumbar': (16.815, -11.556, 7.547), 'spine_thoracic': (-14.652, -6.445, 6.896),
-        'neck': (21.537, -3.795, -32.41), 'right_clavicle': (7.014, 9.74),
-        'right_shoulder': (33.837, 35.509, -9.93), 'right_elbow': (90.624, 24.521),
-        'right_wrist': (-15.906, -17.536), 'left_clavicle': (-2.466, 4.014),
-        'left_shoulder': (89.567, -29.29, 14.723), 'left_elbow': (20.678, 18.177),
-        'left_wrist': (0.918, -5.538),
+        'neck': (20.398, -3.354, -31.314), 'head': (5.285, -1.307),
+        'right_shoulder': (74.338, 23.528, 2.036), 'right_elbow': (33.09, 19.57),
     })
-    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=46.047044, duration=0.072)
-    # examples/remove_access_panel_cad.mtask:30:5 remove_access_panel_cad > pick > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=46.047044, duration=0.072)
-    human.KeyRoot(46.1, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(46.1, {
-        'spine_lumbar': (16.953, -11.533, 7.519), 'neck': (21.041, -3.893, -31.403),
-        'head': (5.964, -1.416), 'left_shoulder': (89.831, -29.271, 14.706),
-        'left_elbow': (20.441, 18.178), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+    # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > look: gaze on head at panel_handle
+    human.LookAt((0.0, 120.0, 110.0), start=46.051039, duration=0.2628)
+    human.KeyJoints(46.1, {'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321)})
+    human.KeyJoints(46.2, {'neck': (21.234, -2.819, -32.341), 'head': (6.573, -1.403)})
+    human.KeyJoints(46.3, {
+        'neck': (21.781, -2.47, -33.013), 'head': (7.415, -1.488),
+        'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.261, 19.57),
+        'right_wrist': (-1.859, -18.104), 'left_shoulder': (8.594, 5.73, 11.459),
+        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
+    })
+    # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TA on l_arm at panel_handle
+    # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TA on r_arm at panel_handle
+    # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: gaze on head at panel_handle
+    human.LookAt((0.0, 120.0, 110.0), start=46.313839, duration=0.867635)
+    human.KeyJoints(46.4, {
+        'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514),
+        'right_shoulder': (73.751, 23.619, 1.96), 'right_elbow': (33.886, 19.605),
+        'right_wrist': (-1.969, -18.066), 'left_shoulder': (9.339, 5.378, 11.497),
+        'left_elbow': (34.218, 17.199), 'left_wrist': (0.016, -0.063),
+    })
+    human.KeyJoints(46.5, {
+        'right_shoulder': (70.183, 24.227, 1.426), 'right_elbow': (38.413, 19.858),
+        'right_wrist': (-2.764, -17.795), 'left_shoulder': (14.741, 2.824, 11.774),
+        'left_elbow': (33.065, 17.27), 'left_wrist': (0.129, -0.522),
+    })
+    human.KeyJoints(46.6, {
+        'right_shoulder': (62.505, 25.578, 0.239), 'right_elbow': (48.155, 20.403),
+        'right_wrist': (-4.479, -17.21), 'left_shoulder': (26.429, -2.737, 12.377),
+        'left_elbow': (30.582, 17.425), 'left_wrist': (0.375, -1.509),
+    })
+    human.KeyJoints(46.7, {
+        'right_shoulder': (51.947, 27.605, -1.559), 'right_elbow': (61.55, 21.152),
+        'right_wrist': (-6.859, -16.406), 'left_shoulder': (42.759, -10.66, 13.238),
+        'left_elbow': (27.168, 17.637),
+    })
+    human.KeyJoints(46.8, {
+        'spine_lumbar': (6.925, -13.943, 9.597), 'spine_thoracic': (-8.549, -4.503, 9.15),
+        'right_clavicle': (2.796, 7.881), 'right_shoulder': (40.866, 30.138, -3.838),
+        'right_elbow': (75.608, 21.938), 'right_wrist': (-9.407, -15.563),
+        'left_clavicle': (-0.001, 0.003), 'left_shoulder': (60.517, -19.633, 14.218),
+        'left_elbow': (23.586, 17.86), 'left_wrist': (1.133, -4.291),
+    })
+    human.KeyJoints(46.9, {
+        'spine_lumbar': (7.213, -13.724, 9.456), 'spine_thoracic': (-8.708, -4.518, 8.998),
+        'right_clavicle': (2.915, 7.885), 'right_shoulder': (32.291, 33.107, -6.563),
+        'right_elbow': (86.507, 22.549), 'right_wrist': (-11.513, -14.927),
+        'left_clavicle': (-0.063, 0.165), 'left_shoulder': (75.917, -28.1, 15.143),
+        'left_elbow': (20.831, 18.035), 'left_wrist': (1.512, -5.39),
+    })
+    human.KeyJoints(47.0, {
+        'spine_lumbar': (11.662, -12.412, 8.593), 'spine_thoracic': (-11.352, -5.315, 8.042),
+        'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514), 'right_clavicle': (4.808, 8.67),
+        'right_shoulder': (30.763, 36.16, -9.06), 'right_elbow': (90.204, 22.778),
+        'right_wrist': (-12.44, -14.754), 'left_clavicle': (-1.122, 1.911),
+        'left_shoulder': (85.709, -31.33, 15.281), 'left_elbow': (20.28, 18.131),
+        'left_wrist': (1.394, -5.661),
+    })
+    # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TO on l_arm at panel_handle
+    # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TO on r_arm at panel_handle
+    human.KeyJoints(47.1, {
+        'spine_lumbar': (16.288, -11.639, 7.65), 'spine_thoracic': (-14.306, -6.311, 7.003),
+        'right_clavicle': (6.766, 9.664), 'right_shoulder': (32.655, 37.258, -9.594),
+        'right_elbow': (90.688, 22.829), 'right_wrist': (-12.524, -14.606),
+        'left_clavicle': (-2.322, 3.838), 'left_shoulder': (89.21, -29.498, 14.78),
+        'left_elbow': (20.625, 18.173), 'left_wrist': (0.967, -5.552),
+    })
+    # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > grasp: grip on l_hand
+    human.Grasp('left_hand', 'close', start=47.181474, duration=0.072)
+    # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > grasp: grip on r_hand
+    human.Grasp('right_hand', 'close', start=47.181474, duration=0.072)
+    human.KeyRoot(47.2, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(47.2, {
+        'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
+        'neck': (20.216, -3.001, -31.124), 'head': (6.194, -1.656),
+        'right_clavicle': (7.019, 9.794), 'right_shoulder': (32.91, 37.386, -9.647),
+        'left_clavicle': (-2.48, 4.095), 'left_shoulder': (89.922, -29.245, 14.7),
+        'left_elbow': (20.254, 18.178), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })
-    # examples/remove_access_panel_cad.mtask:31:5 remove_access_panel_cad > walk_to > travel: locomotion on root at bench_front
-    human.Walk((139.636, 0.0, 19.995), start=46.119044, duration=5.147368)
-    # examples/remove_access_panel_cad.mtask:31:5 remove_access_panel_cad > walk_to > travel: gaze on head
-    human.KeyRoot(46.2, (-0.249, 72.654, 60.051), (0.557, 0.0, 0.0))
-    human.KeyJoints(46.2, {
-        'spine_thoracic': (-14.741, -6.475, 6.865), 'neck': (17.28, -3.214, -25.79),
-        'head': (4.925, -1.169), 'right_elbow': (90.706, 24.523),
-        'right_hip': (6.473, -0.149, -0.577), 'right_knee': (12.415,),
-        'right_ankle': (5.941, -0.213), 'left_hip': (7.367, 0.141, 0.581), 'left_knee': (13.946,),
-        'left_ankle': (6.215, 0.214),
-    })
-    human.KeyRoot(46.3, (-1.012, 72.494, 60.207), (2.456, 0.0, 0.0))
-    human.KeyJoints(46.3, {
-        'neck': (7.509, -1.404, -11.207), 'head': (2.152, -0.511),
-        'right_hip': (7.206, -0.549, -2.544), 'right_knee': (14.668,),
-        'right_ankle': (7.49, -0.863), 'left_hip': (9.484, 0.461, 2.582), 'left_knee': (18.022,),
-        'left_ankle': (7.572, 0.88),
-    })
-    human.KeyRoot(46.4, (-1.885, 72.49, 60.386), (5.133, 0.0, 0.0))
-    human.KeyJoints(46.4, {
-        'neck': (0.293, -0.067, -0.438), 'head': (0.103, -0.024),
-        'right_hip': (6.721, -0.984, -5.282), 'right_knee': (14.472,),
-        'right_ankle': (7.865, -1.591), 'left_hip': (16.939, 0.988, 2.177), 'left_knee': (33.85,),
-        'left_ankle': (16.158, 1.584),
-    })
-    human.KeyRoot(46.5, (-2.443, 72.624, 60.501), (7.989, 0.0, 0.0))
-    human.KeyJoints(46.5, {
-        'neck': (-0.057, 0.0, 0.085), 'head': (0.0, 0.0), 'right_hip': (7.573, -0.973, -8.226),
-        'right_knee': (16.79,), 'right_ankle': (8.257, -2.036), 'left_hip': (19.977, 3.814, -4.616),
-        'left_knee': (41.897,), 'left_ankle': (18.146, 1.909),
-    })
-    human.KeyRoot(46.6, (-2.313, 72.711, 60.186), (10.654, 0.0, 0.0))
-    human.KeyJoints(46.6, {
-        'right_clavicle': (7.073, 9.769), 'right_hip': (10.848, 0.163, -10.941),
-        'right_knee': (23.385,), 'right_ankle': (8.891, -1.894),
-        'left_hip': (17.11, 6.438, -13.979), 'left_knee': (38.255,), 'left_ankle': (18.278, 1.702),
-    })
-    human.KeyRoot(46.7, (-1.613, 72.597, 59.079), (13.625, 0.0, 0.0))
-    human.KeyJoints(46.7, {
-        'left_clavicle': (-2.502, 4.071), 'right_hip': (14.893, 2.391, -13.62),
-        'right_knee': (30.566,), 'right_ankle': (8.697, -1.233),
-        'left_hip': (9.306, 4.496, -20.324), 'left_knee': (21.151,), 'left_ankle': (10.91, 0.737),
-    })
-    human.KeyRoot(46.8, (-0.754, 72.492, 58.296), (17.164, 0.0, 0.0))
-    human.KeyJoints(46.8, {
-        'right_hip': (17.108, 4.861, -16.544), 'right_knee': (35.136,),
-        'right_ankle': (8.184, -0.356), 'left_hip': (7.367, 2.033, -18.148), 'left_knee': (14.731,),
-        'left_ankle': (7.095, -0.372),
-    })
-    human.KeyRoot(46.9, (0.148, 72.491, 58.358), (21.815, 0.0, 0.0))
-    human.KeyJoints(46.9, {
-        'right_hip': (17.929, 7.432, -19.836), 'right_knee': (39.484,),
-        'right_ankle': (10.468, 0.641), 'left_hip': (7.664, 0.698, -13.63), 'left_knee': (14.58,),
-    })
-    human.KeyRoot(47.0, (1.21, 72.496, 58.614), (27.65, 0.0, 0.0))
-    human.KeyJoints(47.0, {
-        'right_hip': (21.258, 7.447, -15.177), 'right_knee': (46.561,),
-        'right_ankle': (17.88, 1.224), 'left_hip': (7.615, -0.841, -7.946), 'left_knee': (14.215,),
-        'left_ankle': (6.78, -1.876),
-    })
-    human.KeyRoot(47.1, (2.093, 72.491, 58.999), (33.719, 0.0, 0.0))
-    human.KeyJoints(47.1, {
-        'right_hip': (22.515, 2.89, -3.42), 'right_knee': (46.48,), 'right_ankle': (19.089, 1.318),
-        'left_hip': (7.715, -2.115, -2.005), 'left_knee': (14.579,), 'left_ankle': (6.782, -2.364),
-    })
-    human.KeyRoot(47.2, (2.624, 72.628, 59.9), (39.367, 0.0, 0.0))
-    human.KeyJoints(47.2, {
-        'right_hip': (20.28, -2.485, 10.398), 'right_knee': (41.054,),
-        'right_ankle': (19.075, 1.242), 'left_hip': (9.671, -2.91, 3.425), 'left_knee': (19.283,),
-        'left_ankle': (7.42, -2.289),
-    })
-    human.KeyRoot(47.3, (3.065, 72.643, 61.838), (44.974, 0.0, 0.0))
+    # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: locomotion on root at bench_front
+    human.Walk((140.0, 0.0, 20.0), start=47.253474, duration=5.147368)
+    # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: gaze on head
+    human.KeyRoot(47.3, (-0.087, 72.76, 60.018), (0.191, 0.0, 0.0))
     human.KeyJoints(47.3, {
-        'right_hip': (12.861, -4.118, 20.454), 'right_knee': (27.47,),
-        'right_ankle': (14.092, 0.425), 'left_hip': (12.351, -3.587, 8.859), 'left_knee': (26.712,),
-        'left_ankle': (8.93, -1.572),
+        'neck': (18.836, -2.811, -28.999), 'head': (5.802, -1.551),
+        'right_hip': (5.666, -0.055, -0.198), 'right_knee': (10.566,), 'right_ankle': (4.9, -0.075),
+        'left_hip': (6.067, 0.054, 0.198), 'left_knee': (11.286,), 'left_ankle': (5.081, 0.075),
     })
-    human.KeyRoot(47.4, (3.337, 72.487, 63.487), (50.582, 0.0, 0.0))
+    human.KeyRoot(47.4, (-0.716, 72.522, 60.147), (1.684, 0.0, 0.0))
     human.KeyJoints(47.4, {
-        'right_hip': (5.972, -3.046, 20.049), 'right_knee': (14.772,),
-        'right_ankle': (8.12, -0.801), 'left_hip': (14.759, -4.703, 14.34), 'left_knee': (33.069,),
-        'left_ankle': (9.754, -0.793),
+        'neck': (10.552, -1.58, -16.245), 'head': (3.26, -0.872), 'right_elbow': (90.762, 22.836),
+        'right_hip': (7.171, -0.397, -1.747), 'right_knee': (14.32,),
+        'right_ankle': (7.164, -0.612), 'left_hip': (9.05, 0.346, 1.769), 'left_knee': (17.258,),
+        'left_ankle': (7.387, 0.62),
     })
-    human.KeyRoot(47.5, (3.21, 72.487, 63.785), (56.19, 0.0, 0.0))
+    human.KeyRoot(47.5, (-1.598, 72.488, 60.327), (4.161, 0.0, 0.0))
     human.KeyJoints(47.5, {
-        'right_hip': (5.39, -2.725, 14.452), 'right_knee': (14.514,),
-        'right_ankle': (8.615, -1.283), 'left_hip': (16.043, -6.298, 19.782),
-        'left_knee': (35.282,), 'left_ankle': (8.832, -0.329),
+        'neck': (1.805, -0.279, -2.779), 'head': (0.577, -0.154),
+        'right_hip': (6.913, -0.846, -4.293), 'right_knee': (14.599,),
+        'right_ankle': (7.767, -1.354), 'left_hip': (14.431, 0.538, 3.191), 'left_knee': (28.365,),
+        'left_ankle': (13.045, 1.381),
     })
-    human.KeyRoot(47.6, (2.303, 72.487, 63.839), (61.797, 0.0, 0.0))
+    human.KeyRoot(47.6, (-2.313, 72.539, 60.474), (7.023, 0.0, 0.0))
     human.KeyJoints(47.6, {
-        'right_hip': (5.546, -2.611, 8.846), 'right_ankle': (8.483, -1.721),
-        'left_hip': (20.784, -7.276, 18.835), 'left_knee': (44.459,), 'left_ankle': (15.32, 0.2),
+        'neck': (-0.064, 0.0, 0.099), 'head': (0.0, 0.0), 'right_hip': (7.118, -1.06, -7.224),
+        'right_knee': (15.706,), 'right_ankle': (8.226, -1.936),
+        'left_hip': (19.898, 2.599, -1.791), 'left_knee': (40.977,), 'left_ankle': (18.33, 1.841),
     })
-    human.KeyRoot(47.7, (1.071, 72.487, 63.867), (67.405, 0.0, 0.0))
+    human.KeyRoot(47.7, (-2.442, 72.709, 60.424), (9.722, 0.0, 0.0))
     human.KeyJoints(47.7, {
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.965, -2.514, 3.186), 'right_knee': (14.164,),
-        'right_ankle': (8.064, -2.166), 'left_hip': (22.262, -3.067, 8.589), 'left_knee': (46.718,),
-        'left_ankle': (19.0, 0.487),
+        'right_hip': (9.467, -0.385, -10.015), 'right_knee': (20.786,),
+        'right_ankle': (8.725, -2.016), 'left_hip': (18.903, 5.832, -10.752),
+        'left_knee': (41.406,), 'left_ankle': (18.425, 1.871),
     })
-    human.KeyRoot(47.8, (-0.029, 72.558, 63.755), (73.091, 0.0, 0.0))
+    human.KeyRoot(47.8, (-1.893, 72.677, 59.488), (12.554, 0.0, 0.0))
     human.KeyJoints(47.8, {
-        'right_hip': (7.179, -2.093, -2.564), 'right_knee': (15.633,),
-        'right_ankle': (7.891, -2.395), 'left_hip': (19.868, 3.028, -5.142), 'left_knee': (43.333,),
-        'left_ankle': (19.0, 1.13),
+        'right_hip': (13.505, 1.532, -12.696), 'right_knee': (28.092,),
+        'right_ankle': (8.771, -1.5), 'left_hip': (12.417, 5.744, -18.873), 'left_knee': (28.381,),
+        'left_ankle': (15.239, 1.127),
     })
-    human.KeyRoot(47.9, (-1.323, 72.592, 62.663), (79.251, 0.0, 0.0))
+    human.KeyRoot(47.9, (-1.042, 72.491, 58.455), (15.867, 0.0, 0.0))
     human.KeyJoints(47.9, {
-        'right_hip': (10.13, -0.301, -8.666), 'right_ankle': (8.057, -1.817),
-        'left_hip': (14.357, 5.674, -16.914), 'left_knee': (33.053,), 'left_ankle': (18.281, 1.173),
+        'right_hip': (16.733, 4.06, -15.467), 'right_knee': (34.088,),
+        'right_ankle': (8.372, -0.662), 'left_hip': (7.12, 2.478, -19.399), 'left_knee': (14.776,),
+        'left_ankle': (7.236, -0.041),
     })
-    human.KeyRoot(48.0, (-2.437, 72.538, 61.149), (85.051, 0.0, 0.0))
+    human.KeyRoot(48.0, (-0.196, 72.499, 58.31), (20.034, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'right_hip': (12.735, 2.444, -14.08), 'right_knee': (24.7,), 'right_ankle': (8.053, -0.763),
-        'left_hip': (7.125, 2.895, -20.923), 'left_knee': (15.59,), 'left_ankle': (7.934, 0.153),
+        'right_hip': (16.85, 6.286, -19.014), 'right_knee': (36.1,), 'right_ankle': (8.297, 0.269),
+        'left_hip': (7.542, 1.187, -15.361), 'left_ankle': (6.948, -0.857),
     })
-    human.KeyRoot(48.1, (-2.756, 72.487, 60.087), (89.374, 0.0, 0.0))
+    human.KeyRoot(48.1, (0.847, 72.495, 58.509), (25.566, 0.0, 0.0))
     human.KeyJoints(48.1, {
-        'right_hip': (13.588, 4.68, -17.946), 'right_knee': (27.324,),
-        'right_ankle': (8.221, 0.176), 'left_hip': (7.663, 1.326, -16.854), 'left_knee': (14.649,),
-        'left_ankle': (6.932, -0.958),
+        'right_hip': (20.381, 8.101, -17.827), 'right_knee': (45.253,),
+        'right_ankle': (15.607, 1.106), 'left_hip': (7.659, -0.319, -9.98),
+        'left_ankle': (6.84, -1.635),
     })
-    human.KeyRoot(48.2, (-2.399, 72.489, 59.286), (92.422, 0.0, 0.0))
+    human.KeyRoot(48.2, (1.831, 72.491, 58.855), (31.663, 0.0, 0.0))
     human.KeyJoints(48.2, {
-        'right_hip': (16.94, 7.137, -18.81), 'right_knee': (36.257,),
-        'right_ankle': (13.594, 1.059), 'left_hip': (7.66, 0.216, -13.951),
-        'left_ankle': (6.95, -1.63),
+        'right_hip': (22.426, 4.762, -7.961), 'right_knee': (47.247,),
+        'right_ankle': (19.163, 1.304), 'left_hip': (7.494, -1.734, -4.012), 'left_knee': (14.052,),
+        'left_ankle': (6.689, -2.239),
     })
-    human.KeyRoot(48.3, (-1.756, 72.488, 58.648), (94.977, 0.0, 0.0))
+    human.KeyRoot(48.3, (2.451, 72.597, 59.422), (37.436, 0.0, 0.0))
     human.KeyJoints(48.3, {
-        'right_hip': (20.559, 7.253, -13.92), 'right_knee': (43.697,),
-        'right_ankle': (18.811, 1.74), 'left_hip': (7.293, -0.644, -11.452), 'left_knee': (14.256,),
-        'left_ankle': (7.237, -2.069),
+        'right_hip': (21.595, -0.799, 5.784), 'right_knee': (43.539,),
+        'right_ankle': (19.138, 1.332), 'left_hip': (8.751, -2.683, 1.577), 'left_knee': (16.934,),
+        'left_ankle': (6.915, -2.411),
     })
-    human.KeyRoot(48.4, (-1.075, 72.616, 58.414), (97.605, 0.0, 0.0))
+    human.KeyRoot(48.4, (2.927, 72.632, 61.131), (43.043, 0.0, 0.0))
     human.KeyJoints(48.4, {
-        'right_hip': (21.184, 4.799, -6.837), 'right_knee': (43.807,),
-        'right_ankle': (18.839, 1.997), 'left_hip': (11.127, -0.46, -9.019), 'left_knee': (22.511,),
-        'left_ankle': (8.432, -2.183),
+        'right_hip': (16.037, -4.222, 17.707), 'right_knee': (33.493,),
+        'right_ankle': (17.081, 0.794), 'left_hip': (11.546, -3.341, 6.969), 'left_knee': (24.377,),
+        'left_ankle': (8.56, -1.86),
     })
-    human.KeyRoot(48.5, (-0.459, 72.709, 58.98), (101.079, 0.0, 0.0))
+    human.KeyRoot(48.5, (3.271, 72.539, 63.045), (48.651, 0.0, 0.0))
     human.KeyJoints(48.5, {
-        'right_hip': (17.947, 1.991, -1.332), 'right_knee': (36.455,),
-        'right_ankle': (18.478, 1.515), 'left_hip': (21.928, 0.522, -5.871), 'left_knee': (42.119,),
-        'left_ankle': (4.845, -1.771),
+        'right_hip': (7.025, -3.204, 21.812), 'right_knee': (16.2,), 'right_ankle': (8.505, -0.387),
+        'left_hip': (14.02, -4.241, 12.457), 'left_knee': (31.235,), 'left_ankle': (9.652, -1.028),
     })
-    human.KeyRoot(48.6, (0.266, 72.601, 59.956), (104.518, 0.0, 0.0))
+    human.KeyRoot(48.6, (3.347, 72.487, 63.762), (54.259, 0.0, 0.0))
     human.KeyJoints(48.6, {
-        'right_hip': (10.173, 0.414, 1.036), 'right_knee': (20.55,), 'right_ankle': (10.402, 0.628),
-        'left_hip': (31.837, 0.509, -2.262), 'left_knee': (56.298,), 'left_ankle': (-6.581, -0.888),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (5.485, -2.834, 16.38), 'right_knee': (14.6,),
+        'right_ankle': (8.54, -1.161), 'left_hip': (15.722, -5.781, 17.884), 'left_knee': (34.925,),
+        'left_ankle': (9.193, -0.526),
     })
-    human.KeyRoot(48.7, (1.289, 72.463, 60.533), (106.239, 0.0, 0.0))
+    human.KeyRoot(48.7, (2.68, 72.487, 63.823), (59.867, 0.0, 0.0))
     human.KeyJoints(48.7, {
-        'right_hip': (6.756, -0.083, 0.004), 'right_knee': (15.158,),
-        'right_ankle': (8.399, -0.082), 'left_hip': (37.859, 0.03, 0.142), 'left_knee': (63.049,),
-        'left_ankle': (-18.579, 0.154),
+        'right_hip': (5.432, -2.633, 10.764), 'right_ankle': (8.574, -1.562),
+        'left_hip': (19.43, -7.563, 20.511), 'left_knee': (42.143,), 'left_ankle': (12.948, 0.076),
     })
-    human.KeyRoot(48.8, (3.252, 72.22, 60.456), (106.251, 0.0, 0.0))
     human.KeyJoints(48.8, {
-        'right_hip': (6.241, -0.49, -0.053), 'right_knee': (17.545,),
-        'right_ankle': (11.302, -0.493), 'left_hip': (39.447, 0.066, 1.006), 'left_knee': (67.297,),
-        'left_ankle': (-19.033, 1.008),
+        'right_hip': (5.82, -2.563, 5.134), 'right_knee': (14.244,), 'right_ankle': (8.218, -2.022),
+        'left_hip': (22.186, -4.958, 12.772), 'left_knee': (46.801,), 'left_ankle': (19.081, 0.367),
     })
-    human.KeyRoot(48.9, (6.544, 71.984, 60.201), (106.251, 0.0, 0.0))
+    human.KeyRoot(48.9, (0.347, 72.49, 63.87), (71.087, 0.0, 0.0))
     human.KeyJoints(48.9, {
-        'right_hip': (3.608, -1.077, -0.068), 'right_knee': (17.879,),
-        'right_ankle': (14.272, -1.079), 'left_hip': (41.07, 0.474, 1.658), 'left_knee': (67.679,),
-        'left_ankle': (-6.427, 1.725),
+        'right_hip': (6.761, -2.338, -0.544), 'right_knee': (15.171,),
+        'right_ankle': (8.127, -2.38), 'left_hip': (21.14, 1.04, -0.354), 'left_knee': (45.338,),
+        'left_ankle': (19.069, 0.892),
     })
-    human.KeyRoot(49.0, (10.658, 71.976, 59.799), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.0, (-0.872, 72.588, 63.129), (77.125, 0.0, 0.0))
     human.KeyJoints(49.0, {
-        'right_hip': (-2.554, -1.74, 0.073), 'right_knee': (12.183,),
-        'right_ankle': (14.594, -1.742), 'left_hip': (38.459, 1.346, 1.645), 'left_knee': (53.429,),
-        'left_ankle': (2.675, 2.125),
+        'right_hip': (9.063, -1.079, -6.597), 'right_knee': (18.471,),
+        'right_ankle': (8.021, -2.097), 'left_hip': (16.64, 5.453, -13.54), 'left_knee': (37.805,),
+        'left_ankle': (18.999, 1.271),
     })
-    human.KeyRoot(49.1, (15.404, 71.479, 59.044), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.1, (-2.115, 72.588, 61.66), (83.171, 0.0, 0.0))
     human.KeyJoints(49.1, {
-        'right_hip': (6.989, -2.22, -0.818), 'right_knee': (39.18,),
-        'right_ankle': (18.959, -2.366), 'left_hip': (33.453, 2.036, 1.348), 'left_knee': (33.667,),
-        'left_ankle': (0.142, 2.442),
+        'right_hip': (11.891, 1.451, -12.368), 'right_knee': (23.063,),
+        'right_ankle': (7.953, -1.143), 'left_hip': (9.341, 4.263, -20.938), 'left_knee': (21.523,),
+        'left_ankle': (11.284, 0.601),
     })
-    human.KeyRoot(49.2, (22.203, 70.753, 56.597), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.2, (-2.763, 72.487, 60.365), (88.103, 0.0, 0.0))
     human.KeyJoints(49.2, {
-        'right_hip': (6.56, -1.75, -1.077), 'right_knee': (49.417,),
-        'right_ankle': (17.806, -2.055), 'left_hip': (29.501, 1.733, 0.977), 'left_knee': (22.456,),
-        'left_ankle': (-6.974, 1.99),
+        'right_hip': (13.567, 4.065, -16.806), 'right_knee': (26.793,),
+        'right_ankle': (8.149, -0.107), 'left_hip': (7.516, 1.743, -18.082), 'left_knee': (14.736,),
+        'left_ankle': (7.054, -0.684),
     })
-    human.KeyRoot(49.3, (29.62, 70.469, 53.303), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.3, (-2.567, 72.487, 59.556), (91.456, 0.0, 0.0))
     human.KeyJoints(49.3, {
-        'right_hip': (6.279, -0.738, -0.868), 'right_knee': (58.1,), 'right_ankle': (8.462, -1.139),
-        'left_hip': (21.577, 0.897, 0.353), 'left_knee': (11.616,), 'left_ankle': (-9.916, 0.964),
+        'right_hip': (15.083, 6.301, -19.275), 'right_knee': (31.803,),
+        'right_ankle': (10.775, 0.76), 'left_hip': (7.723, 0.579, -14.852),
+        'left_ankle': (6.902, -1.419),
     })
-    human.KeyRoot(49.4, (35.628, 70.622, 50.451), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.4, (-1.994, 72.487, 58.834), (94.117, 0.0, 0.0))
     human.KeyJoints(49.4, {
-        'right_hip': (3.656, -0.015, -0.027), 'right_knee': (58.737,),
-        'right_ankle': (-1.791, -0.031), 'left_hip': (21.343, 0.022, 0.008), 'left_knee': (22.331,),
-        'left_ankle': (0.989, 0.023),
+        'right_hip': (19.697, 7.674, -16.041), 'right_knee': (42.184,),
+        'right_ankle': (18.136, 1.543), 'left_hip': (7.437, -0.386, -12.299),
+        'left_knee': (14.323,), 'left_ankle': (7.136, -1.952),
     })
-    human.KeyRoot(49.5, (39.247, 71.212, 48.529), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.5, (-1.298, 72.533, 58.433), (96.655, 0.0, 0.0))
     human.KeyJoints(49.5, {
-        'right_hip': (1.398, 0.476, 0.789), 'right_knee': (57.974,), 'right_ankle': (-1.205, 0.922),
-        'left_hip': (17.984, -0.672, -0.218), 'left_knee': (22.674,), 'left_ankle': (4.692, -0.707),
+        'right_hip': (21.438, 5.859, -9.274), 'right_knee': (44.754,),
+        'right_ankle': (18.913, 1.969), 'left_hip': (8.331, -0.781, -9.84), 'left_knee': (16.809,),
+        'left_ankle': (7.858, -2.181),
     })
-    human.KeyRoot(49.6, (42.06, 71.852, 46.845), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.6, (-0.674, 72.709, 58.698), (99.802, 0.0, 0.0))
     human.KeyJoints(49.6, {
-        'right_hip': (15.363, 1.124, 1.352), 'right_knee': (66.717,),
-        'right_ankle': (16.199, 1.758), 'left_hip': (13.744, -1.378, -0.337),
-        'left_knee': (19.608,), 'left_ankle': (5.87, -1.419),
+        'right_hip': (19.654, 2.931, -2.904), 'right_knee': (40.13,), 'right_ankle': (18.927, 1.76),
+        'left_hip': (18.107, 0.264, -7.075), 'left_knee': (35.626,), 'left_ankle': (7.137, -1.977),
     })
-    human.KeyRoot(49.7, (45.801, 71.741, 45.031), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.7, (-0.007, 72.684, 59.624), (103.444, 0.0, 0.0))
     human.KeyJoints(49.7, {
-        'right_hip': (29.714, 1.82, 1.39), 'right_knee': (56.794,), 'right_ankle': (19.201, 2.29),
-        'left_hip': (13.457, -1.97, -0.532), 'left_knee': (26.146,), 'left_ankle': (11.025, -2.04),
+        'right_hip': (13.185, 0.818, 0.679), 'right_knee': (26.609,),
+        'left_hip': (28.673, 0.628, -3.465), 'left_knee': (52.172,), 'left_ankle': (-2.161, -1.233),
     })
-    human.KeyRoot(49.8, (54.085, 70.769, 42.508), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.8, (0.892, 72.489, 60.43), (105.946, 0.0, 0.0))
     human.KeyJoints(49.8, {
-        'right_hip': (33.807, 1.896, 1.255), 'right_knee': (35.868,), 'right_ankle': (2.188, 2.273),
-        'left_hip': (18.019, -1.941, -1.26), 'left_knee': (49.139,), 'left_ankle': (16.172, -2.314),
+        'right_hip': (6.942, 0.061, 0.316), 'right_knee': (14.833,), 'right_ankle': (7.89, 0.099),
+        'left_hip': (36.393, 0.142, -0.41), 'left_knee': (61.484,), 'left_ankle': (-15.022, -0.169),
     })
-    human.KeyRoot(49.9, (67.683, 69.965, 39.427), (106.251, 0.0, 0.0))
+    human.KeyRoot(49.9, (2.402, 72.307, 60.505), (106.251, 0.0, 0.0))
     human.KeyJoints(49.9, {
-        'right_hip': (26.071, 1.301, 0.63), 'right_knee': (13.477,),
-        'right_ankle': (-12.502, 1.445), 'left_hip': (13.663, -1.108, -1.245),
-        'left_knee': (61.49,), 'left_ankle': (13.162, -1.667),
+        'right_hip': (6.636, -0.325, -0.018), 'right_knee': (16.851,),
+        'right_ankle': (10.223, -0.327), 'left_hip': (38.866, 0.043, 0.679), 'left_knee': (65.115,),
+        'left_ankle': (-21.229, 0.68),
     })
-    human.KeyRoot(50.0, (79.827, 70.053, 37.137), (106.251, 0.0, 0.0))
+    human.KeyRoot(50.0, (5.292, 72.063, 60.307), (106.251, 0.0, 0.0))
     human.KeyJoints(50.0, {
-        'right_hip': (23.761, 0.316, 0.139), 'right_knee': (22.826,),
-        'right_ankle': (-0.926, 0.345), 'left_hip': (5.63, -0.232, -0.372), 'left_knee': (60.914,),
-        'left_ankle': (2.821, -0.438),
+        'right_hip': (4.773, -0.86, -0.061), 'right_knee': (18.087,),
+        'right_ankle': (13.319, -0.863), 'left_hip': (40.806, 0.264, 1.506), 'left_knee': (69.147,),
+        'left_ankle': (-11.023, 1.529),
     })
-    human.KeyRoot(50.1, (85.545, 70.767, 36.479), (105.631, 0.0, 0.0))
+    human.KeyRoot(50.1, (9.18, 71.983, 59.952), (106.251, 0.0, 0.0))
     human.KeyJoints(50.1, {
-        'right_hip': (20.074, -0.694, 0.407), 'right_knee': (25.398,),
-        'right_ankle': (5.327, -0.512), 'left_hip': (0.549, 0.337, -0.037), 'left_knee': (56.439,),
-        'left_ankle': (-3.928, 0.673),
+        'right_hip': (-0.241, -1.511, 0.008), 'right_knee': (14.453,),
+        'right_ankle': (14.695, -1.511), 'left_hip': (39.98, 1.025, 1.716), 'left_knee': (59.914,),
+        'left_ankle': (0.679, 1.999),
     })
-    human.KeyRoot(50.2, (88.775, 71.687, 36.234), (102.968, 0.0, 0.0))
+    human.KeyRoot(50.2, (13.573, 71.729, 59.457), (106.251, 0.0, 0.0))
     human.KeyJoints(50.2, {
-        'right_hip': (15.068, -1.894, 2.89), 'right_knee': (20.27,), 'right_ankle': (5.129, -1.075),
-        'left_hip': (9.152, 0.619, -1.04), 'left_knee': (64.358,), 'left_ankle': (11.157, 0.634),
+        'right_hip': (4.01, -2.165, -0.442), 'right_knee': (30.36,), 'right_ankle': (18.816, -2.21),
+        'left_hip': (34.941, 1.9, 1.444), 'left_knee': (39.589,), 'left_ankle': (2.288, 2.387),
     })
-    human.KeyRoot(50.3, (92.174, 72.06, 35.956), (99.604, 0.0, 0.0))
+    human.KeyRoot(50.3, (19.689, 71.003, 57.6), (106.251, 0.0, 0.0))
     human.KeyJoints(50.3, {
-        'right_hip': (11.721, -2.956, 6.171), 'right_knee': (18.818,),
-        'right_ankle': (6.736, -1.626), 'left_hip': (25.793, 1.493, 0.151), 'left_knee': (61.936,),
-        'left_ankle': (19.438, 1.477),
+        'right_hip': (7.09, -2.002, -1.056), 'right_knee': (46.428,),
+        'right_ankle': (18.634, -2.263), 'left_hip': (31.468, 1.918, 1.168), 'left_knee': (26.597,),
+        'left_ankle': (-4.792, 2.245),
     })
-    human.KeyRoot(50.4, (99.074, 71.634, 34.769), (96.688, 0.0, 0.0))
+    human.KeyRoot(50.4, (27.123, 70.486, 54.452), (106.251, 0.0, 0.0))
     human.KeyJoints(50.4, {
-        'right_hip': (14.942, -4.687, 8.327), 'right_knee': (36.761,),
-        'right_ankle': (13.873, -2.357), 'left_hip': (31.48, 3.563, 3.214), 'left_knee': (39.489,),
-        'left_ankle': (8.256, 4.709),
+        'right_hip': (6.741, -1.082, -1.046), 'right_knee': (56.227,),
+        'right_ankle': (12.219, -1.505), 'left_hip': (24.237, 1.221, 0.547), 'left_knee': (14.253,),
+        'left_ankle': (-9.932, 1.338),
     })
-    human.KeyRoot(50.5, (113.567, 71.069, 30.335), (93.324, 0.0, 0.0))
+    human.KeyRoot(50.5, (33.845, 70.513, 51.303), (106.251, 0.0, 0.0))
     human.KeyJoints(50.5, {
-        'right_hip': (8.702, -3.913, 11.658), 'right_knee': (48.526,),
-        'right_ankle': (17.605, -2.188), 'left_hip': (25.893, 5.21, 4.216), 'left_knee': (18.889,),
-        'left_ankle': (-6.632, 6.513),
+        'right_hip': (4.759, -0.207, -0.33), 'right_knee': (59.289,), 'right_ankle': (1.363, -0.39),
+        'left_hip': (21.75, 0.283, 0.113), 'left_knee': (19.655,), 'left_ankle': (-2.093, 0.305),
     })
-    human.KeyRoot(50.6, (127.097, 70.974, 25.237), (90.643, 0.0, 0.0))
+    human.KeyRoot(50.6, (38.179, 70.962, 49.145), (106.251, 0.0, 0.0))
     human.KeyJoints(50.6, {
-        'right_hip': (-2.194, -0.298, 15.003), 'right_knee': (46.409,),
-        'right_ankle': (12.231, -1.06), 'left_hip': (18.456, 4.163, 2.043), 'left_knee': (13.509,),
-        'left_ankle': (-4.778, 4.592),
+        'right_hip': (0.535, 0.295, 0.521), 'right_knee': (55.471,), 'right_ankle': (-5.062, 0.599),
+        'left_hip': (19.404, -0.426, -0.15), 'left_knee': (23.436,), 'left_ankle': (4.033, -0.452),
     })
-    human.KeyRoot(50.7, (130.515, 71.178, 22.503), (90.0, 0.0, 0.0))
+    human.KeyRoot(50.7, (41.074, 71.665, 47.421), (106.251, 0.0, 0.0))
     human.KeyJoints(50.7, {
-        'right_hip': (-2.974, 1.308, 16.606), 'right_knee': (47.822,),
-        'right_ankle': (6.188, 0.568), 'left_hip': (18.459, 2.079, 0.694), 'left_knee': (20.048,),
-        'left_ankle': (1.607, 2.192),
+        'right_hip': (8.916, 0.879, 1.203), 'right_knee': (63.427,), 'right_ankle': (9.671, 1.49),
+        'left_hip': (15.163, -1.141, -0.309), 'left_knee': (20.567,), 'left_ankle': (5.406, -1.182),
     })
-    human.KeyRoot(50.8, (130.134, 71.426, 20.886), (90.0, 0.0, 0.0))
+    human.KeyRoot(50.8, (44.301, 71.998, 45.693), (106.251, 0.0, 0.0))
     human.KeyJoints(50.8, {
-        'right_hip': (3.407, 1.313, 16.638), 'right_knee': (55.466,),
-        'right_ankle': (16.357, 2.738), 'left_hip': (17.417, 0.738, 0.232), 'left_knee': (17.244,),
-        'left_ankle': (-0.168, 0.774),
+        'right_hip': (25.404, 1.584, 1.47), 'right_knee': (61.519,), 'right_ankle': (18.746, 2.161),
+        'left_hip': (11.657, -1.792, -0.372), 'left_knee': (19.708,), 'left_ankle': (7.972, -1.83),
     })
-    human.KeyRoot(50.9, (129.745, 71.682, 19.933), (90.0, 0.0, 0.0))
+    human.KeyRoot(50.9, (50.319, 71.107, 43.504), (106.251, 0.0, 0.0))
     human.KeyJoints(50.9, {
-        'right_hip': (13.89, 1.201, 12.419), 'right_knee': (53.448,),
-        'right_ankle': (19.241, 4.395), 'left_hip': (15.825, -0.056, -0.016),
-        'left_knee': (13.259,), 'left_ankle': (-2.559, -0.059),
+        'right_hip': (33.023, 1.989, 1.294), 'right_knee': (41.496,), 'right_ankle': (8.532, 2.372),
+        'left_hip': (17.478, -2.079, -1.046), 'left_knee': (41.895,),
+        'left_ankle': (15.189, -2.327),
     })
-    human.KeyRoot(51.0, (130.703, 71.923, 19.863), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.0, (62.815, 70.082, 40.468), (106.251, 0.0, 0.0))
     human.KeyJoints(51.0, {
-        'right_hip': (20.806, 0.937, 5.437), 'right_knee': (43.737,),
-        'right_ankle': (19.202, 2.832), 'left_hip': (14.313, -0.115, -0.029),
-        'left_knee': (11.855,), 'left_ankle': (-2.457, -0.119),
+        'right_hip': (29.893, 1.558, 0.896), 'right_knee': (20.866,),
+        'right_ankle': (-8.958, 1.797), 'left_hip': (16.111, -1.433, -1.374), 'left_knee': (59.19,),
+        'left_ankle': (15.408, -1.986),
     })
-    human.KeyRoot(51.1, (134.785, 71.983, 19.923), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.1, (76.241, 69.965, 37.751), (106.251, 0.0, 0.0))
     human.KeyJoints(51.1, {
-        'right_hip': (16.877, 0.211, 0.649), 'right_knee': (26.57,), 'right_ankle': (9.844, 0.421),
-        'left_hip': (13.569, -0.065, -0.016), 'left_knee': (17.646,), 'left_ankle': (4.078, -0.067),
+        'right_hip': (22.874, 0.659, 0.278), 'right_knee': (14.399,), 'right_ankle': (-8.43, 0.716),
+        'left_hip': (8.196, -0.505, -0.728), 'left_knee': (61.938,), 'left_ankle': (6.669, -0.886),
     })
-    human.KeyRoot(51.2, (138.917, 72.403, 19.984), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.2, (84.059, 70.475, 36.615), (106.105, 0.0, 0.0))
     human.KeyJoints(51.2, {
-        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.041, 0.014, 0.002),
-        'right_knee': (15.632,), 'right_ankle': (6.594, 0.014), 'left_hip': (9.023, -0.014, -0.002),
-        'left_knee': (15.593,), 'left_ankle': (6.57, -0.014),
+        'right_hip': (21.599, -0.298, 0.04), 'right_knee': (25.976,),
+        'right_ankle': (4.373, -0.262), 'left_hip': (2.224, 0.173, 0.159), 'left_knee': (58.056,),
+        'left_ankle': (-3.248, 0.348),
     })
-    # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.266413, duration=0.323843)
-    human.KeyRoot(51.3, (140.0, 72.989, 20.0), (90.0, 0.0, 0.0))
+    human.KeyRoot(51.3, (87.76, 71.401, 36.305), (104.042, 0.0, 0.0))
     human.KeyJoints(51.3, {
-        'neck': (1.051, 1.014, -0.891), 'head': (0.451, -0.338), 'right_hip': (3.052, 0.0, 0.0),
-        'right_knee': (4.978,), 'right_ankle': (1.929, 0.0), 'left_hip': (3.044, 0.0, 0.0),
-        'left_knee': (4.962,), 'left_ankle': (1.92, 0.0),
+        'right_hip': (16.729, -1.497, 1.856), 'right_knee': (22.111,),
+        'right_ankle': (5.341, -0.898), 'left_hip': (3.931, 0.505, -0.793), 'left_knee': (60.898,),
+        'left_ankle': (4.709, 0.747),
     })
-    human.KeyJoints(51.4, {'neck': (12.953, 12.491, -10.972), 'head': (5.551, -4.164)})
+    human.KeyRoot(51.4, (90.842, 71.984, 36.076), (100.745, 0.0, 0.0))
+    human.KeyJoints(51.4, {
+        'right_hip': (12.679, -2.601, 5.057), 'right_knee': (18.612,),
+        'right_ankle': (5.751, -1.419), 'left_hip': (20.81, 1.072, -0.614), 'left_knee': (65.899,),
+        'left_ankle': (19.507, 0.878),
+    })
+    human.KeyRoot(51.5, (95.704, 71.8, 35.543), (97.724, 0.0, 0.0))
     human.KeyJoints(51.5, {
-        'neck': (28.359, 27.347, -24.021), 'head': (12.154, -9.116),
-        'right_shoulder': (33.846, 35.556, -9.98), 'right_elbow': (90.706, 24.523),
-        'right_wrist': (-15.93, -17.527), 'left_shoulder': (89.831, -29.271, 14.706),
-        'left_elbow': (20.441, 18.178), 'left_wrist': (0.918, -5.555),
-        'right_hip': (3.027, 0.0, 0.0), 'right_knee': (4.926,), 'right_ankle': (1.901, 0.0),
-        'left_hip': (3.025, 0.0, 0.0), 'left_knee': (4.922,), 'left_ankle': (1.899, 0.0),
+        'right_hip': (14.4, -4.199, 7.574), 'right_knee': (30.018,),
+        'right_ankle': (11.387, -2.155), 'left_hip': (31.025, 2.81, 2.198), 'left_knee': (47.654,),
+        'left_ankle': (14.519, 3.54),
     })
-    # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > move: TA on l_arm at bench_top
-    # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
-    # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.590256, duration=0.637215)
+    human.KeyRoot(51.6, (108.171, 71.276, 32.104), (94.483, 0.0, 0.0))
     human.KeyJoints(51.6, {
-        'neck': (35.0, 33.75, -29.645), 'head': (15.0, -11.25),
-        'right_shoulder': (33.029, 35.195, -9.83), 'right_elbow': (91.04, 24.553),
-        'right_wrist': (-15.983, -17.436), 'left_shoulder': (88.779, -29.082, 15.229),
-        'left_elbow': (21.565, 17.983), 'left_wrist': (-0.128, -5.431),
+        'right_hip': (11.952, -4.589, 10.369), 'right_knee': (46.136,),
+        'right_ankle': (17.201, -2.372), 'left_hip': (29.032, 4.785, 4.34), 'left_knee': (25.975,),
+        'left_ankle': (-2.701, 6.276),
+    })
+    human.KeyRoot(51.7, (123.182, 70.974, 26.861), (91.393, 0.0, 0.0))
+    human.KeyJoints(51.7, {
+        'right_hip': (1.099, -1.613, 14.03), 'right_knee': (47.807,),
+        'right_ankle': (14.811, -1.523), 'left_hip': (20.176, 4.956, 2.996), 'left_knee': (11.923,),
+        'left_ankle': (-7.996, 5.677),
+    })
+    human.KeyRoot(51.8, (130.55, 71.094, 23.129), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.8, {
+        'right_hip': (-3.96, 1.126, 16.19), 'right_knee': (46.432,), 'right_ankle': (7.592, -0.034),
+        'left_hip': (18.728, 2.598, 0.88), 'left_knee': (20.647,), 'left_ankle': (1.946, 2.743),
+    })
+    human.KeyRoot(51.9, (130.292, 71.336, 21.389), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.9, {
+        'right_hip': (0.066, 1.45, 17.103), 'right_knee': (52.68,), 'right_ankle': (10.897, 1.87),
+        'left_hip': (17.85, 1.155, 0.372), 'left_knee': (18.415,), 'left_ankle': (0.572, 1.214),
+    })
+    human.KeyRoot(52.0, (129.847, 71.598, 20.154), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.0, {
+        'right_hip': (10.645, 1.122, 14.395), 'right_knee': (56.259,),
+        'right_ankle': (19.33, 4.151), 'left_hip': (16.432, 0.128, 0.038), 'left_knee': (14.696,),
+        'left_ankle': (-1.723, 0.134),
+    })
+    human.KeyRoot(52.1, (129.93, 71.84, 19.851), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.1, {
+        'right_hip': (18.837, 1.148, 7.782), 'right_knee': (46.457,), 'right_ankle': (19.277, 3.65),
+        'left_hip': (14.663, -0.125, -0.033), 'left_knee': (11.193,), 'left_ankle': (-3.47, -0.129),
+    })
+    human.KeyRoot(52.2, (133.2, 71.983, 19.9), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.2, {
+        'right_hip': (19.703, 0.466, 1.851), 'right_knee': (33.682,),
+        'right_ankle': (14.158, 1.099), 'left_hip': (14.021, -0.084, -0.021),
+        'left_knee': (15.735,), 'left_ankle': (1.715, -0.087),
+    })
+    human.KeyRoot(52.3, (137.703, 72.264, 19.966), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.3, {
+        'right_hip': (10.636, 0.029, 0.006), 'right_knee': (16.785,), 'right_ankle': (6.155, 0.029),
+        'left_hip': (10.612, -0.029, -0.005), 'left_knee': (16.734,), 'left_ankle': (6.122, -0.029),
+    })
+    human.KeyRoot(52.4, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.4, {
+        'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (3.124, 0.0, 0.0),
+        'right_knee': (5.129,), 'right_ankle': (2.008, 0.0), 'left_hip': (3.108, 0.0, 0.0),
+        'left_knee': (5.097,), 'left_ankle': (1.99, 0.0),
+    })
+    # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > look: gaze on head at bench_top
+    human.LookAt((160.0, 90.0, 20.0), start=52.400843, duration=0.320709)
+    human.KeyRoot(52.5, (140.0, 72.989, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.5, {'neck': (7.968, 7.684, -6.755), 'head': (3.415, -2.561)})
+    human.KeyJoints(52.6, {
+        'neck': (23.728, 22.881, -20.116), 'head': (10.169, -7.627),
+        'right_shoulder': (32.91, 37.386, -9.647), 'right_elbow': (90.762, 22.836),
+        'left_shoulder': (89.922, -29.245, 14.7), 'left_elbow': (20.254, 18.178),
+        'left_wrist': (0.923, -5.575), 'right_hip': (3.036, 0.0, 0.0), 'right_knee': (4.945,),
+        'right_ankle': (1.911, 0.0), 'left_hip': (3.033, 0.0, 0.0), 'left_knee': (4.937,),
+        'left_ankle': (1.907, 0.0),
+    })
+    # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on l_arm at bench_top
+    # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
+    human.KeyJoints(52.7, {
+        'neck': (34.547, 33.313, -29.288), 'head': (14.806, -11.104),
+        'right_shoulder': (32.786, 37.338, -9.629), 'right_elbow': (90.813, 22.84),
+        'right_wrist': (-12.539, -14.568), 'left_shoulder': (89.732, -29.214, 14.777),
+        'left_elbow': (20.474, 18.149), 'left_wrist': (0.767, -5.551),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
-    human.KeyJoints(51.7, {
-        'right_shoulder': (24.897, 31.676, -8.427), 'right_elbow': (94.469, 24.854),
-        'right_wrist': (-16.562, -16.531), 'left_shoulder': (78.684, -27.278, 20.375),
-        'left_elbow': (32.163, 16.066), 'left_wrist': (-10.336, -4.258),
+    # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: gaze on head at bench_top
+    human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
+    human.KeyJoints(52.8, {
+        'neck': (35.0, 33.75, -29.672), 'head': (15.0, -11.25),
+        'right_shoulder': (27.891, 35.333, -8.783), 'right_elbow': (92.896, 22.994),
+        'right_wrist': (-12.789, -13.968), 'left_shoulder': (83.605, -28.136, 17.885),
+        'left_elbow': (26.961, 16.99), 'left_wrist': (-5.412, -4.832),
     })
-    human.KeyJoints(51.8, {
-        'right_shoulder': (7.814, 24.389, -5.534), 'right_elbow': (101.39, 25.458),
-        'right_wrist': (-17.804, -14.757), 'left_shoulder': (57.495, -22.977, 30.751),
-        'left_elbow': (53.678, 12.217), 'left_wrist': (-30.92, -1.866),
+    human.KeyJoints(52.9, {
+        'right_shoulder': (13.573, 29.489, -6.299), 'right_elbow': (98.861, 23.434),
+        'right_wrist': (-13.533, -12.268), 'left_shoulder': (65.615, -24.726, 26.843),
+        'left_elbow': (45.567, 13.668), 'left_wrist': (-23.15, -2.766),
     })
-    human.KeyJoints(51.9, {
-        'right_shoulder': (-13.322, 15.413, -1.688), 'right_elbow': (108.798, 26.12),
-        'right_wrist': (-19.294, -12.931), 'left_shoulder': (31.805, -16.159, 41.779),
-        'left_elbow': (77.596, 8.002), 'left_wrist': (-53.602, 0.841),
+    human.KeyJoints(53.0, {
+        'right_shoulder': (-6.762, 21.332, -2.717), 'right_elbow': (106.468, 24.003),
+        'right_wrist': (-14.622, -10.168), 'left_shoulder': (40.711, -18.731, 38.216),
+        'left_elbow': (69.736, 9.38), 'left_wrist': (-46.171, -0.051),
     })
-    human.KeyJoints(52.0, {
-        'right_shoulder': (-30.874, 6.783, 4.066), 'right_elbow': (112.788, 26.466),
-        'right_wrist': (-19.957, -11.846), 'left_shoulder': (9.072, -6.146, 49.197),
-        'left_elbow': (93.598, 4.986), 'left_wrist': (-68.927, 2.505),
+    human.KeyJoints(53.1, {
+        'right_shoulder': (-26.413, 12.835, 2.209), 'right_elbow': (112.178, 24.443),
+        'right_wrist': (-15.469, -8.582), 'left_shoulder': (15.639, -10.331, 46.798),
+        'left_elbow': (89.597, 6.012), 'left_wrist': (-64.538, 2.275),
     })
-    # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
-    # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
-    human.KeyJoints(52.1, {
-        'right_shoulder': (-38.457, 0.765, 11.788), 'right_elbow': (111.244, 26.243),
-        'right_wrist': (-18.601, -11.619), 'left_shoulder': (0.025, 9.35, 56.781),
-        'left_elbow': (102.99, 6.335), 'left_wrist': (-70.0, 4.21),
+    human.KeyJoints(53.2, {
+        'right_shoulder': (-36.986, 5.893, 10.091), 'right_elbow': (112.134, 24.408),
+        'right_wrist': (-14.44, -8.033), 'left_shoulder': (1.854, 4.74, 54.547),
+        'left_elbow': (100.135, 5.327), 'left_wrist': (-70.0, 3.088),
     })
-    human.KeyJoints(52.2, {
-        'right_shoulder': (-40.228, -1.053, 14.554), 'right_elbow': (110.334, 26.127),
-        'right_wrist': (-17.96, -11.584), 'left_shoulder': (-1.691, 14.503, 59.088),
-        'left_elbow': (105.803, 8.85), 'left_wrist': (-70.0, 6.938),
+    # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
+    # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
+    human.KeyJoints(53.3, {
+        'right_shoulder': (-39.907, 2.72, 14.95), 'right_elbow': (110.619, 24.269),
+        'right_wrist': (-13.251, -7.925), 'left_shoulder': (-1.507, 13.778, 58.757),
+        'left_elbow': (105.455, 8.377), 'left_wrist': (-70.0, 6.428),
     })
-    # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=52.227471, duration=0.072)
-    # examples/remove_access_panel_cad.mtask:32:5 remove_access_panel_cad > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=52.227471, duration=0.072)
-    human.KeyRoot(52.299471, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.299471, {
-        'spine_lumbar': (16.953, -11.533, 7.519), 'spine_thoracic': (-14.741, -6.475, 6.865),
-        'neck': (35.0, 33.75, -29.645), 'head': (15.0, -11.25), 'right_clavicle': (7.073, 9.769),
-        'right_shoulder': (-40.303, -1.071, 14.594), 'right_elbow': (110.392, 26.125),
-        'right_wrist': (-17.963, -11.571), 'left_clavicle': (-2.502, 4.071),
-        'left_shoulder': (-1.198, 15.077, 59.675), 'left_elbow': (105.341, 9.746),
-        'left_wrist': (-70.0, 7.859), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+    # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
+    human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)
+    # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on r_hand
+    human.Grasp('right_hand', 'open', start=53.361901, duration=0.072)
+    human.KeyJoints(53.4, {
+        'right_shoulder': (-40.053, 2.467, 15.328), 'right_elbow': (110.419, 24.257),
+        'left_shoulder': (-1.569, 14.636, 59.189), 'left_elbow': (105.551, 9.239),
+    })
+    human.KeyRoot(53.433901, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.433901, {
+        'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
+        'neck': (35.0, 33.75, -29.672), 'head': (15.0, -11.25), 'right_clavicle': (7.019, 9.794),
+        'right_shoulder': (-40.053, 2.467, 15.328), 'right_elbow': (110.419, 24.257),
+        'right_wrist': (-13.143, -7.932), 'left_clavicle': (-2.48, 4.095),
+        'left_shoulder': (-0.988, 15.218, 59.938), 'left_elbow': (105.356, 9.626),
+        'left_wrist': (-70.0, 7.642), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

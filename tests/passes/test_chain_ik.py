@@ -44,3 +44,34 @@ def test_the_scalar_chain_solves_as_solve_ta(spec, reach, restarts) -> None:
         np.testing.assert_allclose(got, ref[act], rtol=0.0, atol=1e-12)
         compared += 1
     assert compared == 10
+
+
+@pytest.mark.parametrize("spec", [("female", 5), ("male", 95)])
+@pytest.mark.parametrize("reach", ["arm", "torso"])
+@pytest.mark.parametrize("null_gain", [0.0, 0.05])
+def test_the_row_chain_solves_as_solve_ta(spec, reach, null_gain) -> None:
+    """``solve_rows`` is ``solve_ta(..., restarts=0)`` over rows, each from its own start
+    (their trunks differing by rounding errors, as ``tool._even_out``'s blended guesses do)."""
+    from mtlc.passes.chain_ik import RowChain, solve_rows
+
+    skel = with_tools(build_manikin("gb10000_1988", *spec), {"r_tool_wrench": WRENCH})
+    sites = ["r_hand", "r_tool_wrench"]
+    rng = np.random.default_rng(11)
+    b = 40  # past the 32 rows from which solve_ta's model evaluates by columns
+    q0 = np.tile(np.asarray(skel.q_comfort, dtype=float), (b, 1))
+    root = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
+    rp, rr = np.tile(root[0], (b, 1)), np.tile(root[1], (b, 1))
+    model = prepare(skel, sites, q0, reach=reach, root_position=rp, root_rotation=rr)
+    act = model.active
+    pose = forward(skel, q0, rp, rr)
+    targets = site_positions(skel, pose, sites) + rng.normal(0.0, 0.1, (b, 1, 3))
+    start = q0.copy()
+    start[:, act] += rng.normal(0.0, 0.05, (b, len(act)))
+    start *= 1.0 + 1e-16 * rng.integers(-2, 3, start.shape)  # trunks a rounding error apart
+    goals = [Goal(sites[0], position=targets[:, 0]), Goal(sites[1], position=targets[:, 1])]
+    ref = solve_ta(skel, goals, start, model=model, restarts=0, null_gain=null_gain, tol=2e-4,
+                   root_position=rp, root_rotation=rr).q  # fmt: skip
+    got = solve_rows(RowChain(skel, model, root), targets.reshape(b, 6), start, model.lower,
+                     model.upper, skel.q_comfort[act], tol=2e-4, null_gain=null_gain)  # fmt: skip
+    np.testing.assert_allclose(got, ref, rtol=0.0, atol=1e-12)
+    assert not np.array_equal(got, start)

@@ -19,10 +19,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mtlc.body import forward
+from mtlc.body import forward, forward_part
 from mtlc.body.ik import ChainModel
 from mtlc.body.ik.dls import solve_spd
 from mtlc.body.ik.fast import NULL_FADE
+from mtlc.body.kinematics import cross
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray
 
@@ -185,3 +186,149 @@ def solve_chain(
         q = [q[i] + (min(max(q[i] + dq[i] * cap, lo[i]), hi[i]) - q[i]) for i in range(n)]
         attempt_it += 1
     return best_q
+
+
+class RowChain:
+    """``ScalarChain``'s kinematics over many rows at once (numpy, rows first), each row's
+    chain placed on its own base frame: the frame of the chain's first joint's parent and
+    the angles of its dofs the solver does not move, from that row's start (``solve_ta``
+    rebuilds its model for a start whose trunk differs by a rounding error, so each row's
+    own trunk is what it solves with)."""
+
+    def __init__(self, skel: Skeleton, model: ChainModel, root: tuple[FloatArray, FloatArray]):
+        live = list(model.live)
+        if any(int(skel.parent[b]) != a for a, b in itertools.pairwise(live)):
+            raise ValueError("a serial chain only")
+        if {skel.joint_index(skel.site(s).joint) for s in model.sites} != {live[-1]}:
+            raise ValueError("every site on the chain's last joint")
+        self.skel, self.root, self.top = skel, root, int(skel.parent[live[0]])
+        self.active, self.n = model.active, model.n
+        col = {int(d): i for i, d in enumerate(model.active)}
+        self.dofs = np.array(
+            [d for j in live for d in range(int(skel.joint_dof_start[j]),
+                                            int(skel.joint_dof_start[j] + skel.joint_dof_count[j]))],
+            dtype=np.intp,
+        )  # fmt: skip
+        self.cols = [col.get(int(d), -1) for d in self.dofs]  # each live dof's active column
+        self.act_pos = np.array([i for i, c in enumerate(self.cols) if c >= 0], dtype=np.intp)
+        self.act_col = np.array([c for c in self.cols if c >= 0], dtype=np.intp)
+        axes = skel.dof_axis[self.dofs]
+        K = np.zeros((len(axes), 3, 3))
+        K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -axes[:, 2], axes[:, 1], -axes[:, 0]
+        K -= np.swapaxes(K, 1, 2)
+        self.A0, self.A1, self.A2 = np.eye(3) + K @ K, K, -(K @ K)
+        self.axes = axes
+        slot = 0
+        self.plan: list[tuple[FloatArray, list[int]]] = []
+        for j in live:
+            k = int(skel.joint_dof_count[j])
+            self.plan.append((skel.offsets[j], list(range(slot, slot + k))))
+            slot += k
+        self.site_offsets = np.array([skel.site(s).offset for s in model.sites], dtype=float)
+        self.sites = tuple(model.sites)
+
+    def base(self, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Each row's base frame (b, 3, 3), (b, 3) and live dofs' angles (b, L) at full
+        angles ``q`` (b, D)."""
+        b = len(q)
+        rp, rr = np.tile(self.root[0], (b, 1)), np.tile(self.root[1], (b, 1))
+        pose = forward_part(self.skel, q, rp, rr, self.sites)  # the chain's joints alone
+        return pose.R[:, self.top], pose.p[:, self.top], q[:, self.dofs]
+
+    def eval(
+        self, qa: FloatArray, R0: FloatArray, p0: FloatArray, fixed: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """Site positions (b, 3 S) and Jacobians (b, 3 S, n) at active angles ``qa`` (b, n)."""
+        b = len(qa)
+        th = fixed.copy()
+        th[:, self.act_pos] = qa[:, self.act_col]
+        s, c = np.sin(th)[..., None, None], np.cos(th)[..., None, None]
+        Rd = self.A0 + s * self.A1 + c * self.A2  # (b, L, 3, 3)
+        axes, origins = np.empty((b, self.n, 3)), np.empty((b, self.n, 3))
+        R, p = R0, p0
+        for off, slots in self.plan:
+            p = p + R @ off
+            for slot in slots:
+                ci = self.cols[slot]
+                if ci >= 0:
+                    axes[:, ci] = R @ self.axes[slot]
+                    origins[:, ci] = p
+                R = R @ Rd[:, slot]
+        pts = p[:, None] + np.einsum("bij,sj->bsi", R, self.site_offsets)  # (b, S, 3)
+        d = pts[:, :, None] - origins[:, None]  # (b, S, n, 3)
+        J = cross(np.broadcast_to(axes[:, None], d.shape), d)
+        return pts.reshape(b, -1), np.swapaxes(J, -1, -2).reshape(b, -1, self.n)
+
+
+def solve_rows(
+    chain: RowChain,
+    targets: FloatArray,
+    q0: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    comfort: FloatArray,
+    *,
+    tol: float,
+    null_gain: float = NULL_GAIN,
+) -> FloatArray:
+    """``solve_ta(..., restarts=0)``'s general path for rows of position goals (``targets``
+    (b, 3 S), the sites' points) from full angles ``q0`` (b, D): each row's best full angles
+    (b, D). Rows that converge or stall leave the batch, as there."""
+    q_out = np.array(q0, dtype=float)
+    R0, p0, fixed = chain.base(q_out)
+    cur = np.clip(q_out[:, chain.active], lower, upper)
+    b, m = cur.shape[0], targets.shape[1]
+    best_q, best = cur.copy(), np.full(b, np.inf)
+    attempt_it, since = np.zeros(b, dtype=np.intp), np.zeros(b, dtype=np.intp)
+    attempt_best = np.full(b, np.inf)
+    rows = np.arange(b)
+    damping = DAMPING * DAMPING * np.eye(m)
+    while rows.size:
+        pts, J = chain.eval(cur, R0[rows], p0[rows], fixed[rows])
+        e = targets[rows] - pts
+        blocks = e.reshape(len(rows), -1, 3)
+        nrm = np.sqrt(np.einsum("bki,bki->bk", blocks, blocks))
+        score = np.maximum(0.0, nrm.max(axis=1)) / tol
+        better = score < best[rows]
+        best_q[rows[better]], best[rows[better]] = cur[better], score[better]
+        done = nrm.max(axis=1) <= tol
+        improved = score < 0.9 * attempt_best[rows]
+        attempt_best[rows] = np.where(improved, score, attempt_best[rows])
+        since[rows] = np.where(improved, 0, since[rows] + 1)
+        stuck = ~done & ((since[rows] >= PATIENCE) | (attempt_it[rows] >= MAX_ITER))
+        keep = ~(done | stuck)
+        if not keep.all():
+            rows, cur, e, J, nrm, blocks = (
+                rows[keep],
+                cur[keep],
+                e[keep],
+                J[keep],
+                nrm[keep],
+                blocks[keep],
+            )
+            if not rows.size:
+                break
+        scale = np.minimum(1.0, MAX_ERROR / np.maximum(nrm, 1e-300))
+        e = (blocks * scale[..., None]).reshape(len(rows), m)
+        Jt = np.swapaxes(J, -1, -2)
+        fade = np.minimum(1.0, np.sqrt(np.einsum("bk,bk->b", nrm, nrm)) / NULL_FADE)
+        z = (null_gain * fade)[:, None] * (comfort - cur)
+        y = solve_spd(J @ Jt + damping, (e - np.einsum("bmn,bn->bm", J, z))[..., None])
+        dq = np.einsum("bnm,bm->bn", Jt, y[..., 0]) + z
+        qn = cur + dq
+        over = (qn > upper) | (qn < lower)
+        hit = np.flatnonzero(over.any(axis=-1))
+        if hit.size:
+            ov, qh, Jh = over[hit], cur[hit], J[hit]
+            pin = np.where(ov, np.clip(qn[hit], lower, upper) - qh, 0.0)
+            e2 = e[hit] - np.einsum("bmn,bn->bm", Jh, pin)
+            Jf = Jh * (~ov)[:, None, :]
+            Jft = np.swapaxes(Jf, -1, -2)
+            y2 = solve_spd(Jf @ Jft + damping, e2[..., None])[..., 0]
+            dq[hit] = np.where(ov, pin, np.einsum("bnm,bm->bn", Jft, y2))
+        big = np.max(np.abs(dq), axis=-1)
+        dq = dq * np.minimum(1.0, MAX_STEP / np.maximum(big, 1e-300))[:, None]
+        cur = cur + (np.clip(cur + dq, lower, upper) - cur)
+        attempt_it[rows] += 1
+    q_out[:, chain.active] = best_q
+    return q_out

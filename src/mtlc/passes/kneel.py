@@ -38,6 +38,7 @@ from mtlc.body import (
     forward_part,
     site_positions,
 )
+from mtlc.body.ik.dls import solve_spd
 from mtlc.body.kinematics import cross, segment_coms
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray
@@ -299,7 +300,7 @@ class Body:
         for _ in range(3):
             diag = jtj.reshape(f, n * n)[:, :: n + 1]  # a view: Marquardt's damping, per variable
             diag += lam[:, None] * (diag + 1e-6)
-            step = -np.linalg.solve(jtj, g[..., None])[..., 0]
+            step = -solve_spd(jtj, g[..., None])[..., 0]  # np.linalg.solve's LAPACK call
             if not bound:
                 break
             step[held] = 0.0

@@ -98,3 +98,26 @@ def test_the_tucked_foot_is_found_once_per_manikin_and_side() -> None:
     heel[:] = 9.0
     assert np.array_equal(tucked_foot(skel)[1], again[1])
     assert tucked_foot(skel, "l")[0] == pytest.approx(reach, abs=1e-9)  # a symmetric manikin
+
+
+@pytest.mark.parametrize("spec", [("female", 5), ("male", 95)])
+@pytest.mark.parametrize("side", ["r", "l"])
+def test_the_toe_height_by_rodrigues_is_the_legs_forward_kinematics(spec, side) -> None:
+    """``toe_above_balls`` (the ankle placed once, the toe turned by Rodrigues) gives the
+    numbers ``part_site_positions`` of the whole leg gives, over knee and toe angles."""
+    from mtlc.body import build_manikin, part_site_positions
+    from mtlc.passes.kneel import toe_above_balls
+
+    skel = build_manikin("gb10000_1988", *spec)
+    names = [f"{side}_{n}" for n in ("ball_med", "ball_lat", "toe")]
+    k_dof, t_dof = skel.dof_index(f"{side}_knee_flex"), skel.dof_index(f"{side}_toes_dorsi")
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        q = np.asarray(skel.q_comfort, dtype=float).copy()
+        q[k_dof] = rng.uniform(0.0, float(skel.upper[k_dof]))
+        q[skel.dof_index(f"{side}_ankle_dorsi")] = rng.uniform(-0.5, 0.3)
+        height = toe_above_balls(skel, q, side)
+        for t in rng.uniform(0.0, float(skel.upper[t_dof]), 5):
+            q[t_dof] = t
+            pts = part_site_positions(skel, q[None], None, None, names)[0]
+            assert height(float(t)) == pytest.approx(pts[2, 1] - pts[:2, 1].mean(), abs=1e-12)

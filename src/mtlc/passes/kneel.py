@@ -36,10 +36,10 @@ from mtlc.body import (
     center_of_mass,
     forward,
     forward_part,
-    part_site_positions,
     site_positions,
 )
-from mtlc.body.kinematics import cross, segment_coms
+from mtlc.body.ik.dls import solve_spd
+from mtlc.body.kinematics import segment_coms
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray
 from mtlc.metrics import CONTACT_TOL
@@ -300,7 +300,7 @@ class Body:
         for _ in range(3):
             diag = jtj.reshape(f, n * n)[:, :: n + 1]  # a view: Marquardt's damping, per variable
             diag += lam[:, None] * (diag + 1e-6)
-            step = -np.linalg.solve(jtj, g[..., None])[..., 0]
+            step = -solve_spd(jtj, g[..., None])[..., 0]  # np.linalg.solve's LAPACK call
             if not bound:
                 break
             step[held] = 0.0
@@ -403,16 +403,26 @@ class Body:
             "fpab,pb->fpa", pose.R[:, self.point_joint], self.point_offset
         )
         axes, origins = pose.axes[:, self.small_cols], pose.p[:, self.dof_joint]
-        arms = np.zeros((f, m + 1, n - 3, 3))  # what each axis turns about its joint
-        arms[:, :m] = (pts[:, :m, None] - origins[:, None]) * self.moves[..., None]
+        # what each axis turns about its joint, and the columns, a coordinate at a time
+        # ((3, F, P + 1, V) arrays: long element-wise passes instead of ``cross`` over a last
+        # axis of 3; the same products and differences as ``cross``, so the same numbers)
+        arms = np.zeros((3, f, m + 1, n - 3))
+        for k in range(3):
+            arms[k, :, :m] = (pts[:, :m, k, None] - origins[:, None, :, k]) * self.moves
         jac = np.empty((f, m + 1, 3, n))
         jac[..., :3] = self.root_columns[int(com)]
         if com:
             segments = pose.p + np.einsum("fjab,jb->fja", pose.R, small.coms)
             total = small.total_mass
             pts[:, m] = np.einsum("j,fja->fa", small.masses, segments) / total
-            arms[:, m] = (self.mass_below @ segments - self.carried * origins) / total
-        jac[:, :, :, 3:] = np.swapaxes(cross(axes[:, None], arms), 2, 3)
+            com_arms = (self.mass_below @ segments - self.carried * origins) / total
+            for k in range(3):
+                arms[k, :, m] = com_arms[..., k]
+        a0, a1, a2 = (axes[:, None, :, k] for k in range(3))
+        b0, b1, b2 = arms
+        np.subtract(a1 * b2, a2 * b1, out=jac[:, :, 0, 3:])
+        np.subtract(a2 * b0, a0 * b2, out=jac[:, :, 1, 3:])
+        np.subtract(a0 * b1, a1 * b0, out=jac[:, :, 2, 3:])
         return pts, jac
 
     def barrier(self, pts: FloatArray, jac: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -599,13 +609,7 @@ def _tucked_foot(skel: Any, side: str) -> tuple[float, FloatArray]:
     def pose_at(k: float) -> tuple[Any, FloatArray]:
         qq = q.copy()
         qq[k_dof] = k
-
-        def toe_above_balls(t: float) -> float:
-            qq[t_dof] = t
-            pts = part_site_positions(skel, qq[None], None, None, names)[0]  # the leg only
-            return float(pts[2, 1] - pts[:2, 1].mean())
-
-        qq[t_dof] = _bisect(toe_above_balls, 0.0, float(skel.upper[t_dof]))
+        qq[t_dof] = _bisect(toe_above_balls(skel, qq, side), 0.0, float(skel.upper[t_dof]))
         pose = forward_part(skel, qq[None], None, None, [*names, f"{side}_heel"])
         return pose, site_positions(skel, pose, names)[0]
 
@@ -618,6 +622,34 @@ def _tucked_foot(skel: Any, side: str) -> tuple[float, FloatArray]:
     return float(pose.p[0, knee, 2] - pts[2, 2]), np.array(
         [0.0, heel[1] - pts[2, 1], heel[2] - pts[2, 2]]
     )
+
+
+def toe_above_balls(skel: Any, q: FloatArray, side: str) -> Callable[[float], float]:
+    """The height of the toe tip above the middle of the balls as a function of the toes'
+    angle, the rest of the leg at ``q``: the ankle's frame is placed once and the toe tip
+    turned about the toes' joint by Rodrigues' formula (``_tucked_foot``'s inner bisection
+    asked ``part_site_positions`` for the whole leg 40 times a knee angle; equal to it to
+    1e-15 m, ``tests/passes/test_rekneel.py``)."""
+    names = [f"{side}_{n}" for n in ("ball_med", "ball_lat")]
+    pose = forward_part(skel, np.asarray(q, dtype=float)[None], None, None, names)
+    ankle = skel.joint_index(skel.site(names[0]).joint)
+    toes = skel.joint_index(f"{side}_toes")
+    (dof,) = np.flatnonzero(skel.dof_joint == toes)
+    R, p = pose.R[0, ankle], pose.p[0, ankle]
+    balls = float(site_positions(skel, pose, names)[0, :, 1].mean())
+    base = float(p[1] + R[1] @ skel.offsets[toes]) - balls  # the toes' joint above the balls
+    a = skel.dof_axis[dof]
+    o = np.asarray(skel.site(f"{side}_toe").offset, dtype=float)
+    # the tip's offset turned by t: o cos t + (a × o) sin t + a (a · o)(1 − cos t), seen in
+    # the world's y through the ankle's frame
+    ry = R[1]
+    c_o, c_ao, c_a = float(ry @ o), float(ry @ np.cross(a, o)), float(ry @ a) * float(a @ o)
+
+    def height(t: float) -> float:
+        c, s = math.cos(t), math.sin(t)
+        return base + (c_o * c + c_ao * s + c_a * (1.0 - c))
+
+    return height
 
 
 def _rx(a: float) -> FloatArray:

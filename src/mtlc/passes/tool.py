@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from mtlc.body import forward, site_positions, site_rotation
-from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.body import forward, part_site_positions, site_positions, site_rotation
+from mtlc.body.ik import ChainModel, Goal, prepare, solve_ta
 from mtlc.body.skeleton import Site, Skeleton
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
@@ -36,6 +36,7 @@ from mtlc.loads import AXIAL_KINDS, tool_site
 from mtlc.loads import carried_com as carried_com  # re-exported: it lives below the passes
 from mtlc.loads import held_spans as held_spans
 from mtlc.passes.approach import TOLERANCE, _restaters, chain_names, report_short
+from mtlc.passes.chain_ik import RowChain, ScalarChain, solve_chain, solve_rows
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.profile import minimum_jerk, placing_clock
 from mtlc.passes.state import PoseState, reanchor
@@ -321,21 +322,60 @@ def _chain(
                     root_rotation=root[1][None])  # fmt: skip
     out = np.empty((k, len(q0)))
     prev = q0
+    scalar = _scalar_chain(skel, model, root)
     for i in range(k):
         goals = [
             Goal(sites[0], position=hands[i : i + 1]),
             Goal(sites[1], position=tips[i : i + 1]),
         ]
-        kw = dict(model=model, root_position=root[0][None], root_rotation=root[1][None], tol=2e-4)
-        q = solve_ta(skel, goals, prev[None], restarts=0, **kw).q
+        kw = dict(root_position=root[0][None], root_rotation=root[1][None], tol=2e-4)
+        targets = np.concatenate([hands[i], tips[i]])
+        q = _solve_one(skel, model, scalar, goals, targets, prev, restarts=0, **kw)
         err = _errors(state, q, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
         if err > TOLERANCE:
-            q2 = solve_ta(skel, goals, prev[None], restarts=2, **kw).q
+            q2 = _solve_one(skel, model, scalar, goals, targets, prev, restarts=2, **kw)
             err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
             if err2 <= TOLERANCE:  # a restart that is short too is no better: another branch
                 q = q2
         out[i] = prev = q[0]
     return out
+
+
+def _scalar_chain(
+    skel: Skeleton, model: ChainModel, root: tuple[FloatArray, FloatArray]
+) -> ScalarChain | None:
+    """``chain_ik``'s scalar chain of a key's problem, or None where it does not apply."""
+    try:
+        return ScalarChain(skel, model, root)
+    except ValueError:
+        return None
+
+
+def _row_chain(
+    skel: Skeleton, model: ChainModel, root: tuple[FloatArray, FloatArray]
+) -> RowChain | None:
+    """``chain_ik``'s row chain of the keys' problem, or None where it does not apply."""
+    try:
+        return RowChain(skel, model, root)
+    except ValueError:
+        return None
+
+
+def _solve_one(
+    skel: Skeleton, model: ChainModel, scalar: ScalarChain | None, goals: list[Goal],
+    targets: FloatArray, prev: FloatArray, restarts: int, **kw: Any,
+) -> FloatArray:  # fmt: skip
+    """(1, D) ``solve_ta(skel, goals, prev[None], restarts=restarts, **kw).q``, by the scalar
+    chain when the model describes ``prev``'s body (``solve_ta`` would rebuild it otherwise)."""
+    if scalar is None or not np.array_equal(prev[model.baked], model.q_base[0, model.baked]):
+        return solve_ta(skel, goals, prev[None], model=model, restarts=restarts, **kw).q
+    act = model.active
+    q = prev[None].copy()
+    q[0, act] = solve_chain(
+        scalar, targets.tolist(), prev[act], model.lower, model.upper, skel.q_comfort[act],
+        tol=kw["tol"], restarts=restarts,
+    )  # fmt: skip
+    return q
 
 
 EVEN_ROUNDS = 24  # rounds of smoothing the chained keys' joint path and putting them back
@@ -367,14 +407,21 @@ def _even_out(
     goals = [Goal(sites[0], position=hands[inner]), Goal(sites[1], position=tips[inner])]
     rp, rr = np.tile(root[0], (k - 2, 1)), np.tile(root[1], (k - 2, 1))
     model = prepare(skel, sites, q[inner], reach=reach, root_position=rp, root_rotation=rr)
+    rows = _row_chain(skel, model, root)
+    targets = np.concatenate([hands[inner], tips[inner]], axis=1)
+    act = model.active
     err = _errors(state, q[inner], root, sites, [hands[inner], tips[inner]])
     q = q.copy()
     gap = np.maximum(np.diff(clock), 1e-9)
     after = (gap[:-1] / (gap[:-1] + gap[1:]))[:, None]  # share of the way from key i-1 to i+1
     for _ in range(EVEN_ROUNDS):
         guess = 0.5 * q[inner] + 0.5 * ((1.0 - after) * q[:-2] + after * q[2:])
-        moved = solve_ta(skel, goals, guess, model=model, restarts=0, null_gain=0.0, tol=2e-4,
-                         root_position=rp, root_rotation=rr).q  # fmt: skip
+        if rows is None:
+            moved = solve_ta(skel, goals, guess, model=model, restarts=0, null_gain=0.0,
+                             tol=2e-4, root_position=rp, root_rotation=rr).q  # fmt: skip
+        else:  # the same poses (``chain_ik``), without the general path's overhead
+            moved = solve_rows(rows, targets, guess, model.lower, model.upper,
+                               skel.q_comfort[act], tol=2e-4, null_gain=0.0)  # fmt: skip
         new_err = _errors(state, moved, root, sites, [hands[inner], tips[inner]])
         ok = (new_err <= np.maximum(err, TOLERANCE) + 1e-9) & skel.within_limits(moved)
         q[inner][ok] = moved[ok]
@@ -385,14 +432,11 @@ def _even_out(
 def _errors(
     state: PoseState, q: FloatArray, root: Any, sites: list[str], targets: list[FloatArray]
 ) -> FloatArray:
-    """(K,) largest distance of the sites to their targets for each pose."""
-    from mtlc.body import forward, site_positions
-
+    """(K,) largest distance of the sites to their targets for each pose (the chains to the
+    sites alone: ``forward_part``'s numbers are ``forward``'s)."""
     k = len(q)
-    pose = forward(
-        state.skel, q, np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1)), with_axes=False
-    )
-    pts = np.asarray(site_positions(state.skel, pose, sites)).reshape(k, len(sites), 3)
+    rp, rr = np.tile(root[0], (k, 1)), np.tile(root[1], (k, 1))
+    pts = part_site_positions(state.skel, q, rp, rr, sites).reshape(k, len(sites), 3)
     return np.linalg.norm(pts - np.stack(targets, axis=1), axis=-1).max(axis=1)
 
 

@@ -1,0 +1,77 @@
+"""``passes.chain_ik`` (the wrench keys' scalar solver) is ``solve_ta`` for one row of position
+goals: the same poses to 1e-12 rad from the same starts, with and without restarts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mtlc.body import build_manikin, forward, site_positions
+from mtlc.body.ik import Goal, prepare, solve_ta
+from mtlc.passes.chain_ik import ScalarChain, solve_chain
+from mtlc.passes.tool import with_tools
+
+WRENCH = {"kind": "wrench", "grip": (0.0, 0.0, 0.0), "tip": (0.0, -0.18, 0.0)}
+
+
+@pytest.mark.parametrize("spec", [("female", 5), ("male", 95)])
+@pytest.mark.parametrize("reach", ["arm", "torso"])
+@pytest.mark.parametrize("restarts", [0, 2])
+def test_the_scalar_chain_solves_as_solve_ta(spec, reach, restarts) -> None:
+    skel = with_tools(build_manikin("gb10000_1988", *spec), {"r_tool_wrench": WRENCH})
+    sites = ["r_hand", "r_tool_wrench"]
+    rng = np.random.default_rng(7)
+    q0 = np.asarray(skel.q_comfort, dtype=float).copy()
+    root = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
+    model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
+                    root_rotation=root[1][None])  # fmt: skip
+    chain = ScalarChain(skel, model, root)
+    pose = forward(skel, q0[None], root[0][None], root[1][None])
+    hand, tip = site_positions(skel, pose, sites)[0]
+    act = model.active
+    compared = 0
+    for _ in range(10):
+        shift = rng.normal(0.0, 0.12, 3)  # near (a key's next step) to out of reach
+        goals = [Goal(sites[0], position=(hand + shift)[None]),
+                 Goal(sites[1], position=(tip + shift)[None])]  # fmt: skip
+        start = q0.copy()
+        start[act] += rng.normal(0.0, 0.05, len(act))
+        ref = solve_ta(skel, goals, start[None], model=model, restarts=restarts, tol=2e-4,
+                       root_position=root[0][None], root_rotation=root[1][None]).q[0]  # fmt: skip
+        got = solve_chain(chain, np.concatenate([hand + shift, tip + shift]).tolist(),
+                          start[act], model.lower, model.upper, skel.q_comfort[act],
+                          tol=2e-4, restarts=restarts)  # fmt: skip
+        np.testing.assert_allclose(got, ref[act], rtol=0.0, atol=1e-12)
+        compared += 1
+    assert compared == 10
+
+
+@pytest.mark.parametrize("spec", [("female", 5), ("male", 95)])
+@pytest.mark.parametrize("reach", ["arm", "torso"])
+@pytest.mark.parametrize("null_gain", [0.0, 0.05])
+def test_the_row_chain_solves_as_solve_ta(spec, reach, null_gain) -> None:
+    """``solve_rows`` is ``solve_ta(..., restarts=0)`` over rows, each from its own start
+    (their trunks differing by rounding errors, as ``tool._even_out``'s blended guesses do)."""
+    from mtlc.passes.chain_ik import RowChain, solve_rows
+
+    skel = with_tools(build_manikin("gb10000_1988", *spec), {"r_tool_wrench": WRENCH})
+    sites = ["r_hand", "r_tool_wrench"]
+    rng = np.random.default_rng(11)
+    b = 40  # past the 32 rows from which solve_ta's model evaluates by columns
+    q0 = np.tile(np.asarray(skel.q_comfort, dtype=float), (b, 1))
+    root = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
+    rp, rr = np.tile(root[0], (b, 1)), np.tile(root[1], (b, 1))
+    model = prepare(skel, sites, q0, reach=reach, root_position=rp, root_rotation=rr)
+    act = model.active
+    pose = forward(skel, q0, rp, rr)
+    targets = site_positions(skel, pose, sites) + rng.normal(0.0, 0.1, (b, 1, 3))
+    start = q0.copy()
+    start[:, act] += rng.normal(0.0, 0.05, (b, len(act)))
+    start *= 1.0 + 1e-16 * rng.integers(-2, 3, start.shape)  # trunks a rounding error apart
+    goals = [Goal(sites[0], position=targets[:, 0]), Goal(sites[1], position=targets[:, 1])]
+    ref = solve_ta(skel, goals, start, model=model, restarts=0, null_gain=null_gain, tol=2e-4,
+                   root_position=rp, root_rotation=rr).q  # fmt: skip
+    got = solve_rows(RowChain(skel, model, root), targets.reshape(b, 6), start, model.lower,
+                     model.upper, skel.q_comfort[act], tol=2e-4, null_gain=null_gain)  # fmt: skip
+    np.testing.assert_allclose(got, ref, rtol=0.0, atol=1e-12)
+    assert not np.array_equal(got, start)

@@ -627,3 +627,24 @@ def test_the_stepping_kneel_keeps_its_balance_and_its_footing(sex: str, pct: int
     np.testing.assert_allclose(feet[-1, [0, 2, 3, 4, 6, 7], 1], 0.0, atol=2e-3)
     toes = plan.body.q_of(plan.x[-1:])[0, [skel.dof_index(f"{s}_toes_dorsi") for s in "rl"]]
     assert (toes > math.radians(60)).all()
+
+
+def test_smoothing_rebalances_only_runs_with_a_standing_frame() -> None:
+    """``smooth._with_standing_frames`` drops the runs of walking frames only: balancing them
+    changes nothing (``balance_frames`` moves no walking frame unless a standing frame of its
+    run is corrected), so the frames come out the same with and without them."""
+    f = standing(60)
+    f.q[:, SKEL.dof_index("l_hip_abd")] = math.radians(20)  # every frame on one foot
+    walk = Segment("root", "locomotion", 0.0, f.time[29], GoalSpec("body"), PROV)
+    ir = make_ir(f, [walk])
+    rows = np.array([*range(3, 9), *range(25, 35), *range(40, 46)])  # walking, mixed, standing
+    kept = smooth._with_standing_frames(ir, f.time, rows)
+    np.testing.assert_array_equal(kept, rows[6:])
+    every = Frames(f.fps, f.time, f.root_position.copy(), f.root_rotation, f.q.copy())
+    some = Frames(f.fps, f.time, f.root_position.copy(), f.root_rotation, f.q.copy())
+    balance.balance_frames(ir, every, rows)
+    balance.balance_frames(ir, some, kept)
+    np.testing.assert_array_equal(every.q, some.q)
+    np.testing.assert_array_equal(every.root_position, some.root_position)
+    assert not np.array_equal(every.root_position, f.root_position)  # something was balanced
+    assert np.array_equal(every.q[3:9], f.q[3:9])  # the walking run: untouched

@@ -465,6 +465,9 @@ class FootTrack:
     anchor: FloatArray  # (N, 3): that footprint's toe tip, the roll's pivot
 
 
+_LANDED, _ROLLING, _SWINGING = 1, 2, 3  # what sets a foot at a time (WalkMotion.feet)
+
+
 def _rolled(R0: FloatArray, toe_w: FloatArray, phi: FloatArray, toe: FloatArray) -> FloatArray:
     """Ankle centres of a foot pitched nose down by ``phi`` about its toe tip ``toe_w``."""
     Rp = np.broadcast_to(R0, (len(phi), 3, 3)) @ _rx(phi)
@@ -595,9 +598,11 @@ class WalkMotion:
         out = {}
         lift = self.legs.ankle_height  # the footprints are on the ground already
         toe = self.legs.toe
-        # every step writes index ranges of the sorted times (found by bisection), and its
-        # landing holds only until the foot's next step lands (which overwrites the rest):
-        # masks over every frame per step made a long walk quadratic in its length
+        # every step claims index ranges of the sorted times (found by bisection), in order,
+        # a later claim winning, and its landing holds only until the foot's next step lands;
+        # then each phase is computed once for all the times it won, from the winning step's
+        # numbers (the same element-wise arithmetic per time as a step at a time: a long walk
+        # spent most of its keyframing in the per-step numpy calls)
         t = np.asarray(t, dtype=float)
         order = np.argsort(t, kind="stable")
         ts = t[order]
@@ -610,47 +615,30 @@ class WalkMotion:
             anchor = pos + _ry(head) @ toe
             planted = np.ones(n, dtype=bool)
             steps = self._steps_touching(f, ts)
+            owner = np.full(n, -1)  # the step that set the pose last (-1: the first stance)
+            phase = np.zeros(n, dtype=np.int8)  # how: _LANDED, _ROLLING or _SWINGING
+            landed_on = np.full(n, -1)  # the step whose landing set the anchor last
+            t_land = np.array([st.t_land for st in steps])
+            t_lift = np.array([st.t_lift for st in steps])
+            lands = np.searchsorted(ts, t_land, side="left").tolist()
+            helds = [*lands[1:], n]
+            heel_offs = np.searchsorted(
+                ts, np.array([st.t_heel_off for st in steps]), side="left"
+            ).tolist()
+            lifts = np.searchsorted(ts, t_lift, side="right").tolist()
             for k, st in enumerate(steps):
-                a1, R0, toe_w, toe_end = self._geometry(st)
-                h0 = st.start.heading
-                land = int(np.searchsorted(ts, st.t_land, side="left"))
-                held = (
-                    int(np.searchsorted(ts, steps[k + 1].t_land, side="left"))
-                    if k + 1 < len(steps)
-                    else n
-                )
+                land, held, lifted = lands[k], helds[k], lifts[k]
                 after = slice(land, max(land, held))
-                pos[after] = a1
-                head[after] = st.end.heading
-                pitch[after] = 0.0
-                anchor[after] = toe_end
-                ho = slice(
-                    int(np.searchsorted(ts, st.t_heel_off, side="left")),
-                    int(np.searchsorted(ts, st.t_lift, side="right")),
-                )
+                owner[after], phase[after], landed_on[after] = k, _LANDED, k
+                ho = slice(heel_offs[k], lifted)
                 if ho.stop > ho.start and st.t_lift > st.t_heel_off:
-                    tau = (ts[ho] - st.t_heel_off) / (st.t_lift - st.t_heel_off)
-                    phi = st.toe_off_pitch * tau * tau * (3 - 2 * tau)
-                    pos[ho], head[ho], pitch[ho] = _rolled(R0, toe_w, phi, toe), h0, phi
-                sw = slice(int(np.searchsorted(ts, st.t_lift, side="right")), land)
+                    owner[ho], phase[ho] = k, _ROLLING
+                sw = slice(lifted, land)
                 if sw.stop > sw.start:
-                    start = _rolled(R0, toe_w, np.array([st.toe_off_pitch]), toe)[0]
-                    tau = (ts[sw] - st.t_lift) / (st.t_land - st.t_lift)
-                    # the foot travels over the whole swing (a smoothstep: at rest at both
-                    # ends, its peak speed 1.5 × the mean), lifts briskly off its toe (sin) and
-                    # sets down softly (sin²). The minimum-jerk move over the middle 75 % of the
-                    # swing reached over the landing point while the pelvis was still half a
-                    # step behind (the pelvis sank up to 25 cm) at up to 8.7 m/s.
-                    s = tau * tau * (3 - 2 * tau)
-                    pos[sw] = start + s[:, None] * (a1 - start)
-                    head[sw] = h0 + s * wrap(st.end.heading - h0)
-                    # level from 60 % of the swing on (levelled as it travelled, the toe
-                    # hung low and touched down a fifth of the swing early), smoothly from
-                    # the roll (a kink here is a "jump" the smooth pass blends for 50 frames)
-                    u = np.clip(tau / 0.6, 0.0, 1.0)
-                    pitch[sw] = st.toe_off_pitch * (1 - u * u * (3 - 2 * u))
-                    pos[sw, 1] = self._swing_height(st, tau, pitch[sw], toe_w, toe_end)
+                    owner[sw], phase[sw] = k, _SWINGING
                     planted[sw] = False
+            if steps:
+                self._steps_into(steps, ts, owner, phase, landed_on, pos, head, pitch, anchor)
             if self._early_roll:
                 extra = np.interp(ts, self._grid, self._early_roll[f])
                 rows = planted & (extra > 0.0)
@@ -661,12 +649,70 @@ class WalkMotion:
             out[f] = FootTrack(pos[back], head[back], pitch[back], planted[back], anchor[back])
         return out
 
+    def _steps_into(
+        self,
+        steps: list[Step],
+        ts: FloatArray,
+        owner: NDArray[np.intp],
+        phase: NDArray[np.int8],
+        landed_on: NDArray[np.intp],
+        pos: FloatArray,
+        head: FloatArray,
+        pitch: FloatArray,
+        anchor: FloatArray,
+    ) -> None:
+        """Write each time's foot as the step ``owner`` sets it in ``phase`` (see :meth:`feet`)."""
+        toe = self.legs.toe
+        geo = [self._geometry(st) for st in steps]
+        a1 = np.array([g[0] for g in geo])
+        R0 = np.array([g[1] for g in geo])
+        toe_w = np.array([g[2] for g in geo])
+        toe_end = np.array([g[3] for g in geo])
+        h0 = np.array([st.start.heading for st in steps])
+        h1 = np.array([st.end.heading for st in steps])
+        turn = np.array([wrap(st.end.heading - st.start.heading) for st in steps])
+        top = np.array([st.toe_off_pitch for st in steps])
+        t_ho = np.array([st.t_heel_off for st in steps])
+        t_lift = np.array([st.t_lift for st in steps])
+        t_land = np.array([st.t_land for st in steps])
+        rows = np.flatnonzero(landed_on >= 0)
+        anchor[rows] = toe_end[landed_on[rows]]
+        rows = np.flatnonzero(phase == _LANDED)
+        k = owner[rows]
+        pos[rows], head[rows], pitch[rows] = a1[k], h1[k], 0.0
+        rows = np.flatnonzero(phase == _ROLLING)
+        if rows.size:
+            k = owner[rows]
+            tau = (ts[rows] - t_ho[k]) / (t_lift[k] - t_ho[k])
+            phi = top[k] * tau * tau * (3 - 2 * tau)
+            pos[rows], head[rows], pitch[rows] = _rolled(R0[k], toe_w[k], phi, toe), h0[k], phi
+        rows = np.flatnonzero(phase == _SWINGING)
+        if rows.size:
+            k = owner[rows]
+            start = _rolled(R0, toe_w, top, toe)[k]  # the foot as it leaves its toe
+            tau = (ts[rows] - t_lift[k]) / (t_land[k] - t_lift[k])
+            # the foot travels over the whole swing (a smoothstep: at rest at both ends, its
+            # peak speed 1.5 × the mean), lifts briskly off its toe (sin) and sets down softly
+            # (sin²). The minimum-jerk move over the middle 75 % of the swing reached over the
+            # landing point while the pelvis was still half a step behind (the pelvis sank up
+            # to 25 cm) at up to 8.7 m/s.
+            s = tau * tau * (3 - 2 * tau)
+            pos[rows] = start + s[:, None] * (a1[k] - start)
+            head[rows] = h0[k] + s * turn[k]
+            # level from 60 % of the swing on (levelled as it travelled, the toe hung low and
+            # touched down a fifth of the swing early), smoothly from the roll (a kink here is
+            # a "jump" the smooth pass blends for 50 frames)
+            u = np.clip(tau / 0.6, 0.0, 1.0)
+            pitch[rows] = top[k] * (1 - u * u * (3 - 2 * u))
+            pos[rows, 1] = self._swing_height(tau, pitch[rows], toe_w[k, 1], toe_end[k, 1])
+
     def _swing_height(
-        self, st: Step, tau: FloatArray, pitch: FloatArray, toe_w: FloatArray, toe_end: FloatArray
+        self, tau: FloatArray, pitch: FloatArray, toe_from: FloatArray, toe_to: FloatArray
     ) -> FloatArray:
         """The swinging ankle's height: as high as the foot's pitch needs for its toe to be
-        ``clearance`` above the floor (the toe-off roll unwinds as the foot levels), no more."""
-        floor = toe_w[1] + tau * tau * (3 - 2 * tau) * (toe_end[1] - toe_w[1])
+        ``clearance`` above the floor (the toe-off roll unwinds as the foot levels), no more.
+        ``toe_from``, ``toe_to``: the toe tip's height at toe-off and at the landing."""
+        floor = toe_from + tau * tau * (3 - 2 * tau) * (toe_to - toe_from)
         # lifts briskly off its toe (sin) and sets down late and softly (sin^1.5: at rest on
         # touch-down, over 5 mm until 95 % of the swing; sin² was under it from 91 %)
         bump = np.sin(np.pi * np.clip(tau, 0.0, 1.0))

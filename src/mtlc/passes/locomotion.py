@@ -468,6 +468,21 @@ class FootTrack:
 _LANDED, _ROLLING, _SWINGING = 1, 2, 3  # what sets a foot at a time (WalkMotion.feet)
 
 
+@dataclass(frozen=True)
+class _StepTable:
+    """One foot's steps as arrays (K rows, in the walk's order): ``WalkMotion._geometry``,
+    the headings and the turn."""
+
+    row: dict[int, int]  # id(step) -> its row
+    a1: FloatArray  # (K, 3) the landing ankle
+    R0: FloatArray  # (K, 3, 3) the start's rotation
+    toe_w: FloatArray  # (K, 3) the start's toe tip
+    toe_end: FloatArray  # (K, 3) the landing toe tip
+    h0: FloatArray  # (K,) the start's heading
+    h1: FloatArray  # (K,) the landing's heading
+    turn: FloatArray  # (K,) wrap(h1 - h0)
+
+
 def _rolled(R0: FloatArray, toe_w: FloatArray, phi: FloatArray, toe: FloatArray) -> FloatArray:
     """Ankle centres of a foot pitched nose down by ``phi`` about its toe tip ``toe_w``."""
     Rp = np.broadcast_to(R0, (len(phi), 3, 3)) @ _rx(phi)
@@ -495,6 +510,7 @@ class WalkMotion:
 
     def __post_init__(self) -> None:
         self._geo: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
+        self._tables: dict[str, _StepTable] = {}
         self._early_roll: dict[str, FloatArray] = {}  # set once the pelvis height is known
         ts, xz, hs = [self.t0], [self.root_start[[0, 2]]], [self.heading_start]
         feet = dict(self.stance)
@@ -588,6 +604,21 @@ class WalkMotion:
                               a1 + _ry(st.end.heading) @ self.legs.toe)  # fmt: skip
         return self._geo[key]
 
+    def _step_table(self, foot: str) -> _StepTable:
+        """The foot's steps' footprints as arrays, made once (their times and toe-off pitch
+        are read afresh: they are set while the walk is made)."""
+        if foot not in self._tables:
+            mine = [st for st in self.steps if st.foot == foot]
+            geo = [self._geometry(st) for st in mine]
+            self._tables[foot] = _StepTable(
+                {id(st): i for i, st in enumerate(mine)},
+                *(np.array([g[j] for g in geo]) for j in range(4)),
+                np.array([st.start.heading for st in mine]),
+                np.array([st.end.heading for st in mine]),
+                np.array([wrap(st.end.heading - st.start.heading) for st in mine]),
+            )
+        return self._tables[foot]
+
     def feet(self, t: FloatArray) -> dict[str, FootTrack]:
         """Both feet at times ``t``, as scheduled (before :meth:`pose` adds the roll it needs).
 
@@ -663,15 +694,11 @@ class WalkMotion:
     ) -> None:
         """Write each time's foot as the step ``owner`` sets it in ``phase`` (see :meth:`feet`)."""
         toe = self.legs.toe
-        geo = [self._geometry(st) for st in steps]
-        a1 = np.array([g[0] for g in geo])
-        R0 = np.array([g[1] for g in geo])
-        toe_w = np.array([g[2] for g in geo])
-        toe_end = np.array([g[3] for g in geo])
-        h0 = np.array([st.start.heading for st in steps])
-        h1 = np.array([st.end.heading for st in steps])
-        turn = np.array([wrap(st.end.heading - st.start.heading) for st in steps])
-        top = np.array([st.toe_off_pitch for st in steps])
+        index = self._step_table(steps[0].foot)
+        at = np.array([index.row[id(st)] for st in steps])
+        a1, R0, toe_w, toe_end = index.a1[at], index.R0[at], index.toe_w[at], index.toe_end[at]
+        h0, h1, turn = index.h0[at], index.h1[at], index.turn[at]
+        top = np.array([st.toe_off_pitch for st in steps])  # these change as the walk is made
         t_ho = np.array([st.t_heel_off for st in steps])
         t_lift = np.array([st.t_lift for st in steps])
         t_land = np.array([st.t_land for st in steps])

@@ -874,3 +874,35 @@ def test_the_feet_of_all_steps_at_once_are_those_step_by_step(
         for field in ("ankle", "heading", "pitch", "planted", "anchor"):
             np.testing.assert_array_equal(getattr(got[f], field), getattr(want[f], field))
     assert any(not got[f].planted.all() for f in LEGS) or n < 50  # swings were compared
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), j0=st.integers(0, 40), width=st.integers(1, 41))
+def test_a_block_of_heights_in_pieces_is_the_block_at_once(
+    walk_motions: list, seed: int, j0: int, width: int
+) -> None:
+    """``WalkMotion._block`` tries a block of pelvis heights ``REACH_PIECE`` at a time, each
+    only where none fitted yet: the first that fits, and where none does the least violation
+    and its first height, are those of the whole block's violations at once."""
+    from mtlc.passes.locomotion import leg_frame
+
+    rng = np.random.default_rng(seed)
+    motion = walk_motions[seed % len(walk_motions)]
+    t = np.sort(rng.uniform(motion.t0, motion.t1, 200))
+    xz, heading = motion._xz(t), motion._h(t)
+    feet = motion.feet(t)
+    legs = {
+        f: (leg_frame(motion.legs, f, xz, heading, ft.ankle, ft.heading, ft.pitch), ft.planted)
+        for f, ft in feet.items()
+    }
+    top = motion.ground + motion.stand_height
+    cand = top - np.linspace(0.0, 0.3 * motion.legs.length, 41)
+    j1 = min(j0 + width, 41)
+    rows = np.flatnonzero(rng.random(200) < 0.7)
+    fits, first, least, low = motion._block(rows, cand, j0, j1, legs)
+    bad = motion._violation(rows, cand[j0:j1], legs)
+    ok = bad <= 1e-12
+    np.testing.assert_array_equal(fits, ok.any(axis=1))
+    np.testing.assert_array_equal(first[fits], j0 + ok[fits].argmax(axis=1))
+    np.testing.assert_array_equal(least[~fits], bad[~fits].min(axis=1))
+    np.testing.assert_array_equal(low[~fits], j0 + bad[~fits].argmin(axis=1))

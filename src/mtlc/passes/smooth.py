@@ -160,11 +160,9 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     # contacts before and after, on the changed frames only (forward kinematics is the cost),
     # a chunk of frames at a time: a long walk changes most of its frames (~16 KB each here).
     # Each frame is posed before and after the blend once; the frames re-pinned once more at
-    # the end (forward kinematics and the margins are computed frame by frame: a frame's
-    # numbers are the same in any batch)
+    # the end (forward kinematics is computed frame by frame: a frame's numbers are the same
+    # in any batch)
     moved = np.zeros(rows.size, dtype=bool)
-    margin_before = np.empty(rows.size)
-    margin_after = np.empty(rows.size)
     held: list[Contacts] = []  # of the frames to re-pin, chunk by chunk
     for a in range(0, rows.size, CHUNK_FRAMES):
         r = rows[a : a + CHUNK_FRAMES]
@@ -186,17 +184,15 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             )
             m |= pins[h][r] & (off > PIN_TOL)
         moved[a : a + CHUNK_FRAMES] = m
-        margin_before[a : a + CHUNK_FRAMES] = balance_margin(ir, pose, t[r])
-        still = np.flatnonzero(~m)  # their pose after the blend is final
-        if still.size:
-            margin_after[a + still] = balance_margin(ir, _pose_rows(after, still), t[r[still]])
         fix = np.flatnonzero(m)
         if fix.size:
             held.append(Contacts.of(skel, _pose_rows(pose, fix), contact[fix], low[fix]))
     at = np.flatnonzero(moved)
     if at.size:  # one batch: the solver's last bits depend on the batch it runs in
-        margin_after[at] = _repin(ir, frames, rows[at], Contacts.join(held), pins)
-    _rebalance(ir, frames, rows, margin_before, margin_after)
+        _repin(ir, frames, rows[at], Contacts.join(held), pins)
+    worse = _worse_standing_runs(ir, frames, rows, q0, root0)
+    if worse.size:
+        balance_frames(ir, frames, worse)
     return ir
 
 
@@ -206,18 +202,16 @@ def _repin(
     fix: np.ndarray,
     before: Contacts,
     pins: dict[str, np.ndarray],
-) -> np.ndarray:
+) -> None:
     """Put the touching feet and pinned hands of the frames ``fix`` back where they were
-    before the blend (``before``), never sinking anything deeper. Returns the frames' balance
-    margins at the end."""
+    before the blend (``before``), never sinking anything deeper."""
     rot = frames.root_rotation[fix]
-    t = frames.time[fix]
     feet = {name: (*before.feet[name], before.touching[:, k]) for k, name in enumerate(FEET_SITES)}
     hands = {h: (pins[h][fix], before.hands[h]) for h in HANDS}
     q, root, _ = restore_contacts(ir, frames.q[fix], frames.root_position[fix], rot, feet, hands)
     # smoothing must not sink anything deeper (a swing toe near the ground when the pelvis
     # came down): raise the root by what it added below the ground, h = L − x
-    low_after, margin = _lowest_and_margin(ir, q, root, rot, t)
+    low_after = _lowest(ir, q, root, rot)
     lift = np.maximum(np.minimum(before.lowest, ir.ground) - low_after, 0.0)
     root[:, 1] += lift
     up = np.flatnonzero(lift > 0.0)
@@ -227,22 +221,30 @@ def _repin(
             {n: (p[up], r[up], touch[up]) for n, (p, r, touch) in feet.items()},
             {h: (mask[up], at[up]) for h, (mask, at) in hands.items()},
         )  # fmt: skip
-        margin[up] = _lowest_and_margin(ir, q[up], root[up], rot[up], t[up])[1]
     frames.q[fix] = q
     frames.root_position[fix] = root
-    return margin
 
 
-def _lowest_and_margin(
+def _lowest(ir: MotionIR, q: np.ndarray, root: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """The lowest body point of each frame, a chunk at a time."""
+    low = np.empty(len(q))
+    for a in range(0, len(q), CHUNK_FRAMES):
+        c = slice(a, a + CHUNK_FRAMES)
+        low[c] = lowest_point(ir.skeleton, forward(ir.skeleton, q[c], root[c], rot[c],
+                                                   with_axes=False))  # fmt: skip
+    return low
+
+
+def _margins(
     ir: MotionIR, q: np.ndarray, root: np.ndarray, rot: np.ndarray, t: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The lowest body point and the balance margin of each frame, a chunk at a time."""
-    low, margin = np.empty(len(q)), np.empty(len(q))
+) -> np.ndarray:
+    """``balance_margin`` of each frame, a chunk at a time."""
+    out = np.empty(len(q))
     for a in range(0, len(q), CHUNK_FRAMES):
         c = slice(a, a + CHUNK_FRAMES)
         pose = forward(ir.skeleton, q[c], root[c], rot[c], with_axes=False)
-        low[c], margin[c] = lowest_point(ir.skeleton, pose), balance_margin(ir, pose, t[c])
-    return low, margin
+        out[c] = balance_margin(ir, pose, t[c])
+    return out
 
 
 def _pose_rows(pose: Pose, rows: np.ndarray | slice) -> Pose:
@@ -252,31 +254,71 @@ def _pose_rows(pose: Pose, rows: np.ndarray | slice) -> Pose:
                 root=pose.root[rows].copy())  # fmt: skip
 
 
-def _rebalance(
-    ir: MotionIR, frames: Frames, rows: np.ndarray, before: np.ndarray, after: np.ndarray
-) -> None:
-    """Blending toward the frames before a boundary can undo the balance pass's correction of
-    the frames after it: balance again the frames smoothing made less balanced (the balance
-    pass has reported what it could not fix)."""
-    worse = rows[
-        np.nan_to_num(after, nan=1.0) < np.minimum(np.nan_to_num(before, nan=1.0), MARGIN) - 1e-4
-    ]
-    worse = _with_standing_frames(ir, frames.time, worse)
-    if worse.size:
-        balance_frames(ir, frames, worse)
+def _worse_standing_runs(
+    ir: MotionIR, frames: Frames, rows: np.ndarray, q0: np.ndarray, root0: np.ndarray
+) -> np.ndarray:
+    """The changed frames ``rows`` to balance again: blending toward the frames before a
+    boundary can undo the balance pass's correction of the frames after it, so the frames
+    smoothing made less balanced (``_worse``), in the runs of consecutive such frames that hold
+    a standing frame (``balance_frames`` balances each run by itself and moves no walking frame
+    unless a standing one of its run is corrected: the others are left as they are; a long
+    walk's gait gave ~1,700 such runs, each measured for nothing, 9 s).
+
+    Measured outward from the standing frames only: a run is followed frame by frame (in
+    blocks that double) while its frames are worse, so a long walk's frames are not measured
+    (the margins were a sixth of the pass). The frames returned are those runs of
+    ``rows[_worse(every row)]``."""
+    n = rows.size
+    link = np.r_[np.diff(rows) == 1, False]  # position i and i + 1 are neighbouring frames
+    standing = ~walking(ir, frames.time[rows])
+    known = np.zeros(n, dtype=bool)
+    worse = np.zeros(n, dtype=bool)
+
+    def measure(pos: np.ndarray) -> None:
+        pos = pos[~known[pos]]
+        if pos.size:
+            worse[pos] = _worse(ir, frames, rows[pos], q0, root0)
+            known[pos] = True
+
+    measure(np.flatnonzero(standing))
+    width = 16
+    while True:
+        runs = _live_runs(worse, link, standing)
+        ahead: list[np.ndarray] = []
+        for a, b in runs:  # positions a..b, worse, holding a standing frame
+            if a > 0 and link[a - 1] and not known[a - 1]:
+                lo = a - 1
+                while lo > max(a - width, 0) and link[lo - 1]:
+                    lo -= 1
+                ahead.append(np.arange(lo, a))
+            if b + 1 < n and link[b] and not known[b + 1]:
+                hi = b + 1
+                while hi < min(b + width, n - 1) and link[hi]:
+                    hi += 1
+                ahead.append(np.arange(b + 1, hi + 1))
+        if not ahead:
+            return rows[np.concatenate([np.arange(a, b + 1) for a, b in runs] or [[]]).astype(int)]
+        measure(np.concatenate(ahead))
+        width *= 2
 
 
-def _with_standing_frames(ir: MotionIR, time: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """The runs of consecutive ``rows`` that hold a frame outside a walk. ``balance_frames``
-    balances each run by itself and never moves a walking frame unless a standing one in its
-    run is corrected, so a run of walking frames only is left as it is: dropping it changes
-    nothing, and a long walk's gait gave ~1,700 such runs, each measured for nothing (9 s)."""
-    if rows.size == 0:
-        return rows
-    starts = np.flatnonzero(np.diff(rows) != 1) + 1
-    standing = ~walking(ir, time[rows])
-    run_id = np.zeros(rows.size, dtype=np.intp)
-    run_id[starts] = 1
-    run_id = np.cumsum(run_id)
-    keep = np.bincount(run_id, weights=standing, minlength=run_id[-1] + 1) > 0
-    return rows[keep[run_id]]
+def _live_runs(worse: np.ndarray, link: np.ndarray, standing: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) positions of the runs of neighbouring worse frames holding a standing one."""
+    start = worse & ~np.r_[False, link[:-1] & worse[:-1]]
+    run = np.cumsum(start) - 1
+    out = []
+    for k in np.unique(run[worse & standing]):
+        pos = np.flatnonzero(worse & (run == k))
+        out.append((int(pos[0]), int(pos[-1])))
+    return out
+
+
+def _worse(
+    ir: MotionIR, frames: Frames, r: np.ndarray, q0: np.ndarray, root0: np.ndarray
+) -> np.ndarray:
+    """Which frames ``r`` smoothing made less balanced than before (``q0``, ``root0``) and
+    less than ``MARGIN``."""
+    t, rot = frames.time[r], frames.root_rotation[r]
+    before = _margins(ir, q0[r], root0[r], rot, t)
+    after = _margins(ir, frames.q[r], frames.root_position[r], rot, t)
+    return np.nan_to_num(after, nan=1.0) < np.minimum(np.nan_to_num(before, nan=1.0), MARGIN) - 1e-4

@@ -19,6 +19,7 @@ from mtlc.metrics import (
     ldlj,
     render_metrics,
     support_margin,
+    walking,
 )
 from mtlc.metrics import compute_metrics as metrics_of
 from mtlc.passes import balance, run_motion, smooth, verify
@@ -627,3 +628,59 @@ def test_the_stepping_kneel_keeps_its_balance_and_its_footing(sex: str, pct: int
     np.testing.assert_allclose(feet[-1, [0, 2, 3, 4, 6, 7], 1], 0.0, atol=2e-3)
     toes = plan.body.q_of(plan.x[-1:])[0, [skel.dof_index(f"{s}_toes_dorsi") for s in "rl"]]
     assert (toes > math.radians(60)).all()
+
+
+def _runs_with_standing_frames(ir: MotionIR, rows: np.ndarray) -> np.ndarray:
+    """The runs of consecutive ``rows`` that hold a frame outside a walk (the reference)."""
+    runs = np.split(rows, np.flatnonzero(np.diff(rows) != 1) + 1)
+    kept = [r for r in runs if r.size and not walking(ir, ir.frames.time[r]).all()]
+    return np.concatenate(kept) if kept else rows[:0]
+
+
+def test_smoothing_rebalances_only_runs_with_a_standing_frame() -> None:
+    """Balancing the runs of walking frames only changes nothing (``balance_frames`` moves no
+    walking frame unless a standing frame of its run is corrected), so the smoothing pass
+    leaves them out: the frames come out the same with and without them."""
+    f = standing(60)
+    f.q[:, SKEL.dof_index("l_hip_abd")] = math.radians(20)  # every frame on one foot
+    walk = Segment("root", "locomotion", 0.0, f.time[29], GoalSpec("body"), PROV)
+    ir = make_ir(f, [walk])
+    rows = np.array([*range(3, 9), *range(25, 35), *range(40, 46)])  # walking, mixed, standing
+    kept = _runs_with_standing_frames(ir, rows)
+    np.testing.assert_array_equal(kept, rows[6:])
+    every = Frames(f.fps, f.time, f.root_position.copy(), f.root_rotation, f.q.copy())
+    some = Frames(f.fps, f.time, f.root_position.copy(), f.root_rotation, f.q.copy())
+    balance.balance_frames(ir, every, rows)
+    balance.balance_frames(ir, some, kept)
+    np.testing.assert_array_equal(every.q, some.q)
+    np.testing.assert_array_equal(every.root_position, some.root_position)
+    assert not np.array_equal(every.root_position, f.root_position)  # something was balanced
+    assert np.array_equal(every.q[3:9], f.q[3:9])  # the walking run: untouched
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 300))
+def test_the_frames_rebalanced_are_found_from_the_standing_ones(seed: int, n: int) -> None:
+    """``smooth._worse_standing_runs`` measures outward from the standing frames only; it
+    finds the runs of worse frames holding a standing one that measuring every frame finds."""
+    rng = np.random.default_rng(seed)
+    f = standing(400)
+    t_walk = rng.uniform(0, 400 / 30, 2)
+    walk = Segment("root", "locomotion", t_walk.min(), t_walk.max(), GoalSpec("body"), PROV)
+    ir = make_ir(f, [walk])
+    rows = np.sort(rng.choice(400, n, replace=False))
+    if rng.random() < 0.5:  # long runs of neighbouring frames
+        rows = np.unique(np.concatenate([np.arange(a, a + 40) for a in rows[:5]]) % 400)
+    worse_frames = rng.random(400) < rng.uniform(0.3, 1.0)
+    measured: list[np.ndarray] = []
+
+    def fake_worse(ir_, frames_, r, q0, root0):  # type: ignore[no-untyped-def]
+        measured.append(r)
+        return worse_frames[r]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(smooth, "_worse", fake_worse)
+        got = smooth._worse_standing_runs(ir, f, rows, f.q, f.root_position)
+    np.testing.assert_array_equal(got, _runs_with_standing_frames(ir, rows[worse_frames[rows]]))
+    once = np.concatenate(measured) if measured else np.zeros(0, int)
+    assert len(np.unique(once)) == len(once)  # no frame measured twice

@@ -777,3 +777,132 @@ def test_walks_on_a_raised_floor_keep_the_soles_on_it(tmp_path: Path) -> None:
     )
     assert lowest.min() > ir.ground - 1e-3
     assert lowest.max() < ir.ground + 2e-3
+
+
+# --------------------------------------------------------------------------- the feet, per step
+
+
+def _feet_step_by_step(motion, t: np.ndarray) -> dict:  # type: ignore[no-untyped-def]
+    """``WalkMotion.feet`` as it was written before issue 21: each step's phases computed by
+    themselves, in order, a later step overwriting an earlier one (the reference)."""
+    from mtlc.passes.locomotion import FootTrack, _rolled, wrap
+
+    out = {}
+    lift, toe = motion.legs.ankle_height, motion.legs.toe
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
+    n = len(ts)
+    for f in LEGS:
+        pos = np.tile(motion.stance[f].position, (n, 1))
+        head = np.full(n, motion.stance[f].heading)
+        pitch = np.zeros(n)
+        pos[:, 1] += lift
+        anchor = pos + _ry(head) @ toe
+        planted = np.ones(n, dtype=bool)
+        steps = motion._steps_touching(f, ts)
+        for k, stp in enumerate(steps):
+            a1, R0, toe_w, toe_end = motion._geometry(stp)
+            h0 = stp.start.heading
+            land = int(np.searchsorted(ts, stp.t_land, side="left"))
+            held = int(np.searchsorted(ts, steps[k + 1].t_land)) if k + 1 < len(steps) else n
+            after = slice(land, max(land, held))
+            pos[after], head[after], pitch[after], anchor[after] = a1, stp.end.heading, 0, toe_end
+            ho = slice(int(np.searchsorted(ts, stp.t_heel_off, side="left")),
+                       int(np.searchsorted(ts, stp.t_lift, side="right")))  # fmt: skip
+            if ho.stop > ho.start and stp.t_lift > stp.t_heel_off:
+                tau = (ts[ho] - stp.t_heel_off) / (stp.t_lift - stp.t_heel_off)
+                phi = stp.toe_off_pitch * tau * tau * (3 - 2 * tau)
+                pos[ho], head[ho], pitch[ho] = _rolled(R0, toe_w, phi, toe), h0, phi
+            sw = slice(int(np.searchsorted(ts, stp.t_lift, side="right")), land)
+            if sw.stop > sw.start:
+                start = _rolled(R0, toe_w, np.array([stp.toe_off_pitch]), toe)[0]
+                tau = (ts[sw] - stp.t_lift) / (stp.t_land - stp.t_lift)
+                s = tau * tau * (3 - 2 * tau)
+                pos[sw] = start + s[:, None] * (a1 - start)
+                head[sw] = h0 + s * wrap(stp.end.heading - h0)
+                u = np.clip(tau / 0.6, 0.0, 1.0)
+                pitch[sw] = stp.toe_off_pitch * (1 - u * u * (3 - 2 * u))
+                pos[sw, 1] = motion._swing_height(tau, pitch[sw], toe_w[1], toe_end[1])
+                planted[sw] = False
+        if motion._early_roll:
+            extra = np.interp(ts, motion._grid, motion._early_roll[f])
+            rows = planted & (extra > 0.0)
+            pitch[rows] += extra[rows]
+            pos[rows] = _rolled(_ry(head[rows]), anchor[rows], pitch[rows], toe)
+        back = np.empty_like(order)
+        back[order] = np.arange(n)
+        out[f] = FootTrack(pos[back], head[back], pitch[back], planted[back], anchor[back])
+    return out
+
+
+@pytest.fixture(scope="module")
+def walk_motions() -> list:
+    """The gait's ``WalkMotion``s of a walking example, as the locomotion pass built them."""
+    from mtlc.passes import locomotion
+
+    made: list = []
+    init = locomotion.WalkMotion.__post_init__
+
+    def keep(self) -> None:  # type: ignore[no-untyped-def]
+        init(self)
+        made.append(self)
+
+    locomotion.WalkMotion.__post_init__ = keep  # type: ignore[method-assign]
+    try:
+        _compile("remove_avionics_unit")
+    finally:
+        locomotion.WalkMotion.__post_init__ = init  # type: ignore[method-assign]
+    assert made
+    return made
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 400))
+def test_the_feet_of_all_steps_at_once_are_those_step_by_step(
+    walk_motions: list, seed: int, n: int
+) -> None:
+    """``WalkMotion.feet`` computes each phase once for every time it holds: the same numbers,
+    to the bit, as each step by itself (times in any order, repeated, at the steps' own
+    instants and outside the walk)."""
+    rng = np.random.default_rng(seed)
+    motion = walk_motions[seed % len(walk_motions)]
+    instants = [x for s in motion.steps for x in (s.t_heel_off, s.t_lift, s.t_land)]
+    t = np.r_[rng.uniform(motion.t0 - 0.3, motion.t1 + 0.3, n), rng.choice(instants, 5)]
+    t = np.r_[t, t[: n // 4]]
+    want, got = _feet_step_by_step(motion, t), motion.feet(t)
+    for f in LEGS:
+        for field in ("ankle", "heading", "pitch", "planted", "anchor"):
+            np.testing.assert_array_equal(getattr(got[f], field), getattr(want[f], field))
+    assert any(not got[f].planted.all() for f in LEGS) or n < 50  # swings were compared
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), j0=st.integers(0, 40), width=st.integers(1, 41))
+def test_a_block_of_heights_in_pieces_is_the_block_at_once(
+    walk_motions: list, seed: int, j0: int, width: int
+) -> None:
+    """``WalkMotion._block`` tries a block of pelvis heights ``REACH_PIECE`` at a time, each
+    only where none fitted yet: the first that fits, and where none does the least violation
+    and its first height, are those of the whole block's violations at once."""
+    from mtlc.passes.locomotion import leg_frame
+
+    rng = np.random.default_rng(seed)
+    motion = walk_motions[seed % len(walk_motions)]
+    t = np.sort(rng.uniform(motion.t0, motion.t1, 200))
+    xz, heading = motion._xz(t), motion._h(t)
+    feet = motion.feet(t)
+    legs = {
+        f: (leg_frame(motion.legs, f, xz, heading, ft.ankle, ft.heading, ft.pitch), ft.planted)
+        for f, ft in feet.items()
+    }
+    top = motion.ground + motion.stand_height
+    cand = top - np.linspace(0.0, 0.3 * motion.legs.length, 41)
+    j1 = min(j0 + width, 41)
+    rows = np.flatnonzero(rng.random(200) < 0.7)
+    fits, first, least, low = motion._block(rows, cand, j0, j1, legs)
+    bad = motion._violation(rows, cand[j0:j1], legs)
+    ok = bad <= 1e-12
+    np.testing.assert_array_equal(fits, ok.any(axis=1))
+    np.testing.assert_array_equal(first[fits], j0 + ok[fits].argmax(axis=1))
+    np.testing.assert_array_equal(least[~fits], bad[~fits].min(axis=1))
+    np.testing.assert_array_equal(low[~fits], j0 + bad[~fits].argmin(axis=1))

@@ -69,6 +69,7 @@ REACH_CHUNK = 1024  # grid times whose candidate heights are solved at once
 REACH_CANDIDATES = 41  # pelvis heights tried, from standing down to 30 % of the leg lower
 UNCURED_TOL = 0.02  # rad (or 2 mm of reach): a lower pelvis that helps less does not win
 REACH_BLOCKS = (2, 6, 33)  # candidates tried per round, at the times still open: sums to 41
+REACH_PIECE = 6  # ...evaluated this many at a time within a round (the same answer, less work)
 MIN_DURATION = 1e-6  # s: a walk with less time (a zero-length MTM walk) takes no steps
 LEGS = ("r", "l")
 LEG_DOFS = ("hip_flex", "hip_abd", "hip_rot", "knee_flex", "ankle_dorsi", "ankle_inv")
@@ -208,7 +209,43 @@ def leg_violation(
     candidates cost a few element-wise operations each (``leg_ik`` on N × M rows built
     N × M rotation matrices: half a long walk's time).
     """
-    sa, sr, si = legs.sign[side]
+    return leg_violation_at(
+        legs, side, leg_frame(legs, side, xz, heading, ankle, foot_heading, foot_pitch),
+        planted, heights,
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class LegFrame:
+    """What :func:`leg_violation` computes once a time, whatever the pelvis height: the
+    hip–ankle vector's horizontal part in the pelvis frame, the foot's frame there, the
+    ankle's height and the hip's horizontal distance from the ankle (N rows)."""
+
+    tx: FloatArray  # (N, 1)
+    tz: FloatArray  # (N, 1)
+    dy: FloatArray  # (N,) the ankle's height above the root's ground point
+    Fc: tuple[tuple[FloatArray, ...], ...]  # Fc[j][i] = F[:, j, i] as (N, 1)
+    flat2: FloatArray  # (N,) the hip's horizontal distance from the ankle, squared
+    ankle_y: FloatArray  # (N,)
+
+    def take(self, rows: NDArray[np.intp]) -> LegFrame:
+        return LegFrame(
+            self.tx[rows], self.tz[rows], self.dy[rows],
+            tuple(tuple(x[rows] for x in row) for row in self.Fc), self.flat2[rows],
+            self.ankle_y[rows],
+        )  # fmt: skip
+
+
+def leg_frame(
+    legs: LegModel,
+    side: str,
+    xz: FloatArray,
+    heading: FloatArray,
+    ankle: FloatArray,
+    foot_heading: FloatArray,
+    foot_pitch: FloatArray,
+) -> LegFrame:
+    """The per-time part of :func:`leg_violation` (a height search asks it once a time)."""
     Rroot = _ry(heading)  # (N, 3, 3)
     F = np.swapaxes(Rroot, -1, -2) @ _ry(foot_heading) @ _rx(foot_pitch)
     d = ankle - np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], axis=-1)
@@ -216,11 +253,28 @@ def leg_violation(
     # the hip–ankle vector in the pelvis frame: the heading turns about the vertical axis
     tx = (Rroot[:, 0, 0] * d[:, 0] + Rroot[:, 2, 0] * d[:, 2] - hip[0])[:, None]
     tz = (Rroot[:, 0, 2] * d[:, 0] + Rroot[:, 2, 2] * d[:, 2] - hip[2])[:, None]
-    ty = (d[:, 1, None] - heights[None, :]) - hip[1]  # (N, M)
+    Fc = tuple(tuple(F[:, j, i, None] for i in range(3)) for j in range(3))
+    # the hip's height above the ankle is the only part of their distance a height changes
+    hx = Rroot[:, 0, 0] * hip[0] + Rroot[:, 0, 2] * hip[2] + xz[:, 0] - ankle[:, 0]
+    hz = Rroot[:, 2, 0] * hip[0] + Rroot[:, 2, 2] * hip[2] + xz[:, 1] - ankle[:, 2]
+    return LegFrame(tx, tz, d[:, 1], Fc, hx * hx + hz * hz, ankle[:, 1])
+
+
+def leg_violation_at(
+    legs: LegModel,
+    side: str,
+    frame: LegFrame,
+    planted: NDArray[np.bool_],
+    heights: FloatArray,
+) -> FloatArray:
+    """:func:`leg_violation` from its per-time part ``frame``: (N, M)."""
+    sa, sr, si = legs.sign[side]
+    hip = legs.hip[side]
+    tx, tz, Fc = frame.tx, frame.tz, frame.Fc
+    ty = (frame.dy[:, None] - heights[None, :]) - hip[1]  # (N, M)
     L1, L2 = legs.thigh, legs.shank
     dist2 = tx * tx + ty * ty + tz * tz
     k = np.arccos(np.clip((dist2 - L1 * L1 - L2 * L2) / (2 * L1 * L2), -1.0, 1.0))
-    Fc = [[F[:, j, i, None] for i in range(3)] for j in range(3)]  # Fc[j][i] = F[:, j, i]
     u = [Fc[0][i] * tx + Fc[1][i] * ty + Fc[2][i] * tz for i in range(3)]  # Fᵀ t
     eps = np.arctan2(-u[0], -u[1])
     ce, se = np.cos(eps), np.sin(eps)
@@ -249,11 +303,8 @@ def leg_violation(
         if i == 4:
             over = np.where(planted[:, None], 0.0, over)
         bad += over
-    # the hip's height above the ankle is the only part of their distance a height changes
-    hx = Rroot[:, 0, 0] * hip[0] + Rroot[:, 0, 2] * hip[2] + xz[:, 0] - ankle[:, 0]
-    hz = Rroot[:, 2, 0] * hip[0] + Rroot[:, 2, 2] * hip[2] + xz[:, 1] - ankle[:, 2]
-    hy = heights[None, :] + hip[1] - ankle[:, 1, None]
-    reach = np.sqrt((hx * hx + hz * hz)[:, None] + hy * hy)
+    hy = heights[None, :] + hip[1] - frame.ankle_y[:, None]
+    reach = np.sqrt(frame.flat2[:, None] + hy * hy)
     # a swinging leg does not hold the pelvis down: its ankle rises instead (WalkMotion.pose)
     over = np.where(planted[:, None], np.maximum(reach - STANCE_REACH * legs.length, 0.0), 0.0)
     return bad + 10 * over
@@ -465,6 +516,24 @@ class FootTrack:
     anchor: FloatArray  # (N, 3): that footprint's toe tip, the roll's pivot
 
 
+_LANDED, _ROLLING, _SWINGING = 1, 2, 3  # what sets a foot at a time (WalkMotion.feet)
+
+
+@dataclass(frozen=True)
+class _StepTable:
+    """One foot's steps as arrays (K rows, in the walk's order): ``WalkMotion._geometry``,
+    the headings and the turn."""
+
+    row: dict[int, int]  # id(step) -> its row
+    a1: FloatArray  # (K, 3) the landing ankle
+    R0: FloatArray  # (K, 3, 3) the start's rotation
+    toe_w: FloatArray  # (K, 3) the start's toe tip
+    toe_end: FloatArray  # (K, 3) the landing toe tip
+    h0: FloatArray  # (K,) the start's heading
+    h1: FloatArray  # (K,) the landing's heading
+    turn: FloatArray  # (K,) wrap(h1 - h0)
+
+
 def _rolled(R0: FloatArray, toe_w: FloatArray, phi: FloatArray, toe: FloatArray) -> FloatArray:
     """Ankle centres of a foot pitched nose down by ``phi`` about its toe tip ``toe_w``."""
     Rp = np.broadcast_to(R0, (len(phi), 3, 3)) @ _rx(phi)
@@ -492,6 +561,7 @@ class WalkMotion:
 
     def __post_init__(self) -> None:
         self._geo: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
+        self._tables: dict[str, _StepTable] = {}
         self._early_roll: dict[str, FloatArray] = {}  # set once the pelvis height is known
         ts, xz, hs = [self.t0], [self.root_start[[0, 2]]], [self.heading_start]
         feet = dict(self.stance)
@@ -585,6 +655,21 @@ class WalkMotion:
                               a1 + _ry(st.end.heading) @ self.legs.toe)  # fmt: skip
         return self._geo[key]
 
+    def _step_table(self, foot: str) -> _StepTable:
+        """The foot's steps' footprints as arrays, made once (their times and toe-off pitch
+        are read afresh: they are set while the walk is made)."""
+        if foot not in self._tables:
+            mine = [st for st in self.steps if st.foot == foot]
+            geo = [self._geometry(st) for st in mine]
+            self._tables[foot] = _StepTable(
+                {id(st): i for i, st in enumerate(mine)},
+                *(np.array([g[j] for g in geo]) for j in range(4)),
+                np.array([st.start.heading for st in mine]),
+                np.array([st.end.heading for st in mine]),
+                np.array([wrap(st.end.heading - st.start.heading) for st in mine]),
+            )
+        return self._tables[foot]
+
     def feet(self, t: FloatArray) -> dict[str, FootTrack]:
         """Both feet at times ``t``, as scheduled (before :meth:`pose` adds the roll it needs).
 
@@ -595,9 +680,11 @@ class WalkMotion:
         out = {}
         lift = self.legs.ankle_height  # the footprints are on the ground already
         toe = self.legs.toe
-        # every step writes index ranges of the sorted times (found by bisection), and its
-        # landing holds only until the foot's next step lands (which overwrites the rest):
-        # masks over every frame per step made a long walk quadratic in its length
+        # every step claims index ranges of the sorted times (found by bisection), in order,
+        # a later claim winning, and its landing holds only until the foot's next step lands;
+        # then each phase is computed once for all the times it won, from the winning step's
+        # numbers (the same element-wise arithmetic per time as a step at a time: a long walk
+        # spent most of its keyframing in the per-step numpy calls)
         t = np.asarray(t, dtype=float)
         order = np.argsort(t, kind="stable")
         ts = t[order]
@@ -610,47 +697,30 @@ class WalkMotion:
             anchor = pos + _ry(head) @ toe
             planted = np.ones(n, dtype=bool)
             steps = self._steps_touching(f, ts)
+            owner = np.full(n, -1)  # the step that set the pose last (-1: the first stance)
+            phase = np.zeros(n, dtype=np.int8)  # how: _LANDED, _ROLLING or _SWINGING
+            landed_on = np.full(n, -1)  # the step whose landing set the anchor last
+            t_land = np.array([st.t_land for st in steps])
+            t_lift = np.array([st.t_lift for st in steps])
+            lands = np.searchsorted(ts, t_land, side="left").tolist()
+            helds = [*lands[1:], n]
+            heel_offs = np.searchsorted(
+                ts, np.array([st.t_heel_off for st in steps]), side="left"
+            ).tolist()
+            lifts = np.searchsorted(ts, t_lift, side="right").tolist()
             for k, st in enumerate(steps):
-                a1, R0, toe_w, toe_end = self._geometry(st)
-                h0 = st.start.heading
-                land = int(np.searchsorted(ts, st.t_land, side="left"))
-                held = (
-                    int(np.searchsorted(ts, steps[k + 1].t_land, side="left"))
-                    if k + 1 < len(steps)
-                    else n
-                )
+                land, held, lifted = lands[k], helds[k], lifts[k]
                 after = slice(land, max(land, held))
-                pos[after] = a1
-                head[after] = st.end.heading
-                pitch[after] = 0.0
-                anchor[after] = toe_end
-                ho = slice(
-                    int(np.searchsorted(ts, st.t_heel_off, side="left")),
-                    int(np.searchsorted(ts, st.t_lift, side="right")),
-                )
+                owner[after], phase[after], landed_on[after] = k, _LANDED, k
+                ho = slice(heel_offs[k], lifted)
                 if ho.stop > ho.start and st.t_lift > st.t_heel_off:
-                    tau = (ts[ho] - st.t_heel_off) / (st.t_lift - st.t_heel_off)
-                    phi = st.toe_off_pitch * tau * tau * (3 - 2 * tau)
-                    pos[ho], head[ho], pitch[ho] = _rolled(R0, toe_w, phi, toe), h0, phi
-                sw = slice(int(np.searchsorted(ts, st.t_lift, side="right")), land)
+                    owner[ho], phase[ho] = k, _ROLLING
+                sw = slice(lifted, land)
                 if sw.stop > sw.start:
-                    start = _rolled(R0, toe_w, np.array([st.toe_off_pitch]), toe)[0]
-                    tau = (ts[sw] - st.t_lift) / (st.t_land - st.t_lift)
-                    # the foot travels over the whole swing (a smoothstep: at rest at both
-                    # ends, its peak speed 1.5 × the mean), lifts briskly off its toe (sin) and
-                    # sets down softly (sin²). The minimum-jerk move over the middle 75 % of the
-                    # swing reached over the landing point while the pelvis was still half a
-                    # step behind (the pelvis sank up to 25 cm) at up to 8.7 m/s.
-                    s = tau * tau * (3 - 2 * tau)
-                    pos[sw] = start + s[:, None] * (a1 - start)
-                    head[sw] = h0 + s * wrap(st.end.heading - h0)
-                    # level from 60 % of the swing on (levelled as it travelled, the toe
-                    # hung low and touched down a fifth of the swing early), smoothly from
-                    # the roll (a kink here is a "jump" the smooth pass blends for 50 frames)
-                    u = np.clip(tau / 0.6, 0.0, 1.0)
-                    pitch[sw] = st.toe_off_pitch * (1 - u * u * (3 - 2 * u))
-                    pos[sw, 1] = self._swing_height(st, tau, pitch[sw], toe_w, toe_end)
+                    owner[sw], phase[sw] = k, _SWINGING
                     planted[sw] = False
+            if steps:
+                self._steps_into(steps, ts, owner, phase, landed_on, pos, head, pitch, anchor)
             if self._early_roll:
                 extra = np.interp(ts, self._grid, self._early_roll[f])
                 rows = planted & (extra > 0.0)
@@ -661,12 +731,66 @@ class WalkMotion:
             out[f] = FootTrack(pos[back], head[back], pitch[back], planted[back], anchor[back])
         return out
 
+    def _steps_into(
+        self,
+        steps: list[Step],
+        ts: FloatArray,
+        owner: NDArray[np.intp],
+        phase: NDArray[np.int8],
+        landed_on: NDArray[np.intp],
+        pos: FloatArray,
+        head: FloatArray,
+        pitch: FloatArray,
+        anchor: FloatArray,
+    ) -> None:
+        """Write each time's foot as the step ``owner`` sets it in ``phase`` (see :meth:`feet`)."""
+        toe = self.legs.toe
+        index = self._step_table(steps[0].foot)
+        at = np.array([index.row[id(st)] for st in steps])
+        a1, R0, toe_w, toe_end = index.a1[at], index.R0[at], index.toe_w[at], index.toe_end[at]
+        h0, h1, turn = index.h0[at], index.h1[at], index.turn[at]
+        top = np.array([st.toe_off_pitch for st in steps])  # these change as the walk is made
+        t_ho = np.array([st.t_heel_off for st in steps])
+        t_lift = np.array([st.t_lift for st in steps])
+        t_land = np.array([st.t_land for st in steps])
+        rows = np.flatnonzero(landed_on >= 0)
+        anchor[rows] = toe_end[landed_on[rows]]
+        rows = np.flatnonzero(phase == _LANDED)
+        k = owner[rows]
+        pos[rows], head[rows], pitch[rows] = a1[k], h1[k], 0.0
+        rows = np.flatnonzero(phase == _ROLLING)
+        if rows.size:
+            k = owner[rows]
+            tau = (ts[rows] - t_ho[k]) / (t_lift[k] - t_ho[k])
+            phi = top[k] * tau * tau * (3 - 2 * tau)
+            pos[rows], head[rows], pitch[rows] = _rolled(R0[k], toe_w[k], phi, toe), h0[k], phi
+        rows = np.flatnonzero(phase == _SWINGING)
+        if rows.size:
+            k = owner[rows]
+            start = _rolled(R0, toe_w, top, toe)[k]  # the foot as it leaves its toe
+            tau = (ts[rows] - t_lift[k]) / (t_land[k] - t_lift[k])
+            # the foot travels over the whole swing (a smoothstep: at rest at both ends, its
+            # peak speed 1.5 × the mean), lifts briskly off its toe (sin) and sets down softly
+            # (sin²). The minimum-jerk move over the middle 75 % of the swing reached over the
+            # landing point while the pelvis was still half a step behind (the pelvis sank up
+            # to 25 cm) at up to 8.7 m/s.
+            s = tau * tau * (3 - 2 * tau)
+            pos[rows] = start + s[:, None] * (a1[k] - start)
+            head[rows] = h0[k] + s * turn[k]
+            # level from 60 % of the swing on (levelled as it travelled, the toe hung low and
+            # touched down a fifth of the swing early), smoothly from the roll (a kink here is
+            # a "jump" the smooth pass blends for 50 frames)
+            u = np.clip(tau / 0.6, 0.0, 1.0)
+            pitch[rows] = top[k] * (1 - u * u * (3 - 2 * u))
+            pos[rows, 1] = self._swing_height(tau, pitch[rows], toe_w[k, 1], toe_end[k, 1])
+
     def _swing_height(
-        self, st: Step, tau: FloatArray, pitch: FloatArray, toe_w: FloatArray, toe_end: FloatArray
+        self, tau: FloatArray, pitch: FloatArray, toe_from: FloatArray, toe_to: FloatArray
     ) -> FloatArray:
         """The swinging ankle's height: as high as the foot's pitch needs for its toe to be
-        ``clearance`` above the floor (the toe-off roll unwinds as the foot levels), no more."""
-        floor = toe_w[1] + tau * tau * (3 - 2 * tau) * (toe_end[1] - toe_w[1])
+        ``clearance`` above the floor (the toe-off roll unwinds as the foot levels), no more.
+        ``toe_from``, ``toe_to``: the toe tip's height at toe-off and at the landing."""
+        floor = toe_from + tau * tau * (3 - 2 * tau) * (toe_to - toe_from)
         # lifts briskly off its toe (sin) and sets down late and softly (sin^1.5: at rest on
         # touch-down, over 5 mm until 95 % of the swing; sin² was under it from 91 %)
         bump = np.sin(np.pi * np.clip(tau, 0.0, 1.0))
@@ -706,6 +830,10 @@ class WalkMotion:
         at the times no higher candidate settled: most times take one of the first few, so a
         walk solves a few heights a time instead of all 41. The answer is the same as trying
         all at once (the first that fits; where none does, the first of the least violating).
+        What every height shares (the legs' frames at a time, ``leg_frame``) is computed once
+        a time, and a block is tried ``REACH_PIECE`` heights at a time (``_block``): on a long
+        walk 40 % of the times reach the last block, and those that fit there fit within its
+        first six heights.
         """
         if len(t) > REACH_CHUNK:  # a long walk's grid a chunk at a time: bounded memory
             return np.concatenate([
@@ -717,6 +845,10 @@ class WalkMotion:
         cand = top - np.linspace(0.0, 0.3 * self.legs.length, REACH_CANDIDATES)
         n = len(t)
         feet = self.feet(t)
+        legs = {  # what every candidate shares, once a time
+            f: (leg_frame(self.legs, f, xz, heading, ft.ankle, ft.heading, ft.pitch), ft.planted)
+            for f, ft in feet.items()
+        }
         choice = np.full(n, -1)  # the candidate settled for each time, -1 while open
         best = np.full(n, np.inf)  # the least violation so far, where none fits
         best_j = np.zeros(n, dtype=int)
@@ -726,38 +858,69 @@ class WalkMotion:
             j1 = min(j0 + width, len(cand))
             if not len(rows) or j0 >= j1:
                 break
-            bad = self._violation(rows, cand[j0:j1], xz, heading, feet)
-            ok = bad <= 1e-12
-            fits = ok.any(axis=1)
-            choice[rows[fits]] = j0 + ok[fits].argmax(axis=1)
-            low = bad.argmin(axis=1)
-            least = bad[np.arange(len(rows)), low]
+            fits, first, least, low = self._block(rows, cand, j0, j1, legs)
+            choice[rows[fits]] = first[fits]
             # by more than a tolerance: near-ties keep the higher candidate (a limit no height
             # cures, such as a hip's rotation, sank the pelvis to the lowest candidate)
             better = least < best[rows] - UNCURED_TOL
             best[rows[better]] = least[better]
-            best_j[rows[better]] = j0 + low[better]
+            best_j[rows[better]] = low[better]
             rows = rows[~fits]
             j0 = j1
         choice[rows] = best_j[rows]
         return cand[choice]
 
+    def _block(
+        self,
+        rows: NDArray[np.intp],
+        cand: FloatArray,
+        j0: int,
+        j1: int,
+        legs: dict[str, tuple[LegFrame, NDArray[np.bool_]]],
+    ) -> tuple[NDArray[np.bool_], NDArray[np.intp], FloatArray, NDArray[np.intp]]:
+        """Candidates ``j0:j1`` at the times ``rows``: whether one fits, the first that does,
+        the least violation and the first candidate with it (valid where none fits).
+
+        Tried ``REACH_PIECE`` candidates at a time, each only at the times none fitted yet: a
+        time that fits stops there (a long walk's times mostly fit within a few candidates of
+        the last block or within none). The first that fits, the least violation and its
+        first candidate are those of the whole block at once: each violation is one time's
+        and one height's, and a later piece's least replaces an earlier one only if smaller."""
+        n = len(rows)
+        fits = np.zeros(n, dtype=bool)
+        first = np.zeros(n, dtype=np.intp)
+        least = np.full(n, np.inf)
+        low = np.full(n, j0, dtype=np.intp)
+        open_ = np.arange(n)
+        for a in range(j0, j1, REACH_PIECE):
+            b = min(a + REACH_PIECE, j1)
+            bad = self._violation(rows[open_], cand[a:b], legs)
+            ok = bad <= 1e-12
+            hit = ok.any(axis=1)
+            fits[open_[hit]] = True
+            first[open_[hit]] = a + ok[hit].argmax(axis=1)
+            at = bad.argmin(axis=1)
+            small = bad[np.arange(len(open_)), at]
+            smaller = small < least[open_]
+            least[open_[smaller]] = small[smaller]
+            low[open_[smaller]] = a + at[smaller]
+            open_ = open_[~hit]
+            if not open_.size:
+                break
+        return fits, first, least, low
+
     def _violation(
         self,
-        rows: FloatArray,
+        rows: NDArray[np.intp],
         cand: FloatArray,
-        xz: FloatArray,
-        heading: FloatArray,
-        feet: dict[str, FootTrack],
+        legs: dict[str, tuple[LegFrame, NDArray[np.bool_]]],
     ) -> FloatArray:
         """How far each candidate pelvis height misses at each time (``rows`` of the times):
-        joint-limit excess of both legs plus 10 × the reach excess, (len(rows), len(cand))."""
+        joint-limit excess of both legs plus 10 × the reach excess, (len(rows), len(cand)).
+        ``legs``: each leg's :func:`leg_frame` at every time and whether its foot is planted."""
         bad = np.zeros((len(rows), len(cand)))
-        for f, ft in feet.items():
-            bad += leg_violation(
-                self.legs, f, xz[rows], heading[rows], ft.ankle[rows], ft.heading[rows],
-                ft.pitch[rows], ft.planted[rows], cand,
-            )  # fmt: skip
+        for f, (frame, planted) in legs.items():
+            bad += leg_violation_at(self.legs, f, frame.take(rows), planted[rows], cand)
         return bad
 
     def _pelvis_height(self, grid: FloatArray) -> FloatArray:

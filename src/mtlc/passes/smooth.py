@@ -23,9 +23,12 @@ pelvis and trunk smooth through a contact window while the hand and feet stay pu
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from mtlc.body import Pose, forward, site_positions, site_rotation
+from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import Frames, MotionIR
 from mtlc.metrics import (
     balance_margin,
@@ -33,6 +36,7 @@ from mtlc.metrics import (
     foot_points,
     foot_stance,
     lowest_point,
+    walking,
 )
 from mtlc.passes.balance import (
     FEET_SITES,
@@ -108,6 +112,39 @@ def smooth_frames(
     return changed
 
 
+@dataclass
+class Contacts:
+    """What the re-pin needs of the pose before smoothing, on the frames it re-pins: measured
+    while that pose is at hand, so it is posed once (a long walk re-pins nearly every frame)."""
+
+    touching: np.ndarray  # (B, 2) the feet (r, l) on the ground
+    feet: dict[str, tuple[np.ndarray, np.ndarray]]  # FEET_SITES: position (B, 3), rotation
+    hands: dict[str, np.ndarray]  # HANDS: position (B, 3)
+    lowest: np.ndarray  # (B,) the lowest body point
+
+    @staticmethod
+    def of(skel: Skeleton, pose: Pose, contact: np.ndarray, lowest: np.ndarray) -> Contacts:
+        """Those of the rows of ``pose`` (its sole points on the ground: ``contact``)."""
+        return Contacts(
+            contact.reshape(len(contact), 2, -1).any(axis=2),
+            {n: (site_positions(skel, pose, n), site_rotation(skel, pose, n)) for n in FEET_SITES},
+            {h: site_positions(skel, pose, h) for h in HANDS},
+            lowest,
+        )
+
+    @staticmethod
+    def join(parts: list[Contacts]) -> Contacts:
+        return Contacts(
+            np.concatenate([c.touching for c in parts]),
+            {
+                n: tuple(np.concatenate([c.feet[n][i] for c in parts]) for i in range(2))  # type: ignore[misc]
+                for n in FEET_SITES
+            },
+            {h: np.concatenate([c.hands[h] for c in parts]) for h in HANDS},
+            np.concatenate([c.lowest for c in parts]),
+        )
+
+
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     frames = ir.frames
     skel = ir.skeleton
@@ -121,50 +158,41 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         return ir
     stance_all, pins = foot_stance(ir, t), hand_pins(ir, t, pin_windows(ir, reached_only=True))
     # contacts before and after, on the changed frames only (forward kinematics is the cost),
-    # a chunk of frames at a time: a long walk changes most of its frames (~16 KB each here)
+    # a chunk of frames at a time: a long walk changes most of its frames (~16 KB each here).
+    # Each frame is posed before and after the blend once; the frames re-pinned once more at
+    # the end (forward kinematics is computed frame by frame: a frame's numbers are the same
+    # in any batch)
     moved = np.zeros(rows.size, dtype=bool)
-    margin_before = np.empty(rows.size)
-    kept: tuple[Pose, Pose] | None = None  # one chunk: its poses serve the re-pin and the end
+    held: list[Contacts] = []  # of the frames to re-pin, chunk by chunk
     for a in range(0, rows.size, CHUNK_FRAMES):
         r = rows[a : a + CHUNK_FRAMES]
         rot = frames.root_rotation[r]
         pose = forward(skel, q0[r], root0[r], rot, with_axes=False)
         after = forward(skel, frames.q[r], frames.root_position[r], rot, with_axes=False)
-        contact = contact_mask(foot_points(skel, pose), stance_all[r], ir.ground)
+        soles_before = foot_points(skel, pose)
+        contact = contact_mask(soles_before, stance_all[r], ir.ground)
         # re-pin only the frames where a touching foot or a pinned hand actually moved
-        soles = np.linalg.norm(foot_points(skel, after) - foot_points(skel, pose), axis=-1)
+        soles = np.linalg.norm(foot_points(skel, after) - soles_before, axis=-1)
         m = (np.where(contact, soles, 0.0) > PIN_TOL).any(axis=1)
         # and where anything went deeper below the ground (a swinging toe just before it set
         # down, which no contact pins: the gait's walks went 3.6 mm through the floor)
-        m |= lowest_point(skel, after) < np.minimum(lowest_point(skel, pose), ir.ground) - 1e-9
+        low = lowest_point(skel, pose)
+        m |= lowest_point(skel, after) < np.minimum(low, ir.ground) - 1e-9
         for h in HANDS:
             off = np.linalg.norm(
                 site_positions(skel, after, h) - site_positions(skel, pose, h), axis=-1
             )
             m |= pins[h][r] & (off > PIN_TOL)
         moved[a : a + CHUNK_FRAMES] = m
-        margin_before[a : a + CHUNK_FRAMES] = balance_margin(ir, pose, t[r])
-        if rows.size <= CHUNK_FRAMES:
-            kept = (pose, after)
+        fix = np.flatnonzero(m)
+        if fix.size:
+            held.append(Contacts.of(skel, _pose_rows(pose, fix), contact[fix], low[fix]))
     at = np.flatnonzero(moved)
-    fixes = rows[at]
-    if fixes.size:  # one batch: the solver's last bits depend on the batch it runs in
-        given = None if kept is None else (_pose_rows(kept[0], at), _pose_rows(kept[1], at))
-        _repin(ir, frames, fixes, q0, root0, stance_all, pins, given)
-    margin_after = np.empty(rows.size)
-    for a in range(0, rows.size, CHUNK_FRAMES):
-        r = rows[a : a + CHUNK_FRAMES]
-        if kept is not None:  # only the re-pinned frames moved since ``after``
-            final = _pose_rows(kept[1], slice(None))
-            if fixes.size:
-                _set_pose_rows(final, at, forward(skel, frames.q[fixes],
-                               frames.root_position[fixes], frames.root_rotation[fixes],
-                               with_axes=False))  # fmt: skip
-        else:
-            final = forward(skel, frames.q[r], frames.root_position[r],
-                            frames.root_rotation[r], with_axes=False)  # fmt: skip
-        margin_after[a : a + CHUNK_FRAMES] = balance_margin(ir, final, t[r])
-    _rebalance(ir, frames, rows, margin_before, margin_after)
+    if at.size:  # one batch: the solver's last bits depend on the batch it runs in
+        _repin(ir, frames, rows[at], Contacts.join(held), pins)
+    worse = _worse_standing_runs(ir, frames, rows, q0, root0)
+    if worse.size:
+        balance_frames(ir, frames, worse)
     return ir
 
 
@@ -172,41 +200,19 @@ def _repin(
     ir: MotionIR,
     frames: Frames,
     fix: np.ndarray,
-    q0: np.ndarray,
-    root0: np.ndarray,
-    stance: np.ndarray,
+    before: Contacts,
     pins: dict[str, np.ndarray],
-    given: tuple[Pose, Pose] | None = None,
 ) -> None:
     """Put the touching feet and pinned hands of the frames ``fix`` back where they were
-    before the blend (``q0``, ``root0``), never sinking anything deeper. ``given``: the
-    frames' poses before and after the blend, if the caller has them."""
-    skel = ir.skeleton
+    before the blend (``before``), never sinking anything deeper."""
     rot = frames.root_rotation[fix]
-    if given is not None:
-        pose, after = given
-    else:
-        pose = forward(skel, q0[fix], root0[fix], rot, with_axes=False)
-        after = forward(skel, frames.q[fix], frames.root_position[fix], rot, with_axes=False)
-    contact = contact_mask(foot_points(skel, pose), stance[fix], ir.ground)
-    touching = contact.reshape(fix.size, 2, -1).any(axis=2)
-    feet = {
-        name: (
-            site_positions(skel, pose, name),
-            site_rotation(skel, pose, name),
-            touching[:, k],
-        )
-        for k, name in enumerate(FEET_SITES)
-    }
-    hands = {h: (pins[h][fix], site_positions(skel, pose, h)) for h in HANDS}
-    q, root, _ = restore_contacts(
-        ir, frames.q[fix], frames.root_position[fix], rot, feet, hands, after
-    )
+    feet = {name: (*before.feet[name], before.touching[:, k]) for k, name in enumerate(FEET_SITES)}
+    hands = {h: (pins[h][fix], before.hands[h]) for h in HANDS}
+    q, root, _ = restore_contacts(ir, frames.q[fix], frames.root_position[fix], rot, feet, hands)
     # smoothing must not sink anything deeper (a swing toe near the ground when the pelvis
     # came down): raise the root by what it added below the ground, h = L − x
-    low_before = lowest_point(skel, pose)
-    low_after = lowest_point(skel, forward(skel, q, root, rot, with_axes=False))
-    lift = np.maximum(np.minimum(low_before, ir.ground) - low_after, 0.0)
+    low_after = _lowest(ir, q, root, rot)
+    lift = np.maximum(np.minimum(before.lowest, ir.ground) - low_after, 0.0)
     root[:, 1] += lift
     up = np.flatnonzero(lift > 0.0)
     if up.size:  # the raise took the standing feet up with it: put them back down, legs bent
@@ -219,6 +225,28 @@ def _repin(
     frames.root_position[fix] = root
 
 
+def _lowest(ir: MotionIR, q: np.ndarray, root: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """The lowest body point of each frame, a chunk at a time."""
+    low = np.empty(len(q))
+    for a in range(0, len(q), CHUNK_FRAMES):
+        c = slice(a, a + CHUNK_FRAMES)
+        low[c] = lowest_point(ir.skeleton, forward(ir.skeleton, q[c], root[c], rot[c],
+                                                   with_axes=False))  # fmt: skip
+    return low
+
+
+def _margins(
+    ir: MotionIR, q: np.ndarray, root: np.ndarray, rot: np.ndarray, t: np.ndarray
+) -> np.ndarray:
+    """``balance_margin`` of each frame, a chunk at a time."""
+    out = np.empty(len(q))
+    for a in range(0, len(q), CHUNK_FRAMES):
+        c = slice(a, a + CHUNK_FRAMES)
+        pose = forward(ir.skeleton, q[c], root[c], rot[c], with_axes=False)
+        out[c] = balance_margin(ir, pose, t[c])
+    return out
+
+
 def _pose_rows(pose: Pose, rows: np.ndarray | slice) -> Pose:
     """Some frames of a batch of poses, copied (forward kinematics solves frame by frame, so
     they are the numbers ``forward`` gives those frames alone)."""
@@ -226,23 +254,71 @@ def _pose_rows(pose: Pose, rows: np.ndarray | slice) -> Pose:
                 root=pose.root[rows].copy())  # fmt: skip
 
 
-def _set_pose_rows(pose: Pose, rows: np.ndarray, part: Pose) -> None:
-    pose.R[rows], pose.p[rows], pose.axes[rows], pose.root[rows] = (
-        part.R,
-        part.p,
-        part.axes,
-        part.root,
-    )
+def _worse_standing_runs(
+    ir: MotionIR, frames: Frames, rows: np.ndarray, q0: np.ndarray, root0: np.ndarray
+) -> np.ndarray:
+    """The changed frames ``rows`` to balance again: blending toward the frames before a
+    boundary can undo the balance pass's correction of the frames after it, so the frames
+    smoothing made less balanced (``_worse``), in the runs of consecutive such frames that hold
+    a standing frame (``balance_frames`` balances each run by itself and moves no walking frame
+    unless a standing one of its run is corrected: the others are left as they are; a long
+    walk's gait gave ~1,700 such runs, each measured for nothing, 9 s).
+
+    Measured outward from the standing frames only: a run is followed frame by frame (in
+    blocks that double) while its frames are worse, so a long walk's frames are not measured
+    (the margins were a sixth of the pass). The frames returned are those runs of
+    ``rows[_worse(every row)]``."""
+    n = rows.size
+    link = np.r_[np.diff(rows) == 1, False]  # position i and i + 1 are neighbouring frames
+    standing = ~walking(ir, frames.time[rows])
+    known = np.zeros(n, dtype=bool)
+    worse = np.zeros(n, dtype=bool)
+
+    def measure(pos: np.ndarray) -> None:
+        pos = pos[~known[pos]]
+        if pos.size:
+            worse[pos] = _worse(ir, frames, rows[pos], q0, root0)
+            known[pos] = True
+
+    measure(np.flatnonzero(standing))
+    width = 16
+    while True:
+        runs = _live_runs(worse, link, standing)
+        ahead: list[np.ndarray] = []
+        for a, b in runs:  # positions a..b, worse, holding a standing frame
+            if a > 0 and link[a - 1] and not known[a - 1]:
+                lo = a - 1
+                while lo > max(a - width, 0) and link[lo - 1]:
+                    lo -= 1
+                ahead.append(np.arange(lo, a))
+            if b + 1 < n and link[b] and not known[b + 1]:
+                hi = b + 1
+                while hi < min(b + width, n - 1) and link[hi]:
+                    hi += 1
+                ahead.append(np.arange(b + 1, hi + 1))
+        if not ahead:
+            return rows[np.concatenate([np.arange(a, b + 1) for a, b in runs] or [[]]).astype(int)]
+        measure(np.concatenate(ahead))
+        width *= 2
 
 
-def _rebalance(
-    ir: MotionIR, frames: Frames, rows: np.ndarray, before: np.ndarray, after: np.ndarray
-) -> None:
-    """Blending toward the frames before a boundary can undo the balance pass's correction of
-    the frames after it: balance again the frames smoothing made less balanced (the balance
-    pass has reported what it could not fix)."""
-    worse = rows[
-        np.nan_to_num(after, nan=1.0) < np.minimum(np.nan_to_num(before, nan=1.0), MARGIN) - 1e-4
-    ]
-    if worse.size:
-        balance_frames(ir, frames, worse)
+def _live_runs(worse: np.ndarray, link: np.ndarray, standing: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) positions of the runs of neighbouring worse frames holding a standing one."""
+    start = worse & ~np.r_[False, link[:-1] & worse[:-1]]
+    run = np.cumsum(start) - 1
+    out = []
+    for k in np.unique(run[worse & standing]):
+        pos = np.flatnonzero(worse & (run == k))
+        out.append((int(pos[0]), int(pos[-1])))
+    return out
+
+
+def _worse(
+    ir: MotionIR, frames: Frames, r: np.ndarray, q0: np.ndarray, root0: np.ndarray
+) -> np.ndarray:
+    """Which frames ``r`` smoothing made less balanced than before (``q0``, ``root0``) and
+    less than ``MARGIN``."""
+    t, rot = frames.time[r], frames.root_rotation[r]
+    before = _margins(ir, q0[r], root0[r], rot, t)
+    after = _margins(ir, frames.q[r], frames.root_position[r], rot, t)
+    return np.nan_to_num(after, nan=1.0) < np.minimum(np.nan_to_num(before, nan=1.0), MARGIN) - 1e-4

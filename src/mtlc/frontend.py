@@ -19,6 +19,7 @@ from mtlc.semantics.modules import LoadedModule, ModuleLoader
 from mtlc.semantics.scopes import Scope, build_scopes
 from mtlc.semantics.timeline import ManikinSpec, Timeline
 from mtlc.syntax import ast
+from mtlc.syntax.gcpause import no_collections
 
 # seconds of motion a task may take (MT0407). The motion passes cost memory and time in
 # proportion to the motion's length (about 8 MB a minute of standing in compile and in lint,
@@ -194,6 +195,7 @@ FRONTEND: list[tuple[str, Callable[[Program], Program]]] = [
 
 def run_frontend(paths: list[Path], options: FrontendOptions | None = None) -> Program:
     program = Program(list(paths), options or FrontendOptions())
-    for _name, stage in FRONTEND:
-        program = stage(program)
+    with no_collections():  # tokens, nodes and primitives: many young objects, no cycles
+        for _name, stage in FRONTEND:
+            program = stage(program)
     return program

@@ -17,6 +17,7 @@ from __future__ import annotations
 import bisect
 import itertools
 import keyword
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -112,20 +113,32 @@ def _hex(ch: str) -> str:
 
 def number(value: float, decimals: int) -> str:
     """Fixed decimals, trailing zeros dropped, never ``-0.0``: the same value, the same bytes."""
-    if not np.isfinite(value):
+    if not math.isfinite(value):
         raise ValueError(f"cannot write a non-finite number ({value}) into a script")
     text = f"{value:.{decimals}f}"
-    if float(text) == 0.0:
-        text = f"{0.0:.{decimals}f}"
-    if "." not in text:
+    if not text.strip("-0."):  # every digit a zero: 0.0, whatever the sign and the decimals
+        return "0.0"
+    if decimals <= 0:
         return f"{text}.0"
     text = text.rstrip("0")
-    return f"{text}0" if text.endswith(".") else text
+    return f"{text}0" if text[-1] == "." else text
 
 
-def vector(values: Sequence[float], decimals: int) -> str:
+def vector(values: Sequence[float] | FloatArray, decimals: int) -> str:
     """A tuple literal; a one-element tuple keeps its comma (``(4.5,)``)."""
-    items = [number(float(v), decimals) for v in values]
+    if isinstance(values, np.ndarray):
+        values = values.tolist()  # Python floats at once, not one conversion per element
+    items = []
+    for value in values:  # number(), inline: a script has a hundred thousand of them
+        value = float(value)
+        text = f"{value:.{decimals}f}"
+        if not math.isfinite(value) or decimals <= 0 or not text.strip("-0."):
+            text = number(value, decimals)
+        else:
+            text = text.rstrip("0")
+            if text[-1] == ".":
+                text += "0"
+        items.append(text)
     return "(" + ", ".join(items) + ("," if len(items) == 1 else "") + ")"
 
 
@@ -205,36 +218,76 @@ def key_indices(time: FloatArray, values: FloatArray, breakpoints: Sequence[int]
     """
     n = len(time)
     marks = sorted({0, n - 1, *(int(b) for b in breakpoints if 0 <= b < n)})
+    fit = _LineFit(time, values)
     keys = [0]
     for a, b in itertools.pairwise(marks):
         i = a
         while i < b:
-            i = _furthest_fit(time, values, i, b)
+            i = _furthest_fit(fit, i, b)
             keys.append(i)
     return np.asarray(keys, dtype=np.intp)
 
 
-def _fits(time: FloatArray, values: FloatArray, i: int, j: int) -> bool:
-    if j - i < 2:
-        return True
-    weight = (time[i + 1 : j] - time[i]) / (time[j] - time[i])
-    line = values[i] + weight[:, None] * (values[j] - values[i])
-    return bool(np.max(np.abs(values[i + 1 : j] - line)) <= 1.0)
+class _LineFit:
+    """Whether the straight line from frame i to frame j stays within 1 of every frame between.
+
+    The search asks first about j = i + 2, then i + 4, i + 8 or i + 3 (most keys are a few
+    frames apart, so most questions are these): those answers are computed for every i at
+    once, the others one by one, all with the same arithmetic (the same operations on the same
+    numbers, element by element), so the answers and the keys are those of one by one.
+    """
+
+    PRECOMPUTED = (2, 3, 4, 6, 8)
+
+    def __init__(self, time: FloatArray, values: FloatArray) -> None:
+        self.time = time
+        self.values = values
+        self.short = {span: self._every_start(span) for span in self.PRECOMPUTED}
+
+    def _every_start(self, span: int) -> NDArray[np.bool_]:
+        """fits(i, i + span) for every i < N - span."""
+        time, values = self.time, self.values
+        starts = len(time) - span
+        if starts <= 0:
+            return np.zeros(0, dtype=bool)
+        t0, v0 = time[:starts], values[:starts]
+        dt = time[span:] - t0
+        dv = values[span:] - v0
+        ok = np.ones(starts, dtype=bool)
+        for offset in range(1, span):
+            weight = (time[offset : starts + offset] - t0) / dt
+            line = v0 + weight[:, None] * dv
+            ok &= np.abs(values[offset : starts + offset] - line).max(axis=1) <= 1.0
+        return ok
+
+    def fits(self, i: int, j: int) -> bool:
+        span = j - i
+        if span < 2:
+            return True
+        short = self.short.get(span)
+        if short is not None:
+            return bool(short[i])
+        time, values = self.time, self.values
+        t0 = time[i]
+        weight = (time[i + 1 : j] - t0) / (time[j] - t0)
+        v0 = values[i]
+        line = v0 + weight[:, None] * (values[j] - v0)
+        return bool(np.abs(values[i + 1 : j] - line).max() <= 1.0)
 
 
-def _furthest_fit(time: FloatArray, values: FloatArray, i: int, stop: int) -> int:
+def _furthest_fit(fit: _LineFit, i: int, stop: int) -> int:
     """The furthest j ≤ stop that fits from i (galloping, then bisection)."""
     good, step = i + 1, 1
     bad = stop + 1
     while good < stop:
         candidate = min(good + step, stop)
-        if not _fits(time, values, i, candidate):
+        if not fit.fits(i, candidate):
             bad = candidate
             break
         good, step = candidate, step * 2
     while bad - good > 1:
         middle = (good + bad) // 2
-        if _fits(time, values, i, middle):
+        if fit.fits(i, middle):
             good = middle
         else:
             bad = middle
@@ -380,17 +433,23 @@ def choose_keys(ir: MotionIR, jack: JackFrames, ta: str) -> Keys:
         for joint in jack_joints()
     }
     frames = np.unique(np.concatenate([root_frames, *joint_frames.values()]))
+    # each channel's rows gathered once and made Python floats at once, then written
     root_text = {
-        int(k): f"{vector(jack.root_position[k], LENGTH_DECIMALS)}, "
-        f"{vector(jack.root_euler[k], ANGLE_DECIMALS)}"
-        for k in root_frames
+        k: f"{vector(position, LENGTH_DECIMALS)}, {vector(euler, ANGLE_DECIMALS)}"
+        for k, position, euler in zip(
+            root_frames.tolist(),
+            jack.root_position[root_frames].tolist(),
+            jack.root_euler[root_frames].tolist(),
+            strict=True,
+        )
     }
+    every = frames.tolist()
     joints = {}
     for joint, kept in joint_frames.items():
-        columns = _joint_columns(joint)
-        texts = {int(k): vector(jack.joints[k, columns], ANGLE_DECIMALS) for k in kept}
-        joints[joint] = _drop_constant_runs([texts.get(int(k)) for k in frames])
-    return Keys(frames, _drop_constant_runs([root_text.get(int(k)) for k in frames]), joints)
+        rows = jack.joints[np.ix_(kept, _joint_columns(joint))].tolist()
+        texts = {k: vector(row, ANGLE_DECIMALS) for k, row in zip(kept.tolist(), rows, strict=True)}
+        joints[joint] = _drop_constant_runs([texts.get(k) for k in every])
+    return Keys(frames, _drop_constant_runs([root_text.get(k) for k in every]), joints)
 
 
 def _joint_columns(joint: str) -> list[int]:

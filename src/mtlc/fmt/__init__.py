@@ -5,11 +5,8 @@ from __future__ import annotations
 
 import bisect
 import dataclasses
-import gc
 import json
 from collections import Counter
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,6 +17,7 @@ from mtlc.fmt.printer import ANCHORS, format_module, nodes
 from mtlc.fmt.source import lex, remember
 from mtlc.syntax import ast, parse_module, suppressions
 from mtlc.syntax.dump import to_data
+from mtlc.syntax.gcpause import no_collections
 from mtlc.syntax.parser import ItemMemo
 
 __all__ = ["FormatResult", "ast_fingerprint", "format_source", "same_tree"]
@@ -35,30 +33,11 @@ class FormatResult:
     diagnostics: list[Diagnostic]
 
 
-@contextmanager
-def _no_collections() -> Iterator[None]:
-    """No automatic collection while one file is formatted, then as before.
-
-    The tokens, nodes and documents of a large file are hundreds of thousands of young objects,
-    none of them garbage in a cycle: every collection would walk them in vain (with the default
-    thresholds, a collection every 700 of them cost a third of the time on a 1.8 MB file; with
-    raised ones still a tenth). What error recovery leaves in cycles (exceptions and their
-    frames) is small per file, and collected once collections resume.
-    """
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was_enabled:
-            gc.enable()
-
-
 def format_source(source: str, file: str) -> FormatResult:
     """Format one file's text; refuse a file with syntax errors, a suppression the style cannot
     keep covering the same statements (MT0109), and (MT0900) any output that would parse
     differently or lose a comment."""
-    with _no_collections():
+    with no_collections():
         return _format_source(source, file)
 
 

@@ -18,6 +18,7 @@ from mtlc.diagnostics import DiagnosticSink, Span
 from mtlc.diagnostics.suggest import did_you_mean
 from mtlc.syntax import ast
 from mtlc.syntax.fastparse import Fallback, fast_parse
+from mtlc.syntax.gcpause import no_collections
 from mtlc.syntax.grammar import builder, lexicon, parser
 from mtlc.syntax.lexer import MAX_NESTING, NEWLINE, tokenize
 
@@ -88,6 +89,18 @@ def parse_module(
     (`mtlc fmt` tokenizes once for the parser, the printer and the comments); not mutated.
     ``memo``: see ItemMemo (recording on a first parse, reusing on the next).
     ``item_ends``: what ``tokenize`` put in its ``item_ends_out`` for ``tokens``, if known."""
+    with no_collections():  # a token and a node per word: many young objects, no cycles
+        return _parse_module(text, file, sink, tokens, memo, item_ends)
+
+
+def _parse_module(
+    text: str,
+    file: str,
+    sink: DiagnosticSink,
+    tokens: list[Token] | None,
+    memo: ItemMemo | None,
+    item_ends: list[int] | None,
+) -> ast.Module:
     if tokens is None:
         item_ends = []
         tokens = tokenize(text, file, sink, None, item_ends)

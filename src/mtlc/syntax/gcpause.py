@@ -1,0 +1,27 @@
+"""Pause Python's automatic garbage collection while a file's tokens and nodes are built."""
+
+from __future__ import annotations
+
+import gc
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+
+@contextmanager
+def no_collections() -> Iterator[None]:
+    """No automatic collection inside the block, then as before.
+
+    The tokens, nodes, documents and primitives of a large file are hundreds of thousands of
+    young objects, none of them garbage in a cycle: every collection would walk them in vain
+    (with the default thresholds, a collection every 700 of them cost a third of the time of
+    `mtlc fmt` on a 1.8 MB file and half of the parse in `mtlc check`). What error recovery
+    leaves in cycles (exceptions and their frames) is small per file, and collected once
+    collections resume. Nested blocks are fine: only the outermost one turns collection back on.
+    """
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()

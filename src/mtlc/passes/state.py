@@ -59,6 +59,9 @@ class PoseState:
         self._r: list[list[int]] = [[] for _ in range(skel.n_dofs)]
         self._rt: list[float] = []
         self._rr: list[int] = []
+        # per dof, its index as arrays (times, blocks, rows) for queries of many times at once;
+        # dropped whenever a segment is indexed (``add`` may insert in the middle)
+        self._arrays: dict[int, tuple[FloatArray, np.ndarray, np.ndarray]] = {}
         for seg in ir.segments:
             if seg.keyframes is not None:
                 self.add(seg)
@@ -75,6 +78,7 @@ class PoseState:
         if kf is None:
             return
         sid = id(seg)
+        self._arrays.clear()
         times = np.asarray(kf.time, dtype=float).tolist()
         ordered = bool(np.all(np.diff(kf.time) >= 0.0))
         columns = [(self.skel.dof_index(name), c) for c, name in enumerate(kf.dofs)]
@@ -115,6 +119,44 @@ class PoseState:
                 q[d] = ref[0].q[ref[1], ref[2]]
         return q
 
+    def _index_arrays(self, d: int) -> tuple[FloatArray, np.ndarray, np.ndarray]:
+        """Dof ``d``'s index as arrays: keyframe times, their blocks and rows."""
+        found = self._arrays.get(d)
+        if found is None:
+            refs = np.asarray(self._r[d], dtype=np.int64)
+            found = self._arrays[d] = (
+                np.asarray(self._t[d], dtype=float),
+                refs >> ROW_BITS,
+                refs & ((1 << ROW_BITS) - 1),
+            )
+        return found
+
+    def q_at_many(self, times: FloatArray, skip: Skip = None) -> FloatArray:
+        """``q_at`` at each of ``times`` (N, n_dofs), with one sorted search per dof for all of
+        them (a gaze pass asked ``q_at`` ten thousand times, one bisection per dof each)."""
+        sid = _skip_ids(skip)
+        t = np.asarray(times, dtype=float).reshape(-1)
+        q = np.tile(self.rest, (len(t), 1))
+        for d in range(len(self.rest)):
+            if not self._t[d]:
+                continue
+            ts, blocks, rows = self._index_arrays(d)
+            # the last keyframe at or before t (+1e-9), as ``_latest``'s bisection
+            i = np.searchsorted(ts, t + 1e-9, side="right") - 1
+            if sid:  # step back over the skipped segments' keyframes
+                kept = np.array([self._blocks[b][0] not in sid for b in blocks.tolist()])
+                latest_kept = np.maximum.accumulate(np.where(kept, np.arange(len(ts)), -1))
+                i = np.where(i >= 0, latest_kept[np.maximum(i, 0)], -1)
+            found = np.flatnonzero(i >= 0)
+            if not len(found):
+                continue
+            entry = i[found]
+            for b in np.unique(blocks[entry]).tolist():
+                _, kf, c = self._blocks[b]
+                mine = blocks[entry] == b
+                q[found[mine], d] = kf.q[rows[entry[mine]], c]
+        return q
+
     def height_at(self, t: float, skip: Skip = None) -> float:
         """Root height at ``t`` (the standing height until a posture changes it)."""
         ref = self._latest(self._rt, self._rr, t, _skip_ids(skip))
@@ -144,13 +186,7 @@ class PoseState:
                     rot = gr / np.linalg.norm(gr)
                 return gp, rot
         skipped = _skip_ids(skip)
-        # the keyed windows change only with the segments or a keyframe added (``add``):
-        # computed once per such change, not by sorting every segment on every call
-        key = ("keyed_windows", len(self.ir.segments), len(self._blocks))
-        if key not in self.memo:
-            self.memo = {k: v for k, v in self.memo.items() if k[0] != "keyed_windows"}
-            self.memo[key] = keyed_windows(self.ir)
-        for seg, start, end in self.memo[key]:  # a stepping kneel places the root
+        for seg, start, end in self._keyed_windows():  # a stepping kneel places the root
             kf = seg.keyframes
             if id(seg) in skipped or kf is None or kf.root_position is None:
                 continue
@@ -159,6 +195,55 @@ class PoseState:
         q = self.q_at(t, skip)
         pos = anchored_root(self.skel, q[None], pos[None], rot[None], self.ir.ground)[0]
         return pos, rot
+
+    def root_at_many(self, times: FloatArray, skip: Skip = None) -> tuple[FloatArray, FloatArray]:
+        """``root_at`` at each of ``times``: positions (N, 3) and rotations (N, 4), the legs'
+        poses anchored in one batch. The same numbers row by row (each row's arithmetic is
+        its own; tests/test_state.py compares them)."""
+        t = np.asarray(times, dtype=float).reshape(-1)
+        plan = self.ir.root_plan
+        assert plan is not None
+        pos, heading = plan.at(t)
+        pos = np.array(pos, dtype=float).reshape(len(t), 3)
+        rot = yaw_quaternion(np.asarray(heading)).reshape(len(t), 4)
+        done = np.zeros(len(t), dtype=bool)
+        for seg, (start, end) in self._walks:  # the first walk whose gait covers t
+            kf = seg.keyframes
+            if kf is None or kf.root_position is None:
+                continue
+            inside = ~done & (start <= t) & (t <= end)
+            if not inside.any():
+                continue
+            done |= inside
+            pos[inside] = track(list(kf.time), list(kf.root_position), t[inside])
+            if kf.root_rotation is not None:
+                gr = track(list(kf.time), list(kf.root_rotation), t[inside])
+                # a row at a time: a vector's norm is not a batch's row norm to the last bit
+                rot[inside] = [g / np.linalg.norm(g) for g in gr]
+        skipped = _skip_ids(skip)
+        for seg, start, end in self._keyed_windows():
+            kf = seg.keyframes
+            if id(seg) in skipped or kf is None or kf.root_position is None:
+                continue
+            inside = ~done & (start + 1e-9 < t) & (t <= end + 1e-9)
+            if inside.any():
+                done |= inside
+                pos[inside] = track(list(kf.time), list(kf.root_position), t[inside])
+        rest = ~done
+        if rest.any():
+            q = self.q_at_many(t[rest], skip)
+            pos[rest] = anchored_root(self.skel, q, pos[rest], rot[rest], self.ir.ground)
+        return pos, rot
+
+    def _keyed_windows(self) -> list[tuple[Any, float, float]]:
+        """``keyed_windows`` of the IR, computed again only when a segment or keyframe was
+        added (not by sorting every segment on every call)."""
+        key = ("keyed_windows", len(self.ir.segments), len(self._blocks))
+        if key not in self.memo:
+            self.memo = {k: v for k, v in self.memo.items() if k[0] != "keyed_windows"}
+            self.memo[key] = keyed_windows(self.ir)
+        found: list[tuple[Any, float, float]] = self.memo[key]
+        return found
 
     def site(self, name: str, q: FloatArray, root: tuple[FloatArray, FloatArray]) -> FloatArray:
         """World position of one body site (or joint centre, with ``joint:`` prefix)."""

@@ -87,12 +87,15 @@ def solve_looks(ir: MotionIR, ctx: PassContext, state: PoseState) -> list[tuple[
         free = min(t0, max((end for _, end in turns), default=0.0))
         target = np.mean([np.asarray(s.goal.position, dtype=float) for s in segs], axis=0)
         before = state.q_at(t0)
-        q1 = aim_head(ir, ctx, state, before, target, t1)
+        root = state.root_at(t1)
+        q1 = aim_head(ir, ctx, state, before, target, t1, root)
         start, end = look_window(t0, t1, before[dofs], q1[dofs], free, max(limit, t1))
-        q0 = state.q_at(start)
+        # nothing is written between these reads: the same time gives the same pose and root
+        q0 = before.copy() if start == t0 else state.q_at(start)
+        if end != t1:
+            root = state.root_at(end)
         if end > t1 + EPS:  # the body may have moved on by the time the head arrives
-            q1 = aim_head(ir, ctx, state, q1, target, end)
-        root = state.root_at(end)
+            q1 = aim_head(ir, ctx, state, q1, target, end, root)
         err = float(aim_errors(skel, q1[None], root[0][None], root[1][None], target[None])[0])
         for seg in segs:
             seg.start, seg.end = min(seg.start, start), max(seg.end, end)
@@ -121,12 +124,19 @@ def look_window(
 
 
 def aim_head(
-    ir: MotionIR, ctx: PassContext, state: PoseState, q0: FloatArray, target: FloatArray, t: float
+    ir: MotionIR,
+    ctx: PassContext,
+    state: PoseState,
+    q0: FloatArray,
+    target: FloatArray,
+    t: float,
+    root: tuple[FloatArray, FloatArray] | None = None,
 ) -> FloatArray:
-    """The whole pose with the neck and head aimed at ``target`` from the body at ``t``."""
+    """The whole pose with the neck and head aimed at ``target`` from the body at ``t`` (its
+    root ``state.root_at(t)``, passed when the caller has it)."""
     skel = ir.skeleton
     dofs = default_dofs(skel, ["gaze"], "arm")
-    root = state.root_at(t)
+    root = state.root_at(t) if root is None else root
     body = state.q_at(t)
     body[dofs] = q0[dofs]
     base = sorted(set(skel.chain_dofs("gaze")) - set(dofs))
@@ -458,7 +468,16 @@ def _better_aimed(
     """Of ``options`` (head poses), the one that aims best at the segment's target at ``t``."""
     if seg.goal.position is None:
         return options[0]
-    errors = _key_errors(ir, state, seg, np.full(len(options), t), np.stack(options))
+    # one body and root for all options (``_key_errors`` at one time, asked once)
+    skel = ir.skeleton
+    kf = seg.keyframes
+    assert kf is not None
+    body = np.tile(state.q_at(t), (len(options), 1))
+    body[:, [skel.dof_index(name) for name in kf.dofs]] = np.stack(options)
+    root = state.root_at(t)
+    target = np.asarray(seg.goal.position, dtype=float)
+    errors = aim_errors(skel, body, np.tile(root[0], (len(options), 1)),
+                        np.tile(root[1], (len(options), 1)), np.tile(target, (len(options), 1)))  # fmt: skip
     return options[int(np.argmin(errors))]
 
 

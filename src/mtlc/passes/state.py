@@ -25,7 +25,13 @@ import numpy as np
 from mtlc.body import forward, site_positions
 from mtlc.body.ik import ChainModel, Goal, IKResult
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
-from mtlc.passes.interpolate import anchored_root, gait_window, keyed_windows, track
+from mtlc.passes.interpolate import (
+    anchored_root,
+    foot_chain_dofs,
+    gait_window,
+    keyed_windows,
+    track,
+)
 
 # a keyframe column: (segment id, keyframes, column); column −1 for a posture root height
 _Block = tuple[int, Keyframes, int]
@@ -53,6 +59,7 @@ class PoseState:
         self.rest = np.asarray(skel.q_comfort, dtype=float)
         self.stand_y = ir.ground + float(np.asarray(skel.root_position)[1])
         self._blocks: list[_Block] = []
+        self._block_dof: list[int] = []  # each block's dof (−1: a posture's root height)
         # derived from the segments and keyframes, keyed by what they depend on (see root_at)
         self.memo: dict[Any, Any] = {}
         self._t: list[list[float]] = [[] for _ in range(skel.n_dofs)]
@@ -62,6 +69,9 @@ class PoseState:
         # per dof, its index as arrays (times, blocks, rows) for queries of many times at once;
         # dropped whenever a segment is indexed (``add`` may insert in the middle)
         self._arrays: dict[int, tuple[FloatArray, np.ndarray, np.ndarray]] = {}
+        # segments indexed that cannot place the root (see ``_keyed_windows``), and that can
+        self._plain_added = 0
+        self._movers_added = 0
         for seg in ir.segments:
             if seg.keyframes is not None:
                 self.add(seg)
@@ -79,6 +89,10 @@ class PoseState:
             return
         sid = id(seg)
         self._arrays.clear()
+        if seg.kind in ("locomotion", "posture"):
+            self._movers_added += 1
+        else:
+            self._plain_added += 1
         times = np.asarray(kf.time, dtype=float).tolist()
         ordered = bool(np.all(np.diff(kf.time) >= 0.0))
         columns = [(self.skel.dof_index(name), c) for c, name in enumerate(kf.dofs)]
@@ -88,6 +102,7 @@ class PoseState:
             ts, refs = (self._t[d], self._r[d]) if d >= 0 else (self._rt, self._rr)
             code = len(self._blocks) << ROW_BITS
             self._blocks.append((sid, kf, c))
+            self._block_dof.append(d)
             if ordered and (not ts or times[0] >= ts[-1]):  # all after the rest: append
                 ts.extend(times)
                 refs.extend(range(code, code + len(times)))
@@ -131,13 +146,18 @@ class PoseState:
             )
         return found
 
-    def q_at_many(self, times: FloatArray, skip: Skip = None) -> FloatArray:
+    def q_at_many(
+        self, times: FloatArray, skip: Skip = None, dofs: Collection[int] | None = None
+    ) -> FloatArray:
         """``q_at`` at each of ``times`` (N, n_dofs), with one sorted search per dof for all of
-        them (a gaze pass asked ``q_at`` ten thousand times, one bisection per dof each)."""
+        them (a gaze pass asked ``q_at`` ten thousand times, one bisection per dof each). Only
+        ``dofs`` (default: all) are looked up; the others hold their rest values."""
         sid = _skip_ids(skip)
         t = np.asarray(times, dtype=float).reshape(-1)
         q = np.tile(self.rest, (len(t), 1))
-        for d in range(len(self.rest)):
+        # per dof, the frames a keyframe sets and which one: (frames, dof, block, row)
+        found: list[tuple[np.ndarray, int, np.ndarray, np.ndarray]] = []
+        for d in range(len(self.rest)) if dofs is None else sorted(dofs):
             if not self._t[d]:
                 continue
             ts, blocks, rows = self._index_arrays(d)
@@ -147,14 +167,23 @@ class PoseState:
                 kept = np.array([self._blocks[b][0] not in sid for b in blocks.tolist()])
                 latest_kept = np.maximum.accumulate(np.where(kept, np.arange(len(ts)), -1))
                 i = np.where(i >= 0, latest_kept[np.maximum(i, 0)], -1)
-            found = np.flatnonzero(i >= 0)
-            if not len(found):
-                continue
-            entry = i[found]
-            for b in np.unique(blocks[entry]).tolist():
-                _, kf, c = self._blocks[b]
-                mine = blocks[entry] == b
-                q[found[mine], d] = kf.q[rows[entry[mine]], c]
+            at = np.flatnonzero(i >= 0)
+            if len(at):
+                found.append((at, d, blocks[i[at]], rows[i[at]]))
+        if not found:
+            return q
+        # the values are read now (a pass may rewrite a keyframe in place), a block at a time:
+        # a block is one segment's column, so one dof
+        frames = np.concatenate([f[0] for f in found])
+        block = np.concatenate([f[2] for f in found])
+        row = np.concatenate([f[3] for f in found])
+        order = np.argsort(block, kind="stable")
+        frames, block, row = frames[order], block[order], row[order]
+        cuts = np.flatnonzero(block[1:] != block[:-1]) + 1
+        for a, b in zip(np.r_[0, cuts].tolist(), np.r_[cuts, len(block)].tolist(), strict=True):
+            _, kf, c = self._blocks[int(block[a])]
+            d = self._block_dof[int(block[a])]
+            q[frames[a:b], d] = kf.q[row[a:b], c]
         return q
 
     def height_at(self, t: float, skip: Skip = None) -> float:
@@ -231,14 +260,17 @@ class PoseState:
                 pos[inside] = track(list(kf.time), list(kf.root_position), t[inside])
         rest = ~done
         if rest.any():
-            q = self.q_at_many(t[rest], skip)
+            # the legs' dofs only: the anchoring reads nothing else (``foot_chain_dofs``)
+            q = self.q_at_many(t[rest], skip, dofs=foot_chain_dofs(self.skel).tolist())
             pos[rest] = anchored_root(self.skel, q, pos[rest], rot[rest], self.ir.ground)
         return pos, rot
 
     def _keyed_windows(self) -> list[tuple[Any, float, float]]:
-        """``keyed_windows`` of the IR, computed again only when a segment or keyframe was
-        added (not by sorting every segment on every call)."""
-        key = ("keyed_windows", len(self.ir.segments), len(self._blocks))
+        """``keyed_windows`` of the IR, computed again only when the segments that can place
+        the root may have changed (not by sorting every segment on every call): a walk or a
+        posture indexed (``add``), or a segment listed that was not indexed here. A gaze
+        segment, inserted and indexed, changes no window (the gaze pass adds hundreds)."""
+        key = ("keyed_windows", len(self.ir.segments) - self._plain_added, self._movers_added)
         if key not in self.memo:
             self.memo = {k: v for k, v in self.memo.items() if k[0] != "keyed_windows"}
             self.memo[key] = keyed_windows(self.ir)

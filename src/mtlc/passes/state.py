@@ -35,6 +35,7 @@ from mtlc.passes.interpolate import (
 
 # a keyframe column: (segment id, keyframes, column); column −1 for a posture root height
 _Block = tuple[int, Keyframes, int]
+FEW_TIMES = 48  # up to this many times ``q_at_many`` bisects per time (its set-up costs more)
 ROW_BITS = 24  # a reference is block << ROW_BITS | row: the index holds ints, not tuples
 # the segment(s) whose keyframes a query ignores
 Skip = Segment | Collection[Segment] | None
@@ -59,7 +60,10 @@ class PoseState:
         self.rest = np.asarray(skel.q_comfort, dtype=float)
         self.stand_y = ir.ground + float(np.asarray(skel.root_position)[1])
         self._blocks: list[_Block] = []
-        self._block_dof: list[int] = []  # each block's dof (−1: a posture's root height)
+        # each block's keyframes (an index into ``_kfs``: one per ``add``) and column
+        self._kfs: list[Keyframes] = []
+        self._block_kf: list[int] = []
+        self._block_col: list[int] = []
         # derived from the segments and keyframes, keyed by what they depend on (see root_at)
         self.memo: dict[Any, Any] = {}
         self._t: list[list[float]] = [[] for _ in range(skel.n_dofs)]
@@ -68,8 +72,10 @@ class PoseState:
         self._rr: list[int] = []
         # per dof, its index as arrays (times, blocks, rows) for queries of many times at once;
         # dropped whenever a segment is indexed (``add`` may insert in the middle)
-        self._arrays: dict[int, tuple[FloatArray, np.ndarray, np.ndarray]] = {}
-        # segments indexed that cannot place the root (see ``_keyed_windows``), and that can
+        self._arrays: dict[Any, Any] = {}
+        # for ``_keyed_windows``: the segments listed now, the segments indexed later that
+        # cannot place the root and were not listed, and the indexed ones that can
+        self._listed = {id(s) for s in ir.segments}
         self._plain_added = 0
         self._movers_added = 0
         for seg in ir.segments:
@@ -91,7 +97,8 @@ class PoseState:
         self._arrays.clear()
         if seg.kind in ("locomotion", "posture"):
             self._movers_added += 1
-        else:
+        elif sid not in self._listed:  # a new segment, inserted in the list (a gaze's)
+            self._listed.add(sid)
             self._plain_added += 1
         times = np.asarray(kf.time, dtype=float).tolist()
         ordered = bool(np.all(np.diff(kf.time) >= 0.0))
@@ -102,7 +109,8 @@ class PoseState:
             ts, refs = (self._t[d], self._r[d]) if d >= 0 else (self._rt, self._rr)
             code = len(self._blocks) << ROW_BITS
             self._blocks.append((sid, kf, c))
-            self._block_dof.append(d)
+            self._block_kf.append(len(self._kfs))
+            self._block_col.append(c)
             if ordered and (not ts or times[0] >= ts[-1]):  # all after the rest: append
                 ts.extend(times)
                 refs.extend(range(code, code + len(times)))
@@ -111,6 +119,7 @@ class PoseState:
                 i = bisect_right(ts, t)
                 ts.insert(i, t)
                 refs.insert(i, code + row)
+        self._kfs.append(kf)
 
     def _latest(
         self, times: list[float], refs: list[int], t: float, skip: frozenset[int]
@@ -152,8 +161,17 @@ class PoseState:
         """``q_at`` at each of ``times`` (N, n_dofs), with one sorted search per dof for all of
         them (a gaze pass asked ``q_at`` ten thousand times, one bisection per dof each). Only
         ``dofs`` (default: all) are looked up; the others hold their rest values."""
-        sid = _skip_ids(skip)
         t = np.asarray(times, dtype=float).reshape(-1)
+        if len(t) <= FEW_TIMES:  # a bisection per dof and time costs less than the set-up
+            q = np.tile(self.rest, (len(t), 1))
+            for k, tk in enumerate(t.tolist()):
+                q[k] = self.q_at(tk, skip)
+            if dofs is not None:
+                keep = np.zeros(len(self.rest), dtype=bool)
+                keep[list(dofs)] = True
+                q[:, ~keep] = self.rest[~keep]
+            return q
+        sid = _skip_ids(skip)
         q = np.tile(self.rest, (len(t), 1))
         # per dof, the frames a keyframe sets and which one: (frames, dof, block, row)
         found: list[tuple[np.ndarray, int, np.ndarray, np.ndarray]] = []
@@ -172,19 +190,31 @@ class PoseState:
                 found.append((at, d, blocks[i[at]], rows[i[at]]))
         if not found:
             return q
-        # the values are read now (a pass may rewrite a keyframe in place), a block at a time:
-        # a block is one segment's column, so one dof
+        # the values are read now (a pass may rewrite a keyframe in place), one segment's
+        # keyframes at a time (a gather of its rows and columns)
         frames = np.concatenate([f[0] for f in found])
+        dof = np.concatenate([np.full(len(f[0]), f[1]) for f in found])
         block = np.concatenate([f[2] for f in found])
         row = np.concatenate([f[3] for f in found])
-        order = np.argsort(block, kind="stable")
-        frames, block, row = frames[order], block[order], row[order]
-        cuts = np.flatnonzero(block[1:] != block[:-1]) + 1
-        for a, b in zip(np.r_[0, cuts].tolist(), np.r_[cuts, len(block)].tolist(), strict=True):
-            _, kf, c = self._blocks[int(block[a])]
-            d = self._block_dof[int(block[a])]
-            q[frames[a:b], d] = kf.q[row[a:b], c]
+        block_kf, block_col = self._block_arrays()
+        kf_of = block_kf[block]
+        order = np.argsort(kf_of, kind="stable")
+        frames, dof, row, kf_of = frames[order], dof[order], row[order], kf_of[order]
+        col = block_col[block[order]]
+        cuts = np.flatnonzero(kf_of[1:] != kf_of[:-1]) + 1
+        for a, b in zip(np.r_[0, cuts].tolist(), np.r_[cuts, len(kf_of)].tolist(), strict=True):
+            q[frames[a:b], dof[a:b]] = self._kfs[int(kf_of[a])].q[row[a:b], col[a:b]]
         return q
+
+    def _block_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each block's keyframes (index into ``_kfs``) and column, as arrays."""
+        found = self._arrays.get("blocks")
+        if found is None:
+            found = self._arrays["blocks"] = (
+                np.asarray(self._block_kf, dtype=np.intp),
+                np.asarray(self._block_col, dtype=np.intp),
+            )
+        return found  # type: ignore[no-any-return]
 
     def height_at(self, t: float, skip: Skip = None) -> float:
         """Root height at ``t`` (the standing height until a posture changes it)."""
@@ -269,7 +299,8 @@ class PoseState:
         """``keyed_windows`` of the IR, computed again only when the segments that can place
         the root may have changed (not by sorting every segment on every call): a walk or a
         posture indexed (``add``), or a segment listed that was not indexed here. A gaze
-        segment, inserted and indexed, changes no window (the gaze pass adds hundreds)."""
+        segment, inserted and indexed (or listed and then given keyframes), changes no window
+        (the gaze pass adds hundreds)."""
         key = ("keyed_windows", len(self.ir.segments) - self._plain_added, self._movers_added)
         if key not in self.memo:
             self.memo = {k: v for k, v in self.memo.items() if k[0] != "keyed_windows"}

@@ -35,6 +35,11 @@ from mtlc.passes.tool import is_stroke
 JOINT_WEIGHT = 0.02  # m of progress per radian of the movement's joints (L2 over its dofs)
 PATH_SAMPLES_PER_S = 480.0  # the old motion is measured this densely to find its arc length
 MIN_PATH_SAMPLES = 64
+# at most this many (8.5 s at 480 a second): a person's reach lasts a second or two, and a
+# reach stretched over a minute and a half by a long hold (a fuzzed procedure's) was measured
+# at 44,000 samples, 12 keys apart by 3,700, the pass's whole time; 4,096 still put 340
+# samples between two keys of its path
+MAX_PATH_SAMPLES = 4096
 EPS = 1e-6
 PATH_POINTS = 241  # the path, resampled at even steps of progress before it is smoothed
 SMOOTH_SIGMA = 0.1  # of the path's progress: the Gaussian that smooths it
@@ -243,6 +248,13 @@ def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> Float
     return pchip(u2, body.q[:, idx])(s)
 
 
+def path_grid(m: Movement) -> FloatArray:
+    """The times at which the old motion of a movement is measured: 480 a second, at least
+    ``MIN_PATH_SAMPLES`` and at most ``MAX_PATH_SAMPLES`` intervals."""
+    n = max(MIN_PATH_SAMPLES, int(np.ceil((m.end - m.start) * PATH_SAMPLES_PER_S)))
+    return np.linspace(m.start, m.end, min(n, MAX_PATH_SAMPLES) + 1)
+
+
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if ir.skeleton is None:
         return ir
@@ -250,10 +262,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if not moves:
         return ir
     # the old motion first, for every movement at once (the keys are replaced afterwards)
-    grids = []
-    for m in moves:
-        n = max(MIN_PATH_SAMPLES, int(np.ceil((m.end - m.start) * PATH_SAMPLES_PER_S)))
-        grids.append(np.linspace(m.start, m.end, n + 1))
+    grids = [path_grid(m) for m in moves]
     _, frames_all = _body(ir, np.concatenate(grids))
     a = 0
     for m, grid in zip(moves, grids, strict=True):

@@ -90,3 +90,15 @@ def test_each_reach_is_one_bell_and_slow_at_contact(compiled: MotionIR) -> None:
         assert speed[-1] <= 0.05  # m/s in the frame where contact is made
         site = m.segments[-1].goal.position
         assert np.linalg.norm(p[-1] - site) <= 1e-3  # still on the site
+
+
+def test_a_long_movement_is_measured_at_most_max_path_samples() -> None:
+    """480 samples a second for a person's reach; a fuzzed reach of 93 s (a long hold) took
+    44,000 and the pass's whole time: it is measured at 4,096 (issue 21)."""
+    from mtlc.passes.pace import MAX_PATH_SAMPLES, MIN_PATH_SAMPLES, Movement, path_grid
+
+    assert len(path_grid(Movement([], 1.0, 2.5))) == 721  # 1.5 s at 480 a second
+    assert len(path_grid(Movement([], 1.0, 1.01))) == MIN_PATH_SAMPLES + 1
+    long = path_grid(Movement([], 0.26, 93.33))
+    assert len(long) == MAX_PATH_SAMPLES + 1
+    assert long[0] == 0.26 and long[-1] == 93.33

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtlc.body import forward, site_direction, site_positions
+from mtlc.body import forward_part, site_direction, site_positions
 from mtlc.body.ik import Goal, default_dofs, prepare, solve_ta
 from mtlc.ir.model import FloatArray, Frames, GoalSpec, Keyframes, MotionIR, Segment
 from mtlc.passes.context import PassContext
@@ -87,12 +87,15 @@ def solve_looks(ir: MotionIR, ctx: PassContext, state: PoseState) -> list[tuple[
         free = min(t0, max((end for _, end in turns), default=0.0))
         target = np.mean([np.asarray(s.goal.position, dtype=float) for s in segs], axis=0)
         before = state.q_at(t0)
-        q1 = aim_head(ir, ctx, state, before, target, t1)
+        root = state.root_at(t1)
+        q1 = aim_head(ir, ctx, state, before, target, t1, root)
         start, end = look_window(t0, t1, before[dofs], q1[dofs], free, max(limit, t1))
-        q0 = state.q_at(start)
+        # nothing is written between these reads: the same time gives the same pose and root
+        q0 = before.copy() if start == t0 else state.q_at(start)
+        if end != t1:
+            root = state.root_at(end)
         if end > t1 + EPS:  # the body may have moved on by the time the head arrives
-            q1 = aim_head(ir, ctx, state, q1, target, end)
-        root = state.root_at(end)
+            q1 = aim_head(ir, ctx, state, q1, target, end, root)
         err = float(aim_errors(skel, q1[None], root[0][None], root[1][None], target[None])[0])
         for seg in segs:
             seg.start, seg.end = min(seg.start, start), max(seg.end, end)
@@ -121,12 +124,19 @@ def look_window(
 
 
 def aim_head(
-    ir: MotionIR, ctx: PassContext, state: PoseState, q0: FloatArray, target: FloatArray, t: float
+    ir: MotionIR,
+    ctx: PassContext,
+    state: PoseState,
+    q0: FloatArray,
+    target: FloatArray,
+    t: float,
+    root: tuple[FloatArray, FloatArray] | None = None,
 ) -> FloatArray:
-    """The whole pose with the neck and head aimed at ``target`` from the body at ``t``."""
+    """The whole pose with the neck and head aimed at ``target`` from the body at ``t`` (its
+    root ``state.root_at(t)``, passed when the caller has it)."""
     skel = ir.skeleton
     dofs = default_dofs(skel, ["gaze"], "arm")
-    root = state.root_at(t)
+    root = state.root_at(t) if root is None else root
     body = state.q_at(t)
     body[dofs] = q0[dofs]
     base = sorted(set(skel.chain_dofs("gaze")) - set(dofs))
@@ -154,7 +164,8 @@ def aim_errors(
     targets: FloatArray,
 ) -> FloatArray:
     """Per row, the angle (rad) between the head's forward axis and the line to its target."""
-    pose = forward(skel, q, root_position, root_rotation, with_axes=False)  # type: ignore[arg-type]
+    # the gaze site's chain only (the head and what carries it): the same numbers as a whole pose
+    pose = forward_part(skel, q, root_position, root_rotation, ["gaze"])  # type: ignore[arg-type]
     eye = np.asarray(site_positions(skel, pose, "gaze"))  # type: ignore[arg-type]
     look = np.asarray(site_direction(skel, pose, "gaze"))  # type: ignore[arg-type]
     want = targets - eye
@@ -384,9 +395,15 @@ def keep_pace(ir: MotionIR, ctx: PassContext, state: PoseState) -> None:
         for i, t in enumerate(s.keyframes.time)  # type: ignore[union-attr]
     )
     changed: set[int] = set()
+    quiet = _quiet_keys(heads, keys)
     last_t, last_q = 0.0, None
-    for t, n, i in keys:
+    intact = False  # the key before is as it was (``quiet`` holds for this key)
+    for k, (t, n, i) in enumerate(keys):
         q = heads[n].keyframes.q  # type: ignore[union-attr]
+        if intact and quiet[k]:
+            last_t, last_q = t, q[i].copy()
+            continue
+        before = q[i].copy()
         if last_q is not None:
             if i == 0:
                 kept = last_q
@@ -399,6 +416,7 @@ def keep_pace(ir: MotionIR, ctx: PassContext, state: PoseState) -> None:
                 q[i] = kept
                 changed.add(n)
         last_t, last_q = t, q[i].copy()
+        intact = bool(np.array_equal(before, q[i]))
     for n in sorted(changed):
         seg = heads[n]
         mark(ctx.cache, seg)
@@ -410,6 +428,24 @@ def keep_pace(ir: MotionIR, ctx: PassContext, state: PoseState) -> None:
         seg.result = {**seg.result, "angle_error": worst, "success": worst <= GAZE_TOLERANCE}
 
 
+def _quiet_keys(heads: list[Segment], keys: list[tuple[float, int, int]]) -> np.ndarray:
+    """Per key (in ``keep_pace``'s order), whether the sweep leaves it as it is when the key
+    before it is as it was: the sweep's own test for all keys at once (elementwise the same
+    arithmetic), so the sweep visits only the keys after a change or that need one."""
+    quiet = np.zeros(len(keys), dtype=bool)
+    rows = [heads[n].keyframes.q[i] for _, n, i in keys]  # type: ignore[union-attr]
+    if len(keys) < 2 or len({len(r) for r in rows}) != 1:
+        return quiet
+    q = np.array(rows, dtype=float)
+    t = np.array([k[0] for k in keys])
+    first = np.array([k[2] == 0 for k in keys[1:]])
+    room = (HEAD_PACE * np.maximum(t[1:] - t[:-1], 0.0))[:, None]
+    kept = np.clip(q[1:], q[:-1] - room, q[:-1] + room)
+    kept[first] = q[:-1][first]  # a segment's first key is the pose the head is in
+    quiet[1:] = np.abs(kept - q[1:]).max(axis=1) <= 1e-12
+    return quiet
+
+
 def _key_errors(
     ir: MotionIR, state: PoseState, seg: Segment, times: FloatArray, heads: FloatArray
 ) -> FloatArray:
@@ -417,13 +453,13 @@ def _key_errors(
     skel = ir.skeleton
     kf = seg.keyframes
     assert kf is not None and seg.goal.position is not None
-    body = np.array([state.q_at(float(t)) for t in times])
+    # the body and its root at every time in one batch (a call per time was most of the pass)
+    body = state.q_at_many(times)
     cols = [skel.dof_index(name) for name in kf.dofs]
     body[:, cols] = heads
-    roots = [state.root_at(float(t)) for t in times]
+    root_position, root_rotation = state.root_at_many(times)
     target = np.asarray(seg.goal.position, dtype=float)
-    return aim_errors(skel, body, np.array([r[0] for r in roots]),
-                      np.array([r[1] for r in roots]), np.tile(target, (len(body), 1)))  # fmt: skip
+    return aim_errors(skel, body, root_position, root_rotation, np.tile(target, (len(body), 1)))
 
 
 def _better_aimed(
@@ -432,16 +468,26 @@ def _better_aimed(
     """Of ``options`` (head poses), the one that aims best at the segment's target at ``t``."""
     if seg.goal.position is None:
         return options[0]
-    errors = _key_errors(ir, state, seg, np.full(len(options), t), np.stack(options))
+    # one body and root for all options (``_key_errors`` at one time, asked once)
+    skel = ir.skeleton
+    kf = seg.keyframes
+    assert kf is not None
+    body = np.tile(state.q_at(t), (len(options), 1))
+    body[:, [skel.dof_index(name) for name in kf.dofs]] = np.stack(options)
+    root = state.root_at(t)
+    target = np.asarray(seg.goal.position, dtype=float)
+    errors = aim_errors(skel, body, np.tile(root[0], (len(options), 1)),
+                        np.tile(root[1], (len(options), 1)), np.tile(target, (len(options), 1)))  # fmt: skip
     return options[int(np.argmin(errors))]
 
 
 def insert_in_time_order(segments: list[Segment], seg: Segment) -> None:
-    """Put ``seg`` after every segment that starts no later (the IR lists segments by start)."""
-    at = len(segments)
-    while at > 0 and segments[at - 1].start > seg.start + EPS:
-        at -= 1
-    segments.insert(at, seg)
+    """Put ``seg`` after every segment that starts no later (the IR lists segments by start):
+    after the last one from the end that does not start later (a scan in numpy: a walk back
+    through a thousand segments per head segment was a tenth of a long task's gaze pass)."""
+    starts = np.fromiter((s.start for s in segments), dtype=float, count=len(segments))
+    stop = np.flatnonzero(~(starts > seg.start + EPS))
+    segments.insert(int(stop[-1]) + 1 if len(stop) else 0, seg)
 
 
 def _rows(frames: Frames, rows: slice) -> Frames:
@@ -471,7 +517,7 @@ def follow_part(
     if targets is None:
         return None
     points = np.array([t[0] for t in targets])
-    pose = forward(skel, body.q, body.root_position, body.root_rotation, with_axes=False)
+    pose = forward_part(skel, body.q, body.root_position, body.root_rotation, ["gaze"])
     eyes = np.asarray(site_positions(skel, pose, "gaze"))
     first = aim_errors(skel, body.q[:1], body.root_position[:1], body.root_rotation[:1],
                        points[:1])  # fmt: skip
@@ -554,10 +600,23 @@ def keep_branch(
     solved from one seed fell on either (the neck swung 45 deg between two frames while a
     wrench swung on the access panel); from the row before, the solver stays on its branch."""
     gaze_dofs = default_dofs(skel, ["gaze"], "arm")  # type: ignore[arg-type]
-    for a, b in itertools.pairwise(rows):
+    rows = np.asarray(rows, dtype=np.intp)
+    if len(rows) < 2:
+        return
+    # every step's test at once, from the rows as they are (elementwise the same arithmetic);
+    # a step from a re-solved row is tested again in the loop
+    head = out[rows][:, gaze_dofs]
+    allowed_all = HEAD_SPEED * np.maximum(times[rows[1:]] - times[rows[:-1]], 0.0)
+    slow = np.abs(head[1:] - head[:-1]).max(axis=1) <= allowed_all
+    moved = False  # the row before was re-solved
+    for k, (a, b) in enumerate(itertools.pairwise(rows.tolist())):
+        if not moved and slow[k]:
+            continue
+        moved = False
         allowed = HEAD_SPEED * max(float(times[b] - times[a]), 0.0)
         if np.abs(out[b, gaze_dofs] - out[a, gaze_dofs]).max() <= allowed:
             continue
+        moved = True
         start = out[b : b + 1].copy()
         start[0, gaze_dofs] = out[a, gaze_dofs]
         out[b] = solve_rows(skel, start, roots, aims, [b], restarts=0)[0]

@@ -35,6 +35,11 @@ from mtlc.passes.tool import is_stroke
 JOINT_WEIGHT = 0.02  # m of progress per radian of the movement's joints (L2 over its dofs)
 PATH_SAMPLES_PER_S = 480.0  # the old motion is measured this densely to find its arc length
 MIN_PATH_SAMPLES = 64
+# at most this many (8.5 s at 480 a second): a person's reach lasts a second or two, and a
+# reach stretched over a minute and a half by a long hold (a fuzzed procedure's) was measured
+# at 44,000 samples, 12 keys apart by 3,700, the pass's whole time; 4,096 still put 340
+# samples between two keys of its path
+MAX_PATH_SAMPLES = 4096
 EPS = 1e-6
 PATH_POINTS = 241  # the path, resampled at even steps of progress before it is smoothed
 SMOOTH_SIGMA = 0.1  # of the path's progress: the Gaussian that smooths it
@@ -107,19 +112,46 @@ def movements(ir: MotionIR) -> list[Movement]:
         key = (round(chain[0].start, 6), round(chain[-1].end, 6))
         m = windows.setdefault(key, Movement([], chain[0].start, chain[-1].end))
         m.segments += chain
-    out = [m for m in windows.values() if not _shares_dofs(ir, m)]
+    keys = dof_keys(ir)
+    out = [m for m in windows.values() if not _shares_dofs(ir, m, keys)]
     return sorted(out, key=lambda m: m.start)
 
 
-def _shares_dofs(ir: MotionIR, m: Movement) -> bool:
+# per dof name: every keyframe time that sets it, sorted, and the index of its segment
+DofKeys = dict[str, tuple[FloatArray, np.ndarray]]
+
+
+def dof_keys(ir: MotionIR) -> DofKeys:
+    """Every segment's keyframe times by dof, sorted once: which segments key a dof inside a
+    window is then two bisections, not a scan of every segment per movement (a procedure of
+    200 actions spent a second on that scan)."""
+    columns: dict[str, list[tuple[FloatArray, int]]] = {}
+    for k, s in enumerate(ir.segments):
+        kf = s.keyframes
+        if kf is None:
+            continue
+        t = np.asarray(kf.time, dtype=float)
+        for name in dict.fromkeys(kf.dofs):
+            columns.setdefault(name, []).append((t, k))
+    out: DofKeys = {}
+    for name, parts in columns.items():
+        t = np.concatenate([p[0] for p in parts])
+        owner = np.concatenate([np.full(len(p[0]), p[1], dtype=np.intp) for p in parts])
+        order = np.argsort(t, kind="stable")
+        out[name] = (t[order], owner[order])
+    return out
+
+
+def _shares_dofs(ir: MotionIR, m: Movement, keys: DofKeys | None = None) -> bool:
     """Another segment keys one of the movement's dofs inside its window: re-timing one of the
     two would tear the curve they make together, so the movement keeps its timing."""
-    mine = set(m.dofs)
-    for s in ir.segments:
-        kf = s.keyframes
-        if any(s is x for x in m.segments) or kf is None or not mine.intersection(kf.dofs):
-            continue
-        if np.any((kf.time > m.start + EPS) & (kf.time < m.end - EPS)):
+    keys = dof_keys(ir) if keys is None else keys
+    own = {id(x) for x in m.segments}
+    for name in set(m.dofs):
+        t, owner = keys.get(name, (np.zeros(0), np.zeros(0, dtype=np.intp)))
+        lo = int(np.searchsorted(t, m.start + EPS, side="right"))  # first key after the start
+        hi = int(np.searchsorted(t, m.end - EPS, side="left"))  # first key not before the end
+        if any(id(ir.segments[k]) not in own for k in owner[lo:hi].tolist()):
             return True
     return False
 
@@ -216,6 +248,13 @@ def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> Float
     return pchip(u2, body.q[:, idx])(s)
 
 
+def path_grid(m: Movement) -> FloatArray:
+    """The times at which the old motion of a movement is measured: 480 a second, at least
+    ``MIN_PATH_SAMPLES`` and at most ``MAX_PATH_SAMPLES`` intervals."""
+    n = max(MIN_PATH_SAMPLES, int(np.ceil((m.end - m.start) * PATH_SAMPLES_PER_S)))
+    return np.linspace(m.start, m.end, min(n, MAX_PATH_SAMPLES) + 1)
+
+
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if ir.skeleton is None:
         return ir
@@ -223,10 +262,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if not moves:
         return ir
     # the old motion first, for every movement at once (the keys are replaced afterwards)
-    grids = []
-    for m in moves:
-        n = max(MIN_PATH_SAMPLES, int(np.ceil((m.end - m.start) * PATH_SAMPLES_PER_S)))
-        grids.append(np.linspace(m.start, m.end, n + 1))
+    grids = [path_grid(m) for m in moves]
     _, frames_all = _body(ir, np.concatenate(grids))
     a = 0
     for m, grid in zip(moves, grids, strict=True):

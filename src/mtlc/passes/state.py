@@ -25,10 +25,17 @@ import numpy as np
 from mtlc.body import forward, site_positions
 from mtlc.body.ik import ChainModel, Goal, IKResult
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment, yaw_quaternion
-from mtlc.passes.interpolate import anchored_root, gait_window, keyed_windows, track
+from mtlc.passes.interpolate import (
+    anchored_root,
+    foot_chain_dofs,
+    gait_window,
+    keyed_windows,
+    track,
+)
 
 # a keyframe column: (segment id, keyframes, column); column −1 for a posture root height
 _Block = tuple[int, Keyframes, int]
+FEW_TIMES = 48  # up to this many times ``q_at_many`` bisects per time (its set-up costs more)
 ROW_BITS = 24  # a reference is block << ROW_BITS | row: the index holds ints, not tuples
 # the segment(s) whose keyframes a query ignores
 Skip = Segment | Collection[Segment] | None
@@ -53,12 +60,24 @@ class PoseState:
         self.rest = np.asarray(skel.q_comfort, dtype=float)
         self.stand_y = ir.ground + float(np.asarray(skel.root_position)[1])
         self._blocks: list[_Block] = []
+        # each block's keyframes (an index into ``_kfs``: one per ``add``) and column
+        self._kfs: list[Keyframes] = []
+        self._block_kf: list[int] = []
+        self._block_col: list[int] = []
         # derived from the segments and keyframes, keyed by what they depend on (see root_at)
         self.memo: dict[Any, Any] = {}
         self._t: list[list[float]] = [[] for _ in range(skel.n_dofs)]
         self._r: list[list[int]] = [[] for _ in range(skel.n_dofs)]
         self._rt: list[float] = []
         self._rr: list[int] = []
+        # per dof, its index as arrays (times, blocks, rows) for queries of many times at once;
+        # dropped whenever a segment is indexed (``add`` may insert in the middle)
+        self._arrays: dict[Any, Any] = {}
+        # for ``_keyed_windows``: the segments listed now, the segments indexed later that
+        # cannot place the root and were not listed, and the indexed ones that can
+        self._listed = {id(s) for s in ir.segments}
+        self._plain_added = 0
+        self._movers_added = 0
         for seg in ir.segments:
             if seg.keyframes is not None:
                 self.add(seg)
@@ -75,6 +94,12 @@ class PoseState:
         if kf is None:
             return
         sid = id(seg)
+        self._arrays.clear()
+        if seg.kind in ("locomotion", "posture"):
+            self._movers_added += 1
+        elif sid not in self._listed:  # a new segment, inserted in the list (a gaze's)
+            self._listed.add(sid)
+            self._plain_added += 1
         times = np.asarray(kf.time, dtype=float).tolist()
         ordered = bool(np.all(np.diff(kf.time) >= 0.0))
         columns = [(self.skel.dof_index(name), c) for c, name in enumerate(kf.dofs)]
@@ -84,6 +109,8 @@ class PoseState:
             ts, refs = (self._t[d], self._r[d]) if d >= 0 else (self._rt, self._rr)
             code = len(self._blocks) << ROW_BITS
             self._blocks.append((sid, kf, c))
+            self._block_kf.append(len(self._kfs))
+            self._block_col.append(c)
             if ordered and (not ts or times[0] >= ts[-1]):  # all after the rest: append
                 ts.extend(times)
                 refs.extend(range(code, code + len(times)))
@@ -92,6 +119,7 @@ class PoseState:
                 i = bisect_right(ts, t)
                 ts.insert(i, t)
                 refs.insert(i, code + row)
+        self._kfs.append(kf)
 
     def _latest(
         self, times: list[float], refs: list[int], t: float, skip: frozenset[int]
@@ -114,6 +142,79 @@ class PoseState:
             if ref is not None:
                 q[d] = ref[0].q[ref[1], ref[2]]
         return q
+
+    def _index_arrays(self, d: int) -> tuple[FloatArray, np.ndarray, np.ndarray]:
+        """Dof ``d``'s index as arrays: keyframe times, their blocks and rows."""
+        found = self._arrays.get(d)
+        if found is None:
+            refs = np.asarray(self._r[d], dtype=np.int64)
+            found = self._arrays[d] = (
+                np.asarray(self._t[d], dtype=float),
+                refs >> ROW_BITS,
+                refs & ((1 << ROW_BITS) - 1),
+            )
+        return found
+
+    def q_at_many(
+        self, times: FloatArray, skip: Skip = None, dofs: Collection[int] | None = None
+    ) -> FloatArray:
+        """``q_at`` at each of ``times`` (N, n_dofs), with one sorted search per dof for all of
+        them (a gaze pass asked ``q_at`` ten thousand times, one bisection per dof each). Only
+        ``dofs`` (default: all) are looked up; the others hold their rest values."""
+        t = np.asarray(times, dtype=float).reshape(-1)
+        if len(t) <= FEW_TIMES:  # a bisection per dof and time costs less than the set-up
+            q = np.tile(self.rest, (len(t), 1))
+            for k, tk in enumerate(t.tolist()):
+                q[k] = self.q_at(tk, skip)
+            if dofs is not None:
+                keep = np.zeros(len(self.rest), dtype=bool)
+                keep[list(dofs)] = True
+                q[:, ~keep] = self.rest[~keep]
+            return q
+        sid = _skip_ids(skip)
+        q = np.tile(self.rest, (len(t), 1))
+        # per dof, the frames a keyframe sets and which one: (frames, dof, block, row)
+        found: list[tuple[np.ndarray, int, np.ndarray, np.ndarray]] = []
+        for d in range(len(self.rest)) if dofs is None else sorted(dofs):
+            if not self._t[d]:
+                continue
+            ts, blocks, rows = self._index_arrays(d)
+            # the last keyframe at or before t (+1e-9), as ``_latest``'s bisection
+            i = np.searchsorted(ts, t + 1e-9, side="right") - 1
+            if sid:  # step back over the skipped segments' keyframes
+                kept = np.array([self._blocks[b][0] not in sid for b in blocks.tolist()])
+                latest_kept = np.maximum.accumulate(np.where(kept, np.arange(len(ts)), -1))
+                i = np.where(i >= 0, latest_kept[np.maximum(i, 0)], -1)
+            at = np.flatnonzero(i >= 0)
+            if len(at):
+                found.append((at, d, blocks[i[at]], rows[i[at]]))
+        if not found:
+            return q
+        # the values are read now (a pass may rewrite a keyframe in place), one segment's
+        # keyframes at a time (a gather of its rows and columns)
+        frames = np.concatenate([f[0] for f in found])
+        dof = np.concatenate([np.full(len(f[0]), f[1]) for f in found])
+        block = np.concatenate([f[2] for f in found])
+        row = np.concatenate([f[3] for f in found])
+        block_kf, block_col = self._block_arrays()
+        kf_of = block_kf[block]
+        order = np.argsort(kf_of, kind="stable")
+        frames, dof, row, kf_of = frames[order], dof[order], row[order], kf_of[order]
+        col = block_col[block[order]]
+        cuts = np.flatnonzero(kf_of[1:] != kf_of[:-1]) + 1
+        for a, b in zip(np.r_[0, cuts].tolist(), np.r_[cuts, len(kf_of)].tolist(), strict=True):
+            q[frames[a:b], dof[a:b]] = self._kfs[int(kf_of[a])].q[row[a:b], col[a:b]]
+        return q
+
+    def _block_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each block's keyframes (index into ``_kfs``) and column, as arrays."""
+        found = self._arrays.get("blocks")
+        if found is None:
+            found = self._arrays["blocks"] = (
+                np.asarray(self._block_kf, dtype=np.intp),
+                np.asarray(self._block_col, dtype=np.intp),
+            )
+        return found  # type: ignore[no-any-return]
 
     def height_at(self, t: float, skip: Skip = None) -> float:
         """Root height at ``t`` (the standing height until a posture changes it)."""
@@ -144,13 +245,7 @@ class PoseState:
                     rot = gr / np.linalg.norm(gr)
                 return gp, rot
         skipped = _skip_ids(skip)
-        # the keyed windows change only with the segments or a keyframe added (``add``):
-        # computed once per such change, not by sorting every segment on every call
-        key = ("keyed_windows", len(self.ir.segments), len(self._blocks))
-        if key not in self.memo:
-            self.memo = {k: v for k, v in self.memo.items() if k[0] != "keyed_windows"}
-            self.memo[key] = keyed_windows(self.ir)
-        for seg, start, end in self.memo[key]:  # a stepping kneel places the root
+        for seg, start, end in self._keyed_windows():  # a stepping kneel places the root
             kf = seg.keyframes
             if id(seg) in skipped or kf is None or kf.root_position is None:
                 continue
@@ -159,6 +254,59 @@ class PoseState:
         q = self.q_at(t, skip)
         pos = anchored_root(self.skel, q[None], pos[None], rot[None], self.ir.ground)[0]
         return pos, rot
+
+    def root_at_many(self, times: FloatArray, skip: Skip = None) -> tuple[FloatArray, FloatArray]:
+        """``root_at`` at each of ``times``: positions (N, 3) and rotations (N, 4), the legs'
+        poses anchored in one batch. The same numbers row by row (each row's arithmetic is
+        its own; tests/test_state.py compares them)."""
+        t = np.asarray(times, dtype=float).reshape(-1)
+        plan = self.ir.root_plan
+        assert plan is not None
+        pos, heading = plan.at(t)
+        pos = np.array(pos, dtype=float).reshape(len(t), 3)
+        rot = yaw_quaternion(np.asarray(heading)).reshape(len(t), 4)
+        done = np.zeros(len(t), dtype=bool)
+        for seg, (start, end) in self._walks:  # the first walk whose gait covers t
+            kf = seg.keyframes
+            if kf is None or kf.root_position is None:
+                continue
+            inside = ~done & (start <= t) & (t <= end)
+            if not inside.any():
+                continue
+            done |= inside
+            pos[inside] = track(list(kf.time), list(kf.root_position), t[inside])
+            if kf.root_rotation is not None:
+                gr = track(list(kf.time), list(kf.root_rotation), t[inside])
+                # a row at a time: a vector's norm is not a batch's row norm to the last bit
+                rot[inside] = [g / np.linalg.norm(g) for g in gr]
+        skipped = _skip_ids(skip)
+        for seg, start, end in self._keyed_windows():
+            kf = seg.keyframes
+            if id(seg) in skipped or kf is None or kf.root_position is None:
+                continue
+            inside = ~done & (start + 1e-9 < t) & (t <= end + 1e-9)
+            if inside.any():
+                done |= inside
+                pos[inside] = track(list(kf.time), list(kf.root_position), t[inside])
+        rest = ~done
+        if rest.any():
+            # the legs' dofs only: the anchoring reads nothing else (``foot_chain_dofs``)
+            q = self.q_at_many(t[rest], skip, dofs=foot_chain_dofs(self.skel).tolist())
+            pos[rest] = anchored_root(self.skel, q, pos[rest], rot[rest], self.ir.ground)
+        return pos, rot
+
+    def _keyed_windows(self) -> list[tuple[Any, float, float]]:
+        """``keyed_windows`` of the IR, computed again only when the segments that can place
+        the root may have changed (not by sorting every segment on every call): a walk or a
+        posture indexed (``add``), or a segment listed that was not indexed here. A gaze
+        segment, inserted and indexed (or listed and then given keyframes), changes no window
+        (the gaze pass adds hundreds)."""
+        key = ("keyed_windows", len(self.ir.segments) - self._plain_added, self._movers_added)
+        if key not in self.memo:
+            self.memo = {k: v for k, v in self.memo.items() if k[0] != "keyed_windows"}
+            self.memo[key] = keyed_windows(self.ir)
+        found: list[tuple[Any, float, float]] = self.memo[key]
+        return found
 
     def site(self, name: str, q: FloatArray, root: tuple[FloatArray, FloatArray]) -> FloatArray:
         """World position of one body site (or joint centre, with ``joint:`` prefix)."""

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left
+from typing import NamedTuple
 
 import numpy as np
 
@@ -52,22 +53,25 @@ from mtlc.body import (
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.body.kinematics import rotate_about
 from mtlc.ir.model import Frames, MotionIR, Segment
-from mtlc.loads import carried_com
+from mtlc.loads import Held, carried_com, held
 from mtlc.metrics import (
     FOOT_POINT_NAMES,
     KNEE_SLOTS,
     BoolArray,
     FloatArray,
+    RestWindows,
     contact_mask,
     foot_points,
     foot_stance,
     grouped_hull,
     hand_contacts,
+    hand_rest_windows,
     hull_margin,
     lowest_point,
     support,
     support_margin,
     support_push,
+    swing_spans,
     walking,
 )
 from mtlc.passes.context import PassContext
@@ -322,15 +326,18 @@ def lean_trunk(
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
     time: np.ndarray,
+    holding: Held | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Move the CoM with the trunk (lumbar and thorax) when the pelvis cannot move far enough.
 
     A deep squat's ankles are near their dorsiflexion limit: the pelvis cannot go forward with
     the feet flat, but the trunk can lean (flexion and lateral flexion, no twist). Damped least squares on the CoM Jacobian's horizontal
     rows over the spine dofs, then the pinned hands re-solved. Returns q, root, the worst contact
-    distance and the margin.
+    distance and the margin. ``holding``: ``mtlc.loads.held(ir)``, if the caller has it.
     """
     skel = ir.skeleton
+    if holding is None:
+        holding = held(ir)
     hulls = grouped_hull(pts, ok)
     names = [f"{j}_{m}" for j in ("lumbar", "thorax") for m in ("flex", "lat")]
     spine = np.asarray([skel.dof_index(n) for n in names], dtype=np.intp)
@@ -342,7 +349,7 @@ def lean_trunk(
     for _ in range(ROUNDS):
         if p is None:
             p = forward(skel, q[active], root[active], rot[active])
-        c = carried_com(ir, p, time[active])[:, [0, 2]]
+        c = carried_com(ir, p, time[active], holding)[:, [0, 2]]
         push = support_push(pts[active], ok[active], c, MARGIN, hulls.take(active))
         moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
         if not moving.all():
@@ -364,7 +371,7 @@ def lean_trunk(
         )
         q[active], root[active], worst[active] = qa, ra, wa
     p = forward(skel, q, root, rot)
-    margin = support_margin(pts, ok, carried_com(ir, p, time)[:, [0, 2]], hulls)
+    margin = support_margin(pts, ok, carried_com(ir, p, time, holding)[:, [0, 2]], hulls)
     return q, root, worst, margin
 
 
@@ -401,8 +408,25 @@ def _active_segment(ir: MotionIR, t: float) -> Segment | None:
 CHUNK_FRAMES = 4096  # frames whose support is measured at once (~10 KB each while measured)
 
 
+class Segments(NamedTuple):
+    """What balancing reads from the segments alone (steps, contacts, pins, held loads): read
+    once per ``balance_frames``, not once per run of frames and measurement (the smoothing
+    pass balances hundreds of short runs, and each read walked every segment)."""
+
+    swings: list[tuple[FloatArray, FloatArray]]
+    rests: list[RestWindows]
+    pins: dict[str, tuple[np.ndarray, np.ndarray]]
+    holding: Held
+
+
+def read_segments(ir: MotionIR) -> Segments:
+    return Segments(
+        swing_spans(ir), hand_rest_windows(ir), pin_windows(ir, reached_only=True), held(ir)
+    )
+
+
 def _support_state(
-    ir: MotionIR, frames: Frames, idx: slice | np.ndarray, stance: BoolArray
+    ir: MotionIR, frames: Frames, idx: slice | np.ndarray, stance: BoolArray, segs: Segments
 ) -> tuple[Pose, BoolArray, FloatArray, BoolArray, FloatArray]:
     """Pose, sole points on the ground, support points and which bear weight (the strict
     support: ``mtlc.metrics.support``, hands within 2 mm of their site), and the CoM (with the
@@ -411,12 +435,13 @@ def _support_state(
     t = frames.time[idx]
     pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx])
     contact = contact_mask(foot_points(skel, pose), stance[idx], ir.ground)
-    pts, ok = support(skel, pose, stance[idx], ir.ground, hand_contacts(ir, t, pose))
-    return pose, contact, pts, ok, carried_com(ir, pose, t)
+    rest = hand_contacts(ir, t, pose, segs.rests)
+    pts, ok = support(skel, pose, stance[idx], ir.ground, rest)
+    return pose, contact, pts, ok, carried_com(ir, pose, t, segs.holding)
 
 
 def balance_frames(
-    ir: MotionIR, frames: Frames, only: np.ndarray | None = None
+    ir: MotionIR, frames: Frames, only: np.ndarray | None = None, segs: Segments | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Correct ``frames`` in place; returns (margin before, margin after, failed frame mask).
 
@@ -424,9 +449,11 @@ def balance_frames(
     cover them. Each run of consecutive frames is balanced by itself: the corrections are
     blended over neighbouring frames, and two frames far apart in time are no neighbours (the
     smoothing pass's frames 1.17 s and 1.87 s of the fuel filter were, and a walking frame took
-    a kneeling frame's pelvis shift).
+    a kneeling frame's pelvis shift). ``segs``: ``read_segments(ir)``, if the caller has it.
     """
     skel = ir.skeleton
+    if segs is None:
+        segs = read_segments(ir)
     if only is not None:
         rows = np.asarray(only, dtype=np.intp)
         if rows.size == 0:
@@ -435,13 +462,13 @@ def balance_frames(
         for run in np.split(rows, np.flatnonzero(np.diff(rows) != 1) + 1):
             sub = Frames(frames.fps, frames.time[run], frames.root_position[run],
                          frames.root_rotation[run], frames.q[run])  # fmt: skip
-            parts.append(balance_frames(ir, sub))
+            parts.append(balance_frames(ir, sub, segs=segs))
             frames.q[run], frames.root_position[run] = sub.q, sub.root_position
         before, after, failed = (np.concatenate(x) for x in zip(*parts, strict=True))
         return before, after, failed
     t = frames.time
     # what depends on time only, for every frame (a few booleans a frame)
-    stance, static = foot_stance(ir, t), ~walking(ir, t)
+    stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
     # and hulls cost ~10 KB a frame, the margins kept 20 bytes (docs/passes.md, memory)
     before = np.empty(len(t))
@@ -449,7 +476,7 @@ def balance_frames(
     hopeless = np.zeros(len(t), dtype=bool)
     for a in range(0, len(t), CHUNK_FRAMES):
         c = slice(a, a + CHUNK_FRAMES)
-        _, _, all_pts, all_ok, com = _support_state(ir, frames, c, stance)
+        _, _, all_pts, all_ok, com = _support_state(ir, frames, c, stance, segs)
         all_hull = grouped_hull(all_pts, all_ok)
         before[c] = hull_margin(all_hull, com[:, [0, 2]])
         kneeling[c] = all_ok[:, KNEE_SLOTS].any(axis=1)  # the pelvis would drag a knee along
@@ -469,7 +496,7 @@ def balance_frames(
     if rows.size == 0:
         return before, after, failed
     # the frames to correct, measured again by themselves (the support stays where it was)
-    pose_r, contact_r, pts, ok, _ = _support_state(ir, frames, rows, stance)
+    pose_r, contact_r, pts, ok, _ = _support_state(ir, frames, rows, stance, segs)
     hulls = grouped_hull(pts, ok)
     # nothing may go deeper below the ground than it was or than GROUND_SLACK
     floor = np.minimum(lowest_point(skel, pose_r) - 1e-4, ir.ground - GROUND_SLACK)
@@ -484,7 +511,7 @@ def balance_frames(
     }
     # a hand short of its site is not held there: restoring it after every correction cost
     # most of the pass (72 strokes on a site 60 m away) and lost every row it was pinned on
-    pins = hand_pins(ir, t, pin_windows(ir, reached_only=True))
+    pins = hand_pins(ir, t, segs.pins)
     hand_pos = {h: site_positions(skel, pose_r, h) for h in HANDS}
     hands = {h: (pins[h][rows], hand_pos[h]) for h in HANDS}
     q0 = frames.q[rows].copy()
@@ -498,7 +525,8 @@ def balance_frames(
     cap = np.full(rows.size, MAX_STEP)
     p_rows = pose_r  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
-        c = carried_com(ir, take_pose(p_rows, active), t[rows][active])[:, [0, 2]]
+        c = carried_com(ir, take_pose(p_rows, active), t[rows][active], segs.holding)
+        c = c[:, [0, 2]]
         push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
         moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
         active, push = active[moving], push[moving]
@@ -524,7 +552,7 @@ def balance_frames(
         cap[active[lost]] /= 2  # a joint ran out of range: retry with half the step
         active = active[(cap[active] >= MIN_STEP) & ~far]
     p = p_rows
-    margin = hull_margin(hulls, carried_com(ir, p, t[rows])[:, [0, 2]])
+    margin = hull_margin(hulls, carried_com(ir, p, t[rows], segs.holding)[:, [0, 2]])
     good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
     good &= lowest_point(skel, p) >= floor
     keep = good & (margin >= ACCEPT_MARGIN)
@@ -535,8 +563,9 @@ def balance_frames(
         rs = np.where(good[retry, None], root[retry], root0[retry])
         sub_feet, sub_hands = _sub_feet(feet, retry), _sub_hands(hands, retry)
         q2, r2, w2, m2 = lean_trunk(
-            ir, qs, rs, rot[retry], pts[retry], ok[retry], sub_feet, sub_hands, t[rows][retry]
-        )
+            ir, qs, rs, rot[retry], pts[retry], ok[retry], sub_feet, sub_hands, t[rows][retry],
+            segs.holding,
+        )  # fmt: skip
         ok2 = (w2 <= POSITION_TOL) & skel.within_limits(q2, tol=1e-6) & (m2 > margin[retry])
         ok2 &= lowest_point(skel, forward(skel, q2, r2, rot[retry])) >= floor[retry]
         take = retry[ok2]
@@ -564,7 +593,7 @@ def balance_frames(
     qb = np.clip(frames.q[span] + dq[span], skel.lower, skel.upper)
     rb = frames.root_position[span] + dr[span]
     # the frames the blend reaches, measured by themselves in their original pose
-    pose_s, contact_s, pts_s, ok_s, _ = _support_state(ir, frames, span, stance)
+    pose_s, contact_s, pts_s, ok_s, _ = _support_state(ir, frames, span, stance, segs)
     feet_b = {
         name: (site_positions(skel, pose_s, name), site_rotation(skel, pose_s, name),
                contact_s.reshape(span.size, 2, -1).any(axis=2)[:, k])
@@ -576,7 +605,9 @@ def balance_frames(
     floor_b = np.minimum(lowest_point(skel, pose_s) - 1e-4, ir.ground - GROUND_SLACK)
     fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
     fine &= lowest_point(skel, pb) >= floor_b
-    mb = hull_margin(grouped_hull(pts_s, ok_s), carried_com(ir, pb, t[span])[:, [0, 2]])
+    mb = hull_margin(
+        grouped_hull(pts_s, ok_s), carried_com(ir, pb, t[span], segs.holding)[:, [0, 2]]
+    )
     # a blended frame must keep its contacts and be at least as balanced as its own correction
     own = np.full(len(t), -np.inf)
     own[rows[good]] = margin[good]

@@ -305,12 +305,19 @@ def rolling_points(ir: MotionIR, time: FloatArray) -> BoolArray:
     return out
 
 
-def walking(ir: MotionIR, time: FloatArray) -> BoolArray:
-    """(N,) frames inside a locomotion segment."""
+def walk_spans(ir: MotionIR) -> tuple[FloatArray, FloatArray]:
+    """(start, end) of the locomotion segments, for a caller that asks ``walking`` many times."""
     walks = [seg for seg in ir.segments if seg.kind == "locomotion"]
-    lo = np.array([seg.start for seg in walks], dtype=float) - 1e-9
-    hi = np.array([seg.end for seg in walks], dtype=float) + 1e-9
-    return spans_mask(time, lo, hi)
+    starts = np.array([seg.start for seg in walks], dtype=float)
+    return starts, np.array([seg.end for seg in walks], dtype=float)
+
+
+def walking(
+    ir: MotionIR, time: FloatArray, spans: tuple[FloatArray, FloatArray] | None = None
+) -> BoolArray:
+    """(N,) frames inside a locomotion segment. ``spans``: ``walk_spans(ir)``, if known."""
+    start, end = walk_spans(ir) if spans is None else spans
+    return spans_mask(time, start - 1e-9, end + 1e-9)
 
 
 def foot_points(skel: Any, pose: Any) -> FloatArray:

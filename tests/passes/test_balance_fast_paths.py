@@ -23,6 +23,7 @@ from mtlc.metrics import (
     hand_contacts,
     hand_rest_windows,
     swing_spans,
+    walk_spans,
     walking,
 )
 
@@ -165,6 +166,7 @@ def test_stance_walking_and_rests_equal_the_scans(case: tuple[MotionIR, np.ndarr
     assert np.array_equal(foot_stance(ir, t), foot_stance_scan(ir, t))
     assert np.array_equal(foot_stance(ir, t, swing_spans(ir)), foot_stance_scan(ir, t))
     assert np.array_equal(walking(ir, t), walking_scan(ir, t))
+    assert np.array_equal(walking(ir, t, walk_spans(ir)), walking_scan(ir, t))
     assert np.array_equal(hand_contacts(ir, t), hand_contacts_scan(ir, t))
     assert np.array_equal(hand_contacts(ir, t, pose), hand_contacts_scan(ir, t, pose))
     windows = hand_rest_windows(ir)

@@ -72,6 +72,7 @@ from mtlc.metrics import (
     support_margin,
     support_push,
     swing_spans,
+    walk_spans,
     walking,
 )
 from mtlc.passes.context import PassContext
@@ -413,6 +414,7 @@ class Segments(NamedTuple):
     pass balances hundreds of short runs, and each read walked every segment)."""
 
     swings: list[tuple[FloatArray, FloatArray]]
+    walks: tuple[FloatArray, FloatArray]
     rests: list[RestWindows]
     pins: dict[str, tuple[np.ndarray, np.ndarray]]
     holding: Held
@@ -420,7 +422,11 @@ class Segments(NamedTuple):
 
 def read_segments(ir: MotionIR) -> Segments:
     return Segments(
-        swing_spans(ir), hand_rest_windows(ir), pin_windows(ir, reached_only=True), held(ir)
+        swing_spans(ir),
+        walk_spans(ir),
+        hand_rest_windows(ir),
+        pin_windows(ir, reached_only=True),
+        held(ir),
     )
 
 
@@ -527,7 +533,7 @@ def balance_frames(
         return before, after, failed
     t = frames.time
     # what depends on time only, for every frame (a few booleans a frame)
-    stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t)
+    stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
     # and hulls cost ~10 KB a frame, the margins kept 20 bytes (docs/passes.md, memory)
     before = np.empty(len(t))

@@ -19,6 +19,7 @@ passes (the layers: passes -> metrics -> ir -> body).
 
 from __future__ import annotations
 
+from bisect import bisect_left, bisect_right
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -82,17 +83,26 @@ def carried_loads(ir: MotionIR) -> list[Load]:
     end_of_motion = _motion_end(ir)
     found: dict[tuple[str, float, float], Load] = {}
     grips = {side: _grips(ir, side) for side in SIDES}
+    # per hand its closing and its opening grips, by start (bisected per loaded goal: a scan of
+    # every grip per goal was quadratic in a long procedure)
+    closing = {side: [g for g in grips[side] if g[2]] for side in SIDES}
+    opening = {side: [g for g in grips[side] if not g[2]] for side in SIDES}
+    closing_starts = {side: [g[0] for g in closing[side]] for side in SIDES}
+    opening_starts = {side: [g[0] for g in opening[side]] for side in SIDES}
     for seg in ir.segments:
         side = seg.goal.effector[:1]
         mass = float(seg.goal.params.get("load", 0.0) or 0.0)
         if side not in SIDES or seg.kind == "grip" or not mass > 0.0:
             continue
-        closes = [g for g in grips[side] if g[2] and g[0] <= seg.start + EPS]
-        start = closes[-1][0] if closes else seg.start
-        if any(not closed and start < g0 < seg.start - EPS for g0, _, closed in grips[side]):
+        # the last grasp that closed at or before the goal starts
+        i = bisect_right(closing_starts[side], seg.start + EPS)
+        start = closing[side][i - 1][0] if i else seg.start
+        j = bisect_right(opening_starts[side], start)  # the first release after that grasp
+        if j < len(opening_starts[side]) and opening_starts[side][j] < seg.start - EPS:
             start = seg.start  # opened since that grasp: the part was taken up without one
-        opens = [g for g in grips[side] if not g[2] and g[0] >= seg.end - EPS]
-        end = opens[0][1] if opens else max(end_of_motion, seg.end)
+        # the first release at or after the goal's end
+        k = bisect_left(opening_starts[side], seg.end - EPS)
+        end = opening[side][k][1] if k < len(opening[side]) else max(end_of_motion, seg.end)
         share = mass / 2.0 if seg.goal.params.get("two_handed") else mass
         key = (side, round(start, 9), round(end, 9))
         if key not in found or found[key].mass < mass:
@@ -111,36 +121,52 @@ def load_weight(load: Load, time: FloatArray) -> FloatArray:
     return np.minimum(rise, fall) * ((t >= load.start - EPS) & (t <= load.end + EPS))
 
 
-def carried_com(ir: MotionIR, pose: Any, time: Any) -> FloatArray:
+class Held(NamedTuple):
+    """What the hands hold over the motion: ``held_spans`` and ``carried_loads`` of one IR
+    (they read the segments only), for a caller that asks ``carried_com`` many times."""
+
+    spans: list[tuple[str, dict[str, Any], float, float]]
+    loads: list[Load]
+
+
+def held(ir: MotionIR) -> Held:
+    """The tools and loads the hands hold, read from the segments once."""
+    return Held(held_spans(ir), carried_loads(ir))
+
+
+def carried_com(ir: MotionIR, pose: Any, time: Any, holding: Held | None = None) -> FloatArray:
     """(T, 3) centre of mass of the body with the tools and loads it holds at ``time`` (T,).
 
     Each held tool is a point mass at the middle of grip and tip during its held window
     (``held_spans``), each carried load a point mass at its hand's grip point during its hold
     window (``carried_loads``), taken up and put down over ``LOAD_RAMP`` (``load_weight``);
     outside their windows they weigh nothing. The solvers' CoM
-    Jacobian leaves them out: the balance pass measures with them and iterates.
+    Jacobian leaves them out: the balance pass measures with them and iterates. ``holding``:
+    ``held(ir)``, for a caller that asks many times.
     """
     skel = ir.skeleton
     assert skel is not None
+    if holding is None:
+        holding = held(ir)
     t = np.asarray(time, dtype=float)
     big_m = float(skel.total_mass)
     moment = big_m * center_of_mass(skel, pose)
     mass = np.full(t.shape, big_m)
     names = {s.name for s in skel.sites}
-    for site, tool, start, end in held_spans(ir):
+    for site, tool, start, end in holding.spans:
         m = float(tool.get("mass", 0.0))
         if m <= 0.0 or site not in names:
             continue
-        held = m * ((t >= start - EPS) & (t <= end + EPS))
+        held_mass = m * ((t >= start - EPS) & (t <= end + EPS))
         ends = np.asarray(site_positions(skel, pose, [f"{site[0]}_hand", site]))
-        moment += held[:, None] * 0.5 * (ends[..., 0, :] + ends[..., 1, :])
-        mass += held
-    for load in carried_loads(ir):
-        held = load.share * load_weight(load, t)
-        if not held.any():
+        moment += held_mass[:, None] * 0.5 * (ends[..., 0, :] + ends[..., 1, :])
+        mass += held_mass
+    for load in holding.loads:
+        held_mass = load.share * load_weight(load, t)
+        if not held_mass.any():
             continue
-        moment += held[:, None] * np.asarray(site_positions(skel, pose, f"{load.side}_hand"))
-        mass += held
+        moment += held_mass[:, None] * np.asarray(site_positions(skel, pose, f"{load.side}_hand"))
+        mass += held_mass
     return moment / mass[:, None]
 
 

@@ -19,6 +19,7 @@ minimum-jerk point-to-point movement scores −ln(720/1.875²) ≈ −5.32.
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 from dataclasses import dataclass, field
 from io import StringIO
 from typing import Any, NamedTuple
@@ -221,21 +222,56 @@ def support_push(
 STEPPING_KINDS = ("locomotion", "posture")  # segments whose result records footsteps
 
 
-def foot_stance(ir: MotionIR, time: FloatArray) -> BoolArray:
-    """(N, 2) which feet (r, l) stand at each time: both, except a foot in the air in a step.
-
-    Walks (locomotion segments) and the stepping kneel (a posture) record their footsteps in
-    ``result["steps"]`` (foot, t_lift, t_land); otherwise both feet stand.
-    """
+def spans_mask(
+    time: FloatArray, lo: FloatArray, hi: FloatArray, closed: tuple[bool, bool] = (True, True)
+) -> BoolArray:
+    """(N,) times inside any of the spans ``lo``–``hi`` (S,), each end closed (``<=``) or open
+    (``<``) as ``closed`` says: the same comparisons as a mask per span OR-ed together, by
+    bisection in the sorted times and a running count of the spans open at each time (a mask
+    per span cost a pass over every frame for every footstep or contact, per call)."""
     t = np.asarray(time, dtype=float)
-    stance = np.ones((len(t), 2), dtype=bool)
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
+    first = np.searchsorted(ts, lo, side="left" if closed[0] else "right")
+    stop = np.searchsorted(ts, hi, side="right" if closed[1] else "left")
+    keep = first < stop
+    count = np.zeros(len(ts) + 1, dtype=np.int64)
+    np.add.at(count, first[keep], 1)
+    np.add.at(count, stop[keep], -1)
+    mask = np.zeros(len(t), dtype=bool)
+    mask[order] = np.cumsum(count[:-1]) > 0
+    return mask
+
+
+def swing_spans(ir: MotionIR) -> list[tuple[FloatArray, FloatArray]]:
+    """Per foot (r, l), the (lift, land) times of its steps (``result["steps"]`` of the walks
+    and stepping kneels): what ``foot_stance`` reads, for a caller that asks at many times."""
+    spans: list[tuple[list[float], list[float]]] = [([], []) for _ in FEET]
     for seg in ir.segments:
         if seg.kind not in STEPPING_KINDS:
             continue
         for step in seg.result.get("steps", ()) or ():
-            k = FEET.index(str(step["foot"])[0])
-            swing = (t > float(step["t_lift"]) + 1e-9) & (t < float(step["t_land"]) - 1e-9)
-            stance[swing, k] = False
+            lifts, lands = spans[FEET.index(str(step["foot"])[0])]
+            lifts.append(float(step["t_lift"]))
+            lands.append(float(step["t_land"]))
+    return [(np.array(a, dtype=float), np.array(b, dtype=float)) for a, b in spans]
+
+
+def foot_stance(
+    ir: MotionIR, time: FloatArray, swings: list[tuple[FloatArray, FloatArray]] | None = None
+) -> BoolArray:
+    """(N, 2) which feet (r, l) stand at each time: both, except a foot in the air in a step.
+
+    Walks (locomotion segments) and the stepping kneel (a posture) record their footsteps in
+    ``result["steps"]`` (foot, t_lift, t_land); otherwise both feet stand. ``swings``:
+    ``swing_spans(ir)``, for a caller that asks many times.
+    """
+    t = np.asarray(time, dtype=float)
+    stance = np.ones((len(t), 2), dtype=bool)
+    for k, (lift, land) in enumerate(swing_spans(ir) if swings is None else swings):
+        if lift.size:  # in the air strictly between lift and landing
+            stance[:, k] = ~spans_mask(t, lift + 1e-9, land - 1e-9, closed=(False, False))
     return stance
 
 
@@ -269,14 +305,19 @@ def rolling_points(ir: MotionIR, time: FloatArray) -> BoolArray:
     return out
 
 
-def walking(ir: MotionIR, time: FloatArray) -> BoolArray:
-    """(N,) frames inside a locomotion segment."""
-    t = np.asarray(time, dtype=float)
-    mask = np.zeros(len(t), dtype=bool)
-    for seg in ir.segments:
-        if seg.kind == "locomotion":
-            mask |= (t >= seg.start - 1e-9) & (t <= seg.end + 1e-9)
-    return mask
+def walk_spans(ir: MotionIR) -> tuple[FloatArray, FloatArray]:
+    """(start, end) of the locomotion segments, for a caller that asks ``walking`` many times."""
+    walks = [seg for seg in ir.segments if seg.kind == "locomotion"]
+    starts = np.array([seg.start for seg in walks], dtype=float)
+    return starts, np.array([seg.end for seg in walks], dtype=float)
+
+
+def walking(
+    ir: MotionIR, time: FloatArray, spans: tuple[FloatArray, FloatArray] | None = None
+) -> BoolArray:
+    """(N,) frames inside a locomotion segment. ``spans``: ``walk_spans(ir)``, if known."""
+    start, end = walk_spans(ir) if spans is None else spans
+    return spans_mask(time, start - 1e-9, end + 1e-9)
 
 
 def foot_points(skel: Any, pose: Any) -> FloatArray:
@@ -345,31 +386,78 @@ HAND_SLOTS = slice(20, 22)
 ARM_TRACKS = {"r_hand": "r_arm", "l_hand": "l_arm"}
 
 
-def hand_contacts(ir: MotionIR, time: FloatArray, pose: Any = None) -> BoolArray:
-    """(N, 2) which hands (r, l) rest on a site: from the end of a TO segment of the hand (not
-    of a tool's tip) until the next segment on the same arm track starts, or the end of the
-    motion, and, given the ``pose`` at ``time``, only while the hand is within ``SUPPORT_TOL``
-    of that site (a hand lifted off it, or short of it, bears no weight)."""
-    t = np.asarray(time, dtype=float)
-    out = np.zeros((len(t), 2), dtype=bool)
-    skel = ir.skeleton
-    for k, (hand, track) in enumerate(ARM_TRACKS.items()):
+class RestWindows(NamedTuple):
+    """One hand's rest windows (``hand_rest_windows``): ``lo <= t < hi``, and the site's
+    position (W, 3) where ``placed`` (a goal with no position is measured against nothing)."""
+
+    lo: FloatArray
+    hi: FloatArray
+    position: FloatArray
+    placed: BoolArray
+
+
+def hand_rest_windows(ir: MotionIR) -> list[RestWindows]:
+    """Per hand (r, l), the windows ``hand_contacts`` reads: from the end of each reached TO
+    segment of the hand itself until the next segment on its arm track starts (or forever).
+    What depends on the segments only, for a caller that asks at many times."""
+    out = []
+    for hand, track in ARM_TRACKS.items():
         segs = sorted(ir.on_track(track), key=lambda s: s.start)
+        starts = [s.start for s in segs]
+        lo: list[float] = []
+        hi: list[float] = []
+        position: list[Any] = []
         for i, seg in enumerate(segs):
             if seg.kind != "TO" or not _reachable(seg.result):  # short of its site: no rest
                 continue
             if seg.goal.effector != hand:  # a tool's tip on its fastener: not a support
                 continue
-            later = [s.start for s in segs[i + 1 :] if s.start >= seg.end - 1e-9]
-            end = min(later, default=math.inf)
-            window = (t >= seg.end - 1e-9) & (t < end - 1e-9)
-            if pose is not None and skel is not None and window.any():
-                if seg.goal.position is None:  # nowhere to measure it against: no support
-                    continue
-                at = site_positions(skel, pose, hand)[window]
-                gap = np.linalg.norm(at - np.asarray(seg.goal.position, dtype=float), axis=-1)
-                window[np.flatnonzero(window)] = gap <= SUPPORT_TOL
-            out[:, k] |= window
+            j = bisect_left(starts, seg.end - 1e-9, lo=i + 1)  # the first later start after it
+            lo.append(seg.end - 1e-9)
+            hi.append((starts[j] if j < len(starts) else math.inf) - 1e-9)
+            position.append(seg.goal.position)
+        placed = np.array([p is not None for p in position], dtype=bool)
+        xyz = np.full((len(position), 3), np.nan)
+        for w, p in enumerate(position):
+            if p is not None:
+                xyz[w] = np.asarray(p, dtype=float)
+        out.append(RestWindows(np.array(lo, dtype=float), np.array(hi, dtype=float), xyz, placed))
+    return out
+
+
+def hand_contacts(
+    ir: MotionIR, time: FloatArray, pose: Any = None, windows: list[RestWindows] | None = None
+) -> BoolArray:
+    """(N, 2) which hands (r, l) rest on a site: from the end of a TO segment of the hand (not
+    of a tool's tip) until the next segment on the same arm track starts, or the end of the
+    motion, and, given the ``pose`` at ``time``, only while the hand is within ``SUPPORT_TOL``
+    of that site (a hand lifted off it, or short of it, bears no weight). ``windows``:
+    ``hand_rest_windows(ir)``, for a caller that asks many times."""
+    t = np.asarray(time, dtype=float)
+    out = np.zeros((len(t), 2), dtype=bool)
+    skel = ir.skeleton
+    if windows is None:
+        windows = hand_rest_windows(ir)
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
+    for k, (hand, rest) in enumerate(zip(ARM_TRACKS, windows, strict=True)):
+        if rest.lo.size == 0:
+            continue
+        if pose is None or skel is None:
+            out[:, k] = spans_mask(t, rest.lo, rest.hi, closed=(True, False))
+            continue
+        # each window's frames as a range of the sorted times, all ranges at once: the hand's
+        # distance to its window's site at every frame of every window
+        first = np.searchsorted(ts, rest.lo[rest.placed], side="left")
+        stop = np.searchsorted(ts, rest.hi[rest.placed], side="left")
+        count = np.maximum(stop - first, 0)
+        if not count.any():
+            continue
+        offset = np.repeat(first - (np.cumsum(count) - count), count)
+        rows = order[np.arange(int(count.sum())) + offset]
+        at = site_positions(skel, pose, hand)[rows]
+        gap = np.linalg.norm(at - np.repeat(rest.position[rest.placed], count, axis=0), axis=-1)
+        out[rows[gap <= SUPPORT_TOL], k] = True
     return out
 
 

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left
+from typing import NamedTuple
 
 import numpy as np
 
@@ -52,22 +53,26 @@ from mtlc.body import (
 from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.body.kinematics import rotate_about
 from mtlc.ir.model import Frames, MotionIR, Segment
-from mtlc.loads import carried_com
+from mtlc.loads import Held, carried_com, held
 from mtlc.metrics import (
     FOOT_POINT_NAMES,
     KNEE_SLOTS,
     BoolArray,
     FloatArray,
+    RestWindows,
     contact_mask,
     foot_points,
     foot_stance,
     grouped_hull,
     hand_contacts,
+    hand_rest_windows,
     hull_margin,
     lowest_point,
     support,
     support_margin,
     support_push,
+    swing_spans,
+    walk_spans,
     walking,
 )
 from mtlc.passes.context import PassContext
@@ -322,15 +327,18 @@ def lean_trunk(
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
     time: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    holding: Held | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, Pose]:
     """Move the CoM with the trunk (lumbar and thorax) when the pelvis cannot move far enough.
 
     A deep squat's ankles are near their dorsiflexion limit: the pelvis cannot go forward with
     the feet flat, but the trunk can lean (flexion and lateral flexion, no twist). Damped least squares on the CoM Jacobian's horizontal
     rows over the spine dofs, then the pinned hands re-solved. Returns q, root, the worst contact
-    distance and the margin.
+    distance, the margin and the pose. ``holding``: ``mtlc.loads.held(ir)``, if the caller has it.
     """
     skel = ir.skeleton
+    if holding is None:
+        holding = held(ir)
     hulls = grouped_hull(pts, ok)
     names = [f"{j}_{m}" for j in ("lumbar", "thorax") for m in ("flex", "lat")]
     spine = np.asarray([skel.dof_index(n) for n in names], dtype=np.intp)
@@ -338,11 +346,10 @@ def lean_trunk(
     q, root = q.copy(), root.copy()
     worst = np.zeros(len(q))
     active = np.arange(len(q))
-    p: Pose | None = None  # the active rows' pose, as the last round's contact solve left it
+    pose = forward(skel, q, root, rot)  # every row's, kept up to date
+    p = pose  # the active rows' pose, as the last round's contact solve left it
     for _ in range(ROUNDS):
-        if p is None:
-            p = forward(skel, q[active], root[active], rot[active])
-        c = carried_com(ir, p, time[active])[:, [0, 2]]
+        c = carried_com(ir, p, time[active], holding)[:, [0, 2]]
         push = support_push(pts[active], ok[active], c, MARGIN, hulls.take(active))
         moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
         if not moving.all():
@@ -363,9 +370,9 @@ def lean_trunk(
             ir, qa, root[active], rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
         )
         q[active], root[active], worst[active] = qa, ra, wa
-    p = forward(skel, q, root, rot)
-    margin = support_margin(pts, ok, carried_com(ir, p, time)[:, [0, 2]], hulls)
-    return q, root, worst, margin
+        put_pose(pose, active, p)
+    margin = support_margin(pts, ok, carried_com(ir, pose, time, holding)[:, [0, 2]], hulls)
+    return q, root, worst, margin, pose
 
 
 def take_pose(pose: Pose, rows: np.ndarray) -> Pose:
@@ -401,22 +408,105 @@ def _active_segment(ir: MotionIR, t: float) -> Segment | None:
 CHUNK_FRAMES = 4096  # frames whose support is measured at once (~10 KB each while measured)
 
 
+class Segments(NamedTuple):
+    """What balancing reads from the segments alone (steps, contacts, pins, held loads): read
+    once per ``balance_frames``, not once per run of frames and measurement (the smoothing
+    pass balances hundreds of short runs, and each read walked every segment)."""
+
+    swings: list[tuple[FloatArray, FloatArray]]
+    walks: tuple[FloatArray, FloatArray]
+    rests: list[RestWindows]
+    pins: dict[str, tuple[np.ndarray, np.ndarray]]
+    holding: Held
+
+
+def read_segments(ir: MotionIR) -> Segments:
+    return Segments(
+        swing_spans(ir),
+        walk_spans(ir),
+        hand_rest_windows(ir),
+        pin_windows(ir, reached_only=True),
+        held(ir),
+    )
+
+
+class Measured(NamedTuple):
+    """What balancing reads of frames in their original pose (``measure``): the places of the
+    feet and hands, the lowest point, the sole points on the ground and the support. Kept
+    for every frame (about 0.6 KB each) instead of posing the frames to correct and those the
+    blend reaches a second and a third time."""
+
+    feet: FloatArray  # (N, 2, 3) r_foot, l_foot
+    feet_rotation: FloatArray  # (N, 2, 3, 3)
+    hands: FloatArray  # (N, 2, 3) r_hand, l_hand
+    lowest: FloatArray  # (N,) ``lowest_point``
+    contact: BoolArray  # (N, 8) ``contact_mask``
+    pts: FloatArray  # (N, 22, 2) ``support``
+    ok: BoolArray  # (N, 22)
+
+    @staticmethod
+    def empty(n: int) -> Measured:
+        return Measured(
+            np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 2, 3)), np.empty(n),
+            np.empty((n, 2 * len(FOOT_POINT_NAMES)), dtype=bool), np.empty((n, 22, 2)),
+            np.empty((n, 22), dtype=bool),
+        )  # fmt: skip
+
+    def take(self, rows: np.ndarray) -> Measured:
+        """The rows, laid out in memory as measured by themselves (``support_layout``)."""
+        m = Measured(*(x[rows] for x in self))
+        feet, hands = np.ascontiguousarray(m.feet), np.ascontiguousarray(m.hands)
+        return m._replace(feet=feet, hands=hands, pts=support_layout(m.pts))
+
+
+def support_layout(pts: FloatArray) -> FloatArray:
+    """``pts`` (n, 22, 2) copied into the memory layout ``mtlc.metrics.support`` gives (the
+    x–z columns of (n, 22, 3) points). Sums over points (the support's centroid, its hull)
+    round by layout, and a frame read from the measurements must measure to the last bit as
+    it did measured by itself."""
+    out = np.empty((*pts.shape[:-1], 3))[..., [0, 2]]
+    out[...] = pts
+    return out
+
+
 def _support_state(
-    ir: MotionIR, frames: Frames, idx: slice | np.ndarray, stance: BoolArray
-) -> tuple[Pose, BoolArray, FloatArray, BoolArray, FloatArray]:
-    """Pose, sole points on the ground, support points and which bear weight (the strict
-    support: ``mtlc.metrics.support``, hands within 2 mm of their site), and the CoM (with the
-    held tools and loads) of the frames ``idx``."""
+    ir: MotionIR,
+    frames: Frames,
+    idx: slice,
+    stance: BoolArray,
+    segs: Segments,
+    into: Measured,
+) -> tuple[Pose, FloatArray, FloatArray, BoolArray]:
+    """Measure the frames ``idx`` into ``into``: their feet, hands and lowest point, sole
+    points on the ground, support points and which bear weight (the strict support:
+    ``mtlc.metrics.support``, hands within 2 mm of their site). Returns their pose, CoM (with
+    the held tools and loads) and support points as ``support`` gives them."""
     skel = ir.skeleton
     t = frames.time[idx]
     pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx])
-    contact = contact_mask(foot_points(skel, pose), stance[idx], ir.ground)
-    pts, ok = support(skel, pose, stance[idx], ir.ground, hand_contacts(ir, t, pose))
-    return pose, contact, pts, ok, carried_com(ir, pose, t)
+    into.contact[idx] = contact_mask(foot_points(skel, pose), stance[idx], ir.ground)
+    rest = hand_contacts(ir, t, pose, segs.rests)
+    pts, ok = support(skel, pose, stance[idx], ir.ground, rest)
+    into.pts[idx], into.ok[idx] = pts, ok
+    for k, name in enumerate(FEET_SITES):
+        into.feet[idx, k] = site_positions(skel, pose, name)
+        into.feet_rotation[idx, k] = site_rotation(skel, pose, name)
+    for k, name in enumerate(HANDS):
+        into.hands[idx, k] = site_positions(skel, pose, name)
+    into.lowest[idx] = lowest_point(skel, pose)
+    return pose, carried_com(ir, pose, t, segs.holding), pts, ok
+
+
+def _concatenate_poses(parts: list[Pose]) -> Pose:
+    if len(parts) == 1:
+        return parts[0]
+    return Pose(
+        *(np.concatenate(x) for x in zip(*((p.R, p.p, p.axes, p.root) for p in parts), strict=True))
+    )
 
 
 def balance_frames(
-    ir: MotionIR, frames: Frames, only: np.ndarray | None = None
+    ir: MotionIR, frames: Frames, only: np.ndarray | None = None, segs: Segments | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Correct ``frames`` in place; returns (margin before, margin after, failed frame mask).
 
@@ -424,9 +514,11 @@ def balance_frames(
     cover them. Each run of consecutive frames is balanced by itself: the corrections are
     blended over neighbouring frames, and two frames far apart in time are no neighbours (the
     smoothing pass's frames 1.17 s and 1.87 s of the fuel filter were, and a walking frame took
-    a kneeling frame's pelvis shift).
+    a kneeling frame's pelvis shift). ``segs``: ``read_segments(ir)``, if the caller has it.
     """
     skel = ir.skeleton
+    if segs is None:
+        segs = read_segments(ir)
     if only is not None:
         rows = np.asarray(only, dtype=np.intp)
         if rows.size == 0:
@@ -435,21 +527,23 @@ def balance_frames(
         for run in np.split(rows, np.flatnonzero(np.diff(rows) != 1) + 1):
             sub = Frames(frames.fps, frames.time[run], frames.root_position[run],
                          frames.root_rotation[run], frames.q[run])  # fmt: skip
-            parts.append(balance_frames(ir, sub))
+            parts.append(balance_frames(ir, sub, segs=segs))
             frames.q[run], frames.root_position[run] = sub.q, sub.root_position
         before, after, failed = (np.concatenate(x) for x in zip(*parts, strict=True))
         return before, after, failed
     t = frames.time
     # what depends on time only, for every frame (a few booleans a frame)
-    stance, static = foot_stance(ir, t), ~walking(ir, t)
+    stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
     # and hulls cost ~10 KB a frame, the margins kept 20 bytes (docs/passes.md, memory)
     before = np.empty(len(t))
     kneeling = np.zeros(len(t), dtype=bool)
     hopeless = np.zeros(len(t), dtype=bool)
+    measured = Measured.empty(len(t))
+    poses = []  # the poses of the frames to correct, chunk by chunk
     for a in range(0, len(t), CHUNK_FRAMES):
         c = slice(a, a + CHUNK_FRAMES)
-        _, _, all_pts, all_ok, com = _support_state(ir, frames, c, stance)
+        pose, com, all_pts, all_ok = _support_state(ir, frames, c, stance, segs, measured)
         all_hull = grouped_hull(all_pts, all_ok)
         before[c] = hull_margin(all_hull, com[:, [0, 2]])
         kneeling[c] = all_ok[:, KNEE_SLOTS].any(axis=1)  # the pelvis would drag a knee along
@@ -457,7 +551,9 @@ def balance_frames(
         # move cannot be fixed here: report it without trying
         centroid = np.einsum("np,npk->nk", all_ok, all_pts) / np.maximum(all_ok.sum(1), 1)[:, None]
         hopeless[c] = ~(hull_margin(all_hull, centroid) > 0.0) | (before[c] < -MAX_SHIFT)
-        del all_pts, all_ok, com, all_hull, centroid
+        low = ~np.isnan(before[c]) & (before[c] < MARGIN)
+        poses.append(take_pose(pose, np.flatnonzero(low & static[c] & ~hopeless[c])))
+        del pose, all_pts, all_ok, com, all_hull, centroid
     after = before.copy()
     failed = np.zeros(len(t), dtype=bool)
     low = ~np.isnan(before) & (before < MARGIN)
@@ -468,25 +564,24 @@ def balance_frames(
     rows = np.flatnonzero(low & static & ~hopeless)
     if rows.size == 0:
         return before, after, failed
-    # the frames to correct, measured again by themselves (the support stays where it was)
-    pose_r, contact_r, pts, ok, _ = _support_state(ir, frames, rows, stance)
+    # the frames to correct, as measured (the support stays where it was)
+    pose_r, m_r = _concatenate_poses(poses), measured.take(rows)
+    del poses
+    pts, ok = m_r.pts, m_r.ok
     hulls = grouped_hull(pts, ok)
     # nothing may go deeper below the ground than it was or than GROUND_SLACK
-    floor = np.minimum(lowest_point(skel, pose_r) - 1e-4, ir.ground - GROUND_SLACK)
-    touching = contact_r.reshape(rows.size, 2, -1).any(axis=2)  # (B, 2): r, l
+    floor = np.minimum(m_r.lowest - 1e-4, ir.ground - GROUND_SLACK)
+    touching = m_r.contact.reshape(rows.size, 2, -1).any(axis=2)  # (B, 2): r, l
+    # a foot's orientation target is a view of the rows' pose, which the rounds below update
+    # in place: a later round restores a foot to the orientation the last one left it in
     feet = {
-        name: (
-            site_positions(skel, pose_r, name),
-            site_rotation(skel, pose_r, name),
-            touching[:, k],
-        )
+        name: (m_r.feet[:, k], site_rotation(skel, pose_r, name), touching[:, k])
         for k, name in enumerate(FEET_SITES)
     }
     # a hand short of its site is not held there: restoring it after every correction cost
     # most of the pass (72 strokes on a site 60 m away) and lost every row it was pinned on
-    pins = hand_pins(ir, t, pin_windows(ir, reached_only=True))
-    hand_pos = {h: site_positions(skel, pose_r, h) for h in HANDS}
-    hands = {h: (pins[h][rows], hand_pos[h]) for h in HANDS}
+    pins = hand_pins(ir, t, segs.pins)
+    hands = {h: (pins[h][rows], m_r.hands[:, k]) for k, h in enumerate(HANDS)}
     q0 = frames.q[rows].copy()
     root0 = frames.root_position[rows].copy()
     rot = frames.root_rotation[rows]
@@ -498,7 +593,8 @@ def balance_frames(
     cap = np.full(rows.size, MAX_STEP)
     p_rows = pose_r  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
-        c = carried_com(ir, take_pose(p_rows, active), t[rows][active])[:, [0, 2]]
+        c = carried_com(ir, take_pose(p_rows, active), t[rows][active], segs.holding)
+        c = c[:, [0, 2]]
         push = support_push(pts[active], ok[active], c, AIM, hulls.take(active))
         moving = np.hypot(push[:, 0], push[:, 1]) > PUSH_TOL
         active, push = active[moving], push[moving]
@@ -524,7 +620,7 @@ def balance_frames(
         cap[active[lost]] /= 2  # a joint ran out of range: retry with half the step
         active = active[(cap[active] >= MIN_STEP) & ~far]
     p = p_rows
-    margin = hull_margin(hulls, carried_com(ir, p, t[rows])[:, [0, 2]])
+    margin = hull_margin(hulls, carried_com(ir, p, t[rows], segs.holding)[:, [0, 2]])
     good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
     good &= lowest_point(skel, p) >= floor
     keep = good & (margin >= ACCEPT_MARGIN)
@@ -534,11 +630,12 @@ def balance_frames(
         qs = np.where(good[retry, None], q[retry], q0[retry])
         rs = np.where(good[retry, None], root[retry], root0[retry])
         sub_feet, sub_hands = _sub_feet(feet, retry), _sub_hands(hands, retry)
-        q2, r2, w2, m2 = lean_trunk(
-            ir, qs, rs, rot[retry], pts[retry], ok[retry], sub_feet, sub_hands, t[rows][retry]
-        )
+        q2, r2, w2, m2, p2 = lean_trunk(
+            ir, qs, rs, rot[retry], pts[retry], ok[retry], sub_feet, sub_hands, t[rows][retry],
+            segs.holding,
+        )  # fmt: skip
         ok2 = (w2 <= POSITION_TOL) & skel.within_limits(q2, tol=1e-6) & (m2 > margin[retry])
-        ok2 &= lowest_point(skel, forward(skel, q2, r2, rot[retry])) >= floor[retry]
+        ok2 &= lowest_point(skel, p2) >= floor[retry]
         take = retry[ok2]
         q[take], root[take], margin[take] = q2[ok2], r2[ok2], m2[ok2]
         good[take] = True
@@ -563,20 +660,23 @@ def balance_frames(
         return before, after, failed
     qb = np.clip(frames.q[span] + dq[span], skel.lower, skel.upper)
     rb = frames.root_position[span] + dr[span]
-    # the frames the blend reaches, measured by themselves in their original pose
-    pose_s, contact_s, pts_s, ok_s, _ = _support_state(ir, frames, span, stance)
+    # the frames the blend reaches, as measured in their original pose
+    m_s = measured.take(span)
+    pts_s, ok_s = m_s.pts, m_s.ok
     feet_b = {
-        name: (site_positions(skel, pose_s, name), site_rotation(skel, pose_s, name),
-               contact_s.reshape(span.size, 2, -1).any(axis=2)[:, k])
+        name: (m_s.feet[:, k], m_s.feet_rotation[:, k],
+               m_s.contact.reshape(span.size, 2, -1).any(axis=2)[:, k])
         for k, name in enumerate(FEET_SITES)
     }  # fmt: skip
-    hands_b = {h: (pins[h][span], site_positions(skel, pose_s, h)) for h in HANDS}
+    hands_b = {h: (pins[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
     rot_b = frames.root_rotation[span]
     qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b)
-    floor_b = np.minimum(lowest_point(skel, pose_s) - 1e-4, ir.ground - GROUND_SLACK)
+    floor_b = np.minimum(m_s.lowest - 1e-4, ir.ground - GROUND_SLACK)
     fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
     fine &= lowest_point(skel, pb) >= floor_b
-    mb = hull_margin(grouped_hull(pts_s, ok_s), carried_com(ir, pb, t[span])[:, [0, 2]])
+    mb = hull_margin(
+        grouped_hull(pts_s, ok_s), carried_com(ir, pb, t[span], segs.holding)[:, [0, 2]]
+    )
     # a blended frame must keep its contacts and be at least as balanced as its own correction
     own = np.full(len(t), -np.inf)
     own[rows[good]] = margin[good]

@@ -233,3 +233,84 @@ def test_unknown_method_and_bad_goals_are_refused() -> None:
         Goal("r_hand")
     with pytest.raises(ValueError, match="direction"):
         solve_ta(SK, [Goal("r_hand", aim=[0, 1, 1])])
+
+
+def _joint_by_joint(model, qa, rows=None):  # type: ignore[no-untyped-def]
+    """The matrix kernel as it was before its products were stacked (the reference): one
+    joint, one dof, one numpy call at a time."""
+    from mtlc.body.kinematics import cross
+    from mtlc.body.ik.model import _take
+
+    b = qa.shape[0]
+    ql = _take(model._qlive, rows, b).copy()
+    ql[:, model._act_pos] = qa[:, model._act_col]
+    Rd = (
+        model._A0
+        + np.sin(ql)[..., None, None] * model._A1
+        + np.cos(ql)[..., None, None] * model._A2
+    )
+    Rs, ps = [], []
+    axes, origins = np.empty((b, model.n, 3)), np.empty((b, model.n, 3))
+    for li, pj, off, dofs in model._plan:
+        if li >= 0:
+            Rp, pp = Rs[li], ps[li]
+        else:
+            Rp, pp = _take(model._base_R[pj], rows, b), _take(model._base_p[pj], rows, b)
+        p = pp + Rp @ off
+        R = Rp
+        for slot, colk in dofs:
+            if colk >= 0:
+                axes[:, colk] = R @ model._axis[slot]
+                origins[:, colk] = p
+            R = R @ Rd[:, slot]
+        Rs.append(R)
+        ps.append(p)
+    site_p = np.empty((b, len(model.sites), 3))
+    site_R = np.empty((b, len(model.sites), 3, 3))
+    for i, (li, j, off) in enumerate(
+        zip(model._site_live, model._site_joint, model._site_off, strict=True)
+    ):
+        if li >= 0:
+            R, p = Rs[li], ps[li]
+        else:
+            R, p = _take(model._base_R[j], rows, b), _take(model._base_p[j], rows, b)
+        site_R[:, i] = R
+        site_p[:, i] = p + R @ off
+    d = site_p[:, :, None, :] - origins[:, None, :, :]
+    ax = np.broadcast_to(axes[:, None], d.shape)
+    Jp = cross(ax, d) * model.mask[None, :, :, None]
+    Jw = ax * model.mask[None, :, :, None]
+    return site_p, site_R, np.swapaxes(Jp, -1, -2), np.swapaxes(Jw, -1, -2)
+
+
+@pytest.mark.parametrize("base_rows", [1, 5])
+@pytest.mark.parametrize(
+    ("sites", "reach"),
+    [
+        (("r_hand", "l_hand", "r_foot", "l_foot"), "torso"),
+        (("r_hand", "r_fingertip"), "arm"),
+        (("r_hand", "l_hand", "r_fingertip", "l_fingertip"), "torso"),
+        (("l_hand", "r_hand"), "girdle"),
+        (("gaze",), "arm"),
+    ],
+)
+def test_stacked_matrix_kernel_is_the_joint_by_joint_one_to_the_bit(
+    sites: tuple[str, ...], reach: str, base_rows: int
+) -> None:
+    """``evaluate_matrices`` stacks the products of a depth's joints into one BLAS call: the
+    same kernel per 3x3 product, so the same bits (signs of zeros too) as one call each."""
+    rng = np.random.default_rng(7 + base_rows)
+    model = prepare(SK, list(sites), SK.random_q(rng, base_rows), reach=reach)
+    for b in (1, 3, 5):
+        if base_rows > 1 and b != base_rows:
+            continue
+        for rows in (None, np.arange(b)[::-1]) if base_rows > 1 else (None,):
+            for _ in range(20):
+                qa = SK.random_q(rng, b)[:, model.active]
+                qa[:, ::3] = 0.0  # exact zeros in the frames
+                got = model.evaluate_matrices(qa, rows)
+                want = _joint_by_joint(model, qa, rows)
+                for g, w in zip(got, want, strict=True):
+                    assert g.shape == w.shape
+                    assert np.array_equal(g, w)
+                    assert np.array_equal(np.signbit(g), np.signbit(w))

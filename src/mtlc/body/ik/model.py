@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..kinematics import _root_inputs, cross, skew
+from ..kinematics import _root_inputs, skew
 from ..skeleton import Skeleton
 
 FloatArray = NDArray[np.float64]
@@ -271,48 +271,154 @@ class ChainModel:
     def evaluate_matrices(
         self, qa: FloatArray, rows: NDArray[np.intp] | None = None
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """:meth:`evaluate` with (b, 3, 3) Rodrigues matrices: any axis, the reference."""
+        """:meth:`evaluate` with (b, 3, 3) Rodrigues matrices: any axis, the reference.
+
+        The products are BLAS's 3x3 ``matmul`` (fused multiply-adds), one stacked call for the
+        joints of a depth at each dof step (``_Stacked``): a stacked call computes each 3x3
+        product with the kernel a call of its own uses, so the numbers are those of a joint by
+        joint loop (tested to the bit), with a third of its numpy calls on two arms."""
+        st = self._stacked()
         b = qa.shape[0]
         ql = _take(self._qlive, rows, b).copy()
         ql[:, self._act_pos] = qa[:, self._act_col]
-        s = np.sin(ql)[..., None, None]
-        c = np.cos(ql)[..., None, None]
-        Rd = self._A0 + s * self._A1 + c * self._A2  # (b, nL, 3, 3)
-        Rs: list[FloatArray] = []
-        ps: list[FloatArray] = []
-        axes = np.empty((b, self.n, 3))
-        origins = np.empty((b, self.n, 3))
-        for li, pj, off, dofs in self._plan:
-            if li >= 0:
-                Rp, pp = Rs[li], ps[li]
-            else:
-                Rp, pp = _take(self._base_R[pj], rows, b), _take(self._base_p[pj], rows, b)
-            p = pp + Rp @ off
-            R = Rp
-            for slot, colk in dofs:
-                if colk >= 0:
-                    axes[:, colk] = R @ self._axis[slot]
-                    origins[:, colk] = p
-                R = R @ Rd[:, slot]
-            Rs.append(R)
-            ps.append(p)
-        site_p = np.empty((b, len(self.sites), 3))
-        site_R = np.empty((b, len(self.sites), 3, 3))
-        for i, (li, j, off) in enumerate(
-            zip(self._site_live, self._site_joint, self._site_off, strict=True)
-        ):
-            if li >= 0:
-                R, p = Rs[li], ps[li]
-            else:
-                R, p = _take(self._base_R[j], rows, b), _take(self._base_p[j], rows, b)
-            site_R[:, i] = R
-            site_p[:, i] = p + R @ off
-        # Jacobians: columns a_k x (p_s - o_k), masked to the dofs that move each site.
-        d = site_p[:, :, None, :] - origins[:, None, :, :]  # (b, S, nA, 3)
-        ax = np.broadcast_to(axes[:, None], d.shape)
-        Jp = cross(ax, d) * self.mask[None, :, :, None]
-        Jw = ax * self.mask[None, :, :, None]
+        s = np.sin(ql)[:, st.perm, None, None]
+        c = np.cos(ql)[:, st.perm, None, None]
+        Rd = st.A0 + s * st.A1 + c * st.A2  # (b, steps, 3, 3), in the order of the steps
+        Z = np.empty((b, st.n_frames, 3, 3))  # frozen frames, then each dof step's products
+        P = np.empty((b, st.n_points, 3))  # frozen joints' positions, then the live joints'
+        if self.B == 1:
+            Z[:, : st.n_frozen] = st.frozen_R
+            P[:, : st.n_frozen] = st.frozen_p
+        else:
+            for f, j in enumerate(st.frozen):
+                Z[:, f] = _take(self._base_R[j], rows, b)
+                P[:, f] = _take(self._base_p[j], rows, b)
+        for parent_frames, points, parent_points, offsets, steps in st.levels:
+            P[:, points] = P[:, parent_points] + (Z[:, parent_frames] @ offsets)[..., 0]
+            for src, rot, dst in steps:
+                np.matmul(Z[:, src], Rd[:, rot], out=Z[:, dst])
+        axes = (Z[:, st.axis_frames] @ st.axis_vectors)[..., 0]  # (b, nA, 3)
+        site_R = Z[:, st.site_frames]
+        site_p = P[:, st.site_points] + (site_R @ st.site_offsets)[..., 0]
+        # Jacobians: columns a_k x (p_s - o_k), masked to the dofs that move each site; the
+        # cross product on each vector written twice over ([x y z x y z]: its turned
+        # components are slices), the same products and differences as ``cross``.
+        a2 = np.concatenate((axes, axes), axis=-1)[:, None]
+        o = P[:, st.axis_points]
+        d2 = (
+            np.concatenate((site_p, site_p), axis=-1)[:, :, None]
+            - np.concatenate((o, o), -1)[:, None]
+        )
+        Jp = (a2[..., 1:4] * d2[..., 2:5] - a2[..., 2:5] * d2[..., 1:4]) * st.mask
+        Jw = axes[:, None] * st.mask
         return site_p, site_R, np.swapaxes(Jp, -1, -2), np.swapaxes(Jw, -1, -2)
+
+    def _stacked(self) -> _Stacked:
+        """The stacked evaluation's plan (built on first use)."""
+        st = self.__dict__.get("_stacked_plan")
+        if st is None:
+            st = self.__dict__["_stacked_plan"] = _Stacked(self)
+        return st
+
+
+Selector = slice | NDArray[np.intp]
+
+
+def _selector(indices: list[int], broadcast: bool = False) -> Selector:
+    """Indices as a slice where they are a run (or, ``broadcast``, one index repeated: a slice
+    of one that broadcasts), so numpy takes a view instead of a copy."""
+    if broadcast and all(i == indices[0] for i in indices):
+        return slice(indices[0], indices[0] + 1)
+    if indices == list(range(indices[0], indices[0] + len(indices))):
+        return slice(indices[0], indices[0] + len(indices))
+    return np.array(indices, dtype=np.intp)
+
+
+class _Stacked:
+    """Where ``evaluate_matrices`` keeps each frame: in ``Z`` (b, n_frames, 3, 3) the frozen
+    joints' frames, then one block per level of live joints (one depth) and dof step (its
+    joints' k-th dofs, the joints with more dofs first); in ``P`` (b, n_points, 3) the frozen
+    joints' positions, then the live joints'. ``levels``: per level the parents' frames and
+    positions, the joints' positions, offsets (n, 3, 1) and the steps ``Z[dst] = Z[src] @
+    Rd[rot]``."""
+
+    def __init__(self, model: ChainModel) -> None:
+        plan = model._plan
+        n_live = len(plan)
+        level = [0] * n_live
+        for i, (li, _pj, _off, _dofs) in enumerate(plan):
+            level[i] = 0 if li < 0 else level[li] + 1
+        site_live = list(zip(model._site_live, model._site_joint, strict=True))
+        frozen = sorted(
+            {pj for li, pj, _o, _d in plan if li < 0} | {j for li, j in site_live if li < 0}
+        )
+        self.frozen, self.n_frozen = frozen, len(frozen)
+        frozen_at = {j: f for f, j in enumerate(frozen)}
+        final: dict[int, int] = {}  # live index -> Z index of its world frame
+        point: dict[int, int] = {}  # live index -> P index of its position
+        z = p = len(frozen)
+        perm: list[int] = []
+        axis_frame: dict[int, int] = {}  # active column -> Z index of the frame before its dof
+        axis_point: dict[int, int] = {}  # active column -> P index of its joint
+        levels = []
+        for depth in range(max(level, default=-1) + 1):
+            members = sorted(
+                (i for i in range(n_live) if level[i] == depth), key=lambda i: -len(plan[i][3])
+            )
+            n = len(members)
+            parents = [
+                final[plan[i][0]] if plan[i][0] >= 0 else frozen_at[plan[i][1]] for i in members
+            ]
+            src = list(parents)
+            parent_points = [
+                point[plan[i][0]] if plan[i][0] >= 0 else frozen_at[plan[i][1]] for i in members
+            ]
+            for r, i in enumerate(members):
+                point[i] = p + r
+                final[i] = src[r]  # a joint without dofs: its parent's frame
+            steps = []
+            for k in range(max((len(plan[i][3]) for i in members), default=0)):
+                m = sum(1 for i in members if len(plan[i][3]) > k)
+                for r, i in enumerate(members[:m]):
+                    slot, colk = plan[i][3][k]
+                    if colk >= 0:
+                        axis_frame[colk], axis_point[colk] = src[r], p + r
+                    perm.append(slot)
+                    final[i] = z + r
+                steps.append(
+                    (_selector(src[:m], True), slice(len(perm) - m, len(perm)), slice(z, z + m))
+                )
+                src, z = list(range(z, z + m)), z + m
+            levels.append(
+                (
+                    _selector(parents, True),
+                    slice(p, p + n),
+                    _selector(parent_points, True),
+                    np.array([plan[i][2] for i in members], dtype=float)[..., None],
+                    tuple(steps),
+                )
+            )
+            p += n
+        self.levels = tuple(levels)
+        self.n_frames, self.n_points = z, p
+        self.perm = np.array(perm, dtype=np.intp)
+        self.A0, self.A1, self.A2 = model._A0[perm], model._A1[perm], model._A2[perm]
+        if model.B == 1:
+            self.frozen_R = np.array([model._base_R[j][0] for j in frozen]).reshape(-1, 3, 3)
+            self.frozen_p = np.array([model._base_p[j][0] for j in frozen]).reshape(-1, 3)
+        cols = range(model.n)
+        self.axis_frames = _selector([axis_frame[c] for c in cols])
+        self.axis_points = _selector([axis_point[c] for c in cols])
+        axis_slot = {colk: slot for _li, _pj, _o, dofs in plan for slot, colk in dofs}
+        self.axis_vectors = model._axis[[axis_slot[c] for c in cols]][..., None]
+        self.site_frames = _selector(
+            [final[li] if li >= 0 else frozen_at[j] for li, j in site_live]
+        )
+        self.site_points = _selector(
+            [point[li] if li >= 0 else frozen_at[j] for li, j in site_live]
+        )
+        self.site_offsets = np.array(model._site_off, dtype=float).reshape(-1, 3)[..., None]
+        self.mask = model.mask[None, :, :, None]
 
 
 def _coordinate_plan(axes: FloatArray) -> tuple[list[int], FloatArray] | None:

@@ -238,8 +238,8 @@ def test_unknown_method_and_bad_goals_are_refused() -> None:
 def _joint_by_joint(model, qa, rows=None):  # type: ignore[no-untyped-def]
     """The matrix kernel as it was before its products were stacked (the reference): one
     joint, one dof, one numpy call at a time."""
-    from mtlc.body.kinematics import cross
     from mtlc.body.ik.model import _take
+    from mtlc.body.kinematics import cross
 
     b = qa.shape[0]
     ql = _take(model._qlive, rows, b).copy()
@@ -314,3 +314,39 @@ def test_stacked_matrix_kernel_is_the_joint_by_joint_one_to_the_bit(
                     assert g.shape == w.shape
                     assert np.array_equal(g, w)
                     assert np.array_equal(np.signbit(g), np.signbit(w))
+
+
+@pytest.mark.parametrize("far", [0.0, 0.6])
+@pytest.mark.parametrize("kind", ["two", "orientation", "aim"])
+@pytest.mark.parametrize("reach", ["arm", "torso"])
+def test_single_row_loop_is_the_batch_loop_to_the_bit(far: float, kind: str, reach: str) -> None:
+    """``solve_ta`` of one row runs ``_solve_single`` (Python floats for the bookkeeping);
+    the batch loop ``_solve_rows`` on that one row takes the same steps, restarts and draws."""
+    from mtlc.body.ik import dls
+    from mtlc.body.ik.goals import normalise
+
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        q_true = SK.q_comfort.copy()
+        q_true[ARM.active] = SK.random_q(rng, 1)[0, ARM.active]
+        pts = site_positions(SK, forward(SK, q_true), ["r_hand", "r_fingertip", "gaze"])
+        goals = [Goal("r_hand", position=pts[0] + far)]
+        if kind == "two":
+            goals.append(Goal("r_fingertip", position=pts[1] + far))
+        elif kind == "orientation":
+            goals = [Goal("r_hand", position=pts[0] + far, orientation=np.array([1.0, 0, 0, 0]))]
+        else:
+            goals.append(Goal("gaze", aim=pts[0]))
+        model = prepare(SK, goals, SK.q_comfort, reach=reach)
+        ga = normalise(SK, goals)
+        qf, qa = dls._initial(SK, model, SK.q_comfort, 1)
+        options = dict(
+            tol=1e-3, orientation_tol=math.radians(1.0), max_iter=60, restarts=3, patience=8,
+            damping=0.02, max_error=0.25, max_step=0.5, null_gain=0.05,
+        )  # fmt: skip
+        one = dls._solve_single(SK, ga, model, qf, qa, rng=np.random.default_rng(0), **options)
+        rows = dls._solve_rows(
+            SK, ga, model, qf, qa, rng=np.random.default_rng(0), tail_chain=None, **options
+        )
+        for field in ("q", "position_error", "orientation_error", "iterations", "restarts"):
+            assert np.array_equal(getattr(one, field), getattr(rows, field)), field

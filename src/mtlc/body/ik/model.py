@@ -411,8 +411,9 @@ class _Stacked:
         self.axis_points = _selector([axis_point[c] for c in cols])
         axis_slot = {colk: slot for _li, _pj, _o, dofs in plan for slot, colk in dofs}
         self.axis_vectors = model._axis[[axis_slot[c] for c in cols]][..., None]
-        self.site_frames = _selector(
-            [final[li] if li >= 0 else frozen_at[j] for li, j in site_live]
+        # (an index, not a slice: each site's frame a copy of its own, contiguous, as before)
+        self.site_frames = np.array(
+            [final[li] if li >= 0 else frozen_at[j] for li, j in site_live], dtype=np.intp
         )
         self.site_points = _selector(
             [point[li] if li >= 0 else frozen_at[j] for li, j in site_live]

@@ -64,28 +64,36 @@ class Residual:
 
 
 def residual(
-    model: ChainModel, ga: GoalArrays, qa: FloatArray, rows: NDArray[np.intp] | None = None
+    model: ChainModel,
+    ga: GoalArrays,
+    qa: FloatArray,
+    rows: NDArray[np.intp] | None = None,
+    *,
+    with_cost: bool = True,
 ) -> Residual:
-    """Evaluate every goal at active angles ``qa`` (b, nA) for batch ``rows``."""
+    """Evaluate every goal at active angles ``qa`` (b, nA) for batch ``rows``
+    (``with_cost=False``: no ``cost``, which only the gradient methods read)."""
     b = qa.shape[0]
     site_p, site_R, Jp, Jw = model.evaluate(qa, rows)
     es: list[FloatArray] = []
     Js: list[FloatArray] = []
-    pos_err = np.zeros(b)
-    ori_err = np.zeros(b)
+    pos_err: FloatArray | None = None
+    ori_err: FloatArray | None = None
     skel = model.skel
     for i in range(len(ga.sites)):
         if ga.position[i] is not None:
             e = _take(ga.position[i], rows, b) - site_p[:, i]
             es.append(e)
             Js.append(Jp[:, i])
-            pos_err = np.maximum(pos_err, np.sqrt(np.einsum("bi,bi->b", e, e)))
+            d = np.sqrt(np.einsum("bi,bi->b", e, e))
+            pos_err = d if pos_err is None else np.maximum(pos_err, d)
         if ga.orientation[i] is not None:
             r = rotation_error(_take(ga.orientation[i], rows, b), site_R[:, i])
             w = ga.weight[i]
             es.append(w * r)
             Js.append(w * Jw[:, i])
-            ori_err = np.maximum(ori_err, np.linalg.norm(r, axis=-1))
+            a = np.linalg.norm(r, axis=-1)
+            ori_err = a if ori_err is None else np.maximum(ori_err, a)
         if ga.aim[i] is not None:
             direction = np.asarray(skel.site(ga.sites[i]).direction, dtype=float)
             d = site_R[:, i] @ direction
@@ -99,8 +107,11 @@ def residual(
             w = ga.weight[i]
             es.append(w * r)
             Js.append(w * Jw[:, i])
-            ori_err = np.maximum(ori_err, ang)
+            ori_err = ang if ori_err is None else np.maximum(ori_err, ang)
+    # (the largest goal's error: each is a norm or an angle in [0, pi], never below 0)
+    pos_err = np.zeros(b) if pos_err is None else pos_err
+    ori_err = np.zeros(b) if ori_err is None else ori_err
     e = es[0] if len(es) == 1 else np.concatenate(es, axis=1)
     J = Js[0] if len(Js) == 1 else np.concatenate(Js, axis=1)
-    cost = 0.5 * np.einsum("bi,bi->b", e, e)
+    cost = 0.5 * np.einsum("bi,bi->b", e, e) if with_cost else np.empty(0)
     return Residual(e=e, J=J, pos_err=pos_err, ori_err=ori_err, cost=cost)

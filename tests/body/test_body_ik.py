@@ -350,3 +350,36 @@ def test_single_row_loop_is_the_batch_loop_to_the_bit(far: float, kind: str, rea
         )
         for field in ("q", "position_error", "orientation_error", "iterations", "restarts"):
             assert np.array_equal(getattr(one, field), getattr(rows, field)), field
+
+
+@pytest.mark.parametrize("far", [0.0, 0.4])
+@pytest.mark.parametrize("kind", ["one", "two", "orientation"])
+def test_single_row_descent_is_the_batch_descent_to_the_bit(far: float, kind: str) -> None:
+    """``solve_to`` of one row runs ``_descend_single``; ``_descend_rows`` on that one row
+    takes the same path, sample for sample."""
+    from mtlc.body.ik import gradient
+    from mtlc.body.ik.goals import normalise
+
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        q_true = SK.q_comfort.copy()
+        q_true[ARM.active] = SK.random_q(rng, 1)[0, ARM.active]
+        pts = site_positions(SK, forward(SK, q_true), ["r_hand", "r_fingertip"])
+        goals = [Goal("r_hand", position=pts[0] + far)]
+        if kind == "two":
+            goals.append(Goal("r_fingertip", position=pts[1] + far))
+        elif kind == "orientation":
+            goals = [Goal("r_hand", position=pts[0] + far, orientation=np.array([1.0, 0, 0, 0]))]
+        model = prepare(SK, goals, SK.q_comfort, reach="torso")
+        ga = normalise(SK, goals)
+        start = SK.q_comfort[model.active][None]
+        options = dict(
+            tol=1e-3, orientation_tol=math.radians(1.0), max_iter=150, max_step=0.05,
+            record_path=True,
+        )  # fmt: skip
+        one = gradient._descend_single(model, ga, start.copy(), **options)
+        rows = gradient._descend_rows(model, ga, start.copy(), **options)
+        assert np.array_equal(one[0], rows[0])
+        assert np.array_equal(one[3], rows[3])
+        assert len(one[4]) == len(rows[4]) > 1
+        assert all(np.array_equal(a, b) for a, b in zip(one[4], rows[4], strict=True))

@@ -29,8 +29,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..skeleton import Skeleton
-from .dls import _initial, prepare
-from .goals import Goal, normalise
+from .dls import _clip, _initial, prepare
+from .goals import Goal, GoalArrays, normalise
 from .model import ChainModel
 from .result import IKResult, residual, returned_errors
 
@@ -83,6 +83,46 @@ def solve_to(
         )
     qf, q_all = _initial(skel, model, q0, B)
     model = model.for_start(qf)  # a model prepared for another trunk describes another body
+    descend = _descend_single if B == 1 else _descend_rows
+    q, pos, ori, iters, path = descend(
+        model, ga, q_all, tol=tol, orientation_tol=orientation_tol, max_iter=max_iter,
+        max_step=max_step, record_path=record_path,
+    )  # fmt: skip
+    q_out = qf.copy()
+    q_out[:, model.active] = q
+    pos, ori = returned_errors(model, ga, q_out)
+    success = (pos <= tol) & (ori <= orientation_tol) & skel.within_limits(q_out)
+    full_path = None
+    if record_path:
+        pa = np.stack(path)  # (T, B, nA)
+        full_path = np.broadcast_to(qf, (pa.shape[0], B, skel.n_dofs)).copy()
+        full_path[:, :, model.active] = pa
+    return IKResult(
+        q=q_out,
+        position_error=pos,
+        orientation_error=ori,
+        success=success,
+        iterations=iters,
+        restarts=np.zeros(B, dtype=np.intp),
+        method="gradient",
+        path=full_path,
+    )
+
+
+def _descend_rows(
+    model: ChainModel,
+    ga: GoalArrays,
+    q_all: FloatArray,
+    *,
+    tol: float,
+    orientation_tol: float,
+    max_iter: int,
+    max_step: float,
+    record_path: bool,
+) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp], list[FloatArray]]:
+    """``solve_to``'s descent of a batch of rows from ``q_all`` (B, nA): the end angles, their
+    errors, iterations and the accepted configurations (B, nA) one after the other."""
+    B = q_all.shape[0]
     lo, hi = model.lower, model.upper
     r = residual(model, ga, q_all)
     pos, ori = r.pos_err.copy(), r.ori_err.copy()
@@ -139,23 +179,68 @@ def solve_to(
             rows, q, g, f, alpha = rows[keep], q[keep], g[keep], f[keep], alpha[keep]
             sel = rows
     q_all[rows] = q
-    q = q_all
-    q_out = qf.copy()
-    q_out[:, model.active] = q
-    pos, ori = returned_errors(model, ga, q_out)
-    success = (pos <= tol) & (ori <= orientation_tol) & skel.within_limits(q_out)
-    full_path = None
-    if record_path:
-        pa = np.stack(path)  # (T, B, nA)
-        full_path = np.broadcast_to(qf, (pa.shape[0], B, skel.n_dofs)).copy()
-        full_path[:, :, model.active] = pa
-    return IKResult(
-        q=q_out,
-        position_error=pos,
-        orientation_error=ori,
-        success=success,
-        iterations=iters,
-        restarts=np.zeros(B, dtype=np.intp),
-        method="gradient",
-        path=full_path,
+    return q_all, pos, ori, iters, path
+
+
+_ROW = np.zeros(1, dtype=np.intp)  # the one row, as an index (``rows`` of one row)
+
+
+def _descend_single(
+    model: ChainModel,
+    ga: GoalArrays,
+    q_all: FloatArray,
+    *,
+    tol: float,
+    orientation_tol: float,
+    max_iter: int,
+    max_step: float,
+    record_path: bool,
+) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp], list[FloatArray]]:
+    """``_descend_rows`` of one row, its step sizes and tests on Python floats: the same
+    einsums on the same arrays, so the same path to the bit (tested)."""
+    lo, hi = model.lower, model.upper
+    r = residual(model, ga, q_all)
+    pos, ori = r.pos_err.copy(), r.ori_err.copy()
+    path = [q_all.copy()] if record_path else []
+    if pos[0] <= tol and ori[0] <= orientation_tol:
+        return q_all, pos, ori, np.zeros(1, dtype=np.intp), path
+    q = q_all[_ROW]
+    f = float(r.cost[0])
+    J, e = r.J[_ROW], r.e[_ROW]  # (indexed as the batch's rows are: the einsums sum alike)
+    g = -np.einsum("bmn,bm->bn", J, e)
+    Jg = np.einsum("bmn,bn->bm", J, g)
+    alpha = float(np.einsum("bn,bn->b", g, g)[0]) / max(
+        float(np.einsum("bm,bm->b", Jg, Jg)[0]), 1e-300
     )
+    iters = 0
+    for _ in range(max_iter):
+        step = -alpha * g
+        big = float(np.abs(step).max())
+        # the cap leaves room for the rounding to the grid, so a step stays within max_step
+        step *= min(1.0, (max_step - PATH_GRID) / max(big, 1e-300))
+        trial = _clip(on_grid(q + step), lo, hi)
+        rt = residual(model, ga, trial)
+        iters += 1
+        moved = trial - q
+        # a step that rounds to nothing is a rejected one (its cost differs from f by noise)
+        if float(rt.cost[0]) < f and (trial != q).any():
+            gn = -np.einsum("bmn,bm->bn", rt.J, rt.e)
+            y = gn - g
+            sy = float(np.einsum("bn,bn->b", moved, y)[0])
+            bb = float(np.einsum("bn,bn->b", moved, moved)[0]) / (sy if sy > 1e-300 else math.inf)
+            alpha = bb if bb > 0 else 2.0 * alpha
+            q, g, f = trial, gn, float(rt.cost[0])
+            pos, ori = rt.pos_err, rt.ori_err
+            if record_path:
+                q_all[0] = q
+                path.append(q_all.copy())
+            if pos[0] <= tol and ori[0] <= orientation_tol:
+                break
+        else:
+            # rejected: halve the step; a step that vanished has converged as far as the
+            # limits allow
+            alpha = 0.5 * alpha
+            if float(np.abs(moved).max()) < 1e-12:
+                break
+    q_all[0] = q
+    return q_all, pos, ori, np.array([iters]), path

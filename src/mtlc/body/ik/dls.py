@@ -26,6 +26,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..kinematics import einsum
 from ..skeleton import Skeleton
 from .batch import SerialBatch, solve_serial_batch
 from .fast import NULL_FADE, SerialChain, solve_one
@@ -435,17 +436,17 @@ def _dls_step(
     # Error clamping (per 3-vector block).
     b, m = e.shape
     blocks = e.reshape(b, m // 3, 3)
-    nrm = np.sqrt(np.einsum("bki,bki->bk", blocks, blocks))
+    nrm = np.sqrt(einsum("bki,bki->bk", blocks, blocks))
     scale = np.minimum(1.0, max_error / np.maximum(nrm, 1e-300))
     e = (blocks * scale[..., None]).reshape(b, m)
-    Jt = np.swapaxes(J, -1, -2)
+    Jt = J.swapaxes(-1, -2)
     A = J @ Jt + lam2I
-    fade = np.minimum(1.0, np.sqrt(np.einsum("bk,bk->b", nrm, nrm)) / NULL_FADE)
+    fade = np.minimum(1.0, np.sqrt(einsum("bk,bk->b", nrm, nrm)) / NULL_FADE)
     z = (null_gain * fade)[:, None] * (comfort - q)
     # J⁺e + (I − J⁺J)z = J⁺(e − Jz) + z: one right-hand side for task and null space.
-    rhs = e - np.einsum("bmn,bn->bm", J, z)
+    rhs = e - einsum("bmn,bn->bm", J, z)
     y = solve_spd(A, rhs[..., None])[..., 0]
-    dq = np.einsum("bnm,bm->bn", Jt, y) + z
+    dq = einsum("bnm,bm->bn", Jt, y) + z
     qn = q + dq
     over = (qn > hi) | (qn < lo)
     hit = np.flatnonzero(over.any(axis=-1))
@@ -454,11 +455,11 @@ def _dls_step(
         # free dofs only, on the rows that hit a limit.
         ov, qh, Jh = over[hit], q[hit], J[hit]
         dq_pin = np.where(ov, np.clip(qn[hit], lo, hi) - qh, 0.0)
-        e2 = e[hit] - np.einsum("bmn,bn->bm", Jh, dq_pin)
+        e2 = e[hit] - einsum("bmn,bn->bm", Jh, dq_pin)
         Jf = Jh * (~ov)[:, None, :]
-        Jft = np.swapaxes(Jf, -1, -2)
+        Jft = Jf.swapaxes(-1, -2)
         y2 = solve_spd(Jf @ Jft + lam2I, e2[..., None])[..., 0]
-        dq[hit] = np.where(ov, dq_pin, np.einsum("bnm,bm->bn", Jft, y2))
+        dq[hit] = np.where(ov, dq_pin, einsum("bnm,bm->bn", Jft, y2))
     big = np.max(np.abs(dq), axis=-1)
     dq = dq * np.minimum(1.0, max_step / np.maximum(big, 1e-300))[:, None]
     return np.clip(q + dq, lo, hi) - q
@@ -485,16 +486,16 @@ def _dls_step_one(
     fade, the step cap), so the same step to the bit."""
     m = e.shape[1]
     blocks = e.reshape(1, m // 3, 3)
-    nrm = np.sqrt(np.einsum("bki,bki->bk", blocks, blocks))
+    nrm = np.sqrt(einsum("bki,bki->bk", blocks, blocks))
     scale = np.minimum(1.0, max_error / np.maximum(nrm, 1e-300))
     e = (blocks * scale[..., None]).reshape(1, m)
-    Jt = np.swapaxes(J, -1, -2)
+    Jt = J.swapaxes(-1, -2)
     A = J @ Jt + lam2I
-    fade = min(1.0, float(np.sqrt(np.einsum("bk,bk->b", nrm, nrm))[0]) / NULL_FADE)
+    fade = min(1.0, float(np.sqrt(einsum("bk,bk->b", nrm, nrm))[0]) / NULL_FADE)
     z = (null_gain * fade) * (comfort - q)
-    rhs = e - np.einsum("bmn,bn->bm", J, z)
+    rhs = e - einsum("bmn,bn->bm", J, z)
     y = solve_spd(A, rhs[..., None])[..., 0]
-    dq = np.einsum("bnm,bm->bn", Jt, y) + z
+    dq = einsum("bnm,bm->bn", Jt, y) + z
     qn = q + dq
     over = (qn > hi) | (qn < lo)
     if over.any():
@@ -502,11 +503,11 @@ def _dls_step_one(
         # the layout numpy's indexing picks, and the einsum below sums in that layout's order)
         Jh = J[_ROW]
         dq_pin = np.where(over, _clip(qn[_ROW], lo, hi) - q[_ROW], 0.0)
-        e2 = e[_ROW] - np.einsum("bmn,bn->bm", Jh, dq_pin)
+        e2 = e[_ROW] - einsum("bmn,bn->bm", Jh, dq_pin)
         Jf = Jh * (~over)[:, None, :]
-        Jft = np.swapaxes(Jf, -1, -2)
+        Jft = Jf.swapaxes(-1, -2)
         y2 = solve_spd(Jf @ Jft + lam2I, e2[..., None])[..., 0]
-        dq = np.where(over, dq_pin, np.einsum("bnm,bm->bn", Jft, y2))
+        dq = np.where(over, dq_pin, einsum("bnm,bm->bn", Jft, y2))
     big = float(np.abs(dq).max())
     dq = dq * min(1.0, max_step / max(big, 1e-300))
     return _clip(q + dq, lo, hi) - q

@@ -28,6 +28,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..kinematics import einsum
 from ..skeleton import Skeleton
 from .dls import _clip, _initial, prepare
 from .goals import Goal, GoalArrays, normalise
@@ -134,9 +135,9 @@ def _descend_rows(
     q = q_all[rows]
     f = r.cost[rows]
     J, e = r.J[rows], r.e[rows]
-    g = -np.einsum("bmn,bm->bn", J, e)
-    Jg = np.einsum("bmn,bn->bm", J, g)
-    alpha = np.einsum("bn,bn->b", g, g) / np.maximum(np.einsum("bm,bm->b", Jg, Jg), 1e-300)
+    g = -einsum("bmn,bm->bn", J, e)
+    Jg = einsum("bmn,bn->bm", J, g)
+    alpha = einsum("bn,bn->b", g, g) / np.maximum(einsum("bm,bm->b", Jg, Jg), 1e-300)
     for _ in range(max_iter):
         if rows.size == 0:
             break
@@ -155,10 +156,10 @@ def _descend_rows(
         moved = trial - q
         any_ok = bool(np.any(ok))
         if any_ok:
-            gn = -np.einsum("bmn,bm->bn", rt.J, rt.e)
+            gn = -einsum("bmn,bm->bn", rt.J, rt.e)
             s, y = moved, gn - g
-            sy = np.einsum("bn,bn->b", s, y)
-            bb = np.einsum("bn,bn->b", s, s) / np.where(sy > 1e-300, sy, np.inf)
+            sy = einsum("bn,bn->b", s, y)
+            bb = einsum("bn,bn->b", s, s) / np.where(sy > 1e-300, sy, np.inf)
             bb = np.where(bb > 0, bb, 2.0 * alpha)
             okc = ok[:, None]
             q = np.where(okc, trial, q)
@@ -207,11 +208,9 @@ def _descend_single(
     q = q_all[_ROW]
     f = float(r.cost[0])
     J, e = r.J[_ROW], r.e[_ROW]  # (indexed as the batch's rows are: the einsums sum alike)
-    g = -np.einsum("bmn,bm->bn", J, e)
-    Jg = np.einsum("bmn,bn->bm", J, g)
-    alpha = float(np.einsum("bn,bn->b", g, g)[0]) / max(
-        float(np.einsum("bm,bm->b", Jg, Jg)[0]), 1e-300
-    )
+    g = -einsum("bmn,bm->bn", J, e)
+    Jg = einsum("bmn,bn->bm", J, g)
+    alpha = float(einsum("bn,bn->b", g, g)[0]) / max(float(einsum("bm,bm->b", Jg, Jg)[0]), 1e-300)
     iters = 0
     for _ in range(max_iter):
         step = -alpha * g
@@ -224,10 +223,10 @@ def _descend_single(
         moved = trial - q
         # a step that rounds to nothing is a rejected one (its cost differs from f by noise)
         if float(rt.cost[0]) < f and (trial != q).any():
-            gn = -np.einsum("bmn,bm->bn", rt.J, rt.e)
+            gn = -einsum("bmn,bm->bn", rt.J, rt.e)
             y = gn - g
-            sy = float(np.einsum("bn,bn->b", moved, y)[0])
-            bb = float(np.einsum("bn,bn->b", moved, moved)[0]) / (sy if sy > 1e-300 else math.inf)
+            sy = float(einsum("bn,bn->b", moved, y)[0])
+            bb = float(einsum("bn,bn->b", moved, moved)[0]) / (sy if sy > 1e-300 else math.inf)
             alpha = bb if bb > 0 else 2.0 * alpha
             q, g, f = trial, gn, float(rt.cost[0])
             pos, ori = rt.pos_err, rt.ori_err

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..kinematics import cross, rotation_error
+from ..kinematics import cross, einsum, rotation_error
 from .goals import GoalArrays
 from .model import ChainModel, _take
 
@@ -85,7 +85,7 @@ def residual(
             e = _take(ga.position[i], rows, b) - site_p[:, i]
             es.append(e)
             Js.append(Jp[:, i])
-            d = np.sqrt(np.einsum("bi,bi->b", e, e))
+            d = np.sqrt(einsum("bi,bi->b", e, e))
             pos_err = d if pos_err is None else np.maximum(pos_err, d)
         if ga.orientation[i] is not None:
             r = rotation_error(_take(ga.orientation[i], rows, b), site_R[:, i])
@@ -101,7 +101,7 @@ def residual(
             u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
             cr = cross(d, u)
             sn = np.linalg.norm(cr, axis=-1)
-            ang = np.arctan2(sn, np.einsum("bi,bi->b", d, u))
+            ang = np.arctan2(sn, einsum("bi,bi->b", d, u))
             axis = np.where(sn[:, None] > 1e-12, cr / np.maximum(sn, 1e-300)[:, None], 0.0)
             r = axis * ang[:, None]
             w = ga.weight[i]
@@ -113,5 +113,5 @@ def residual(
     ori_err = np.zeros(b) if ori_err is None else ori_err
     e = es[0] if len(es) == 1 else np.concatenate(es, axis=1)
     J = Js[0] if len(Js) == 1 else np.concatenate(Js, axis=1)
-    cost = 0.5 * np.einsum("bi,bi->b", e, e) if with_cost else np.empty(0)
+    cost = 0.5 * einsum("bi,bi->b", e, e) if with_cost else np.empty(0)
     return Residual(e=e, J=J, pos_err=pos_err, ori_err=ori_err, cost=cost)

@@ -273,10 +273,13 @@ class ChainModel:
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """:meth:`evaluate` with (b, 3, 3) Rodrigues matrices: any axis, the reference.
 
-        The products are BLAS's 3x3 ``matmul`` (fused multiply-adds), one stacked call for the
-        joints of a depth at each dof step (``_Stacked``): a stacked call computes each 3x3
-        product with the kernel a call of its own uses, so the numbers are those of a joint by
-        joint loop (tested to the bit), with a third of its numpy calls on two arms."""
+        The same arithmetic as a joint-by-joint loop (``R = R_parent @ R(a, q)`` per dof,
+        ``p = p_parent + R_parent @ offset``, tested to the bit) in a third of its numpy calls
+        (``_Stacked``): the products are BLAS's 3x3 ``matmul`` (fused multiply-adds), one
+        stacked call for the joints of a depth at each dof step (a stacked call computes each
+        product with the kernel a call of its own uses); every offset and dof axis is turned
+        by its frame in one stacked call; the positions are running sums down each site's
+        chain (``cumsum``: the same additions, in the same order)."""
         st = self._stacked()
         b = qa.shape[0]
         ql = _take(self._qlive, rows, b).copy()
@@ -285,33 +288,32 @@ class ChainModel:
         c = np.cos(ql)[:, st.perm, None, None]
         Rd = st.A0 + s * st.A1 + c * st.A2  # (b, steps, 3, 3), in the order of the steps
         Z = np.empty((b, st.n_frames, 3, 3))  # frozen frames, then each dof step's products
-        P = np.empty((b, st.n_points, 3))  # frozen joints' positions, then the live joints'
+        X = np.empty((b, st.n_terms, 3))  # frozen positions, turned vectors, a zero (padding)
         if self.B == 1:
             Z[:, : st.n_frozen] = st.frozen_R
-            P[:, : st.n_frozen] = st.frozen_p
+            X[:, : st.n_frozen] = st.frozen_p
         else:
             for f, j in enumerate(st.frozen):
                 Z[:, f] = _take(self._base_R[j], rows, b)
-                P[:, f] = _take(self._base_p[j], rows, b)
-        for parent_frames, points, parent_points, offsets, steps in st.levels:
-            P[:, points] = P[:, parent_points] + (Z[:, parent_frames] @ offsets)[..., 0]
-            for src, rot, dst in steps:
-                np.matmul(Z[:, src], Rd[:, rot], out=Z[:, dst])
-        axes = (Z[:, st.axis_frames] @ st.axis_vectors)[..., 0]  # (b, nA, 3)
+                X[:, f] = _take(self._base_p[j], rows, b)
+        for src, rot, dst in st.steps:
+            np.matmul(Z[:, src], Rd[:, rot], out=Z[:, dst])
+        X[:, st.n_frozen : -1] = (Z[:, st.turn_frames] @ st.turn_vectors)[..., 0]
+        X[:, -1] = 0.0
+        axes = X[:, st.axis_terms]  # (b, nA, 3)
+        X2 = np.concatenate((X, X), axis=-1)  # each vector written twice over: [x y z x y z]
+        sums = X2[:, st.paths].cumsum(axis=2).reshape(b, -1, 6)  # (b, S * L, 6)
+        site_p2, o2 = sums[:, st.site_sums], sums[:, st.axis_sums]
+        site_p = site_p2[..., :3]
         site_R = Z[:, st.site_frames]
-        site_p = P[:, st.site_points] + (site_R @ st.site_offsets)[..., 0]
         # Jacobians: columns a_k x (p_s - o_k), masked to the dofs that move each site; the
-        # cross product on each vector written twice over ([x y z x y z]: its turned
-        # components are slices), the same products and differences as ``cross``.
+        # cross product on vectors written twice over (its turned components are slices),
+        # the same products and differences as ``cross``.
         a2 = np.concatenate((axes, axes), axis=-1)[:, None]
-        o = P[:, st.axis_points]
-        d2 = (
-            np.concatenate((site_p, site_p), axis=-1)[:, :, None]
-            - np.concatenate((o, o), -1)[:, None]
-        )
+        d2 = site_p2[:, :, None] - o2[:, None]
         Jp = (a2[..., 1:4] * d2[..., 2:5] - a2[..., 2:5] * d2[..., 1:4]) * st.mask
         Jw = axes[:, None] * st.mask
-        return site_p, site_R, np.swapaxes(Jp, -1, -2), np.swapaxes(Jw, -1, -2)
+        return site_p, site_R, Jp.swapaxes(-1, -2), Jw.swapaxes(-1, -2)
 
     def _stacked(self) -> _Stacked:
         """The stacked evaluation's plan (built on first use)."""
@@ -335,12 +337,17 @@ def _selector(indices: list[int], broadcast: bool = False) -> Selector:
 
 
 class _Stacked:
-    """Where ``evaluate_matrices`` keeps each frame: in ``Z`` (b, n_frames, 3, 3) the frozen
-    joints' frames, then one block per level of live joints (one depth) and dof step (its
-    joints' k-th dofs, the joints with more dofs first); in ``P`` (b, n_points, 3) the frozen
-    joints' positions, then the live joints'. ``levels``: per level the parents' frames and
-    positions, the joints' positions, offsets (n, 3, 1) and the steps ``Z[dst] = Z[src] @
-    Rd[rot]``."""
+    """Where ``evaluate_matrices`` keeps each number.
+
+    ``Z`` (b, n_frames, 3, 3): the frozen joints' frames, then one block per depth of live
+    joints and dof step (the step's joints' running products, the joints with more dofs
+    first); ``steps``: ``Z[dst] = Z[src] @ Rd[rot]`` in order. ``X`` (b, n_terms, 3): the
+    frozen joints' positions, then the vectors ``Z[turn_frames] @ turn_vectors`` (each live
+    joint's offset by its parent's frame, each site's offset by its frame, each active dof's
+    axis by the frame before it), then a zero; ``paths`` (S, L): per site, the terms whose
+    running sum is its chain's positions (a frozen position, the joints' offsets, the site's
+    offset; the zero after the end); ``site_sums`` and ``axis_sums`` pick the site's and each
+    dof's joint's position from the flattened sums."""
 
     def __init__(self, model: ChainModel) -> None:
         plan = model._plan
@@ -355,70 +362,86 @@ class _Stacked:
         self.frozen, self.n_frozen = frozen, len(frozen)
         frozen_at = {j: f for f, j in enumerate(frozen)}
         final: dict[int, int] = {}  # live index -> Z index of its world frame
-        point: dict[int, int] = {}  # live index -> P index of its position
-        z = p = len(frozen)
+        parent_frame: dict[int, int] = {}  # live index -> Z index of its parent's frame
+        z = len(frozen)
         perm: list[int] = []
         axis_frame: dict[int, int] = {}  # active column -> Z index of the frame before its dof
-        axis_point: dict[int, int] = {}  # active column -> P index of its joint
-        levels = []
+        axis_joint: dict[int, int] = {}  # active column -> its joint's live index
+        order: list[int] = []  # live indices in the order of their offsets' terms
+        steps = []
         for depth in range(max(level, default=-1) + 1):
             members = sorted(
                 (i for i in range(n_live) if level[i] == depth), key=lambda i: -len(plan[i][3])
             )
-            n = len(members)
-            parents = [
-                final[plan[i][0]] if plan[i][0] >= 0 else frozen_at[plan[i][1]] for i in members
-            ]
-            src = list(parents)
-            parent_points = [
-                point[plan[i][0]] if plan[i][0] >= 0 else frozen_at[plan[i][1]] for i in members
-            ]
+            order += members
+            src = [final[plan[i][0]] if plan[i][0] >= 0 else frozen_at[plan[i][1]] for i in members]
             for r, i in enumerate(members):
-                point[i] = p + r
-                final[i] = src[r]  # a joint without dofs: its parent's frame
-            steps = []
+                parent_frame[i] = final[i] = src[r]  # a joint without dofs: its parent's frame
             for k in range(max((len(plan[i][3]) for i in members), default=0)):
                 m = sum(1 for i in members if len(plan[i][3]) > k)
                 for r, i in enumerate(members[:m]):
                     slot, colk = plan[i][3][k]
                     if colk >= 0:
-                        axis_frame[colk], axis_point[colk] = src[r], p + r
+                        axis_frame[colk], axis_joint[colk] = src[r], i
                     perm.append(slot)
                     final[i] = z + r
                 steps.append(
                     (_selector(src[:m], True), slice(len(perm) - m, len(perm)), slice(z, z + m))
                 )
                 src, z = list(range(z, z + m)), z + m
-            levels.append(
-                (
-                    _selector(parents, True),
-                    slice(p, p + n),
-                    _selector(parent_points, True),
-                    np.array([plan[i][2] for i in members], dtype=float)[..., None],
-                    tuple(steps),
-                )
-            )
-            p += n
-        self.levels = tuple(levels)
-        self.n_frames, self.n_points = z, p
+        self.steps = tuple(steps)
+        self.n_frames = z
         self.perm = np.array(perm, dtype=np.intp)
         self.A0, self.A1, self.A2 = model._A0[perm], model._A1[perm], model._A2[perm]
         if model.B == 1:
             self.frozen_R = np.array([model._base_R[j][0] for j in frozen]).reshape(-1, 3, 3)
             self.frozen_p = np.array([model._base_p[j][0] for j in frozen]).reshape(-1, 3)
         cols = range(model.n)
-        self.axis_frames = _selector([axis_frame[c] for c in cols])
-        self.axis_points = _selector([axis_point[c] for c in cols])
+        n_sites = len(site_live)
         axis_slot = {colk: slot for _li, _pj, _o, dofs in plan for slot, colk in dofs}
-        self.axis_vectors = model._axis[[axis_slot[c] for c in cols]][..., None]
+        self.turn_frames = np.array(
+            [parent_frame[i] for i in order]
+            + [final[li] if li >= 0 else frozen_at[j] for li, j in site_live]
+            + [axis_frame[c] for c in cols],
+            dtype=np.intp,
+        )
+        self.turn_vectors = np.concatenate(
+            [
+                np.array([plan[i][2] for i in order], dtype=float).reshape(-1, 3),
+                np.array(model._site_off, dtype=float).reshape(-1, 3),
+                model._axis[[axis_slot[c] for c in cols]].reshape(-1, 3),
+            ]
+        )[..., None]
+        term = {i: len(frozen) + r for r, i in enumerate(order)}  # a live joint's offset term
+        first_site = len(frozen) + n_live
+        self.axis_terms = _selector([first_site + n_sites + c for c in cols])
+        self.n_terms = first_site + n_sites + model.n + 1
+        # per site its chain: the frozen joint it hangs from, the live joints down to it
+        chains = []
+        for li, j in site_live:
+            chain = []
+            while li >= 0:
+                chain.append(li)
+                li, top = plan[li][0], plan[li][1]
+            chains.append((frozen_at[top] if chain else frozen_at[j], chain[::-1]))
+        length = max(len(chain) for _f, chain in chains) + 2
+        paths = np.full((n_sites, length), self.n_terms - 1, dtype=np.intp)
+        where: dict[int, int] = {}  # live index -> its position among the flattened sums
+        site_sums = []
+        for s, (f, chain) in enumerate(chains):
+            paths[s, 0] = f
+            for d, i in enumerate(chain, start=1):
+                paths[s, d] = term[i]
+                where.setdefault(i, s * length + d)
+            paths[s, len(chain) + 1] = first_site + s
+            site_sums.append(s * length + len(chain) + 1)
+        self.paths = paths
+        self.site_sums = np.array(site_sums, dtype=np.intp)
+        self.axis_sums = np.array([where[axis_joint[c]] for c in cols], dtype=np.intp)
         # (an index, not a slice: each site's frame a copy of its own, contiguous, as before)
         self.site_frames = np.array(
             [final[li] if li >= 0 else frozen_at[j] for li, j in site_live], dtype=np.intp
         )
-        self.site_points = _selector(
-            [point[li] if li >= 0 else frozen_at[j] for li, j in site_live]
-        )
-        self.site_offsets = np.array(model._site_off, dtype=float).reshape(-1, 3)[..., None]
         self.mask = model.mask[None, :, :, None]
 
 

@@ -383,3 +383,29 @@ def test_single_row_descent_is_the_batch_descent_to_the_bit(far: float, kind: st
         assert np.array_equal(one[3], rows[3])
         assert len(one[4]) == len(rows[4]) > 1
         assert all(np.array_equal(a, b) for a, b in zip(one[4], rows[4], strict=True))
+
+
+@pytest.mark.parametrize(
+    "sites", [("r_hand",), ("r_hand", "r_fingertip"), ("r_hand", "l_hand", "l_fingertip")]
+)
+def test_position_residual_is_the_general_one_in_numbers_and_layout(sites: tuple[str, ...]) -> None:
+    """``residual(..., targets=...)`` (positions alone, side by side) gives the general
+    residual's numbers and its Jacobian's memory layout (the solvers' BLAS calls see it)."""
+    from mtlc.body.ik.goals import normalise
+    from mtlc.body.ik.result import position_targets, residual
+
+    rng = np.random.default_rng(3)
+    goals = [Goal(s, position=rng.uniform(-0.5, 1.5, 3)) for s in sites]
+    model = prepare(SK, goals, SK.q_comfort, reach="torso")
+    ga = normalise(SK, goals)
+    targets = position_targets(ga)
+    assert targets is not None
+    for b in (1, 4):
+        qa = SK.random_q(rng, b)[:, model.active]
+        want = residual(model, ga, qa)
+        got = residual(model, ga, qa, targets=targets)
+        for name in ("e", "J", "pos_err", "ori_err", "cost"):
+            g, w = getattr(got, name), getattr(want, name)
+            assert g.shape == w.shape and g.strides == w.strides, name
+            assert np.array_equal(g, w), name
+    assert position_targets(normalise(SK, [Goal("gaze", aim=np.zeros(3))])) is None

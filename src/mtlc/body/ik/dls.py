@@ -32,7 +32,7 @@ from .batch import SerialBatch, solve_serial_batch
 from .fast import NULL_FADE, SerialChain, solve_one
 from .goals import Goal, GoalArrays, default_dofs, normalise
 from .model import ChainModel
-from .result import IKResult, residual, returned_errors
+from .result import IKResult, position_targets, residual, returned_errors
 
 FloatArray = NDArray[np.float64]
 
@@ -336,12 +336,13 @@ def _solve_single(
     lo, hi = model.lower, model.upper
     comfort = skel.q_comfort[model.active]
     lam2I = damping * damping * np.eye(3 * _blocks(ga))
+    targets = position_targets(ga)
     best_q, best_score = qa, math.inf
     iters = n_restart = attempt_it = since = 0
     attempt_best = math.inf
     cur = qa
     while True:
-        r = residual(model, ga, cur, with_cost=False)
+        r = residual(model, ga, cur, with_cost=False, targets=targets)
         pos, ori = float(r.pos_err[0]), float(r.ori_err[0])
         score = pos / tol + ori / orientation_tol
         if score < best_score:

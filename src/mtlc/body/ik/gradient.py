@@ -33,7 +33,7 @@ from ..skeleton import Skeleton
 from .dls import _clip, _initial, prepare
 from .goals import Goal, GoalArrays, normalise
 from .model import ChainModel
-from .result import IKResult, residual, returned_errors
+from .result import IKResult, position_targets, residual, returned_errors
 
 FloatArray = NDArray[np.float64]
 
@@ -200,7 +200,8 @@ def _descend_single(
     """``_descend_rows`` of one row, its step sizes and tests on Python floats: the same
     einsums on the same arrays, so the same path to the bit (tested)."""
     lo, hi = model.lower, model.upper
-    r = residual(model, ga, q_all)
+    targets = position_targets(ga)
+    r = residual(model, ga, q_all, targets=targets)
     pos, ori = r.pos_err.copy(), r.ori_err.copy()
     path = [q_all.copy()] if record_path else []
     if pos[0] <= tol and ori[0] <= orientation_tol:
@@ -218,7 +219,7 @@ def _descend_single(
         # the cap leaves room for the rounding to the grid, so a step stays within max_step
         step *= min(1.0, (max_step - PATH_GRID) / max(big, 1e-300))
         trial = _clip(on_grid(q + step), lo, hi)
-        rt = residual(model, ga, trial)
+        rt = residual(model, ga, trial, targets=targets)
         iters += 1
         moved = trial - q
         # a step that rounds to nothing is a rejected one (its cost differs from f by noise)

@@ -309,11 +309,13 @@ class ChainModel:
         # Jacobians: columns a_k x (p_s - o_k), masked to the dofs that move each site; the
         # cross product on vectors written twice over (its turned components are slices),
         # the same products and differences as ``cross``.
-        a2 = np.concatenate((axes, axes), axis=-1)[:, None]
-        d2 = site_p2[:, :, None] - o2[:, None]
-        Jp = (a2[..., 1:4] * d2[..., 2:5] - a2[..., 2:5] * d2[..., 1:4]) * st.mask
+        # Jp is computed dof-major, (b, nA, S, 3), so that a site's rows side by side (the
+        # stacked error's Jacobian) are a view in the layout ``np.concatenate`` gives them.
+        a2 = np.concatenate((axes, axes), axis=-1)[:, :, None]
+        d2 = site_p2[:, None] - o2[:, :, None]
+        Jp = (a2[..., 1:4] * d2[..., 2:5] - a2[..., 2:5] * d2[..., 1:4]) * st.mask_dof_major
         Jw = axes[:, None] * st.mask
-        return site_p, site_R, Jp.swapaxes(-1, -2), Jw.swapaxes(-1, -2)
+        return site_p, site_R, Jp.transpose(0, 2, 3, 1), Jw.swapaxes(-1, -2)
 
     def _stacked(self) -> _Stacked:
         """The stacked evaluation's plan (built on first use)."""
@@ -443,6 +445,7 @@ class _Stacked:
             [final[li] if li >= 0 else frozen_at[j] for li, j in site_live], dtype=np.intp
         )
         self.mask = model.mask[None, :, :, None]
+        self.mask_dof_major = model.mask.T[None, :, :, None]
 
 
 def _coordinate_plan(axes: FloatArray) -> tuple[list[int], FloatArray] | None:

@@ -484,22 +484,25 @@ def _dls_step_one(
 ) -> FloatArray:
     """``_dls_step`` of one row (b = 1): the same numpy operations on the same arrays where
     they sum (einsum, BLAS, LAPACK), Python floats where a batch needed an array of one (the
-    fade, the step cap), so the same step to the bit."""
+    fade, the step cap), and no multiplication by a scale of exactly 1 (x * 1.0 is x), so
+    the same step to the bit."""
     m = e.shape[1]
     blocks = e.reshape(1, m // 3, 3)
     nrm = np.sqrt(einsum("bki,bki->bk", blocks, blocks))
-    scale = np.minimum(1.0, max_error / np.maximum(nrm, 1e-300))
-    e = (blocks * scale[..., None]).reshape(1, m)
+    if (nrm > max_error).any():
+        scale = np.minimum(1.0, max_error / np.maximum(nrm, 1e-300))
+        e = (blocks * scale[..., None]).reshape(1, m)
     Jt = J.swapaxes(-1, -2)
     A = J @ Jt + lam2I
-    fade = min(1.0, float(np.sqrt(einsum("bk,bk->b", nrm, nrm))[0]) / NULL_FADE)
+    fade = min(1.0, math.sqrt(float(einsum("bk,bk->b", nrm, nrm)[0])) / NULL_FADE)
     z = (null_gain * fade) * (comfort - q)
     rhs = e - einsum("bmn,bn->bm", J, z)
     y = solve_spd(A, rhs[..., None])[..., 0]
     dq = einsum("bnm,bm->bn", Jt, y) + z
     qn = q + dq
     over = (qn > hi) | (qn < lo)
-    if over.any():
+    hit = over.any()
+    if hit:
         # as _dls_step's rows that hit a limit, taken the same way (``J[hit]`` is a copy in
         # the layout numpy's indexing picks, and the einsum below sums in that layout's order)
         Jh = J[_ROW]
@@ -510,5 +513,8 @@ def _dls_step_one(
         y2 = solve_spd(Jf @ Jft + lam2I, e2[..., None])[..., 0]
         dq = np.where(over, dq_pin, einsum("bnm,bm->bn", Jft, y2))
     big = float(np.abs(dq).max())
-    dq = dq * min(1.0, max_step / max(big, 1e-300))
+    if big > max_step:  # (else the cap is 1.0: the step as it is)
+        dq = dq * (max_step / big)
+    elif not hit:
+        return _clip(qn, lo, hi) - q  # q + dq is qn
     return _clip(q + dq, lo, hi) - q

@@ -282,11 +282,11 @@ class ChainModel:
         chain (``cumsum``: the same additions, in the same order)."""
         st = self._stacked()
         b = qa.shape[0]
-        ql = _take(self._qlive, rows, b).copy()
-        ql[:, self._act_pos] = qa[:, self._act_col]
-        s = np.sin(ql)[:, st.perm, None, None]
-        c = np.cos(ql)[:, st.perm, None, None]
-        Rd = st.A0 + s * st.A1 + c * st.A2  # (b, steps, 3, 3), in the order of the steps
+        ql = _take(st.q_steps, rows, b).copy()  # the live angles in the order of the steps
+        ql[:, st.act_steps] = qa[:, st.act_cols]
+        s = np.sin(ql)[..., None, None]
+        c = np.cos(ql)[..., None, None]
+        Rd = st.A0 + s * st.A1 + c * st.A2  # (b, steps, 3, 3)
         Z = np.empty((b, st.n_frames, 3, 3))  # frozen frames, then each dof step's products
         X = np.empty((b, st.n_terms, 3))  # frozen positions, turned vectors, a zero (padding)
         if self.B == 1:
@@ -393,7 +393,10 @@ class _Stacked:
                 src, z = list(range(z, z + m)), z + m
         self.steps = tuple(steps)
         self.n_frames = z
-        self.perm = np.array(perm, dtype=np.intp)
+        self.q_steps = model._qlive[:, perm]
+        act = dict(zip(model._act_pos.tolist(), model._act_col.tolist(), strict=True))
+        self.act_steps = np.array([t for t, slot in enumerate(perm) if slot in act], dtype=np.intp)
+        self.act_cols = np.array([act[slot] for slot in perm if slot in act], dtype=np.intp)
         self.A0, self.A1, self.A2 = model._A0[perm], model._A1[perm], model._A2[perm]
         if model.B == 1:
             self.frozen_R = np.array([model._base_R[j][0] for j in frozen]).reshape(-1, 3, 3)

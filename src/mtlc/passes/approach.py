@@ -444,6 +444,21 @@ def lowest_hand_point(
     return min(float(state.site(n, q, root)[1]) for n in names if n)
 
 
+def lowest_hand_points(
+    state: PoseState, segs: list[Segment], qs: FloatArray, root: tuple[FloatArray, FloatArray]
+) -> FloatArray:
+    """``lowest_hand_point`` of each of the poses ``qs`` (K, D), from one forward kinematics
+    of them all (the same numbers: a batch of up to ``CHAIN_BATCH`` poses is placed with the
+    same products as one)."""
+    names = [n for s in segs for n in (s.goal.effector, FINGERTIPS.get(s.goal.effector, "")) if n]
+    k = len(qs)
+    pose = forward(
+        state.skel, qs, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4)),
+        with_axes=False,
+    )  # fmt: skip
+    return np.asarray(site_positions(state.skel, pose, names))[..., 1].min(axis=1)
+
+
 def chain_names(skel: Any, effectors: list[str], reach: str) -> tuple[str, ...]:
     return tuple(skel.dof_names[d] for d in default_dofs(skel, effectors, reach))
 
@@ -505,8 +520,8 @@ def sweep_mid(
     """A pose half-way that lifts the hands over the floor, when the joint-space path from
     ``q0`` to ``q1`` sweeps a hand or fingertip within ``SWEEP_CLEARANCE`` of it; else None."""
     fs = np.linspace(0.0, 1.0, 9)[1:-1]
-    lows = [lowest_hand_point(state, segs, q0 + f * (q1 - q0), root) for f in fs]
-    sink = state.ir.ground + SWEEP_CLEARANCE - min(lows)
+    lows = lowest_hand_points(state, segs, q0 + fs[:, None] * (q1 - q0), root)
+    sink = state.ir.ground + SWEEP_CLEARANCE - float(lows.min())
     if sink <= 0.0:
         return None
     here = [state.site(s.goal.effector, q0, root) for s in segs]

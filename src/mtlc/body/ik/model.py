@@ -282,6 +282,8 @@ class ChainModel:
         chain (``cumsum``: the same additions, in the same order)."""
         st = self._stacked()
         b = qa.shape[0]
+        if b == 1 and st.one is not None:
+            return st.one.evaluate(qa, st)
         ql = _take(st.q_steps, rows, b).copy()  # the live angles in the order of the steps
         ql[:, st.act_steps] = qa[:, st.act_cols]
         s = np.sin(ql)[..., None, None]
@@ -449,6 +451,65 @@ class _Stacked:
         )
         self.mask = model.mask[None, :, :, None]
         self.mask_dof_major = model.mask.T[None, :, :, None]
+        steps_are_views = all(isinstance(src, slice) for src, _rot, _dst in self.steps)
+        self.one = _OneRow(self) if model.B == 1 and steps_are_views else None
+
+
+class _OneRow:
+    """``evaluate_matrices`` of one row (what every pass's solve asks, thousands of times)
+    in arrays kept from call to call: the frozen frames and positions written once, every
+    step's operands views made once, the products written in place (``out=``). The same
+    operations on the same numbers as the general evaluation, so the same results."""
+
+    def __init__(self, st: _Stacked) -> None:
+        n_steps = len(st.q_steps[0])
+        self.ql = st.q_steps.copy()  # the fixed angles stay; the active ones are written
+        self.sin, self.cos = np.empty((1, n_steps)), np.empty((1, n_steps))
+        self.tmp, self.Rd = np.empty((1, n_steps, 3, 3)), np.empty((1, n_steps, 3, 3))
+        self.Z = np.empty((1, st.n_frames, 3, 3))
+        self.Z[:, : st.n_frozen] = st.frozen_R
+        self.steps = [
+            (self.Z[:, src], self.Rd[:, rot], self.Z[:, dst]) for src, rot, dst in st.steps
+        ]
+        n_turns = len(st.turn_frames)
+        self.turned_frames = np.empty((1, n_turns, 3, 3))
+        self.turned = np.empty((1, n_turns, 3, 1))
+        self.X2 = np.empty((1, st.n_terms, 6))  # each term written twice over: [x y z x y z]
+        self.X2[:, : st.n_frozen, :3] = st.frozen_p
+        self.X2[:, : st.n_frozen, 3:] = st.frozen_p
+        self.X2[:, -1] = 0.0
+        self.terms = (self.X2[:, st.n_frozen : -1, :3], self.X2[:, st.n_frozen : -1, 3:])
+        self.along = np.empty((1, *st.paths.shape, 6))
+        self.sums = np.empty((1, *st.paths.shape, 6))
+        self.flat_sums = self.sums.reshape(1, -1, 6)
+
+    def evaluate(
+        self, qa: FloatArray, st: _Stacked
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        self.ql[:, st.act_steps] = qa[:, st.act_cols]
+        np.sin(self.ql, out=self.sin)
+        np.cos(self.ql, out=self.cos)
+        # A0 + s * A1 + c * A2, in that order
+        np.multiply(self.sin[..., None, None], st.A1, out=self.tmp)
+        np.add(st.A0, self.tmp, out=self.Rd)
+        np.multiply(self.cos[..., None, None], st.A2, out=self.tmp)
+        np.add(self.Rd, self.tmp, out=self.Rd)
+        for src, rot, dst in self.steps:
+            np.matmul(src, rot, out=dst)
+        np.take(self.Z, st.turn_frames, axis=1, out=self.turned_frames, mode="clip")
+        np.matmul(self.turned_frames, st.turn_vectors, out=self.turned)
+        self.terms[0][...] = self.turned[..., 0]
+        self.terms[1][...] = self.turned[..., 0]
+        np.take(self.X2, st.paths, axis=1, out=self.along, mode="clip")
+        np.cumsum(self.along, axis=2, out=self.sums)
+        site_p2 = self.flat_sums[:, st.site_sums]
+        o2 = self.flat_sums[:, st.axis_sums]
+        a2 = self.X2[:, st.axis_terms][:, :, None]
+        d2 = site_p2[:, None] - o2[:, :, None]
+        Jp = (a2[..., 1:4] * d2[..., 2:5] - a2[..., 2:5] * d2[..., 1:4]) * st.mask_dof_major
+        Jw = a2[:, :, 0, :3][:, None] * st.mask
+        site_R = self.Z[:, st.site_frames]
+        return site_p2[..., :3], site_R, Jp.transpose(0, 2, 3, 1), Jw.swapaxes(-1, -2)
 
 
 def _coordinate_plan(axes: FloatArray) -> tuple[list[int], FloatArray] | None:

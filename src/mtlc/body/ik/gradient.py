@@ -217,8 +217,10 @@ def _descend_single(
         step = -alpha * g
         big = float(np.abs(step).max())
         # the cap leaves room for the rounding to the grid, so a step stays within max_step
-        step *= min(1.0, (max_step - PATH_GRID) / max(big, 1e-300))
-        trial = _clip(on_grid(q + step), lo, hi)
+        if big > max_step - PATH_GRID:  # (else the factor is 1.0: the step as it is)
+            step *= (max_step - PATH_GRID) / big
+        # on_grid: np.round with no decimals is rint
+        trial = _clip(np.rint((q + step) / PATH_GRID) * PATH_GRID, lo, hi)
         rt = residual(model, ga, trial, targets=targets)
         iters += 1
         moved = trial - q

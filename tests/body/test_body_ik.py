@@ -233,3 +233,179 @@ def test_unknown_method_and_bad_goals_are_refused() -> None:
         Goal("r_hand")
     with pytest.raises(ValueError, match="direction"):
         solve_ta(SK, [Goal("r_hand", aim=[0, 1, 1])])
+
+
+def _joint_by_joint(model, qa, rows=None):  # type: ignore[no-untyped-def]
+    """The matrix kernel as it was before its products were stacked (the reference): one
+    joint, one dof, one numpy call at a time."""
+    from mtlc.body.ik.model import _take
+    from mtlc.body.kinematics import cross
+
+    b = qa.shape[0]
+    ql = _take(model._qlive, rows, b).copy()
+    ql[:, model._act_pos] = qa[:, model._act_col]
+    Rd = (
+        model._A0
+        + np.sin(ql)[..., None, None] * model._A1
+        + np.cos(ql)[..., None, None] * model._A2
+    )
+    Rs, ps = [], []
+    axes, origins = np.empty((b, model.n, 3)), np.empty((b, model.n, 3))
+    for li, pj, off, dofs in model._plan:
+        if li >= 0:
+            Rp, pp = Rs[li], ps[li]
+        else:
+            Rp, pp = _take(model._base_R[pj], rows, b), _take(model._base_p[pj], rows, b)
+        p = pp + Rp @ off
+        R = Rp
+        for slot, colk in dofs:
+            if colk >= 0:
+                axes[:, colk] = R @ model._axis[slot]
+                origins[:, colk] = p
+            R = R @ Rd[:, slot]
+        Rs.append(R)
+        ps.append(p)
+    site_p = np.empty((b, len(model.sites), 3))
+    site_R = np.empty((b, len(model.sites), 3, 3))
+    for i, (li, j, off) in enumerate(
+        zip(model._site_live, model._site_joint, model._site_off, strict=True)
+    ):
+        if li >= 0:
+            R, p = Rs[li], ps[li]
+        else:
+            R, p = _take(model._base_R[j], rows, b), _take(model._base_p[j], rows, b)
+        site_R[:, i] = R
+        site_p[:, i] = p + R @ off
+    d = site_p[:, :, None, :] - origins[:, None, :, :]
+    ax = np.broadcast_to(axes[:, None], d.shape)
+    Jp = cross(ax, d) * model.mask[None, :, :, None]
+    Jw = ax * model.mask[None, :, :, None]
+    return site_p, site_R, np.swapaxes(Jp, -1, -2), np.swapaxes(Jw, -1, -2)
+
+
+@pytest.mark.parametrize("base_rows", [1, 5])
+@pytest.mark.parametrize(
+    ("sites", "reach"),
+    [
+        (("r_hand", "l_hand", "r_foot", "l_foot"), "torso"),
+        (("r_hand", "r_fingertip"), "arm"),
+        (("r_hand", "l_hand", "r_fingertip", "l_fingertip"), "torso"),
+        (("l_hand", "r_hand"), "girdle"),
+        (("gaze",), "arm"),
+    ],
+)
+def test_stacked_matrix_kernel_is_the_joint_by_joint_one_to_the_bit(
+    sites: tuple[str, ...], reach: str, base_rows: int
+) -> None:
+    """``evaluate_matrices`` stacks the products of a depth's joints into one BLAS call: the
+    same kernel per 3x3 product, so the same bits (signs of zeros too) as one call each."""
+    rng = np.random.default_rng(7 + base_rows)
+    model = prepare(SK, list(sites), SK.random_q(rng, base_rows), reach=reach)
+    for b in (1, 3, 5):
+        if base_rows > 1 and b != base_rows:
+            continue
+        for rows in (None, np.arange(b)[::-1]) if base_rows > 1 else (None,):
+            for _ in range(20):
+                qa = SK.random_q(rng, b)[:, model.active]
+                qa[:, ::3] = 0.0  # exact zeros in the frames
+                got = model.evaluate_matrices(qa, rows)
+                want = _joint_by_joint(model, qa, rows)
+                for g, w in zip(got, want, strict=True):
+                    assert g.shape == w.shape
+                    assert np.array_equal(g, w)
+                    assert np.array_equal(np.signbit(g), np.signbit(w))
+
+
+@pytest.mark.parametrize("far", [0.0, 0.6])
+@pytest.mark.parametrize("kind", ["two", "orientation", "aim"])
+@pytest.mark.parametrize("reach", ["arm", "torso"])
+def test_single_row_loop_is_the_batch_loop_to_the_bit(far: float, kind: str, reach: str) -> None:
+    """``solve_ta`` of one row runs ``_solve_single`` (Python floats for the bookkeeping);
+    the batch loop ``_solve_rows`` on that one row takes the same steps, restarts and draws."""
+    from mtlc.body.ik import dls
+    from mtlc.body.ik.goals import normalise
+
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        q_true = SK.q_comfort.copy()
+        q_true[ARM.active] = SK.random_q(rng, 1)[0, ARM.active]
+        pts = site_positions(SK, forward(SK, q_true), ["r_hand", "r_fingertip", "gaze"])
+        goals = [Goal("r_hand", position=pts[0] + far)]
+        if kind == "two":
+            goals.append(Goal("r_fingertip", position=pts[1] + far))
+        elif kind == "orientation":
+            goals = [Goal("r_hand", position=pts[0] + far, orientation=np.array([1.0, 0, 0, 0]))]
+        else:
+            goals.append(Goal("gaze", aim=pts[0]))
+        model = prepare(SK, goals, SK.q_comfort, reach=reach)
+        ga = normalise(SK, goals)
+        qf, qa = dls._initial(SK, model, SK.q_comfort, 1)
+        options = dict(
+            tol=1e-3, orientation_tol=math.radians(1.0), max_iter=60, restarts=3, patience=8,
+            damping=0.02, max_error=0.25, max_step=0.5, null_gain=0.05,
+        )  # fmt: skip
+        one = dls._solve_single(SK, ga, model, qf, qa, rng=np.random.default_rng(0), **options)
+        rows = dls._solve_rows(
+            SK, ga, model, qf, qa, rng=np.random.default_rng(0), tail_chain=None, **options
+        )
+        for field in ("q", "position_error", "orientation_error", "iterations", "restarts"):
+            assert np.array_equal(getattr(one, field), getattr(rows, field)), field
+
+
+@pytest.mark.parametrize("far", [0.0, 0.4])
+@pytest.mark.parametrize("kind", ["one", "two", "orientation"])
+def test_single_row_descent_is_the_batch_descent_to_the_bit(far: float, kind: str) -> None:
+    """``solve_to`` of one row runs ``_descend_single``; ``_descend_rows`` on that one row
+    takes the same path, sample for sample."""
+    from mtlc.body.ik import gradient
+    from mtlc.body.ik.goals import normalise
+
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        q_true = SK.q_comfort.copy()
+        q_true[ARM.active] = SK.random_q(rng, 1)[0, ARM.active]
+        pts = site_positions(SK, forward(SK, q_true), ["r_hand", "r_fingertip"])
+        goals = [Goal("r_hand", position=pts[0] + far)]
+        if kind == "two":
+            goals.append(Goal("r_fingertip", position=pts[1] + far))
+        elif kind == "orientation":
+            goals = [Goal("r_hand", position=pts[0] + far, orientation=np.array([1.0, 0, 0, 0]))]
+        model = prepare(SK, goals, SK.q_comfort, reach="torso")
+        ga = normalise(SK, goals)
+        start = SK.q_comfort[model.active][None]
+        options = dict(
+            tol=1e-3, orientation_tol=math.radians(1.0), max_iter=150, max_step=0.05,
+            record_path=True,
+        )  # fmt: skip
+        one = gradient._descend_single(model, ga, start.copy(), **options)
+        rows = gradient._descend_rows(model, ga, start.copy(), **options)
+        assert np.array_equal(one[0], rows[0])
+        assert np.array_equal(one[3], rows[3])
+        assert len(one[4]) == len(rows[4]) > 1
+        assert all(np.array_equal(a, b) for a, b in zip(one[4], rows[4], strict=True))
+
+
+@pytest.mark.parametrize(
+    "sites", [("r_hand",), ("r_hand", "r_fingertip"), ("r_hand", "l_hand", "l_fingertip")]
+)
+def test_position_residual_is_the_general_one_in_numbers_and_layout(sites: tuple[str, ...]) -> None:
+    """``residual(..., targets=...)`` (positions alone, side by side) gives the general
+    residual's numbers and its Jacobian's memory layout (the solvers' BLAS calls see it)."""
+    from mtlc.body.ik.goals import normalise
+    from mtlc.body.ik.result import position_targets, residual
+
+    rng = np.random.default_rng(3)
+    goals = [Goal(s, position=rng.uniform(-0.5, 1.5, 3)) for s in sites]
+    model = prepare(SK, goals, SK.q_comfort, reach="torso")
+    ga = normalise(SK, goals)
+    targets = position_targets(ga)
+    assert targets is not None
+    for b in (1, 4):
+        qa = SK.random_q(rng, b)[:, model.active]
+        want = residual(model, ga, qa)
+        got = residual(model, ga, qa, targets=targets)
+        for name in ("e", "J", "pos_err", "ori_err", "cost"):
+            g, w = getattr(got, name), getattr(want, name)
+            assert g.shape == w.shape and g.strides == w.strides, name
+            assert np.array_equal(g, w), name
+    assert position_targets(normalise(SK, [Goal("gaze", aim=np.zeros(3))])) is None

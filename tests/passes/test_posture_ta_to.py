@@ -302,3 +302,21 @@ def test_a_repeated_solve_is_answered_from_the_compile_cache() -> None:
     solved(cache, counting, skel, goals, q1, model, tol=2e-4)
     solved(cache, counting, skel, goals, q0, model, tol=1e-3)  # other options: solved anew
     assert len(calls) == 3
+
+
+def test_lowest_hand_points_of_many_poses_are_each_poses_to_the_bit(
+    compiled: tuple[MotionIR, list],
+) -> None:
+    """``approach.lowest_hand_points`` poses a sweep's samples in one forward kinematics: the
+    same heights, bit for bit, as ``lowest_hand_point`` of each pose alone."""
+    from mtlc.passes.approach import groups, lowest_hand_point, lowest_hand_points
+
+    ir, _ = compiled
+    state = PoseState(ir)
+    rng = np.random.default_rng(2)
+    for segs in groups(ir, "TA")[:4]:
+        root = state.root_at(segs[0].end)
+        for k in (1, 7, 12):
+            qs = state.skel.random_q(rng, k)
+            want = [lowest_hand_point(state, segs, q, root) for q in qs]
+            assert lowest_hand_points(state, segs, qs, root).tolist() == want

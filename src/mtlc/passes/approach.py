@@ -412,9 +412,9 @@ def clear_path(
         qs = np.array([a + f * (b - a) for a, b in itertools.pairwise(keys) for f in steps])
         pose = forward(
             state.skel, qs, np.broadcast_to(root[0], (len(qs), 3)),
-            np.broadcast_to(root[1], (len(qs), 4)),
+            np.broadcast_to(root[1], (len(qs), 4)), with_axes=False,
         )  # fmt: skip
-        depth, pairs = self_intersection(state.skel, pose)
+        depth, pairs = self_intersection(state.skel, pose)  # (frames only, no dof axes)
         mine = [c for c, (limb, _) in enumerate(pairs) if limb.split()[0][0] in sides]
         deep = depth[:, mine].max(axis=1)
         i = int(np.argmax(deep))
@@ -442,6 +442,21 @@ def lowest_hand_point(
     """Height of the lowest hand or fingertip of the segments' effectors in pose ``q``."""
     names = [n for s in segs for n in (s.goal.effector, FINGERTIPS.get(s.goal.effector, ""))]
     return min(float(state.site(n, q, root)[1]) for n in names if n)
+
+
+def lowest_hand_points(
+    state: PoseState, segs: list[Segment], qs: FloatArray, root: tuple[FloatArray, FloatArray]
+) -> FloatArray:
+    """``lowest_hand_point`` of each of the poses ``qs`` (K, D), from one forward kinematics
+    of them all (the same numbers: a batch of up to ``CHAIN_BATCH`` poses is placed with the
+    same products as one)."""
+    names = [n for s in segs for n in (s.goal.effector, FINGERTIPS.get(s.goal.effector, "")) if n]
+    k = len(qs)
+    pose = forward(
+        state.skel, qs, np.broadcast_to(root[0], (k, 3)), np.broadcast_to(root[1], (k, 4)),
+        with_axes=False,
+    )  # fmt: skip
+    return np.asarray(site_positions(state.skel, pose, names))[..., 1].min(axis=1)
 
 
 def chain_names(skel: Any, effectors: list[str], reach: str) -> tuple[str, ...]:
@@ -500,17 +515,20 @@ def sweep_mid(
     q0: FloatArray,
     q1: FloatArray,
     root: tuple[FloatArray, FloatArray],
-    pinned: list[Goal],
+    pinned: list[Goal] | None,
 ) -> FloatArray | None:
     """A pose half-way that lifts the hands over the floor, when the joint-space path from
-    ``q0`` to ``q1`` sweeps a hand or fingertip within ``SWEEP_CLEARANCE`` of it; else None."""
+    ``q0`` to ``q1`` sweeps a hand or fingertip within ``SWEEP_CLEARANCE`` of it; else None.
+    ``pinned``: ``pinned_hands`` at ``q0``, or None to find them only if a lift is solved."""
     fs = np.linspace(0.0, 1.0, 9)[1:-1]
-    lows = [lowest_hand_point(state, segs, q0 + f * (q1 - q0), root) for f in fs]
-    sink = state.ir.ground + SWEEP_CLEARANCE - min(lows)
+    lows = lowest_hand_points(state, segs, q0 + fs[:, None] * (q1 - q0), root)
+    sink = state.ir.ground + SWEEP_CLEARANCE - float(lows.min())
     if sink <= 0.0:
         return None
     here = [state.site(s.goal.effector, q0, root) for s in segs]
     mids = [0.5 * (a + b) + np.array([0.0, sink, 0.0]) for a, b in zip(here, targets, strict=True)]
+    if pinned is None:
+        pinned = pinned_hands(state, segs, q0, root)
     mid, _, _, _ = solve_group(ctx, state, segs, mids, 0.5 * (q0 + q1), root, pinned)
     return mid
 
@@ -536,9 +554,7 @@ def relift(ir: MotionIR, ctx: PassContext) -> None:
                 np.asarray(s.result.get("approach_point", s.goal.position), dtype=float)
                 for s in segs
             ]
-            mid = sweep_mid(
-                ctx, state, segs, targets, q0, q1, root, pinned_hands(state, segs, q0, root)
-            )
+            mid = sweep_mid(ctx, state, segs, targets, q0, q1, root, None)
             if mid is not None:
                 _rekey(skel, segs, [q0, mid, q1], [0.0, 0.5, 1.0])
         if any(abs(s.start - t0) + abs(s.end - t1) > 1e-9 for s in segs):

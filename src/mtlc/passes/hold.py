@@ -96,6 +96,7 @@ def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
         elif seg.kind == "posture" and seg.goal.params.get("posture") != "twist":
             postures.append(seg.start)
     out = []
+    duration = ir.duration  # (a scan of every segment: once, not once per contact)
     for track, hand in ARM_HAND.items():
         arm = sorted(by_track.get(track, []), key=lambda s: s.start)
         grips = sorted(
@@ -111,7 +112,7 @@ def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
             # changes posture: holding an overhead latch through a squat would stretch the arm
             # to its limit and then drop it, and pin the trunk of the reaches after it
             ends += [t + LET_GO for t in postures if t >= after - EPS and not _closed_at(grips, t)]
-            end = min(ends, default=ir.duration)
+            end = min(ends, default=duration)
             inside = [g for g in grips if after - EPS <= g.start < end - EPS]
             if inside and _is_open(inside[-1]):  # let go and not taken again: the hold ends
                 end = min(end, inside[-1].end)

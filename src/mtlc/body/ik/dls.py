@@ -26,12 +26,13 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..kinematics import einsum
 from ..skeleton import Skeleton
 from .batch import SerialBatch, solve_serial_batch
 from .fast import NULL_FADE, SerialChain, solve_one
 from .goals import Goal, GoalArrays, default_dofs, normalise
 from .model import ChainModel
-from .result import IKResult, residual, returned_errors
+from .result import IKResult, position_targets, residual, returned_errors
 
 FloatArray = NDArray[np.float64]
 
@@ -124,14 +125,13 @@ def solve_ta(
     model = model.for_start(qf)  # a model prepared for another trunk describes another body
     lo, hi = model.lower, model.upper
     comfort = skel.q_comfort[model.active]
-    lam2 = damping * damping
     rng = np.random.default_rng(seed)
     tail_chain = _fast_chain(model) if _position_only(ga) else None
     chain = tail_chain if B == 1 else None
     if chain is not None:
         target = ga.position[0]
         assert target is not None
-        qb, err, it, nr = solve_one(
+        qb, _err, it, nr = solve_one(
             chain, target[0], qa[0], lo, hi, comfort, tol=tol, max_iter=max_iter,
             restarts=restarts, patience=patience, damping=damping, max_error=max_error,
             max_step=max_step, null_gain=null_gain, rng=rng,
@@ -172,6 +172,39 @@ def solve_ta(
             method="dls",
         )
 
+    solve_rows = _solve_single if B == 1 else _solve_rows
+    return solve_rows(
+        skel, ga, model, qf, qa, tol=tol, orientation_tol=orientation_tol, max_iter=max_iter,
+        restarts=restarts, patience=patience, damping=damping, max_error=max_error,
+        max_step=max_step, null_gain=null_gain, rng=rng, tail_chain=tail_chain,
+    )  # fmt: skip
+
+
+def _solve_rows(
+    skel: Skeleton,
+    ga: GoalArrays,
+    model: ChainModel,
+    qf: FloatArray,
+    qa: FloatArray,
+    *,
+    tol: float,
+    orientation_tol: float,
+    max_iter: int,
+    restarts: int,
+    patience: int,
+    damping: float,
+    max_error: float,
+    max_step: float,
+    null_gain: float,
+    rng: np.random.Generator,
+    tail_chain: SerialChain | None,
+) -> IKResult:
+    """``solve_ta``'s general loop over a batch of rows: each row steps, restarts or leaves
+    the working set on its own."""
+    B = ga.batch
+    lo, hi = model.lower, model.upper
+    comfort = skel.q_comfort[model.active]
+    lam2 = damping * damping
     best_q = qa.copy()
     best_score = np.full(B, np.inf)
     best_pos = np.full(B, np.inf)
@@ -277,6 +310,85 @@ def solve_ta(
     )
 
 
+def _solve_single(
+    skel: Skeleton,
+    ga: GoalArrays,
+    model: ChainModel,
+    qf: FloatArray,
+    qa: FloatArray,
+    *,
+    tol: float,
+    orientation_tol: float,
+    max_iter: int,
+    restarts: int,
+    patience: int,
+    damping: float,
+    max_error: float,
+    max_step: float,
+    null_gain: float,
+    rng: np.random.Generator,
+    tail_chain: SerialChain | None = None,
+) -> IKResult:
+    """``_solve_rows`` for one row, its bookkeeping on Python floats: the same
+    steps, restarts and random draws, so the same pose to the bit (tested); the batch's
+    per-row arrays cost more than the solve's arithmetic (the passes solve one pose at a
+    time, 60 to 540 iterations each)."""
+    lo, hi = model.lower, model.upper
+    comfort = skel.q_comfort[model.active]
+    lam2I = damping * damping * np.eye(3 * _blocks(ga))
+    targets = position_targets(ga)
+    best_q, best_score = qa, math.inf
+    iters = n_restart = attempt_it = since = 0
+    attempt_best = math.inf
+    cur = qa
+    while True:
+        r = residual(model, ga, cur, with_cost=False, targets=targets)
+        pos, ori = float(r.pos_err[0]), float(r.ori_err[0])
+        score = pos / tol + ori / orientation_tol
+        if score < best_score:
+            best_score, best_q = score, cur
+        done = pos <= tol and ori <= orientation_tol
+        if score < 0.9 * attempt_best:
+            attempt_best, since = score, 0
+        else:
+            since += 1
+        if done:
+            break
+        if since >= patience or attempt_it >= max_iter:
+            if n_restart >= restarts:
+                break
+            n_restart += 1
+            attempt_it, attempt_best, since = 0, math.inf, 0
+            cur = lo + (hi - lo) * rng.random((1, model.n))
+            continue
+        cur = cur + _dls_step_one(
+            r.e, r.J, cur, lo, hi, comfort, lam2I, max_error, max_step, null_gain
+        )
+        iters += 1
+        attempt_it += 1
+    q_out = qf.copy()
+    q_out[:, model.active] = best_q
+    best_pos, best_ori = returned_errors(model, ga, q_out)
+    success = (best_pos <= tol) & (best_ori <= orientation_tol) & skel.within_limits(q_out)
+    return IKResult(
+        q=q_out,
+        position_error=best_pos,
+        orientation_error=best_ori,
+        success=success,
+        iterations=np.array([iters]),
+        restarts=np.array([n_restart]),
+        method="dls",
+    )
+
+
+def _blocks(ga: GoalArrays) -> int:
+    """The 3-vectors of the stacked error: one per position, orientation and aim goal."""
+    return sum(
+        (p is not None) + (o is not None) + (a is not None)
+        for p, o, a in zip(ga.position, ga.orientation, ga.aim, strict=True)
+    )
+
+
 def _position_only(ga: GoalArrays) -> bool:
     return len(ga.sites) == 1 and ga.position[0] is not None and ga.orientation[0] is None
 
@@ -325,17 +437,17 @@ def _dls_step(
     # Error clamping (per 3-vector block).
     b, m = e.shape
     blocks = e.reshape(b, m // 3, 3)
-    nrm = np.sqrt(np.einsum("bki,bki->bk", blocks, blocks))
+    nrm = np.sqrt(einsum("bki,bki->bk", blocks, blocks))
     scale = np.minimum(1.0, max_error / np.maximum(nrm, 1e-300))
     e = (blocks * scale[..., None]).reshape(b, m)
-    Jt = np.swapaxes(J, -1, -2)
+    Jt = J.swapaxes(-1, -2)
     A = J @ Jt + lam2I
-    fade = np.minimum(1.0, np.sqrt(np.einsum("bk,bk->b", nrm, nrm)) / NULL_FADE)
+    fade = np.minimum(1.0, np.sqrt(einsum("bk,bk->b", nrm, nrm)) / NULL_FADE)
     z = (null_gain * fade)[:, None] * (comfort - q)
     # J⁺e + (I − J⁺J)z = J⁺(e − Jz) + z: one right-hand side for task and null space.
-    rhs = e - np.einsum("bmn,bn->bm", J, z)
+    rhs = e - einsum("bmn,bn->bm", J, z)
     y = solve_spd(A, rhs[..., None])[..., 0]
-    dq = np.einsum("bnm,bm->bn", Jt, y) + z
+    dq = einsum("bnm,bm->bn", Jt, y) + z
     qn = q + dq
     over = (qn > hi) | (qn < lo)
     hit = np.flatnonzero(over.any(axis=-1))
@@ -344,11 +456,65 @@ def _dls_step(
         # free dofs only, on the rows that hit a limit.
         ov, qh, Jh = over[hit], q[hit], J[hit]
         dq_pin = np.where(ov, np.clip(qn[hit], lo, hi) - qh, 0.0)
-        e2 = e[hit] - np.einsum("bmn,bn->bm", Jh, dq_pin)
+        e2 = e[hit] - einsum("bmn,bn->bm", Jh, dq_pin)
         Jf = Jh * (~ov)[:, None, :]
-        Jft = np.swapaxes(Jf, -1, -2)
+        Jft = Jf.swapaxes(-1, -2)
         y2 = solve_spd(Jf @ Jft + lam2I, e2[..., None])[..., 0]
-        dq[hit] = np.where(ov, dq_pin, np.einsum("bnm,bm->bn", Jft, y2))
+        dq[hit] = np.where(ov, dq_pin, einsum("bnm,bm->bn", Jft, y2))
     big = np.max(np.abs(dq), axis=-1)
     dq = dq * np.minimum(1.0, max_step / np.maximum(big, 1e-300))[:, None]
     return np.clip(q + dq, lo, hi) - q
+
+
+_clip = getattr(getattr(np, "_core", None), "umath", np).clip  # np.clip's ufunc, unwrapped
+_ROW = np.zeros(1, dtype=np.intp)  # the one row, as an index (``hit`` of one row)
+
+
+def _dls_step_one(
+    e: FloatArray,
+    J: FloatArray,
+    q: FloatArray,
+    lo: FloatArray,
+    hi: FloatArray,
+    comfort: FloatArray,
+    lam2I: FloatArray,
+    max_error: float,
+    max_step: float,
+    null_gain: float,
+) -> FloatArray:
+    """``_dls_step`` of one row (b = 1): the same numpy operations on the same arrays where
+    they sum (einsum, BLAS, LAPACK), Python floats where a batch needed an array of one (the
+    fade, the step cap), and no multiplication by a scale of exactly 1 (x * 1.0 is x), so
+    the same step to the bit."""
+    m = e.shape[1]
+    blocks = e.reshape(1, m // 3, 3)
+    nrm = np.sqrt(einsum("bki,bki->bk", blocks, blocks))
+    if (nrm > max_error).any():
+        scale = np.minimum(1.0, max_error / np.maximum(nrm, 1e-300))
+        e = (blocks * scale[..., None]).reshape(1, m)
+    Jt = J.swapaxes(-1, -2)
+    A = J @ Jt + lam2I
+    fade = min(1.0, math.sqrt(float(einsum("bk,bk->b", nrm, nrm)[0])) / NULL_FADE)
+    z = (null_gain * fade) * (comfort - q)
+    rhs = e - einsum("bmn,bn->bm", J, z)
+    y = solve_spd(A, rhs[..., None])[..., 0]
+    dq = einsum("bnm,bm->bn", Jt, y) + z
+    qn = q + dq
+    over = (qn > hi) | (qn < lo)
+    hit = over.any()
+    if hit:
+        # as _dls_step's rows that hit a limit, taken the same way (``J[hit]`` is a copy in
+        # the layout numpy's indexing picks, and the einsum below sums in that layout's order)
+        Jh = J[_ROW]
+        dq_pin = np.where(over, _clip(qn[_ROW], lo, hi) - q[_ROW], 0.0)
+        e2 = e[_ROW] - einsum("bmn,bn->bm", Jh, dq_pin)
+        Jf = Jh * (~over)[:, None, :]
+        Jft = Jf.swapaxes(-1, -2)
+        y2 = solve_spd(Jf @ Jft + lam2I, e2[..., None])[..., 0]
+        dq = np.where(over, dq_pin, einsum("bnm,bm->bn", Jft, y2))
+    big = float(np.abs(dq).max())
+    if big > max_step:  # (else the cap is 1.0: the step as it is)
+        dq = dq * (max_step / big)
+    elif not hit:
+        return _clip(qn, lo, hi) - q  # q + dq is qn
+    return _clip(q + dq, lo, hi) - q

@@ -28,11 +28,12 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..kinematics import einsum
 from ..skeleton import Skeleton
-from .dls import _initial, prepare
-from .goals import Goal, normalise
+from .dls import _clip, _initial, prepare
+from .goals import Goal, GoalArrays, normalise
 from .model import ChainModel
-from .result import IKResult, residual, returned_errors
+from .result import IKResult, position_targets, residual, returned_errors
 
 FloatArray = NDArray[np.float64]
 
@@ -83,6 +84,46 @@ def solve_to(
         )
     qf, q_all = _initial(skel, model, q0, B)
     model = model.for_start(qf)  # a model prepared for another trunk describes another body
+    descend = _descend_single if B == 1 else _descend_rows
+    q, pos, ori, iters, path = descend(
+        model, ga, q_all, tol=tol, orientation_tol=orientation_tol, max_iter=max_iter,
+        max_step=max_step, record_path=record_path,
+    )  # fmt: skip
+    q_out = qf.copy()
+    q_out[:, model.active] = q
+    pos, ori = returned_errors(model, ga, q_out)
+    success = (pos <= tol) & (ori <= orientation_tol) & skel.within_limits(q_out)
+    full_path = None
+    if record_path:
+        pa = np.stack(path)  # (T, B, nA)
+        full_path = np.broadcast_to(qf, (pa.shape[0], B, skel.n_dofs)).copy()
+        full_path[:, :, model.active] = pa
+    return IKResult(
+        q=q_out,
+        position_error=pos,
+        orientation_error=ori,
+        success=success,
+        iterations=iters,
+        restarts=np.zeros(B, dtype=np.intp),
+        method="gradient",
+        path=full_path,
+    )
+
+
+def _descend_rows(
+    model: ChainModel,
+    ga: GoalArrays,
+    q_all: FloatArray,
+    *,
+    tol: float,
+    orientation_tol: float,
+    max_iter: int,
+    max_step: float,
+    record_path: bool,
+) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp], list[FloatArray]]:
+    """``solve_to``'s descent of a batch of rows from ``q_all`` (B, nA): the end angles, their
+    errors, iterations and the accepted configurations (B, nA) one after the other."""
+    B = q_all.shape[0]
     lo, hi = model.lower, model.upper
     r = residual(model, ga, q_all)
     pos, ori = r.pos_err.copy(), r.ori_err.copy()
@@ -94,9 +135,9 @@ def solve_to(
     q = q_all[rows]
     f = r.cost[rows]
     J, e = r.J[rows], r.e[rows]
-    g = -np.einsum("bmn,bm->bn", J, e)
-    Jg = np.einsum("bmn,bn->bm", J, g)
-    alpha = np.einsum("bn,bn->b", g, g) / np.maximum(np.einsum("bm,bm->b", Jg, Jg), 1e-300)
+    g = -einsum("bmn,bm->bn", J, e)
+    Jg = einsum("bmn,bn->bm", J, g)
+    alpha = einsum("bn,bn->b", g, g) / np.maximum(einsum("bm,bm->b", Jg, Jg), 1e-300)
     for _ in range(max_iter):
         if rows.size == 0:
             break
@@ -115,10 +156,10 @@ def solve_to(
         moved = trial - q
         any_ok = bool(np.any(ok))
         if any_ok:
-            gn = -np.einsum("bmn,bm->bn", rt.J, rt.e)
+            gn = -einsum("bmn,bm->bn", rt.J, rt.e)
             s, y = moved, gn - g
-            sy = np.einsum("bn,bn->b", s, y)
-            bb = np.einsum("bn,bn->b", s, s) / np.where(sy > 1e-300, sy, np.inf)
+            sy = einsum("bn,bn->b", s, y)
+            bb = einsum("bn,bn->b", s, s) / np.where(sy > 1e-300, sy, np.inf)
             bb = np.where(bb > 0, bb, 2.0 * alpha)
             okc = ok[:, None]
             q = np.where(okc, trial, q)
@@ -139,23 +180,69 @@ def solve_to(
             rows, q, g, f, alpha = rows[keep], q[keep], g[keep], f[keep], alpha[keep]
             sel = rows
     q_all[rows] = q
-    q = q_all
-    q_out = qf.copy()
-    q_out[:, model.active] = q
-    pos, ori = returned_errors(model, ga, q_out)
-    success = (pos <= tol) & (ori <= orientation_tol) & skel.within_limits(q_out)
-    full_path = None
-    if record_path:
-        pa = np.stack(path)  # (T, B, nA)
-        full_path = np.broadcast_to(qf, (pa.shape[0], B, skel.n_dofs)).copy()
-        full_path[:, :, model.active] = pa
-    return IKResult(
-        q=q_out,
-        position_error=pos,
-        orientation_error=ori,
-        success=success,
-        iterations=iters,
-        restarts=np.zeros(B, dtype=np.intp),
-        method="gradient",
-        path=full_path,
-    )
+    return q_all, pos, ori, iters, path
+
+
+_ROW = np.zeros(1, dtype=np.intp)  # the one row, as an index (``rows`` of one row)
+
+
+def _descend_single(
+    model: ChainModel,
+    ga: GoalArrays,
+    q_all: FloatArray,
+    *,
+    tol: float,
+    orientation_tol: float,
+    max_iter: int,
+    max_step: float,
+    record_path: bool,
+) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.intp], list[FloatArray]]:
+    """``_descend_rows`` of one row, its step sizes and tests on Python floats: the same
+    einsums on the same arrays, so the same path to the bit (tested)."""
+    lo, hi = model.lower, model.upper
+    targets = position_targets(ga)
+    r = residual(model, ga, q_all, targets=targets)
+    pos, ori = r.pos_err.copy(), r.ori_err.copy()
+    path = [q_all.copy()] if record_path else []
+    if pos[0] <= tol and ori[0] <= orientation_tol:
+        return q_all, pos, ori, np.zeros(1, dtype=np.intp), path
+    q = q_all[_ROW]
+    f = float(r.cost[0])
+    J, e = r.J[_ROW], r.e[_ROW]  # (indexed as the batch's rows are: the einsums sum alike)
+    g = -einsum("bmn,bm->bn", J, e)
+    Jg = einsum("bmn,bn->bm", J, g)
+    alpha = float(einsum("bn,bn->b", g, g)[0]) / max(float(einsum("bm,bm->b", Jg, Jg)[0]), 1e-300)
+    iters = 0
+    for _ in range(max_iter):
+        step = -alpha * g
+        big = float(np.abs(step).max())
+        # the cap leaves room for the rounding to the grid, so a step stays within max_step
+        if big > max_step - PATH_GRID:  # (else the factor is 1.0: the step as it is)
+            step *= (max_step - PATH_GRID) / big
+        # on_grid: np.round with no decimals is rint
+        trial = _clip(np.rint((q + step) / PATH_GRID) * PATH_GRID, lo, hi)
+        rt = residual(model, ga, trial, targets=targets)
+        iters += 1
+        moved = trial - q
+        # a step that rounds to nothing is a rejected one (its cost differs from f by noise)
+        if float(rt.cost[0]) < f and (trial != q).any():
+            gn = -einsum("bmn,bm->bn", rt.J, rt.e)
+            y = gn - g
+            sy = float(einsum("bn,bn->b", moved, y)[0])
+            bb = float(einsum("bn,bn->b", moved, moved)[0]) / (sy if sy > 1e-300 else math.inf)
+            alpha = bb if bb > 0 else 2.0 * alpha
+            q, g, f = trial, gn, float(rt.cost[0])
+            pos, ori = rt.pos_err, rt.ori_err
+            if record_path:
+                q_all[0] = q
+                path.append(q_all.copy())
+            if pos[0] <= tol and ori[0] <= orientation_tol:
+                break
+        else:
+            # rejected: halve the step; a step that vanished has converged as far as the
+            # limits allow
+            alpha = 0.5 * alpha
+            if float(np.abs(moved).max()) < 1e-12:
+                break
+    q_all[0] = q
+    return q_all, pos, ori, np.array([iters]), path

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..kinematics import cross, rotation_error
+from ..kinematics import cross, einsum, rotation_error
 from .goals import GoalArrays
 from .model import ChainModel, _take
 
@@ -52,6 +52,16 @@ def returned_errors(
     return r.pos_err, r.ori_err
 
 
+def position_targets(ga: GoalArrays) -> FloatArray | None:
+    """The goals' positions side by side (B, S, 3) when every goal is a position alone
+    (``residual``'s ``targets``), else None."""
+    if any(p is None for p in ga.position) or any(
+        x is not None for x in (*ga.orientation, *ga.aim)
+    ):
+        return None
+    return np.stack(ga.position, axis=1)  # type: ignore[arg-type]
+
+
 @dataclass
 class Residual:
     """Stacked task error ``e`` (b, m), its Jacobian ``J`` (b, m, nA), and error measures."""
@@ -64,28 +74,49 @@ class Residual:
 
 
 def residual(
-    model: ChainModel, ga: GoalArrays, qa: FloatArray, rows: NDArray[np.intp] | None = None
+    model: ChainModel,
+    ga: GoalArrays,
+    qa: FloatArray,
+    rows: NDArray[np.intp] | None = None,
+    *,
+    with_cost: bool = True,
+    targets: FloatArray | None = None,
 ) -> Residual:
-    """Evaluate every goal at active angles ``qa`` (b, nA) for batch ``rows``."""
+    """Evaluate every goal at active angles ``qa`` (b, nA) for batch ``rows``
+    (``with_cost=False``: no ``cost``, which only the gradient methods read). ``targets``:
+    ``position_targets(ga)`` of goals that are positions alone, for ``rows`` (the same
+    numbers in a third of the numpy calls: one subtraction and one sum for every site)."""
     b = qa.shape[0]
     site_p, site_R, Jp, Jw = model.evaluate(qa, rows)
+    if targets is not None:
+        e3 = targets - site_p  # (b, S, 3)
+        n_rows = 3 * e3.shape[1]
+        e = e3.reshape(b, n_rows)
+        # the sites' rows side by side: Jp is a dof-major array, so this is a view in the
+        # layout np.concatenate of the sites' blocks gives (what the solvers' BLAS calls see)
+        J = Jp.transpose(0, 3, 1, 2).reshape(b, Jp.shape[-1], n_rows).swapaxes(1, 2)
+        pos_err = np.sqrt(einsum("bsi,bsi->bs", e3, e3)).max(axis=1)
+        cost = 0.5 * einsum("bi,bi->b", e, e) if with_cost else np.empty(0)
+        return Residual(e=e, J=J, pos_err=pos_err, ori_err=np.zeros(b), cost=cost)
     es: list[FloatArray] = []
     Js: list[FloatArray] = []
-    pos_err = np.zeros(b)
-    ori_err = np.zeros(b)
+    pos_err: FloatArray | None = None
+    ori_err: FloatArray | None = None
     skel = model.skel
     for i in range(len(ga.sites)):
         if ga.position[i] is not None:
             e = _take(ga.position[i], rows, b) - site_p[:, i]
             es.append(e)
             Js.append(Jp[:, i])
-            pos_err = np.maximum(pos_err, np.sqrt(np.einsum("bi,bi->b", e, e)))
+            d = np.sqrt(einsum("bi,bi->b", e, e))
+            pos_err = d if pos_err is None else np.maximum(pos_err, d)
         if ga.orientation[i] is not None:
             r = rotation_error(_take(ga.orientation[i], rows, b), site_R[:, i])
             w = ga.weight[i]
             es.append(w * r)
             Js.append(w * Jw[:, i])
-            ori_err = np.maximum(ori_err, np.linalg.norm(r, axis=-1))
+            a = np.linalg.norm(r, axis=-1)
+            ori_err = a if ori_err is None else np.maximum(ori_err, a)
         if ga.aim[i] is not None:
             direction = np.asarray(skel.site(ga.sites[i]).direction, dtype=float)
             d = site_R[:, i] @ direction
@@ -93,14 +124,17 @@ def residual(
             u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
             cr = cross(d, u)
             sn = np.linalg.norm(cr, axis=-1)
-            ang = np.arctan2(sn, np.einsum("bi,bi->b", d, u))
+            ang = np.arctan2(sn, einsum("bi,bi->b", d, u))
             axis = np.where(sn[:, None] > 1e-12, cr / np.maximum(sn, 1e-300)[:, None], 0.0)
             r = axis * ang[:, None]
             w = ga.weight[i]
             es.append(w * r)
             Js.append(w * Jw[:, i])
-            ori_err = np.maximum(ori_err, ang)
+            ori_err = ang if ori_err is None else np.maximum(ori_err, ang)
+    # (the largest goal's error: each is a norm or an angle in [0, pi], never below 0)
+    pos_err = np.zeros(b) if pos_err is None else pos_err
+    ori_err = np.zeros(b) if ori_err is None else ori_err
     e = es[0] if len(es) == 1 else np.concatenate(es, axis=1)
     J = Js[0] if len(Js) == 1 else np.concatenate(Js, axis=1)
-    cost = 0.5 * np.einsum("bi,bi->b", e, e)
+    cost = 0.5 * einsum("bi,bi->b", e, e) if with_cost else np.empty(0)
     return Residual(e=e, J=J, pos_err=pos_err, ori_err=ori_err, cost=cost)

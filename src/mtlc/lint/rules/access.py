@@ -26,13 +26,12 @@ from mtlc.body.capsules import (
     measure_m,
     tool_capsule,
 )
-from mtlc.diagnostics import Span
 from mtlc.geometry.clearance import goal_groups
 from mtlc.geometry.openings import passage
 from mtlc.geometry.rays import RayScene
 from mtlc.ir.model import Segment, SourceRef
 from mtlc.lint.findings import Finding
-from mtlc.lint.rules.view import MotionView
+from mtlc.lint.rules.view import MotionView, segment_finding
 from mtlc.lint.rules.visibility import goal_frames, pose_frames
 from mtlc.loads import held_spans
 
@@ -142,7 +141,6 @@ def _along_normal(
 
 
 def _finding(view: MotionView, w: Tight) -> Finding:
-    o = w.goal.provenance.origin
     need = f"{w.size[0] * 1000:.0f} x {w.size[1] * 1000:.0f} mm"
     if w.size[0] == w.size[1]:
         need = f"{w.size[0] * 1000:.0f} mm across"
@@ -157,11 +155,5 @@ def _finding(view: MotionView, w: Tight) -> Finding:
         f"{view.time[w.frame]:.2f} s in "
         f"`{' > '.join(w.goal.provenance.path)}`)"
     )
-    return Finding(
-        "MT0610",
-        msg,
-        Span(o.file, o.line, o.column, o.end_line, o.end_column),
-        help="widen the opening, move the site nearer to it, or reach it with a smaller tool",
-        manikins=(view.manikin,),
-        details=(msg,),
-    )
+    help = "widen the opening, move the site nearer to it, or reach it with a smaller tool"
+    return segment_finding(view, "MT0610", w.goal, msg, help)

@@ -13,6 +13,7 @@ from mtlc.body.kinematics import Pose
 from mtlc.diagnostics import Span
 from mtlc.ir.model import FloatArray, MotionIR, Segment
 from mtlc.lint.config import LintConfig
+from mtlc.lint.findings import Finding
 from mtlc.semantics.timeline import Timeline
 
 
@@ -45,6 +46,13 @@ class MotionView:
             if key not in best or value[i] > value[best[key]]:
                 best[key] = int(i)
         return sorted(best.values())
+
+
+def segment_finding(view: MotionView, code: str, seg: Segment, msg: str, help: str) -> Finding:
+    """A motion rule's finding at the task line that asked for ``seg``, for this manikin."""
+    o = seg.provenance.origin
+    span = Span(o.file, o.line, o.column, o.end_line, o.end_column)
+    return Finding(code, msg, span, help=help, manikins=(view.manikin,), details=(msg,))
 
 
 def frame_segments(ir: MotionIR, t: FloatArray) -> NDArray[np.intp]:

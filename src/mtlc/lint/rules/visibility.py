@@ -15,13 +15,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mtlc.body.kinematics import Pose, site_positions
-from mtlc.diagnostics import Span
 from mtlc.ergonomics.view import EYE_SITE, outside_cone, site_view_angles
 from mtlc.geometry.clearance import goal_groups
 from mtlc.geometry.rays import RayScene
 from mtlc.ir.model import Segment, SourceRef
 from mtlc.lint.findings import Finding
-from mtlc.lint.rules.view import MotionView
+from mtlc.lint.rules.view import MotionView, segment_finding
 
 REACH_KINDS = ("TA", "TO")
 
@@ -62,20 +61,13 @@ def site_out_of_view(view: MotionView) -> list[Finding]:
 
 
 def _finding(view: MotionView, half: float, angle: float, frame: int, seg: Segment) -> Finding:
-    o = seg.provenance.origin
     msg = (
         f"site `{seg.goal.site}` is outside the {half:g}° view cone while it is reached or worked "
         f"on: {math.degrees(angle):.1f}° off the line of sight at {view.time[frame]:.2f} s in "
         f"`{' > '.join(seg.provenance.path)}`"
     )
-    return Finding(
-        "MT0607",
-        msg,
-        Span(o.file, o.line, o.column, o.end_line, o.end_column),
-        help="look at the site first (`look`), turn the body toward it, or move the site into view",
-        manikins=(view.manikin,),
-        details=(msg,),
-    )
+    help = "look at the site first (`look`), turn the body toward it, or move the site into view"
+    return segment_finding(view, "MT0607", seg, msg, help)
 
 
 # MT0611: the equipment between the eyes and a site (docs/visibility.md, "Occlusion")
@@ -170,17 +162,10 @@ def site_disc(eye: np.ndarray, site: np.ndarray) -> np.ndarray:
 
 def _hidden(view: MotionView, sight: Sight) -> Finding:
     seg = sight.goal
-    o = seg.provenance.origin
     msg = (
         f"site `{seg.goal.site}` is hidden from the eyes by `{sight.by}`: {sight.share:.0%} of it "
         f"visible at {view.time[sight.frame]:.2f} s in `{' > '.join(seg.provenance.path)}` "
         f"({sight.mean:.0%} over the reach's end and the work)"
     )
-    return Finding(
-        "MT0611",
-        msg,
-        Span(o.file, o.line, o.column, o.end_line, o.end_column),
-        help="move what is in the way, add a viewing opening, or turn the body to see past it",
-        manikins=(view.manikin,),
-        details=(msg,),
-    )
+    help = "move what is in the way, add a viewing opening, or turn the body to see past it"
+    return segment_finding(view, "MT0611", seg, msg, help)

@@ -22,7 +22,7 @@ import numpy as np
 from mtlc.body import forward, forward_part
 from mtlc.body.ik import ChainModel
 from mtlc.body.ik.dls import solve_spd
-from mtlc.body.ik.fast import NULL_FADE
+from mtlc.body.ik.fast import NULL_FADE, chain_plan, walk_chain
 from mtlc.body.kinematics import cross
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray
@@ -48,55 +48,15 @@ class ScalarChain:
         R0, p0 = pose.R[0, top], pose.p[0, top]
         self.R0 = [[float(R0[i, j]) for i in range(3)] for j in range(3)]  # columns
         self.p0 = [float(v) for v in p0]
-        col = {int(d): i for i, d in enumerate(model.active)}
-        self.plan: list[tuple[tuple[float, ...], list[tuple[int, float, int, float]]]] = []
-        for j in live:
-            dofs = []
-            s = int(skel.joint_dof_start[j])
-            for d in range(s, s + int(skel.joint_dof_count[j])):
-                ax = skel.dof_axis[d]
-                k = int(np.argmax(np.abs(ax)))
-                if abs(abs(ax[k]) - 1.0) > 1e-12:
-                    raise ValueError("coordinate-axis dofs only")
-                dofs.append((k, float(np.sign(ax[k])), col.get(d, -1), float(q_base[d])))
-            self.plan.append((tuple(float(v) for v in skel.offsets[j]), dofs))
+        self.plan = chain_plan(model, live, q_base)
         self.site_offsets = [tuple(float(v) for v in skel.site(s).offset) for s in model.sites]
         self.n = model.n
 
     def eval(self, q: Sequence[float]) -> tuple[list[float], list[list[float]]]:
         """Site positions (3 S,) and the Jacobian as n columns (3 S,) at active angles ``q``."""
-        c0, c1, c2 = (list(c) for c in self.R0)
-        px, py, pz = self.p0
-        axes = [(0.0, 0.0, 0.0)] * self.n
-        origins = [(0.0, 0.0, 0.0)] * self.n
-        for (ox, oy, oz), dofs in self.plan:
-            px, py, pz = (
-                px + c0[0] * ox + c1[0] * oy + c2[0] * oz,
-                py + c0[1] * ox + c1[1] * oy + c2[1] * oz,
-                pz + c0[2] * ox + c1[2] * oy + c2[2] * oz,
-            )
-            for k, sg, ci, fixed in dofs:
-                th = sg * (q[ci] if ci >= 0 else fixed)
-                if ci >= 0:
-                    a = c0 if k == 0 else c1 if k == 1 else c2
-                    axes[ci] = (sg * a[0], sg * a[1], sg * a[2])
-                    origins[ci] = (px, py, pz)
-                c, s = math.cos(th), math.sin(th)
-                if k == 0:
-                    c1, c2 = (
-                        [c * c1[0] + s * c2[0], c * c1[1] + s * c2[1], c * c1[2] + s * c2[2]],
-                        [c * c2[0] - s * c1[0], c * c2[1] - s * c1[1], c * c2[2] - s * c1[2]],
-                    )
-                elif k == 1:
-                    c0, c2 = (
-                        [c * c0[0] - s * c2[0], c * c0[1] - s * c2[1], c * c0[2] - s * c2[2]],
-                        [s * c0[0] + c * c2[0], s * c0[1] + c * c2[1], s * c0[2] + c * c2[2]],
-                    )
-                else:
-                    c0, c1 = (
-                        [c * c0[0] + s * c1[0], c * c0[1] + s * c1[1], c * c0[2] + s * c1[2]],
-                        [c * c1[0] - s * c0[0], c * c1[1] - s * c0[1], c * c1[2] - s * c0[2]],
-                    )
+        (c0, c1, c2), (px, py, pz), axes, origins = walk_chain(
+            self.R0, self.p0, self.plan, q, self.n
+        )
         pts: list[float] = []
         for sx, sy, sz in self.site_offsets:
             pts += [

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,6 +26,71 @@ FloatArray = NDArray[np.float64]
 # into the task, which with a constant gain holds some rows at a fixed point just above a
 # 1 mm tolerance. Scaling the pull with the error makes zero error the only fixed point.
 NULL_FADE = 0.01
+
+
+# per joint of a chain: its offset, and its dofs as (axis index, sign, active column or -1,
+# fixed angle)
+ChainPlan = list[tuple[tuple[float, ...], list[tuple[int, float, int, float]]]]
+Vec = tuple[float, float, float]
+
+
+def chain_plan(model: ChainModel, live: list[int], q_base: FloatArray) -> ChainPlan:
+    """The chain's joints for ``walk_chain``; every dof must turn about a coordinate axis."""
+    skel = model.skel
+    col = {int(d): i for i, d in enumerate(model.active)}
+    plan: ChainPlan = []
+    for j in live:
+        dofs = []
+        s = int(skel.joint_dof_start[j])
+        for d in range(s, s + int(skel.joint_dof_count[j])):
+            ax = skel.dof_axis[d]
+            k = int(np.argmax(np.abs(ax)))
+            if abs(abs(ax[k]) - 1.0) > 1e-12:
+                raise ValueError("fast path needs coordinate-axis dofs")
+            dofs.append((k, float(np.sign(ax[k])), col.get(d, -1), float(q_base[d])))
+        plan.append((tuple(float(x) for x in skel.offsets[j]), dofs))
+    return plan
+
+
+def walk_chain(
+    R0: list[list[float]], p0: list[float], plan: ChainPlan, q: Sequence[float], n: int
+) -> tuple[tuple[list[float], list[float], list[float]], Vec, list[Vec], list[Vec]]:
+    """Down the chain on Python floats from the base frame (``R0`` as columns, ``p0``) at
+    active angles ``q``: the last joint's frame (its columns and origin), and each active
+    dof's world axis and the origin it turns about."""
+    c0, c1, c2 = (list(c) for c in R0)
+    px, py, pz = p0
+    axes: list[Vec] = [(0.0, 0.0, 0.0)] * n
+    origins: list[Vec] = [(0.0, 0.0, 0.0)] * n
+    for (ox, oy, oz), dofs in plan:
+        px, py, pz = (
+            px + c0[0] * ox + c1[0] * oy + c2[0] * oz,
+            py + c0[1] * ox + c1[1] * oy + c2[1] * oz,
+            pz + c0[2] * ox + c1[2] * oy + c2[2] * oz,
+        )
+        for k, sg, ci, fixed in dofs:
+            th = sg * (q[ci] if ci >= 0 else fixed)
+            if ci >= 0:
+                a = c0 if k == 0 else c1 if k == 1 else c2
+                axes[ci] = (sg * a[0], sg * a[1], sg * a[2])
+                origins[ci] = (px, py, pz)
+            c, s = math.cos(th), math.sin(th)
+            if k == 0:
+                c1, c2 = (
+                    [c * c1[0] + s * c2[0], c * c1[1] + s * c2[1], c * c1[2] + s * c2[2]],
+                    [c * c2[0] - s * c1[0], c * c2[1] - s * c1[1], c * c2[2] - s * c1[2]],
+                )
+            elif k == 1:
+                c0, c2 = (
+                    [c * c0[0] - s * c2[0], c * c0[1] - s * c2[1], c * c0[2] - s * c2[2]],
+                    [s * c0[0] + c * c2[0], s * c0[1] + c * c2[1], s * c0[2] + c * c2[2]],
+                )
+            else:
+                c0, c1 = (
+                    [c * c0[0] + s * c1[0], c * c0[1] + s * c1[1], c * c0[2] + s * c1[2]],
+                    [c * c1[0] - s * c0[0], c * c1[1] - s * c0[1], c * c1[2] - s * c0[2]],
+                )
+    return (c0, c1, c2), (px, py, pz), axes, origins
 
 
 class SerialChain:
@@ -43,20 +109,7 @@ class SerialChain:
         p0 = model._base_p[first_parent][0]
         self.R0 = [[float(R0[i, j]) for i in range(3)] for j in range(3)]  # columns
         self.p0 = [float(x) for x in p0]
-        col = {int(d): i for i, d in enumerate(model.active)}
-        self.plan: list[tuple[tuple[float, float, float], list[tuple[int, float, int, float]]]] = []
-        for j in live:
-            off = tuple(float(x) for x in skel.offsets[j])
-            dofs = []
-            s = int(skel.joint_dof_start[j])
-            for d in range(s, s + int(skel.joint_dof_count[j])):
-                ax = skel.dof_axis[d]
-                k = int(np.argmax(np.abs(ax)))
-                if abs(abs(ax[k]) - 1.0) > 1e-12:
-                    raise ValueError("fast path needs coordinate-axis dofs")
-                fixed = float(model.q_base[0, d])
-                dofs.append((k, float(np.sign(ax[k])), col.get(d, -1), fixed))
-            self.plan.append((off, dofs))  # type: ignore[arg-type]
+        self.plan = chain_plan(model, live, model.q_base[0])
         if live[-1] != model._site_joint[0]:
             raise ValueError("site must be on the chain's last joint")
         self.site_off = [float(x) for x in model._site_off[0]]
@@ -64,39 +117,9 @@ class SerialChain:
 
     def eval(self, q: list[float]) -> tuple[list[float], list[list[float]]]:
         """Site position and the 3×n Jacobian (as columns) at active angles ``q``."""
-        c0, c1, c2 = (list(c) for c in self.R0)
-        px, py, pz = self.p0
-        axes: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)] * self.n
-        origins: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)] * self.n
-        for off, dofs in self.plan:
-            ox, oy, oz = off
-            px, py, pz = (
-                px + c0[0] * ox + c1[0] * oy + c2[0] * oz,
-                py + c0[1] * ox + c1[1] * oy + c2[1] * oz,
-                pz + c0[2] * ox + c1[2] * oy + c2[2] * oz,
-            )
-            for k, sg, ci, fixed in dofs:
-                th = sg * (q[ci] if ci >= 0 else fixed)
-                if ci >= 0:
-                    a = c0 if k == 0 else c1 if k == 1 else c2
-                    axes[ci] = (sg * a[0], sg * a[1], sg * a[2])
-                    origins[ci] = (px, py, pz)
-                c, s = math.cos(th), math.sin(th)
-                if k == 0:
-                    c1, c2 = (
-                        [c * c1[0] + s * c2[0], c * c1[1] + s * c2[1], c * c1[2] + s * c2[2]],
-                        [c * c2[0] - s * c1[0], c * c2[1] - s * c1[1], c * c2[2] - s * c1[2]],
-                    )
-                elif k == 1:
-                    c0, c2 = (
-                        [c * c0[0] - s * c2[0], c * c0[1] - s * c2[1], c * c0[2] - s * c2[2]],
-                        [s * c0[0] + c * c2[0], s * c0[1] + c * c2[1], s * c0[2] + c * c2[2]],
-                    )
-                else:
-                    c0, c1 = (
-                        [c * c0[0] + s * c1[0], c * c0[1] + s * c1[1], c * c0[2] + s * c1[2]],
-                        [c * c1[0] - s * c0[0], c * c1[1] - s * c0[1], c * c1[2] - s * c0[2]],
-                    )
+        (c0, c1, c2), (px, py, pz), axes, origins = walk_chain(
+            self.R0, self.p0, self.plan, q, self.n
+        )
         sx, sy, sz = self.site_off
         ex = px + c0[0] * sx + c1[0] * sy + c2[0] * sz
         ey = py + c0[1] * sx + c1[1] * sy + c2[1] * sz

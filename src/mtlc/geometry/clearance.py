@@ -82,7 +82,7 @@ def carried_part_capsules(ir: MotionIR) -> list[tuple[PartCapsule, float, float]
     return []
 
 
-def _held_capsules(ir: MotionIR) -> list[tuple[PartCapsule, float, float]]:
+def held_capsules(ir: MotionIR) -> list[tuple[PartCapsule, float, float]]:
     """Each held tool's capsule and the window it is in the hand; then the carried parts."""
     skel = ir.skeleton
     names = {s.name for s in skel.sites}
@@ -107,7 +107,7 @@ def frame_clearance(
     assert skel is not None and frames is not None, "compile the IR first (frames, skeleton)"
     pose = forward(skel, frames.q, frames.root_position, frames.root_rotation, with_axes=False)
     body = collision_capsules(skel)
-    held = _held_capsules(ir)
+    held = held_capsules(ir)
     caps = body + tuple(c for c, _, _ in held)
     a, b, radii = capsule_segments(skel, pose, caps)
     indices = {

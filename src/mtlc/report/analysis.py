@@ -22,7 +22,7 @@ from mtlc.lint.config import LintConfig
 from mtlc.lint.manikins import label
 from mtlc.lint.rules.access import goal_openings
 from mtlc.lint.rules.reach import contact_goals, stature
-from mtlc.lint.rules.view import make_view
+from mtlc.lint.rules.view import MotionView, make_view
 from mtlc.lint.rules.visibility import goal_sights
 from mtlc.metrics import foot_stance
 from mtlc.passes import MotionOptions, run_motion
@@ -158,20 +158,18 @@ def measure_one(
     result = ManikinResult(spec, stature(spec) / 1000.0, FULL)
     ir = run_motion(dataclasses.replace(timelines[index], manikin=spec), DiagnosticSink(), options)
     result.distance = contact_distances(ir)
-    result.rula = worst_rula(ir)
-    if ir.geometry:
-        result.seen, result.opening = prototype_measures(ir)
+    view = make_view(ir, "", LintConfig())  # the output frames posed once, for both below
+    result.rula = worst_rula(ir, view)
+    if ir.geometry and view is not None:
+        result.seen, result.opening = prototype_measures(view)
     return result
 
 
 def prototype_measures(
-    ir: MotionIR,
+    view: MotionView,
 ) -> tuple[dict[GoalRef, float], dict[GoalRef, tuple[float, float, str]]]:
     """Per goal, what lint's MT0611 and MT0610 measure: the least share of the site seen, and
     the tightest opening on the way (only where there is one around a part)."""
-    view = make_view(ir, "", LintConfig())
-    if view is None:
-        return {}, {}
     seen: dict[GoalRef, float] = {}
     for sight in goal_sights(view):
         ref = goal_ref(sight.goal)
@@ -237,10 +235,9 @@ def _stroke_ends(ir: MotionIR) -> set[tuple[object, ...]]:
     return out
 
 
-def worst_rula(ir: MotionIR) -> RulaWorst | None:
+def worst_rula(ir: MotionIR, view: MotionView | None) -> RulaWorst | None:
     """The highest RULA grand score of any frame (the first such frame), as lint's MT0605
-    scores it: both sides, legs supported when both feet stand."""
-    view = make_view(ir, "", LintConfig())
+    scores it: both sides, legs supported when both feet stand (``view``: ``make_view(ir)``)."""
     if view is None:
         return None
     both_feet = foot_stance(ir, view.time).all(axis=1)

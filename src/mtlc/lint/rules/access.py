@@ -19,21 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtlc.body.capsules import (
-    HAND_BREADTH,
-    capsule_segments,
-    collision_capsules,
-    measure_m,
-    tool_capsule,
-)
-from mtlc.geometry.clearance import goal_groups
+from mtlc.body.capsules import HAND_BREADTH, capsule_segments, collision_capsules, measure_m
+from mtlc.geometry.clearance import goal_groups, held_capsules
 from mtlc.geometry.openings import passage
-from mtlc.geometry.rays import RayScene
 from mtlc.ir.model import Segment, SourceRef
 from mtlc.lint.findings import Finding
 from mtlc.lint.rules.view import MotionView, segment_finding
 from mtlc.lint.rules.visibility import goal_frames, pose_frames
-from mtlc.loads import held_spans
 
 FRAMES = 6  # frames of a goal tested: its arrival and up to five over the work
 FINGERS = 0.25  # of the hand's axis, from the fingertip end, left out: the fingers hold the part
@@ -68,18 +60,12 @@ def access_openings(view: MotionView) -> list[Finding]:
 def goal_openings(view: MotionView) -> list[Tight]:
     """Each goal's tightest part through the openings on its way (scale ``inf``: no opening
     around it); empty without geometry."""
-    models = view.ir.geometry
-    skel = view.ir.skeleton
-    if not models or skel is None:
-        return []
-    scene = RayScene(models)
-    if len(scene) == 0:
+    scene, skel = view.rays, view.ir.skeleton
+    if scene is None or skel is None:
         return []
     glove = view.config.glove_mm / 1000.0
     caps = {c.name: c for c in collision_capsules(skel)}
-    names = {s.name for s in skel.sites}
-    tools = [(tool_capsule(skel, site, tool), a, b) for site, tool, a, b in held_spans(view.ir)
-             if site in names]  # fmt: skip
+    tools = held_capsules(view.ir)
     breadth = measure_m(skel, HAND_BREADTH) + 2 * glove
     out = []
     for reach, work in goal_groups(view.ir):
@@ -100,13 +86,14 @@ def goal_openings(view: MotionView) -> list[Tight]:
             ):
                 parts.insert(0, (cap, (2 * cap.radius,) * 2, TOOL_TIP))
         normal = reach.goal.params.get("normal")
-        if normal is not None and reach.goal.position is not None:
+        along = normal is not None and reach.goal.position is not None
+        if along:
             frames = frames[:1]  # the way in along the normal: one question, asked at arrival
         pose = pose_frames(view.pose, frames)
         best: Tight | None = None
         starts, ends, _ = capsule_segments(skel, pose, tuple(p[0] for p in parts))
         for i, frame in enumerate(frames):
-            if normal is not None and reach.goal.position is not None:
+            if along:
                 axes = _along_normal(reach, normal, starts[i], ends[i], parts)
             else:
                 axes = [

@@ -4,6 +4,7 @@ frame, the task line that asked for the motion then (where a finding is reported
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -11,6 +12,7 @@ from numpy.typing import NDArray
 from mtlc.body import forward
 from mtlc.body.kinematics import Pose
 from mtlc.diagnostics import Span
+from mtlc.geometry.rays import RayScene
 from mtlc.ir.model import FloatArray, MotionIR, Segment
 from mtlc.lint.config import LintConfig
 from mtlc.lint.findings import Finding
@@ -30,6 +32,13 @@ class MotionView:
 
     def segment(self, frame: int) -> Segment:
         return self.ir.segments[int(self.frame_segment[frame])]
+
+    @cached_property
+    def rays(self) -> RayScene | None:
+        """The scene's triangles for the rules that cast rays (MT0610, MT0611), flattened once
+        for all of them; None without geometry."""
+        scene = RayScene(self.ir.geometry) if self.ir.geometry else None
+        return scene if scene is not None and len(scene) else None
 
     def span(self, frame: int) -> Span:
         o = self.segment(frame).provenance.origin

@@ -17,7 +17,6 @@ import numpy as np
 from mtlc.body.kinematics import Pose, site_positions
 from mtlc.ergonomics.view import EYE_SITE, outside_cone, site_view_angles
 from mtlc.geometry.clearance import goal_groups
-from mtlc.geometry.rays import RayScene
 from mtlc.ir.model import Segment, SourceRef
 from mtlc.lint.findings import Finding
 from mtlc.lint.rules.view import MotionView, segment_finding
@@ -93,10 +92,8 @@ class Sight:
 def goal_sights(view: MotionView) -> list[Sight]:
     """Each goal's site seen from the eyes through the scene's geometry, at the reach's end and
     over the work there (empty without geometry)."""
-    if not view.ir.geometry or view.ir.skeleton is None:
-        return []
-    scene = RayScene(view.ir.geometry)
-    if len(scene) == 0:
+    scene = view.rays
+    if scene is None or view.ir.skeleton is None:
         return []
     out = []
     for reach, work in goal_groups(view.ir):

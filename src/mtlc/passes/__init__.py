@@ -20,6 +20,7 @@ from mtlc.passes import (
     gaze,
     hold,
     interpolate,
+    joint_speed,
     locomotion,
     manikin,
     pace,
@@ -47,6 +48,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("tool", tool.solve),  # a wrench's strokes: arcs about the fastener, the tip held on it
     ("gaze", gaze.solve),  # neck and head aim the eyes at the looked-at site
     ("pace", pace.run),  # each reach re-timed as one minimum-jerk movement (Flash & Hogan 1985)
+    ("joint_speed", joint_speed.run),  # the clock stretched where a joint would outrun a person
     ("interpolate", interpolate.run),  # 5. interpolation with base-coordinate correction
     ("hold", hold.run),  # a hand on a site stays there while the body moves (verify: MT0511)
     ("balance", balance.run),  # 6. centre of mass over the support polygon

@@ -1,0 +1,285 @@
+"""No joint faster than a person's: where one would be, the clock stretches (issue 19).
+
+The solvers place poses and the pace and gait passes time them; where the keys still ask a joint
+for more than a person gives at this kind of work (an IK branch that flips between two keys, a
+stroke's swing timed by the hand's path, an arm brought down from a reach in a posture's first
+frames), the output would show a jump. Here the poses stay and the time between them grows: a
+path-velocity decomposition, the time-scaling of Hollerbach (1984, "Dynamic scaling of
+manipulator trajectories", J Dyn Sys Meas Control 106:102-106), with a joint-speed limit in
+place of the torque limit. It runs on the keys, after ``pace`` and before ``interpolate``, so
+every pass after it (the holds, balance, smoothing, the carry, the clearance) works on the
+stretched clock and the frames the user receives are made on it.
+
+* The keys are interpolated as ``interpolate`` does (``interpolate_naive``, 60 fps) and each
+  interval's fastest joint is compared with ``LIMIT`` (``TURN_LIMIT`` for the wrist and
+  forearm in a fastener turn: the tools' own pace). An interval over it is slowed to it, and
+  the slowing fades in and out over ``RAMP`` seconds each side, so the joints that moved at a
+  person's speed slow down smoothly with it and no velocity jumps.
+* An interval more than ``JUMP`` times too fast is a jump, not a fast movement: it is given the
+  time of a movement of its own at the limit, from rest to rest (minimum jerk, Flash & Hogan
+  1985: peak speed 1.875 times the mean), and the interpolation shapes it.
+* The gait is timed by its own model (cadence and swing from stature, docs/passes.md): the legs
+  and the root's turn are not judged while a walk drives them.
+
+Every time in the IR moves: segments, keyframes, the root plan and the times in segments'
+results (gait steps and rolls, stroke phases). A task that needs none of this keeps its bytes;
+one that does takes longer, by what a person would need.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR
+from mtlc.passes.context import PassContext
+from mtlc.passes.interpolate import interpolate_naive, walking_mask
+
+LIMIT = math.radians(340.0)  # rad/s: issue 19's 12 deg a frame at 30 fps is 360 deg/s
+TURN_LIMIT = math.radians(570.0)  # the tool pass's screwdriver twist (passes/tool.py)
+TURN_DOFS = ("wrist_flex", "wrist_dev", "elbow_pro")
+GAIT_DOFS = ("hip_", "knee_", "ankle_", "toe_")  # the gait's own, while a walk drives them
+RAMP = 0.15  # s each side over which a slowing fades in and out
+JUMP = 2.0  # an interval this many times too fast is given a movement's time of its own
+PEAK = 1.875  # minimum jerk's peak speed over its mean
+ROUNDS = 6  # re-interpolated and judged again: the interpolation of stretched keys moves a little
+EPS = 1e-9
+ROOT = "root_turn"  # the root's rotation, judged as one more dof
+IntArray = NDArray[np.intp]
+
+# segment results that hold times (s): container key -> the time keys of its items
+RESULT_TIMES: dict[str, tuple[str, ...]] = {
+    "steps": ("t_heel_off", "t_lift", "t_land"),
+    "segmentation": ("t_lift", "t_land"),
+    "rolls": ("from", "to"),
+}
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    if ir.skeleton is None or not ir.segments:
+        return ir
+    names = [*ir.skeleton.dof_names, ROOT]
+    for _ in range(ROUNDS):
+        dense = interpolate_naive(ir)
+        if len(dense.time) < 2:
+            break
+        limits = dof_limits(ir, dense)
+        ratio = speed_ratio(dense, limits)
+        if float(np.max(ratio)) <= 1.0 + EPS:
+            break
+        warp = stretch(ir, dense, ratio, fastest_dof(dense, limits), names, 1.0 / ctx.options.fps)
+        retime_ir(ir, warp)
+    return ir
+
+
+def dof_limits(ir: MotionIR, frames: Frames) -> FloatArray:
+    """(N - 1, D + 1) speed limit per interval and dof, the root's turn last (rad/s).
+
+    A step belongs to a fastener turn, or to a walk, when either of its frames does (the rule of
+    bench/human.py, which measures the output)."""
+    t = frames.time
+    names = list(ir.skeleton.dof_names)
+    limits = np.full((len(t) - 1, len(names) + 1), LIMIT)
+    turning = np.array([any(n.endswith(d) for d in TURN_DOFS) for n in names] + [False])
+    on = np.zeros(len(t), dtype=bool)
+    for seg in ir.segments:
+        if seg.provenance.path and seg.provenance.path[-1] == "turn_fastener":
+            on |= (t >= seg.start - EPS) & (t <= seg.end + EPS)
+    limits[np.ix_(on[:-1] | on[1:], turning)] = TURN_LIMIT
+    gait = np.array([any(d in n for d in GAIT_DOFS) for n in names] + [True])
+    walking = walking_mask(ir, t)
+    limits[np.ix_(walking[:-1] | walking[1:], gait)] = np.inf
+    return limits
+
+
+def root_turn(rotation: FloatArray) -> FloatArray:
+    """(N - 1,) angle of the root's rotation between neighbouring frames."""
+    dot = np.abs(np.sum(rotation[:-1] * rotation[1:], axis=1))
+    return 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))
+
+
+def speed_ratio(frames: Frames, limits: FloatArray) -> FloatArray:
+    """(N - 1,) how many times faster than its limit the fastest joint crosses each interval."""
+    dt = np.maximum(np.diff(frames.time), EPS)
+    steps = np.concatenate(
+        [np.abs(np.diff(frames.q, axis=0)), root_turn(frames.root_rotation)[:, None]], axis=1
+    )
+    return np.max(steps / limits, axis=1) / dt
+
+
+def spread(rate: FloatArray, time: FloatArray) -> FloatArray:
+    """The slowing faded in and out: each interval at least ``1 + (r - 1) w(d)`` for every
+    interval's rate ``r`` at distance ``d``, ``w`` a raised cosine of half-width ``RAMP``."""
+    centre = 0.5 * (time[:-1] + time[1:])
+    out = rate.copy()
+    slow = np.flatnonzero(rate > 1.0 + EPS)
+    lo = np.searchsorted(centre, centre[slow] - RAMP, side="left")
+    hi = np.searchsorted(centre, centre[slow] + RAMP, side="right")
+    for j, a, b in zip(slow, lo, hi, strict=True):
+        d = np.abs(centre[a:b] - centre[j])
+        w = 0.5 * (1.0 + np.cos(np.pi * np.minimum(d / RAMP, 1.0)))
+        np.maximum(out[a:b], 1.0 + (rate[j] - 1.0) * w, out=out[a:b])
+    return out
+
+
+def fastest_dof(frames: Frames, limits: FloatArray) -> IntArray:
+    """(N - 1,) the index of the dof that sets each interval's ratio (the root's turn last)."""
+    steps = np.concatenate(
+        [np.abs(np.diff(frames.q, axis=0)), root_turn(frames.root_rotation)[:, None]], axis=1
+    )
+    return np.argmax(steps / limits, axis=1)
+
+
+def keyed_starts(ir: MotionIR, name: str) -> FloatArray:
+    """Sorted start times of the segments whose keys set dof ``name`` (``ROOT``: the root)."""
+    starts = [
+        s.start
+        for s in ir.segments
+        if s.keyframes is not None
+        and len(s.keyframes.time)
+        and (s.keyframes.root_rotation is not None if name == ROOT else name in s.keyframes.dofs)
+    ]
+    return np.sort(np.asarray(starts, dtype=float))
+
+
+def stretch(
+    ir: MotionIR,
+    dense: Frames,
+    ratio: FloatArray,
+    fastest: IntArray,
+    names: list[str],
+    period: float,
+) -> Warp:
+    """The stretched clock: each interval slowed to its limit; a jump given a minimum-jerk
+    movement's time at the limit (``PEAK`` times its time at the mean speed), as a pause opened
+    where a segment starts on the jumping dof when one does (keys at one time with two poses:
+    stretching time cannot part them) or as the interval's own time otherwise. Each stretch adds
+    whole output frames (``period``): what comes after it stays on the output grid, so a goal's
+    last key is still an output frame."""
+    time = dense.time
+    dt = np.diff(time)
+    jump = ratio > JUMP
+    need = PEAK * ratio * dt  # a jump's time at the limit
+    cuts: dict[float, tuple[float, int]] = {}  # cut -> (pause, the dense frame before it)
+    for i in np.flatnonzero(jump):
+        starts = keyed_starts(ir, names[int(fastest[i])])
+        inside = starts[(starts > time[i] + EPS) & (starts <= time[i + 1] + EPS)]
+        if len(inside):
+            cut = float(inside[-1])
+            pause = max(cuts.get(cut, (0.0, 0))[0], float(need[i] - dt[i]))
+            cuts[cut] = (pause, int(i))
+            jump[i] = False  # the pause is its time; the interval keeps its own
+            ratio[i] = 1.0
+    rate = spread(np.where(jump, 1.0, np.maximum(ratio, 1.0)), time)
+    new_dt = whole_frames(dt, np.where(jump, need, dt * rate), period)
+    new = np.concatenate([[time[0]], time[0] + np.cumsum(new_dt)])
+    cuts = {c: (math.ceil(p / period - 1e-6) * period, i) for c, (p, i) in cuts.items()}
+    at = sorted(cuts)
+    return Warp(
+        time,
+        new,
+        np.array(at, dtype=float),
+        np.array([cuts[c][0] for c in at], dtype=float),
+        Frames(
+            dense.fps,
+            np.array(at, dtype=float),
+            dense.root_position[[cuts[c][1] for c in at]],
+            dense.root_rotation[[cuts[c][1] for c in at]],
+            dense.q[[cuts[c][1] for c in at]],
+        ),
+    )
+
+
+def whole_frames(dt: FloatArray, new_dt: FloatArray, period: float) -> FloatArray:
+    """``new_dt`` with each run of stretched intervals stretched a little more, to add a whole
+    number of ``period``s."""
+    grown = new_dt > dt * (1.0 + 1e-12)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], grown.astype(np.int8), [0]])))
+    out = new_dt.copy()
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        added = float(np.sum(new_dt[a:b] - dt[a:b]))
+        whole = math.ceil(added / period - 1e-6) * period
+        out[a:b] = dt[a:b] + (new_dt[a:b] - dt[a:b]) * (whole / added)
+    return out
+
+
+@dataclass(frozen=True)
+class Warp:
+    """Old time -> new time: through the dense frames' knots (at the old pace outside them),
+    and later by each pause for what comes after its cut."""
+
+    old: FloatArray
+    new: FloatArray
+    cuts: FloatArray  # sorted times where a pause opens
+    pauses: FloatArray  # its length (s)
+    before: Frames  # the pose at each cut (the dense frame before its jump)
+
+    def __call__(self, time: Any, at_cut_after: bool = False) -> Any:
+        """``at_cut_after``: a time at a cut belongs to what starts there (it moves with it)."""
+        tt = np.asarray(time, dtype=float)
+        old, new = self.old, self.new
+        out = np.interp(tt, old, new) + np.maximum(tt - old[-1], 0.0)
+        out = out + np.minimum(tt - old[0], 0.0)
+        if len(self.cuts):
+            shifted = np.concatenate([[0.0], np.cumsum(self.pauses)])
+            if at_cut_after:
+                n = np.searchsorted(self.cuts, tt + EPS, side="right")
+            else:
+                n = np.searchsorted(self.cuts, tt - EPS, side="left")
+            out = out + shifted[n]
+        return float(out) if out.ndim == 0 else out
+
+
+def retime_ir(ir: MotionIR, warp: Warp) -> None:
+    """Every time the IR holds, moved onto the stretched clock. A segment that starts at a cut
+    starts there still, from the pose before the jump (a key added at its start), and its own
+    keys come after the pause: the interpolation carries the body across it."""
+    for seg in ir.segments:
+        kf = seg.keyframes
+        cut = np.flatnonzero(np.abs(warp.cuts - seg.start) <= EPS) if len(warp.cuts) else []
+        if kf is not None and len(kf.time):
+            first = np.abs(kf.time - seg.start) <= EPS  # keys at its start move with the segment
+            kf.time = np.where(first, warp(kf.time, True), warp(kf.time))
+            if len(cut):
+                from_pose(ir, kf, warp.before, int(cut[0]), warp(seg.start))
+        seg.start, seg.end = warp(seg.start), warp(seg.end)
+        retime_result(seg.result, warp)
+    if ir.root_plan is not None:
+        ir.root_plan.time = warp(ir.root_plan.time)
+
+
+def from_pose(ir: MotionIR, kf: Keyframes, before: Frames, k: int, at: float) -> None:
+    """A first key at ``at`` holding the pose ``before`` gives at cut ``k``."""
+    cols = [ir.skeleton.dof_index(n) for n in kf.dofs]
+    kf.time = np.concatenate([[at], kf.time])
+    kf.q = np.concatenate([before.q[k, cols][None, :], kf.q])
+    if kf.root_position is not None:
+        kf.root_position = np.concatenate([before.root_position[k][None, :], kf.root_position])
+    if kf.root_rotation is not None:
+        kf.root_rotation = np.concatenate([before.root_rotation[k][None, :], kf.root_rotation])
+
+
+def retime_result(result: dict[str, Any], warp: Warp) -> None:
+    """The times a pass left in a segment's result (``RESULT_TIMES``, the gait's
+    ``feet_held_until``, a stroke's ``phases``), rounded as the passes round them."""
+    for key, names in RESULT_TIMES.items():
+        for item in result.get(key) or ():
+            for name in names:
+                if isinstance(item, dict) and isinstance(item.get(name), (int, float)):
+                    item[name] = round(warp(float(item[name])), 6)
+    if isinstance(result.get("feet_held_until"), (int, float)):
+        result["feet_held_until"] = round(warp(float(result["feet_held_until"])), 6)
+    phases = result.get("phases")
+    if isinstance(phases, dict):
+        for name, window in phases.items():
+            if isinstance(window, (list, tuple)) and len(window) == 2:
+                phases[name] = [warp(float(window[0])), warp(float(window[1]))]
+    elif isinstance(phases, list):
+        for item in phases:
+            for name in ("start", "end"):
+                if isinstance(item, dict) and isinstance(item.get(name), (int, float)):
+                    item[name] = warp(float(item[name]))

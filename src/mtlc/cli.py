@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import json
 import os
 import sys
@@ -206,7 +207,18 @@ def _only(words: list[str]) -> str | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    words = sys.argv[1:] if argv is None else list(argv)
+    """Run one command; ``argv`` None: the process's own command line, which ends after it."""
+    code = run_command(sys.argv[1:] if argv is None else list(argv))
+    if argv is None:
+        # The process exits next: its last garbage collection would walk every token, node and
+        # primitive still alive (0.5 s of CPU after a 20,000-line `mtlc check`) to free memory
+        # the exit frees anyway. Frozen objects are left out of it; nothing else changes.
+        gc.freeze()
+    return code
+
+
+def run_command(words: list[str]) -> int:
+    """One command's work and exit code (``main`` without the end of the process)."""
     parser = build_parser(only=_only(words))
     args = parser.parse_args(words)
     if args.command is None:

@@ -199,3 +199,50 @@ def test_any_written_number_is_accepted_or_mt0309_and_the_timeline_is_finite(
         assert math.isfinite(timeline.duration)
         for prim in timeline.primitives:
             assert math.isfinite(prim.start) and math.isfinite(prim.end)
+
+
+_RULES = [
+    v
+    for v in vars(V).values()
+    if isinstance(v, V.Range)
+] + list(V.POSTURE_ARGS.values()) + list(V.MTM_ARGS.values())  # fmt: skip
+
+
+def _near_bounds(rule: V.Range) -> list[float]:
+    """The rule's bounds, the floats either side of them, and their negatives."""
+    near = {0.0, -0.0}
+    for bound in (rule.low, rule.high):
+        if bound is not None:
+            near |= {bound, math.nextafter(bound, -math.inf), math.nextafter(bound, math.inf)}
+    return sorted(near | {-x for x in near})
+
+
+def _values(rule: V.Range) -> st.SearchStrategy[tuple[V.Range, object]]:
+    return st.tuples(
+        st.just(rule),
+        st.one_of(
+            st.sampled_from(_near_bounds(rule)),
+            st.floats(allow_nan=True, allow_infinity=True),
+            st.integers(min_value=-(10**30), max_value=10**30),
+            st.booleans(),
+            st.tuples(st.floats(), st.floats(), st.floats()),
+            st.text(max_size=3),
+        ),
+    )
+
+
+@settings(max_examples=1500, deadline=None)
+@given(case=st.sampled_from(_RULES).flatmap(_values))
+def test_problem_quick_path_says_what_the_reference_says(case: tuple[V.Range, object]) -> None:
+    """values.problem answers one in-range number without the general scan (issue 21): the same
+    answer, or the same exception, as values._problem for every rule and value."""
+    rule, value = case
+    try:
+        expected: object = V._problem(rule, value)
+    except OverflowError as exc:
+        expected = type(exc)
+    try:
+        got: object = V.problem(rule, value)
+    except OverflowError as exc:
+        got = type(exc)
+    assert got == expected

@@ -196,6 +196,26 @@ def for_type(type_: T.Type) -> Range | None:
 
 def problem(rule: Range, value: Any) -> str | None:
     """What is wrong with ``value`` (a number or a tuple of numbers, SI units), if anything."""
+    if (
+        (type(value) is float or type(value) is int)  # most values: one number, well in range
+        and not rule.direction
+        and math.isfinite(value)
+        and _within(rule, value)
+    ):
+        return None
+    return _problem(rule, value)
+
+
+def _within(rule: Range, c: float) -> bool:
+    """``c`` lies inside the rule's bounds (``_problem`` says how it does not)."""
+    low, high = rule.low, rule.high
+    if low is not None and (c <= low if rule.low_open else c < low):
+        return False
+    return high is None or c <= high
+
+
+def _problem(rule: Range, value: Any) -> str | None:
+    """``problem`` for every value: the reference the quick path for one number agrees with."""
     items = value if isinstance(value, tuple) else (value,)
     if not items or not all(_is_number(c) for c in items):
         return None  # not a numeric value: the type checks say what it is

@@ -246,3 +246,34 @@ def test_problem_quick_path_says_what_the_reference_says(case: tuple[V.Range, ob
     except OverflowError as exc:
         got = type(exc)
     assert got == expected
+
+
+def _for_type_reference(type_: object) -> V.Range | None:
+    """values.for_type as a chain of comparisons (before it became a table, issue 21)."""
+    from mtlc.semantics import types as T
+
+    if type_ == T.MASS:
+        return V.MASS
+    if type_ == T.DURATION:
+        return V.DURATION
+    if type_ == T.LENGTH:
+        return V.LENGTH
+    if type_ == T.ANGLE:
+        return V.ANGLE
+    if type_ in (T.NUMBER, T.INT):
+        return V.FINITE
+    if type_ == T.VectorType(T.LENGTH_DIM):
+        return V.POSITION
+    return None
+
+
+def test_for_type_table_says_what_the_comparisons_said() -> None:
+    from mtlc.semantics import types as T
+
+    dims = [T.NONE_DIM, T.LENGTH_DIM, T.ANGLE_DIM, T.TIME_DIM, T.MASS_DIM, (1, 0, -1, 0)]
+    types: list[T.Type] = [*T.TYPE_NAMES.values(), T.UNKNOWN, T.TIMING, T.SCENE]
+    types += [T.Quantity(d, integer) for d in dims for integer in (False, True)]
+    types += [T.VectorType(d, size) for d in dims for size in (2, 3, 4)]
+    types += [T.ListType(t) for t in list(types)]
+    for type_ in types:
+        assert V.for_type(type_) is _for_type_reference(type_), type_

@@ -176,22 +176,23 @@ MTM_ARGS: dict[tuple[str, str], Range] = {
 }
 
 
+# the range of an argument of a parameter of each type: masses and durations are never
+# negative; every other quantity is finite and of a size a task can have (types compare, and
+# hash, by value)
+_TYPE_RANGES: dict[T.Type, Range] = {
+    T.MASS: MASS,
+    T.DURATION: DURATION,
+    T.LENGTH: LENGTH,
+    T.ANGLE: ANGLE,
+    T.NUMBER: FINITE,
+    T.INT: FINITE,
+    T.VectorType(T.LENGTH_DIM): POSITION,
+}
+
+
 def for_type(type_: T.Type) -> Range | None:
-    """The range of an argument of a parameter of this type: masses and durations are never
-    negative; every other quantity is finite and of a size a task can have."""
-    if type_ == T.MASS:
-        return MASS
-    if type_ == T.DURATION:
-        return DURATION
-    if type_ == T.LENGTH:
-        return LENGTH
-    if type_ == T.ANGLE:
-        return ANGLE
-    if type_ in (T.NUMBER, T.INT):
-        return FINITE
-    if type_ == T.VectorType(T.LENGTH_DIM):
-        return POSITION
-    return None
+    """The range of an argument of a parameter of this type (``_TYPE_RANGES``), if it has one."""
+    return _TYPE_RANGES.get(type_)
 
 
 def problem(rule: Range, value: Any) -> str | None:

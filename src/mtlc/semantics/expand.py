@@ -12,6 +12,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cache
 from typing import TYPE_CHECKING, Any
 
 from mtlc.body.anthropometry import dimensions
@@ -1090,8 +1091,10 @@ def _dist(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     return math.dist(a, b)
 
 
+@cache
 def _body(spec: ManikinSpec) -> tuple[float, str] | None:
-    """Stature (m) and sex of the manikin, which time a walk's steps (``semantics.gait``)."""
+    """Stature (m) and sex of the manikin, which time a walk's steps (``semantics.gait``); worked
+    out once per manikin (its table rows are fixed), not once per task."""
     try:
         dims = dimensions(spec.population, spec.sex, spec.percentile)
     except (KeyError, ValueError):

@@ -52,3 +52,16 @@ def test_the_pauses_objects_leave_it_aged_and_its_cycles_are_still_collected() -
     gc.collect()
     assert probe() is None
     assert len(kept) == 5_000
+
+
+def test_objects_frozen_by_someone_else_stay_frozen() -> None:
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        assert frozen > 0
+        with no_collections():
+            made = [_Node() for _ in range(100)]
+        assert gc.get_freeze_count() == frozen
+        assert len(made) == 100
+    finally:
+        gc.unfreeze()

@@ -33,6 +33,8 @@ def _age_young_objects() -> None:
     """Move every object the collector tracks into its oldest generation, as if it had survived
     the young collections the pause skipped. Else the first young collection after the pause
     walks all of the pause's objects at once (0.1 s after a 20,000-line check), only to age
-    them so; the next full collection examines them all, cycles included, as it would have."""
-    gc.freeze()  # into the permanent generation: a splice of the generations' lists
-    gc.unfreeze()  # and back, into the oldest one
+    them so; the next full collection examines them all, cycles included, as it would have.
+    Not when something else has frozen objects (a host that forks, say): those stay frozen."""
+    if gc.get_freeze_count() == 0:
+        gc.freeze()  # into the permanent generation: a splice of the generations' lists
+        gc.unfreeze()  # and back, into the oldest one

@@ -302,14 +302,16 @@ def stretchable(ir: MotionIR, m: Movement) -> bool:
     return True
 
 
-def stretch_for(ir: MotionIR, m: Movement, path: ReachPath | None) -> Stretch | None:
-    """How much longer the movement must last for its joints (None: its time will do)."""
+def stretch_for(ir: MotionIR, m: Movement, path: ReachPath | None, fps: float) -> Stretch | None:
+    """How much longer the movement must last for its joints (None: its time will do): whole
+    output frames (``fps``), so everything after it falls on the output grid as it did (a goal
+    ending 29 ms before the frame that checks it, with a walk starting at its end, was found
+    1.5 mm off its site), decided on a rounded value (docs/passes.md, determinism)."""
     if path is None:
         return None
     duration = m.end - m.start
     need = min(needed_time(path), MAX_STRETCH * duration)
-    # on the dense frame grid, decided on a rounded value (docs/passes.md, determinism)
-    extra = np.ceil(round((need - duration) * INTERNAL_FPS, 6)) / INTERNAL_FPS
+    extra = np.ceil(round((need - duration) * fps, 6)) / fps
     if extra <= 0.0 or not stretchable(ir, m):
         return None
     return Stretch(m.start, m.end, float(extra))
@@ -340,7 +342,10 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         a = b
         paths.append(reach_path(ir, m, part))
     # movements too short for their joints last longer, and everything after them waits
-    stretches = [st for m, p in zip(moves, paths, strict=True) if (st := stretch_for(ir, m, p))]
+    fps = ctx.options.fps
+    stretches = [
+        st for m, p in zip(moves, paths, strict=True) if (st := stretch_for(ir, m, p, fps))
+    ]
     warp = TimeWarp.of(stretches)
     timewarp.apply(ir, warp)
     for m, path in zip(moves, paths, strict=True):

@@ -20,6 +20,7 @@ timing (their trunk is one). The TO's last stretch is the slow end of the bell.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,8 +29,10 @@ from mtlc.body import part_site_positions
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
 from mtlc.passes import timewarp
+from mtlc.passes.carry import Carry, carries, keep_rigid
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
+from mtlc.passes.profile import gaussian_rows as gaussian_rows  # re-exported
 from mtlc.passes.profile import minimum_jerk as minimum_jerk  # re-exported
 from mtlc.passes.timewarp import Stretch, TimeWarp
 from mtlc.passes.tool import is_stroke
@@ -217,29 +220,6 @@ def smooth_path(q: FloatArray, sigma: float) -> FloatArray:
     return gaussian_rows(padded, sigma)[n : n + len(q)]
 
 
-def gaussian_rows(x: FloatArray, sigma: float, truncate: float = 4.0) -> FloatArray:
-    """scipy's ``gaussian_filter1d(x, sigma, axis=0, mode="nearest")`` in numpy, summed in its
-    order (the kernel's symmetric pairs from the outside in), so the same numbers: importing
-    ``scipy.ndimage`` was a third of every compile's start-up (issue 21)."""
-    radius = int(truncate * float(sigma) + 0.5)
-    offsets = np.arange(-radius, radius + 1)
-    weights = np.exp(-0.5 / (sigma * sigma) * offsets**2)
-    weights = weights / weights.sum()
-    x = np.asarray(x, dtype=float)
-    padded = np.concatenate(
-        [np.repeat(x[:1], radius, axis=0), x, np.repeat(x[-1:], radius, axis=0)]
-    )
-    n = len(x)
-    out = padded[radius : radius + n] * weights[radius]
-    for j in range(radius, 0, -1):
-        out = (
-            out
-            + (padded[radius - j : radius - j + n] + padded[radius + j : radius + j + n])
-            * weights[radius - j]
-        )
-    return out
-
-
 @dataclass
 class ReachPath:
     """A movement's smoothed joint path: its dofs' values at rising shares of its progress."""
@@ -251,9 +231,15 @@ class ReachPath:
         return pchip(self.progress, self.q)(s)
 
 
-def reach_path(ir: MotionIR, m: Movement, frames: Frames) -> ReachPath | None:
+def reach_path(
+    ir: MotionIR, m: Movement, frames: Frames, rigid: Sequence[Carry] = ()
+) -> ReachPath | None:
     """The movement's path as interpolation makes it, resampled at even progress and smoothed
-    (None when nothing moves)."""
+    (None when nothing moves). Where both hands hold one part (``rigid``: the carries), the
+    path keeps the part rigid (``carry.keep_rigid``): the two arms' keys are interpolated each
+    on its own and squeezed the avionics unit by 16 cm between them, and the carry pass's
+    correction, made after the timing, turned an elbow 18 deg in one output frame; made here
+    on the path, it is timed with the rest (and counts in ``needed_time``)."""
     idx = [ir.skeleton.dof_index(n) for n in m.dofs]
     u, total = progress(ir, m, frames)
     if total <= 1e-6:
@@ -262,6 +248,9 @@ def reach_path(ir: MotionIR, m: Movement, frames: Frames) -> ReachPath | None:
     at_even = np.interp(even, u, frames.time)
     body = _frames_at(frames, at_even)
     body.q[:, idx] = smooth_path(body.q[:, idx], SMOOTH_SIGMA * (PATH_POINTS - 1))
+    for carry in rigid:
+        if carry.start < m.end - EPS and carry.end > m.start + EPS:
+            keep_rigid(ir.skeleton, body, carry)
     u2, _ = progress(ir, m, body)
     return ReachPath(u2, body.q[:, idx])
 
@@ -334,13 +323,14 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     grids = [path_grid(m) for m in moves]
     _, frames_all = _body(ir, np.concatenate(grids))
     paths: list[ReachPath | None] = []
+    rigid = carries(ir)
     a = 0
     for m, grid in zip(moves, grids, strict=True):
         b = a + len(grid)
         part = Frames(0.0, grid, frames_all.root_position[a:b], frames_all.root_rotation[a:b],
                       frames_all.q[a:b])  # fmt: skip
         a = b
-        paths.append(reach_path(ir, m, part))
+        paths.append(reach_path(ir, m, part, rigid))
     # movements too short for their joints last longer, and everything after them waits
     fps = ctx.options.fps
     stretches = [

@@ -26,7 +26,7 @@ from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import _arm_dofs
-from mtlc.passes.profile import gaussian_rows
+from mtlc.passes.profile import smooth_path
 
 ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
 HAND_TRACK = {"r": "r_hand", "l": "l_hand"}
@@ -119,8 +119,9 @@ def part_ends(hands: FloatArray, length: float) -> FloatArray:
     return np.stack([mid + half, mid - half], axis=1)
 
 
-def keep_rigid(skel: object, frames: Frames, carry: Carry) -> None:
-    """Re-solve both arms on the carry's frames so the hands hold the part's two ends."""
+def keep_rigid(skel: object, frames: Frames, carry: Carry, sigma: float = RESOLVE_SIGMA) -> None:
+    """Re-solve both arms on the carry's frames so the hands hold the part's two ends
+    (``sigma``: the Gaussian, in frames, that smooths the correction before the second solve)."""
     t = frames.time
     rows = np.flatnonzero((t >= carry.start - EPS) & (t < carry.end - EPS))
     if rows.size < 2:
@@ -136,11 +137,12 @@ def keep_rigid(skel: object, frames: Frames, carry: Carry) -> None:
     solved = _solve_arms(skel, frames, rows, fix, q, hands, goal)
     # each frame's solve starts from its own pose and converges where it will: the correction
     # jumped from frame to frame (the avionics unit's elbow 18 deg in one output frame).
-    # The correction smoothed in time and solved again from there, each frame lands near its
+    # The correction smoothed in time (its ends kept: the carry's first frame, where the part's
+    # length is taken, has none) and solved again from there, each frame lands near its
     # neighbours.
     arms = _both_arms(skel)
     smooth = q.copy()
-    smooth[:, arms] += gaussian_rows(solved[:, arms] - q[:, arms], RESOLVE_SIGMA)
+    smooth[:, arms] += smooth_path(solved[:, arms] - q[:, arms], sigma)
     hands2 = _hands(skel, frames, rows, smooth)
     fix2 = np.flatnonzero(np.linalg.norm(hands2 - goal, axis=-1).max(axis=1) > FIX_FROM)
     q = _solve_arms(skel, frames, rows, fix2, smooth, hands2, goal) if fix2.size else smooth

@@ -34,6 +34,7 @@ from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
 from mtlc.passes.profile import gaussian_rows as gaussian_rows  # re-exported
 from mtlc.passes.profile import minimum_jerk as minimum_jerk  # re-exported
+from mtlc.passes.profile import smooth_path as smooth_path  # re-exported
 from mtlc.passes.timewarp import Stretch, TimeWarp
 from mtlc.passes.tool import is_stroke
 
@@ -209,17 +210,6 @@ def progress(ir: MotionIR, m: Movement, frames: Frames) -> tuple[FloatArray, flo
     return u / u[-1] if u[-1] > 0 else u, total
 
 
-def smooth_path(q: FloatArray, sigma: float) -> FloatArray:
-    """A Gaussian low-pass of a (N, D) path along its samples, both ends kept exactly (odd
-    reflection about each end): the gradient path's zig-zag and the corner at the approach
-    point would each cost a jerk that no timing removes."""
-    if sigma <= 0.0 or len(q) < 3:
-        return q
-    n = min(len(q) - 1, int(np.ceil(4 * sigma)))
-    padded = np.concatenate([2 * q[0] - q[n:0:-1], q, 2 * q[-1] - q[-2 : -n - 2 : -1]])
-    return gaussian_rows(padded, sigma)[n : n + len(q)]
-
-
 @dataclass
 class ReachPath:
     """A movement's smoothed joint path: its dofs' values at rising shares of its progress."""
@@ -248,9 +238,11 @@ def reach_path(
     at_even = np.interp(even, u, frames.time)
     body = _frames_at(frames, at_even)
     body.q[:, idx] = smooth_path(body.q[:, idx], SMOOTH_SIGMA * (PATH_POINTS - 1))
-    for carry in rigid:
-        if carry.start < m.end - EPS and carry.end > m.start + EPS:
-            keep_rigid(ir.skeleton, body, carry)
+    held = [c for c in rigid if c.start < m.end - EPS and c.end > m.start + EPS]
+    for carry in held:
+        keep_rigid(ir.skeleton, body, carry, SMOOTH_SIGMA * (PATH_POINTS - 1))
+    if held:  # the correction has corners of its own (the solver's): smoothed like the path
+        body.q[:, idx] = smooth_path(body.q[:, idx], SMOOTH_SIGMA * (PATH_POINTS - 1))
     u2, _ = progress(ir, m, body)
     return ReachPath(u2, body.q[:, idx])
 

@@ -54,3 +54,14 @@ def gaussian_rows(x: FloatArray, sigma: float, truncate: float = 4.0) -> FloatAr
             * weights[radius - j]
         )
     return out
+
+
+def smooth_path(q: FloatArray, sigma: float) -> FloatArray:
+    """A Gaussian low-pass of a (N, D) path along its samples, both ends kept exactly (odd
+    reflection about each end): the gradient path's zig-zag and the corner at the approach
+    point would each cost a jerk that no timing removes."""
+    if sigma <= 0.0 or len(q) < 3:
+        return q
+    n = min(len(q) - 1, int(np.ceil(4 * sigma)))
+    padded = np.concatenate([2 * q[0] - q[n:0:-1], q, 2 * q[-1] - q[-2 : -n - 2 : -1]])
+    return gaussian_rows(padded, sigma)[n : n + len(q)]

@@ -225,7 +225,7 @@ def reach_path(
     ir: MotionIR, m: Movement, frames: Frames, rigid: Sequence[Carry] = ()
 ) -> ReachPath | None:
     """The movement's path as interpolation makes it, resampled at even progress and smoothed
-    (None when nothing moves). Where both hands hold one part (``rigid``: the carries), the
+    (None when nothing moves). Where both hands move holding one part (``rigid``: the carries), the
     path keeps the part rigid (``carry.keep_rigid``): the two arms' keys are interpolated each
     on its own and squeezed the avionics unit by 16 cm between them, and the carry pass's
     correction, made after the timing, turned an elbow 18 deg in one output frame; made here
@@ -238,7 +238,8 @@ def reach_path(
     at_even = np.interp(even, u, frames.time)
     body = _frames_at(frames, at_even)
     body.q[:, idx] = smooth_path(body.q[:, idx], SMOOTH_SIGMA * (PATH_POINTS - 1))
-    held = [c for c in rigid if c.start < m.end - EPS and c.end > m.start + EPS]
+    both = {"r_hand", "l_hand"} <= set(m.effectors)  # one hand's reach keeps its own path
+    held = [c for c in rigid if both and c.start < m.end - EPS and c.end > m.start + EPS]
     for carry in held:
         keep_rigid(ir.skeleton, body, carry, SMOOTH_SIGMA * (PATH_POINTS - 1))
     if held:  # the correction has corners of its own (the solver's): smoothed like the path

@@ -47,8 +47,12 @@ def test_apply_moves_windows_keys_and_result_times_but_not_positions() -> None:
     ir = MotionIR("t", None, "t.mtask", {}, 0.0, [])
     before = segment(0.0, 1.0)
     inside = segment(1.0, 2.0)
-    after = segment(3.0, 5.0, {"steps": steps, "feet_held_until": 5.0, "distance": 4.0})
-    ir.segments = [before, inside, after]
+    phases = {"seat": [3.0, 3.2], "swing": [3.2, 4.0]}  # a wrench stroke's
+    after = segment(
+        3.0, 5.0, {"steps": steps, "feet_held_until": 5.0, "distance": 4.0, "phases": phases}
+    )
+    kneel = segment(3.0, 5.0, {"phases": [{"name": "down", "start": 3.0, "end": 4.0}]})
+    ir.segments = [before, inside, after, kneel]
     apply(ir, TimeWarp.of([Stretch(1.0, 2.0, 1.0)]))
     assert (before.start, before.end) == (0.0, 1.0)
     assert (inside.start, inside.end) == (1.0, 3.0)
@@ -57,6 +61,8 @@ def test_apply_moves_windows_keys_and_result_times_but_not_positions() -> None:
     assert after.result["steps"][0]["t_lift"] == 5.0 and after.result["steps"][0]["t_land"] == 5.5
     assert after.result["steps"][0]["from"] == [4.0, 0.0, 4.0]  # a position, not a time
     assert after.result["feet_held_until"] == 6.0 and after.result["distance"] == 4.0
+    assert after.result["phases"] == {"seat": [4.0, 4.2], "swing": [4.2, 5.0]}
+    assert kneel.result["phases"] == [{"name": "down", "start": 4.0, "end": 5.0}]
 
 
 def test_needed_time_is_the_minimum_jerk_peak_over_the_joint_speed() -> None:

@@ -18,6 +18,8 @@ from mtlc.ir.model import FloatArray, MotionIR
 
 # result entries that hold times (s): footsteps' and kneel phases', rolls', the gait's end
 TIME_KEYS = frozenset({"start", "end", "from", "to", "feet_held_until"})
+# result entries that map names to [start, end] lists of times: a wrench stroke's phases
+TIME_SPAN_KEYS = frozenset({"phases"})
 
 
 @dataclass(frozen=True)
@@ -64,11 +66,19 @@ def _warp_result(value: Any, warp: TimeWarp, key: str = "") -> Any:
     """A segment's result with its times warped (floats under time keys, in nested lists and
     dicts; positions and other numbers unchanged)."""
     if isinstance(value, dict):
+        if key in TIME_SPAN_KEYS:  # {"seat": [t0, t1], ...}
+            return {k: _warp_span(v, warp) for k, v in value.items()}
         return {k: _warp_result(v, warp, str(k)) for k, v in value.items()}
     if isinstance(value, list):
-        return [_warp_result(v, warp, key) for v in value] if key not in TIME_KEYS else value
+        return [_warp_result(v, warp) for v in value] if key not in TIME_KEYS else value
     if isinstance(value, float) and (key in TIME_KEYS or key.startswith("t_")):
         return round(warp(value), 9)
+    return value
+
+
+def _warp_span(value: Any, warp: TimeWarp) -> Any:
+    if isinstance(value, list) and all(isinstance(v, float) for v in value):
+        return [round(warp(v), 9) for v in value]
     return value
 
 

@@ -319,6 +319,7 @@ def test_a_bug_in_lint_or_report_is_one_line_and_exit_2(
     [
         (["--version"], [], ["numpy", "lark", "mtlc.frontend"]),
         (["explain", "MT0201"], [], ["numpy", "lark", "mtlc.frontend"]),
+        (["--help"], [], ["numpy", "lark", "mtlc.frontend"]),
         (["check", FLAGSHIP], ["lark", "mtlc.frontend"], ["numpy", "scipy", "mtlc.passes"]),
     ],
 )
@@ -344,3 +345,15 @@ def test_each_command_imports_only_what_it_uses(
     assert modules, out.stderr
     assert all(m in modules for m in loaded), [m for m in loaded if m not in modules]
     assert not modules & set(not_loaded), sorted(modules & set(not_loaded))
+
+
+@pytest.mark.parametrize("columns", ["40", "80", "200"])
+def test_the_listing_of_commands_is_the_whole_command_lines_help(
+    columns: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`mtlc --help` lists the commands from COMMAND_SUMMARIES without importing them (issue
+    21): the same text as the help of the parser that has every command and its options."""
+    from mtlc.cli import build_parser, listing_parser
+
+    monkeypatch.setenv("COLUMNS", columns)
+    assert listing_parser().format_help() == build_parser().format_help()

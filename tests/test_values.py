@@ -199,3 +199,81 @@ def test_any_written_number_is_accepted_or_mt0309_and_the_timeline_is_finite(
         assert math.isfinite(timeline.duration)
         for prim in timeline.primitives:
             assert math.isfinite(prim.start) and math.isfinite(prim.end)
+
+
+_RULES = [
+    v
+    for v in vars(V).values()
+    if isinstance(v, V.Range)
+] + list(V.POSTURE_ARGS.values()) + list(V.MTM_ARGS.values())  # fmt: skip
+
+
+def _near_bounds(rule: V.Range) -> list[float]:
+    """The rule's bounds, the floats either side of them, and their negatives."""
+    near = {0.0, -0.0}
+    for bound in (rule.low, rule.high):
+        if bound is not None:
+            near |= {bound, math.nextafter(bound, -math.inf), math.nextafter(bound, math.inf)}
+    return sorted(near | {-x for x in near})
+
+
+def _values(rule: V.Range) -> st.SearchStrategy[tuple[V.Range, object]]:
+    return st.tuples(
+        st.just(rule),
+        st.one_of(
+            st.sampled_from(_near_bounds(rule)),
+            st.floats(allow_nan=True, allow_infinity=True),
+            st.integers(min_value=-(10**30), max_value=10**30),
+            st.booleans(),
+            st.tuples(st.floats(), st.floats(), st.floats()),
+            st.text(max_size=3),
+        ),
+    )
+
+
+@settings(max_examples=1500, deadline=None)
+@given(case=st.sampled_from(_RULES).flatmap(_values))
+def test_problem_quick_path_says_what_the_reference_says(case: tuple[V.Range, object]) -> None:
+    """values.problem answers one in-range number without the general scan (issue 21): the same
+    answer, or the same exception, as values._problem for every rule and value."""
+    rule, value = case
+    try:
+        expected: object = V._problem(rule, value)
+    except OverflowError as exc:
+        expected = type(exc)
+    try:
+        got: object = V.problem(rule, value)
+    except OverflowError as exc:
+        got = type(exc)
+    assert got == expected
+
+
+def _for_type_reference(type_: object) -> V.Range | None:
+    """values.for_type as a chain of comparisons (before it became a table, issue 21)."""
+    from mtlc.semantics import types as T
+
+    if type_ == T.MASS:
+        return V.MASS
+    if type_ == T.DURATION:
+        return V.DURATION
+    if type_ == T.LENGTH:
+        return V.LENGTH
+    if type_ == T.ANGLE:
+        return V.ANGLE
+    if type_ in (T.NUMBER, T.INT):
+        return V.FINITE
+    if type_ == T.VectorType(T.LENGTH_DIM):
+        return V.POSITION
+    return None
+
+
+def test_for_type_table_says_what_the_comparisons_said() -> None:
+    from mtlc.semantics import types as T
+
+    dims = [T.NONE_DIM, T.LENGTH_DIM, T.ANGLE_DIM, T.TIME_DIM, T.MASS_DIM, (1, 0, -1, 0)]
+    types: list[T.Type] = [*T.TYPE_NAMES.values(), T.UNKNOWN, T.TIMING, T.SCENE]
+    types += [T.Quantity(d, integer) for d in dims for integer in (False, True)]
+    types += [T.VectorType(d, size) for d in dims for size in (2, 3, 4)]
+    types += [T.ListType(t) for t in list(types)]
+    for type_ in types:
+        assert V.for_type(type_) is _for_type_reference(type_), type_

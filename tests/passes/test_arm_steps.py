@@ -34,15 +34,9 @@ TURN_STEP = 20.0  # deg: the wrist and forearm inside a fastener turn
 
 # (procedure, manikin) whose arm still steps further, and why (docs/passes.md, "Joint speed",
 # "Arm branches": left); strict: a fix makes them pass and the entry goes
-SHORT_TIME = (
-    "the reach's time, paced by the hand's path, is short of what the arm's swing needs "
-    "at 360 deg/s"
-)
 STROKES = "a wrench's 60 deg stroke in 0.27 s swings the shoulder faster than 360 deg/s"
 FREE_ARM = "the clearance pass pushes the free left arm off the trunk frame by frame"
 KNOWN: dict[tuple[str, str], str] = {
-    ("a01_across_body", "male-p95"): SHORT_TIME,  # 12.3 deg, the elbow
-    ("a01_across_body", "female-p1"): SHORT_TIME,  # 18.7 deg: overhead to mid in 0.41 s
     **{("a03_awkward_turns", m): STROKES for m in ("male-p50", "male-p90", "male-p95")},
     ("a03_awkward_turns", "male-p99"): STROKES,
     ("a03_awkward_turns", "female-p5"): STROKES,

@@ -102,3 +102,32 @@ def test_a_long_movement_is_measured_at_most_max_path_samples() -> None:
     long = path_grid(Movement([], 0.26, 93.33))
     assert len(long) == MAX_PATH_SAMPLES + 1
     assert long[0] == 0.26 and long[-1] == 93.33
+
+
+@pytest.mark.parametrize(("sex", "percentile"), [("male", 99), ("female", 5)])
+def test_a_part_in_both_hands_is_carried_rigid_before_the_carry_pass(
+    sex: str, percentile: int
+) -> None:
+    """tests/data/arms a02: a box held in both hands from a low shelf to a high one and down.
+    The two arms' keys, interpolated each on its own, squeezed it by 198 mm (male P99) and
+    119 mm (female P5) between them; the pace pass makes the carried path rigid before timing
+    it, so the carry pass's per-frame correction has little left to do."""
+    from pathlib import Path
+
+    from mtlc.passes.carry import carries
+
+    path = Path(__file__).resolve().parents[2] / "tests/data/arms/a02_two_hands_high_low.mtask"
+    (timeline,) = run_frontend([path]).timelines
+    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", sex, percentile))
+    ir = run_motion(timeline, DiagnosticSink(), MotionOptions(), until="interpolate")
+    frames = ir.frames
+    assert frames is not None
+    spans = carries(ir)
+    assert spans
+    for carry in spans:
+        rows = (frames.time >= carry.start) & (frames.time < carry.end)
+        pose = forward(ir.skeleton, frames.q[rows], frames.root_position[rows],
+                       frames.root_rotation[rows])  # fmt: skip
+        hands = site_positions(ir.skeleton, pose, ["r_hand", "l_hand"])
+        apart = np.linalg.norm(hands[:, 0] - hands[:, 1], axis=1)
+        assert np.abs(apart - apart[0]).max() < 0.03  # m

@@ -26,12 +26,14 @@ from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import _arm_dofs
+from mtlc.passes.profile import smooth_path
 
 ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
 HAND_TRACK = {"r": "r_hand", "l": "l_hand"}
 REACHED = 1e-3  # m: a hand further than this from the part at its grasp does not hold it
 FIX_FROM = 5e-5  # m: frames whose hands are already this close to the part's ends stay
 SOLVE_TOL = 1e-4  # m
+RESOLVE_SIGMA = 3.0  # dense frames (50 ms at 60 fps): the Gaussian that smooths a correction
 EPS = 1e-9
 
 
@@ -117,8 +119,9 @@ def part_ends(hands: FloatArray, length: float) -> FloatArray:
     return np.stack([mid + half, mid - half], axis=1)
 
 
-def keep_rigid(skel: object, frames: Frames, carry: Carry) -> None:
-    """Re-solve both arms on the carry's frames so the hands hold the part's two ends."""
+def keep_rigid(skel: object, frames: Frames, carry: Carry, sigma: float = RESOLVE_SIGMA) -> None:
+    """Re-solve both arms on the carry's frames so the hands hold the part's two ends
+    (``sigma``: the Gaussian, in frames, that smooths the correction before the second solve)."""
     t = frames.time
     rows = np.flatnonzero((t >= carry.start - EPS) & (t < carry.end - EPS))
     if rows.size < 2:
@@ -131,6 +134,28 @@ def keep_rigid(skel: object, frames: Frames, carry: Carry) -> None:
     fix = np.flatnonzero(off > FIX_FROM)
     if fix.size == 0:
         return
+    solved = _solve_arms(skel, frames, rows, fix, q, hands, goal)
+    # each frame's solve starts from its own pose and converges where it will: the correction
+    # jumped from frame to frame (the avionics unit's elbow 18 deg in one output frame).
+    # The correction smoothed in time (its ends kept: the carry's first frame, where the part's
+    # length is taken, has none) and solved again from there, each frame lands near its
+    # neighbours.
+    arms = _both_arms(skel)
+    smooth = q.copy()
+    smooth[:, arms] += smooth_path(solved[:, arms] - q[:, arms], sigma)
+    hands2 = _hands(skel, frames, rows, smooth)
+    fix2 = np.flatnonzero(np.linalg.norm(hands2 - goal, axis=-1).max(axis=1) > FIX_FROM)
+    q = _solve_arms(skel, frames, rows, fix2, smooth, hands2, goal) if fix2.size else smooth
+    frames.q[rows] = q
+
+
+def _solve_arms(
+    skel: object, frames: Frames, rows: np.ndarray, fix: np.ndarray, q: FloatArray,
+    hands: FloatArray, goal: FloatArray,
+) -> FloatArray:  # fmt: skip
+    """``q`` with both arms of the rows ``fix`` solved onto their ends of the part, where
+    that brings the hand closer."""
+    q = q.copy()
     sub = rows[fix]
     for k, hand in enumerate(("r_hand", "l_hand")):
         model = prepare(
@@ -144,7 +169,11 @@ def keep_rigid(skel: object, frames: Frames, carry: Carry) -> None:
         before = np.linalg.norm(hands[fix, k] - goal[fix, k], axis=1)
         better = res.position_error < before
         q[fix[better]] = res.q[better]
-    frames.q[rows] = q
+    return q
+
+
+def _both_arms(skel: object) -> list[int]:
+    return sorted({i for hand in ("r_hand", "l_hand") for i in _arm_dofs(skel, hand)})
 
 
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:

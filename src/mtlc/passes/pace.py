@@ -20,6 +20,7 @@ timing (their trunk is one). The TO's last stretch is the slow end of the bell.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,9 +28,14 @@ import numpy as np
 from mtlc.body import part_site_positions
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
+from mtlc.passes import timewarp
+from mtlc.passes.carry import Carry, carries, keep_rigid
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
+from mtlc.passes.profile import gaussian_rows as gaussian_rows  # re-exported
 from mtlc.passes.profile import minimum_jerk as minimum_jerk  # re-exported
+from mtlc.passes.profile import smooth_path as smooth_path  # re-exported
+from mtlc.passes.timewarp import Stretch, TimeWarp
 from mtlc.passes.tool import is_stroke
 
 JOINT_WEIGHT = 0.02  # m of progress per radian of the movement's joints (L2 over its dofs)
@@ -43,6 +49,12 @@ MAX_PATH_SAMPLES = 4096
 EPS = 1e-6
 PATH_POINTS = 241  # the path, resampled at even steps of progress before it is smoothed
 SMOOTH_SIGMA = 0.1  # of the path's progress: the Gaussian that smooths it
+# rad/s: the fastest a reach turns a joint at its bell's peak. Output frames at 30 fps may step
+# 12 deg (360 deg/s, issue 19); the passes after this one (balance, smoothing, the carry and
+# clearance corrections) add a little, so the reach itself keeps a sixth in hand.
+PEAK_JOINT_SPEED = float(np.radians(300.0))
+MAX_STRETCH = 3.0  # a movement lasts at most this many times the timeline's time for it
+NEED_SAMPLES = 512  # the minimum-jerk clock sampled this densely to find the fastest joint
 
 
 @dataclass
@@ -198,43 +210,26 @@ def progress(ir: MotionIR, m: Movement, frames: Frames) -> tuple[FloatArray, flo
     return u / u[-1] if u[-1] > 0 else u, total
 
 
-def smooth_path(q: FloatArray, sigma: float) -> FloatArray:
-    """A Gaussian low-pass of a (N, D) path along its samples, both ends kept exactly (odd
-    reflection about each end): the gradient path's zig-zag and the corner at the approach
-    point would each cost a jerk that no timing removes."""
-    if sigma <= 0.0 or len(q) < 3:
-        return q
-    n = min(len(q) - 1, int(np.ceil(4 * sigma)))
-    padded = np.concatenate([2 * q[0] - q[n:0:-1], q, 2 * q[-1] - q[-2 : -n - 2 : -1]])
-    return gaussian_rows(padded, sigma)[n : n + len(q)]
+@dataclass
+class ReachPath:
+    """A movement's smoothed joint path: its dofs' values at rising shares of its progress."""
+
+    progress: FloatArray  # (P,) from 0 to 1
+    q: FloatArray  # (P, len(dofs))
+
+    def at(self, s: FloatArray) -> FloatArray:
+        return pchip(self.progress, self.q)(s)
 
 
-def gaussian_rows(x: FloatArray, sigma: float, truncate: float = 4.0) -> FloatArray:
-    """scipy's ``gaussian_filter1d(x, sigma, axis=0, mode="nearest")`` in numpy, summed in its
-    order (the kernel's symmetric pairs from the outside in), so the same numbers: importing
-    ``scipy.ndimage`` was a third of every compile's start-up (issue 21)."""
-    radius = int(truncate * float(sigma) + 0.5)
-    offsets = np.arange(-radius, radius + 1)
-    weights = np.exp(-0.5 / (sigma * sigma) * offsets**2)
-    weights = weights / weights.sum()
-    x = np.asarray(x, dtype=float)
-    padded = np.concatenate(
-        [np.repeat(x[:1], radius, axis=0), x, np.repeat(x[-1:], radius, axis=0)]
-    )
-    n = len(x)
-    out = padded[radius : radius + n] * weights[radius]
-    for j in range(radius, 0, -1):
-        out = (
-            out
-            + (padded[radius - j : radius - j + n] + padded[radius + j : radius + j + n])
-            * weights[radius - j]
-        )
-    return out
-
-
-def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> FloatArray | None:
-    """The movement's dofs at ``t_new``: its path, smoothed, with minimum-jerk progress (None
-    when nothing moves)."""
+def reach_path(
+    ir: MotionIR, m: Movement, frames: Frames, rigid: Sequence[Carry] = ()
+) -> ReachPath | None:
+    """The movement's path as interpolation makes it, resampled at even progress and smoothed
+    (None when nothing moves). Where both hands move holding one part (``rigid``: the carries), the
+    path keeps the part rigid (``carry.keep_rigid``): the two arms' keys are interpolated each
+    on its own and squeezed the avionics unit by 16 cm between them, and the carry pass's
+    correction, made after the timing, turned an elbow 18 deg in one output frame; made here
+    on the path, it is timed with the rest (and counts in ``needed_time``)."""
     idx = [ir.skeleton.dof_index(n) for n in m.dofs]
     u, total = progress(ir, m, frames)
     if total <= 1e-6:
@@ -243,9 +238,65 @@ def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> Float
     at_even = np.interp(even, u, frames.time)
     body = _frames_at(frames, at_even)
     body.q[:, idx] = smooth_path(body.q[:, idx], SMOOTH_SIGMA * (PATH_POINTS - 1))
+    both = {"r_hand", "l_hand"} <= set(m.effectors)  # one hand's reach keeps its own path
+    held = [c for c in rigid if both and c.start < m.end - EPS and c.end > m.start + EPS]
+    for carry in held:
+        keep_rigid(ir.skeleton, body, carry, SMOOTH_SIGMA * (PATH_POINTS - 1))
+    if held:  # the correction has corners of its own (the solver's): smoothed like the path
+        body.q[:, idx] = smooth_path(body.q[:, idx], SMOOTH_SIGMA * (PATH_POINTS - 1))
     u2, _ = progress(ir, m, body)
-    s = minimum_jerk((t_new - m.start) / (m.end - m.start))
-    return pchip(u2, body.q[:, idx])(s)
+    return ReachPath(u2, body.q[:, idx])
+
+
+def paced(ir: MotionIR, m: Movement, frames: Frames, t_new: FloatArray) -> FloatArray | None:
+    """The movement's dofs at ``t_new``: its path, smoothed, with minimum-jerk progress (None
+    when nothing moves)."""
+    path = reach_path(ir, m, frames)
+    if path is None:
+        return None
+    return path.at(minimum_jerk((t_new - m.start) / (m.end - m.start)))
+
+
+def needed_time(path: ReachPath) -> float:
+    """The shortest time (s) in which the path, on the minimum-jerk clock, turns no joint
+    faster than ``PEAK_JOINT_SPEED``: its fastest dof's largest rate per unit of normalised
+    time over that speed (on a straight joint path the bell's peak is 1.875 times the mean
+    rate, Flash & Hogan 1985, so this is 1.875 x the largest excursion / the speed)."""
+    tau = np.linspace(0.0, 1.0, NEED_SAMPLES + 1)
+    q = path.at(minimum_jerk(tau))
+    rate = float(np.abs(np.diff(q, axis=0)).max(initial=0.0)) * NEED_SAMPLES
+    return rate / PEAK_JOINT_SPEED
+
+
+def stretchable(ir: MotionIR, m: Movement) -> bool:
+    """Nothing that keeps its own clock runs inside the movement's window: a walk (its
+    cadence), a kneel or a stand that keys the root, a wrench's strokes."""
+    own = {id(s) for s in m.segments}
+    for s in ir.segments:
+        if id(s) in own or s.end <= m.start + EPS or s.start >= m.end - EPS:
+            continue
+        if (
+            s.kind == "locomotion"
+            or (s.kind == "posture" and s.result.get("root") == "keyed")
+            or is_stroke(s)
+        ):
+            return False
+    return True
+
+
+def stretch_for(ir: MotionIR, m: Movement, path: ReachPath | None, fps: float) -> Stretch | None:
+    """How much longer the movement must last for its joints (None: its time will do): whole
+    output frames (``fps``), so everything after it falls on the output grid as it did (a goal
+    ending 29 ms before the frame that checks it, with a walk starting at its end, was found
+    1.5 mm off its site), decided on a rounded value (docs/passes.md, determinism)."""
+    if path is None:
+        return None
+    duration = m.end - m.start
+    need = min(needed_time(path), MAX_STRETCH * duration)
+    extra = np.ceil(round((need - duration) * fps, 6)) / fps
+    if extra <= 0.0 or not stretchable(ir, m):
+        return None
+    return Stretch(m.start, m.end, float(extra))
 
 
 def path_grid(m: Movement) -> FloatArray:
@@ -264,16 +315,28 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     # the old motion first, for every movement at once (the keys are replaced afterwards)
     grids = [path_grid(m) for m in moves]
     _, frames_all = _body(ir, np.concatenate(grids))
+    paths: list[ReachPath | None] = []
+    rigid = carries(ir)
     a = 0
     for m, grid in zip(moves, grids, strict=True):
         b = a + len(grid)
         part = Frames(0.0, grid, frames_all.root_position[a:b], frames_all.root_rotation[a:b],
                       frames_all.q[a:b])  # fmt: skip
         a = b
-        t_new = new_times(m)
-        values = paced(ir, m, part, t_new)
-        if values is None:
+        paths.append(reach_path(ir, m, part, rigid))
+    # movements too short for their joints last longer, and everything after them waits
+    fps = ctx.options.fps
+    stretches = [
+        st for m, p in zip(moves, paths, strict=True) if (st := stretch_for(ir, m, p, fps))
+    ]
+    warp = TimeWarp.of(stretches)
+    timewarp.apply(ir, warp)
+    for m, path in zip(moves, paths, strict=True):
+        m.start, m.end = warp(m.start), warp(m.end)
+        if path is None:
             continue
+        t_new = new_times(m)
+        values = path.at(minimum_jerk((t_new - m.start) / (m.end - m.start)))
         for seg in m.segments:
             inside = (t_new >= seg.start - EPS) & (t_new <= seg.end + EPS)
             seg.keyframes = Keyframes(time=t_new[inside], dofs=tuple(m.dofs), q=values[inside])

@@ -1,4 +1,5 @@
-"""Progress profiles of human point-to-point movements (shared by the pace and tool passes).
+"""Progress profiles of human point-to-point movements (shared by the pace and tool passes), and
+the Gaussian low-pass that the pace and carry passes smooth paths and corrections with.
 
 A point-to-point hand movement minimises the integrated squared jerk (Flash & Hogan 1985, "The
 coordination of arm movements: an experimentally confirmed mathematical model", J Neurosci
@@ -30,3 +31,37 @@ def placing_clock(tau: FloatArray) -> FloatArray:
     path's own shape starts from rest) and arrives with a long deceleration."""
     t = np.clip(tau, 0.0, 1.0)
     return 1.0 - (1.0 - t) ** PLACING_SKEW
+
+
+def gaussian_rows(x: FloatArray, sigma: float, truncate: float = 4.0) -> FloatArray:
+    """scipy's ``gaussian_filter1d(x, sigma, axis=0, mode="nearest")`` in numpy, summed in its
+    order (the kernel's symmetric pairs from the outside in), so the same numbers: importing
+    ``scipy.ndimage`` was a third of every compile's start-up (issue 21)."""
+    radius = int(truncate * float(sigma) + 0.5)
+    offsets = np.arange(-radius, radius + 1)
+    weights = np.exp(-0.5 / (sigma * sigma) * offsets**2)
+    weights = weights / weights.sum()
+    x = np.asarray(x, dtype=float)
+    padded = np.concatenate(
+        [np.repeat(x[:1], radius, axis=0), x, np.repeat(x[-1:], radius, axis=0)]
+    )
+    n = len(x)
+    out = padded[radius : radius + n] * weights[radius]
+    for j in range(radius, 0, -1):
+        out = (
+            out
+            + (padded[radius - j : radius - j + n] + padded[radius + j : radius + j + n])
+            * weights[radius - j]
+        )
+    return out
+
+
+def smooth_path(q: FloatArray, sigma: float) -> FloatArray:
+    """A Gaussian low-pass of a (N, D) path along its samples, both ends kept exactly (odd
+    reflection about each end): the gradient path's zig-zag and the corner at the approach
+    point would each cost a jerk that no timing removes."""
+    if sigma <= 0.0 or len(q) < 3:
+        return q
+    n = min(len(q) - 1, int(np.ceil(4 * sigma)))
+    padded = np.concatenate([2 * q[0] - q[n:0:-1], q, 2 * q[-1] - q[-2 : -n - 2 : -1]])
+    return gaussian_rows(padded, sigma)[n : n + len(q)]

@@ -55,6 +55,7 @@ TOOL_RANGES = {
     "axis": V.TOOL_AXIS,
 }
 INT_HELP = "whole numbers count things (repeats, turns, knees): write a smaller one"
+_UNIT_TYPES = {unit: T.Quantity(dim) for unit, (dim, _) in T.UNITS.items()}  # built once
 REPEAT_COUNT = V.Range(
     "a repeat count", "", 0, None, help="repeat a block 0 or more times; 0 runs nothing"
 )
@@ -766,57 +767,62 @@ class Checker:
         return False
 
     def infer(self, expr: ast.Expr, env: Env, expected: T.Type | None = None) -> T.Type:
-        match expr:
-            case ast.Number(unit=None, is_int=is_int):
-                if is_int and (problem := V.int_problem(int(expr.value))):
+        kind = type(expr)  # the node classes have no subclasses: one look-up, no isinstance chain
+        if kind is ast.Number:
+            assert isinstance(expr, ast.Number)
+            unit = expr.unit
+            if unit is None:
+                if expr.is_int and (problem := V.int_problem(int(expr.value))):
                     self.sink.report("MT0309", problem, expr.span, help=INT_HELP)
                     return T.UNKNOWN
-                return T.INT if is_int else T.NUMBER
-            case ast.Number(unit=unit):
-                utype, factor = self.unit_type(unit, expr.unit_span or expr.span, expected)
-                if utype != T.UNKNOWN and not math.isfinite(expr.value * factor):
+                return T.INT if expr.is_int else T.NUMBER
+            utype, factor = self.unit_type(unit, expr.unit_span or expr.span, expected)
+            if utype != T.UNKNOWN and not math.isfinite(expr.value * factor):
+                self.sink.report(
+                    "MT0309",
+                    f"`{expr.value:g} {unit}` is too large: it is not a finite number",
+                    expr.span,
+                    help="use a larger unit or a smaller number",
+                )
+                return T.UNKNOWN
+            return utype
+        if kind is ast.Name:
+            assert isinstance(expr, ast.Name)
+            return self.infer_name(expr.name, expr.span, env, expected)
+        if kind is ast.Vector:
+            return self.infer_vector(expr, env, expected)  # type: ignore[arg-type]
+        if kind is ast.Attr:
+            return self.infer_attr(expr, env)  # type: ignore[arg-type]
+        if kind is ast.Binary:
+            return self.infer_binary(expr, env, expected)  # type: ignore[arg-type]
+        if kind is ast.String:
+            return T.STRING
+        if kind is ast.CallExpr:
+            return self.infer_call(expr, env)  # type: ignore[arg-type]
+        if kind is ast.Unary:
+            assert isinstance(expr, ast.Unary)
+            t = self.infer(expr.operand, env, expected)
+            if isinstance(t, T.Quantity | T.VectorType) or t == T.UNKNOWN:
+                return t
+            self.sink.report("MT0301", f"cannot negate {_article_type(t)}", expr.span)
+            return T.UNKNOWN
+        if kind is ast.ListExpr:
+            assert isinstance(expr, ast.ListExpr)
+            items = expr.items
+            if not items:
+                return T.ListType(T.UNKNOWN)
+            elem_expected = expected.element if isinstance(expected, T.ListType) else None
+            first = self.infer(items[0], env, elem_expected)
+            for item in items[1:]:
+                t = self.infer(item, env, first if isinstance(first, T.EnumType) else None)
+                if not (T.is_assignable(t, first) or T.is_assignable(first, t)):
                     self.sink.report(
-                        "MT0309",
-                        f"`{expr.value:g} {unit}` is too large: it is not a finite number",
-                        expr.span,
-                        help="use a larger unit or a smaller number",
+                        "MT0301",
+                        f"list items must have one type: found {first} and {t}",
+                        item.span,
                     )
-                    return T.UNKNOWN
-                return utype
-            case ast.String():
-                return T.STRING
-            case ast.Name(name=name):
-                return self.infer_name(name, expr.span, env, expected)
-            case ast.Attr():
-                return self.infer_attr(expr, env)
-            case ast.CallExpr():
-                return self.infer_call(expr, env)
-            case ast.Unary(operand=operand):
-                t = self.infer(operand, env, expected)
-                if isinstance(t, T.Quantity | T.VectorType) or t == T.UNKNOWN:
-                    return t
-                self.sink.report("MT0301", f"cannot negate {_article_type(t)}", expr.span)
-                return T.UNKNOWN
-            case ast.Binary():
-                return self.infer_binary(expr, env, expected)
-            case ast.Vector():
-                return self.infer_vector(expr, env, expected)
-            case ast.ListExpr(items=items):
-                if not items:
-                    return T.ListType(T.UNKNOWN)
-                elem_expected = expected.element if isinstance(expected, T.ListType) else None
-                first = self.infer(items[0], env, elem_expected)
-                for item in items[1:]:
-                    t = self.infer(item, env, first if isinstance(first, T.EnumType) else None)
-                    if not (T.is_assignable(t, first) or T.is_assignable(first, t)):
-                        self.sink.report(
-                            "MT0301",
-                            f"list items must have one type: found {first} and {t}",
-                            item.span,
-                        )
-                return T.ListType(first)
-            case _:
-                return T.UNKNOWN
+            return T.ListType(first)
+        return T.UNKNOWN
 
     def unit_type(
         self, unit: str, span: Span, expected: T.Type | None = None
@@ -833,7 +839,7 @@ class Checker:
                 help=suggest(unit, T.UNITS, "units", preferred=same),
             )
             return T.UNKNOWN, 1.0
-        return T.Quantity(found[0]), found[1]
+        return _UNIT_TYPES[unit], found[1]
 
     def infer_name(self, name: str, span: Span, env: Env, expected: T.Type | None) -> T.Type:
         """Resolve a bare name; the order here is the language's, and expansion replays it."""

@@ -12,6 +12,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cache
 from typing import TYPE_CHECKING, Any
 
 from mtlc.body.anthropometry import dimensions
@@ -37,6 +38,7 @@ DEFAULT_APPROACH_M = 0.08
 TO_SHARE = (0.2, 0.5)  # the contact (TO) phase's share of a goal's time: at least, at most
 HAND_REST = {"left_hand": (0.2, 0.75, 0.0), "right_hand": (-0.2, 0.75, 0.0)}  # from the root
 HANDS = {"left": ("left_hand",), "right": ("right_hand",), "both": ("left_hand", "right_hand")}
+_PRIMITIVE_STMTS = frozenset({ast.Goal, ast.Posture, ast.Walk, ast.Grip, ast.Gaze, ast.Still})
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,22 @@ class _Env:
     locals: dict[str, Any]
     trace: tuple[tuple[str, Span], ...]  # (name, span of the call) from the task down
     timing: Any = None  # the element's `time`, if any
+    path: tuple[str, ...] | None = None  # the trace's names, built by the first primitive
+
+
+@dataclass(frozen=True)
+class _Callee:
+    """What every call of one definition needs besides its arguments, worked out once: the
+    value range of each parameter's type (``values.for_type``) and the definition's scope."""
+
+    decl: ast.Definition
+    scope: Scope
+    params: tuple[ast.Param, ...]
+    rules: dict[str, V.Range | None]  # by parameter name
+    timings: tuple[ast.TimeSetting, ...]  # an element's `time` settings
+
+
+_UNRESOLVED = object()  # a node the checker left no decision for
 
 
 class Expander:
@@ -91,6 +109,12 @@ class Expander:
         self.site_overrides = dict(site_overrides or {})
         self.meshes = meshes or {}  # the models' files as the checker read them, by declaration
         self.models: dict[int, dict[str, SceneModel]] = {}  # placed, by scene declaration
+        # by id() of a node of the checked trees, which live as long as the expander: the
+        # checker's decision for a name (``resolved`` hashes a span on every look-up) and the
+        # plan of a call statement's callee
+        self._kinds: dict[int, str | None] = {}
+        self._callees: dict[int, _Callee] = {}  # by call statement
+        self._plans: dict[int, _Callee] = {}  # by definition
 
     # ------------------------------------------------------------ entry
     def expand_task(self, task: ast.Task, scope: Scope) -> Timeline | None:
@@ -431,31 +455,31 @@ class Expander:
         return end
 
     def stmt(self, stmt: ast.Stmt, env: _Env, t: float) -> float:
-        match stmt:
-            case ast.Block():
-                return self.block(stmt, env, t)
-            case ast.Parallel(body=body):
-                return self.parallel(body, env, t)
-            case ast.Repeat():
-                return self.repeat(stmt, env, t)
-            case ast.ForEach():
-                items = self.eval(stmt.items, env)
-                if not stmt.body.stmts and self.depth < MAX_NESTING:
-                    self._idle_round(stmt, env, len(items))  # nothing to run: all at once
-                    return t
-                for value in items:
-                    inner = _Env(env.scope, {**env.locals, stmt.var: value}, env.trace, env.timing)
-                    before = self.count
-                    t = self.block(stmt.body, inner, t)
-                    if self.count == before:
-                        self._idle_round(stmt, env)
+        kind = type(stmt)  # the node classes have no subclasses: one look-up, no isinstance chain
+        if kind is ast.Call:
+            return self.call(stmt, env, t)  # type: ignore[arg-type]
+        if kind in _PRIMITIVE_STMTS:
+            return self.primitive(stmt, env, t)
+        if kind is ast.Block:
+            return self.block(stmt, env, t)  # type: ignore[arg-type]
+        if kind is ast.Parallel:
+            return self.parallel(stmt.body, env, t)  # type: ignore[attr-defined]
+        if kind is ast.Repeat:
+            return self.repeat(stmt, env, t)  # type: ignore[arg-type]
+        if kind is ast.ForEach:
+            assert isinstance(stmt, ast.ForEach)
+            items = self.eval(stmt.items, env)
+            if not stmt.body.stmts and self.depth < MAX_NESTING:
+                self._idle_round(stmt, env, len(items))  # nothing to run: all at once
                 return t
-            case ast.Call():
-                return self.call(stmt, env, t)
-            case ast.Goal() | ast.Posture() | ast.Walk() | ast.Grip() | ast.Gaze() | ast.Still():
-                return self.primitive(stmt, env, t)
-            case _:  # settings and `time`: no motion of their own
-                return t
+            for value in items:
+                inner = _Env(env.scope, {**env.locals, stmt.var: value}, env.trace, env.timing)
+                before = self.count
+                t = self.block(stmt.body, inner, t)
+                if self.count == before:
+                    self._idle_round(stmt, env)
+            return t
+        return t  # settings and `time`: no motion of their own
 
     def _idle_round(self, stmt: ast.ForEach, env: _Env, rounds: int = 1) -> None:
         """A round of `for` that produced nothing still took time: it counts against the budget
@@ -486,30 +510,47 @@ class Expander:
                     raise _BudgetExceeded(_user_line(env, stmt), before + per_round * n, self.idle)
         return t
 
-    def call(self, call: ast.Call, env: _Env, t: float) -> float:
-        sym = self.callees[call.callee_span]  # as the checker resolved it
+    def _callee(self, call: ast.Call) -> _Callee:
+        """The definition a call statement calls (as the checker resolved it), planned once."""
+        plan = self._callees.get(id(call))
+        if plan is None:
+            sym = self.callees[call.callee_span]
+            plan = self._plans.get(id(sym.decl))
+            if plan is None:
+                plan = self._plans[id(sym.decl)] = self._plan(sym)
+            self._callees[id(call)] = plan
+        return plan
+
+    def _plan(self, sym: Symbol) -> _Callee:
         decl = sym.decl
         assert isinstance(decl, ast.Definition)
-        callee_scope = self.scopes[id(sym.module)]
+        rules: dict[str, V.Range | None] = {}
+        for p in decl.params:
+            type_ = T.TYPE_NAMES.get(p.type_name)
+            rules[p.name] = V.for_type(type_) if type_ is not None else None
+        timings = tuple(
+            s for s in decl.body.stmts if isinstance(s, ast.TimeSetting)
+        ) if decl.kind == "element" else ()  # fmt: skip
+        return _Callee(decl, self.scopes[id(sym.module)], decl.params, rules, timings)
+
+    def call(self, call: ast.Call, env: _Env, t: float) -> float:
+        plan = self._callee(call)
+        params = plan.params
         bound: dict[str, Any] = {}
-        params = list(decl.params)
-        types = {p.name: T.TYPE_NAMES.get(p.type_name) for p in params}
         for i, arg in enumerate(call.args):
             name = arg.name if arg.name is not None else params[i].name
             bound[name] = self.eval(arg.value, env)
-            rule = V.for_type(types[name]) if types[name] is not None else None
+            rule = plan.rules[name]
             if rule is not None:  # a parameter passed on: checked where it is written
                 self.check(rule, bound[name], env, arg.value)
         for p in params:
             if p.name not in bound and p.default is not None:
-                bound[p.name] = self.eval(p.default, _Env(callee_scope, {}, env.trace))
-        trace = (*env.trace, (decl.name, call.span))
-        inner = _Env(callee_scope, bound, trace)
-        if decl.kind == "element":
-            for stmt in decl.body.stmts:
-                if isinstance(stmt, ast.TimeSetting):
-                    inner.timing = self.eval(stmt.duration, inner)
-        return self.block(decl.body, inner, t)
+                bound[p.name] = self.eval(p.default, _Env(plan.scope, {}, env.trace))
+        trace = (*env.trace, (plan.decl.name, call.span))
+        inner = _Env(plan.scope, bound, trace)
+        for stmt in plan.timings:
+            inner.timing = self.eval(stmt.duration, inner)
+        return self.block(plan.decl.body, inner, t)
 
     # ------------------------------------------------------------ primitives
     def primitive(self, stmt: ast.Stmt, env: _Env, t: float) -> float:
@@ -795,6 +836,9 @@ class Expander:
         if self.count > self.budget:
             raise _BudgetExceeded(_user_line(env, stmt), None, self.idle)
         origin = env.trace[1][1] if len(env.trace) > 1 else stmt.span
+        path = env.path
+        if path is None:
+            path = env.path = tuple(name for name, _ in env.trace)
         self.out.append(
             Primitive(
                 kind=kind,
@@ -802,84 +846,103 @@ class Expander:
                 start=start,
                 end=end,
                 params=params,
-                path=tuple(name for name, _ in env.trace),
+                path=path,
                 span=stmt.span,
                 origin=origin,
             )
         )
 
     # ------------------------------------------------------------ values
+    def _kind(self, expr: ast.Expr) -> str | None:
+        """The checker's decision for a name (local, site, tool, enum, scene...), or None."""
+        kind = self._kinds.get(id(expr), _UNRESOLVED)
+        if kind is _UNRESOLVED:
+            kind = self._kinds[id(expr)] = self.resolved.get(expr.span)
+        return kind  # type: ignore[return-value]
+
     def eval(self, expr: ast.Expr | None, env: _Env) -> Any:
-        match expr:
-            case None:
-                return None
-            case ast.Number(unit=None, is_int=True, value=v):
-                return int(v)
-            case ast.Number(unit=None, value=v):
-                return v
-            case ast.Number(unit=unit, value=v):
-                return self._computed(v * T.UNITS[unit][1], env, expr)
-            case ast.String(value=v):
-                return v
-            case ast.Name(name=name):
-                kind = self.resolved.get(expr.span)
-                if kind == "local":
-                    return env.locals[name]
-                if kind == "site":
-                    return self.task_sites[name]
-                if kind == "tool":
-                    sym = env.scope.lookup(name)
-                    assert sym is not None and isinstance(sym.decl, ast.ToolDecl)
-                    tool = self._tool(sym.decl, env)
-                    if tool.properties.get("kind") == B.TASK_TOOL_KIND:
-                        return self.tool  # stdlib.tools.task_tool: the task's tool, or none
-                    return tool
-                return name  # an enum member: its name is its value
-            case ast.Attr(name=attr) if self.resolved.get(expr.span) == "enum":
-                return attr  # ReachCase.A
-            case ast.Attr(obj=ast.Name(name=owner), name=attr) if (
-                self.resolved.get(expr.obj.span) == "scene"
-            ):
-                sym = env.scope.lookup(owner)
-                assert sym is not None and isinstance(sym.decl, ast.Scene)
-                site = self._scene_sites(sym)[attr]
-                if site is not self.task_sites.get(attr):
-                    site = dataclasses.replace(site, name=f"{owner}.{attr}")
-                    self.other_sites[site.name] = site
-                return site
-            case ast.Attr(obj=obj, name=attr):
-                tool = self.eval(obj, env)
-                if attr not in tool.properties:
-                    self.sink.report(
-                        "MT0309",
-                        f"tool `{tool.name}` does not declare its `{attr}`",
-                        expr.span,
-                        help=f"add `{attr} ...` to `tool {tool.name}`",
-                    )
-                    raise _Abort
-                return tool.properties[attr]
-            case ast.CallExpr(func=ast.Attr(name=fname), args=args):
-                sig = B.MTM_FUNCTIONS[fname]
-                values = {p.name: p.default for p in sig.params}
-                for i, arg in enumerate(args):
-                    name = arg.name or sig.params[i].name
-                    values[name] = self.eval(arg.value, env)
-                    rule = V.MTM_ARGS.get((fname, name))
-                    if rule is not None:
-                        self.check(rule, values[name], env, arg.value)
-                return Timing(fname, values)
-            case ast.Unary(operand=operand):
-                v = self.eval(operand, env)
-                return tuple(-c for c in v) if isinstance(v, tuple) else -v
-            case ast.Binary(op=op, left=left, right=right):
-                return self._arith(op, self.eval(left, env), self.eval(right, env), expr, env)
-            case ast.Vector(items=items, unit=unit):
-                factor = T.UNITS[unit][1] if unit is not None else 1.0
-                value = tuple(float(self.eval(i, env)) * factor for i in items)
-                return self._computed(value, env, expr)
-            case ast.ListExpr(items=items):
-                return [self.eval(i, env) for i in items]
+        kind = type(expr)  # the node classes have no subclasses: one look-up per node
+        if kind is ast.Number:
+            assert isinstance(expr, ast.Number)
+            if expr.unit is None:
+                return int(expr.value) if expr.is_int else expr.value
+            return self._computed(expr.value * T.UNITS[expr.unit][1], env, expr)
+        if kind is ast.Name:
+            assert isinstance(expr, ast.Name)
+            name = expr.name
+            resolved = self._kind(expr)
+            if resolved == "local":
+                return env.locals[name]
+            if resolved == "site":
+                return self.task_sites[name]
+            if resolved == "tool":
+                sym = env.scope.lookup(name)
+                assert sym is not None and isinstance(sym.decl, ast.ToolDecl)
+                tool = self._tool(sym.decl, env)
+                if tool.properties.get("kind") == B.TASK_TOOL_KIND:
+                    return self.tool  # stdlib.tools.task_tool: the task's tool, or none
+                return tool
+            return name  # an enum member: its name is its value
+        if kind is ast.Vector:
+            assert isinstance(expr, ast.Vector)
+            factor = T.UNITS[expr.unit][1] if expr.unit is not None else 1.0
+            value = tuple(float(self.eval(i, env)) * factor for i in expr.items)
+            return self._computed(value, env, expr)
+        if kind is ast.Attr:
+            assert isinstance(expr, ast.Attr)
+            return self._attr(expr, env)
+        if kind is ast.Binary:
+            assert isinstance(expr, ast.Binary)
+            left, right = self.eval(expr.left, env), self.eval(expr.right, env)
+            return self._arith(expr.op, left, right, expr, env)
+        if kind is ast.Unary:
+            assert isinstance(expr, ast.Unary)
+            v = self.eval(expr.operand, env)
+            return tuple(-c for c in v) if isinstance(v, tuple) else -v
+        if kind is ast.String:
+            return expr.value  # type: ignore[union-attr]
+        if kind is ast.CallExpr and isinstance(expr.func, ast.Attr):  # type: ignore[union-attr]
+            assert isinstance(expr, ast.CallExpr) and isinstance(expr.func, ast.Attr)
+            fname = expr.func.name
+            sig = B.MTM_FUNCTIONS[fname]
+            values = {p.name: p.default for p in sig.params}
+            for i, arg in enumerate(expr.args):
+                name = arg.name or sig.params[i].name
+                values[name] = self.eval(arg.value, env)
+                rule = V.MTM_ARGS.get((fname, name))
+                if rule is not None:
+                    self.check(rule, values[name], env, arg.value)
+            return Timing(fname, values)
+        if kind is ast.ListExpr:
+            return [self.eval(i, env) for i in expr.items]  # type: ignore[union-attr]
+        if expr is None:
+            return None
         raise AssertionError(f"cannot evaluate {expr!r}")
+
+    def _attr(self, expr: ast.Attr, env: _Env) -> Any:
+        """`ReachCase.A` (an enum member), `scene.site` (another scene's site) or `tool.mass`."""
+        attr = expr.name
+        if self._kind(expr) == "enum":
+            return attr  # ReachCase.A
+        obj = expr.obj
+        if type(obj) is ast.Name and self._kind(obj) == "scene":
+            sym = env.scope.lookup(obj.name)
+            assert sym is not None and isinstance(sym.decl, ast.Scene)
+            site = self._scene_sites(sym)[attr]
+            if site is not self.task_sites.get(attr):
+                site = dataclasses.replace(site, name=f"{obj.name}.{attr}")
+                self.other_sites[site.name] = site
+            return site
+        tool = self.eval(obj, env)
+        if attr not in tool.properties:
+            self.sink.report(
+                "MT0309",
+                f"tool `{tool.name}` does not declare its `{attr}`",
+                expr.span,
+                help=f"add `{attr} ...` to `tool {tool.name}`",
+            )
+            raise _Abort
+        return tool.properties[attr]
 
     def _tool(self, decl: ast.ToolDecl, env: _Env) -> Tool:
         properties = {}
@@ -1028,8 +1091,10 @@ def _dist(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     return math.dist(a, b)
 
 
+@cache
 def _body(spec: ManikinSpec) -> tuple[float, str] | None:
-    """Stature (m) and sex of the manikin, which time a walk's steps (``semantics.gait``)."""
+    """Stature (m) and sex of the manikin, which time a walk's steps (``semantics.gait``); worked
+    out once per manikin (its table rows are fixed), not once per task."""
     try:
         dims = dimensions(spec.population, spec.sex, spec.percentile)
     except (KeyError, ValueError):

@@ -176,26 +176,47 @@ MTM_ARGS: dict[tuple[str, str], Range] = {
 }
 
 
+# the range of an argument of a parameter of each type: masses and durations are never
+# negative; every other quantity is finite and of a size a task can have (types compare, and
+# hash, by value)
+_TYPE_RANGES: dict[T.Type, Range] = {
+    T.MASS: MASS,
+    T.DURATION: DURATION,
+    T.LENGTH: LENGTH,
+    T.ANGLE: ANGLE,
+    T.NUMBER: FINITE,
+    T.INT: FINITE,
+    T.VectorType(T.LENGTH_DIM): POSITION,
+}
+
+
 def for_type(type_: T.Type) -> Range | None:
-    """The range of an argument of a parameter of this type: masses and durations are never
-    negative; every other quantity is finite and of a size a task can have."""
-    if type_ == T.MASS:
-        return MASS
-    if type_ == T.DURATION:
-        return DURATION
-    if type_ == T.LENGTH:
-        return LENGTH
-    if type_ == T.ANGLE:
-        return ANGLE
-    if type_ in (T.NUMBER, T.INT):
-        return FINITE
-    if type_ == T.VectorType(T.LENGTH_DIM):
-        return POSITION
-    return None
+    """The range of an argument of a parameter of this type (``_TYPE_RANGES``), if it has one."""
+    return _TYPE_RANGES.get(type_)
 
 
 def problem(rule: Range, value: Any) -> str | None:
     """What is wrong with ``value`` (a number or a tuple of numbers, SI units), if anything."""
+    if (
+        (type(value) is float or type(value) is int)  # most values: one number, well in range
+        and not rule.direction
+        and math.isfinite(value)
+        and _within(rule, value)
+    ):
+        return None
+    return _problem(rule, value)
+
+
+def _within(rule: Range, c: float) -> bool:
+    """``c`` lies inside the rule's bounds (``_problem`` says how it does not)."""
+    low, high = rule.low, rule.high
+    if low is not None and (c <= low if rule.low_open else c < low):
+        return False
+    return high is None or c <= high
+
+
+def _problem(rule: Range, value: Any) -> str | None:
+    """``problem`` for every value: the reference the quick path for one number agrees with."""
     items = value if isinstance(value, tuple) else (value,)
     if not items or not all(_is_number(c) for c in items):
         return None  # not a numeric value: the type checks say what it is

@@ -2944,7 +2944,7 @@ def remove_access_panel():
     })
     human.KeyJoints(51.5, {
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
         'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,), 'right_ankle': (1.91, 0.0),
@@ -2956,43 +2956,43 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=51.596726, duration=0.633339)
     human.KeyJoints(51.6, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.677, 34.899, -9.742), 'right_elbow': (91.122, 24.926),
-        'right_wrist': (-16.615, -18.203), 'left_shoulder': (88.604, -29.033, 15.112),
-        'left_elbow': (22.215, 17.985), 'left_wrist': (-0.024, -5.397),
+        'right_shoulder': (33.692, 34.902, -9.74), 'right_elbow': (91.115, 24.925),
+        'right_wrist': (-16.614, -18.204), 'left_shoulder': (88.6, -29.03, 15.106),
+        'left_elbow': (22.208, 17.989), 'left_wrist': (-0.001, -5.399),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(51.7, {
-        'right_shoulder': (25.795, 31.478, -8.402), 'right_elbow': (94.436, 25.227),
-        'right_wrist': (-17.21, -17.35), 'left_shoulder': (78.87, -27.274, 20.116),
-        'left_elbow': (32.462, 16.039), 'left_wrist': (-9.906, -4.213),
+        'right_shoulder': (25.909, 31.505, -8.385), 'right_elbow': (94.369, 25.221),
+        'right_wrist': (-17.196, -17.367), 'left_shoulder': (78.922, -27.241, 20.037),
+        'left_elbow': (32.276, 16.08), 'left_wrist': (-9.695, -4.236),
     })
     human.KeyJoints(51.8, {
-        'right_shoulder': (8.839, 24.225, -5.577), 'right_elbow': (101.327, 25.847),
-        'right_wrist': (-18.517, -15.631), 'left_shoulder': (58.022, -23.017, 30.45),
-        'left_elbow': (53.652, 12.036), 'left_wrist': (-30.304, -1.752),
+        'right_shoulder': (9.021, 24.261, -5.533), 'right_elbow': (101.189, 25.835),
+        'right_wrist': (-18.49, -15.664), 'left_shoulder': (58.206, -22.964, 30.249),
+        'left_elbow': (53.235, 12.113), 'left_wrist': (-29.907, -1.8),
     })
     human.KeyJoints(51.9, {
-        'right_shoulder': (-12.397, 15.197, -1.803), 'right_elbow': (108.841, 26.535),
-        'right_wrist': (-20.104, -13.838), 'left_shoulder': (32.507, -16.24, 41.592),
-        'left_elbow': (77.402, 7.596), 'left_wrist': (-53.066, 1.053),
+        'right_shoulder': (-12.018, 15.258, -1.675), 'right_elbow': (108.567, 26.509),
+        'right_wrist': (-20.037, -13.897), 'left_shoulder': (32.759, -16.11, 41.199),
+        'left_elbow': (76.674, 7.75), 'left_wrist': (-52.311, 0.978),
     })
     human.KeyJoints(52.0, {
-        'right_shoulder': (-30.316, 6.478, 3.802), 'right_elbow': (113.008, 26.906),
-        'right_wrist': (-20.881, -12.762), 'left_shoulder': (9.316, -6.61, 48.693),
-        'left_elbow': (93.531, 4.64), 'left_wrist': (-68.139, 2.984),
+        'right_shoulder': (-29.51, 6.496, 4.397), 'right_elbow': (112.31, 26.827),
+        'right_wrist': (-20.578, -12.841), 'left_shoulder': (9.433, -6.64, 47.496),
+        'left_elbow': (93.191, 5.45), 'left_wrist': (-66.303, 3.262),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(52.1, {
-        'right_shoulder': (-38.284, 0.354, 11.519), 'right_elbow': (111.486, 26.667),
-        'right_wrist': (-19.587, -12.557), 'left_shoulder': (0.502, 9.421, 57.233),
-        'left_elbow': (103.375, 4.834), 'left_wrist': (-70.0, 3.646),
+        'right_shoulder': (-37.978, 0.342, 11.771), 'right_elbow': (111.263, 26.64),
+        'right_wrist': (-19.459, -12.569), 'left_shoulder': (0.142, 8.676, 56.082),
+        'left_elbow': (103.304, 5.938), 'left_wrist': (-70.0, 4.786),
     })
     human.KeyJoints(52.2, {
-        'right_shoulder': (-40.216, -1.56, 14.417), 'right_elbow': (110.521, 26.535),
-        'right_wrist': (-18.929, -12.529), 'left_shoulder': (-1.591, 14.497, 59.192),
-        'left_elbow': (105.863, 8.17), 'left_wrist': (-69.982, 7.315),
+        'right_shoulder': (-40.21, -1.562, 14.423), 'right_elbow': (110.518, 26.535),
+        'right_wrist': (-18.926, -12.529), 'left_shoulder': (-1.588, 14.491, 59.19),
+        'left_elbow': (105.869, 8.174), 'left_wrist': (-69.983, 7.316),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=52.230065, duration=0.072)

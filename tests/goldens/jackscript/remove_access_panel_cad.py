@@ -2752,49 +2752,54 @@ def remove_access_panel_cad():
         'right_wrist': (-1.15, -21.055),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > look: gaze on head at panel_latch
-    human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.287409)
-    human.KeyJoints(45.0, {'neck': (23.271, -0.26, -10.041), 'head': (7.587, -1.211)})
-    human.KeyJoints(45.1, {'neck': (21.657, -2.072, -22.888), 'head': (6.283, -1.247)})
+    human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.293295)
+    human.KeyJoints(45.0, {'neck': (23.285, -0.24, -9.882), 'head': (7.599, -1.211)})
+    human.KeyJoints(45.1, {'neck': (21.696, -2.021, -22.48), 'head': (6.316, -1.247)})
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TA on r_arm at panel_latch
     human.KeyJoints(45.2, {
-        'neck': (20.515, -3.276, -31.021), 'head': (5.372, -1.288),
-        'right_shoulder': (56.301, 2.111, 11.17), 'right_elbow': (33.184, 18.454),
-        'right_wrist': (-1.156, -21.048),
+        'neck': (20.537, -3.257, -30.917), 'head': (5.389, -1.286),
+        'right_shoulder': (56.301, 2.1, 11.174), 'right_elbow': (33.159, 18.452),
+        'right_wrist': (-1.153, -21.051),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > push: gaze on head at panel_latch
-    human.LookAt((0.0, 120.0, 118.0), start=45.204018, duration=0.847021)
+    human.LookAt((0.0, 120.0, 118.0), start=45.209905, duration=0.941135)
     human.KeyJoints(45.3, {
-        'neck': (20.398, -3.354, -31.314), 'right_shoulder': (56.398, 5.425, 9.922),
-        'right_elbow': (40.196, 18.963), 'right_wrist': (-1.963, -20.202),
+        'neck': (20.398, -3.354, -31.314), 'head': (5.285, -1.307),
+        'right_shoulder': (56.355, 4.019, 10.454), 'right_elbow': (37.276, 18.75),
+        'right_wrist': (-1.623, -20.555),
     })
     human.KeyJoints(45.4, {
-        'head': (5.285, -1.307), 'right_shoulder': (56.9, 15.557, 5.844),
-        'right_elbow': (56.491, 20.263), 'right_wrist': (-4.199, -18.238),
+        'right_shoulder': (56.597, 10.543, 7.925), 'right_elbow': (49.653, 19.681),
+        'right_wrist': (-3.148, -19.061),
+    })
+    human.KeyJoints(45.5, {
+        'right_shoulder': (57.737, 20.377, 3.629), 'right_elbow': (59.415, 20.637),
+        'right_wrist': (-4.998, -17.894),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TO on r_arm at panel_latch
-    human.KeyJoints(45.5, {
-        'right_shoulder': (65.928, 24.131, 1.727), 'right_elbow': (47.452, 20.234),
-        'right_wrist': (-3.842, -18.199),
+    human.KeyJoints(45.6, {
+        'right_shoulder': (69.197, 23.971, 1.811), 'right_elbow': (41.898, 19.975),
+        'right_wrist': (-3.074, -18.188),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > push: TO on r_arm at panel_latch
-    human.KeyJoints(45.6, {
+    human.KeyJoints(45.7, {
         'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.262, 19.57),
         'right_wrist': (-1.859, -18.104),
     })
-    human.KeyJoints(45.9, {
+    human.KeyJoints(46.0, {
         'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.262, 19.57),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=45.979039, duration=0.072)
-    human.KeyJoints(46.0, {
+    human.Grasp('right_hand', 'open', start=46.079039, duration=0.072)
+    human.KeyJoints(46.1, {
         'neck': (20.398, -3.354, -31.314), 'head': (5.285, -1.307),
         'right_shoulder': (74.338, 23.528, 2.036), 'right_elbow': (33.09, 19.57),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=46.051039, duration=0.2628)
-    human.KeyJoints(46.1, {'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321)})
-    human.KeyJoints(46.2, {'neck': (21.234, -2.819, -32.341), 'head': (6.573, -1.403)})
-    human.KeyJoints(46.3, {
+    human.LookAt((0.0, 120.0, 110.0), start=46.151039, duration=0.2628)
+    human.KeyJoints(46.2, {'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321)})
+    human.KeyJoints(46.3, {'neck': (21.234, -2.819, -32.341), 'head': (6.573, -1.403)})
+    human.KeyJoints(46.4, {
         'neck': (21.781, -2.47, -33.013), 'head': (7.415, -1.488),
         'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.261, 19.57),
         'right_wrist': (-1.859, -18.104), 'left_shoulder': (8.594, 5.73, 11.459),
@@ -2803,43 +2808,43 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TA on r_arm at panel_handle
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=46.313839, duration=0.867635)
-    human.KeyJoints(46.4, {
+    human.LookAt((0.0, 120.0, 110.0), start=46.413839, duration=0.867635)
+    human.KeyJoints(46.5, {
         'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514),
         'right_shoulder': (73.751, 23.619, 1.96), 'right_elbow': (33.886, 19.605),
         'right_wrist': (-1.969, -18.066), 'left_shoulder': (9.339, 5.378, 11.497),
         'left_elbow': (34.218, 17.199), 'left_wrist': (0.016, -0.063),
     })
-    human.KeyJoints(46.5, {
+    human.KeyJoints(46.6, {
         'right_shoulder': (70.183, 24.227, 1.426), 'right_elbow': (38.413, 19.858),
         'right_wrist': (-2.764, -17.795), 'left_shoulder': (14.741, 2.824, 11.774),
         'left_elbow': (33.065, 17.27), 'left_wrist': (0.129, -0.522),
     })
-    human.KeyJoints(46.6, {
+    human.KeyJoints(46.7, {
         'right_shoulder': (62.505, 25.578, 0.239), 'right_elbow': (48.155, 20.403),
         'right_wrist': (-4.479, -17.21), 'left_shoulder': (26.429, -2.737, 12.377),
         'left_elbow': (30.582, 17.425), 'left_wrist': (0.375, -1.509),
     })
-    human.KeyJoints(46.7, {
+    human.KeyJoints(46.8, {
         'right_shoulder': (51.947, 27.605, -1.559), 'right_elbow': (61.55, 21.152),
         'right_wrist': (-6.859, -16.406), 'left_shoulder': (42.759, -10.66, 13.238),
         'left_elbow': (27.168, 17.637),
     })
-    human.KeyJoints(46.8, {
+    human.KeyJoints(46.9, {
         'spine_lumbar': (6.925, -13.943, 9.597), 'spine_thoracic': (-8.549, -4.503, 9.15),
         'right_clavicle': (2.796, 7.881), 'right_shoulder': (40.866, 30.138, -3.838),
         'right_elbow': (75.608, 21.938), 'right_wrist': (-9.407, -15.563),
         'left_clavicle': (-0.001, 0.003), 'left_shoulder': (60.517, -19.633, 14.218),
         'left_elbow': (23.586, 17.86), 'left_wrist': (1.133, -4.291),
     })
-    human.KeyJoints(46.9, {
+    human.KeyJoints(47.0, {
         'spine_lumbar': (7.213, -13.724, 9.456), 'spine_thoracic': (-8.708, -4.518, 8.998),
         'right_clavicle': (2.915, 7.885), 'right_shoulder': (32.291, 33.107, -6.563),
         'right_elbow': (86.507, 22.549), 'right_wrist': (-11.513, -14.927),
         'left_clavicle': (-0.063, 0.165), 'left_shoulder': (75.917, -28.1, 15.143),
         'left_elbow': (20.831, 18.035), 'left_wrist': (1.512, -5.39),
     })
-    human.KeyJoints(47.0, {
+    human.KeyJoints(47.1, {
         'spine_lumbar': (11.662, -12.412, 8.593), 'spine_thoracic': (-11.352, -5.315, 8.042),
         'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514), 'right_clavicle': (4.808, 8.67),
         'right_shoulder': (30.763, 36.16, -9.06), 'right_elbow': (90.204, 22.778),
@@ -2849,7 +2854,7 @@ def remove_access_panel_cad():
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TO on r_arm at panel_handle
-    human.KeyJoints(47.1, {
+    human.KeyJoints(47.2, {
         'spine_lumbar': (16.288, -11.639, 7.65), 'spine_thoracic': (-14.306, -6.311, 7.003),
         'right_clavicle': (6.766, 9.664), 'right_shoulder': (32.655, 37.258, -9.594),
         'right_elbow': (90.688, 22.829), 'right_wrist': (-12.524, -14.606),
@@ -2857,11 +2862,11 @@ def remove_access_panel_cad():
         'left_elbow': (20.625, 18.173), 'left_wrist': (0.967, -5.552),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=47.181474, duration=0.072)
+    human.Grasp('left_hand', 'close', start=47.281474, duration=0.072)
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=47.181474, duration=0.072)
-    human.KeyRoot(47.2, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(47.2, {
+    human.Grasp('right_hand', 'close', start=47.281474, duration=0.072)
+    human.KeyRoot(47.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(47.3, {
         'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
         'neck': (20.216, -3.001, -31.124), 'head': (6.194, -1.656),
         'right_clavicle': (7.019, 9.794), 'right_shoulder': (32.91, 37.386, -9.647),
@@ -2871,371 +2876,370 @@ def remove_access_panel_cad():
         'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: locomotion on root at bench_front
-    human.Walk((140.0, 0.0, 20.0), start=47.253474, duration=5.147368)
+    human.Walk((140.0, 0.0, 20.0), start=47.353474, duration=5.147368)
     # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: gaze on head
-    human.KeyRoot(47.3, (-0.087, 72.76, 60.018), (0.191, 0.0, 0.0))
-    human.KeyJoints(47.3, {
+    human.KeyRoot(47.4, (-0.087, 72.76, 60.018), (0.191, 0.0, 0.0))
+    human.KeyJoints(47.4, {
         'neck': (18.836, -2.811, -28.999), 'head': (5.802, -1.551),
         'right_hip': (5.666, -0.055, -0.198), 'right_knee': (10.566,), 'right_ankle': (4.9, -0.075),
         'left_hip': (6.067, 0.054, 0.198), 'left_knee': (11.286,), 'left_ankle': (5.081, 0.075),
     })
-    human.KeyRoot(47.4, (-0.716, 72.522, 60.147), (1.684, 0.0, 0.0))
-    human.KeyJoints(47.4, {
+    human.KeyRoot(47.5, (-0.716, 72.522, 60.147), (1.684, 0.0, 0.0))
+    human.KeyJoints(47.5, {
         'neck': (10.552, -1.58, -16.245), 'head': (3.26, -0.872), 'right_elbow': (90.762, 22.836),
         'right_hip': (7.171, -0.397, -1.747), 'right_knee': (14.32,),
         'right_ankle': (7.164, -0.612), 'left_hip': (9.05, 0.346, 1.769), 'left_knee': (17.258,),
         'left_ankle': (7.387, 0.62),
     })
-    human.KeyRoot(47.5, (-1.598, 72.488, 60.327), (4.161, 0.0, 0.0))
-    human.KeyJoints(47.5, {
+    human.KeyRoot(47.6, (-1.598, 72.488, 60.327), (4.161, 0.0, 0.0))
+    human.KeyJoints(47.6, {
         'neck': (1.805, -0.279, -2.779), 'head': (0.577, -0.154),
         'right_hip': (6.913, -0.846, -4.293), 'right_knee': (14.599,),
         'right_ankle': (7.767, -1.354), 'left_hip': (14.431, 0.538, 3.191), 'left_knee': (28.365,),
         'left_ankle': (13.045, 1.381),
     })
-    human.KeyRoot(47.6, (-2.313, 72.539, 60.474), (7.023, 0.0, 0.0))
-    human.KeyJoints(47.6, {
+    human.KeyRoot(47.7, (-2.313, 72.539, 60.474), (7.023, 0.0, 0.0))
+    human.KeyJoints(47.7, {
         'neck': (-0.064, 0.0, 0.099), 'head': (0.0, 0.0), 'right_hip': (7.118, -1.06, -7.224),
         'right_knee': (15.706,), 'right_ankle': (8.226, -1.936),
         'left_hip': (19.898, 2.599, -1.791), 'left_knee': (40.977,), 'left_ankle': (18.33, 1.841),
     })
-    human.KeyRoot(47.7, (-2.442, 72.709, 60.424), (9.722, 0.0, 0.0))
-    human.KeyJoints(47.7, {
+    human.KeyRoot(47.8, (-2.442, 72.709, 60.424), (9.722, 0.0, 0.0))
+    human.KeyJoints(47.8, {
         'right_hip': (9.467, -0.385, -10.015), 'right_knee': (20.786,),
         'right_ankle': (8.725, -2.016), 'left_hip': (18.903, 5.832, -10.752),
         'left_knee': (41.406,), 'left_ankle': (18.425, 1.871),
     })
-    human.KeyRoot(47.8, (-1.893, 72.677, 59.488), (12.554, 0.0, 0.0))
-    human.KeyJoints(47.8, {
+    human.KeyRoot(47.9, (-1.893, 72.677, 59.488), (12.554, 0.0, 0.0))
+    human.KeyJoints(47.9, {
         'right_hip': (13.505, 1.532, -12.696), 'right_knee': (28.092,),
         'right_ankle': (8.771, -1.5), 'left_hip': (12.417, 5.744, -18.873), 'left_knee': (28.381,),
         'left_ankle': (15.239, 1.127),
     })
-    human.KeyRoot(47.9, (-1.042, 72.491, 58.455), (15.867, 0.0, 0.0))
-    human.KeyJoints(47.9, {
+    human.KeyRoot(48.0, (-1.042, 72.491, 58.455), (15.867, 0.0, 0.0))
+    human.KeyJoints(48.0, {
         'right_hip': (16.733, 4.06, -15.467), 'right_knee': (34.088,),
         'right_ankle': (8.372, -0.662), 'left_hip': (7.12, 2.478, -19.399), 'left_knee': (14.776,),
         'left_ankle': (7.236, -0.041),
     })
-    human.KeyRoot(48.0, (-0.196, 72.499, 58.31), (20.034, 0.0, 0.0))
-    human.KeyJoints(48.0, {
+    human.KeyRoot(48.1, (-0.196, 72.499, 58.31), (20.034, 0.0, 0.0))
+    human.KeyJoints(48.1, {
         'right_hip': (16.85, 6.286, -19.014), 'right_knee': (36.1,), 'right_ankle': (8.297, 0.269),
         'left_hip': (7.542, 1.187, -15.361), 'left_ankle': (6.948, -0.857),
     })
-    human.KeyRoot(48.1, (0.847, 72.495, 58.509), (25.566, 0.0, 0.0))
-    human.KeyJoints(48.1, {
+    human.KeyRoot(48.2, (0.847, 72.495, 58.509), (25.566, 0.0, 0.0))
+    human.KeyJoints(48.2, {
         'right_hip': (20.381, 8.101, -17.827), 'right_knee': (45.253,),
         'right_ankle': (15.607, 1.106), 'left_hip': (7.659, -0.319, -9.98),
         'left_ankle': (6.84, -1.635),
     })
-    human.KeyRoot(48.2, (1.831, 72.491, 58.855), (31.663, 0.0, 0.0))
-    human.KeyJoints(48.2, {
+    human.KeyRoot(48.3, (1.831, 72.491, 58.855), (31.663, 0.0, 0.0))
+    human.KeyJoints(48.3, {
         'right_hip': (22.426, 4.762, -7.961), 'right_knee': (47.247,),
         'right_ankle': (19.163, 1.304), 'left_hip': (7.494, -1.734, -4.012), 'left_knee': (14.052,),
         'left_ankle': (6.689, -2.239),
     })
-    human.KeyRoot(48.3, (2.451, 72.597, 59.422), (37.436, 0.0, 0.0))
-    human.KeyJoints(48.3, {
+    human.KeyRoot(48.4, (2.451, 72.597, 59.422), (37.436, 0.0, 0.0))
+    human.KeyJoints(48.4, {
         'right_hip': (21.595, -0.799, 5.784), 'right_knee': (43.539,),
         'right_ankle': (19.138, 1.332), 'left_hip': (8.751, -2.683, 1.577), 'left_knee': (16.934,),
         'left_ankle': (6.915, -2.411),
     })
-    human.KeyRoot(48.4, (2.927, 72.632, 61.131), (43.043, 0.0, 0.0))
-    human.KeyJoints(48.4, {
+    human.KeyRoot(48.5, (2.927, 72.632, 61.131), (43.043, 0.0, 0.0))
+    human.KeyJoints(48.5, {
         'right_hip': (16.037, -4.222, 17.707), 'right_knee': (33.493,),
         'right_ankle': (17.081, 0.794), 'left_hip': (11.546, -3.341, 6.969), 'left_knee': (24.377,),
         'left_ankle': (8.56, -1.86),
     })
-    human.KeyRoot(48.5, (3.271, 72.539, 63.045), (48.651, 0.0, 0.0))
-    human.KeyJoints(48.5, {
+    human.KeyRoot(48.6, (3.271, 72.539, 63.045), (48.651, 0.0, 0.0))
+    human.KeyJoints(48.6, {
         'right_hip': (7.025, -3.204, 21.812), 'right_knee': (16.2,), 'right_ankle': (8.505, -0.387),
         'left_hip': (14.02, -4.241, 12.457), 'left_knee': (31.235,), 'left_ankle': (9.652, -1.028),
     })
-    human.KeyRoot(48.6, (3.347, 72.487, 63.762), (54.259, 0.0, 0.0))
-    human.KeyJoints(48.6, {
+    human.KeyRoot(48.7, (3.347, 72.487, 63.762), (54.259, 0.0, 0.0))
+    human.KeyJoints(48.7, {
         'neck': (0.0, 0.0, 0.0), 'right_hip': (5.485, -2.834, 16.38), 'right_knee': (14.6,),
         'right_ankle': (8.54, -1.161), 'left_hip': (15.722, -5.781, 17.884), 'left_knee': (34.925,),
         'left_ankle': (9.193, -0.526),
     })
-    human.KeyRoot(48.7, (2.68, 72.487, 63.823), (59.867, 0.0, 0.0))
-    human.KeyJoints(48.7, {
+    human.KeyRoot(48.8, (2.68, 72.487, 63.823), (59.867, 0.0, 0.0))
+    human.KeyJoints(48.8, {
         'right_hip': (5.432, -2.633, 10.764), 'right_ankle': (8.574, -1.562),
         'left_hip': (19.43, -7.563, 20.511), 'left_knee': (42.143,), 'left_ankle': (12.948, 0.076),
     })
-    human.KeyJoints(48.8, {
+    human.KeyJoints(48.9, {
         'right_hip': (5.82, -2.563, 5.134), 'right_knee': (14.244,), 'right_ankle': (8.218, -2.022),
         'left_hip': (22.186, -4.958, 12.772), 'left_knee': (46.801,), 'left_ankle': (19.081, 0.367),
     })
-    human.KeyRoot(48.9, (0.347, 72.49, 63.87), (71.087, 0.0, 0.0))
-    human.KeyJoints(48.9, {
+    human.KeyRoot(49.0, (0.347, 72.49, 63.87), (71.087, 0.0, 0.0))
+    human.KeyJoints(49.0, {
         'right_hip': (6.761, -2.338, -0.544), 'right_knee': (15.171,),
         'right_ankle': (8.127, -2.38), 'left_hip': (21.14, 1.04, -0.354), 'left_knee': (45.338,),
         'left_ankle': (19.069, 0.892),
     })
-    human.KeyRoot(49.0, (-0.872, 72.588, 63.129), (77.125, 0.0, 0.0))
-    human.KeyJoints(49.0, {
+    human.KeyRoot(49.1, (-0.872, 72.588, 63.129), (77.125, 0.0, 0.0))
+    human.KeyJoints(49.1, {
         'right_hip': (9.063, -1.079, -6.597), 'right_knee': (18.471,),
         'right_ankle': (8.021, -2.097), 'left_hip': (16.64, 5.453, -13.54), 'left_knee': (37.805,),
         'left_ankle': (18.999, 1.271),
     })
-    human.KeyRoot(49.1, (-2.115, 72.588, 61.66), (83.171, 0.0, 0.0))
-    human.KeyJoints(49.1, {
+    human.KeyRoot(49.2, (-2.115, 72.588, 61.66), (83.171, 0.0, 0.0))
+    human.KeyJoints(49.2, {
         'right_hip': (11.891, 1.451, -12.368), 'right_knee': (23.063,),
         'right_ankle': (7.953, -1.143), 'left_hip': (9.341, 4.263, -20.938), 'left_knee': (21.523,),
         'left_ankle': (11.284, 0.601),
     })
-    human.KeyRoot(49.2, (-2.763, 72.487, 60.365), (88.103, 0.0, 0.0))
-    human.KeyJoints(49.2, {
+    human.KeyRoot(49.3, (-2.763, 72.487, 60.365), (88.103, 0.0, 0.0))
+    human.KeyJoints(49.3, {
         'right_hip': (13.567, 4.065, -16.806), 'right_knee': (26.793,),
         'right_ankle': (8.149, -0.107), 'left_hip': (7.516, 1.743, -18.082), 'left_knee': (14.736,),
         'left_ankle': (7.054, -0.684),
     })
-    human.KeyRoot(49.3, (-2.567, 72.487, 59.556), (91.456, 0.0, 0.0))
-    human.KeyJoints(49.3, {
+    human.KeyRoot(49.4, (-2.567, 72.487, 59.556), (91.456, 0.0, 0.0))
+    human.KeyJoints(49.4, {
         'right_hip': (15.083, 6.301, -19.275), 'right_knee': (31.803,),
         'right_ankle': (10.775, 0.76), 'left_hip': (7.723, 0.579, -14.852),
         'left_ankle': (6.902, -1.419),
     })
-    human.KeyRoot(49.4, (-1.994, 72.487, 58.834), (94.117, 0.0, 0.0))
-    human.KeyJoints(49.4, {
+    human.KeyRoot(49.5, (-1.994, 72.487, 58.834), (94.117, 0.0, 0.0))
+    human.KeyJoints(49.5, {
         'right_hip': (19.697, 7.674, -16.041), 'right_knee': (42.184,),
         'right_ankle': (18.136, 1.543), 'left_hip': (7.437, -0.386, -12.299),
         'left_knee': (14.323,), 'left_ankle': (7.136, -1.952),
     })
-    human.KeyRoot(49.5, (-1.298, 72.533, 58.433), (96.655, 0.0, 0.0))
-    human.KeyJoints(49.5, {
+    human.KeyRoot(49.6, (-1.298, 72.533, 58.433), (96.655, 0.0, 0.0))
+    human.KeyJoints(49.6, {
         'right_hip': (21.438, 5.859, -9.274), 'right_knee': (44.754,),
         'right_ankle': (18.913, 1.969), 'left_hip': (8.331, -0.781, -9.84), 'left_knee': (16.809,),
         'left_ankle': (7.858, -2.181),
     })
-    human.KeyRoot(49.6, (-0.674, 72.709, 58.698), (99.802, 0.0, 0.0))
-    human.KeyJoints(49.6, {
+    human.KeyRoot(49.7, (-0.674, 72.709, 58.698), (99.802, 0.0, 0.0))
+    human.KeyJoints(49.7, {
         'right_hip': (19.654, 2.931, -2.904), 'right_knee': (40.13,), 'right_ankle': (18.927, 1.76),
         'left_hip': (18.107, 0.264, -7.075), 'left_knee': (35.626,), 'left_ankle': (7.137, -1.977),
     })
-    human.KeyRoot(49.7, (-0.007, 72.684, 59.624), (103.444, 0.0, 0.0))
-    human.KeyJoints(49.7, {
+    human.KeyRoot(49.8, (-0.007, 72.684, 59.624), (103.444, 0.0, 0.0))
+    human.KeyJoints(49.8, {
         'right_hip': (13.185, 0.818, 0.679), 'right_knee': (26.609,),
         'left_hip': (28.673, 0.628, -3.465), 'left_knee': (52.172,), 'left_ankle': (-2.161, -1.233),
     })
-    human.KeyRoot(49.8, (0.892, 72.489, 60.43), (105.946, 0.0, 0.0))
-    human.KeyJoints(49.8, {
+    human.KeyRoot(49.9, (0.892, 72.489, 60.43), (105.946, 0.0, 0.0))
+    human.KeyJoints(49.9, {
         'right_hip': (6.942, 0.061, 0.316), 'right_knee': (14.833,), 'right_ankle': (7.89, 0.099),
         'left_hip': (36.393, 0.142, -0.41), 'left_knee': (61.484,), 'left_ankle': (-15.022, -0.169),
     })
-    human.KeyRoot(49.9, (2.402, 72.307, 60.505), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.9, {
+    human.KeyRoot(50.0, (2.402, 72.307, 60.505), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.0, {
         'right_hip': (6.636, -0.325, -0.018), 'right_knee': (16.851,),
         'right_ankle': (10.223, -0.327), 'left_hip': (38.866, 0.043, 0.679), 'left_knee': (65.115,),
         'left_ankle': (-21.229, 0.68),
     })
-    human.KeyRoot(50.0, (5.292, 72.063, 60.307), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.0, {
+    human.KeyRoot(50.1, (5.292, 72.063, 60.307), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.1, {
         'right_hip': (4.773, -0.86, -0.061), 'right_knee': (18.087,),
         'right_ankle': (13.319, -0.863), 'left_hip': (40.806, 0.264, 1.506), 'left_knee': (69.147,),
         'left_ankle': (-11.023, 1.529),
     })
-    human.KeyRoot(50.1, (9.18, 71.983, 59.952), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.1, {
+    human.KeyRoot(50.2, (9.18, 71.983, 59.952), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.2, {
         'right_hip': (-0.241, -1.511, 0.008), 'right_knee': (14.453,),
         'right_ankle': (14.695, -1.511), 'left_hip': (39.98, 1.025, 1.716), 'left_knee': (59.914,),
         'left_ankle': (0.679, 1.999),
     })
-    human.KeyRoot(50.2, (13.573, 71.729, 59.457), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.2, {
+    human.KeyRoot(50.3, (13.573, 71.729, 59.457), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.3, {
         'right_hip': (4.01, -2.165, -0.442), 'right_knee': (30.36,), 'right_ankle': (18.816, -2.21),
         'left_hip': (34.941, 1.9, 1.444), 'left_knee': (39.589,), 'left_ankle': (2.288, 2.387),
     })
-    human.KeyRoot(50.3, (19.689, 71.003, 57.6), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.3, {
+    human.KeyRoot(50.4, (19.689, 71.003, 57.6), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.4, {
         'right_hip': (7.09, -2.002, -1.056), 'right_knee': (46.428,),
         'right_ankle': (18.634, -2.263), 'left_hip': (31.468, 1.918, 1.168), 'left_knee': (26.597,),
         'left_ankle': (-4.792, 2.245),
     })
-    human.KeyRoot(50.4, (27.123, 70.486, 54.452), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.4, {
+    human.KeyRoot(50.5, (27.123, 70.486, 54.452), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.5, {
         'right_hip': (6.741, -1.082, -1.046), 'right_knee': (56.227,),
         'right_ankle': (12.219, -1.505), 'left_hip': (24.237, 1.221, 0.547), 'left_knee': (14.253,),
         'left_ankle': (-9.932, 1.338),
     })
-    human.KeyRoot(50.5, (33.845, 70.513, 51.303), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.5, {
+    human.KeyRoot(50.6, (33.845, 70.513, 51.303), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.6, {
         'right_hip': (4.759, -0.207, -0.33), 'right_knee': (59.289,), 'right_ankle': (1.363, -0.39),
         'left_hip': (21.75, 0.283, 0.113), 'left_knee': (19.655,), 'left_ankle': (-2.093, 0.305),
     })
-    human.KeyRoot(50.6, (38.179, 70.962, 49.145), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.6, {
+    human.KeyRoot(50.7, (38.179, 70.962, 49.145), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.7, {
         'right_hip': (0.535, 0.295, 0.521), 'right_knee': (55.471,), 'right_ankle': (-5.062, 0.599),
         'left_hip': (19.404, -0.426, -0.15), 'left_knee': (23.436,), 'left_ankle': (4.033, -0.452),
     })
-    human.KeyRoot(50.7, (41.074, 71.665, 47.421), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.7, {
+    human.KeyRoot(50.8, (41.074, 71.665, 47.421), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.8, {
         'right_hip': (8.916, 0.879, 1.203), 'right_knee': (63.427,), 'right_ankle': (9.671, 1.49),
         'left_hip': (15.163, -1.141, -0.309), 'left_knee': (20.567,), 'left_ankle': (5.406, -1.182),
     })
-    human.KeyRoot(50.8, (44.301, 71.998, 45.693), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.8, {
+    human.KeyRoot(50.9, (44.301, 71.998, 45.693), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.9, {
         'right_hip': (25.404, 1.584, 1.47), 'right_knee': (61.519,), 'right_ankle': (18.746, 2.161),
         'left_hip': (11.657, -1.792, -0.372), 'left_knee': (19.708,), 'left_ankle': (7.972, -1.83),
     })
-    human.KeyRoot(50.9, (50.319, 71.107, 43.504), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.9, {
+    human.KeyRoot(51.0, (50.319, 71.107, 43.504), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.0, {
         'right_hip': (33.023, 1.989, 1.294), 'right_knee': (41.496,), 'right_ankle': (8.532, 2.372),
         'left_hip': (17.478, -2.079, -1.046), 'left_knee': (41.895,),
         'left_ankle': (15.189, -2.327),
     })
-    human.KeyRoot(51.0, (62.815, 70.082, 40.468), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.0, {
+    human.KeyRoot(51.1, (62.815, 70.082, 40.468), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.1, {
         'right_hip': (29.893, 1.558, 0.896), 'right_knee': (20.866,),
         'right_ankle': (-8.958, 1.797), 'left_hip': (16.111, -1.433, -1.374), 'left_knee': (59.19,),
         'left_ankle': (15.408, -1.986),
     })
-    human.KeyRoot(51.1, (76.241, 69.965, 37.751), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.1, {
+    human.KeyRoot(51.2, (76.241, 69.965, 37.751), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.2, {
         'right_hip': (22.874, 0.659, 0.278), 'right_knee': (14.399,), 'right_ankle': (-8.43, 0.716),
         'left_hip': (8.196, -0.505, -0.728), 'left_knee': (61.938,), 'left_ankle': (6.669, -0.886),
     })
-    human.KeyRoot(51.2, (84.059, 70.475, 36.615), (106.105, 0.0, 0.0))
-    human.KeyJoints(51.2, {
+    human.KeyRoot(51.3, (84.059, 70.475, 36.615), (106.105, 0.0, 0.0))
+    human.KeyJoints(51.3, {
         'right_hip': (21.599, -0.298, 0.04), 'right_knee': (25.976,),
         'right_ankle': (4.373, -0.262), 'left_hip': (2.224, 0.173, 0.159), 'left_knee': (58.056,),
         'left_ankle': (-3.248, 0.348),
     })
-    human.KeyRoot(51.3, (87.76, 71.401, 36.305), (104.042, 0.0, 0.0))
-    human.KeyJoints(51.3, {
+    human.KeyRoot(51.4, (87.76, 71.401, 36.305), (104.042, 0.0, 0.0))
+    human.KeyJoints(51.4, {
         'right_hip': (16.729, -1.497, 1.856), 'right_knee': (22.111,),
         'right_ankle': (5.341, -0.898), 'left_hip': (3.931, 0.505, -0.793), 'left_knee': (60.898,),
         'left_ankle': (4.709, 0.747),
     })
-    human.KeyRoot(51.4, (90.842, 71.984, 36.076), (100.745, 0.0, 0.0))
-    human.KeyJoints(51.4, {
+    human.KeyRoot(51.5, (90.842, 71.984, 36.076), (100.745, 0.0, 0.0))
+    human.KeyJoints(51.5, {
         'right_hip': (12.679, -2.601, 5.057), 'right_knee': (18.612,),
         'right_ankle': (5.751, -1.419), 'left_hip': (20.81, 1.072, -0.614), 'left_knee': (65.899,),
         'left_ankle': (19.507, 0.878),
     })
-    human.KeyRoot(51.5, (95.704, 71.8, 35.543), (97.724, 0.0, 0.0))
-    human.KeyJoints(51.5, {
+    human.KeyRoot(51.6, (95.704, 71.8, 35.543), (97.724, 0.0, 0.0))
+    human.KeyJoints(51.6, {
         'right_hip': (14.4, -4.199, 7.574), 'right_knee': (30.018,),
         'right_ankle': (11.387, -2.155), 'left_hip': (31.025, 2.81, 2.198), 'left_knee': (47.654,),
         'left_ankle': (14.519, 3.54),
     })
-    human.KeyRoot(51.6, (108.171, 71.276, 32.104), (94.483, 0.0, 0.0))
-    human.KeyJoints(51.6, {
+    human.KeyRoot(51.7, (108.171, 71.276, 32.104), (94.483, 0.0, 0.0))
+    human.KeyJoints(51.7, {
         'right_hip': (11.952, -4.589, 10.369), 'right_knee': (46.136,),
         'right_ankle': (17.201, -2.372), 'left_hip': (29.032, 4.785, 4.34), 'left_knee': (25.975,),
         'left_ankle': (-2.701, 6.276),
     })
-    human.KeyRoot(51.7, (123.182, 70.974, 26.861), (91.393, 0.0, 0.0))
-    human.KeyJoints(51.7, {
+    human.KeyRoot(51.8, (123.182, 70.974, 26.861), (91.393, 0.0, 0.0))
+    human.KeyJoints(51.8, {
         'right_hip': (1.099, -1.613, 14.03), 'right_knee': (47.807,),
         'right_ankle': (14.811, -1.523), 'left_hip': (20.176, 4.956, 2.996), 'left_knee': (11.923,),
         'left_ankle': (-7.996, 5.677),
     })
-    human.KeyRoot(51.8, (130.55, 71.094, 23.129), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.8, {
+    human.KeyRoot(51.9, (130.55, 71.094, 23.129), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.9, {
         'right_hip': (-3.96, 1.126, 16.19), 'right_knee': (46.432,), 'right_ankle': (7.592, -0.034),
         'left_hip': (18.728, 2.598, 0.88), 'left_knee': (20.647,), 'left_ankle': (1.946, 2.743),
     })
-    human.KeyRoot(51.9, (130.292, 71.336, 21.389), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.9, {
+    human.KeyRoot(52.0, (130.292, 71.336, 21.389), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.0, {
         'right_hip': (0.066, 1.45, 17.103), 'right_knee': (52.68,), 'right_ankle': (10.897, 1.87),
         'left_hip': (17.85, 1.155, 0.372), 'left_knee': (18.415,), 'left_ankle': (0.572, 1.214),
     })
-    human.KeyRoot(52.0, (129.847, 71.598, 20.154), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.0, {
+    human.KeyRoot(52.1, (129.847, 71.598, 20.154), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.1, {
         'right_hip': (10.645, 1.122, 14.395), 'right_knee': (56.259,),
         'right_ankle': (19.33, 4.151), 'left_hip': (16.432, 0.128, 0.038), 'left_knee': (14.696,),
         'left_ankle': (-1.723, 0.134),
     })
-    human.KeyRoot(52.1, (129.93, 71.84, 19.851), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.1, {
+    human.KeyRoot(52.2, (129.93, 71.84, 19.851), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.2, {
         'right_hip': (18.837, 1.148, 7.782), 'right_knee': (46.457,), 'right_ankle': (19.277, 3.65),
         'left_hip': (14.663, -0.125, -0.033), 'left_knee': (11.193,), 'left_ankle': (-3.47, -0.129),
     })
-    human.KeyRoot(52.2, (133.2, 71.983, 19.9), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.2, {
+    human.KeyRoot(52.3, (133.2, 71.983, 19.9), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.3, {
         'right_hip': (19.703, 0.466, 1.851), 'right_knee': (33.682,),
         'right_ankle': (14.158, 1.099), 'left_hip': (14.021, -0.084, -0.021),
         'left_knee': (15.735,), 'left_ankle': (1.715, -0.087),
     })
-    human.KeyRoot(52.3, (137.703, 72.264, 19.966), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.3, {
+    human.KeyRoot(52.4, (137.703, 72.264, 19.966), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.4, {
         'right_hip': (10.636, 0.029, 0.006), 'right_knee': (16.785,), 'right_ankle': (6.155, 0.029),
         'left_hip': (10.612, -0.029, -0.005), 'left_knee': (16.734,), 'left_ankle': (6.122, -0.029),
     })
-    human.KeyRoot(52.4, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.4, {
+    human.KeyRoot(52.5, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.5, {
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (3.124, 0.0, 0.0),
         'right_knee': (5.129,), 'right_ankle': (2.008, 0.0), 'left_hip': (3.108, 0.0, 0.0),
         'left_knee': (5.097,), 'left_ankle': (1.99, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=52.400843, duration=0.320709)
-    human.KeyRoot(52.5, (140.0, 72.989, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.5, {'neck': (7.968, 7.684, -6.755), 'head': (3.415, -2.561)})
-    human.KeyJoints(52.6, {
+    human.LookAt((160.0, 90.0, 20.0), start=52.500843, duration=0.320709)
+    human.KeyRoot(52.6, (140.0, 72.989, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.6, {'neck': (7.968, 7.684, -6.755), 'head': (3.415, -2.561)})
+    human.KeyJoints(52.7, {
         'neck': (23.728, 22.881, -20.116), 'head': (10.169, -7.627),
-        'right_shoulder': (32.91, 37.386, -9.647), 'right_elbow': (90.762, 22.836),
-        'left_shoulder': (89.922, -29.245, 14.7), 'left_elbow': (20.254, 18.178),
-        'left_wrist': (0.923, -5.575), 'right_hip': (3.036, 0.0, 0.0), 'right_knee': (4.945,),
-        'right_ankle': (1.911, 0.0), 'left_hip': (3.033, 0.0, 0.0), 'left_knee': (4.937,),
-        'left_ankle': (1.907, 0.0),
+        'right_shoulder': (32.91, 37.386, -9.647), 'left_shoulder': (89.922, -29.245, 14.7),
+        'left_elbow': (20.254, 18.178), 'left_wrist': (0.923, -5.575),
+        'right_hip': (3.036, 0.0, 0.0), 'right_knee': (4.945,), 'right_ankle': (1.911, 0.0),
+        'left_hip': (3.033, 0.0, 0.0), 'left_knee': (4.937,), 'left_ankle': (1.907, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
-    human.KeyJoints(52.7, {
+    human.KeyJoints(52.8, {
         'neck': (34.547, 33.313, -29.288), 'head': (14.806, -11.104),
-        'right_shoulder': (32.786, 37.338, -9.629), 'right_elbow': (90.813, 22.84),
-        'right_wrist': (-12.539, -14.568), 'left_shoulder': (89.732, -29.214, 14.777),
-        'left_elbow': (20.474, 18.149), 'left_wrist': (0.767, -5.551),
+        'right_shoulder': (32.791, 37.337, -9.626), 'right_elbow': (90.812, 22.84),
+        'right_wrist': (-12.538, -14.568), 'left_shoulder': (89.734, -29.216, 14.777),
+        'left_elbow': (20.468, 18.15), 'left_wrist': (0.772, -5.552),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
-    human.KeyJoints(52.8, {
-        'neck': (35.0, 33.75, -29.672), 'head': (15.0, -11.25),
-        'right_shoulder': (27.891, 35.333, -8.783), 'right_elbow': (92.896, 22.994),
-        'right_wrist': (-12.789, -13.968), 'left_shoulder': (83.605, -28.136, 17.885),
-        'left_elbow': (26.961, 16.99), 'left_wrist': (-5.412, -4.832),
-    })
+    human.LookAt((160.0, 90.0, 20.0), start=52.821552, duration=0.640349)
     human.KeyJoints(52.9, {
-        'right_shoulder': (13.573, 29.489, -6.299), 'right_elbow': (98.861, 23.434),
-        'right_wrist': (-13.533, -12.268), 'left_shoulder': (65.615, -24.726, 26.843),
-        'left_elbow': (45.567, 13.668), 'left_wrist': (-23.15, -2.766),
+        'neck': (35.0, 33.75, -29.672), 'head': (15.0, -11.25),
+        'right_shoulder': (27.972, 35.349, -8.77), 'right_elbow': (92.852, 22.99),
+        'right_wrist': (-12.783, -13.98), 'left_shoulder': (83.622, -28.117, 17.839),
+        'left_elbow': (26.865, 17.015), 'left_wrist': (-5.278, -4.846),
     })
     human.KeyJoints(53.0, {
-        'right_shoulder': (-6.762, 21.332, -2.717), 'right_elbow': (106.468, 24.003),
-        'right_wrist': (-14.622, -10.168), 'left_shoulder': (40.711, -18.731, 38.216),
-        'left_elbow': (69.736, 9.38), 'left_wrist': (-46.171, -0.051),
+        'right_shoulder': (13.733, 29.519, -6.264), 'right_elbow': (98.748, 23.426),
+        'right_wrist': (-13.518, -12.3), 'left_shoulder': (65.774, -24.673, 26.681),
+        'left_elbow': (45.193, 13.733), 'left_wrist': (-22.799, -2.809),
     })
     human.KeyJoints(53.1, {
-        'right_shoulder': (-26.413, 12.835, 2.209), 'right_elbow': (112.178, 24.443),
-        'right_wrist': (-15.469, -8.582), 'left_shoulder': (15.639, -10.331, 46.798),
-        'left_elbow': (89.597, 6.012), 'left_wrist': (-64.538, 2.275),
+        'right_shoulder': (-6.469, 21.377, -2.632), 'right_elbow': (106.266, 23.988),
+        'right_wrist': (-14.588, -10.219), 'left_shoulder': (40.93, -18.656, 37.915),
+        'left_elbow': (69.167, 9.487), 'left_wrist': (-45.601, -0.109),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (-36.986, 5.893, 10.091), 'right_elbow': (112.134, 24.408),
-        'right_wrist': (-14.44, -8.033), 'left_shoulder': (1.854, 4.74, 54.547),
-        'left_elbow': (100.135, 5.327), 'left_wrist': (-70.0, 3.088),
+        'right_shoulder': (-25.667, 12.862, 2.663), 'right_elbow': (111.612, 24.394),
+        'right_wrist': (-15.257, -8.67), 'left_shoulder': (16.082, -10.016, 46.147),
+        'left_elbow': (88.72, 6.363), 'left_wrist': (-63.297, 2.252),
+    })
+    human.KeyJoints(53.3, {
+        'right_shoulder': (-36.412, 5.843, 10.52), 'right_elbow': (111.703, 24.372),
+        'right_wrist': (-14.212, -8.065), 'left_shoulder': (1.94, 4.346, 53.81),
+        'left_elbow': (100.73, 5.695), 'left_wrist': (-70.0, 3.315),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
-    human.KeyJoints(53.3, {
-        'right_shoulder': (-39.907, 2.72, 14.95), 'right_elbow': (110.619, 24.269),
-        'right_wrist': (-13.251, -7.925), 'left_shoulder': (-1.507, 13.778, 58.757),
-        'left_elbow': (105.455, 8.377), 'left_wrist': (-70.0, 6.428),
+    human.KeyJoints(53.4, {
+        'right_shoulder': (-39.853, 2.71, 14.989), 'right_elbow': (110.591, 24.266),
+        'right_wrist': (-13.232, -7.926), 'left_shoulder': (-1.505, 13.728, 58.698),
+        'left_elbow': (105.516, 8.405), 'left_wrist': (-70.0, 6.447),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)
+    human.Grasp('left_hand', 'open', start=53.461901, duration=0.072)
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=53.361901, duration=0.072)
-    human.KeyJoints(53.4, {
-        'right_shoulder': (-40.053, 2.467, 15.328), 'right_elbow': (110.419, 24.257),
-        'left_shoulder': (-1.569, 14.636, 59.189), 'left_elbow': (105.551, 9.239),
+    human.Grasp('right_hand', 'open', start=53.461901, duration=0.072)
+    human.KeyJoints(53.5, {
+        'right_shoulder': (-40.053, 2.467, 15.328), 'left_shoulder': (-1.569, 14.636, 59.189),
+        'left_elbow': (105.551, 9.239),
     })
-    human.KeyRoot(53.433901, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.433901, {
+    human.KeyRoot(53.533901, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.533901, {
         'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
         'neck': (35.0, 33.75, -29.672), 'head': (15.0, -11.25), 'right_clavicle': (7.019, 9.794),
         'right_shoulder': (-40.053, 2.467, 15.328), 'right_elbow': (110.419, 24.257),

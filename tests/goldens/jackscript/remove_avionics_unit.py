@@ -250,78 +250,122 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=3.321883, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > look: gaze on head at unit_handle
-    human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.32325)
-    human.KeyJoints(3.4, {'neck': (-58.615, 0.114, -0.07)})
-    human.KeyJoints(3.5, {'neck': (-58.128, 0.091, 0.089), 'head': (-19.513, 0.002)})
-    human.KeyJoints(3.6, {
-        'spine_thoracic': (-0.563, -0.546, -30.0), 'neck': (-57.259, 0.028, 0.372),
-        'right_shoulder': (6.524, 171.769, -41.698), 'left_shoulder': (171.167, 8.326, 3.353),
-        'left_elbow': (2.783, -75.178), 'left_wrist': (-3.947, -1.227),
-    })
+    human.LookAt((0.0, 172.0, 98.0), start=3.393883, duration=0.447533)
+    human.KeyJoints(3.4, {'neck': (-58.616, 0.114, -0.07)})
+    human.KeyJoints(3.5, {'neck': (-58.342, 0.1, 0.019)})
+    human.KeyJoints(3.6, {'head': (-19.471, 0.001)})
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TA on r_arm at unit_handle
     human.KeyJoints(3.7, {
-        'spine_lumbar': (27.281, 0.132, -14.989), 'spine_thoracic': (-0.359, -0.637, -30.0),
-        'neck': (-56.696, -0.077, 0.556), 'head': (-19.348, 0.0), 'right_clavicle': (30.0, -14.989),
-        'right_shoulder': (6.463, 171.327, -41.687), 'right_wrist': (0.311, -0.881),
-        'left_clavicle': (30.0, 14.976), 'left_shoulder': (169.798, 9.962, 2.681),
-        'left_elbow': (2.889, -75.086), 'left_wrist': (-3.828, -1.21),
+        'spine_thoracic': (-0.555, -0.55, -30.0), 'neck': (-57.139, 0.007, 0.412),
+        'right_shoulder': (6.522, 171.751, -41.698), 'left_shoulder': (171.113, 8.39, 3.327),
+        'left_elbow': (2.787, -75.174), 'left_wrist': (-3.942, -1.226),
+    })
+    human.KeyJoints(3.8, {
+        'spine_lumbar': (27.289, 0.129, -14.987), 'spine_thoracic': (-0.308, -0.659, -30.0),
+        'neck': (-56.727, -0.065, 0.546), 'head': (-19.351, 0.0),
+        'right_shoulder': (6.448, 171.216, -41.684), 'right_wrist': (0.322, -0.887),
+        'left_clavicle': (30.0, 14.97), 'left_shoulder': (169.455, 10.371, 2.513),
+        'left_elbow': (2.915, -75.064), 'left_wrist': (-3.798, -1.206),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: gaze on head at unit_out
-    human.LookAt((0.0, 165.0, 75.0), start=3.717133, duration=2.370294)
-    human.KeyJoints(3.8, {
-        'spine_lumbar': (28.041, -0.124, -14.753), 'spine_thoracic': (4.198, -2.656, -30.0),
-        'neck': (-57.325, -3.627, -9.583), 'head': (-19.481, 2.324),
-        'right_clavicle': (30.0, -14.741), 'right_shoulder': (5.105, 161.451, -41.43),
-        'right_elbow': (0.227, 8.568), 'right_wrist': (1.265, -1.465),
-        'left_clavicle': (29.999, 14.438), 'left_shoulder': (139.194, 46.537, -12.34),
-        'left_elbow': (5.251, -73.048), 'left_wrist': (-1.154, -0.827),
-    })
+    human.LookAt((0.0, 165.0, 75.0), start=3.841417, duration=3.04601)
     human.KeyJoints(3.9, {
-        'spine_lumbar': (29.806, -0.719, -14.203), 'spine_thoracic': (14.78, -7.345, -30.0),
-        'neck': (-58.901, -12.1, -34.4), 'head': (-19.812, 8.01), 'right_clavicle': (30.0, -14.164),
-        'right_shoulder': (1.95, 138.513, -40.834), 'right_wrist': (3.48, -2.823),
-        'left_clavicle': (29.996, 13.19), 'left_shoulder': (68.117, 131.483, -47.228),
-        'left_elbow': (10.738, -68.312), 'left_wrist': (5.055, 0.063),
+        'spine_lumbar': (27.427, 0.082, -14.944), 'spine_thoracic': (0.52, -1.026, -30.0),
+        'neck': (-56.722, -0.362, -0.083), 'head': (-19.354, 0.147),
+        'right_clavicle': (30.0, -14.941), 'right_shoulder': (6.201, 169.422, -41.638),
+        'right_wrist': (0.495, -0.993), 'left_shoulder': (163.896, 17.016, -0.216),
+        'left_elbow': (3.344, -74.693), 'left_wrist': (-3.312, -1.136),
+    })
+    human.KeyJoints(4.0, {
+        'spine_lumbar': (27.685, -0.004, -14.863), 'spine_thoracic': (2.065, -1.711, -30.0),
+        'neck': (-56.956, -1.673, -3.777), 'head': (-19.404, 0.994),
+        'right_shoulder': (5.741, 166.073, -41.55), 'right_wrist': (0.818, -1.192),
+        'left_clavicle': (29.999, 14.69), 'left_shoulder': (153.517, 29.419, -5.31),
+        'left_elbow': (4.146, -74.002), 'left_wrist': (-2.405, -1.006),
+    })
+    human.KeyJoints(4.1, {
+        'spine_lumbar': (28.064, -0.132, -14.745), 'spine_thoracic': (4.337, -2.717, -30.0),
+        'neck': (-57.349, -3.809, -9.962), 'head': (-19.486, 2.411),
+        'right_shoulder': (5.063, 161.148, -41.423), 'right_elbow': (0.225, 8.567),
+        'right_wrist': (1.294, -1.483), 'left_shoulder': (138.257, 47.657, -12.8),
+        'left_elbow': (5.324, -72.985), 'left_wrist': (-1.072, -0.815),
+    })
+    human.KeyJoints(4.2, {
+        'spine_lumbar': (28.564, -0.301, -14.59), 'spine_thoracic': (7.336, -4.046, -30.0),
+        'neck': (-57.842, -6.465, -17.729), 'head': (-19.589, 4.19),
+        'right_clavicle': (30.0, -14.57), 'right_shoulder': (4.169, 154.648, -41.254),
+        'right_wrist': (1.922, -1.868), 'left_clavicle': (29.998, 14.068),
+        'left_shoulder': (118.114, 71.73, -22.687), 'left_elbow': (6.878, -71.643),
+        'left_wrist': (0.687, -0.563),
+    })
+    human.KeyJoints(4.3, {
+        'neck': (-58.378, -9.337, -26.171), 'left_shoulder': (93.232, 101.468, -34.9),
+    })
+    human.KeyJoints(4.4, {
+        'spine_lumbar': (29.805, -0.718, -14.203), 'spine_thoracic': (14.772, -7.341, -30.0),
+        'neck': (-58.9, -12.122, -34.38), 'head': (-19.811, 8.005),
+        'right_shoulder': (1.952, 138.532, -40.835), 'right_wrist': (3.479, -2.821),
+        'left_clavicle': (29.996, 13.191), 'left_shoulder': (68.174, 131.415, -47.199),
+        'left_elbow': (10.734, -68.316), 'left_wrist': (5.05, 0.062),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on l_arm at unit_handle
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > reach: TO on r_arm at unit_handle
-    human.KeyJoints(4.0, {
-        'spine_lumbar': (30.759, -1.04, -13.906), 'spine_thoracic': (20.494, -9.876, -30.0),
-        'neck': (-59.799, -16.911, -48.542), 'head': (-20.0, 11.25),
-        'right_clavicle': (30.0, -13.853), 'right_shoulder': (0.246, 126.127, -40.512),
-        'right_elbow': (0.004, 8.505), 'right_wrist': (4.677, -3.556),
-        'left_clavicle': (29.994, 12.515), 'left_shoulder': (29.737, 177.353, -66.066),
-        'left_elbow': (13.701, -65.755), 'left_wrist': (8.407, 0.543),
+    human.KeyJoints(4.5, {
+        'spine_lumbar': (30.277, -0.877, -14.056), 'spine_thoracic': (17.605, -8.596, -30.0),
+        'neck': (-59.349, -14.514, -41.448), 'head': (-19.905, 9.625),
+        'right_clavicle': (30.0, -14.01), 'right_shoulder': (1.107, 132.39, -40.675),
+        'right_wrist': (4.072, -3.185), 'left_clavicle': (29.995, 12.856),
+        'left_shoulder': (49.143, 154.16, -56.541), 'left_elbow': (12.203, -67.048),
+        'left_wrist': (6.712, 0.3),
+    })
+    human.KeyJoints(4.6, {
+        'spine_lumbar': (30.588, -0.982, -13.959), 'spine_thoracic': (19.469, -9.422, -30.0),
+        'neck': (-59.667, -16.211, -46.468), 'head': (-19.972, 10.775),
+        'right_shoulder': (0.552, 128.35, -40.57), 'right_wrist': (4.462, -3.424),
+        'left_clavicle': (29.994, 12.636), 'left_shoulder': (36.626, 169.119, -62.685),
+        'left_elbow': (13.169, -66.214), 'left_wrist': (7.805, 0.457),
+    })
+    human.KeyJoints(4.7, {
+        'spine_lumbar': (30.753, -1.038, -13.908), 'spine_thoracic': (20.46, -9.861, -30.0),
+        'neck': (-59.799, -16.908, -48.532), 'head': (-20.0, 11.248),
+        'right_shoulder': (0.256, 126.201, -40.514), 'right_elbow': (0.004, 8.505),
+        'right_wrist': (4.67, -3.551), 'left_shoulder': (29.965, 177.08, -65.954),
+        'left_elbow': (13.683, -65.77), 'left_wrist': (8.387, 0.54),
+    })
+    human.KeyJoints(4.8, {
+        'spine_thoracic': (20.762, -9.995, -30.0), 'right_clavicle': (30.0, -13.838),
+        'right_shoulder': (0.166, 125.547, -40.497), 'left_clavicle': (29.994, 12.484),
+        'left_shoulder': (27.938, 179.503, -66.949), 'left_elbow': (13.84, -65.635),
+        'left_wrist': (8.564, 0.565),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=4.045791, duration=0.072)
+    human.Grasp('left_hand', 'close', start=4.845791, duration=0.072)
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=4.045791, duration=0.072)
-    human.KeyJoints(4.1, {
+    human.Grasp('right_hand', 'close', start=4.845791, duration=0.072)
+    human.KeyJoints(4.9, {
         'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
         'neck': (-59.799, -16.911, -48.542), 'right_clavicle': (30.0, -13.838),
         'right_shoulder': (0.163, 125.523, -40.497), 'right_elbow': (0.0, 8.504),
         'right_wrist': (4.735, -3.591), 'left_shoulder': (27.863, 179.592, -66.986),
-        'left_elbow': (13.845, -65.63), 'left_wrist': (8.571, 0.566),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
-    human.KeyJoints(4.2, {
+    human.KeyJoints(5.0, {
         'spine_lumbar': (31.012, -1.486, -13.855), 'spine_thoracic': (19.417, -9.249, -28.982),
         'neck': (-59.831, -16.713, -46.726), 'right_clavicle': (28.588, -13.887),
         'right_shoulder': (0.483, 127.491, -40.509), 'right_elbow': (0.412, 8.516),
         'right_wrist': (5.085, -3.949), 'left_clavicle': (29.994, 12.525),
         'left_shoulder': (27.661, 179.405, -66.935), 'left_wrist': (8.602, 0.55),
     })
-    human.KeyJoints(4.3, {
+    human.KeyJoints(5.1, {
         'spine_lumbar': (32.347, -4.263, -13.601), 'spine_thoracic': (10.66, -4.4, -22.354),
         'right_clavicle': (19.47, -14.202), 'right_shoulder': (2.551, 140.2, -40.589),
         'right_elbow': (3.073, 8.596), 'right_wrist': (7.341, -6.259),
         'left_clavicle': (29.996, 12.8), 'left_shoulder': (26.351, 178.085, -66.603),
         'left_elbow': (13.836, -65.597), 'left_wrist': (8.802, 0.431),
     })
-    human.KeyJoints(4.4, {
+    human.KeyJoints(5.2, {
         'spine_lumbar': (34.496, -8.847, -12.977), 'spine_thoracic': (-3.91, 3.656, -10.73),
         'neck': (-59.99, -15.723, -36.188), 'right_clavicle': (4.348, -14.72),
         'right_shoulder': (5.973, 161.372, -40.721), 'right_elbow': (7.505, 8.729),
@@ -331,7 +375,7 @@ def remove_avionics_unit():
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
-    human.KeyJoints(4.5, {
+    human.KeyJoints(5.3, {
         'spine_lumbar': (27.696, -5.318, -10.361), 'spine_thoracic': (-5.971, 3.094, -1.521),
         'neck': (-58.398, -15.806, -32.425), 'right_clavicle': (9.3, -13.756),
         'right_shoulder': (3.794, 167.462, -40.474), 'right_elbow': (8.061, 8.736),
@@ -341,7 +385,7 @@ def remove_avionics_unit():
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
-    human.KeyJoints(4.6, {
+    human.KeyJoints(5.4, {
         'spine_lumbar': (25.131, -3.332, -9.682), 'spine_thoracic': (-3.932, 1.224, -0.706),
         'neck': (-57.573, -19.113, -23.323), 'right_clavicle': (14.226, -13.216),
         'right_shoulder': (2.338, 164.98, -40.325), 'right_elbow': (7.133, 8.713),
@@ -349,32 +393,32 @@ def remove_avionics_unit():
         'left_shoulder': (20.833, 163.058, -64.828), 'left_elbow': (7.836, -65.257),
         'left_wrist': (7.527, -1.361),
     })
-    human.KeyJoints(4.9, {'spine_thoracic': (-3.884, 1.13, -0.706)})
-    human.KeyJoints(5.0, {'spine_lumbar': (25.039, -3.191, -9.688)})
-    human.KeyJoints(5.1, {'spine_thoracic': (-3.756, 0.878, -0.711)})
-    human.KeyJoints(5.2, {
+    human.KeyJoints(5.7, {'spine_thoracic': (-3.884, 1.13, -0.706)})
+    human.KeyJoints(5.8, {'spine_lumbar': (25.039, -3.191, -9.688)})
+    human.KeyJoints(5.9, {'spine_thoracic': (-3.756, 0.878, -0.711)})
+    human.KeyJoints(6.0, {
         'spine_lumbar': (24.861, -2.915, -9.725), 'spine_thoracic': (-3.639, 0.647, -0.72),
         'right_clavicle': (14.172, -13.268), 'right_shoulder': (2.251, 165.039, -40.321),
         'left_clavicle': (30.0, 12.271), 'left_shoulder': (20.88, 163.07, -64.822),
     })
-    human.KeyJoints(5.3, {
+    human.KeyJoints(6.1, {
         'spine_lumbar': (24.648, -2.583, -9.834), 'spine_thoracic': (-3.409, 0.191, -0.757),
         'right_elbow': (7.211, 8.708), 'left_elbow': (7.892, -65.259),
     })
-    human.KeyJoints(5.4, {
+    human.KeyJoints(6.2, {
         'spine_lumbar': (24.53, -2.397, -9.945), 'spine_thoracic': (-3.28, -0.065, -0.795),
     })
-    human.KeyJoints(5.5, {
+    human.KeyJoints(6.3, {
         'right_clavicle': (13.805, -13.625), 'right_shoulder': (2.13, 165.451, -40.316),
         'left_clavicle': (30.0, 12.628), 'left_shoulder': (21.201, 163.146, -64.814),
     })
-    human.KeyJoints(5.7, {'spine_thoracic': (-3.198, -0.23, -0.851)})
-    human.KeyJoints(5.8, {'neck': (-57.56, -19.126, -23.275)})
-    human.KeyJoints(5.9, {
+    human.KeyJoints(6.5, {'spine_thoracic': (-3.198, -0.23, -0.851)})
+    human.KeyJoints(6.6, {'neck': (-57.56, -19.126, -23.275)})
+    human.KeyJoints(6.7, {
         'spine_lumbar': (24.446, -2.262, -10.154), 'right_shoulder': (2.118, 165.645, -40.315),
     })
-    human.KeyRoot(6.0, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(6.0, {
+    human.KeyRoot(6.8, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(6.8, {
         'neck': (-57.552, -19.118, -23.282), 'head': (-20.0, 11.207),
         'right_clavicle': (13.624, -13.801), 'right_elbow': (7.38, 8.706),
         'left_clavicle': (30.0, 12.804), 'left_shoulder': (21.36, 163.184, -64.813),
@@ -382,272 +426,273 @@ def remove_avionics_unit():
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
-    human.Walk((-79.997, 0.0, 40.001), start=6.087427, duration=4.515789)
+    human.Walk((-79.997, 0.0, 40.001), start=6.887427, duration=4.515789)
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: gaze on head
-    human.KeyRoot(6.1, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
-    human.KeyJoints(6.1, {
+    human.KeyRoot(6.9, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
+    human.KeyJoints(6.9, {
         'neck': (-57.181, -18.994, -23.134), 'head': (-19.871, 11.173),
         'right_hip': (3.51, 0.005, 0.014), 'right_knee': (5.94,), 'right_ankle': (2.42, 0.006),
         'left_hip': (3.459, -0.005, -0.014), 'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
     })
-    human.KeyRoot(6.2, (0.45, 72.589, 50.1), (-0.953, 0.0, 0.0))
-    human.KeyJoints(6.2, {
+    human.KeyRoot(7.0, (0.45, 72.589, 50.1), (-0.953, 0.0, 0.0))
+    human.KeyJoints(7.0, {
         'neck': (-45.857, -15.232, -18.552), 'head': (-15.936, 8.963),
         'left_elbow': (8.013, -65.263), 'right_hip': (8.12, 0.249, 1.002), 'right_knee': (15.476,),
         'right_ankle': (6.818, 0.388), 'left_hip': (6.846, -0.269, -0.992), 'left_knee': (13.383,),
         'left_ankle': (6.542, -0.385),
     })
-    human.KeyRoot(6.3, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
-    human.KeyJoints(6.3, {
+    human.KeyRoot(7.1, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
+    human.KeyJoints(7.1, {
         'neck': (-24.966, -8.293, -10.1), 'head': (-8.676, 4.891),
         'right_hip': (10.472, 0.538, 2.991), 'right_knee': (20.12,), 'right_ankle': (8.764, 1.125),
         'left_hip': (7.104, -0.721, -3.097), 'left_knee': (14.693,), 'left_ankle': (7.637, -1.097),
     })
-    human.KeyRoot(6.4, (2.102, 72.488, 50.466), (-5.558, 0.0, 0.0))
-    human.KeyJoints(6.4, {
+    human.KeyRoot(7.2, (2.102, 72.488, 50.466), (-5.558, 0.0, 0.0))
+    human.KeyJoints(7.2, {
         'neck': (-5.987, -1.989, -2.422), 'head': (-2.081, 1.19),
         'right_hip': (18.851, 1.631, 0.537), 'right_knee': (38.348,),
         'right_ankle': (18.377, 1.749), 'left_hip': (6.848, -1.102, -5.732), 'left_knee': (14.925,),
         'left_ankle': (8.083, -1.773),
     })
-    human.KeyRoot(6.5, (2.471, 72.699, 50.548), (-8.122, 0.0, 0.0))
-    human.KeyJoints(6.5, {
+    human.KeyRoot(7.3, (2.471, 72.699, 50.548), (-8.122, 0.0, 0.0))
+    human.KeyJoints(7.3, {
         'neck': (0.102, 0.034, 0.041), 'head': (0.035, 0.0), 'right_hip': (19.911, 4.648, -6.821),
         'right_knee': (42.523,), 'right_ankle': (18.462, 1.981),
         'left_hip': (8.098, -0.901, -8.392), 'left_knee': (17.9,), 'left_ankle': (8.243, -2.061),
     })
-    human.KeyRoot(6.6, (2.092, 72.713, 49.963), (-10.614, 0.0, 0.0))
-    human.KeyJoints(6.6, {
+    human.KeyRoot(7.4, (2.092, 72.713, 49.963), (-10.614, 0.0, 0.0))
+    human.KeyJoints(7.4, {
         'left_wrist': (7.663, -1.329), 'right_hip': (15.347, 5.98, -15.312),
         'right_knee': (34.413,), 'right_ankle': (17.743, 1.503),
         'left_hip': (11.807, 0.527, -10.868), 'left_knee': (24.956,), 'left_ankle': (8.788, -1.709),
     })
-    human.KeyRoot(6.7, (1.248, 72.52, 48.925), (-13.49, 0.0, 0.0))
-    human.KeyJoints(6.7, {
+    human.KeyRoot(7.5, (1.248, 72.52, 48.925), (-13.49, 0.0, 0.0))
+    human.KeyJoints(7.5, {
         'right_hip': (7.07, 2.973, -18.824), 'right_knee': (15.329,), 'right_ankle': (7.695, 0.413),
         'left_hip': (15.561, 2.817, -13.346), 'left_knee': (31.733,), 'left_ankle': (8.741, -0.916),
     })
-    human.KeyRoot(6.8, (0.379, 72.499, 48.508), (-16.969, 0.0, 0.0))
-    human.KeyJoints(6.8, {
+    human.KeyRoot(7.6, (0.379, 72.499, 48.508), (-16.969, 0.0, 0.0))
+    human.KeyJoints(7.6, {
         'right_hip': (7.453, 1.525, -15.532), 'right_knee': (14.604,),
         'right_ankle': (7.016, -0.533), 'left_hip': (16.709, 4.993, -16.242),
         'left_knee': (34.812,), 'left_ankle': (8.391, -0.023),
     })
-    human.KeyRoot(6.9, (-0.637, 72.496, 48.638), (-21.678, 0.0, 0.0))
-    human.KeyJoints(6.9, {
+    human.KeyRoot(7.7, (-0.637, 72.496, 48.638), (-21.678, 0.0, 0.0))
+    human.KeyJoints(7.7, {
         'right_hip': (7.631, 0.111, -10.969), 'right_knee': (14.461,),
         'left_hip': (19.106, 7.456, -17.844), 'left_knee': (42.234,), 'left_ankle': (13.375, 0.972),
     })
-    human.KeyRoot(7.0, (-1.678, 72.492, 48.923), (-27.207, 0.0, 0.0))
-    human.KeyJoints(7.0, {
+    human.KeyRoot(7.8, (-1.678, 72.492, 48.923), (-27.207, 0.0, 0.0))
+    human.KeyJoints(7.8, {
         'right_hip': (7.514, -1.344, -5.58), 'right_knee': (14.166,), 'right_ankle': (6.81, -2.055),
         'left_hip': (21.891, 6.012, -10.938), 'left_knee': (46.992,), 'left_ankle': (19.216, 1.41),
     })
-    human.KeyRoot(7.1, (-2.331, 72.517, 49.319), (-32.671, 0.0, 0.0))
-    human.KeyJoints(7.1, {
+    human.KeyRoot(7.9, (-2.331, 72.517, 49.319), (-32.671, 0.0, 0.0))
+    human.KeyJoints(7.9, {
         'right_hip': (8.13, -2.368, -0.258), 'right_knee': (15.546,),
         'right_ankle': (6.914, -2.379), 'left_hip': (22.336, 1.204, 1.029), 'left_knee': (45.501,),
         'left_ankle': (19.184, 1.463),
     })
-    human.KeyRoot(7.2, (-2.643, 72.629, 50.612), (-37.827, 0.0, 0.0))
-    human.KeyJoints(7.2, {
+    human.KeyRoot(8.0, (-2.643, 72.629, 50.612), (-37.827, 0.0, 0.0))
+    human.KeyJoints(8.0, {
         'right_hip': (10.407, -2.906, 4.717), 'right_knee': (21.318,),
         'right_ankle': (7.991, -1.997), 'left_hip': (18.581, -3.341, 13.249),
         'left_knee': (38.017,), 'left_ankle': (18.571, 1.11),
     })
-    human.KeyRoot(7.3, (-2.874, 72.623, 52.556), (-42.983, 0.0, 0.0))
-    human.KeyJoints(7.3, {
+    human.KeyRoot(8.1, (-2.874, 72.623, 52.556), (-42.983, 0.0, 0.0))
+    human.KeyJoints(8.1, {
         'right_hip': (12.795, -3.475, 9.776), 'right_knee': (28.043,),
         'right_ankle': (9.271, -1.189), 'left_hip': (10.034, -3.551, 20.096), 'left_knee': (21.85,),
         'left_ankle': (11.225, 0.095),
     })
-    human.KeyRoot(7.4, (-2.978, 72.487, 53.756), (-48.139, 0.0, 0.0))
-    human.KeyJoints(7.4, {
+    human.KeyRoot(8.2, (-2.978, 72.487, 53.756), (-48.139, 0.0, 0.0))
+    human.KeyJoints(8.2, {
         'neck': (0.0, 0.0, 0.0), 'right_hip': (14.909, -4.634, 14.814), 'right_knee': (33.171,),
         'right_ankle': (9.674, -0.561), 'left_hip': (5.795, -2.719, 16.805), 'left_knee': (14.725,),
         'left_ankle': (8.395, -0.916),
     })
-    human.KeyRoot(7.5, (-2.595, 72.487, 53.808), (-53.295, 0.0, 0.0))
-    human.KeyJoints(7.5, {
+    human.KeyRoot(8.3, (-2.595, 72.487, 53.808), (-53.295, 0.0, 0.0))
+    human.KeyJoints(8.3, {
         'right_hip': (17.461, -6.382, 19.178), 'right_knee': (37.781,),
         'right_ankle': (10.797, -0.07), 'left_hip': (5.539, -2.43, 11.654),
         'left_ankle': (8.625, -1.251),
     })
-    human.KeyRoot(7.6, (-1.531, 72.487, 53.829), (-58.451, 0.0, 0.0))
-    human.KeyJoints(7.6, {
+    human.KeyRoot(8.4, (-1.531, 72.487, 53.829), (-58.451, 0.0, 0.0))
+    human.KeyJoints(8.4, {
         'right_hip': (21.602, -5.708, 15.063), 'right_knee': (45.621,),
         'right_ankle': (17.881, 0.398), 'left_hip': (5.817, -2.431, 6.48), 'left_knee': (14.401,),
     })
-    human.KeyRoot(7.7, (-0.364, 72.487, 53.837), (-63.607, 0.0, 0.0))
-    human.KeyJoints(7.7, {
+    human.KeyRoot(8.5, (-0.364, 72.487, 53.837), (-63.607, 0.0, 0.0))
+    human.KeyJoints(8.5, {
         'right_hip': (21.932, -0.788, 4.133), 'right_knee': (46.273,),
         'right_ankle': (19.11, 0.857), 'left_hip': (6.301, -2.379, 1.265), 'left_knee': (14.436,),
         'left_ankle': (8.005, -2.226),
     })
-    human.KeyRoot(7.8, (0.596, 72.548, 53.446), (-68.973, 0.0, 0.0))
-    human.KeyJoints(7.8, {
+    human.KeyRoot(8.6, (0.596, 72.548, 53.446), (-68.973, 0.0, 0.0))
+    human.KeyJoints(8.6, {
         'right_hip': (18.708, 4.367, -8.493), 'right_knee': (41.461,),
         'right_ankle': (19.092, 1.416), 'left_hip': (8.009, -1.702, -4.157), 'left_knee': (16.964,),
         'left_ankle': (8.112, -2.261),
     })
-    human.KeyRoot(7.9, (1.624, 72.555, 52.025), (-74.637, 0.0, 0.0))
-    human.KeyJoints(7.9, {
+    human.KeyRoot(8.7, (1.624, 72.555, 52.025), (-74.637, 0.0, 0.0))
+    human.KeyJoints(8.7, {
         'right_hip': (12.244, 4.952, -17.815), 'right_ankle': (15.501, 1.024),
         'left_hip': (10.864, 0.381, -9.665), 'left_knee': (21.475,), 'left_ankle': (8.253, -1.453),
     })
-    human.KeyRoot(8.0, (2.335, 72.487, 50.491), (-79.647, 0.0, 0.0))
-    human.KeyJoints(8.0, {
+    human.KeyRoot(8.8, (2.335, 72.487, 50.491), (-79.647, 0.0, 0.0))
+    human.KeyJoints(8.8, {
         'right_hip': (7.217, 2.14, -17.928), 'right_knee': (14.839,),
         'right_ankle': (7.317, -0.196), 'left_hip': (12.959, 2.948, -14.252), 'left_knee': (25.35,),
         'left_ankle': (8.267, -0.38),
     })
-    human.KeyRoot(8.1, (2.334, 72.487, 49.607), (-83.144, 0.0, 0.0))
-    human.KeyJoints(8.1, {
+    human.KeyRoot(8.9, (2.334, 72.487, 49.607), (-83.144, 0.0, 0.0))
+    human.KeyJoints(8.9, {
         'right_hip': (7.751, 0.912, -14.564), 'right_ankle': (6.901, -1.068),
         'left_hip': (13.156, 4.677, -17.385), 'left_knee': (26.784,), 'left_ankle': (8.367, 0.447),
     })
-    human.KeyRoot(8.2, (1.802, 72.487, 48.882), (-85.746, 0.0, 0.0))
-    human.KeyJoints(8.2, {
+    human.KeyRoot(9.0, (1.802, 72.487, 48.882), (-85.746, 0.0, 0.0))
+    human.KeyJoints(9.0, {
         'right_hip': (7.605, -0.117, -12.089), 'right_ankle': (7.039, -1.696),
         'left_hip': (18.509, 7.058, -16.276), 'left_knee': (39.353,), 'left_ankle': (16.186, 1.29),
     })
-    human.KeyRoot(8.3, (1.069, 72.487, 48.39), (-88.06, 0.0, 0.0))
-    human.KeyJoints(8.3, {
+    human.KeyRoot(9.1, (1.069, 72.487, 48.39), (-88.06, 0.0, 0.0))
+    human.KeyJoints(9.1, {
         'right_hip': (7.181, -0.882, -9.82), 'right_knee': (14.272,),
         'right_ankle': (7.341, -2.084), 'left_hip': (21.279, 6.318, -10.704),
         'left_knee': (44.664,), 'left_ankle': (18.954, 1.894),
     })
-    human.KeyRoot(8.4, (0.438, 72.69, 48.375), (-90.665, 0.0, 0.0))
-    human.KeyJoints(8.4, {
+    human.KeyRoot(9.2, (0.438, 72.69, 48.375), (-90.665, 0.0, 0.0))
+    human.KeyJoints(9.2, {
         'right_hip': (13.209, -0.413, -7.512), 'right_knee': (26.59,), 'right_ankle': (8.33, -2.12),
         'left_hip': (20.677, 3.795, -4.318), 'left_knee': (42.513,), 'left_ankle': (18.961, 1.999),
     })
-    human.KeyRoot(8.5, (-0.082, 72.709, 49.144), (-94.017, 0.0, 0.0))
-    human.KeyJoints(8.5, {
+    human.KeyRoot(9.3, (-0.082, 72.709, 49.144), (-94.017, 0.0, 0.0))
+    human.KeyJoints(9.3, {
         'right_hip': (22.932, 0.221, -4.395), 'right_knee': (43.792,),
         'right_ankle': (4.063, -1.576), 'left_hip': (15.851, 1.46, -0.095), 'left_knee': (32.257,),
         'left_ankle': (16.434, 1.368),
     })
-    human.KeyRoot(8.6, (-0.7, 72.527, 50.176), (-96.847, 0.0, 0.0))
-    human.KeyJoints(8.6, {
+    human.KeyRoot(9.4, (-0.7, 72.527, 50.176), (-96.847, 0.0, 0.0))
+    human.KeyJoints(9.4, {
         'right_hip': (31.078, 0.133, -1.269), 'right_knee': (55.711,),
         'right_ankle': (-4.997, -0.622), 'left_hip': (7.593, 0.352, 0.862), 'left_knee': (15.684,),
         'left_ankle': (8.125, 0.459),
     })
-    human.KeyRoot(8.7, (-1.652, 72.448, 50.83), (-97.695, 0.0, 0.0))
-    human.KeyJoints(8.7, {
+    human.KeyRoot(9.5, (-1.652, 72.448, 50.83), (-97.695, 0.0, 0.0))
+    human.KeyJoints(9.5, {
         'right_hip': (35.11, 0.096, 0.322), 'right_knee': (61.101,),
         'right_ankle': (-12.343, 0.336), 'left_hip': (6.548, -0.207, -0.023), 'left_knee': (15.3,),
         'left_ankle': (8.752, -0.208),
     })
-    human.KeyRoot(8.8, (-3.655, 72.206, 51.25), (-97.695, 0.0, 0.0))
-    human.KeyJoints(8.8, {
+    human.KeyRoot(9.6, (-3.655, 72.206, 51.25), (-97.695, 0.0, 0.0))
+    human.KeyJoints(9.6, {
         'right_hip': (36.786, 0.364, 1.217), 'right_knee': (65.859,), 'right_ankle': (-7.617, 1.27),
         'left_hip': (5.928, -0.794, -0.082), 'left_knee': (17.504,), 'left_ankle': (11.576, -0.798),
     })
-    human.KeyRoot(8.9, (-6.648, 71.984, 51.585), (-97.695, 0.0, 0.0))
-    human.KeyJoints(8.9, {
+    human.KeyRoot(9.7, (-6.648, 71.984, 51.585), (-97.695, 0.0, 0.0))
+    human.KeyJoints(9.7, {
         'right_hip': (37.582, 0.969, 1.643), 'right_knee': (62.681,), 'right_ankle': (3.103, 1.908),
         'left_hip': (3.525, -1.433, -0.084), 'left_ankle': (14.231, -1.436),
     })
-    human.KeyRoot(9.0, (-10.22, 72.001, 51.756), (-97.695, 0.0, 0.0))
-    human.KeyJoints(9.0, {
+    human.KeyRoot(9.8, (-10.22, 72.001, 51.756), (-97.695, 0.0, 0.0))
+    human.KeyJoints(9.8, {
         'right_hip': (34.56, 1.724, 1.451), 'right_knee': (47.96,), 'right_ankle': (7.772, 2.253),
         'left_hip': (0.705, -2.0, -0.077), 'left_knee': (17.967,), 'left_ankle': (15.767, -2.002),
     })
-    human.KeyRoot(9.1, (-14.752, 71.843, 51.31), (-97.695, 0.0, 0.0))
-    human.KeyJoints(9.1, {
+    human.KeyRoot(9.9, (-14.752, 71.843, 51.31), (-97.695, 0.0, 0.0))
+    human.KeyJoints(9.9, {
         'right_hip': (30.974, 1.954, 1.166), 'right_knee': (33.466,), 'right_ankle': (2.563, 2.275),
         'left_hip': (7.11, -2.09, -0.771), 'left_knee': (37.954,), 'left_ankle': (17.707, -2.228),
     })
-    human.KeyRoot(9.2, (-21.005, 71.361, 49.736), (-97.695, 0.0, 0.0))
-    human.KeyJoints(9.2, {
+    human.KeyRoot(10.0, (-21.005, 71.361, 49.736), (-97.695, 0.0, 0.0))
+    human.KeyJoints(10.0, {
         'right_hip': (25.395, 1.42, 0.671), 'right_knee': (21.477,), 'right_ankle': (-3.869, 1.57),
         'left_hip': (11.535, -1.29, -1.183), 'left_knee': (54.8,), 'left_ankle': (12.302, -1.75),
     })
-    human.KeyRoot(9.3, (-27.284, 70.996, 47.802), (-97.695, 0.0, 0.0))
-    human.KeyJoints(9.3, {
+    human.KeyRoot(10.1, (-27.284, 70.996, 47.802), (-97.695, 0.0, 0.0))
+    human.KeyJoints(10.1, {
         'right_hip': (19.404, 0.558, 0.196), 'right_knee': (15.775,),
         'right_ankle': (-3.599, 0.591), 'left_hip': (12.975, -0.378, -0.694),
         'left_knee': (63.521,), 'left_ankle': (2.086, -0.79),
     })
-    human.KeyRoot(9.4, (-31.849, 71.25, 46.271), (-97.636, 0.0, 0.0))
-    human.KeyJoints(9.4, {
+    human.KeyRoot(10.2, (-31.849, 71.25, 46.271), (-97.636, 0.0, 0.0))
+    human.KeyJoints(10.2, {
         'right_hip': (18.053, -0.175, -0.12), 'right_knee': (21.575,),
         'right_ankle': (3.523, -0.204), 'left_hip': (11.5, 0.09, 0.348), 'left_knee': (64.101,),
         'left_ankle': (-6.498, 0.307),
     })
-    human.KeyRoot(9.5, (-34.678, 71.734, 44.922), (-96.682, 0.0, 0.0))
-    human.KeyJoints(9.5, {
+    human.KeyRoot(10.3, (-34.678, 71.734, 44.922), (-96.682, 0.0, 0.0))
+    human.KeyJoints(10.3, {
         'right_hip': (14.711, -0.743, -1.242), 'right_knee': (20.252,),
         'right_ankle': (5.56, -1.034), 'left_hip': (12.972, 0.511, 2.114), 'left_knee': (66.425,),
         'left_ankle': (0.748, 1.61),
     })
-    human.KeyRoot(9.6, (-37.283, 72.181, 43.703), (-95.126, 0.0, 0.0))
-    human.KeyJoints(9.6, {
+    human.KeyRoot(10.4, (-37.283, 72.181, 43.703), (-95.126, 0.0, 0.0))
+    human.KeyJoints(10.4, {
         'right_hip': (10.844, -1.249, -2.854), 'right_knee': (17.428,),
         'right_ankle': (6.654, -1.762), 'left_hip': (24.436, 1.311, 2.485), 'left_knee': (65.938,),
         'left_ankle': (15.705, 2.47),
     })
-    human.KeyRoot(9.7, (-41.205, 72.209, 42.826), (-93.689, 0.0, 0.0))
-    human.KeyJoints(9.7, {
+    human.KeyRoot(10.5, (-41.205, 72.209, 42.826), (-93.689, 0.0, 0.0))
+    human.KeyJoints(10.5, {
         'right_hip': (11.585, -1.208, -4.454), 'right_knee': (25.941,),
         'right_ankle': (11.27, -2.077), 'left_hip': (29.855, 1.51, 0.808), 'left_knee': (45.935,),
         'left_ankle': (13.612, 1.714),
     })
-    human.KeyRoot(9.8, (-51.221, 71.633, 42.137), (-92.161, 0.0, 0.0))
-    human.KeyJoints(9.8, {
+    human.KeyRoot(10.6, (-51.221, 71.633, 42.137), (-92.161, 0.0, 0.0))
+    human.KeyJoints(10.6, {
         'right_hip': (11.443, -0.311, -6.101), 'right_knee': (42.595,),
         'right_ankle': (16.939, -1.56), 'left_hip': (28.873, 0.312, -0.645), 'left_knee': (28.84,),
         'left_ankle': (0.056, -0.038),
     })
-    human.KeyRoot(9.9, (-63.626, 71.08, 41.589), (-90.688, 0.0, 0.0))
-    human.KeyJoints(9.9, {
+    human.KeyRoot(10.7, (-63.626, 71.08, 41.589), (-90.688, 0.0, 0.0))
+    human.KeyJoints(10.7, {
         'right_hip': (4.43, 0.095, -7.269), 'right_knee': (48.438,),
         'right_ankle': (16.115, -0.528), 'left_hip': (20.933, -0.954, -0.954),
         'left_knee': (14.78,), 'left_ankle': (-6.067, -1.232),
     })
-    human.KeyRoot(10.0, (-70.11, 71.113, 41.357), (-90.001, 0.0, 0.0))
-    human.KeyJoints(10.0, {
+    human.KeyRoot(10.8, (-70.11, 71.113, 41.357), (-90.001, 0.0, 0.0))
+    human.KeyJoints(10.8, {
         'right_hip': (0.944, 0.199, -7.636), 'right_knee': (49.984,),
         'right_ankle': (10.732, 0.091), 'left_hip': (18.949, -1.125, -0.387),
         'left_knee': (20.342,), 'left_ankle': (1.393, -1.19),
     })
-    human.KeyRoot(10.1, (-70.301, 71.353, 41.949), (-90.0, 0.0, 0.0))
-    human.KeyJoints(10.1, {
+    human.KeyRoot(10.9, (-70.301, 71.353, 41.949), (-90.0, 0.0, 0.0))
+    human.KeyJoints(10.9, {
         'right_hip': (4.368, 1.006, -7.081), 'right_knee': (55.782,),
         'right_ankle': (13.303, 0.637), 'left_hip': (17.676, -1.622, -0.517),
         'left_knee': (18.065,), 'left_ankle': (0.393, -1.702),
     })
-    human.KeyRoot(10.2, (-70.396, 71.614, 43.011), (-90.0, 0.0, 0.0))
-    human.KeyJoints(10.2, {
+    human.KeyRoot(11.0, (-70.396, 71.614, 43.011), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.0, {
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (12.793, 2.22, -4.887),
         'right_knee': (57.652,), 'right_ankle': (19.416, 1.222),
         'left_hip': (15.958, -2.518, -0.72), 'left_knee': (14.676,), 'left_ankle': (-1.267, -2.619),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: gaze on head at trolley_top
-    human.LookAt((-110.0, 85.0, 40.0), start=10.203216, duration=1.197891)
-    human.KeyRoot(10.3, (-70.776, 71.855, 43.313), (-90.0, 0.0, 0.0))
-    human.KeyJoints(10.3, {
-        'neck': (3.449, -3.326, 1.48), 'head': (1.478, 1.107), 'right_hip': (19.146, 2.452, -2.188),
-        'right_knee': (47.265,), 'right_ankle': (19.357, 1.629),
-        'left_hip': (14.241, -2.782, -0.706), 'left_knee': (11.802,), 'left_ankle': (-2.421, -2.87),
+    human.LookAt((-110.0, 85.0, 40.0), start=11.003216, duration=1.397891)
+    human.KeyRoot(11.1, (-70.776, 71.855, 43.313), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.1, {
+        'neck': (3.154, -3.042, 1.353), 'head': (1.352, 1.013),
+        'right_hip': (19.146, 2.452, -2.188), 'right_knee': (47.265,),
+        'right_ankle': (19.357, 1.629), 'left_hip': (14.241, -2.782, -0.706),
+        'left_knee': (11.802,), 'left_ankle': (-2.421, -2.87),
     })
-    human.KeyRoot(10.4, (-73.788, 71.983, 42.264), (-90.0, 0.0, 0.0))
-    human.KeyJoints(10.4, {
-        'neck': (12.068, -11.637, 5.176), 'head': (5.172, 3.874),
+    human.KeyRoot(11.2, (-73.788, 71.983, 42.264), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.2, {
+        'neck': (11.143, -10.745, 4.779), 'head': (4.775, 3.577),
         'right_hip': (19.52, 1.751, -0.22), 'right_knee': (34.329,), 'right_ankle': (14.929, 1.58),
         'left_hip': (13.675, -1.903, -0.463), 'left_knee': (16.058,), 'left_ankle': (2.39, -1.959),
     })
-    human.KeyRoot(10.5, (-77.864, 72.252, 40.784), (-90.0, 0.0, 0.0))
-    human.KeyJoints(10.5, {
-        'neck': (22.463, -21.661, 9.635), 'head': (9.627, 7.211),
+    human.KeyRoot(11.3, (-77.864, 72.252, 40.784), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.3, {
+        'neck': (21.031, -20.28, 9.021), 'head': (9.013, 6.751),
         'right_hip': (10.584, 0.664, 0.124), 'right_knee': (16.964,), 'right_ankle': (6.389, 0.676),
         'left_hip': (10.552, -0.664, -0.124), 'left_knee': (16.897,), 'left_ankle': (6.345, -0.676),
     })
-    human.KeyRoot(10.6, (-79.996, 72.98, 40.001), (-90.0, 0.0, 0.0))
-    human.KeyJoints(10.6, {
-        'neck': (31.239, -30.124, 13.399), 'head': (13.388, 10.028),
+    human.KeyRoot(11.4, (-79.996, 72.98, 40.001), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.4, {
+        'neck': (29.879, -28.812, 12.816), 'head': (12.805, 9.592),
         'right_shoulder': (2.118, 165.656, -40.315), 'right_elbow': (7.38, 8.706),
         'right_wrist': (12.077, -10.792), 'left_shoulder': (21.36, 163.184, -64.813),
         'left_elbow': (8.013, -65.263), 'left_wrist': (7.663, -1.329),
@@ -656,61 +701,72 @@ def remove_avionics_unit():
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TA on r_arm at trolley_top
-    human.KeyRoot(10.7, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
-    human.KeyJoints(10.7, {
-        'neck': (34.999, -33.749, 15.012), 'head': (15.0, 11.235),
-        'right_shoulder': (2.935, 162.629, -38.542), 'right_elbow': (8.89, 7.654),
-        'right_wrist': (12.665, -11.068), 'left_shoulder': (21.644, 160.754, -62.6),
-        'left_elbow': (9.874, -64.998), 'left_wrist': (8.64, -1.711), 'right_knee': (5.111,),
+    human.KeyRoot(11.5, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyJoints(11.5, {
+        'neck': (34.748, -33.507, 14.904), 'head': (14.892, 11.155),
+        'right_shoulder': (2.554, 164.039, -39.368), 'right_elbow': (8.187, 8.144),
+        'right_wrist': (12.391, -10.94), 'left_shoulder': (21.512, 161.886, -63.631),
+        'left_elbow': (9.007, -65.122), 'left_wrist': (8.185, -1.533), 'right_knee': (5.111,),
         'left_knee': (5.084,),
     })
-    human.KeyJoints(10.8, {
-        'right_shoulder': (7.371, 146.213, -28.91), 'right_elbow': (17.079, 1.949),
-        'right_wrist': (15.856, -12.568), 'left_shoulder': (23.183, 147.571, -50.579),
-        'left_elbow': (19.969, -63.551), 'left_wrist': (13.942, -3.789), 'right_knee': (4.96,),
+    human.KeyJoints(11.6, {
+        'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236),
+        'right_shoulder': (5.128, 154.513, -33.785), 'right_elbow': (12.939, 4.834),
+        'right_wrist': (14.243, -11.808), 'left_shoulder': (22.405, 154.237, -56.661),
+        'left_elbow': (14.864, -64.284), 'left_wrist': (11.261, -2.736), 'right_knee': (4.96,),
         'right_ankle': (1.919, 0.0), 'left_hip': (3.039, 0.0, 0.0), 'left_knee': (4.95,),
         'left_ankle': (1.914, 0.0),
     })
-    human.KeyJoints(10.9, {
-        'right_shoulder': (15.201, 117.233, -11.724), 'right_elbow': (31.536, -8.123),
-        'right_wrist': (21.488, -15.274), 'left_shoulder': (25.901, 124.293, -29.207),
-        'left_elbow': (37.788, -60.923), 'left_wrist': (23.3, -7.537),
+    human.KeyJoints(11.7, {
+        'right_shoulder': (10.238, 135.6, -22.651), 'right_elbow': (22.374, -1.74),
+        'right_wrist': (17.919, -13.548), 'left_shoulder': (24.179, 139.048, -42.781),
+        'left_elbow': (26.495, -62.602), 'left_wrist': (17.369, -5.146),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
-    human.KeyJoints(11.0, {
-        'right_shoulder': (24.557, 82.605, 9.309), 'right_elbow': (48.81, -20.157),
-        'right_wrist': (28.219, -18.67), 'left_shoulder': (29.147, 96.458, -3.256),
-        'left_elbow': (59.082, -57.585), 'left_wrist': (34.482, -12.233),
+    human.KeyJoints(11.8, {
+        'right_shoulder': (17.052, 110.384, -7.613), 'right_elbow': (34.953, -10.503),
+        'right_wrist': (22.82, -15.93), 'left_shoulder': (26.543, 118.789, -24.115),
+        'left_elbow': (42.0, -60.283), 'left_wrist': (25.512, -8.444),
     })
-    human.KeyJoints(11.1, {
-        'right_shoulder': (33.664, 48.856, 30.738), 'right_elbow': (65.608, -31.876),
-        'right_wrist': (34.768, -22.283), 'left_shoulder': (32.305, 69.289, 22.807),
-        'left_elbow': (79.795, -53.951), 'left_wrist': (45.369, -17.222),
+    human.KeyJoints(11.9, {
+        'right_shoulder': (24.598, 82.453, 9.404), 'right_elbow': (48.886, -20.211),
+        'right_wrist': (28.249, -18.685), 'left_shoulder': (29.162, 96.335, -3.14),
+        'left_elbow': (59.176, -57.569), 'left_wrist': (34.532, -12.254),
     })
-    human.KeyJoints(11.2, {
-        'right_shoulder': (40.412, 21.478, 50.014), 'right_elbow': (76.393, -40.549),
-        'right_wrist': (39.215, -26.03), 'left_shoulder': (34.495, 46.881, 45.289),
-        'left_elbow': (93.728, -49.709), 'left_wrist': (53.249, -22.5),
+    human.KeyJoints(12.0, {
+        'right_shoulder': (31.984, 55.105, 26.651), 'right_elbow': (62.52, -29.713),
+        'right_wrist': (33.561, -21.574), 'left_shoulder': (31.724, 74.327, 17.884),
+        'left_elbow': (75.982, -54.676), 'left_wrist': (43.36, -16.243),
+    })
+    human.KeyJoints(12.1, {
+        'right_shoulder': (38.198, 31.378, 42.743), 'right_elbow': (73.555, -37.726),
+        'right_wrist': (37.934, -24.502), 'left_shoulder': (33.831, 55.103, 36.999),
+        'left_elbow': (89.755, -51.566), 'left_wrist': (50.757, -20.308),
+    })
+    human.KeyJoints(12.2, {
+        'right_shoulder': (41.884, 12.97, 56.452), 'right_elbow': (76.627, -42.319),
+        'right_wrist': (39.627, -27.566), 'left_shoulder': (34.829, 39.593, 52.386),
+        'left_elbow': (94.951, -47.61), 'left_wrist': (54.642, -24.787),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
-    human.KeyJoints(11.3, {
-        'right_shoulder': (42.919, 4.511, 62.884), 'right_elbow': (74.533, -43.385),
-        'right_wrist': (39.304, -29.272), 'left_shoulder': (34.932, 32.122, 59.268),
-        'left_elbow': (93.87, -45.055), 'left_wrist': (55.233, -27.415),
+    human.KeyJoints(12.3, {
+        'right_shoulder': (43.083, 2.902, 64.104), 'right_elbow': (73.957, -43.534),
+        'right_wrist': (39.186, -29.608), 'left_shoulder': (34.935, 30.684, 60.56),
+        'left_elbow': (93.49, -44.535), 'left_wrist': (55.285, -27.94),
     })
-    human.KeyJoints(11.4, {
+    human.KeyJoints(12.4, {
         'right_shoulder': (43.268, 1.055, 65.506), 'right_elbow': (73.272, -43.699),
         'right_wrist': (39.044, -29.997), 'left_shoulder': (34.936, 29.031, 62.041),
         'left_elbow': (93.029, -43.934), 'left_wrist': (55.336, -28.546),
     })
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=11.401107, duration=0.072)
+    human.Grasp('left_hand', 'open', start=12.401107, duration=0.072)
     # examples/remove_avionics_unit.mtask:38:5 remove_avionics_unit > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=11.401107, duration=0.072)
-    human.KeyRoot(11.473107, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
-    human.KeyJoints(11.473107, {
+    human.Grasp('right_hand', 'open', start=12.401107, duration=0.072)
+    human.KeyRoot(12.473107, (-80.0, 72.992, 40.0), (-90.0, 0.0, 0.0))
+    human.KeyJoints(12.473107, {
         'spine_lumbar': (24.445, -2.26, -10.161), 'spine_thoracic': (-3.188, -0.252, -0.868),
         'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236), 'right_clavicle': (13.623, -13.802),
         'right_shoulder': (43.291, 1.092, 65.484), 'right_elbow': (73.244, -43.699),

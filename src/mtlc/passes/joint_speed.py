@@ -22,7 +22,8 @@ stretched clock and the frames the user receives are made on it.
   and the root's turn are not judged while a walk drives them.
 
 Every time in the IR moves: segments, keyframes, the root plan and the times in segments'
-results (gait steps and rolls, stroke phases). A task that needs none of this keeps its bytes;
+results (``timewarp.warp_result``: gait steps and rolls, stroke phases), as the pace pass's
+stretch of a reach moves them. A task that needs none of this keeps its bytes;
 one that does takes longer, by what a person would need.
 """
 
@@ -38,6 +39,7 @@ from numpy.typing import NDArray
 from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR
 from mtlc.passes.context import PassContext
 from mtlc.passes.interpolate import interpolate_naive, walking_mask
+from mtlc.passes.timewarp import warp_result
 
 LIMIT = math.radians(340.0)  # rad/s: issue 19's 12 deg a frame at 30 fps is 360 deg/s
 TURN_LIMIT = math.radians(570.0)  # the tool pass's screwdriver twist (passes/tool.py)
@@ -50,13 +52,6 @@ ROUNDS = 6  # re-interpolated and judged again: the interpolation of stretched k
 EPS = 1e-9
 ROOT = "root_turn"  # the root's rotation, judged as one more dof
 IntArray = NDArray[np.intp]
-
-# segment results that hold times (s): container key -> the time keys of its items
-RESULT_TIMES: dict[str, tuple[str, ...]] = {
-    "steps": ("t_heel_off", "t_lift", "t_land"),
-    "segmentation": ("t_lift", "t_land"),
-    "rolls": ("from", "to"),
-}
 
 
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
@@ -247,7 +242,7 @@ def retime_ir(ir: MotionIR, warp: Warp) -> None:
             if len(cut):
                 from_pose(ir, kf, warp.before, int(cut[0]), warp(seg.start))
         seg.start, seg.end = warp(seg.start), warp(seg.end)
-        retime_result(seg.result, warp)
+        seg.result = warp_result(seg.result, warp)
     if ir.root_plan is not None:
         ir.root_plan.time = warp(ir.root_plan.time)
 
@@ -261,25 +256,3 @@ def from_pose(ir: MotionIR, kf: Keyframes, before: Frames, k: int, at: float) ->
         kf.root_position = np.concatenate([before.root_position[k][None, :], kf.root_position])
     if kf.root_rotation is not None:
         kf.root_rotation = np.concatenate([before.root_rotation[k][None, :], kf.root_rotation])
-
-
-def retime_result(result: dict[str, Any], warp: Warp) -> None:
-    """The times a pass left in a segment's result (``RESULT_TIMES``, the gait's
-    ``feet_held_until``, a stroke's ``phases``), rounded as the passes round them."""
-    for key, names in RESULT_TIMES.items():
-        for item in result.get(key) or ():
-            for name in names:
-                if isinstance(item, dict) and isinstance(item.get(name), (int, float)):
-                    item[name] = round(warp(float(item[name])), 6)
-    if isinstance(result.get("feet_held_until"), (int, float)):
-        result["feet_held_until"] = round(warp(float(result["feet_held_until"])), 6)
-    phases = result.get("phases")
-    if isinstance(phases, dict):
-        for name, window in phases.items():
-            if isinstance(window, (list, tuple)) and len(window) == 2:
-                phases[name] = [warp(float(window[0])), warp(float(window[1]))]
-    elif isinstance(phases, list):
-        for item in phases:
-            for name in ("start", "end"):
-                if isinstance(item, dict) and isinstance(item.get(name), (int, float)):
-                    item[name] = warp(float(item[name]))

@@ -62,15 +62,15 @@ class TimeWarp:
         return float(out) if out.ndim == 0 else out
 
 
-def _warp_result(value: Any, warp: TimeWarp, key: str = "") -> Any:
+def warp_result(value: Any, warp: TimeWarp, key: str = "") -> Any:
     """A segment's result with its times warped (floats under time keys, in nested lists and
     dicts; positions and other numbers unchanged)."""
     if isinstance(value, dict):
         if key in TIME_SPAN_KEYS:  # {"seat": [t0, t1], ...}
             return {k: _warp_span(v, warp) for k, v in value.items()}
-        return {k: _warp_result(v, warp, str(k)) for k, v in value.items()}
+        return {k: warp_result(v, warp, str(k)) for k, v in value.items()}
     if isinstance(value, list):
-        return [_warp_result(v, warp) for v in value] if key not in TIME_KEYS else value
+        return [warp_result(v, warp) for v in value] if key not in TIME_KEYS else value
     if isinstance(value, float) and (key in TIME_KEYS or key.startswith("t_")):
         return round(warp(value), 9)
     return value
@@ -91,6 +91,6 @@ def apply(ir: MotionIR, warp: TimeWarp) -> None:
         seg.start, seg.end = warp(seg.start), warp(seg.end)
         if seg.keyframes is not None:
             seg.keyframes.time = np.asarray(warp(seg.keyframes.time), dtype=float)
-        seg.result = _warp_result(seg.result, warp)
+        seg.result = warp_result(seg.result, warp)
     if ir.root_plan is not None:
         ir.root_plan.time = np.asarray(warp(ir.root_plan.time), dtype=float)

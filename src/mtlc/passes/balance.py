@@ -590,7 +590,7 @@ def balance_frames(
     margin = before[rows]
     # rows whose contacts gave out keep their last good pose and stop; converged rows stop
     active = np.flatnonzero(~kneeling[rows])
-    cap = np.full(rows.size, MAX_STEP)
+    schedule = StepSchedule(rows.size)
     p_rows = pose_r  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
         c = carried_com(ir, take_pose(p_rows, active), t[rows][active], segs.holding)
@@ -600,25 +600,27 @@ def balance_frames(
         active, push = active[moving], push[moving]
         if active.size == 0:
             break
-        step = push / COM_GAIN
-        size = np.hypot(step[:, 0], step[:, 1])
-        step *= np.minimum(1.0, cap[active] / np.maximum(size, 1e-12))[:, None]
-        new_root = root[active].copy()
+        awake = schedule.awake(active)
+        trying = active[awake]
+        if trying.size == 0:  # every row sits this round out
+            continue
+        step = schedule.steps(trying, push[awake] / COM_GAIN)
+        new_root = root[trying].copy()
         new_root[:, [0, 2]] += step
-        shift = new_root[:, [0, 2]] - root0[active][:, [0, 2]]
+        shift = new_root[:, [0, 2]] - root0[trying][:, [0, 2]]
         far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
         q_a, root_a, worst_a = restore_contacts(
-            ir, q[active], new_root, rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
+            ir, q[trying], new_root, rot[trying], _sub_feet(feet, trying), _sub_hands(hands, trying)
         )
-        lost = far | ((worst_a > POSITION_TOL) & (worst[active] <= POSITION_TOL))
-        ok_rows = active[~lost]
+        lost = far | ((worst_a > POSITION_TOL) & (worst[trying] <= POSITION_TOL))
+        ok_rows = trying[~lost]
         q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
         # only the rows kept are posed (a lost row keeps its pose: a squat at its ankles' limit
         # loses every row of four rounds)
         if ok_rows.size:
             put_pose(p_rows, ok_rows, forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows]))
-        cap[active[lost]] /= 2  # a joint ran out of range: retry with half the step
-        active = active[(cap[active] >= MIN_STEP) & ~far]
+        retrying = schedule.update(trying, lost, far, worst_a)
+        active = np.sort(np.concatenate([active[~awake], retrying]))
     p = p_rows
     margin = hull_margin(hulls, carried_com(ir, p, t[rows], segs.holding)[:, [0, 2]])
     good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
@@ -691,6 +693,54 @@ def balance_frames(
     after[raw] = margin[at]
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed
+
+
+class StepSchedule:
+    """The pelvis step of each row of ``balance_frames``: at most ``MAX_STEP`` a round, halved
+    after a round that lost the row's contacts (a joint ran out of range) down to ``MIN_STEP``.
+
+    A lost row keeps its pose, so its next try moves the pelvis the same way, only less far. The
+    retries that cannot succeed are skipped (on the pelvis rounds of fuzz case #4034, 8,700
+    rows a round lost every retry at an ankle's limit, 0.7 s of IK a round):
+
+    * a retry whose cap is still at least the step the row asked for would solve the same
+      problem again and lose again: the row sits that round out (``awake``) with its cap
+      halved, as if it had lost it, and stops once the cap is under ``MIN_STEP``.
+    """
+
+    def __init__(self, n: int) -> None:
+        self.cap = np.full(n, MAX_STEP)
+        self.wanted = np.zeros(n)  # the step a row's CoM asked for last (m)
+        self.asleep = np.zeros(n, dtype=np.intp)  # rounds a row sits out before its next try
+
+    def awake(self, active: np.ndarray) -> np.ndarray:
+        """Which of the ``active`` rows (mask) try a step this round; the others sit it out."""
+        resting = self.asleep[active] > 0
+        self.asleep[active[resting]] -= 1
+        return ~resting
+
+    def steps(self, active: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+        """The ground-plane steps (B, 2) of the ``active`` rows: ``wanted`` cut to their cap."""
+        size = np.hypot(wanted[:, 0], wanted[:, 1])
+        step = wanted * np.minimum(1.0, self.cap[active] / np.maximum(size, 1e-12))[:, None]
+        self.wanted[active] = size
+        return step
+
+    def update(
+        self, active: np.ndarray, lost: np.ndarray, far: np.ndarray, error: np.ndarray
+    ) -> np.ndarray:
+        """The rows of ``active`` that try again: ``lost`` (B,) rows halve their cap (once more
+        for each round whose retry would repeat the lost step) and stop when it falls under
+        ``MIN_STEP``; rows that went ``far`` stop (``error``: the round's contact error, m)."""
+        rows, cap = active[lost], self.cap[active[lost]] / 2
+        wanted, asleep = self.wanted[rows], np.zeros(rows.size, dtype=np.intp)
+        repeat = (wanted <= cap) & (cap >= MIN_STEP)
+        while repeat.any():
+            asleep += repeat
+            cap = np.where(repeat, cap / 2, cap)
+            repeat = (wanted <= cap) & (cap >= MIN_STEP)
+        self.cap[rows], self.asleep[rows] = cap, asleep
+        return active[(self.cap[active] >= MIN_STEP) & ~far]
 
 
 def blend(delta: np.ndarray, norm: np.ndarray, half: int) -> np.ndarray:

@@ -78,6 +78,18 @@ def test_a_retry_that_would_repeat_the_lost_step_is_not_solved() -> None:
     assert moved[0] == 0.0 and moved[1] == pytest.approx(0.01875)
 
 
+def test_a_row_at_its_limit_stops_after_two_losses_and_a_row_with_slack_still_moves() -> None:
+    # row 0: at its ankle's limit (#4034: 26 mm of error for a 50 mm step), it loses every
+    # retry; row 1: 5 mm from its limit, it keeps its contacts once the step is 6.25 mm
+    k, slack, need = np.array([0.52, 0.52]), np.array([0.0, 0.005]), np.array([0.2, 0.2])
+    moved, solves = scheduled(k, slack, need)
+    ref_moved, ref_solves = plain_halving(k, slack, need)
+    assert ref_solves.tolist() == [4, 6]
+    assert solves.tolist() == [2, 6]
+    assert moved.tolist() == ref_moved.tolist()
+    assert moved[0] == 0.0 and moved[1] == pytest.approx(3 * 0.00625)
+
+
 @settings(max_examples=200, deadline=None)
 @given(
     k=st.lists(st.floats(0.0, 2.0), min_size=1, max_size=8),

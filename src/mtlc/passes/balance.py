@@ -85,6 +85,11 @@ MIN_STEP = 0.006  # m ...until it is this small: the pelvis then stays at its la
 MAX_SHIFT = 0.30  # m: farther than this the posture is not a balance problem the pelvis can fix
 LEG_REACH = 0.995  # of the straight leg's length: a leg is never stretched to its singularity
 SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight is singular)
+# the legs' contact solve gives up after 4 iterations without a 10 % gain (the IK default
+# waits 8): a leg that stalls is one at a joint's limit, whose error stays where it started
+# (#4034: 8,700 rows a round, each 9 iterations for nothing); no row of #606, #4034 or the
+# examples that the default solved failed with 4
+LEG_PATIENCE = 4
 POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
 BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections blend
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
@@ -274,7 +279,7 @@ def restore_contacts(
     model = prepare(skel, goals, q, root_position=root, root_rotation=root_rotation)
     res = solve_ta(
         skel, goals, q, model=model, restarts=0, null_gain=0.0, tol=1e-4,
-        orientation_tol=math.radians(0.05), max_iter=40,
+        orientation_tol=math.radians(0.05), max_iter=40, patience=LEG_PATIENCE,
     )  # fmt: skip
     q = res.q
     worst = np.zeros(len(q))

@@ -85,6 +85,11 @@ MIN_STEP = 0.006  # m ...until it is this small: the pelvis then stays at its la
 MAX_SHIFT = 0.30  # m: farther than this the posture is not a balance problem the pelvis can fix
 LEG_REACH = 0.995  # of the straight leg's length: a leg is never stretched to its singularity
 SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight is singular)
+# the legs' contact solve gives up after 4 iterations without a 10 % gain (the IK default
+# waits 8): a leg that stalls is one at a joint's limit, whose error stays where it started
+# (#4034: 8,700 rows a round, each 9 iterations for nothing); no row of #606, #4034 or the
+# examples that the default solved failed with 4
+LEG_PATIENCE = 4
 POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
 BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections blend
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
@@ -274,7 +279,7 @@ def restore_contacts(
     model = prepare(skel, goals, q, root_position=root, root_rotation=root_rotation)
     res = solve_ta(
         skel, goals, q, model=model, restarts=0, null_gain=0.0, tol=1e-4,
-        orientation_tol=math.radians(0.05), max_iter=40,
+        orientation_tol=math.radians(0.05), max_iter=40, patience=LEG_PATIENCE,
     )  # fmt: skip
     q = res.q
     worst = np.zeros(len(q))
@@ -371,6 +376,11 @@ def lean_trunk(
         )
         q[active], root[active], worst[active] = qa, ra, wa
         put_pose(pose, active, p)
+        # a row that lost its contacts is rejected unless a later round finds them again, which
+        # none did (0 of 5,908 rows on fuzz cases #606, #4034 and the examples): it stops here
+        kept = wa <= POSITION_TOL
+        if not kept.all():
+            active, p = active[kept], take_pose(p, np.flatnonzero(kept))
     margin = support_margin(pts, ok, carried_com(ir, pose, time, holding)[:, [0, 2]], hulls)
     return q, root, worst, margin, pose
 
@@ -590,7 +600,7 @@ def balance_frames(
     margin = before[rows]
     # rows whose contacts gave out keep their last good pose and stop; converged rows stop
     active = np.flatnonzero(~kneeling[rows])
-    cap = np.full(rows.size, MAX_STEP)
+    schedule = StepSchedule(rows.size)
     p_rows = pose_r  # the pose of (q, root), kept up to date
     for _ in range(ROUNDS):
         c = carried_com(ir, take_pose(p_rows, active), t[rows][active], segs.holding)
@@ -600,25 +610,27 @@ def balance_frames(
         active, push = active[moving], push[moving]
         if active.size == 0:
             break
-        step = push / COM_GAIN
-        size = np.hypot(step[:, 0], step[:, 1])
-        step *= np.minimum(1.0, cap[active] / np.maximum(size, 1e-12))[:, None]
-        new_root = root[active].copy()
+        awake = schedule.awake(active)
+        trying = active[awake]
+        if trying.size == 0:  # every row sits this round out
+            continue
+        step = schedule.steps(trying, push[awake] / COM_GAIN)
+        new_root = root[trying].copy()
         new_root[:, [0, 2]] += step
-        shift = new_root[:, [0, 2]] - root0[active][:, [0, 2]]
+        shift = new_root[:, [0, 2]] - root0[trying][:, [0, 2]]
         far = np.hypot(shift[:, 0], shift[:, 1]) > MAX_SHIFT
         q_a, root_a, worst_a = restore_contacts(
-            ir, q[active], new_root, rot[active], _sub_feet(feet, active), _sub_hands(hands, active)
+            ir, q[trying], new_root, rot[trying], _sub_feet(feet, trying), _sub_hands(hands, trying)
         )
-        lost = far | ((worst_a > POSITION_TOL) & (worst[active] <= POSITION_TOL))
-        ok_rows = active[~lost]
+        lost = far | ((worst_a > POSITION_TOL) & (worst[trying] <= POSITION_TOL))
+        ok_rows = trying[~lost]
         q[ok_rows], root[ok_rows], worst[ok_rows] = q_a[~lost], root_a[~lost], worst_a[~lost]
         # only the rows kept are posed (a lost row keeps its pose: a squat at its ankles' limit
         # loses every row of four rounds)
         if ok_rows.size:
             put_pose(p_rows, ok_rows, forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows]))
-        cap[active[lost]] /= 2  # a joint ran out of range: retry with half the step
-        active = active[(cap[active] >= MIN_STEP) & ~far]
+        retrying = schedule.update(trying, lost, far, worst_a)
+        active = np.sort(np.concatenate([active[~awake], retrying]))
     p = p_rows
     margin = hull_margin(hulls, carried_com(ir, p, t[rows], segs.holding)[:, [0, 2]])
     good = (worst <= POSITION_TOL) & skel.within_limits(q, tol=1e-6)
@@ -691,6 +703,75 @@ def balance_frames(
     after[raw] = margin[at]
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed
+
+
+class StepSchedule:
+    """The pelvis step of each row of ``balance_frames``: at most ``MAX_STEP`` a round, halved
+    after a round that lost the row's contacts (a joint ran out of range) down to ``MIN_STEP``.
+
+    A lost row keeps its pose, so its next try moves the pelvis the same way, only less far. The
+    retries that cannot succeed are skipped (on the pelvis rounds of fuzz case #4034, 8,700
+    rows a round lost every retry at an ankle's limit, 0.7 s of IK a round):
+
+    * a retry whose cap is still at least the step the row asked for would solve the same
+      problem again and lose again: the row sits that round out (``awake``) with its cap
+      halved, as if it had lost it, and stops once the cap is under ``MIN_STEP``;
+    * a row that lost two steps running stops when the contact error, extrapolated along the
+      secant through those two losses to the smallest step its halvings would try, is still
+      over ``POSITION_TOL``. Beyond a joint's limit the error grows with the step (26, 12.3,
+      6.2, 3.1 mm at 50, 25, 12.5, 6.25 mm on #4034: convex, ``k·max(s − slack, 0)``), and a
+      convex function lies above its secant outside the chord: every retry would lose.
+    """
+
+    def __init__(self, n: int) -> None:
+        self.cap = np.full(n, MAX_STEP)
+        self.wanted = np.zeros(n)  # the step a row's CoM asked for last (m)
+        self.asleep = np.zeros(n, dtype=np.intp)  # rounds a row sits out before its next try
+        self.size = np.zeros(n)  # the step a row tried last (m), within its cap
+        self.lost_size = np.zeros(n)  # the step and contact error of its last loss...
+        self.lost_error = np.zeros(n)  # ...(0 once a step kept the contacts)
+
+    def awake(self, active: np.ndarray) -> np.ndarray:
+        """Which of the ``active`` rows (mask) try a step this round; the others sit it out."""
+        resting = self.asleep[active] > 0
+        self.asleep[active[resting]] -= 1
+        return ~resting
+
+    def steps(self, active: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+        """The ground-plane steps (B, 2) of the ``active`` rows: ``wanted`` cut to their cap."""
+        size = np.hypot(wanted[:, 0], wanted[:, 1])
+        step = wanted * np.minimum(1.0, self.cap[active] / np.maximum(size, 1e-12))[:, None]
+        self.wanted[active] = size
+        self.size[active] = np.minimum(size, self.cap[active])
+        return step
+
+    def update(
+        self, active: np.ndarray, lost: np.ndarray, far: np.ndarray, error: np.ndarray
+    ) -> np.ndarray:
+        """The rows of ``active`` that try again: ``lost`` (B,) rows halve their cap (once more
+        for each round whose retry would repeat the lost step) and stop when it falls under
+        ``MIN_STEP`` or when no retry can keep the contacts (``error``: the round's contact
+        error, m); rows that went ``far`` stop."""
+        rows, cap = active[lost], self.cap[active[lost]] / 2
+        wanted, asleep = self.wanted[rows], np.zeros(rows.size, dtype=np.intp)
+        repeat = (wanted <= cap) & (cap >= MIN_STEP)
+        while repeat.any():
+            asleep += repeat
+            cap = np.where(repeat, cap / 2, cap)
+            repeat = (wanted <= cap) & (cap >= MIN_STEP)
+        # the error at the smallest step the halvings try, on the secant of the last two losses
+        size, err = self.size[rows], error[lost]
+        prev_size, prev_err = self.lost_size[rows], self.lost_error[rows]
+        chord = prev_size > size
+        smallest = cap / 2.0 ** np.floor(np.log2(np.maximum(cap, MIN_STEP) / MIN_STEP))
+        slope = (prev_err - err) / np.where(chord, prev_size - size, 1.0)
+        hopeless = chord & (err + slope * (np.minimum(wanted, smallest) - size) > POSITION_TOL)
+        self.cap[rows] = np.where(hopeless, 0.0, cap)
+        self.asleep[rows] = asleep
+        self.lost_size[rows], self.lost_error[rows] = size, err
+        kept = active[~lost]
+        self.lost_size[kept], self.lost_error[kept] = 0.0, 0.0
+        return active[(self.cap[active] >= MIN_STEP) & ~far]
 
 
 def blend(delta: np.ndarray, norm: np.ndarray, half: int) -> np.ndarray:

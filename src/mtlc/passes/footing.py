@@ -81,7 +81,7 @@ def clear_push(
 ) -> FloatArray | None:
     """The least move (3,) along one of ``directions`` (unit, horizontal) that puts the legs
     ``FOOT_CLEARANCE`` clear; None when none does within ``MAX_PUSH``."""
-    steps = int(round(MAX_PUSH / PUSH_STEP))
+    steps = round(MAX_PUSH / PUSH_STEP)
     for k in range(1, steps + 1):
         for d in directions:
             move = d * k * PUSH_STEP

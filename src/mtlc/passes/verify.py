@@ -642,17 +642,24 @@ class _Verifier:
         }
         worst: dict[tuple[SourceRef, str, str], tuple[float, int, Segment, Segment | None]] = {}
         for j, part in enumerate(fc.capsules):
-            tracks = [ARM_TRACK[sides[j]]] if sides[j] else ["root"]
+            side = sides[j]
+            tracks = [ARM_TRACK[side], HAND_TRACK[side]] if side else ["root"]
+            episode = self.episodes(tracks)
             for col, model in enumerate(fc.meshes):
                 for first, last in failure_runs(depth[:, j, col] > EQUIPMENT_TOLERANCE):
-                    i = first + int(np.argmax(depth[first : last + 1, j, col]))
-                    goal = goal_at[i].get(sides[j]) if sides[j] else None
-                    seg = goal or self.active(i, tracks)
-                    if seg is None:
-                        continue
-                    key = (seg.provenance.origin, part, model)
-                    if key not in worst or depth[i, j, col] > worst[key][0]:
-                        worst[key] = (float(depth[i, j, col]), i, seg, goal)
+                    # one episode per segment of the part's tracks: a hand through the panel
+                    # at its pick and then on the walk away is two findings, at two lines
+                    labels = episode[first : last + 1]
+                    cuts = first + np.flatnonzero(np.diff(labels)) + 1
+                    for a, b in zip(np.r_[first, cuts], np.r_[cuts - 1, last], strict=True):
+                        i = a + int(np.argmax(depth[a : b + 1, j, col]))
+                        seg = self.active(i, tracks)
+                        if seg is None:
+                            continue
+                        goal = goal_at[i].get(side) if side and seg.track in tracks else None
+                        key = (seg.provenance.origin, part, model)
+                        if key not in worst or depth[i, j, col] > worst[key][0]:
+                            worst[key] = (float(depth[i, j, col]), i, seg, goal)
         for (_, part, model), (d, i, seg, goal) in worst.items():
             j, col = fc.capsules.index(part), fc.meshes.index(model)
             a, b, radius = capsule_segments(self.skel, take_pose(self.pose, slice(i, i + 1)),
@@ -660,13 +667,23 @@ class _Verifier:
             node = models[model].part_of(indices[model].touched_face(a[0, 0], b[0, 0], radius[0]))
             self.report_collision(part, model, node, d, float(self.t[i]), seg, goal)
 
+    def episodes(self, tracks: list[str]) -> np.ndarray:
+        """(N,) a label per frame that changes where a segment on ``tracks`` starts or ends."""
+        bounds = sorted({x for s in self.segs if s.track in tracks for x in (s.start, s.end)})
+        return np.searchsorted(np.asarray(bounds, dtype=float), self.t + EPS)
+
     def capsule_sides(self, fc: FrameClearance) -> list[str]:
-        """Each capsule's side ("r", "l"; "" for the head and trunk), a held tool its hand's
-        (the held capsules come after the body's, in ``held_capsules``'s order)."""
+        """Each arm capsule's side ("r", "l"), a held tool its hand's (the held capsules come
+        after the body's, in ``held_capsules``'s order); "" for the head, trunk and legs,
+        which the root's segments move."""
         held = [cap.start[0][:1] for cap, _, _ in held_capsules(self.ir)]
         body = len(fc.capsules) - len(held)
         words = {"right": "r", "left": "l"}
-        return [words.get(name.split(" ")[0], "") for name in fc.capsules[:body]] + held
+        arm = ("upper arm", "forearm", "hand")
+        return [
+            words.get(name.split(" ")[0], "") if name.endswith(arm) else ""
+            for name in fc.capsules[:body]
+        ] + held
 
     def at_site(
         self,

@@ -116,18 +116,27 @@ def unreported(doc: dict, diagnostics: list[dict], meshes: dict) -> list[str]:
     missing = []
     for part, (a, b, radius, touching_allowed) in limbs(body).items():
         for model, mesh in meshes.items():
-            pts = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]
-            _, dist, _ = trimesh.proximity.closest_point(mesh, pts.reshape(-1, 3))
-            depth = radius - dist.reshape(len(a), AXIS_POINTS).min(axis=1)
+            # frames whose capsule's box meets the mesh's box: the others are clear
+            lo, hi = np.minimum(a, b) - radius, np.maximum(a, b) + radius
+            near = np.all((lo <= mesh.bounds[1]) & (hi >= mesh.bounds[0]), axis=1)
+            depth = np.full(len(a), -np.inf)
+            if near.any():
+                pts = a[near, None, :] + s[None, :, None] * (b - a)[near, None, :]
+                _, dist, _ = trimesh.proximity.closest_point(mesh, pts.reshape(-1, 3))
+                depth[near] = radius - dist.reshape(-1, AXIS_POINTS).min(axis=1)
             length = np.linalg.norm(b - a, axis=-1)
             hits = mesh.ray.intersects_location(a, (b - a) / length[:, None], multiple_hits=False)
             through = np.zeros(len(a), bool)
             for loc, ray in zip(hits[0], hits[1], strict=True):
                 through[ray] |= np.linalg.norm(loc - a[ray]) <= length[ray]
+            through &= near
             if touching_allowed:  # through the surface, its nearer end out beyond it
-                _, ends, _ = trimesh.proximity.closest_point(mesh, np.concatenate([a, b]))
-                beyond = np.minimum(ends[: len(a)], ends[len(a) :]) > TOLERANCE + SLACK
-                bad = through & beyond
+                bad = through.copy()
+                if through.any():
+                    ends = np.concatenate([a[through], b[through]])
+                    _, gap, _ = trimesh.proximity.closest_point(mesh, ends)
+                    k = int(through.sum())
+                    bad[through] = np.minimum(gap[:k], gap[k:]) > TOLERANCE + SLACK
             else:
                 bad = (depth > TOLERANCE + SLACK) | through
             if part in held:

@@ -225,18 +225,26 @@ class MeshIndex:
         rot, mid, length = _segment_frames(a, b)
         request = coal.CollisionRequest()
         request.num_max_contacts = 256
+        owner, faces = [], []  # (segment, triangle) pairs the axes meet
         for i in range(len(a)):
             result = coal.CollisionResult()
             shape = coal.Capsule(0.0, float(length[i]))
             coal.collide(shape, coal.Transform3s(rot[i], mid[i]), self._model, self._identity,
                          request, result)  # fmt: skip
-            faces = [c.b2 for c in result.getContacts() if c.b2 >= 0]
-            if not faces:
-                continue
-            tri = self._vertices[self._faces[np.asarray(faces)]]
-            if segment_crosses_triangle(a[i], b[i], tri).any():
-                ends = self.segment_distance(np.stack([a[i], b[i]]), np.stack([a[i], b[i]]))
-                out[i] = float(ends.min())
+            met = [c.b2 for c in result.getContacts() if c.b2 >= 0]
+            owner += [i] * len(met)
+            faces += met
+        if not faces:
+            return out
+        who = np.asarray(owner)
+        tri = self._vertices[self._faces[np.asarray(faces)]]
+        crossing = np.zeros(len(a), dtype=bool)
+        crossing[who[segment_crosses_triangle(a[who], b[who], tri)]] = True
+        k = np.flatnonzero(crossing)
+        if k.size:  # all the crossing segments' ends in one query
+            ends = np.concatenate([a[k], b[k]])
+            gap = self.segment_distance(ends, ends)
+            out[k] = np.minimum(gap[: k.size], gap[k.size :])
         return out
 
     def touched_face(self, a: FloatArray, b: FloatArray, radius: float) -> int | None:

@@ -3,14 +3,17 @@
 A walk goes to its site's ground point and arrives facing its work; the front end knows
 nothing of the scene's models, so a site in front of a bench (``bench_front``) put a 5th
 percentile woman's toes 24 mm into the bench and her feet 56 mm in by the depth of their far
-ends (MT0515). Before the gait is made, each walk's end is checked: the standing legs
-(feet, shanks and thighs: ``mtlc.body.capsules``' collision capsules of the comfortable pose,
-turned to the arrival heading) against every model. Where any is closer than ``FOOT_CLEARANCE``,
-the stance is moved back, along the way the walk came (the approach) or, if that clears with
-less, straight back from the heading it faces, by the least whole ``PUSH_STEP`` that clears,
-at most ``MAX_PUSH``. The root plan moves with it until the next walk (the reaches after it
-start from there). A stance that cannot be cleared is left where it was: verify reports the
-legs in the model (MT0515). The steps on the way are not planned around models.
+ends (MT0515). Before the gait is made, each walk's end is checked: the standing legs (feet,
+shanks and thighs: ``mtlc.body.capsules``' collision capsules of the comfortable pose, turned
+to the arrival heading) against every model. Where any goes into one, the stance is moved
+back, along the way the walk came (the approach) or, if that clears with less, straight back
+from the heading it faces, by the least whole ``PUSH_STEP`` that leaves ``FOOT_CLEARANCE``
+between the legs and every model, at most ``MAX_PUSH``. A stance already clear stays, however
+close: stepping back lengthens every reach after it (1 cm back at the fuel filter's bay tipped
+the 50th-percentile woman's balance, MT0502, at one more line). The root plan moves with it
+until the next walk (the reaches after it start from there). A stance that cannot be cleared
+is left where it was: verify reports the legs in the model (MT0515). The steps on the way are
+not planned around models.
 
 Only scenes with models pay: without one the pass returns at once.
 """
@@ -117,8 +120,8 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     for k, walk in enumerate(walks):
         goal, heading = plan.at(walk.end)
         goal, heading = np.asarray(goal, dtype=float), float(heading)
-        if leg_clearance(legs, indices, goal, heading) >= FOOT_CLEARANCE:
-            continue
+        if leg_clearance(legs, indices, goal, heading) >= 0.0:
+            continue  # clear already: a stance that touches nothing is the task's to keep
         start, _ = plan.at(walk.start)
         move = clear_push(legs, indices, goal, heading, _directions(start, goal, heading))
         if move is None:

@@ -167,6 +167,12 @@ _ALL = [
     Code("MT0512", "below-floor", Severity.WARNING, "a body point goes below the floor"),
     Code("MT0513", "past-joint-limit", Severity.WARNING, "a joint goes past its limit"),
     Code("MT0514", "hand-in-body", Severity.WARNING, "a hand or forearm goes into the body"),
+    Code(
+        "MT0515",
+        "into-equipment",
+        Severity.WARNING,
+        "a body part or held tool goes into the equipment",
+    ),
     # retired: verify reports these faults on the output frames, once (issue 18)
     Code(
         "MT0520",

@@ -15,14 +15,17 @@ Reads the IR, the body and the loads only: no pass (docs/collision.md).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
+from weakref import WeakKeyDictionary
 
 import numpy as np
 from numpy.typing import NDArray
 
 from mtlc.body import forward
 from mtlc.body.capsules import PartCapsule, capsule_segments, collision_capsules, tool_capsule
+from mtlc.body.kinematics import Pose
 from mtlc.geometry.distance import Mesh, MeshIndex
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.loads import held_spans
@@ -94,18 +97,41 @@ def held_capsules(ir: MotionIR) -> list[tuple[PartCapsule, float, float]]:
     return out + carried_part_capsules(ir)
 
 
+_INDICES: WeakKeyDictionary[Any, dict[str, MeshIndex]] = WeakKeyDictionary()
+
+
+def scene_indices(models: Sequence[Any], library: str = "coal") -> dict[str, MeshIndex]:
+    """Each scene model's (``SceneModel``) hierarchy by name, built once per model object and
+    kept while it lives: verify, the preview and the tests ask about the same models."""
+    out: dict[str, MeshIndex] = {}
+    for model in models:
+        if not len(model.faces):
+            continue
+        built = _INDICES.setdefault(model, {})
+        if library not in built:
+            built[library] = MeshIndex(model.vertices, model.faces, library=library)
+        out[model.name] = built[library]
+    return out
+
+
 def frame_clearance(
     ir: MotionIR,
     meshes: Mapping[str, Mesh] | Mapping[str, MeshIndex],
     library: str = "coal",
     horizon: float | None = 0.25,
+    pose: Pose | None = None,
+    through: bool = False,
 ) -> FrameClearance:
     """Every capsule's clearance to every mesh on the IR's output frames. ``horizon`` (m): a
     capsule farther than it from a mesh's bounding box gets a lower bound, not a query
-    (``MeshIndex.segment_distance``); ``None`` asks every pair."""
+    (``MeshIndex.segment_distance``); ``None`` asks every pair. ``pose``: the frames' forward
+    kinematics when the caller has it already. ``through``: where a capsule's axis passes
+    through a mesh's surface, its clearance is minus its radius and how far its nearer end
+    sticks out beyond (``MeshIndex.through_depth``), not the radius alone."""
     skel, frames = ir.skeleton, ir.frames
     assert skel is not None and frames is not None, "compile the IR first (frames, skeleton)"
-    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation, with_axes=False)
+    if pose is None:
+        pose = forward(skel, frames.q, frames.root_position, frames.root_rotation, with_axes=False)
     body = collision_capsules(skel)
     held = held_capsules(ir)
     caps = body + tuple(c for c, _, _ in held)
@@ -118,6 +144,11 @@ def frame_clearance(
     out = np.empty((n, c, len(indices)))
     for k, index in enumerate(indices.values()):
         d = index.segment_distance(a.reshape(-1, 3), b.reshape(-1, 3), horizon)
+        if through:
+            touching = np.flatnonzero(d <= 0.0)
+            d[touching] = -index.through_depth(
+                a.reshape(-1, 3)[touching], b.reshape(-1, 3)[touching]
+            )
         out[:, :, k] = d.reshape(n, c) - radii[None, :]
     t = frames.time
     for j, (_, start, end) in enumerate(held, start=len(body)):
@@ -208,4 +239,5 @@ __all__ = [
     "carried_part_capsules",
     "frame_clearance",
     "goal_clearances",
+    "scene_indices",
 ]

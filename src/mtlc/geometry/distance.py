@@ -160,6 +160,7 @@ class MeshIndex:
         v = np.ascontiguousarray(vertices, dtype=np.float64)
         f = np.ascontiguousarray(faces, dtype=np.int64)
         self.n_triangles = len(f)
+        self._vertices, self._faces = v, f
         used = v[np.unique(f)] if len(f) else np.zeros((1, 3))
         self.lower, self.upper = used.min(axis=0), used.max(axis=0)  # the bounding box
         if library == "coal":
@@ -209,6 +210,63 @@ class MeshIndex:
         # in contact the libraries answer 0, -1 (fcl) or a degenerate penetration (coal, a
         # segment in a triangle's plane): the axis touches the mesh
         return np.where(np.isfinite(out) & (out > 0.0), out, 0.0)
+
+    def through_depth(self, a: FloatArray, b: FloatArray) -> FloatArray:
+        """(S,) how far segments ``a``-``b`` that pass through a triangle of the mesh stick out:
+        the distance of the nearer end to the mesh (0 for a segment that does not pass
+        through one, or only touches). A capsule whose axis crosses the surface is in by its
+        radius and that much more: the distance alone stops at the radius, and a hand through a
+        3 mm panel up to the knuckles reads as one lying on it. coal only (python-fcl: 0)."""
+        a, b = np.reshape(np.asarray(a, float), (-1, 3)), np.reshape(np.asarray(b, float), (-1, 3))
+        out = np.zeros(len(a))
+        if self.library != "coal" or self.n_triangles == 0:
+            return out
+        coal = self._coal
+        rot, mid, length = _segment_frames(a, b)
+        request = coal.CollisionRequest()
+        request.num_max_contacts = 256
+        owner, faces = [], []  # (segment, triangle) pairs the axes meet
+        for i in range(len(a)):
+            result = coal.CollisionResult()
+            shape = coal.Capsule(0.0, float(length[i]))
+            coal.collide(shape, coal.Transform3s(rot[i], mid[i]), self._model, self._identity,
+                         request, result)  # fmt: skip
+            met = [c.b2 for c in result.getContacts() if c.b2 >= 0]
+            owner += [i] * len(met)
+            faces += met
+        if not faces:
+            return out
+        who = np.asarray(owner)
+        tri = self._vertices[self._faces[np.asarray(faces)]]
+        crossing = np.zeros(len(a), dtype=bool)
+        crossing[who[segment_crosses_triangle(a[who], b[who], tri)]] = True
+        k = np.flatnonzero(crossing)
+        if k.size:  # all the crossing segments' ends in one query
+            ends = np.concatenate([a[k], b[k]])
+            gap = self.segment_distance(ends, ends)
+            out[k] = np.minimum(gap[: k.size], gap[k.size :])
+        return out
+
+    def touched_face(self, a: FloatArray, b: FloatArray, radius: float) -> int | None:
+        """The triangle a capsule (axis ``a``-``b``, ``radius``) goes deepest into, to name the
+        part of a model it hits (``SceneModel.parts``); None when it touches none, or with
+        python-fcl. Asked once per finding: a collision query with the capsule's radius (the
+        distance query's answer in contact has no triangle)."""
+        if self.library != "coal" or self.n_triangles == 0:
+            return None
+        coal = self._coal
+        rot, mid, length = _segment_frames(
+            np.reshape(np.asarray(a, float), (1, 3)), np.reshape(np.asarray(b, float), (1, 3))
+        )
+        request, result = coal.CollisionRequest(), coal.CollisionResult()
+        request.num_max_contacts = 64
+        shape = coal.Capsule(float(radius), float(length[0]))
+        coal.collide(shape, coal.Transform3s(rot[0], mid[0]), self._model, self._identity,
+                     request, result)  # fmt: skip
+        contacts = result.getContacts()
+        if not contacts:
+            return None
+        return int(min(contacts, key=lambda c: (c.penetration_depth, c.b2)).b2)
 
     def _coal_distance(self, rot: FloatArray, mid: FloatArray, length: float) -> float:
         coal = self._coal

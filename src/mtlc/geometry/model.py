@@ -6,6 +6,7 @@ The collision and visibility code reads ``SceneModel.vertices``, ``.faces`` and 
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -61,6 +62,15 @@ class SceneModel:
         out["transform"] = [[float(x) for x in row] for row in self.transform]
         out["triangles"] = self.triangles
         return out
+
+    def part_of(self, face: int | None) -> str | None:
+        """The glTF node whose geometry holds ``face`` (None for a solid, a one-part file or
+        no face): what a finding names besides the model."""
+        if face is None or not self.parts:
+            return None
+        firsts = [first for _, first in self.parts]
+        k = bisect.bisect_right(firsts, face) - 1
+        return self.parts[k][0] if k >= 0 else None
 
     def farthest(self) -> float:
         """The largest distance of a vertex from the scene's origin (m)."""

@@ -142,6 +142,12 @@ class Verification:
     # what verify reported: code, message, line, column
     findings: list[dict[str, Any]] = field(default_factory=list)
     seconds: float = 0.0  # time verify took (not serialised: output stays deterministic)
+    # with scene models only: the deepest capsule into a model, not at its goal's site (MT0515):
+    # depth (m, 0 when clear), part, model, time
+    equipment: dict[str, Any] = field(default_factory=dict)
+    # ...and every capsule's clearance to every model on every frame (a FrameClearance, for the
+    # preview; not serialised)
+    equipment_clearance: Any = None
 
 
 @dataclass

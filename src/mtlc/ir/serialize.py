@@ -137,7 +137,7 @@ def _verification(v: Verification | None) -> dict[str, Any] | None:
         "static_margin": finite(v.static_margin),
         "static_margin_time": finite(v.static_margin_time),
         "findings": v.findings,
-    }
+    } | ({"equipment": v.equipment} if v.equipment else {})
 
 
 def to_dict(ir: MotionIR) -> dict[str, Any]:

@@ -42,6 +42,7 @@ MOTION_CODES = (
     "MT0512",
     "MT0513",
     "MT0514",
+    "MT0515",
     *(rule.code for rule in RULES if rule.on == "motion"),
 )
 

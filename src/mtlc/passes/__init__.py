@@ -17,6 +17,7 @@ from mtlc.passes import (
     carry,
     clearance,
     contact,
+    footing,
     gaze,
     hold,
     interpolate,
@@ -41,6 +42,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("equip", tool.equip),  # tools' tips become hand sites, their mass the hand's
     # 4. the gait comes before anything that starts "from the pose the body is in": the legs
     # and root a walk leaves behind are where the following postures and reaches begin
+    ("footing", footing.run),  # each walk's stance moved back out of the scene's models
     ("locomotion", locomotion.generate),  # footsteps, stance, step segmentation
     ("posture", posture.solve),  # whole-body postures (squat, kneel, bend...) and wrist turns
     ("approach", approach.solve),  # 2. TA: damped least squares to the approach point

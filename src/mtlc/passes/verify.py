@@ -15,7 +15,10 @@ each figure once; ARCHITECTURE.md, "One home for each truth"):
 * joint limits (MT0513);
 * static balance: the centre of mass (with what the hands hold) over the support of the points
   that touch (MT0502, measured here; the balance pass's own estimate is not reported);
-* hands and forearms outside the trunk and the thighs (``mtlc.body.capsules``; MT0514).
+* hands and forearms outside the trunk and the thighs (``mtlc.body.capsules``; MT0514);
+* the body and its held tools outside the equipment: every collision capsule against every
+  scene model's mesh (``mtlc.geometry.clearance``), deeper than ``EQUIPMENT_TOLERANCE`` is a
+  finding (MT0515), except a hand or its tool touching the model at its goal's site.
 
 Every finding is a warning: the frames are written and usable, and the finding is about the
 motion, like MT0501 and MT0502 (docs/metrics.md, "Verification"). Figures are vectorised over
@@ -32,8 +35,9 @@ from typing import Any
 import numpy as np
 
 from mtlc.body import forward, site_positions
-from mtlc.body.capsules import self_intersection
+from mtlc.body.capsules import capsule_segments, collision_capsules, self_intersection
 from mtlc.body.kinematics import Pose
+from mtlc.geometry.clearance import FrameClearance, frame_clearance, held_capsules, scene_indices
 from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
 from mtlc.metrics import balance_margin, walking
 from mtlc.passes.approach import effector_name
@@ -42,6 +46,12 @@ from mtlc.passes.context import PassContext
 from mtlc.passes.tool import is_stroke
 
 TOLERANCE = 1e-3  # m: contact error, grip drift, depth below the floor, depth inside the body
+# m a capsule may go into a model unreported: the capsules are round and the hands bare, so a
+# few millimetres is a sleeve brushing a panel, not a limb inside it (docs/collision.md)
+EQUIPMENT_TOLERANCE = 5e-3
+# m: an effector this close to its goal's site is at the site (the hand or tool touches what it
+# works on), and a model this close to a site is one the site is on
+CONTACT_ZONE = 0.05
 LIMIT_TOLERANCE = 1e-6  # rad past a joint's limit (rounding, not motion)
 MIN_MARGIN = 0.0  # m: the centre of mass inside the support
 EPS = 1e-9
@@ -604,6 +614,139 @@ class _Verifier:
                 ("body",),
             )
 
+    # -- the equipment -----------------------------------------------------------------------
+
+    def equipment(self) -> None:
+        """The body's capsules and the held tools outside the scene's models (MT0515): one
+        finding per task line, part and model, at its deepest frame. A hand or its tool at its
+        goal's site (``at_site``) touches the model the site is on: not a finding."""
+        models = {m.name: m for m in self.ir.geometry if len(m.faces)}
+        if not models:
+            return
+        indices = scene_indices(list(models.values()))
+        fc = frame_clearance(self.ir, indices, pose=self.pose, through=True)
+        self.v.equipment_clearance = fc
+        depth = np.where(np.isnan(fc.clearance), -np.inf, -fc.clearance)
+        caps = collision_capsules(self.skel) + tuple(cap for cap, _, _ in held_capsules(self.ir))
+        radii = np.array([cap.radius for cap in caps])
+        sides = self.capsule_sides(fc)
+        goal_at = self.at_site(fc, indices, sides, radii, depth)
+        _, c, m = depth.shape
+        k = int(np.argmax(depth.reshape(-1)))
+        i, rest = divmod(k, c * m)
+        self.v.equipment = {
+            "depth": max(float(depth.reshape(-1)[k]), 0.0),
+            "part": fc.capsules[rest // m] if depth.reshape(-1)[k] > 0 else "",
+            "model": fc.meshes[rest % m] if depth.reshape(-1)[k] > 0 else "",
+            "time": float(self.t[i]),
+        }
+        worst: dict[tuple[SourceRef, str, str], tuple[float, int, Segment, Segment | None]] = {}
+        for j, part in enumerate(fc.capsules):
+            side = sides[j]
+            tracks = [ARM_TRACK[side], HAND_TRACK[side]] if side else ["root"]
+            episode = self.episodes(tracks)
+            for col, model in enumerate(fc.meshes):
+                for first, last in failure_runs(depth[:, j, col] > EQUIPMENT_TOLERANCE):
+                    # one episode per segment of the part's tracks: a hand through the panel
+                    # at its pick and then on the walk away is two findings, at two lines
+                    labels = episode[first : last + 1]
+                    cuts = first + np.flatnonzero(np.diff(labels)) + 1
+                    for a, b in zip(np.r_[first, cuts], np.r_[cuts - 1, last], strict=True):
+                        i = a + int(np.argmax(depth[a : b + 1, j, col]))
+                        seg = self.active(i, tracks)
+                        if seg is None:
+                            continue
+                        goal = goal_at[i].get(side) if side and seg.track in tracks else None
+                        key = (seg.provenance.origin, part, model)
+                        if key not in worst or depth[i, j, col] > worst[key][0]:
+                            worst[key] = (float(depth[i, j, col]), i, seg, goal)
+        for (_, part, model), (d, i, seg, goal) in worst.items():
+            j, col = fc.capsules.index(part), fc.meshes.index(model)
+            a, b, radius = capsule_segments(self.skel, take_pose(self.pose, slice(i, i + 1)),
+                                            (caps[j],))  # fmt: skip
+            node = models[model].part_of(indices[model].touched_face(a[0, 0], b[0, 0], radius[0]))
+            self.report_collision(part, model, node, d, float(self.t[i]), seg, goal)
+
+    def episodes(self, tracks: list[str]) -> np.ndarray:
+        """(N,) a label per frame that changes where a segment on ``tracks`` starts or ends."""
+        bounds = sorted({x for s in self.segs if s.track in tracks for x in (s.start, s.end)})
+        return np.searchsorted(np.asarray(bounds, dtype=float), self.t + EPS)
+
+    def capsule_sides(self, fc: FrameClearance) -> list[str]:
+        """Each arm capsule's side ("r", "l"), a held tool its hand's (the held capsules come
+        after the body's, in ``held_capsules``'s order); "" for the head, trunk and legs,
+        which the root's segments move."""
+        held = [cap.start[0][:1] for cap, _, _ in held_capsules(self.ir)]
+        body = len(fc.capsules) - len(held)
+        words = {"right": "r", "left": "l"}
+        arm = ("upper arm", "forearm", "hand")
+        return [
+            words.get(name.split(" ")[0], "") if name.endswith(arm) else ""
+            for name in fc.capsules[:body]
+        ] + held
+
+    def at_site(
+        self,
+        fc: FrameClearance,
+        indices: dict[str, Any],
+        sides: list[str],
+        radii: FloatArray,
+        depth: FloatArray,
+    ) -> list[dict[str, Segment]]:
+        """Where a goal's effector is within ``CONTACT_ZONE`` of its site (from the goal's
+        start until its track's next goal at another site), its hand and that hand's tools
+        touching a model within ``CONTACT_ZONE`` of the site are excused (``depth`` set to
+        -inf there): in by at most their radius and ``EQUIPMENT_TOLERANCE``, their surface
+        on the model's, not through it (a hand whose fingers go through the panel it unbolts
+        is reported). Returns, per frame, the goal each side is at (the "not reachable
+        without collision" wording for what else goes in there)."""
+        n = len(self.t)
+        goal_at: list[dict[str, Segment]] = [{} for _ in range(n)]
+        near: dict[tuple[float, ...], list[int]] = {}
+        for track in ("r_arm", "l_arm", "r_hand", "l_hand"):
+            segs = sorted(self.ir.on_track(track), key=lambda s: s.start)
+            goals = [s for s in segs if s.kind in ("TA", "TO") and s.goal.position is not None]
+            side = track[:1]
+            parts = [j for j, name in enumerate(fc.capsules) if sides[j] == side and (
+                name.endswith(" hand") or name.startswith("tool "))]  # fmt: skip
+            for k, seg in enumerate(goals):
+                site = np.asarray(seg.goal.position, dtype=float).reshape(-1, 3)[0]
+                later = [g.start for g in goals[k + 1 :] if g.goal.site != seg.goal.site]
+                until = min(later, default=math.inf)
+                window = (self.t >= seg.start - EPS) & (self.t < until - EPS)
+                dist = np.linalg.norm(self.path(seg.goal.effector) - site, axis=-1)
+                there = np.flatnonzero(window & (dist <= CONTACT_ZONE))
+                if not there.size:
+                    continue
+                key = tuple(site.round(6))
+                if key not in near:
+                    near[key] = [
+                        col for col, name in enumerate(fc.meshes)
+                        if indices[name].segment_distance(site, site)[0] <= CONTACT_ZONE
+                    ]  # fmt: skip
+                for col in near[key]:
+                    block = depth[np.ix_(there, parts, [col])]
+                    touch = block <= radii[parts][None, :, None] + EQUIPMENT_TOLERANCE
+                    depth[np.ix_(there, parts, [col])] = np.where(touch, -np.inf, block)
+                for i in there:
+                    goal_at[i].setdefault(side, seg)
+        return goal_at
+
+    def report_collision(self, part: str, model: str, node: str | None, depth: float,
+                         time: float, seg: Segment, goal: Segment | None) -> None:  # fmt: skip
+        """MT0515: ``part`` ``depth`` m into ``model`` (its ``node``) at ``time``, at ``seg``'s
+        line; worded as a goal not reachable without collision when at ``goal``'s site."""
+        where = f"model `{model}`" + (f" (node `{node}`)" if node and node != model else "")
+        what = f"the {part.removeprefix('tool ')} goes {_mm(depth)} mm into {where} at {time:.2f} s"
+        if goal is not None:
+            message = (
+                f"site `{goal.goal.site}` is not reachable without collision: {what}, with "
+                f"the {effector_name(goal.goal.effector)} at the site"
+            )
+        else:
+            message = f"{what} in `{self.where(seg)}`"
+        self.report("MT0515", message, seg.provenance.origin, ("equipment", part, model))
+
 
 def verify(ir: MotionIR, ctx: PassContext) -> Verification:
     """Measure every claim on ``ir``'s frames, report each failure, return the figures."""
@@ -617,6 +760,7 @@ def verify(ir: MotionIR, ctx: PassContext) -> Verification:
     v.limits()
     v.balance()
     v.body()
+    v.equipment()
     v.v.seconds = clock.perf_counter() - start
     return v.v
 

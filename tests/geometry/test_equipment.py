@@ -1,0 +1,210 @@
+"""The body out of the equipment, checked on the compiled IR JSON with our own kinematics and
+trimesh's proximity and ray queries (issue 20): neither mtlc's capsules nor its collision
+library. Each limb is a capsule built here from the IR's joint and site positions
+(bench/motion.py's forward kinematics) with docs/collision.md's radii from the manikin's
+GB 10000-88 row; wherever one goes deeper than verify's tolerance into a model, the compile
+must have printed MT0515 naming that part at a task line live then (MT0515's rule)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+trimesh = pytest.importorskip("trimesh")
+pytest.importorskip("coal")
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "bench"))
+sys.path.insert(0, str(ROOT / "tests"))
+
+import motion  # noqa: E402  (bench/motion.py: forward kinematics from the IR JSON alone)
+
+from mtlc.cli import main as mtlc_main  # noqa: E402
+
+TOLERANCE = 0.005  # m: MT0515's (docs/diagnostics/MT0515.md)
+SLACK = 0.002  # m: the capsule's ends here are the documented ones, rebuilt on their own
+AXIS_POINTS = 11
+
+SHELF = """use stdlib.actions
+
+scene cupboard {
+    ground 0 cm
+    box crate size (60, 30, 30) cm at (0, 15, 85) cm
+    box shelf size (60, 2, 30) cm at (0, 100, 95) cm
+    site front at (0, 0, 60) cm
+    site latch at (0, 88, 90) cm normal (0, -1, 0)
+}
+
+task reach_under_shelf {
+    manikin gb10000_1988 female p5
+    scene cupboard
+    walk_to(front)
+    press(right, latch)
+}
+"""
+BAR = "    box bar size (60, 4, 4) cm at (0, 95, 72) cm\n"
+
+
+def compile_ir(path: Path, manikin: str, out: Path) -> tuple[dict, list[dict]]:
+    buf = io.StringIO()
+    argv = ["compile", str(path), "--manikin", manikin, "--target", "ir", "-o", str(out),
+            "--format", "json"]  # fmt: skip
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(io.StringIO()):
+        assert mtlc_main(argv) == 0
+    (ir_file,) = out.glob("*.ir.json")
+    printed = json.loads(buf.getvalue())
+    diagnostics = printed["diagnostics"] if isinstance(printed, dict) else printed
+    return json.loads(ir_file.read_text(encoding="utf-8")), diagnostics
+
+
+def scene_meshes(doc: dict, folder: Path) -> dict[str, trimesh.Trimesh]:
+    """The IR's models rebuilt with trimesh: a file read and placed by its transform, a box
+    made from its size."""
+    out = {}
+    for m in doc["scene"]["models"]:
+        if m["kind"] == "model":
+            mesh = trimesh.load(folder / m["path"], force="mesh")
+        elif m["kind"] == "box":
+            mesh = trimesh.creation.box(extents=m["size"])
+        else:
+            pytest.skip(f"no trimesh twin for a {m['kind']} here")
+        mesh.apply_transform(np.asarray(m["transform"], float))
+        out[m["name"]] = mesh
+    return out
+
+
+def limbs(body: motion.Body) -> dict[str, tuple[np.ndarray, np.ndarray, float, bool]]:
+    """Name -> (start (T, 3), end (T, 3), radius, is_hand_or_tool), docs/collision.md's sizes."""
+    P, m = body.points, body.doc["manikin"]
+    row = motion.gb10000()
+
+    def mm(name: str) -> float:
+        return row[(m["sex"], int(m["percentile"]), name)] / 1000.0
+
+    hand_r, foot_r = 0.25 * mm("hand_breadth"), 0.3 * mm("foot_breadth")
+    out = {}
+    for side, word in (("r", "right"), ("l", "left")):
+        wrist, tip = P[f"{side}_wrist"], P[f"{side}_fingertip"]
+        along = (tip - wrist) / np.linalg.norm(tip - wrist, axis=-1, keepdims=True)
+        out[f"{word} hand"] = (wrist, tip - hand_r * along, hand_r, True)
+        out[f"{word} forearm"] = (P[f"{side}_elbow"], wrist, 0.36 * mm("hand_breadth"), False)
+        out[f"{word} shank"] = (P[f"{side}_knee"], P[f"{side}_ankle"], 0.5 * mm("foot_breadth"),
+                                False)  # fmt: skip
+        heel, toe = P[f"{side}_heel"], P[f"{side}_toe"]
+        fwd = (toe - heel) / np.linalg.norm(toe - heel, axis=-1, keepdims=True)
+        up = np.array([0.0, foot_r, 0.0])
+        out[f"{word} foot"] = (heel + up + foot_r * fwd, toe + up - foot_r * fwd, foot_r, False)
+    for name, (tool, _, _) in body.tools.items():
+        out[f"tool {tool['name']}"] = (P[f"{name[0]}_hand"], P[name], 0.01, True)
+    return out
+
+
+def unreported(doc: dict, diagnostics: list[dict], meshes: dict) -> list[str]:
+    """Every (part, model, run of frames) deeper than the tolerance with no MT0515 naming the
+    part at a line live in the run; the hands and tools count only where their axis passes
+    through the model (a hand at its site may touch what it works on: MT0515's rule)."""
+    body = motion.Body.of(doc)
+    named = [(d["span"]["line"], d["message"]) for d in diagnostics if d["code"] == "MT0515"]
+    held = {f"tool {t['name']}": (a, b) for t, a, b in body.tools.values()}
+    s = np.linspace(0.0, 1.0, AXIS_POINTS)
+    missing = []
+    for part, (a, b, radius, touching_allowed) in limbs(body).items():
+        for model, mesh in meshes.items():
+            # frames whose capsule's box meets the mesh's box: the others are clear
+            lo, hi = np.minimum(a, b) - radius, np.maximum(a, b) + radius
+            near = np.all((lo <= mesh.bounds[1]) & (hi >= mesh.bounds[0]), axis=1)
+            depth = np.full(len(a), -np.inf)
+            if near.any():
+                pts = a[near, None, :] + s[None, :, None] * (b - a)[near, None, :]
+                _, dist, _ = trimesh.proximity.closest_point(mesh, pts.reshape(-1, 3))
+                depth[near] = radius - dist.reshape(-1, AXIS_POINTS).min(axis=1)
+            length = np.linalg.norm(b - a, axis=-1)
+            hits = mesh.ray.intersects_location(a, (b - a) / length[:, None], multiple_hits=False)
+            through = np.zeros(len(a), bool)
+            for loc, ray in zip(hits[0], hits[1], strict=True):
+                through[ray] |= np.linalg.norm(loc - a[ray]) <= length[ray]
+            through &= near
+            if touching_allowed:  # through the surface, its nearer end out beyond it
+                bad = through.copy()
+                if through.any():
+                    ends = np.concatenate([a[through], b[through]])
+                    _, gap, _ = trimesh.proximity.closest_point(mesh, ends)
+                    k = int(through.sum())
+                    bad[through] = np.minimum(gap[:k], gap[k:]) > TOLERANCE + SLACK
+            else:
+                bad = (depth > TOLERANCE + SLACK) | through
+            if part in held:
+                start, end = held[part]
+                bad &= (body.time >= start) & (body.time <= end)
+            for first, last in runs(bad):
+                lines = set().union(
+                    *(motion.report_lines(doc, t) for t in body.time[first : last + 1])
+                )
+                said = any(line in lines and f"the {part.removeprefix('tool ')} " in msg
+                           for line, msg in named)  # fmt: skip
+                if not said:
+                    missing.append(
+                        f"{part} in {model} {body.time[first]:.2f}-{body.time[last]:.2f} s"
+                    )
+    return missing
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    idx = np.flatnonzero(mask)
+    if not idx.size:
+        return []
+    cuts = np.flatnonzero(np.diff(idx) > 1)
+    return list(zip(np.r_[idx[0], idx[cuts + 1]], np.r_[idx[cuts], idx[-1]], strict=True))
+
+
+@pytest.mark.parametrize("manikin", ["gb10000_1988:female:5", "gb10000_1988:male:95"])
+def test_access_panel_cad_collisions_are_reported(manikin: str, tmp_path: Path) -> None:
+    example = ROOT / "examples" / "remove_access_panel_cad.mtask"
+    doc, diagnostics = compile_ir(example, manikin, tmp_path)
+    meshes = scene_meshes(doc, example.parent)
+    assert unreported(doc, diagnostics, meshes) == []
+    # the stance at the bench is moved out of it: no foot or shank in the bench any more
+    assert not [d for d in diagnostics if d["code"] == "MT0515" and "bench" in d["message"]
+                and ("foot" in d["message"] or "shank" in d["message"])]  # fmt: skip
+
+
+def test_a_reach_under_a_shelf_from_behind_a_crate(tmp_path: Path) -> None:
+    path = tmp_path / "shelf.mtask"
+    path.write_text(SHELF, encoding="utf-8")
+    doc, diagnostics = compile_ir(path, "gb10000_1988:female:5", tmp_path / "out")
+    meshes = scene_meshes(doc, tmp_path)
+    assert unreported(doc, diagnostics, meshes) == []
+    assert [d for d in diagnostics if d["code"] == "MT0515"] == []
+    walk = next(s for s in doc["segments"] if s["kind"] == "locomotion")
+    moved = walk["result"]["stance_moved"]  # the toes at the site were in the crate
+    assert moved[2] <= -0.05 and moved[0] == 0.0
+    body = motion.Body.of(doc)
+    legs = limbs(body)
+    crate = meshes["crate"]
+    for part in ("right foot", "left foot", "right shank", "left shank"):
+        a, b, radius, _ = legs[part]
+        s = np.linspace(0.0, 1.0, AXIS_POINTS)
+        pts = (a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]).reshape(-1, 3)
+        _, dist, _ = trimesh.proximity.closest_point(crate, pts)
+        assert dist.min() - radius > -TOLERANCE, part
+
+
+def test_a_limb_through_a_model_is_reported_at_its_line(tmp_path: Path) -> None:
+    """A bar across the arm's way to the latch: the forearm goes through it, and the finding is
+    at the press's line, worded as a site not reachable without collision."""
+    text = SHELF.replace("    site front", BAR + "    site front")
+    path = tmp_path / "shelf.mtask"
+    path.write_text(text, encoding="utf-8")
+    doc, diagnostics = compile_ir(path, "gb10000_1988:female:5", tmp_path / "out")
+    press = 1 + text.splitlines().index("    press(right, latch)")
+    found = [d for d in diagnostics if d["code"] == "MT0515"]
+    assert any("right forearm" in d["message"] and "`bar`" in d["message"] for d in found)
+    assert all(d["span"]["line"] == press for d in found), found
+    assert all("site `latch` is not reachable without collision" in d["message"] for d in found)
+    assert unreported(doc, diagnostics, scene_meshes(doc, tmp_path)) == []

@@ -2106,7 +2106,7 @@ def remove_access_panel():
         'right_wrist': (-6.353, -4.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=10.463281)
+    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=13.16258)
     human.KeyJoints(34.5, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (20.012, 32.188, -15.305), 'right_elbow': (36.386, 3.606),
@@ -2149,196 +2149,194 @@ def remove_access_panel():
         'right_wrist': (9.273, -30.0),
     })
     human.KeyJoints(35.4, {
-        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
-        'right_wrist': (27.614, -30.0),
+        'right_shoulder': (59.799, 7.375, 9.5), 'right_elbow': (53.033, 80.0),
+        'right_wrist': (27.53, -30.0),
     })
     human.KeyJoints(35.5, {
-        'right_shoulder': (49.469, -6.509, -14.76), 'right_elbow': (55.968, 59.98),
-        'right_wrist': (19.931, -27.087),
+        'right_shoulder': (50.248, -3.054, -8.179), 'right_elbow': (64.121, 78.033),
+        'right_wrist': (28.524, -29.999),
     })
     human.KeyJoints(35.6, {
-        'right_shoulder': (58.938, 1.62, 6.876), 'right_elbow': (27.842, 22.5),
-        'right_wrist': (1.843, -15.98),
+        'right_shoulder': (54.775, -3.982, -13.21), 'right_elbow': (38.477, 43.337),
+        'right_wrist': (12.707, -18.444),
+    })
+    human.KeyJoints(35.7, {
+        'right_shoulder': (58.991, 2.14, 9.799), 'right_elbow': (27.747, 19.847),
+        'right_wrist': (0.405, -16.234),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(35.7, {
-        'right_shoulder': (58.802, 2.257, 10.455), 'right_elbow': (28.244, 19.941),
-        'right_wrist': (-0.41, -16.835),
-    })
     human.KeyJoints(35.8, {
+        'right_shoulder': (58.795, 2.252, 10.426), 'right_elbow': (28.26, 19.989),
+        'right_wrist': (-0.411, -16.849),
+    })
+    human.KeyJoints(35.9, {
         'right_shoulder': (54.982, 2.093, 1.382), 'right_elbow': (44.134, 58.809),
         'right_wrist': (2.633, -29.898),
     })
-    human.KeyJoints(35.9, {
-        'right_shoulder': (58.894, 7.235, 9.199), 'right_elbow': (52.647, 80.0),
-        'right_wrist': (22.71, -30.0),
-    })
     human.KeyJoints(36.0, {
-        'right_shoulder': (52.522, 0.198, -3.436), 'right_elbow': (63.352, 79.8),
-        'right_wrist': (32.957, -30.0),
+        'right_shoulder': (58.753, 7.2, 9.125), 'right_elbow': (52.58, 80.0),
+        'right_wrist': (21.979, -30.0),
     })
     human.KeyJoints(36.1, {
-        'right_shoulder': (57.355, -1.752, -8.06), 'right_elbow': (31.627, 36.496),
-        'right_wrist': (9.346, -15.937),
+        'right_shoulder': (59.484, 6.969, 8.561), 'right_elbow': (54.261, 80.0),
+        'right_wrist': (30.366, -30.0),
+    })
+    human.KeyJoints(36.2, {
+        'right_shoulder': (51.313, -1.322, -5.669), 'right_elbow': (63.493, 79.062),
+        'right_wrist': (31.715, -30.0),
+    })
+    human.KeyJoints(36.3, {
+        'right_shoulder': (50.599, -6.336, -15.319), 'right_elbow': (51.276, 54.759),
+        'right_wrist': (17.688, -24.661),
+    })
+    human.KeyJoints(36.4, {
+        'right_shoulder': (58.387, -0.348, -2.78), 'right_elbow': (29.02, 31.467),
+        'right_wrist': (6.669, -15.532),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(36.2, {
+    human.KeyJoints(36.5, {
         'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
         'right_wrist': (-0.386, -16.389),
     })
-    human.KeyJoints(36.3, {
+    human.KeyJoints(36.6, {
         'right_shoulder': (56.255, 1.781, 4.264), 'right_elbow': (36.401, 37.567),
         'right_wrist': (-0.181, -24.44),
     })
-    human.KeyJoints(36.4, {
-        'right_shoulder': (56.421, 4.988, 4.641), 'right_elbow': (50.66, 78.52),
-        'right_wrist': (12.099, -30.0),
-    })
-    human.KeyJoints(36.5, {
-        'right_shoulder': (59.796, 7.049, 8.741), 'right_elbow': (53.585, 80.0),
-        'right_wrist': (29.624, -30.0),
-    })
-    human.KeyJoints(36.6, {
-        'right_shoulder': (51.285, -6.173, -15.542), 'right_elbow': (49.08, 52.592),
-        'right_wrist': (16.767, -23.524),
-    })
     human.KeyJoints(36.7, {
-        'right_shoulder': (59.008, 2.34, 10.949), 'right_elbow': (27.719, 18.807),
-        'right_wrist': (-0.159, -16.344),
+        'right_shoulder': (56.42, 4.987, 4.638), 'right_elbow': (50.658, 78.518),
+        'right_wrist': (12.095, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
-        'right_shoulder': (58.37, 1.935, 8.498), 'right_elbow': (29.361, 23.144),
-        'right_wrist': (-0.448, -17.795),
+        'right_shoulder': (59.815, 7.36, 9.464), 'right_elbow': (53.061, 80.0),
+        'right_wrist': (27.73, -30.0),
     })
     human.KeyJoints(36.9, {
+        'right_shoulder': (49.225, -4.465, -10.231), 'right_elbow': (63.128, 73.457),
+        'right_wrist': (26.35, -30.0),
+    })
+    human.KeyJoints(37.0, {
+        'right_shoulder': (56.081, -2.996, -11.252), 'right_elbow': (34.958, 40.461),
+        'right_wrist': (11.333, -16.851),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(37.1, {
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
+    })
+    human.KeyJoints(37.2, {
+        'right_shoulder': (58.367, 1.933, 8.487), 'right_elbow': (29.368, 23.163),
+        'right_wrist': (-0.448, -17.802),
+    })
+    human.KeyJoints(37.3, {
         'right_shoulder': (55.0, 2.16, 0.436), 'right_elbow': (46.145, 66.464),
         'right_wrist': (4.446, -30.0),
     })
-    human.KeyJoints(37.0, {
-        'right_shoulder': (59.492, 7.346, 9.435), 'right_elbow': (52.908, 80.0),
-        'right_wrist': (25.884, -30.0),
+    human.KeyJoints(37.4, {
+        'right_shoulder': (59.306, 7.317, 9.373), 'right_elbow': (52.83, 80.0),
+        'right_wrist': (24.88, -30.0),
     })
-    human.KeyJoints(37.1, {
-        'right_shoulder': (49.845, -3.572, -8.921), 'right_elbow': (63.908, 76.785),
-        'right_wrist': (27.736, -30.0),
+    human.KeyJoints(37.5, {
+        'right_shoulder': (59.06, 6.649, 7.865), 'right_elbow': (55.371, 80.0),
+        'right_wrist': (31.471, -30.0),
     })
-    human.KeyJoints(37.2, {
-        'right_shoulder': (58.266, -0.591, -3.783), 'right_elbow': (29.306, 32.407),
-        'right_wrist': (7.172, -15.554),
+    human.KeyJoints(37.6, {
+        'right_shoulder': (50.011, -3.222, -8.379), 'right_elbow': (63.895, 77.273),
+        'right_wrist': (28.342, -30.0),
+    })
+    human.KeyJoints(37.7, {
+        'right_shoulder': (51.677, -5.924, -15.155), 'right_elbow': (47.661, 51.325),
+        'right_wrist': (16.231, -22.812),
+    })
+    human.KeyJoints(37.8, {
+        'right_shoulder': (58.679, 0.483, 0.952), 'right_elbow': (28.381, 27.94),
+        'right_wrist': (4.781, -15.625),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(37.3, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+    human.KeyJoints(37.9, {
+        'right_shoulder': (59.01, 2.42, 11.41), 'right_elbow': (27.718, 18.39),
         'right_wrist': (-0.386, -16.389),
     })
-    human.KeyJoints(37.4, {
+    human.KeyJoints(38.0, {
         'right_shoulder': (55.641, 1.981, 3.616), 'right_elbow': (39.173, 43.614),
         'right_wrist': (0.35, -26.968),
     })
-    human.KeyJoints(37.5, {
-        'right_shoulder': (57.186, 6.203, 7.059), 'right_elbow': (51.544, 79.699),
-        'right_wrist': (14.975, -30.0),
+    human.KeyJoints(38.1, {
+        'right_shoulder': (57.174, 6.19, 7.033), 'right_elbow': (51.533, 79.692),
+        'right_wrist': (14.93, -30.0),
     })
-    human.KeyJoints(37.6, {
-        'right_shoulder': (58.586, 6.474, 7.495), 'right_elbow': (56.256, 80.0),
-        'right_wrist': (32.015, -30.0),
+    human.KeyJoints(38.2, {
+        'right_shoulder': (59.814, 7.329, 9.391), 'right_elbow': (53.097, 80.0),
+        'right_wrist': (27.934, -30.0),
     })
-    human.KeyJoints(37.7, {
-        'right_shoulder': (53.56, -4.836, -14.339), 'right_elbow': (41.946, 46.342),
-        'right_wrist': (14.077, -20.017),
+    human.KeyJoints(38.3, {
+        'right_shoulder': (53.826, 2.011, -0.516), 'right_elbow': (62.422, 79.89),
+        'right_wrist': (33.143, -30.0),
+    })
+    human.KeyJoints(38.4, {
+        'right_shoulder': (49.253, -6.495, -14.305), 'right_elbow': (57.765, 62.403),
+        'right_wrist': (21.01, -27.969),
+    })
+    human.KeyJoints(38.5, {
+        'right_shoulder': (56.978, -2.174, -9.242), 'right_elbow': (32.585, 37.83),
+        'right_wrist': (10.022, -16.191),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(37.8, {
+    human.KeyJoints(38.6, {
         'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
         'right_wrist': (-0.386, -16.389),
     })
-    human.KeyJoints(37.9, {
+    human.KeyJoints(38.7, {
         'right_shoulder': (57.705, 1.553, 5.921), 'right_elbow': (31.2, 27.955),
         'right_wrist': (-0.473, -19.423),
     })
-    human.KeyJoints(38.0, {
+    human.KeyJoints(38.8, {
         'right_shoulder': (55.26, 2.741, 0.778), 'right_elbow': (47.939, 72.28),
         'right_wrist': (6.653, -30.0),
     })
-    human.KeyJoints(38.1, {
-        'right_shoulder': (59.765, 7.372, 9.495), 'right_elbow': (53.019, 80.0),
-        'right_wrist': (27.347, -30.0),
+    human.KeyJoints(38.9, {
+        'right_shoulder': (59.695, 7.366, 9.481), 'right_elbow': (52.991, 80.0),
+        'right_wrist': (26.969, -30.0),
     })
-    human.KeyJoints(38.2, {
-        'right_shoulder': (49.043, -5.663, -12.383), 'right_elbow': (61.394, 68.226),
-        'right_wrist': (23.711, -29.727),
+    human.KeyJoints(39.0, {
+        'right_shoulder': (52.121, -0.277, -4.134), 'right_elbow': (63.438, 79.602),
+        'right_wrist': (32.492, -30.0),
     })
-    human.KeyJoints(38.3, {
-        'right_shoulder': (58.698, 0.563, 1.309), 'right_elbow': (28.341, 27.605),
-        'right_wrist': (4.601, -15.611),
+    human.KeyJoints(39.1, {
+        'right_shoulder': (53.112, -5.232, -14.845), 'right_elbow': (43.237, 47.374),
+        'right_wrist': (14.514, -20.64),
+    })
+    human.KeyJoints(39.2, {
+        'right_shoulder': (58.91, 1.445, 5.914), 'right_elbow': (27.896, 23.378),
+        'right_wrist': (2.318, -15.893),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(38.4, {
-        'right_shoulder': (58.985, 2.4, 11.296), 'right_elbow': (27.781, 18.576),
-        'right_wrist': (-0.389, -16.442),
+    human.KeyJoints(39.3, {
+        'right_shoulder': (58.982, 2.398, 11.28), 'right_elbow': (27.789, 18.603),
+        'right_wrist': (-0.389, -16.45),
     })
-    human.KeyJoints(38.5, {
+    human.KeyJoints(39.4, {
         'right_shoulder': (55.196, 2.087, 2.685), 'right_elbow': (41.781, 50.756),
         'right_wrist': (1.256, -28.926),
     })
-    human.KeyJoints(38.6, {
-        'right_shoulder': (58.024, 6.929, 8.562), 'right_elbow': (52.191, 80.0),
-        'right_wrist': (18.354, -30.0),
-    })
-    human.KeyJoints(38.7, {
-        'right_shoulder': (55.891, 4.422, 3.536), 'right_elbow': (60.218, 80.0),
-        'right_wrist': (33.508, -30.0),
-    })
-    human.KeyJoints(38.8, {
-        'right_shoulder': (55.764, -3.246, -11.802), 'right_elbow': (35.792, 41.133),
-        'right_wrist': (11.659, -17.246),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(38.9, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
-    })
-    human.KeyJoints(39.0, {
-        'right_shoulder': (56.968, 1.54, 4.805), 'right_elbow': (33.614, 32.77),
-        'right_wrist': (-0.432, -21.706),
-    })
-    human.KeyJoints(39.1, {
-        'right_shoulder': (55.741, 3.762, 2.387), 'right_elbow': (49.446, 76.152),
-        'right_wrist': (9.211, -30.0),
-    })
-    human.KeyJoints(39.2, {
-        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
-        'right_wrist': (27.614, -30.0),
-    })
-    human.KeyJoints(39.3, {
-        'right_shoulder': (49.451, -6.511, -14.737), 'right_elbow': (56.073, 60.112),
-        'right_wrist': (19.989, -27.14),
-    })
-    human.KeyJoints(39.4, {
-        'right_shoulder': (58.936, 1.604, 6.79), 'right_elbow': (27.847, 22.578),
-        'right_wrist': (1.885, -15.973),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'right_shoulder': (58.807, 2.261, 10.478), 'right_elbow': (28.231, 19.904),
-        'right_wrist': (-0.41, -16.824),
+        'right_shoulder': (57.967, 6.899, 8.498), 'right_elbow': (52.155, 79.998),
+        'right_wrist': (18.104, -30.0),
     })
     human.KeyJoints(39.6, {
-        'right_shoulder': (54.983, 2.094, 1.409), 'right_elbow': (44.098, 58.67),
-        'right_wrist': (2.606, -29.893),
+        'right_shoulder': (59.798, 7.138, 8.942), 'right_elbow': (53.389, 80.0),
+        'right_wrist': (29.125, -30.0),
     })
     human.KeyJoints(39.7, {
-        'right_shoulder': (58.881, 7.232, 9.192), 'right_elbow': (52.641, 80.0),
-        'right_wrist': (22.643, -30.0),
+        'right_shoulder': (52.743, 0.525, -2.858), 'right_elbow': (63.399, 79.741),
+        'right_wrist': (32.568, -30.0),
     })
     human.KeyJoints(39.8, {
-        'right_shoulder': (52.581, 0.277, -3.321), 'right_elbow': (63.316, 79.819),
-        'right_wrist': (33.038, -30.0),
+        'right_shoulder': (49.673, -6.362, -14.951), 'right_elbow': (55.479, 59.397),
+        'right_wrist': (19.701, -26.862),
     })
     human.KeyJoints(39.9, {
-        'right_shoulder': (57.336, -1.773, -8.126), 'right_elbow': (31.678, 36.566),
-        'right_wrist': (9.382, -15.947),
+        'right_shoulder': (57.716, -1.331, -6.682), 'right_elbow': (30.7, 35.068),
+        'right_wrist': (8.601, -15.769),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
@@ -2346,254 +2344,364 @@ def remove_access_panel():
         'right_wrist': (-0.386, -16.389),
     })
     human.KeyJoints(40.1, {
+        'right_shoulder': (56.968, 1.54, 4.805), 'right_elbow': (33.614, 32.77),
+        'right_wrist': (-0.432, -21.706),
+    })
+    human.KeyJoints(40.2, {
+        'right_shoulder': (55.741, 3.762, 2.387), 'right_elbow': (49.446, 76.152),
+        'right_wrist': (9.211, -30.0),
+    })
+    human.KeyJoints(40.3, {
+        'right_shoulder': (59.799, 7.375, 9.5), 'right_elbow': (53.032, 80.0),
+        'right_wrist': (27.526, -30.0),
+    })
+    human.KeyJoints(40.4, {
+        'right_shoulder': (50.296, -2.973, -8.057), 'right_elbow': (64.13, 78.131),
+        'right_wrist': (28.644, -29.999),
+    })
+    human.KeyJoints(40.5, {
+        'right_shoulder': (54.745, -4.004, -13.244), 'right_elbow': (38.561, 43.412),
+        'right_wrist': (12.742, -18.48),
+    })
+    human.KeyJoints(40.6, {
+        'right_shoulder': (58.991, 2.129, 9.739), 'right_elbow': (27.748, 19.902),
+        'right_wrist': (0.435, -16.228),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(40.7, {
+        'right_shoulder': (58.8, 2.256, 10.449), 'right_elbow': (28.247, 19.952),
+        'right_wrist': (-0.411, -16.838),
+    })
+    human.KeyJoints(40.8, {
+        'right_shoulder': (54.983, 2.094, 1.409), 'right_elbow': (44.098, 58.67),
+        'right_wrist': (2.606, -29.893),
+    })
+    human.KeyJoints(40.9, {
+        'right_shoulder': (58.74, 7.197, 9.118), 'right_elbow': (52.573, 80.0),
+        'right_wrist': (21.911, -30.0),
+    })
+    human.KeyJoints(41.0, {
+        'right_shoulder': (59.512, 6.985, 8.597), 'right_elbow': (54.183, 80.0),
+        'right_wrist': (30.274, -30.0),
+    })
+    human.KeyJoints(41.1, {
+        'right_shoulder': (51.552, -1.022, -5.241), 'right_elbow': (63.469, 79.281),
+        'right_wrist': (32.106, -30.0),
+    })
+    human.KeyJoints(41.2, {
+        'right_shoulder': (50.364, -6.381, -15.318), 'right_elbow': (52.22, 55.741),
+        'right_wrist': (18.109, -25.145),
+    })
+    human.KeyJoints(41.3, {
+        'right_shoulder': (58.298, -0.534, -3.549), 'right_elbow': (29.226, 32.191),
+        'right_wrist': (7.056, -15.538),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(41.4, {
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
+    })
+    human.KeyJoints(41.5, {
         'right_shoulder': (56.266, 1.778, 4.275), 'right_elbow': (36.353, 37.474),
         'right_wrist': (-0.187, -24.395),
     })
-    human.KeyJoints(40.2, {
-        'right_shoulder': (56.408, 4.968, 4.602), 'right_elbow': (50.642, 78.492),
-        'right_wrist': (12.05, -30.0),
+    human.KeyJoints(41.6, {
+        'right_shoulder': (56.408, 4.967, 4.599), 'right_elbow': (50.641, 78.49),
+        'right_wrist': (12.047, -30.0),
     })
-    human.KeyJoints(40.3, {
-        'right_shoulder': (59.801, 7.056, 8.755), 'right_elbow': (53.564, 80.0),
-        'right_wrist': (29.584, -30.0),
+    human.KeyJoints(41.7, {
+        'right_shoulder': (59.815, 7.363, 9.472), 'right_elbow': (53.056, 80.0),
+        'right_wrist': (27.706, -30.0),
     })
-    human.KeyJoints(40.4, {
-        'right_shoulder': (51.252, -6.183, -15.544), 'right_elbow': (49.196, 52.706),
-        'right_wrist': (16.816, -23.582),
+    human.KeyJoints(41.8, {
+        'right_shoulder': (49.247, -4.4, -10.125), 'right_elbow': (63.171, 73.669),
+        'right_wrist': (26.478, -30.0),
     })
-    human.KeyJoints(40.5, {
-        'right_shoulder': (59.007, 2.332, 10.905), 'right_elbow': (27.719, 18.847),
-        'right_wrist': (-0.138, -16.34),
+    human.KeyJoints(41.9, {
+        'right_shoulder': (56.037, -3.033, -11.331), 'right_elbow': (35.074, 40.571),
+        'right_wrist': (11.387, -16.895),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(40.6, {
-        'right_shoulder': (58.379, 1.942, 8.539), 'right_elbow': (29.336, 23.074),
-        'right_wrist': (-0.447, -17.774),
+    human.KeyJoints(42.0, {
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
-    human.KeyJoints(40.7, {
+    human.KeyJoints(42.1, {
+        'right_shoulder': (58.376, 1.94, 8.528), 'right_elbow': (29.343, 23.093),
+        'right_wrist': (-0.447, -17.78),
+    })
+    human.KeyJoints(42.2, {
         'right_shoulder': (54.997, 2.154, 0.442), 'right_elbow': (46.113, 66.348),
         'right_wrist': (4.412, -30.0),
     })
-    human.KeyJoints(40.8, {
-        'right_shoulder': (59.485, 7.345, 9.433), 'right_elbow': (52.905, 80.0),
-        'right_wrist': (25.845, -30.0),
+    human.KeyJoints(42.3, {
+        'right_shoulder': (59.299, 7.316, 9.371), 'right_elbow': (52.827, 80.0),
+        'right_wrist': (24.843, -30.0),
     })
-    human.KeyJoints(40.9, {
-        'right_shoulder': (49.879, -3.526, -8.854), 'right_elbow': (63.931, 76.911),
-        'right_wrist': (27.807, -30.0),
+    human.KeyJoints(42.4, {
+        'right_shoulder': (59.059, 6.643, 7.854), 'right_elbow': (55.372, 80.0),
+        'right_wrist': (31.474, -30.0),
     })
-    human.KeyJoints(41.0, {
-        'right_shoulder': (58.255, -0.611, -3.862), 'right_elbow': (29.332, 32.479),
-        'right_wrist': (7.21, -15.557),
+    human.KeyJoints(42.5, {
+        'right_shoulder': (50.007, -3.253, -8.428), 'right_elbow': (63.923, 77.285),
+        'right_wrist': (28.272, -30.0),
+    })
+    human.KeyJoints(42.6, {
+        'right_shoulder': (51.686, -5.924, -15.166), 'right_elbow': (47.638, 51.301),
+        'right_wrist': (16.221, -22.8),
+    })
+    human.KeyJoints(42.7, {
+        'right_shoulder': (58.678, 0.482, 0.942), 'right_elbow': (28.383, 27.948),
+        'right_wrist': (4.785, -15.624),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(41.1, {
+    human.KeyJoints(42.8, {
         'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
         'right_wrist': (-0.386, -16.389),
     })
-    human.KeyJoints(41.2, {
+    human.KeyJoints(42.9, {
         'right_shoulder': (55.65, 1.978, 3.629), 'right_elbow': (39.127, 43.503),
         'right_wrist': (0.339, -26.93),
     })
-    human.KeyJoints(41.3, {
-        'right_shoulder': (57.172, 6.184, 7.019), 'right_elbow': (51.531, 79.685),
-        'right_wrist': (14.927, -30.0),
+    human.KeyJoints(43.0, {
+        'right_shoulder': (57.161, 6.171, 6.993), 'right_elbow': (51.521, 79.678),
+        'right_wrist': (14.882, -30.0),
     })
-    human.KeyJoints(41.4, {
-        'right_shoulder': (58.62, 6.493, 7.535), 'right_elbow': (56.196, 80.0),
-        'right_wrist': (31.98, -30.0),
+    human.KeyJoints(43.1, {
+        'right_shoulder': (59.815, 7.334, 9.403), 'right_elbow': (53.09, 80.0),
+        'right_wrist': (27.9, -30.0),
     })
-    human.KeyJoints(41.5, {
-        'right_shoulder': (53.522, -4.863, -14.369), 'right_elbow': (42.059, 46.438),
-        'right_wrist': (14.12, -20.07),
+    human.KeyJoints(43.2, {
+        'right_shoulder': (53.899, 2.107, -0.361), 'right_elbow': (62.359, 79.897),
+        'right_wrist': (33.166, -30.0),
+    })
+    human.KeyJoints(43.3, {
+        'right_shoulder': (49.243, -6.488, -14.265), 'right_elbow': (57.887, 62.58),
+        'right_wrist': (21.09, -28.029),
+    })
+    human.KeyJoints(43.4, {
+        'right_shoulder': (56.947, -2.203, -9.323), 'right_elbow': (32.666, 37.919),
+        'right_wrist': (10.068, -16.215),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(41.6, {
+    human.KeyJoints(43.5, {
         'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
         'right_wrist': (-0.386, -16.389),
     })
-    human.KeyJoints(41.7, {
+    human.KeyJoints(43.6, {
         'right_shoulder': (57.717, 1.558, 5.959), 'right_elbow': (31.164, 27.868),
         'right_wrist': (-0.473, -19.39),
     })
-    human.KeyJoints(41.8, {
+    human.KeyJoints(43.7, {
         'right_shoulder': (55.254, 2.726, 0.758), 'right_elbow': (47.911, 72.198),
         'right_wrist': (6.613, -30.0),
     })
-    human.KeyJoints(41.9, {
-        'right_shoulder': (59.763, 7.372, 9.494), 'right_elbow': (53.018, 80.0),
-        'right_wrist': (27.334, -30.0),
+    human.KeyJoints(43.8, {
+        'right_shoulder': (59.694, 7.366, 9.48), 'right_elbow': (52.99, 80.0),
+        'right_wrist': (26.962, -30.0),
     })
-    human.KeyJoints(42.0, {
-        'right_shoulder': (49.041, -5.633, -12.328), 'right_elbow': (61.464, 68.365),
-        'right_wrist': (23.777, -29.755),
+    human.KeyJoints(43.9, {
+        'right_shoulder': (52.084, -0.327, -4.2), 'right_elbow': (63.468, 79.581),
+        'right_wrist': (32.381, -30.0),
     })
-    human.KeyJoints(42.1, {
-        'right_shoulder': (58.692, 0.544, 1.216), 'right_elbow': (28.353, 27.691),
-        'right_wrist': (4.648, -15.607),
+    human.KeyJoints(44.0, {
+        'right_shoulder': (53.122, -5.223, -14.83), 'right_elbow': (43.207, 47.348),
+        'right_wrist': (14.503, -20.627),
+    })
+    human.KeyJoints(44.1, {
+        'right_shoulder': (58.91, 1.44, 5.891), 'right_elbow': (27.897, 23.399),
+        'right_wrist': (2.329, -15.892),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(42.2, {
-        'right_shoulder': (58.986, 2.401, 11.302), 'right_elbow': (27.777, 18.566),
-        'right_wrist': (-0.389, -16.439),
+    human.KeyJoints(44.2, {
+        'right_shoulder': (58.983, 2.399, 11.286), 'right_elbow': (27.786, 18.593),
+        'right_wrist': (-0.389, -16.447),
     })
-    human.KeyJoints(42.3, {
+    human.KeyJoints(44.3, {
         'right_shoulder': (55.202, 2.086, 2.703), 'right_elbow': (41.74, 50.628),
         'right_wrist': (1.238, -28.899),
     })
-    human.KeyJoints(42.4, {
-        'right_shoulder': (58.009, 6.922, 8.547), 'right_elbow': (52.181, 80.0),
-        'right_wrist': (18.285, -30.0),
+    human.KeyJoints(44.4, {
+        'right_shoulder': (57.952, 6.891, 8.482), 'right_elbow': (52.145, 79.998),
+        'right_wrist': (18.036, -30.0),
     })
-    human.KeyJoints(42.5, {
-        'right_shoulder': (55.944, 4.48, 3.641), 'right_elbow': (60.149, 80.0),
-        'right_wrist': (33.492, -30.0),
+    human.KeyJoints(44.5, {
+        'right_shoulder': (59.798, 7.144, 8.957), 'right_elbow': (53.376, 80.0),
+        'right_wrist': (29.091, -30.0),
     })
-    human.KeyJoints(42.6, {
-        'right_shoulder': (55.729, -3.274, -11.86), 'right_elbow': (35.886, 41.214),
-        'right_wrist': (11.698, -17.287),
+    human.KeyJoints(44.6, {
+        'right_shoulder': (52.796, 0.593, -2.757), 'right_elbow': (63.369, 79.756),
+        'right_wrist': (32.63, -30.0),
+    })
+    human.KeyJoints(44.7, {
+        'right_shoulder': (49.659, -6.352, -14.933), 'right_elbow': (55.576, 59.512),
+        'right_wrist': (19.752, -26.915),
+    })
+    human.KeyJoints(44.8, {
+        'right_shoulder': (57.699, -1.352, -6.754), 'right_elbow': (30.743, 35.14),
+        'right_wrist': (8.639, -15.776),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(42.7, {
+    human.KeyJoints(44.9, {
         'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
         'right_wrist': (-0.386, -16.389),
     })
-    human.KeyJoints(42.8, {
+    human.KeyJoints(45.0, {
         'right_shoulder': (56.981, 1.536, 4.814), 'right_elbow': (33.57, 32.697),
         'right_wrist': (-0.435, -21.662),
     })
-    human.KeyJoints(42.9, {
+    human.KeyJoints(45.1, {
         'right_shoulder': (55.731, 3.742, 2.352), 'right_elbow': (49.423, 76.101),
         'right_wrist': (9.166, -30.0),
     })
-    human.KeyJoints(43.0, {
-        'right_shoulder': (59.815, 7.376, 9.502), 'right_elbow': (53.039, 80.0),
-        'right_wrist': (27.614, -30.0),
+    human.KeyJoints(45.2, {
+        'right_shoulder': (59.798, 7.375, 9.5), 'right_elbow': (53.032, 80.0),
+        'right_wrist': (27.521, -30.0),
     })
-    human.KeyJoints(43.1, {
-        'right_shoulder': (49.433, -6.513, -14.714), 'right_elbow': (56.177, 60.243),
-        'right_wrist': (20.046, -27.192),
+    human.KeyJoints(45.3, {
+        'right_shoulder': (50.353, -2.879, -7.914), 'right_elbow': (64.138, 78.241),
+        'right_wrist': (28.782, -30.0),
     })
-    human.KeyJoints(43.2, {
-        'right_shoulder': (58.933, 1.589, 6.704), 'right_elbow': (27.852, 22.657),
-        'right_wrist': (1.928, -15.966),
+    human.KeyJoints(45.4, {
+        'right_shoulder': (54.71, -4.03, -13.283), 'right_elbow': (38.658, 43.499),
+        'right_wrist': (12.782, -18.521),
+    })
+    human.KeyJoints(45.5, {
+        'right_shoulder': (58.99, 2.118, 9.675), 'right_elbow': (27.75, 19.96),
+        'right_wrist': (0.466, -16.222),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(43.3, {
-        'right_shoulder': (58.812, 2.265, 10.501), 'right_elbow': (28.219, 19.868),
-        'right_wrist': (-0.409, -16.814),
+    human.KeyJoints(45.6, {
+        'right_shoulder': (58.805, 2.26, 10.472), 'right_elbow': (28.234, 19.914),
+        'right_wrist': (-0.41, -16.827),
     })
-    human.KeyJoints(43.4, {
+    human.KeyJoints(45.7, {
         'right_shoulder': (54.984, 2.094, 1.436), 'right_elbow': (44.062, 58.532),
         'right_wrist': (2.58, -29.887),
     })
-    human.KeyJoints(43.5, {
-        'right_shoulder': (58.868, 7.229, 9.185), 'right_elbow': (52.635, 80.0),
-        'right_wrist': (22.576, -30.0),
+    human.KeyJoints(45.8, {
+        'right_shoulder': (58.727, 7.193, 9.11), 'right_elbow': (52.567, 80.0),
+        'right_wrist': (21.846, -30.0),
     })
-    human.KeyJoints(43.6, {
-        'right_shoulder': (52.641, 0.355, -3.207), 'right_elbow': (63.28, 79.836),
-        'right_wrist': (33.117, -30.0),
+    human.KeyJoints(45.9, {
+        'right_shoulder': (59.517, 6.99, 8.607), 'right_elbow': (54.166, 80.0),
+        'right_wrist': (30.254, -30.0),
     })
-    human.KeyJoints(43.7, {
-        'right_shoulder': (57.316, -1.794, -8.191), 'right_elbow': (31.729, 36.636),
-        'right_wrist': (9.419, -15.957),
+    human.KeyJoints(46.0, {
+        'right_shoulder': (51.556, -1.013, -5.228), 'right_elbow': (63.47, 79.278),
+        'right_wrist': (32.133, -30.0),
+    })
+    human.KeyJoints(46.1, {
+        'right_shoulder': (50.349, -6.385, -15.302), 'right_elbow': (52.251, 55.77),
+        'right_wrist': (18.121, -25.163),
+    })
+    human.KeyJoints(46.2, {
+        'right_shoulder': (58.293, -0.543, -3.587), 'right_elbow': (29.237, 32.227),
+        'right_wrist': (7.075, -15.539),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(43.8, {
+    human.KeyJoints(46.3, {
         'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
         'right_wrist': (-0.386, -16.389),
     })
-    human.KeyJoints(43.9, {
+    human.KeyJoints(46.4, {
         'right_shoulder': (56.277, 1.774, 4.285), 'right_elbow': (36.306, 37.381),
         'right_wrist': (-0.192, -24.35),
     })
-    human.KeyJoints(44.0, {
-        'right_shoulder': (56.396, 4.947, 4.562), 'right_elbow': (50.625, 78.463),
-        'right_wrist': (12.0, -30.0),
+    human.KeyJoints(46.5, {
+        'right_shoulder': (56.396, 4.947, 4.561), 'right_elbow': (50.624, 78.462),
+        'right_wrist': (11.999, -30.0),
     })
-    human.KeyJoints(44.1, {
-        'right_shoulder': (59.804, 7.062, 8.77), 'right_elbow': (53.544, 80.0),
-        'right_wrist': (29.544, -30.0),
+    human.KeyJoints(46.6, {
+        'right_shoulder': (59.815, 7.366, 9.479), 'right_elbow': (53.052, 80.0),
+        'right_wrist': (27.685, -30.0),
     })
-    human.KeyJoints(44.2, {
-        'right_shoulder': (51.22, -6.191, -15.545), 'right_elbow': (49.312, 52.82),
-        'right_wrist': (16.865, -23.64),
+    human.KeyJoints(46.7, {
+        'right_shoulder': (49.271, -4.333, -10.019), 'right_elbow': (63.212, 73.876),
+        'right_wrist': (26.607, -30.0),
     })
-    human.KeyJoints(44.3, {
-        'right_shoulder': (59.007, 2.325, 10.86), 'right_elbow': (27.72, 18.888),
-        'right_wrist': (-0.116, -16.336),
+    human.KeyJoints(46.8, {
+        'right_shoulder': (55.993, -3.07, -11.409), 'right_elbow': (35.191, 40.681),
+        'right_wrist': (11.44, -16.941),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(44.4, {
-        'right_shoulder': (58.388, 1.948, 8.581), 'right_elbow': (29.311, 23.005),
-        'right_wrist': (-0.446, -17.752),
+    human.KeyJoints(46.9, {
+        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
+        'right_wrist': (-0.386, -16.389),
     })
-    human.KeyJoints(44.5, {
+    human.KeyJoints(47.0, {
+        'right_shoulder': (58.386, 1.947, 8.57), 'right_elbow': (29.318, 23.024),
+        'right_wrist': (-0.446, -17.758),
+    })
+    human.KeyJoints(47.1, {
         'right_shoulder': (54.994, 2.148, 0.449), 'right_elbow': (46.08, 66.231),
         'right_wrist': (4.378, -30.0),
     })
-    human.KeyJoints(44.6, {
-        'right_shoulder': (59.477, 7.344, 9.431), 'right_elbow': (52.901, 80.0),
-        'right_wrist': (25.805, -30.0),
+    human.KeyJoints(47.2, {
+        'right_shoulder': (59.307, 7.318, 9.375), 'right_elbow': (52.83, 80.0),
+        'right_wrist': (24.887, -30.0),
     })
-    human.KeyJoints(44.7, {
-        'right_shoulder': (49.86, -3.648, -9.007), 'right_elbow': (64.062, 77.524),
-        'right_wrist': (27.664, -30.0),
+    human.KeyJoints(47.3, {
+        'right_shoulder': (56.627, 4.973, 4.525), 'right_elbow': (59.066, 80.0),
+        'right_wrist': (33.121, -30.0),
     })
-    human.KeyJoints(44.8, {
-        'right_shoulder': (56.522, -1.425, -4.193), 'right_elbow': (33.612, 32.569),
-        'right_wrist': (6.645, -20.252),
+    human.KeyJoints(47.4, {
+        'right_shoulder': (49.697, -7.167, -15.081), 'right_elbow': (53.466, 54.491),
+        'right_wrist': (17.137, -28.409),
+    })
+    human.KeyJoints(47.5, {
+        'right_shoulder': (56.904, -0.188, 0.517), 'right_elbow': (32.673, 28.03),
+        'right_wrist': (4.194, -20.331),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=44.847203, duration=0.072)
-    human.KeyJoints(44.9, {
+    human.Grasp('right_hand', 'open', start=47.540833, duration=0.077668)
+    human.KeyJoints(47.6, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
         'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.293772)
-    human.KeyJoints(45.0, {'neck': (23.902, -1.671, -10.227)})
-    human.KeyJoints(45.1, {'neck': (23.194, -3.393, -23.864)})
+    human.LookAt((0.0, 120.0, 110.0), start=47.618501, duration=0.294473)
+    human.KeyJoints(47.7, {'neck': (23.899, -1.678, -10.285)})
+    human.KeyJoints(47.8, {'neck': (23.192, -3.398, -23.9)})
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
-    human.KeyJoints(45.2, {
-        'neck': (22.721, -4.546, -32.985), 'head': (7.255, -0.233),
+    human.KeyJoints(47.9, {
+        'neck': (22.72, -4.546, -32.986), 'head': (7.255, -0.233),
         'right_shoulder': (57.194, 2.091, 10.928), 'right_elbow': (32.004, 18.341),
         'right_wrist': (-1.082, -21.15), 'left_shoulder': (8.602, 5.726, 11.46),
         'left_elbow': (34.376, 17.189), 'left_wrist': (0.0, -0.001),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=45.212974, duration=0.836663)
-    human.KeyJoints(45.3, {
+    human.LookAt((0.0, 120.0, 110.0), start=47.912974, duration=0.836663)
+    human.KeyJoints(48.0, {
         'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.497, 2.761, 10.533),
         'right_elbow': (33.533, 18.51), 'right_wrist': (-1.473, -21.079),
         'left_shoulder': (10.378, 4.889, 11.549), 'left_elbow': (34.02, 17.212),
         'left_wrist': (0.037, -0.15),
     })
-    human.KeyJoints(45.4, {
+    human.KeyJoints(48.1, {
         'right_shoulder': (53.622, 5.532, 8.896), 'right_elbow': (39.832, 19.207),
         'right_wrist': (-3.085, -20.785), 'left_shoulder': (17.703, 1.428, 11.919),
         'left_elbow': (32.555, 17.309), 'left_wrist': (0.187, -0.766),
     })
-    human.KeyJoints(45.5, {
+    human.KeyJoints(48.2, {
         'right_shoulder': (48.477, 10.579, 5.887), 'right_elbow': (51.105, 20.453),
         'right_wrist': (-5.975, -20.259), 'left_shoulder': (30.916, -4.877, 12.595),
         'left_elbow': (29.934, 17.483), 'left_wrist': (0.462, -1.868),
     })
-    human.KeyJoints(45.6, {
+    human.KeyJoints(48.3, {
         'right_shoulder': (42.046, 17.173, 1.871), 'right_elbow': (65.193, 22.011),
         'left_shoulder': (47.76, -13.113, 13.483),
     })
-    human.KeyJoints(45.7, {
+    human.KeyJoints(48.4, {
         'spine_lumbar': (7.14, -13.863, 9.577), 'spine_thoracic': (-8.443, -4.438, 9.144),
         'right_clavicle': (2.723, 7.898), 'right_shoulder': (35.801, 24.236, -2.616),
         'right_elbow': (78.883, 23.525), 'right_wrist': (-13.195, -18.965),
         'left_clavicle': (-0.004, 0.013), 'left_shoulder': (64.892, -21.93, 14.444),
         'left_elbow': (23.475, 17.91), 'left_wrist': (1.219, -4.584),
     })
-    human.KeyJoints(45.8, {
+    human.KeyJoints(48.5, {
         'spine_lumbar': (7.856, -13.456, 9.337), 'spine_thoracic': (-8.868, -4.521, 8.883),
         'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
         'right_clavicle': (3.037, 7.956), 'right_shoulder': (31.776, 30.56, -6.969),
@@ -2603,7 +2711,7 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
-    human.KeyJoints(45.9, {
+    human.KeyJoints(48.6, {
         'spine_lumbar': (13.473, -12.038, 8.285), 'spine_thoracic': (-12.363, -5.628, 7.722),
         'neck': (21.905, -4.498, -30.481), 'head': (6.816, -0.392),
         'right_clavicle': (5.483, 8.997), 'right_shoulder': (32.99, 34.377, -9.496),
@@ -2611,7 +2719,7 @@ def remove_access_panel():
         'left_clavicle': (-1.55, 2.518), 'left_shoulder': (86.615, -30.594, 15.057),
         'left_elbow': (21.377, 18.137), 'left_wrist': (1.227, -5.55),
     })
-    human.KeyJoints(46.0, {
+    human.KeyJoints(48.7, {
         'spine_lumbar': (16.846, -11.471, 7.547), 'spine_thoracic': (-14.578, -6.367, 6.915),
         'neck': (21.788, -4.879, -32.272), 'head': (6.518, -0.369),
         'right_clavicle': (6.928, 9.696), 'right_shoulder': (34.432, 35.198, -9.838),
@@ -2620,11 +2728,11 @@ def remove_access_panel():
         'left_elbow': (21.607, 18.167), 'left_wrist': (0.91, -5.477),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=46.049638, duration=0.072)
+    human.Grasp('left_hand', 'close', start=48.749638, duration=0.072)
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=46.049638, duration=0.072)
-    human.KeyRoot(46.1, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(46.1, {
+    human.Grasp('right_hand', 'close', start=48.749638, duration=0.072)
+    human.KeyRoot(48.8, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(48.8, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.842, 24.897),
         'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
@@ -2632,317 +2740,317 @@ def remove_access_panel():
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
-    human.Walk((139.64, 0.0, 19.995), start=46.121638, duration=5.147368)
+    human.Walk((139.64, 0.0, 19.995), start=48.821638, duration=5.147368)
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: gaze on head
-    human.KeyRoot(46.2, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
-    human.KeyJoints(46.2, {
+    human.KeyRoot(48.9, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
+    human.KeyJoints(48.9, {
         'neck': (17.689, -4.165, -26.137), 'head': (5.153, -0.373),
         'right_hip': (6.489, -0.14, -0.543), 'right_knee': (12.434,), 'right_ankle': (5.949, -0.2),
         'left_hip': (7.338, 0.133, 0.546), 'left_knee': (13.892,), 'left_ankle': (6.214, 0.201),
     })
-    human.KeyRoot(46.3, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
-    human.KeyJoints(46.3, {
+    human.KeyRoot(49.0, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
+    human.KeyJoints(49.0, {
         'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167), 'right_clavicle': (6.997, 9.73),
         'left_clavicle': (-2.488, 4.0), 'right_hip': (7.244, -0.536, -2.481),
         'right_knee': (14.727,), 'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517),
         'left_knee': (18.046,), 'left_ankle': (7.602, 0.86),
     })
-    human.KeyRoot(46.4, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
-    human.KeyJoints(46.4, {
+    human.KeyRoot(49.1, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
+    human.KeyJoints(49.1, {
         'neck': (0.373, -0.107, -0.551), 'head': (0.132, -0.01),
         'right_hip': (6.792, -0.973, -5.207), 'right_knee': (14.607,),
         'right_ankle': (7.929, -1.574), 'left_hip': (17.261, 0.889, 2.279), 'left_knee': (34.508,),
         'left_ankle': (16.48, 1.57),
     })
-    human.KeyRoot(46.5, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
-    human.KeyJoints(46.5, {
+    human.KeyRoot(49.2, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
+    human.KeyJoints(49.2, {
         'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.574, -0.983, -8.152),
         'right_knee': (16.788,), 'right_ankle': (8.308, -2.031),
         'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,), 'left_ankle': (18.612, 1.906),
     })
-    human.KeyRoot(46.6, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
-    human.KeyJoints(46.6, {
+    human.KeyRoot(49.3, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
+    human.KeyJoints(49.3, {
         'right_hip': (10.776, 0.118, -10.871), 'right_knee': (23.265,),
         'right_ankle': (8.928, -1.905), 'left_hip': (17.612, 6.374, -13.747), 'left_knee': (39.28,),
         'left_ankle': (18.667, 1.718),
     })
-    human.KeyRoot(46.7, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
-    human.KeyJoints(46.7, {
+    human.KeyRoot(49.4, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
+    human.KeyJoints(49.4, {
         'right_hip': (14.819, 2.323, -13.55), 'right_knee': (30.44,),
         'right_ankle': (8.733, -1.254), 'left_hip': (9.822, 4.58, -20.258), 'left_knee': (22.313,),
         'left_ankle': (11.528, 0.768),
     })
-    human.KeyRoot(46.8, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
-    human.KeyJoints(46.8, {
+    human.KeyRoot(49.5, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
+    human.KeyJoints(49.5, {
         'right_hip': (17.092, 4.803, -16.459), 'right_knee': (35.07,),
         'right_ankle': (8.192, -0.379), 'left_hip': (7.33, 2.058, -18.248), 'left_knee': (14.684,),
         'left_ankle': (7.073, -0.351),
     })
-    human.KeyRoot(46.9, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
-    human.KeyJoints(46.9, {
+    human.KeyRoot(49.6, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
+    human.KeyJoints(49.6, {
         'right_hip': (18.001, 7.349, -19.807), 'right_knee': (39.588,),
         'right_ankle': (10.474, 0.616), 'left_hip': (7.642, 0.733, -13.767), 'left_knee': (14.547,),
     })
-    human.KeyRoot(47.0, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
-    human.KeyJoints(47.0, {
+    human.KeyRoot(49.7, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
+    human.KeyJoints(49.7, {
         'right_hip': (21.346, 7.516, -15.399), 'right_knee': (46.826,),
         'right_ankle': (17.903, 1.218), 'left_hip': (7.639, -0.8, -8.101), 'left_knee': (14.267,),
         'left_ankle': (6.81, -1.859),
     })
-    human.KeyRoot(47.1, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
-    human.KeyJoints(47.1, {
+    human.KeyRoot(49.8, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
+    human.KeyJoints(49.8, {
         'right_hip': (22.646, 3.037, -3.768), 'right_knee': (46.842,),
         'right_ankle': (19.244, 1.317), 'left_hip': (7.655, -2.088, -2.163), 'left_knee': (14.453,),
         'left_ankle': (6.744, -2.356),
     })
-    human.KeyRoot(47.2, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
-    human.KeyJoints(47.2, {
+    human.KeyRoot(49.9, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
+    human.KeyJoints(49.9, {
         'right_hip': (20.506, -2.37, 10.068), 'right_knee': (41.509,),
         'right_ankle': (19.205, 1.252), 'left_hip': (9.59, -2.893, 3.287), 'left_knee': (19.075,),
         'left_ankle': (7.368, -2.301),
     })
-    human.KeyRoot(47.3, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
-    human.KeyJoints(47.3, {
+    human.KeyRoot(50.0, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
+    human.KeyJoints(50.0, {
         'right_hip': (13.202, -4.131, 20.257), 'right_ankle': (14.467, 0.456),
         'left_hip': (12.291, -3.568, 8.716), 'left_knee': (26.537,), 'left_ankle': (8.903, -1.595),
     })
-    human.KeyRoot(47.4, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
-    human.KeyJoints(47.4, {
+    human.KeyRoot(50.1, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
+    human.KeyJoints(50.1, {
         'neck': (0.0, 0.0, 0.0), 'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
         'right_ankle': (8.118, -0.774), 'left_hip': (14.717, -4.667, 14.198),
         'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
     })
-    human.KeyRoot(47.5, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
-    human.KeyJoints(47.5, {
+    human.KeyRoot(50.2, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
+    human.KeyJoints(50.2, {
         'right_hip': (5.405, -2.734, 14.597), 'right_ankle': (8.627, -1.273),
         'left_hip': (16.025, -6.263, 19.637), 'left_knee': (35.272,), 'left_ankle': (8.858, -0.347),
     })
-    human.KeyRoot(47.6, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
-    human.KeyJoints(47.6, {
+    human.KeyRoot(50.3, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
+    human.KeyJoints(50.3, {
         'right_hip': (5.53, -2.614, 8.969), 'right_knee': (14.358,), 'right_ankle': (8.487, -1.709),
         'left_hip': (20.827, -7.322, 18.991), 'left_knee': (44.671,), 'left_ankle': (15.335, 0.192),
     })
-    human.KeyRoot(47.7, (1.103, 72.487, 63.867), (67.26, 0.0, 0.0))
-    human.KeyJoints(47.7, {
+    human.KeyRoot(50.4, (1.103, 72.487, 63.867), (67.26, 0.0, 0.0))
+    human.KeyJoints(50.4, {
         'right_hip': (5.957, -2.518, 3.333), 'right_knee': (14.176,),
         'right_ankle': (8.079, -2.155), 'left_hip': (22.386, -3.221, 8.91), 'left_knee': (47.052,),
         'left_ankle': (19.173, 0.476),
     })
-    human.KeyRoot(47.8, (0.002, 72.551, 63.769), (72.936, 0.0, 0.0))
-    human.KeyJoints(47.8, {
+    human.KeyRoot(50.5, (0.002, 72.551, 63.769), (72.936, 0.0, 0.0))
+    human.KeyJoints(50.5, {
         'right_hip': (7.144, -2.118, -2.408), 'right_knee': (15.599,),
         'right_ankle': (7.916, -2.399), 'left_hip': (20.072, 2.892, -4.796), 'left_knee': (43.769,),
         'left_ankle': (19.146, 1.115),
     })
-    human.KeyRoot(47.9, (-1.29, 72.592, 62.698), (79.094, 0.0, 0.0))
-    human.KeyJoints(47.9, {
+    human.KeyRoot(50.6, (-1.29, 72.592, 62.698), (79.094, 0.0, 0.0))
+    human.KeyJoints(50.6, {
         'right_hip': (10.054, -0.361, -8.514), 'right_ankle': (8.058, -1.839),
         'left_hip': (14.609, 5.693, -16.716), 'left_knee': (33.636,), 'left_ankle': (18.496, 1.179),
     })
-    human.KeyRoot(48.0, (-2.415, 72.545, 61.186), (84.915, 0.0, 0.0))
-    human.KeyJoints(48.0, {
+    human.KeyRoot(50.7, (-2.415, 72.545, 61.186), (84.915, 0.0, 0.0))
+    human.KeyJoints(50.7, {
         'right_hip': (12.67, 2.368, -13.957), 'right_knee': (24.565,),
         'right_ankle': (8.035, -0.791), 'left_hip': (7.298, 2.987, -20.992), 'left_knee': (16.089,),
         'left_ankle': (8.219, 0.189),
     })
-    human.KeyRoot(48.1, (-2.759, 72.487, 60.108), (89.284, 0.0, 0.0))
-    human.KeyJoints(48.1, {
+    human.KeyRoot(50.8, (-2.759, 72.487, 60.108), (89.284, 0.0, 0.0))
+    human.KeyJoints(50.8, {
         'right_hip': (13.594, 4.636, -17.865), 'right_knee': (27.294,),
         'right_ankle': (8.214, 0.154), 'left_hip': (7.668, 1.36, -16.942), 'left_knee': (14.683,),
         'left_ankle': (6.955, -0.938),
     })
-    human.KeyRoot(48.2, (-2.413, 72.487, 59.306), (92.351, 0.0, 0.0))
-    human.KeyJoints(48.2, {
+    human.KeyRoot(50.9, (-2.413, 72.487, 59.306), (92.351, 0.0, 0.0))
+    human.KeyJoints(50.9, {
         'right_hip': (16.985, 7.166, -18.852), 'right_knee': (36.377,),
         'right_ankle': (13.606, 1.037), 'left_hip': (7.673, 0.244, -13.991),
         'left_ankle': (6.954, -1.615),
     })
-    human.KeyRoot(48.3, (-1.774, 72.487, 58.66), (94.912, 0.0, 0.0))
-    human.KeyJoints(48.3, {
+    human.KeyRoot(51.0, (-1.774, 72.487, 58.66), (94.912, 0.0, 0.0))
+    human.KeyJoints(51.0, {
         'right_hip': (20.652, 7.363, -14.073), 'right_knee': (43.969,),
         'right_ankle': (19.0, 1.726), 'left_hip': (7.312, -0.626, -11.517), 'left_knee': (14.284,),
         'left_ankle': (7.241, -2.062),
     })
-    human.KeyRoot(48.4, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
-    human.KeyJoints(48.4, {
+    human.KeyRoot(51.1, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
+    human.KeyJoints(51.1, {
         'right_hip': (21.343, 4.937, -7.0), 'right_knee': (44.211,), 'right_ankle': (19.0, 1.998),
         'left_hip': (10.883, -0.489, -9.084), 'left_knee': (22.025,), 'left_ankle': (8.41, -2.185),
     })
-    human.KeyRoot(48.5, (-0.475, 72.709, 58.957), (100.982, 0.0, 0.0))
-    human.KeyJoints(48.5, {
+    human.KeyRoot(51.2, (-0.475, 72.709, 58.957), (100.982, 0.0, 0.0))
+    human.KeyJoints(51.2, {
         'right_hip': (18.203, 2.104, -1.428), 'right_knee': (37.03,),
         'right_ankle': (18.772, 1.536), 'left_hip': (21.645, 0.507, -5.964), 'left_knee': (41.658,),
         'left_ankle': (5.057, -1.788),
     })
-    human.KeyRoot(48.6, (0.245, 72.607, 59.932), (104.444, 0.0, 0.0))
-    human.KeyJoints(48.6, {
+    human.KeyRoot(51.3, (0.245, 72.607, 59.932), (104.444, 0.0, 0.0))
+    human.KeyJoints(51.3, {
         'right_hip': (10.489, 0.475, 1.046), 'right_knee': (21.215,),
         'right_ankle': (10.735, 0.652), 'left_hip': (31.616, 0.521, -2.349), 'left_knee': (56.025,),
         'left_ankle': (-6.238, -0.915),
     })
-    human.KeyRoot(48.7, (1.257, 72.466, 60.529), (106.23, 0.0, 0.0))
-    human.KeyJoints(48.7, {
+    human.KeyRoot(51.4, (1.257, 72.466, 60.529), (106.23, 0.0, 0.0))
+    human.KeyJoints(51.4, {
         'right_hip': (6.762, -0.073, 0.043), 'right_knee': (15.114,),
         'right_ankle': (8.352, -0.071), 'left_hip': (37.764, 0.033, 0.115), 'left_knee': (62.937,),
         'left_ankle': (-18.356, 0.133),
     })
-    human.KeyRoot(48.8, (3.183, 72.224, 60.461), (106.251, 0.0, 0.0))
-    human.KeyJoints(48.8, {
+    human.KeyRoot(51.5, (3.183, 72.224, 60.461), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.5, {
         'right_hip': (6.289, -0.476, -0.033), 'right_knee': (17.521,),
         'right_ankle': (11.232, -0.479), 'left_hip': (39.479, 0.063, 0.982), 'left_knee': (67.326,),
         'left_ankle': (-19.173, 0.984),
     })
-    human.KeyRoot(48.9, (6.446, 71.983, 60.209), (106.251, 0.0, 0.0))
-    human.KeyJoints(48.9, {
+    human.KeyRoot(51.6, (6.446, 71.983, 60.209), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.6, {
         'right_hip': (3.738, -1.06, -0.06), 'right_knee': (17.98,), 'right_ankle': (14.243, -1.062),
         'left_hip': (41.153, 0.456, 1.65), 'left_knee': (68.043,), 'left_ankle': (-6.665, 1.712),
     })
-    human.KeyRoot(49.0, (10.545, 71.982, 59.811), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.0, {
+    human.KeyRoot(51.7, (10.545, 71.982, 59.811), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.7, {
         'right_hip': (-2.492, -1.722, 0.072), 'right_knee': (12.116,),
         'right_ankle': (14.514, -1.724), 'left_hip': (38.651, 1.322, 1.651), 'left_knee': (54.096,),
         'left_ankle': (2.648, 2.115),
     })
-    human.KeyRoot(49.1, (15.254, 71.498, 59.084), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.1, {
+    human.KeyRoot(51.8, (15.254, 71.498, 59.084), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.8, {
         'right_hip': (6.854, -2.221, -0.796), 'right_knee': (38.675,),
         'right_ankle': (18.976, -2.36), 'left_hip': (33.592, 2.032, 1.353), 'left_knee': (34.152,),
         'left_ankle': (0.401, 2.441),
     })
-    human.KeyRoot(49.2, (22.01, 70.774, 56.676), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.2, {
+    human.KeyRoot(51.9, (22.01, 70.774, 56.676), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.9, {
         'right_hip': (6.532, -1.774, -1.07), 'right_knee': (49.055,),
         'right_ankle': (17.958, -2.072), 'left_hip': (29.704, 1.75, 0.992), 'left_knee': (22.857,),
         'left_ankle': (-6.78, 2.012),
     })
-    human.KeyRoot(49.3, (29.437, 70.469, 53.388), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.3, {
+    human.KeyRoot(52.0, (29.437, 70.469, 53.388), (106.251, 0.0, 0.0))
+    human.KeyJoints(52.0, {
         'right_hip': (6.323, -0.762, -0.885), 'right_knee': (57.992,),
         'right_ankle': (8.752, -1.168), 'left_hip': (21.758, 0.922, 0.366), 'left_knee': (11.746,),
         'left_ankle': (-9.969, 0.992),
     })
-    human.KeyRoot(49.4, (35.507, 70.609, 50.509), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.4, {
+    human.KeyRoot(52.1, (35.507, 70.609, 50.509), (106.251, 0.0, 0.0))
+    human.KeyJoints(52.1, {
         'right_hip': (3.747, -0.027, -0.048), 'right_knee': (58.809,),
         'right_ankle': (-1.574, -0.055), 'left_hip': (21.408, 0.039, 0.015), 'left_knee': (22.227,),
         'left_ankle': (0.82, 0.042),
     })
-    human.KeyRoot(49.5, (39.17, 71.193, 48.574), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.5, {
+    human.KeyRoot(52.2, (39.17, 71.193, 48.574), (106.251, 0.0, 0.0))
+    human.KeyJoints(52.2, {
         'right_hip': (0.888, 0.462, 0.77), 'right_knee': (56.572,), 'right_ankle': (-2.401, 0.898),
         'left_hip': (18.098, -0.653, -0.214), 'left_knee': (22.755,), 'left_ankle': (4.659, -0.687),
     })
-    human.KeyRoot(49.6, (41.983, 71.838, 46.888), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.6, {
+    human.KeyRoot(52.3, (41.983, 71.838, 46.888), (106.251, 0.0, 0.0))
+    human.KeyJoints(52.3, {
         'right_hip': (14.582, 1.105, 1.343), 'right_knee': (65.608,),
         'right_ankle': (15.104, 1.739), 'left_hip': (13.855, -1.361, -0.336),
         'left_knee': (19.689,), 'left_ankle': (5.838, -1.401),
     })
-    human.KeyRoot(49.7, (45.678, 71.766, 45.083), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.7, {
+    human.KeyRoot(52.4, (45.678, 71.766, 45.083), (106.251, 0.0, 0.0))
+    human.KeyJoints(52.4, {
         'right_hip': (29.19, 1.805, 1.394), 'right_knee': (56.405,), 'right_ankle': (18.776, 2.281),
         'left_hip': (13.268, -1.958, -0.516), 'left_knee': (25.542,),
         'left_ankle': (10.794, -2.024),
     })
-    human.KeyRoot(49.8, (53.776, 70.799, 42.586), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.8, {
+    human.KeyRoot(52.5, (53.776, 70.799, 42.586), (106.251, 0.0, 0.0))
+    human.KeyJoints(52.5, {
         'right_hip': (33.603, 1.905, 1.262), 'right_knee': (35.639,), 'right_ankle': (2.157, 2.285),
         'left_hip': (18.012, -1.955, -1.246), 'left_knee': (48.621,),
         'left_ankle': (16.122, -2.319),
     })
-    human.KeyRoot(49.9, (67.319, 69.967, 39.503), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.9, {
+    human.KeyRoot(52.6, (67.319, 69.967, 39.503), (106.251, 0.0, 0.0))
+    human.KeyJoints(52.6, {
         'right_hip': (26.231, 1.322, 0.65), 'right_knee': (13.474,),
         'right_ankle': (-12.669, 1.473), 'left_hip': (13.871, -1.133, -1.259),
         'left_knee': (61.386,), 'left_ankle': (13.373, -1.694),
     })
-    human.KeyRoot(50.0, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.0, {
+    human.KeyRoot(52.7, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
+    human.KeyJoints(52.7, {
         'right_hip': (23.767, 0.341, 0.15), 'right_knee': (22.404,), 'right_ankle': (-1.366, 0.372),
         'left_hip': (5.808, -0.251, -0.4), 'left_knee': (61.017,), 'left_ankle': (3.114, -0.472),
     })
-    human.KeyRoot(50.1, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
-    human.KeyJoints(50.1, {
+    human.KeyRoot(52.8, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
+    human.KeyJoints(52.8, {
         'right_hip': (20.181, -0.663, 0.369), 'right_knee': (25.443,),
         'right_ankle': (5.257, -0.495), 'left_hip': (0.124, 0.326, -0.01), 'left_knee': (55.518,),
         'left_ankle': (-4.589, 0.652),
     })
-    human.KeyRoot(50.2, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
-    human.KeyJoints(50.2, {
+    human.KeyRoot(52.9, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
+    human.KeyJoints(52.9, {
         'right_hip': (15.15, -1.863, 2.809), 'right_knee': (20.32,), 'right_ankle': (5.094, -1.062),
         'left_hip': (8.237, 0.608, -1.03), 'left_knee': (62.823,), 'left_ankle': (9.815, 0.64),
     })
-    human.KeyRoot(50.3, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
-    human.KeyJoints(50.3, {
+    human.KeyRoot(53.0, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
+    human.KeyJoints(53.0, {
         'right_hip': (11.704, -2.92, 6.095), 'right_knee': (18.592,),
         'right_ankle': (6.576, -1.609), 'left_hip': (25.054, 1.455, 0.084), 'left_knee': (61.198,),
         'left_ankle': (18.697, 1.419),
     })
-    human.KeyRoot(50.4, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
-    human.KeyJoints(50.4, {
+    human.KeyRoot(53.1, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
+    human.KeyJoints(53.1, {
         'right_hip': (14.952, -4.661, 8.262), 'right_knee': (36.278,),
         'right_ankle': (13.69, -2.346), 'left_hip': (31.106, 3.511, 3.137), 'left_knee': (39.039,),
         'left_ankle': (8.131, 4.625),
     })
-    human.KeyRoot(50.5, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
-    human.KeyJoints(50.5, {
+    human.KeyRoot(53.2, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
+    human.KeyJoints(53.2, {
         'right_hip': (8.977, -3.979, 11.559), 'right_knee': (48.418,),
         'right_ankle': (17.617, -2.206), 'left_hip': (25.884, 5.187, 4.242), 'left_knee': (18.632,),
         'left_ankle': (-6.893, 6.512),
     })
-    human.KeyRoot(50.6, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
-    human.KeyJoints(50.6, {
+    human.KeyRoot(53.3, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
+    human.KeyJoints(53.3, {
         'right_hip': (-1.989, -0.389, 14.938), 'right_knee': (46.499,),
         'right_ankle': (12.43, -1.097), 'left_hip': (18.158, 4.241, 2.107), 'left_knee': (12.294,),
         'left_ankle': (-5.698, 4.685),
     })
-    human.KeyRoot(50.7, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
-    human.KeyJoints(50.7, {
+    human.KeyRoot(53.4, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.4, {
         'right_hip': (-3.021, 1.287, 16.574), 'right_knee': (47.765,),
         'right_ankle': (6.264, 0.522), 'left_hip': (18.451, 2.118, 0.707), 'left_knee': (20.036,),
         'left_ankle': (1.594, 2.233),
     })
-    human.KeyRoot(50.8, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
-    human.KeyJoints(50.8, {
+    human.KeyRoot(53.5, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.5, {
         'right_hip': (3.209, 1.296, 16.693), 'right_knee': (55.546,),
         'right_ankle': (16.122, 2.671), 'left_hip': (17.429, 0.768, 0.242), 'left_knee': (17.289,),
         'left_ankle': (-0.141, 0.805),
     })
-    human.KeyRoot(50.9, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
-    human.KeyJoints(50.9, {
+    human.KeyRoot(53.6, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.6, {
         'right_hip': (13.739, 1.169, 12.585), 'right_knee': (53.955,),
         'right_ankle': (19.401, 4.392), 'left_hip': (15.845, -0.046, -0.013),
         'left_knee': (13.319,), 'left_ankle': (-2.527, -0.048),
     })
-    human.KeyRoot(51.0, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.0, {
+    human.KeyRoot(53.7, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.7, {
         'right_hip': (20.782, 0.932, 5.608), 'right_knee': (44.214,), 'right_ankle': (19.341, 2.9),
         'left_hip': (14.336, -0.116, -0.03), 'left_knee': (11.771,), 'left_ankle': (-2.565, -0.12),
     })
-    human.KeyRoot(51.1, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.1, {
+    human.KeyRoot(53.8, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.8, {
         'right_hip': (17.179, 0.212, 0.72), 'right_knee': (27.283,), 'right_ankle': (10.247, 0.462),
         'left_hip': (13.614, -0.066, -0.016), 'left_knee': (17.522,), 'left_ankle': (3.908, -0.068),
     })
-    human.KeyRoot(51.2, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.2, {
+    human.KeyRoot(53.9, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.9, {
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.194, 0.015, 0.003),
         'right_knee': (15.81,), 'right_ankle': (6.623, 0.015), 'left_hip': (9.162, -0.015, -0.002),
         'left_knee': (15.741,), 'left_ankle': (6.58, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.269006, duration=0.32772)
-    human.KeyRoot(51.3, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.3, {
+    human.LookAt((160.0, 90.0, 20.0), start=53.969006, duration=0.32772)
+    human.KeyRoot(54.0, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(54.0, {
         'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (3.129, 0.0, 0.0),
         'right_knee': (5.141,), 'right_ankle': (2.014, 0.0), 'left_hip': (3.112, 0.0, 0.0),
         'left_knee': (5.105,), 'left_ankle': (1.995, 0.0),
     })
-    human.KeyJoints(51.4, {
+    human.KeyJoints(54.1, {
         'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955), 'right_knee': (5.094,),
         'left_knee': (5.072,),
     })
-    human.KeyJoints(51.5, {
+    human.KeyJoints(54.2, {
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
         'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
@@ -2953,8 +3061,8 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.596726, duration=0.633339)
-    human.KeyJoints(51.6, {
+    human.LookAt((160.0, 90.0, 20.0), start=54.296726, duration=0.633339)
+    human.KeyJoints(54.3, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
         'right_shoulder': (33.692, 34.902, -9.74), 'right_elbow': (91.115, 24.925),
         'right_wrist': (-16.614, -18.204), 'left_shoulder': (88.6, -29.03, 15.106),
@@ -2962,48 +3070,48 @@ def remove_access_panel():
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
-    human.KeyJoints(51.7, {
+    human.KeyJoints(54.4, {
         'right_shoulder': (25.909, 31.505, -8.385), 'right_elbow': (94.369, 25.221),
         'right_wrist': (-17.196, -17.367), 'left_shoulder': (78.922, -27.241, 20.037),
         'left_elbow': (32.276, 16.08), 'left_wrist': (-9.695, -4.236),
     })
-    human.KeyJoints(51.8, {
+    human.KeyJoints(54.5, {
         'right_shoulder': (9.021, 24.261, -5.533), 'right_elbow': (101.189, 25.835),
         'right_wrist': (-18.49, -15.664), 'left_shoulder': (58.206, -22.964, 30.249),
         'left_elbow': (53.235, 12.113), 'left_wrist': (-29.907, -1.8),
     })
-    human.KeyJoints(51.9, {
+    human.KeyJoints(54.6, {
         'right_shoulder': (-12.018, 15.258, -1.675), 'right_elbow': (108.567, 26.509),
         'right_wrist': (-20.037, -13.897), 'left_shoulder': (32.759, -16.11, 41.199),
         'left_elbow': (76.674, 7.75), 'left_wrist': (-52.311, 0.978),
     })
-    human.KeyJoints(52.0, {
+    human.KeyJoints(54.7, {
         'right_shoulder': (-29.51, 6.496, 4.397), 'right_elbow': (112.31, 26.827),
         'right_wrist': (-20.578, -12.841), 'left_shoulder': (9.433, -6.64, 47.496),
         'left_elbow': (93.191, 5.45), 'left_wrist': (-66.303, 3.262),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
-    human.KeyJoints(52.1, {
+    human.KeyJoints(54.8, {
         'right_shoulder': (-37.978, 0.342, 11.771), 'right_elbow': (111.263, 26.64),
         'right_wrist': (-19.459, -12.569), 'left_shoulder': (0.142, 8.676, 56.082),
         'left_elbow': (103.304, 5.938), 'left_wrist': (-70.0, 4.786),
     })
-    human.KeyJoints(52.2, {
+    human.KeyJoints(54.9, {
         'right_shoulder': (-40.21, -1.562, 14.423), 'right_elbow': (110.518, 26.535),
         'right_wrist': (-18.926, -12.529), 'left_shoulder': (-1.588, 14.491, 59.19),
         'left_elbow': (105.869, 8.174), 'left_wrist': (-69.983, 7.316),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=52.230065, duration=0.072)
+    human.Grasp('left_hand', 'open', start=54.930065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=52.230065, duration=0.072)
-    human.KeyJoints(52.3, {
+    human.Grasp('right_hand', 'open', start=54.930065, duration=0.072)
+    human.KeyJoints(55.0, {
         'left_shoulder': (-0.996, 15.195, 59.982), 'left_elbow': (105.536, 8.908),
         'left_wrist': (-70.0, 7.97),
     })
-    human.KeyRoot(52.302065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.302065, {
+    human.KeyRoot(55.002065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(55.002065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),

@@ -15,6 +15,7 @@ from mtlc.passes import (
     approach,
     balance,
     carry,
+    carry_pose,
     clearance,
     contact,
     gaze,
@@ -49,6 +50,7 @@ MOTION_PASSES: list[tuple[str, MotionPass]] = [
     ("pace", pace.run),  # each reach re-timed as one minimum-jerk movement (Flash & Hogan 1985)
     ("interpolate", interpolate.run),  # 5. interpolation with base-coordinate correction
     ("hold", hold.run),  # a hand on a site stays there while the body moves (verify: MT0511)
+    ("carry_pose", carry_pose.run),  # a part carried in both hands on a walk: near the body
     ("balance", balance.run),  # 6. centre of mass over the support polygon
     ("smooth", smooth.run),  # 7. blend offsets at segment boundaries
     ("carry", carry.run),  # a part in both hands is rigid: its pose drives both (MT0511)

@@ -116,7 +116,8 @@ def carry_walk(skel: Skeleton, frames: Frames, start: float, end: float, ground:
     if 2.0 * length > end - start:
         return False
     w = ramp(t[rows], start, end, length)
-    frames.q[rows] = skel.clip(frames.q[rows] + w[:, None] * delta)
+    on = rows[w > 0.0]  # the walk's ends stay as they were, to the bit
+    frames.q[on] = skel.clip(frames.q[on] + w[w > 0.0, None] * delta)
     return True
 
 

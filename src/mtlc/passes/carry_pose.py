@@ -17,7 +17,11 @@ Its arm angles (shoulders, elbows, wrists; not the forearm's twist) are solved o
 walk's first frame, and the difference is blended in from the walk's start and out before its
 end by a minimum-jerk ramp at most ``ARM_SPEED`` fast: the walk ends with the arms where the
 reach after it was solved from (the place starts from there). A walk too short for both ramps,
-or whose part is already near that pose, is left as it was.
+whose part is already near that pose, or whose way there or back would take a forearm or hand
+within ``KEEP_OUT`` of the trunk's or a thigh's clearance (the joint-space blend from overhead
+to the waist passed 0.8 mm from it, and the rigid part's re-solve then took the hand 64 mm
+into the trunk, MT0514, avionics unit, female P99; the held hand's pose is kept, so clearance
+cannot take it out), is left as it was.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ import numpy as np
 from mtlc.body import forward, site_positions
 from mtlc.body.capsules import body_capsules
 from mtlc.body.ik import Goal, solve_ta
+from mtlc.body.ik.clearance import penetrations
 from mtlc.body.kinematics import quat_to_matrix
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, Frames, MotionIR
@@ -39,13 +44,22 @@ from mtlc.passes.profile import minimum_jerk
 
 HANDS = ("r_hand", "l_hand")
 SOLES = ("r_heel", "r_toe", "l_heel", "l_toe")
+SIDES = ("r", "l")
+# m: how far into the body's clearance (5 mm outside the capsules) the carry may take a forearm
+# or hand, deeper than it was: the clearance pass swings the elbow out of that much (the
+# access panel's left forearm, 20 mm), a held hand's pose kept
+KEEP_OUT = -0.025
 HOLD_AHEAD = (
     0.15  # m the hands' mid-point is in front of the trunk: the middle of a part 30 cm deep
 )
 ARM_SPEED = math.radians(150.0)  # rad/s: the ramps' mean joint speed at most (their peak 280)
 PEAK = 1.875  # a minimum-jerk ramp's peak speed over its mean
 MIN_RAMP = 0.6  # s: the shortest ramp in or out
+TRIES = 4  # carry poses tried, each RAISE higher and AWAY further out than the one before
+RAISE = 0.05  # m
+AWAY = 0.03  # m
 NEAR = 0.08  # m: a part whose hands are this close to the carry pose already stays
+PATH_TOL = 0.03  # m: the hands on their way to the carry pose and back within this of their path
 SOLVE_TOL = 2e-3  # m: the carry pose's hands within this of their targets, or no carry pose
 RESTARTS = (
     4  # random restarts where the descent from the walk's first pose stalls (male P5: 33 mm short)
@@ -90,35 +104,89 @@ def ramp(t: FloatArray, start: float, end: float, length: float) -> FloatArray:
 
 def carry_walk(skel: Skeleton, frames: Frames, start: float, end: float, ground: float) -> bool:
     """Lead the arms to the carry pose and back over one walk's frames, in place. Whether it
-    did (not: too short, already near, or the pose out of the arms' reach)."""
+    did (not: too short, already near, or no carry pose within ``TRIES`` that the arms reach
+    and keep clear of the body on the way)."""
     t = frames.time
     rows = np.flatnonzero((t >= start - EPS) & (t <= end + EPS))
     if rows.size < 3:
         return False
     i = rows[0]
     q0, root, rot = frames.q[i], frames.root_position[i], frames.root_rotation[i]
-    targets = carry_targets(skel, q0, root, rot, ground)
     pose = forward(skel, q0[None], root[None], rot[None], with_axes=False)
     hands = np.asarray(site_positions(skel, pose, list(HANDS)))[0]
-    if float(np.linalg.norm(hands - targets, axis=1).max()) <= NEAR:
-        return False
+    base = carry_targets(skel, q0, root, rot, ground)
+    ahead = quat_to_matrix(rot) @ np.array([0.0, 0.0, 1.0])
+    ahead[1] = 0.0
+    ahead /= max(float(np.linalg.norm(ahead)), EPS)
+    for k in range(TRIES):  # higher and further out each time: clear of the hips and thighs
+        targets = base + k * (RAISE * np.array([0.0, 1.0, 0.0]) + AWAY * ahead)
+        if float(np.linalg.norm(hands - targets, axis=1).max()) <= NEAR:
+            return False
+        moved = _carried(skel, frames, rows, start, end, (root, rot), hands, targets)
+        if moved is not None:
+            on, q = moved
+            frames.q[on] = q
+            return True
+    return False
+
+
+def _carried(
+    skel: Skeleton, frames: Frames, rows: np.ndarray, start: float, end: float,
+    start_root: tuple[FloatArray, FloatArray], hands: FloatArray, targets: FloatArray,
+) -> tuple[np.ndarray, FloatArray] | None:  # fmt: skip
+    """The walk's frames that the carry to ``targets`` and back changes, and their poses; None
+    where the arms do not reach it, the walk is too short for the ramps, or the way there or
+    back takes a forearm or hand into the body's clearance."""
+    q0 = frames.q[rows[0]]
     # positions only: a hand turned to hold the part overhead cannot keep that turn at the
     # waist (1.3 rad short); the part's axis is the line between the hands (``carry``)
     goals = [Goal(h, position=targets[k]) for k, h in enumerate(HANDS)]
     dofs = sorted({d for h in HANDS for d in _arm_dofs(skel, h)})
-    res = solve_ta(skel, goals, q0, dofs=dofs, root_position=root, root_rotation=rot,
-                   restarts=RESTARTS, tol=SOLVE_TOL)  # fmt: skip
+    res = solve_ta(skel, goals, q0, dofs=dofs, root_position=start_root[0],
+                   root_rotation=start_root[1], restarts=RESTARTS, tol=SOLVE_TOL)  # fmt: skip
     if not float(np.max(res.position_error)) <= SOLVE_TOL:
-        return False
+        return None
     delta = np.zeros_like(q0)
     delta[dofs] = res.q[0, dofs] - q0[dofs]
     length = max(MIN_RAMP, PEAK * float(np.abs(delta).max()) / ARM_SPEED)
     if 2.0 * length > end - start:
-        return False
-    w = ramp(t[rows], start, end, length)
-    on = rows[w > 0.0]  # the walk's ends stay as they were, to the bit
-    frames.q[on] = skel.clip(frames.q[on] + w[w > 0.0, None] * delta)
-    return True
+        return None
+    w = ramp(frames.time[rows], start, end, length)
+    on, w = rows[w > 0.0], w[w > 0.0]  # the walk's ends stay as they were, to the bit
+    moved = hands_on_their_path(skel, frames, on, w, start_root, hands, targets, delta, dofs)
+    if moved is None:
+        return None
+    root_on = (frames.root_position[on], frames.root_rotation[on])
+    before = penetrations(skel, frames.q[on], root_on, SIDES)
+    after = penetrations(skel, moved, root_on, SIDES)
+    if any((after[s] > np.maximum(before[s], -KEEP_OUT)).any() for s in SIDES):
+        return None  # the way there or back passes an arm by the body: a path planner's
+    return on, moved
+
+
+def hands_on_their_path(
+    skel: Skeleton, frames: Frames, rows: np.ndarray, w: FloatArray,
+    start_root: tuple[FloatArray, FloatArray], hands: FloatArray, targets: FloatArray,
+    delta: FloatArray, dofs: list[int],
+) -> FloatArray | None:  # fmt: skip
+    """(len(rows), D) poses with both hands ``w`` of the way along straight lines from where
+    they were at the walk's start (``hands``) to ``targets``, both in the body's frame (the
+    walk's first frame's root, ``start_root``), solved from the joint blend ``w × delta``: blended in joint
+    angles alone, the hands went apart from 20 to 58 cm on the way down from overhead and the
+    rigid part's re-solve then put one 64 mm into the trunk (avionics unit, female P99). None
+    where a frame cannot be solved within ``PATH_TOL``."""
+    origin, first = start_root[0], quat_to_matrix(start_root[1])
+    local0, local1 = (hands - origin) @ first, (targets - origin) @ first
+    rot = np.asarray([quat_to_matrix(r) for r in frames.root_rotation[rows]])
+    local = local0[None] + w[:, None, None] * (local1 - local0)[None]
+    world = np.einsum("nij,nkj->nki", rot, local) + frames.root_position[rows][:, None, :]
+    seed = skel.clip(frames.q[rows] + w[:, None] * delta)
+    goals = [Goal(h, position=world[:, k]) for k, h in enumerate(HANDS)]
+    res = solve_ta(skel, goals, seed, dofs=dofs, root_position=frames.root_position[rows],
+                   root_rotation=frames.root_rotation[rows], restarts=0, tol=SOLVE_TOL)  # fmt: skip
+    if not float(np.max(res.position_error)) <= PATH_TOL:
+        return None
+    return np.asarray(res.q)
 
 
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:

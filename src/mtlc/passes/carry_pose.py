@@ -10,18 +10,17 @@ near waist height: the load's moment about the lower back and the shoulders' is 
 
 Here, on the dense frames of each walk during which both hands hold one two-handed part
 (``carry.carries``), the arms are led to a carry pose and back: the hands' mid-point at the
-manikin's standing elbow height (its neutral pose's, arms hanging) and
-``HOLD_AHEAD`` in front of the trunk (the middle of a part 30 cm deep), the two hands as far
-apart and turned as they were when the walk started (the part keeps its width and attitude).
-Its arm angles (shoulders, elbows, wrists; not the forearm's twist) are solved once, at the
-walk's first frame, and the difference is blended in from the walk's start and out before its
-end by a minimum-jerk ramp at most ``ARM_SPEED`` fast: the walk ends with the arms where the
-reach after it was solved from (the place starts from there). A walk too short for both ramps,
-whose part is already near that pose, or whose way there or back would take a forearm or hand
-within ``KEEP_OUT`` of the trunk's or a thigh's clearance (the joint-space blend from overhead
-to the waist passed 0.8 mm from it, and the rigid part's re-solve then took the hand 64 mm
-into the trunk, MT0514, avionics unit, female P99; the held hand's pose is kept, so clearance
-cannot take it out), is left as it was.
+manikin's standing elbow height (its neutral pose's, arms hanging) and ``HOLD_AHEAD`` in front
+of the trunk (the middle of a part 30 cm deep), the two hands placed about it as they were when
+the walk started (the part keeps its width; the hands' turn is left to the IK). The pose's arm
+angles (shoulders, elbows, wrists; not the forearm's twist) are solved once, at the walk's
+first frame; from the walk's start and before its end minimum-jerk ramps at most ``ARM_SPEED``
+fast take the hands there and back on straight lines in the body's frame
+(``hands_on_their_path``), so the walk ends with the arms where the reach after it was solved
+from (the place starts from there). Where the way takes a forearm or hand into the body's
+clearance, or the pose more than ``KEEP_OUT`` into it, the pose is tried higher and further
+out (``TRIES``). A walk too short for both ramps, whose part is already near the pose, or with
+no pose that passes is left as it was.
 """
 
 from __future__ import annotations

@@ -198,13 +198,13 @@ def replace_fuel_filter():
         'left_knee': (127.895,), 'left_ankle': (3.938, 0.882), 'right_toes': (86.903,),
         'left_toes': (25.977,),
     })
-    human.KeyRoot(2.7, (2.445, 42.614, 39.827), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.7, (2.444, 42.61, 39.819), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.7, {
         'spine_lumbar': (-28.157, 20.0, 0.0), 'spine_thoracic': (-6.508, 10.0, 0.0),
-        'right_hip': (29.121, -0.426, -0.171), 'right_knee': (131.165,),
-        'right_ankle': (15.058, 0.292), 'left_hip': (100.053, -16.704, 11.053),
-        'left_knee': (127.427,), 'left_ankle': (-16.349, 21.355), 'right_toes': (86.719,),
-        'left_toes': (41.112,),
+        'right_hip': (29.133, -0.429, -0.172), 'right_knee': (131.177,),
+        'right_ankle': (15.058, 0.293), 'left_hip': (100.106, -16.624, 10.982),
+        'left_knee': (127.407,), 'left_ankle': (-16.499, 21.194), 'right_toes': (86.718,),
+        'left_toes': (41.248,),
     })
     human.KeyRoot(2.8, (2.535, 42.888, 40.329), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.8, {
@@ -228,28 +228,28 @@ def replace_fuel_filter():
     })
     human.KeyRoot(3.1, (2.268, 43.458, 41.368), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.1, {
-        'spine_lumbar': (-26.383, 20.0, 0.0), 'spine_thoracic': (-14.931, 10.0, 0.0),
+        'spine_lumbar': (-26.42, 20.0, 0.0), 'spine_thoracic': (-14.939, 10.0, 0.0),
         'right_hip': (26.776, -0.293, -0.107), 'right_knee': (128.789,),
         'right_ankle': (15.083, 0.2), 'left_hip': (83.258, -23.225, 26.785), 'left_knee': (135.0,),
         'left_ankle': (-45.775, 13.173), 'right_toes': (86.75,), 'left_toes': (57.709,),
     })
-    human.KeyRoot(3.2, (2.114, 43.338, 41.038), (-10.437, 0.0, 0.0))
+    human.KeyRoot(3.2, (2.06, 43.389, 41.124), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.2, {
-        'spine_lumbar': (-24.433, 20.0, 0.0), 'spine_thoracic': (-8.751, 10.0, 0.0),
-        'right_hip': (27.214, -0.56, -0.204), 'right_knee': (129.221,),
-        'right_ankle': (15.086, 0.349), 'left_hip': (54.221, -21.049, 27.079),
-        'left_ankle': (-49.614, 10.384), 'right_toes': (86.567,), 'left_toes': (73.38,),
+        'spine_lumbar': (-24.513, 20.0, 0.0), 'spine_thoracic': (-8.768, 10.0, 0.0),
+        'right_hip': (27.073, -0.609, -0.221), 'right_knee': (129.08,),
+        'right_ankle': (15.089, 0.354), 'left_hip': (54.371, -21.058, 26.985),
+        'left_ankle': (-50.0, 10.019), 'right_toes': (86.543,), 'left_toes': (72.268,),
     })
     human.KeyRoot(3.3, (2.567, 42.686, 39.897), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.3, {
-        'spine_lumbar': (-13.338, 20.0, 0.0), 'spine_thoracic': (-14.876, 10.0, 0.0),
+        'spine_lumbar': (-13.404, 20.0, 0.0), 'spine_thoracic': (-14.889, 10.0, 0.0),
         'right_hip': (29.021, -0.258, -0.105), 'right_knee': (131.014,),
         'right_ankle': (15.118, 0.183), 'left_hip': (40.638, -17.056, 7.742),
         'left_ankle': (-28.034, 18.006), 'right_toes': (86.713,), 'left_toes': (90.0,),
     })
     human.KeyRoot(3.4, (2.281, 43.183, 40.771), (-10.437, 0.0, 0.0))
     human.KeyJoints(3.4, {
-        'spine_lumbar': (-16.335, 20.0, 0.0), 'right_hip': (27.642, -0.411, -0.156),
+        'spine_lumbar': (-16.357, 20.0, 0.0), 'right_hip': (27.642, -0.411, -0.156),
         'right_knee': (129.644,), 'left_hip': (32.137, -4.273, 3.161), 'left_knee': (134.901,),
         'left_ankle': (1.976, 5.318), 'right_toes': (86.619,), 'left_toes': (90.0,),
     })
@@ -891,55 +891,55 @@ def replace_fuel_filter():
     })
     human.KeyRoot(19.4, (2.272, 43.234, 40.853), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.4, {
-        'spine_lumbar': (-16.67, 20.0, 0.0), 'spine_thoracic': (-14.922, 10.0, 0.0),
-        'right_shoulder': (8.389, 7.104, -19.899), 'right_elbow': (35.772, 17.208),
-        'right_wrist': (-0.017, 0.33), 'left_shoulder': (7.531, 7.444, -20.09),
-        'left_elbow': (36.623, 17.189), 'left_wrist': (-0.164, 0.51),
+        'spine_lumbar': (-16.71, 20.0, 0.0), 'spine_thoracic': (-14.93, 10.0, 0.0),
+        'right_shoulder': (8.393, 7.123, -19.905), 'right_elbow': (35.707, 17.208),
+        'right_wrist': (-0.015, 0.314), 'left_shoulder': (7.579, 7.447, -20.084),
+        'left_elbow': (36.514, 17.189), 'left_wrist': (-0.154, 0.485),
         'right_hip': (27.513, -0.403, -0.152), 'right_knee': (129.508,),
         'left_hip': (32.968, -5.009, 3.49), 'left_knee': (135.0,), 'left_ankle': (-1.226, 6.13),
         'right_toes': (86.604,), 'left_toes': (90.0,),
     })
     human.KeyRoot(19.5, (2.616, 42.503, 39.589), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.5, {
-        'spine_lumbar': (-12.243, 20.0, 0.0), 'spine_thoracic': (-14.101, 10.0, 0.0),
-        'right_shoulder': (8.101, 6.291, -19.657), 'right_elbow': (38.424, 17.195),
-        'right_wrist': (-0.139, 0.963), 'left_shoulder': (5.436, 7.362, -20.353),
-        'left_elbow': (40.954, 17.189), 'left_wrist': (-0.594, 1.481),
+        'spine_lumbar': (-12.363, 20.0, 0.0), 'spine_thoracic': (-14.126, 10.0, 0.0),
+        'right_shoulder': (8.11, 6.348, -19.676), 'right_elbow': (38.237, 17.195),
+        'right_wrist': (-0.133, 0.917), 'left_shoulder': (5.567, 7.363, -20.335),
+        'left_elbow': (40.661, 17.189), 'left_wrist': (-0.566, 1.413),
         'right_hip': (29.502, -0.268, -0.11), 'right_knee': (131.502,),
         'right_ankle': (15.106, 0.192), 'left_hip': (41.798, -18.556, 7.998),
         'left_ankle': (-31.674, 18.652), 'right_toes': (86.725,), 'left_toes': (90.0,),
     })
     human.KeyRoot(19.6, (2.141, 43.633, 41.688), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.6, {
-        'spine_lumbar': (-26.098, 20.0, 0.0), 'spine_thoracic': (-11.502, 10.0, 0.0),
-        'right_shoulder': (8.095, 6.08, -19.585), 'right_elbow': (39.099, 17.188),
-        'right_wrist': (-0.172, 1.125), 'left_shoulder': (4.887, 7.365, -20.436),
-        'left_elbow': (42.001, 17.188), 'left_wrist': (-0.709, 1.712),
+        'spine_lumbar': (-26.244, 20.0, 0.0), 'spine_thoracic': (-11.533, 10.0, 0.0),
+        'right_shoulder': (8.1, 6.147, -19.608), 'right_elbow': (38.881, 17.189),
+        'right_wrist': (-0.165, 1.072), 'left_shoulder': (5.037, 7.365, -20.414),
+        'left_elbow': (41.666, 17.188), 'left_wrist': (-0.677, 1.635),
         'right_hip': (26.282, -0.378, -0.134), 'right_knee': (128.291,),
         'left_hip': (58.604, -20.287, 29.244), 'left_knee': (135.0,),
         'left_ankle': (-48.907, 8.399), 'left_toes': (70.117,),
     })
     human.KeyRoot(19.7, (2.518, 42.736, 40.04), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.7, {
-        'spine_lumbar': (-22.953, 20.0, 0.0), 'spine_thoracic': (-14.889, 10.0, 0.0),
-        'right_elbow': (36.684, 17.189), 'right_hip': (28.817, -0.287, -0.114),
+        'spine_lumbar': (-23.02, 20.0, 0.0), 'spine_thoracic': (-14.903, 10.0, 0.0),
+        'right_elbow': (36.576, 17.189), 'right_hip': (28.817, -0.287, -0.114),
         'right_knee': (130.835,), 'left_hip': (87.066, -23.273, 26.673), 'left_knee': (134.85,),
         'left_ankle': (-45.238, 14.118), 'left_toes': (55.282,),
     })
     human.KeyRoot(19.8, (2.983, 41.281, 37.651), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-16.365, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
-        'right_shoulder': (8.594, 7.5, -20.0), 'right_elbow': (34.377, 17.189),
-        'right_wrist': (0.0, 0.0), 'left_shoulder': (8.594, 7.5, -20.0),
-        'left_elbow': (34.377, 17.189), 'left_wrist': (0.0, 0.0),
-        'right_hip': (32.589, -0.259, -0.12), 'right_knee': (134.614,),
+        'spine_lumbar': (-16.365, 20.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
+        'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
+        'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),
+        'left_wrist': (0.0, 0.0), 'right_hip': (32.589, -0.259, -0.12), 'right_knee': (134.614,),
         'left_hip': (107.043, -23.666, 20.819), 'left_knee': (133.257,),
         'left_ankle': (-40.684, 19.283), 'left_toes': (43.214,),
     })
     human.KeyRoot(19.9, (3.017, 41.34, 37.73), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.9, {
-        'spine_lumbar': (-15.41, 20.0, 0.0), 'right_hip': (32.466, -0.198, -0.092),
-        'right_knee': (134.476,), 'left_hip': (119.764, -25.0, 10.638), 'left_knee': (134.997,),
+        'spine_lumbar': (-15.41, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (32.466, -0.198, -0.092), 'right_knee': (134.476,),
+        'left_hip': (119.764, -25.0, 10.638), 'left_knee': (134.997,),
         'left_ankle': (-30.516, 21.77), 'left_toes': (34.363,),
     })
     human.KeyRoot(20.0, (2.582, 42.702, 40.007), (-10.437, 0.0, 0.0))

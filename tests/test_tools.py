@@ -224,6 +224,38 @@ def test_key_times_are_the_paced_strokes_passing_times() -> None:
     assert times[swing][0] > frac[swing][0] and times[swing][-1] < frac[swing][-1]
 
 
+def test_phase_shares_give_the_return_the_time_its_joints_need() -> None:
+    # one dof: 0.1 rad in the swing, 0.8 rad out and back in the return; at 1 rad/s (a
+    # stroke of 1 s) the fixed 40 % left the return's joint at about 4 rad/s
+    frac, _, _ = tool_pass.stroke_plan(0.3, -math.radians(60.0), ratchet=False)
+    q = np.zeros((len(frac), 1))
+    swing = (frac > 0.1) & (frac <= 0.6 + 1e-9)
+    q[swing, 0] = 0.1 * (frac[swing] - 0.1) / 0.5
+    back = frac > 0.6 + 1e-9
+    q[back, 0] = (
+        0.1 + 0.8 * np.sin(np.pi * (frac[back] - 0.6) / 0.4) - 0.1 * (frac[back] - 0.6) / 0.4
+    )
+    speed = np.array([4.0])  # rad per stroke: the joint may turn 4 rad/s in a stroke of 1 s
+    windows = tool_pass.phase_shares(frac, q, True, speed)
+    assert windows[0][0] == 0.0 and windows[-1][1] == 1.0
+    assert all(a < b for a, b in windows[1:])
+    assert windows[2][1] - windows[2][0] > 0.4  # the return took time from the swing
+    times, poses = tool_pass.paced_stroke(frac, q, 0.0, 1.0, True, windows)
+    fast = np.abs(np.diff(poses[:, 0])) / np.diff(times)
+    assert fast.max() <= 4.0 * 1.02  # within the dense grid's sampling of the bell
+    still = tool_pass.phase_shares(frac, np.zeros_like(q), True, speed)
+    assert np.allclose(still, tool_pass.PHASES)  # nothing moves: the nominal shares
+
+
+def test_stroke_arm_joints_turn_at_most_12_degrees_a_frame(wrench_ir: MotionIR) -> None:
+    # issue 19: outside the wrist and forearm, no joint of a stroke turns faster than 360 deg/s
+    for seg in _strokes_of(wrench_ir):
+        kf = seg.keyframes
+        arm = [i for i, n in enumerate(kf.dofs) if not any(d in n for d in tool_pass.TURNING_DOFS)]
+        speed = np.abs(np.diff(kf.q[:, arm], axis=0)) / np.diff(kf.time)[:, None]
+        assert np.degrees(speed.max()) / 30.0 <= 12.0, seg.goal.params["stroke"]
+
+
 def test_stroke_phases_keep_the_stroke_time(wrench_ir: MotionIR) -> None:
     # seat, swing and return tile the stroke (its MTM time unchanged), keys on both ends
     for seg in _strokes_of(wrench_ir):

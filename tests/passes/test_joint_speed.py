@@ -10,6 +10,7 @@ import numpy as np
 from mtlc.frontend import run_frontend
 from mtlc.passes import run_motion
 from mtlc.passes.interpolate import _held_curve, track
+from mtlc.passes.joint_speed import speed_limited
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -42,3 +43,32 @@ def test_the_drains_valve_turns_stay_under_12_deg_a_frame() -> None:
         turned = abs(np.degrees(frames.q[inside, d][-1] - frames.q[inside, d][0]))
         assert turned > 30.0  # the valve's quarter turn, short of it at the forearm's stop
         assert steps.max() <= 12.0, steps.max()
+
+
+def test_a_correction_is_widened_in_time_not_made_smaller() -> None:
+    """A 0.4 rad correction on frames 20-29 of a still dof (60 fps), blended in over one frame,
+    turned it at 24 rad/s; widened, it ramps at the speed given and covers what it covered."""
+    t = np.arange(60) / 60.0
+    q = np.zeros((60, 2))
+    dq = np.zeros((60, 2))
+    dq[20:30, 0] = 0.4
+    dq[40:45, 1] = -0.2
+    fixed = np.zeros(60, dtype=bool)
+    fixed[45:] = True  # a held hand keeps its own correction
+    lo, hi = np.full(2, -1.0), np.full(2, 1.0)
+    out = speed_limited(q, dq, lo, hi, t, speed=6.0, fixed=fixed)
+    steps = np.abs(np.diff(q + out, axis=0)) * 60.0
+    assert steps[:, 0].max() <= 6.0 + 1e-6
+    assert steps[:40, 1].max() <= 6.0 + 1e-6  # (into the held frames it cannot ramp)
+    assert np.all(np.abs(out) >= np.abs(dq) - 1e-12)
+    assert np.all(np.sign(out[dq != 0]) == np.sign(dq[dq != 0]))
+    assert np.array_equal(out[45:], dq[45:])
+    assert out[10, 0] == 0.0 and out[18, 0] > 0.0  # started where it had to, not before
+
+
+def test_a_correction_slow_enough_is_kept_as_it_is() -> None:
+    t = np.arange(30) / 60.0
+    q = np.linspace(0.0, 1.0, 30)[:, None]  # the motion turns at 2 rad/s
+    dq = 0.05 * np.sin(np.linspace(0.0, np.pi, 30))[:, None]
+    out = speed_limited(q, dq, np.array([-3.0]), np.array([3.0]), t, speed=6.0)
+    assert np.array_equal(out, dq)

@@ -77,6 +77,7 @@ from mtlc.metrics import (
 )
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import REPORT_TOL, closed_during, on_site
+from mtlc.passes.joint_speed import speed_limited
 
 MARGIN = 0.01  # m: how far inside the support a corrected CoM ends
 ROUNDS = 6
@@ -92,6 +93,9 @@ SEED_FLEX = 0.1  # rad: the least knee or elbow flexion IK starts from (straight
 LEG_PATIENCE = 4
 POSITION_TOL = 1e-3  # m: feet and hands restored within 1 mm
 BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections blend
+# rad/s: the fastest a correction may turn a joint (``speed_limited``); issue 19 allows
+# 360 deg/s (12 deg an output frame), the kneel's own plan runs at up to 300
+CORRECTED_JOINT_SPEED = math.radians(330.0)
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = 0.0  # m: what still counts as inside after correction
 # the pelvis aims the CoM half a PUSH_TOL deeper than MARGIN and stops within PUSH_TOL of that
@@ -666,6 +670,7 @@ def balance_frames(
     # back, so that the smoothing pass finds no balance jump to undo
     size = np.abs(dq).max(axis=1) + 10.0 * np.hypot(*dr.T[[0, 2]]) + 10.0 * np.abs(dr[:, 1])
     dq, dr = blend(dq, size, BLEND_FRAMES), blend(dr, size, BLEND_FRAMES)
+    dq = speed_limited(frames.q, dq, skel.lower, skel.upper, t, CORRECTED_JOINT_SPEED)
     dr[kneeling] = 0.0  # a neighbour's pelvis correction must not drag a knee
     span = np.flatnonzero(np.abs(dq).max(axis=1) + np.abs(dr).max(axis=1) > 0)
     if span.size == 0:  # the blended corrections cancelled out: nothing to apply

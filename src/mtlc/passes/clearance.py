@@ -25,12 +25,15 @@ into the output: nothing after it moves the arms.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from mtlc.body.ik.clearance import keep_clear, penetration, penetration_dofs, penetrations
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.context import PassContext
+from mtlc.passes.joint_speed import speed_limited
 
 PINNED = 30.0  # weight of the hand's pose where it has a goal (per metre of the clearance)
 FREE = 0.3  # ...and where it is free
@@ -42,6 +45,9 @@ EPS = 1e-9
 MAX_SWING = 0.6  # rad a corrected dof may move between two dense frames, if the motion did not
 FIRM = 30.0  # the clearance's weight where the first solve leaves an arm inside (keep_clear)
 SWING_SMOOTH = 6  # dense frames each side a correction that swings is averaged over
+# rad/s: the fastest a correction turns a free arm's joint (``joint_speed.speed_limited``);
+# issue 19 allows 360 deg/s
+CORRECTED_JOINT_SPEED = math.radians(330.0)
 
 
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
@@ -130,6 +136,14 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
                 skel, q, root, side, keep, start=smooth, firm=FIRM, inside=from_smooth
             )
             result = skel.clip(q + without_swings(q, again - q))
+        # the correction's ends ramped no faster than a person turns a joint, where the hand
+        # is free (a held hand keeps its own correction: it stays on its goal)
+        widened = speed_limited(q, result - q, skel.lower, skel.upper, frames.time,
+                                CORRECTED_JOINT_SPEED, fixed=keep > FREE + EPS)  # fmt: skip
+        moved = np.flatnonzero((widened != result - q).any(axis=1))
+        if moved.size:
+            result = result.copy()
+            result[moved] = q[moved] + widened[moved]
         frames.q = result
         for other in sides[k + 1 :]:
             inside[other] = depth_after(skel, inside[other], q, result, root, other)

@@ -25,6 +25,12 @@ Every time in the IR moves: segments, keyframes, the root plan and the times in 
 results (``timewarp.warp_result``: gait steps and rolls, stroke phases), as the pace pass's
 stretch of a reach moves them. A task that needs none of this keeps its bytes;
 one that does takes longer, by what a person would need.
+
+``speed_limited`` is the same rule for the passes that correct the frames after interpolation
+(balance, clearance): where a correction blended in over a few frames would step a joint faster
+than a person's (a kneel already at 300 deg/s, a free arm turned 21 deg out of the trunk), it is
+widened in time, started earlier and let go later, never made smaller, so what it corrects is
+not given back.
 """
 
 from __future__ import annotations
@@ -256,3 +262,39 @@ def from_pose(ir: MotionIR, kf: Keyframes, before: Frames, k: int, at: float) ->
         kf.root_position = np.concatenate([before.root_position[k][None, :], kf.root_position])
     if kf.root_rotation is not None:
         kf.root_rotation = np.concatenate([before.root_rotation[k][None, :], kf.root_rotation])
+
+
+def speed_limited(
+    q: FloatArray, dq: FloatArray, lower: FloatArray, upper: FloatArray, t: FloatArray,
+    speed: float, fixed: np.ndarray | None = None,
+) -> FloatArray:  # fmt: skip
+    """The corrections ``dq`` (N, D) of frames ``q`` (times ``t``) widened in time so that no
+    corrected dof turns faster than ``speed`` (rad/s) where the motion itself did not. Per
+    dof the positive and the negative parts each take their smallest envelope with the
+    allowed slopes (one pass back in time, one forward); ``fixed`` (N,) frames keep their own
+    correction (a hand held on its goal). Returned within the joint limits; unchanged where
+    nothing is too fast."""
+    if len(q) < 2:
+        return dq
+    done = np.clip(q + dq, lower, upper) - q  # what the correction does within the limits
+    step = np.diff(q, axis=0)
+    room = np.maximum(np.abs(step), speed * np.diff(t)[:, None]) + 1e-9
+    lo, hi = -room - step, room - step  # allowed change of the correction between frames
+    change = np.diff(done, axis=0)
+    if not ((change < lo).any() or (change > hi).any()):
+        return dq
+    cols = np.flatnonzero(np.abs(done).max(axis=0) > 0.0)  # the dofs corrected at all
+    up, down = np.maximum(done[:, cols], 0.0), np.minimum(done[:, cols], 0.0)
+    lo, hi = lo[:, cols], hi[:, cols]
+    keep = np.zeros(len(q), dtype=bool) if fixed is None else np.asarray(fixed, dtype=bool)
+    for i in range(len(q) - 2, -1, -1):  # started earlier
+        if not keep[i]:
+            up[i] = np.maximum(up[i], up[i + 1] - hi[i])
+            down[i] = np.minimum(down[i], down[i + 1] - lo[i])
+    for i in range(len(q) - 1):  # let go later
+        if not keep[i + 1]:
+            up[i + 1] = np.maximum(up[i + 1], up[i] + lo[i])
+            down[i + 1] = np.minimum(down[i + 1], down[i] + hi[i])
+    out = done.copy()
+    out[:, cols] = np.clip(q[:, cols] + up + down, lower[cols], upper[cols]) - q[:, cols]
+    return out

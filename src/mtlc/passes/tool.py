@@ -227,33 +227,76 @@ def stroke_plan(
 
 
 PHASES = ((0.0, SEAT_SHARE), (SEAT_SHARE, SWING_SHARE), (SWING_SHARE, 1.0))
+# rad/s: the fastest a joint turns in a stroke. Issue 19 allows 360 deg/s (12 deg a frame at
+# 30 fps), the wrist and the forearm's roll in a fastener turn 600 deg/s (20 deg a frame); a
+# little under each, as the output frames sample a path keyed at the internal rate
+STROKE_JOINT_SPEED = math.radians(330.0)
+STROKE_TURN_SPEED = math.radians(540.0)
+TURNING_DOFS = ("wrist_", "elbow_pro")  # the dofs that turn the tool (the looser limit)
+NEED_SAMPLES = 241  # points of each phase's path at which its joint speed is measured
+
+
+def _phase_path(
+    frac: FloatArray, q: FloatArray, k: int, lifted: bool, tau: FloatArray
+) -> FloatArray:
+    """(len(tau), D) poses of phase ``k`` at its normalised times ``tau``: its keys joined by
+    PCHIP in the phase's progress (minimum jerk; a wrench's lifted return on a placing clock)."""
+    a, b = PHASES[k]
+    keys = np.flatnonzero((frac >= a - 1e-9) & (frac <= b + 1e-9))
+    u = (placing_clock if lifted and k == len(PHASES) - 1 else minimum_jerk)(tau)
+    along = (frac[keys] - a) / (b - a)
+    if len(keys) > 2:
+        return pchip(along, q[keys])(u)
+    return q[keys[0]] + u[:, None] * (q[keys[-1]] - q[keys[0]])
+
+
+def phase_shares(
+    frac: FloatArray, q: FloatArray, lifted: bool, speed: FloatArray
+) -> tuple[tuple[float, float], ...]:
+    """Each phase's window (shares of the stroke's time) so that no joint turns faster than
+    ``speed`` (per dof, rad/s times the stroke's time: a share's least length) where the
+    stroke's time allows it. Each phase first gets the time its fastest joint needs, and the
+    time left over is shared as ``PHASES`` share it; short of time, the needs are scaled down
+    together. With MTM's 0.54 s for a 60 deg stroke and fixed shares (swing 50 %, return 40 %),
+    a small woman's return (lift, swing back, re-seat) bent the elbow 33 deg in 3 frames while
+    the swing's joints went at half that speed."""
+    tau = np.linspace(0.0, 1.0, NEED_SAMPLES)
+    need = np.empty(len(PHASES))
+    for k in range(len(PHASES)):
+        path = _phase_path(frac, q, k, lifted, tau)
+        rate = np.abs(np.diff(path, axis=0)) / np.diff(tau)[:, None]  # rad per unit of tau
+        need[k] = float((rate / speed).max()) if len(rate) else 0.0
+    nominal = np.array([b - a for a, b in PHASES])
+    spare = 1.0 - need.sum()
+    shares = need + spare * nominal if spare >= 0.0 else need / need.sum()
+    edges = np.concatenate([[0.0], np.cumsum(shares)])
+    edges[-1] = 1.0
+    return tuple((float(edges[k]), float(edges[k + 1])) for k in range(len(PHASES)))
 
 
 def paced_stroke(
-    frac: FloatArray, q: FloatArray, start: float, end: float, lifted: bool
+    frac: FloatArray,
+    q: FloatArray,
+    start: float,
+    end: float,
+    lifted: bool,
+    windows: tuple[tuple[float, float], ...] = PHASES,
 ) -> tuple[FloatArray, FloatArray]:
     """Dense keyframes (times, (N, D) poses) of a stroke whose keys ``q`` sit at ``frac``: each
-    phase (seat, swing, return) one movement from rest to rest. The seat, the swing and a
-    ratchet's return progress along the hand's path (the keys' fractions inside the phase) by
-    the minimum-jerk profile; a wrench's ``lifted`` return runs its arch (already a bell in its
-    own parameter) on a placing clock (``mtlc.passes.profile.placing_clock``), so the tool comes
-    back onto the fastener slowly. Keys every internal frame: interpolation cannot undo that."""
+    phase (seat, swing, return) one movement from rest to rest, in its window of the stroke's
+    time (``windows``, shares; ``phase_shares``). The seat, the swing and a ratchet's return
+    progress along the hand's path (the keys' fractions inside the phase) by the minimum-jerk
+    profile; a wrench's ``lifted`` return runs its arch (already a bell in its own parameter)
+    on a placing clock (``mtlc.passes.profile.placing_clock``), so the tool comes back onto the
+    fastener slowly. Keys every internal frame: interpolation cannot undo that."""
     times, poses = [np.array([start])], [q[:1]]
-    for k, (a, b) in enumerate(PHASES):
-        keys = np.flatnonzero((frac >= a - 1e-9) & (frac <= b + 1e-9))
+    for k, (a, b) in enumerate(windows):
         t0, t1 = start + (end - start) * a, start + (end - start) * b
         grid = np.arange(np.ceil(t0 * INTERNAL_FPS - 1e-9), np.floor(t1 * INTERNAL_FPS + 1e-9) + 1)
         t = np.unique(np.round(np.r_[grid / INTERNAL_FPS, t1], 9))
         t = t[t > t0 + 1e-9]
-        tau = (t - t0) / (t1 - t0)
-        u = (placing_clock if lifted and k == len(PHASES) - 1 else minimum_jerk)(tau)
-        along = (frac[keys] - a) / (b - a)
-        if len(keys) > 2:
-            path = pchip(along, q[keys])(u)
-        else:
-            path = q[keys[0]] + u[:, None] * (q[keys[-1]] - q[keys[0]])
         times.append(t)
-        poses.append(path)
+        poses.append(_phase_path(frac, q, k, lifted, (t - t0) / (t1 - t0)))
     return np.concatenate(times), np.concatenate(poses)
 
 
@@ -601,7 +644,11 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
     # every stroke keys the trunk too, so no trunk angle holds across strokes solved differently
     names = chain_names(state.skel, [g.effector], "torso")
     idx = [state.skel.dof_index(nm) for nm in names]
-    times, poses = paced_stroke(sol.frac, q[:, idx], seg.start, seg.end, bool(sol.lift.max() > 0))
+    lifted = bool(sol.lift.max() > 0)
+    speed = np.array([STROKE_TURN_SPEED if any(d in nm for d in TURNING_DOFS)
+                      else STROKE_JOINT_SPEED for nm in names]) * (seg.end - seg.start)  # fmt: skip
+    windows = phase_shares(sol.frac, q[:, idx], lifted, speed)
+    times, poses = paced_stroke(sol.frac, q[:, idx], seg.start, seg.end, lifted, windows)
     # a dof at its stop stays there (the last stroke's blend to the reach pose pushed one past)
     poses = np.clip(poses, state.skel.lower[idx], state.skel.upper[idx])
     seg.keyframes = Keyframes(time=times, dofs=names, q=poses)
@@ -617,7 +664,7 @@ def solve_stroke(ctx: PassContext, state: PoseState, seg: Segment, series: dict)
         # the stroke's movements (bench/human.py judges each): settle, swing, return
         "phases": {
             name: [seg.start + (seg.end - seg.start) * a, seg.start + (seg.end - seg.start) * b]
-            for name, (a, b) in zip(("seat", "swing", "return"), PHASES, strict=True)
+            for name, (a, b) in zip(("seat", "swing", "return"), windows, strict=True)
         },
     }
     if worst > TOLERANCE:

@@ -159,140 +159,140 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.550462, duration=0.072)
     human.KeyJoints(2.6, {
-        'spine_thoracic': (-1.65, -1.602, 1.41), 'neck': (-0.615, -0.753, -25.987),
-        'head': (-0.775, -0.002), 'right_clavicle': (2.315, 0.785),
-        'right_shoulder': (91.868, 10.559, -0.346), 'right_elbow': (31.861, 10.16),
-        'right_wrist': (-1.494, -30.0),
+        'spine_lumbar': (6.11, 0.814, 1.423), 'spine_thoracic': (-1.65, -1.602, 1.41),
+        'neck': (-0.615, -0.753, -25.987), 'head': (-0.775, -0.002),
+        'right_clavicle': (2.315, 0.785), 'right_shoulder': (91.868, 10.559, -0.346),
+        'right_elbow': (31.861, 10.16), 'right_wrist': (-1.494, -30.0),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
-        'spine_lumbar': (6.184, 0.827, 1.483), 'spine_thoracic': (-1.934, -1.733, 1.463),
-        'neck': (-0.504, -0.714, -26.113), 'head': (-0.657, -0.002),
-        'right_clavicle': (2.509, 0.766), 'right_shoulder': (91.451, 10.784, -0.367),
-        'right_elbow': (31.916, 10.172), 'right_wrist': (-1.554, -29.783),
+        'spine_lumbar': (6.491, 0.788, 1.771), 'spine_thoracic': (-3.738, -2.655, 1.716),
+        'neck': (0.307, -0.418, -26.819), 'head': (0.208, 0.0), 'right_clavicle': (3.831, 0.54),
+        'right_shoulder': (88.512, 12.221, -0.409), 'right_elbow': (32.038, 10.389),
+        'right_wrist': (-1.872, -28.359),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (10.156, 1.166, 1.314), 'spine_thoracic': (-7.085, -6.71, 1.447),
-        'neck': (0.837, -0.251, -28.596), 'head': (0.766, 0.0), 'right_clavicle': (10.22, -1.088),
-        'right_shoulder': (81.683, 18.276, 2.928), 'right_elbow': (34.846, 14.579),
-        'right_wrist': (-1.299, -19.604),
+        'spine_lumbar': (12.822, 1.991, 1.007), 'spine_thoracic': (-8.49, -8.657, 1.371),
+        'neck': (0.464, -0.408, -29.369), 'head': (0.358, -0.001),
+        'right_clavicle': (14.427, -2.054), 'right_shoulder': (79.092, 22.193, 5.308),
+        'right_elbow': (36.96, 17.51), 'right_wrist': (-1.013, -13.764),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (16.227, 3.139, 0.557), 'spine_thoracic': (-9.814, -10.0, 1.358),
-        'neck': (-0.576, -0.819, -30.206), 'head': (-0.768, -0.005),
-        'right_clavicle': (20.547, -3.403), 'right_shoulder': (77.109, 27.567, 8.408),
-        'right_elbow': (39.566, 21.54), 'right_wrist': (-0.836, -6.452),
+        'spine_lumbar': (16.643, 3.167, 0.697), 'spine_thoracic': (-10.249, -10.0, 1.577),
+        'neck': (-0.59, -0.831, -30.585), 'head': (-0.785, -0.005),
+        'right_clavicle': (21.66, -3.621), 'right_shoulder': (76.24, 28.532, 8.636),
+        'right_elbow': (39.801, 21.999), 'right_wrist': (-0.898, -5.312),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (12.345, 1.38, 1.252), 'spine_thoracic': (-10.764, -8.938, 1.739),
-        'neck': (1.783, 0.089, -29.558), 'head': (1.776, 0.001), 'right_clavicle': (18.463, -3.174),
-        'right_shoulder': (72.144, 25.056, 6.747), 'right_elbow': (38.626, 19.393),
-        'right_wrist': (-1.311, -7.853),
+        'spine_lumbar': (7.797, -0.624, 2.475), 'spine_thoracic': (-11.225, -6.458, 2.352),
+        'neck': (3.83, 0.867, -29.613), 'head': (3.974, 0.003), 'right_clavicle': (13.431, -2.268),
+        'right_shoulder': (70.574, 20.365, 2.567), 'right_elbow': (35.65, 14.611),
+        'right_wrist': (-2.083, -14.344),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (5.647, 0.007, 4.422), 'spine_thoracic': (-9.642, -2.42, 3.71),
-        'neck': (3.188, 0.614, -30.047), 'head': (3.283, 0.002), 'right_clavicle': (5.984, -0.111),
-        'right_shoulder': (79.525, 14.793, -4.076), 'right_elbow': (31.528, 7.641),
-        'right_wrist': (-3.411, -25.765),
+        'spine_lumbar': (5.946, 0.24, 4.121), 'spine_thoracic': (-8.687, -2.316, 3.498),
+        'neck': (2.617, 0.405, -29.633), 'head': (2.672, 0.001), 'right_clavicle': (5.529, 0.049),
+        'right_shoulder': (81.338, 14.361, -3.716), 'right_elbow': (31.637, 7.89),
+        'right_wrist': (-3.2, -26.221),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (6.578, 1.24, 1.741), 'spine_thoracic': (-2.275, -1.6, 1.711),
+        'neck': (-0.635, -0.764, -26.159), 'head': (-0.798, -0.002), 'right_clavicle': (2.5, 0.963),
+        'right_shoulder': (91.318, 10.967, -0.401), 'right_elbow': (32.588, 10.144),
+        'right_wrist': (-1.642, -28.665),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (7.832, 1.114, 1.985), 'spine_thoracic': (-5.733, -4.055, 1.939),
-        'neck': (0.767, -0.259, -27.648), 'head': (0.697, 0.0), 'right_clavicle': (6.021, 0.183),
-        'right_shoulder': (85.231, 14.542, 0.237), 'right_elbow': (33.251, 11.444),
-        'right_wrist': (-1.932, -24.704),
+        'spine_lumbar': (9.672, 1.24, 1.592), 'spine_thoracic': (-6.979, -6.037, 1.663),
+        'neck': (0.852, -0.242, -28.408), 'head': (0.782, 0.0), 'right_clavicle': (9.13, -0.697),
+        'right_shoulder': (82.38, 17.402, 2.162), 'right_elbow': (34.6, 13.705),
+        'right_wrist': (-1.508, -20.603),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (14.402, 2.586, 0.767), 'spine_thoracic': (-9.091, -9.509, 1.315),
-        'neck': (0.042, -0.573, -29.625), 'head': (-0.1, -0.001),
-        'right_clavicle': (17.008, -2.625), 'right_shoulder': (78.184, 24.519, 6.753),
-        'right_elbow': (38.232, 19.313), 'right_wrist': (-0.897, -10.439),
+        'spine_lumbar': (16.119, 3.127, 0.536), 'spine_thoracic': (-9.722, -10.0, 1.318),
+        'neck': (-0.562, -0.812, -30.135), 'head': (-0.752, -0.004),
+        'right_clavicle': (20.283, -3.35), 'right_shoulder': (77.284, 27.339, 8.337),
+        'right_elbow': (39.499, 21.417), 'right_wrist': (-0.826, -6.729),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (16.571, 3.121, 0.773), 'spine_thoracic': (-10.35, -10.0, 1.65),
-        'neck': (-0.498, -0.798, -30.679), 'head': (-0.688, -0.004),
-        'right_clavicle': (21.726, -3.637), 'right_shoulder': (75.93, 28.57, 8.567),
-        'right_elbow': (39.771, 21.955), 'right_wrist': (-0.928, -5.219),
+        'spine_lumbar': (13.888, 2.081, 1.006), 'spine_thoracic': (-10.662, -9.571, 1.661),
+        'neck': (1.037, -0.198, -29.783), 'head': (0.972, 0.0), 'right_clavicle': (19.932, -3.42),
+        'right_shoulder': (73.135, 26.536, 7.669), 'right_elbow': (39.276, 20.584),
+        'right_wrist': (-1.162, -6.334),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (4.972, -1.11, 4.129), 'spine_thoracic': (-11.629, -3.863, 3.424),
-        'neck': (4.737, 1.198, -30.337), 'head': (4.942, 0.005), 'right_clavicle': (8.846, -1.189),
-        'right_shoulder': (72.595, 16.745, -2.475), 'right_elbow': (32.468, 9.41),
-        'right_wrist': (-3.244, -21.538),
+        'spine_lumbar': (4.972, -0.708, 4.616), 'spine_thoracic': (-11.285, -2.98, 3.807),
+        'neck': (4.357, 1.048, -30.572), 'head': (4.533, 0.004), 'right_clavicle': (7.333, -0.665),
+        'right_shoulder': (75.141, 15.762, -4.017), 'right_elbow': (31.647, 7.865),
+        'right_wrist': (-3.573, -23.944),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.559, 1.169, 1.941), 'spine_thoracic': (-2.807, -1.664, 1.862),
-        'neck': (-0.374, -0.671, -26.459), 'head': (-0.521, -0.002),
-        'right_clavicle': (2.761, 0.888), 'right_shoulder': (90.538, 11.271, -0.679),
-        'right_elbow': (32.511, 9.959), 'right_wrist': (-1.77, -28.468),
+        'spine_lumbar': (6.564, 1.186, 1.895), 'spine_thoracic': (-2.684, -1.649, 1.827),
+        'neck': (-0.435, -0.692, -26.389), 'head': (-0.585, -0.002), 'right_clavicle': (2.7, 0.905),
+        'right_shoulder': (90.719, 11.2, -0.615), 'right_elbow': (32.529, 10.001),
+        'right_wrist': (-1.74, -28.514),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'spine_lumbar': (6.71, 1.217, 1.897), 'spine_thoracic': (-3.197, -2.056, 1.847),
-        'neck': (-0.211, -0.61, -26.53), 'head': (-0.346, -0.001), 'right_clavicle': (3.15, 0.858),
-        'right_shoulder': (89.837, 11.681, -0.437), 'right_elbow': (32.617, 10.214),
-        'right_wrist': (-1.817, -28.0),
+        'spine_lumbar': (7.308, 1.147, 2.118), 'spine_thoracic': (-5.273, -3.412, 2.043),
+        'neck': (0.672, -0.29, -27.405), 'head': (0.597, 0.0), 'right_clavicle': (5.091, 0.462),
+        'right_shoulder': (86.252, 13.691, -0.399), 'right_elbow': (32.881, 10.751),
+        'right_wrist': (-2.068, -25.869),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (11.431, 1.619, 1.302), 'spine_thoracic': (-7.939, -7.593, 1.512),
-        'neck': (0.715, -0.305, -29.009), 'head': (0.63, 0.0), 'right_clavicle': (12.01, -1.441),
-        'right_shoulder': (80.321, 20.056, 3.865), 'right_elbow': (35.933, 15.761),
-        'right_wrist': (-1.219, -16.759),
+        'spine_lumbar': (13.973, 2.428, 0.852), 'spine_thoracic': (-8.959, -9.294, 1.343),
+        'neck': (0.173, -0.522, -29.573), 'head': (0.043, -0.001),
+        'right_clavicle': (16.269, -2.455), 'right_shoulder': (78.382, 23.872, 6.332),
+        'right_elbow': (37.9, 18.791), 'right_wrist': (-0.933, -11.335),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (16.487, 3.162, 0.634), 'spine_thoracic': (-10.072, -10.0, 1.486),
-        'neck': (-0.592, -0.829, -30.425), 'head': (-0.787, -0.005),
-        'right_clavicle': (21.225, -3.537), 'right_shoulder': (76.596, 28.154, 8.56),
-        'right_elbow': (39.717, 21.83), 'right_wrist': (-0.871, -5.754),
+        'spine_lumbar': (16.603, 3.139, 0.756), 'spine_thoracic': (-10.325, -10.0, 1.636),
+        'neck': (-0.529, -0.81, -30.663), 'head': (-0.721, -0.005),
+        'right_clavicle': (21.721, -3.634), 'right_shoulder': (76.031, 28.567, 8.586),
+        'right_elbow': (39.777, 21.972), 'right_wrist': (-0.919, -5.24),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (9.805, 0.219, 1.829), 'spine_thoracic': (-10.978, -7.664, 2.0),
-        'neck': (2.954, 0.537, -29.453), 'head': (3.036, 0.002), 'right_clavicle': (15.782, -2.705),
-        'right_shoulder': (70.97, 22.488, 4.715), 'right_elbow': (37.164, 16.983),
-        'right_wrist': (-1.662, -11.088),
+        'spine_lumbar': (6.227, -1.114, 3.181), 'spine_thoracic': (-11.498, -5.301, 2.782),
+        'neck': (4.454, 1.099, -29.899), 'head': (4.641, 0.005), 'right_clavicle': (11.313, -1.826),
+        'right_shoulder': (70.902, 18.586, 0.344), 'right_elbow': (34.17, 12.269),
+        'right_wrist': (-2.57, -17.564),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (6.047, 0.319, 3.971), 'spine_thoracic': (-8.293, -2.284, 3.387),
-        'neck': (2.395, 0.325, -29.427), 'head': (2.435, 0.001), 'right_clavicle': (5.364, 0.104),
-        'right_shoulder': (82.012, 14.189, -3.498), 'right_elbow': (31.706, 8.047),
-        'right_wrist': (-3.098, -26.369),
+        'spine_lumbar': (6.222, 0.493, 3.62), 'spine_thoracic': (-7.365, -2.203, 3.126),
+        'neck': (1.896, 0.145, -28.933), 'head': (1.901, 0.001), 'right_clavicle': (4.964, 0.233),
+        'right_shoulder': (83.564, 13.765, -2.993), 'right_elbow': (31.862, 8.406),
+        'right_wrist': (-2.863, -26.72),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (6.605, 1.235, 1.776), 'spine_thoracic': (-2.473, -1.698, 1.741),
+        'neck': (-0.543, -0.731, -26.24), 'head': (-0.7, -0.002), 'right_clavicle': (2.639, 0.941),
+        'right_shoulder': (91.0, 11.12, -0.41), 'right_elbow': (32.592, 10.155),
+        'right_wrist': (-1.681, -28.524),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (8.548, 1.128, 1.82), 'spine_thoracic': (-6.267, -4.878, 1.816),
-        'neck': (0.837, -0.238, -27.958), 'head': (0.77, 0.0), 'right_clavicle': (7.261, -0.176),
-        'right_shoulder': (84.006, 15.68, 1.007), 'right_elbow': (33.765, 12.343),
-        'right_wrist': (-1.755, -23.095),
+        'spine_lumbar': (10.741, 1.452, 1.413), 'spine_thoracic': (-7.58, -7.012, 1.563),
+        'neck': (0.786, -0.274, -28.784), 'head': (0.709, 0.0), 'right_clavicle': (10.871, -1.154),
+        'right_shoulder': (81.079, 19.011, 3.201), 'right_elbow': (35.407, 14.953),
+        'right_wrist': (-1.321, -18.265),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (15.18, 2.878, 0.61), 'spine_thoracic': (-9.319, -9.835, 1.278),
-        'neck': (-0.22, -0.673, -29.7), 'head': (-0.382, -0.002),
-        'right_clavicle': (18.384, -2.938), 'right_shoulder': (77.881, 25.709, 7.521),
-        'right_elbow': (38.832, 20.275), 'right_wrist': (-0.842, -8.823),
+        'spine_lumbar': (16.439, 3.159, 0.617), 'spine_thoracic': (-10.021, -10.0, 1.46),
+        'neck': (-0.591, -0.828, -30.381), 'head': (-0.785, -0.005),
+        'right_clavicle': (21.097, -3.512), 'right_shoulder': (76.698, 28.044, 8.535),
+        'right_elbow': (39.69, 21.778), 'right_wrist': (-0.864, -5.884),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (16.036, 2.927, 0.818), 'spine_thoracic': (-10.491, -10.0, 1.659),
-        'neck': (-0.138, -0.659, -30.527), 'head': (-0.299, -0.003),
-        'right_clavicle': (21.567, -3.642), 'right_shoulder': (75.056, 28.321, 8.474),
-        'right_elbow': (39.76, 21.789), 'right_wrist': (-0.992, -5.141),
+        'spine_lumbar': (11.89, 1.171, 1.337), 'spine_thoracic': (-10.798, -8.734, 1.772),
+        'neck': (1.999, 0.173, -29.513), 'head': (2.009, 0.001), 'right_clavicle': (18.007, -3.097),
+        'right_shoulder': (71.887, 24.608, 6.434), 'right_elbow': (38.403, 19.005),
+        'right_wrist': (-1.363, -8.36),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (4.949, -0.811, 4.557), 'spine_thoracic': (-11.41, -3.111, 3.758),
-        'neck': (4.46, 1.088, -30.574), 'head': (4.644, 0.005), 'right_clavicle': (7.568, -0.755),
-        'right_shoulder': (74.616, 15.91, -3.822), 'right_elbow': (31.749, 8.064),
-        'right_wrist': (-3.533, -23.58),
+        'spine_lumbar': (5.177, -0.361, 4.612), 'spine_thoracic': (-10.693, -2.649, 3.815),
+        'neck': (3.912, 0.883, -30.345), 'head': (4.057, 0.003), 'right_clavicle': (6.625, -0.378),
+        'right_shoulder': (77.131, 15.282, -4.123), 'right_elbow': (31.547, 7.676),
+        'right_wrist': (-3.563, -24.96),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
@@ -302,65 +302,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (6.915, 1.187, 2.061), 'spine_thoracic': (-4.296, -2.637, 1.991),
-        'neck': (0.278, -0.432, -26.958), 'head': (0.176, 0.0), 'right_clavicle': (3.979, 0.71),
-        'right_shoulder': (88.05, 12.575, -0.459), 'right_elbow': (32.691, 10.37),
-        'right_wrist': (-2.002, -27.129),
+        'spine_lumbar': (7.922, 1.113, 1.964), 'spine_thoracic': (-5.806, -4.163, 1.923),
+        'neck': (0.78, -0.255, -27.688), 'head': (0.71, 0.0), 'right_clavicle': (6.18, 0.136),
+        'right_shoulder': (85.065, 14.688, 0.34), 'right_elbow': (33.315, 11.56),
+        'right_wrist': (-1.91, -24.501),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (12.464, 1.916, 1.134), 'spine_thoracic': (-8.414, -8.367, 1.445),
-        'neck': (0.548, -0.374, -29.292), 'head': (0.449, 0.0), 'right_clavicle': (13.724, -1.858),
-        'right_shoulder': (79.368, 21.612, 4.854), 'right_elbow': (36.726, 16.974),
-        'right_wrist': (-1.09, -14.532),
+        'spine_lumbar': (14.87, 2.76, 0.677), 'spine_thoracic': (-9.232, -9.712, 1.29),
+        'neck': (-0.111, -0.631, -29.675), 'head': (-0.265, -0.002),
+        'right_clavicle': (17.832, -2.813), 'right_shoulder': (77.991, 25.235, 7.209),
+        'right_elbow': (38.592, 19.887), 'right_wrist': (-0.863, -9.462),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (16.612, 3.166, 0.683), 'spine_thoracic': (-10.212, -10.0, 1.558),
-        'neck': (-0.591, -0.831, -30.551), 'head': (-0.786, -0.005),
-        'right_clavicle': (21.57, -3.604), 'right_shoulder': (76.315, 28.454, 8.622),
-        'right_elbow': (39.785, 21.965), 'right_wrist': (-0.892, -5.403),
+        'spine_lumbar': (16.303, 3.015, 0.807), 'spine_thoracic': (-10.447, -10.0, 1.659),
+        'neck': (-0.303, -0.723, -30.615), 'head': (-0.477, -0.004),
+        'right_clavicle': (21.669, -3.641), 'right_shoulder': (75.405, 28.476, 8.507),
+        'right_elbow': (39.762, 21.864), 'right_wrist': (-0.968, -5.159),
     })
     human.KeyJoints(5.2, {
-        'spine_lumbar': (7.503, -0.723, 2.591), 'spine_thoracic': (-11.268, -6.256, 2.419),
-        'neck': (3.948, 0.912, -29.647), 'head': (4.101, 0.004), 'right_clavicle': (13.052, -2.193),
-        'right_shoulder': (70.561, 20.037, 2.193), 'right_elbow': (35.395, 14.209),
-        'right_wrist': (-2.16, -14.898),
+        'spine_lumbar': (5.294, -1.172, 3.82), 'spine_thoracic': (-11.608, -4.326, 3.207),
+        'neck': (4.699, 1.187, -30.188), 'head': (4.902, 0.005), 'right_clavicle': (9.624, -1.41),
+        'right_shoulder': (71.798, 17.297, -1.573), 'right_elbow': (32.99, 10.315),
+        'right_wrist': (-3.023, -20.267),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (6.313, 0.624, 3.351), 'spine_thoracic': (-6.618, -2.123, 2.926),
-        'neck': (1.512, 0.007, -28.54), 'head': (1.492, 0.0), 'right_clavicle': (4.616, 0.343),
-        'right_shoulder': (84.791, 13.393, -2.626), 'right_elbow': (31.97, 8.659),
-        'right_wrist': (-2.684, -27.019),
+        'spine_lumbar': (6.389, 0.754, 3.047), 'spine_thoracic': (-5.788, -2.028, 2.699),
+        'neck': (1.095, -0.143, -28.097), 'head': (1.046, 0.0), 'right_clavicle': (4.219, 0.464),
+        'right_shoulder': (86.089, 12.95, -2.209), 'right_elbow': (32.088, 8.94),
+        'right_wrist': (-2.485, -27.342),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'spine_lumbar': (6.579, 1.24, 1.743), 'spine_thoracic': (-2.284, -1.605, 1.712),
-        'neck': (-0.631, -0.763, -26.163), 'head': (-0.794, -0.002),
-        'right_clavicle': (2.506, 0.962), 'right_shoulder': (91.305, 10.974, -0.401),
-        'right_elbow': (32.588, 10.144), 'right_wrist': (-1.644, -28.659),
+        'spine_lumbar': (6.703, 1.218, 1.89), 'spine_thoracic': (-3.153, -2.034, 1.84),
+        'neck': (-0.231, -0.617, -26.512), 'head': (-0.368, -0.001),
+        'right_clavicle': (3.118, 0.863), 'right_shoulder': (89.909, 11.646, -0.436),
+        'right_elbow': (32.615, 10.209), 'right_wrist': (-1.809, -28.033),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (9.406, 1.203, 1.642), 'spine_thoracic': (-6.82, -5.776, 1.694),
-        'neck': (0.857, -0.238, -28.305), 'head': (0.788, 0.0), 'right_clavicle': (8.693, -0.578),
-        'right_shoulder': (82.736, 16.999, 1.896), 'right_elbow': (34.4, 13.388),
-        'right_wrist': (-1.562, -21.189),
+        'spine_lumbar': (11.836, 1.729, 1.237), 'spine_thoracic': (-8.135, -7.91, 1.485),
+        'neck': (0.658, -0.329, -29.128), 'head': (0.568, 0.0), 'right_clavicle': (12.68, -1.606),
+        'right_shoulder': (79.92, 20.666, 4.253), 'right_elbow': (36.243, 16.235),
+        'right_wrist': (-1.166, -15.882),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (15.793, 3.079, 0.509), 'spine_thoracic': (-9.517, -10.0, 1.263),
-        'neck': (-0.485, -0.78, -29.99), 'head': (-0.668, -0.004),
-        'right_clavicle': (19.544, -3.197), 'right_shoulder': (77.634, 26.702, 8.103),
-        'right_elbow': (39.289, 21.037), 'right_wrist': (-0.813, -7.52),
+        'spine_lumbar': (16.598, 3.166, 0.678), 'spine_thoracic': (-10.197, -10.0, 1.55),
+        'neck': (-0.591, -0.831, -30.537), 'head': (-0.787, -0.005),
+        'right_clavicle': (21.532, -3.597), 'right_shoulder': (76.346, 28.421, 8.616),
+        'right_elbow': (39.778, 21.95), 'right_wrist': (-0.89, -5.441),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (14.611, 2.39, 0.923), 'spine_thoracic': (-10.613, -9.784, 1.647),
-        'neck': (0.669, -0.34, -29.929), 'head': (0.575, 0.0), 'right_clavicle': (20.553, -3.515),
-        'right_shoulder': (73.69, 27.186, 8.008), 'right_elbow': (39.5, 21.058),
-        'right_wrist': (-1.101, -5.792),
+        'spine_lumbar': (9.749, 0.195, 1.844), 'spine_thoracic': (-10.984, -7.633, 2.007),
+        'neck': (2.979, 0.547, -29.453), 'head': (3.062, 0.002), 'right_clavicle': (15.72, -2.694),
+        'right_shoulder': (70.956, 22.43, 4.663), 'right_elbow': (37.126, 16.923),
+        'right_wrist': (-1.672, -11.169),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (5.147, -0.388, 4.621), 'spine_thoracic': (-10.756, -2.669, 3.82),
-        'neck': (3.958, 0.901, -30.365), 'head': (4.107, 0.003), 'right_clavicle': (6.673, -0.399),
-        'right_shoulder': (76.968, 15.315, -4.125), 'right_elbow': (31.55, 7.681),
-        'right_wrist': (-3.57, -24.893),
+        'spine_lumbar': (5.601, -0.032, 4.448), 'spine_thoracic': (-9.773, -2.442, 3.725),
+        'neck': (3.271, 0.645, -30.084), 'head': (3.371, 0.002), 'right_clavicle': (6.061, -0.141),
+        'right_shoulder': (79.241, 14.857, -4.084), 'right_elbow': (31.527, 7.641),
+        'right_wrist': (-3.431, -25.68),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
@@ -370,164 +370,164 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (7.265, 1.15, 2.124), 'spine_thoracic': (-5.217, -3.346, 2.048),
-        'neck': (0.654, -0.297, -27.375), 'head': (0.577, 0.0), 'right_clavicle': (4.997, 0.487),
-        'right_shoulder': (86.371, 13.602, -0.429), 'right_elbow': (32.855, 10.701),
-        'right_wrist': (-2.075, -25.981),
+        'spine_lumbar': (8.711, 1.134, 1.784), 'spine_thoracic': (-6.377, -5.054, 1.79),
+        'neck': (0.845, -0.236, -28.029), 'head': (0.778, 0.0), 'right_clavicle': (7.535, -0.254),
+        'right_shoulder': (83.752, 15.933, 1.179), 'right_elbow': (33.885, 12.543),
+        'right_wrist': (-1.717, -22.732),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (13.465, 2.248, 0.953), 'spine_thoracic': (-8.795, -9.008, 1.38),
-        'neck': (0.317, -0.466, -29.496), 'head': (0.198, -0.001),
-        'right_clavicle': (15.404, -2.254), 'right_shoulder': (78.663, 23.112, 5.828),
-        'right_elbow': (37.503, 18.171), 'right_wrist': (-0.983, -12.405),
+        'spine_lumbar': (15.595, 3.032, 0.525), 'spine_thoracic': (-9.438, -9.975, 1.265),
+        'neck': (-0.418, -0.754, -29.948), 'head': (-0.595, -0.004),
+        'right_clavicle': (19.142, -3.109), 'right_shoulder': (77.738, 26.357, 7.935),
+        'right_elbow': (39.149, 20.796), 'right_wrist': (-0.818, -7.964),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (16.645, 3.167, 0.698), 'spine_thoracic': (-10.251, -10.0, 1.577),
-        'neck': (-0.589, -0.831, -30.587), 'head': (-0.785, -0.005),
-        'right_clavicle': (21.663, -3.622), 'right_shoulder': (76.238, 28.535, 8.637),
-        'right_elbow': (39.802, 22.0), 'right_wrist': (-0.898, -5.309),
+        'spine_lumbar': (15.443, 2.713, 0.856), 'spine_thoracic': (-10.554, -9.947, 1.654),
+        'neck': (0.234, -0.51, -30.147), 'head': (0.103, -0.001),
+        'right_clavicle': (21.214, -3.609), 'right_shoulder': (74.414, 27.896, 8.32),
+        'right_elbow': (39.692, 21.53), 'right_wrist': (-1.04, -5.305),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (5.841, -1.189, 3.408), 'spine_thoracic': (-11.562, -4.948, 2.929),
-        'neck': (4.582, 1.146, -30.011), 'head': (4.778, 0.005), 'right_clavicle': (10.69, -1.682),
-        'right_shoulder': (71.147, 18.093, -0.35), 'right_elbow': (33.729, 11.556),
-        'right_wrist': (-2.73, -18.552),
+        'spine_lumbar': (4.913, -1.045, 4.309), 'spine_thoracic': (-11.627, -3.551, 3.559),
+        'neck': (4.687, 1.177, -30.45), 'head': (4.888, 0.005), 'right_clavicle': (8.312, -1.02),
+        'right_shoulder': (73.287, 16.383, -3.026), 'right_elbow': (32.162, 8.854),
+        'right_wrist': (-3.368, -22.393),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (6.473, 0.926, 2.607), 'spine_thoracic': (-4.599, -1.885, 2.367),
-        'neck': (0.505, -0.355, -27.45), 'head': (0.417, 0.0), 'right_clavicle': (3.64, 0.634),
-        'right_shoulder': (87.888, 12.289, -1.602), 'right_elbow': (32.257, 9.346),
-        'right_wrist': (-2.2, -27.795),
+        'spine_lumbar': (6.501, 0.996, 2.419), 'spine_thoracic': (-4.091, -1.823, 2.225),
+        'neck': (0.255, -0.445, -27.171), 'head': (0.15, -0.001), 'right_clavicle': (3.392, 0.706),
+        'right_shoulder': (88.644, 12.002, -1.341), 'right_elbow': (32.33, 9.519),
+        'right_wrist': (-2.078, -27.986),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'spine_lumbar': (6.61, 1.234, 1.782), 'spine_thoracic': (-2.511, -1.716, 1.746),
-        'neck': (-0.525, -0.724, -26.256), 'head': (-0.681, -0.002),
-        'right_clavicle': (2.665, 0.937), 'right_shoulder': (90.939, 11.149, -0.412),
-        'right_elbow': (32.593, 10.157), 'right_wrist': (-1.688, -28.497),
+        'spine_lumbar': (6.919, 1.186, 2.063), 'spine_thoracic': (-4.312, -2.646, 1.993),
+        'neck': (0.285, -0.429, -26.964), 'head': (0.183, 0.0), 'right_clavicle': (3.993, 0.708),
+        'right_shoulder': (88.024, 12.589, -0.459), 'right_elbow': (32.693, 10.373),
+        'right_wrist': (-2.004, -27.115),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (10.391, 1.378, 1.47), 'spine_thoracic': (-7.389, -6.702, 1.592),
-        'neck': (0.813, -0.261, -28.662), 'head': (0.739, 0.0), 'right_clavicle': (10.297, -1.006),
-        'right_shoulder': (81.492, 18.482, 2.862), 'right_elbow': (35.142, 14.544),
-        'right_wrist': (-1.378, -19.031),
+        'spine_lumbar': (12.92, 2.063, 1.056), 'spine_thoracic': (-8.6, -8.671, 1.417),
+        'neck': (0.452, -0.413, -29.395), 'head': (0.345, -0.001),
+        'right_clavicle': (14.487, -2.039), 'right_shoulder': (79.017, 22.297, 5.293),
+        'right_elbow': (37.079, 17.514), 'right_wrist': (-1.04, -13.559),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (16.221, 3.139, 0.556), 'spine_thoracic': (-9.808, -10.0, 1.356),
-        'neck': (-0.576, -0.819, -30.202), 'head': (-0.767, -0.005),
-        'right_clavicle': (20.533, -3.4), 'right_shoulder': (77.119, 27.555, 8.404),
-        'right_elbow': (39.562, 21.533), 'right_wrist': (-0.836, -6.467),
+        'spine_lumbar': (16.644, 3.167, 0.697), 'spine_thoracic': (-10.25, -10.0, 1.577),
+        'neck': (-0.59, -0.831, -30.586), 'head': (-0.785, -0.005),
+        'right_clavicle': (21.661, -3.622), 'right_shoulder': (76.24, 28.533, 8.636),
+        'right_elbow': (39.802, 21.999), 'right_wrist': (-0.898, -5.311),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (12.386, 1.398, 1.244), 'spine_thoracic': (-10.761, -8.955, 1.737),
-        'neck': (1.763, 0.082, -29.563), 'head': (1.755, 0.0), 'right_clavicle': (18.502, -3.181),
-        'right_shoulder': (72.167, 25.095, 6.774), 'right_elbow': (38.645, 19.427),
-        'right_wrist': (-1.306, -7.811),
+        'spine_lumbar': (7.779, -0.63, 2.482), 'spine_thoracic': (-11.228, -6.446, 2.356),
+        'neck': (3.837, 0.87, -29.615), 'head': (3.981, 0.003), 'right_clavicle': (13.409, -2.264),
+        'right_shoulder': (70.572, 20.346, 2.546), 'right_elbow': (35.636, 14.588),
+        'right_wrist': (-2.087, -14.376),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (5.64, 0.001, 4.426), 'spine_thoracic': (-9.662, -2.423, 3.712),
-        'neck': (3.201, 0.619, -30.053), 'head': (3.296, 0.002), 'right_clavicle': (5.995, -0.116),
-        'right_shoulder': (79.482, 14.803, -4.078), 'right_elbow': (31.527, 7.641),
-        'right_wrist': (-3.414, -25.753),
+        'spine_lumbar': (5.944, 0.238, 4.124), 'spine_thoracic': (-8.694, -2.316, 3.5),
+        'neck': (2.621, 0.407, -29.637), 'head': (2.676, 0.001), 'right_clavicle': (5.532, 0.048),
+        'right_shoulder': (81.325, 14.365, -3.72), 'right_elbow': (31.635, 7.887),
+        'right_wrist': (-3.202, -26.218),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (6.578, 1.24, 1.741), 'spine_thoracic': (-2.274, -1.6, 1.711),
+        'neck': (-0.635, -0.764, -26.159), 'head': (-0.798, -0.002), 'right_clavicle': (2.5, 0.963),
+        'right_shoulder': (91.319, 10.967, -0.401), 'right_elbow': (32.588, 10.143),
+        'right_wrist': (-1.642, -28.665),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (7.821, 1.114, 1.988), 'spine_thoracic': (-5.725, -4.042, 1.941),
-        'neck': (0.766, -0.259, -27.644), 'head': (0.696, 0.0), 'right_clavicle': (6.002, 0.188),
-        'right_shoulder': (85.25, 14.525, 0.224), 'right_elbow': (33.243, 11.429),
-        'right_wrist': (-1.935, -24.728),
+        'spine_lumbar': (9.655, 1.237, 1.595), 'spine_thoracic': (-6.969, -6.02, 1.665),
+        'neck': (0.852, -0.241, -28.401), 'head': (0.783, 0.0), 'right_clavicle': (9.102, -0.689),
+        'right_shoulder': (82.402, 17.376, 2.145), 'right_elbow': (34.587, 13.685),
+        'right_wrist': (-1.512, -20.641),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (14.387, 2.581, 0.77), 'spine_thoracic': (-9.087, -9.502, 1.316),
-        'neck': (0.046, -0.571, -29.623), 'head': (-0.095, -0.001),
-        'right_clavicle': (16.983, -2.619), 'right_shoulder': (78.19, 24.497, 6.739),
-        'right_elbow': (38.221, 19.296), 'right_wrist': (-0.898, -10.469),
+        'spine_lumbar': (16.112, 3.126, 0.534), 'spine_thoracic': (-9.717, -10.0, 1.316),
+        'neck': (-0.56, -0.812, -30.13), 'head': (-0.75, -0.004),
+        'right_clavicle': (20.266, -3.347), 'right_shoulder': (77.294, 27.324, 8.333),
+        'right_elbow': (39.495, 21.409), 'right_wrist': (-0.826, -6.746),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (16.575, 3.122, 0.771), 'spine_thoracic': (-10.348, -10.0, 1.649),
-        'neck': (-0.501, -0.799, -30.678), 'head': (-0.691, -0.004),
-        'right_clavicle': (21.726, -3.637), 'right_shoulder': (75.941, 28.569, 8.569),
-        'right_elbow': (39.771, 21.956), 'right_wrist': (-0.927, -5.221),
+        'spine_lumbar': (13.919, 2.095, 1.002), 'spine_thoracic': (-10.66, -9.583, 1.66),
+        'neck': (1.022, -0.204, -29.789), 'head': (0.955, 0.0), 'right_clavicle': (19.961, -3.425),
+        'right_shoulder': (73.157, 26.564, 7.685), 'right_elbow': (39.288, 20.606),
+        'right_wrist': (-1.159, -6.307),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (4.98, -1.113, 4.119), 'spine_thoracic': (-11.629, -3.878, 3.417),
-        'neck': (4.737, 1.199, -30.332), 'head': (4.942, 0.005), 'right_clavicle': (8.872, -1.196),
-        'right_shoulder': (72.565, 16.763, -2.446), 'right_elbow': (32.484, 9.439),
-        'right_wrist': (-3.237, -21.496),
+        'spine_lumbar': (4.97, -0.714, 4.613), 'spine_thoracic': (-11.293, -2.987, 3.805),
+        'neck': (4.364, 1.051, -30.573), 'head': (4.54, 0.004), 'right_clavicle': (7.347, -0.67),
+        'right_shoulder': (75.108, 15.771, -4.007), 'right_elbow': (31.652, 7.875),
+        'right_wrist': (-3.571, -23.922),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (6.558, 1.166, 1.95), 'spine_thoracic': (-2.831, -1.667, 1.869),
-        'neck': (-0.363, -0.667, -26.472), 'head': (-0.509, -0.002),
-        'right_clavicle': (2.772, 0.884), 'right_shoulder': (90.503, 11.284, -0.691),
-        'right_elbow': (32.508, 9.951), 'right_wrist': (-1.776, -28.459),
+        'spine_lumbar': (6.563, 1.183, 1.902), 'spine_thoracic': (-2.702, -1.651, 1.832),
+        'neck': (-0.426, -0.689, -26.399), 'head': (-0.576, -0.002),
+        'right_clavicle': (2.709, 0.903), 'right_shoulder': (90.693, 11.21, -0.624),
+        'right_elbow': (32.526, 9.995), 'right_wrist': (-1.745, -28.507),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'spine_lumbar': (6.708, 1.217, 1.895), 'spine_thoracic': (-3.182, -2.048, 1.845),
-        'neck': (-0.218, -0.612, -26.523), 'head': (-0.354, -0.001),
-        'right_clavicle': (3.139, 0.86), 'right_shoulder': (89.862, 11.669, -0.436),
-        'right_elbow': (32.616, 10.212), 'right_wrist': (-1.814, -28.012),
+        'spine_lumbar': (7.3, 1.147, 2.119), 'spine_thoracic': (-5.263, -3.399, 2.044),
+        'neck': (0.669, -0.291, -27.399), 'head': (0.593, 0.0), 'right_clavicle': (5.073, 0.466),
+        'right_shoulder': (86.274, 13.674, -0.406), 'right_elbow': (32.876, 10.741),
+        'right_wrist': (-2.07, -25.89),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (11.413, 1.614, 1.304), 'spine_thoracic': (-7.931, -7.579, 1.513),
-        'neck': (0.717, -0.305, -29.003), 'head': (0.633, 0.0), 'right_clavicle': (11.981, -1.434),
-        'right_shoulder': (80.339, 20.029, 3.848), 'right_elbow': (35.92, 15.741),
-        'right_wrist': (-1.222, -16.797),
+        'spine_lumbar': (13.957, 2.422, 0.855), 'spine_thoracic': (-8.954, -9.285, 1.344),
+        'neck': (0.178, -0.52, -29.57), 'head': (0.048, -0.001), 'right_clavicle': (16.241, -2.448),
+        'right_shoulder': (78.39, 23.847, 6.316), 'right_elbow': (37.887, 18.771),
+        'right_wrist': (-0.935, -11.37),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (16.484, 3.162, 0.633), 'spine_thoracic': (-10.069, -10.0, 1.484),
-        'neck': (-0.592, -0.829, -30.422), 'head': (-0.787, -0.005),
-        'right_clavicle': (21.216, -3.536), 'right_shoulder': (76.603, 28.147, 8.559),
-        'right_elbow': (39.715, 21.826), 'right_wrist': (-0.871, -5.763),
+        'spine_lumbar': (16.605, 3.14, 0.755), 'spine_thoracic': (-10.323, -10.0, 1.635),
+        'neck': (-0.531, -0.81, -30.662), 'head': (-0.724, -0.005),
+        'right_clavicle': (21.721, -3.634), 'right_shoulder': (76.039, 28.567, 8.587),
+        'right_elbow': (39.778, 21.973), 'right_wrist': (-0.918, -5.241),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (9.846, 0.237, 1.818), 'spine_thoracic': (-10.974, -7.686, 1.994),
-        'neck': (2.936, 0.53, -29.453), 'head': (3.016, 0.002), 'right_clavicle': (15.828, -2.713),
-        'right_shoulder': (70.98, 22.531, 4.753), 'right_elbow': (37.191, 17.026),
-        'right_wrist': (-1.655, -11.029),
+        'spine_lumbar': (6.249, -1.108, 3.169), 'spine_thoracic': (-11.494, -5.319, 2.775),
+        'neck': (4.446, 1.096, -29.893), 'head': (4.632, 0.005), 'right_clavicle': (11.345, -1.834),
+        'right_shoulder': (70.891, 18.612, 0.379), 'right_elbow': (34.193, 12.306),
+        'right_wrist': (-2.561, -17.513),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (6.041, 0.314, 3.981), 'spine_thoracic': (-8.319, -2.286, 3.394),
-        'neck': (2.409, 0.33, -29.441), 'head': (2.45, 0.001), 'right_clavicle': (5.375, 0.1),
-        'right_shoulder': (81.969, 14.2, -3.512), 'right_elbow': (31.701, 8.036),
-        'right_wrist': (-3.105, -26.36),
+        'spine_lumbar': (6.219, 0.488, 3.628), 'spine_thoracic': (-7.389, -2.205, 3.132),
+        'neck': (1.908, 0.15, -28.945), 'right_clavicle': (4.975, 0.23),
+        'right_shoulder': (83.524, 13.776, -3.005), 'right_elbow': (31.858, 8.398),
+        'right_wrist': (-2.869, -26.711),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (6.604, 1.235, 1.775), 'spine_thoracic': (-2.466, -1.694, 1.74),
+        'neck': (-0.546, -0.732, -26.238), 'head': (-0.704, -0.002),
+        'right_clavicle': (2.634, 0.942), 'right_shoulder': (91.011, 11.115, -0.41),
+        'right_elbow': (32.592, 10.154), 'right_wrist': (-1.679, -28.529),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (8.535, 1.127, 1.823), 'spine_thoracic': (-6.258, -4.863, 1.818),
-        'neck': (0.836, -0.239, -27.953), 'head': (0.769, 0.0), 'right_clavicle': (7.238, -0.17),
-        'right_shoulder': (84.027, 15.66, 0.993), 'right_elbow': (33.756, 12.326),
-        'right_wrist': (-1.759, -23.124),
+        'spine_lumbar': (10.723, 1.448, 1.415), 'spine_thoracic': (-7.57, -6.996, 1.564),
+        'neck': (0.788, -0.273, -28.777), 'head': (0.711, 0.0), 'right_clavicle': (10.841, -1.147),
+        'right_shoulder': (81.101, 18.984, 3.183), 'right_elbow': (35.394, 14.932),
+        'right_wrist': (-1.324, -18.305),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (15.168, 2.874, 0.613), 'spine_thoracic': (-9.316, -9.83, 1.278),
-        'neck': (-0.215, -0.671, -29.699), 'head': (-0.378, -0.002),
-        'right_clavicle': (18.363, -2.934), 'right_shoulder': (77.885, 25.691, 7.509),
-        'right_elbow': (38.823, 20.26), 'right_wrist': (-0.843, -8.847),
+        'spine_lumbar': (16.435, 3.159, 0.616), 'spine_thoracic': (-10.017, -10.0, 1.458),
+        'neck': (-0.591, -0.828, -30.377), 'head': (-0.785, -0.005),
+        'right_clavicle': (21.087, -3.51), 'right_shoulder': (76.706, 28.035, 8.533),
+        'right_elbow': (39.688, 21.773), 'right_wrist': (-0.863, -5.895),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (16.051, 2.932, 0.817), 'spine_thoracic': (-10.489, -10.0, 1.659),
-        'neck': (-0.147, -0.663, -30.532), 'head': (-0.309, -0.003),
-        'right_clavicle': (21.573, -3.642), 'right_shoulder': (75.075, 28.33, 8.476),
-        'right_elbow': (39.76, 21.793), 'right_wrist': (-0.99, -5.141),
+        'spine_lumbar': (11.926, 1.187, 1.33), 'spine_thoracic': (-10.795, -8.75, 1.769),
+        'neck': (1.982, 0.166, -29.516), 'head': (1.991, 0.001), 'right_clavicle': (18.044, -3.103),
+        'right_shoulder': (71.907, 24.643, 6.46), 'right_elbow': (38.421, 19.036),
+        'right_wrist': (-1.359, -8.319),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (4.947, -0.819, 4.552), 'spine_thoracic': (-11.419, -3.122, 3.754),
-        'neck': (4.467, 1.09, -30.573), 'head': (4.652, 0.005), 'right_clavicle': (7.586, -0.761),
-        'right_shoulder': (74.578, 15.922, -3.805), 'right_elbow': (31.758, 8.081),
-        'right_wrist': (-3.53, -23.552),
+        'spine_lumbar': (5.171, -0.367, 4.614), 'spine_thoracic': (-10.707, -2.653, 3.816),
+        'neck': (3.922, 0.887, -30.349), 'head': (4.068, 0.003), 'right_clavicle': (6.635, -0.382),
+        'right_shoulder': (77.097, 15.289, -4.123), 'right_elbow': (31.548, 7.677),
+        'right_wrist': (-3.565, -24.946),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
@@ -537,65 +537,65 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (6.91, 1.187, 2.058), 'spine_thoracic': (-4.276, -2.626, 1.988),
-        'neck': (0.269, -0.435, -26.95), 'head': (0.167, 0.0), 'right_clavicle': (3.963, 0.714),
-        'right_shoulder': (88.083, 12.558, -0.459), 'right_elbow': (32.69, 10.366),
-        'right_wrist': (-1.999, -27.147),
+        'spine_lumbar': (7.91, 1.113, 1.966), 'spine_thoracic': (-5.797, -4.148, 1.925),
+        'neck': (0.778, -0.255, -27.683), 'head': (0.708, 0.0), 'right_clavicle': (6.159, 0.142),
+        'right_shoulder': (85.087, 14.669, 0.328), 'right_elbow': (33.307, 11.545),
+        'right_wrist': (-1.913, -24.528),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (12.446, 1.911, 1.136), 'spine_thoracic': (-8.407, -8.355, 1.446),
-        'neck': (0.552, -0.373, -29.288), 'head': (0.453, 0.0), 'right_clavicle': (13.695, -1.851),
-        'right_shoulder': (79.382, 21.586, 4.838), 'right_elbow': (36.713, 16.954),
-        'right_wrist': (-1.092, -14.568),
+        'spine_lumbar': (14.856, 2.755, 0.679), 'spine_thoracic': (-9.227, -9.707, 1.29),
+        'neck': (-0.106, -0.63, -29.673), 'head': (-0.26, -0.002),
+        'right_clavicle': (17.808, -2.807), 'right_shoulder': (77.997, 25.214, 7.196),
+        'right_elbow': (38.582, 19.87), 'right_wrist': (-0.864, -9.491),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (16.61, 3.166, 0.683), 'spine_thoracic': (-10.211, -10.0, 1.557),
-        'neck': (-0.591, -0.831, -30.55), 'head': (-0.786, -0.005),
-        'right_clavicle': (21.566, -3.603), 'right_shoulder': (76.317, 28.451, 8.621),
-        'right_elbow': (39.784, 21.964), 'right_wrist': (-0.892, -5.407),
+        'spine_lumbar': (16.312, 3.018, 0.806), 'spine_thoracic': (-10.445, -10.0, 1.659),
+        'neck': (-0.31, -0.726, -30.618), 'head': (-0.484, -0.004),
+        'right_clavicle': (21.672, -3.641), 'right_shoulder': (75.419, 28.482, 8.508),
+        'right_elbow': (39.762, 21.866), 'right_wrist': (-0.967, -5.16),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (7.536, -0.713, 2.578), 'spine_thoracic': (-11.263, -6.279, 2.412),
-        'neck': (3.935, 0.907, -29.643), 'head': (4.087, 0.004), 'right_clavicle': (13.095, -2.201),
-        'right_shoulder': (70.561, 20.074, 2.236), 'right_elbow': (35.424, 14.255),
-        'right_wrist': (-2.152, -14.835),
+        'spine_lumbar': (5.306, -1.173, 3.809), 'spine_thoracic': (-11.608, -4.341, 3.199),
+        'neck': (4.697, 1.186, -30.183), 'head': (4.9, 0.005), 'right_clavicle': (9.649, -1.416),
+        'right_shoulder': (71.776, 17.315, -1.543), 'right_elbow': (33.008, 10.345),
+        'right_wrist': (-3.016, -20.226),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (6.309, 0.619, 3.362), 'spine_thoracic': (-6.65, -2.127, 2.935),
-        'neck': (1.528, 0.013, -28.557), 'head': (1.509, 0.0), 'right_clavicle': (4.631, 0.339),
-        'right_shoulder': (84.74, 13.41, -2.642), 'right_elbow': (31.965, 8.648),
-        'right_wrist': (-2.691, -27.007),
+        'spine_lumbar': (6.387, 0.75, 3.058), 'spine_thoracic': (-5.817, -2.031, 2.707),
+        'neck': (1.109, -0.138, -28.112), 'head': (1.061, 0.0), 'right_clavicle': (4.233, 0.459),
+        'right_shoulder': (86.045, 12.966, -2.223), 'right_elbow': (32.084, 8.931),
+        'right_wrist': (-2.492, -27.331),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
-        'spine_lumbar': (6.579, 1.24, 1.743), 'spine_thoracic': (-2.282, -1.604, 1.712),
-        'neck': (-0.631, -0.763, -26.162), 'head': (-0.794, -0.002),
-        'right_clavicle': (2.505, 0.962), 'right_shoulder': (91.306, 10.973, -0.401),
-        'right_elbow': (32.588, 10.144), 'right_wrist': (-1.644, -28.66),
+        'spine_lumbar': (6.701, 1.218, 1.888), 'spine_thoracic': (-3.137, -2.026, 1.838),
+        'neck': (-0.239, -0.62, -26.506), 'head': (-0.375, -0.001),
+        'right_clavicle': (3.106, 0.865), 'right_shoulder': (89.935, 11.633, -0.435),
+        'right_elbow': (32.614, 10.208), 'right_wrist': (-1.806, -28.045),
     })
     human.KeyJoints(9.3, {
-        'spine_lumbar': (9.391, 1.201, 1.645), 'spine_thoracic': (-6.81, -5.761, 1.696),
-        'neck': (0.857, -0.237, -28.299), 'head': (0.789, 0.0), 'right_clavicle': (8.668, -0.571),
-        'right_shoulder': (82.758, 16.975, 1.88), 'right_elbow': (34.389, 13.37),
-        'right_wrist': (-1.565, -21.224),
+        'spine_lumbar': (11.817, 1.724, 1.24), 'spine_thoracic': (-8.126, -7.896, 1.486),
+        'neck': (0.661, -0.328, -29.123), 'head': (0.572, 0.0), 'right_clavicle': (12.649, -1.598),
+        'right_shoulder': (79.938, 20.638, 4.235), 'right_elbow': (36.229, 16.214),
+        'right_wrist': (-1.168, -15.922),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (15.785, 3.077, 0.509), 'spine_thoracic': (-9.513, -10.0, 1.263),
-        'neck': (-0.482, -0.779, -29.988), 'head': (-0.665, -0.004),
-        'right_clavicle': (19.526, -3.193), 'right_shoulder': (77.64, 26.686, 8.096),
-        'right_elbow': (39.283, 21.027), 'right_wrist': (-0.813, -7.54),
+        'spine_lumbar': (16.597, 3.166, 0.677), 'spine_thoracic': (-10.195, -10.0, 1.549),
+        'neck': (-0.591, -0.831, -30.535), 'head': (-0.787, -0.005),
+        'right_clavicle': (21.528, -3.596), 'right_shoulder': (76.349, 28.417, 8.615),
+        'right_elbow': (39.777, 21.949), 'right_wrist': (-0.89, -5.446),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (14.642, 2.402, 0.92), 'spine_thoracic': (-10.611, -9.79, 1.647),
-        'neck': (0.654, -0.347, -29.937), 'head': (0.558, 0.0), 'right_clavicle': (20.577, -3.519),
-        'right_shoulder': (73.715, 27.212, 8.02), 'right_elbow': (39.507, 21.076),
-        'right_wrist': (-1.099, -5.774),
+        'spine_lumbar': (9.783, 0.21, 1.835), 'spine_thoracic': (-10.98, -7.652, 2.003),
+        'neck': (2.964, 0.541, -29.453), 'head': (3.046, 0.002), 'right_clavicle': (15.759, -2.701),
+        'right_shoulder': (70.964, 22.466, 4.695), 'right_elbow': (37.149, 16.96),
+        'right_wrist': (-1.666, -11.119),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (5.14, -0.395, 4.623), 'spine_thoracic': (-10.771, -2.675, 3.821),
-        'neck': (3.97, 0.905, -30.371), 'head': (4.119, 0.003), 'right_clavicle': (6.685, -0.404),
-        'right_shoulder': (76.927, 15.324, -4.125), 'right_elbow': (31.551, 7.683),
-        'right_wrist': (-3.572, -24.876),
+        'spine_lumbar': (5.595, -0.038, 4.451), 'spine_thoracic': (-9.79, -2.445, 3.727),
+        'neck': (3.282, 0.649, -30.089), 'head': (3.383, 0.002), 'right_clavicle': (6.07, -0.144),
+        'right_shoulder': (79.205, 14.865, -4.085), 'right_elbow': (31.528, 7.641),
+        'right_wrist': (-3.433, -25.669),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
@@ -605,164 +605,164 @@ def remove_access_panel():
         'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (7.258, 1.151, 2.125), 'spine_thoracic': (-5.207, -3.335, 2.048),
-        'neck': (0.65, -0.298, -27.369), 'head': (0.574, 0.0), 'right_clavicle': (4.98, 0.491),
-        'right_shoulder': (86.392, 13.586, -0.434), 'right_elbow': (32.851, 10.692),
-        'right_wrist': (-2.076, -26.001),
+        'spine_lumbar': (8.696, 1.134, 1.788), 'spine_thoracic': (-6.367, -5.039, 1.793),
+        'neck': (0.844, -0.237, -28.022), 'head': (0.778, 0.0), 'right_clavicle': (7.51, -0.247),
+        'right_shoulder': (83.775, 15.91, 1.163), 'right_elbow': (33.874, 12.525),
+        'right_wrist': (-1.72, -22.765),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (13.448, 2.242, 0.956), 'spine_thoracic': (-8.789, -8.998, 1.381),
-        'neck': (0.321, -0.464, -29.494), 'head': (0.203, -0.001),
-        'right_clavicle': (15.376, -2.248), 'right_shoulder': (78.673, 23.087, 5.812),
-        'right_elbow': (37.49, 18.151), 'right_wrist': (-0.984, -12.44),
+        'spine_lumbar': (15.584, 3.029, 0.526), 'spine_thoracic': (-9.435, -9.973, 1.265),
+        'neck': (-0.414, -0.753, -29.947), 'head': (-0.591, -0.004),
+        'right_clavicle': (19.122, -3.105), 'right_shoulder': (77.743, 26.339, 7.925),
+        'right_elbow': (39.141, 20.783), 'right_wrist': (-0.818, -7.986),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (16.644, 3.167, 0.698), 'spine_thoracic': (-10.25, -10.0, 1.577),
-        'neck': (-0.589, -0.831, -30.586), 'head': (-0.785, -0.005),
-        'right_clavicle': (21.663, -3.622), 'right_shoulder': (76.238, 28.535, 8.637),
-        'right_elbow': (39.802, 22.0), 'right_wrist': (-0.898, -5.309),
+        'spine_lumbar': (15.464, 2.721, 0.854), 'spine_thoracic': (-10.552, -9.95, 1.654),
+        'neck': (0.222, -0.514, -30.153), 'head': (0.091, -0.001),
+        'right_clavicle': (21.23, -3.611), 'right_shoulder': (74.434, 27.913, 8.327),
+        'right_elbow': (39.696, 21.541), 'right_wrist': (-1.038, -5.294),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (5.861, -1.187, 3.395), 'spine_thoracic': (-11.559, -4.968, 2.921),
-        'neck': (4.576, 1.144, -30.005), 'head': (4.772, 0.005), 'right_clavicle': (10.725, -1.691),
-        'right_shoulder': (71.133, 18.12, -0.311), 'right_elbow': (33.753, 11.596),
-        'right_wrist': (-2.721, -18.496),
+        'spine_lumbar': (4.913, -1.048, 4.303), 'spine_thoracic': (-11.629, -3.562, 3.555),
+        'neck': (4.691, 1.178, -30.446), 'head': (4.892, 0.005), 'right_clavicle': (8.331, -1.026),
+        'right_shoulder': (73.26, 16.396, -3.007), 'right_elbow': (32.172, 8.873),
+        'right_wrist': (-3.364, -22.363),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (6.471, 0.921, 2.62), 'spine_thoracic': (-4.633, -1.889, 2.377),
-        'neck': (0.522, -0.349, -27.469), 'head': (0.435, 0.0), 'right_clavicle': (3.657, 0.629),
-        'right_shoulder': (87.837, 12.309, -1.619), 'right_elbow': (32.253, 9.334),
-        'right_wrist': (-2.208, -27.782),
+        'spine_lumbar': (6.5, 0.993, 2.429), 'spine_thoracic': (-4.118, -1.826, 2.232),
+        'neck': (0.269, -0.44, -27.186), 'head': (0.165, -0.001), 'right_clavicle': (3.405, 0.702),
+        'right_shoulder': (88.603, 12.018, -1.355), 'right_elbow': (32.326, 9.51),
+        'right_wrist': (-2.084, -27.976),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'spine_lumbar': (6.609, 1.235, 1.781), 'spine_thoracic': (-2.504, -1.713, 1.745),
-        'neck': (-0.529, -0.726, -26.253), 'head': (-0.685, -0.002),
-        'right_clavicle': (2.66, 0.938), 'right_shoulder': (90.951, 11.144, -0.411),
-        'right_elbow': (32.593, 10.157), 'right_wrist': (-1.687, -28.502),
+        'spine_lumbar': (6.914, 1.187, 2.06), 'spine_thoracic': (-4.291, -2.634, 1.99),
+        'neck': (0.275, -0.433, -26.956), 'head': (0.174, 0.0), 'right_clavicle': (3.975, 0.711),
+        'right_shoulder': (88.059, 12.571, -0.459), 'right_elbow': (32.691, 10.369),
+        'right_wrist': (-2.001, -27.134),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (10.374, 1.374, 1.473), 'spine_thoracic': (-7.379, -6.687, 1.594),
-        'neck': (0.814, -0.261, -28.656), 'head': (0.74, 0.0), 'right_clavicle': (10.269, -0.999),
-        'right_shoulder': (81.513, 18.457, 2.845), 'right_elbow': (35.129, 14.524),
-        'right_wrist': (-1.381, -19.069),
+        'spine_lumbar': (12.902, 2.057, 1.059), 'spine_thoracic': (-8.593, -8.66, 1.418),
+        'neck': (0.456, -0.411, -29.391), 'head': (0.349, -0.001),
+        'right_clavicle': (14.457, -2.032), 'right_shoulder': (79.03, 22.27, 5.276),
+        'right_elbow': (37.065, 17.493), 'right_wrist': (-1.042, -13.597),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (16.215, 3.138, 0.554), 'spine_thoracic': (-9.803, -10.0, 1.353),
-        'neck': (-0.575, -0.818, -30.198), 'head': (-0.767, -0.004),
-        'right_clavicle': (20.518, -3.398), 'right_shoulder': (77.129, 27.542, 8.401),
-        'right_elbow': (39.559, 21.527), 'right_wrist': (-0.835, -6.482),
+        'spine_lumbar': (16.643, 3.167, 0.697), 'spine_thoracic': (-10.249, -10.0, 1.577),
+        'neck': (-0.59, -0.831, -30.585), 'head': (-0.785, -0.005),
+        'right_clavicle': (21.66, -3.621), 'right_shoulder': (76.24, 28.532, 8.636),
+        'right_elbow': (39.801, 21.999), 'right_wrist': (-0.898, -5.312),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (12.426, 1.417, 1.237), 'spine_thoracic': (-10.758, -8.972, 1.735),
-        'neck': (1.744, 0.075, -29.568), 'head': (1.735, 0.0), 'right_clavicle': (18.542, -3.187),
-        'right_shoulder': (72.19, 25.134, 6.8), 'right_elbow': (38.663, 19.459),
-        'right_wrist': (-1.302, -7.769),
+        'spine_lumbar': (7.809, -0.62, 2.47), 'spine_thoracic': (-11.224, -6.466, 2.35),
+        'neck': (3.825, 0.865, -29.611), 'head': (3.968, 0.003), 'right_clavicle': (13.446, -2.271),
+        'right_shoulder': (70.575, 20.378, 2.582), 'right_elbow': (35.661, 14.627),
+        'right_wrist': (-2.08, -14.322),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (5.633, -0.005, 4.43), 'spine_thoracic': (-9.682, -2.427, 3.715),
-        'neck': (3.213, 0.623, -30.059), 'head': (3.309, 0.002), 'right_clavicle': (6.007, -0.12),
-        'right_shoulder': (79.44, 14.813, -4.079), 'right_elbow': (31.527, 7.641),
-        'right_wrist': (-3.417, -25.74),
+        'spine_lumbar': (5.939, 0.234, 4.131), 'spine_thoracic': (-8.714, -2.318, 3.506),
+        'neck': (2.633, 0.411, -29.647), 'head': (2.689, 0.001), 'right_clavicle': (5.541, 0.045),
+        'right_shoulder': (81.29, 14.373, -3.731), 'right_elbow': (31.632, 7.879),
+        'right_wrist': (-3.207, -26.21),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (6.578, 1.24, 1.741), 'spine_thoracic': (-2.274, -1.6, 1.711),
+        'neck': (-0.635, -0.764, -26.159), 'head': (-0.799, -0.002),
+        'right_clavicle': (2.499, 0.963), 'right_shoulder': (91.32, 10.966, -0.401),
+        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.642, -28.666),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (7.81, 1.114, 1.991), 'spine_thoracic': (-5.716, -4.03, 1.943),
-        'neck': (0.765, -0.26, -27.639), 'head': (0.694, 0.0), 'right_clavicle': (5.984, 0.194),
-        'right_shoulder': (85.269, 14.508, 0.211), 'right_elbow': (33.235, 11.415),
-        'right_wrist': (-1.938, -24.751),
+        'spine_lumbar': (9.638, 1.234, 1.599), 'spine_thoracic': (-6.959, -6.004, 1.667),
+        'neck': (0.853, -0.241, -28.395), 'head': (0.784, 0.0), 'right_clavicle': (9.074, -0.682),
+        'right_shoulder': (82.425, 17.35, 2.128), 'right_elbow': (34.574, 13.664),
+        'right_wrist': (-1.515, -20.679),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (14.373, 2.575, 0.773), 'spine_thoracic': (-9.082, -9.495, 1.317),
-        'neck': (0.051, -0.569, -29.622), 'head': (-0.09, -0.001),
-        'right_clavicle': (16.958, -2.614), 'right_shoulder': (78.196, 24.475, 6.725),
-        'right_elbow': (38.21, 19.278), 'right_wrist': (-0.899, -10.499),
+        'spine_lumbar': (16.105, 3.125, 0.533), 'spine_thoracic': (-9.711, -10.0, 1.313),
+        'neck': (-0.559, -0.811, -30.126), 'head': (-0.749, -0.004),
+        'right_clavicle': (20.25, -3.343), 'right_shoulder': (77.305, 27.31, 8.328),
+        'right_elbow': (39.491, 21.401), 'right_wrist': (-0.825, -6.764),
     })
     human.KeyJoints(11.1, {
-        'spine_lumbar': (16.578, 3.124, 0.77), 'spine_thoracic': (-10.345, -10.0, 1.648),
-        'neck': (-0.504, -0.801, -30.677), 'head': (-0.695, -0.004),
-        'right_clavicle': (21.726, -3.637), 'right_shoulder': (75.951, 28.569, 8.571),
-        'right_elbow': (39.772, 21.958), 'right_wrist': (-0.926, -5.223),
+        'spine_lumbar': (13.95, 2.109, 0.998), 'spine_thoracic': (-10.658, -9.594, 1.659),
+        'neck': (1.006, -0.21, -29.794), 'head': (0.939, 0.0), 'right_clavicle': (19.988, -3.429),
+        'right_shoulder': (73.179, 26.593, 7.701), 'right_elbow': (39.299, 20.628),
+        'right_wrist': (-1.157, -6.28),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (4.987, -1.115, 4.109), 'spine_thoracic': (-11.629, -3.894, 3.41),
-        'neck': (4.737, 1.199, -30.327), 'head': (4.942, 0.005), 'right_clavicle': (8.898, -1.204),
-        'right_shoulder': (72.534, 16.782, -2.417), 'right_elbow': (32.501, 9.468),
-        'right_wrist': (-3.23, -21.453),
+        'spine_lumbar': (4.969, -0.72, 4.61), 'spine_thoracic': (-11.301, -2.995, 3.802),
+        'neck': (4.37, 1.053, -30.574), 'head': (4.547, 0.004), 'right_clavicle': (7.361, -0.676),
+        'right_shoulder': (75.076, 15.78, -3.997), 'right_elbow': (31.658, 7.886),
+        'right_wrist': (-3.569, -23.901),
     })
     human.KeyJoints(11.3, {
-        'spine_lumbar': (6.557, 1.163, 1.958), 'spine_thoracic': (-2.854, -1.67, 1.875),
-        'neck': (-0.351, -0.662, -26.485), 'head': (-0.496, -0.001),
-        'right_clavicle': (2.784, 0.881), 'right_shoulder': (90.469, 11.297, -0.703),
-        'right_elbow': (32.505, 9.943), 'right_wrist': (-1.781, -28.45),
+        'spine_lumbar': (6.562, 1.181, 1.908), 'spine_thoracic': (-2.72, -1.653, 1.838),
+        'neck': (-0.417, -0.686, -26.41), 'head': (-0.566, -0.002), 'right_clavicle': (2.718, 0.9),
+        'right_shoulder': (90.666, 11.221, -0.634), 'right_elbow': (32.524, 9.989),
+        'right_wrist': (-1.749, -28.501),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
-        'spine_lumbar': (6.705, 1.217, 1.892), 'spine_thoracic': (-3.166, -2.041, 1.842),
-        'neck': (-0.225, -0.615, -26.517), 'head': (-0.361, -0.001),
-        'right_clavicle': (3.128, 0.862), 'right_shoulder': (89.887, 11.656, -0.436),
-        'right_elbow': (32.615, 10.211), 'right_wrist': (-1.812, -28.023),
+        'spine_lumbar': (7.292, 1.148, 2.12), 'spine_thoracic': (-5.252, -3.387, 2.045),
+        'neck': (0.665, -0.293, -27.394), 'head': (0.59, 0.0), 'right_clavicle': (5.055, 0.471),
+        'right_shoulder': (86.297, 13.657, -0.412), 'right_elbow': (32.871, 10.731),
+        'right_wrist': (-2.071, -25.912),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (11.396, 1.61, 1.307), 'spine_thoracic': (-7.922, -7.565, 1.514),
-        'neck': (0.719, -0.304, -28.998), 'head': (0.635, 0.0), 'right_clavicle': (11.953, -1.427),
-        'right_shoulder': (80.357, 20.003, 3.832), 'right_elbow': (35.907, 15.72),
-        'right_wrist': (-1.224, -16.835),
+        'spine_lumbar': (13.94, 2.416, 0.858), 'spine_thoracic': (-8.948, -9.276, 1.345),
+        'neck': (0.183, -0.518, -29.568), 'head': (0.053, -0.001),
+        'right_clavicle': (16.213, -2.442), 'right_shoulder': (78.399, 23.822, 6.3),
+        'right_elbow': (37.874, 18.751), 'right_wrist': (-0.936, -11.405),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (16.48, 3.162, 0.632), 'spine_thoracic': (-10.065, -10.0, 1.483),
-        'neck': (-0.592, -0.829, -30.419), 'head': (-0.787, -0.005),
-        'right_clavicle': (21.208, -3.534), 'right_shoulder': (76.61, 28.139, 8.557),
-        'right_elbow': (39.714, 21.823), 'right_wrist': (-0.87, -5.771),
+        'spine_lumbar': (16.608, 3.141, 0.753), 'spine_thoracic': (-10.32, -10.0, 1.633),
+        'neck': (-0.534, -0.811, -30.66), 'head': (-0.726, -0.005),
+        'right_clavicle': (21.72, -3.633), 'right_shoulder': (76.047, 28.566, 8.589),
+        'right_elbow': (39.778, 21.974), 'right_wrist': (-0.918, -5.243),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (9.887, 0.255, 1.807), 'spine_thoracic': (-10.97, -7.709, 1.989),
-        'neck': (2.918, 0.523, -29.453), 'head': (2.997, 0.002), 'right_clavicle': (15.874, -2.722),
-        'right_shoulder': (70.991, 22.573, 4.791), 'right_elbow': (37.218, 17.07),
-        'right_wrist': (-1.648, -10.97),
+        'spine_lumbar': (6.27, -1.103, 3.157), 'spine_thoracic': (-11.49, -5.337, 2.767),
+        'neck': (4.438, 1.093, -29.887), 'head': (4.624, 0.005), 'right_clavicle': (11.377, -1.841),
+        'right_shoulder': (70.88, 18.639, 0.415), 'right_elbow': (34.216, 12.343),
+        'right_wrist': (-2.553, -17.462),
     })
     human.KeyJoints(11.8, {
-        'spine_lumbar': (6.034, 0.309, 3.99), 'spine_thoracic': (-8.344, -2.288, 3.401),
-        'neck': (2.423, 0.335, -29.454), 'head': (2.465, 0.001), 'right_clavicle': (5.385, 0.097),
-        'right_shoulder': (81.926, 14.211, -3.526), 'right_elbow': (31.697, 8.026),
-        'right_wrist': (-3.112, -26.35),
+        'spine_lumbar': (6.215, 0.484, 3.637), 'spine_thoracic': (-7.413, -2.207, 3.139),
+        'neck': (1.92, 0.154, -28.958), 'right_clavicle': (4.985, 0.226),
+        'right_shoulder': (83.485, 13.787, -3.017), 'right_elbow': (31.855, 8.389),
+        'right_wrist': (-2.875, -26.701),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
-        'spine_lumbar': (6.577, 1.241, 1.74), 'spine_thoracic': (-2.269, -1.597, 1.71),
-        'neck': (-0.638, -0.765, -26.157), 'head': (-0.801, -0.002),
-        'right_clavicle': (2.496, 0.964), 'right_shoulder': (91.328, 10.963, -0.4),
-        'right_elbow': (32.588, 10.143), 'right_wrist': (-1.641, -28.669),
+        'spine_lumbar': (6.602, 1.236, 1.773), 'spine_thoracic': (-2.457, -1.69, 1.738),
+        'neck': (-0.55, -0.733, -26.234), 'head': (-0.708, -0.002),
+        'right_clavicle': (2.628, 0.943), 'right_shoulder': (91.026, 11.108, -0.409),
+        'right_elbow': (32.592, 10.154), 'right_wrist': (-1.678, -28.535),
     })
     human.KeyJoints(12.0, {
-        'spine_lumbar': (8.522, 1.127, 1.826), 'spine_thoracic': (-6.249, -4.849, 1.82),
-        'neck': (0.835, -0.239, -27.947), 'head': (0.768, 0.0), 'right_clavicle': (7.216, -0.163),
-        'right_shoulder': (84.047, 15.639, 0.979), 'right_elbow': (33.746, 12.31),
-        'right_wrist': (-1.762, -23.154),
+        'spine_lumbar': (10.688, 1.441, 1.421), 'spine_thoracic': (-7.551, -6.966, 1.567),
+        'neck': (0.791, -0.272, -28.765), 'head': (0.714, 0.0), 'right_clavicle': (10.783, -1.132),
+        'right_shoulder': (81.142, 18.931, 3.149), 'right_elbow': (35.367, 14.891),
+        'right_wrist': (-1.33, -18.382),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (15.156, 2.869, 0.615), 'spine_thoracic': (-9.313, -9.825, 1.279),
-        'neck': (-0.211, -0.67, -29.698), 'head': (-0.373, -0.002),
-        'right_clavicle': (18.342, -2.929), 'right_shoulder': (77.888, 25.673, 7.497),
-        'right_elbow': (38.813, 20.245), 'right_wrist': (-0.843, -8.871),
+        'spine_lumbar': (16.426, 3.159, 0.612), 'spine_thoracic': (-10.007, -10.0, 1.453),
+        'neck': (-0.591, -0.827, -30.368), 'head': (-0.785, -0.005),
+        'right_clavicle': (21.06, -3.505), 'right_shoulder': (76.727, 28.012, 8.527),
+        'right_elbow': (39.683, 21.762), 'right_wrist': (-0.862, -5.922),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (16.052, 2.925, 0.807), 'spine_thoracic': (-10.47, -10.0, 1.651),
-        'neck': (-0.154, -0.665, -30.534), 'head': (-0.316, -0.003),
-        'right_clavicle': (21.574, -3.648), 'right_shoulder': (75.107, 28.328, 8.479),
-        'right_elbow': (39.743, 21.798), 'right_wrist': (-0.985, -5.187),
+        'spine_lumbar': (11.875, 1.12, 1.238), 'spine_thoracic': (-10.633, -8.778, 1.69),
+        'neck': (1.959, 0.158, -29.48), 'head': (1.966, 0.001), 'right_clavicle': (18.065, -3.148),
+        'right_shoulder': (72.034, 24.596, 6.552), 'right_elbow': (38.34, 19.117),
+        'right_wrist': (-1.312, -8.509),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (4.576, -1.201, 4.284), 'spine_thoracic': (-10.929, -3.156, 3.505),
-        'neck': (4.502, 1.107, -30.428), 'head': (4.689, 0.005), 'right_clavicle': (7.477, -0.914),
-        'right_shoulder': (74.985, 15.611, -3.749), 'right_elbow': (31.239, 8.11),
-        'right_wrist': (-3.41, -24.674),
+        'spine_lumbar': (4.753, -0.773, 4.34), 'spine_thoracic': (-10.182, -2.686, 3.56),
+        'neck': (3.966, 0.907, -30.216), 'head': (4.116, 0.003), 'right_clavicle': (6.516, -0.551),
+        'right_shoulder': (77.528, 14.959, -4.086), 'right_elbow': (30.968, 7.69),
+        'right_wrist': (-3.445, -26.171),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.394506, duration=0.072)
@@ -830,65 +830,65 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
-        'spine_lumbar': (6.82, -14.213, 9.501), 'spine_thoracic': (-8.921, -4.628, 9.091),
-        'neck': (0.568, -0.499, -15.26), 'head': (0.704, -0.015), 'right_clavicle': (3.249, 7.73),
-        'right_shoulder': (88.764, 7.696, 1.099), 'right_elbow': (32.288, 11.082),
-        'right_wrist': (-1.411, -29.986),
+        'spine_lumbar': (6.372, -14.925, 9.149), 'spine_thoracic': (-9.903, -5.253, 8.836),
+        'neck': (1.293, -0.487, -15.469), 'head': (1.434, -0.014), 'right_clavicle': (4.823, 7.227),
+        'right_shoulder': (87.096, 8.841, 1.653), 'right_elbow': (31.533, 11.734),
+        'right_wrist': (-1.289, -29.982),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (4.488, -18.628, 6.229), 'spine_thoracic': (-11.053, -9.008, 7.003),
-        'neck': (3.012, -0.467, -16.484), 'head': (3.165, -0.014),
-        'right_clavicle': (12.096, 5.123), 'right_shoulder': (83.72, 12.472, 5.394),
-        'right_elbow': (26.234, 16.105), 'right_wrist': (0.506, -28.124),
+        'spine_lumbar': (4.541, -19.777, 4.88), 'spine_thoracic': (-11.346, -9.903, 6.437),
+        'neck': (3.207, -0.463, -16.404), 'head': (3.36, -0.014), 'right_clavicle': (16.913, 4.343),
+        'right_shoulder': (82.918, 14.602, 8.633), 'right_elbow': (24.528, 19.541),
+        'right_wrist': (1.893, -25.605),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (5.712, -19.946, 3.833), 'spine_thoracic': (-11.698, -10.0, 6.067),
-        'neck': (2.799, -0.464, -15.9), 'head': (2.948, -0.014), 'right_clavicle': (21.587, 3.587),
-        'right_shoulder': (82.781, 17.047, 12.591), 'right_elbow': (25.196, 23.477),
-        'right_wrist': (3.39, -22.347),
+        'spine_lumbar': (5.727, -19.893, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
+        'neck': (2.804, -0.463, -15.79), 'head': (2.952, -0.014), 'right_clavicle': (21.909, 3.56),
+        'right_shoulder': (82.743, 17.162, 12.873), 'right_elbow': (25.256, 23.741),
+        'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(13.8, {
-        'spine_lumbar': (-0.231, -19.997, 5.048), 'spine_thoracic': (-11.377, -7.008, 6.693),
-        'neck': (5.112, -0.391, -13.578), 'head': (5.247, -0.014),
-        'right_clavicle': (15.691, 5.507), 'right_shoulder': (81.07, 10.853, 7.505),
-        'right_elbow': (22.591, 18.003), 'right_wrist': (1.461, -27.092),
+        'spine_lumbar': (-1.53, -19.425, 6.759), 'spine_thoracic': (-11.349, -3.766, 7.666),
+        'neck': (5.537, -0.387, -13.913), 'head': (5.674, -0.014),
+        'right_clavicle': (10.451, 6.659), 'right_shoulder': (81.719, 8.079, 2.021),
+        'right_elbow': (21.029, 12.727), 'right_wrist': (-0.87, -29.845),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (2.089, -17.685, 9.042), 'spine_thoracic': (-10.569, -2.943, 8.985),
-        'neck': (3.542, -0.456, -16.419), 'head': (3.696, -0.014), 'right_clavicle': (4.343, 7.611),
-        'right_shoulder': (86.62, 7.523, -3.702), 'right_elbow': (21.963, 7.584),
-        'right_wrist': (-3.313, -29.89),
+        'spine_lumbar': (2.245, -17.631, 8.996), 'spine_thoracic': (-10.286, -3.485, 8.9),
+        'neck': (3.369, -0.461, -16.542), 'head': (3.523, -0.014), 'right_clavicle': (4.092, 7.555),
+        'right_shoulder': (87.046, 7.517, -3.752), 'right_elbow': (22.081, 7.543),
+        'right_wrist': (-3.302, -29.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.468, -17.282, 8.628), 'spine_thoracic': (-8.857, -6.032, 8.39),
+        'neck': (2.741, -0.475, -16.737), 'head': (2.895, -0.014), 'right_clavicle': (2.864, 7.288),
+        'right_shoulder': (88.599, 6.929, -3.84), 'right_elbow': (22.55, 7.423),
+        'right_wrist': (-3.133, -30.0),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (2.406, -18.87, 7.604), 'spine_thoracic': (-10.537, -7.936, 7.763),
-        'neck': (3.731, -0.465, -17.437), 'head': (3.892, -0.014), 'right_clavicle': (7.112, 6.2),
-        'right_shoulder': (85.087, 9.578, -0.803), 'right_elbow': (22.369, 10.409),
-        'right_wrist': (-1.999, -29.852),
+        'spine_lumbar': (2.976, -19.743, 6.337), 'spine_thoracic': (-10.935, -9.349, 7.06),
+        'neck': (3.764, -0.463, -17.328), 'head': (3.924, -0.014),
+        'right_clavicle': (11.121, 5.312), 'right_shoulder': (83.615, 11.646, 2.944),
+        'right_elbow': (22.799, 14.058), 'right_wrist': (-0.405, -28.558),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (4.917, -20.0, 4.361), 'spine_thoracic': (-11.469, -10.0, 6.244),
-        'neck': (3.091, -0.463, -16.225), 'head': (3.242, -0.014), 'right_clavicle': (19.04, 4.014),
-        'right_shoulder': (82.777, 15.636, 10.327), 'right_elbow': (24.499, 21.251),
-        'right_wrist': (2.548, -24.216),
+        'spine_lumbar': (5.715, -19.944, 3.832), 'spine_thoracic': (-11.7, -10.0, 6.066),
+        'neck': (2.798, -0.464, -15.898), 'head': (2.947, -0.014),
+        'right_clavicle': (21.591, 3.586), 'right_shoulder': (82.782, 17.051, 12.596),
+        'right_elbow': (25.203, 23.481), 'right_wrist': (3.392, -22.344),
     })
     human.KeyJoints(14.3, {
-        'spine_lumbar': (5.077, -19.875, 3.76), 'spine_thoracic': (-11.721, -10.0, 6.045),
-        'neck': (3.078, -0.453, -15.393), 'head': (3.224, -0.014),
-        'right_clavicle': (21.723, 3.696), 'right_shoulder': (82.447, 16.645, 12.823),
-        'right_elbow': (25.154, 23.607), 'right_wrist': (3.479, -22.206),
+        'spine_lumbar': (0.931, -20.0, 4.531), 'spine_thoracic': (-11.447, -8.139, 6.413),
+        'neck': (4.684, -0.402, -13.774), 'head': (4.821, -0.014),
+        'right_clavicle': (17.652, 5.004), 'right_shoulder': (81.199, 12.334, 9.419),
+        'right_elbow': (23.386, 19.916), 'right_wrist': (2.22, -25.598),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (-0.05, -18.238, 8.576), 'spine_thoracic': (-11.352, -1.667, 8.806),
-        'neck': (4.808, -0.418, -15.252), 'head': (4.955, -0.014), 'right_clavicle': (6.243, 7.541),
-        'right_shoulder': (83.964, 7.332, -2.406), 'right_elbow': (21.032, 8.658),
-        'right_wrist': (-2.856, -29.991),
+        'spine_lumbar': (1.013, -17.899, 8.988), 'spine_thoracic': (-11.196, -1.739, 9.035),
+        'neck': (4.262, -0.436, -15.816), 'head': (4.412, -0.014), 'right_clavicle': (5.238, 7.664),
+        'right_shoulder': (85.108, 7.423, -3.266), 'right_elbow': (21.495, 7.918),
+        'right_wrist': (-3.227, -29.928),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
@@ -898,65 +898,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (2.352, -17.707, 8.551), 'spine_thoracic': (-9.711, -6.336, 8.357),
-        'neck': (3.234, -0.47, -17.059), 'head': (3.391, -0.014), 'right_clavicle': (3.95, 7.058),
-        'right_shoulder': (87.228, 7.745, -3.369), 'right_elbow': (22.375, 7.897),
-        'right_wrist': (-3.03, -30.0),
+        'spine_lumbar': (2.336, -18.54, 7.945), 'spine_thoracic': (-10.379, -7.432, 7.975),
+        'neck': (3.648, -0.466, -17.386), 'head': (3.808, -0.014), 'right_clavicle': (6.114, 6.466),
+        'right_shoulder': (85.618, 9.038, -1.704), 'right_elbow': (22.319, 9.53),
+        'right_wrist': (-2.382, -29.993),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (3.586, -19.976, 5.552), 'spine_thoracic': (-11.126, -9.844, 6.699),
-        'neck': (3.592, -0.462, -17.005), 'head': (3.75, -0.014), 'right_clavicle': (13.988, 4.809),
-        'right_shoulder': (83.071, 13.07, 5.653), 'right_elbow': (23.306, 16.692),
-        'right_wrist': (0.719, -27.195),
+        'spine_lumbar': (4.825, -20.0, 4.432), 'spine_thoracic': (-11.448, -10.0, 6.272),
+        'neck': (3.127, -0.463, -16.27), 'head': (3.279, -0.014), 'right_clavicle': (18.736, 4.066),
+        'right_shoulder': (82.78, 15.471, 10.049), 'right_elbow': (24.412, 20.979),
+        'right_wrist': (2.445, -24.428),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (5.793, -19.929, 3.788), 'spine_thoracic': (-11.728, -10.0, 6.055),
-        'neck': (2.771, -0.464, -15.866), 'head': (2.92, -0.014), 'right_clavicle': (21.837, 3.546),
-        'right_shoulder': (82.784, 17.189, 12.807), 'right_elbow': (25.266, 23.69),
-        'right_wrist': (3.471, -22.157),
+        'spine_lumbar': (5.22, -19.876, 3.762), 'spine_thoracic': (-11.727, -10.0, 6.047),
+        'neck': (3.018, -0.455, -15.472), 'head': (3.164, -0.014),
+        'right_clavicle': (21.776, 3.665), 'right_shoulder': (82.509, 16.763, 12.838),
+        'right_elbow': (25.177, 23.645), 'right_wrist': (3.485, -22.179),
     })
     human.KeyJoints(14.9, {
-        'spine_lumbar': (-1.323, -19.812, 5.966), 'spine_thoracic': (-11.33, -5.139, 7.198),
-        'neck': (5.491, -0.384, -13.636), 'head': (5.627, -0.014),
-        'right_clavicle': (12.651, 6.186), 'right_shoulder': (81.219, 9.054, 4.375),
-        'right_elbow': (21.571, 14.964), 'right_wrist': (0.154, -28.921),
+        'spine_lumbar': (-1.273, -18.966, 7.568), 'spine_thoracic': (-11.379, -2.599, 8.165),
+        'neck': (5.395, -0.396, -14.394), 'head': (5.536, -0.014), 'right_clavicle': (8.451, 7.078),
+        'right_shoulder': (82.495, 7.509, -0.178), 'right_elbow': (20.781, 10.686),
+        'right_wrist': (-1.847, -29.986),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (2.315, -17.578, 8.954), 'spine_thoracic': (-10.063, -3.879, 8.833),
-        'neck': (3.255, -0.464, -16.599), 'head': (3.409, -0.014), 'right_clavicle': (3.884, 7.517),
-        'right_shoulder': (87.35, 7.475, -3.783), 'right_elbow': (22.167, 7.512),
-        'right_wrist': (-3.288, -29.912),
+        'spine_lumbar': (2.377, -17.51, 8.893), 'spine_thoracic': (-9.794, -4.329, 8.746),
+        'neck': (3.125, -0.467, -16.637), 'head': (3.279, -0.014), 'right_clavicle': (3.643, 7.474),
+        'right_shoulder': (87.673, 7.37, -3.812), 'right_elbow': (22.259, 7.48),
+        'right_wrist': (-3.262, -29.928),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
-        'spine_lumbar': (2.482, -17.236, 8.629), 'spine_thoracic': (-8.754, -6.005, 8.39),
-        'neck': (2.682, -0.476, -16.695), 'head': (2.835, -0.014), 'right_clavicle': (2.744, 7.312),
-        'right_shoulder': (88.761, 6.836, -3.883), 'right_elbow': (22.572, 7.38),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.42, -17.441, 8.612), 'spine_thoracic': (-9.199, -6.132, 8.383),
+        'neck': (2.937, -0.473, -16.866), 'head': (3.093, -0.014), 'right_clavicle': (3.268, 7.206),
+        'right_shoulder': (88.062, 7.241, -3.684), 'right_elbow': (22.479, 7.581),
+        'right_wrist': (-3.107, -30.0),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (2.566, -19.278, 7.113), 'spine_thoracic': (-10.716, -8.572, 7.474),
-        'neck': (3.793, -0.464, -17.452), 'head': (3.954, -0.014), 'right_clavicle': (8.596, 5.84),
-        'right_shoulder': (84.429, 10.36, 0.567), 'right_elbow': (22.483, 11.744),
-        'right_wrist': (-1.414, -29.491),
+        'spine_lumbar': (3.389, -19.935, 5.779), 'spine_thoracic': (-11.07, -9.731, 6.797),
+        'neck': (3.656, -0.462, -17.12), 'head': (3.814, -0.014), 'right_clavicle': (13.119, 4.953),
+        'right_shoulder': (83.199, 12.641, 4.835), 'right_elbow': (23.139, 15.896),
+        'right_wrist': (0.383, -27.633),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (5.279, -20.0, 4.104), 'spine_thoracic': (-11.559, -10.0, 6.148),
-        'neck': (2.953, -0.464, -16.077), 'head': (3.103, -0.014),
-        'right_clavicle': (20.198, 3.814), 'right_shoulder': (82.774, 16.276, 11.378),
-        'right_elbow': (24.832, 22.281), 'right_wrist': (2.937, -23.378),
+        'spine_lumbar': (5.797, -19.928, 3.786), 'spine_thoracic': (-11.729, -10.0, 6.055),
+        'neck': (2.77, -0.464, -15.864), 'head': (2.919, -0.014), 'right_clavicle': (21.848, 3.544),
+        'right_shoulder': (82.784, 17.195, 12.817), 'right_elbow': (25.269, 23.7),
+        'right_wrist': (3.475, -22.149),
     })
     human.KeyJoints(15.4, {
-        'spine_lumbar': (3.603, -19.922, 3.882), 'spine_thoracic': (-11.629, -9.677, 6.083),
-        'neck': (3.669, -0.434, -14.695), 'right_clavicle': (20.678, 4.09),
-        'right_shoulder': (81.904, 15.25, 12.094), 'right_elbow': (24.716, 22.726),
-        'right_wrist': (3.22, -23.02),
+        'spine_lumbar': (-0.465, -19.984, 5.179), 'spine_thoracic': (-11.365, -6.727, 6.763),
+        'neck': (5.196, -0.389, -13.553), 'head': (5.331, -0.014),
+        'right_clavicle': (15.223, 5.617), 'right_shoulder': (81.08, 10.54, 7.034),
+        'right_elbow': (22.415, 17.54), 'right_wrist': (1.269, -27.416),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (0.901, -17.925, 8.955), 'spine_thoracic': (-11.225, -1.69, 9.018),
-        'neck': (4.323, -0.434, -15.746), 'head': (4.473, -0.014), 'right_clavicle': (5.324, 7.657),
-        'right_shoulder': (84.986, 7.396, -3.194), 'right_elbow': (21.451, 7.978),
-        'right_wrist': (-3.197, -29.941),
+        'spine_lumbar': (1.603, -17.771, 9.093), 'spine_thoracic': (-10.973, -2.142, 9.084),
+        'neck': (3.911, -0.446, -16.154), 'right_clavicle': (4.764, 7.685),
+        'right_shoulder': (85.847, 7.528, -3.568), 'right_elbow': (21.745, 7.675),
+        'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
@@ -966,164 +966,164 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (2.327, -18.053, 8.407), 'spine_thoracic': (-10.103, -6.695, 8.282),
-        'neck': (3.465, -0.468, -17.312), 'head': (3.625, -0.014), 'right_clavicle': (4.835, 6.838),
-        'right_shoulder': (86.417, 8.323, -2.826), 'right_elbow': (22.326, 8.434),
-        'right_wrist': (-2.864, -30.0),
+        'spine_lumbar': (2.443, -18.996, 7.462), 'spine_thoracic': (-10.594, -8.13, 7.677),
+        'neck': (3.756, -0.464, -17.446), 'head': (3.918, -0.014), 'right_clavicle': (7.537, 6.093),
+        'right_shoulder': (84.884, 9.805, -0.414), 'right_elbow': (22.396, 10.788),
+        'right_wrist': (-1.834, -29.773),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (4.033, -20.0, 5.098), 'spine_thoracic': (-11.246, -9.98, 6.52),
-        'neck': (3.431, -0.462, -16.719), 'head': (3.587, -0.014), 'right_clavicle': (15.84, 4.521),
-        'right_shoulder': (82.888, 13.984, 7.382), 'right_elbow': (23.695, 18.376),
-        'right_wrist': (1.415, -26.204),
+        'spine_lumbar': (5.232, -20.0, 4.136), 'spine_thoracic': (-11.546, -10.0, 6.158),
+        'neck': (2.97, -0.463, -16.093), 'head': (3.121, -0.014), 'right_clavicle': (20.045, 3.84),
+        'right_shoulder': (82.774, 16.191, 11.241), 'right_elbow': (24.79, 22.147),
+        'right_wrist': (2.886, -23.49),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
-        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
-        'right_clavicle': (21.897, 3.537), 'right_shoulder': (82.785, 17.223, 12.859),
-        'right_elbow': (25.282, 23.741), 'right_wrist': (3.491, -22.111),
+        'spine_lumbar': (4.152, -19.901, 3.823), 'spine_thoracic': (-11.665, -9.832, 6.063),
+        'neck': (3.453, -0.441, -14.946), 'head': (3.596, -0.014), 'right_clavicle': (21.12, 3.934),
+        'right_shoulder': (82.091, 15.789, 12.423), 'right_elbow': (24.901, 23.106),
+        'right_wrist': (3.337, -22.663),
     })
     human.KeyJoints(16.0, {
-        'spine_lumbar': (-1.544, -19.31, 6.966), 'spine_thoracic': (-11.355, -3.45, 7.792),
-        'neck': (5.534, -0.388, -14.005), 'head': (5.672, -0.014), 'right_clavicle': (9.917, 6.772),
-        'right_shoulder': (81.889, 7.904, 1.443), 'right_elbow': (20.944, 12.186),
-        'right_wrist': (-1.125, -29.934),
+        'spine_lumbar': (-0.614, -18.527, 8.217), 'spine_thoracic': (-11.385, -1.931, 8.575),
+        'neck': (5.084, -0.409, -14.925), 'head': (5.228, -0.014), 'right_clavicle': (6.988, 7.38),
+        'right_shoulder': (83.37, 7.345, -1.701), 'right_elbow': (20.774, 9.296),
+        'right_wrist': (-2.533, -29.999),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (2.436, -17.415, 8.804), 'spine_thoracic': (-9.429, -4.918, 8.624),
-        'neck': (2.96, -0.47, -16.664), 'head': (3.114, -0.014), 'right_clavicle': (3.324, 7.418),
-        'right_shoulder': (88.073, 7.191, -3.843), 'right_elbow': (22.373, 7.441),
-        'right_wrist': (-3.22, -29.952),
+        'spine_lumbar': (2.455, -17.372, 8.763), 'spine_thoracic': (-9.269, -5.173, 8.57),
+        'neck': (2.89, -0.472, -16.672), 'head': (3.044, -0.014), 'right_clavicle': (3.185, 7.393),
+        'right_shoulder': (88.241, 7.107, -3.855), 'right_elbow': (22.421, 7.425),
+        'right_wrist': (-3.201, -29.963),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
-        'spine_lumbar': (2.466, -17.289, 8.628), 'spine_thoracic': (-8.873, -6.036, 8.389),
-        'neck': (2.75, -0.475, -16.743), 'head': (2.903, -0.014), 'right_clavicle': (2.882, 7.285),
-        'right_shoulder': (88.575, 6.943, -3.834), 'right_elbow': (22.547, 7.43),
-        'right_wrist': (-3.132, -30.0),
+        'spine_lumbar': (2.348, -17.728, 8.545), 'spine_thoracic': (-9.745, -6.354, 8.354),
+        'neck': (3.254, -0.469, -17.074), 'head': (3.411, -0.014), 'right_clavicle': (4.003, 7.046),
+        'right_shoulder': (87.168, 7.783, -3.341), 'right_elbow': (22.369, 7.924),
+        'right_wrist': (-3.023, -30.0),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (2.822, -19.616, 6.589), 'spine_thoracic': (-10.87, -9.127, 7.189),
-        'neck': (3.789, -0.463, -17.388), 'head': (3.95, -0.014), 'right_clavicle': (10.271, 5.479),
-        'right_shoulder': (83.851, 11.218, 2.14), 'right_elbow': (22.676, 13.276),
-        'right_wrist': (-0.745, -28.907),
+        'spine_lumbar': (3.86, -20.0, 5.265), 'spine_thoracic': (-11.2, -9.944, 6.583),
+        'neck': (3.495, -0.462, -16.832), 'head': (3.652, -0.014),
+        'right_clavicle': (15.136, 4.627), 'right_shoulder': (82.945, 13.637, 6.728),
+        'right_elbow': (23.542, 17.739), 'right_wrist': (1.154, -26.588),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (5.545, -19.975, 3.934), 'spine_thoracic': (-11.641, -10.0, 6.095),
-        'neck': (2.858, -0.464, -15.971), 'head': (3.007, -0.014),
-        'right_clavicle': (21.048, 3.674), 'right_shoulder': (82.777, 16.747, 12.126),
-        'right_elbow': (25.061, 23.018), 'right_wrist': (3.216, -22.752),
+        'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
+        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
+        'right_clavicle': (21.898, 3.536), 'right_shoulder': (82.785, 17.223, 12.859),
+        'right_elbow': (25.282, 23.742), 'right_wrist': (3.491, -22.111),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (1.621, -20.0, 4.31), 'spine_thoracic': (-11.493, -8.641, 6.297),
-        'neck': (4.428, -0.41, -13.976), 'head': (4.566, -0.014), 'right_clavicle': (18.571, 4.747),
-        'right_shoulder': (81.35, 13.128, 10.278), 'right_elbow': (23.787, 20.794),
-        'right_wrist': (2.55, -24.83),
+        'spine_lumbar': (-1.316, -19.817, 5.948), 'spine_thoracic': (-11.33, -5.173, 7.188),
+        'neck': (5.489, -0.384, -13.629), 'head': (5.625, -0.014),
+        'right_clavicle': (12.706, 6.174), 'right_shoulder': (81.213, 9.081, 4.433),
+        'right_elbow': (21.586, 15.019), 'right_wrist': (0.178, -28.895),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (1.628, -17.766, 9.092), 'spine_thoracic': (-10.959, -2.167, 9.083),
-        'neck': (3.894, -0.447, -16.165), 'head': (4.047, -0.014), 'right_clavicle': (4.742, 7.684),
-        'right_shoulder': (85.884, 7.528, -3.576), 'right_elbow': (21.756, 7.669),
-        'right_wrist': (-3.323, -29.878),
+        'spine_lumbar': (2.002, -17.702, 9.059), 'spine_thoracic': (-10.671, -2.737, 9.016),
+        'neck': (3.619, -0.454, -16.362), 'head': (3.772, -0.014), 'right_clavicle': (4.429, 7.634),
+        'right_shoulder': (86.456, 7.525, -3.68), 'right_elbow': (21.919, 7.599),
+        'right_wrist': (-3.317, -29.886),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'spine_lumbar': (2.483, -17.233, 8.629), 'spine_thoracic': (-8.749, -6.003, 8.39),
+        'neck': (2.679, -0.476, -16.693), 'head': (2.832, -0.014), 'right_clavicle': (2.738, 7.313),
+        'right_shoulder': (88.77, 6.831, -3.885), 'right_elbow': (22.573, 7.378),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (2.331, -18.44, 8.041), 'spine_thoracic': (-10.326, -7.283, 8.036),
-        'neck': (3.613, -0.466, -17.369), 'head': (3.774, -0.014), 'right_clavicle': (5.832, 6.544),
-        'right_shoulder': (85.783, 8.882, -1.95), 'right_elbow': (22.317, 9.29),
-        'right_wrist': (-2.486, -30.0),
+        'spine_lumbar': (2.651, -19.416, 6.916), 'spine_thoracic': (-10.777, -8.795, 7.364),
+        'neck': (3.8, -0.463, -17.437), 'head': (3.961, -0.014), 'right_clavicle': (9.213, 5.701),
+        'right_shoulder': (84.198, 10.678, 1.143), 'right_elbow': (22.546, 12.305),
+        'right_wrist': (-1.169, -29.297),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (4.485, -20.0, 4.702), 'spine_thoracic': (-11.363, -10.0, 6.374),
-        'neck': (3.259, -0.462, -16.446), 'right_clavicle': (17.555, 4.258),
-        'right_shoulder': (82.802, 14.848, 8.964), 'right_elbow': (24.099, 19.919),
-        'right_wrist': (2.033, -25.198),
+        'spine_lumbar': (5.529, -19.977, 3.943), 'spine_thoracic': (-11.636, -10.0, 6.097),
+        'neck': (2.863, -0.464, -15.977), 'head': (3.012, -0.014),
+        'right_clavicle': (20.999, 3.682), 'right_shoulder': (82.777, 16.72, 12.083),
+        'right_elbow': (25.048, 22.976), 'right_wrist': (3.2, -22.788),
     })
     human.KeyJoints(17.0, {
-        'spine_lumbar': (5.722, -19.892, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
-        'neck': (2.806, -0.463, -15.787), 'head': (2.954, -0.014),
-        'right_clavicle': (21.909, 3.561), 'right_shoulder': (82.741, 17.158, 12.873),
-        'right_elbow': (25.254, 23.741), 'right_wrist': (3.499, -22.114),
+        'spine_lumbar': (2.619, -19.975, 4.061), 'spine_thoracic': (-11.561, -9.235, 6.169),
+        'neck': (4.05, -0.422, -14.322), 'head': (4.19, -0.014), 'right_clavicle': (19.726, 4.4),
+        'right_shoulder': (81.599, 14.23, 11.302), 'right_elbow': (24.295, 21.867),
+        'right_wrist': (2.932, -23.843),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (-1.002, -18.779, 7.864), 'spine_thoracic': (-11.389, -2.243, 8.351),
-        'neck': (5.268, -0.401, -14.626), 'head': (5.41, -0.014), 'right_clavicle': (7.767, 7.219),
-        'right_shoulder': (82.866, 7.382, -0.922), 'right_elbow': (20.733, 10.004),
-        'right_wrist': (-2.181, -29.998),
+        'spine_lumbar': (0.247, -18.115, 8.722), 'spine_thoracic': (-11.327, -1.594, 8.896),
+        'neck': (4.66, -0.423, -15.4), 'head': (4.808, -0.014), 'right_clavicle': (5.919, 7.598),
+        'right_shoulder': (84.272, 7.329, -2.694), 'right_elbow': (21.18, 8.403),
+        'right_wrist': (-2.984, -29.985),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (2.48, -17.269, 8.665), 'spine_thoracic': (-8.885, -5.78, 8.438),
-        'neck': (2.732, -0.475, -16.686), 'head': (2.885, -0.014), 'right_clavicle': (2.854, 7.335),
-        'right_shoulder': (88.635, 6.901, -3.879), 'right_elbow': (22.533, 7.389),
-        'right_wrist': (-3.155, -29.99),
+        'spine_lumbar': (2.481, -17.26, 8.657), 'spine_thoracic': (-8.85, -5.835, 8.426),
+        'neck': (2.718, -0.475, -16.688), 'head': (2.871, -0.014), 'right_clavicle': (2.824, 7.33),
+        'right_shoulder': (88.67, 6.883, -3.881), 'right_elbow': (22.543, 7.386),
+        'right_wrist': (-3.15, -29.993),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
-        'spine_lumbar': (2.42, -17.44, 8.613), 'spine_thoracic': (-9.197, -6.131, 8.383),
-        'neck': (2.936, -0.473, -16.865), 'head': (3.092, -0.014), 'right_clavicle': (3.266, 7.207),
-        'right_shoulder': (88.065, 7.24, -3.685), 'right_elbow': (22.479, 7.58),
-        'right_wrist': (-3.107, -30.0),
+        'spine_lumbar': (2.327, -18.107, 8.368), 'spine_thoracic': (-10.14, -6.768, 8.257),
+        'neck': (3.489, -0.468, -17.334), 'head': (3.649, -0.014), 'right_clavicle': (4.97, 6.799),
+        'right_shoulder': (86.321, 8.402, -2.72), 'right_elbow': (22.324, 8.538),
+        'right_wrist': (-2.822, -30.0),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (3.167, -19.851, 6.062), 'spine_thoracic': (-11.002, -9.554, 6.927),
-        'neck': (3.719, -0.463, -17.236), 'head': (3.879, -0.014),
-        'right_clavicle': (12.082, 5.133), 'right_shoulder': (83.393, 12.127, 3.854),
-        'right_elbow': (22.953, 14.943), 'right_wrist': (-0.024, -28.13),
+        'spine_lumbar': (4.348, -20.0, 4.817), 'spine_thoracic': (-11.329, -10.0, 6.416),
+        'neck': (3.311, -0.462, -16.525), 'head': (3.466, -0.014),
+        'right_clavicle': (17.052, 4.337), 'right_shoulder': (82.822, 14.591, 8.502),
+        'right_elbow': (23.975, 19.468), 'right_wrist': (1.855, -25.505),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (5.712, -19.945, 3.834), 'spine_thoracic': (-11.699, -10.0, 6.067),
-        'neck': (2.799, -0.464, -15.899), 'head': (2.948, -0.014),
-        'right_clavicle': (21.581, 3.587), 'right_shoulder': (82.782, 17.045, 12.587),
-        'right_elbow': (25.2, 23.473), 'right_wrist': (3.389, -22.352),
+        'spine_lumbar': (5.716, -19.891, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
+        'neck': (2.809, -0.463, -15.783), 'head': (2.957, -0.014),
+        'right_clavicle': (21.909, 3.562), 'right_shoulder': (82.738, 17.154, 12.873),
+        'right_elbow': (25.253, 23.741), 'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(17.6, {
-        'spine_lumbar': (-0.206, -19.997, 5.034), 'spine_thoracic': (-11.378, -7.038, 6.685),
-        'neck': (5.102, -0.392, -13.58), 'head': (5.238, -0.014), 'right_clavicle': (15.741, 5.495),
-        'right_shoulder': (81.07, 10.888, 7.555), 'right_elbow': (22.61, 18.053),
-        'right_wrist': (1.481, -27.056),
+        'spine_lumbar': (-1.533, -19.413, 6.781), 'spine_thoracic': (-11.349, -3.731, 7.68),
+        'neck': (5.537, -0.387, -13.922), 'head': (5.675, -0.014),
+        'right_clavicle': (10.393, 6.671), 'right_shoulder': (81.737, 8.058, 1.958),
+        'right_elbow': (21.019, 12.669), 'right_wrist': (-0.898, -29.86),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (2.084, -17.687, 9.043), 'spine_thoracic': (-10.576, -2.928, 8.987),
-        'neck': (3.548, -0.456, -16.415), 'head': (3.701, -0.014), 'right_clavicle': (4.349, 7.613),
-        'right_shoulder': (86.608, 7.523, -3.701), 'right_elbow': (21.96, 7.585),
-        'right_wrist': (-3.313, -29.889),
+        'spine_lumbar': (2.245, -17.631, 8.996), 'spine_thoracic': (-10.287, -3.484, 8.9),
+        'neck': (3.37, -0.461, -16.542), 'head': (3.524, -0.014), 'right_clavicle': (4.093, 7.555),
+        'right_shoulder': (87.044, 7.517, -3.752), 'right_elbow': (22.08, 7.543),
+        'right_wrist': (-3.303, -29.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.468, -17.281, 8.628), 'spine_thoracic': (-8.854, -6.031, 8.39),
+        'neck': (2.739, -0.475, -16.735), 'head': (2.893, -0.014), 'right_clavicle': (2.86, 7.289),
+        'right_shoulder': (88.605, 6.926, -3.842), 'right_elbow': (22.551, 7.422),
+        'right_wrist': (-3.133, -30.0),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (2.404, -18.863, 7.612), 'spine_thoracic': (-10.534, -7.925, 7.768),
-        'neck': (3.729, -0.465, -17.436), 'head': (3.89, -0.014), 'right_clavicle': (7.089, 6.206),
-        'right_shoulder': (85.098, 9.566, -0.824), 'right_elbow': (22.368, 10.389),
-        'right_wrist': (-2.008, -29.856),
+        'spine_lumbar': (2.97, -19.739, 6.346), 'spine_thoracic': (-10.932, -9.341, 7.065),
+        'neck': (3.765, -0.463, -17.331), 'head': (3.926, -0.014),
+        'right_clavicle': (11.088, 5.318), 'right_shoulder': (83.624, 11.63, 2.913),
+        'right_elbow': (22.794, 14.027), 'right_wrist': (-0.418, -28.572),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (4.91, -20.0, 4.367), 'spine_thoracic': (-11.468, -10.0, 6.246),
-        'neck': (3.094, -0.463, -16.228), 'head': (3.245, -0.014),
-        'right_clavicle': (19.018, 4.018), 'right_shoulder': (82.778, 15.624, 10.307),
-        'right_elbow': (24.493, 21.232), 'right_wrist': (2.541, -24.231),
+        'spine_lumbar': (5.713, -19.945, 3.833), 'spine_thoracic': (-11.699, -10.0, 6.067),
+        'neck': (2.799, -0.464, -15.899), 'head': (2.947, -0.014),
+        'right_clavicle': (21.584, 3.587), 'right_shoulder': (82.782, 17.047, 12.59),
+        'right_elbow': (25.201, 23.476), 'right_wrist': (3.39, -22.349),
     })
     human.KeyJoints(18.1, {
-        'spine_lumbar': (5.093, -19.875, 3.76), 'spine_thoracic': (-11.722, -10.0, 6.045),
-        'neck': (3.071, -0.453, -15.401), 'head': (3.217, -0.014),
-        'right_clavicle': (21.729, 3.692), 'right_shoulder': (82.454, 16.658, 12.825),
-        'right_elbow': (25.157, 23.611), 'right_wrist': (3.48, -22.202),
+        'spine_lumbar': (0.959, -20.0, 4.521), 'spine_thoracic': (-11.449, -8.161, 6.408),
+        'neck': (4.674, -0.403, -13.781), 'head': (4.81, -0.014), 'right_clavicle': (17.691, 4.994),
+        'right_shoulder': (81.205, 12.367, 9.456), 'right_elbow': (23.403, 19.954),
+        'right_wrist': (2.234, -25.566),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (-0.068, -18.247, 8.566), 'spine_thoracic': (-11.354, -1.673, 8.8),
-        'neck': (4.817, -0.418, -15.243), 'head': (4.964, -0.014), 'right_clavicle': (6.263, 7.537),
-        'right_shoulder': (83.946, 7.332, -2.388), 'right_elbow': (21.023, 8.675),
-        'right_wrist': (-2.848, -29.991),
+        'spine_lumbar': (1.001, -17.902, 8.985), 'spine_thoracic': (-11.199, -1.734, 9.033),
+        'neck': (4.269, -0.435, -15.808), 'head': (4.419, -0.014), 'right_clavicle': (5.247, 7.664),
+        'right_shoulder': (85.095, 7.42, -3.259), 'right_elbow': (21.491, 7.924),
+        'right_wrist': (-3.224, -29.929),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
@@ -1133,65 +1133,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (2.353, -17.702, 8.553), 'spine_thoracic': (-9.702, -6.332, 8.358),
-        'neck': (3.229, -0.47, -17.055), 'head': (3.386, -0.014), 'right_clavicle': (3.936, 7.062),
-        'right_shoulder': (87.243, 7.735, -3.376), 'right_elbow': (22.377, 7.89),
-        'right_wrist': (-3.032, -30.0),
+        'spine_lumbar': (2.335, -18.532, 7.953), 'spine_thoracic': (-10.375, -7.421, 7.98),
+        'neck': (3.645, -0.466, -17.385), 'head': (3.806, -0.014), 'right_clavicle': (6.092, 6.472),
+        'right_shoulder': (85.631, 9.026, -1.723), 'right_elbow': (22.319, 9.512),
+        'right_wrist': (-2.39, -29.994),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (3.579, -19.975, 5.56), 'spine_thoracic': (-11.124, -9.84, 6.702),
-        'neck': (3.594, -0.462, -17.009), 'head': (3.752, -0.014),
-        'right_clavicle': (13.956, 4.814), 'right_shoulder': (83.075, 13.055, 5.624),
-        'right_elbow': (23.299, 16.663), 'right_wrist': (0.707, -27.211),
+        'spine_lumbar': (4.817, -20.0, 4.438), 'spine_thoracic': (-11.446, -10.0, 6.274),
+        'neck': (3.13, -0.463, -16.274), 'head': (3.282, -0.014), 'right_clavicle': (18.711, 4.07),
+        'right_shoulder': (82.78, 15.457, 10.026), 'right_elbow': (24.405, 20.956),
+        'right_wrist': (2.436, -24.445),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (5.792, -19.929, 3.788), 'spine_thoracic': (-11.728, -10.0, 6.055),
-        'neck': (2.772, -0.464, -15.866), 'head': (2.92, -0.014), 'right_clavicle': (21.835, 3.547),
-        'right_shoulder': (82.784, 17.188, 12.805), 'right_elbow': (25.266, 23.688),
-        'right_wrist': (3.471, -22.159),
+        'spine_lumbar': (5.233, -19.876, 3.762), 'spine_thoracic': (-11.728, -10.0, 6.048),
+        'neck': (3.013, -0.455, -15.479), 'head': (3.159, -0.014), 'right_clavicle': (21.78, 3.663),
+        'right_shoulder': (82.515, 16.774, 12.839), 'right_elbow': (25.179, 23.648),
+        'right_wrist': (3.485, -22.177),
     })
     human.KeyJoints(18.7, {
-        'spine_lumbar': (-1.316, -19.817, 5.95), 'spine_thoracic': (-11.33, -5.169, 7.189),
-        'neck': (5.489, -0.384, -13.63), 'head': (5.625, -0.014), 'right_clavicle': (12.7, 6.176),
-        'right_shoulder': (81.214, 9.079, 4.427), 'right_elbow': (21.585, 15.013),
-        'right_wrist': (0.176, -28.898),
+        'spine_lumbar': (-1.283, -18.974, 7.555), 'spine_thoracic': (-11.378, -2.615, 8.157),
+        'neck': (5.4, -0.396, -14.385), 'head': (5.541, -0.014), 'right_clavicle': (8.48, 7.072),
+        'right_shoulder': (82.48, 7.516, -0.146), 'right_elbow': (20.783, 10.715),
+        'right_wrist': (-1.832, -29.985),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (2.312, -17.581, 8.956), 'spine_thoracic': (-10.073, -3.862, 8.836),
-        'neck': (3.26, -0.464, -16.598), 'head': (3.414, -0.014), 'right_clavicle': (3.894, 7.519),
-        'right_shoulder': (87.338, 7.478, -3.782), 'right_elbow': (22.163, 7.513),
-        'right_wrist': (-3.289, -29.912),
+        'spine_lumbar': (2.376, -17.512, 8.895), 'spine_thoracic': (-9.802, -4.314, 8.749),
+        'neck': (3.129, -0.467, -16.636), 'head': (3.283, -0.014), 'right_clavicle': (3.651, 7.476),
+        'right_shoulder': (87.663, 7.374, -3.811), 'right_elbow': (22.256, 7.481),
+        'right_wrist': (-3.263, -29.928),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
-        'spine_lumbar': (2.482, -17.235, 8.629), 'spine_thoracic': (-8.754, -6.005, 8.39),
-        'neck': (2.681, -0.476, -16.695), 'head': (2.835, -0.014), 'right_clavicle': (2.744, 7.312),
-        'right_shoulder': (88.762, 6.835, -3.883), 'right_elbow': (22.572, 7.38),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.421, -17.437, 8.613), 'spine_thoracic': (-9.191, -6.129, 8.384),
+        'neck': (2.933, -0.473, -16.863), 'head': (3.088, -0.014), 'right_clavicle': (3.259, 7.208),
+        'right_shoulder': (88.074, 7.234, -3.688), 'right_elbow': (22.481, 7.577),
+        'right_wrist': (-3.108, -30.0),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (2.563, -19.271, 7.122), 'spine_thoracic': (-10.714, -8.561, 7.478),
-        'neck': (3.792, -0.464, -17.452), 'head': (3.954, -0.014), 'right_clavicle': (8.57, 5.846),
-        'right_shoulder': (84.44, 10.346, 0.542), 'right_elbow': (22.481, 11.72),
-        'right_wrist': (-1.425, -29.499),
+        'spine_lumbar': (3.382, -19.933, 5.788), 'spine_thoracic': (-11.068, -9.726, 6.801),
+        'neck': (3.658, -0.462, -17.125), 'head': (3.817, -0.014),
+        'right_clavicle': (13.085, 4.958), 'right_shoulder': (83.204, 12.624, 4.803),
+        'right_elbow': (23.132, 15.865), 'right_wrist': (0.37, -27.65),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (5.274, -20.0, 4.107), 'spine_thoracic': (-11.558, -10.0, 6.149),
-        'neck': (2.955, -0.464, -16.079), 'head': (3.105, -0.014),
-        'right_clavicle': (20.181, 3.817), 'right_shoulder': (82.774, 16.266, 11.362),
-        'right_elbow': (24.828, 22.266), 'right_wrist': (2.931, -23.391),
+        'spine_lumbar': (5.796, -19.929, 3.786), 'spine_thoracic': (-11.729, -10.0, 6.055),
+        'neck': (2.77, -0.464, -15.865), 'head': (2.919, -0.014), 'right_clavicle': (21.846, 3.545),
+        'right_shoulder': (82.784, 17.194, 12.815), 'right_elbow': (25.269, 23.698),
+        'right_wrist': (3.474, -22.151),
     })
     human.KeyJoints(19.2, {
-        'spine_lumbar': (3.633, -19.921, 3.878), 'spine_thoracic': (-11.631, -9.686, 6.081),
-        'neck': (3.658, -0.434, -14.708), 'right_clavicle': (20.703, 4.081),
-        'right_shoulder': (81.914, 15.279, 12.113), 'right_elbow': (24.726, 22.748),
-        'right_wrist': (3.227, -23.0),
+        'spine_lumbar': (-0.444, -19.985, 5.167), 'spine_thoracic': (-11.366, -6.753, 6.757),
+        'neck': (5.188, -0.389, -13.555), 'head': (5.324, -0.014),
+        'right_clavicle': (15.266, 5.607), 'right_shoulder': (81.079, 10.568, 7.078),
+        'right_elbow': (22.431, 17.583), 'right_wrist': (1.286, -27.387),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (0.886, -17.928, 8.95), 'spine_thoracic': (-11.228, -1.684, 9.016),
-        'neck': (4.332, -0.433, -15.737), 'head': (4.481, -0.014), 'right_clavicle': (5.336, 7.656),
-        'right_shoulder': (84.97, 7.393, -3.185), 'right_elbow': (21.445, 7.986),
-        'right_wrist': (-3.192, -29.943),
+        'spine_lumbar': (1.596, -17.773, 9.093), 'spine_thoracic': (-10.977, -2.135, 9.084),
+        'neck': (3.916, -0.446, -16.151), 'right_clavicle': (4.771, 7.685),
+        'right_shoulder': (85.836, 7.528, -3.565), 'right_elbow': (21.742, 7.677),
+        'right_wrist': (-3.323, -29.878),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
@@ -1201,164 +1201,164 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (2.327, -18.047, 8.412), 'spine_thoracic': (-10.099, -6.687, 8.285),
-        'neck': (3.463, -0.468, -17.309), 'head': (3.622, -0.014), 'right_clavicle': (4.82, 6.842),
-        'right_shoulder': (86.429, 8.314, -2.838), 'right_elbow': (22.326, 8.423),
-        'right_wrist': (-2.868, -30.0),
+        'spine_lumbar': (2.44, -18.988, 7.47), 'spine_thoracic': (-10.591, -8.119, 7.682),
+        'neck': (3.755, -0.464, -17.446), 'head': (3.916, -0.014), 'right_clavicle': (7.511, 6.1),
+        'right_shoulder': (84.896, 9.791, -0.438), 'right_elbow': (22.394, 10.765),
+        'right_wrist': (-1.844, -29.779),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (4.026, -20.0, 5.105), 'spine_thoracic': (-11.244, -9.979, 6.522),
-        'neck': (3.434, -0.462, -16.724), 'head': (3.59, -0.014), 'right_clavicle': (15.81, 4.526),
-        'right_shoulder': (82.89, 13.969, 7.354), 'right_elbow': (23.688, 18.348),
-        'right_wrist': (1.404, -26.221),
+        'spine_lumbar': (5.226, -20.0, 4.14), 'spine_thoracic': (-11.544, -10.0, 6.16),
+        'neck': (2.973, -0.463, -16.095), 'head': (3.123, -0.014),
+        'right_clavicle': (20.026, 3.843), 'right_shoulder': (82.774, 16.181, 11.224),
+        'right_elbow': (24.785, 22.13), 'right_wrist': (2.88, -23.504),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
-        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
-        'right_clavicle': (21.897, 3.537), 'right_shoulder': (82.785, 17.223, 12.858),
-        'right_elbow': (25.282, 23.741), 'right_wrist': (3.491, -22.112),
+        'spine_lumbar': (4.175, -19.9, 3.82), 'spine_thoracic': (-11.667, -9.838, 6.063),
+        'neck': (3.443, -0.441, -14.956), 'head': (3.587, -0.014),
+        'right_clavicle': (21.138, 3.928), 'right_shoulder': (82.1, 15.811, 12.436),
+        'right_elbow': (24.909, 23.122), 'right_wrist': (3.342, -22.649),
     })
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-1.544, -19.318, 6.95), 'spine_thoracic': (-11.354, -3.473, 7.782),
-        'neck': (5.534, -0.388, -13.997), 'head': (5.673, -0.014), 'right_clavicle': (9.957, 6.763),
-        'right_shoulder': (81.876, 7.916, 1.487), 'right_elbow': (20.95, 12.227),
-        'right_wrist': (-1.106, -29.931),
+        'spine_lumbar': (-0.627, -18.535, 8.207), 'spine_thoracic': (-11.386, -1.939, 8.569),
+        'neck': (5.09, -0.408, -14.916), 'head': (5.235, -0.014), 'right_clavicle': (7.009, 7.376),
+        'right_shoulder': (83.355, 7.345, -1.681), 'right_elbow': (20.77, 9.315),
+        'right_wrist': (-2.524, -29.999),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (2.435, -17.417, 8.807), 'spine_thoracic': (-9.44, -4.901, 8.628),
-        'neck': (2.964, -0.47, -16.663), 'head': (3.118, -0.014), 'right_clavicle': (3.334, 7.419),
-        'right_shoulder': (88.061, 7.197, -3.842), 'right_elbow': (22.369, 7.442),
-        'right_wrist': (-3.222, -29.952),
+        'spine_lumbar': (2.454, -17.374, 8.766), 'spine_thoracic': (-9.278, -5.16, 8.572),
+        'neck': (2.894, -0.471, -16.671), 'head': (3.048, -0.014), 'right_clavicle': (3.193, 7.395),
+        'right_shoulder': (88.232, 7.111, -3.854), 'right_elbow': (22.418, 7.426),
+        'right_wrist': (-3.202, -29.963),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
-        'spine_lumbar': (2.466, -17.288, 8.628), 'spine_thoracic': (-8.869, -6.035, 8.389),
-        'neck': (2.748, -0.475, -16.741), 'head': (2.901, -0.014), 'right_clavicle': (2.877, 7.286),
-        'right_shoulder': (88.581, 6.94, -3.836), 'right_elbow': (22.548, 7.428),
-        'right_wrist': (-3.132, -30.0),
+        'spine_lumbar': (2.349, -17.722, 8.547), 'spine_thoracic': (-9.736, -6.349, 8.355),
+        'neck': (3.248, -0.469, -17.069), 'head': (3.406, -0.014), 'right_clavicle': (3.988, 7.05),
+        'right_shoulder': (87.185, 7.772, -3.349), 'right_elbow': (22.371, 7.916),
+        'right_wrist': (-3.025, -30.0),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (2.817, -19.612, 6.598), 'spine_thoracic': (-10.867, -9.118, 7.193),
-        'neck': (3.79, -0.463, -17.39), 'head': (3.951, -0.014), 'right_clavicle': (10.242, 5.485),
-        'right_shoulder': (83.86, 11.203, 2.112), 'right_elbow': (22.672, 13.249),
-        'right_wrist': (-0.757, -28.919),
+        'spine_lumbar': (3.852, -20.0, 5.273), 'spine_thoracic': (-11.198, -9.942, 6.586),
+        'neck': (3.498, -0.462, -16.838), 'head': (3.655, -0.014),
+        'right_clavicle': (15.102, 4.632), 'right_shoulder': (82.948, 13.62, 6.697),
+        'right_elbow': (23.535, 17.708), 'right_wrist': (1.141, -26.606),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (5.541, -19.975, 3.936), 'spine_thoracic': (-11.64, -10.0, 6.095),
-        'neck': (2.859, -0.464, -15.972), 'head': (3.008, -0.014),
-        'right_clavicle': (21.036, 3.675), 'right_shoulder': (82.777, 16.741, 12.116),
-        'right_elbow': (25.058, 23.008), 'right_wrist': (3.213, -22.761),
+        'spine_lumbar': (5.812, -19.925, 3.777), 'spine_thoracic': (-11.735, -10.0, 6.052),
+        'neck': (2.765, -0.464, -15.858), 'head': (2.913, -0.014),
+        'right_clavicle': (21.898, 3.536), 'right_shoulder': (82.785, 17.223, 12.859),
+        'right_elbow': (25.282, 23.742), 'right_wrist': (3.491, -22.111),
     })
     human.KeyJoints(20.3, {
-        'spine_lumbar': (1.654, -20.0, 4.301), 'spine_thoracic': (-11.496, -8.662, 6.292),
-        'neck': (4.415, -0.41, -13.988), 'head': (4.553, -0.014), 'right_clavicle': (18.612, 4.735),
-        'right_shoulder': (81.358, 13.166, 10.316), 'right_elbow': (23.805, 20.833),
-        'right_wrist': (2.565, -24.795),
+        'spine_lumbar': (-1.31, -19.821, 5.934), 'spine_thoracic': (-11.33, -5.198, 7.18),
+        'neck': (5.487, -0.384, -13.623), 'head': (5.623, -0.014),
+        'right_clavicle': (12.746, 6.166), 'right_shoulder': (81.209, 9.101, 4.475),
+        'right_elbow': (21.597, 15.059), 'right_wrist': (0.196, -28.876),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (1.619, -17.768, 9.093), 'spine_thoracic': (-10.964, -2.157, 9.084),
-        'neck': (3.9, -0.447, -16.161), 'head': (4.053, -0.014), 'right_clavicle': (4.75, 7.685),
-        'right_shoulder': (85.871, 7.528, -3.573), 'right_elbow': (21.752, 7.671),
-        'right_wrist': (-3.323, -29.878),
+        'spine_lumbar': (1.997, -17.703, 9.06), 'spine_thoracic': (-10.677, -2.726, 9.018),
+        'neck': (3.623, -0.454, -16.358), 'head': (3.777, -0.014), 'right_clavicle': (4.435, 7.635),
+        'right_shoulder': (86.447, 7.525, -3.679), 'right_elbow': (21.917, 7.6),
+        'right_wrist': (-3.317, -29.886),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
+        'spine_lumbar': (2.483, -17.233, 8.629), 'spine_thoracic': (-8.748, -6.003, 8.39),
+        'neck': (2.678, -0.476, -16.693), 'head': (2.832, -0.014), 'right_clavicle': (2.738, 7.313),
+        'right_shoulder': (88.77, 6.831, -3.885), 'right_elbow': (22.573, 7.378),
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (2.331, -18.433, 8.047), 'spine_thoracic': (-10.322, -7.272, 8.041),
-        'neck': (3.611, -0.466, -17.368), 'head': (3.771, -0.014), 'right_clavicle': (5.814, 6.549),
-        'right_shoulder': (85.794, 8.871, -1.967), 'right_elbow': (22.317, 9.274),
-        'right_wrist': (-2.493, -30.0),
+        'spine_lumbar': (2.647, -19.41, 6.926), 'spine_thoracic': (-10.775, -8.784, 7.369),
+        'neck': (3.8, -0.463, -17.437), 'head': (3.961, -0.014), 'right_clavicle': (9.183, 5.708),
+        'right_shoulder': (84.209, 10.663, 1.115), 'right_elbow': (22.542, 12.278),
+        'right_wrist': (-1.181, -29.307),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (4.477, -20.0, 4.708), 'spine_thoracic': (-11.362, -10.0, 6.376),
-        'neck': (3.262, -0.462, -16.45), 'head': (3.415, -0.014), 'right_clavicle': (17.528, 4.262),
-        'right_shoulder': (82.803, 14.834, 8.939), 'right_elbow': (24.093, 19.895),
-        'right_wrist': (2.023, -25.215),
+        'spine_lumbar': (5.525, -19.978, 3.946), 'spine_thoracic': (-11.635, -10.0, 6.098),
+        'neck': (2.864, -0.464, -15.979), 'head': (3.014, -0.014),
+        'right_clavicle': (20.986, 3.684), 'right_shoulder': (82.776, 16.713, 12.072),
+        'right_elbow': (25.045, 22.964), 'right_wrist': (3.196, -22.798),
     })
     human.KeyJoints(20.8, {
-        'spine_lumbar': (5.725, -19.893, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
-        'neck': (2.805, -0.463, -15.79), 'head': (2.953, -0.014), 'right_clavicle': (21.909, 3.56),
-        'right_shoulder': (82.743, 17.161, 12.873), 'right_elbow': (25.255, 23.741),
-        'right_wrist': (3.499, -22.114),
+        'spine_lumbar': (2.648, -19.974, 4.054), 'spine_thoracic': (-11.563, -9.25, 6.165),
+        'neck': (4.039, -0.422, -14.332), 'head': (4.179, -0.014), 'right_clavicle': (19.757, 4.39),
+        'right_shoulder': (81.607, 14.261, 11.329), 'right_elbow': (24.308, 21.895),
+        'right_wrist': (2.942, -23.816),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (-1.015, -18.788, 7.851), 'spine_thoracic': (-11.388, -2.257, 8.343),
-        'neck': (5.274, -0.401, -14.616), 'head': (5.417, -0.014), 'right_clavicle': (7.797, 7.212),
-        'right_shoulder': (82.849, 7.386, -0.89), 'right_elbow': (20.734, 10.034),
-        'right_wrist': (-2.166, -29.998),
+        'spine_lumbar': (0.233, -18.12, 8.716), 'spine_thoracic': (-11.329, -1.596, 8.892),
+        'neck': (4.667, -0.423, -15.393), 'head': (4.815, -0.014), 'right_clavicle': (5.933, 7.596),
+        'right_shoulder': (84.257, 7.329, -2.682), 'right_elbow': (21.174, 8.413),
+        'right_wrist': (-2.979, -29.985),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (2.48, -17.271, 8.667), 'spine_thoracic': (-8.892, -5.769, 8.441),
-        'neck': (2.734, -0.475, -16.686), 'head': (2.888, -0.014), 'right_clavicle': (2.86, 7.336),
-        'right_shoulder': (88.628, 6.905, -3.879), 'right_elbow': (22.531, 7.39),
-        'right_wrist': (-3.155, -29.99),
+        'spine_lumbar': (2.481, -17.261, 8.658), 'spine_thoracic': (-8.856, -5.827, 8.428),
+        'neck': (2.72, -0.475, -16.687), 'head': (2.873, -0.014), 'right_clavicle': (2.829, 7.331),
+        'right_shoulder': (88.664, 6.886, -3.881), 'right_elbow': (22.542, 7.386),
+        'right_wrist': (-3.151, -29.992),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
-        'spine_lumbar': (2.421, -17.436, 8.613), 'spine_thoracic': (-9.19, -6.129, 8.384),
-        'neck': (2.932, -0.473, -16.862), 'head': (3.087, -0.014), 'right_clavicle': (3.257, 7.208),
-        'right_shoulder': (88.076, 7.233, -3.688), 'right_elbow': (22.481, 7.577),
-        'right_wrist': (-3.108, -30.0),
+        'spine_lumbar': (2.327, -18.1, 8.373), 'spine_thoracic': (-10.136, -6.759, 8.26),
+        'neck': (3.486, -0.468, -17.331), 'head': (3.646, -0.014), 'right_clavicle': (4.953, 6.804),
+        'right_shoulder': (86.333, 8.392, -2.734), 'right_elbow': (22.324, 8.525),
+        'right_wrist': (-2.828, -30.0),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (3.16, -19.848, 6.071), 'spine_thoracic': (-11.0, -9.548, 6.931),
-        'neck': (3.721, -0.463, -17.239), 'head': (3.881, -0.014),
-        'right_clavicle': (12.051, 5.139), 'right_shoulder': (83.4, 12.111, 3.825),
-        'right_elbow': (22.948, 14.914), 'right_wrist': (-0.036, -28.144),
+        'spine_lumbar': (4.34, -20.0, 4.824), 'spine_thoracic': (-11.327, -10.0, 6.419),
+        'neck': (3.315, -0.462, -16.53), 'head': (3.469, -0.014), 'right_clavicle': (17.022, 4.341),
+        'right_shoulder': (82.823, 14.575, 8.474), 'right_elbow': (23.968, 19.441),
+        'right_wrist': (1.844, -25.523),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (5.71, -19.945, 3.835), 'spine_thoracic': (-11.698, -10.0, 6.067),
-        'neck': (2.8, -0.464, -15.9), 'head': (2.948, -0.014), 'right_clavicle': (21.574, 3.588),
-        'right_shoulder': (82.781, 17.041, 12.582), 'right_elbow': (25.199, 23.467),
-        'right_wrist': (3.387, -22.357),
+        'spine_lumbar': (5.719, -19.892, 3.782), 'spine_thoracic': (-11.744, -10.0, 6.066),
+        'neck': (2.807, -0.463, -15.786), 'head': (2.955, -0.014),
+        'right_clavicle': (21.909, 3.562), 'right_shoulder': (82.74, 17.156, 12.873),
+        'right_elbow': (25.254, 23.741), 'right_wrist': (3.499, -22.114),
     })
     human.KeyJoints(21.4, {
-        'spine_lumbar': (-0.181, -19.998, 5.02), 'spine_thoracic': (-11.379, -7.068, 6.678),
-        'neck': (5.093, -0.392, -13.583), 'head': (5.228, -0.014),
-        'right_clavicle': (15.791, 5.483), 'right_shoulder': (81.069, 10.922, 7.605),
-        'right_elbow': (22.629, 18.102), 'right_wrist': (1.501, -27.021),
+        'spine_lumbar': (-1.531, -19.42, 6.767), 'spine_thoracic': (-11.349, -3.753, 7.671),
+        'neck': (5.537, -0.387, -13.917), 'head': (5.674, -0.014),
+        'right_clavicle': (10.429, 6.663), 'right_shoulder': (81.726, 8.071, 1.997),
+        'right_elbow': (21.025, 12.705), 'right_wrist': (-0.881, -29.851),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (2.078, -17.688, 9.045), 'spine_thoracic': (-10.584, -2.913, 8.989),
-        'neck': (3.553, -0.456, -16.411), 'head': (3.706, -0.014), 'right_clavicle': (4.355, 7.615),
-        'right_shoulder': (86.596, 7.523, -3.699), 'right_elbow': (21.957, 7.586),
-        'right_wrist': (-3.314, -29.889),
+        'spine_lumbar': (2.242, -17.633, 8.997), 'spine_thoracic': (-10.294, -3.471, 8.902),
+        'neck': (3.373, -0.461, -16.539), 'head': (3.527, -0.014), 'right_clavicle': (4.099, 7.556),
+        'right_shoulder': (87.034, 7.517, -3.75), 'right_elbow': (22.077, 7.544),
+        'right_wrist': (-3.303, -29.901),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
-        'spine_lumbar': (2.483, -17.231, 8.629), 'spine_thoracic': (-8.744, -6.002, 8.39),
-        'neck': (2.676, -0.476, -16.691), 'head': (2.829, -0.014), 'right_clavicle': (2.733, 7.314),
-        'right_shoulder': (88.777, 6.827, -3.887), 'right_elbow': (22.574, 7.376),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.469, -17.279, 8.628), 'spine_thoracic': (-8.85, -6.03, 8.39),
+        'neck': (2.737, -0.475, -16.734), 'head': (2.891, -0.014), 'right_clavicle': (2.856, 7.29),
+        'right_shoulder': (88.61, 6.923, -3.843), 'right_elbow': (22.552, 7.42),
+        'right_wrist': (-3.133, -30.0),
     })
     human.KeyJoints(21.7, {
-        'spine_lumbar': (2.402, -18.855, 7.62), 'spine_thoracic': (-10.53, -7.914, 7.772),
-        'neck': (3.728, -0.465, -17.435), 'head': (3.889, -0.014), 'right_clavicle': (7.066, 6.212),
-        'right_shoulder': (85.11, 9.553, -0.845), 'right_elbow': (22.367, 10.368),
-        'right_wrist': (-2.017, -29.86),
+        'spine_lumbar': (2.964, -19.735, 6.356), 'spine_thoracic': (-10.93, -9.333, 7.07),
+        'neck': (3.766, -0.463, -17.333), 'head': (3.927, -0.014),
+        'right_clavicle': (11.055, 5.324), 'right_shoulder': (83.632, 11.613, 2.882),
+        'right_elbow': (22.789, 13.997), 'right_wrist': (-0.431, -28.586),
     })
     human.KeyJoints(21.8, {
-        'spine_lumbar': (4.904, -20.0, 4.372), 'spine_thoracic': (-11.466, -10.0, 6.248),
-        'neck': (3.096, -0.463, -16.232), 'head': (3.248, -0.014),
-        'right_clavicle': (18.996, 4.021), 'right_shoulder': (82.778, 15.612, 10.287),
-        'right_elbow': (24.486, 21.212), 'right_wrist': (2.533, -24.247),
+        'spine_lumbar': (5.711, -19.945, 3.835), 'spine_thoracic': (-11.698, -10.0, 6.067),
+        'neck': (2.8, -0.464, -15.899), 'head': (2.948, -0.014), 'right_clavicle': (21.577, 3.588),
+        'right_shoulder': (82.781, 17.043, 12.584), 'right_elbow': (25.199, 23.47),
+        'right_wrist': (3.388, -22.355),
     })
     human.KeyJoints(21.9, {
-        'spine_lumbar': (5.109, -19.875, 3.76), 'spine_thoracic': (-11.723, -10.0, 6.045),
-        'neck': (3.065, -0.454, -15.41), 'head': (3.21, -0.014), 'right_clavicle': (21.735, 3.689),
-        'right_shoulder': (82.461, 16.672, 12.827), 'right_elbow': (25.159, 23.616),
-        'right_wrist': (3.48, -22.199),
+        'spine_lumbar': (0.987, -20.0, 4.512), 'spine_thoracic': (-11.45, -8.183, 6.403),
+        'neck': (4.663, -0.403, -13.789), 'head': (4.8, -0.014), 'right_clavicle': (17.73, 4.983),
+        'right_shoulder': (81.21, 12.399, 9.493), 'right_elbow': (23.42, 19.991),
+        'right_wrist': (2.249, -25.533),
     })
     human.KeyJoints(22.0, {
-        'spine_lumbar': (-0.086, -18.255, 8.557), 'spine_thoracic': (-11.355, -1.679, 8.794),
-        'neck': (4.826, -0.418, -15.234), 'head': (4.972, -0.014), 'right_clavicle': (6.284, 7.533),
-        'right_shoulder': (83.927, 7.333, -2.368), 'right_elbow': (21.013, 8.692),
-        'right_wrist': (-2.839, -29.991),
+        'spine_lumbar': (0.989, -17.904, 8.981), 'spine_thoracic': (-11.202, -1.728, 9.031),
+        'neck': (4.275, -0.435, -15.801), 'head': (4.426, -0.014), 'right_clavicle': (5.256, 7.663),
+        'right_shoulder': (85.082, 7.417, -3.251), 'right_elbow': (21.486, 7.93),
+        'right_wrist': (-3.221, -29.931),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
@@ -1368,65 +1368,65 @@ def remove_access_panel():
         'right_wrist': (-3.137, -30.0),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (2.354, -17.697, 8.554), 'spine_thoracic': (-9.693, -6.327, 8.358),
-        'neck': (3.223, -0.47, -17.051), 'head': (3.381, -0.014), 'right_clavicle': (3.923, 7.065),
-        'right_shoulder': (87.258, 7.726, -3.382), 'right_elbow': (22.379, 7.883),
-        'right_wrist': (-3.034, -30.0),
+        'spine_lumbar': (2.334, -18.525, 7.96), 'spine_thoracic': (-10.371, -7.409, 7.985),
+        'neck': (3.643, -0.466, -17.384), 'head': (3.803, -0.014), 'right_clavicle': (6.07, 6.478),
+        'right_shoulder': (85.643, 9.014, -1.742), 'right_elbow': (22.318, 9.493),
+        'right_wrist': (-2.399, -29.995),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (3.571, -19.974, 5.568), 'spine_thoracic': (-11.122, -9.836, 6.706),
-        'neck': (3.597, -0.462, -17.013), 'head': (3.755, -0.014),
-        'right_clavicle': (13.925, 4.819), 'right_shoulder': (83.08, 13.039, 5.594),
-        'right_elbow': (23.293, 16.635), 'right_wrist': (0.695, -27.227),
+        'spine_lumbar': (4.809, -20.0, 4.443), 'spine_thoracic': (-11.444, -10.0, 6.277),
+        'neck': (3.133, -0.462, -16.278), 'head': (3.285, -0.014),
+        'right_clavicle': (18.686, 4.075), 'right_shoulder': (82.78, 15.443, 10.003),
+        'right_elbow': (24.398, 20.934), 'right_wrist': (2.427, -24.462),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (5.792, -19.929, 3.789), 'spine_thoracic': (-11.727, -10.0, 6.055),
-        'neck': (2.772, -0.464, -15.866), 'head': (2.92, -0.014), 'right_clavicle': (21.832, 3.547),
-        'right_shoulder': (82.784, 17.186, 12.803), 'right_elbow': (25.265, 23.686),
-        'right_wrist': (3.47, -22.161),
+        'spine_lumbar': (5.246, -19.876, 3.763), 'spine_thoracic': (-11.728, -10.0, 6.048),
+        'neck': (3.007, -0.456, -15.487), 'head': (3.154, -0.014), 'right_clavicle': (21.785, 3.66),
+        'right_shoulder': (82.521, 16.784, 12.841), 'right_elbow': (25.181, 23.651),
+        'right_wrist': (3.486, -22.175),
     })
     human.KeyJoints(22.5, {
-        'spine_lumbar': (-1.31, -19.822, 5.934), 'spine_thoracic': (-11.33, -5.199, 7.18),
-        'neck': (5.487, -0.384, -13.623), 'head': (5.623, -0.014),
-        'right_clavicle': (12.749, 6.165), 'right_shoulder': (81.209, 9.103, 4.478),
-        'right_elbow': (21.598, 15.062), 'right_wrist': (0.198, -28.875),
+        'spine_lumbar': (-1.293, -18.981, 7.543), 'spine_thoracic': (-11.378, -2.632, 8.149),
+        'neck': (5.405, -0.395, -14.375), 'head': (5.546, -0.014), 'right_clavicle': (8.509, 7.066),
+        'right_shoulder': (82.466, 7.523, -0.113), 'right_elbow': (20.786, 10.745),
+        'right_wrist': (-1.818, -29.985),
     })
     human.KeyJoints(22.6, {
-        'spine_lumbar': (2.309, -17.583, 8.958), 'spine_thoracic': (-10.083, -3.845, 8.839),
-        'neck': (3.265, -0.464, -16.596), 'head': (3.419, -0.014), 'right_clavicle': (3.903, 7.52),
-        'right_shoulder': (87.325, 7.481, -3.781), 'right_elbow': (22.16, 7.514),
-        'right_wrist': (-3.29, -29.911),
+        'spine_lumbar': (2.374, -17.515, 8.897), 'spine_thoracic': (-9.811, -4.3, 8.752),
+        'neck': (3.134, -0.467, -16.635), 'head': (3.288, -0.014), 'right_clavicle': (3.659, 7.477),
+        'right_shoulder': (87.653, 7.378, -3.81), 'right_elbow': (22.253, 7.482),
+        'right_wrist': (-3.264, -29.927),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
-        'spine_lumbar': (2.482, -17.235, 8.629), 'spine_thoracic': (-8.753, -6.004, 8.39),
-        'neck': (2.681, -0.476, -16.695), 'head': (2.834, -0.014), 'right_clavicle': (2.743, 7.312),
-        'right_shoulder': (88.763, 6.835, -3.883), 'right_elbow': (22.572, 7.379),
-        'right_wrist': (-3.137, -30.0),
+        'spine_lumbar': (2.424, -17.427, 8.614), 'spine_thoracic': (-9.169, -6.122, 8.384),
+        'neck': (2.92, -0.473, -16.855), 'head': (3.075, -0.014), 'right_clavicle': (3.232, 7.214),
+        'right_shoulder': (88.109, 7.214, -3.699), 'right_elbow': (22.485, 7.566),
+        'right_wrist': (-3.11, -30.0),
     })
     human.KeyJoints(22.8, {
-        'spine_lumbar': (2.559, -19.265, 7.13), 'spine_thoracic': (-10.711, -8.551, 7.483),
-        'neck': (3.791, -0.464, -17.452), 'head': (3.953, -0.014), 'right_clavicle': (8.543, 5.852),
-        'right_shoulder': (84.45, 10.332, 0.517), 'right_elbow': (22.478, 11.696),
-        'right_wrist': (-1.436, -29.506),
+        'spine_lumbar': (3.345, -19.922, 5.833), 'spine_thoracic': (-11.057, -9.701, 6.821),
+        'neck': (3.669, -0.462, -17.145), 'head': (3.828, -0.014),
+        'right_clavicle': (12.917, 4.987), 'right_shoulder': (83.233, 12.541, 4.644),
+        'right_elbow': (23.101, 15.711), 'right_wrist': (0.304, -27.732),
     })
     human.KeyJoints(22.9, {
-        'spine_lumbar': (5.269, -20.0, 4.111), 'spine_thoracic': (-11.556, -10.0, 6.15),
-        'neck': (2.957, -0.463, -16.08), 'head': (3.107, -0.014), 'right_clavicle': (20.164, 3.82),
-        'right_shoulder': (82.774, 16.257, 11.347), 'right_elbow': (24.823, 22.251),
-        'right_wrist': (2.926, -23.403),
+        'spine_lumbar': (5.791, -19.93, 3.789), 'spine_thoracic': (-11.727, -10.0, 6.055),
+        'neck': (2.772, -0.464, -15.867), 'head': (2.921, -0.014),
+        'right_clavicle': (21.829, 3.547), 'right_shoulder': (82.784, 17.184, 12.8),
+        'right_elbow': (25.264, 23.683), 'right_wrist': (3.469, -22.164),
     })
     human.KeyJoints(23.0, {
-        'spine_lumbar': (4.093, -19.512, 3.933), 'spine_thoracic': (-11.706, -9.515, 6.097),
-        'neck': (3.443, -0.435, -14.465), 'head': (3.583, -0.014),
-        'right_clavicle': (20.734, 4.025), 'right_shoulder': (82.084, 15.497, 12.595),
-        'right_elbow': (25.814, 23.132), 'right_wrist': (3.388, -23.012),
+        'spine_lumbar': (1.247, -18.506, 5.279), 'spine_thoracic': (-11.445, -6.228, 6.787),
+        'neck': (4.393, -0.394, -12.678), 'head': (4.522, -0.014),
+        'right_clavicle': (15.473, 5.501), 'right_shoulder': (81.453, 11.171, 9.068),
+        'right_elbow': (26.394, 19.142), 'right_wrist': (1.979, -27.249),
     })
     human.KeyJoints(23.1, {
-        'spine_lumbar': (5.102, -14.736, 9.776), 'spine_thoracic': (-10.86, -0.201, 9.656),
-        'neck': (2.161, -0.451, -13.691), 'head': (2.293, -0.014), 'right_clavicle': (5.282, 8.153),
-        'right_shoulder': (85.467, 7.752, 1.511), 'right_elbow': (31.04, 11.407),
-        'right_wrist': (-1.526, -29.872),
+        'spine_lumbar': (6.023, -14.503, 9.989), 'spine_thoracic': (-10.636, -0.582, 9.79),
+        'neck': (1.622, -0.465, -14.017), 'head': (1.755, -0.014), 'right_clavicle': (4.746, 8.229),
+        'right_shoulder': (86.389, 7.926, 1.316), 'right_elbow': (31.724, 11.235),
+        'right_wrist': (-1.603, -29.822),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=23.179001, duration=0.072)
@@ -1483,71 +1483,71 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=24.218664, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
-        'spine_lumbar': (7.129, -13.864, 9.591), 'spine_thoracic': (-8.434, -4.435, 9.159),
-        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.719, 7.9),
-        'right_shoulder': (18.717, 33.763, -16.635), 'right_elbow': (36.552, 2.888),
-        'right_wrist': (-6.352, -4.848),
+        'spine_lumbar': (7.139, -13.832, 9.593), 'spine_thoracic': (-8.437, -4.428, 9.159),
+        'neck': (35.0, -2.615, -41.209), 'head': (15.0, -0.659), 'right_clavicle': (2.726, 7.9),
+        'right_shoulder': (18.721, 33.775, -16.625), 'right_elbow': (36.573, 2.899),
+        'right_wrist': (-6.351, -4.806),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (7.548, -12.336, 9.436), 'spine_thoracic': (-8.476, -5.022, 9.157),
-        'neck': (34.65, -2.719, -40.792), 'head': (14.726, -0.7), 'right_clavicle': (4.411, 7.688),
-        'right_shoulder': (18.766, 33.53, -14.458), 'right_elbow': (36.758, 4.633),
-        'right_wrist': (-6.056, -3.63),
+        'spine_lumbar': (7.96, -11.614, 9.313), 'spine_thoracic': (-8.399, -5.53, 9.16),
+        'neck': (34.47, -2.8, -40.651), 'head': (14.568, -0.721), 'right_clavicle': (5.543, 7.663),
+        'right_shoulder': (18.645, 33.691, -13.063), 'right_elbow': (36.888, 5.979),
+        'right_wrist': (-6.023, -2.674),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (12.772, -5.683, 8.806), 'spine_thoracic': (-7.358, -8.851, 9.589),
-        'neck': (33.087, -3.981, -41.668), 'head': (13.202, -1.008),
-        'right_clavicle': (14.784, 8.096), 'right_shoulder': (16.802, 40.295, -3.38),
-        'right_elbow': (41.175, 17.204), 'right_wrist': (-6.358, 9.225),
+        'spine_lumbar': (13.377, -5.62, 8.695), 'spine_thoracic': (-7.125, -9.338, 9.661),
+        'neck': (33.066, -4.089, -42.004), 'head': (13.15, -1.029),
+        'right_clavicle': (16.291, 8.223), 'right_shoulder': (16.382, 41.4, -1.977),
+        'right_elbow': (41.513, 18.977), 'right_wrist': (-6.48, 10.38),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (14.092, -8.193, 8.173), 'spine_thoracic': (-5.995, -10.0, 9.733),
-        'neck': (33.488, -4.128, -43.166), 'head': (13.454, -1.026),
-        'right_clavicle': (20.093, 8.504), 'right_shoulder': (14.612, 43.233, 1.701),
-        'right_elbow': (40.685, 23.54), 'right_wrist': (-6.812, 10.069),
+        'spine_lumbar': (14.092, -8.22, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
+        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
+        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
+        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
     })
     human.KeyJoints(24.7, {
-        'spine_lumbar': (9.431, -2.13, 8.843), 'spine_thoracic': (-8.913, -5.514, 9.203),
-        'neck': (32.126, -3.651, -38.406), 'head': (12.705, -1.032),
-        'right_clavicle': (14.827, 6.951), 'right_shoulder': (18.517, 36.231, -1.109),
-        'right_elbow': (42.848, 16.944), 'right_wrist': (-5.261, 11.752),
+        'spine_lumbar': (9.141, -1.244, 9.076), 'spine_thoracic': (-9.399, -4.687, 9.241),
+        'neck': (32.026, -3.666, -38.193), 'head': (12.618, -1.032),
+        'right_clavicle': (13.909, 6.78), 'right_shoulder': (19.302, 35.419, -2.031),
+        'right_elbow': (42.922, 15.628), 'right_wrist': (-5.059, 11.552),
     })
     human.KeyJoints(24.8, {
-        'spine_lumbar': (10.957, 0.012, 10.845), 'spine_thoracic': (-10.657, -2.034, 10.151),
-        'neck': (32.221, -4.438, -41.072), 'head': (12.35, -1.082), 'right_clavicle': (7.79, 7.863),
-        'right_shoulder': (21.951, 36.955, -10.586), 'right_elbow': (43.57, 8.176),
-        'right_wrist': (-5.44, 10.579),
+        'spine_lumbar': (10.991, -0.083, 10.845), 'spine_thoracic': (-10.616, -2.048, 10.147),
+        'neck': (32.234, -4.449, -41.137), 'head': (12.354, -1.083),
+        'right_clavicle': (7.666, 7.909), 'right_shoulder': (21.889, 37.093, -10.738),
+        'right_elbow': (43.623, 8.107), 'right_wrist': (-5.481, 10.621),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
-        'spine_lumbar': (11.352, -1.435, 10.815), 'spine_thoracic': (-10.016, -2.251, 10.059),
-        'neck': (32.404, -4.569, -41.948), 'right_clavicle': (5.95, 8.517),
-        'right_shoulder': (20.947, 38.899, -12.728), 'right_elbow': (44.364, 7.227),
-        'right_wrist': (-6.038, 11.232),
+        'spine_lumbar': (11.376, -1.283, 10.78), 'spine_thoracic': (-10.026, -2.403, 10.058),
+        'neck': (32.378, -4.552, -41.829), 'head': (12.413, -1.092),
+        'right_clavicle': (6.264, 8.472), 'right_shoulder': (20.947, 38.773, -12.356),
+        'right_elbow': (44.282, 7.499), 'right_wrist': (-5.981, 11.234),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (12.635, -1.528, 9.867), 'spine_thoracic': (-9.069, -6.017, 9.924),
-        'neck': (32.35, -4.398, -41.284), 'head': (12.476, -1.082),
-        'right_clavicle': (11.707, 8.142), 'right_shoulder': (19.381, 39.738, -6.648),
-        'right_elbow': (43.389, 13.331), 'right_wrist': (-5.971, 12.013),
+        'spine_lumbar': (13.107, -2.417, 9.475), 'spine_thoracic': (-8.45, -7.417, 9.863),
+        'neck': (32.493, -4.339, -41.468), 'head': (12.622, -1.08),
+        'right_clavicle': (13.69, 8.139), 'right_shoulder': (18.401, 40.559, -4.684),
+        'right_elbow': (42.984, 15.653), 'right_wrist': (-6.137, 12.083),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (14.084, -7.227, 8.288), 'spine_thoracic': (-6.303, -10.0, 9.687),
-        'neck': (33.312, -4.155, -42.83), 'head': (13.311, -1.034),
-        'right_clavicle': (18.994, 8.487), 'right_shoulder': (15.046, 43.091, 0.607),
-        'right_elbow': (41.207, 22.346), 'right_wrist': (-6.782, 10.691),
+        'spine_lumbar': (14.091, -8.006, 8.191), 'spine_thoracic': (-6.051, -10.0, 9.719),
+        'neck': (33.451, -4.134, -43.097), 'head': (13.423, -1.028),
+        'right_clavicle': (19.858, 8.503), 'right_shoulder': (14.688, 43.222, 1.468),
+        'right_elbow': (40.798, 23.297), 'right_wrist': (-6.81, 10.205),
     })
     human.KeyJoints(25.2, {
-        'spine_lumbar': (12.517, -7.561, 8.083), 'spine_thoracic': (-6.294, -9.693, 9.493),
-        'neck': (33.263, -3.84, -41.562), 'head': (13.37, -0.971),
-        'right_clavicle': (19.389, 8.188), 'right_shoulder': (14.867, 41.363, 2.215),
-        'right_elbow': (41.224, 23.068), 'right_wrist': (-6.465, 10.556),
+        'spine_lumbar': (10.925, -5.39, 8.276), 'spine_thoracic': (-7.29, -8.194, 9.287),
+        'neck': (32.697, -3.691, -39.877), 'head': (13.087, -1.01), 'right_clavicle': (17.69, 7.66),
+        'right_shoulder': (16.132, 39.179, 1.301), 'right_elbow': (42.138, 20.92),
+        'right_wrist': (-5.978, 11.483),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (9.791, 1.23, 10.544), 'spine_thoracic': (-11.096, -1.883, 9.942),
-        'neck': (31.99, -4.105, -39.449), 'head': (12.347, -1.058),
-        'right_clavicle': (9.886, 6.931), 'right_shoulder': (22.48, 34.245, -7.456),
-        'right_elbow': (42.847, 9.769), 'right_wrist': (-4.719, 10.118),
+        'spine_lumbar': (10.084, 1.185, 10.677), 'spine_thoracic': (-11.122, -1.822, 10.039),
+        'neck': (32.026, -4.19, -39.803), 'head': (12.329, -1.064),
+        'right_clavicle': (9.507, 7.102), 'right_shoulder': (22.573, 34.715, -8.112),
+        'right_elbow': (42.915, 9.344), 'right_wrist': (-4.828, 10.086),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
@@ -1557,164 +1557,164 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(25.5, {
-        'spine_lumbar': (11.69, -0.716, 10.488), 'spine_thoracic': (-9.998, -3.618, 10.031),
-        'neck': (32.277, -4.44, -41.224), 'head': (12.394, -1.083), 'right_clavicle': (8.432, 8.24),
-        'right_shoulder': (20.872, 38.416, -9.915), 'right_elbow': (43.832, 9.566),
-        'right_wrist': (-5.765, 11.369),
+        'spine_lumbar': (12.111, -0.954, 10.232), 'spine_thoracic': (-9.611, -4.619, 9.985),
+        'neck': (32.278, -4.436, -41.213), 'head': (12.397, -1.083), 'right_clavicle': (9.8, 8.186),
+        'right_shoulder': (20.247, 38.964, -8.542), 'right_elbow': (43.673, 11.131),
+        'right_wrist': (-5.835, 11.713),
     })
     human.KeyJoints(25.6, {
-        'spine_lumbar': (13.707, -4.558, 8.838), 'spine_thoracic': (-7.357, -9.206, 9.764),
-        'neck': (32.857, -4.229, -42.035), 'right_clavicle': (16.625, 8.261),
-        'right_shoulder': (16.681, 41.909, -1.764), 'right_elbow': (42.149, 19.258),
-        'right_wrist': (-6.46, 11.664),
+        'spine_lumbar': (13.977, -6.166, 8.48), 'spine_thoracic': (-6.691, -9.838, 9.707),
+        'neck': (33.14, -4.179, -42.505), 'head': (13.176, -1.044),
+        'right_clavicle': (18.106, 8.403), 'right_shoulder': (15.643, 42.687, -0.279),
+        'right_elbow': (41.59, 21.198), 'right_wrist': (-6.672, 11.13),
     })
     human.KeyJoints(25.7, {
-        'spine_lumbar': (14.092, -8.221, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
-        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
-        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
-        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
+        'spine_lumbar': (13.681, -8.209, 8.131), 'spine_thoracic': (-6.005, -10.0, 9.687),
+        'neck': (33.477, -4.039, -42.794), 'head': (13.465, -1.003),
+        'right_clavicle': (20.126, 8.428), 'right_shoulder': (14.592, 42.734, 2.105),
+        'right_elbow': (40.707, 23.661), 'right_wrist': (-6.718, 10.054),
     })
     human.KeyJoints(25.8, {
-        'spine_lumbar': (9.052, -0.551, 9.301), 'spine_thoracic': (-9.802, -4.008, 9.291),
-        'neck': (31.956, -3.708, -38.145), 'head': (12.539, -1.033),
-        'right_clavicle': (13.125, 6.689), 'right_shoulder': (19.981, 34.83, -2.887),
-        'right_elbow': (42.938, 14.484), 'right_wrist': (-4.909, 11.326),
+        'spine_lumbar': (9.034, 0.488, 9.743), 'spine_thoracic': (-10.454, -2.936, 9.467),
+        'neck': (31.898, -3.804, -38.289), 'head': (12.44, -1.039),
+        'right_clavicle': (11.814, 6.609), 'right_shoulder': (21.132, 34.015, -4.487),
+        'right_elbow': (42.88, 12.529), 'right_wrist': (-4.697, 10.793),
     })
     human.KeyJoints(25.9, {
-        'spine_lumbar': (11.184, -0.74, 10.837), 'spine_thoracic': (-10.328, -2.142, 10.112),
-        'neck': (32.318, -4.513, -41.553), 'head': (12.386, -1.088),
-        'right_clavicle': (6.823, 8.211), 'right_shoulder': (21.441, 37.989, -11.733),
-        'right_elbow': (43.983, 7.661), 'right_wrist': (-5.755, 10.914),
+        'spine_lumbar': (11.211, -0.847, 10.835), 'spine_thoracic': (-10.281, -2.157, 10.105),
+        'neck': (32.331, -4.523, -41.617), 'right_clavicle': (6.687, 8.258),
+        'right_shoulder': (21.367, 38.13, -11.889), 'right_elbow': (44.041, 7.592),
+        'right_wrist': (-5.799, 10.962),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.0, {
-        'spine_lumbar': (11.367, -1.334, 10.792), 'spine_thoracic': (-10.023, -2.351, 10.058),
-        'neck': (32.387, -4.558, -41.869), 'head': (12.418, -1.092),
-        'right_clavicle': (6.156, 8.488), 'right_shoulder': (20.947, 38.815, -12.483),
-        'right_elbow': (44.31, 7.406), 'right_wrist': (-6.0, 11.233),
+        'spine_lumbar': (11.436, -0.991, 10.706), 'spine_thoracic': (-10.038, -2.721, 10.053),
+        'neck': (32.325, -4.521, -41.595), 'head': (12.388, -1.089),
+        'right_clavicle': (6.902, 8.383), 'right_shoulder': (20.947, 38.551, -11.606),
+        'right_elbow': (44.12, 8.062), 'right_wrist': (-5.871, 11.247),
     })
     human.KeyJoints(26.1, {
-        'spine_lumbar': (12.951, -2.068, 9.614), 'spine_thoracic': (-8.673, -6.941, 9.885),
-        'neck': (32.435, -4.362, -41.39), 'head': (12.564, -1.081), 'right_clavicle': (13.0, 8.134),
-        'right_shoulder': (18.752, 40.271, -5.367), 'right_elbow': (43.138, 14.84),
-        'right_wrist': (-6.076, 12.085),
+        'spine_lumbar': (13.385, -3.22, 9.204), 'spine_thoracic': (-7.997, -8.27, 9.822),
+        'neck': (32.627, -4.291, -41.668), 'head': (12.756, -1.078),
+        'right_clavicle': (14.996, 8.169), 'right_shoulder': (17.687, 41.13, -3.388),
+        'right_elbow': (42.65, 17.222), 'right_wrist': (-6.266, 11.989),
     })
     human.KeyJoints(26.2, {
-        'spine_lumbar': (14.09, -7.746, 8.219), 'spine_thoracic': (-6.132, -10.0, 9.704),
-        'neck': (33.402, -4.142, -43.004), 'head': (13.383, -1.03), 'right_clavicle': (19.55, 8.5),
-        'right_shoulder': (14.8, 43.191, 1.161), 'right_elbow': (40.947, 22.971),
-        'right_wrist': (-6.804, 10.383),
+        'spine_lumbar': (14.092, -8.179, 8.174), 'spine_thoracic': (-5.999, -10.0, 9.732),
+        'neck': (33.485, -4.128, -43.16), 'head': (13.452, -1.026),
+        'right_clavicle': (20.073, 8.504), 'right_shoulder': (14.618, 43.232, 1.682),
+        'right_elbow': (40.693, 23.52), 'right_wrist': (-6.812, 10.078),
     })
     human.KeyJoints(26.3, {
-        'spine_lumbar': (11.343, -6.074, 8.195), 'spine_thoracic': (-6.972, -8.692, 9.337),
-        'neck': (32.864, -3.722, -40.316), 'head': (13.169, -0.993),
-        'right_clavicle': (18.22, 7.82), 'right_shoulder': (15.707, 39.807, 1.661),
-        'right_elbow': (41.894, 21.627), 'right_wrist': (-6.124, 11.245),
+        'spine_lumbar': (10.009, -3.603, 8.542), 'spine_thoracic': (-8.153, -6.791, 9.215),
+        'neck': (32.342, -3.647, -38.95), 'right_clavicle': (16.204, 7.257),
+        'right_shoulder': (17.356, 37.562, 0.143), 'right_elbow': (42.621, 18.883),
+        'right_wrist': (-5.589, 11.74),
     })
     human.KeyJoints(26.4, {
-        'spine_lumbar': (10.264, 1.123, 10.735), 'spine_thoracic': (-11.111, -1.825, 10.08),
-        'neck': (32.046, -4.237, -40.0), 'head': (12.319, -1.067), 'right_clavicle': (9.236, 7.22),
-        'right_shoulder': (22.564, 35.032, -8.548), 'right_elbow': (42.975, 9.103),
-        'right_wrist': (-4.906, 10.097),
+        'spine_lumbar': (10.457, 0.933, 10.792), 'spine_thoracic': (-11.039, -1.864, 10.12),
+        'neck': (32.085, -4.292, -40.27), 'head': (12.32, -1.071), 'right_clavicle': (8.945, 7.36),
+        'right_shoulder': (22.473, 35.442, -8.999), 'right_elbow': (43.082, 8.888),
+        'right_wrist': (-5.013, 10.175),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(26.5, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(26.6, {
-        'spine_lumbar': (11.98, -0.861, 10.315), 'spine_thoracic': (-9.729, -4.292, 9.999),
-        'neck': (32.271, -4.442, -41.215), 'head': (12.388, -1.084),
-        'right_clavicle': (9.352, 8.201), 'right_shoulder': (20.436, 38.792, -8.99),
-        'right_elbow': (43.729, 10.619), 'right_wrist': (-5.809, 11.616),
+        'spine_lumbar': (12.45, -1.288, 10.002), 'spine_thoracic': (-9.274, -5.506, 9.946),
+        'neck': (32.316, -4.414, -41.246), 'head': (12.44, -1.083),
+        'right_clavicle': (11.006, 8.154), 'right_shoulder': (19.708, 39.451, -7.342),
+        'right_elbow': (43.504, 12.52), 'right_wrist': (-5.919, 11.927),
     })
     human.KeyJoints(26.7, {
-        'spine_lumbar': (13.881, -5.532, 8.613), 'spine_thoracic': (-6.942, -9.646, 9.727),
-        'neck': (33.032, -4.195, -42.315), 'head': (13.094, -1.052),
-        'right_clavicle': (17.563, 8.344), 'right_shoulder': (16.035, 42.394, -0.823),
-        'right_elbow': (41.807, 20.479), 'right_wrist': (-6.59, 11.354),
+        'spine_lumbar': (14.08, -7.025, 8.318), 'spine_thoracic': (-6.372, -9.999, 9.686),
+        'neck': (33.28, -4.159, -42.767), 'head': (13.285, -1.036), 'right_clavicle': (18.8, 8.481),
+        'right_shoulder': (15.148, 43.045, 0.414), 'right_elbow': (41.294, 22.114),
+        'right_wrist': (-6.772, 10.791),
     })
     human.KeyJoints(26.8, {
-        'spine_lumbar': (13.982, -8.194, 8.176), 'spine_thoracic': (-6.001, -10.0, 9.738),
-        'neck': (33.495, -4.104, -43.091), 'head': (13.464, -1.02),
-        'right_clavicle': (20.193, 8.47), 'right_shoulder': (14.628, 43.067, 1.878),
-        'right_elbow': (40.642, 23.626), 'right_wrist': (-6.773, 10.014),
+        'spine_lumbar': (12.971, -7.92, 8.082), 'spine_thoracic': (-6.136, -9.875, 9.564),
+        'neck': (33.369, -3.909, -42.048), 'head': (13.419, -0.977),
+        'right_clavicle': (19.734, 8.296), 'right_shoulder': (14.703, 41.916, 2.233),
+        'right_elbow': (40.993, 23.398), 'right_wrist': (-6.573, 10.32),
     })
     human.KeyJoints(26.9, {
-        'spine_lumbar': (9.033, 0.555, 9.781), 'spine_thoracic': (-10.5, -2.861, 9.485),
-        'neck': (31.899, -3.811, -38.312), 'head': (12.437, -1.039),
-        'right_clavicle': (11.711, 6.608), 'right_shoulder': (21.218, 33.994, -4.625),
-        'right_elbow': (42.875, 12.376), 'right_wrist': (-4.689, 10.749),
+        'spine_lumbar': (9.238, 1.105, 10.138), 'spine_thoracic': (-10.894, -2.254, 9.676),
+        'neck': (31.906, -3.918, -38.66), 'head': (12.384, -1.046),
+        'right_clavicle': (10.844, 6.68), 'right_shoulder': (21.964, 33.953, -5.879),
+        'right_elbow': (42.824, 11.068), 'right_wrist': (-4.658, 10.351),
     })
     human.KeyJoints(27.0, {
-        'spine_lumbar': (11.328, -1.346, 10.821), 'spine_thoracic': (-10.06, -2.225, 10.067),
-        'neck': (32.394, -4.563, -41.902), 'right_clavicle': (6.053, 8.477),
-        'right_shoulder': (21.018, 38.779, -12.613), 'right_elbow': (44.315, 7.27),
-        'right_wrist': (-6.001, 11.186),
+        'spine_lumbar': (11.331, -1.362, 10.821), 'spine_thoracic': (-10.053, -2.227, 10.066),
+        'neck': (32.396, -4.564, -41.911), 'right_clavicle': (6.032, 8.484),
+        'right_shoulder': (21.006, 38.799, -12.636), 'right_elbow': (44.324, 7.26),
+        'right_wrist': (-6.008, 11.194),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
-        'spine_lumbar': (11.412, -1.09, 10.733), 'spine_thoracic': (-10.035, -2.606, 10.055),
-        'neck': (32.343, -4.532, -41.676), 'head': (12.396, -1.09),
-        'right_clavicle': (6.675, 8.414), 'right_shoulder': (20.947, 38.624, -11.871),
-        'right_elbow': (44.177, 7.86), 'right_wrist': (-5.908, 11.241),
+        'spine_lumbar': (11.557, -0.706, 10.587), 'spine_thoracic': (-10.044, -3.223, 10.043),
+        'neck': (32.275, -4.472, -41.316), 'head': (12.375, -1.085),
+        'right_clavicle': (7.822, 8.278), 'right_shoulder': (20.947, 38.36, -10.559),
+        'right_elbow': (43.918, 8.923), 'right_wrist': (-5.763, 11.291),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (13.238, -2.761, 9.352), 'spine_thoracic': (-8.247, -7.819, 9.844),
-        'neck': (32.55, -4.318, -41.551), 'head': (12.68, -1.079),
-        'right_clavicle': (14.292, 8.148), 'right_shoulder': (18.08, 40.818, -4.087),
-        'right_elbow': (42.837, 16.371), 'right_wrist': (-6.194, 12.063),
+        'spine_lumbar': (13.623, -4.158, 8.939), 'spine_thoracic': (-7.537, -8.973, 9.78),
+        'neck': (32.783, -4.245, -41.923), 'right_clavicle': (16.191, 8.23),
+        'right_shoulder': (16.964, 41.692, -2.198), 'right_elbow': (42.293, 18.705),
+        'right_wrist': (-6.405, 11.776),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (14.091, -8.055, 8.186), 'spine_thoracic': (-6.036, -10.0, 9.723),
-        'neck': (33.461, -4.132, -43.115), 'head': (13.431, -1.027),
-        'right_clavicle': (19.919, 8.504), 'right_shoulder': (14.667, 43.226, 1.529),
-        'right_elbow': (40.769, 23.361), 'right_wrist': (-6.811, 10.169),
+        'spine_lumbar': (14.092, -8.22, 8.17), 'spine_thoracic': (-5.987, -10.0, 9.735),
+        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
+        'right_clavicle': (20.126, 8.504), 'right_shoulder': (14.602, 43.233, 1.735),
+        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
     })
     human.KeyJoints(27.4, {
-        'spine_lumbar': (10.246, -4.104, 8.457), 'spine_thoracic': (-7.905, -7.202, 9.23),
-        'neck': (32.425, -3.654, -39.183), 'head': (12.94, -1.035),
-        'right_clavicle': (16.638, 7.369), 'right_shoulder': (16.994, 38.016, 0.506),
-        'right_elbow': (42.501, 19.486), 'right_wrist': (-5.7, 11.7),
+        'spine_lumbar': (9.355, -1.917, 8.895), 'spine_thoracic': (-9.027, -5.319, 9.209),
+        'neck': (32.1, -3.653, -38.346), 'head': (12.684, -1.032),
+        'right_clavicle': (14.613, 6.908), 'right_shoulder': (18.7, 36.035, -1.317),
+        'right_elbow': (42.868, 16.639), 'right_wrist': (-5.213, 11.719),
     })
     human.KeyJoints(27.5, {
-        'spine_lumbar': (10.648, 0.646, 10.833), 'spine_thoracic': (-10.921, -1.924, 10.149),
-        'neck': (32.136, -4.348, -40.573), 'head': (12.33, -1.075), 'right_clavicle': (8.612, 7.52),
-        'right_shoulder': (22.32, 35.932, -9.487), 'right_elbow': (43.229, 8.673),
-        'right_wrist': (-5.147, 10.302),
+        'spine_lumbar': (10.77, 0.43, 10.845), 'spine_thoracic': (-10.832, -1.965, 10.158),
+        'neck': (32.168, -4.383, -40.763), 'head': (12.337, -1.078),
+        'right_clavicle': (8.348, 7.639), 'right_shoulder': (22.203, 36.292, -9.859),
+        'right_elbow': (43.342, 8.507), 'right_wrist': (-5.248, 10.397),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'spine_lumbar': (11.353, -1.423, 10.813), 'spine_thoracic': (-10.017, -2.262, 10.059),
+        'neck': (32.402, -4.567, -41.939), 'right_clavicle': (5.973, 8.514),
+        'right_shoulder': (20.947, 38.889, -12.701), 'right_elbow': (44.358, 7.247),
+        'right_wrist': (-6.033, 11.232),
     })
     human.KeyJoints(27.7, {
-        'spine_lumbar': (12.3, -1.126, 10.106), 'spine_thoracic': (-9.429, -5.104, 9.964),
-        'neck': (32.296, -4.425, -41.227), 'head': (12.418, -1.083),
-        'right_clavicle': (10.458, 8.167), 'right_shoulder': (19.956, 39.229, -7.886),
-        'right_elbow': (43.586, 11.889), 'right_wrist': (-5.88, 11.839),
+        'spine_lumbar': (12.788, -1.766, 9.748), 'spine_thoracic': (-8.885, -6.458, 9.906),
+        'neck': (32.387, -4.382, -41.328), 'head': (12.514, -1.081),
+        'right_clavicle': (12.318, 8.135), 'right_shoulder': (19.089, 39.988, -6.043),
+        'right_elbow': (43.276, 14.042), 'right_wrist': (-6.02, 12.069),
     })
     human.KeyJoints(27.8, {
-        'spine_lumbar': (14.022, -6.457, 8.421), 'spine_thoracic': (-6.58, -9.913, 9.697),
-        'neck': (33.188, -4.172, -42.593), 'head': (13.213, -1.041),
-        'right_clavicle': (18.332, 8.435), 'right_shoulder': (15.468, 42.827, -0.053),
-        'right_elbow': (41.496, 21.505), 'right_wrist': (-6.712, 11.025),
+        'spine_lumbar': (14.089, -7.629, 8.234), 'spine_thoracic': (-6.169, -10.0, 9.698),
+        'neck': (33.381, -4.145, -42.964), 'head': (13.366, -1.031),
+        'right_clavicle': (19.418, 8.498), 'right_shoulder': (14.853, 43.172, 1.03),
+        'right_elbow': (41.01, 22.827), 'right_wrist': (-6.8, 10.458),
     })
     human.KeyJoints(27.9, {
-        'spine_lumbar': (13.48, -8.203, 8.11), 'spine_thoracic': (-6.011, -9.997, 9.651),
-        'neck': (33.464, -3.996, -42.598), 'head': (13.464, -0.993),
-        'right_clavicle': (20.059, 8.397), 'right_shoulder': (14.589, 42.511, 2.169),
-        'right_elbow': (40.765, 23.657), 'right_wrist': (-6.681, 10.095),
+        'spine_lumbar': (11.991, -6.962, 8.121), 'spine_thoracic': (-6.565, -9.302, 9.419),
+        'neck': (33.097, -3.783, -41.004), 'head': (13.284, -0.976),
+        'right_clavicle': (18.914, 8.036), 'right_shoulder': (15.193, 40.7, 2.021),
+        'right_elbow': (41.522, 22.503), 'right_wrist': (-6.324, 10.872),
     })
     human.KeyJoints(28.0, {
-        'spine_lumbar': (9.324, 1.19, 10.216), 'spine_thoracic': (-10.962, -2.148, 9.723),
-        'neck': (31.912, -3.95, -38.771), 'head': (12.371, -1.048),
-        'right_clavicle': (10.664, 6.713), 'right_shoulder': (22.101, 33.949, -6.157),
-        'right_elbow': (42.815, 10.804), 'right_wrist': (-4.654, 10.276),
+        'spine_lumbar': (9.63, 1.245, 10.45), 'spine_thoracic': (-11.071, -1.942, 9.876),
+        'neck': (31.964, -4.055, -39.228), 'head': (12.354, -1.055),
+        'right_clavicle': (10.101, 6.847), 'right_shoulder': (22.391, 34.044, -7.078),
+        'right_elbow': (42.82, 10.045), 'right_wrist': (-4.673, 10.15),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.1, {
@@ -1724,65 +1724,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(28.2, {
-        'spine_lumbar': (11.508, -0.774, 10.632), 'spine_thoracic': (-10.043, -3.037, 10.048),
-        'neck': (32.286, -4.491, -41.401), 'head': (12.373, -1.087),
-        'right_clavicle': (7.498, 8.309), 'right_shoulder': (20.947, 38.403, -10.919),
-        'right_elbow': (43.981, 8.61), 'right_wrist': (-5.789, 11.272),
+        'spine_lumbar': (11.789, -0.758, 10.429), 'spine_thoracic': (-9.911, -3.849, 10.02),
+        'neck': (32.274, -4.44, -41.215), 'head': (12.392, -1.083),
+        'right_clavicle': (8.751, 8.225), 'right_shoulder': (20.731, 38.537, -9.592),
+        'right_elbow': (43.797, 9.928), 'right_wrist': (-5.778, 11.455),
     })
     human.KeyJoints(28.3, {
-        'spine_lumbar': (13.49, -3.599, 9.091), 'spine_thoracic': (-7.805, -8.585, 9.804),
-        'neck': (32.69, -4.271, -41.769), 'head': (12.818, -1.078),
-        'right_clavicle': (15.513, 8.192), 'right_shoulder': (17.383, 41.368, -2.874),
-        'right_elbow': (42.502, 17.857), 'right_wrist': (-6.323, 11.912),
+        'spine_lumbar': (13.82, -5.166, 8.694), 'spine_thoracic': (-7.094, -9.498, 9.74),
+        'neck': (32.967, -4.208, -42.209), 'head': (13.044, -1.058),
+        'right_clavicle': (17.229, 8.312), 'right_shoulder': (16.271, 42.218, -1.159),
+        'right_elbow': (41.934, 20.04), 'right_wrist': (-6.542, 11.477),
     })
     human.KeyJoints(28.4, {
-        'spine_lumbar': (14.092, -8.193, 8.173), 'spine_thoracic': (-5.995, -10.0, 9.733),
-        'neck': (33.488, -4.128, -43.166), 'head': (13.454, -1.026),
-        'right_clavicle': (20.091, 8.504), 'right_shoulder': (14.612, 43.233, 1.7),
-        'right_elbow': (40.685, 23.538), 'right_wrist': (-6.812, 10.068),
+        'spine_lumbar': (14.025, -8.196, 8.176), 'spine_thoracic': (-5.998, -10.0, 9.738),
+        'neck': (33.494, -4.113, -43.124), 'head': (13.461, -1.022),
+        'right_clavicle': (20.19, 8.481), 'right_shoulder': (14.626, 43.129, 1.832),
+        'right_elbow': (40.643, 23.614), 'right_wrist': (-6.786, 10.016),
     })
     human.KeyJoints(28.5, {
-        'spine_lumbar': (9.442, -2.16, 8.836), 'spine_thoracic': (-8.897, -5.541, 9.203),
-        'neck': (32.13, -3.65, -38.415), 'head': (12.708, -1.032),
-        'right_clavicle': (14.857, 6.957), 'right_shoulder': (18.492, 36.259, -1.08),
-        'right_elbow': (42.845, 16.987), 'right_wrist': (-5.268, 11.756),
+        'spine_lumbar': (9.052, -0.537, 9.306), 'spine_thoracic': (-9.811, -3.995, 9.292),
+        'neck': (31.955, -3.71, -38.145), 'head': (12.538, -1.034),
+        'right_clavicle': (13.109, 6.688), 'right_shoulder': (19.995, 34.818, -2.906),
+        'right_elbow': (42.937, 14.459), 'right_wrist': (-4.906, 11.321),
     })
     human.KeyJoints(28.6, {
-        'spine_lumbar': (10.953, 0.024, 10.845), 'spine_thoracic': (-10.662, -2.032, 10.151),
-        'neck': (32.22, -4.437, -41.063), 'head': (12.349, -1.082),
-        'right_clavicle': (7.806, 7.857), 'right_shoulder': (21.959, 36.938, -10.566),
-        'right_elbow': (43.564, 8.185), 'right_wrist': (-5.435, 10.574),
+        'spine_lumbar': (11.019, -0.167, 10.844), 'spine_thoracic': (-10.579, -2.061, 10.144),
+        'neck': (32.244, -4.458, -41.193), 'head': (12.357, -1.084),
+        'right_clavicle': (7.557, 7.95), 'right_shoulder': (21.833, 37.213, -10.87),
+        'right_elbow': (43.669, 8.048), 'right_wrist': (-5.517, 10.659),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.7, {
-        'spine_lumbar': (11.352, -1.435, 10.815), 'spine_thoracic': (-10.016, -2.25, 10.059),
-        'neck': (32.404, -4.569, -41.948), 'right_clavicle': (5.948, 8.517),
-        'right_shoulder': (20.947, 38.899, -12.73), 'right_elbow': (44.365, 7.226),
-        'right_wrist': (-6.038, 11.232),
+        'spine_lumbar': (11.375, -1.286, 10.781), 'spine_thoracic': (-10.025, -2.399, 10.058),
+        'neck': (32.378, -4.553, -41.832), 'head': (12.413, -1.092),
+        'right_clavicle': (6.256, 8.473), 'right_shoulder': (20.947, 38.775, -12.365),
+        'right_elbow': (44.284, 7.492), 'right_wrist': (-5.982, 11.233),
     })
     human.KeyJoints(28.8, {
-        'spine_lumbar': (12.629, -1.52, 9.871), 'spine_thoracic': (-9.076, -6.002, 9.925),
-        'neck': (32.349, -4.399, -41.283), 'head': (12.474, -1.082),
-        'right_clavicle': (11.685, 8.142), 'right_shoulder': (19.391, 39.729, -6.669),
-        'right_elbow': (43.392, 13.306), 'right_wrist': (-5.97, 12.01),
+        'spine_lumbar': (13.102, -2.404, 9.48), 'spine_thoracic': (-8.458, -7.402, 9.864),
+        'neck': (32.491, -4.339, -41.465), 'head': (12.62, -1.08),
+        'right_clavicle': (13.667, 8.138), 'right_shoulder': (18.412, 40.55, -4.707),
+        'right_elbow': (42.989, 15.626), 'right_wrist': (-6.135, 12.084),
     })
     human.KeyJoints(28.9, {
-        'spine_lumbar': (14.084, -7.217, 8.289), 'spine_thoracic': (-6.306, -10.0, 9.687),
-        'neck': (33.31, -4.155, -42.827), 'head': (13.309, -1.034),
-        'right_clavicle': (18.983, 8.487), 'right_shoulder': (15.051, 43.089, 0.596),
-        'right_elbow': (41.212, 22.334), 'right_wrist': (-6.782, 10.697),
+        'spine_lumbar': (14.091, -8.001, 8.191), 'spine_thoracic': (-6.052, -10.0, 9.719),
+        'neck': (33.45, -4.134, -43.095), 'head': (13.423, -1.028),
+        'right_clavicle': (19.853, 8.503), 'right_shoulder': (14.69, 43.222, 1.462),
+        'right_elbow': (40.801, 23.291), 'right_wrist': (-6.81, 10.208),
     })
     human.KeyJoints(29.0, {
-        'spine_lumbar': (12.535, -7.579, 8.083), 'spine_thoracic': (-6.286, -9.703, 9.496),
-        'neck': (33.268, -3.842, -41.581), 'head': (13.372, -0.971),
-        'right_clavicle': (19.404, 8.193), 'right_shoulder': (14.858, 41.386, 2.219),
-        'right_elbow': (41.214, 23.084), 'right_wrist': (-6.469, 10.545),
+        'spine_lumbar': (10.942, -5.42, 8.272), 'spine_thoracic': (-7.276, -8.216, 9.289),
+        'neck': (32.704, -3.693, -39.895), 'head': (13.09, -1.01),
+        'right_clavicle': (17.713, 7.667), 'right_shoulder': (16.113, 39.206, 1.318),
+        'right_elbow': (42.128, 20.951), 'right_wrist': (-5.984, 11.474),
     })
     human.KeyJoints(29.1, {
-        'spine_lumbar': (9.782, 1.231, 10.539), 'spine_thoracic': (-11.095, -1.885, 9.939),
-        'neck': (31.989, -4.103, -39.438), 'head': (12.347, -1.058),
-        'right_clavicle': (9.897, 6.926), 'right_shoulder': (22.476, 34.233, -7.436),
-        'right_elbow': (42.845, 9.783), 'right_wrist': (-4.716, 10.119),
+        'spine_lumbar': (10.077, 1.187, 10.674), 'spine_thoracic': (-11.121, -1.823, 10.037),
+        'neck': (32.026, -4.188, -39.796), 'head': (12.33, -1.064),
+        'right_clavicle': (9.517, 7.097), 'right_shoulder': (22.572, 34.703, -8.096),
+        'right_elbow': (42.914, 9.353), 'right_wrist': (-4.825, 10.086),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.2, {
@@ -1792,164 +1792,164 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(29.3, {
-        'spine_lumbar': (11.686, -0.714, 10.491), 'spine_thoracic': (-10.001, -3.608, 10.031),
-        'neck': (32.277, -4.44, -41.225), 'head': (12.394, -1.083),
-        'right_clavicle': (8.417, 8.241), 'right_shoulder': (20.877, 38.412, -9.93),
-        'right_elbow': (43.834, 9.55), 'right_wrist': (-5.764, 11.365),
+        'spine_lumbar': (12.105, -0.95, 10.235), 'spine_thoracic': (-9.616, -4.605, 9.985),
+        'neck': (32.278, -4.436, -41.213), 'head': (12.397, -1.083),
+        'right_clavicle': (9.78, 8.186), 'right_shoulder': (20.256, 38.956, -8.561),
+        'right_elbow': (43.675, 11.109), 'right_wrist': (-5.834, 11.709),
     })
     human.KeyJoints(29.4, {
-        'spine_lumbar': (13.704, -4.541, 8.842), 'spine_thoracic': (-7.364, -9.197, 9.764),
-        'neck': (32.854, -4.23, -42.03), 'right_clavicle': (16.608, 8.26),
-        'right_shoulder': (16.692, 41.9, -1.781), 'right_elbow': (42.154, 19.236),
-        'right_wrist': (-6.458, 11.669),
+        'spine_lumbar': (13.975, -6.15, 8.484), 'spine_thoracic': (-6.697, -9.833, 9.707),
+        'neck': (33.137, -4.179, -42.5), 'head': (13.174, -1.044),
+        'right_clavicle': (18.093, 8.402), 'right_shoulder': (15.653, 42.68, -0.291),
+        'right_elbow': (41.596, 21.181), 'right_wrist': (-6.669, 11.136),
     })
     human.KeyJoints(29.5, {
-        'spine_lumbar': (14.092, -8.221, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
-        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
-        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
-        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
+        'spine_lumbar': (13.69, -8.209, 8.132), 'spine_thoracic': (-6.005, -10.0, 9.688),
+        'neck': (33.478, -4.041, -42.803), 'head': (13.465, -1.004),
+        'right_clavicle': (20.129, 8.429), 'right_shoulder': (14.592, 42.744, 2.1),
+        'right_elbow': (40.704, 23.66), 'right_wrist': (-6.72, 10.052),
     })
     human.KeyJoints(29.6, {
-        'spine_lumbar': (9.053, -0.574, 9.293), 'spine_thoracic': (-9.789, -4.031, 9.289),
-        'neck': (31.958, -3.706, -38.144), 'head': (12.542, -1.033),
-        'right_clavicle': (13.151, 6.692), 'right_shoulder': (19.958, 34.849, -2.857),
-        'right_elbow': (42.938, 14.522), 'right_wrist': (-4.914, 11.334),
+        'spine_lumbar': (9.034, 0.476, 9.736), 'spine_thoracic': (-10.445, -2.95, 9.464),
+        'neck': (31.898, -3.803, -38.285), 'head': (12.441, -1.039),
+        'right_clavicle': (11.833, 6.609), 'right_shoulder': (21.116, 34.021, -4.462),
+        'right_elbow': (42.881, 12.557), 'right_wrist': (-4.699, 10.801),
     })
     human.KeyJoints(29.7, {
-        'spine_lumbar': (11.181, -0.728, 10.837), 'spine_thoracic': (-10.334, -2.14, 10.113),
-        'neck': (32.316, -4.512, -41.546), 'head': (12.386, -1.088),
-        'right_clavicle': (6.838, 8.206), 'right_shoulder': (21.45, 37.973, -11.715),
-        'right_elbow': (43.976, 7.67), 'right_wrist': (-5.75, 10.909),
+        'spine_lumbar': (11.208, -0.836, 10.835), 'spine_thoracic': (-10.286, -2.155, 10.106),
+        'neck': (32.33, -4.522, -41.611), 'right_clavicle': (6.7, 8.254),
+        'right_shoulder': (21.374, 38.116, -11.874), 'right_elbow': (44.036, 7.599),
+        'right_wrist': (-5.795, 10.958),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.8, {
-        'spine_lumbar': (11.367, -1.337, 10.793), 'spine_thoracic': (-10.022, -2.348, 10.058),
-        'neck': (32.387, -4.558, -41.872), 'head': (12.418, -1.092),
-        'right_clavicle': (6.15, 8.488), 'right_shoulder': (20.947, 38.817, -12.49),
-        'right_elbow': (44.312, 7.401), 'right_wrist': (-6.001, 11.232),
+        'spine_lumbar': (11.434, -0.997, 10.708), 'spine_thoracic': (-10.038, -2.714, 10.054),
+        'neck': (32.326, -4.522, -41.6), 'head': (12.388, -1.089), 'right_clavicle': (6.888, 8.385),
+        'right_shoulder': (20.947, 38.555, -11.622), 'right_elbow': (44.123, 8.05),
+        'right_wrist': (-5.873, 11.247),
     })
     human.KeyJoints(29.9, {
-        'spine_lumbar': (12.946, -2.058, 9.618), 'spine_thoracic': (-8.68, -6.926, 9.885),
-        'neck': (32.433, -4.362, -41.387), 'head': (12.562, -1.081),
-        'right_clavicle': (12.978, 8.134), 'right_shoulder': (18.763, 40.261, -5.389),
-        'right_elbow': (43.143, 14.814), 'right_wrist': (-6.075, 12.085),
+        'spine_lumbar': (13.381, -3.205, 9.208), 'spine_thoracic': (-8.005, -8.257, 9.822),
+        'neck': (32.625, -4.292, -41.664), 'head': (12.753, -1.078),
+        'right_clavicle': (14.975, 8.168), 'right_shoulder': (17.699, 41.12, -3.409),
+        'right_elbow': (42.656, 17.196), 'right_wrist': (-6.264, 11.991),
     })
     human.KeyJoints(30.0, {
-        'spine_lumbar': (14.09, -7.739, 8.22), 'spine_thoracic': (-6.134, -10.0, 9.703),
-        'neck': (33.401, -4.142, -43.002), 'head': (13.382, -1.03), 'right_clavicle': (19.542, 8.5),
-        'right_shoulder': (14.803, 43.19, 1.154), 'right_elbow': (40.951, 22.962),
-        'right_wrist': (-6.804, 10.388),
+        'spine_lumbar': (14.092, -8.177, 8.174), 'spine_thoracic': (-5.999, -10.0, 9.731),
+        'neck': (33.485, -4.128, -43.16), 'head': (13.451, -1.026),
+        'right_clavicle': (20.071, 8.504), 'right_shoulder': (14.618, 43.232, 1.68),
+        'right_elbow': (40.694, 23.517), 'right_wrist': (-6.812, 10.079),
     })
     human.KeyJoints(30.1, {
-        'spine_lumbar': (11.363, -6.104, 8.192), 'spine_thoracic': (-6.958, -8.713, 9.339),
-        'neck': (32.871, -3.724, -40.337), 'head': (13.173, -0.992),
-        'right_clavicle': (18.244, 7.827), 'right_shoulder': (15.689, 39.835, 1.676),
-        'right_elbow': (41.883, 21.658), 'right_wrist': (-6.131, 11.233),
+        'spine_lumbar': (10.023, -3.633, 8.536), 'spine_thoracic': (-8.138, -6.816, 9.216),
+        'neck': (32.346, -3.648, -38.963), 'right_clavicle': (16.231, 7.263),
+        'right_shoulder': (17.333, 37.59, 0.166), 'right_elbow': (42.614, 18.921),
+        'right_wrist': (-5.596, 11.738),
     })
     human.KeyJoints(30.2, {
-        'spine_lumbar': (10.257, 1.127, 10.733), 'spine_thoracic': (-11.113, -1.825, 10.079),
-        'neck': (32.044, -4.235, -39.991), 'head': (12.319, -1.067),
-        'right_clavicle': (9.246, 7.215), 'right_shoulder': (22.566, 35.019, -8.531),
-        'right_elbow': (42.972, 9.112), 'right_wrist': (-4.903, 10.096),
+        'spine_lumbar': (10.451, 0.941, 10.79), 'spine_thoracic': (-11.042, -1.862, 10.119),
+        'neck': (32.084, -4.29, -40.261), 'head': (12.32, -1.071), 'right_clavicle': (8.954, 7.355),
+        'right_shoulder': (22.477, 35.428, -8.985), 'right_elbow': (43.078, 8.894),
+        'right_wrist': (-5.01, 10.172),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.3, {
         'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'neck': (32.406, -4.57, -41.957), 'right_clavicle': (5.925, 8.521),
+        'right_shoulder': (20.947, 38.909, -12.758), 'right_elbow': (44.371, 7.206),
+        'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(30.4, {
-        'spine_lumbar': (11.975, -0.857, 10.319), 'spine_thoracic': (-9.733, -4.279, 10.0),
-        'neck': (32.271, -4.442, -41.215), 'head': (12.388, -1.084),
-        'right_clavicle': (9.334, 8.202), 'right_shoulder': (20.444, 38.786, -9.008),
-        'right_elbow': (43.731, 10.599), 'right_wrist': (-5.808, 11.613),
+        'spine_lumbar': (12.444, -1.282, 10.006), 'spine_thoracic': (-9.28, -5.49, 9.947),
+        'neck': (32.315, -4.415, -41.246), 'head': (12.439, -1.083),
+        'right_clavicle': (10.985, 8.154), 'right_shoulder': (19.717, 39.442, -7.364),
+        'right_elbow': (43.508, 12.495), 'right_wrist': (-5.917, 11.924),
     })
     human.KeyJoints(30.5, {
-        'spine_lumbar': (13.879, -5.516, 8.617), 'spine_thoracic': (-6.949, -9.64, 9.728),
-        'neck': (33.029, -4.196, -42.31), 'head': (13.092, -1.053),
-        'right_clavicle': (17.549, 8.343), 'right_shoulder': (16.045, 42.386, -0.837),
-        'right_elbow': (41.812, 20.46), 'right_wrist': (-6.588, 11.36),
+        'spine_lumbar': (14.08, -7.013, 8.32), 'spine_thoracic': (-6.376, -9.998, 9.686),
+        'neck': (33.278, -4.159, -42.763), 'head': (13.284, -1.036),
+        'right_clavicle': (18.789, 8.48), 'right_shoulder': (15.155, 43.042, 0.403),
+        'right_elbow': (41.299, 22.1), 'right_wrist': (-6.771, 10.797),
     })
     human.KeyJoints(30.6, {
-        'spine_lumbar': (13.985, -8.194, 8.176), 'spine_thoracic': (-6.001, -10.0, 9.738),
-        'neck': (33.495, -4.105, -43.093), 'head': (13.464, -1.02),
-        'right_clavicle': (20.193, 8.471), 'right_shoulder': (14.628, 43.072, 1.874),
-        'right_elbow': (40.642, 23.625), 'right_wrist': (-6.774, 10.014),
+        'spine_lumbar': (12.986, -7.93, 8.083), 'spine_thoracic': (-6.131, -9.88, 9.566),
+        'neck': (33.372, -3.911, -42.065), 'head': (13.421, -0.977),
+        'right_clavicle': (19.745, 8.299), 'right_shoulder': (14.699, 41.934, 2.232),
+        'right_elbow': (40.986, 23.408), 'right_wrist': (-6.576, 10.313),
     })
     human.KeyJoints(30.7, {
-        'spine_lumbar': (9.033, 0.542, 9.774), 'spine_thoracic': (-10.491, -2.876, 9.481),
-        'neck': (31.899, -3.81, -38.307), 'head': (12.438, -1.039),
-        'right_clavicle': (11.731, 6.608), 'right_shoulder': (21.201, 33.998, -4.597),
-        'right_elbow': (42.876, 12.406), 'right_wrist': (-4.691, 10.758),
+        'spine_lumbar': (9.232, 1.098, 10.132), 'spine_thoracic': (-10.888, -2.263, 9.672),
+        'neck': (31.906, -3.916, -38.651), 'head': (12.385, -1.046),
+        'right_clavicle': (10.858, 6.678), 'right_shoulder': (21.952, 33.953, -5.857),
+        'right_elbow': (42.825, 11.089), 'right_wrist': (-4.658, 10.357),
     })
     human.KeyJoints(30.8, {
-        'spine_lumbar': (11.326, -1.339, 10.822), 'spine_thoracic': (-10.063, -2.224, 10.068),
-        'neck': (32.393, -4.562, -41.898), 'right_clavicle': (6.062, 8.474),
-        'right_shoulder': (21.023, 38.77, -12.602), 'right_elbow': (44.312, 7.275),
-        'right_wrist': (-5.999, 11.183),
+        'spine_lumbar': (11.33, -1.356, 10.821), 'spine_thoracic': (-10.055, -2.227, 10.067),
+        'neck': (32.395, -4.563, -41.908), 'right_clavicle': (6.04, 8.481),
+        'right_shoulder': (21.011, 38.792, -12.627), 'right_elbow': (44.321, 7.264),
+        'right_wrist': (-6.005, 11.191),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
-        'spine_lumbar': (11.411, -1.096, 10.735), 'spine_thoracic': (-10.035, -2.6, 10.055),
-        'neck': (32.344, -4.533, -41.681), 'head': (12.397, -1.09),
-        'right_clavicle': (6.663, 8.416), 'right_shoulder': (20.947, 38.628, -11.885),
-        'right_elbow': (44.179, 7.849), 'right_wrist': (-5.91, 11.24),
+        'spine_lumbar': (11.555, -0.708, 10.589), 'spine_thoracic': (-10.044, -3.213, 10.044),
+        'neck': (32.275, -4.473, -41.319), 'head': (12.375, -1.085),
+        'right_clavicle': (7.805, 8.279), 'right_shoulder': (20.947, 38.361, -10.577),
+        'right_elbow': (43.921, 8.907), 'right_wrist': (-5.763, 11.29),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (13.233, -2.748, 9.356), 'spine_thoracic': (-8.254, -7.805, 9.845),
-        'neck': (32.548, -4.318, -41.548), 'head': (12.678, -1.079),
-        'right_clavicle': (14.271, 8.147), 'right_shoulder': (18.091, 40.809, -4.108),
-        'right_elbow': (42.842, 16.345), 'right_wrist': (-6.192, 12.064),
+        'spine_lumbar': (13.62, -4.142, 8.943), 'spine_thoracic': (-7.545, -8.963, 9.781),
+        'neck': (32.78, -4.246, -41.918), 'right_clavicle': (16.172, 8.229),
+        'right_shoulder': (16.976, 41.683, -2.217), 'right_elbow': (42.299, 18.681),
+        'right_wrist': (-6.402, 11.781),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (14.091, -8.052, 8.186), 'spine_thoracic': (-6.037, -10.0, 9.722),
-        'neck': (33.46, -4.133, -43.114), 'head': (13.431, -1.027),
-        'right_clavicle': (19.915, 8.504), 'right_shoulder': (14.669, 43.226, 1.524),
-        'right_elbow': (40.771, 23.356), 'right_wrist': (-6.811, 10.172),
+        'spine_lumbar': (14.092, -8.22, 8.17), 'spine_thoracic': (-5.987, -10.0, 9.735),
+        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
+        'right_clavicle': (20.126, 8.504), 'right_shoulder': (14.602, 43.233, 1.735),
+        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
     })
     human.KeyJoints(31.2, {
-        'spine_lumbar': (10.263, -4.139, 8.452), 'spine_thoracic': (-7.889, -7.229, 9.231),
-        'neck': (32.43, -3.654, -39.2), 'head': (12.944, -1.035), 'right_clavicle': (16.668, 7.376),
-        'right_shoulder': (16.97, 38.047, 0.529), 'right_elbow': (42.493, 19.526),
-        'right_wrist': (-5.707, 11.697),
+        'spine_lumbar': (9.364, -1.944, 8.888), 'spine_thoracic': (-9.013, -5.343, 9.209),
+        'neck': (32.104, -3.652, -38.353), 'head': (12.686, -1.032),
+        'right_clavicle': (14.64, 6.913), 'right_shoulder': (18.677, 36.059, -1.291),
+        'right_elbow': (42.866, 16.677), 'right_wrist': (-5.219, 11.723),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (10.643, 0.656, 10.832), 'spine_thoracic': (-10.925, -1.922, 10.149),
-        'neck': (32.134, -4.346, -40.564), 'head': (12.33, -1.075),
-        'right_clavicle': (8.623, 7.515), 'right_shoulder': (22.326, 35.915, -9.471),
-        'right_elbow': (43.224, 8.68), 'right_wrist': (-5.143, 10.298),
+        'spine_lumbar': (10.765, 0.438, 10.845), 'spine_thoracic': (-10.835, -1.964, 10.158),
+        'neck': (32.167, -4.381, -40.756), 'head': (12.336, -1.078),
+        'right_clavicle': (8.359, 7.634), 'right_shoulder': (22.207, 36.277, -9.843),
+        'right_elbow': (43.337, 8.514), 'right_wrist': (-5.244, 10.393),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
-        'spine_lumbar': (11.35, -1.447, 10.818), 'spine_thoracic': (-10.015, -2.239, 10.059),
-        'neck': (32.406, -4.57, -41.957), 'head': (12.427, -1.093),
-        'right_clavicle': (5.925, 8.521), 'right_shoulder': (20.947, 38.909, -12.758),
-        'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
+        'spine_lumbar': (11.353, -1.424, 10.813), 'spine_thoracic': (-10.017, -2.261, 10.059),
+        'neck': (32.403, -4.568, -41.94), 'right_clavicle': (5.971, 8.514),
+        'right_shoulder': (20.947, 38.89, -12.703), 'right_elbow': (44.359, 7.245),
+        'right_wrist': (-6.034, 11.232),
     })
     human.KeyJoints(31.5, {
-        'spine_lumbar': (12.294, -1.121, 10.11), 'spine_thoracic': (-9.435, -5.089, 9.964),
-        'neck': (32.296, -4.425, -41.227), 'head': (12.417, -1.083),
-        'right_clavicle': (10.439, 8.167), 'right_shoulder': (19.964, 39.221, -7.906),
-        'right_elbow': (43.588, 11.866), 'right_wrist': (-5.879, 11.836),
+        'spine_lumbar': (12.782, -1.757, 9.752), 'spine_thoracic': (-8.892, -6.442, 9.906),
+        'neck': (32.385, -4.382, -41.326), 'head': (12.512, -1.081),
+        'right_clavicle': (12.295, 8.135), 'right_shoulder': (19.1, 39.979, -6.065),
+        'right_elbow': (43.28, 14.015), 'right_wrist': (-6.018, 12.067),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (14.02, -6.442, 8.424), 'spine_thoracic': (-6.585, -9.909, 9.698),
-        'neck': (33.185, -4.172, -42.589), 'head': (13.211, -1.041),
-        'right_clavicle': (18.32, 8.433), 'right_shoulder': (15.477, 42.82, -0.064),
-        'right_elbow': (41.501, 21.489), 'right_wrist': (-6.71, 11.03),
+        'spine_lumbar': (14.089, -7.621, 8.235), 'spine_thoracic': (-6.172, -10.0, 9.698),
+        'neck': (33.379, -4.145, -42.961), 'head': (13.365, -1.031),
+        'right_clavicle': (19.409, 8.497), 'right_shoulder': (14.857, 43.17, 1.021),
+        'right_elbow': (41.014, 22.817), 'right_wrist': (-6.799, 10.464),
     })
     human.KeyJoints(31.7, {
-        'spine_lumbar': (13.492, -8.206, 8.111), 'spine_thoracic': (-6.01, -9.998, 9.653),
-        'neck': (33.465, -3.999, -42.61), 'head': (13.465, -0.994),
-        'right_clavicle': (20.065, 8.399), 'right_shoulder': (14.588, 42.525, 2.167),
-        'right_elbow': (40.761, 23.659), 'right_wrist': (-6.683, 10.091),
+        'spine_lumbar': (12.009, -6.985, 8.119), 'spine_thoracic': (-6.555, -9.318, 9.422),
+        'neck': (33.103, -3.785, -41.023), 'head': (13.287, -0.976),
+        'right_clavicle': (18.932, 8.041), 'right_shoulder': (15.18, 40.723, 2.03),
+        'right_elbow': (41.512, 22.524), 'right_wrist': (-6.329, 10.861),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (9.317, 1.184, 10.209), 'spine_thoracic': (-10.956, -2.156, 9.719),
-        'neck': (31.911, -3.947, -38.761), 'head': (12.372, -1.048),
-        'right_clavicle': (10.679, 6.71), 'right_shoulder': (22.09, 33.949, -6.133),
-        'right_elbow': (42.816, 10.826), 'right_wrist': (-4.654, 10.282),
+        'spine_lumbar': (9.623, 1.246, 10.446), 'spine_thoracic': (-11.069, -1.945, 9.872),
+        'neck': (31.963, -4.053, -39.218), 'head': (12.354, -1.055),
+        'right_clavicle': (10.111, 6.843), 'right_shoulder': (22.386, 34.037, -7.06),
+        'right_elbow': (42.82, 10.059), 'right_wrist': (-4.672, 10.151),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
@@ -1959,65 +1959,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(32.0, {
-        'spine_lumbar': (11.506, -0.779, 10.634), 'spine_thoracic': (-10.043, -3.029, 10.048),
-        'neck': (32.286, -4.491, -41.406), 'head': (12.373, -1.087),
-        'right_clavicle': (7.483, 8.311), 'right_shoulder': (20.947, 38.406, -10.937),
-        'right_elbow': (43.984, 8.595), 'right_wrist': (-5.79, 11.271),
+        'spine_lumbar': (11.784, -0.755, 10.432), 'spine_thoracic': (-9.916, -3.837, 10.021),
+        'neck': (32.274, -4.44, -41.215), 'head': (12.392, -1.083),
+        'right_clavicle': (8.735, 8.225), 'right_shoulder': (20.739, 38.53, -9.608),
+        'right_elbow': (43.798, 9.91), 'right_wrist': (-5.777, 11.45),
     })
     human.KeyJoints(32.1, {
-        'spine_lumbar': (13.486, -3.584, 9.096), 'spine_thoracic': (-7.812, -8.574, 9.805),
-        'neck': (32.688, -4.272, -41.765), 'head': (12.815, -1.078),
-        'right_clavicle': (15.493, 8.191), 'right_shoulder': (17.395, 41.358, -2.894),
-        'right_elbow': (42.508, 17.832), 'right_wrist': (-6.321, 11.915),
+        'spine_lumbar': (13.817, -5.148, 8.698), 'spine_thoracic': (-7.101, -9.49, 9.741),
+        'neck': (32.964, -4.208, -42.204), 'head': (13.042, -1.058),
+        'right_clavicle': (17.213, 8.31), 'right_shoulder': (16.282, 42.21, -1.175),
+        'right_elbow': (41.94, 20.019), 'right_wrist': (-6.54, 11.483),
     })
     human.KeyJoints(32.2, {
-        'spine_lumbar': (14.092, -8.191, 8.173), 'spine_thoracic': (-5.995, -10.0, 9.733),
-        'neck': (33.488, -4.128, -43.165), 'head': (13.454, -1.026),
-        'right_clavicle': (20.09, 8.504), 'right_shoulder': (14.613, 43.233, 1.698),
-        'right_elbow': (40.685, 23.536), 'right_wrist': (-6.812, 10.069),
+        'spine_lumbar': (14.028, -8.197, 8.176), 'spine_thoracic': (-5.998, -10.0, 9.738),
+        'neck': (33.494, -4.114, -43.126), 'head': (13.461, -1.022),
+        'right_clavicle': (20.189, 8.481), 'right_shoulder': (14.626, 43.133, 1.829),
+        'right_elbow': (40.643, 23.613), 'right_wrist': (-6.786, 10.016),
     })
     human.KeyJoints(32.3, {
-        'spine_lumbar': (9.453, -2.191, 8.829), 'spine_thoracic': (-8.88, -5.569, 9.202),
-        'neck': (32.134, -3.65, -38.424), 'head': (12.712, -1.032),
-        'right_clavicle': (14.887, 6.963), 'right_shoulder': (18.466, 36.287, -1.051),
-        'right_elbow': (42.842, 17.029), 'right_wrist': (-5.275, 11.76),
+        'spine_lumbar': (9.053, -0.557, 9.299), 'spine_thoracic': (-9.799, -4.014, 9.29),
+        'neck': (31.957, -3.708, -38.145), 'head': (12.54, -1.033),
+        'right_clavicle': (13.132, 6.69), 'right_shoulder': (19.975, 34.835, -2.879),
+        'right_elbow': (42.938, 14.494), 'right_wrist': (-4.91, 11.328),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (10.948, 0.036, 10.845), 'spine_thoracic': (-10.667, -2.03, 10.152),
-        'neck': (32.218, -4.435, -41.055), 'head': (12.349, -1.082),
-        'right_clavicle': (7.822, 7.851), 'right_shoulder': (21.967, 36.92, -10.547),
-        'right_elbow': (43.557, 8.194), 'right_wrist': (-5.429, 10.568),
+        'spine_lumbar': (11.015, -0.156, 10.844), 'spine_thoracic': (-10.584, -2.059, 10.144),
+        'neck': (32.243, -4.457, -41.185), 'head': (12.357, -1.084),
+        'right_clavicle': (7.572, 7.944), 'right_shoulder': (21.841, 37.197, -10.853),
+        'right_elbow': (43.663, 8.055), 'right_wrist': (-5.512, 10.654),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
-        'spine_lumbar': (11.352, -1.436, 10.815), 'spine_thoracic': (-10.016, -2.25, 10.059),
-        'neck': (32.405, -4.569, -41.949), 'right_clavicle': (5.947, 8.518),
-        'right_shoulder': (20.947, 38.9, -12.732), 'right_elbow': (44.365, 7.225),
-        'right_wrist': (-6.038, 11.232),
+        'spine_lumbar': (11.374, -1.29, 10.782), 'spine_thoracic': (-10.025, -2.395, 10.058),
+        'neck': (32.379, -4.553, -41.834), 'head': (12.414, -1.092),
+        'right_clavicle': (6.249, 8.474), 'right_shoulder': (20.947, 38.778, -12.374),
+        'right_elbow': (44.286, 7.486), 'right_wrist': (-5.984, 11.233),
     })
     human.KeyJoints(32.6, {
-        'spine_lumbar': (12.624, -1.513, 9.875), 'spine_thoracic': (-9.082, -5.986, 9.926),
-        'neck': (32.348, -4.399, -41.281), 'head': (12.473, -1.082),
-        'right_clavicle': (11.664, 8.143), 'right_shoulder': (19.401, 39.72, -6.691),
-        'right_elbow': (43.396, 13.282), 'right_wrist': (-5.968, 12.008),
+        'spine_lumbar': (13.097, -2.392, 9.485), 'spine_thoracic': (-8.465, -7.386, 9.865),
+        'neck': (32.489, -4.34, -41.462), 'head': (12.618, -1.08),
+        'right_clavicle': (13.645, 8.138), 'right_shoulder': (18.424, 40.54, -4.729),
+        'right_elbow': (42.994, 15.599), 'right_wrist': (-6.133, 12.084),
     })
     human.KeyJoints(32.7, {
-        'spine_lumbar': (14.084, -7.206, 8.291), 'spine_thoracic': (-6.31, -10.0, 9.687),
-        'neck': (33.309, -4.155, -42.824), 'head': (13.308, -1.034),
-        'right_clavicle': (18.973, 8.486), 'right_shoulder': (15.057, 43.086, 0.586),
-        'right_elbow': (41.217, 22.321), 'right_wrist': (-6.781, 10.702),
+        'spine_lumbar': (14.091, -7.997, 8.191), 'spine_thoracic': (-6.054, -10.0, 9.719),
+        'neck': (33.449, -4.134, -43.094), 'head': (13.422, -1.028),
+        'right_clavicle': (19.847, 8.503), 'right_shoulder': (14.692, 43.221, 1.457),
+        'right_elbow': (40.804, 23.286), 'right_wrist': (-6.81, 10.211),
     })
     human.KeyJoints(32.8, {
-        'spine_lumbar': (12.554, -7.597, 8.082), 'spine_thoracic': (-6.279, -9.714, 9.499),
-        'neck': (33.273, -3.845, -41.601), 'head': (13.375, -0.971),
-        'right_clavicle': (19.419, 8.198), 'right_shoulder': (14.849, 41.409, 2.223),
-        'right_elbow': (41.204, 23.101), 'right_wrist': (-6.474, 10.535),
+        'spine_lumbar': (10.96, -5.45, 8.268), 'spine_thoracic': (-7.262, -8.238, 9.291),
+        'neck': (32.711, -3.694, -39.913), 'head': (13.094, -1.009),
+        'right_clavicle': (17.737, 7.674), 'right_shoulder': (16.094, 39.233, 1.335),
+        'right_elbow': (42.118, 20.983), 'right_wrist': (-5.991, 11.465),
     })
     human.KeyJoints(32.9, {
-        'spine_lumbar': (9.774, 1.232, 10.535), 'spine_thoracic': (-11.094, -1.888, 9.936),
-        'neck': (31.987, -4.1, -39.426), 'head': (12.347, -1.058), 'right_clavicle': (9.908, 6.921),
-        'right_shoulder': (22.472, 34.22, -7.417), 'right_elbow': (42.843, 9.796),
-        'right_wrist': (-4.713, 10.121),
+        'spine_lumbar': (10.07, 1.188, 10.672), 'spine_thoracic': (-11.121, -1.824, 10.036),
+        'neck': (32.025, -4.186, -39.788), 'head': (12.33, -1.064),
+        'right_clavicle': (9.527, 7.093), 'right_shoulder': (22.571, 34.691, -8.079),
+        'right_elbow': (42.912, 9.363), 'right_wrist': (-4.822, 10.087),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
@@ -2027,65 +2027,65 @@ def remove_access_panel():
         'right_elbow': (44.371, 7.206), 'right_wrist': (-6.042, 11.232),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (11.681, -0.713, 10.494), 'spine_thoracic': (-10.004, -3.598, 10.032),
-        'neck': (32.278, -4.441, -41.226), 'head': (12.394, -1.083),
-        'right_clavicle': (8.403, 8.241), 'right_shoulder': (20.882, 38.408, -9.945),
-        'right_elbow': (43.836, 9.534), 'right_wrist': (-5.764, 11.362),
+        'spine_lumbar': (12.1, -0.945, 10.239), 'spine_thoracic': (-9.622, -4.591, 9.986),
+        'neck': (32.277, -4.436, -41.213), 'head': (12.396, -1.083),
+        'right_clavicle': (9.761, 8.187), 'right_shoulder': (20.264, 38.948, -8.58),
+        'right_elbow': (43.678, 11.087), 'right_wrist': (-5.833, 11.705),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (13.701, -4.525, 8.846), 'spine_thoracic': (-7.371, -9.188, 9.765),
-        'neck': (32.851, -4.23, -42.026), 'right_clavicle': (16.591, 8.259),
-        'right_shoulder': (16.704, 41.892, -1.798), 'right_elbow': (42.16, 19.214),
-        'right_wrist': (-6.456, 11.674),
+        'spine_lumbar': (13.972, -6.134, 8.487), 'spine_thoracic': (-6.703, -9.829, 9.708),
+        'neck': (33.134, -4.179, -42.495), 'head': (13.172, -1.045), 'right_clavicle': (18.08, 8.4),
+        'right_shoulder': (15.662, 42.672, -0.304), 'right_elbow': (41.601, 21.164),
+        'right_wrist': (-6.667, 11.141),
     })
     human.KeyJoints(33.3, {
-        'spine_lumbar': (14.092, -8.221, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
-        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
-        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
-        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.047),
+        'spine_lumbar': (13.699, -8.208, 8.133), 'spine_thoracic': (-6.005, -10.0, 9.69),
+        'neck': (33.478, -4.043, -42.812), 'head': (13.465, -1.004),
+        'right_clavicle': (20.131, 8.43), 'right_shoulder': (14.593, 42.753, 2.096),
+        'right_elbow': (40.702, 23.66), 'right_wrist': (-6.721, 10.051),
     })
     human.KeyJoints(33.4, {
-        'spine_lumbar': (9.054, -0.596, 9.285), 'spine_thoracic': (-9.776, -4.053, 9.287),
-        'neck': (31.96, -3.705, -38.144), 'head': (12.545, -1.033),
-        'right_clavicle': (13.177, 6.694), 'right_shoulder': (19.935, 34.868, -2.828),
-        'right_elbow': (42.938, 14.561), 'right_wrist': (-4.919, 11.343),
+        'spine_lumbar': (9.034, 0.463, 9.729), 'spine_thoracic': (-10.436, -2.964, 9.461),
+        'neck': (31.898, -3.802, -38.281), 'head': (12.442, -1.039),
+        'right_clavicle': (11.852, 6.61), 'right_shoulder': (21.1, 34.026, -4.437),
+        'right_elbow': (42.882, 12.585), 'right_wrist': (-4.7, 10.809),
     })
     human.KeyJoints(33.5, {
-        'spine_lumbar': (11.178, -0.715, 10.837), 'spine_thoracic': (-10.339, -2.139, 10.114),
-        'neck': (32.315, -4.511, -41.538), 'head': (12.385, -1.088), 'right_clavicle': (6.854, 8.2),
-        'right_shoulder': (21.458, 37.957, -11.697), 'right_elbow': (43.969, 7.678),
-        'right_wrist': (-5.745, 10.903),
+        'spine_lumbar': (11.206, -0.825, 10.835), 'spine_thoracic': (-10.29, -2.154, 10.107),
+        'neck': (32.329, -4.521, -41.604), 'right_clavicle': (6.714, 8.249),
+        'right_shoulder': (21.382, 38.102, -11.858), 'right_elbow': (44.03, 7.606),
+        'right_wrist': (-5.79, 10.953),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
-        'spine_lumbar': (11.366, -1.34, 10.794), 'spine_thoracic': (-10.022, -2.345, 10.058),
-        'neck': (32.388, -4.558, -41.874), 'head': (12.418, -1.092),
-        'right_clavicle': (6.145, 8.489), 'right_shoulder': (20.947, 38.819, -12.497),
-        'right_elbow': (44.313, 7.396), 'right_wrist': (-6.002, 11.232),
+        'spine_lumbar': (11.471, -0.868, 10.668), 'spine_thoracic': (-10.042, -2.882, 10.051),
+        'neck': (32.302, -4.506, -41.49), 'head': (12.378, -1.088),
+        'right_clavicle': (7.213, 8.343), 'right_shoulder': (20.947, 38.465, -11.246),
+        'right_elbow': (44.045, 8.343), 'right_wrist': (-5.824, 11.258),
     })
     human.KeyJoints(33.7, {
-        'spine_lumbar': (12.941, -2.047, 9.622), 'spine_thoracic': (-8.687, -6.91, 9.886),
-        'neck': (32.431, -4.363, -41.385), 'head': (12.56, -1.081),
-        'right_clavicle': (12.957, 8.134), 'right_shoulder': (18.774, 40.252, -5.411),
-        'right_elbow': (43.147, 14.788), 'right_wrist': (-6.073, 12.085),
+        'spine_lumbar': (13.573, -3.939, 8.997), 'spine_thoracic': (-7.64, -8.831, 9.789),
+        'neck': (32.746, -4.255, -41.862), 'right_clavicle': (15.935, 8.214),
+        'right_shoulder': (17.125, 41.568, -2.453), 'right_elbow': (42.374, 18.383),
+        'right_wrist': (-6.373, 11.831),
     })
     human.KeyJoints(33.8, {
-        'spine_lumbar': (14.09, -7.732, 8.221), 'spine_thoracic': (-6.136, -10.0, 9.703),
-        'neck': (33.4, -4.142, -42.999), 'head': (13.381, -1.03), 'right_clavicle': (19.534, 8.5),
-        'right_shoulder': (14.807, 43.189, 1.146), 'right_elbow': (40.955, 22.953),
-        'right_wrist': (-6.803, 10.392),
+        'spine_lumbar': (14.092, -8.221, 8.17), 'spine_thoracic': (-5.986, -10.0, 9.735),
+        'neck': (33.494, -4.127, -43.176), 'head': (13.459, -1.026),
+        'right_clavicle': (20.127, 8.504), 'right_shoulder': (14.601, 43.233, 1.735),
+        'right_elbow': (40.667, 23.574), 'right_wrist': (-6.812, 10.046),
     })
     human.KeyJoints(33.9, {
-        'spine_lumbar': (10.486, -9.008, 7.881), 'spine_thoracic': (-6.327, -9.077, 9.123),
-        'neck': (33.39, -3.345, -40.199), 'head': (13.668, -0.899),
-        'right_clavicle': (17.24, 7.772), 'right_shoulder': (14.931, 38.377, 0.963),
-        'right_elbow': (40.035, 20.754), 'right_wrist': (-6.179, 7.484),
+        'spine_lumbar': (7.366, -8.698, 8.102), 'spine_thoracic': (-7.652, -6.604, 8.686),
+        'neck': (33.223, -2.765, -38.22), 'head': (13.94, -0.918),
+        'right_clavicle': (13.007, 6.739), 'right_shoulder': (16.841, 33.38, -2.638),
+        'right_elbow': (38.817, 15.141), 'right_wrist': (-5.416, 3.602),
     })
     human.KeyJoints(34.0, {
-        'spine_lumbar': (6.054, -10.936, 9.413), 'spine_thoracic': (-9.605, -3.984, 9.08),
-        'neck': (34.409, -2.395, -39.483), 'head': (14.822, -0.751),
-        'right_clavicle': (6.191, 6.487), 'right_shoulder': (20.379, 30.062, -12.328),
-        'right_elbow': (35.384, 4.906), 'right_wrist': (-5.216, -5.476),
+        'spine_lumbar': (6.304, -11.43, 9.487), 'spine_thoracic': (-9.459, -4.08, 9.146),
+        'neck': (34.552, -2.438, -39.878), 'head': (14.873, -0.729),
+        'right_clavicle': (5.691, 6.712), 'right_shoulder': (20.2, 30.641, -13.083),
+        'right_elbow': (35.455, 4.515), 'right_wrist': (-5.392, -5.572),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.062708, duration=0.072)
@@ -2106,7 +2106,7 @@ def remove_access_panel():
         'right_wrist': (-6.353, -4.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=13.16258)
+    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=10.463281)
     human.KeyJoints(34.5, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (20.012, 32.188, -15.305), 'right_elbow': (36.386, 3.606),
@@ -2137,571 +2137,463 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=35.003158, duration=0.072)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'right_shoulder': (57.328, 2.065, 10.935), 'right_elbow': (31.855, 18.342),
-        'right_wrist': (-1.063, -21.177),
+        'right_shoulder': (57.25, 1.888, 10.174), 'right_elbow': (32.133, 19.636),
+        'right_wrist': (-1.046, -21.486),
     })
     human.KeyJoints(35.2, {
-        'right_shoulder': (55.552, 0.884, 4.546), 'right_elbow': (37.09, 32.88),
-        'right_wrist': (-0.925, -26.289),
+        'right_shoulder': (54.947, 1.948, 0.455), 'right_elbow': (45.178, 62.844),
+        'right_wrist': (3.531, -30.0),
     })
     human.KeyJoints(35.3, {
-        'right_shoulder': (55.758, 3.751, 2.359), 'right_elbow': (49.466, 76.276),
-        'right_wrist': (9.273, -30.0),
+        'right_shoulder': (59.526, 7.347, 9.443), 'right_elbow': (52.916, 80.0),
+        'right_wrist': (26.031, -30.0),
     })
     human.KeyJoints(35.4, {
-        'right_shoulder': (59.799, 7.375, 9.5), 'right_elbow': (53.033, 80.0),
-        'right_wrist': (27.53, -30.0),
+        'right_shoulder': (52.871, 0.656, -2.761), 'right_elbow': (63.136, 79.898),
+        'right_wrist': (33.395, -30.0),
     })
     human.KeyJoints(35.5, {
-        'right_shoulder': (50.248, -3.054, -8.179), 'right_elbow': (64.121, 78.033),
-        'right_wrist': (28.524, -29.999),
+        'right_shoulder': (53.834, -4.645, -14.121), 'right_elbow': (41.151, 45.654),
+        'right_wrist': (13.77, -19.65),
     })
     human.KeyJoints(35.6, {
-        'right_shoulder': (54.775, -3.982, -13.21), 'right_elbow': (38.477, 43.337),
-        'right_wrist': (12.707, -18.444),
-    })
-    human.KeyJoints(35.7, {
-        'right_shoulder': (58.991, 2.14, 9.799), 'right_elbow': (27.747, 19.847),
-        'right_wrist': (0.405, -16.234),
+        'right_shoulder': (58.975, 1.901, 8.449), 'right_elbow': (27.771, 21.072),
+        'right_wrist': (1.069, -16.113),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(35.7, {
+        'right_shoulder': (56.081, 1.838, 4.109), 'right_elbow': (37.129, 39.037),
+        'right_wrist': (-0.074, -25.133),
+    })
     human.KeyJoints(35.8, {
-        'right_shoulder': (58.795, 2.252, 10.426), 'right_elbow': (28.26, 19.989),
-        'right_wrist': (-0.411, -16.849),
+        'right_shoulder': (57.045, 5.989, 6.621), 'right_elbow': (51.406, 79.534),
+        'right_wrist': (14.468, -30.0),
     })
     human.KeyJoints(35.9, {
-        'right_shoulder': (54.982, 2.093, 1.382), 'right_elbow': (44.134, 58.809),
-        'right_wrist': (2.633, -29.898),
+        'right_shoulder': (59.126, 6.751, 8.083), 'right_elbow': (55.191, 80.0),
+        'right_wrist': (31.293, -30.0),
     })
     human.KeyJoints(36.0, {
-        'right_shoulder': (58.753, 7.2, 9.125), 'right_elbow': (52.58, 80.0),
-        'right_wrist': (21.979, -30.0),
+        'right_shoulder': (49.346, -6.522, -14.579), 'right_elbow': (56.76, 61.006),
+        'right_wrist': (20.383, -27.479),
     })
     human.KeyJoints(36.1, {
-        'right_shoulder': (59.484, 6.969, 8.561), 'right_elbow': (54.261, 80.0),
-        'right_wrist': (30.366, -30.0),
+        'right_shoulder': (58.322, -0.485, -3.349), 'right_elbow': (29.171, 32.003),
+        'right_wrist': (6.955, -15.54),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
-        'right_shoulder': (51.313, -1.322, -5.669), 'right_elbow': (63.493, 79.062),
-        'right_wrist': (31.715, -30.0),
+        'right_shoulder': (58.358, 1.927, 8.447), 'right_elbow': (29.391, 23.228),
+        'right_wrist': (-0.448, -17.822),
     })
     human.KeyJoints(36.3, {
-        'right_shoulder': (50.599, -6.336, -15.319), 'right_elbow': (51.276, 54.759),
-        'right_wrist': (17.688, -24.661),
+        'right_shoulder': (55.12, 2.42, 0.388), 'right_elbow': (47.216, 70.084),
+        'right_wrist': (5.682, -30.0),
     })
     human.KeyJoints(36.4, {
-        'right_shoulder': (58.387, -0.348, -2.78), 'right_elbow': (29.02, 31.467),
-        'right_wrist': (6.669, -15.532),
+        'right_shoulder': (59.782, 7.374, 9.497), 'right_elbow': (53.025, 80.0),
+        'right_wrist': (27.436, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.5, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
+        'right_shoulder': (50.591, -2.498, -7.335), 'right_elbow': (64.172, 78.63),
+        'right_wrist': (29.291, -30.0),
     })
     human.KeyJoints(36.6, {
-        'right_shoulder': (56.255, 1.781, 4.264), 'right_elbow': (36.401, 37.567),
-        'right_wrist': (-0.181, -24.44),
+        'right_shoulder': (55.469, -3.475, -12.268), 'right_elbow': (36.582, 41.798),
+        'right_wrist': (11.978, -17.591),
     })
     human.KeyJoints(36.7, {
-        'right_shoulder': (56.42, 4.987, 4.638), 'right_elbow': (50.658, 78.518),
-        'right_wrist': (12.095, -30.0),
+        'right_shoulder': (59.009, 2.369, 11.113), 'right_elbow': (27.718, 18.659),
+        'right_wrist': (-0.24, -16.36),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
-        'right_shoulder': (59.815, 7.36, 9.464), 'right_elbow': (53.061, 80.0),
-        'right_wrist': (27.73, -30.0),
+        'right_shoulder': (55.466, 2.032, 3.332), 'right_elbow': (40.086, 45.934),
+        'right_wrist': (0.612, -27.726),
     })
     human.KeyJoints(36.9, {
-        'right_shoulder': (49.225, -4.465, -10.231), 'right_elbow': (63.128, 73.457),
-        'right_wrist': (26.35, -30.0),
+        'right_shoulder': (57.934, 6.886, 8.471), 'right_elbow': (52.134, 80.0),
+        'right_wrist': (17.947, -30.0),
     })
     human.KeyJoints(37.0, {
-        'right_shoulder': (56.081, -2.996, -11.252), 'right_elbow': (34.958, 40.461),
-        'right_wrist': (11.333, -16.851),
+        'right_shoulder': (57.589, 5.859, 6.258), 'right_elbow': (57.859, 80.0),
+        'right_wrist': (32.802, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.1, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
+        'right_shoulder': (50.521, -6.34, -15.422), 'right_elbow': (51.784, 55.31),
+        'right_wrist': (17.93, -24.908),
     })
     human.KeyJoints(37.2, {
-        'right_shoulder': (58.367, 1.933, 8.487), 'right_elbow': (29.368, 23.163),
-        'right_wrist': (-0.448, -17.802),
+        'right_shoulder': (58.642, 0.379, 0.416), 'right_elbow': (28.461, 28.437),
+        'right_wrist': (5.049, -15.573),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
-        'right_shoulder': (55.0, 2.16, 0.436), 'right_elbow': (46.145, 66.464),
-        'right_wrist': (4.446, -30.0),
+        'right_shoulder': (57.631, 1.527, 5.709), 'right_elbow': (31.419, 28.473),
+        'right_wrist': (-0.474, -19.622),
     })
     human.KeyJoints(37.4, {
-        'right_shoulder': (59.306, 7.317, 9.373), 'right_elbow': (52.83, 80.0),
-        'right_wrist': (24.88, -30.0),
+        'right_shoulder': (55.551, 3.374, 1.714), 'right_elbow': (48.967, 75.019),
+        'right_wrist': (8.304, -30.0),
     })
     human.KeyJoints(37.5, {
-        'right_shoulder': (59.06, 6.649, 7.865), 'right_elbow': (55.371, 80.0),
-        'right_wrist': (31.471, -30.0),
+        'right_shoulder': (59.815, 7.349, 9.436), 'right_elbow': (53.047, 80.0),
+        'right_wrist': (27.805, -30.0),
     })
     human.KeyJoints(37.6, {
-        'right_shoulder': (50.011, -3.222, -8.379), 'right_elbow': (63.895, 77.273),
-        'right_wrist': (28.342, -30.0),
+        'right_shoulder': (49.216, -4.521, -10.335), 'right_elbow': (63.171, 73.434),
+        'right_wrist': (26.172, -30.0),
     })
     human.KeyJoints(37.7, {
-        'right_shoulder': (51.677, -5.924, -15.155), 'right_elbow': (47.661, 51.325),
-        'right_wrist': (16.231, -22.812),
-    })
-    human.KeyJoints(37.8, {
-        'right_shoulder': (58.679, 0.483, 0.952), 'right_elbow': (28.381, 27.94),
-        'right_wrist': (4.781, -15.625),
+        'right_shoulder': (56.845, -2.297, -9.598), 'right_elbow': (32.952, 38.302),
+        'right_wrist': (10.266, -16.208),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(37.8, {
+        'right_shoulder': (58.995, 2.408, 11.34), 'right_elbow': (27.757, 18.505),
+        'right_wrist': (-0.388, -16.422),
+    })
     human.KeyJoints(37.9, {
-        'right_shoulder': (59.01, 2.42, 11.41), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
+        'right_shoulder': (55.063, 2.097, 2.196), 'right_elbow': (42.797, 54.012),
+        'right_wrist': (1.768, -29.533),
     })
     human.KeyJoints(38.0, {
-        'right_shoulder': (55.641, 1.981, 3.616), 'right_elbow': (39.173, 43.614),
-        'right_wrist': (0.35, -26.968),
+        'right_shoulder': (58.865, 7.228, 9.183), 'right_elbow': (52.633, 80.0),
+        'right_wrist': (22.56, -30.0),
     })
     human.KeyJoints(38.1, {
-        'right_shoulder': (57.174, 6.19, 7.033), 'right_elbow': (51.533, 79.692),
-        'right_wrist': (14.93, -30.0),
+        'right_shoulder': (55.403, 3.857, 2.522), 'right_elbow': (60.843, 80.0),
+        'right_wrist': (33.642, -30.0),
     })
     human.KeyJoints(38.2, {
-        'right_shoulder': (59.814, 7.329, 9.391), 'right_elbow': (53.097, 80.0),
-        'right_wrist': (27.934, -30.0),
+        'right_shoulder': (52.052, -5.828, -15.314), 'right_elbow': (46.509, 50.231),
+        'right_wrist': (15.756, -22.236),
     })
     human.KeyJoints(38.3, {
-        'right_shoulder': (53.826, 2.011, -0.516), 'right_elbow': (62.422, 79.89),
-        'right_wrist': (33.143, -30.0),
+        'right_shoulder': (58.86, 1.195, 4.563), 'right_elbow': (28.001, 24.609),
+        'right_wrist': (2.985, -15.804),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
-        'right_shoulder': (49.253, -6.495, -14.305), 'right_elbow': (57.765, 62.403),
-        'right_wrist': (21.01, -27.969),
+        'right_shoulder': (56.838, 1.579, 4.709), 'right_elbow': (34.091, 33.546),
+        'right_wrist': (-0.401, -22.181),
     })
     human.KeyJoints(38.5, {
-        'right_shoulder': (56.978, -2.174, -9.242), 'right_elbow': (32.585, 37.83),
-        'right_wrist': (10.022, -16.191),
+        'right_shoulder': (56.218, 4.647, 3.99), 'right_elbow': (50.359, 77.998),
+        'right_wrist': (11.288, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.6, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
+        'right_shoulder': (59.808, 7.087, 8.827), 'right_elbow': (53.485, 80.0),
+        'right_wrist': (29.401, -30.0),
     })
     human.KeyJoints(38.7, {
-        'right_shoulder': (57.705, 1.553, 5.921), 'right_elbow': (31.2, 27.955),
-        'right_wrist': (-0.473, -19.423),
+        'right_shoulder': (49.068, -5.879, -12.801), 'right_elbow': (60.827, 67.167),
+        'right_wrist': (23.205, -29.481),
     })
     human.KeyJoints(38.8, {
-        'right_shoulder': (55.26, 2.741, 0.778), 'right_elbow': (47.939, 72.28),
-        'right_wrist': (6.653, -30.0),
-    })
-    human.KeyJoints(38.9, {
-        'right_shoulder': (59.695, 7.366, 9.481), 'right_elbow': (52.991, 80.0),
-        'right_wrist': (26.969, -30.0),
-    })
-    human.KeyJoints(39.0, {
-        'right_shoulder': (52.121, -0.277, -4.134), 'right_elbow': (63.438, 79.602),
-        'right_wrist': (32.492, -30.0),
-    })
-    human.KeyJoints(39.1, {
-        'right_shoulder': (53.112, -5.232, -14.845), 'right_elbow': (43.237, 47.374),
-        'right_wrist': (14.514, -20.64),
-    })
-    human.KeyJoints(39.2, {
-        'right_shoulder': (58.91, 1.445, 5.914), 'right_elbow': (27.896, 23.378),
-        'right_wrist': (2.318, -15.893),
+        'right_shoulder': (57.718, -1.35, -6.713), 'right_elbow': (30.687, 35.136),
+        'right_wrist': (8.632, -15.763),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(38.9, {
+        'right_shoulder': (58.824, 2.275, 10.558), 'right_elbow': (28.187, 19.775),
+        'right_wrist': (-0.408, -16.787),
+    })
+    human.KeyJoints(39.0, {
+        'right_shoulder': (54.959, 2.074, 0.714), 'right_elbow': (45.123, 62.699),
+        'right_wrist': (3.457, -29.997),
+    })
+    human.KeyJoints(39.1, {
+        'right_shoulder': (59.51, 7.348, 9.44), 'right_elbow': (52.915, 80.0),
+        'right_wrist': (25.979, -30.0),
+    })
+    human.KeyJoints(39.2, {
+        'right_shoulder': (52.942, 0.749, -2.622), 'right_elbow': (63.091, 79.914),
+        'right_wrist': (33.471, -30.0),
+    })
     human.KeyJoints(39.3, {
-        'right_shoulder': (58.982, 2.398, 11.28), 'right_elbow': (27.789, 18.603),
-        'right_wrist': (-0.389, -16.45),
+        'right_shoulder': (53.796, -4.671, -14.151), 'right_elbow': (41.26, 45.749),
+        'right_wrist': (13.813, -19.699),
     })
     human.KeyJoints(39.4, {
-        'right_shoulder': (55.196, 2.087, 2.685), 'right_elbow': (41.781, 50.756),
-        'right_wrist': (1.256, -28.926),
+        'right_shoulder': (58.974, 1.89, 8.388), 'right_elbow': (27.773, 21.127),
+        'right_wrist': (1.099, -16.108),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'right_shoulder': (57.967, 6.899, 8.498), 'right_elbow': (52.155, 79.998),
-        'right_wrist': (18.104, -30.0),
+        'right_shoulder': (56.093, 1.834, 4.12), 'right_elbow': (37.078, 38.932),
+        'right_wrist': (-0.083, -25.085),
     })
     human.KeyJoints(39.6, {
-        'right_shoulder': (59.798, 7.138, 8.942), 'right_elbow': (53.389, 80.0),
-        'right_wrist': (29.125, -30.0),
+        'right_shoulder': (57.031, 5.966, 6.575), 'right_elbow': (51.392, 79.516),
+        'right_wrist': (14.417, -30.0),
     })
     human.KeyJoints(39.7, {
-        'right_shoulder': (52.743, 0.525, -2.858), 'right_elbow': (63.399, 79.741),
-        'right_wrist': (32.568, -30.0),
+        'right_shoulder': (59.144, 6.759, 8.1), 'right_elbow': (55.153, 80.0),
+        'right_wrist': (31.264, -30.0),
     })
     human.KeyJoints(39.8, {
-        'right_shoulder': (49.673, -6.362, -14.951), 'right_elbow': (55.479, 59.397),
-        'right_wrist': (19.701, -26.862),
+        'right_shoulder': (49.337, -6.522, -14.561), 'right_elbow': (56.833, 61.104),
+        'right_wrist': (20.427, -27.515),
     })
     human.KeyJoints(39.9, {
-        'right_shoulder': (57.716, -1.331, -6.682), 'right_elbow': (30.7, 35.068),
-        'right_wrist': (8.601, -15.769),
+        'right_shoulder': (58.315, -0.5, -3.408), 'right_elbow': (29.188, 32.058),
+        'right_wrist': (6.985, -15.542),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
+        'right_shoulder': (58.368, 1.934, 8.492), 'right_elbow': (29.364, 23.152),
+        'right_wrist': (-0.448, -17.798),
     })
     human.KeyJoints(40.1, {
-        'right_shoulder': (56.968, 1.54, 4.805), 'right_elbow': (33.614, 32.77),
-        'right_wrist': (-0.432, -21.706),
+        'right_shoulder': (55.115, 2.409, 0.379), 'right_elbow': (47.184, 69.981),
+        'right_wrist': (5.641, -30.0),
     })
     human.KeyJoints(40.2, {
-        'right_shoulder': (55.741, 3.762, 2.387), 'right_elbow': (49.446, 76.152),
-        'right_wrist': (9.211, -30.0),
+        'right_shoulder': (59.78, 7.373, 9.497), 'right_elbow': (53.025, 80.0),
+        'right_wrist': (27.425, -30.0),
     })
     human.KeyJoints(40.3, {
-        'right_shoulder': (59.799, 7.375, 9.5), 'right_elbow': (53.032, 80.0),
-        'right_wrist': (27.526, -30.0),
+        'right_shoulder': (50.617, -2.457, -7.274), 'right_elbow': (64.17, 78.66),
+        'right_wrist': (29.349, -30.0),
     })
     human.KeyJoints(40.4, {
-        'right_shoulder': (50.296, -2.973, -8.057), 'right_elbow': (64.13, 78.131),
-        'right_wrist': (28.644, -29.999),
+        'right_shoulder': (55.442, -3.496, -12.309), 'right_elbow': (36.656, 41.859),
+        'right_wrist': (12.007, -17.623),
     })
     human.KeyJoints(40.5, {
-        'right_shoulder': (54.745, -4.004, -13.244), 'right_elbow': (38.561, 43.412),
-        'right_wrist': (12.742, -18.48),
-    })
-    human.KeyJoints(40.6, {
-        'right_shoulder': (58.991, 2.129, 9.739), 'right_elbow': (27.748, 19.902),
-        'right_wrist': (0.435, -16.228),
+        'right_shoulder': (59.008, 2.364, 11.085), 'right_elbow': (27.718, 18.684),
+        'right_wrist': (-0.226, -16.357),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(40.6, {
+        'right_shoulder': (55.475, 2.03, 3.348), 'right_elbow': (40.038, 45.807),
+        'right_wrist': (0.597, -27.687),
+    })
     human.KeyJoints(40.7, {
-        'right_shoulder': (58.8, 2.256, 10.449), 'right_elbow': (28.247, 19.952),
-        'right_wrist': (-0.411, -16.838),
+        'right_shoulder': (57.918, 6.878, 8.454), 'right_elbow': (52.124, 80.0),
+        'right_wrist': (17.875, -30.0),
     })
     human.KeyJoints(40.8, {
-        'right_shoulder': (54.983, 2.094, 1.409), 'right_elbow': (44.098, 58.67),
-        'right_wrist': (2.606, -29.893),
+        'right_shoulder': (57.623, 5.882, 6.304), 'right_elbow': (57.808, 80.0),
+        'right_wrist': (32.78, -30.0),
     })
     human.KeyJoints(40.9, {
-        'right_shoulder': (58.74, 7.197, 9.118), 'right_elbow': (52.573, 80.0),
-        'right_wrist': (21.911, -30.0),
+        'right_shoulder': (50.496, -6.345, -15.414), 'right_elbow': (51.873, 55.402),
+        'right_wrist': (17.969, -24.955),
     })
     human.KeyJoints(41.0, {
-        'right_shoulder': (59.512, 6.985, 8.597), 'right_elbow': (54.183, 80.0),
-        'right_wrist': (30.274, -30.0),
+        'right_shoulder': (58.638, 0.364, 0.347), 'right_elbow': (28.47, 28.501),
+        'right_wrist': (5.083, -15.571),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
-        'right_shoulder': (51.552, -1.022, -5.241), 'right_elbow': (63.469, 79.281),
-        'right_wrist': (32.106, -30.0),
+        'right_shoulder': (57.644, 1.531, 5.746), 'right_elbow': (31.379, 28.379),
+        'right_wrist': (-0.474, -19.585),
     })
     human.KeyJoints(41.2, {
-        'right_shoulder': (50.364, -6.381, -15.318), 'right_elbow': (52.22, 55.741),
-        'right_wrist': (18.109, -25.145),
+        'right_shoulder': (55.542, 3.354, 1.681), 'right_elbow': (48.94, 74.953),
+        'right_wrist': (8.256, -30.0),
     })
     human.KeyJoints(41.3, {
-        'right_shoulder': (58.298, -0.534, -3.549), 'right_elbow': (29.226, 32.191),
-        'right_wrist': (7.056, -15.538),
+        'right_shoulder': (59.815, 7.352, 9.445), 'right_elbow': (53.045, 80.0),
+        'right_wrist': (27.78, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.4, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
+        'right_shoulder': (49.231, -4.493, -10.292), 'right_elbow': (63.2, 73.551),
+        'right_wrist': (26.222, -30.0),
     })
     human.KeyJoints(41.5, {
-        'right_shoulder': (56.266, 1.778, 4.275), 'right_elbow': (36.353, 37.474),
-        'right_wrist': (-0.187, -24.395),
+        'right_shoulder': (56.827, -2.315, -9.644), 'right_elbow': (32.998, 38.36),
+        'right_wrist': (10.295, -16.219),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
-        'right_shoulder': (56.408, 4.967, 4.599), 'right_elbow': (50.641, 78.49),
-        'right_wrist': (12.047, -30.0),
+        'right_shoulder': (58.996, 2.409, 11.345), 'right_elbow': (27.754, 18.498),
+        'right_wrist': (-0.388, -16.42),
     })
     human.KeyJoints(41.7, {
-        'right_shoulder': (59.815, 7.363, 9.472), 'right_elbow': (53.056, 80.0),
-        'right_wrist': (27.706, -30.0),
+        'right_shoulder': (55.067, 2.097, 2.218), 'right_elbow': (42.754, 53.869),
+        'right_wrist': (1.745, -29.511),
     })
     human.KeyJoints(41.8, {
-        'right_shoulder': (49.247, -4.4, -10.125), 'right_elbow': (63.171, 73.669),
-        'right_wrist': (26.478, -30.0),
+        'right_shoulder': (58.851, 7.224, 9.176), 'right_elbow': (52.627, 80.0),
+        'right_wrist': (22.487, -30.0),
     })
     human.KeyJoints(41.9, {
-        'right_shoulder': (56.037, -3.033, -11.331), 'right_elbow': (35.074, 40.571),
-        'right_wrist': (11.387, -16.895),
+        'right_shoulder': (55.444, 3.906, 2.609), 'right_elbow': (60.792, 80.0),
+        'right_wrist': (33.632, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.0, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
+        'right_shoulder': (52.023, -5.844, -15.327), 'right_elbow': (46.6, 50.311),
+        'right_wrist': (15.79, -22.282),
     })
     human.KeyJoints(42.1, {
-        'right_shoulder': (58.376, 1.94, 8.528), 'right_elbow': (29.343, 23.093),
-        'right_wrist': (-0.447, -17.78),
+        'right_shoulder': (58.857, 1.182, 4.493), 'right_elbow': (28.007, 24.672),
+        'right_wrist': (3.019, -15.799),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
-        'right_shoulder': (54.997, 2.154, 0.442), 'right_elbow': (46.113, 66.348),
-        'right_wrist': (4.412, -30.0),
+        'right_shoulder': (56.851, 1.574, 4.718), 'right_elbow': (34.043, 33.468),
+        'right_wrist': (-0.404, -22.132),
     })
     human.KeyJoints(42.3, {
-        'right_shoulder': (59.299, 7.316, 9.371), 'right_elbow': (52.827, 80.0),
-        'right_wrist': (24.843, -30.0),
+        'right_shoulder': (56.205, 4.624, 3.948), 'right_elbow': (50.339, 77.96),
+        'right_wrist': (11.236, -30.0),
     })
     human.KeyJoints(42.4, {
-        'right_shoulder': (59.059, 6.643, 7.854), 'right_elbow': (55.372, 80.0),
-        'right_wrist': (31.474, -30.0),
+        'right_shoulder': (59.808, 7.092, 8.838), 'right_elbow': (53.474, 80.0),
+        'right_wrist': (29.373, -30.0),
     })
     human.KeyJoints(42.5, {
-        'right_shoulder': (50.007, -3.253, -8.428), 'right_elbow': (63.923, 77.285),
-        'right_wrist': (28.272, -30.0),
+        'right_shoulder': (49.065, -5.859, -12.761), 'right_elbow': (60.886, 67.271),
+        'right_wrist': (23.255, -29.508),
     })
     human.KeyJoints(42.6, {
-        'right_shoulder': (51.686, -5.924, -15.166), 'right_elbow': (47.638, 51.301),
-        'right_wrist': (16.221, -22.8),
-    })
-    human.KeyJoints(42.7, {
-        'right_shoulder': (58.678, 0.482, 0.942), 'right_elbow': (28.383, 27.948),
-        'right_wrist': (4.785, -15.624),
+        'right_shoulder': (57.706, -1.364, -6.765), 'right_elbow': (30.72, 35.186),
+        'right_wrist': (8.659, -15.769),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(42.7, {
+        'right_shoulder': (58.829, 2.278, 10.581), 'right_elbow': (28.174, 19.737),
+        'right_wrist': (-0.407, -16.776),
+    })
     human.KeyJoints(42.8, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
+        'right_shoulder': (54.96, 2.074, 0.731), 'right_elbow': (45.087, 62.56),
+        'right_wrist': (3.424, -29.996),
     })
     human.KeyJoints(42.9, {
-        'right_shoulder': (55.65, 1.978, 3.629), 'right_elbow': (39.127, 43.503),
-        'right_wrist': (0.339, -26.93),
+        'right_shoulder': (59.502, 7.347, 9.438), 'right_elbow': (52.912, 80.0),
+        'right_wrist': (25.938, -30.0),
     })
     human.KeyJoints(43.0, {
-        'right_shoulder': (57.161, 6.171, 6.993), 'right_elbow': (51.521, 79.678),
-        'right_wrist': (14.882, -30.0),
+        'right_shoulder': (52.986, 0.806, -2.537), 'right_elbow': (63.063, 79.923),
+        'right_wrist': (33.515, -30.0),
     })
     human.KeyJoints(43.1, {
-        'right_shoulder': (59.815, 7.334, 9.403), 'right_elbow': (53.09, 80.0),
-        'right_wrist': (27.9, -30.0),
+        'right_shoulder': (53.768, -4.691, -14.174), 'right_elbow': (41.341, 45.82),
+        'right_wrist': (13.845, -19.736),
     })
     human.KeyJoints(43.2, {
-        'right_shoulder': (53.899, 2.107, -0.361), 'right_elbow': (62.359, 79.897),
-        'right_wrist': (33.166, -30.0),
+        'right_shoulder': (58.973, 1.88, 8.33), 'right_elbow': (27.775, 21.179),
+        'right_wrist': (1.127, -16.103),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.3, {
-        'right_shoulder': (49.243, -6.488, -14.265), 'right_elbow': (57.887, 62.58),
-        'right_wrist': (21.09, -28.029),
+        'right_shoulder': (56.105, 1.83, 4.131), 'right_elbow': (37.027, 38.828),
+        'right_wrist': (-0.091, -25.037),
     })
     human.KeyJoints(43.4, {
-        'right_shoulder': (56.947, -2.203, -9.323), 'right_elbow': (32.666, 37.919),
-        'right_wrist': (10.068, -16.215),
+        'right_shoulder': (57.017, 5.944, 6.529), 'right_elbow': (51.377, 79.498),
+        'right_wrist': (14.367, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.5, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
+        'right_shoulder': (59.162, 6.766, 8.116), 'right_elbow': (55.115, 80.0),
+        'right_wrist': (31.234, -30.0),
     })
     human.KeyJoints(43.6, {
-        'right_shoulder': (57.717, 1.558, 5.959), 'right_elbow': (31.164, 27.868),
-        'right_wrist': (-0.473, -19.39),
+        'right_shoulder': (49.328, -6.523, -14.543), 'right_elbow': (56.905, 61.202),
+        'right_wrist': (20.47, -27.549),
     })
     human.KeyJoints(43.7, {
-        'right_shoulder': (55.254, 2.726, 0.758), 'right_elbow': (47.911, 72.198),
-        'right_wrist': (6.613, -30.0),
+        'right_shoulder': (58.307, -0.514, -3.467), 'right_elbow': (29.206, 32.113),
+        'right_wrist': (7.014, -15.544),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
-        'right_shoulder': (59.694, 7.366, 9.48), 'right_elbow': (52.99, 80.0),
-        'right_wrist': (26.962, -30.0),
+        'right_shoulder': (58.379, 1.941, 8.537), 'right_elbow': (29.337, 23.077),
+        'right_wrist': (-0.447, -17.775),
     })
     human.KeyJoints(43.9, {
-        'right_shoulder': (52.084, -0.327, -4.2), 'right_elbow': (63.468, 79.581),
-        'right_wrist': (32.381, -30.0),
+        'right_shoulder': (55.11, 2.398, 0.372), 'right_elbow': (47.152, 69.878),
+        'right_wrist': (5.601, -30.0),
     })
     human.KeyJoints(44.0, {
-        'right_shoulder': (53.122, -5.223, -14.83), 'right_elbow': (43.207, 47.348),
-        'right_wrist': (14.503, -20.627),
+        'right_shoulder': (59.778, 7.373, 9.497), 'right_elbow': (53.024, 80.0),
+        'right_wrist': (27.415, -30.0),
     })
     human.KeyJoints(44.1, {
-        'right_shoulder': (58.91, 1.44, 5.891), 'right_elbow': (27.897, 23.399),
-        'right_wrist': (2.329, -15.892),
+        'right_shoulder': (50.645, -2.415, -7.211), 'right_elbow': (64.168, 78.689),
+        'right_wrist': (29.409, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.2, {
-        'right_shoulder': (58.983, 2.399, 11.286), 'right_elbow': (27.786, 18.593),
-        'right_wrist': (-0.389, -16.447),
+        'right_shoulder': (55.415, -3.517, -12.35), 'right_elbow': (36.73, 41.92),
+        'right_wrist': (12.036, -17.656),
     })
     human.KeyJoints(44.3, {
-        'right_shoulder': (55.202, 2.086, 2.703), 'right_elbow': (41.74, 50.628),
-        'right_wrist': (1.238, -28.899),
+        'right_shoulder': (59.008, 2.359, 11.056), 'right_elbow': (27.719, 18.71),
+        'right_wrist': (-0.212, -16.355),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.4, {
-        'right_shoulder': (57.952, 6.891, 8.482), 'right_elbow': (52.145, 79.998),
-        'right_wrist': (18.036, -30.0),
+        'right_shoulder': (55.484, 2.027, 3.365), 'right_elbow': (39.985, 45.668),
+        'right_wrist': (0.58, -27.644),
     })
     human.KeyJoints(44.5, {
-        'right_shoulder': (59.798, 7.144, 8.957), 'right_elbow': (53.376, 80.0),
-        'right_wrist': (29.091, -30.0),
+        'right_shoulder': (57.899, 6.868, 8.434), 'right_elbow': (52.112, 80.0),
+        'right_wrist': (17.789, -30.0),
     })
     human.KeyJoints(44.6, {
-        'right_shoulder': (52.796, 0.593, -2.757), 'right_elbow': (63.369, 79.756),
-        'right_wrist': (32.63, -30.0),
+        'right_shoulder': (57.782, 5.874, 6.273), 'right_elbow': (57.436, 80.0),
+        'right_wrist': (32.645, -30.0),
     })
     human.KeyJoints(44.7, {
-        'right_shoulder': (49.659, -6.352, -14.933), 'right_elbow': (55.576, 59.512),
-        'right_wrist': (19.752, -26.915),
+        'right_shoulder': (49.587, -7.248, -15.3), 'right_elbow': (54.423, 55.684),
+        'right_wrist': (17.663, -28.631),
     })
     human.KeyJoints(44.8, {
-        'right_shoulder': (57.699, -1.352, -6.754), 'right_elbow': (30.743, 35.14),
-        'right_wrist': (8.639, -15.776),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(44.9, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
-    })
-    human.KeyJoints(45.0, {
-        'right_shoulder': (56.981, 1.536, 4.814), 'right_elbow': (33.57, 32.697),
-        'right_wrist': (-0.435, -21.662),
-    })
-    human.KeyJoints(45.1, {
-        'right_shoulder': (55.731, 3.742, 2.352), 'right_elbow': (49.423, 76.101),
-        'right_wrist': (9.166, -30.0),
-    })
-    human.KeyJoints(45.2, {
-        'right_shoulder': (59.798, 7.375, 9.5), 'right_elbow': (53.032, 80.0),
-        'right_wrist': (27.521, -30.0),
-    })
-    human.KeyJoints(45.3, {
-        'right_shoulder': (50.353, -2.879, -7.914), 'right_elbow': (64.138, 78.241),
-        'right_wrist': (28.782, -30.0),
-    })
-    human.KeyJoints(45.4, {
-        'right_shoulder': (54.71, -4.03, -13.283), 'right_elbow': (38.658, 43.499),
-        'right_wrist': (12.782, -18.521),
-    })
-    human.KeyJoints(45.5, {
-        'right_shoulder': (58.99, 2.118, 9.675), 'right_elbow': (27.75, 19.96),
-        'right_wrist': (0.466, -16.222),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(45.6, {
-        'right_shoulder': (58.805, 2.26, 10.472), 'right_elbow': (28.234, 19.914),
-        'right_wrist': (-0.41, -16.827),
-    })
-    human.KeyJoints(45.7, {
-        'right_shoulder': (54.984, 2.094, 1.436), 'right_elbow': (44.062, 58.532),
-        'right_wrist': (2.58, -29.887),
-    })
-    human.KeyJoints(45.8, {
-        'right_shoulder': (58.727, 7.193, 9.11), 'right_elbow': (52.567, 80.0),
-        'right_wrist': (21.846, -30.0),
-    })
-    human.KeyJoints(45.9, {
-        'right_shoulder': (59.517, 6.99, 8.607), 'right_elbow': (54.166, 80.0),
-        'right_wrist': (30.254, -30.0),
-    })
-    human.KeyJoints(46.0, {
-        'right_shoulder': (51.556, -1.013, -5.228), 'right_elbow': (63.47, 79.278),
-        'right_wrist': (32.133, -30.0),
-    })
-    human.KeyJoints(46.1, {
-        'right_shoulder': (50.349, -6.385, -15.302), 'right_elbow': (52.251, 55.77),
-        'right_wrist': (18.121, -25.163),
-    })
-    human.KeyJoints(46.2, {
-        'right_shoulder': (58.293, -0.543, -3.587), 'right_elbow': (29.237, 32.227),
-        'right_wrist': (7.075, -15.539),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(46.3, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
-    })
-    human.KeyJoints(46.4, {
-        'right_shoulder': (56.277, 1.774, 4.285), 'right_elbow': (36.306, 37.381),
-        'right_wrist': (-0.192, -24.35),
-    })
-    human.KeyJoints(46.5, {
-        'right_shoulder': (56.396, 4.947, 4.561), 'right_elbow': (50.624, 78.462),
-        'right_wrist': (11.999, -30.0),
-    })
-    human.KeyJoints(46.6, {
-        'right_shoulder': (59.815, 7.366, 9.479), 'right_elbow': (53.052, 80.0),
-        'right_wrist': (27.685, -30.0),
-    })
-    human.KeyJoints(46.7, {
-        'right_shoulder': (49.271, -4.333, -10.019), 'right_elbow': (63.212, 73.876),
-        'right_wrist': (26.607, -30.0),
-    })
-    human.KeyJoints(46.8, {
-        'right_shoulder': (55.993, -3.07, -11.409), 'right_elbow': (35.191, 40.681),
-        'right_wrist': (11.44, -16.941),
-    })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(46.9, {
-        'right_shoulder': (59.01, 2.42, 11.411), 'right_elbow': (27.718, 18.39),
-        'right_wrist': (-0.386, -16.389),
-    })
-    human.KeyJoints(47.0, {
-        'right_shoulder': (58.386, 1.947, 8.57), 'right_elbow': (29.318, 23.024),
-        'right_wrist': (-0.446, -17.758),
-    })
-    human.KeyJoints(47.1, {
-        'right_shoulder': (54.994, 2.148, 0.449), 'right_elbow': (46.08, 66.231),
-        'right_wrist': (4.378, -30.0),
-    })
-    human.KeyJoints(47.2, {
-        'right_shoulder': (59.307, 7.318, 9.375), 'right_elbow': (52.83, 80.0),
-        'right_wrist': (24.887, -30.0),
-    })
-    human.KeyJoints(47.3, {
-        'right_shoulder': (56.627, 4.973, 4.525), 'right_elbow': (59.066, 80.0),
-        'right_wrist': (33.121, -30.0),
-    })
-    human.KeyJoints(47.4, {
-        'right_shoulder': (49.697, -7.167, -15.081), 'right_elbow': (53.466, 54.491),
-        'right_wrist': (17.137, -28.409),
-    })
-    human.KeyJoints(47.5, {
-        'right_shoulder': (56.904, -0.188, 0.517), 'right_elbow': (32.673, 28.03),
-        'right_wrist': (4.194, -20.331),
+        'right_shoulder': (56.869, -0.318, -0.048), 'right_elbow': (32.756, 28.567),
+        'right_wrist': (4.485, -20.275),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=47.540833, duration=0.077668)
-    human.KeyJoints(47.6, {
+    human.Grasp('right_hand', 'open', start=44.847203, duration=0.072)
+    human.KeyJoints(44.9, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
         'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=47.618501, duration=0.294473)
-    human.KeyJoints(47.7, {'neck': (23.899, -1.678, -10.285)})
-    human.KeyJoints(47.8, {'neck': (23.192, -3.398, -23.9)})
+    human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.293772)
+    human.KeyJoints(45.0, {'neck': (23.902, -1.671, -10.227)})
+    human.KeyJoints(45.1, {'neck': (23.194, -3.393, -23.864)})
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
-    human.KeyJoints(47.9, {
-        'neck': (22.72, -4.546, -32.986), 'head': (7.255, -0.233),
+    human.KeyJoints(45.2, {
+        'neck': (22.721, -4.546, -32.985), 'head': (7.255, -0.233),
         'right_shoulder': (57.194, 2.091, 10.928), 'right_elbow': (32.004, 18.341),
         'right_wrist': (-1.082, -21.15), 'left_shoulder': (8.602, 5.726, 11.46),
         'left_elbow': (34.376, 17.189), 'left_wrist': (0.0, -0.001),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=47.912974, duration=0.836663)
-    human.KeyJoints(48.0, {
+    human.LookAt((0.0, 120.0, 110.0), start=45.212974, duration=0.836663)
+    human.KeyJoints(45.3, {
         'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.497, 2.761, 10.533),
         'right_elbow': (33.533, 18.51), 'right_wrist': (-1.473, -21.079),
         'left_shoulder': (10.378, 4.889, 11.549), 'left_elbow': (34.02, 17.212),
         'left_wrist': (0.037, -0.15),
     })
-    human.KeyJoints(48.1, {
+    human.KeyJoints(45.4, {
         'right_shoulder': (53.622, 5.532, 8.896), 'right_elbow': (39.832, 19.207),
         'right_wrist': (-3.085, -20.785), 'left_shoulder': (17.703, 1.428, 11.919),
         'left_elbow': (32.555, 17.309), 'left_wrist': (0.187, -0.766),
     })
-    human.KeyJoints(48.2, {
+    human.KeyJoints(45.5, {
         'right_shoulder': (48.477, 10.579, 5.887), 'right_elbow': (51.105, 20.453),
         'right_wrist': (-5.975, -20.259), 'left_shoulder': (30.916, -4.877, 12.595),
         'left_elbow': (29.934, 17.483), 'left_wrist': (0.462, -1.868),
     })
-    human.KeyJoints(48.3, {
+    human.KeyJoints(45.6, {
         'right_shoulder': (42.046, 17.173, 1.871), 'right_elbow': (65.193, 22.011),
         'left_shoulder': (47.76, -13.113, 13.483),
     })
-    human.KeyJoints(48.4, {
+    human.KeyJoints(45.7, {
         'spine_lumbar': (7.14, -13.863, 9.577), 'spine_thoracic': (-8.443, -4.438, 9.144),
         'right_clavicle': (2.723, 7.898), 'right_shoulder': (35.801, 24.236, -2.616),
         'right_elbow': (78.883, 23.525), 'right_wrist': (-13.195, -18.965),
         'left_clavicle': (-0.004, 0.013), 'left_shoulder': (64.892, -21.93, 14.444),
         'left_elbow': (23.475, 17.91), 'left_wrist': (1.219, -4.584),
     })
-    human.KeyJoints(48.5, {
+    human.KeyJoints(45.8, {
         'spine_lumbar': (7.856, -13.456, 9.337), 'spine_thoracic': (-8.868, -4.521, 8.883),
         'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
         'right_clavicle': (3.037, 7.956), 'right_shoulder': (31.776, 30.56, -6.969),
@@ -2711,7 +2603,7 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
-    human.KeyJoints(48.6, {
+    human.KeyJoints(45.9, {
         'spine_lumbar': (13.473, -12.038, 8.285), 'spine_thoracic': (-12.363, -5.628, 7.722),
         'neck': (21.905, -4.498, -30.481), 'head': (6.816, -0.392),
         'right_clavicle': (5.483, 8.997), 'right_shoulder': (32.99, 34.377, -9.496),
@@ -2719,7 +2611,7 @@ def remove_access_panel():
         'left_clavicle': (-1.55, 2.518), 'left_shoulder': (86.615, -30.594, 15.057),
         'left_elbow': (21.377, 18.137), 'left_wrist': (1.227, -5.55),
     })
-    human.KeyJoints(48.7, {
+    human.KeyJoints(46.0, {
         'spine_lumbar': (16.846, -11.471, 7.547), 'spine_thoracic': (-14.578, -6.367, 6.915),
         'neck': (21.788, -4.879, -32.272), 'head': (6.518, -0.369),
         'right_clavicle': (6.928, 9.696), 'right_shoulder': (34.432, 35.198, -9.838),
@@ -2728,11 +2620,11 @@ def remove_access_panel():
         'left_elbow': (21.607, 18.167), 'left_wrist': (0.91, -5.477),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=48.749638, duration=0.072)
+    human.Grasp('left_hand', 'close', start=46.049638, duration=0.072)
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=48.749638, duration=0.072)
-    human.KeyRoot(48.8, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(48.8, {
+    human.Grasp('right_hand', 'close', start=46.049638, duration=0.072)
+    human.KeyRoot(46.1, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(46.1, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.842, 24.897),
         'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
@@ -2740,319 +2632,319 @@ def remove_access_panel():
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
-    human.Walk((139.64, 0.0, 19.995), start=48.821638, duration=5.147368)
+    human.Walk((139.64, 0.0, 19.995), start=46.121638, duration=5.147368)
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: gaze on head
-    human.KeyRoot(48.9, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
-    human.KeyJoints(48.9, {
+    human.KeyRoot(46.2, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
+    human.KeyJoints(46.2, {
         'neck': (17.689, -4.165, -26.137), 'head': (5.153, -0.373),
         'right_hip': (6.489, -0.14, -0.543), 'right_knee': (12.434,), 'right_ankle': (5.949, -0.2),
         'left_hip': (7.338, 0.133, 0.546), 'left_knee': (13.892,), 'left_ankle': (6.214, 0.201),
     })
-    human.KeyRoot(49.0, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
-    human.KeyJoints(49.0, {
+    human.KeyRoot(46.3, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
+    human.KeyJoints(46.3, {
         'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167), 'right_clavicle': (6.997, 9.73),
         'left_clavicle': (-2.488, 4.0), 'right_hip': (7.244, -0.536, -2.481),
         'right_knee': (14.727,), 'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517),
         'left_knee': (18.046,), 'left_ankle': (7.602, 0.86),
     })
-    human.KeyRoot(49.1, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
-    human.KeyJoints(49.1, {
+    human.KeyRoot(46.4, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
+    human.KeyJoints(46.4, {
         'neck': (0.373, -0.107, -0.551), 'head': (0.132, -0.01),
         'right_hip': (6.792, -0.973, -5.207), 'right_knee': (14.607,),
         'right_ankle': (7.929, -1.574), 'left_hip': (17.261, 0.889, 2.279), 'left_knee': (34.508,),
         'left_ankle': (16.48, 1.57),
     })
-    human.KeyRoot(49.2, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
-    human.KeyJoints(49.2, {
+    human.KeyRoot(46.5, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
+    human.KeyJoints(46.5, {
         'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.574, -0.983, -8.152),
         'right_knee': (16.788,), 'right_ankle': (8.308, -2.031),
         'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,), 'left_ankle': (18.612, 1.906),
     })
-    human.KeyRoot(49.3, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
-    human.KeyJoints(49.3, {
+    human.KeyRoot(46.6, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
+    human.KeyJoints(46.6, {
         'right_hip': (10.776, 0.118, -10.871), 'right_knee': (23.265,),
         'right_ankle': (8.928, -1.905), 'left_hip': (17.612, 6.374, -13.747), 'left_knee': (39.28,),
         'left_ankle': (18.667, 1.718),
     })
-    human.KeyRoot(49.4, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
-    human.KeyJoints(49.4, {
+    human.KeyRoot(46.7, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
+    human.KeyJoints(46.7, {
         'right_hip': (14.819, 2.323, -13.55), 'right_knee': (30.44,),
         'right_ankle': (8.733, -1.254), 'left_hip': (9.822, 4.58, -20.258), 'left_knee': (22.313,),
         'left_ankle': (11.528, 0.768),
     })
-    human.KeyRoot(49.5, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
-    human.KeyJoints(49.5, {
+    human.KeyRoot(46.8, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
+    human.KeyJoints(46.8, {
         'right_hip': (17.092, 4.803, -16.459), 'right_knee': (35.07,),
         'right_ankle': (8.192, -0.379), 'left_hip': (7.33, 2.058, -18.248), 'left_knee': (14.684,),
         'left_ankle': (7.073, -0.351),
     })
-    human.KeyRoot(49.6, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
-    human.KeyJoints(49.6, {
+    human.KeyRoot(46.9, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
+    human.KeyJoints(46.9, {
         'right_hip': (18.001, 7.349, -19.807), 'right_knee': (39.588,),
         'right_ankle': (10.474, 0.616), 'left_hip': (7.642, 0.733, -13.767), 'left_knee': (14.547,),
     })
-    human.KeyRoot(49.7, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
-    human.KeyJoints(49.7, {
+    human.KeyRoot(47.0, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
+    human.KeyJoints(47.0, {
         'right_hip': (21.346, 7.516, -15.399), 'right_knee': (46.826,),
         'right_ankle': (17.903, 1.218), 'left_hip': (7.639, -0.8, -8.101), 'left_knee': (14.267,),
         'left_ankle': (6.81, -1.859),
     })
-    human.KeyRoot(49.8, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
-    human.KeyJoints(49.8, {
+    human.KeyRoot(47.1, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
+    human.KeyJoints(47.1, {
         'right_hip': (22.646, 3.037, -3.768), 'right_knee': (46.842,),
         'right_ankle': (19.244, 1.317), 'left_hip': (7.655, -2.088, -2.163), 'left_knee': (14.453,),
         'left_ankle': (6.744, -2.356),
     })
-    human.KeyRoot(49.9, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
-    human.KeyJoints(49.9, {
+    human.KeyRoot(47.2, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
+    human.KeyJoints(47.2, {
         'right_hip': (20.506, -2.37, 10.068), 'right_knee': (41.509,),
         'right_ankle': (19.205, 1.252), 'left_hip': (9.59, -2.893, 3.287), 'left_knee': (19.075,),
         'left_ankle': (7.368, -2.301),
     })
-    human.KeyRoot(50.0, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
-    human.KeyJoints(50.0, {
+    human.KeyRoot(47.3, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
+    human.KeyJoints(47.3, {
         'right_hip': (13.202, -4.131, 20.257), 'right_ankle': (14.467, 0.456),
         'left_hip': (12.291, -3.568, 8.716), 'left_knee': (26.537,), 'left_ankle': (8.903, -1.595),
     })
-    human.KeyRoot(50.1, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
-    human.KeyJoints(50.1, {
+    human.KeyRoot(47.4, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
+    human.KeyJoints(47.4, {
         'neck': (0.0, 0.0, 0.0), 'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
         'right_ankle': (8.118, -0.774), 'left_hip': (14.717, -4.667, 14.198),
         'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
     })
-    human.KeyRoot(50.2, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
-    human.KeyJoints(50.2, {
+    human.KeyRoot(47.5, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
+    human.KeyJoints(47.5, {
         'right_hip': (5.405, -2.734, 14.597), 'right_ankle': (8.627, -1.273),
         'left_hip': (16.025, -6.263, 19.637), 'left_knee': (35.272,), 'left_ankle': (8.858, -0.347),
     })
-    human.KeyRoot(50.3, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
-    human.KeyJoints(50.3, {
+    human.KeyRoot(47.6, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
+    human.KeyJoints(47.6, {
         'right_hip': (5.53, -2.614, 8.969), 'right_knee': (14.358,), 'right_ankle': (8.487, -1.709),
         'left_hip': (20.827, -7.322, 18.991), 'left_knee': (44.671,), 'left_ankle': (15.335, 0.192),
     })
-    human.KeyRoot(50.4, (1.103, 72.487, 63.867), (67.26, 0.0, 0.0))
-    human.KeyJoints(50.4, {
+    human.KeyRoot(47.7, (1.103, 72.487, 63.867), (67.26, 0.0, 0.0))
+    human.KeyJoints(47.7, {
         'right_hip': (5.957, -2.518, 3.333), 'right_knee': (14.176,),
         'right_ankle': (8.079, -2.155), 'left_hip': (22.386, -3.221, 8.91), 'left_knee': (47.052,),
         'left_ankle': (19.173, 0.476),
     })
-    human.KeyRoot(50.5, (0.002, 72.551, 63.769), (72.936, 0.0, 0.0))
-    human.KeyJoints(50.5, {
+    human.KeyRoot(47.8, (0.002, 72.551, 63.769), (72.936, 0.0, 0.0))
+    human.KeyJoints(47.8, {
         'right_hip': (7.144, -2.118, -2.408), 'right_knee': (15.599,),
         'right_ankle': (7.916, -2.399), 'left_hip': (20.072, 2.892, -4.796), 'left_knee': (43.769,),
         'left_ankle': (19.146, 1.115),
     })
-    human.KeyRoot(50.6, (-1.29, 72.592, 62.698), (79.094, 0.0, 0.0))
-    human.KeyJoints(50.6, {
+    human.KeyRoot(47.9, (-1.29, 72.592, 62.698), (79.094, 0.0, 0.0))
+    human.KeyJoints(47.9, {
         'right_hip': (10.054, -0.361, -8.514), 'right_ankle': (8.058, -1.839),
         'left_hip': (14.609, 5.693, -16.716), 'left_knee': (33.636,), 'left_ankle': (18.496, 1.179),
     })
-    human.KeyRoot(50.7, (-2.415, 72.545, 61.186), (84.915, 0.0, 0.0))
-    human.KeyJoints(50.7, {
+    human.KeyRoot(48.0, (-2.415, 72.545, 61.186), (84.915, 0.0, 0.0))
+    human.KeyJoints(48.0, {
         'right_hip': (12.67, 2.368, -13.957), 'right_knee': (24.565,),
         'right_ankle': (8.035, -0.791), 'left_hip': (7.298, 2.987, -20.992), 'left_knee': (16.089,),
         'left_ankle': (8.219, 0.189),
     })
-    human.KeyRoot(50.8, (-2.759, 72.487, 60.108), (89.284, 0.0, 0.0))
-    human.KeyJoints(50.8, {
+    human.KeyRoot(48.1, (-2.759, 72.487, 60.108), (89.284, 0.0, 0.0))
+    human.KeyJoints(48.1, {
         'right_hip': (13.594, 4.636, -17.865), 'right_knee': (27.294,),
         'right_ankle': (8.214, 0.154), 'left_hip': (7.668, 1.36, -16.942), 'left_knee': (14.683,),
         'left_ankle': (6.955, -0.938),
     })
-    human.KeyRoot(50.9, (-2.413, 72.487, 59.306), (92.351, 0.0, 0.0))
-    human.KeyJoints(50.9, {
+    human.KeyRoot(48.2, (-2.413, 72.487, 59.306), (92.351, 0.0, 0.0))
+    human.KeyJoints(48.2, {
         'right_hip': (16.985, 7.166, -18.852), 'right_knee': (36.377,),
         'right_ankle': (13.606, 1.037), 'left_hip': (7.673, 0.244, -13.991),
         'left_ankle': (6.954, -1.615),
     })
-    human.KeyRoot(51.0, (-1.774, 72.487, 58.66), (94.912, 0.0, 0.0))
-    human.KeyJoints(51.0, {
+    human.KeyRoot(48.3, (-1.774, 72.487, 58.66), (94.912, 0.0, 0.0))
+    human.KeyJoints(48.3, {
         'right_hip': (20.652, 7.363, -14.073), 'right_knee': (43.969,),
         'right_ankle': (19.0, 1.726), 'left_hip': (7.312, -0.626, -11.517), 'left_knee': (14.284,),
         'left_ankle': (7.241, -2.062),
     })
-    human.KeyRoot(51.1, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
-    human.KeyJoints(51.1, {
+    human.KeyRoot(48.4, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
+    human.KeyJoints(48.4, {
         'right_hip': (21.343, 4.937, -7.0), 'right_knee': (44.211,), 'right_ankle': (19.0, 1.998),
         'left_hip': (10.883, -0.489, -9.084), 'left_knee': (22.025,), 'left_ankle': (8.41, -2.185),
     })
-    human.KeyRoot(51.2, (-0.475, 72.709, 58.957), (100.982, 0.0, 0.0))
-    human.KeyJoints(51.2, {
+    human.KeyRoot(48.5, (-0.475, 72.709, 58.957), (100.982, 0.0, 0.0))
+    human.KeyJoints(48.5, {
         'right_hip': (18.203, 2.104, -1.428), 'right_knee': (37.03,),
         'right_ankle': (18.772, 1.536), 'left_hip': (21.645, 0.507, -5.964), 'left_knee': (41.658,),
         'left_ankle': (5.057, -1.788),
     })
-    human.KeyRoot(51.3, (0.245, 72.607, 59.932), (104.444, 0.0, 0.0))
-    human.KeyJoints(51.3, {
+    human.KeyRoot(48.6, (0.245, 72.607, 59.932), (104.444, 0.0, 0.0))
+    human.KeyJoints(48.6, {
         'right_hip': (10.489, 0.475, 1.046), 'right_knee': (21.215,),
         'right_ankle': (10.735, 0.652), 'left_hip': (31.616, 0.521, -2.349), 'left_knee': (56.025,),
         'left_ankle': (-6.238, -0.915),
     })
-    human.KeyRoot(51.4, (1.257, 72.466, 60.529), (106.23, 0.0, 0.0))
-    human.KeyJoints(51.4, {
+    human.KeyRoot(48.7, (1.257, 72.466, 60.529), (106.23, 0.0, 0.0))
+    human.KeyJoints(48.7, {
         'right_hip': (6.762, -0.073, 0.043), 'right_knee': (15.114,),
         'right_ankle': (8.352, -0.071), 'left_hip': (37.764, 0.033, 0.115), 'left_knee': (62.937,),
         'left_ankle': (-18.356, 0.133),
     })
-    human.KeyRoot(51.5, (3.183, 72.224, 60.461), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.5, {
+    human.KeyRoot(48.8, (3.183, 72.224, 60.461), (106.251, 0.0, 0.0))
+    human.KeyJoints(48.8, {
         'right_hip': (6.289, -0.476, -0.033), 'right_knee': (17.521,),
         'right_ankle': (11.232, -0.479), 'left_hip': (39.479, 0.063, 0.982), 'left_knee': (67.326,),
         'left_ankle': (-19.173, 0.984),
     })
-    human.KeyRoot(51.6, (6.446, 71.983, 60.209), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.6, {
+    human.KeyRoot(48.9, (6.446, 71.983, 60.209), (106.251, 0.0, 0.0))
+    human.KeyJoints(48.9, {
         'right_hip': (3.738, -1.06, -0.06), 'right_knee': (17.98,), 'right_ankle': (14.243, -1.062),
         'left_hip': (41.153, 0.456, 1.65), 'left_knee': (68.043,), 'left_ankle': (-6.665, 1.712),
     })
-    human.KeyRoot(51.7, (10.545, 71.982, 59.811), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.7, {
+    human.KeyRoot(49.0, (10.545, 71.982, 59.811), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.0, {
         'right_hip': (-2.492, -1.722, 0.072), 'right_knee': (12.116,),
         'right_ankle': (14.514, -1.724), 'left_hip': (38.651, 1.322, 1.651), 'left_knee': (54.096,),
         'left_ankle': (2.648, 2.115),
     })
-    human.KeyRoot(51.8, (15.254, 71.498, 59.084), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.8, {
+    human.KeyRoot(49.1, (15.254, 71.498, 59.084), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.1, {
         'right_hip': (6.854, -2.221, -0.796), 'right_knee': (38.675,),
         'right_ankle': (18.976, -2.36), 'left_hip': (33.592, 2.032, 1.353), 'left_knee': (34.152,),
         'left_ankle': (0.401, 2.441),
     })
-    human.KeyRoot(51.9, (22.01, 70.774, 56.676), (106.251, 0.0, 0.0))
-    human.KeyJoints(51.9, {
+    human.KeyRoot(49.2, (22.01, 70.774, 56.676), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.2, {
         'right_hip': (6.532, -1.774, -1.07), 'right_knee': (49.055,),
         'right_ankle': (17.958, -2.072), 'left_hip': (29.704, 1.75, 0.992), 'left_knee': (22.857,),
         'left_ankle': (-6.78, 2.012),
     })
-    human.KeyRoot(52.0, (29.437, 70.469, 53.388), (106.251, 0.0, 0.0))
-    human.KeyJoints(52.0, {
+    human.KeyRoot(49.3, (29.437, 70.469, 53.388), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.3, {
         'right_hip': (6.323, -0.762, -0.885), 'right_knee': (57.992,),
         'right_ankle': (8.752, -1.168), 'left_hip': (21.758, 0.922, 0.366), 'left_knee': (11.746,),
         'left_ankle': (-9.969, 0.992),
     })
-    human.KeyRoot(52.1, (35.507, 70.609, 50.509), (106.251, 0.0, 0.0))
-    human.KeyJoints(52.1, {
+    human.KeyRoot(49.4, (35.507, 70.609, 50.509), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.4, {
         'right_hip': (3.747, -0.027, -0.048), 'right_knee': (58.809,),
         'right_ankle': (-1.574, -0.055), 'left_hip': (21.408, 0.039, 0.015), 'left_knee': (22.227,),
         'left_ankle': (0.82, 0.042),
     })
-    human.KeyRoot(52.2, (39.17, 71.193, 48.574), (106.251, 0.0, 0.0))
-    human.KeyJoints(52.2, {
+    human.KeyRoot(49.5, (39.17, 71.193, 48.574), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.5, {
         'right_hip': (0.888, 0.462, 0.77), 'right_knee': (56.572,), 'right_ankle': (-2.401, 0.898),
         'left_hip': (18.098, -0.653, -0.214), 'left_knee': (22.755,), 'left_ankle': (4.659, -0.687),
     })
-    human.KeyRoot(52.3, (41.983, 71.838, 46.888), (106.251, 0.0, 0.0))
-    human.KeyJoints(52.3, {
+    human.KeyRoot(49.6, (41.983, 71.838, 46.888), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.6, {
         'right_hip': (14.582, 1.105, 1.343), 'right_knee': (65.608,),
         'right_ankle': (15.104, 1.739), 'left_hip': (13.855, -1.361, -0.336),
         'left_knee': (19.689,), 'left_ankle': (5.838, -1.401),
     })
-    human.KeyRoot(52.4, (45.678, 71.766, 45.083), (106.251, 0.0, 0.0))
-    human.KeyJoints(52.4, {
+    human.KeyRoot(49.7, (45.678, 71.766, 45.083), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.7, {
         'right_hip': (29.19, 1.805, 1.394), 'right_knee': (56.405,), 'right_ankle': (18.776, 2.281),
         'left_hip': (13.268, -1.958, -0.516), 'left_knee': (25.542,),
         'left_ankle': (10.794, -2.024),
     })
-    human.KeyRoot(52.5, (53.776, 70.799, 42.586), (106.251, 0.0, 0.0))
-    human.KeyJoints(52.5, {
+    human.KeyRoot(49.8, (53.776, 70.799, 42.586), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.8, {
         'right_hip': (33.603, 1.905, 1.262), 'right_knee': (35.639,), 'right_ankle': (2.157, 2.285),
         'left_hip': (18.012, -1.955, -1.246), 'left_knee': (48.621,),
         'left_ankle': (16.122, -2.319),
     })
-    human.KeyRoot(52.6, (67.319, 69.967, 39.503), (106.251, 0.0, 0.0))
-    human.KeyJoints(52.6, {
+    human.KeyRoot(49.9, (67.319, 69.967, 39.503), (106.251, 0.0, 0.0))
+    human.KeyJoints(49.9, {
         'right_hip': (26.231, 1.322, 0.65), 'right_knee': (13.474,),
         'right_ankle': (-12.669, 1.473), 'left_hip': (13.871, -1.133, -1.259),
         'left_knee': (61.386,), 'left_ankle': (13.373, -1.694),
     })
-    human.KeyRoot(52.7, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
-    human.KeyJoints(52.7, {
+    human.KeyRoot(50.0, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.0, {
         'right_hip': (23.767, 0.341, 0.15), 'right_knee': (22.404,), 'right_ankle': (-1.366, 0.372),
         'left_hip': (5.808, -0.251, -0.4), 'left_knee': (61.017,), 'left_ankle': (3.114, -0.472),
     })
-    human.KeyRoot(52.8, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
-    human.KeyJoints(52.8, {
+    human.KeyRoot(50.1, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
+    human.KeyJoints(50.1, {
         'right_hip': (20.181, -0.663, 0.369), 'right_knee': (25.443,),
         'right_ankle': (5.257, -0.495), 'left_hip': (0.124, 0.326, -0.01), 'left_knee': (55.518,),
         'left_ankle': (-4.589, 0.652),
     })
-    human.KeyRoot(52.9, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
-    human.KeyJoints(52.9, {
+    human.KeyRoot(50.2, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
+    human.KeyJoints(50.2, {
         'right_hip': (15.15, -1.863, 2.809), 'right_knee': (20.32,), 'right_ankle': (5.094, -1.062),
         'left_hip': (8.237, 0.608, -1.03), 'left_knee': (62.823,), 'left_ankle': (9.815, 0.64),
     })
-    human.KeyRoot(53.0, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
-    human.KeyJoints(53.0, {
+    human.KeyRoot(50.3, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
+    human.KeyJoints(50.3, {
         'right_hip': (11.704, -2.92, 6.095), 'right_knee': (18.592,),
         'right_ankle': (6.576, -1.609), 'left_hip': (25.054, 1.455, 0.084), 'left_knee': (61.198,),
         'left_ankle': (18.697, 1.419),
     })
-    human.KeyRoot(53.1, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
-    human.KeyJoints(53.1, {
+    human.KeyRoot(50.4, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
+    human.KeyJoints(50.4, {
         'right_hip': (14.952, -4.661, 8.262), 'right_knee': (36.278,),
         'right_ankle': (13.69, -2.346), 'left_hip': (31.106, 3.511, 3.137), 'left_knee': (39.039,),
         'left_ankle': (8.131, 4.625),
     })
-    human.KeyRoot(53.2, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
-    human.KeyJoints(53.2, {
+    human.KeyRoot(50.5, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
+    human.KeyJoints(50.5, {
         'right_hip': (8.977, -3.979, 11.559), 'right_knee': (48.418,),
         'right_ankle': (17.617, -2.206), 'left_hip': (25.884, 5.187, 4.242), 'left_knee': (18.632,),
         'left_ankle': (-6.893, 6.512),
     })
-    human.KeyRoot(53.3, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
-    human.KeyJoints(53.3, {
+    human.KeyRoot(50.6, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
+    human.KeyJoints(50.6, {
         'right_hip': (-1.989, -0.389, 14.938), 'right_knee': (46.499,),
         'right_ankle': (12.43, -1.097), 'left_hip': (18.158, 4.241, 2.107), 'left_knee': (12.294,),
         'left_ankle': (-5.698, 4.685),
     })
-    human.KeyRoot(53.4, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.4, {
+    human.KeyRoot(50.7, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
+    human.KeyJoints(50.7, {
         'right_hip': (-3.021, 1.287, 16.574), 'right_knee': (47.765,),
         'right_ankle': (6.264, 0.522), 'left_hip': (18.451, 2.118, 0.707), 'left_knee': (20.036,),
         'left_ankle': (1.594, 2.233),
     })
-    human.KeyRoot(53.5, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.5, {
+    human.KeyRoot(50.8, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
+    human.KeyJoints(50.8, {
         'right_hip': (3.209, 1.296, 16.693), 'right_knee': (55.546,),
         'right_ankle': (16.122, 2.671), 'left_hip': (17.429, 0.768, 0.242), 'left_knee': (17.289,),
         'left_ankle': (-0.141, 0.805),
     })
-    human.KeyRoot(53.6, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.6, {
+    human.KeyRoot(50.9, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
+    human.KeyJoints(50.9, {
         'right_hip': (13.739, 1.169, 12.585), 'right_knee': (53.955,),
         'right_ankle': (19.401, 4.392), 'left_hip': (15.845, -0.046, -0.013),
         'left_knee': (13.319,), 'left_ankle': (-2.527, -0.048),
     })
-    human.KeyRoot(53.7, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.7, {
+    human.KeyRoot(51.0, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.0, {
         'right_hip': (20.782, 0.932, 5.608), 'right_knee': (44.214,), 'right_ankle': (19.341, 2.9),
         'left_hip': (14.336, -0.116, -0.03), 'left_knee': (11.771,), 'left_ankle': (-2.565, -0.12),
     })
-    human.KeyRoot(53.8, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.8, {
+    human.KeyRoot(51.1, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.1, {
         'right_hip': (17.179, 0.212, 0.72), 'right_knee': (27.283,), 'right_ankle': (10.247, 0.462),
         'left_hip': (13.614, -0.066, -0.016), 'left_knee': (17.522,), 'left_ankle': (3.908, -0.068),
     })
-    human.KeyRoot(53.9, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.9, {
+    human.KeyRoot(51.2, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.2, {
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.194, 0.015, 0.003),
         'right_knee': (15.81,), 'right_ankle': (6.623, 0.015), 'left_hip': (9.162, -0.015, -0.002),
         'left_knee': (15.741,), 'left_ankle': (6.58, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=53.969006, duration=0.32772)
-    human.KeyRoot(54.0, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(54.0, {
+    human.LookAt((160.0, 90.0, 20.0), start=51.269006, duration=0.32772)
+    human.KeyRoot(51.3, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.3, {
         'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (3.129, 0.0, 0.0),
         'right_knee': (5.141,), 'right_ankle': (2.014, 0.0), 'left_hip': (3.112, 0.0, 0.0),
         'left_knee': (5.105,), 'left_ankle': (1.995, 0.0),
     })
-    human.KeyJoints(54.1, {
+    human.KeyJoints(51.4, {
         'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955), 'right_knee': (5.094,),
         'left_knee': (5.072,),
     })
-    human.KeyJoints(54.2, {
+    human.KeyJoints(51.5, {
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
         'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,), 'right_ankle': (1.91, 0.0),
@@ -3061,57 +2953,57 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=54.296726, duration=0.633339)
-    human.KeyJoints(54.3, {
+    human.LookAt((160.0, 90.0, 20.0), start=51.596726, duration=0.633339)
+    human.KeyJoints(51.6, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.692, 34.902, -9.74), 'right_elbow': (91.115, 24.925),
-        'right_wrist': (-16.614, -18.204), 'left_shoulder': (88.6, -29.03, 15.106),
-        'left_elbow': (22.208, 17.989), 'left_wrist': (-0.001, -5.399),
+        'right_shoulder': (33.677, 34.899, -9.742), 'right_elbow': (91.122, 24.926),
+        'right_wrist': (-16.615, -18.203), 'left_shoulder': (88.604, -29.033, 15.112),
+        'left_elbow': (22.215, 17.985), 'left_wrist': (-0.024, -5.397),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
-    human.KeyJoints(54.4, {
-        'right_shoulder': (25.909, 31.505, -8.385), 'right_elbow': (94.369, 25.221),
-        'right_wrist': (-17.196, -17.367), 'left_shoulder': (78.922, -27.241, 20.037),
-        'left_elbow': (32.276, 16.08), 'left_wrist': (-9.695, -4.236),
+    human.KeyJoints(51.7, {
+        'right_shoulder': (25.795, 31.478, -8.402), 'right_elbow': (94.436, 25.227),
+        'right_wrist': (-17.21, -17.35), 'left_shoulder': (78.87, -27.274, 20.116),
+        'left_elbow': (32.462, 16.039), 'left_wrist': (-9.906, -4.213),
     })
-    human.KeyJoints(54.5, {
-        'right_shoulder': (9.021, 24.261, -5.533), 'right_elbow': (101.189, 25.835),
-        'right_wrist': (-18.49, -15.664), 'left_shoulder': (58.206, -22.964, 30.249),
-        'left_elbow': (53.235, 12.113), 'left_wrist': (-29.907, -1.8),
+    human.KeyJoints(51.8, {
+        'right_shoulder': (8.839, 24.225, -5.577), 'right_elbow': (101.327, 25.847),
+        'right_wrist': (-18.517, -15.631), 'left_shoulder': (58.022, -23.017, 30.45),
+        'left_elbow': (53.652, 12.036), 'left_wrist': (-30.304, -1.752),
     })
-    human.KeyJoints(54.6, {
-        'right_shoulder': (-12.018, 15.258, -1.675), 'right_elbow': (108.567, 26.509),
-        'right_wrist': (-20.037, -13.897), 'left_shoulder': (32.759, -16.11, 41.199),
-        'left_elbow': (76.674, 7.75), 'left_wrist': (-52.311, 0.978),
+    human.KeyJoints(51.9, {
+        'right_shoulder': (-12.397, 15.197, -1.803), 'right_elbow': (108.841, 26.535),
+        'right_wrist': (-20.104, -13.838), 'left_shoulder': (32.507, -16.24, 41.592),
+        'left_elbow': (77.402, 7.596), 'left_wrist': (-53.066, 1.053),
     })
-    human.KeyJoints(54.7, {
-        'right_shoulder': (-29.51, 6.496, 4.397), 'right_elbow': (112.31, 26.827),
-        'right_wrist': (-20.578, -12.841), 'left_shoulder': (9.433, -6.64, 47.496),
-        'left_elbow': (93.191, 5.45), 'left_wrist': (-66.303, 3.262),
+    human.KeyJoints(52.0, {
+        'right_shoulder': (-30.316, 6.478, 3.802), 'right_elbow': (113.008, 26.906),
+        'right_wrist': (-20.881, -12.762), 'left_shoulder': (9.316, -6.61, 48.693),
+        'left_elbow': (93.531, 4.64), 'left_wrist': (-68.139, 2.984),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
-    human.KeyJoints(54.8, {
-        'right_shoulder': (-37.978, 0.342, 11.771), 'right_elbow': (111.263, 26.64),
-        'right_wrist': (-19.459, -12.569), 'left_shoulder': (0.142, 8.676, 56.082),
-        'left_elbow': (103.304, 5.938), 'left_wrist': (-70.0, 4.786),
+    human.KeyJoints(52.1, {
+        'right_shoulder': (-38.284, 0.354, 11.519), 'right_elbow': (111.486, 26.667),
+        'right_wrist': (-19.587, -12.557), 'left_shoulder': (0.502, 9.421, 57.233),
+        'left_elbow': (103.375, 4.834), 'left_wrist': (-70.0, 3.646),
     })
-    human.KeyJoints(54.9, {
-        'right_shoulder': (-40.21, -1.562, 14.423), 'right_elbow': (110.518, 26.535),
-        'right_wrist': (-18.926, -12.529), 'left_shoulder': (-1.588, 14.491, 59.19),
-        'left_elbow': (105.869, 8.174), 'left_wrist': (-69.983, 7.316),
+    human.KeyJoints(52.2, {
+        'right_shoulder': (-40.216, -1.56, 14.417), 'right_elbow': (110.521, 26.535),
+        'right_wrist': (-18.929, -12.529), 'left_shoulder': (-1.591, 14.497, 59.192),
+        'left_elbow': (105.863, 8.17), 'left_wrist': (-69.982, 7.315),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=54.930065, duration=0.072)
+    human.Grasp('left_hand', 'open', start=52.230065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=54.930065, duration=0.072)
-    human.KeyJoints(55.0, {
+    human.Grasp('right_hand', 'open', start=52.230065, duration=0.072)
+    human.KeyJoints(52.3, {
         'left_shoulder': (-0.996, 15.195, 59.982), 'left_elbow': (105.536, 8.908),
         'left_wrist': (-70.0, 7.97),
     })
-    human.KeyRoot(55.002065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(55.002065, {
+    human.KeyRoot(52.302065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.302065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),

@@ -161,140 +161,140 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.547869, duration=0.072)
     human.KeyJoints(2.6, {
-        'spine_thoracic': (-1.644, -1.603, 1.398), 'neck': (-0.57, -0.745, -26.12),
-        'head': (-0.729, -0.002), 'right_clavicle': (2.313, 0.78),
+        'spine_lumbar': (6.038, 0.806, 1.411), 'spine_thoracic': (-1.644, -1.603, 1.398),
+        'neck': (-0.57, -0.745, -26.12), 'head': (-0.729, -0.002), 'right_clavicle': (2.313, 0.78),
         'right_shoulder': (90.923, 10.607, -0.381), 'right_elbow': (33.613, 10.07),
         'right_wrist': (-1.588, -30.0),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.7, {
-        'spine_lumbar': (6.11, 0.811, 1.48), 'spine_thoracic': (-2.006, -1.776, 1.458),
-        'neck': (-0.416, -0.688, -26.271), 'head': (-0.566, -0.002),
-        'right_clavicle': (2.562, 0.748), 'right_shoulder': (90.38, 10.887, -0.406),
-        'right_elbow': (33.649, 10.09), 'right_wrist': (-1.661, -29.735),
+        'spine_lumbar': (6.432, 0.775, 1.773), 'spine_thoracic': (-3.938, -2.778, 1.708),
+        'neck': (0.455, -0.368, -26.985), 'head': (0.366, 0.0), 'right_clavicle': (3.99, 0.497),
+        'right_shoulder': (87.263, 12.415, -0.447), 'right_elbow': (33.674, 10.363),
+        'right_wrist': (-1.981, -28.135),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (10.135, 1.166, 1.217), 'spine_thoracic': (-7.096, -6.874, 1.339),
-        'neck': (0.899, -0.23, -28.671), 'head': (0.831, 0.0), 'right_clavicle': (10.466, -1.207),
-        'right_shoulder': (80.781, 18.521, 3.038), 'right_elbow': (36.159, 14.742),
-        'right_wrist': (-1.285, -19.32),
+        'spine_lumbar': (12.712, 1.978, 0.875), 'spine_thoracic': (-8.378, -8.772, 1.226),
+        'neck': (0.51, -0.393, -29.38), 'head': (0.406, 0.0), 'right_clavicle': (14.645, -2.18),
+        'right_shoulder': (78.396, 22.373, 5.429), 'right_elbow': (38.088, 17.696),
+        'right_wrist': (-0.961, -13.602),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (15.929, 3.062, 0.462), 'spine_thoracic': (-9.648, -10.0, 1.227),
-        'neck': (-0.466, -0.783, -30.2), 'head': (-0.651, -0.004),
-        'right_clavicle': (20.578, -3.485), 'right_shoulder': (76.505, 27.571, 8.386),
-        'right_elbow': (40.435, 21.587), 'right_wrist': (-0.774, -6.553),
+        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.037, -10.0, 1.421),
+        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
+        'right_clavicle': (21.543, -3.671), 'right_shoulder': (75.748, 28.407, 8.578),
+        'right_elbow': (40.609, 21.985), 'right_wrist': (-0.825, -5.547),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (11.554, 1.071, 1.22), 'spine_thoracic': (-10.619, -8.739, 1.612),
-        'neck': (2.108, 0.217, -29.437), 'head': (2.127, 0.001), 'right_clavicle': (17.895, -3.148),
-        'right_shoulder': (71.414, 24.463, 6.406), 'right_elbow': (39.165, 19.007),
-        'right_wrist': (-1.304, -8.579),
+        'spine_lumbar': (7.167, -0.862, 2.456), 'spine_thoracic': (-11.114, -6.26, 2.25),
+        'neck': (4.061, 0.965, -29.55), 'head': (4.225, 0.004), 'right_clavicle': (12.921, -2.248),
+        'right_shoulder': (70.065, 19.837, 2.176), 'right_elbow': (36.142, 14.203),
+        'right_wrist': (-2.125, -15.166),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (5.385, -0.125, 4.196), 'spine_thoracic': (-9.241, -2.396, 3.491),
-        'neck': (3.162, 0.612, -29.901), 'head': (3.257, 0.002), 'right_clavicle': (5.731, -0.141),
-        'right_shoulder': (79.375, 14.444, -4.04), 'right_elbow': (32.5, 7.64),
-        'right_wrist': (-3.384, -26.349),
+        'spine_lumbar': (5.669, 0.088, 3.866), 'spine_thoracic': (-8.27, -2.305, 3.256),
+        'neck': (2.598, 0.405, -29.464), 'head': (2.653, 0.001), 'right_clavicle': (5.308, 0.004),
+        'right_shoulder': (81.094, 14.033, -3.603), 'right_elbow': (32.697, 7.943),
+        'right_wrist': (-3.159, -26.792),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.2, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'spine_lumbar': (6.286, 1.028, 1.583), 'spine_thoracic': (-1.995, -1.614, 1.56),
+        'neck': (-0.569, -0.746, -26.225), 'head': (-0.73, -0.002),
+        'right_clavicle': (2.424, 0.872), 'right_shoulder': (90.602, 10.835, -0.424),
+        'right_elbow': (34.0, 10.055), 'right_wrist': (-1.676, -29.315),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (7.626, 0.934, 1.801), 'spine_thoracic': (-5.565, -4.198, 1.755),
-        'neck': (0.862, -0.225, -27.697), 'head': (0.799, 0.0), 'right_clavicle': (6.131, 0.038),
-        'right_shoulder': (84.377, 14.565, 0.342), 'right_elbow': (34.501, 11.54),
-        'right_wrist': (-1.912, -24.955),
+        'spine_lumbar': (9.512, 1.116, 1.417), 'spine_thoracic': (-6.826, -6.197, 1.482),
+        'neck': (0.931, -0.214, -28.448), 'head': (0.867, 0.0), 'right_clavicle': (9.303, -0.849),
+        'right_shoulder': (81.56, 17.499, 2.296), 'right_elbow': (35.792, 13.861),
+        'right_wrist': (-1.46, -20.665),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (14.208, 2.547, 0.619), 'spine_thoracic': (-8.906, -9.578, 1.148),
-        'neck': (0.094, -0.557, -29.599), 'head': (-0.044, -0.001),
-        'right_clavicle': (17.162, -2.746), 'right_shoulder': (77.599, 24.62, 6.849),
-        'right_elbow': (39.244, 19.474), 'right_wrist': (-0.828, -10.416),
+        'spine_lumbar': (15.829, 3.05, 0.438), 'spine_thoracic': (-9.555, -10.0, 1.185),
+        'neck': (-0.456, -0.778, -30.127), 'head': (-0.64, -0.004),
+        'right_clavicle': (20.326, -3.435), 'right_shoulder': (76.68, 27.353, 8.322),
+        'right_elbow': (40.381, 21.471), 'right_wrist': (-0.764, -6.82),
     })
     human.KeyJoints(3.5, {
-        'spine_lumbar': (16.17, 3.014, 0.681), 'spine_thoracic': (-10.167, -10.0, 1.501),
-        'neck': (-0.339, -0.743, -30.628), 'head': (-0.518, -0.004),
-        'right_clavicle': (21.606, -3.687), 'right_shoulder': (75.326, 28.439, 8.492),
-        'right_elbow': (40.563, 21.921), 'right_wrist': (-0.865, -5.434),
+        'spine_lumbar': (13.221, 1.844, 0.941), 'spine_thoracic': (-10.495, -9.452, 1.516),
+        'neck': (1.308, -0.094, -29.661), 'head': (1.264, 0.0), 'right_clavicle': (19.52, -3.421),
+        'right_shoulder': (72.434, 26.095, 7.454), 'right_elbow': (39.92, 20.347),
+        'right_wrist': (-1.125, -6.845),
     })
     human.KeyJoints(3.6, {
-        'spine_lumbar': (4.584, -1.256, 4.062), 'spine_thoracic': (-11.49, -3.716, 3.309),
-        'neck': (4.84, 1.249, -30.285), 'head': (5.057, 0.006), 'right_clavicle': (8.442, -1.171),
-        'right_shoulder': (72.392, 16.314, -2.76), 'right_elbow': (33.09, 9.121),
-        'right_wrist': (-3.302, -22.305),
+        'spine_lumbar': (4.651, -0.828, 4.47), 'spine_thoracic': (-11.049, -2.916, 3.639),
+        'neck': (4.408, 1.079, -30.453), 'head': (4.592, 0.005), 'right_clavicle': (7.054, -0.678),
+        'right_shoulder': (74.92, 15.414, -4.093), 'right_elbow': (32.439, 7.774),
+        'right_wrist': (-3.592, -24.535),
     })
     human.KeyJoints(3.7, {
-        'spine_lumbar': (6.271, 0.988, 1.694), 'spine_thoracic': (-2.291, -1.644, 1.643),
-        'neck': (-0.424, -0.694, -26.384), 'head': (-0.575, -0.002),
-        'right_clavicle': (2.562, 0.831), 'right_shoulder': (90.18, 10.994, -0.582),
-        'right_elbow': (33.938, 9.952), 'right_wrist': (-1.746, -29.204),
+        'spine_lumbar': (6.274, 0.998, 1.668), 'spine_thoracic': (-2.219, -1.635, 1.624),
+        'neck': (-0.459, -0.706, -26.346), 'head': (-0.612, -0.002),
+        'right_clavicle': (2.528, 0.841), 'right_shoulder': (90.283, 10.955, -0.546),
+        'right_elbow': (33.952, 9.975), 'right_wrist': (-1.729, -29.232),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(3.8, {
-        'spine_lumbar': (6.434, 1.006, 1.765), 'spine_thoracic': (-3.091, -2.152, 1.715),
-        'neck': (-0.064, -0.56, -26.639), 'head': (-0.19, -0.001), 'right_clavicle': (3.188, 0.748),
-        'right_shoulder': (88.869, 11.665, -0.466), 'right_elbow': (34.003, 10.153),
-        'right_wrist': (-1.877, -28.494),
+        'spine_lumbar': (7.07, 0.952, 1.941), 'spine_thoracic': (-5.104, -3.537, 1.867),
+        'neck': (0.778, -0.253, -27.457), 'head': (0.71, 0.0), 'right_clavicle': (5.168, 0.327),
+        'right_shoulder': (85.392, 13.681, -0.344), 'right_elbow': (34.113, 10.8),
+        'right_wrist': (-2.069, -26.206),
     })
     human.KeyJoints(3.9, {
-        'spine_lumbar': (11.282, 1.537, 1.134), 'spine_thoracic': (-7.786, -7.74, 1.336),
-        'neck': (0.781, -0.283, -29.033), 'head': (0.701, 0.0), 'right_clavicle': (12.214, -1.589),
-        'right_shoulder': (79.561, 20.189, 4.01), 'right_elbow': (37.064, 15.95),
-        'right_wrist': (-1.159, -16.721),
+        'spine_lumbar': (13.788, 2.386, 0.7), 'spine_thoracic': (-8.777, -9.372, 1.175),
+        'neck': (0.225, -0.506, -29.551), 'right_clavicle': (16.432, -2.58),
+        'right_shoulder': (77.779, 23.979, 6.438), 'right_elbow': (38.929, 18.958),
+        'right_wrist': (-0.865, -11.305),
     })
     human.KeyJoints(4.0, {
-        'spine_lumbar': (16.159, 3.08, 0.539), 'spine_thoracic': (-9.891, -10.0, 1.347),
-        'neck': (-0.473, -0.79, -30.403), 'head': (-0.66, -0.004),
-        'right_clavicle': (21.191, -3.604), 'right_shoulder': (76.034, 28.102, 8.518),
-        'right_elbow': (40.552, 21.847), 'right_wrist': (-0.804, -5.911),
+        'spine_lumbar': (16.216, 3.04, 0.664), 'spine_thoracic': (-10.135, -10.0, 1.491),
+        'neck': (-0.381, -0.759, -30.621), 'head': (-0.564, -0.004),
+        'right_clavicle': (21.604, -3.685), 'right_shoulder': (75.462, 28.438, 8.513),
+        'right_elbow': (40.571, 21.944), 'right_wrist': (-0.853, -5.458),
     })
     human.KeyJoints(4.1, {
-        'spine_lumbar': (9.026, -0.096, 1.828), 'spine_thoracic': (-10.861, -7.419, 1.899),
-        'neck': (3.263, 0.661, -29.377), 'head': (3.369, 0.002), 'right_clavicle': (15.161, -2.669),
-        'right_shoulder': (70.373, 21.854, 4.268), 'right_elbow': (37.612, 16.498),
-        'right_wrist': (-1.695, -11.987),
+        'spine_lumbar': (5.688, -1.319, 3.149), 'spine_thoracic': (-11.389, -5.129, 2.68),
+        'neck': (4.64, 1.181, -29.856), 'head': (4.845, 0.005), 'right_clavicle': (10.863, -1.814),
+        'right_shoulder': (70.515, 18.111, -0.016), 'right_elbow': (34.697, 11.904),
+        'right_wrist': (-2.627, -18.357),
     })
     human.KeyJoints(4.2, {
-        'spine_lumbar': (5.775, 0.174, 3.692), 'spine_thoracic': (-7.808, -2.267, 3.127),
-        'neck': (2.344, 0.312, -29.23), 'head': (2.382, 0.001), 'right_clavicle': (5.121, 0.065),
-        'right_shoulder': (81.853, 13.837, -3.349), 'right_elbow': (32.807, 8.122),
-        'right_wrist': (-3.043, -26.974),
+        'spine_lumbar': (5.929, 0.339, 3.358), 'spine_thoracic': (-6.892, -2.183, 2.883),
+        'neck': (1.86, 0.136, -28.769), 'head': (1.865, 0.001), 'right_clavicle': (4.727, 0.192),
+        'right_shoulder': (83.346, 13.428, -2.88), 'right_elbow': (33.008, 8.445),
+        'right_wrist': (-2.821, -27.351),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.3, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'spine_lumbar': (6.318, 1.023, 1.628), 'spine_thoracic': (-2.26, -1.742, 1.599),
+        'neck': (-0.446, -0.701, -26.327), 'head': (-0.598, -0.002),
+        'right_clavicle': (2.607, 0.844), 'right_shoulder': (90.184, 11.034, -0.437),
+        'right_elbow': (34.001, 10.073), 'right_wrist': (-1.726, -29.12),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (8.37, 0.967, 1.636), 'spine_thoracic': (-6.106, -5.036, 1.63),
-        'neck': (0.925, -0.207, -28.009), 'head': (0.864, 0.0), 'right_clavicle': (7.406, -0.328),
-        'right_shoulder': (83.158, 15.743, 1.132), 'right_elbow': (34.997, 12.473),
-        'right_wrist': (-1.719, -23.25),
+        'spine_lumbar': (10.576, 1.345, 1.241), 'spine_thoracic': (-7.424, -7.164, 1.384),
+        'neck': (0.864, -0.247, -28.817), 'head': (0.792, 0.0), 'right_clavicle': (11.053, -1.302),
+        'right_shoulder': (80.284, 19.118, 3.338), 'right_elbow': (36.553, 15.125),
+        'right_wrist': (-1.265, -18.28),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (14.956, 2.838, 0.467), 'spine_thoracic': (-9.124, -9.883, 1.117),
-        'neck': (-0.16, -0.655, -29.665), 'head': (-0.32, -0.002),
-        'right_clavicle': (18.493, -3.047), 'right_shoulder': (77.329, 25.774, 7.594),
-        'right_elbow': (39.807, 20.408), 'right_wrist': (-0.77, -8.849),
+        'spine_lumbar': (16.117, 3.078, 0.522), 'spine_thoracic': (-9.843, -10.0, 1.323),
+        'neck': (-0.473, -0.789, -30.362), 'head': (-0.66, -0.004),
+        'right_clavicle': (21.075, -3.582), 'right_shoulder': (76.127, 28.002, 8.496),
+        'right_elbow': (40.532, 21.8), 'right_wrist': (-0.798, -6.031),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (15.508, 2.782, 0.721), 'spine_thoracic': (-10.312, -9.999, 1.502),
-        'neck': (0.12, -0.558, -30.207), 'head': (-0.021, -0.001),
-        'right_clavicle': (21.374, -3.688), 'right_shoulder': (74.367, 28.086, 8.392),
-        'right_elbow': (40.538, 21.721), 'right_wrist': (-0.935, -5.371),
+        'spine_lumbar': (11.186, 0.897, 1.295), 'spine_thoracic': (-10.649, -8.564, 1.643),
+        'neck': (2.281, 0.284, -29.411), 'head': (2.314, 0.001), 'right_clavicle': (17.516, -3.084),
+        'right_shoulder': (71.211, 24.092, 6.135), 'right_elbow': (38.967, 18.677),
+        'right_wrist': (-1.351, -9.019),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (4.63, -0.913, 4.437), 'spine_thoracic': (-11.163, -3.016, 3.611),
-        'neck': (4.496, 1.112, -30.474), 'head': (4.686, 0.005), 'right_clavicle': (7.242, -0.751),
-        'right_shoulder': (74.475, 15.536, -3.982), 'right_elbow': (32.491, 7.896),
-        'right_wrist': (-3.568, -24.244),
+        'spine_lumbar': (4.911, -0.491, 4.418), 'spine_thoracic': (-10.386, -2.615, 3.616),
+        'neck': (3.921, 0.897, -30.212), 'head': (4.07, 0.003), 'right_clavicle': (6.387, -0.404),
+        'right_shoulder': (76.913, 14.957, -4.117), 'right_elbow': (32.436, 7.647),
+        'right_wrist': (-3.551, -25.513),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(4.8, {
@@ -304,65 +304,65 @@ def remove_access_panel_cad():
         'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (6.651, 0.982, 1.926), 'spine_thoracic': (-4.232, -2.769, 1.853),
-        'neck': (0.442, -0.374, -27.061), 'head': (0.351, 0.0), 'right_clavicle': (4.066, 0.588),
-        'right_shoulder': (87.028, 12.597, -0.486), 'right_elbow': (34.013, 10.345),
-        'right_wrist': (-2.054, -27.524),
+        'spine_lumbar': (7.717, 0.935, 1.781), 'spine_thoracic': (-5.639, -4.306, 1.74),
+        'neck': (0.875, -0.221, -27.738), 'head': (0.812, 0.0), 'right_clavicle': (6.291, -0.008),
+        'right_shoulder': (84.214, 14.713, 0.438), 'right_elbow': (34.559, 11.654),
+        'right_wrist': (-1.888, -24.745),
     })
     human.KeyJoints(5.0, {
-        'spine_lumbar': (12.311, 1.862, 0.975), 'spine_thoracic': (-8.256, -8.488, 1.276),
-        'neck': (0.604, -0.356, -29.296), 'head': (0.508, 0.0), 'right_clavicle': (13.922, -1.998),
-        'right_shoulder': (78.677, 21.748, 4.985), 'right_elbow': (37.819, 17.159),
-        'right_wrist': (-1.028, -14.476),
+        'spine_lumbar': (14.654, 2.715, 0.535), 'spine_thoracic': (-9.042, -9.761, 1.128),
+        'neck': (-0.053, -0.614, -29.645), 'head': (-0.203, -0.001),
+        'right_clavicle': (17.956, -2.925), 'right_shoulder': (77.423, 25.312, 7.284),
+        'right_elbow': (39.577, 20.026), 'right_wrist': (-0.794, -9.473),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (16.262, 3.083, 0.582), 'spine_thoracic': (-10.011, -10.0, 1.408),
-        'neck': (-0.469, -0.79, -30.509), 'head': (-0.657, -0.004),
-        'right_clavicle': (21.481, -3.659), 'right_shoulder': (75.799, 28.353, 8.568),
-        'right_elbow': (40.599, 21.962), 'right_wrist': (-0.822, -5.611),
+        'spine_lumbar': (15.837, 2.895, 0.704), 'spine_thoracic': (-10.26, -10.0, 1.502),
+        'neck': (-0.115, -0.655, -30.519), 'head': (-0.275, -0.003),
+        'right_clavicle': (21.509, -3.689), 'right_shoulder': (74.779, 28.284, 8.44),
+        'right_elbow': (40.55, 21.824), 'right_wrist': (-0.905, -5.377),
     })
     human.KeyJoints(5.2, {
-        'spine_lumbar': (6.828, -0.975, 2.597), 'spine_thoracic': (-11.171, -6.018, 2.334),
-        'neck': (4.197, 1.016, -29.596), 'head': (4.371, 0.004), 'right_clavicle': (12.471, -2.158),
-        'right_shoulder': (70.09, 19.45, 1.72), 'right_elbow': (35.834, 13.716),
-        'right_wrist': (-2.225, -15.841),
+        'spine_lumbar': (4.837, -1.32, 3.766), 'spine_thoracic': (-11.473, -4.185, 3.096),
+        'neck': (4.835, 1.25, -30.124), 'head': (5.052, 0.006), 'right_clavicle': (9.236, -1.403),
+        'right_shoulder': (71.505, 16.875, -1.873), 'right_elbow': (33.582, 10.013),
+        'right_wrist': (-3.083, -20.999),
     })
     human.KeyJoints(5.3, {
-        'spine_lumbar': (6.027, 0.478, 3.053), 'spine_thoracic': (-6.033, -2.089, 2.659),
-        'neck': (1.423, -0.023, -28.337), 'head': (1.398, 0.0), 'right_clavicle': (4.333, 0.314),
-        'right_shoulder': (84.696, 13.005, -2.463), 'right_elbow': (33.183, 8.723),
-        'right_wrist': (-2.62, -27.71),
+        'spine_lumbar': (6.098, 0.595, 2.766), 'spine_thoracic': (-5.235, -1.997, 2.445),
+        'neck': (1.025, -0.167, -27.929), 'head': (0.972, 0.0), 'right_clavicle': (3.96, 0.425),
+        'right_shoulder': (85.897, 12.59, -2.068), 'right_elbow': (33.344, 8.983),
+        'right_wrist': (-2.434, -28.035),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.4, {
-        'spine_lumbar': (6.288, 1.028, 1.586), 'spine_thoracic': (-2.011, -1.621, 1.562),
-        'neck': (-0.562, -0.744, -26.231), 'head': (-0.722, -0.002),
-        'right_clavicle': (2.435, 0.871), 'right_shoulder': (90.577, 10.847, -0.425),
-        'right_elbow': (34.0, 10.056), 'right_wrist': (-1.679, -29.304),
+        'spine_lumbar': (6.425, 1.007, 1.756), 'spine_thoracic': (-3.037, -2.125, 1.708),
+        'neck': (-0.089, -0.569, -26.619), 'head': (-0.216, -0.001),
+        'right_clavicle': (3.15, 0.754), 'right_shoulder': (88.955, 11.624, -0.465),
+        'right_elbow': (34.003, 10.147), 'right_wrist': (-1.867, -28.536),
     })
     human.KeyJoints(5.5, {
-        'spine_lumbar': (9.249, 1.073, 1.464), 'spine_thoracic': (-6.668, -5.942, 1.511),
-        'neck': (0.937, -0.21, -28.35), 'head': (0.874, 0.0), 'right_clavicle': (8.87, -0.733),
-        'right_shoulder': (81.905, 17.097, 2.034), 'right_elbow': (35.607, 13.546),
-        'right_wrist': (-1.515, -21.257),
+        'spine_lumbar': (11.683, 1.662, 1.076), 'spine_thoracic': (-7.98, -8.043, 1.314),
+        'neck': (0.72, -0.309, -29.142), 'head': (0.634, 0.0), 'right_clavicle': (12.874, -1.748),
+        'right_shoulder': (79.197, 20.796, 4.384), 'right_elbow': (37.356, 16.415),
+        'right_wrist': (-1.107, -15.844),
     })
     human.KeyJoints(5.6, {
-        'spine_lumbar': (15.532, 3.006, 0.4), 'spine_thoracic': (-9.338, -10.0, 1.111),
-        'neck': (-0.4, -0.754, -29.971), 'head': (-0.578, -0.004),
-        'right_clavicle': (19.626, -3.293), 'right_shoulder': (77.06, 26.749, 8.112),
-        'right_elbow': (40.207, 21.121), 'right_wrist': (-0.748, -7.575),
+        'spine_lumbar': (16.252, 3.083, 0.577), 'spine_thoracic': (-9.998, -10.0, 1.401),
+        'neck': (-0.47, -0.79, -30.498), 'head': (-0.658, -0.004),
+        'right_clavicle': (21.45, -3.653), 'right_shoulder': (75.824, 28.326, 8.563),
+        'right_elbow': (40.595, 21.95), 'right_wrist': (-0.82, -5.643),
     })
     human.KeyJoints(5.7, {
-        'spine_lumbar': (13.918, 2.157, 0.849), 'spine_thoracic': (-10.446, -9.699, 1.493),
-        'neck': (0.962, -0.229, -29.79), 'head': (0.89, 0.0), 'right_clavicle': (20.15, -3.522),
-        'right_shoulder': (72.941, 26.747, 7.816), 'right_elbow': (40.175, 20.837),
-        'right_wrist': (-1.062, -6.245),
+        'spine_lumbar': (9.066, -0.078, 1.817), 'spine_thoracic': (-10.857, -7.442, 1.893),
+        'neck': (3.245, 0.655, -29.376), 'head': (3.35, 0.002), 'right_clavicle': (15.206, -2.677),
+        'right_shoulder': (70.383, 21.896, 4.307), 'right_elbow': (37.64, 16.542),
+        'right_wrist': (-1.687, -11.926),
     })
     human.KeyJoints(5.8, {
-        'spine_lumbar': (4.895, -0.504, 4.424), 'spine_thoracic': (-10.419, -2.624, 3.619),
-        'neck': (3.945, 0.906, -30.222), 'head': (4.096, 0.003), 'right_clavicle': (6.409, -0.414),
-        'right_shoulder': (76.833, 14.972, -4.118), 'right_elbow': (32.434, 7.649),
-        'right_wrist': (-3.555, -25.482),
+        'spine_lumbar': (5.325, -0.173, 4.24), 'spine_thoracic': (-9.421, -2.421, 3.52),
+        'neck': (3.272, 0.653, -29.961), 'head': (3.375, 0.002), 'right_clavicle': (5.826, -0.175),
+        'right_shoulder': (79.015, 14.526, -4.075), 'right_elbow': (32.481, 7.62),
+        'right_wrist': (-3.416, -26.241),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(5.9, {
@@ -372,164 +372,164 @@ def remove_access_panel_cad():
         'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
     })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (7.026, 0.955, 1.949), 'spine_thoracic': (-5.055, -3.476, 1.874),
-        'neck': (0.765, -0.257, -27.433), 'head': (0.696, 0.0), 'right_clavicle': (5.081, 0.351),
-        'right_shoulder': (85.494, 13.6, -0.388), 'right_elbow': (34.089, 10.744),
-        'right_wrist': (-2.079, -26.315),
+        'spine_lumbar': (8.532, 0.98, 1.603), 'spine_thoracic': (-6.216, -5.21, 1.606),
+        'neck': (0.932, -0.206, -28.076), 'head': (0.871, 0.0), 'right_clavicle': (7.68, -0.405),
+        'right_shoulder': (82.913, 15.996, 1.301), 'right_elbow': (35.107, 12.674),
+        'right_wrist': (-1.679, -22.88),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (13.3, 2.205, 0.794), 'spine_thoracic': (-8.62, -9.109, 1.208),
-        'neck': (0.366, -0.451, -29.483), 'head': (0.25, -0.001),
-        'right_clavicle': (15.594, -2.387), 'right_shoulder': (78.027, 23.24, 5.956),
-        'right_elbow': (38.56, 18.359), 'right_wrist': (-0.914, -12.345),
+        'spine_lumbar': (15.344, 2.971, 0.402), 'spine_thoracic': (-9.249, -9.993, 1.107),
+        'neck': (-0.294, -0.707, -29.708), 'head': (-0.465, -0.002),
+        'right_clavicle': (19.226, -3.209), 'right_shoulder': (77.182, 26.403, 7.965),
+        'right_elbow': (40.088, 20.895), 'right_wrist': (-0.748, -8.018),
     })
     human.KeyJoints(6.2, {
-        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.038, -10.0, 1.421),
-        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
-        'right_clavicle': (21.544, -3.671), 'right_shoulder': (75.747, 28.408, 8.578),
-        'right_elbow': (40.609, 21.986), 'right_wrist': (-0.825, -5.546),
+        'spine_lumbar': (14.865, 2.541, 0.765), 'spine_thoracic': (-10.372, -9.908, 1.494),
+        'neck': (0.468, -0.422, -30.026), 'head': (0.356, -0.001),
+        'right_clavicle': (20.923, -3.633), 'right_shoulder': (73.732, 27.576, 8.193),
+        'right_elbow': (40.421, 21.401), 'right_wrist': (-0.985, -5.65),
     })
     human.KeyJoints(6.3, {
-        'spine_lumbar': (5.322, -1.354, 3.391), 'spine_thoracic': (-11.436, -4.749, 2.839),
-        'neck': (4.74, 1.217, -29.962), 'head': (4.951, 0.006), 'right_clavicle': (10.195, -1.654),
-        'right_shoulder': (70.797, 17.589, -0.758), 'right_elbow': (34.239, 11.142),
-        'right_wrist': (-2.804, -19.428),
+        'spine_lumbar': (4.582, -1.184, 4.207), 'spine_thoracic': (-11.458, -3.452, 3.423),
+        'neck': (4.764, 1.217, -30.385), 'head': (4.974, 0.006), 'right_clavicle': (7.99, -1.023),
+        'right_shoulder': (73.031, 16.012, -3.223), 'right_elbow': (32.855, 8.653),
+        'right_wrist': (-3.406, -23.038),
     })
     human.KeyJoints(6.4, {
-        'spine_lumbar': (6.186, 0.769, 2.309), 'spine_thoracic': (-3.976, -1.847, 2.104),
-        'neck': (0.403, -0.393, -27.274), 'head': (0.307, 0.0), 'right_clavicle': (3.364, 0.6),
-        'right_shoulder': (87.748, 11.914, -1.435), 'right_elbow': (33.598, 9.397),
-        'right_wrist': (-2.14, -28.538),
+        'spine_lumbar': (6.211, 0.827, 2.149), 'spine_thoracic': (-3.536, -1.795, 1.984),
+        'neck': (0.187, -0.472, -27.044), 'head': (0.077, -0.001), 'right_clavicle': (3.156, 0.66),
+        'right_shoulder': (88.385, 11.675, -1.213), 'right_elbow': (33.687, 9.541),
+        'right_wrist': (-2.037, -28.712),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(6.5, {
-        'spine_lumbar': (6.325, 1.022, 1.637), 'spine_thoracic': (-2.308, -1.766, 1.606),
-        'neck': (-0.423, -0.693, -26.345), 'head': (-0.574, -0.002),
-        'right_clavicle': (2.641, 0.838), 'right_shoulder': (90.107, 11.071, -0.439),
-        'right_elbow': (34.001, 10.077), 'right_wrist': (-1.735, -29.084),
+        'spine_lumbar': (6.653, 0.982, 1.927), 'spine_thoracic': (-4.242, -2.775, 1.854),
+        'neck': (0.446, -0.373, -27.064), 'head': (0.355, 0.0), 'right_clavicle': (4.074, 0.586),
+        'right_shoulder': (87.012, 12.606, -0.486), 'right_elbow': (34.013, 10.347),
+        'right_wrist': (-2.055, -27.514),
     })
     human.KeyJoints(6.6, {
-        'spine_lumbar': (10.229, 1.262, 1.296), 'spine_thoracic': (-7.237, -6.86, 1.413),
-        'neck': (0.893, -0.234, -28.701), 'head': (0.824, 0.0), 'right_clavicle': (10.483, -1.157),
-        'right_shoulder': (80.679, 18.592, 3.002), 'right_elbow': (36.303, 14.715),
-        'right_wrist': (-1.324, -19.055),
+        'spine_lumbar': (12.756, 2.011, 0.898), 'spine_thoracic': (-8.431, -8.779, 1.247),
+        'neck': (0.506, -0.395, -29.39), 'head': (0.402, -0.001),
+        'right_clavicle': (14.672, -2.174), 'right_shoulder': (78.357, 22.421, 5.418),
+        'right_elbow': (38.15, 17.695), 'right_wrist': (-0.976, -13.513),
     })
     human.KeyJoints(6.7, {
-        'spine_lumbar': (15.924, 3.061, 0.461), 'spine_thoracic': (-9.642, -10.0, 1.225),
-        'neck': (-0.466, -0.783, -30.196), 'head': (-0.651, -0.004),
-        'right_clavicle': (20.564, -3.483), 'right_shoulder': (76.515, 27.559, 8.383),
-        'right_elbow': (40.433, 21.581), 'right_wrist': (-0.773, -6.567),
+        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.037, -10.0, 1.421),
+        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
+        'right_clavicle': (21.543, -3.671), 'right_shoulder': (75.748, 28.407, 8.578),
+        'right_elbow': (40.609, 21.985), 'right_wrist': (-0.825, -5.547),
     })
     human.KeyJoints(6.8, {
-        'spine_lumbar': (11.596, 1.091, 1.212), 'spine_thoracic': (-10.615, -8.759, 1.608),
-        'neck': (2.088, 0.209, -29.441), 'head': (2.106, 0.001), 'right_clavicle': (17.938, -3.156),
-        'right_shoulder': (71.438, 24.506, 6.436), 'right_elbow': (39.187, 19.044),
-        'right_wrist': (-1.298, -8.53),
+        'spine_lumbar': (7.163, -0.864, 2.458), 'spine_thoracic': (-11.115, -6.257, 2.251),
+        'neck': (4.063, 0.965, -29.551), 'head': (4.226, 0.004), 'right_clavicle': (12.916, -2.247),
+        'right_shoulder': (70.065, 19.832, 2.171), 'right_elbow': (36.138, 14.198),
+        'right_wrist': (-2.127, -15.174),
     })
     human.KeyJoints(6.9, {
-        'spine_lumbar': (5.378, -0.13, 4.202), 'spine_thoracic': (-9.262, -2.399, 3.495),
-        'neck': (3.175, 0.617, -29.909), 'head': (3.271, 0.002), 'right_clavicle': (5.742, -0.145),
-        'right_shoulder': (79.333, 14.453, -4.046), 'right_elbow': (32.497, 7.637),
-        'right_wrist': (-3.388, -26.337),
+        'spine_lumbar': (5.666, 0.085, 3.87), 'spine_thoracic': (-8.281, -2.306, 3.259),
+        'neck': (2.604, 0.407, -29.47), 'head': (2.66, 0.001), 'right_clavicle': (5.313, 0.003),
+        'right_shoulder': (81.075, 14.038, -3.609), 'right_elbow': (32.694, 7.939),
+        'right_wrist': (-3.162, -26.787),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.0, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'spine_lumbar': (6.286, 1.028, 1.583), 'spine_thoracic': (-1.994, -1.613, 1.56),
+        'neck': (-0.57, -0.747, -26.224), 'head': (-0.73, -0.002), 'right_clavicle': (2.424, 0.873),
+        'right_shoulder': (90.604, 10.834, -0.424), 'right_elbow': (34.0, 10.055),
+        'right_wrist': (-1.676, -29.316),
     })
     human.KeyJoints(7.1, {
-        'spine_lumbar': (7.615, 0.934, 1.804), 'spine_thoracic': (-5.556, -4.185, 1.757),
-        'neck': (0.861, -0.226, -27.692), 'head': (0.797, 0.0), 'right_clavicle': (6.111, 0.043),
-        'right_shoulder': (84.398, 14.547, 0.33), 'right_elbow': (34.494, 11.526),
-        'right_wrist': (-1.914, -24.981),
+        'spine_lumbar': (9.494, 1.113, 1.42), 'spine_thoracic': (-6.816, -6.18, 1.484),
+        'neck': (0.931, -0.214, -28.442), 'head': (0.868, 0.0), 'right_clavicle': (9.274, -0.841),
+        'right_shoulder': (81.582, 17.473, 2.279), 'right_elbow': (35.78, 13.841),
+        'right_wrist': (-1.464, -20.704),
     })
     human.KeyJoints(7.2, {
-        'spine_lumbar': (14.194, 2.542, 0.622), 'spine_thoracic': (-8.902, -9.571, 1.149),
-        'neck': (0.099, -0.555, -29.597), 'head': (-0.039, -0.001),
-        'right_clavicle': (17.138, -2.741), 'right_shoulder': (77.604, 24.599, 6.836),
-        'right_elbow': (39.234, 19.457), 'right_wrist': (-0.829, -10.445),
+        'spine_lumbar': (15.823, 3.049, 0.437), 'spine_thoracic': (-9.549, -10.0, 1.182),
+        'neck': (-0.456, -0.778, -30.123), 'head': (-0.639, -0.004),
+        'right_clavicle': (20.31, -3.432), 'right_shoulder': (76.691, 27.339, 8.318),
+        'right_elbow': (40.377, 21.464), 'right_wrist': (-0.763, -6.837),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (16.174, 3.016, 0.68), 'spine_thoracic': (-10.165, -10.0, 1.5),
-        'neck': (-0.342, -0.744, -30.628), 'head': (-0.522, -0.004),
-        'right_clavicle': (21.605, -3.687), 'right_shoulder': (75.337, 28.439, 8.493),
-        'right_elbow': (40.563, 21.923), 'right_wrist': (-0.864, -5.436),
+        'spine_lumbar': (13.254, 1.859, 0.936), 'spine_thoracic': (-10.492, -9.465, 1.515),
+        'neck': (1.292, -0.1, -29.667), 'head': (1.247, 0.0), 'right_clavicle': (19.55, -3.426),
+        'right_shoulder': (72.456, 26.126, 7.472), 'right_elbow': (39.933, 20.371),
+        'right_wrist': (-1.122, -6.814),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (4.587, -1.258, 4.054), 'spine_thoracic': (-11.489, -3.73, 3.303),
-        'neck': (4.842, 1.25, -30.28), 'head': (5.059, 0.006), 'right_clavicle': (8.466, -1.179),
-        'right_shoulder': (72.362, 16.331, -2.735), 'right_elbow': (33.103, 9.146),
-        'right_wrist': (-3.296, -22.266),
+        'spine_lumbar': (4.649, -0.834, 4.468), 'spine_thoracic': (-11.058, -2.923, 3.637),
+        'neck': (4.415, 1.081, -30.455), 'head': (4.599, 0.005), 'right_clavicle': (7.068, -0.684),
+        'right_shoulder': (74.887, 15.422, -4.087), 'right_elbow': (32.441, 7.781),
+        'right_wrist': (-3.59, -24.514),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (6.271, 0.986, 1.701), 'spine_thoracic': (-2.311, -1.646, 1.649),
-        'neck': (-0.414, -0.69, -26.395), 'head': (-0.565, -0.002),
-        'right_clavicle': (2.571, 0.829), 'right_shoulder': (90.152, 11.005, -0.592),
-        'right_elbow': (33.934, 9.945), 'right_wrist': (-1.75, -29.196),
+        'spine_lumbar': (6.274, 0.996, 1.674), 'spine_thoracic': (-2.234, -1.637, 1.628),
+        'neck': (-0.451, -0.704, -26.354), 'head': (-0.604, -0.002),
+        'right_clavicle': (2.535, 0.839), 'right_shoulder': (90.261, 10.963, -0.553),
+        'right_elbow': (33.949, 9.97), 'right_wrist': (-1.732, -29.226),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(7.6, {
-        'spine_lumbar': (6.431, 1.007, 1.762), 'spine_thoracic': (-3.074, -2.144, 1.713),
-        'neck': (-0.072, -0.563, -26.632), 'head': (-0.198, -0.001),
-        'right_clavicle': (3.176, 0.75), 'right_shoulder': (88.896, 11.652, -0.466),
-        'right_elbow': (34.003, 10.151), 'right_wrist': (-1.874, -28.507),
+        'spine_lumbar': (7.061, 0.953, 1.942), 'spine_thoracic': (-5.094, -3.525, 1.868),
+        'neck': (0.776, -0.254, -27.452), 'head': (0.707, 0.0), 'right_clavicle': (5.15, 0.332),
+        'right_shoulder': (85.412, 13.665, -0.354), 'right_elbow': (34.108, 10.788),
+        'right_wrist': (-2.072, -26.228),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (11.264, 1.532, 1.136), 'spine_thoracic': (-7.777, -7.726, 1.337),
-        'neck': (0.784, -0.282, -29.028), 'head': (0.704, 0.0), 'right_clavicle': (12.185, -1.582),
-        'right_shoulder': (79.578, 20.162, 3.993), 'right_elbow': (37.052, 15.93),
-        'right_wrist': (-1.162, -16.76),
+        'spine_lumbar': (13.772, 2.38, 0.703), 'spine_thoracic': (-8.772, -9.364, 1.176),
+        'neck': (0.23, -0.504, -29.549), 'right_clavicle': (16.404, -2.573),
+        'right_shoulder': (77.786, 23.955, 6.422), 'right_elbow': (38.917, 18.939),
+        'right_wrist': (-0.867, -11.339),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (16.157, 3.08, 0.537), 'spine_thoracic': (-9.888, -10.0, 1.346),
-        'neck': (-0.473, -0.79, -30.401), 'head': (-0.66, -0.004),
-        'right_clavicle': (21.184, -3.603), 'right_shoulder': (76.04, 28.096, 8.517),
-        'right_elbow': (40.551, 21.844), 'right_wrist': (-0.804, -5.918),
+        'spine_lumbar': (16.219, 3.041, 0.663), 'spine_thoracic': (-10.132, -10.0, 1.49),
+        'neck': (-0.384, -0.76, -30.62), 'head': (-0.566, -0.004),
+        'right_clavicle': (21.604, -3.684), 'right_shoulder': (75.47, 28.438, 8.515),
+        'right_elbow': (40.572, 21.945), 'right_wrist': (-0.852, -5.459),
     })
     human.KeyJoints(7.9, {
-        'spine_lumbar': (9.067, -0.077, 1.816), 'spine_thoracic': (-10.856, -7.442, 1.893),
-        'neck': (3.244, 0.654, -29.376), 'head': (3.349, 0.002), 'right_clavicle': (15.208, -2.677),
-        'right_shoulder': (70.383, 21.897, 4.308), 'right_elbow': (37.641, 16.543),
-        'right_wrist': (-1.687, -11.924),
+        'spine_lumbar': (5.708, -1.315, 3.138), 'spine_thoracic': (-11.385, -5.146, 2.673),
+        'neck': (4.634, 1.179, -29.85), 'head': (4.838, 0.005), 'right_clavicle': (10.894, -1.821),
+        'right_shoulder': (70.503, 18.136, 0.018), 'right_elbow': (34.718, 11.939),
+        'right_wrist': (-2.619, -18.307),
     })
     human.KeyJoints(8.0, {
-        'spine_lumbar': (5.769, 0.169, 3.702), 'spine_thoracic': (-7.835, -2.27, 3.135),
-        'neck': (2.358, 0.317, -29.244), 'head': (2.397, 0.001), 'right_clavicle': (5.132, 0.062),
-        'right_shoulder': (81.81, 13.849, -3.364), 'right_elbow': (32.801, 8.112),
-        'right_wrist': (-3.049, -26.963),
+        'spine_lumbar': (5.926, 0.334, 3.367), 'spine_thoracic': (-6.917, -2.185, 2.889),
+        'neck': (1.873, 0.141, -28.781), 'head': (1.879, 0.001), 'right_clavicle': (4.738, 0.188),
+        'right_shoulder': (83.306, 13.44, -2.892), 'right_elbow': (33.003, 8.437),
+        'right_wrist': (-2.826, -27.34),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.1, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'spine_lumbar': (6.317, 1.023, 1.627), 'spine_thoracic': (-2.251, -1.738, 1.597),
+        'neck': (-0.45, -0.702, -26.324), 'head': (-0.602, -0.002),
+        'right_clavicle': (2.601, 0.844), 'right_shoulder': (90.197, 11.028, -0.436),
+        'right_elbow': (34.001, 10.073), 'right_wrist': (-1.724, -29.126),
     })
     human.KeyJoints(8.2, {
-        'spine_lumbar': (8.356, 0.967, 1.639), 'spine_thoracic': (-6.097, -5.022, 1.632),
-        'neck': (0.924, -0.208, -28.003), 'head': (0.863, 0.0), 'right_clavicle': (7.383, -0.321),
-        'right_shoulder': (83.179, 15.721, 1.117), 'right_elbow': (34.987, 12.456),
-        'right_wrist': (-1.722, -23.281),
+        'spine_lumbar': (10.557, 1.34, 1.244), 'spine_thoracic': (-7.414, -7.148, 1.386),
+        'neck': (0.866, -0.246, -28.811), 'head': (0.794, 0.0), 'right_clavicle': (11.023, -1.294),
+        'right_shoulder': (80.304, 19.09, 3.321), 'right_elbow': (36.54, 15.103),
+        'right_wrist': (-1.268, -18.321),
     })
     human.KeyJoints(8.3, {
-        'spine_lumbar': (14.945, 2.834, 0.469), 'spine_thoracic': (-9.121, -9.879, 1.117),
-        'neck': (-0.156, -0.654, -29.664), 'head': (-0.315, -0.002),
-        'right_clavicle': (18.472, -3.042), 'right_shoulder': (77.332, 25.757, 7.582),
-        'right_elbow': (39.799, 20.394), 'right_wrist': (-0.771, -8.873),
+        'spine_lumbar': (16.114, 3.078, 0.521), 'spine_thoracic': (-9.839, -10.0, 1.321),
+        'neck': (-0.473, -0.789, -30.359), 'head': (-0.66, -0.004),
+        'right_clavicle': (21.066, -3.58), 'right_shoulder': (76.134, 27.993, 8.494),
+        'right_elbow': (40.53, 21.796), 'right_wrist': (-0.797, -6.041),
     })
     human.KeyJoints(8.4, {
-        'spine_lumbar': (15.525, 2.788, 0.72), 'spine_thoracic': (-10.31, -9.999, 1.502),
-        'neck': (0.11, -0.562, -30.211), 'head': (-0.032, -0.001),
-        'right_clavicle': (21.383, -3.689), 'right_shoulder': (74.387, 28.097, 8.395),
-        'right_elbow': (40.539, 21.728), 'right_wrist': (-0.934, -5.368),
+        'spine_lumbar': (11.222, 0.914, 1.287), 'spine_thoracic': (-10.646, -8.582, 1.64),
+        'neck': (2.264, 0.277, -29.413), 'head': (2.295, 0.001), 'right_clavicle': (17.554, -3.09),
+        'right_shoulder': (71.23, 24.129, 6.163), 'right_elbow': (38.987, 18.71),
+        'right_wrist': (-1.346, -8.974),
     })
     human.KeyJoints(8.5, {
-        'spine_lumbar': (4.628, -0.921, 4.433), 'spine_thoracic': (-11.172, -3.025, 3.608),
-        'neck': (4.504, 1.115, -30.475), 'head': (4.694, 0.005), 'right_clavicle': (7.259, -0.757),
-        'right_shoulder': (74.437, 15.547, -3.969), 'right_elbow': (32.497, 7.91),
-        'right_wrist': (-3.566, -24.217),
+        'spine_lumbar': (4.904, -0.497, 4.421), 'spine_thoracic': (-10.4, -2.619, 3.617),
+        'neck': (3.931, 0.901, -30.216), 'head': (4.081, 0.003), 'right_clavicle': (6.396, -0.408),
+        'right_shoulder': (76.878, 14.964, -4.117), 'right_elbow': (32.435, 7.648),
+        'right_wrist': (-3.552, -25.5),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(8.6, {
@@ -539,65 +539,65 @@ def remove_access_panel_cad():
         'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
     })
     human.KeyJoints(8.7, {
-        'spine_lumbar': (6.646, 0.982, 1.924), 'spine_thoracic': (-4.213, -2.757, 1.851),
-        'neck': (0.433, -0.377, -27.053), 'head': (0.342, 0.0), 'right_clavicle': (4.049, 0.591),
-        'right_shoulder': (87.06, 12.58, -0.486), 'right_elbow': (34.013, 10.341),
-        'right_wrist': (-2.051, -27.543),
+        'spine_lumbar': (7.704, 0.935, 1.784), 'spine_thoracic': (-5.629, -4.291, 1.742),
+        'neck': (0.873, -0.222, -27.732), 'head': (0.81, 0.0), 'right_clavicle': (6.27, -0.002),
+        'right_shoulder': (84.236, 14.693, 0.425), 'right_elbow': (34.551, 11.639),
+        'right_wrist': (-1.892, -24.773),
     })
     human.KeyJoints(8.8, {
-        'spine_lumbar': (12.294, 1.857, 0.978), 'spine_thoracic': (-8.249, -8.476, 1.277),
-        'neck': (0.607, -0.355, -29.292), 'head': (0.512, 0.0), 'right_clavicle': (13.894, -1.991),
-        'right_shoulder': (78.69, 21.723, 4.968), 'right_elbow': (37.806, 17.139),
-        'right_wrist': (-1.03, -14.512),
+        'spine_lumbar': (14.641, 2.71, 0.537), 'spine_thoracic': (-9.038, -9.756, 1.128),
+        'neck': (-0.048, -0.612, -29.644), 'head': (-0.198, -0.001),
+        'right_clavicle': (17.933, -2.92), 'right_shoulder': (77.428, 25.292, 7.271),
+        'right_elbow': (39.567, 20.009), 'right_wrist': (-0.795, -9.501),
     })
     human.KeyJoints(8.9, {
-        'spine_lumbar': (16.262, 3.083, 0.581), 'spine_thoracic': (-10.01, -10.0, 1.407),
-        'neck': (-0.469, -0.79, -30.508), 'head': (-0.658, -0.004),
-        'right_clavicle': (21.478, -3.659), 'right_shoulder': (75.801, 28.351, 8.568),
-        'right_elbow': (40.599, 21.961), 'right_wrist': (-0.821, -5.614),
+        'spine_lumbar': (15.848, 2.899, 0.704), 'spine_thoracic': (-10.258, -10.0, 1.502),
+        'neck': (-0.122, -0.658, -30.523), 'head': (-0.283, -0.003),
+        'right_clavicle': (21.513, -3.689), 'right_shoulder': (74.794, 28.29, 8.441),
+        'right_elbow': (40.551, 21.827), 'right_wrist': (-0.904, -5.378),
     })
     human.KeyJoints(9.0, {
-        'spine_lumbar': (6.859, -0.964, 2.584), 'spine_thoracic': (-11.165, -6.04, 2.326),
-        'neck': (4.185, 1.011, -29.591), 'head': (4.357, 0.004), 'right_clavicle': (12.513, -2.166),
-        'right_shoulder': (70.086, 19.486, 1.764), 'right_elbow': (35.863, 13.762),
-        'right_wrist': (-2.216, -15.777),
+        'spine_lumbar': (4.848, -1.322, 3.756), 'spine_thoracic': (-11.472, -4.199, 3.089),
+        'neck': (4.833, 1.25, -30.119), 'head': (5.05, 0.006), 'right_clavicle': (9.26, -1.41),
+        'right_shoulder': (71.482, 16.893, -1.845), 'right_elbow': (33.599, 10.042),
+        'right_wrist': (-3.076, -20.959),
     })
     human.KeyJoints(9.1, {
-        'spine_lumbar': (6.023, 0.473, 3.065), 'spine_thoracic': (-6.066, -2.093, 2.668),
-        'neck': (1.44, -0.017, -28.354), 'head': (1.416, 0.0), 'right_clavicle': (4.349, 0.309),
-        'right_shoulder': (84.644, 13.022, -2.48), 'right_elbow': (33.176, 8.712),
-        'right_wrist': (-2.628, -27.696),
+        'spine_lumbar': (6.095, 0.591, 2.777), 'spine_thoracic': (-5.265, -2.001, 2.453),
+        'neck': (1.04, -0.162, -27.944), 'head': (0.988, 0.0), 'right_clavicle': (3.974, 0.421),
+        'right_shoulder': (85.853, 12.606, -2.083), 'right_elbow': (33.338, 8.974),
+        'right_wrist': (-2.441, -28.023),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.2, {
-        'spine_lumbar': (6.288, 1.028, 1.585), 'spine_thoracic': (-2.009, -1.62, 1.562),
-        'neck': (-0.563, -0.744, -26.23), 'head': (-0.723, -0.002),
-        'right_clavicle': (2.434, 0.871), 'right_shoulder': (90.581, 10.846, -0.425),
-        'right_elbow': (34.0, 10.056), 'right_wrist': (-1.678, -29.305),
+        'spine_lumbar': (6.423, 1.008, 1.753), 'spine_thoracic': (-3.02, -2.116, 1.705),
+        'neck': (-0.097, -0.572, -26.612), 'head': (-0.225, -0.001),
+        'right_clavicle': (3.137, 0.757), 'right_shoulder': (88.983, 11.61, -0.464),
+        'right_elbow': (34.003, 10.145), 'right_wrist': (-1.864, -28.55),
     })
     human.KeyJoints(9.3, {
-        'spine_lumbar': (9.233, 1.071, 1.467), 'spine_thoracic': (-6.658, -5.926, 1.513),
-        'neck': (0.937, -0.21, -28.344), 'head': (0.874, 0.0), 'right_clavicle': (8.844, -0.726),
-        'right_shoulder': (81.926, 17.073, 2.018), 'right_elbow': (35.596, 13.527),
-        'right_wrist': (-1.518, -21.292),
+        'spine_lumbar': (11.665, 1.656, 1.079), 'spine_thoracic': (-7.971, -8.029, 1.315),
+        'neck': (0.723, -0.307, -29.137), 'head': (0.638, 0.0), 'right_clavicle': (12.843, -1.741),
+        'right_shoulder': (79.213, 20.768, 4.366), 'right_elbow': (37.343, 16.393),
+        'right_wrist': (-1.109, -15.885),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (15.523, 3.005, 0.399), 'spine_thoracic': (-9.333, -10.0, 1.11),
-        'neck': (-0.398, -0.753, -29.968), 'head': (-0.576, -0.004),
-        'right_clavicle': (19.608, -3.29), 'right_shoulder': (77.067, 26.733, 8.106),
-        'right_elbow': (40.202, 21.112), 'right_wrist': (-0.748, -7.594),
+        'spine_lumbar': (16.25, 3.083, 0.576), 'spine_thoracic': (-9.997, -10.0, 1.4),
+        'neck': (-0.47, -0.79, -30.497), 'head': (-0.658, -0.004),
+        'right_clavicle': (21.446, -3.653), 'right_shoulder': (75.827, 28.323, 8.563),
+        'right_elbow': (40.594, 21.948), 'right_wrist': (-0.819, -5.647),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (13.951, 2.171, 0.845), 'spine_thoracic': (-10.443, -9.709, 1.492),
-        'neck': (0.945, -0.235, -29.797), 'head': (0.872, 0.0), 'right_clavicle': (20.179, -3.526),
-        'right_shoulder': (72.967, 26.778, 7.831), 'right_elbow': (40.186, 20.859),
-        'right_wrist': (-1.059, -6.22),
+        'spine_lumbar': (9.1, -0.062, 1.807), 'spine_thoracic': (-10.853, -7.461, 1.888),
+        'neck': (3.23, 0.649, -29.374), 'head': (3.333, 0.002), 'right_clavicle': (15.245, -2.684),
+        'right_shoulder': (70.392, 21.932, 4.341), 'right_elbow': (37.664, 16.58),
+        'right_wrist': (-1.68, -11.874),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (4.886, -0.511, 4.426), 'spine_thoracic': (-10.436, -2.629, 3.62),
-        'neck': (3.957, 0.91, -30.226), 'head': (4.109, 0.003), 'right_clavicle': (6.42, -0.419),
-        'right_shoulder': (76.792, 14.98, -4.118), 'right_elbow': (32.434, 7.651),
-        'right_wrist': (-3.557, -25.466),
+        'spine_lumbar': (5.319, -0.178, 4.244), 'spine_thoracic': (-9.438, -2.424, 3.522),
+        'neck': (3.283, 0.657, -29.966), 'head': (3.386, 0.002), 'right_clavicle': (5.835, -0.179),
+        'right_shoulder': (78.98, 14.534, -4.077), 'right_elbow': (32.479, 7.619),
+        'right_wrist': (-3.418, -26.23),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(9.7, {
@@ -607,164 +607,164 @@ def remove_access_panel_cad():
         'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
     })
     human.KeyJoints(9.8, {
-        'spine_lumbar': (7.018, 0.955, 1.951), 'spine_thoracic': (-5.046, -3.465, 1.875),
-        'neck': (0.762, -0.258, -27.428), 'head': (0.693, 0.0), 'right_clavicle': (5.064, 0.356),
-        'right_shoulder': (85.514, 13.584, -0.396), 'right_elbow': (34.084, 10.734),
-        'right_wrist': (-2.081, -26.336),
+        'spine_lumbar': (8.517, 0.978, 1.606), 'spine_thoracic': (-6.206, -5.194, 1.608),
+        'neck': (0.932, -0.206, -28.07), 'head': (0.871, 0.0), 'right_clavicle': (7.655, -0.398),
+        'right_shoulder': (82.935, 15.972, 1.285), 'right_elbow': (35.097, 12.655),
+        'right_wrist': (-1.683, -22.914),
     })
     human.KeyJoints(9.9, {
-        'spine_lumbar': (13.284, 2.199, 0.797), 'spine_thoracic': (-8.614, -9.099, 1.209),
-        'neck': (0.37, -0.449, -29.48), 'head': (0.255, -0.001), 'right_clavicle': (15.566, -2.381),
-        'right_shoulder': (78.036, 23.216, 5.94), 'right_elbow': (38.548, 18.339),
-        'right_wrist': (-0.916, -12.38),
+        'spine_lumbar': (15.334, 2.969, 0.403), 'spine_thoracic': (-9.245, -9.991, 1.108),
+        'neck': (-0.291, -0.706, -29.706), 'head': (-0.461, -0.002),
+        'right_clavicle': (19.206, -3.205), 'right_shoulder': (77.187, 26.386, 7.956),
+        'right_elbow': (40.082, 20.883), 'right_wrist': (-0.749, -8.04),
     })
     human.KeyJoints(10.0, {
-        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.038, -10.0, 1.421),
-        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
-        'right_clavicle': (21.544, -3.671), 'right_shoulder': (75.747, 28.407, 8.578),
-        'right_elbow': (40.609, 21.986), 'right_wrist': (-0.825, -5.546),
+        'spine_lumbar': (14.888, 2.549, 0.763), 'spine_thoracic': (-10.371, -9.912, 1.495),
+        'neck': (0.456, -0.427, -30.032), 'head': (0.343, -0.001),
+        'right_clavicle': (20.941, -3.636), 'right_shoulder': (73.752, 27.595, 8.201),
+        'right_elbow': (40.426, 21.413), 'right_wrist': (-0.983, -5.637),
     })
     human.KeyJoints(10.1, {
-        'spine_lumbar': (5.339, -1.355, 3.379), 'spine_thoracic': (-11.435, -4.768, 2.831),
-        'neck': (4.737, 1.216, -29.957), 'head': (4.947, 0.006), 'right_clavicle': (10.228, -1.662),
-        'right_shoulder': (70.78, 17.614, -0.721), 'right_elbow': (34.262, 11.18),
-        'right_wrist': (-2.795, -19.375),
+        'spine_lumbar': (4.581, -1.188, 4.201), 'spine_thoracic': (-11.461, -3.463, 3.418),
+        'neck': (4.769, 1.219, -30.381), 'head': (4.979, 0.006), 'right_clavicle': (8.008, -1.029),
+        'right_shoulder': (73.003, 16.023, -3.204), 'right_elbow': (32.864, 8.673),
+        'right_wrist': (-3.402, -23.009),
     })
     human.KeyJoints(10.2, {
-        'spine_lumbar': (6.184, 0.764, 2.321), 'spine_thoracic': (-4.009, -1.851, 2.113),
-        'neck': (0.419, -0.387, -27.292), 'head': (0.325, 0.0), 'right_clavicle': (3.38, 0.595),
-        'right_shoulder': (87.699, 11.932, -1.452), 'right_elbow': (33.591, 9.386),
-        'right_wrist': (-2.147, -28.525),
+        'spine_lumbar': (6.21, 0.823, 2.158), 'spine_thoracic': (-3.563, -1.798, 1.991),
+        'neck': (0.2, -0.467, -27.058), 'head': (0.091, -0.001), 'right_clavicle': (3.168, 0.656),
+        'right_shoulder': (88.346, 11.69, -1.227), 'right_elbow': (33.681, 9.532),
+        'right_wrist': (-2.043, -28.702),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.3, {
-        'spine_lumbar': (6.323, 1.022, 1.635), 'spine_thoracic': (-2.3, -1.762, 1.604),
-        'neck': (-0.427, -0.694, -26.342), 'head': (-0.578, -0.002),
-        'right_clavicle': (2.635, 0.839), 'right_shoulder': (90.12, 11.065, -0.439),
-        'right_elbow': (34.001, 10.076), 'right_wrist': (-1.734, -29.09),
+        'spine_lumbar': (6.648, 0.982, 1.925), 'spine_thoracic': (-4.221, -2.762, 1.852),
+        'neck': (0.437, -0.376, -27.057), 'head': (0.346, 0.0), 'right_clavicle': (4.056, 0.589),
+        'right_shoulder': (87.046, 12.587, -0.486), 'right_elbow': (34.013, 10.342),
+        'right_wrist': (-2.052, -27.535),
     })
     human.KeyJoints(10.4, {
-        'spine_lumbar': (10.212, 1.258, 1.299), 'spine_thoracic': (-7.227, -6.845, 1.414),
-        'neck': (0.894, -0.233, -28.696), 'head': (0.826, 0.0), 'right_clavicle': (10.455, -1.15),
-        'right_shoulder': (80.699, 18.566, 2.985), 'right_elbow': (36.291, 14.694),
-        'right_wrist': (-1.327, -19.093),
+        'spine_lumbar': (12.738, 2.005, 0.901), 'spine_thoracic': (-8.424, -8.768, 1.248),
+        'neck': (0.511, -0.393, -29.386), 'head': (0.407, 0.0), 'right_clavicle': (14.642, -2.167),
+        'right_shoulder': (78.368, 22.394, 5.4), 'right_elbow': (38.137, 17.674),
+        'right_wrist': (-0.978, -13.551),
     })
     human.KeyJoints(10.5, {
-        'spine_lumbar': (15.919, 3.061, 0.46), 'spine_thoracic': (-9.637, -10.0, 1.222),
-        'neck': (-0.465, -0.783, -30.192), 'head': (-0.651, -0.004),
-        'right_clavicle': (20.551, -3.48), 'right_shoulder': (76.525, 27.548, 8.379),
-        'right_elbow': (40.43, 21.575), 'right_wrist': (-0.773, -6.581),
+        'spine_lumbar': (16.284, 3.083, 0.592), 'spine_thoracic': (-10.037, -10.0, 1.421),
+        'neck': (-0.468, -0.79, -30.533), 'head': (-0.656, -0.004),
+        'right_clavicle': (21.543, -3.671), 'right_shoulder': (75.748, 28.406, 8.578),
+        'right_elbow': (40.609, 21.985), 'right_wrist': (-0.825, -5.547),
     })
     human.KeyJoints(10.6, {
-        'spine_lumbar': (11.639, 1.111, 1.204), 'spine_thoracic': (-10.612, -8.778, 1.605),
-        'neck': (2.068, 0.202, -29.445), 'head': (2.084, 0.001), 'right_clavicle': (17.98, -3.163),
-        'right_shoulder': (71.461, 24.548, 6.466), 'right_elbow': (39.208, 19.08),
-        'right_wrist': (-1.293, -8.481),
+        'spine_lumbar': (7.19, -0.855, 2.447), 'spine_thoracic': (-11.11, -6.276, 2.245),
+        'neck': (4.052, 0.961, -29.548), 'head': (4.215, 0.004), 'right_clavicle': (12.951, -2.255),
+        'right_shoulder': (70.065, 19.863, 2.207), 'right_elbow': (36.162, 14.236),
+        'right_wrist': (-2.119, -15.121),
     })
     human.KeyJoints(10.7, {
-        'spine_lumbar': (5.371, -0.136, 4.207), 'spine_thoracic': (-9.283, -2.402, 3.499),
-        'neck': (3.188, 0.622, -29.916), 'head': (3.285, 0.002), 'right_clavicle': (5.753, -0.149),
-        'right_shoulder': (79.292, 14.463, -4.051), 'right_elbow': (32.495, 7.634),
-        'right_wrist': (-3.392, -26.325),
+        'spine_lumbar': (5.661, 0.081, 3.878), 'spine_thoracic': (-8.303, -2.307, 3.265),
+        'neck': (2.616, 0.411, -29.48), 'head': (2.673, 0.001), 'right_clavicle': (5.322, 0.0),
+        'right_shoulder': (81.039, 14.047, -3.621), 'right_elbow': (32.689, 7.931),
+        'right_wrist': (-3.167, -26.779),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(10.8, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'spine_lumbar': (6.286, 1.028, 1.583), 'spine_thoracic': (-1.993, -1.613, 1.56),
+        'neck': (-0.57, -0.747, -26.224), 'head': (-0.731, -0.002),
+        'right_clavicle': (2.423, 0.873), 'right_shoulder': (90.606, 10.834, -0.424),
+        'right_elbow': (34.0, 10.055), 'right_wrist': (-1.675, -29.317),
     })
     human.KeyJoints(10.9, {
-        'spine_lumbar': (7.604, 0.934, 1.806), 'spine_thoracic': (-5.547, -4.171, 1.759),
-        'neck': (0.859, -0.226, -27.687), 'head': (0.795, 0.0), 'right_clavicle': (6.091, 0.049),
-        'right_shoulder': (84.418, 14.528, 0.319), 'right_elbow': (34.487, 11.512),
-        'right_wrist': (-1.917, -25.007),
+        'spine_lumbar': (9.477, 1.11, 1.423), 'spine_thoracic': (-6.806, -6.164, 1.486),
+        'neck': (0.932, -0.213, -28.436), 'head': (0.868, 0.0), 'right_clavicle': (9.246, -0.834),
+        'right_shoulder': (81.604, 17.446, 2.262), 'right_elbow': (35.767, 13.82),
+        'right_wrist': (-1.467, -20.742),
     })
     human.KeyJoints(11.0, {
-        'spine_lumbar': (14.18, 2.536, 0.624), 'spine_thoracic': (-8.898, -9.565, 1.15),
-        'neck': (0.103, -0.553, -29.596), 'head': (-0.034, -0.001),
-        'right_clavicle': (17.113, -2.735), 'right_shoulder': (77.61, 24.578, 6.822),
-        'right_elbow': (39.224, 19.44), 'right_wrist': (-0.83, -10.475),
+        'spine_lumbar': (15.816, 3.048, 0.436), 'spine_thoracic': (-9.544, -10.0, 1.18),
+        'neck': (-0.455, -0.778, -30.118), 'head': (-0.639, -0.004),
+        'right_clavicle': (20.294, -3.429), 'right_shoulder': (76.701, 27.325, 8.313),
+        'right_elbow': (40.374, 21.456), 'right_wrist': (-0.763, -6.854),
     })
     human.KeyJoints(11.1, {
-        'spine_lumbar': (16.178, 3.019, 0.678), 'spine_thoracic': (-10.162, -10.0, 1.5),
-        'neck': (-0.346, -0.746, -30.628), 'head': (-0.525, -0.004),
-        'right_clavicle': (21.605, -3.687), 'right_shoulder': (75.348, 28.439, 8.495),
-        'right_elbow': (40.564, 21.925), 'right_wrist': (-0.863, -5.438),
+        'spine_lumbar': (13.286, 1.873, 0.932), 'spine_thoracic': (-10.49, -9.477, 1.514),
+        'neck': (1.276, -0.106, -29.672), 'head': (1.23, 0.0), 'right_clavicle': (19.58, -3.431),
+        'right_shoulder': (72.479, 26.157, 7.49), 'right_elbow': (39.946, 20.394),
+        'right_wrist': (-1.119, -6.784),
     })
     human.KeyJoints(11.2, {
-        'spine_lumbar': (4.59, -1.26, 4.046), 'spine_thoracic': (-11.489, -3.744, 3.297),
-        'neck': (4.844, 1.251, -30.275), 'head': (5.061, 0.006), 'right_clavicle': (8.491, -1.186),
-        'right_shoulder': (72.331, 16.348, -2.71), 'right_elbow': (33.116, 9.171),
-        'right_wrist': (-3.29, -22.227),
+        'spine_lumbar': (4.648, -0.84, 4.466), 'spine_thoracic': (-11.066, -2.93, 3.636),
+        'neck': (4.421, 1.084, -30.458), 'head': (4.606, 0.005), 'right_clavicle': (7.081, -0.689),
+        'right_shoulder': (74.854, 15.431, -4.081), 'right_elbow': (32.444, 7.788),
+        'right_wrist': (-3.589, -24.494),
     })
     human.KeyJoints(11.3, {
-        'spine_lumbar': (6.27, 0.983, 1.709), 'spine_thoracic': (-2.331, -1.649, 1.654),
-        'neck': (-0.404, -0.687, -26.406), 'head': (-0.554, -0.002),
-        'right_clavicle': (2.581, 0.826), 'right_shoulder': (90.122, 11.016, -0.602),
-        'right_elbow': (33.93, 9.938), 'right_wrist': (-1.755, -29.188),
+        'spine_lumbar': (6.273, 0.994, 1.679), 'spine_thoracic': (-2.25, -1.639, 1.632),
+        'neck': (-0.444, -0.701, -26.363), 'head': (-0.596, -0.002),
+        'right_clavicle': (2.543, 0.837), 'right_shoulder': (90.238, 10.972, -0.561),
+        'right_elbow': (33.946, 9.965), 'right_wrist': (-1.736, -29.22),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.4, {
-        'spine_lumbar': (6.429, 1.007, 1.759), 'spine_thoracic': (-3.058, -2.135, 1.71),
-        'neck': (-0.08, -0.566, -26.626), 'head': (-0.207, -0.001),
-        'right_clavicle': (3.164, 0.752), 'right_shoulder': (88.923, 11.639, -0.465),
-        'right_elbow': (34.003, 10.149), 'right_wrist': (-1.871, -28.52),
+        'spine_lumbar': (7.052, 0.953, 1.944), 'spine_thoracic': (-5.085, -3.512, 1.87),
+        'neck': (0.773, -0.255, -27.447), 'head': (0.705, 0.0), 'right_clavicle': (5.132, 0.337),
+        'right_shoulder': (85.433, 13.648, -0.363), 'right_elbow': (34.103, 10.777),
+        'right_wrist': (-2.074, -26.25),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (11.246, 1.527, 1.139), 'spine_thoracic': (-7.768, -7.712, 1.338),
-        'neck': (0.786, -0.281, -29.023), 'head': (0.707, 0.0), 'right_clavicle': (12.156, -1.575),
-        'right_shoulder': (79.595, 20.135, 3.977), 'right_elbow': (37.039, 15.909),
-        'right_wrist': (-1.164, -16.798),
+        'spine_lumbar': (13.756, 2.374, 0.706), 'spine_thoracic': (-8.767, -9.356, 1.177),
+        'neck': (0.235, -0.502, -29.547), 'right_clavicle': (16.376, -2.567),
+        'right_shoulder': (77.793, 23.931, 6.407), 'right_elbow': (38.905, 18.919),
+        'right_wrist': (-0.868, -11.373),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (16.154, 3.08, 0.536), 'spine_thoracic': (-9.885, -10.0, 1.344),
-        'neck': (-0.473, -0.79, -30.398), 'head': (-0.66, -0.004),
-        'right_clavicle': (21.176, -3.601), 'right_shoulder': (76.046, 28.089, 8.515),
-        'right_elbow': (40.549, 21.841), 'right_wrist': (-0.804, -5.926),
+        'spine_lumbar': (16.222, 3.043, 0.661), 'spine_thoracic': (-10.13, -10.0, 1.489),
+        'neck': (-0.387, -0.761, -30.619), 'head': (-0.569, -0.004),
+        'right_clavicle': (21.603, -3.684), 'right_shoulder': (75.479, 28.437, 8.516),
+        'right_elbow': (40.573, 21.947), 'right_wrist': (-0.852, -5.461),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (9.108, -0.059, 1.805), 'spine_thoracic': (-10.852, -7.466, 1.887),
-        'neck': (3.226, 0.647, -29.374), 'head': (3.33, 0.002), 'right_clavicle': (15.254, -2.686),
-        'right_shoulder': (70.394, 21.941, 4.349), 'right_elbow': (37.67, 16.589),
-        'right_wrist': (-1.679, -11.862),
+        'spine_lumbar': (5.727, -1.31, 3.127), 'spine_thoracic': (-11.382, -5.164, 2.666),
+        'neck': (4.627, 1.176, -29.845), 'head': (4.831, 0.005), 'right_clavicle': (10.925, -1.828),
+        'right_shoulder': (70.491, 18.161, 0.053), 'right_elbow': (34.74, 11.975),
+        'right_wrist': (-2.611, -18.258),
     })
     human.KeyJoints(11.8, {
-        'spine_lumbar': (5.763, 0.164, 3.712), 'spine_thoracic': (-7.862, -2.272, 3.142),
-        'neck': (2.373, 0.323, -29.257), 'head': (2.413, 0.001), 'right_clavicle': (5.143, 0.058),
-        'right_shoulder': (81.766, 13.86, -3.378), 'right_elbow': (32.794, 8.101),
-        'right_wrist': (-3.056, -26.953),
+        'spine_lumbar': (5.922, 0.33, 3.376), 'spine_thoracic': (-6.942, -2.188, 2.896),
+        'neck': (1.886, 0.145, -28.794), 'head': (1.892, 0.001), 'right_clavicle': (4.749, 0.185),
+        'right_shoulder': (83.266, 13.451, -2.904), 'right_elbow': (32.998, 8.429),
+        'right_wrist': (-2.832, -27.33),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_left
     human.KeyJoints(11.9, {
-        'spine_lumbar': (6.284, 1.028, 1.58), 'spine_thoracic': (-1.979, -1.606, 1.558),
-        'neck': (-0.577, -0.749, -26.218), 'head': (-0.738, -0.002),
-        'right_clavicle': (2.413, 0.874), 'right_shoulder': (90.628, 10.823, -0.424),
-        'right_elbow': (34.0, 10.054), 'right_wrist': (-1.673, -29.327),
+        'spine_lumbar': (6.316, 1.023, 1.625), 'spine_thoracic': (-2.241, -1.733, 1.596),
+        'neck': (-0.455, -0.704, -26.319), 'head': (-0.608, -0.002),
+        'right_clavicle': (2.594, 0.846), 'right_shoulder': (90.214, 11.02, -0.436),
+        'right_elbow': (34.001, 10.072), 'right_wrist': (-1.722, -29.134),
     })
     human.KeyJoints(12.0, {
-        'spine_lumbar': (8.342, 0.966, 1.642), 'spine_thoracic': (-6.087, -5.007, 1.635),
-        'neck': (0.923, -0.208, -27.997), 'head': (0.862, 0.0), 'right_clavicle': (7.36, -0.315),
-        'right_shoulder': (83.2, 15.7, 1.103), 'right_elbow': (34.978, 12.439),
-        'right_wrist': (-1.725, -23.312),
+        'spine_lumbar': (10.524, 1.332, 1.249), 'spine_thoracic': (-7.396, -7.119, 1.388),
+        'neck': (0.869, -0.245, -28.8), 'head': (0.797, 0.0), 'right_clavicle': (10.968, -1.28),
+        'right_shoulder': (80.342, 19.039, 3.288), 'right_elbow': (36.516, 15.063),
+        'right_wrist': (-1.274, -18.397),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (14.933, 2.829, 0.472), 'spine_thoracic': (-9.118, -9.875, 1.117),
-        'neck': (-0.152, -0.652, -29.664), 'head': (-0.311, -0.002),
-        'right_clavicle': (18.452, -3.038), 'right_shoulder': (77.336, 25.739, 7.57),
-        'right_elbow': (39.79, 20.379), 'right_wrist': (-0.771, -8.896),
+        'spine_lumbar': (16.106, 3.077, 0.518), 'spine_thoracic': (-9.83, -10.0, 1.317),
+        'neck': (-0.473, -0.789, -30.351), 'head': (-0.66, -0.004),
+        'right_clavicle': (21.044, -3.576), 'right_shoulder': (76.152, 27.974, 8.489),
+        'right_elbow': (40.526, 21.787), 'right_wrist': (-0.796, -6.064),
     })
     human.KeyJoints(12.2, {
-        'spine_lumbar': (15.532, 2.786, 0.713), 'spine_thoracic': (-10.295, -10.0, 1.496),
-        'neck': (0.102, -0.566, -30.214), 'head': (-0.041, -0.001),
-        'right_clavicle': (21.387, -3.693), 'right_shoulder': (74.416, 28.1, 8.4),
-        'right_elbow': (40.53, 21.734), 'right_wrist': (-0.929, -5.391),
+        'spine_lumbar': (11.234, 0.893, 1.229), 'spine_thoracic': (-10.555, -8.617, 1.593),
+        'neck': (2.234, 0.266, -29.398), 'head': (2.263, 0.001), 'right_clavicle': (17.605, -3.126),
+        'right_shoulder': (71.325, 24.148, 6.233), 'right_elbow': (38.959, 18.784),
+        'right_wrist': (-1.316, -9.048),
     })
     human.KeyJoints(12.3, {
-        'spine_lumbar': (4.441, -1.122, 4.289), 'spine_thoracic': (-10.913, -3.047, 3.475),
-        'neck': (4.519, 1.123, -30.399), 'head': (4.711, 0.005), 'right_clavicle': (7.213, -0.843),
-        'right_shoulder': (74.634, 15.395, -3.929), 'right_elbow': (32.247, 7.933),
-        'right_wrist': (-3.499, -24.79),
+        'spine_lumbar': (4.691, -0.711, 4.278), 'spine_thoracic': (-10.13, -2.639, 3.484),
+        'neck': (3.955, 0.911, -30.151), 'head': (4.107, 0.003), 'right_clavicle': (6.343, -0.501),
+        'right_shoulder': (77.08, 14.801, -4.09), 'right_elbow': (32.169, 7.66),
+        'right_wrist': (-3.489, -26.122),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=12.391913, duration=0.072)
@@ -832,65 +832,65 @@ def remove_access_panel_cad():
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.5, {
-        'spine_lumbar': (6.596, -14.3, 9.502), 'spine_thoracic': (-9.122, -4.703, 9.087),
-        'neck': (0.78, -0.519, -15.31), 'head': (0.921, -0.016), 'right_clavicle': (3.454, 7.692),
-        'right_shoulder': (87.672, 7.825, 1.152), 'right_elbow': (33.536, 11.075),
-        'right_wrist': (-1.473, -29.984),
+        'spine_lumbar': (6.09, -14.996, 9.1), 'spine_thoracic': (-10.051, -5.359, 8.809),
+        'neck': (1.502, -0.506, -15.437), 'head': (1.648, -0.015), 'right_clavicle': (5.139, 7.177),
+        'right_shoulder': (86.05, 8.958, 1.795), 'right_elbow': (32.61, 11.821),
+        'right_wrist': (-1.276, -29.978),
     })
     human.KeyJoints(13.6, {
-        'spine_lumbar': (3.978, -18.71, 6.163), 'spine_thoracic': (-11.159, -9.102, 7.035),
-        'neck': (3.295, -0.481, -16.363), 'head': (3.453, -0.015), 'right_clavicle': (12.673, 5.15),
-        'right_shoulder': (82.731, 12.538, 5.5), 'right_elbow': (26.696, 16.227),
-        'right_wrist': (0.564, -28.035),
+        'spine_lumbar': (4.013, -19.794, 4.872), 'spine_thoracic': (-11.449, -9.911, 6.537),
+        'neck': (3.486, -0.476, -16.263), 'head': (3.643, -0.015),
+        'right_clavicle': (17.492, 4.436), 'right_shoulder': (81.994, 14.641, 8.707),
+        'right_elbow': (24.952, 19.639), 'right_wrist': (1.95, -25.526),
     })
     human.KeyJoints(13.7, {
-        'spine_lumbar': (5.134, -19.945, 3.905), 'spine_thoracic': (-11.789, -10.0, 6.214),
-        'neck': (3.099, -0.478, -15.82), 'head': (3.253, -0.015), 'right_clavicle': (21.923, 3.742),
-        'right_shoulder': (81.863, 16.994, 12.457), 'right_elbow': (25.59, 23.373),
-        'right_wrist': (3.377, -22.38),
+        'spine_lumbar': (5.095, -19.893, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
+        'neck': (3.126, -0.476, -15.702), 'head': (3.279, -0.015),
+        'right_clavicle': (22.181, 3.735), 'right_shoulder': (81.81, 17.052, 12.683),
+        'right_elbow': (25.617, 23.582), 'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(13.8, {
-        'spine_lumbar': (-1.1, -19.982, 5.252), 'spine_thoracic': (-11.449, -6.729, 6.891),
-        'neck': (5.502, -0.395, -13.479), 'head': (5.642, -0.014),
-        'right_clavicle': (15.416, 5.761), 'right_shoulder': (80.217, 10.373, 6.733),
-        'right_elbow': (22.692, 17.274), 'right_wrist': (1.178, -27.507),
+        'spine_lumbar': (-2.138, -19.384, 6.907), 'spine_thoracic': (-11.434, -3.627, 7.819),
+        'neck': (5.83, -0.394, -13.903), 'head': (5.973, -0.014), 'right_clavicle': (10.353, 6.811),
+        'right_shoulder': (80.975, 7.822, 1.397), 'right_elbow': (21.252, 12.163),
+        'right_wrist': (-1.111, -29.931),
     })
     human.KeyJoints(13.9, {
-        'spine_lumbar': (1.538, -17.878, 8.98), 'spine_thoracic': (-10.584, -3.249, 8.937),
-        'neck': (3.819, -0.472, -16.491), 'head': (3.979, -0.015), 'right_clavicle': (4.426, 7.573),
-        'right_shoulder': (85.766, 7.39, -4.042), 'right_elbow': (22.39, 7.292),
-        'right_wrist': (-3.446, -29.895),
+        'spine_lumbar': (1.663, -17.849, 8.929), 'spine_thoracic': (-10.314, -3.777, 8.847),
+        'neck': (3.667, -0.476, -16.615), 'head': (3.827, -0.015), 'right_clavicle': (4.162, 7.512),
+        'right_shoulder': (86.154, 7.385, -4.1), 'right_elbow': (22.529, 7.241),
+        'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.0, {
-        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
-        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
-        'right_wrist': (-3.332, -30.0),
+        'spine_lumbar': (1.857, -17.664, 8.555), 'spine_thoracic': (-9.037, -6.244, 8.322),
+        'neck': (3.126, -0.491, -16.882), 'head': (3.287, -0.015), 'right_clavicle': (3.013, 7.218),
+        'right_shoulder': (87.44, 6.875, -4.204), 'right_elbow': (23.064, 7.107),
+        'right_wrist': (-3.319, -30.0),
     })
     human.KeyJoints(14.1, {
-        'spine_lumbar': (1.851, -19.132, 7.499), 'spine_thoracic': (-10.659, -8.144, 7.722),
-        'neck': (4.057, -0.479, -17.426), 'head': (4.224, -0.015), 'right_clavicle': (7.542, 6.157),
-        'right_shoulder': (83.989, 9.575, -0.843), 'right_elbow': (22.832, 10.394),
-        'right_wrist': (-2.012, -29.828),
+        'spine_lumbar': (2.472, -19.864, 6.254), 'spine_thoracic': (-11.04, -9.472, 7.077),
+        'neck': (4.043, -0.476, -17.214), 'head': (4.209, -0.015),
+        'right_clavicle': (11.708, 5.324), 'right_shoulder': (82.593, 11.688, 3.067),
+        'right_elbow': (23.288, 14.197), 'right_wrist': (-0.337, -28.465),
     })
     human.KeyJoints(14.2, {
-        'spine_lumbar': (4.397, -20.0, 4.382), 'spine_thoracic': (-11.57, -10.0, 6.36),
-        'neck': (3.364, -0.476, -16.101), 'head': (3.521, -0.015),
-        'right_clavicle': (19.546, 4.124), 'right_shoulder': (81.859, 15.662, 10.356),
-        'right_elbow': (24.963, 21.303), 'right_wrist': (2.588, -24.144),
+        'spine_lumbar': (5.137, -19.943, 3.905), 'spine_thoracic': (-11.791, -10.0, 6.213),
+        'neck': (3.098, -0.478, -15.818), 'head': (3.252, -0.015), 'right_clavicle': (21.927, 3.74),
+        'right_shoulder': (81.863, 16.998, 12.463), 'right_elbow': (25.597, 23.379),
+        'right_wrist': (3.379, -22.377),
     })
     human.KeyJoints(14.3, {
-        'spine_lumbar': (4.282, -19.883, 3.848), 'spine_thoracic': (-11.796, -9.989, 6.198),
-        'neck': (3.464, -0.463, -15.23), 'head': (3.615, -0.015), 'right_clavicle': (21.909, 3.908),
-        'right_shoulder': (81.458, 16.391, 12.588), 'right_elbow': (25.471, 23.376),
-        'right_wrist': (3.428, -22.33),
+        'spine_lumbar': (0.058, -20.0, 4.697), 'spine_thoracic': (-11.515, -7.952, 6.598),
+        'neck': (5.081, -0.407, -13.644), 'head': (5.221, -0.014),
+        'right_clavicle': (17.524, 5.255), 'right_shoulder': (80.275, 11.902, 8.819),
+        'right_elbow': (23.532, 19.347), 'right_wrist': (2.017, -25.972),
     })
     human.KeyJoints(14.4, {
-        'spine_lumbar': (-0.464, -18.246, 8.649), 'spine_thoracic': (-11.417, -1.712, 8.888),
-        'neck': (5.023, -0.431, -15.301), 'head': (5.175, -0.014), 'right_clavicle': (6.246, 7.604),
-        'right_shoulder': (83.27, 7.18, -2.871), 'right_elbow': (21.422, 8.254),
-        'right_wrist': (-3.036, -29.99),
+        'spine_lumbar': (0.529, -17.996, 8.985), 'spine_thoracic': (-11.244, -1.911, 9.051),
+        'neck': (4.51, -0.449, -15.86), 'head': (4.666, -0.014), 'right_clavicle': (5.337, 7.671),
+        'right_shoulder': (84.327, 7.305, -3.631), 'right_elbow': (21.868, 7.607),
+        'right_wrist': (-3.369, -29.917),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(14.5, {
@@ -900,65 +900,65 @@ def remove_access_panel_cad():
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(14.6, {
-        'spine_lumbar': (1.748, -18.057, 8.475), 'spine_thoracic': (-9.918, -6.542, 8.304),
-        'neck': (3.627, -0.484, -17.159), 'head': (3.791, -0.015), 'right_clavicle': (4.229, 6.99),
-        'right_shoulder': (86.033, 7.728, -3.631), 'right_elbow': (22.825, 7.674),
-        'right_wrist': (-3.167, -30.0),
+        'spine_lumbar': (1.766, -18.843, 7.83), 'spine_thoracic': (-10.515, -7.668, 7.918),
+        'neck': (3.99, -0.48, -17.407), 'head': (4.157, -0.015), 'right_clavicle': (6.523, 6.404),
+        'right_shoulder': (84.491, 9.036, -1.778), 'right_elbow': (22.77, 9.484),
+        'right_wrist': (-2.414, -29.974),
     })
     human.KeyJoints(14.7, {
-        'spine_lumbar': (3.084, -19.997, 5.513), 'spine_thoracic': (-11.23, -9.907, 6.767),
-        'neck': (3.859, -0.475, -16.845), 'head': (4.021, -0.015),
-        'right_clavicle': (14.591, 4.871), 'right_shoulder': (82.111, 13.107, 5.78),
-        'right_elbow': (23.788, 16.835), 'right_wrist': (0.794, -27.108),
+        'spine_lumbar': (4.311, -20.0, 4.445), 'spine_thoracic': (-11.55, -10.0, 6.384),
+        'neck': (3.398, -0.476, -16.139), 'head': (3.554, -0.015),
+        'right_clavicle': (19.266, 4.171), 'right_shoulder': (81.862, 15.506, 10.1),
+        'right_elbow': (24.883, 21.052), 'right_wrist': (2.493, -24.343),
     })
     human.KeyJoints(14.8, {
-        'spine_lumbar': (5.2, -19.931, 3.869), 'spine_thoracic': (-11.814, -10.0, 6.205),
-        'neck': (3.077, -0.478, -15.794), 'head': (3.231, -0.015), 'right_clavicle': (22.13, 3.709),
-        'right_shoulder': (81.865, 17.113, 12.636), 'right_elbow': (25.647, 23.55),
-        'right_wrist': (3.445, -22.222),
+        'spine_lumbar': (4.487, -19.882, 3.844), 'spine_thoracic': (-11.806, -10.0, 6.197),
+        'neck': (3.38, -0.466, -15.333), 'head': (3.531, -0.015), 'right_clavicle': (22.003, 3.86),
+        'right_shoulder': (81.54, 16.568, 12.632), 'right_elbow': (25.516, 23.45),
+        'right_wrist': (3.444, -22.273),
     })
     human.KeyJoints(14.9, {
-        'spine_lumbar': (-1.983, -19.766, 6.173), 'spine_thoracic': (-11.416, -4.875, 7.391),
-        'neck': (5.8, -0.391, -13.633), 'head': (5.94, -0.014), 'right_clavicle': (12.393, 6.399),
-        'right_shoulder': (80.44, 8.672, 3.59), 'right_elbow': (21.72, 14.237),
-        'right_wrist': (-0.15, -29.196),
+        'spine_lumbar': (-1.763, -18.946, 7.689), 'spine_thoracic': (-11.464, -2.522, 8.293),
+        'neck': (5.643, -0.405, -14.428), 'head': (5.789, -0.014), 'right_clavicle': (8.401, 7.192),
+        'right_shoulder': (81.784, 7.301, -0.757), 'right_elbow': (21.033, 10.17),
+        'right_wrist': (-2.072, -29.994),
     })
     human.KeyJoints(15.0, {
-        'spine_lumbar': (1.735, -17.812, 8.872), 'spine_thoracic': (-10.063, -4.229, 8.76),
-        'neck': (3.543, -0.48, -16.684), 'head': (3.703, -0.015), 'right_clavicle': (3.917, 7.463),
-        'right_shoulder': (86.467, 7.317, -4.143), 'right_elbow': (22.644, 7.198),
-        'right_wrist': (-3.434, -29.919),
+        'spine_lumbar': (1.788, -17.77, 8.809), 'spine_thoracic': (-9.814, -4.659, 8.67),
+        'neck': (3.427, -0.483, -16.729), 'head': (3.587, -0.015), 'right_clavicle': (3.681, 7.417),
+        'right_shoulder': (86.745, 7.212, -4.178), 'right_elbow': (22.748, 7.16),
+        'right_wrist': (-3.415, -29.935),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.1, {
-        'spine_lumbar': (1.875, -17.611, 8.556), 'spine_thoracic': (-8.901, -6.215, 8.323),
-        'neck': (3.05, -0.492, -16.841), 'head': (3.21, -0.015), 'right_clavicle': (2.846, 7.246),
-        'right_shoulder': (87.65, 6.753, -4.268), 'right_elbow': (23.101, 7.043),
-        'right_wrist': (-3.33, -30.0),
+        'spine_lumbar': (1.808, -17.817, 8.537), 'spine_thoracic': (-9.418, -6.344, 8.318),
+        'neck': (3.342, -0.488, -16.992), 'head': (3.504, -0.015), 'right_clavicle': (3.494, 7.133),
+        'right_shoulder': (86.849, 7.222, -4.001), 'right_elbow': (22.957, 7.309),
+        'right_wrist': (-3.273, -30.0),
     })
     human.KeyJoints(15.2, {
-        'spine_lumbar': (2.032, -19.486, 7.015), 'spine_thoracic': (-10.829, -8.749, 7.454),
-        'neck': (4.099, -0.477, -17.399), 'head': (4.266, -0.015), 'right_clavicle': (9.084, 5.817),
-        'right_shoulder': (83.359, 10.371, 0.592), 'right_elbow': (22.958, 11.789),
-        'right_wrist': (-1.394, -29.441),
+        'spine_lumbar': (2.892, -19.985, 5.721), 'spine_thoracic': (-11.175, -9.807, 6.847),
+        'neck': (3.923, -0.476, -16.967), 'head': (4.087, -0.015),
+        'right_clavicle': (13.737, 4.996), 'right_shoulder': (82.221, 12.69, 4.981),
+        'right_elbow': (23.628, 16.058), 'right_wrist': (0.465, -27.531),
     })
     human.KeyJoints(15.3, {
-        'spine_lumbar': (4.74, -19.998, 4.146), 'spine_thoracic': (-11.66, -10.0, 6.279),
-        'neck': (3.237, -0.477, -15.974), 'head': (3.392, -0.015),
-        'right_clavicle': (20.649, 3.942), 'right_shoulder': (81.856, 16.279, 11.351),
-        'right_elbow': (25.271, 22.279), 'right_wrist': (2.96, -23.339),
+        'spine_lumbar': (5.203, -19.931, 3.867), 'spine_thoracic': (-11.815, -10.0, 6.205),
+        'neck': (3.076, -0.478, -15.793), 'head': (3.23, -0.015), 'right_clavicle': (22.138, 3.708),
+        'right_shoulder': (81.865, 17.118, 12.643), 'right_elbow': (25.649, 23.557),
+        'right_wrist': (3.447, -22.215),
     })
     human.KeyJoints(15.4, {
-        'spine_lumbar': (2.669, -19.941, 4.011), 'spine_thoracic': (-11.692, -9.569, 6.251),
-        'neck': (4.101, -0.44, -14.495), 'head': (4.247, -0.014), 'right_clavicle': (20.655, 4.352),
-        'right_shoulder': (80.901, 14.822, 11.656), 'right_elbow': (24.927, 22.293),
-        'right_wrist': (3.093, -23.331),
+        'spine_lumbar': (-1.268, -19.968, 5.352), 'spine_thoracic': (-11.44, -6.511, 6.944),
+        'neck': (5.562, -0.394, -13.464), 'head': (5.702, -0.014), 'right_clavicle': (15.057, 5.84),
+        'right_shoulder': (80.23, 10.141, 6.368), 'right_elbow': (22.559, 16.917),
+        'right_wrist': (1.027, -27.746),
     })
     human.KeyJoints(15.5, {
-        'spine_lumbar': (0.452, -18.011, 8.965), 'spine_thoracic': (-11.267, -1.869, 9.042),
-        'neck': (4.553, -0.447, -15.81), 'head': (4.709, -0.014), 'right_clavicle': (5.397, 7.669),
-        'right_shoulder': (84.243, 7.286, -3.584), 'right_elbow': (21.834, 7.647),
-        'right_wrist': (-3.349, -29.926),
+        'spine_lumbar': (1.074, -17.916, 9.05), 'spine_thoracic': (-11.016, -2.349, 9.074),
+        'neck': (4.182, -0.46, -16.191), 'head': (4.34, -0.015), 'right_clavicle': (4.869, 7.676),
+        'right_shoulder': (85.019, 7.386, -3.9), 'right_elbow': (22.133, 7.393),
+        'right_wrist': (-3.442, -29.881),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(15.6, {
@@ -968,164 +968,164 @@ def remove_access_panel_cad():
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(15.7, {
-        'spine_lumbar': (1.737, -18.377, 8.313), 'spine_thoracic': (-10.253, -6.914, 8.229),
-        'neck': (3.824, -0.483, -17.376), 'head': (3.99, -0.015), 'right_clavicle': (5.152, 6.773),
-        'right_shoulder': (85.288, 8.291, -3.007), 'right_elbow': (22.772, 8.287),
-        'right_wrist': (-2.947, -30.0),
+        'spine_lumbar': (1.898, -19.251, 7.349), 'spine_thoracic': (-10.716, -8.343, 7.636),
+        'neck': (4.077, -0.478, -17.425), 'head': (4.244, -0.015), 'right_clavicle': (8.012, 6.049),
+        'right_shoulder': (83.781, 9.82, -0.408), 'right_elbow': (22.865, 10.817),
+        'right_wrist': (-1.825, -29.731),
     })
     human.KeyJoints(15.8, {
-        'spine_lumbar': (3.529, -20.0, 5.082), 'spine_thoracic': (-11.353, -9.995, 6.612),
-        'neck': (3.696, -0.475, -16.556), 'head': (3.857, -0.015),
-        'right_clavicle': (16.441, 4.605), 'right_shoulder': (81.954, 14.024, 7.5),
-        'right_elbow': (24.173, 18.511), 'right_wrist': (1.488, -26.119),
+        'spine_lumbar': (4.697, -20.0, 4.174), 'spine_thoracic': (-11.648, -10.0, 6.288),
+        'neck': (3.252, -0.477, -15.989), 'head': (3.407, -0.015),
+        'right_clavicle': (20.512, 3.964), 'right_shoulder': (81.856, 16.202, 11.229),
+        'right_elbow': (25.235, 22.159), 'right_wrist': (2.914, -23.44),
     })
     human.KeyJoints(15.9, {
-        'spine_lumbar': (5.212, -19.929, 3.862), 'spine_thoracic': (-11.818, -10.0, 6.204),
-        'neck': (3.073, -0.478, -15.789), 'head': (3.226, -0.015),
-        'right_clavicle': (22.169, 3.703), 'right_shoulder': (81.865, 17.135, 12.67),
-        'right_elbow': (25.656, 23.583), 'right_wrist': (3.457, -22.191),
+        'spine_lumbar': (3.315, -19.914, 3.928), 'spine_thoracic': (-11.735, -9.779, 6.22),
+        'neck': (3.849, -0.449, -14.774), 'head': (3.997, -0.015),
+        'right_clavicle': (21.209, 4.164), 'right_shoulder': (81.108, 15.471, 12.087),
+        'right_elbow': (25.172, 22.782), 'right_wrist': (3.25, -22.876),
     })
     human.KeyJoints(16.0, {
-        'spine_lumbar': (-2.118, -19.258, 7.142), 'spine_thoracic': (-11.441, -3.278, 7.96),
-        'neck': (5.812, -0.396, -14.032), 'head': (5.956, -0.014), 'right_clavicle': (9.742, 6.931),
-        'right_shoulder': (81.181, 7.644, 0.732), 'right_elbow': (21.173, 11.543),
-        'right_wrist': (-1.406, -29.962),
+        'spine_lumbar': (-1.073, -18.523, 8.303), 'spine_thoracic': (-11.459, -1.941, 8.674),
+        'neck': (5.319, -0.42, -14.961), 'head': (5.469, -0.014), 'right_clavicle': (7.0, 7.462),
+        'right_shoulder': (82.652, 7.192, -2.177), 'right_elbow': (21.11, 8.878),
+        'right_wrist': (-2.718, -29.998),
     })
     human.KeyJoints(16.1, {
-        'spine_lumbar': (1.843, -17.705, 8.71), 'spine_thoracic': (-9.441, -5.285, 8.532),
-        'neck': (3.263, -0.487, -16.777), 'head': (3.424, -0.015), 'right_clavicle': (3.336, 7.349),
-        'right_shoulder': (87.13, 7.027, -4.221), 'right_elbow': (22.895, 7.108),
-        'right_wrist': (-3.383, -29.961),
+        'spine_lumbar': (1.856, -17.681, 8.674), 'spine_thoracic': (-9.309, -5.505, 8.483),
+        'neck': (3.208, -0.488, -16.792), 'head': (3.369, -0.015), 'right_clavicle': (3.214, 7.326),
+        'right_shoulder': (87.263, 6.958, -4.235), 'right_elbow': (22.946, 7.09),
+        'right_wrist': (-3.371, -29.97),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.2, {
-        'spine_lumbar': (1.856, -17.668, 8.554), 'spine_thoracic': (-9.048, -6.247, 8.322),
-        'neck': (3.133, -0.491, -16.885), 'head': (3.294, -0.015), 'right_clavicle': (3.027, 7.215),
-        'right_shoulder': (87.422, 6.885, -4.198), 'right_elbow': (23.061, 7.113),
-        'right_wrist': (-3.318, -30.0),
+        'spine_lumbar': (1.744, -18.083, 8.467), 'spine_thoracic': (-9.96, -6.566, 8.301),
+        'neck': (3.651, -0.484, -17.178), 'head': (3.815, -0.015), 'right_clavicle': (4.306, 6.974),
+        'right_shoulder': (85.957, 7.778, -3.588), 'right_elbow': (22.815, 7.717),
+        'right_wrist': (-3.154, -30.0),
     })
     human.KeyJoints(16.3, {
-        'spine_lumbar': (2.305, -19.764, 6.505), 'spine_thoracic': (-10.975, -9.264, 7.195),
-        'neck': (4.077, -0.477, -17.294), 'head': (4.244, -0.015), 'right_clavicle': (10.81, 5.482),
-        'right_shoulder': (82.816, 11.241, 2.218), 'right_elbow': (23.159, 13.371),
-        'right_wrist': (-0.697, -28.835),
+        'spine_lumbar': (3.362, -20.0, 5.237), 'spine_thoracic': (-11.307, -9.976, 6.666),
+        'neck': (3.759, -0.475, -16.66), 'head': (3.92, -0.015), 'right_clavicle': (15.764, 4.701),
+        'right_shoulder': (82.002, 13.686, 6.873), 'right_elbow': (24.026, 17.9),
+        'right_wrist': (1.237, -26.493),
     })
     human.KeyJoints(16.4, {
-        'spine_lumbar': (4.985, -19.97, 3.993), 'spine_thoracic': (-11.738, -10.0, 6.235),
-        'neck': (3.151, -0.478, -15.879), 'head': (3.305, -0.015), 'right_clavicle': (21.44, 3.816),
-        'right_shoulder': (81.859, 16.723, 12.043), 'right_elbow': (25.476, 22.963),
-        'right_wrist': (3.22, -22.748),
+        'spine_lumbar': (5.212, -19.927, 3.863), 'spine_thoracic': (-11.819, -10.0, 6.205),
+        'neck': (3.073, -0.478, -15.788), 'head': (3.227, -0.015),
+        'right_clavicle': (22.171, 3.703), 'right_shoulder': (81.865, 17.135, 12.671),
+        'right_elbow': (25.656, 23.583), 'right_wrist': (3.458, -22.191),
     })
     human.KeyJoints(16.5, {
-        'spine_lumbar': (0.661, -20.0, 4.488), 'spine_thoracic': (-11.555, -8.424, 6.489),
-        'neck': (4.859, -0.414, -13.799), 'head': (5.0, -0.014), 'right_clavicle': (18.379, 5.028),
-        'right_shoulder': (80.392, 12.616, 9.637), 'right_elbow': (23.907, 20.173),
-        'right_wrist': (2.336, -25.271),
+        'spine_lumbar': (-1.963, -19.788, 6.117), 'spine_thoracic': (-11.415, -4.978, 7.36),
+        'neck': (5.794, -0.391, -13.613), 'head': (5.935, -0.014),
+        'right_clavicle': (12.558, 6.365), 'right_shoulder': (80.412, 8.752, 3.766),
+        'right_elbow': (21.765, 14.404), 'right_wrist': (-0.074, -29.117),
     })
     human.KeyJoints(16.6, {
-        'spine_lumbar': (1.115, -17.913, 9.048), 'spine_thoracic': (-10.99, -2.401, 9.069),
-        'neck': (4.153, -0.461, -16.215), 'head': (4.312, -0.015), 'right_clavicle': (4.832, 7.672),
-        'right_shoulder': (85.078, 7.386, -3.914), 'right_elbow': (22.154, 7.383),
-        'right_wrist': (-3.442, -29.882),
+        'spine_lumbar': (1.449, -17.887, 9.002), 'spine_thoracic': (-10.704, -3.002, 8.98),
+        'neck': (3.901, -0.469, -16.423), 'head': (4.06, -0.015), 'right_clavicle': (4.535, 7.604),
+        'right_shoulder': (85.587, 7.389, -4.014), 'right_elbow': (22.329, 7.313),
+        'right_wrist': (-3.445, -29.891),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(16.7, {
-        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
-        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
-        'right_wrist': (-3.332, -30.0),
+        'spine_lumbar': (1.876, -17.608, 8.556), 'spine_thoracic': (-8.893, -6.213, 8.323),
+        'neck': (3.046, -0.492, -16.839), 'head': (3.206, -0.015), 'right_clavicle': (2.837, 7.247),
+        'right_shoulder': (87.662, 6.746, -4.271), 'right_elbow': (23.104, 7.04),
+        'right_wrist': (-3.331, -30.0),
     })
     human.KeyJoints(16.8, {
-        'spine_lumbar': (1.751, -18.744, 7.934), 'spine_thoracic': (-10.461, -7.508, 7.981),
-        'neck': (3.96, -0.48, -17.395), 'head': (4.126, -0.015), 'right_clavicle': (6.204, 6.485),
-        'right_shoulder': (84.666, 8.864, -2.065), 'right_elbow': (22.76, 9.205),
-        'right_wrist': (-2.536, -29.997),
+        'spine_lumbar': (2.13, -19.609, 6.815), 'spine_thoracic': (-10.889, -8.967, 7.349),
+        'neck': (4.098, -0.477, -17.369), 'head': (4.265, -0.015), 'right_clavicle': (9.749, 5.683),
+        'right_shoulder': (83.13, 10.708, 1.217), 'right_elbow': (23.028, 12.397),
+        'right_wrist': (-1.126, -29.225),
     })
     human.KeyJoints(16.9, {
-        'spine_lumbar': (3.975, -20.0, 4.704), 'spine_thoracic': (-11.468, -10.0, 6.479),
-        'neck': (3.527, -0.475, -16.301), 'right_clavicle': (18.117, 4.355),
-        'right_shoulder': (81.88, 14.886, 9.045), 'right_elbow': (24.573, 20.02),
-        'right_wrist': (2.092, -25.113),
+        'spine_lumbar': (4.972, -19.972, 4.001), 'spine_thoracic': (-11.733, -10.0, 6.238),
+        'neck': (3.155, -0.478, -15.884), 'head': (3.309, -0.015),
+        'right_clavicle': (21.399, 3.823), 'right_shoulder': (81.859, 16.7, 12.007),
+        'right_elbow': (25.465, 22.928), 'right_wrist': (3.207, -22.779),
     })
     human.KeyJoints(17.0, {
-        'spine_lumbar': (5.078, -19.892, 3.866), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (3.133, -0.476, -15.692), 'head': (3.286, -0.015),
-        'right_clavicle': (22.181, 3.739), 'right_shoulder': (81.802, 17.039, 12.683),
-        'right_elbow': (25.612, 23.581), 'right_wrist': (3.465, -22.192),
+        'spine_lumbar': (1.73, -19.989, 4.202), 'spine_thoracic': (-11.627, -9.099, 6.345),
+        'neck': (4.46, -0.428, -14.158), 'head': (4.604, -0.014), 'right_clavicle': (19.686, 4.653),
+        'right_shoulder': (80.631, 13.823, 10.822), 'right_elbow': (24.489, 21.405),
+        'right_wrist': (2.786, -24.172),
     })
     human.KeyJoints(17.1, {
-        'spine_lumbar': (-1.465, -18.752, 7.991), 'spine_thoracic': (-11.47, -2.196, 8.479),
-        'neck': (5.504, -0.412, -14.681), 'head': (5.652, -0.014), 'right_clavicle': (7.69, 7.326),
-        'right_shoulder': (82.188, 7.209, -1.506), 'right_elbow': (21.0, 9.488),
-        'right_wrist': (-2.41, -30.0),
+        'spine_lumbar': (-0.219, -18.163, 8.751), 'spine_thoracic': (-11.395, -1.68, 8.945),
+        'neck': (4.902, -0.435, -15.421), 'head': (5.055, -0.014), 'right_clavicle': (5.985, 7.634),
+        'right_shoulder': (83.526, 7.179, -3.092), 'right_elbow': (21.544, 8.061),
+        'right_wrist': (-3.133, -29.985),
     })
     human.KeyJoints(17.2, {
-        'spine_lumbar': (1.876, -17.616, 8.576), 'spine_thoracic': (-8.952, -6.094, 8.349),
-        'neck': (3.066, -0.491, -16.829), 'head': (3.226, -0.015), 'right_clavicle': (2.887, 7.262),
-        'right_shoulder': (87.611, 6.772, -4.27), 'right_elbow': (23.08, 7.044),
-        'right_wrist': (-3.338, -29.995),
+        'spine_lumbar': (1.877, -17.613, 8.571), 'spine_thoracic': (-8.935, -6.123, 8.343),
+        'neck': (3.059, -0.492, -16.83), 'head': (3.22, -0.015), 'right_clavicle': (2.871, 7.259),
+        'right_shoulder': (87.628, 6.763, -4.272), 'right_elbow': (23.087, 7.041),
+        'right_wrist': (-3.337, -29.996),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.3, {
-        'spine_lumbar': (1.809, -17.812, 8.538), 'spine_thoracic': (-9.405, -6.34, 8.319),
-        'neck': (3.335, -0.488, -16.988), 'head': (3.497, -0.015), 'right_clavicle': (3.477, 7.136),
-        'right_shoulder': (86.87, 7.209, -4.008), 'right_elbow': (22.961, 7.301),
-        'right_wrist': (-3.275, -30.0),
+        'spine_lumbar': (1.738, -18.435, 8.259), 'spine_thoracic': (-10.29, -7.004, 8.194),
+        'neck': (3.848, -0.482, -17.386), 'head': (4.014, -0.015), 'right_clavicle': (5.311, 6.729),
+        'right_shoulder': (85.185, 8.38, -2.871), 'right_elbow': (22.768, 8.42),
+        'right_wrist': (-2.889, -30.0),
     })
     human.KeyJoints(17.4, {
-        'spine_lumbar': (2.661, -19.939, 5.998), 'spine_thoracic': (-11.105, -9.65, 6.963),
-        'neck': (3.994, -0.476, -17.109), 'head': (4.159, -0.015), 'right_clavicle': (12.66, 5.165),
-        'right_shoulder': (82.397, 12.159, 3.967), 'right_elbow': (23.439, 15.071),
-        'right_wrist': (0.042, -28.042),
+        'spine_lumbar': (3.845, -20.0, 4.81), 'spine_thoracic': (-11.435, -10.0, 6.516),
+        'neck': (3.576, -0.475, -16.37), 'head': (3.735, -0.015), 'right_clavicle': (17.646, 4.427),
+        'right_shoulder': (81.896, 14.639, 8.611), 'right_elbow': (24.455, 19.596),
+        'right_wrist': (1.925, -25.409),
     })
     human.KeyJoints(17.5, {
-        'spine_lumbar': (5.134, -19.944, 3.906), 'spine_thoracic': (-11.79, -10.0, 6.214),
-        'neck': (3.099, -0.478, -15.819), 'head': (3.253, -0.015),
-        'right_clavicle': (21.917, 3.742), 'right_shoulder': (81.863, 16.993, 12.455),
-        'right_elbow': (25.595, 23.37), 'right_wrist': (3.376, -22.385),
+        'spine_lumbar': (5.082, -19.892, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
+        'neck': (3.131, -0.476, -15.694), 'head': (3.284, -0.015),
+        'right_clavicle': (22.181, 3.738), 'right_shoulder': (81.804, 17.042, 12.683),
+        'right_elbow': (25.614, 23.582), 'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(17.6, {
-        'spine_lumbar': (-1.074, -19.984, 5.238), 'spine_thoracic': (-11.45, -6.76, 6.884),
-        'neck': (5.493, -0.395, -13.482), 'head': (5.633, -0.014), 'right_clavicle': (15.468, 5.75),
-        'right_shoulder': (80.216, 10.407, 6.786), 'right_elbow': (22.711, 17.326),
-        'right_wrist': (1.2, -27.472),
+        'spine_lumbar': (-2.139, -19.371, 6.931), 'spine_thoracic': (-11.435, -3.59, 7.834),
+        'neck': (5.829, -0.394, -13.915), 'head': (5.972, -0.014),
+        'right_clavicle': (10.289, 6.823), 'right_shoulder': (80.995, 7.802, 1.327),
+        'right_elbow': (21.243, 12.098), 'right_wrist': (-1.142, -29.938),
     })
     human.KeyJoints(17.7, {
-        'spine_lumbar': (1.533, -17.878, 8.981), 'spine_thoracic': (-10.592, -3.234, 8.94),
-        'neck': (3.824, -0.472, -16.486), 'head': (3.984, -0.015), 'right_clavicle': (4.433, 7.575),
-        'right_shoulder': (85.755, 7.39, -4.04), 'right_elbow': (22.386, 7.293),
-        'right_wrist': (-3.446, -29.895),
+        'spine_lumbar': (1.663, -17.849, 8.929), 'spine_thoracic': (-10.315, -3.776, 8.847),
+        'neck': (3.667, -0.476, -16.614), 'head': (3.827, -0.015), 'right_clavicle': (4.162, 7.512),
+        'right_shoulder': (86.154, 7.385, -4.1), 'right_elbow': (22.528, 7.241),
+        'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(17.8, {
-        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
-        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
-        'right_wrist': (-3.332, -30.0),
+        'spine_lumbar': (1.858, -17.662, 8.555), 'spine_thoracic': (-9.032, -6.243, 8.322),
+        'neck': (3.124, -0.491, -16.881), 'head': (3.285, -0.015), 'right_clavicle': (3.007, 7.218),
+        'right_shoulder': (87.447, 6.871, -4.206), 'right_elbow': (23.065, 7.105),
+        'right_wrist': (-3.319, -30.0),
     })
     human.KeyJoints(17.9, {
-        'spine_lumbar': (1.849, -19.126, 7.507), 'spine_thoracic': (-10.656, -8.133, 7.726),
-        'neck': (4.055, -0.479, -17.426), 'head': (4.222, -0.015), 'right_clavicle': (7.518, 6.162),
-        'right_shoulder': (84.0, 9.562, -0.865), 'right_elbow': (22.831, 10.372),
-        'right_wrist': (-2.022, -29.832),
+        'spine_lumbar': (2.465, -19.861, 6.263), 'spine_thoracic': (-11.038, -9.465, 7.081),
+        'neck': (4.045, -0.476, -17.217), 'head': (4.21, -0.015), 'right_clavicle': (11.674, 5.33),
+        'right_shoulder': (82.6, 11.671, 3.035), 'right_elbow': (23.283, 14.166),
+        'right_wrist': (-0.35, -28.479),
     })
     human.KeyJoints(18.0, {
-        'spine_lumbar': (4.39, -20.0, 4.387), 'spine_thoracic': (-11.569, -10.0, 6.362),
-        'neck': (3.367, -0.476, -16.104), 'head': (3.523, -0.015),
-        'right_clavicle': (19.525, 4.128), 'right_shoulder': (81.859, 15.65, 10.337),
-        'right_elbow': (24.957, 21.284), 'right_wrist': (2.581, -24.159),
+        'spine_lumbar': (5.135, -19.944, 3.906), 'spine_thoracic': (-11.79, -10.0, 6.213),
+        'neck': (3.099, -0.478, -15.818), 'head': (3.253, -0.015),
+        'right_clavicle': (21.921, 3.741), 'right_shoulder': (81.863, 16.995, 12.458),
+        'right_elbow': (25.596, 23.374), 'right_wrist': (3.377, -22.382),
     })
     human.KeyJoints(18.1, {
-        'spine_lumbar': (4.303, -19.883, 3.847), 'spine_thoracic': (-11.797, -9.991, 6.198),
-        'neck': (3.456, -0.463, -15.24), 'head': (3.607, -0.015), 'right_clavicle': (21.92, 3.903),
-        'right_shoulder': (81.466, 16.409, 12.595), 'right_elbow': (25.476, 23.386),
-        'right_wrist': (3.43, -22.322),
+        'spine_lumbar': (0.085, -20.0, 4.686), 'spine_thoracic': (-11.517, -7.974, 6.593),
+        'neck': (5.071, -0.407, -13.65), 'head': (5.212, -0.014), 'right_clavicle': (17.565, 5.245),
+        'right_shoulder': (80.28, 11.935, 8.858), 'right_elbow': (23.55, 19.386),
+        'right_wrist': (2.033, -25.94),
     })
     human.KeyJoints(18.2, {
-        'spine_lumbar': (-0.481, -18.252, 8.64), 'spine_thoracic': (-11.419, -1.716, 8.883),
-        'neck': (5.031, -0.43, -15.292), 'head': (5.183, -0.014), 'right_clavicle': (6.265, 7.601),
-        'right_shoulder': (83.253, 7.18, -2.854), 'right_elbow': (21.413, 8.269),
-        'right_wrist': (-3.028, -29.99),
+        'spine_lumbar': (0.517, -17.998, 8.982), 'spine_thoracic': (-11.248, -1.905, 9.049),
+        'neck': (4.517, -0.449, -15.852), 'head': (4.673, -0.014), 'right_clavicle': (5.345, 7.671),
+        'right_shoulder': (84.314, 7.302, -3.624), 'right_elbow': (21.863, 7.613),
+        'right_wrist': (-3.366, -29.918),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.3, {
@@ -1135,65 +1135,65 @@ def remove_access_panel_cad():
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(18.4, {
-        'spine_lumbar': (1.749, -18.052, 8.477), 'spine_thoracic': (-9.91, -6.537, 8.304),
-        'neck': (3.622, -0.484, -17.155), 'head': (3.786, -0.015), 'right_clavicle': (4.214, 6.993),
-        'right_shoulder': (86.047, 7.718, -3.639), 'right_elbow': (22.827, 7.666),
-        'right_wrist': (-3.17, -30.0),
+        'spine_lumbar': (1.765, -18.836, 7.838), 'spine_thoracic': (-10.511, -7.657, 7.922),
+        'neck': (3.988, -0.48, -17.406), 'head': (4.155, -0.015), 'right_clavicle': (6.5, 6.409),
+        'right_shoulder': (84.503, 9.024, -1.799), 'right_elbow': (22.769, 9.464),
+        'right_wrist': (-2.423, -29.977),
     })
     human.KeyJoints(18.5, {
-        'spine_lumbar': (3.077, -19.997, 5.521), 'spine_thoracic': (-11.228, -9.904, 6.77),
-        'neck': (3.861, -0.475, -16.849), 'head': (4.024, -0.015),
-        'right_clavicle': (14.559, 4.875), 'right_shoulder': (82.115, 13.092, 5.75),
-        'right_elbow': (23.782, 16.806), 'right_wrist': (0.782, -27.124),
+        'spine_lumbar': (4.303, -20.0, 4.451), 'spine_thoracic': (-11.549, -10.0, 6.386),
+        'neck': (3.401, -0.476, -16.143), 'head': (3.557, -0.015),
+        'right_clavicle': (19.242, 4.175), 'right_shoulder': (81.862, 15.493, 10.078),
+        'right_elbow': (24.876, 21.03), 'right_wrist': (2.484, -24.36),
     })
     human.KeyJoints(18.6, {
-        'spine_lumbar': (5.2, -19.931, 3.869), 'spine_thoracic': (-11.813, -10.0, 6.205),
-        'neck': (3.077, -0.478, -15.794), 'head': (3.231, -0.015),
-        'right_clavicle': (22.128, 3.709), 'right_shoulder': (81.865, 17.112, 12.635),
-        'right_elbow': (25.646, 23.549), 'right_wrist': (3.444, -22.223),
+        'spine_lumbar': (4.5, -19.882, 3.844), 'spine_thoracic': (-11.807, -10.0, 6.197),
+        'neck': (3.374, -0.466, -15.34), 'head': (3.525, -0.015), 'right_clavicle': (22.008, 3.857),
+        'right_shoulder': (81.546, 16.579, 12.634), 'right_elbow': (25.518, 23.454),
+        'right_wrist': (3.445, -22.271),
     })
     human.KeyJoints(18.7, {
-        'spine_lumbar': (-1.977, -19.773, 6.156), 'spine_thoracic': (-11.416, -4.906, 7.382),
-        'neck': (5.798, -0.391, -13.627), 'head': (5.939, -0.014),
-        'right_clavicle': (12.442, 6.389), 'right_shoulder': (80.431, 8.696, 3.642),
-        'right_elbow': (21.733, 14.287), 'right_wrist': (-0.127, -29.173),
+        'spine_lumbar': (-1.774, -18.953, 7.677), 'spine_thoracic': (-11.463, -2.536, 8.286),
+        'neck': (5.647, -0.405, -14.419), 'head': (5.794, -0.014), 'right_clavicle': (8.429, 7.186),
+        'right_shoulder': (81.769, 7.306, -0.727), 'right_elbow': (21.035, 10.198),
+        'right_wrist': (-2.059, -29.994),
     })
     human.KeyJoints(18.8, {
-        'spine_lumbar': (1.732, -17.813, 8.875), 'spine_thoracic': (-10.073, -4.211, 8.764),
-        'neck': (3.548, -0.48, -16.681), 'head': (3.708, -0.015), 'right_clavicle': (3.927, 7.465),
-        'right_shoulder': (86.455, 7.32, -4.142), 'right_elbow': (22.64, 7.199),
-        'right_wrist': (-3.434, -29.919),
+        'spine_lumbar': (1.786, -17.772, 8.812), 'spine_thoracic': (-9.822, -4.644, 8.673),
+        'neck': (3.431, -0.483, -16.727), 'head': (3.591, -0.015), 'right_clavicle': (3.689, 7.419),
+        'right_shoulder': (86.735, 7.216, -4.177), 'right_elbow': (22.745, 7.161),
+        'right_wrist': (-3.416, -29.935),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(18.9, {
-        'spine_lumbar': (1.875, -17.61, 8.556), 'spine_thoracic': (-8.9, -6.215, 8.323),
-        'neck': (3.049, -0.492, -16.841), 'head': (3.21, -0.015), 'right_clavicle': (2.845, 7.246),
-        'right_shoulder': (87.652, 6.752, -4.268), 'right_elbow': (23.102, 7.043),
-        'right_wrist': (-3.33, -30.0),
+        'spine_lumbar': (1.809, -17.814, 8.537), 'spine_thoracic': (-9.41, -6.342, 8.318),
+        'neck': (3.338, -0.488, -16.989), 'head': (3.5, -0.015), 'right_clavicle': (3.483, 7.135),
+        'right_shoulder': (86.862, 7.214, -4.005), 'right_elbow': (22.96, 7.304),
+        'right_wrist': (-3.274, -30.0),
     })
     human.KeyJoints(19.0, {
-        'spine_lumbar': (2.028, -19.481, 7.024), 'spine_thoracic': (-10.826, -8.739, 7.458),
-        'neck': (4.099, -0.477, -17.4), 'head': (4.266, -0.015), 'right_clavicle': (9.056, 5.823),
-        'right_shoulder': (83.369, 10.357, 0.566), 'right_elbow': (22.955, 11.764),
-        'right_wrist': (-1.406, -29.449),
+        'spine_lumbar': (2.884, -19.985, 5.73), 'spine_thoracic': (-11.173, -9.802, 6.851),
+        'neck': (3.926, -0.476, -16.972), 'head': (4.089, -0.015),
+        'right_clavicle': (13.702, 5.002), 'right_shoulder': (82.226, 12.673, 4.948),
+        'right_elbow': (23.622, 16.026), 'right_wrist': (0.451, -27.548),
     })
     human.KeyJoints(19.1, {
-        'spine_lumbar': (4.735, -19.998, 4.149), 'spine_thoracic': (-11.658, -10.0, 6.28),
-        'neck': (3.239, -0.477, -15.976), 'head': (3.394, -0.015),
-        'right_clavicle': (20.633, 3.945), 'right_shoulder': (81.856, 16.27, 11.336),
-        'right_elbow': (25.267, 22.265), 'right_wrist': (2.954, -23.351),
+        'spine_lumbar': (5.202, -19.931, 3.868), 'spine_thoracic': (-11.814, -10.0, 6.205),
+        'neck': (3.076, -0.478, -15.793), 'head': (3.23, -0.015), 'right_clavicle': (22.137, 3.708),
+        'right_shoulder': (81.865, 17.117, 12.642), 'right_elbow': (25.649, 23.556),
+        'right_wrist': (3.447, -22.216),
     })
     human.KeyJoints(19.2, {
-        'spine_lumbar': (2.702, -19.94, 4.005), 'spine_thoracic': (-11.694, -9.583, 6.249),
-        'neck': (4.089, -0.44, -14.508), 'head': (4.235, -0.014), 'right_clavicle': (20.686, 4.342),
-        'right_shoulder': (80.911, 14.855, 11.681), 'right_elbow': (24.941, 22.321),
-        'right_wrist': (3.102, -23.305),
+        'spine_lumbar': (-1.248, -19.97, 5.34), 'spine_thoracic': (-11.441, -6.538, 6.937),
+        'neck': (5.555, -0.394, -13.466), 'head': (5.695, -0.014), 'right_clavicle': (15.101, 5.83),
+        'right_shoulder': (80.228, 10.169, 6.413), 'right_elbow': (22.575, 16.961),
+        'right_wrist': (1.046, -27.717),
     })
     human.KeyJoints(19.3, {
-        'spine_lumbar': (0.437, -18.013, 8.961), 'spine_thoracic': (-11.27, -1.861, 9.04),
-        'neck': (4.561, -0.447, -15.8), 'head': (4.717, -0.014), 'right_clavicle': (5.408, 7.668),
-        'right_shoulder': (84.227, 7.282, -3.575), 'right_elbow': (21.828, 7.654),
-        'right_wrist': (-3.345, -29.928),
+        'spine_lumbar': (1.066, -17.917, 9.05), 'spine_thoracic': (-11.02, -2.34, 9.074),
+        'neck': (4.187, -0.46, -16.187), 'head': (4.344, -0.015), 'right_clavicle': (4.875, 7.677),
+        'right_shoulder': (85.009, 7.385, -3.897), 'right_elbow': (22.129, 7.395),
+        'right_wrist': (-3.442, -29.881),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(19.4, {
@@ -1203,164 +1203,164 @@ def remove_access_panel_cad():
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(19.5, {
-        'spine_lumbar': (1.736, -18.371, 8.318), 'spine_thoracic': (-10.249, -6.906, 8.232),
-        'neck': (3.822, -0.483, -17.374), 'head': (3.988, -0.015), 'right_clavicle': (5.136, 6.777),
-        'right_shoulder': (85.299, 8.282, -3.02), 'right_elbow': (22.772, 8.274),
-        'right_wrist': (-2.953, -30.0),
+        'spine_lumbar': (1.895, -19.244, 7.358), 'spine_thoracic': (-10.713, -8.332, 7.641),
+        'neck': (4.076, -0.478, -17.425), 'head': (4.243, -0.015), 'right_clavicle': (7.985, 6.055),
+        'right_shoulder': (83.792, 9.806, -0.434), 'right_elbow': (22.863, 10.792),
+        'right_wrist': (-1.836, -29.738),
     })
     human.KeyJoints(19.6, {
-        'spine_lumbar': (3.522, -20.0, 5.089), 'spine_thoracic': (-11.351, -9.994, 6.615),
-        'neck': (3.699, -0.475, -16.561), 'head': (3.859, -0.015),
-        'right_clavicle': (16.411, 4.609), 'right_shoulder': (81.956, 14.008, 7.472),
-        'right_elbow': (24.166, 18.484), 'right_wrist': (1.477, -26.136),
+        'spine_lumbar': (4.692, -20.0, 4.178), 'spine_thoracic': (-11.646, -10.0, 6.289),
+        'neck': (3.254, -0.477, -15.99), 'head': (3.409, -0.015), 'right_clavicle': (20.494, 3.967),
+        'right_shoulder': (81.856, 16.192, 11.213), 'right_elbow': (25.23, 22.143),
+        'right_wrist': (2.908, -23.453),
     })
     human.KeyJoints(19.7, {
-        'spine_lumbar': (5.212, -19.929, 3.862), 'spine_thoracic': (-11.818, -10.0, 6.204),
-        'neck': (3.073, -0.478, -15.789), 'head': (3.226, -0.015),
-        'right_clavicle': (22.169, 3.703), 'right_shoulder': (81.865, 17.135, 12.67),
-        'right_elbow': (25.656, 23.583), 'right_wrist': (3.457, -22.191),
+        'spine_lumbar': (3.339, -19.913, 3.926), 'spine_thoracic': (-11.736, -9.785, 6.219),
+        'neck': (3.84, -0.449, -14.784), 'head': (3.988, -0.015), 'right_clavicle': (21.228, 4.157),
+        'right_shoulder': (81.115, 15.494, 12.102), 'right_elbow': (25.18, 22.798),
+        'right_wrist': (3.255, -22.861),
     })
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-2.122, -19.266, 7.127), 'spine_thoracic': (-11.441, -3.301, 7.95),
-        'neck': (5.815, -0.396, -14.022), 'head': (5.958, -0.014), 'right_clavicle': (9.782, 6.923),
-        'right_shoulder': (81.167, 7.656, 0.775), 'right_elbow': (21.178, 11.584),
-        'right_wrist': (-1.386, -29.961),
+        'spine_lumbar': (-1.087, -18.53, 8.294), 'spine_thoracic': (-11.459, -1.948, 8.668),
+        'neck': (5.326, -0.419, -14.953), 'head': (5.476, -0.014), 'right_clavicle': (7.02, 7.458),
+        'right_shoulder': (82.637, 7.192, -2.158), 'right_elbow': (21.104, 8.896),
+        'right_wrist': (-2.709, -29.998),
     })
     human.KeyJoints(19.9, {
-        'spine_lumbar': (1.842, -17.706, 8.712), 'spine_thoracic': (-9.451, -5.269, 8.536),
-        'neck': (3.268, -0.487, -16.776), 'head': (3.428, -0.015), 'right_clavicle': (3.345, 7.351),
-        'right_shoulder': (87.12, 7.033, -4.22), 'right_elbow': (22.891, 7.109),
-        'right_wrist': (-3.384, -29.96),
+        'spine_lumbar': (1.855, -17.682, 8.676), 'spine_thoracic': (-9.317, -5.492, 8.486),
+        'neck': (3.211, -0.488, -16.791), 'head': (3.372, -0.015), 'right_clavicle': (3.221, 7.327),
+        'right_shoulder': (87.255, 6.963, -4.235), 'right_elbow': (22.943, 7.091),
+        'right_wrist': (-3.372, -29.969),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.0, {
-        'spine_lumbar': (1.856, -17.666, 8.554), 'spine_thoracic': (-9.044, -6.246, 8.322),
-        'neck': (3.131, -0.491, -16.884), 'head': (3.291, -0.015), 'right_clavicle': (3.022, 7.216),
-        'right_shoulder': (87.429, 6.881, -4.2), 'right_elbow': (23.062, 7.111),
-        'right_wrist': (-3.318, -30.0),
+        'spine_lumbar': (1.745, -18.077, 8.469), 'spine_thoracic': (-9.952, -6.561, 8.302),
+        'neck': (3.646, -0.484, -17.174), 'head': (3.81, -0.015), 'right_clavicle': (4.29, 6.977),
+        'right_shoulder': (85.972, 7.768, -3.597), 'right_elbow': (22.817, 7.708),
+        'right_wrist': (-3.157, -30.0),
     })
     human.KeyJoints(20.1, {
-        'spine_lumbar': (2.3, -19.76, 6.514), 'spine_thoracic': (-10.973, -9.256, 7.199),
-        'neck': (4.078, -0.477, -17.296), 'head': (4.244, -0.015), 'right_clavicle': (10.78, 5.488),
-        'right_shoulder': (82.824, 11.226, 2.189), 'right_elbow': (23.155, 13.343),
-        'right_wrist': (-0.71, -28.847),
+        'spine_lumbar': (3.353, -20.0, 5.245), 'spine_thoracic': (-11.305, -9.974, 6.669),
+        'neck': (3.762, -0.475, -16.666), 'head': (3.923, -0.015),
+        'right_clavicle': (15.731, 4.706), 'right_shoulder': (82.004, 13.67, 6.842),
+        'right_elbow': (24.019, 17.869), 'right_wrist': (1.225, -26.511),
     })
     human.KeyJoints(20.2, {
-        'spine_lumbar': (4.982, -19.971, 3.995), 'spine_thoracic': (-11.737, -10.0, 6.236),
-        'neck': (3.152, -0.478, -15.88), 'head': (3.306, -0.015), 'right_clavicle': (21.429, 3.818),
-        'right_shoulder': (81.859, 16.717, 12.034), 'right_elbow': (25.473, 22.954),
-        'right_wrist': (3.217, -22.756),
+        'spine_lumbar': (5.212, -19.928, 3.862), 'spine_thoracic': (-11.819, -10.0, 6.204),
+        'neck': (3.073, -0.478, -15.788), 'head': (3.227, -0.015), 'right_clavicle': (22.17, 3.703),
+        'right_shoulder': (81.865, 17.135, 12.671), 'right_elbow': (25.656, 23.583),
+        'right_wrist': (3.458, -22.191),
     })
     human.KeyJoints(20.3, {
-        'spine_lumbar': (0.695, -20.0, 4.477), 'spine_thoracic': (-11.558, -8.448, 6.484),
-        'neck': (4.846, -0.414, -13.809), 'head': (4.988, -0.014),
-        'right_clavicle': (18.425, 5.016), 'right_shoulder': (80.399, 12.656, 9.679),
-        'right_elbow': (23.927, 20.217), 'right_wrist': (2.353, -25.233),
+        'spine_lumbar': (-1.958, -19.793, 6.103), 'spine_thoracic': (-11.415, -5.003, 7.352),
+        'neck': (5.793, -0.39, -13.608), 'head': (5.934, -0.014), 'right_clavicle': (12.599, 6.356),
+        'right_shoulder': (80.406, 8.772, 3.809), 'right_elbow': (21.777, 14.446),
+        'right_wrist': (-0.055, -29.098),
     })
     human.KeyJoints(20.4, {
-        'spine_lumbar': (1.107, -17.913, 9.048), 'spine_thoracic': (-10.996, -2.389, 9.07),
-        'neck': (4.159, -0.461, -16.21), 'head': (4.317, -0.015), 'right_clavicle': (4.84, 7.673),
-        'right_shoulder': (85.066, 7.386, -3.911), 'right_elbow': (22.149, 7.385),
-        'right_wrist': (-3.442, -29.882),
+        'spine_lumbar': (1.444, -17.888, 9.004), 'spine_thoracic': (-10.71, -2.99, 8.982),
+        'neck': (3.905, -0.469, -16.419), 'head': (4.065, -0.015), 'right_clavicle': (4.54, 7.605),
+        'right_shoulder': (85.578, 7.389, -4.012), 'right_elbow': (22.326, 7.314),
+        'right_wrist': (-3.445, -29.89),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(20.5, {
-        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
-        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
-        'right_wrist': (-3.332, -30.0),
+        'spine_lumbar': (1.876, -17.608, 8.556), 'spine_thoracic': (-8.892, -6.213, 8.323),
+        'neck': (3.045, -0.492, -16.839), 'head': (3.205, -0.015), 'right_clavicle': (2.836, 7.247),
+        'right_shoulder': (87.663, 6.745, -4.272), 'right_elbow': (23.104, 7.039),
+        'right_wrist': (-3.331, -30.0),
     })
     human.KeyJoints(20.6, {
-        'spine_lumbar': (1.75, -18.737, 7.941), 'spine_thoracic': (-10.458, -7.498, 7.985),
-        'neck': (3.958, -0.48, -17.394), 'head': (4.124, -0.015), 'right_clavicle': (6.183, 6.49),
-        'right_shoulder': (84.677, 8.853, -2.083), 'right_elbow': (22.76, 9.188),
-        'right_wrist': (-2.544, -29.998),
+        'spine_lumbar': (2.125, -19.603, 6.824), 'spine_thoracic': (-10.886, -8.958, 7.354),
+        'neck': (4.098, -0.477, -17.37), 'head': (4.265, -0.015), 'right_clavicle': (9.718, 5.689),
+        'right_shoulder': (83.14, 10.693, 1.187), 'right_elbow': (23.025, 12.369),
+        'right_wrist': (-1.138, -29.235),
     })
     human.KeyJoints(20.7, {
-        'spine_lumbar': (3.968, -20.0, 4.71), 'spine_thoracic': (-11.466, -10.0, 6.481),
-        'neck': (3.529, -0.475, -16.305), 'right_clavicle': (18.091, 4.359),
-        'right_shoulder': (81.88, 14.872, 9.021), 'right_elbow': (24.566, 19.997),
-        'right_wrist': (2.083, -25.13),
+        'spine_lumbar': (4.968, -19.973, 4.003), 'spine_thoracic': (-11.732, -10.0, 6.238),
+        'neck': (3.156, -0.478, -15.885), 'head': (3.311, -0.015),
+        'right_clavicle': (21.387, 3.825), 'right_shoulder': (81.859, 16.693, 11.997),
+        'right_elbow': (25.462, 22.917), 'right_wrist': (3.203, -22.788),
     })
     human.KeyJoints(20.8, {
-        'spine_lumbar': (5.082, -19.892, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
-        'neck': (3.131, -0.476, -15.694), 'head': (3.284, -0.015),
-        'right_clavicle': (22.181, 3.738), 'right_shoulder': (81.804, 17.042, 12.683),
-        'right_elbow': (25.614, 23.581), 'right_wrist': (3.465, -22.192),
+        'spine_lumbar': (1.759, -19.988, 4.195), 'spine_thoracic': (-11.629, -9.116, 6.341),
+        'neck': (4.449, -0.428, -14.167), 'head': (4.593, -0.014),
+        'right_clavicle': (19.718, 4.644), 'right_shoulder': (80.639, 13.855, 10.85),
+        'right_elbow': (24.503, 21.434), 'right_wrist': (2.796, -24.144),
     })
     human.KeyJoints(20.9, {
-        'spine_lumbar': (-1.477, -18.76, 7.979), 'spine_thoracic': (-11.47, -2.207, 8.472),
-        'neck': (5.51, -0.412, -14.671), 'head': (5.658, -0.014), 'right_clavicle': (7.718, 7.321),
-        'right_shoulder': (82.171, 7.21, -1.478), 'right_elbow': (21.001, 9.513),
-        'right_wrist': (-2.398, -30.0),
+        'spine_lumbar': (-0.232, -18.167, 8.746), 'spine_thoracic': (-11.396, -1.681, 8.942),
+        'neck': (4.909, -0.435, -15.415), 'head': (5.062, -0.014), 'right_clavicle': (5.999, 7.633),
+        'right_shoulder': (83.513, 7.179, -3.081), 'right_elbow': (21.538, 8.07),
+        'right_wrist': (-3.128, -29.985),
     })
     human.KeyJoints(21.0, {
-        'spine_lumbar': (1.876, -17.617, 8.577), 'spine_thoracic': (-8.958, -6.085, 8.351),
-        'neck': (3.068, -0.491, -16.828), 'head': (3.228, -0.015), 'right_clavicle': (2.892, 7.263),
-        'right_shoulder': (87.606, 6.775, -4.27), 'right_elbow': (23.078, 7.044),
-        'right_wrist': (-3.339, -29.995),
+        'spine_lumbar': (1.877, -17.614, 8.572), 'spine_thoracic': (-8.939, -6.116, 8.344),
+        'neck': (3.061, -0.492, -16.83), 'head': (3.221, -0.015), 'right_clavicle': (2.875, 7.26),
+        'right_shoulder': (87.624, 6.765, -4.271), 'right_elbow': (23.085, 7.042),
+        'right_wrist': (-3.337, -29.996),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.1, {
-        'spine_lumbar': (1.81, -17.809, 8.538), 'spine_thoracic': (-9.398, -6.338, 8.319),
-        'neck': (3.33, -0.488, -16.985), 'head': (3.492, -0.015), 'right_clavicle': (3.467, 7.138),
-        'right_shoulder': (86.882, 7.202, -4.013), 'right_elbow': (22.963, 7.297),
-        'right_wrist': (-3.276, -30.0),
+        'spine_lumbar': (1.738, -18.428, 8.265), 'spine_thoracic': (-10.286, -6.994, 8.198),
+        'neck': (3.846, -0.482, -17.385), 'head': (4.012, -0.015), 'right_clavicle': (5.293, 6.734),
+        'right_shoulder': (85.196, 8.37, -2.886), 'right_elbow': (22.768, 8.405),
+        'right_wrist': (-2.896, -30.0),
     })
     human.KeyJoints(21.2, {
-        'spine_lumbar': (2.655, -19.937, 6.006), 'spine_thoracic': (-11.103, -9.645, 6.966),
-        'neck': (3.996, -0.476, -17.113), 'head': (4.16, -0.015), 'right_clavicle': (12.629, 5.17),
-        'right_shoulder': (82.403, 12.144, 3.937), 'right_elbow': (23.434, 15.042),
-        'right_wrist': (0.03, -28.057),
+        'spine_lumbar': (3.837, -20.0, 4.816), 'spine_thoracic': (-11.433, -10.0, 6.519),
+        'neck': (3.579, -0.475, -16.375), 'head': (3.738, -0.015),
+        'right_clavicle': (17.616, 4.432), 'right_shoulder': (81.897, 14.624, 8.584),
+        'right_elbow': (24.448, 19.57), 'right_wrist': (1.914, -25.427),
     })
     human.KeyJoints(21.3, {
-        'spine_lumbar': (5.132, -19.944, 3.907), 'spine_thoracic': (-11.789, -10.0, 6.214),
-        'neck': (3.1, -0.478, -15.82), 'head': (3.254, -0.015), 'right_clavicle': (21.912, 3.743),
-        'right_shoulder': (81.863, 16.989, 12.45), 'right_elbow': (25.594, 23.365),
-        'right_wrist': (3.374, -22.389),
+        'spine_lumbar': (5.086, -19.893, 3.867), 'spine_thoracic': (-11.827, -10.0, 6.218),
+        'neck': (3.13, -0.476, -15.697), 'head': (3.283, -0.015), 'right_clavicle': (22.181, 3.737),
+        'right_shoulder': (81.806, 17.045, 12.683), 'right_elbow': (25.615, 23.582),
+        'right_wrist': (3.465, -22.192),
     })
     human.KeyJoints(21.4, {
-        'spine_lumbar': (-1.049, -19.986, 5.223), 'spine_thoracic': (-11.451, -6.791, 6.876),
-        'neck': (5.484, -0.396, -13.484), 'head': (5.624, -0.014), 'right_clavicle': (15.52, 5.739),
-        'right_shoulder': (80.214, 10.442, 6.839), 'right_elbow': (22.731, 17.378),
-        'right_wrist': (1.222, -27.437),
+        'spine_lumbar': (-2.139, -19.378, 6.918), 'spine_thoracic': (-11.435, -3.61, 7.826),
+        'neck': (5.83, -0.394, -13.909), 'head': (5.972, -0.014), 'right_clavicle': (10.324, 6.817),
+        'right_shoulder': (80.984, 7.813, 1.365), 'right_elbow': (21.248, 12.133),
+        'right_wrist': (-1.125, -29.934),
     })
     human.KeyJoints(21.5, {
-        'spine_lumbar': (1.528, -17.879, 8.983), 'spine_thoracic': (-10.6, -3.218, 8.943),
-        'neck': (3.829, -0.471, -16.482), 'head': (3.988, -0.015), 'right_clavicle': (4.44, 7.577),
-        'right_shoulder': (85.743, 7.39, -4.039), 'right_elbow': (22.382, 7.294),
-        'right_wrist': (-3.446, -29.895),
+        'spine_lumbar': (1.66, -17.85, 8.931), 'spine_thoracic': (-10.322, -3.762, 8.85),
+        'neck': (3.671, -0.476, -16.612), 'head': (3.831, -0.015), 'right_clavicle': (4.17, 7.514),
+        'right_shoulder': (86.144, 7.386, -4.099), 'right_elbow': (22.525, 7.242),
+        'right_wrist': (-3.445, -29.906),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(21.6, {
-        'spine_lumbar': (1.878, -17.603, 8.556), 'spine_thoracic': (-8.882, -6.211, 8.323),
-        'neck': (3.039, -0.492, -16.836), 'head': (3.199, -0.015), 'right_clavicle': (2.823, 7.25),
-        'right_shoulder': (87.68, 6.736, -4.277), 'right_elbow': (23.107, 7.034),
-        'right_wrist': (-3.332, -30.0),
+        'spine_lumbar': (1.859, -17.66, 8.555), 'spine_thoracic': (-9.028, -6.242, 8.322),
+        'neck': (3.122, -0.491, -16.879), 'head': (3.282, -0.015), 'right_clavicle': (3.002, 7.219),
+        'right_shoulder': (87.453, 6.867, -4.208), 'right_elbow': (23.066, 7.103),
+        'right_wrist': (-3.32, -30.0),
     })
     human.KeyJoints(21.7, {
-        'spine_lumbar': (1.846, -19.119, 7.514), 'spine_thoracic': (-10.653, -8.123, 7.731),
-        'neck': (4.054, -0.479, -17.426), 'head': (4.221, -0.015), 'right_clavicle': (7.494, 6.168),
-        'right_shoulder': (84.011, 9.55, -0.888), 'right_elbow': (22.829, 10.35),
-        'right_wrist': (-2.031, -29.836),
+        'spine_lumbar': (2.459, -19.858, 6.273), 'spine_thoracic': (-11.035, -9.458, 7.085),
+        'neck': (4.046, -0.476, -17.221), 'head': (4.212, -0.015),
+        'right_clavicle': (11.641, 5.336), 'right_shoulder': (82.608, 11.655, 3.004),
+        'right_elbow': (23.278, 14.135), 'right_wrist': (-0.363, -28.493),
     })
     human.KeyJoints(21.8, {
-        'spine_lumbar': (4.384, -20.0, 4.391), 'spine_thoracic': (-11.567, -10.0, 6.364),
-        'neck': (3.369, -0.476, -16.107), 'head': (3.526, -0.015),
-        'right_clavicle': (19.504, 4.132), 'right_shoulder': (81.859, 15.638, 10.317),
-        'right_elbow': (24.951, 21.265), 'right_wrist': (2.574, -24.174),
+        'spine_lumbar': (5.133, -19.944, 3.907), 'spine_thoracic': (-11.789, -10.0, 6.214),
+        'neck': (3.1, -0.478, -15.819), 'head': (3.253, -0.015), 'right_clavicle': (21.915, 3.742),
+        'right_shoulder': (81.863, 16.992, 12.453), 'right_elbow': (25.594, 23.368),
+        'right_wrist': (3.375, -22.387),
     })
     human.KeyJoints(21.9, {
-        'spine_lumbar': (4.322, -19.883, 3.846), 'spine_thoracic': (-11.798, -9.993, 6.198),
-        'neck': (3.448, -0.463, -15.25), 'head': (3.599, -0.015), 'right_clavicle': (21.931, 3.898),
-        'right_shoulder': (81.473, 16.426, 12.601), 'right_elbow': (25.481, 23.394),
-        'right_wrist': (3.432, -22.315),
+        'spine_lumbar': (0.112, -20.0, 4.676), 'spine_thoracic': (-11.519, -7.997, 6.588),
+        'neck': (5.061, -0.408, -13.656), 'head': (5.202, -0.014),
+        'right_clavicle': (17.605, 5.234), 'right_shoulder': (80.284, 11.967, 8.897),
+        'right_elbow': (23.567, 19.425), 'right_wrist': (2.048, -25.907),
     })
     human.KeyJoints(22.0, {
-        'spine_lumbar': (-0.498, -18.259, 8.632), 'spine_thoracic': (-11.42, -1.72, 8.879),
-        'neck': (5.04, -0.43, -15.283), 'head': (5.192, -0.014), 'right_clavicle': (6.284, 7.598),
-        'right_shoulder': (83.235, 7.18, -2.837), 'right_elbow': (21.404, 8.284),
-        'right_wrist': (-3.021, -29.99),
+        'spine_lumbar': (0.506, -18.001, 8.979), 'spine_thoracic': (-11.251, -1.898, 9.048),
+        'neck': (4.523, -0.449, -15.845), 'head': (4.679, -0.014), 'right_clavicle': (5.354, 7.671),
+        'right_shoulder': (84.302, 7.299, -3.617), 'right_elbow': (21.858, 7.619),
+        'right_wrist': (-3.363, -29.92),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.1, {
@@ -1370,65 +1370,65 @@ def remove_access_panel_cad():
         'right_wrist': (-3.332, -30.0),
     })
     human.KeyJoints(22.2, {
-        'spine_lumbar': (1.75, -18.047, 8.478), 'spine_thoracic': (-9.902, -6.533, 8.304),
-        'neck': (3.617, -0.484, -17.152), 'head': (3.781, -0.015), 'right_clavicle': (4.2, 6.996),
-        'right_shoulder': (86.062, 7.709, -3.647), 'right_elbow': (22.829, 7.658),
-        'right_wrist': (-3.172, -30.0),
+        'spine_lumbar': (1.764, -18.829, 7.845), 'spine_thoracic': (-10.507, -7.646, 7.927),
+        'neck': (3.986, -0.48, -17.405), 'head': (4.153, -0.015), 'right_clavicle': (6.478, 6.415),
+        'right_shoulder': (84.515, 9.012, -1.819), 'right_elbow': (22.768, 9.444),
+        'right_wrist': (-2.432, -29.979),
     })
     human.KeyJoints(22.3, {
-        'spine_lumbar': (3.069, -19.996, 5.528), 'spine_thoracic': (-11.226, -9.901, 6.773),
-        'neck': (3.864, -0.475, -16.854), 'head': (4.027, -0.015), 'right_clavicle': (14.527, 4.88),
-        'right_shoulder': (82.119, 13.076, 5.721), 'right_elbow': (23.776, 16.777),
-        'right_wrist': (0.77, -27.14),
+        'spine_lumbar': (4.296, -20.0, 4.456), 'spine_thoracic': (-11.547, -10.0, 6.389),
+        'neck': (3.403, -0.476, -16.146), 'head': (3.56, -0.015), 'right_clavicle': (19.218, 4.18),
+        'right_shoulder': (81.862, 15.48, 10.056), 'right_elbow': (24.869, 21.009),
+        'right_wrist': (2.476, -24.377),
     })
     human.KeyJoints(22.4, {
-        'spine_lumbar': (5.199, -19.932, 3.869), 'spine_thoracic': (-11.813, -10.0, 6.205),
-        'neck': (3.077, -0.478, -15.794), 'head': (3.231, -0.015), 'right_clavicle': (22.126, 3.71),
-        'right_shoulder': (81.865, 17.111, 12.633), 'right_elbow': (25.646, 23.547),
-        'right_wrist': (3.443, -22.224),
+        'spine_lumbar': (4.513, -19.882, 3.844), 'spine_thoracic': (-11.807, -10.0, 6.197),
+        'neck': (3.369, -0.466, -15.348), 'head': (3.52, -0.015), 'right_clavicle': (22.013, 3.855),
+        'right_shoulder': (81.551, 16.59, 12.635), 'right_elbow': (25.521, 23.457),
+        'right_wrist': (3.446, -22.268),
     })
     human.KeyJoints(22.5, {
-        'spine_lumbar': (-1.971, -19.779, 6.14), 'spine_thoracic': (-11.416, -4.936, 7.373),
-        'neck': (5.796, -0.391, -13.621), 'head': (5.937, -0.014),
-        'right_clavicle': (12.491, 6.379), 'right_shoulder': (80.423, 8.72, 3.694),
-        'right_elbow': (21.747, 14.336), 'right_wrist': (-0.105, -29.15),
+        'spine_lumbar': (-1.785, -18.96, 7.665), 'spine_thoracic': (-11.463, -2.551, 8.279),
+        'neck': (5.652, -0.405, -14.409), 'head': (5.799, -0.014), 'right_clavicle': (8.457, 7.181),
+        'right_shoulder': (81.755, 7.312, -0.696), 'right_elbow': (21.037, 10.226),
+        'right_wrist': (-2.045, -29.993),
     })
     human.KeyJoints(22.6, {
-        'spine_lumbar': (1.73, -17.815, 8.877), 'spine_thoracic': (-10.083, -4.194, 8.768),
-        'neck': (3.553, -0.48, -16.679), 'head': (3.713, -0.015), 'right_clavicle': (3.936, 7.467),
-        'right_shoulder': (86.443, 7.324, -4.14), 'right_elbow': (22.635, 7.201),
-        'right_wrist': (-3.435, -29.918),
+        'spine_lumbar': (1.785, -17.773, 8.814), 'spine_thoracic': (-9.831, -4.629, 8.677),
+        'neck': (3.435, -0.483, -16.726), 'head': (3.595, -0.015), 'right_clavicle': (3.698, 7.42),
+        'right_shoulder': (86.726, 7.22, -4.175), 'right_elbow': (22.741, 7.162),
+        'right_wrist': (-3.417, -29.934),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_upper_right
     human.KeyJoints(22.7, {
-        'spine_lumbar': (1.875, -17.61, 8.556), 'spine_thoracic': (-8.899, -6.214, 8.323),
-        'neck': (3.049, -0.492, -16.841), 'head': (3.209, -0.015), 'right_clavicle': (2.843, 7.246),
-        'right_shoulder': (87.653, 6.751, -4.269), 'right_elbow': (23.102, 7.042),
-        'right_wrist': (-3.33, -30.0),
+        'spine_lumbar': (1.812, -17.804, 8.539), 'spine_thoracic': (-9.386, -6.334, 8.319),
+        'neck': (3.324, -0.488, -16.982), 'head': (3.486, -0.015), 'right_clavicle': (3.452, 7.14),
+        'right_shoulder': (86.9, 7.191, -4.019), 'right_elbow': (22.966, 7.29),
+        'right_wrist': (-3.278, -30.0),
     })
     human.KeyJoints(22.8, {
-        'spine_lumbar': (2.025, -19.476, 7.032), 'spine_thoracic': (-10.823, -8.73, 7.463),
-        'neck': (4.099, -0.477, -17.401), 'head': (4.265, -0.015), 'right_clavicle': (9.028, 5.829),
-        'right_shoulder': (83.379, 10.343, 0.54), 'right_elbow': (22.952, 11.739),
-        'right_wrist': (-1.417, -29.457),
+        'spine_lumbar': (2.846, -19.982, 5.774), 'spine_thoracic': (-11.161, -9.78, 6.868),
+        'neck': (3.938, -0.476, -16.998), 'head': (4.102, -0.015),
+        'right_clavicle': (13.528, 5.028), 'right_shoulder': (82.251, 12.587, 4.785),
+        'right_elbow': (23.59, 15.867), 'right_wrist': (0.384, -27.632),
     })
     human.KeyJoints(22.9, {
-        'spine_lumbar': (4.73, -19.998, 4.153), 'spine_thoracic': (-11.657, -10.0, 6.281),
-        'neck': (3.241, -0.477, -15.977), 'head': (3.396, -0.015),
-        'right_clavicle': (20.617, 3.947), 'right_shoulder': (81.856, 16.261, 11.322),
-        'right_elbow': (25.263, 22.251), 'right_wrist': (2.949, -23.362),
+        'spine_lumbar': (5.198, -19.932, 3.87), 'spine_thoracic': (-11.813, -10.0, 6.205),
+        'neck': (3.078, -0.478, -15.794), 'head': (3.231, -0.015), 'right_clavicle': (22.123, 3.71),
+        'right_shoulder': (81.865, 17.11, 12.631), 'right_elbow': (25.645, 23.545),
+        'right_wrist': (3.443, -22.227),
     })
     human.KeyJoints(23.0, {
-        'spine_lumbar': (3.282, -19.416, 4.073), 'spine_thoracic': (-11.784, -9.364, 6.267),
-        'neck': (3.82, -0.442, -14.201), 'head': (3.964, -0.014), 'right_clavicle': (20.722, 4.274),
-        'right_shoulder': (81.117, 15.133, 12.298), 'right_elbow': (26.316, 22.808),
-        'right_wrist': (3.306, -23.313),
+        'spine_lumbar': (0.695, -18.274, 5.478), 'spine_thoracic': (-11.51, -5.916, 6.981),
+        'neck': (4.645, -0.4, -12.48), 'head': (4.778, -0.014), 'right_clavicle': (15.303, 5.732),
+        'right_shoulder': (80.627, 10.849, 8.679), 'right_elbow': (27.109, 18.721),
+        'right_wrist': (1.827, -27.563),
     })
     human.KeyJoints(23.1, {
-        'spine_lumbar': (5.099, -14.519, 9.89), 'spine_thoracic': (-10.878, -0.236, 9.764),
-        'neck': (2.178, -0.469, -13.617), 'head': (2.314, -0.015), 'right_clavicle': (5.349, 8.227),
-        'right_shoulder': (84.794, 7.776, 1.566), 'right_elbow': (32.332, 11.39),
-        'right_wrist': (-1.543, -29.83),
+        'spine_lumbar': (5.927, -14.348, 10.033), 'spine_thoracic': (-10.657, -0.641, 9.849),
+        'neck': (1.686, -0.483, -13.903), 'head': (1.823, -0.015), 'right_clavicle': (4.844, 8.271),
+        'right_shoulder': (85.636, 7.932, 1.412), 'right_elbow': (32.993, 11.258),
+        'right_wrist': (-1.598, -29.795),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=23.176408, duration=0.072)
@@ -1478,245 +1478,245 @@ def remove_access_panel_cad():
         'right_wrist': (-6.457, -3.791),
     })
     human.KeyJoints(24.2, {
-        'right_shoulder': (17.513, 33.356, -16.785), 'right_elbow': (37.585, 2.811),
-        'right_wrist': (-6.586, -5.14),
+        'spine_lumbar': (6.922, -13.948, 9.6), 'right_shoulder': (17.513, 33.356, -16.785),
+        'right_elbow': (37.585, 2.811), 'right_wrist': (-6.586, -5.14),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=24.216071, duration=0.072)
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.3, {
-        'spine_lumbar': (6.932, -13.915, 9.602), 'spine_thoracic': (-8.55, -4.497, 9.155),
-        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.802, 7.882),
-        'right_shoulder': (17.57, 33.375, -16.764), 'right_elbow': (37.553, 2.821),
-        'right_wrist': (-6.577, -5.164),
+        'spine_lumbar': (6.95, -13.858, 9.605), 'spine_thoracic': (-8.555, -4.486, 9.156),
+        'neck': (35.0, -1.977, -41.255), 'head': (15.0, -1.187), 'right_clavicle': (2.815, 7.883),
+        'right_shoulder': (17.578, 33.398, -16.747), 'right_elbow': (37.587, 2.841),
+        'right_wrist': (-6.575, -5.092),
     })
     human.KeyJoints(24.4, {
-        'spine_lumbar': (7.387, -12.311, 9.419), 'spine_thoracic': (-8.57, -5.162, 9.15),
-        'neck': (34.626, -2.071, -40.75), 'head': (14.723, -1.227), 'right_clavicle': (4.637, 7.67),
-        'right_shoulder': (17.68, 33.186, -14.382), 'right_elbow': (37.664, 4.767),
-        'right_wrist': (-6.251, -3.802),
+        'spine_lumbar': (7.85, -11.603, 9.292), 'spine_thoracic': (-8.424, -5.683, 9.156),
+        'neck': (34.436, -2.178, -40.66), 'head': (14.543, -1.248),
+        'right_clavicle': (5.767, 7.663), 'right_shoulder': (17.505, 33.499, -12.982),
+        'right_elbow': (37.858, 6.187), 'right_wrist': (-6.229, -2.684),
     })
     human.KeyJoints(24.5, {
-        'spine_lumbar': (12.64, -5.883, 8.759), 'spine_thoracic': (-7.284, -8.97, 9.583),
-        'neck': (33.113, -3.37, -41.734), 'head': (13.203, -1.502),
-        'right_clavicle': (14.856, 8.214), 'right_shoulder': (15.691, 40.504, -3.465),
-        'right_elbow': (41.946, 17.507), 'right_wrist': (-6.585, 9.384),
+        'spine_lumbar': (13.236, -5.947, 8.625), 'spine_thoracic': (-7.0, -9.452, 9.643),
+        'neck': (33.108, -3.476, -42.091), 'head': (13.161, -1.519),
+        'right_clavicle': (16.324, 8.364), 'right_shoulder': (15.213, 41.671, -2.096),
+        'right_elbow': (42.214, 19.308), 'right_wrist': (-6.725, 10.464),
     })
     human.KeyJoints(24.6, {
-        'spine_lumbar': (13.883, -8.639, 8.103), 'spine_thoracic': (-5.865, -10.0, 9.682),
-        'neck': (33.535, -3.504, -43.216), 'head': (13.462, -1.512),
-        'right_clavicle': (19.669, 8.665), 'right_shoulder': (13.488, 43.444, 1.154),
-        'right_elbow': (41.354, 23.483), 'right_wrist': (-7.065, 10.063),
+        'spine_lumbar': (13.883, -8.656, 8.102), 'spine_thoracic': (-5.86, -10.0, 9.683),
+        'neck': (33.538, -3.503, -43.221), 'head': (13.465, -1.512),
+        'right_clavicle': (19.692, 8.664), 'right_shoulder': (13.482, 43.445, 1.175),
+        'right_elbow': (41.341, 23.505), 'right_wrist': (-7.065, 10.048),
     })
     human.KeyJoints(24.7, {
-        'spine_lumbar': (9.074, -2.177, 8.836), 'spine_thoracic': (-9.005, -5.248, 9.146),
-        'neck': (32.105, -3.03, -38.352), 'head': (12.705, -1.529),
-        'right_clavicle': (14.153, 7.034), 'right_shoulder': (17.811, 36.096, -1.851),
-        'right_elbow': (43.543, 16.417), 'right_wrist': (-5.405, 11.754),
+        'spine_lumbar': (8.821, -1.252, 9.094), 'spine_thoracic': (-9.526, -4.384, 9.192),
+        'neck': (32.007, -3.055, -38.179), 'head': (12.616, -1.53),
+        'right_clavicle': (13.193, 6.869), 'right_shoulder': (18.662, 35.256, -2.844),
+        'right_elbow': (43.602, 15.007), 'right_wrist': (-5.194, 11.491),
     })
     human.KeyJoints(24.8, {
-        'spine_lumbar': (10.718, -0.219, 10.813), 'spine_thoracic': (-10.654, -2.099, 10.104),
-        'neck': (32.264, -3.809, -41.113), 'head': (12.38, -1.569),
-        'right_clavicle': (7.568, 7.954), 'right_shoulder': (20.801, 36.974, -11.008),
-        'right_elbow': (44.407, 8.058), 'right_wrist': (-5.697, 10.471),
+        'spine_lumbar': (10.751, -0.311, 10.815), 'spine_thoracic': (-10.613, -2.114, 10.101),
+        'neck': (32.277, -3.82, -41.178), 'head': (12.384, -1.57), 'right_clavicle': (7.446, 7.998),
+        'right_shoulder': (20.729, 37.107, -11.16), 'right_elbow': (44.467, 7.989),
+        'right_wrist': (-5.74, 10.509),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(24.9, {
-        'spine_lumbar': (11.066, -1.424, 10.817), 'spine_thoracic': (-10.114, -2.305, 10.043),
-        'neck': (32.43, -3.922, -41.878), 'right_clavicle': (6.028, 8.495),
-        'right_shoulder': (19.827, 38.611, -12.859), 'right_elbow': (45.181, 7.24),
-        'right_wrist': (-6.237, 10.985),
+        'spine_lumbar': (11.094, -1.247, 10.772), 'spine_thoracic': (-10.114, -2.493, 10.04),
+        'neck': (32.397, -3.903, -41.735), 'head': (12.43, -1.575),
+        'right_clavicle': (6.406, 8.442), 'right_shoulder': (19.856, 38.468, -12.4),
+        'right_elbow': (45.064, 7.579), 'right_wrist': (-6.163, 10.992),
     })
     human.KeyJoints(25.0, {
-        'spine_lumbar': (12.387, -1.735, 9.809), 'spine_thoracic': (-9.022, -6.223, 9.901),
-        'neck': (32.397, -3.746, -41.263), 'head': (12.52, -1.567),
-        'right_clavicle': (11.873, 8.176), 'right_shoulder': (18.259, 39.684, -6.628),
-        'right_elbow': (44.021, 13.614), 'right_wrist': (-6.166, 11.883),
+        'spine_lumbar': (12.883, -2.782, 9.389), 'spine_thoracic': (-8.334, -7.662, 9.834),
+        'neck': (32.56, -3.686, -41.495), 'head': (12.682, -1.565),
+        'right_clavicle': (13.865, 8.21), 'right_shoulder': (17.211, 40.624, -4.646),
+        'right_elbow': (43.57, 16.031), 'right_wrist': (-6.354, 11.962),
     })
     human.KeyJoints(25.1, {
-        'spine_lumbar': (13.86, -7.723, 8.218), 'spine_thoracic': (-6.163, -10.0, 9.651),
-        'neck': (33.377, -3.526, -42.908), 'head': (13.336, -1.519),
-        'right_clavicle': (18.736, 8.633), 'right_shoulder': (13.89, 43.267, 0.218),
-        'right_elbow': (41.828, 22.423), 'right_wrist': (-7.027, 10.602),
+        'spine_lumbar': (13.883, -8.501, 8.118), 'spine_thoracic': (-5.908, -10.0, 9.675),
+        'neck': (33.509, -3.508, -43.169), 'head': (13.441, -1.514),
+        'right_clavicle': (19.517, 8.663), 'right_shoulder': (13.543, 43.427, 1.001),
+        'right_elbow': (41.433, 23.317), 'right_wrist': (-7.063, 10.152),
     })
     human.KeyJoints(25.2, {
-        'spine_lumbar': (12.101, -7.779, 8.022), 'spine_thoracic': (-6.266, -9.563, 9.407),
-        'neck': (33.232, -3.192, -41.39), 'head': (13.35, -1.467),
-        'right_clavicle': (18.778, 8.294), 'right_shoulder': (13.904, 41.328, 1.615),
-        'right_elbow': (42.006, 22.796), 'right_wrist': (-6.657, 10.714),
+        'spine_lumbar': (10.434, -5.311, 8.261), 'spine_thoracic': (-7.409, -7.848, 9.2),
+        'neck': (32.61, -3.054, -39.644), 'head': (13.054, -1.518),
+        'right_clavicle': (16.909, 7.708), 'right_shoulder': (15.414, 38.95, 0.531),
+        'right_elbow': (42.954, 20.334), 'right_wrist': (-6.107, 11.66),
     })
     human.KeyJoints(25.3, {
-        'spine_lumbar': (9.602, 0.965, 10.514), 'spine_thoracic': (-11.103, -1.901, 9.906),
-        'neck': (32.029, -3.493, -39.557), 'head': (12.379, -1.552),
-        'right_clavicle': (9.567, 7.073), 'right_shoulder': (21.534, 34.374, -7.954),
-        'right_elbow': (43.555, 9.58), 'right_wrist': (-4.948, 10.045),
+        'spine_lumbar': (9.887, 0.951, 10.638), 'spine_thoracic': (-11.124, -1.864, 9.995),
+        'neck': (32.058, -3.574, -39.874), 'head': (12.356, -1.556),
+        'right_clavicle': (9.202, 7.237), 'right_shoulder': (21.586, 34.818, -8.599),
+        'right_elbow': (43.642, 9.18), 'right_wrist': (-5.061, 10.016),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(25.4, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
-        'right_shoulder': (19.823, 38.629, -12.911), 'right_elbow': (45.194, 7.202),
-        'right_wrist': (-6.245, 10.984),
-    })
-    human.KeyJoints(25.5, {
-        'spine_lumbar': (11.432, -0.781, 10.452), 'spine_thoracic': (-10.022, -3.774, 10.005),
-        'neck': (32.304, -3.791, -41.159), 'head': (12.422, -1.569),
-        'right_clavicle': (8.599, 8.232), 'right_shoulder': (19.766, 38.24, -9.909),
-        'right_elbow': (44.542, 9.758), 'right_wrist': (-5.955, 11.219),
-    })
-    human.KeyJoints(25.6, {
-        'spine_lumbar': (13.481, -5.033, 8.756), 'spine_thoracic': (-7.218, -9.314, 9.728),
-        'neck': (32.937, -3.59, -42.103), 'head': (13.005, -1.548),
-        'right_clavicle': (16.536, 8.388), 'right_shoulder': (15.497, 42.056, -1.985),
-        'right_elbow': (42.754, 19.46), 'right_wrist': (-6.699, 11.549),
-    })
-    human.KeyJoints(25.7, {
-        'spine_lumbar': (13.883, -8.656, 8.102), 'spine_thoracic': (-5.86, -10.0, 9.683),
-        'neck': (33.538, -3.503, -43.221), 'head': (13.465, -1.512),
-        'right_clavicle': (19.693, 8.664), 'right_shoulder': (13.482, 43.445, 1.175),
-        'right_elbow': (41.341, 23.505), 'right_wrist': (-7.065, 10.048),
-    })
-    human.KeyJoints(25.8, {
-        'spine_lumbar': (8.787, -0.658, 9.298), 'spine_thoracic': (-9.882, -3.807, 9.245),
-        'neck': (31.953, -3.101, -38.177), 'head': (12.548, -1.532),
-        'right_clavicle': (12.528, 6.802), 'right_shoulder': (19.262, 34.747, -3.596),
-        'right_elbow': (43.596, 14.008), 'right_wrist': (-5.065, 11.268),
-    })
-    human.KeyJoints(25.9, {
-        'spine_lumbar': (10.931, -0.91, 10.821), 'spine_thoracic': (-10.35, -2.205, 10.077),
-        'neck': (32.361, -3.879, -41.571), 'head': (12.415, -1.574),
-        'right_clavicle': (6.671, 8.269), 'right_shoulder': (20.253, 37.926, -12.1),
-        'right_elbow': (44.852, 7.565), 'right_wrist': (-6.01, 10.76),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(26.0, {
-        'spine_lumbar': (11.084, -1.306, 10.787), 'spine_thoracic': (-10.114, -2.429, 10.041),
-        'neck': (32.408, -3.909, -41.783), 'head': (12.435, -1.576),
-        'right_clavicle': (6.279, 8.46), 'right_shoulder': (19.847, 38.514, -12.554),
-        'right_elbow': (45.103, 7.465), 'right_wrist': (-6.188, 10.989),
-    })
-    human.KeyJoints(26.1, {
-        'spine_lumbar': (12.706, -2.343, 9.549), 'spine_thoracic': (-8.601, -7.14, 9.86),
-        'neck': (32.49, -3.711, -41.391), 'head': (12.613, -1.566),
-        'right_clavicle': (13.125, 8.189), 'right_shoulder': (17.618, 40.266, -5.382),
-        'right_elbow': (43.752, 15.123), 'right_wrist': (-6.279, 11.958),
-    })
-    human.KeyJoints(26.2, {
-        'spine_lumbar': (13.878, -8.228, 8.15), 'spine_thoracic': (-5.995, -10.0, 9.663),
-        'neck': (33.461, -3.516, -43.076), 'head': (13.402, -1.515),
-        'right_clavicle': (19.229, 8.655), 'right_shoulder': (13.658, 43.383, 0.712),
-        'right_elbow': (41.581, 22.997), 'right_wrist': (-7.054, 10.322),
-    })
-    human.KeyJoints(26.3, {
-        'spine_lumbar': (10.911, -6.147, 8.157), 'spine_thoracic': (-7.015, -8.46, 9.252),
-        'neck': (32.804, -3.084, -40.136), 'head': (13.146, -1.497),
-        'right_clavicle': (17.546, 7.899), 'right_shoulder': (14.871, 39.701, 0.985),
-        'right_elbow': (42.686, 21.212), 'right_wrist': (-6.287, 11.423),
-    })
-    human.KeyJoints(26.4, {
-        'spine_lumbar': (10.054, 0.869, 10.696), 'spine_thoracic': (-11.095, -1.882, 10.037),
-        'neck': (32.083, -3.62, -40.077), 'head': (12.348, -1.558),
-        'right_clavicle': (8.968, 7.344), 'right_shoulder': (21.54, 35.117, -8.988),
-        'right_elbow': (43.721, 8.976), 'right_wrist': (-5.141, 10.044),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(26.5, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
         'right_clavicle': (5.985, 8.501), 'right_shoulder': (19.823, 38.629, -12.911),
         'right_elbow': (45.194, 7.202), 'right_wrist': (-6.245, 10.984),
     })
+    human.KeyJoints(25.5, {
+        'spine_lumbar': (11.875, -1.092, 10.176), 'spine_thoracic': (-9.589, -4.844, 9.959),
+        'neck': (32.315, -3.784, -41.168), 'head': (12.435, -1.569),
+        'right_clavicle': (10.032, 8.191), 'right_shoulder': (19.117, 38.865, -8.464),
+        'right_elbow': (44.34, 11.434), 'right_wrist': (-6.029, 11.586),
+    })
+    human.KeyJoints(25.6, {
+        'spine_lumbar': (13.773, -6.772, 8.382), 'spine_thoracic': (-6.508, -9.907, 9.664),
+        'neck': (33.228, -3.543, -42.611), 'head': (13.223, -1.526),
+        'right_clavicle': (17.968, 8.56), 'right_shoulder': (14.403, 42.92, -0.549),
+        'right_elbow': (42.18, 21.419), 'right_wrist': (-6.935, 10.997),
+    })
+    human.KeyJoints(25.7, {
+        'spine_lumbar': (13.313, -8.657, 8.04), 'spine_thoracic': (-5.876, -9.999, 9.602),
+        'neck': (33.506, -3.38, -42.684), 'head': (13.472, -1.486),
+        'right_clavicle': (19.627, 8.568), 'right_shoulder': (13.476, 42.78, 1.599),
+        'right_elbow': (41.424, 23.592), 'right_wrist': (-6.942, 10.104),
+    })
+    human.KeyJoints(25.8, {
+        'spine_lumbar': (8.769, 0.334, 9.75), 'spine_thoracic': (-10.521, -2.794, 9.437),
+        'neck': (31.919, -3.191, -38.364), 'head': (12.47, -1.536),
+        'right_clavicle': (11.272, 6.734), 'right_shoulder': (20.387, 34.061, -5.189),
+        'right_elbow': (43.537, 12.088), 'right_wrist': (-4.885, 10.702),
+    })
+    human.KeyJoints(25.9, {
+        'spine_lumbar': (10.953, -0.997, 10.821), 'spine_thoracic': (-10.312, -2.218, 10.072),
+        'neck': (32.373, -3.887, -41.625), 'right_clavicle': (6.559, 8.307),
+        'right_shoulder': (20.184, 38.041, -12.232), 'right_elbow': (44.907, 7.506),
+        'right_wrist': (-6.048, 10.796),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(26.0, {
+        'spine_lumbar': (11.159, -0.95, 10.685), 'spine_thoracic': (-10.114, -2.849, 10.033),
+        'neck': (32.34, -3.868, -41.485), 'head': (12.406, -1.573), 'right_clavicle': (7.1, 8.349),
+        'right_shoulder': (19.888, 38.253, -11.568), 'right_elbow': (44.856, 8.213),
+        'right_wrist': (-6.038, 11.023),
+    })
+    human.KeyJoints(26.1, {
+        'spine_lumbar': (13.168, -3.679, 9.107), 'spine_thoracic': (-7.851, -8.484, 9.788),
+        'neck': (32.704, -3.642, -41.727), 'head': (12.819, -1.564),
+        'right_clavicle': (15.102, 8.271), 'right_shoulder': (16.471, 41.256, -3.417),
+        'right_elbow': (43.227, 17.583), 'right_wrist': (-6.498, 11.857),
+    })
+    human.KeyJoints(26.2, {
+        'spine_lumbar': (13.883, -8.637, 8.104), 'spine_thoracic': (-5.866, -10.0, 9.682),
+        'neck': (33.534, -3.504, -43.215), 'head': (13.462, -1.512),
+        'right_clavicle': (19.665, 8.665), 'right_shoulder': (13.489, 43.443, 1.15),
+        'right_elbow': (41.356, 23.478), 'right_wrist': (-7.065, 10.064),
+    })
+    human.KeyJoints(26.3, {
+        'spine_lumbar': (9.569, -3.514, 8.546), 'spine_thoracic': (-8.296, -6.418, 9.139),
+        'neck': (32.286, -3.023, -38.789), 'head': (12.848, -1.529),
+        'right_clavicle': (15.409, 7.307), 'right_shoulder': (16.708, 37.32, -0.681),
+        'right_elbow': (43.383, 18.228), 'right_wrist': (-5.708, 11.825),
+    })
+    human.KeyJoints(26.4, {
+        'spine_lumbar': (10.243, 0.661, 10.754), 'spine_thoracic': (-11.014, -1.93, 10.08),
+        'neck': (32.129, -3.673, -40.357), 'head': (12.353, -1.562),
+        'right_clavicle': (8.695, 7.479), 'right_shoulder': (21.411, 35.526, -9.426),
+        'right_elbow': (43.852, 8.774), 'right_wrist': (-5.257, 10.123),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(26.5, {
+        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.285, 10.043),
+        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
+        'right_shoulder': (19.823, 38.629, -12.91), 'right_elbow': (45.194, 7.203),
+        'right_wrist': (-6.245, 10.984),
+    })
     human.KeyJoints(26.6, {
-        'spine_lumbar': (11.729, -0.963, 10.272), 'spine_thoracic': (-9.731, -4.473, 9.975),
-        'neck': (32.303, -3.792, -41.161), 'head': (12.421, -1.569),
-        'right_clavicle': (9.536, 8.203), 'right_shoulder': (19.331, 38.654, -8.962),
-        'right_elbow': (44.413, 10.854), 'right_wrist': (-5.998, 11.474),
+        'spine_lumbar': (12.219, -1.486, 9.936), 'spine_thoracic': (-9.222, -5.755, 9.921),
+        'neck': (32.362, -3.761, -41.219), 'head': (12.485, -1.568),
+        'right_clavicle': (11.246, 8.176), 'right_shoulder': (18.562, 39.4, -7.252),
+        'right_elbow': (44.139, 12.867), 'right_wrist': (-6.116, 11.805),
     })
     human.KeyJoints(26.7, {
-        'spine_lumbar': (13.66, -6.038, 8.531), 'spine_thoracic': (-6.795, -9.717, 9.689),
-        'neck': (33.11, -3.56, -42.393), 'head': (13.134, -1.534),
-        'right_clavicle': (17.404, 8.484), 'right_shoulder': (14.847, 42.568, -1.112),
-        'right_elbow': (42.418, 20.64), 'right_wrist': (-6.836, 11.245),
+        'spine_lumbar': (13.854, -7.597, 8.237), 'spine_thoracic': (-6.207, -10.0, 9.65),
+        'neck': (33.357, -3.528, -42.867), 'head': (13.321, -1.52),
+        'right_clavicle': (18.621, 8.627), 'right_shoulder': (13.952, 43.233, 0.102),
+        'right_elbow': (41.883, 22.283), 'right_wrist': (-7.019, 10.664),
     })
     human.KeyJoints(26.8, {
-        'spine_lumbar': (13.726, -8.641, 8.1), 'spine_thoracic': (-5.871, -10.0, 9.679),
-        'neck': (33.537, -3.47, -43.094), 'head': (13.471, -1.505),
-        'right_clavicle': (19.74, 8.625), 'right_shoulder': (13.505, 43.228, 1.358),
-        'right_elbow': (41.323, 23.563), 'right_wrist': (-7.016, 10.029),
+        'spine_lumbar': (12.51, -8.175, 8.005), 'spine_thoracic': (-6.088, -9.795, 9.468),
+        'neck': (33.346, -3.244, -41.821), 'head': (13.404, -1.467),
+        'right_clavicle': (19.107, 8.402), 'right_shoulder': (13.694, 41.832, 1.695),
+        'right_elbow': (41.787, 23.159), 'right_wrist': (-6.762, 10.478),
     })
     human.KeyJoints(26.9, {
-        'spine_lumbar': (8.774, 0.373, 9.773), 'spine_thoracic': (-10.548, -2.753, 9.448),
-        'neck': (31.92, -3.196, -38.38), 'head': (12.467, -1.536),
-        'right_clavicle': (11.216, 6.735), 'right_shoulder': (20.437, 34.054, -5.268),
-        'right_elbow': (43.534, 12.002), 'right_wrist': (-4.883, 10.675),
+        'spine_lumbar': (9.056, 0.914, 10.135), 'spine_thoracic': (-10.933, -2.184, 9.651),
+        'neck': (31.931, -3.319, -38.778), 'head': (12.404, -1.542),
+        'right_clavicle': (10.399, 6.827), 'right_shoulder': (21.15, 33.977, -6.504),
+        'right_elbow': (43.492, 10.729), 'right_wrist': (-4.853, 10.265),
     })
     human.KeyJoints(27.0, {
-        'spine_lumbar': (11.056, -1.412, 10.822), 'spine_thoracic': (-10.128, -2.28, 10.045),
-        'neck': (32.43, -3.922, -41.876), 'right_clavicle': (6.027, 8.487),
-        'right_shoulder': (19.849, 38.586, -12.861), 'right_elbow': (45.173, 7.224),
-        'right_wrist': (-6.231, 10.97),
+        'spine_lumbar': (11.057, -1.417, 10.822), 'spine_thoracic': (-10.126, -2.28, 10.045),
+        'neck': (32.43, -3.922, -41.879), 'right_clavicle': (6.02, 8.489),
+        'right_shoulder': (19.845, 38.593, -12.87), 'right_elbow': (45.177, 7.221),
+        'right_wrist': (-6.233, 10.973),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.1, {
-        'spine_lumbar': (11.132, -1.052, 10.717), 'spine_thoracic': (-10.114, -2.716, 10.036),
-        'neck': (32.359, -3.881, -41.574), 'head': (12.413, -1.574),
-        'right_clavicle': (6.846, 8.382), 'right_shoulder': (19.879, 38.323, -11.87),
-        'right_elbow': (44.93, 7.979), 'right_wrist': (-6.081, 11.009),
+        'spine_lumbar': (11.29, -0.736, 10.552), 'spine_thoracic': (-10.112, -3.385, 10.02),
+        'neck': (32.303, -3.811, -41.219), 'head': (12.41, -1.57), 'right_clavicle': (8.033, 8.258),
+        'right_shoulder': (19.897, 38.117, -10.501), 'right_elbow': (44.629, 9.131),
+        'right_wrist': (-5.945, 11.103),
     })
     human.KeyJoints(27.2, {
-        'spine_lumbar': (12.998, -3.111, 9.28), 'spine_thoracic': (-8.149, -7.997, 9.817),
-        'neck': (32.613, -3.669, -41.578), 'head': (12.733, -1.564),
-        'right_clavicle': (14.355, 8.231), 'right_shoulder': (16.928, 40.868, -4.16),
-        'right_elbow': (43.441, 16.639), 'right_wrist': (-6.408, 11.934),
+        'spine_lumbar': (13.412, -4.696, 8.837), 'spine_thoracic': (-7.367, -9.143, 9.742),
+        'neck': (32.878, -3.602, -42.008), 'right_clavicle': (16.214, 8.357),
+        'right_shoulder': (15.726, 41.871, -2.307), 'right_elbow': (42.868, 19.032),
+        'right_wrist': (-6.651, 11.638),
     })
     human.KeyJoints(27.3, {
-        'spine_lumbar': (13.883, -8.52, 8.116), 'spine_thoracic': (-5.902, -10.0, 9.676),
-        'neck': (33.513, -3.508, -43.175), 'head': (13.444, -1.513),
-        'right_clavicle': (19.537, 8.663), 'right_shoulder': (13.535, 43.43, 1.021),
-        'right_elbow': (41.422, 23.339), 'right_wrist': (-7.063, 10.14),
+        'spine_lumbar': (13.883, -8.657, 8.102), 'spine_thoracic': (-5.859, -10.0, 9.683),
+        'neck': (33.538, -3.503, -43.222), 'head': (13.465, -1.512),
+        'right_clavicle': (19.69, 8.665), 'right_shoulder': (13.481, 43.445, 1.174),
+        'right_elbow': (41.343, 23.504), 'right_wrist': (-7.065, 10.049),
     })
     human.KeyJoints(27.4, {
-        'spine_lumbar': (9.84, -4.125, 8.438), 'spine_thoracic': (-7.988, -6.922, 9.155),
-        'neck': (32.383, -3.028, -39.051), 'right_clavicle': (15.938, 7.441),
-        'right_shoulder': (16.247, 37.873, -0.225), 'right_elbow': (43.256, 18.979),
-        'right_wrist': (-5.845, 11.789),
+        'spine_lumbar': (8.977, -1.888, 8.911), 'spine_thoracic': (-9.164, -4.983, 9.158),
+        'neck': (32.073, -3.034, -38.282), 'head': (12.678, -1.529),
+        'right_clavicle': (13.862, 6.977), 'right_shoulder': (18.067, 35.828, -2.142),
+        'right_elbow': (43.567, 15.994), 'right_wrist': (-5.338, 11.684),
     })
     human.KeyJoints(27.5, {
-        'spine_lumbar': (10.424, 0.386, 10.793), 'spine_thoracic': (-10.906, -1.99, 10.106),
-        'neck': (32.179, -3.724, -40.639), 'head': (12.363, -1.564),
-        'right_clavicle': (8.378, 7.629), 'right_shoulder': (21.235, 35.994, -9.906),
-        'right_elbow': (44.016, 8.562), 'right_wrist': (-5.394, 10.229),
+        'spine_lumbar': (10.54, 0.19, 10.804), 'spine_thoracic': (-10.827, -2.029, 10.11),
+        'neck': (32.208, -3.756, -40.808), 'head': (12.367, -1.566),
+        'right_clavicle': (8.117, 7.743), 'right_shoulder': (21.104, 36.338, -10.285),
+        'right_elbow': (44.142, 8.389), 'right_wrist': (-5.497, 10.305),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(27.6, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
-        'right_shoulder': (19.823, 38.629, -12.911), 'right_elbow': (45.194, 7.202),
-        'right_wrist': (-6.245, 10.984),
+        'spine_lumbar': (11.068, -1.409, 10.813), 'spine_thoracic': (-10.114, -2.321, 10.042),
+        'neck': (32.427, -3.92, -41.866), 'right_clavicle': (6.06, 8.49),
+        'right_shoulder': (19.83, 38.599, -12.82), 'right_elbow': (45.171, 7.269),
+        'right_wrist': (-6.231, 10.985),
     })
     human.KeyJoints(27.7, {
-        'spine_lumbar': (12.051, -1.275, 10.056), 'spine_thoracic': (-9.408, -5.302, 9.94),
-        'neck': (32.335, -3.774, -41.188), 'head': (12.456, -1.568),
-        'right_clavicle': (10.643, 8.182), 'right_shoulder': (18.843, 39.131, -7.853),
-        'right_elbow': (44.243, 12.154), 'right_wrist': (-6.071, 11.705),
+        'spine_lumbar': (12.56, -2.04, 9.672), 'spine_thoracic': (-8.802, -6.716, 9.879),
+        'neck': (32.443, -3.728, -41.324), 'head': (12.567, -1.567),
+        'right_clavicle': (12.541, 8.181), 'right_shoulder': (17.924, 39.991, -5.963),
+        'right_elbow': (43.883, 14.415), 'right_wrist': (-6.224, 11.942),
     })
     human.KeyJoints(27.8, {
-        'spine_lumbar': (13.801, -6.971, 8.343), 'spine_thoracic': (-6.433, -9.949, 9.657),
-        'neck': (33.26, -3.539, -42.671), 'head': (13.247, -1.524),
-        'right_clavicle': (18.114, 8.58), 'right_shoulder': (14.287, 43.012, -0.403),
-        'right_elbow': (42.116, 21.622), 'right_wrist': (-6.961, 10.925),
+        'spine_lumbar': (13.876, -8.165, 8.158), 'spine_thoracic': (-6.015, -10.0, 9.661),
+        'neck': (33.45, -3.518, -43.055), 'head': (13.393, -1.516),
+        'right_clavicle': (19.165, 8.653), 'right_shoulder': (13.685, 43.371, 0.648),
+        'right_elbow': (41.614, 22.925), 'right_wrist': (-7.051, 10.359),
     })
     human.KeyJoints(27.9, {
-        'spine_lumbar': (13.133, -8.596, 8.027), 'spine_thoracic': (-5.903, -9.975, 9.571),
-        'neck': (33.48, -3.346, -42.498), 'head': (13.463, -1.479),
-        'right_clavicle': (19.537, 8.536), 'right_shoulder': (13.503, 42.574, 1.637),
-        'right_elbow': (41.491, 23.537), 'right_wrist': (-6.904, 10.169),
+        'spine_lumbar': (11.486, -7.005, 8.075), 'spine_thoracic': (-6.618, -9.054, 9.324),
+        'neck': (33.022, -3.132, -40.74), 'head': (13.248, -1.479),
+        'right_clavicle': (18.195, 8.104), 'right_shoulder': (14.348, 40.526, 1.356),
+        'right_elbow': (42.357, 22.066), 'right_wrist': (-6.478, 11.088),
     })
     human.KeyJoints(28.0, {
-        'spine_lumbar': (9.127, 0.96, 10.197), 'spine_thoracic': (-10.979, -2.115, 9.69),
-        'neck': (31.94, -3.344, -38.879), 'head': (12.397, -1.544),
-        'right_clavicle': (10.259, 6.853), 'right_shoulder': (21.241, 33.972, -6.73),
-        'right_elbow': (43.488, 10.524), 'right_wrist': (-4.85, 10.211),
+        'spine_lumbar': (9.45, 0.97, 10.431), 'spine_thoracic': (-11.078, -1.947, 9.846),
+        'neck': (32.006, -3.448, -39.361), 'head': (12.388, -1.549),
+        'right_clavicle': (9.749, 6.994), 'right_shoulder': (21.47, 34.17, -7.619),
+        'right_elbow': (43.519, 9.817), 'right_wrist': (-4.898, 10.081),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.1, {
@@ -1726,232 +1726,232 @@ def remove_access_panel_cad():
         'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(28.2, {
-        'spine_lumbar': (11.234, -0.771, 10.604), 'spine_thoracic': (-10.113, -3.176, 10.026),
-        'neck': (32.307, -3.835, -41.3), 'head': (12.399, -1.571), 'right_clavicle': (7.691, 8.283),
-        'right_shoulder': (19.897, 38.138, -10.88), 'right_elbow': (44.7, 8.781),
-        'right_wrist': (-5.96, 11.069),
+        'spine_lumbar': (11.548, -0.845, 10.385), 'spine_thoracic': (-9.905, -4.035, 9.994),
+        'neck': (32.3, -3.795, -41.163), 'head': (12.417, -1.569), 'right_clavicle': (8.946, 8.219),
+        'right_shoulder': (19.592, 38.404, -9.558), 'right_elbow': (44.496, 10.166),
+        'right_wrist': (-5.97, 11.324),
     })
     human.KeyJoints(28.3, {
-        'spine_lumbar': (13.257, -4.019, 9.013), 'spine_thoracic': (-7.683, -8.732, 9.772),
-        'neck': (32.759, -3.627, -41.82), 'head': (12.871, -1.563), 'right_clavicle': (15.5, 8.298),
-        'right_shoulder': (16.213, 41.472, -3.019), 'right_elbow': (43.105, 18.096),
-        'right_wrist': (-6.551, 11.791),
+        'spine_lumbar': (13.613, -5.754, 8.592), 'spine_thoracic': (-6.911, -9.619, 9.7),
+        'neck': (33.062, -3.568, -42.31), 'head': (13.098, -1.537),
+        'right_clavicle': (17.17, 8.457), 'right_shoulder': (15.026, 42.429, -1.348),
+        'right_elbow': (42.513, 20.32), 'right_wrist': (-6.799, 11.337),
     })
     human.KeyJoints(28.4, {
-        'spine_lumbar': (13.883, -8.639, 8.103), 'spine_thoracic': (-5.865, -10.0, 9.682),
-        'neck': (33.535, -3.504, -43.215), 'head': (13.462, -1.512),
-        'right_clavicle': (19.668, 8.665), 'right_shoulder': (13.488, 43.443, 1.153),
-        'right_elbow': (41.354, 23.481), 'right_wrist': (-7.065, 10.062),
+        'spine_lumbar': (13.766, -8.639, 8.104), 'spine_thoracic': (-5.87, -10.0, 9.683),
+        'neck': (33.538, -3.479, -43.13), 'head': (13.47, -1.507),
+        'right_clavicle': (19.745, 8.631), 'right_shoulder': (13.508, 43.275, 1.32),
+        'right_elbow': (41.318, 23.555), 'right_wrist': (-7.025, 10.025),
     })
     human.KeyJoints(28.5, {
-        'spine_lumbar': (9.084, -2.207, 8.829), 'spine_thoracic': (-8.988, -5.276, 9.145),
-        'neck': (32.109, -3.03, -38.36), 'head': (12.708, -1.529), 'right_clavicle': (14.182, 7.04),
-        'right_shoulder': (17.784, 36.124, -1.822), 'right_elbow': (43.541, 16.46),
-        'right_wrist': (-5.411, 11.76),
+        'spine_lumbar': (8.785, -0.593, 9.323), 'spine_thoracic': (-9.922, -3.743, 9.253),
+        'neck': (31.948, -3.106, -38.182), 'head': (12.542, -1.532),
+        'right_clavicle': (12.453, 6.795), 'right_shoulder': (19.33, 34.689, -3.684),
+        'right_elbow': (43.593, 13.895), 'right_wrist': (-5.051, 11.238),
     })
     human.KeyJoints(28.6, {
-        'spine_lumbar': (10.714, -0.207, 10.813), 'spine_thoracic': (-10.659, -2.097, 10.104),
-        'neck': (32.263, -3.808, -41.105), 'head': (12.38, -1.569),
-        'right_clavicle': (7.584, 7.948), 'right_shoulder': (20.81, 36.957, -10.988),
-        'right_elbow': (44.399, 8.067), 'right_wrist': (-5.691, 10.466),
+        'spine_lumbar': (10.775, -0.384, 10.816), 'spine_thoracic': (-10.582, -2.125, 10.099),
+        'neck': (32.287, -3.827, -41.227), 'head': (12.388, -1.57),
+        'right_clavicle': (7.351, 8.032), 'right_shoulder': (20.672, 37.21, -11.278),
+        'right_elbow': (44.514, 7.936), 'right_wrist': (-5.773, 10.539),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(28.7, {
-        'spine_lumbar': (11.066, -1.425, 10.817), 'spine_thoracic': (-10.114, -2.304, 10.043),
-        'neck': (32.43, -3.922, -41.879), 'right_clavicle': (6.026, 8.495),
-        'right_shoulder': (19.827, 38.612, -12.861), 'right_elbow': (45.181, 7.239),
-        'right_wrist': (-6.237, 10.985),
+        'spine_lumbar': (11.093, -1.251, 10.773), 'spine_thoracic': (-10.114, -2.488, 10.04),
+        'neck': (32.397, -3.903, -41.738), 'head': (12.43, -1.575),
+        'right_clavicle': (6.397, 8.443), 'right_shoulder': (19.855, 38.471, -12.41),
+        'right_elbow': (45.066, 7.571), 'right_wrist': (-6.165, 10.992),
     })
     human.KeyJoints(28.8, {
-        'spine_lumbar': (12.382, -1.726, 9.814), 'spine_thoracic': (-9.029, -6.207, 9.901),
-        'neck': (32.396, -3.747, -41.261), 'head': (12.519, -1.567),
-        'right_clavicle': (11.852, 8.176), 'right_shoulder': (18.27, 39.674, -6.648),
-        'right_elbow': (44.025, 13.589), 'right_wrist': (-6.165, 11.881),
+        'spine_lumbar': (12.878, -2.768, 9.393), 'spine_thoracic': (-8.342, -7.647, 9.835),
+        'neck': (32.558, -3.687, -41.492), 'head': (12.68, -1.565),
+        'right_clavicle': (13.844, 8.21), 'right_shoulder': (17.223, 40.613, -4.668),
+        'right_elbow': (43.576, 16.004), 'right_wrist': (-6.352, 11.963),
     })
     human.KeyJoints(28.9, {
-        'spine_lumbar': (13.86, -7.713, 8.22), 'spine_thoracic': (-6.167, -10.0, 9.651),
-        'neck': (33.375, -3.526, -42.905), 'head': (13.335, -1.519),
-        'right_clavicle': (18.726, 8.633), 'right_shoulder': (13.895, 43.264, 0.208),
-        'right_elbow': (41.832, 22.412), 'right_wrist': (-7.026, 10.607),
+        'spine_lumbar': (13.883, -8.497, 8.118), 'spine_thoracic': (-5.909, -10.0, 9.675),
+        'neck': (33.509, -3.509, -43.167), 'head': (13.441, -1.514),
+        'right_clavicle': (19.513, 8.662), 'right_shoulder': (13.544, 43.427, 0.997),
+        'right_elbow': (41.435, 23.313), 'right_wrist': (-7.063, 10.155),
     })
     human.KeyJoints(29.0, {
-        'spine_lumbar': (12.121, -7.801, 8.02), 'spine_thoracic': (-6.256, -9.577, 9.41),
-        'neck': (33.238, -3.194, -41.411), 'head': (13.354, -1.467),
-        'right_clavicle': (18.795, 8.3), 'right_shoulder': (13.892, 41.353, 1.621),
-        'right_elbow': (41.995, 22.817), 'right_wrist': (-6.662, 10.702),
+        'spine_lumbar': (10.451, -5.341, 8.257), 'spine_thoracic': (-7.395, -7.871, 9.202),
+        'neck': (32.616, -3.055, -39.661), 'head': (13.057, -1.517),
+        'right_clavicle': (16.933, 7.715), 'right_shoulder': (15.394, 38.977, 0.549),
+        'right_elbow': (42.945, 20.367), 'right_wrist': (-6.114, 11.654),
     })
     human.KeyJoints(29.1, {
-        'spine_lumbar': (9.593, 0.966, 10.51), 'spine_thoracic': (-11.102, -1.904, 9.903),
-        'neck': (32.028, -3.491, -39.546), 'head': (12.38, -1.551),
-        'right_clavicle': (9.577, 7.068), 'right_shoulder': (21.531, 34.362, -7.935),
-        'right_elbow': (43.553, 9.592), 'right_wrist': (-4.945, 10.047),
+        'spine_lumbar': (9.881, 0.951, 10.635), 'spine_thoracic': (-11.124, -1.864, 9.994),
+        'neck': (32.058, -3.572, -39.868), 'head': (12.356, -1.556),
+        'right_clavicle': (9.211, 7.233), 'right_shoulder': (21.586, 34.807, -8.584),
+        'right_elbow': (43.639, 9.188), 'right_wrist': (-5.058, 10.016),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(29.2, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
-        'right_shoulder': (19.823, 38.629, -12.911), 'right_elbow': (45.194, 7.202),
-        'right_wrist': (-6.245, 10.984),
-    })
-    human.KeyJoints(29.3, {
-        'spine_lumbar': (11.427, -0.779, 10.455), 'spine_thoracic': (-10.027, -3.764, 10.006),
-        'neck': (32.304, -3.791, -41.16), 'head': (12.422, -1.569),
-        'right_clavicle': (8.584, 8.232), 'right_shoulder': (19.772, 38.235, -9.923),
-        'right_elbow': (44.544, 9.742), 'right_wrist': (-5.955, 11.214),
-    })
-    human.KeyJoints(29.4, {
-        'spine_lumbar': (13.478, -5.016, 8.76), 'spine_thoracic': (-7.225, -9.306, 9.729),
-        'neck': (32.934, -3.591, -42.098), 'head': (13.003, -1.548),
-        'right_clavicle': (16.52, 8.386), 'right_shoulder': (15.508, 42.047, -2.001),
-        'right_elbow': (42.76, 19.439), 'right_wrist': (-6.697, 11.554),
-    })
-    human.KeyJoints(29.5, {
-        'spine_lumbar': (13.883, -8.657, 8.102), 'spine_thoracic': (-5.859, -10.0, 9.683),
-        'neck': (33.538, -3.503, -43.222), 'head': (13.465, -1.512),
-        'right_clavicle': (19.69, 8.665), 'right_shoulder': (13.481, 43.445, 1.174),
-        'right_elbow': (41.342, 23.504), 'right_wrist': (-7.065, 10.049),
-    })
-    human.KeyJoints(29.6, {
-        'spine_lumbar': (8.788, -0.68, 9.29), 'spine_thoracic': (-9.868, -3.829, 9.242),
-        'neck': (31.955, -3.099, -38.176), 'head': (12.551, -1.532),
-        'right_clavicle': (12.553, 6.804), 'right_shoulder': (19.239, 34.767, -3.566),
-        'right_elbow': (43.597, 14.046), 'right_wrist': (-5.07, 11.278),
-    })
-    human.KeyJoints(29.7, {
-        'spine_lumbar': (10.928, -0.899, 10.821), 'spine_thoracic': (-10.355, -2.204, 10.077),
-        'neck': (32.359, -3.878, -41.564), 'head': (12.415, -1.574),
-        'right_clavicle': (6.685, 8.264), 'right_shoulder': (20.262, 37.911, -12.084),
-        'right_elbow': (44.845, 7.573), 'right_wrist': (-6.005, 10.755),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(29.8, {
-        'spine_lumbar': (11.083, -1.309, 10.788), 'spine_thoracic': (-10.114, -2.426, 10.041),
-        'neck': (32.408, -3.91, -41.785), 'head': (12.435, -1.576),
-        'right_clavicle': (6.272, 8.461), 'right_shoulder': (19.847, 38.517, -12.562),
-        'right_elbow': (45.105, 7.459), 'right_wrist': (-6.189, 10.989),
-    })
-    human.KeyJoints(29.9, {
-        'spine_lumbar': (12.7, -2.332, 9.553), 'spine_thoracic': (-8.608, -7.125, 9.86),
-        'neck': (32.488, -3.711, -41.388), 'head': (12.612, -1.566),
-        'right_clavicle': (13.104, 8.189), 'right_shoulder': (17.629, 40.256, -5.403),
-        'right_elbow': (43.756, 15.097), 'right_wrist': (-6.277, 11.957),
-    })
-    human.KeyJoints(30.0, {
-        'spine_lumbar': (13.878, -8.221, 8.151), 'spine_thoracic': (-5.997, -10.0, 9.663),
-        'neck': (33.46, -3.516, -43.074), 'head': (13.401, -1.516),
-        'right_clavicle': (19.222, 8.655), 'right_shoulder': (13.661, 43.382, 0.705),
-        'right_elbow': (41.585, 22.989), 'right_wrist': (-7.054, 10.326),
-    })
-    human.KeyJoints(30.1, {
-        'spine_lumbar': (10.931, -6.18, 8.153), 'spine_thoracic': (-7.0, -8.484, 9.255),
-        'neck': (32.812, -3.086, -40.157), 'head': (13.15, -1.496),
-        'right_clavicle': (17.571, 7.907), 'right_shoulder': (14.85, 39.731, 1.001),
-        'right_elbow': (42.674, 21.245), 'right_wrist': (-6.294, 11.411),
-    })
-    human.KeyJoints(30.2, {
-        'spine_lumbar': (10.047, 0.875, 10.694), 'spine_thoracic': (-11.097, -1.881, 10.035),
-        'neck': (32.082, -3.618, -40.067), 'head': (12.348, -1.558),
-        'right_clavicle': (8.977, 7.339), 'right_shoulder': (21.544, 35.103, -8.972),
-        'right_elbow': (43.717, 8.984), 'right_wrist': (-5.138, 10.042),
-    })
-    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
-    human.KeyJoints(30.3, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
         'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
         'right_clavicle': (5.985, 8.501), 'right_shoulder': (19.823, 38.629, -12.911),
         'right_elbow': (45.194, 7.202), 'right_wrist': (-6.245, 10.984),
     })
+    human.KeyJoints(29.3, {
+        'spine_lumbar': (11.869, -1.086, 10.18), 'spine_thoracic': (-9.595, -4.829, 9.96),
+        'neck': (32.314, -3.785, -41.168), 'head': (12.434, -1.569),
+        'right_clavicle': (10.012, 8.192), 'right_shoulder': (19.126, 38.856, -8.484),
+        'right_elbow': (44.343, 11.411), 'right_wrist': (-6.028, 11.582),
+    })
+    human.KeyJoints(29.4, {
+        'spine_lumbar': (13.771, -6.756, 8.385), 'spine_thoracic': (-6.514, -9.904, 9.664),
+        'neck': (33.226, -3.543, -42.607), 'head': (13.221, -1.526),
+        'right_clavicle': (17.957, 8.558), 'right_shoulder': (14.412, 42.913, -0.56),
+        'right_elbow': (42.185, 21.403), 'right_wrist': (-6.933, 11.002),
+    })
+    human.KeyJoints(29.5, {
+        'spine_lumbar': (13.323, -8.658, 8.041), 'spine_thoracic': (-5.875, -10.0, 9.604),
+        'neck': (33.507, -3.382, -42.693), 'head': (13.472, -1.486),
+        'right_clavicle': (19.631, 8.57), 'right_shoulder': (13.476, 42.791, 1.596),
+        'right_elbow': (41.421, 23.592), 'right_wrist': (-6.944, 10.101),
+    })
+    human.KeyJoints(29.6, {
+        'spine_lumbar': (8.768, 0.322, 9.743), 'spine_thoracic': (-10.513, -2.806, 9.434),
+        'neck': (31.919, -3.19, -38.359), 'head': (12.47, -1.536),
+        'right_clavicle': (11.289, 6.733), 'right_shoulder': (20.373, 34.063, -5.166),
+        'right_elbow': (43.537, 12.114), 'right_wrist': (-4.886, 10.71),
+    })
+    human.KeyJoints(29.7, {
+        'spine_lumbar': (10.951, -0.987, 10.821), 'spine_thoracic': (-10.316, -2.217, 10.072),
+        'neck': (32.371, -3.886, -41.619), 'right_clavicle': (6.571, 8.302),
+        'right_shoulder': (20.191, 38.028, -12.218), 'right_elbow': (44.901, 7.512),
+        'right_wrist': (-6.044, 10.792),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(29.8, {
+        'spine_lumbar': (11.157, -0.956, 10.687), 'spine_thoracic': (-10.114, -2.841, 10.033),
+        'neck': (32.341, -3.869, -41.49), 'head': (12.406, -1.573),
+        'right_clavicle': (7.086, 8.351), 'right_shoulder': (19.887, 38.256, -11.585),
+        'right_elbow': (44.86, 8.2), 'right_wrist': (-6.04, 11.023),
+    })
+    human.KeyJoints(29.9, {
+        'spine_lumbar': (13.163, -3.662, 9.112), 'spine_thoracic': (-7.859, -8.471, 9.789),
+        'neck': (32.702, -3.643, -41.723), 'head': (12.817, -1.564),
+        'right_clavicle': (15.082, 8.27), 'right_shoulder': (16.483, 41.246, -3.436),
+        'right_elbow': (43.233, 17.558), 'right_wrist': (-6.496, 11.859),
+    })
+    human.KeyJoints(30.0, {
+        'spine_lumbar': (13.883, -8.636, 8.104), 'spine_thoracic': (-5.866, -10.0, 9.682),
+        'neck': (33.534, -3.504, -43.214), 'head': (13.461, -1.513),
+        'right_clavicle': (19.664, 8.665), 'right_shoulder': (13.489, 43.443, 1.148),
+        'right_elbow': (41.356, 23.477), 'right_wrist': (-7.065, 10.065),
+    })
+    human.KeyJoints(30.1, {
+        'spine_lumbar': (9.582, -3.544, 8.541), 'spine_thoracic': (-8.281, -6.443, 9.14),
+        'neck': (32.291, -3.023, -38.801), 'head': (12.852, -1.529),
+        'right_clavicle': (15.436, 7.314), 'right_shoulder': (16.685, 37.347, -0.658),
+        'right_elbow': (43.377, 18.266), 'right_wrist': (-5.715, 11.824),
+    })
+    human.KeyJoints(30.2, {
+        'spine_lumbar': (10.238, 0.668, 10.753), 'spine_thoracic': (-11.017, -1.928, 10.079),
+        'neck': (32.128, -3.672, -40.348), 'head': (12.353, -1.561),
+        'right_clavicle': (8.703, 7.474), 'right_shoulder': (21.416, 35.513, -9.412),
+        'right_elbow': (43.848, 8.78), 'right_wrist': (-5.254, 10.12),
+    })
+    # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
+    human.KeyJoints(30.3, {
+        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.285, 10.043),
+        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
+        'right_shoulder': (19.823, 38.629, -12.91), 'right_elbow': (45.194, 7.203),
+        'right_wrist': (-6.245, 10.984),
+    })
     human.KeyJoints(30.4, {
-        'spine_lumbar': (11.723, -0.959, 10.275), 'spine_thoracic': (-9.736, -4.46, 9.975),
-        'neck': (32.303, -3.792, -41.161), 'head': (12.421, -1.569),
-        'right_clavicle': (9.518, 8.203), 'right_shoulder': (19.338, 38.647, -8.98),
-        'right_elbow': (44.416, 10.833), 'right_wrist': (-5.997, 11.47),
+        'spine_lumbar': (12.213, -1.478, 9.94), 'spine_thoracic': (-9.229, -5.739, 9.922),
+        'neck': (32.361, -3.762, -41.218), 'head': (12.483, -1.568),
+        'right_clavicle': (11.225, 8.177), 'right_shoulder': (18.572, 39.391, -7.273),
+        'right_elbow': (44.143, 12.842), 'right_wrist': (-6.114, 11.802),
     })
     human.KeyJoints(30.5, {
-        'spine_lumbar': (13.657, -6.022, 8.535), 'spine_thoracic': (-6.802, -9.712, 9.69),
-        'neck': (33.107, -3.56, -42.388), 'head': (13.132, -1.534),
-        'right_clavicle': (17.391, 8.483), 'right_shoulder': (14.858, 42.56, -1.126),
-        'right_elbow': (42.423, 20.622), 'right_wrist': (-6.834, 11.251),
+        'spine_lumbar': (13.854, -7.585, 8.239), 'spine_thoracic': (-6.211, -10.0, 9.65),
+        'neck': (33.355, -3.528, -42.863), 'head': (13.319, -1.52),
+        'right_clavicle': (18.61, 8.626), 'right_shoulder': (13.958, 43.23, 0.092),
+        'right_elbow': (41.888, 22.27), 'right_wrist': (-7.018, 10.669),
     })
     human.KeyJoints(30.6, {
-        'spine_lumbar': (13.732, -8.64, 8.101), 'spine_thoracic': (-5.871, -10.0, 9.68),
-        'neck': (33.537, -3.472, -43.099), 'head': (13.471, -1.505),
-        'right_clavicle': (19.741, 8.625), 'right_shoulder': (13.505, 43.234, 1.353),
-        'right_elbow': (41.322, 23.562), 'right_wrist': (-7.017, 10.028),
+        'spine_lumbar': (12.525, -8.186, 8.005), 'spine_thoracic': (-6.083, -9.8, 9.47),
+        'neck': (33.349, -3.246, -41.837), 'head': (13.406, -1.467),
+        'right_clavicle': (19.118, 8.406), 'right_shoulder': (13.689, 41.85, 1.695),
+        'right_elbow': (41.78, 23.17), 'right_wrist': (-6.766, 10.471),
     })
     human.KeyJoints(30.7, {
-        'spine_lumbar': (8.772, 0.36, 9.765), 'spine_thoracic': (-10.539, -2.767, 9.444),
-        'neck': (31.92, -3.194, -38.374), 'head': (12.468, -1.536),
-        'right_clavicle': (11.235, 6.734), 'right_shoulder': (20.42, 34.056, -5.241),
-        'right_elbow': (43.535, 12.03), 'right_wrist': (-4.884, 10.684),
+        'spine_lumbar': (9.049, 0.908, 10.129), 'spine_thoracic': (-10.929, -2.191, 9.648),
+        'neck': (31.93, -3.316, -38.77), 'head': (12.405, -1.542),
+        'right_clavicle': (10.411, 6.825), 'right_shoulder': (21.141, 33.977, -6.484),
+        'right_elbow': (43.492, 10.748), 'right_wrist': (-4.853, 10.271),
     })
     human.KeyJoints(30.8, {
-        'spine_lumbar': (11.055, -1.407, 10.822), 'spine_thoracic': (-10.131, -2.279, 10.046),
-        'neck': (32.429, -3.921, -41.873), 'right_clavicle': (6.033, 8.485),
-        'right_shoulder': (19.853, 38.58, -12.854), 'right_elbow': (45.17, 7.227),
-        'right_wrist': (-6.229, 10.968),
+        'spine_lumbar': (11.056, -1.413, 10.822), 'spine_thoracic': (-10.128, -2.28, 10.045),
+        'neck': (32.43, -3.922, -41.877), 'right_clavicle': (6.025, 8.487),
+        'right_shoulder': (19.848, 38.588, -12.864), 'right_elbow': (45.174, 7.223),
+        'right_wrist': (-6.232, 10.971),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(30.9, {
-        'spine_lumbar': (11.131, -1.057, 10.719), 'spine_thoracic': (-10.114, -2.71, 10.036),
-        'neck': (32.36, -3.882, -41.578), 'head': (12.414, -1.574),
-        'right_clavicle': (6.834, 8.384), 'right_shoulder': (19.879, 38.327, -11.885),
-        'right_elbow': (44.934, 7.967), 'right_wrist': (-6.083, 11.009),
+        'spine_lumbar': (11.287, -0.736, 10.554), 'spine_thoracic': (-10.112, -3.375, 10.02),
+        'neck': (32.303, -3.812, -41.222), 'head': (12.409, -1.57),
+        'right_clavicle': (8.017, 8.259), 'right_shoulder': (19.897, 38.117, -10.519),
+        'right_elbow': (44.632, 9.115), 'right_wrist': (-5.945, 11.101),
     })
     human.KeyJoints(31.0, {
-        'spine_lumbar': (12.993, -3.097, 9.284), 'spine_thoracic': (-8.157, -7.983, 9.817),
-        'neck': (32.611, -3.67, -41.574), 'head': (12.731, -1.564),
-        'right_clavicle': (14.335, 8.23), 'right_shoulder': (16.94, 40.858, -4.18),
-        'right_elbow': (43.446, 16.614), 'right_wrist': (-6.406, 11.935),
+        'spine_lumbar': (13.409, -4.679, 8.841), 'spine_thoracic': (-7.375, -9.134, 9.743),
+        'neck': (32.875, -3.602, -42.003), 'right_clavicle': (16.197, 8.355),
+        'right_shoulder': (15.739, 41.861, -2.324), 'right_elbow': (42.875, 19.009),
+        'right_wrist': (-6.649, 11.643),
     })
     human.KeyJoints(31.1, {
-        'spine_lumbar': (13.883, -8.516, 8.116), 'spine_thoracic': (-5.903, -10.0, 9.676),
-        'neck': (33.512, -3.508, -43.174), 'head': (13.443, -1.513),
-        'right_clavicle': (19.534, 8.663), 'right_shoulder': (13.536, 43.429, 1.018),
-        'right_elbow': (41.424, 23.335), 'right_wrist': (-7.063, 10.142),
+        'spine_lumbar': (13.883, -8.658, 8.101), 'spine_thoracic': (-5.859, -10.0, 9.683),
+        'neck': (33.538, -3.503, -43.222), 'head': (13.465, -1.512),
+        'right_clavicle': (19.688, 8.665), 'right_shoulder': (13.48, 43.445, 1.173),
+        'right_elbow': (41.343, 23.503), 'right_wrist': (-7.065, 10.05),
     })
     human.KeyJoints(31.2, {
-        'spine_lumbar': (9.856, -4.16, 8.432), 'spine_thoracic': (-7.971, -6.95, 9.156),
-        'neck': (32.389, -3.029, -39.067), 'right_clavicle': (15.967, 7.449),
-        'right_shoulder': (16.222, 37.904, -0.2), 'right_elbow': (43.248, 19.021),
-        'right_wrist': (-5.853, 11.786),
+        'spine_lumbar': (8.985, -1.914, 8.904), 'spine_thoracic': (-9.15, -5.007, 9.156),
+        'neck': (32.076, -3.034, -38.287), 'head': (12.681, -1.529),
+        'right_clavicle': (13.888, 6.982), 'right_shoulder': (18.044, 35.851, -2.116),
+        'right_elbow': (43.565, 16.032), 'right_wrist': (-5.344, 11.691),
     })
     human.KeyJoints(31.3, {
-        'spine_lumbar': (10.419, 0.395, 10.792), 'spine_thoracic': (-10.909, -1.988, 10.106),
-        'neck': (32.178, -3.723, -40.631), 'head': (12.363, -1.564),
-        'right_clavicle': (8.389, 7.624), 'right_shoulder': (21.241, 35.978, -9.89),
-        'right_elbow': (44.011, 8.569), 'right_wrist': (-5.389, 10.225),
+        'spine_lumbar': (10.536, 0.198, 10.804), 'spine_thoracic': (-10.83, -2.028, 10.11),
+        'neck': (32.207, -3.755, -40.802), 'head': (12.367, -1.566),
+        'right_clavicle': (8.128, 7.738), 'right_shoulder': (21.11, 36.324, -10.269),
+        'right_elbow': (44.136, 8.396), 'right_wrist': (-5.493, 10.302),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.4, {
-        'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
-        'right_shoulder': (19.823, 38.629, -12.911), 'right_elbow': (45.194, 7.202),
-        'right_wrist': (-6.245, 10.984),
+        'spine_lumbar': (11.068, -1.41, 10.814), 'spine_thoracic': (-10.114, -2.32, 10.042),
+        'neck': (32.428, -3.92, -41.867), 'right_clavicle': (6.057, 8.491),
+        'right_shoulder': (19.829, 38.6, -12.823), 'right_elbow': (45.172, 7.266),
+        'right_wrist': (-6.231, 10.985),
     })
     human.KeyJoints(31.5, {
-        'spine_lumbar': (12.045, -1.269, 10.06), 'spine_thoracic': (-9.413, -5.288, 9.941),
-        'neck': (32.334, -3.774, -41.187), 'head': (12.455, -1.569),
-        'right_clavicle': (10.623, 8.182), 'right_shoulder': (18.852, 39.123, -7.872),
-        'right_elbow': (44.247, 12.13), 'right_wrist': (-6.07, 11.701),
+        'spine_lumbar': (12.554, -2.03, 9.676), 'spine_thoracic': (-8.809, -6.7, 9.88),
+        'neck': (32.441, -3.729, -41.322), 'head': (12.565, -1.567),
+        'right_clavicle': (12.519, 8.18), 'right_shoulder': (17.935, 39.981, -5.985),
+        'right_elbow': (43.888, 14.389), 'right_wrist': (-6.222, 11.941),
     })
     human.KeyJoints(31.6, {
-        'spine_lumbar': (13.799, -6.956, 8.346), 'spine_thoracic': (-6.438, -9.946, 9.658),
-        'neck': (33.258, -3.539, -42.666), 'head': (13.245, -1.524),
-        'right_clavicle': (18.103, 8.579), 'right_shoulder': (14.295, 43.006, -0.414),
-        'right_elbow': (42.121, 21.607), 'right_wrist': (-6.959, 10.93),
+        'spine_lumbar': (13.876, -8.158, 8.159), 'spine_thoracic': (-6.018, -10.0, 9.661),
+        'neck': (33.449, -3.518, -43.053), 'head': (13.392, -1.516),
+        'right_clavicle': (19.157, 8.653), 'right_shoulder': (13.689, 43.369, 0.64),
+        'right_elbow': (41.618, 22.916), 'right_wrist': (-7.051, 10.364),
     })
     human.KeyJoints(31.7, {
-        'spine_lumbar': (13.147, -8.603, 8.028), 'spine_thoracic': (-5.9, -9.978, 9.573),
-        'neck': (33.483, -3.349, -42.513), 'head': (13.464, -1.48),
-        'right_clavicle': (19.545, 8.539), 'right_shoulder': (13.5, 42.59, 1.635),
-        'right_elbow': (41.485, 23.543), 'right_wrist': (-6.907, 10.163),
+        'spine_lumbar': (11.503, -7.029, 8.073), 'spine_thoracic': (-6.608, -9.069, 9.326),
+        'neck': (33.028, -3.134, -40.758), 'head': (13.251, -1.478),
+        'right_clavicle': (18.213, 8.11), 'right_shoulder': (14.334, 40.549, 1.364),
+        'right_elbow': (42.347, 22.088), 'right_wrist': (-6.484, 11.078),
     })
     human.KeyJoints(31.8, {
-        'spine_lumbar': (9.12, 0.956, 10.191), 'spine_thoracic': (-10.975, -2.121, 9.686),
-        'neck': (31.939, -3.341, -38.869), 'head': (12.398, -1.544),
-        'right_clavicle': (10.273, 6.85), 'right_shoulder': (21.233, 33.972, -6.708),
-        'right_elbow': (43.488, 10.544), 'right_wrist': (-4.851, 10.216),
+        'spine_lumbar': (9.442, 0.97, 10.427), 'spine_thoracic': (-11.076, -1.95, 9.843),
+        'neck': (32.005, -3.445, -39.351), 'head': (12.388, -1.549),
+        'right_clavicle': (9.758, 6.99), 'right_shoulder': (21.466, 34.161, -7.601),
+        'right_elbow': (43.518, 9.83), 'right_wrist': (-4.896, 10.084),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(31.9, {
@@ -1961,133 +1961,133 @@ def remove_access_panel_cad():
         'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(32.0, {
-        'spine_lumbar': (11.232, -0.774, 10.606), 'spine_thoracic': (-10.113, -3.167, 10.026),
-        'neck': (32.307, -3.836, -41.304), 'head': (12.399, -1.571),
-        'right_clavicle': (7.676, 8.285), 'right_shoulder': (19.897, 38.14, -10.898),
-        'right_elbow': (44.703, 8.766), 'right_wrist': (-5.962, 11.067),
+        'spine_lumbar': (11.542, -0.842, 10.388), 'spine_thoracic': (-9.911, -4.023, 9.994),
+        'neck': (32.3, -3.794, -41.162), 'head': (12.417, -1.569), 'right_clavicle': (8.93, 8.22),
+        'right_shoulder': (19.6, 38.396, -9.574), 'right_elbow': (44.498, 10.147),
+        'right_wrist': (-5.97, 11.319),
     })
     human.KeyJoints(32.1, {
-        'spine_lumbar': (13.252, -4.003, 9.017), 'spine_thoracic': (-7.691, -8.72, 9.773),
-        'neck': (32.756, -3.628, -41.815), 'head': (12.868, -1.563),
-        'right_clavicle': (15.482, 8.297), 'right_shoulder': (16.225, 41.462, -3.037),
-        'right_elbow': (43.11, 18.073), 'right_wrist': (-6.548, 11.795),
+        'spine_lumbar': (13.61, -5.736, 8.596), 'spine_thoracic': (-6.918, -9.613, 9.7),
+        'neck': (33.059, -3.568, -42.305), 'head': (13.096, -1.538),
+        'right_clavicle': (17.155, 8.455), 'right_shoulder': (15.037, 42.42, -1.362),
+        'right_elbow': (42.518, 20.3), 'right_wrist': (-6.796, 11.343),
     })
     human.KeyJoints(32.2, {
-        'spine_lumbar': (13.883, -8.638, 8.103), 'spine_thoracic': (-5.865, -10.0, 9.682),
-        'neck': (33.535, -3.504, -43.215), 'head': (13.462, -1.512),
-        'right_clavicle': (19.667, 8.665), 'right_shoulder': (13.488, 43.443, 1.151),
-        'right_elbow': (41.355, 23.48), 'right_wrist': (-7.065, 10.063),
+        'spine_lumbar': (13.77, -8.639, 8.105), 'spine_thoracic': (-5.87, -10.0, 9.683),
+        'neck': (33.538, -3.48, -43.132), 'head': (13.47, -1.507),
+        'right_clavicle': (19.745, 8.632), 'right_shoulder': (13.508, 43.279, 1.317),
+        'right_elbow': (41.318, 23.554), 'right_wrist': (-7.026, 10.025),
     })
     human.KeyJoints(32.3, {
-        'spine_lumbar': (9.095, -2.237, 8.821), 'spine_thoracic': (-8.972, -5.303, 9.144),
-        'neck': (32.112, -3.03, -38.368), 'head': (12.711, -1.529),
-        'right_clavicle': (14.212, 7.046), 'right_shoulder': (17.758, 36.151, -1.793),
-        'right_elbow': (43.538, 16.503), 'right_wrist': (-5.418, 11.766),
+        'spine_lumbar': (8.785, -0.612, 9.316), 'spine_thoracic': (-9.91, -3.762, 9.251),
+        'neck': (31.95, -3.104, -38.18), 'head': (12.544, -1.532),
+        'right_clavicle': (12.475, 6.797), 'right_shoulder': (19.31, 34.706, -3.658),
+        'right_elbow': (43.594, 13.928), 'right_wrist': (-5.055, 11.247),
     })
     human.KeyJoints(32.4, {
-        'spine_lumbar': (10.709, -0.195, 10.813), 'spine_thoracic': (-10.664, -2.095, 10.104),
-        'neck': (32.261, -3.806, -41.097), 'head': (12.379, -1.569),
-        'right_clavicle': (7.599, 7.943), 'right_shoulder': (20.819, 36.94, -10.969),
-        'right_elbow': (44.392, 8.075), 'right_wrist': (-5.686, 10.461),
+        'spine_lumbar': (10.772, -0.374, 10.816), 'spine_thoracic': (-10.586, -2.124, 10.099),
+        'neck': (32.286, -3.826, -41.22), 'head': (12.387, -1.57), 'right_clavicle': (7.365, 8.027),
+        'right_shoulder': (20.681, 37.195, -11.261), 'right_elbow': (44.507, 7.943),
+        'right_wrist': (-5.769, 10.535),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(32.5, {
-        'spine_lumbar': (11.066, -1.426, 10.818), 'spine_thoracic': (-10.114, -2.303, 10.043),
-        'neck': (32.431, -3.922, -41.88), 'right_clavicle': (6.024, 8.495),
-        'right_shoulder': (19.826, 38.613, -12.863), 'right_elbow': (45.182, 7.237),
-        'right_wrist': (-6.238, 10.985),
+        'spine_lumbar': (11.092, -1.255, 10.774), 'spine_thoracic': (-10.114, -2.484, 10.04),
+        'neck': (32.398, -3.904, -41.742), 'head': (12.431, -1.575),
+        'right_clavicle': (6.389, 8.444), 'right_shoulder': (19.855, 38.474, -12.421),
+        'right_elbow': (45.069, 7.563), 'right_wrist': (-6.167, 10.992),
     })
     human.KeyJoints(32.6, {
-        'spine_lumbar': (12.376, -1.717, 9.818), 'spine_thoracic': (-9.036, -6.192, 9.902),
-        'neck': (32.394, -3.748, -41.259), 'head': (12.518, -1.567),
-        'right_clavicle': (11.831, 8.176), 'right_shoulder': (18.28, 39.665, -6.669),
-        'right_elbow': (44.029, 13.564), 'right_wrist': (-6.163, 11.878),
+        'spine_lumbar': (12.873, -2.754, 9.398), 'spine_thoracic': (-8.35, -7.632, 9.836),
+        'neck': (32.556, -3.688, -41.489), 'head': (12.678, -1.565),
+        'right_clavicle': (13.822, 8.209), 'right_shoulder': (17.236, 40.602, -4.689),
+        'right_elbow': (43.581, 15.977), 'right_wrist': (-6.35, 11.963),
     })
     human.KeyJoints(32.7, {
-        'spine_lumbar': (13.859, -7.702, 8.221), 'spine_thoracic': (-6.171, -10.0, 9.651),
-        'neck': (33.374, -3.527, -42.901), 'head': (13.334, -1.519),
-        'right_clavicle': (18.717, 8.632), 'right_shoulder': (13.9, 43.262, 0.198),
-        'right_elbow': (41.837, 22.4), 'right_wrist': (-7.026, 10.612),
+        'spine_lumbar': (13.883, -8.494, 8.119), 'spine_thoracic': (-5.91, -10.0, 9.675),
+        'neck': (33.508, -3.509, -43.166), 'head': (13.44, -1.514),
+        'right_clavicle': (19.509, 8.662), 'right_shoulder': (13.546, 43.426, 0.993),
+        'right_elbow': (41.437, 23.308), 'right_wrist': (-7.063, 10.157),
     })
     human.KeyJoints(32.8, {
-        'spine_lumbar': (12.141, -7.823, 8.019), 'spine_thoracic': (-6.246, -9.591, 9.413),
-        'neck': (33.245, -3.196, -41.432), 'head': (13.357, -1.467),
-        'right_clavicle': (18.812, 8.305), 'right_shoulder': (13.88, 41.377, 1.627),
-        'right_elbow': (41.984, 22.837), 'right_wrist': (-6.667, 10.69),
+        'spine_lumbar': (10.467, -5.372, 8.253), 'spine_thoracic': (-7.38, -7.893, 9.203),
+        'neck': (32.623, -3.056, -39.677), 'head': (13.06, -1.516),
+        'right_clavicle': (16.956, 7.722), 'right_shoulder': (15.374, 39.004, 0.566),
+        'right_elbow': (42.937, 20.399), 'right_wrist': (-6.12, 11.648),
     })
     human.KeyJoints(32.9, {
-        'spine_lumbar': (9.585, 0.966, 10.505), 'spine_thoracic': (-11.101, -1.906, 9.9),
-        'neck': (32.027, -3.488, -39.535), 'head': (12.38, -1.551),
-        'right_clavicle': (9.587, 7.063), 'right_shoulder': (21.528, 34.35, -7.917),
-        'right_elbow': (43.551, 9.605), 'right_wrist': (-4.942, 10.049),
+        'spine_lumbar': (9.874, 0.952, 10.633), 'spine_thoracic': (-11.124, -1.864, 9.992),
+        'neck': (32.057, -3.57, -39.862), 'head': (12.357, -1.556),
+        'right_clavicle': (9.221, 7.229), 'right_shoulder': (21.586, 34.797, -8.568),
+        'right_elbow': (43.637, 9.197), 'right_wrist': (-5.055, 10.016),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.0, {
         'spine_lumbar': (11.064, -1.444, 10.822), 'spine_thoracic': (-10.114, -2.284, 10.043),
-        'neck': (32.434, -3.924, -41.895), 'right_clavicle': (5.985, 8.501),
-        'right_shoulder': (19.823, 38.629, -12.911), 'right_elbow': (45.194, 7.202),
-        'right_wrist': (-6.245, 10.984),
+        'neck': (32.434, -3.924, -41.895), 'head': (12.447, -1.576),
+        'right_clavicle': (5.985, 8.501), 'right_shoulder': (19.823, 38.629, -12.911),
+        'right_elbow': (45.194, 7.202), 'right_wrist': (-6.245, 10.984),
     })
     human.KeyJoints(33.1, {
-        'spine_lumbar': (11.423, -0.777, 10.458), 'spine_thoracic': (-10.031, -3.753, 10.006),
-        'neck': (32.304, -3.791, -41.16), 'head': (12.422, -1.569), 'right_clavicle': (8.57, 8.233),
-        'right_shoulder': (19.778, 38.229, -9.938), 'right_elbow': (44.546, 9.725),
-        'right_wrist': (-5.954, 11.21),
+        'spine_lumbar': (11.863, -1.081, 10.184), 'spine_thoracic': (-9.6, -4.815, 9.96),
+        'neck': (32.314, -3.785, -41.167), 'head': (12.433, -1.569),
+        'right_clavicle': (9.993, 8.192), 'right_shoulder': (19.134, 38.848, -8.503),
+        'right_elbow': (44.346, 11.388), 'right_wrist': (-6.027, 11.578),
     })
     human.KeyJoints(33.2, {
-        'spine_lumbar': (13.474, -4.998, 8.764), 'spine_thoracic': (-7.233, -9.298, 9.729),
-        'neck': (32.931, -3.592, -42.094), 'head': (13.001, -1.548),
-        'right_clavicle': (16.504, 8.385), 'right_shoulder': (15.52, 42.038, -2.017),
-        'right_elbow': (42.766, 19.418), 'right_wrist': (-6.694, 11.558),
+        'spine_lumbar': (13.768, -6.74, 8.388), 'spine_thoracic': (-6.52, -9.9, 9.665),
+        'neck': (33.223, -3.544, -42.602), 'head': (13.219, -1.526),
+        'right_clavicle': (17.945, 8.556), 'right_shoulder': (14.422, 42.905, -0.572),
+        'right_elbow': (42.19, 21.387), 'right_wrist': (-6.931, 11.008),
     })
     human.KeyJoints(33.3, {
-        'spine_lumbar': (13.883, -8.658, 8.101), 'spine_thoracic': (-5.859, -10.0, 9.683),
-        'neck': (33.538, -3.503, -43.222), 'head': (13.465, -1.512),
-        'right_clavicle': (19.688, 8.665), 'right_shoulder': (13.48, 43.445, 1.173),
-        'right_elbow': (41.343, 23.503), 'right_wrist': (-7.065, 10.05),
+        'spine_lumbar': (13.332, -8.659, 8.042), 'spine_thoracic': (-5.875, -10.0, 9.606),
+        'neck': (33.508, -3.384, -42.702), 'head': (13.472, -1.486),
+        'right_clavicle': (19.634, 8.571), 'right_shoulder': (13.476, 42.802, 1.594),
+        'right_elbow': (41.418, 23.593), 'right_wrist': (-6.945, 10.099),
     })
     human.KeyJoints(33.4, {
-        'spine_lumbar': (8.789, -0.702, 9.282), 'spine_thoracic': (-9.855, -3.851, 9.24),
-        'neck': (31.957, -3.097, -38.175), 'head': (12.553, -1.532),
-        'right_clavicle': (12.578, 6.806), 'right_shoulder': (19.216, 34.787, -3.537),
-        'right_elbow': (43.597, 14.085), 'right_wrist': (-5.075, 11.288),
+        'spine_lumbar': (8.767, 0.311, 9.737), 'spine_thoracic': (-10.505, -2.818, 9.431),
+        'neck': (31.919, -3.188, -38.354), 'head': (12.471, -1.536),
+        'right_clavicle': (11.305, 6.733), 'right_shoulder': (20.358, 34.065, -5.142),
+        'right_elbow': (43.538, 12.139), 'right_wrist': (-4.887, 10.717),
     })
     human.KeyJoints(33.5, {
-        'spine_lumbar': (10.925, -0.888, 10.821), 'spine_thoracic': (-10.36, -2.202, 10.078),
-        'neck': (32.358, -3.877, -41.557), 'head': (12.414, -1.574),
-        'right_clavicle': (6.699, 8.259), 'right_shoulder': (20.271, 37.897, -12.067),
-        'right_elbow': (44.838, 7.58), 'right_wrist': (-6.0, 10.75),
+        'spine_lumbar': (10.949, -0.978, 10.821), 'spine_thoracic': (-10.32, -2.215, 10.073),
+        'neck': (32.37, -3.885, -41.614), 'right_clavicle': (6.583, 8.298),
+        'right_shoulder': (20.199, 38.016, -12.204), 'right_elbow': (44.895, 7.519),
+        'right_wrist': (-6.04, 10.788),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_left
     human.KeyJoints(33.6, {
-        'spine_lumbar': (11.083, -1.312, 10.789), 'spine_thoracic': (-10.114, -2.423, 10.041),
-        'neck': (32.409, -3.91, -41.788), 'head': (12.436, -1.576),
-        'right_clavicle': (6.266, 8.462), 'right_shoulder': (19.846, 38.519, -12.57),
-        'right_elbow': (45.107, 7.453), 'right_wrist': (-6.191, 10.989),
+        'spine_lumbar': (11.2, -0.833, 10.639), 'spine_thoracic': (-10.113, -3.036, 10.029),
+        'neck': (32.318, -3.849, -41.372), 'head': (12.399, -1.572),
+        'right_clavicle': (7.444, 8.309), 'right_shoulder': (19.895, 38.176, -11.164),
+        'right_elbow': (44.761, 8.54), 'right_wrist': (-5.987, 11.048),
     })
     human.KeyJoints(33.7, {
-        'spine_lumbar': (12.695, -2.32, 9.558), 'spine_thoracic': (-8.615, -7.11, 9.861),
-        'neck': (32.486, -3.712, -41.386), 'head': (12.61, -1.566),
-        'right_clavicle': (13.083, 8.188), 'right_shoulder': (17.641, 40.246, -5.424),
-        'right_elbow': (43.761, 15.072), 'right_wrist': (-6.275, 11.957),
+        'spine_lumbar': (13.37, -4.499, 8.886), 'spine_thoracic': (-7.457, -9.033, 9.751),
+        'neck': (32.842, -3.609, -41.953), 'right_clavicle': (16.017, 8.339),
+        'right_shoulder': (15.864, 41.759, -2.504), 'right_elbow': (42.936, 18.771),
+        'right_wrist': (-6.622, 11.687),
     })
     human.KeyJoints(33.8, {
-        'spine_lumbar': (13.877, -8.214, 8.152), 'spine_thoracic': (-5.999, -10.0, 9.663),
-        'neck': (33.459, -3.516, -43.072), 'head': (13.4, -1.516),
-        'right_clavicle': (19.215, 8.655), 'right_shoulder': (13.663, 43.38, 0.698),
-        'right_elbow': (41.588, 22.982), 'right_wrist': (-7.054, 10.33),
+        'spine_lumbar': (13.875, -8.66, 8.101), 'spine_thoracic': (-5.861, -10.0, 9.683),
+        'neck': (33.539, -3.501, -43.215), 'right_clavicle': (19.71, 8.659),
+        'right_shoulder': (13.489, 43.432, 1.195), 'right_elbow': (41.334, 23.518),
+        'right_wrist': (-7.06, 10.043),
     })
     human.KeyJoints(33.9, {
-        'spine_lumbar': (9.986, -9.405, 7.814), 'spine_thoracic': (-6.316, -8.896, 9.019),
-        'neck': (33.375, -2.664, -40.012), 'head': (13.696, -1.406),
-        'right_clavicle': (16.477, 7.84), 'right_shoulder': (14.001, 38.104, 0.207),
-        'right_elbow': (40.68, 20.226), 'right_wrist': (-6.356, 7.246),
+        'spine_lumbar': (6.893, -9.113, 8.076), 'spine_thoracic': (-7.753, -6.349, 8.602),
+        'neck': (33.245, -2.085, -38.143), 'head': (14.014, -1.427),
+        'right_clavicle': (12.161, 6.774), 'right_shoulder': (16.097, 32.95, -3.6),
+        'right_elbow': (39.374, 14.306), 'right_wrist': (-5.568, 3.041),
     })
     human.KeyJoints(34.0, {
-        'spine_lumbar': (5.935, -11.317, 9.384), 'spine_thoracic': (-9.603, -4.065, 9.057),
-        'neck': (34.442, -1.762, -39.596), 'head': (14.854, -1.27),
-        'right_clavicle': (5.937, 6.618), 'right_shoulder': (19.291, 30.023, -12.791),
-        'right_elbow': (36.298, 4.689), 'right_wrist': (-5.484, -5.634),
+        'spine_lumbar': (6.184, -11.784, 9.461), 'spine_thoracic': (-9.449, -4.176, 9.123),
+        'neck': (34.579, -1.805, -39.979), 'head': (14.898, -1.25),
+        'right_clavicle': (5.471, 6.836), 'right_shoulder': (19.056, 30.598, -13.511),
+        'right_elbow': (36.407, 4.325), 'right_wrist': (-5.668, -5.747),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=34.060115, duration=0.072)
@@ -2132,177 +2132,177 @@ def remove_access_panel_cad():
         'right_wrist': (-0.965, -20.024),
     })
     human.KeyJoints(35.0, {
-        'right_shoulder': (56.301, 2.086, 11.179), 'right_elbow': (33.131, 18.45),
-        'right_wrist': (-1.15, -21.055),
+        'spine_lumbar': (6.922, -13.948, 9.6), 'right_shoulder': (56.301, 2.086, 11.179),
+        'right_elbow': (33.131, 18.45), 'right_wrist': (-1.15, -21.055),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=35.000565, duration=0.072)
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'spine_lumbar': (6.958, -13.956, 9.611), 'spine_thoracic': (-8.561, -4.503, 9.164),
-        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.8, 7.886),
-        'right_shoulder': (56.408, 2.084, 11.175), 'right_elbow': (33.018, 18.453),
-        'right_wrist': (-1.141, -21.166),
+        'spine_lumbar': (6.991, -13.962, 9.62), 'spine_thoracic': (-8.574, -4.503, 9.172),
+        'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199), 'right_clavicle': (2.805, 7.889),
+        'right_shoulder': (56.424, 2.109, 11.17), 'right_elbow': (33.021, 18.456),
+        'right_wrist': (-1.143, -21.156),
     })
     human.KeyJoints(35.2, {
-        'spine_lumbar': (5.699, -15.727, 9.953), 'spine_thoracic': (-10.27, -5.577, 9.716),
-        'neck': (24.653, 0.312, -6.327), 'head': (9.239, -1.194), 'right_clavicle': (4.49, 8.059),
-        'right_shoulder': (54.398, 3.79, 11.353), 'right_elbow': (32.24, 19.344),
-        'right_wrist': (-0.919, -22.042),
+        'spine_lumbar': (4.653, -17.322, 9.964), 'spine_thoracic': (-11.118, -6.994, 10.014),
+        'neck': (25.102, 0.227, -7.166), 'head': (9.909, -1.192), 'right_clavicle': (6.371, 8.214),
+        'right_shoulder': (53.582, 4.933, 12.4), 'right_elbow': (31.466, 20.72),
+        'right_wrist': (-0.462, -23.074),
     })
     human.KeyJoints(35.3, {
-        'spine_lumbar': (1.896, -19.999, 10.554), 'spine_thoracic': (-13.381, -9.918, 12.13),
-        'neck': (26.65, 0.007, -9.57), 'head': (11.646, -1.194), 'right_clavicle': (14.42, 9.872),
-        'right_shoulder': (52.059, 8.965, 18.089), 'right_elbow': (28.859, 27.346),
-        'right_wrist': (2.047, -26.398),
+        'spine_lumbar': (1.083, -20.0, 11.013), 'spine_thoracic': (-14.01, -10.0, 13.251),
+        'neck': (27.186, -0.08, -10.483), 'head': (12.176, -1.195),
+        'right_clavicle': (17.499, 10.792), 'right_shoulder': (51.841, 10.248, 20.516),
+        'right_elbow': (27.897, 30.007), 'right_wrist': (3.167, -27.67),
     })
     human.KeyJoints(35.4, {
-        'spine_lumbar': (0.575, -20.0, 11.472), 'spine_thoracic': (-14.463, -10.0, 14.115),
-        'neck': (27.581, -0.168, -11.326), 'head': (12.563, -1.197),
-        'right_clavicle': (19.429, 11.39), 'right_shoulder': (51.436, 11.145, 22.005),
-        'right_elbow': (27.376, 31.674), 'right_wrist': (3.845, -28.275),
+        'spine_lumbar': (-0.593, -20.0, 11.483), 'spine_thoracic': (-14.437, -9.872, 14.056),
+        'neck': (27.832, -0.075, -10.814), 'head': (12.826, -1.196),
+        'right_clavicle': (18.758, 11.414), 'right_shoulder': (50.594, 10.271, 21.696),
+        'right_elbow': (27.596, 31.234), 'right_wrist': (3.725, -28.249),
     })
     human.KeyJoints(35.5, {
-        'spine_lumbar': (0.832, -14.147, 11.116), 'spine_thoracic': (-12.22, -2.128, 11.617),
-        'neck': (26.766, 0.357, -7.2), 'head': (11.804, -1.191), 'right_clavicle': (7.84, 9.363),
-        'right_shoulder': (49.033, 4.754, 13.627), 'right_elbow': (30.761, 22.393),
-        'right_wrist': (0.126, -24.582),
+        'spine_lumbar': (2.962, -12.877, 11.305), 'spine_thoracic': (-11.814, -0.973, 11.403),
+        'neck': (26.13, 0.331, -7.016), 'head': (11.157, -1.19), 'right_clavicle': (6.131, 9.05),
+        'right_shoulder': (49.911, 4.661, 12.326), 'right_elbow': (31.677, 21.02),
+        'right_wrist': (-0.484, -22.93),
     })
     human.KeyJoints(35.6, {
-        'spine_lumbar': (7.418, -13.515, 10.079), 'spine_thoracic': (-9.291, -3.876, 9.647),
-        'neck': (24.092, 0.392, -5.461), 'head': (8.386, -1.197), 'right_clavicle': (3.322, 8.083),
-        'right_shoulder': (55.549, 3.217, 11.371), 'right_elbow': (33.481, 18.953),
-        'right_wrist': (-1.091, -19.979),
+        'spine_lumbar': (7.442, -13.559, 10.022), 'spine_thoracic': (-9.203, -3.999, 9.584),
+        'neck': (24.043, 0.399, -5.385), 'head': (8.32, -1.198), 'right_clavicle': (3.273, 8.059),
+        'right_shoulder': (55.666, 3.128, 11.389), 'right_elbow': (33.507, 18.923),
+        'right_wrist': (-1.089, -19.949),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
-        'spine_lumbar': (7.38, -13.916, 9.852), 'spine_thoracic': (-9.078, -4.582, 9.408),
-        'neck': (23.969, 0.404, -5.306), 'head': (8.226, -1.198), 'right_clavicle': (3.232, 7.984),
-        'right_shoulder': (55.846, 2.97, 11.458), 'right_elbow': (33.521, 18.863),
-        'right_wrist': (-1.065, -19.917),
+        'spine_lumbar': (6.806, -14.638, 10.067), 'spine_thoracic': (-9.912, -4.956, 9.684),
+        'neck': (24.419, 0.323, -6.121), 'head': (8.844, -1.196), 'right_clavicle': (3.894, 8.064),
+        'right_shoulder': (54.814, 3.73, 11.454), 'right_elbow': (33.161, 19.162),
+        'right_wrist': (-0.997, -20.31),
     })
     human.KeyJoints(35.8, {
-        'spine_lumbar': (3.634, -18.858, 10.139), 'spine_thoracic': (-12.248, -8.625, 10.721),
-        'neck': (25.709, 0.115, -8.286), 'head': (10.705, -1.191), 'right_clavicle': (9.517, 8.707),
-        'right_shoulder': (52.602, 6.872, 14.495), 'right_elbow': (30.667, 23.273),
-        'right_wrist': (0.426, -23.83),
+        'spine_lumbar': (2.378, -19.827, 10.405), 'spine_thoracic': (-13.096, -9.696, 11.681),
+        'neck': (26.393, 0.037, -9.218), 'head': (11.389, -1.193),
+        'right_clavicle': (13.008, 9.494), 'right_shoulder': (52.15, 8.418, 17.016),
+        'right_elbow': (29.393, 26.156), 'right_wrist': (1.554, -25.621),
     })
     human.KeyJoints(35.9, {
-        'spine_lumbar': (0.72, -20.0, 11.317), 'spine_thoracic': (-14.324, -10.0, 13.849),
-        'neck': (27.459, -0.139, -11.051), 'head': (12.444, -1.196),
-        'right_clavicle': (18.887, 11.221), 'right_shoulder': (51.59, 10.881, 21.593),
-        'right_elbow': (27.519, 31.207), 'right_wrist': (3.659, -28.118),
+        'spine_lumbar': (0.579, -20.0, 11.464), 'spine_thoracic': (-14.458, -10.0, 14.107),
+        'neck': (27.576, -0.167, -11.314), 'head': (12.558, -1.197),
+        'right_clavicle': (19.428, 11.39), 'right_shoulder': (51.443, 11.145, 22.004),
+        'right_elbow': (27.377, 31.673), 'right_wrist': (3.845, -28.275),
     })
     human.KeyJoints(36.0, {
-        'spine_lumbar': (-2.049, -18.966, 11.133), 'spine_thoracic': (-13.81, -7.698, 13.094),
-        'neck': (27.891, 0.181, -9.065), 'head': (12.916, -1.194),
-        'right_clavicle': (15.129, 10.817), 'right_shoulder': (49.211, 7.562, 19.2),
-        'right_elbow': (28.438, 28.37), 'right_wrist': (2.628, -27.828),
+        'spine_lumbar': (-1.423, -16.507, 10.979), 'spine_thoracic': (-12.934, -4.61, 12.149),
+        'neck': (27.482, 0.335, -7.763), 'head': (12.524, -1.192),
+        'right_clavicle': (10.992, 9.988), 'right_shoulder': (48.654, 5.545, 16.058),
+        'right_elbow': (29.52, 24.972), 'right_wrist': (1.23, -26.611),
     })
     human.KeyJoints(36.1, {
-        'spine_lumbar': (6.406, -12.467, 11.186), 'spine_thoracic': (-10.956, -1.259, 10.865),
-        'neck': (24.982, 0.292, -6.644), 'head': (9.706, -1.193), 'right_clavicle': (4.317, 8.591),
-        'right_shoulder': (52.764, 4.669, 11.203), 'right_elbow': (32.893, 19.594),
-        'right_wrist': (-1.081, -20.76),
+        'spine_lumbar': (6.7, -12.674, 11.022), 'spine_thoracic': (-10.721, -1.697, 10.684),
+        'neck': (24.81, 0.301, -6.492), 'head': (9.463, -1.194), 'right_clavicle': (4.169, 8.507),
+        'right_shoulder': (53.282, 4.502, 11.199), 'right_elbow': (32.996, 19.49),
+        'right_wrist': (-1.102, -20.605),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
-        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
-        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
-        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
-        'right_wrist': (-1.076, -19.827),
+        'spine_lumbar': (7.522, -13.743, 9.788), 'spine_thoracic': (-8.851, -4.508, 9.332),
+        'neck': (23.841, 0.425, -5.084), 'head': (8.068, -1.198), 'right_clavicle': (3.077, 7.962),
+        'right_shoulder': (56.129, 2.769, 11.46), 'right_elbow': (33.607, 18.804),
+        'right_wrist': (-1.076, -19.831),
     })
     human.KeyJoints(36.3, {
-        'spine_lumbar': (5.592, -16.351, 10.077), 'spine_thoracic': (-10.91, -6.301, 9.963),
-        'neck': (24.857, 0.239, -6.942), 'head': (9.568, -1.193), 'right_clavicle': (5.606, 8.169),
-        'right_shoulder': (53.74, 4.87, 12.093), 'right_elbow': (32.309, 20.277),
-        'right_wrist': (-0.646, -21.496),
+        'spine_lumbar': (4.313, -18.084, 10.081), 'spine_thoracic': (-11.789, -7.864, 10.375),
+        'neck': (25.377, 0.155, -7.816), 'head': (10.331, -1.191), 'right_clavicle': (7.967, 8.441),
+        'right_shoulder': (52.943, 6.123, 13.47), 'right_elbow': (31.281, 22.044),
+        'right_wrist': (-0.029, -22.963),
     })
     human.KeyJoints(36.4, {
-        'spine_lumbar': (1.5, -20.0, 10.777), 'spine_thoracic': (-13.708, -9.999, 12.68),
-        'neck': (26.917, -0.034, -10.013), 'head': (11.911, -1.194),
-        'right_clavicle': (15.957, 10.325), 'right_shoulder': (51.942, 9.627, 19.292),
-        'right_elbow': (28.392, 28.674), 'right_wrist': (2.596, -27.016),
+        'spine_lumbar': (0.828, -20.0, 11.215), 'spine_thoracic': (-14.227, -10.0, 13.664),
+        'neck': (27.375, -0.119, -10.868), 'head': (12.362, -1.196),
+        'right_clavicle': (18.48, 11.094), 'right_shoulder': (51.685, 10.69, 21.281),
+        'right_elbow': (27.631, 30.856), 'right_wrist': (3.517, -27.991),
     })
     human.KeyJoints(36.5, {
-        'spine_lumbar': (0.336, -20.0, 11.514), 'spine_thoracic': (-14.484, -10.0, 14.15),
-        'neck': (27.649, -0.157, -11.287), 'head': (12.633, -1.197),
-        'right_clavicle': (19.368, 11.418), 'right_shoulder': (51.213, 11.042, 21.976),
-        'right_elbow': (27.398, 31.643), 'right_wrist': (3.834, -28.286),
+        'spine_lumbar': (-1.494, -19.839, 11.331), 'spine_thoracic': (-14.226, -9.189, 13.68),
+        'neck': (27.93, 0.042, -10.057), 'head': (12.938, -1.195),
+        'right_clavicle': (17.393, 11.22), 'right_shoulder': (49.923, 9.107, 20.817),
+        'right_elbow': (27.942, 30.182), 'right_wrist': (3.341, -28.101),
     })
     human.KeyJoints(36.6, {
-        'spine_lumbar': (2.721, -12.996, 11.285), 'spine_thoracic': (-11.854, -1.066, 11.422),
-        'neck': (26.202, 0.335, -7.034), 'head': (11.23, -1.191), 'right_clavicle': (6.293, 9.079),
-        'right_shoulder': (49.793, 4.653, 12.45), 'right_elbow': (31.58, 21.15),
-        'right_wrist': (-0.425, -23.107),
+        'spine_lumbar': (4.426, -12.381, 11.393), 'spine_thoracic': (-11.568, -0.599, 11.285),
+        'neck': (25.685, 0.305, -6.942), 'head': (10.673, -1.191), 'right_clavicle': (5.259, 8.886),
+        'right_shoulder': (50.783, 4.721, 11.683), 'right_elbow': (32.229, 20.327),
+        'right_wrist': (-0.796, -21.915),
     })
     human.KeyJoints(36.7, {
-        'spine_lumbar': (7.525, -13.731, 9.793), 'spine_thoracic': (-8.852, -4.49, 9.336),
-        'neck': (23.842, 0.425, -5.084), 'head': (8.069, -1.198), 'right_clavicle': (3.077, 7.964),
-        'right_shoulder': (56.128, 2.772, 11.458), 'right_elbow': (33.608, 18.805),
-        'right_wrist': (-1.077, -19.831),
+        'spine_lumbar': (7.526, -13.732, 9.791), 'spine_thoracic': (-8.85, -4.493, 9.334),
+        'neck': (23.84, 0.426, -5.082), 'head': (8.068, -1.198), 'right_clavicle': (3.075, 7.964),
+        'right_shoulder': (56.13, 2.769, 11.459), 'right_elbow': (33.609, 18.805),
+        'right_wrist': (-1.077, -19.83),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.8, {
-        'spine_lumbar': (7.109, -14.252, 9.967), 'spine_thoracic': (-9.495, -4.744, 9.548),
-        'neck': (24.192, 0.363, -5.715), 'head': (8.531, -1.197), 'right_clavicle': (3.537, 8.024),
-        'right_shoulder': (55.325, 3.343, 11.455), 'right_elbow': (33.353, 18.992),
-        'right_wrist': (-1.038, -20.093),
+        'spine_lumbar': (6.284, -15.351, 10.095), 'spine_thoracic': (-10.42, -5.445, 9.827),
+        'neck': (24.583, 0.289, -6.449), 'head': (9.16, -1.194), 'right_clavicle': (4.572, 8.111),
+        'right_shoulder': (54.242, 4.267, 11.544), 'right_elbow': (32.81, 19.552),
+        'right_wrist': (-0.887, -20.764),
     })
     human.KeyJoints(36.9, {
-        'spine_lumbar': (3.017, -19.419, 10.24), 'spine_thoracic': (-12.663, -9.22, 11.134),
-        'neck': (26.038, 0.078, -8.727), 'head': (11.035, -1.192),
-        'right_clavicle': (11.127, 9.042), 'right_shoulder': (52.351, 7.605, 15.627),
-        'right_elbow': (30.064, 24.586), 'right_wrist': (0.929, -24.68),
+        'spine_lumbar': (1.857, -19.995, 10.6), 'spine_thoracic': (-13.456, -9.938, 12.233),
+        'neck': (26.698, -0.002, -9.666), 'head': (11.693, -1.194),
+        'right_clavicle': (14.709, 9.954), 'right_shoulder': (52.02, 9.124, 18.317),
+        'right_elbow': (28.811, 27.601), 'right_wrist': (2.147, -26.431),
     })
     human.KeyJoints(37.0, {
-        'spine_lumbar': (0.622, -20.0, 11.417), 'spine_thoracic': (-14.416, -10.0, 14.027),
-        'neck': (27.54, -0.158, -11.232), 'head': (12.523, -1.196),
-        'right_clavicle': (19.263, 11.338), 'right_shoulder': (51.489, 11.064, 21.88),
-        'right_elbow': (27.419, 31.531), 'right_wrist': (3.788, -28.229),
+        'spine_lumbar': (0.517, -20.0, 11.495), 'spine_thoracic': (-14.479, -10.0, 14.139),
+        'neck': (27.604, -0.168, -11.338), 'head': (12.586, -1.197),
+        'right_clavicle': (19.417, 11.397), 'right_shoulder': (51.369, 11.127, 21.997),
+        'right_elbow': (27.381, 31.669), 'right_wrist': (3.841, -28.278),
     })
     human.KeyJoints(37.1, {
-        'spine_lumbar': (-1.913, -17.508, 11.004), 'spine_thoracic': (-13.267, -5.778, 12.47),
-        'neck': (27.688, 0.294, -8.166), 'head': (12.726, -1.192),
-        'right_clavicle': (12.507, 10.298), 'right_shoulder': (48.749, 6.164, 17.223),
-        'right_elbow': (29.074, 26.221), 'right_wrist': (1.751, -27.205),
+        'spine_lumbar': (-0.171, -15.017, 11.04), 'spine_thoracic': (-12.476, -3.008, 11.78),
+        'neck': (27.071, 0.358, -7.367), 'head': (12.112, -1.191), 'right_clavicle': (8.97, 9.579),
+        'right_shoulder': (48.802, 4.93, 14.496), 'right_elbow': (30.259, 23.311),
+        'right_wrist': (0.525, -25.441),
     })
     human.KeyJoints(37.2, {
-        'spine_lumbar': (6.872, -12.832, 10.888), 'spine_thoracic': (-10.531, -2.039, 10.54),
-        'neck': (24.687, 0.309, -6.362), 'head': (9.288, -1.194), 'right_clavicle': (4.054, 8.443),
-        'right_shoulder': (53.661, 4.358, 11.198), 'right_elbow': (33.072, 19.412),
-        'right_wrist': (-1.109, -20.498),
+        'spine_lumbar': (7.03, -12.983, 10.738), 'spine_thoracic': (-10.302, -2.412, 10.369),
+        'neck': (24.554, 0.323, -6.194), 'head': (9.097, -1.195), 'right_clavicle': (3.908, 8.368),
+        'right_shoulder': (54.085, 4.185, 11.204), 'right_elbow': (33.162, 19.315),
+        'right_wrist': (-1.11, -20.374),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
-        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.842, -4.505, 9.328),
-        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
-        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
-        'right_wrist': (-1.076, -19.827),
+        'spine_lumbar': (7.442, -13.84, 9.824), 'spine_thoracic': (-8.979, -4.549, 9.375),
+        'neck': (23.915, 0.413, -5.209), 'head': (8.156, -1.198), 'right_clavicle': (3.164, 7.975),
+        'right_shoulder': (55.969, 2.883, 11.459), 'right_elbow': (33.559, 18.837),
+        'right_wrist': (-1.07, -19.879),
     })
     human.KeyJoints(37.4, {
-        'spine_lumbar': (4.951, -17.249, 10.068), 'spine_thoracic': (-11.354, -7.091, 10.137),
-        'neck': (25.115, 0.197, -7.383), 'head': (9.948, -1.192), 'right_clavicle': (6.704, 8.274),
-        'right_shoulder': (53.318, 5.473, 12.7), 'right_elbow': (31.813, 21.08),
-        'right_wrist': (-0.371, -22.207),
+        'spine_lumbar': (3.629, -18.863, 10.14), 'spine_thoracic': (-12.251, -8.63, 10.723),
+        'neck': (25.711, 0.114, -8.289), 'head': (10.707, -1.191), 'right_clavicle': (9.529, 8.71),
+        'right_shoulder': (52.6, 6.878, 14.503), 'right_elbow': (30.662, 23.282),
+        'right_wrist': (0.429, -23.836),
     })
     human.KeyJoints(37.5, {
-        'spine_lumbar': (1.157, -20.0, 10.969), 'spine_thoracic': (-13.957, -10.0, 13.148),
-        'neck': (27.138, -0.071, -10.397), 'head': (12.129, -1.195),
-        'right_clavicle': (17.231, 10.71), 'right_shoulder': (51.854, 10.142, 20.304),
-        'right_elbow': (27.992, 29.776), 'right_wrist': (3.067, -27.549),
+        'spine_lumbar': (0.673, -20.0, 11.364), 'spine_thoracic': (-14.367, -10.0, 13.933),
+        'neck': (27.497, -0.148, -11.136), 'head': (12.481, -1.196),
+        'right_clavicle': (19.066, 11.276), 'right_shoulder': (51.543, 10.967, 21.729),
+        'right_elbow': (27.472, 31.361), 'right_wrist': (3.721, -28.172),
     })
     human.KeyJoints(37.6, {
-        'spine_lumbar': (-0.477, -20.0, 11.499), 'spine_thoracic': (-14.455, -9.921, 14.091),
-        'neck': (27.816, -0.088, -10.897), 'head': (12.808, -1.196),
-        'right_clavicle': (18.883, 11.428), 'right_shoulder': (50.673, 10.392, 21.77),
-        'right_elbow': (27.559, 31.328), 'right_wrist': (3.757, -28.267),
+        'spine_lumbar': (-2.002, -19.14, 11.161), 'spine_thoracic': (-13.882, -7.951, 13.185),
+        'neck': (27.906, 0.161, -9.214), 'head': (12.929, -1.194),
+        'right_clavicle': (15.493, 10.886), 'right_shoulder': (49.307, 7.788, 19.469),
+        'right_elbow': (28.359, 28.665), 'right_wrist': (2.747, -27.885),
     })
     human.KeyJoints(37.7, {
-        'spine_lumbar': (4.406, -12.383, 11.392), 'spine_thoracic': (-11.572, -0.6, 11.288),
-        'neck': (25.691, 0.306, -6.942), 'head': (10.681, -1.191), 'right_clavicle': (5.269, 8.889),
-        'right_shoulder': (50.769, 4.721, 11.69), 'right_elbow': (32.222, 20.335),
-        'right_wrist': (-0.793, -21.928),
+        'spine_lumbar': (5.499, -12.381, 11.349), 'spine_thoracic': (-11.331, -0.753, 11.135),
+        'neck': (25.344, 0.286, -6.888), 'head': (10.21, -1.192), 'right_clavicle': (4.748, 8.756),
+        'right_shoulder': (51.653, 4.73, 11.32), 'right_elbow': (32.586, 19.919),
+        'right_wrist': (-0.98, -21.268),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
@@ -2312,65 +2312,65 @@ def remove_access_panel_cad():
         'right_wrist': (-1.076, -19.827),
     })
     human.KeyJoints(37.9, {
-        'spine_lumbar': (6.69, -14.79, 10.089), 'spine_thoracic': (-10.05, -5.047, 9.727),
-        'neck': (24.496, 0.311, -6.252), 'head': (8.95, -1.195), 'right_clavicle': (4.037, 8.078),
-        'right_shoulder': (54.65, 3.866, 11.454), 'right_elbow': (33.086, 19.236),
-        'right_wrist': (-0.978, -20.4),
+        'spine_lumbar': (5.688, -16.213, 10.08), 'spine_thoracic': (-10.842, -6.183, 9.94),
+        'neck': (24.818, 0.246, -6.875), 'head': (9.511, -1.193), 'right_clavicle': (5.454, 8.157),
+        'right_shoulder': (53.808, 4.782, 12.015), 'right_elbow': (32.38, 20.169),
+        'right_wrist': (-0.682, -21.393),
     })
     human.KeyJoints(38.0, {
-        'spine_lumbar': (2.45, -19.793, 10.383), 'spine_thoracic': (-13.047, -9.653, 11.613),
-        'neck': (26.352, 0.042, -9.162), 'head': (11.349, -1.193),
-        'right_clavicle': (12.786, 9.438), 'right_shoulder': (52.17, 8.324, 16.849),
-        'right_elbow': (29.471, 25.969), 'right_wrist': (1.478, -25.512),
+        'spine_lumbar': (1.414, -20.0, 10.824), 'spine_thoracic': (-13.77, -10.0, 12.794),
+        'neck': (26.972, -0.043, -10.105), 'head': (11.965, -1.194),
+        'right_clavicle': (16.268, 10.418), 'right_shoulder': (51.92, 9.753, 19.537),
+        'right_elbow': (28.291, 28.943), 'right_wrist': (2.71, -27.151),
     })
     human.KeyJoints(38.1, {
-        'spine_lumbar': (0.583, -20.0, 11.459), 'spine_thoracic': (-14.453, -10.0, 14.098),
-        'neck': (27.572, -0.166, -11.305), 'head': (12.555, -1.197),
-        'right_clavicle': (19.41, 11.384), 'right_shoulder': (51.448, 11.136, 21.991),
-        'right_elbow': (27.381, 31.658), 'right_wrist': (3.839, -28.27),
+        'spine_lumbar': (0.138, -20.0, 11.522), 'spine_thoracic': (-14.484, -10.0, 14.151),
+        'neck': (27.695, -0.143, -11.21), 'head': (12.68, -1.197),
+        'right_clavicle': (19.294, 11.439), 'right_shoulder': (51.084, 10.91, 21.956),
+        'right_elbow': (27.426, 31.602), 'right_wrist': (3.829, -28.293),
     })
     human.KeyJoints(38.2, {
-        'spine_lumbar': (-0.893, -15.778, 10.999), 'spine_thoracic': (-12.706, -3.809, 11.956),
-        'neck': (27.3, 0.351, -7.549), 'head': (12.342, -1.191), 'right_clavicle': (9.98, 9.782),
-        'right_shoulder': (48.701, 5.204, 15.277), 'right_elbow': (29.868, 24.139),
-        'right_wrist': (0.878, -26.082),
+        'spine_lumbar': (1.384, -13.747, 11.17), 'spine_thoracic': (-12.105, -1.735, 11.552),
+        'neck': (26.604, 0.352, -7.143), 'head': (11.639, -1.191), 'right_clavicle': (7.333, 9.27),
+        'right_shoulder': (49.229, 4.694, 13.239), 'right_elbow': (31.013, 21.984),
+        'right_wrist': (-0.054, -24.134),
     })
     human.KeyJoints(38.3, {
-        'spine_lumbar': (7.198, -13.178, 10.51), 'spine_thoracic': (-9.952, -2.934, 10.117),
-        'neck': (24.469, 0.34, -6.032), 'head': (8.898, -1.196), 'right_clavicle': (3.699, 8.265),
-        'right_shoulder': (54.631, 3.872, 11.248), 'right_elbow': (33.281, 19.183),
-        'right_wrist': (-1.106, -20.222),
+        'spine_lumbar': (7.275, -13.283, 10.38), 'spine_thoracic': (-9.752, -3.223, 9.974),
+        'neck': (24.352, 0.356, -5.859), 'head': (8.739, -1.196), 'right_clavicle': (3.584, 8.209),
+        'right_shoulder': (54.919, 3.678, 11.283), 'right_elbow': (33.343, 19.112),
+        'right_wrist': (-1.103, -20.145),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.4, {
-        'spine_lumbar': (7.504, -13.764, 9.796), 'spine_thoracic': (-8.879, -4.517, 9.341),
-        'neck': (23.857, 0.423, -5.111), 'head': (8.087, -1.198), 'right_clavicle': (3.096, 7.965),
-        'right_shoulder': (56.095, 2.794, 11.46), 'right_elbow': (33.597, 18.811),
-        'right_wrist': (-1.075, -19.841),
+        'spine_lumbar': (7.213, -14.122, 9.924), 'spine_thoracic': (-9.338, -4.679, 9.496),
+        'neck': (24.108, 0.379, -5.562), 'head': (8.415, -1.197), 'right_clavicle': (3.418, 8.009),
+        'right_shoulder': (55.521, 3.202, 11.456), 'right_elbow': (33.418, 18.94),
+        'right_wrist': (-1.05, -20.024),
     })
     human.KeyJoints(38.5, {
-        'spine_lumbar': (4.293, -18.108, 10.082), 'spine_thoracic': (-11.803, -7.888, 10.384),
-        'neck': (25.386, 0.154, -7.83), 'head': (10.343, -1.191), 'right_clavicle': (8.009, 8.448),
-        'right_shoulder': (52.932, 6.144, 13.497), 'right_elbow': (31.264, 22.077),
-        'right_wrist': (-0.017, -22.987),
+        'spine_lumbar': (2.981, -19.448, 10.247), 'spine_thoracic': (-12.688, -9.252, 11.162),
+        'neck': (26.058, 0.076, -8.754), 'head': (11.055, -1.192),
+        'right_clavicle': (11.229, 9.065), 'right_shoulder': (52.338, 7.651, 15.701),
+        'right_elbow': (30.026, 24.67), 'right_wrist': (0.962, -24.733),
     })
     human.KeyJoints(38.6, {
-        'spine_lumbar': (0.899, -20.0, 11.153), 'spine_thoracic': (-14.165, -10.0, 13.545),
-        'neck': (27.321, -0.107, -10.753), 'head': (12.308, -1.196),
-        'right_clavicle': (18.209, 11.01), 'right_shoulder': (51.738, 10.566, 21.072),
-        'right_elbow': (27.707, 30.622), 'right_wrist': (3.421, -27.902),
+        'spine_lumbar': (0.598, -20.0, 11.442), 'spine_thoracic': (-14.438, -10.0, 14.07),
+        'neck': (27.56, -0.163, -11.276), 'head': (12.542, -1.197),
+        'right_clavicle': (19.352, 11.366), 'right_shoulder': (51.464, 11.107, 21.947),
+        'right_elbow': (27.396, 31.608), 'right_wrist': (3.819, -28.254),
     })
     human.KeyJoints(38.7, {
-        'spine_lumbar': (-1.479, -19.848, 11.334), 'spine_thoracic': (-14.232, -9.208, 13.689),
-        'neck': (27.929, 0.039, -10.074), 'head': (12.937, -1.195),
-        'right_clavicle': (17.424, 11.225), 'right_shoulder': (49.935, 9.131, 20.839),
-        'right_elbow': (27.935, 30.207), 'right_wrist': (3.35, -28.104),
+        'spine_lumbar': (-2.076, -17.976, 11.033), 'spine_thoracic': (-13.432, -6.356, 12.646),
+        'neck': (27.774, 0.268, -8.395), 'head': (12.81, -1.193),
+        'right_clavicle': (13.272, 10.455), 'right_shoulder': (48.857, 6.536, 17.808),
+        'right_elbow': (28.874, 26.852), 'right_wrist': (2.011, -27.443),
     })
     human.KeyJoints(38.8, {
-        'spine_lumbar': (5.634, -12.381, 11.336), 'spine_thoracic': (-11.294, -0.797, 11.11),
-        'neck': (25.298, 0.285, -6.867), 'head': (10.147, -1.192), 'right_clavicle': (4.688, 8.737),
-        'right_shoulder': (51.785, 4.73, 11.283), 'right_elbow': (32.63, 19.871),
-        'right_wrist': (-1.0, -21.19),
+        'spine_lumbar': (6.231, -12.402, 11.247), 'spine_thoracic': (-11.06, -1.087, 10.943),
+        'neck': (25.068, 0.289, -6.712), 'head': (9.826, -1.193), 'right_clavicle': (4.4, 8.632),
+        'right_shoulder': (52.503, 4.718, 11.207), 'right_elbow': (32.834, 19.654),
+        'right_wrist': (-1.066, -20.852),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
@@ -2380,164 +2380,164 @@ def remove_access_panel_cad():
         'right_wrist': (-1.076, -19.827),
     })
     human.KeyJoints(39.0, {
-        'spine_lumbar': (6.181, -15.5, 10.093), 'spine_thoracic': (-10.496, -5.569, 9.845),
-        'neck': (24.624, 0.281, -6.524), 'head': (9.222, -1.194), 'right_clavicle': (4.717, 8.118),
-        'right_shoulder': (54.162, 4.356, 11.615), 'right_elbow': (32.738, 19.65),
-        'right_wrist': (-0.855, -20.869),
+        'spine_lumbar': (5.018, -17.157, 10.068), 'spine_thoracic': (-11.308, -7.009, 10.116),
+        'neck': (25.088, 0.201, -7.336), 'head': (9.908, -1.192), 'right_clavicle': (6.582, 8.26),
+        'right_shoulder': (53.36, 5.407, 12.629), 'right_elbow': (31.866, 20.989),
+        'right_wrist': (-0.403, -22.13),
     })
     human.KeyJoints(39.1, {
-        'spine_lumbar': (1.945, -19.991, 10.562), 'spine_thoracic': (-13.395, -9.916, 12.132),
-        'neck': (26.645, 0.004, -9.593), 'head': (11.64, -1.194), 'right_clavicle': (14.412, 9.87),
-        'right_shoulder': (52.04, 9.003, 18.088), 'right_elbow': (28.912, 27.347),
-        'right_wrist': (2.042, -26.29),
+        'spine_lumbar': (1.077, -20.0, 11.02), 'spine_thoracic': (-14.019, -10.0, 13.266),
+        'neck': (27.193, -0.081, -10.499), 'head': (12.183, -1.195),
+        'right_clavicle': (17.537, 10.804), 'right_shoulder': (51.827, 10.27, 20.546),
+        'right_elbow': (27.901, 30.041), 'right_wrist': (3.179, -27.665),
     })
     human.KeyJoints(39.2, {
-        'spine_lumbar': (0.576, -20.0, 11.47), 'spine_thoracic': (-14.463, -10.0, 14.114),
-        'neck': (27.58, -0.168, -11.324), 'head': (12.562, -1.197),
-        'right_clavicle': (19.429, 11.39), 'right_shoulder': (51.437, 11.145, 22.005),
-        'right_elbow': (27.376, 31.674), 'right_wrist': (3.845, -28.275),
+        'spine_lumbar': (-0.625, -20.0, 11.479), 'spine_thoracic': (-14.432, -9.858, 14.045),
+        'neck': (27.836, -0.071, -10.791), 'head': (12.83, -1.196),
+        'right_clavicle': (18.721, 11.409), 'right_shoulder': (50.571, 10.236, 21.674),
+        'right_elbow': (27.607, 31.206), 'right_wrist': (3.715, -28.244),
     })
     human.KeyJoints(39.3, {
-        'spine_lumbar': (0.8, -14.172, 11.113), 'spine_thoracic': (-12.227, -2.153, 11.621),
-        'neck': (26.776, 0.358, -7.204), 'head': (11.814, -1.191), 'right_clavicle': (7.871, 9.369),
-        'right_shoulder': (49.023, 4.759, 13.652), 'right_elbow': (30.746, 22.418),
-        'right_wrist': (0.137, -24.609),
+        'spine_lumbar': (2.98, -12.869, 11.306), 'spine_thoracic': (-11.811, -0.966, 11.402),
+        'neck': (26.125, 0.331, -7.015), 'head': (11.151, -1.19), 'right_clavicle': (6.119, 9.048),
+        'right_shoulder': (49.92, 4.662, 12.317), 'right_elbow': (31.684, 21.011),
+        'right_wrist': (-0.488, -22.917),
     })
     human.KeyJoints(39.4, {
-        'spine_lumbar': (7.416, -13.51, 10.085), 'spine_thoracic': (-9.301, -3.862, 9.654),
-        'neck': (24.098, 0.391, -5.469), 'head': (8.393, -1.197), 'right_clavicle': (3.328, 8.085),
-        'right_shoulder': (55.536, 3.227, 11.369), 'right_elbow': (33.478, 18.956),
-        'right_wrist': (-1.092, -19.983),
+        'spine_lumbar': (7.44, -13.555, 10.026), 'spine_thoracic': (-9.209, -3.99, 9.589),
+        'neck': (24.047, 0.398, -5.391), 'head': (8.325, -1.198), 'right_clavicle': (3.277, 8.06),
+        'right_shoulder': (55.657, 3.135, 11.387), 'right_elbow': (33.505, 18.926),
+        'right_wrist': (-1.089, -19.951),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'spine_lumbar': (7.383, -13.912, 9.85), 'spine_thoracic': (-9.072, -4.581, 9.406),
-        'neck': (23.966, 0.404, -5.301), 'head': (8.222, -1.198), 'right_clavicle': (3.228, 7.984),
-        'right_shoulder': (55.852, 2.966, 11.458), 'right_elbow': (33.523, 18.862),
-        'right_wrist': (-1.066, -19.915),
+        'spine_lumbar': (6.814, -14.628, 10.065), 'spine_thoracic': (-9.902, -4.95, 9.681),
+        'neck': (24.413, 0.324, -6.111), 'head': (8.836, -1.196), 'right_clavicle': (3.884, 8.063),
+        'right_shoulder': (54.826, 3.721, 11.454), 'right_elbow': (33.166, 19.157),
+        'right_wrist': (-0.998, -20.304),
     })
     human.KeyJoints(39.6, {
-        'spine_lumbar': (3.644, -18.847, 10.138), 'spine_thoracic': (-12.241, -8.614, 10.714),
-        'neck': (25.703, 0.115, -8.278), 'head': (10.699, -1.191), 'right_clavicle': (9.491, 8.702),
-        'right_shoulder': (52.607, 6.86, 14.477), 'right_elbow': (30.677, 23.252),
-        'right_wrist': (0.418, -23.816),
+        'spine_lumbar': (2.388, -19.823, 10.402), 'spine_thoracic': (-13.09, -9.691, 11.672),
+        'neck': (26.387, 0.038, -9.211), 'head': (11.384, -1.193),
+        'right_clavicle': (12.979, 9.487), 'right_shoulder': (52.152, 8.406, 16.994),
+        'right_elbow': (29.403, 26.131), 'right_wrist': (1.544, -25.606),
     })
     human.KeyJoints(39.7, {
-        'spine_lumbar': (0.723, -20.0, 11.314), 'spine_thoracic': (-14.322, -10.0, 13.845),
-        'neck': (27.458, -0.138, -11.047), 'head': (12.442, -1.196),
-        'right_clavicle': (18.879, 11.218), 'right_shoulder': (51.592, 10.877, 21.586),
-        'right_elbow': (27.522, 31.2), 'right_wrist': (3.656, -28.116),
+        'spine_lumbar': (0.579, -20.0, 11.463), 'spine_thoracic': (-14.458, -10.0, 14.106),
+        'neck': (27.576, -0.167, -11.314), 'head': (12.558, -1.197),
+        'right_clavicle': (19.428, 11.39), 'right_shoulder': (51.443, 11.145, 22.004),
+        'right_elbow': (27.377, 31.673), 'right_wrist': (3.845, -28.274),
     })
     human.KeyJoints(39.8, {
-        'spine_lumbar': (-2.044, -18.987, 11.136), 'spine_thoracic': (-13.819, -7.728, 13.104),
-        'neck': (27.893, 0.179, -9.082), 'head': (12.918, -1.194),
-        'right_clavicle': (15.172, 10.826), 'right_shoulder': (49.222, 7.589, 19.232),
-        'right_elbow': (28.428, 28.405), 'right_wrist': (2.642, -27.835),
+        'spine_lumbar': (-1.437, -16.532, 10.979), 'spine_thoracic': (-12.941, -4.638, 12.156),
+        'neck': (27.487, 0.335, -7.771), 'head': (12.529, -1.192),
+        'right_clavicle': (11.027, 9.995), 'right_shoulder': (48.653, 5.558, 16.085),
+        'right_elbow': (29.508, 25.001), 'right_wrist': (1.242, -26.627),
     })
     human.KeyJoints(39.9, {
-        'spine_lumbar': (6.397, -12.462, 11.19), 'spine_thoracic': (-10.962, -1.248, 10.87),
-        'neck': (24.987, 0.292, -6.648), 'head': (9.713, -1.193), 'right_clavicle': (4.322, 8.593),
-        'right_shoulder': (52.748, 4.673, 11.203), 'right_elbow': (32.889, 19.597),
-        'right_wrist': (-1.08, -20.765),
+        'spine_lumbar': (6.694, -12.669, 11.026), 'spine_thoracic': (-10.728, -1.685, 10.689),
+        'neck': (24.814, 0.3, -6.496), 'head': (9.469, -1.194), 'right_clavicle': (4.173, 8.509),
+        'right_shoulder': (53.269, 4.507, 11.199), 'right_elbow': (32.994, 19.492),
+        'right_wrist': (-1.102, -20.608),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
-        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
-        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
-        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
-        'right_wrist': (-1.076, -19.827),
+        'spine_lumbar': (7.522, -13.743, 9.788), 'spine_thoracic': (-8.85, -4.508, 9.331),
+        'neck': (23.84, 0.425, -5.083), 'head': (8.068, -1.198), 'right_clavicle': (3.077, 7.962),
+        'right_shoulder': (56.13, 2.769, 11.46), 'right_elbow': (33.608, 18.804),
+        'right_wrist': (-1.076, -19.831),
     })
     human.KeyJoints(40.1, {
-        'spine_lumbar': (5.602, -16.337, 10.077), 'spine_thoracic': (-10.903, -6.288, 9.96),
-        'neck': (24.853, 0.24, -6.935), 'head': (9.562, -1.193), 'right_clavicle': (5.59, 8.168),
-        'right_shoulder': (53.747, 4.86, 12.084), 'right_elbow': (32.316, 20.265),
-        'right_wrist': (-0.65, -21.485),
+        'spine_lumbar': (4.324, -18.069, 10.081), 'spine_thoracic': (-11.781, -7.851, 10.37),
+        'neck': (25.373, 0.156, -7.808), 'head': (10.324, -1.191), 'right_clavicle': (7.942, 8.438),
+        'right_shoulder': (52.95, 6.11, 13.454), 'right_elbow': (31.291, 22.025),
+        'right_wrist': (-0.035, -22.948),
     })
     human.KeyJoints(40.2, {
-        'spine_lumbar': (1.507, -20.0, 10.774), 'spine_thoracic': (-13.703, -9.998, 12.671),
-        'neck': (26.913, -0.034, -10.006), 'head': (11.907, -1.194),
-        'right_clavicle': (15.933, 10.318), 'right_shoulder': (51.943, 9.617, 19.273),
-        'right_elbow': (28.399, 28.653), 'right_wrist': (2.588, -27.005),
+        'spine_lumbar': (0.831, -20.0, 11.212), 'spine_thoracic': (-14.224, -10.0, 13.658),
+        'neck': (27.372, -0.119, -10.862), 'head': (12.359, -1.196),
+        'right_clavicle': (18.468, 11.09), 'right_shoulder': (51.688, 10.684, 21.271),
+        'right_elbow': (27.634, 30.845), 'right_wrist': (3.512, -27.987),
     })
     human.KeyJoints(40.3, {
-        'spine_lumbar': (0.346, -20.0, 11.514), 'spine_thoracic': (-14.484, -10.0, 14.149),
-        'neck': (27.647, -0.158, -11.29), 'head': (12.631, -1.197),
-        'right_clavicle': (19.371, 11.417), 'right_shoulder': (51.219, 11.048, 21.977),
-        'right_elbow': (27.397, 31.645), 'right_wrist': (3.834, -28.285),
+        'spine_lumbar': (-1.48, -19.847, 11.334), 'spine_thoracic': (-14.231, -9.206, 13.688),
+        'neck': (27.929, 0.04, -10.072), 'head': (12.937, -1.195),
+        'right_clavicle': (17.421, 11.225), 'right_shoulder': (49.934, 9.129, 20.837),
+        'right_elbow': (27.936, 30.205), 'right_wrist': (3.35, -28.103),
     })
     human.KeyJoints(40.4, {
-        'spine_lumbar': (2.691, -13.011, 11.282), 'spine_thoracic': (-11.859, -1.079, 11.424),
-        'neck': (26.211, 0.335, -7.036), 'head': (11.24, -1.191), 'right_clavicle': (6.315, 9.083),
-        'right_shoulder': (49.778, 4.652, 12.466), 'right_elbow': (31.568, 21.167),
-        'right_wrist': (-0.417, -23.13),
+        'spine_lumbar': (4.406, -12.383, 11.392), 'spine_thoracic': (-11.572, -0.6, 11.288),
+        'neck': (25.691, 0.306, -6.942), 'head': (10.681, -1.191), 'right_clavicle': (5.27, 8.889),
+        'right_shoulder': (50.768, 4.721, 11.69), 'right_elbow': (32.222, 20.335),
+        'right_wrist': (-0.793, -21.928),
     })
     human.KeyJoints(40.5, {
-        'spine_lumbar': (7.525, -13.729, 9.795), 'spine_thoracic': (-8.855, -4.486, 9.338),
-        'neck': (23.844, 0.425, -5.086), 'head': (8.071, -1.198), 'right_clavicle': (3.078, 7.965),
-        'right_shoulder': (56.123, 2.775, 11.458), 'right_elbow': (33.607, 18.807),
-        'right_wrist': (-1.077, -19.832),
+        'spine_lumbar': (7.525, -13.731, 9.793), 'spine_thoracic': (-8.852, -4.49, 9.336),
+        'neck': (23.842, 0.425, -5.084), 'head': (8.069, -1.198), 'right_clavicle': (3.077, 7.964),
+        'right_shoulder': (56.127, 2.772, 11.458), 'right_elbow': (33.608, 18.806),
+        'right_wrist': (-1.077, -19.831),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
-        'spine_lumbar': (7.115, -14.245, 9.965), 'spine_thoracic': (-9.486, -4.74, 9.545),
-        'neck': (24.187, 0.364, -5.707), 'head': (8.525, -1.197), 'right_clavicle': (3.53, 8.023),
-        'right_shoulder': (55.336, 3.336, 11.455), 'right_elbow': (33.357, 18.989),
-        'right_wrist': (-1.039, -20.089),
+        'spine_lumbar': (6.293, -15.338, 10.095), 'spine_thoracic': (-10.412, -5.434, 9.825),
+        'neck': (24.579, 0.289, -6.442), 'head': (9.154, -1.194), 'right_clavicle': (4.56, 8.111),
+        'right_shoulder': (54.25, 4.259, 11.538), 'right_elbow': (32.817, 19.543),
+        'right_wrist': (-0.89, -20.755),
     })
     human.KeyJoints(40.7, {
-        'spine_lumbar': (3.027, -19.411, 10.238), 'spine_thoracic': (-12.656, -9.211, 11.127),
-        'neck': (26.032, 0.079, -8.719), 'head': (11.029, -1.192),
-        'right_clavicle': (11.099, 9.036), 'right_shoulder': (52.354, 7.593, 15.607),
-        'right_elbow': (30.074, 24.563), 'right_wrist': (0.92, -24.666),
+        'spine_lumbar': (1.865, -19.995, 10.597), 'spine_thoracic': (-13.451, -9.936, 12.224),
+        'neck': (26.693, -0.002, -9.659), 'head': (11.688, -1.194),
+        'right_clavicle': (14.682, 9.946), 'right_shoulder': (52.022, 9.113, 18.296),
+        'right_elbow': (28.821, 27.577), 'right_wrist': (2.137, -26.418),
     })
     human.KeyJoints(40.8, {
-        'spine_lumbar': (0.623, -20.0, 11.416), 'spine_thoracic': (-14.415, -10.0, 14.025),
-        'neck': (27.539, -0.158, -11.23), 'head': (12.522, -1.196),
-        'right_clavicle': (19.259, 11.337), 'right_shoulder': (51.491, 11.062, 21.876),
-        'right_elbow': (27.421, 31.528), 'right_wrist': (3.787, -28.228),
+        'spine_lumbar': (0.52, -20.0, 11.494), 'spine_thoracic': (-14.479, -10.0, 14.139),
+        'neck': (27.603, -0.168, -11.339), 'head': (12.585, -1.197),
+        'right_clavicle': (19.418, 11.397), 'right_shoulder': (51.372, 11.128, 21.997),
+        'right_elbow': (27.38, 31.669), 'right_wrist': (3.841, -28.278),
     })
     human.KeyJoints(40.9, {
-        'spine_lumbar': (-1.925, -17.536, 11.005), 'spine_thoracic': (-13.277, -5.813, 12.48),
-        'neck': (27.693, 0.293, -8.179), 'head': (12.731, -1.192),
-        'right_clavicle': (12.552, 10.308), 'right_shoulder': (48.755, 6.185, 17.258),
-        'right_elbow': (29.062, 26.258), 'right_wrist': (1.766, -27.22),
+        'spine_lumbar': (-0.196, -15.04, 11.039), 'spine_thoracic': (-12.484, -3.032, 11.785),
+        'neck': (27.078, 0.358, -7.373), 'head': (12.119, -1.191), 'right_clavicle': (9.001, 9.585),
+        'right_shoulder': (48.798, 4.937, 14.52), 'right_elbow': (30.246, 23.336),
+        'right_wrist': (0.535, -25.462),
     })
     human.KeyJoints(41.0, {
-        'spine_lumbar': (6.865, -12.826, 10.894), 'spine_thoracic': (-10.539, -2.025, 10.546),
-        'neck': (24.692, 0.309, -6.368), 'head': (9.295, -1.194), 'right_clavicle': (4.059, 8.446),
-        'right_shoulder': (53.645, 4.363, 11.198), 'right_elbow': (33.069, 19.415),
-        'right_wrist': (-1.109, -20.502),
+        'spine_lumbar': (7.025, -12.978, 10.743), 'spine_thoracic': (-10.31, -2.399, 10.375),
+        'neck': (24.559, 0.322, -6.2), 'head': (9.103, -1.195), 'right_clavicle': (3.913, 8.371),
+        'right_shoulder': (54.07, 4.192, 11.203), 'right_elbow': (33.159, 19.318),
+        'right_wrist': (-1.11, -20.378),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
-        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
-        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
-        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
-        'right_wrist': (-1.076, -19.827),
+        'spine_lumbar': (7.444, -13.837, 9.823), 'spine_thoracic': (-8.975, -4.548, 9.373),
+        'neck': (23.912, 0.414, -5.206), 'head': (8.153, -1.198), 'right_clavicle': (3.161, 7.974),
+        'right_shoulder': (55.974, 2.879, 11.459), 'right_elbow': (33.56, 18.836),
+        'right_wrist': (-1.071, -19.878),
     })
     human.KeyJoints(41.2, {
-        'spine_lumbar': (4.962, -17.234, 10.068), 'spine_thoracic': (-11.347, -7.078, 10.133),
-        'neck': (25.11, 0.197, -7.375), 'head': (9.941, -1.192), 'right_clavicle': (6.684, 8.271),
-        'right_shoulder': (53.325, 5.462, 12.688), 'right_elbow': (31.822, 21.065),
-        'right_wrist': (-0.377, -22.194),
+        'spine_lumbar': (3.64, -18.851, 10.139), 'spine_thoracic': (-12.244, -8.618, 10.717),
+        'neck': (25.705, 0.115, -8.281), 'head': (10.701, -1.191), 'right_clavicle': (9.501, 8.704),
+        'right_shoulder': (52.605, 6.865, 14.484), 'right_elbow': (30.673, 23.26),
+        'right_wrist': (0.421, -23.821),
     })
     human.KeyJoints(41.3, {
-        'spine_lumbar': (1.162, -20.0, 10.966), 'spine_thoracic': (-13.954, -10.0, 13.141),
-        'neck': (27.135, -0.071, -10.391), 'head': (12.126, -1.195),
-        'right_clavicle': (17.212, 10.704), 'right_shoulder': (51.856, 10.134, 20.289),
-        'right_elbow': (27.998, 29.76), 'right_wrist': (3.06, -27.541),
+        'spine_lumbar': (0.675, -20.0, 11.362), 'spine_thoracic': (-14.366, -10.0, 13.929),
+        'neck': (27.496, -0.147, -11.132), 'head': (12.48, -1.196),
+        'right_clavicle': (19.059, 11.274), 'right_shoulder': (51.545, 10.964, 21.724),
+        'right_elbow': (27.473, 31.355), 'right_wrist': (3.718, -28.17),
     })
     human.KeyJoints(41.4, {
-        'spine_lumbar': (-0.46, -20.0, 11.501), 'spine_thoracic': (-14.457, -9.927, 14.096),
-        'neck': (27.813, -0.09, -10.908), 'head': (12.805, -1.196), 'right_clavicle': (18.9, 11.43),
-        'right_shoulder': (50.685, 10.409, 21.781), 'right_elbow': (27.554, 31.341),
-        'right_wrist': (3.761, -28.269),
+        'spine_lumbar': (-1.997, -19.157, 11.164), 'spine_thoracic': (-13.889, -7.976, 13.194),
+        'neck': (27.907, 0.159, -9.229), 'head': (12.93, -1.194),
+        'right_clavicle': (15.529, 10.893), 'right_shoulder': (49.316, 7.811, 19.495),
+        'right_elbow': (28.352, 28.694), 'right_wrist': (2.759, -27.89),
     })
     human.KeyJoints(41.5, {
-        'spine_lumbar': (4.382, -12.384, 11.392), 'spine_thoracic': (-11.577, -0.601, 11.29),
-        'neck': (25.698, 0.306, -6.942), 'head': (10.691, -1.191), 'right_clavicle': (5.282, 8.892),
-        'right_shoulder': (50.752, 4.721, 11.698), 'right_elbow': (32.213, 20.345),
-        'right_wrist': (-0.788, -21.943),
+        'spine_lumbar': (5.483, -12.381, 11.35), 'spine_thoracic': (-11.335, -0.749, 11.138),
+        'neck': (25.35, 0.286, -6.89), 'head': (10.217, -1.192), 'right_clavicle': (4.755, 8.758),
+        'right_shoulder': (51.639, 4.729, 11.325), 'right_elbow': (32.581, 19.924),
+        'right_wrist': (-0.977, -21.277),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
@@ -2547,65 +2547,65 @@ def remove_access_panel_cad():
         'right_wrist': (-1.076, -19.827),
     })
     human.KeyJoints(41.7, {
-        'spine_lumbar': (6.698, -14.78, 10.088), 'spine_thoracic': (-10.041, -5.041, 9.724),
-        'neck': (24.491, 0.312, -6.243), 'head': (8.943, -1.195), 'right_clavicle': (4.027, 8.077),
-        'right_shoulder': (54.661, 3.856, 11.454), 'right_elbow': (33.091, 19.23),
-        'right_wrist': (-0.979, -20.394),
+        'spine_lumbar': (5.699, -16.198, 10.08), 'spine_thoracic': (-10.834, -6.17, 9.938),
+        'neck': (24.814, 0.247, -6.867), 'head': (9.504, -1.193), 'right_clavicle': (5.437, 8.156),
+        'right_shoulder': (53.816, 4.772, 12.006), 'right_elbow': (32.388, 20.157),
+        'right_wrist': (-0.686, -21.382),
     })
     human.KeyJoints(41.8, {
-        'spine_lumbar': (2.459, -19.788, 10.38), 'spine_thoracic': (-13.041, -9.647, 11.604),
-        'neck': (26.347, 0.042, -9.155), 'head': (11.344, -1.193),
-        'right_clavicle': (12.758, 9.431), 'right_shoulder': (52.172, 8.313, 16.829),
-        'right_elbow': (29.48, 25.945), 'right_wrist': (1.469, -25.499),
+        'spine_lumbar': (1.421, -20.0, 10.82), 'spine_thoracic': (-13.765, -10.0, 12.785),
+        'neck': (26.968, -0.042, -10.098), 'head': (11.961, -1.194),
+        'right_clavicle': (16.244, 10.411), 'right_shoulder': (51.922, 9.744, 19.518),
+        'right_elbow': (28.299, 28.922), 'right_wrist': (2.701, -27.141),
     })
     human.KeyJoints(41.9, {
-        'spine_lumbar': (0.583, -20.0, 11.458), 'spine_thoracic': (-14.453, -10.0, 14.097),
-        'neck': (27.572, -0.166, -11.305), 'head': (12.554, -1.197),
-        'right_clavicle': (19.409, 11.384), 'right_shoulder': (51.448, 11.136, 21.99),
-        'right_elbow': (27.381, 31.657), 'right_wrist': (3.838, -28.269),
+        'spine_lumbar': (0.149, -20.0, 11.521), 'spine_thoracic': (-14.484, -10.0, 14.151),
+        'neck': (27.692, -0.143, -11.215), 'head': (12.677, -1.197),
+        'right_clavicle': (19.298, 11.438), 'right_shoulder': (51.091, 10.918, 21.957),
+        'right_elbow': (27.424, 31.605), 'right_wrist': (3.829, -28.293),
     })
     human.KeyJoints(42.0, {
-        'spine_lumbar': (-0.918, -15.808, 10.998), 'spine_thoracic': (-12.716, -3.841, 11.963),
-        'neck': (27.308, 0.351, -7.557), 'head': (12.35, -1.191), 'right_clavicle': (10.02, 9.79),
-        'right_shoulder': (48.698, 5.217, 15.308), 'right_elbow': (29.853, 24.172),
-        'right_wrist': (0.892, -26.105),
+        'spine_lumbar': (1.356, -13.767, 11.167), 'spine_thoracic': (-12.111, -1.753, 11.555),
+        'neck': (26.612, 0.352, -7.145), 'head': (11.648, -1.191), 'right_clavicle': (7.357, 9.274),
+        'right_shoulder': (49.218, 4.696, 13.257), 'right_elbow': (31.0, 22.004),
+        'right_wrist': (-0.045, -24.157),
     })
     human.KeyJoints(42.1, {
-        'spine_lumbar': (7.194, -13.172, 10.517), 'spine_thoracic': (-9.963, -2.918, 10.125),
-        'neck': (24.475, 0.34, -6.041), 'head': (8.907, -1.196), 'right_clavicle': (3.706, 8.268),
-        'right_shoulder': (54.615, 3.882, 11.247), 'right_elbow': (33.277, 19.187),
-        'right_wrist': (-1.106, -20.226),
+        'spine_lumbar': (7.271, -13.278, 10.386), 'spine_thoracic': (-9.762, -3.209, 9.981),
+        'neck': (24.358, 0.355, -5.868), 'head': (8.747, -1.196), 'right_clavicle': (3.589, 8.212),
+        'right_shoulder': (54.905, 3.688, 11.281), 'right_elbow': (33.341, 19.115),
+        'right_wrist': (-1.103, -20.148),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.2, {
-        'spine_lumbar': (7.505, -13.763, 9.796), 'spine_thoracic': (-8.877, -4.516, 9.34),
-        'neck': (23.856, 0.423, -5.11), 'head': (8.086, -1.198), 'right_clavicle': (3.095, 7.965),
-        'right_shoulder': (56.097, 2.792, 11.46), 'right_elbow': (33.597, 18.811),
-        'right_wrist': (-1.075, -19.841),
+        'spine_lumbar': (7.218, -14.115, 9.922), 'spine_thoracic': (-9.33, -4.675, 9.493),
+        'neck': (24.104, 0.379, -5.554), 'head': (8.409, -1.197), 'right_clavicle': (3.412, 8.008),
+        'right_shoulder': (55.531, 3.195, 11.456), 'right_elbow': (33.421, 18.938),
+        'right_wrist': (-1.05, -20.02),
     })
     human.KeyJoints(42.3, {
-        'spine_lumbar': (4.304, -18.095, 10.082), 'spine_thoracic': (-11.795, -7.875, 10.379),
-        'neck': (25.381, 0.154, -7.822), 'head': (10.336, -1.191), 'right_clavicle': (7.985, 8.444),
-        'right_shoulder': (52.938, 6.132, 13.482), 'right_elbow': (31.273, 22.059),
-        'right_wrist': (-0.023, -22.973),
+        'spine_lumbar': (2.991, -19.44, 10.245), 'spine_thoracic': (-12.681, -9.243, 11.154),
+        'neck': (26.052, 0.077, -8.746), 'head': (11.049, -1.192),
+        'right_clavicle': (11.199, 9.058), 'right_shoulder': (52.341, 7.638, 15.68),
+        'right_elbow': (30.037, 24.646), 'right_wrist': (0.953, -24.717),
     })
     human.KeyJoints(42.4, {
-        'spine_lumbar': (0.903, -20.0, 11.15), 'spine_thoracic': (-14.162, -10.0, 13.539),
-        'neck': (27.318, -0.107, -10.747), 'head': (12.306, -1.196),
-        'right_clavicle': (18.196, 11.006), 'right_shoulder': (51.741, 10.559, 21.061),
-        'right_elbow': (27.71, 30.61), 'right_wrist': (3.416, -27.897),
+        'spine_lumbar': (0.599, -20.0, 11.441), 'spine_thoracic': (-14.438, -10.0, 14.068),
+        'neck': (27.559, -0.163, -11.275), 'head': (12.541, -1.197),
+        'right_clavicle': (19.349, 11.365), 'right_shoulder': (51.465, 11.106, 21.945),
+        'right_elbow': (27.397, 31.606), 'right_wrist': (3.818, -28.253),
     })
     human.KeyJoints(42.5, {
-        'spine_lumbar': (-1.462, -19.858, 11.338), 'spine_thoracic': (-14.237, -9.228, 13.698),
-        'neck': (27.928, 0.037, -10.091), 'head': (12.935, -1.195),
-        'right_clavicle': (17.457, 11.23), 'right_shoulder': (49.948, 9.156, 20.862),
-        'right_elbow': (27.928, 30.233), 'right_wrist': (3.36, -28.107),
+        'spine_lumbar': (-2.081, -17.999, 11.034), 'spine_thoracic': (-13.44, -6.385, 12.655),
+        'neck': (27.778, 0.267, -8.406), 'head': (12.813, -1.193),
+        'right_clavicle': (13.311, 10.462), 'right_shoulder': (48.863, 6.556, 17.837),
+        'right_elbow': (28.864, 26.884), 'right_wrist': (2.024, -27.454),
     })
     human.KeyJoints(42.6, {
-        'spine_lumbar': (5.617, -12.381, 11.338), 'spine_thoracic': (-11.299, -0.791, 11.113),
-        'neck': (25.304, 0.285, -6.87), 'head': (10.155, -1.192), 'right_clavicle': (4.696, 8.74),
-        'right_shoulder': (51.768, 4.73, 11.287), 'right_elbow': (32.624, 19.877),
-        'right_wrist': (-0.997, -21.2),
+        'spine_lumbar': (6.222, -12.4, 11.249), 'spine_thoracic': (-11.065, -1.079, 10.947),
+        'neck': (25.072, 0.289, -6.715), 'head': (9.832, -1.193), 'right_clavicle': (4.405, 8.634),
+        'right_shoulder': (52.49, 4.719, 11.207), 'right_elbow': (32.831, 19.657),
+        'right_wrist': (-1.065, -20.857),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(42.7, {
@@ -2615,133 +2615,133 @@ def remove_access_panel_cad():
         'right_wrist': (-1.076, -19.827),
     })
     human.KeyJoints(42.8, {
-        'spine_lumbar': (6.19, -15.487, 10.093), 'spine_thoracic': (-10.489, -5.558, 9.844),
-        'neck': (24.62, 0.282, -6.518), 'head': (9.216, -1.194), 'right_clavicle': (4.704, 8.117),
-        'right_shoulder': (54.169, 4.348, 11.608), 'right_elbow': (32.744, 19.641),
-        'right_wrist': (-0.858, -20.86),
+        'spine_lumbar': (5.03, -17.142, 10.068), 'spine_thoracic': (-11.3, -6.995, 10.112),
+        'neck': (25.083, 0.202, -7.328), 'head': (9.901, -1.192), 'right_clavicle': (6.561, 8.258),
+        'right_shoulder': (53.368, 5.396, 12.617), 'right_elbow': (31.875, 20.973),
+        'right_wrist': (-0.408, -22.117),
     })
     human.KeyJoints(42.9, {
-        'spine_lumbar': (1.953, -19.99, 10.559), 'spine_thoracic': (-13.389, -9.913, 12.123),
-        'neck': (26.64, 0.004, -9.586), 'head': (11.636, -1.194), 'right_clavicle': (14.385, 9.863),
-        'right_shoulder': (52.042, 8.992, 18.067), 'right_elbow': (28.921, 27.324),
-        'right_wrist': (2.032, -26.278),
+        'spine_lumbar': (1.082, -20.0, 11.017), 'spine_thoracic': (-14.015, -10.0, 13.259),
+        'neck': (27.189, -0.081, -10.492), 'head': (12.18, -1.195),
+        'right_clavicle': (17.518, 10.798), 'right_shoulder': (51.829, 10.262, 20.532),
+        'right_elbow': (27.906, 30.025), 'right_wrist': (3.173, -27.658),
     })
     human.KeyJoints(43.0, {
-        'spine_lumbar': (0.576, -20.0, 11.469), 'spine_thoracic': (-14.462, -10.0, 14.113),
-        'neck': (27.58, -0.168, -11.323), 'head': (12.561, -1.197),
-        'right_clavicle': (19.429, 11.39), 'right_shoulder': (51.438, 11.145, 22.005),
-        'right_elbow': (27.376, 31.674), 'right_wrist': (3.845, -28.275),
+        'spine_lumbar': (-0.61, -20.0, 11.481), 'spine_thoracic': (-14.435, -9.865, 14.05),
+        'neck': (27.834, -0.073, -10.802), 'head': (12.828, -1.196),
+        'right_clavicle': (18.738, 11.411), 'right_shoulder': (50.582, 10.252, 21.684),
+        'right_elbow': (27.602, 31.219), 'right_wrist': (3.719, -28.247),
     })
     human.KeyJoints(43.1, {
-        'spine_lumbar': (0.768, -14.197, 11.11), 'spine_thoracic': (-12.234, -2.177, 11.625),
-        'neck': (26.785, 0.358, -7.208), 'head': (11.823, -1.191), 'right_clavicle': (7.903, 9.375),
-        'right_shoulder': (49.013, 4.763, 13.676), 'right_elbow': (30.731, 22.444),
-        'right_wrist': (0.148, -24.635),
+        'spine_lumbar': (2.954, -12.881, 11.304), 'spine_thoracic': (-11.816, -0.976, 11.404),
+        'neck': (26.133, 0.331, -7.017), 'head': (11.159, -1.19), 'right_clavicle': (6.136, 9.051),
+        'right_shoulder': (49.907, 4.661, 12.33), 'right_elbow': (31.673, 21.025),
+        'right_wrist': (-0.482, -22.937),
     })
     human.KeyJoints(43.2, {
-        'spine_lumbar': (7.413, -13.505, 10.092), 'spine_thoracic': (-9.311, -3.848, 9.661),
-        'neck': (24.103, 0.39, -5.478), 'head': (8.401, -1.197), 'right_clavicle': (3.334, 8.088),
-        'right_shoulder': (55.522, 3.237, 11.367), 'right_elbow': (33.475, 18.96),
-        'right_wrist': (-1.092, -19.986),
+        'spine_lumbar': (7.438, -13.551, 10.031), 'spine_thoracic': (-9.218, -3.979, 9.595),
+        'neck': (24.051, 0.398, -5.398), 'head': (8.331, -1.198), 'right_clavicle': (3.281, 8.063),
+        'right_shoulder': (55.647, 3.143, 11.386), 'right_elbow': (33.502, 18.928),
+        'right_wrist': (-1.089, -19.954),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.3, {
-        'spine_lumbar': (7.386, -13.908, 9.849), 'spine_thoracic': (-9.067, -4.579, 9.405),
-        'neck': (23.963, 0.405, -5.296), 'head': (8.219, -1.198), 'right_clavicle': (3.225, 7.983),
-        'right_shoulder': (55.859, 2.961, 11.458), 'right_elbow': (33.525, 18.861),
-        'right_wrist': (-1.066, -19.913),
+        'spine_lumbar': (6.822, -14.618, 10.063), 'spine_thoracic': (-9.892, -4.944, 9.678),
+        'neck': (24.407, 0.325, -6.101), 'head': (8.828, -1.196), 'right_clavicle': (3.875, 8.062),
+        'right_shoulder': (54.838, 3.711, 11.454), 'right_elbow': (33.171, 19.152),
+        'right_wrist': (-0.999, -20.298),
     })
     human.KeyJoints(43.4, {
-        'spine_lumbar': (3.655, -18.836, 10.137), 'spine_thoracic': (-12.234, -8.603, 10.708),
-        'neck': (25.697, 0.116, -8.271), 'head': (10.693, -1.191), 'right_clavicle': (9.465, 8.697),
-        'right_shoulder': (52.612, 6.848, 14.459), 'right_elbow': (30.687, 23.231),
-        'right_wrist': (0.41, -23.802),
+        'spine_lumbar': (2.397, -19.819, 10.399), 'spine_thoracic': (-13.083, -9.685, 11.663),
+        'neck': (26.382, 0.038, -9.204), 'head': (11.379, -1.193),
+        'right_clavicle': (12.949, 9.479), 'right_shoulder': (52.155, 8.394, 16.972),
+        'right_elbow': (29.414, 26.106), 'right_wrist': (1.534, -25.592),
     })
     human.KeyJoints(43.5, {
-        'spine_lumbar': (0.725, -20.0, 11.312), 'spine_thoracic': (-14.319, -10.0, 13.841),
-        'neck': (27.456, -0.138, -11.043), 'head': (12.441, -1.196),
-        'right_clavicle': (18.87, 11.215), 'right_shoulder': (51.594, 10.873, 21.58),
-        'right_elbow': (27.524, 31.192), 'right_wrist': (3.653, -28.113),
+        'spine_lumbar': (0.579, -20.0, 11.463), 'spine_thoracic': (-14.458, -10.0, 14.106),
+        'neck': (27.576, -0.167, -11.314), 'head': (12.558, -1.197),
+        'right_clavicle': (19.427, 11.389), 'right_shoulder': (51.443, 11.145, 22.004),
+        'right_elbow': (27.377, 31.673), 'right_wrist': (3.845, -28.274),
     })
     human.KeyJoints(43.6, {
-        'spine_lumbar': (-2.039, -19.008, 11.14), 'spine_thoracic': (-13.827, -7.758, 13.115),
-        'neck': (27.895, 0.177, -9.1), 'head': (12.919, -1.194), 'right_clavicle': (15.215, 10.834),
-        'right_shoulder': (49.233, 7.615, 19.264), 'right_elbow': (28.419, 28.44),
-        'right_wrist': (2.657, -27.842),
+        'spine_lumbar': (-1.45, -16.556, 10.978), 'spine_thoracic': (-12.949, -4.666, 12.163),
+        'neck': (27.492, 0.334, -7.78), 'head': (12.534, -1.192),
+        'right_clavicle': (11.063, 10.002), 'right_shoulder': (48.653, 5.57, 16.112),
+        'right_elbow': (29.497, 25.03), 'right_wrist': (1.254, -26.643),
     })
     human.KeyJoints(43.7, {
-        'spine_lumbar': (6.387, -12.458, 11.194), 'spine_thoracic': (-10.969, -1.237, 10.875),
-        'neck': (24.992, 0.292, -6.652), 'head': (9.72, -1.193), 'right_clavicle': (4.326, 8.596),
-        'right_shoulder': (52.733, 4.677, 11.204), 'right_elbow': (32.886, 19.6),
-        'right_wrist': (-1.079, -20.77),
+        'spine_lumbar': (6.687, -12.663, 11.031), 'spine_thoracic': (-10.734, -1.673, 10.694),
+        'neck': (24.818, 0.3, -6.5), 'head': (9.475, -1.194), 'right_clavicle': (4.176, 8.512),
+        'right_shoulder': (53.256, 4.512, 11.199), 'right_elbow': (32.991, 19.495),
+        'right_wrist': (-1.101, -20.612),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
-        'spine_lumbar': (7.528, -13.736, 9.786), 'spine_thoracic': (-8.841, -4.505, 9.328),
-        'neck': (23.835, 0.426, -5.075), 'head': (8.062, -1.198), 'right_clavicle': (3.071, 7.961),
-        'right_shoulder': (56.141, 2.761, 11.46), 'right_elbow': (33.611, 18.802),
-        'right_wrist': (-1.076, -19.827),
+        'spine_lumbar': (7.522, -13.742, 9.788), 'spine_thoracic': (-8.85, -4.507, 9.331),
+        'neck': (23.84, 0.425, -5.083), 'head': (8.067, -1.198), 'right_clavicle': (3.076, 7.962),
+        'right_shoulder': (56.131, 2.768, 11.46), 'right_elbow': (33.608, 18.804),
+        'right_wrist': (-1.076, -19.83),
     })
     human.KeyJoints(43.9, {
-        'spine_lumbar': (5.613, -16.322, 10.078), 'spine_thoracic': (-10.896, -6.275, 9.958),
-        'neck': (24.849, 0.241, -6.928), 'head': (9.556, -1.193), 'right_clavicle': (5.573, 8.166),
-        'right_shoulder': (53.754, 4.851, 12.075), 'right_elbow': (32.324, 20.253),
-        'right_wrist': (-0.654, -21.474),
+        'spine_lumbar': (4.336, -18.055, 10.08), 'spine_thoracic': (-11.774, -7.837, 10.365),
+        'neck': (25.368, 0.157, -7.8), 'head': (10.316, -1.191), 'right_clavicle': (7.917, 8.434),
+        'right_shoulder': (52.956, 6.098, 13.439), 'right_elbow': (31.301, 22.006),
+        'right_wrist': (-0.042, -22.934),
     })
     human.KeyJoints(44.0, {
-        'spine_lumbar': (1.514, -20.0, 10.77), 'spine_thoracic': (-13.698, -9.998, 12.663),
-        'neck': (26.909, -0.033, -9.999), 'head': (11.903, -1.194),
-        'right_clavicle': (15.909, 10.31), 'right_shoulder': (51.945, 9.608, 19.254),
-        'right_elbow': (28.407, 28.633), 'right_wrist': (2.579, -26.994),
+        'spine_lumbar': (0.834, -20.0, 11.209), 'spine_thoracic': (-14.221, -10.0, 13.652),
+        'neck': (27.37, -0.118, -10.857), 'head': (12.357, -1.196),
+        'right_clavicle': (18.455, 11.086), 'right_shoulder': (51.69, 10.678, 21.261),
+        'right_elbow': (27.638, 30.834), 'right_wrist': (3.508, -27.983),
     })
     human.KeyJoints(44.1, {
-        'spine_lumbar': (0.355, -20.0, 11.513), 'spine_thoracic': (-14.484, -10.0, 14.149),
-        'neck': (27.645, -0.158, -11.294), 'head': (12.628, -1.197),
-        'right_clavicle': (19.374, 11.416), 'right_shoulder': (51.226, 11.054, 21.978),
-        'right_elbow': (27.396, 31.647), 'right_wrist': (3.835, -28.285),
+        'spine_lumbar': (-1.466, -19.856, 11.337), 'spine_thoracic': (-14.236, -9.224, 13.696),
+        'neck': (27.928, 0.037, -10.087), 'head': (12.936, -1.195),
+        'right_clavicle': (17.45, 11.229), 'right_shoulder': (49.945, 9.151, 20.857),
+        'right_elbow': (27.93, 30.227), 'right_wrist': (3.358, -28.106),
     })
     human.KeyJoints(44.2, {
-        'spine_lumbar': (2.66, -13.026, 11.28), 'spine_thoracic': (-11.864, -1.091, 11.427),
-        'neck': (26.22, 0.336, -7.038), 'head': (11.249, -1.191), 'right_clavicle': (6.336, 9.086),
-        'right_shoulder': (49.763, 4.652, 12.482), 'right_elbow': (31.555, 21.184),
-        'right_wrist': (-0.409, -23.153),
+        'spine_lumbar': (4.385, -12.384, 11.392), 'spine_thoracic': (-11.576, -0.601, 11.29),
+        'neck': (25.698, 0.306, -6.942), 'head': (10.689, -1.191), 'right_clavicle': (5.281, 8.891),
+        'right_shoulder': (50.754, 4.721, 11.697), 'right_elbow': (32.214, 20.344),
+        'right_wrist': (-0.789, -21.941),
     })
     human.KeyJoints(44.3, {
-        'spine_lumbar': (7.524, -13.728, 9.797), 'spine_thoracic': (-8.859, -4.481, 9.341),
-        'neck': (23.846, 0.425, -5.089), 'head': (8.073, -1.198), 'right_clavicle': (3.08, 7.966),
-        'right_shoulder': (56.119, 2.778, 11.457), 'right_elbow': (33.606, 18.808),
-        'right_wrist': (-1.077, -19.833),
+        'spine_lumbar': (7.525, -13.729, 9.795), 'spine_thoracic': (-8.855, -4.486, 9.338),
+        'neck': (23.844, 0.425, -5.086), 'head': (8.071, -1.198), 'right_clavicle': (3.078, 7.965),
+        'right_shoulder': (56.124, 2.775, 11.458), 'right_elbow': (33.607, 18.806),
+        'right_wrist': (-1.077, -19.832),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.4, {
-        'spine_lumbar': (7.12, -14.237, 9.962), 'spine_thoracic': (-9.477, -4.736, 9.542),
-        'neck': (24.183, 0.365, -5.699), 'head': (8.518, -1.197), 'right_clavicle': (3.523, 8.023),
-        'right_shoulder': (55.347, 3.328, 11.455), 'right_elbow': (33.361, 18.986),
-        'right_wrist': (-1.04, -20.085),
+        'spine_lumbar': (6.286, -15.349, 10.095), 'spine_thoracic': (-10.418, -5.442, 9.826),
+        'neck': (24.582, 0.289, -6.447), 'head': (9.159, -1.194), 'right_clavicle': (4.57, 8.111),
+        'right_shoulder': (54.244, 4.265, 11.543), 'right_elbow': (32.811, 19.55),
+        'right_wrist': (-0.888, -20.762),
     })
     human.KeyJoints(44.5, {
-        'spine_lumbar': (3.037, -19.404, 10.236), 'spine_thoracic': (-12.65, -9.202, 11.119),
-        'neck': (26.027, 0.08, -8.712), 'head': (11.024, -1.192), 'right_clavicle': (11.071, 9.029),
-        'right_shoulder': (52.358, 7.581, 15.587), 'right_elbow': (30.084, 24.54),
-        'right_wrist': (0.911, -24.651),
+        'spine_lumbar': (1.846, -19.995, 10.605), 'spine_thoracic': (-13.464, -9.94, 12.246),
+        'neck': (26.704, -0.003, -9.676), 'head': (11.699, -1.194),
+        'right_clavicle': (14.747, 9.965), 'right_shoulder': (52.017, 9.139, 18.346),
+        'right_elbow': (28.798, 27.633), 'right_wrist': (2.16, -26.449),
     })
     human.KeyJoints(44.6, {
-        'spine_lumbar': (0.624, -20.0, 11.415), 'spine_thoracic': (-14.414, -10.0, 14.023),
-        'neck': (27.538, -0.158, -11.228), 'head': (12.521, -1.196),
-        'right_clavicle': (19.255, 11.335), 'right_shoulder': (51.492, 11.06, 21.873),
-        'right_elbow': (27.422, 31.524), 'right_wrist': (3.786, -28.226),
+        'spine_lumbar': (0.508, -20.0, 11.497), 'spine_thoracic': (-14.479, -10.0, 14.141),
+        'neck': (27.607, -0.168, -11.338), 'head': (12.589, -1.197),
+        'right_clavicle': (19.415, 11.398), 'right_shoulder': (51.361, 11.123, 21.995),
+        'right_elbow': (27.38, 31.667), 'right_wrist': (3.841, -28.281),
     })
     human.KeyJoints(44.7, {
-        'spine_lumbar': (-2.137, -17.675, 10.947), 'spine_thoracic': (-13.182, -5.841, 12.437),
-        'neck': (27.699, 0.305, -8.099), 'head': (12.738, -1.192),
-        'right_clavicle': (12.48, 10.288), 'right_shoulder': (48.875, 5.951, 17.156),
-        'right_elbow': (28.845, 26.143), 'right_wrist': (1.742, -27.767),
+        'spine_lumbar': (-0.485, -15.161, 10.947), 'spine_thoracic': (-12.315, -2.985, 11.686),
+        'neck': (27.076, 0.38, -7.222), 'head': (12.12, -1.191), 'right_clavicle': (8.775, 9.528),
+        'right_shoulder': (48.962, 4.541, 14.276), 'right_elbow': (29.959, 23.063),
+        'right_wrist': (0.459, -26.225),
     })
     human.KeyJoints(44.8, {
-        'spine_lumbar': (6.315, -13.054, 10.728), 'spine_thoracic': (-10.282, -2.008, 10.391),
-        'neck': (24.726, 0.342, -6.156), 'head': (9.322, -1.194), 'right_clavicle': (3.793, 8.371),
-        'right_shoulder': (53.843, 3.741, 10.891), 'right_elbow': (32.578, 19.06),
-        'right_wrist': (-1.192, -21.751),
+        'spine_lumbar': (6.47, -13.211, 10.572), 'spine_thoracic': (-10.041, -2.394, 10.214),
+        'neck': (24.59, 0.357, -5.978), 'head': (9.125, -1.195), 'right_clavicle': (3.641, 8.294),
+        'right_shoulder': (54.278, 3.558, 10.897), 'right_elbow': (32.669, 18.96),
+        'right_wrist': (-1.193, -21.627),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=44.844609, duration=0.072)

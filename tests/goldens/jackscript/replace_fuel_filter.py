@@ -115,7 +115,7 @@ def replace_fuel_filter():
         'spine_lumbar': (2.846, -2.421, 0.0), 'spine_thoracic': (0.453, -0.396, 0.0),
         'right_shoulder': (8.594, 7.082, -12.719), 'left_shoulder': (8.594, 7.082, -12.719),
         'right_hip': (5.323, 7.155, 1.741), 'right_knee': (34.173,), 'right_ankle': (20.0, 7.448),
-        'left_hip': (-3.805, -7.065, 0.469), 'left_knee': (5.191,), 'left_ankle': (8.966, -7.08),
+        'left_hip': (-3.814, -7.065, 0.47), 'left_knee': (5.172,), 'left_ankle': (8.956, -7.08),
         'right_toes': (8.767,),
     })
     human.KeyRoot(1.6, (8.51, 89.705, 68.197), (-10.437, 0.0, 0.0))
@@ -190,217 +190,212 @@ def replace_fuel_filter():
         'left_hip': (94.236, 0.0, 0.0), 'left_knee': (127.019,), 'left_ankle': (20.0, 0.001),
         'right_toes': (86.743,), 'left_toes': (12.763,),
     })
-    human.KeyRoot(2.6, (3.073, 41.567, 38.129), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.6, (2.97, 41.832, 38.548), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.6, {
-        'spine_lumbar': (-7.049, 8.984, 0.0), 'spine_thoracic': (-4.326, 3.648, 0.0),
-        'right_hip': (31.874, -0.042, -0.019), 'right_knee': (133.88,),
-        'right_ankle': (15.046, 0.032), 'left_hip': (96.934, -0.204, 0.237),
-        'left_knee': (127.765,), 'left_ankle': (8.724, 0.448), 'right_toes': (86.912,),
-        'left_toes': (22.025,),
+        'spine_lumbar': (-10.741, 12.848, 0.0), 'spine_thoracic': (-6.196, 5.171, 0.0),
+        'right_hip': (31.202, -0.074, -0.032), 'right_knee': (133.209,),
+        'right_ankle': (15.046, 0.053), 'left_hip': (97.833, -0.455, 0.468),
+        'left_knee': (127.895,), 'left_ankle': (3.938, 0.882), 'right_toes': (86.903,),
+        'left_toes': (25.977,),
     })
-    human.KeyRoot(2.7, (2.339, 42.955, 40.444), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.7, (2.444, 42.61, 39.819), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.7, {
-        'spine_lumbar': (-24.856, 20.0, 0.0), 'spine_thoracic': (-12.217, 9.235, 0.0),
-        'right_hip': (28.174, -0.42, -0.163), 'right_knee': (130.214,),
-        'right_ankle': (15.052, 0.236), 'left_hip': (99.531, -5.876, 4.263),
-        'left_ankle': (-12.131, 8.012), 'right_toes': (86.743,), 'left_toes': (39.491,),
+        'spine_lumbar': (-28.157, 20.0, 0.0), 'spine_thoracic': (-6.508, 10.0, 0.0),
+        'right_hip': (29.133, -0.429, -0.172), 'right_knee': (131.177,),
+        'right_ankle': (15.058, 0.293), 'left_hip': (100.106, -16.624, 10.982),
+        'left_knee': (127.407,), 'left_ankle': (-16.499, 21.194), 'right_toes': (86.718,),
+        'left_toes': (41.248,),
     })
-    human.KeyRoot(2.8, (2.598, 42.269, 39.237), (-10.437, 0.0, 0.0))
+    human.KeyRoot(2.8, (2.535, 42.888, 40.329), (-10.437, 0.0, 0.0))
     human.KeyJoints(2.8, {
-        'spine_lumbar': (-24.805, 20.0, 0.0), 'spine_thoracic': (-9.621, 10.0, 0.0),
-        'right_hip': (30.051, -0.37, -0.154), 'right_knee': (132.089,),
-        'right_ankle': (15.057, 0.26), 'left_hip': (100.755, -19.727, 12.87),
-        'left_knee': (127.567,), 'left_ankle': (-17.444, 24.835), 'left_toes': (41.123,),
-    })
-    human.KeyRoot(2.9, (2.535, 42.888, 40.329), (-10.437, 0.0, 0.0))
-    human.KeyJoints(2.9, {
         'spine_lumbar': (-26.19, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'right_hip': (28.389, -0.201, -0.079), 'right_knee': (130.401,),
         'right_ankle': (15.065, 0.143), 'left_hip': (108.494, -25.0, 13.449),
-        'left_knee': (134.551,), 'left_ankle': (-19.22, 28.142), 'left_toes': (40.74,),
+        'left_knee': (134.551,), 'left_ankle': (-19.22, 28.142), 'right_toes': (86.822,),
+        'left_toes': (40.74,),
     })
-    human.KeyRoot(3.0, (3.066, 41.13, 37.417), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.0, {
+    human.KeyRoot(2.9, (3.066, 41.13, 37.417), (-10.437, 0.0, 0.0))
+    human.KeyJoints(2.9, {
         'spine_lumbar': (-14.66, 20.0, 0.0), 'right_hip': (32.971, -0.209, -0.098),
         'right_knee': (134.986,), 'left_hip': (119.758, -25.0, 11.003), 'left_knee': (134.749,),
         'left_ankle': (-31.022, 21.615), 'left_toes': (33.332,),
     })
-    human.KeyRoot(3.1, (2.97, 41.308, 37.693), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.1, {
+    human.KeyRoot(3.0, (2.97, 41.308, 37.693), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.0, {
         'spine_lumbar': (-16.606, 20.0, 0.0), 'right_hip': (32.521, -0.265, -0.122),
         'right_knee': (134.546,), 'left_hip': (104.013, -23.385, 22.411), 'left_knee': (133.11,),
-        'left_ankle': (-42.581, 18.58), 'right_toes': (86.803,), 'left_toes': (44.69,),
+        'left_ankle': (-42.581, 18.58), 'left_toes': (44.69,),
     })
-    human.KeyRoot(3.2, (2.268, 43.458, 41.368), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.2, {
-        'spine_lumbar': (-26.383, 20.0, 0.0), 'spine_thoracic': (-14.931, 10.0, 0.0),
+    human.KeyRoot(3.1, (2.268, 43.458, 41.368), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.1, {
+        'spine_lumbar': (-26.42, 20.0, 0.0), 'spine_thoracic': (-14.939, 10.0, 0.0),
         'right_hip': (26.776, -0.293, -0.107), 'right_knee': (128.789,),
         'right_ankle': (15.083, 0.2), 'left_hip': (83.258, -23.225, 26.785), 'left_knee': (135.0,),
         'left_ankle': (-45.775, 13.173), 'right_toes': (86.75,), 'left_toes': (57.709,),
     })
-    human.KeyRoot(3.3, (2.114, 43.338, 41.038), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.3, {
-        'spine_lumbar': (-24.433, 20.0, 0.0), 'spine_thoracic': (-8.751, 10.0, 0.0),
-        'right_hip': (27.214, -0.56, -0.204), 'right_knee': (129.221,),
-        'right_ankle': (15.086, 0.349), 'left_hip': (54.221, -21.049, 27.079),
-        'left_ankle': (-49.614, 10.384), 'right_toes': (86.567,), 'left_toes': (73.38,),
+    human.KeyRoot(3.2, (2.06, 43.389, 41.124), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.2, {
+        'spine_lumbar': (-24.513, 20.0, 0.0), 'spine_thoracic': (-8.768, 10.0, 0.0),
+        'right_hip': (27.073, -0.609, -0.221), 'right_knee': (129.08,),
+        'right_ankle': (15.089, 0.354), 'left_hip': (54.371, -21.058, 26.985),
+        'left_ankle': (-50.0, 10.019), 'right_toes': (86.543,), 'left_toes': (72.268,),
     })
-    human.KeyRoot(3.4, (2.567, 42.686, 39.897), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.4, {
-        'spine_lumbar': (-13.338, 20.0, 0.0), 'spine_thoracic': (-14.876, 10.0, 0.0),
+    human.KeyRoot(3.3, (2.567, 42.686, 39.897), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.3, {
+        'spine_lumbar': (-13.404, 20.0, 0.0), 'spine_thoracic': (-14.889, 10.0, 0.0),
         'right_hip': (29.021, -0.258, -0.105), 'right_knee': (131.014,),
         'right_ankle': (15.118, 0.183), 'left_hip': (40.638, -17.056, 7.742),
         'left_ankle': (-28.034, 18.006), 'right_toes': (86.713,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(3.5, (2.281, 43.183, 40.771), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.5, {
-        'spine_lumbar': (-16.335, 20.0, 0.0), 'right_hip': (27.642, -0.411, -0.156),
+    human.KeyRoot(3.4, (2.281, 43.183, 40.771), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.4, {
+        'spine_lumbar': (-16.357, 20.0, 0.0), 'right_hip': (27.642, -0.411, -0.156),
         'right_knee': (129.644,), 'left_hip': (32.137, -4.273, 3.161), 'left_knee': (134.901,),
         'left_ankle': (1.976, 5.318), 'right_toes': (86.619,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(3.6, (2.415, 42.623, 39.8), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.6, {
+    human.KeyRoot(3.5, (2.415, 42.623, 39.8), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.5, {
         'spine_lumbar': (-13.204, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'right_shoulder': (8.594, 7.497, -19.951), 'left_shoulder': (8.594, 7.497, -19.951),
         'right_hip': (29.142, -0.468, -0.191), 'right_knee': (131.173,),
         'right_ankle': (15.087, 0.295), 'left_hip': (28.513, -2.105, 2.216),
         'left_knee': (131.944,), 'left_ankle': (17.15, 2.937), 'left_toes': (85.697,),
     })
-    human.KeyRoot(3.7, (3.015, 41.885, 38.62), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.7, {
+    human.KeyRoot(3.6, (3.015, 41.885, 38.62), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.6, {
         'spine_lumbar': (-5.343, 20.0, 0.0), 'spine_thoracic': (-2.94, 9.54, 0.0),
         'right_shoulder': (8.594, 6.986, -10.869), 'left_shoulder': (8.594, 6.986, -10.869),
         'right_hip': (31.075, -0.002, -0.001), 'right_knee': (133.104,),
         'right_ankle': (15.162, 0.003), 'left_hip': (31.075, 0.002, 0.001), 'left_knee': (133.104,),
         'left_ankle': (15.162, -0.003), 'left_toes': (86.736,),
     })
-    human.KeyRoot(3.8, (2.95, 42.105, 38.984), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.8, {
+    human.KeyRoot(3.7, (2.95, 42.105, 38.984), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.7, {
         'spine_lumbar': (11.816, 9.529, 0.0), 'spine_thoracic': (1.845, 1.915, 0.0),
         'right_shoulder': (8.594, 6.136, 4.245), 'left_shoulder': (8.594, 6.136, 4.245),
         'right_hip': (30.503, 0.0, 0.0), 'right_knee': (132.532,), 'left_hip': (30.503, 0.0, 0.0),
         'left_knee': (132.532,), 'right_toes': (86.736,),
     })
     # examples/replace_fuel_filter.mtask:33:5 replace_fuel_filter > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=3.893137, duration=0.316667)
-    human.KeyRoot(3.9, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
-    human.KeyJoints(3.9, {
+    human.LookAt((10.0, 25.0, 95.0), start=3.793137, duration=0.316667)
+    human.KeyRoot(3.8, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
+    human.KeyJoints(3.8, {
         'spine_lumbar': (11.328, 0.01, 0.0), 'spine_thoracic': (1.908, 0.004, 0.0),
         'neck': (0.049, -0.047, 0.026), 'head': (0.021, 0.015),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,), 'left_hip': (24.096, 0.0, 0.0),
         'left_knee': (126.122,),
     })
-    human.KeyJoints(4.0, {
+    human.KeyJoints(3.9, {
         'neck': (9.267, -8.936, 4.966), 'head': (3.972, 2.943), 'right_toes': (86.654,),
     })
-    human.KeyJoints(4.1, {'neck': (25.294, -24.39, 13.555), 'head': (10.84, 8.034)})
+    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 13.555), 'head': (10.84, 8.034)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TA on r_arm at filter_bowl
-    human.KeyJoints(4.2, {
+    human.KeyJoints(4.1, {
         'spine_lumbar': (11.388, 0.026, 0.024), 'spine_thoracic': (1.896, 0.02, 0.029),
         'neck': (34.901, -33.655, 18.703), 'head': (14.958, 11.085),
         'right_clavicle': (-0.012, 0.024), 'right_shoulder': (8.635, 5.756, 11.449),
         'right_elbow': (34.365, 17.189), 'right_wrist': (-0.003, -0.004), 'left_toes': (86.654,),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=4.209804, duration=0.819176)
-    human.KeyJoints(4.3, {
+    human.LookAt((10.0, 25.0, 95.0), start=4.109804, duration=0.819176)
+    human.KeyJoints(4.2, {
         'spine_lumbar': (13.048, 0.488, 0.698), 'spine_thoracic': (1.574, 0.469, 0.844),
         'neck': (35.0, -33.75, 16.614), 'head': (15.0, 10.899), 'right_clavicle': (-0.334, 0.698),
         'right_shoulder': (9.764, 6.499, 11.155), 'right_elbow': (34.023, 17.189),
         'right_wrist': (-0.098, -0.114),
     })
-    human.KeyJoints(4.4, {
+    human.KeyJoints(4.3, {
         'spine_lumbar': (17.965, 1.863, 2.695), 'spine_thoracic': (0.607, 1.8, 3.272),
         'neck': (35.0, -33.75, 11.087), 'head': (15.0, 10.241), 'right_clavicle': (-1.297, 2.695),
         'right_shoulder': (13.12, 8.699, 10.285), 'right_elbow': (33.008, 17.19),
         'right_wrist': (-0.379, -0.439),
     })
-    human.KeyJoints(4.5, {
+    human.KeyJoints(4.4, {
         'spine_lumbar': (25.623, 4.05, 5.804), 'spine_thoracic': (-0.984, 3.872, 7.154),
         'neck': (35.0, -33.75, 4.361), 'head': (15.0, 8.861), 'right_clavicle': (-2.844, 5.804),
         'right_shoulder': (18.429, 12.124, 8.93), 'right_elbow': (31.427, 17.192),
     })
-    human.KeyJoints(4.6, {
+    human.KeyJoints(4.5, {
         'spine_lumbar': (34.49, 6.703, 9.405), 'spine_thoracic': (-3.047, 6.271, 11.91),
         'neck': (35.0, -30.306, -0.737), 'head': (15.0, 9.445), 'right_clavicle': (-4.762, 9.405),
         'right_shoulder': (24.792, 16.091, 7.362), 'right_elbow': (29.597, 17.194),
     })
-    human.KeyJoints(4.7, {
+    human.KeyJoints(4.6, {
         'spine_lumbar': (42.601, 9.45, 12.721), 'spine_thoracic': (-5.494, 8.482, 16.929),
         'neck': (35.0, -6.706, -9.435), 'head': (15.0, -2.589), 'right_clavicle': (-6.838, 12.72),
         'right_shoulder': (31.177, 19.705, 5.926), 'right_elbow': (27.932, 17.198),
         'right_wrist': (-1.787, -2.068),
     })
-    human.KeyJoints(4.8, {
+    human.KeyJoints(4.7, {
         'spine_lumbar': (45.87, 11.953, 14.427), 'spine_thoracic': (-7.898, 9.646, 20.867),
         'neck': (35.0, 12.864, -15.897), 'head': (15.0, -11.225),
         'right_clavicle': (-8.721, 14.393), 'right_shoulder': (35.436, 20.86, 5.335),
         'right_elbow': (27.299, 17.202), 'right_wrist': (-1.97, -2.279),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
-    human.KeyJoints(4.9, {
+    human.KeyJoints(4.8, {
         'spine_lumbar': (42.085, 14.293, 13.694), 'spine_thoracic': (-8.262, 9.282, 21.124),
         'neck': (35.0, 17.869, -18.04), 'right_clavicle': (-9.679, 13.504),
         'right_shoulder': (34.509, 18.216, 5.995), 'right_elbow': (27.785, 17.199),
         'right_wrist': (-1.708, -2.109),
     })
-    human.KeyJoints(5.0, {
+    human.KeyJoints(4.9, {
         'spine_lumbar': (40.459, 15.038, 13.284), 'spine_thoracic': (-8.111, 9.057, 20.822),
         'neck': (35.0, 24.913, -18.5), 'right_clavicle': (-9.879, 13.032),
         'right_shoulder': (33.727, 17.145, 6.284), 'right_elbow': (27.965, 17.197),
         'right_wrist': (-1.594, -2.042),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=5.028979, duration=0.2628)
-    human.KeyJoints(5.1, {'neck': (35.0, 27.038, -18.369)})
+    human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
+    human.KeyJoints(5.0, {'neck': (35.0, 27.038, -18.369)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(5.3, {'right_elbow': (27.967, 17.166)})
-    human.KeyJoints(5.4, {'right_elbow': (28.099, 12.274)})
-    human.KeyJoints(5.5, {
+    human.KeyJoints(5.2, {'right_elbow': (27.967, 17.166)})
+    human.KeyJoints(5.3, {'right_elbow': (28.099, 12.274)})
+    human.KeyJoints(5.4, {
         'right_shoulder': (33.668, 17.197, 6.273), 'right_elbow': (28.178, 0.654),
     })
-    human.KeyJoints(5.6, {'right_elbow': (28.259, -15.363)})
-    human.KeyJoints(5.7, {'right_elbow': (28.303, -33.45)})
-    human.KeyJoints(5.8, {'right_elbow': (28.294, -51.277)})
-    human.KeyJoints(5.9, {'right_elbow': (28.244, -66.515)})
-    human.KeyJoints(6.0, {
+    human.KeyJoints(5.5, {'right_elbow': (28.259, -15.363)})
+    human.KeyJoints(5.6, {'right_elbow': (28.303, -33.45)})
+    human.KeyJoints(5.7, {'right_elbow': (28.294, -51.277)})
+    human.KeyJoints(5.8, {'right_elbow': (28.244, -66.515)})
+    human.KeyJoints(5.9, {
         'right_shoulder': (33.705, 17.587, 6.172), 'right_elbow': (28.191, -76.834),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=6.085897, duration=0.072)
-    human.KeyJoints(6.1, {'right_elbow': (28.172, -80.0)})
+    human.Grasp('right_hand', 'open', start=5.985897, duration=0.072)
+    human.KeyJoints(6.0, {'right_elbow': (28.172, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=6.157897, duration=0.2628)
-    human.KeyJoints(6.4, {'right_elbow': (28.172, -80.0)})
+    human.Grasp('right_hand', 'close', start=6.057897, duration=0.2628)
+    human.KeyJoints(6.3, {'right_elbow': (28.172, -80.0)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
-    human.KeyJoints(6.5, {
+    human.KeyJoints(6.4, {
         'right_shoulder': (33.705, 17.581, 6.173), 'right_elbow': (28.199, -75.532),
     })
-    human.KeyJoints(6.6, {'right_elbow': (28.272, -59.213)})
-    human.KeyJoints(6.7, {'right_elbow': (28.304, -34.545), 'right_wrist': (-1.582, -1.97)})
-    human.KeyJoints(6.8, {'right_elbow': (28.213, -5.363)})
-    human.KeyJoints(6.9, {
+    human.KeyJoints(6.5, {'right_elbow': (28.272, -59.213)})
+    human.KeyJoints(6.6, {'right_elbow': (28.304, -34.545), 'right_wrist': (-1.582, -1.97)})
+    human.KeyJoints(6.7, {'right_elbow': (28.213, -5.363)})
+    human.KeyJoints(6.8, {
         'right_shoulder': (33.655, 17.117, 6.293), 'right_elbow': (28.002, 24.501),
     })
-    human.KeyJoints(7.0, {'right_elbow': (27.763, 51.211), 'right_wrist': (-1.547, -2.061)})
-    human.KeyJoints(7.1, {'right_elbow': (27.588, 70.933)})
-    human.KeyJoints(7.2, {'neck': (35.0, 27.038, -18.369), 'right_elbow': (27.516, 79.835)})
+    human.KeyJoints(6.9, {'right_elbow': (27.763, 51.211), 'right_wrist': (-1.547, -2.061)})
+    human.KeyJoints(7.0, {'right_elbow': (27.588, 70.933)})
+    human.KeyJoints(7.1, {'neck': (35.0, 27.038, -18.369), 'right_elbow': (27.516, 79.835)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=7.214814, duration=0.072)
+    human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
     # examples/replace_fuel_filter.mtask:36:9 replace_fuel_filter > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=7.286814, duration=0.072)
+    human.Grasp('right_hand', 'close', start=7.186814, duration=0.072)
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TA on l_arm at filter_bowl
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
-    human.LookAt((-35.0, 5.0, 80.0), start=7.286814, duration=1.618047)
-    human.KeyJoints(7.3, {
+    human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
+    human.KeyJoints(7.2, {
         'spine_lumbar': (40.438, 15.048, 13.277), 'spine_thoracic': (-8.11, 9.053, 20.818),
         'neck': (35.0, 27.063, -18.314), 'right_clavicle': (-9.881, 13.025),
         'right_shoulder': (33.629, 17.124, 6.292), 'right_elbow': (27.516, 80.0),
         'right_wrist': (-1.48, -2.045), 'left_clavicle': (-0.001, 0.001),
         'left_shoulder': (8.595, 5.729, 11.459),
     })
-    human.KeyJoints(7.4, {
+    human.KeyJoints(7.3, {
         'spine_lumbar': (40.98, 14.759, 13.011), 'spine_thoracic': (-8.3, 8.971, 20.63),
         'neck': (35.0, 27.718, -16.677), 'right_clavicle': (-9.879, 13.08),
         'right_shoulder': (33.448, 16.654, 6.418), 'right_elbow': (28.474, 80.0),
@@ -408,14 +403,14 @@ def replace_fuel_filter():
         'left_shoulder': (9.125, 5.645, 11.427), 'left_elbow': (34.351, 17.188),
         'left_wrist': (-0.005, -0.02),
     })
-    human.KeyJoints(7.5, {
+    human.KeyJoints(7.4, {
         'spine_lumbar': (43.355, 13.489, 11.844), 'spine_thoracic': (-9.137, 8.609, 19.81),
         'neck': (35.0, 29.754, -13.81), 'right_clavicle': (-9.869, 13.32),
         'right_shoulder': (32.588, 14.617, 6.974), 'right_elbow': (32.741, 80.0),
         'right_wrist': (-2.861, -1.593), 'left_clavicle': (-1.462, 2.238),
         'left_shoulder': (11.479, 5.276, 11.285),
     })
-    human.KeyJoints(7.6, {
+    human.KeyJoints(7.5, {
         'spine_lumbar': (47.663, 11.188, 9.728), 'spine_thoracic': (-10.654, 7.953, 18.321),
         'neck': (35.0, 33.59, -10.033), 'right_clavicle': (-9.852, 13.754),
         'right_shoulder': (31.444, 10.914, 8.008), 'right_elbow': (39.641, 80.0),
@@ -423,14 +418,14 @@ def replace_fuel_filter():
         'left_shoulder': (16.113, 4.607, 10.989), 'left_elbow': (34.029, 17.179),
         'left_wrist': (-0.083, -0.27),
     })
-    human.KeyJoints(7.7, {
+    human.KeyJoints(7.6, {
         'spine_lumbar': (52.972, 8.351, 7.121), 'spine_thoracic': (-12.524, 7.145, 16.486),
         'neck': (35.0, 33.675, -6.28), 'right_shoulder': (30.346, 6.378, 9.337),
         'right_elbow': (47.332, 80.0), 'right_wrist': (-6.737, 0.191),
         'left_clavicle': (-6.281, 9.611), 'left_shoulder': (22.994, 3.783, 10.502),
         'left_elbow': (33.774, 17.172), 'left_wrist': (-0.202, -0.468),
     })
-    human.KeyJoints(7.8, {
+    human.KeyJoints(7.7, {
         'spine_lumbar': (57.687, 5.831, 4.804), 'spine_thoracic': (-14.185, 6.427, 14.857),
         'neck': (35.0, 33.746, -2.942), 'right_clavicle': (-9.812, 14.766),
         'right_shoulder': (29.4, 2.445, 10.568), 'right_elbow': (53.888, 80.0),
@@ -438,7 +433,7 @@ def replace_fuel_filter():
         'left_shoulder': (31.871, 3.097, 9.763), 'left_elbow': (33.976, 17.168),
         'left_wrist': (-0.469, -0.547),
     })
-    human.KeyJoints(7.9, {
+    human.KeyJoints(7.8, {
         'spine_lumbar': (59.845, 4.678, 3.744), 'spine_thoracic': (-14.945, 6.099, 14.111),
         'neck': (35.0, 32.826, -0.951), 'right_clavicle': (-9.803, 14.984),
         'right_shoulder': (28.99, 0.756, 11.264), 'right_elbow': (56.784, 80.0),
@@ -447,77 +442,77 @@ def replace_fuel_filter():
         'left_wrist': (-1.735, 1.954),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
-    human.KeyJoints(8.0, {
+    human.KeyJoints(7.9, {
         'spine_lumbar': (59.995, 4.598, 3.671), 'neck': (35.0, 32.785, -0.758),
         'right_shoulder': (28.961, 0.64, 11.312), 'right_elbow': (56.984, 80.0),
         'left_clavicle': (-9.8, 14.996), 'left_shoulder': (26.79, 5.763, 8.564),
         'left_elbow': (61.618, 17.292), 'left_wrist': (-3.376, 6.13),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=8.099894, duration=0.072)
-    human.KeyJoints(8.1, {
+    human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
+    human.KeyJoints(8.0, {
         'neck': (35.0, 32.785, -0.758), 'head': (15.0, -11.25),
         'right_shoulder': (28.96, 0.636, 11.314), 'right_elbow': (56.991, 80.0),
         'right_wrist': (-9.449, 1.776), 'left_shoulder': (25.156, 6.092, 8.516),
         'left_elbow': (64.45, 17.304), 'left_wrist': (-3.653, 6.85),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
-    human.KeyJoints(8.2, {
+    human.KeyJoints(8.1, {
         'neck': (35.0, 32.613, -1.304), 'head': (14.902, -11.243),
         'right_shoulder': (30.239, 0.887, 11.121), 'right_elbow': (54.301, 79.954),
         'right_wrist': (-8.81, 1.62),
     })
-    human.KeyJoints(8.3, {
+    human.KeyJoints(8.2, {
         'neck': (35.0, 29.841, -10.089), 'head': (13.324, -11.138),
         'right_shoulder': (31.426, 3.805, 8.675), 'right_elbow': (48.101, 76.719),
         'right_wrist': (-11.86, 2.301),
     })
-    human.KeyJoints(8.4, {
+    human.KeyJoints(8.3, {
         'neck': (35.0, 25.451, -24.003), 'head': (10.824, -10.971),
         'right_shoulder': (26.259, 11.127, 2.398), 'right_elbow': (48.242, 66.985),
         'right_wrist': (-25.958, 5.518),
     })
-    human.KeyJoints(8.5, {
+    human.KeyJoints(8.4, {
         'neck': (35.0, 21.748, -35.738), 'head': (8.716, -10.83),
         'right_shoulder': (19.198, 21.217, -6.431), 'right_elbow': (53.178, 53.767),
         'right_wrist': (-47.005, 10.012),
     })
-    human.KeyJoints(8.6, {
+    human.KeyJoints(8.5, {
         'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
         'right_shoulder': (18.3, 31.789, -15.814), 'right_elbow': (46.252, 42.475),
         'right_wrist': (-63.007, 13.065),
     })
-    human.KeyJoints(8.7, {
+    human.KeyJoints(8.6, {
         'right_shoulder': (22.943, 38.156, -19.736), 'right_elbow': (28.622, 35.849),
         'right_wrist': (-63.352, 12.999), 'left_elbow': (64.34, 17.304),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
-    human.KeyJoints(8.8, {
+    human.KeyJoints(8.7, {
         'right_shoulder': (29.232, 39.672, -18.673), 'right_elbow': (18.547, 34.803),
         'right_wrist': (-52.625, 11.244),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=8.832861, duration=0.072)
-    human.KeyJoints(8.9, {
+    human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
+    human.KeyJoints(8.8, {
         'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
         'right_shoulder': (29.481, 39.714, -18.624), 'right_elbow': (18.233, 34.786),
         'right_wrist': (-52.264, 11.178),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > look: gaze on head at spares_box
-    human.LookAt((-40.0, 10.0, 60.0), start=8.904861, duration=0.4)
-    human.KeyJoints(9.0, {
+    human.LookAt((-40.0, 10.0, 60.0), start=8.804861, duration=0.4)
+    human.KeyJoints(8.9, {
         'neck': (34.981, 21.121, -40.398), 'head': (9.151, -10.859),
         'right_wrist': (-55.044, 11.187),
     })
-    human.KeyJoints(9.1, {'neck': (34.92, 22.048, -44.324)})
+    human.KeyJoints(9.0, {'neck': (34.92, 22.048, -44.324)})
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
-    human.KeyJoints(9.2, {
+    human.KeyJoints(9.1, {
         'spine_lumbar': (60.0, 4.606, 3.655), 'spine_thoracic': (-14.996, 6.067, 14.027),
         'neck': (34.817, 23.414, -48.355), 'head': (13.839, -11.172),
         'right_wrist': (-55.092, 11.203), 'left_shoulder': (25.234, 6.08, 8.528),
         'left_elbow': (64.319, 17.329), 'left_wrist': (-3.681, 6.829),
     })
-    human.KeyJoints(9.3, {
+    human.KeyJoints(9.2, {
         'spine_lumbar': (60.0, 5.185, 2.954), 'spine_thoracic': (-14.793, 5.621, 12.372),
         'neck': (34.674, 25.05, -50.321), 'head': (14.997, -11.25),
         'right_wrist': (-54.815, 11.203), 'left_clavicle': (-9.784, 15.0),
@@ -525,312 +520,312 @@ def replace_fuel_filter():
         'left_wrist': (-5.832, 7.324),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=9.304861, duration=1.931992)
-    human.KeyJoints(9.4, {
+    human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
+    human.KeyJoints(9.3, {
         'spine_lumbar': (60.0, 7.129, 0.598), 'spine_thoracic': (-14.097, 4.124, 6.811),
         'neck': (33.754, 28.576, -42.612), 'right_shoulder': (29.377, 39.703, -18.644),
         'left_shoulder': (27.401, 6.239, 10.794), 'left_elbow': (59.201, 23.194),
         'left_wrist': (-13.057, 8.988),
     })
-    human.KeyJoints(9.5, {
+    human.KeyJoints(9.4, {
         'spine_lumbar': (60.0, 10.335, -3.287), 'spine_thoracic': (-12.854, 1.656, -2.357),
         'neck': (32.357, 32.88, -25.677), 'head': (15.0, -11.146), 'right_elbow': (18.333, 34.786),
         'left_clavicle': (-9.576, 15.0), 'left_shoulder': (30.153, 6.516, 13.674),
         'left_elbow': (52.485, 30.646), 'left_wrist': (-24.97, 11.731),
     })
-    human.KeyJoints(9.6, {
+    human.KeyJoints(9.5, {
         'spine_lumbar': (60.0, 14.119, -7.873), 'spine_thoracic': (-11.136, -1.258, -13.181),
         'neck': (34.794, 33.581, -10.221), 'head': (14.99, -8.893), 'left_clavicle': (-9.319, 15.0),
         'left_shoulder': (33.402, 7.031, 17.074), 'left_elbow': (44.018, 39.444),
         'left_wrist': (-39.034, 14.969),
     })
-    human.KeyJoints(9.7, {
+    human.KeyJoints(9.6, {
         'spine_lumbar': (60.0, 17.691, -12.157), 'spine_thoracic': (-8.772, -3.994, -23.351),
         'neck': (35.0, 33.75, -1.443), 'head': (15.0, -8.051), 'right_wrist': (-52.744, 11.203),
         'left_clavicle': (-8.825, 14.951), 'left_shoulder': (36.514, 8.162, 20.227),
         'left_elbow': (34.493, 47.721), 'left_wrist': (-52.226, 17.979),
     })
-    human.KeyJoints(9.8, {
+    human.KeyJoints(9.7, {
         'spine_lumbar': (60.0, 19.87, -14.692), 'spine_thoracic': (-2.078, -7.28, -29.479),
         'neck': (34.633, 15.394, 5.567), 'head': (14.71, 1.877), 'right_wrist': (-52.409, 11.203),
         'left_clavicle': (-8.97, 14.829), 'left_shoulder': (44.121, 11.874, 20.981),
         'left_elbow': (20.714, 52.114), 'left_wrist': (-54.377, 17.713),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
-    human.KeyJoints(9.9, {
+    human.KeyJoints(9.8, {
         'spine_lumbar': (60.0, 19.995, -14.983), 'spine_thoracic': (3.657, -9.803, -29.975),
         'neck': (33.537, -8.22, 10.045), 'head': (13.853, 10.536),
         'left_clavicle': (-9.926, 14.987), 'left_shoulder': (52.535, 13.019, 20.166),
         'left_elbow': (12.852, 51.78), 'left_wrist': (-46.632, 15.19),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=9.960849, duration=0.2628)
-    human.KeyJoints(10.0, {
+    human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
+    human.KeyJoints(9.9, {
         'spine_thoracic': (4.095, -9.996, -30.0), 'neck': (31.566, -8.564, 10.152),
         'head': (12.394, 10.567), 'left_shoulder': (53.321, 13.042, 20.107),
         'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
     })
-    human.KeyJoints(10.2, {
+    human.KeyJoints(10.1, {
         'neck': (31.566, -8.564, 10.152), 'head': (12.394, 10.567), 'left_clavicle': (-10.0, 15.0),
         'left_shoulder': (53.321, 13.042, 20.107), 'left_elbow': (12.071, 51.745),
         'left_wrist': (-45.774, 14.924),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
-    human.KeyJoints(10.3, {
+    human.KeyJoints(10.2, {
         'neck': (31.843, -8.588, 14.979), 'head': (12.607, 10.625),
         'left_shoulder': (52.272, 13.365, 19.282), 'left_elbow': (14.216, 51.579),
         'left_wrist': (-46.208, 14.985),
     })
-    human.KeyJoints(10.4, {
+    human.KeyJoints(10.3, {
         'neck': (32.777, -8.67, 31.296), 'head': (13.328, 10.823),
         'left_shoulder': (45.01, 15.583, 13.406), 'left_elbow': (29.079, 50.394),
         'left_wrist': (-48.874, 15.302),
     })
-    human.KeyJoints(10.5, {
+    human.KeyJoints(10.4, {
         'neck': (33.891, -8.768, 50.761), 'head': (14.188, 11.06),
         'left_shoulder': (32.866, 19.226, 3.535), 'left_elbow': (52.642, 48.373),
         'left_wrist': (-53.058, 15.783),
     })
-    human.KeyJoints(10.6, {
+    human.KeyJoints(10.5, {
         'neck': (34.676, -8.837, 64.486), 'head': (14.795, 11.226),
         'left_shoulder': (16.343, 23.783, -9.907), 'left_elbow': (77.43, 45.435),
         'left_wrist': (-57.545, 16.204),
     })
-    human.KeyJoints(10.7, {
+    human.KeyJoints(10.6, {
         'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-7.016, 28.415, -28.084),
         'left_elbow': (89.204, 40.485), 'left_wrist': (-60.375, 15.202),
     })
-    human.KeyJoints(10.8, {
+    human.KeyJoints(10.7, {
         'head': (14.88, 11.25), 'left_shoulder': (-28.521, 31.547, -44.683),
         'left_elbow': (84.912, 35.019), 'left_wrist': (-61.003, 11.587),
     })
-    human.KeyJoints(10.9, {
+    human.KeyJoints(10.8, {
         'left_shoulder': (-40.176, 37.196, -61.06), 'left_elbow': (84.819, 31.81),
         'left_wrist': (-62.893, 8.937),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
-    human.KeyJoints(11.0, {
+    human.KeyJoints(10.9, {
         'left_shoulder': (-41.407, 39.218, -71.453), 'left_elbow': (91.759, 31.455),
         'left_wrist': (-66.267, 8.851),
     })
-    human.KeyJoints(11.1, {
+    human.KeyJoints(11.0, {
         'left_shoulder': (-41.449, 39.196, -75.482), 'left_elbow': (95.178, 31.456),
         'left_wrist': (-67.9, 8.971),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=11.164853, duration=0.072)
-    human.KeyJoints(11.2, {
+    human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
+    human.KeyJoints(11.1, {
         'left_shoulder': (-41.453, 39.119, -75.823), 'left_elbow': (95.476, 31.457),
         'left_wrist': (-68.055, 8.983),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.236853, duration=0.586594)
-    human.KeyJoints(11.3, {'neck': (34.794, -8.847, 66.444)})
+    human.LookAt((10.0, 25.0, 95.0), start=11.136853, duration=0.586594)
+    human.KeyJoints(11.2, {'neck': (34.794, -8.847, 66.444)})
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TA on r_arm at filter_bowl
-    human.KeyJoints(11.5, {
+    human.KeyJoints(11.4, {
         'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (4.095, -9.996, -30.0),
         'right_shoulder': (29.377, 39.703, -18.644), 'right_elbow': (18.333, 34.786),
     })
-    human.KeyJoints(11.6, {
+    human.KeyJoints(11.5, {
         'spine_lumbar': (60.0, 18.966, -14.445), 'spine_thoracic': (3.738, -9.479, -29.459),
         'right_shoulder': (29.656, 38.398, -18.233), 'right_elbow': (18.701, 34.954),
         'right_wrist': (-52.36, 11.238),
     })
-    human.KeyJoints(11.7, {
+    human.KeyJoints(11.6, {
         'spine_lumbar': (60.0, 13.73, -11.635), 'spine_thoracic': (1.916, -6.862, -26.717),
         'right_clavicle': (-9.833, 15.0), 'right_shoulder': (31.08, 31.777, -16.141),
         'right_elbow': (20.578, 35.81), 'right_wrist': (-52.109, 11.415),
     })
-    human.KeyJoints(11.8, {
+    human.KeyJoints(11.7, {
         'spine_lumbar': (60.0, 4.556, -6.713), 'spine_thoracic': (-1.394, -2.275, -21.902),
         'neck': (34.999, -8.917, 66.99), 'right_shoulder': (33.654, 20.058, -12.422),
         'right_elbow': (23.95, 37.331), 'right_wrist': (-51.669, 11.747),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.823447, duration=0.395493)
-    human.KeyJoints(11.9, {
+    human.LookAt((10.0, 25.0, 95.0), start=11.723447, duration=0.395493)
+    human.KeyJoints(11.8, {
         'spine_lumbar': (60.0, -5.966, -1.067), 'spine_thoracic': (-5.5, 2.985, -16.353),
         'neck': (34.474, -10.956, 59.829), 'right_shoulder': (36.816, 6.307, -8.017),
         'right_elbow': (28.041, 39.13), 'right_wrist': (-51.165, 12.184),
     })
-    human.KeyJoints(12.0, {
+    human.KeyJoints(11.9, {
         'spine_lumbar': (59.721, -14.688, 3.624), 'spine_thoracic': (-9.58, 7.365, -11.686),
         'neck': (32.834, -17.256, 37.475), 'head': (14.985, 11.242),
         'right_clavicle': (-9.936, 14.965), 'right_shoulder': (39.774, -5.973, -3.986),
         'right_elbow': (31.972, 40.763), 'right_wrist': (-50.791, 12.699),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
-    human.KeyJoints(12.1, {
+    human.KeyJoints(12.0, {
         'spine_lumbar': (56.523, -18.489, 5.786), 'spine_thoracic': (-12.132, 9.499, -9.512),
         'neck': (31.232, -23.402, 15.641), 'head': (14.965, 11.225),
         'right_clavicle': (-9.485, 14.526), 'right_shoulder': (40.158, -14.576, -1.016),
         'right_elbow': (34.899, 41.894), 'right_wrist': (-51.137, 13.428),
     })
-    human.KeyJoints(12.2, {
+    human.KeyJoints(12.1, {
         'spine_lumbar': (54.726, -19.056, 6.158), 'spine_thoracic': (-12.649, 9.913, -9.146),
         'neck': (30.932, -24.891, 10.016), 'right_clavicle': (-9.218, 14.274),
         'right_shoulder': (39.68, -17.086, -0.132), 'right_elbow': (35.723, 42.211),
         'right_wrist': (-51.41, 13.721), 'left_shoulder': (-41.45, 39.188, -75.798),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=12.218941, duration=0.072)
+    human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(12.3, {
+    human.KeyJoints(12.2, {
         'neck': (30.986, -24.739, 10.338), 'head': (14.889, 11.044),
         'right_shoulder': (39.601, -17.113, -0.126), 'right_elbow': (35.832, 42.271),
         'right_wrist': (-51.485, 13.749),
     })
-    human.KeyJoints(12.4, {
+    human.KeyJoints(12.3, {
         'right_shoulder': (39.458, -16.509, -0.393), 'right_elbow': (35.463, 49.199),
     })
-    human.KeyJoints(12.5, {'right_elbow': (34.977, 62.608), 'right_wrist': (-51.115, 13.353)})
-    human.KeyJoints(12.6, {
+    human.KeyJoints(12.4, {'right_elbow': (34.977, 62.608), 'right_wrist': (-51.115, 13.353)})
+    human.KeyJoints(12.5, {
         'right_shoulder': (39.201, -14.009, -1.513), 'right_elbow': (34.902, 75.254),
         'right_wrist': (-51.041, 13.177),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(12.7, {
+    human.KeyJoints(12.6, {
         'right_shoulder': (39.193, -13.562, -1.709), 'right_elbow': (34.962, 79.758),
         'right_wrist': (-51.045, 13.124),
     })
-    human.KeyJoints(12.8, {
+    human.KeyJoints(12.7, {
         'right_shoulder': (39.285, -15.256, -0.955), 'right_elbow': (34.978, 62.557),
         'right_wrist': (-51.115, 13.354),
     })
-    human.KeyJoints(12.9, {
+    human.KeyJoints(12.8, {
         'right_shoulder': (39.846, -18.058, 0.276), 'right_elbow': (36.775, 30.427),
         'right_wrist': (-51.876, 14.076),
     })
-    human.KeyJoints(13.0, {
+    human.KeyJoints(12.9, {
         'right_shoulder': (40.685, -19.749, 0.914), 'right_elbow': (40.194, 0.621),
         'right_wrist': (-53.313, 15.241),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.1, {
+    human.KeyJoints(13.0, {
         'right_shoulder': (40.975, -20.05, 0.995), 'right_elbow': (41.703, -9.627),
         'right_wrist': (-54.025, 15.778),
     })
-    human.KeyJoints(13.2, {
+    human.KeyJoints(13.1, {
         'right_shoulder': (40.466, -19.425, 0.807), 'right_elbow': (39.165, 8.259),
         'right_wrist': (-52.857, 14.884),
     })
-    human.KeyJoints(13.3, {
+    human.KeyJoints(13.2, {
         'right_shoulder': (39.637, -17.256, -0.064), 'right_elbow': (35.944, 40.567),
         'right_wrist': (-51.53, 13.79),
     })
-    human.KeyJoints(13.4, {
+    human.KeyJoints(13.3, {
         'right_shoulder': (39.224, -14.524, -1.283), 'right_elbow': (34.89, 70.044),
         'right_wrist': (-51.056, 13.244),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.5, {
+    human.KeyJoints(13.4, {
         'right_shoulder': (39.193, -13.591, -1.697), 'right_elbow': (34.957, 79.469),
         'right_wrist': (-51.045, 13.128),
     })
-    human.KeyJoints(13.6, {
+    human.KeyJoints(13.5, {
         'right_shoulder': (39.303, -15.414, -0.883), 'right_elbow': (35.014, 60.912),
         'right_wrist': (-51.134, 13.38),
     })
-    human.KeyJoints(13.7, {
+    human.KeyJoints(13.6, {
         'right_shoulder': (39.885, -18.204, 0.335), 'right_elbow': (36.972, 28.441),
         'right_wrist': (-51.959, 14.141),
     })
-    human.KeyJoints(13.8, {
+    human.KeyJoints(13.7, {
         'right_shoulder': (40.722, -19.796, 0.928), 'right_elbow': (40.379, -0.691),
         'right_wrist': (-53.398, 15.307),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(13.9, {
+    human.KeyJoints(13.8, {
         'right_shoulder': (40.965, -20.042, 0.993), 'right_elbow': (41.65, -9.283),
         'right_wrist': (-53.999, 15.759),
     })
-    human.KeyJoints(14.0, {
+    human.KeyJoints(13.9, {
         'right_shoulder': (40.419, -19.344, 0.779), 'right_elbow': (38.952, 9.929),
         'right_wrist': (-52.766, 14.812),
     })
-    human.KeyJoints(14.1, {
+    human.KeyJoints(14.0, {
         'right_shoulder': (39.595, -17.089, -0.136), 'right_elbow': (35.815, 42.548),
         'right_wrist': (-51.478, 13.742),
     })
-    human.KeyJoints(14.2, {
+    human.KeyJoints(14.1, {
         'right_shoulder': (39.217, -14.399, -1.34), 'right_elbow': (34.888, 71.321),
         'right_wrist': (-51.051, 13.227),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.3, {
+    human.KeyJoints(14.2, {
         'right_shoulder': (39.194, -13.631, -1.68), 'right_elbow': (34.95, 79.071),
         'right_wrist': (-51.044, 13.132),
     })
-    human.KeyJoints(14.4, {
+    human.KeyJoints(14.3, {
         'right_shoulder': (39.323, -15.576, -0.81), 'right_elbow': (35.057, 59.218),
         'right_wrist': (-51.155, 13.408),
     })
-    human.KeyJoints(14.5, {
+    human.KeyJoints(14.4, {
         'right_shoulder': (39.967, -18.345, 0.396), 'right_elbow': (37.106, 26.466),
         'right_wrist': (-51.999, 14.19),
     })
-    human.KeyJoints(14.6, {
+    human.KeyJoints(14.5, {
         'right_shoulder': (40.758, -19.839, 0.94), 'right_elbow': (40.557, -1.932),
         'right_wrist': (-53.48, 15.369),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(14.7, {
+    human.KeyJoints(14.6, {
         'right_shoulder': (40.953, -20.032, 0.991), 'right_elbow': (41.581, -8.833),
         'right_wrist': (-53.966, 15.734),
     })
-    human.KeyJoints(14.8, {
+    human.KeyJoints(14.7, {
         'right_shoulder': (40.37, -19.256, 0.747), 'right_elbow': (38.738, 11.646),
     })
-    human.KeyJoints(14.9, {
+    human.KeyJoints(14.8, {
         'right_shoulder': (39.554, -16.921, -0.211), 'right_elbow': (35.698, 44.516),
         'right_wrist': (-51.432, 13.698),
     })
-    human.KeyJoints(15.0, {
+    human.KeyJoints(14.9, {
         'right_shoulder': (39.211, -14.279, -1.393), 'right_elbow': (34.889, 72.525),
         'right_wrist': (-51.046, 13.211),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
-    human.KeyJoints(15.1, {
+    human.KeyJoints(15.0, {
         'right_shoulder': (39.194, -13.68, -1.658), 'right_elbow': (34.942, 78.57),
         'right_wrist': (-51.043, 13.138),
     })
-    human.KeyJoints(15.2, {
+    human.KeyJoints(15.1, {
         'right_shoulder': (39.344, -15.741, -0.736), 'right_elbow': (35.108, 57.48),
         'right_wrist': (-51.179, 13.438),
     })
-    human.KeyJoints(15.3, {
+    human.KeyJoints(15.2, {
         'right_shoulder': (40.017, -18.481, 0.45), 'right_elbow': (37.299, 24.506),
         'right_wrist': (-52.077, 14.254),
     })
-    human.KeyJoints(15.4, {
+    human.KeyJoints(15.3, {
         'right_shoulder': (40.791, -19.876, 0.951), 'right_elbow': (40.726, -3.098),
         'right_wrist': (-53.558, 15.429),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=15.467411, duration=0.072)
-    human.KeyJoints(15.5, {
+    human.Grasp('right_hand', 'open', start=15.367411, duration=0.072)
+    human.KeyJoints(15.4, {
         'right_shoulder': (40.985, -20.058, 0.997), 'right_elbow': (41.76, -10.0),
         'right_wrist': (-54.053, 15.799),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=15.539411, duration=0.388226)
-    human.KeyJoints(15.6, {
+    human.LookAt((10.0, 25.0, 95.0), start=15.439411, duration=0.388226)
+    human.KeyJoints(15.5, {
         'neck': (30.986, -24.758, 10.35), 'head': (14.896, 11.058),
         'right_shoulder': (40.668, -19.34, 0.724), 'right_elbow': (40.298, -10.0),
         'right_wrist': (-53.413, 15.296),
     })
-    human.KeyJoints(15.7, {
+    human.KeyJoints(15.6, {
         'right_shoulder': (40.145, -18.157, 0.275), 'right_elbow': (37.885, -10.0),
         'right_wrist': (-52.356, 14.465),
     })
-    human.KeyJoints(15.8, {
+    human.KeyJoints(15.7, {
         'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
         'right_wrist': (-51.411, 13.723),
     })
     # examples/replace_fuel_filter.mtask:46:5 replace_fuel_filter > inspect > hold: hold on root
-    human.KeyJoints(15.9, {'neck': (30.989, -25.025, 10.522)})
-    human.KeyJoints(16.0, {'head': (15.0, 11.25)})
-    human.KeyJoints(18.8, {
+    human.KeyJoints(15.8, {'neck': (30.989, -25.025, 10.522)})
+    human.KeyJoints(15.9, {'head': (15.0, 11.25)})
+    human.KeyJoints(18.7, {
         'spine_lumbar': (54.717, -19.058, 6.16), 'spine_thoracic': (-12.652, 9.915, -9.144),
         'neck': (30.989, -25.03, 10.525), 'head': (15.0, 11.25), 'right_clavicle': (-9.216, 14.273),
         'right_shoulder': (39.677, -17.099, -0.127), 'right_elbow': (35.728, -10.0),
@@ -840,7 +835,7 @@ def replace_fuel_filter():
     })
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: posture on root
     # examples/replace_fuel_filter.mtask:47:5 replace_fuel_filter > stand: gaze on head
-    human.KeyJoints(18.9, {
+    human.KeyJoints(18.8, {
         'spine_lumbar': (43.7, -15.312, 4.931), 'spine_thoracic': (-9.216, 7.442, -7.32),
         'neck': (23.267, -18.793, 7.948), 'head': (11.263, 8.496),
         'right_clavicle': (-7.378, 11.426), 'right_shoulder': (33.617, -12.127, -4.125),
@@ -848,7 +843,7 @@ def replace_fuel_filter():
         'left_clavicle': (-8.005, 11.955), 'left_shoulder': (-31.283, 32.882, -64.542),
         'left_elbow': (83.101, 28.61), 'left_wrist': (-54.226, 7.188),
     })
-    human.KeyJoints(19.0, {
+    human.KeyJoints(18.9, {
         'spine_lumbar': (22.84, -7.288, 2.346), 'spine_thoracic': (-2.49, 2.671, -3.482),
         'neck': (8.525, -6.885, 2.935), 'head': (4.126, 3.137), 'right_clavicle': (-3.51, 5.435),
         'right_shoulder': (20.545, -1.816, -12.46), 'right_elbow': (34.626, 6.899),
@@ -856,8 +851,8 @@ def replace_fuel_filter():
         'left_shoulder': (-10.355, 19.619, -41.18), 'left_elbow': (57.412, 22.613),
         'left_wrist': (-25.711, 3.4),
     })
-    human.KeyRoot(19.1, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
-    human.KeyJoints(19.1, {
+    human.KeyRoot(19.0, (2.176, 44.312, 43.189), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.0, {
         'spine_lumbar': (11.195, -0.055, 0.263), 'spine_thoracic': (1.923, 0.005, -0.391),
         'neck': (-0.068, 0.055, 0.01), 'head': (-0.033, 0.011), 'right_clavicle': (-0.394, 0.61),
         'right_shoulder': (9.965, 6.48, -19.177), 'right_elbow': (34.347, 16.095),
@@ -867,8 +862,8 @@ def replace_fuel_filter():
         'left_hip': (24.096, 0.0, 0.0), 'left_knee': (126.122,), 'right_toes': (86.654,),
         'left_toes': (86.654,),
     })
-    human.KeyRoot(19.2, (2.993, 41.966, 38.754), (-10.437, 0.0, 0.0))
-    human.KeyJoints(19.2, {
+    human.KeyRoot(19.1, (2.993, 41.966, 38.754), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.1, {
         'spine_lumbar': (11.241, 10.547, 0.0), 'spine_thoracic': (1.79, 2.125, 0.0),
         'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.602, 7.531, -20.027),
         'right_elbow': (34.336, 17.246), 'right_wrist': (0.116, -0.007),
@@ -877,15 +872,15 @@ def replace_fuel_filter():
         'right_hip': (30.865, 0.0, 0.0), 'right_knee': (132.894,), 'left_hip': (30.865, 0.0, 0.0),
         'left_knee': (132.894,),
     })
-    human.KeyRoot(19.3, (2.991, 41.966, 38.752), (-10.437, 0.0, 0.0))
-    human.KeyJoints(19.3, {
+    human.KeyRoot(19.2, (2.991, 41.966, 38.752), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.2, {
         'spine_lumbar': (-6.898, 20.0, 0.0), 'spine_thoracic': (-3.456, 10.0, 0.0),
         'right_hip': (30.866, -0.002, -0.001), 'right_knee': (132.895,),
         'right_ankle': (15.162, 0.004), 'left_hip': (30.866, 0.002, 0.001), 'left_knee': (132.895,),
         'left_ankle': (15.162, -0.004), 'right_toes': (86.736,), 'left_toes': (86.736,),
     })
-    human.KeyRoot(19.4, (2.37, 42.857, 40.233), (-10.437, 0.0, 0.0))
-    human.KeyJoints(19.4, {
+    human.KeyRoot(19.3, (2.37, 42.857, 40.233), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.3, {
         'spine_lumbar': (-13.391, 20.0, 0.0), 'spine_thoracic': (-14.98, 10.0, 0.0),
         'right_shoulder': (8.622, 7.533, -20.017), 'right_elbow': (34.289, 17.22),
         'right_wrist': (0.068, -0.019), 'left_shoulder': (8.696, 7.521, -19.948),
@@ -894,58 +889,45 @@ def replace_fuel_filter():
         'right_ankle': (15.078, 0.289), 'left_hip': (27.853, -2.167, 2.214),
         'left_knee': (131.581,), 'left_ankle': (17.246, 3.048), 'left_toes': (85.897,),
     })
-    human.KeyRoot(19.5, (2.272, 43.234, 40.853), (-10.437, 0.0, 0.0))
-    human.KeyJoints(19.5, {
-        'spine_lumbar': (-16.989, 20.0, 0.0), 'spine_thoracic': (-14.949, 10.0, 0.0),
-        'right_shoulder': (8.453, 7.256, -19.942), 'right_elbow': (35.259, 17.208),
-        'right_wrist': (0.002, 0.208), 'left_shoulder': (7.939, 7.466, -20.044),
-        'left_elbow': (35.768, 17.189), 'left_wrist': (-0.086, 0.318),
+    human.KeyRoot(19.4, (2.272, 43.234, 40.853), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.4, {
+        'spine_lumbar': (-16.71, 20.0, 0.0), 'spine_thoracic': (-14.93, 10.0, 0.0),
+        'right_shoulder': (8.393, 7.123, -19.905), 'right_elbow': (35.707, 17.208),
+        'right_wrist': (-0.015, 0.314), 'left_shoulder': (7.579, 7.447, -20.084),
+        'left_elbow': (36.514, 17.189), 'left_wrist': (-0.154, 0.485),
         'right_hip': (27.513, -0.403, -0.152), 'right_knee': (129.508,),
         'left_hip': (32.968, -5.009, 3.49), 'left_knee': (135.0,), 'left_ankle': (-1.226, 6.13),
         'right_toes': (86.604,), 'left_toes': (90.0,),
     })
-    human.KeyRoot(19.6, (2.603, 42.559, 39.682), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.5, (2.616, 42.503, 39.589), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.5, {
+        'spine_lumbar': (-12.363, 20.0, 0.0), 'spine_thoracic': (-14.126, 10.0, 0.0),
+        'right_shoulder': (8.11, 6.348, -19.676), 'right_elbow': (38.237, 17.195),
+        'right_wrist': (-0.133, 0.917), 'left_shoulder': (5.567, 7.363, -20.335),
+        'left_elbow': (40.661, 17.189), 'left_wrist': (-0.566, 1.413),
+        'right_hip': (29.502, -0.268, -0.11), 'right_knee': (131.502,),
+        'right_ankle': (15.106, 0.192), 'left_hip': (41.798, -18.556, 7.998),
+        'left_ankle': (-31.674, 18.652), 'right_toes': (86.725,), 'left_toes': (90.0,),
+    })
+    human.KeyRoot(19.6, (2.141, 43.633, 41.688), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.6, {
-        'spine_lumbar': (-12.785, 20.0, 0.0), 'spine_thoracic': (-14.357, 10.0, 0.0),
-        'right_shoulder': (8.148, 6.437, -19.701), 'right_elbow': (37.945, 17.195),
-        'right_wrist': (-0.122, 0.848), 'left_shoulder': (5.799, 7.367, -20.307),
-        'left_elbow': (40.205, 17.189), 'left_wrist': (-0.522, 1.311),
-        'right_hip': (29.357, -0.266, -0.109), 'right_knee': (131.355,),
-        'right_ankle': (15.11, 0.189), 'left_hip': (41.455, -18.077, 7.918),
-        'left_ankle': (-30.56, 18.466), 'right_toes': (86.723,), 'left_toes': (90.0,),
+        'spine_lumbar': (-26.244, 20.0, 0.0), 'spine_thoracic': (-11.533, 10.0, 0.0),
+        'right_shoulder': (8.1, 6.147, -19.608), 'right_elbow': (38.881, 17.189),
+        'right_wrist': (-0.165, 1.072), 'left_shoulder': (5.037, 7.365, -20.414),
+        'left_elbow': (41.666, 17.188), 'left_wrist': (-0.677, 1.635),
+        'right_hip': (26.282, -0.378, -0.134), 'right_knee': (128.291,),
+        'left_hip': (58.604, -20.287, 29.244), 'left_knee': (135.0,),
+        'left_ankle': (-48.907, 8.399), 'left_toes': (70.117,),
     })
-    human.KeyRoot(19.7, (2.011, 42.549, 39.414), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.7, (2.518, 42.736, 40.04), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.7, {
-        'spine_lumbar': (-17.285, 20.0, 0.0), 'spine_thoracic': (-2.575, 10.0, 0.0),
-        'right_shoulder': (8.376, 6.092, -19.559), 'right_elbow': (39.088, 17.189),
-        'right_wrist': (-0.16, 1.12), 'left_shoulder': (4.785, 7.358, -20.44),
-        'left_elbow': (41.946, 17.188), 'left_wrist': (-0.704, 1.688),
-        'right_hip': (29.561, -1.051, -0.423), 'right_knee': (131.566,),
-        'right_ankle': (15.228, 0.7), 'left_hip': (47.992, -24.328, 20.884),
-        'left_ankle': (-49.999, 16.819), 'right_toes': (86.096,), 'left_toes': (79.132,),
+        'spine_lumbar': (-23.02, 20.0, 0.0), 'spine_thoracic': (-14.903, 10.0, 0.0),
+        'right_elbow': (36.576, 17.189), 'right_hip': (28.817, -0.287, -0.114),
+        'right_knee': (130.835,), 'left_hip': (87.066, -23.273, 26.673), 'left_knee': (134.85,),
+        'left_ankle': (-45.238, 14.118), 'left_toes': (55.282,),
     })
-    human.KeyRoot(19.8, (2.001, 44.102, 42.666), (-10.437, 0.0, 0.0))
+    human.KeyRoot(19.8, (2.983, 41.281, 37.651), (-10.437, 0.0, 0.0))
     human.KeyJoints(19.8, {
-        'spine_lumbar': (-27.95, 20.0, 0.0), 'spine_thoracic': (-14.632, 10.0, 0.0),
-        'right_shoulder': (8.196, 6.547, -19.731), 'right_elbow': (37.565, 17.189),
-        'right_wrist': (-0.12, 0.757), 'left_shoulder': (6.08, 7.381, -20.283),
-        'left_elbow': (39.62, 17.189), 'left_wrist': (-0.481, 1.176),
-        'right_hip': (24.816, -0.326, -0.109), 'right_knee': (126.829,),
-        'right_ankle': (15.087, 0.211), 'left_hip': (66.898, -21.396, 29.58), 'left_knee': (135.0,),
-        'left_ankle': (-48.085, 9.72), 'right_toes': (86.723,), 'left_toes': (66.612,),
-    })
-    human.KeyRoot(19.9, (2.544, 42.66, 39.906), (-10.437, 0.0, 0.0))
-    human.KeyJoints(19.9, {
-        'spine_lumbar': (-23.716, 20.0, 0.0), 'spine_thoracic': (-14.978, 10.0, 0.0),
-        'right_shoulder': (8.531, 7.362, -19.962), 'right_elbow': (34.845, 17.189),
-        'right_wrist': (-0.018, 0.11), 'left_shoulder': (8.214, 7.475, -20.039),
-        'left_elbow': (35.172, 17.189), 'left_wrist': (-0.071, 0.177),
-        'right_hip': (29.025, -0.286, -0.115), 'right_knee': (131.044,),
-        'left_hip': (87.43, -23.278, 26.661), 'left_knee': (134.827,),
-        'left_ankle': (-45.215, 14.207), 'left_toes': (55.069,),
-    })
-    human.KeyRoot(20.0, (2.983, 41.281, 37.651), (-10.437, 0.0, 0.0))
-    human.KeyJoints(20.0, {
         'spine_lumbar': (-16.365, 20.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0),
         'left_shoulder': (8.594, 7.5, -20.0), 'left_elbow': (34.377, 17.189),
@@ -953,127 +935,122 @@ def replace_fuel_filter():
         'left_hip': (107.043, -23.666, 20.819), 'left_knee': (133.257,),
         'left_ankle': (-40.684, 19.283), 'left_toes': (43.214,),
     })
-    human.KeyRoot(20.1, (3.017, 41.34, 37.73), (-10.437, 0.0, 0.0))
-    human.KeyJoints(20.1, {
-        'spine_lumbar': (-15.41, 20.0, 0.0), 'right_hip': (32.466, -0.198, -0.092),
-        'right_knee': (134.476,), 'left_hip': (119.764, -25.0, 10.638), 'left_knee': (134.997,),
+    human.KeyRoot(19.9, (3.017, 41.34, 37.73), (-10.437, 0.0, 0.0))
+    human.KeyJoints(19.9, {
+        'spine_lumbar': (-15.41, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
+        'right_hip': (32.466, -0.198, -0.092), 'right_knee': (134.476,),
+        'left_hip': (119.764, -25.0, 10.638), 'left_knee': (134.997,),
         'left_ankle': (-30.516, 21.77), 'left_toes': (34.363,),
     })
-    human.KeyRoot(20.2, (2.582, 42.702, 40.007), (-10.437, 0.0, 0.0))
-    human.KeyJoints(20.2, {
+    human.KeyRoot(20.0, (2.582, 42.702, 40.007), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.0, {
         'spine_lumbar': (-25.197, 20.0, 0.0), 'spine_thoracic': (-15.0, 10.0, 0.0),
         'right_hip': (28.888, -0.217, -0.087), 'right_knee': (130.908,),
         'right_ankle': (15.05, 0.155), 'left_hip': (106.01, -25.0, 14.333), 'left_knee': (132.939,),
         'left_ankle': (-18.119, 29.406), 'right_toes': (86.834,), 'left_toes': (40.267,),
     })
-    human.KeyRoot(20.3, (2.377, 42.762, 40.087), (-10.437, 0.0, 0.0))
+    human.KeyRoot(20.1, (2.269, 43.004, 40.525), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.1, {
+        'spine_lumbar': (-29.5, 20.0, 0.0), 'spine_thoracic': (-8.639, 10.0, 0.0),
+        'right_hip': (28.034, -0.485, -0.185), 'right_knee': (130.084,),
+        'right_ankle': (15.055, 0.314), 'left_hip': (99.615, -12.599, 8.426),
+        'left_knee': (127.337,), 'left_ankle': (-16.144, 16.163), 'right_toes': (86.696,),
+        'left_toes': (42.178,),
+    })
+    human.KeyRoot(20.2, (3.103, 41.488, 38.006), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.2, {
+        'spine_lumbar': (-5.713, 7.385, 0.0), 'spine_thoracic': (-3.594, 3.031, 0.0),
+        'right_hip': (32.073, -0.033, -0.015), 'right_knee': (134.078,),
+        'right_ankle': (15.046, 0.026), 'left_hip': (96.457, -0.145, 0.178),
+        'left_knee': (127.684,), 'left_ankle': (10.8, 0.335), 'right_toes': (86.914,),
+        'left_toes': (20.363,),
+    })
+    human.KeyRoot(20.3, (3.209, 41.267, 37.579), (-10.437, 0.0, 0.0))
     human.KeyJoints(20.3, {
-        'spine_lumbar': (-29.459, 20.0, 0.0), 'spine_thoracic': (-5.223, 10.0, 0.0),
-        'right_hip': (28.714, -0.45, -0.177), 'right_knee': (130.76,),
-        'right_ankle': (15.058, 0.306), 'left_hip': (99.714, -15.386, 10.257),
-        'left_knee': (127.349,), 'left_ankle': (-15.972, 19.778), 'right_toes': (86.707,),
-        'left_toes': (41.236,),
-    })
-    human.KeyRoot(20.4, (2.63, 42.593, 39.817), (-10.437, 0.0, 0.0))
-    human.KeyJoints(20.4, {
-        'spine_lumbar': (-20.159, 20.0, 0.0), 'spine_thoracic': (-10.417, 8.356, 0.0),
-        'right_hip': (29.185, -0.201, -0.081), 'right_knee': (131.204,),
-        'left_hip': (98.974, -2.082, 1.697), 'left_knee': (127.895,), 'left_ankle': (-5.962, 3.21),
-        'left_toes': (34.483,),
-    })
-    human.KeyRoot(20.5, (3.154, 41.355, 37.8), (-10.437, 0.0, 0.0))
-    human.KeyJoints(20.5, {
-        'spine_lumbar': (-3.456, 4.591, 0.0), 'spine_thoracic': (-2.343, 1.964, 0.0),
-        'right_hip': (32.405, -0.018, -0.008), 'right_knee': (134.41,),
-        'right_ankle': (15.046, 0.014), 'left_hip': (95.601, -0.069, 0.091),
-        'left_ankle': (14.371, 0.169), 'right_toes': (86.916,), 'left_toes': (17.484,),
-    })
-    human.KeyRoot(20.6, (3.209, 41.267, 37.579), (-10.437, 0.0, 0.0))
-    human.KeyJoints(20.6, {
         'spine_lumbar': (0.941, 0.0, 0.0), 'spine_thoracic': (0.143, 0.0, 0.0),
         'right_hip': (32.658, 0.0, 0.0), 'right_knee': (134.703,), 'right_ankle': (15.376, 0.0),
         'left_hip': (93.997, 0.0, 0.0), 'left_knee': (126.997,), 'left_ankle': (20.0, 0.0),
         'right_toes': (86.539,), 'left_toes': (12.977,),
     })
-    human.KeyRoot(20.7, (3.978, 45.913, 33.6), (-10.437, 0.0, 0.0))
-    human.KeyJoints(20.7, {
+    human.KeyRoot(20.4, (3.978, 45.913, 33.6), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.4, {
         'spine_lumbar': (11.865, 0.122, 0.0), 'spine_thoracic': (1.976, 0.022, 0.0),
         'right_hip': (35.75, -0.031, 0.081), 'right_knee': (130.764,), 'right_ankle': (20.0, 0.087),
         'left_hip': (88.888, 0.007, -0.06), 'left_knee': (116.813,), 'left_ankle': (20.0, -0.06),
         'right_toes': (74.913,), 'left_toes': (7.921,),
     })
-    human.KeyRoot(20.8, (5.082, 63.964, 33.244), (-10.437, 0.0, 0.0))
-    human.KeyJoints(20.8, {
+    human.KeyRoot(20.5, (5.082, 63.964, 33.244), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.5, {
         'spine_lumbar': (14.316, 3.17, 0.0), 'spine_thoracic': (2.369, 0.568, 0.0),
         'right_hip': (26.588, 0.198, 1.33), 'right_knee': (101.578,), 'right_ankle': (20.0, 1.346),
         'left_hip': (64.703, -0.43, -0.998), 'left_knee': (86.717,), 'left_ankle': (20.0, -1.087),
         'right_toes': (54.948,), 'left_toes': (2.049,),
     })
-    human.KeyRoot(20.9, (6.331, 75.581, 40.058), (-10.437, 0.0, 0.0))
-    human.KeyJoints(20.9, {
+    human.KeyRoot(20.6, (6.331, 75.581, 40.058), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.6, {
         'spine_lumbar': (-1.71, 9.848, 0.0), 'spine_thoracic': (-0.436, 1.776, 0.0),
         'right_hip': (8.501, 1.931, 2.38), 'right_knee': (70.951,), 'right_ankle': (20.0, 3.067),
         'left_hip': (45.804, -2.047, -2.104), 'left_knee': (65.778,),
         'left_ankle': (19.999, -2.935), 'right_toes': (42.45,), 'left_toes': (0.022,),
     })
-    human.KeyRoot(21.0, (8.579, 83.689, 38.102), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.0, {
+    human.KeyRoot(20.7, (8.579, 83.689, 38.102), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.7, {
         'spine_lumbar': (8.531, 14.895, 0.0), 'spine_thoracic': (1.134, 2.665, 0.0),
         'right_hip': (-3.264, 3.635, 1.473), 'right_knee': (42.03,), 'right_ankle': (20.0, 3.923),
         'left_hip': (33.319, -3.35, -2.2), 'left_knee': (39.56,), 'left_ankle': (6.305, -4.007),
         'right_toes': (25.311,),
     })
-    human.KeyRoot(21.1, (9.596, 85.871, 36.289), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.1, {
+    human.KeyRoot(20.8, (9.596, 85.871, 36.289), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.8, {
         'spine_lumbar': (22.264, 16.653, 0.0), 'spine_thoracic': (-5.011, 3.145, 0.0),
         'right_hip': (-7.038, 4.168, 0.967), 'right_knee': (31.28,), 'right_ankle': (18.237, 4.279),
         'left_hip': (28.147, -3.865, -2.065), 'left_knee': (26.977,), 'left_ankle': (-1.1, -4.381),
         'right_toes': (20.073,),
     })
-    human.KeyRoot(21.2, (10.037, 86.114, 51.031), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.2, {
+    human.KeyRoot(20.9, (10.037, 86.114, 51.031), (-10.437, 0.0, 0.0))
+    human.KeyJoints(20.9, {
         'spine_lumbar': (51.349, -1.637, 0.0), 'spine_thoracic': (4.065, -0.211, 0.0),
         'right_hip': (-14.983, 5.693, 3.814), 'right_knee': (27.257,),
         'right_ankle': (-6.474, 6.843), 'left_hip': (22.775, -6.084, -2.548),
         'left_knee': (36.605,), 'left_ankle': (13.97, -6.596), 'right_toes': (48.816,),
     })
-    human.KeyRoot(21.3, (10.141, 89.342, 53.738), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.3, {
+    human.KeyRoot(21.0, (10.141, 89.342, 53.738), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.0, {
         'spine_lumbar': (47.257, -2.876, 0.0), 'spine_thoracic': (7.719, -0.426, 0.0),
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (-14.94, 5.685, 5.666), 'right_knee': (27.039,),
+        'right_hip': (-14.94, 5.685, 5.666), 'right_knee': (27.039,),
         'right_ankle': (-17.806, 7.986), 'left_hip': (12.165, -6.594, -1.418),
         'left_knee': (19.083,), 'left_ankle': (7.0, -6.745), 'right_toes': (59.998,),
     })
-    human.KeyRoot(21.4, (9.286, 90.232, 62.858), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.4, {
+    human.KeyRoot(21.1, (9.286, 90.232, 62.858), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.1, {
         'spine_lumbar': (17.404, -1.006, 0.0), 'spine_thoracic': (5.423, -0.176, 0.0),
         'right_hip': (-14.945, 6.496, 4.367), 'right_knee': (28.863,),
         'right_ankle': (-5.779, 7.316), 'left_hip': (-0.469, -7.222, 0.059), 'left_knee': (6.199,),
         'left_ankle': (6.665, -7.223), 'right_toes': (48.343,),
     })
-    human.KeyRoot(21.5, (8.445, 89.814, 67.717), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.5, {
+    human.KeyRoot(21.2, (8.445, 89.814, 67.717), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.2, {
         'spine_lumbar': (2.684, -1.08, 0.0), 'spine_thoracic': (0.477, -0.196, 0.0),
-        'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (-1.304, 7.143, 2.804), 'right_knee': (38.433,),
         'right_ankle': (17.106, 7.667), 'left_hip': (-4.403, -7.274, 0.559), 'left_knee': (5.109,),
         'left_ankle': (9.477, -7.295), 'right_toes': (22.805,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(21.6, (7.433, 90.141, 66.587), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.6, {
+    human.KeyRoot(21.3, (7.433, 90.141, 66.587), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.3, {
         'spine_lumbar': (2.848, -4.453, 0.0), 'spine_thoracic': (0.454, -0.803, 0.0),
         'right_hip': (3.235, 6.573, 0.606), 'right_ankle': (17.293, 6.863),
         'left_hip': (-3.955, -6.431, 0.44), 'left_knee': (4.662,), 'left_ankle': (8.382, -6.387),
         'right_toes': (2.302,), 'left_toes': (0.151,),
     })
-    human.KeyRoot(21.7, (2.022, 90.983, 58.188), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.7, {
+    human.KeyRoot(21.4, (2.022, 90.983, 58.188), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.4, {
         'spine_lumbar': (8.853, -8.877, 0.0), 'spine_thoracic': (1.456, -1.599, 0.0),
         'right_hip': (1.912, 1.748, 0.058), 'right_knee': (6.491,), 'right_ankle': (4.58, 1.749),
         'left_hip': (1.912, -1.748, -0.058), 'left_knee': (6.491,), 'left_ankle': (4.58, -1.749),
         'right_toes': (0.0,), 'left_toes': (0.0,),
     })
-    human.KeyRoot(21.763411, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
-    human.KeyJoints(21.763411, {
+    human.KeyRoot(21.463411, (0.0, 91.087, 55.0), (-10.437, 0.0, 0.0))
+    human.KeyJoints(21.463411, {
         'spine_lumbar': (0.0, 0.0, 0.0), 'spine_thoracic': (0.0, 0.0, 0.0), 'neck': (0.0, 0.0, 0.0),
         'head': (0.0, 0.0), 'right_clavicle': (0.0, 0.0), 'right_shoulder': (8.594, 7.5, -20.0),
         'right_elbow': (34.377, 17.189), 'right_wrist': (0.0, 0.0), 'left_clavicle': (0.0, 0.0),

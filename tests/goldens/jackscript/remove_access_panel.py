@@ -2106,7 +2106,7 @@ def remove_access_panel():
         'right_wrist': (-6.353, -4.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_lower_right
-    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=10.463281)
+    human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=12.263281)
     human.KeyJoints(34.5, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (20.012, 32.188, -15.305), 'right_elbow': (36.386, 3.606),
@@ -2134,466 +2134,538 @@ def remove_access_panel():
         'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=35.003158, duration=0.072)
+    human.Grasp('right_hand', 'close', start=35.003158, duration=0.072123)
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.1, {
-        'right_shoulder': (57.25, 1.888, 10.174), 'right_elbow': (32.133, 19.636),
-        'right_wrist': (-1.046, -21.486),
+        'right_shoulder': (57.257, 1.896, 10.211), 'right_elbow': (32.114, 19.575),
+        'right_wrist': (-1.046, -21.469),
     })
     human.KeyJoints(35.2, {
-        'right_shoulder': (54.947, 1.948, 0.455), 'right_elbow': (45.178, 62.844),
-        'right_wrist': (3.531, -30.0),
+        'right_shoulder': (54.92, 1.891, 0.893), 'right_elbow': (44.264, 59.079),
+        'right_wrist': (2.71, -30.0),
     })
     human.KeyJoints(35.3, {
-        'right_shoulder': (59.526, 7.347, 9.443), 'right_elbow': (52.916, 80.0),
-        'right_wrist': (26.031, -30.0),
+        'right_shoulder': (58.998, 7.252, 9.241), 'right_elbow': (52.696, 80.0),
+        'right_wrist': (23.215, -30.0),
     })
     human.KeyJoints(35.4, {
-        'right_shoulder': (52.871, 0.656, -2.761), 'right_elbow': (63.136, 79.898),
-        'right_wrist': (33.395, -30.0),
+        'right_shoulder': (55.948, 4.452, 3.593), 'right_elbow': (60.169, 80.0),
+        'right_wrist': (33.538, -30.0),
     })
     human.KeyJoints(35.5, {
-        'right_shoulder': (53.834, -4.645, -14.121), 'right_elbow': (41.151, 45.654),
-        'right_wrist': (13.77, -19.65),
+        'right_shoulder': (49.82, -6.422, -15.092), 'right_elbow': (54.62, 58.411),
+        'right_wrist': (19.259, -26.384),
     })
     human.KeyJoints(35.6, {
-        'right_shoulder': (58.975, 1.901, 8.449), 'right_elbow': (27.771, 21.072),
-        'right_wrist': (1.069, -16.113),
+        'right_shoulder': (57.466, -1.64, -7.696), 'right_elbow': (31.337, 36.132),
+        'right_wrist': (9.156, -15.87),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(35.7, {
-        'right_shoulder': (56.081, 1.838, 4.109), 'right_elbow': (37.129, 39.037),
-        'right_wrist': (-0.074, -25.133),
+        'right_shoulder': (58.986, 2.401, 11.302), 'right_elbow': (27.778, 18.568),
+        'right_wrist': (-0.39, -16.445),
     })
     human.KeyJoints(35.8, {
-        'right_shoulder': (57.045, 5.989, 6.621), 'right_elbow': (51.406, 79.534),
-        'right_wrist': (14.468, -30.0),
+        'right_shoulder': (55.648, 1.985, 3.619), 'right_elbow': (39.099, 43.447),
+        'right_wrist': (0.334, -26.942),
     })
     human.KeyJoints(35.9, {
-        'right_shoulder': (59.126, 6.751, 8.083), 'right_elbow': (55.191, 80.0),
-        'right_wrist': (31.293, -30.0),
+        'right_shoulder': (55.895, 4.054, 2.889), 'right_elbow': (49.779, 76.875),
+        'right_wrist': (9.914, -30.0),
     })
     human.KeyJoints(36.0, {
-        'right_shoulder': (49.346, -6.522, -14.579), 'right_elbow': (56.76, 61.006),
-        'right_wrist': (20.383, -27.479),
+        'right_shoulder': (59.805, 7.375, 9.501), 'right_elbow': (53.035, 80.0),
+        'right_wrist': (27.561, -30.0),
     })
     human.KeyJoints(36.1, {
-        'right_shoulder': (58.322, -0.485, -3.349), 'right_elbow': (29.171, 32.003),
-        'right_wrist': (6.955, -15.54),
+        'right_shoulder': (50.354, -2.693, -7.61), 'right_elbow': (63.797, 77.937),
+        'right_wrist': (29.286, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.2, {
-        'right_shoulder': (58.358, 1.927, 8.447), 'right_elbow': (29.391, 23.228),
-        'right_wrist': (-0.448, -17.822),
+        'right_shoulder': (54.593, -4.119, -13.414), 'right_elbow': (38.983, 43.773),
+        'right_wrist': (12.909, -18.674),
     })
     human.KeyJoints(36.3, {
-        'right_shoulder': (55.12, 2.42, 0.388), 'right_elbow': (47.216, 70.084),
-        'right_wrist': (5.682, -30.0),
+        'right_shoulder': (58.979, 1.954, 8.747), 'right_elbow': (27.764, 20.801),
+        'right_wrist': (0.922, -16.139),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(36.4, {
-        'right_shoulder': (59.782, 7.374, 9.497), 'right_elbow': (53.025, 80.0),
-        'right_wrist': (27.436, -30.0),
+        'right_shoulder': (56.182, 1.8, 4.199), 'right_elbow': (36.681, 38.19),
+        'right_wrist': (-0.134, -24.721),
     })
     human.KeyJoints(36.5, {
-        'right_shoulder': (50.591, -2.498, -7.335), 'right_elbow': (64.172, 78.63),
-        'right_wrist': (29.291, -30.0),
+        'right_shoulder': (56.556, 5.21, 5.07), 'right_elbow': (50.843, 78.797),
+        'right_wrist': (12.633, -30.0),
     })
     human.KeyJoints(36.6, {
-        'right_shoulder': (55.469, -3.475, -12.268), 'right_elbow': (36.582, 41.798),
-        'right_wrist': (11.978, -17.591),
+        'right_shoulder': (59.732, 7.03, 8.696), 'right_elbow': (53.73, 80.0),
+        'right_wrist': (29.808, -30.0),
     })
     human.KeyJoints(36.7, {
-        'right_shoulder': (59.009, 2.369, 11.113), 'right_elbow': (27.718, 18.659),
-        'right_wrist': (-0.24, -16.36),
+        'right_shoulder': (49.107, -5.805, -12.508), 'right_elbow': (61.231, 68.186),
+        'right_wrist': (23.665, -29.531),
+    })
+    human.KeyJoints(36.8, {
+        'right_shoulder': (56.997, -2.135, -9.173), 'right_elbow': (32.558, 37.765),
+        'right_wrist': (9.996, -16.123),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(36.8, {
-        'right_shoulder': (55.466, 2.032, 3.332), 'right_elbow': (40.086, 45.934),
-        'right_wrist': (0.612, -27.726),
-    })
     human.KeyJoints(36.9, {
-        'right_shoulder': (57.934, 6.886, 8.471), 'right_elbow': (52.134, 80.0),
-        'right_wrist': (17.947, -30.0),
+        'right_shoulder': (59.001, 2.413, 11.368), 'right_elbow': (27.741, 18.46),
+        'right_wrist': (-0.388, -16.418),
     })
     human.KeyJoints(37.0, {
-        'right_shoulder': (57.589, 5.859, 6.258), 'right_elbow': (57.859, 80.0),
-        'right_wrist': (32.802, -30.0),
+        'right_shoulder': (56.171, 1.808, 4.187), 'right_elbow': (36.754, 38.27),
+        'right_wrist': (-0.134, -24.774),
     })
     human.KeyJoints(37.1, {
-        'right_shoulder': (50.521, -6.34, -15.422), 'right_elbow': (51.784, 55.31),
-        'right_wrist': (17.93, -24.908),
+        'right_shoulder': (55.128, 2.456, 0.674), 'right_elbow': (47.278, 70.255),
+        'right_wrist': (5.753, -30.0),
     })
     human.KeyJoints(37.2, {
-        'right_shoulder': (58.642, 0.379, 0.416), 'right_elbow': (28.461, 28.437),
-        'right_wrist': (5.049, -15.573),
+        'right_shoulder': (58.811, 7.216, 9.158), 'right_elbow': (52.607, 80.0),
+        'right_wrist': (22.28, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.3, {
-        'right_shoulder': (57.631, 1.527, 5.709), 'right_elbow': (31.419, 28.473),
-        'right_wrist': (-0.474, -19.622),
+        'right_shoulder': (56.841, 5.251, 5.083), 'right_elbow': (58.997, 80.0),
+        'right_wrist': (33.213, -30.0),
     })
     human.KeyJoints(37.4, {
-        'right_shoulder': (55.551, 3.374, 1.714), 'right_elbow': (48.967, 75.019),
-        'right_wrist': (8.304, -30.0),
+        'right_shoulder': (50.069, -6.42, -15.295), 'right_elbow': (53.546, 57.209),
+        'right_wrist': (18.744, -25.814),
     })
     human.KeyJoints(37.5, {
-        'right_shoulder': (59.815, 7.349, 9.436), 'right_elbow': (53.047, 80.0),
-        'right_wrist': (27.805, -30.0),
+        'right_shoulder': (58.332, -0.452, -3.221), 'right_elbow': (29.155, 31.87),
+        'right_wrist': (6.886, -15.561),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.6, {
-        'right_shoulder': (49.216, -4.521, -10.335), 'right_elbow': (63.171, 73.434),
-        'right_wrist': (26.172, -30.0),
+        'right_shoulder': (58.428, 1.977, 8.759), 'right_elbow': (29.208, 22.714),
+        'right_wrist': (-0.443, -17.663),
     })
     human.KeyJoints(37.7, {
-        'right_shoulder': (56.845, -2.297, -9.598), 'right_elbow': (32.952, 38.302),
-        'right_wrist': (10.266, -16.208),
+        'right_shoulder': (55.037, 2.234, 0.424), 'right_elbow': (46.304, 67.02),
+        'right_wrist': (4.611, -29.996),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(37.8, {
-        'right_shoulder': (58.995, 2.408, 11.34), 'right_elbow': (27.757, 18.505),
-        'right_wrist': (-0.388, -16.422),
+        'right_shoulder': (59.521, 7.347, 9.439), 'right_elbow': (52.92, 80.0),
+        'right_wrist': (26.035, -30.0),
     })
     human.KeyJoints(37.9, {
-        'right_shoulder': (55.063, 2.097, 2.196), 'right_elbow': (42.797, 54.012),
-        'right_wrist': (1.768, -29.533),
+        'right_shoulder': (57.849, 6.034, 6.604), 'right_elbow': (57.477, 80.0),
+        'right_wrist': (32.629, -30.0),
     })
     human.KeyJoints(38.0, {
-        'right_shoulder': (58.865, 7.228, 9.183), 'right_elbow': (52.633, 80.0),
-        'right_wrist': (22.56, -30.0),
+        'right_shoulder': (49.223, -4.468, -10.248), 'right_elbow': (63.21, 73.606),
+        'right_wrist': (26.27, -30.0),
     })
     human.KeyJoints(38.1, {
-        'right_shoulder': (55.403, 3.857, 2.522), 'right_elbow': (60.843, 80.0),
-        'right_wrist': (33.642, -30.0),
+        'right_shoulder': (53.214, -5.077, -14.598), 'right_elbow': (42.964, 47.209),
+        'right_wrist': (14.458, -20.498),
     })
     human.KeyJoints(38.2, {
-        'right_shoulder': (52.052, -5.828, -15.314), 'right_elbow': (46.509, 50.231),
-        'right_wrist': (15.756, -22.236),
-    })
-    human.KeyJoints(38.3, {
-        'right_shoulder': (58.86, 1.195, 4.563), 'right_elbow': (28.001, 24.609),
-        'right_wrist': (2.985, -15.804),
+        'right_shoulder': (58.863, 1.219, 4.681), 'right_elbow': (27.993, 24.499),
+        'right_wrist': (2.926, -15.806),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(38.3, {
+        'right_shoulder': (56.945, 1.535, 4.764), 'right_elbow': (33.697, 32.953),
+        'right_wrist': (-0.436, -21.784),
+    })
     human.KeyJoints(38.4, {
-        'right_shoulder': (56.838, 1.579, 4.709), 'right_elbow': (34.091, 33.546),
-        'right_wrist': (-0.401, -22.181),
+        'right_shoulder': (55.829, 3.936, 2.696), 'right_elbow': (49.642, 76.583),
+        'right_wrist': (9.615, -30.0),
     })
     human.KeyJoints(38.5, {
-        'right_shoulder': (56.218, 4.647, 3.99), 'right_elbow': (50.359, 77.998),
-        'right_wrist': (11.288, -30.0),
+        'right_shoulder': (59.814, 7.312, 9.35), 'right_elbow': (53.099, 80.0),
+        'right_wrist': (28.042, -30.0),
     })
     human.KeyJoints(38.6, {
-        'right_shoulder': (59.808, 7.087, 8.827), 'right_elbow': (53.485, 80.0),
-        'right_wrist': (29.401, -30.0),
+        'right_shoulder': (49.495, -4.159, -9.826), 'right_elbow': (63.659, 75.197),
+        'right_wrist': (26.728, -29.998),
     })
     human.KeyJoints(38.7, {
-        'right_shoulder': (49.068, -5.879, -12.801), 'right_elbow': (60.827, 67.167),
-        'right_wrist': (23.205, -29.481),
+        'right_shoulder': (55.786, -3.234, -11.767), 'right_elbow': (35.738, 41.132),
+        'right_wrist': (11.658, -17.197),
     })
     human.KeyJoints(38.8, {
-        'right_shoulder': (57.718, -1.35, -6.713), 'right_elbow': (30.687, 35.136),
-        'right_wrist': (8.632, -15.763),
+        'right_shoulder': (59.006, 2.335, 10.919), 'right_elbow': (27.724, 18.835),
+        'right_wrist': (-0.144, -16.341),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(38.9, {
-        'right_shoulder': (58.824, 2.275, 10.558), 'right_elbow': (28.187, 19.775),
-        'right_wrist': (-0.408, -16.787),
+        'right_shoulder': (56.62, 1.611, 4.512), 'right_elbow': (34.91, 35.045),
+        'right_wrist': (-0.349, -22.98),
     })
     human.KeyJoints(39.0, {
-        'right_shoulder': (54.959, 2.074, 0.714), 'right_elbow': (45.123, 62.699),
-        'right_wrist': (3.457, -29.997),
+        'right_shoulder': (55.02, 2.193, 0.452), 'right_elbow': (46.036, 66.078),
+        'right_wrist': (4.328, -29.994),
     })
     human.KeyJoints(39.1, {
-        'right_shoulder': (59.51, 7.348, 9.44), 'right_elbow': (52.915, 80.0),
-        'right_wrist': (25.979, -30.0),
+        'right_shoulder': (57.919, 6.846, 8.386), 'right_elbow': (52.116, 79.965),
+        'right_wrist': (17.964, -30.0),
     })
     human.KeyJoints(39.2, {
-        'right_shoulder': (52.942, 0.749, -2.622), 'right_elbow': (63.091, 79.914),
-        'right_wrist': (33.471, -30.0),
+        'right_shoulder': (58.668, 6.518, 7.589), 'right_elbow': (56.1, 80.0),
+        'right_wrist': (31.923, -30.0),
     })
     human.KeyJoints(39.3, {
-        'right_shoulder': (53.796, -4.671, -14.151), 'right_elbow': (41.26, 45.749),
-        'right_wrist': (13.813, -19.699),
+        'right_shoulder': (49.369, -6.493, -14.563), 'right_elbow': (56.796, 61.039),
+        'right_wrist': (20.401, -27.516),
     })
     human.KeyJoints(39.4, {
-        'right_shoulder': (58.974, 1.89, 8.388), 'right_elbow': (27.773, 21.127),
-        'right_wrist': (1.099, -16.108),
+        'right_shoulder': (57.949, -1.049, -5.63), 'right_elbow': (30.1, 34.078),
+        'right_wrist': (8.072, -15.665),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(39.5, {
-        'right_shoulder': (56.093, 1.834, 4.12), 'right_elbow': (37.078, 38.932),
-        'right_wrist': (-0.083, -25.085),
+        'right_shoulder': (58.784, 2.242, 10.369), 'right_elbow': (28.29, 20.077),
+        'right_wrist': (-0.412, -16.874),
     })
     human.KeyJoints(39.6, {
-        'right_shoulder': (57.031, 5.966, 6.575), 'right_elbow': (51.392, 79.516),
-        'right_wrist': (14.417, -30.0),
+        'right_shoulder': (54.969, 2.076, 0.906), 'right_elbow': (44.579, 60.693),
+        'right_wrist': (3.001, -29.954),
     })
     human.KeyJoints(39.7, {
-        'right_shoulder': (59.144, 6.759, 8.1), 'right_elbow': (55.153, 80.0),
-        'right_wrist': (31.264, -30.0),
+        'right_shoulder': (59.088, 7.274, 9.283), 'right_elbow': (52.736, 80.0),
+        'right_wrist': (23.713, -30.0),
     })
     human.KeyJoints(39.8, {
-        'right_shoulder': (49.337, -6.522, -14.561), 'right_elbow': (56.833, 61.104),
-        'right_wrist': (20.427, -27.515),
+        'right_shoulder': (58.663, 6.487, 7.527), 'right_elbow': (56.095, 80.0),
+        'right_wrist': (31.929, -30.0),
     })
     human.KeyJoints(39.9, {
-        'right_shoulder': (58.315, -0.5, -3.408), 'right_elbow': (29.188, 32.058),
-        'right_wrist': (6.985, -15.542),
+        'right_shoulder': (49.766, -3.667, -9.066), 'right_elbow': (63.92, 76.648),
+        'right_wrist': (27.55, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.0, {
-        'right_shoulder': (58.368, 1.934, 8.492), 'right_elbow': (29.364, 23.152),
-        'right_wrist': (-0.448, -17.798),
+        'right_shoulder': (52.519, -5.578, -15.16), 'right_elbow': (45.053, 48.945),
+        'right_wrist': (15.205, -21.52),
     })
     human.KeyJoints(40.1, {
-        'right_shoulder': (55.115, 2.409, 0.379), 'right_elbow': (47.184, 69.981),
-        'right_wrist': (5.641, -30.0),
+        'right_shoulder': (58.669, 0.452, 0.778), 'right_elbow': (28.399, 28.109),
+        'right_wrist': (4.871, -15.579),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.2, {
-        'right_shoulder': (59.78, 7.373, 9.497), 'right_elbow': (53.025, 80.0),
-        'right_wrist': (27.425, -30.0),
+        'right_shoulder': (57.719, 1.608, 6.117), 'right_elbow': (31.171, 27.802),
+        'right_wrist': (-0.467, -19.404),
     })
     human.KeyJoints(40.3, {
-        'right_shoulder': (50.617, -2.457, -7.274), 'right_elbow': (64.17, 78.66),
-        'right_wrist': (29.349, -30.0),
+        'right_shoulder': (55.393, 3.035, 1.177), 'right_elbow': (48.469, 73.741),
+        'right_wrist': (7.46, -30.0),
     })
     human.KeyJoints(40.4, {
-        'right_shoulder': (55.442, -3.496, -12.309), 'right_elbow': (36.656, 41.859),
-        'right_wrist': (12.007, -17.623),
+        'right_shoulder': (59.776, 7.373, 9.496), 'right_elbow': (53.023, 80.0),
+        'right_wrist': (27.406, -30.0),
     })
     human.KeyJoints(40.5, {
-        'right_shoulder': (59.008, 2.364, 11.085), 'right_elbow': (27.718, 18.684),
-        'right_wrist': (-0.226, -16.357),
+        'right_shoulder': (56.3, 4.761, 4.161), 'right_elbow': (59.742, 80.0),
+        'right_wrist': (33.427, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.6, {
-        'right_shoulder': (55.475, 2.03, 3.348), 'right_elbow': (40.038, 45.807),
-        'right_wrist': (0.597, -27.687),
+        'right_shoulder': (49.056, -5.501, -12.052), 'right_elbow': (61.793, 69.212),
+        'right_wrist': (24.146, -29.787),
     })
     human.KeyJoints(40.7, {
-        'right_shoulder': (57.918, 6.878, 8.454), 'right_elbow': (52.124, 80.0),
-        'right_wrist': (17.875, -30.0),
+        'right_shoulder': (54.899, -3.894, -13.063), 'right_elbow': (38.134, 43.058),
+        'right_wrist': (12.576, -18.289),
     })
     human.KeyJoints(40.8, {
-        'right_shoulder': (57.623, 5.882, 6.304), 'right_elbow': (57.808, 80.0),
-        'right_wrist': (32.78, -30.0),
+        'right_shoulder': (58.99, 2.056, 9.326), 'right_elbow': (27.744, 20.277),
+        'right_wrist': (0.638, -16.192),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(40.9, {
-        'right_shoulder': (50.496, -6.345, -15.414), 'right_elbow': (51.873, 55.402),
-        'right_wrist': (17.969, -24.955),
+        'right_shoulder': (56.057, 1.845, 4.093), 'right_elbow': (37.206, 39.242),
+        'right_wrist': (-0.05, -25.226),
     })
     human.KeyJoints(41.0, {
-        'right_shoulder': (58.638, 0.364, 0.347), 'right_elbow': (28.47, 28.501),
-        'right_wrist': (5.083, -15.571),
+        'right_shoulder': (56.699, 5.461, 5.563), 'right_elbow': (51.024, 79.069),
+        'right_wrist': (13.17, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.1, {
-        'right_shoulder': (57.644, 1.531, 5.746), 'right_elbow': (31.379, 28.379),
-        'right_wrist': (-0.474, -19.585),
+        'right_shoulder': (59.704, 6.965, 8.552), 'right_elbow': (53.915, 80.0),
+        'right_wrist': (30.126, -30.0),
     })
     human.KeyJoints(41.2, {
-        'right_shoulder': (55.542, 3.354, 1.681), 'right_elbow': (48.94, 74.953),
-        'right_wrist': (8.256, -30.0),
+        'right_shoulder': (49.119, -6.021, -12.937), 'right_elbow': (60.637, 67.032),
+        'right_wrist': (23.128, -29.294),
     })
     human.KeyJoints(41.3, {
-        'right_shoulder': (59.815, 7.352, 9.445), 'right_elbow': (53.045, 80.0),
-        'right_wrist': (27.78, -30.0),
+        'right_shoulder': (57.173, -1.958, -8.666), 'right_elbow': (32.099, 37.194),
+        'right_wrist': (9.705, -16.02),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.4, {
-        'right_shoulder': (49.231, -4.493, -10.292), 'right_elbow': (63.2, 73.551),
-        'right_wrist': (26.222, -30.0),
+        'right_shoulder': (58.993, 2.407, 11.333), 'right_elbow': (27.76, 18.516),
+        'right_wrist': (-0.388, -16.428),
     })
     human.KeyJoints(41.5, {
-        'right_shoulder': (56.827, -2.315, -9.644), 'right_elbow': (32.998, 38.36),
-        'right_wrist': (10.295, -16.219),
+        'right_shoulder': (56.09, 1.835, 4.108), 'right_elbow': (37.103, 38.979),
+        'right_wrist': (-0.083, -25.101),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(41.6, {
-        'right_shoulder': (58.996, 2.409, 11.345), 'right_elbow': (27.754, 18.498),
-        'right_wrist': (-0.388, -16.42),
+        'right_shoulder': (55.136, 2.471, 0.683), 'right_elbow': (47.311, 70.363),
+        'right_wrist': (5.795, -30.0),
     })
     human.KeyJoints(41.7, {
-        'right_shoulder': (55.067, 2.097, 2.218), 'right_elbow': (42.754, 53.869),
-        'right_wrist': (1.745, -29.511),
+        'right_shoulder': (58.689, 7.183, 9.088), 'right_elbow': (52.548, 80.0),
+        'right_wrist': (21.644, -30.0),
     })
     human.KeyJoints(41.8, {
-        'right_shoulder': (58.851, 7.224, 9.176), 'right_elbow': (52.627, 80.0),
-        'right_wrist': (22.487, -30.0),
+        'right_shoulder': (57.051, 5.435, 5.433), 'right_elbow': (58.69, 80.0),
+        'right_wrist': (33.108, -30.0),
     })
     human.KeyJoints(41.9, {
-        'right_shoulder': (55.444, 3.906, 2.609), 'right_elbow': (60.792, 80.0),
-        'right_wrist': (33.632, -30.0),
+        'right_shoulder': (50.225, -6.393, -15.364), 'right_elbow': (52.942, 56.547),
+        'right_wrist': (18.461, -25.502),
     })
     human.KeyJoints(42.0, {
-        'right_shoulder': (52.023, -5.844, -15.327), 'right_elbow': (46.6, 50.311),
-        'right_wrist': (15.79, -22.282),
-    })
-    human.KeyJoints(42.1, {
-        'right_shoulder': (58.857, 1.182, 4.493), 'right_elbow': (28.007, 24.672),
-        'right_wrist': (3.019, -15.799),
+        'right_shoulder': (58.395, -0.307, -2.623), 'right_elbow': (29.009, 31.301),
+        'right_wrist': (6.582, -15.564),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(42.1, {
+        'right_shoulder': (58.329, 1.9, 8.304), 'right_elbow': (29.469, 23.448),
+        'right_wrist': (-0.449, -17.889),
+    })
     human.KeyJoints(42.2, {
-        'right_shoulder': (56.851, 1.574, 4.718), 'right_elbow': (34.043, 33.468),
-        'right_wrist': (-0.404, -22.132),
+        'right_shoulder': (55.059, 2.285, 0.357), 'right_elbow': (46.652, 68.252),
+        'right_wrist': (5.003, -29.999),
     })
     human.KeyJoints(42.3, {
-        'right_shoulder': (56.205, 4.624, 3.948), 'right_elbow': (50.339, 77.96),
-        'right_wrist': (11.236, -30.0),
+        'right_shoulder': (59.603, 7.357, 9.459), 'right_elbow': (52.953, 80.0),
+        'right_wrist': (26.474, -30.0),
     })
     human.KeyJoints(42.4, {
-        'right_shoulder': (59.808, 7.092, 8.838), 'right_elbow': (53.474, 80.0),
-        'right_wrist': (29.373, -30.0),
+        'right_shoulder': (57.429, 5.753, 6.049), 'right_elbow': (58.104, 80.0),
+        'right_wrist': (32.892, -30.0),
     })
     human.KeyJoints(42.5, {
-        'right_shoulder': (49.065, -5.859, -12.761), 'right_elbow': (60.886, 67.271),
-        'right_wrist': (23.255, -29.508),
+        'right_shoulder': (49.195, -4.787, -10.78), 'right_elbow': (62.939, 72.56),
+        'right_wrist': (25.678, -29.974),
     })
     human.KeyJoints(42.6, {
-        'right_shoulder': (57.706, -1.364, -6.765), 'right_elbow': (30.72, 35.186),
-        'right_wrist': (8.659, -15.769),
+        'right_shoulder': (53.523, -4.881, -14.385), 'right_elbow': (42.043, 46.418),
+        'right_wrist': (14.106, -20.062),
+    })
+    human.KeyJoints(42.7, {
+        'right_shoulder': (58.896, 1.374, 5.522), 'right_elbow': (27.925, 23.732),
+        'right_wrist': (2.51, -15.871),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(42.7, {
-        'right_shoulder': (58.829, 2.278, 10.581), 'right_elbow': (28.174, 19.737),
-        'right_wrist': (-0.407, -16.776),
-    })
     human.KeyJoints(42.8, {
-        'right_shoulder': (54.96, 2.074, 0.731), 'right_elbow': (45.087, 62.56),
-        'right_wrist': (3.424, -29.996),
+        'right_shoulder': (56.79, 1.587, 4.659), 'right_elbow': (34.269, 33.864),
+        'right_wrist': (-0.394, -22.357),
     })
     human.KeyJoints(42.9, {
-        'right_shoulder': (59.502, 7.347, 9.438), 'right_elbow': (52.912, 80.0),
-        'right_wrist': (25.938, -30.0),
+        'right_shoulder': (55.951, 4.167, 3.101), 'right_elbow': (49.896, 77.093),
+        'right_wrist': (10.175, -30.0),
     })
     human.KeyJoints(43.0, {
-        'right_shoulder': (52.986, 0.806, -2.537), 'right_elbow': (63.063, 79.923),
-        'right_wrist': (33.515, -30.0),
+        'right_shoulder': (59.814, 7.253, 9.21), 'right_elbow': (53.164, 80.0),
+        'right_wrist': (28.417, -30.0),
     })
     human.KeyJoints(43.1, {
-        'right_shoulder': (53.768, -4.691, -14.174), 'right_elbow': (41.341, 45.82),
-        'right_wrist': (13.845, -19.736),
+        'right_shoulder': (49.293, -4.467, -10.293), 'right_elbow': (63.34, 73.893),
+        'right_wrist': (26.197, -29.998),
     })
     human.KeyJoints(43.2, {
-        'right_shoulder': (58.973, 1.88, 8.33), 'right_elbow': (27.775, 21.179),
-        'right_wrist': (1.127, -16.103),
+        'right_shoulder': (56.035, -3.026, -11.333), 'right_elbow': (35.073, 40.48),
+        'right_wrist': (11.342, -16.959),
+    })
+    human.KeyJoints(43.3, {
+        'right_shoulder': (59.009, 2.397, 11.28), 'right_elbow': (27.719, 18.508),
+        'right_wrist': (-0.322, -16.376),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
-    human.KeyJoints(43.3, {
-        'right_shoulder': (56.105, 1.83, 4.131), 'right_elbow': (37.027, 38.828),
-        'right_wrist': (-0.091, -25.037),
-    })
     human.KeyJoints(43.4, {
-        'right_shoulder': (57.017, 5.944, 6.529), 'right_elbow': (51.377, 79.498),
-        'right_wrist': (14.367, -30.0),
+        'right_shoulder': (56.17, 1.797, 4.189), 'right_elbow': (36.725, 38.284),
+        'right_wrist': (-0.13, -24.763),
     })
     human.KeyJoints(43.5, {
-        'right_shoulder': (59.162, 6.766, 8.116), 'right_elbow': (55.115, 80.0),
-        'right_wrist': (31.234, -30.0),
+        'right_shoulder': (55.396, 3.043, 1.224), 'right_elbow': (48.469, 73.75),
+        'right_wrist': (7.46, -30.0),
     })
     human.KeyJoints(43.6, {
-        'right_shoulder': (49.328, -6.523, -14.543), 'right_elbow': (56.905, 61.202),
-        'right_wrist': (20.47, -27.549),
+        'right_shoulder': (59.639, 7.361, 9.468), 'right_elbow': (52.968, 80.0),
+        'right_wrist': (26.667, -30.0),
     })
     human.KeyJoints(43.7, {
-        'right_shoulder': (58.307, -0.514, -3.467), 'right_elbow': (29.206, 32.113),
-        'right_wrist': (7.014, -15.544),
+        'right_shoulder': (55.297, 3.679, 2.201), 'right_elbow': (61.021, 80.0),
+        'right_wrist': (33.716, -30.0),
     })
-    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(43.8, {
-        'right_shoulder': (58.379, 1.941, 8.537), 'right_elbow': (29.337, 23.077),
-        'right_wrist': (-0.447, -17.775),
+        'right_shoulder': (49.633, -6.497, -14.964), 'right_elbow': (54.985, 58.781),
+        'right_wrist': (19.408, -26.582),
     })
     human.KeyJoints(43.9, {
-        'right_shoulder': (55.11, 2.398, 0.372), 'right_elbow': (47.152, 69.878),
-        'right_wrist': (5.601, -30.0),
-    })
-    human.KeyJoints(44.0, {
-        'right_shoulder': (59.778, 7.373, 9.497), 'right_elbow': (53.024, 80.0),
-        'right_wrist': (27.415, -30.0),
-    })
-    human.KeyJoints(44.1, {
-        'right_shoulder': (50.645, -2.415, -7.211), 'right_elbow': (64.168, 78.689),
-        'right_wrist': (29.409, -30.0),
-    })
-    human.KeyJoints(44.2, {
-        'right_shoulder': (55.415, -3.517, -12.35), 'right_elbow': (36.73, 41.92),
-        'right_wrist': (12.036, -17.656),
-    })
-    human.KeyJoints(44.3, {
-        'right_shoulder': (59.008, 2.359, 11.056), 'right_elbow': (27.719, 18.71),
-        'right_wrist': (-0.212, -16.355),
+        'right_shoulder': (58.07, -0.884, -4.992), 'right_elbow': (29.792, 33.49),
+        'right_wrist': (7.757, -15.614),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(44.0, {
+        'right_shoulder': (58.707, 2.18, 10.0), 'right_elbow': (28.485, 20.652),
+        'right_wrist': (-0.42, -17.041),
+    })
+    human.KeyJoints(44.1, {
+        'right_shoulder': (54.96, 2.074, 0.746), 'right_elbow': (45.009, 62.282),
+        'right_wrist': (3.358, -29.995),
+    })
+    human.KeyJoints(44.2, {
+        'right_shoulder': (59.233, 7.303, 9.344), 'right_elbow': (52.799, 80.0),
+        'right_wrist': (24.485, -30.0),
+    })
+    human.KeyJoints(44.3, {
+        'right_shoulder': (58.526, 6.424, 7.397), 'right_elbow': (56.342, 80.0),
+        'right_wrist': (32.071, -30.0),
+    })
     human.KeyJoints(44.4, {
-        'right_shoulder': (55.484, 2.027, 3.365), 'right_elbow': (39.985, 45.668),
-        'right_wrist': (0.58, -27.644),
+        'right_shoulder': (49.83, -3.573, -8.927), 'right_elbow': (63.962, 76.892),
+        'right_wrist': (27.697, -30.0),
     })
     human.KeyJoints(44.5, {
-        'right_shoulder': (57.899, 6.868, 8.434), 'right_elbow': (52.112, 80.0),
-        'right_wrist': (17.789, -30.0),
+        'right_shoulder': (52.037, -5.862, -15.39), 'right_elbow': (46.557, 50.256),
+        'right_wrist': (15.765, -22.262),
     })
     human.KeyJoints(44.6, {
-        'right_shoulder': (57.782, 5.874, 6.273), 'right_elbow': (57.436, 80.0),
-        'right_wrist': (32.645, -30.0),
+        'right_shoulder': (58.702, 0.56, 1.311), 'right_elbow': (28.33, 27.613),
+        'right_wrist': (4.604, -15.606),
     })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
     human.KeyJoints(44.7, {
-        'right_shoulder': (49.587, -7.248, -15.3), 'right_elbow': (54.423, 55.684),
-        'right_wrist': (17.663, -28.631),
+        'right_shoulder': (57.996, 1.675, 6.879), 'right_elbow': (30.366, 25.885),
+        'right_wrist': (-0.468, -18.675),
     })
     human.KeyJoints(44.8, {
+        'right_shoulder': (55.003, 2.104, 1.646), 'right_elbow': (43.811, 57.54),
+        'right_wrist': (2.394, -29.833),
+    })
+    human.KeyJoints(44.9, {
+        'right_shoulder': (57.388, 6.382, 7.423), 'right_elbow': (51.721, 79.767),
+        'right_wrist': (15.795, -30.0),
+    })
+    human.KeyJoints(45.0, {
+        'right_shoulder': (59.512, 6.94, 8.497), 'right_elbow': (54.278, 80.0),
+        'right_wrist': (30.436, -30.0),
+    })
+    human.KeyJoints(45.1, {
+        'right_shoulder': (49.327, -4.607, -10.523), 'right_elbow': (63.301, 73.61),
+        'right_wrist': (25.976, -29.965),
+    })
+    human.KeyJoints(45.2, {
+        'right_shoulder': (55.139, -3.717, -12.751), 'right_elbow': (37.479, 42.527),
+        'right_wrist': (12.326, -17.984),
+    })
+    human.KeyJoints(45.3, {
+        'right_shoulder': (58.997, 2.14, 9.806), 'right_elbow': (27.733, 19.842),
+        'right_wrist': (0.402, -16.236),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(45.4, {
+        'right_shoulder': (55.942, 1.887, 3.986), 'right_elbow': (37.713, 40.29),
+        'right_wrist': (0.04, -25.699),
+    })
+    human.KeyJoints(45.5, {
+        'right_shoulder': (56.841, 5.71, 6.062), 'right_elbow': (51.19, 79.316),
+        'right_wrist': (13.682, -30.0),
+    })
+    human.KeyJoints(45.6, {
+        'right_shoulder': (59.806, 7.23, 9.154), 'right_elbow': (53.193, 80.0),
+        'right_wrist': (28.594, -30.0),
+    })
+    human.KeyJoints(45.7, {
+        'right_shoulder': (53.679, 1.698, -1.148), 'right_elbow': (62.585, 79.991),
+        'right_wrist': (33.828, -30.0),
+    })
+    human.KeyJoints(45.8, {
+        'right_shoulder': (49.352, -6.402, -14.451), 'right_elbow': (57.242, 61.628),
+        'right_wrist': (20.67, -27.764),
+    })
+    human.KeyJoints(45.9, {
+        'right_shoulder': (57.335, -1.793, -8.163), 'right_elbow': (31.674, 36.655),
+        'right_wrist': (9.425, -15.931),
+    })
+    # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: TO on r_arm at bolt_lower_right
+    human.KeyJoints(46.0, {
+        'right_shoulder': (58.984, 2.4, 11.293), 'right_elbow': (27.782, 18.582),
+        'right_wrist': (-0.389, -16.444),
+    })
+    human.KeyJoints(46.1, {
+        'right_shoulder': (55.965, 1.878, 3.986), 'right_elbow': (37.643, 40.119),
+        'right_wrist': (0.01, -25.61),
+    })
+    human.KeyJoints(46.2, {
+        'right_shoulder': (55.198, 2.609, 0.755), 'right_elbow': (47.625, 71.355),
+        'right_wrist': (6.211, -30.0),
+    })
+    human.KeyJoints(46.3, {
+        'right_shoulder': (58.834, 7.222, 9.171), 'right_elbow': (52.618, 80.0),
+        'right_wrist': (22.403, -30.0),
+    })
+    human.KeyJoints(46.4, {
+        'right_shoulder': (56.889, 5.127, 4.816), 'right_elbow': (58.752, 80.0),
+        'right_wrist': (33.107, -30.0),
+    })
+    human.KeyJoints(46.5, {
+        'right_shoulder': (49.648, -7.246, -15.299), 'right_elbow': (54.15, 55.339),
+        'right_wrist': (17.513, -28.532),
+    })
+    human.KeyJoints(46.6, {
         'right_shoulder': (56.869, -0.318, -0.048), 'right_elbow': (32.756, 28.567),
         'right_wrist': (4.485, -20.275),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=44.847203, duration=0.072)
-    human.KeyJoints(44.9, {
+    human.Grasp('right_hand', 'open', start=46.647203, duration=0.072)
+    human.KeyJoints(46.7, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
         'right_wrist': (-1.08, -21.15),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=44.919203, duration=0.293772)
-    human.KeyJoints(45.0, {'neck': (23.902, -1.671, -10.227)})
-    human.KeyJoints(45.1, {'neck': (23.194, -3.393, -23.864)})
+    human.LookAt((0.0, 120.0, 110.0), start=46.719203, duration=0.293772)
+    human.KeyJoints(46.8, {'neck': (23.902, -1.671, -10.227)})
+    human.KeyJoints(46.9, {'neck': (23.194, -3.393, -23.864)})
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TA on r_arm at panel_handle
-    human.KeyJoints(45.2, {
+    human.KeyJoints(47.0, {
         'neck': (22.721, -4.546, -32.985), 'head': (7.255, -0.233),
         'right_shoulder': (57.194, 2.091, 10.928), 'right_elbow': (32.004, 18.341),
         'right_wrist': (-1.082, -21.15), 'left_shoulder': (8.602, 5.726, 11.46),
         'left_elbow': (34.376, 17.189), 'left_wrist': (0.0, -0.001),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=45.212974, duration=0.836663)
-    human.KeyJoints(45.3, {
+    human.LookAt((0.0, 120.0, 110.0), start=47.012974, duration=0.836663)
+    human.KeyJoints(47.1, {
         'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.497, 2.761, 10.533),
         'right_elbow': (33.533, 18.51), 'right_wrist': (-1.473, -21.079),
         'left_shoulder': (10.378, 4.889, 11.549), 'left_elbow': (34.02, 17.212),
         'left_wrist': (0.037, -0.15),
     })
-    human.KeyJoints(45.4, {
+    human.KeyJoints(47.2, {
         'right_shoulder': (53.622, 5.532, 8.896), 'right_elbow': (39.832, 19.207),
         'right_wrist': (-3.085, -20.785), 'left_shoulder': (17.703, 1.428, 11.919),
         'left_elbow': (32.555, 17.309), 'left_wrist': (0.187, -0.766),
     })
-    human.KeyJoints(45.5, {
+    human.KeyJoints(47.3, {
         'right_shoulder': (48.477, 10.579, 5.887), 'right_elbow': (51.105, 20.453),
         'right_wrist': (-5.975, -20.259), 'left_shoulder': (30.916, -4.877, 12.595),
         'left_elbow': (29.934, 17.483), 'left_wrist': (0.462, -1.868),
     })
-    human.KeyJoints(45.6, {
+    human.KeyJoints(47.4, {
         'right_shoulder': (42.046, 17.173, 1.871), 'right_elbow': (65.193, 22.011),
         'left_shoulder': (47.76, -13.113, 13.483),
     })
-    human.KeyJoints(45.7, {
+    human.KeyJoints(47.5, {
         'spine_lumbar': (7.14, -13.863, 9.577), 'spine_thoracic': (-8.443, -4.438, 9.144),
         'right_clavicle': (2.723, 7.898), 'right_shoulder': (35.801, 24.236, -2.616),
         'right_elbow': (78.883, 23.525), 'right_wrist': (-13.195, -18.965),
         'left_clavicle': (-0.004, 0.013), 'left_shoulder': (64.892, -21.93, 14.444),
         'left_elbow': (23.475, 17.91), 'left_wrist': (1.219, -4.584),
     })
-    human.KeyJoints(45.8, {
+    human.KeyJoints(47.6, {
         'spine_lumbar': (7.856, -13.456, 9.337), 'spine_thoracic': (-8.868, -4.521, 8.883),
         'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
         'right_clavicle': (3.037, 7.956), 'right_shoulder': (31.776, 30.56, -6.969),
@@ -2603,7 +2675,7 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
-    human.KeyJoints(45.9, {
+    human.KeyJoints(47.7, {
         'spine_lumbar': (13.473, -12.038, 8.285), 'spine_thoracic': (-12.363, -5.628, 7.722),
         'neck': (21.905, -4.498, -30.481), 'head': (6.816, -0.392),
         'right_clavicle': (5.483, 8.997), 'right_shoulder': (32.99, 34.377, -9.496),
@@ -2611,7 +2683,7 @@ def remove_access_panel():
         'left_clavicle': (-1.55, 2.518), 'left_shoulder': (86.615, -30.594, 15.057),
         'left_elbow': (21.377, 18.137), 'left_wrist': (1.227, -5.55),
     })
-    human.KeyJoints(46.0, {
+    human.KeyJoints(47.8, {
         'spine_lumbar': (16.846, -11.471, 7.547), 'spine_thoracic': (-14.578, -6.367, 6.915),
         'neck': (21.788, -4.879, -32.272), 'head': (6.518, -0.369),
         'right_clavicle': (6.928, 9.696), 'right_shoulder': (34.432, 35.198, -9.838),
@@ -2620,11 +2692,11 @@ def remove_access_panel():
         'left_elbow': (21.607, 18.167), 'left_wrist': (0.91, -5.477),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=46.049638, duration=0.072)
+    human.Grasp('left_hand', 'close', start=47.849638, duration=0.072)
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=46.049638, duration=0.072)
-    human.KeyRoot(46.1, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(46.1, {
+    human.Grasp('right_hand', 'close', start=47.849638, duration=0.072)
+    human.KeyRoot(47.9, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(47.9, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.842, 24.897),
         'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
@@ -2632,319 +2704,319 @@ def remove_access_panel():
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: locomotion on root at bench_front
-    human.Walk((139.64, 0.0, 19.995), start=46.121638, duration=5.147368)
+    human.Walk((139.64, 0.0, 19.995), start=47.921638, duration=5.147368)
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: gaze on head
-    human.KeyRoot(46.2, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
-    human.KeyJoints(46.2, {
+    human.KeyRoot(48.0, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
+    human.KeyJoints(48.0, {
         'neck': (17.689, -4.165, -26.137), 'head': (5.153, -0.373),
         'right_hip': (6.489, -0.14, -0.543), 'right_knee': (12.434,), 'right_ankle': (5.949, -0.2),
         'left_hip': (7.338, 0.133, 0.546), 'left_knee': (13.892,), 'left_ankle': (6.214, 0.201),
     })
-    human.KeyRoot(46.3, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
-    human.KeyJoints(46.3, {
+    human.KeyRoot(48.1, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
+    human.KeyJoints(48.1, {
         'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167), 'right_clavicle': (6.997, 9.73),
         'left_clavicle': (-2.488, 4.0), 'right_hip': (7.244, -0.536, -2.481),
         'right_knee': (14.727,), 'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517),
         'left_knee': (18.046,), 'left_ankle': (7.602, 0.86),
     })
-    human.KeyRoot(46.4, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
-    human.KeyJoints(46.4, {
+    human.KeyRoot(48.2, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
+    human.KeyJoints(48.2, {
         'neck': (0.373, -0.107, -0.551), 'head': (0.132, -0.01),
         'right_hip': (6.792, -0.973, -5.207), 'right_knee': (14.607,),
         'right_ankle': (7.929, -1.574), 'left_hip': (17.261, 0.889, 2.279), 'left_knee': (34.508,),
         'left_ankle': (16.48, 1.57),
     })
-    human.KeyRoot(46.5, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
-    human.KeyJoints(46.5, {
+    human.KeyRoot(48.3, (-2.436, 72.615, 60.499), (7.918, 0.0, 0.0))
+    human.KeyJoints(48.3, {
         'neck': (-0.068, 0.0, 0.101), 'head': (0.0, 0.0), 'right_hip': (7.574, -0.983, -8.152),
         'right_knee': (16.788,), 'right_ankle': (8.308, -2.031),
         'left_hip': (20.404, 3.675, -4.395), 'left_knee': (42.734,), 'left_ankle': (18.612, 1.906),
     })
-    human.KeyRoot(46.6, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
-    human.KeyJoints(46.6, {
+    human.KeyRoot(48.4, (-2.325, 72.709, 60.208), (10.582, 0.0, 0.0))
+    human.KeyJoints(48.4, {
         'right_hip': (10.776, 0.118, -10.871), 'right_knee': (23.265,),
         'right_ankle': (8.928, -1.905), 'left_hip': (17.612, 6.374, -13.747), 'left_knee': (39.28,),
         'left_ankle': (18.667, 1.718),
     })
-    human.KeyRoot(46.7, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
-    human.KeyJoints(46.7, {
+    human.KeyRoot(48.5, (-1.635, 72.602, 59.109), (13.541, 0.0, 0.0))
+    human.KeyJoints(48.5, {
         'right_hip': (14.819, 2.323, -13.55), 'right_knee': (30.44,),
         'right_ankle': (8.733, -1.254), 'left_hip': (9.822, 4.58, -20.258), 'left_knee': (22.313,),
         'left_ankle': (11.528, 0.768),
     })
-    human.KeyRoot(46.8, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
-    human.KeyJoints(46.8, {
+    human.KeyRoot(48.6, (-0.775, 72.497, 58.303), (17.063, 0.0, 0.0))
+    human.KeyJoints(48.6, {
         'right_hip': (17.092, 4.803, -16.459), 'right_knee': (35.07,),
         'right_ankle': (8.192, -0.379), 'left_hip': (7.33, 2.058, -18.248), 'left_knee': (14.684,),
         'left_ankle': (7.073, -0.351),
     })
-    human.KeyRoot(46.9, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
-    human.KeyJoints(46.9, {
+    human.KeyRoot(48.7, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
+    human.KeyJoints(48.7, {
         'right_hip': (18.001, 7.349, -19.807), 'right_knee': (39.588,),
         'right_ankle': (10.474, 0.616), 'left_hip': (7.642, 0.733, -13.767), 'left_knee': (14.547,),
     })
-    human.KeyRoot(47.0, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
-    human.KeyJoints(47.0, {
+    human.KeyRoot(48.8, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
+    human.KeyJoints(48.8, {
         'right_hip': (21.346, 7.516, -15.399), 'right_knee': (46.826,),
         'right_ankle': (17.903, 1.218), 'left_hip': (7.639, -0.8, -8.101), 'left_knee': (14.267,),
         'left_ankle': (6.81, -1.859),
     })
-    human.KeyRoot(47.1, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
-    human.KeyJoints(47.1, {
+    human.KeyRoot(48.9, (2.075, 72.493, 58.988), (33.566, 0.0, 0.0))
+    human.KeyJoints(48.9, {
         'right_hip': (22.646, 3.037, -3.768), 'right_knee': (46.842,),
         'right_ankle': (19.244, 1.317), 'left_hip': (7.655, -2.088, -2.163), 'left_knee': (14.453,),
         'left_ankle': (6.744, -2.356),
     })
-    human.KeyRoot(47.2, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
-    human.KeyJoints(47.2, {
+    human.KeyRoot(49.0, (2.611, 72.628, 59.859), (39.221, 0.0, 0.0))
+    human.KeyJoints(49.0, {
         'right_hip': (20.506, -2.37, 10.068), 'right_knee': (41.509,),
         'right_ankle': (19.205, 1.252), 'left_hip': (9.59, -2.893, 3.287), 'left_knee': (19.075,),
         'left_ankle': (7.368, -2.301),
     })
-    human.KeyRoot(47.3, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
-    human.KeyJoints(47.3, {
+    human.KeyRoot(49.1, (3.055, 72.643, 61.784), (44.829, 0.0, 0.0))
+    human.KeyJoints(49.1, {
         'right_hip': (13.202, -4.131, 20.257), 'right_ankle': (14.467, 0.456),
         'left_hip': (12.291, -3.568, 8.716), 'left_knee': (26.537,), 'left_ankle': (8.903, -1.595),
     })
-    human.KeyRoot(47.4, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
-    human.KeyJoints(47.4, {
+    human.KeyRoot(49.2, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
+    human.KeyJoints(49.2, {
         'neck': (0.0, 0.0, 0.0), 'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
         'right_ankle': (8.118, -0.774), 'left_hip': (14.717, -4.667, 14.198),
         'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
     })
-    human.KeyRoot(47.5, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
-    human.KeyJoints(47.5, {
+    human.KeyRoot(49.3, (3.224, 72.487, 63.784), (56.044, 0.0, 0.0))
+    human.KeyJoints(49.3, {
         'right_hip': (5.405, -2.734, 14.597), 'right_ankle': (8.627, -1.273),
         'left_hip': (16.025, -6.263, 19.637), 'left_knee': (35.272,), 'left_ankle': (8.858, -0.347),
     })
-    human.KeyRoot(47.6, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
-    human.KeyJoints(47.6, {
+    human.KeyRoot(49.4, (2.333, 72.487, 63.838), (61.652, 0.0, 0.0))
+    human.KeyJoints(49.4, {
         'right_hip': (5.53, -2.614, 8.969), 'right_knee': (14.358,), 'right_ankle': (8.487, -1.709),
         'left_hip': (20.827, -7.322, 18.991), 'left_knee': (44.671,), 'left_ankle': (15.335, 0.192),
     })
-    human.KeyRoot(47.7, (1.103, 72.487, 63.867), (67.26, 0.0, 0.0))
-    human.KeyJoints(47.7, {
+    human.KeyRoot(49.5, (1.103, 72.487, 63.867), (67.26, 0.0, 0.0))
+    human.KeyJoints(49.5, {
         'right_hip': (5.957, -2.518, 3.333), 'right_knee': (14.176,),
         'right_ankle': (8.079, -2.155), 'left_hip': (22.386, -3.221, 8.91), 'left_knee': (47.052,),
         'left_ankle': (19.173, 0.476),
     })
-    human.KeyRoot(47.8, (0.002, 72.551, 63.769), (72.936, 0.0, 0.0))
-    human.KeyJoints(47.8, {
+    human.KeyRoot(49.6, (0.002, 72.551, 63.769), (72.936, 0.0, 0.0))
+    human.KeyJoints(49.6, {
         'right_hip': (7.144, -2.118, -2.408), 'right_knee': (15.599,),
         'right_ankle': (7.916, -2.399), 'left_hip': (20.072, 2.892, -4.796), 'left_knee': (43.769,),
         'left_ankle': (19.146, 1.115),
     })
-    human.KeyRoot(47.9, (-1.29, 72.592, 62.698), (79.094, 0.0, 0.0))
-    human.KeyJoints(47.9, {
+    human.KeyRoot(49.7, (-1.29, 72.592, 62.698), (79.094, 0.0, 0.0))
+    human.KeyJoints(49.7, {
         'right_hip': (10.054, -0.361, -8.514), 'right_ankle': (8.058, -1.839),
         'left_hip': (14.609, 5.693, -16.716), 'left_knee': (33.636,), 'left_ankle': (18.496, 1.179),
     })
-    human.KeyRoot(48.0, (-2.415, 72.545, 61.186), (84.915, 0.0, 0.0))
-    human.KeyJoints(48.0, {
+    human.KeyRoot(49.8, (-2.415, 72.545, 61.186), (84.915, 0.0, 0.0))
+    human.KeyJoints(49.8, {
         'right_hip': (12.67, 2.368, -13.957), 'right_knee': (24.565,),
         'right_ankle': (8.035, -0.791), 'left_hip': (7.298, 2.987, -20.992), 'left_knee': (16.089,),
         'left_ankle': (8.219, 0.189),
     })
-    human.KeyRoot(48.1, (-2.759, 72.487, 60.108), (89.284, 0.0, 0.0))
-    human.KeyJoints(48.1, {
+    human.KeyRoot(49.9, (-2.759, 72.487, 60.108), (89.284, 0.0, 0.0))
+    human.KeyJoints(49.9, {
         'right_hip': (13.594, 4.636, -17.865), 'right_knee': (27.294,),
         'right_ankle': (8.214, 0.154), 'left_hip': (7.668, 1.36, -16.942), 'left_knee': (14.683,),
         'left_ankle': (6.955, -0.938),
     })
-    human.KeyRoot(48.2, (-2.413, 72.487, 59.306), (92.351, 0.0, 0.0))
-    human.KeyJoints(48.2, {
+    human.KeyRoot(50.0, (-2.413, 72.487, 59.306), (92.351, 0.0, 0.0))
+    human.KeyJoints(50.0, {
         'right_hip': (16.985, 7.166, -18.852), 'right_knee': (36.377,),
         'right_ankle': (13.606, 1.037), 'left_hip': (7.673, 0.244, -13.991),
         'left_ankle': (6.954, -1.615),
     })
-    human.KeyRoot(48.3, (-1.774, 72.487, 58.66), (94.912, 0.0, 0.0))
-    human.KeyJoints(48.3, {
+    human.KeyRoot(50.1, (-1.774, 72.487, 58.66), (94.912, 0.0, 0.0))
+    human.KeyJoints(50.1, {
         'right_hip': (20.652, 7.363, -14.073), 'right_knee': (43.969,),
         'right_ankle': (19.0, 1.726), 'left_hip': (7.312, -0.626, -11.517), 'left_knee': (14.284,),
         'left_ankle': (7.241, -2.062),
     })
-    human.KeyRoot(48.4, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
-    human.KeyJoints(48.4, {
+    human.KeyRoot(50.2, (-1.091, 72.61, 58.412), (97.53, 0.0, 0.0))
+    human.KeyJoints(50.2, {
         'right_hip': (21.343, 4.937, -7.0), 'right_knee': (44.211,), 'right_ankle': (19.0, 1.998),
         'left_hip': (10.883, -0.489, -9.084), 'left_knee': (22.025,), 'left_ankle': (8.41, -2.185),
     })
-    human.KeyRoot(48.5, (-0.475, 72.709, 58.957), (100.982, 0.0, 0.0))
-    human.KeyJoints(48.5, {
+    human.KeyRoot(50.3, (-0.475, 72.709, 58.957), (100.982, 0.0, 0.0))
+    human.KeyJoints(50.3, {
         'right_hip': (18.203, 2.104, -1.428), 'right_knee': (37.03,),
         'right_ankle': (18.772, 1.536), 'left_hip': (21.645, 0.507, -5.964), 'left_knee': (41.658,),
         'left_ankle': (5.057, -1.788),
     })
-    human.KeyRoot(48.6, (0.245, 72.607, 59.932), (104.444, 0.0, 0.0))
-    human.KeyJoints(48.6, {
+    human.KeyRoot(50.4, (0.245, 72.607, 59.932), (104.444, 0.0, 0.0))
+    human.KeyJoints(50.4, {
         'right_hip': (10.489, 0.475, 1.046), 'right_knee': (21.215,),
         'right_ankle': (10.735, 0.652), 'left_hip': (31.616, 0.521, -2.349), 'left_knee': (56.025,),
         'left_ankle': (-6.238, -0.915),
     })
-    human.KeyRoot(48.7, (1.257, 72.466, 60.529), (106.23, 0.0, 0.0))
-    human.KeyJoints(48.7, {
+    human.KeyRoot(50.5, (1.257, 72.466, 60.529), (106.23, 0.0, 0.0))
+    human.KeyJoints(50.5, {
         'right_hip': (6.762, -0.073, 0.043), 'right_knee': (15.114,),
         'right_ankle': (8.352, -0.071), 'left_hip': (37.764, 0.033, 0.115), 'left_knee': (62.937,),
         'left_ankle': (-18.356, 0.133),
     })
-    human.KeyRoot(48.8, (3.183, 72.224, 60.461), (106.251, 0.0, 0.0))
-    human.KeyJoints(48.8, {
+    human.KeyRoot(50.6, (3.183, 72.224, 60.461), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.6, {
         'right_hip': (6.289, -0.476, -0.033), 'right_knee': (17.521,),
         'right_ankle': (11.232, -0.479), 'left_hip': (39.479, 0.063, 0.982), 'left_knee': (67.326,),
         'left_ankle': (-19.173, 0.984),
     })
-    human.KeyRoot(48.9, (6.446, 71.983, 60.209), (106.251, 0.0, 0.0))
-    human.KeyJoints(48.9, {
+    human.KeyRoot(50.7, (6.446, 71.983, 60.209), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.7, {
         'right_hip': (3.738, -1.06, -0.06), 'right_knee': (17.98,), 'right_ankle': (14.243, -1.062),
         'left_hip': (41.153, 0.456, 1.65), 'left_knee': (68.043,), 'left_ankle': (-6.665, 1.712),
     })
-    human.KeyRoot(49.0, (10.545, 71.982, 59.811), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.0, {
+    human.KeyRoot(50.8, (10.545, 71.982, 59.811), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.8, {
         'right_hip': (-2.492, -1.722, 0.072), 'right_knee': (12.116,),
         'right_ankle': (14.514, -1.724), 'left_hip': (38.651, 1.322, 1.651), 'left_knee': (54.096,),
         'left_ankle': (2.648, 2.115),
     })
-    human.KeyRoot(49.1, (15.254, 71.498, 59.084), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.1, {
+    human.KeyRoot(50.9, (15.254, 71.498, 59.084), (106.251, 0.0, 0.0))
+    human.KeyJoints(50.9, {
         'right_hip': (6.854, -2.221, -0.796), 'right_knee': (38.675,),
         'right_ankle': (18.976, -2.36), 'left_hip': (33.592, 2.032, 1.353), 'left_knee': (34.152,),
         'left_ankle': (0.401, 2.441),
     })
-    human.KeyRoot(49.2, (22.01, 70.774, 56.676), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.2, {
+    human.KeyRoot(51.0, (22.01, 70.774, 56.676), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.0, {
         'right_hip': (6.532, -1.774, -1.07), 'right_knee': (49.055,),
         'right_ankle': (17.958, -2.072), 'left_hip': (29.704, 1.75, 0.992), 'left_knee': (22.857,),
         'left_ankle': (-6.78, 2.012),
     })
-    human.KeyRoot(49.3, (29.437, 70.469, 53.388), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.3, {
+    human.KeyRoot(51.1, (29.437, 70.469, 53.388), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.1, {
         'right_hip': (6.323, -0.762, -0.885), 'right_knee': (57.992,),
         'right_ankle': (8.752, -1.168), 'left_hip': (21.758, 0.922, 0.366), 'left_knee': (11.746,),
         'left_ankle': (-9.969, 0.992),
     })
-    human.KeyRoot(49.4, (35.507, 70.609, 50.509), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.4, {
+    human.KeyRoot(51.2, (35.507, 70.609, 50.509), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.2, {
         'right_hip': (3.747, -0.027, -0.048), 'right_knee': (58.809,),
         'right_ankle': (-1.574, -0.055), 'left_hip': (21.408, 0.039, 0.015), 'left_knee': (22.227,),
         'left_ankle': (0.82, 0.042),
     })
-    human.KeyRoot(49.5, (39.17, 71.193, 48.574), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.5, {
+    human.KeyRoot(51.3, (39.17, 71.193, 48.574), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.3, {
         'right_hip': (0.888, 0.462, 0.77), 'right_knee': (56.572,), 'right_ankle': (-2.401, 0.898),
         'left_hip': (18.098, -0.653, -0.214), 'left_knee': (22.755,), 'left_ankle': (4.659, -0.687),
     })
-    human.KeyRoot(49.6, (41.983, 71.838, 46.888), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.6, {
+    human.KeyRoot(51.4, (41.983, 71.838, 46.888), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.4, {
         'right_hip': (14.582, 1.105, 1.343), 'right_knee': (65.608,),
         'right_ankle': (15.104, 1.739), 'left_hip': (13.855, -1.361, -0.336),
         'left_knee': (19.689,), 'left_ankle': (5.838, -1.401),
     })
-    human.KeyRoot(49.7, (45.678, 71.766, 45.083), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.7, {
+    human.KeyRoot(51.5, (45.678, 71.766, 45.083), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.5, {
         'right_hip': (29.19, 1.805, 1.394), 'right_knee': (56.405,), 'right_ankle': (18.776, 2.281),
         'left_hip': (13.268, -1.958, -0.516), 'left_knee': (25.542,),
         'left_ankle': (10.794, -2.024),
     })
-    human.KeyRoot(49.8, (53.776, 70.799, 42.586), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.8, {
+    human.KeyRoot(51.6, (53.776, 70.799, 42.586), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.6, {
         'right_hip': (33.603, 1.905, 1.262), 'right_knee': (35.639,), 'right_ankle': (2.157, 2.285),
         'left_hip': (18.012, -1.955, -1.246), 'left_knee': (48.621,),
         'left_ankle': (16.122, -2.319),
     })
-    human.KeyRoot(49.9, (67.319, 69.967, 39.503), (106.251, 0.0, 0.0))
-    human.KeyJoints(49.9, {
+    human.KeyRoot(51.7, (67.319, 69.967, 39.503), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.7, {
         'right_hip': (26.231, 1.322, 0.65), 'right_knee': (13.474,),
         'right_ankle': (-12.669, 1.473), 'left_hip': (13.871, -1.133, -1.259),
         'left_knee': (61.386,), 'left_ankle': (13.373, -1.694),
     })
-    human.KeyRoot(50.0, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
-    human.KeyJoints(50.0, {
+    human.KeyRoot(51.8, (79.588, 70.043, 37.175), (106.251, 0.0, 0.0))
+    human.KeyJoints(51.8, {
         'right_hip': (23.767, 0.341, 0.15), 'right_knee': (22.404,), 'right_ankle': (-1.366, 0.372),
         'left_hip': (5.808, -0.251, -0.4), 'left_knee': (61.017,), 'left_ankle': (3.114, -0.472),
     })
-    human.KeyRoot(50.1, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
-    human.KeyJoints(50.1, {
+    human.KeyRoot(51.9, (85.443, 70.754, 36.488), (105.676, 0.0, 0.0))
+    human.KeyJoints(51.9, {
         'right_hip': (20.181, -0.663, 0.369), 'right_knee': (25.443,),
         'right_ankle': (5.257, -0.495), 'left_hip': (0.124, 0.326, -0.01), 'left_knee': (55.518,),
         'left_ankle': (-4.589, 0.652),
     })
-    human.KeyRoot(50.2, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
-    human.KeyJoints(50.2, {
+    human.KeyRoot(52.0, (88.699, 71.672, 36.239), (103.053, 0.0, 0.0))
+    human.KeyJoints(52.0, {
         'right_hip': (15.15, -1.863, 2.809), 'right_knee': (20.32,), 'right_ankle': (5.094, -1.062),
         'left_hip': (8.237, 0.608, -1.03), 'left_knee': (62.823,), 'left_ankle': (9.815, 0.64),
     })
-    human.KeyRoot(50.3, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
-    human.KeyJoints(50.3, {
+    human.KeyRoot(52.1, (92.065, 72.063, 35.967), (99.687, 0.0, 0.0))
+    human.KeyJoints(52.1, {
         'right_hip': (11.704, -2.92, 6.095), 'right_knee': (18.592,),
         'right_ankle': (6.576, -1.609), 'left_hip': (25.054, 1.455, 0.084), 'left_knee': (61.198,),
         'left_ankle': (18.697, 1.419),
     })
-    human.KeyRoot(50.4, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
-    human.KeyJoints(50.4, {
+    human.KeyRoot(52.2, (98.777, 71.646, 34.846), (96.77, 0.0, 0.0))
+    human.KeyJoints(52.2, {
         'right_hip': (14.952, -4.661, 8.262), 'right_knee': (36.278,),
         'right_ankle': (13.69, -2.346), 'left_hip': (31.106, 3.511, 3.137), 'left_knee': (39.039,),
         'left_ankle': (8.131, 4.625),
     })
-    human.KeyRoot(50.5, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
-    human.KeyJoints(50.5, {
+    human.KeyRoot(52.3, (113.159, 71.082, 30.472), (93.409, 0.0, 0.0))
+    human.KeyJoints(52.3, {
         'right_hip': (8.977, -3.979, 11.559), 'right_knee': (48.418,),
         'right_ankle': (17.617, -2.206), 'left_hip': (25.884, 5.187, 4.242), 'left_knee': (18.632,),
         'left_ankle': (-6.893, 6.512),
     })
-    human.KeyRoot(50.6, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
-    human.KeyJoints(50.6, {
+    human.KeyRoot(52.4, (126.843, 70.974, 25.35), (90.691, 0.0, 0.0))
+    human.KeyJoints(52.4, {
         'right_hip': (-1.989, -0.389, 14.938), 'right_knee': (46.499,),
         'right_ankle': (12.43, -1.097), 'left_hip': (18.158, 4.241, 2.107), 'left_knee': (12.294,),
         'left_ankle': (-5.698, 4.685),
     })
-    human.KeyRoot(50.7, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
-    human.KeyJoints(50.7, {
+    human.KeyRoot(52.5, (130.52, 71.175, 22.549), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.5, {
         'right_hip': (-3.021, 1.287, 16.574), 'right_knee': (47.765,),
         'right_ankle': (6.264, 0.522), 'left_hip': (18.451, 2.118, 0.707), 'left_knee': (20.036,),
         'left_ankle': (1.594, 2.233),
     })
-    human.KeyRoot(50.8, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
-    human.KeyJoints(50.8, {
+    human.KeyRoot(52.6, (130.146, 71.422, 20.923), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.6, {
         'right_hip': (3.209, 1.296, 16.693), 'right_knee': (55.546,),
         'right_ankle': (16.122, 2.671), 'left_hip': (17.429, 0.768, 0.242), 'left_knee': (17.289,),
         'left_ankle': (-0.141, 0.805),
     })
-    human.KeyRoot(50.9, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
-    human.KeyJoints(50.9, {
+    human.KeyRoot(52.7, (129.751, 71.676, 19.945), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.7, {
         'right_hip': (13.739, 1.169, 12.585), 'right_knee': (53.955,),
         'right_ankle': (19.401, 4.392), 'left_hip': (15.845, -0.046, -0.013),
         'left_knee': (13.319,), 'left_ankle': (-2.527, -0.048),
     })
-    human.KeyRoot(51.0, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.0, {
+    human.KeyRoot(52.8, (130.628, 71.917, 19.862), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.8, {
         'right_hip': (20.782, 0.932, 5.608), 'right_knee': (44.214,), 'right_ankle': (19.341, 2.9),
         'left_hip': (14.336, -0.116, -0.03), 'left_knee': (11.771,), 'left_ankle': (-2.565, -0.12),
     })
-    human.KeyRoot(51.1, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.1, {
+    human.KeyRoot(52.9, (134.664, 71.983, 19.921), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.9, {
         'right_hip': (17.179, 0.212, 0.72), 'right_knee': (27.283,), 'right_ankle': (10.247, 0.462),
         'left_hip': (13.614, -0.066, -0.016), 'left_knee': (17.522,), 'left_ankle': (3.908, -0.068),
     })
-    human.KeyRoot(51.2, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.2, {
+    human.KeyRoot(53.0, (138.838, 72.389, 19.983), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.0, {
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (9.194, 0.015, 0.003),
         'right_knee': (15.81,), 'right_ankle': (6.623, 0.015), 'left_hip': (9.162, -0.015, -0.002),
         'left_knee': (15.741,), 'left_ankle': (6.58, -0.015),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.269006, duration=0.32772)
-    human.KeyRoot(51.3, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.3, {
+    human.LookAt((160.0, 90.0, 20.0), start=53.069006, duration=0.32772)
+    human.KeyRoot(53.1, (140.0, 72.987, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.1, {
         'neck': (0.88, 0.849, -0.744), 'head': (0.377, -0.283), 'right_hip': (3.129, 0.0, 0.0),
         'right_knee': (5.141,), 'right_ankle': (2.014, 0.0), 'left_hip': (3.112, 0.0, 0.0),
         'left_knee': (5.105,), 'left_ankle': (1.995, 0.0),
     })
-    human.KeyJoints(51.4, {
+    human.KeyJoints(53.2, {
         'neck': (12.306, 11.866, -10.405), 'head': (5.274, -3.955), 'right_knee': (5.094,),
         'left_knee': (5.072,),
     })
-    human.KeyJoints(51.5, {
+    human.KeyJoints(53.3, {
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
         'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,), 'right_ankle': (1.91, 0.0),
@@ -2953,57 +3025,57 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TA on r_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=51.596726, duration=0.633339)
-    human.KeyJoints(51.6, {
+    human.LookAt((160.0, 90.0, 20.0), start=53.396726, duration=0.633339)
+    human.KeyJoints(53.4, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.677, 34.899, -9.742), 'right_elbow': (91.122, 24.926),
-        'right_wrist': (-16.615, -18.203), 'left_shoulder': (88.604, -29.033, 15.112),
-        'left_elbow': (22.215, 17.985), 'left_wrist': (-0.024, -5.397),
+        'right_shoulder': (33.692, 34.902, -9.74), 'right_elbow': (91.115, 24.925),
+        'right_wrist': (-16.614, -18.204), 'left_shoulder': (88.6, -29.03, 15.106),
+        'left_elbow': (22.208, 17.989), 'left_wrist': (-0.001, -5.399),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
-    human.KeyJoints(51.7, {
-        'right_shoulder': (25.795, 31.478, -8.402), 'right_elbow': (94.436, 25.227),
-        'right_wrist': (-17.21, -17.35), 'left_shoulder': (78.87, -27.274, 20.116),
-        'left_elbow': (32.462, 16.039), 'left_wrist': (-9.906, -4.213),
+    human.KeyJoints(53.5, {
+        'right_shoulder': (25.909, 31.505, -8.385), 'right_elbow': (94.369, 25.221),
+        'right_wrist': (-17.196, -17.367), 'left_shoulder': (78.922, -27.241, 20.037),
+        'left_elbow': (32.276, 16.08), 'left_wrist': (-9.695, -4.236),
     })
-    human.KeyJoints(51.8, {
-        'right_shoulder': (8.839, 24.225, -5.577), 'right_elbow': (101.327, 25.847),
-        'right_wrist': (-18.517, -15.631), 'left_shoulder': (58.022, -23.017, 30.45),
-        'left_elbow': (53.652, 12.036), 'left_wrist': (-30.304, -1.752),
+    human.KeyJoints(53.6, {
+        'right_shoulder': (9.021, 24.261, -5.533), 'right_elbow': (101.189, 25.835),
+        'right_wrist': (-18.49, -15.664), 'left_shoulder': (58.206, -22.964, 30.249),
+        'left_elbow': (53.235, 12.113), 'left_wrist': (-29.907, -1.8),
     })
-    human.KeyJoints(51.9, {
-        'right_shoulder': (-12.397, 15.197, -1.803), 'right_elbow': (108.841, 26.535),
-        'right_wrist': (-20.104, -13.838), 'left_shoulder': (32.507, -16.24, 41.592),
-        'left_elbow': (77.402, 7.596), 'left_wrist': (-53.066, 1.053),
+    human.KeyJoints(53.7, {
+        'right_shoulder': (-12.018, 15.258, -1.675), 'right_elbow': (108.567, 26.509),
+        'right_wrist': (-20.037, -13.897), 'left_shoulder': (32.759, -16.11, 41.199),
+        'left_elbow': (76.674, 7.75), 'left_wrist': (-52.311, 0.978),
     })
-    human.KeyJoints(52.0, {
-        'right_shoulder': (-30.316, 6.478, 3.802), 'right_elbow': (113.008, 26.906),
-        'right_wrist': (-20.881, -12.762), 'left_shoulder': (9.316, -6.61, 48.693),
-        'left_elbow': (93.531, 4.64), 'left_wrist': (-68.139, 2.984),
+    human.KeyJoints(53.8, {
+        'right_shoulder': (-29.51, 6.496, 4.397), 'right_elbow': (112.31, 26.827),
+        'right_wrist': (-20.578, -12.841), 'left_shoulder': (9.433, -6.64, 47.496),
+        'left_elbow': (93.191, 5.45), 'left_wrist': (-66.303, 3.262),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
-    human.KeyJoints(52.1, {
-        'right_shoulder': (-38.284, 0.354, 11.519), 'right_elbow': (111.486, 26.667),
-        'right_wrist': (-19.587, -12.557), 'left_shoulder': (0.502, 9.421, 57.233),
-        'left_elbow': (103.375, 4.834), 'left_wrist': (-70.0, 3.646),
+    human.KeyJoints(53.9, {
+        'right_shoulder': (-37.978, 0.342, 11.771), 'right_elbow': (111.263, 26.64),
+        'right_wrist': (-19.459, -12.569), 'left_shoulder': (0.142, 8.676, 56.082),
+        'left_elbow': (103.304, 5.938), 'left_wrist': (-70.0, 4.786),
     })
-    human.KeyJoints(52.2, {
-        'right_shoulder': (-40.216, -1.56, 14.417), 'right_elbow': (110.521, 26.535),
-        'right_wrist': (-18.929, -12.529), 'left_shoulder': (-1.591, 14.497, 59.192),
-        'left_elbow': (105.863, 8.17), 'left_wrist': (-69.982, 7.315),
+    human.KeyJoints(54.0, {
+        'right_shoulder': (-40.21, -1.562, 14.423), 'right_elbow': (110.518, 26.535),
+        'right_wrist': (-18.926, -12.529), 'left_shoulder': (-1.588, 14.491, 59.19),
+        'left_elbow': (105.869, 8.174), 'left_wrist': (-69.983, 7.316),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=52.230065, duration=0.072)
+    human.Grasp('left_hand', 'open', start=54.030065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=52.230065, duration=0.072)
-    human.KeyJoints(52.3, {
+    human.Grasp('right_hand', 'open', start=54.030065, duration=0.072)
+    human.KeyJoints(54.1, {
         'left_shoulder': (-0.996, 15.195, 59.982), 'left_elbow': (105.536, 8.908),
         'left_wrist': (-70.0, 7.97),
     })
-    human.KeyRoot(52.302065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.302065, {
+    human.KeyRoot(54.102065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
+    human.KeyJoints(54.102065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),

@@ -115,7 +115,7 @@ def replace_fuel_filter():
         'spine_lumbar': (2.846, -2.421, 0.0), 'spine_thoracic': (0.453, -0.396, 0.0),
         'right_shoulder': (8.594, 7.082, -12.719), 'left_shoulder': (8.594, 7.082, -12.719),
         'right_hip': (5.323, 7.155, 1.741), 'right_knee': (34.173,), 'right_ankle': (20.0, 7.448),
-        'left_hip': (-3.814, -7.065, 0.47), 'left_knee': (5.172,), 'left_ankle': (8.956, -7.08),
+        'left_hip': (-3.805, -7.065, 0.469), 'left_knee': (5.191,), 'left_ankle': (8.966, -7.08),
         'right_toes': (8.767,),
     })
     human.KeyRoot(1.6, (8.51, 89.705, 68.197), (-10.437, 0.0, 0.0))

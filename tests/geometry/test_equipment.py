@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -208,3 +209,17 @@ def test_a_limb_through_a_model_is_reported_at_its_line(tmp_path: Path) -> None:
     assert all(d["span"]["line"] == press for d in found), found
     assert all("site `latch` is not reachable without collision" in d["message"] for d in found)
     assert unreported(doc, diagnostics, scene_meshes(doc, tmp_path)) == []
+
+
+def test_every_finding_names_a_depth_past_the_tolerance(tmp_path: Path) -> None:
+    """The fuel filter's bay, kneeling (female P5): runs of frames a few frames apart merge,
+    and a piece of one cut off at a segment's start may hold only excused frames; it printed
+    "goes -inf mm into model `bay`" before it was skipped."""
+    example = ROOT / "examples" / "replace_fuel_filter_cad.mtask"
+    _, diagnostics = compile_ir(example, "gb10000_1988:female:5", tmp_path)
+    found = [d["message"] for d in diagnostics if d["code"] == "MT0515"]
+    assert found
+    for message in found:
+        match = re.search(r"goes (\S+) mm into", message)
+        assert match is not None, message
+        assert float(match.group(1)) >= TOLERANCE * 1000, message

@@ -654,7 +654,9 @@ class _Verifier:
                     for a, b in zip(np.r_[first, cuts], np.r_[cuts - 1, last], strict=True):
                         i = a + int(np.argmax(depth[a : b + 1, j, col]))
                         seg = self.active(i, tracks)
-                        if seg is None:
+                        # runs closer than a few frames merge: a piece cut off by a segment's
+                        # start may hold only the frames between two runs (-inf: excused)
+                        if seg is None or not depth[i, j, col] > EQUIPMENT_TOLERANCE:
                             continue
                         goal = goal_at[i].get(side) if side and seg.track in tracks else None
                         key = (seg.provenance.origin, part, model)

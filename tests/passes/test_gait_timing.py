@@ -152,3 +152,24 @@ def test_a_turn_in_place_and_a_carry_are_timed_as_steps(tmp_path: Path) -> None:
         assert 90.0 <= w["cadence"] <= 125.0, w
         assert w["swing"] >= 0.35, w
         assert w["pelvis"] <= 0.06, w
+
+
+def test_a_walk_given_more_time_than_its_steps_takes_one_more_not_slower_ones() -> None:
+    """A walk whose time (the front end's, for a longer distance) its steps would fill only
+    below 90 steps/min takes one step more: the footing pass moved the access panel's bench
+    stance 12 cm back for the 50th-percentile man and the walk there kept 7 steps in 5.15 s
+    (81.6 steps/min)."""
+    import dataclasses
+
+    from mtlc.diagnostics import DiagnosticSink
+    from mtlc.passes import MotionOptions
+
+    root = Path(__file__).resolve().parents[2]
+    (timeline,) = run_frontend([root / "examples" / "remove_access_panel_cad.mtask"]).timelines
+    man = ManikinSpec("gb10000_1988", "male", 50)
+    ir = run_motion(dataclasses.replace(timeline, manikin=man), DiagnosticSink(), MotionOptions())
+    walks = [s for s in ir.segments if s.kind == "locomotion" and s.result.get("steps")]
+    assert any(s.result.get("stance_moved") for s in walks)  # the case this is about
+    for seg in walks:
+        cadence = 60.0 * len(seg.result["steps"]) / (seg.end - seg.start)
+        assert 90.0 <= cadence <= 125.0, (seg.start, cadence)

@@ -462,6 +462,9 @@ def _other(foot: str) -> str:
 
 
 MAX_STRETCH = 1.2  # a walk given more time than its steps need slows them this much at most
+# steps/min: the slowest a walk's steps are timed before it takes one step more: the lower end
+# of the adult cadence range issue 19 holds the gait to (90-125; normal walking is 100-120)
+MIN_CADENCE = 90.0
 
 
 def time_steps(steps: list[Step], t0: float, t1: float, gait: Gait) -> None:
@@ -1373,7 +1376,11 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
         walk_heading = math.atan2(way[0], way[2]) if math.hypot(way[0], way[2]) > 1e-9 else h0
         steps = plan_footsteps(stance, goal, walk_heading, h1, gait, half_width, next_foot)
         walking = sum(st.kind in (START, WALK) for st in steps)
-        if walking and _steps_need(steps, gait) * MAX_STRETCH < t1 - t0 and gait.cadence is None:
+        if (
+            walking
+            and _steps_need(steps, gait) * _slowest(steps, gait) < t1 - t0
+            and (gait.cadence is None)
+        ):
             # the front end counted one step more (its distance is the root's, ours the feet's
             # centre's, which can straddle a multiple of the step length): take it, rather than
             # stand a third of the walk (62 steps/min on the 1st-percentile woman's 0.6 m)
@@ -1445,6 +1452,16 @@ def generate(ir: MotionIR, ctx: PassContext) -> MotionIR:
     for seg in instant:
         _record_instant_walk(seg)
     return ir
+
+
+def _slowest(steps: list[Step], gait: Gait) -> float:
+    """How much :func:`time_steps` may slow these steps before a step more is taken: by
+    ``MAX_STRETCH``, and no slower than ``MIN_CADENCE`` (a walk the footing pass shortened
+    by 12 cm kept 7 steps in the 8's time: 81.6 steps/min)."""
+    need = _steps_need(steps, gait)
+    if need <= 0.0:
+        return MAX_STRETCH
+    return max(1.0, min(MAX_STRETCH, 60.0 * len(steps) / need / MIN_CADENCE))
 
 
 def _steps_need(steps: list[Step], gait: Gait) -> float:

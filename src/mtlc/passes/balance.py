@@ -68,6 +68,7 @@ from mtlc.metrics import (
     hand_rest_windows,
     hull_margin,
     lowest_point,
+    spans_mask,
     support,
     support_margin,
     support_push,
@@ -174,24 +175,9 @@ def hand_pins(
     t = np.asarray(time, dtype=float)
     if windows is None:
         windows = pin_windows(ir)
-    # each window found in the sorted times by bisection: a mask over every frame for every
+    # each window found by bisection (``metrics.spans_mask``): a mask over every frame for every
     # contact segment, once per reach, made the reach passes quadratic in the number of steps
-    order = np.argsort(t, kind="stable")
-    ts = t[order]
-    pins: dict[str, np.ndarray] = {}
-    for hand, (lo, hi) in windows.items():
-        # frames with lo <= t < hi as index ranges of the sorted times; a running count of
-        # the ranges open at each frame marks their union
-        first = np.searchsorted(ts, lo, side="left")
-        stop = np.searchsorted(ts, hi, side="left")
-        keep = first < stop
-        count = np.zeros(len(ts) + 1, dtype=np.int64)
-        np.add.at(count, first[keep], 1)
-        np.add.at(count, stop[keep], -1)
-        mask = np.zeros(len(t), dtype=bool)
-        mask[order] = np.cumsum(count[:-1]) > 0
-        pins[hand] = mask
-    return pins
+    return {hand: spans_mask(t, lo, hi, closed=(True, False)) for hand, (lo, hi) in windows.items()}
 
 
 def lower_for_reach(

@@ -163,11 +163,16 @@ def stretch(
     last key is still an output frame."""
     time = dense.time
     dt = np.diff(time)
+    ratio = ratio.copy()
     jump = ratio > JUMP
     need = PEAK * ratio * dt  # a jump's time at the limit
     cuts: dict[float, tuple[float, int]] = {}  # cut -> (pause, the dense frame before it)
+    starts_of: dict[str, FloatArray] = {}  # per dof, once: a procedure may jump hundreds of times
     for i in np.flatnonzero(jump):
-        starts = keyed_starts(ir, names[int(fastest[i])])
+        name = names[int(fastest[i])]
+        if name not in starts_of:
+            starts_of[name] = keyed_starts(ir, name)
+        starts = starts_of[name]
         inside = starts[(starts > time[i] + EPS) & (starts <= time[i + 1] + EPS)]
         if len(inside):
             cut = float(inside[-1])

@@ -1,11 +1,13 @@
 """Every claim of a compile, checked on its output files with our own kinematics (issue 18).
 
     python bench/motion.py [--generated 200] [--manikins female-p5,male-p95] [--examples all]
-                           [--workers 2] [--save DIR] [--worst 10] [--steps 3:8] [--seed0 0]
+                           [--walks] [--procedures] [--workers 2] [--save DIR] [--worst 10]
+                           [--steps 3:8] [--seed0 0]
 
 Compiles the examples with each of the 14 GB 10000-88 manikins and ``--generated`` procedures
 from tests/strategies/procedures.py (seeds ``seed0..``) with each of ``--manikins`` (``--examples
-none`` / ``--generated 0`` leave a half out), each job in a worker process through the command
+none`` / ``--generated 0`` leave a half out; ``--walks`` adds bench/walks, ``--procedures``
+bench/procedures: hand-written maintenance procedures no example or test covers), each job in a worker process through the command
 line's own entry point (`mtlc compile FILE --manikin M --target ir --format json`). Then it reads
 the IR JSON back and measures the frames a user receives with forward kinematics written here
 from docs/ir.md's rule (numpy only: no mtlc pass, metric or kinematics is used to measure), and
@@ -62,6 +64,8 @@ from strategies.procedures import generate  # noqa: E402
 
 EXAMPLES = sorted((ROOT / "examples").glob("*.mtask"))
 WALKS = sorted((ROOT / "bench" / "walks").glob("*.mtask"))  # --walks: the gait's own procedures
+# --procedures: hand-written maintenance procedures that no example, test or tuning has seen
+PROCEDURES = sorted((ROOT / "bench" / "procedures").glob("*.mtask"))
 MANIKINS = tuple(
     f"{sex}-p{pct}" for sex in ("female", "male") for pct in (1, 5, 10, 50, 90, 95, 99)
 )
@@ -558,7 +562,7 @@ def measure(doc: dict[str, Any], diagnostics: list[dict[str, Any]]) -> dict[str,
 class Job:
     """One compile: a source file with one manikin (``female-p5``)."""
 
-    kind: str  # "example", "walk" (bench/walks) or "generated"
+    kind: str  # "example", "walk" (bench/walks), "procedure" (bench/procedures) or "generated"
     path: str
     manikin: str
     seed: int | None = None
@@ -603,6 +607,8 @@ def remeasure(folder: Path, sources: Path | None) -> list[dict[str, Any]]:
         base = sources if kind == "generated" and sources else ROOT / "examples"
         if kind == "example" and (ROOT / "bench" / "walks" / f"{stem}.mtask").is_file():
             kind, base = "walk", ROOT / "bench" / "walks"
+        if kind == "example" and (ROOT / "bench" / "procedures" / f"{stem}.mtask").is_file():
+            kind, base = "procedure", ROOT / "bench" / "procedures"
         job = Job(kind, str(base / f"{stem}.mtask"), manikin)
         stdout = (sub / "diagnostics.json").read_text(encoding="utf-8")
         rows.append(measure_folder(job, sub, stdout, 0))
@@ -793,6 +799,11 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="also compile bench/walks/*.mtask with each of --example-manikins",
     )
+    parser.add_argument(
+        "--procedures",
+        action="store_true",
+        help="also compile bench/procedures/*.mtask with each of --example-manikins",
+    )
     parser.add_argument("--workers", type=int, default=2, help="worker processes (2)")
     parser.add_argument("--save", type=Path, help="keep the generated procedures in this folder")
     parser.add_argument("--worst", type=int, default=8, help="worst cases listed per figure (8)")
@@ -823,6 +834,11 @@ def main(argv: list[str] | None = None) -> int:
             MANIKINS if args.example_manikins == "all" else tuple(args.example_manikins.split(","))
         )
         jobs += [Job("walk", str(p.relative_to(ROOT)), m) for p in WALKS for m in mans]
+    if args.procedures:
+        mans = (
+            MANIKINS if args.example_manikins == "all" else tuple(args.example_manikins.split(","))
+        )
+        jobs += [Job("procedure", str(p.relative_to(ROOT)), m) for p in PROCEDURES for m in mans]
     gen_manikins = [m for m in args.manikins.split(",") if m]
     for seed in range(args.seed0, args.seed0 + args.generated):
         path = generate(seed, lo, hi).write(folder)
@@ -847,6 +863,7 @@ def main(argv: list[str] | None = None) -> int:
     for kind, label in (
         ("example", "examples x manikins"),
         ("walk", "bench/walks x manikins"),
+        ("procedure", "bench/procedures x manikins"),
         ("generated", "generated procedures"),
     ):
         group = [r for r in rows if r["job"].kind == kind]

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mtlc.diagnostics.render import terminal_safe
+from mtlc.jsontext import escape_surrogates
 
 EXIT_USAGE = 2
 LOCK_TIMEOUT_S = 30.0  # a second write into a folder waits this long for the first, then fails
@@ -63,15 +64,6 @@ class _Entry:
         backup = d.get("backup")
         return _Entry(Path(str(d["staged"])), Path(str(d["target"])),
                       None if backup is None else Path(backup))  # fmt: skip
-
-
-_SURROGATE = re.compile("[\ud800-\udfff]")
-
-
-def escape_surrogates(json_text: str) -> str:
-    """JSON with each lone surrogate (a byte of a file name that is not UTF-8, as Python decodes
-    it) written as a `\\uXXXX` escape: the file is valid UTF-8 and reads back as the same name."""
-    return _SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", json_text)
 
 
 # A file name must not hold what a terminal or a file manager would obey or reorder: controls

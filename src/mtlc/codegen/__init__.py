@@ -18,7 +18,7 @@ from mtlc.codegen.bvh import emit_bvh
 from mtlc.codegen.jackscript import emit_jackscript, function_name
 from mtlc.ir.model import MotionIR
 from mtlc.ir.serialize import to_json
-from mtlc.output import escape_surrogates
+from mtlc.jsontext import escape_surrogates
 
 MOTION_TARGETS = ("jackscript", "bvh", "ir")
 TARGET_CHOICES = (*MOTION_TARGETS, "all", "timeline")

@@ -23,7 +23,7 @@ from mtlc.ir.model import (
     SourceRef,
     Verification,
 )
-from mtlc.output import escape_surrogates
+from mtlc.jsontext import escape_surrogates
 
 DECIMALS = 5  # lengths to 0.01 mm, angles to 1e-5 rad (0.0006°), masses to 0.01 g
 TIME_DECIMALS = 6  # times to 1 µs, as JackScript writes them: frame times stay on their frames

@@ -15,7 +15,7 @@ from importlib.resources import files
 from typing import Any
 
 from mtlc.diagnostics.render import terminal_safe
-from mtlc.output import escape_surrogates
+from mtlc.jsontext import escape_surrogates
 
 THREE_BUNDLE = "three.preview.min.js"
 _PLACEHOLDER = re.compile(r"__(TITLE|CSS|THREE|DATA|SERVE|PAGE_JS)__")

@@ -457,6 +457,26 @@ def measure(doc: dict[str, Any], diagnostics: list[dict[str, Any]]) -> dict[str,
             end = min([*later, *(t for t in moves if t >= start - 1e-9)], default=body.time[-1])
             window = (body.time >= start - 1e-9) & (body.time <= end + 1e-9)
             still = window & ~body.active(own) & ~body.active(loco)
+            # a grip that takes its part somewhere before it opens (an arm goal that is not a
+            # wrench's stroke, or a walk) carries it through the postures on the way
+            opens = min(
+                (s["t_start"] for s in grips[k + 1 :]
+                 if (s["goal"].get("params") or {}).get("state") == "open"),
+                default=np.inf,
+            )  # fmt: skip
+            takes = [
+                s for s in [*own, *loco]
+                if s["kind"] in ("TA", "TO", "locomotion")
+                and "stroke" not in (s["goal"].get("params") or {})
+                and g["t_start"] - 1e-9 <= s["t_start"] < opens - 1e-9
+            ]  # fmt: skip
+            if takes:
+                postures = [
+                    s for s in doc["segments"]
+                    if s["kind"] == "posture" and s["track"] == "root"
+                    and g["t_start"] - 1e-9 <= s["t_start"] < opens - 1e-9
+                ]  # fmt: skip
+                still &= ~body.active(postures)
             idx = np.flatnonzero(still)
             if len(idx) < 2:
                 continue

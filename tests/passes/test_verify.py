@@ -33,6 +33,7 @@ from mtlc.ir.model import Frames, GoalSpec, MotionIR, Provenance, Segment, Sourc
 from mtlc.metrics import compute_metrics
 from mtlc.passes import run_motion, verify
 from mtlc.passes.context import PassContext
+from mtlc.passes.hold import carried_postures
 
 GOOD = """use stdlib.actions
 use stdlib.elements
@@ -635,3 +636,42 @@ def test_a_half_kneel_stands_on_the_balls_of_its_back_foot() -> None:
     assert np.abs(back[:3, 1] - ir.ground).max() <= 2e-3  # balls and toe tip on the floor
     assert back[3, 1] - ir.ground > 0.1  # the heel up
     assert f.q[k, ir.skeleton.dof_index("r_toes_dorsi")] > math.radians(45)
+
+
+def _posture_while_holding(then: list[Segment]) -> MotionIR:
+    """The body sinks 10 cm in a squat from 0.2 s to 0.6 s while the right hand holds a part
+    (grip closed at 0.1 s); ``then`` says what the hand does with it afterwards."""
+    f = standing(30)
+    f.root_position[:, 1] -= 0.1 * np.clip((f.time - 0.2) / 0.4, 0.0, 1.0)
+    grip = Segment("r_hand", "grip", 0.0, 0.1, GoalSpec("r_hand", params={"state": "closed"}),
+                   PROV)  # fmt: skip
+    squat = Segment("root", "posture", 0.2, 0.6, GoalSpec("body", params={"posture": "squat"}),
+                    PROV)  # fmt: skip
+    return make_ir(f, [grip, squat, *then])
+
+
+def test_a_part_taken_somewhere_goes_with_the_body_through_a_posture() -> None:
+    """A part the hand moves after the squat (a pick, a squat, a place) is carried down: no
+    slip. ``hold.carried_postures`` is the rule, shared by the hold pass and verify."""
+    place = Segment("r_arm", "TA", 0.7, 0.9, GoalSpec("r_hand", "tray", np.zeros(3)), PROV)
+    ir = _posture_while_holding([place])
+    assert [s.kind for s in carried_postures(ir)["r_arm"]] == ["posture"]
+    assert "MT0511" not in codes(reverify(ir))
+
+
+def test_a_part_nothing_takes_anywhere_stays_through_a_posture() -> None:
+    """A grip that opens again with no move or walk between (a handle held through a squat)
+    keeps its part where it is: the hand sinking 10 cm with the body slips off it."""
+    release = Segment("r_hand", "grip", 0.8, 0.9, GoalSpec("r_hand", params={"state": "open"}),
+                      PROV)  # fmt: skip
+    ir = _posture_while_holding([release])
+    assert carried_postures(ir)["r_arm"] == []
+    assert "MT0511" in codes(reverify(ir))
+
+
+def test_a_wrench_stroke_does_not_take_the_part_anywhere() -> None:
+    stroke = Segment("r_arm", "TO", 0.7, 0.8,
+                     GoalSpec("r_hand", "bolt", np.zeros(3), params={"stroke": 1}), PROV)  # fmt: skip
+    release = Segment("r_hand", "grip", 0.85, 0.9, GoalSpec("r_hand", params={"state": "open"}),
+                      PROV)  # fmt: skip
+    assert carried_postures(_posture_while_holding([stroke, release]))["r_arm"] == []

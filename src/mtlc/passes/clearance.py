@@ -33,6 +33,7 @@ from mtlc.body.ik.clearance import keep_clear, penetration, penetration_dofs, pe
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.context import PassContext
+from mtlc.passes.hold import carried_postures
 from mtlc.passes.joint_speed import speed_limited
 
 PINNED = 30.0  # weight of the hand's pose where it has a goal (per metre of the clearance)
@@ -53,7 +54,8 @@ CORRECTED_JOINT_SPEED = math.radians(330.0)
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
     """(N,) frames where the ``side`` hand's pose is a goal: the last ``GOAL_LEAD`` seconds of
     each reach or move and its contact phase (TO), a wrench's strokes, and while its grip is
-    closed (it holds a site or carries a part)."""
+    closed (it holds a site or carries a part), except through a posture that carries the part
+    (``hold.carried_postures``)."""
     out = np.zeros(len(t), dtype=bool)
     for seg in ir.on_track(ARM_TRACK[side]):
         start = seg.start if seg.kind == "TO" else seg.end - GOAL_LEAD
@@ -66,6 +68,9 @@ def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
             continue
         opens = [o.start for o in grips[k + 1 :] if o.goal.params.get("state") == "open"]
         out |= (t >= g.start - EPS) & (t < min(opens, default=np.inf) + EPS)
+    # a part carried through a posture goes where the hand goes: the hand may move out of the way
+    for seg in carried_postures(ir)[ARM_TRACK[side]]:
+        out &= ~((t > seg.start + EPS) & (t < seg.end - EPS))
     return out
 
 

@@ -12,7 +12,10 @@ motion stays as smooth as the body's.
 
 A hold (``hold_windows``) runs from the end of a contact (TO) segment until the hand's next arm
 segment starts, a walk starts (the part is carried from then on: it moves with the hand), a
-whole-body posture starts while the hand has no grip closed (a hand that only touched a site
+posture starts through which the hand carries its part (``carried_postures``: a grip that
+takes its part somewhere, by a move or a walk, before it opens; a part picked from the floor
+rises with the hand as the body stands), a whole-body posture starts while the hand has no
+grip closed (a hand that only touched a site
 does not stay on it through a squat) or the hand lets go for good (its last grip event in that
 time is a release: the hold ends with it).
 The held point is the site (the segment's goal position) when the contact reached it, else
@@ -81,9 +84,43 @@ def closed_during(grips: list[Segment], lo: float, hi: float) -> bool:
     )
 
 
+def carried_postures(ir: MotionIR) -> dict[str, list[Segment]]:
+    """Per arm track, the whole-body postures (squat, kneel, stand, bend; not a hand's twist)
+    through which its hand carries the part it holds, so the part goes with the body.
+
+    A closed grip *transports* its part when, before the hand opens, the hand takes it
+    somewhere: an arm goal of that hand (a `move`: a reach or move while the grip is closed;
+    not a wrench's stroke, which turns a fastener that stays) or a walk. Every posture that
+    starts while such a grip is closed carries the part: picked from the floor, a part rises
+    with the hand when the body stands up. A grip that nothing takes anywhere before it opens
+    (a handle steadied through a kneel, a rail held) keeps its part where it is, and the hand
+    on it (the hold pass; MT0511 when it cannot)."""
+    walks = [s.start for s in ir.segments if s.kind == "locomotion"]
+    postures = [
+        s for s in ir.segments
+        if s.kind == "posture" and s.goal.params.get("posture") != "twist"
+    ]  # fmt: skip
+    out: dict[str, list[Segment]] = {track: [] for track in ARM_HAND}
+    for track, hand in ARM_HAND.items():
+        grips = sorted((s for s in ir.on_track(hand) if s.kind == "grip"), key=lambda s: s.start)
+        goals = [
+            s.start for s in ir.on_track(track)
+            if s.kind in ("TA", "TO") and "stroke" not in s.goal.params
+        ]  # fmt: skip
+        for k, g in enumerate(grips):
+            if _is_open(g):
+                continue
+            opens = min((o.start for o in grips[k + 1 :] if _is_open(o)), default=np.inf)
+            takes = [t for t in (*goals, *walks) if g.start - EPS <= t < opens - EPS]
+            if takes:
+                out[track] += [p for p in postures if g.start - EPS <= p.start < opens - EPS]
+    return out
+
+
 def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
     """Each contact (TO) segment with the time its hand stops holding: the hand's next arm
-    segment, the next walk, a whole-body posture while the hand's grip is open, or the end of
+    segment, the next walk, a whole-body posture while the hand's grip is open or through which
+    it carries its part (``carried_postures``), or the end of
     a release not followed by a new grasp, whichever comes first (the end of the motion when
     none does)."""
     by_track: dict[str, list[Segment]] = {}
@@ -96,6 +133,7 @@ def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
         elif seg.kind == "posture" and seg.goal.params.get("posture") != "twist":
             postures.append(seg.start)
     out = []
+    carried = carried_postures(ir)
     duration = ir.duration  # (a scan of every segment: once, not once per contact)
     for track, hand in ARM_HAND.items():
         arm = sorted(by_track.get(track, []), key=lambda s: s.start)
@@ -108,6 +146,8 @@ def hold_spans(ir: MotionIR) -> list[tuple[Segment, float]]:
             after = seg.end
             ends = [s.start for s in arm if s.start >= after - EPS and s is not seg]
             ends += [t for t in walks if t >= after - EPS]
+            # a part the hand takes somewhere goes with the body through a posture, as with a walk
+            ends += [p.start for p in carried[track] if p.start >= after - EPS]
             # a hand that only touched its site (no grip closed on it) lets go when the body
             # changes posture: holding an overhead latch through a squat would stretch the arm
             # to its limit and then drop it, and pin the trunk of the reaches after it
@@ -212,10 +252,14 @@ def keep_hold(
 
 
 def carried_until(ir: MotionIR, hold: Hold) -> float:
-    """When a hold ends because a walk starts, the part is carried: the hand keeps its grip on
+    """When a hold ends because a walk or a carried posture (``carried_postures``) starts, the
+    part is carried: the hand keeps its grip on
     the body (its arm's correction stays as it was) until the hand's next arm segment or a
     release; otherwise the hold's end."""
-    if not any(s.kind == "locomotion" and abs(s.start - hold.end) <= EPS for s in ir.segments):
+    carried = carried_postures(ir)[hold.seg.track]
+    if not any(
+        s.kind == "locomotion" and abs(s.start - hold.end) <= EPS for s in ir.segments
+    ) and not any(abs(p.start - hold.end) <= EPS for p in carried):
         return hold.end
     hand = ARM_HAND.get(hold.seg.track, "")
     later = [

@@ -34,7 +34,7 @@ from mtlc.body import center_of_mass, forward, site_positions
 from mtlc.body.ik.clearance import penetration
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import INTERNAL_FPS, PassContext
-from mtlc.passes.hold import holding
+from mtlc.passes.hold import carried_postures, holding
 from mtlc.passes.interpolate import FOOT_POINTS
 from mtlc.passes.kneel import (
     HALF_KNEEL_PHASES,
@@ -731,6 +731,8 @@ def wide_stand_arms(ir: MotionIR, seg: Segment, free: tuple[str, ...]) -> tuple[
     standing up from between the knees, an arm left where it worked goes into a rising thigh
     (the right forearm 10-12 mm on the drain valve, women P90-P99)."""
     held = holding(ir, seg.start)
+    # an arm carrying its part through the stand keeps it (``hold.carried_postures``)
+    held |= {t for t, segs in carried_postures(ir).items() if any(s is seg for s in segs)}
     out = list(free)
     for side in ("r", "l"):
         track, dof = f"{side}_arm", f"{side}_shoulder_flex"

@@ -43,6 +43,7 @@ from mtlc.metrics import balance_margin, walking
 from mtlc.passes.approach import effector_name
 from mtlc.passes.balance import CHUNK_FRAMES, _mm, failure_runs, take_pose
 from mtlc.passes.context import PassContext
+from mtlc.passes.hold import carried_postures
 from mtlc.passes.tool import is_stroke
 
 TOLERANCE = 1e-3  # m: contact error, grip drift, depth below the floor, depth inside the body
@@ -343,12 +344,15 @@ class _Verifier:
 
     def grips(self) -> None:
         """A closed hand holds still while nothing moves it: no segment on its arm or hand
-        track (a reach or move, a turn) and no walk (the part is carried from then on); grip
-        segments themselves move nothing, and neither does a whole-body posture: a squat or a
-        kneel with a hand closed on a part keeps the hand on it (the hold pass), or it has let
-        go (this finding; the hold pass's own MT0520 is retired)."""
+        track (a reach or move, a turn), no walk (the part is carried from then on) and no
+        posture through which the hand carries its part (``hold.carried_postures``: the grip
+        takes the part somewhere before it opens); grip segments themselves move nothing, and
+        neither does any other whole-body posture: a squat or a kneel with a hand closed on a
+        part that stays keeps the hand on it (the hold pass), or it has let go (this finding;
+        the hold pass's own MT0520 is retired)."""
         t = self.t
         moving_root = [s for s in self.ir.on_track("root") if s.kind == "locomotion"]
+        carried = carried_postures(self.ir)
         for side in ("r", "l"):
             grips = sorted(
                 (s for s in self.ir.on_track(HAND_TRACK[side]) if s.kind == "grip"),
@@ -382,11 +386,18 @@ class _Verifier:
             self.held[side] = (part, held_by)
             if not closed.any():
                 continue
-            movers = [
-                s
-                for s in (*self.ir.on_track(ARM_TRACK[side]), *self.ir.on_track(HAND_TRACK[side]))
-                if s.kind != "grip"
-            ] + moving_root
+            movers = (
+                [
+                    s
+                    for s in (
+                        *self.ir.on_track(ARM_TRACK[side]),
+                        *self.ir.on_track(HAND_TRACK[side]),
+                    )
+                    if s.kind != "grip"
+                ]
+                + moving_root
+                + carried[ARM_TRACK[side]]
+            )
             still = closed.copy()
             for s in movers:
                 still &= ~((t > s.start + EPS) & (t < s.end - EPS))

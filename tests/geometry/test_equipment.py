@@ -66,17 +66,71 @@ def compile_ir(path: Path, manikin: str, out: Path) -> tuple[dict, list[dict]]:
 
 def scene_meshes(doc: dict, folder: Path) -> dict[str, trimesh.Trimesh]:
     """The IR's models rebuilt with trimesh: a file read and placed by its transform, a box
-    made from its size."""
+    made from its size. A part a hand holds (``verification.equipment.held``) is a mesh of its
+    own, ``model/node``, and its model the rest of the file."""
+    held = {
+        (h["model"], h["node"]) for h in doc["verification"].get("equipment", {}).get("held", [])
+    }
     out = {}
     for m in doc["scene"]["models"]:
+        place = np.asarray(m["transform"], float)
         if m["kind"] == "model":
-            mesh = trimesh.load(folder / m["path"], force="mesh")
-        elif m["kind"] == "box":
+            taken = {node for model, node in held if model == m["name"]}
+            scene = trimesh.load(folder / m["path"])
+            pieces: dict[str, list[trimesh.Trimesh]] = {}
+            for node in scene.graph.nodes_geometry:
+                matrix, geometry = scene.graph[node]
+                mesh = scene.geometry[geometry].copy()
+                mesh.apply_transform(matrix)
+                key = f"{m['name']}/{node}" if node in taken else m["name"]
+                pieces.setdefault(key, []).append(mesh)
+            for key, meshes in pieces.items():
+                mesh = trimesh.util.concatenate(meshes)
+                mesh.apply_transform(place)
+                out[key] = mesh
+            continue
+        if m["kind"] == "box":
             mesh = trimesh.creation.box(extents=m["size"])
         else:
             pytest.skip(f"no trimesh twin for a {m['kind']} here")
-        mesh.apply_transform(np.asarray(m["transform"], float))
+        mesh.apply_transform(place)
         out[m["name"]] = mesh
+    return out
+
+
+def placements(doc: dict, body: motion.Body) -> dict[str, tuple[np.ndarray, list]]:
+    """Each held part's placement per frame, by docs/collision.md's rule ("Held parts") from
+    the IR's record of who holds it when, with bench/motion.py's joint frames: it follows the
+    first hand on it (its joint's rotation at its grip point) from the frame that hand's grip
+    point is 5 cm from where it closed, and stays where it is let go. With its holds."""
+    hands = {e["name"]: e for e in doc["manikin"]["effectors"]}
+    frame = {}
+    for side in ("r", "l"):
+        R, _ = body.world[hands[f"{side}_hand"]["joint"]]
+        m = np.zeros((len(body.time), 4, 4))
+        m[:, :3, :3], m[:, :3, 3], m[:, 3, 3] = R, body.points[f"{side}_hand"], 1.0
+        frame[side] = m
+    out = {}
+    for rec in doc["verification"].get("equipment", {}).get("held", []):
+        holds = sorted(rec["holds"], key=lambda h: (h[1], h[0] == "l"))
+        place = np.tile(np.eye(4), (len(body.time), 1, 1))
+        carrier, anchor, closed_at = None, None, None
+        for i, t in enumerate(body.time):
+            if i:
+                place[i] = place[i - 1]
+            live = [h for h in holds if h[1] - 1e-6 <= t <= h[2] + 1e-6]
+            now = live[0] if live else None
+            if now != carrier:
+                carrier, anchor = now, None
+                closed_at = None if now is None else frame[now[0]][i, :3, 3].copy()
+            if carrier is None:
+                continue
+            f = frame[carrier[0]][i]
+            if anchor is None and np.linalg.norm(f[:3, 3] - closed_at) > 0.05:
+                anchor = np.linalg.inv(f) @ place[i]
+            if anchor is not None:
+                place[i] = f @ anchor
+        out[f"{rec['model']}/{rec['node']}"] = (place, holds)
     return out
 
 
@@ -109,14 +163,22 @@ def limbs(body: motion.Body) -> dict[str, tuple[np.ndarray, np.ndarray, float, b
 def unreported(doc: dict, diagnostics: list[dict], meshes: dict) -> list[str]:
     """Every (part, model, run of frames) deeper than the tolerance with no MT0515 naming the
     part at a line live in the run; the hands and tools count only where their axis passes
-    through the model (a hand at its site may touch what it works on: MT0515's rule)."""
+    through the model (a hand at its site may touch what it works on: MT0515's rule). A held
+    part is measured where it is on each frame (``placements``), and a hand holding it is not
+    measured against it from its reach's start to its arm's next goal after the release."""
     body = motion.Body.of(doc)
     named = [(d["span"]["line"], d["message"]) for d in diagnostics if d["code"] == "MT0515"]
     held = {f"tool {t['name']}": (a, b) for t, a, b in body.tools.values()}
+    moved = placements(doc, body)
     s = np.linspace(0.0, 1.0, AXIS_POINTS)
     missing = []
-    for part, (a, b, radius, touching_allowed) in limbs(body).items():
+    for part, (a0, b0, radius, touching_allowed) in limbs(body).items():
         for model, mesh in meshes.items():
+            a, b = a0, b0
+            if model in moved:  # the capsule in the part's own frame: its placement undone
+                place = moved[model][0]
+                a = np.einsum("nji,nj->ni", place[:, :3, :3], a0 - place[:, :3, 3])
+                b = np.einsum("nji,nj->ni", place[:, :3, :3], b0 - place[:, :3, 3])
             # frames whose capsule's box meets the mesh's box: the others are clear
             lo, hi = np.minimum(a, b) - radius, np.maximum(a, b) + radius
             near = np.all((lo <= mesh.bounds[1]) & (hi >= mesh.bounds[0]), axis=1)
@@ -143,6 +205,10 @@ def unreported(doc: dict, diagnostics: list[dict], meshes: dict) -> list[str]:
             if part in held:
                 start, end = held[part]
                 bad &= (body.time >= start) & (body.time <= end)
+            if model in moved and part.endswith(" hand"):
+                for side, start, end in moved[model][1]:
+                    if part.startswith({"r": "right", "l": "left"}[side]):
+                        bad &= ~holding_window(doc, body, side, start, end)
             for first, last in runs(bad):
                 lines = set().union(
                     *(motion.report_lines(doc, t) for t in body.time[first : last + 1])
@@ -154,6 +220,16 @@ def unreported(doc: dict, diagnostics: list[dict], meshes: dict) -> list[str]:
                         f"{part} in {model} {body.time[first]:.2f}-{body.time[last]:.2f} s"
                     )
     return missing
+
+
+def holding_window(doc: dict, body: motion.Body, side: str, start: float, end: float) -> np.ndarray:
+    """(T,) from the start of the arm's last reach (TA) before the grasp to the start of its
+    next goal after the release (the end of the motion when none follows)."""
+    arm = [s for s in doc["segments"] if s["track"] == f"{side}_arm" and s["kind"] in ("TA", "TO")]
+    came = max((s["t_start"] for s in arm if s["kind"] == "TA" and s["t_start"] <= start),
+               default=start)  # fmt: skip
+    until = min((s["t_start"] for s in arm if s["t_start"] >= end - 1e-6), default=np.inf)
+    return (body.time >= came - 1e-6) & (body.time < until - 1e-6)
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:

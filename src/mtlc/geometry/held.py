@@ -17,11 +17,12 @@ parts"):
   of the motion), if at the grip's start the hand's grip point is within ``GRASP_REACH`` of its
   goal's position carried to where the part is then (a part taken away earlier is not grasped
   again at its old place).
-* It **moves** rigidly with the hand's frame (the hand joint's rotation, at the grip point)
-  once the hand has taken it out: from the frame the grip point is more than ``TAKEN_OUT``
-  from where it closed. Before that it stays where it is mounted: a bowl turned off its thread
-  turns about the thread's axis, not with the wrist, and a round part turned about its own axis
-  is where it was (the turn is not modelled as a rotation). With two hands on it, it goes with
+* It **moves** with the hand while held: its grasped point stays at the hand's grip point.
+  Until the grip point is more than ``TAKEN_OUT`` from where it closed, the part only slides
+  with it, unturned: a bowl turned off its thread turns about the thread's axis, not with the
+  wrist (a wrist turn is not a rotation of the part; a round part turned about its own axis is
+  where it was). From then on it is rigid in the hand's frame (the hand joint's rotation at the
+  grip point), turning as the hand turns. With two hands on it, it goes with
   the one that closed first (the right on a tie), then with the other when that one lets go.
   Released, it stays where it was let go.
 
@@ -47,8 +48,9 @@ IntArray = NDArray[np.int64]
 
 NODE_MATCH = 1e-3  # m: a goal's site this close to a model's node is that node
 GRASP_REACH = 0.10  # m: a closed hand holds a part this near its node (a hand's length)
-# m: a held part stays where it is mounted until the hand has moved this far from where it
-# closed: a turn in place turns it about its own thread, not about the wrist's axis
+# m: a held part slides with the grip point, unturned, until the hand has moved this far from
+# where it closed, then turns with the hand: a turn in place turns it about its own thread,
+# not about the wrist's axis
 TAKEN_OUT = 0.05
 SIDES = ("r", "l")
 EPS = 1e-9  # s
@@ -207,6 +209,7 @@ def _placements(
     decided: set[int] = set()
     carrier: Hold | None = None
     closed_at = np.zeros(3)  # the carrying hand's grip point where it took the part
+    mounted = np.eye(4)  # the part's placement then
     anchor: FloatArray | None = None  # the part in the carrying hand's frame, once it moves it
     for i in range(n):
         if i:
@@ -224,11 +227,15 @@ def _placements(
             carrier, anchor = now, None
             if carrier is not None:
                 closed_at = hands[carrier.side][i, :3, 3].copy()
+                mounted = placement[i].copy()
         if carrier is None:
             continue
         frame = hands[carrier.side][i]
-        if anchor is None and np.linalg.norm(frame[:3, 3] - closed_at) > TAKEN_OUT:
-            anchor = np.linalg.inv(frame) @ placement[i]
-        if anchor is not None:
+        if anchor is None:  # not taken out yet: it slides with the grip point, unturned
+            placement[i] = mounted
+            placement[i, :3, 3] += frame[:3, 3] - closed_at
+            if np.linalg.norm(frame[:3, 3] - closed_at) > TAKEN_OUT:
+                anchor = np.linalg.inv(frame) @ placement[i]
+        else:
             placement[i] = frame @ anchor
     return placement, kept

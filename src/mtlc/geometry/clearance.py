@@ -34,9 +34,6 @@ from mtlc.loads import held_spans
 FloatArray = NDArray[np.float64]
 
 GLOVE_ALLOWANCE = 0.0  # m taken off the hand's clearance by default: bare hands
-# m a capsule may go into a model unreported: the capsules are round and the hands bare, so a
-# few millimetres is a sleeve brushing a panel, not a limb inside it (docs/collision.md)
-EQUIPMENT_TOLERANCE = 5e-3
 EPS = 1e-9  # s
 
 

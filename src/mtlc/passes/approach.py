@@ -48,9 +48,6 @@ KEEP_PATH = 0.3  # ...on the way there: the hand may move out of the body's way
 PATH_SAMPLES = 9  # poses checked on each stretch between two keyframes, ends included
 CLEAR_KEYS = 1  # keyframes added at most to keep an approach's arms out of the body
 CLEAR_GAIN = 0.005  # m a cleared keyframe must take off the path's depth to be kept
-# m: a via-point this far out along the goal site's normal, tried in turn, where the direct
-# approach takes a hand, forearm or tool into a scene model (``equipment_mid``)
-EQUIPMENT_LIFTS = (0.10, 0.20)
 
 
 def model_for(
@@ -536,91 +533,6 @@ def sweep_mid(
     return mid
 
 
-def _reaching_capsules(skel: Any, segs: list[Segment]) -> tuple[Any, ...]:
-    """The hand and forearm capsules of the reaching arms, and the tools they hold."""
-    from mtlc.body.capsules import collision_capsules, tool_capsule
-    from mtlc.loads import tool_site
-
-    words = {"r": "right", "l": "left"}
-    sides = {s.goal.effector[0] for s in segs if s.goal.effector[:2] in ("r_", "l_")}
-    caps = [
-        c for c in collision_capsules(skel)
-        if c.name.split(" ")[0] in {words[x] for x in sides}
-        and c.name.endswith((" hand", " forearm"))
-    ]  # fmt: skip
-    names = {site.name for site in skel.sites}
-    for seg in segs:
-        tool = seg.goal.params.get("tool")
-        if isinstance(tool, dict) and (site := tool_site(seg.goal.effector, tool)) in names:
-            caps.append(tool_capsule(skel, site, tool))
-    return tuple(caps)
-
-
-def equipment_depth(
-    state: PoseState, segs: list[Segment], qs: FloatArray, root: tuple[FloatArray, FloatArray],
-    indices: dict[str, Any],
-) -> float:  # fmt: skip
-    """How deep (m) the reaching arms' hands, forearms and tools go into the scene's models at
-    the poses ``qs`` (K, D): the deepest surface, through a surface counted as verify does."""
-    from mtlc.body.capsules import capsule_segments
-
-    caps = _reaching_capsules(state.skel, segs)
-    pose = forward(
-        state.skel, qs, np.broadcast_to(root[0], (len(qs), 3)),
-        np.broadcast_to(root[1], (len(qs), 4)), with_axes=False,
-    )  # fmt: skip
-    a, b, radii = capsule_segments(state.skel, pose, caps)
-    a, b = a.reshape(-1, 3), b.reshape(-1, 3)
-    r = np.tile(radii, len(qs))
-    deepest = -np.inf
-    for index in indices.values():
-        d = index.segment_distance(a, b, 0.25)
-        touching = np.flatnonzero(d <= 0.0)
-        d[touching] = -index.through_depth(a[touching], b[touching])
-        deepest = max(deepest, float((r - d).max()))
-    return deepest
-
-
-def equipment_mid(
-    ctx: PassContext,
-    state: PoseState,
-    segs: list[Segment],
-    targets: list[FloatArray],
-    q0: FloatArray,
-    q1: FloatArray,
-    root: tuple[FloatArray, FloatArray],
-    indices: dict[str, Any],
-) -> FloatArray | None:
-    """A pose half-way, the hands pulled out along their sites' normals (``EQUIPMENT_LIFTS``),
-    when the joint-space path from ``q0`` to ``q1`` takes a hand, forearm or tool deeper than
-    the tolerance into a model and the via-point takes ``CLEAR_GAIN`` off it; else None. The
-    hand comes back out of the surface it left and goes in again from outside the next one
-    (a wrench swung from bolt to bolt through the panel)."""
-    from mtlc.geometry.clearance import EQUIPMENT_TOLERANCE
-
-    normals = [s.goal.params.get("approach_normal") or s.goal.params.get("normal") for s in segs]
-    if any(n is None for n in normals):
-        return None
-    fs = np.linspace(0.0, 1.0, PATH_SAMPLES)[1:-1]
-    direct = equipment_depth(state, segs, q0 + fs[:, None] * (q1 - q0), root, indices)
-    if direct <= EQUIPMENT_TOLERANCE:
-        return None
-    here = [state.site(s.goal.effector, q0, root) for s in segs]
-    pinned = pinned_hands(state, segs, q0, root)
-    best, best_depth = None, direct - CLEAR_GAIN
-    for lift in EQUIPMENT_LIFTS:
-        mids = [
-            0.5 * (a + b) + lift * np.asarray(n, float) / np.linalg.norm(n)
-            for a, b, n in zip(here, targets, normals, strict=True)
-        ]
-        mid, _, _, _ = solve_group(ctx, state, segs, mids, 0.5 * (q0 + q1), root, pinned)
-        path = np.concatenate([q0 + fs[:, None] * (mid - q0), mid + fs[:, None] * (q1 - mid)])
-        depth = equipment_depth(state, segs, np.vstack([path, mid[None]]), root, indices)
-        if depth < best_depth:
-            best, best_depth = mid, depth
-    return best
-
-
 def relift(ir: MotionIR, ctx: PassContext) -> None:
     """``sweep_mid`` and ``clear_path`` for the approaches, once the contacts before them are
     solved (the first keyframe is then the pose the approach truly starts from).
@@ -631,12 +543,6 @@ def relift(ir: MotionIR, ctx: PassContext) -> None:
     """
     state = PoseState(ir)
     skel = ir.skeleton
-    models = [m for m in ir.geometry if len(m.faces)]
-    indices: dict[str, Any] = {}
-    if models:  # numpy and coal only for scenes with geometry
-        from mtlc.geometry.clearance import scene_indices
-
-        indices = scene_indices(models)
     for segs in groups(ir, "TA"):
         if any(s.keyframes is None for s in segs):
             continue
@@ -649,8 +555,6 @@ def relift(ir: MotionIR, ctx: PassContext) -> None:
                 for s in segs
             ]
             mid = sweep_mid(ctx, state, segs, targets, q0, q1, root, None)
-            if mid is None and indices:
-                mid = equipment_mid(ctx, state, segs, targets, q0, q1, root, indices)
             if mid is not None:
                 _rekey(skel, segs, [q0, mid, q1], [0.0, 0.5, 1.0])
         if any(abs(s.start - t0) + abs(s.end - t1) > 1e-9 for s in segs):

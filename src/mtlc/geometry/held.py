@@ -84,10 +84,6 @@ class HeldPart:
         """Its name among the meshes measured: ``model/node`` (``model/`` when whole)."""
         return f"{self.model}/{self.node or ''}"
 
-    def moves(self) -> bool:
-        """Whether it ever leaves where the model puts it."""
-        return bool(len(self.placement)) and not np.allclose(self.placement, np.eye(4), atol=1e-9)
-
 
 def _part_faces(model: SceneModel, index: int) -> IntArray:
     """The face indices of the model's ``index``-th glTF part."""

@@ -27,6 +27,7 @@ from mtlc.body import forward
 from mtlc.body.capsules import PartCapsule, capsule_segments, collision_capsules, tool_capsule
 from mtlc.body.kinematics import Pose
 from mtlc.geometry.distance import Mesh, MeshIndex
+from mtlc.geometry.held import HeldPart
 from mtlc.ir.model import MotionIR, Segment
 from mtlc.loads import held_spans
 
@@ -114,6 +115,44 @@ def scene_indices(models: Sequence[Any], library: str = "coal") -> dict[str, Mes
     return out
 
 
+def scene_pieces(
+    models: Sequence[Any], held: Sequence[HeldPart], library: str = "coal"
+) -> tuple[dict[str, MeshIndex], dict[str, Any], list[tuple[HeldPart, MeshIndex]]]:
+    """The scene's hierarchies with the held parts taken out of their models: each model's
+    index by name (the rest of it where a part of it is held), each such rest's face indices
+    into its model's faces by name (to name the node a finding is in), and each held part with
+    its own index (in the model's frame; ``frame_clearance`` moves the queries, not the mesh).
+    Built once per model object and part, as ``scene_indices``."""
+    whole = scene_indices(models, library)
+    faces_of: dict[str, Any] = {}
+    pieces: list[tuple[HeldPart, MeshIndex]] = []
+    by_name = {m.name: m for m in models}
+    for name in sorted({p.model for p in held}):
+        model = by_name[name]
+        parts = [p for p in held if p.model == name]
+        built = _INDICES.setdefault(model, {})
+        taken = np.zeros(len(model.faces), dtype=bool)
+        for part in parts:
+            taken[part.faces] = True
+            key = f"{library}/{part.column}"
+            if key not in built:
+                built[key] = MeshIndex(model.vertices, model.faces[part.faces], library=library)
+            pieces.append((part, built[key]))
+        rest = np.flatnonzero(~taken)
+        key = f"{library}/{name}/rest:{','.join(sorted(p.column for p in parts))}"
+        if key not in built:
+            built[key] = MeshIndex(model.vertices, model.faces[rest], library=library)
+        whole[name] = built[key]
+        faces_of[name] = rest
+    return whole, faces_of, pieces
+
+
+def _into_part(a: FloatArray, placement: FloatArray) -> FloatArray:
+    """(N, C, 3) points in a held part's own (rest) frame: its placement per frame undone."""
+    rot, move = placement[:, :3, :3], placement[:, None, :3, 3]
+    return np.einsum("nji,ncj->nci", rot, a - move)
+
+
 def frame_clearance(
     ir: MotionIR,
     meshes: Mapping[str, Mesh] | Mapping[str, MeshIndex],
@@ -121,39 +160,46 @@ def frame_clearance(
     horizon: float | None = 0.25,
     pose: Pose | None = None,
     through: bool = False,
+    held: Sequence[tuple[HeldPart, MeshIndex]] = (),
 ) -> FrameClearance:
     """Every capsule's clearance to every mesh on the IR's output frames. ``horizon`` (m): a
     capsule farther than it from a mesh's bounding box gets a lower bound, not a query
     (``MeshIndex.segment_distance``); ``None`` asks every pair. ``pose``: the frames' forward
     kinematics when the caller has it already. ``through``: where a capsule's axis passes
     through a mesh's surface, its clearance is minus its radius and how far its nearer end
-    sticks out beyond (``MeshIndex.through_depth``), not the radius alone."""
+    sticks out beyond (``MeshIndex.through_depth``), not the radius alone. ``held``: parts the
+    hands move (``scene_pieces``), measured where they are on each frame, each a column named
+    ``model/node`` after the meshes'."""
     skel, frames = ir.skeleton, ir.frames
     assert skel is not None and frames is not None, "compile the IR first (frames, skeleton)"
     if pose is None:
         pose = forward(skel, frames.q, frames.root_position, frames.root_rotation, with_axes=False)
     body = collision_capsules(skel)
-    held = held_capsules(ir)
-    caps = body + tuple(c for c, _, _ in held)
+    tools = held_capsules(ir)
+    caps = body + tuple(c for c, _, _ in tools)
     a, b, radii = capsule_segments(skel, pose, caps)
     indices = {
         name: m if isinstance(m, MeshIndex) else MeshIndex(*m, library=library)
         for name, m in sorted(meshes.items())
     }
     n, c = a.shape[0], a.shape[1]
-    out = np.empty((n, c, len(indices)))
-    for k, index in enumerate(indices.values()):
-        d = index.segment_distance(a.reshape(-1, 3), b.reshape(-1, 3), horizon)
+    columns = [(index, a, b) for index in indices.values()]
+    columns += [
+        (index, _into_part(a, p.placement), _into_part(b, p.placement)) for p, index in held
+    ]
+    out = np.empty((n, c, len(columns)))
+    for k, (index, ak, bk) in enumerate(columns):
+        ak, bk = ak.reshape(-1, 3), bk.reshape(-1, 3)
+        d = index.segment_distance(ak, bk, horizon)
         if through:
             touching = np.flatnonzero(d <= 0.0)
-            d[touching] = -index.through_depth(
-                a.reshape(-1, 3)[touching], b.reshape(-1, 3)[touching]
-            )
+            d[touching] = -index.through_depth(ak[touching], bk[touching])
         out[:, :, k] = d.reshape(n, c) - radii[None, :]
     t = frames.time
-    for j, (_, start, end) in enumerate(held, start=len(body)):
+    for j, (_, start, end) in enumerate(tools, start=len(body)):
         out[(t < start - EPS) | (t > end + EPS), j, :] = np.nan
-    return FrameClearance(t, tuple(cap.name for cap in caps), tuple(indices), out, horizon)
+    names = tuple(indices) + tuple(p.column for p, _ in held)
+    return FrameClearance(t, tuple(cap.name for cap in caps), names, out, horizon)
 
 
 def goal_groups(ir: MotionIR) -> list[tuple[Segment, list[Segment]]]:

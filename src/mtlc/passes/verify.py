@@ -37,7 +37,8 @@ import numpy as np
 from mtlc.body import forward, site_positions
 from mtlc.body.capsules import capsule_segments, collision_capsules, self_intersection
 from mtlc.body.kinematics import Pose
-from mtlc.geometry.clearance import FrameClearance, frame_clearance, held_capsules, scene_indices
+from mtlc.geometry.clearance import FrameClearance, frame_clearance, held_capsules, scene_pieces
+from mtlc.geometry.held import HeldPart, held_parts
 from mtlc.ir.model import FloatArray, MotionIR, Segment, SourceRef, Verification
 from mtlc.metrics import balance_margin, walking
 from mtlc.passes.approach import effector_name
@@ -634,29 +635,35 @@ class _Verifier:
         models = {m.name: m for m in self.ir.geometry if len(m.faces)}
         if not models:
             return
-        indices = scene_indices(list(models.values()))
-        fc = frame_clearance(self.ir, indices, pose=self.pose, through=True)
+        held = held_parts(self.ir, list(models.values()), self.pose)
+        indices, faces_of, pieces = scene_pieces(list(models.values()), held)
+        fc = frame_clearance(self.ir, indices, pose=self.pose, through=True, held=pieces)
         self.v.equipment_clearance = fc
+        columns = {**indices, **{part.column: index for part, index in pieces}}
         depth = np.where(np.isnan(fc.clearance), -np.inf, -fc.clearance)
         caps = collision_capsules(self.skel) + tuple(cap for cap, _, _ in held_capsules(self.ir))
         radii = np.array([cap.radius for cap in caps])
         sides = self.capsule_sides(fc)
-        goal_at = self.at_site(fc, indices, sides, radii, depth)
+        goal_at = self.at_site(fc, columns, sides, radii, depth)
+        self.in_hand(fc, held, depth)
         _, c, m = depth.shape
         k = int(np.argmax(depth.reshape(-1)))
         i, rest = divmod(k, c * m)
         self.v.equipment = {
             "depth": max(float(depth.reshape(-1)[k]), 0.0),
             "part": fc.capsules[rest // m] if depth.reshape(-1)[k] > 0 else "",
-            "model": fc.meshes[rest % m] if depth.reshape(-1)[k] > 0 else "",
+            "model": fc.meshes[rest % m].split("/")[0] if depth.reshape(-1)[k] > 0 else "",
             "time": float(self.t[i]),
-        }
-        worst: dict[tuple[SourceRef, str, str], tuple[float, int, Segment, Segment | None]] = {}
+        } | ({"held": [self.held_record(part) for part in held]} if held else {})
+        # per (line, part, model) its deepest frame, the column (a held part is a column of
+        # its own, ``model/node``) and the goal at the site then
+        worst: dict[tuple[SourceRef, str, str], tuple[float, int, Segment, Segment | None, str]]
+        worst = {}
         for j, part in enumerate(fc.capsules):
             side = sides[j]
             tracks = [ARM_TRACK[side], HAND_TRACK[side]] if side else ["root"]
             episode = self.episodes(tracks)
-            for col, model in enumerate(fc.meshes):
+            for col, column in enumerate(fc.meshes):
                 for first, last in failure_runs(depth[:, j, col] > EQUIPMENT_TOLERANCE):
                     # one episode per segment of the part's tracks: a hand through the panel
                     # at its pick and then on the walk away is two findings, at two lines
@@ -670,15 +677,66 @@ class _Verifier:
                         if seg is None or not depth[i, j, col] > EQUIPMENT_TOLERANCE:
                             continue
                         goal = goal_at[i].get(side) if side and seg.track in tracks else None
-                        key = (seg.provenance.origin, part, model)
+                        key = (seg.provenance.origin, part, column.split("/")[0])
                         if key not in worst or depth[i, j, col] > worst[key][0]:
-                            worst[key] = (float(depth[i, j, col]), i, seg, goal)
-        for (_, part, model), (d, i, seg, goal) in worst.items():
-            j, col = fc.capsules.index(part), fc.meshes.index(model)
+                            worst[key] = (float(depth[i, j, col]), i, seg, goal, column)
+        by_column = {part.column: part for part in held}
+        for (_, part, model), (d, i, seg, goal, column) in worst.items():
+            j = fc.capsules.index(part)
             a, b, radius = capsule_segments(self.skel, take_pose(self.pose, slice(i, i + 1)),
                                             (caps[j],))  # fmt: skip
-            node = models[model].part_of(indices[model].touched_face(a[0, 0], b[0, 0], radius[0]))
+            node = None
+            if column in by_column:  # a held part: the query in its own frame, its node named
+                node = by_column[column].node or model
+            else:
+                face = columns[column].touched_face(a[0, 0], b[0, 0], radius[0])
+                if face is not None and column in faces_of:
+                    face = int(faces_of[column][face])
+                node = models[model].part_of(face)
             self.report_collision(part, model, node, d, float(self.t[i]), seg, goal)
+
+    def in_hand(self, fc: FrameClearance, held: list[HeldPart], depth: FloatArray) -> None:
+        """A hand on a part it grasps is not in it (docs/collision.md, "Held parts"): the hand
+        capsule is a closed fist, and a grip wraps the part it holds. Each grasping hand
+        against its part is excused (``depth`` set to -inf) from the frame its goal brings it
+        within ``CONTACT_ZONE`` of the node (the grasp's start at the latest) until that hand's
+        next goal after the release starts; its forearm, the other limbs and the other hand
+        (unless it holds the part too) are measured against the part where it is."""
+        for part in held:
+            col = fc.meshes.index(part.column)
+            for hold in part.holds:
+                j = fc.capsules.index(HAND_NAMES[hold.side])
+                goal = hold.goal
+                site = np.asarray(goal.goal.position, dtype=float).reshape(-1, 3)[0]
+                near = np.linalg.norm(self.path(goal.goal.effector) - site, axis=-1) <= CONTACT_ZONE
+                # from the reach that brought it there (the TA before a TO of the same line)
+                came = min(
+                    (s.start for s in self.ir.on_track(goal.track)
+                     if s.goal.site == goal.goal.site and s.provenance.origin ==
+                     goal.provenance.origin and s.end <= hold.start + EPS),
+                    default=goal.start,
+                )  # fmt: skip
+                arrive = np.flatnonzero(
+                    near & (self.t >= came - EPS) & (self.t <= hold.start + EPS)
+                )
+                start = self.t[arrive[0]] if arrive.size else hold.start
+                later = [
+                    s.start for s in self.ir.on_track(ARM_TRACK[hold.side])
+                    if s.kind in ("TA", "TO") and s.start >= hold.end - EPS
+                ]  # fmt: skip
+                until = min(later, default=math.inf)
+                window = (self.t >= start - EPS) & (self.t < until - EPS)
+                depth[window, j, col] = -np.inf
+
+    def held_record(self, part: HeldPart) -> dict[str, Any]:
+        """What the IR JSON says of a held part: its model, node and grasped node, and each
+        hand's hold (side, start, end; s)."""
+        return {
+            "model": part.model,
+            "node": part.node or "",
+            "at": part.marker,
+            "holds": [[h.side, round(h.start, 6), round(h.end, 6)] for h in part.holds],
+        }
 
     def episodes(self, tracks: list[str]) -> np.ndarray:
         """(N,) a label per frame that changes where a segment on ``tracks`` starts or ends."""

@@ -26,11 +26,15 @@ from mtlc.body.ik import Goal, prepare, solve_ta
 from mtlc.ir.model import FloatArray, Frames, MotionIR, Segment
 from mtlc.passes.context import PassContext
 from mtlc.passes.hold import _arm_dofs
-from mtlc.passes.profile import smooth_path
+from mtlc.passes.profile import minimum_jerk, smooth_path
 
 ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
 HAND_TRACK = {"r": "r_hand", "l": "l_hand"}
 REACHED = 1e-3  # m: a hand further than this from the part at its grasp does not hold it
+# rad/s: the correction left at a carry's end is let go of at most this fast at its bell's peak
+# (a minimum-jerk fade; the output frames' 12 deg at 30 fps is 360 deg/s, issue 19)
+FADE_SPEED = float(np.radians(240.0))
+MIN_FADE = 0.2  # s: the shortest fade
 FIX_FROM = 5e-5  # m: frames whose hands are already this close to the part's ends stay
 SOLVE_TOL = 1e-4  # m
 RESOLVE_SIGMA = 3.0  # dense frames (50 ms at 60 fps): the Gaussian that smooths a correction
@@ -73,8 +77,27 @@ def _holds_part(reach: Segment | None) -> str:
     return reach.goal.site if reached else ""
 
 
+def _one_hand_leaves(ir: MotionIR, start: float, end: float) -> float:
+    """When one hand first goes somewhere on its own between ``start`` and ``end`` (a reach,
+    move or stroke that is not the two hands' goal): from then the part is no longer held by
+    both (a generated procedure picked a part with both hands, then reached with the right one
+    and turned a screw before `release(both)`: keeping the part rigid pulled the right arm back
+    to it, and its elbow jumped 136 deg in one frame where the grip opened)."""
+    first = end
+    for s in ir.segments:
+        if (
+            s.kind in ("TA", "TO")
+            and s.track in ARM_TRACK.values()
+            and not s.goal.params.get("two_handed")
+            and start - EPS <= s.start < first
+        ):
+            first = s.start
+    return first
+
+
 def carries(ir: MotionIR) -> list[Carry]:
-    """Every span where both hands hold the same two-handed part (as verify's rigid check)."""
+    """Every span where both hands hold the same two-handed part (as verify's rigid check),
+    until either hand goes somewhere on its own."""
     out = []
     for r0, r1, r_reach in _grasps(ir, "r"):
         site = _holds_part(r_reach)
@@ -84,6 +107,7 @@ def carries(ir: MotionIR) -> list[Carry]:
             if _holds_part(l_reach) != site:
                 continue
             start, end = max(r0, l0), min(r1, l1)
+            end = _one_hand_leaves(ir, start, end)
             if end > start + EPS:
                 out.append(Carry(site, start, end))
     return sorted(out, key=lambda c: c.start)
@@ -119,9 +143,18 @@ def part_ends(hands: FloatArray, length: float) -> FloatArray:
     return np.stack([mid + half, mid - half], axis=1)
 
 
-def keep_rigid(skel: object, frames: Frames, carry: Carry, sigma: float = RESOLVE_SIGMA) -> None:
+def keep_rigid(
+    skel: object,
+    frames: Frames,
+    carry: Carry,
+    sigma: float = RESOLVE_SIGMA,
+    held: float | None = 0.0,
+) -> None:
     """Re-solve both arms on the carry's frames so the hands hold the part's two ends
-    (``sigma``: the Gaussian, in frames, that smooths the correction before the second solve)."""
+    (``sigma``: the Gaussian, in frames, that smooths the correction before the second solve);
+    after the carry the correction stays ``held`` s more (the hands opening on the part), then
+    fades out (``_fade_out``; None: the frames after are left as they are, as the pace pass
+    wants its path's end pose, the solver's, kept)."""
     t = frames.time
     rows = np.flatnonzero((t >= carry.start - EPS) & (t < carry.end - EPS))
     if rows.size < 2:
@@ -146,7 +179,39 @@ def keep_rigid(skel: object, frames: Frames, carry: Carry, sigma: float = RESOLV
     hands2 = _hands(skel, frames, rows, smooth)
     fix2 = np.flatnonzero(np.linalg.norm(hands2 - goal, axis=-1).max(axis=1) > FIX_FROM)
     q = _solve_arms(skel, frames, rows, fix2, smooth, hands2, goal) if fix2.size else smooth
+    if held is not None:
+        _fade_out(frames, rows[-1], q[-1] - frames.q[rows[-1]], carry.end + held)
     frames.q[rows] = q
+
+
+def _fade_out(frames: Frames, last: int, offset: FloatArray, start: float) -> None:
+    """The correction at the carry's last frame (``offset``) kept until ``start`` and let go of
+    over the frames after it on a minimum-jerk clock, not dropped at once: the hands open or
+    one leaves, and the arms go on from where the part held them (a squat with a 15 kg part
+    ended with a shoulder 67 deg away from its keyed pose, and it jumped there in one frame).
+    The hands stay on the part while they open (the grip's time): contact is still made at
+    rest."""
+    largest = float(np.abs(offset).max(initial=0.0))
+    if largest <= 1e-9 or last + 1 >= len(frames.time):
+        return
+    fade = max(MIN_FADE, 1.875 * largest / FADE_SPEED)
+    t = frames.time[last + 1 :] - max(start, float(frames.time[last]))
+    n = int(np.searchsorted(t, fade, side="right"))
+    weight = 1.0 - minimum_jerk(np.maximum(t[:n], 0.0) / fade)
+    frames.q[last + 1 : last + 1 + n] += weight[:, None] * offset[None, :]
+
+
+def opening(ir: MotionIR, carry: Carry) -> float:
+    """How long (s) the hands take to open on the part where the carry ends (0: one hand left
+    it, or nothing opens then)."""
+    ends = [
+        s.end - carry.end
+        for s in ir.segments
+        if s.kind == "grip"
+        and s.goal.params.get("state") == "open"
+        and abs(s.start - carry.end) <= EPS
+    ]
+    return max(ends, default=0.0)
 
 
 def _solve_arms(
@@ -181,5 +246,5 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if frames is None or not len(frames.time):
         return ir
     for carry in carries(ir):
-        keep_rigid(ir.skeleton, frames, carry)
+        keep_rigid(ir.skeleton, frames, carry, held=opening(ir, carry))
     return ir

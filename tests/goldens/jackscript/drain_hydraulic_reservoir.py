@@ -183,44 +183,43 @@ def drain_reservoir():
     human.LookAt((-12.0, 20.0, 82.0), start=2.601537, duration=0.832997)
     human.KeyJoints(2.7, {
         'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0),
-        'right_shoulder': (89.818, -28.956, 11.368), 'right_elbow': (34.356, 17.187),
-        'right_wrist': (-0.025, -0.02),
+        'right_shoulder': (89.834, -29.001, 11.381), 'right_elbow': (34.36, 17.187),
+        'right_wrist': (-0.022, -0.017),
     })
     human.KeyJoints(2.8, {
-        'right_shoulder': (90.171, -27.174, 10.853), 'right_elbow': (34.232, 17.177),
-        'right_wrist': (-0.17, -0.134),
+        'right_shoulder': (90.276, -27.476, 10.939), 'right_wrist': (-0.149, -0.113),
     })
     human.KeyJoints(2.9, {
-        'right_shoulder': (90.989, -23.597, 9.819), 'right_wrist': (-0.462, -0.364),
+        'spine_lumbar': (59.959, -0.022, 0.037), 'spine_thoracic': (29.932, -0.024, 0.03),
+        'right_clavicle': (0.012, 0.028), 'right_shoulder': (91.251, -24.392, 10.045),
+        'right_elbow': (34.067, 17.162), 'right_wrist': (-0.408, -0.307),
     })
     human.KeyJoints(3.0, {
-        'spine_lumbar': (59.982, -0.005, 0.009), 'spine_thoracic': (29.98, -0.006, 0.007),
-        'right_clavicle': (0.003, 0.008), 'right_shoulder': (92.684, -18.851, 8.447),
-        'right_elbow': (33.666, 17.132), 'right_wrist': (-0.864, -0.666),
+        'spine_lumbar': (59.868, -0.101, 0.177), 'spine_thoracic': (29.745, -0.111, 0.142),
+        'right_clavicle': (0.058, 0.118), 'right_shoulder': (93.051, -20.131, 8.797),
+        'right_elbow': (33.825, 17.14),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (59.487, -0.2, 0.335), 'spine_thoracic': (29.25, -0.214, 0.263),
-        'right_clavicle': (0.114, 0.275), 'right_shoulder': (95.898, -15.624, 7.483),
-        'right_elbow': (33.791, 17.115),
+        'spine_lumbar': (59.728, -0.477, 0.867), 'spine_thoracic': (29.285, -0.532, 0.702),
+        'right_clavicle': (0.289, 0.491), 'right_shoulder': (96.271, -15.325, 7.327),
+        'right_elbow': (33.435, 17.121), 'right_wrist': (-1.246, -0.87),
     })
     human.KeyJoints(3.2, {
-        'spine_lumbar': (59.707, -0.953, 1.705), 'spine_thoracic': (28.299, -1.052, 1.373),
-        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0), 'right_clavicle': (0.52, 0.957),
-        'right_shoulder': (99.393, -12.535, 6.401), 'right_elbow': (33.381, 17.114),
-        'right_wrist': (-1.57, -1.005),
+        'spine_lumbar': (59.806, -1.262, 2.366), 'spine_thoracic': (29.138, -1.432, 1.935),
+        'neck': (-1.837, 0.0, 0.0), 'head': (-1.837, 0.0), 'right_clavicle': (0.821, 1.195),
+        'right_shoulder': (100.093, -10.326, 5.71), 'right_wrist': (-1.765, -1.289),
     })
     # examples/drain_hydraulic_reservoir.mtask:25:5 drain_reservoir > reach: TO on r_arm at drain_valve
     human.KeyJoints(3.3, {
-        'spine_lumbar': (59.969, -1.789, 3.368), 'spine_thoracic': (29.046, -2.034, 2.759),
-        'neck': (-1.227, 0.032, -1.0), 'head': (-1.227, 0.0), 'right_clavicle': (1.16, 1.652),
-        'right_shoulder': (102.416, -7.395, 4.738), 'right_elbow': (31.717, 17.107),
-        'right_wrist': (-2.079, -1.548),
+        'spine_lumbar': (59.951, -1.866, 3.54), 'spine_thoracic': (29.3, -2.131, 2.906),
+        'neck': (-1.227, 0.032, -1.0), 'head': (-1.227, 0.0), 'right_clavicle': (1.251, 1.717),
+        'right_shoulder': (102.566, -6.815, 4.564), 'right_elbow': (31.452, 17.106),
+        'right_wrist': (-2.126, -1.624),
     })
     human.KeyJoints(3.4, {
-        'spine_lumbar': (59.999, -2.05, 3.898), 'spine_thoracic': (29.359, -2.344, 3.202),
-        'neck': (-1.071, 0.236, -7.554), 'head': (-1.07, 0.001), 'right_clavicle': (1.382, 1.874),
-        'right_shoulder': (103.303, -5.754, 4.217), 'right_elbow': (31.156, 17.105),
-        'right_wrist': (-2.235, -1.727),
+        'spine_lumbar': (59.999, -2.051, 3.901), 'spine_thoracic': (29.365, -2.346, 3.205),
+        'neck': (-1.071, 0.236, -7.554), 'head': (-1.07, 0.001), 'right_clavicle': (1.384, 1.876),
+        'right_shoulder': (103.306, -5.742, 4.214), 'right_wrist': (-2.236, -1.728),
     })
     # examples/drain_hydraulic_reservoir.mtask:26:5 drain_reservoir > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=3.434534, duration=0.072)

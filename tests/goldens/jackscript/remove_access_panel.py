@@ -115,46 +115,49 @@ def remove_access_panel():
         'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'right_shoulder': (10.524, 5.761, 11.215), 'right_elbow': (34.374, 17.029),
-        'right_wrist': (-0.018, -0.732),
+        'right_shoulder': (10.5, 5.761, 11.218), 'right_elbow': (34.372, 17.031),
+        'right_wrist': (-0.018, -0.723),
     })
     human.KeyJoints(1.8, {
-        'right_shoulder': (16.561, 5.861, 10.449), 'right_elbow': (34.361, 16.53),
-        'right_wrist': (-0.076, -3.024),
+        'right_shoulder': (16.463, 5.86, 10.461), 'right_elbow': (34.354, 16.538),
+        'right_wrist': (-0.075, -2.987),
     })
     human.KeyJoints(1.9, {
-        'right_shoulder': (27.09, 6.035, 9.115), 'right_elbow': (34.336, 15.659),
-        'right_wrist': (-0.177, -7.021),
+        'spine_lumbar': (0.012, 0.001, 0.003), 'right_shoulder': (26.865, 6.036, 9.141),
+        'right_elbow': (34.319, 15.678), 'right_wrist': (-0.176, -6.933),
     })
     human.KeyJoints(2.0, {
-        'right_shoulder': (40.883, 6.262, 7.367), 'right_wrist': (-0.309, -12.257),
+        'spine_lumbar': (0.072, 0.009, 0.017), 'spine_thoracic': (-0.013, -0.016, 0.017),
+        'right_clavicle': (0.024, 0.01), 'right_shoulder': (40.508, 6.292, 7.401),
+        'right_elbow': (34.246, 14.548), 'right_wrist': (-0.312, -12.099),
     })
     human.KeyJoints(2.1, {
-        'right_shoulder': (55.844, 6.509, 5.47), 'right_wrist': (-0.452, -17.937),
+        'spine_lumbar': (0.377, 0.049, 0.09), 'spine_thoracic': (-0.082, -0.091, 0.089),
+        'right_clavicle': (0.133, 0.052), 'right_shoulder': (55.425, 6.701, 5.45),
+        'right_elbow': (34.068, 13.307), 'right_wrist': (-0.488, -17.689),
     })
     human.KeyJoints(2.2, {
-        'spine_lumbar': (0.031, 0.003, 0.009), 'spine_thoracic': (0.004, -0.004, 0.009),
-        'right_clavicle': (0.006, 0.007), 'right_shoulder': (69.677, 6.746, 3.713),
-        'right_elbow': (34.11, 12.137), 'right_wrist': (-0.585, -23.185),
+        'spine_lumbar': (1.393, 0.184, 0.328), 'spine_thoracic': (-0.34, -0.351, 0.325),
+        'right_clavicle': (0.509, 0.186), 'right_shoulder': (69.637, 7.499, 3.443),
+        'right_elbow': (33.643, 12.107), 'right_wrist': (-0.738, -22.828),
     })
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.646, 0.08, 0.163), 'spine_thoracic': (-0.052, -0.122, 0.162),
-        'neck': (1.089, -0.004, -21.144), 'head': (1.095, 0.0), 'right_clavicle': (0.181, 0.108),
-        'right_shoulder': (80.931, 7.202, 2.183), 'right_elbow': (33.76, 11.192),
-        'right_wrist': (-0.745, -27.353),
+        'neck': (1.089, -0.004, -21.144), 'head': (1.095, 0.0),
+        'right_shoulder': (81.45, 8.827, 1.534), 'right_elbow': (32.914, 11.082),
+        'right_wrist': (-1.083, -26.792),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.4, {
-        'spine_lumbar': (3.907, 0.517, 0.919), 'spine_thoracic': (-0.917, -0.968, 0.911),
-        'neck': (0.307, -0.335, -22.622), 'head': (0.243, 0.0), 'right_clavicle': (1.406, 0.527),
-        'right_shoulder': (89.087, 9.172, 0.48), 'right_elbow': (32.644, 10.439),
-        'right_wrist': (-1.198, -29.61),
+        'spine_lumbar': (5.331, 0.71, 1.242), 'spine_thoracic': (-1.43, -1.394, 1.231),
+        'neck': (0.307, -0.335, -22.622), 'head': (0.243, 0.0), 'right_clavicle': (2.014, 0.687),
+        'right_shoulder': (89.036, 10.064, 0.169), 'right_elbow': (32.238, 10.408),
+        'right_wrist': (-1.383, -29.157),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (6.009, 0.8, 1.4), 'spine_thoracic': (-1.616, -1.573, 1.387),
+        'spine_lumbar': (6.075, 0.809, 1.415), 'spine_thoracic': (-1.64, -1.593, 1.402),
         'neck': (-0.252, -0.593, -24.712), 'head': (-0.376, -0.001),
-        'right_clavicle': (2.273, 0.774), 'right_shoulder': (91.683, 10.494, -0.307),
-        'right_elbow': (32.0, 10.173), 'right_wrist': (-1.488, -29.985),
+        'right_clavicle': (2.301, 0.781), 'right_shoulder': (91.678, 10.535, -0.321),
+        'right_elbow': (31.982, 10.171), 'right_wrist': (-1.496, -29.962),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.550462, duration=0.072)
@@ -783,43 +786,41 @@ def remove_access_panel():
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
     human.KeyJoints(12.8, {
-        'spine_lumbar': (6.052, 0.634, 1.526), 'spine_thoracic': (-1.72, -1.634, 1.508),
+        'spine_lumbar': (6.055, 0.644, 1.52), 'spine_thoracic': (-1.716, -1.633, 1.502),
         'neck': (-1.243, -0.104, 19.841), 'head': (-1.172, -0.003),
-        'right_clavicle': (2.312, 0.884), 'right_shoulder': (91.744, 10.455, -0.293),
-        'right_elbow': (32.007, 10.181), 'right_wrist': (-1.487, -29.965),
+        'right_clavicle': (2.311, 0.879), 'right_shoulder': (91.742, 10.461, -0.296),
+        'right_elbow': (32.005, 10.18), 'right_wrist': (-1.488, -29.967),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > turn_fastener: gaze on head at bolt_upper_right
     human.LookAt((20.0, 135.0, 112.0), start=12.802244, duration=10.448757)
     human.KeyJoints(12.9, {
-        'spine_lumbar': (5.492, -1.084, 2.512), 'spine_thoracic': (-2.39, -1.944, 2.446),
-        'neck': (-0.723, -0.181, 13.528), 'head': (-0.66, -0.003), 'right_clavicle': (2.283, 1.832),
-        'right_shoulder': (91.182, 9.479, 0.197), 'right_elbow': (32.364, 10.382),
-        'right_wrist': (-1.346, -29.634),
+        'spine_lumbar': (5.53, -0.979, 2.452), 'spine_thoracic': (-2.349, -1.926, 2.388),
+        'neck': (-0.723, -0.181, 13.528), 'head': (-0.66, -0.003), 'right_clavicle': (2.279, 1.774),
+        'right_shoulder': (91.17, 9.541, 0.166), 'right_elbow': (32.341, 10.369),
+        'right_wrist': (-1.355, -29.656),
     })
     human.KeyJoints(13.0, {
-        'spine_lumbar': (4.333, -4.642, 4.555), 'spine_thoracic': (-3.778, -2.587, 4.388),
-        'neck': (0.342, -0.315, 1.585), 'right_clavicle': (2.211, 3.794),
-        'right_shoulder': (89.917, 7.456, 1.211), 'right_elbow': (33.104, 10.798),
-        'right_wrist': (-1.054, -28.949),
+        'spine_lumbar': (4.489, -4.358, 4.388), 'spine_thoracic': (-3.67, -2.536, 4.229),
+        'neck': (0.342, -0.315, 1.585), 'right_clavicle': (2.207, 3.627),
+        'right_shoulder': (89.926, 7.667, 1.104), 'right_wrist': (-1.087, -29.031),
     })
     human.KeyJoints(13.1, {
-        'spine_lumbar': (2.99, -8.798, 6.941), 'spine_thoracic': (-5.395, -3.336, 6.656),
-        'neck': (1.335, -0.384, -6.701), 'head': (1.424, -0.012), 'right_clavicle': (2.08, 6.085),
-        'right_shoulder': (88.095, 5.099, 2.394), 'right_elbow': (33.965, 11.283),
-        'right_wrist': (-0.714, -28.151),
+        'spine_lumbar': (3.849, -8.524, 6.742), 'spine_thoracic': (-5.384, -3.305, 6.467),
+        'neck': (1.335, -0.384, -6.701), 'head': (1.424, -0.012), 'right_clavicle': (2.163, 5.804),
+        'right_shoulder': (88.507, 5.898, 1.975), 'right_elbow': (33.626, 11.147),
+        'right_wrist': (-0.87, -28.561),
     })
     human.KeyJoints(13.2, {
-        'spine_lumbar': (3.709, -12.305, 8.832), 'spine_thoracic': (-6.808, -3.987, 8.459),
-        'neck': (1.907, -0.417, -10.606), 'head': (2.019, -0.014), 'right_clavicle': (2.051, 7.715),
-        'right_shoulder': (86.716, 4.529, 2.645), 'right_elbow': (34.001, 11.468),
-        'right_wrist': (-0.717, -28.279),
+        'spine_lumbar': (5.602, -12.329, 8.788), 'spine_thoracic': (-7.416, -4.087, 8.403),
+        'neck': (1.907, -0.417, -10.606), 'head': (2.019, -0.014), 'right_clavicle': (2.459, 7.392),
+        'right_shoulder': (88.727, 6.352, 1.666), 'right_elbow': (33.335, 11.166),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.3, {
-        'spine_lumbar': (7.039, -13.847, 9.574), 'spine_thoracic': (-8.39, -4.427, 9.143),
-        'neck': (0.331, -0.49, -14.055), 'head': (0.458, -0.015), 'right_clavicle': (2.697, 7.898),
-        'right_shoulder': (89.386, 7.199, 1.187), 'right_elbow': (32.955, 11.065),
-        'right_wrist': (-1.344, -29.924),
+        'spine_lumbar': (7.087, -13.846, 9.572), 'spine_thoracic': (-8.409, -4.43, 9.141),
+        'neck': (0.331, -0.49, -14.055), 'head': (0.458, -0.015), 'right_clavicle': (2.709, 7.889),
+        'right_shoulder': (89.446, 7.248, 1.161), 'right_elbow': (32.938, 11.056),
+        'right_wrist': (-1.354, -29.95),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=13.334957, duration=0.072)
@@ -2109,25 +2110,25 @@ def remove_access_panel():
     human.LookAt((20.0, 105.0, 112.0), start=34.455921, duration=12.263281)
     human.KeyJoints(34.5, {
         'neck': (24.173, -1.012, -5.014), 'head': (7.572, -0.103),
-        'right_shoulder': (20.012, 32.188, -15.305), 'right_elbow': (36.386, 3.606),
-        'right_wrist': (-6.079, -5.491),
+        'right_shoulder': (19.964, 32.271, -15.376), 'right_elbow': (36.394, 3.567),
+        'right_wrist': (-6.093, -5.458),
     })
     human.KeyJoints(34.6, {
-        'right_shoulder': (25.992, 25.029, -9.209), 'right_elbow': (35.675, 6.913),
-        'right_wrist': (-4.828, -8.32),
+        'right_shoulder': (25.708, 25.486, -9.598), 'right_elbow': (35.72, 6.702),
+        'right_wrist': (-4.908, -8.142),
     })
     human.KeyJoints(34.7, {
-        'right_shoulder': (35.681, 13.945, 0.228), 'right_elbow': (34.573, 12.032),
-        'right_wrist': (-2.892, -12.712),
+        'right_shoulder': (35.039, 14.977, -0.645), 'right_elbow': (34.672, 11.562),
+        'right_wrist': (-3.074, -12.33),
     })
     human.KeyJoints(34.8, {
-        'right_shoulder': (45.946, 3.726, 8.945), 'right_elbow': (33.565, 16.768),
-        'right_wrist': (-1.114, -16.835),
+        'right_shoulder': (45.67, 5.625, 7.423), 'right_elbow': (33.56, 16.019),
+        'right_wrist': (-1.488, -16.631),
     })
     # examples/remove_access_panel.mtask:30:9 remove_access_panel > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.9, {
-        'right_shoulder': (55.204, 1.277, 11.442), 'right_elbow': (32.538, 18.445),
-        'right_wrist': (-0.867, -20.144),
+        'right_shoulder': (54.958, 2.35, 10.584), 'right_elbow': (32.343, 18.046),
+        'right_wrist': (-1.074, -20.253),
     })
     human.KeyJoints(35.0, {
         'right_shoulder': (57.197, 2.088, 10.93), 'right_elbow': (31.998, 18.34),
@@ -2639,57 +2640,62 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: gaze on head at panel_handle
     human.LookAt((0.0, 120.0, 110.0), start=47.012974, duration=0.836663)
     human.KeyJoints(47.1, {
-        'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.497, 2.761, 10.533),
-        'right_elbow': (33.533, 18.51), 'right_wrist': (-1.473, -21.079),
-        'left_shoulder': (10.378, 4.889, 11.549), 'left_elbow': (34.02, 17.212),
-        'left_wrist': (0.037, -0.15),
+        'neck': (22.712, -4.566, -33.145), 'right_shoulder': (56.538, 2.746, 10.535),
+        'right_elbow': (33.443, 18.5), 'right_wrist': (-1.452, -21.083),
+        'left_shoulder': (10.301, 4.909, 11.547), 'left_elbow': (34.041, 17.211),
+        'left_wrist': (0.036, -0.141),
     })
     human.KeyJoints(47.2, {
-        'right_shoulder': (53.622, 5.532, 8.896), 'right_elbow': (39.832, 19.207),
-        'right_wrist': (-3.085, -20.785), 'left_shoulder': (17.703, 1.428, 11.919),
-        'left_elbow': (32.555, 17.309), 'left_wrist': (0.187, -0.766),
+        'right_shoulder': (53.831, 5.452, 8.907), 'right_elbow': (39.378, 19.157),
+        'right_wrist': (-2.978, -20.806), 'left_shoulder': (17.317, 1.53, 11.91),
+        'left_elbow': (32.662, 17.302), 'left_wrist': (0.184, -0.721),
     })
     human.KeyJoints(47.3, {
-        'right_shoulder': (48.477, 10.579, 5.887), 'right_elbow': (51.105, 20.453),
-        'right_wrist': (-5.975, -20.259), 'left_shoulder': (30.916, -4.877, 12.595),
-        'left_elbow': (29.934, 17.483), 'left_wrist': (0.462, -1.868),
+        'spine_lumbar': (7.16, -13.866, 9.58), 'spine_thoracic': (-8.454, -4.443, 9.147),
+        'right_clavicle': (2.731, 7.904), 'right_shoulder': (48.985, 10.378, 5.925),
+        'right_elbow': (50.016, 20.333), 'right_wrist': (-5.719, -20.311),
+        'left_clavicle': (-0.008, 0.016), 'left_shoulder': (29.985, -4.605, 12.569),
+        'left_elbow': (30.19, 17.466), 'left_wrist': (0.451, -1.761),
     })
     human.KeyJoints(47.4, {
-        'right_shoulder': (42.046, 17.173, 1.871), 'right_elbow': (65.193, 22.011),
-        'left_shoulder': (47.76, -13.113, 13.483),
+        'spine_lumbar': (7.351, -13.795, 9.533), 'spine_thoracic': (-8.572, -4.476, 9.095),
+        'right_clavicle': (2.814, 7.932), 'right_shoulder': (43.041, 16.795, 1.964),
+        'right_elbow': (63.186, 21.792), 'right_wrist': (-9.138, -19.698),
+        'left_clavicle': (-0.054, 0.096), 'left_shoulder': (46.099, -12.507, 13.414),
+        'left_elbow': (27.144, 17.67),
     })
     human.KeyJoints(47.5, {
-        'spine_lumbar': (7.14, -13.863, 9.577), 'spine_thoracic': (-8.443, -4.438, 9.144),
-        'right_clavicle': (2.723, 7.898), 'right_shoulder': (35.801, 24.236, -2.616),
-        'right_elbow': (78.883, 23.525), 'right_wrist': (-13.195, -18.965),
-        'left_clavicle': (-0.004, 0.013), 'left_shoulder': (64.892, -21.93, 14.444),
-        'left_elbow': (23.475, 17.91), 'left_wrist': (1.219, -4.584),
+        'spine_lumbar': (8.273, -13.515, 9.325), 'spine_thoracic': (-9.146, -4.645, 8.868),
+        'right_clavicle': (3.215, 8.087), 'right_shoulder': (37.675, 23.639, -2.388),
+        'right_elbow': (75.713, 23.185), 'right_wrist': (-12.444, -19.114),
+        'left_clavicle': (-0.281, 0.474), 'left_shoulder': (62.578, -20.475, 14.231),
+        'left_elbow': (24.313, 17.871), 'left_wrist': (1.089, -4.246),
     })
     human.KeyJoints(47.6, {
-        'spine_lumbar': (7.856, -13.456, 9.337), 'spine_thoracic': (-8.868, -4.521, 8.883),
+        'spine_lumbar': (11.067, -12.799, 8.735), 'spine_thoracic': (-10.907, -5.193, 8.219),
         'neck': (22.712, -4.566, -33.145), 'head': (7.253, -0.234),
-        'right_clavicle': (3.037, 7.956), 'right_shoulder': (31.776, 30.56, -6.969),
-        'right_elbow': (88.108, 24.558), 'right_wrist': (-15.757, -18.565),
-        'left_clavicle': (-0.166, 0.346), 'left_shoulder': (78.52, -29.472, 15.257),
-        'left_elbow': (21.393, 18.058), 'left_wrist': (1.535, -5.471),
+        'right_clavicle': (4.427, 8.596), 'right_shoulder': (34.695, 29.71, -6.322),
+        'right_elbow': (84.737, 24.203), 'right_wrist': (-14.884, -18.666),
+        'left_clavicle': (-0.981, 1.604), 'left_shoulder': (76.624, -26.231, 14.695),
+        'left_elbow': (22.466, 18.031), 'left_wrist': (1.166, -5.055),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > reach: TO on r_arm at panel_handle
     human.KeyJoints(47.7, {
-        'spine_lumbar': (13.473, -12.038, 8.285), 'spine_thoracic': (-12.363, -5.628, 7.722),
+        'spine_lumbar': (15.079, -11.875, 7.906), 'spine_thoracic': (-13.456, -6.008, 7.31),
         'neck': (21.905, -4.498, -30.481), 'head': (6.816, -0.392),
-        'right_clavicle': (5.483, 8.997), 'right_shoulder': (32.99, 34.377, -9.496),
-        'right_elbow': (90.308, 24.847), 'right_wrist': (-16.497, -18.435),
-        'left_clavicle': (-1.55, 2.518), 'left_shoulder': (86.615, -30.594, 15.057),
-        'left_elbow': (21.377, 18.137), 'left_wrist': (1.227, -5.55),
+        'right_clavicle': (6.163, 9.359), 'right_shoulder': (34.342, 33.723, -8.895),
+        'right_elbow': (89.232, 24.725), 'right_wrist': (-16.126, -18.396),
+        'left_clavicle': (-1.998, 3.222), 'left_shoulder': (85.821, -28.561, 14.7),
+        'left_elbow': (21.783, 18.131), 'left_wrist': (1.0, -5.384),
     })
     human.KeyJoints(47.8, {
-        'spine_lumbar': (16.846, -11.471, 7.547), 'spine_thoracic': (-14.578, -6.367, 6.915),
+        'spine_lumbar': (16.919, -11.464, 7.528), 'spine_thoracic': (-14.628, -6.385, 6.895),
         'neck': (21.788, -4.879, -32.272), 'head': (6.518, -0.369),
-        'right_clavicle': (6.928, 9.696), 'right_shoulder': (34.432, 35.198, -9.838),
-        'right_elbow': (90.673, 24.895), 'right_wrist': (-16.531, -18.302),
-        'left_clavicle': (-2.445, 3.932), 'left_shoulder': (89.181, -29.222, 14.663),
-        'left_elbow': (21.607, 18.167), 'left_wrist': (0.91, -5.477),
+        'right_clavicle': (6.959, 9.713), 'right_shoulder': (34.493, 35.167, -9.809),
+        'right_elbow': (90.627, 24.89), 'right_wrist': (-16.515, -18.3),
+        'left_clavicle': (-2.466, 3.964), 'left_shoulder': (89.145, -29.127, 14.646),
+        'left_elbow': (21.625, 18.167), 'left_wrist': (0.9, -5.469),
     })
     # examples/remove_access_panel.mtask:32:5 remove_access_panel > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=47.849638, duration=0.072)
@@ -2697,7 +2703,6 @@ def remove_access_panel():
     human.Grasp('right_hand', 'close', start=47.849638, duration=0.072)
     human.KeyRoot(47.9, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
     human.KeyJoints(47.9, {
-        'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (21.299, -4.984, -31.471), 'head': (6.166, -0.446), 'right_elbow': (90.842, 24.897),
         'left_shoulder': (89.57, -29.205, 14.639), 'left_elbow': (21.157, 18.169),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
@@ -2708,16 +2713,17 @@ def remove_access_panel():
     # examples/remove_access_panel.mtask:33:5 remove_access_panel > walk_to > travel: gaze on head
     human.KeyRoot(48.0, (-0.234, 72.654, 60.048), (0.523, 0.0, 0.0))
     human.KeyJoints(48.0, {
-        'neck': (17.689, -4.165, -26.137), 'head': (5.153, -0.373),
+        'spine_lumbar': (17.007, -11.444, 7.51), 'neck': (17.689, -4.165, -26.137),
+        'head': (5.153, -0.373), 'right_shoulder': (34.395, 35.22, -9.877),
         'right_hip': (6.489, -0.14, -0.543), 'right_knee': (12.434,), 'right_ankle': (5.949, -0.2),
         'left_hip': (7.338, 0.133, 0.546), 'left_knee': (13.892,), 'left_ankle': (6.214, 0.201),
     })
     human.KeyRoot(48.1, (-0.989, 72.491, 60.203), (2.394, 0.0, 0.0))
     human.KeyJoints(48.1, {
-        'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167), 'right_clavicle': (6.997, 9.73),
-        'left_clavicle': (-2.488, 4.0), 'right_hip': (7.244, -0.536, -2.481),
-        'right_knee': (14.727,), 'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517),
-        'left_knee': (18.046,), 'left_ankle': (7.602, 0.86),
+        'neck': (7.863, -1.863, -11.618), 'head': (2.304, -0.167),
+        'right_hip': (7.244, -0.536, -2.481), 'right_knee': (14.727,),
+        'right_ankle': (7.514, -0.844), 'left_hip': (9.49, 0.451, 2.517), 'left_knee': (18.046,),
+        'left_ankle': (7.602, 0.86),
     })
     human.KeyRoot(48.2, (-1.864, 72.487, 60.382), (5.058, 0.0, 0.0))
     human.KeyJoints(48.2, {
@@ -2752,8 +2758,9 @@ def remove_access_panel():
     })
     human.KeyRoot(48.7, (0.121, 72.494, 58.354), (21.676, 0.0, 0.0))
     human.KeyJoints(48.7, {
-        'right_hip': (18.001, 7.349, -19.807), 'right_knee': (39.588,),
-        'right_ankle': (10.474, 0.616), 'left_hip': (7.642, 0.733, -13.767), 'left_knee': (14.547,),
+        'spine_thoracic': (-14.684, -6.403, 6.875), 'right_hip': (18.001, 7.349, -19.807),
+        'right_knee': (39.588,), 'right_ankle': (10.474, 0.616),
+        'left_hip': (7.642, 0.733, -13.767), 'left_knee': (14.547,),
     })
     human.KeyRoot(48.8, (1.184, 72.492, 58.605), (27.492, 0.0, 0.0))
     human.KeyJoints(48.8, {
@@ -2780,7 +2787,8 @@ def remove_access_panel():
     })
     human.KeyRoot(49.2, (3.333, 72.487, 63.461), (50.437, 0.0, 0.0))
     human.KeyJoints(49.2, {
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
+        'neck': (0.0, 0.0, 0.0), 'right_wrist': (-16.568, -18.281),
+        'right_hip': (6.019, -3.052, 20.194), 'right_knee': (14.816,),
         'right_ankle': (8.118, -0.774), 'left_hip': (14.717, -4.667, 14.198),
         'left_knee': (32.968,), 'left_ankle': (9.765, -0.809),
     })

@@ -111,52 +111,55 @@ def remove_access_panel_cad():
     human.LookAt((-20.0, 135.0, 111.6), start=1.564798, duration=10.899115)
     human.KeyJoints(1.6, {
         'neck': (1.095, -0.004, -21.266), 'head': (1.101, 0.0),
-        'right_shoulder': (8.654, 5.731, 11.451), 'right_elbow': (34.378, 17.184),
+        'right_shoulder': (8.653, 5.731, 11.452), 'right_elbow': (34.378, 17.184),
         'right_wrist': (-0.001, -0.023), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'right_shoulder': (10.516, 5.764, 11.213), 'right_elbow': (34.41, 17.026),
-        'right_wrist': (-0.021, -0.738),
+        'right_shoulder': (10.491, 5.764, 11.216), 'right_elbow': (34.409, 17.028),
+        'right_wrist': (-0.021, -0.728),
     })
     human.KeyJoints(1.8, {
-        'right_shoulder': (16.525, 5.873, 10.444), 'right_elbow': (34.51, 16.516),
-        'right_wrist': (-0.088, -3.045),
+        'right_shoulder': (16.424, 5.872, 10.456), 'right_elbow': (34.507, 16.524),
+        'right_wrist': (-0.087, -3.006),
     })
     human.KeyJoints(1.9, {
-        'right_shoulder': (26.997, 6.062, 9.103), 'right_elbow': (34.684, 15.627),
-        'right_wrist': (-0.204, -7.067),
+        'spine_lumbar': (0.012, 0.001, 0.003), 'right_shoulder': (26.766, 6.063, 9.13),
+        'right_elbow': (34.676, 15.646), 'right_wrist': (-0.202, -6.976),
     })
     human.KeyJoints(2.0, {
-        'right_shoulder': (40.701, 6.309, 7.348), 'right_wrist': (-0.356, -12.33),
+        'spine_lumbar': (0.072, 0.009, 0.018), 'spine_thoracic': (-0.013, -0.017, 0.017),
+        'right_clavicle': (0.024, 0.011), 'right_shoulder': (40.317, 6.338, 7.383),
+        'right_elbow': (34.882, 14.495), 'right_wrist': (-0.359, -12.167),
     })
     human.KeyJoints(2.1, {
-        'right_shoulder': (55.539, 6.577, 5.448), 'right_wrist': (-0.52, -18.028),
+        'spine_lumbar': (0.379, 0.05, 0.091), 'spine_thoracic': (-0.084, -0.093, 0.09),
+        'right_clavicle': (0.135, 0.053), 'right_shoulder': (55.109, 6.768, 5.426),
+        'right_elbow': (35.024, 13.232), 'right_wrist': (-0.555, -17.773),
     })
     human.KeyJoints(2.2, {
-        'spine_lumbar': (0.032, 0.003, 0.009), 'spine_thoracic': (0.004, -0.004, 0.009),
-        'right_clavicle': (0.006, 0.007), 'right_shoulder': (69.214, 6.833, 3.693),
-        'right_elbow': (35.377, 12.043), 'right_wrist': (-0.673, -23.278),
+        'spine_lumbar': (1.4, 0.185, 0.331), 'spine_thoracic': (-0.345, -0.358, 0.328),
+        'right_clavicle': (0.518, 0.188), 'right_shoulder': (69.172, 7.585, 3.408),
+        'right_elbow': (34.914, 12.016), 'right_wrist': (-0.824, -22.912),
     })
     human.KeyJoints(2.3, {
-        'spine_lumbar': (0.663, 0.082, 0.168), 'spine_thoracic': (-0.054, -0.127, 0.167),
-        'neck': (1.097, -0.004, -21.296), 'head': (1.103, 0.0), 'right_clavicle': (0.189, 0.112),
-        'right_shoulder': (80.292, 7.309, 2.163), 'right_elbow': (35.341, 11.089),
-        'right_wrist': (-0.848, -27.422),
+        'neck': (1.097, -0.004, -21.296), 'head': (1.103, 0.0),
+        'right_shoulder': (80.819, 8.917, 1.485), 'right_elbow': (34.438, 10.982),
+        'right_wrist': (-1.179, -26.858),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_left
     human.KeyJoints(2.4, {
-        'spine_lumbar': (3.935, 0.522, 0.93), 'spine_thoracic': (-0.937, -0.99, 0.922),
-        'neck': (0.302, -0.344, -22.809), 'head': (0.236, 0.0), 'right_clavicle': (1.435, 0.533),
-        'right_shoulder': (88.275, 9.287, 0.434), 'right_elbow': (34.372, 10.337),
-        'right_wrist': (-1.307, -29.63),
+        'spine_lumbar': (5.297, 0.707, 1.239), 'spine_thoracic': (-1.433, -1.403, 1.227),
+        'neck': (0.302, -0.344, -22.809), 'head': (0.236, 0.0), 'right_clavicle': (2.024, 0.686),
+        'right_shoulder': (88.233, 10.136, 0.119), 'right_elbow': (33.922, 10.309),
+        'right_wrist': (-1.481, -29.192),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (5.951, 0.794, 1.392), 'spine_thoracic': (-1.615, -1.578, 1.378),
+        'spine_lumbar': (6.008, 0.802, 1.404), 'spine_thoracic': (-1.636, -1.595, 1.391),
         'neck': (-0.238, -0.596, -24.912), 'head': (-0.364, -0.001),
-        'right_clavicle': (2.277, 0.77), 'right_shoulder': (90.758, 10.552, -0.346),
-        'right_elbow': (33.744, 10.08), 'right_wrist': (-1.584, -29.987),
+        'right_clavicle': (2.301, 0.776), 'right_shoulder': (90.754, 10.587, -0.359),
+        'right_elbow': (33.725, 10.079), 'right_wrist': (-1.591, -29.967),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=2.547869, duration=0.072)
@@ -785,42 +788,41 @@ def remove_access_panel_cad():
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TA on r_arm at bolt_upper_right
     human.KeyJoints(12.8, {
-        'spine_lumbar': (5.974, 0.606, 1.526), 'spine_thoracic': (-1.724, -1.64, 1.507),
-        'neck': (-1.202, -0.086, 20.005), 'head': (-1.126, -0.003), 'right_clavicle': (2.31, 0.889),
-        'right_shoulder': (90.795, 10.496, -0.322), 'right_elbow': (33.754, 10.093),
-        'right_wrist': (-1.579, -29.962),
+        'spine_lumbar': (5.977, 0.616, 1.52), 'spine_thoracic': (-1.72, -1.638, 1.501),
+        'neck': (-1.202, -0.086, 20.005), 'head': (-1.126, -0.003), 'right_clavicle': (2.31, 0.883),
+        'right_shoulder': (90.793, 10.502, -0.325), 'right_elbow': (33.752, 10.092),
+        'right_wrist': (-1.58, -29.964),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > turn_fastener: gaze on head at bolt_upper_right
     human.LookAt((20.0, 135.0, 111.6), start=12.800659, duration=10.447749)
     human.KeyJoints(12.9, {
-        'spine_lumbar': (5.404, -1.178, 2.547), 'spine_thoracic': (-2.437, -1.968, 2.476),
+        'spine_lumbar': (5.443, -1.075, 2.487), 'spine_thoracic': (-2.396, -1.949, 2.419),
         'neck': (-0.659, -0.174, 13.393), 'head': (-0.592, -0.003),
-        'right_clavicle': (2.287, 1.864), 'right_shoulder': (90.215, 9.508, 0.191),
-        'right_elbow': (34.085, 10.304), 'right_wrist': (-1.436, -29.619),
+        'right_clavicle': (2.283, 1.807), 'right_shoulder': (90.198, 9.569, 0.159),
+        'right_elbow': (34.063, 10.291), 'right_wrist': (-1.445, -29.642),
     })
     human.KeyJoints(13.0, {
-        'spine_lumbar': (4.25, -4.797, 4.618), 'spine_thoracic': (-3.883, -2.634, 4.442),
-        'neck': (0.424, -0.322, 1.282), 'right_clavicle': (2.228, 3.842),
-        'right_shoulder': (88.937, 7.505, 1.232), 'right_wrist': (-1.144, -28.925),
+        'spine_lumbar': (4.41, -4.524, 4.456), 'spine_thoracic': (-3.775, -2.584, 4.289),
+        'neck': (0.424, -0.322, 1.282), 'right_clavicle': (2.222, 3.681),
+        'right_shoulder': (88.929, 7.712, 1.123), 'right_wrist': (-1.177, -29.009),
     })
     human.KeyJoints(13.1, {
-        'spine_lumbar': (2.933, -8.976, 7.007), 'spine_thoracic': (-5.546, -3.401, 6.711),
-        'neck': (1.431, -0.398, -6.99), 'head': (1.525, -0.013), 'right_clavicle': (2.117, 6.124),
-        'right_shoulder': (87.107, 5.2, 2.43), 'right_elbow': (35.525, 11.224),
-        'right_wrist': (-0.808, -28.129),
+        'spine_lumbar': (3.762, -8.713, 6.815), 'spine_thoracic': (-5.525, -3.368, 6.527),
+        'neck': (1.431, -0.398, -6.99), 'head': (1.525, -0.013), 'right_clavicle': (2.194, 5.853),
+        'right_shoulder': (87.47, 5.962, 2.017), 'right_elbow': (35.192, 11.093),
+        'right_wrist': (-0.957, -28.528),
     })
     human.KeyJoints(13.2, {
-        'spine_lumbar': (3.691, -12.46, 8.868), 'spine_thoracic': (-6.979, -4.045, 8.478),
-        'neck': (1.994, -0.434, -10.792), 'head': (2.112, -0.014), 'right_clavicle': (2.1, 7.711),
-        'right_shoulder': (85.703, 4.706, 2.653), 'right_elbow': (35.451, 11.409),
-        'right_wrist': (-0.821, -28.274),
+        'spine_lumbar': (5.408, -12.456, 8.828), 'spine_thoracic': (-7.537, -4.152, 8.429),
+        'neck': (1.994, -0.434, -10.792), 'head': (2.112, -0.014), 'right_clavicle': (2.51, 7.41),
+        'right_shoulder': (87.637, 6.373, 1.73), 'right_elbow': (34.811, 11.128),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_upper_right
     human.KeyJoints(13.3, {
-        'spine_lumbar': (6.855, -13.92, 9.586), 'spine_thoracic': (-8.513, -4.494, 9.141),
-        'neck': (0.597, -0.496, -13.18), 'head': (0.726, -0.015), 'right_clavicle': (2.778, 7.879),
-        'right_shoulder': (88.363, 7.263, 1.216), 'right_elbow': (34.359, 11.021),
-        'right_wrist': (-1.416, -29.894),
+        'spine_lumbar': (6.89, -13.92, 9.585), 'spine_thoracic': (-8.527, -4.496, 9.14),
+        'neck': (0.597, -0.496, -13.18), 'head': (0.726, -0.015), 'right_clavicle': (2.788, 7.873),
+        'right_shoulder': (88.41, 7.299, 1.196), 'right_elbow': (34.346, 11.015),
+        'right_wrist': (-1.423, -29.914),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=13.332364, duration=0.072)
@@ -2111,25 +2113,25 @@ def remove_access_panel_cad():
     human.LookAt((20.0, 105.0, 111.6), start=34.453473, duration=10.463136)
     human.KeyJoints(34.5, {
         'neck': (23.908, 0.465, -4.847), 'head': (8.104, -1.199),
-        'right_shoulder': (18.914, 31.713, -15.343), 'right_elbow': (37.431, 3.591),
-        'right_wrist': (-6.288, -5.773),
+        'right_shoulder': (18.864, 31.799, -15.418), 'right_elbow': (37.439, 3.55),
+        'right_wrist': (-6.304, -5.742),
     })
     human.KeyJoints(34.6, {
-        'right_shoulder': (25.074, 24.536, -9.05), 'right_elbow': (36.782, 6.99),
-        'right_wrist': (-4.99, -8.514),
+        'right_shoulder': (24.787, 24.984, -9.442), 'right_elbow': (36.822, 6.778),
+        'right_wrist': (-5.071, -8.347),
     })
     human.KeyJoints(34.7, {
-        'right_shoulder': (34.885, 13.607, 0.533), 'right_elbow': (35.793, 12.165),
-        'right_wrist': (-3.013, -12.706),
+        'right_shoulder': (34.254, 14.607, -0.339), 'right_elbow': (35.877, 11.699),
+        'right_wrist': (-3.196, -12.358),
     })
     human.KeyJoints(34.8, {
-        'right_shoulder': (45.169, 3.653, 9.277), 'right_elbow': (34.897, 16.898),
-        'right_wrist': (-1.221, -16.632),
+        'right_shoulder': (44.961, 5.499, 7.749), 'right_elbow': (34.821, 16.158),
+        'right_wrist': (-1.592, -16.528),
     })
     # examples/remove_access_panel_cad.mtask:31:9 remove_access_panel_cad > unscrew > reach_oriented: TO on r_arm at bolt_lower_right
     human.KeyJoints(34.9, {
-        'right_shoulder': (54.382, 1.367, 11.663), 'right_elbow': (33.733, 18.538),
-        'right_wrist': (-0.965, -20.024),
+        'right_shoulder': (54.183, 2.351, 10.844), 'right_elbow': (33.499, 18.164),
+        'right_wrist': (-1.157, -20.178),
     })
     human.KeyJoints(35.0, {
         'spine_lumbar': (6.922, -13.948, 9.6), 'right_shoulder': (56.301, 2.086, 11.179),
@@ -2752,54 +2754,49 @@ def remove_access_panel_cad():
         'right_wrist': (-1.15, -21.055),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > look: gaze on head at panel_latch
-    human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.293295)
-    human.KeyJoints(45.0, {'neck': (23.285, -0.24, -9.882), 'head': (7.599, -1.211)})
-    human.KeyJoints(45.1, {'neck': (21.696, -2.021, -22.48), 'head': (6.316, -1.247)})
+    human.LookAt((0.0, 120.0, 118.0), start=44.916609, duration=0.287409)
+    human.KeyJoints(45.0, {'neck': (23.271, -0.26, -10.041), 'head': (7.587, -1.211)})
+    human.KeyJoints(45.1, {'neck': (21.657, -2.072, -22.888), 'head': (6.283, -1.247)})
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TA on r_arm at panel_latch
     human.KeyJoints(45.2, {
-        'neck': (20.537, -3.257, -30.917), 'head': (5.389, -1.286),
-        'right_shoulder': (56.301, 2.1, 11.174), 'right_elbow': (33.159, 18.452),
-        'right_wrist': (-1.153, -21.051),
+        'neck': (20.515, -3.276, -31.021), 'head': (5.372, -1.288),
+        'right_shoulder': (56.302, 2.111, 11.17), 'right_elbow': (33.176, 18.453),
+        'right_wrist': (-1.155, -21.049),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > push: gaze on head at panel_latch
-    human.LookAt((0.0, 120.0, 118.0), start=45.209905, duration=0.941135)
+    human.LookAt((0.0, 120.0, 118.0), start=45.204018, duration=0.847021)
     human.KeyJoints(45.3, {
-        'neck': (20.398, -3.354, -31.314), 'head': (5.285, -1.307),
-        'right_shoulder': (56.355, 4.019, 10.454), 'right_elbow': (37.276, 18.75),
-        'right_wrist': (-1.623, -20.555),
+        'neck': (20.398, -3.354, -31.314), 'right_shoulder': (56.449, 5.333, 9.913),
+        'right_elbow': (39.15, 18.907), 'right_wrist': (-1.9, -20.327),
     })
     human.KeyJoints(45.4, {
-        'right_shoulder': (56.597, 10.543, 7.925), 'right_elbow': (49.653, 19.681),
-        'right_wrist': (-3.148, -19.061),
-    })
-    human.KeyJoints(45.5, {
-        'right_shoulder': (57.737, 20.377, 3.629), 'right_elbow': (59.415, 20.637),
-        'right_wrist': (-4.998, -17.894),
+        'head': (5.285, -1.307), 'right_shoulder': (57.916, 14.725, 6.061),
+        'right_elbow': (51.891, 19.995), 'right_wrist': (-3.726, -18.665),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > reach: TO on r_arm at panel_latch
-    human.KeyJoints(45.6, {
-        'right_shoulder': (69.197, 23.971, 1.811), 'right_elbow': (41.898, 19.975),
-        'right_wrist': (-3.074, -18.188),
+    human.KeyJoints(45.5, {
+        'right_shoulder': (68.702, 22.386, 2.585), 'right_elbow': (41.725, 19.904),
+        'right_wrist': (-2.886, -18.107),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > push: TO on r_arm at panel_latch
-    human.KeyJoints(45.7, {
+    human.KeyJoints(45.6, {
         'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.262, 19.57),
         'right_wrist': (-1.859, -18.104),
     })
-    human.KeyJoints(46.0, {
+    human.KeyJoints(45.9, {
         'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.262, 19.57),
     })
     # examples/remove_access_panel_cad.mtask:33:5 remove_access_panel_cad > press > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=46.079039, duration=0.072)
-    human.KeyJoints(46.1, {
+    human.Grasp('right_hand', 'open', start=45.979039, duration=0.072)
+    human.KeyJoints(46.0, {
         'neck': (20.398, -3.354, -31.314), 'head': (5.285, -1.307),
         'right_shoulder': (74.338, 23.528, 2.036), 'right_elbow': (33.09, 19.57),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > look: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=46.151039, duration=0.2628)
-    human.KeyJoints(46.2, {'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321)})
-    human.KeyJoints(46.3, {'neck': (21.234, -2.819, -32.341), 'head': (6.573, -1.403)})
-    human.KeyJoints(46.4, {
+    human.LookAt((0.0, 120.0, 110.0), start=46.051039, duration=0.2628)
+    human.KeyJoints(46.1, {'neck': (20.525, -3.273, -31.47), 'head': (5.481, -1.321)})
+    human.KeyJoints(46.2, {'neck': (21.234, -2.819, -32.341), 'head': (6.573, -1.403)})
+    human.KeyJoints(46.3, {
         'neck': (21.781, -2.47, -33.013), 'head': (7.415, -1.488),
         'right_shoulder': (74.243, 23.535, 2.034), 'right_elbow': (33.261, 19.57),
         'right_wrist': (-1.859, -18.104), 'left_shoulder': (8.594, 5.73, 11.459),
@@ -2808,65 +2805,65 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TA on l_arm at panel_handle
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TA on r_arm at panel_handle
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: gaze on head at panel_handle
-    human.LookAt((0.0, 120.0, 110.0), start=46.413839, duration=0.867635)
-    human.KeyJoints(46.5, {
+    human.LookAt((0.0, 120.0, 110.0), start=46.313839, duration=0.867635)
+    human.KeyJoints(46.4, {
         'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514),
-        'right_shoulder': (73.751, 23.619, 1.96), 'right_elbow': (33.886, 19.605),
-        'right_wrist': (-1.969, -18.066), 'left_shoulder': (9.339, 5.378, 11.497),
-        'left_elbow': (34.218, 17.199), 'left_wrist': (0.016, -0.063),
+        'right_shoulder': (73.767, 23.618, 1.961), 'right_elbow': (33.865, 19.603),
+        'right_wrist': (-1.966, -18.068), 'left_shoulder': (9.317, 5.386, 11.496),
+        'left_elbow': (34.224, 17.198), 'left_wrist': (0.015, -0.061),
+    })
+    human.KeyJoints(46.5, {
+        'right_shoulder': (70.319, 24.222, 1.43), 'right_elbow': (38.24, 19.848),
+        'right_wrist': (-2.736, -17.805), 'left_shoulder': (14.562, 2.893, 11.767),
+        'left_elbow': (33.109, 17.268), 'left_wrist': (0.126, -0.504),
     })
     human.KeyJoints(46.6, {
-        'right_shoulder': (70.183, 24.227, 1.426), 'right_elbow': (38.413, 19.858),
-        'right_wrist': (-2.764, -17.795), 'left_shoulder': (14.741, 2.824, 11.774),
-        'left_elbow': (33.065, 17.27), 'left_wrist': (0.129, -0.522),
+        'right_shoulder': (62.881, 25.553, 0.257), 'right_elbow': (47.677, 20.376),
+        'right_wrist': (-4.4, -17.239), 'left_shoulder': (25.919, -2.532, 12.355),
+        'left_elbow': (30.704, 17.417), 'left_wrist': (0.367, -1.461),
     })
     human.KeyJoints(46.7, {
-        'right_shoulder': (62.505, 25.578, 0.239), 'right_elbow': (48.155, 20.403),
-        'right_wrist': (-4.479, -17.21), 'left_shoulder': (26.429, -2.737, 12.377),
-        'left_elbow': (30.582, 17.425), 'left_wrist': (0.375, -1.509),
+        'spine_lumbar': (6.923, -13.947, 9.599), 'right_shoulder': (52.64, 27.544, -1.51),
+        'right_elbow': (60.671, 21.103), 'right_wrist': (-6.712, -16.459),
+        'left_shoulder': (41.798, -10.257, 13.195), 'left_elbow': (27.393, 17.623),
     })
     human.KeyJoints(46.8, {
-        'right_shoulder': (51.947, 27.605, -1.559), 'right_elbow': (61.55, 21.152),
-        'right_wrist': (-6.859, -16.406), 'left_shoulder': (42.759, -10.66, 13.238),
-        'left_elbow': (27.168, 17.637),
+        'spine_lumbar': (6.98, -13.907, 9.573), 'spine_thoracic': (-8.58, -4.507, 9.125),
+        'right_clavicle': (2.819, 7.884), 'right_shoulder': (41.972, 30.056, -3.773),
+        'right_elbow': (74.212, 21.86), 'right_wrist': (-9.176, -15.65),
+        'left_clavicle': (-0.013, 0.032), 'left_shoulder': (59.031, -18.991, 14.147),
+        'left_elbow': (23.946, 17.839), 'left_wrist': (1.103, -4.149),
     })
     human.KeyJoints(46.9, {
-        'spine_lumbar': (6.925, -13.943, 9.597), 'spine_thoracic': (-8.549, -4.503, 9.15),
-        'right_clavicle': (2.796, 7.881), 'right_shoulder': (40.866, 30.138, -3.838),
-        'right_elbow': (75.608, 21.938), 'right_wrist': (-9.407, -15.563),
-        'left_clavicle': (-0.001, 0.003), 'left_shoulder': (60.517, -19.633, 14.218),
-        'left_elbow': (23.586, 17.86), 'left_wrist': (1.133, -4.291),
+        'spine_lumbar': (7.769, -13.565, 9.358), 'spine_thoracic': (-9.035, -4.618, 8.889),
+        'right_clavicle': (3.151, 7.985), 'right_shoulder': (33.734, 32.992, -6.421),
+        'right_elbow': (84.888, 22.461), 'right_wrist': (-11.238, -15.032),
+        'left_clavicle': (-0.194, 0.376), 'left_shoulder': (74.331, -26.984, 14.994),
+        'left_elbow': (21.291, 18.014), 'left_wrist': (1.428, -5.214),
     })
     human.KeyJoints(47.0, {
-        'spine_lumbar': (7.213, -13.724, 9.456), 'spine_thoracic': (-8.708, -4.518, 8.998),
-        'right_clavicle': (2.915, 7.885), 'right_shoulder': (32.291, 33.107, -6.563),
-        'right_elbow': (86.507, 22.549), 'right_wrist': (-11.513, -14.927),
-        'left_clavicle': (-0.063, 0.165), 'left_shoulder': (75.917, -28.1, 15.143),
-        'left_elbow': (20.831, 18.035), 'left_wrist': (1.512, -5.39),
-    })
-    human.KeyJoints(47.1, {
-        'spine_lumbar': (11.662, -12.412, 8.593), 'spine_thoracic': (-11.352, -5.315, 8.042),
-        'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514), 'right_clavicle': (4.808, 8.67),
-        'right_shoulder': (30.763, 36.16, -9.06), 'right_elbow': (90.204, 22.778),
-        'right_wrist': (-12.44, -14.754), 'left_clavicle': (-1.122, 1.911),
-        'left_shoulder': (85.709, -31.33, 15.281), 'left_elbow': (20.28, 18.131),
-        'left_wrist': (1.394, -5.661),
+        'spine_lumbar': (12.204, -12.439, 8.453), 'spine_thoracic': (-11.745, -5.464, 7.89),
+        'neck': (21.537, -2.573, -32.814), 'head': (7.202, -1.514), 'right_clavicle': (5.033, 8.82),
+        'right_shoulder': (31.529, 35.932, -8.762), 'right_elbow': (89.81, 22.759),
+        'right_wrist': (-12.314, -14.725), 'left_clavicle': (-1.286, 2.174),
+        'left_shoulder': (85.084, -30.236, 15.109), 'left_elbow': (20.449, 18.128),
+        'left_wrist': (1.289, -5.59),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TO on l_arm at panel_handle
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > reach: TO on r_arm at panel_handle
-    human.KeyJoints(47.2, {
-        'spine_lumbar': (16.288, -11.639, 7.65), 'spine_thoracic': (-14.306, -6.311, 7.003),
-        'right_clavicle': (6.766, 9.664), 'right_shoulder': (32.655, 37.258, -9.594),
-        'right_elbow': (90.688, 22.829), 'right_wrist': (-12.524, -14.606),
-        'left_clavicle': (-2.322, 3.838), 'left_shoulder': (89.21, -29.498, 14.78),
-        'left_elbow': (20.625, 18.173), 'left_wrist': (0.967, -5.552),
+    human.KeyJoints(47.1, {
+        'spine_lumbar': (16.336, -11.647, 7.631), 'spine_thoracic': (-14.345, -6.325, 6.982),
+        'right_clavicle': (6.785, 9.678), 'right_shoulder': (32.723, 37.229, -9.557),
+        'right_elbow': (90.674, 22.828), 'right_wrist': (-12.513, -14.599),
+        'left_clavicle': (-2.339, 3.868), 'left_shoulder': (89.156, -29.383, 14.762),
+        'left_elbow': (20.636, 18.172), 'left_wrist': (0.955, -5.547),
     })
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > grasp: grip on l_hand
-    human.Grasp('left_hand', 'close', start=47.281474, duration=0.072)
+    human.Grasp('left_hand', 'close', start=47.181474, duration=0.072)
     # examples/remove_access_panel_cad.mtask:34:5 remove_access_panel_cad > pick > grasp: grip on r_hand
-    human.Grasp('right_hand', 'close', start=47.281474, duration=0.072)
-    human.KeyRoot(47.3, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
-    human.KeyJoints(47.3, {
+    human.Grasp('right_hand', 'close', start=47.181474, duration=0.072)
+    human.KeyRoot(47.2, (0.0, 72.992, 60.0), (0.0, 0.0, 0.0))
+    human.KeyJoints(47.2, {
         'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
         'neck': (20.216, -3.001, -31.124), 'head': (6.194, -1.656),
         'right_clavicle': (7.019, 9.794), 'right_shoulder': (32.91, 37.386, -9.647),
@@ -2876,312 +2873,312 @@ def remove_access_panel_cad():
         'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: locomotion on root at bench_front
-    human.Walk((131.346, 0.0, 22.472), start=47.353474, duration=5.147368)
+    human.Walk((131.346, 0.0, 22.472), start=47.253474, duration=5.147368)
     # examples/remove_access_panel_cad.mtask:35:5 remove_access_panel_cad > walk_to > travel: gaze on head
-    human.KeyRoot(47.4, (-0.087, 72.76, 60.018), (0.191, 0.0, 0.0))
-    human.KeyJoints(47.4, {
-        'neck': (18.836, -2.811, -28.999), 'head': (5.802, -1.551),
+    human.KeyRoot(47.3, (-0.087, 72.76, 60.018), (0.191, 0.0, 0.0))
+    human.KeyJoints(47.3, {
+        'neck': (18.836, -2.811, -28.999), 'head': (5.802, -1.551), 'right_elbow': (90.762, 22.836),
         'right_hip': (5.666, -0.055, -0.198), 'right_knee': (10.566,), 'right_ankle': (4.9, -0.075),
         'left_hip': (6.067, 0.054, 0.198), 'left_knee': (11.286,), 'left_ankle': (5.081, 0.075),
     })
-    human.KeyRoot(47.5, (-0.716, 72.522, 60.147), (1.684, 0.0, 0.0))
-    human.KeyJoints(47.5, {
-        'neck': (10.552, -1.58, -16.245), 'head': (3.26, -0.872), 'right_elbow': (90.762, 22.836),
+    human.KeyRoot(47.4, (-0.716, 72.522, 60.147), (1.684, 0.0, 0.0))
+    human.KeyJoints(47.4, {
+        'neck': (10.552, -1.58, -16.245), 'head': (3.26, -0.872),
         'right_hip': (7.171, -0.397, -1.747), 'right_knee': (14.32,),
         'right_ankle': (7.164, -0.612), 'left_hip': (9.05, 0.346, 1.77), 'left_knee': (17.258,),
         'left_ankle': (7.387, 0.62),
     })
-    human.KeyRoot(47.6, (-1.598, 72.488, 60.327), (4.162, 0.0, 0.0))
-    human.KeyJoints(47.6, {
+    human.KeyRoot(47.5, (-1.598, 72.488, 60.327), (4.162, 0.0, 0.0))
+    human.KeyJoints(47.5, {
         'neck': (1.805, -0.279, -2.779), 'head': (0.577, -0.154),
         'right_hip': (6.913, -0.846, -4.294), 'right_knee': (14.599,),
         'right_ankle': (7.767, -1.354), 'left_hip': (14.432, 0.538, 3.191), 'left_knee': (28.366,),
         'left_ankle': (13.045, 1.381),
     })
-    human.KeyRoot(47.7, (-2.313, 72.539, 60.474), (7.024, 0.0, 0.0))
-    human.KeyJoints(47.7, {
+    human.KeyRoot(47.6, (-2.313, 72.539, 60.474), (7.024, 0.0, 0.0))
+    human.KeyJoints(47.6, {
         'neck': (-0.064, 0.0, 0.099), 'head': (0.0, 0.0), 'right_hip': (7.118, -1.06, -7.226),
         'right_knee': (15.706,), 'right_ankle': (8.226, -1.936),
         'left_hip': (19.898, 2.599, -1.791), 'left_knee': (40.978,), 'left_ankle': (18.33, 1.841),
     })
-    human.KeyRoot(47.8, (-2.442, 72.709, 60.424), (9.724, 0.0, 0.0))
-    human.KeyJoints(47.8, {
+    human.KeyRoot(47.7, (-2.442, 72.709, 60.424), (9.724, 0.0, 0.0))
+    human.KeyJoints(47.7, {
         'right_hip': (9.468, -0.385, -10.017), 'right_knee': (20.787,),
         'right_ankle': (8.725, -2.016), 'left_hip': (18.903, 5.833, -10.754),
         'left_knee': (41.406,), 'left_ankle': (18.425, 1.87),
     })
-    human.KeyRoot(47.9, (-1.893, 72.677, 59.488), (12.556, 0.0, 0.0))
-    human.KeyJoints(47.9, {
+    human.KeyRoot(47.8, (-1.893, 72.677, 59.488), (12.556, 0.0, 0.0))
+    human.KeyJoints(47.8, {
         'right_hip': (13.505, 1.533, -12.699), 'right_knee': (28.094,), 'right_ankle': (8.77, -1.5),
         'left_hip': (12.416, 5.745, -18.876), 'left_knee': (28.381,), 'left_ankle': (15.239, 1.127),
     })
-    human.KeyRoot(48.0, (-1.042, 72.491, 58.454), (15.87, 0.0, 0.0))
-    human.KeyJoints(48.0, {
+    human.KeyRoot(47.9, (-1.042, 72.491, 58.454), (15.87, 0.0, 0.0))
+    human.KeyJoints(47.9, {
         'right_hip': (16.734, 4.062, -15.469), 'right_knee': (34.09,),
         'right_ankle': (8.372, -0.662), 'left_hip': (7.12, 2.478, -19.403), 'left_knee': (14.776,),
         'left_ankle': (7.236, -0.041),
     })
-    human.KeyRoot(48.1, (-0.197, 72.499, 58.309), (20.038, 0.0, 0.0))
-    human.KeyJoints(48.1, {
+    human.KeyRoot(48.0, (-0.197, 72.499, 58.309), (20.038, 0.0, 0.0))
+    human.KeyJoints(48.0, {
         'right_hip': (16.85, 6.287, -19.018), 'right_knee': (36.102,),
         'right_ankle': (8.297, 0.269), 'left_hip': (7.542, 1.188, -15.364),
         'left_ankle': (6.948, -0.857),
     })
-    human.KeyRoot(48.2, (0.847, 72.495, 58.508), (25.571, 0.0, 0.0))
-    human.KeyJoints(48.2, {
+    human.KeyRoot(48.1, (0.847, 72.495, 58.508), (25.571, 0.0, 0.0))
+    human.KeyJoints(48.1, {
         'right_hip': (20.382, 8.102, -17.83), 'right_knee': (45.254,),
         'right_ankle': (15.607, 1.106), 'left_hip': (7.659, -0.319, -9.982),
         'left_ankle': (6.84, -1.635),
     })
-    human.KeyRoot(48.3, (1.83, 72.491, 58.854), (31.669, 0.0, 0.0))
-    human.KeyJoints(48.3, {
+    human.KeyRoot(48.2, (1.83, 72.491, 58.854), (31.669, 0.0, 0.0))
+    human.KeyJoints(48.2, {
         'right_hip': (22.426, 4.762, -7.963), 'right_knee': (47.247,),
         'right_ankle': (19.163, 1.303), 'left_hip': (7.494, -1.734, -4.013), 'left_knee': (14.051,),
         'left_ankle': (6.689, -2.239),
     })
-    human.KeyRoot(48.4, (2.451, 72.597, 59.422), (37.443, 0.0, 0.0))
-    human.KeyJoints(48.4, {
+    human.KeyRoot(48.3, (2.451, 72.597, 59.422), (37.443, 0.0, 0.0))
+    human.KeyJoints(48.3, {
         'right_hip': (21.595, -0.8, 5.785), 'right_knee': (43.539,), 'right_ankle': (19.138, 1.332),
         'left_hip': (8.751, -2.683, 1.578), 'left_knee': (16.934,), 'left_ankle': (6.915, -2.411),
     })
-    human.KeyRoot(48.5, (2.928, 72.632, 61.13), (43.052, 0.0, 0.0))
-    human.KeyJoints(48.5, {
+    human.KeyRoot(48.4, (2.928, 72.632, 61.13), (43.052, 0.0, 0.0))
+    human.KeyJoints(48.4, {
         'right_hip': (16.036, -4.223, 17.71), 'right_knee': (33.493,),
         'right_ankle': (17.08, 0.794), 'left_hip': (11.546, -3.342, 6.97), 'left_knee': (24.379,),
         'left_ankle': (8.56, -1.86),
     })
-    human.KeyRoot(48.6, (3.272, 72.539, 63.045), (48.66, 0.0, 0.0))
-    human.KeyJoints(48.6, {
+    human.KeyRoot(48.5, (3.272, 72.539, 63.045), (48.66, 0.0, 0.0))
+    human.KeyJoints(48.5, {
         'right_hip': (7.025, -3.204, 21.816), 'right_knee': (16.2,), 'right_ankle': (8.505, -0.388),
         'left_hip': (14.02, -4.242, 12.459), 'left_knee': (31.237,), 'left_ankle': (9.652, -1.029),
     })
-    human.KeyRoot(48.7, (3.348, 72.487, 63.761), (54.269, 0.0, 0.0))
-    human.KeyJoints(48.7, {
+    human.KeyRoot(48.6, (3.348, 72.487, 63.761), (54.269, 0.0, 0.0))
+    human.KeyJoints(48.6, {
         'neck': (0.0, 0.0, 0.0), 'right_hip': (5.485, -2.835, 16.383), 'right_knee': (14.6,),
         'right_ankle': (8.54, -1.162), 'left_hip': (15.722, -5.783, 17.887), 'left_knee': (34.927,),
         'left_ankle': (9.192, -0.526),
     })
-    human.KeyRoot(48.8, (2.681, 72.487, 63.823), (59.878, 0.0, 0.0))
-    human.KeyJoints(48.8, {
+    human.KeyRoot(48.7, (2.681, 72.487, 63.823), (59.878, 0.0, 0.0))
+    human.KeyJoints(48.7, {
         'right_hip': (5.432, -2.634, 10.766), 'right_ankle': (8.574, -1.562),
         'left_hip': (19.43, -7.565, 20.515), 'left_knee': (42.145,), 'left_ankle': (12.948, 0.076),
     })
-    human.KeyJoints(48.9, {
+    human.KeyJoints(48.8, {
         'right_hip': (5.82, -2.564, 5.135), 'right_knee': (14.244,), 'right_ankle': (8.218, -2.022),
         'left_hip': (22.187, -4.96, 12.775), 'left_knee': (46.802,), 'left_ankle': (19.081, 0.367),
     })
-    human.KeyRoot(49.0, (0.347, 72.49, 63.87), (71.1, 0.0, 0.0))
-    human.KeyJoints(49.0, {
+    human.KeyRoot(48.9, (0.347, 72.49, 63.87), (71.1, 0.0, 0.0))
+    human.KeyJoints(48.9, {
         'right_hip': (6.761, -2.338, -0.544), 'right_knee': (15.171,),
         'right_ankle': (8.127, -2.38), 'left_hip': (21.14, 1.04, -0.355), 'left_knee': (45.339,),
         'left_ankle': (19.069, 0.892),
     })
-    human.KeyRoot(49.1, (-0.871, 72.588, 63.129), (77.139, 0.0, 0.0))
-    human.KeyJoints(49.1, {
+    human.KeyRoot(49.0, (-0.871, 72.588, 63.129), (77.139, 0.0, 0.0))
+    human.KeyJoints(49.0, {
         'right_hip': (9.063, -1.078, -6.598), 'right_knee': (18.472,),
         'right_ankle': (8.021, -2.097), 'left_hip': (16.64, 5.453, -13.543), 'left_knee': (37.805,),
         'left_ankle': (18.999, 1.27),
     })
-    human.KeyRoot(49.2, (-2.116, 72.588, 61.661), (83.186, 0.0, 0.0))
-    human.KeyJoints(49.2, {
+    human.KeyRoot(49.1, (-2.116, 72.588, 61.661), (83.186, 0.0, 0.0))
+    human.KeyJoints(49.1, {
         'right_hip': (11.892, 1.452, -12.371), 'right_knee': (23.065,),
         'right_ankle': (7.953, -1.143), 'left_hip': (9.341, 4.264, -20.942), 'left_knee': (21.523,),
         'left_ankle': (11.284, 0.601),
     })
-    human.KeyRoot(49.3, (-2.763, 72.487, 60.366), (88.119, 0.0, 0.0))
-    human.KeyJoints(49.3, {
+    human.KeyRoot(49.2, (-2.763, 72.487, 60.366), (88.119, 0.0, 0.0))
+    human.KeyJoints(49.2, {
         'right_hip': (13.568, 4.066, -16.809), 'right_knee': (26.794,),
         'right_ankle': (8.149, -0.107), 'left_hip': (7.516, 1.743, -18.086), 'left_knee': (14.736,),
         'left_ankle': (7.054, -0.684),
     })
-    human.KeyRoot(49.4, (-2.568, 72.487, 59.557), (91.474, 0.0, 0.0))
-    human.KeyJoints(49.4, {
+    human.KeyRoot(49.3, (-2.568, 72.487, 59.557), (91.474, 0.0, 0.0))
+    human.KeyJoints(49.3, {
         'right_hip': (15.084, 6.302, -19.278), 'right_knee': (31.804,),
         'right_ankle': (10.774, 0.76), 'left_hip': (7.723, 0.579, -14.854),
         'left_ankle': (6.902, -1.42),
     })
-    human.KeyRoot(49.5, (-1.995, 72.487, 58.835), (94.135, 0.0, 0.0))
-    human.KeyJoints(49.5, {
+    human.KeyRoot(49.4, (-1.995, 72.487, 58.835), (94.135, 0.0, 0.0))
+    human.KeyJoints(49.4, {
         'right_hip': (19.697, 7.675, -16.044), 'right_knee': (42.185,),
         'right_ankle': (18.136, 1.543), 'left_hip': (7.437, -0.386, -12.301),
         'left_knee': (14.323,), 'left_ankle': (7.136, -1.952),
     })
-    human.KeyRoot(49.6, (-1.299, 72.533, 58.433), (96.674, 0.0, 0.0))
-    human.KeyJoints(49.6, {
+    human.KeyRoot(49.5, (-1.299, 72.533, 58.433), (96.674, 0.0, 0.0))
+    human.KeyJoints(49.5, {
         'right_hip': (21.438, 5.86, -9.275), 'right_knee': (44.754,),
         'right_ankle': (18.913, 1.969), 'left_hip': (8.241, -0.796, -9.838), 'left_knee': (16.627,),
         'left_ankle': (7.82, -2.18),
     })
-    human.KeyRoot(49.7, (-0.672, 72.709, 58.698), (99.821, 0.0, 0.0))
-    human.KeyJoints(49.7, {
+    human.KeyRoot(49.6, (-0.672, 72.709, 58.698), (99.821, 0.0, 0.0))
+    human.KeyJoints(49.6, {
         'right_hip': (19.652, 2.93, -2.905), 'right_knee': (40.13,), 'right_ankle': (18.927, 1.76),
         'left_hip': (17.563, 0.196, -7.054), 'left_knee': (34.659,), 'left_ankle': (7.363, -1.967),
     })
-    human.KeyRoot(49.8, (-0.001, 72.684, 59.624), (103.463, 0.0, 0.0))
-    human.KeyJoints(49.8, {
+    human.KeyRoot(49.7, (-0.001, 72.684, 59.624), (103.463, 0.0, 0.0))
+    human.KeyJoints(49.7, {
         'right_hip': (13.18, 0.817, 0.678), 'right_knee': (26.609,),
         'left_hip': (27.729, 0.563, -3.431), 'left_knee': (50.892,), 'left_ankle': (-0.91, -1.203),
     })
-    human.KeyRoot(49.9, (0.896, 72.489, 60.429), (105.966, 0.0, 0.0))
-    human.KeyJoints(49.9, {
+    human.KeyRoot(49.8, (0.896, 72.489, 60.429), (105.966, 0.0, 0.0))
+    human.KeyJoints(49.8, {
         'right_hip': (6.938, 0.06, 0.316), 'right_knee': (14.833,), 'right_ankle': (7.894, 0.098),
         'left_hip': (35.206, 0.13, -0.399), 'left_knee': (60.409,), 'left_ankle': (-12.435, -0.157),
     })
-    human.KeyRoot(50.0, (2.366, 72.327, 60.512), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.0, {
+    human.KeyRoot(49.9, (2.366, 72.327, 60.512), (106.271, 0.0, 0.0))
+    human.KeyJoints(49.9, {
         'right_hip': (6.561, -0.322, -0.018), 'right_knee': (16.626,),
         'right_ankle': (10.073, -0.325), 'left_hip': (37.606, 0.084, 0.608), 'left_knee': (64.194,),
         'left_ankle': (-17.96, 0.614),
     })
-    human.KeyRoot(50.1, (5.084, 72.083, 60.356), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.1, {
+    human.KeyRoot(50.0, (5.084, 72.083, 60.356), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.0, {
         'right_hip': (4.926, -0.851, -0.063), 'right_knee': (18.02,),
         'right_ankle': (13.098, -0.855), 'left_hip': (39.533, 0.335, 1.38), 'left_knee': (68.191,),
         'left_ankle': (-8.275, 1.42),
     })
-    human.KeyRoot(50.2, (8.715, 71.983, 60.073), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.2, {
+    human.KeyRoot(50.1, (8.715, 71.983, 60.073), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.1, {
         'right_hip': (0.533, -1.501, -0.013), 'right_knee': (15.22,),
         'right_ankle': (14.688, -1.502), 'left_hip': (38.871, 1.062, 1.626), 'left_knee': (59.555,),
         'left_ankle': (2.618, 1.942),
     })
-    human.KeyRoot(50.3, (12.824, 71.854, 59.673), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.3, {
+    human.KeyRoot(50.2, (12.824, 71.854, 59.673), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.2, {
         'right_hip': (1.254, -2.177, -0.214), 'right_knee': (23.545,),
         'right_ankle': (17.938, -2.188), 'left_hip': (34.231, 1.915, 1.41), 'left_knee': (40.38,),
         'left_ankle': (3.936, 2.378),
     })
-    human.KeyRoot(50.4, (18.556, 71.37, 57.934), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.4, {
+    human.KeyRoot(50.3, (18.556, 71.37, 57.934), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.3, {
         'right_hip': (6.779, -2.027, -0.971), 'right_knee': (43.812,),
         'right_ankle': (18.214, -2.247), 'left_hip': (30.492, 1.934, 1.133), 'left_knee': (27.112,),
         'left_ankle': (-3.306, 2.241),
     })
-    human.KeyRoot(50.5, (25.516, 70.974, 54.917), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.5, {
+    human.KeyRoot(50.4, (25.516, 70.974, 54.917), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.4, {
         'right_hip': (8.563, -1.065, -1.096), 'right_knee': (56.526,),
         'right_ankle': (10.696, -1.528), 'left_hip': (22.345, 1.234, 0.505), 'left_knee': (12.667,),
         'left_ankle': (-9.63, 1.333),
     })
-    human.KeyRoot(50.6, (31.807, 70.974, 51.885), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.6, {
+    human.KeyRoot(50.5, (31.807, 70.974, 51.885), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.5, {
         'right_hip': (7.455, -0.197, -0.35), 'right_knee': (60.565,),
         'right_ankle': (-0.057, -0.401), 'left_hip': (19.556, 0.286, 0.102), 'left_knee': (16.766,),
         'left_ankle': (-2.788, 0.303),
     })
-    human.KeyRoot(50.7, (35.859, 71.262, 49.807), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.7, {
+    human.KeyRoot(50.6, (35.859, 71.262, 49.807), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.6, {
         'right_hip': (4.005, 0.274, 0.562), 'right_knee': (58.092,), 'right_ankle': (-5.91, 0.625),
         'left_hip': (17.972, -0.429, -0.139), 'left_knee': (21.553,), 'left_ankle': (3.582, -0.451),
     })
-    human.KeyRoot(50.8, (38.561, 71.746, 48.132), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.8, {
+    human.KeyRoot(50.7, (38.561, 71.746, 48.132), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.7, {
         'right_hip': (11.759, 0.844, 1.284), 'right_knee': (65.344,), 'right_ankle': (8.775, 1.536),
         'left_hip': (14.625, -1.147, -0.299), 'left_ankle': (5.52, -1.186),
     })
-    human.KeyRoot(50.9, (41.575, 72.101, 46.466), (106.271, 0.0, 0.0))
-    human.KeyJoints(50.9, {
+    human.KeyRoot(50.8, (41.575, 72.101, 46.466), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.8, {
         'right_hip': (26.084, 1.591, 1.467), 'right_knee': (61.281,),
         'right_ankle': (18.726, 2.164), 'left_hip': (11.036, -1.798, -0.353),
         'left_knee': (18.712,), 'left_ankle': (7.596, -1.832),
     })
-    human.KeyRoot(51.0, (47.211, 71.452, 44.397), (106.271, 0.0, 0.0))
-    human.KeyJoints(51.0, {
+    human.KeyRoot(50.9, (47.211, 71.452, 44.397), (106.271, 0.0, 0.0))
+    human.KeyJoints(50.9, {
         'right_hip': (31.966, 1.997, 1.247), 'right_knee': (40.465,), 'right_ankle': (8.58, 2.355),
         'left_hip': (16.932, -2.074, -1.019), 'left_knee': (40.261,),
         'left_ankle': (14.101, -2.311),
     })
-    human.KeyRoot(51.1, (58.945, 70.587, 41.576), (106.271, 0.0, 0.0))
-    human.KeyJoints(51.1, {
+    human.KeyRoot(51.0, (58.945, 70.587, 41.576), (106.271, 0.0, 0.0))
+    human.KeyJoints(51.0, {
         'right_hip': (28.471, 1.565, 0.848), 'right_knee': (20.37,), 'right_ankle': (-8.016, 1.78),
         'left_hip': (16.712, -1.417, -1.388), 'left_knee': (58.165,),
         'left_ankle': (13.783, -1.983),
     })
-    human.KeyRoot(51.2, (71.563, 70.469, 39.085), (106.271, 0.0, 0.0))
-    human.KeyJoints(51.2, {
+    human.KeyRoot(51.1, (71.563, 70.469, 39.085), (106.271, 0.0, 0.0))
+    human.KeyJoints(51.1, {
         'right_hip': (20.521, 0.667, 0.25), 'right_knee': (11.631,), 'right_ankle': (-8.832, 0.712),
         'left_hip': (10.364, -0.487, -0.763), 'left_knee': (62.485,), 'left_ankle': (5.049, -0.906),
     })
-    human.KeyRoot(51.3, (78.915, 70.819, 38.086), (106.125, 0.0, 0.0))
-    human.KeyJoints(51.3, {
+    human.KeyRoot(51.2, (78.915, 70.819, 38.086), (106.125, 0.0, 0.0))
+    human.KeyJoints(51.2, {
         'right_hip': (20.106, -0.297, 0.047), 'right_knee': (24.103,),
         'right_ankle': (3.993, -0.263), 'left_hip': (5.503, 0.17, 0.182), 'left_knee': (60.288,),
         'left_ankle': (-4.295, 0.363),
     })
-    human.KeyRoot(51.4, (82.398, 71.543, 37.836), (104.06, 0.0, 0.0))
-    human.KeyJoints(51.4, {
+    human.KeyRoot(51.3, (82.398, 71.543, 37.836), (104.06, 0.0, 0.0))
+    human.KeyJoints(51.3, {
         'right_hip': (15.935, -1.469, 1.88), 'right_knee': (21.232,),
         'right_ankle': (5.254, -0.895), 'left_hip': (7.24, 0.582, -0.712), 'left_knee': (63.417,),
         'left_ankle': (3.932, 0.808),
     })
-    human.KeyRoot(51.5, (85.301, 72.065, 37.653), (100.758, 0.0, 0.0))
-    human.KeyJoints(51.5, {
+    human.KeyRoot(51.4, (85.301, 72.065, 37.653), (100.758, 0.0, 0.0))
+    human.KeyJoints(51.4, {
         'right_hip': (12.135, -2.548, 5.09), 'right_knee': (17.899,),
         'right_ankle': (5.582, -1.412), 'left_hip': (22.175, 1.155, -0.526), 'left_knee': (66.181,),
         'left_ankle': (18.852, 0.97),
     })
-    human.KeyRoot(51.6, (89.875, 72.002, 37.21), (97.733, 0.0, 0.0))
-    human.KeyJoints(51.6, {
+    human.KeyRoot(51.5, (89.875, 72.002, 37.21), (97.733, 0.0, 0.0))
+    human.KeyJoints(51.5, {
         'right_hip': (13.556, -4.084, 7.657), 'right_knee': (28.162,),
         'right_ankle': (10.623, -2.147), 'left_hip': (30.435, 2.799, 2.15), 'left_knee': (46.836,),
         'left_ankle': (14.289, 3.502),
     })
-    human.KeyRoot(51.7, (101.592, 71.437, 33.978), (94.489, 0.0, 0.0))
-    human.KeyJoints(51.7, {
+    human.KeyRoot(51.6, (101.592, 71.437, 33.978), (94.489, 0.0, 0.0))
+    human.KeyJoints(51.6, {
         'right_hip': (11.942, -4.594, 10.431), 'right_knee': (44.713,),
         'right_ankle': (16.843, -2.353), 'left_hip': (28.644, 4.602, 4.2), 'left_knee': (27.087,),
         'left_ankle': (-1.217, 6.039),
     })
-    human.KeyRoot(51.8, (115.697, 70.974, 28.98), (91.394, 0.0, 0.0))
-    human.KeyJoints(51.8, {
+    human.KeyRoot(51.7, (115.697, 70.974, 28.98), (91.394, 0.0, 0.0))
+    human.KeyJoints(51.7, {
         'right_hip': (2.474, -1.972, 14.061), 'right_knee': (48.127,),
         'right_ankle': (15.752, -1.504), 'left_hip': (20.234, 4.672, 2.904), 'left_knee': (14.011,),
         'left_ankle': (-5.979, 5.381),
     })
-    human.KeyRoot(51.9, (122.619, 71.115, 25.394), (90.0, 0.0, 0.0))
-    human.KeyJoints(51.9, {
+    human.KeyRoot(51.8, (122.619, 71.115, 25.394), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.8, {
         'right_hip': (-2.101, 0.586, 16.24), 'right_knee': (47.497,),
         'right_ankle': (9.505, -0.033), 'left_hip': (18.533, 2.428, 0.814), 'left_knee': (21.552,),
         'left_ankle': (3.042, 2.561),
     })
-    human.KeyRoot(52.0, (122.361, 71.356, 23.693), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.0, {
+    human.KeyRoot(51.9, (122.361, 71.356, 23.693), (90.0, 0.0, 0.0))
+    human.KeyJoints(51.9, {
         'right_hip': (1.682, 0.97, 17.058), 'right_knee': (53.33,), 'right_ankle': (12.594, 1.817),
         'left_hip': (17.691, 1.016, 0.324), 'left_knee': (19.387,), 'left_ankle': (1.702, 1.066),
     })
-    human.KeyRoot(52.1, (121.916, 71.618, 22.478), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.1, {
+    human.KeyRoot(52.0, (121.916, 71.618, 22.478), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.0, {
         'right_hip': (11.402, 0.869, 14.292), 'right_knee': (56.017,),
         'right_ankle': (19.296, 4.028), 'left_hip': (16.394, 0.004, 0.001), 'left_knee': (15.911,),
         'left_ankle': (-0.469, 0.004),
     })
-    human.KeyRoot(52.2, (121.982, 71.86, 22.183), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.2, {
+    human.KeyRoot(52.1, (121.982, 71.86, 22.183), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.1, {
         'right_hip': (18.917, 1.073, 7.747), 'right_knee': (46.371,),
         'right_ankle': (19.253, 3.572), 'left_hip': (14.77, -0.243, -0.064), 'left_knee': (12.683,),
         'left_ankle': (-2.087, -0.251),
     })
-    human.KeyRoot(52.3, (125.023, 71.983, 22.277), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.3, {
+    human.KeyRoot(52.2, (125.023, 71.983, 22.277), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.2, {
         'right_hip': (19.493, 0.501, 1.86), 'right_knee': (33.754,), 'right_ankle': (14.431, 1.125),
         'left_hip': (13.918, -0.164, -0.041), 'left_knee': (16.378,), 'left_ankle': (2.46, -0.169),
     })
-    human.KeyRoot(52.4, (129.21, 72.264, 22.406), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.4, {
+    human.KeyRoot(52.3, (129.21, 72.264, 22.406), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.3, {
         'right_hip': (10.536, 0.056, 0.011), 'right_knee': (16.865,), 'right_ankle': (6.335, 0.057),
         'left_hip': (10.514, -0.056, -0.01), 'left_knee': (16.819,), 'left_ankle': (6.306, -0.057),
     })
-    human.KeyRoot(52.5, (131.346, 72.988, 22.472), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.5, {
+    human.KeyRoot(52.4, (131.346, 72.988, 22.472), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.4, {
         'neck': (0.0, 0.0, 0.0), 'head': (0.0, 0.0), 'right_hip': (3.119, 0.0, 0.0),
         'right_knee': (5.12,), 'right_ankle': (2.003, 0.0), 'left_hip': (3.105, 0.0, 0.0),
         'left_knee': (5.09,), 'left_ankle': (1.987, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > look: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=52.500843, duration=0.320709)
-    human.KeyRoot(52.6, (131.346, 72.989, 22.472), (90.0, 0.0, 0.0))
-    human.KeyJoints(52.6, {'neck': (7.968, 7.684, -4.707), 'head': (3.415, -2.561)})
-    human.KeyJoints(52.7, {
+    human.LookAt((160.0, 90.0, 20.0), start=52.400843, duration=0.320709)
+    human.KeyRoot(52.5, (131.346, 72.989, 22.472), (90.0, 0.0, 0.0))
+    human.KeyJoints(52.5, {'neck': (7.968, 7.684, -4.707), 'head': (3.415, -2.561)})
+    human.KeyJoints(52.6, {
         'neck': (23.728, 22.881, -14.015), 'head': (10.169, -7.627),
         'right_shoulder': (32.91, 37.386, -9.647), 'left_shoulder': (89.922, -29.245, 14.7),
         'left_elbow': (20.254, 18.178), 'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,),
@@ -3190,7 +3187,7 @@ def remove_access_panel_cad():
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
-    human.KeyJoints(52.8, {
+    human.KeyJoints(52.7, {
         'neck': (34.547, 33.313, -20.406), 'head': (14.806, -11.104),
         'right_shoulder': (32.818, 37.351, -9.636), 'right_elbow': (90.782, 22.837),
         'right_wrist': (-12.535, -14.577), 'left_shoulder': (89.744, -29.213, 14.721),
@@ -3199,50 +3196,50 @@ def remove_access_panel_cad():
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: gaze on head at bench_top
-    human.LookAt((160.0, 90.0, 20.0), start=52.821552, duration=0.640349)
-    human.KeyJoints(52.9, {
+    human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
+    human.KeyJoints(52.8, {
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
         'right_shoulder': (29.306, 35.833, -8.993), 'right_elbow': (91.632, 22.867),
         'right_wrist': (-12.589, -14.307), 'left_shoulder': (84.159, -28.161, 15.539),
         'left_elbow': (25.798, 17.672), 'left_wrist': (0.265, -4.334),
     })
-    human.KeyJoints(53.0, {
+    human.KeyJoints(52.9, {
         'right_shoulder': (18.988, 31.107, -6.751), 'right_elbow': (94.179, 22.957),
         'right_wrist': (-12.689, -13.458), 'left_shoulder': (67.783, -25.069, 17.951),
         'left_elbow': (40.928, 16.206), 'left_wrist': (-1.622, -0.847),
     })
-    human.KeyJoints(53.1, {
+    human.KeyJoints(53.0, {
         'right_shoulder': (4.674, 23.785, -2.548), 'right_elbow': (97.585, 23.075),
         'right_wrist': (-12.705, -12.197), 'left_shoulder': (44.496, -20.081, 21.115),
         'left_elbow': (60.656, 14.211), 'left_wrist': (-4.411, 3.763),
     })
-    human.KeyJoints(53.2, {
+    human.KeyJoints(53.1, {
         'right_shoulder': (-8.374, 15.88, 3.254), 'right_elbow': (100.192, 23.146),
         'right_wrist': (-12.528, -11.037), 'left_shoulder': (22.167, -12.993, 23.015),
         'left_elbow': (76.551, 12.651), 'left_wrist': (-7.415, 7.552),
     })
-    human.KeyJoints(53.3, {
+    human.KeyJoints(53.2, {
         'right_shoulder': (-16.365, 9.536, 9.96), 'right_elbow': (102.051, 23.146),
         'right_wrist': (-11.78, -10.105), 'left_shoulder': (7.232, -5.185, 23.204),
         'left_elbow': (88.485, 11.703), 'left_wrist': (-10.584, 10.663),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
-    human.KeyJoints(53.4, {
+    human.KeyJoints(53.3, {
         'right_shoulder': (-19.658, 6.898, 13.33), 'right_elbow': (103.321, 23.157),
         'right_wrist': (-11.323, -9.604), 'left_shoulder': (1.012, -1.789, 22.874),
         'left_elbow': (95.405, 11.707), 'left_wrist': (-11.963, 12.632),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
-    human.Grasp('left_hand', 'open', start=53.461901, duration=0.072)
+    human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on r_hand
-    human.Grasp('right_hand', 'open', start=53.461901, duration=0.072)
-    human.KeyJoints(53.5, {
+    human.Grasp('right_hand', 'open', start=53.361901, duration=0.072)
+    human.KeyJoints(53.4, {
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),
         'left_shoulder': (0.506, -1.597, 22.753), 'left_elbow': (95.961, 11.779),
     })
-    human.KeyRoot(53.533901, (131.346, 72.992, 22.472), (90.0, 0.0, 0.0))
-    human.KeyJoints(53.533901, {
+    human.KeyRoot(53.433901, (131.346, 72.992, 22.472), (90.0, 0.0, 0.0))
+    human.KeyJoints(53.433901, {
         'spine_lumbar': (16.888, -11.546, 7.52), 'spine_thoracic': (-14.693, -6.442, 6.86),
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25), 'right_clavicle': (7.019, 9.794),
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),

@@ -121,129 +121,130 @@ def remove_avionics_unit():
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(1.7, {
-        'spine_lumbar': (0.042, -0.04, -0.142), 'spine_thoracic': (0.129, 0.011, -0.284),
-        'neck': (-20.535, -0.387, 1.251), 'head': (-17.771, 0.0), 'right_clavicle': (0.261, -0.142),
-        'right_shoulder': (8.557, 7.354, 10.954), 'right_elbow': (34.17, 17.107),
-        'left_clavicle': (0.284, 0.105), 'left_shoulder': (9.84, 5.802, 11.378),
-        'left_elbow': (34.357, 16.313), 'left_wrist': (-0.066, -0.02),
+        'spine_lumbar': (0.049, -0.039, -0.141), 'spine_thoracic': (0.128, 0.011, -0.283),
+        'neck': (-20.535, -0.387, 1.251), 'head': (-17.771, 0.0), 'right_clavicle': (0.262, -0.141),
+        'right_shoulder': (8.558, 7.345, 10.957), 'right_elbow': (34.165, 17.108),
+        'left_clavicle': (0.282, 0.106), 'left_shoulder': (9.844, 5.803, 11.378),
+        'left_elbow': (34.354, 16.318), 'left_wrist': (-0.066, -0.02),
     })
     human.KeyJoints(1.8, {
-        'spine_lumbar': (0.182, -0.172, -0.62), 'spine_thoracic': (0.564, 0.046, -1.24),
+        'spine_lumbar': (0.215, -0.171, -0.617), 'spine_thoracic': (0.56, 0.046, -1.234),
         'neck': (-21.337, -0.911, 2.954), 'head': (-18.659, -0.003),
-        'right_clavicle': (1.137, -0.62), 'right_shoulder': (8.433, 12.813, 9.256),
-        'right_elbow': (33.472, 16.833), 'right_wrist': (0.015, -0.038),
-        'left_clavicle': (1.238, 0.459), 'left_shoulder': (14.026, 6.046, 11.106),
-        'left_elbow': (34.289, 13.371), 'left_wrist': (-0.29, -0.087),
+        'right_clavicle': (1.143, -0.617), 'right_shoulder': (8.434, 12.775, 9.268),
+        'right_elbow': (33.45, 16.835), 'right_wrist': (0.017, -0.042),
+        'left_clavicle': (1.231, 0.464), 'left_shoulder': (14.048, 6.05, 11.106),
+        'left_elbow': (34.276, 13.391), 'left_wrist': (-0.29, -0.086),
     })
     human.KeyJoints(1.9, {
-        'spine_lumbar': (0.455, -0.426, -1.532), 'spine_thoracic': (1.394, 0.115, -3.065),
+        'spine_lumbar': (0.536, -0.423, -1.524), 'spine_thoracic': (1.383, 0.114, -3.049),
         'neck': (-22.882, -1.611, 5.231), 'head': (-19.699, -0.009),
-        'right_clavicle': (2.81, -1.532), 'right_shoulder': (8.196, 23.23, 6.016),
-        'right_elbow': (32.136, 16.31), 'left_clavicle': (3.058, 1.137),
-        'left_shoulder': (22.023, 6.513, 10.586), 'left_elbow': (34.156, 7.756),
-        'left_wrist': (-0.716, -0.214),
+        'right_clavicle': (2.824, -1.524), 'right_shoulder': (8.199, 23.139, 6.044),
+        'right_elbow': (32.082, 16.314), 'left_clavicle': (3.043, 1.149),
+        'left_shoulder': (22.076, 6.52, 10.585), 'left_elbow': (34.122, 7.805),
+        'left_wrist': (-0.716, -0.213),
     })
     human.KeyJoints(2.0, {
-        'spine_lumbar': (0.883, -0.798, -2.87), 'spine_thoracic': (2.611, 0.215, -5.74),
+        'spine_lumbar': (1.035, -0.789, -2.856), 'spine_thoracic': (2.583, 0.212, -5.712),
         'neck': (-26.392, -2.325, 7.512), 'head': (-19.521, -0.023),
-        'right_clavicle': (5.275, -2.87), 'right_shoulder': (7.849, 38.51, 1.263),
-        'right_elbow': (30.153, 15.543), 'left_clavicle': (5.728, 2.136),
-        'left_shoulder': (33.794, 7.201, 9.822), 'left_elbow': (33.951, -0.479),
-        'left_wrist': (-1.342, -0.401),
+        'right_clavicle': (5.3, -2.856), 'right_shoulder': (7.854, 38.345, 1.313),
+        'right_elbow': (30.055, 15.551), 'left_clavicle': (5.701, 2.158),
+        'left_shoulder': (33.897, 7.212, 9.821), 'left_elbow': (33.879, -0.393),
+        'left_wrist': (-1.342, -0.399),
     })
     human.KeyJoints(2.1, {
-        'spine_lumbar': (1.486, -1.266, -4.554), 'spine_thoracic': (4.144, 0.34, -9.109),
+        'spine_lumbar': (1.764, -1.241, -4.533), 'spine_thoracic': (4.057, 0.331, -9.066),
         'neck': (-30.605, -2.999, 9.662), 'head': (-19.459, -0.058),
-        'right_clavicle': (8.401, -4.554), 'right_shoulder': (7.411, 57.745, -4.719),
-        'right_elbow': (27.606, 14.577), 'right_wrist': (0.118, -0.298),
-        'left_clavicle': (9.09, 3.407), 'left_shoulder': (48.707, 8.079, 8.855),
-        'left_elbow': (33.669, -10.846), 'left_wrist': (-2.134, -0.636),
+        'right_clavicle': (8.438, -4.533), 'right_shoulder': (7.424, 57.475, -4.642),
+        'right_elbow': (27.439, 14.589), 'right_wrist': (0.129, -0.318),
+        'left_clavicle': (9.049, 3.449), 'left_shoulder': (48.914, 8.077, 8.857),
+        'left_elbow': (33.495, -10.714), 'left_wrist': (-2.132, -0.633),
     })
     human.KeyJoints(2.2, {
-        'spine_lumbar': (2.275, -1.798, -6.469), 'spine_thoracic': (5.886, 0.484, -12.938),
-        'neck': (-35.143, -3.438, 10.983), 'right_clavicle': (11.993, -6.469),
-        'right_shoulder': (6.914, 79.615, -11.521), 'right_elbow': (24.626, 13.478),
-        'left_clavicle': (12.913, 4.876), 'left_shoulder': (65.815, 9.095, 7.749),
-        'left_elbow': (33.31, -22.633),
+        'spine_lumbar': (2.902, -1.71, -6.437), 'spine_thoracic': (5.579, 0.45, -12.873),
+        'neck': (-35.143, -3.438, 10.983), 'right_clavicle': (12.054, -6.437),
+        'right_shoulder': (6.951, 79.142, -11.404), 'right_elbow': (24.29, 13.497),
+        'left_clavicle': (12.851, 4.971), 'left_shoulder': (66.365, 9.023, 7.763),
+        'left_elbow': (32.781, -22.434),
     })
     human.KeyJoints(2.3, {
-        'spine_lumbar': (3.259, -2.358, -8.485), 'neck': (-39.782, -3.629, 11.428),
-        'right_shoulder': (6.39, 102.635, -18.682), 'right_elbow': (21.365, 12.322),
-        'left_elbow': (32.875, -35.041),
+        'spine_lumbar': (4.892, -2.063, -8.433), 'spine_thoracic': (6.691, 0.519, -16.866),
+        'neck': (-39.782, -3.629, 11.428), 'right_shoulder': (6.507, 101.689, -18.49),
+        'right_elbow': (20.572, 12.351), 'left_clavicle': (16.842, 6.705),
+        'left_shoulder': (85.661, 9.864, 6.627), 'left_elbow': (31.212, -34.726),
     })
     human.KeyJoints(2.4, {
-        'spine_lumbar': (4.488, -2.902, -10.457), 'spine_thoracic': (9.497, 0.78, -20.914),
+        'spine_lumbar': (8.391, -2.102, -10.372), 'spine_thoracic': (6.711, 0.466, -20.744),
         'neck': (-44.207, -3.563, 11.019), 'head': (-18.876, -0.253),
-        'right_clavicle': (19.674, -10.457), 'right_shoulder': (5.879, 125.155, -25.688),
-        'right_elbow': (17.967, 11.19), 'left_clavicle': (20.881, 8.058),
-        'left_shoulder': (102.287, 11.297, 5.41), 'left_elbow': (32.335, -47.182),
-        'left_wrist': (-4.954, -1.46),
+        'right_clavicle': (19.864, -10.372), 'right_shoulder': (6.186, 123.201, -25.362),
+        'right_elbow': (16.192, 11.239), 'right_wrist': (0.359, -0.878),
+        'left_clavicle': (20.721, 8.655), 'left_shoulder': (106.316, 10.32, 5.563),
+        'left_elbow': (27.951, -46.667), 'left_wrist': (-4.823, -1.458),
     })
     human.KeyJoints(2.5, {
-        'spine_lumbar': (6.511, -3.271, -12.221), 'spine_thoracic': (10.666, 0.867, -24.443),
+        'spine_lumbar': (13.584, -1.71, -12.098), 'spine_thoracic': (5.246, 0.247, -24.196),
         'neck': (-47.39, -3.083, 9.936), 'head': (-19.254, -0.132),
-        'right_clavicle': (23.277, -12.221), 'right_shoulder': (5.468, 145.137, -31.951),
-        'right_elbow': (14.386, 10.177), 'right_wrist': (0.433, -1.008),
-        'left_clavicle': (24.412, 9.663), 'left_shoulder': (119.774, 12.199, 4.363),
-        'left_elbow': (31.088, -58.044), 'left_wrist': (-5.81, -1.709),
+        'right_clavicle': (23.52, -12.098), 'right_shoulder': (6.056, 141.814, -31.466),
+        'right_elbow': (11.31, 10.248), 'left_clavicle': (24.178, 10.734),
+        'left_shoulder': (127.218, 10.201, 4.679), 'left_elbow': (22.654, -57.298),
+        'left_wrist': (-5.54, -1.709),
     })
     human.KeyJoints(2.6, {
-        'spine_lumbar': (11.44, -2.884, -13.603), 'spine_thoracic': (9.214, 0.67, -27.206),
+        'spine_lumbar': (19.357, -1.053, -13.473), 'spine_thoracic': (2.88, -0.065, -26.945),
         'neck': (-49.573, -2.317, 8.272), 'head': (-19.909, 0.001),
-        'right_clavicle': (26.365, -13.603), 'right_shoulder': (5.397, 159.911, -36.833),
-        'right_elbow': (10.003, 9.384), 'left_clavicle': (27.183, 11.478),
-        'left_shoulder': (137.476, 12.077, 3.642), 'left_elbow': (26.339, -66.555),
-        'left_wrist': (-6.399, -1.914),
+        'right_clavicle': (26.55, -13.473), 'right_shoulder': (6.078, 156.208, -36.317),
+        'right_elbow': (6.66, 9.46), 'left_clavicle': (26.935, 12.661),
+        'left_shoulder': (145.842, 9.675, 4.028), 'left_elbow': (16.511, -65.77),
+        'left_wrist': (-6.065, -1.914),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > reach: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > reach: TO on r_arm at latch_right
     human.KeyJoints(2.7, {
-        'spine_lumbar': (19.503, -1.512, -14.476), 'spine_thoracic': (4.396, 0.089, -28.952),
-        'neck': (-52.071, -1.402, 5.935), 'right_clavicle': (28.568, -14.476),
-        'right_shoulder': (5.758, 167.863, -39.886), 'right_elbow': (5.05, 8.883),
-        'right_wrist': (0.587, -1.453), 'left_clavicle': (28.942, 13.418),
-        'left_shoulder': (154.574, 10.525, 3.385), 'left_elbow': (17.164, -71.946),
-        'left_wrist': (-6.597, -2.054),
+        'spine_lumbar': (23.881, -0.474, -14.395), 'spine_thoracic': (0.812, -0.33, -28.791),
+        'neck': (-52.071, -1.402, 5.935), 'right_clavicle': (28.629, -14.395),
+        'right_shoulder': (6.143, 165.697, -39.569), 'right_elbow': (3.239, 8.931),
+        'right_wrist': (0.576, -1.488), 'left_clavicle': (28.787, 14.06),
+        'left_shoulder': (159.124, 9.147, 3.613), 'left_elbow': (11.619, -71.458),
+        'left_wrist': (-6.399, -2.052),
     })
     human.KeyJoints(2.8, {
-        'spine_lumbar': (25.274, -0.4, -14.887), 'spine_thoracic': (0.52, -0.375, -29.774),
-        'neck': (-54.368, -0.66, 3.447), 'right_clavicle': (29.687, -14.887),
-        'right_shoulder': (6.094, 171.037, -41.308), 'right_elbow': (1.864, 8.649),
-        'left_clavicle': (29.771, 14.643), 'left_shoulder': (164.982, 9.174, 3.35),
-        'left_elbow': (10.298, -74.485),
+        'spine_lumbar': (26.291, -0.156, -14.865), 'spine_thoracic': (-0.32, -0.474, -29.731),
+        'neck': (-54.368, -0.66, 3.447), 'right_clavicle': (29.694, -14.865),
+        'right_shoulder': (6.185, 170.501, -41.224), 'right_elbow': (1.449, 8.661),
+        'left_clavicle': (29.73, 14.79), 'left_shoulder': (166.015, 8.849, 3.405),
+        'left_elbow': (9.002, -74.355), 'left_wrist': (-6.565, -2.123),
     })
     human.KeyJoints(2.9, {
-        'spine_lumbar': (26.941, -0.073, -14.997), 'spine_thoracic': (-0.617, -0.512, -29.994),
+        'spine_lumbar': (26.967, -0.066, -14.996), 'spine_thoracic': (-0.64, -0.514, -29.993),
         'neck': (-56.851, -0.095, 1.024), 'head': (-19.525, 0.003),
-        'right_clavicle': (29.992, -14.997), 'right_shoulder': (6.194, 171.854, -41.688),
-        'right_elbow': (0.958, 8.586), 'right_wrist': (0.611, -1.592),
-        'left_clavicle': (29.994, 14.991), 'left_shoulder': (167.916, 8.773, 3.346),
-        'left_elbow': (8.301, -75.166),
+        'right_clavicle': (29.992, -14.996), 'right_shoulder': (6.197, 171.84, -41.686),
+        'right_elbow': (0.947, 8.586), 'right_wrist': (0.611, -1.593),
+        'left_clavicle': (29.993, 14.994), 'left_shoulder': (167.943, 8.765, 3.347),
+        'left_elbow': (8.267, -75.163),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > push: TO on l_arm at latch_left
     # examples/remove_avionics_unit.mtask:32:9 remove_avionics_unit > press > push: TO on r_arm at latch_right
     human.KeyJoints(3.0, {
-        'neck': (-57.993, 0.092, 0.051), 'right_elbow': (0.918, 8.584),
-        'right_wrist': (0.605, -1.581), 'left_shoulder': (168.07, 8.751, 3.346),
-        'left_elbow': (8.115, -75.185), 'left_wrist': (-6.577, -2.13),
+        'neck': (-57.993, 0.092, 0.051), 'right_elbow': (0.916, 8.584),
+        'right_wrist': (0.603, -1.578), 'left_shoulder': (168.079, 8.75, 3.346),
+        'left_elbow': (8.1, -75.184), 'left_wrist': (-6.565, -2.126),
     })
     human.KeyJoints(3.1, {
-        'spine_lumbar': (27.114, 0.035, -15.0), 'spine_thoracic': (-0.738, -0.615, -30.0),
-        'right_shoulder': (6.235, 171.838, -41.698), 'right_elbow': (0.73, 8.585),
-        'right_wrist': (0.523, -1.411), 'left_shoulder': (169.002, 8.609, 3.35),
-        'left_elbow': (6.48, -75.182), 'left_wrist': (-6.047, -1.94),
+        'spine_thoracic': (-0.717, -0.599, -30.0), 'right_shoulder': (6.248, 171.837, -41.698),
+        'right_elbow': (0.722, 8.585), 'right_wrist': (0.515, -1.394),
+        'left_shoulder': (169.038, 8.607, 3.349), 'left_elbow': (6.422, -75.182),
+        'left_wrist': (-5.97, -1.915),
     })
     human.KeyJoints(3.2, {
-        'neck': (-58.22, 0.109, -0.044), 'head': (-19.584, 0.003), 'right_elbow': (0.424, 8.585),
-        'right_wrist': (0.357, -1.054), 'left_shoulder': (170.507, 8.403, 3.353),
-        'left_elbow': (3.885, -75.179), 'left_wrist': (-4.749, -1.494),
+        'neck': (-58.22, 0.109, -0.044), 'head': (-19.584, 0.003), 'right_elbow': (0.42, 8.585),
+        'right_wrist': (0.349, -1.033), 'left_shoulder': (170.532, 8.404, 3.352),
+        'left_elbow': (3.853, -75.179), 'left_wrist': (-4.647, -1.462),
     })
     human.KeyJoints(3.3, {
-        'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.564, -0.547, -30.0),
+        'spine_lumbar': (27.247, 0.143, -15.0), 'spine_thoracic': (-0.563, -0.547, -30.0),
         'neck': (-58.558, 0.114, -0.07), 'right_shoulder': (6.523, 171.769, -41.698),
         'right_elbow': (0.293, 8.586), 'right_wrist': (0.269, -0.856),
         'left_shoulder': (171.161, 8.326, 3.353), 'left_elbow': (2.793, -75.178),
-        'left_wrist': (-3.955, -1.23),
+        'left_wrist': (-3.954, -1.229),
     })
     # examples/remove_avionics_unit.mtask:31:9 remove_avionics_unit > press > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=3.321883, duration=0.072)
@@ -352,36 +353,36 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(5.0, {
-        'spine_lumbar': (31.012, -1.486, -13.855), 'spine_thoracic': (19.417, -9.249, -28.982),
-        'neck': (-59.831, -16.713, -46.726), 'right_clavicle': (28.588, -13.887),
-        'right_shoulder': (0.483, 127.491, -40.509), 'right_elbow': (0.412, 8.516),
-        'right_wrist': (5.085, -3.949), 'left_clavicle': (29.994, 12.525),
-        'left_shoulder': (27.661, 179.405, -66.935), 'left_wrist': (8.602, 0.55),
+        'spine_lumbar': (30.987, -1.437, -13.853), 'spine_thoracic': (19.565, -9.331, -29.077),
+        'neck': (-59.831, -16.713, -46.726), 'right_clavicle': (28.744, -13.881),
+        'right_shoulder': (0.447, 127.277, -40.508), 'right_elbow': (0.367, 8.515),
+        'right_wrist': (5.047, -3.91), 'left_clavicle': (29.994, 12.52),
+        'left_shoulder': (27.682, 179.393, -66.938), 'left_wrist': (8.598, 0.548),
     })
     human.KeyJoints(5.1, {
-        'spine_lumbar': (32.347, -4.263, -13.601), 'spine_thoracic': (10.66, -4.4, -22.354),
-        'right_clavicle': (19.47, -14.202), 'right_shoulder': (2.551, 140.2, -40.589),
-        'right_elbow': (3.073, 8.596), 'right_wrist': (7.341, -6.259),
-        'left_clavicle': (29.996, 12.8), 'left_shoulder': (26.351, 178.085, -66.603),
-        'left_elbow': (13.836, -65.597), 'left_wrist': (8.802, 0.431),
+        'spine_lumbar': (32.122, -3.871, -13.588), 'spine_thoracic': (11.806, -5.044, -23.085),
+        'right_clavicle': (20.706, -14.155), 'right_shoulder': (2.264, 138.56, -40.577),
+        'right_elbow': (2.727, 8.586), 'right_wrist': (7.049, -5.959),
+        'left_shoulder': (26.51, 178.007, -66.627), 'left_elbow': (13.801, -65.596),
+        'left_wrist': (8.768, 0.42),
     })
     human.KeyJoints(5.2, {
-        'spine_lumbar': (34.496, -8.847, -12.977), 'spine_thoracic': (-3.91, 3.656, -10.73),
-        'neck': (-59.99, -15.723, -36.188), 'right_clavicle': (4.348, -14.72),
-        'right_shoulder': (5.973, 161.372, -40.721), 'right_elbow': (7.505, 8.729),
-        'right_wrist': (11.097, -10.102), 'left_clavicle': (29.999, 13.252),
-        'left_shoulder': (24.167, 174.662, -65.958), 'left_elbow': (13.752, -65.524),
-        'left_wrist': (9.125, 0.109),
+        'spine_lumbar': (32.881, -7.105, -12.728), 'spine_thoracic': (-0.406, 1.465, -12.338),
+        'neck': (-59.99, -15.723, -36.188), 'right_clavicle': (9.049, -14.443),
+        'right_shoulder': (4.748, 156.769, -40.651), 'right_elbow': (6.44, 8.696),
+        'right_wrist': (10.297, -9.252), 'left_clavicle': (29.998, 13.032),
+        'left_shoulder': (24.343, 173.949, -65.971), 'left_elbow': (13.067, -65.507),
+        'left_wrist': (8.858, -0.002),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(5.3, {
-        'spine_lumbar': (27.696, -5.318, -10.361), 'spine_thoracic': (-5.971, 3.094, -1.521),
-        'neck': (-58.398, -15.806, -32.425), 'right_clavicle': (9.3, -13.756),
-        'right_shoulder': (3.794, 167.462, -40.474), 'right_elbow': (8.061, 8.736),
-        'right_wrist': (12.332, -11.159), 'left_clavicle': (30.0, 12.582),
-        'left_shoulder': (21.479, 164.849, -64.981), 'left_elbow': (9.184, -65.302),
-        'left_wrist': (7.947, -1.101),
+        'spine_lumbar': (26.841, -4.427, -10.239), 'spine_thoracic': (-4.296, 1.876, -2.17),
+        'neck': (-58.398, -15.806, -32.425), 'right_clavicle': (12.041, -13.509),
+        'right_shoulder': (3.081, 164.918, -40.403), 'right_elbow': (7.338, 8.719),
+        'right_wrist': (12.002, -10.794), 'left_clavicle': (30.0, 12.419),
+        'left_shoulder': (21.391, 164.907, -65.005), 'left_elbow': (8.872, -65.3),
+        'left_wrist': (7.817, -1.12),
     })
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
@@ -389,70 +390,69 @@ def remove_avionics_unit():
         'spine_lumbar': (25.131, -3.332, -9.682), 'spine_thoracic': (-3.932, 1.224, -0.706),
         'neck': (-57.573, -19.113, -23.323), 'right_clavicle': (14.226, -13.216),
         'right_shoulder': (2.338, 164.98, -40.325), 'right_elbow': (7.133, 8.713),
-        'right_wrist': (12.09, -10.832), 'left_clavicle': (30.0, 12.219),
-        'left_shoulder': (20.833, 163.058, -64.828), 'left_elbow': (7.836, -65.257),
-        'left_wrist': (7.527, -1.361),
+        'left_clavicle': (30.0, 12.219), 'left_shoulder': (20.833, 163.058, -64.828),
+        'left_elbow': (7.836, -65.257), 'left_wrist': (7.527, -1.361),
     })
-    human.KeyJoints(5.7, {'spine_thoracic': (-3.884, 1.13, -0.706)})
-    human.KeyJoints(5.8, {'spine_lumbar': (25.039, -3.191, -9.688)})
-    human.KeyJoints(5.9, {'spine_thoracic': (-3.756, 0.878, -0.711)})
+    human.KeyJoints(5.5, {'right_wrist': (12.09, -10.832)})
+    human.KeyJoints(5.7, {
+        'spine_lumbar': (25.083, -3.258, -9.694), 'spine_thoracic': (-3.88, 1.122, -0.709),
+    })
+    human.KeyJoints(5.9, {
+        'spine_lumbar': (24.957, -3.063, -9.728), 'spine_thoracic': (-3.743, 0.852, -0.721),
+    })
     human.KeyJoints(6.0, {
-        'spine_lumbar': (24.861, -2.915, -9.725), 'spine_thoracic': (-3.639, 0.647, -0.72),
-        'right_clavicle': (14.172, -13.268), 'right_shoulder': (2.251, 165.039, -40.321),
-        'left_clavicle': (30.0, 12.271), 'left_shoulder': (20.88, 163.07, -64.822),
+        'spine_lumbar': (24.845, -2.888, -9.77), 'spine_thoracic': (-3.622, 0.612, -0.735),
+        'right_clavicle': (14.115, -13.323), 'right_shoulder': (2.246, 165.103, -40.321),
+        'left_clavicle': (30.0, 12.326), 'left_shoulder': (20.93, 163.081, -64.822),
     })
     human.KeyJoints(6.1, {
-        'spine_lumbar': (24.648, -2.583, -9.834), 'spine_thoracic': (-3.409, 0.191, -0.757),
-        'right_elbow': (7.211, 8.708), 'left_elbow': (7.892, -65.259),
+        'spine_lumbar': (24.661, -2.602, -9.877), 'spine_thoracic': (-3.423, 0.217, -0.772),
+        'right_elbow': (7.233, 8.708),
     })
-    human.KeyJoints(6.2, {
-        'spine_lumbar': (24.53, -2.397, -9.945), 'spine_thoracic': (-3.28, -0.065, -0.795),
-    })
+    human.KeyJoints(6.2, {'spine_thoracic': (-3.316, 0.005, -0.802)})
     human.KeyJoints(6.3, {
-        'right_clavicle': (13.805, -13.625), 'right_shoulder': (2.13, 165.451, -40.316),
-        'left_clavicle': (30.0, 12.628), 'left_shoulder': (21.201, 163.146, -64.814),
+        'spine_lumbar': (24.513, -2.369, -10.029), 'right_clavicle': (13.789, -13.641),
+        'right_shoulder': (2.139, 165.47, -40.316), 'left_clavicle': (30.0, 12.644),
     })
-    human.KeyJoints(6.5, {'spine_thoracic': (-3.198, -0.23, -0.851)})
+    human.KeyJoints(6.4, {'left_shoulder': (21.269, 163.162, -64.814)})
+    human.KeyJoints(6.5, {'spine_thoracic': (-3.21, -0.206, -0.853)})
     human.KeyJoints(6.6, {'neck': (-57.56, -19.126, -23.275)})
-    human.KeyJoints(6.7, {
-        'spine_lumbar': (24.446, -2.262, -10.154), 'right_shoulder': (2.118, 165.645, -40.315),
-    })
     human.KeyRoot(6.8, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(6.8, {
         'neck': (-57.552, -19.118, -23.282), 'head': (-20.0, 11.207),
-        'right_clavicle': (13.624, -13.801), 'right_elbow': (7.38, 8.706),
-        'left_clavicle': (30.0, 12.804), 'left_shoulder': (21.36, 163.184, -64.813),
-        'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
-        'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
+        'right_clavicle': (13.624, -13.801), 'right_shoulder': (2.118, 165.654, -40.315),
+        'left_clavicle': (30.0, 12.804), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
+        'left_ankle': (1.719, 0.0),
     })
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: locomotion on root at trolley_front
     human.Walk((-79.997, 0.0, 40.001), start=6.887427, duration=4.515789)
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: gaze on head
     human.KeyRoot(6.9, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'neck': (-57.181, -18.994, -23.134), 'head': (-19.871, 11.173),
-        'right_hip': (3.51, 0.005, 0.014), 'right_knee': (5.94,), 'right_ankle': (2.42, 0.006),
-        'left_hip': (3.459, -0.005, -0.014), 'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
+        'spine_lumbar': (24.445, -2.26, -10.161), 'neck': (-57.181, -18.994, -23.134),
+        'head': (-19.871, 11.173), 'right_elbow': (7.38, 8.706), 'right_hip': (3.51, 0.005, 0.014),
+        'right_knee': (5.94,), 'right_ankle': (2.42, 0.006), 'left_hip': (3.459, -0.005, -0.014),
+        'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
     })
     human.KeyRoot(7.0, (0.45, 72.589, 50.1), (-0.953, 0.0, 0.0))
     human.KeyJoints(7.0, {
         'neck': (-45.857, -15.232, -18.552), 'head': (-15.936, 8.963),
-        'left_elbow': (8.013, -65.263), 'right_hip': (8.12, 0.249, 1.002), 'right_knee': (15.476,),
-        'right_ankle': (6.818, 0.388), 'left_hip': (6.846, -0.269, -0.992), 'left_knee': (13.383,),
-        'left_ankle': (6.542, -0.385),
+        'right_hip': (8.12, 0.249, 1.002), 'right_knee': (15.476,), 'right_ankle': (6.818, 0.388),
+        'left_hip': (6.846, -0.269, -0.992), 'left_knee': (13.383,), 'left_ankle': (6.542, -0.385),
     })
     human.KeyRoot(7.1, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'neck': (-24.966, -8.293, -10.1), 'head': (-8.676, 4.891),
+        'neck': (-24.966, -8.293, -10.1), 'head': (-8.676, 4.891), 'left_elbow': (8.013, -65.263),
         'right_hip': (10.472, 0.538, 2.991), 'right_knee': (20.12,), 'right_ankle': (8.764, 1.125),
         'left_hip': (7.104, -0.721, -3.097), 'left_knee': (14.693,), 'left_ankle': (7.637, -1.097),
     })
     human.KeyRoot(7.2, (2.102, 72.488, 50.466), (-5.558, 0.0, 0.0))
     human.KeyJoints(7.2, {
         'neck': (-5.987, -1.989, -2.422), 'head': (-2.081, 1.19),
-        'right_hip': (18.851, 1.631, 0.537), 'right_knee': (38.348,),
-        'right_ankle': (18.377, 1.749), 'left_hip': (6.848, -1.102, -5.732), 'left_knee': (14.925,),
-        'left_ankle': (8.083, -1.773),
+        'left_shoulder': (21.36, 163.184, -64.813), 'right_hip': (18.851, 1.631, 0.537),
+        'right_knee': (38.348,), 'right_ankle': (18.377, 1.749),
+        'left_hip': (6.848, -1.102, -5.732), 'left_knee': (14.925,), 'left_ankle': (8.083, -1.773),
     })
     human.KeyRoot(7.3, (2.471, 72.699, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(7.3, {
@@ -704,57 +704,57 @@ def remove_avionics_unit():
     human.KeyRoot(11.5, (-80.0, 72.988, 40.0), (-90.0, 0.0, 0.0))
     human.KeyJoints(11.5, {
         'neck': (34.748, -33.507, 14.904), 'head': (14.892, 11.155),
-        'right_shoulder': (2.554, 164.039, -39.368), 'right_elbow': (8.187, 8.144),
-        'right_wrist': (12.391, -10.94), 'left_shoulder': (21.512, 161.886, -63.631),
-        'left_elbow': (9.007, -65.122), 'left_wrist': (8.185, -1.533), 'right_knee': (5.111,),
+        'right_shoulder': (2.557, 164.029, -39.354), 'right_elbow': (8.192, 8.141),
+        'right_wrist': (12.393, -10.943), 'left_shoulder': (21.513, 161.878, -63.616),
+        'left_elbow': (9.013, -65.117), 'left_wrist': (8.188, -1.538), 'right_knee': (5.111,),
         'left_knee': (5.084,),
     })
     human.KeyJoints(11.6, {
         'neck': (35.0, -33.75, 15.012), 'head': (15.0, 11.236),
-        'right_shoulder': (5.128, 154.513, -33.785), 'right_elbow': (12.939, 4.834),
-        'right_wrist': (14.243, -11.808), 'left_shoulder': (22.405, 154.237, -56.661),
-        'left_elbow': (14.864, -64.284), 'left_wrist': (11.261, -2.736), 'right_knee': (4.96,),
+        'right_shoulder': (5.145, 154.451, -33.69), 'right_elbow': (12.97, 4.812),
+        'right_wrist': (14.255, -11.833), 'left_shoulder': (22.411, 154.185, -56.567),
+        'left_elbow': (14.903, -64.255), 'left_wrist': (11.281, -2.77), 'right_knee': (4.96,),
         'right_ankle': (1.919, 0.0), 'left_hip': (3.039, 0.0, 0.0), 'left_knee': (4.95,),
         'left_ankle': (1.914, 0.0),
     })
     human.KeyJoints(11.7, {
-        'right_shoulder': (10.238, 135.6, -22.651), 'right_elbow': (22.374, -1.74),
-        'right_wrist': (17.919, -13.548), 'left_shoulder': (24.179, 139.048, -42.781),
-        'left_elbow': (26.495, -62.602), 'left_wrist': (17.369, -5.146),
+        'right_shoulder': (10.279, 135.448, -22.421), 'right_elbow': (22.449, -1.792),
+        'right_wrist': (17.948, -13.607), 'left_shoulder': (24.193, 138.92, -42.553),
+        'left_elbow': (26.588, -62.533), 'left_wrist': (17.418, -5.227),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(11.8, {
-        'right_shoulder': (17.052, 110.384, -7.613), 'right_elbow': (34.953, -10.503),
-        'right_wrist': (22.82, -15.93), 'left_shoulder': (26.543, 118.789, -24.115),
-        'left_elbow': (42.0, -60.283), 'left_wrist': (25.512, -8.444),
+        'right_shoulder': (17.121, 110.12, -7.241), 'right_elbow': (35.075, -10.592),
+        'right_wrist': (22.868, -16.025), 'left_shoulder': (26.566, 118.568, -23.743),
+        'left_elbow': (42.153, -60.171), 'left_wrist': (25.594, -8.573),
     })
     human.KeyJoints(11.9, {
-        'right_shoulder': (24.598, 82.453, 9.404), 'right_elbow': (48.886, -20.211),
-        'right_wrist': (28.249, -18.685), 'left_shoulder': (29.162, 96.335, -3.14),
-        'left_elbow': (59.176, -57.569), 'left_wrist': (34.532, -12.254),
+        'right_shoulder': (24.665, 82.075, 9.988), 'right_elbow': (48.917, -20.295),
+        'right_wrist': (28.274, -18.848), 'left_shoulder': (29.177, 96.001, -2.575),
+        'left_elbow': (59.248, -57.361), 'left_wrist': (34.601, -12.483),
     })
     human.KeyJoints(12.0, {
-        'right_shoulder': (31.984, 55.105, 26.651), 'right_elbow': (62.52, -29.713),
-        'right_wrist': (33.561, -21.574), 'left_shoulder': (31.724, 74.327, 17.884),
-        'left_elbow': (75.982, -54.676), 'left_wrist': (43.36, -16.243),
+        'right_shoulder': (31.86, 54.482, 27.753), 'right_elbow': (61.456, -29.524),
+        'right_wrist': (33.26, -21.968), 'left_shoulder': (31.616, 73.659, 18.837),
+        'left_elbow': (74.987, -54.064), 'left_wrist': (43.099, -16.841),
     })
     human.KeyJoints(12.1, {
-        'right_shoulder': (38.198, 31.378, 42.743), 'right_elbow': (73.555, -37.726),
-        'right_wrist': (37.934, -24.502), 'left_shoulder': (33.831, 55.103, 36.999),
-        'left_elbow': (89.755, -51.566), 'left_wrist': (50.757, -20.308),
+        'right_shoulder': (37.593, 30.026, 44.525), 'right_elbow': (69.419, -36.77),
+        'right_wrist': (36.702, -25.293), 'left_shoulder': (33.419, 53.503, 38.405),
+        'left_elbow': (85.79, -50.124), 'left_wrist': (49.565, -21.607),
     })
     human.KeyJoints(12.2, {
-        'right_shoulder': (41.884, 12.97, 56.452), 'right_elbow': (76.627, -42.319),
-        'right_wrist': (39.627, -27.566), 'left_shoulder': (34.829, 39.593, 52.386),
-        'left_elbow': (94.951, -47.61), 'left_wrist': (54.642, -24.787),
+        'right_shoulder': (41.258, 11.842, 57.608), 'right_elbow': (72.356, -41.273),
+        'right_wrist': (38.333, -28.18), 'left_shoulder': (34.428, 38.197, 53.213),
+        'left_elbow': (90.85, -46.373), 'left_wrist': (53.363, -25.85),
     })
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on l_arm at trolley_top
     # examples/remove_avionics_unit.mtask:37:5 remove_avionics_unit > move: TO on r_arm at trolley_top
     human.KeyJoints(12.3, {
-        'right_shoulder': (43.083, 2.902, 64.104), 'right_elbow': (73.957, -43.534),
-        'right_wrist': (39.186, -29.608), 'left_shoulder': (34.935, 30.684, 60.56),
-        'left_elbow': (93.49, -44.535), 'left_wrist': (55.285, -27.94),
+        'right_shoulder': (42.963, 2.708, 64.293), 'right_elbow': (73.146, -43.331),
+        'right_wrist': (38.939, -29.716), 'left_shoulder': (34.86, 30.437, 60.687),
+        'left_elbow': (92.709, -44.311), 'left_wrist': (55.038, -28.13),
     })
     human.KeyJoints(12.4, {
         'right_shoulder': (43.268, 1.055, 65.506), 'right_elbow': (73.272, -43.699),

@@ -292,63 +292,62 @@ def replace_fuel_filter():
     human.KeyJoints(4.0, {'neck': (25.294, -24.39, 13.555), 'head': (10.84, 8.034)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TA on r_arm at filter_bowl
     human.KeyJoints(4.1, {
-        'spine_lumbar': (11.388, 0.026, 0.024), 'spine_thoracic': (1.896, 0.02, 0.029),
+        'spine_lumbar': (11.381, 0.025, 0.022), 'spine_thoracic': (1.897, 0.018, 0.027),
         'neck': (34.901, -33.655, 18.703), 'head': (14.958, 11.085),
-        'right_clavicle': (-0.012, 0.024), 'right_shoulder': (8.635, 5.756, 11.449),
-        'right_elbow': (34.365, 17.189), 'right_wrist': (-0.003, -0.004), 'left_toes': (86.654,),
+        'right_clavicle': (-0.011, 0.022), 'right_shoulder': (8.631, 5.753, 11.45),
+        'right_elbow': (34.367, 17.189), 'right_wrist': (-0.003, -0.004), 'left_toes': (86.654,),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=4.109804, duration=0.819176)
     human.KeyJoints(4.2, {
-        'spine_lumbar': (13.048, 0.488, 0.698), 'spine_thoracic': (1.574, 0.469, 0.844),
-        'neck': (35.0, -33.75, 16.614), 'head': (15.0, 10.899), 'right_clavicle': (-0.334, 0.698),
-        'right_shoulder': (9.764, 6.499, 11.155), 'right_elbow': (34.023, 17.189),
-        'right_wrist': (-0.098, -0.114),
+        'spine_lumbar': (12.856, 0.448, 0.621), 'spine_thoracic': (1.587, 0.417, 0.779),
+        'neck': (35.0, -33.75, 16.614), 'head': (15.0, 10.899), 'right_clavicle': (-0.311, 0.621),
+        'right_shoulder': (9.657, 6.413, 11.189), 'right_elbow': (34.062, 17.189),
+        'right_wrist': (-0.087, -0.101),
     })
     human.KeyJoints(4.3, {
-        'spine_lumbar': (17.965, 1.863, 2.695), 'spine_thoracic': (0.607, 1.8, 3.272),
-        'neck': (35.0, -33.75, 11.087), 'head': (15.0, 10.241), 'right_clavicle': (-1.297, 2.695),
-        'right_shoulder': (13.12, 8.699, 10.285), 'right_elbow': (33.008, 17.19),
-        'right_wrist': (-0.379, -0.439),
+        'spine_lumbar': (17.246, 1.715, 2.405), 'spine_thoracic': (0.657, 1.607, 3.026),
+        'neck': (35.0, -33.75, 11.087), 'head': (15.0, 10.241), 'right_clavicle': (-1.209, 2.405),
+        'right_shoulder': (12.72, 8.375, 10.412), 'right_elbow': (33.156, 17.19),
+        'right_wrist': (-0.338, -0.392),
     })
     human.KeyJoints(4.4, {
-        'spine_lumbar': (25.623, 4.05, 5.804), 'spine_thoracic': (-0.984, 3.872, 7.154),
-        'neck': (35.0, -33.75, 4.361), 'head': (15.0, 8.861), 'right_clavicle': (-2.844, 5.804),
-        'right_shoulder': (18.429, 12.124, 8.93), 'right_elbow': (31.427, 17.192),
+        'spine_lumbar': (24.114, 3.743, 5.202), 'spine_thoracic': (-0.863, 3.471, 6.624),
+        'neck': (35.0, -33.75, 4.361), 'head': (15.0, 8.861), 'right_clavicle': (-2.656, 5.201),
+        'right_shoulder': (17.579, 11.441, 9.197), 'right_elbow': (31.739, 17.192),
     })
     human.KeyJoints(4.5, {
-        'spine_lumbar': (34.49, 6.703, 9.405), 'spine_thoracic': (-3.047, 6.271, 11.91),
-        'neck': (35.0, -30.306, -0.737), 'head': (15.0, 9.445), 'right_clavicle': (-4.762, 9.405),
-        'right_shoulder': (24.792, 16.091, 7.362), 'right_elbow': (29.597, 17.194),
+        'spine_lumbar': (31.901, 6.259, 8.411), 'spine_thoracic': (-2.821, 5.614, 11.008),
+        'neck': (35.0, -30.306, -0.737), 'head': (15.0, 9.445), 'right_clavicle': (-4.463, 8.404),
+        'right_shoulder': (23.346, 14.88, 7.818), 'right_elbow': (30.13, 17.194),
     })
     human.KeyJoints(4.6, {
-        'spine_lumbar': (42.601, 9.45, 12.721), 'spine_thoracic': (-5.494, 8.482, 16.929),
-        'neck': (35.0, -6.706, -9.435), 'head': (15.0, -2.589), 'right_clavicle': (-6.838, 12.72),
-        'right_shoulder': (31.177, 19.705, 5.926), 'right_elbow': (27.932, 17.198),
-        'right_wrist': (-1.787, -2.068),
+        'spine_lumbar': (38.502, 9.113, 11.285), 'spine_thoracic': (-5.015, 7.553, 15.49),
+        'neck': (35.0, -6.706, -9.435), 'head': (15.0, -2.589), 'right_clavicle': (-6.463, 11.25),
+        'right_shoulder': (28.872, 17.635, 6.647), 'right_elbow': (28.737, 17.197),
+        'right_wrist': (-1.544, -1.81),
     })
     human.KeyJoints(4.7, {
-        'spine_lumbar': (45.87, 11.953, 14.427), 'spine_thoracic': (-7.898, 9.646, 20.867),
+        'spine_lumbar': (41.262, 12.215, 12.917), 'spine_thoracic': (-6.922, 8.711, 18.944),
         'neck': (35.0, 12.864, -15.897), 'head': (15.0, -11.225),
-        'right_clavicle': (-8.721, 14.393), 'right_shoulder': (35.436, 20.86, 5.335),
-        'right_elbow': (27.299, 17.202), 'right_wrist': (-1.97, -2.279),
+        'right_clavicle': (-8.386, 12.794), 'right_shoulder': (32.462, 18.304, 6.151),
+        'right_elbow': (28.03, 17.198), 'right_wrist': (-1.677, -2.032),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
-        'spine_lumbar': (42.085, 14.293, 13.694), 'spine_thoracic': (-8.262, 9.282, 21.124),
-        'neck': (35.0, 17.869, -18.04), 'right_clavicle': (-9.679, 13.504),
-        'right_shoulder': (34.509, 18.216, 5.995), 'right_elbow': (27.785, 17.199),
-        'right_wrist': (-1.708, -2.109),
+        'spine_lumbar': (40.751, 14.418, 13.242), 'spine_thoracic': (-7.87, 9.005, 20.455),
+        'neck': (35.0, 17.869, -18.04), 'right_clavicle': (-9.56, 13.02),
+        'right_shoulder': (33.519, 17.462, 6.235),
     })
     human.KeyJoints(4.9, {
-        'spine_lumbar': (40.459, 15.038, 13.284), 'spine_thoracic': (-8.111, 9.057, 20.822),
-        'neck': (35.0, 24.913, -18.5), 'right_clavicle': (-9.879, 13.032),
-        'right_shoulder': (33.727, 17.145, 6.284), 'right_elbow': (27.965, 17.197),
-        'right_wrist': (-1.594, -2.042),
+        'spine_lumbar': (40.441, 15.04, 13.278), 'spine_thoracic': (-8.106, 9.053, 20.813),
+        'neck': (35.0, 24.913, -18.5), 'right_clavicle': (-9.877, 13.025),
+        'right_shoulder': (33.713, 17.135, 6.288), 'right_elbow': (27.967, 17.197),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
     human.KeyJoints(5.0, {'neck': (35.0, 27.038, -18.369)})
+    human.KeyJoints(5.1, {'right_wrist': (-1.593, -2.042)})
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > turn: posture on r_hand
     human.KeyJoints(5.2, {'right_elbow': (27.967, 17.166)})
     human.KeyJoints(5.3, {'right_elbow': (28.099, 12.274)})
@@ -389,107 +388,108 @@ def replace_fuel_filter():
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: gaze on head at drain_tray
     human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
     human.KeyJoints(7.2, {
-        'spine_lumbar': (40.438, 15.048, 13.277), 'spine_thoracic': (-8.11, 9.053, 20.818),
-        'neck': (35.0, 27.063, -18.314), 'right_clavicle': (-9.881, 13.025),
-        'right_shoulder': (33.629, 17.124, 6.292), 'right_elbow': (27.516, 80.0),
-        'right_wrist': (-1.48, -2.045), 'left_clavicle': (-0.001, 0.001),
-        'left_shoulder': (8.595, 5.729, 11.459),
+        'spine_lumbar': (40.438, 15.048, 13.278), 'spine_thoracic': (-8.109, 9.053, 20.818),
+        'neck': (35.0, 27.063, -18.314), 'right_shoulder': (33.629, 17.124, 6.292),
+        'right_elbow': (27.516, 80.0), 'right_wrist': (-1.48, -2.045),
+        'left_clavicle': (0.0, 0.001), 'left_shoulder': (8.595, 5.729, 11.459),
     })
     human.KeyJoints(7.3, {
-        'spine_lumbar': (40.98, 14.759, 13.011), 'spine_thoracic': (-8.3, 8.971, 20.63),
-        'neck': (35.0, 27.718, -16.677), 'right_clavicle': (-9.879, 13.08),
-        'right_shoulder': (33.448, 16.654, 6.418), 'right_elbow': (28.474, 80.0),
-        'right_wrist': (-1.732, -1.966), 'left_clavicle': (-0.272, 0.416),
-        'left_shoulder': (9.125, 5.645, 11.427), 'left_elbow': (34.351, 17.188),
-        'left_wrist': (-0.005, -0.02),
+        'spine_lumbar': (40.903, 14.8, 13.049), 'spine_thoracic': (-8.273, 8.983, 20.657),
+        'neck': (35.0, 27.718, -16.677), 'right_clavicle': (-9.879, 13.072),
+        'right_shoulder': (33.474, 16.721, 6.4), 'right_elbow': (28.338, 80.0),
+        'right_wrist': (-1.696, -1.978), 'left_clavicle': (-0.233, 0.357),
+        'left_shoulder': (9.112, 5.658, 11.425), 'left_elbow': (34.358, 17.188),
+        'left_wrist': (-0.007, -0.017),
     })
     human.KeyJoints(7.4, {
-        'spine_lumbar': (43.355, 13.489, 11.844), 'spine_thoracic': (-9.137, 8.609, 19.81),
-        'neck': (35.0, 29.754, -13.81), 'right_clavicle': (-9.869, 13.32),
-        'right_shoulder': (32.588, 14.617, 6.974), 'right_elbow': (32.741, 80.0),
-        'right_wrist': (-2.861, -1.593), 'left_clavicle': (-1.462, 2.238),
-        'left_shoulder': (11.479, 5.276, 11.285),
+        'spine_lumbar': (42.944, 13.709, 12.047), 'spine_thoracic': (-8.992, 8.672, 19.952),
+        'neck': (35.0, 29.754, -13.81), 'right_clavicle': (-9.871, 13.278),
+        'right_shoulder': (32.745, 14.967, 6.877), 'right_elbow': (31.994, 80.0),
+        'right_wrist': (-2.662, -1.661), 'left_clavicle': (-1.256, 1.922),
+        'left_shoulder': (11.395, 5.343, 11.275),
     })
     human.KeyJoints(7.5, {
-        'spine_lumbar': (47.663, 11.188, 9.728), 'spine_thoracic': (-10.654, 7.953, 18.321),
-        'neck': (35.0, 33.59, -10.033), 'right_clavicle': (-9.852, 13.754),
-        'right_shoulder': (31.444, 10.914, 8.008), 'right_elbow': (39.641, 80.0),
-        'right_wrist': (-4.699, -0.839), 'left_clavicle': (-3.621, 5.54),
-        'left_shoulder': (16.113, 4.607, 10.989), 'left_elbow': (34.029, 17.179),
-        'left_wrist': (-0.083, -0.27),
+        'spine_lumbar': (46.663, 11.722, 10.22), 'spine_thoracic': (-10.302, 8.106, 18.666),
+        'neck': (35.0, 33.59, -10.033), 'right_shoulder': (31.69, 11.772, 7.764),
+        'right_elbow': (38.092, 80.0), 'right_wrist': (-4.286, -1.021),
+        'left_clavicle': (-3.12, 4.774), 'left_shoulder': (15.729, 4.777, 10.978),
+        'left_elbow': (34.219, 17.181), 'left_wrist': (-0.115, -0.199),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (52.972, 8.351, 7.121), 'spine_thoracic': (-12.524, 7.145, 16.486),
-        'neck': (35.0, 33.675, -6.28), 'right_shoulder': (30.346, 6.378, 9.337),
-        'right_elbow': (47.332, 80.0), 'right_wrist': (-6.737, 0.191),
-        'left_clavicle': (-6.281, 9.611), 'left_shoulder': (22.994, 3.783, 10.502),
-        'left_elbow': (33.774, 17.172), 'left_wrist': (-0.202, -0.468),
+        'spine_lumbar': (51.271, 9.26, 7.956), 'neck': (35.0, 33.675, -6.28),
+        'right_clavicle': (-9.837, 14.119), 'right_shoulder': (30.694, 7.821, 8.905),
+        'right_elbow': (44.906, 80.0), 'right_wrist': (-6.095, -0.151),
+        'left_clavicle': (-5.428, 8.307), 'left_shoulder': (21.653, 4.146, 10.513),
+        'left_elbow': (34.787, 17.179), 'left_wrist': (-0.304, -0.183),
     })
     human.KeyJoints(7.7, {
-        'spine_lumbar': (57.687, 5.831, 4.804), 'spine_thoracic': (-14.185, 6.427, 14.857),
-        'neck': (35.0, 33.746, -2.942), 'right_clavicle': (-9.812, 14.766),
-        'right_shoulder': (29.4, 2.445, 10.568), 'right_elbow': (53.888, 80.0),
-        'right_wrist': (-8.471, 1.197), 'left_clavicle': (-8.643, 13.226),
-        'left_shoulder': (31.871, 3.097, 9.763), 'left_elbow': (33.976, 17.168),
-        'left_wrist': (-0.469, -0.547),
+        'spine_lumbar': (55.63, 6.93, 5.815), 'spine_thoracic': (-13.461, 6.741, 15.568),
+        'neck': (35.0, 33.746, -2.942), 'right_clavicle': (-9.82, 14.559),
+        'right_shoulder': (29.812, 4.148, 10.025), 'right_elbow': (51.053, 80.0),
+        'right_wrist': (-7.721, 0.747), 'left_clavicle': (-7.613, 11.649),
+        'left_shoulder': (27.369, 3.891, 9.861), 'left_elbow': (38.481, 17.191),
+        'left_wrist': (-0.847, 0.595),
     })
     human.KeyJoints(7.8, {
-        'spine_lumbar': (59.845, 4.678, 3.744), 'spine_thoracic': (-14.945, 6.099, 14.111),
-        'neck': (35.0, 32.826, -0.951), 'right_clavicle': (-9.803, 14.984),
-        'right_shoulder': (28.99, 0.756, 11.264), 'right_elbow': (56.784, 80.0),
-        'right_wrist': (-9.384, 1.736), 'left_clavicle': (-9.725, 14.881),
-        'left_shoulder': (35.044, 3.902, 8.9), 'left_elbow': (44.822, 17.214),
-        'left_wrist': (-1.735, 1.954),
+        'spine_lumbar': (58.673, 5.304, 4.32), 'spine_thoracic': (-14.533, 6.277, 14.516),
+        'neck': (35.0, 32.826, -0.951), 'right_clavicle': (-9.808, 14.866),
+        'right_shoulder': (29.212, 1.668, 10.885), 'right_elbow': (55.215, 80.0),
+        'right_wrist': (-8.887, 1.442), 'left_clavicle': (-9.137, 13.983),
+        'left_shoulder': (28.438, 4.737, 9.082), 'left_elbow': (50.378, 17.242),
+        'left_wrist': (-2.185, 3.422),
     })
     # examples/replace_fuel_filter.mtask:37:9 replace_fuel_filter > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.9, {
-        'spine_lumbar': (59.995, 4.598, 3.671), 'neck': (35.0, 32.785, -0.758),
-        'right_shoulder': (28.961, 0.64, 11.312), 'right_elbow': (56.984, 80.0),
-        'left_clavicle': (-9.8, 14.996), 'left_shoulder': (26.79, 5.763, 8.564),
-        'left_elbow': (61.618, 17.292), 'left_wrist': (-3.376, 6.13),
+        'spine_lumbar': (59.821, 4.691, 3.756), 'spine_thoracic': (-14.937, 6.102, 14.119),
+        'neck': (35.0, 32.785, -0.758), 'right_shoulder': (28.994, 0.774, 11.256),
+        'right_elbow': (56.752, 80.0), 'right_wrist': (-9.374, 1.73),
+        'left_clavicle': (-9.713, 14.863), 'left_shoulder': (25.815, 5.859, 8.603),
+        'left_elbow': (62.107, 17.294), 'left_wrist': (-3.41, 6.275),
     })
     # examples/replace_fuel_filter.mtask:39:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
     human.KeyJoints(8.0, {
-        'neck': (35.0, 32.785, -0.758), 'head': (15.0, -11.25),
+        'spine_lumbar': (60.0, 4.595, 3.668), 'neck': (35.0, 32.785, -0.758),
+        'head': (15.0, -11.25), 'right_clavicle': (-9.802, 15.0),
         'right_shoulder': (28.96, 0.636, 11.314), 'right_elbow': (56.991, 80.0),
-        'right_wrist': (-9.449, 1.776), 'left_shoulder': (25.156, 6.092, 8.516),
-        'left_elbow': (64.45, 17.304), 'left_wrist': (-3.653, 6.85),
+        'right_wrist': (-9.449, 1.776), 'left_clavicle': (-9.802, 15.0),
+        'left_shoulder': (25.156, 6.092, 8.516), 'left_elbow': (64.45, 17.304),
+        'left_wrist': (-3.653, 6.85),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
         'neck': (35.0, 32.613, -1.304), 'head': (14.902, -11.243),
-        'right_shoulder': (30.239, 0.887, 11.121), 'right_elbow': (54.301, 79.954),
-        'right_wrist': (-8.81, 1.62),
+        'right_shoulder': (30.252, 0.886, 11.121), 'right_elbow': (54.286, 79.958),
+        'right_wrist': (-8.801, 1.617),
     })
     human.KeyJoints(8.2, {
         'neck': (35.0, 29.841, -10.089), 'head': (13.324, -11.138),
-        'right_shoulder': (31.426, 3.805, 8.675), 'right_elbow': (48.101, 76.719),
-        'right_wrist': (-11.86, 2.301),
+        'right_shoulder': (32.349, 3.754, 8.711), 'right_elbow': (47.033, 76.984),
+        'right_wrist': (-11.211, 2.124),
     })
     human.KeyJoints(8.3, {
-        'neck': (35.0, 25.451, -24.003), 'head': (10.824, -10.971),
-        'right_shoulder': (26.259, 11.127, 2.398), 'right_elbow': (48.242, 66.985),
-        'right_wrist': (-25.958, 5.518),
+        'spine_thoracic': (-15.0, 6.075, 14.058), 'neck': (35.0, 25.451, -24.003),
+        'head': (10.824, -10.971), 'right_shoulder': (29.538, 10.952, 2.523),
+        'right_elbow': (44.184, 67.974), 'right_wrist': (-23.534, 4.862),
     })
     human.KeyJoints(8.4, {
         'neck': (35.0, 21.748, -35.738), 'head': (8.716, -10.83),
-        'right_shoulder': (19.198, 21.217, -6.431), 'right_elbow': (53.178, 53.767),
-        'right_wrist': (-47.005, 10.012),
+        'right_shoulder': (22.964, 20.52, -5.758), 'right_elbow': (46.936, 55.679),
+        'right_wrist': (-42.522, 8.912),
     })
     human.KeyJoints(8.5, {
         'neck': (35.0, 20.799, -38.744), 'head': (8.176, -10.794),
-        'right_shoulder': (18.3, 31.789, -15.814), 'right_elbow': (46.252, 42.475),
-        'right_wrist': (-63.007, 13.065),
+        'right_shoulder': (21.357, 30.49, -13.792), 'right_elbow': (40.813, 44.146),
+        'right_wrist': (-56.169, 11.685),
     })
     human.KeyJoints(8.6, {
-        'right_shoulder': (22.943, 38.156, -19.736), 'right_elbow': (28.622, 35.849),
-        'right_wrist': (-63.352, 12.999), 'left_elbow': (64.34, 17.304),
+        'right_shoulder': (26.361, 37.405, -17.776), 'right_elbow': (25.627, 37.021),
+        'right_wrist': (-56.401, 11.665), 'left_elbow': (64.34, 17.304),
     })
     # examples/replace_fuel_filter.mtask:40:5 replace_fuel_filter > move: TO on r_arm at drain_tray
     human.KeyJoints(8.7, {
-        'right_shoulder': (29.232, 39.672, -18.673), 'right_elbow': (18.547, 34.803),
-        'right_wrist': (-52.625, 11.244),
+        'right_shoulder': (29.315, 39.657, -18.628), 'right_elbow': (18.481, 34.83),
+        'right_wrist': (-52.461, 11.213),
     })
     # examples/replace_fuel_filter.mtask:41:5 replace_fuel_filter > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.732861, duration=0.072)
@@ -507,56 +507,56 @@ def replace_fuel_filter():
     human.KeyJoints(9.0, {'neck': (34.92, 22.048, -44.324)})
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(9.1, {
-        'spine_lumbar': (60.0, 4.606, 3.655), 'spine_thoracic': (-14.996, 6.067, 14.027),
+        'spine_lumbar': (60.0, 4.605, 3.656), 'spine_thoracic': (-14.996, 6.068, 14.029),
         'neck': (34.817, 23.414, -48.355), 'head': (13.839, -11.172),
-        'right_wrist': (-55.092, 11.203), 'left_shoulder': (25.234, 6.08, 8.528),
-        'left_elbow': (64.319, 17.329), 'left_wrist': (-3.681, 6.829),
+        'right_wrist': (-55.092, 11.203), 'left_shoulder': (25.234, 6.08, 8.527),
+        'left_elbow': (64.319, 17.328), 'left_wrist': (-3.679, 6.829),
     })
     human.KeyJoints(9.2, {
-        'spine_lumbar': (60.0, 5.185, 2.954), 'spine_thoracic': (-14.793, 5.621, 12.372),
+        'spine_lumbar': (60.0, 5.155, 2.991), 'spine_thoracic': (-14.782, 5.645, 12.458),
         'neck': (34.674, 25.05, -50.321), 'head': (14.997, -11.25),
-        'right_wrist': (-54.815, 11.203), 'left_clavicle': (-9.784, 15.0),
-        'left_shoulder': (25.731, 6.114, 9.048), 'left_elbow': (63.151, 18.675),
-        'left_wrist': (-5.832, 7.324),
+        'right_wrist': (-54.815, 11.203), 'left_clavicle': (-9.777, 15.0),
+        'left_shoulder': (25.706, 6.129, 9.02), 'left_elbow': (63.166, 18.604),
+        'left_wrist': (-5.718, 7.298),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
     human.KeyJoints(9.3, {
-        'spine_lumbar': (60.0, 7.129, 0.598), 'spine_thoracic': (-14.097, 4.124, 6.811),
+        'spine_lumbar': (60.0, 7.0, 0.755), 'spine_thoracic': (-14.049, 4.222, 7.18),
         'neck': (33.754, 28.576, -42.612), 'right_shoulder': (29.377, 39.703, -18.644),
-        'left_shoulder': (27.401, 6.239, 10.794), 'left_elbow': (59.201, 23.194),
-        'left_wrist': (-13.057, 8.988),
+        'left_shoulder': (27.297, 6.302, 10.676), 'left_elbow': (59.267, 22.894),
+        'left_wrist': (-12.571, 8.874),
     })
     human.KeyJoints(9.4, {
-        'spine_lumbar': (60.0, 10.335, -3.287), 'spine_thoracic': (-12.854, 1.656, -2.357),
+        'spine_lumbar': (60.0, 10.05, -2.937), 'spine_thoracic': (-12.718, 1.858, -1.538),
         'neck': (32.357, 32.88, -25.677), 'head': (15.0, -11.146), 'right_elbow': (18.333, 34.786),
-        'left_clavicle': (-9.576, 15.0), 'left_shoulder': (30.153, 6.516, 13.674),
-        'left_elbow': (52.485, 30.646), 'left_wrist': (-24.97, 11.731),
+        'left_clavicle': (-9.528, 14.994), 'left_shoulder': (29.978, 6.674, 13.4),
+        'left_elbow': (52.595, 29.975), 'left_wrist': (-23.837, 11.459),
     })
     human.KeyJoints(9.5, {
-        'spine_lumbar': (60.0, 14.119, -7.873), 'spine_thoracic': (-11.136, -1.258, -13.181),
-        'neck': (34.794, 33.581, -10.221), 'head': (14.99, -8.893), 'left_clavicle': (-9.319, 15.0),
-        'left_shoulder': (33.402, 7.031, 17.074), 'left_elbow': (44.018, 39.444),
-        'left_wrist': (-39.034, 14.969),
+        'spine_lumbar': (60.0, 13.671, -7.308), 'spine_thoracic': (-10.514, -1.074, -11.877),
+        'neck': (34.794, 33.581, -10.221), 'head': (14.99, -8.893),
+        'left_clavicle': (-9.292, 14.975), 'left_shoulder': (33.625, 7.497, 16.542),
+        'left_elbow': (43.611, 38.329), 'left_wrist': (-36.733, 14.357),
     })
     human.KeyJoints(9.6, {
-        'spine_lumbar': (60.0, 17.691, -12.157), 'spine_thoracic': (-8.772, -3.994, -23.351),
+        'spine_lumbar': (60.0, 17.007, -11.327), 'spine_thoracic': (-6.342, -4.446, -21.395),
         'neck': (35.0, 33.75, -1.443), 'head': (15.0, -8.051), 'right_wrist': (-52.744, 11.203),
-        'left_clavicle': (-8.825, 14.951), 'left_shoulder': (36.514, 8.162, 20.227),
-        'left_elbow': (34.493, 47.721), 'left_wrist': (-52.226, 17.979),
+        'left_clavicle': (-9.206, 14.948), 'left_shoulder': (39.34, 9.238, 19.059),
+        'left_elbow': (32.078, 45.802), 'left_wrist': (-46.229, 16.218),
     })
     human.KeyJoints(9.7, {
-        'spine_lumbar': (60.0, 19.87, -14.692), 'spine_thoracic': (-2.078, -7.28, -29.479),
+        'spine_lumbar': (60.0, 19.159, -13.954), 'spine_thoracic': (0.123, -8.028, -27.568),
         'neck': (34.633, 15.394, 5.567), 'head': (14.71, 1.877), 'right_wrist': (-52.409, 11.203),
-        'left_clavicle': (-8.97, 14.829), 'left_shoulder': (44.121, 11.874, 20.981),
-        'left_elbow': (20.714, 52.114), 'left_wrist': (-54.377, 17.713),
+        'left_shoulder': (47.896, 11.682, 19.998), 'left_elbow': (19.278, 50.194),
+        'left_wrist': (-47.473, 15.797),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(9.8, {
-        'spine_lumbar': (60.0, 19.995, -14.983), 'spine_thoracic': (3.657, -9.803, -29.975),
+        'spine_lumbar': (60.0, 19.944, -14.93), 'spine_thoracic': (3.817, -9.859, -29.837),
         'neck': (33.537, -8.22, 10.045), 'head': (13.853, 10.536),
-        'left_clavicle': (-9.926, 14.987), 'left_shoulder': (52.535, 13.019, 20.166),
-        'left_elbow': (12.852, 51.78), 'left_wrist': (-46.632, 15.19),
+        'left_clavicle': (-9.973, 14.998), 'left_shoulder': (52.821, 12.987, 20.099),
+        'left_elbow': (12.753, 51.643), 'left_wrist': (-46.123, 15.05),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=9.860849, duration=0.2628)
@@ -566,51 +566,51 @@ def replace_fuel_filter():
         'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
     })
     human.KeyJoints(10.1, {
-        'neck': (31.566, -8.564, 10.152), 'head': (12.394, 10.567), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (53.321, 13.042, 20.107), 'left_elbow': (12.071, 51.745),
-        'left_wrist': (-45.774, 14.924),
+        'spine_lumbar': (60.0, 20.0, -15.0), 'neck': (31.566, -8.564, 10.152),
+        'head': (12.394, 10.567), 'left_shoulder': (53.321, 13.042, 20.107),
+        'left_elbow': (12.071, 51.745), 'left_wrist': (-45.774, 14.924),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.2, {
         'neck': (31.843, -8.588, 14.979), 'head': (12.607, 10.625),
-        'left_shoulder': (52.272, 13.365, 19.282), 'left_elbow': (14.216, 51.579),
-        'left_wrist': (-46.208, 14.985),
+        'left_shoulder': (52.255, 13.363, 19.269), 'left_elbow': (14.124, 51.573),
+        'left_wrist': (-46.194, 14.983),
     })
     human.KeyJoints(10.3, {
         'neck': (32.777, -8.67, 31.296), 'head': (13.328, 10.823),
-        'left_shoulder': (45.01, 15.583, 13.406), 'left_elbow': (29.079, 50.394),
-        'left_wrist': (-48.874, 15.302),
+        'left_shoulder': (44.901, 15.561, 13.318), 'left_elbow': (28.254, 50.351),
+        'left_wrist': (-48.75, 15.28),
     })
     human.KeyJoints(10.4, {
         'neck': (33.891, -8.768, 50.761), 'head': (14.188, 11.06),
-        'left_shoulder': (32.866, 19.226, 3.535), 'left_elbow': (52.642, 48.373),
-        'left_wrist': (-53.058, 15.783),
+        'left_shoulder': (32.623, 19.142, 3.357), 'left_elbow': (50.374, 48.262),
+        'left_wrist': (-52.717, 15.702),
     })
     human.KeyJoints(10.5, {
         'neck': (34.676, -8.837, 64.486), 'head': (14.795, 11.226),
-        'left_shoulder': (16.343, 23.783, -9.907), 'left_elbow': (77.43, 45.435),
-        'left_wrist': (-57.545, 16.204),
+        'left_shoulder': (16.23, 23.477, -9.859), 'left_elbow': (73.078, 45.265),
+        'left_wrist': (-56.891, 15.917),
     })
     human.KeyJoints(10.6, {
-        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-7.016, 28.415, -28.084),
-        'left_elbow': (89.204, 40.485), 'left_wrist': (-60.375, 15.202),
+        'neck': (34.788, -8.847, 66.426), 'left_shoulder': (-5.395, 27.919, -26.805),
+        'left_elbow': (86.066, 40.686), 'left_wrist': (-59.878, 14.848),
     })
     human.KeyJoints(10.7, {
-        'head': (14.88, 11.25), 'left_shoulder': (-28.521, 31.547, -44.683),
-        'left_elbow': (84.912, 35.019), 'left_wrist': (-61.003, 11.587),
+        'head': (14.88, 11.25), 'left_shoulder': (-26.1, 31.869, -44.096),
+        'left_elbow': (85.741, 35.592), 'left_wrist': (-61.195, 11.873),
     })
     human.KeyJoints(10.8, {
-        'left_shoulder': (-40.176, 37.196, -61.06), 'left_elbow': (84.819, 31.81),
-        'left_wrist': (-62.893, 8.937),
+        'left_shoulder': (-38.072, 36.412, -60.79), 'left_elbow': (87.06, 32.389),
+        'left_wrist': (-63.588, 9.483),
     })
     # examples/replace_fuel_filter.mtask:43:5 replace_fuel_filter > move: TO on l_arm at filter_bowl
     human.KeyJoints(10.9, {
-        'left_shoulder': (-41.407, 39.218, -71.453), 'left_elbow': (91.759, 31.455),
-        'left_wrist': (-66.267, 8.851),
+        'left_shoulder': (-40.838, 38.551, -71.465), 'left_elbow': (92.598, 31.625),
+        'left_wrist': (-66.603, 9.03),
     })
     human.KeyJoints(11.0, {
-        'left_shoulder': (-41.449, 39.196, -75.482), 'left_elbow': (95.178, 31.456),
-        'left_wrist': (-67.9, 8.971),
+        'left_shoulder': (-41.408, 39.143, -75.483), 'left_elbow': (95.239, 31.469),
+        'left_wrist': (-67.926, 8.984),
     })
     # examples/replace_fuel_filter.mtask:44:5 replace_fuel_filter > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.064853, duration=0.072)
@@ -627,53 +627,54 @@ def replace_fuel_filter():
         'right_shoulder': (29.377, 39.703, -18.644), 'right_elbow': (18.333, 34.786),
     })
     human.KeyJoints(11.5, {
-        'spine_lumbar': (60.0, 18.966, -14.445), 'spine_thoracic': (3.738, -9.479, -29.459),
-        'right_shoulder': (29.656, 38.398, -18.233), 'right_elbow': (18.701, 34.954),
-        'right_wrist': (-52.36, 11.238),
+        'spine_lumbar': (60.0, 18.983, -14.454), 'spine_thoracic': (3.731, -9.488, -29.467),
+        'right_shoulder': (29.66, 38.407, -18.234), 'right_elbow': (18.704, 34.954),
+        'right_wrist': (-52.361, 11.239),
     })
     human.KeyJoints(11.6, {
-        'spine_lumbar': (60.0, 13.73, -11.635), 'spine_thoracic': (1.916, -6.862, -26.717),
-        'right_clavicle': (-9.833, 15.0), 'right_shoulder': (31.08, 31.777, -16.141),
-        'right_elbow': (20.578, 35.81), 'right_wrist': (-52.109, 11.415),
+        'spine_lumbar': (59.997, 13.83, -11.689), 'spine_thoracic': (1.88, -6.911, -26.763),
+        'right_clavicle': (-9.832, 15.0), 'right_shoulder': (31.1, 31.83, -16.148),
+        'right_elbow': (20.594, 35.807), 'right_wrist': (-52.114, 11.425),
     })
     human.KeyJoints(11.7, {
-        'spine_lumbar': (60.0, 4.556, -6.713), 'spine_thoracic': (-1.394, -2.275, -21.902),
-        'neck': (34.999, -8.917, 66.99), 'right_shoulder': (33.654, 20.058, -12.422),
-        'right_elbow': (23.95, 37.331), 'right_wrist': (-51.669, 11.747),
+        'spine_lumbar': (59.957, 4.801, -6.843), 'spine_thoracic': (-1.463, -2.395, -22.016),
+        'neck': (34.999, -8.917, 66.99), 'right_shoulder': (33.672, 20.18, -12.438),
+        'right_elbow': (23.982, 37.322), 'right_wrist': (-51.688, 11.772),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=11.723447, duration=0.395493)
     human.KeyJoints(11.8, {
-        'spine_lumbar': (60.0, -5.966, -1.067), 'spine_thoracic': (-5.5, 2.985, -16.353),
-        'neck': (34.474, -10.956, 59.829), 'right_shoulder': (36.816, 6.307, -8.017),
-        'right_elbow': (28.041, 39.13), 'right_wrist': (-51.165, 12.184),
+        'spine_lumbar': (59.493, -5.403, -1.349), 'spine_thoracic': (-5.618, 2.74, -16.608),
+        'neck': (34.474, -10.956, 59.829), 'right_clavicle': (-9.854, 14.931),
+        'right_shoulder': (36.642, 6.302, -7.959), 'right_elbow': (28.171, 39.139),
+        'right_wrist': (-51.275, 12.281),
     })
     human.KeyJoints(11.9, {
-        'spine_lumbar': (59.721, -14.688, 3.624), 'spine_thoracic': (-9.58, 7.365, -11.686),
+        'spine_lumbar': (57.59, -13.557, 3.099), 'spine_thoracic': (-9.555, 6.955, -12.196),
         'neck': (32.834, -17.256, 37.475), 'head': (14.985, 11.242),
-        'right_clavicle': (-9.936, 14.965), 'right_shoulder': (39.774, -5.973, -3.986),
-        'right_elbow': (31.972, 40.763), 'right_wrist': (-50.791, 12.699),
+        'right_shoulder': (38.72, -6.64, -3.669), 'right_elbow': (32.291, 40.84),
+        'right_wrist': (-51.199, 12.982),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.0, {
-        'spine_lumbar': (56.523, -18.489, 5.786), 'spine_thoracic': (-12.132, 9.499, -9.512),
+        'spine_lumbar': (55.373, -17.948, 5.539), 'spine_thoracic': (-12.008, 9.312, -9.764),
         'neck': (31.232, -23.402, 15.641), 'head': (14.965, 11.225),
-        'right_clavicle': (-9.485, 14.526), 'right_shoulder': (40.158, -14.576, -1.016),
-        'right_elbow': (34.899, 41.894), 'right_wrist': (-51.137, 13.428),
+        'right_clavicle': (-9.308, 14.363), 'right_shoulder': (39.507, -14.907, -0.872),
+        'right_elbow': (35.004, 41.925), 'right_wrist': (-51.356, 13.561),
     })
     human.KeyJoints(12.1, {
-        'spine_lumbar': (54.726, -19.056, 6.158), 'spine_thoracic': (-12.649, 9.913, -9.146),
-        'neck': (30.932, -24.891, 10.016), 'right_clavicle': (-9.218, 14.274),
-        'right_shoulder': (39.68, -17.086, -0.132), 'right_elbow': (35.723, 42.211),
-        'right_wrist': (-51.41, 13.721), 'left_shoulder': (-41.45, 39.188, -75.798),
+        'spine_lumbar': (54.72, -19.053, 6.157), 'spine_thoracic': (-12.648, 9.911, -9.147),
+        'neck': (30.932, -24.891, 10.016), 'right_shoulder': (39.676, -17.087, -0.131),
+        'right_elbow': (35.724, 42.211), 'right_wrist': (-51.411, 13.722),
+        'left_shoulder': (-41.45, 39.188, -75.798),
     })
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=12.118941, duration=0.072)
     # examples/replace_fuel_filter.mtask:45:5 replace_fuel_filter > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.2, {
         'neck': (30.986, -24.739, 10.338), 'head': (14.889, 11.044),
-        'right_shoulder': (39.601, -17.113, -0.126), 'right_elbow': (35.832, 42.271),
-        'right_wrist': (-51.485, 13.749),
+        'right_clavicle': (-9.216, 14.273), 'right_shoulder': (39.601, -17.113, -0.126),
+        'right_elbow': (35.832, 42.271), 'right_wrist': (-51.485, 13.749),
     })
     human.KeyJoints(12.3, {
         'right_shoulder': (39.458, -16.509, -0.393), 'right_elbow': (35.463, 49.199),

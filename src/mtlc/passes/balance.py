@@ -97,6 +97,7 @@ BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections
 # rad/s: the fastest a correction may turn a joint (``speed_limited``); issue 19 allows
 # 360 deg/s (12 deg an output frame), the kneel's own plan runs at up to 300
 CORRECTED_JOINT_SPEED = math.radians(330.0)
+CORRECTED_ROOT_SPEED = 0.3  # m/s: the fastest a pelvis correction fades where it must stop
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = 0.0  # m: what still counts as inside after correction
 # the pelvis aims the CoM half a PUSH_TOL deeper than MARGIN and stops within PUSH_TOL of that
@@ -226,14 +227,17 @@ def restore_contacts(
     root_position: np.ndarray,
     root_rotation: np.ndarray,
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     pose: Pose | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
 
     ``feet`` maps r_foot/l_foot to target positions (B, 3), rotations (B, 3, 3) and whether the
     foot touches the ground (B,): a foot in the air keeps its joint angles instead;
-    ``hands`` maps r_hand/l_hand to a row mask (B,) and target positions (B, 3); ``pose``: the
+    ``hands`` maps r_hand/l_hand to a row mask (B,), target positions (B, 3) and rotations
+    (B, 3, 3): a hand on its site keeps its grip's orientation as well as its place (with the
+    place alone, the arm's redundancy let one frame's solve turn the wrist 52 deg from its
+    neighbour's, issue 19); ``pose``: the
     pose of (q, root_position, root_rotation) if the caller has it (its legs are read). The
     pelvis drops by what straight legs cannot reach. Returns the new q (B, D), root positions
     and each row's worst remaining distance (m). Only the legs are posed here (the feet's chains,
@@ -279,11 +283,11 @@ def restore_contacts(
         now = part_site_positions(skel, q, root, root_rotation, soles)
         err = np.linalg.norm(now - want, axis=-1).max(axis=1)
         worst = np.maximum(worst, np.where(touch, err, 0.0))
-    for hand, (rows, target) in hands.items():
+    for hand, (rows, target, turned) in hands.items():
         idx = np.flatnonzero(rows)
         if idx.size == 0:
             continue
-        goal = [Goal(hand, position=target[idx])]
+        goal = [Goal(hand, position=target[idx], orientation=turned[idx])]
         elbow = skel.dof_index(f"{hand[0]}_elbow_flex")
         q[idx, elbow] = np.maximum(q[idx, elbow], SEED_FLEX)
         model = prepare(
@@ -303,7 +307,7 @@ def restore_contacts_posed(
     root_position: np.ndarray,
     root_rotation: np.ndarray,
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     pose: Pose | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
     """``restore_contacts`` and the pose of its result (forward kinematics is the costly part
@@ -320,7 +324,7 @@ def lean_trunk(
     pts: np.ndarray,
     ok: np.ndarray,
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     time: np.ndarray,
     holding: Held | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, Pose]:
@@ -393,9 +397,9 @@ def _sub_feet(
 
 
 def _sub_hands(
-    hands: dict[str, tuple[np.ndarray, np.ndarray]], rows: np.ndarray
+    hands: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]], rows: np.ndarray
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    return {h: (m[rows], x[rows]) for h, (m, x) in hands.items()}
+    return {h: (m[rows], x[rows], r[rows]) for h, (m, x, r) in hands.items()}
 
 
 def _active_segment(ir: MotionIR, t: float) -> Segment | None:
@@ -439,6 +443,7 @@ class Measured(NamedTuple):
     feet: FloatArray  # (N, 2, 3) r_foot, l_foot
     feet_rotation: FloatArray  # (N, 2, 3, 3)
     hands: FloatArray  # (N, 2, 3) r_hand, l_hand
+    hands_rotation: FloatArray  # (N, 2, 3, 3)
     lowest: FloatArray  # (N,) ``lowest_point``
     contact: BoolArray  # (N, 8) ``contact_mask``
     pts: FloatArray  # (N, 22, 2) ``support``
@@ -447,7 +452,8 @@ class Measured(NamedTuple):
     @staticmethod
     def empty(n: int) -> Measured:
         return Measured(
-            np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 2, 3)), np.empty(n),
+            np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 2, 3)),
+            np.empty((n, 2, 3, 3)), np.empty(n),
             np.empty((n, 2 * len(FOOT_POINT_NAMES)), dtype=bool), np.empty((n, 22, 2)),
             np.empty((n, 22), dtype=bool),
         )  # fmt: skip
@@ -493,6 +499,7 @@ def _support_state(
         into.feet_rotation[idx, k] = site_rotation(skel, pose, name)
     for k, name in enumerate(HANDS):
         into.hands[idx, k] = site_positions(skel, pose, name)
+        into.hands_rotation[idx, k] = site_rotation(skel, pose, name)
     into.lowest[idx] = lowest_point(skel, pose)
     return pose, carried_com(ir, pose, t, segs.holding), pts, ok
 
@@ -532,6 +539,7 @@ def balance_frames(
         before, after, failed = (np.concatenate(x) for x in zip(*parts, strict=True))
         return before, after, failed
     t = frames.time
+    q_start = frames.q.copy()
     # what depends on time only, for every frame (a few booleans a frame)
     stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
@@ -581,7 +589,9 @@ def balance_frames(
     # a hand short of its site is not held there: restoring it after every correction cost
     # most of the pass (72 strokes on a site 60 m away) and lost every row it was pinned on
     pins = hand_pins(ir, t, segs.pins)
-    hands = {h: (pins[h][rows], m_r.hands[:, k]) for k, h in enumerate(HANDS)}
+    hands = {
+        h: (pins[h][rows], m_r.hands[:, k], m_r.hands_rotation[:, k]) for k, h in enumerate(HANDS)
+    }
     q0 = frames.q[rows].copy()
     root0 = frames.root_position[rows].copy()
     rot = frames.root_rotation[rows]
@@ -657,12 +667,12 @@ def balance_frames(
     size = np.abs(dq).max(axis=1) + 10.0 * np.hypot(*dr.T[[0, 2]]) + 10.0 * np.abs(dr[:, 1])
     dq, dr = blend(dq, size, BLEND_FRAMES), blend(dr, size, BLEND_FRAMES)
     dq = speed_limited(frames.q, dq, skel.lower, skel.upper, t, CORRECTED_JOINT_SPEED)
-    dr[kneeling] = 0.0  # a neighbour's pelvis correction must not drag a knee
+    # a neighbour's pelvis correction must not drag a knee, nor stop in one frame where the
+    # knees touch down: it eases off before them (33 mm in one frame on a kneel, issue 19)
+    dr = eased_off(dr, kneeling, t, CORRECTED_ROOT_SPEED)
     span = np.flatnonzero(np.abs(dq).max(axis=1) + np.abs(dr).max(axis=1) > 0)
     if span.size == 0:  # the blended corrections cancelled out: nothing to apply
         return before, after, failed
-    qb = np.clip(frames.q[span] + dq[span], skel.lower, skel.upper)
-    rb = frames.root_position[span] + dr[span]
     # the frames the blend reaches, as measured in their original pose
     m_s = measured.take(span)
     pts_s, ok_s = m_s.pts, m_s.ok
@@ -671,19 +681,44 @@ def balance_frames(
                m_s.contact.reshape(span.size, 2, -1).any(axis=2)[:, k])
         for k, name in enumerate(FEET_SITES)
     }  # fmt: skip
-    hands_b = {h: (pins[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
-    rot_b = frames.root_rotation[span]
-    qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b)
+    hands_b = {
+        h: (pins[h][span], m_s.hands[:, k], m_s.hands_rotation[:, k]) for k, h in enumerate(HANDS)
+    }
     floor_b = np.minimum(m_s.lowest - 1e-4, ir.ground - GROUND_SLACK)
-    fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
-    fine &= lowest_point(skel, pb) >= floor_b
-    mb = hull_margin(
-        grouped_hull(pts_s, ok_s), carried_com(ir, pb, t[span], segs.holding)[:, [0, 2]]
-    )
+    hull_b = grouped_hull(pts_s, ok_s)
     # a blended frame must keep its contacts and be at least as balanced as its own correction
     own = np.full(len(t), -np.inf)
     own[rows[good]] = margin[good]
-    fine &= (mb >= np.minimum(own[span], MARGIN) - 1e-3) | (mb >= MARGIN)
+
+    def blended(at: np.ndarray, share: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray,
+                                                            BoolArray]:  # fmt: skip
+        """The span's frames ``at`` (positions in ``span``) with ``share`` of their blended
+        correction, contacts restored: q, root, margin and whether the frame keeps it."""
+        f = span[at]
+        qs = np.clip(frames.q[f] + share[:, None] * dq[f], skel.lower, skel.upper)
+        rs = frames.root_position[f] + share[:, None] * dr[f]
+        sub_feet = {n: (a[at], b[at], c[at]) for n, (a, b, c) in feet_b.items()}
+        sub_hands = {h: (m[at], x[at], r[at]) for h, (m, x, r) in hands_b.items()}
+        qs, rs, ws, ps = restore_contacts_posed(
+            ir, qs, rs, frames.root_rotation[f], sub_feet, sub_hands
+        )
+        ok = (ws <= POSITION_TOL) & skel.within_limits(qs, tol=1e-6)
+        ok &= lowest_point(skel, ps) >= floor_b[at]
+        ms = hull_margin(hull_b.take(at), carried_com(ir, ps, t[f], segs.holding)[:, [0, 2]])
+        ok &= (ms >= np.minimum(own[f], MARGIN) - 1e-3) | (ms >= MARGIN)
+        return qs, rs, ms, ok
+
+    everything = np.arange(span.size)
+    qb, rb, mb, fine = blended(everything, np.ones(span.size))
+    # a frame that cannot take its blended correction fades it out from the nearest frame
+    # that could, no faster than a person turns a joint; without this it was left as it was
+    # next to a corrected one (a pinned arm 51 deg and the pelvis 33 mm in one frame, issue 19)
+    share = fade_shares(t[span], fine, dq[span], dr[span])
+    again = np.flatnonzero(~fine & (share > 0.0))
+    if again.size:
+        q2, r2, m2, ok2 = blended(again, share[again])
+        took = again[ok2]
+        qb[took], rb[took], mb[took], fine[took] = q2[ok2], r2[ok2], m2[ok2], True
     apply = span[fine]
     frames.q[apply], frames.root_position[apply] = qb[fine], rb[fine]
     after[apply] = mb[fine]
@@ -692,6 +727,8 @@ def balance_frames(
     at = np.searchsorted(rows, raw)
     frames.q[raw], frames.root_position[raw] = q[at], root[at]
     after[raw] = margin[at]
+    # the arms re-solved frame by frame for their pinned hands, made continuous in time
+    frames.q[:] = arms_in_time(skel, q_start, frames.q, t, pins)
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed
 
@@ -763,6 +800,76 @@ class StepSchedule:
         kept = active[~lost]
         self.lost_size[kept], self.lost_error[kept] = 0.0, 0.0
         return active[(self.cap[active] >= MIN_STEP) & ~far]
+
+
+ARM_JOINTS = ("clavicle", "shoulder", "elbow", "wrist")
+
+
+def arm_dofs(skel: Skeleton, hand: str) -> list[int]:
+    """The dofs of the arm that carries ``hand`` (r_hand: r_clavicle to r_wrist)."""
+    return skel.dofs_of_joints([f"{hand[0]}_{j}" for j in ARM_JOINTS])
+
+
+def arms_in_time(
+    skel: Skeleton,
+    q_before: FloatArray,
+    q_after: FloatArray,
+    t: FloatArray,
+    held: dict[str, np.ndarray],
+) -> FloatArray:
+    """``q_after`` with each arm's correction (what a pass changed of ``q_before`` on that
+    arm's dofs) turned no faster than ``CORRECTED_JOINT_SPEED``: where it would be faster (a
+    hand re-solved on its site from its pin's first frame, the frame before left as it was),
+    the correction starts earlier and lets go later in the frames where the hand is free;
+    frames in ``held[hand]`` (N,) keep their own, so a pinned hand stays on its goal.
+
+    The passes that re-solve a pinned arm frame by frame after interpolation (balance,
+    smoothing) made the output's largest one-frame steps: 51 deg of wrist flexion where the
+    fuel filter's reach became a contact (male P1), 108 deg of shoulder rotation at a squat's
+    start (issue 19). The arm's solve is per frame; its continuity in time is restored here."""
+    out = q_after.copy()
+    for hand, mask in held.items():
+        cols = arm_dofs(skel, hand)
+        before = q_before[:, cols]
+        delta = speed_limited(before, q_after[:, cols] - before, skel.lower[cols],
+                              skel.upper[cols], t, CORRECTED_JOINT_SPEED, fixed=mask)  # fmt: skip
+        out[:, cols] = before + delta
+    return out
+
+
+def fade_shares(t: FloatArray, kept: BoolArray, dq: FloatArray, dr: FloatArray) -> FloatArray:
+    """(N,) the share of its correction each frame of a run takes: 1 where ``kept``, and
+    elsewhere what is left of the nearest kept frame's correction after fading it for the time
+    between them at ``CORRECTED_JOINT_SPEED`` (joints, ``dq``) and ``CORRECTED_ROOT_SPEED``
+    (pelvis, ``dr``), whichever takes longer; 0 with no kept frame."""
+    if not kept.any():
+        return np.zeros(len(t))
+    size = np.maximum(
+        np.abs(dq).max(axis=1) / CORRECTED_JOINT_SPEED,
+        np.linalg.norm(dr, axis=1) / CORRECTED_ROOT_SPEED,
+    )  # s each frame's correction takes to fade
+    idx = np.flatnonzero(kept)
+    k = np.searchsorted(idx, np.arange(len(t)))
+    share = np.zeros(len(t))
+    for near in (idx[np.clip(k - 1, 0, idx.size - 1)], idx[np.clip(k, 0, idx.size - 1)]):
+        gap = np.abs(t - t[near])
+        share = np.maximum(share, 1.0 - gap / np.maximum(size[near], 1e-9))
+    share[kept] = 1.0
+    return np.clip(share, 0.0, 1.0)
+
+
+def eased_off(delta: FloatArray, zero: BoolArray, t: FloatArray, speed: float) -> FloatArray:
+    """``delta`` (N, K) zero at the ``zero`` frames and, around them, no larger than ``speed``
+    times the time to the nearest such frame: a correction that must vanish there fades out
+    at that speed instead of stopping from one frame to the next."""
+    if not zero.any():
+        return delta
+    at = t[zero]
+    k = np.searchsorted(at, t)
+    gap = np.minimum(
+        np.abs(t - at[np.clip(k - 1, 0, at.size - 1)]), np.abs(at[np.clip(k, 0, at.size - 1)] - t)
+    )
+    return np.clip(delta, -(speed * gap)[:, None], (speed * gap)[:, None])
 
 
 def blend(delta: np.ndarray, norm: np.ndarray, half: int) -> np.ndarray:

@@ -119,7 +119,7 @@ class Contacts:
 
     touching: np.ndarray  # (B, 2) the feet (r, l) on the ground
     feet: dict[str, tuple[np.ndarray, np.ndarray]]  # FEET_SITES: position (B, 3), rotation
-    hands: dict[str, np.ndarray]  # HANDS: position (B, 3)
+    hands: dict[str, tuple[np.ndarray, np.ndarray]]  # HANDS: position (B, 3), rotation
     lowest: np.ndarray  # (B,) the lowest body point
 
     @staticmethod
@@ -128,7 +128,7 @@ class Contacts:
         return Contacts(
             contact.reshape(len(contact), 2, -1).any(axis=2),
             {n: (site_positions(skel, pose, n), site_rotation(skel, pose, n)) for n in FEET_SITES},
-            {h: site_positions(skel, pose, h) for h in HANDS},
+            {h: (site_positions(skel, pose, h), site_rotation(skel, pose, h)) for h in HANDS},
             lowest,
         )
 
@@ -140,7 +140,10 @@ class Contacts:
                 n: tuple(np.concatenate([c.feet[n][i] for c in parts]) for i in range(2))  # type: ignore[misc]
                 for n in FEET_SITES
             },
-            {h: np.concatenate([c.hands[h] for c in parts]) for h in HANDS},
+            {
+                h: tuple(np.concatenate([c.hands[h][i] for c in parts]) for i in range(2))  # type: ignore[misc]
+                for h in HANDS
+            },
             np.concatenate([c.lowest for c in parts]),
         )
 
@@ -207,7 +210,7 @@ def _repin(
     before the blend (``before``), never sinking anything deeper."""
     rot = frames.root_rotation[fix]
     feet = {name: (*before.feet[name], before.touching[:, k]) for k, name in enumerate(FEET_SITES)}
-    hands = {h: (pins[h][fix], before.hands[h]) for h in HANDS}
+    hands = {h: (pins[h][fix], *before.hands[h]) for h in HANDS}
     q, root, _ = restore_contacts(ir, frames.q[fix], frames.root_position[fix], rot, feet, hands)
     # smoothing must not sink anything deeper (a swing toe near the ground when the pelvis
     # came down): raise the root by what it added below the ground, h = L − x
@@ -219,7 +222,7 @@ def _repin(
         q[up], root[up], _ = restore_contacts(
             ir, q[up], root[up], rot[up],
             {n: (p[up], r[up], touch[up]) for n, (p, r, touch) in feet.items()},
-            {h: (mask[up], at[up]) for h, (mask, at) in hands.items()},
+            {h: (mask[up], at[up], turned[up]) for h, (mask, at, turned) in hands.items()},
         )  # fmt: skip
     frames.q[fix] = q
     frames.root_position[fix] = root

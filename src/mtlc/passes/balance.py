@@ -719,6 +719,16 @@ def balance_frames(
         q2, r2, m2, ok2 = blended(again, share[again])
         took = again[ok2]
         qb[took], rb[took], mb[took], fine[took] = q2[ok2], r2[ok2], m2[ok2], True
+    # ...and where a frame still cannot take any (a pinned hand out of the arm's reach once
+    # the pelvis moves), its corrected neighbours fade theirs out toward it, as far as they
+    # stay inside the support (a fade that would tip a frame over keeps the step)
+    share = fade_shares(t[span], ~fine, dq[span], dr[span], into=True)
+    again = np.flatnonzero(fine & (share < 1.0))
+    if again.size and not fine.all():
+        q2, r2, m2, ok2 = blended(again, share[again])
+        ok2 &= m2 >= ACCEPT_MARGIN
+        took = again[ok2]
+        qb[took], rb[took], mb[took] = q2[ok2], r2[ok2], m2[ok2]
     apply = span[fine]
     frames.q[apply], frames.root_position[apply] = qb[fine], rb[fine]
     after[apply] = mb[fine]
@@ -837,11 +847,29 @@ def arms_in_time(
     return out
 
 
-def fade_shares(t: FloatArray, kept: BoolArray, dq: FloatArray, dr: FloatArray) -> FloatArray:
+def fade_shares(
+    t: FloatArray, kept: BoolArray, dq: FloatArray, dr: FloatArray, into: bool = False
+) -> FloatArray:
     """(N,) the share of its correction each frame of a run takes: 1 where ``kept``, and
     elsewhere what is left of the nearest kept frame's correction after fading it for the time
     between them at ``CORRECTED_JOINT_SPEED`` (joints, ``dq``) and ``CORRECTED_ROOT_SPEED``
-    (pelvis, ``dr``), whichever takes longer; 0 with no kept frame."""
+    (pelvis, ``dr``), whichever takes longer; 0 with no kept frame. ``into``: the other way,
+    ``kept`` are the frames that take none, and each other frame's own correction fades to
+    nothing at the nearest of them (1 with none)."""
+    if into:
+        if not kept.any():
+            return np.ones(len(t))
+        idx = np.flatnonzero(kept)
+        k = np.searchsorted(idx, np.arange(len(t)))
+        gap = np.minimum(
+            np.abs(t - t[idx[np.clip(k - 1, 0, idx.size - 1)]]),
+            np.abs(t[idx[np.clip(k, 0, idx.size - 1)]] - t),
+        )
+        own = np.maximum(
+            np.abs(dq).max(axis=1) / CORRECTED_JOINT_SPEED,
+            np.linalg.norm(dr, axis=1) / CORRECTED_ROOT_SPEED,
+        )
+        return np.clip(gap / np.maximum(own, 1e-9), 0.0, 1.0)
     if not kept.any():
         return np.zeros(len(t))
     size = np.maximum(
@@ -943,6 +971,7 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
         depth = start[:, i].copy()  # a side's wrist does not move the other side's fingertip
         free = ~pins[f"{side}_hand"]
         k = skel.dof_index(f"{side}_wrist_flex")
+        wrist0 = frames.q[:, k].copy()
         grid = np.linspace(skel.lower[k], skel.upper[k], WRIST_GRID)
         for _ in range(3):
             low = (depth > -TIP_CLEAR + 1e-4) & free
@@ -952,7 +981,11 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
             for first, last in failure_runs(low, BLEND_FRAMES):
                 rows = np.arange(first, last + 1)
                 rows = rows[free[rows]]
-                delta[rows, 0] = _wrist_lift(ir, frames, rows, k, grid, tip)
+                # a later round turns a run the way an earlier one did (the other way, the
+                # frames it did not clear flipped 146 deg, issue 19)
+                done = float(np.sum(frames.q[rows, k] - wrist0[rows]))
+                ways = (1.0, -1.0) if done == 0.0 else (math.copysign(1.0, done),)
+                delta[rows, 0] = _wrist_lift(ir, frames, rows, k, grid, tip, ways)
             delta = blend(delta, np.abs(delta[:, 0]), TIP_BLEND)
             delta[~free] = 0.0  # a hand on its site keeps its wrist
             moved = np.flatnonzero(delta[:, 0] != 0.0)
@@ -976,16 +1009,22 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
 
 
 def _wrist_lift(
-    ir: MotionIR, frames: Frames, rows: np.ndarray, k: int, grid: np.ndarray, tip: str
+    ir: MotionIR,
+    frames: Frames,
+    rows: np.ndarray,
+    k: int,
+    grid: np.ndarray,
+    tip: str,
+    ways: tuple[float, ...] = (1.0, -1.0),
 ) -> np.ndarray:
     """The wrist flexion change (rows,) that clears the fingertip of a run of frames, all one
-    way: of flexing and extending, the one whose largest change is the least (where neither
-    clears every frame, each frame's highest fingertip)."""
+    way: of flexing and extending (``ways``: those allowed), the one whose largest change is
+    the least (where neither clears every frame, the one whose lowest frame comes highest)."""
     change = grid[None, :] - frames.q[rows, k][:, None]
     height = tip_heights(ir.skeleton, frames, rows, k, change, tip)
     clear = height >= ir.ground + TIP_CLEAR
     best, best_cost = None, np.inf
-    for sign in (1.0, -1.0):
+    for sign in ways:
         ok = clear & (sign * change >= 0.0)
         if not ok.any(axis=1).all():
             continue
@@ -994,7 +1033,17 @@ def _wrist_lift(
         if cost < best_cost:
             best, best_cost = pick, cost
     if best is None:
-        best = np.argmax(height, axis=1)
+        # neither way clears every frame: the way whose lowest frame comes highest, each frame
+        # at its highest that way (each frame's own best way flipped the wrist 150 deg from one
+        # frame to the next in a squat, issue 19)
+        best_low = -np.inf
+        for sign in ways:
+            way = np.where(sign * change >= 0.0, height, -np.inf)
+            pick = np.argmax(way, axis=1)
+            low = float(way[np.arange(rows.size), pick].min())
+            if best is None or low > best_low:
+                best, best_low = pick, low
+    assert best is not None
     return change[np.arange(rows.size), best]
 
 

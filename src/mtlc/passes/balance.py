@@ -227,17 +227,14 @@ def restore_contacts(
     root_position: np.ndarray,
     root_rotation: np.ndarray,
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    hands: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
     pose: Pose | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Re-solve legs (and pinned arms) of a batch so feet and hands are where they were.
 
     ``feet`` maps r_foot/l_foot to target positions (B, 3), rotations (B, 3, 3) and whether the
     foot touches the ground (B,): a foot in the air keeps its joint angles instead;
-    ``hands`` maps r_hand/l_hand to a row mask (B,), target positions (B, 3) and rotations
-    (B, 3, 3): a hand on its site keeps its grip's orientation as well as its place (with the
-    place alone, the arm's redundancy let one frame's solve turn the wrist 52 deg from its
-    neighbour's, issue 19); ``pose``: the
+    ``hands`` maps r_hand/l_hand to a row mask (B,) and target positions (B, 3); ``pose``: the
     pose of (q, root_position, root_rotation) if the caller has it (its legs are read). The
     pelvis drops by what straight legs cannot reach. Returns the new q (B, D), root positions
     and each row's worst remaining distance (m). Only the legs are posed here (the feet's chains,
@@ -283,11 +280,11 @@ def restore_contacts(
         now = part_site_positions(skel, q, root, root_rotation, soles)
         err = np.linalg.norm(now - want, axis=-1).max(axis=1)
         worst = np.maximum(worst, np.where(touch, err, 0.0))
-    for hand, (rows, target, turned) in hands.items():
+    for hand, (rows, target) in hands.items():
         idx = np.flatnonzero(rows)
         if idx.size == 0:
             continue
-        goal = [Goal(hand, position=target[idx], orientation=turned[idx])]
+        goal = [Goal(hand, position=target[idx])]
         elbow = skel.dof_index(f"{hand[0]}_elbow_flex")
         q[idx, elbow] = np.maximum(q[idx, elbow], SEED_FLEX)
         model = prepare(
@@ -307,7 +304,7 @@ def restore_contacts_posed(
     root_position: np.ndarray,
     root_rotation: np.ndarray,
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    hands: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
     pose: Pose | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
     """``restore_contacts`` and the pose of its result (forward kinematics is the costly part
@@ -324,7 +321,7 @@ def lean_trunk(
     pts: np.ndarray,
     ok: np.ndarray,
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    hands: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
     time: np.ndarray,
     holding: Held | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, Pose]:
@@ -397,9 +394,9 @@ def _sub_feet(
 
 
 def _sub_hands(
-    hands: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]], rows: np.ndarray
+    hands: dict[str, tuple[np.ndarray, np.ndarray]], rows: np.ndarray
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    return {h: (m[rows], x[rows], r[rows]) for h, (m, x, r) in hands.items()}
+    return {h: (m[rows], x[rows]) for h, (m, x) in hands.items()}
 
 
 def _active_segment(ir: MotionIR, t: float) -> Segment | None:
@@ -443,7 +440,6 @@ class Measured(NamedTuple):
     feet: FloatArray  # (N, 2, 3) r_foot, l_foot
     feet_rotation: FloatArray  # (N, 2, 3, 3)
     hands: FloatArray  # (N, 2, 3) r_hand, l_hand
-    hands_rotation: FloatArray  # (N, 2, 3, 3)
     lowest: FloatArray  # (N,) ``lowest_point``
     contact: BoolArray  # (N, 8) ``contact_mask``
     pts: FloatArray  # (N, 22, 2) ``support``
@@ -452,8 +448,7 @@ class Measured(NamedTuple):
     @staticmethod
     def empty(n: int) -> Measured:
         return Measured(
-            np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 2, 3)),
-            np.empty((n, 2, 3, 3)), np.empty(n),
+            np.empty((n, 2, 3)), np.empty((n, 2, 3, 3)), np.empty((n, 2, 3)), np.empty(n),
             np.empty((n, 2 * len(FOOT_POINT_NAMES)), dtype=bool), np.empty((n, 22, 2)),
             np.empty((n, 22), dtype=bool),
         )  # fmt: skip
@@ -499,7 +494,6 @@ def _support_state(
         into.feet_rotation[idx, k] = site_rotation(skel, pose, name)
     for k, name in enumerate(HANDS):
         into.hands[idx, k] = site_positions(skel, pose, name)
-        into.hands_rotation[idx, k] = site_rotation(skel, pose, name)
     into.lowest[idx] = lowest_point(skel, pose)
     return pose, carried_com(ir, pose, t, segs.holding), pts, ok
 
@@ -589,9 +583,7 @@ def balance_frames(
     # a hand short of its site is not held there: restoring it after every correction cost
     # most of the pass (72 strokes on a site 60 m away) and lost every row it was pinned on
     pins = hand_pins(ir, t, segs.pins)
-    hands = {
-        h: (pins[h][rows], m_r.hands[:, k], m_r.hands_rotation[:, k]) for k, h in enumerate(HANDS)
-    }
+    hands = {h: (pins[h][rows], m_r.hands[:, k]) for k, h in enumerate(HANDS)}
     q0 = frames.q[rows].copy()
     root0 = frames.root_position[rows].copy()
     rot = frames.root_rotation[rows]
@@ -681,9 +673,7 @@ def balance_frames(
                m_s.contact.reshape(span.size, 2, -1).any(axis=2)[:, k])
         for k, name in enumerate(FEET_SITES)
     }  # fmt: skip
-    hands_b = {
-        h: (pins[h][span], m_s.hands[:, k], m_s.hands_rotation[:, k]) for k, h in enumerate(HANDS)
-    }
+    hands_b = {h: (pins[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
     floor_b = np.minimum(m_s.lowest - 1e-4, ir.ground - GROUND_SLACK)
     hull_b = grouped_hull(pts_s, ok_s)
     # a blended frame must keep its contacts and be at least as balanced as its own correction
@@ -698,7 +688,7 @@ def balance_frames(
         qs = np.clip(frames.q[f] + share[:, None] * dq[f], skel.lower, skel.upper)
         rs = frames.root_position[f] + share[:, None] * dr[f]
         sub_feet = {n: (a[at], b[at], c[at]) for n, (a, b, c) in feet_b.items()}
-        sub_hands = {h: (m[at], x[at], r[at]) for h, (m, x, r) in hands_b.items()}
+        sub_hands = {h: (m[at], x[at]) for h, (m, x) in hands_b.items()}
         qs, rs, ws, ps = restore_contacts_posed(
             ir, qs, rs, frames.root_rotation[f], sub_feet, sub_hands
         )

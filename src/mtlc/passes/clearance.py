@@ -69,19 +69,6 @@ def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
     return out
 
 
-def held_still(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
-    """(N,) the ``pinned`` frames whose hand must not move while a correction is timed: all of
-    them but those where a closed grip carries its part along a reach or move (TA) before the
-    move's last ``GOAL_LEAD`` seconds; the path there is no goal, its end is. Held fixed
-    there, a forearm pushed out of the trunk in one frame stepped the wrist 26 deg in that
-    frame (fuel filter, female P99, issue 19); timed, it turns in over a few."""
-    out = pinned(ir, side, t)
-    for seg in ir.on_track(ARM_TRACK[side]):
-        if seg.kind == "TA":
-            out &= ~((t > seg.start + EPS) & (t < seg.end - GOAL_LEAD - EPS))
-    return out
-
-
 def pinned_weights(ir: MotionIR, side: str, t: FloatArray) -> FloatArray:
     """(N,) the hand pose's weight per frame: ``PINNED`` where ``pinned``, ``FREE`` elsewhere,
     each pinned span widened by ``RAMP`` on both sides and ramped over it."""
@@ -150,11 +137,9 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             )
             result = skel.clip(q + without_swings(q, again - q))
         # the correction's ends ramped no faster than a person turns a joint, where the hand
-        # is free or carries its part along a move (a hand on its goal keeps its own
-        # correction: it stays there)
+        # is free (a held hand keeps its own correction: it stays on its goal)
         widened = speed_limited(q, result - q, skel.lower, skel.upper, frames.time,
-                                CORRECTED_JOINT_SPEED,
-                                fixed=held_still(ir, side, frames.time))  # fmt: skip
+                                CORRECTED_JOINT_SPEED, fixed=keep > FREE + EPS)  # fmt: skip
         moved = np.flatnonzero((widened != result - q).any(axis=1))
         if moved.size:
             result = result.copy()

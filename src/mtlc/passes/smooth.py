@@ -122,7 +122,7 @@ class Contacts:
 
     touching: np.ndarray  # (B, 2) the feet (r, l) on the ground
     feet: dict[str, tuple[np.ndarray, np.ndarray]]  # FEET_SITES: position (B, 3), rotation
-    hands: dict[str, tuple[np.ndarray, np.ndarray]]  # HANDS: position (B, 3), rotation
+    hands: dict[str, np.ndarray]  # HANDS: position (B, 3)
     lowest: np.ndarray  # (B,) the lowest body point
 
     @staticmethod
@@ -131,7 +131,7 @@ class Contacts:
         return Contacts(
             contact.reshape(len(contact), 2, -1).any(axis=2),
             {n: (site_positions(skel, pose, n), site_rotation(skel, pose, n)) for n in FEET_SITES},
-            {h: (site_positions(skel, pose, h), site_rotation(skel, pose, h)) for h in HANDS},
+            {h: site_positions(skel, pose, h) for h in HANDS},
             lowest,
         )
 
@@ -143,10 +143,7 @@ class Contacts:
                 n: tuple(np.concatenate([c.feet[n][i] for c in parts]) for i in range(2))  # type: ignore[misc]
                 for n in FEET_SITES
             },
-            {
-                h: tuple(np.concatenate([c.hands[h][i] for c in parts]) for i in range(2))  # type: ignore[misc]
-                for h in HANDS
-            },
+            {h: np.concatenate([c.hands[h] for c in parts]) for h in HANDS},
             np.concatenate([c.lowest for c in parts]),
         )
 
@@ -221,7 +218,7 @@ def _repin(
     of ``fix`` where it was pinned and put back (``_hands_put_back``)."""
     rot = frames.root_rotation[fix]
     feet = {name: (*before.feet[name], before.touching[:, k]) for k, name in enumerate(FEET_SITES)}
-    hands = {h: (pins[h][fix], *before.hands[h]) for h in HANDS}
+    hands = {h: (pins[h][fix], before.hands[h]) for h in HANDS}
     q, root, _ = restore_contacts(ir, frames.q[fix], frames.root_position[fix], rot, feet, hands)
     # smoothing must not sink anything deeper (a swing toe near the ground when the pelvis
     # came down): raise the root by what it added below the ground, h = L − x
@@ -233,7 +230,7 @@ def _repin(
         q[up], root[up], _ = restore_contacts(
             ir, q[up], root[up], rot[up],
             {n: (p[up], r[up], touch[up]) for n, (p, r, touch) in feet.items()},
-            {h: (mask[up], at[up], turned[up]) for h, (mask, at, turned) in hands.items()},
+            {h: (mask[up], at[up]) for h, (mask, at) in hands.items()},
         )  # fmt: skip
     reached = _hands_put_back(ir, frames.q[fix], q, root, rot, hands)
     for hand, ok in reached.items():  # a hand that could not be put back keeps the blend's arm
@@ -251,7 +248,7 @@ def _hands_put_back(
     q: np.ndarray,
     root: np.ndarray,
     rot: np.ndarray,
-    hands: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
 ) -> dict[str, np.ndarray]:
     """Per hand, (B,) whether re-pinning brought it back: within ``PUT_BACK`` of its place, or
     at least halfway from where the blend took it (``seed``). A blend that moved the body far
@@ -261,7 +258,7 @@ def _hands_put_back(
     pose_before = forward(skel, seed, root, rot, with_axes=False)
     pose_after = forward(skel, q, root, rot, with_axes=False)
     out = {}
-    for hand, (_, target, _) in hands.items():
+    for hand, (_, target) in hands.items():
         was = np.linalg.norm(site_positions(skel, pose_before, hand) - target, axis=-1)
         now = np.linalg.norm(site_positions(skel, pose_after, hand) - target, axis=-1)
         out[hand] = (now <= PUT_BACK) | (now <= 0.5 * was)

@@ -97,6 +97,7 @@ BLEND_FRAMES = 6  # half-window (frames, 0.1 s at 60 fps) over which corrections
 # rad/s: the fastest a correction may turn a joint (``speed_limited``); issue 19 allows
 # 360 deg/s (12 deg an output frame), the kneel's own plan runs at up to 300
 CORRECTED_JOINT_SPEED = math.radians(330.0)
+CORRECTED_ROOT_SPEED = 0.3  # m/s: the fastest a pelvis correction fades where it must stop
 GROUND_SLACK = 5e-4  # m a correction may take a point below the ground (half the 1 mm budget)
 ACCEPT_MARGIN = 0.0  # m: what still counts as inside after correction
 # the pelvis aims the CoM half a PUSH_TOL deeper than MARGIN and stops within PUSH_TOL of that
@@ -532,6 +533,7 @@ def balance_frames(
         before, after, failed = (np.concatenate(x) for x in zip(*parts, strict=True))
         return before, after, failed
     t = frames.time
+    q_start = frames.q.copy()
     # what depends on time only, for every frame (a few booleans a frame)
     stance, static = foot_stance(ir, t, segs.swings), ~walking(ir, t, segs.walks)
     # the support and the CoM of every frame, measured a chunk of frames at a time: the poses
@@ -657,12 +659,12 @@ def balance_frames(
     size = np.abs(dq).max(axis=1) + 10.0 * np.hypot(*dr.T[[0, 2]]) + 10.0 * np.abs(dr[:, 1])
     dq, dr = blend(dq, size, BLEND_FRAMES), blend(dr, size, BLEND_FRAMES)
     dq = speed_limited(frames.q, dq, skel.lower, skel.upper, t, CORRECTED_JOINT_SPEED)
-    dr[kneeling] = 0.0  # a neighbour's pelvis correction must not drag a knee
+    # a neighbour's pelvis correction must not drag a knee, nor stop in one frame where the
+    # knees touch down: it eases off before them (33 mm in one frame on a kneel, issue 19)
+    dr = eased_off(dr, kneeling, t, CORRECTED_ROOT_SPEED)
     span = np.flatnonzero(np.abs(dq).max(axis=1) + np.abs(dr).max(axis=1) > 0)
     if span.size == 0:  # the blended corrections cancelled out: nothing to apply
         return before, after, failed
-    qb = np.clip(frames.q[span] + dq[span], skel.lower, skel.upper)
-    rb = frames.root_position[span] + dr[span]
     # the frames the blend reaches, as measured in their original pose
     m_s = measured.take(span)
     pts_s, ok_s = m_s.pts, m_s.ok
@@ -672,18 +674,51 @@ def balance_frames(
         for k, name in enumerate(FEET_SITES)
     }  # fmt: skip
     hands_b = {h: (pins[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
-    rot_b = frames.root_rotation[span]
-    qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b)
     floor_b = np.minimum(m_s.lowest - 1e-4, ir.ground - GROUND_SLACK)
-    fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
-    fine &= lowest_point(skel, pb) >= floor_b
-    mb = hull_margin(
-        grouped_hull(pts_s, ok_s), carried_com(ir, pb, t[span], segs.holding)[:, [0, 2]]
-    )
+    hull_b = grouped_hull(pts_s, ok_s)
     # a blended frame must keep its contacts and be at least as balanced as its own correction
     own = np.full(len(t), -np.inf)
     own[rows[good]] = margin[good]
-    fine &= (mb >= np.minimum(own[span], MARGIN) - 1e-3) | (mb >= MARGIN)
+
+    def blended(at: np.ndarray, share: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray,
+                                                            BoolArray]:  # fmt: skip
+        """The span's frames ``at`` (positions in ``span``) with ``share`` of their blended
+        correction, contacts restored: q, root, margin and whether the frame keeps it."""
+        f = span[at]
+        qs = np.clip(frames.q[f] + share[:, None] * dq[f], skel.lower, skel.upper)
+        rs = frames.root_position[f] + share[:, None] * dr[f]
+        sub_feet = {n: (a[at], b[at], c[at]) for n, (a, b, c) in feet_b.items()}
+        sub_hands = {h: (m[at], x[at]) for h, (m, x) in hands_b.items()}
+        qs, rs, ws, ps = restore_contacts_posed(
+            ir, qs, rs, frames.root_rotation[f], sub_feet, sub_hands
+        )
+        ok = (ws <= POSITION_TOL) & skel.within_limits(qs, tol=1e-6)
+        ok &= lowest_point(skel, ps) >= floor_b[at]
+        ms = hull_margin(hull_b.take(at), carried_com(ir, ps, t[f], segs.holding)[:, [0, 2]])
+        ok &= (ms >= np.minimum(own[f], MARGIN) - 1e-3) | (ms >= MARGIN)
+        return qs, rs, ms, ok
+
+    everything = np.arange(span.size)
+    qb, rb, mb, fine = blended(everything, np.ones(span.size))
+    # a frame that cannot take its blended correction fades it out from the nearest frame
+    # that could, no faster than a person turns a joint; without this it was left as it was
+    # next to a corrected one (a pinned arm 51 deg and the pelvis 33 mm in one frame, issue 19)
+    share = fade_shares(t[span], fine, dq[span], dr[span])
+    again = np.flatnonzero(~fine & (share > 0.0))
+    if again.size:
+        q2, r2, m2, ok2 = blended(again, share[again])
+        took = again[ok2]
+        qb[took], rb[took], mb[took], fine[took] = q2[ok2], r2[ok2], m2[ok2], True
+    # ...and where a frame still cannot take any (a pinned hand out of the arm's reach once
+    # the pelvis moves), its corrected neighbours fade theirs out toward it, as far as they
+    # stay inside the support (a fade that would tip a frame over keeps the step)
+    share = fade_shares(t[span], ~fine, dq[span], dr[span], into=True)
+    again = np.flatnonzero(fine & (share < 1.0))
+    if again.size and not fine.all():
+        q2, r2, m2, ok2 = blended(again, share[again])
+        ok2 &= m2 >= ACCEPT_MARGIN
+        took = again[ok2]
+        qb[took], rb[took], mb[took] = q2[ok2], r2[ok2], m2[ok2]
     apply = span[fine]
     frames.q[apply], frames.root_position[apply] = qb[fine], rb[fine]
     after[apply] = mb[fine]
@@ -692,6 +727,8 @@ def balance_frames(
     at = np.searchsorted(rows, raw)
     frames.q[raw], frames.root_position[raw] = q[at], root[at]
     after[raw] = margin[at]
+    # the arms re-solved frame by frame for their pinned hands, made continuous in time
+    frames.q[:] = arms_in_time(skel, q_start, frames.q, t, pins)
     failed &= ~(after >= ACCEPT_MARGIN)  # blending may have balanced a frame that was not
     return before, after, failed
 
@@ -765,6 +802,94 @@ class StepSchedule:
         return active[(self.cap[active] >= MIN_STEP) & ~far]
 
 
+ARM_JOINTS = ("clavicle", "shoulder", "elbow", "wrist")
+
+
+def arm_dofs(skel: Skeleton, hand: str) -> list[int]:
+    """The dofs of the arm that carries ``hand`` (r_hand: r_clavicle to r_wrist)."""
+    return skel.dofs_of_joints([f"{hand[0]}_{j}" for j in ARM_JOINTS])
+
+
+def arms_in_time(
+    skel: Skeleton,
+    q_before: FloatArray,
+    q_after: FloatArray,
+    t: FloatArray,
+    held: dict[str, np.ndarray],
+) -> FloatArray:
+    """``q_after`` with each arm's correction (what a pass changed of ``q_before`` on that
+    arm's dofs) turned no faster than ``CORRECTED_JOINT_SPEED``: where it would be faster (a
+    hand re-solved on its site from its pin's first frame, the frame before left as it was),
+    the correction starts earlier and lets go later in the frames where the hand is free;
+    frames in ``held[hand]`` (N,) keep their own, so a pinned hand stays on its goal.
+
+    The passes that re-solve a pinned arm frame by frame after interpolation (balance,
+    smoothing) made the output's largest one-frame steps: 51 deg of wrist flexion where the
+    fuel filter's reach became a contact (male P1), 108 deg of shoulder rotation at a squat's
+    start (issue 19). The arm's solve is per frame; its continuity in time is restored here."""
+    out = q_after.copy()
+    for hand, mask in held.items():
+        cols = arm_dofs(skel, hand)
+        before = q_before[:, cols]
+        delta = speed_limited(before, q_after[:, cols] - before, skel.lower[cols],
+                              skel.upper[cols], t, CORRECTED_JOINT_SPEED, fixed=mask)  # fmt: skip
+        out[:, cols] = before + delta
+    return out
+
+
+def fade_shares(
+    t: FloatArray, kept: BoolArray, dq: FloatArray, dr: FloatArray, into: bool = False
+) -> FloatArray:
+    """(N,) the share of its correction each frame of a run takes: 1 where ``kept``, and
+    elsewhere what is left of the nearest kept frame's correction after fading it for the time
+    between them at ``CORRECTED_JOINT_SPEED`` (joints, ``dq``) and ``CORRECTED_ROOT_SPEED``
+    (pelvis, ``dr``), whichever takes longer; 0 with no kept frame. ``into``: the other way,
+    ``kept`` are the frames that take none, and each other frame's own correction fades to
+    nothing at the nearest of them (1 with none)."""
+    if into:
+        if not kept.any():
+            return np.ones(len(t))
+        idx = np.flatnonzero(kept)
+        k = np.searchsorted(idx, np.arange(len(t)))
+        gap = np.minimum(
+            np.abs(t - t[idx[np.clip(k - 1, 0, idx.size - 1)]]),
+            np.abs(t[idx[np.clip(k, 0, idx.size - 1)]] - t),
+        )
+        own = np.maximum(
+            np.abs(dq).max(axis=1) / CORRECTED_JOINT_SPEED,
+            np.linalg.norm(dr, axis=1) / CORRECTED_ROOT_SPEED,
+        )
+        return np.clip(gap / np.maximum(own, 1e-9), 0.0, 1.0)
+    if not kept.any():
+        return np.zeros(len(t))
+    size = np.maximum(
+        np.abs(dq).max(axis=1) / CORRECTED_JOINT_SPEED,
+        np.linalg.norm(dr, axis=1) / CORRECTED_ROOT_SPEED,
+    )  # s each frame's correction takes to fade
+    idx = np.flatnonzero(kept)
+    k = np.searchsorted(idx, np.arange(len(t)))
+    share = np.zeros(len(t))
+    for near in (idx[np.clip(k - 1, 0, idx.size - 1)], idx[np.clip(k, 0, idx.size - 1)]):
+        gap = np.abs(t - t[near])
+        share = np.maximum(share, 1.0 - gap / np.maximum(size[near], 1e-9))
+    share[kept] = 1.0
+    return np.clip(share, 0.0, 1.0)
+
+
+def eased_off(delta: FloatArray, zero: BoolArray, t: FloatArray, speed: float) -> FloatArray:
+    """``delta`` (N, K) zero at the ``zero`` frames and, around them, no larger than ``speed``
+    times the time to the nearest such frame: a correction that must vanish there fades out
+    at that speed instead of stopping from one frame to the next."""
+    if not zero.any():
+        return delta
+    at = t[zero]
+    k = np.searchsorted(at, t)
+    gap = np.minimum(
+        np.abs(t - at[np.clip(k - 1, 0, at.size - 1)]), np.abs(at[np.clip(k, 0, at.size - 1)] - t)
+    )
+    return np.clip(delta, -(speed * gap)[:, None], (speed * gap)[:, None])
+
+
 def blend(delta: np.ndarray, norm: np.ndarray, half: int) -> np.ndarray:
     """Per-frame corrections made continuous: dilated, then averaged over 2·half + 1 frames.
 
@@ -836,6 +961,7 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
         depth = start[:, i].copy()  # a side's wrist does not move the other side's fingertip
         free = ~pins[f"{side}_hand"]
         k = skel.dof_index(f"{side}_wrist_flex")
+        wrist0 = frames.q[:, k].copy()
         grid = np.linspace(skel.lower[k], skel.upper[k], WRIST_GRID)
         for _ in range(3):
             low = (depth > -TIP_CLEAR + 1e-4) & free
@@ -845,7 +971,11 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
             for first, last in failure_runs(low, BLEND_FRAMES):
                 rows = np.arange(first, last + 1)
                 rows = rows[free[rows]]
-                delta[rows, 0] = _wrist_lift(ir, frames, rows, k, grid, tip)
+                # a later round turns a run the way an earlier one did (the other way, the
+                # frames it did not clear flipped 146 deg, issue 19)
+                done = float(np.sum(frames.q[rows, k] - wrist0[rows]))
+                ways = (1.0, -1.0) if done == 0.0 else (math.copysign(1.0, done),)
+                delta[rows, 0] = _wrist_lift(ir, frames, rows, k, grid, tip, ways)
             delta = blend(delta, np.abs(delta[:, 0]), TIP_BLEND)
             delta[~free] = 0.0  # a hand on its site keeps its wrist
             moved = np.flatnonzero(delta[:, 0] != 0.0)
@@ -869,16 +999,22 @@ def lift_fingertips(ir: MotionIR, frames: Frames) -> dict[str, np.ndarray]:
 
 
 def _wrist_lift(
-    ir: MotionIR, frames: Frames, rows: np.ndarray, k: int, grid: np.ndarray, tip: str
+    ir: MotionIR,
+    frames: Frames,
+    rows: np.ndarray,
+    k: int,
+    grid: np.ndarray,
+    tip: str,
+    ways: tuple[float, ...] = (1.0, -1.0),
 ) -> np.ndarray:
     """The wrist flexion change (rows,) that clears the fingertip of a run of frames, all one
-    way: of flexing and extending, the one whose largest change is the least (where neither
-    clears every frame, each frame's highest fingertip)."""
+    way: of flexing and extending (``ways``: those allowed), the one whose largest change is
+    the least (where neither clears every frame, the one whose lowest frame comes highest)."""
     change = grid[None, :] - frames.q[rows, k][:, None]
     height = tip_heights(ir.skeleton, frames, rows, k, change, tip)
     clear = height >= ir.ground + TIP_CLEAR
     best, best_cost = None, np.inf
-    for sign in (1.0, -1.0):
+    for sign in ways:
         ok = clear & (sign * change >= 0.0)
         if not ok.any(axis=1).all():
             continue
@@ -887,7 +1023,17 @@ def _wrist_lift(
         if cost < best_cost:
             best, best_cost = pick, cost
     if best is None:
-        best = np.argmax(height, axis=1)
+        # neither way clears every frame: the way whose lowest frame comes highest, each frame
+        # at its highest that way (each frame's own best way flipped the wrist 150 deg from one
+        # frame to the next in a squat, issue 19)
+        best_low = -np.inf
+        for sign in ways:
+            way = np.where(sign * change >= 0.0, height, -np.inf)
+            pick = np.argmax(way, axis=1)
+            low = float(way[np.arange(rows.size), pick].min())
+            if best is None or low > best_low:
+                best, best_low = pick, low
+    assert best is not None
     return change[np.arange(rows.size), best]
 
 

@@ -35,7 +35,7 @@ from mtlc.body.ik.clearance import penetration
 from mtlc.ir.model import FloatArray, Keyframes, MotionIR, Segment
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.hold import carried_postures, holding
-from mtlc.passes.interpolate import FOOT_POINTS
+from mtlc.passes.interpolate import FOOT_POINTS, anchored_root
 from mtlc.passes.kneel import (
     HALF_KNEEL_PHASES,
     PLANT_W,
@@ -919,7 +919,10 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
         kept = [skel.dof_index(n) for n in standing_arm_dofs(arms) if n[2:] != "shoulder_flex"]
         target[kept] = cur[kept]
         dofs = TRUNK_DOFS + LEG_DOFS + arms
-    times = np.linspace(seg.start, seg.end, TRANSITION_KEYS if flat else 2)
+    from_kneel = kind != "bend" and _kneel_before(ir, seg, ctx) is not None
+    # from a kneel the root is keyed (below): a key a frame's worth keeps the feet on the floor
+    keys = (WIDE_KEYS if from_kneel else TRANSITION_KEYS) if flat else 2
+    times = np.linspace(seg.start, seg.end, keys)
     late = standing_arm_dofs(released_arms(ir, seg)) if kind == "stand" else ()
     if stance is not None:  # the feet stand apart: the legs fold over them
         times = np.linspace(seg.start, seg.end, WIDE_KEYS)
@@ -934,12 +937,21 @@ def _posture_segment(seg: Segment, state: PoseState, ctx: PassContext) -> None:
     kf = Keyframes(time=times, dofs=dofs, q=poses[:, idx])
     if kind != "bend":
         p0, _ = state.root_at(seg.start, skip=seg)
-        p1, _ = state.root_at(seg.end, skip=seg)
+        p1, rot1 = state.root_at(seg.end, skip=seg)
+        if from_kneel:  # where the posture's own pose stands on the plan's feet
+            plan_at, _ = ir.root_plan.at(seg.end)
+            p1 = anchored_root(skel, poses[-1][None], np.asarray(plan_at, float)[None],
+                               rot1[None], ir.ground)[0]  # fmt: skip
         rows = [p0 + f * (p1 - p0) for f in np.linspace(0.0, 1.0, len(times))]
         for row, pose in zip(rows[1:], poses[1:], strict=True):
             row[1] = root_height(skel, pose, ir.ground)
         kf.root_position = np.stack(rows)
         seg.result = {"root_height": float(rows[-1][1] - ir.ground)}
+        if from_kneel:
+            # from a kneel the pelvis goes from where the kneel's plan left it to where the
+            # posture stands on the plan's feet, over the posture: the feet under it, anchored
+            # from the first frame, moved it there in one (25 cm at a squat's start, issue 19)
+            seg.result["root"] = "keyed"
     seg.keyframes = kf
     state.add(seg)
     if stance is not None and kind == "stand":

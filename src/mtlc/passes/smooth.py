@@ -42,6 +42,8 @@ from mtlc.passes.balance import (
     FEET_SITES,
     HANDS,
     MARGIN,
+    arm_dofs,
+    arms_in_time,
     balance_frames,
     hand_pins,
     pin_windows,
@@ -53,6 +55,7 @@ STEP = 0.02  # the claim's decrement per frame: 1, 0.98, …, 0.02, then 0
 JUMP_Q = 1e-3  # rad: smaller offsets are the interpolation's own
 JUMP_ROOT = 5e-4  # m
 PIN_TOL = 1e-4  # m: a contact that moved less than this is left alone
+PUT_BACK = 1e-3  # m: a re-pinned hand this close to its place is back on it
 CHUNK_FRAMES = 4096  # changed frames measured at once
 
 
@@ -189,7 +192,14 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
             held.append(Contacts.of(skel, _pose_rows(pose, fix), contact[fix], low[fix]))
     at = np.flatnonzero(moved)
     if at.size:  # one batch: the solver's last bits depend on the batch it runs in
-        _repin(ir, frames, rows[at], Contacts.join(held), pins)
+        back = _repin(ir, frames, rows[at], Contacts.join(held), pins)
+        # the arms, blended and re-pinned frame by frame, made continuous in time: a hand on
+        # its place keeps its arm, the others' corrections turn in no faster than a person's
+        kept = {h: np.zeros(len(t), dtype=bool) for h in HANDS}
+        for h in HANDS:
+            kept[h][rows[at]] = back[h]
+            kept[h] |= pins[h] & ~np.isin(np.arange(len(t)), rows[at])
+        frames.q[:] = arms_in_time(skel, q0, frames.q, t, kept)
     worse = _worse_standing_runs(ir, frames, rows, q0, root0)
     if worse.size:
         balance_frames(ir, frames, worse)
@@ -202,9 +212,10 @@ def _repin(
     fix: np.ndarray,
     before: Contacts,
     pins: dict[str, np.ndarray],
-) -> None:
+) -> dict[str, np.ndarray]:
     """Put the touching feet and pinned hands of the frames ``fix`` back where they were
-    before the blend (``before``), never sinking anything deeper."""
+    before the blend (``before``), never sinking anything deeper. Returns, per hand, the rows
+    of ``fix`` where it was pinned and put back (``_hands_put_back``)."""
     rot = frames.root_rotation[fix]
     feet = {name: (*before.feet[name], before.touching[:, k]) for k, name in enumerate(FEET_SITES)}
     hands = {h: (pins[h][fix], before.hands[h]) for h in HANDS}
@@ -221,8 +232,37 @@ def _repin(
             {n: (p[up], r[up], touch[up]) for n, (p, r, touch) in feet.items()},
             {h: (mask[up], at[up]) for h, (mask, at) in hands.items()},
         )  # fmt: skip
+    reached = _hands_put_back(ir, frames.q[fix], q, root, rot, hands)
+    for hand, ok in reached.items():  # a hand that could not be put back keeps the blend's arm
+        lost = np.flatnonzero(hands[hand][0] & ~ok)
+        cols = arm_dofs(ir.skeleton, hand)
+        q[np.ix_(lost, cols)] = frames.q[fix][np.ix_(lost, cols)]
     frames.q[fix] = q
     frames.root_position[fix] = root
+    return {h: hands[h][0] & ok for h, ok in reached.items()}
+
+
+def _hands_put_back(
+    ir: MotionIR,
+    seed: np.ndarray,
+    q: np.ndarray,
+    root: np.ndarray,
+    rot: np.ndarray,
+    hands: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> dict[str, np.ndarray]:
+    """Per hand, (B,) whether re-pinning brought it back: within ``PUT_BACK`` of its place, or
+    at least halfway from where the blend took it (``seed``). A blend that moved the body far
+    from a pinned hand (a kneel's pelvis 25 cm from the squat's after it) left it out of reach,
+    and the solve, failing, turned the arm 108 deg in a frame (issue 19)."""
+    skel = ir.skeleton
+    pose_before = forward(skel, seed, root, rot, with_axes=False)
+    pose_after = forward(skel, q, root, rot, with_axes=False)
+    out = {}
+    for hand, (_, target) in hands.items():
+        was = np.linalg.norm(site_positions(skel, pose_before, hand) - target, axis=-1)
+        now = np.linalg.norm(site_positions(skel, pose_after, hand) - target, axis=-1)
+        out[hand] = (now <= PUT_BACK) | (now <= 0.5 * was)
+    return out
 
 
 def _lowest(ir: MotionIR, q: np.ndarray, root: np.ndarray, rot: np.ndarray) -> np.ndarray:

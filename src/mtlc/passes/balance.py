@@ -352,7 +352,9 @@ def lean_trunk(
             p = take_pose(p, np.flatnonzero(moving))
         if active.size == 0:
             break
-        J = com_jacobian(skel, p)[:, [0, 2]][:, :, spine]  # (B, 2, S)
+        # (B, 2, S), laid out as the whole Jacobian's columns were taken (batch-major last):
+        # the products below see the same memory they did
+        J = np.asfortranarray(com_jacobian(skel, p, dofs=spine)[:, [0, 2]])
         A = J @ np.swapaxes(J, -1, -2) + (0.02**2) * np.eye(2)
         dq = np.einsum(
             "bsk,bk->bs", np.swapaxes(J, -1, -2), np.linalg.solve(A, push[..., None])[..., 0]

@@ -305,11 +305,14 @@ def restore_contacts_posed(
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
     pose: Pose | None = None,
+    with_axes: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
     """``restore_contacts`` and the pose of its result (forward kinematics is the costly part
-    of balancing thousands of frames: callers reuse it instead of recomputing it)."""
+    of balancing thousands of frames: callers reuse it instead of recomputing it).
+    ``with_axes=False``: the pose without its dofs' axes, for a caller that needs no Jacobian
+    (half the forward kinematics)."""
     q, root, worst = restore_contacts(ir, q, root_position, root_rotation, feet, hands, pose)
-    return q, root, worst, forward(ir.skeleton, q, root, root_rotation)
+    return q, root, worst, forward(ir.skeleton, q, root, root_rotation, with_axes=with_axes)
 
 
 def lean_trunk(
@@ -485,7 +488,9 @@ def _support_state(
     the held tools and loads) and support points as ``support`` gives them."""
     skel = ir.skeleton
     t = frames.time[idx]
-    pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx])
+    # no dof axes: nothing measured or corrected from this pose needs a Jacobian (half the cost)
+    pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx],
+                   with_axes=False)  # fmt: skip
     into.contact[idx] = contact_mask(foot_points(skel, pose), stance[idx], ir.ground)
     rest = hand_contacts(ir, t, pose, segs.rests)
     pts, ok = support(skel, pose, stance[idx], ir.ground, rest)
@@ -620,7 +625,8 @@ def balance_frames(
         # only the rows kept are posed (a lost row keeps its pose: a squat at its ankles' limit
         # loses every row of four rounds)
         if ok_rows.size:
-            put_pose(p_rows, ok_rows, forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows]))
+            moved = forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows], with_axes=False)
+            put_pose(p_rows, ok_rows, moved)
         retrying = schedule.update(trying, lost, far, worst_a)
         active = np.sort(np.concatenate([active[~awake], retrying]))
     p = p_rows
@@ -675,7 +681,7 @@ def balance_frames(
     }  # fmt: skip
     hands_b = {h: (pins[h][span], m_s.hands[:, k]) for k, h in enumerate(HANDS)}
     rot_b = frames.root_rotation[span]
-    qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b)
+    qb, rb, wb, pb = restore_contacts_posed(ir, qb, rb, rot_b, feet_b, hands_b, with_axes=False)
     floor_b = np.minimum(m_s.lowest - 1e-4, ir.ground - GROUND_SLACK)
     fine = (wb <= POSITION_TOL) & skel.within_limits(qb, tol=1e-6)
     fine &= lowest_point(skel, pb) >= floor_b

@@ -686,7 +686,8 @@ def compute_metrics(ir: MotionIR) -> Metrics:
     if v is None or len(v.penetration_frames) != len(frames.time):
         raise ValueError("the IR's frames are not verified: run the verify pass last")
     t = frames.time
-    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
+    # sites only: no dof axes (half the forward kinematics, a third of the pose's memory)
+    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation, with_axes=False)
     k = int(np.argmax(v.penetration_frames))
     stance = foot_stance(ir, t)
     feet = foot_points(skel, pose)

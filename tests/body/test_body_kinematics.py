@@ -321,22 +321,3 @@ def test_com_jacobian_of_some_dofs_is_their_columns_of_the_whole_to_the_bit() ->
             )
     with pytest.raises(ValueError):
         com_jacobian(SK, forward(SK, SK.q_comfort), root=True, dofs=dofs)
-
-
-@settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), n=st.sampled_from([1, 5, 300, 700]))
-def test_part_sites_asked_together_are_the_sites_asked_apart_to_the_bit(seed: int, n: int) -> None:
-    """``part_site_positions`` of both feet's sole points in one call (the balance pass's
-    contact check) gives each foot's points as a call for that foot alone: a joint's frame is
-    the same products whichever sites are asked for."""
-    from mtlc.body.kinematics import part_site_positions
-
-    rng = np.random.default_rng(seed)
-    q, root = SK.random_q(rng, n), rng.normal(0.0, 1.0, (n, 3))
-    rot = rng.normal(0.0, 1.0, (n, 4))
-    rot /= np.linalg.norm(rot, axis=1, keepdims=True)
-    right = [f"r_{p}" for p in ("heel", "toe", "ball_med", "ball_lat")]
-    left = [f"l_{p}" for p in ("heel", "toe", "ball_med", "ball_lat")]
-    both = part_site_positions(SK, q, root, rot, right + left)
-    assert np.array_equal(both[:, :4], part_site_positions(SK, q, root, rot, right))
-    assert np.array_equal(both[:, 4:], part_site_positions(SK, q, root, rot, left))

@@ -273,13 +273,10 @@ def restore_contacts(
     )  # fmt: skip
     q = res.q
     worst = np.zeros(len(q))
-    # both feet's sole points by one kinematics of the two legs (a joint's frame is the same
-    # products whichever sites are asked for)
-    all_soles = [f"{name[0]}_{p}" for name in feet for p in FOOT_POINT_NAMES]
-    now_all = part_site_positions(skel, q, root, root_rotation, all_soles)
-    for k, (name, (pos, rot, touch)) in enumerate(feet.items()):  # every touching sole point
+    for name, (pos, rot, touch) in feet.items():  # every sole point of a touching foot
+        soles = [f"{name[0]}_{p}" for p in FOOT_POINT_NAMES]
         want = pos[:, None, :] + np.einsum("bij,bsj->bsi", rot, soles_in_foot[name])
-        now = now_all[:, k * len(FOOT_POINT_NAMES) : (k + 1) * len(FOOT_POINT_NAMES)]
+        now = part_site_positions(skel, q, root, root_rotation, soles)
         err = np.linalg.norm(now - want, axis=-1).max(axis=1)
         worst = np.maximum(worst, np.where(touch, err, 0.0))
     for hand, (rows, target) in hands.items():

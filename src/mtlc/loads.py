@@ -161,11 +161,16 @@ def carried_com(ir: MotionIR, pose: Any, time: Any, holding: Held | None = None)
         ends = np.asarray(site_positions(skel, pose, [f"{site[0]}_hand", site]))
         moment += held_mass[:, None] * 0.5 * (ends[..., 0, :] + ends[..., 1, :])
         mass += held_mass
+    # each hand's grip point placed once, not once per load it carries (a procedure of 81 lifts
+    # placed a hand 81 times over every frame asked for: most of the balance pass's CoM time)
+    hands: dict[str, FloatArray] = {}
     for load in holding.loads:
         held_mass = load.share * load_weight(load, t)
         if not held_mass.any():
             continue
-        moment += held_mass[:, None] * np.asarray(site_positions(skel, pose, f"{load.side}_hand"))
+        if load.side not in hands:
+            hands[load.side] = np.asarray(site_positions(skel, pose, f"{load.side}_hand"))
+        moment += held_mass[:, None] * hands[load.side]
         mass += held_mass
     return moment / mass[:, None]
 

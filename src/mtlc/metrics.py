@@ -111,19 +111,19 @@ def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
     the same contacts share which pairs to try, and each pair is tested against the touching
     points only (8 of 22 candidates when standing), not every pair against every point.
     Each frame keeps only its edges (first, padded with non-edges to the most edges a frame
-    has): ``hull_margin`` reads nothing else, and a hull has a few of the pairs."""
+    has): ``hull_margin`` reads nothing else, and a hull has a few of the pairs.
+
+    Each group's pairs are formed for its own frames only (the edge vectors of all 231 pairs
+    of every frame were most of the cost: 32,000 frames made 120 MB of them); a frame's edges,
+    their order and their numbers are what ``hull`` gives it, and the padding is a non-edge
+    (``edge`` False, ``orient`` 0, ``safe`` 1) that ``hull_margin`` masks out."""
     pts = np.asarray(points, dtype=float)
     ok = np.asarray(valid, dtype=bool)
     used = ok.any(axis=0)
     if used.sum() >= 3 and not used.all():
         pts, ok = pts[:, used], ok[:, used]
+    n = len(pts)
     ii, jj = np.triu_indices(ok.shape[1], 1)
-    a, d = pts[:, ii], pts[:, jj] - pts[:, ii]
-    length = np.hypot(d[..., 0], d[..., 1])
-    pair_ok = ok[:, ii] & ok[:, jj] & (length > 1e-9)
-    safe = np.where(length > 1e-9, length, 1.0)
-    edge = np.zeros(pair_ok.shape, dtype=bool)
-    orient = np.zeros(pair_ok.shape)
     # frames grouped by their set of touching points, a bit each in one int (``np.unique`` of
     # the rows themselves sorts them as byte strings, a tenth of the whole): with 64 points or
     # more, by the rows
@@ -133,31 +133,44 @@ def grouped_hull(points: FloatArray, valid: BoolArray) -> Hull:
     else:
         _, first, inverse = np.unique(ok, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
+    by_group = np.argsort(inverse, kind="stable")
+    bounds = np.searchsorted(inverse[by_group], np.arange(len(first) + 1))
+    groups = []  # (rows, each row's edges first: a, d, safe, edge, orient)
+    keep = 1
     for m, mask in enumerate(ok[first]):
-        rows = np.flatnonzero(inverse == m)
+        rows = by_group[bounds[m] : bounds[m + 1]]
         cols = np.flatnonzero(mask)
         pairs = np.flatnonzero(mask[ii] & mask[jj])
         if pairs.size == 0:
             continue
-        sub = np.ix_(rows, pairs)
-        dd, aa = d[sub], a[sub]
+        pi, pj = ii[pairs], jj[pairs]
+        aa = pts[rows][:, pi]
+        dd = pts[rows][:, pj] - aa
+        length = np.hypot(dd[..., 0], dd[..., 1])
+        pair_ok = length > 1e-9  # both points touch: the group's pairs are of its points
+        safe = np.where(pair_ok, length, 1.0)
         # the side of every point to every pair's line: d × (p − a) = d × p − d × a
         normal = np.stack([-dd[..., 1], dd[..., 0]], axis=-1)  # (R, E, 2)
         side = normal @ np.swapaxes(pts[np.ix_(rows, cols)], 1, 2)  # (R, E, K)
         side -= (dd[..., 0] * aa[..., 1] - dd[..., 1] * aa[..., 0])[..., None]
-        tol = (HULL_EPS * safe[sub])[..., None]  # HULL_EPS metres from the line
+        tol = (HULL_EPS * safe)[..., None]  # HULL_EPS metres from the line
         pos, neg = (side > tol).any(axis=-1), (side < -tol).any(axis=-1)
-        edge[sub] = pair_ok[sub] & ~(pos & neg)
-        orient[sub] = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
-    # only the edges are kept, first in each frame (a frame's hull has a few of the pairs):
-    # what reads a hull (``hull_margin``) then works on those
-    keep = max(int(edge.sum(axis=1).max(initial=0)), 1)
-    order = np.argsort(~edge, axis=1, kind="stable")[:, :keep]
-
-    def edges(x: np.ndarray) -> np.ndarray:
-        return np.take_along_axis(x, order if x.ndim == 2 else order[..., None], axis=1)
-
-    return Hull(edges(a), edges(d), edges(safe), edges(edge), edges(orient), pts, ok)
+        edge = pair_ok & ~(pos & neg)
+        orient = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
+        groups.append((rows, aa, dd, safe, edge, orient))
+        keep = max(keep, int(edge.sum(axis=1).max(initial=0)))
+    out_a, out_d = np.zeros((n, keep, 2)), np.zeros((n, keep, 2))
+    out_safe, out_orient = np.ones((n, keep)), np.zeros((n, keep))
+    out_edge = np.zeros((n, keep), dtype=bool)
+    for rows, aa, dd, safe, edge, orient in groups:
+        k = min(keep, edge.shape[1])
+        order = np.argsort(~edge, axis=1, kind="stable")[:, :k]
+        out_a[rows, :k] = np.take_along_axis(aa, order[..., None], axis=1)
+        out_d[rows, :k] = np.take_along_axis(dd, order[..., None], axis=1)
+        out_safe[rows, :k] = np.take_along_axis(safe, order, axis=1)
+        out_edge[rows, :k] = np.take_along_axis(edge, order, axis=1)
+        out_orient[rows, :k] = np.take_along_axis(orient, order, axis=1)
+    return Hull(out_a, out_d, out_safe, out_edge, out_orient, pts, ok)
 
 
 def hull_margin(h: Hull, com: FloatArray) -> FloatArray:
@@ -673,7 +686,8 @@ def compute_metrics(ir: MotionIR) -> Metrics:
     if v is None or len(v.penetration_frames) != len(frames.time):
         raise ValueError("the IR's frames are not verified: run the verify pass last")
     t = frames.time
-    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation)
+    # sites only: no dof axes (half the forward kinematics, a third of the pose's memory)
+    pose = forward(skel, frames.q, frames.root_position, frames.root_rotation, with_axes=False)
     k = int(np.argmax(v.penetration_frames))
     stance = foot_stance(ir, t)
     feet = foot_points(skel, pose)

@@ -409,3 +409,27 @@ def test_position_residual_is_the_general_one_in_numbers_and_layout(sites: tuple
             assert g.shape == w.shape and g.strides == w.strides, name
             assert np.array_equal(g, w), name
     assert position_targets(normalise(SK, [Goal("gaze", aim=np.zeros(3))])) is None
+
+
+@SETTINGS
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    aim=st.tuples(*[st.floats(-3.0, 3.0)] * 3),
+    restarts=st.integers(1, 3),
+)
+def test_the_first_attempt_is_what_no_restarts_returns_to_the_bit(
+    seed: int, aim: tuple[float, float, float], restarts: int
+) -> None:
+    """``first_attempt=True`` returns, beside the best of all attempts, the first attempt's
+    best: the same pose to the bit as the same solve with ``restarts=0`` (the gaze asks for
+    both); targets anywhere, behind the head too, where the first attempt stalls and restarts."""
+    rng = np.random.default_rng(seed)
+    body = np.clip(SK.q_comfort + rng.normal(0.0, 0.3, SK.n_dofs), SK.lower, SK.upper)
+    model = prepare(SK, ["gaze"], body)
+    goal = [Goal("gaze", aim=np.asarray(aim))]
+    both = solve_ta(SK, goal, body, model=model, restarts=restarts, first_attempt=True)
+    alone = solve_ta(SK, goal, body, model=model, restarts=0)
+    best = solve_ta(SK, goal, body, model=model, restarts=restarts)
+    assert both.first is not None
+    assert np.array_equal(both.first, alone.q)
+    assert np.array_equal(both.q, best.q)

@@ -305,3 +305,19 @@ def test_rotate_about_is_the_axis_angle_matrix_on_a_point() -> None:
     expected = origin[:, None] + np.einsum("rnab,rb->rna", R, v)
     np.testing.assert_allclose(turned, expected, atol=1e-12)
     np.testing.assert_array_equal(turned[:, 2], origin + v)  # no turn: the point itself
+
+
+def test_com_jacobian_of_some_dofs_is_their_columns_of_the_whole_to_the_bit() -> None:
+    """``com_jacobian(..., dofs=...)`` (the balance pass's trunk lean asks for 4 columns):
+    the same numbers as those columns of the whole Jacobian, for one pose and for batches."""
+    rng = np.random.default_rng(3)
+    for sk in (SK, build_manikin("gb10000_1988", "male", 95)):
+        dofs = np.asarray([sk.dof_index(n) for n in ("lumbar_flex", "lumbar_lat", "thorax_flex",
+                                                       "thorax_lat", "r_knee_flex")])  # fmt: skip
+        for n in (1, 9, 400):
+            pose = forward(sk, sk.random_q(rng, n), rng.normal(0.0, 1.0, (n, 3)))
+            assert np.array_equal(
+                com_jacobian(sk, pose, dofs=dofs), com_jacobian(sk, pose)[..., dofs]
+            )
+    with pytest.raises(ValueError):
+        com_jacobian(SK, forward(SK, SK.q_comfort), root=True, dofs=dofs)

@@ -684,3 +684,69 @@ def test_the_frames_rebalanced_are_found_from_the_standing_ones(seed: int, n: in
     np.testing.assert_array_equal(got, _runs_with_standing_frames(ir, rows[worse_frames[rows]]))
     once = np.concatenate(measured) if measured else np.zeros(0, int)
     assert len(np.unique(once)) == len(once)  # no frame measured twice
+
+
+def _all_pairs_grouped_hull(points: np.ndarray, valid: np.ndarray):  # type: ignore[no-untyped-def]
+    """The grouped hull as it was before its pairs were formed per group (4cc9d5e): every
+    pair's edge vector for every frame, then the groups' side tests. The reference of
+    ``test_the_grouped_hull_forms_pairs_per_group_to_the_bit``."""
+    from mtlc.metrics import HULL_EPS, Hull
+
+    pts, ok = np.asarray(points, dtype=float), np.asarray(valid, dtype=bool)
+    used = ok.any(axis=0)
+    if used.sum() >= 3 and not used.all():
+        pts, ok = pts[:, used], ok[:, used]
+    ii, jj = np.triu_indices(ok.shape[1], 1)
+    a, d = pts[:, ii], pts[:, jj] - pts[:, ii]
+    length = np.hypot(d[..., 0], d[..., 1])
+    pair_ok = ok[:, ii] & ok[:, jj] & (length > 1e-9)
+    safe = np.where(length > 1e-9, length, 1.0)
+    edge, orient = np.zeros(pair_ok.shape, dtype=bool), np.zeros(pair_ok.shape)
+    _, first, inverse = np.unique(ok, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    for m, mask in enumerate(ok[first]):
+        rows, cols = np.flatnonzero(inverse == m), np.flatnonzero(mask)
+        pairs = np.flatnonzero(mask[ii] & mask[jj])
+        if pairs.size == 0:
+            continue
+        sub = np.ix_(rows, pairs)
+        dd, aa = d[sub], a[sub]
+        normal = np.stack([-dd[..., 1], dd[..., 0]], axis=-1)
+        side = normal @ np.swapaxes(pts[np.ix_(rows, cols)], 1, 2)
+        side -= (dd[..., 0] * aa[..., 1] - dd[..., 1] * aa[..., 0])[..., None]
+        tol = (HULL_EPS * safe[sub])[..., None]
+        pos, neg = (side > tol).any(axis=-1), (side < -tol).any(axis=-1)
+        edge[sub] = pair_ok[sub] & ~(pos & neg)
+        orient[sub] = np.where(pos, 1.0, np.where(neg, -1.0, 0.0))
+    keep = max(int(edge.sum(axis=1).max(initial=0)), 1)
+    order = np.argsort(~edge, axis=1, kind="stable")[:, :keep]
+
+    def edges(x: np.ndarray) -> np.ndarray:
+        return np.take_along_axis(x, order if x.ndim == 2 else order[..., None], axis=1)
+
+    return Hull(edges(a), edges(d), edges(safe), edges(edge), edges(orient), pts, ok)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), collinear=st.booleans(), count=st.sampled_from([8, 22]))
+def test_the_grouped_hull_forms_pairs_per_group_to_the_bit(
+    seed: int, collinear: bool, count: int
+) -> None:
+    """``grouped_hull`` forms each group's pairs for its own frames only: each frame's edges
+    in the same order, and the margins and pushes read from them equal to the bit those of the
+    all-pairs grouping it replaced (the padding differs, and nothing reads it)."""
+    from mtlc.metrics import grouped_hull, hull_margin, support_push
+
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(-0.3, 0.3, (50, count, 2))
+    if collinear:
+        pts[:, :4, 1] = pts[:, :1, 1]
+    ok = (rng.random((6, count)) < 0.5)[rng.integers(0, 6, 50)]
+    ok[:, count - 1] = False  # a point no frame touches: the hull drops its column
+    com = rng.uniform(-0.4, 0.4, (50, 2))
+    got, want = grouped_hull(pts, ok), _all_pairs_grouped_hull(pts, ok)
+    assert np.array_equal(got.edge, want.edge)
+    assert np.array_equal(got.orient[got.edge], want.orient[want.edge])
+    assert np.array_equal(hull_margin(got, com), hull_margin(want, com), equal_nan=True)
+    push_got = support_push(pts, ok, com, 0.01, got)
+    assert np.array_equal(push_got, support_push(pts, ok, com, 0.01, want), equal_nan=True)

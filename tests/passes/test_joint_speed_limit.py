@@ -191,3 +191,38 @@ def test_dense_keys_come_out_within_the_limit(a: list, b: list) -> None:
     t = np.arange(n) / 60.0
     ir = run(motion(segment(("t", "reach", "reach"), t, q)))
     assert fastest(ir) <= joint_speed.LIMIT * 1.05
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    n=st.integers(2, 300),
+    density=st.sampled_from([0.0, 0.02, 0.3, 1.0]),
+    pinned=st.booleans(),
+)
+def test_the_envelopes_are_the_frame_by_frame_sweeps_to_the_bit(
+    seed: int, n: int, density: float, pinned: bool
+) -> None:
+    """``joint_speed.envelopes`` (both sweeps solved for all rows at once, then again where
+    a row grew) against the frame-by-frame loop it replaced: the same arrays to the bit,
+    signs of zeros too, with sparse and dense corrections, fast and still motions, and rows
+    kept as they are."""
+    from mtlc.passes.joint_speed import envelopes, sweeps_reference
+
+    rng = np.random.default_rng(seed)
+    cols = 4
+    q = np.cumsum(rng.normal(0.0, 0.05, (n, cols)), axis=0)
+    q[rng.random(n) < 0.3] = 0.0  # still frames and exact zeros
+    t = np.cumsum(np.full(n, 1 / 120))
+    done = np.where(rng.random((n, cols)) < density, rng.normal(0.0, 0.4, (n, cols)), 0.0)
+    step = np.diff(q, axis=0)
+    room = np.maximum(np.abs(step), 5.0 * np.diff(t)[:, None]) + 1e-9
+    lo, hi = -room - step, room - step
+    keep = (rng.random(n) < 0.1) if pinned else np.zeros(n, dtype=bool)
+    want_up, want_down = np.maximum(done, 0.0), np.minimum(done, 0.0)
+    got_up, got_down = want_up.copy(), want_down.copy()
+    sweeps_reference(want_up, want_down, lo, hi, keep)
+    envelopes(got_up, got_down, lo, hi, keep)
+    for got, want in ((got_up, want_up), (got_down, want_down)):
+        assert np.array_equal(got, want)
+        assert np.array_equal(np.signbit(got), np.signbit(want))

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mtlc.body import build_manikin, center_of_mass, forward, site_positions
 from mtlc.diagnostics import DiagnosticSink
@@ -252,3 +254,33 @@ def test_a_load_is_taken_up_and_put_down_gradually() -> None:
     np.testing.assert_allclose(load_weight(load, t), [0.0, 0.0, 0.5, 1.0, 1.0, 0.5, 0.0])
     short = Load("r", 1.0, 1.0, 0.0, 0.2)  # shorter than two ramps: up and down in it
     assert load_weight(short, np.array([0.1]))[0] == pytest.approx(1.0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), count=st.integers(1, 12))
+def test_many_loads_in_one_hand_weigh_as_each_one_placed_by_itself(seed: int, count: int) -> None:
+    """``carried_com`` places each hand once for all its loads: the same numbers, to the bit,
+    as placing the hand again for every load (the per-load sum it replaced)."""
+    from mtlc.loads import Held, Load, load_weight
+
+    rng = np.random.default_rng(seed)
+    n = 30
+    q = np.clip(SKEL.q_comfort + rng.normal(0.0, 0.3, (n, SKEL.n_dofs)), SKEL.lower, SKEL.upper)
+    pose = forward(SKEL, q)
+    t = np.sort(rng.uniform(0.0, 10.0, n))
+    loads = []
+    for _ in range(count):
+        start = float(rng.uniform(0.0, 9.0))
+        mass = float(rng.uniform(0.1, 40.0))
+        side = "r" if rng.random() < 0.5 else "l"
+        loads.append(Load(side, mass, mass / 2, start, start + float(rng.uniform(0.1, 3.0))))
+    ir = MotionIR("t", None, "synthetic.mtask", {}, 0.0, [], [], SKEL)
+    got = carried_com(ir, pose, t, Held([], loads))
+    big_m = float(SKEL.total_mass)
+    moment, mass = big_m * center_of_mass(SKEL, pose), np.full(n, big_m)
+    for load in loads:
+        held_mass = load.share * load_weight(load, t)
+        if held_mass.any():
+            moment += held_mass[:, None] * site_positions(SKEL, pose, f"{load.side}_hand")
+            mass += held_mass
+    assert np.array_equal(got, moment / mass[:, None])

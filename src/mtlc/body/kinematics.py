@@ -620,20 +620,29 @@ def center_of_mass(skel: Skeleton, pose: Pose) -> FloatArray:
     return np.einsum("j,...ja->...a", skel.masses, c) / skel.total_mass
 
 
-def com_jacobian(skel: Skeleton, pose: Pose, *, root: bool = False) -> FloatArray:
+def com_jacobian(
+    skel: Skeleton, pose: Pose, *, root: bool = False, dofs: NDArray[np.intp] | None = None
+) -> FloatArray:
     """Jacobian (..., 3, n_dofs [+6]) of the whole-body centre of mass.
 
     Column k is ``a_k × (Σ_{j below k} m_j c_j − M_k o_k) / M``, with M_k the mass carried by
-    the dof's joint and everything below it.
+    the dof's joint and everything below it. ``dofs``: only those columns (..., 3, len(dofs)),
+    the same numbers as theirs in the whole Jacobian (the balance pass's trunk lean reads 4 of
+    37 columns on thousands of frames); not with ``root``.
     """
     c = segment_coms(skel, pose)
     M = skel.total_mass
     # below[k, j]: segment j moves with dof k (the dof's joint is j or an ancestor of j).
     below = skel.ancestor[:, skel.dof_joint].T  # (D, J)
-    mc = np.einsum("kj,j,...ja->...ka", below, skel.masses, c)
     mk = below.astype(float) @ skel.masses  # (D,)
-    origins = pose.p[..., skel.dof_joint, :]
-    cols = cross(pose.axes, mc - mk[:, None] * origins) / M
+    axes, joints = pose.axes, skel.dof_joint
+    if dofs is not None:
+        if root:
+            raise ValueError("com_jacobian: dofs or root, not both")
+        below, mk, axes, joints = below[dofs], mk[dofs], axes[..., dofs, :], joints[dofs]
+    mc = np.einsum("kj,j,...ja->...ka", below, skel.masses, c)
+    origins = pose.p[..., joints, :]
+    cols = cross(axes, mc - mk[:, None] * origins) / M
     J = np.swapaxes(cols, -1, -2)
     if root:
         com = center_of_mass(skel, pose)

@@ -306,11 +306,14 @@ def restore_contacts_posed(
     feet: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
     hands: dict[str, tuple[np.ndarray, np.ndarray]],
     pose: Pose | None = None,
+    with_axes: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pose]:
     """``restore_contacts`` and the pose of its result (forward kinematics is the costly part
-    of balancing thousands of frames: callers reuse it instead of recomputing it)."""
+    of balancing thousands of frames: callers reuse it instead of recomputing it).
+    ``with_axes=False``: the pose without its dofs' axes, for a caller that needs no Jacobian
+    (half the forward kinematics)."""
     q, root, worst = restore_contacts(ir, q, root_position, root_rotation, feet, hands, pose)
-    return q, root, worst, forward(ir.skeleton, q, root, root_rotation)
+    return q, root, worst, forward(ir.skeleton, q, root, root_rotation, with_axes=with_axes)
 
 
 def lean_trunk(
@@ -353,7 +356,9 @@ def lean_trunk(
             p = take_pose(p, np.flatnonzero(moving))
         if active.size == 0:
             break
-        J = com_jacobian(skel, p)[:, [0, 2]][:, :, spine]  # (B, 2, S)
+        # (B, 2, S), laid out as the whole Jacobian's columns were taken (batch-major last):
+        # the products below see the same memory they did
+        J = np.asfortranarray(com_jacobian(skel, p, dofs=spine)[:, [0, 2]])
         A = J @ np.swapaxes(J, -1, -2) + (0.02**2) * np.eye(2)
         dq = np.einsum(
             "bsk,bk->bs", np.swapaxes(J, -1, -2), np.linalg.solve(A, push[..., None])[..., 0]
@@ -484,7 +489,9 @@ def _support_state(
     the held tools and loads) and support points as ``support`` gives them."""
     skel = ir.skeleton
     t = frames.time[idx]
-    pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx])
+    # no dof axes: nothing measured or corrected from this pose needs a Jacobian (half the cost)
+    pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx],
+                   with_axes=False)  # fmt: skip
     into.contact[idx] = contact_mask(foot_points(skel, pose), stance[idx], ir.ground)
     rest = hand_contacts(ir, t, pose, segs.rests)
     pts, ok = support(skel, pose, stance[idx], ir.ground, rest)
@@ -620,7 +627,8 @@ def balance_frames(
         # only the rows kept are posed (a lost row keeps its pose: a squat at its ankles' limit
         # loses every row of four rounds)
         if ok_rows.size:
-            put_pose(p_rows, ok_rows, forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows]))
+            moved = forward(skel, q[ok_rows], root[ok_rows], rot[ok_rows], with_axes=False)
+            put_pose(p_rows, ok_rows, moved)
         retrying = schedule.update(trying, lost, far, worst_a)
         active = np.sort(np.concatenate([active[~awake], retrying]))
     p = p_rows
@@ -690,7 +698,7 @@ def balance_frames(
         sub_feet = {n: (a[at], b[at], c[at]) for n, (a, b, c) in feet_b.items()}
         sub_hands = {h: (m[at], x[at]) for h, (m, x) in hands_b.items()}
         qs, rs, ws, ps = restore_contacts_posed(
-            ir, qs, rs, frames.root_rotation[f], sub_feet, sub_hands
+            ir, qs, rs, frames.root_rotation[f], sub_feet, sub_hands, with_axes=False
         )
         ok = (ws <= POSITION_TOL) & skel.within_limits(qs, tol=1e-6)
         ok &= lowest_point(skel, ps) >= floor_b[at]

@@ -147,8 +147,11 @@ def aim_head(
         lambda: prepare(skel, ["gaze"], body, root_position=root[0], root_rotation=root[1]),
     )
     goal = [Goal("gaze", aim=target)]
-    best = solve_ta(skel, goal, body, model=model, restarts=2).q[0]
-    near = solve_ta(skel, goal, body, model=model, restarts=0).q[0]
+    # the best of three starts, and the first start's own (what ``restarts=0`` gives), by one
+    # solve: the restarts begin where the first attempt stops
+    res = solve_ta(skel, goal, body, model=model, restarts=2, first_attempt=True)
+    assert res.first is not None
+    best, near = res.q[0], res.first[0]
     errors = aim_errors(skel, np.stack([best, near]), np.stack([root[0]] * 2),
                         np.stack([root[1]] * 2), np.stack([target] * 2))  # fmt: skip
     # a target past the neck's range is seen about as badly from either limit: stay on the

@@ -292,14 +292,60 @@ def speed_limited(
     up, down = np.maximum(done[:, cols], 0.0), np.minimum(done[:, cols], 0.0)
     lo, hi = lo[:, cols], hi[:, cols]
     keep = np.zeros(len(q), dtype=bool) if fixed is None else np.asarray(fixed, dtype=bool)
-    for i in range(len(q) - 2, -1, -1):  # started earlier
-        if not keep[i]:
-            up[i] = np.maximum(up[i], up[i + 1] - hi[i])
-            down[i] = np.minimum(down[i], down[i + 1] - lo[i])
-    for i in range(len(q) - 1):  # let go later
-        if not keep[i + 1]:
-            up[i + 1] = np.maximum(up[i + 1], up[i] + lo[i])
-            down[i + 1] = np.minimum(down[i + 1], down[i] + hi[i])
+    envelopes(up, down, lo, hi, keep)
     out = done.copy()
     out[:, cols] = np.clip(q[:, cols] + up + down, lower[cols], upper[cols]) - q[:, cols]
     return out
+
+
+def envelopes(
+    up: FloatArray, down: FloatArray, lo: FloatArray, hi: FloatArray, keep: np.ndarray
+) -> None:
+    """``speed_limited``'s two sweeps, in place: back in time (a correction starts earlier)
+    ``up[i] = max(up[i], up[i+1] - hi[i])`` and ``down[i] = min(down[i], down[i+1] - lo[i])``,
+    then forward (it lets go later) ``up[i+1] = max(up[i+1], up[i] + lo[i])`` and
+    ``down[i+1] = min(down[i+1], down[i] + hi[i])``; rows ``keep`` are left as they are.
+
+    Each sweep is solved for all rows at once and then again only where the row it reads
+    changed (``hi > 0 > lo``: a row next to an untouched one never changes, and most rows of a
+    long motion are untouched): every row ends as the sweep's fixed point, which is the
+    frame-by-frame loop's result to the bit, the same operation on the same values (``max``
+    only grows a row, and a row is solved again whenever the one it reads grows). A loop over
+    every frame was half a second of a 48,000-frame balance pass (``sweeps_reference``)."""
+    n = len(up)
+    if n < 2:
+        return
+    rows = np.flatnonzero(~keep[:-1])  # back: row i reads row i + 1
+    for _ in range(n):
+        if rows.size == 0:
+            break
+        new_up = np.maximum(up[rows], up[rows + 1] - hi[rows])
+        new_down = np.minimum(down[rows], down[rows + 1] - lo[rows])
+        grown = (new_up != up[rows]).any(axis=1) | (new_down != down[rows]).any(axis=1)
+        up[rows], down[rows] = new_up, new_down
+        rows = rows[grown] - 1
+        rows = rows[(rows >= 0) & ~keep[np.maximum(rows, 0)]]
+    rows = np.flatnonzero(~keep[1:]) + 1  # forward: row i reads row i - 1
+    for _ in range(n):
+        if rows.size == 0:
+            break
+        new_up = np.maximum(up[rows], up[rows - 1] + lo[rows - 1])
+        new_down = np.minimum(down[rows], down[rows - 1] + hi[rows - 1])
+        grown = (new_up != up[rows]).any(axis=1) | (new_down != down[rows]).any(axis=1)
+        up[rows], down[rows] = new_up, new_down
+        rows = rows[grown] + 1
+        rows = rows[(rows < n) & ~keep[np.minimum(rows, n - 1)]]
+
+
+def sweeps_reference(
+    up: FloatArray, down: FloatArray, lo: FloatArray, hi: FloatArray, keep: np.ndarray
+) -> None:
+    """``envelopes`` frame by frame, as ``speed_limited`` did it (the tests' reference)."""
+    for i in range(len(up) - 2, -1, -1):  # started earlier
+        if not keep[i]:
+            up[i] = np.maximum(up[i], up[i + 1] - hi[i])
+            down[i] = np.minimum(down[i], down[i + 1] - lo[i])
+    for i in range(len(up) - 1):  # let go later
+        if not keep[i + 1]:
+            up[i + 1] = np.maximum(up[i + 1], up[i] + lo[i])
+            down[i + 1] = np.minimum(down[i + 1], down[i] + hi[i])

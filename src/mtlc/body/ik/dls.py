@@ -102,12 +102,17 @@ def solve_ta(
     max_step: float = 0.5,
     null_gain: float = 0.05,
     seed: int = 0,
+    first_attempt: bool = False,
 ) -> IKResult:
     """Solve goals for a batch of targets by damped least squares (TA phase).
 
     ``q0`` (D,) or (B, D) start (default: the comfortable posture); ``model`` a prepared
     :func:`prepare` problem to skip setup; ``dofs`` the dofs to move (default: each effector's
     chain by ``reach``). Iterations are bounded by ``max_iter · (restarts + 1)`` per row.
+    ``first_attempt``: also return (``IKResult.first``) the best of the first attempt, what the
+    same call with ``restarts=0`` returns, to the bit: the restarts begin where it stops (the
+    gaze asks for both; a second solve repeated the first attempt). One row of goals that are
+    not a single position goal only (``_solve_single``).
     """
     ga = normalise(skel, goals)
     B = ga.batch
@@ -172,6 +177,15 @@ def solve_ta(
             method="dls",
         )
 
+    if first_attempt:
+        if B != 1 or tail_chain is not None:
+            raise ValueError("first_attempt: one row of goals other than a single position")
+        return _solve_single(
+            skel, ga, model, qf, qa, tol=tol, orientation_tol=orientation_tol,
+            max_iter=max_iter, restarts=restarts, patience=patience, damping=damping,
+            max_error=max_error, max_step=max_step, null_gain=null_gain, rng=rng,
+            first_attempt=True,
+        )  # fmt: skip
     solve_rows = _solve_single if B == 1 else _solve_rows
     return solve_rows(
         skel, ga, model, qf, qa, tol=tol, orientation_tol=orientation_tol, max_iter=max_iter,
@@ -328,11 +342,13 @@ def _solve_single(
     null_gain: float,
     rng: np.random.Generator,
     tail_chain: SerialChain | None = None,
+    first_attempt: bool = False,
 ) -> IKResult:
     """``_solve_rows`` for one row, its bookkeeping on Python floats: the same
     steps, restarts and random draws, so the same pose to the bit (tested); the batch's
     per-row arrays cost more than the solve's arithmetic (the passes solve one pose at a
-    time, 60 to 540 iterations each)."""
+    time, 60 to 540 iterations each). ``first_attempt``: ``IKResult.first`` is the best pose
+    when the first restart begins (or at the end without one)."""
     lo, hi = model.lower, model.upper
     comfort = skel.q_comfort[model.active]
     lam2I = damping * damping * np.eye(3 * _blocks(ga))
@@ -341,6 +357,7 @@ def _solve_single(
     iters = n_restart = attempt_it = since = 0
     attempt_best = math.inf
     cur = qa
+    first_q = None  # the first attempt's best, once a restart begins
     while True:
         r = residual(model, ga, cur, with_cost=False, targets=targets)
         pos, ori = float(r.pos_err[0]), float(r.ori_err[0])
@@ -357,6 +374,8 @@ def _solve_single(
         if since >= patience or attempt_it >= max_iter:
             if n_restart >= restarts:
                 break
+            if n_restart == 0:
+                first_q = best_q
             n_restart += 1
             attempt_it, attempt_best, since = 0, math.inf, 0
             cur = lo + (hi - lo) * rng.random((1, model.n))
@@ -370,6 +389,10 @@ def _solve_single(
     q_out[:, model.active] = best_q
     best_pos, best_ori = returned_errors(model, ga, q_out)
     success = (best_pos <= tol) & (best_ori <= orientation_tol) & skel.within_limits(q_out)
+    first = None
+    if first_attempt:
+        first = qf.copy()
+        first[:, model.active] = best_q if first_q is None else first_q
     return IKResult(
         q=q_out,
         position_error=best_pos,
@@ -378,6 +401,7 @@ def _solve_single(
         iterations=np.array([iters]),
         restarts=np.array([n_restart]),
         method="dls",
+        first=first,
     )
 
 

@@ -23,7 +23,9 @@ class IKResult:
     ``orientation_error`` (B,) the largest remaining angle (rad; orientation and aim goals);
     ``success`` (B,) within tolerance with every joint inside its limits;
     ``iterations`` (B,) iterations spent (all attempts); ``restarts`` (B,) restarts used;
-    ``path`` (T, B, n_dofs) every accepted configuration (gradient-path solvers only).
+    ``path`` (T, B, n_dofs) every accepted configuration (gradient-path solvers only);
+    ``first`` (B, n_dofs) the best of the first attempt alone, what ``restarts=0`` returns
+    (``solve_ta(..., first_attempt=True)`` of one row on the general path only).
     """
 
     q: FloatArray
@@ -34,6 +36,7 @@ class IKResult:
     restarts: NDArray[np.intp]
     method: str
     path: FloatArray | None = None
+    first: FloatArray | None = None
 
     @property
     def success_rate(self) -> float:

@@ -338,7 +338,8 @@ def _worse_standing_runs(
                 ahead.append(np.arange(b + 1, hi + 1))
         if not ahead:
             return rows[np.concatenate([np.arange(a, b + 1) for a, b in runs] or [[]]).astype(int)]
-        measure(np.concatenate(ahead))
+        # two runs' ranges can meet in the frames between them: each frame measured once
+        measure(np.unique(np.concatenate(ahead)))
         width *= 2
 
 

@@ -292,6 +292,26 @@ def segment_distance(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatAr
     return np.linalg.norm(p1 + s[:, None] * d1 - p2 - t[:, None] * d2, axis=-1)
 
 
+def depth_gradient(points: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """(N, 3) the derivative of ``depth_inside`` by each point (N, 3) in the capsule of axis
+    ``a``-``b`` (N, 3), whatever its radius: minus the unit direction from the axis's closest
+    point to the point (the closest point slides along the axis, at right angles to that
+    direction, so it adds nothing); zero on the axis."""
+    d = b - a
+    rel = points - a
+    length2 = np.maximum(np.einsum("nc,nc->n", d, d), 1e-18)
+    t = np.clip(np.einsum("nc,nc->n", rel, d) / length2, 0.0, 1.0)
+    away = rel - t[:, None] * d
+    dist = np.linalg.norm(away, axis=-1)
+    return -away / np.where(dist > 0.0, dist, np.inf)[:, None]
+
+
+def body_capsule_axes(skel: Skeleton, pose: Pose) -> tuple[FloatArray, FloatArray]:
+    """The ``body_capsules``' axes' ends (N, C, 3), in their order."""
+    ends = [_capsule_axis(skel, pose, cap) for cap in body_capsules(skel)]
+    return np.stack([a for a, _ in ends], axis=1), np.stack([b for _, b in ends], axis=1)
+
+
 def depth_inside(points: FloatArray, a: FloatArray, b: FloatArray, radius: float) -> FloatArray:
     """How deep (m, positive inside, negative outside) each point (N, K, 3) is inside the
     capsule of axis ``a``-``b`` (N, 3) and ``radius``."""

@@ -146,3 +146,45 @@ def test_random_arms_inside_mostly_come_out() -> None:
     inside = np.concatenate(surfaces)
     assert inside.size > 150
     assert np.mean(inside <= 0.0) >= 0.9
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), pick=st.integers(0, 13), n=st.sampled_from([1, 7, 300]))
+def test_clearance_of_every_capsule_at_once_is_capsule_by_capsule(
+    seed: int, pick: int, n: int
+) -> None:
+    """``capsules.clearance`` (all of a limb's capsules in one array) equals, to the bit, the
+    depth of each sample in each capsule taken one capsule at a time (``depth_inside``, the
+    loop it replaced), on random whole-body postures and roots; its directions are unit or
+    zero."""
+    from mtlc.body.capsules import (
+        CLEARANCE_MARGIN,
+        LIMB_SAMPLES,
+        body_capsules,
+        clearance_directions,
+        depth_inside,
+        limb_axis,
+        limb_radius,
+    )
+
+    sk, rng, _, q, _ = _postures(seed, pick, "l", n=n)
+    q = sk.clip(q + rng.normal(0.0, 0.5, q.shape))
+    pose = forward(sk, q, rng.normal(0.0, 1.0, (n, 3)), rng.normal(0.0, 1.0, (n, 4)))
+    for side in ("r", "l"):
+        cols = []
+        for limb in side_limbs(side):
+            p0, p1 = limb_axis(sk, pose, limb)
+            frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)
+            pts = p0[:, None, :] + frac[None, :, None] * (p1 - p0)[:, None, :]
+            for cap in body_capsules(sk):
+                a, b = (
+                    np.mean([pose.p[:, sk.joint_index(j)] for j in e], axis=0) for e in cap.ends
+                )
+                grow = limb_radius(sk, limb) + CLEARANCE_MARGIN
+                cols.append(depth_inside(pts, a, b, cap.radius + grow))
+        want = np.concatenate(cols, axis=1)
+        np.testing.assert_array_equal(clearance(sk, pose, side_limbs(side)), want)
+        depth, directions = clearance_directions(sk, pose, side_limbs(side))
+        np.testing.assert_array_equal(depth, want)
+        norms = np.linalg.norm(directions, axis=-1)
+        assert np.all((np.abs(norms - 1.0) < 1e-12) | (norms == 0.0))

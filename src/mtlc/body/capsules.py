@@ -292,26 +292,6 @@ def segment_distance(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatAr
     return np.linalg.norm(p1 + s[:, None] * d1 - p2 - t[:, None] * d2, axis=-1)
 
 
-def depth_gradient(points: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
-    """(N, 3) the derivative of ``depth_inside`` by each point (N, 3) in the capsule of axis
-    ``a``-``b`` (N, 3), whatever its radius: minus the unit direction from the axis's closest
-    point to the point (the closest point slides along the axis, at right angles to that
-    direction, so it adds nothing); zero on the axis."""
-    d = b - a
-    rel = points - a
-    length2 = np.maximum(np.einsum("nc,nc->n", d, d), 1e-18)
-    t = np.clip(np.einsum("nc,nc->n", rel, d) / length2, 0.0, 1.0)
-    away = rel - t[:, None] * d
-    dist = np.linalg.norm(away, axis=-1)
-    return -away / np.where(dist > 0.0, dist, np.inf)[:, None]
-
-
-def body_capsule_axes(skel: Skeleton, pose: Pose) -> tuple[FloatArray, FloatArray]:
-    """The ``body_capsules``' axes' ends (N, C, 3), in their order."""
-    ends = [_capsule_axis(skel, pose, cap) for cap in body_capsules(skel)]
-    return np.stack([a for a, _ in ends], axis=1), np.stack([b for _, b in ends], axis=1)
-
-
 def depth_inside(points: FloatArray, a: FloatArray, b: FloatArray, radius: float) -> FloatArray:
     """How deep (m, positive inside, negative outside) each point (N, K, 3) is inside the
     capsule of axis ``a``-``b`` (N, 3) and ``radius``."""
@@ -366,14 +346,46 @@ def clearance(
     """(N, L·C·S) how far (m) each sample point of each limb's surface is inside each capsule
     grown by ``margin``: positive where the limb must move out, negative where it is clear.
     The avoidance's residual; ``self_intersection`` is the check (the same surfaces, exact)."""
+    return _clearance(skel, pose, limbs, margin, directions=False)[0]
+
+
+def clearance_directions(
+    skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...], margin: float = CLEARANCE_MARGIN
+) -> tuple[FloatArray, FloatArray]:
+    """``clearance`` (N, L·C·S) and each column's derivative by its sample point
+    (N, L·C·S, 3): minus the unit direction from the capsule axis's closest point to the
+    sample (the closest point slides along the axis, at right angles to that direction, so it
+    adds nothing; zero on the axis). The avoidance's residual and what its analytic Jacobian
+    needs, from one pass over the samples."""
+    depth, direction = _clearance(skel, pose, limbs, margin, directions=True)
+    assert direction is not None
+    return depth, direction
+
+
+def _clearance(
+    skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...], margin: float, directions: bool
+) -> tuple[FloatArray, FloatArray | None]:
+    """``clearance`` (and its directions), every capsule of a limb at once: the same
+    arithmetic, number for number, as ``depth_inside`` capsule by capsule."""
     caps = body_capsules(skel)
     frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)
-    axes = [(cap, *_capsule_axis(skel, pose, cap)) for cap in caps]
-    cols: list[FloatArray] = []
+    ends = [_capsule_axis(skel, pose, cap) for cap in caps]
+    a = np.stack([e[0] for e in ends], axis=1)[:, :, None, :]  # (N, C, 1, 3)
+    d = np.stack([e[1] - e[0] for e in ends], axis=1)[:, :, None, :]
+    length2 = np.maximum(np.einsum("ncsx,ncsx->ncs", d, d), 1e-18)
+    radii = np.array([cap.radius for cap in caps])[None, :, None]
+    depths: list[FloatArray] = []
+    dirs: list[FloatArray] = []
     for limb in limbs:
         p0, p1 = limb_axis(skel, pose, limb)
         pts = p0[:, None, :] + frac[None, :, None] * (p1 - p0)[:, None, :]
-        grow = limb_radius(skel, limb) + margin
-        for cap, a, b in axes:
-            cols.append(depth_inside(pts, a, b, cap.radius + grow))
-    return np.concatenate(cols, axis=1)
+        rel = pts[:, None] - a  # (N, C, S, 3)
+        t = np.clip(np.einsum("ncsx,ncsx->ncs", rel, d) / length2, 0.0, 1.0)
+        away = rel - t[..., None] * d
+        dist = np.linalg.norm(away, axis=-1)
+        depths.append((radii + (limb_radius(skel, limb) + margin)) - dist)
+        if directions:
+            dirs.append(-away / np.where(dist > 0.0, dist, np.inf)[..., None])
+    n = len(depths[0])
+    depth = np.concatenate(depths, axis=1).reshape(n, -1)
+    return depth, np.concatenate(dirs, axis=1).reshape(n, -1, 3) if directions else None

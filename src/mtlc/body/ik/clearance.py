@@ -37,10 +37,9 @@ from numpy.typing import NDArray
 
 from ..capsules import (
     LIMB_SAMPLES,
-    body_capsule_axes,
     body_capsules,
     clearance,
-    depth_gradient,
+    clearance_directions,
     limb_radius,
     side_limbs,
 )
@@ -86,17 +85,18 @@ def _residuals(
     q0: FloatArray,
     dofs: Sequence[int],
     clear_weight: float = 1.0,
-) -> FloatArray:
+) -> tuple[FloatArray, FloatArray]:
     """(N, M) residuals of configurations ``q`` (N, D) posed as ``pose`` (see the module
-    docstring)."""
-    pen = clear_weight * np.maximum(clearance(skel, pose, side_limbs(side)), 0.0)
+    docstring), and the depth columns' derivatives by their sample points (N, M_pen, 3)."""
+    depth, directions = clearance_directions(skel, pose, side_limbs(side))
+    pen = clear_weight * np.maximum(depth, 0.0)
     held = _hand_points(skel, pose, side)
     weights = _point_weights(keep)
     weights[:, 0] *= clear_weight  # the site weighs against the clearance as before
     off = (held - kept) * weights[..., None]
     off = off.reshape(len(q), -1)
     rest = REST_WEIGHT * (q[:, dofs] - q0[:, dofs])
-    return np.concatenate([pen, off, rest], axis=1)
+    return np.concatenate([pen, off, rest], axis=1), directions
 
 
 def _point_weights(keep: FloatArray) -> FloatArray:
@@ -196,12 +196,24 @@ def _res(
 ) -> FloatArray:
     """The residuals, or a swivel seed's (the elbow's target and the hand's pose); ``pose``:
     ``q``'s, if already known."""
+    return _res_directions(skel, q, side, pb, dofs, pose)[0]
+
+
+def _res_directions(
+    skel: Skeleton,
+    q: FloatArray,
+    side: str,
+    pb: _Problem,
+    dofs: list[int],
+    pose: Pose | None = None,
+) -> tuple[FloatArray, FloatArray | None]:
+    """``_res``, and the depth columns' derivatives by their samples (none for a seed)."""
     pose = _pose(skel, q, side, pb) if pose is None else pose
     if pb.elbow is None:
         return _residuals(skel, q, pose, side, pb.kept, pb.keep, pb.rest, dofs, pb.clear_weight)
     off = (_hand_points(skel, pose, side) - pb.kept) * _point_weights(pb.keep)[..., None]
     elbow = pose.p[:, skel.joint_index(f"{side}_elbow")] - pb.elbow
-    return np.concatenate([elbow, off.reshape(len(q), -1)], axis=1)
+    return np.concatenate([elbow, off.reshape(len(q), -1)], axis=1), None
 
 
 def _carrier(skel: Skeleton, name: str) -> int:
@@ -245,15 +257,16 @@ def _jacobian(
     pb: _Problem,
     dofs: list[int],
     r: FloatArray,
+    directions: FloatArray | None = None,
 ) -> FloatArray:
     """(n, M, n_d) the derivative of the residuals ``r`` (``_res`` at ``q`` posed as
     ``pose``) by the arm's dofs, analytic. The hand's points and the elbow are points of the
     wrist's and the shoulder's frames; the rest pull is the identity; a depth column is zero
-    where the residual is (clipped at 0: outside), else the depth's gradient at its sample
-    (``capsules.depth_gradient``) dotted with the sample's motion: (1 - f) of its limb's
-    start's plus f of its end's, a hand's end (``limb_axis``: a fixed length short of the
-    fingertip on the rigid hand) that share of the fingertip's and the wrist's. Only the
-    columns inside are computed: a few of the 36."""
+    where the residual is (clipped at 0: outside), else its derivative by its sample
+    (``directions``, from ``_res_directions``; computed here if not given) dotted with the
+    sample's motion: (1 - f) of its limb's start's plus f of its end's, a hand's end
+    (``limb_axis``: a fixed length short of the fingertip on the rigid hand) that share of the
+    fingertip's and the wrist's. Only the columns inside are computed: a few of the 36."""
     n, n_d = len(q), len(dofs)
     axes = dof_world_axes(skel, pose, q, dofs)
     origins = pose.p[:, skel.dof_joint[dofs]]
@@ -267,34 +280,31 @@ def _jacobian(
         moves[:, 1:] *= weights[:, :, None, None]
         return np.swapaxes(moves, 2, 3).reshape(n, -1, n_d)
     weights[:, 0] *= pb.clear_weight
-    ends, carriers = _limb_ends(skel, pose, side)
-    points = np.concatenate([held, ends], axis=1)
-    moves = _point_motion(skel, axes, origins, dofs, [wrist] * 5 + carriers, points)
-    off = np.swapaxes(moves[:, :5] * weights[:, :, None, None], 2, 3).reshape(n, -1, n_d)
+    held_moves = _point_motion(skel, axes, origins, dofs, [wrist] * 5, held)
+    off = np.swapaxes(held_moves * weights[:, :, None, None], 2, 3).reshape(n, -1, n_d)
     n_pen = r.shape[1] - off.shape[1] - n_d
     pen = np.zeros((n, n_pen, n_d))
     row, col = np.nonzero(r[:, :n_pen] > 0.0)
     if row.size:
+        if directions is None:
+            directions = clearance_directions(skel, pose, side_limbs(side))[1]
         limbs = side_limbs(side)
         n_caps = len(body_capsules(skel))
-        limb, cap, sample = np.unravel_index(col, (len(limbs), n_caps, LIMB_SAMPLES))
-        start, end = ends[row, 2 * limb], ends[row, 2 * limb + 1]
-        d0, d1 = moves[row, 5 + 2 * limb], moves[row, 6 + 2 * limb]
+        limb, _, sample = np.unravel_index(col, (len(limbs), n_caps, LIMB_SAMPLES))
+        # the limbs' ends' motion, on the rows with a column inside only
+        rows, at = np.unique(row, return_inverse=True)
+        sub = Pose(pose.R[rows], pose.p[rows], pose.axes, pose.root)
+        ends, carriers = _limb_ends(skel, sub, side)
+        moves = _point_motion(skel, axes[rows], origins[rows], dofs, carriers, ends)
         for i, lb in enumerate(limbs):
-            if not lb.end.endswith("fingertip"):
-                continue
-            at = np.flatnonzero(limb == i)  # as ``limb_axis`` shortens it
-            d = end[at] - start[at]
-            length = np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
-            share = np.minimum(limb_radius(skel, lb), 0.5 * length) / length
-            end[at] -= d * share
-            d1[at] = (1.0 - share[:, :, None]) * d1[at] + share[:, :, None] * d0[at]
-        frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)[sample]
-        point = start + frac[:, None] * (end - start)
-        motion = (1.0 - frac)[:, None, None] * d0 + frac[:, None, None] * d1  # (K, n_d, 3)
-        a, b = body_capsule_axes(skel, Pose(pose.R[row], pose.p[row], pose.axes, pose.root))
-        grad = depth_gradient(point, a[np.arange(row.size), cap], b[np.arange(row.size), cap])
-        pen[row, col] = pb.clear_weight * np.einsum("kx,kdx->kd", grad, motion)
+            if lb.end.endswith("fingertip"):  # as ``limb_axis`` shortens it
+                length = np.linalg.norm(ends[:, 2 * i + 1] - ends[:, 2 * i], axis=-1)
+                length = np.maximum(length, 1e-9)[:, None, None]
+                share = np.minimum(limb_radius(skel, lb), 0.5 * length) / length
+                moves[:, 2 * i + 1] = (1.0 - share) * moves[:, 2 * i + 1] + share * moves[:, 2 * i]
+        frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)[sample][:, None, None]
+        motion = (1.0 - frac) * moves[at, 2 * limb] + frac * moves[at, 2 * limb + 1]
+        pen[row, col] = pb.clear_weight * np.einsum("kx,kdx->kd", directions[row, col], motion)
     rest = np.broadcast_to(REST_WEIGHT * np.eye(n_d), (n, n_d, n_d))
     return np.concatenate([pen, off, rest], axis=1)
 
@@ -321,7 +331,7 @@ def _lm(
         base = forward(skel, cur, pb.root[0], pb.root[1], with_axes=False)
     pb = replace(pb, base=base)
     R, p = base.R.copy(), base.p.copy()  # the current configurations' pose
-    r = _res(skel, cur, side, pb, dofs, base)
+    r, directions = _res_directions(skel, cur, side, pb, dofs, base)
     cost = np.einsum("nm,nm->n", r, r)
     mu = np.full(len(cur), 1e-3)
     eye = np.eye(n_d)
@@ -340,7 +350,8 @@ def _lm(
         sub = pb.take(work)
         qw = cur[work]
         now = Pose(R=R[work], p=p[work], axes=base.axes[work], root=base.root[work])
-        J = _jacobian(skel, qw, now, side, sub, dofs, r[work])  # (m, M, n_d)
+        at = None if directions is None else directions[work]
+        J = _jacobian(skel, qw, now, side, sub, dofs, r[work], at)  # (m, M, n_d)
         Jt = np.swapaxes(J, 1, 2)
         A = Jt @ J + mu[work, None, None] * eye
         g = np.einsum("nkm,nm->nk", Jt, r[work])
@@ -349,13 +360,15 @@ def _lm(
         trial = qw.copy()
         trial[:, dofs] = np.clip(qw[:, dofs] + dq, lo, hi)
         posed = _pose(skel, trial, side, sub)
-        rt = _res(skel, trial, side, sub, dofs, posed)
+        rt, dt = _res_directions(skel, trial, side, sub, dofs, posed)
         ct = np.einsum("nm,nm->n", rt, rt)
         better = ct < cost[work]
         gain = cost[work] - ct
         won = work[better]
         cur[won], r[won], cost[won] = trial[better], rt[better], ct[better]
         R[won], p[won] = posed.R[better], posed.p[better]
+        if directions is not None and dt is not None:
+            directions[won] = dt[better]
         mu[work] = np.where(better, mu[work] * 0.3, mu[work] * 10.0)
         # converged: a step that gains nothing measurable, or damping so large that a step
         # is no step (measured on fuzz seed 23 #1726: the final costs 2e-11 apart at most)

@@ -101,6 +101,8 @@ ARM_LIMBS = (
     Limb("left hand", "l_wrist", "l_fingertip"),
 )
 LIMB_SAMPLES = 6  # points along a limb's axis, ends included (a forearm: every 5 cm or so)
+SAMPLE_FRACTIONS = np.linspace(0.0, 1.0, LIMB_SAMPLES)  # where along the axis
+SAMPLE_FRACTIONS.setflags(write=False)
 HAND_BREADTH = "hand_breadth"
 # a limb's radius as a fraction of the hand's breadth (men P50: forearm 30 mm, hand 20 mm)
 LIMB_RADIUS = {"forearm": 0.36, "hand": 0.25}
@@ -114,8 +116,19 @@ def _point(skel: Skeleton, pose: Pose, name: str) -> FloatArray:
 
 
 def _capsule_axis(skel: Skeleton, pose: Pose, cap: Capsule) -> tuple[FloatArray, FloatArray]:
-    a, b = (np.mean([pose.p[..., skel.joint_index(j), :] for j in end], axis=0) for end in cap.ends)
+    a, b = (_mean_point([pose.p[..., skel.joint_index(j), :] for j in end]) for end in cap.ends)
     return a, b
+
+
+def _mean_point(points: list[FloatArray]) -> FloatArray:
+    """``np.mean(points, axis=0)``; of one or two points without stacking them (a solver's
+    one-row residual asked for six means an iteration): the same numbers, x / 1 and
+    (x + y) / 2."""
+    if len(points) == 1:
+        return points[0] / 1.0
+    if len(points) == 2:
+        return (points[0] + points[1]) / 2.0
+    return np.mean(points, axis=0)
 
 
 def limb_axis(skel: Skeleton, pose: Pose, limb: Limb) -> tuple[FloatArray, FloatArray]:
@@ -368,7 +381,7 @@ def _clearance(
     """``clearance`` (and its directions), every capsule of a limb at once: the same
     arithmetic, number for number, as ``depth_inside`` capsule by capsule."""
     caps = body_capsules(skel)
-    frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)
+    frac = SAMPLE_FRACTIONS
     ends = [_capsule_axis(skel, pose, cap) for cap in caps]
     a = np.stack([e[0] for e in ends], axis=1)[:, :, None, :]  # (N, C, 1, 3)
     d = np.stack([e[1] - e[0] for e in ends], axis=1)[:, :, None, :]

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from ..capsules import (
     LIMB_SAMPLES,
+    SAMPLE_FRACTIONS,
     body_capsules,
     clearance,
     clearance_directions,
@@ -289,7 +290,7 @@ def _jacobian(
         if directions is None:
             directions = clearance_directions(skel, pose, side_limbs(side))[1]
         limbs = side_limbs(side)
-        n_caps = len(body_capsules(skel))
+        n_caps = n_pen // (len(limbs) * LIMB_SAMPLES)
         limb, _, sample = np.unravel_index(col, (len(limbs), n_caps, LIMB_SAMPLES))
         # the limbs' ends' motion, on the rows with a column inside only
         rows, at = np.unique(row, return_inverse=True)
@@ -302,7 +303,7 @@ def _jacobian(
                 length = np.maximum(length, 1e-9)[:, None, None]
                 share = np.minimum(limb_radius(skel, lb), 0.5 * length) / length
                 moves[:, 2 * i + 1] = (1.0 - share) * moves[:, 2 * i + 1] + share * moves[:, 2 * i]
-        frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)[sample][:, None, None]
+        frac = SAMPLE_FRACTIONS[sample][:, None, None]
         motion = (1.0 - frac) * moves[at, 2 * limb] + frac * moves[at, 2 * limb + 1]
         pen[row, col] = pb.clear_weight * np.einsum("kx,kdx->kd", directions[row, col], motion)
     rest = np.broadcast_to(REST_WEIGHT * np.eye(n_d), (n, n_d, n_d))

@@ -101,6 +101,8 @@ ARM_LIMBS = (
     Limb("left hand", "l_wrist", "l_fingertip"),
 )
 LIMB_SAMPLES = 6  # points along a limb's axis, ends included (a forearm: every 5 cm or so)
+SAMPLE_FRACTIONS = np.linspace(0.0, 1.0, LIMB_SAMPLES)  # where along the axis
+SAMPLE_FRACTIONS.setflags(write=False)
 HAND_BREADTH = "hand_breadth"
 # a limb's radius as a fraction of the hand's breadth (men P50: forearm 30 mm, hand 20 mm)
 LIMB_RADIUS = {"forearm": 0.36, "hand": 0.25}
@@ -114,8 +116,19 @@ def _point(skel: Skeleton, pose: Pose, name: str) -> FloatArray:
 
 
 def _capsule_axis(skel: Skeleton, pose: Pose, cap: Capsule) -> tuple[FloatArray, FloatArray]:
-    a, b = (np.mean([pose.p[..., skel.joint_index(j), :] for j in end], axis=0) for end in cap.ends)
+    a, b = (_mean_point([pose.p[..., skel.joint_index(j), :] for j in end]) for end in cap.ends)
     return a, b
+
+
+def _mean_point(points: list[FloatArray]) -> FloatArray:
+    """``np.mean(points, axis=0)``; of one or two points without stacking them (a solver's
+    one-row residual asked for six means an iteration): the same numbers, x / 1 and
+    (x + y) / 2."""
+    if len(points) == 1:
+        return points[0] / 1.0
+    if len(points) == 2:
+        return (points[0] + points[1]) / 2.0
+    return np.mean(points, axis=0)
 
 
 def limb_axis(skel: Skeleton, pose: Pose, limb: Limb) -> tuple[FloatArray, FloatArray]:
@@ -346,14 +359,46 @@ def clearance(
     """(N, L·C·S) how far (m) each sample point of each limb's surface is inside each capsule
     grown by ``margin``: positive where the limb must move out, negative where it is clear.
     The avoidance's residual; ``self_intersection`` is the check (the same surfaces, exact)."""
+    return _clearance(skel, pose, limbs, margin, directions=False)[0]
+
+
+def clearance_directions(
+    skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...], margin: float = CLEARANCE_MARGIN
+) -> tuple[FloatArray, FloatArray]:
+    """``clearance`` (N, L·C·S) and each column's derivative by its sample point
+    (N, L·C·S, 3): minus the unit direction from the capsule axis's closest point to the
+    sample (the closest point slides along the axis, at right angles to that direction, so it
+    adds nothing; zero on the axis). The avoidance's residual and what its analytic Jacobian
+    needs, from one pass over the samples."""
+    depth, direction = _clearance(skel, pose, limbs, margin, directions=True)
+    assert direction is not None
+    return depth, direction
+
+
+def _clearance(
+    skel: Skeleton, pose: Pose, limbs: tuple[Limb, ...], margin: float, directions: bool
+) -> tuple[FloatArray, FloatArray | None]:
+    """``clearance`` (and its directions), every capsule of a limb at once: the same
+    arithmetic, number for number, as ``depth_inside`` capsule by capsule."""
     caps = body_capsules(skel)
-    frac = np.linspace(0.0, 1.0, LIMB_SAMPLES)
-    axes = [(cap, *_capsule_axis(skel, pose, cap)) for cap in caps]
-    cols: list[FloatArray] = []
+    frac = SAMPLE_FRACTIONS
+    ends = [_capsule_axis(skel, pose, cap) for cap in caps]
+    a = np.stack([e[0] for e in ends], axis=1)[:, :, None, :]  # (N, C, 1, 3)
+    d = np.stack([e[1] - e[0] for e in ends], axis=1)[:, :, None, :]
+    length2 = np.maximum(np.einsum("ncsx,ncsx->ncs", d, d), 1e-18)
+    radii = np.array([cap.radius for cap in caps])[None, :, None]
+    depths: list[FloatArray] = []
+    dirs: list[FloatArray] = []
     for limb in limbs:
         p0, p1 = limb_axis(skel, pose, limb)
         pts = p0[:, None, :] + frac[None, :, None] * (p1 - p0)[:, None, :]
-        grow = limb_radius(skel, limb) + margin
-        for cap, a, b in axes:
-            cols.append(depth_inside(pts, a, b, cap.radius + grow))
-    return np.concatenate(cols, axis=1)
+        rel = pts[:, None] - a  # (N, C, S, 3)
+        t = np.clip(np.einsum("ncsx,ncsx->ncs", rel, d) / length2, 0.0, 1.0)
+        away = rel - t[..., None] * d
+        dist = np.linalg.norm(away, axis=-1)
+        depths.append((radii + (limb_radius(skel, limb) + margin)) - dist)
+        if directions:
+            dirs.append(-away / np.where(dist > 0.0, dist, np.inf)[..., None])
+    n = len(depths[0])
+    depth = np.concatenate(depths, axis=1).reshape(n, -1)
+    return depth, np.concatenate(dirs, axis=1).reshape(n, -1, 3) if directions else None

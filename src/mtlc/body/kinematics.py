@@ -214,6 +214,7 @@ def _root_inputs(
 
 
 _EYE3, _EYE4 = np.eye(3), np.eye(4)
+_ORIGIN = np.zeros(3)
 _EYE3.setflags(write=False)
 _EYE4.setflags(write=False)
 
@@ -454,6 +455,46 @@ def forward_below(skel: Skeleton, q: ArrayLike, base: Pose, top: int) -> Pose:
         start = _homogeneous(R[c, above], p[c, above])
         R[c, branch.joints], p[c, branch.joints] = _forward_branch(skel, branch, qa[c], start)
     return Pose(R=R, p=p, axes=np.empty((n, 0, 3)), root=np.array(base.root))
+
+
+def dof_world_axes(skel: Skeleton, pose: Pose, q: ArrayLike, dofs: Sequence[int]) -> FloatArray:
+    """World axes (n, len(dofs), 3) of ``dofs`` at configurations ``q`` (n, D) posed as
+    ``pose`` (which may lack ``axes``: ``forward_below``'s): a dof's axis turned by its joint's
+    dofs before it (the nearest first), then by the parent joint's frame, as ``forward`` turns
+    it. What an analytic Jacobian of a few dofs needs without a whole-body
+    ``forward(with_axes=True)``."""
+    qa = np.asarray(q, dtype=float)
+    local, parents, turns = _axes_plan(skel, tuple(int(k) for k in dofs))
+    v = np.array(np.broadcast_to(local, (len(qa), len(local), 3)))
+    for sel, prev, axis in turns:
+        angle = qa[:, prev, None]
+        v[:, sel] = rotate_about(_ORIGIN, axis, v[:, sel], np.cos(angle), np.sin(angle))
+    return np.einsum("nkab,nkb->nka", pose.R[:, parents], v)
+
+
+def _axes_plan(
+    skel: Skeleton, dofs: tuple[int, ...]
+) -> tuple[
+    FloatArray, NDArray[np.intp], list[tuple[NDArray[np.intp], NDArray[np.intp], FloatArray]]
+]:
+    """``dof_world_axes``' look-ups, once per skeleton and dofs: the dofs' own axes, their
+    joints' parents, and per turn back (1, 2) the dofs turned, by which dof, about which axis."""
+    cache: dict[tuple[int, ...], tuple] = skel.__dict__.setdefault("_axes_plans", {})
+    found = cache.get(dofs)
+    if found is None:
+        ks = np.asarray(dofs, dtype=np.intp)
+        joints = skel.dof_joint[ks]
+        if np.any(skel.parent[joints] < 0):
+            raise ValueError(
+                "dof_world_axes: the root joint's dofs turn with the root, not a parent"
+            )
+        slot = ks - skel.joint_dof_start[joints]
+        turns = []
+        for back in range(1, int(slot.max(initial=0)) + 1):
+            sel = np.flatnonzero(slot >= back)
+            turns.append((sel, ks[sel] - back, skel.dof_axis[ks[sel] - back]))
+        found = cache[dofs] = (skel.dof_axis[ks], skel.parent[joints], turns)
+    return found
 
 
 @dataclass(frozen=True)

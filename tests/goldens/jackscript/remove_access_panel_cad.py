@@ -3220,7 +3220,7 @@ def remove_access_panel_cad():
     })
     human.KeyJoints(53.2, {
         'right_shoulder': (-16.365, 9.536, 9.96), 'right_elbow': (102.051, 23.146),
-        'right_wrist': (-11.78, -10.105), 'left_shoulder': (7.232, -5.185, 23.204),
+        'right_wrist': (-11.78, -10.105), 'left_shoulder': (7.232, -5.186, 23.204),
         'left_elbow': (88.485, 11.703), 'left_wrist': (-10.584, 10.663),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
@@ -3228,7 +3228,7 @@ def remove_access_panel_cad():
     human.KeyJoints(53.3, {
         'right_shoulder': (-19.658, 6.898, 13.33), 'right_elbow': (103.321, 23.157),
         'right_wrist': (-11.323, -9.604), 'left_shoulder': (1.012, -1.789, 22.874),
-        'left_elbow': (95.405, 11.707), 'left_wrist': (-11.963, 12.632),
+        'left_elbow': (95.405, 11.706), 'left_wrist': (-11.963, 12.632),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)
@@ -3236,7 +3236,7 @@ def remove_access_panel_cad():
     human.Grasp('right_hand', 'open', start=53.361901, duration=0.072)
     human.KeyJoints(53.4, {
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),
-        'left_shoulder': (0.506, -1.597, 22.753), 'left_elbow': (95.961, 11.779),
+        'left_shoulder': (0.506, -1.597, 22.753), 'left_elbow': (95.961, 11.778),
     })
     human.KeyRoot(53.433901, (131.346, 72.992, 22.472), (90.0, 0.0, 0.0))
     human.KeyJoints(53.433901, {
@@ -3244,7 +3244,7 @@ def remove_access_panel_cad():
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25), 'right_clavicle': (7.019, 9.794),
         'right_shoulder': (-19.99, 6.718, 13.583), 'right_elbow': (103.524, 23.158),
         'right_wrist': (-11.305, -9.547), 'left_clavicle': (-2.48, 4.095),
-        'left_shoulder': (0.506, -1.597, 22.751), 'left_elbow': (95.961, 11.793),
+        'left_shoulder': (0.506, -1.597, 22.751), 'left_elbow': (95.961, 11.791),
         'left_wrist': (-11.968, 12.811), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),

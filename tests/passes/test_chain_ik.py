@@ -75,3 +75,37 @@ def test_the_row_chain_solves_as_solve_ta(spec, reach, null_gain) -> None:
                      model.upper, skel.q_comfort[act], tol=2e-4, null_gain=null_gain)  # fmt: skip
     np.testing.assert_allclose(got, ref, rtol=0.0, atol=1e-12)
     assert not np.array_equal(got, start)
+
+
+@pytest.mark.parametrize("spec", [("female", 5), ("male", 95)])
+@pytest.mark.parametrize("reach", ["arm", "torso"])
+def test_a_resumed_solve_is_a_fresh_one_to_the_bit(spec, reach) -> None:
+    """``ChainSolve.run(2)`` after ``run(0)`` (``tool._chain``'s retry of a key left short)
+    gives the very angles of a fresh ``solve_chain(..., restarts=2)``: the warm-started attempt
+    is not repeated, and the restarts draw the same seeded numbers."""
+    from mtlc.passes.chain_ik import ChainSolve
+
+    skel = with_tools(build_manikin("gb10000_1988", *spec), {"r_tool_wrench": WRENCH})
+    sites = ["r_hand", "r_tool_wrench"]
+    rng = np.random.default_rng(13)
+    q0 = np.asarray(skel.q_comfort, dtype=float).copy()
+    root = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
+    model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
+                    root_rotation=root[1][None])  # fmt: skip
+    chain = ScalarChain(skel, model, root)
+    pose = forward(skel, q0[None], root[0][None], root[1][None])
+    hand, tip = site_positions(skel, pose, sites)[0]
+    act = model.active
+    resumed = 0
+    for k in range(12):
+        shift = rng.normal(0.0, 0.05 + 0.1 * k, 3)  # near to out of reach: some stall
+        targets = np.concatenate([hand + shift, tip + shift]).tolist()
+        start = q0[act] + rng.normal(0.0, 0.05, len(act))
+        args = (chain, targets, start, model.lower, model.upper, skel.q_comfort[act])
+        solver = ChainSolve(*args, tol=2e-4)
+        first = list(solver.run(0))
+        assert first == solve_chain(*args, tol=2e-4, restarts=0)
+        resumed += solver.stalled
+        assert solver.run(2) == solve_chain(*args, tol=2e-4, restarts=2)
+        assert solver.run(2) == solve_chain(*args, tol=2e-4, restarts=2)  # nothing more to do
+    assert resumed >= 3  # the resume itself was exercised

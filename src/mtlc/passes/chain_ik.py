@@ -80,6 +80,104 @@ def _normal_solve(J: FloatArray, damping: FloatArray, rhs: FloatArray) -> FloatA
     return solve_spd((J.T @ J + damping)[None], rhs[None, :, None])[0, :, 0]
 
 
+class ChainSolve:
+    """``solve_ta``'s general path for one row of position goals (``targets``: their points,
+    3 a goal, in the chain's site order) from active angles ``q0``, resumable: ``run`` with
+    more restarts than the last call goes on from where that one stopped. A fresh solve with
+    restarts repeats the warm-started attempt before its first restart (the seeded generator
+    is drawn from only at a restart), so ``tool._chain``, which asks for restarts only where
+    the warm start stalls short, need not pay for that attempt twice: the same iterates."""
+
+    def __init__(
+        self,
+        chain: ScalarChain,
+        targets: Sequence[float],
+        q0: Sequence[float],
+        lower: Sequence[float],
+        upper: Sequence[float],
+        comfort: Sequence[float],
+        *,
+        tol: float,
+        seed: int = 0,
+    ) -> None:
+        self.chain, self.tol, self.seed = chain, tol, seed
+        self.targets = [float(v) for v in targets]
+        self.lo, self.hi = [float(v) for v in lower], [float(v) for v in upper]
+        self.cf = [float(v) for v in comfort]
+        self.q = [min(max(float(v), self.lo[i]), self.hi[i]) for i, v in enumerate(q0)]
+        self.best_q, self.best_score = list(self.q), math.inf
+        self.n_restart = self.attempt_it = self.since = 0
+        self.attempt_best = math.inf
+        self.stalled = False  # stopped by the restart limit at a stall (not converged)
+        self.converged = False
+        self.rng: np.random.Generator | None = None  # made at the first restart
+
+    def run(self, restarts: int) -> list[float]:
+        """The best angles found with up to ``restarts`` random restarts in all."""
+        if self.converged or (self.stalled and self.n_restart >= restarts):
+            return self.best_q
+        chain, targets, lo, hi, cf = self.chain, self.targets, self.lo, self.hi, self.cf
+        tol, n, m = self.tol, chain.n, len(targets)
+        damping = DAMPING * DAMPING * np.eye(m)
+        q, best_q, best_score = self.q, self.best_q, self.best_score
+        n_restart, attempt_it, since = self.n_restart, self.attempt_it, self.since
+        attempt_best = self.attempt_best
+        resume_restart = self.stalled  # the last call stopped here, at a stall: restart
+        while True:
+            if not resume_restart:
+                pts, cols = chain.eval(q)
+                e = [targets[i] - pts[i] for i in range(m)]
+                nrm = [math.sqrt(e[s] * e[s] + e[s + 1] * e[s + 1] + e[s + 2] * e[s + 2])
+                       for s in range(0, m, 3)]  # fmt: skip
+                score = max(0.0, *nrm) / tol
+                if score < best_score:
+                    best_score, best_q = score, list(q)
+                done = max(0.0, *nrm) <= tol
+                if score < 0.9 * attempt_best:
+                    attempt_best, since = score, 0
+                else:
+                    since += 1
+                if done:
+                    self.converged = True
+                    break
+            if resume_restart or since >= PATIENCE or attempt_it >= MAX_ITER:
+                resume_restart = False
+                if n_restart >= restarts:
+                    self.stalled = True
+                    break
+                if self.rng is None:
+                    self.rng = np.random.default_rng(self.seed)
+                n_restart += 1
+                attempt_it = since = 0
+                attempt_best = math.inf
+                q = [lo[i] + (hi[i] - lo[i]) * float(u) for i, u in enumerate(self.rng.random(n))]
+                continue
+            for b, s in enumerate(range(0, m, 3)):  # each goal's error clamped to MAX_ERROR
+                sc = min(1.0, MAX_ERROR / max(nrm[b], 1e-300))
+                e[s], e[s + 1], e[s + 2] = e[s] * sc, e[s + 1] * sc, e[s + 2] * sc
+            fade = min(1.0, math.sqrt(sum(v * v for v in nrm)) / NULL_FADE)
+            z = np.array([NULL_GAIN * fade * (cf[i] - q[i]) for i in range(n)])
+            J, ev = np.array(cols), np.array(e)  # J: (n, m), the Jacobian's columns as rows
+            y = _normal_solve(J, damping, ev - z @ J)
+            dq = (J @ y + z).tolist()
+            over = [not (lo[i] <= q[i] + dq[i] <= hi[i]) for i in range(n)]
+            if any(over):
+                pin = np.array([min(max(q[i] + dq[i], lo[i]), hi[i]) - q[i] if over[i] else 0.0
+                                for i in range(n)])  # fmt: skip
+                free = ~np.array(over)
+                Jf = J * free[:, None]
+                y2 = _normal_solve(Jf, damping, ev - pin @ J)
+                dq = np.where(free, Jf @ y2, pin).tolist()
+            big = max(abs(d) for d in dq)
+            cap = min(1.0, MAX_STEP / max(big, 1e-300))
+            q = [q[i] + (min(max(q[i] + dq[i] * cap, lo[i]), hi[i]) - q[i]) for i in range(n)]
+            attempt_it += 1
+        self.q, self.best_q, self.best_score = q, best_q, best_score
+        self.n_restart, self.attempt_it, self.since = n_restart, attempt_it, since
+        self.attempt_best = attempt_best
+        return best_q
+
+
 def solve_chain(
     chain: ScalarChain,
     targets: Sequence[float],
@@ -94,58 +192,7 @@ def solve_chain(
 ) -> list[float]:
     """``solve_ta``'s general path for one row of position goals (``targets``: their points,
     3 a goal, in the chain's site order) from active angles ``q0``: the best angles found."""
-    lo, hi, cf = [float(v) for v in lower], [float(v) for v in upper], [float(v) for v in comfort]
-    n, m = chain.n, len(targets)
-    q = [min(max(float(v), lo[i]), hi[i]) for i, v in enumerate(q0)]
-    damping = DAMPING * DAMPING * np.eye(m)
-    rng = np.random.default_rng(seed)
-    best_q, best_score = list(q), math.inf
-    n_restart = attempt_it = since = 0
-    attempt_best = math.inf
-    while True:
-        pts, cols = chain.eval(q)
-        e = [float(targets[i]) - pts[i] for i in range(m)]
-        nrm = [math.sqrt(e[s] * e[s] + e[s + 1] * e[s + 1] + e[s + 2] * e[s + 2])
-               for s in range(0, m, 3)]  # fmt: skip
-        score = max(0.0, *nrm) / tol
-        if score < best_score:
-            best_score, best_q = score, list(q)
-        done = max(0.0, *nrm) <= tol
-        if score < 0.9 * attempt_best:
-            attempt_best, since = score, 0
-        else:
-            since += 1
-        if done:
-            break
-        if since >= PATIENCE or attempt_it >= MAX_ITER:
-            if n_restart >= restarts:
-                break
-            n_restart += 1
-            attempt_it = since = 0
-            attempt_best = math.inf
-            q = [lo[i] + (hi[i] - lo[i]) * float(u) for i, u in enumerate(rng.random(n))]
-            continue
-        for b, s in enumerate(range(0, m, 3)):  # each goal's error clamped to MAX_ERROR
-            sc = min(1.0, MAX_ERROR / max(nrm[b], 1e-300))
-            e[s], e[s + 1], e[s + 2] = e[s] * sc, e[s + 1] * sc, e[s + 2] * sc
-        fade = min(1.0, math.sqrt(sum(v * v for v in nrm)) / NULL_FADE)
-        z = np.array([NULL_GAIN * fade * (cf[i] - q[i]) for i in range(n)])
-        J, ev = np.array(cols), np.array(e)  # J: (n, m), the Jacobian's columns as rows
-        y = _normal_solve(J, damping, ev - z @ J)
-        dq = (J @ y + z).tolist()
-        over = [not (lo[i] <= q[i] + dq[i] <= hi[i]) for i in range(n)]
-        if any(over):
-            pin = np.array([min(max(q[i] + dq[i], lo[i]), hi[i]) - q[i] if over[i] else 0.0
-                            for i in range(n)])  # fmt: skip
-            free = ~np.array(over)
-            Jf = J * free[:, None]
-            y2 = _normal_solve(Jf, damping, ev - pin @ J)
-            dq = np.where(free, Jf @ y2, pin).tolist()
-        big = max(abs(d) for d in dq)
-        cap = min(1.0, MAX_STEP / max(big, 1e-300))
-        q = [q[i] + (min(max(q[i] + dq[i] * cap, lo[i]), hi[i]) - q[i]) for i in range(n)]
-        attempt_it += 1
-    return best_q
+    return ChainSolve(chain, targets, q0, lower, upper, comfort, tol=tol, seed=seed).run(restarts)
 
 
 class RowChain:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -36,7 +37,7 @@ from mtlc.loads import AXIAL_KINDS, tool_site
 from mtlc.loads import carried_com as carried_com  # re-exported: it lives below the passes
 from mtlc.loads import held_spans as held_spans
 from mtlc.passes.approach import TOLERANCE, _restaters, chain_names, report_short
-from mtlc.passes.chain_ik import RowChain, ScalarChain, solve_chain, solve_rows
+from mtlc.passes.chain_ik import ChainSolve, RowChain, ScalarChain, solve_rows
 from mtlc.passes.context import INTERNAL_FPS, PassContext
 from mtlc.passes.profile import minimum_jerk, placing_clock
 from mtlc.passes.state import PoseState, reanchor
@@ -373,10 +374,11 @@ def _chain(
         ]
         kw = dict(root_position=root[0][None], root_rotation=root[1][None], tol=2e-4)
         targets = np.concatenate([hands[i], tips[i]])
-        q = _solve_one(skel, model, scalar, goals, targets, prev, restarts=0, **kw)
+        solve = _key_solver(skel, model, scalar, goals, targets, prev, **kw)
+        q = solve(0)
         err = _errors(state, q, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
         if err > TOLERANCE:
-            q2 = _solve_one(skel, model, scalar, goals, targets, prev, restarts=2, **kw)
+            q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
             err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
             if err2 <= TOLERANCE:  # a restart that is short too is no better: another branch
                 q = q2
@@ -404,21 +406,27 @@ def _row_chain(
         return None
 
 
-def _solve_one(
+def _key_solver(
     skel: Skeleton, model: ChainModel, scalar: ScalarChain | None, goals: list[Goal],
-    targets: FloatArray, prev: FloatArray, restarts: int, **kw: Any,
-) -> FloatArray:  # fmt: skip
-    """(1, D) ``solve_ta(skel, goals, prev[None], restarts=restarts, **kw).q``, by the scalar
-    chain when the model describes ``prev``'s body (``solve_ta`` would rebuild it otherwise)."""
+    targets: FloatArray, prev: FloatArray, **kw: Any,
+) -> Callable[[int], FloatArray]:  # fmt: skip
+    """A key's solve as a function of its restarts: (1, D) ``solve_ta(skel, goals, prev[None],
+    restarts=restarts, **kw).q``, by the scalar chain when the model describes ``prev``'s body
+    (``solve_ta`` would rebuild it otherwise), which a call with more restarts resumes where
+    the last one stopped instead of repeating its warm-started attempt."""
     if scalar is None or not np.array_equal(prev[model.baked], model.q_base[0, model.baked]):
-        return solve_ta(skel, goals, prev[None], model=model, restarts=restarts, **kw).q
+        return lambda restarts: solve_ta(skel, goals, prev[None], model=model,
+                                         restarts=restarts, **kw).q  # fmt: skip
     act = model.active
-    q = prev[None].copy()
-    q[0, act] = solve_chain(
-        scalar, targets.tolist(), prev[act], model.lower, model.upper, skel.q_comfort[act],
-        tol=kw["tol"], restarts=restarts,
-    )  # fmt: skip
-    return q
+    solver = ChainSolve(scalar, targets.tolist(), prev[act], model.lower, model.upper,
+                        skel.q_comfort[act], tol=kw["tol"])  # fmt: skip
+
+    def solve(restarts: int) -> FloatArray:
+        q = prev[None].copy()
+        q[0, act] = solver.run(restarts)
+        return q
+
+    return solve
 
 
 EVEN_ROUNDS = 24  # rounds of smoothing the chained keys' joint path and putting them back

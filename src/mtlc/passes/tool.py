@@ -379,9 +379,11 @@ def _chain(
         err = _errors(state, q, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
         if err > TOLERANCE:
             q2 = solve(2)  # goes on from the warm start's stall (the same iterates)
-            err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
-            if err2 <= TOLERANCE:  # a restart that is short too is no better: another branch
-                q = q2
+            # most restarts find nothing nearer: the same pose is as short (err), not measured
+            if not np.array_equal(q2, q):
+                err2 = _errors(state, q2, root, sites, [hands[i : i + 1], tips[i : i + 1]])[0]
+                if err2 <= TOLERANCE:  # a restart short too is no better: another branch
+                    q = q2
         out[i] = prev = q[0]
     return out
 

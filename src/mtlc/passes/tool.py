@@ -452,7 +452,8 @@ def _even_out(
     stop hands the rest of the turn to the forearm's roll in one or two keys (15 deg between
     keys 5 deg of arc apart, 29 deg between frames at the swing's peak speed); evened out, the
     roll is spread over the swing. A key that would end further from its goals than before
-    (or than the tolerance) keeps its pose. The first and last keys stay."""
+    (or than the tolerance) keeps its pose. The first and last keys stay. A round that moves
+    no key ends the rounds: those left would repeat it (the same guesses, the same poses)."""
     skel, k = state.skel, len(q)
     if k < 3:
         return q
@@ -477,8 +478,11 @@ def _even_out(
                                skel.q_comfort[act], tol=2e-4, null_gain=0.0)  # fmt: skip
         new_err = _errors(state, moved, root, sites, [hands[inner], tips[inner]])
         ok = (new_err <= np.maximum(err, TOLERANCE) + 1e-9) & skel.within_limits(moved)
+        was_q, was_err = q[inner].copy(), err
         q[inner][ok] = moved[ok]
         err = np.where(ok, new_err, err)
+        if np.array_equal(q[inner], was_q) and np.array_equal(err, was_err):
+            break  # a fixed point: every round left would start from this one's poses again
     return q
 
 

@@ -109,3 +109,38 @@ def test_a_resumed_solve_is_a_fresh_one_to_the_bit(spec, reach) -> None:
         assert solver.run(2) == solve_chain(*args, tol=2e-4, restarts=2)
         assert solver.run(2) == solve_chain(*args, tol=2e-4, restarts=2)  # nothing more to do
     assert resumed >= 3  # the resume itself was exercised
+
+
+@pytest.mark.parametrize("spec", [("female", 5), ("male", 95)])
+def test_evening_out_stops_at_a_fixed_point_with_the_poses_of_all_rounds(spec, monkeypatch):
+    """``tool._even_out`` ends its rounds once one moves no key; the keys are those of all
+    ``EVEN_ROUNDS`` rounds to the bit (a wrench swung about a fastener out of reach)."""
+    import types
+
+    from mtlc.passes import tool
+
+    skel = with_tools(build_manikin("gb10000_1988", *spec), {"r_tool_wrench": WRENCH})
+    sites = ["r_hand", "r_tool_wrench"]
+    root = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
+    q0 = np.asarray(skel.q_comfort, dtype=float).copy()
+    hand, tip = site_positions(skel, forward(skel, q0[None], root[0][None], root[1][None]),
+                               sites)[0]  # fmt: skip
+    k, ang = 12, np.linspace(0.0, 1.2, 12)
+    tips = tip + [0.6, 0.1, 0.3] + 0.1 * np.stack([np.cos(ang), np.zeros(k), np.sin(ang)], 1)
+    hands = tips + (hand - tip)
+    state = types.SimpleNamespace(skel=skel)
+    keys = tool._chain(state, sites, hands, tips, q0, root, "arm")
+    rounds = []
+    solve_rows = tool.solve_rows
+    monkeypatch.setattr(
+        tool, "solve_rows", lambda *a, **kw: rounds.append(1) or solve_rows(*a, **kw)
+    )
+    clock = np.linspace(0.0, 1.0, k)
+    got = tool._even_out(state, sites, hands, tips, keys, root, "arm", clock)
+    stopped_after = len(rounds)
+    monkeypatch.setattr(tool, "_unmoved", lambda *a: False)  # every round, as before
+    ref = tool._even_out(state, sites, hands, tips, keys, root, "arm", clock)
+    assert len(rounds) - stopped_after == tool.EVEN_ROUNDS
+    assert stopped_after < tool.EVEN_ROUNDS
+    assert np.array_equal(got, ref)
+    assert not np.array_equal(got, keys)  # the rounds moved the keys

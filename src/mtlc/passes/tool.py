@@ -481,9 +481,14 @@ def _even_out(
         was_q, was_err = q[inner].copy(), err
         q[inner][ok] = moved[ok]
         err = np.where(ok, new_err, err)
-        if np.array_equal(q[inner], was_q) and np.array_equal(err, was_err):
+        if _unmoved(was_q, q[inner], was_err, err):
             break  # a fixed point: every round left would start from this one's poses again
     return q
+
+
+def _unmoved(q0: FloatArray, q1: FloatArray, err0: FloatArray, err1: FloatArray) -> bool:
+    """Whether a round of ``_even_out`` left its keys' poses and errors as they were."""
+    return bool(np.array_equal(q0, q1) and np.array_equal(err0, err1))
 
 
 def _errors(

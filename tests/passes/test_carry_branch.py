@@ -49,7 +49,8 @@ def test_a_branch_jump_in_the_correction_is_let_go_of_smoothly() -> None:
     t = np.arange(120) / 60.0
     correction = np.where(t[:, None] < 1.0, np.radians(-50.0), np.radians(50.0)) * np.ones((1, 3))
     out = _let_go_at_branch_jumps(t, correction)
+    assert out is not None
     assert np.degrees(np.abs(np.diff(out, axis=0))).max() < 6.0  # 12 deg at 30 fps
     assert np.allclose(out[[0, -1]], correction[[0, -1]])  # far from the jump it is kept
     smooth = np.radians(np.linspace(0.0, 20.0, 120))[:, None] * np.ones((1, 3))
-    assert np.array_equal(_let_go_at_branch_jumps(t, smooth), smooth)
+    assert _let_go_at_branch_jumps(t, smooth) is None  # nothing jumps: nothing to let go of

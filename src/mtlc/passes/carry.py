@@ -38,6 +38,9 @@ MIN_FADE = 0.2  # s: the shortest fade
 FIX_FROM = 5e-5  # m: frames whose hands are already this close to the part's ends stay
 SOLVE_TOL = 1e-4  # m
 RESOLVE_SIGMA = 3.0  # dense frames (50 ms at 60 fps): the Gaussian that smooths a correction
+# rad: the correction changing more than this between two dense frames has changed IK branch
+# (issue 19: a shoulder's abduction 40 -> 141 deg in one frame near the overhead singularity)
+BRANCH_STEP = float(np.radians(3.0))
 EPS = 1e-9
 
 
@@ -180,6 +183,11 @@ def keep_rigid(
     fix2 = np.flatnonzero(np.linalg.norm(hands2 - goal, axis=-1).max(axis=1) > FIX_FROM)
     q = _solve_arms(skel, frames, rows, fix2, smooth, hands2, goal) if fix2.size else smooth
     if held is not None:
+        keyed = frames.q[rows][:, arms]
+        let_go = _let_go_at_branch_jumps(t[rows], q[:, arms] - keyed)
+        if let_go is not None:  # no jump: the solved frames stay as they are, to the bit
+            q[:, arms] = keyed + let_go
+    if held is not None:
         _fade_out(frames, rows[-1], q[-1] - frames.q[rows[-1]], carry.end + held)
     frames.q[rows] = q
 
@@ -199,6 +207,28 @@ def _fade_out(frames: Frames, last: int, offset: FloatArray, start: float) -> No
     n = int(np.searchsorted(t, fade, side="right"))
     weight = 1.0 - minimum_jerk(np.maximum(t[:n], 0.0) / fade)
     frames.q[last + 1 : last + 1 + n] += weight[:, None] * offset[None, :]
+
+
+def _let_go_at_branch_jumps(t: FloatArray, correction: FloatArray) -> FloatArray | None:
+    """``correction`` (N, D) faded to nothing around each frame where it jumps: each frame is
+    solved on its own, and near the shoulder's singularity two poses a few degrees apart
+    converge to two IK branches (a shoulder 100 deg apart in one frame, issue 19). Solving each
+    frame on from the previous one's pose instead held the part but drove the arms into their
+    limits (a shoulder at 180 deg abduction, a wrist at 0) and jumped where the carry ended. So
+    the arms let go of the correction on a minimum-jerk clock no faster than ``FADE_SPEED`` at its peak and pass the
+    jump on the solved motion's own pose; the hands' distance there is what verify reports
+    (MT0511). None where it does not jump."""
+    step = np.abs(np.diff(correction, axis=0)).max(axis=1)
+    jumps = np.flatnonzero(step > BRANCH_STEP)
+    if jumps.size == 0:
+        return None
+    weight = np.ones(len(t))
+    for j in jumps:
+        largest = float(np.abs(correction[j : j + 2]).max())
+        width = max(MIN_FADE, 1.875 * largest / FADE_SPEED)
+        mid = 0.5 * (t[j] + t[j + 1])
+        weight = np.minimum(weight, minimum_jerk(np.clip(np.abs(t - mid) / width, 0.0, 1.0)))
+    return weight[:, None] * correction
 
 
 def opening(ir: MotionIR, carry: Carry) -> float:

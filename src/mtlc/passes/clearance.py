@@ -49,6 +49,11 @@ SWING_SMOOTH = 6  # dense frames each side a correction that swings is averaged 
 # rad/s: the fastest a correction turns a free arm's joint (``joint_speed.speed_limited``);
 # issue 19 allows 360 deg/s
 CORRECTED_JOINT_SPEED = math.radians(330.0)
+# s: a frame the solve leaves inside takes its neighbours' correction from cleared frames this
+# close on either side (a gap of a few frames); the local solve, frame by frame, gets stuck
+# where the arm is deepest and leaves a one-frame spike between two corrected frames
+RESEED_REACH = 0.1
+LEFT_DEPTH = 5e-3  # m: a solved frame still this deep inside is left inside (reseeded)
 
 
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
@@ -131,6 +136,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         keep = pinned_weights(ir, side, frames.time)
         q = frames.q
         cleared = keep_clear(skel, q, root, side, keep, firm=FIRM, inside=inside[side])
+        cleared = reseeded(skel, q, cleared, root, side, keep, frames.time, inside[side])
         smooth = skel.clip(q + without_swings(q, cleared - q))
         if np.array_equal(smooth, cleared):
             result = cleared
@@ -153,6 +159,54 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         for other in sides[k + 1 :]:
             inside[other] = depth_after(skel, inside[other], q, result, root, other)
     return ir
+
+
+def reseeded(
+    skel: Skeleton,
+    q: FloatArray,
+    solved: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    keep: FloatArray,
+    t: FloatArray,
+    inside: FloatArray,
+) -> FloatArray:
+    """``solved`` (``keep_clear`` of frames ``q``) with each frame it leaves ``LEFT_DEPTH`` or
+    more inside solved again, started from its neighbours' correction: the corrections of the
+    nearest frames it cleared within ``RESEED_REACH`` on each side, interpolated (or the one
+    side's). Kept where less deep. The solve is frame by frame and, at the deepest frames of a
+    pass through the trunk, stops in a local minimum its neighbours got past: a correction of
+    +38 degrees on both sides and none between was a 38-degree step out and back (issue 19)."""
+    need = np.flatnonzero(inside > 0.0)
+    if need.size == 0:
+        return solved
+    depth = np.zeros(len(q))
+    depth[need] = penetration(skel, solved[need], (root[0][need], root[1][need]), side)
+    left = need[depth[need] >= LEFT_DEPTH]
+    good = need[depth[need] < LEFT_DEPTH]
+    if left.size == 0 or good.size == 0:
+        return solved
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    reach = max(1, round(RESEED_REACH / dt))
+    pos = np.searchsorted(good, left)
+    before = good[np.clip(pos - 1, 0, good.size - 1)]
+    after = good[np.clip(pos, 0, good.size - 1)]
+    has_before = (pos > 0) & (left - before <= reach)
+    has_after = (pos < good.size) & (after - left <= reach)
+    rows = left[has_before | has_after]
+    if rows.size == 0:
+        return solved
+    b = np.where(has_before, before, after)[has_before | has_after]
+    a = np.where(has_after, after, before)[has_before | has_after]
+    share = np.where(a > b, (rows - b) / np.maximum(a - b, 1), 0.0)[:, None]
+    correction = solved - q
+    seed = skel.clip(q[rows] + (1.0 - share) * correction[b] + share * correction[a])
+    sub_root = (root[0][rows], root[1][rows])
+    again = keep_clear(skel, q[rows], sub_root, side, keep[rows], start=seed, firm=FIRM)
+    better = penetration(skel, again, sub_root, side) < depth[rows]
+    out = solved.copy()
+    out[rows[better]] = again[better]
+    return out
 
 
 def depth_after(

@@ -54,6 +54,7 @@ CORRECTED_JOINT_SPEED = math.radians(330.0)
 # where the arm is deepest and leaves a one-frame spike between two corrected frames
 RESEED_REACH = 0.1
 LEFT_DEPTH = 5e-3  # m: a solved frame still this deep inside is left inside (reseeded)
+RESEED_ROUNDS = 3  # ...and solved again from its neighbours at most this many times
 
 
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
@@ -174,38 +175,45 @@ def reseeded(
     """``solved`` (``keep_clear`` of frames ``q``) with each frame it leaves ``LEFT_DEPTH`` or
     more inside solved again, started from its neighbours' correction: the corrections of the
     nearest frames it cleared within ``RESEED_REACH`` on each side, interpolated (or the one
-    side's). Kept where less deep. The solve is frame by frame and, at the deepest frames of a
-    pass through the trunk, stops in a local minimum its neighbours got past: a correction of
-    +38 degrees on both sides and none between was a 38-degree step out and back (issue 19)."""
+    side's). Kept where less deep; up to ``RESEED_ROUNDS`` times, a run of such frames closing
+    from its ends. The solve is frame by frame and, at the deepest frames of a pass through
+    the trunk, stops in a local minimum its neighbours got past: a correction of +38 degrees
+    on both sides and none between was a 38-degree step out and back (issue 19)."""
     need = np.flatnonzero(inside > 0.0)
     if need.size == 0:
         return solved
     depth = np.zeros(len(q))
     depth[need] = penetration(skel, solved[need], (root[0][need], root[1][need]), side)
-    left = need[depth[need] >= LEFT_DEPTH]
-    good = need[depth[need] < LEFT_DEPTH]
-    if left.size == 0 or good.size == 0:
-        return solved
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     reach = max(1, round(RESEED_REACH / dt))
-    pos = np.searchsorted(good, left)
-    before = good[np.clip(pos - 1, 0, good.size - 1)]
-    after = good[np.clip(pos, 0, good.size - 1)]
-    has_before = (pos > 0) & (left - before <= reach)
-    has_after = (pos < good.size) & (after - left <= reach)
-    rows = left[has_before | has_after]
-    if rows.size == 0:
-        return solved
-    b = np.where(has_before, before, after)[has_before | has_after]
-    a = np.where(has_after, after, before)[has_before | has_after]
-    share = np.where(a > b, (rows - b) / np.maximum(a - b, 1), 0.0)[:, None]
-    correction = solved - q
-    seed = skel.clip(q[rows] + (1.0 - share) * correction[b] + share * correction[a])
-    sub_root = (root[0][rows], root[1][rows])
-    again = keep_clear(skel, q[rows], sub_root, side, keep[rows], start=seed, firm=FIRM)
-    better = penetration(skel, again, sub_root, side) < depth[rows]
     out = solved.copy()
-    out[rows[better]] = again[better]
+    for _ in range(RESEED_ROUNDS):
+        left = need[depth[need] >= LEFT_DEPTH]
+        good = need[depth[need] < LEFT_DEPTH]
+        if left.size == 0 or good.size == 0:
+            break
+        pos = np.searchsorted(good, left)
+        before = good[np.clip(pos - 1, 0, good.size - 1)]
+        after = good[np.clip(pos, 0, good.size - 1)]
+        has_before = (pos > 0) & (left - before <= reach)
+        has_after = (pos < good.size) & (after - left <= reach)
+        near = has_before | has_after
+        if not near.any():
+            break
+        rows = left[near]
+        b = np.where(has_before, before, after)[near]
+        a = np.where(has_after, after, before)[near]
+        share = np.where(a > b, (rows - b) / np.maximum(a - b, 1), 0.0)[:, None]
+        correction = out - q
+        seed = skel.clip(q[rows] + (1.0 - share) * correction[b] + share * correction[a])
+        sub_root = (root[0][rows], root[1][rows])
+        again = keep_clear(skel, q[rows], sub_root, side, keep[rows], start=seed, firm=FIRM)
+        new_depth = penetration(skel, again, sub_root, side)
+        better = new_depth < depth[rows]
+        out[rows[better]] = again[better]
+        depth[rows[better]] = new_depth[better]
+        if not (new_depth[better] < LEFT_DEPTH).any():
+            break
     return out
 
 

@@ -55,6 +55,9 @@ CORRECTED_JOINT_SPEED = math.radians(330.0)
 RESEED_REACH = 0.1
 LEFT_DEPTH = 5e-3  # m: a solved frame still this deep inside is left inside (reseeded)
 RESEED_ROUNDS = 3  # ...and solved again from its neighbours at most this many times
+# rad a reseeded frame's dof may end from its neighbours' poses, interpolated: more is a new
+# spike (the frame-by-frame solve's own wrist turns differ 10-20 deg between frames)
+RESEED_TURN = 0.3
 
 
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
@@ -142,8 +145,10 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         if np.array_equal(smooth, cleared):
             result = cleared
         else:
-            # solved again from the ramp: each frame starts where its neighbours' average is
+            # solved again from the ramp: each frame starts where its neighbours' average is;
+            # only the ramped frames (a frame the ramp left alone keeps its own solve)
             from_smooth = depth_after(skel, inside[side], q, smooth, root, side)
+            from_smooth[(smooth == cleared).all(axis=1)] = 0.0
             again = keep_clear(
                 skel, q, root, side, keep, start=smooth, firm=FIRM, inside=from_smooth
             )
@@ -175,10 +180,13 @@ def reseeded(
     """``solved`` (``keep_clear`` of frames ``q``) with each frame it leaves ``LEFT_DEPTH`` or
     more inside solved again, started from its neighbours' correction: the corrections of the
     nearest frames it cleared within ``RESEED_REACH`` on each side, interpolated (or the one
-    side's). Kept where less deep; up to ``RESEED_ROUNDS`` times, a run of such frames closing
-    from its ends. The solve is frame by frame and, at the deepest frames of a pass through
-    the trunk, stops in a local minimum its neighbours got past: a correction of +38 degrees
-    on both sides and none between was a 38-degree step out and back (issue 19)."""
+    side's). Kept where that clears it and no dof ends ``RESEED_TURN`` from the neighbours'
+    poses (less deep is not enough: a correction carried from one side into a run the arm
+    cannot leave makes a taller cliff at the run's other end); up to ``RESEED_ROUNDS`` times,
+    a run of such frames closing from its ends. The solve is frame by frame and, at the
+    deepest frames of a pass through the trunk, stops in a local minimum its neighbours got
+    past: a correction of +38 degrees on both sides and none between was a 38-degree step out
+    and back (issue 19)."""
     need = np.flatnonzero(inside > 0.0)
     if need.size == 0:
         return solved
@@ -209,10 +217,11 @@ def reseeded(
         sub_root = (root[0][rows], root[1][rows])
         again = keep_clear(skel, q[rows], sub_root, side, keep[rows], start=seed, firm=FIRM)
         new_depth = penetration(skel, again, sub_root, side)
-        better = new_depth < depth[rows]
-        out[rows[better]] = again[better]
-        depth[rows[better]] = new_depth[better]
-        if not (new_depth[better] < LEFT_DEPTH).any():
+        between = (1.0 - share) * out[b] + share * out[a]  # the neighbours' poses
+        cleared = (new_depth < LEFT_DEPTH) & (np.abs(again - between).max(axis=1) <= RESEED_TURN)
+        out[rows[cleared]] = again[cleared]
+        depth[rows[cleared]] = new_depth[cleared]
+        if not cleared.any():
             break
     return out
 

@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from mtlc.body.ik.clearance import keep_clear, penetration, penetration_dofs, penetrations
+from mtlc.body.kinematics import forward, site_positions
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.context import PassContext
@@ -54,6 +55,8 @@ CORRECTED_JOINT_SPEED = math.radians(330.0)
 # where the arm is deepest and leaves a one-frame spike between two corrected frames
 RESEED_REACH = 0.1
 LEFT_DEPTH = 5e-3  # m: a solved frame still this deep inside is left inside (reseeded)
+KEPT_HAND = 1.0  # weight from which the hand's pose is kept (``keep_clear``'s ``KEPT``)
+RESEED_HAND_TOL = 5e-4  # m a kept hand may move in it (``keep_clear``'s FIRM_HAND_TOL)
 RESEED_ROUNDS = 3  # ...and solved again from its neighbours at most this many times
 # rad a reseeded frame's dof may end from its neighbours' poses, interpolated: more is a new
 # spike (the frame-by-frame solve's own wrist turns differ 10-20 deg between frames)
@@ -177,8 +180,8 @@ def reseeded(
     t: FloatArray,
     inside: FloatArray,
 ) -> FloatArray:
-    """``solved`` (``keep_clear`` of frames ``q``) with each frame it leaves ``LEFT_DEPTH`` or
-    more inside solved again, started from its neighbours' correction: the corrections of the
+    """``solved`` (``keep_clear`` of frames ``q``) with each frame of a kept hand (weight
+    ``KEPT_HAND`` or more) it leaves ``LEFT_DEPTH`` or more inside solved again, started from its neighbours' correction: the corrections of the
     nearest frames it cleared within ``RESEED_REACH`` on each side, interpolated (or the one
     side's). Kept where that clears it and no dof ends ``RESEED_TURN`` from the neighbours'
     poses (less deep is not enough: a correction carried from one side into a run the arm
@@ -196,7 +199,8 @@ def reseeded(
     reach = max(1, round(RESEED_REACH / dt))
     out = solved.copy()
     for _ in range(RESEED_ROUNDS):
-        left = need[depth[need] >= LEFT_DEPTH]
+        # a held hand's frames only: a free hand's seed carries its neighbours' hand with it
+        left = need[(depth[need] >= LEFT_DEPTH) & (keep[need] >= KEPT_HAND)]
         good = need[depth[need] < LEFT_DEPTH]
         if left.size == 0 or good.size == 0:
             break
@@ -219,11 +223,25 @@ def reseeded(
         new_depth = penetration(skel, again, sub_root, side)
         between = (1.0 - share) * out[b] + share * out[a]  # the neighbours' poses
         cleared = (new_depth < LEFT_DEPTH) & (np.abs(again - between).max(axis=1) <= RESEED_TURN)
+        cleared &= hand_moved(skel, q[rows], again, sub_root, side) <= RESEED_HAND_TOL
         out[rows[cleared]] = again[cleared]
         depth[rows[cleared]] = new_depth[cleared]
         if not cleared.any():
             break
     return out
+
+
+def hand_moved(
+    skel: Skeleton,
+    q: FloatArray,
+    moved: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+) -> FloatArray:
+    """(N,) how far (m) the ``side`` hand's site is at ``moved`` from where it is at ``q``."""
+    site = f"{side}_hand"
+    at = [site_positions(skel, forward(skel, c, *root, with_axes=False), site) for c in (q, moved)]
+    return np.linalg.norm((at[1] - at[0]).reshape(len(q), -1), axis=1)
 
 
 def depth_after(

@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from mtlc.body.ik.clearance import keep_clear, penetration, penetration_dofs, penetrations
+from mtlc.body.kinematics import forward, site_positions
 from mtlc.body.skeleton import Skeleton
 from mtlc.ir.model import FloatArray, MotionIR
 from mtlc.passes.context import PassContext
@@ -49,6 +50,17 @@ SWING_SMOOTH = 6  # dense frames each side a correction that swings is averaged 
 # rad/s: the fastest a correction turns a free arm's joint (``joint_speed.speed_limited``);
 # issue 19 allows 360 deg/s
 CORRECTED_JOINT_SPEED = math.radians(330.0)
+# s: a frame the solve leaves inside takes its neighbours' correction from cleared frames this
+# close on either side (a gap of a few frames); the local solve, frame by frame, gets stuck
+# where the arm is deepest and leaves a one-frame spike between two corrected frames
+RESEED_REACH = 0.1
+LEFT_DEPTH = 5e-3  # m: a solved frame still this deep inside is left inside (reseeded)
+KEPT_HAND = 1.0  # weight from which the hand's pose is kept (``keep_clear``'s ``KEPT``)
+RESEED_HAND_TOL = 5e-4  # m a kept hand may move in it (``keep_clear``'s FIRM_HAND_TOL)
+RESEED_ROUNDS = 3  # ...and solved again from its neighbours at most this many times
+# rad a reseeded frame's dof may end from its neighbours' poses, interpolated: more is a new
+# spike (the frame-by-frame solve's own wrist turns differ 10-20 deg between frames)
+RESEED_TURN = 0.3
 
 
 def pinned(ir: MotionIR, side: str, t: FloatArray) -> np.ndarray:
@@ -131,12 +143,15 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         keep = pinned_weights(ir, side, frames.time)
         q = frames.q
         cleared = keep_clear(skel, q, root, side, keep, firm=FIRM, inside=inside[side])
+        cleared = reseeded(skel, q, cleared, root, side, keep, frames.time, inside[side])
         smooth = skel.clip(q + without_swings(q, cleared - q))
         if np.array_equal(smooth, cleared):
             result = cleared
         else:
-            # solved again from the ramp: each frame starts where its neighbours' average is
+            # solved again from the ramp: each frame starts where its neighbours' average is;
+            # only the ramped frames (a frame the ramp left alone keeps its own solve)
             from_smooth = depth_after(skel, inside[side], q, smooth, root, side)
+            from_smooth[(smooth == cleared).all(axis=1)] = 0.0
             again = keep_clear(
                 skel, q, root, side, keep, start=smooth, firm=FIRM, inside=from_smooth
             )
@@ -153,6 +168,80 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         for other in sides[k + 1 :]:
             inside[other] = depth_after(skel, inside[other], q, result, root, other)
     return ir
+
+
+def reseeded(
+    skel: Skeleton,
+    q: FloatArray,
+    solved: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+    keep: FloatArray,
+    t: FloatArray,
+    inside: FloatArray,
+) -> FloatArray:
+    """``solved`` (``keep_clear`` of frames ``q``) with each frame of a kept hand (weight
+    ``KEPT_HAND`` or more) it leaves ``LEFT_DEPTH`` or more inside solved again, started from its neighbours' correction: the corrections of the
+    nearest frames it cleared within ``RESEED_REACH`` on each side, interpolated (or the one
+    side's). Kept where that clears it and no dof ends ``RESEED_TURN`` from the neighbours'
+    poses (less deep is not enough: a correction carried from one side into a run the arm
+    cannot leave makes a taller cliff at the run's other end); up to ``RESEED_ROUNDS`` times,
+    a run of such frames closing from its ends. The solve is frame by frame and, at the
+    deepest frames of a pass through the trunk, stops in a local minimum its neighbours got
+    past: a correction of +38 degrees on both sides and none between was a 38-degree step out
+    and back (issue 19)."""
+    need = np.flatnonzero(inside > 0.0)
+    if need.size == 0:
+        return solved
+    depth = np.zeros(len(q))
+    depth[need] = penetration(skel, solved[need], (root[0][need], root[1][need]), side)
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    reach = max(1, round(RESEED_REACH / dt))
+    out = solved.copy()
+    for _ in range(RESEED_ROUNDS):
+        # a held hand's frames only: a free hand's seed carries its neighbours' hand with it
+        left = need[(depth[need] >= LEFT_DEPTH) & (keep[need] >= KEPT_HAND)]
+        good = need[depth[need] < LEFT_DEPTH]
+        if left.size == 0 or good.size == 0:
+            break
+        pos = np.searchsorted(good, left)
+        before = good[np.clip(pos - 1, 0, good.size - 1)]
+        after = good[np.clip(pos, 0, good.size - 1)]
+        has_before = (pos > 0) & (left - before <= reach)
+        has_after = (pos < good.size) & (after - left <= reach)
+        near = has_before | has_after
+        if not near.any():
+            break
+        rows = left[near]
+        b = np.where(has_before, before, after)[near]
+        a = np.where(has_after, after, before)[near]
+        share = np.where(a > b, (rows - b) / np.maximum(a - b, 1), 0.0)[:, None]
+        correction = out - q
+        seed = skel.clip(q[rows] + (1.0 - share) * correction[b] + share * correction[a])
+        sub_root = (root[0][rows], root[1][rows])
+        again = keep_clear(skel, q[rows], sub_root, side, keep[rows], start=seed, firm=FIRM)
+        new_depth = penetration(skel, again, sub_root, side)
+        between = (1.0 - share) * out[b] + share * out[a]  # the neighbours' poses
+        cleared = (new_depth < LEFT_DEPTH) & (np.abs(again - between).max(axis=1) <= RESEED_TURN)
+        cleared &= hand_moved(skel, q[rows], again, sub_root, side) <= RESEED_HAND_TOL
+        out[rows[cleared]] = again[cleared]
+        depth[rows[cleared]] = new_depth[cleared]
+        if not cleared.any():
+            break
+    return out
+
+
+def hand_moved(
+    skel: Skeleton,
+    q: FloatArray,
+    moved: FloatArray,
+    root: tuple[FloatArray, FloatArray],
+    side: str,
+) -> FloatArray:
+    """(N,) how far (m) the ``side`` hand's site is at ``moved`` from where it is at ``q``."""
+    site = f"{side}_hand"
+    at = [site_positions(skel, forward(skel, c, *root, with_axes=False), site) for c in (q, moved)]
+    return np.linalg.norm((at[1] - at[0]).reshape(len(q), -1), axis=1)
 
 
 def depth_after(

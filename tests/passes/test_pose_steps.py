@@ -65,8 +65,8 @@ def worst_step(ir: MotionIR) -> tuple[float, str, float]:
         ),
         pytest.param(
             "p02_hold_squat_pick", "female", 5,
-            marks=pytest.mark.xfail(strict=True, reason="clearance: a held arm's elbow "
-                                    "swings out of the trunk in one frame (50 deg)"),
+            marks=pytest.mark.xfail(strict=True, reason="carry: the held box's arm steps "
+                                    "19 deg at the elbow before clearance (was 50 deg)"),
         ),
         pytest.param(
             "p03_hand_on_site_squat", "male", 95,

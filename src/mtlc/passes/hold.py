@@ -251,15 +251,14 @@ def keep_hold(
     return rows, q, dist
 
 
-def carried_until(ir: MotionIR, hold: Hold) -> float:
-    """When a hold ends because a walk or a carried posture (``carried_postures``) starts, the
-    part is carried: the hand keeps its grip on
-    the body (its arm's correction stays as it was) until the hand's next arm segment or a
-    release; otherwise the hold's end."""
-    carried = carried_postures(ir)[hold.seg.track]
+def carried_until(ir: MotionIR, hold: Hold, carried: dict[str, list[Segment]]) -> float:
+    """When a hold ends because a walk or a carried posture (``carried``, the motion's
+    ``carried_postures``) starts, the part is carried: the hand keeps its grip on the body (its
+    arm's correction stays as it was) until the hand's next arm segment or a release; otherwise
+    the hold's end."""
     if not any(
         s.kind == "locomotion" and abs(s.start - hold.end) <= EPS for s in ir.segments
-    ) and not any(abs(p.start - hold.end) <= EPS for p in carried):
+    ) and not any(abs(p.start - hold.end) <= EPS for p in carried[hold.seg.track]):
         return hold.end
     hand = ARM_HAND.get(hold.seg.track, "")
     later = [
@@ -294,6 +293,7 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
     if frames is None or not len(frames.time):
         return ir
     holds = hold_windows(ir)
+    carried = carried_postures(ir)  # once: the segments do not change in this pass
     for k, hold in enumerate(holds):
         kept = keep_hold(skel, frames, hold)
         if kept is None:
@@ -303,6 +303,6 @@ def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
         frames.q[rows] = skel.clip(q)
         # the next hold of the same hand takes over where it starts
         nxt = [h.start for h in holds[k + 1 :] if h.seg.track == hold.seg.track]
-        carry = carried_until(ir, hold)
+        carry = carried_until(ir, hold, carried)
         _fade(skel, frames, hold.end, carry, delta, min(nxt, default=np.inf))
     return ir

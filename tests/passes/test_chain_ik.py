@@ -12,23 +12,29 @@ from mtlc.passes.chain_ik import ScalarChain, solve_chain
 from mtlc.passes.tool import with_tools
 
 WRENCH = {"kind": "wrench", "grip": (0.0, 0.0, 0.0), "tip": (0.0, -0.18, 0.0)}
+ROOT = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
+
+
+def wrench_chain(spec: tuple[str, int], reach: str):  # type: ignore[no-untyped-def]
+    """A manikin holding the wrench, its one-row chain from the comfortable pose at ``ROOT``,
+    and where the hand and the wrench's tip are there."""
+    skel = with_tools(build_manikin("gb10000_1988", *spec), {"r_tool_wrench": WRENCH})
+    sites = ["r_hand", "r_tool_wrench"]
+    q0 = np.asarray(skel.q_comfort, dtype=float).copy()
+    model = prepare(skel, sites, q0[None], reach=reach, root_position=ROOT[0][None],
+                    root_rotation=ROOT[1][None])  # fmt: skip
+    pose = forward(skel, q0[None], ROOT[0][None], ROOT[1][None])
+    hand, tip = site_positions(skel, pose, sites)[0]
+    return skel, sites, q0, model, ScalarChain(skel, model, ROOT), hand, tip
 
 
 @pytest.mark.parametrize("spec", [("female", 5), ("male", 95)])
 @pytest.mark.parametrize("reach", ["arm", "torso"])
 @pytest.mark.parametrize("restarts", [0, 2])
 def test_the_scalar_chain_solves_as_solve_ta(spec, reach, restarts) -> None:
-    skel = with_tools(build_manikin("gb10000_1988", *spec), {"r_tool_wrench": WRENCH})
-    sites = ["r_hand", "r_tool_wrench"]
+    skel, sites, q0, model, chain, hand, tip = wrench_chain(spec, reach)
+    root, act = ROOT, model.active
     rng = np.random.default_rng(7)
-    q0 = np.asarray(skel.q_comfort, dtype=float).copy()
-    root = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
-    model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
-                    root_rotation=root[1][None])  # fmt: skip
-    chain = ScalarChain(skel, model, root)
-    pose = forward(skel, q0[None], root[0][None], root[1][None])
-    hand, tip = site_positions(skel, pose, sites)[0]
-    act = model.active
     compared = 0
     for _ in range(10):
         shift = rng.normal(0.0, 0.12, 3)  # near (a key's next step) to out of reach
@@ -59,7 +65,7 @@ def test_the_row_chain_solves_as_solve_ta(spec, reach, null_gain) -> None:
     rng = np.random.default_rng(11)
     b = 40  # past the 32 rows from which solve_ta's model evaluates by columns
     q0 = np.tile(np.asarray(skel.q_comfort, dtype=float), (b, 1))
-    root = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
+    root = ROOT
     rp, rr = np.tile(root[0], (b, 1)), np.tile(root[1], (b, 1))
     model = prepare(skel, sites, q0, reach=reach, root_position=rp, root_rotation=rr)
     act = model.active
@@ -85,17 +91,9 @@ def test_a_resumed_solve_is_a_fresh_one_to_the_bit(spec, reach) -> None:
     is not repeated, and the restarts draw the same seeded numbers."""
     from mtlc.passes.chain_ik import ChainSolve
 
-    skel = with_tools(build_manikin("gb10000_1988", *spec), {"r_tool_wrench": WRENCH})
-    sites = ["r_hand", "r_tool_wrench"]
-    rng = np.random.default_rng(13)
-    q0 = np.asarray(skel.q_comfort, dtype=float).copy()
-    root = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
-    model = prepare(skel, sites, q0[None], reach=reach, root_position=root[0][None],
-                    root_rotation=root[1][None])  # fmt: skip
-    chain = ScalarChain(skel, model, root)
-    pose = forward(skel, q0[None], root[0][None], root[1][None])
-    hand, tip = site_positions(skel, pose, sites)[0]
+    skel, _, q0, model, chain, hand, tip = wrench_chain(spec, reach)
     act = model.active
+    rng = np.random.default_rng(13)
     resumed = 0
     for k in range(12):
         shift = rng.normal(0.0, 0.05 + 0.1 * k, 3)  # near to out of reach: some stall
@@ -121,7 +119,7 @@ def test_evening_out_stops_at_a_fixed_point_with_the_poses_of_all_rounds(spec, m
 
     skel = with_tools(build_manikin("gb10000_1988", *spec), {"r_tool_wrench": WRENCH})
     sites = ["r_hand", "r_tool_wrench"]
-    root = (np.array([0.1, 0.95, -0.2]), np.array([0.9, 0.0, 0.3, 0.0]))
+    root = ROOT
     q0 = np.asarray(skel.q_comfort, dtype=float).copy()
     hand, tip = site_positions(skel, forward(skel, q0[None], root[0][None], root[1][None]),
                                sites)[0]  # fmt: skip

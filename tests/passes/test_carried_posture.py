@@ -69,3 +69,28 @@ def test_a_part_picked_off_the_floor_rises_with_the_body(
     assert hand[after, 1] - hand[before, 1] > 0.2
     # and no frame puts the hand's site under the floor
     assert hand[:, 1].min() > -1e-3
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the carrying arm keeps its angles through the stand: flexed 110-120 deg at the "
+    "shoulder to reach the floor, it ends with the box above the shoulder once the trunk is "
+    "upright (the posture analogue of carry_pose is missing)",
+)
+def test_a_box_picked_off_the_floor_comes_up_below_the_shoulder(tmp_path: Path) -> None:
+    """Seen in the preview: a person stands up with a box at about waist height, not overhead."""
+    path = tmp_path / "pick_up.mtask"
+    path.write_text(PICK_UP, encoding="utf-8")
+    program = run_frontend([path])
+    (timeline,) = program.timelines
+    timeline = dataclasses.replace(timeline, manikin=ManikinSpec("gb10000_1988", "male", 50))
+    ir = run_motion(timeline, program.sink)
+    f = ir.frames
+    assert f is not None
+    (stand,) = [s for s in ir.segments if s.goal.params.get("posture") == "stand"]
+    end = int(np.searchsorted(f.time, stand.end - 1e-9))
+    pose = forward(ir.skeleton, f.q[end : end + 1], f.root_position[end : end + 1],
+                   f.root_rotation[end : end + 1])  # fmt: skip
+    hand = site_positions(ir.skeleton, pose, "r_hand")[0]
+    shoulder = pose.p[0, ir.skeleton.joint_index("r_shoulder")]
+    assert hand[1] < shoulder[1]

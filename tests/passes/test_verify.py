@@ -675,3 +675,56 @@ def test_a_wrench_stroke_does_not_take_the_part_anywhere() -> None:
     release = Segment("r_hand", "grip", 0.85, 0.9, GoalSpec("r_hand", params={"state": "open"}),
                       PROV)  # fmt: skip
     assert carried_postures(_posture_while_holding([stroke, release]))["r_arm"] == []
+
+
+SHORT = """use stdlib.actions
+use stdlib.elements
+
+scene shop {{
+    site spot at (0, 0, 0) cm
+    site target at {where} cm
+}}
+
+task short {{
+    manikin gb10000_1988 female p50
+    scene shop
+    walk_to(spot)
+{before}    reach(left, target)
+}}
+"""
+
+
+def _shortfalls(tmp_path: Path, where: str, before: str = "") -> list[tuple[str, str | None]]:
+    path = tmp_path / "short.mtask"
+    path.write_text(SHORT.format(where=where, before=before), encoding="utf-8")
+    program = run_frontend([path])
+    sink = DiagnosticSink()
+    run_motion(program.timelines[0], sink)
+    return [(d.message, d.help) for d in sink.items if d.code == "MT0501"]
+
+
+@pytest.mark.parametrize(
+    ("where", "advice"),
+    [
+        ("(-40, 12, 45)", "squat() or kneel()"),  # low, ahead and to the left
+        ("(-20, 215, 40)", "above this manikin's reach"),  # overhead
+        ("(-30, 120, 140)", "walk_to a site nearer"),  # at chest height, far ahead
+    ],
+)
+def test_a_shortfall_says_what_would_close_it(tmp_path: Path, where: str, advice: str) -> None:
+    """MT0501's help names what the reach cannot do by itself: lower the body, step closer, or
+    stand higher (a reach moves the arm and the spine; the feet and pelvis stay)."""
+    (found,) = _shortfalls(tmp_path, where)
+    assert found[1] is not None and advice in found[1], found
+
+
+def test_the_squat_the_help_advises_brings_a_low_site_within_reach(tmp_path: Path) -> None:
+    """The advice is true on the frames: the same low site, with a squat before the reach, is
+    reached (or at least far nearer)."""
+    ((standing, _),) = _shortfalls(tmp_path, "(-40, 12, 45)")
+    crouched = _shortfalls(tmp_path, "(-40, 12, 45)", "    squat()\n")
+    short = float(standing.split(": ")[1].split(" mm")[0])
+    assert short > 50
+    if crouched:
+        ((message, _),) = crouched
+        assert float(message.split(": ")[1].split(" mm")[0]) < short / 4, message

@@ -57,6 +57,8 @@ CONTACT_ZONE = 0.05
 LIMIT_TOLERANCE = 1e-6  # rad past a joint's limit (rounding, not motion)
 MIN_MARGIN = 0.0  # m: the centre of mass inside the support
 EPS = 1e-9
+# a pelvis above this fraction of its standing height is standing (a squat or kneel is lower)
+STANDING_PELVIS = 0.85
 
 HAND_NAMES = {"r": "right hand", "l": "left hand"}
 ARM_TRACK = {"r": "r_arm", "l": "l_arm"}
@@ -108,13 +110,15 @@ class _Verifier:
 
     # -- reporting ---------------------------------------------------------------------------
 
-    def report(self, code: str, message: str, ref: SourceRef, key: Any = None) -> None:
+    def report(
+        self, code: str, message: str, ref: SourceRef, key: Any = None, help: str | None = None
+    ) -> None:
         """One finding, once per ``key`` (default: code, line and message)."""
         k = (code, ref, message) if key is None else (code, ref, key)
         if k in self.reported:
             return
         self.reported.add(k)
-        self.ctx.emit(code, message, ref)
+        self.ctx.emit(code, message, ref, help=help)
         self.v.findings.append(
             {"code": code, "message": message, "line": ref.line, "column": ref.column}
         )
@@ -319,6 +323,7 @@ class _Verifier:
                     f"{_mm(shortfall)} mm short, closest at {closest:.2f} s",
                     ref,
                     (site, effector),
+                    help=self.shortfall_help(effector, site, closest),
                 )
         for (ref, site, effector), (error, at) in self.stroke_short.items():
             if error > TOLERANCE:
@@ -329,6 +334,48 @@ class _Verifier:
                     ref,
                     (site, effector),
                 )
+
+    def shortfall_help(self, effector: str, site: str | None, at: float) -> str | None:
+        """What would bring a hand that falls short to its site, judged where it came closest:
+        a reach moves the arm and the spine, never the feet or the pelvis, so a site below the
+        knees of a standing body, one beyond the arm's length sideways or ahead, or one above
+        the fingertips' reach needs a posture, a walk or a platform the task does not have."""
+        side = effector[:2]
+        where = next((s for s in self.ir.sites if s["name"] == site), None)
+        if side not in ("r_", "l_") or where is None:
+            return None
+        target = np.asarray(where["position"], dtype=float)
+        i = self.frame_at(at)
+        joints = self.pose.p[i]
+        j = self.skel.joint_index
+        shoulder, elbow, wrist = (joints[j(side + n)] for n in ("shoulder", "elbow", "wrist"))
+        hand = self.path(side + "hand")[i]
+        arm = float(
+            np.linalg.norm(elbow - shoulder)
+            + np.linalg.norm(wrist - elbow)
+            + np.linalg.norm(hand - wrist)
+        )
+        knee = min(float(joints[j("r_knee"), 1]), float(joints[j("l_knee"), 1]))
+        pelvis = float(joints[j("pelvis"), 1]) - self.ir.ground
+        standing = pelvis > STANDING_PELVIS * float(self.skel.root_position[1])
+        ahead = target - shoulder
+        up, across = float(ahead[1]), float(np.hypot(ahead[0], ahead[2]))
+        if standing and target[1] < knee:
+            return (
+                "a reach moves the arm and the spine, not the feet or the pelvis (bend flexes "
+                "the spine only): squat() or kneel() before it to bring the shoulders down"
+            )
+        if float(np.linalg.norm(ahead)) <= arm:
+            return None  # within the arm's length: its joints' limits, not the distance
+        if up > across:
+            return (
+                "the site is above this manikin's reach from where it stands: lower the work, "
+                "or check a taller percentile (a step or platform is not modelled)"
+            )
+        return (
+            "a reach keeps the feet where they are: walk_to a site nearer to it first, or "
+            "bring the work closer"
+        )
 
     def pass_claims(self) -> None:
         """The passes' claims verify did not measure (a screw the wrist cannot turn) go out in

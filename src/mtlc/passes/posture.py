@@ -51,7 +51,7 @@ from mtlc.passes.kneel import (
 )
 from mtlc.passes.locomotion import LegModel, leg_fk, leg_ik, leg_model
 from mtlc.passes.stance import WIDE_RESULT
-from mtlc.passes.state import PoseState, mark, reanchor
+from mtlc.passes.state import PoseState, mark, reanchor, start_posture_from
 
 TRUNK_DOFS = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
 LEG_DOFS = tuple(
@@ -717,7 +717,8 @@ def restate_stand_from_kneel(seg: Segment, state: PoseState) -> None:
     100 deg in 0.3 s, a shoulder stepped 16-22 deg in one frame (issue 19)."""
     kf = seg.keyframes
     assert kf is not None
-    _start_from(seg, state, state.q_at(seg.start, skip=seg))
+    # the kneel's plan sets the pace of the trunk and legs from the first key on
+    _start_from(seg, state, state.q_at(seg.start, skip=seg), fade=False)
     cols = [kf.dofs.index(n) for n in (*ARM_DOFS, *TRUNK_TURN)]
     start, target = kf.q[0, cols].copy(), np.asarray(seg.result["arms_settled"], dtype=float)
     need = float(np.abs(target - start).max()) / SETTLE_PACE
@@ -976,12 +977,18 @@ def restate_stand_arms(seg: Segment, state: PoseState) -> None:
     kf.q[:, cols] = start[None] + share[:, None] * (target - start)[None]
 
 
-def _start_from(seg: Segment, state: PoseState, q0: FloatArray) -> None:
+def _start_from(seg: Segment, state: PoseState, q0: FloatArray, fade: bool = True) -> None:
     """A posture's first keyframe at ``q0``, the pose before it, and its root at the height
-    the body has then: what the default restater (``state.reanchor``) does for any posture."""
+    the body has then: what the default restater (``state.reanchor``) does for any posture
+    (``fade``: what ``q0`` has that the keys did not see is let go over the whole posture,
+    ``state.start_posture_from``; else the first key alone changes)."""
     kf = seg.keyframes
     assert kf is not None
-    kf.q[0] = q0[[state.skel.dof_index(n) for n in kf.dofs]]
+    first = q0[[state.skel.dof_index(n) for n in kf.dofs]]
+    if fade:
+        start_posture_from(seg, first)
+    else:
+        kf.q[0] = first
     if kf.root_position is not None:
         kf.root_position[0, 1] = state.height_at(seg.start, skip=seg)
 

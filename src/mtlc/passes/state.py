@@ -32,6 +32,7 @@ from mtlc.passes.interpolate import (
     keyed_windows,
     track,
 )
+from mtlc.passes.profile import minimum_jerk
 
 # a keyframe column: (segment id, keyframes, column); column −1 for a posture root height
 _Block = tuple[int, Keyframes, int]
@@ -368,9 +369,24 @@ def reanchor(
         ]
         q = state.q_at(seg.start, skip=together)
         idx = [state.skel.dof_index(n) for n in kf.dofs]
-        kf.q[0] = q[idx]
-        if seg.kind == "posture" and kf.root_position is not None:
-            kf.root_position[0, 1] = state.height_at(seg.start, skip=together)
+        if seg.kind == "posture":
+            start_posture_from(seg, q[idx])
+            if kf.root_position is not None:
+                kf.root_position[0, 1] = state.height_at(seg.start, skip=together)
+        else:
+            kf.q[0] = q[idx]
+
+
+def start_posture_from(seg: Segment, first: FloatArray) -> None:
+    """A posture's keys from ``first``, the pose before it, to its own end: what the pose
+    before has that the posture pass (solved before the reaches) did not see, a trunk a reach
+    leaned 90°, is let go over the whole posture (minimum jerk), not between its first two keys
+    (a stand after a reach to the floor brought the trunk up 60° in 0.3 s)."""
+    kf = seg.keyframes
+    assert kf is not None
+    change = first - kf.q[0]
+    share = minimum_jerk((kf.time - seg.start) / max(seg.end - seg.start, 1e-9))
+    kf.q += (1.0 - share)[:, None] * change[None, :]
 
 
 def cached(ctx_cache: dict[str, Any], key: Any, make: Callable[[], Any]) -> Any:

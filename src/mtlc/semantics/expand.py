@@ -129,6 +129,9 @@ class Expander:
         self.root = (0.0, 0.0, 0.0)
         self.mtm_walks: set[int] = set()  # walks timed by MTM paces, which get turn time too
         self.posture = "stand"
+        # a hand has gone to a site since the last posture: a reach may have leaned the trunk
+        # or left an arm raised, so a `stand()` then is motion, not a no-op
+        self.reached_since_posture = False
         self.tool: Tool | None = None
         spec = ManikinSpec(*B.DEFAULT_MANIKIN)
         scene_name: str | None = None
@@ -633,6 +636,7 @@ class Expander:
             }
             self.emit("goal", h, t, t + d, params, stmt, env)
             self.hand_pos[h] = target
+            self.reached_since_posture = True
         return t + d
 
     def posture_goal(self, stmt: ast.Posture, env: _Env, t: float, timing: Any) -> float:
@@ -648,8 +652,13 @@ class Expander:
                 self.check(rule, values[name], env, written.get(name, stmt))
         if kind == "twist":
             return self.twist(stmt, env, t, timing, values)
-        if kind == "stand" and self.posture == "stand" and timing is None:
-            return t  # already standing: nothing to do
+        if (
+            kind == "stand"
+            and self.posture == "stand"
+            and timing is None
+            and not self.reached_since_posture
+        ):
+            return t  # already standing, as it stood up or walked: nothing to do
         default_code = {
             ("stand", "kneel"): "AKBK",
             ("stand", "sit"): "STD",
@@ -669,6 +678,7 @@ class Expander:
         self.emit("posture", "body", t, t + d, params, stmt, env)
         # rising from one knee is MTM-1 AB, from both knees AKBK: remember which
         self.posture = "kneel_one" if kind == "kneel" and values.get("knees") == 1 else kind
+        self.reached_since_posture = False
         for h in HAND_REST:
             if h not in self.closed:
                 # a free hand does not stay on the site it touched while the body squats,

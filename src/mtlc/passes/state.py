@@ -34,6 +34,7 @@ from mtlc.passes.interpolate import (
 )
 from mtlc.passes.profile import minimum_jerk
 
+TRUNK_PREFIXES = ("lumbar_", "thorax_")  # the spine's dofs, which a reach leans
 # a keyframe column: (segment id, keyframes, column); column −1 for a posture root height
 _Block = tuple[int, Keyframes, int]
 FEW_TIMES = 48  # up to this many times ``q_at_many`` bisects per time (its set-up costs more)
@@ -378,15 +379,22 @@ def reanchor(
 
 
 def start_posture_from(seg: Segment, first: FloatArray) -> None:
-    """A posture's keys from ``first``, the pose before it, to its own end: what the pose
-    before has that the posture pass (solved before the reaches) did not see, a trunk a reach
-    leaned 90°, is let go over the whole posture (minimum jerk), not between its first two keys
-    (a stand after a reach to the floor brought the trunk up 60° in 0.3 s)."""
+    """A posture's keys from ``first``, the pose before it: its first key is that pose, and
+    what the trunk has there that the keys did not see (the posture pass runs before the
+    reaches: a reach to the floor leaned it 90°) is let go over the whole posture with a
+    minimum-jerk share, not between the first two keys (a stand after such a reach brought the
+    trunk up 60° in 0.3 s). The legs keep the posture's plan (the feet stand on it), the arms
+    their own ramps (``posture.restate_stand_arms``), and a posture right after a kneel the
+    kneel's plan."""
     kf = seg.keyframes
     assert kf is not None
-    change = first - kf.q[0]
-    share = minimum_jerk((kf.time - seg.start) / max(seg.end - seg.start, 1e-9))
-    kf.q += (1.0 - share)[:, None] * change[None, :]
+    trunk = [k for k, name in enumerate(kf.dofs) if name.startswith(TRUNK_PREFIXES)]
+    after_kneel = (seg.result or {}).get("root") == "keyed"  # the kneel's plan paces it
+    if trunk and not after_kneel:
+        change = first[trunk] - kf.q[0, trunk]
+        share = minimum_jerk((kf.time - seg.start) / max(seg.end - seg.start, 1e-9))
+        kf.q[:, trunk] += (1.0 - share)[:, None] * change[None, :]
+    kf.q[0] = first
 
 
 def cached(ctx_cache: dict[str, Any], key: Any, make: Callable[[], Any]) -> Any:

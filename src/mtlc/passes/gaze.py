@@ -555,13 +555,15 @@ def aim_rows(
 ) -> FloatArray:
     """Every row's pose with its head aimed (one vectorised solve, ``mtlc.body.ik.aim``).
 
-    A target past the neck's rotation is seen about as well from either limit: the first row
-    keeps the side the head is on (``side``, its rotation before the part), and every row the
-    side of the first, unless the other sees its target better by more than ``NEAR_BRANCH`` (the
-    neck swung 45 deg between two frames while a wrench swung on the access panel, issue 19)."""
-    first = aim_at(skel, q_rows[:1], roots[0][:1], roots[1][:1], aims[:1],
-                   side=np.array([side]), near=NEAR_BRANCH)  # fmt: skip
-    keep = np.full(len(q_rows), float(head_yaw(skel, first)[0]))
+    A target past the neck's rotation is seen about as well from either limit: every row keeps
+    the side the head is on (``side``, its rotation before the part; facing ahead, the side
+    the first row sees best) unless the other sees its target better by more than
+    ``NEAR_BRANCH`` (the neck swung 45 deg between two frames while a wrench swung on the access
+    panel, issue 19)."""
+    if side == 0.0:  # facing ahead: the first row takes the side that sees its target best
+        first = aim_at(skel, q_rows[:1], roots[0][:1], roots[1][:1], aims[:1])
+        side = float(head_yaw(skel, first)[0])
+    keep = np.full(len(q_rows), side)
     return aim_at(skel, q_rows, roots[0], roots[1], aims, side=keep, near=NEAR_BRANCH)
 
 

@@ -27,20 +27,20 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..kinematics import axis_angle, cross, forward_part
+from ..kinematics import cross, forward_part
 from ..skeleton import Skeleton
 from .goals import default_dofs
 
 FloatArray = NDArray[np.float64]
 
 MAX_STEPS = 30  # Gauss-Newton steps; in range the aim converges in 4-6
-STEP_TOL = 1e-10  # rad: a row whose step is below this has converged
+STEP_TOL = 1e-7  # rad: a row whose step is below this has converged (its aim is off by about that)
 # regularises the normal equations: yaw and pitch are independent where the target is in view;
 # five dofs for a direction overlap (used only past the limits), so their steps are damped more
 FREE_DAMPING = 1e-4
 COST_TOL = 1e-12  # a row whose |d − w|² fell by less than this in a step has converged
 MAX_STEP = 0.3  # rad: the largest change of a coordinate in one step
-FREE_FROM = 1e-6  # rad: a row aimed worse than this by yaw and pitch frees every dof
+FREE_FROM = 1e-5  # rad: a row aimed worse than this by yaw and pitch frees every dof
 
 
 @dataclass(frozen=True)
@@ -78,6 +78,7 @@ class HeadChain:
     aim: _Coordinates  # yaw and pitch
     free: _Coordinates  # every dof on its own (past the yaw's and the pitch's limits)
     tilts: NDArray[np.intp]  # (T,) the dofs about a forward axis (into ``dofs``)
+    axis_of_dof: tuple[int, ...]  # each dof's axis: 0 x (side), 1 y (vertical), 2 z (forward)
 
 
 def head_chain(skel: Skeleton, site: str = "gaze") -> HeadChain:
@@ -133,6 +134,7 @@ def _build_chain(skel: Skeleton, site: str) -> HeadChain:
         aim=aim,
         free=_Coordinates(lo, hi, FREE_DAMPING),
         tilts=np.flatnonzero(kind == 2),
+        axis_of_dof=tuple(int(a) for a in kind),
     )
 
 
@@ -148,22 +150,37 @@ class _Look:
 
 def _look(chain: HeadChain, base_R: FloatArray, base_p: FloatArray, q: FloatArray) -> _Look:
     """Forward kinematics of the chain from its base frame (the IR's rule: parent · offset ·
-    each dof's rotation in turn)."""
+    each dof's rotation in turn). The frame is kept as its three columns (N, 3): a turn about
+    the frame's own x, y or z axis mixes the other two by the angle's cosine and sine, which
+    is all a rotation matrix product would do here, in a few array operations (a solver step's
+    cost is numpy's per-call overhead: most parts aim a few rows)."""
     n, k = q.shape
-    turns = axis_angle(np.broadcast_to(chain.axes, (n, k, 3)), q)  # (N, K, 3, 3)
-    R, p = base_R, base_p
+    cos, sin = np.cos(q), np.sin(q)
+    cols = [base_R[:, :, 0], base_R[:, :, 1], base_R[:, :, 2]]
+    p = base_p
     axes, centres = np.empty((n, k, 3)), np.empty((n, k, 3))
     joint = -1
     for i in range(k):
         while joint < chain.joint_of_dof[i]:
             joint += 1
-            p = p + np.einsum("nij,j->ni", R, chain.offsets[joint])
-        axes[:, i] = np.einsum("nij,j->ni", R, chain.axes[i])
+            p = _moved(p, cols, chain.offsets[joint])
+        a = chain.axis_of_dof[i]
+        u, v = (a + 1) % 3, (a + 2) % 3
+        axes[:, i] = cols[a]
         centres[:, i] = p
-        R = R @ turns[:, i]
-    eye = p + np.einsum("nij,j->ni", R, chain.site_offset)
-    direction = np.einsum("nij,j->ni", R, chain.site_direction)
+        c, s = cos[:, i : i + 1], sin[:, i : i + 1]
+        cols[u], cols[v] = c * cols[u] + s * cols[v], c * cols[v] - s * cols[u]
+    eye = _moved(p, cols, chain.site_offset)
+    direction = _moved(np.zeros_like(p), cols, chain.site_direction)
     return _Look(eye, direction, axes, centres)
+
+
+def _moved(p: FloatArray, cols: list[FloatArray], offset: FloatArray) -> FloatArray:
+    """``p`` plus ``offset`` given in the frame whose columns are ``cols``."""
+    for j in range(3):
+        if offset[j] != 0.0:
+            p = p + cols[j] * offset[j]
+    return p
 
 
 def _first_guess(
@@ -185,24 +202,29 @@ def _refine(
     targets: FloatArray,
     x: FloatArray,
     coords: _Coordinates,
-) -> FloatArray:
+) -> tuple[FloatArray, FloatArray]:
     """Projected Gauss-Newton on ``d − w`` (the eye's direction less the unit line to the
     target), all rows at once until every step is below ``STEP_TOL``. Past the limits the
     residual stays large and a full step can overshoot: a row whose step made it worse goes
-    back to its best and steps again at a quarter of the length (never worse than its start)."""
+    back to its best and steps again at a quarter of the length (never worse than its start).
+    Returns the best coordinates and their aim errors (rad)."""
     best = x.copy()
     best_cost = np.full(len(x), np.inf)
     radius = np.full(len(x), MAX_STEP)
     x = x.copy()
     rows = np.arange(len(x))
+    whole = True  # every row works: no indexing by rows (most parts aim a few rows)
     for _ in range(MAX_STEPS):
         if not rows.size:
             break
-        xr = x[rows]
+        if whole:
+            xr, R, p, t = x, base_R, base_p, targets
+        else:
+            xr, R, p, t = x[rows], base_R[rows], base_p[rows], targets[rows]
         q, per = coords.angles(xr)
-        look = _look(chain, base_R[rows], base_p[rows], q)
-        line = targets[rows] - look.eye
-        dist = np.maximum(np.linalg.norm(line, axis=1, keepdims=True), 1e-9)
+        look = _look(chain, R, p, q)
+        line = t - look.eye
+        dist = np.maximum(np.sqrt(np.einsum("nj,nj->n", line, line))[:, None], 1e-9)
         w = line / dist
         r = look.direction - w
         cost = np.einsum("nj,nj->n", r, r)
@@ -221,13 +243,62 @@ def _refine(
         along = np.einsum("nkj,nj->nk", moved, w)[..., None]
         per_dof = turn + (moved - w[:, None, :] * along) / dist[:, :, None]
         J = np.einsum("nkj,nik->nji", per_dof, per)  # (N, 3, m)
-        step = _projected_step(J, r, xr, coords.lower, coords.upper, coords.damping)
+        solve = _aim_step if J.shape[2] == 2 else _projected_step
+        step = solve(J, r, xr, coords.lower, coords.upper, coords.damping)
         big = np.abs(step).max(axis=1)
-        step = step * np.minimum(1.0, radius[rows] / np.maximum(big, 1e-300))[:, None]
-        x[rows] = np.clip(xr + step, coords.lower, coords.upper)
-        moving = (np.abs(step).max(axis=1) > STEP_TOL) & ~settled
-        rows = np.union1d(rows[moving], back[radius[back] > STEP_TOL])
-    return best
+        step *= np.minimum(1.0, radius[rows] / np.maximum(big, 1e-300))[:, None]
+        big = np.minimum(big, radius[rows])
+        moved_x = np.minimum(np.maximum(xr + step, coords.lower), coords.upper)
+        if whole and not back.size:
+            x = moved_x
+        else:
+            x[rows] = moved_x
+        going = (big > STEP_TOL) & ~settled
+        whole = whole and not back.size and bool(going.all())
+        if not whole:
+            mask = np.zeros(len(x), dtype=bool)
+            mask[rows[going]] = True
+            mask[back[radius[back] > STEP_TOL]] = True
+            rows = np.flatnonzero(mask)
+    return best, _angle(best_cost)
+
+
+def _angle(cost: FloatArray) -> FloatArray:
+    """The angle (rad) between two unit vectors whose difference has squared length ``cost``."""
+    return 2.0 * np.arcsin(np.minimum(np.sqrt(cost) / 2.0, 1.0))
+
+
+def _aim_step(
+    J: FloatArray,
+    r: FloatArray,
+    x: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    damping: float,
+) -> FloatArray:
+    """``_projected_step`` for two coordinates, its 2x2 systems solved in closed form (the
+    batched LAPACK call and its pinning loop cost more than the arithmetic of a few rows)."""
+    j0, j1 = J[:, :, 0], J[:, :, 1]
+    a00 = np.einsum("nk,nk->n", j0, j0) + damping
+    a11 = np.einsum("nk,nk->n", j1, j1) + damping
+    a01 = np.einsum("nk,nk->n", j0, j1)
+    b0, b1 = -np.einsum("nk,nk->n", j0, r), -np.einsum("nk,nk->n", j1, r)
+    det = a00 * a11 - a01 * a01
+    s0, s1 = (a11 * b0 - a01 * b1) / det, (a00 * b1 - a01 * b0) / det
+    x0, x1 = x[:, 0], x[:, 1]
+    out0 = (x0 + s0 > upper[0]) | (x0 + s0 < lower[0])
+    out1 = (x1 + s1 > upper[1]) | (x1 + s1 < lower[1])
+    if out0.any() or out1.any():
+        f0 = np.minimum(np.maximum(x0 + s0, lower[0]), upper[0]) - x0
+        f1 = np.minimum(np.maximum(x1 + s1, lower[1]), upper[1]) - x1
+        s0, s1 = (
+            np.where(out0, f0, np.where(out1, (b0 - a01 * f1) / a00, s0)),
+            np.where(out1, f1, np.where(out0, (b1 - a01 * f0) / a11, s1)),
+        )
+        # the coordinate solved alone may leave in turn: pinned too
+        s0 = np.minimum(np.maximum(x0 + s0, lower[0]), upper[0]) - x0
+        s1 = np.minimum(np.maximum(x1 + s1, lower[1]), upper[1]) - x1
+    return np.stack([s0, s1], axis=1)
 
 
 def _projected_step(
@@ -258,16 +329,6 @@ def _projected_step(
     return step
 
 
-def _errors(
-    chain: HeadChain, base_R: FloatArray, base_p: FloatArray, targets: FloatArray, q: FloatArray
-) -> FloatArray:
-    """The angle (rad) between each row's eye line and the line to its target."""
-    look = _look(chain, base_R, base_p, q)
-    line = targets - look.eye
-    line = line / np.maximum(np.linalg.norm(line, axis=1, keepdims=True), 1e-9)
-    return np.arccos(np.clip(np.einsum("nj,nj->n", look.direction, line), -1.0, 1.0))
-
-
 def aim_head(
     skel: Skeleton,
     q: FloatArray,
@@ -290,14 +351,16 @@ def aim_head(
     targets = np.asarray(targets, dtype=float)
     pose = forward_part(skel, q, root_position, root_rotation, [site])
     base_R, base_p = pose.R[:, chain.base], pose.p[:, chain.base]
-    x = _refine(chain, base_R, base_p, targets, _first_guess(chain, base_R, base_p, targets),
-                chain.aim)  # fmt: skip
+    x, errors = _refine(chain, base_R, base_p, targets,
+                        _first_guess(chain, base_R, base_p, targets), chain.aim)  # fmt: skip
     yaw_lo, yaw_hi = chain.aim.lower[0], chain.aim.upper[0]
     at_limit = np.flatnonzero((x[:, 0] <= yaw_lo + 1e-9) | (x[:, 0] >= yaw_hi - 1e-9))
     if at_limit.size:
-        x[at_limit] = _other_side(chain, base_R, base_p, targets, x, at_limit, side, near)
+        x[at_limit], errors[at_limit] = _other_side(
+            chain, base_R, base_p, targets, x, errors, at_limit, side, near
+        )
     head = chain.aim.angles(x)[0]
-    missed = np.flatnonzero(_errors(chain, base_R, base_p, targets, head) > FREE_FROM)
+    missed = np.flatnonzero(errors > FREE_FROM)
     if missed.size:
         head[missed] = _past_the_limits(
             chain, base_R[missed], base_p[missed], targets[missed], head[missed]
@@ -326,8 +389,8 @@ def _past_the_limits(
     starts[2][:, chain.tilts] = chain.free.lower[chain.tilts]
     n = len(q)
     many = (np.tile(base_R, (3, 1, 1)), np.tile(base_p, (3, 1)), np.tile(targets, (3, 1)))
-    found = _refine(chain, *many, starts.reshape(3 * n, -1), chain.free)
-    errors = _errors(chain, *many, found).reshape(3, n)
+    found, errors = _refine(chain, *many, starts.reshape(3 * n, -1), chain.free)
+    errors = errors.reshape(3, n)
     best = np.argmin(errors, axis=0)
     return found.reshape(3, n, -1)[best, np.arange(n)]
 
@@ -338,19 +401,19 @@ def _other_side(
     base_p: FloatArray,
     targets: FloatArray,
     x: FloatArray,
+    errors: FloatArray,
     rows: NDArray[np.intp],
     side: FloatArray | None,
     near: float,
-) -> FloatArray:
+) -> tuple[FloatArray, FloatArray]:
     """For rows at a rotation limit: the aim from the opposite limit, kept where it is on the
     preferred side (and not worse by more than ``near``) or, without a preference, better."""
     found = x[rows]
     start = found.copy()
     start[:, 0] = np.where(found[:, 0] > 0, chain.aim.lower[0], chain.aim.upper[0])
     R, p, t = base_R[rows], base_p[rows], targets[rows]
-    other = _refine(chain, R, p, t, start, chain.aim)
-    e_found = _errors(chain, R, p, t, chain.aim.angles(found)[0])
-    e_other = _errors(chain, R, p, t, chain.aim.angles(other)[0])
+    other, e_other = _refine(chain, R, p, t, start, chain.aim)
+    e_found = errors[rows]
     if side is None:
         take = e_other < e_found
     else:
@@ -362,4 +425,4 @@ def _other_side(
             e_other <= e_found + near,
             np.where(on_side_found & ~on_side_other, e_other + near < e_found, e_other < e_found),
         )
-    return np.where(take[:, None], other, found)
+    return np.where(take[:, None], other, found), np.where(take, e_other, e_found)

@@ -341,24 +341,22 @@ def remove_avionics_unit():
     human.Grasp('right_hand', 'close', start=4.845791, duration=0.072)
     human.KeyJoints(4.9, {
         'spine_lumbar': (30.806, -1.055, -13.891), 'spine_thoracic': (20.773, -10.0, -30.0),
-        'neck': (-59.897, -17.007, -48.586), 'head': (-19.877, 11.249),
-        'right_clavicle': (30.0, -13.838), 'right_shoulder': (0.163, 125.523, -40.497),
-        'right_elbow': (0.0, 8.504), 'right_wrist': (4.735, -3.591),
-        'left_shoulder': (27.863, 179.592, -66.986),
+        'neck': (-59.897, -17.007, -48.586), 'right_clavicle': (30.0, -13.838),
+        'right_shoulder': (0.163, 125.523, -40.497), 'right_elbow': (0.0, 8.504),
+        'right_wrist': (4.735, -3.591), 'left_shoulder': (27.863, 179.592, -66.986),
     })
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on l_arm at unit_out
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TA on r_arm at unit_out
     human.KeyJoints(5.0, {
         'spine_lumbar': (30.987, -1.437, -13.853), 'spine_thoracic': (19.565, -9.331, -29.077),
-        'neck': (-59.914, -16.984, -46.739), 'head': (-19.829, 10.694),
-        'right_clavicle': (28.744, -13.881), 'right_shoulder': (0.447, 127.277, -40.508),
-        'right_elbow': (0.367, 8.515), 'right_wrist': (5.047, -3.91),
-        'left_clavicle': (29.994, 12.52), 'left_shoulder': (27.682, 179.393, -66.938),
-        'left_wrist': (8.598, 0.548),
+        'neck': (-59.914, -16.858, -47.009), 'right_clavicle': (28.744, -13.881),
+        'right_shoulder': (0.447, 127.277, -40.508), 'right_elbow': (0.367, 8.515),
+        'right_wrist': (5.047, -3.91), 'left_clavicle': (29.994, 12.52),
+        'left_shoulder': (27.682, 179.393, -66.938), 'left_wrist': (8.598, 0.548),
     })
     human.KeyJoints(5.1, {
         'spine_lumbar': (32.122, -3.871, -13.588), 'spine_thoracic': (11.806, -5.044, -23.085),
-        'neck': (-59.958, -16.922, -41.748), 'head': (-19.635, 8.43),
+        'neck': (-59.958, -16.399, -42.261), 'head': (-19.949, 11.248),
         'right_clavicle': (20.706, -14.155), 'right_shoulder': (2.264, 138.56, -40.577),
         'right_elbow': (2.727, 8.586), 'right_wrist': (7.049, -5.959),
         'left_shoulder': (26.51, 178.007, -66.627), 'left_elbow': (13.801, -65.596),
@@ -366,7 +364,7 @@ def remove_avionics_unit():
     })
     human.KeyJoints(5.2, {
         'spine_lumbar': (32.881, -7.105, -12.728), 'spine_thoracic': (-0.406, 1.465, -12.338),
-        'neck': (-59.995, -16.87, -37.543), 'head': (-19.274, 4.26),
+        'neck': (-59.995, -15.839, -36.816), 'head': (-19.994, 11.247),
         'right_clavicle': (9.049, -14.443), 'right_shoulder': (4.748, 156.769, -40.651),
         'right_elbow': (6.44, 8.696), 'right_wrist': (10.297, -9.252),
         'left_clavicle': (29.998, 13.032), 'left_shoulder': (24.343, 173.949, -65.971),
@@ -376,7 +374,7 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:34:5 remove_avionics_unit > lift > move: TO on r_arm at unit_out
     human.KeyJoints(5.3, {
         'spine_lumbar': (26.841, -4.427, -10.239), 'spine_thoracic': (-4.296, 1.876, -2.17),
-        'neck': (-59.949, -17.836, -36.451), 'head': (-18.406, -5.742),
+        'neck': (-59.998, -15.305, -32.046), 'head': (-19.955, 10.701),
         'right_clavicle': (12.041, -13.509), 'right_shoulder': (3.081, 164.918, -40.403),
         'right_elbow': (7.338, 8.719), 'right_wrist': (12.002, -10.794),
         'left_clavicle': (30.0, 12.419), 'left_shoulder': (21.391, 164.907, -65.005),
@@ -386,51 +384,39 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:35:5 remove_avionics_unit > slide_out: TA on r_arm at unit_out
     human.KeyJoints(5.4, {
         'spine_lumbar': (25.131, -3.332, -9.682), 'spine_thoracic': (-3.932, 1.224, -0.706),
-        'neck': (-59.277, -16.574, -22.117), 'head': (-19.388, 2.129),
+        'neck': (-59.972, -13.619, -18.266), 'head': (-19.96, 11.106),
         'right_clavicle': (14.226, -13.216), 'right_shoulder': (2.338, 164.98, -40.325),
         'right_elbow': (7.133, 8.713), 'left_clavicle': (30.0, 12.219),
         'left_shoulder': (20.833, 163.058, -64.828), 'left_elbow': (7.836, -65.257),
         'left_wrist': (7.527, -1.361),
     })
     human.KeyJoints(5.5, {'right_wrist': (12.09, -10.832)})
-    human.KeyJoints(5.6, {'neck': (-59.254, -16.575, -22.01), 'head': (-19.383, 2.13)})
     human.KeyJoints(5.7, {
         'spine_lumbar': (25.083, -3.258, -9.694), 'spine_thoracic': (-3.88, 1.122, -0.709),
-        'neck': (-59.966, -13.8, -18.306), 'head': (-19.932, 11.17),
     })
-    human.KeyJoints(5.8, {'neck': (-59.262, -16.578, -21.979), 'head': (-19.385, 2.132)})
     human.KeyJoints(5.9, {
         'spine_lumbar': (24.957, -3.063, -9.728), 'spine_thoracic': (-3.743, 0.852, -0.721),
-        'neck': (-59.359, -16.282, -21.492), 'head': (-19.434, 3.573),
     })
     human.KeyJoints(6.0, {
         'spine_lumbar': (24.845, -2.888, -9.77), 'spine_thoracic': (-3.622, 0.612, -0.735),
-        'right_clavicle': (14.115, -13.323), 'right_shoulder': (2.246, 165.103, -40.321),
-        'left_clavicle': (30.0, 12.326), 'left_shoulder': (20.93, 163.081, -64.822),
+        'neck': (-59.973, -13.702, -18.222), 'right_clavicle': (14.115, -13.323),
+        'right_shoulder': (2.246, 165.103, -40.321), 'left_clavicle': (30.0, 12.326),
+        'left_shoulder': (20.93, 163.081, -64.822),
     })
     human.KeyJoints(6.1, {
         'spine_lumbar': (24.661, -2.602, -9.877), 'spine_thoracic': (-3.423, 0.217, -0.772),
-        'neck': (-59.353, -16.277, -21.488), 'head': (-19.433, 3.573),
         'right_elbow': (7.233, 8.708),
     })
-    human.KeyJoints(6.2, {
-        'spine_thoracic': (-3.316, 0.005, -0.802), 'neck': (-59.248, -16.577, -21.978),
-        'head': (-19.382, 2.133),
-    })
+    human.KeyJoints(6.2, {'spine_thoracic': (-3.316, 0.005, -0.802)})
     human.KeyJoints(6.3, {
         'spine_lumbar': (24.513, -2.369, -10.029), 'right_clavicle': (13.789, -13.641),
         'right_shoulder': (2.139, 165.47, -40.316), 'left_clavicle': (30.0, 12.644),
     })
     human.KeyJoints(6.4, {'left_shoulder': (21.269, 163.162, -64.814)})
-    human.KeyJoints(6.5, {
-        'spine_thoracic': (-3.21, -0.206, -0.853), 'neck': (-59.227, -16.573, -22.003),
-        'head': (-19.377, 2.132),
-    })
-    human.KeyJoints(6.6, {'neck': (-59.771, -14.883, -19.364), 'head': (-19.646, 9.81)})
-    human.KeyJoints(6.7, {'neck': (-59.32, -16.251, -21.519), 'head': (-19.426, 3.571)})
+    human.KeyJoints(6.5, {'spine_thoracic': (-3.21, -0.206, -0.853)})
     human.KeyRoot(6.8, (0.0, 72.992, 50.0), (0.0, 0.0, 0.0))
     human.KeyJoints(6.8, {
-        'neck': (-59.77, -14.857, -19.356), 'head': (-19.647, 9.81),
+        'neck': (-59.97, -13.564, -18.166), 'head': (-19.958, 11.103),
         'right_clavicle': (13.624, -13.801), 'right_shoulder': (2.118, 165.654, -40.315),
         'left_clavicle': (30.0, 12.804), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
@@ -441,33 +427,33 @@ def remove_avionics_unit():
     # examples/remove_avionics_unit.mtask:36:5 remove_avionics_unit > walk_to > travel: gaze on head
     human.KeyRoot(6.9, (0.007, 72.958, 50.001), (-0.013, 0.0, 0.0))
     human.KeyJoints(6.9, {
-        'spine_lumbar': (24.445, -2.26, -10.161), 'neck': (-59.72, -12.765, -17.132),
-        'head': (-19.9, 11.25), 'right_elbow': (7.38, 8.706), 'right_hip': (3.51, 0.005, 0.014),
+        'spine_lumbar': (24.445, -2.26, -10.161), 'neck': (-59.6, -13.521, -18.053),
+        'head': (-19.834, 11.071), 'right_elbow': (7.38, 8.706), 'right_hip': (3.51, 0.005, 0.014),
         'right_knee': (5.94,), 'right_ankle': (2.42, 0.006), 'left_hip': (3.459, -0.005, -0.014),
         'left_knee': (5.842,), 'left_ankle': (2.383, -0.006),
     })
     human.KeyRoot(7.0, (0.45, 72.589, 50.1), (-0.953, 0.0, 0.0))
     human.KeyJoints(7.0, {
-        'neck': (-48.322, -8.044, -10.868), 'head': (-16.103, 10.178),
+        'neck': (-48.216, -10.94, -14.604), 'head': (-16.046, 8.959),
         'right_hip': (8.12, 0.249, 1.002), 'right_knee': (15.476,), 'right_ankle': (6.818, 0.388),
         'left_hip': (6.846, -0.269, -0.992), 'left_knee': (13.383,), 'left_ankle': (6.542, -0.385),
     })
     human.KeyRoot(7.1, (1.288, 72.487, 50.286), (-2.985, 0.0, 0.0))
     human.KeyJoints(7.1, {
-        'neck': (-27.092, -3.802, -5.168), 'head': (-9.035, 6.08), 'left_elbow': (8.013, -65.263),
+        'neck': (-27.0, -6.138, -8.178), 'head': (-8.985, 5.026), 'left_elbow': (8.013, -65.263),
         'right_hip': (10.472, 0.538, 2.991), 'right_knee': (20.12,), 'right_ankle': (8.764, 1.125),
         'left_hip': (7.104, -0.721, -3.097), 'left_knee': (14.693,), 'left_ankle': (7.637, -1.097),
     })
     human.KeyRoot(7.2, (2.102, 72.488, 50.466), (-5.558, 0.0, 0.0))
     human.KeyJoints(7.2, {
-        'neck': (-7.282, -0.829, -1.142), 'head': (-2.439, 2.244),
+        'neck': (-7.205, -1.657, -2.182), 'head': (-2.398, 1.357),
         'left_shoulder': (21.36, 163.184, -64.813), 'right_hip': (18.851, 1.631, 0.537),
         'right_knee': (38.348,), 'right_ankle': (18.377, 1.749),
         'left_hip': (6.848, -1.102, -5.732), 'left_knee': (14.925,), 'left_ankle': (8.083, -1.773),
     })
     human.KeyRoot(7.3, (2.471, 72.699, 50.548), (-8.122, 0.0, 0.0))
     human.KeyJoints(7.3, {
-        'neck': (0.04, 0.107, 0.134), 'head': (0.0, 0.721), 'right_hip': (19.911, 4.648, -6.821),
+        'neck': (0.102, 0.0, 0.031), 'head': (0.034, 0.0), 'right_hip': (19.911, 4.648, -6.821),
         'right_knee': (42.523,), 'right_ankle': (18.462, 1.981),
         'left_hip': (8.098, -0.901, -8.392), 'left_knee': (17.9,), 'left_ankle': (8.243, -2.061),
     })
@@ -490,7 +476,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(7.7, (-0.637, 72.496, 48.638), (-21.678, 0.0, 0.0))
     human.KeyJoints(7.7, {
-        'head': (0.0, 0.055), 'right_hip': (7.631, 0.111, -10.969), 'right_knee': (14.461,),
+        'right_hip': (7.631, 0.111, -10.969), 'right_knee': (14.461,),
         'left_hip': (19.106, 7.456, -17.844), 'left_knee': (42.234,), 'left_ankle': (13.375, 0.972),
     })
     human.KeyRoot(7.8, (-1.678, 72.492, 48.923), (-27.207, 0.0, 0.0))
@@ -506,7 +492,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(8.0, (-2.643, 72.629, 50.612), (-37.827, 0.0, 0.0))
     human.KeyJoints(8.0, {
-        'neck': (0.0, 0.0, 0.0), 'right_hip': (10.407, -2.906, 4.717), 'right_knee': (21.318,),
+        'right_hip': (10.407, -2.906, 4.717), 'right_knee': (21.318,),
         'right_ankle': (7.991, -1.997), 'left_hip': (18.581, -3.341, 13.249),
         'left_knee': (38.017,), 'left_ankle': (18.571, 1.11),
     })
@@ -518,7 +504,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(8.2, (-2.978, 72.487, 53.756), (-48.139, 0.0, 0.0))
     human.KeyJoints(8.2, {
-        'right_hip': (14.909, -4.634, 14.814), 'right_knee': (33.171,),
+        'neck': (0.0, 0.0, 0.0), 'right_hip': (14.909, -4.634, 14.814), 'right_knee': (33.171,),
         'right_ankle': (9.674, -0.561), 'left_hip': (5.795, -2.719, 16.805), 'left_knee': (14.725,),
         'left_ankle': (8.395, -0.916),
     })
@@ -547,7 +533,7 @@ def remove_avionics_unit():
     })
     human.KeyRoot(8.7, (1.624, 72.555, 52.025), (-74.637, 0.0, 0.0))
     human.KeyJoints(8.7, {
-        'head': (0.0, 0.0), 'right_hip': (12.244, 4.952, -17.815), 'right_ankle': (15.501, 1.024),
+        'right_hip': (12.244, 4.952, -17.815), 'right_ankle': (15.501, 1.024),
         'left_hip': (10.864, 0.381, -9.665), 'left_knee': (21.475,), 'left_ankle': (8.253, -1.453),
     })
     human.KeyRoot(8.8, (2.335, 72.487, 50.491), (-79.647, 0.0, 0.0))

@@ -313,37 +313,37 @@ def replace_fuel_filter():
     })
     human.KeyJoints(4.4, {
         'spine_lumbar': (24.114, 3.743, 5.202), 'spine_thoracic': (-0.863, 3.471, 6.624),
-        'neck': (34.999, -31.966, 2.845), 'head': (14.997, -10.789),
+        'neck': (34.999, -31.961, 2.85), 'head': (14.994, -10.791),
         'right_clavicle': (-2.656, 5.201), 'right_shoulder': (17.579, 11.441, 9.197),
         'right_elbow': (31.739, 17.192),
     })
     human.KeyJoints(4.5, {
         'spine_lumbar': (31.901, 6.259, 8.411), 'spine_thoracic': (-2.821, 5.614, 11.008),
-        'neck': (34.994, -17.494, -3.821), 'head': (14.971, -7.118),
+        'neck': (34.99, -17.46, -3.787), 'head': (14.949, -7.128),
         'right_clavicle': (-4.463, 8.404), 'right_shoulder': (23.346, 14.88, 7.818),
         'right_elbow': (30.13, 17.194),
     })
     human.KeyJoints(4.6, {
         'spine_lumbar': (38.502, 9.113, 11.285), 'spine_thoracic': (-5.015, 7.553, 15.49),
-        'neck': (34.984, 1.945, -10.327), 'head': (14.924, -2.415),
+        'neck': (34.979, 1.997, -10.275), 'head': (14.89, -2.429),
         'right_clavicle': (-6.463, 11.25), 'right_shoulder': (28.872, 17.635, 6.647),
         'right_elbow': (28.737, 17.197), 'right_wrist': (-1.544, -1.81),
     })
     human.KeyJoints(4.7, {
         'spine_lumbar': (41.262, 12.215, 12.917), 'spine_thoracic': (-6.922, 8.711, 18.944),
-        'neck': (34.973, 14.661, -14.743), 'head': (14.863, 0.106),
+        'neck': (34.973, 14.666, -14.738), 'head': (14.86, 0.104),
         'right_clavicle': (-8.386, 12.794), 'right_shoulder': (32.462, 18.304, 6.151),
         'right_elbow': (28.03, 17.198), 'right_wrist': (-1.677, -2.032),
     })
     # examples/replace_fuel_filter.mtask:34:5 replace_fuel_filter > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
         'spine_lumbar': (40.751, 14.418, 13.242), 'spine_thoracic': (-7.87, 9.005, 20.455),
-        'neck': (34.992, 18.642, -16.974), 'head': (14.988, 0.186),
-        'right_clavicle': (-9.56, 13.02), 'right_shoulder': (33.519, 17.462, 6.235),
+        'neck': (34.992, 18.76, -17.069), 'head': (14.986, 0.21), 'right_clavicle': (-9.56, 13.02),
+        'right_shoulder': (33.519, 17.462, 6.235),
     })
     human.KeyJoints(4.9, {
         'spine_lumbar': (40.441, 15.04, 13.278), 'spine_thoracic': (-8.106, 9.053, 20.813),
-        'neck': (34.919, 26.688, -17.404), 'head': (14.788, 0.83),
+        'neck': (34.923, 26.453, -17.421), 'head': (14.803, 0.769),
         'right_clavicle': (-9.877, 13.025), 'right_shoulder': (33.713, 17.135, 6.288),
         'right_elbow': (27.967, 17.197),
     })
@@ -546,20 +546,20 @@ def replace_fuel_filter():
     })
     human.KeyJoints(9.6, {
         'spine_lumbar': (60.0, 17.007, -11.327), 'spine_thoracic': (-6.342, -4.446, -21.395),
-        'neck': (34.994, 16.519, -2.163), 'head': (14.93, 0.367), 'right_wrist': (-52.744, 11.203),
+        'neck': (34.998, 16.519, -1.023), 'head': (14.943, 0.367), 'right_wrist': (-52.744, 11.203),
         'left_clavicle': (-9.206, 14.948), 'left_shoulder': (39.34, 9.238, 19.059),
         'left_elbow': (32.078, 45.802), 'left_wrist': (-46.229, 16.218),
     })
     human.KeyJoints(9.7, {
         'spine_lumbar': (60.0, 19.159, -13.954), 'spine_thoracic': (0.123, -8.028, -27.568),
-        'neck': (34.985, -7.889, 4.118), 'head': (14.955, -0.027), 'right_wrist': (-52.409, 11.203),
+        'neck': (34.988, -7.889, 5.158), 'head': (14.968, -0.027), 'right_wrist': (-52.409, 11.203),
         'left_shoulder': (47.896, 11.682, 19.998), 'left_elbow': (19.278, 50.194),
         'left_wrist': (-47.473, 15.797),
     })
     # examples/replace_fuel_filter.mtask:42:5 replace_fuel_filter > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(9.8, {
         'spine_lumbar': (60.0, 19.944, -14.93), 'spine_thoracic': (3.817, -9.859, -29.837),
-        'neck': (34.484, 0.0, 8.366), 'head': (14.779, 0.0), 'left_clavicle': (-9.973, 14.998),
+        'neck': (34.494, 0.0, 8.375), 'head': (14.783, 0.0), 'left_clavicle': (-9.973, 14.998),
         'left_shoulder': (52.821, 12.987, 20.099), 'left_elbow': (12.753, 51.643),
         'left_wrist': (-46.123, 15.05),
     })

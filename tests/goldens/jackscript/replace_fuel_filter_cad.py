@@ -302,56 +302,56 @@ def replace_fuel_filter_cad():
     human.LookAt((10.0, 25.0, 95.0), start=4.109804, duration=0.819176)
     human.KeyJoints(4.2, {
         'spine_lumbar': (12.856, 0.448, 0.621), 'spine_thoracic': (1.587, 0.417, 0.779),
-        'neck': (35.0, -33.75, 14.59), 'right_clavicle': (-0.311, 0.621),
+        'neck': (35.0, -33.75, 14.543), 'right_clavicle': (-0.311, 0.621),
         'right_shoulder': (9.657, 6.413, 11.189), 'right_elbow': (34.062, 17.189),
         'right_wrist': (-0.087, -0.101),
     })
     human.KeyJoints(4.3, {
         'spine_lumbar': (17.246, 1.715, 2.405), 'spine_thoracic': (0.657, 1.607, 3.026),
-        'neck': (35.0, -33.75, 8.696), 'head': (15.0, -11.25), 'right_clavicle': (-1.209, 2.405),
+        'neck': (35.0, -33.75, 8.62), 'head': (15.0, -11.25), 'right_clavicle': (-1.209, 2.405),
         'right_shoulder': (12.72, 8.375, 10.412), 'right_elbow': (33.156, 17.19),
         'right_wrist': (-0.338, -0.392),
     })
     human.KeyJoints(4.4, {
         'spine_lumbar': (24.114, 3.743, 5.202), 'spine_thoracic': (-0.863, 3.471, 6.624),
-        'neck': (34.998, -31.933, 2.631), 'head': (14.998, -10.907),
+        'neck': (34.999, -31.961, 2.85), 'head': (14.994, -10.791),
         'right_clavicle': (-2.656, 5.201), 'right_shoulder': (17.579, 11.441, 9.197),
         'right_elbow': (31.739, 17.192),
     })
     human.KeyJoints(4.5, {
         'spine_lumbar': (31.901, 6.259, 8.411), 'spine_thoracic': (-2.821, 5.614, 11.008),
-        'neck': (34.987, -16.903, -4.951), 'head': (14.976, -7.873),
+        'neck': (34.99, -17.46, -3.787), 'head': (14.949, -7.128),
         'right_clavicle': (-4.463, 8.404), 'right_shoulder': (23.346, 14.88, 7.818),
         'right_elbow': (30.13, 17.194),
     })
     human.KeyJoints(4.6, {
         'spine_lumbar': (38.502, 9.113, 11.285), 'spine_thoracic': (-5.015, 7.553, 15.49),
-        'neck': (34.975, 4.307, -11.651), 'head': (14.921, -2.912),
+        'neck': (34.979, 1.997, -10.275), 'head': (14.89, -2.429),
         'right_clavicle': (-6.463, 11.25), 'right_shoulder': (28.872, 17.635, 6.647),
         'right_elbow': (28.737, 17.197), 'right_wrist': (-1.544, -1.81),
     })
     human.KeyJoints(4.7, {
         'spine_lumbar': (41.262, 12.215, 12.917), 'spine_thoracic': (-6.922, 8.711, 18.944),
-        'neck': (34.984, 23.031, -14.35), 'head': (13.166, 3.523),
+        'neck': (34.973, 14.666, -14.738), 'head': (14.86, 0.104),
         'right_clavicle': (-8.386, 12.794), 'right_shoulder': (32.462, 18.304, 6.151),
         'right_elbow': (28.03, 17.198), 'right_wrist': (-1.677, -2.032),
     })
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
         'spine_lumbar': (40.751, 14.418, 13.242), 'spine_thoracic': (-7.87, 9.005, 20.455),
-        'neck': (34.379, 33.215, -16.878), 'head': (11.337, 10.553),
-        'right_clavicle': (-9.56, 13.02), 'right_shoulder': (33.519, 17.462, 6.235),
+        'neck': (34.992, 18.76, -17.069), 'head': (14.986, 0.21), 'right_clavicle': (-9.56, 13.02),
+        'right_shoulder': (33.519, 17.462, 6.235),
     })
     human.KeyJoints(4.9, {
         'spine_lumbar': (40.441, 15.04, 13.278), 'spine_thoracic': (-8.106, 9.053, 20.813),
-        'neck': (34.231, 33.746, -17.048), 'head': (13.243, 11.249),
+        'neck': (34.923, 26.453, -17.421), 'head': (14.803, 0.769),
         'right_clavicle': (-9.877, 13.025), 'right_shoulder': (33.713, 17.135, 6.288),
         'right_elbow': (27.967, 17.197),
     })
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
-    human.KeyJoints(5.0, {'head': (13.446, 11.249)})
-    human.KeyJoints(5.1, {'neck': (34.306, 33.746, -16.96), 'right_wrist': (-1.593, -2.042)})
+    human.KeyJoints(5.0, {'neck': (34.89, 29.287, -17.301), 'head': (14.682, 1.177)})
+    human.KeyJoints(5.1, {'right_wrist': (-1.593, -2.042)})
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > turn: posture on r_hand
     human.KeyJoints(5.2, {'right_elbow': (27.967, 17.166)})
     human.KeyJoints(5.3, {'right_elbow': (28.099, 12.274)})
@@ -383,9 +383,7 @@ def replace_fuel_filter_cad():
     })
     human.KeyJoints(6.9, {'right_elbow': (27.763, 51.211), 'right_wrist': (-1.547, -2.061)})
     human.KeyJoints(7.0, {'right_elbow': (27.588, 70.933)})
-    human.KeyJoints(7.1, {
-        'neck': (34.306, 33.746, -16.96), 'head': (13.446, 11.249), 'right_elbow': (27.516, 79.835),
-    })
+    human.KeyJoints(7.1, {'right_elbow': (27.516, 79.835)})
     # examples/replace_fuel_filter_cad.mtask:37:5 replace_fuel_filter_cad > spin_off > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=7.114814, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:39:9 replace_fuel_filter_cad > grasp: grip on r_hand
@@ -395,14 +393,14 @@ def replace_fuel_filter_cad():
     human.LookAt((-35.0, 5.0, 80.0), start=7.186814, duration=1.618047)
     human.KeyJoints(7.2, {
         'spine_lumbar': (40.438, 15.048, 13.278), 'spine_thoracic': (-8.109, 9.053, 20.818),
-        'neck': (34.42, 32.902, -16.975), 'head': (13.687, 9.528),
+        'neck': (34.89, 29.303, -17.272), 'head': (14.682, 1.173),
         'right_shoulder': (33.629, 17.124, 6.292), 'right_elbow': (27.516, 80.0),
         'right_wrist': (-1.48, -2.045), 'left_clavicle': (0.0, 0.001),
         'left_shoulder': (8.595, 5.729, 11.459),
     })
     human.KeyJoints(7.3, {
         'spine_lumbar': (40.903, 14.8, 13.049), 'spine_thoracic': (-8.273, 8.983, 20.657),
-        'neck': (34.884, 30.219, -15.855), 'head': (14.66, 0.919),
+        'neck': (34.885, 30.218, -15.852), 'head': (14.662, 0.942),
         'right_clavicle': (-9.879, 13.072), 'right_shoulder': (33.474, 16.721, 6.4),
         'right_elbow': (28.338, 80.0), 'right_wrist': (-1.696, -1.978),
         'left_clavicle': (-0.233, 0.357), 'left_shoulder': (9.112, 5.658, 11.425),
@@ -410,14 +408,14 @@ def replace_fuel_filter_cad():
     })
     human.KeyJoints(7.4, {
         'spine_lumbar': (42.944, 13.709, 12.047), 'spine_thoracic': (-8.992, 8.672, 19.952),
-        'neck': (34.906, 33.427, -12.828), 'head': (14.642, 0.488),
+        'neck': (34.895, 33.256, -12.824), 'head': (14.625, 0.498),
         'right_clavicle': (-9.871, 13.278), 'right_shoulder': (32.745, 14.967, 6.877),
         'right_elbow': (31.994, 80.0), 'right_wrist': (-2.662, -1.661),
         'left_clavicle': (-1.256, 1.922), 'left_shoulder': (11.395, 5.343, 11.275),
     })
     human.KeyJoints(7.5, {
         'spine_lumbar': (46.663, 11.722, 10.22), 'spine_thoracic': (-10.302, 8.106, 18.666),
-        'neck': (34.997, 33.749, -7.728), 'head': (14.984, 10.753),
+        'neck': (34.997, 33.749, -7.727), 'head': (14.985, 10.753),
         'right_shoulder': (31.69, 11.772, 7.764), 'right_elbow': (38.092, 80.0),
         'right_wrist': (-4.286, -1.021), 'left_clavicle': (-3.12, 4.774),
         'left_shoulder': (15.729, 4.777, 10.978), 'left_elbow': (34.219, 17.181),
@@ -531,38 +529,38 @@ def replace_fuel_filter_cad():
     human.LookAt((10.0, 25.0, 95.0), start=9.204861, duration=1.931992)
     human.KeyJoints(9.3, {
         'spine_lumbar': (60.0, 7.0, 0.755), 'spine_thoracic': (-14.049, 4.222, 7.18),
-        'neck': (27.075, 30.732, -44.41), 'head': (14.629, 7.605),
+        'neck': (27.055, 30.732, -44.268), 'head': (14.639, 7.605),
         'right_shoulder': (29.377, 39.703, -18.644), 'left_shoulder': (27.297, 6.302, 10.676),
         'left_elbow': (59.267, 22.894), 'left_wrist': (-12.571, 8.874),
     })
     human.KeyJoints(9.4, {
         'spine_lumbar': (60.0, 10.05, -2.937), 'spine_thoracic': (-12.718, 1.858, -1.538),
-        'neck': (33.52, 26.302, -23.16), 'head': (14.789, 1.613), 'right_elbow': (18.333, 34.786),
+        'neck': (33.492, 26.302, -22.951), 'head': (14.804, 1.613), 'right_elbow': (18.333, 34.786),
         'left_clavicle': (-9.528, 14.994), 'left_shoulder': (29.978, 6.674, 13.4),
         'left_elbow': (52.595, 29.975), 'left_wrist': (-23.837, 11.459),
     })
     human.KeyJoints(9.5, {
         'spine_lumbar': (60.0, 13.671, -7.308), 'spine_thoracic': (-10.514, -1.074, -11.877),
-        'neck': (34.982, 29.136, -8.315), 'head': (14.945, 5.249),
-        'left_clavicle': (-9.292, 14.975), 'left_shoulder': (33.625, 7.497, 16.542),
-        'left_elbow': (43.611, 38.329), 'left_wrist': (-36.733, 14.357),
+        'neck': (35.0, 33.623, -9.159), 'head': (14.902, 0.641), 'left_clavicle': (-9.292, 14.975),
+        'left_shoulder': (33.625, 7.497, 16.542), 'left_elbow': (43.611, 38.329),
+        'left_wrist': (-36.733, 14.357),
     })
     human.KeyJoints(9.6, {
         'spine_lumbar': (60.0, 17.007, -11.327), 'spine_thoracic': (-6.342, -4.446, -21.395),
-        'neck': (35.0, 28.682, 0.299), 'head': (14.999, 9.748), 'right_wrist': (-52.744, 11.203),
+        'neck': (34.998, 16.519, -1.023), 'head': (14.943, 0.367), 'right_wrist': (-52.744, 11.203),
         'left_clavicle': (-9.206, 14.948), 'left_shoulder': (39.34, 9.238, 19.059),
         'left_elbow': (32.078, 45.802), 'left_wrist': (-46.229, 16.218),
     })
     human.KeyJoints(9.7, {
         'spine_lumbar': (60.0, 19.159, -13.954), 'spine_thoracic': (0.123, -8.028, -27.568),
-        'neck': (34.998, 3.168, 6.139), 'head': (14.996, 2.187), 'right_wrist': (-52.409, 11.203),
+        'neck': (34.988, -7.889, 5.158), 'head': (14.968, -0.027), 'right_wrist': (-52.409, 11.203),
         'left_shoulder': (47.896, 11.682, 19.998), 'left_elbow': (19.278, 50.194),
         'left_wrist': (-47.473, 15.797),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(9.8, {
         'spine_lumbar': (60.0, 19.944, -14.93), 'spine_thoracic': (3.817, -9.859, -29.837),
-        'neck': (34.484, 0.0, 8.366), 'head': (14.779, 0.0), 'left_clavicle': (-9.973, 14.998),
+        'neck': (34.494, 0.0, 8.375), 'head': (14.783, 0.0), 'left_clavicle': (-9.973, 14.998),
         'left_shoulder': (52.821, 12.987, 20.099), 'left_elbow': (12.753, 51.643),
         'left_wrist': (-46.123, 15.05),
     })

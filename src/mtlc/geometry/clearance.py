@@ -46,6 +46,18 @@ class FrameClearance:
     meshes: tuple[str, ...]  # M names, sorted
     clearance: FloatArray  # (N, C, M); NaN where a tool is not in the hand
     horizon: float | None = None  # clearances over it are lower bounds
+    # the held parts (``model/node``, as their columns in ``meshes``) and how deep (m) each
+    # goes into each mesh while a hand holds it: (N, H, M), NaN where no hand holds it and
+    # against the held parts' own columns (empty until the held parts are measured)
+    held: tuple[str, ...] = ()
+    held_depth: FloatArray = field(default_factory=lambda: np.zeros((0, 0, 0)))
+    # (N, H, M) the triangle of the mesh each held part meets first (-1: none), to name the
+    # node a finding is in (an index into that column's mesh)
+    held_face: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 0, 0), np.int64))
+    # (N, C, M) where a capsule touches a mesh and verify says it is no finding (a hand at its
+    # goal's site, a hand on the part it holds; ``mtlc.passes.verify``): what the preview does
+    # not paint as a clash. Empty until verify has judged.
+    excused: NDArray[np.bool_] = field(default_factory=lambda: np.zeros((0, 0, 0), bool))
 
 
 @dataclass

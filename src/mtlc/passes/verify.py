@@ -646,6 +646,8 @@ class _Verifier:
         sides = self.capsule_sides(fc)
         goal_at = self.at_site(fc, columns, sides, radii, depth)
         self.in_hand(fc, held, depth)
+        fc.excused = np.isneginf(depth) & ~np.isnan(fc.clearance)
+        self.v.held_parts = held
         _, c, m = depth.shape
         k = int(np.argmax(depth.reshape(-1)))
         i, rest = divmod(k, c * m)

@@ -242,6 +242,7 @@ class MeshIndex:
         f = np.ascontiguousarray(faces, dtype=np.int64)
         self.n_triangles = len(f)
         self._vertices, self._faces = v, f
+        self._outline: IntArray | None = None  # keys of the outline edges, found when asked
         used = v[np.unique(f)] if len(f) else np.zeros((1, 3))
         self.lower, self.upper = used.min(axis=0), used.max(axis=0)  # the bounding box
         if library == "coal":
@@ -400,7 +401,7 @@ class MeshIndex:
         """(K, 2, 3) the outline edges among the edges of triangles ``faces``: edges of one
         triangle only, or between two that meet at more than ``OUTLINE_ANGLE`` (a box's
         edges, a cylinder's rims; not a face's diagonal or a cylinder's side seams)."""
-        if not hasattr(self, "_outline"):
+        if self._outline is None:
             self._outline = _outline_keys(self._vertices, self._faces)
         f = self._faces[np.asarray(faces, dtype=np.int64)]
         pairs = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)

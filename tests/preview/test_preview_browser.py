@@ -216,3 +216,33 @@ def test_the_models_are_drawn_and_a_clash_is_shown(
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
     if request.config.getoption("--update-goldens") or not CAD_SCREENSHOT.exists():
         CAD_SCREENSHOT.write_bytes(png)
+
+
+def test_the_held_part_moves_with_the_hand(browser: Any, examples: dict[str, Example]) -> None:
+    """The access panel the hands take out is drawn where the IR's holds put it on every
+    frame (``verification.held_parts``): carried to the bench, not left in the bay."""
+    example = examples["remove_access_panel_cad"]
+    (part,) = example.ir.verification.held_parts
+    drawn = next(m for m in example.document["models"] if m.get("held"))
+    assert drawn["name"] == part.column and len(drawn["placement"]) == len(part.placement)
+    vertices = np.reshape(drawn["positions"], (-1, 3))
+    centre = (vertices.min(axis=0) + vertices.max(axis=0)) / 2
+    where = part.placement[:, :3, :3] @ centre + part.placement[:, :3, 3]
+    k = int(np.argmax(np.linalg.norm(where - centre, axis=1)))
+    assert np.linalg.norm(where[k] - centre) > 0.5, "the panel is carried to the bench"
+    _open(browser, example)
+    for frame in (0, k):
+        browser.execute_script("window.mtlcPreview.setFrame(arguments[0])", frame)
+        (shown,) = browser.execute_script("return window.mtlcPreview.heldParts")
+        assert shown["name"] == part.column
+        assert np.linalg.norm(np.array(shown["centre"]) - where[frame]) < 1e-3, frame
+    # and it is in the hands that carry it: as near to them as when they closed on it
+    hold = next(h for h in part.holds if h.start - 1e-9 <= example.ir.frames.time[k] <= h.end)
+    hand = browser.execute_script("return window.mtlcPreview.points")[f"{hold.side}_hand"]
+    closed = int(np.searchsorted(example.ir.frames.time, hold.start - 1e-9))
+    f = example.ir.frames
+    pose = forward(example.ir.skeleton, f.q[closed], f.root_position[closed],
+                   f.root_rotation[closed])  # fmt: skip
+    grip = site_positions(example.ir.skeleton, pose, f"{hold.side}_hand")
+    near = np.linalg.norm(where[closed] - grip)
+    assert abs(np.linalg.norm(np.array(shown["centre"]) - hand) - near) < 0.05

@@ -41,31 +41,50 @@ def test_figures_have_one_value_per_frame(examples: dict[str, Example]) -> None:
         assert np.all(np.diff(worst) >= 0) and worst.min() >= 1 and worst.max() <= 7
 
 
-def test_models_are_drawn_as_read_and_the_clearance_is_the_metric(
+def test_models_are_drawn_as_read_and_the_clearance_is_the_verdict(
     examples: dict[str, Example],
 ) -> None:
-    """The CAD examples carry their models' triangles; the clearance figure is the smallest of
-    mtlc.geometry.clearance's per-frame figures, naming its pair."""
-    from mtlc.geometry.clearance import frame_clearance
-
+    """The CAD examples carry their models' triangles, a part the hands hold drawn on its own
+    with its placement per frame; the clearance figure is what verify measured and judged
+    (``Verification.equipment_clearance``), not measured again: the smallest clearance of the
+    pairs it does not excuse, a held part in the rest of the equipment minus its depth."""
     for example in examples.values():
         doc, ir = example.document, example.ir
         if not ir.geometry:
             assert "models" not in doc and "clearance" not in doc
             continue
-        for drawn, model in zip(doc["models"], ir.geometry, strict=True):
-            assert drawn["name"] == model.name and drawn["indices"] == model.faces.ravel().tolist()
+        held = ir.verification.held_parts
+        rest = [m for m in doc["models"] if not m.get("held")]
+        for drawn, model in zip(rest, ir.geometry, strict=True):
+            taken = np.zeros(len(model.faces), dtype=bool)
+            for part in held:
+                if part.model == model.name:
+                    taken[part.faces] = True
+            assert drawn["name"] == model.name
+            assert drawn["indices"] == model.faces[~taken].ravel().tolist()
             assert np.allclose(np.reshape(drawn["positions"], (-1, 3)), model.vertices, atol=6e-5)
-        fc = frame_clearance(ir, {m.name: (m.vertices, m.faces) for m in ir.geometry})
-        smallest = np.nanmin(fc.clearance.reshape(len(fc.time), -1), axis=1)
-        assert np.allclose(doc["figures"]["clearance"], smallest, atol=1e-6)
+        parts = [m for m in doc["models"] if m.get("held")]
+        assert [m["name"] for m in parts] == [p.column for p in held]
+        for drawn, part in zip(parts, held, strict=True):
+            assert len(drawn["placement"]) == len(ir.frames.time)
+            assert np.allclose(np.reshape(drawn["placement"], (-1, 3, 4)), part.placement[:, :3],
+                               atol=2e-6)  # fmt: skip
+        fc = ir.verification.equipment_clearance
+        judged = np.where(np.isnan(fc.clearance) | fc.excused, np.inf, fc.clearance)
+        smallest = judged.reshape(len(fc.time), -1).min(axis=1)
+        if fc.held:
+            depth = np.nan_to_num(fc.held_depth, nan=0.0).reshape(len(fc.time), -1)
+            smallest = np.minimum(smallest, np.where(depth > 0, -depth, np.inf).min(axis=1))
+        figure = np.array([np.inf if v is None else v for v in doc["figures"]["clearance"]])
+        assert np.allclose(figure, smallest, atol=1e-6)
+        # verdicts, not distances: a hand in what it works on is excused, and not shown
+        assert fc.excused.any()
+        raw = np.nanmin(fc.clearance.reshape(len(fc.time), -1), axis=1)
+        assert (raw < figure - 1e-6).any()
         c = doc["clearance"]
         k = int(np.argmin(smallest))
-        pair = (
-            fc.capsules.index(c["parts"][c["part"][k]]),
-            fc.meshes.index(c["meshes"][c["mesh"][k]]),
-        )
-        assert fc.clearance[k, pair[0], pair[1]] == pytest.approx(smallest[k])
+        assert c["meshes"][c["mesh"][k]] in fc.meshes
+        assert c["parts"][c["part"][k]] in (*fc.capsules, *(f"held part {h}" for h in fc.held))
 
 
 def test_contact_error_per_frame_agrees_with_the_metrics(examples: dict[str, Example]) -> None:
@@ -259,3 +278,34 @@ def test_hover_text_is_the_line_the_diagnostics_count() -> None:
     ref = _ref(SimpleNamespace(file="f.mtask", line=3, column=5), {"f.mtask": text})
     assert ref["text"] == "press(right, b)"
     assert _ref(SimpleNamespace(file="f.mtask", line=9, column=1), {"f.mtask": text})["text"] == ""
+
+
+def test_the_sheet_draws_the_held_part_where_the_hands_took_it(
+    examples: dict[str, Example],
+) -> None:
+    """The contact sheet draws the models behind the poses, and the panel the hands carry
+    where its placement puts it on each pose (on the bench at the end), not in the bay."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from mtlc.preview.sheet import _draw_models, _model_pieces
+
+    ir = examples["remove_access_panel_cad"].ir
+    (part,) = ir.verification.held_parts
+    pieces = _model_pieces(ir)
+    assert [placement is part.placement for _, placement in pieces].count(True) == 1
+    last = len(ir.frames.time) - 1
+    fig, ax = plt.subplots()
+    try:
+        _draw_models(ax, pieces, last, (0, 1))
+        k = next(i for i, (_, placement) in enumerate(pieces) if placement is not None)
+        drawn = ax.collections[k].get_paths()[0].vertices[:3]
+    finally:
+        plt.close(fig)
+    tri = pieces[k][0][0]
+    m = part.placement[last]
+    placed = tri @ m[:3, :3].T + m[:3, 3]
+    assert np.allclose(drawn, placed[:, :2], atol=1e-9)
+    assert np.linalg.norm(placed.mean(axis=0) - tri.mean(axis=0)) > 0.5  # on the bench

@@ -46,6 +46,18 @@ class FrameClearance:
     meshes: tuple[str, ...]  # M names, sorted
     clearance: FloatArray  # (N, C, M); NaN where a tool is not in the hand
     horizon: float | None = None  # clearances over it are lower bounds
+    # the held parts (``model/node``, as their columns in ``meshes``) and how deep (m) each
+    # goes into each mesh while a hand holds it: (N, H, M), NaN where no hand holds it and
+    # against the held parts' own columns (``held_part_depths``)
+    held: tuple[str, ...] = ()
+    held_depth: FloatArray = field(default_factory=lambda: np.zeros((0, 0, 0)))
+    # (N, H, M) the triangle of the mesh each held part meets first (-1: none), to name the
+    # node a finding is in (an index into that column's mesh)
+    held_face: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 0, 0), np.int64))
+    # (N, C, M) where a capsule touches a mesh and verify says it is no finding (a hand at its
+    # goal's site, a hand on the part it holds; ``mtlc.passes.verify``): what the preview does
+    # not paint as a clash. Empty until verify has judged.
+    excused: NDArray[np.bool_] = field(default_factory=lambda: np.zeros((0, 0, 0), bool))
 
 
 @dataclass
@@ -199,7 +211,34 @@ def frame_clearance(
     for j, (_, start, end) in enumerate(tools, start=len(body)):
         out[(t < start - EPS) | (t > end + EPS), j, :] = np.nan
     names = tuple(indices) + tuple(p.column for p, _ in held)
-    return FrameClearance(t, tuple(cap.name for cap in caps), names, out, horizon)
+    depth, face = held_part_depths(t, held, indices, len(names))
+    return FrameClearance(t, tuple(cap.name for cap in caps), names, out, horizon,
+                          tuple(p.column for p, _ in held), depth, face)  # fmt: skip
+
+
+def held_part_depths(
+    t: FloatArray,
+    held: Sequence[tuple[HeldPart, MeshIndex]],
+    indices: Mapping[str, MeshIndex],
+    columns: int,
+) -> tuple[FloatArray, NDArray[np.int64]]:
+    """(N, H, M) how deep each held part goes into each of ``indices`` (the scene's models,
+    its own model's rest where it is taken from one) on the frames a hand holds it, and the
+    triangle met (``MeshIndex.placed_depth``): the hand is excused against the part it holds,
+    but the part is not excused against the rest of the equipment (a panel carried through
+    the bay's wall). NaN where no hand holds it and against the held parts' columns (two
+    parts carried into each other are not measured)."""
+    depth = np.full((len(t), len(held), columns), np.nan)
+    face = np.full((len(t), len(held), columns), -1, dtype=np.int64)
+    for h, (part, index) in enumerate(held):
+        holding = np.zeros(len(t), dtype=bool)
+        for hold in part.holds:
+            holding |= (t >= hold.start - EPS) & (t <= hold.end + EPS)
+        rows = np.flatnonzero(holding)
+        for k, other in enumerate(indices.values()):
+            d, f = index.placed_depth(other, part.placement[rows])
+            depth[rows, h, k], face[rows, h, k] = d, f
+    return depth, face
 
 
 def goal_groups(ir: MotionIR) -> list[tuple[Segment, list[Segment]]]:
@@ -285,5 +324,6 @@ __all__ = [
     "carried_part_capsules",
     "frame_clearance",
     "goal_clearances",
+    "held_part_depths",
     "scene_indices",
 ]

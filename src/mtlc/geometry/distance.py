@@ -23,7 +23,7 @@ so this module knows no file format and no scene model.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -147,6 +147,87 @@ def _segment_frames(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArra
     return np.stack([x, np.cross(z, x), z], axis=-1), 0.5 * (a + b), length
 
 
+def _triangle_edges(vertices: FloatArray, faces: IntArray) -> tuple[FloatArray, FloatArray]:
+    """(E, 3) ends of the distinct edges of triangles ``faces`` (each edge once)."""
+    pairs = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    pairs = np.unique(np.sort(pairs, axis=1), axis=0)
+    return vertices[pairs[:, 0]], vertices[pairs[:, 1]]
+
+
+OUTLINE_ANGLE = 30.0  # deg between two triangles' normals: their shared edge is an outline
+
+
+def _outline_keys(vertices: FloatArray, faces: IntArray) -> IntArray:
+    """Sorted keys (``v0 * V + v1``, v0 < v1) of a mesh's outline edges (``MeshIndex.outline``)."""
+    if not len(faces):
+        return np.zeros(0, dtype=np.int64)
+    tri = vertices[faces]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), _EPS)
+    pairs = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    keys = pairs[:, 0] * len(vertices) + pairs[:, 1]
+    owner = np.tile(np.arange(len(faces)), 3)
+    order = np.argsort(keys, kind="stable")
+    keys, owner = keys[order], owner[order]
+    unique, first, count = np.unique(keys, return_index=True, return_counts=True)
+    outline = count != 2
+    two = np.flatnonzero(count == 2)
+    cos = _dot(normal[owner[first[two]]], normal[owner[first[two] + 1]])
+    outline[two] = cos < np.cos(np.radians(OUTLINE_ANGLE))
+    return unique[outline]
+
+
+def crossing_depth(
+    a: FloatArray,
+    b: FloatArray,
+    tri: FloatArray,
+    outline: FloatArray,
+    gap: Callable[[FloatArray], FloatArray],
+) -> float:
+    """The deepest of segments ``a``-``b`` (E, 3) passing through triangles ``tri`` (T, 3, 3)
+    (ends strictly on either side of its plane, through its inside, not along an edge: 0 if
+    none does): each crossing as deep as the shorter way out, back along the segment (its
+    nearer end's distance ``gap`` (points (K, 3) -> (K,)) to the mesh crossed, as
+    ``MeshIndex.through_depth`` for a capsule's axis) or across the surface to its nearest
+    ``outline`` edge (K, 2, 3; none: along the segment only)."""
+    if not len(a) or not len(tri):
+        return 0.0
+    p0, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    normal = np.cross(e1, e2)
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), _EPS)
+    sa = _dot(a[:, None, :] - p0[None], normal[None])  # (E, T) signed heights of the ends
+    sb = _dot(b[:, None, :] - p0[None], normal[None])
+    tol = 1e-6
+    cross = (sa * sb < 0.0) & (np.abs(sa) > tol) & (np.abs(sb) > tol)
+    e, t = np.nonzero(cross)
+    if not e.size:
+        return 0.0
+    x = a[e] + (sa[e, t] / (sa[e, t] - sb[e, t]))[:, None] * (b[e] - a[e])
+    # inside the triangle: barycentric coordinates of the crossing point
+    w = x - p0[t]
+    d00, d01, d11 = _dot(e1[t], e1[t]), _dot(e1[t], e2[t]), _dot(e2[t], e2[t])
+    d20, d21 = _dot(w, e1[t]), _dot(w, e2[t])
+    den = np.maximum(d00 * d11 - d01 * d01, _EPS)
+    v = (d11 * d20 - d01 * d21) / den
+    u = (d00 * d21 - d01 * d20) / den
+    margin = 1e-9  # on an edge of the triangle: a tangent touch (a cylinder's seam on a wall)
+    inside = (v > margin) & (u > margin) & (u + v < 1.0 - margin)
+    if not inside.any():
+        return 0.0
+    x, e = x[inside], e[inside]
+    k = np.unique(e)
+    ends = gap(np.concatenate([a[k], b[k]]))
+    back = np.zeros(len(a))
+    back[k] = np.minimum(ends[: k.size], ends[k.size :])
+    along = back[e]
+    if len(outline):
+        across = point_segment_distance(
+            x[:, None, :], outline[None, :, 0, :], outline[None, :, 1, :]
+        ).min(axis=1)
+        along = np.minimum(along, across)
+    return float(along.max())
+
+
 class MeshIndex:
     """One mesh's bounding-volume hierarchy, for segment-distance queries.
 
@@ -161,6 +242,7 @@ class MeshIndex:
         f = np.ascontiguousarray(faces, dtype=np.int64)
         self.n_triangles = len(f)
         self._vertices, self._faces = v, f
+        self._outline: IntArray | None = None  # keys of the outline edges, found when asked
         used = v[np.unique(f)] if len(f) else np.zeros((1, 3))
         self.lower, self.upper = used.min(axis=0), used.max(axis=0)  # the bounding box
         if library == "coal":
@@ -267,6 +349,65 @@ class MeshIndex:
         if not contacts:
             return None
         return int(min(contacts, key=lambda c: (c.penetration_depth, c.b2)).b2)
+
+    def placed_depth(self, other: MeshIndex, placements: FloatArray) -> tuple[FloatArray, IntArray]:
+        """How deep this mesh, moved by each of ``placements`` (N, 4, 4), goes into ``other``
+        (where it is): (N,) depths (m) and (N,) the ``other`` triangle met first (-1: none).
+
+        A carried part is a mesh, not a capsule: the library finds the triangle pairs that
+        meet (one BVH-BVH query per placement); then each edge of this mesh's triangles met,
+        and each outline edge of the other's (``outline``), that passes through a triangle of
+        the other mesh (``crossing_depth``) is as deep as the
+        shorter way out: back along the edge (its nearer end's distance to the mesh crossed)
+        or across the surface it passes to that surface's nearest outline edge. A panel pushed 4 cm into a wall reads 40 mm, one
+        lying against it 0, one grazing a wall's corner by 2 mm reads 2 mm (not the length of
+        its edge). coal only (python-fcl: zeros)."""
+        n = len(placements)
+        depth, face = np.zeros(n), np.full(n, -1, dtype=np.int64)
+        if self.library != "coal" or other.library != "coal" or not len(self._faces):
+            return depth, face
+        coal = self._coal
+        request = coal.CollisionRequest()
+        request.num_max_contacts = 256
+        mine_outline = self.outline(np.arange(len(self._faces)))
+        for i, m in enumerate(np.asarray(placements, dtype=float)):
+            result = coal.CollisionResult()
+            coal.collide(self._model, coal.Transform3s(m[:3, :3], m[:3, 3]), other._model,
+                         other._identity, request, result)  # fmt: skip
+            pairs = [(c.b1, c.b2) for c in result.getContacts() if c.b1 >= 0 and c.b2 >= 0]
+            if not pairs:
+                continue
+            mine = np.unique([p[0] for p in pairs])
+            theirs = np.unique([p[1] for p in pairs])
+            face[i] = int(theirs[0])
+            rot, move = m[:3, :3], m[:3, 3]
+            # this mesh's edges through the other's triangles, in the other's frame
+            a, b = _triangle_edges(self._vertices, self._faces[mine])
+            tri = other._vertices[other._faces[theirs]]
+            outline = other.outline(theirs)
+            into = crossing_depth(a @ rot.T + move, b @ rot.T + move, tri, outline,
+                                  lambda p: other.segment_distance(p, p))  # fmt: skip
+            # the other's outline edges through this mesh's triangles, in this mesh's frame
+            # (not its faces' diagonals: one lying along a curved part reads as deep as the
+            # part's seam to its rim)
+            c, d = outline[:, 0], outline[:, 1]
+            mine_tri = self._vertices[self._faces[mine]]
+            back = crossing_depth((c - move) @ rot, (d - move) @ rot, mine_tri, mine_outline,
+                                  lambda p: self.segment_distance(p, p))  # fmt: skip
+            depth[i] = max(into, back)
+        return depth, face
+
+    def outline(self, faces: IntArray) -> FloatArray:
+        """(K, 2, 3) the outline edges among the edges of triangles ``faces``: edges of one
+        triangle only, or between two that meet at more than ``OUTLINE_ANGLE`` (a box's
+        edges, a cylinder's rims; not a face's diagonal or a cylinder's side seams)."""
+        if self._outline is None:
+            self._outline = _outline_keys(self._vertices, self._faces)
+        f = self._faces[np.asarray(faces, dtype=np.int64)]
+        pairs = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        pairs = np.unique(pairs, axis=0)
+        keep = np.isin(pairs[:, 0] * len(self._vertices) + pairs[:, 1], self._outline)
+        return self._vertices[pairs[keep]]
 
     def _coal_distance(self, rot: FloatArray, mid: FloatArray, length: float) -> float:
         coal = self._coal

@@ -146,8 +146,12 @@ class Verification:
     # depth (m, 0 when clear), part, model, time
     equipment: dict[str, Any] = field(default_factory=dict)
     # ...and every capsule's clearance to every model on every frame (a FrameClearance, for the
-    # preview; not serialised)
+    # preview; not serialised), with which contacts are not findings (``excused``) and how deep
+    # each held part goes into the rest of the equipment
     equipment_clearance: Any = None
+    # the parts the hands hold, with their faces and placement on every frame
+    # (mtlc.geometry.held.HeldPart; the JSON has ``equipment.held``): for the preview
+    held_parts: list[Any] = field(default_factory=list)
 
 
 @dataclass

@@ -693,6 +693,8 @@ class _Verifier:
         sides = self.capsule_sides(fc)
         goal_at = self.at_site(fc, columns, sides, radii, depth)
         self.in_hand(fc, held, depth)
+        fc.excused = np.isneginf(depth) & ~np.isnan(fc.clearance)
+        self.v.held_parts = held
         _, c, m = depth.shape
         k = int(np.argmax(depth.reshape(-1)))
         i, rest = divmod(k, c * m)
@@ -741,6 +743,35 @@ class _Verifier:
                     face = int(faces_of[column][face])
                 node = models[model].part_of(face)
             self.report_collision(part, model, node, d, float(self.t[i]), seg, goal)
+        self.carried(fc, held, faces_of)
+
+    def carried(self, fc: FrameClearance, held: list[HeldPart], faces_of: dict[str, Any]) -> None:
+        """MT0515 for a held part in the rest of the equipment (``FrameClearance.held_depth``):
+        the hand holding it is excused against it (``in_hand``), the part is not excused
+        against the walls it is carried through. One finding per task line, part and model,
+        at its deepest frame and the line of the segment that moves the hand carrying it."""
+        models = {m.name: m for m in self.ir.geometry if len(m.faces)}
+        worst: dict[tuple[SourceRef, str, str], tuple[float, int, Segment, str | None]] = {}
+        for h, part in enumerate(held):
+            for col, column in enumerate(fc.meshes):
+                depth = np.nan_to_num(fc.held_depth[:, h, col], nan=-np.inf)
+                for i in np.flatnonzero(depth > EQUIPMENT_TOLERANCE):
+                    side = next(
+                        x.side for x in part.holds if x.start - EPS <= self.t[i] <= x.end + EPS
+                    )
+                    seg = self.active(i, [ARM_TRACK[side], HAND_TRACK[side]])
+                    if seg is None:
+                        continue
+                    label = f"held part `{part.node or part.model}`"
+                    key = (seg.provenance.origin, label, column)
+                    if key not in worst or depth[i] > worst[key][0]:
+                        face = int(fc.held_face[i, h, col])
+                        if face >= 0 and column in faces_of:
+                            face = int(faces_of[column][face])
+                        node = models[column].part_of(face if face >= 0 else None)
+                        worst[key] = (float(depth[i]), int(i), seg, node)
+        for (_, label, model), (d, i, seg, node) in sorted(worst.items(), key=lambda kv: kv[1][1]):
+            self.report_collision(label, model, node, d, float(self.t[i]), seg, None)
 
     def in_hand(self, fc: FrameClearance, held: list[HeldPart], depth: FloatArray) -> None:
         """A hand on a part it grasps is not in it (docs/collision.md, "Held parts"): the hand

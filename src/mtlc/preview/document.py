@@ -79,51 +79,88 @@ def figures(ir: MotionIR) -> dict[str, FloatArray]:
 
 
 def clearance_figures(ir: MotionIR) -> dict[str, Any] | None:
-    """Per frame, the smallest clearance (m) of any body capsule or held tool to any model,
-    and which pair (indices into ``parts`` and ``meshes``); None without geometry. The
-    measure of docs/collision.md (``mtlc.geometry.clearance``), on the output frames."""
-    if not ir.geometry:
-        return None
-    from mtlc.geometry.clearance import frame_clearance
+    """Per frame, the smallest clearance (m) of any body capsule, held tool or held part to
+    any model, and which pair (indices into ``parts`` and ``meshes``); None without geometry.
 
-    meshes = {m.name: (m.vertices, m.faces) for m in ir.geometry if len(m.faces)}
-    if not meshes:
+    Read from what verify measured and judged (``Verification.equipment_clearance``,
+    docs/collision.md), not measured again: a contact verify excuses (a hand or its tool at
+    its goal's site, a hand on the part it holds) is no clash here either, and a held part in
+    the rest of the equipment is a pair of its own (``held part model/node``, minus its
+    depth), so the page paints red what `compile` reports (MT0515)."""
+    v = ir.verification
+    fc = v.equipment_clearance if v is not None else None
+    if fc is None or not fc.meshes:
         return None
-    fc = frame_clearance(ir, meshes)
-    n, c, m = fc.clearance.shape
-    flat = np.where(np.isnan(fc.clearance), np.inf, fc.clearance).reshape(n, c * m)
+    values = np.where(np.isnan(fc.clearance), np.inf, fc.clearance)
+    if fc.excused.shape == values.shape:
+        values = np.where(fc.excused, np.inf, values)
+    parts = list(fc.capsules)
+    if fc.held:
+        depth = np.nan_to_num(fc.held_depth, nan=0.0)
+        values = np.concatenate([values, np.where(depth > 0.0, -depth, np.inf)], axis=1)
+        parts += [f"held part {column}" for column in fc.held]
+    n, c, m = values.shape
+    flat = values.reshape(n, c * m)
     k = np.argmin(flat, axis=1)
     return {
         "values": flat[np.arange(n), k],
-        "parts": list(fc.capsules),
+        "parts": parts,
         "meshes": list(fc.meshes),
         "part": (k // m).tolist(),
         "mesh": (k % m).tolist(),
     }
 
 
+def _rounded(values: NDArray[Any]) -> list[float]:
+    return [round(float(x), DRAWN_DECIMALS) + 0.0 for x in np.ravel(values)]
+
+
+def _held_drawn(model: Any, part: Any) -> dict[str, Any]:
+    """A held part for the page: its own vertices and triangles (as the model puts it) and
+    its placement on every output frame (the top three rows of the 4 x 4, flat), so that the
+    page moves it with the hand (``verification.equipment.held`` says who holds it when)."""
+    faces = model.faces[part.faces]
+    used, local = np.unique(faces, return_inverse=True)
+    return {
+        "name": part.column,
+        "drawn": "mesh",
+        "held": True,
+        "triangles": len(faces),
+        "positions": _rounded(model.vertices[used]),
+        "indices": [int(i) for i in local.ravel()],
+        "placement": [[round(float(x), 6) + 0.0 for x in m[:3].ravel()] for m in part.placement],
+    }
+
+
 def drawn_models(ir: MotionIR) -> list[dict[str, Any]]:
     """The scene's models for the page: vertices (flat, m, rounded) and triangles (flat
-    indices); past MAX_DRAWN_TRIANGLES in all, a model is drawn as its bounding box."""
+    indices); past MAX_DRAWN_TRIANGLES in all, a model is drawn as its bounding box. A part a
+    hand holds is drawn on its own after its model (``_held_drawn``), and not in it."""
     from mtlc.geometry.solids import box
 
+    held = ir.verification.held_parts if ir.verification is not None else []
     out, budget = [], MAX_DRAWN_TRIANGLES
     for model in ir.geometry:
-        vertices, faces, drawn = model.vertices, model.faces, "mesh"
+        parts = [p for p in held if p.model == model.name]
+        taken = np.zeros(len(model.faces), dtype=bool)
+        for part in parts:
+            taken[part.faces] = True
+        vertices, faces, drawn = model.vertices, model.faces[~taken], "mesh"
         if len(faces) > budget and len(vertices):
             lo, hi = vertices.min(axis=0), vertices.max(axis=0)
             vertices, faces = box(tuple(hi - lo))  # type: ignore[arg-type]
-            vertices, drawn = vertices + (lo + hi) / 2, "box"
+            vertices, drawn, parts = vertices + (lo + hi) / 2, "box", []
         budget -= len(faces)
         out.append(
             {
                 "name": model.name,
                 "drawn": drawn,
-                "triangles": model.triangles,
-                "positions": [round(float(x), DRAWN_DECIMALS) + 0.0 for x in vertices.ravel()],
+                "triangles": model.triangles - int(taken.sum()),  # less the held parts'
+                "positions": _rounded(vertices),
                 "indices": [int(i) for i in faces.ravel()],
             }
         )
+        out += [_held_drawn(model, part) for part in parts]
     return out
 
 

@@ -226,6 +226,7 @@
   const MODEL_COLOUR = 0x9aa3ad, CLASH_COLOUR = 0xd0402a;
   function buildModels(group, doc) {
     view.models = new Map();
+    view.held = [];
     for (const model of (doc && doc.models) || []) {
       const geometry = new THREE.BufferGeometry();
       geometry.setAttribute("position", new THREE.Float32BufferAttribute(model.positions, 3));
@@ -239,6 +240,21 @@
       mesh.userData.model = model.name;
       group.add(mesh);
       view.models.set(model.name, mesh);
+      // a part a hand holds: placed on every frame where the IR's holds put it
+      if (model.placement) {
+        mesh.matrixAutoUpdate = false;
+        view.held.push({ name: model.name, mesh, placement: model.placement });
+      }
+    }
+  }
+
+  // each held part where its placement on frame i puts it (3 x 4 rows, flat)
+  function placeHeld(i) {
+    for (const { mesh, placement } of view.held || []) {
+      const m = placement[Math.min(Math.max(i, 0), placement.length - 1)];
+      mesh.matrix.set(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[9], m[10], m[11],
+        0, 0, 0, 1);
+      mesh.matrixWorldNeedsUpdate = true;
     }
   }
 
@@ -254,7 +270,8 @@
     const now = clearanceAt(doc, i), el = document.getElementById("fig-clearance");
     state.clearance = now;
     for (const [name, mesh] of view.models || []) {
-      const clash = now !== null && now.value < 0 && now.mesh === name;
+      const clash = now !== null && now.value < 0 &&
+        (now.mesh === name || now.part === `held part ${name}`);
       mesh.material.color.setHex(clash ? CLASH_COLOUR : MODEL_COLOUR);
     }
     if (!now) { el.textContent = "–"; el.className = ""; return; }
@@ -298,6 +315,7 @@
       }
     }
     for (const { goal, mesh } of view.goals) mesh.visible = state.time >= goal.t_start - 1e-6;
+    placeHeld(state.frame);
     render();
   }
 
@@ -578,6 +596,16 @@
       }));
     },
     get clearance() { return state.clearance; },
+    // each held part's name and the centre of its box where it is drawn now (world, m)
+    get heldParts() {
+      return (view.held || []).map(({ name, mesh }) => {
+        mesh.updateMatrixWorld(true);
+        mesh.geometry.computeBoundingBox();
+        const c = mesh.geometry.boundingBox.getCenter(new THREE.Vector3());
+        c.applyMatrix4(mesh.matrixWorld);
+        return { name, centre: [c.x, c.y, c.z] };
+      });
+    },
     setModelsVisible(visible) {
       for (const mesh of (view.models || new Map()).values()) mesh.visible = Boolean(visible);
       render();

@@ -1,5 +1,8 @@
 """The contact sheet: key poses from the front and the side, and the main joint angles over time.
 
+The scene's models are drawn behind the poses (grey), and a part the hands hold where they
+have taken it on each pose (in colour), so a sheet shows the panel going to the bench.
+
 For reports and for review without a browser. Needs matplotlib (the ``preview`` extra); the
 figure is drawn with the Agg backend, without fonts or timestamps that vary between runs, so the
 same motion gives the same PNG bytes on one machine.
@@ -69,6 +72,50 @@ def _draw_pose(ax: Any, p: FloatArray, bones: list[tuple[int, int]], axes: tuple
     ax.plot(p[:, axes[0]], p[:, axes[1]], "o", color="#2c3e5c", ms=2.5)
 
 
+MAX_SHEET_TRIANGLES = 20_000  # a model with more is drawn as its bounding box's outline
+MODEL_GREY, HELD_COLOUR = "#9aa3ad", "#2a9d8f"
+
+
+def _model_pieces(ir: MotionIR) -> list[tuple[FloatArray, FloatArray | None]]:
+    """The scene's models as (T, 3, 3) triangles to draw at every key pose, with None, and each
+    part a hand holds as its triangles in the model's place with its (N, 4, 4) placement
+    (``Verification.held_parts``): drawn where the hand has taken it on each pose."""
+    held = ir.verification.held_parts if ir.verification is not None else []
+    out: list[tuple[FloatArray, FloatArray | None]] = []
+    for model in ir.geometry:
+        taken = np.zeros(len(model.faces), dtype=bool)
+        for part in (p for p in held if p.model == model.name):
+            taken[part.faces] = True
+            out.append((model.vertices[model.faces[part.faces]], part.placement))
+        faces = model.faces[~taken]
+        if len(faces) > MAX_SHEET_TRIANGLES:
+            lo, hi = model.vertices.min(axis=0), model.vertices.max(axis=0)
+            faces = np.array([[0, 1, 2], [0, 2, 3]])
+            box = np.array([lo, [hi[0], lo[1], lo[2]], hi, [lo[0], hi[1], hi[2]]])
+            out.append((box[faces], None))
+        elif len(faces):
+            out.append((model.vertices[faces], None))
+    return out
+
+
+def _draw_models(
+    ax: Any, pieces: list[tuple[FloatArray, FloatArray | None]], frame: int, axes: tuple[int, int]
+) -> None:
+    """The models projected on the view's plane, light grey; a held part where it is on
+    ``frame``, in colour."""
+    from matplotlib.collections import PolyCollection
+
+    for tri, placement in pieces:
+        colour = MODEL_GREY
+        if placement is not None:
+            m = placement[min(frame, len(placement) - 1)]
+            tri = tri @ m[:3, :3].T + m[:3, 3]
+            colour = HELD_COLOUR
+        polys = tri[:, :, list(axes)]
+        ax.add_collection(PolyCollection(polys, facecolors=colour, edgecolors="none",
+                                         alpha=0.25 if placement is None else 0.6))  # fmt: skip
+
+
 def render_sheet(ir: MotionIR) -> bytes:
     """The contact sheet as PNG bytes."""
     try:
@@ -87,6 +134,7 @@ def render_sheet(ir: MotionIR) -> bytes:
     pose = forward(skel, frames.q[idx], frames.root_position[idx], frames.root_rotation[idx])
     sites = np.array([s["position"] for s in ir.sites], dtype=float).reshape(-1, 3)
     bones = _bones(ir)
+    pieces = _model_pieces(ir)
     n = len(idx)
     with plt.rc_context({"font.family": "DejaVu Sans", "font.size": 8, "svg.hashsalt": "mtlc"}):
         fig = plt.figure(figsize=(max(2.0 * n, 8.0), 8.4), dpi=100)
@@ -99,6 +147,7 @@ def render_sheet(ir: MotionIR) -> bytes:
                 if len(sites):
                     ax.plot(sites[:, axes[0]], sites[:, axes[1]], "o", color="#f08a24", ms=3)
                 ax.axhline(ir.ground, color="#9aa1ad", lw=1)
+                _draw_models(ax, pieces, int(idx[k]), axes)
                 _draw_pose(ax, p, bones, axes)
                 ax.set_xlim(centre - 1.0, centre + 1.0)
                 ax.set_ylim(ir.ground - 0.05, ir.ground + 2.0)

@@ -281,19 +281,19 @@ def replace_fuel_filter_cad():
     human.KeyRoot(3.8, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
     human.KeyJoints(3.8, {
         'spine_lumbar': (11.328, 0.01, 0.0), 'spine_thoracic': (1.908, 0.004, 0.0),
-        'neck': (0.049, -0.047, 0.024), 'head': (0.021, 0.015),
+        'neck': (0.049, -0.047, 0.022), 'head': (0.021, -0.016),
         'right_shoulder': (8.594, 5.73, 11.459), 'left_shoulder': (8.594, 5.73, 11.459),
         'right_hip': (24.096, 0.0, 0.0), 'right_knee': (126.122,), 'left_hip': (24.096, 0.0, 0.0),
         'left_knee': (126.122,),
     })
     human.KeyJoints(3.9, {
-        'neck': (9.267, -8.936, 4.661), 'head': (3.972, 2.934), 'right_toes': (86.654,),
+        'neck': (9.267, -8.936, 4.197), 'head': (3.972, -2.979), 'right_toes': (86.654,),
     })
-    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 12.722), 'head': (10.84, 8.007)})
+    human.KeyJoints(4.0, {'neck': (25.294, -24.39, 11.456), 'head': (10.84, -8.13)})
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > reach: TA on r_arm at filter_bowl
     human.KeyJoints(4.1, {
         'spine_lumbar': (11.381, 0.027, 0.02), 'spine_thoracic': (1.897, 0.018, 0.026),
-        'neck': (34.901, -33.655, 17.554), 'head': (14.958, 11.048),
+        'neck': (34.901, -33.655, 15.808), 'head': (14.958, -11.218),
         'right_clavicle': (-0.011, 0.022), 'right_shoulder': (8.631, 5.754, 11.449),
         'right_elbow': (34.367, 17.189), 'right_wrist': (-0.003, -0.004), 'left_toes': (86.654,),
     })
@@ -301,55 +301,55 @@ def replace_fuel_filter_cad():
     human.LookAt((10.0, 25.0, 95.0), start=4.109804, duration=0.819176)
     human.KeyJoints(4.2, {
         'spine_lumbar': (12.833, 0.495, 0.588), 'spine_thoracic': (1.582, 0.419, 0.759),
-        'neck': (35.0, -22.571, 13.675), 'head': (14.993, 7.34), 'right_clavicle': (-0.309, 0.623),
+        'neck': (35.0, -33.75, 14.025), 'head': (15.0, -4.482), 'right_clavicle': (-0.309, 0.623),
         'right_shoulder': (9.65, 6.441, 11.179), 'right_elbow': (34.066, 17.189),
         'right_wrist': (-0.091, -0.102),
     })
     human.KeyJoints(4.3, {
         'spine_lumbar': (17.161, 1.896, 2.281), 'spine_thoracic': (0.637, 1.613, 2.951),
-        'neck': (35.0, 4.408, 3.749), 'head': (14.96, -1.685), 'right_clavicle': (-1.201, 2.415),
+        'neck': (35.0, -33.75, 9.35), 'head': (15.0, 8.159), 'right_clavicle': (-1.201, 2.415),
         'right_shoulder': (12.696, 8.486, 10.374), 'right_elbow': (33.17, 17.19),
         'right_wrist': (-0.351, -0.394),
     })
     human.KeyJoints(4.4, {
         'spine_lumbar': (23.938, 4.138, 4.956), 'spine_thoracic': (-0.911, 3.489, 6.466),
-        'neck': (35.0, 28.197, -6.239), 'head': (14.885, -9.643), 'right_clavicle': (-2.64, 5.226),
+        'neck': (34.999, -31.181, 3.93), 'head': (14.995, 10.638), 'right_clavicle': (-2.64, 5.226),
         'right_shoulder': (17.536, 11.684, 9.112), 'right_elbow': (31.766, 17.191),
     })
     human.KeyJoints(4.5, {
         'spine_lumbar': (31.621, 6.889, 8.084), 'spine_thoracic': (-2.906, 5.644, 10.748),
-        'neck': (34.999, 32.558, -10.865), 'head': (13.516, -11.136),
+        'neck': (34.988, -11.787, -3.886), 'head': (14.957, 6.039),
         'right_clavicle': (-4.431, 8.448), 'right_shoulder': (23.285, 15.283, 7.678),
         'right_elbow': (30.173, 17.193),
     })
     human.KeyJoints(4.6, {
         'spine_lumbar': (38.115, 9.923, 10.987), 'spine_thoracic': (-5.135, 7.591, 15.101),
-        'neck': (35.0, 30.565, -13.736), 'head': (11.564, -10.0),
+        'neck': (34.977, 9.265, -11.429), 'head': (14.907, 1.112),
         'right_clavicle': (-6.393, 11.304), 'right_shoulder': (28.79, 18.201, 6.452),
         'right_elbow': (28.8, 17.195), 'right_wrist': (-1.614, -1.821),
     })
     human.KeyJoints(4.7, {
         'spine_lumbar': (40.746, 13.068, 12.754), 'spine_thoracic': (-7.062, 8.744, 18.386),
-        'neck': (35.0, 30.902, -16.353), 'head': (10.484, -11.051),
+        'neck': (34.975, 14.132, -15.23), 'head': (14.874, 0.108),
         'right_clavicle': (-8.251, 12.835), 'right_shoulder': (32.339, 18.999, 5.917),
         'right_elbow': (28.123, 17.196), 'right_wrist': (-1.765, -2.042),
     })
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > reach: TO on r_arm at filter_bowl
     human.KeyJoints(4.8, {
         'spine_lumbar': (40.037, 15.237, 13.165), 'spine_thoracic': (-7.996, 9.013, 19.73),
-        'neck': (35.0, 30.357, -18.818), 'head': (11.226, -11.146),
+        'neck': (34.991, 17.942, -17.864), 'head': (14.985, 0.179),
         'right_clavicle': (-9.373, 13.01), 'right_shoulder': (33.301, 18.164, 6.002),
     })
     human.KeyJoints(4.9, {
         'spine_lumbar': (39.657, 15.845, 13.22), 'spine_thoracic': (-8.225, 9.05, 20.036),
-        'neck': (34.998, 30.285, -19.238), 'head': (13.21, -11.169),
+        'neck': (34.934, 25.254, -18.008), 'head': (14.842, 0.682),
         'right_clavicle': (-9.674, 12.996), 'right_shoulder': (33.459, 17.83, 6.059),
         'right_elbow': (28.117, 17.195),
     })
     # examples/replace_fuel_filter_cad.mtask:40:5 replace_fuel_filter_cad > spin_off > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=4.928979, duration=0.2628)
     human.KeyJoints(5.0, {
-        'neck': (34.98, 30.288, -19.018), 'head': (13.926, -11.101),
+        'neck': (34.904, 27.971, -17.876), 'head': (14.737, 1.078),
         'right_shoulder': (33.274, 17.845, 6.059), 'right_elbow': (28.425, 17.195),
         'right_wrist': (-1.717, -1.983),
     })
@@ -395,14 +395,14 @@ def replace_fuel_filter_cad():
     human.LookAt((-25.0, 8.0, 70.0), start=7.186814, duration=1.873581)
     human.KeyJoints(7.2, {
         'spine_lumbar': (39.652, 15.853, 13.221), 'spine_thoracic': (-8.228, 9.051, 20.039),
-        'neck': (34.97, 30.288, -18.996), 'head': (13.933, -11.098),
+        'neck': (34.904, 27.983, -17.846), 'head': (14.737, 1.073),
         'right_shoulder': (33.247, 17.841, 6.06), 'right_elbow': (27.86, 80.0),
         'right_wrist': (-1.622, -2.045), 'left_clavicle': (0.0, 0.001),
         'left_shoulder': (8.595, 5.729, 11.459),
     })
     human.KeyJoints(7.3, {
         'spine_lumbar': (40.136, 15.622, 12.988), 'spine_thoracic': (-8.389, 8.973, 19.884),
-        'neck': (34.466, 30.364, -17.661), 'head': (14.539, -10.905),
+        'neck': (34.901, 28.684, -16.37), 'head': (14.726, 0.86),
         'right_clavicle': (-9.681, 13.043), 'right_shoulder': (33.103, 17.43, 6.171),
         'right_elbow': (28.691, 80.0), 'right_wrist': (-1.841, -1.976),
         'left_clavicle': (-0.233, 0.357), 'left_shoulder': (9.118, 5.653, 11.425),
@@ -410,21 +410,22 @@ def replace_fuel_filter_cad():
     })
     human.KeyJoints(7.4, {
         'spine_lumbar': (42.26, 14.607, 11.967), 'spine_thoracic': (-9.096, 8.631, 19.203),
-        'neck': (34.204, 31.64, -14.638), 'head': (15.0, -11.246),
+        'neck': (34.89, 31.143, -13.208), 'head': (14.671, 0.428),
         'right_clavicle': (-9.692, 13.252), 'right_shoulder': (32.427, 15.641, 6.659),
         'right_elbow': (32.374, 80.0), 'right_wrist': (-2.817, -1.653),
         'left_clavicle': (-1.253, 1.923), 'left_shoulder': (11.428, 5.318, 11.274),
     })
     human.KeyJoints(7.5, {
         'spine_lumbar': (46.126, 12.759, 10.108), 'spine_thoracic': (-10.383, 8.009, 17.962),
-        'neck': (34.964, 33.48, -10.221), 'right_shoulder': (31.497, 12.368, 7.572),
-        'right_elbow': (38.463, 80.0), 'right_wrist': (-4.443, -1.0),
-        'left_clavicle': (-3.111, 4.774), 'left_shoulder': (15.812, 4.717, 10.976),
-        'left_elbow': (34.197, 17.182), 'left_wrist': (-0.115, -0.206),
+        'neck': (34.973, 33.734, -8.741), 'head': (14.821, 3.673),
+        'right_shoulder': (31.497, 12.368, 7.572), 'right_elbow': (38.463, 80.0),
+        'right_wrist': (-4.443, -1.0), 'left_clavicle': (-3.111, 4.774),
+        'left_shoulder': (15.812, 4.717, 10.976), 'left_elbow': (34.197, 17.182),
+        'left_wrist': (-0.115, -0.206),
     })
     human.KeyJoints(7.6, {
-        'spine_lumbar': (50.911, 10.471, 7.807), 'neck': (35.0, 33.75, -6.418),
-        'head': (15.0, -11.25), 'right_clavicle': (-9.738, 14.105),
+        'spine_lumbar': (50.911, 10.471, 7.807), 'neck': (35.0, 33.75, -3.727),
+        'head': (15.0, 11.25), 'right_clavicle': (-9.738, 14.105),
         'right_shoulder': (30.645, 8.297, 8.752), 'right_elbow': (45.255, 80.0),
         'right_wrist': (-6.251, -0.109), 'left_clavicle': (-5.411, 8.302),
         'left_shoulder': (21.802, 4.042, 10.513), 'left_elbow': (34.748, 17.179),
@@ -432,15 +433,15 @@ def replace_fuel_filter_cad():
     })
     human.KeyJoints(7.7, {
         'spine_lumbar': (55.435, 8.309, 5.632), 'spine_thoracic': (-13.482, 6.511, 14.975),
-        'neck': (35.0, 33.75, -2.846), 'head': (15.0, -10.981), 'right_clavicle': (-9.762, 14.551),
-        'right_shoulder': (29.893, 4.489, 9.918), 'right_elbow': (51.37, 80.0),
-        'right_wrist': (-7.876, 0.811), 'left_clavicle': (-7.585, 11.638),
-        'left_shoulder': (27.606, 3.737, 9.869), 'left_elbow': (38.405, 17.192),
-        'left_wrist': (-0.843, 0.574),
+        'neck': (34.995, 30.182, -0.842), 'head': (15.0, 10.061),
+        'right_clavicle': (-9.762, 14.551), 'right_shoulder': (29.893, 4.489, 9.918),
+        'right_elbow': (51.37, 80.0), 'right_wrist': (-7.876, 0.811),
+        'left_clavicle': (-7.585, 11.638), 'left_shoulder': (27.606, 3.737, 9.869),
+        'left_elbow': (38.405, 17.192), 'left_wrist': (-0.843, 0.574),
     })
     human.KeyJoints(7.8, {
         'spine_lumbar': (58.603, 6.794, 4.109), 'spine_thoracic': (-14.537, 6.001, 13.958),
-        'neck': (35.0, 33.005, -0.866), 'head': (15.0, -11.096), 'right_clavicle': (-9.778, 14.863),
+        'neck': (34.967, 7.403, 0.82), 'head': (14.997, 2.474), 'right_clavicle': (-9.778, 14.863),
         'right_shoulder': (29.374, 1.886, 10.805), 'right_elbow': (55.524, 80.0),
         'right_wrist': (-9.029, 1.517), 'left_clavicle': (-9.107, 13.974),
         'left_shoulder': (28.804, 4.53, 9.104),
@@ -448,47 +449,51 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:43:9 replace_fuel_filter_cad > reach: TO on l_arm at filter_bowl
     human.KeyJoints(7.9, {
         'spine_lumbar': (59.808, 6.218, 3.53), 'spine_thoracic': (-14.938, 5.807, 13.572),
-        'neck': (35.0, 32.998, -0.682), 'right_clavicle': (-9.785, 14.982),
-        'right_shoulder': (29.183, 0.937, 11.196), 'right_elbow': (57.07, 80.0),
-        'right_wrist': (-9.516, 1.814), 'left_clavicle': (-9.686, 14.862),
-        'left_shoulder': (26.212, 5.633, 8.631), 'left_elbow': (62.054, 17.296),
-        'left_wrist': (-3.404, 6.258),
+        'neck': (34.932, -20.288, 1.925), 'head': (14.993, -6.749),
+        'right_clavicle': (-9.785, 14.982), 'right_shoulder': (29.183, 0.937, 11.196),
+        'right_elbow': (57.07, 80.0), 'right_wrist': (-9.516, 1.814),
+        'left_clavicle': (-9.686, 14.862), 'left_shoulder': (26.212, 5.633, 8.631),
+        'left_elbow': (62.054, 17.296), 'left_wrist': (-3.404, 6.258),
     })
     # examples/replace_fuel_filter_cad.mtask:45:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=7.999894, duration=0.072)
     human.KeyJoints(8.0, {
-        'spine_lumbar': (59.995, 6.129, 3.44), 'neck': (35.0, 32.998, -0.682),
-        'right_shoulder': (29.153, 0.79, 11.257), 'right_elbow': (57.31, 80.0),
-        'right_wrist': (-9.592, 1.86), 'left_clavicle': (-9.776, 15.0),
-        'left_shoulder': (25.563, 5.863, 8.546), 'left_elbow': (64.412, 17.306),
-        'left_wrist': (-3.647, 6.836),
+        'spine_lumbar': (59.995, 6.129, 3.44), 'neck': (34.915, -33.749, 2.326),
+        'head': (14.992, -11.233), 'right_shoulder': (29.153, 0.79, 11.257),
+        'right_elbow': (57.31, 80.0), 'right_wrist': (-9.592, 1.86),
+        'left_clavicle': (-9.776, 15.0), 'left_shoulder': (25.563, 5.863, 8.546),
+        'left_elbow': (64.412, 17.306), 'left_wrist': (-3.647, 6.836),
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TA on r_arm at drain_tray
     human.KeyJoints(8.1, {
-        'neck': (35.0, 32.945, -1.001), 'right_shoulder': (30.46, 1.012, 11.058),
-        'right_elbow': (54.597, 79.961), 'right_wrist': (-8.849, 1.691),
+        'neck': (34.865, -33.164, 1.969), 'head': (14.99, -11.038),
+        'right_shoulder': (30.46, 1.012, 11.058), 'right_elbow': (54.597, 79.961),
+        'right_wrist': (-8.849, 1.691),
     })
     human.KeyJoints(8.2, {
-        'neck': (35.0, 32.041, -6.416), 'right_shoulder': (34.681, 1.939, 7.941),
-        'right_elbow': (45.282, 76.894), 'right_wrist': (-4.121, 1.583),
+        'neck': (34.014, -23.249, -4.085), 'head': (14.967, -7.731),
+        'right_shoulder': (34.681, 1.939, 7.941), 'right_elbow': (45.282, 76.894),
+        'right_wrist': (-4.121, 1.583),
     })
     human.KeyJoints(8.3, {
-        'neck': (35.0, 30.436, -16.029), 'head': (15.0, -11.161),
+        'neck': (32.503, -5.646, -14.831), 'head': (14.925, -1.86),
         'right_shoulder': (37.594, 3.277, -2.505), 'right_elbow': (36.989, 64.922),
         'right_wrist': (6.941, 2.975),
     })
     human.KeyJoints(8.4, {
-        'spine_thoracic': (-15.0, 5.777, 13.512), 'neck': (35.0, 28.675, -26.574),
-        'right_shoulder': (35.155, 4.564, -22.079), 'right_elbow': (37.549, 41.299),
-        'right_wrist': (24.281, 6.809),
+        'spine_thoracic': (-15.0, 5.777, 13.512), 'neck': (30.846, 13.663, -26.619),
+        'head': (14.879, 4.58), 'right_shoulder': (35.155, 4.564, -22.079),
+        'right_elbow': (37.549, 41.299), 'right_wrist': (24.281, 6.809),
     })
     human.KeyJoints(8.5, {
-        'neck': (35.0, 27.305, -34.783), 'right_shoulder': (31.267, 5.991, -44.103),
-        'right_elbow': (40.312, 14.573), 'right_wrist': (43.112, 11.257),
+        'neck': (29.556, 28.696, -35.796), 'head': (14.843, 9.593),
+        'right_shoulder': (31.267, 5.991, -44.103), 'right_elbow': (40.312, 14.573),
+        'right_wrist': (43.112, 11.257),
     })
     human.KeyJoints(8.6, {
-        'neck': (35.0, 26.854, -37.485), 'right_shoulder': (28.326, 7.623, -61.346),
-        'right_elbow': (41.527, -6.232), 'right_wrist': (57.207, 14.564),
+        'neck': (29.132, 33.644, -38.817), 'head': (14.831, 11.243),
+        'right_shoulder': (28.326, 7.623, -61.346), 'right_elbow': (41.527, -6.232),
+        'right_wrist': (57.207, 14.564),
     })
     human.KeyJoints(8.7, {
         'right_shoulder': (26.389, 10.046, -74.07), 'right_elbow': (40.104, -21.278),
@@ -500,106 +505,105 @@ def replace_fuel_filter_cad():
     })
     # examples/replace_fuel_filter_cad.mtask:46:5 replace_fuel_filter_cad > move: TO on r_arm at drain_tray
     human.KeyJoints(8.9, {
-        'head': (15.0, -11.25), 'right_shoulder': (25.266, 16.235, -86.104),
-        'right_elbow': (31.329, -34.484),
+        'right_shoulder': (25.266, 16.235, -86.104), 'right_elbow': (31.329, -34.484),
     })
     # examples/replace_fuel_filter_cad.mtask:47:5 replace_fuel_filter_cad > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=8.988396, duration=0.072)
     human.KeyJoints(9.0, {
-        'neck': (35.0, 26.854, -37.485), 'right_shoulder': (25.246, 16.687, -86.651),
+        'neck': (29.132, 33.644, -38.817), 'right_shoulder': (25.246, 16.687, -86.651),
         'right_elbow': (30.605, -35.047), 'right_wrist': (68.733, 17.018),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > look: gaze on head at spares_box
     human.LookAt((-40.0, 10.0, 60.0), start=9.060396, duration=0.4)
-    human.KeyJoints(9.1, {'neck': (34.997, 26.821, -37.839)})
-    human.KeyJoints(9.2, {'neck': (34.959, 26.522, -41.096)})
+    human.KeyJoints(9.1, {'neck': (28.991, 33.641, -39.249), 'head': (14.824, 11.243)})
+    human.KeyJoints(9.2, {'neck': (27.695, 33.614, -43.226)})
     human.KeyJoints(9.3, {
         'spine_lumbar': (59.995, 6.129, 3.44), 'spine_thoracic': (-15.0, 5.777, 13.512),
-        'neck': (34.88, 26.089, -45.81), 'left_shoulder': (25.623, 5.851, 8.548),
+        'neck': (25.818, 33.555, -48.985), 'left_shoulder': (25.623, 5.851, 8.548),
         'left_elbow': (64.315, 17.306), 'left_wrist': (-3.637, 6.81),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TA on l_arm at spares_box
     human.KeyJoints(9.4, {
         'spine_lumbar': (59.995, 6.238, 3.295), 'spine_thoracic': (-14.933, 5.68, 13.17),
-        'neck': (34.758, 25.744, -49.569), 'left_shoulder': (25.742, 5.861, 8.679),
-        'left_elbow': (64.036, 17.595), 'left_wrist': (-4.088, 6.913),
+        'neck': (24.321, 33.459, -53.576), 'head': (14.597, 11.189),
+        'left_shoulder': (25.742, 5.861, 8.679), 'left_elbow': (64.036, 17.595),
+        'left_wrist': (-4.088, 6.913),
     })
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: gaze on head at filter_bowl
     human.LookAt((10.0, 25.0, 95.0), start=9.460396, duration=1.931992)
     human.KeyJoints(9.5, {
         'spine_lumbar': (59.995, 7.202, 2.014), 'spine_thoracic': (-14.338, 4.828, 10.146),
-        'neck': (34.409, 26.221, -48.857), 'left_clavicle': (-9.719, 15.0),
-        'left_shoulder': (26.797, 5.949, 9.83), 'left_elbow': (61.569, 20.146),
-        'left_wrist': (-8.07, 7.829),
+        'neck': (24.751, 32.686, -52.435), 'head': (14.604, 10.437),
+        'left_clavicle': (-9.719, 15.0), 'left_shoulder': (26.797, 5.949, 9.83),
+        'left_elbow': (61.569, 20.146), 'left_wrist': (-8.07, 7.829),
     })
     human.KeyJoints(9.6, {
         'spine_lumbar': (59.996, 9.372, -0.869), 'spine_thoracic': (-12.962, 2.906, 3.342),
-        'neck': (32.811, 30.451, -35.644), 'head': (15.0, -11.201),
+        'neck': (30.485, 27.622, -34.784), 'head': (14.776, 4.86),
         'left_shoulder': (29.185, 6.173, 12.418), 'left_elbow': (55.949, 25.886),
         'left_wrist': (-17.02, 9.885),
     })
     human.KeyJoints(9.7, {
         'spine_lumbar': (59.997, 12.414, -4.905), 'spine_thoracic': (-10.768, 0.179, -6.192),
-        'neck': (31.62, 33.719, -18.709), 'head': (15.0, -11.068),
+        'neck': (34.914, 23.745, -15.288), 'head': (14.91, 0.345),
         'left_clavicle': (-9.385, 14.988), 'left_shoulder': (32.688, 6.652, 16.018),
         'left_elbow': (47.617, 33.918), 'left_wrist': (-29.406, 12.71),
     })
     human.KeyJoints(9.8, {
         'spine_lumbar': (59.998, 15.657, -9.193), 'spine_thoracic': (-7.273, -2.968, -16.343),
-        'neck': (34.966, 33.736, -6.16), 'head': (14.999, -10.506),
+        'neck': (34.912, 28.801, -5.748), 'head': (14.762, 0.078),
         'left_clavicle': (-9.157, 14.962), 'left_shoulder': (37.519, 7.711, 19.681),
         'left_elbow': (36.993, 42.379), 'left_wrist': (-41.469, 15.339),
     })
     human.KeyJoints(9.9, {
         'spine_lumbar': (59.999, 18.291, -12.684), 'spine_thoracic': (-1.174, -6.422, -24.595),
-        'neck': (34.887, 29.549, 1.468), 'head': (14.931, -5.993),
-        'left_clavicle': (-9.297, 14.951), 'left_shoulder': (45.408, 9.638, 22.12),
-        'left_elbow': (23.95, 48.919), 'left_wrist': (-47.172, 16.14),
+        'neck': (34.969, 8.073, 0.584), 'left_clavicle': (-9.297, 14.951),
+        'left_shoulder': (45.408, 9.638, 22.12), 'left_elbow': (23.95, 48.919),
+        'left_wrist': (-47.172, 16.14),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > reach: TO on l_arm at spares_box
     human.KeyJoints(10.0, {
         'spine_lumbar': (60.0, 19.675, -14.555), 'spine_thoracic': (5.306, -9.231, -28.968),
-        'neck': (33.831, 2.528, 7.578), 'head': (14.269, 5.948), 'left_clavicle': (-9.824, 14.986),
+        'neck': (34.97, -1.515, 6.223), 'head': (14.987, -0.008), 'left_clavicle': (-9.824, 14.986),
         'left_shoulder': (53.882, 11.484, 22.864), 'left_elbow': (12.861, 52.015),
         'left_wrist': (-45.725, 15.132),
     })
     human.KeyJoints(10.1, {
         'spine_lumbar': (60.0, 19.999, -14.998), 'spine_thoracic': (7.174, -9.997, -29.996),
-        'neck': (31.492, -8.768, 9.26), 'head': (12.667, 10.389), 'left_clavicle': (-9.999, 15.0),
+        'neck': (31.915, 0.0, 8.089), 'head': (13.678, 0.0), 'left_clavicle': (-9.999, 15.0),
         'left_shoulder': (56.34, 11.998, 22.981), 'left_elbow': (9.817, 52.704),
         'left_wrist': (-44.9, 14.74),
     })
     # examples/replace_fuel_filter_cad.mtask:48:5 replace_fuel_filter_cad > pick > grasp: grip on l_hand
     human.Grasp('left_hand', 'close', start=10.116383, duration=0.2628)
     human.KeyJoints(10.2, {
-        'neck': (30.638, -8.565, 9.124), 'head': (12.051, 10.268), 'right_elbow': (30.675, -35.047),
+        'neck': (30.867, 0.0, 8.077), 'head': (13.229, 0.0), 'right_elbow': (30.675, -35.047),
         'left_elbow': (9.649, 52.706), 'left_wrist': (-44.703, 14.684),
     })
-    human.KeyJoints(10.3, {
-        'neck': (30.638, -8.565, 9.124), 'left_shoulder': (56.424, 11.963, 22.984),
-    })
+    human.KeyJoints(10.3, {'neck': (30.867, 0.0, 8.077), 'left_shoulder': (56.424, 11.963, 22.984)})
     # examples/replace_fuel_filter_cad.mtask:49:5 replace_fuel_filter_cad > move: TA on l_arm at filter_bowl
     human.KeyJoints(10.4, {
-        'neck': (30.668, -8.545, 9.526), 'head': (12.072, 10.275),
+        'neck': (30.903, -0.051, 8.579), 'head': (13.244, 0.0),
         'left_shoulder': (56.393, 11.974, 22.963), 'left_elbow': (9.713, 52.702),
         'left_wrist': (-44.728, 14.69),
     })
     human.KeyJoints(10.5, {
-        'neck': (31.5, -7.979, 20.439), 'head': (12.634, 10.463),
+        'neck': (31.868, -1.403, 21.88), 'head': (13.649, -0.003),
         'left_shoulder': (52.88, 13.043, 19.974), 'left_elbow': (17.132, 52.073),
         'left_wrist': (-46.074, 14.883),
     })
     human.KeyJoints(10.6, {
-        'neck': (32.958, -6.987, 39.573), 'left_shoulder': (43.112, 15.989, 11.614),
-        'left_elbow': (37.254, 50.3), 'left_wrist': (-49.624, 15.366),
+        'neck': (33.459, -3.63, 43.797), 'head': (14.315, -0.007),
+        'left_shoulder': (43.112, 15.989, 11.614), 'left_elbow': (37.254, 50.3),
+        'left_wrist': (-49.624, 15.366),
     })
     human.KeyJoints(10.7, {
-        'neck': (34.355, -6.038, 57.89), 'head': (14.564, 11.105),
+        'neck': (34.747, -5.435, 61.552), 'head': (14.855, -0.011),
         'left_shoulder': (29.682, 19.911, 0.066), 'left_elbow': (61.512, 47.757),
         'left_wrist': (-53.94, 15.863),
     })
     human.KeyJoints(10.8, {
-        'neck': (34.999, -5.599, 66.35), 'head': (15.0, 11.25),
+        'neck': (34.991, -5.776, 64.912), 'head': (14.958, -0.011),
         'left_shoulder': (11.766, 24.593, -15.344), 'left_elbow': (82.108, 43.956),
         'left_wrist': (-57.97, 15.776),
     })
@@ -627,8 +631,7 @@ def replace_fuel_filter_cad():
     # examples/replace_fuel_filter_cad.mtask:50:5 replace_fuel_filter_cad > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=11.320387, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.392387, duration=0.582976)
-    human.KeyJoints(11.5, {'neck': (35.0, -5.557, 66.353)})
+    human.LookAt((10.0, 25.0, 95.0), start=11.392387, duration=0.597272)
     human.KeyJoints(11.6, {
         'spine_lumbar': (60.0, 20.0, -15.0), 'spine_thoracic': (7.181, -10.0, -30.0),
         'right_shoulder': (25.239, 16.65, -86.65), 'right_wrist': (68.791, 17.033),
@@ -646,42 +649,43 @@ def replace_fuel_filter_cad():
     })
     human.KeyJoints(11.9, {
         'spine_lumbar': (59.95, 8.501, -8.412), 'spine_thoracic': (1.471, -4.3, -23.74),
-        'neck': (35.0, -5.159, 66.266), 'right_shoulder': (32.104, 5.779, -79.985),
+        'neck': (34.991, -5.776, 64.912), 'right_shoulder': (32.104, 5.779, -79.985),
         'right_elbow': (30.818, -32.794), 'right_wrist': (66.701, 15.293),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=11.975363, duration=0.347476)
+    human.LookAt((10.0, 25.0, 95.0), start=11.98966, duration=0.333179)
     human.KeyJoints(12.0, {
         'spine_lumbar': (59.638, -2.277, -2.235), 'spine_thoracic': (-4.126, 1.057, -17.86),
-        'neck': (34.967, -5.393, 65.39), 'right_clavicle': (-9.835, 14.708),
-        'right_shoulder': (38.729, -4.898, -73.561), 'right_elbow': (30.984, -30.647),
-        'right_wrist': (64.788, 13.643),
+        'neck': (34.988, -5.841, 64.742), 'head': (14.952, -0.035),
+        'right_clavicle': (-9.835, 14.708), 'right_shoulder': (38.729, -4.898, -73.561),
+        'right_elbow': (30.984, -30.647), 'right_wrist': (64.788, 13.643),
     })
     human.KeyJoints(12.1, {
         'spine_lumbar': (57.889, -11.617, 3.132), 'spine_thoracic': (-9.477, 5.786, -12.738),
-        'neck': (34.319, -10.356, 49.151), 'right_clavicle': (-9.708, 14.418),
-        'right_shoulder': (44.563, -15.844, -67.516), 'right_elbow': (31.201, -28.678),
-        'right_wrist': (63.399, 12.168),
+        'neck': (34.744, -11.635, 49.586), 'head': (14.486, -2.192),
+        'right_clavicle': (-9.708, 14.418), 'right_shoulder': (44.563, -15.844, -67.516),
+        'right_elbow': (31.201, -28.678), 'right_wrist': (63.399, 12.168),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > reach_oriented: TO on r_arm at filter_bowl
     human.KeyJoints(12.2, {
         'spine_lumbar': (55.121, -16.806, 6.128), 'spine_thoracic': (-12.809, 8.52, -9.874),
-        'neck': (33.347, -17.814, 24.779), 'right_clavicle': (-9.456, 14.058),
-        'right_shoulder': (47.638, -23.697, -63.725), 'right_elbow': (31.382, -27.48),
-        'right_wrist': (62.961, 11.313),
+        'neck': (34.324, -21.599, 23.521), 'head': (13.684, -5.901),
+        'right_clavicle': (-9.456, 14.058), 'right_shoulder': (47.638, -23.697, -63.725),
+        'right_elbow': (31.382, -27.48), 'right_wrist': (62.961, 11.313),
     })
     human.KeyJoints(12.3, {
         'spine_lumbar': (54.169, -18.185, 6.926), 'spine_thoracic': (-13.73, 9.259, -9.112),
-        'neck': (32.712, -22.686, 8.865), 'right_clavicle': (-9.366, 13.938),
-        'right_shoulder': (48.427, -25.989, -62.67), 'right_elbow': (31.437, -27.15),
-        'right_wrist': (62.884, 11.082),
+        'neck': (34.041, -28.32, 5.941), 'head': (13.143, -8.403),
+        'right_clavicle': (-9.366, 13.938), 'right_shoulder': (48.427, -25.989, -62.67),
+        'right_elbow': (31.437, -27.15), 'right_wrist': (62.884, 11.082),
     })
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > grasp: grip on r_hand
     human.Grasp('right_hand', 'close', start=12.322839, duration=0.072)
     # examples/replace_fuel_filter_cad.mtask:51:5 replace_fuel_filter_cad > screw > turn_fastener: posture on r_hand
     human.KeyJoints(12.4, {
-        'neck': (32.683, -22.906, 8.146), 'right_shoulder': (48.412, -26.052, -62.657),
-        'right_elbow': (31.473, -27.102), 'right_wrist': (62.923, 11.088),
+        'neck': (34.028, -28.627, 5.137), 'head': (13.119, -8.517),
+        'right_shoulder': (48.412, -26.052, -62.657), 'right_elbow': (31.473, -27.102),
+        'right_wrist': (62.923, 11.088),
     })
     human.KeyJoints(12.5, {
         'right_shoulder': (47.831, -25.093, -63.018), 'right_elbow': (33.326, -11.552),
@@ -821,21 +825,21 @@ def replace_fuel_filter_cad():
         'right_wrist': (62.921, 11.087),
     })
     # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > look: gaze on head at filter_bowl
-    human.LookAt((10.0, 25.0, 95.0), start=15.643309, duration=0.393628)
+    human.LookAt((10.0, 25.0, 95.0), start=15.643309, duration=0.39925)
     # examples/replace_fuel_filter_cad.mtask:52:5 replace_fuel_filter_cad > inspect > hold: hold on root
     human.KeyJoints(18.9, {
         'spine_lumbar': (54.161, -18.196, 6.933), 'spine_thoracic': (-13.738, 9.266, -9.106),
-        'neck': (32.683, -22.906, 8.146), 'head': (15.0, 11.25), 'right_clavicle': (-9.366, 13.937),
-        'right_shoulder': (48.433, -26.008, -62.661), 'right_elbow': (31.437, -27.147),
-        'right_wrist': (62.883, 11.08), 'left_clavicle': (-10.0, 15.0),
-        'left_shoulder': (-34.186, 43.016, -75.59), 'left_elbow': (98.397, 31.103),
-        'left_wrist': (-66.811, 8.741),
+        'neck': (34.028, -28.627, 5.137), 'head': (13.119, -8.517),
+        'right_clavicle': (-9.366, 13.937), 'right_shoulder': (48.433, -26.008, -62.661),
+        'right_elbow': (31.437, -27.147), 'right_wrist': (62.883, 11.08),
+        'left_clavicle': (-10.0, 15.0), 'left_shoulder': (-34.186, 43.016, -75.59),
+        'left_elbow': (98.397, 31.103), 'left_wrist': (-66.811, 8.741),
     })
     # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: posture on root
     # examples/replace_fuel_filter_cad.mtask:53:5 replace_fuel_filter_cad > stand: gaze on head
     human.KeyJoints(19.0, {
         'spine_lumbar': (43.963, -14.883, 5.613), 'spine_thoracic': (-10.243, 7.112, -7.372),
-        'neck': (25.29, -17.725, 6.346), 'head': (11.607, 8.705),
+        'neck': (26.523, -22.314, 4.03), 'head': (10.225, -6.682),
         'right_clavicle': (-7.583, 11.222), 'right_shoulder': (40.907, -19.399, -54.317),
         'right_elbow': (31.503, -18.43), 'right_wrist': (50.292, 8.825),
         'left_clavicle': (-8.096, 12.077), 'left_shoulder': (-25.823, 36.257, -64.814),
@@ -843,7 +847,7 @@ def replace_fuel_filter_cad():
     })
     human.KeyJoints(19.1, {
         'spine_lumbar': (23.407, -7.332, 2.671), 'spine_thoracic': (-3.002, 2.66, -3.508),
-        'neck': (10.073, -7.06, 2.548), 'head': (4.623, 3.467), 'right_clavicle': (-3.608, 5.315),
+        'neck': (10.923, -9.189, 1.672), 'head': (4.211, -2.772), 'right_clavicle': (-3.608, 5.315),
         'right_shoulder': (24.103, -5.291, -36.22), 'right_elbow': (32.851, 0.319),
         'right_wrist': (23.849, 4.151), 'left_clavicle': (-3.852, 5.72),
         'left_shoulder': (-7.744, 21.243, -41.321), 'left_elbow': (58.763, 22.485),
@@ -852,7 +856,7 @@ def replace_fuel_filter_cad():
     human.KeyRoot(19.2, (1.652, 44.312, 43.105), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.2, {
         'spine_lumbar': (11.207, -0.247, 0.281), 'spine_thoracic': (1.883, 0.015, -0.369),
-        'neck': (0.099, -0.07, 0.056), 'head': (0.046, 0.034), 'right_clavicle': (-0.38, 0.519),
+        'neck': (0.253, -0.213, 0.057), 'head': (0.097, -0.095), 'right_clavicle': (-0.38, 0.519),
         'right_shoulder': (10.298, 6.189, -21.544), 'right_elbow': (34.088, 15.539),
         'right_wrist': (2.364, 0.414), 'left_clavicle': (-0.405, 0.559),
         'left_shoulder': (7.055, 9.024, -22.131), 'left_elbow': (36.569, 17.705),
@@ -863,7 +867,7 @@ def replace_fuel_filter_cad():
     human.KeyRoot(19.3, (2.252, 42.056, 38.787), (-7.907, 0.0, 0.0))
     human.KeyJoints(19.3, {
         'spine_lumbar': (11.511, 9.921, 0.0), 'spine_thoracic': (1.861, 1.989, 0.0),
-        'neck': (-0.103, 0.072, 0.0), 'head': (-0.047, -0.035), 'right_clavicle': (0.0, -0.037),
+        'neck': (-0.104, 0.088, 0.0), 'head': (-0.04, 0.0), 'right_clavicle': (0.0, -0.037),
         'right_shoulder': (8.637, 7.544, -19.854), 'right_elbow': (34.275, 17.307),
         'right_wrist': (-0.148, -0.019), 'left_clavicle': (0.0, -0.04),
         'left_shoulder': (8.798, 7.563, -19.89), 'left_elbow': (33.995, 17.152),

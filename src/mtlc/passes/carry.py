@@ -116,7 +116,8 @@ def carries(ir: MotionIR) -> list[Carry]:
     return sorted(out, key=lambda c: c.start)
 
 
-def _hands(skel: object, frames: Frames, rows: np.ndarray, q: FloatArray) -> FloatArray:
+def hand_pair(skel: object, frames: Frames, rows: np.ndarray, q: FloatArray) -> FloatArray:
+    """(N, 2, 3) the right and the left hand on the rows of ``frames`` with joints ``q``."""
     pose = forward(skel, q, frames.root_position[rows], frames.root_rotation[rows], with_axes=False)  # type: ignore[arg-type]
     return np.asarray(site_positions(skel, pose, ["r_hand", "l_hand"]))  # type: ignore[arg-type]
 
@@ -146,6 +147,58 @@ def part_ends(hands: FloatArray, length: float) -> FloatArray:
     return np.stack([mid + half, mid - half], axis=1)
 
 
+def part_path(hands: FloatArray, length: float) -> FloatArray:
+    """(P, 2, 3) the two ends of a part moved in both hands along a path whose hands, each
+    arm on its own path, are ``hands`` (P, 2, 3): the part's centre follows the hands'
+    mid-point, its axis turns from the start's to the end's on the minimum-jerk clock of the
+    path's progress (a rotation about one axis, not the line between two hands that each went
+    their own way: the hood's hands were 20 to 48 cm apart between its two keys), and its
+    length goes on the same clock from the start's to ``length``, the hands' distance where
+    they closed on it (a part turned in both hands before it is moved may start the move
+    squeezed: the pump's filter at 17 of 20 cm). Both hands' goals are rigid by construction."""
+    mid = hands.mean(axis=1)
+    ends = hands[[0, -1], 0] - hands[[0, -1], 1]
+    start = float(np.linalg.norm(ends[0]))
+    a0, a1 = (e / max(float(np.linalg.norm(e)), 1e-12) for e in ends)
+    w = minimum_jerk(np.linspace(0.0, 1.0, len(hands)))
+    angle = float(np.arccos(np.clip(a0 @ a1, -1.0, 1.0)))
+    if angle < 1e-6:
+        axis = np.broadcast_to(a0, mid.shape)
+    else:  # slerp
+        s = np.sin(angle)
+        axis = (np.sin((1.0 - w) * angle)[:, None] * a0 + np.sin(w * angle)[:, None] * a1) / s
+    half = 0.5 * (start + (length - start) * w)[:, None] * axis
+    return np.stack([mid + half, mid - half], axis=1)
+
+
+def solve_along(skel: object, frames: Frames, goal: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Both arms solved onto ``goal`` (P, 2, 3) point after point, each from the one before
+    moved by the path's own step (continuation): solved each on its own from the path's pose,
+    two neighbouring points near the shoulder's overhead singularity landed on two IK branches
+    (issue 19: a shoulder 100 deg apart). Returns the poses (P, D) and each point's worst hand
+    error (P,); the first point is the path's own."""
+    q = frames.q.copy()
+    error = np.zeros(len(q))
+    arms = {hand: _arm_dofs(skel, hand) for hand in ("r_hand", "l_hand")}
+    start = hand_pair(skel, frames, np.array([0]), q[:1])[0]
+    error[0] = float(np.linalg.norm(start - goal[0], axis=-1).max())
+    for k in range(1, len(q)):
+        seed = frames.q[k].copy()
+        for dofs in arms.values():
+            seed[dofs] = q[k - 1, dofs] + frames.q[k, dofs] - frames.q[k - 1, dofs]
+        for i, (hand, dofs) in enumerate(arms.items()):
+            res = solve_ta(
+                skel, [Goal(hand, position=goal[k, i])], seed, dofs=dofs,  # type: ignore[arg-type]
+                root_position=frames.root_position[k], root_rotation=frames.root_rotation[k],
+                restarts=0, null_gain=0.0, tol=SOLVE_TOL,
+            )  # fmt: skip
+            seed[dofs] = res.q[0, dofs]
+        q[k] = seed
+        hands = hand_pair(skel, frames, np.array([k]), q[k : k + 1])[0]
+        error[k] = float(np.linalg.norm(hands - goal[k], axis=-1).max())
+    return q, error
+
+
 def keep_rigid(
     skel: object,
     frames: Frames,
@@ -163,25 +216,15 @@ def keep_rigid(
     if rows.size < 2:
         return
     q = frames.q[rows].copy()
-    hands = _hands(skel, frames, rows, q)
+    hands = hand_pair(skel, frames, rows, q)
     length = float(np.linalg.norm(hands[0, 0] - hands[0, 1]))
     goal = part_ends(hands, length)
     off = np.linalg.norm(hands - goal, axis=-1).max(axis=1)
     fix = np.flatnonzero(off > FIX_FROM)
     if fix.size == 0:
         return
-    solved = _solve_arms(skel, frames, rows, fix, q, hands, goal)
-    # each frame's solve starts from its own pose and converges where it will: the correction
-    # jumped from frame to frame (the avionics unit's elbow 18 deg in one output frame).
-    # The correction smoothed in time (its ends kept: the carry's first frame, where the part's
-    # length is taken, has none) and solved again from there, each frame lands near its
-    # neighbours.
+    q = solve_smoothed(skel, frames, rows, fix, q, hands, goal, sigma)
     arms = _both_arms(skel)
-    smooth = q.copy()
-    smooth[:, arms] += smooth_path(solved[:, arms] - q[:, arms], sigma)
-    hands2 = _hands(skel, frames, rows, smooth)
-    fix2 = np.flatnonzero(np.linalg.norm(hands2 - goal, axis=-1).max(axis=1) > FIX_FROM)
-    q = _solve_arms(skel, frames, rows, fix2, smooth, hands2, goal) if fix2.size else smooth
     if held is not None:
         keyed = frames.q[rows][:, arms]
         let_go = _let_go_at_branch_jumps(t[rows], q[:, arms] - keyed)
@@ -190,6 +233,24 @@ def keep_rigid(
     if held is not None:
         _fade_out(frames, rows[-1], q[-1] - frames.q[rows[-1]], carry.end + held)
     frames.q[rows] = q
+
+
+def solve_smoothed(
+    skel: object, frames: Frames, rows: np.ndarray, fix: np.ndarray, q: FloatArray,
+    hands: FloatArray, goal: FloatArray, sigma: float,
+) -> FloatArray:  # fmt: skip
+    """``q`` (on ``rows``) with both arms on ``goal``: each frame of ``fix`` solved from its own
+    pose, the correction smoothed in time (a Gaussian of ``sigma`` frames, its ends kept) and
+    solved again from there. Each frame's solve converges where it will: the correction
+    jumped from frame to frame (the avionics unit's elbow 18 deg in one output frame);
+    solved again from the smoothed correction, each frame lands near its neighbours."""
+    solved = solve_arms(skel, frames, rows, fix, q, hands, goal)
+    arms = _both_arms(skel)
+    smooth = q.copy()
+    smooth[:, arms] += smooth_path(solved[:, arms] - q[:, arms], sigma)
+    hands2 = hand_pair(skel, frames, rows, smooth)
+    fix2 = np.flatnonzero(np.linalg.norm(hands2 - goal, axis=-1).max(axis=1) > FIX_FROM)
+    return solve_arms(skel, frames, rows, fix2, smooth, hands2, goal) if fix2.size else smooth
 
 
 def _fade_out(frames: Frames, last: int, offset: FloatArray, start: float) -> None:
@@ -244,7 +305,7 @@ def opening(ir: MotionIR, carry: Carry) -> float:
     return max(ends, default=0.0)
 
 
-def _solve_arms(
+def solve_arms(
     skel: object, frames: Frames, rows: np.ndarray, fix: np.ndarray, q: FloatArray,
     hands: FloatArray, goal: FloatArray,
 ) -> FloatArray:  # fmt: skip

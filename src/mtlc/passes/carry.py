@@ -37,6 +37,9 @@ FADE_SPEED = float(np.radians(240.0))
 MIN_FADE = 0.2  # s: the shortest fade
 FIX_FROM = 5e-5  # m: frames whose hands are already this close to the part's ends stay
 SOLVE_TOL = 1e-4  # m
+HOLD_TOL = 1e-3  # m: a hand this close to its end of the part holds it (solve_along)
+MAX_ADVANCE = 2.0  # points of its path a part moved in both hands goes on at most per point
+STALL_STEPS = 4  # bisections of how far the part goes where the arms cannot take it further
 RESOLVE_SIGMA = 3.0  # dense frames (50 ms at 60 fps): the Gaussian that smooths a correction
 # rad: the correction changing more than this between two dense frames has changed IK branch
 # (issue 19: a shoulder's abduction 40 -> 141 deg in one frame near the overhead singularity)
@@ -171,32 +174,68 @@ def part_path(hands: FloatArray, length: float) -> FloatArray:
     return np.stack([mid + half, mid - half], axis=1)
 
 
-def solve_along(skel: object, frames: Frames, goal: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Both arms solved onto ``goal`` (P, 2, 3) point after point, each from the one before
-    moved by the path's own step (continuation): solved each on its own from the path's pose,
-    two neighbouring points near the shoulder's overhead singularity landed on two IK branches
-    (issue 19: a shoulder 100 deg apart). Returns the poses (P, D) and each point's worst hand
-    error (P,); the first point is the path's own."""
+def solve_along(
+    skel: object,
+    frames: Frames,
+    goal: FloatArray,
+    dofs: dict[str, list[int]] | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Both arms (``dofs`` per hand; default the arm chains) solved onto the part's path
+    ``goal`` (P, 2, 3) point after point, each from the one before moved by the path's own step
+    (continuation): solved each on its own from the path's pose, two neighbouring points near
+    the shoulder's overhead singularity landed on two IK branches (issue 19: a shoulder 100 deg
+    apart). Where the arms cannot take the part as far as the point (both hands within
+    ``HOLD_TOL`` of its ends), the part goes as far along its path as they can (bisection,
+    ``STALL_STEPS``) and no further: it stops short of a goal out of reach, held, instead of
+    one hand reaching on and the other falling behind (the hood edge stretched by 30 cm).
+    It never goes further than ``MAX_ADVANCE`` points ahead of the point before, so it catches
+    up gradually where the path comes back into reach. Returns the poses (P, D), each point's
+    worst hand error (P,) and how far along the part's path each point took it (P,)."""
     q = frames.q.copy()
     error = np.zeros(len(q))
-    arms = {hand: _arm_dofs(skel, hand) for hand in ("r_hand", "l_hand")}
+    along = np.zeros(len(q))
+    arms = dofs or {hand: _arm_dofs(skel, hand) for hand in ("r_hand", "l_hand")}
     start = hand_pair(skel, frames, np.array([0]), q[:1])[0]
     error[0] = float(np.linalg.norm(start - goal[0], axis=-1).max())
-    for k in range(1, len(q)):
-        seed = frames.q[k].copy()
-        for dofs in arms.values():
-            seed[dofs] = q[k - 1, dofs] + frames.q[k, dofs] - frames.q[k - 1, dofs]
-        for i, (hand, dofs) in enumerate(arms.items()):
+    last = len(q) - 1
+
+    def ends_at(s: float) -> FloatArray:
+        k = min(int(s), last - 1)
+        w = s - k
+        return (1.0 - w) * goal[k] + w * goal[k + 1]
+
+    def solve_at(k: int, seed: FloatArray, s: float) -> tuple[FloatArray, float]:
+        pose = seed.copy()
+        target = ends_at(s)
+        for i, (hand, chain) in enumerate(arms.items()):
             res = solve_ta(
-                skel, [Goal(hand, position=goal[k, i])], seed, dofs=dofs,  # type: ignore[arg-type]
+                skel, [Goal(hand, position=target[i])], pose, dofs=chain,  # type: ignore[arg-type]
                 root_position=frames.root_position[k], root_rotation=frames.root_rotation[k],
                 restarts=0, null_gain=0.0, tol=SOLVE_TOL,
             )  # fmt: skip
-            seed[dofs] = res.q[0, dofs]
-        q[k] = seed
-        hands = hand_pair(skel, frames, np.array([k]), q[k : k + 1])[0]
-        error[k] = float(np.linalg.norm(hands - goal[k], axis=-1).max())
-    return q, error
+            pose[chain] = res.q[0, chain]
+        hands = hand_pair(skel, frames, np.array([k]), pose[None])[0]
+        return pose, float(np.linalg.norm(hands - target, axis=-1).max())
+
+    for k in range(1, len(q)):
+        seed = frames.q[k].copy()
+        for chain in arms.values():
+            seed[chain] = q[k - 1, chain] + frames.q[k, chain] - frames.q[k - 1, chain]
+        s = min(float(k), along[k - 1] + MAX_ADVANCE)
+        pose, err = solve_at(k, seed, s)
+        if err > HOLD_TOL:
+            lo, hi = along[k - 1], s
+            pose, err = solve_at(k, seed, lo)
+            s = lo
+            for _ in range(STALL_STEPS if err <= HOLD_TOL else 0):
+                mid = 0.5 * (lo + hi)
+                p_mid, e_mid = solve_at(k, seed, mid)
+                if e_mid <= HOLD_TOL:
+                    lo, pose, err, s = mid, p_mid, e_mid, mid
+                else:
+                    hi = mid
+        q[k], error[k], along[k] = pose, err, s
+    return q, error, along
 
 
 def keep_rigid(

@@ -318,7 +318,9 @@ def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Car
     rows = np.arange(len(smooth.time))
     hands = hand_pair(skel, smooth, rows, smooth.q)
     goal = part_path(hands, grip_length(ir, carry))
-    q, _ = solve_along(skel, smooth, goal)
+    sides = {hand: [ir.skeleton.dof_index(n) for n in m.dofs if n.startswith(hand[:2])]
+             for hand in ("r_hand", "l_hand")}  # fmt: skip
+    q, _, _ = solve_along(skel, smooth, goal, sides)
     end = hand_pair(skel, smooth, rows[-1:], smooth.q[-1:])[0]
     if float(np.linalg.norm(end - goal[-1], axis=-1).max()) <= REACH_TOL:
         # the end holds the part: the path ends on the solver's pose. Two ways there, the one
@@ -333,13 +335,8 @@ def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Car
         ]
         best = min(candidates, key=lambda c: _holding(skel, smooth, c, goal))
         return Frames(0.0, smooth.time, smooth.root_position, smooth.root_rotation, best)
-    # out of reach: the hands go as far as the arms take the part, held rigid as well as they
-    # can (the arms alone, the trunk as the path has it): the continuation or, where it holds
-    # the part worse (it can stall at a joint's limit), each point solved from the path's own
-    # pose with its correction smoothed
-    batched = _onto(skel, smooth, smooth.q, goal, SMOOTH_SIGMA * (PATH_POINTS - 1))
-    length = np.linalg.norm(goal[:, 0] - goal[:, 1], axis=1)
-    q = min((q, batched), key=lambda c: _squeeze(skel, smooth, c, length))
+    # out of reach: the arms take the part as far along its path as they can, held (the
+    # continuation stops it there, ``carry.solve_along``)
     out = Frames(0.0, smooth.time, smooth.root_position, smooth.root_rotation, q)
     _record_shortfall(ir, m, out)
     return out
@@ -365,14 +362,6 @@ def _holding(skel: object, path: Frames, q: FloatArray, goal: FloatArray) -> tup
     rounded to whole mm, then the largest turn of a joint between two points."""
     hands = hand_pair(skel, path, np.arange(len(q)), q)
     off = float(np.linalg.norm(hands - goal, axis=-1).max())
-    return (round(off * 1000.0), float(np.abs(np.diff(q, axis=0)).max(initial=0.0)))
-
-
-def _squeeze(skel: object, path: Frames, q: FloatArray, length: FloatArray) -> tuple[float, float]:
-    """How far poses ``q`` squeeze or stretch the part from ``length`` (whole mm, the worst
-    point), then the largest turn of a joint between two points."""
-    hands = hand_pair(skel, path, np.arange(len(q)), q)
-    off = float(np.abs(np.linalg.norm(hands[:, 0] - hands[:, 1], axis=1) - length).max())
     return (round(off * 1000.0), float(np.abs(np.diff(q, axis=0)).max(initial=0.0)))
 
 

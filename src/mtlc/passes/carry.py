@@ -276,20 +276,22 @@ def keep_rigid(
 
 def solve_smoothed(
     skel: object, frames: Frames, rows: np.ndarray, fix: np.ndarray, q: FloatArray,
-    hands: FloatArray, goal: FloatArray, sigma: float,
+    hands: FloatArray, goal: FloatArray, sigma: float, dofs: dict[str, list[int]] | None = None,
 ) -> FloatArray:  # fmt: skip
     """``q`` (on ``rows``) with both arms on ``goal``: each frame of ``fix`` solved from its own
     pose, the correction smoothed in time (a Gaussian of ``sigma`` frames, its ends kept) and
     solved again from there. Each frame's solve converges where it will: the correction
     jumped from frame to frame (the avionics unit's elbow 18 deg in one output frame);
     solved again from the smoothed correction, each frame lands near its neighbours."""
-    solved = solve_arms(skel, frames, rows, fix, q, hands, goal)
-    arms = _both_arms(skel)
+    solved = solve_arms(skel, frames, rows, fix, q, hands, goal, dofs)
+    arms = sorted({i for chain in dofs.values() for i in chain}) if dofs else _both_arms(skel)
     smooth = q.copy()
     smooth[:, arms] += smooth_path(solved[:, arms] - q[:, arms], sigma)
     hands2 = hand_pair(skel, frames, rows, smooth)
     fix2 = np.flatnonzero(np.linalg.norm(hands2 - goal, axis=-1).max(axis=1) > FIX_FROM)
-    return solve_arms(skel, frames, rows, fix2, smooth, hands2, goal) if fix2.size else smooth
+    if not fix2.size:
+        return smooth
+    return solve_arms(skel, frames, rows, fix2, smooth, hands2, goal, dofs)
 
 
 def _fade_out(frames: Frames, last: int, offset: FloatArray, start: float) -> None:
@@ -346,15 +348,16 @@ def opening(ir: MotionIR, carry: Carry) -> float:
 
 def solve_arms(
     skel: object, frames: Frames, rows: np.ndarray, fix: np.ndarray, q: FloatArray,
-    hands: FloatArray, goal: FloatArray,
+    hands: FloatArray, goal: FloatArray, dofs: dict[str, list[int]] | None = None,
 ) -> FloatArray:  # fmt: skip
-    """``q`` with both arms of the rows ``fix`` solved onto their ends of the part, where
-    that brings the hand closer."""
+    """``q`` with both arms (``dofs`` per hand; default the arm chains) of the rows ``fix``
+    solved onto their ends of the part, where that brings the hand closer."""
     q = q.copy()
     sub = rows[fix]
     for k, hand in enumerate(("r_hand", "l_hand")):
+        chain = dofs[hand] if dofs else _arm_dofs(skel, hand)
         model = prepare(
-            skel, [hand], q[fix], dofs=_arm_dofs(skel, hand),  # type: ignore[arg-type]
+            skel, [hand], q[fix], dofs=chain,  # type: ignore[arg-type]
             root_position=frames.root_position[sub], root_rotation=frames.root_rotation[sub],
         )  # fmt: skip
         res = solve_ta(

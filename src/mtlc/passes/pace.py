@@ -330,8 +330,8 @@ def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Car
         # smoothed (carry.solve_smoothed; the continuation can stall at a joint's limit)
         fade = 1.0 - minimum_jerk((np.linspace(0.0, 1.0, len(q)) - (1.0 - END_BLEND)) / END_BLEND)
         candidates = [
-            _onto(skel, smooth, smooth.q + fade[:, None] * (q - smooth.q), goal),
-            _onto(skel, smooth, smooth.q, goal, SMOOTH_SIGMA * (PATH_POINTS - 1)),
+            _onto(skel, smooth, smooth.q + fade[:, None] * (q - smooth.q), goal, sides),
+            _onto(skel, smooth, smooth.q, goal, sides, SMOOTH_SIGMA * (PATH_POINTS - 1)),
         ]
         best = min(candidates, key=lambda c: _holding(skel, smooth, c, goal))
         return Frames(0.0, smooth.time, smooth.root_position, smooth.root_rotation, best)
@@ -343,18 +343,23 @@ def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Car
 
 
 def _onto(
-    skel: object, path: Frames, seed: FloatArray, goal: FloatArray, sigma: float = 0.0
+    skel: object,
+    path: Frames,
+    seed: FloatArray,
+    goal: FloatArray,
+    dofs: dict[str, list[int]],
+    sigma: float = 0.0,
 ) -> FloatArray:
-    """``seed`` with both arms solved onto ``goal`` where they are off it (from ``seed``;
-    with a smoothed correction solved again when ``sigma`` > 0)."""
+    """``seed`` with both arms (``dofs``) solved onto ``goal`` where they are off it (from
+    ``seed``; with a smoothed correction solved again when ``sigma`` > 0)."""
     rows = np.arange(len(seed))
     now = hand_pair(skel, path, rows, seed)
     fix = np.flatnonzero(np.linalg.norm(now - goal, axis=-1).max(axis=1) > FIX_FROM)
     if not fix.size:
         return seed
     if sigma > 0.0:
-        return solve_smoothed(skel, path, rows, fix, seed, now, goal, sigma)
-    return solve_arms(skel, path, rows, fix, seed, now, goal)
+        return solve_smoothed(skel, path, rows, fix, seed, now, goal, sigma, dofs)
+    return solve_arms(skel, path, rows, fix, seed, now, goal, dofs)
 
 
 def _holding(skel: object, path: Frames, q: FloatArray, goal: FloatArray) -> tuple[float, float]:

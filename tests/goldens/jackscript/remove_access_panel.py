@@ -3024,7 +3024,7 @@ def remove_access_panel():
     })
     human.KeyJoints(53.3, {
         'neck': (27.653, 26.665, -23.383), 'head': (11.851, -8.888),
-        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.843, 24.897),
+        'right_shoulder': (34.395, 35.22, -9.877), 'right_elbow': (90.842, 24.897),
         'right_wrist': (-16.568, -18.281), 'left_shoulder': (89.57, -29.205, 14.639),
         'left_elbow': (21.157, 18.169), 'left_wrist': (0.918, -5.518),
         'right_hip': (3.035, 0.0, 0.0), 'right_knee': (4.942,), 'right_ankle': (1.91, 0.0),
@@ -3036,60 +3036,60 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=53.396726, duration=0.633339)
     human.KeyJoints(53.4, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.692, 34.902, -9.74), 'right_elbow': (91.115, 24.925),
-        'right_wrist': (-16.614, -18.204), 'left_shoulder': (88.6, -29.03, 15.106),
-        'left_elbow': (22.208, 17.989), 'left_wrist': (-0.001, -5.399),
+        'right_shoulder': (33.888, 34.975, -9.75), 'right_elbow': (91.002, 24.914),
+        'right_wrist': (-16.585, -18.209), 'left_shoulder': (88.17, -28.972, 15.116),
+        'left_elbow': (22.766, 17.991), 'left_wrist': (-0.043, -5.344),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(53.5, {
-        'right_shoulder': (25.909, 31.505, -8.385), 'right_elbow': (94.369, 25.221),
-        'right_wrist': (-17.196, -17.367), 'left_shoulder': (78.922, -27.241, 20.037),
-        'left_elbow': (32.276, 16.08), 'left_wrist': (-9.695, -4.236),
+        'right_shoulder': (27.638, 32.325, -8.722), 'right_elbow': (93.575, 25.153),
+        'right_wrist': (-17.034, -17.409), 'left_shoulder': (75.654, -26.716, 20.135),
+        'left_elbow': (36.015, 16.135), 'left_wrist': (-10.295, -3.741),
     })
     human.KeyJoints(53.6, {
-        'right_shoulder': (9.021, 24.261, -5.533), 'right_elbow': (101.189, 25.835),
-        'right_wrist': (-18.49, -15.664), 'left_shoulder': (58.206, -22.964, 30.249),
-        'left_elbow': (53.235, 12.113), 'left_wrist': (-29.907, -1.8),
+        'right_shoulder': (11.314, 26.208, -7.116), 'right_elbow': (101.096, 25.878),
+        'right_wrist': (-18.679, -15.662), 'left_shoulder': (53.69, -21.756, 30.226),
+        'left_elbow': (57.102, 12.106), 'left_wrist': (-30.801, -1.333),
     })
     human.KeyJoints(53.7, {
-        'right_shoulder': (-12.018, 15.258, -1.675), 'right_elbow': (108.567, 26.509),
-        'right_wrist': (-20.037, -13.897), 'left_shoulder': (32.759, -16.11, 41.199),
-        'left_elbow': (76.674, 7.75), 'left_wrist': (-52.311, 0.978),
+        'right_shoulder': (-11.075, 17.003, -3.452), 'right_elbow': (109.955, 26.703),
+        'right_wrist': (-20.574, -13.678), 'left_shoulder': (29.481, -15.182, 40.971),
+        'left_elbow': (78.797, 7.321), 'left_wrist': (-52.937, 0.927),
     })
     human.KeyJoints(53.8, {
-        'right_shoulder': (-29.51, 6.496, 4.397), 'right_elbow': (112.31, 26.827),
-        'right_wrist': (-20.578, -12.841), 'left_shoulder': (9.433, -6.64, 47.496),
-        'left_elbow': (93.191, 5.45), 'left_wrist': (-66.303, 3.262),
+        'right_shoulder': (-29.507, 7.035, 3.902), 'right_elbow': (112.295, 26.853),
+        'right_wrist': (-20.716, -12.806), 'left_shoulder': (9.257, -6.26, 49.55),
+        'left_elbow': (94.761, 3.618), 'left_wrist': (-69.006, 2.498),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.9, {
-        'right_shoulder': (-37.978, 0.342, 11.771), 'right_elbow': (111.263, 26.64),
-        'right_wrist': (-19.459, -12.569), 'left_shoulder': (0.142, 8.676, 56.082),
-        'left_elbow': (103.304, 5.938), 'left_wrist': (-70.0, 4.786),
+        'right_shoulder': (-37.765, 0.311, 11.584), 'right_elbow': (110.539, 26.574),
+        'right_wrist': (-19.403, -12.717), 'left_shoulder': (0.489, 9.016, 57.102),
+        'left_elbow': (103.561, 5.792), 'left_wrist': (-70.0, 4.719),
     })
     human.KeyJoints(54.0, {
-        'right_shoulder': (-40.21, -1.562, 14.423), 'right_elbow': (110.518, 26.535),
-        'right_wrist': (-18.926, -12.529), 'left_shoulder': (-1.588, 14.491, 59.19),
-        'left_elbow': (105.869, 8.174), 'left_wrist': (-69.983, 7.316),
+        'right_shoulder': (-40.207, -1.562, 14.417), 'right_elbow': (110.504, 26.533),
+        'right_wrist': (-18.926, -12.532), 'left_shoulder': (-1.584, 14.496, 59.201),
+        'left_elbow': (105.871, 8.18), 'left_wrist': (-69.982, 7.321),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=54.030065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=54.030065, duration=0.072)
     human.KeyJoints(54.1, {
-        'left_shoulder': (-0.996, 15.195, 59.982), 'left_elbow': (105.536, 8.908),
-        'left_wrist': (-70.0, 7.97),
+        'left_shoulder': (-1.024, 15.114, 59.903), 'left_elbow': (105.362, 9.082),
+        'left_wrist': (-70.0, 8.225),
     })
     human.KeyRoot(54.102065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(54.102065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
-        'right_shoulder': (-40.34, -1.583, 14.473), 'right_elbow': (110.624, 26.533),
-        'right_wrist': (-18.939, -12.508), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-0.856, 15.331, 60.151), 'left_elbow': (105.457, 9.045),
-        'left_wrist': (-70.0, 8.11), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
+        'right_shoulder': (-40.328, -1.598, 14.492), 'right_elbow': (110.63, 26.533),
+        'right_wrist': (-18.934, -12.504), 'left_clavicle': (-2.488, 4.0),
+        'left_shoulder': (-0.811, 15.327, 60.218), 'left_elbow': (105.421, 9.033),
+        'left_wrist': (-70.0, 8.075), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),
     })

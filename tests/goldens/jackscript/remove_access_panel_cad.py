@@ -3189,9 +3189,9 @@ def remove_access_panel_cad():
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TA on r_arm at bench_top
     human.KeyJoints(52.7, {
         'neck': (34.547, 33.313, -20.406), 'head': (14.806, -11.104),
-        'right_shoulder': (32.818, 37.351, -9.636), 'right_elbow': (90.782, 22.837),
-        'right_wrist': (-12.535, -14.577), 'left_shoulder': (89.744, -29.213, 14.721),
-        'left_elbow': (20.451, 18.166), 'left_wrist': (0.905, -5.539),
+        'right_shoulder': (32.835, 37.353, -9.633), 'right_elbow': (90.775, 22.837),
+        'right_wrist': (-12.532, -14.576), 'left_shoulder': (89.719, -29.213, 14.723),
+        'left_elbow': (20.479, 18.166), 'left_wrist': (0.904, -5.537),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
@@ -3199,36 +3199,36 @@ def remove_access_panel_cad():
     human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
     human.KeyJoints(52.8, {
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
-        'right_shoulder': (29.306, 35.833, -8.993), 'right_elbow': (91.632, 22.867),
-        'right_wrist': (-12.589, -14.307), 'left_shoulder': (84.159, -28.161, 15.539),
-        'left_elbow': (25.798, 17.672), 'left_wrist': (0.265, -4.334),
+        'right_shoulder': (29.748, 35.99, -9.05), 'right_elbow': (91.374, 22.854),
+        'right_wrist': (-12.54, -14.334), 'left_shoulder': (83.084, -28.036, 15.61),
+        'left_elbow': (27.221, 17.675), 'left_wrist': (0.209, -4.18),
     })
     human.KeyJoints(52.9, {
-        'right_shoulder': (18.988, 31.107, -6.751), 'right_elbow': (94.179, 22.957),
-        'right_wrist': (-12.689, -13.458), 'left_shoulder': (67.783, -25.069, 17.951),
-        'left_elbow': (40.928, 16.206), 'left_wrist': (-1.622, -0.847),
+        'right_shoulder': (19.97, 31.61, -7.109), 'right_elbow': (93.772, 22.947),
+        'right_wrist': (-12.654, -13.509), 'left_shoulder': (65.642, -24.748, 18.136),
+        'left_elbow': (43.254, 16.197), 'left_wrist': (-1.722, -0.547),
     })
     human.KeyJoints(53.0, {
-        'right_shoulder': (4.674, 23.785, -2.548), 'right_elbow': (97.585, 23.075),
-        'right_wrist': (-12.705, -12.197), 'left_shoulder': (44.496, -20.081, 21.115),
-        'left_elbow': (60.656, 14.211), 'left_wrist': (-4.411, 3.763),
+        'right_shoulder': (5.321, 24.374, -3.193), 'right_elbow': (97.713, 23.108),
+        'right_wrist': (-12.815, -12.186), 'left_shoulder': (42.504, -19.649, 21.337),
+        'left_elbow': (62.42, 14.161), 'left_wrist': (-4.471, 3.877),
     })
     human.KeyJoints(53.1, {
-        'right_shoulder': (-8.374, 15.88, 3.254), 'right_elbow': (100.192, 23.146),
-        'right_wrist': (-12.528, -11.037), 'left_shoulder': (22.167, -12.993, 23.015),
-        'left_elbow': (76.551, 12.651), 'left_wrist': (-7.415, 7.552),
+        'right_shoulder': (-8.226, 15.953, 2.926), 'right_elbow': (99.626, 23.129),
+        'right_wrist': (-12.531, -11.139), 'left_shoulder': (20.919, -12.952, 23.562),
+        'left_elbow': (78.036, 12.53), 'left_wrist': (-7.449, 7.525),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (-16.365, 9.536, 9.96), 'right_elbow': (102.051, 23.146),
-        'right_wrist': (-11.78, -10.105), 'left_shoulder': (7.232, -5.186, 23.204),
-        'left_elbow': (88.485, 11.703), 'left_wrist': (-10.584, 10.663),
+        'right_shoulder': (-15.566, 9.216, 10.057), 'right_elbow': (100.116, 23.031),
+        'right_wrist': (-11.521, -10.443), 'left_shoulder': (7.028, -5.041, 23.586),
+        'left_elbow': (88.728, 11.534), 'left_wrist': (-10.75, 10.538),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.3, {
-        'right_shoulder': (-19.658, 6.898, 13.33), 'right_elbow': (103.321, 23.157),
-        'right_wrist': (-11.323, -9.604), 'left_shoulder': (1.012, -1.789, 22.874),
-        'left_elbow': (95.405, 11.706), 'left_wrist': (-11.963, 12.632),
+        'right_shoulder': (-19.573, 6.858, 13.346), 'right_elbow': (103.148, 23.147),
+        'right_wrist': (-11.298, -9.634), 'left_shoulder': (0.992, -1.782, 22.903),
+        'left_elbow': (95.414, 11.698), 'left_wrist': (-11.973, 12.631),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)

@@ -184,13 +184,15 @@ def solve_along(
     ``goal`` (P, 2, 3) point after point, each from the one before moved by the path's own step
     (continuation): solved each on its own from the path's pose, two neighbouring points near
     the shoulder's overhead singularity landed on two IK branches (issue 19: a shoulder 100 deg
-    apart). Where the arms cannot take the part as far as the point (both hands within
-    ``HOLD_TOL`` of its ends), the part goes as far along its path as they can (bisection,
-    ``STALL_STEPS``) and no further: it stops short of a goal out of reach, held, instead of
+    apart). Where a hand cannot reach its end of the part, it leads: the other holds the part's
+    other end where that hand is (the part lags or tilts a little). Where even that fails (the
+    other hand further than ``HOLD_TOL`` from it), the part goes as far along its path as the
+    arms can take it (bisection, ``STALL_STEPS``) and no further: it stops short of a goal out of reach, held, instead of
     one hand reaching on and the other falling behind (the hood edge stretched by 30 cm).
     It never goes further than ``MAX_ADVANCE`` points ahead of the point before, so it catches
     up gradually where the path comes back into reach. Returns the poses (P, D), each point's
-    worst hand error (P,) and how far along the part's path each point took it (P,)."""
+    error (P,: the worse hand's distance from its end of the part, or the follower's from the
+    leader's other end) and how far along the part's path each point took it (P,)."""
     q = frames.q.copy()
     error = np.zeros(len(q))
     along = np.zeros(len(q))
@@ -207,15 +209,31 @@ def solve_along(
     def solve_at(k: int, seed: FloatArray, s: float) -> tuple[FloatArray, float]:
         pose = seed.copy()
         target = ends_at(s)
-        for i, (hand, chain) in enumerate(arms.items()):
-            res = solve_ta(
-                skel, [Goal(hand, position=target[i])], pose, dofs=chain,  # type: ignore[arg-type]
-                root_position=frames.root_position[k], root_rotation=frames.root_rotation[k],
-                restarts=0, null_gain=0.0, tol=SOLVE_TOL,
-            )  # fmt: skip
-            pose[chain] = res.q[0, chain]
+        for i, hand in enumerate(arms):
+            pose = solve_hand(k, pose, hand, target[i])
         hands = hand_pair(skel, frames, np.array([k]), pose[None])[0]
-        return pose, float(np.linalg.norm(hands - target, axis=-1).max())
+        off = np.linalg.norm(hands - target, axis=-1)
+        if off.max() <= HOLD_TOL:
+            return pose, float(off.max())
+        # the hand that falls shorter leads: the other holds the part's other end where that
+        # hand is (the part tilts or lags a little instead of stopping)
+        lead = int(np.argmax(off))
+        other = 1 - lead
+        held = hands[lead] + target[other] - target[lead]
+        pose = solve_hand(k, pose, list(arms)[other], held)
+        hands = hand_pair(skel, frames, np.array([k]), pose[None])[0]
+        return pose, float(np.linalg.norm(hands[other] - held))
+
+    def solve_hand(k: int, pose: FloatArray, hand: str, target: FloatArray) -> FloatArray:
+        chain = arms[hand]
+        res = solve_ta(
+            skel, [Goal(hand, position=target)], pose, dofs=chain,  # type: ignore[arg-type]
+            root_position=frames.root_position[k], root_rotation=frames.root_rotation[k],
+            restarts=0, null_gain=0.0, tol=SOLVE_TOL,
+        )  # fmt: skip
+        out = pose.copy()
+        out[chain] = res.q[0, chain]
+        return out
 
     for k in range(1, len(q)):
         seed = frames.q[k].copy()

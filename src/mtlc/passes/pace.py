@@ -43,6 +43,7 @@ from mtlc.passes.carry import (
     solve_smoothed,
 )
 from mtlc.passes.context import INTERNAL_FPS, PassContext
+from mtlc.passes.hold import _arm_dofs as arm_dofs
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
 from mtlc.passes.profile import gaussian_rows as gaussian_rows  # re-exported
 from mtlc.passes.profile import minimum_jerk as minimum_jerk  # re-exported
@@ -318,8 +319,10 @@ def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Car
     rows = np.arange(len(smooth.time))
     hands = hand_pair(skel, smooth, rows, smooth.q)
     goal = part_path(hands, grip_length(ir, carry))
-    sides = {hand: [ir.skeleton.dof_index(n) for n in m.dofs if n.startswith(hand[:2])]
-             for hand in ("r_hand", "l_hand")}  # fmt: skip
+    # the arm chains the later arm segments key (shoulder, elbow, wrist): a clavicle moved here
+    # kept its new angle until something keyed it again, and the next two-handed reach, solved
+    # from the old one, closed on its part 6 cm wide (vehicle_battery male P5)
+    sides = {hand: arm_dofs(skel, hand) for hand in ("r_hand", "l_hand")}
     q, _, _ = solve_along(skel, smooth, goal, sides)
     end = hand_pair(skel, smooth, rows[-1:], smooth.q[-1:])[0]
     if float(np.linalg.norm(end - goal[-1], axis=-1).max()) <= REACH_TOL:
@@ -327,11 +330,16 @@ def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Car
         # that holds the part better (then turns the arms less from point to point): the
         # continuation with its correction faded out over the last ``END_BLEND`` and solved
         # again from there, or each point solved from the path's own pose and its correction
-        # smoothed (carry.solve_smoothed; the continuation can stall at a joint's limit)
+        # smoothed (carry.solve_smoothed; the continuation can stall at a joint's limit); or,
+        # where neither holds the part (both re-solve each point on its own, and the blend can
+        # leave the arms' reach: a box put on a bench 68 mm squeezed, female P5), the
+        # continuation to its own end pose (the hands on their goals, the arms turned another
+        # way: the arm segments after it start from the solver's pose)
         fade = 1.0 - minimum_jerk((np.linspace(0.0, 1.0, len(q)) - (1.0 - END_BLEND)) / END_BLEND)
         candidates = [
             _onto(skel, smooth, smooth.q + fade[:, None] * (q - smooth.q), goal, sides),
             _onto(skel, smooth, smooth.q, goal, sides, SMOOTH_SIGMA * (PATH_POINTS - 1)),
+            q,  # the continuation to its own end, where neither of those holds the part
         ]
         best = min(candidates, key=lambda c: _holding(skel, smooth, c, goal))
         return Frames(0.0, smooth.time, smooth.root_position, smooth.root_rotation, best)
@@ -362,12 +370,19 @@ def _onto(
     return solve_arms(skel, path, rows, fix, seed, now, goal, dofs)
 
 
-def _holding(skel: object, path: Frames, q: FloatArray, goal: FloatArray) -> tuple[float, float]:
-    """How well poses ``q`` hold the part: the worst hand's distance from its end of it,
-    rounded to whole mm, then the largest turn of a joint between two points."""
+def _holding(
+    skel: object, path: Frames, q: FloatArray, goal: FloatArray
+) -> tuple[bool, float, float]:
+    """How well poses ``q`` hold the part: whether they miss its goal at the end (by more than
+    ``REACH_TOL``: contact not made), how far they squeeze or stretch it from its length (whole
+    mm, the worst point; a hand that lags with the other holding the part's other end where it
+    is still holds it), then the largest turn of a joint between two points."""
     hands = hand_pair(skel, path, np.arange(len(q)), q)
-    off = float(np.linalg.norm(hands - goal, axis=-1).max())
-    return (round(off * 1000.0), float(np.abs(np.diff(q, axis=0)).max(initial=0.0)))
+    apart = np.linalg.norm(hands[:, 0] - hands[:, 1], axis=1)
+    length = np.linalg.norm(goal[:, 0] - goal[:, 1], axis=1)
+    off = float(np.abs(apart - length).max())
+    misses = float(np.linalg.norm(hands[-1] - goal[-1], axis=-1).max()) > REACH_TOL
+    return (misses, round(off * 1000.0), float(np.abs(np.diff(q, axis=0)).max(initial=0.0)))
 
 
 def _record_shortfall(ir: MotionIR, m: Movement, path: Frames) -> None:

@@ -3036,59 +3036,56 @@ def remove_access_panel():
     human.LookAt((160.0, 90.0, 20.0), start=53.396726, duration=0.633339)
     human.KeyJoints(53.4, {
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25),
-        'right_shoulder': (33.888, 34.975, -9.75), 'right_elbow': (91.002, 24.914),
+        'right_shoulder': (33.888, 34.975, -9.75), 'right_elbow': (91.001, 24.925),
         'right_wrist': (-16.585, -18.209), 'left_shoulder': (88.17, -28.972, 15.116),
-        'left_elbow': (22.766, 17.991), 'left_wrist': (-0.043, -5.344),
+        'left_elbow': (22.766, 17.988), 'left_wrist': (-0.043, -5.344),
         'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,), 'right_ankle': (1.719, 0.0),
         'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,), 'left_ankle': (1.719, 0.0),
     })
     human.KeyJoints(53.5, {
-        'right_shoulder': (27.638, 32.325, -8.722), 'right_elbow': (93.575, 25.153),
-        'right_wrist': (-17.034, -17.409), 'left_shoulder': (75.654, -26.716, 20.135),
-        'left_elbow': (36.015, 16.135), 'left_wrist': (-10.295, -3.741),
+        'right_shoulder': (27.639, 32.324, -8.721), 'right_elbow': (93.569, 25.223),
+        'right_wrist': (-17.032, -17.409), 'left_shoulder': (75.654, -26.716, 20.134),
+        'left_elbow': (36.017, 16.066), 'left_wrist': (-10.295, -3.741),
     })
     human.KeyJoints(53.6, {
-        'right_shoulder': (11.314, 26.208, -7.116), 'right_elbow': (101.096, 25.878),
-        'right_wrist': (-18.679, -15.662), 'left_shoulder': (53.69, -21.756, 30.226),
-        'left_elbow': (57.102, 12.106), 'left_wrist': (-30.801, -1.333),
+        'right_shoulder': (11.315, 26.209, -7.116), 'right_elbow': (101.099, 25.842),
+        'right_wrist': (-18.679, -15.662), 'left_shoulder': (53.69, -21.757, 30.226),
+        'left_elbow': (57.105, 12.072), 'left_wrist': (-30.801, -1.332),
     })
     human.KeyJoints(53.7, {
-        'right_shoulder': (-11.075, 17.003, -3.452), 'right_elbow': (109.955, 26.703),
-        'right_wrist': (-20.574, -13.678), 'left_shoulder': (29.481, -15.182, 40.971),
-        'left_elbow': (78.797, 7.321), 'left_wrist': (-52.937, 0.927),
+        'right_shoulder': (-11.077, 17.004, -3.453), 'right_elbow': (109.972, 26.53),
+        'right_wrist': (-20.576, -13.675), 'left_shoulder': (29.481, -15.175, 40.966),
+        'left_elbow': (78.739, 7.627), 'left_wrist': (-52.923, 0.912),
     })
     human.KeyJoints(53.8, {
-        'right_shoulder': (-29.507, 7.035, 3.902), 'right_elbow': (112.295, 26.853),
-        'right_wrist': (-20.716, -12.806), 'left_shoulder': (9.257, -6.26, 49.55),
-        'left_elbow': (94.761, 3.618), 'left_wrist': (-69.006, 2.498),
+        'right_shoulder': (-29.508, 7.035, 3.903), 'right_elbow': (112.29, 26.906),
+        'right_wrist': (-20.715, -12.808), 'left_shoulder': (9.251, -6.256, 49.537),
+        'left_elbow': (94.695, 3.929), 'left_wrist': (-68.979, 2.456),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.9, {
-        'right_shoulder': (-37.765, 0.311, 11.584), 'right_elbow': (110.539, 26.574),
-        'right_wrist': (-19.403, -12.717), 'left_shoulder': (0.489, 9.016, 57.102),
-        'left_elbow': (103.561, 5.792), 'left_wrist': (-70.0, 4.719),
+        'right_shoulder': (-37.765, 0.311, 11.585), 'right_elbow': (110.53, 26.669),
+        'right_wrist': (-19.401, -12.719), 'left_shoulder': (0.497, 9.024, 57.122),
+        'left_elbow': (103.608, 5.61), 'left_wrist': (-70.0, 4.728),
     })
     human.KeyJoints(54.0, {
-        'right_shoulder': (-40.207, -1.562, 14.417), 'right_elbow': (110.504, 26.533),
-        'right_wrist': (-18.926, -12.532), 'left_shoulder': (-1.584, 14.496, 59.201),
-        'left_elbow': (105.871, 8.18), 'left_wrist': (-69.982, 7.321),
+        'right_shoulder': (-40.207, -1.562, 14.417), 'right_elbow': (110.504, 26.535),
+        'right_wrist': (-18.926, -12.532), 'left_shoulder': (-2.265, 13.728, 57.742),
+        'left_elbow': (104.423, 10.561), 'left_wrist': (-70.0, 10.004),
     })
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=54.030065, duration=0.072)
     # examples/remove_access_panel.mtask:34:5 remove_access_panel > place > release: grip on r_hand
     human.Grasp('right_hand', 'open', start=54.030065, duration=0.072)
-    human.KeyJoints(54.1, {
-        'left_shoulder': (-1.024, 15.114, 59.903), 'left_elbow': (105.362, 9.082),
-        'left_wrist': (-70.0, 8.225),
-    })
+    human.KeyJoints(54.1, {'left_shoulder': (-1.023, 15.115, 59.904), 'left_wrist': (-70.0, 8.226)})
     human.KeyRoot(54.102065, (140.0, 72.992, 20.0), (90.0, 0.0, 0.0))
     human.KeyJoints(54.102065, {
         'spine_lumbar': (17.007, -11.444, 7.51), 'spine_thoracic': (-14.684, -6.403, 6.875),
         'neck': (35.0, 33.75, -29.595), 'head': (15.0, -11.25), 'right_clavicle': (6.997, 9.73),
         'right_shoulder': (-40.328, -1.598, 14.492), 'right_elbow': (110.63, 26.533),
         'right_wrist': (-18.934, -12.504), 'left_clavicle': (-2.488, 4.0),
-        'left_shoulder': (-0.811, 15.327, 60.218), 'left_elbow': (105.421, 9.033),
+        'left_shoulder': (-0.811, 15.328, 60.219), 'left_elbow': (105.421, 9.029),
         'left_wrist': (-70.0, 8.075), 'right_hip': (2.865, 0.0, 0.0), 'right_knee': (4.584,),
         'right_ankle': (1.719, 0.0), 'left_hip': (2.865, 0.0, 0.0), 'left_knee': (4.584,),
         'left_ankle': (1.719, 0.0), 'right_toes': (0.0,), 'left_toes': (0.0,),

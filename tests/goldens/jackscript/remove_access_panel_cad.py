@@ -3199,36 +3199,36 @@ def remove_access_panel_cad():
     human.LookAt((160.0, 90.0, 20.0), start=52.721552, duration=0.640349)
     human.KeyJoints(52.8, {
         'neck': (35.0, 33.75, -20.674), 'head': (15.0, -11.25),
-        'right_shoulder': (29.748, 35.99, -9.05), 'right_elbow': (91.374, 22.854),
+        'right_shoulder': (29.748, 35.989, -9.049), 'right_elbow': (91.373, 22.868),
         'right_wrist': (-12.54, -14.334), 'left_shoulder': (83.084, -28.036, 15.61),
-        'left_elbow': (27.221, 17.675), 'left_wrist': (0.209, -4.18),
+        'left_elbow': (27.221, 17.668), 'left_wrist': (0.209, -4.18),
     })
     human.KeyJoints(52.9, {
-        'right_shoulder': (19.97, 31.61, -7.109), 'right_elbow': (93.772, 22.947),
+        'right_shoulder': (19.97, 31.61, -7.109), 'right_elbow': (93.772, 22.959),
         'right_wrist': (-12.654, -13.509), 'left_shoulder': (65.642, -24.748, 18.136),
-        'left_elbow': (43.254, 16.197), 'left_wrist': (-1.722, -0.547),
+        'left_elbow': (43.254, 16.182), 'left_wrist': (-1.722, -0.547),
     })
     human.KeyJoints(53.0, {
-        'right_shoulder': (5.321, 24.374, -3.193), 'right_elbow': (97.713, 23.108),
-        'right_wrist': (-12.815, -12.186), 'left_shoulder': (42.504, -19.649, 21.337),
-        'left_elbow': (62.42, 14.161), 'left_wrist': (-4.471, 3.877),
+        'right_shoulder': (5.321, 24.375, -3.194), 'right_elbow': (97.715, 23.079),
+        'right_wrist': (-12.815, -12.186), 'left_shoulder': (42.503, -19.649, 21.337),
+        'left_elbow': (62.42, 14.158), 'left_wrist': (-4.471, 3.877),
     })
     human.KeyJoints(53.1, {
-        'right_shoulder': (-8.226, 15.953, 2.926), 'right_elbow': (99.626, 23.129),
-        'right_wrist': (-12.531, -11.139), 'left_shoulder': (20.919, -12.952, 23.562),
-        'left_elbow': (78.036, 12.53), 'left_wrist': (-7.449, 7.525),
+        'right_shoulder': (-8.226, 15.952, 2.926), 'right_elbow': (99.624, 23.159),
+        'right_wrist': (-12.531, -11.14), 'left_shoulder': (20.919, -12.952, 23.562),
+        'left_elbow': (78.036, 12.531), 'left_wrist': (-7.449, 7.525),
     })
     human.KeyJoints(53.2, {
-        'right_shoulder': (-15.566, 9.216, 10.057), 'right_elbow': (100.116, 23.031),
-        'right_wrist': (-11.521, -10.443), 'left_shoulder': (7.028, -5.041, 23.586),
-        'left_elbow': (88.728, 11.534), 'left_wrist': (-10.75, 10.538),
+        'right_shoulder': (-15.566, 9.215, 10.058), 'right_elbow': (100.11, 23.131),
+        'right_wrist': (-11.52, -10.444), 'left_shoulder': (7.028, -5.041, 23.588),
+        'left_elbow': (88.729, 11.493), 'left_wrist': (-10.751, 10.539),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on l_arm at bench_top
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > move: TO on r_arm at bench_top
     human.KeyJoints(53.3, {
-        'right_shoulder': (-19.573, 6.858, 13.346), 'right_elbow': (103.148, 23.147),
+        'right_shoulder': (-19.573, 6.858, 13.346), 'right_elbow': (103.148, 23.155),
         'right_wrist': (-11.298, -9.634), 'left_shoulder': (0.992, -1.782, 22.903),
-        'left_elbow': (95.414, 11.698), 'left_wrist': (-11.973, 12.631),
+        'left_elbow': (95.414, 11.693), 'left_wrist': (-11.973, 12.631),
     })
     # examples/remove_access_panel_cad.mtask:36:5 remove_access_panel_cad > place > release: grip on l_hand
     human.Grasp('left_hand', 'open', start=53.361901, duration=0.072)

@@ -8,8 +8,9 @@ every two-handed carried move: a TA or TO of both arms with ``two_handed`` that 
 both hands are closed on one two-handed part that both reached within 1 mm (verify's rule;
 from the later close of the two grips until the earlier open). The
 figure is max |d(t) - d(grip)| in mm, d the distance between the hands, d(grip) its value at the
-first output frame at or after the later hand closed. With two folders it prints both side by
-side, per compile, and the totals.
+first output frame at or after the later hand closed; beside it the largest change of one joint
+between two output frames inside the move (deg). With two folders it prints both side by side,
+per compile, and the totals.
 """
 
 from __future__ import annotations
@@ -67,7 +68,8 @@ def _closed_spans(doc: dict[str, Any], hand: str) -> list[tuple[float, float, st
 
 
 def carried_moves(doc: dict[str, Any]) -> list[tuple[float, float, float]]:
-    """(grip, move start, move end) of every two-handed move made while both hands are closed."""
+    """(grip, first move's start, last move's end) of each two-handed grip: the moves made
+    while both hands hold the part, and what happens between them (a walk carrying it)."""
     both = [
         (max(r0, l0), min(r1, l1))
         for r0, r1, r_part in _closed_spans(doc, "r_hand")
@@ -92,20 +94,24 @@ def carried_moves(doc: dict[str, Any]) -> list[tuple[float, float, float]]:
     return out
 
 
-def measure(doc: dict[str, Any]) -> list[float]:
-    """max |d(t) - d(grip)| (mm) per carried move."""
+def measure(doc: dict[str, Any]) -> list[tuple[float, float]]:
+    """Per carried move: max |d(t) - d(grip)| (mm), and the largest change of one joint
+    between two output frames inside it (deg)."""
     body = Body.of(doc)
     d = np.linalg.norm(body.points["r_hand"] - body.points["l_hand"], axis=1)
+    q = np.asarray(doc["frames"]["q"], float)
     out = []
     for grip, start, end in carried_moves(doc):
         k0 = body.frame_at(grip)
-        inside = (body.time >= start - EPS) & (body.time <= end + EPS)
-        if inside.any():
-            out.append(float(np.abs(d[inside] - d[k0]).max()) * 1000.0)
+        inside = np.flatnonzero((body.time >= start - EPS) & (body.time <= end + EPS))
+        if inside.size:
+            steps = np.abs(np.diff(q[inside[0] : inside[-1] + 1], axis=0))
+            step = float(np.degrees(steps.max(initial=0.0)))
+            out.append((float(np.abs(d[inside] - d[k0]).max()) * 1000.0, step))
     return out
 
 
-def folder(path: Path) -> dict[str, list[float]]:
+def folder(path: Path) -> dict[str, list[tuple[float, float]]]:
     rows = {}
     for ir in sorted(path.glob("*/*.ir.json")):
         doc = json.loads(ir.read_text(encoding="utf-8"))
@@ -117,15 +123,18 @@ def main(argv: list[str]) -> int:
     sets = [folder(Path(a)) for a in argv]
     names = sorted({n for s in sets for n, v in s.items() if v})
     for n in names:
-        cells = ["  ".join(f"{v:7.1f}" for v in s.get(n, [])) or "-" for s in sets]
+        cells = ["  ".join(f"{v:7.1f} {w:5.1f}" for v, w in s.get(n, [])) or "-" for s in sets]
         print(f"{n:40s} " + "  |  ".join(cells))
     for k, s in enumerate(sets):
-        values = [v for vs in s.values() for v in vs]
+        values = [v for vs in s.values() for v, _ in vs]
+        steps = [w for vs in s.values() for _, w in vs]
         over = sum(v > 5.0 for v in values)
         worst = max(values, default=0.0)
         print(
-            f"set {k}: {len(values)} carried moves, worst {worst:.1f} mm, "
-            f"median {np.median(values) if values else 0.0:.1f} mm, over 5 mm: {over}"
+            f"set {k}: {len(values)} grips with carried moves, worst {worst:.1f} mm, "
+            f"median {np.median(values) if values else 0.0:.1f} mm, over 5 mm: {over}; "
+            f"joint step inside: worst {max(steps, default=0.0):.1f} deg, "
+            f"over 12 deg: {sum(w > 12.0 for w in steps)}"
         )
     return 0
 

@@ -37,6 +37,9 @@ FADE_SPEED = float(np.radians(240.0))
 MIN_FADE = 0.2  # s: the shortest fade
 FIX_FROM = 5e-5  # m: frames whose hands are already this close to the part's ends stay
 SOLVE_TOL = 1e-4  # m
+HOLD_TOL = 1e-3  # m: a hand this close to its end of the part holds it (solve_along)
+MAX_ADVANCE = 2.0  # points of its path a part moved in both hands goes on at most per point
+STALL_STEPS = 4  # bisections of how far the part goes where the arms cannot take it further
 RESOLVE_SIGMA = 3.0  # dense frames (50 ms at 60 fps): the Gaussian that smooths a correction
 # rad: the correction changing more than this between two dense frames has changed IK branch
 # (issue 19: a shoulder's abduction 40 -> 141 deg in one frame near the overhead singularity)
@@ -116,7 +119,8 @@ def carries(ir: MotionIR) -> list[Carry]:
     return sorted(out, key=lambda c: c.start)
 
 
-def _hands(skel: object, frames: Frames, rows: np.ndarray, q: FloatArray) -> FloatArray:
+def hand_pair(skel: object, frames: Frames, rows: np.ndarray, q: FloatArray) -> FloatArray:
+    """(N, 2, 3) the right and the left hand on the rows of ``frames`` with joints ``q``."""
     pose = forward(skel, q, frames.root_position[rows], frames.root_rotation[rows], with_axes=False)  # type: ignore[arg-type]
     return np.asarray(site_positions(skel, pose, ["r_hand", "l_hand"]))  # type: ignore[arg-type]
 
@@ -146,6 +150,112 @@ def part_ends(hands: FloatArray, length: float) -> FloatArray:
     return np.stack([mid + half, mid - half], axis=1)
 
 
+def part_path(hands: FloatArray, length: float) -> FloatArray:
+    """(P, 2, 3) the two ends of a part moved in both hands along a path whose hands, each
+    arm on its own path, are ``hands`` (P, 2, 3): the part's centre follows the hands'
+    mid-point, its axis turns from the start's to the end's on the minimum-jerk clock of the
+    path's progress (a rotation about one axis, not the line between two hands that each went
+    their own way: the hood's hands were 20 to 48 cm apart between its two keys), and its
+    length goes on the same clock from the start's to ``length``, the hands' distance where
+    they closed on it (a part turned in both hands before it is moved may start the move
+    squeezed: the pump's filter at 17 of 20 cm). Both hands' goals are rigid by construction."""
+    mid = hands.mean(axis=1)
+    ends = hands[[0, -1], 0] - hands[[0, -1], 1]
+    start = float(np.linalg.norm(ends[0]))
+    a0, a1 = (e / max(float(np.linalg.norm(e)), 1e-12) for e in ends)
+    w = minimum_jerk(np.linspace(0.0, 1.0, len(hands)))
+    angle = float(np.arccos(np.clip(a0 @ a1, -1.0, 1.0)))
+    if angle < 1e-6:
+        axis = np.broadcast_to(a0, mid.shape)
+    else:  # slerp
+        s = np.sin(angle)
+        axis = (np.sin((1.0 - w) * angle)[:, None] * a0 + np.sin(w * angle)[:, None] * a1) / s
+    half = 0.5 * (start + (length - start) * w)[:, None] * axis
+    return np.stack([mid + half, mid - half], axis=1)
+
+
+def solve_along(
+    skel: object,
+    frames: Frames,
+    goal: FloatArray,
+    dofs: dict[str, list[int]] | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Both arms (``dofs`` per hand; default the arm chains) solved onto the part's path
+    ``goal`` (P, 2, 3) point after point, each from the one before moved by the path's own step
+    (continuation): solved each on its own from the path's pose, two neighbouring points near
+    the shoulder's overhead singularity landed on two IK branches (issue 19: a shoulder 100 deg
+    apart). Where a hand cannot reach its end of the part, it leads: the other holds the part's
+    other end where that hand is (the part lags or tilts a little). Where even that fails (the
+    other hand further than ``HOLD_TOL`` from it), the part goes as far along its path as the
+    arms can take it (bisection, ``STALL_STEPS``) and no further: it stops short of a goal out of reach, held, instead of
+    one hand reaching on and the other falling behind (the hood edge stretched by 30 cm).
+    It never goes further than ``MAX_ADVANCE`` points ahead of the point before, so it catches
+    up gradually where the path comes back into reach. Returns the poses (P, D), each point's
+    error (P,: the worse hand's distance from its end of the part, or the follower's from the
+    leader's other end) and how far along the part's path each point took it (P,)."""
+    q = frames.q.copy()
+    error = np.zeros(len(q))
+    along = np.zeros(len(q))
+    arms = dofs or {hand: _arm_dofs(skel, hand) for hand in ("r_hand", "l_hand")}
+    start = hand_pair(skel, frames, np.array([0]), q[:1])[0]
+    error[0] = float(np.linalg.norm(start - goal[0], axis=-1).max())
+    last = len(q) - 1
+
+    def ends_at(s: float) -> FloatArray:
+        k = min(int(s), last - 1)
+        w = s - k
+        return (1.0 - w) * goal[k] + w * goal[k + 1]
+
+    def solve_at(k: int, seed: FloatArray, s: float) -> tuple[FloatArray, float]:
+        pose = seed.copy()
+        target = ends_at(s)
+        for i, hand in enumerate(arms):
+            pose = solve_hand(k, pose, hand, target[i])
+        hands = hand_pair(skel, frames, np.array([k]), pose[None])[0]
+        off = np.linalg.norm(hands - target, axis=-1)
+        if off.max() <= HOLD_TOL:
+            return pose, float(off.max())
+        # the hand that falls shorter leads: the other holds the part's other end where that
+        # hand is (the part tilts or lags a little instead of stopping)
+        lead = int(np.argmax(off))
+        other = 1 - lead
+        held = hands[lead] + target[other] - target[lead]
+        pose = solve_hand(k, pose, list(arms)[other], held)
+        hands = hand_pair(skel, frames, np.array([k]), pose[None])[0]
+        return pose, float(np.linalg.norm(hands[other] - held))
+
+    def solve_hand(k: int, pose: FloatArray, hand: str, target: FloatArray) -> FloatArray:
+        chain = arms[hand]
+        res = solve_ta(
+            skel, [Goal(hand, position=target)], pose, dofs=chain,  # type: ignore[arg-type]
+            root_position=frames.root_position[k], root_rotation=frames.root_rotation[k],
+            restarts=0, null_gain=0.0, tol=SOLVE_TOL,
+        )  # fmt: skip
+        out = pose.copy()
+        out[chain] = res.q[0, chain]
+        return out
+
+    for k in range(1, len(q)):
+        seed = frames.q[k].copy()
+        for chain in arms.values():
+            seed[chain] = q[k - 1, chain] + frames.q[k, chain] - frames.q[k - 1, chain]
+        s = min(float(k), along[k - 1] + MAX_ADVANCE)
+        pose, err = solve_at(k, seed, s)
+        if err > HOLD_TOL:
+            lo, hi = along[k - 1], s
+            pose, err = solve_at(k, seed, lo)
+            s = lo
+            for _ in range(STALL_STEPS if err <= HOLD_TOL else 0):
+                mid = 0.5 * (lo + hi)
+                p_mid, e_mid = solve_at(k, seed, mid)
+                if e_mid <= HOLD_TOL:
+                    lo, pose, err, s = mid, p_mid, e_mid, mid
+                else:
+                    hi = mid
+        q[k], error[k], along[k] = pose, err, s
+    return q, error, along
+
+
 def keep_rigid(
     skel: object,
     frames: Frames,
@@ -163,25 +273,15 @@ def keep_rigid(
     if rows.size < 2:
         return
     q = frames.q[rows].copy()
-    hands = _hands(skel, frames, rows, q)
+    hands = hand_pair(skel, frames, rows, q)
     length = float(np.linalg.norm(hands[0, 0] - hands[0, 1]))
     goal = part_ends(hands, length)
     off = np.linalg.norm(hands - goal, axis=-1).max(axis=1)
     fix = np.flatnonzero(off > FIX_FROM)
     if fix.size == 0:
         return
-    solved = _solve_arms(skel, frames, rows, fix, q, hands, goal)
-    # each frame's solve starts from its own pose and converges where it will: the correction
-    # jumped from frame to frame (the avionics unit's elbow 18 deg in one output frame).
-    # The correction smoothed in time (its ends kept: the carry's first frame, where the part's
-    # length is taken, has none) and solved again from there, each frame lands near its
-    # neighbours.
+    q = solve_smoothed(skel, frames, rows, fix, q, hands, goal, sigma)
     arms = _both_arms(skel)
-    smooth = q.copy()
-    smooth[:, arms] += smooth_path(solved[:, arms] - q[:, arms], sigma)
-    hands2 = _hands(skel, frames, rows, smooth)
-    fix2 = np.flatnonzero(np.linalg.norm(hands2 - goal, axis=-1).max(axis=1) > FIX_FROM)
-    q = _solve_arms(skel, frames, rows, fix2, smooth, hands2, goal) if fix2.size else smooth
     if held is not None:
         keyed = frames.q[rows][:, arms]
         let_go = _let_go_at_branch_jumps(t[rows], q[:, arms] - keyed)
@@ -190,6 +290,26 @@ def keep_rigid(
     if held is not None:
         _fade_out(frames, rows[-1], q[-1] - frames.q[rows[-1]], carry.end + held)
     frames.q[rows] = q
+
+
+def solve_smoothed(
+    skel: object, frames: Frames, rows: np.ndarray, fix: np.ndarray, q: FloatArray,
+    hands: FloatArray, goal: FloatArray, sigma: float, dofs: dict[str, list[int]] | None = None,
+) -> FloatArray:  # fmt: skip
+    """``q`` (on ``rows``) with both arms on ``goal``: each frame of ``fix`` solved from its own
+    pose, the correction smoothed in time (a Gaussian of ``sigma`` frames, its ends kept) and
+    solved again from there. Each frame's solve converges where it will: the correction
+    jumped from frame to frame (the avionics unit's elbow 18 deg in one output frame);
+    solved again from the smoothed correction, each frame lands near its neighbours."""
+    solved = solve_arms(skel, frames, rows, fix, q, hands, goal, dofs)
+    arms = sorted({i for chain in dofs.values() for i in chain}) if dofs else _both_arms(skel)
+    smooth = q.copy()
+    smooth[:, arms] += smooth_path(solved[:, arms] - q[:, arms], sigma)
+    hands2 = hand_pair(skel, frames, rows, smooth)
+    fix2 = np.flatnonzero(np.linalg.norm(hands2 - goal, axis=-1).max(axis=1) > FIX_FROM)
+    if not fix2.size:
+        return smooth
+    return solve_arms(skel, frames, rows, fix2, smooth, hands2, goal, dofs)
 
 
 def _fade_out(frames: Frames, last: int, offset: FloatArray, start: float) -> None:
@@ -244,17 +364,18 @@ def opening(ir: MotionIR, carry: Carry) -> float:
     return max(ends, default=0.0)
 
 
-def _solve_arms(
+def solve_arms(
     skel: object, frames: Frames, rows: np.ndarray, fix: np.ndarray, q: FloatArray,
-    hands: FloatArray, goal: FloatArray,
+    hands: FloatArray, goal: FloatArray, dofs: dict[str, list[int]] | None = None,
 ) -> FloatArray:  # fmt: skip
-    """``q`` with both arms of the rows ``fix`` solved onto their ends of the part, where
-    that brings the hand closer."""
+    """``q`` with both arms (``dofs`` per hand; default the arm chains) of the rows ``fix``
+    solved onto their ends of the part, where that brings the hand closer."""
     q = q.copy()
     sub = rows[fix]
     for k, hand in enumerate(("r_hand", "l_hand")):
+        chain = dofs[hand] if dofs else _arm_dofs(skel, hand)
         model = prepare(
-            skel, [hand], q[fix], dofs=_arm_dofs(skel, hand),  # type: ignore[arg-type]
+            skel, [hand], q[fix], dofs=chain,  # type: ignore[arg-type]
             root_position=frames.root_position[sub], root_rotation=frames.root_rotation[sub],
         )  # fmt: skip
         res = solve_ta(

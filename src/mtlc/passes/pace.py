@@ -31,8 +31,19 @@ from mtlc.ir.model import FloatArray, Frames, Keyframes, MotionIR, Segment
 from mtlc.ir.pchip import pchip
 from mtlc.passes import timewarp
 from mtlc.passes.approach import FINGERTIPS
-from mtlc.passes.carry import Carry, carries, keep_rigid
+from mtlc.passes.carry import (
+    FIX_FROM,
+    Carry,
+    carries,
+    hand_pair,
+    keep_rigid,
+    part_path,
+    solve_along,
+    solve_arms,
+    solve_smoothed,
+)
 from mtlc.passes.context import INTERNAL_FPS, PassContext
+from mtlc.passes.hold import _arm_dofs as arm_dofs
 from mtlc.passes.interpolate import correct_base, interpolate_joints, interpolate_root
 from mtlc.passes.profile import gaussian_rows as gaussian_rows  # re-exported
 from mtlc.passes.profile import minimum_jerk as minimum_jerk  # re-exported
@@ -63,6 +74,11 @@ NORMAL_BAND = 0.05  # m: behind a site's surface counts this close to its normal
 # clearance corrections) add a little, so the reach itself keeps a sixth in hand.
 PEAK_JOINT_SPEED = float(np.radians(300.0))
 MAX_STRETCH = 3.0  # a movement lasts at most this many times the timeline's time for it
+# a part carried in both hands (``_carried``): the last share of the path over which the
+# correction goes to nothing where its end already holds the part; how close (m) both hands
+# must be to their ends of the part for the point to count as reached
+END_BLEND = 0.25
+REACH_TOL = 2e-3
 NEED_SAMPLES = 512  # the minimum-jerk clock sampled this densely to find the fastest joint
 
 
@@ -276,6 +292,114 @@ def _smoothed(
     return out
 
 
+def grip_length(ir: MotionIR, carry: Carry) -> float:
+    """The hands' distance where both closed on the part: the part's length."""
+    _, at = _body(ir, np.array([carry.start]))
+    hands = hand_pair(ir.skeleton, at, np.array([0]), at.q)[0]
+    return float(np.linalg.norm(hands[0] - hands[1]))
+
+
+def _carried(ir: MotionIR, m: Movement, body: Frames, idx: list[int], carry: Carry) -> Frames:
+    """A path on which the part in both hands is rigid by construction: each arm's own path
+    (at even progress, smoothed by ``SMOOTH_SIGMA``) says where the part goes, the part's
+    path (``carry.part_path``: its centre, its axis turning on one plane, its length the
+    grip's) says where each hand goes, and both arms follow it, each point solved on from the
+    one before (``carry.solve_along``). Interpolating the two arms' keys each on its own and
+    correcting the part frame by frame afterwards squeezed a hood edge lifted overhead by 14 to
+    27 cm and flipped a shoulder between IK branches (issue 19).
+
+    Where the path's end already holds the part (both hands on their goals, the grip's length
+    apart) the end pose is the solver's: the correction goes to nothing over the last
+    ``END_BLEND`` of the path and those points are solved again from there. Where the goal is
+    out of reach for the part held rigid, the part stops at the last point both hands reach
+    (``REACH_TOL``) and the path is that far (the goal's shortfall is the hands' distance to
+    their goals there; verify reports it, MT0501)."""
+    skel = ir.skeleton
+    smooth = _smoothed(ir, m, body, idx, (), SMOOTH_SIGMA)
+    rows = np.arange(len(smooth.time))
+    hands = hand_pair(skel, smooth, rows, smooth.q)
+    goal = part_path(hands, grip_length(ir, carry))
+    # the arm chains the later arm segments key (shoulder, elbow, wrist): a clavicle moved here
+    # kept its new angle until something keyed it again, and the next two-handed reach, solved
+    # from the old one, closed on its part 6 cm wide (vehicle_battery male P5)
+    sides = {hand: arm_dofs(skel, hand) for hand in ("r_hand", "l_hand")}
+    q, _, _ = solve_along(skel, smooth, goal, sides)
+    end = hand_pair(skel, smooth, rows[-1:], smooth.q[-1:])[0]
+    if float(np.linalg.norm(end - goal[-1], axis=-1).max()) <= REACH_TOL:
+        # the end holds the part: the path ends on the solver's pose. Two ways there, the one
+        # that holds the part better (then turns the arms less from point to point): the
+        # continuation with its correction faded out over the last ``END_BLEND`` and solved
+        # again from there, or each point solved from the path's own pose and its correction
+        # smoothed (carry.solve_smoothed; the continuation can stall at a joint's limit); or,
+        # where neither holds the part (both re-solve each point on its own, and the blend can
+        # leave the arms' reach: a box put on a bench 68 mm squeezed, female P5), the
+        # continuation to its own end pose (the hands on their goals, the arms turned another
+        # way: the arm segments after it start from the solver's pose)
+        fade = 1.0 - minimum_jerk((np.linspace(0.0, 1.0, len(q)) - (1.0 - END_BLEND)) / END_BLEND)
+        candidates = [
+            _onto(skel, smooth, smooth.q + fade[:, None] * (q - smooth.q), goal, sides),
+            _onto(skel, smooth, smooth.q, goal, sides, SMOOTH_SIGMA * (PATH_POINTS - 1)),
+            q,  # the continuation to its own end, where neither of those holds the part
+        ]
+        best = min(candidates, key=lambda c: _holding(skel, smooth, c, goal))
+        return Frames(0.0, smooth.time, smooth.root_position, smooth.root_rotation, best)
+    # out of reach: the arms take the part as far along its path as they can, held (the
+    # continuation stops it there, ``carry.solve_along``)
+    out = Frames(0.0, smooth.time, smooth.root_position, smooth.root_rotation, q)
+    _record_shortfall(ir, m, out)
+    return out
+
+
+def _onto(
+    skel: object,
+    path: Frames,
+    seed: FloatArray,
+    goal: FloatArray,
+    dofs: dict[str, list[int]],
+    sigma: float = 0.0,
+) -> FloatArray:
+    """``seed`` with both arms (``dofs``) solved onto ``goal`` where they are off it (from
+    ``seed``; with a smoothed correction solved again when ``sigma`` > 0)."""
+    rows = np.arange(len(seed))
+    now = hand_pair(skel, path, rows, seed)
+    fix = np.flatnonzero(np.linalg.norm(now - goal, axis=-1).max(axis=1) > FIX_FROM)
+    if not fix.size:
+        return seed
+    if sigma > 0.0:
+        return solve_smoothed(skel, path, rows, fix, seed, now, goal, sigma, dofs)
+    return solve_arms(skel, path, rows, fix, seed, now, goal, dofs)
+
+
+def _holding(
+    skel: object, path: Frames, q: FloatArray, goal: FloatArray
+) -> tuple[bool, float, float]:
+    """How well poses ``q`` hold the part: whether they miss its goal at the end (by more than
+    ``REACH_TOL``: contact not made), how far they squeeze or stretch it from its length (whole
+    mm, the worst point; a hand that lags with the other holding the part's other end where it
+    is still holds it), then the largest turn of a joint between two points."""
+    hands = hand_pair(skel, path, np.arange(len(q)), q)
+    apart = np.linalg.norm(hands[:, 0] - hands[:, 1], axis=1)
+    length = np.linalg.norm(goal[:, 0] - goal[:, 1], axis=1)
+    off = float(np.abs(apart - length).max())
+    misses = float(np.linalg.norm(hands[-1] - goal[-1], axis=-1).max()) > REACH_TOL
+    return (misses, round(off * 1000.0), float(np.abs(np.diff(q, axis=0)).max(initial=0.0)))
+
+
+def _record_shortfall(ir: MotionIR, m: Movement, path: Frames) -> None:
+    """Each goal of the movement that its hand no longer reaches at the path's end: its
+    distance there, what verify reads (a part stopped short of a goal out of reach)."""
+    ends = hand_pair(ir.skeleton, path, np.array([len(path.time) - 1]), path.q[-1:])[0]
+    for seg in m.segments:
+        if seg.goal.position is None or seg.goal.effector not in ("r_hand", "l_hand"):
+            continue
+        if abs(seg.end - m.end) > EPS:
+            continue
+        at = ends[0 if seg.goal.effector == "r_hand" else 1]
+        off = float(np.linalg.norm(at - np.asarray(seg.goal.position, dtype=float)))
+        if off > max(float(seg.result.get("distance", 0.0)), REACH_TOL):
+            seg.result = {**seg.result, "distance": off, "reached": False}
+
+
 def reach_path(
     ir: MotionIR, m: Movement, frames: Frames, rigid: Sequence[Carry] = ()
 ) -> ReachPath | None:
@@ -296,6 +420,10 @@ def reach_path(
     body = _frames_at(frames, np.interp(even, u, frames.time))
     both = {"r_hand", "l_hand"} <= set(m.effectors)  # one hand's reach keeps its own path
     held = [c for c in rigid if both and c.start < m.end - EPS and c.end > m.start + EPS]
+    if len(held) == 1 and held[0].start <= m.start + EPS:  # the part moved from where it is
+        chosen = _carried(ir, m, body, idx, held[0])
+        u2, _ = progress(ir, m, chosen)
+        return ReachPath(u2, chosen.q[:, idx])
     chosen = _smoothed(ir, m, body, idx, held, SMOOTH_SIGMA)
     allowed = approach_depth(ir, m, chosen) + APPROACH_SPARE
     # a part in both hands keeps 10 %: smoothed wider after it is made rigid, the correction

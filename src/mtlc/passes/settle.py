@@ -1,0 +1,121 @@
+"""Pass 9c: a walk starts from a natural stand: the trunk upright, free arms hanging (issue 19).
+
+A walk keys the legs and the root only; every other joint holds what the segment before it left.
+After a reach that bent the trunk (a 14 kg battery set on a bench at 90 cm, vehicle_battery) and
+a release, the manikin walked back 6.4 s with the trunk bent ~57 deg (lumbar 45, thorax 12) and
+the elbows at 30 and 65 deg: the reach's pose, kept because nothing asked for another.
+
+Here, on the dense frames of each walk, the trunk (lumbar and thorax) goes to its rest pose, and
+each free arm (its hand holds nothing: no grip closed, not on a site, no arm segment during the
+walk) to the comfort pose, on a minimum-jerk ramp from the walk's start (``ramp_length``). The
+correction then stays until the next segment that keys that joint (a reach, a posture) and is
+let go of over that segment (``keep_until_keyed``), so the reach after the walk starts from the
+upright body and ends where it was solved to. An arm that carries a part keeps it (carry_pose
+brings a part carried in both hands near the body).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mtlc.body.skeleton import Skeleton
+from mtlc.ir.model import FloatArray, Frames, MotionIR
+from mtlc.passes.context import PassContext
+from mtlc.passes.hold import ARM_HAND, _arm_dofs, _closed_at, on_site
+from mtlc.passes.profile import minimum_jerk
+
+TRUNK = tuple(f"{j}_{a}" for j in ("lumbar", "thorax") for a in ("flex", "lat", "rot"))
+NEAR = math.radians(2.0)  # rad: a group of joints this close to its rest pose is left alone
+SPEED = math.radians(150.0)  # rad/s: a ramp's mean joint speed at most (peak 280 deg/s)
+PEAK = 1.875  # a minimum-jerk ramp's peak speed over its mean
+MIN_RAMP = 0.6  # s: the shortest ramp
+MIN_FADE = 0.3  # s: the shortest fade of a correction over the segment that keys its joint
+EPS = 1e-9
+
+
+def ramp_length(offset: FloatArray, room: float) -> float:
+    """Seconds a minimum-jerk ramp of ``offset`` (rad) takes: at least ``MIN_RAMP``, no joint
+    faster than ``SPEED`` on average, at most ``room``."""
+    return min(room, max(MIN_RAMP, PEAK * float(np.abs(offset).max(initial=0.0)) / SPEED))
+
+
+def keyed_spans(ir: MotionIR, name: str) -> list[tuple[float, float]]:
+    """(start, end) of the segments whose keyframes move the dof ``name``, in time order."""
+    return sorted(
+        (s.start, s.end)
+        for s in ir.segments
+        if s.keyframes is not None and name in s.keyframes.dofs
+    )
+
+
+def keep_until_keyed(
+    skel: Skeleton, ir: MotionIR, frames: Frames, dofs: list[int], offset: FloatArray,
+    rise: tuple[float, float],
+) -> None:  # fmt: skip
+    """Add ``offset`` (len(dofs),) to ``dofs`` in place: on a minimum-jerk ramp over ``rise``
+    (start, end), then held until the next segment that keys the dof starts (one starting in
+    ``rise`` or later), and faded out over that segment (at least ``MIN_FADE``), so the
+    segment, solved from the pose before the correction, ends where it was solved to."""
+    t = frames.time
+    a, b = rise
+    if b > a + EPS:
+        up = minimum_jerk(np.clip((t - a) / (b - a), 0.0, 1.0)) * (t >= a - EPS)
+    else:  # a step: the frames from ``a`` on
+        up = (t >= a - EPS).astype(float)
+    for d, c in zip(dofs, offset, strict=True):
+        if abs(c) <= EPS:
+            continue
+        later = [s for s in keyed_spans(ir, skel.dof_names[d]) if s[0] >= a - EPS]
+        down = np.ones_like(t)
+        end = np.inf
+        if later:  # kept until that segment, let go of over it
+            start, end = later[0][0], max(later[0][1], later[0][0] + MIN_FADE)
+            down = 1.0 - minimum_jerk(np.clip((t - start) / (end - start), 0.0, 1.0))
+        rows = np.flatnonzero((t >= a - EPS) & (t < end))
+        moved = frames.q[rows, d] + np.minimum(up[rows], down[rows]) * c
+        frames.q[rows, d] = np.clip(moved, skel.lower[d], skel.upper[d])
+
+
+def free_arms(ir: MotionIR, start: float, end: float, held: dict[str, np.ndarray]) -> list[str]:
+    """The arm tracks whose hand is free over ``start``..``end``: no grip closed at ``start``,
+    not on a site (``held``: ``hold.on_site`` at ``start``), no segment of the arm in between."""
+    out = []
+    for track, hand in ARM_HAND.items():
+        grips = sorted((s for s in ir.on_track(hand) if s.kind == "grip"), key=lambda s: s.start)
+        busy = any(s.start < end - EPS and s.end > start + EPS for s in ir.on_track(track))
+        if not busy and not _closed_at(grips, start + EPS) and not bool(held[hand][0]):
+            out.append(track)
+    return out
+
+
+def settle_walk(
+    skel: Skeleton, ir: MotionIR, frames: Frames, start: float, end: float, tracks: list[str]
+) -> None:
+    """Lead the trunk, and the arms of ``tracks``, to the rest pose from the walk's start."""
+    t = frames.time
+    i = int(np.searchsorted(t, start - EPS))
+    if i >= len(t) or end - start <= EPS:
+        return
+    rest = np.asarray(skel.q_comfort, dtype=float)
+    groups = [[skel.dof_index(n) for n in TRUNK]]
+    groups += [_arm_dofs(skel, ARM_HAND[track]) for track in tracks]
+    for dofs in groups:
+        offset = rest[dofs] - frames.q[i, dofs]
+        if float(np.abs(offset).max()) <= NEAR:
+            continue
+        length = ramp_length(offset, end - start)
+        keep_until_keyed(skel, ir, frames, dofs, offset, (start, start + length))
+
+
+def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
+    frames = ir.frames
+    skel = ir.skeleton
+    if frames is None or not len(frames.time) or skel is None:
+        return ir
+    walks = sorted((s.start, s.end) for s in ir.on_track("root") if s.kind == "locomotion")
+    for start, end in walks:
+        held = on_site(ir, np.array([start + EPS]))
+        settle_walk(skel, ir, frames, start, end, free_arms(ir, start, end, held))
+    return ir

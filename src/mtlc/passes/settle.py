@@ -17,6 +17,7 @@ brings a part carried in both hands near the body).
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 
 import numpy as np
 
@@ -41,41 +42,45 @@ def ramp_length(offset: FloatArray, room: float) -> float:
     return min(room, max(MIN_RAMP, PEAK * float(np.abs(offset).max(initial=0.0)) / SPEED))
 
 
-def keyed_spans(ir: MotionIR, name: str) -> list[tuple[float, float]]:
-    """(start, end) of the segments whose keyframes move the dof ``name``, in time order."""
-    return sorted(
+def next_keyed(ir: MotionIR, names: Collection[str], after: float) -> tuple[float, float] | None:
+    """(start, end) of the first segment starting at ``after`` or later whose keyframes move
+    any of the dofs ``names``; None when none does."""
+    spans = [
         (s.start, s.end)
         for s in ir.segments
-        if s.keyframes is not None and name in s.keyframes.dofs
-    )
+        if s.start >= after - EPS
+        and s.keyframes is not None
+        and not names.isdisjoint(s.keyframes.dofs)
+    ]
+    return min(spans, default=None)
 
 
 def keep_until_keyed(
     skel: Skeleton, ir: MotionIR, frames: Frames, dofs: list[int], offset: FloatArray,
-    rise: tuple[float, float],
+    rise: tuple[float, float], until: Collection[str] | None = None,
 ) -> None:  # fmt: skip
     """Add ``offset`` (len(dofs),) to ``dofs`` in place: on a minimum-jerk ramp over ``rise``
-    (start, end), then held until the next segment that keys the dof starts (one starting in
-    ``rise`` or later), and faded out over that segment (at least ``MIN_FADE``), so the
-    segment, solved from the pose before the correction, ends where it was solved to."""
+    (start, end), then held until the next segment that keys one of the dofs ``until`` (the
+    dofs themselves by default) starts (in ``rise`` or later), and faded out over that segment
+    (at least ``MIN_FADE``), so the segment, solved from the pose before the correction, ends
+    where it was solved to."""
     t = frames.time
     a, b = rise
     if b > a + EPS:
         up = minimum_jerk(np.clip((t - a) / (b - a), 0.0, 1.0)) * (t >= a - EPS)
     else:  # a step: the frames from ``a`` on
         up = (t >= a - EPS).astype(float)
-    for d, c in zip(dofs, offset, strict=True):
-        if abs(c) <= EPS:
-            continue
-        later = [s for s in keyed_spans(ir, skel.dof_names[d]) if s[0] >= a - EPS]
-        down = np.ones_like(t)
-        end = np.inf
-        if later:  # kept until that segment, let go of over it
-            start, end = later[0][0], max(later[0][1], later[0][0] + MIN_FADE)
-            down = 1.0 - minimum_jerk(np.clip((t - start) / (end - start), 0.0, 1.0))
-        rows = np.flatnonzero((t >= a - EPS) & (t < end))
-        moved = frames.q[rows, d] + np.minimum(up[rows], down[rows]) * c
-        frames.q[rows, d] = np.clip(moved, skel.lower[d], skel.upper[d])
+    names = set(until) if until is not None else {skel.dof_names[d] for d in dofs}
+    span = next_keyed(ir, names, a)
+    down = np.ones_like(t)
+    end = np.inf
+    if span is not None:  # kept until that segment, let go of over it
+        start, end = span[0], max(span[1], span[0] + MIN_FADE)
+        down = 1.0 - minimum_jerk(np.clip((t - start) / (end - start), 0.0, 1.0))
+    rows = np.flatnonzero((t >= a - EPS) & (t < end))
+    weight = np.minimum(up[rows], down[rows])
+    moved = frames.q[np.ix_(rows, dofs)] + weight[:, None] * offset[None]
+    frames.q[np.ix_(rows, dofs)] = np.clip(moved, skel.lower[dofs], skel.upper[dofs])
 
 
 def free_arms(ir: MotionIR, start: float, end: float, held: dict[str, np.ndarray]) -> list[str]:
@@ -99,14 +104,22 @@ def settle_walk(
     if i >= len(t) or end - start <= EPS:
         return
     rest = np.asarray(skel.q_comfort, dtype=float)
-    groups = [[skel.dof_index(n) for n in TRUNK]]
-    groups += [_arm_dofs(skel, ARM_HAND[track]) for track in tracks]
-    for dofs in groups:
+    # the trunk until a segment moves it or an arm (a reach solved on the trunk as it was:
+    # kept through an arm's place, the access panel's hands ended 84-116 mm off the bench)
+    arms = [n for hand in ARM_HAND.values() for n in _names(skel, _arm_dofs(skel, hand))]
+    groups = [([skel.dof_index(n) for n in TRUNK], [*TRUNK, *arms])]
+    groups += [(dofs, _names(skel, dofs)) for dofs in
+               (_arm_dofs(skel, ARM_HAND[track]) for track in tracks)]  # fmt: skip
+    for dofs, until in groups:
         offset = rest[dofs] - frames.q[i, dofs]
         if float(np.abs(offset).max()) <= NEAR:
             continue
         length = ramp_length(offset, end - start)
-        keep_until_keyed(skel, ir, frames, dofs, offset, (start, start + length))
+        keep_until_keyed(skel, ir, frames, dofs, offset, (start, start + length), until)
+
+
+def _names(skel: Skeleton, dofs: list[int]) -> list[str]:
+    return [skel.dof_names[d] for d in dofs]
 
 
 def run(ir: MotionIR, ctx: PassContext) -> MotionIR:
